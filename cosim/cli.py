@@ -1,0 +1,171 @@
+"""The ``auv-cosim`` command: parse, call one function, report. No logic lives here.
+
+Every command exits 0 on success and non-zero with a one-line reason on stderr on failure
+(2 for a usage error, 1 for a failed command, 130 for Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from cosim.errors import CosimError
+
+DEFAULT_FMU_DIR = Path("build/fmus")
+
+
+def _build(args: argparse.Namespace) -> int:
+    from cosim.build import build_fmus
+
+    for name, path in build_fmus(args.out, force=args.force).items():
+        print(f"{name}: {path}")
+    return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from cosim.build import ensure_fmus
+    from cosim.validation import validate_fmus
+
+    problems = validate_fmus(ensure_fmus(args.fmu_dir))
+    for problem in problems:
+        print(problem)
+    if problems:
+        raise CosimError(f"{len(problems)} problem(s) found in the FMUs")
+    print("both FMUs are valid")
+    return 0
+
+
+def _scenarios(args: argparse.Namespace) -> int:
+    from cosim.scenario import builtin_scenarios
+
+    for scenario_id, summary in builtin_scenarios().items():
+        print(f"{scenario_id:<8} {summary}")
+    return 0
+
+
+def _run(args: argparse.Namespace) -> int:
+    from cosim.runner import run_from_cli
+
+    return run_from_cli(args)
+
+
+def _export(args: argparse.Namespace) -> int:
+    from cosim.export import export_from_cli
+
+    return export_from_cli(args)
+
+
+def _view(args: argparse.Namespace) -> int:
+    from cosim.recording import view_run
+
+    return view_run(args.run_dir)
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    from cosim.analyze import analyze_from_cli
+
+    return analyze_from_cli(args)
+
+
+def _report(args: argparse.Namespace) -> int:
+    from cosim.report import write_report
+
+    index = write_report(args.run_dir)
+    print(f"report: {index}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="auv-cosim",
+        description="Co-simulate the REMUS 100 with internal actuators as two FMI 2.0 FMUs.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("build", help="build AuvPlant.fmu and AuvAutopilot.fmu")
+    p.add_argument("--out", type=Path, default=DEFAULT_FMU_DIR, help="output folder [%(default)s]")
+    p.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    p.set_defaults(func=_build)
+
+    p = sub.add_parser("validate", help="validate both FMUs (fmpy + our own checks)")
+    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.set_defaults(func=_validate)
+
+    p = sub.add_parser("scenarios", help="list the built-in scenarios")
+    p.set_defaults(func=_scenarios)
+
+    p = sub.add_parser("run", help="run a built-in scenario id or a scenario TOML file")
+    p.add_argument("scenario", help="scenario id (see `auv-cosim scenarios`) or .toml path")
+    p.add_argument("--out", type=Path, help="run folder [runs/<scenario-id>]")
+    p.add_argument("--stop-time", type=float, help="override the stop time, s")
+    p.add_argument("--step", type=float, help="override the communication step, s")
+    p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="master algorithm")
+    p.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
+    p.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
+    p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
+    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_run)
+
+    p = sub.add_parser("export", help="export a scenario as SSP or OSP system structure")
+    p.add_argument("scenario", help="scenario id or .toml path")
+    p.add_argument("--ssp", type=Path, help="write an SSP 1.0 archive to this file")
+    p.add_argument("--osp", type=Path, help="write OspSystemStructure.xml + FMUs to this folder")
+    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.set_defaults(func=_export)
+
+    p = sub.add_parser("view", help="open a run's recording in the Rerun viewer")
+    p.add_argument("run_dir", type=Path, help="a run folder holding recording.rrd")
+    p.set_defaults(func=_view)
+
+    p = sub.add_parser("analyze", help="equilibria, continuation sweeps, phase portraits")
+    asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")
+    a = asub.add_parser("equilibria", help="all equilibria in the search box, with stability")
+    _add_model_options(a)
+    a.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    a = asub.add_parser("sweep", help="continuation of equilibrium branches over a parameter")
+    a.add_argument("param", choices=["roll_torque", "mass_position", "mu", "eta"])
+    a.add_argument("start", type=float, metavar="FROM")
+    a.add_argument("stop", type=float, metavar="TO")
+    a.add_argument("--steps", type=int, default=200, help="[%(default)s]")
+    a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
+    _add_model_options(a)
+    a = asub.add_parser("phase-portrait", help="open-loop horizontal trajectories (Fig. 5.4)")
+    a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
+    _add_model_options(a)
+    p.set_defaults(func=_analyze)
+
+    p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
+    p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
+    p.set_defaults(func=_report)
+    return parser
+
+
+def _add_model_options(a: argparse.ArgumentParser) -> None:
+    a.add_argument("--vehicle", default="remus100", help="parameter set name or file")
+    a.add_argument("--variant", type=int, choices=[0, 1, 2], default=2, help="[%(default)s]")
+    a.add_argument("--thrust", type=float, default=9.0, help="N [%(default)s]")
+    a.add_argument("--roll-torque", type=float, default=0.0, help="N.m [%(default)s]")
+    a.add_argument("--mass-position", type=float, default=0.0, help="m [%(default)s]")
+    a.add_argument("--current-east", type=float, default=0.0, help="m/s [%(default)s]")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except CosimError as exc:
+        print(f"auv-cosim {args.command}: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"auv-cosim {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except (ValueError, OSError, RuntimeError) as exc:
+        print(f"auv-cosim {args.command}: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,403 @@
+"""Equations of motion of the REMUS 100 with internal actuators: the one source of truth.
+
+Everything that moves the vehicle is here: rigid body (2.3.11, 2.3.13), added mass and its
+Coriolis terms (A.62), the non-uniform-current terms (3.4.12, 3.4.20), viscous cross-flow
+and lift (4.2.6-4.2.9), hydrostatics (3.5.3), propeller, tunnel thruster (6.3.79), stern
+planes (Table 6.1) and the internal moving mass with its servo (6.3.12-6.3.13). The
+equation numbers refer to B. Li, *Dynamics and Control of Autonomous Underwater Vehicles
+with Internal Actuators*, FAU 2016; ``shared/spec/MODEL.md`` restates them.
+
+The equation integrated is the full form (3.6.2 with viscous terms, 4.3.1), on the velocity
+over ground nu and the relative velocity nu_r = nu - nu_c::
+
+    (M_RB + M_A) nu_dot = tau - C_RB(nu) nu - C_A*(nu_r) nu_r - D(nu_r) nu_r + g(eta)
+                          + (Mbar + M_A) nuc_dot + Cbar(nu) nu_c
+
+(here g(eta) is the restoring force on the right-hand side). C_RB uses the
+linear-velocity-independent parametrisation, which makes this reduce exactly to the
+relative form (3.6.10) in a steady, uniform current.
+
+State vector (``STATE_NAMES``, SI, angles in rad)::
+
+    [north, east, down, roll, pitch, yaw, u, v, w, p, q, r, mass_position, mass_velocity]
+
+Input vector (``INPUT_NAMES``), held constant over a step::
+
+    [thrust, roll_torque, tunnel_force, fin_angle, mass_position_cmd,
+     current_north, current_east, current_down]
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+from plant_fmu.parameters import VehicleParameters
+
+STATE_NAMES: tuple[str, ...] = (
+    "north", "east", "down", "roll", "pitch", "yaw",
+    "u", "v", "w", "p", "q", "r",
+    "mass_position", "mass_velocity",
+)  # fmt: skip
+STATE_UNITS: tuple[str, ...] = (
+    "m", "m", "m", "rad", "rad", "rad",
+    "m/s", "m/s", "m/s", "rad/s", "rad/s", "rad/s",
+    "m", "m/s",
+)  # fmt: skip
+INPUT_NAMES: tuple[str, ...] = (
+    "thrust", "roll_torque", "tunnel_force", "fin_angle", "mass_position_cmd",
+    "current_north", "current_east", "current_down",
+)  # fmt: skip
+INPUT_UNITS: tuple[str, ...] = ("N", "N.m", "N", "rad", "m", "m/s", "m/s", "m/s")
+
+STATE_INDEX = {name: i for i, name in enumerate(STATE_NAMES)}
+INPUT_INDEX = {name: i for i, name in enumerate(INPUT_NAMES)}
+N_STATES = len(STATE_NAMES)
+N_INPUTS = len(INPUT_NAMES)
+_POSE = slice(0, 6)
+_NU = slice(6, 12)
+_YV, _YVEL = 12, 13
+
+
+class Variant(IntEnum):
+    """Which degrees of freedom move (the ``variant`` codes of INTERFACES.md)."""
+
+    FULL = 0  # 6-DOF with moving mass, thruster and fins (6.3.78)-(6.3.79)
+    LATERAL = 1  # u, v, r, p, phi, psi with the moving mass (6.3.13); w = q = theta = 0
+    HORIZONTAL = 2  # u, v, r, psi (5.1.30); w = q = p = theta = phi = 0
+
+    @property
+    def velocities(self) -> tuple[int, ...]:
+        """Indices into nu = [u, v, w, p, q, r] that are free."""
+        return {0: (0, 1, 2, 3, 4, 5), 1: (0, 1, 3, 5), 2: (0, 1, 5)}[self.value]
+
+    @property
+    def pose(self) -> tuple[int, ...]:
+        """Indices into eta = [north, east, down, roll, pitch, yaw] that are free."""
+        return {0: (0, 1, 2, 3, 4, 5), 1: (0, 1, 3, 5), 2: (0, 1, 5)}[self.value]
+
+    @property
+    def states(self) -> tuple[str, ...]:
+        """Names of the states that evolve in this variant."""
+        free = [STATE_NAMES[i] for i in self.pose] + [STATE_NAMES[6 + i] for i in self.velocities]
+        return (*free, "mass_position", "mass_velocity")
+
+
+# --- Kinematics (Ch. 2) -------------------------------------------------------------------
+
+
+def rotation_matrix(phi: float, theta: float, psi: float) -> np.ndarray:
+    """Body-to-earth rotation R = Rz(psi) Ry(theta) Rx(phi) (2.2.8)."""
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, st = math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    return np.array(
+        [
+            [cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st],
+            [sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf],
+            [-st, ct * sf, ct * cf],
+        ]
+    )
+
+
+def euler_rate_matrix(phi: float, theta: float) -> np.ndarray:
+    """T(eta2) with eta2_dot = T omega (2.2.15); singular at theta = +-90 deg."""
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, tt = math.cos(theta), math.tan(theta)
+    return np.array([[1.0, sf * tt, cf * tt], [0.0, cf, -sf], [0.0, sf / ct, cf / ct]])
+
+
+def skew(a: np.ndarray) -> np.ndarray:
+    """Cross-product matrix S(a) with S(a) b = a x b."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def _cross(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
+    # On 3-vectors np.cross costs ~10 us and numpy element access ~0.1 us per element; the
+    # terms below therefore work on Python floats (one array per term), which makes the
+    # right-hand side about 4x cheaper. Same product, same rounding.
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+# --- Inertia (2.3.11, Table 4.1) ----------------------------------------------------------
+
+
+def rigid_body_mass_matrix(p: VehicleParameters) -> np.ndarray:
+    """M_RB (2.3.11) about the CB, with r_g = [x_g, 0, z_g] and I_o = diag(I_xx, I_yy, I_zz)."""
+    r_g = np.array([p.x_g, 0.0, p.z_g])
+    M = np.zeros((6, 6))
+    M[:3, :3] = p.m * np.eye(3)
+    M[:3, 3:] = -p.m * skew(r_g)
+    M[3:, :3] = p.m * skew(r_g)
+    M[3:, 3:] = np.diag([p.I_xx, p.I_yy, p.I_zz])
+    return M
+
+
+def added_mass_matrix(p: VehicleParameters) -> np.ndarray:
+    """M_A: diag(a11..a66) with the sway-yaw (a26 = a62) and heave-pitch (a35 = a53) pairs."""
+    M = np.diag([p.a11, p.a22, p.a33, p.a44, p.a55, p.a66])
+    M[1, 5] = M[5, 1] = p.a26
+    M[2, 4] = M[4, 2] = p.a35
+    return M
+
+
+# --- The model -----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PlantModel:
+    """The vehicle-plus-fluid plant: parameters, the free DOFs and the fluid options.
+
+    Args:
+        params: the vehicle parameter set.
+        variant: which degrees of freedom move (:class:`Variant`).
+        ideal_fluid: drop the viscous terms D(nu_r) nu_r (Sec. 5.1, Thm 5.1).
+        current_shear: linear horizontal shear d(current_north)/d(east), 1/s. The current
+            at the vehicle is V_c = [current_north + shear * east, current_east, current_down].
+    """
+
+    params: VehicleParameters
+    variant: Variant = Variant.FULL
+    ideal_fluid: bool = False
+    current_shear: float = 0.0
+    mass_matrix: np.ndarray = field(init=False, repr=False)
+    _inverse_mass: np.ndarray = field(init=False, repr=False)
+    _frozen_pose: list[int] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "variant", Variant(self.variant))
+        if not math.isfinite(self.current_shear):
+            raise ValueError(f"current_shear = {self.current_shear!r}: expected a finite 1/s")
+        M = rigid_body_mass_matrix(self.params) + added_mass_matrix(self.params)
+        free = np.array(self.variant.velocities)
+        inverse = np.zeros((6, 6))
+        inverse[np.ix_(free, free)] = np.linalg.inv(M[np.ix_(free, free)])
+        object.__setattr__(self, "mass_matrix", M)
+        object.__setattr__(self, "_inverse_mass", inverse)
+        frozen = [i for i in range(6) if i not in self.variant.pose]
+        object.__setattr__(self, "_frozen_pose", frozen)
+
+    # The pieces of the right-hand side, each a generalised force on [X, Y, Z, K, M, N].
+
+    def current_velocity(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """Earth-frame water velocity at the vehicle, m/s (uniform part plus shear)."""
+        v_c = inputs[5:8].copy()
+        v_c[0] += self.current_shear * x[1]
+        return v_c
+
+    def relative_velocity(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """nu_r = nu - [R^T V_c; 0], m/s and rad/s."""
+        R = rotation_matrix(x[3], x[4], x[5])
+        nu_r = np.array(x[_NU], dtype=float)
+        nu_r[:3] -= R.T @ self.current_velocity(x, inputs)
+        return nu_r
+
+    def kinetic_energy(self, x: np.ndarray, inputs: np.ndarray) -> float:
+        """1/2 nu_r^T (M_RB + M_A) nu_r, J."""
+        nu_r = self.relative_velocity(x, inputs)
+        return 0.5 * float(nu_r @ self.mass_matrix @ nu_r)
+
+    def coriolis_rigid_body(self, nu: Sequence[float]) -> np.ndarray:
+        """C_RB(nu) nu (2.3.13), linear-velocity-independent form:
+        [m (w x v + w x (w x r_g)); m r_g x (w x v) + w x I_o w]."""
+        p = self.params
+        v, w = nu[:3], nu[3:]
+        r_g = (p.x_g, 0.0, p.z_g)
+        w_x_v = _cross(w, v)
+        w_w_rg = _cross(w, _cross(w, r_g))
+        rg_w_v = _cross(r_g, w_x_v)
+        w_I_w = _cross(w, (p.I_xx * w[0], p.I_yy * w[1], p.I_zz * w[2]))
+        return np.array(
+            [p.m * (a + b) for a, b in zip(w_x_v, w_w_rg, strict=True)]
+            + [p.m * a + b for a, b in zip(rg_w_v, w_I_w, strict=True)]
+        )
+
+    def coriolis_added_mass(self, nu_r: Sequence[float]) -> np.ndarray:
+        """C_A(nu_r) nu_r (A.62): with [p_A; pi_A] = M_A nu_r = [A11 u + A12 w; A21 u + A22 w],
+        C_A nu_r = [-p_A x w; -p_A x u - pi_A x w]."""
+        impulse = added_mass_matrix_times(self.params, nu_r)
+        lin, ang = impulse[:3], impulse[3:]
+        u, w = nu_r[:3], nu_r[3:]
+        return np.array(
+            [-a for a in _cross(lin, w)]
+            + [-a - b for a, b in zip(_cross(lin, u), _cross(ang, w), strict=True)]
+        )
+
+    def viscous(self, nu_r: np.ndarray) -> np.ndarray:
+        """Viscous cross-flow and lift forces on the right-hand side (4.2.6)-(4.2.9)."""
+        p = self.params
+        u, v, w, pp, q, r = nu_r
+        return np.array(
+            [
+                p.X_uu * u * abs(u),
+                p.Y_vv * v * abs(v) + p.Y_rr * r * abs(r) + p.Y_uv * u * v + p.Y_ur * u * r,
+                p.Z_ww * w * abs(w) + p.Z_qq * q * abs(q) + p.Z_uw * u * w + p.Z_uq * u * q,
+                p.K_p * pp + p.K_pp * pp * abs(pp),
+                p.M_ww * w * abs(w) + p.M_qq * q * abs(q) + p.M_uw * u * w + p.M_uq * u * q,
+                p.N_vv * v * abs(v) + p.N_rr * r * abs(r) + p.N_uv * u * v + p.N_ur * u * r,
+            ]
+        )
+
+    def restoring(self, phi: float, theta: float) -> np.ndarray:
+        """Hydrostatic force and moment on the right-hand side (3.5.3), r_b = 0:
+        [(W - B) Gamma; r_g x W Gamma], Gamma = R^T [0, 0, 1]."""
+        p = self.params
+        gamma = _gravity_direction(phi, theta)
+        moment = _cross((p.x_g, 0.0, p.z_g), gamma)
+        return np.array([(p.W - p.B) * c for c in gamma] + [p.W * c for c in moment])
+
+    def actuators(self, inputs: Sequence[float], u_r: float) -> np.ndarray:
+        """Propeller thrust T and torque Q, tunnel thruster F_t at (0, 0, z_t) (6.3.79) and
+        stern planes Z_ds (u_r/U0)^2 delta_s, M_ds (u_r/U0)^2 delta_s (Table 6.1)."""
+        p = self.params
+        thrust, torque, f_t, delta_s = inputs[0], inputs[1], inputs[2], inputs[3]
+        scale = (u_r / p.fin_reference_speed) ** 2 * delta_s
+        return np.array([thrust, f_t, p.Z_ds * scale, torque - f_t * p.z_t, p.M_ds * scale, 0.0])
+
+    def moving_mass(
+        self, x: Sequence[float], inputs: Sequence[float]
+    ) -> tuple[float, float, np.ndarray]:
+        """Servo motion of the moving mass and its reaction on the hull (6.3.12-6.3.13).
+
+        The servo m_v y'' + d_v y' + k_v y = k_v y_d follows the command clamped to the
+        stroke. Against a stop (or at the rail-speed limit) the mass does not accelerate
+        outwards and exerts no servo reaction. The reaction F_mm = -m_v y'' acts in sway at
+        (x_v, ., z_g): sway +F_mm, roll -z_g F_mm, yaw +x_v F_mm; the offset weight adds
+        r x m_v g Gamma with r = [0, y_v, 0].
+
+        Returns:
+            (y' in m/s, y'' in m/s^2, generalised force on the hull [X, Y, Z, K, M, N]).
+        """
+        p = self.params
+        y_v, y_vel = x[_YV], x[_YVEL]
+        y_d = min(max(inputs[4], -p.mass_stroke), p.mass_stroke)
+        accel = (p.k_v * (y_d - y_v) - p.d_v * y_vel) / p.m_v
+        if _against_stop(y_v, y_vel, accel, p.mass_stroke):
+            y_vel, accel = 0.0, 0.0
+        elif p.mass_speed_limit > 0.0 and abs(y_vel) >= p.mass_speed_limit and accel * y_vel > 0:
+            accel = 0.0
+        f_mm = -p.m_v * accel
+        weight = p.m_v * p.g * y_v
+        phi, theta = x[3], x[4]
+        roll = -p.z_g * f_mm + weight * math.cos(theta) * math.cos(phi)
+        yaw = p.x_v * f_mm + weight * math.sin(theta)
+        return y_vel, accel, np.array([0.0, f_mm, 0.0, roll, 0.0, yaw])
+
+    def current_forcing(
+        self,
+        R: np.ndarray,
+        current_body: Sequence[float],
+        nu: Sequence[float],
+        nu_r: Sequence[float],
+    ) -> np.ndarray:
+        """Forces the moving water exerts beyond C_A*(nu_r) nu_r: (Mbar + M_A) nuc_dot +
+        Cbar(nu) nu_c minus the non-uniform term of (3.4.20).
+
+        With r_b = 0 and V_u held constant over a step (3.4.12):
+        nuc_dot = [-w x U + Phi u; 0], Mbar nuc_dot + Cbar nu_c = [mbar Phi u; 0], and the
+        non-uniform term is -Phi [(A11 + mbar I) u_r + A12 w], Phi = R^T (dV_s/d eta1) R.
+        We write Phi u (the chain rule along the path) where MODEL.md prints Phi^T u: the two
+        agree for the symmetric gradients of (3.4.13) and differ only for a sheared current.
+
+        Args:
+            R: body-to-earth rotation; current_body: U = R^T V_c; nu, nu_r: velocities.
+        """
+        w_x_U = _cross(nu[3:], current_body)
+        nuc_dot = [-w_x_U[0], -w_x_U[1], -w_x_U[2], 0.0, 0.0, 0.0]
+        force = np.zeros(6)
+        if self.current_shear != 0.0:
+            gradient = np.zeros((3, 3))
+            gradient[0, 1] = self.current_shear
+            phi_t = R.T @ gradient @ R
+            phi_u = phi_t @ np.asarray(nu[:3])
+            nuc_dot[:3] = (np.asarray(nuc_dot[:3]) + phi_u).tolist()
+            m_bar = self.params.m_bar
+            impulse = added_mass_matrix_times(self.params, nu_r)
+            force[:3] = m_bar * phi_u - phi_t @ (
+                np.asarray(impulse[:3]) + m_bar * np.asarray(nu_r[:3])
+            )
+        return force + added_mass_matrix_times(self.params, nuc_dot)
+
+    def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """State derivative x_dot = f(x, inputs) of the active variant (frozen states: 0)."""
+        xs, us = x.tolist(), inputs.tolist()
+        phi, theta, psi = xs[3], xs[4], xs[5]
+        nu = xs[6:12]
+        R = rotation_matrix(phi, theta, psi)
+        current_body = (R.T @ self.current_velocity(x, inputs)).tolist()
+        nu_r = [nu[0] - current_body[0], nu[1] - current_body[1], nu[2] - current_body[2], *nu[3:]]
+        mass_velocity, mass_accel, f_mm = self.moving_mass(xs, us)
+        force = (
+            self.actuators(us, nu_r[0])
+            + f_mm
+            + self.restoring(phi, theta)
+            - self.coriolis_rigid_body(nu)
+            - self.coriolis_added_mass(nu_r)
+            + self.current_forcing(R, current_body, nu, nu_r)
+        )
+        if not self.ideal_fluid:
+            force += self.viscous(nu_r)
+        dx = np.empty(N_STATES)
+        dx[0:3] = R @ x[6:9]
+        dx[3:6] = euler_rate_matrix(phi, theta) @ x[9:12]
+        dx[_NU] = self._inverse_mass @ force
+        dx[_YV] = mass_velocity
+        dx[_YVEL] = mass_accel
+        if self._frozen_pose:
+            dx[self._frozen_pose] = 0.0
+        return dx
+
+    def project(self, x: np.ndarray) -> np.ndarray:
+        """Enforce the constraints on a state in place: frozen DOFs at 0, the mass within its
+        stops (resting, y_vel = 0, when pushed against one) and under the speed limit."""
+        p = self.params
+        if self.variant is not Variant.FULL:
+            frozen_nu = [6 + i for i in range(6) if i not in self.variant.velocities]
+            x[frozen_nu] = 0.0
+            x[[i for i in (2, 3, 4) if i not in self.variant.pose]] = 0.0
+        if x[_YV] >= p.mass_stroke:
+            x[_YV] = p.mass_stroke
+            x[_YVEL] = min(x[_YVEL], 0.0)
+        elif x[_YV] <= -p.mass_stroke:
+            x[_YV] = -p.mass_stroke
+            x[_YVEL] = max(x[_YVEL], 0.0)
+        if p.mass_speed_limit > 0.0:
+            x[_YVEL] = min(max(x[_YVEL], -p.mass_speed_limit), p.mass_speed_limit)
+        return x
+
+    def current_change_velocity_jump(self, x: np.ndarray, delta_current: np.ndarray) -> np.ndarray:
+        """Velocity change of the hull when the uniform current jumps by delta_current (earth,
+        m/s) between two steps: the impulse of the (Mbar + M_A) nuc_dot term,
+        (M_RB + M_A) d nu = (Mbar + M_A) [R^T dV; 0]."""
+        R = rotation_matrix(x[3], x[4], x[5])
+        d_nuc = np.zeros(6)
+        d_nuc[:3] = R.T @ np.asarray(delta_current, dtype=float)
+        impulse = np.array(added_mass_matrix_times(self.params, d_nuc))
+        impulse[:3] += self.params.m_bar * d_nuc[:3]
+        return self._inverse_mass @ impulse
+
+
+def added_mass_matrix_times(p: VehicleParameters, nu: Sequence[float]) -> list[float]:
+    """M_A nu without building the matrix."""
+    u, v, w, pp, q, r = nu
+    return [p.a11 * u, p.a22 * v + p.a26 * r, p.a33 * w + p.a35 * q, p.a44 * pp,
+            p.a55 * q + p.a35 * w, p.a66 * r + p.a26 * v]  # fmt: skip
+
+
+def _gravity_direction(phi: float, theta: float) -> np.ndarray:
+    """Gamma = R^T [0, 0, 1] = [-sin theta, cos theta sin phi, cos theta cos phi] (3.5.3)."""
+    ct = math.cos(theta)
+    return np.array([-math.sin(theta), ct * math.sin(phi), ct * math.cos(phi)])
+
+
+def _against_stop(y_v: float, y_vel: float, accel: float, stroke: float) -> bool:
+    """True when the mass is at a stop and neither moves nor is pushed away from it."""
+    if y_v >= stroke:
+        return y_vel >= 0.0 and accel >= 0.0
+    if y_v <= -stroke:
+        return y_vel <= 0.0 and accel <= 0.0
+    return False

@@ -1,0 +1,198 @@
+"""Vehicle parameter sets: load a TOML file into a validated, immutable object.
+
+A parameter set is a TOML file whose tables (``[rigid_body]``, ``[added_mass]``, ...) only
+group the keys for the reader: every key is a field of :class:`VehicleParameters`, named
+after the symbol in ``shared/spec/MODEL.md`` section 3 (``X_uu`` is X_u|u|, ``K_pp`` is
+K_p|p|, ...). A file may start from another set with ``base = "<name>"`` and override keys.
+
+Every value is SI. Bad input raises :class:`VehicleParameterError` naming the field, the
+value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+_VEHICLE_FOLDER = resources.files("plant_fmu") / "vehicles"
+
+
+class VehicleParameterError(ValueError):
+    """A parameter set is missing, unknown, or holds a value outside its allowed range."""
+
+
+class VehicleParameters(BaseModel):
+    """Physical parameters of one vehicle variant (SI units, body origin at the CB)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    name: str = "custom"
+    description: str = ""
+
+    # Rigid body (Table 4.1)
+    m: float = Field(gt=0.0, description="vehicle mass, kg")
+    W: float = Field(gt=0.0, description="weight, N")
+    B: float = Field(gt=0.0, description="buoyancy, N")
+    g: float = Field(default=9.81, gt=0.0, description="gravitational acceleration, m/s^2")
+    I_xx: float = Field(gt=0.0, description="roll inertia about the origin, kg m^2")
+    I_yy: float = Field(gt=0.0, description="pitch inertia about the origin, kg m^2")
+    I_zz: float = Field(gt=0.0, description="yaw inertia about the origin, kg m^2")
+    x_g: float = Field(description="x of the centre of gravity, m")
+    z_g: float = Field(description="z of the centre of gravity (down positive), m")
+    length: float = Field(gt=0.0, description="hull length, m")
+    diameter: float = Field(gt=0.0, description="hull diameter, m")
+
+    # Added mass (Table 4.1 / 5.1)
+    a11: float = Field(ge=0.0, description="surge added mass, kg")
+    a22: float = Field(ge=0.0, description="sway added mass, kg")
+    a33: float = Field(ge=0.0, description="heave added mass, kg")
+    a44: float = Field(ge=0.0, description="roll added inertia, kg m^2")
+    a55: float = Field(ge=0.0, description="pitch added inertia, kg m^2")
+    a66: float = Field(ge=0.0, description="yaw added inertia, kg m^2")
+    a26: float = Field(description="sway-yaw added mass coupling, kg m")
+    a35: float = Field(description="heave-pitch added mass coupling, kg m")
+
+    # Viscous terms (4.2.6)-(4.2.9), Tables 5.1, 5.4, 6.3
+    X_uu: float = Field(description="X_u|u|, kg/m")
+    Y_vv: float = Field(description="Y_v|v|, kg/m")
+    Y_rr: float = Field(description="Y_r|r|, kg m")
+    Y_uv: float = Field(description="Y_uv, kg/m")
+    Y_ur: float = Field(description="Y_ur, kg")
+    N_vv: float = Field(description="N_v|v|, kg")
+    N_rr: float = Field(description="N_r|r|, kg m^2")
+    N_uv: float = Field(description="N_uv, kg")
+    N_ur: float = Field(description="N_ur, kg m")
+    K_p: float = Field(description="linear roll damping K_p, N m s")
+    K_pp: float = Field(description="K_p|p|, kg m^2")
+    Z_ww: float = Field(description="Z_w|w|, kg/m")
+    Z_qq: float = Field(description="Z_q|q|, kg m")
+    Z_uw: float = Field(description="Z_uw, kg/m")
+    Z_uq: float = Field(description="Z_uq, kg")
+    M_ww: float = Field(description="M_w|w|, kg")
+    M_qq: float = Field(description="M_q|q|, kg m^2")
+    M_uw: float = Field(description="M_uw, kg")
+    M_uq: float = Field(description="M_uq, kg m")
+
+    # Stern planes (Table 6.1), scaled with (u_r / fin_reference_speed)^2
+    Z_ds: float = Field(description="fin heave force per fin angle at the reference speed, N/rad")
+    M_ds: float = Field(
+        description="fin pitch moment per fin angle at the reference speed, N m/rad"
+    )
+    fin_reference_speed: float = Field(gt=0.0, description="speed Z_ds, M_ds hold at, m/s")
+
+    # Internal moving mass (6.3.12)-(6.3.16)
+    m_v: float = Field(gt=0.0, description="moving mass, kg")
+    x_v: float = Field(description="x of the moving-mass rail, m")
+    mass_natural_frequency: float = Field(gt=0.0, description="servo omega_n, rad/s")
+    mass_damping_ratio: float = Field(gt=0.0, description="servo damping ratio zeta, 1")
+    mass_stroke: float = Field(gt=0.0, description="rail stop |y_v| <= stroke, m")
+    mass_speed_limit: float = Field(ge=0.0, description="rail speed limit, m/s (0 = off)")
+
+    # Thrusters
+    z_t: float = Field(default=0.0, description="tunnel-thruster z in body axes, m")
+
+    @model_validator(mode="after")
+    def _mass_matrix_positive_definite(self) -> VehicleParameters:
+        # Imported here: dynamics builds the matrices and itself imports this module.
+        from plant_fmu.dynamics import added_mass_matrix, rigid_body_mass_matrix
+
+        total = rigid_body_mass_matrix(self) + added_mass_matrix(self)
+        eigenvalues = np.linalg.eigvalsh(0.5 * (total + total.T))
+        if eigenvalues.min() <= 0.0:
+            raise ValueError(
+                f"M_RB + M_A must be positive definite, but its smallest eigenvalue is "
+                f"{eigenvalues.min():.6g} (check a26, a35, x_g, z_g against the inertias)"
+            )
+        return self
+
+    # Derived quantities (one place, so nothing re-types them)
+    @property
+    def k_v(self) -> float:
+        """Servo stiffness k_v = m_v omega_n^2, N/m (6.3.16)."""
+        return self.m_v * self.mass_natural_frequency**2
+
+    @property
+    def d_v(self) -> float:
+        """Servo damping d_v = 2 zeta sqrt(m_v k_v), N s/m (6.3.16)."""
+        return 2.0 * self.mass_damping_ratio * math.sqrt(self.m_v * self.k_v)
+
+    @property
+    def m_bar(self) -> float:
+        """Mass of the displaced fluid B/g, kg."""
+        return self.B / self.g
+
+    def replace(self, **changes: Any) -> VehicleParameters:
+        """A validated copy with some fields changed (``p.replace(W=306.0, z_g=0.0)``)."""
+        return _validate({**self.model_dump(), **changes}, source=f"{self.name} (modified)")
+
+
+def builtin_vehicles() -> list[str]:
+    """Names of the parameter sets shipped in ``plant_fmu/vehicles``."""
+    return sorted(
+        p.name.removesuffix(".toml") for p in _VEHICLE_FOLDER.iterdir() if p.name.endswith(".toml")
+    )
+
+
+def load_vehicle(name_or_path: str | Path = "remus100") -> VehicleParameters:
+    """Load a built-in set by name (``remus100``) or a TOML file by path."""
+    return _validate(_read_table(str(name_or_path), seen=()), source=str(name_or_path))
+
+
+def _read_table(name_or_path: str, seen: tuple[str, ...]) -> dict[str, Any]:
+    if name_or_path in seen:
+        raise VehicleParameterError(f"vehicle 'base' chain loops: {' -> '.join(seen)}")
+    path = Path(name_or_path)
+    if name_or_path in builtin_vehicles():
+        text = _VEHICLE_FOLDER.joinpath(f"{name_or_path}.toml").read_text()
+    elif path.suffix == ".toml" and path.is_file():
+        text = path.read_text()
+    else:
+        raise VehicleParameterError(
+            f"unknown vehicle {name_or_path!r}: expected one of {builtin_vehicles()} "
+            "or the path of an existing .toml file"
+        )
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise VehicleParameterError(
+            f"vehicle file {name_or_path!r} is not valid TOML: {exc}"
+        ) from exc
+    flat = _flatten(table, source=name_or_path)
+    base = flat.pop("base", None)
+    if base is None:
+        return flat
+    return {**_read_table(str(base), seen=(*seen, name_or_path)), **flat}
+
+
+def _flatten(table: dict[str, Any], source: str) -> dict[str, Any]:
+    """Tables only group keys: lift every key to the top level, refusing duplicates."""
+    flat: dict[str, Any] = {}
+    for key, value in table.items():
+        items = value.items() if isinstance(value, dict) else [(key, value)]
+        for sub_key, sub_value in items:
+            if sub_key in flat:
+                raise VehicleParameterError(f"{source}: key {sub_key!r} is given twice")
+            flat[sub_key] = sub_value
+    return flat
+
+
+def _validate(values: dict[str, Any], source: str) -> VehicleParameters:
+    try:
+        return VehicleParameters.model_validate(values)
+    except ValidationError as exc:
+        problems = []
+        for err in exc.errors():
+            field = ".".join(str(part) for part in err["loc"]) or "(set)"
+            if err["type"] == "extra_forbidden":
+                problems.append(f"unknown key {field!r} (value {err['input']!r})")
+            elif err["type"] == "missing":
+                problems.append(f"{field} is missing")
+            else:
+                problems.append(f"{field} = {err.get('input')!r}: {err['msg']}")
+        raise VehicleParameterError(f"vehicle {source!r}: " + "; ".join(problems)) from None
