@@ -188,8 +188,10 @@ def _validate(values: dict[str, Any], source: str) -> VehicleParameters:
     except ValidationError as exc:
         problems = []
         for err in exc.errors():
-            field = ".".join(str(part) for part in err["loc"]) or "(set)"
-            if err["type"] == "extra_forbidden":
+            field = ".".join(str(part) for part in err["loc"])
+            if not field:  # a check across fields: the message says it all
+                problems.append(err["msg"].removeprefix("Value error, "))
+            elif err["type"] == "extra_forbidden":
                 problems.append(f"unknown key {field!r} (value {err['input']!r})")
             elif err["type"] == "missing":
                 problems.append(f"{field} is missing")

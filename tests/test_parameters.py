@@ -1,0 +1,94 @@
+"""Vehicle parameter sets: the shipped data, and what bad input gets."""
+
+from pathlib import Path
+
+import pytest
+
+from plant_fmu.parameters import VehicleParameterError, builtin_vehicles, load_vehicle
+
+
+def test_builtin_sets_are_shipped_and_load():
+    assert {"remus100", "remus100-printed", "remus100-long-fins"} <= set(builtin_vehicles())
+    for name in builtin_vehicles():
+        assert load_vehicle(name).name == name
+
+
+def test_remus100_matches_table_4_1_and_servo_design():
+    p = load_vehicle("remus100")
+    assert (p.m, p.W, p.B, p.I_xx, p.I_zz, p.z_g) == (30.5, 299.0, 306.0, 0.177, 3.45, 0.0196)
+    # (6.3.16): omega_n^2 = k_v/m_v = 5.76 and 2 zeta omega_n = d_v/m_v = 4.32, as (6.3.19) prints
+    assert p.k_v / p.m_v == pytest.approx(5.76)
+    assert p.d_v / p.m_v == pytest.approx(4.32)
+    assert p.m_v == pytest.approx(p.m / 6)
+
+
+def test_variant_sets_differ_only_where_documented():
+    base = load_vehicle("remus100").model_dump()
+    printed = load_vehicle("remus100-printed").model_dump()
+    long_fins = load_vehicle("remus100-long-fins").model_dump()
+    ignore = {"name", "description"}
+    assert {k for k in base if base[k] != printed[k]} - ignore == {"M_uq"}
+    assert (base["M_uq"], printed["M_uq"]) == (-6.40, 6.40)
+    changed = {k for k in base if base[k] != long_fins[k]} - ignore
+    assert changed == {"Y_uv", "Y_ur", "N_uv", "N_ur"}
+    assert (long_fins["Y_uv"], long_fins["Y_ur"], long_fins["N_uv"], long_fins["N_ur"]) == (
+        -25.2,
+        26.5,
+        40.0,
+        -26.5,
+    )
+
+
+def test_parameters_are_immutable():
+    p = load_vehicle()
+    with pytest.raises(Exception, match="frozen"):
+        p.m = 1.0
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ({"m": -1.0}, r"m = -1\.0: Input should be greater than 0"),
+        ({"m": 0.0}, r"m = 0\.0: Input should be greater than 0"),
+        ({"I_yy": -3.45}, r"I_yy = -3\.45: Input should be greater than 0"),
+        ({"a22": -1.0}, r"a22 = -1\.0: Input should be greater than or equal to 0"),
+        ({"mass_stroke": 0.0}, r"mass_stroke = 0\.0"),
+        ({"B": float("nan")}, r"B = nan"),
+        ({"a26": 50.0}, r"M_RB \+ M_A must be positive definite.*smallest eigenvalue is -"),
+        ({"W": "heavy"}, r"W = 'heavy'"),
+    ],
+)
+def test_bad_values_name_field_value_and_range(change, expected):
+    with pytest.raises(VehicleParameterError, match=expected):
+        load_vehicle().replace(**change)
+
+
+def test_unknown_and_missing_keys_are_named(tmp_path: Path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('base = "remus100"\n[viscous]\nX_uuu = 1.0\n')
+    with pytest.raises(VehicleParameterError, match=r"unknown key 'X_uuu' \(value 1\.0\)"):
+        load_vehicle(bad)
+    partial = tmp_path / "partial.toml"
+    partial.write_text("[rigid_body]\nm = 30.5\n")
+    with pytest.raises(VehicleParameterError, match="W is missing"):
+        load_vehicle(partial)
+
+
+def test_unknown_vehicle_lists_the_known_sets():
+    with pytest.raises(VehicleParameterError, match=r"unknown vehicle 'remus600'.*remus100-printed"):
+        load_vehicle("remus600")
+
+
+def test_file_with_base_overrides(tmp_path: Path):
+    custom = tmp_path / "heavy.toml"
+    custom.write_text('base = "remus100"\nname = "heavy"\n[rigid_body]\nW = 306.0\n')
+    p = load_vehicle(custom)
+    assert (p.name, p.W, p.B, p.m) == ("heavy", 306.0, 306.0, 30.5)
+
+
+def test_base_loop_is_refused(tmp_path: Path):
+    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
+    a.write_text(f'base = "{b}"\n')
+    b.write_text(f'base = "{a}"\n')
+    with pytest.raises(VehicleParameterError, match="loops"):
+        load_vehicle(a)
