@@ -1,0 +1,231 @@
+"""Physical invariants of the plant's equations of motion."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.integrate import solve_ivp
+
+from plant_fmu.analysis import input_vector, state_vector
+from plant_fmu.dynamics import (
+    INPUT_NAMES,
+    N_STATES,
+    STATE_INDEX,
+    PlantModel,
+    Variant,
+    euler_rate_matrix,
+    rotation_matrix,
+)
+from plant_fmu.parameters import load_vehicle
+from plant_fmu.stepping import advance, simulate
+
+NU = slice(6, 12)
+
+
+def _balanced(name: str = "remus100"):
+    """No net restoring force or moment: W = B, r_g = 0."""
+    p = load_vehicle(name)
+    return p.replace(W=p.B, z_g=0.0, x_g=0.0)
+
+
+def _impulses(model: PlantModel, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame linear and angular impulse [p; pi] = (M_RB + M_A) nu (Thm 5.1)."""
+    impulse = model.mass_matrix @ nu
+    return impulse[:3], impulse[3:]
+
+
+def test_ideal_fluid_conserves_energy_and_both_casimirs():
+    """Thm 5.1 / (5.1.12): in an ideal fluid with W = B and r_g = 0 the motion is Kirchhoff's:
+    kinetic energy, |p|^2/2 and p.pi are constant, here over 60 s of tumbling."""
+    model = PlantModel(_balanced(), Variant.FULL, ideal_fluid=True)
+    x0 = state_vector(dict(u=1.2, v=0.3, w=-0.2, p=0.8, q=0.5, r=-0.6, roll=0.3, pitch=0.2))
+    _, states = simulate(model, x0, input_vector(), duration=60.0, h=0.05, max_substep=0.001)
+    energy = [model.kinetic_energy(x, input_vector()) for x in states]
+    p_sq = [np.dot(*(2 * [_impulses(model, x[NU])[0]])) / 2 for x in states]
+    p_pi = [np.dot(*_impulses(model, x[NU])) for x in states]
+    assert np.ptp(states[:, STATE_INDEX["roll"]]) > 1.0  # it really tumbles
+    for invariant in (energy, p_sq, p_pi):
+        invariant = np.asarray(invariant)
+        assert np.max(np.abs(invariant - invariant[0])) <= 1e-8 * abs(invariant[0])
+
+
+_speeds = st.floats(-0.5, 0.5, allow_nan=False)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    u=st.floats(0.05, 2.0),
+    v=_speeds,
+    w=_speeds,
+    p=st.floats(-1.0, 1.0),
+    q=_speeds,
+    r=_speeds,
+    roll=st.floats(-1.0, 1.0),
+    pitch=st.floats(-0.5, 0.5),
+)
+def test_viscous_fluid_never_adds_kinetic_energy(u, v, w, p, q, r, roll, pitch):
+    """Without forcing or restoring terms, viscous forces only dissipate: with our
+    M_uq = N_ur the lift terms form negative-definite quadratic forms for u > 0."""
+    model = PlantModel(_balanced(), Variant.FULL)
+    x = state_vector(dict(u=u, v=v, w=w, p=p, q=q, r=r, roll=roll, pitch=pitch))
+    zero = input_vector()
+    energy = model.kinetic_energy(x, zero)
+    for _ in range(100):
+        x = advance(model, x, zero, 0.02)
+        new = model.kinetic_energy(x, zero)
+        assert new <= energy * (1 + 1e-12)
+        energy = new
+
+
+def test_printed_M_uq_would_let_the_fluid_add_energy():
+    """Why remus100 uses M_uq = -6.40: with the printed +6.40 the heave-pitch lift form
+    u [Z_uw w^2 + (Z_uq + M_uw) w q + M_uq q^2] is indefinite, so the power of the viscous
+    forces in heave and pitch is positive for some states (surge drag aside)."""
+    for name, sign in (("remus100", -1), ("remus100-printed", 1)):
+        model = PlantModel(_balanced(name), Variant.FULL)
+        x = state_vector(dict(u=1.5, q=0.02))  # small q: the quadratic lift term dominates
+        nu = x[NU]
+        heave_pitch_power = nu[[2, 4]] @ model.viscous(nu)[[2, 4]]
+        assert np.sign(heave_pitch_power) == sign
+
+
+def _relative_form_derivative(model: PlantModel, x_rel: np.ndarray, inputs: np.ndarray):
+    """(3.6.10), written independently of PlantModel.derivative from the same force terms:
+    (M_RB + M_A) nur_dot + C_RB(nu_r) nu_r + C_A(nu_r) nu_r + D(nu_r) nu_r + g = tau,
+    with the state holding nu_r, and eta1_dot = R nu_r + V_c."""
+    phi, theta, psi = x_rel[3:6]
+    nu_r = x_rel[NU]
+    _, mass_accel, f_mm = model.moving_mass(x_rel, inputs)
+    force = (
+        model.actuators(inputs, nu_r[0])
+        + f_mm
+        + model.restoring(phi, theta)
+        - model.coriolis_rigid_body(nu_r)
+        - model.coriolis_added_mass(nu_r)
+        + model.viscous(nu_r)
+    )
+    dx = np.zeros(N_STATES)
+    dx[0:3] = rotation_matrix(phi, theta, psi) @ nu_r[:3] + inputs[5:8]
+    dx[3:6] = euler_rate_matrix(phi, theta) @ nu_r[3:]
+    dx[NU] = np.linalg.solve(model.mass_matrix, force)
+    dx[12], dx[13] = x_rel[13], mass_accel
+    return dx
+
+
+def test_steady_uniform_current_full_form_equals_relative_form():
+    """In a steady, uniform current the full form (3.6.2/4.3.1) reduces exactly to the
+    relative-velocity form (3.6.10, 4.3.2): the same trajectory to 1e-9."""
+    model = PlantModel(load_vehicle(), Variant.FULL)
+    current = np.array([0.15, -0.2, 0.05])
+    inputs = input_vector(
+        dict(thrust=9.0, roll_torque=-0.3, tunnel_force=2.0, fin_angle=0.05, mass_position_cmd=0.02,
+             current_north=current[0], current_east=current[1], current_down=current[2])
+    )  # fmt: skip
+    x0 = state_vector(dict(u=1.4, v=0.1, w=0.05, p=0.1, q=0.05, r=-0.1, roll=0.1, yaw=0.5))
+    R0 = rotation_matrix(*x0[3:6])
+    x0_rel = x0.copy()
+    x0_rel[6:9] -= R0.T @ current
+    opts = dict(method="DOP853", rtol=1e-12, atol=1e-13, t_eval=np.linspace(0, 20, 81))
+    full = solve_ivp(lambda t, x: model.derivative(x, inputs), (0, 20), x0, **opts)
+    rel = solve_ivp(lambda t, x: _relative_form_derivative(model, x, inputs), (0, 20), x0_rel,
+                    **opts)  # fmt: skip
+    assert full.success and rel.success
+    # map the relative run back to velocity over ground
+    rel_over_ground = rel.y.copy()
+    for k in range(rel.y.shape[1]):
+        rel_over_ground[6:9, k] += rotation_matrix(*rel.y[3:6, k]).T @ current
+    assert np.max(np.abs(full.y - rel_over_ground)) < 1e-9
+    assert np.ptp(full.y[STATE_INDEX["east"]]) > 1.0  # the current really moved it
+
+
+def test_sudden_current_carries_a_neutrally_buoyant_balanced_body_along():
+    """The impulse of the (Mbar + M_A) nuc_dot term: a body with m = mbar and r_g = 0,
+    at rest in still water, moves with the water the instant the current starts."""
+    p = load_vehicle()
+    neutral = p.replace(m=p.B / p.g, W=p.B, z_g=0.0)
+    model = PlantModel(neutral, Variant.FULL)
+    x = state_vector(dict(roll=0.2, pitch=-0.1, yaw=1.0))
+    jump = np.array([0.3, -0.2, 0.1])
+    d_nu = model.current_change_velocity_jump(x, jump)
+    np.testing.assert_allclose(d_nu[:3], rotation_matrix(*x[3:6]).T @ jump, atol=1e-12)
+    np.testing.assert_allclose(d_nu[3:], 0.0, atol=1e-12)
+    # a body heavier than the water it displaces lags the water
+    heavy = PlantModel(neutral.replace(m=1.2 * neutral.m))
+    assert np.all(np.abs(heavy.current_change_velocity_jump(x, jump)[:3]) < np.abs(d_nu[:3]))
+
+
+@pytest.fixture(scope="module")
+def lateral() -> PlantModel:
+    return PlantModel(load_vehicle(), Variant.LATERAL)
+
+
+def test_moving_mass_stays_within_its_stops_and_rests_without_reacting(lateral):
+    x0 = state_vector(dict(u=1.5))
+    inputs = input_vector(dict(thrust=9.0, mass_position_cmd=5.0))
+    _, states = simulate(lateral, x0, inputs, duration=20.0, h=0.01)
+    y_v = states[:, STATE_INDEX["mass_position"]]
+    assert np.max(np.abs(y_v)) <= 0.06
+    assert y_v[-1] == 0.06 and states[-1, STATE_INDEX["mass_velocity"]] == 0.0
+    # against the stop the servo exerts nothing on the hull; only the offset weight acts
+    y_vel, accel, force = lateral.moving_mass(states[-1], inputs)
+    assert (y_vel, accel, force[1]) == (0.0, 0.0, 0.0)
+    p = lateral.params
+    phi = states[-1, STATE_INDEX["roll"]]
+    assert force[3] == pytest.approx(p.m_v * p.g * 0.06 * np.cos(phi))
+
+
+def test_out_of_range_command_is_clamped_not_integrated(lateral):
+    """A 5 m command gives exactly the trajectory of a command at the 6 cm stop."""
+    x0 = state_vector(dict(u=1.5, v=-0.05))
+    runs = [
+        simulate(lateral, x0, input_vector(dict(thrust=9.0, mass_position_cmd=cmd)), 10.0, 0.01)[1]
+        for cmd in (-5.0, -0.06)
+    ]
+    assert np.array_equal(runs[0], runs[1])
+
+
+def test_rail_speed_limit_when_set():
+    params = load_vehicle().replace(mass_speed_limit=0.03)
+    model = PlantModel(params, Variant.LATERAL)
+    inputs = input_vector(dict(thrust=9.0, mass_position_cmd=0.06))
+    _, states = simulate(model, state_vector(dict(u=1.5)), inputs, 10.0, 0.01)
+    speed = states[:, STATE_INDEX["mass_velocity"]]
+    assert np.max(np.abs(speed)) <= 0.03
+    assert np.max(speed) == pytest.approx(0.03)  # the limit is reached, so it acts
+
+
+@pytest.mark.parametrize("variant", list(Variant))
+def test_frozen_degrees_of_freedom_stay_frozen(variant):
+    model = PlantModel(load_vehicle(), variant)
+    x0 = state_vector(dict(u=1.5, v=0.1, r=0.1))
+    inputs = input_vector(dict(thrust=9.0, mass_position_cmd=0.03, fin_angle=0.1))
+    _, states = simulate(model, x0, inputs, 5.0, 0.01)
+    free = set(variant.states)
+    for name, k in STATE_INDEX.items():
+        moved = np.ptp(states[:, k]) > 0
+        assert moved == (name in free) or name == "pitch" and variant is Variant.FULL, name
+
+
+def test_same_inputs_give_bit_identical_trajectories():
+    model = PlantModel(load_vehicle(), Variant.FULL)
+    x0 = state_vector(dict(u=1.5, v=0.05, roll=0.1))
+    inputs = input_vector(dict(thrust=9.0, mass_position_cmd=0.03, fin_angle=-0.1,
+                               current_east=0.2))  # fmt: skip
+    a = simulate(model, x0, inputs, 5.0, 0.01)[1]
+    b = simulate(PlantModel(load_vehicle(), Variant.FULL), x0, inputs, 5.0, 0.01)[1]
+    assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("name", ["thrust", "current_east", "mass_position_cmd"])
+def test_non_finite_inputs_are_refused_by_name(lateral, name, bad):
+    inputs = input_vector(dict(thrust=9.0))
+    inputs[INPUT_NAMES.index(name)] = bad
+    with pytest.raises(ValueError, match=rf"input {name} = .*expected a finite number"):
+        advance(lateral, state_vector(dict(u=1.5)), inputs, 0.01)
+
+
+@pytest.mark.parametrize("h", [0.0, -0.01, np.nan])
+def test_bad_step_is_refused(lateral, h):
+    with pytest.raises(ValueError, match="step h ="):
+        advance(lateral, state_vector(dict(u=1.5)), input_vector(thrust=9.0), h)
