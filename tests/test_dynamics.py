@@ -203,7 +203,7 @@ def test_frozen_degrees_of_freedom_stay_frozen(variant):
     free = set(variant.states)
     for name, k in STATE_INDEX.items():
         moved = np.ptp(states[:, k]) > 0
-        assert moved == (name in free) or name == "pitch" and variant is Variant.FULL, name
+        assert moved == (name in free), name
 
 
 def test_same_inputs_give_bit_identical_trajectories():

@@ -48,9 +48,7 @@ def _equilibria_in_box(model: PlantModel, thrust: float) -> list[np.ndarray]:
 def test_example_5_1_straight_line_is_unstable_with_printed_eigenvalues(horizontal):
     eq = find_equilibrium(horizontal, dict(u=1.5), dict(thrust=9.0))
     np.testing.assert_allclose(_values(eq, HORIZONTAL), [1.525, 0, 0], atol=5e-4)
-    np.testing.assert_allclose(
-        np.sort(eq.eigenvalues.real), [-2.539, -0.376, 1.014], atol=1.5e-3
-    )
+    np.testing.assert_allclose(np.sort(eq.eigenvalues.real), [-2.539, -0.376, 1.014], atol=1.5e-3)
     assert not eq.stable
 
 
@@ -100,7 +98,8 @@ def test_low_speed_equilibria_with_4_newton_thrust(lateral):
         guess = dict(u=0.85, v=0.11 * sign, r=-0.15 * sign, roll=-0.01 * sign)
         turn = find_equilibrium(lateral, guess, dict(thrust=4.0))
         np.testing.assert_allclose(
-            _values(turn, ("u", "v", "r")), np.array([0.8467, 0.1147, -0.1541]) * [1, sign, sign],
+            _values(turn, ("u", "v", "r")),
+            np.array([0.8467, 0.1147, -0.1541]) * [1, sign, sign],
             rtol=5e-3,
         )
         assert turn.stable and abs(turn.value("roll")) < 0.02

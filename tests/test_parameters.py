@@ -75,7 +75,9 @@ def test_unknown_and_missing_keys_are_named(tmp_path: Path):
 
 
 def test_unknown_vehicle_lists_the_known_sets():
-    with pytest.raises(VehicleParameterError, match=r"unknown vehicle 'remus600'.*remus100-printed"):
+    with pytest.raises(
+        VehicleParameterError, match=r"unknown vehicle 'remus600'.*remus100-printed"
+    ):
         load_vehicle("remus600")
 
 
