@@ -1,0 +1,365 @@
+"""An exception-proof base class over pythonfmu's ``Fmi2Slave``, shared by both FMUs.
+
+Why it exists (``shared/spec/FMI_NOTES.md``): with pythonfmu 0.7 an exception escaping a
+Python callback becomes fmi2Fatal and the C wrapper then releases the Python objects twice,
+so the host process crashes soon after. pythonfmu also accepts NaN inputs, lets a fixed
+parameter be written after initialisation, and saves only the registered variables as FMU
+state. This class closes those holes once, for the plant and the controller FMU alike.
+
+What a subclass writes (the whole API)::
+
+    class MySlave(SafeSlave):
+        default_experiment = DefaultExperiment(0.0, 60.0, 0.01)   # pythonfmu's own
+        direct_feedthrough = {"y": ("u",)}  # outputs that depend directly on inputs
+
+        def __init__(self, **kwargs):
+            super().__init__(**kwargs)      # then only assign defaults and register:
+            self.register(Real("u", causality=Fmi2Causality.input, start=0.0,
+                               variability=Fmi2Variability.continuous,
+                               description="..."), unit="N")
+            ...
+
+        def _initialize(self) -> None: ...            # exit_initialization_mode
+        def _step(self, t: float, h: float) -> None: ...  # do_step
+        def _state_snapshot(self) -> dict: ...        # the internal state, JSON-serialisable
+        def _restore_snapshot(self, snapshot: dict) -> None: ...
+
+``_initialize`` and ``_step`` report a problem by raising (any exception): the base class
+catches it, logs the message with ``Fmi2Status.error`` and turns it into a failed
+initialisation or a Discard from ``fmi2DoStep``. ``_step`` must leave the state unchanged
+when it raises (compute, then commit), so a master can retry or roll back.
+
+Rules the base enforces (each refusal is logged with the variable, the value and what was
+expected):
+
+* A Real written as NaN or +-inf is refused; the old value stays.
+* Inputs and tunable parameters may be written at any time; fixed parameters only before
+  ``exit_initialization_mode`` (a later write of the same value is accepted as a no-op);
+  outputs, locals and calculated parameters never.
+* pythonfmu's setters cannot return an error status, so a refused write is remembered and
+  the next ``do_step`` returns Discard naming it, until the variable is written validly.
+* ``do_step`` before a successful initialisation, after a failed one, or after
+  ``terminate`` returns Discard.
+* FMU state (``fmi2GetFMUstate``/``fmi2SetFMUstate``, also serialised) holds every
+  registered variable with a setter, the bookkeeping above, and ``_state_snapshot()``; a
+  restored instance continues bit-identically (floats survive JSON exactly).
+
+``fmi2Reset`` in pythonfmu 0.7 does not call Python: it constructs a fresh instance, so a
+subclass's ``__init__`` must do nothing that can fail (assign defaults, register variables;
+load files in ``_initialize``).
+
+Class attributes the build step reads from ``to_xml`` (build time only): the unit of every
+Real (``register(..., unit=...)``) and ``direct_feedthrough`` (ModelStructure dependencies;
+outputs not listed depend on no input directly).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from typing import Any, ClassVar
+from xml.etree.ElementTree import Element
+
+from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
+from pythonfmu.fmi2slave import Fmi2Slave
+from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
+
+_WRITE_ANY_TIME = "any time"
+_WRITE_BEFORE_INIT = "before initialisation"
+_READ_ONLY = "never"
+_STATE_VERSION = 1
+
+
+class SafeSlave(Fmi2Slave):
+    """``Fmi2Slave`` whose callbacks never raise; see the module docstring for the API."""
+
+    direct_feedthrough: ClassVar[dict[str, tuple[str, ...]]] = {}
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self._initialized = False
+        self._terminated = False
+        self._failure: str | None = None
+        self._problems: dict[str, str] = {}
+        self._written: set[str] = set()
+        self._access: dict[int, str] = {}
+        self._units: dict[str, str] = {}
+
+    # --- what subclasses call / override ---------------------------------------------------
+
+    def register(self, var: ScalarVariable, unit: str | None = None) -> None:
+        """Register an FMU variable; a Real needs its ``unit``, every variable a description.
+
+        Raises (at build time, where pythonfmu constructs the class): ValueError for a
+        missing unit, description or variability, so a runtime instance never has to.
+        """
+        if not var.description:
+            raise ValueError(f"variable {var.name!r}: a description is required")
+        if isinstance(var, Real) and not unit:
+            raise ValueError(f"Real variable {var.name!r}: a unit is required")
+        if not isinstance(var, Real) and var.variability is None:
+            raise ValueError(f"variable {var.name!r}: Integer/Boolean/String need a variability")
+        self.register_variable(var)
+        if unit:
+            self._units[var.name] = unit
+        if var.causality == Fmi2Causality.input or (
+            var.causality == Fmi2Causality.parameter and var.variability == Fmi2Variability.tunable
+        ):
+            access = _WRITE_ANY_TIME
+        elif var.causality == Fmi2Causality.parameter:
+            access = _WRITE_BEFORE_INIT
+        else:
+            access = _READ_ONLY
+        self._access[var.value_reference] = access
+
+    def was_written(self, name: str) -> bool:
+        """True if the importer wrote variable ``name`` (accepted) since instantiation."""
+        return name in self._written
+
+    @property
+    def initialized(self) -> bool:
+        """True after a successful ``exit_initialization_mode``."""
+        return self._initialized
+
+    def _initialize(self) -> None:
+        """Apply parameters and the initial state (called by exit_initialization_mode)."""
+
+    def _step(self, current_time: float, step_size: float) -> None:
+        """Advance over [current_time, current_time + step_size]; raise to discard."""
+        raise NotImplementedError(f"{type(self).__name__} does not implement _step")
+
+    def _state_snapshot(self) -> dict[str, Any]:
+        """The internal state not held in registered variables (JSON-serialisable)."""
+        return {}
+
+    def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
+        """Restore what ``_state_snapshot`` returned (receives a private copy)."""
+
+    # --- FMI callbacks -----------------------------------------------------------------------
+
+    def setup_experiment(self, *args: Any, **kwargs: Any) -> None:
+        """Accepts pythonfmu's varying signatures; nothing to do."""
+
+    def enter_initialization_mode(self) -> None:
+        """Nothing to do: parameters are applied in exit_initialization_mode."""
+
+    def exit_initialization_mode(self) -> None:
+        try:
+            if self._problems:
+                raise ValueError("; ".join(self._problems.values()))
+            self._initialize()
+            self._initialized = True
+        except Exception as exc:
+            self._failure = f"initialisation failed: {_reason(exc)}"
+            self._error(self._failure)
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        try:
+            refusal = self._step_refusal(step_size)
+            if refusal is not None:
+                self._error(f"doStep at t = {current_time!r} s refused: {refusal}")
+                return False
+            self._step(current_time, step_size)
+            return True
+        except Exception as exc:
+            self._error(
+                f"doStep at t = {current_time!r} s, h = {step_size!r} s failed: {_reason(exc)}"
+            )
+            return False
+
+    def terminate(self) -> None:
+        self._terminated = True
+
+    def get_real(self, vrs: list[int]) -> list[float]:
+        return [self._get(vr, Real, float, 0.0) for vr in vrs]
+
+    def get_integer(self, vrs: list[int]) -> list[int]:
+        return [self._get(vr, Integer, int, 0) for vr in vrs]
+
+    def get_boolean(self, vrs: list[int]) -> list[bool]:
+        return [self._get(vr, Boolean, bool, False) for vr in vrs]
+
+    def get_string(self, vrs: list[int]) -> list[str]:
+        return [self._get(vr, String, str, "") for vr in vrs]
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        self._set_all(vrs, values, Real)
+
+    def set_integer(self, vrs: list[int], values: list[int]) -> None:
+        self._set_all(vrs, values, Integer)
+
+    def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        self._set_all(vrs, values, Boolean)
+
+    def set_string(self, vrs: list[int], values: list[str]) -> None:
+        self._set_all(vrs, values, String)
+
+    def _get_fmu_state(self) -> dict[str, Any]:
+        try:
+            return {
+                "version": _STATE_VERSION,
+                "class": type(self).__name__,
+                "variables": {
+                    var.name: var.getter() for var in self.vars.values() if var.setter is not None
+                },
+                "base": {
+                    "initialized": self._initialized,
+                    "terminated": self._terminated,
+                    "failure": self._failure,
+                    "problems": dict(self._problems),
+                    "written": sorted(self._written),
+                },
+                "internal": copy.deepcopy(self._state_snapshot()),
+            }
+        except Exception as exc:
+            message = f"fmi2GetFMUstate failed: {_reason(exc)}"
+            self._error(message)
+            return {"error": message}
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        try:
+            if not isinstance(state, dict) or "error" in state:
+                raise ValueError(
+                    f"the FMU state is unusable: {state.get('error', state)!r}"
+                    if isinstance(state, dict)
+                    else f"not an FMU state: {state!r}"
+                )
+            if state.get("version") != _STATE_VERSION or state.get("class") != type(self).__name__:
+                raise ValueError(
+                    f"the FMU state is from {state.get('class')!r} version "
+                    f"{state.get('version')!r}, expected {type(self).__name__!r} version "
+                    f"{_STATE_VERSION}"
+                )
+            by_name = {var.name: var for var in self.vars.values()}
+            for name, value in state["variables"].items():
+                by_name[name].setter(value)
+            base = state["base"]
+            self._initialized = base["initialized"]
+            self._terminated = base["terminated"]
+            self._failure = base["failure"]
+            self._problems = dict(base["problems"])
+            self._written = set(base["written"])
+            self._restore_snapshot(copy.deepcopy(state["internal"]))
+        except Exception as exc:
+            message = f"fmi2SetFMUstate failed: {_reason(exc)}"
+            self._problems["FMU state"] = message
+            self._error(message)
+
+    @staticmethod
+    def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
+        try:
+            return json.dumps(state, allow_nan=False).encode("utf-8")
+        except Exception as exc:
+            return json.dumps({"error": f"cannot serialise the FMU state: {exc}"}).encode()
+
+    @staticmethod
+    def _fmu_state_from_bytes(state: bytes) -> dict[str, Any]:
+        try:
+            return json.loads(state.decode("utf-8"))
+        except Exception as exc:
+            return {"error": f"cannot deserialise the FMU state: {exc}"}
+
+    # --- build time ----------------------------------------------------------------------
+
+    def to_xml(self, model_options: dict[str, str] | None = None) -> Element:
+        """pythonfmu's description plus a ``unit`` on every Real and the declared
+        ``direct_feedthrough`` as ModelStructure dependencies (used by the build only)."""
+        root = super().to_xml(model_options or {})
+        index = {var.name: i + 1 for i, var in enumerate(self.vars.values())}
+        for node in root.find("ModelVariables"):
+            unit = self._units.get(node.get("name"))
+            real = node.find("Real")
+            if unit and real is not None:
+                real.set("unit", unit)
+        outputs = root.find("ModelStructure/Outputs")
+        inputs = {v.name for v in self.vars.values() if v.causality == Fmi2Causality.input}
+        names = {i: name for name, i in index.items()}
+        for unknown in outputs if outputs is not None else []:
+            name = names[int(unknown.get("index"))]
+            depends_on = self.direct_feedthrough.get(name, ())
+            unknown_inputs = set(depends_on) - inputs
+            if unknown_inputs:
+                raise ValueError(
+                    f"direct_feedthrough of {name!r} names non-inputs {sorted(unknown_inputs)}"
+                )
+            unknown.set("dependencies", " ".join(str(index[d]) for d in depends_on))
+            if depends_on:
+                unknown.set("dependenciesKind", " ".join("dependent" for _ in depends_on))
+        return root
+
+    # --- internals ---------------------------------------------------------------------------
+
+    def _step_refusal(self, step_size: float) -> str | None:
+        if self._failure is not None:
+            return self._failure
+        if not self._initialized:
+            return "the FMU is not initialised (call exitInitializationMode first)"
+        if self._terminated:
+            return "the FMU is terminated"
+        if self._problems:
+            return "; ".join(self._problems.values())
+        if not (math.isfinite(step_size) and step_size > 0.0):
+            return f"communication step {step_size!r} s: expected a finite number > 0"
+        return None
+
+    def _get(self, vr: int, kind: type, convert: type, fallback: Any) -> Any:
+        try:
+            var = self.vars[vr]
+            if not isinstance(var, kind):
+                raise TypeError(f"{var.name!r} is a {type(var).__name__}, not a {kind.__name__}")
+            value = convert(var.getter())
+            if kind is Real and not math.isfinite(value):
+                self._error(f"{var.name} = {value!r} is not finite")
+            return value
+        except Exception as exc:
+            self._error(f"get{kind.__name__} of valueReference {vr!r} failed: {_reason(exc)}")
+            return fallback
+
+    def _set_all(self, vrs: list[int], values: list[Any], kind: type) -> None:
+        for vr, value in zip(vrs, values, strict=False):
+            try:
+                self._set(vr, value, kind)
+            except Exception as exc:
+                message = f"set{kind.__name__} of valueReference {vr!r} failed: {_reason(exc)}"
+                self._problems[f"vr {vr}"] = message
+                self._error(message)
+
+    def _set(self, vr: int, value: Any, kind: type) -> None:
+        var = self.vars.get(vr)
+        if var is None:
+            raise KeyError(f"no variable has valueReference {vr!r}")
+        name = var.name
+        if not isinstance(var, kind):
+            refusal = f"{name} is a {type(var).__name__}, not a {kind.__name__}"
+        elif kind is Real and not math.isfinite(value):
+            refusal = f"{name} = {value!r} refused: expected a finite number"
+        else:
+            access = self._access[vr]
+            if access == _WRITE_ANY_TIME or (
+                access == _WRITE_BEFORE_INIT and not self._initialized
+            ):
+                var.setter(value)
+                self._written.add(name)
+                self._problems.pop(name, None)
+                return
+            if access == _WRITE_BEFORE_INIT and var.getter() == value:
+                self._problems.pop(name, None)
+                return
+            refusal = (
+                f"{name} = {value!r} refused: a fixed parameter can only be set before "
+                "initialisation"
+                if access == _WRITE_BEFORE_INIT
+                else f"{name} = {value!r} refused: a {var.causality.name} cannot be set"
+            )
+        self._problems[name] = refusal
+        self._error(refusal)
+
+    def _error(self, message: str) -> None:
+        self.log(message, Fmi2Status.error)
+
+
+def _reason(exc: BaseException) -> str:
+    """``Type: message`` for unexpected exceptions, the bare message for ValueError."""
+    text = str(exc) or repr(exc)
+    return text if isinstance(exc, ValueError) else f"{type(exc).__name__}: {text}"
