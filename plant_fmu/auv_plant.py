@@ -1,0 +1,356 @@
+"""AuvPlant: the REMUS 100 with internal actuators as an FMI 2.0 co-simulation slave.
+
+The pythonfmu script of ``AuvPlant.fmu`` (modelIdentifier ``AuvPlant``): FMI variables on
+one side, :class:`plant_fmu.dynamics.PlantModel` and :func:`plant_fmu.stepping.advance`
+on the other. No physics lives here.
+
+Variables (``shared/spec/INTERFACES.md``):
+
+* inputs ``thrust`` (N, start 9), ``roll_torque`` (N.m), ``tunnel_force`` (N),
+  ``fin_angle`` (rad), ``mass_position_cmd`` (m; the model clamps it to the stroke),
+  ``current_north``, ``current_east``, ``current_down`` (m/s, earth frame);
+* outputs: the 14 states (``north`` ... ``r``, ``mass_position``, ``mass_velocity``),
+  ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - R^T V_c) and ``kinetic_energy``
+  (J, 1/2 nu_r^T (M_RB + M_A) nu_r). All are refreshed after initialisation and after each
+  step, so none depends directly on an input (ModelStructure dependencies ""). Their start
+  values (all 0) are the outputs for the default parameters (the vehicle at rest);
+* parameters (fixed): the initial state ``north_0`` ... ``r_0``, ``mass_position_0``,
+  ``mass_velocity_0`` (default 0), ``variant`` (0 full 6-DOF, 1 lateral (6.3.13),
+  2 horizontal (5.1.30)), ``ideal_fluid``, ``vehicle`` (a built-in set name or a .toml
+  path), ``current_shear_dUdy`` (1/s), ``max_substep`` (s, longest internal RK4 step),
+  and every field of :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``,
+  ``a22``, ``X_uu``, ``m_v``, ...), unit and description from its pydantic Field.
+
+Physical parameters: ``vehicle`` picks the base set; each physical parameter the importer
+writes overrides it; the result is validated as a whole (``VehicleParameters.replace``).
+After initialisation the physical parameters read back the values in use. The start
+values in modelDescription.xml are those of ``remus100``.
+
+Currents: the uniform current inputs at initialisation set the start. When they change
+between steps, the hull's velocity over ground jumps by
+``PlantModel.current_change_velocity_jump`` (the impulse of the (Mbar + M_A) nuc_dot term),
+applied at the start of the next step; inputs are held over each step.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pythonfmu.default_experiment import DefaultExperiment
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
+from pythonfmu.variables import Boolean, Integer, Real, String
+
+from plant_fmu.dynamics import (
+    INPUT_NAMES,
+    INPUT_UNITS,
+    N_STATES,
+    STATE_INDEX,
+    STATE_NAMES,
+    STATE_UNITS,
+    PlantModel,
+    Variant,
+)
+from plant_fmu.parameters import VehicleParameters, load_vehicle
+from plant_fmu.safe_slave import SafeSlave
+from plant_fmu.stepping import DEFAULT_MAX_SUBSTEP, advance
+
+INPUT_DESCRIPTIONS: dict[str, str] = {
+    "thrust": "propeller surge thrust T",
+    "roll_torque": "propeller roll torque Q",
+    "tunnel_force": "tunnel-thruster sway force F_t (6.3.79)",
+    "fin_angle": "stern-plane angle delta_s (Table 6.1)",
+    "mass_position_cmd": "moving-mass servo command y_d (clamped to the stroke) (6.3.12)",
+    "current_north": "uniform current, north component, earth frame",
+    "current_east": "uniform current, east component, earth frame",
+    "current_down": "uniform current, down component, earth frame",
+}
+INPUT_STARTS: dict[str, float] = {"thrust": 9.0}
+STATE_DESCRIPTIONS: dict[str, str] = {
+    "north": "position north (NED)",
+    "east": "position east (NED)",
+    "down": "depth, position down (NED)",
+    "roll": "roll angle phi",
+    "pitch": "pitch angle theta",
+    "yaw": "yaw angle psi",
+    "u": "surge velocity over ground, body frame",
+    "v": "sway velocity over ground, body frame",
+    "w": "heave velocity over ground, body frame",
+    "p": "roll rate",
+    "q": "pitch rate",
+    "r": "yaw rate",
+    "mass_position": "moving-mass position y_v on its rail",
+    "mass_velocity": "moving-mass rail speed y_v'",
+}
+RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
+PHYSICAL_PARAMETERS: tuple[str, ...] = tuple(
+    name for name, field in VehicleParameters.model_fields.items() if field.annotation is float
+)
+
+
+def field_unit_and_description(name: str) -> tuple[str, str]:
+    """(FMI unit, description) of a VehicleParameters field from its pydantic description
+    ``"<meaning>, <unit>[ (<note>)]"``; ``kg m^2`` becomes ``kg.m2``."""
+    text = VehicleParameters.model_fields[name].description or ""
+    meaning, _, unit = text.rpartition(", ")
+    unit, _, note = unit.partition(" (")
+    if not meaning or not unit:
+        raise ValueError(f"VehicleParameters.{name}: description {text!r} names no unit")
+    description = f"{meaning} ({note}" if note else meaning
+    return unit.replace(" ", ".").replace("^", ""), description
+
+
+class AuvPlant(SafeSlave):
+    """REMUS 100 AUV plant with moving mass, tunnel thruster and stern planes."""
+
+    description = (
+        "REMUS 100 AUV with internal actuators (moving mass, tunnel thruster, stern planes): "
+        "6-DOF / lateral / horizontal plant, B. Li, FAU 2016"
+    )
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=60.0, step_size=0.01)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self._inputs = np.array([INPUT_STARTS.get(name, 0.0) for name in INPUT_NAMES])
+        self._initial_state = np.zeros(N_STATES)
+        self._x = np.zeros(N_STATES)
+        self._derived = [0.0, 0.0, 0.0, 0.0]  # u_rel, v_rel, w_rel, kinetic_energy
+        self._last_current = self._inputs[5:8].copy()
+        self._model: PlantModel | None = None
+        self._model_key: tuple | None = None
+        self._physical = _default_physical_parameters()
+        self.variant = int(Variant.FULL)
+        self.ideal_fluid = False
+        self.vehicle = "remus100"
+        self.current_shear_dUdy = 0.0
+        self.max_substep = DEFAULT_MAX_SUBSTEP
+        self._register_variables()
+
+    # --- variables ---------------------------------------------------------------------------
+
+    def _register_variables(self) -> None:
+        fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
+        for i, (name, unit) in enumerate(zip(INPUT_NAMES, INPUT_UNITS, strict=True)):
+            self.register(
+                Real(
+                    name,
+                    causality=Fmi2Causality.input,
+                    variability=Fmi2Variability.continuous,
+                    description=INPUT_DESCRIPTIONS[name],
+                    getter=_item_getter(self._inputs, i),
+                    setter=_item_setter(self._inputs, i),
+                ),
+                unit=unit,
+            )
+        output = {
+            "causality": Fmi2Causality.output,
+            "variability": Fmi2Variability.continuous,
+            "initial": Fmi2Initial.exact,
+        }
+        for i, (name, unit) in enumerate(zip(STATE_NAMES, STATE_UNITS, strict=True)):
+            self.register(
+                Real(
+                    name,
+                    description=STATE_DESCRIPTIONS[name],
+                    getter=self._state_getter(i),
+                    **output,
+                ),
+                unit=unit,
+            )
+        for i, name in enumerate(RELATIVE_VELOCITIES):
+            axis = name[0]
+            self.register(
+                Real(
+                    name,
+                    description=f"{axis} relative to the water, {axis} - (R^T V_c)_{axis}",
+                    getter=_item_getter(self._derived, i),
+                    **output,
+                ),
+                unit="m/s",
+            )
+        self.register(
+            Real(
+                "kinetic_energy",
+                description="kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r",
+                getter=_item_getter(self._derived, 3),
+                **output,
+            ),
+            unit="J",
+        )
+        for i, (name, unit) in enumerate(zip(STATE_NAMES, STATE_UNITS, strict=True)):
+            self.register(
+                Real(
+                    f"{name}_0",
+                    description=f"initial {STATE_DESCRIPTIONS[name]}",
+                    getter=_item_getter(self._initial_state, i),
+                    setter=_item_setter(self._initial_state, i),
+                    **fixed,
+                ),
+                unit=unit,
+            )
+        self.register(
+            Integer(
+                "variant",
+                description="0 full 6-DOF, 1 lateral u-v-r-p-phi-psi (6.3.13), "
+                "2 horizontal u-v-r-psi (5.1.30)",
+                **fixed,
+            )
+        )
+        self.register(
+            Boolean("ideal_fluid", description="drop the viscous terms (Thm 5.1)", **fixed)
+        )
+        self.register(
+            String("vehicle", description="built-in parameter set name or .toml file path", **fixed)
+        )
+        self.register(
+            Real(
+                "current_shear_dUdy",
+                description="horizontal current shear d(current_north)/d(east)",
+                **fixed,
+            ),
+            unit="1/s",
+        )
+        self.register(
+            Real("max_substep", description="longest internal RK4 step", **fixed), unit="s"
+        )
+        for name in PHYSICAL_PARAMETERS:
+            unit, description = field_unit_and_description(name)
+            self.register(
+                Real(
+                    name,
+                    description=description,
+                    getter=_key_getter(self._physical, name),
+                    setter=_key_setter(self._physical, name),
+                    **fixed,
+                ),
+                unit=unit,
+            )
+
+    def _state_getter(self, i: int):
+        return lambda: self._x[i]
+
+    # --- SafeSlave hooks ---------------------------------------------------------------------
+
+    def _initialize(self) -> None:
+        model = self._build_model()
+        x = self._initial_state.copy()
+        stroke = model.params.mass_stroke
+        if abs(x[STATE_INDEX["mass_position"]]) > stroke:
+            raise ValueError(
+                f"mass_position_0 = {x[STATE_INDEX['mass_position']]!r} m: expected "
+                f"|mass_position_0| <= mass_stroke = {stroke!r} m"
+            )
+        frozen = [
+            n for n in STATE_NAMES[:12] if n not in model.variant.states and x[STATE_INDEX[n]]
+        ]
+        if frozen:
+            self.log(
+                f"variant {int(model.variant)} ({model.variant.name.lower()}) keeps "
+                f"{', '.join(frozen)} at 0: their initial values are ignored",
+                Fmi2Status.warning,
+            )
+        self._x = model.project(x)
+        self._last_current = self._inputs[5:8].copy()
+        self._refresh_outputs()
+
+    def _step(self, current_time: float, step_size: float) -> None:
+        model = self._model
+        inputs = self._inputs.copy()
+        x = self._x
+        current = inputs[5:8]
+        if not np.array_equal(current, self._last_current):
+            x = x.copy()
+            x[6:12] += model.current_change_velocity_jump(x, current - self._last_current)
+        x = advance(model, x, inputs, step_size, self.max_substep)
+        self._x = x
+        self._last_current = current.copy()
+        self._refresh_outputs(inputs)
+
+    def _state_snapshot(self) -> dict[str, Any]:
+        return {
+            "x": self._x.tolist(),
+            "last_current": self._last_current.tolist(),
+            "derived": list(self._derived),
+        }
+
+    def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
+        if self.initialized and self._model_key != self._parameter_key():
+            self._build_model()
+        self._x = np.array(snapshot["x"], dtype=float)
+        self._last_current = np.array(snapshot["last_current"], dtype=float)
+        self._derived[:] = snapshot["derived"]
+
+    # --- internals ---------------------------------------------------------------------------
+
+    def _build_model(self) -> PlantModel:
+        """Validate the parameters into a PlantModel; the physical parameters then read back
+        the values in use. Raises ValueError naming the bad parameter."""
+        if self.variant not in tuple(Variant):
+            raise ValueError(
+                f"variant = {self.variant!r}: expected 0 (full 6-DOF), 1 (lateral) or "
+                "2 (horizontal)"
+            )
+        if not self.max_substep > 0.0:
+            raise ValueError(f"max_substep = {self.max_substep!r} s: expected a number > 0")
+        base = load_vehicle(self.vehicle)
+        overrides = {n: self._physical[n] for n in PHYSICAL_PARAMETERS if self.was_written(n)}
+        params = base.replace(**overrides) if overrides else base
+        model = PlantModel(
+            params,
+            variant=Variant(self.variant),
+            ideal_fluid=bool(self.ideal_fluid),
+            current_shear=float(self.current_shear_dUdy),
+        )
+        self._physical.update({n: float(getattr(params, n)) for n in PHYSICAL_PARAMETERS})
+        self._model = model
+        self._model_key = self._parameter_key()
+        return model
+
+    def _parameter_key(self) -> tuple:
+        """Everything the model is built from (to rebuild it after a state restore)."""
+        return (
+            self.vehicle,
+            self.variant,
+            bool(self.ideal_fluid),
+            self.current_shear_dUdy,
+            tuple(self._physical[n] for n in PHYSICAL_PARAMETERS),
+            tuple(n for n in PHYSICAL_PARAMETERS if self.was_written(n)),
+        )
+
+    def _refresh_outputs(self, inputs: np.ndarray | None = None) -> None:
+        inputs = self._inputs if inputs is None else inputs
+        nu_r = self._model.relative_velocity(self._x, inputs)
+        self._derived[:3] = nu_r[:3].tolist()
+        self._derived[3] = self._model.kinetic_energy(self._x, inputs)
+
+
+def _default_physical_parameters() -> dict[str, float]:
+    """The remus100 values (the parameters' start values); NaN if the set cannot be read,
+    which the getter reports and initialisation then explains."""
+    try:
+        params = load_vehicle("remus100")
+        return {name: float(getattr(params, name)) for name in PHYSICAL_PARAMETERS}
+    except Exception:
+        return dict.fromkeys(PHYSICAL_PARAMETERS, float("nan"))
+
+
+def _item_getter(values, i: int):
+    return lambda: values[i]
+
+
+def _item_setter(values, i: int):
+    def setter(value: float) -> None:
+        values[i] = value
+
+    return setter
+
+
+def _key_getter(values: dict[str, float], key: str):
+    return lambda: values[key]
+
+
+def _key_setter(values: dict[str, float], key: str):
+    def setter(value: float) -> None:
+        values[key] = value
+
+    return setter

@@ -1,0 +1,47 @@
+"""Shared fixtures: the built FMUs and a fresh-process Python runner.
+
+* ``fmu_paths`` (session): ``{"AuvPlant": Path, "AuvAutopilot": Path}`` built once per test
+  session into a temporary folder with :mod:`cosim.build`. Until
+  ``controller_fmu/auv_autopilot.py`` exists it holds only ``"AuvPlant"``.
+* ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
+  this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
+  ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). Use it where
+  pythonfmu's module caching or a possible crash of the host calls for a new process.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from cosim.build import FMUS, build_fmu, script_path
+
+
+@pytest.fixture(scope="session")
+def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    out = tmp_path_factory.mktemp("fmus")
+    return {name: build_fmu(name, out) for name in FMUS if script_path(name).is_file()}
+
+
+@pytest.fixture(scope="session")
+def run_python(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Callable[..., subprocess.CompletedProcess]:
+    cwd = tmp_path_factory.mktemp("subprocess")
+
+    def run(code: str, *args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-c", textwrap.dedent(code), *map(str, args)],
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            check=False,
+        )
+
+    return run
