@@ -1,0 +1,593 @@
+"""Scenario files: TOML -> a validated, fully resolved :class:`Scenario`.
+
+A scenario says which FMUs run, with which start values, how they are connected, how the
+master couples them, for how long, and what is recorded. Every problem is reported as a
+:class:`ScenarioError` naming the file and the key, *before* any FMU is loaded: variable
+names, types and causalities come from each FMU's ``modelDescription.xml`` (read with
+``fmpy.read_model_description``, which does not load the binary). Built-in FMU names are
+built on first use, or rebuilt when out of date (``cosim.build.build_fmu``).
+
+Format (every key is checked; unknown keys are errors)::
+
+    id = "bs-3"                          # optional; default: the file name without .toml
+    summary = "one line for `auv-cosim scenarios`"
+    stop_time = 30.0                     # s, a whole number of communication steps
+
+    [coupling]
+    step = 0.01                          # s, communication step h
+    algorithm = "gauss-seidel"           # or "jacobi" [gauss-seidel]
+    order = ["controller", "plant"]      # Gauss-Seidel order [instances in file order]
+    step_multiples = { controller = 1 }  # instance steps every k*h (multi-rate) [1]
+
+    [instances.plant]                    # instance name -> FMU
+    fmu = "AuvPlant"                     # built-in "AuvPlant" / "AuvAutopilot" or a path
+                                         # (relative to this file)
+    [instances.plant.start]              # parameters and unconnected inputs, SI units
+    variant = 1
+    v_0 = -0.10
+
+    [instances.controller]
+    fmu = "AuvAutopilot"
+    [instances.controller.start]
+    heading_mode = 3
+
+    [connections]
+    same_names = true                    # output x of one instance -> input x of another [true]
+    remove = ["plant.fin_angle"]         # inputs to leave unconnected (hold their start value)
+    add = [{ from = "controller.thrust", to = "plant.thrust" }]  # add, or replace the source
+
+    [output]
+    record = ["plant.yaw", "controller.yaw_setpoint"]  # [every output and every
+                                                       #  unconnected input of every instance]
+    rrd = true                           # write recording.rrd [true]
+
+The resolved :class:`Scenario` (and :meth:`Scenario.to_toml`, which loads back to an equal
+scenario) spells everything out: the full connection list, the explicit start values per
+instance, the Gauss-Seidel order and every step multiple, and the recorded variables.
+``cosim/scenarios/*.toml`` are the built-in scenarios (MODEL.md section 5).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import tomli_w
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    StrictStr,
+    ValidationError,
+)
+
+from cosim.errors import CosimError
+
+SCENARIO_FOLDER = Path(__file__).with_name("scenarios")
+BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot")
+DEFAULT_FMU_DIR = Path("build/fmus")
+StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
+_NAME = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
+# A stop time within this fraction of a step of a whole number of steps counts as whole.
+_STEP_TOLERANCE = 1e-9
+
+
+class ScenarioError(CosimError):
+    """A scenario that cannot run: the message names the file and the key."""
+
+
+# --- the file as written (pydantic, every key checked) ------------------------------------
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class CouplingSpec(_Strict):
+    step: float = Field(gt=0.0, description="communication step h, s")
+    algorithm: Literal["jacobi", "gauss-seidel"] = "gauss-seidel"
+    order: list[_NAME] | None = Field(default=None, description="Gauss-Seidel order")
+    step_multiples: dict[_NAME, Annotated[int, Field(ge=1)]] = Field(default_factory=dict)
+
+
+class InstanceSpec(_Strict):
+    fmu: str = Field(min_length=1, description="built-in FMU name or .fmu path")
+    start: dict[str, StartValue] = Field(default_factory=dict)
+
+
+class ConnectionSpec(_Strict):
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    from_: str = Field(alias="from", description="<instance>.<output>")
+    to: str = Field(description="<instance>.<input>")
+
+
+class ConnectionsSpec(_Strict):
+    same_names: bool = True
+    remove: list[str] = Field(default_factory=list)
+    add: list[ConnectionSpec] = Field(default_factory=list)
+
+
+class OutputSpec(_Strict):
+    record: list[str] | None = None
+    rrd: bool = True
+
+
+class ScenarioSpec(_Strict):
+    """One scenario file, checked key by key (types, ranges, no unknown keys)."""
+
+    id: str | None = Field(default=None, pattern=r"^[A-Za-z0-9_.-]+$")
+    summary: str = ""
+    stop_time: float = Field(gt=0.0, description="s")
+    coupling: CouplingSpec
+    instances: dict[_NAME, InstanceSpec] = Field(min_length=1)
+    connections: ConnectionsSpec = Field(default_factory=ConnectionsSpec)
+    output: OutputSpec = Field(default_factory=OutputSpec)
+
+
+# --- the resolved scenario ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Connection:
+    """Real output ``source`` (``"plant.yaw"``) drives Real input ``target``."""
+
+    source: str
+    target: str
+
+    @property
+    def source_instance(self) -> str:
+        return self.source.split(".", 1)[0]
+
+    @property
+    def source_variable(self) -> str:
+        return self.source.split(".", 1)[1]
+
+    @property
+    def target_instance(self) -> str:
+        return self.target.split(".", 1)[0]
+
+    @property
+    def target_variable(self) -> str:
+        return self.target.split(".", 1)[1]
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """How the master advances the instances (see ``cosim.master``)."""
+
+    step: float  # s, communication step h
+    algorithm: Literal["jacobi", "gauss-seidel"]
+    order: tuple[str, ...]  # Gauss-Seidel order; every instance once
+    step_multiples: Mapping[str, int]  # instance -> k: it steps every k*h
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One FMU instance: its FMU (as referenced and as a file) and explicit start values."""
+
+    name: str
+    fmu: str  # as written: a built-in name or an absolute path
+    fmu_path: Path
+    start: Mapping[str, bool | int | float | str]
+    model_description: Any = dataclasses.field(repr=False, compare=False)
+
+    def variable(self, name: str) -> Any:
+        """The fmpy ``ModelVariable`` called ``name``."""
+        return _variables(self.model_description)[name]
+
+    def variables(self, causality: str) -> list[Any]:
+        """Variables with this causality, in modelDescription order."""
+        return [v for v in self.model_description.modelVariables if v.causality == causality]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A fully resolved scenario: what the master, the results and the exporters use."""
+
+    id: str
+    summary: str
+    source: Path | None
+    stop_time: float  # s
+    coupling: Coupling
+    instances: Mapping[str, Instance]
+    connections: tuple[Connection, ...]
+    record: tuple[str, ...]  # "<instance>.<variable>" columns of results.csv
+    rrd: bool
+    spec: ScenarioSpec = dataclasses.field(repr=False, compare=False)
+    fmu_dir: Path = dataclasses.field(repr=False, compare=False, default=DEFAULT_FMU_DIR)
+
+    @property
+    def n_steps(self) -> int:
+        """Number of communication steps to the stop time."""
+        return round(self.stop_time / self.coupling.step)
+
+    def unconnected_inputs(self, instance: str) -> list[str]:
+        """Inputs of ``instance`` that no connection drives (they hold their start value)."""
+        driven = {c.target_variable for c in self.connections if c.target_instance == instance}
+        return [v.name for v in self.instances[instance].variables("input") if v.name not in driven]
+
+    def with_overrides(
+        self,
+        stop_time: float | None = None,
+        step: float | None = None,
+        algorithm: str | None = None,
+    ) -> Scenario:
+        """A re-validated copy with the command line's overrides applied."""
+        coupling: dict[str, Any] = {}
+        if step is not None:
+            coupling["step"] = step
+        if algorithm is not None:
+            coupling["algorithm"] = algorithm
+        data = self.spec.model_dump(by_alias=True, exclude_none=True)
+        data["coupling"].update(coupling)
+        if stop_time is not None:
+            data["stop_time"] = stop_time
+        where = f"{self.source or self.id} (with command-line overrides)"
+        spec = _validate_spec(data, where)
+        base_dir = self.source.parent if self.source else Path.cwd()
+        return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, where)
+
+    def to_toml(self) -> str:
+        """The resolved scenario as a scenario file that loads back to an equal scenario."""
+        data: dict[str, Any] = {
+            "id": self.id,
+            "summary": self.summary,
+            "stop_time": self.stop_time,
+            "coupling": {
+                "step": self.coupling.step,
+                "algorithm": self.coupling.algorithm,
+                "order": list(self.coupling.order),
+                "step_multiples": dict(self.coupling.step_multiples),
+            },
+            "instances": {
+                name: {"fmu": inst.fmu, "start": dict(inst.start)}
+                for name, inst in self.instances.items()
+            },
+            "connections": {
+                "same_names": False,
+                "remove": [],
+                "add": [{"from": c.source, "to": c.target} for c in self.connections],
+            },
+            "output": {"record": list(self.record), "rrd": self.rrd},
+        }
+        header = (
+            f"# Resolved scenario {self.id!r}"
+            + (f" (from {self.source})" if self.source else "")
+            + ": every connection, start value, step multiple and recorded variable spelled\n"
+            "# out. Run it with `auv-cosim run <this file>`.\n"
+        )
+        return header + tomli_w.dumps(data)
+
+
+# --- loading -----------------------------------------------------------------------------
+
+
+def builtin_scenarios() -> dict[str, str]:
+    """Built-in scenario ids -> one-line summaries (read without touching any FMU)."""
+    result = {}
+    for path in sorted(SCENARIO_FOLDER.glob("*.toml"), key=_natural_key):
+        spec = _validate_spec(_read_toml(path), str(path))
+        result[spec.id or path.stem] = spec.summary
+    return result
+
+
+def scenario_path(id_or_path: str | Path) -> Path:
+    """The file of a built-in scenario id, or ``id_or_path`` itself if it is a file."""
+    candidate = SCENARIO_FOLDER / f"{id_or_path}.toml"
+    if "/" not in str(id_or_path) and candidate.is_file():
+        return candidate
+    path = Path(id_or_path)
+    if path.is_file():
+        return path
+    raise ScenarioError(
+        f"unknown scenario {str(id_or_path)!r}: expected a built-in id "
+        f"({', '.join(builtin_scenarios())}) or the path of a scenario .toml file"
+    )
+
+
+def load_scenario(id_or_path: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> Scenario:
+    """Read, validate and resolve a built-in scenario id or a scenario file.
+
+    ``fmu_dir`` is where the built-in FMUs live (built there on first use).
+    Raises :class:`ScenarioError` naming the file and the key on any problem.
+    """
+    path = scenario_path(id_or_path)
+    spec = _validate_spec(_read_toml(path), str(path))
+    return _resolve(spec, spec.id or path.stem, path.resolve(), path.parent, fmu_dir, str(path))
+
+
+def scenario_from_toml(
+    text: str,
+    where: str = "<string>",
+    base_dir: Path | None = None,
+    fmu_dir: Path = DEFAULT_FMU_DIR,
+) -> Scenario:
+    """Like :func:`load_scenario` for scenario text (relative FMU paths from ``base_dir``)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"scenario {where}: not valid TOML: {exc}") from None
+    spec = _validate_spec(data, where)
+    return _resolve(spec, spec.id or "scenario", None, base_dir or Path.cwd(), fmu_dir, where)
+
+
+def _natural_key(path: Path) -> tuple[str, int]:
+    stem, _, number = path.stem.rpartition("-")
+    return (stem, int(number)) if number.isdigit() else (path.stem, 0)
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"scenario file {path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise ScenarioError(f"scenario file {path}: cannot read it: {exc}") from None
+
+
+def _validate_spec(data: dict[str, Any], where: str) -> ScenarioSpec:
+    try:
+        return ScenarioSpec.model_validate(data)
+    except ValidationError as exc:
+        problems = []
+        for err in exc.errors():
+            key = ".".join(str(part) for part in err["loc"] if not _is_union_tag(part))
+            if err["type"] == "extra_forbidden":
+                problems.append(f"unknown key {key!r}")
+            elif err["type"] == "missing":
+                problems.append(f"key {key!r} is missing")
+            else:
+                problems.append(f"key {key!r} = {err.get('input')!r}: {err['msg']}")
+        raise ScenarioError(f"scenario file {where}: " + "; ".join(problems)) from None
+
+
+def _is_union_tag(part: Any) -> bool:
+    """pydantic puts the union member tried ('float', 'str', ...) in the error location."""
+    return isinstance(part, str) and part in {"bool", "int", "float", "str"}
+
+
+# --- resolution against the FMUs' model descriptions --------------------------------------
+
+
+def _resolve(
+    spec: ScenarioSpec,
+    scenario_id: str,
+    source: Path | None,
+    base_dir: Path,
+    fmu_dir: Path,
+    where: str,
+) -> Scenario:
+    def fail(key: str, problem: str) -> ScenarioError:
+        return ScenarioError(f"scenario file {where}: key {key!r}: {problem}")
+
+    names = list(spec.instances)
+    instances = {
+        name: _resolve_instance(name, inst, base_dir, fmu_dir, fail)
+        for name, inst in spec.instances.items()
+    }
+    coupling = _resolve_coupling(spec, names, fail)
+    connections = _resolve_connections(spec.connections, instances, fail)
+    driven = {c.target for c in connections}
+    for name, inst in instances.items():
+        for var_name in inst.start:
+            if f"{name}.{var_name}" in driven:
+                source_of = next(c.source for c in connections if c.target == f"{name}.{var_name}")
+                raise fail(
+                    f"instances.{name}.start.{var_name}",
+                    f"input {name}.{var_name} is connected from {source_of}, so a start value "
+                    f"would be overwritten; add {name}.{var_name!r} to connections.remove "
+                    "to hold it instead",
+                )
+    stop_steps = spec.stop_time / coupling.step
+    if abs(stop_steps - round(stop_steps)) > _STEP_TOLERANCE * max(1.0, stop_steps):
+        raise fail(
+            "stop_time",
+            f"{spec.stop_time} s is not a whole number of communication steps "
+            f"(coupling.step = {coupling.step} s)",
+        )
+    scenario = Scenario(
+        id=scenario_id,
+        summary=spec.summary,
+        source=source,
+        stop_time=spec.stop_time,
+        coupling=coupling,
+        instances=instances,
+        connections=tuple(connections),
+        record=(),
+        rrd=spec.output.rrd,
+        spec=spec,
+        fmu_dir=fmu_dir,
+    )
+    record = _resolve_record(spec.output.record, scenario, fail)
+    return dataclasses.replace(scenario, record=record)
+
+
+def _resolve_instance(
+    name: str, spec: InstanceSpec, base_dir: Path, fmu_dir: Path, fail: Any
+) -> Instance:
+    if spec.fmu in BUILTIN_FMUS:
+        fmu_ref, fmu_path = spec.fmu, _builtin_fmu(spec.fmu, fmu_dir)
+    else:
+        fmu_path = (base_dir / spec.fmu).resolve()
+        if not fmu_path.is_file():
+            raise fail(
+                f"instances.{name}.fmu",
+                f"{spec.fmu!r} is neither a built-in FMU {list(BUILTIN_FMUS)} nor an existing "
+                f"file (looked for {fmu_path})",
+            )
+        fmu_ref = str(fmu_path)
+    md = _model_description(fmu_path)
+    if md.coSimulation is None:
+        raise fail(f"instances.{name}.fmu", f"{fmu_path} is not a co-simulation FMU")
+    if md.fmiVersion != "2.0":
+        raise fail(f"instances.{name}.fmu", f"{fmu_path} is FMI {md.fmiVersion}, expected 2.0")
+    variables = _variables(md)
+    start: dict[str, bool | int | float | str] = {}
+    for var_name, value in spec.start.items():
+        key = f"instances.{name}.start.{var_name}"
+        var = variables.get(var_name)
+        if var is None:
+            raise fail(key, f"{name} ({fmu_path.name}) has no variable {var_name!r}")
+        if var.causality not in ("parameter", "input") or var.variability == "constant":
+            raise fail(
+                key,
+                f"{name}.{var_name} is a {var.variability} {var.causality}; only parameters "
+                "and inputs take start values",
+            )
+        start[var_name] = _check_type(value, var, key, fail)
+    return Instance(name, fmu_ref, fmu_path, start, md)
+
+
+def _check_type(value: Any, var: Any, key: str, fail: Any) -> bool | int | float | str:
+    expected = {"Real": "a number", "Integer": "an integer", "Enumeration": "an integer",
+                "Boolean": "true or false", "String": "a string"}[var.type]  # fmt: skip
+    ok = {
+        "Real": isinstance(value, int | float) and not isinstance(value, bool),
+        "Integer": isinstance(value, int) and not isinstance(value, bool),
+        "Enumeration": isinstance(value, int) and not isinstance(value, bool),
+        "Boolean": isinstance(value, bool),
+        "String": isinstance(value, str),
+    }[var.type]
+    if not ok:
+        raise fail(key, f"{value!r} is not {expected} ({var.name} is {var.type})")
+    if var.type == "Real":
+        value = float(value)
+        if not math.isfinite(value):
+            raise fail(key, f"{value!r} is not a finite number")
+    return value
+
+
+def _resolve_coupling(spec: ScenarioSpec, names: list[str], fail: Any) -> Coupling:
+    c = spec.coupling
+    order = tuple(c.order) if c.order is not None else tuple(names)
+    if sorted(order) != sorted(names):
+        raise fail("coupling.order", f"{list(order)} must name every instance {names} once")
+    for name in c.step_multiples:
+        if name not in names:
+            raise fail(f"coupling.step_multiples.{name}", f"no instance {name!r} in {names}")
+    multiples = {name: c.step_multiples.get(name, 1) for name in names}
+    return Coupling(step=c.step, algorithm=c.algorithm, order=order, step_multiples=multiples)
+
+
+def _split(ref: str, instances: Mapping[str, Instance], key: str, fail: Any) -> tuple[str, Any]:
+    instance, _, variable = ref.partition(".")
+    if instance not in instances or not variable:
+        raise fail(
+            key, f"{ref!r} is not <instance>.<variable> with an instance in {list(instances)}"
+        )
+    var = _variables(instances[instance].model_description).get(variable)
+    if var is None:
+        fmu = instances[instance].fmu_path.name
+        raise fail(key, f"{instance} ({fmu}) has no variable {variable!r}")
+    return instance, var
+
+
+def _resolve_connections(
+    spec: ConnectionsSpec, instances: Mapping[str, Instance], fail: Any
+) -> list[Connection]:
+    by_target: dict[str, Connection] = {}
+    if spec.same_names:
+        for target, target_inst in instances.items():
+            for var in target_inst.variables("input"):
+                sources = [
+                    name
+                    for name, inst in instances.items()
+                    if name != target
+                    and (src := _variables(inst.model_description).get(var.name)) is not None
+                    and src.causality == "output"
+                    and src.type == var.type == "Real"
+                ]
+                if len(sources) > 1:
+                    raise fail(
+                        "connections.same_names",
+                        f"input {target}.{var.name} has several same-named outputs {sources}: "
+                        "connect it explicitly in connections.add",
+                    )
+                if sources:
+                    tgt = f"{target}.{var.name}"
+                    by_target[tgt] = Connection(f"{sources[0]}.{var.name}", tgt)
+    for i, ref in enumerate(spec.remove):
+        key = f"connections.remove[{i}]"
+        _, var = _split(ref, instances, key, fail)
+        if var.causality != "input":
+            raise fail(
+                key, f"{ref!r} is {_a(var.causality)}; remove names an input to leave unconnected"
+            )
+        by_target.pop(ref, None)
+    for i, conn in enumerate(spec.add):
+        key = f"connections.add[{i}]"
+        src_inst, src = _split(conn.from_, instances, f"{key}.from", fail)
+        tgt_inst, tgt = _split(conn.to, instances, f"{key}.to", fail)
+        if src.causality != "output":
+            raise fail(f"{key}.from", f"{conn.from_!r} is {_a(src.causality)}, not an output")
+        if tgt.causality != "input":
+            raise fail(f"{key}.to", f"{conn.to!r} is {_a(tgt.causality)}, not an input")
+        if src_inst == tgt_inst:
+            raise fail(key, f"{conn.from_!r} -> {conn.to!r} connects an instance to itself")
+        if src.type != "Real" or tgt.type != "Real":
+            raise fail(key, f"only Real connections are supported ({src.type} -> {tgt.type})")
+        by_target[conn.to] = Connection(conn.from_, conn.to)
+    return sorted(by_target.values(), key=lambda c: (c.target_instance, c.target_variable))
+
+
+def _a(word: str) -> str:
+    return ("an " if word[0] in "aeiou" else "a ") + word
+
+
+def _resolve_record(record: list[str] | None, scenario: Scenario, fail: Any) -> tuple[str, ...]:
+    if record is None:
+        columns = []
+        for name, inst in scenario.instances.items():
+            columns += [f"{name}.{v.name}" for v in inst.variables("output") if v.type == "Real"]
+            unconnected = set(scenario.unconnected_inputs(name))
+            columns += [
+                f"{name}.{v.name}"
+                for v in inst.variables("input")
+                if v.name in unconnected and v.type == "Real"
+            ]
+        return tuple(columns)
+    for i, ref in enumerate(record):
+        _, var = _split(ref, scenario.instances, f"output.record[{i}]", fail)
+        if var.type != "Real":
+            raise fail(
+                f"output.record[{i}]", f"{ref!r} is {var.type}; only Real variables are recorded"
+            )
+    if len(set(record)) != len(record):
+        raise fail("output.record", "lists a variable twice")
+    return tuple(record)
+
+
+# --- FMU look-up (no FMU is loaded here) -------------------------------------------------
+
+_descriptions: dict[tuple[Path, float], Any] = {}
+
+
+def _builtin_fmu(name: str, fmu_dir: Path) -> Path:
+    """A built-in FMU in ``fmu_dir``, built there if missing or out of date."""
+    from cosim.build import build_fmu
+
+    return build_fmu(name, fmu_dir)
+
+
+def _model_description(path: Path) -> Any:
+    from fmpy import read_model_description
+
+    key = (path, path.stat().st_mtime)
+    if key not in _descriptions:
+        try:
+            _descriptions[key] = read_model_description(str(path))
+        except Exception as exc:  # fmpy raises plain Exception for invalid model descriptions
+            raise ScenarioError(f"{path}: not a valid FMU: {exc}") from None
+    return _descriptions[key]
+
+
+def _variables(md: Any) -> dict[str, Any]:
+    return {v.name: v for v in md.modelVariables}
