@@ -1,0 +1,269 @@
+"""Rerun recordings of a run: the sink the master feeds, and ``auv-cosim view``.
+
+The master hands over rows of results (``add_rows``, a few hundred steps at a time); the
+sink buffers them and sends each group of signals as columns (``send_columns``) on the
+``sim_time`` timeline (a duration, s). Per-step ``rr.log`` calls cost ~40x more (see
+``shared/spec/RERUN_NOTES.md``), so there are none. What the recording shows is laid out
+in :mod:`cosim.rerun_layout` (plots, colours, blueprint) and :mod:`cosim.rerun_scene` (the
+3D scene). Each sink owns its own ``rr.RecordingStream``, so several runs in one process
+never mix.
+
+The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``), the
+scenario id as the recording name and a property, and the resolved scenario TOML as a
+static text document at ``/scenario``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tomllib
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from cosim.errors import CosimError
+from cosim.rerun_layout import build_blueprint, plan_panels, series_style, time_index
+from cosim.rerun_scene import SceneWriter, log_static_scene, scene_legend
+from plant_fmu.parameters import VehicleParameterError, VehicleParameters, load_vehicle
+
+APPLICATION_ID = "auv-cosim"
+RECORDING_FILE = "recording.rrd"
+MIN_BATCH_ROWS = 100  # rows buffered before a send: a few send_columns per 100 steps
+
+
+class RerunSink:
+    """Stream a run's results to a ``.rrd`` file and/or a running Rerun viewer.
+
+    Args:
+        rrd_path: the recording file to write (its folder is created), or None.
+        connect_url: a viewer's gRPC URL (``rerun+http://127.0.0.1:9876/proxy``), or None.
+        scenario_id: the scenario's id, used as the recording name.
+        scenario_toml: the fully resolved scenario, stored as text; its plant ``vehicle``
+            picks the geometry of the 3D body and its controller ``depth_mode`` whether the
+            depth setpoint is drawn.
+        columns: the recorded variables, ``<instance>.<variable>`` (``plant.yaw``), in the
+            order of the value rows given to :meth:`add_rows`. Any may be missing.
+
+    Raises:
+        ValueError: neither a file nor a URL, duplicate columns, or a bad URL.
+        OSError: the file cannot be created.
+    """
+
+    def __init__(
+        self,
+        rrd_path: Path | None,
+        connect_url: str | None,
+        scenario_id: str,
+        scenario_toml: str,
+        columns: list[str],
+    ) -> None:
+        if rrd_path is None and connect_url is None:
+            raise ValueError("RerunSink needs an rrd_path, a connect_url or both; got neither")
+        if len(set(columns)) != len(columns):
+            duplicates = sorted({c for c in columns if columns.count(c) > 1})
+            raise ValueError(f"recorded columns must be unique, got duplicates {duplicates}")
+        self._columns = list(columns)
+        self._index = {name: i for i, name in enumerate(columns)}
+        self._panels = plan_panels(self._columns)
+        self._pending_times: list[np.ndarray] = []
+        self._pending_values: list[np.ndarray] = []
+        self._pending_rows = 0
+        self._closed = False
+
+        vehicle, depth_mode = _scenario_facts(scenario_toml)
+        has_depth = "controller.depth_setpoint" in self._index and "plant.down" in self._index
+        depth_control = has_depth if depth_mode is None else depth_mode != 0 and has_depth
+
+        self._rec = rr.RecordingStream(APPLICATION_ID)
+        sinks: list[Any] = []
+        if connect_url is not None:
+            sinks.append(rr.GrpcSink(connect_url))
+        if rrd_path is not None:
+            rrd_path = Path(rrd_path)
+            rrd_path.parent.mkdir(parents=True, exist_ok=True)
+            sinks.append(rr.FileSink(str(rrd_path)))
+        self._rec.set_sinks(
+            *sinks, default_blueprint=build_blueprint(self._panels, depth_control=depth_control)
+        )
+        self._rec.send_recording_name(scenario_id)
+        self._rec.send_property(
+            "scenario", rr.AnyValues(id=scenario_id, vehicle=vehicle.name, columns=len(columns))
+        )
+        self._rec.log(
+            "scenario",
+            rr.TextDocument(
+                f"# Scenario `{scenario_id}`\n\n{scene_legend()}\n"
+                f"## Resolved scenario\n\n```toml\n{scenario_toml}\n```\n",
+                media_type=rr.MediaType.MARKDOWN,
+            ),
+            static=True,
+        )
+        for panel in self._panels:
+            self._rec.log(panel.entity, series_style(panel), static=True)
+        log_static_scene(
+            self._rec,
+            vehicle,
+            show_mass="plant.mass_position" in self._index,
+            show_thruster="controller.tunnel_force" in self._index,
+            show_fins="controller.fin_angle" in self._index,
+            show_current=bool(
+                {"controller.current_north", "controller.current_east"} & self._index.keys()
+            ),
+            show_depth_setpoint=depth_control,
+        )
+        self._scene = SceneWriter(self._rec, vehicle, show_depth_setpoint=depth_control)
+
+    @property
+    def recording(self) -> rr.RecordingStream:
+        """The sink's own recording stream."""
+        return self._rec
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        """Queue k rows: ``times`` (k,) in s, ``values`` (k, len(columns)) in SI units.
+
+        Rows are sent once ``MIN_BATCH_ROWS`` have gathered, and the rest on :meth:`close`.
+        """
+        if self._closed:
+            raise ValueError("add_rows on a closed RerunSink")
+        times = np.asarray(times, dtype=float)
+        values = np.asarray(values, dtype=float)
+        if times.ndim != 1 or values.shape != (len(times), len(self._columns)):
+            raise ValueError(
+                f"expected times of shape (k,) and values of shape (k, {len(self._columns)}), "
+                f"got {times.shape} and {values.shape}"
+            )
+        if len(times) == 0:
+            return
+        self._pending_times.append(times.copy())
+        self._pending_values.append(values.copy())
+        self._pending_rows += len(times)
+        if self._pending_rows >= MIN_BATCH_ROWS:
+            self._send_pending()
+
+    def close(self) -> None:
+        """Send what is queued, flush and close the file; safe to call twice."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._send_pending()
+        finally:
+            self._rec.flush()
+            self._rec.disconnect()
+
+    def __enter__(self) -> RerunSink:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _send_pending(self) -> None:
+        if not self._pending_rows:
+            return
+        times = np.concatenate(self._pending_times)
+        values = np.concatenate(self._pending_values)
+        self._pending_times.clear()
+        self._pending_values.clear()
+        self._pending_rows = 0
+        index = time_index(times)
+        for panel in self._panels:
+            shown = values[:, panel.indices] * np.asarray(panel.scales)
+            self._rec.send_columns(
+                panel.entity, indexes=index, columns=rr.Scalars.columns(scalars=shown)
+            )
+
+        def column(name: str) -> np.ndarray | None:
+            i = self._index.get(name)
+            return None if i is None else values[:, i]
+
+        self._scene.send(index, len(times), column)
+
+
+def _scenario_facts(scenario_toml: str) -> tuple[VehicleParameters, int | None]:
+    """The vehicle (for the 3D geometry) and the depth_mode a scenario sets, if any.
+
+    Looks for the keys ``vehicle`` and ``depth_mode`` anywhere in the TOML, so it does not
+    depend on the scenario file's table layout; falls back to ``remus100`` with a warning.
+    """
+    try:
+        tree = tomllib.loads(scenario_toml)
+    except tomllib.TOMLDecodeError as exc:
+        warnings.warn(f"scenario TOML not readable ({exc}); drawing remus100", stacklevel=3)
+        tree = {}
+    vehicles = _find_key(tree, "vehicle")
+    modes = [m for m in _find_key(tree, "depth_mode") if isinstance(m, int)]
+    name = vehicles[0] if vehicles and isinstance(vehicles[0], str) else "remus100"
+    try:
+        vehicle = load_vehicle(name)
+    except (VehicleParameterError, OSError) as exc:
+        warnings.warn(f"vehicle {name!r} not loadable ({exc}); drawing remus100", stacklevel=3)
+        vehicle = load_vehicle("remus100")
+    return vehicle, (modes[0] if modes else None)
+
+
+def _find_key(tree: Any, key: str) -> list[Any]:
+    """Every value stored under ``key`` in nested tables and arrays, depth first."""
+    found: list[Any] = []
+    if isinstance(tree, dict):
+        for k, v in tree.items():
+            if k == key and not isinstance(v, dict | list):
+                found.append(v)
+            else:
+                found.extend(_find_key(v, key))
+    elif isinstance(tree, list):
+        for item in tree:
+            found.extend(_find_key(item, key))
+    return found
+
+
+def rerun_executable() -> str | None:
+    """The ``rerun`` viewer binary: on PATH, or beside this Python (a venv's bin/)."""
+    found = shutil.which("rerun")
+    if found:
+        return found
+    beside = Path(sys.executable).with_name("rerun")
+    return str(beside) if beside.is_file() and os.access(beside, os.X_OK) else None
+
+
+def view_run(run_dir: Path) -> int:
+    """Open ``RUN_DIR/recording.rrd`` in the native viewer, or say how to open it.
+
+    With a display (``DISPLAY`` or ``WAYLAND_DISPLAY`` set) and the ``rerun`` binary found,
+    runs the viewer on the file and returns its exit code. Otherwise prints the command
+    lines for the native and the web viewer and returns 0.
+
+    Raises:
+        CosimError: the folder holds no recording.
+    """
+    run_dir = Path(run_dir)
+    rrd = run_dir / RECORDING_FILE if run_dir.is_dir() else run_dir
+    if not rrd.is_file():
+        raise CosimError(
+            f"no recording at {rrd}: expected a run folder holding {RECORDING_FILE} "
+            f"(written by `auv-cosim run` unless --no-rrd)"
+        )
+    executable = rerun_executable()
+    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    if has_display and executable is not None:
+        print(f"opening {rrd} in the Rerun viewer")
+        return subprocess.call([executable, str(rrd)])
+    reason = (
+        "no display (DISPLAY / WAYLAND_DISPLAY unset)"
+        if not has_display
+        else ("the `rerun` viewer is not on PATH (it comes with `pip install rerun-sdk`)")
+    )
+    print(
+        f"Cannot open a viewer here: {reason}. To look at the recording:\n"
+        f"  native viewer, on a machine with a display:\n"
+        f"    rerun {rrd}\n"
+        f"  web viewer, then browse to http://127.0.0.1:9090 (forward ports 9090 and 9876\n"
+        f"  over ssh when remote: ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 HOST):\n"
+        f"    rerun --web-viewer --bind 127.0.0.1 {rrd}"
+    )
+    return 0

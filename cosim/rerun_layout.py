@@ -1,0 +1,286 @@
+"""What a recording shows: the scalar series catalogue, its colours, and the default blueprint.
+
+Every recorded column ``<instance>.<variable>`` becomes a line in one scalar entity. The
+catalogue below groups the columns by meaning (attitude, rates, velocities, position,
+moving mass, actuators, energy, environment) and puts each setpoint or command beside the
+value it steers (yaw with the yaw setpoint, depth with the depth setpoint, the moving-mass
+position with its command). Entity names carry the display unit (``attitude/yaw_deg``);
+angles are shown in degrees, the moving mass in centimetres, everything else in SI.
+A column the catalogue does not know still gets its own entity, ``other/<column>``, in SI.
+
+Colours follow one rule everywhere, in the plots and in the 3D scene: the first, second and
+third axis of a frame (north/u/p/roll, east/v/q/pitch, down/w/r/yaw) are red, green and
+blue; a value relative to the water is a paler shade of its axis colour; every setpoint or
+command is orange; each actuator has its own colour, reused for its arrow or body in 3D.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+Rgb = tuple[int, int, int]
+
+RED: Rgb = (231, 76, 60)
+GREEN: Rgb = (46, 204, 113)
+BLUE: Rgb = (52, 152, 219)
+PALE_RED: Rgb = (245, 170, 160)
+PALE_GREEN: Rgb = (160, 235, 190)
+PALE_BLUE: Rgb = (160, 205, 240)
+SETPOINT: Rgb = (255, 165, 0)  # every setpoint and command
+MASS: Rgb = (190, 90, 220)  # the internal moving mass
+THRUSTER: Rgb = (0, 200, 200)  # the tunnel thruster
+FIN: Rgb = (160, 210, 60)  # the stern planes
+THRUST: Rgb = (200, 140, 90)  # the propeller
+ENERGY: Rgb = (220, 220, 220)
+CURRENT: Rgb = (90, 200, 250)  # the water current
+HULL: Rgb = (250, 200, 40)  # REMUS yellow
+TRAJECTORY: Rgb = (240, 240, 240)
+
+TIMELINE = "sim_time"
+CHASE_EYE = (-3.0, -1.6, -1.1)  # m in the chase frame: behind, to port, above the vehicle
+DEG = math.degrees(1.0)
+
+
+def time_index(times: np.ndarray) -> list[rr.TimeColumn]:
+    """The ``sim_time`` index of rows at ``times`` (s), rounded to whole nanoseconds.
+
+    rerun-sdk truncates float seconds (0.57 s would become 569999999 ns); rounding keeps
+    the step times exact, so a time cursor set to a step lands on it.
+    """
+    nanos = np.rint(np.asarray(times, dtype=float) * 1e9).astype("timedelta64[ns]")
+    return [rr.TimeColumn(TIMELINE, duration=nanos)]
+
+
+@dataclass(frozen=True)
+class Series:
+    """One line of a plot: a recorded column shown as ``value * scale``."""
+
+    column: str  # "<instance>.<variable>"
+    label: str  # legend text, with the display unit
+    color: Rgb
+    scale: float = 1.0  # display unit per SI unit
+
+
+@dataclass(frozen=True)
+class Panel:
+    """One scalar entity (one plot) holding the series of related columns."""
+
+    entity: str  # entity path, display unit in the last segment
+    title: str  # view name
+    series: tuple[Series, ...]
+
+
+def _s(column: str, label: str, color: Rgb, scale: float = 1.0) -> Series:
+    return Series(column, label, color, scale)
+
+
+PANELS: tuple[Panel, ...] = (
+    Panel("attitude/yaw_deg", "Yaw ψ (deg)", (
+        _s("plant.yaw", "yaw ψ (deg)", BLUE, DEG),
+        _s("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG),
+    )),
+    Panel("attitude/roll_deg", "Roll φ (deg)", (_s("plant.roll", "roll φ (deg)", RED, DEG),)),
+    Panel("attitude/pitch_deg", "Pitch θ (deg)", (
+        _s("plant.pitch", "pitch θ (deg)", GREEN, DEG),
+    )),
+    Panel("rates/roll_yaw_deg_s", "Roll and yaw rates (deg/s)", (
+        _s("plant.p", "roll rate p (deg/s)", RED, DEG),
+        _s("plant.r", "yaw rate r (deg/s)", BLUE, DEG),
+    )),
+    Panel("rates/pitch_deg_s", "Pitch rate (deg/s)", (
+        _s("plant.q", "pitch rate q (deg/s)", GREEN, DEG),
+    )),
+    Panel("velocity/surge_m_s", "Surge (m/s)", (
+        _s("plant.u", "u over ground (m/s)", RED),
+        _s("plant.u_rel", "u through water (m/s)", PALE_RED),
+    )),
+    Panel("velocity/sway_m_s", "Sway (m/s)", (
+        _s("plant.v", "v over ground (m/s)", GREEN),
+        _s("plant.v_rel", "v through water (m/s)", PALE_GREEN),
+    )),
+    Panel("velocity/heave_m_s", "Heave (m/s)", (
+        _s("plant.w", "w over ground (m/s)", BLUE),
+        _s("plant.w_rel", "w through water (m/s)", PALE_BLUE),
+    )),
+    Panel("position/horizontal_m", "Position (m)", (
+        _s("plant.north", "north (m)", RED),
+        _s("plant.east", "east (m)", GREEN),
+    )),
+    Panel("position/depth_m", "Depth (m)", (
+        _s("plant.down", "depth (m)", BLUE),
+        _s("controller.depth_setpoint", "depth setpoint (m)", SETPOINT),
+    )),
+    Panel("moving_mass/position_cm", "Moving mass y_v (cm)", (
+        _s("plant.mass_position", "mass position y_v (cm)", MASS, 100.0),
+        _s("controller.mass_position_cmd", "mass command y_d (cm)", SETPOINT, 100.0),
+    )),
+    Panel("moving_mass/velocity_cm_s", "Moving-mass rail speed (cm/s)", (
+        _s("plant.mass_velocity", "rail speed (cm/s)", MASS, 100.0),
+    )),
+    Panel("actuators/tunnel_force_N", "Tunnel thruster (N)", (
+        _s("controller.tunnel_force", "tunnel force F_t (N)", THRUSTER),
+    )),
+    Panel("actuators/fin_angle_deg", "Stern planes (deg)", (
+        _s("controller.fin_angle", "fin angle δs (deg)", FIN, DEG),
+    )),
+    Panel("actuators/thrust_N", "Propeller thrust (N)", (
+        _s("controller.thrust", "thrust T (N)", THRUST),
+    )),
+    Panel("energy/kinetic_J", "Kinetic energy (J)", (
+        _s("plant.kinetic_energy", "kinetic energy (J)", ENERGY),
+    )),
+    Panel("environment/current_m_s", "Current (m/s)", (
+        _s("controller.current_north", "current north (m/s)", PALE_RED),
+        _s("controller.current_east", "current east (m/s)", PALE_GREEN),
+    )),
+)  # fmt: skip
+
+HEADING_LOOP = (
+    "attitude/yaw_deg",
+    "rates/roll_yaw_deg_s",
+    "attitude/roll_deg",
+    "velocity/sway_m_s",
+    "moving_mass/position_cm",
+    "actuators/tunnel_force_N",
+)
+DEPTH_LOOP = (
+    "position/depth_m",
+    "attitude/pitch_deg",
+    "rates/pitch_deg_s",
+    "velocity/heave_m_s",
+    "actuators/fin_angle_deg",
+    "velocity/surge_m_s",
+)
+VEHICLE = (
+    "position/horizontal_m",
+    "moving_mass/velocity_cm_s",
+    "actuators/thrust_N",
+    "energy/kinetic_J",
+    "environment/current_m_s",
+)
+
+
+@dataclass(frozen=True)
+class PlannedPanel:
+    """A panel restricted to the columns a run records: ``indices`` index into them."""
+
+    entity: str
+    title: str
+    series: tuple[Series, ...]
+    indices: tuple[int, ...]
+    scales: tuple[float, ...]
+
+
+def plan_panels(columns: list[str]) -> list[PlannedPanel]:
+    """The panels a run with these columns shows; unknown columns go to ``other/...``.
+
+    A panel none of whose columns is recorded is dropped; one with some of them keeps
+    those (a run without a controller still shows yaw, without the setpoint).
+    """
+    position = {name: i for i, name in enumerate(columns)}
+    planned: list[PlannedPanel] = []
+    known: set[str] = set()
+    for panel in PANELS:
+        present = tuple(s for s in panel.series if s.column in position)
+        known.update(s.column for s in panel.series)
+        if present:
+            planned.append(
+                PlannedPanel(
+                    panel.entity,
+                    panel.title,
+                    present,
+                    tuple(position[s.column] for s in present),
+                    tuple(s.scale for s in present),
+                )
+            )
+    for name in columns:
+        if name not in known:
+            series = _s(name, name, ENERGY)
+            entity = "other/" + name.replace(".", "/")
+            planned.append(PlannedPanel(entity, name, (series,), (position[name],), (1.0,)))
+    return planned
+
+
+def series_style(panel: PlannedPanel) -> rr.SeriesLines:
+    """The static legend names and colours of a panel's lines."""
+    return rr.SeriesLines(
+        names=[s.label for s in panel.series],
+        colors=[s.color for s in panel.series],
+        widths=[1.5] * len(panel.series),
+    )
+
+
+def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blueprint:
+    """The default layout: 3D world and chase views, heading-loop and depth-loop plots.
+
+    Left: the world view (whole trajectory, NED grid at the surface) above a chase view
+    in the frame ``world/chase`` (the vehicle's position and heading, see
+    :mod:`cosim.rerun_scene`): its eye stays behind the vehicle, which rolls and pitches
+    against a level grid. Middle: the heading loop (yaw and its setpoint, roll and
+    yaw rates, roll, sway, the moving mass and its command, the tunnel thruster). Right,
+    in tabs: the depth loop (depth and setpoint, pitch, pitch rate, heave, fins, surge),
+    the rest of the vehicle state, any unknown columns, and the scenario text. The depth
+    tab is the active one when depth control is on, the vehicle tab otherwise.
+    """
+    present = {p.entity: p for p in panels}
+
+    def plots(entities: tuple[str, ...]) -> list[rrb.TimeSeriesView]:
+        return [
+            rrb.TimeSeriesView(
+                origin="/" + entity,
+                name=present[entity].title,
+                plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=True),
+            )
+            for entity in entities
+            if entity in present
+        ]
+
+    trajectory_history = rrb.VisibleTimeRanges(
+        timeline=TIMELINE,
+        start=rrb.TimeRangeBoundary.infinite(),
+        end=rrb.TimeRangeBoundary.cursor_relative(),
+    )
+    world = rrb.Spatial3DView(
+        origin="/world",
+        name="World (NED, grid 10 m)",
+        line_grid=rrb.LineGrid3D(visible=True, spacing=10.0),
+        overrides={"/world/trajectory": trajectory_history},
+    )
+    chase = rrb.Spatial3DView(
+        origin="/world/chase",
+        contents="/world/**",
+        name="Chase view (level grid 1 m)",
+        line_grid=rrb.LineGrid3D(visible=True, spacing=1.0),
+        eye_controls=rrb.EyeControls3D(
+            kind=rrb.Eye3DKind.Orbital,
+            position=CHASE_EYE,
+            look_target=[0.0, 0.0, 0.0],
+            eye_up=[0.0, 0.0, -1.0],
+        ),
+        overrides={"/world/trajectory": trajectory_history},
+    )
+    columns: list[rrb.Container | rrb.View] = [rrb.Vertical(world, chase, row_shares=[3, 2])]
+    if heading := plots(HEADING_LOOP):
+        columns.append(rrb.Vertical(*heading, name="Heading loop"))
+    tabs: list[rrb.Container | rrb.View] = []
+    for title, entities in (("Depth loop", DEPTH_LOOP), ("Vehicle", VEHICLE)):
+        if views := plots(entities):
+            tabs.append(rrb.Vertical(*views, name=title))
+    if any(p.entity.startswith("other/") for p in panels):
+        tabs.append(rrb.TimeSeriesView(origin="/other", name="Other signals"))
+    tabs.append(rrb.TextDocumentView(origin="/scenario", name="Scenario"))
+    names = [tab.name for tab in tabs]
+    first = "Depth loop" if depth_control else "Vehicle"
+    columns.append(rrb.Tabs(*tabs, active_tab=names.index(first) if first in names else 0))
+    return rrb.Blueprint(
+        rrb.Horizontal(*columns, column_shares=[5, 3, 3][: len(columns)]),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed"),
+        auto_views=False,
+    )

@@ -1,0 +1,288 @@
+"""The 3D scene of a recording, in NED: the vehicle, its internal actuators, current, path.
+
+Entity tree (``world`` is the earth frame, FRD = x north, y east, z down; ``world/vehicle``
+is the body frame at the centre of buoyancy, FRD = x forward, y starboard, z down)::
+
+    world                      ViewCoordinates.FRD (static)
+    world/vehicle              Transform3D per step: translation [north, east, down] and the
+                               rotation R = Rz(psi) Ry(theta) Rx(phi) (2.2.8) as a quaternion
+    world/chase                Transform3D per step: the same translation, turned by yaw only;
+                               the chase view's frame, so its eye stays behind the vehicle
+                               and its grid stays level while the vehicle rolls and pitches
+    world/vehicle/hull         Capsules3D, length x diameter of the parameter set (static)
+    world/vehicle/rudders      Boxes3D, the two vertical tail fins (static)
+    world/vehicle/stern_planes Boxes3D, turned per step by fin_angle about the body y axis
+    world/vehicle/mass_rail    LineStrips3D, the moving-mass rail at x = x_v, z = z_g,
+                               as long as the stroke (static)
+    world/vehicle/moving_mass  Ellipsoids3D at [x_v, mass_position, z_g] per step
+    world/vehicle/tunnel_force Arrows3D from the thruster at [0, 0, z_t]: F_t along body y
+    world/current              Arrows3D, the earth-frame current, drawn above the vehicle
+    world/trajectory           LineStrips3D, one segment per step (the blueprint shows every
+                               segment up to the time cursor, so the path grows)
+    world/depth_setpoint       Boxes3D, a translucent square at the setpoint depth under the
+                               vehicle, when depth control is on
+
+Only what never changes is logged static: a static component would shadow the per-step
+values of the same component on that entity.
+
+The geometry comes from the vehicle parameter set; the shapes of the fins and of the mass
+are drawn to look right, they do not enter the physics. Arrow lengths are scaled
+(``FORCE_SCALE``, ``CURRENT_SCALE``); :func:`scene_legend` states the scales.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import rerun as rr
+from scipy.spatial.transform import Rotation
+
+from cosim.rerun_layout import (
+    CURRENT,
+    FIN,
+    HULL,
+    MASS,
+    SETPOINT,
+    THRUSTER,
+    TRAJECTORY,
+)
+from plant_fmu.parameters import VehicleParameters
+
+FORCE_SCALE = 0.05  # m of arrow per N of tunnel force (20 N = 1 m)
+CURRENT_SCALE = 5.0  # m of arrow per m/s of current (0.2 m/s = 1 m)
+CURRENT_ARROW_HEIGHT = 1.0  # m above the vehicle, so the arrow does not hide the hull
+FIN_CHORD = 0.08  # m, drawn size of the tail fins
+FIN_SPAN = 0.09  # m beyond the hull
+FIN_THICKNESS = 0.006  # m
+FIN_FROM_TAIL = 0.12  # m, fin root hinge ahead of the tail end
+MASS_RADIUS = 0.03  # m, drawn radius of the moving mass
+DEPTH_MARKER_HALF_SIZE = 4.0  # m, half side of the depth-setpoint square
+
+Columns = Callable[[str], np.ndarray | None]  # column name -> values (k,) or None
+
+
+def log_static_scene(
+    rec: rr.RecordingStream,
+    vehicle: VehicleParameters,
+    *,
+    show_mass: bool,
+    show_thruster: bool,
+    show_fins: bool,
+    show_current: bool,
+    show_depth_setpoint: bool,
+) -> None:
+    """Log the frames and every shape that does not change with time."""
+    rec.log("world", rr.ViewCoordinates.FRD, static=True)
+    radius = 0.5 * vehicle.diameter
+    cylinder = vehicle.length - vehicle.diameter  # the capsule's caps add one diameter
+    # Capsules3D are built along local +z: turn +z onto body +x (90 deg about y).
+    rec.log(
+        "world/vehicle/hull",
+        rr.Capsules3D(
+            lengths=[cylinder],
+            radii=[radius],
+            translations=[[-0.5 * cylinder, 0.0, 0.0]],
+            quaternions=[Rotation.from_euler("y", 90.0, degrees=True).as_quat()],
+            colors=[(*HULL, 150)],
+            fill_mode="solid",
+        ),
+        static=True,
+    )
+    hinge = -0.5 * vehicle.length + FIN_FROM_TAIL
+    offset = radius + 0.5 * FIN_SPAN
+    rec.log(
+        "world/vehicle/rudders",
+        rr.Boxes3D(
+            centers=[[hinge - 0.5 * FIN_CHORD, 0.0, -offset], [hinge - 0.5 * FIN_CHORD, 0, offset]],
+            half_sizes=[[0.5 * FIN_CHORD, 0.5 * FIN_THICKNESS, 0.5 * FIN_SPAN]] * 2,
+            colors=[HULL],
+            fill_mode="solid",
+        ),
+        static=True,
+    )
+    # Stern planes: their frame sits at the hinge and turns by fin_angle per step.
+    rec.log(
+        "world/vehicle/stern_planes",
+        rr.Boxes3D(
+            centers=[[-0.5 * FIN_CHORD, -offset, 0.0], [-0.5 * FIN_CHORD, offset, 0.0]],
+            half_sizes=[[0.5 * FIN_CHORD, 0.5 * FIN_SPAN, 0.5 * FIN_THICKNESS]] * 2,
+            colors=[FIN if show_fins else HULL],
+            fill_mode="solid",
+        ),
+        static=True,
+    )
+    if not show_fins:  # else SceneWriter poses them per step (static data would shadow it)
+        rec.log(
+            "world/vehicle/stern_planes",
+            rr.Transform3D(translation=[hinge, 0.0, 0.0]),
+            static=True,
+        )
+    if show_mass:
+        rail = [[vehicle.x_v, -vehicle.mass_stroke, vehicle.z_g]]
+        rail.append([vehicle.x_v, vehicle.mass_stroke, vehicle.z_g])
+        rec.log(
+            "world/vehicle/mass_rail",
+            rr.LineStrips3D([rail], colors=[MASS], radii=[0.004]),
+            static=True,
+        )
+        rec.log(
+            "world/vehicle/moving_mass",
+            rr.Ellipsoids3D(half_sizes=[[MASS_RADIUS] * 3], colors=[MASS], fill_mode="solid"),
+            static=True,
+        )
+    if show_thruster:
+        rec.log(
+            "world/vehicle/tunnel_force",
+            rr.Arrows3D.from_fields(
+                origins=[[0.0, 0.0, vehicle.z_t]],
+                colors=[THRUSTER],
+                radii=[0.015],
+            ),
+            static=True,
+        )
+    if show_current:
+        rec.log(
+            "world/current",
+            rr.Arrows3D.from_fields(
+                colors=[CURRENT],
+                radii=[0.02],
+            ),
+            static=True,
+        )
+    rec.log(
+        "world/trajectory",
+        rr.LineStrips3D.from_fields(colors=[TRAJECTORY], radii=rr.Radius.ui_points(1.5)),
+        static=True,
+    )
+    if show_depth_setpoint:
+        half = DEPTH_MARKER_HALF_SIZE
+        rec.log(
+            "world/depth_setpoint",
+            rr.Boxes3D(
+                half_sizes=[[half, half, 0.005]],
+                colors=[(*SETPOINT, 70)],
+                fill_mode="solid",
+            ),
+            static=True,
+        )
+
+
+def scene_legend() -> str:
+    """Markdown that explains the 3D scene's shapes, colours and arrow scales."""
+    return (
+        "## 3D scene (NED: x north, y east, z down)\n\n"
+        "- yellow body: the hull; green stern planes turn with `fin_angle`\n"
+        "- purple ball on its rail: the moving mass at `mass_position`\n"
+        f"- cyan arrow: tunnel-thruster force, 1 m = {1 / FORCE_SCALE:g} N\n"
+        f"- blue arrow above the vehicle: water current, 1 m = {1 / CURRENT_SCALE:g} m/s\n"
+        "- white line: the path so far; orange square: the depth setpoint\n"
+        "- chase view: follows position and heading; its grid is level through the vehicle\n"
+    )
+
+
+def euler_to_quaternions(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """Quaternions [x, y, z, w] of R = Rz(yaw) Ry(pitch) Rx(roll) (2.2.8), one per row."""
+    # Intrinsic "ZYX" = Rz(psi) Ry(theta) Rx(phi), the zyx convention of Ch. 2.
+    return Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll])).as_quat()
+
+
+class SceneWriter:
+    """Sends the time-varying part of the scene in columns, batch by batch."""
+
+    def __init__(
+        self,
+        rec: rr.RecordingStream,
+        vehicle: VehicleParameters,
+        *,
+        show_depth_setpoint: bool,
+    ) -> None:
+        self._rec = rec
+        self._vehicle = vehicle
+        self._show_depth_setpoint = show_depth_setpoint
+        self._last_position: np.ndarray | None = None
+
+    def send(self, index: list[rr.TimeColumn], n: int, column: Columns) -> None:
+        """Send the poses, actuator states, current and path of n rows at ``index``."""
+        zeros = np.zeros(n)
+
+        def get(name: str) -> np.ndarray:
+            values = column(name)
+            return zeros if values is None else values
+
+        position = np.column_stack([get("plant.north"), get("plant.east"), get("plant.down")])
+        yaw = get("plant.yaw")
+        quaternions = euler_to_quaternions(get("plant.roll"), get("plant.pitch"), yaw)
+        self._rec.send_columns(
+            "world/vehicle",
+            indexes=index,
+            columns=rr.Transform3D.columns(translation=position, quaternion=quaternions),
+        )
+        self._rec.send_columns(
+            "world/chase",
+            indexes=index,
+            columns=rr.Transform3D.columns(
+                translation=position, quaternion=euler_to_quaternions(zeros, zeros, yaw)
+            ),
+        )
+        self._send_trajectory(index, position)
+
+        fin = column("controller.fin_angle")
+        if fin is not None:
+            hinge = np.tile([-0.5 * self._vehicle.length + FIN_FROM_TAIL, 0.0, 0.0], (n, 1))
+            turn = Rotation.from_rotvec(np.outer(fin, [0.0, 1.0, 0.0])).as_quat()
+            self._rec.send_columns(
+                "world/vehicle/stern_planes",
+                indexes=index,
+                columns=rr.Transform3D.columns(translation=hinge, quaternion=turn),
+            )
+        mass = column("plant.mass_position")
+        if mass is not None:
+            centers = np.column_stack(
+                [np.full(n, self._vehicle.x_v), mass, np.full(n, self._vehicle.z_g)]
+            )
+            self._rec.send_columns(
+                "world/vehicle/moving_mass",
+                indexes=index,
+                columns=rr.Ellipsoids3D.columns(centers=centers),
+            )
+        force = column("controller.tunnel_force")
+        if force is not None:
+            vectors = np.column_stack([zeros, FORCE_SCALE * force, zeros])
+            self._rec.send_columns(
+                "world/vehicle/tunnel_force",
+                indexes=index,
+                columns=rr.Arrows3D.columns(vectors=vectors),
+            )
+        north, east = column("controller.current_north"), column("controller.current_east")
+        if north is not None or east is not None:
+            current = np.column_stack(
+                [get("controller.current_north"), get("controller.current_east"), zeros]
+            )
+            above = position - [0.0, 0.0, CURRENT_ARROW_HEIGHT]
+            self._rec.send_columns(
+                "world/current",
+                indexes=index,
+                columns=rr.Arrows3D.columns(origins=above, vectors=CURRENT_SCALE * current),
+            )
+        depth = column("controller.depth_setpoint")
+        if self._show_depth_setpoint and depth is not None:
+            centers = np.column_stack([position[:, 0], position[:, 1], depth])
+            self._rec.send_columns(
+                "world/depth_setpoint",
+                indexes=index,
+                columns=rr.Boxes3D.columns(centers=centers),
+            )
+
+    def _send_trajectory(self, index: list[rr.TimeColumn], position: np.ndarray) -> None:
+        # One segment per step, from the previous row's position (or itself on the first).
+        previous = np.empty_like(position)
+        previous[1:] = position[:-1]
+        previous[0] = position[0] if self._last_position is None else self._last_position
+        self._last_position = position[-1].copy()
+        segments = np.stack([previous, position], axis=1)
+        self._rec.send_columns(
+            "world/trajectory",
+            indexes=index,
+            columns=rr.LineStrips3D.columns(strips=segments),
+        )

@@ -1,0 +1,439 @@
+"""The Rerun sink, read back with rerun.chunk.RrdReader.
+
+The data is a real plant run (plant_fmu.stepping.simulate, 6-DOF, 4 s at 10 ms) with the
+controller's columns held constant, fed to the sink in uneven batches as the master does.
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pytest
+from rerun.chunk import RrdReader
+
+from cosim.cli import main
+from cosim.errors import CosimError
+from cosim.recording import RECORDING_FILE, RerunSink, rerun_executable, view_run
+from cosim.rerun_scene import CURRENT_SCALE, FORCE_SCALE, MASS_RADIUS
+from plant_fmu.dynamics import (
+    INPUT_INDEX,
+    INPUT_NAMES,
+    STATE_INDEX,
+    STATE_NAMES,
+    PlantModel,
+    Variant,
+    rotation_matrix,
+)
+from plant_fmu.parameters import load_vehicle
+from plant_fmu.stepping import simulate
+
+STEP = 0.01
+CONTROLLER = {  # recorded controller column -> plant input it drives (or a constant)
+    "controller.thrust": 9.0,
+    "controller.tunnel_force": 6.0,
+    "controller.fin_angle": 0.08,
+    "controller.mass_position_cmd": 0.05,
+    "controller.current_north": 0.05,
+    "controller.current_east": 0.2,
+    "controller.yaw_setpoint": math.radians(-7.55),
+    "controller.depth_setpoint": 1.0,
+}
+SCENARIO_TOML = """id = "rec-test"
+stop_time = 4.0
+[instances.plant.start]
+vehicle = "remus100"
+variant = 0
+[instances.controller.start]
+depth_mode = 1
+heading_mode = 3
+"""
+
+
+@pytest.fixture(scope="module", autouse=True)
+def scratch_home(tmp_path_factory: pytest.TempPathFactory):
+    """Rerun writes settings under HOME and XDG folders: keep them out of the user's."""
+    home = tmp_path_factory.mktemp("home")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("HOME", str(home))
+        for name in ("XDG_CONFIG_HOME", "XDG_DATA_HOME", "XDG_CACHE_HOME", "XDG_RUNTIME_DIR"):
+            mp.setenv(name, str(home / name.lower()))
+        yield home
+
+
+def plant_run(duration: float = 4.0) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """(times, columns, values) of a 6-DOF plant run named as the master names them."""
+    vehicle = load_vehicle("remus100")
+    model = PlantModel(vehicle, variant=Variant.FULL)
+    inputs = np.zeros(len(INPUT_NAMES))
+    for column, value in CONTROLLER.items():
+        name = column.split(".", 1)[1]
+        if name in INPUT_INDEX:
+            inputs[INPUT_INDEX[name]] = value
+    x0 = np.zeros(len(STATE_NAMES))
+    x0[STATE_INDEX["u"]] = 1.5
+    x0[STATE_INDEX["v"]] = -0.1
+    times, states = simulate(model, x0, inputs, duration, STEP)
+    relative = np.array([model.relative_velocity(x, inputs)[:3] for x in states])
+    energy = np.array([model.kinetic_energy(x, inputs) for x in states])
+    columns = [f"plant.{name}" for name in STATE_NAMES]
+    columns += ["plant.u_rel", "plant.v_rel", "plant.w_rel", "plant.kinetic_energy"]
+    columns += list(CONTROLLER)
+    controller = np.tile(list(CONTROLLER.values()), (len(times), 1))
+    return times, columns, np.column_stack([states, relative, energy, controller])
+
+
+def feed(sink: RerunSink, times: np.ndarray, values: np.ndarray) -> None:
+    """Uneven batches (1, 57, 150, 193, ...) cross the sink's own batching boundaries."""
+    sizes = [1, 57, 150, 193]
+    k = i = 0
+    while k < len(times):
+        n = sizes[i % len(sizes)]
+        sink.add_rows(times[k : k + n], values[k : k + n])
+        k += n
+        i += 1
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory, scratch_home: Path):
+    times, columns, values = plant_run()
+    path = tmp_path_factory.mktemp("rec") / RECORDING_FILE
+    with RerunSink(path, None, "rec-test", SCENARIO_TOML, columns) as sink:
+        feed(sink, times, values)
+    return path, times, columns, values
+
+
+def col(columns: list[str], values: np.ndarray, name: str) -> np.ndarray:
+    return values[:, columns.index(name)]
+
+
+def _flat(array: pa.Array) -> np.ndarray:
+    while pa.types.is_list(array.type) or pa.types.is_fixed_size_list(array.type):
+        array = array.flatten()
+    return array.to_numpy(zero_copy_only=False)
+
+
+def read_temporal(path: Path, entity: str, component: str, width: int):
+    """(nanoseconds (n,), values (n, instances, width)) of a component on sim_time."""
+    times, rows = [], []
+    for chunk in RrdReader(path).stream():
+        if chunk.entity_path != entity:
+            continue
+        batch = chunk.to_record_batch()
+        if "sim_time" not in batch.schema.names or component not in batch.schema.names:
+            continue
+        column = batch.column(component)
+        counts = column.value_lengths().to_numpy(zero_copy_only=False)
+        assert np.all(counts == counts[0]), f"{entity} {component}: ragged rows"
+        times.append(batch.column("sim_time").cast(pa.int64()).to_numpy())
+        rows.append(_flat(column).reshape(len(batch), -1, width))
+    assert times, f"no {component} on {entity} in {path}"
+    t = np.concatenate(times)
+    order = np.argsort(t, kind="stable")
+    return t[order], np.concatenate(rows)[order]
+
+
+def read_static(path: Path, entity: str, component: str) -> list:
+    for chunk in RrdReader(path).stream():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == entity and component in batch.schema.names:
+            return batch.column(component).to_pylist()
+    raise AssertionError(f"no static {component} on {entity}")
+
+
+def step_nanos(times: np.ndarray) -> np.ndarray:
+    return np.rint(times * 1e9).astype(np.int64)
+
+
+def test_yaw_series_equals_the_input_exactly_at_every_step(recorded):
+    path, times, columns, values = recorded
+    t, scalars = read_temporal(path, "/attitude/yaw_deg", "Scalars:scalars", 1)
+    np.testing.assert_array_equal(t, step_nanos(times))  # one value per step, at its time
+    yaw = col(columns, values, "plant.yaw")
+    assert np.ptp(yaw) > 0.05  # the vehicle really turned
+    np.testing.assert_array_equal(scalars[:, 0, 0], np.degrees(yaw))
+    setpoint = col(columns, values, "controller.yaw_setpoint")
+    np.testing.assert_array_equal(scalars[:, 1, 0], np.degrees(setpoint))
+
+
+def test_every_column_is_one_series_in_its_display_unit(recorded):
+    path, times, columns, values = recorded
+    expected = {  # entity -> (columns, display unit per SI unit), from the brief and the catalogue
+        "/attitude/roll_deg": (["plant.roll"], math.degrees(1)),
+        "/attitude/pitch_deg": (["plant.pitch"], math.degrees(1)),
+        "/rates/roll_yaw_deg_s": (["plant.p", "plant.r"], math.degrees(1)),
+        "/rates/pitch_deg_s": (["plant.q"], math.degrees(1)),
+        "/velocity/surge_m_s": (["plant.u", "plant.u_rel"], 1.0),
+        "/velocity/sway_m_s": (["plant.v", "plant.v_rel"], 1.0),
+        "/velocity/heave_m_s": (["plant.w", "plant.w_rel"], 1.0),
+        "/position/horizontal_m": (["plant.north", "plant.east"], 1.0),
+        "/position/depth_m": (["plant.down", "controller.depth_setpoint"], 1.0),
+        "/moving_mass/position_cm": (
+            ["plant.mass_position", "controller.mass_position_cmd"],
+            100.0,
+        ),
+        "/moving_mass/velocity_cm_s": (["plant.mass_velocity"], 100.0),
+        "/actuators/tunnel_force_N": (["controller.tunnel_force"], 1.0),
+        "/actuators/fin_angle_deg": (["controller.fin_angle"], math.degrees(1)),
+        "/actuators/thrust_N": (["controller.thrust"], 1.0),
+        "/energy/kinetic_J": (["plant.kinetic_energy"], 1.0),
+        "/environment/current_m_s": (["controller.current_north", "controller.current_east"], 1.0),
+    }
+    seen = {"plant.yaw", "controller.yaw_setpoint"}  # checked above
+    for entity, (names, scale) in expected.items():
+        t, scalars = read_temporal(path, entity, "Scalars:scalars", 1)
+        np.testing.assert_array_equal(t, step_nanos(times))
+        for i, name in enumerate(names):
+            np.testing.assert_array_equal(scalars[:, i, 0], col(columns, values, name) * scale)
+        seen.update(names)
+    assert seen == set(columns)
+
+
+def test_pose_has_one_transform_per_step_matching_position_and_euler_angles(recorded):
+    path, times, columns, values = recorded
+    t, translation = read_temporal(path, "/world/vehicle", "Transform3D:translation", 3)
+    tq, quaternion = read_temporal(path, "/world/vehicle", "Transform3D:quaternion", 4)
+    np.testing.assert_array_equal(t, step_nanos(times))
+    np.testing.assert_array_equal(tq, t)
+    ned = np.column_stack(
+        [col(columns, values, n) for n in ("plant.north", "plant.east", "plant.down")]
+    )
+    assert np.ptp(ned[:, 2]) > 0.01  # 6-DOF: the depth changes too
+    np.testing.assert_array_equal(translation[:, 0], ned.astype(np.float32))
+    roll, pitch, yaw = (col(columns, values, f"plant.{n}") for n in ("roll", "pitch", "yaw"))
+    for k in range(len(times)):
+        x, y, z, w = quaternion[k, 0].astype(float)
+        # Rotation matrix of the unit quaternion (x, y, z, w), then Euler angles zyx (2.2.8).
+        r = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        expected = rotation_matrix(roll[k], pitch[k], yaw[k])
+        np.testing.assert_allclose(r, expected, atol=3e-7)
+        euler = (math.atan2(r[2, 1], r[2, 2]), -math.asin(r[2, 0]), math.atan2(r[1, 0], r[0, 0]))
+        wrapped = np.angle(np.exp(1j * (np.array(euler) - [roll[k], pitch[k], yaw[k]])))
+        np.testing.assert_allclose(wrapped, 0.0, atol=1e-6)
+
+
+def test_chase_frame_follows_position_and_heading_only(recorded):
+    path, _, columns, values = recorded
+    _, pose = read_temporal(path, "/world/vehicle", "Transform3D:translation", 3)
+    _, translation = read_temporal(path, "/world/chase", "Transform3D:translation", 3)
+    _, q = read_temporal(path, "/world/chase", "Transform3D:quaternion", 4)
+    np.testing.assert_array_equal(translation, pose)
+    np.testing.assert_allclose(q[:, 0, :2], 0.0, atol=1e-7)  # no roll, no pitch
+    heading = 2 * np.arctan2(q[:, 0, 2], q[:, 0, 3])
+    error = np.angle(np.exp(1j * (heading - col(columns, values, "plant.yaw"))))
+    np.testing.assert_allclose(error, 0.0, atol=1e-6)
+
+
+def test_moving_mass_sits_on_its_rail_inside_the_hull(recorded):
+    path, times, columns, values = recorded
+    vehicle = load_vehicle("remus100")
+    t, centers = read_temporal(path, "/world/vehicle/moving_mass", "Ellipsoids3D:centers", 3)
+    np.testing.assert_array_equal(t, step_nanos(times))
+    y_v = col(columns, values, "plant.mass_position")
+    assert np.max(np.abs(y_v)) > 0.04  # the 5 cm command moved it
+    expected = np.column_stack(
+        [np.full_like(y_v, vehicle.x_v), y_v, np.full_like(y_v, vehicle.z_g)]
+    )
+    np.testing.assert_array_equal(centers[:, 0], expected.astype(np.float32))
+    # Even at the stop, the drawn mass stays within the hull's cylinder.
+    at_stop = math.hypot(vehicle.mass_stroke, vehicle.z_g) + MASS_RADIUS
+    assert at_stop <= 0.5 * vehicle.diameter
+    assert abs(vehicle.x_v) + MASS_RADIUS <= 0.5 * (vehicle.length - vehicle.diameter)
+
+
+def test_arrows_show_tunnel_force_in_body_y_and_current_in_earth_axes(recorded):
+    path, _, columns, values = recorded
+    _, force = read_temporal(path, "/world/vehicle/tunnel_force", "Arrows3D:vectors", 3)
+    f = col(columns, values, "controller.tunnel_force")
+    expected = np.column_stack([0 * f, FORCE_SCALE * f, 0 * f]).astype(np.float32)
+    np.testing.assert_array_equal(force[:, 0], expected)
+    _, current = read_temporal(path, "/world/current", "Arrows3D:vectors", 3)
+    cn, ce = (col(columns, values, f"controller.current_{d}") for d in ("north", "east"))
+    expected = CURRENT_SCALE * np.column_stack([cn, ce, 0 * cn])
+    np.testing.assert_array_equal(current[:, 0], expected.astype(np.float32))
+
+
+def test_trajectory_segments_chain_across_batches(recorded):
+    path, times, columns, values = recorded
+    t, segments = read_temporal(path, "/world/trajectory", "LineStrips3D:strips", 3)
+    np.testing.assert_array_equal(t, step_nanos(times))
+    ned = np.column_stack(
+        [col(columns, values, n) for n in ("plant.north", "plant.east", "plant.down")]
+    )
+    np.testing.assert_array_equal(segments[:, 1], ned.astype(np.float32))
+    np.testing.assert_array_equal(segments[1:, 0], segments[:-1, 1])
+
+
+def _blueprint_views(path: Path) -> dict[str, tuple[str, str]]:
+    """View name -> (class, origin) of the recording's blueprint store."""
+    reader = RrdReader(path)
+    assert reader.blueprints(), "no blueprint in the recording"
+    views, containers = {}, []
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        if "ViewBlueprint:display_name" in names:
+            for name, kind, origin in zip(
+                batch.column("ViewBlueprint:display_name").to_pylist(),
+                batch.column("ViewBlueprint:class_identifier").to_pylist(),
+                batch.column("ViewBlueprint:space_origin").to_pylist(),
+                strict=True,
+            ):
+                views[name[0]] = (kind[0], origin[0])
+        if "ContainerBlueprint:display_name" in names:
+            containers += [
+                n[0] for n in batch.column("ContainerBlueprint:display_name").to_pylist()
+            ]
+    views.update({name: ("container", "") for name in containers})
+    return views
+
+
+def test_blueprint_has_world_chase_and_loop_panels_over_recorded_entities(recorded):
+    path = recorded[0]
+    views = _blueprint_views(path)
+    spatial = {origin for kind, origin in views.values() if kind == "3D"}
+    assert spatial == {"/world", "/world/chase"}
+    assert {"Heading loop", "Depth loop"} <= set(views)
+    plotted = {origin for kind, origin in views.values() if kind == "TimeSeries"}
+    assert {"/attitude/yaw_deg", "/position/depth_m", "/moving_mass/position_cm"} <= plotted
+    entities = set(RrdReader(path).stream().collect().schema().entity_paths())
+    assert plotted <= entities  # every plot shows data that exists
+
+
+def test_metadata_holds_scenario_id_and_resolved_toml(recorded):
+    path = recorded[0]
+    text = read_static(path, "/scenario", "TextDocument:text")[0][0]
+    assert SCENARIO_TOML.strip() in text
+    assert read_static(path, "/__properties/scenario", "id")[0] == ["rec-test"]
+    assert read_static(path, "/__properties", "RecordingInfo:name")[0] == ["rec-test"]
+
+
+def test_two_sinks_in_one_process_do_not_mix(tmp_path: Path):
+    times, columns, values = plant_run(1.0)
+    other = values.copy()
+    other[:, columns.index("plant.yaw")] += 1.0
+    a = RerunSink(tmp_path / "a.rrd", None, "a", "", columns)
+    b = RerunSink(tmp_path / "b.rrd", None, "b", "", columns)
+    for k in range(0, len(times), 40):  # interleaved
+        a.add_rows(times[k : k + 40], values[k : k + 40])
+        b.add_rows(times[k : k + 40], other[k : k + 40])
+    a.close()
+    b.close()
+    for name, data in (("a", values), ("b", other)):
+        t, yaw = read_temporal(tmp_path / f"{name}.rrd", "/attitude/yaw_deg", "Scalars:scalars", 1)
+        np.testing.assert_array_equal(t, step_nanos(times))
+        np.testing.assert_array_equal(yaw[:, 0, 0], np.degrees(col(columns, data, "plant.yaw")))
+
+
+def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path):
+    columns = ["plant.yaw", "controller.tunnel_force", "plant.battery_level"]
+    times = np.arange(5) * 0.1
+    values = np.column_stack([times, 2 * times, 3 * times])
+    with pytest.warns(UserWarning, match="scenario TOML not readable"):
+        sink = RerunSink(tmp_path / "r.rrd", None, "partial", "not = [valid toml", columns)
+    with sink:
+        sink.add_rows(times, values)
+    entities = set(RrdReader(tmp_path / "r.rrd").stream().collect().schema().entity_paths())
+    assert "/world/vehicle/moving_mass" not in entities
+    _, yaw = read_temporal(tmp_path / "r.rrd", "/attitude/yaw_deg", "Scalars:scalars", 1)
+    assert yaw.shape == (5, 1, 1)  # no setpoint recorded, so yaw alone
+    _, other = read_temporal(tmp_path / "r.rrd", "/other/plant/battery_level", "Scalars:scalars", 1)
+    np.testing.assert_array_equal(other[:, 0, 0], 3 * times)
+    _, pose = read_temporal(tmp_path / "r.rrd", "/world/vehicle", "Transform3D:translation", 3)
+    np.testing.assert_array_equal(pose, 0.0)  # no position recorded: the vehicle stays put
+
+
+def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path):
+    with pytest.raises(ValueError, match="rrd_path, a connect_url"):
+        RerunSink(None, None, "x", "", ["plant.yaw"])
+    with pytest.raises(ValueError, match=r"duplicates \['plant.yaw'\]"):
+        RerunSink(tmp_path / "d.rrd", None, "x", "", ["plant.yaw", "plant.yaw"])
+    sink = RerunSink(tmp_path / "s.rrd", None, "x", "", ["plant.yaw", "plant.north"])
+    with pytest.raises(ValueError, match=r"\(k, 2\), got \(3,\) and \(3, 3\)"):
+        sink.add_rows(np.zeros(3), np.zeros((3, 3)))
+    sink.close()
+    sink.close()  # twice is fine
+    with pytest.raises(ValueError, match="closed"):
+        sink.add_rows(np.zeros(1), np.zeros((1, 2)))
+
+
+def _port_open(port: int) -> bool:
+    with socket.socket() as s:
+        return s.connect_ex(("127.0.0.1", port)) == 0
+
+
+@pytest.mark.skipif(rerun_executable() is None, reason="the rerun CLI is not installed")
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the server was still writing
+def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path):
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    received = tmp_path / "received.rrd"
+    command = [rerun_executable(), "--serve-grpc", "--bind", "127.0.0.1", "--port", str(port)]
+    command += ["--save", str(received)]
+    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 30
+        while not _port_open(port):
+            assert server.poll() is None and time.monotonic() < deadline, "server did not start"
+            time.sleep(0.1)
+        times, columns, values = plant_run(1.0)
+        url = f"rerun+http://127.0.0.1:{port}/proxy"
+        with RerunSink(tmp_path / "file.rrd", url, "live", "", columns) as sink:
+            feed(sink, times, values)
+        expected = np.degrees(col(columns, values, "plant.yaw"))
+        for path in (tmp_path / "file.rrd", received):
+            deadline = time.monotonic() + 30
+            while True:  # the server writes what it receives a little later
+                try:
+                    _, yaw = read_temporal(path, "/attitude/yaw_deg", "Scalars:scalars", 1)
+                    if len(yaw) == len(times):
+                        break
+                except (AssertionError, OSError, ValueError):
+                    pass
+                assert time.monotonic() < deadline, f"{path.name} never got every row"
+                time.sleep(0.2)
+            np.testing.assert_array_equal(yaw[:, 0, 0], expected)
+        assert RrdReader(received).blueprints(), "the blueprint was not streamed"
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
+def test_view_without_display_prints_how_to_open(tmp_path: Path, monkeypatch, capsys):
+    (tmp_path / RECORDING_FILE).write_bytes(b"")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["view", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    rrd = str(tmp_path / RECORDING_FILE)
+    assert f"rerun {rrd}" in out
+    assert f"rerun --web-viewer --bind 127.0.0.1 {rrd}" in out
+
+
+def test_view_with_display_runs_the_viewer_on_the_file(tmp_path: Path, monkeypatch):
+    (tmp_path / RECORDING_FILE).write_bytes(b"")
+    monkeypatch.setenv("DISPLAY", ":99")
+    monkeypatch.setattr("cosim.recording.rerun_executable", lambda: "/opt/rerun")
+    calls = []
+    monkeypatch.setattr("cosim.recording.subprocess.call", lambda argv: calls.append(argv) or 0)
+    assert view_run(tmp_path) == 0
+    assert calls == [["/opt/rerun", str(tmp_path / RECORDING_FILE)]]
+
+
+def test_view_of_a_folder_without_recording_names_it(tmp_path: Path, capsys):
+    with pytest.raises(CosimError, match=str(tmp_path / RECORDING_FILE)):
+        view_run(tmp_path)
+    assert main(["view", str(tmp_path)]) == 1
+    assert "no recording at" in capsys.readouterr().err
