@@ -235,9 +235,10 @@ class AuvPlant(SafeSlave):
         model = self._build_model()
         x = self._initial_state.copy()
         stroke = model.params.mass_stroke
-        if abs(x[STATE_INDEX["mass_position"]]) > stroke:
+        mass_position_0 = float(x[STATE_INDEX["mass_position"]])
+        if abs(mass_position_0) > stroke:
             raise ValueError(
-                f"mass_position_0 = {x[STATE_INDEX['mass_position']]!r} m: expected "
+                f"mass_position_0 = {mass_position_0!r} m: expected "
                 f"|mass_position_0| <= mass_stroke = {stroke!r} m"
             )
         frozen = [

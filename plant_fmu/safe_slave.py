@@ -355,6 +355,18 @@ class SafeSlave(Fmi2Slave):
         self._problems[name] = refusal
         self._error(refusal)
 
+    def log(
+        self,
+        msg: str,
+        status: Fmi2Status = Fmi2Status.ok,
+        category: str | None = None,
+        debug: bool | None = None,
+    ) -> None:
+        """pythonfmu's log with ``%`` escaped: FMI 2.0 hosts treat the message as a printf
+        format string (fmpy's logger proxy does), so a path like ``50%.toml`` would not
+        print as written."""
+        super().log(msg.replace("%", "%%"), status, category)
+
     def _error(self, message: str) -> None:
         self.log(message, Fmi2Status.error)
 

@@ -1,0 +1,125 @@
+"""Check built FMUs: fmpy's validation plus what our FMI contract (INTERFACES.md) adds.
+
+:func:`validate_fmus` returns a list of problems, each prefixed with the FMU's name; an
+empty list means valid. Checks per FMU:
+
+* ``fmpy.validation.validate_fmu`` (schema, names, start values, units, ModelStructure);
+* ``needsExecutionTool="false"``, a ``DefaultExperiment``;
+* a description on every variable, a unit on every Real input/output/parameter;
+* ``ModelStructure/Outputs``: exactly the outputs, each with a ``dependencies`` list;
+* a smoke run of all FMUs together in one fresh Python process (pythonfmu FMUs share the
+  host's ``sys.modules``, and a broken one can crash its host): instantiate, initialise
+  with the start values, one ``doStep`` of the default step, every Real output finite.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+SMOKE_TIMEOUT_S = 120.0
+
+
+def validate_fmus(paths: dict[str, Path]) -> list[str]:
+    """Problems found in the FMUs ``{name: path}``; empty if all are valid."""
+    problems: list[str] = []
+    for name, path in paths.items():
+        problems += [f"{name}: {p}" for p in _static_problems(Path(path))]
+    if not problems:
+        problems += smoke_run(paths)
+    return problems
+
+
+def _static_problems(path: Path) -> list[str]:
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    if not path.is_file():
+        return [f"{path} does not exist"]
+    problems = list(validate_fmu(str(path)))
+    if problems:
+        return problems
+    md = read_model_description(str(path))
+    if md.coSimulation is None:
+        return ["no CoSimulation interface"]
+    if md.coSimulation.needsExecutionTool:
+        problems.append('needsExecutionTool is not "false"')
+    if md.defaultExperiment is None:
+        problems.append("no DefaultExperiment")
+    for v in md.modelVariables:
+        if not v.description:
+            problems.append(f"variable {v.name!r} has no description")
+        if v.type == "Real" and v.causality in ("input", "output", "parameter") and not v.unit:
+            problems.append(f"Real {v.causality} {v.name!r} has no unit")
+    outputs = {v.name for v in md.modelVariables if v.causality == "output"}
+    declared = {u.variable.name for u in md.outputs}
+    if declared != outputs:
+        problems.append(
+            f"ModelStructure/Outputs lists {sorted(declared)}, expected {sorted(outputs)}"
+        )
+    problems += [
+        f"output {u.variable.name!r} declares no dependencies"
+        for u in md.outputs
+        if u.dependencies is None
+    ]
+    return problems
+
+
+def smoke_run(paths: dict[str, Path]) -> list[str]:
+    """Instantiate, initialise and step every FMU once, all in one fresh process."""
+    arguments = json.dumps({name: str(path) for name, path in paths.items()})
+    code = "import sys; from cosim.validation import _smoke_main; _smoke_main(sys.argv[1])"
+    try:
+        result = subprocess.run(
+            [sys.executable, "-c", code, arguments],
+            capture_output=True,
+            text=True,
+            timeout=SMOKE_TIMEOUT_S,
+            check=False,
+        )
+    except subprocess.TimeoutExpired:
+        return [f"smoke run: no answer within {SMOKE_TIMEOUT_S:g} s"]
+    lines = result.stdout.strip().splitlines()
+    if result.returncode != 0 or not lines:
+        tail = " | ".join(result.stderr.strip().splitlines()[-3:])
+        return [f"smoke run: the host process died (exit code {result.returncode}): {tail}"]
+    return json.loads(lines[-1])
+
+
+def _smoke_main(arguments: str) -> None:
+    """Subprocess side of :func:`smoke_run`: prints a JSON list of problems last."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    problems: list[str] = []
+    for name, path in json.loads(arguments).items():
+        try:
+            md = read_model_description(path)
+            step = (md.defaultExperiment.stepSize if md.defaultExperiment else None) or 0.01
+            slave = FMU2Slave(
+                guid=md.guid,
+                unzipDirectory=extract(path),
+                modelIdentifier=md.coSimulation.modelIdentifier,
+                instanceName=f"smoke_{name}",
+            )
+            slave.instantiate(loggingOn=True)
+            slave.setupExperiment(startTime=0.0)
+            slave.enterInitializationMode()
+            slave.exitInitializationMode()
+            slave.doStep(0.0, float(step))
+            outputs = [v for v in md.modelVariables if v.causality == "output"]
+            reals = [v for v in outputs if v.type == "Real"]
+            values = slave.getReal([v.valueReference for v in reals])
+            problems += [
+                f"{name}: output {v.name} = {x!r} after one step"
+                for v, x in zip(reals, values, strict=True)
+                if not math.isfinite(x)
+            ]
+            slave.terminate()
+            slave.freeInstance()
+        except Exception as exc:
+            problems.append(f"{name}: smoke run failed: {type(exc).__name__}: {exc}")
+    print(json.dumps(problems))

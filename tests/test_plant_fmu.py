@@ -1,0 +1,329 @@
+"""AuvPlant.fmu through fmpy (issue 3 acceptance): equilibria of Examples 5.1 and 5.3,
+equality with the in-process model, energy conservation, state save/restore, bad input,
+independent instances and a complete, valid modelDescription.xml."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.validation import validate_fmu
+from fmu_harness import STATUS_DISCARD, STATUS_OK, Harness
+
+from cosim.validation import validate_fmus
+from plant_fmu.analysis import input_vector, state_vector
+from plant_fmu.dynamics import STATE_NAMES, PlantModel, Variant
+from plant_fmu.parameters import VehicleParameters, builtin_vehicles, load_vehicle
+from plant_fmu.stepping import advance, simulate
+
+H = 0.01
+OUTPUTS = (*STATE_NAMES, "u_rel", "v_rel", "w_rel", "kinetic_energy")
+
+
+@pytest.fixture(scope="module")
+def plant(fmu_paths) -> Path:
+    return fmu_paths["AuvPlant"]
+
+
+@pytest.fixture(scope="module")
+def unzip_dir(plant) -> str:
+    return extract(str(plant))
+
+
+@pytest.fixture(scope="module")
+def remus() -> VehicleParameters:
+    return load_vehicle("remus100")
+
+
+def _harness(plant, unzip_dir, instance="plant", **values) -> Harness:
+    return Harness(plant, instance=instance, unzip_dir=unzip_dir, **values)
+
+
+# --- dissertation examples and equality with the in-process model ---------------------------
+
+
+@pytest.mark.parametrize(
+    ("variant", "names", "printed", "tolerance"),
+    [
+        # Example 5.1 (T = 9 N): the stable turning equilibrium [u, v, r].
+        (Variant.HORIZONTAL, ("u", "v", "r"), (1.2821, 0.1678, -0.2291), 1e-4),
+        # Example 5.3 (lateral 5-DOF): [u, v, r, p, phi], printed to 3-4 digits.
+        (Variant.LATERAL, ("u", "v", "r", "p", "roll"), (1.272, 0.1724, -0.2316, 0, -0.0301), 5e-4),
+    ],
+)
+def test_simulate_fmu_settles_on_the_dissertation_equilibrium_like_the_model(
+    plant, remus, variant, names, printed, tolerance
+):
+    result = simulate_fmu(
+        str(plant),
+        start_values={"variant": int(variant), "v_0": 0.01},
+        stop_time=60.0,
+        output_interval=H,
+    )
+    final = np.array([result[n][-1] for n in names])
+    np.testing.assert_allclose(final, printed, atol=tolerance)
+
+    _, states = simulate(
+        PlantModel(remus, variant), state_vector(dict(v=0.01)), input_vector(thrust=9.0), 60.0, H
+    )
+    fmu_states = np.column_stack([result[n] for n in STATE_NAMES])
+    assert fmu_states.shape == states.shape
+    assert np.max(np.abs(fmu_states - states)) <= 1e-12
+
+
+def test_ideal_fluid_with_neutral_buoyancy_conserves_kinetic_energy(plant, unzip_dir):
+    fmu = _harness(
+        plant, unzip_dir, ideal_fluid=True, B=299.0, W=299.0, z_g=0.0, thrust=0.0,
+        u_0=1.5, v_0=0.1, w_0=0.05, p_0=0.2, q_0=0.05, r_0=0.2,
+    )  # fmt: skip
+    energy_0 = fmu.get("kinetic_energy")[0]
+    rows = fmu.run(60.0, H, ("kinetic_energy", "r", "roll"))
+    fmu.close()
+    assert energy_0 > 30.0
+    assert np.max(np.abs(rows[:, 0] - energy_0)) < 1e-6
+    assert np.ptp(rows[:, 1]) > 0.3 and np.ptp(rows[:, 2]) > 1.0  # it really tumbles
+
+
+def test_restored_state_continues_bit_identically(plant, unzip_dir):
+    fmu = _harness(plant, unzip_dir, variant=1, u_0=1.5, v_0=-0.05)
+    fmu.set(mass_position_cmd=0.03, tunnel_force=2.0)
+    fmu.run(5.0, H, ())
+
+    def to_ten_seconds() -> np.ndarray:
+        first = fmu.run(2.0, H, OUTPUTS)
+        fmu.set(current_east=0.2)  # a current step at 7 s exercises the jump bookkeeping
+        second = fmu.run(3.0, H, OUTPUTS)
+        fmu.set(current_east=0.0)
+        return np.vstack([first, second])
+
+    saved = fmu.slave.getFMUstate()
+    serialized = fmu.slave.serializeFMUstate(saved)
+    original = to_ten_seconds()
+    fmu.slave.setFMUstate(saved)
+    fmu.time = 5.0
+    replay = to_ten_seconds()
+    fmu.slave.setFMUstate(fmu.slave.deSerializeFMUstate(serialized))
+    fmu.time = 5.0
+    replay_serialized = to_ten_seconds()
+    fmu.close()
+    assert np.array_equal(original, replay)
+    assert np.array_equal(original, replay_serialized)
+    assert np.ptp(original[:, OUTPUTS.index("yaw")]) > 0.01  # the state did evolve
+
+
+def test_current_step_applies_the_velocity_jump_at_the_next_step(plant, unzip_dir, remus):
+    fmu = _harness(plant, unzip_dir, variant=1, u_0=1.5)
+    fmu.run(1.0, H, ())
+    before = fmu.get_all(STATE_NAMES)
+    relative_before = fmu.get("u_rel", "v_rel")
+    fmu.set(current_east=0.2)
+    # Outputs are held over the step: setting an input changes no output (dependencies "").
+    assert np.array_equal(fmu.get_all(STATE_NAMES), before)
+    assert np.array_equal(fmu.get("u_rel", "v_rel"), relative_before)
+    after = fmu.run(H, H, STATE_NAMES)[0]
+    fmu.close()
+
+    model = PlantModel(remus, Variant.LATERAL)
+    inputs = input_vector(dict(current_east=0.2), thrust=9.0)
+    x = before.copy()
+    jump = model.current_change_velocity_jump(x, np.array([0.0, 0.2, 0.0]))
+    x[6:12] += jump
+    assert abs(jump[1]) > 0.1  # the hull is carried along with the water
+    np.testing.assert_array_equal(after, advance(model, x, inputs, H))
+
+
+def test_mass_command_of_five_metres_stays_within_the_stroke(plant, unzip_dir):
+    fmu = _harness(plant, unzip_dir, variant=1, u_0=1.5, mass_position_cmd=5.0)
+    positions = fmu.run(10.0, H, ("mass_position",))[:, 0]
+    fmu.close()
+    assert np.max(np.abs(positions)) <= 0.06
+    assert positions[-1] == pytest.approx(0.06)
+
+
+def test_two_instances_with_different_parameters_are_independent(plant, unzip_dir, remus):
+    slow = _harness(plant, unzip_dir, "slow", variant=2, v_0=0.01, thrust=4.0)
+    heavy = _harness(plant, unzip_dir, "heavy", variant=2, v_0=0.01, m=35.0, W=343.35)
+    rows_slow, rows_heavy = [], []
+    for _ in range(500):
+        rows_slow.append(slow.run(H, H, STATE_NAMES)[0])
+        rows_heavy.append(heavy.run(H, H, STATE_NAMES)[0])
+    slow.close()
+    heavy.close()
+    x0 = state_vector(dict(v=0.01))
+    _, expected_slow = simulate(
+        PlantModel(remus, Variant.HORIZONTAL), x0, input_vector(thrust=4.0), 5.0, H
+    )
+    _, expected_heavy = simulate(
+        PlantModel(remus.replace(m=35.0, W=343.35), Variant.HORIZONTAL),
+        x0,
+        input_vector(thrust=9.0),
+        5.0,
+        H,
+    )
+    np.testing.assert_array_equal(np.array(rows_slow), expected_slow[1:])
+    np.testing.assert_array_equal(np.array(rows_heavy), expected_heavy[1:])
+
+
+def test_vehicle_picks_the_set_and_written_parameters_override_it(plant, unzip_dir):
+    printed = load_vehicle("remus100-printed")
+    fmu = _harness(plant, unzip_dir, vehicle="remus100-printed", variant=0, X_uu=-5.0, u_0=1.5)
+    in_use = fmu.get("M_uq", "X_uu")
+    rows = fmu.run(2.0, H, STATE_NAMES)
+    fmu.close()
+    assert in_use[0] == printed.M_uq != load_vehicle("remus100").M_uq
+    assert in_use[1] == -5.0
+    model = PlantModel(printed.replace(X_uu=-5.0), Variant.FULL)
+    _, expected = simulate(model, state_vector(dict(u=1.5)), input_vector(thrust=9.0), 2.0, H)
+    np.testing.assert_array_equal(rows, expected[1:])
+
+
+def test_reset_returns_to_a_fresh_instance(plant, unzip_dir):
+    fmu = _harness(plant, unzip_dir, variant=2, v_0=0.01)
+    first = fmu.run(1.0, H, STATE_NAMES)
+    fmu.slave.reset()
+    fmu.initialize(variant=2, v_0=0.01)
+    again = fmu.run(1.0, H, STATE_NAMES)
+    fmu.close()
+    np.testing.assert_array_equal(first, again)
+
+
+# --- bad input ---------------------------------------------------------------------------------
+
+
+def test_unknown_vehicle_fails_initialisation_listing_the_known_sets(plant, unzip_dir):
+    fmu = _harness(plant, unzip_dir, vehicle="remus999")
+    status = fmu.step(H)
+    errors = fmu.messages(3)
+    fmu.close()
+    assert status == STATUS_DISCARD
+    assert "initialisation failed" in errors and "remus999" in errors
+    assert all(name in errors for name in builtin_vehicles())
+
+
+def test_invalid_parameter_values_fail_initialisation_naming_them(plant, unzip_dir, tmp_path):
+    bad_file = tmp_path / "bad.toml"
+    bad_file.write_text('base = "remus100"\nm = -1.0\n')
+    for values, expected in [
+        ({"vehicle": str(bad_file)}, "m = -1.0"),
+        ({"variant": 7}, "variant = 7"),
+        ({"I_xx": -0.1}, "I_xx = -0.1"),
+        ({"mass_position_0": 0.2}, "mass_position_0 = 0.2"),
+    ]:
+        fmu = _harness(plant, unzip_dir, **values)
+        status = fmu.step(H)
+        errors = fmu.messages(3)
+        fmu.close()
+        assert status == STATUS_DISCARD, values
+        assert expected in errors, errors
+
+
+def test_parameter_written_after_initialisation_is_refused(plant, unzip_dir):
+    fmu = _harness(plant, unzip_dir, variant=2)
+    fmu.set(m=40.0)
+    refused = fmu.step(H)
+    message = fmu.messages(3)
+    unchanged = fmu.get("m")[0]
+    fmu.set(m=unchanged)  # writing the value in use is harmless and clears the refusal
+    recovered = fmu.step(H)
+    fmu.close()
+    assert refused == STATUS_DISCARD and "m = 40.0 refused" in message
+    assert unchanged == 30.5
+    assert recovered == STATUS_OK
+
+
+def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
+    result = run_python(
+        """
+        import json, sys
+        sys.path.insert(0, sys.argv[2])
+        from fmu_harness import Harness
+        fmu = Harness(sys.argv[1], variant=2, u_0=1.5)
+        ok = fmu.step(0.01)
+        fmu.set(thrust=float("nan"))
+        refused = fmu.step(0.01)
+        u_after = float(fmu.get("u")[0])
+        fmu.set(thrust=9.0)
+        recovered = fmu.step(0.01)
+        fmu.close()
+        print(json.dumps(dict(ok=ok, refused=refused, recovered=recovered, u=u_after,
+                              errors=fmu.messages(3))))
+        """,
+        plant,
+        Path(__file__).parent,
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert (report["ok"], report["refused"], report["recovered"]) == (0, STATUS_DISCARD, 0)
+    assert "thrust = nan refused" in report["errors"]
+    assert np.isfinite(report["u"])
+
+
+def test_fresh_process_runs_the_code_shipped_in_the_fmu(plant, run_python):
+    result = run_python(
+        """
+        import sys
+        from fmpy import simulate_fmu
+        simulate_fmu(sys.argv[1], stop_time=0.1, output_interval=0.01)
+        import auv_plant, plant_fmu
+        print(auv_plant.__file__)
+        print(plant_fmu.__file__)
+        """,
+        plant,
+    )
+    assert result.returncode == 0, result.stderr
+    script, package = result.stdout.split()[-2:]
+    assert script.endswith("resources/auv_plant.py")
+    assert package.endswith("resources/plant_fmu/__init__.py")
+
+
+# --- model description -------------------------------------------------------------------------
+
+# INTERFACES.md, "FMU: AuvPlant": name -> (unit, start) of the inputs, unit of the outputs.
+CONTRACT_INPUTS = {
+    "thrust": ("N", 9.0),
+    "roll_torque": ("N.m", 0.0),
+    "tunnel_force": ("N", 0.0),
+    "fin_angle": ("rad", 0.0),
+    "mass_position_cmd": ("m", 0.0),
+    "current_north": ("m/s", 0.0),
+    "current_east": ("m/s", 0.0),
+    "current_down": ("m/s", 0.0),
+}
+CONTRACT_OUTPUTS = {
+    **dict.fromkeys(("north", "east", "down", "mass_position"), "m"),
+    **dict.fromkeys(("roll", "pitch", "yaw"), "rad"),
+    **dict.fromkeys(("u", "v", "w", "u_rel", "v_rel", "w_rel", "mass_velocity"), "m/s"),
+    **dict.fromkeys(("p", "q", "r"), "rad/s"),
+    "kinetic_energy": "J",
+}
+
+
+def test_model_description_is_valid_complete_and_matches_the_contract(plant):
+    assert validate_fmu(str(plant)) == []
+    md = read_model_description(str(plant))
+    variables = {v.name: v for v in md.modelVariables}
+    inputs = {v.name: (v.unit, float(v.start)) for v in md.modelVariables if v.causality == "input"}
+    outputs = {v.name: v.unit for v in md.modelVariables if v.causality == "output"}
+    assert inputs == CONTRACT_INPUTS
+    assert outputs == CONTRACT_OUTPUTS
+    assert all(v.description for v in md.modelVariables)
+    assert all(v.unit for v in md.modelVariables if v.type == "Real")
+    assert all(variables[n].initial == "exact" for n in outputs)
+    parameters = {v.name for v in md.modelVariables if v.causality == "parameter"}
+    expected = {f"{n}_0" for n in STATE_NAMES} | {
+        "variant", "ideal_fluid", "vehicle", "current_shear_dUdy", "max_substep",
+    } | {n for n, f in VehicleParameters.model_fields.items() if f.annotation is float}  # fmt: skip
+    assert parameters == expected
+    assert (variables["I_xx"].unit, variables["K_p"].unit) == ("kg.m2", "N.m.s")
+    assert md.coSimulation.needsExecutionTool is False
+    assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
+    assert {u.variable.name for u in md.outputs} == set(outputs)
+    assert all(u.dependencies == [] for u in md.outputs)
+    assert float(md.defaultExperiment.stepSize) == H
+
+
+def test_our_validation_finds_no_problem(plant):
+    assert validate_fmus({"AuvPlant": plant}) == []
