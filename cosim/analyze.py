@@ -1,0 +1,304 @@
+"""``auv-cosim analyze``: equilibria, continuation sweeps and phase portraits.
+
+The command-line side of :mod:`plant_fmu.bifurcation`: builds the operating conditions
+from the options, prints tables or JSON, writes CSV files and the figures of
+:mod:`cosim.analysis_plots`. The physics all comes from the plant's own model.
+
+* ``equilibria``: every equilibrium in the search box with its Jacobian eigenvalues and
+  stability (``--json``: a list of ``{"state": {name: value}, "eigenvalues": [[re, im],
+  ...], "stable": bool}``).
+* ``sweep PARAM FROM TO``: ``<out>/sweep_<PARAM>.png`` (bifurcation diagram),
+  ``<out>/sweep_<PARAM>.csv`` (the branches) and ``<out>/sweep_<PARAM>_special_points.csv``
+  (folds, branch points, Hopf points), with a progress bar.
+* ``phase-portrait``: ``<out>/phase_portrait.png``, open-loop trajectories from a grid of
+  initial states in the search box (Figs. 5.4-5.5).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from cosim.errors import CosimError
+from plant_fmu.analysis import Equilibrium
+from plant_fmu.bifurcation import (
+    Q_PROP,
+    OperatingConditions,
+    Sweep,
+    cg_offset,
+    find_equilibria,
+    sweep,
+)
+from plant_fmu.dynamics import STATE_INDEX, STATE_NAMES, STATE_UNITS, Variant
+from plant_fmu.parameters import load_vehicle
+from plant_fmu.stepping import simulate
+
+# Phase portraits: how long each open-loop trajectory runs and its RK4 step. The slowest
+# open-loop mode of the REMUS (surge, 2 alpha U0 = -0.38 1/s) has decayed to 1e-5 in 30 s;
+# the fastest (-6.5 1/s, Example 5.1's stable points) gives lambda h = 0.33 at h = 0.05 s.
+PHASE_DURATION_S = 30.0
+PHASE_STEP_S = 0.05
+# Initial states: u on these values, (v, r) on the corners, edge midpoints and centre of
+# the box |v|, |r| <= 0.4, plus two starts along the unstable direction of each unstable
+# equilibrium (they trace its unstable manifold, as Fig. 5.4 shows).
+PHASE_U0 = (0.3, 1.0, 1.9)
+PHASE_VR0 = tuple((v, r) for v in (-0.4, 0.0, 0.4) for r in (-0.4, 0.0, 0.4))
+MANIFOLD_OFFSET = 0.01
+
+
+def analyze_from_cli(args: argparse.Namespace) -> int:
+    """Run ``auv-cosim analyze equilibria|sweep|phase-portrait``; 0 on success."""
+    conditions = _conditions(args)
+    if args.analysis == "equilibria":
+        return _equilibria(conditions, as_json=args.json)
+    if args.analysis == "sweep":
+        return _sweep(conditions, args.param, args.start, args.stop, args.steps, args.out)
+    if args.analysis == "phase-portrait":
+        return _phase_portrait(conditions, args.out)
+    raise CosimError(f"unknown analysis {args.analysis!r}")
+
+
+def _conditions(args: argparse.Namespace) -> OperatingConditions:
+    return OperatingConditions(
+        params=load_vehicle(args.vehicle),
+        variant=Variant(args.variant),
+        thrust=args.thrust,
+        roll_torque=args.roll_torque,
+        mass_position=args.mass_position,
+        current_east=args.current_east,
+    )
+
+
+def describe(conditions: OperatingConditions) -> str:
+    """One line naming the vehicle, variant and inputs."""
+    return (
+        f"vehicle {conditions.params.name}, variant {int(conditions.variant)} "
+        f"({conditions.variant.name.lower()}), thrust {conditions.thrust:g} N, "
+        f"roll torque {conditions.roll_torque:g} N.m, mass position "
+        f"{conditions.mass_position:g} m, current east {conditions.current_east:g} m/s"
+    )
+
+
+# --- equilibria ----------------------------------------------------------------------------
+
+
+def equilibrium_record(eq: Equilibrium) -> dict:
+    """The JSON object of one equilibrium: full state by name, eigenvalues, stability."""
+    return {
+        "state": {name: float(value) for name, value in zip(STATE_NAMES, eq.state, strict=True)},
+        "eigenvalues": [[float(z.real), float(z.imag)] for z in _ordered(eq.eigenvalues)],
+        "stable": eq.stable,
+    }
+
+
+def _ordered(eigenvalues: np.ndarray) -> np.ndarray:
+    """Eigenvalues sorted by real part then imaginary part (deterministic output)."""
+    return np.array(sorted(eigenvalues, key=lambda z: (round(z.real, 12), z.imag)))
+
+
+def _equilibria(conditions: OperatingConditions, as_json: bool) -> int:
+    equilibria = find_equilibria(conditions)
+    if as_json:
+        print(json.dumps([equilibrium_record(eq) for eq in equilibria], indent=2))
+        return 0
+    print(describe(conditions))
+    print(equilibria_table(conditions, equilibria))
+    return 0
+
+
+def equilibria_table(conditions: OperatingConditions, equilibria: Sequence[Equilibrium]) -> str:
+    """A plain-text table: one row per equilibrium, its free states, stability, eigenvalues."""
+    names = conditions.free_states
+    box = "0 < u < 2 m/s, |v|, |r| <= 0.4" + (", |roll| < 90 deg" if "roll" in names else "")
+    lines = [f"{len(equilibria)} equilibri{'um' if len(equilibria) == 1 else 'a'} in {box}:"]
+    header = [f"{n} [{STATE_UNITS[STATE_INDEX[n]]}]" for n in names]
+    lines.append("  ".join(f"{h:>14}" for h in header) + "  stable    eigenvalues")
+    for eq in equilibria:
+        values = "  ".join(f"{eq.value(n):>14.6g}" for n in names)
+        eigen = ", ".join(_complex(z) for z in _ordered(eq.eigenvalues))
+        lines.append(f"{values}  {'yes' if eq.stable else 'no':<8}  {eigen}")
+    if conditions.current_east != 0.0:
+        lines.append(
+            "(with a current: equilibria of the motion relative to the water, (5.2.10); "
+            "velocities over ground while heading north)"
+        )
+    return "\n".join(lines)
+
+
+def _complex(z: complex) -> str:
+    return f"{z.real:.4g}" if abs(z.imag) < 1e-12 else f"{z.real:.4g}{z.imag:+.4g}i"
+
+
+# --- sweep ---------------------------------------------------------------------------------
+
+
+def _sweep(
+    conditions: OperatingConditions,
+    parameter: str,
+    start: float,
+    stop: float,
+    steps: int,
+    out: Path,
+) -> int:
+    result, paths = run_sweep(conditions, parameter, start, stop, steps, out)
+    print(describe(conditions))
+    print(special_points_table(result, conditions))
+    for name, path in paths.items():
+        print(f"  {name:<15} {path}")
+    return 0
+
+
+def run_sweep(
+    conditions: OperatingConditions,
+    parameter: str,
+    start: float,
+    stop: float,
+    steps: int,
+    out: Path,
+    seeds: dict | None = None,
+) -> tuple[Sweep, dict[str, Path]]:
+    """Continue the branches with a progress bar and write the figure and CSV files.
+
+    Returns the :class:`Sweep` and the paths by name (``figure``, ``branches``,
+    ``special_points``).
+    """
+    from cosim.analysis_plots import plot_sweep
+
+    with tqdm(desc=f"sweep {parameter}", unit="step", disable=None, leave=False) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        result = sweep(conditions, parameter, start, stop, steps, seeds=seeds, progress=progress)
+    stem = f"sweep_{parameter}"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        branches = write_branches_csv(result, conditions, out / f"{stem}.csv")
+        special = write_special_points_csv(result, out / f"{stem}_special_points.csv")
+        title = f"{conditions.params.name}: equilibria over {parameter} ({describe(conditions)})"
+        figure = plot_sweep(result, conditions.params, out / f"{stem}.png", title=title)
+    except OSError as exc:
+        raise CosimError(f"cannot write the sweep outputs to {out}: {exc}") from None
+    return result, {"figure": figure, "branches": branches, "special_points": special}
+
+
+def write_branches_csv(result: Sweep, conditions: OperatingConditions, path: Path) -> Path:
+    """One row per branch point: branch, parameter, (y_g,) free states, stable, the largest
+    eigenvalue real part."""
+    with_cg = result.parameter == "mass_position"
+    with path.open("w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(
+            [
+                "branch",
+                result.parameter,
+                *(["cg_offset_y_g"] if with_cg else []),
+                *result.free_states,
+                "stable",
+                "max_real_eigenvalue",
+            ]
+        )
+        for b, branch in enumerate(result.branches):
+            for k, value in enumerate(branch.parameters):
+                extra = [repr(cg_offset(conditions.params, float(value)))] if with_cg else []
+                writer.writerow(
+                    [b, repr(float(value)), *extra]
+                    + [repr(float(z)) for z in branch.states[k]]
+                    + [int(branch.stable[k]), repr(float(branch.eigenvalues[k].real.max()))]
+                )
+    return path
+
+
+def write_special_points_csv(result: Sweep, path: Path) -> Path:
+    with path.open("w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(["kind", "branch", result.parameter, *result.free_states])
+        for s in result.special_points:
+            writer.writerow(
+                [s.kind, s.branch, repr(s.parameter)]
+                + [repr(s.state[n]) for n in result.free_states]
+            )
+    return path
+
+
+def special_points_table(result: Sweep, conditions: OperatingConditions) -> str:
+    """Human-readable list of the special points, in the dissertation's units."""
+    lines = [
+        f"{len(result.branches)} branch(es) over {result.parameter} from {result.start:g} "
+        f"to {result.stop:g}; {len(result.special_points)} special point(s):"
+    ]
+    for s in result.special_points:
+        where = f"{result.parameter} = {s.parameter:.6g}"
+        if result.parameter == "roll_torque":
+            where += f" ({s.parameter / Q_PROP:.4g} Q_prop)"
+        elif result.parameter == "mass_position":
+            where += f" m (y_g = {100 * cg_offset(conditions.params, s.parameter):.4g} cm)"
+        state = ", ".join(
+            f"{n} = {math.degrees(v):.4g} deg" if n == "roll" else f"{n} = {v:.4g}"
+            for n, v in s.state.items()
+        )
+        lines.append(f"  {s.kind:<12} at {where}: {state}")
+    return "\n".join(lines)
+
+
+# --- phase portrait ------------------------------------------------------------------------
+
+
+def phase_trajectories(
+    conditions: OperatingConditions,
+    equilibria: Sequence[Equilibrium],
+    duration: float = PHASE_DURATION_S,
+    step: float = PHASE_STEP_S,
+) -> list[np.ndarray]:
+    """Open-loop state histories (``STATE_NAMES`` columns) from the grid of initial
+    states and along the unstable direction of every unstable equilibrium."""
+    starts = [conditions.state({"u": u, "v": v, "r": r}) for u in PHASE_U0 for v, r in PHASE_VR0]
+    for eq in equilibria:
+        if eq.stable:
+            continue
+        values, vectors = np.linalg.eig(eq.jacobian)
+        direction = vectors[:, int(np.argmax(values.real))].real
+        idx = [STATE_INDEX[n] for n in eq.free_states]
+        for sign in (-1.0, 1.0):
+            x0 = eq.state.copy()
+            x0[idx] += sign * MANIFOLD_OFFSET * direction / np.linalg.norm(direction)
+            starts.append(x0)
+    model, inputs = conditions.model, conditions.inputs()
+    histories = []
+    for x0 in starts:
+        try:
+            _, states = simulate(model, x0, inputs, duration, step, max_substep=step)
+        except ValueError:
+            continue  # a start the model cannot integrate (left its range): skip it
+        histories.append(states)
+    return histories
+
+
+def _phase_portrait(conditions: OperatingConditions, out: Path) -> int:
+    from cosim.analysis_plots import plot_phase_portrait
+
+    if conditions.current_east != 0.0:
+        raise CosimError(
+            f"--current-east {conditions.current_east:g}: the phase portrait is of the motion "
+            "in still water (Figs. 5.4-5.5); drop the current"
+        )
+    equilibria = find_equilibria(conditions)
+    trajectories = phase_trajectories(conditions, equilibria)
+    title = f"open-loop phase portrait: {describe(conditions)}"
+    try:
+        path = plot_phase_portrait(trajectories, equilibria, out / "phase_portrait.png", title)
+    except OSError as exc:
+        raise CosimError(f"cannot write the phase portrait to {out}: {exc}") from None
+    print(describe(conditions))
+    print(equilibria_table(conditions, equilibria))
+    print(f"  {len(trajectories)} trajectories of {PHASE_DURATION_S:g} s: {path}")
+    return 0

@@ -1,0 +1,154 @@
+"""``auv-cosim analyze``: equilibria (table and JSON), sweeps and phase portraits.
+
+Expected numbers are the dissertation's (Example 5.1, 5.2, Sec. 6.3.3's T = 4 N case and
+Example 5.4's fold), so a regression in the model or the analysis shows up here too.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+
+import pytest
+
+from cosim.cli import main
+from plant_fmu.bifurcation import Q_PROP
+from plant_fmu.dynamics import STATE_NAMES
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_equilibria_json_is_the_documented_list(capsys):
+    """INTERFACES: a list of {state: {name: value}, eigenvalues: [[re, im]], stable}."""
+    code, out, _ = _run(capsys, "analyze", "equilibria", "--json")
+    assert code == 0
+    records = json.loads(out)
+    assert len(records) == 3
+    for record in records:
+        assert set(record) == {"state", "eigenvalues", "stable"}
+        assert list(record["state"]) == list(STATE_NAMES)
+        assert len(record["eigenvalues"]) == 3  # u, v, r of the horizontal variant
+        assert all(len(pair) == 2 for pair in record["eigenvalues"])
+        has_unstable = any(re > 0 for re, _ in record["eigenvalues"])
+        assert record["stable"] is not has_unstable
+    by_v = sorted(records, key=lambda r: r["state"]["v"])
+    # Example 5.1 (5.1.50): the turning pair is stable, the straight line is not.
+    assert [r["stable"] for r in by_v] == [True, False, True]
+    assert by_v[2]["state"]["u"] == pytest.approx(1.282, abs=6e-4)
+    assert by_v[2]["state"]["v"] == pytest.approx(0.1678, abs=6e-5)
+    assert by_v[2]["state"]["r"] == pytest.approx(-0.2291, abs=6e-5)
+
+
+def test_equilibria_low_speed_lateral_json(capsys):
+    """Sec. 6.3.3 (T = 4 N): [1.017, 0, 0] unstable, [0.8467, +-0.1147, -+0.1541] stable."""
+    code, out, _ = _run(
+        capsys, "analyze", "equilibria", "--variant", "1", "--thrust", "4", "--json"
+    )
+    assert code == 0
+    by_v = sorted(json.loads(out), key=lambda r: r["state"]["v"])
+    assert [r["stable"] for r in by_v] == [True, False, True]
+    assert by_v[1]["state"]["u"] == pytest.approx(1.017, rel=5e-3)
+    for name, value in (("u", 0.8467), ("v", 0.1147), ("r", -0.1541)):
+        assert by_v[2]["state"][name] == pytest.approx(value, rel=5e-3)
+    assert len(by_v[0]["eigenvalues"]) == 5  # u, v, p, r, roll
+
+
+def test_equilibria_table_for_the_long_fins(capsys):
+    """Example 5.2: one equilibrium, stable."""
+    code, out, _ = _run(capsys, "analyze", "equilibria", "--vehicle", "remus100-long-fins")
+    assert code == 0
+    assert "1 equilibrium in 0 < u < 2" in out
+    row = [line for line in out.splitlines() if line.strip().startswith("1.52")]
+    assert len(row) == 1 and " yes " in row[0]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["analyze", "equilibria", "--vehicle", "nosuch"], "unknown vehicle 'nosuch'"),
+        (["analyze", "equilibria", "--roll-torque", "-1"], "horizontal variant"),
+        (
+            ["analyze", "sweep", "mass_position", "0", "-0.1", "--variant", "1"],
+            "mass_position = -0.1 m",
+        ),
+        (["analyze", "sweep", "mu", "1", "1"], "two different finite values"),
+        (["analyze", "sweep", "eta", "1", "2", "--steps", "1"], "steps = 1"),
+        (["analyze", "phase-portrait", "--current-east", "0.2"], "still water"),
+    ],
+)
+def test_bad_input_exits_1_with_a_one_line_reason(capsys, tmp_path, argv, message):
+    code, _, err = _run(
+        capsys, *argv, *(["--out", str(tmp_path)] if argv[1] != "equilibria" else [])
+    )
+    assert code == 1
+    assert message in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_roll_torque_sweep_writes_figure_and_csv_with_one_fold(capsys, tmp_path):
+    """Example 5.4: one fold between 4 and 5 Q_prop, in the CSV and on stdout."""
+    code, out, _ = _run(
+        capsys,
+        "analyze", "sweep", "roll_torque", "0", str(5.5 * Q_PROP),
+        "--variant", "1", "--steps", "30", "--out", str(tmp_path),
+    )  # fmt: skip
+    assert code == 0
+    figure = tmp_path / "sweep_roll_torque.png"
+    assert figure.read_bytes()[:8] == PNG_SIGNATURE and figure.stat().st_size > 20_000
+    with (tmp_path / "sweep_roll_torque.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert {"branch", "roll_torque", "u", "v", "r", "p", "roll", "stable"} <= set(rows[0])
+    assert {r["stable"] for r in rows} == {"0", "1"}
+    torques = [float(r["roll_torque"]) for r in rows]
+    assert min(torques) == pytest.approx(5.5 * Q_PROP) and max(torques) == 0.0
+    with (tmp_path / "sweep_roll_torque_special_points.csv").open() as f:
+        special = list(csv.DictReader(f))
+    folds = [s for s in special if s["kind"] == "fold"]
+    assert len(folds) == 1
+    assert 4.0 < float(folds[0]["roll_torque"]) / Q_PROP < 5.0
+    assert "fold" in out and "Q_prop" in out
+
+
+def test_mass_position_sweep_reports_the_cg_offset(capsys, tmp_path):
+    code, out, _ = _run(
+        capsys,
+        "analyze", "sweep", "mass_position", "0", "-0.06",
+        "--variant", "1", "--steps", "30", "--out", str(tmp_path),
+    )  # fmt: skip
+    assert code == 0
+    with (tmp_path / "sweep_mass_position.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    # y_g = m_v g y_v / W: one sixth of y_v for m_v = m/6 and W ~ m g.
+    for row in rows[::25]:
+        assert float(row["cg_offset_y_g"]) == pytest.approx(
+            float(row["mass_position"]) / 6, rel=3e-3
+        )
+    assert "y_g = -0.8" in out  # the fold, Sec. 5.1.4: "slightly larger than 0.8 cm"
+
+
+def test_phase_portrait_writes_a_png(capsys, tmp_path):
+    code, out, _ = _run(capsys, "analyze", "phase-portrait", "--out", str(tmp_path))
+    assert code == 0
+    figure = tmp_path / "phase_portrait.png"
+    assert figure.read_bytes()[:8] == PNG_SIGNATURE and figure.stat().st_size > 20_000
+    assert "29 trajectories" in out  # 27 grid starts + 2 on the unstable manifold of x0
+
+
+def test_console_entry_point_runs_in_a_fresh_process():
+    result = subprocess.run(
+        [sys.executable, "-m", "cosim.cli", "analyze", "equilibria", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert len(json.loads(result.stdout)) == 3
