@@ -1,0 +1,134 @@
+"""The build step: what the FMU ships, the content-hash cache, and the completion of
+modelDescription.xml (units, capability flags, InitialUnknowns by the FMI 2.0 rule)."""
+
+from __future__ import annotations
+
+import shutil
+import zipfile
+from xml.etree import ElementTree as ET
+
+import pytest
+
+from cosim import build
+from cosim.errors import CosimError
+from plant_fmu.auv_plant import AuvPlant
+
+
+@pytest.mark.parametrize(
+    ("unit", "exponents"),
+    [
+        ("1", {}),
+        ("1/s", {"s": -1}),
+        ("kg.m2", {"kg": 1, "m": 2}),
+        ("m/s2", {"m": 1, "s": -2}),
+        ("N.m", {"kg": 1, "m": 2, "s": -2}),
+        ("N.m/rad", {"kg": 1, "m": 2, "s": -2, "rad": -1}),
+        ("N.m.s", {"kg": 1, "m": 2, "s": -1}),
+        ("J", {"kg": 1, "m": 2, "s": -2}),
+        ("furlong/fortnight", None),
+    ],
+)
+def test_base_units(unit, exponents):
+    assert build.base_units(unit) == exponents
+
+
+def test_every_plant_unit_has_si_base_units():
+    root = AuvPlant(instance_name="units").to_xml()
+    units = {real.get("unit") for real in root.iter("Real")}
+    assert None not in units
+    assert all(build.base_units(unit) is not None for unit in units), units
+
+
+def test_plant_ships_its_package_and_data_but_no_scripts_or_caches():
+    files = build.shipped_files("AuvPlant")
+    assert files["auv_plant.py"] == build.script_path("AuvPlant")
+    for expected in ("plant_fmu/safe_slave.py", "plant_fmu/vehicles/remus100.toml"):
+        assert expected in files
+    assert "plant_fmu/auv_plant.py" not in files
+    assert not any("__pycache__" in name or name.endswith(".pyc") for name in files)
+
+
+def test_built_fmu_holds_exactly_the_shipped_sources(fmu_paths):
+    files = build.shipped_files("AuvPlant")
+    with zipfile.ZipFile(fmu_paths["AuvPlant"]) as archive:
+        shipped = {
+            name.removeprefix("resources/"): archive.read(name)
+            for name in archive.namelist()
+            if name.startswith("resources/") and not name.startswith("resources/pythonfmu/")
+        }
+    shipped.pop("slavemodule.txt")
+    assert shipped == {name: path.read_bytes() for name, path in files.items()}
+
+
+def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
+    source = fmu_paths["AuvPlant"]
+    fmu = tmp_path / source.name
+    hash_file = tmp_path / (source.name + build.HASH_SUFFIX)
+    shutil.copy2(source, fmu)
+    shutil.copy2(source.with_name(hash_file.name), hash_file)
+    assert hash_file.read_text().strip() == build.source_hash(build.shipped_files("AuvPlant"))
+    before = fmu.read_bytes()
+    assert build.build_fmu("AuvPlant", tmp_path) == fmu
+    assert fmu.read_bytes() == before
+    hash_file.write_text("stale\n")
+    build.build_fmu("AuvPlant", tmp_path)
+    assert fmu.read_bytes() != before  # a new build (pythonfmu writes a new guid)
+    assert hash_file.read_text().strip() == build.source_hash(build.shipped_files("AuvPlant"))
+
+
+def test_source_hash_changes_with_any_shipped_byte(tmp_path):
+    files = {}
+    for name, path in build.shipped_files("AuvPlant").items():
+        copy = tmp_path / name
+        copy.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(path, copy)
+        files[name] = copy
+    original = build.source_hash(files)
+    toml = files["plant_fmu/vehicles/remus100.toml"]
+    toml.write_text(toml.read_text().replace("m = 30.5", "m = 30.6"))
+    assert build.source_hash(files) != original
+
+
+def test_missing_script_fails_the_build_with_its_path(monkeypatch, tmp_path):
+    monkeypatch.setitem(build.FMUS, "Ghost", build.FmuSource("plant_fmu", "ghost.py", ()))
+    with pytest.raises(CosimError, match=r"Ghost\.fmu: .*plant_fmu/ghost\.py does not exist"):
+        build.build_fmus(tmp_path)
+    with pytest.raises(CosimError, match="unknown FMU 'Nope'"):
+        build.build_fmu("Nope", tmp_path)
+
+
+MINIMAL = b"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="M" guid="g">
+  <CoSimulation modelIdentifier="M" needsExecutionTool="true"/>
+  <LogCategories><Category name="logAll"/></LogCategories>
+  <ModelVariables>
+    <ScalarVariable name="a" valueReference="0" causality="input" variability="continuous">
+      <Real start="0" unit="N"/></ScalarVariable>
+    <ScalarVariable name="b" valueReference="1" causality="output" variability="continuous"
+      initial="calculated"><Real unit="m/s"/></ScalarVariable>
+    <ScalarVariable name="c" valueReference="2" causality="calculatedParameter"
+      variability="fixed" initial="calculated"><Real unit="furlong"/></ScalarVariable>
+    <ScalarVariable name="d" valueReference="3" causality="output" variability="continuous"
+      initial="exact"><Real start="0" unit="m"/></ScalarVariable>
+  </ModelVariables>
+  <ModelStructure><Outputs><Unknown index="2" dependencies="1"/><Unknown index="4"
+    dependencies=""/></Outputs></ModelStructure>
+</fmiModelDescription>"""
+
+
+def test_model_description_completion_is_generic_and_idempotent():
+    once = build.complete_model_description(MINIMAL)
+    assert build.complete_model_description(once) == once
+    root = ET.fromstring(once)
+    assert [child.tag for child in root][:3] == ["CoSimulation", "UnitDefinitions", "LogCategories"]
+    cosim = root.find("CoSimulation")
+    assert cosim.get("needsExecutionTool") == "false"
+    assert cosim.get("canGetAndSetFMUstate") == cosim.get("canSerializeFMUstate") == "true"
+    units = {u.get("name"): u.find("BaseUnit") for u in root.iter("Unit")}
+    assert sorted(units) == ["N", "furlong", "m", "m/s"]
+    assert units["furlong"] is None  # unknown symbol: declared by name only
+    assert units["m/s"].attrib == {"m": "1", "s": "-1"}
+    initial = [u.get("index") for u in root.iterfind("ModelStructure/InitialUnknowns/Unknown")]
+    assert initial == ["2", "3"]  # the calculated output and the calculated parameter
+    outputs = [u.get("dependencies") for u in root.iterfind("ModelStructure/Outputs/Unknown")]
+    assert outputs == ["1", ""]  # the slave's declaration is kept

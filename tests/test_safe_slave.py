@@ -1,0 +1,236 @@
+"""SafeSlave's rules, called in-process on a small subclass (no FMU build needed): no
+callback raises, bad writes are refused and reported, FMU state round-trips exactly."""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import pytest
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
+from pythonfmu.variables import Integer, Real
+
+from plant_fmu.safe_slave import SafeSlave
+
+
+class Counter(SafeSlave):
+    """y' = k u; counts its steps in an internal (unregistered) attribute."""
+
+    direct_feedthrough: ClassVar[dict[str, tuple[str, ...]]] = {"echo": ("u",)}
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.u = 1.0
+        self.k = 2.0
+        self.gain = 1.0
+        self.y = 0.0
+        self.echo = 0.0
+        self.steps = 0
+        self._count = 0
+        io = {"variability": Fmi2Variability.continuous}
+        out = {"causality": Fmi2Causality.output, "initial": Fmi2Initial.exact, **io}
+        self.register(Real("u", causality=Fmi2Causality.input, description="in", **io), "N")
+        self.register(Real("y", description="integral", **out), unit="m")
+        self.register(Real("echo", description="u, directly", **out), unit="N")
+        self.register(
+            Integer(
+                "steps",
+                description="steps taken",
+                causality=Fmi2Causality.output,
+                variability=Fmi2Variability.discrete,
+                initial=Fmi2Initial.exact,
+            )
+        )
+        self.register(
+            Real(
+                "k",
+                description="gain",
+                causality=Fmi2Causality.parameter,
+                variability=Fmi2Variability.fixed,
+            ),
+            unit="1",
+        )
+        self.register(
+            Real(
+                "gain",
+                description="tunable",
+                causality=Fmi2Causality.parameter,
+                variability=Fmi2Variability.tunable,
+            ),
+            unit="1",
+        )
+
+    def _initialize(self):
+        if self.k < 0:
+            raise ValueError(f"k = {self.k}: expected >= 0")
+
+    def _step(self, current_time, step_size):
+        if self.u > 100.0:
+            raise RuntimeError("u is too large for this toy")
+        self.y += self.gain * self.k * self.u * step_size
+        self.echo = self.u
+        self._count += 1
+        self.steps = self._count
+
+    def _state_snapshot(self):
+        return {"count": self._count}
+
+    def _restore_snapshot(self, snapshot):
+        self._count = snapshot["count"]
+
+
+def _vr(slave: SafeSlave, name: str) -> int:
+    return next(vr for vr, var in slave.vars.items() if var.name == name)
+
+
+def _errors(slave: SafeSlave) -> str:
+    return "\n".join(m.msg for m in slave.log_queue if m.status >= Fmi2Status.error)
+
+
+@pytest.fixture
+def slave() -> Counter:
+    counter = Counter(instance_name="toy")
+    counter.exit_initialization_mode()
+    return counter
+
+
+def test_step_before_initialisation_is_refused():
+    counter = Counter(instance_name="toy")
+    assert counter.do_step(0.0, 0.1) is False
+    assert "not initialised" in _errors(counter)
+
+
+def test_non_finite_input_is_refused_until_a_valid_value_is_written(slave):
+    u = _vr(slave, "u")
+    for bad in (math.nan, math.inf, -math.inf):
+        slave.set_real([u], [bad])
+        assert slave.u == 1.0
+        assert slave.do_step(0.0, 0.1) is False
+    assert "u = nan refused" in _errors(slave) and "u = inf refused" in _errors(slave)
+    slave.set_real([u], [3.0])
+    assert slave.do_step(0.0, 0.1) is True
+    assert slave.y == pytest.approx(0.6)
+
+
+def test_fixed_parameter_is_refused_after_initialisation_tunable_is_not(slave):
+    slave.set_real([_vr(slave, "k"), _vr(slave, "gain")], [5.0, 0.5])
+    assert (slave.k, slave.gain) == (2.0, 0.5)
+    assert slave.do_step(0.0, 1.0) is False
+    assert "k = 5.0 refused: a fixed parameter" in _errors(slave)
+    slave.set_real([_vr(slave, "k")], [2.0])  # the value in use: accepted, clears it
+    assert slave.do_step(0.0, 1.0) is True
+    assert slave.y == pytest.approx(1.0)
+
+
+def test_outputs_unknown_references_and_wrong_types_are_refused(slave):
+    slave.set_real([_vr(slave, "y")], [7.0])
+    slave.set_integer([_vr(slave, "u")], [3])
+    slave.set_real([999], [1.0])
+    assert slave.y == 0.0 and slave.u == 1.0
+    errors = _errors(slave)
+    assert "y = 7.0 refused: a output cannot be set" in errors
+    assert "u is a Real, not a Integer" in errors
+    assert "no variable has valueReference 999" in errors
+    assert slave.do_step(0.0, 0.1) is False
+
+
+def test_getters_never_raise(slave):
+    assert slave.get_real([_vr(slave, "y"), 999, _vr(slave, "steps")]) == [0.0, 0.0, 0.0]
+    assert slave.get_integer([_vr(slave, "steps")]) == [0]
+    slave.vars[_vr(slave, "y")].getter = lambda: 1 / 0
+    assert slave.get_real([_vr(slave, "y")]) == [0.0]
+    slave.y = math.nan
+    slave.vars[_vr(slave, "y")].getter = lambda: slave.y
+    assert math.isnan(slave.get_real([_vr(slave, "y")])[0])
+    errors = _errors(slave)
+    assert "valueReference 999" in errors and "ZeroDivisionError" in errors
+    assert "y = nan is not finite" in errors
+    assert "steps' is a Integer, not a Real" in errors
+
+
+def test_failing_step_is_discarded_and_leaves_the_state(slave):
+    slave.set_real([_vr(slave, "u")], [1000.0])
+    assert slave.do_step(0.0, 0.1) is False
+    assert (slave.y, slave.steps) == (0.0, 0)
+    assert "RuntimeError: u is too large for this toy" in _errors(slave)
+    for bad_step in (0.0, -0.1, math.nan):
+        assert slave.do_step(0.0, bad_step) is False
+    assert "communication step nan s" in _errors(slave)
+
+
+def test_failed_initialisation_is_reported_and_blocks_stepping():
+    counter = Counter(instance_name="toy")
+    counter.set_real([_vr(counter, "k")], [-1.0])
+    counter.exit_initialization_mode()
+    assert counter.do_step(0.0, 0.1) is False
+    assert "initialisation failed: k = -1.0: expected >= 0" in _errors(counter)
+
+
+def test_state_round_trip_through_bytes_continues_identically(slave):
+    u = _vr(slave, "u")
+    slave.set_real([u], [0.3])
+    for k in range(3):
+        slave.do_step(0.1 * k, 0.1)
+    blob = Counter._fmu_state_to_bytes(slave._get_fmu_state())
+    slave.set_real([u], [0.7])
+    slave.do_step(0.3, 0.1)
+    first = (slave.y, slave.steps, slave._count)
+    slave._set_fmu_state(Counter._fmu_state_from_bytes(blob))
+    assert slave.u == 0.3
+    slave.set_real([u], [0.7])
+    slave.do_step(0.3, 0.1)
+    assert (slave.y, slave.steps, slave._count) == first
+    assert first[1] == 4
+
+
+def test_bad_state_is_refused_until_a_good_one_is_restored(slave):
+    good = slave._get_fmu_state()
+    slave._set_fmu_state(Counter._fmu_state_from_bytes(b"not json"))
+    assert slave.do_step(0.0, 0.1) is False
+    assert "cannot deserialise the FMU state" in _errors(slave)
+    slave._set_fmu_state({**good, "class": "AuvPlant"})
+    assert "expected 'Counter'" in _errors(slave)
+    slave._set_fmu_state(good)
+    assert slave.do_step(0.0, 0.1) is True
+
+
+def test_unserialisable_state_becomes_an_error_state():
+    blob = SafeSlave._fmu_state_to_bytes({"x": math.nan})
+    assert "error" in SafeSlave._fmu_state_from_bytes(blob)
+
+
+def test_terminate_stops_stepping(slave):
+    slave.terminate()
+    assert slave.do_step(0.0, 0.1) is False
+    assert "terminated" in _errors(slave)
+
+
+def test_log_escapes_percent_for_printf_hosts(slave):
+    slave.log("50% done")
+    assert slave.log_queue[-1].msg == "50%% done"
+
+
+def test_registration_requires_unit_description_and_variability():
+    counter = Counter(instance_name="toy")
+    with pytest.raises(ValueError, match="a unit is required"):
+        counter.register(Real("z", causality=Fmi2Causality.input, description="z"))
+    with pytest.raises(ValueError, match="a description is required"):
+        counter.register(Real("z", causality=Fmi2Causality.input), unit="m")
+    with pytest.raises(ValueError, match="need a variability"):
+        counter.register(Integer("n", causality=Fmi2Causality.input, description="n"))
+
+
+def test_description_has_units_and_declared_dependencies(monkeypatch):
+    counter = Counter(instance_name="toy")
+    root = counter.to_xml()
+    units = {
+        v.get("name"): v.find("Real").get("unit")
+        for v in root.iter("ScalarVariable")
+        if v.find("Real") is not None
+    }
+    assert units == {"u": "N", "y": "m", "echo": "N", "k": "1", "gain": "1"}
+    dependencies = [u.get("dependencies") for u in root.iterfind("ModelStructure/Outputs/")]
+    assert dependencies == ["", "1", ""]  # y, echo (on u = index 1), steps
+    monkeypatch.setattr(Counter, "direct_feedthrough", {"y": ("k",)})
+    with pytest.raises(ValueError, match="non-inputs"):
+        counter.to_xml()
