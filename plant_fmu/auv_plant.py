@@ -115,7 +115,7 @@ class AuvPlant(SafeSlave):
         self._initial_state = np.zeros(N_STATES)
         self._x = np.zeros(N_STATES)
         self._derived = [0.0, 0.0, 0.0, 0.0]  # u_rel, v_rel, w_rel, kinetic_energy
-        self._last_current = self._inputs[5:8].copy()
+        self._last_current = self._inputs[5:8].tolist()
         self._model: PlantModel | None = None
         self._model_key: tuple | None = None
         self._physical = _default_physical_parameters()
@@ -251,26 +251,27 @@ class AuvPlant(SafeSlave):
                 Fmi2Status.warning,
             )
         self._x = model.project(x)
-        self._last_current = self._inputs[5:8].copy()
+        self._last_current = self._inputs[5:8].tolist()
         self._refresh_outputs()
 
     def _step(self, current_time: float, step_size: float) -> None:
         model = self._model
         inputs = self._inputs.copy()
         x = self._x
-        current = inputs[5:8]
-        if not np.array_equal(current, self._last_current):
+        current = inputs[5:8].tolist()
+        if current != self._last_current:
             x = x.copy()
-            x[6:12] += model.current_change_velocity_jump(x, current - self._last_current)
+            change = np.subtract(current, self._last_current)
+            x[6:12] += model.current_change_velocity_jump(x, change)
         x = advance(model, x, inputs, step_size, self.max_substep)
         self._x = x
-        self._last_current = current.copy()
+        self._last_current = current
         self._refresh_outputs(inputs)
 
     def _state_snapshot(self) -> dict[str, Any]:
         return {
             "x": self._x.tolist(),
-            "last_current": self._last_current.tolist(),
+            "last_current": list(self._last_current),
             "derived": list(self._derived),
         }
 
@@ -278,7 +279,7 @@ class AuvPlant(SafeSlave):
         if self.initialized and self._model_key != self._parameter_key():
             self._build_model()
         self._x = np.array(snapshot["x"], dtype=float)
-        self._last_current = np.array(snapshot["last_current"], dtype=float)
+        self._last_current = [float(c) for c in snapshot["last_current"]]
         self._derived[:] = snapshot["derived"]
 
     # --- internals ---------------------------------------------------------------------------

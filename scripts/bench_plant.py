@@ -1,0 +1,136 @@
+"""Cost of one 10 ms plant step: in-process vs through AuvPlant.fmu in fmpy.
+
+Prints, as medians over many repetitions (microseconds):
+  (a) one 10 ms step of the full 6-DOF model in-process (plant_fmu.stepping.advance:
+      one RK4 step, four derivative evaluations, projections and checks);
+  (b) one derivative evaluation, and the ratio (a)/(b);
+  (c) one FMU step through fmpy's FMU2Slave: setReal of the 8 inputs + doStep + getReal of
+      the 18 outputs, and the ratio (c)/(a);
+  (d) the same three calls on the AuvPlant class in Python (no C wrapper, no ctypes),
+      which splits (c) - (a) into our slave's overhead and pythonfmu's + fmpy's.
+
+Usage: python scripts/bench_plant.py [--fmu-dir build/fmus] [--steps 3000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+from cosim.build import build_fmu
+from plant_fmu.analysis import input_vector, state_vector
+from plant_fmu.auv_plant import AuvPlant
+from plant_fmu.dynamics import INPUT_NAMES, PlantModel, Variant
+from plant_fmu.parameters import load_vehicle
+from plant_fmu.stepping import advance
+
+H = 0.01
+START = dict(u=1.5, v=0.1, w=0.02, p=0.1, q=0.02, r=0.2, roll=0.1, pitch=0.05)
+INPUTS = dict(thrust=9.0, tunnel_force=1.0, fin_angle=0.05, mass_position_cmd=0.03)
+
+
+def median_us(call: Callable[[], object], repetitions: int) -> float:
+    """Median wall time of ``call()`` in microseconds (each call timed on its own)."""
+    for _ in range(min(100, repetitions)):
+        call()
+    times = []
+    for _ in range(repetitions):
+        start = time.perf_counter_ns()
+        call()
+        times.append(time.perf_counter_ns() - start)
+    return statistics.median(times) / 1000.0
+
+
+def in_process(steps: int) -> tuple[float, float]:
+    model = PlantModel(load_vehicle("remus100"), Variant.FULL)
+    inputs = input_vector(INPUTS)
+    state = {"x": state_vector(START)}
+
+    def step() -> None:
+        state["x"] = advance(model, state["x"], inputs, H)
+
+    x = state_vector(START)
+    return median_us(step, steps), median_us(lambda: model.derivative(x, inputs), steps * 4)
+
+
+def through_fmpy(fmu: Path, steps: int) -> float:
+    md = read_model_description(str(fmu))
+    refs = {v.name: v.valueReference for v in md.modelVariables}
+    outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+    slave = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=extract(str(fmu)),
+        modelIdentifier="AuvPlant",
+        instanceName="bench",
+    )
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([refs[f"{n}_0"] for n in START], list(START.values()))
+    slave.exitInitializationMode()
+    input_refs = [refs[n] for n in INPUT_NAMES]
+    input_values = list(input_vector(INPUTS))
+    clock = {"t": 0.0}
+
+    def step() -> None:
+        slave.setReal(input_refs, input_values)
+        slave.doStep(clock["t"], H)
+        slave.getReal(outputs)
+        clock["t"] += H
+
+    cost = median_us(step, steps)
+    slave.terminate()
+    slave.freeInstance()
+    return cost
+
+
+def direct_class(steps: int) -> float:
+    plant = AuvPlant(instance_name="bench")
+    refs = {v.name: vr for vr, v in plant.vars.items()}
+    outputs = [vr for vr, v in plant.vars.items() if v.causality.name == "output"]
+    plant.set_real([refs[f"{n}_0"] for n in START], list(START.values()))
+    plant.exit_initialization_mode()
+    input_refs = [refs[n] for n in INPUT_NAMES]
+    input_values = [float(v) for v in input_vector(INPUTS)]
+    clock = {"t": 0.0}
+
+    def step() -> None:
+        plant.set_real(input_refs, input_values)
+        if not plant.do_step(clock["t"], H):
+            raise RuntimeError(plant.log_queue[-1].msg)
+        plant.get_real(outputs)
+        clock["t"] += H
+
+    return median_us(step, steps)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--fmu-dir", type=Path, default=Path("build/fmus"))
+    parser.add_argument("--steps", type=int, default=3000, help="timed steps per measurement")
+    args = parser.parse_args()
+    fmu = build_fmu("AuvPlant", args.fmu_dir)
+
+    step_us, derivative_us = in_process(args.steps)
+    fmu_us = through_fmpy(fmu, args.steps)
+    class_us = direct_class(args.steps)
+    print(f"(a) in-process 10 ms step, full 6-DOF (advance, RK4): {step_us:8.1f} us")
+    print(f"(b) one derivative evaluation:                         {derivative_us:8.1f} us")
+    print(f"    ratio (a)/(b):                                     {step_us / derivative_us:8.2f}")
+    print(f"(c) FMU step via fmpy (setReal 8 + doStep + getReal 18): {fmu_us:6.1f} us")
+    print(f"    ratio (c)/(a):                                     {fmu_us / step_us:8.2f}")
+    print(f"(d) same calls on the AuvPlant class in Python:        {class_us:8.1f} us")
+    print(
+        f"    overhead over (a): slave {class_us - step_us:6.1f} us, "
+        f"pythonfmu + fmpy {fmu_us - class_us:6.1f} us"
+    )
+
+
+if __name__ == "__main__":
+    main()
