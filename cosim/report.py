@@ -1,0 +1,328 @@
+"""``auv-cosim report RUN_DIR``: a run's time histories as PNG figures and an index page.
+
+The figures are laid out like the dissertation's Ch. 6 plots:
+
+* ``velocities.png`` - u, v, r, p against time (Figs. 6.11, 6.13, 6.23);
+* ``attitude_actuators.png`` - roll, yaw (with its setpoint), the moving mass y_v (with
+  its command) and rail speed, the tunnel-thruster force (Figs. 6.12, 6.24, 6.42);
+* ``trajectory.png`` - the path over ground, north up and east to the right (Fig. 6.31),
+  with a 3-D view when the depth changes (Fig. 6.44);
+* ``depth.png`` - depth (with its setpoint), pitch, w, q and the stern-plane angle, when
+  the run has a depth loop (Fig. 6.43).
+
+Every series is optional: a panel whose columns the run did not record is left out, a
+figure with no panel is not written. The page ``report/index.html`` in the run folder
+shows the run's summary (``summary.json``) and links the figures.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from cosim.errors import CosimError
+from cosim.results import read_csv
+
+REPORT_FOLDER = "report"
+INDEX_PAGE = "index.html"
+
+
+@dataclass(frozen=True)
+class Series:
+    """One curve: a results column, its display scale and legend label."""
+
+    column: str
+    scale: float = 1.0
+    label: str = ""
+    dashed: bool = False
+
+
+@dataclass(frozen=True)
+class Panel:
+    """One axis of a figure: its y label and the curves drawn on it (first = main)."""
+
+    ylabel: str
+    series: tuple[Series, ...]
+
+
+DEG = math.degrees(1.0)
+FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
+    "velocities": (
+        "Linear and angular velocities",
+        (
+            Panel("u (m/s)", (Series("plant.u"),)),
+            Panel("v (m/s)", (Series("plant.v"),)),
+            Panel("r (deg/s)", (Series("plant.r", DEG),)),
+            Panel("p (deg/s)", (Series("plant.p", DEG),)),
+        ),
+    ),
+    "attitude_actuators": (
+        "Roll and yaw, moving mass and tunnel thruster",
+        (
+            Panel(r"$\phi$ (deg)", (Series("plant.roll", DEG),)),
+            Panel(
+                r"$\psi$ (deg)",
+                (
+                    Series("plant.yaw", DEG, "yaw"),
+                    Series("controller.yaw_setpoint", DEG, "setpoint", dashed=True),
+                ),
+            ),
+            Panel(
+                "$y_v$ (cm)",
+                (
+                    Series("plant.mass_position", 100.0, "position"),
+                    Series("controller.mass_position_cmd", 100.0, "command", dashed=True),
+                ),
+            ),
+            Panel("$y_{vel}$ (cm/s)", (Series("plant.mass_velocity", 100.0),)),
+            Panel("$F_t$ (N)", (Series("controller.tunnel_force"),)),
+        ),
+    ),
+    "depth": (
+        "Vertical-plane motion and stern planes",
+        (
+            Panel(
+                "z (m)",
+                (
+                    Series("plant.down", 1.0, "depth"),
+                    Series("controller.depth_setpoint", 1.0, "setpoint", dashed=True),
+                ),
+            ),
+            Panel(r"$\theta$ (deg)", (Series("plant.pitch", DEG),)),
+            Panel("w (m/s)", (Series("plant.w"),)),
+            Panel("q (deg/s)", (Series("plant.q", DEG),)),
+            Panel(r"$\delta_s$ (deg)", (Series("controller.fin_angle", DEG),)),
+        ),
+    ),
+}
+# The depth figure is drawn only for a run with a depth loop: fins commanded or depth moving.
+DEPTH_EVIDENCE = ("controller.fin_angle", "controller.depth_setpoint")
+
+
+def write_report(run_dir: Path) -> Path:
+    """Write the figures and the index page of the run in ``run_dir``; return the page.
+
+    Raises:
+        CosimError: ``run_dir`` holds no readable ``results.csv`` (or it has no rows), or
+            the report folder cannot be written.
+    """
+    run_dir = Path(run_dir)
+    table = load_results(run_dir)
+    summary, summary_problem = load_summary(run_dir)
+    out = run_dir / REPORT_FOLDER
+    try:
+        out.mkdir(exist_ok=True)
+        figures = {}
+        for name, (title, panels) in FIGURES.items():
+            if name == "depth" and not _has_depth_loop(table):
+                continue
+            path = plot_time_histories(table, panels, title, out / f"{name}.png")
+            if path is not None:
+                figures[name] = path
+        trajectory = plot_trajectory(table, out / "trajectory.png")
+        if trajectory is not None:
+            figures["trajectory"] = trajectory
+        index = out / INDEX_PAGE
+        index.write_text(index_page(run_dir, summary, summary_problem, figures), "utf-8")
+    except OSError as exc:
+        raise CosimError(f"cannot write the report into {out}: {exc}") from None
+    return index
+
+
+# --- input ---------------------------------------------------------------------------------
+
+
+def load_results(run_dir: Path) -> dict[str, np.ndarray]:
+    """``results.csv`` as {column: values}; ``time`` is required."""
+    path = run_dir / "results.csv"
+    if not run_dir.is_dir():
+        raise CosimError(f"{run_dir} is not a folder: expected the output folder of a run")
+    if not path.is_file():
+        raise CosimError(
+            f"no results.csv in {run_dir}: expected the output folder of `auv-cosim run`"
+        )
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "no data": reported below
+            columns, values = read_csv(path)
+    except (OSError, ValueError) as exc:
+        raise CosimError(f"cannot read {path}: {exc}") from None
+    if columns[0] != "time":
+        raise CosimError(f"{path}: the first column is {columns[0]!r}, expected 'time'")
+    if values.shape[0] == 0:
+        raise CosimError(f"{path} holds no rows")
+    if values.shape[1] != len(columns):
+        raise CosimError(f"{path}: {values.shape[1]} values per row for {len(columns)} columns")
+    return {name: values[:, k] for k, name in enumerate(columns)}
+
+
+def load_summary(run_dir: Path) -> tuple[dict[str, Any], str | None]:
+    """``summary.json`` and a problem note (missing or unreadable: the report goes on)."""
+    path = run_dir / "summary.json"
+    if not path.is_file():
+        return {}, "no summary.json in the run folder"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        return {}, f"summary.json unreadable: {exc}"
+    if not isinstance(data, dict):
+        return {}, "summary.json is not a JSON object"
+    return data, None
+
+
+def _has_depth_loop(table: dict[str, np.ndarray]) -> bool:
+    if any(c in table and np.any(table[c] != 0.0) for c in DEPTH_EVIDENCE):
+        return True
+    return "plant.down" in table and np.ptp(table["plant.down"]) > 1e-6
+
+
+# --- figures -------------------------------------------------------------------------------
+
+
+def plot_time_histories(
+    table: dict[str, np.ndarray], panels: tuple[Panel, ...], title: str, path: Path
+) -> Path | None:
+    """Stacked panels sharing the time axis; None if the run recorded none of them."""
+    present = [p for p in panels if p.series[0].column in table]
+    if not present:
+        return None
+    time = table["time"]
+    fig, axes = plt.subplots(
+        len(present), 1, sharex=True, figsize=(9, 1.9 * len(present) + 0.8), squeeze=False
+    )
+    for ax, panel in zip(axes[:, 0], present, strict=True):
+        drawn = 0
+        for series in panel.series:
+            if series.column not in table:
+                continue
+            ax.plot(
+                time,
+                table[series.column] * series.scale,
+                "--" if series.dashed else "-",
+                color="tab:gray" if series.dashed else "tab:blue",
+                linewidth=1.0 if series.dashed else 1.3,
+                label=series.label or None,
+            )
+            drawn += 1
+        ax.set_ylabel(panel.ylabel)
+        ax.grid(True, alpha=0.3)
+        if drawn > 1:
+            ax.legend(loc="upper right", fontsize="small")
+    axes[-1, 0].set_xlabel("Time (s)")
+    axes[-1, 0].set_xlim(time[0], time[-1] if time[-1] > time[0] else time[0] + 1.0)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_trajectory(table: dict[str, np.ndarray], path: Path) -> Path | None:
+    """North against east (x up, y right, equal scale), and a 3-D view when the depth
+    changes; None without ``plant.north`` and ``plant.east``."""
+    if "plant.north" not in table or "plant.east" not in table:
+        return None
+    north, east = table["plant.north"], table["plant.east"]
+    down = table.get("plant.down")
+    three_d = down is not None and np.ptp(down) > 1e-3
+    fig = plt.figure(figsize=(12 if three_d else 6.5, 6))
+    ax = fig.add_subplot(1, 2 if three_d else 1, 1)
+    ax.plot(east, north, color="tab:blue")
+    ax.plot(east[0], north[0], "o", color="tab:green", label="start")
+    ax.plot(east[-1], north[-1], "s", color="tab:red", label="end")
+    ax.set_xlabel("y, east (m)")
+    ax.set_ylabel("x, north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title("path over ground")
+    if three_d:
+        ax3 = fig.add_subplot(1, 2, 2, projection="3d")
+        ax3.plot(east, north, down, color="tab:blue")
+        ax3.set_xlabel("y, east (m)")
+        ax3.set_ylabel("x, north (m)")
+        ax3.set_zlabel("z, down (m)")
+        ax3.invert_zaxis()
+        ax3.set_title("earth frame (NED)")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _save(fig: plt.Figure, path: Path) -> Path:
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+# --- index page ----------------------------------------------------------------------------
+
+
+def index_page(
+    run_dir: Path,
+    summary: dict[str, Any],
+    summary_problem: str | None,
+    figures: dict[str, Path],
+) -> str:
+    """The HTML index: summary table, key figures, the figures inline (linked)."""
+    name = summary.get("scenario") or run_dir.resolve().name
+    rows = [
+        ("scenario", summary.get("scenario")),
+        ("complete", summary.get("complete")),
+        ("error", summary.get("error")),
+        ("stop time (s)", summary.get("stop_time")),
+        ("time reached (s)", summary.get("time_reached")),
+        ("communication step (s)", summary.get("step")),
+        ("algorithm", summary.get("algorithm")),
+        ("wall clock, stepping loop (s)", summary.get("wall_clock_s")),
+        ("real-time factor", summary.get("real_time_factor")),
+    ]
+    key = summary.get("key_figures") or {}
+    rows += [(k.replace("_", " "), v) for k, v in key.items()]
+    table = "\n".join(
+        f"<tr><th>{html.escape(label)}</th><td>{html.escape(_text(value))}</td></tr>"
+        for label, value in rows
+        if value is not None
+    )
+    note = f"<p><em>{html.escape(summary_problem)}</em></p>" if summary_problem else ""
+    if summary.get("complete") is False:
+        note += (
+            "<p><strong>The run did not complete: the figures show its partial "
+            "results.</strong></p>"
+        )
+    images = "\n".join(
+        f"<h2>{html.escape(FIGURES[key][0] if key in FIGURES else 'Trajectory')}</h2>\n"
+        f'<p><a href="{path.name}"><img src="{path.name}" alt="{key}" '
+        'style="max-width:100%"></a></p>'
+        for key, path in figures.items()
+    )
+    return f"""<!DOCTYPE html>
+<html lang="en">
+<head><meta charset="utf-8"><title>auv-cosim run {html.escape(str(name))}</title>
+<style>body {{ font-family: sans-serif; max-width: 1100px; margin: 2em auto; }}
+th {{ text-align: left; padding-right: 2em; }}</style></head>
+<body>
+<h1>Run {html.escape(str(name))}</h1>
+<p>Run folder: <code>{html.escape(str(run_dir))}</code> (results.csv, summary.json)</p>
+{note}
+<table>
+{table}
+</table>
+{images}
+</body>
+</html>
+"""
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return str(value)

@@ -1,0 +1,156 @@
+"""``auv-cosim report RUN_DIR``: figures and index page from a run folder.
+
+The run folders here are written from the in-process plant model (open loop) in the
+documented results.csv / summary.json format, so each figure's data is known.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.cli import main
+from cosim.errors import CosimError
+from cosim.report import write_report
+from plant_fmu.analysis import input_vector, state_vector
+from plant_fmu.dynamics import STATE_NAMES, PlantModel, Variant
+from plant_fmu.parameters import load_vehicle
+from plant_fmu.stepping import simulate
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _write_run(
+    run_dir: Path,
+    variant: Variant,
+    x0: dict[str, float],
+    controller: dict[str, float],
+    duration: float = 20.0,
+    summary: dict | None = None,
+) -> Path:
+    """An open-loop run of the plant written as `auv-cosim run` would: plant.* columns
+    from the model, controller.* columns held constant (they are the plant's inputs)."""
+    model = PlantModel(load_vehicle("remus100"), variant=variant)
+    setpoints = ("yaw_setpoint", "depth_setpoint")
+    inputs = {"thrust": 9.0, **{k: v for k, v in controller.items() if k not in setpoints}}
+    times, states = simulate(model, state_vector(x0), input_vector(inputs), duration, 0.05)
+    columns = (
+        ["time"] + [f"plant.{n}" for n in STATE_NAMES] + [f"controller.{n}" for n in controller]
+    )
+    table = np.column_stack([times, states, *[np.full_like(times, v) for v in controller.values()]])
+    run_dir.mkdir(parents=True)
+    lines = [",".join(columns)] + [",".join(map(repr, row)) for row in table.tolist()]
+    (run_dir / "results.csv").write_text("\n".join(lines) + "\n")
+    if summary is not None:
+        (run_dir / "summary.json").write_text(json.dumps(summary))
+    return run_dir
+
+
+@pytest.fixture(scope="module")
+def lateral_run(tmp_path_factory) -> Path:
+    """Open-loop lateral motion from v0 = -0.1 (bs-3's initial state, no controller)."""
+    return _write_run(
+        tmp_path_factory.mktemp("runs") / "open-loop",
+        Variant.LATERAL,
+        {"u": 1.5, "v": -0.1},
+        {"tunnel_force": 0.0, "mass_position_cmd": 0.02, "yaw_setpoint": 0.0},
+        summary={
+            "scenario": "open-loop",
+            "stop_time": 20.0,
+            "step": 0.05,
+            "complete": True,
+            "error": None,
+            "wall_clock_s": 0.5,
+            "key_figures": {"yaw_settling_time_s": None, "peak_abs_mass_position_m": 0.02},
+        },
+    )
+
+
+def _assert_png(path: Path) -> None:
+    data = path.read_bytes()
+    assert data[:8] == PNG_SIGNATURE
+    assert len(data) > 10_000  # axes, ticks and curves, not an empty canvas
+
+
+def test_lateral_run_gets_velocity_attitude_and_trajectory_figures(lateral_run):
+    index = write_report(lateral_run)
+    assert index == lateral_run / "report" / "index.html"
+    figures = sorted(p.name for p in index.parent.glob("*.png"))
+    # No depth loop: no fins, no depth setpoint, depth constant in the lateral variant.
+    assert figures == ["attitude_actuators.png", "trajectory.png", "velocities.png"]
+    for name in figures:
+        _assert_png(index.parent / name)
+    page = index.read_text()
+    for name in figures:
+        assert f'src="{name}"' in page
+    assert "open-loop" in page and "peak abs mass position m" in page
+
+
+def test_depth_loop_gets_its_figure_and_a_3d_trajectory(tmp_path):
+    """Full 6-DOF from the surface with the fins deflected: the depth changes."""
+    run = _write_run(
+        tmp_path / "dive",
+        Variant.FULL,
+        {"u": 1.5},
+        {"fin_angle": 0.1, "depth_setpoint": 1.0},
+        duration=10.0,
+    )
+    index = write_report(run)
+    _assert_png(index.parent / "depth.png")
+    _assert_png(index.parent / "trajectory.png")
+    page = index.read_text()
+    assert 'src="depth.png"' in page
+    assert "no summary.json" in page  # the report goes on without it, and says so
+
+
+def test_missing_columns_leave_their_panels_and_figures_out(tmp_path):
+    run = tmp_path / "sparse"
+    run.mkdir()
+    t = np.arange(0.0, 2.0, 0.1)
+    rows = "\n".join(f"{a!r},1.5" for a in t.tolist())
+    (run / "results.csv").write_text("time,plant.u\n" + rows + "\n")
+    index = write_report(run)
+    assert sorted(p.name for p in index.parent.glob("*.png")) == ["velocities.png"]
+
+
+def test_incomplete_run_is_flagged_on_the_page(tmp_path):
+    run = _write_run(
+        tmp_path / "broken",
+        Variant.HORIZONTAL,
+        {"u": 1.5},
+        {},
+        duration=2.0,
+        summary={"scenario": "broken", "complete": False, "error": "plant: NaN at t = 2 s"},
+    )
+    page = write_report(run).read_text()
+    assert "did not complete" in page and "plant: NaN at t = 2 s" in page
+
+
+def test_folder_without_results_is_a_clear_error(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(CosimError, match=r"no results\.csv in .*empty"):
+        write_report(tmp_path / "empty")
+    assert main(["report", str(tmp_path / "missing")]) == 1
+    err = capsys.readouterr().err
+    assert "is not a folder" in err and len(err.strip().splitlines()) == 1
+
+
+def test_results_without_rows_or_time_are_refused(tmp_path):
+    header_only = tmp_path / "header"
+    header_only.mkdir()
+    (header_only / "results.csv").write_text("time,plant.u\n")
+    with pytest.raises(CosimError, match="holds no rows"):
+        write_report(header_only)
+    no_time = tmp_path / "no-time"
+    no_time.mkdir()
+    (no_time / "results.csv").write_text("plant.u,plant.v\n1.5,0.0\n")
+    with pytest.raises(CosimError, match="expected 'time'"):
+        write_report(no_time)
+
+
+def test_cli_prints_the_index_path(lateral_run, capsys):
+    assert main(["report", str(lateral_run)]) == 0
+    assert capsys.readouterr().out.strip() == f"report: {lateral_run / 'report' / 'index.html'}"
