@@ -28,7 +28,13 @@ import numpy as np
 import rerun as rr
 
 from cosim.errors import CosimError
-from cosim.rerun_layout import build_blueprint, plan_panels, series_style, time_index
+from cosim.rerun_layout import (
+    build_blueprint,
+    plan_panels,
+    resolve_columns,
+    series_style,
+    time_index,
+)
 from cosim.rerun_scene import SceneWriter, log_static_scene, scene_legend
 from plant_fmu.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
@@ -69,7 +75,7 @@ class RerunSink:
             duplicates = sorted({c for c in columns if columns.count(c) > 1})
             raise ValueError(f"recorded columns must be unique, got duplicates {duplicates}")
         self._columns = list(columns)
-        self._index = {name: i for i, name in enumerate(columns)}
+        self._index = resolve_columns(self._columns)
         self._panels = plan_panels(self._columns)
         self._pending_times: list[np.ndarray] = []
         self._pending_values: list[np.ndarray] = []

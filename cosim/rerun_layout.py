@@ -156,6 +156,15 @@ DEPTH_LOOP = (
     "actuators/fin_angle_deg",
     "velocity/surge_m_s",
 )
+# Plant inputs the plots and the scene show under their controller.* names.
+PLANT_INPUTS_SHOWN = (
+    "thrust",
+    "tunnel_force",
+    "fin_angle",
+    "mass_position_cmd",
+    "current_north",
+    "current_east",
+)
 VEHICLE = (
     "position/horizontal_m",
     "moving_mass/velocity_cm_s",
@@ -176,33 +185,43 @@ class PlannedPanel:
     scales: tuple[float, ...]
 
 
+def resolve_columns(columns: list[str]) -> dict[str, int]:
+    """Column name -> position, plus ``controller.<input>`` for a held ``plant.<input>``.
+
+    In a closed loop the actuator commands and the current are recorded as the
+    controller's (``controller.tunnel_force``); a run without a controller records the
+    plant's held inputs instead (``plant.tunnel_force``). Either fills the same plot and
+    the same arrow; if both are recorded, the plant's goes to ``other/``.
+    """
+    index = {name: i for i, name in enumerate(columns)}
+    for name in PLANT_INPUTS_SHOWN:
+        canonical, alias = f"controller.{name}", f"plant.{name}"
+        if canonical not in index and alias in index:
+            index[canonical] = index[alias]
+    return index
+
+
 def plan_panels(columns: list[str]) -> list[PlannedPanel]:
     """The panels a run with these columns shows; unknown columns go to ``other/...``.
 
     A panel none of whose columns is recorded is dropped; one with some of them keeps
     those (a run without a controller still shows yaw, without the setpoint).
     """
-    position = {name: i for i, name in enumerate(columns)}
+    index = resolve_columns(columns)
     planned: list[PlannedPanel] = []
-    known: set[str] = set()
+    shown: set[int] = set()
     for panel in PANELS:
-        present = tuple(s for s in panel.series if s.column in position)
-        known.update(s.column for s in panel.series)
+        present = tuple(s for s in panel.series if s.column in index)
         if present:
-            planned.append(
-                PlannedPanel(
-                    panel.entity,
-                    panel.title,
-                    present,
-                    tuple(position[s.column] for s in present),
-                    tuple(s.scale for s in present),
-                )
-            )
-    for name in columns:
-        if name not in known:
+            indices = tuple(index[s.column] for s in present)
+            shown.update(indices)
+            scales = tuple(s.scale for s in present)
+            planned.append(PlannedPanel(panel.entity, panel.title, present, indices, scales))
+    for i, name in enumerate(columns):
+        if i not in shown:
             series = _s(name, name, ENERGY)
             entity = "other/" + name.replace(".", "/")
-            planned.append(PlannedPanel(entity, name, (series,), (position[name],), (1.0,)))
+            planned.append(PlannedPanel(entity, name, (series,), (i,), (1.0,)))
     return planned
 
 

@@ -57,7 +57,7 @@ FIN_SPAN = 0.09  # m beyond the hull
 FIN_THICKNESS = 0.006  # m
 FIN_FROM_TAIL = 0.12  # m, fin root hinge ahead of the tail end
 MASS_RADIUS = 0.03  # m, drawn radius of the moving mass
-DEPTH_MARKER_HALF_SIZE = 4.0  # m, half side of the depth-setpoint square
+DEPTH_MARKER_HALF_SIZE = 2.0  # m, half side of the depth-setpoint square
 
 Columns = Callable[[str], np.ndarray | None]  # column name -> values (k,) or None
 

@@ -437,3 +437,58 @@ def test_view_of_a_folder_without_recording_names_it(tmp_path: Path, capsys):
         view_run(tmp_path)
     assert main(["view", str(tmp_path)]) == 1
     assert "no recording at" in capsys.readouterr().err
+
+
+REAL_RUN = """
+import sys
+from pathlib import Path
+from cosim.runner import run_scenario
+from cosim.scenario import scenario_from_toml
+
+fmu_dir, out = Path(sys.argv[1]), Path(sys.argv[2])
+scenario = scenario_from_toml(sys.argv[3], fmu_dir=fmu_dir)
+outcome = run_scenario(scenario, out, fmu_dir=fmu_dir)
+assert outcome.result.complete, outcome.result.error
+print(outcome.paths["recording"])
+"""
+OPEN_LOOP = """
+id = "open-loop"
+stop_time = 2.0
+[coupling]
+step = 0.01
+[instances.plant]
+fmu = "AuvPlant"
+[instances.plant.start]
+variant = 0
+u_0 = 1.5
+v_0 = -0.1
+tunnel_force = 6.0
+mass_position_cmd = 0.05
+fin_angle = 0.08
+current_east = 0.2
+"""
+
+
+def test_real_run_recording_equals_results_csv(fmu_paths, run_python, tmp_path: Path):
+    """The AuvPlant FMU through the master (fresh process: pythonfmu caches modules)."""
+    from cosim.results import read_csv
+
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    done = run_python(REAL_RUN, fmu_dir, tmp_path / "run", OPEN_LOOP)
+    assert done.returncode == 0, done.stderr
+    rrd = Path(done.stdout.strip().splitlines()[-1])
+    names, table = read_csv(tmp_path / "run" / "results.csv")
+    times, csv = table[:, 0], dict(zip(names, table.T, strict=True))
+    t, yaw = read_temporal(rrd, "/attitude/yaw_deg", "Scalars:scalars", 1)
+    np.testing.assert_array_equal(t, step_nanos(times))
+    assert np.ptp(csv["plant.yaw"]) > 0.01
+    np.testing.assert_array_equal(yaw[:, 0, 0], np.degrees(csv["plant.yaw"]))
+    t, pose = read_temporal(rrd, "/world/vehicle", "Transform3D:translation", 3)
+    np.testing.assert_array_equal(t, step_nanos(times))
+    ned = np.column_stack([csv[f"plant.{n}"] for n in ("north", "east", "down")])
+    np.testing.assert_array_equal(pose[:, 0], ned.astype(np.float32))
+    # Without a controller the held plant inputs fill the actuator plots and arrows.
+    _, force = read_temporal(rrd, "/actuators/tunnel_force_N", "Scalars:scalars", 1)
+    np.testing.assert_array_equal(force[:, 0, 0], csv["plant.tunnel_force"])
+    _, mass = read_temporal(rrd, "/moving_mass/position_cm", "Scalars:scalars", 1)
+    np.testing.assert_array_equal(mass[:, 1, 0], 100.0 * csv["plant.mass_position_cmd"])
