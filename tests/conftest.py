@@ -5,12 +5,14 @@
   ``controller_fmu/auv_autopilot.py`` exists it holds only ``"AuvPlant"``.
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
-  ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). Use it where
+  ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). This folder is on
+  the child's ``PYTHONPATH`` (``from fmu_harness import Harness`` works). Use it where
   pythonfmu's module caching or a possible crash of the host calls for a new process.
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -33,11 +35,14 @@ def run_python(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> Callable[..., subprocess.CompletedProcess]:
     cwd = tmp_path_factory.mktemp("subprocess")
+    path = os.pathsep.join(filter(None, [str(Path(__file__).parent), os.environ.get("PYTHONPATH")]))
+    env = {**os.environ, "PYTHONPATH": path}
 
     def run(code: str, *args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
         return subprocess.run(
             [sys.executable, "-c", textwrap.dedent(code), *map(str, args)],
             cwd=cwd,
+            env=env,
             capture_output=True,
             text=True,
             timeout=timeout,

@@ -238,7 +238,6 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
     result = run_python(
         """
         import json, sys
-        sys.path.insert(0, sys.argv[2])
         from fmu_harness import Harness
         fmu = Harness(sys.argv[1], variant=2, u_0=1.5)
         ok = fmu.step(0.01)
@@ -252,7 +251,6 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
                               errors=fmu.messages(3))))
         """,
         plant,
-        Path(__file__).parent,
     )
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout.strip().splitlines()[-1])
