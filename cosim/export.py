@@ -460,12 +460,15 @@ def _replacing_file(path: Path) -> Iterator[Path]:
 
     (Not ``tempfile.mkstemp``: its files are private (0600); this one gets the umask's
     permissions like any file the user writes.)"""
+    if path.is_dir():
+        raise CosimError(f"cannot write {path}: it is a folder")
     tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
     try:
-        if path.is_dir():
-            raise CosimError(f"cannot write {path}: it is a folder")
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp.open("xb").close()
+    except OSError as exc:
+        raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
+    try:
         yield tmp
         os.replace(tmp, path)
     except OSError as exc:

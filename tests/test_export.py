@@ -1,0 +1,384 @@
+"""``auv-cosim export``: the SSP archive and the OSP system structure hold the scenario the
+master runs, are valid against the schemas, and a failed export leaves nothing behind.
+
+(That libcosim and ecos run the exports like our master is ``tests/test_interop.py``.)
+"""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+from lxml import etree
+
+from cosim import cli
+from cosim.build import script_path
+from cosim.errors import CosimError
+from cosim.export import OSP_FILE, PARAMETER_SET, export_osp, export_ssp
+from cosim.scenario import Scenario, load_scenario
+
+NS = {
+    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+    "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+    "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
+    "o": "http://opensimulationplatform.com/MSMI/OSPSystemStructure",
+}
+
+PLANT_ALONE = """\
+id = "plant-alone"
+stop_time = 2.0
+[coupling]
+step = 0.01
+step_multiples = {{ plant = 2 }}
+[instances.plant]
+fmu = "{fmu}"
+[instances.plant.start]
+variant = 1
+ideal_fluid = false
+vehicle = "remus100"
+v_0 = -0.1
+thrust = 9.0
+"""
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    return fmu_paths["AuvPlant"].parent
+
+
+@pytest.fixture(scope="module")
+def bs3(fmu_dir: Path) -> Scenario:
+    if not script_path("AuvAutopilot").is_file():  # only until issue 4's script exists
+        pytest.skip("bs-3 needs AuvAutopilot.fmu: controller_fmu/auv_autopilot.py is missing")
+    return load_scenario("bs-3", fmu_dir)
+
+
+@pytest.fixture(scope="module")
+def plant_alone(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Scenario:
+    """The plant alone, stepping every 2 h, with every FMI type among its start values."""
+    path = tmp_path_factory.mktemp("scenario") / "plant-alone.toml"
+    path.write_text(PLANT_ALONE.format(fmu=fmu_paths["AuvPlant"]))
+    return load_scenario(path)
+
+
+def _ssd(archive: Path) -> etree._Element:
+    with zipfile.ZipFile(archive) as z:
+        return etree.fromstring(z.read("SystemStructure.ssd"))
+
+
+def _typed(element: etree._Element) -> bool | int | float | str:
+    kind, text = etree.QName(element).localname, element.get("value")
+    if kind == "Real":
+        return float(text)
+    if kind in ("Integer", "Enumeration"):
+        return int(text)
+    if kind == "Boolean":
+        assert text in ("true", "false"), f"xs:boolean literal expected, got {text!r}"
+        return text == "true"
+    return text
+
+
+def _units(fmu: Path) -> dict[str, str | None]:
+    md = read_model_description(str(fmu))
+    return {
+        v.name: v.unit or (v.declaredType.unit if v.declaredType else None)
+        for v in md.modelVariables
+    }
+
+
+def _base_units(fmu: Path) -> dict[str, dict[str, float]]:
+    """SI exponents of each unit as the FMU's own UnitDefinitions declare them."""
+    md = read_model_description(str(fmu))
+    result = {}
+    for unit in md.unitDefinitions:
+        base = unit.baseUnit
+        result[unit.name] = {
+            k: float(getattr(base, k)) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+            if base is not None and getattr(base, k)
+        }  # fmt: skip
+    return result
+
+
+# --- SSP ---------------------------------------------------------------------------------
+
+
+def test_ssp_archive_holds_the_scenario(bs3: Scenario, tmp_path: Path) -> None:
+    archive = export_ssp(bs3, tmp_path / "bs-3.ssp")
+    with zipfile.ZipFile(archive) as z:
+        names = set(z.namelist())
+        fmus = {name: z.read(name) for name in names if name.startswith("resources/")}
+    assert names == {"SystemStructure.ssd", "resources/AuvPlant.fmu", "resources/AuvAutopilot.fmu"}
+    for inst in bs3.instances.values():
+        assert fmus[f"resources/{inst.fmu_path.name}"] == inst.fmu_path.read_bytes()
+
+    root = _ssd(archive)
+    assert root.get("version") == "1.0"
+    components = {
+        c.get("name"): c for c in root.iterfind("ssd:System/ssd:Elements/ssd:Component", NS)
+    }
+    assert set(components) == {"plant", "controller"}
+    connections = {
+        (c.get("startElement"), c.get("startConnector"), c.get("endElement"), c.get("endConnector"))
+        for c in root.iterfind("ssd:System/ssd:Connections/ssd:Connection", NS)
+    }
+    assert connections == {
+        (c.source_instance, c.source_variable, c.target_instance, c.target_variable)
+        for c in bs3.connections
+    }
+    assert len(connections) >= 10  # the autopilot reads about a dozen plant outputs
+    for name, inst in bs3.instances.items():
+        component = components[name]
+        assert component.get("source") == f"resources/{inst.fmu_path.name}"
+        units = _units(inst.fmu_path)
+        binding = "ssd:ParameterBindings/ssd:ParameterBinding/ssd:ParameterValues"
+        sets = component.findall(f"{binding}/ssv:ParameterSet", NS)
+        assert [s.get("name") for s in sets] == [PARAMETER_SET]
+        values = {}
+        for parameter in sets[0].iterfind("ssv:Parameters/ssv:Parameter", NS):
+            (value,) = parameter
+            values[parameter.get("name")] = _typed(value)
+            if etree.QName(value).localname == "Real":  # every Real with the FMU's unit
+                assert value.get("unit") == (units[parameter.get("name")] or "1")
+        assert values == dict(inst.start)
+        # connectors: every input and output of the FMU, with the FMU's units
+        connectors = {
+            c.get("name"): c for c in component.iterfind("ssd:Connectors/ssd:Connector", NS)
+        }
+        md = read_model_description(str(inst.fmu_path))
+        for v in md.modelVariables:
+            if v.causality in ("input", "output"):
+                assert connectors[v.name].get("kind") == v.causality
+                real = connectors[v.name].find("ssc:Real", NS)
+                assert real is not None and real.get("unit") == units[v.name]
+
+    experiment = root.find("ssd:DefaultExperiment", NS)
+    assert float(experiment.get("startTime")) == 0.0
+    assert float(experiment.get("stopTime")) == bs3.stop_time
+    osp_step = experiment.find(".//osp:Algorithm/osp:FixedStepAlgorithm", NS)
+    assert float(osp_step.get("baseStepSize")) == bs3.coupling.step
+    oms_step = root.find("ssd:System/ssd:Annotations//oms:FixedStepMaster", NS)
+    assert float(oms_step.get("stepSize")) == bs3.coupling.step
+
+
+def test_ssp_declares_each_unit_with_the_base_units_the_fmus_declare(
+    bs3: Scenario, tmp_path: Path
+) -> None:
+    """The SSD's unit definitions (derived with pint) agree with the FMUs' UnitDefinitions
+    (derived by the build step's own table): two independent derivations."""
+    root = _ssd(export_ssp(bs3, tmp_path / "bs-3.ssp"))
+    declared = {}
+    for unit in root.iterfind("ssd:Units/ssc:Unit", NS):
+        base = unit.find("ssc:BaseUnit", NS)
+        assert base.get("factor") in (None, "1.0") and base.get("offset") is None
+        declared[unit.get("name")] = {k: float(v) for k, v in base.attrib.items() if k != "factor"}
+    used = {e.get("unit") for e in root.iter() if e.get("unit")}
+    assert used == set(declared)
+    fmu_units: dict[str, dict[str, float]] = {}
+    for inst in bs3.instances.values():
+        fmu_units |= _base_units(inst.fmu_path)
+    for name, exponents in declared.items():
+        if name == "1":
+            assert exponents == {}
+        else:
+            assert exponents == fmu_units[name], name
+
+
+def test_ssp_is_valid_against_the_ssp_schemas(bs3: Scenario, tmp_path: Path) -> None:
+    """Two independent validators: pyssp-standard's and fmpy's bundled SSP 1.0 schemas."""
+    from fmpy.ssp.ssd import read_ssd
+    from pyssp_standard.ssd import SSD
+    from pyssp_standard.standard import ModelicaStandard
+
+    archive = export_ssp(bs3, tmp_path / "bs-3.ssp")
+    with zipfile.ZipFile(archive) as z:
+        z.extract("SystemStructure.ssd", tmp_path)
+    SSD(tmp_path / "SystemStructure.ssd").check_compliance(
+        ModelicaStandard.schemas["ssd"], ModelicaStandard.namespaces
+    )
+    ssd = read_ssd(str(archive), validate=True)
+    assert [c.name for c in ssd.system.elements] == list(bs3.instances)
+
+
+def test_step_multiples_reach_both_formats(plant_alone: Scenario, tmp_path: Path) -> None:
+    """An instance stepping every k h: libcosim's StepSizeHint (SSP) and stepSize (OSP)."""
+    root = _ssd(export_ssp(plant_alone, tmp_path / "p.ssp"))
+    hint = root.find("ssd:System/ssd:Elements/ssd:Component[@name='plant']//osp:StepSizeHint", NS)
+    assert float(hint.get("value")) == pytest.approx(0.02, rel=1e-15)
+    osp = etree.parse(str(export_osp(plant_alone, tmp_path / "p-osp"))).getroot()
+    (simulator,) = osp.iterfind("o:Simulators/o:Simulator", NS)
+    assert float(simulator.get("stepSize")) == pytest.approx(0.02, rel=1e-15)
+    assert float(osp.findtext("o:BaseStepSize", namespaces=NS)) == 0.01
+
+
+def test_every_fmi_type_is_written_as_its_ssp_type(plant_alone: Scenario, tmp_path: Path) -> None:
+    root = _ssd(export_ssp(plant_alone, tmp_path / "p.ssp"))
+    kinds = {
+        p.get("name"): etree.QName(p[0]).localname for p in root.iterfind(".//ssv:Parameter", NS)
+    }
+    assert kinds == {"variant": "Integer", "ideal_fluid": "Boolean", "vehicle": "String",
+                     "v_0": "Real", "thrust": "Real"}  # fmt: skip
+
+
+# --- OSP ---------------------------------------------------------------------------------
+
+
+def test_osp_structure_holds_the_scenario(bs3: Scenario, tmp_path: Path) -> None:
+    xml = export_osp(bs3, tmp_path / "bs-3-osp")
+    assert xml == (tmp_path / "bs-3-osp" / OSP_FILE).resolve()
+    assert sorted(p.name for p in xml.parent.iterdir()) == sorted(
+        [OSP_FILE, "AuvAutopilot.fmu", "AuvPlant.fmu"]
+    )
+    root = etree.parse(str(xml)).getroot()
+    assert root.tag == f"{{{NS['o']}}}OspSystemStructure" and root.get("version") == "0.1"
+    assert float(root.findtext("o:BaseStepSize", namespaces=NS)) == bs3.coupling.step
+    assert float(root.findtext("o:EndTime", namespaces=NS)) == bs3.stop_time
+    simulators = {s.get("name"): s for s in root.iterfind("o:Simulators/o:Simulator", NS)}
+    assert set(simulators) == {"plant", "controller"}
+    for name, inst in bs3.instances.items():
+        simulator = simulators[name]
+        assert (xml.parent / simulator.get("source")).read_bytes() == inst.fmu_path.read_bytes()
+        values = {
+            v.get("variable"): _typed(v[0])
+            for v in simulator.iterfind("o:InitialValues/o:InitialValue", NS)
+        }
+        assert values == dict(inst.start)
+    connections = set()
+    for c in root.iterfind("o:Connections/o:VariableConnection", NS):
+        a, b = c.iterfind("o:Variable", NS)
+        connections.add(
+            (f"{a.get('simulator')}.{a.get('name')}", f"{b.get('simulator')}.{b.get('name')}")
+        )
+    assert connections == {(c.source, c.target) for c in bs3.connections}
+
+
+def test_same_scenario_exports_to_the_same_bytes(plant_alone: Scenario, tmp_path: Path) -> None:
+    first = export_ssp(plant_alone, tmp_path / "a.ssp").read_bytes()
+    assert export_ssp(plant_alone, tmp_path / "b.ssp").read_bytes() == first
+    one = export_osp(plant_alone, tmp_path / "a").read_bytes()
+    assert export_osp(plant_alone, tmp_path / "b").read_bytes() == one
+
+
+def test_export_replaces_an_earlier_export(plant_alone: Scenario, tmp_path: Path) -> None:
+    ssp = tmp_path / "p.ssp"
+    ssp.write_bytes(b"old")
+    export_ssp(plant_alone, ssp)
+    assert zipfile.is_zipfile(ssp)
+    folder = tmp_path / "osp"
+    export_osp(plant_alone, folder)
+    (folder / "AuvPlant.fmu").write_bytes(b"stale")
+    export_osp(plant_alone, folder)
+    assert (folder / "AuvPlant.fmu").read_bytes() == plant_alone.instances[
+        "plant"
+    ].fmu_path.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["osp", "p.ssp"]  # no temporaries left
+
+
+# --- failures: a clear message and nothing written -----------------------------------------
+
+
+def _export(capsys: pytest.CaptureFixture, *args: str) -> tuple[int, str]:
+    code = cli.main(["export", *map(str, args)])
+    return code, capsys.readouterr().err
+
+
+def test_unknown_scenario_fails_and_writes_nothing(
+    tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    code, err = _export(
+        capsys, "no-such-scenario", "--ssp", tmp_path / "x.ssp", "--fmu-dir", fmu_dir
+    )
+    assert code == 1
+    assert "unknown scenario 'no-such-scenario'" in err
+    code, err = _export(capsys, "no-such-scenario", "--osp", tmp_path / "osp", "--fmu-dir", fmu_dir)
+    assert code == 1 and "no-such-scenario" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_paths_fail_and_write_nothing(
+    plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    scenario_file = str(plant_alone.source)
+    code, err = _export(capsys, scenario_file, "--ssp", blocker / "x.ssp")
+    assert code == 1 and f"cannot write {blocker / 'x.ssp'}" in err
+    code, err = _export(capsys, scenario_file, "--osp", blocker / "osp")
+    assert code == 1 and f"cannot write {blocker / 'osp'}" in err
+    code, err = _export(capsys, scenario_file, "--ssp", tmp_path)  # a folder, not a file
+    assert code == 1 and "it is a folder" in err
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    code, err = _export(capsys, scenario_file, "--osp", foreign)
+    assert code == 1 and "not empty" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file", "foreign"]
+    assert [p.name for p in foreign.iterdir()] == ["notes.txt"]
+
+
+def test_a_failure_while_writing_leaves_nothing(
+    plant_alone: Scenario, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import cosim.export
+
+    def disk_full(*_args: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(cosim.export, "_add_bytes", disk_full)
+    monkeypatch.setattr(cosim.export.shutil, "copyfile", disk_full)
+    with pytest.raises(CosimError, match="No space left on device"):
+        export_ssp(plant_alone, tmp_path / "p.ssp")
+    with pytest.raises(CosimError, match="No space left on device"):
+        export_osp(plant_alone, tmp_path / "osp")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_connection_the_fmus_lack_fails_and_writes_nothing(
+    bs3: Scenario, fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """The controller swapped for the plant FMU: its yaw is an output, not an input."""
+    wrong = {"controller": fmu_paths["AuvPlant"]}
+    with pytest.raises(CosimError) as failure:
+        export_ssp(bs3, tmp_path / "bs-3.ssp", fmu_paths=wrong)
+    message = str(failure.value)
+    assert "connection plant.yaw -> controller.yaw" in message
+    assert "it is output in AuvPlant.fmu, expected input" in message
+    with pytest.raises(CosimError, match=r"connection plant\.yaw -> controller\.yaw"):
+        export_osp(bs3, tmp_path / "osp", fmu_paths=wrong)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_scenario_file_naming_a_missing_variable_fails(
+    fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    scenario = tmp_path / "bad.toml"
+    scenario.write_text(
+        PLANT_ALONE.format(fmu=fmu_paths["AuvPlant"])
+        + '[connections]\nadd = [{ from = "plant.yaw", to = "plant.no_such_input" }]\n'
+    )
+    code, err = _export(capsys, scenario, "--ssp", tmp_path / "bad.ssp")
+    assert code == 1 and "no_such_input" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
+
+
+def test_export_needs_exactly_one_target(
+    plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    code, err = _export(capsys, plant_alone.source)
+    assert code == 1 and "exactly one of --ssp FILE or --osp DIR" in err
+    code, _ = _export(
+        capsys, plant_alone.source, "--ssp", tmp_path / "a.ssp", "--osp", tmp_path / "b"
+    )
+    assert code == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_export_writes_and_reports_the_archive(
+    plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    assert cli.main(["export", str(plant_alone.source), "--ssp", str(tmp_path / "p.ssp")]) == 0
+    assert f"SSP archive: {tmp_path / 'p.ssp'}" in capsys.readouterr().out
+    assert zipfile.ZipFile(tmp_path / "p.ssp").testzip() is None
