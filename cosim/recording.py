@@ -1,7 +1,8 @@
 """Rerun recordings of a run: the sink the master feeds, and ``auv-cosim view``.
 
 The master hands over rows of results (``add_rows``, a few hundred steps at a time); the
-sink buffers them and sends each group of signals as columns (``send_columns``) on the
+sink buffers them (a second of wall time or 2,000 rows at most) and sends each group of
+signals as columns (``send_columns``) on the
 ``sim_time`` timeline (a duration, s). Per-step ``rr.log`` calls cost ~40x more (see
 ``shared/spec/RERUN_NOTES.md``), so there are none. What the recording shows is laid out
 in :mod:`cosim.rerun_layout` (plots, colours, blueprint) and :mod:`cosim.rerun_scene` (the
@@ -19,6 +20,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 import tomllib
 import warnings
 from pathlib import Path
@@ -40,7 +42,11 @@ from plant_fmu.parameters import VehicleParameterError, VehicleParameters, load_
 
 APPLICATION_ID = "auv-cosim"
 RECORDING_FILE = "recording.rrd"
-MIN_BATCH_ROWS = 100  # rows buffered before a send: a few send_columns per 100 steps
+# Each send costs ~25 send_columns calls of ~70 us whatever their length, so rows are
+# buffered: sent once BATCH_ROWS have gathered, or once SEND_INTERVAL has passed since the
+# last send (a live viewer then sees the run advance about once a second).
+BATCH_ROWS = 2000
+SEND_INTERVAL = 1.0  # s of wall-clock time
 
 
 class RerunSink:
@@ -81,6 +87,7 @@ class RerunSink:
         self._pending_values: list[np.ndarray] = []
         self._pending_rows = 0
         self._closed = False
+        self._last_send = time.monotonic()
 
         vehicle, depth_mode = _scenario_facts(scenario_toml)
         has_depth = "controller.depth_setpoint" in self._index and "plant.down" in self._index
@@ -133,7 +140,8 @@ class RerunSink:
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         """Queue k rows: ``times`` (k,) in s, ``values`` (k, len(columns)) in SI units.
 
-        Rows are sent once ``MIN_BATCH_ROWS`` have gathered, and the rest on :meth:`close`.
+        Rows are sent once ``BATCH_ROWS`` have gathered or ``SEND_INTERVAL`` has passed since
+        the last send, and the rest on :meth:`close`.
         """
         if self._closed:
             raise ValueError("add_rows on a closed RerunSink")
@@ -149,8 +157,10 @@ class RerunSink:
         self._pending_times.append(times.copy())
         self._pending_values.append(values.copy())
         self._pending_rows += len(times)
-        if self._pending_rows >= MIN_BATCH_ROWS:
+        now = time.monotonic()
+        if self._pending_rows >= BATCH_ROWS or now - self._last_send >= SEND_INTERVAL:
             self._send_pending()
+            self._last_send = now
 
     def close(self) -> None:
         """Send what is queued, flush and close the file; safe to call twice."""

@@ -103,8 +103,10 @@ def feed(sink: RerunSink, times: np.ndarray, values: np.ndarray) -> None:
 def recorded(tmp_path_factory: pytest.TempPathFactory, scratch_home: Path):
     times, columns, values = plant_run()
     path = tmp_path_factory.mktemp("rec") / RECORDING_FILE
-    with RerunSink(path, None, "rec-test", SCENARIO_TOML, columns) as sink:
-        feed(sink, times, values)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("cosim.recording.BATCH_ROWS", 100)  # several sends, not one at close
+        with RerunSink(path, None, "rec-test", SCENARIO_TOML, columns) as sink:
+            feed(sink, times, values)
     return path, times, columns, values
 
 
