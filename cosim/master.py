@@ -120,6 +120,10 @@ class _Slave:
         self.input_sources = np.asarray(sources, dtype=np.intp)
         self.output_vrs = (ctypes.c_uint * self.n_outputs)(*output_vrs)
         self.output_ptr = out.ctypes.data_as(_DOUBLE_P)
+        # fmpy's status-checking wrappers of the C functions, looked up once
+        self.set_real = self.fmu.fmi2SetReal
+        self.do_step = self.fmu.fmi2DoStep
+        self.get_real = self.fmu.fmi2GetReal
 
     def _expect(self, *states: str) -> None:
         if self.state not in states:
@@ -159,6 +163,7 @@ class _Slave:
         self.state = "initialization"
         self.fmu.exitInitializationMode()
         self.state = "stepping"
+        self.c = self.fmu.component
 
     def read_outputs(self) -> None:
         self.fmu.fmi2GetReal(self.fmu.component, self.output_vrs, self.n_outputs, self.output_ptr)
@@ -324,10 +329,13 @@ def _loop(
     exchanged = z[: layout.n_read]
     multi_rate = any(s.k != 1 for s in order)
 
+    take = z.take  # z.take(indices, out=buffer): a gather without allocation
+    probe = np.zeros(layout.n_read)  # x . 0 is NaN iff some x is NaN or infinite
+    check_dot = exchanged.dot
     error: str | None = None
     rows = 1  # rows of `values` filled; row 0 is t = 0
     sent = 0  # rows handed to on_rows
-    np.take(z, record, out=values[0])
+    take(record, out=values[0])
     stop = [False]
     slave, n = order[0], 0
     started = time.perf_counter()
@@ -337,28 +345,21 @@ def _loop(
             for n in range(n_steps):
                 t = t_list[n]
                 due = [s for s in order if n % s.k == 0] if multi_rate else order
-                if jacobi:
+                if jacobi:  # every due instance takes the values at t before any steps
                     for slave in due:
-                        np.take(z, slave.input_sources, out=slave.inputs)
-                        fmu = slave.fmu
-                        fmu.fmi2SetReal(
-                            fmu.component, slave.input_vrs, slave.n_inputs, slave.input_ptr
-                        )
+                        take(slave.input_sources, out=slave.inputs)
+                        slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
                 for slave in due:
-                    fmu = slave.fmu
-                    if not jacobi:
-                        np.take(z, slave.input_sources, out=slave.inputs)
-                        fmu.fmi2SetReal(
-                            fmu.component, slave.input_vrs, slave.n_inputs, slave.input_ptr
-                        )
+                    if not jacobi:  # the latest values, including those stepped just now
+                        take(slave.input_sources, out=slave.inputs)
+                        slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
                     # step to t_{n+k} - t_n, as fmpy.simulate_fmu does (bit-identical runs)
-                    fmu.fmi2DoStep(fmu.component, t, t_list[min(n + slave.k, n_steps)] - t, 1)
-                    fmu.fmi2GetReal(
-                        fmu.component, slave.output_vrs, slave.n_outputs, slave.output_ptr
-                    )
-                if not np.isfinite(exchanged).all():
+                    slave.do_step(slave.c, t, t_list[min(n + slave.k, n_steps)] - t, 1)
+                    slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
+                nan_if_bad = check_dot(probe)
+                if nan_if_bad != nan_if_bad:
                     _check_finite(exchanged, layout, t_list[n + 1])
-                np.take(z, record, out=values[rows])
+                take(record, out=values[rows])
                 rows += 1
                 if on_rows is not None and rows - sent >= rows_per_chunk:
                     on_rows(times[sent:rows], values[sent:rows])
