@@ -1,0 +1,96 @@
+"""The documentation page inside each FMU (``cosim.fmu_docs``)."""
+
+from __future__ import annotations
+
+import shutil
+import zipfile
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+from cosim.fmu_docs import DOC_ENTRY, add_documentation, documentation_html
+
+
+class _Cells(HTMLParser):
+    """Table rows of the page as lists of cell texts, and the tags left open."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.rows: list[list[str]] = []
+        self.open: list[str] = []
+        self._cell: list[str] | None = None
+
+    def handle_starttag(self, tag: str, attrs: list) -> None:
+        if tag not in ("meta", "br"):
+            self.open.append(tag)
+        if tag == "tr":
+            self.rows.append([])
+        elif tag in ("td", "th"):
+            self._cell = []
+
+    def handle_endtag(self, tag: str) -> None:
+        assert self.open and self.open[-1] == tag, f"</{tag}> closes {self.open[-1:]}"
+        self.open.pop()
+        if tag in ("td", "th") and self._cell is not None:
+            self.rows[-1].append("".join(self._cell).strip())
+            self._cell = None
+
+    def handle_data(self, data: str) -> None:
+        if self._cell is not None:
+            self._cell.append(data)
+
+
+@pytest.fixture(scope="module", params=["AuvPlant", "AuvAutopilot"])
+def documented(
+    request: pytest.FixtureRequest, fmu_paths: dict[str, Path], tmp_path_factory
+) -> Path:
+    """A copy of a built FMU with its documentation page added."""
+    if request.param not in fmu_paths:
+        pytest.skip(f"{request.param}.fmu is not built yet")
+    fmu = tmp_path_factory.mktemp("doc") / f"{request.param}.fmu"
+    shutil.copyfile(fmu_paths[request.param], fmu)
+    add_documentation(fmu)
+    return fmu
+
+
+def test_page_lists_every_variable_with_its_unit_and_description(documented: Path) -> None:
+    with zipfile.ZipFile(documented) as archive:
+        page = archive.read(DOC_ENTRY).decode("utf-8")
+    parser = _Cells()
+    parser.feed(page)
+    assert parser.open == [], "unbalanced HTML"
+    rows = {row[0]: row for row in parser.rows if len(row) == 6 and row[0] != "name"}
+    md = read_model_description(str(documented))
+    assert set(rows) == {v.name for v in md.modelVariables}
+    for v in md.modelVariables:
+        _name, kind, unit, start, _variability, description = rows[v.name]
+        assert kind == v.type
+        assert unit == (v.unit or (v.declaredType.unit if v.declaredType else "") or "")
+        assert description == (v.description or "")
+        assert start == ("" if v.start is None else str(v.start))
+    assert "Dynamics and Control of Autonomous Underwater Vehicles with Internal" in page
+    assert md.coSimulation.modelIdentifier in page
+
+
+def test_documented_fmu_is_still_valid_and_otherwise_unchanged(
+    documented: Path, fmu_paths: dict[str, Path]
+) -> None:
+    assert validate_fmu(str(documented)) == []
+    original = fmu_paths[documented.stem]
+    with zipfile.ZipFile(original) as a, zipfile.ZipFile(documented) as b:
+        before = {i.filename: a.read(i) for i in a.infolist() if i.filename != DOC_ENTRY}
+        after = {i.filename: b.read(i) for i in b.infolist() if i.filename != DOC_ENTRY}
+    assert after == before
+
+
+def test_adding_the_page_twice_replaces_it(documented: Path, tmp_path: Path) -> None:
+    copy = tmp_path / documented.name
+    shutil.copyfile(documented, copy)
+    add_documentation(copy)
+    with zipfile.ZipFile(copy) as archive:
+        assert [i.filename for i in archive.infolist()].count(DOC_ENTRY) == 1
+        assert archive.read(DOC_ENTRY).decode() == documentation_html(documented)
+    assert [p.name for p in tmp_path.iterdir()] == [documented.name]  # no temporary left
