@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import time
@@ -25,6 +26,7 @@ import tomllib
 import warnings
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import numpy as np
 import rerun as rr
@@ -46,6 +48,7 @@ RECORDING_FILE = "recording.rrd"
 # buffered: sent once BATCH_ROWS have gathered, or once SEND_INTERVAL has passed since the
 # last send (a live viewer then sees the run advance about once a second).
 BATCH_ROWS = 2000
+FLUSH_TIMEOUT = 10.0  # s to wait for a viewer to take the last rows on close
 SEND_INTERVAL = 1.0  # s of wall-clock time
 
 
@@ -63,7 +66,8 @@ class RerunSink:
             order of the value rows given to :meth:`add_rows`. Any may be missing.
 
     Raises:
-        ValueError: neither a file nor a URL, duplicate columns, or a bad URL.
+        ValueError: neither a file nor a URL, duplicate columns, a malformed URL or no
+            viewer listening there.
         OSError: the file cannot be created.
     """
 
@@ -96,7 +100,7 @@ class RerunSink:
         self._rec = rr.RecordingStream(APPLICATION_ID)
         sinks: list[Any] = []
         if connect_url is not None:
-            sinks.append(rr.GrpcSink(connect_url))
+            sinks.append(_viewer_sink(connect_url))
         if rrd_path is not None:
             rrd_path = Path(rrd_path)
             rrd_path.parent.mkdir(parents=True, exist_ok=True)
@@ -163,14 +167,21 @@ class RerunSink:
             self._last_send = now
 
     def close(self) -> None:
-        """Send what is queued, flush and close the file; safe to call twice."""
+        """Send what is queued, flush and close the file; safe to call twice.
+
+        A viewer that went away during the run does not make this raise (the master
+        calls it before writing the results): it warns, and the file is still completed.
+        """
         if self._closed:
             return
         self._closed = True
         try:
             self._send_pending()
         finally:
-            self._rec.flush()
+            try:
+                self._rec.flush(timeout_sec=FLUSH_TIMEOUT)
+            except RuntimeError as exc:  # the bindings' error for a sink that failed
+                warnings.warn(f"Rerun recording: {exc}", stacklevel=2)
             self._rec.disconnect()
 
     def __enter__(self) -> RerunSink:
@@ -199,6 +210,28 @@ class RerunSink:
             return None if i is None else values[:, i]
 
         self._scene.send(index, len(times), column)
+
+
+def _viewer_sink(url: str) -> rr.GrpcSink:
+    """A sink streaming to the viewer at ``url``, checked to be listening now.
+
+    Without the check a run streaming to no viewer would retry for ~10 s at its end and
+    lose the stream silently; better to refuse before the run starts.
+    """
+    try:
+        sink = rr.GrpcSink(url)
+    except RuntimeError as exc:  # rerun-sdk's error for a malformed URL
+        raise ValueError(f"--connect URL {url!r}: {exc}") from None
+    parts = urlsplit(url)
+    if parts.hostname and parts.port:
+        try:
+            socket.create_connection((parts.hostname, parts.port), timeout=2.0).close()
+        except OSError as exc:
+            raise ValueError(
+                f"no Rerun viewer listens at {url} ({exc.strerror or exc}): start one with "
+                f"`rerun` (it listens on rerun+http://127.0.0.1:9876/proxy) or drop --connect"
+            ) from None
+    return sink
 
 
 def _scenario_facts(scenario_toml: str) -> tuple[VehicleParameters, int | None]:

@@ -7,6 +7,7 @@ controller's columns held constant, fed to the sink in uneven batches as the mas
 from __future__ import annotations
 
 import math
+import re
 import socket
 import subprocess
 import time
@@ -361,6 +362,13 @@ def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path):
         RerunSink(None, None, "x", "", ["plant.yaw"])
     with pytest.raises(ValueError, match=r"duplicates \['plant.yaw'\]"):
         RerunSink(tmp_path / "d.rrd", None, "x", "", ["plant.yaw", "plant.yaw"])
+    with pytest.raises(ValueError, match=re.escape("--connect URL 'http://127.0.0.1:9876'")):
+        RerunSink(None, "http://127.0.0.1:9876", "x", "", ["plant.yaw"])
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        url = f"rerun+http://127.0.0.1:{s.getsockname()[1]}/proxy"
+    with pytest.raises(ValueError, match=re.escape(f"no Rerun viewer listens at {url}")):
+        RerunSink(tmp_path / "v.rrd", url, "x", "", ["plant.yaw"])
     sink = RerunSink(tmp_path / "s.rrd", None, "x", "", ["plant.yaw", "plant.north"])
     with pytest.raises(ValueError, match=r"\(k, 2\), got \(3,\) and \(3, 3\)"):
         sink.add_rows(np.zeros(3), np.zeros((3, 3)))
