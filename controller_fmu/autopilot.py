@@ -1,0 +1,378 @@
+"""The autopilot: guidance + heading controller + depth controller, as one sampled object.
+
+``Autopilot(config)`` builds the controllers the configuration selects from the plant's own
+equations (vehicle parameter set ``config.vehicle``, linearised at ``design_speed``), once.
+``step(t, measurements)`` computes the commands from the measurements at the start of a
+communication step; the caller holds them over the step (a sampled controller). All state
+lives on the instance; ``snapshot()`` / ``restore()`` save and roll it back exactly.
+
+Measurements (:data:`MEASUREMENT_NAMES`) are named like the plant's outputs plus the two
+set-points; commands (:data:`COMMAND_NAMES`) like the plant's inputs, so the FMU wrapper
+(:mod:`controller_fmu.auv_autopilot`) and a master can connect them by name.
+
+The configuration (:class:`AutopilotConfig`) is also the FMU's parameter list: every field
+becomes an FMU parameter of the same name, unit and description.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from controller_fmu.backstepping import BacksteppingGains, BacksteppingHeading
+from controller_fmu.depth_pd import (
+    DEFAULT_FIN_LIMIT,
+    TABLE_6_2_GAMMA,
+    TABLE_6_2_K_P,
+    TABLE_6_2_TAU_D,
+    DepthPd,
+)
+from controller_fmu.guidance import desired_heading, mass_locked, wrap_angle
+from controller_fmu.lateral_model import LateralDesignModel
+from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, LqrHeading
+from controller_fmu.sliding_mode import SlidingModeHeading
+from plant_fmu.parameters import load_vehicle
+
+MEASUREMENT_NAMES: tuple[str, ...] = (
+    "yaw", "r", "p", "roll", "v_rel", "u_rel", "down", "pitch", "q", "w_rel",
+    "mass_position", "mass_velocity", "current_north", "current_east",
+    "yaw_setpoint", "depth_setpoint",
+)  # fmt: skip
+MEASUREMENT_UNITS: tuple[str, ...] = (
+    "rad", "rad/s", "rad/s", "rad", "m/s", "m/s", "m", "rad", "rad/s", "m/s",
+    "m", "m/s", "m/s", "m/s", "rad", "m",
+)  # fmt: skip
+COMMAND_NAMES: tuple[str, ...] = ("mass_position_cmd", "tunnel_force", "fin_angle", "thrust")
+COMMAND_UNITS: tuple[str, ...] = ("m", "N", "rad", "N")
+
+HEADING_MODES = {0: "off", 1: "LQR", 2: "sliding mode", 3: "backstepping + tunnel thruster"}
+DEPTH_MODES = {0: "off", 1: "PD pitch + P depth"}
+
+
+class AutopilotConfigError(ValueError):
+    """An autopilot parameter is out of range (the message names it and what is allowed)."""
+
+
+def _unit(unit: str) -> dict[str, Any]:
+    return {"unit": unit}
+
+
+class AutopilotConfig(BaseModel):
+    """Every parameter of the autopilot (SI). Field names are the FMU parameter names."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    heading_mode: int = Field(
+        default=0,
+        description="heading controller: 0 off, 1 LQR (6.3.17), 2 sliding mode (6.3.45), "
+        "3 backstepping + tunnel thruster (6.3.64, 6.3.72)",
+        json_schema_extra=_unit(""),
+    )
+    depth_mode: int = Field(
+        default=0,
+        description="depth controller: 0 off, 1 PD pitch + P depth (Fig. 6.40)",
+        json_schema_extra=_unit(""),
+    )
+    mass_lock_time: float = Field(
+        default=-1.0,
+        description="time after which the moving-mass command is 0 and held; < 0: never",
+        json_schema_extra=_unit("s"),
+    )
+    compensate_current: bool = Field(
+        default=False,
+        description="head into the current so the course over ground is yaw_setpoint (6.3.74)",
+        json_schema_extra=_unit(""),
+    )
+    design_speed: float = Field(
+        default=1.525,
+        gt=0.0,
+        description="U0: surge speed through the water the controllers are designed for",
+        json_schema_extra=_unit("m/s"),
+    )
+    vehicle: str = Field(
+        default="remus100",
+        min_length=1,
+        description="vehicle parameter set the controllers' model terms come from "
+        "(built-in name or .toml path)",
+        json_schema_extra=_unit(""),
+    )
+    design_step: float = Field(
+        default=0.01,
+        gt=0.0,
+        description="sample time the discrete LQR and sliding mode are designed for; "
+        "should equal the communication step",
+        json_schema_extra=_unit("s"),
+    )
+    thrust: float = Field(
+        default=9.0,
+        description="propeller thrust command (9 N: 1.525 m/s; 4 N: 1.017 m/s)",
+        json_schema_extra=_unit("N"),
+    )
+    lqr_q_r: float = Field(
+        default=DISSERTATION_Q_Y[0], ge=0.0, description="LQR weight on r (Q_y)",
+        json_schema_extra=_unit("s2/rad2"),
+    )  # fmt: skip
+    lqr_q_p: float = Field(
+        default=DISSERTATION_Q_Y[1], ge=0.0, description="LQR weight on p (Q_y)",
+        json_schema_extra=_unit("s2/rad2"),
+    )  # fmt: skip
+    lqr_q_roll: float = Field(
+        default=DISSERTATION_Q_Y[2], ge=0.0, description="LQR weight on phi (Q_y)",
+        json_schema_extra=_unit("1/rad2"),
+    )  # fmt: skip
+    lqr_q_yaw: float = Field(
+        default=DISSERTATION_Q_Y[3], ge=0.0, description="LQR weight on psi - psi_d (Q_y)",
+        json_schema_extra=_unit("1/rad2"),
+    )  # fmt: skip
+    lqr_q_mass_position: float = Field(
+        default=DISSERTATION_Q_Y[4], ge=0.0, description="LQR weight on y_v (Q_y)",
+        json_schema_extra=_unit("1/m2"),
+    )  # fmt: skip
+    lqr_q_mass_velocity: float = Field(
+        default=DISSERTATION_Q_Y[5], ge=0.0, description="LQR weight on y_vel (Q_y)",
+        json_schema_extra=_unit("s2/m2"),
+    )  # fmt: skip
+    lqr_r: float = Field(
+        default=DISSERTATION_R_U, gt=0.0, description="LQR weight on y_d (R_u)",
+        json_schema_extra=_unit("1/m2"),
+    )  # fmt: skip
+    smc_eta: float = Field(
+        default=1.0, gt=0.0, description="sliding-mode reaching rate eta (6.3.38)",
+        json_schema_extra=_unit("rad/s"),
+    )  # fmt: skip
+    smc_boundary_layer: float = Field(
+        default=0.5, gt=0.0, description="sliding-mode boundary layer Phi on s (6.3.73)",
+        json_schema_extra=_unit("rad"),
+    )  # fmt: skip
+    bs_k0: float = Field(
+        default=0.5, gt=0.0, description="backstepping gain k0 (6.3.55); 0.3 in currents/slow",
+        json_schema_extra=_unit("1/s"),
+    )  # fmt: skip
+    bs_k1: float = Field(
+        default=1.0, gt=0.0, description="backstepping gain k1 (6.3.58); 0.8 in currents/slow",
+        json_schema_extra=_unit("1/s"),
+    )  # fmt: skip
+    bs_k2: float = Field(
+        default=1.0, gt=0.0, description="backstepping gain k2 (6.3.60)",
+        json_schema_extra=_unit("1/s"),
+    )  # fmt: skip
+    bs_k3: float = Field(
+        default=1.0, gt=0.0, description="backstepping gain k3 (6.3.62)",
+        json_schema_extra=_unit("1/s"),
+    )  # fmt: skip
+    bs_k4: float = Field(
+        default=1.0, gt=0.0, description="backstepping gain k4 (6.3.64)",
+        json_schema_extra=_unit("1/s"),
+    )  # fmt: skip
+    bs_eta0: float = Field(
+        default=0.08, ge=0.0, description="thruster margin eta0 (6.3.72), sway acceleration",
+        json_schema_extra=_unit("m/s2"),
+    )  # fmt: skip
+    bs_boundary_layer: float = Field(
+        default=0.01, gt=0.0, description="thruster boundary layer Phi on z2 (6.3.73)",
+        json_schema_extra=_unit("m/s"),
+    )  # fmt: skip
+    bs_filter_frequency: float = Field(
+        default=10.0, gt=0.0,
+        description="natural frequency of the command filters giving alpha1..3 derivatives",
+        json_schema_extra=_unit("rad/s"),
+    )  # fmt: skip
+    depth_gamma: float = Field(
+        default=TABLE_6_2_GAMMA, description="depth loop gain gamma, theta_d per depth error "
+        "(Table 6.2)", json_schema_extra=_unit("rad/m"),
+    )  # fmt: skip
+    depth_k_p: float = Field(
+        default=TABLE_6_2_K_P, description="pitch loop gain K_p (Table 6.2)",
+        json_schema_extra=_unit(""),
+    )  # fmt: skip
+    depth_tau_d: float = Field(
+        default=TABLE_6_2_TAU_D, ge=0.0, description="pitch loop derivative time tau_d "
+        "(Table 6.2)", json_schema_extra=_unit("s"),
+    )  # fmt: skip
+    fin_angle_limit: float = Field(
+        default=DEFAULT_FIN_LIMIT, gt=0.0, description="stern-plane limit |delta_s| (15 deg)",
+        json_schema_extra=_unit("rad"),
+    )  # fmt: skip
+    mass_position_cmd_limit: float = Field(
+        default=0.06, gt=0.0, description="moving-mass command limit |y_d| (the 6 cm stroke)",
+        json_schema_extra=_unit("m"),
+    )  # fmt: skip
+    tunnel_force_limit: float = Field(
+        default=10.0, ge=0.0, description="tunnel-thruster force limit |F_t|",
+        json_schema_extra=_unit("N"),
+    )  # fmt: skip
+
+    @field_validator("heading_mode")
+    @classmethod
+    def _known_heading_mode(cls, value: int) -> int:
+        if value not in HEADING_MODES:
+            raise ValueError(f"expected one of {HEADING_MODES}")
+        return value
+
+    @field_validator("depth_mode")
+    @classmethod
+    def _known_depth_mode(cls, value: int) -> int:
+        if value not in DEPTH_MODES:
+            raise ValueError(f"expected one of {DEPTH_MODES}")
+        return value
+
+    @classmethod
+    def build(cls, **values: Any) -> AutopilotConfig:
+        """Validate ``values``; raise :class:`AutopilotConfigError` naming every bad one."""
+        try:
+            return cls.model_validate(values)
+        except ValidationError as exc:
+            problems = []
+            for err in exc.errors():
+                name = ".".join(str(part) for part in err["loc"]) or "(config)"
+                if err["type"] == "extra_forbidden":
+                    problems.append(f"unknown autopilot parameter {name!r}")
+                else:
+                    problems.append(f"{name} = {err.get('input')!r}: {err['msg']}")
+            raise AutopilotConfigError("; ".join(problems)) from None
+
+
+def field_unit(name: str) -> str:
+    """The unit of an :class:`AutopilotConfig` field ('' if dimensionless)."""
+    extra = AutopilotConfig.model_fields[name].json_schema_extra
+    return str(extra["unit"]) if isinstance(extra, dict) else ""
+
+
+@dataclass(frozen=True)
+class Commands:
+    """The actuator commands held over one communication step (plant input names)."""
+
+    mass_position_cmd: float = 0.0  # m
+    tunnel_force: float = 0.0  # N
+    fin_angle: float = 0.0  # rad
+    thrust: float = 0.0  # N
+
+    def values(self) -> tuple[float, float, float, float]:
+        """In :data:`COMMAND_NAMES` order."""
+        return (self.mass_position_cmd, self.tunnel_force, self.fin_angle, self.thrust)
+
+
+def _clip(value: float, limit: float) -> float:
+    return min(max(value, -limit), limit)
+
+
+class Autopilot:
+    """The sampled autopilot of Ch. 6.
+
+    Args:
+        config: an :class:`AutopilotConfig`.
+
+    Raises:
+        VehicleParameterError: ``config.vehicle`` is unknown or invalid.
+        ValueError: a controller cannot be designed for these parameters.
+    """
+
+    def __init__(self, config: AutopilotConfig) -> None:
+        self.config = config
+        c = config
+        self.params = load_vehicle(c.vehicle)
+        self.design = LateralDesignModel(self.params, c.design_speed)
+        self.lqr: LqrHeading | None = None
+        self.sliding_mode: SlidingModeHeading | None = None
+        self.backstepping: BacksteppingHeading | None = None
+        q_y = (c.lqr_q_r, c.lqr_q_p, c.lqr_q_roll, c.lqr_q_yaw, c.lqr_q_mass_position,
+               c.lqr_q_mass_velocity)  # fmt: skip
+        if c.heading_mode == 1:
+            self.lqr = LqrHeading(self.design, c.design_step, q_y, c.lqr_r)
+        elif c.heading_mode == 2:
+            self.sliding_mode = SlidingModeHeading(
+                self.design, c.design_step, c.smc_eta, c.smc_boundary_layer, q_y, c.lqr_r
+            )
+        elif c.heading_mode == 3:
+            gains = BacksteppingGains(
+                c.bs_k0, c.bs_k1, c.bs_k2, c.bs_k3, c.bs_k4,
+                c.bs_eta0, c.bs_boundary_layer, c.bs_filter_frequency,
+            )  # fmt: skip
+            self.backstepping = BacksteppingHeading(self.design, gains)
+        self.depth = DepthPd(c.depth_gamma, c.depth_k_p, c.depth_tau_d, c.fin_angle_limit)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the state right after construction."""
+        self.commands = Commands(thrust=self.config.thrust)
+        self.heading_setpoint = 0.0  # psi_d of the last step, rad
+        if self.backstepping is not None:
+            self.backstepping.reset()
+
+    def snapshot(self) -> tuple:
+        """Everything :meth:`step` changes, for :meth:`restore`."""
+        bs = self.backstepping.snapshot() if self.backstepping is not None else None
+        return (self.commands, self.heading_setpoint, bs)
+
+    def restore(self, snapshot: tuple) -> None:
+        self.commands, self.heading_setpoint, bs = snapshot
+        if self.backstepping is not None:
+            self.backstepping.restore(bs)
+
+    def step(self, time: float, measurements: Mapping[str, float]) -> Commands:
+        """The commands to hold from ``time`` (s) over the next communication step.
+
+        Args:
+            time: current time, s.
+            measurements: every name of :data:`MEASUREMENT_NAMES`, SI.
+
+        Raises:
+            ValueError: a measurement is missing or not finite, or (with
+                ``compensate_current``) the cross-current reaches the design speed.
+        """
+        m = _checked(time, measurements)
+        c = self.config
+        psi_d = desired_heading(
+            m["yaw_setpoint"], m["current_north"], m["current_east"], c.design_speed,
+            c.compensate_current,
+        )  # fmt: skip
+        psi_e = wrap_angle(m["yaw"] - psi_d)
+        x = np.array(
+            [m["v_rel"], m["r"], m["p"], m["roll"], psi_e, m["mass_position"],
+             m["mass_velocity"]]
+        )  # fmt: skip
+        mass_cmd, tunnel = 0.0, 0.0
+        if self.lqr is not None:
+            mass_cmd = self.lqr.command(x)
+        elif self.sliding_mode is not None:
+            mass_cmd = self.sliding_mode.command(x)
+        elif self.backstepping is not None:
+            out = self.backstepping.command(
+                time, m["v_rel"], m["r"], m["p"], m["roll"], psi_e, m["mass_position"]
+            )
+            mass_cmd, tunnel = out.mass_position, out.tunnel_force
+        if mass_locked(time, c.mass_lock_time):
+            mass_cmd = 0.0
+        fin = 0.0
+        if c.depth_mode == 1:
+            fin = self.depth.fin_angle(m["depth_setpoint"], m["down"], m["pitch"], m["q"])
+        commands = Commands(
+            mass_position_cmd=_clip(mass_cmd, c.mass_position_cmd_limit),
+            tunnel_force=_clip(tunnel, c.tunnel_force_limit),
+            fin_angle=fin,
+            thrust=c.thrust,
+        )
+        if not all(math.isfinite(v) for v in commands.values()):
+            raise ValueError(f"the autopilot computed a non-finite command {commands}")
+        self.commands = commands
+        self.heading_setpoint = psi_d
+        return commands
+
+
+def _checked(time: float, measurements: Mapping[str, float]) -> dict[str, float]:
+    if not math.isfinite(time):
+        raise ValueError(f"time = {time!r}: expected a finite number of seconds")
+    values = {}
+    for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS, strict=True):
+        if name not in measurements:
+            raise ValueError(f"measurement {name!r} is missing: expected {list(MEASUREMENT_NAMES)}")
+        value = float(measurements[name])
+        if not math.isfinite(value):
+            raise ValueError(f"measurement {name} = {value!r}: expected a finite number ({unit})")
+        values[name] = value
+    return values

@@ -1,0 +1,192 @@
+"""Backstepping heading autopilot on the moving mass with a Lyapunov-redesigned tunnel
+thruster (Sec. 6.3.3, (6.3.53)-(6.3.73)).
+
+The chain (6.3.53), with the plant's own right-hand sides::
+
+    psi'  = r                              (psi_e = psi - psi_d)
+    r'    = f1 + g1 v
+    v'    = f2 + g2 phi + delta + u~       (u~: tunnel thruster, delta: mass disturbance)
+    phi'  = p
+    p'    = f3 + g3 y_v
+
+Model terms. g1 = d r'/d v, g2 = d v'/d phi, g3 = d p'/d y_v and eps4' = d v'/d y_v are
+Jacobians of the LATERAL plant at the straight run at U0 with the mass held still
+(:meth:`LateralDesignModel.static_mass_jacobian`), and f1, f2, f3 are the plant's rates
+r', v', p' at the measured (v, r, p, phi) with the mass at the centre, minus the g-terms:
+f1 = r' - g1 v, f2 = v' - g2 phi, f3 = p'. So nothing is re-typed, and the terms (6.3.53)
+drops for a strict-feedback form (Gamma3' in yaw, the p terms in sway, sin phi ~ phi) are
+kept: with filtered derivatives (below) nothing is differentiated analytically, so the
+f's may depend on the whole measured state. The mass enters only through g3 y_v and the
+disturbance delta = eps4' y_v + (the servo's inertia force), as in (6.3.52)-(6.3.53).
+
+Control law (Steps 1-5 and (6.3.55)-(6.3.64)), gains k0..k4::
+
+    alpha0 = -k0 psi_e,                 z1 = r - alpha0,   alpha0' = -k0 r     (exact)
+    alpha1 = (-k1 z1 - psi_e - f1 + alpha0') / g1,          z2 = v - alpha1
+    alpha2 = (-k2 z2 - g1 z1 - f2 + alpha1'_c) / g2,        z3 = phi - alpha2
+    alpha3 = -k3 z3 - g2 z2 + alpha2'_c,                    z4 = p - alpha3
+    y_v    = (-k4 z4 - z3 - f3 + alpha3'_c) / g3            (6.3.64), sent as y_d
+    F_t    = -(eta0 + |eps4' y_v|) sat(z2 / Phi) / (d v'/d F_t)      (6.3.72)-(6.3.73)
+
+Derivatives of the virtual controls: alpha0' is exact (psi_d is piecewise constant, so
+alpha0' = -k0 r). alpha1', alpha2', alpha3' are COMMAND-FILTERED: each alpha_i passes
+through a critically damped second-order filter (:mod:`command_filter`, omega_f) whose rate
+output replaces alpha_i' (the dynamic-surface form of command-filtered backstepping; the
+alternative Sec. 6.3.3 names). Why not exact:
+* the plant's terms contain v|v|, r|r|, p|p|: alpha3' needs third derivatives of f1, which
+  do not exist at v = 0 or r = 0, and the f's are evaluated numerically from the plant, so
+  exact derivatives would need nested finite differences of a non-smooth function;
+* the exact design assumes y_v is set instantly, but our plant moves the mass through its
+  servo (omega_n = 2.4 rad/s, 130 deg of lag at the 5 rad/s roll frequency the exact law
+  tries to cancel); with exact (or fast-filtered, omega_f >= 20 rad/s) derivatives the
+  command then bangs between the stops every few samples and the loop limit-cycles.
+  omega_f = 10 rad/s is above the designed error dynamics (|eigenvalues| of -Lambda + S
+  up to 5.8 rad/s) yet slow enough to keep the servo command smooth; 8-15 rad/s all work.
+Farrell's compensating signals are left out on purpose: they integrate the difference
+between the saturated and the wanted y_v and wind up whenever the mass sits on a stop,
+which it does in bs-2 and bs-3.
+
+Thruster (Lyapunov redesign, (6.3.67)-(6.3.73)). The thruster's acceleration u~ enters the
+sway equation: with d v'/d F_t taken from the plant (1/64.1 kg for REMUS 100; (6.3.71)
+writes 1/(m + a22) = 1/66 kg, the difference being the sway-roll-yaw coupling of the mass
+matrix), F_t = u~ / (d v'/d F_t). The parameters the dissertation leaves open, our choices:
+* eta0 = 0.08 m/s^2 (5.1 N): the margin over |delta| must also cover what (6.3.72) drops,
+  the mass's inertia force (up to k_v * 12 cm = 3.5 N plus damping, i.e. 0.05-0.1 m/s^2),
+  and the sampled-data error. With eta0 <= 0.03 m/s^2 bs-1/bs-3 limit-cycle; 0.05 works,
+  0.08 settles bs-3 in about 5 s.
+* boundary layer Phi = 0.01 m/s on z2 (a sway-velocity error): the thruster's gain inside
+  the layer, (eta0 + |eps4' y_v|) / Phi <= 20 1/s, keeps the 10 ms sampled loop far from
+  its stability limit 2/h = 200 1/s and removes the chattering of sgn (6.3.73), while the
+  layer is small against the scenarios' sway velocities (0.05-0.2 m/s).
+* F_t limit 10 N (applied by the autopilot): the largest force in the dissertation's
+  thruster plots (Figs. 6.21, 6.24); (6.3.72) asks at most 64.1 (0.08 + 1.88 * 0.06) = 12.4 N.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from controller_fmu.command_filter import CommandFilterBank
+from controller_fmu.lateral_model import LateralDesignModel
+
+
+@dataclass(frozen=True)
+class BacksteppingGains:
+    """Gains of (6.3.55)-(6.3.64) and of the thruster (6.3.72)-(6.3.73).
+
+    Defaults: Sec. 6.3.3 (k0 = 0.5, k1..k4 = 1); for currents and low speed the
+    dissertation uses k0 = 0.3, k1 = 0.8. eta0, Phi and the filter frequency: module
+    docstring.
+    """
+
+    k0: float = 0.5
+    k1: float = 1.0
+    k2: float = 1.0
+    k3: float = 1.0
+    k4: float = 1.0
+    eta0: float = 0.08  # m/s^2
+    boundary_layer: float = 0.01  # m/s
+    filter_frequency: float = 10.0  # rad/s
+
+    def __post_init__(self) -> None:
+        for name in ("k0", "k1", "k2", "k3", "k4", "boundary_layer", "filter_frequency"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"backstepping {name} = {value!r}: expected a number > 0")
+        if not (math.isfinite(self.eta0) and self.eta0 >= 0.0):
+            raise ValueError(f"backstepping eta0 = {self.eta0!r}: expected a number >= 0 m/s^2")
+
+
+@dataclass(frozen=True)
+class BacksteppingOutput:
+    """Unsaturated commands and the error coordinates of one evaluation."""
+
+    mass_position: float  # y_v of (6.3.64), m
+    tunnel_force: float  # F_t of (6.3.72)-(6.3.73), N
+    errors: tuple[float, float, float, float, float]  # psi_e, z1, z2, z3, z4
+
+
+class BacksteppingHeading:
+    """The sampled backstepping controller; its filters are its only state.
+
+    Args:
+        design: the plant's lateral design model (vehicle and U0).
+        gains: :class:`BacksteppingGains`.
+
+    Raises:
+        ValueError: a model gain g1, g2 or g3 is zero (the chain is not controllable).
+    """
+
+    def __init__(self, design: LateralDesignModel, gains: BacksteppingGains) -> None:
+        self.design = design
+        self.gains = gains
+        jac = design.static_mass_jacobian()
+        self.g1, self.g2, self.g3 = jac["r/v"], jac["v/roll"], jac["p/mass_position"]
+        self.eps4 = jac["v/mass_position"]
+        self.thruster_gain = jac["v/tunnel_force"]  # m/s^2 per N
+        for name in ("g1", "g2", "g3", "thruster_gain"):
+            if abs(getattr(self, name)) < 1e-9:
+                raise ValueError(f"backstepping model gain {name} is 0 for this vehicle/U0")
+        self.filters = CommandFilterBank(3, gains.filter_frequency)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the filters; the next call starts them on its own virtual controls."""
+        self._last_time: float | None = None
+        self._last_alphas = np.zeros(3)
+        self.filters.start(np.zeros(3))
+
+    def snapshot(self) -> tuple:
+        """The internal state, to restore with :meth:`restore`."""
+        return (
+            self._last_time,
+            self._last_alphas.copy(),
+            self.filters.value.copy(),
+            self.filters.rate.copy(),
+        )
+
+    def restore(self, snapshot: tuple) -> None:
+        last_time, alphas, value, rate = snapshot
+        self._last_time = last_time
+        self._last_alphas = alphas.copy()
+        self.filters.value, self.filters.rate = value.copy(), rate.copy()
+
+    def command(
+        self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
+    ) -> BacksteppingOutput:
+        """Commands at ``time`` (s) from the measured relative sway velocity v (m/s), rates
+        r, p (rad/s), roll phi, heading error psi_e = psi - psi_d (rad) and mass position
+        y_v (m). Advances the filters from the previous call with its alphas held."""
+        k = self.gains
+        # The filters are at rest (rate 0) until the first sample has started them.
+        if self._last_time is not None:
+            self.filters.advance(self._last_alphas, time - self._last_time)
+        v_dot, r_dot, p_dot = self.design.static_mass_rates(v, r, p, phi, 0.0)
+        f1 = r_dot - self.g1 * v
+        f2 = v_dot - self.g2 * phi
+        f3 = p_dot
+
+        alpha0 = -k.k0 * psi_e
+        z1 = r - alpha0
+        alpha0_dot = -k.k0 * r
+        alpha1 = (-k.k1 * z1 - psi_e - f1 + alpha0_dot) / self.g1
+        z2 = v - alpha1
+        alpha2 = (-k.k2 * z2 - self.g1 * z1 - f2 + self.filters.rate[0]) / self.g2
+        z3 = phi - alpha2
+        alpha3 = -k.k3 * z3 - self.g2 * z2 + self.filters.rate[1]
+        z4 = p - alpha3
+        mass = (-k.k4 * z4 - z3 - f3 + self.filters.rate[2]) / self.g3
+
+        bound = k.eta0 + abs(self.eps4 * y_v)
+        saturated = min(max(z2 / k.boundary_layer, -1.0), 1.0)
+        force = -bound * saturated / self.thruster_gain
+
+        alphas = np.array([alpha1, alpha2, alpha3])
+        if self._last_time is None:  # first sample: filters start at rest on the alphas
+            self.filters.start(alphas)
+        self._last_time = time
+        self._last_alphas = alphas
+        return BacksteppingOutput(mass, force, (psi_e, z1, z2, z3, z4))

@@ -1,0 +1,104 @@
+"""The heading controllers' design model: the plant's own lateral equations at u = U0.
+
+Every heading controller of Sec. 6.3 is designed on the lateral dynamics (6.3.13) with the
+surge speed frozen at the design speed U0 ("we neglect the equation in surge ... and take
+u = U0"). Rather than re-typing the dissertation's coefficient formulas (G'', H'', eta_2, ...)
+this module evaluates and linearises :class:`plant_fmu.dynamics.PlantModel` in its LATERAL
+variant, so the controllers always use exactly the physics the plant integrates, for
+whichever vehicle parameter set is active.
+
+The controller state (the order of (6.3.17)) is::
+
+    x = [v, r, p, phi, psi - psi_d, y_v, y_vel]        (m/s, rad/s, rad/s, rad, rad, m, m/s)
+
+with v the sway velocity relative to the water (Sec. 6.3.3: in a steady uniform current the
+relative velocities replace the absolute ones), and the input is the servo command y_d (m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from plant_fmu.analysis import input_vector, linearize, state_vector
+from plant_fmu.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
+from plant_fmu.parameters import VehicleParameters
+
+CONTROL_STATES: tuple[str, ...] = ("v", "r", "p", "roll", "yaw", "mass_position", "mass_velocity")
+"""Plant state names of the controller state x, in order (``yaw`` holds psi - psi_d)."""
+
+_PLANT_INDEX = [STATE_INDEX[name] for name in CONTROL_STATES]
+_V, _R, _P, _ROLL = (STATE_INDEX[n] for n in ("v", "r", "p", "roll"))
+_YV, _YVEL = STATE_INDEX["mass_position"], STATE_INDEX["mass_velocity"]
+_Y_D = INPUT_INDEX["mass_position_cmd"]
+_F_T = INPUT_INDEX["tunnel_force"]
+
+
+class LateralDesignModel:
+    """The LATERAL plant at u = design_speed, no current, as the controllers see it.
+
+    Args:
+        params: the vehicle parameter set the controller is designed for.
+        design_speed: U0, the surge speed relative to the water, m/s (> 0).
+
+    Raises:
+        ValueError: design_speed is not a finite positive number.
+    """
+
+    def __init__(self, params: VehicleParameters, design_speed: float) -> None:
+        if not (np.isfinite(design_speed) and design_speed > 0.0):
+            raise ValueError(f"design_speed = {design_speed!r}: expected a finite speed > 0 m/s")
+        self.params = params
+        self.design_speed = float(design_speed)
+        self.plant = PlantModel(params, variant=Variant.LATERAL)
+        self._x0 = state_vector({"u": self.design_speed})
+        self._u0 = input_vector()
+
+    def linearize(self) -> tuple[np.ndarray, np.ndarray]:
+        """A (7x7) and B (7x1) of x_dot = A x + B y_d about the straight run at U0, no roll,
+        mass centred (6.3.17); the plant's own Jacobians, so (6.3.19) up to its two known
+        misprints (MODEL.md section 4)."""
+        return linearize(self.plant, self._x0, self._u0, CONTROL_STATES, ["mass_position_cmd"])
+
+    def derivative(self, x: np.ndarray, y_d: float) -> np.ndarray:
+        """x_dot = f(x) + g y_d of the lateral plant (6.3.13) at u = U0, controller order."""
+        return self.plant.derivative(self._plant_state(x), self._inputs(y_d))[_PLANT_INDEX]
+
+    def static_mass_rates(
+        self, v: float, r: float, p: float, phi: float, y_v: float
+    ) -> tuple[float, float, float]:
+        """(v_dot, r_dot, p_dot) with the mass held still at y_v (y_d = y_v, y_vel = 0): the
+        vehicle part of (6.3.48)-(6.3.50) with the inertia force m_v y_v'' removed."""
+        x = self._x0.copy()
+        x[[_V, _R, _P, _ROLL, _YV]] = (v, r, p, phi, y_v)
+        rates = self.plant.derivative(x, self._inputs(y_v))
+        return float(rates[_V]), float(rates[_R]), float(rates[_P])
+
+    def static_mass_jacobian(self) -> dict[str, float]:
+        """Partial derivatives of (v_dot, r_dot, p_dot) with the mass held still, at the
+        straight run, keyed ``"<rate>/<variable>"`` (e.g. ``"r/v"`` = d r_dot / d v);
+        plus ``"v/tunnel_force"``, the sway acceleration per newton of tunnel thrust."""
+        names = ("v", "r", "p", "roll", "mass_position")
+        rates = ("v", "r", "p")
+        step = 1e-6
+        jac: dict[str, float] = {}
+        for k, name in enumerate(names):
+            plus, minus = np.zeros(5), np.zeros(5)
+            plus[k], minus[k] = step, -step
+            diff = (np.array(self.static_mass_rates(*plus)) - self.static_mass_rates(*minus)) / (
+                2.0 * step
+            )
+            for i, rate in enumerate(rates):
+                jac[f"{rate}/{name}"] = float(diff[i])
+        _, b_t = linearize(self.plant, self._x0, self._u0, ["v"], ["tunnel_force"])
+        jac["v/tunnel_force"] = float(b_t[0, 0])
+        return jac
+
+    def _plant_state(self, x: np.ndarray) -> np.ndarray:
+        full = self._x0.copy()
+        full[_PLANT_INDEX] = x
+        return full
+
+    def _inputs(self, y_d: float) -> np.ndarray:
+        inputs = self._u0.copy()
+        inputs[_Y_D] = y_d
+        return inputs

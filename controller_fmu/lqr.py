@@ -1,0 +1,120 @@
+"""LQR heading autopilot on the moving mass with its servo dynamics (6.3.17)-(6.3.19).
+
+State x = [v, r, p, phi, psi - psi_d, y_v, y_vel], input the servo command y_d, outputs
+y = C x = [r, p, phi, psi, y_v, y_vel] (6.3.18), cost weights Q = C^T Q_y C with
+Q_y = diag(1, 5e3, 1e2, 1e3, 1e3, 1e6) and R_u = 1 (Sec. 6.3.1).
+
+Why a discrete design. The continuous LQR with these weights (``continuous_gain``, kept for
+comparison) closes the servo loop with a pole near -5760 1/s: the huge weight on y_vel asks
+for a rail speed that follows y_d within 0.2 ms. A controller that holds its output over a
+10 ms communication step cannot realise that pole; the continuous gains sampled at 10 ms
+give a closed loop with an eigenvalue of modulus ~57 (violently unstable). So the gain the
+autopilot uses is the discrete-time LQR for the zero-order-hold discretisation of the same
+plant at the controller's sample time (python-control ``c2d`` + ``dlqr``) with the same
+Q and R. Its slow closed-loop poles match the continuous design's (about -0.16 +- 0.16i
+1/s at U0 = 1.525 m/s), and it is stable at every sample time from 1 to 50 ms.
+
+The matrices come from linearising the plant's own equations (:mod:`lateral_model`) at
+u = design_speed for the current vehicle parameters, at construction; nothing is typed in.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import control
+import numpy as np
+
+from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
+
+DISSERTATION_Q_Y: tuple[float, ...] = (1.0, 5e3, 1e2, 1e3, 1e3, 1e6)
+"""Q_y on y = [r, p, phi, psi, y_v, y_vel] (Sec. 6.3.1)."""
+DISSERTATION_R_U = 1.0
+
+OUTPUT_STATES: tuple[str, ...] = CONTROL_STATES[1:]
+"""y = [r, p, phi, psi, y_v, y_vel]: every state but v (6.3.18)."""
+
+
+def output_matrix() -> np.ndarray:
+    """C of (6.3.18), 6x7: y picks every state of x but v."""
+    return np.eye(len(CONTROL_STATES))[1:]
+
+
+def state_weight(q_y: Sequence[float]) -> np.ndarray:
+    """Q = C^T diag(Q_y) C, 7x7.
+
+    Raises:
+        ValueError: q_y is not 6 finite non-negative weights.
+    """
+    q_y = np.asarray(q_y, dtype=float)
+    if q_y.shape != (len(OUTPUT_STATES),) or not np.all(np.isfinite(q_y)) or np.any(q_y < 0):
+        raise ValueError(
+            f"Q_y = {q_y.tolist()!r}: expected {len(OUTPUT_STATES)} finite weights >= 0 on "
+            f"{list(OUTPUT_STATES)}"
+        )
+    C = output_matrix()
+    return C.T @ np.diag(q_y) @ C
+
+
+def _check_r(r_u: float) -> None:
+    if not (np.isfinite(r_u) and r_u > 0.0):
+        raise ValueError(f"R_u = {r_u!r}: expected a finite weight > 0")
+
+
+def continuous_gain(
+    A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The dissertation's continuous LQR (control.lqr): gain K (7,) with y_d = -K x, and
+    the closed-loop eigenvalues of A - B K."""
+    _check_r(r_u)
+    K, _, poles = control.lqr(A, B, state_weight(q_y), r_u)
+    return np.asarray(K).ravel(), np.asarray(poles)
+
+
+def discretize(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation (control.c2d) at sample time dt, s (> 0)."""
+    if not (np.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"sample time {dt!r}: expected a finite time > 0 s")
+    sys_d = control.c2d(control.ss(A, B, np.eye(A.shape[0]), np.zeros(B.shape)), dt, "zoh")
+    return np.asarray(sys_d.A), np.asarray(sys_d.B)
+
+
+def discrete_gain(
+    A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Discrete LQR (c2d + control.dlqr) for sample time dt: gain K (7,) with
+    y_d[k] = -K x[k], and the closed-loop eigenvalues of Ad - Bd K (|z| < 1 when stable)."""
+    _check_r(r_u)
+    Ad, Bd = discretize(A, B, dt)
+    K, _, poles = control.dlqr(Ad, Bd, state_weight(q_y), r_u)
+    return np.asarray(K).ravel(), np.asarray(poles)
+
+
+class LqrHeading:
+    """The sampled LQR heading controller, designed at construction.
+
+    Args:
+        design: the plant's lateral design model (vehicle and U0).
+        sample_time: the sample time the gain is designed for, s.
+        q_y, r_u: the weights (default: the dissertation's).
+    """
+
+    def __init__(
+        self,
+        design: LateralDesignModel,
+        sample_time: float,
+        q_y: Sequence[float] = DISSERTATION_Q_Y,
+        r_u: float = DISSERTATION_R_U,
+    ) -> None:
+        self.A, self.B = design.linearize()
+        self.sample_time = float(sample_time)
+        self.gain, self.poles = discrete_gain(self.A, self.B, q_y, r_u, self.sample_time)
+        if not np.all(np.abs(self.poles) < 1.0):
+            raise ValueError(
+                f"the discrete LQR at sample time {sample_time} s is not stable "
+                f"(closed-loop |z| max {np.abs(self.poles).max():.6g})"
+            )
+
+    def command(self, x: np.ndarray) -> float:
+        """y_d = -K x, m (unsaturated), x in :data:`CONTROL_STATES` order."""
+        return -float(self.gain @ x)
