@@ -385,8 +385,6 @@ class _Continuation:
             # it so the predictor may overshoot the range's ends (checked by the caller).
             stroke = 2.0 * max(abs(low), abs(high), base.params.mass_stroke)
             base = replace(base, params=base.params.replace(mass_stroke=stroke))
-        self.base = base
-        self.parameter = parameter
         self.scale = high - low
         self.low, self.high = low / self.scale, high / self.scale
         if self.low > self.high:
