@@ -35,7 +35,6 @@ from cosim.errors import CosimError
 from cosim.rerun_layout import (
     build_blueprint,
     plan_panels,
-    resolve_columns,
     series_style,
     time_index,
 )
@@ -85,7 +84,7 @@ class RerunSink:
             duplicates = sorted({c for c in columns if columns.count(c) > 1})
             raise ValueError(f"recorded columns must be unique, got duplicates {duplicates}")
         self._columns = list(columns)
-        self._index = resolve_columns(self._columns)
+        self._index = {name: i for i, name in enumerate(columns)}
         self._panels = plan_panels(self._columns)
         self._pending_times: list[np.ndarray] = []
         self._pending_values: list[np.ndarray] = []
@@ -123,17 +122,7 @@ class RerunSink:
         )
         for panel in self._panels:
             self._rec.log(panel.entity, series_style(panel), static=True)
-        log_static_scene(
-            self._rec,
-            vehicle,
-            show_mass="plant.mass_position" in self._index,
-            show_thruster="controller.tunnel_force" in self._index,
-            show_fins="controller.fin_angle" in self._index,
-            show_current=bool(
-                {"controller.current_north", "controller.current_east"} & self._index.keys()
-            ),
-            show_depth_setpoint=depth_control,
-        )
+        log_static_scene(self._rec, vehicle, self._columns, show_depth_setpoint=depth_control)
         self._scene = SceneWriter(self._rec, vehicle, show_depth_setpoint=depth_control)
 
     @property

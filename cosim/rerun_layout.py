@@ -12,6 +12,10 @@ Colours follow one rule everywhere, in the plots and in the 3D scene: the first,
 third axis of a frame (north/u/p/roll, east/v/q/pitch, down/w/r/yaw) are red, green and
 blue; a value relative to the water is a paler shade of its axis colour; every setpoint or
 command is orange; each actuator has its own colour, reused for its arrow or body in 3D.
+An actuator command appears as the autopilot's output (``controller.tunnel_force``) and,
+when the plant's input of that name is recorded too (an unconnected, held input, as in a
+run without autopilot), as a paler line "at the plant"; the current likewise as the
+plant's (the water that moves the vehicle) and, paler, the autopilot's knowledge of it.
 """
 
 from __future__ import annotations
@@ -25,6 +29,12 @@ import rerun.blueprint as rrb
 
 Rgb = tuple[int, int, int]
 
+
+def pale(color: Rgb) -> Rgb:
+    """Half-way to white: the same quantity seen from the other side (plant vs autopilot)."""
+    return (128 + color[0] // 2, 128 + color[1] // 2, 128 + color[2] // 2)
+
+
 RED: Rgb = (231, 76, 60)
 GREEN: Rgb = (46, 204, 113)
 BLUE: Rgb = (52, 152, 219)
@@ -32,6 +42,7 @@ PALE_RED: Rgb = (245, 170, 160)
 PALE_GREEN: Rgb = (160, 235, 190)
 PALE_BLUE: Rgb = (160, 205, 240)
 SETPOINT: Rgb = (255, 165, 0)  # every setpoint and command
+PALE_SETPOINT: Rgb = (255, 210, 130)
 MASS: Rgb = (190, 90, 220)  # the internal moving mass
 THRUSTER: Rgb = (0, 200, 200)  # the tunnel thruster
 FIN: Rgb = (160, 210, 60)  # the stern planes
@@ -118,25 +129,35 @@ PANELS: tuple[Panel, ...] = (
     Panel("moving_mass/position_cm", "Moving mass y_v (cm)", (
         _s("plant.mass_position", "mass position y_v (cm)", MASS, 100.0),
         _s("controller.mass_position_cmd", "mass command y_d (cm)", SETPOINT, 100.0),
+        _s("plant.mass_position_cmd", "mass command at the plant (cm)", PALE_SETPOINT, 100.0),
     )),
     Panel("moving_mass/velocity_cm_s", "Moving-mass rail speed (cm/s)", (
         _s("plant.mass_velocity", "rail speed (cm/s)", MASS, 100.0),
     )),
     Panel("actuators/tunnel_force_N", "Tunnel thruster (N)", (
         _s("controller.tunnel_force", "tunnel force F_t (N)", THRUSTER),
+        _s("plant.tunnel_force", "F_t at the plant (N)", pale(THRUSTER)),
     )),
     Panel("actuators/fin_angle_deg", "Stern planes (deg)", (
         _s("controller.fin_angle", "fin angle δs (deg)", FIN, DEG),
+        _s("plant.fin_angle", "δs at the plant (deg)", pale(FIN), DEG),
     )),
     Panel("actuators/thrust_N", "Propeller thrust (N)", (
         _s("controller.thrust", "thrust T (N)", THRUST),
+        _s("plant.thrust", "T at the plant (N)", pale(THRUST)),
+    )),
+    Panel("actuators/roll_torque_Nm", "Propeller roll torque (N m)", (
+        _s("plant.roll_torque", "roll torque Q (N m)", THRUST),
     )),
     Panel("energy/kinetic_J", "Kinetic energy (J)", (
         _s("plant.kinetic_energy", "kinetic energy (J)", ENERGY),
     )),
-    Panel("environment/current_m_s", "Current (m/s)", (
-        _s("controller.current_north", "current north (m/s)", PALE_RED),
-        _s("controller.current_east", "current east (m/s)", PALE_GREEN),
+    Panel("environment/current_m_s", "Current, earth axes (m/s)", (
+        _s("plant.current_north", "current north (m/s)", RED),
+        _s("plant.current_east", "current east (m/s)", GREEN),
+        _s("plant.current_down", "current down (m/s)", BLUE),
+        _s("controller.current_north", "north, as the autopilot knows it (m/s)", PALE_RED),
+        _s("controller.current_east", "east, as the autopilot knows it (m/s)", PALE_GREEN),
     )),
 )  # fmt: skip
 
@@ -156,19 +177,11 @@ DEPTH_LOOP = (
     "actuators/fin_angle_deg",
     "velocity/surge_m_s",
 )
-# Plant inputs the plots and the scene show under their controller.* names.
-PLANT_INPUTS_SHOWN = (
-    "thrust",
-    "tunnel_force",
-    "fin_angle",
-    "mass_position_cmd",
-    "current_north",
-    "current_east",
-)
 VEHICLE = (
     "position/horizontal_m",
     "moving_mass/velocity_cm_s",
     "actuators/thrust_N",
+    "actuators/roll_torque_Nm",
     "energy/kinetic_J",
     "environment/current_m_s",
 )
@@ -185,29 +198,13 @@ class PlannedPanel:
     scales: tuple[float, ...]
 
 
-def resolve_columns(columns: list[str]) -> dict[str, int]:
-    """Column name -> position, plus ``controller.<input>`` for a held ``plant.<input>``.
-
-    In a closed loop the actuator commands and the current are recorded as the
-    controller's (``controller.tunnel_force``); a run without a controller records the
-    plant's held inputs instead (``plant.tunnel_force``). Either fills the same plot and
-    the same arrow; if both are recorded, the plant's goes to ``other/``.
-    """
-    index = {name: i for i, name in enumerate(columns)}
-    for name in PLANT_INPUTS_SHOWN:
-        canonical, alias = f"controller.{name}", f"plant.{name}"
-        if canonical not in index and alias in index:
-            index[canonical] = index[alias]
-    return index
-
-
 def plan_panels(columns: list[str]) -> list[PlannedPanel]:
     """The panels a run with these columns shows; unknown columns go to ``other/...``.
 
     A panel none of whose columns is recorded is dropped; one with some of them keeps
     those (a run without a controller still shows yaw, without the setpoint).
     """
-    index = resolve_columns(columns)
+    index = {name: i for i, name in enumerate(columns)}
     planned: list[PlannedPanel] = []
     shown: set[int] = set()
     for panel in PANELS:

@@ -17,6 +17,8 @@ is the body frame at the centre of buoyancy, FRD = x forward, y starboard, z dow
     world/vehicle/moving_mass  Ellipsoids3D at [x_v, mass_position, z_g] per step
     world/vehicle/tunnel_force Arrows3D from the thruster at [0, 0, z_t]: F_t along body y
     world/current              Arrows3D, the earth-frame current, drawn above the vehicle
+
+Fins, thruster and current show what acts on the vehicle (:func:`acting`).
     world/trajectory           LineStrips3D, one segment per step (the blueprint shows every
                                segment up to the time cursor, so the path grows)
     world/depth_setpoint       Boxes3D, a translucent square at the setpoint depth under the
@@ -32,7 +34,7 @@ are drawn to look right, they do not enter the physics. Arrow lengths are scaled
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 
 import numpy as np
 import rerun as rr
@@ -62,17 +64,34 @@ DEPTH_MARKER_HALF_SIZE = 2.0  # m, half side of the depth-setpoint square
 Columns = Callable[[str], np.ndarray | None]  # column name -> values (k,) or None
 
 
+def acting(column: Columns, name: str) -> np.ndarray | None:
+    """Plant input ``name`` as it acts on the vehicle, or None if it is not recorded.
+
+    The plant's own input if recorded (an unconnected input holds its value, whatever the
+    autopilot outputs), else the autopilot's output of the same name (connected to it).
+    """
+    values = column(f"plant.{name}")
+    return values if values is not None else column(f"controller.{name}")
+
+
 def log_static_scene(
     rec: rr.RecordingStream,
     vehicle: VehicleParameters,
+    recorded: Collection[str],
     *,
-    show_mass: bool,
-    show_thruster: bool,
-    show_fins: bool,
-    show_current: bool,
     show_depth_setpoint: bool,
 ) -> None:
-    """Log the frames and every shape that does not change with time."""
+    """Log the frames and every shape that does not change with time.
+
+    ``recorded`` are the run's columns: what they lack is not drawn.
+    """
+
+    def has(name: str) -> bool:
+        return f"plant.{name}" in recorded or f"controller.{name}" in recorded
+
+    show_mass = "plant.mass_position" in recorded
+    show_thruster, show_fins = has("tunnel_force"), has("fin_angle")
+    show_current = any(has(f"current_{axis}") for axis in ("north", "east", "down"))
     rec.log("world", rr.ViewCoordinates.FRD, static=True)
     radius = 0.5 * vehicle.diameter
     cylinder = vehicle.length - vehicle.diameter  # the capsule's caps add one diameter
@@ -227,7 +246,7 @@ class SceneWriter:
         )
         self._send_trajectory(index, position)
 
-        fin = column("controller.fin_angle")
+        fin = acting(column, "fin_angle")
         if fin is not None:
             hinge = np.tile([-0.5 * self._vehicle.length + FIN_FROM_TAIL, 0.0, 0.0], (n, 1))
             turn = Rotation.from_rotvec(np.outer(fin, [0.0, 1.0, 0.0])).as_quat()
@@ -246,7 +265,7 @@ class SceneWriter:
                 indexes=index,
                 columns=rr.Ellipsoids3D.columns(centers=centers),
             )
-        force = column("controller.tunnel_force")
+        force = acting(column, "tunnel_force")
         if force is not None:
             vectors = np.column_stack([zeros, FORCE_SCALE * force, zeros])
             self._rec.send_columns(
@@ -254,16 +273,14 @@ class SceneWriter:
                 indexes=index,
                 columns=rr.Arrows3D.columns(vectors=vectors),
             )
-        north, east = column("controller.current_north"), column("controller.current_east")
-        if north is not None or east is not None:
-            current = np.column_stack(
-                [get("controller.current_north"), get("controller.current_east"), zeros]
-            )
+        current = [acting(column, f"current_{axis}") for axis in ("north", "east", "down")]
+        if any(c is not None for c in current):
+            vectors = np.column_stack([zeros if c is None else c for c in current])
             above = position - [0.0, 0.0, CURRENT_ARROW_HEIGHT]
             self._rec.send_columns(
                 "world/current",
                 indexes=index,
-                columns=rr.Arrows3D.columns(origins=above, vectors=CURRENT_SCALE * current),
+                columns=rr.Arrows3D.columns(origins=above, vectors=CURRENT_SCALE * vectors),
             )
         depth = column("controller.depth_setpoint")
         if self._show_depth_setpoint and depth is not None:
