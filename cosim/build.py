@@ -43,6 +43,7 @@ from importlib import metadata
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from cosim import fmu_docs
 from cosim.errors import CosimError
 
 HASH_SUFFIX = ".sha256"
@@ -123,6 +124,7 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
             shutil.copyfile(source, stage / relative)
         built = _run_pythonfmu(name, stage, dest)
         complete_fmu(built)
+        fmu_docs.add_documentation(built)  # documentation/index.html from the description
         problems = _check_built(built)
         if problems:
             raise CosimError(f"{name}.fmu failed validation: " + "; ".join(problems))
@@ -153,10 +155,12 @@ def shipped_files(name: str) -> dict[str, Path]:
 
 
 def source_hash(files: dict[str, Path]) -> str:
-    """SHA-256 over the shipped files (names and bytes), this module and pythonfmu's version."""
+    """SHA-256 over the shipped files (names and bytes), this module, the documentation
+    generator (:mod:`cosim.fmu_docs`) and pythonfmu's version."""
     digest = hashlib.sha256()
     digest.update(f"pythonfmu {metadata.version('pythonfmu')}\n".encode())
-    for relative, path in sorted({**files, "<cosim/build.py>": Path(__file__)}.items()):
+    generators = {"<cosim/build.py>": Path(__file__), "<fmu_docs>": Path(fmu_docs.__file__)}
+    for relative, path in sorted({**files, **generators}.items()):
         digest.update(f"{relative}\n{len(path.read_bytes())}\n".encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()

@@ -94,3 +94,10 @@ def test_adding_the_page_twice_replaces_it(documented: Path, tmp_path: Path) -> 
         assert [i.filename for i in archive.infolist()].count(DOC_ENTRY) == 1
         assert archive.read(DOC_ENTRY).decode() == documentation_html(documented)
     assert [p.name for p in tmp_path.iterdir()] == [documented.name]  # no temporary left
+
+
+def test_built_fmus_carry_their_documentation(fmu_paths: dict[str, Path]) -> None:
+    """``cosim.build`` adds the page: what an importer (or a zip tool) finds in the FMU."""
+    for fmu in fmu_paths.values():
+        with zipfile.ZipFile(fmu) as archive:
+            assert archive.read(DOC_ENTRY).decode("utf-8") == documentation_html(fmu)
