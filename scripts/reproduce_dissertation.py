@@ -635,13 +635,19 @@ def settle(t: np.ndarray, x: np.ndarray, target: float, band: float) -> float | 
     return None if outside[-1] == len(t) - 1 else float(t[outside[-1] + 1])
 
 
-def first_return(t: np.ndarray, yaw: np.ndarray, target: float = 0.0) -> float | None:
-    """First time yaw comes back to the target after its initial excursion."""
-    error = yaw - target
-    k0 = int(np.argmax(np.abs(error)))
-    sign = np.sign(error[k0])
-    after = np.flatnonzero(np.sign(error[k0:]) != sign)
-    return float(t[k0 + after[0]]) if after.size else None
+def heading_summary(t: np.ndarray, yaw: np.ndarray, band: float) -> tuple[str, float | None]:
+    """'peak |psi| ... at ...; |psi| < band first at ... after the peak, for good from ...'
+    and the settling time (for good)."""
+    k0 = int(np.argmax(np.abs(yaw)))
+    inside = np.flatnonzero(np.abs(yaw[k0:]) < band)
+    first = float(t[k0 + inside[0]]) if inside.size else None
+    s = settle(t, yaw, 0.0, band)
+    text = (
+        f"peak |psi| {math.degrees(abs(yaw[k0])):.1f} deg at {t[k0]:.1f} s; "
+        f"|psi| < {math.degrees(band):.0f} deg first at {_fmt_time(first)}, "
+        f"for good from {_fmt_time(s)}"
+    )
+    return text, s
 
 
 def _fmt_time(value: float | None) -> str:
@@ -654,29 +660,18 @@ DEG = math.radians(1.0)
 ScenarioCheck = Callable[[RunData], tuple[str, bool, str]]
 
 
-def _heading_back(within: float, band_deg: float = 1.0) -> ScenarioCheck:
+def _heading_back(within: float) -> ScenarioCheck:
     def check(run: RunData) -> tuple[str, bool, str]:
-        t, yaw = run["time"], run["plant.yaw"]
-        s = settle(t, yaw, 0.0, band_deg * DEG)
-        back = first_return(t, yaw)
-        return (
-            f"|psi| < {band_deg:g} deg from {_fmt_time(s)}; first back at 0 at {_fmt_time(back)}",
-            s is not None and s <= within,
-            "",
-        )
+        text, s = heading_summary(run["time"], run["plant.yaw"], DEG)
+        return text, s is not None and s <= within, ""
 
     return check
 
 
 def _lqr2(run: RunData) -> tuple[str, bool, str]:
-    t, yaw, y_v = run["time"], run["plant.yaw"], run["plant.mass_position"]
-    s = settle(t, yaw, 0.0, DEG)
-    back = first_return(t, yaw)
-    saturated = float(np.min(y_v))
-    text = (
-        f"min y_v = {100 * saturated:.2f} cm; |psi| < 1 deg from {_fmt_time(s)}; "
-        f"first back at 0 at {_fmt_time(back)}"
-    )
+    text, s = heading_summary(run["time"], run["plant.yaw"], DEG)
+    saturated = float(np.min(run["plant.mass_position"]))
+    text = f"min y_v = {100 * saturated:.2f} cm; {text}"
     return text, abs(saturated + 0.06) < 1e-3 and s is not None and s <= 20.0, ""
 
 
@@ -694,7 +689,7 @@ def _current_drift(run: RunData) -> tuple[str, bool, str]:
     )
 
 
-def _current_track(target_deg: float) -> ScenarioCheck:
+def _current_track(target_deg: float, within: float) -> ScenarioCheck:
     def check(run: RunData) -> tuple[str, bool, str]:
         t, north, east = run["time"], run["plant.north"], run["plant.east"]
         k = t >= t[-1] - 10.0
@@ -703,11 +698,11 @@ def _current_track(target_deg: float) -> ScenarioCheck:
         course = math.degrees(math.atan2(v_east, v_north))
         yaw = run["plant.yaw"]
         final = math.degrees(float(np.mean(yaw[k])))
-        s = settle(t, yaw, math.radians(target_deg), DEG)
+        s = settle(t, yaw, math.radians(target_deg), 0.5 * DEG)
         return (
-            f"heading {final:.2f} deg (|psi - psi_d| < 1 deg from {_fmt_time(s)}), "
+            f"heading {final:.2f} deg (within 0.5 deg of psi_d from {_fmt_time(s)}), "
             f"course over ground {course:.2f} deg",
-            abs(final - target_deg) < 0.5 and abs(course) < 1.0,
+            s is not None and s <= within and abs(course) < 1.0,
             "",
         )
 
@@ -735,37 +730,37 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
     "lqr-1": (
         "LQR, v0 = -0.01: converges within ~20 s",
         "Figs. 6.11-6.12",
-        "~20 s",
-        _heading_back(20.0),
+        "~20 s (tested: |psi| < 1 deg for good by 25 s)",
+        _heading_back(25.0),
     ),
     "lqr-2": (
         "LQR, v0 = -0.05: y_v saturates at -6 cm, heading back within 20 s",
         "Figs. 6.13-6.14",
-        "-6 cm; 20 s",
+        "-6 cm; 20 s (tested: |psi| < 1 deg for good by 20 s)",
         _lqr2,
     ),
     "lqr-3": (
         "LQR, psi0 = 30 deg: heading returns",
         "Figs. 6.15-6.16",
-        "returns",
-        _heading_back(100.0),
+        "returns (tested: |psi| < 1 deg for good within the run)",
+        _heading_back(math.inf),
     ),
     "bs-1": (
         "backstepping + thruster, v0 = -0.05: fast convergence",
         "Figs. 6.17-6.19",
-        "fast",
+        "fast (tested: |psi| < 1 deg for good by 15 s)",
         _heading_back(15.0),
     ),
     "bs-2": (
         "backstepping, psi0 = 30 deg: back within a short time",
         "Figs. 6.20-6.22",
-        "short",
+        "short (tested: |psi| < 1 deg for good by 20 s)",
         _heading_back(20.0),
     ),
     "bs-3": (
         "backstepping, v0 = -0.10: psi back to 0 within 10 s",
         "Figs. 6.23-6.25",
-        "10 s",
+        "10 s (tested: |psi| < 1 deg for good by 10 s)",
         _heading_back(10.0),
     ),
     "cur-1": (
@@ -775,44 +770,44 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
         _current_drift,
     ),
     "cur-2": (
-        "psi_d = -beta = -7.55 deg: tracks along north",
+        "psi_d = -beta = -7.55 deg: tracks along north, steady after about 20 s",
         "Figs. 6.29-6.31",
-        "course 0",
-        _current_track(-7.55),
+        "course 0; ~20 s (tested: within 0.5 deg of psi_d, course within 1 deg, by 25 s)",
+        _current_track(-7.55, 25.0),
     ),
     "slow-1": (
         "T = 4 N, v0 = -0.1: stabilised",
         "Figs. 6.32-6.33",
-        "stabilised",
-        _heading_back(60.0),
+        "stabilised (tested: |psi| < 1 deg for good within the run)",
+        _heading_back(math.inf),
     ),
     "slow-2": (
         "T = 4 N, current, psi_d = -11.3 deg: converges in ~20 s",
         "Figs. 6.34-6.39",
-        "~20 s",
-        _current_track(-11.3),
+        "~20 s (tested as cur-2)",
+        _current_track(-11.3, 25.0),
     ),
     "vert-1": (
         "6-DOF, z_d = 1 m: roll keeps oscillating",
         "Figs. 6.41-6.45",
-        "oscillates",
+        "oscillates (tested: > 1 deg peak to peak over the last 20 s)",
         _roll_keeps_oscillating,
     ),
     "vert-2": (
         "6-DOF, mass locked after 15 s: w ~ -0.07, theta ~ -0.045, delta_s ~ -5 deg",
         "Figs. 6.46-6.49",
-        "-0.07 m/s, -0.045 rad, -5 deg",
+        "-0.07 m/s, -0.045 rad, -5 deg (tested: last 10 s means)",
         _vert2,
     ),
 }
 
 SCENARIO_NOTES = {
-    "lqr-2": "The dissertation's 'comes back to zero within 20 s' is the first return of "
-    "psi to 0; staying within 1 deg takes longer because the mass sits on its stop "
-    "(y_v = -6 cm) and the yaw moment it can make is limited, so the heading creeps in on "
-    "the slow closed-loop mode. Our own reference reproduction of this case (continuous "
-    "gains, RK4 at 0.2 ms) settles after 28-34 s too: the claim does not hold for a 1-deg "
-    "band.",
+    "lqr-2": "with the mass on its stop (y_v = -6 cm) the yaw moment it can make is capped "
+    "and the heading comes back on the slow closed-loop mode. The reference reproduction of "
+    "shared/spec/MODEL.md (continuous LQR gains, RK4 at 0.2 ms) already needs 28-34 s to "
+    "stay within 1 deg, so the 20 s claim does not hold for this model; our LQR is "
+    "designed on the model discretised at the 10 ms communication step (the continuous "
+    "design's -5760 1/s servo pole cannot be sampled), which is slower still (see 'ours').",
 }
 
 # Figures of the report copied next to the table for these scenarios.
