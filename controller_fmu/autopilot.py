@@ -108,9 +108,9 @@ class AutopilotConfig(BaseModel):
         "should equal the communication step",
         json_schema_extra=_unit("s"),
     )
-    thrust: float = Field(
+    thrust_command: float = Field(
         default=9.0,
-        description="propeller thrust command (9 N: 1.525 m/s; 4 N: 1.017 m/s)",
+        description="propeller thrust sent on the thrust output (9 N: 1.525 m/s; 4 N: 1.017 m/s)",
         json_schema_extra=_unit("N"),
     )
     lqr_q_r: float = Field(
@@ -149,35 +149,35 @@ class AutopilotConfig(BaseModel):
         default=0.5, gt=0.0, description="sliding-mode boundary layer Phi on s (6.3.73)",
         json_schema_extra=_unit("rad"),
     )  # fmt: skip
-    bs_k0: float = Field(
+    k0: float = Field(
         default=0.5, gt=0.0, description="backstepping gain k0 (6.3.55); 0.3 in currents/slow",
         json_schema_extra=_unit("1/s"),
     )  # fmt: skip
-    bs_k1: float = Field(
+    k1: float = Field(
         default=1.0, gt=0.0, description="backstepping gain k1 (6.3.58); 0.8 in currents/slow",
         json_schema_extra=_unit("1/s"),
     )  # fmt: skip
-    bs_k2: float = Field(
+    k2: float = Field(
         default=1.0, gt=0.0, description="backstepping gain k2 (6.3.60)",
         json_schema_extra=_unit("1/s"),
     )  # fmt: skip
-    bs_k3: float = Field(
+    k3: float = Field(
         default=1.0, gt=0.0, description="backstepping gain k3 (6.3.62)",
         json_schema_extra=_unit("1/s"),
     )  # fmt: skip
-    bs_k4: float = Field(
+    k4: float = Field(
         default=1.0, gt=0.0, description="backstepping gain k4 (6.3.64)",
         json_schema_extra=_unit("1/s"),
     )  # fmt: skip
-    bs_eta0: float = Field(
+    eta0: float = Field(
         default=0.08, ge=0.0, description="thruster margin eta0 (6.3.72), sway acceleration",
         json_schema_extra=_unit("m/s2"),
     )  # fmt: skip
-    bs_boundary_layer: float = Field(
+    thruster_boundary_layer: float = Field(
         default=0.01, gt=0.0, description="thruster boundary layer Phi on z2 (6.3.73)",
         json_schema_extra=_unit("m/s"),
     )  # fmt: skip
-    bs_filter_frequency: float = Field(
+    command_filter_frequency: float = Field(
         default=10.0, gt=0.0,
         description="natural frequency of the command filters giving alpha1..3 derivatives",
         json_schema_extra=_unit("rad/s"),
@@ -187,8 +187,8 @@ class AutopilotConfig(BaseModel):
         "(Table 6.2)", json_schema_extra=_unit("rad/m"),
     )  # fmt: skip
     depth_k_p: float = Field(
-        default=TABLE_6_2_K_P, description="pitch loop gain K_p (Table 6.2)",
-        json_schema_extra=_unit(""),
+        default=TABLE_6_2_K_P, description="pitch loop gain K_p, fin per pitch error (Table 6.2)",
+        json_schema_extra=_unit("1"),
     )  # fmt: skip
     depth_tau_d: float = Field(
         default=TABLE_6_2_TAU_D, ge=0.0, description="pitch loop derivative time tau_d "
@@ -290,8 +290,8 @@ class Autopilot:
             )
         elif c.heading_mode == 3:
             gains = BacksteppingGains(
-                c.bs_k0, c.bs_k1, c.bs_k2, c.bs_k3, c.bs_k4,
-                c.bs_eta0, c.bs_boundary_layer, c.bs_filter_frequency,
+                c.k0, c.k1, c.k2, c.k3, c.k4,
+                c.eta0, c.thruster_boundary_layer, c.command_filter_frequency,
             )  # fmt: skip
             self.backstepping = BacksteppingHeading(self.design, gains)
         self.depth = DepthPd(c.depth_gamma, c.depth_k_p, c.depth_tau_d, c.fin_angle_limit)
@@ -299,7 +299,7 @@ class Autopilot:
 
     def reset(self) -> None:
         """Back to the state right after construction."""
-        self.commands = Commands(thrust=self.config.thrust)
+        self.commands = Commands(thrust=self.config.thrust_command)
         self.heading_setpoint = 0.0  # psi_d of the last step, rad
         if self.backstepping is not None:
             self.backstepping.reset()
@@ -355,7 +355,7 @@ class Autopilot:
             mass_position_cmd=_clip(mass_cmd, c.mass_position_cmd_limit),
             tunnel_force=_clip(tunnel, c.tunnel_force_limit),
             fin_angle=fin,
-            thrust=c.thrust,
+            thrust=c.thrust_command,
         )
         if not all(math.isfinite(v) for v in commands.values()):
             raise ValueError(f"the autopilot computed a non-finite command {commands}")

@@ -1,0 +1,227 @@
+"""AuvAutopilot: the Ch. 6 autopilot as an FMI 2.0 co-simulation slave.
+
+The pythonfmu script of ``AuvAutopilot.fmu`` (modelIdentifier ``AuvAutopilot``): FMI
+variables on one side, :class:`controller_fmu.autopilot.Autopilot` on the other. No control
+law lives here.
+
+Inputs (Real, named like the plant's outputs; start 0):
+    yaw, r, p, roll, v_rel, u_rel, down, pitch, q, w_rel, mass_position, mass_velocity,
+    current_north, current_east, yaw_setpoint (rad), depth_setpoint (m)
+Outputs (Real, named like the plant's inputs):
+    mass_position_cmd (m), tunnel_force (N), fin_angle (rad), thrust (N; start 9)
+
+Parameters (all fixed; names, units, defaults and descriptions come from
+:class:`controller_fmu.autopilot.AutopilotConfig`):
+    heading_mode (Integer: 0 off, 1 LQR, 2 sliding mode, 3 backstepping + tunnel thruster)
+    depth_mode (Integer: 0 off, 1 PD pitch + P depth)
+    mass_lock_time (s; < 0 never), compensate_current (Boolean), design_speed (m/s, 1.525),
+    vehicle (String, "remus100"), design_step (s, 0.01),
+    thrust_command (N, 9: the value of the thrust output; 4 N for the slow scenarios)
+    LQR:           lqr_q_r, lqr_q_p, lqr_q_roll, lqr_q_yaw, lqr_q_mass_position,
+                   lqr_q_mass_velocity, lqr_r            (Q_y, R_u of Sec. 6.3.1)
+    sliding mode:  smc_eta (rad/s, 1.0), smc_boundary_layer (rad, 0.5)
+    backstepping:  k0 (0.5), k1 (1.0), k2, k3, k4 (1.0) (1/s), eta0 (m/s2, 0.08),
+                   thruster_boundary_layer (m/s, 0.01), command_filter_frequency (rad/s, 10)
+    depth:         depth_gamma (rad/m, -0.772), depth_k_p (10.345), depth_tau_d (s, 0.21),
+                   fin_angle_limit (rad, 15 deg)
+    limits:        mass_position_cmd_limit (m, 0.06), tunnel_force_limit (N, 10)
+
+Timing (a sampled controller). ``doStep(t, h)`` computes the commands from the inputs as set
+at t and publishes them at once; they are meant to be held over [t, t + h). A master that
+steps the controller before the plant at each t (Gauss-Seidel, order controller -> plant)
+therefore closes the loop without delay, exactly like
+:func:`controller_fmu.closed_loop.simulate_closed_loop`; a Jacobi master adds one step of
+delay. No output depends directly on an input in the FMI sense (they change only in
+doStep), so ModelStructure declares no dependencies and importers see no algebraic loop.
+After initialisation the outputs are zero commands and ``thrust`` = ``thrust_command``.
+
+Sample time. The discrete LQR and the sampled sliding mode are designed at initialisation
+for the parameter ``design_step`` (default 0.01 s), not for the first doStep's step size,
+so every design error is reported by exitInitializationMode and a master with varying steps
+gets one well-defined design. If a communication step differs from ``design_step`` the FMU
+logs a warning (once) and carries on; the backstepping's filters are exact for any step.
+
+Bad input: a NaN/inf input or parameter is refused with a logged reason (doStep then
+returns Discard); an unknown mode or vehicle, or any parameter out of range, fails
+initialisation with the reason logged, and every later doStep returns Discard.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from pythonfmu.default_experiment import DefaultExperiment
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
+from pythonfmu.variables import Boolean, Integer, Real, String
+
+from controller_fmu.autopilot import (
+    COMMAND_NAMES,
+    COMMAND_UNITS,
+    MEASUREMENT_NAMES,
+    MEASUREMENT_UNITS,
+    Autopilot,
+    AutopilotConfig,
+    Commands,
+    field_unit,
+)
+from plant_fmu.safe_slave import SafeSlave
+
+INPUT_DESCRIPTIONS: dict[str, str] = {
+    "yaw": "measured yaw angle psi",
+    "r": "measured yaw rate",
+    "p": "measured roll rate",
+    "roll": "measured roll angle phi",
+    "v_rel": "measured sway velocity relative to the water",
+    "u_rel": "measured surge velocity relative to the water (not used by the laws)",
+    "down": "measured depth z (down positive)",
+    "pitch": "measured pitch angle theta",
+    "q": "measured pitch rate",
+    "w_rel": "measured heave velocity relative to the water (not used by the laws)",
+    "mass_position": "measured moving-mass position y_v",
+    "mass_velocity": "measured moving-mass rail speed y_v'",
+    "current_north": "measured current, north component, earth frame",
+    "current_east": "measured current, east component, earth frame",
+    "yaw_setpoint": "desired heading, or desired course with compensate_current (6.3.74)",
+    "depth_setpoint": "desired depth z_d (down positive)",
+}
+OUTPUT_DESCRIPTIONS: dict[str, str] = {
+    "mass_position_cmd": "moving-mass servo command y_d, |y_d| <= mass_position_cmd_limit",
+    "tunnel_force": "tunnel-thruster sway force F_t, |F_t| <= tunnel_force_limit",
+    "fin_angle": "stern-plane angle delta_s, |delta_s| <= fin_angle_limit",
+    "thrust": "propeller thrust (the thrust_command parameter)",
+}
+_DEFAULTS = AutopilotConfig()
+
+
+class AuvAutopilot(SafeSlave):
+    """Heading (LQR / sliding mode / backstepping + thruster) and depth (PD) autopilot."""
+
+    description = (
+        "Autopilot of the REMUS 100 with internal actuators: moving-mass heading control "
+        "(LQR, sliding mode, backstepping + tunnel thruster) and depth PD, B. Li, FAU 2016 Ch. 6"
+    )
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=60.0, step_size=0.01)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self._inputs = dict.fromkeys(MEASUREMENT_NAMES, 0.0)
+        self._outputs = list(Commands(thrust=_DEFAULTS.thrust_command).values())
+        self._params: dict[str, Any] = _DEFAULTS.model_dump()
+        self._autopilot: Autopilot | None = None
+        self._step_warned = False
+        self._register_variables()
+
+    def _register_variables(self) -> None:
+        for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS, strict=True):
+            self.register(
+                Real(
+                    name,
+                    causality=Fmi2Causality.input,
+                    variability=Fmi2Variability.continuous,
+                    description=INPUT_DESCRIPTIONS[name],
+                    getter=_key_getter(self._inputs, name),
+                    setter=_key_setter(self._inputs, name),
+                ),
+                unit=unit,
+            )
+        for i, (name, unit) in enumerate(zip(COMMAND_NAMES, COMMAND_UNITS, strict=True)):
+            self.register(
+                Real(
+                    name,
+                    causality=Fmi2Causality.output,
+                    variability=Fmi2Variability.discrete,
+                    initial=Fmi2Initial.exact,
+                    description=OUTPUT_DESCRIPTIONS[name],
+                    getter=_item_getter(self._outputs, i),
+                ),
+                unit=unit,
+            )
+        fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
+        for name, field in AutopilotConfig.model_fields.items():
+            kind = {int: Integer, bool: Boolean, str: String, float: Real}[field.annotation]
+            variable = kind(
+                name,
+                description=field.description,
+                getter=_key_getter(self._params, name),
+                setter=_key_setter(self._params, name),
+                **fixed,
+            )
+            self.register(variable, unit=field_unit(name) if kind is Real else None)
+
+    # --- SafeSlave hooks ---------------------------------------------------------------------
+
+    def _initialize(self) -> None:
+        self._autopilot = Autopilot(AutopilotConfig.build(**self._params))
+        self._outputs[:] = self._autopilot.commands.values()
+        self._step_warned = False
+
+    def _step(self, current_time: float, step_size: float) -> None:
+        autopilot = self._autopilot
+        design_step = autopilot.config.design_step
+        if (
+            autopilot.config.heading_mode in (1, 2)
+            and not self._step_warned
+            and not math.isclose(step_size, design_step, rel_tol=1e-9)
+        ):
+            self.log(
+                f"communication step {step_size!r} s differs from design_step = "
+                f"{design_step!r} s: the LQR / sliding-mode gains are designed for "
+                "design_step (set it to the communication step)",
+                Fmi2Status.warning,
+            )
+            self._step_warned = True
+        before = autopilot.snapshot()
+        try:
+            commands = autopilot.step(current_time, self._inputs)
+        except Exception:
+            autopilot.restore(before)
+            raise
+        self._outputs[:] = commands.values()
+
+    def _state_snapshot(self) -> dict[str, Any]:
+        state: dict[str, Any] = {"outputs": list(self._outputs), "warned": self._step_warned}
+        if self._autopilot is not None:
+            commands, heading_setpoint, bs = self._autopilot.snapshot()
+            state["autopilot"] = {
+                "commands": list(commands.values()),
+                "heading_setpoint": heading_setpoint,
+                "backstepping": None
+                if bs is None
+                else [bs[0], bs[1].tolist(), bs[2].tolist(), bs[3].tolist()],
+            }
+        return state
+
+    def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
+        self._outputs[:] = snapshot["outputs"]
+        self._step_warned = snapshot["warned"]
+        saved = snapshot.get("autopilot")
+        if saved is None:
+            return
+        config = AutopilotConfig.build(**self._params)
+        if self._autopilot is None or self._autopilot.config != config:
+            self._autopilot = Autopilot(config)
+        bs = saved["backstepping"]
+        self._autopilot.restore(
+            (
+                Commands(*saved["commands"]),
+                saved["heading_setpoint"],
+                None if bs is None else (bs[0], np.array(bs[1]), np.array(bs[2]), np.array(bs[3])),
+            )
+        )
+
+
+def _item_getter(values: list, i: int):
+    return lambda: values[i]
+
+
+def _key_getter(values: dict, key: str):
+    return lambda: values[key]
+
+
+def _key_setter(values: dict, key: str):
+    def setter(value: Any) -> None:
+        values[key] = value
+
+    return setter
