@@ -2,7 +2,8 @@
 
 * ``fmu_paths`` (session): ``{"AuvPlant": Path, "AuvAutopilot": Path}`` built once per test
   session into a temporary folder with :mod:`cosim.build`. Until
-  ``controller_fmu/auv_autopilot.py`` exists it holds only ``"AuvPlant"``.
+  ``controller_fmu/auv_autopilot.py`` exists it holds only ``"AuvPlant"``; an FMU whose
+  build fails is absent too, and looking it up raises that build's error.
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
   ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). This folder is on
@@ -22,12 +23,35 @@ from pathlib import Path
 import pytest
 
 from cosim.build import FMUS, build_fmu, script_path
+from cosim.errors import CosimError
+
+
+class BuiltFmus(dict):
+    """``{name: path}`` of the FMUs that built; looking up one whose build failed raises
+    that build's error, so a broken FMU fails only the tests that use it."""
+
+    def __init__(self, built: dict[str, Path], failures: dict[str, Exception]) -> None:
+        super().__init__(built)
+        self.failures = failures
+
+    def __missing__(self, name: str) -> Path:
+        if name in self.failures:
+            raise self.failures[name]
+        raise KeyError(name)
 
 
 @pytest.fixture(scope="session")
 def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     out = tmp_path_factory.mktemp("fmus")
-    return {name: build_fmu(name, out) for name in FMUS if script_path(name).is_file()}
+    built: dict[str, Path] = {}
+    failures: dict[str, Exception] = {}
+    for name in FMUS:
+        if script_path(name).is_file():
+            try:
+                built[name] = build_fmu(name, out)
+            except CosimError as exc:
+                failures[name] = exc
+    return BuiltFmus(built, failures)
 
 
 @pytest.fixture(scope="session")
