@@ -195,7 +195,7 @@ class AutopilotConfig(BaseModel):
         "(Table 6.2)", json_schema_extra=_unit("s"),
     )  # fmt: skip
     fin_angle_limit: float = Field(
-        default=DEFAULT_FIN_LIMIT, gt=0.0, description="stern-plane limit |delta_s| (15 deg)",
+        default=DEFAULT_FIN_LIMIT, gt=0.0, description="stern-plane limit |delta_s| (25 deg)",
         json_schema_extra=_unit("rad"),
     )  # fmt: skip
     mass_position_cmd_limit: float = Field(
