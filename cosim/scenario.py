@@ -337,16 +337,20 @@ def _validate_spec(data: dict[str, Any], where: str) -> ScenarioSpec:
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:
-        problems = []
+        problems: dict[str, str] = {}  # key -> problem, the first one per key
         for err in exc.errors():
             key = ".".join(str(part) for part in err["loc"] if not _is_union_tag(part))
             if err["type"] == "extra_forbidden":
-                problems.append(f"unknown key {key!r}")
+                problem = f"unknown key {key!r}"
             elif err["type"] == "missing":
-                problems.append(f"key {key!r} is missing")
+                problem = f"key {key!r} is missing"
+            elif any(_is_union_tag(part) for part in err["loc"]):  # a start value
+                problem = f"key {key!r} = {err.get('input')!r}: expected a number, an integer, "
+                problem += "true/false or a string"
             else:
-                problems.append(f"key {key!r} = {err.get('input')!r}: {err['msg']}")
-        raise ScenarioError(f"scenario file {where}: " + "; ".join(problems)) from None
+                problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
+            problems.setdefault(key, problem)
+        raise ScenarioError(f"scenario file {where}: " + "; ".join(problems.values())) from None
 
 
 def _is_union_tag(part: Any) -> bool:
