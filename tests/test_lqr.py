@@ -1,0 +1,122 @@
+"""LQR heading autopilot on the moving mass (6.3.17)-(6.3.19): why the design is discrete,
+that it is stable at the steps users pick, that it follows the vehicle, and the lqr-1 /
+lqr-2 outcomes in the in-process closed loop (plant model + Autopilot, 10 ms)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controller_fmu.autopilot import Autopilot, AutopilotConfig
+from controller_fmu.closed_loop import simulate_closed_loop
+from controller_fmu.lateral_model import LateralDesignModel
+from controller_fmu.lqr import (
+    DISSERTATION_Q_Y,
+    DISSERTATION_R_U,
+    LqrHeading,
+    continuous_gain,
+    discrete_gain,
+    discretize,
+    state_weight,
+)
+from plant_fmu.analysis import state_vector
+from plant_fmu.dynamics import PlantModel, Variant
+from plant_fmu.parameters import load_vehicle
+
+U0 = 1.525  # m/s: (6.3.19)'s linearisation speed
+
+
+@pytest.fixture(scope="module")
+def remus():
+    return load_vehicle("remus100")
+
+
+@pytest.fixture(scope="module")
+def linear(remus):
+    return LateralDesignModel(remus, U0).linearize()
+
+
+def test_continuous_design_puts_a_servo_pole_no_sampled_loop_can_realise(linear):
+    A, B = linear
+    K, poles = continuous_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U)
+    # MODEL.md section 4: a closed-loop pole near -5760 1/s (the rail speed weight 1e6).
+    assert poles.real.min() < -1000.0
+    # The same gains held over 10 ms steps: the sampled loop is violently unstable.
+    Ad, Bd = discretize(A, B, 0.01)
+    sampled = np.linalg.eigvals(Ad - Bd @ K[None, :])
+    assert np.abs(sampled).max() > 2.0
+
+
+@pytest.mark.parametrize("dt", [0.001, 0.01, 0.05])
+def test_discrete_design_is_stable_at_the_communication_steps_users_pick(linear, dt):
+    A, B = linear
+    K, poles = discrete_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U, dt)
+    Ad, Bd = discretize(A, B, dt)
+    closed = np.linalg.eigvals(Ad - Bd @ K[None, :])
+    assert np.abs(closed).max() < 1.0
+    np.testing.assert_allclose(np.sort_complex(closed), np.sort_complex(poles), atol=1e-9)
+
+
+def test_discrete_design_keeps_the_continuous_designs_slow_dynamics(linear):
+    """Away from the servo pole, the 10 ms design's poles (as s = ln z / h) are the
+    continuous LQR's: the discrete design changes only what sampling cannot realise."""
+    A, B = linear
+    h = 0.01
+    _, continuous = continuous_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U)
+    _, discrete = discrete_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U, h)
+    slow_c = np.sort_complex(continuous[np.abs(continuous) < 100.0])
+    as_s = np.log(discrete.astype(complex)) / h
+    slow_d = np.sort_complex(as_s[np.abs(as_s) < 100.0])
+    assert len(slow_c) == len(slow_d) == 6
+    np.testing.assert_allclose(slow_d, slow_c, rtol=0.02)
+
+
+def test_gains_are_designed_from_the_current_parameters(remus):
+    base = LqrHeading(LateralDesignModel(remus, U0), 0.01).gain
+    heavier_keel = LqrHeading(LateralDesignModel(remus.replace(z_g=0.03), U0), 0.01).gain
+    slower = LqrHeading(LateralDesignModel(remus, 1.017), 0.01).gain
+    coarser = LqrHeading(LateralDesignModel(remus, U0), 0.05).gain
+    for other in (heavier_keel, slower, coarser):
+        assert np.abs(other - base).max() > 1e-3 * np.abs(base).max()
+
+
+def test_bad_weights_and_sample_times_are_refused_with_the_value_named(linear):
+    A, B = linear
+    with pytest.raises(ValueError, match=r"Q_y = \[1\.0, 2\.0\]: expected 6"):
+        state_weight([1.0, 2.0])
+    with pytest.raises(ValueError, match=r"Q_y .*-1"):
+        state_weight([1.0, 5e3, 1e2, -1.0, 1e3, 1e6])
+    with pytest.raises(ValueError, match=r"sample time 0\.0"):
+        discretize(A, B, 0.0)
+    with pytest.raises(ValueError, match=r"R_u = 0\.0"):
+        discrete_gain(A, B, DISSERTATION_Q_Y, 0.0, 0.01)
+
+
+# --- closed loop, MODEL.md section 5 ----------------------------------------------------------
+
+
+def _run(remus, v0: float, stop_time: float):
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=1))
+    model = PlantModel(remus, variant=Variant.LATERAL)
+    x0 = state_vector({"u": 1.50, "v": v0})
+    return simulate_closed_loop(autopilot, model, x0, stop_time, 0.01)
+
+
+def _after(run, t: float) -> np.ndarray:
+    return np.abs(np.degrees(run.state("yaw")[run.times >= t]))
+
+
+def test_lqr1_small_sway_disturbance_settles_within_25_s(remus):
+    run = _run(remus, v0=-0.01, stop_time=40.0)
+    assert _after(run, 25.0).max() < 1.0
+    assert _after(run, 0.0).max() > 1.0  # it was disturbed, and came back
+
+
+def test_lqr2_mass_reaches_its_stop_and_heading_returns_within_45_s(remus):
+    run = _run(remus, v0=-0.05, stop_time=60.0)
+    assert run.state("mass_position").min() == pytest.approx(-0.06, abs=1e-12)
+    assert np.abs(run.command("mass_position_cmd")).max() <= 0.06
+    assert _after(run, 45.0).max() < 1.0
+    assert math.isfinite(run.states[-1].sum())
