@@ -18,7 +18,9 @@ import math
 
 
 def wrap_angle(angle: float) -> float:
-    """The angle in [-pi, pi), rad."""
+    """The angle in [-pi, pi), rad; an angle already in range is returned unchanged."""
+    if -math.pi <= angle < math.pi:
+        return angle
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 

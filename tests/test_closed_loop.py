@@ -1,0 +1,169 @@
+"""The Autopilot composition: guidance (6.3.74)-(6.3.75), the depth PD of Fig. 6.40 with
+Table 6.2's gains on the 6-DOF plant (vert-1, vert-2), the moving-mass lock, exact
+snapshot/restore, and bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controller_fmu.autopilot import (
+    MEASUREMENT_NAMES,
+    Autopilot,
+    AutopilotConfig,
+    AutopilotConfigError,
+)
+from controller_fmu.closed_loop import measurements, simulate_closed_loop
+from controller_fmu.depth_pd import DepthPd
+from controller_fmu.guidance import crab_angle, desired_heading, mass_locked
+from plant_fmu.analysis import input_vector, state_vector
+from plant_fmu.dynamics import PlantModel, Variant
+from plant_fmu.parameters import VehicleParameterError, load_vehicle
+
+H = 0.01
+
+
+@pytest.fixture(scope="module")
+def remus():
+    return load_vehicle("remus100")
+
+
+# --- guidance -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("speed", "printed_deg", "digits"),
+    [(1.525, -7.55, 0.02), (1.017, -11.3, 0.05)],  # (6.3.74) at 9 N, (6.3.75) at 4 N
+)
+def test_heading_into_a_cross_current_is_the_sideslip_angle(speed, printed_deg, digits):
+    psi_d = desired_heading(0.0, 0.0, 0.2, speed, compensate_current=True)
+    assert math.degrees(psi_d) == pytest.approx(printed_deg, abs=digits)
+    # Only the component across the course counts: heading east, the same current is along it.
+    assert desired_heading(math.pi / 2, 0.0, 0.2, speed, True) == pytest.approx(math.pi / 2)
+    assert desired_heading(0.3, 0.0, 0.2, speed, compensate_current=False) == 0.3
+
+
+def test_a_cross_current_faster_than_the_vehicle_is_refused():
+    with pytest.raises(ValueError, match=r"cross-current 1\.6 m/s .* design speed 1\.525"):
+        crab_angle(0.0, 0.0, 1.6, 1.525)
+
+
+def test_mass_lock_starts_at_the_lock_time_and_never_when_negative():
+    assert not mass_locked(14.99, 15.0) and mass_locked(15.0, 15.0)
+    assert not mass_locked(1e6, -1.0)
+
+
+# --- depth PD ---------------------------------------------------------------------------------
+
+
+def test_depth_pd_signs_and_limit():
+    pd = DepthPd()  # Table 6.2
+    assert (pd.gamma, pd.k_p, pd.tau_d) == (-0.7720, 10.345, 0.21)
+    # Too shallow: nose down (theta_d < 0) by a positive fin (M_ds < 0 pitches nose down).
+    assert pd.pitch_setpoint(1.0, 0.9) == pytest.approx(-0.0772)
+    assert pd.fin_angle(1.0, 0.99, 0.0, 0.0) == pytest.approx(10.345 * 0.00772)
+    # Pitching up (q > 0) is damped by a nose-down fin.
+    assert pd.fin_angle(1.0, 1.0, 0.0, 0.01) == pytest.approx(10.345 * 0.21 * 0.01)
+    assert pd.fin_angle(5.0, 0.0, 0.0, 0.0) == pd.fin_limit
+    with pytest.raises(ValueError, match=r"fin_limit = 0\.0"):
+        DepthPd(fin_limit=0.0)
+
+
+@pytest.fixture(scope="module")
+def vertical(remus):
+    """vert-1 and vert-2 (Sec. 6.3.4): 6-DOF from the surface, u0 = 1.5, v0 = 0.1, z_d = 1 m,
+    psi_d = 0, backstepping + thruster and the depth PD; vert-2 locks the mass at 15 s."""
+    model = PlantModel(remus, variant=Variant.FULL)
+    x0 = state_vector({"u": 1.50, "v": 0.10})
+    runs = {}
+    for name, lock in (("vert-1", -1.0), ("vert-2", 15.0)):
+        config = AutopilotConfig.build(heading_mode=3, depth_mode=1, mass_lock_time=lock)
+        runs[name] = simulate_closed_loop(Autopilot(config), model, x0, 60.0, H, depth_setpoint=1.0)
+    return runs
+
+
+def test_vert2_both_loops_settle_where_the_dissertation_reports(vertical):
+    run = vertical["vert-2"]
+    late = run.times >= 45.0
+    # Sec. 6.3.4: w ~ -0.07 m/s, theta ~ -0.045 rad, mean delta_s ~ -5 deg (buoyancy offset).
+    assert run.state("w")[late].mean() == pytest.approx(-0.07, abs=0.01)
+    assert run.state("pitch")[late].mean() == pytest.approx(-0.045, abs=0.01)
+    assert np.degrees(run.command("fin_angle")[late]).mean() == pytest.approx(-5.0, abs=0.5)
+    assert np.ptp(run.state("down")[late]) < 0.01  # settled
+    assert 0.9 < run.state("down")[-1] < 1.0  # a P depth loop keeps a steady error
+    assert np.all(run.command("mass_position_cmd")[run.times >= 15.0] == 0.0)
+    assert np.abs(run.state("mass_position")[-1]) < 1e-3
+    assert np.abs(np.degrees(run.state("yaw")[late])).max() < 1.0
+
+
+def test_vert1_keeps_rolling_while_the_mass_is_active(vertical):
+    """Sec. 6.3.4: without the lock the (m + a33) p w coupling keeps the roll oscillating."""
+    late_1 = vertical["vert-1"].times >= 40.0
+    roll_1 = np.degrees(vertical["vert-1"].state("roll")[late_1])
+    roll_2 = np.degrees(vertical["vert-2"].state("roll")[late_1])
+    assert roll_1.std() > 3.0
+    assert roll_1.std() > 5.0 * roll_2.std()
+
+
+# --- composition ----------------------------------------------------------------------------
+
+
+def _measured(remus, **state) -> dict[str, float]:
+    model = PlantModel(remus, variant=Variant.LATERAL)
+    return measurements(model, state_vector(state), input_vector(thrust=9.0))
+
+
+def test_heading_off_commands_nothing_but_the_thrust(remus):
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=0, thrust_command=4.0))
+    commands = autopilot.step(0.0, _measured(remus, u=1.5, v=-0.1, yaw=0.5))
+    assert commands.values() == (0.0, 0.0, 0.0, 4.0)
+
+
+def test_snapshot_and_restore_continue_bit_identically(remus):
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=3))
+    model = PlantModel(remus, variant=Variant.LATERAL)
+    run = simulate_closed_loop(autopilot, model, state_vector({"u": 1.5, "v": -0.1}), 2.0, H)
+    saved = autopilot.snapshot()
+
+    def replay() -> list[tuple[float, ...]]:
+        return [
+            autopilot.step(2.0 + k * H, measurements(model, x, input_vector(thrust=9.0))).values()
+            for k, x in enumerate(run.states[::20])
+        ]
+
+    first = replay()
+    autopilot.restore(saved)
+    assert replay() == first
+
+
+def test_a_non_finite_or_missing_measurement_is_refused_by_name(remus):
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=1))
+    good = _measured(remus, u=1.5)
+    with pytest.raises(ValueError, match=r"measurement v_rel = nan: expected a finite number"):
+        autopilot.step(0.0, {**good, "v_rel": float("nan")})
+    missing = {k: v for k, v in good.items() if k != "depth_setpoint"}
+    with pytest.raises(ValueError, match="measurement 'depth_setpoint' is missing"):
+        autopilot.step(0.0, missing)
+    assert set(good) == set(MEASUREMENT_NAMES)
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"heading_mode": 7}, r"heading_mode = 7: .*expected one of \{0: 'off', 1: 'LQR'"),
+        ({"depth_mode": -1}, "depth_mode = -1"),
+        ({"design_speed": 0.0}, "design_speed = 0.0"),
+        ({"k0": float("nan")}, "k0 = nan"),
+        ({"rudder": 1.0}, "unknown autopilot parameter 'rudder'"),
+    ],
+)
+def test_bad_parameters_are_refused_with_the_name_and_what_is_allowed(values, message):
+    with pytest.raises(AutopilotConfigError, match=message):
+        AutopilotConfig.build(**values)
+
+
+def test_unknown_vehicle_is_refused_listing_the_known_sets():
+    with pytest.raises(VehicleParameterError, match=r"unknown vehicle 'remus200'.*remus100"):
+        Autopilot(AutopilotConfig.build(vehicle="remus200"))
