@@ -154,3 +154,30 @@ def test_results_without_rows_or_time_are_refused(tmp_path):
 def test_cli_prints_the_index_path(lateral_run, capsys):
     assert main(["report", str(lateral_run)]) == 0
     assert capsys.readouterr().out.strip() == f"report: {lateral_run / 'report' / 'index.html'}"
+
+
+BS3_RUN = """
+import sys
+from pathlib import Path
+from cosim.runner import run_scenario
+
+fmu_dir, out = Path(sys.argv[1]), Path(sys.argv[2])
+outcome = run_scenario("bs-3", out, stop_time=20.0, no_rrd=True, fmu_dir=fmu_dir)
+assert outcome.result.complete, outcome.result.error
+"""
+
+
+def test_report_of_a_bs3_run_through_the_master(fmu_paths, run_python, tmp_path):
+    """Both FMUs through the master (fresh process: pythonfmu caches modules), then the
+    report: every figure written and non-empty, the summary on the page."""
+    if "AuvAutopilot" not in fmu_paths:
+        pytest.skip("controller_fmu/auv_autopilot.py does not exist yet")
+    done = run_python(BS3_RUN, fmu_paths["AuvPlant"].parent, tmp_path / "bs-3")
+    assert done.returncode == 0, done.stderr
+    index = write_report(tmp_path / "bs-3")
+    figures = sorted(p.name for p in index.parent.glob("*.png"))
+    assert figures == ["attitude_actuators.png", "trajectory.png", "velocities.png"]
+    for name in figures:
+        _assert_png(index.parent / name)
+    page = index.read_text()
+    assert "Run bs-3" in page and "yaw settling time s" in page
