@@ -194,7 +194,7 @@ class Scenario:
 
     id: str
     summary: str
-    source: Path | None
+    source: Path | None = dataclasses.field(compare=False)  # the file it was read from
     stop_time: float  # s
     coupling: Coupling
     instances: Mapping[str, Instance]

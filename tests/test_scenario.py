@@ -1,0 +1,186 @@
+"""Scenario files: the built-ins, the resolved model, and bad files failing before any FMU
+is loaded with the file and the key named."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from cosim import master
+from cosim.scenario import (
+    SCENARIO_FOLDER,
+    ScenarioError,
+    builtin_scenarios,
+    load_scenario,
+    scenario_from_toml,
+)
+
+MODEL_MD_IDS = ["bs-1", "bs-2", "bs-3", "cur-1", "cur-2", "lqr-1", "lqr-2", "lqr-3",
+                "slow-1", "slow-2", "vert-1", "vert-2"]  # fmt: skip
+BS3 = (SCENARIO_FOLDER / "bs-3.toml").read_text()
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    if "AuvAutopilot" not in fmu_paths:
+        pytest.skip("AuvAutopilot.fmu cannot be built yet")
+    return fmu_paths["AuvPlant"].parent
+
+
+@pytest.fixture
+def no_fmu_loading(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fail the test if anything tries to load an FMU's binary."""
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("an FMU was loaded while validating a scenario")
+
+    monkeypatch.setattr(master, "FMU2Slave", refuse)
+    monkeypatch.setattr("fmpy.fmi2.FMU2Slave.__init__", refuse)
+
+
+def test_builtin_scenarios_are_model_md_section_5() -> None:
+    scenarios = builtin_scenarios()
+    assert sorted(scenarios) == MODEL_MD_IDS
+    assert all(summary and "\n" not in summary for summary in scenarios.values())
+
+
+def test_builtin_files_resolve_as_model_md_says(fmu_dir: Path, no_fmu_loading: None) -> None:
+    for scenario_id in MODEL_MD_IDS:
+        s = load_scenario(scenario_id, fmu_dir=fmu_dir)
+        plant, controller = s.instances["plant"].start, s.instances["controller"].start
+        assert s.id == scenario_id and s.coupling.step == 0.01
+        assert plant["variant"] == (0 if scenario_id.startswith("vert") else 1)
+        assert plant["u_0"] == (1.0 if scenario_id.startswith("slow") else 1.5)
+        fin = [c for c in s.connections if c.target == "plant.fin_angle"]
+        assert fin == [] or scenario_id.startswith("vert")  # only vert-* uses the planes
+        assert controller.get("depth_mode", 0) == (1 if scenario_id.startswith("vert") else 0)
+        # the current reaches both the plant and the controller, or neither
+        assert plant.get("current_east", 0.0) == controller.get("current_east", 0.0)
+    thrust = load_scenario("bs-3", fmu_dir=fmu_dir).connections
+    assert ("controller.thrust", "plant.thrust") in [(c.source, c.target) for c in thrust]
+
+
+def test_default_connections_and_record(fmu_dir: Path) -> None:
+    s = load_scenario("vert-1", fmu_dir=fmu_dir)
+    pairs = {(c.source, c.target) for c in s.connections}
+    for name in ("mass_position_cmd", "tunnel_force", "fin_angle", "thrust"):
+        assert (f"controller.{name}", f"plant.{name}") in pairs
+    for name in ("yaw", "r", "p", "roll", "v_rel", "u_rel", "down", "pitch", "q", "w_rel"):
+        assert (f"plant.{name}", f"controller.{name}") in pairs
+    assert all(c.source_instance != c.target_instance for c in s.connections)
+    # every output, plus the inputs nothing drives: set-points and the current
+    expected = ["plant.yaw", "plant.kinetic_energy", "controller.tunnel_force",
+                "controller.yaw_setpoint", "controller.depth_setpoint",
+                "controller.current_east", "plant.current_east", "plant.roll_torque"]  # fmt: skip
+    assert set(expected) <= set(s.record)
+    assert "controller.yaw" not in s.record  # a connected input repeats plant.yaw
+
+
+def test_to_toml_loads_back_to_an_equal_scenario(fmu_dir: Path, tmp_path: Path) -> None:
+    s = load_scenario("cur-2", fmu_dir=fmu_dir)
+    again = scenario_from_toml(s.to_toml(), "resolved", fmu_dir=fmu_dir)
+    assert again == s
+    resolved = tomllib.loads(s.to_toml())
+    assert resolved["connections"]["same_names"] is False
+    assert len(resolved["connections"]["add"]) == len(s.connections)
+
+
+def test_overrides_are_validated(fmu_dir: Path) -> None:
+    s = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(
+        stop_time=2.0, step=0.02, algorithm="jacobi"
+    )
+    assert (s.stop_time, s.coupling.step, s.coupling.algorithm, s.n_steps) == (
+        2.0,
+        0.02,
+        "jacobi",
+        100,
+    )
+    with pytest.raises(
+        ScenarioError, match=r"stop_time.*not a whole number of communication steps"
+    ):
+        s.with_overrides(stop_time=1.005)
+    with pytest.raises(ScenarioError, match=r"coupling\.step.*greater than 0"):
+        s.with_overrides(step=-0.01)
+
+
+REMOVE = 'remove = ["plant.fin_angle"]'
+ADD = 'add = [{{ from = "{}", to = "{}" }}]'
+BAD_EDITS = [
+    # unknown keys, top level and nested
+    ("stop_time = 60.0", "stop_time = 60.0\nstop_tme = 3", r"unknown key 'stop_tme'"),
+    ("step = 0.01", "step = 0.01\nstep_size = 1", r"unknown key 'coupling\.step_size'"),
+    # wrong types and values
+    ("step = 0.01", 'step = "fast"', r"key 'coupling\.step' = 'fast'"),
+    ('algorithm = "gauss-seidel"', 'algorithm = "euler"', r"'coupling\.algorithm' = 'euler'"),
+    ("heading_mode = 3", "heading_mode = 3.5", r"start\.heading_mode.*not an integer"),
+    ("v_0 = -0.10", 'v_0 = "-0.10"', r"instances\.plant\.start\.v_0.*not a number"),
+    # start values for what takes none
+    ("v_0 = -0.10", "v_0 = -0.10\nyaw = 1.0", r"plant\.start\.yaw.*continuous output"),
+    ("v_0 = -0.10", "v_0 = -0.10\nv_00 = 1.0", r"start\.v_00.*has no variable 'v_00'"),
+    ("v_0 = -0.10", "v_0 = -0.10\nthrust = 4.0", r"plant\.thrust is connected from controller"),
+    # connections: a missing variable, output -> output, input -> input, bad names
+    (REMOVE, ADD.format("controller.tunnel_forse", "plant.tunnel_force"),
+     r"add\[0\]\.from.*controller \(AuvAutopilot\.fmu\) has no variable 'tunnel_forse'"),
+    (REMOVE, ADD.format("plant.yaw", "controller.tunnel_force"),
+     r"add\[0\]\.to.*'controller\.tunnel_force' is an output, not an input"),
+    (REMOVE, ADD.format("controller.yaw", "plant.thrust"),
+     r"add\[0\]\.from.*'controller\.yaw' is an input, not an output"),
+    (REMOVE, 'remove = ["plant.yaw"]', r"remove\[0\].*'plant\.yaw' is an output"),
+    (REMOVE, 'remove = ["autopilot.fin_angle"]', r"not <instance>\.<variable>"),
+    # coupling and FMUs
+    ('order = ["controller", "plant"]', 'order = ["controller"]', r"coupling\.order.*every"),
+    ("step = 0.01", "step = 0.01\nstep_multiples = { ctrl = 5 }",
+     r"coupling\.step_multiples\.ctrl.*no instance 'ctrl'"),
+    ('fmu = "AuvPlant"', 'fmu = "NoSuch.fmu"', r"instances\.plant\.fmu.*neither a built-in"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("old", "new", "message"), BAD_EDITS)
+def test_bad_scenario_fails_before_loading_naming_the_key(
+    fmu_dir: Path, tmp_path: Path, no_fmu_loading: None, old: str, new: str, message: str
+) -> None:
+    assert old in BS3
+    path = tmp_path / "bad.toml"
+    path.write_text(BS3.replace(old, new, 1))
+    with pytest.raises(ScenarioError, match=message) as info:
+        load_scenario(path, fmu_dir=fmu_dir)
+    assert str(info.value).startswith(f"scenario file {path}: ")
+
+
+def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
+    path = tmp_path / "broken.toml"
+    path.write_text("stop_time = = 3\n")
+    with pytest.raises(ScenarioError, match=f"scenario file {path}: not valid TOML"):
+        load_scenario(path)
+    with pytest.raises(
+        ScenarioError, match=r"unknown scenario 'bs-9': expected a built-in id \(bs-1, "
+    ):
+        load_scenario("bs-9")
+
+
+def test_cli_rejects_a_bad_file_with_one_line_and_no_run(fmu_dir: Path, tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(BS3.replace("stop_time = 60.0", "stop_time = 60.0\ncolour = 'red'"))
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cosim.cli",
+            "run",
+            str(path),
+            "--fmu-dir",
+            str(fmu_dir),
+            "--out",
+            "out",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 1
+    assert proc.stderr == f"auv-cosim run: scenario file {path}: unknown key 'colour'\n"
+    assert not (tmp_path / "out").exists()
