@@ -25,6 +25,7 @@ from cosim.scenario import DEFAULT_FMU_DIR, Scenario, load_scenario
 
 RUNS_DIR = Path("runs")
 RECORDING_FILE = "recording.rrd"
+MESSAGES_SHOWN = 3  # FMU log lines (warnings and worse) printed per instance
 
 
 @dataclass
@@ -122,6 +123,10 @@ def _report(outcome: RunOutcome) -> str:
     lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
     figures = key_figures(result)
     lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in figures.items()))
+    for name, messages in result.messages.items():
+        lines += [f"  {name} logged: {message}" for message in messages[:MESSAGES_SHOWN]]
+        if len(messages) > MESSAGES_SHOWN:
+            lines.append(f"  {name} logged {len(messages) - MESSAGES_SHOWN} more (summary.json)")
     return "\n".join(lines)
 
 

@@ -258,11 +258,11 @@ class Scenario:
             },
             "output": {"record": list(self.record), "rrd": self.rrd},
         }
+        origin = f" (from {self.source})" if self.source else ""
         header = (
-            f"# Resolved scenario {self.id!r}"
-            + (f" (from {self.source})" if self.source else "")
-            + ": every connection, start value, step multiple and recorded variable spelled\n"
-            "# out. Run it with `auv-cosim run <this file>`.\n"
+            f"# Resolved scenario {self.id!r}{origin}.\n"
+            "# Every connection, start value, step multiple and recorded variable is spelled\n"
+            "# out; run it with `auv-cosim run <this file>`.\n"
         )
         return header + tomli_w.dumps(data)
 

@@ -184,3 +184,11 @@ def test_cli_rejects_a_bad_file_with_one_line_and_no_run(fmu_dir: Path, tmp_path
     assert proc.returncode == 1
     assert proc.stderr == f"auv-cosim run: scenario file {path}: unknown key 'colour'\n"
     assert not (tmp_path / "out").exists()
+
+
+def test_documented_example_resolves(fmu_dir: Path, no_fmu_loading: None) -> None:
+    example = Path(__file__).parent.parent / "docs" / "scenario-example.toml"
+    s = load_scenario(example, fmu_dir=fmu_dir)
+    assert s.coupling.step_multiples == {"plant": 1, "controller": 5}
+    assert len(s.connections) == 10 and not s.rrd
+    assert s.record[0] == "plant.yaw"
