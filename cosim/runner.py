@@ -65,19 +65,21 @@ def run_scenario(
     out_dir = out_dir if out_dir is not None else RUNS_DIR / scenario.id
     rrd_path = None if no_rrd or not scenario.rrd else (rrd or out_dir / RECORDING_FILE)
     sink = _open_sink(scenario, rrd_path, connect)
-    bar = _progress_bar(scenario) if progress else None
+    bar: list[Any] = []  # the progress bar, opened when the stepping starts
 
     def on_rows(times: np.ndarray, values: np.ndarray) -> None:
         if sink is not None:
             sink.add_rows(times, values)
-        if bar is not None:
-            bar.update(len(times))
+        if progress:
+            if not bar:
+                bar.append(_progress_bar(scenario))
+            bar[0].update(len(times))
 
     try:
-        result = master.run(scenario, on_rows=on_rows if sink or bar else None)
+        result = master.run(scenario, on_rows=on_rows if sink is not None or progress else None)
     finally:
-        if bar is not None:
-            bar.close()
+        for b in bar:
+            b.close()
         if sink is not None:
             sink.close()
     paths = write_outputs(result, out_dir)
