@@ -30,6 +30,7 @@ from cosim.errors import CosimError
 from plant_fmu.analysis import Equilibrium
 from plant_fmu.bifurcation import (
     Q_PROP,
+    SEARCH_BOX,
     OperatingConditions,
     Sweep,
     cg_offset,
@@ -116,7 +117,7 @@ def _equilibria(conditions: OperatingConditions, as_json: bool) -> int:
 def equilibria_table(conditions: OperatingConditions, equilibria: Sequence[Equilibrium]) -> str:
     """A plain-text table: one row per equilibrium, its free states, stability, eigenvalues."""
     names = conditions.free_states
-    box = "0 < u < 2 m/s, |v|, |r| <= 0.4" + (", |roll| < 90 deg" if "roll" in names else "")
+    box = search_box_text(names)
     lines = [f"{len(equilibria)} equilibri{'um' if len(equilibria) == 1 else 'a'} in {box}:"]
     header = [f"{n} [{STATE_UNITS[STATE_INDEX[n]]}]" for n in names]
     lines.append("  ".join(f"{h:>14}" for h in header) + "  stable    eigenvalues")
@@ -130,6 +131,19 @@ def equilibria_table(conditions: OperatingConditions, equilibria: Sequence[Equil
             "velocities over ground while heading north)"
         )
     return "\n".join(lines)
+
+
+def search_box_text(names: Sequence[str]) -> str:
+    """The search box over these free states, e.g. '0 < u < 2 m/s, |v|, |r| <= 0.4'."""
+    low, high = SEARCH_BOX["u"]
+    parts = [f"{low:g} < u < {high:g} m/s"]
+    rates = [n for n in names if n != "u" and n in SEARCH_BOX and n not in ("roll", "pitch")]
+    if rates:
+        parts.append(", ".join(f"|{n}|" for n in rates) + f" <= {SEARCH_BOX[rates[0]][1]:g}")
+    angles = [n for n in names if n in ("roll", "pitch")]
+    if angles:
+        parts.append(", ".join(f"|{n}|" for n in angles) + " < 90 deg")
+    return ", ".join(parts)
 
 
 def _complex(z: complex) -> str:
