@@ -263,7 +263,8 @@ def find_equilibria(
             free states without seeds start at 0).
 
     Returns:
-        Equilibria of the relative motion; their ``state`` is over ground (see
+        Equilibria of the relative motion (the box bounds the velocities relative to the
+        water); their ``state`` is over ground (see
         :meth:`OperatingConditions.over_ground`), their eigenvalues those of the Jacobian
         over ``conditions.free_states`` (the moving-mass servo, whose poles are
         -zeta omega_n +- i omega_n sqrt(1 - zeta^2) whatever the hull does, is left out).
