@@ -15,7 +15,10 @@ For a communication step h and N = stop_time / h steps::
 
 An instance with step multiple k is *due* when n is a multiple of k; it then steps k h
 (shortened at the stop time) and holds its outputs in between (multi-rate). Row n holds
-every instance's latest outputs once the due instances have advanced to t = n h.
+every instance's latest outputs once the due instances have advanced to t = n h. Connected
+inputs are first set at t = 0, just before an instance's first doStep: there is no
+exchange in initialisation mode (our FMUs' initial outputs depend on parameters only), so
+under Jacobi the first step of the plant sees the controller's initial outputs.
 
 Why a loop of our own: ``fmpy.simulate_fmu`` runs one FMU, and ``fmpy.ssp`` has no
 Gauss-Seidel order, multi-rate, per-step NaN check or partial results. The style follows
@@ -158,7 +161,6 @@ class _Slave:
                    "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}  # fmt: skip
         for kind, (vrs, values) in grouped.items():
             setters[kind](vrs, values)
-        self._expect("instantiated")
         self.fmu.enterInitializationMode()
         self.state = "initialization"
         self.fmu.exitInitializationMode()
@@ -166,7 +168,8 @@ class _Slave:
         self.c = self.fmu.component
 
     def read_outputs(self) -> None:
-        self.fmu.fmi2GetReal(self.fmu.component, self.output_vrs, self.n_outputs, self.output_ptr)
+        self._expect("stepping")
+        self.get_real(self.c, self.output_vrs, self.n_outputs, self.output_ptr)
 
     def failed(self, status: int) -> None:
         """Record a non-OK status: after Discard the instance may still be terminated,

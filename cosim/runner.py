@@ -51,9 +51,9 @@ def run_scenario(
     progress: bool = False,
 ) -> RunOutcome:
     """Run a scenario (id, file or loaded) and write its outputs to ``out_dir``
-    (default ``runs/<id>``). The recording goes to ``rrd`` (default
-    ``<out_dir>/recording.rrd``) unless ``no_rrd`` or the scenario's ``output.rrd`` is
-    false; ``connect`` also streams it to a running viewer.
+    (default ``runs/<id>``). The recording goes to ``rrd`` if given, else to
+    ``<out_dir>/recording.rrd`` unless the scenario's ``output.rrd`` is false; ``no_rrd``
+    writes none. ``connect`` also streams it to a running Rerun viewer.
 
     Raises :class:`CosimError` if the scenario is invalid or the FMUs cannot be set up;
     a failure during the run is reported in ``outcome.result`` (``complete`` false).
@@ -63,7 +63,12 @@ def run_scenario(
     if stop_time is not None or step is not None or algorithm is not None:
         scenario = scenario.with_overrides(stop_time=stop_time, step=step, algorithm=algorithm)
     out_dir = out_dir if out_dir is not None else RUNS_DIR / scenario.id
-    rrd_path = None if no_rrd or not scenario.rrd else (rrd or out_dir / RECORDING_FILE)
+    if no_rrd:
+        rrd_path = None
+    elif rrd is not None:  # asked for explicitly: wins over the scenario's output.rrd
+        rrd_path = rrd
+    else:
+        rrd_path = out_dir / RECORDING_FILE if scenario.rrd else None
     sink = _open_sink(scenario, rrd_path, connect)
     bar: list[Any] = []  # the progress bar, opened when the stepping starts
 
