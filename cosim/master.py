@@ -261,17 +261,21 @@ def run(
         _Slave(inst, _unzipped(inst.fmu_path), scenario.coupling.step_multiples[name])
         for name, inst in scenario.instances.items()
     ]
-    try:
-        for slave in slaves:
-            _bind(slave, scenario, layout, z)
-        for slave in slaves:
-            _set_up(slave, scenario, layout, z)
-        by_name = {s.name: s for s in slaves}
-        order = [by_name[name] for name in scenario.coupling.order]
-        return _loop(scenario, order, layout, z, on_rows, rows_per_chunk)
-    finally:
-        for slave in slaves:
-            slave.finish()
+    stop = [False]  # set by Ctrl-C, also while the FMUs are set up or freed
+    with _ctrl_c_sets(stop):
+        try:
+            for slave in slaves:
+                _bind(slave, scenario, layout, z)
+            for slave in slaves:
+                _set_up(slave, scenario, layout, z)
+            if stop[0]:
+                raise KeyboardInterrupt  # raised here, never inside an FMU's code
+            by_name = {s.name: s for s in slaves}
+            order = [by_name[name] for name in scenario.coupling.order]
+            return _loop(scenario, order, layout, z, on_rows, rows_per_chunk, stop)
+        finally:
+            for slave in slaves:
+                slave.finish()
 
 
 def _bind(slave: _Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
@@ -320,8 +324,9 @@ def _loop(
     z: np.ndarray,
     on_rows: RowsCallback | None,
     rows_per_chunk: int,
+    stop: list[bool],
 ) -> RunResult:
-    """The stepping loop proper (see the module docstring)."""
+    """The stepping loop proper (see the module docstring); ``stop[0]`` ends it early."""
     h, n_steps = scenario.coupling.step, scenario.n_steps
     jacobi = scenario.coupling.algorithm == "jacobi"
     columns = scenario.record
@@ -339,44 +344,42 @@ def _loop(
     rows = 1  # rows of `values` filled; row 0 is t = 0
     sent = 0  # rows handed to on_rows
     take(record, out=values[0])
-    stop = [False]
     slave, n = order[0], 0
     started = time.perf_counter()
-    with _ctrl_c_sets(stop):
-        try:
-            _check_finite(exchanged, layout, 0.0)
-            for n in range(n_steps):
-                t = t_list[n]
-                due = [s for s in order if n % s.k == 0] if multi_rate else order
-                if jacobi:  # every due instance takes the values at t before any steps
-                    for slave in due:
-                        take(slave.input_sources, out=slave.inputs)
-                        slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+    try:
+        _check_finite(exchanged, layout, 0.0)
+        for n in range(n_steps):
+            t = t_list[n]
+            due = [s for s in order if n % s.k == 0] if multi_rate else order
+            if jacobi:  # every due instance takes the values at t before any steps
                 for slave in due:
-                    if not jacobi:  # the latest values, including those stepped just now
-                        take(slave.input_sources, out=slave.inputs)
-                        slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
-                    # step to t_{n+k} - t_n, as fmpy.simulate_fmu does (bit-identical runs)
-                    slave.do_step(slave.c, t, t_list[min(n + slave.k, n_steps)] - t, 1)
-                    slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
-                nan_if_bad = check_dot(probe)
-                if nan_if_bad != nan_if_bad:
-                    _check_finite(exchanged, layout, t_list[n + 1])
-                take(record, out=values[rows])
-                rows += 1
-                if on_rows is not None and rows - sent >= rows_per_chunk:
-                    on_rows(times[sent:rows], values[sent:rows])
-                    sent = rows
-                if stop[0]:
-                    error = f"interrupted (Ctrl-C) at t = {t_list[n + 1]:.6g} s"
-                    break
-        except FMICallException as exc:
-            slave.failed(exc.status)
-            error = _describe(slave, exc.function, exc.status, t_list[n])
-        except CosimError as exc:
-            error = str(exc)
-        if on_rows is not None and rows > sent:
-            on_rows(times[sent:rows], values[sent:rows])
+                    take(slave.input_sources, out=slave.inputs)
+                    slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+            for slave in due:
+                if not jacobi:  # the latest values, including those stepped just now
+                    take(slave.input_sources, out=slave.inputs)
+                    slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+                # step to t_{n+k} - t_n, as fmpy.simulate_fmu does (bit-identical runs)
+                slave.do_step(slave.c, t, t_list[min(n + slave.k, n_steps)] - t, 1)
+                slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
+            nan_if_bad = check_dot(probe)
+            if nan_if_bad != nan_if_bad:
+                _check_finite(exchanged, layout, t_list[n + 1])
+            take(record, out=values[rows])
+            rows += 1
+            if on_rows is not None and rows - sent >= rows_per_chunk:
+                on_rows(times[sent:rows], values[sent:rows])
+                sent = rows
+            if stop[0]:
+                error = f"interrupted (Ctrl-C) at t = {t_list[n + 1]:.6g} s"
+                break
+    except FMICallException as exc:
+        slave.failed(exc.status)
+        error = _describe(slave, exc.function, exc.status, t_list[n])
+    except CosimError as exc:
+        error = str(exc)
+    if on_rows is not None and rows > sent:
+        on_rows(times[sent:rows], values[sent:rows])
     wall = time.perf_counter() - started
     return RunResult(
         scenario=scenario,
