@@ -84,8 +84,8 @@ def key_figures(result: RunResult) -> dict[str, float | None]:
     ``yaw_settling_time_s``: the first time after which |yaw - yaw_setpoint| stays below
     1 deg to the end of the run (angles compared on the circle); None if the last sample is
     outside the band. The setpoint is ``controller.yaw_setpoint`` if recorded, else 0
-    (with the autopilot's ``compensate_current`` on, that is the course, not the heading
-    the autopilot steers to, and the figure says how long the heading stays off it).
+    (with the autopilot's ``compensate_current`` on, that set-point is the course; the
+    heading then settles off it by the crab angle, so the figure is None).
     """
     cols = set(result.columns)
     figures: dict[str, float | None] = {
