@@ -14,7 +14,6 @@ from fmpy import read_model_description
 from lxml import etree
 
 from cosim import cli
-from cosim.build import script_path
 from cosim.errors import CosimError
 from cosim.export import OSP_FILE, PARAMETER_SET, export_osp, export_ssp
 from cosim.scenario import Scenario, load_scenario
@@ -52,8 +51,6 @@ def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
 
 @pytest.fixture(scope="module")
 def bs3(fmu_dir: Path) -> Scenario:
-    if not script_path("AuvAutopilot").is_file():  # only until issue 4's script exists
-        pytest.skip("bs-3 needs AuvAutopilot.fmu: controller_fmu/auv_autopilot.py is missing")
     return load_scenario("bs-3", fmu_dir)
 
 

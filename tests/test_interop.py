@@ -69,11 +69,11 @@ def systems(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
     fmu_dir = fmu_paths["AuvPlant"].parent
     plant_file = folder / "plant-alone.toml"
     plant_file.write_text(PLANT_ALONE.format(stop_time=STOP_TIME, fmu=fmu_paths["AuvPlant"]))
-    result = {"plant-alone": (load_scenario(plant_file, fmu_dir), PLANT_VARIABLES, plant_file)}
-    if "AuvAutopilot" in fmu_paths:
-        bs3 = load_scenario("bs-3", fmu_dir).with_overrides(stop_time=STOP_TIME)
-        result["bs-3"] = (bs3, LOOP_VARIABLES, "bs-3")
-    return result
+    bs3 = load_scenario("bs-3", fmu_dir).with_overrides(stop_time=STOP_TIME)
+    return {
+        "plant-alone": (load_scenario(plant_file, fmu_dir), PLANT_VARIABLES, plant_file),
+        "bs-3": (bs3, LOOP_VARIABLES, "bs-3"),
+    }
 
 
 @pytest.fixture(scope="module")
@@ -165,23 +165,14 @@ def _assert_same_trace(name: str, tool: str, theirs: tuple, master: tuple) -> No
 SYSTEMS = ["plant-alone", "bs-3"]
 
 
-def _need(name: str, systems: dict) -> None:
-    if name not in systems:  # only until issue 4's autopilot script exists
-        pytest.skip(f"{name} needs AuvAutopilot.fmu: controller_fmu/auv_autopilot.py is missing")
-
-
 @pytest.mark.parametrize("name", SYSTEMS)
 @pytest.mark.parametrize("fmt", ["ssp", "osp"])
 def test_libcosim_matches_master(
-    name: str, fmt: str, systems: dict, libcosim_traces: dict, master_traces: dict
+    name: str, fmt: str, libcosim_traces: dict, master_traces: dict
 ) -> None:
-    _need(name, systems)
     _assert_same_trace(name, f"libcosim ({fmt})", libcosim_traces[name, fmt], master_traces[name])
 
 
 @pytest.mark.parametrize("name", SYSTEMS)
-def test_ecos_matches_master(
-    name: str, systems: dict, ecos_traces: dict, master_traces: dict
-) -> None:
-    _need(name, systems)
+def test_ecos_matches_master(name: str, ecos_traces: dict, master_traces: dict) -> None:
     _assert_same_trace(name, "ecos (ssp)", ecos_traces[name, "ssp"], master_traces[name])

@@ -69,8 +69,6 @@ def blocks(document: Path) -> list[Block]:
 
 @pytest.fixture(scope="module")
 def workdir(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
-    if "AuvAutopilot" not in fmu_paths:  # only until issue 4's autopilot script exists
-        pytest.skip("the examples export bs-3, which needs AuvAutopilot.fmu")
     folder = tmp_path_factory.mktemp("examples")
     fmus = folder / "build" / "fmus"
     fmus.mkdir(parents=True)
