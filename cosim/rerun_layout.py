@@ -53,7 +53,7 @@ HULL: Rgb = (250, 200, 40)  # REMUS yellow
 TRAJECTORY: Rgb = (240, 240, 240)
 
 TIMELINE = "sim_time"
-CHASE_EYE = (-3.0, -1.6, -1.1)  # m in the chase frame: behind, to port, above the vehicle
+CHASE_EYE = (-1.6, -0.9, -0.6)  # m in the chase frame: behind, to port, above the vehicle
 DEG = math.degrees(1.0)
 
 
@@ -250,7 +250,7 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
             rrb.TimeSeriesView(
                 origin="/" + entity,
                 name=present[entity].title,
-                plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=True),
+                plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True),
             )
             for entity in entities
             if entity in present
