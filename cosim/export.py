@@ -520,4 +520,10 @@ def export_from_cli(args: argparse.Namespace) -> int:
         print(f"SSP archive: {export_ssp(scenario, args.ssp)}")
     else:
         print(f"OSP system structure: {export_osp(scenario, args.osp)}")
+    if scenario.coupling.algorithm != "jacobi":
+        print(
+            f"note: libcosim and ecos couple Jacobi-style; {scenario.id} runs "
+            f"{scenario.coupling.algorithm} in auv-cosim, so compare with "
+            f"`auv-cosim run {scenario.id} --algorithm jacobi`"
+        )
     return 0

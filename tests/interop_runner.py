@@ -15,7 +15,8 @@ archive, or for libcosim also a folder holding OspSystemStructure.xml), steps it
 times and writes ``time`` and the variables after every step (rows for t = h ... N h).
 libcosim takes the step from the file (its annotation or BaseStepSize) and the runner
 checks it; ecos is given ``step`` and the SSP parameter set ``initial``.
-Exit code 77 means the tool cannot be loaded here (the message says why).
+Exit code 77 means the tool is installed but a system library it needs is missing (the
+message says which); a missing pip package is an ordinary failure.
 """
 
 from __future__ import annotations
@@ -83,8 +84,11 @@ def main(job_file: str) -> int:
             import libcosimpy.CosimExecution  # noqa: F401
         else:
             import ecospy  # noqa: F401
-    except (ImportError, OSError) as exc:
-        print(f"{tool} cannot be loaded: {type(exc).__name__}: {exc}", file=sys.stderr)
+    except ImportError as exc:  # a pip package of the test extra: install it, no skip
+        print(f"{tool}: {exc}; install the test extra: pip install '.[test]'", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a system library it needs (ecos: Debian's libtbb12) is missing
+        print(f"{tool} cannot be loaded here: {exc}", file=sys.stderr)
         return UNAVAILABLE
     rows = run_libcosim(job) if tool == "libcosim" else run_ecos(job)
     with open(job["out"], "w", newline="") as f:

@@ -377,5 +377,8 @@ def test_cli_export_writes_and_reports_the_archive(
     plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     assert cli.main(["export", str(plant_alone.source), "--ssp", str(tmp_path / "p.ssp")]) == 0
-    assert f"SSP archive: {tmp_path / 'p.ssp'}" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert f"SSP archive: {tmp_path / 'p.ssp'}" in out
+    # the scenario couples Gauss-Seidel (the default), which neither format can express
+    assert "compare with `auv-cosim run plant-alone --algorithm jacobi`" in out
     assert zipfile.ZipFile(tmp_path / "p.ssp").testzip() is None
