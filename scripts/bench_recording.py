@@ -6,12 +6,13 @@ Prints, best of ``--repeat`` (milliseconds unless stated):
       all ``add_rows`` calls, ``close`` (flush to the file), and the cost per row in us;
   (b) the same rows as one ``rr.log`` per step of every signal and the pose, the way not
       to do it, as a ratio to (a) (the first ``--naive-rows`` rows only: it is slow);
-  (c) a real run through the master, the AuvPlant FMU alone with its inputs held
-      (``--rows`` steps of 10 ms), with and without the recording, interleaved: the time
+  (c) a real run through the master, bs-3 (backstepping autopilot + plant, ``--rows``
+      steps of 10 ms), with and without the recording, interleaved: the time
       spent inside the sink (set-up, add_rows, close) as a fraction of the run without
       it, and run_scenario's wall times and their ratio (target <= 1.10; on a busy
       machine this ratio is noisier than the first figure). scripts/bench_cosim.py
-      measures the same on the closed loop bs-3.
+      measures the stepping loop alone (the sink's set-up and last send on close are
+      outside it).
 
 Usage: python scripts/bench_recording.py [--rows 3000] [--repeat 3] [--fmu-dir build/fmus]
 """
@@ -31,7 +32,7 @@ import cosim.recording
 from cosim.recording import RerunSink
 from cosim.rerun_layout import time_index
 from cosim.runner import run_scenario
-from cosim.scenario import DEFAULT_FMU_DIR, scenario_from_toml
+from cosim.scenario import DEFAULT_FMU_DIR, load_scenario
 
 COLUMNS = [
     *(f"plant.{n}" for n in ("north", "east", "down", "roll", "pitch", "yaw")),
@@ -43,20 +44,6 @@ COLUMNS = [
     *(f"controller.{n}" for n in ("yaw_setpoint", "depth_setpoint")),
     *(f"controller.{n}" for n in ("current_north", "current_east")),
 ]
-SCENARIO = """
-id = "bench-recording"
-stop_time = {stop_time}
-[coupling]
-step = 0.01
-[instances.plant]
-fmu = "AuvPlant"
-[instances.plant.start]
-variant = 1
-u_0 = 1.5
-v_0 = -0.1
-tunnel_force = 3.0
-mass_position_cmd = 0.03
-"""
 
 
 def synthetic(rows: int) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +100,7 @@ class TimedSink(RerunSink):
 
 def real_run(folder: Path, rows: int, fmu_dir: Path, record: bool) -> tuple[float, float]:
     """(run_scenario's wall time, time spent in the sink), s."""
-    scenario = scenario_from_toml(SCENARIO.format(stop_time=rows * 0.01), fmu_dir=fmu_dir)
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(stop_time=rows * 0.01)
     cosim.recording.RerunSink = TimedSink  # run_scenario imports it at call time
     TimedSink.spent = 0.0
     t0 = time.perf_counter()
@@ -150,7 +137,7 @@ def main() -> None:
             bare.append(real_run(folder, args.rows, args.fmu_dir, record=False)[0])
             recorded.append(real_run(folder, args.rows, args.fmu_dir, record=True))
         wall, spent = min(recorded)
-        print(f"(c) AuvPlant alone, {args.rows} steps of 10 ms through the master:")
+        print(f"(c) bs-3, {args.rows} steps of 10 ms through the master:")
         print(f"    in the sink {1e3 * spent:.0f} ms = {100 * spent / min(bare):.1f}% of ", end="")
         print(f"the run without recording; run_scenario {min(bare):.2f} s without, ", end="")
         print(f"{wall:.2f} s with: ratio {wall / min(bare):.3f}")
