@@ -66,10 +66,21 @@ def analyze_from_cli(args: argparse.Namespace) -> int:
     raise CosimError(f"unknown analysis {args.analysis!r}")
 
 
+def _default_variant(args: argparse.Namespace) -> Variant:
+    """The variant an analysis needs when --variant is not given: roll torque and the moving
+    mass act through roll, so their sweeps need the lateral model (Sec. 5.1.3-5.1.4); the
+    rest are the horizontal analyses of Sec. 5.1.2."""
+    if args.variant is not None:
+        return Variant(args.variant)
+    if getattr(args, "param", None) in ("roll_torque", "mass_position"):
+        return Variant.LATERAL
+    return Variant.HORIZONTAL
+
+
 def _conditions(args: argparse.Namespace) -> OperatingConditions:
     return OperatingConditions(
         params=load_vehicle(args.vehicle),
-        variant=Variant(args.variant),
+        variant=_default_variant(args),
         thrust=args.thrust,
         roll_torque=args.roll_torque,
         mass_position=args.mass_position,

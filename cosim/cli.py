@@ -145,7 +145,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_model_options(a: argparse.ArgumentParser) -> None:
     a.add_argument("--vehicle", default="remus100", help="parameter set name or file")
-    a.add_argument("--variant", type=int, choices=[0, 1, 2], default=2, help="[%(default)s]")
+    a.add_argument(
+        "--variant",
+        type=int,
+        choices=[0, 1, 2],
+        help="0 full, 1 lateral, 2 horizontal [lateral for roll_torque/mass_position sweeps, "
+        "else horizontal]",
+    )
     a.add_argument("--thrust", type=float, default=9.0, help="N [%(default)s]")
     a.add_argument("--roll-torque", type=float, default=0.0, help="N.m [%(default)s]")
     a.add_argument("--mass-position", type=float, default=0.0, help="m [%(default)s]")
