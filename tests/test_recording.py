@@ -153,6 +153,28 @@ def step_nanos(times: np.ndarray) -> np.ndarray:
     return np.rint(times * 1e9).astype(np.int64)
 
 
+def quaternion_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the unit quaternion [x, y, z, w] (written out, not scipy)."""
+    x, y, z, w = np.asarray(q, dtype=float)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def euler_angles(r: np.ndarray) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) of R = Rz(yaw) Ry(pitch) Rx(roll) (2.2.8), |pitch| < 90 deg."""
+    return math.atan2(r[2, 1], r[2, 2]), -math.asin(r[2, 0]), math.atan2(r[1, 0], r[0, 0])
+
+
+def wrap(angle: np.ndarray) -> np.ndarray:
+    """Angles to (-pi, pi]."""
+    return np.angle(np.exp(1j * np.asarray(angle)))
+
+
 def test_yaw_series_equals_the_input_exactly_at_every_step(recorded):
     path, times, columns, values = recorded
     t, scalars = read_temporal(path, "/attitude/yaw_deg", "Scalars:scalars", 1)
@@ -210,20 +232,10 @@ def test_pose_has_one_transform_per_step_matching_position_and_euler_angles(reco
     np.testing.assert_array_equal(translation[:, 0], ned.astype(np.float32))
     roll, pitch, yaw = (col(columns, values, f"plant.{n}") for n in ("roll", "pitch", "yaw"))
     for k in range(len(times)):
-        x, y, z, w = quaternion[k, 0].astype(float)
-        # Rotation matrix of the unit quaternion (x, y, z, w), then Euler angles zyx (2.2.8).
-        r = np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-            ]
-        )
-        expected = rotation_matrix(roll[k], pitch[k], yaw[k])
-        np.testing.assert_allclose(r, expected, atol=3e-7)
-        euler = (math.atan2(r[2, 1], r[2, 2]), -math.asin(r[2, 0]), math.atan2(r[1, 0], r[0, 0]))
-        wrapped = np.angle(np.exp(1j * (np.array(euler) - [roll[k], pitch[k], yaw[k]])))
-        np.testing.assert_allclose(wrapped, 0.0, atol=1e-6)
+        r = quaternion_matrix(quaternion[k, 0])
+        np.testing.assert_allclose(r, rotation_matrix(roll[k], pitch[k], yaw[k]), atol=3e-7)
+        error = wrap(np.array(euler_angles(r)) - [roll[k], pitch[k], yaw[k]])
+        np.testing.assert_allclose(error, 0.0, atol=1e-6)
 
 
 def test_chase_frame_follows_position_and_heading_only(recorded):
@@ -234,7 +246,7 @@ def test_chase_frame_follows_position_and_heading_only(recorded):
     np.testing.assert_array_equal(translation, pose)
     np.testing.assert_allclose(q[:, 0, :2], 0.0, atol=1e-7)  # no roll, no pitch
     heading = 2 * np.arctan2(q[:, 0, 2], q[:, 0, 3])
-    error = np.angle(np.exp(1j * (heading - col(columns, values, "plant.yaw"))))
+    error = wrap(heading - col(columns, values, "plant.yaw"))
     np.testing.assert_allclose(error, 0.0, atol=1e-6)
 
 
@@ -449,17 +461,18 @@ def test_view_of_a_folder_without_recording_names_it(tmp_path: Path, capsys):
     assert "no recording at" in capsys.readouterr().err
 
 
-REAL_RUN = """
+REAL_RUNS = """
 import sys
 from pathlib import Path
 from cosim.runner import run_scenario
-from cosim.scenario import scenario_from_toml
+from cosim.scenario import load_scenario, scenario_from_toml
 
 fmu_dir, out = Path(sys.argv[1]), Path(sys.argv[2])
-scenario = scenario_from_toml(sys.argv[3], fmu_dir=fmu_dir)
-outcome = run_scenario(scenario, out, fmu_dir=fmu_dir)
-assert outcome.result.complete, outcome.result.error
-print(outcome.paths["recording"])
+closed = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(stop_time=2.0)
+alone = scenario_from_toml(sys.argv[3], fmu_dir=fmu_dir)
+for scenario in (closed, alone):
+    outcome = run_scenario(scenario, out / scenario.id, fmu_dir=fmu_dir)
+    assert outcome.result.complete, outcome.result.error
 """
 OPEN_LOOP = """
 id = "open-loop"
@@ -479,26 +492,60 @@ current_east = 0.2
 """
 
 
-def test_real_run_recording_equals_results_csv(fmu_paths, run_python, tmp_path: Path):
-    """The AuvPlant FMU through the master (fresh process: pythonfmu caches modules)."""
+@pytest.fixture(scope="module")
+def real_runs(fmu_paths, run_python, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """bs-3 (2 s) and the AuvPlant alone through the master, in a fresh process
+    (pythonfmu caches modules); returns the folder holding both run folders."""
+    out = tmp_path_factory.mktemp("runs")
+    done = run_python(REAL_RUNS, fmu_paths["AuvPlant"].parent, out, OPEN_LOOP)
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+def read_results(run: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     from cosim.results import read_csv
 
-    fmu_dir = fmu_paths["AuvPlant"].parent
-    done = run_python(REAL_RUN, fmu_dir, tmp_path / "run", OPEN_LOOP)
-    assert done.returncode == 0, done.stderr
-    rrd = Path(done.stdout.strip().splitlines()[-1])
-    names, table = read_csv(tmp_path / "run" / "results.csv")
-    times, csv = table[:, 0], dict(zip(names, table.T, strict=True))
+    names, table = read_csv(run / "results.csv")
+    return table[:, 0], dict(zip(names, table.T, strict=True))
+
+
+def test_closed_loop_recording_equals_results_csv(real_runs: Path):
+    rrd = real_runs / "bs-3" / RECORDING_FILE
+    times, csv = read_results(real_runs / "bs-3")
     t, yaw = read_temporal(rrd, "/attitude/yaw_deg", "Scalars:scalars", 1)
     np.testing.assert_array_equal(t, step_nanos(times))
-    assert np.ptp(csv["plant.yaw"]) > 0.01
+    assert np.ptp(csv["plant.yaw"]) > 0.1  # bs-3 turns away and back
     np.testing.assert_array_equal(yaw[:, 0, 0], np.degrees(csv["plant.yaw"]))
+    np.testing.assert_array_equal(yaw[:, 1, 0], np.degrees(csv["controller.yaw_setpoint"]))
+    _, force = read_temporal(rrd, "/actuators/tunnel_force_N", "Scalars:scalars", 1)
+    assert np.max(np.abs(csv["controller.tunnel_force"])) > 1.0
+    np.testing.assert_array_equal(force[:, 0, 0], csv["controller.tunnel_force"])
     t, pose = read_temporal(rrd, "/world/vehicle", "Transform3D:translation", 3)
     np.testing.assert_array_equal(t, step_nanos(times))
     ned = np.column_stack([csv[f"plant.{n}"] for n in ("north", "east", "down")])
     np.testing.assert_array_equal(pose[:, 0], ned.astype(np.float32))
-    # Without a controller the held plant inputs fill the actuator plots and arrows.
+    _, q = read_temporal(rrd, "/world/vehicle", "Transform3D:quaternion", 4)
+    euler = np.array([euler_angles(quaternion_matrix(row)) for row in q[:, 0]])
+    expected = np.column_stack([csv[f"plant.{n}"] for n in ("roll", "pitch", "yaw")])
+    np.testing.assert_allclose(wrap(euler - expected), 0.0, atol=1e-6)
+
+
+def test_plant_alone_recording_shows_its_held_inputs(real_runs: Path):
+    """Without an autopilot the plant's held inputs fill the actuator plots and arrows."""
+    rrd = real_runs / "open-loop" / RECORDING_FILE
+    times, csv = read_results(real_runs / "open-loop")
+    t, yaw = read_temporal(rrd, "/attitude/yaw_deg", "Scalars:scalars", 1)
+    np.testing.assert_array_equal(t, step_nanos(times))
+    np.testing.assert_array_equal(yaw[:, 0, 0], np.degrees(csv["plant.yaw"]))
     _, force = read_temporal(rrd, "/actuators/tunnel_force_N", "Scalars:scalars", 1)
     np.testing.assert_array_equal(force[:, 0, 0], csv["plant.tunnel_force"])
     _, mass = read_temporal(rrd, "/moving_mass/position_cm", "Scalars:scalars", 1)
     np.testing.assert_array_equal(mass[:, 1, 0], 100.0 * csv["plant.mass_position_cmd"])
+    _, arrow = read_temporal(rrd, "/world/vehicle/tunnel_force", "Arrows3D:vectors", 3)
+    np.testing.assert_array_equal(
+        arrow[:, 0, 1], (FORCE_SCALE * csv["plant.tunnel_force"]).astype(np.float32)
+    )
+    _, current = read_temporal(rrd, "/world/current", "Arrows3D:vectors", 3)
+    np.testing.assert_array_equal(
+        current[:, 0, 1], (CURRENT_SCALE * csv["plant.current_east"]).astype(np.float32)
+    )
