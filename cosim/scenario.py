@@ -220,7 +220,13 @@ class Scenario:
         step: float | None = None,
         algorithm: str | None = None,
     ) -> Scenario:
-        """A re-validated copy with the command line's overrides applied."""
+        """A re-validated copy with the command line's overrides applied.
+
+        A new step also moves every instance's ``design_step`` start value that equalled
+        that instance's old communication step (a sampled controller designed for the step
+        it runs at, like the autopilot's discrete LQR), so ``--step`` never leaves a
+        controller designed for another sample time.
+        """
         coupling: dict[str, Any] = {}
         if step is not None:
             coupling["step"] = step
@@ -228,6 +234,12 @@ class Scenario:
             coupling["algorithm"] = algorithm
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
         data["coupling"].update(coupling)
+        if step is not None:
+            for name, instance in data.get("instances", {}).items():
+                multiple = self.coupling.step_multiples.get(name, 1)
+                start = instance.get("start", {})
+                if start.get("design_step") == self.coupling.step * multiple:
+                    start["design_step"] = step * multiple
         if stop_time is not None:
             data["stop_time"] = stop_time
         where = f"{self.source or self.id} (with command-line overrides)"

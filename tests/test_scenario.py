@@ -107,6 +107,22 @@ def test_overrides_are_validated(fmu_dir: Path) -> None:
         s.with_overrides(step=-0.01)
 
 
+def test_step_override_redesigns_a_controller_tied_to_the_step(fmu_dir: Path) -> None:
+    """lqr-1 designs its discrete LQR for design_step = coupling step; --step 0.05 must not
+    leave it designed for 10 ms. An explicit, different design_step is left alone."""
+    lqr = load_scenario("lqr-1", fmu_dir=fmu_dir)
+    assert lqr.instances["controller"].start["design_step"] == lqr.coupling.step
+    moved = lqr.with_overrides(step=0.05)
+    assert moved.instances["controller"].start["design_step"] == 0.05
+    assert (
+        "design_step"
+        not in load_scenario("bs-3", fmu_dir=fmu_dir)
+        .with_overrides(step=0.05)
+        .instances["controller"]
+        .start
+    )
+
+
 REMOVE = 'remove = ["plant.fin_angle"]'
 ADD = 'add = [{{ from = "{}", to = "{}" }}]'
 BAD_EDITS = [
