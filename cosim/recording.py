@@ -280,7 +280,7 @@ def view_run(run_dir: Path) -> int:
         CosimError: the folder holds no recording.
     """
     run_dir = Path(run_dir)
-    rrd = run_dir / RECORDING_FILE if run_dir.is_dir() else run_dir
+    rrd = run_dir if run_dir.is_file() else run_dir / RECORDING_FILE  # a folder, or the file
     if not rrd.is_file():
         raise CosimError(
             f"no recording at {rrd}: expected a run folder holding {RECORDING_FILE} "
