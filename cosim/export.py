@@ -57,6 +57,7 @@ _NS = {
 }
 _OSP_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
 _DIMENSIONLESS = "1"
+_SI_BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 # Fixed zip timestamps make the same scenario export to the same bytes.
 _ZIP_DATE = (2000, 1, 1, 0, 0, 0)
 
@@ -79,6 +80,7 @@ class _Component:
     fmu_path: Path
     resource: str  # file name inside resources/ (SSP) or beside the XML (OSP)
     variables: Mapping[str, _Variable]
+    units: Mapping[str, dict[str, float] | None]  # the FMU's UnitDefinitions (SI exponents)
     start: Mapping[str, bool | int | float | str]
     step_multiple: int
 
@@ -104,12 +106,14 @@ def _components(scenario: Scenario, fmu_paths: Mapping[str, Path] | None) -> lis
         if resources.get(resource, fmu_path) != fmu_path:  # two different FMUs, same name
             resource = f"{fmu_path.stem}-{name}{fmu_path.suffix}"
         resources[resource] = fmu_path
+        variables, units = _read_model_description(fmu_path, name)
         components.append(
             _Component(
                 name=name,
                 fmu_path=fmu_path,
                 resource=resource,
-                variables=_read_variables(fmu_path, name),
+                variables=variables,
+                units=units,
                 start=dict(instance.start),
                 step_multiple=scenario.coupling.step_multiples.get(name, 1),
             )
@@ -118,7 +122,11 @@ def _components(scenario: Scenario, fmu_paths: Mapping[str, Path] | None) -> lis
     return components
 
 
-def _read_variables(fmu_path: Path, instance: str) -> dict[str, _Variable]:
+def _read_model_description(
+    fmu_path: Path, instance: str
+) -> tuple[dict[str, _Variable], dict[str, dict[str, float] | None]]:
+    """The FMU's variables and its unit definitions (SI base-unit exponents, plus factor
+    and offset where they are not 1 and 0; None for a unit declared by name only)."""
     from fmpy import read_model_description
 
     if not fmu_path.is_file():
@@ -131,7 +139,19 @@ def _read_variables(fmu_path: Path, instance: str) -> dict[str, _Variable]:
     for v in md.modelVariables:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
         variables[v.name] = _Variable(v.name, v.type, v.causality, unit, v.description or "")
-    return variables
+    units: dict[str, dict[str, float] | None] = {}
+    for unit in md.unitDefinitions:
+        base = unit.baseUnit
+        if base is None:
+            units[unit.name] = None
+            continue
+        exponents = {k: getattr(base, k) for k in _SI_BASE if getattr(base, k)}
+        if base.factor != 1.0:
+            exponents["factor"] = base.factor
+        if base.offset != 0.0:
+            exponents["offset"] = base.offset
+        units[unit.name] = exponents
+    return variables, units
 
 
 def _check(scenario: Scenario, components: Mapping[str, _Component]) -> None:
@@ -233,6 +253,7 @@ def _add_bytes(archive: zipfile.ZipFile, name: str, data: bytes, compression: in
 def ssd_xml(scenario: Scenario, components: list[_Component]) -> bytes:
     """``SystemStructure.ssd`` for ``scenario``, built with pyssp-standard's object model.
 
+    Units are declared as the FMUs' own ``UnitDefinitions`` define them (one source).
     Workarounds for pyssp-standard 0.9.1 (each measured):
     * a ``ssv:Real`` without a unit makes it write ``unit=None`` and fail, so every Real
       start value gets a unit, dimensionless ones ``"1"`` (declared with an empty
@@ -269,11 +290,27 @@ def ssd_xml(scenario: Scenario, components: list[_Component]) -> bytes:
              "Boolean": TypeBoolean, "String": TypeString}  # fmt: skip
     h = scenario.coupling.step
     units: dict[str, Unit] = {}
+    definitions: dict[str, tuple[dict[str, float], str]] = {}  # unit -> (exponents, FMU)
 
-    def unit_of(var: _Variable) -> str:
-        name = var.unit or _DIMENSIONLESS
+    def unit_of(comp: _Component, var: _Variable) -> str:
+        """The variable's unit name, declared in the SSD with the FMU's own definition."""
+        if var.unit is None:
+            name, exponents = _DIMENSIONLESS, {}
+        else:
+            name, exponents = var.unit, comp.units.get(var.unit)
+            if exponents is None:
+                raise CosimError(
+                    f"{comp.fmu_path.name} declares no SI base units for unit {name!r} "
+                    f"(variable {var.name}); an SSP unit needs them"
+                )
         if name not in units:
-            units[name] = Unit(name, base_unit=BaseUnit(_base_unit(name)))
+            units[name] = Unit(name, base_unit=BaseUnit(exponents))
+            definitions[name] = (exponents, comp.fmu_path.name)
+        elif definitions[name][0] != exponents:
+            raise CosimError(
+                f"unit {name!r} means {definitions[name][0]} in {definitions[name][1]} but "
+                f"{exponents} in {comp.fmu_path.name}"
+            )
         return name
 
     system = System(name=scenario.id)
@@ -285,7 +322,7 @@ def ssd_xml(scenario: Scenario, components: list[_Component]) -> bytes:
         for name in _connector_names(comp):
             var = comp.variables[name]
             if var.type == "Real":  # a connector's unit is optional: only the FMU's
-                type_ = TypeReal(unit_of(var) if var.unit else None)
+                type_ = TypeReal(unit_of(comp, var) if var.unit else None)
             else:
                 type_ = types[var.type]()
             element.connectors.append(Connector(name=name, kind=var.causality, type_=type_))
@@ -294,7 +331,7 @@ def ssd_xml(scenario: Scenario, components: list[_Component]) -> bytes:
             var = comp.variables[name]
             attributes = {"value": _text(value)}
             if var.type == "Real":
-                attributes["unit"] = unit_of(var)
+                attributes["unit"] = unit_of(comp, var)
             value_type = _fmi_value_type(var.type)
             parameters.append(
                 {
@@ -375,21 +412,6 @@ def _add_step_size_hints(root: Any, scenario: Scenario, components: list[_Compon
             f"{{{_NS['osp']}}}StepSizeHint",
             value=repr(comp.step_multiple * scenario.coupling.step),
         )
-
-
-def _base_unit(name: str) -> dict[str, Any]:
-    """SI base-unit exponents of a unit as modelDescription writes it ('N.m', 'm/s', '1').
-
-    pint does the parsing (through pyssp-standard's helper); FMI's '.' product is '*'."""
-    if name == _DIMENSIONLESS:
-        return {}
-    from pyssp_standard.unit_conversion import generate_base_unit
-
-    try:
-        exponents = generate_base_unit(name.replace(".", "*"))
-    except Exception as exc:  # pint raises several unrelated types for unknown units
-        raise CosimError(f"unit {name!r} cannot be expressed in SI base units: {exc}") from None
-    return {k: v for k, v in exponents.items() if not (k == "factor" and v == 1.0)}
 
 
 # --- OSP system structure ------------------------------------------------------------
