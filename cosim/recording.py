@@ -2,12 +2,11 @@
 
 The master hands over rows of results (``add_rows``, a few hundred steps at a time); the
 sink buffers them (a second of wall time or 2,000 rows at most) and sends each group of
-signals as columns (``send_columns``) on the
-``sim_time`` timeline (a duration, s). Per-step ``rr.log`` calls cost ~40x more (see
-``shared/spec/RERUN_NOTES.md``), so there are none. What the recording shows is laid out
-in :mod:`cosim.rerun_layout` (plots, colours, blueprint) and :mod:`cosim.rerun_scene` (the
-3D scene). Each sink owns its own ``rr.RecordingStream``, so several runs in one process
-never mix.
+signals as columns (``send_columns``) on the ``sim_time`` timeline (a duration, s). One
+``rr.log`` per signal per step would cost 30-60x more (``scripts/bench_recording.py``),
+so there are none. What the recording shows is laid out in :mod:`cosim.rerun_layout`
+(plots, colours, blueprint) and :mod:`cosim.rerun_scene` (the 3D scene). Each sink owns
+its own ``rr.RecordingStream``, so several runs in one process never mix.
 
 The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``), the
 scenario id as the recording name and a property, and the resolved scenario TOML as a
@@ -104,9 +103,11 @@ class RerunSink:
             rrd_path = Path(rrd_path)
             rrd_path.parent.mkdir(parents=True, exist_ok=True)
             sinks.append(rr.FileSink(str(rrd_path)))
-        self._rec.set_sinks(
-            *sinks, default_blueprint=build_blueprint(self._panels, depth_control=depth_control)
-        )
+        blueprint = build_blueprint(self._panels, depth_control=depth_control)
+        try:
+            self._rec.set_sinks(*sinks, default_blueprint=blueprint)
+        except RuntimeError as exc:  # rerun-sdk's error for a file it cannot create
+            raise OSError(f"cannot write the recording {rrd_path}: {exc}") from None
         self._rec.send_recording_name(scenario_id)
         self._rec.send_property(
             "scenario", rr.AnyValues(id=scenario_id, vehicle=vehicle.name, columns=len(columns))
@@ -124,11 +125,6 @@ class RerunSink:
             self._rec.log(panel.entity, series_style(panel), static=True)
         log_static_scene(self._rec, vehicle, self._columns, show_depth_setpoint=depth_control)
         self._scene = SceneWriter(self._rec, vehicle, show_depth_setpoint=depth_control)
-
-    @property
-    def recording(self) -> rr.RecordingStream:
-        """The sink's own recording stream."""
-        return self._rec
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         """Queue k rows: ``times`` (k,) in s, ``values`` (k, len(columns)) in SI units.

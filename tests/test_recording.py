@@ -381,6 +381,8 @@ def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path):
         url = f"rerun+http://127.0.0.1:{s.getsockname()[1]}/proxy"
     with pytest.raises(ValueError, match=re.escape(f"no Rerun viewer listens at {url}")):
         RerunSink(tmp_path / "v.rrd", url, "x", "", ["plant.yaw"])
+    with pytest.raises(OSError, match=re.escape(f"cannot write the recording {tmp_path}")):
+        RerunSink(tmp_path, None, "x", "", ["plant.yaw"])  # a folder, not a file
     sink = RerunSink(tmp_path / "s.rrd", None, "x", "", ["plant.yaw", "plant.north"])
     with pytest.raises(ValueError, match=r"\(k, 2\), got \(3,\) and \(3, 3\)"):
         sink.add_rows(np.zeros(3), np.zeros((3, 3)))
