@@ -17,12 +17,12 @@ is the body frame at the centre of buoyancy, FRD = x forward, y starboard, z dow
     world/vehicle/moving_mass  Ellipsoids3D at [x_v, mass_position, z_g] per step
     world/vehicle/tunnel_force Arrows3D from the thruster at [0, 0, z_t]: F_t along body y
     world/current              Arrows3D, the earth-frame current, drawn above the vehicle
-
-Fins, thruster and current show what acts on the vehicle (:func:`acting`).
     world/trajectory           LineStrips3D, one segment per step (the blueprint shows every
                                segment up to the time cursor, so the path grows)
-    world/depth_setpoint       Boxes3D, a translucent square at the setpoint depth under the
-                               vehicle, when depth control is on
+    world/depth_setpoint       Boxes3D, a translucent square at the setpoint depth, centred
+                               on the vehicle's north and east, when depth control is on
+
+Fins, thruster and current show what acts on the vehicle (:func:`acting`).
 
 Only what never changes is logged static: a static component would shadow the per-step
 values of the same component on that entity.
@@ -120,7 +120,9 @@ def log_static_scene(
         ),
         static=True,
     )
-    # Stern planes: their frame sits at the hinge and turns by fin_angle per step.
+    # Stern planes: their frame sits at the hinge (leading edge) and turns by fin_angle per
+    # step about body +y, so a positive angle puts the trailing edge down: an upward force
+    # at the tail and a nose-down moment, as Z_ds < 0 and M_ds < 0 say (Table 6.1).
     rec.log(
         "world/vehicle/stern_planes",
         rr.Boxes3D(
