@@ -279,6 +279,18 @@ def test_arrows_show_tunnel_force_in_body_y_and_current_in_earth_axes(recorded):
     np.testing.assert_array_equal(current[:, 0], expected.astype(np.float32))
 
 
+def test_stern_planes_turn_trailing_edge_down_by_the_fin_angle(recorded):
+    path, times, columns, values = recorded
+    t, q = read_temporal(path, "/world/vehicle/stern_planes", "Transform3D:quaternion", 4)
+    np.testing.assert_array_equal(t, step_nanos(times))
+    fin = col(columns, values, "controller.fin_angle")
+    for k in (0, len(times) - 1):
+        r = quaternion_matrix(q[k, 0])
+        trailing_edge = r @ [-1.0, 0.0, 0.0]  # the planes extend aft of their hinge
+        np.testing.assert_allclose(trailing_edge, [-np.cos(fin[k]), 0, np.sin(fin[k])], atol=1e-7)
+        assert trailing_edge[2] > 0  # positive fin angle: trailing edge down (z down)
+
+
 def test_trajectory_segments_chain_across_batches(recorded):
     path, times, columns, values = recorded
     t, segments = read_temporal(path, "/world/trajectory", "LineStrips3D:strips", 3)
