@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCUMENTS = [ROOT / "docs" / "interop.md"]
+DOCUMENTS = [ROOT / "README.md"]
 MARKER = re.compile(
     r"^<!-- (run|run: expect (?P<expect>.+)|excerpt of (?P<path>\S+)|not run: (?P<reason>.+)) -->$"
 )
