@@ -263,19 +263,20 @@ class PlantModel:
     ) -> tuple[float, float, np.ndarray]:
         """Servo motion of the moving mass and its reaction on the hull (6.3.12-6.3.13).
 
-        The servo m_v y'' + d_v y' + k_v y = k_v y_d follows the command clamped to the
-        stroke. Against a stop (or at the rail-speed limit) the mass does not accelerate
-        outwards and exerts no servo reaction. The reaction F_mm = -m_v y'' acts in sway at
-        (x_v, ., z_g): sway +F_mm, roll -z_g F_mm, yaw +x_v F_mm; the offset weight adds
-        r x m_v g Gamma with r = [0, y_v, 0].
+        The servo m_v y'' + d_v y' + k_v y = k_v y_d follows the command as given: the stops,
+        not the command, bound the motion (Sec. 6.3.1 constrains y_v and y_vel only, and the
+        dissertation's LQR runs drive the mass at up to ~50 cm/s, Fig. 6.14, which a command
+        saturated at the stroke cannot). Against a stop (or at the rail-speed limit) the mass
+        does not accelerate outwards and exerts no servo reaction. The reaction
+        F_mm = -m_v y'' acts in sway at (x_v, ., z_g): sway +F_mm, roll -z_g F_mm,
+        yaw +x_v F_mm; the offset weight adds r x m_v g Gamma with r = [0, y_v, 0].
 
         Returns:
             (y' in m/s, y'' in m/s^2, generalised force on the hull [X, Y, Z, K, M, N]).
         """
         p = self.params
         y_v, y_vel = x[_YV], x[_YVEL]
-        y_d = min(max(inputs[4], -p.mass_stroke), p.mass_stroke)
-        accel = (p.k_v * (y_d - y_v) - p.d_v * y_vel) / p.m_v
+        accel = (p.k_v * (inputs[4] - y_v) - p.d_v * y_vel) / p.m_v
         if _against_stop(y_v, y_vel, accel, p.mass_stroke):
             y_vel, accel = 0.0, 0.0
         elif p.mass_speed_limit > 0.0 and abs(y_vel) >= p.mass_speed_limit and accel * y_vel > 0:
@@ -351,23 +352,38 @@ class PlantModel:
             dx[self._frozen_pose] = 0.0
         return dx
 
-    def project(self, x: np.ndarray) -> np.ndarray:
+    def project(self, x: np.ndarray, collide: bool = False) -> np.ndarray:
         """Enforce the constraints on a state in place: frozen DOFs at 0, the mass within its
-        stops (resting, y_vel = 0, when pushed against one) and under the speed limit."""
+        stops (resting, y_vel = 0, when pushed against one) and under the speed limit.
+
+        Args:
+            collide: the state ends an integration step, so a mass that reached a stop with
+                speed y_vel hits it: the collision is inelastic and its impulse m_v y_vel,
+                along the rail at (x_v, ., z_g), goes to the hull, so the momentum the servo
+                took from the hull while accelerating the mass comes back (without it, every
+                arrival at a stop would be a spurious kick). RK4 stage states pass False.
+        """
         p = self.params
         if self.variant is not Variant.FULL:
             frozen_nu = [6 + i for i in range(6) if i not in self.variant.velocities]
             x[frozen_nu] = 0.0
             x[[i for i in (2, 3, 4) if i not in self.variant.pose]] = 0.0
-        if x[_YV] >= p.mass_stroke:
-            x[_YV] = p.mass_stroke
-            x[_YVEL] = min(x[_YVEL], 0.0)
-        elif x[_YV] <= -p.mass_stroke:
-            x[_YV] = -p.mass_stroke
-            x[_YVEL] = max(x[_YVEL], 0.0)
+        if abs(x[_YV]) >= p.mass_stroke:
+            x[_YV] = math.copysign(p.mass_stroke, x[_YV])
+            if x[_YVEL] * x[_YV] > 0.0:  # moving into the stop
+                if collide:
+                    x[_NU] += self.mass_collision_velocity_change(x[_YVEL])
+                x[_YVEL] = 0.0
         if p.mass_speed_limit > 0.0:
             x[_YVEL] = min(max(x[_YVEL], -p.mass_speed_limit), p.mass_speed_limit)
         return x
+
+    def mass_collision_velocity_change(self, mass_velocity: float) -> np.ndarray:
+        """Hull velocity change when the moving mass, sliding at ``mass_velocity`` (m/s),
+        stops dead against a rail stop: (M_RB + M_A) d nu = m_v y_vel [0, 1, 0, -z_g, 0, x_v]."""
+        p = self.params
+        impulse = p.m_v * mass_velocity * np.array([0.0, 1.0, 0.0, -p.z_g, 0.0, p.x_v])
+        return self._inverse_mass @ impulse
 
     def current_change_velocity_jump(self, x: np.ndarray, delta_current: np.ndarray) -> np.ndarray:
         """Velocity change of the hull when the uniform current jumps by delta_current (earth,

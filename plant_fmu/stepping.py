@@ -10,7 +10,8 @@ adaptive ``solve_ivp``:
   The -5760 1/s pole the continuous LQR creates belongs to the *closed* loop; a sampled
   controller holds its output over the step, so it never enters the plant's integrator.
 * The moving mass hits hard stops. A fixed step lets us project the state onto the
-  constraints after every sub-step (:meth:`PlantModel.project`), which an adaptive solver's
+  constraints after every sub-step (:meth:`PlantModel.project`, which also hands the
+  mass's momentum to the hull when it arrives at a stop), which an adaptive solver's
   step-size control would fight.
 * Determinism: the same state, inputs and h give bit-identical results, which FMU state
   save/restore and rollback rely on; ``solve_ivp`` is deterministic too, but its cost per
@@ -80,7 +81,7 @@ def advance(
         k2 = f(model.project(x + 0.5 * dt * k1), inputs)
         k3 = f(model.project(x + 0.5 * dt * k2), inputs)
         k4 = f(model.project(x + dt * k3), inputs)
-        x = model.project(x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4))
+        x = model.project(x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4), collide=True)
     check_finite(x, STATE_NAMES, "state after the step:")
     return x
 

@@ -174,14 +174,35 @@ def test_moving_mass_stays_within_its_stops_and_rests_without_reacting(lateral):
     assert force[3] == pytest.approx(p.m_v * p.g * 0.06 * np.cos(phi))
 
 
-def test_out_of_range_command_is_clamped_not_integrated(lateral):
-    """A 5 m command gives exactly the trajectory of a command at the 6 cm stop."""
+def test_out_of_range_command_is_stopped_not_integrated(lateral):
+    """A 5 m command drives the mass into its stop, where it stays: the stroke bounds the
+    position, the command is not integrated past it."""
     x0 = state_vector(dict(u=1.5, v=-0.05))
-    runs = [
-        simulate(lateral, x0, input_vector(dict(thrust=9.0, mass_position_cmd=cmd)), 10.0, 0.01)[1]
-        for cmd in (-5.0, -0.06)
-    ]
-    assert np.array_equal(runs[0], runs[1])
+    inputs = input_vector(dict(thrust=9.0, mass_position_cmd=-5.0))
+    _, states = simulate(lateral, x0, inputs, 10.0, 0.01)
+    y_v = states[:, STATE_INDEX["mass_position"]]
+    assert np.min(y_v) == -0.06 and np.max(np.abs(y_v)) <= 0.06
+    assert np.all(y_v[20:] == -0.06)  # there after 0.2 s, and resting
+    assert np.all(states[20:, STATE_INDEX["mass_velocity"]] == 0.0)
+
+
+def test_mass_hitting_a_stop_gives_its_momentum_back_to_the_hull():
+    """Free hull in an ideal fluid (no restoring, no damping): what the servo pushes into the
+    mass it takes from the hull, and the inelastic collision at the stop hands it back, so
+    the sway and yaw impulse of hull plus mass, (M nu + m_v y_vel [0,1,0,-z_g,0,x_v]), stays
+    zero through a 5 m command slamming the mass into its stop at ~1.5 m/s."""
+    params = _balanced()
+    model = PlantModel(params, Variant.LATERAL, ideal_fluid=True)
+    _, states = simulate(
+        model, state_vector(), input_vector(dict(mass_position_cmd=5.0)), 0.3, 0.01
+    )
+    rail = np.array([0.0, 1.0, 0.0, -params.z_g, 0.0, params.x_v])
+    impulse = [model.mass_matrix @ x[NU] + params.m_v * x[13] * rail for x in states]
+    impact = params.m_v * np.max(np.abs(states[:, STATE_INDEX["mass_velocity"]]))
+    assert impact > 5.0  # N s: a real collision
+    assert states[-1, STATE_INDEX["mass_position"]] == 0.06
+    for k in (1, 5):  # sway, yaw
+        assert np.max(np.abs([i[k] for i in impulse])) < 1e-3 * impact
 
 
 def test_rail_speed_limit_when_set():

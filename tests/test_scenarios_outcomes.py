@@ -73,9 +73,14 @@ def test_lqr_1_converges(results: dict[str, RunResult]) -> None:
 
 
 def test_lqr_2_saturates_the_mass_and_comes_back(results: dict[str, RunResult]) -> None:
+    """Issue 4 asks for |yaw| < 1 deg after 45 s; with the unsaturated command the
+    dissertation used (Sec. 6.3.1) we match MODEL.md's reference reproduction, 28-34 s, and
+    the fast mass of Fig. 6.14 (rail speeds of tens of cm/s)."""
     result = results["lqr-2"]
     assert result.column("plant.mass_position").min() == pytest.approx(-0.06, abs=1e-6)
-    assert np.abs(after(result, "plant.yaw", 45.0)).max() < 1 * DEG
+    assert np.abs(after(result, "plant.yaw", 34.0)).max() < 1 * DEG
+    assert np.abs(result.column("plant.yaw")).max() > 1 * DEG  # it was disturbed
+    assert np.abs(result.column("plant.mass_velocity")).max() > 0.15
 
 
 def test_lqr_3_heading_returns(results: dict[str, RunResult]) -> None:
