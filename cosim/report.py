@@ -202,19 +202,22 @@ def plot_time_histories(
         len(present), 1, sharex=True, figsize=(9, 1.9 * len(present) + 0.8), squeeze=False
     )
     for ax, panel in zip(axes[:, 0], present, strict=True):
-        drawn = 0
-        for series in panel.series:
-            if series.column not in table:
-                continue
+        curves = [(s, table[s.column] * s.scale) for s in panel.series if s.column in table]
+        limits = _main_range(curves)
+        for series, values in curves:
+            clipped = limits is not None and np.any((values < limits[0]) | (values > limits[1]))
+            label = series.label + (" (beyond the axis)" if clipped else "")
             ax.plot(
                 time,
-                table[series.column] * series.scale,
+                values,
                 "--" if series.dashed else "-",
                 color="tab:gray" if series.dashed else "tab:blue",
                 linewidth=1.0 if series.dashed else 1.3,
-                label=series.label or None,
+                label=label or None,
             )
-            drawn += 1
+        drawn = len(curves)
+        if limits is not None:
+            ax.set_ylim(*limits)
         ax.set_ylabel(panel.ylabel)
         ax.grid(True, alpha=0.3)
         if drawn > 1:
@@ -224,6 +227,21 @@ def plot_time_histories(
     fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _main_range(curves: list[tuple[Series, np.ndarray]]) -> tuple[float, float] | None:
+    """Axis limits that keep the panel's main (first) curve readable when a reference curve
+    (a command, a set-point) strays far outside it, e.g. an unsaturated servo command of
+    metres beside a mass that moves centimetres; None when the automatic limits do."""
+    if len(curves) < 2:
+        return None
+    main = curves[0][1]
+    lo, hi = float(np.min(main)), float(np.max(main))
+    span = max(hi - lo, 1e-9)
+    others = np.concatenate([values for _, values in curves[1:]])
+    if np.min(others) >= lo - 2.0 * span and np.max(others) <= hi + 2.0 * span:
+        return None
+    return lo - 0.25 * span, hi + 0.25 * span
 
 
 def plot_trajectory(table: dict[str, np.ndarray], path: Path) -> Path | None:

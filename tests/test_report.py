@@ -181,3 +181,17 @@ def test_report_of_a_bs3_run_through_the_master(fmu_paths, run_python, tmp_path)
         _assert_png(index.parent / name)
     page = index.read_text()
     assert "Run bs-3" in page and "yaw settling time s" in page
+
+
+def test_a_far_reference_curve_does_not_flatten_the_main_one() -> None:
+    """An unsaturated servo command of metres beside a mass moving within its 6 cm stroke:
+    the axis follows the mass, and the command is labelled as leaving it."""
+    from cosim.report import Series, _main_range
+
+    t = np.linspace(0.0, 10.0, 101)
+    position = 0.06 * np.sin(t)
+    command = np.where(t < 2.0, -3.0, position)
+    limits = _main_range([(Series("p"), position), (Series("c", dashed=True), command)])
+    assert limits is not None and -0.1 < limits[0] < -0.06 and 0.06 < limits[1] < 0.1
+    near = _main_range([(Series("p"), position), (Series("c"), position + 0.01)])
+    assert near is None
