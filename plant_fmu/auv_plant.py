@@ -7,7 +7,7 @@ on the other. No physics lives here.
 Variables (``shared/spec/INTERFACES.md``):
 
 * inputs ``thrust`` (N, start 9), ``roll_torque`` (N.m), ``tunnel_force`` (N),
-  ``fin_angle`` (rad), ``mass_position_cmd`` (m; the model clamps it to the stroke),
+  ``fin_angle`` (rad), ``mass_position_cmd`` (m; the rail stops bound the mass, not the command),
   ``current_north``, ``current_east``, ``current_down`` (m/s, earth frame);
 * outputs: the 14 states (``north`` ... ``r``, ``mass_position``, ``mass_velocity``),
   ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - R^T V_c) and ``kinetic_energy``
@@ -60,7 +60,7 @@ INPUT_DESCRIPTIONS: dict[str, str] = {
     "roll_torque": "propeller roll torque Q",
     "tunnel_force": "tunnel-thruster sway force F_t (6.3.79)",
     "fin_angle": "stern-plane angle delta_s (Table 6.1)",
-    "mass_position_cmd": "moving-mass servo command y_d (clamped to the stroke) (6.3.12)",
+    "mass_position_cmd": "moving-mass servo command y_d (6.3.12); the stops bound the mass",
     "current_north": "uniform current, north component, earth frame",
     "current_east": "uniform current, east component, earth frame",
     "current_down": "uniform current, down component, earth frame",
