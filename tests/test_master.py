@@ -174,16 +174,7 @@ def test_cli_failure_exits_non_zero_with_one_line(fmu_dir: Path, tmp_path: Path)
         loop_toml(plant_start="fail_at = 0.5").replace('"Cosim', f'"{fmu_dir}/Cosim')
     )
     proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "cosim.cli",
-            "run",
-            str(scenario),
-            "--out",
-            str(tmp_path / "run"),
-            "--no-rrd",
-        ],
+        _run_command(scenario, tmp_path / "run"),
         capture_output=True,
         text=True,
         cwd=tmp_path,
@@ -194,22 +185,18 @@ def test_cli_failure_exits_non_zero_with_one_line(fmu_dir: Path, tmp_path: Path)
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["complete"] is False
 
 
+def _run_command(scenario: Path, out: Path) -> list[str]:
+    """`auv-cosim run SCENARIO --out OUT --no-rrd` in a fresh interpreter."""
+    return [sys.executable, "-m", "cosim.cli", "run", str(scenario), "--out", str(out), "--no-rrd"]
+
+
 def test_ctrl_c_stops_cleanly_with_partial_results(fmu_dir: Path, tmp_path: Path) -> None:
     started = tmp_path / "started"
     scenario = tmp_path / "long.toml"
     text = loop_toml(stop_time=200.0, step=1e-4, plant_start=f'started_file = "{started}"')
     scenario.write_text(text.replace('"Cosim', f'"{fmu_dir}/Cosim'))
     proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "cosim.cli",
-            "run",
-            str(scenario),
-            "--out",
-            str(tmp_path / "run"),
-            "--no-rrd",
-        ],
+        _run_command(scenario, tmp_path / "run"),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
