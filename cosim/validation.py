@@ -85,7 +85,8 @@ def smoke_run(paths: dict[str, Path]) -> list[str]:
     lines = result.stdout.strip().splitlines()
     if result.returncode != 0 or not lines:
         tail = " | ".join(result.stderr.strip().splitlines()[-3:])
-        return [f"smoke run: the host process died (exit code {result.returncode}): {tail}"]
+        when = "at exit, after the checks ran" if lines else "during the checks"
+        return [f"smoke run: the host process died {when} (exit code {result.returncode}): {tail}"]
     return json.loads(lines[-1])
 
 
@@ -122,4 +123,4 @@ def _smoke_main(arguments: str) -> None:
             slave.freeInstance()
         except Exception as exc:
             problems.append(f"{name}: smoke run failed: {type(exc).__name__}: {exc}")
-    print(json.dumps(problems))
+    print(json.dumps(problems), flush=True)

@@ -4,7 +4,8 @@ Why it exists (``shared/spec/FMI_NOTES.md``): with pythonfmu 0.7 an exception es
 Python callback becomes fmi2Fatal and the C wrapper then releases the Python objects twice,
 so the host process crashes soon after. pythonfmu also accepts NaN inputs, lets a fixed
 parameter be written after initialisation, and saves only the registered variables as FMU
-state. This class closes those holes once, for the plant and the controller FMU alike.
+state. This class closes those holes once, for the plant and the controller FMU alike,
+and installs :mod:`plant_fmu.exit_guard` against pythonfmu's crash at process exit.
 
 What a subclass writes (the whole API)::
 
@@ -65,6 +66,8 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
 
+from plant_fmu import exit_guard
+
 _WRITE_ANY_TIME = "any time"
 _WRITE_BEFORE_INIT = "before initialisation"
 _READ_ONLY = "never"
@@ -78,6 +81,7 @@ class SafeSlave(Fmi2Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        exit_guard.install(self.resources)  # pythonfmu 0.7's crash at process exit
         self._initialized = False
         self._terminated = False
         self._failure: str | None = None

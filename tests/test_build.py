@@ -4,7 +4,9 @@ modelDescription.xml (units, capability flags, InitialUnknowns by the FMI 2.0 ru
 from __future__ import annotations
 
 import shutil
+import subprocess
 import zipfile
+from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import pytest
@@ -132,3 +134,20 @@ def test_model_description_completion_is_generic_and_idempotent():
     assert initial == ["2", "3"]  # the calculated output and the calculated parameter
     outputs = [u.get("dependencies") for u in root.iterfind("ModelStructure/Outputs/Unknown")]
     assert outputs == ["1", ""]  # the slave's declaration is kept
+
+
+@pytest.mark.parametrize(
+    ("stdout", "when"), [("", "during the checks"), ("[]\n", "at exit, after the checks ran")]
+)
+def test_smoke_run_reports_a_dead_host_and_when_it_died(monkeypatch, stdout, when):
+    """A host killed by SIGABRT is a validation problem, never a pass, and the report says
+    whether the FMU calls themselves or the process teardown crashed."""
+    from cosim import validation
+
+    def aborted(argv, **kwargs):
+        return subprocess.CompletedProcess(argv, -6, stdout, "corrupted double-linked list\n")
+
+    monkeypatch.setattr(validation.subprocess, "run", aborted)
+    assert validation.smoke_run({"AuvPlant": Path("AuvPlant.fmu")}) == [
+        f"smoke run: the host process died {when} (exit code -6): corrupted double-linked list"
+    ]

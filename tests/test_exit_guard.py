@@ -1,0 +1,87 @@
+"""pythonfmu 0.7's use-after-free at process exit, and our guard against it
+(``plant_fmu/exit_guard.py``).
+
+The bug aborted one CI run ("corrupted double-linked list") but shows as a crash only
+when glibc's heap happens to be in the wrong state, so the regression test asks valgrind
+instead: it reports the invalid access inside the FMU's wrapper library deterministically.
+A control run with the guard switched off shows that the test detects the bug.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from plant_fmu import exit_guard
+
+LOAD_AND_FREE = """
+import sys
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+if sys.argv[1] == "unguarded":
+    from plant_fmu import exit_guard  # the FMU reuses this module (shared sys.modules)
+    exit_guard.install = lambda resources: False
+guarded = []
+for path in sys.argv[2:]:
+    md = read_model_description(path)
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(path),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
+    slave.instantiate(loggingOn=True)
+    slave.freeInstance()
+from plant_fmu import exit_guard
+print(sorted(p.name for p in exit_guard._guarded))
+"""
+
+
+def test_every_fmu_installs_the_guard(fmu_paths, run_python):
+    done = run_python(LOAD_AND_FREE, "guarded", fmu_paths["AuvPlant"], fmu_paths["AuvAutopilot"])
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split("\n")[-2] == "['AuvAutopilot.so', 'AuvPlant.so']"
+
+
+def test_install_does_not_apply_without_a_wrapper_library(tmp_path: Path):
+    assert exit_guard.install(None) is False  # pythonfmu's builder constructs the class so
+    assert exit_guard.install(tmp_path / "resources") is False
+    (tmp_path / "binaries" / "linux64").mkdir(parents=True)
+    assert exit_guard.wrapper_library(tmp_path / "resources") is None
+    library = tmp_path / "binaries" / "linux64" / "Model.so"
+    library.write_bytes(b"not a library")
+    assert exit_guard.wrapper_library(tmp_path / "resources") == library
+    assert exit_guard.install(tmp_path / "resources") is False  # dlopen fails: no raise
+
+
+def _invalid_accesses_in_fmu_binary(log: str) -> list[str]:
+    """valgrind error records (Invalid read/write/free) whose stack is in an FMU binary."""
+    records = re.split(r"==\d+== \n", log)
+    return [
+        r
+        for r in records
+        if re.search(r"Invalid (read|write|free)", r) and "binaries/linux64/" in r
+    ]
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+@pytest.mark.parametrize("mode", ["guarded", "unguarded"])
+def test_no_use_after_free_at_exit(mode, fmu_paths, run_python, tmp_path: Path):
+    """valgrind memcheck over a process that instantiates and frees the plant FMU (the
+    guard sits in the base class both FMUs share, and the test above shows both install
+    it): with the guard, no invalid access in the wrapper library; without it, the read
+    of freed memory in ``finalizePythonInterpreter`` that once crashed CI."""
+    log = tmp_path / "valgrind.log"
+    code = (
+        "import os, subprocess, sys\n"
+        "env = {**os.environ, 'PYTHONMALLOC': 'malloc'}\n"
+        f"sys.exit(subprocess.call(['valgrind', '--log-file={log}', sys.executable, '-c',"
+        " sys.argv[1], *sys.argv[2:]], env=env))\n"
+    )
+    done = run_python(code, LOAD_AND_FREE, mode, fmu_paths["AuvPlant"], timeout=600)
+    assert done.returncode == 0, done.stderr
+    invalid = _invalid_accesses_in_fmu_binary(log.read_text())
+    if mode == "guarded":
+        assert invalid == []
+    else:
+        assert invalid and all("finalizePythonInterpreter" in r for r in invalid), invalid
