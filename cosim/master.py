@@ -62,6 +62,7 @@ from fmpy.fmi2 import (
 
 from cosim.errors import CosimError
 from cosim.scenario import Instance, Scenario
+from plant_fmu import exit_guard
 
 STATUS_LABELS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 LOG_LINES_KEPT = 20  # logged messages (warning or worse) kept per instance
@@ -149,6 +150,8 @@ class _Slave:
         _log_sinks[id(self)] = self.messages
         self.fmu.instantiate(callbacks=self.callbacks, loggingOn=True)
         self.state = "instantiated"
+        # any pythonfmu FMU, ours or not, can abort this process at exit: see exit_guard
+        exit_guard.install(Path(self.fmu.unzipDirectory) / "resources")
         self.fmu.setupExperiment(startTime=0.0, stopTime=stop_time)
         grouped: dict[str, tuple[list[int], list[Any]]] = {}
         for name, value in self.instance.start.items():

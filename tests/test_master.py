@@ -90,6 +90,16 @@ def test_gauss_seidel_is_the_sampled_loop_without_delay(fmu_dir: Path) -> None:
     np.testing.assert_allclose(result.column("controller.u")[1:], -K * X0 * (1 - K * H) ** n[:-1])
 
 
+def test_master_guards_any_pythonfmu_fmu_against_the_exit_crash(fmu_dir: Path) -> None:
+    """The test FMUs are plain pythonfmu slaves (no guard of their own): the master
+    installs plant_fmu.exit_guard for every FMU it instantiates."""
+    from plant_fmu import exit_guard
+
+    assert master.run(loop(fmu_dir)).complete
+    guarded = {path.name for path in exit_guard._guarded}
+    assert {"CosimTestIntegrator.so", "CosimTestGain.so"} <= guarded
+
+
 def test_jacobi_uses_the_outputs_of_the_previous_step(fmu_dir: Path) -> None:
     # both step from the values at t_n: the plant sees the command computed from x_{n-1}
     # (from the controller's start input x = 0 at n = 0): x_{n+1} = x_n - k h x_{n-1}
