@@ -13,23 +13,27 @@ in every process that instantiated and freed one of our FMUs; when the freed chu
 in one of glibc's doubly linked bins, the decrement corrupts the list and the host aborts
 with "corrupted double-linked list" (it happened once in CI, in the validation smoke run).
 
-The fix, done from the FMU side so that every Python host benefits (fmpy, our master,
-libcosimpy, ecospy): a Python ``atexit`` handler, which runs inside ``Py_FinalizeEx`` and
-so before any C exit handler, calls ``finalizePythonInterpreter`` itself while the static
-is still alive. That releases the guard properly and leaves the pointer empty, so the two
-later resets find nothing to release. Calling it again, or with instances still alive,
-is harmless: they hold their own references to the guard.
+The fix, done from the FMU side so that every host benefits (fmpy, our master,
+libcosimpy, ecospy, the ecos and cosim command-line programs): once per loaded wrapper
+library, register ``finalizePythonInterpreter`` itself as a C exit handler with
+``__cxa_atexit``. Exit handlers run last-registered first, and ours is registered after
+the library's static was constructed (at load time), so ours runs first, while the
+static is alive: it releases the guard properly (in a host where pythonfmu started
+Python, that is where ``Py_Finalize`` runs, on pythonfmu's own thread, as designed) and
+leaves the pointer empty, so the two later resets find nothing to release. With
+instances still alive at exit the call only drops the static's reference; they hold
+their own. A C exit handler rather than Python's ``atexit``: a non-Python host may never
+finalise Python, so a Python handler would never run there.
 
-It is installed only where the host started Python itself (``sys.orig_argv`` is not
-empty). Where pythonfmu started the interpreter (a C or C++ host with libpython
-preloaded), ``Py_Finalize`` runs from inside the guard's destructor and the handler must
-not re-enter it. ``ctypes`` is used because nothing else can reach a symbol of the
-already-loaded wrapper library; ``dlopen`` of the same path returns the loaded copy.
+``ctypes`` is used because nothing else can reach a symbol of the already-loaded wrapper
+library; ``dlopen`` of the same path returns the loaded copy, and the library stays
+mapped until the process ends (RTLD_NODELETE, above), so the handler's address stays
+valid. ``__cxa_atexit`` passes one ``void*`` argument, which the ``void(void)`` function
+ignores (x86-64 and AArch64 calling conventions).
 """
 
 from __future__ import annotations
 
-import atexit
 import ctypes
 import sys
 from pathlib import Path
@@ -52,12 +56,13 @@ def install(resources: str | Path | None) -> bool:
     """Register the exit hook for the FMU extracted around ``resources``.
 
     Returns True if a hook is (now or already) registered; False where it does not apply
-    (no resources, as when pythonfmu's builder constructs the class; not Linux; an
-    interpreter started by pythonfmu; no wrapper library; a pythonfmu without the symbol).
+    (no resources, as when pythonfmu's builder constructs the class; not Linux: on
+    Windows ``DllMain`` runs before the static destructors; no wrapper library; a
+    pythonfmu without the symbol).
     Never raises: it is called from an FMU's constructor.
     """
     try:
-        if resources is None or not sys.platform.startswith("linux") or not sys.orig_argv:
+        if resources is None or not sys.platform.startswith("linux"):
             return False
         library = wrapper_library(resources)
         if library is None:
@@ -68,9 +73,10 @@ def install(resources: str | Path | None) -> bool:
         finalize = getattr(ctypes.CDLL(str(library)), SYMBOL, None)
         if finalize is None:
             return False
-        finalize.restype = None
-        finalize.argtypes = []
-        atexit.register(finalize)
+        libc = ctypes.CDLL(None)
+        libc.__cxa_atexit.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+        if libc.__cxa_atexit(ctypes.cast(finalize, ctypes.c_void_p), None, None) != 0:
+            return False
         _guarded.add(library)
         return True
     except Exception:  # an FMU constructor must not raise (see safe_slave.py)
