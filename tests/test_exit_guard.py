@@ -40,7 +40,7 @@ print(sorted(p.name for p in exit_guard._guarded))
 def test_every_fmu_installs_the_guard(fmu_paths, run_python):
     done = run_python(LOAD_AND_FREE, "guarded", fmu_paths["AuvPlant"], fmu_paths["AuvAutopilot"])
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split("\n")[-2] == "['AuvAutopilot.so', 'AuvPlant.so']"
+    assert done.stdout.strip().splitlines()[-1] == "['AuvAutopilot.so', 'AuvPlant.so']"
 
 
 def test_install_does_not_apply_without_a_wrapper_library(tmp_path: Path):
