@@ -260,29 +260,36 @@ def _check_built(fmu: Path) -> list[str]:
 
 def _run_pythonfmu(name: str, stage: Path, dest: Path) -> Path:
     source = FMUS[name]
-    command = [
-        sys.executable,
-        "-m",
-        "pythonfmu",
-        "build",
-        "--file",
-        str(stage / source.script),
-        "--dest",
-        str(dest),
+    return pythonfmu_build(
+        stage / source.script,
+        dest,
+        name,
         "--no-external-tool",
         "--handle-state",
         "--serialize-state",
         *(str(stage / package) for package in source.ships),
-    ]
-    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
-    result = subprocess.run(
-        command, cwd=stage, env=env, capture_output=True, text=True, check=False
+        cwd=stage,
     )
-    built = dest / f"{name}.fmu"
+
+
+def pythonfmu_build(
+    script: Path, dest: Path, model_identifier: str, *options: str, cwd: Path | None = None
+) -> Path:
+    """Run ``pythonfmu build`` on ``script`` (extra ``options`` and project files after it)
+    in a fresh interpreter, since pythonfmu imports the script and this process would
+    reuse a class it imported before; return ``dest/<model_identifier>.fmu``.
+
+    Raises CosimError with pythonfmu's last lines if the build fails.
+    """
+    command = [sys.executable, "-m", "pythonfmu", "build", "--file", str(script)]
+    command += ["--dest", str(dest), *options]
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
+    result = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, check=False)
+    built = dest / f"{model_identifier}.fmu"
     if result.returncode != 0 or not built.is_file():
         tail = (result.stderr or result.stdout).strip().splitlines()[-5:]
         raise CosimError(
-            f"pythonfmu could not build {name}.fmu (exit code {result.returncode}): "
+            f"pythonfmu could not build {model_identifier}.fmu (exit code {result.returncode}): "
             + " | ".join(tail)
         )
     return built

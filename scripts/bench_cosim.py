@@ -17,8 +17,6 @@ Usage: ``python scripts/bench_cosim.py [--stop-time 20] [--repeat 3] [--fmu-dir 
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -26,6 +24,7 @@ from pathlib import Path
 from fmpy.fmi2 import FMU2Slave
 
 from cosim import master
+from cosim.build import pythonfmu_build
 from cosim.runner import run_scenario
 from cosim.scenario import DEFAULT_FMU_DIR, Scenario, load_scenario, scenario_from_toml
 
@@ -110,21 +109,11 @@ def trivial_scenario(stop_time: float, folder: Path) -> Scenario | None:
     """Two trivial test FMUs built from tests/fmus (None if that folder is absent)."""
     if not TESTS_FMUS.is_dir():
         return None
-    for script in ("cosim_test_integrator.py", "cosim_test_gain.py"):
-        subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pythonfmu",
-                "build",
-                "-f",
-                str(TESTS_FMUS / script),
-                "-d",
-                str(folder),
-            ],
-            check=True,
-            capture_output=True,
-        )
+    for script, model in (
+        ("cosim_test_integrator.py", "CosimTestIntegrator"),
+        ("cosim_test_gain.py", "CosimTestGain"),
+    ):
+        pythonfmu_build(TESTS_FMUS / script, folder, model)
     return scenario_from_toml(
         TRIVIAL_LOOP.format(stop_time=stop_time), "trivial loop", base_dir=folder
     )

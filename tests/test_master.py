@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from cosim import master
+from cosim.build import pythonfmu_build
 from cosim.runner import run_scenario
 from cosim.scenario import Scenario, scenario_from_toml
 
@@ -30,21 +31,11 @@ K, H, X0 = 2.0, 0.1, 1.0
 def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Build the two test FMUs once, in a fresh process (pythonfmu caches modules)."""
     out = tmp_path_factory.mktemp("test_fmus")
-    for script in ("cosim_test_integrator.py", "cosim_test_gain.py"):
-        subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pythonfmu",
-                "build",
-                "-f",
-                str(HERE / "fmus" / script),
-                "-d",
-                str(out),
-            ],
-            check=True,
-            capture_output=True,
-        )
+    for script, model in (
+        ("cosim_test_integrator.py", "CosimTestIntegrator"),
+        ("cosim_test_gain.py", "CosimTestGain"),
+    ):
+        pythonfmu_build(HERE / "fmus" / script, out, model)
     return out
 
 
