@@ -36,7 +36,7 @@ from controller_fmu.guidance import desired_heading, mass_locked, wrap_angle
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, LqrHeading
 from controller_fmu.sliding_mode import SlidingModeHeading
-from plant_fmu.parameters import load_vehicle
+from plant_fmu.model.parameters import load_vehicle
 
 MEASUREMENT_NAMES: tuple[str, ...] = (
     "yaw", "r", "p", "roll", "v_rel", "u_rel", "down", "pitch", "q", "w_rel",

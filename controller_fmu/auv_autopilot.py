@@ -30,7 +30,7 @@ Timing (a sampled controller). ``doStep(t, h)`` computes the commands from the i
 at t and publishes them at once; they are meant to be held over [t, t + h). A master that
 steps the controller before the plant at each t (Gauss-Seidel, order controller -> plant)
 therefore closes the loop without delay, exactly like
-:func:`controller_fmu.closed_loop.simulate_closed_loop`; a Jacobi master adds one step of
+:func:`cosim.analysis.closed_loop.simulate_closed_loop`; a Jacobi master adds one step of
 delay. No output depends directly on an input in the FMI sense (they change only in
 doStep), so ModelStructure declares no dependencies and importers see no algebraic loop.
 After initialisation the outputs are zero commands and ``thrust`` = ``thrust_command``.
@@ -66,7 +66,7 @@ from controller_fmu.autopilot import (
     Commands,
     field_unit,
 )
-from plant_fmu.safe_slave import SafeSlave
+from fmu_runtime.safe_slave import SafeSlave
 
 INPUT_DESCRIPTIONS: dict[str, str] = {
     "yaw": "measured yaw angle psi",

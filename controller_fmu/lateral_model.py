@@ -3,7 +3,7 @@
 Every heading controller of Sec. 6.3 is designed on the lateral dynamics (6.3.13) with the
 surge speed frozen at the design speed U0 ("we neglect the equation in surge ... and take
 u = U0"). Rather than re-typing the dissertation's coefficient formulas (G'', H'', eta_2, ...)
-this module evaluates and linearises :class:`plant_fmu.dynamics.PlantModel` in its LATERAL
+this module evaluates and linearises :class:`plant_fmu.model.dynamics.PlantModel` in its LATERAL
 variant, so the controllers always use exactly the physics the plant integrates, for
 whichever vehicle parameter set is active.
 
@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from plant_fmu.analysis import input_vector, linearize, state_vector
-from plant_fmu.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
-from plant_fmu.parameters import VehicleParameters
+from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, linearize, state_vector
+from plant_fmu.model.parameters import VehicleParameters
 
 CONTROL_STATES: tuple[str, ...] = ("v", "r", "p", "roll", "yaw", "mass_position", "mass_velocity")
 """Plant state names of the controller state x, in order (``yaw`` holds psi - psi_d)."""

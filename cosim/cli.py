@@ -17,7 +17,7 @@ DEFAULT_FMU_DIR = Path("build/fmus")
 
 
 def _build(args: argparse.Namespace) -> int:
-    from cosim.build import build_fmus
+    from cosim.fmus.build import build_fmus
 
     for name, path in build_fmus(args.out, force=args.force).items():
         print(f"{name}: {path}")
@@ -25,8 +25,8 @@ def _build(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from cosim.build import ensure_fmus
-    from cosim.validation import validate_fmus
+    from cosim.fmus.build import ensure_fmus
+    from cosim.fmus.validation import validate_fmus
 
     problems = validate_fmus(ensure_fmus(args.fmu_dir))
     for problem in problems:
@@ -38,7 +38,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _scenarios(args: argparse.Namespace) -> int:
-    from cosim.scenario import builtin_scenarios
+    from cosim.run.scenario import builtin_scenarios
 
     for scenario_id, summary in builtin_scenarios().items():
         print(f"{scenario_id:<8} {summary}")
@@ -46,31 +46,31 @@ def _scenarios(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from cosim.runner import run_from_cli
+    from cosim.run.runner import run_from_cli
 
     return run_from_cli(args)
 
 
 def _export(args: argparse.Namespace) -> int:
-    from cosim.export import export_from_cli
+    from cosim.export.system import export_from_cli
 
     return export_from_cli(args)
 
 
 def _view(args: argparse.Namespace) -> int:
-    from cosim.recording import view_run
+    from cosim.viz.recording import view_run
 
     return view_run(args.run_dir)
 
 
 def _analyze(args: argparse.Namespace) -> int:
-    from cosim.analyze import analyze_from_cli
+    from cosim.analysis.analyze import analyze_from_cli
 
     return analyze_from_cli(args)
 
 
 def _report(args: argparse.Namespace) -> int:
-    from cosim.report import write_report
+    from cosim.viz.report import write_report
 
     index = write_report(args.run_dir)
     print(f"report: {index}")

@@ -1,7 +1,7 @@
 """AuvPlant: the REMUS 100 with internal actuators as an FMI 2.0 co-simulation slave.
 
 The pythonfmu script of ``AuvPlant.fmu`` (modelIdentifier ``AuvPlant``): FMI variables on
-one side, :class:`plant_fmu.dynamics.PlantModel` and :func:`plant_fmu.stepping.advance`
+one side, :class:`plant_fmu.model.dynamics.PlantModel` and :func:`plant_fmu.model.stepping.advance`
 on the other. No physics lives here.
 
 Variables (``shared/spec/INTERFACES.md``):
@@ -41,7 +41,8 @@ from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 from pythonfmu.variables import Boolean, Integer, Real, String
 
-from plant_fmu.dynamics import (
+from fmu_runtime.safe_slave import SafeSlave
+from plant_fmu.model.dynamics import (
     INPUT_NAMES,
     INPUT_UNITS,
     N_STATES,
@@ -51,9 +52,8 @@ from plant_fmu.dynamics import (
     PlantModel,
     Variant,
 )
-from plant_fmu.parameters import VehicleParameters, load_vehicle
-from plant_fmu.safe_slave import SafeSlave
-from plant_fmu.stepping import DEFAULT_MAX_SUBSTEP, advance
+from plant_fmu.model.parameters import VehicleParameters, load_vehicle
+from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance
 
 INPUT_DESCRIPTIONS: dict[str, str] = {
     "thrust": "propeller surge thrust T",

@@ -1,6 +1,6 @@
 """Benchmark the co-simulation master (issue 5). Prints three figures:
 
-1. The stepping loop's overhead: ``cosim.master.run`` against a bare fmpy loop doing the
+1. The stepping loop's overhead: ``cosim.run.master.run`` against a bare fmpy loop doing the
    same calls (``setReal`` of the connected inputs, ``doStep``, ``getReal`` of the outputs,
    per instance, Gauss-Seidel order) on the same FMUs in the same process, as a ratio of
    wall-clock times (target <= 1.25). The bare loop records nothing and checks nothing.
@@ -23,10 +23,10 @@ from pathlib import Path
 
 from fmpy.fmi2 import FMU2Slave
 
-from cosim import master
-from cosim.build import pythonfmu_build
-from cosim.runner import run_scenario
-from cosim.scenario import DEFAULT_FMU_DIR, Scenario, load_scenario, scenario_from_toml
+from cosim.fmus.build import pythonfmu_build
+from cosim.run import master
+from cosim.run.runner import run_scenario
+from cosim.run.scenario import DEFAULT_FMU_DIR, Scenario, load_scenario, scenario_from_toml
 
 TESTS_FMUS = Path(__file__).resolve().parent.parent / "tests" / "fmus"
 TRIVIAL_LOOP = """

@@ -1,7 +1,7 @@
 """Cost of one 10 ms plant step: in-process vs through AuvPlant.fmu in fmpy.
 
 Prints, as medians over many repetitions (microseconds):
-  (a) one 10 ms step of the full 6-DOF model in-process (plant_fmu.stepping.advance:
+  (a) one 10 ms step of the full 6-DOF model in-process (plant_fmu.model.stepping.advance:
       one RK4 step, four derivative evaluations, projections and checks);
   (b) one derivative evaluation, and the ratio (a)/(b);
   (c) one FMU step through fmpy's FMU2Slave: setReal of the 8 inputs + doStep + getReal of
@@ -23,12 +23,12 @@ from pathlib import Path
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from cosim.build import build_fmu
-from plant_fmu.analysis import input_vector, state_vector
+from cosim.fmus.build import build_fmu
 from plant_fmu.auv_plant import AuvPlant
-from plant_fmu.dynamics import INPUT_NAMES, PlantModel, Variant
-from plant_fmu.parameters import load_vehicle
-from plant_fmu.stepping import advance
+from plant_fmu.model.dynamics import INPUT_NAMES, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import advance
 
 H = 0.01
 START = dict(u=1.5, v=0.1, w=0.02, p=0.1, q=0.02, r=0.2, roll=0.1, pitch=0.05)

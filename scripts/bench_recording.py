@@ -1,4 +1,4 @@
-"""Cost of the Rerun recording (cosim.recording.RerunSink), absolute and relative to a run.
+"""Cost of the Rerun recording (cosim.viz.recording.RerunSink), absolute and relative to a run.
 
 Prints, best of ``--repeat`` (milliseconds unless stated):
   (a) a synthetic run: ``--rows`` rows of every column a closed-loop run records, fed in
@@ -28,11 +28,11 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-import cosim.recording
-from cosim.recording import RerunSink
-from cosim.rerun_layout import time_index
-from cosim.runner import run_scenario
-from cosim.scenario import DEFAULT_FMU_DIR, load_scenario
+import cosim.viz.recording
+from cosim.run.runner import run_scenario
+from cosim.run.scenario import DEFAULT_FMU_DIR, load_scenario
+from cosim.viz.layout import time_index
+from cosim.viz.recording import RerunSink
 
 COLUMNS = [
     *(f"plant.{n}" for n in ("north", "east", "down", "roll", "pitch", "yaw")),
@@ -101,7 +101,7 @@ class TimedSink(RerunSink):
 def real_run(folder: Path, rows: int, fmu_dir: Path, record: bool) -> tuple[float, float]:
     """(run_scenario's wall time, time spent in the sink), s."""
     scenario = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(stop_time=rows * 0.01)
-    cosim.recording.RerunSink = TimedSink  # run_scenario imports it at call time
+    cosim.viz.recording.RerunSink = TimedSink  # run_scenario imports it at call time
     TimedSink.spent = 0.0
     t0 = time.perf_counter()
     run_scenario(scenario, folder / "run", no_rrd=not record, fmu_dir=fmu_dir)

@@ -14,8 +14,8 @@ import os
 import tempfile
 from pathlib import Path
 
-from cosim.recording import RECORDING_FILE
-from cosim.rerun_screenshot import render_screenshots
+from cosim.viz.recording import RECORDING_FILE
+from cosim.viz.screenshot import render_screenshots
 
 
 def main() -> None:

@@ -6,7 +6,7 @@ the printed value, ours, and the verdict, with the figures beside it.
 Sources (B. Li, FAU 2016): Examples 5.1-5.6 and Sec. 5.1.2-5.1.4 (open-loop equilibria,
 Jacobians, folds and the fin factors mu, eta), (6.3.19) (the linearised lateral model
 with the moving mass), the low-speed equilibria of Sec. 6.3.3 and the Ch. 6 closed-loop
-scenarios (run through the co-simulation master, ``cosim.runner.run_scenario``).
+scenarios (run through the co-simulation master, ``cosim.run.runner.run_scenario``).
 
 Every "ours" number is computed here from the shipped model (``plant_fmu``) or from a
 run of the two FMUs; the dissertation's numbers are typed in as the claims they are.
@@ -29,10 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.analysis_plots import plot_phase_portrait, plot_sweep
-from cosim.analyze import phase_trajectories
-from plant_fmu.analysis import input_vector, linearize, state_vector
-from plant_fmu.bifurcation import (
+from cosim.analysis.analyze import phase_trajectories
+from cosim.analysis.bifurcation import (
     Q_PROP,
     OperatingConditions,
     cg_offset,
@@ -40,8 +38,10 @@ from plant_fmu.bifurcation import (
     mass_position_for_cg_offset,
     sweep,
 )
-from plant_fmu.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
-from plant_fmu.parameters import VehicleParameters, load_vehicle
+from cosim.analysis.plots import plot_phase_portrait, plot_sweep
+from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, linearize, state_vector
+from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 ZERO_TOLERANCE = 1e-3
@@ -823,10 +823,10 @@ SCENARIO_FIGURES = ("lqr-2", "bs-3", "cur-2", "vert-2")
 
 def scenario_claims(figures: Path, work: Path) -> list[Row]:
     try:
-        from cosim.report import write_report
-        from cosim.results import read_csv
-        from cosim.runner import run_scenario
-        from cosim.scenario import builtin_scenarios
+        from cosim.run.results import read_csv
+        from cosim.run.runner import run_scenario
+        from cosim.run.scenario import builtin_scenarios
+        from cosim.viz.report import write_report
     except ImportError as exc:
         return [_not_run(sid, f"the master is not available ({exc})") for sid in SCENARIO_CLAIMS]
     try:

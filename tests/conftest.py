@@ -1,7 +1,7 @@
 """Shared fixtures: the built FMUs and a fresh-process Python runner.
 
 * ``fmu_paths`` (session): ``{"AuvPlant": Path, "AuvAutopilot": Path}`` built once per test
-  session into a temporary folder with :mod:`cosim.build`. Until
+  session into a temporary folder with :mod:`cosim.fmus.build`. Until
   ``controller_fmu/auv_autopilot.py`` exists it holds only ``"AuvPlant"``; an FMU whose
   build fails is absent too, and looking it up raises that build's error.
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.build import FMUS, build_fmu, script_path
 from cosim.errors import CosimError
+from cosim.fmus.build import FMUS, build_fmu, script_path
 
 
 class BuiltFmus(dict):

@@ -13,9 +13,9 @@ import sys
 
 import pytest
 
+from cosim.analysis.bifurcation import Q_PROP
 from cosim.cli import main
-from plant_fmu.bifurcation import Q_PROP
-from plant_fmu.dynamics import STATE_NAMES
+from plant_fmu.model.dynamics import STATE_NAMES
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

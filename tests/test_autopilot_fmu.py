@@ -21,11 +21,11 @@ from controller_fmu.autopilot import (
     AutopilotConfig,
     field_unit,
 )
-from controller_fmu.closed_loop import simulate_closed_loop
-from cosim.validation import validate_fmus
-from plant_fmu.analysis import state_vector
-from plant_fmu.dynamics import STATE_NAMES, PlantModel, Variant
-from plant_fmu.parameters import load_vehicle
+from cosim.analysis.closed_loop import simulate_closed_loop
+from cosim.fmus.validation import validate_fmus
+from plant_fmu.model.dynamics import STATE_NAMES, PlantModel, Variant
+from plant_fmu.model.linearization import state_vector
+from plant_fmu.model.parameters import load_vehicle
 
 H = 0.01
 # The controller inputs the plant FMU provides (the current and set-points stay at 0 here).

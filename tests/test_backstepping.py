@@ -12,12 +12,12 @@ import pytest
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from controller_fmu.backstepping import BacksteppingGains, BacksteppingHeading
-from controller_fmu.closed_loop import simulate_closed_loop
 from controller_fmu.command_filter import CommandFilterBank
 from controller_fmu.lateral_model import LateralDesignModel
-from plant_fmu.analysis import state_vector
-from plant_fmu.dynamics import PlantModel, Variant
-from plant_fmu.parameters import load_vehicle
+from cosim.analysis.closed_loop import simulate_closed_loop
+from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model.linearization import state_vector
+from plant_fmu.model.parameters import load_vehicle
 
 H = 0.01
 CURRENT_GAINS = {"k0": 0.3, "k1": 0.8}  # Sec. 6.3.3: currents and low speed

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from plant_fmu.bifurcation import (
+from cosim.analysis.bifurcation import (
     Q_PROP,
     SWEEP_PARAMETERS,
     OperatingConditions,
@@ -23,8 +23,8 @@ from plant_fmu.bifurcation import (
     with_fin_area,
     with_fin_arm,
 )
-from plant_fmu.dynamics import STATE_INDEX, Variant
-from plant_fmu.parameters import load_vehicle
+from plant_fmu.model.dynamics import STATE_INDEX, Variant
+from plant_fmu.model.parameters import load_vehicle
 
 # A coarser grid than the default keeps the sweeps fast; it still hits every basin.
 COARSE_SEEDS = {"u": (1.0, 1.9), "v": (-0.2, 0.0, 0.2), "r": (-0.2, 0.0, 0.2), "roll": (0.0,)}

@@ -11,8 +11,8 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
-from cosim import build
 from cosim.errors import CosimError
+from cosim.fmus import build
 from plant_fmu.auv_plant import AuvPlant
 
 
@@ -44,7 +44,7 @@ def test_every_plant_unit_has_si_base_units():
 def test_plant_ships_its_package_and_data_but_no_scripts_or_caches():
     files = build.shipped_files("AuvPlant")
     assert files["auv_plant.py"] == build.script_path("AuvPlant")
-    for expected in ("plant_fmu/safe_slave.py", "plant_fmu/vehicles/remus100.toml"):
+    for expected in ("fmu_runtime/safe_slave.py", "plant_fmu/model/vehicles/remus100.toml"):
         assert expected in files
     assert "plant_fmu/auv_plant.py" not in files
     assert not any("__pycache__" in name or name.endswith(".pyc") for name in files)
@@ -86,7 +86,7 @@ def test_source_hash_changes_with_any_shipped_byte(tmp_path):
         shutil.copyfile(path, copy)
         files[name] = copy
     original = build.source_hash(files)
-    toml = files["plant_fmu/vehicles/remus100.toml"]
+    toml = files["plant_fmu/model/vehicles/remus100.toml"]
     toml.write_text(toml.read_text().replace("m = 30.5", "m = 30.6"))
     assert build.source_hash(files) != original
 
@@ -142,7 +142,7 @@ def test_model_description_completion_is_generic_and_idempotent():
 def test_smoke_run_reports_a_dead_host_and_when_it_died(monkeypatch, stdout, when):
     """A host killed by SIGABRT is a validation problem, never a pass, and the report says
     whether the FMU calls themselves or the process teardown crashed."""
-    from cosim import validation
+    from cosim.fmus import validation
 
     def aborted(argv, **kwargs):
         return subprocess.CompletedProcess(argv, -6, stdout, "corrupted double-linked list\n")

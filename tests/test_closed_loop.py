@@ -15,12 +15,12 @@ from controller_fmu.autopilot import (
     AutopilotConfig,
     AutopilotConfigError,
 )
-from controller_fmu.closed_loop import measurements, simulate_closed_loop
 from controller_fmu.depth_pd import DepthPd
 from controller_fmu.guidance import crab_angle, desired_heading, mass_locked
-from plant_fmu.analysis import input_vector, state_vector
-from plant_fmu.dynamics import PlantModel, Variant
-from plant_fmu.parameters import VehicleParameterError, load_vehicle
+from cosim.analysis.closed_loop import measurements, simulate_closed_loop
+from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
 
 H = 0.01
 

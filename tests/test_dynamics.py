@@ -6,8 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from plant_fmu.analysis import input_vector, state_vector
-from plant_fmu.dynamics import (
+from plant_fmu.model.dynamics import (
     INPUT_NAMES,
     N_STATES,
     STATE_INDEX,
@@ -16,8 +15,9 @@ from plant_fmu.dynamics import (
     euler_rate_matrix,
     rotation_matrix,
 )
-from plant_fmu.parameters import load_vehicle
-from plant_fmu.stepping import advance, simulate
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import advance, simulate
 
 NU = slice(6, 12)
 

@@ -6,10 +6,11 @@ import itertools
 import numpy as np
 import pytest
 
-from plant_fmu.analysis import find_equilibrium, input_vector, linearize, state_vector
-from plant_fmu.dynamics import STATE_INDEX, PlantModel, Variant
-from plant_fmu.parameters import load_vehicle
-from plant_fmu.stepping import simulate
+from cosim.analysis.equilibria import find_equilibrium
+from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, linearize, state_vector
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import simulate
 
 HORIZONTAL = ("u", "v", "r")
 

@@ -1,5 +1,5 @@
 """pythonfmu 0.7's use-after-free at process exit, and our guard against it
-(``plant_fmu/exit_guard.py``).
+(``fmu_runtime/exit_guard.py``).
 
 The bug aborted one CI run ("corrupted double-linked list") but shows as a crash only
 when glibc's heap happens to be in the wrong state, so the regression test asks valgrind
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from plant_fmu import exit_guard
+from fmu_runtime import exit_guard
 
 LOAD_AND_FREE = """
 import sys
@@ -23,7 +23,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 if sys.argv[1] == "unguarded":
-    from plant_fmu import exit_guard  # the FMU reuses this module (shared sys.modules)
+    from fmu_runtime import exit_guard  # the FMU reuses this module (shared sys.modules)
     exit_guard.install = lambda resources: False
 guarded = []
 for path in sys.argv[2:]:
@@ -32,7 +32,7 @@ for path in sys.argv[2:]:
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
     slave.instantiate(loggingOn=True)
     slave.freeInstance()
-from plant_fmu import exit_guard
+from fmu_runtime import exit_guard
 print(sorted(p.name for p in exit_guard._guarded))
 """
 

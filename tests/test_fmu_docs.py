@@ -1,4 +1,4 @@
-"""The documentation page inside each FMU (``cosim.fmu_docs``)."""
+"""The documentation page inside each FMU (``cosim.fmus.docs``)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from cosim.fmu_docs import DOC_ENTRY, add_documentation, documentation_html
+from cosim.fmus.docs import DOC_ENTRY, add_documentation, documentation_html
 
 
 class _Cells(HTMLParser):
@@ -95,7 +95,7 @@ def test_adding_the_page_twice_replaces_it(documented: Path, tmp_path: Path) -> 
 
 
 def test_built_fmus_carry_their_documentation(fmu_paths: dict[str, Path]) -> None:
-    """``cosim.build`` adds the page: what an importer (or a zip tool) finds in the FMU."""
+    """``cosim.fmus.build`` adds the page: what an importer (or a zip tool) finds in the FMU."""
     for fmu in fmu_paths.values():
         with zipfile.ZipFile(fmu) as archive:
             assert archive.read(DOC_ENTRY).decode("utf-8") == documentation_html(fmu)

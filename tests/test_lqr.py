@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
-from controller_fmu.closed_loop import simulate_closed_loop
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import (
     DISSERTATION_Q_Y,
@@ -21,9 +20,10 @@ from controller_fmu.lqr import (
     discretize,
     state_weight,
 )
-from plant_fmu.analysis import state_vector
-from plant_fmu.dynamics import PlantModel, Variant
-from plant_fmu.parameters import load_vehicle
+from cosim.analysis.closed_loop import simulate_closed_loop
+from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model.linearization import state_vector
+from plant_fmu.model.parameters import load_vehicle
 
 U0 = 1.525  # m/s: (6.3.19)'s linearisation speed
 

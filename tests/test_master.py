@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import master
-from cosim.build import pythonfmu_build
-from cosim.runner import run_scenario
-from cosim.scenario import Scenario, scenario_from_toml
+from cosim.fmus.build import pythonfmu_build
+from cosim.run import master
+from cosim.run.runner import run_scenario
+from cosim.run.scenario import Scenario, scenario_from_toml
 
 HERE = Path(__file__).parent
 K, H, X0 = 2.0, 0.1, 1.0
@@ -83,8 +83,8 @@ def test_gauss_seidel_is_the_sampled_loop_without_delay(fmu_dir: Path) -> None:
 
 def test_master_guards_any_pythonfmu_fmu_against_the_exit_crash(fmu_dir: Path) -> None:
     """The test FMUs are plain pythonfmu slaves (no guard of their own): the master
-    installs plant_fmu.exit_guard for every FMU it instantiates."""
-    from plant_fmu import exit_guard
+    installs fmu_runtime.exit_guard for every FMU it instantiates."""
+    from fmu_runtime import exit_guard
 
     assert master.run(loop(fmu_dir)).complete
     guarded = {path.name for path in exit_guard._guarded}

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from plant_fmu.parameters import VehicleParameterError, builtin_vehicles, load_vehicle
+from plant_fmu.model.parameters import VehicleParameterError, builtin_vehicles, load_vehicle
 
 
 def test_builtin_sets_are_shipped_and_load():

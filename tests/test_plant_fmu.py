@@ -13,11 +13,11 @@ from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 from fmu_harness import STATUS_DISCARD, STATUS_OK, Harness
 
-from cosim.validation import validate_fmus
-from plant_fmu.analysis import input_vector, state_vector
-from plant_fmu.dynamics import STATE_NAMES, PlantModel, Variant
-from plant_fmu.parameters import VehicleParameters, builtin_vehicles, load_vehicle
-from plant_fmu.stepping import advance, simulate
+from cosim.fmus.validation import validate_fmus
+from plant_fmu.model.dynamics import STATE_NAMES, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import VehicleParameters, builtin_vehicles, load_vehicle
+from plant_fmu.model.stepping import advance, simulate
 
 H = 0.01
 OUTPUTS = (*STATE_NAMES, "u_rel", "v_rel", "w_rel", "kinetic_energy")

@@ -1,6 +1,6 @@
 """The Rerun sink, read back with rerun.chunk.RrdReader.
 
-The data is a real plant run (plant_fmu.stepping.simulate, 6-DOF, 4 s at 10 ms) with the
+The data is a real plant run (plant_fmu.model.stepping.simulate, 6-DOF, 4 s at 10 ms) with the
 controller's columns held constant, fed to the sink in uneven batches as the master does.
 """
 
@@ -20,9 +20,9 @@ from rerun.chunk import RrdReader
 
 from cosim.cli import main
 from cosim.errors import CosimError
-from cosim.recording import RECORDING_FILE, RerunSink, rerun_executable, view_run
-from cosim.rerun_scene import CURRENT_SCALE, FORCE_SCALE, MASS_RADIUS
-from plant_fmu.dynamics import (
+from cosim.viz.recording import RECORDING_FILE, RerunSink, rerun_executable, view_run
+from cosim.viz.scene import CURRENT_SCALE, FORCE_SCALE, MASS_RADIUS
+from plant_fmu.model.dynamics import (
     INPUT_INDEX,
     INPUT_NAMES,
     STATE_INDEX,
@@ -31,8 +31,8 @@ from plant_fmu.dynamics import (
     Variant,
     rotation_matrix,
 )
-from plant_fmu.parameters import load_vehicle
-from plant_fmu.stepping import simulate
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import simulate
 
 STEP = 0.01
 CONTROLLER = {  # recorded controller column -> plant input it drives (or a constant)
@@ -105,7 +105,7 @@ def recorded(tmp_path_factory: pytest.TempPathFactory, scratch_home: Path):
     times, columns, values = plant_run()
     path = tmp_path_factory.mktemp("rec") / RECORDING_FILE
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr("cosim.recording.BATCH_ROWS", 100)  # several sends, not one at close
+        mp.setattr("cosim.viz.recording.BATCH_ROWS", 100)  # several sends, not one at close
         with RerunSink(path, None, "rec-test", SCENARIO_TOML, columns) as sink:
             feed(sink, times, values)
     return path, times, columns, values
@@ -461,9 +461,9 @@ def test_view_without_display_prints_how_to_open(tmp_path: Path, monkeypatch, ca
 def test_view_with_display_runs_the_viewer_on_the_file(tmp_path: Path, monkeypatch):
     (tmp_path / RECORDING_FILE).write_bytes(b"")
     monkeypatch.setenv("DISPLAY", ":99")
-    monkeypatch.setattr("cosim.recording.rerun_executable", lambda: "/opt/rerun")
+    monkeypatch.setattr("cosim.viz.recording.rerun_executable", lambda: "/opt/rerun")
     calls = []
-    monkeypatch.setattr("cosim.recording.subprocess.call", lambda argv: calls.append(argv) or 0)
+    monkeypatch.setattr("cosim.viz.recording.subprocess.call", lambda argv: calls.append(argv) or 0)
     assert view_run(tmp_path) == 0
     assert calls == [["/opt/rerun", str(tmp_path / RECORDING_FILE)]]
 
@@ -478,8 +478,8 @@ def test_view_of_a_folder_without_recording_names_it(tmp_path: Path, capsys):
 REAL_RUNS = """
 import sys
 from pathlib import Path
-from cosim.runner import run_scenario
-from cosim.scenario import load_scenario, scenario_from_toml
+from cosim.run.runner import run_scenario
+from cosim.run.scenario import load_scenario, scenario_from_toml
 
 fmu_dir, out = Path(sys.argv[1]), Path(sys.argv[2])
 closed = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(stop_time=2.0)
@@ -517,7 +517,7 @@ def real_runs(fmu_paths, run_python, tmp_path_factory: pytest.TempPathFactory) -
 
 
 def read_results(run: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    from cosim.results import read_csv
+    from cosim.run.results import read_csv
 
     names, table = read_csv(run / "results.csv")
     return table[:, 0], dict(zip(names, table.T, strict=True))

@@ -14,11 +14,11 @@ import pytest
 
 from cosim.cli import main
 from cosim.errors import CosimError
-from cosim.report import write_report
-from plant_fmu.analysis import input_vector, state_vector
-from plant_fmu.dynamics import STATE_NAMES, PlantModel, Variant
-from plant_fmu.parameters import load_vehicle
-from plant_fmu.stepping import simulate
+from cosim.viz.report import write_report
+from plant_fmu.model.dynamics import STATE_NAMES, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import simulate
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -159,7 +159,7 @@ def test_cli_prints_the_index_path(lateral_run, capsys):
 BS3_RUN = """
 import sys
 from pathlib import Path
-from cosim.runner import run_scenario
+from cosim.run.runner import run_scenario
 
 fmu_dir, out = Path(sys.argv[1]), Path(sys.argv[2])
 outcome = run_scenario("bs-3", out, stop_time=20.0, no_rrd=True, fmu_dir=fmu_dir)
@@ -186,7 +186,7 @@ def test_report_of_a_bs3_run_through_the_master(fmu_paths, run_python, tmp_path)
 def test_a_far_reference_curve_does_not_flatten_the_main_one() -> None:
     """An unsaturated servo command of metres beside a mass moving within its 6 cm stroke:
     the axis follows the mass, and the command is labelled as leaving it."""
-    from cosim.report import Series, _main_range
+    from cosim.viz.report import Series, _main_range
 
     t = np.linspace(0.0, 10.0, 101)
     position = 0.06 * np.sin(t)

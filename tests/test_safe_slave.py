@@ -10,7 +10,7 @@ import pytest
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 from pythonfmu.variables import Integer, Real
 
-from plant_fmu.safe_slave import SafeSlave
+from fmu_runtime.safe_slave import SafeSlave
 
 
 class Counter(SafeSlave):

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim import master
-from cosim.scenario import (
+from cosim.run import master
+from cosim.run.scenario import (
     SCENARIO_FOLDER,
     ScenarioError,
     builtin_scenarios,

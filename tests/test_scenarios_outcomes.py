@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import master
-from cosim.master import RunResult
-from cosim.results import read_csv, settling_time
-from cosim.runner import RunOutcome, run_scenario
-from cosim.scenario import builtin_scenarios, load_scenario, scenario_from_toml
+from cosim.run import master
+from cosim.run.master import RunResult
+from cosim.run.results import read_csv, settling_time
+from cosim.run.runner import RunOutcome, run_scenario
+from cosim.run.scenario import builtin_scenarios, load_scenario, scenario_from_toml
 
 DEG = math.pi / 180.0
 

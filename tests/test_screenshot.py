@@ -16,9 +16,9 @@ import pytest
 from matplotlib.image import imread
 from test_recording import feed, plant_run
 
-from cosim.recording import RerunSink, rerun_executable
-from cosim.rerun_layout import BLUE
-from cosim.rerun_screenshot import render_screenshots
+from cosim.viz.layout import BLUE
+from cosim.viz.recording import RerunSink, rerun_executable
+from cosim.viz.screenshot import render_screenshots
 
 ICD_FOLDERS = ("/usr/share/vulkan/icd.d", "/etc/vulkan/icd.d")
 

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
-from controller_fmu.closed_loop import simulate_closed_loop
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
 from controller_fmu.lqr import discretize
 from controller_fmu.sliding_mode import SlidingModeHeading
-from plant_fmu.analysis import input_vector, state_vector
-from plant_fmu.dynamics import STATE_INDEX, PlantModel, Variant
-from plant_fmu.parameters import load_vehicle
-from plant_fmu.stepping import advance
+from cosim.analysis.closed_loop import simulate_closed_loop
+from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import advance
 
 H = 0.01
 PSI = CONTROL_STATES.index("yaw")

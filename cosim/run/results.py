@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from cosim.errors import CosimError
-from cosim.master import RunResult
+from cosim.run.master import RunResult
 
 YAW_TOLERANCE_RAD = math.radians(1.0)  # "settled" band of the yaw settling time
 

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from plant_fmu.dynamics import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES, PlantModel
+from plant_fmu.model.dynamics import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES, PlantModel
 
 DEFAULT_MAX_SUBSTEP = 0.01  # s
 

@@ -4,8 +4,8 @@ The master hands over rows of results (``add_rows``, a few hundred steps at a ti
 sink buffers them (a second of wall time or 2,000 rows at most) and sends each group of
 signals as columns (``send_columns``) on the ``sim_time`` timeline (a duration, s). One
 ``rr.log`` per signal per step would cost 30-60x more (``scripts/bench_recording.py``),
-so there are none. What the recording shows is laid out in :mod:`cosim.rerun_layout`
-(plots, colours, blueprint) and :mod:`cosim.rerun_scene` (the 3D scene). Each sink owns
+so there are none. What the recording shows is laid out in :mod:`cosim.viz.layout`
+(plots, colours, blueprint) and :mod:`cosim.viz.scene` (the 3D scene). Each sink owns
 its own ``rr.RecordingStream``, so several runs in one process never mix.
 
 The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``), the
@@ -31,14 +31,14 @@ import numpy as np
 import rerun as rr
 
 from cosim.errors import CosimError
-from cosim.rerun_layout import (
+from cosim.viz.layout import (
     build_blueprint,
     plan_panels,
     series_style,
     time_index,
 )
-from cosim.rerun_scene import SceneWriter, log_static_scene, scene_legend
-from plant_fmu.parameters import VehicleParameterError, VehicleParameters, load_vehicle
+from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
+from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
 APPLICATION_ID = "auv-cosim"
 RECORDING_FILE = "recording.rrd"

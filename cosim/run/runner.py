@@ -17,11 +17,11 @@ from typing import Any
 
 import numpy as np
 
-from cosim import master
 from cosim.errors import CosimError
-from cosim.master import RunResult
-from cosim.results import key_figures, write_outputs
-from cosim.scenario import DEFAULT_FMU_DIR, Scenario, load_scenario
+from cosim.run import master
+from cosim.run.master import RunResult
+from cosim.run.results import key_figures, write_outputs
+from cosim.run.scenario import DEFAULT_FMU_DIR, Scenario, load_scenario
 
 RUNS_DIR = Path("runs")
 RECORDING_FILE = "recording.rrd"
@@ -142,13 +142,15 @@ def _fmt(value: float | None) -> str:
 
 
 def _open_sink(scenario: Scenario, rrd_path: Path | None, connect: str | None) -> Any:
-    """The Rerun sink (cosim.recording), or None if nothing is to be recorded."""
+    """The Rerun sink (cosim.viz.recording), or None if nothing is to be recorded."""
     if rrd_path is None and connect is None:
         return None
     try:
-        from cosim.recording import RerunSink
+        from cosim.viz.recording import RerunSink
     except ImportError as exc:
-        warnings.warn(f"no Rerun recording: cannot import cosim.recording ({exc})", stacklevel=2)
+        warnings.warn(
+            f"no Rerun recording: cannot import cosim.viz.recording ({exc})", stacklevel=2
+        )
         return None
     try:
         return RerunSink(rrd_path, connect, scenario.id, scenario.to_toml(), list(scenario.record))

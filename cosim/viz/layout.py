@@ -236,7 +236,7 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
 
     Left: the world view (whole trajectory, NED grid at the surface) above a chase view
     in the frame ``world/chase`` (the vehicle's position and heading, see
-    :mod:`cosim.rerun_scene`): its eye stays behind the vehicle, which rolls and pitches
+    :mod:`cosim.viz.scene`): its eye stays behind the vehicle, which rolls and pitches
     against a level grid. Middle: the heading loop (yaw and its setpoint, roll and
     yaw rates, roll, sway, the moving mass and its command, the tunnel thruster). Right,
     in tabs: the depth loop (depth and setpoint, pitch, pitch rate, heave, fins, surge),

@@ -1,7 +1,7 @@
 """Figures of the open-loop analysis: bifurcation diagrams (Figs. 5.6, 5.7, 5.9, 5.12) and
 phase portraits (Figs. 5.4, 5.5). matplotlib with the Agg backend; no physics here: the
-branches and trajectories come from :mod:`plant_fmu.bifurcation` and
-:mod:`plant_fmu.stepping`.
+branches and trajectories come from :mod:`cosim.analysis.bifurcation` and
+:mod:`plant_fmu.model.stepping`.
 """
 
 from __future__ import annotations
@@ -17,10 +17,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
 
-from plant_fmu.analysis import Equilibrium
-from plant_fmu.bifurcation import Q_PROP, Sweep, cg_offset
-from plant_fmu.dynamics import STATE_INDEX
-from plant_fmu.parameters import VehicleParameters
+from cosim.analysis.bifurcation import Q_PROP, Sweep, cg_offset
+from cosim.analysis.equilibria import Equilibrium
+from plant_fmu.model.dynamics import STATE_INDEX
+from plant_fmu.model.parameters import VehicleParameters
 
 PARAMETER_LABELS = {
     "roll_torque": "roll torque Q (N m)",

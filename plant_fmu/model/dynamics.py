@@ -36,7 +36,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from plant_fmu.parameters import VehicleParameters
+from plant_fmu.model.parameters import VehicleParameters
 
 STATE_NAMES: tuple[str, ...] = (
     "north", "east", "down", "roll", "pitch", "yaw",

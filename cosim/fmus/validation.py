@@ -71,7 +71,7 @@ def _static_problems(path: Path) -> list[str]:
 def smoke_run(paths: dict[str, Path]) -> list[str]:
     """Instantiate, initialise and step every FMU once, all in one fresh process."""
     arguments = json.dumps({name: str(path) for name, path in paths.items()})
-    code = "import sys; from cosim.validation import _smoke_main; _smoke_main(sys.argv[1])"
+    code = "import sys; from cosim.fmus.validation import _smoke_main; _smoke_main(sys.argv[1])"
     try:
         result = subprocess.run(
             [sys.executable, "-c", code, arguments],

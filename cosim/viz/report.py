@@ -32,7 +32,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from cosim.errors import CosimError
-from cosim.results import read_csv
+from cosim.run.results import read_csv
 
 REPORT_FOLDER = "report"
 INDEX_PAGE = "index.html"

@@ -1,8 +1,8 @@
 """``auv-cosim analyze``: equilibria, continuation sweeps and phase portraits.
 
-The command-line side of :mod:`plant_fmu.bifurcation`: builds the operating conditions
+The command-line side of :mod:`cosim.analysis.bifurcation`: builds the operating conditions
 from the options, prints tables or JSON, writes CSV files and the figures of
-:mod:`cosim.analysis_plots`. The physics all comes from the plant's own model.
+:mod:`cosim.analysis.plots`. The physics all comes from the plant's own model.
 
 * ``equilibria``: every equilibrium in the search box with its Jacobian eigenvalues and
   stability (``--json``: a list of ``{"state": {name: value}, "eigenvalues": [[re, im],
@@ -26,9 +26,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from cosim.errors import CosimError
-from plant_fmu.analysis import Equilibrium
-from plant_fmu.bifurcation import (
+from cosim.analysis.bifurcation import (
     Q_PROP,
     SEARCH_BOX,
     OperatingConditions,
@@ -37,9 +35,11 @@ from plant_fmu.bifurcation import (
     find_equilibria,
     sweep,
 )
-from plant_fmu.dynamics import STATE_INDEX, STATE_NAMES, STATE_UNITS, Variant
-from plant_fmu.parameters import load_vehicle
-from plant_fmu.stepping import simulate
+from cosim.analysis.equilibria import Equilibrium
+from cosim.errors import CosimError
+from plant_fmu.model.dynamics import STATE_INDEX, STATE_NAMES, STATE_UNITS, Variant
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import simulate
 
 # Phase portraits: how long each open-loop trajectory runs and its RK4 step. The slowest
 # open-loop mode of the REMUS (surge, 2 alpha U0 = -0.38 1/s) has decayed to 1e-5 in 30 s;
@@ -194,7 +194,7 @@ def run_sweep(
     Returns the :class:`Sweep` and the paths by name (``figure``, ``branches``,
     ``special_points``).
     """
-    from cosim.analysis_plots import plot_sweep
+    from cosim.analysis.plots import plot_sweep
 
     with tqdm(desc=f"sweep {parameter}", unit="step", disable=None, leave=False) as bar:
 
@@ -309,7 +309,7 @@ def phase_trajectories(
 
 
 def _phase_portrait(conditions: OperatingConditions, out: Path) -> int:
-    from cosim.analysis_plots import plot_phase_portrait
+    from cosim.analysis.plots import plot_phase_portrait
 
     if conditions.current_east != 0.0:
         raise CosimError(

@@ -5,7 +5,7 @@ Python callback becomes fmi2Fatal and the C wrapper then releases the Python obj
 so the host process crashes soon after. pythonfmu also accepts NaN inputs, lets a fixed
 parameter be written after initialisation, and saves only the registered variables as FMU
 state. This class closes those holes once, for the plant and the controller FMU alike,
-and installs :mod:`plant_fmu.exit_guard` against pythonfmu's crash at process exit.
+and installs :mod:`fmu_runtime.exit_guard` against pythonfmu's crash at process exit.
 
 What a subclass writes (the whole API)::
 
@@ -66,7 +66,7 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
 
-from plant_fmu import exit_guard
+from fmu_runtime import exit_guard
 
 _WRITE_ANY_TIME = "any time"
 _WRITE_BEFORE_INIT = "before initialisation"

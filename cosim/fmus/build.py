@@ -14,7 +14,7 @@ Steps for one FMU (:func:`build_fmu`):
    flags (``needsExecutionTool="false"``, FMU state get/set/serialise), ``UnitDefinitions``
    for every unit the Reals use (with SI base-unit exponents), ``InitialUnknowns`` by the
    FMI 2.0 rule. What only the slave knows it already wrote through
-   :meth:`plant_fmu.safe_slave.SafeSlave.to_xml`: the unit of every Real and the
+   :meth:`fmu_runtime.safe_slave.SafeSlave.to_xml`: the unit of every Real and the
    ``ModelStructure/Outputs`` dependencies. Both our FMUs hold their outputs over a
    communication step (the plant's are the state after the step, the autopilot's are
    computed from the inputs at the step start and held), so no output depends directly
@@ -43,8 +43,8 @@ from importlib import metadata
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from cosim import fmu_docs
 from cosim.errors import CosimError
+from cosim.fmus import docs as fmu_docs
 
 HASH_SUFFIX = ".sha256"
 SHIPPED_SUFFIXES = (".py", ".toml")
@@ -60,9 +60,9 @@ class FmuSource:
 
 
 FMUS: dict[str, FmuSource] = {
-    "AuvPlant": FmuSource("plant_fmu", "auv_plant.py", ("plant_fmu",)),
+    "AuvPlant": FmuSource("plant_fmu", "auv_plant.py", ("plant_fmu", "fmu_runtime")),
     "AuvAutopilot": FmuSource(
-        "controller_fmu", "auv_autopilot.py", ("controller_fmu", "plant_fmu")
+        "controller_fmu", "auv_autopilot.py", ("controller_fmu", "plant_fmu", "fmu_runtime")
     ),
 }
 _SCRIPTS = {source.script for source in FMUS.values()}
@@ -156,10 +156,10 @@ def shipped_files(name: str) -> dict[str, Path]:
 
 def source_hash(files: dict[str, Path]) -> str:
     """SHA-256 over the shipped files (names and bytes), this module, the documentation
-    generator (:mod:`cosim.fmu_docs`) and pythonfmu's version."""
+    generator (:mod:`cosim.fmus.docs`) and pythonfmu's version."""
     digest = hashlib.sha256()
     digest.update(f"pythonfmu {metadata.version('pythonfmu')}\n".encode())
-    generators = {"<cosim/build.py>": Path(__file__), "<fmu_docs>": Path(fmu_docs.__file__)}
+    generators = {"<cosim/fmus/build.py>": Path(__file__), "<fmu_docs>": Path(fmu_docs.__file__)}
     for relative, path in sorted({**files, **generators}.items()):
         digest.update(f"{relative}\n{len(path.read_bytes())}\n".encode())
         digest.update(path.read_bytes())

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from rerun.experimental import ViewerClient
 
-from cosim.recording import rerun_executable
+from cosim.viz.recording import rerun_executable
 
 START_TIMEOUT = 60.0  # s for the viewer to answer (software rendering starts slowly)
 LOAD_TIMEOUT = 60.0  # s for a recording to load

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-_VEHICLE_FOLDER = resources.files("plant_fmu") / "vehicles"
+_VEHICLE_FOLDER = resources.files("plant_fmu.model") / "vehicles"
 
 
 class VehicleParameterError(ValueError):
@@ -100,7 +100,7 @@ class VehicleParameters(BaseModel):
     @model_validator(mode="after")
     def _mass_matrix_positive_definite(self) -> VehicleParameters:
         # Imported here: dynamics builds the matrices and itself imports this module.
-        from plant_fmu.dynamics import added_mass_matrix, rigid_body_mass_matrix
+        from plant_fmu.model.dynamics import added_mass_matrix, rigid_body_mass_matrix
 
         total = rigid_body_mass_matrix(self) + added_mass_matrix(self)
         eigenvalues = np.linalg.eigvalsh(0.5 * (total + total.T))
@@ -133,7 +133,7 @@ class VehicleParameters(BaseModel):
 
 
 def builtin_vehicles() -> list[str]:
-    """Names of the parameter sets shipped in ``plant_fmu/vehicles``."""
+    """Names of the parameter sets shipped in ``plant_fmu/model/vehicles``."""
     return sorted(
         p.name.removesuffix(".toml") for p in _VEHICLE_FOLDER.iterdir() if p.name.endswith(".toml")
     )

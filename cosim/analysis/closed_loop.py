@@ -3,7 +3,7 @@
 The reference the FMUs are checked against, and the quickest way to try a controller: at
 each communication step the autopilot reads the plant's outputs (the same quantities, and
 the same arithmetic, the plant FMU publishes), its commands are held over the step, and
-:func:`plant_fmu.stepping.advance` integrates the plant (a sampled loop, Jacobi coupling).
+:func:`plant_fmu.model.stepping.advance` integrates the plant (a sampled loop, Jacobi coupling).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller_fmu.autopilot import COMMAND_NAMES, Autopilot
-from plant_fmu.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel
-from plant_fmu.stepping import DEFAULT_MAX_SUBSTEP, advance
+from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel
+from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance
 
 _COMMAND_INPUTS = [INPUT_INDEX[name] for name in COMMAND_NAMES]
 _MEASURED_STATES = (

@@ -61,8 +61,8 @@ from fmpy.fmi2 import (
 )
 
 from cosim.errors import CosimError
-from cosim.scenario import Instance, Scenario
-from plant_fmu import exit_guard
+from cosim.run.scenario import Instance, Scenario
+from fmu_runtime import exit_guard
 
 STATUS_LABELS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 LOG_LINES_KEPT = 20  # logged messages (warning or worse) kept per instance

@@ -40,7 +40,7 @@ import numpy as np
 import rerun as rr
 from scipy.spatial.transform import Rotation
 
-from cosim.rerun_layout import (
+from cosim.viz.layout import (
     CURRENT,
     FIN,
     HULL,
@@ -49,7 +49,7 @@ from cosim.rerun_layout import (
     THRUSTER,
     TRAJECTORY,
 )
-from plant_fmu.parameters import VehicleParameters
+from plant_fmu.model.parameters import VehicleParameters
 
 FORCE_SCALE = 0.05  # m of arrow per N of tunnel force (20 N = 1 m)
 CURRENT_SCALE = 5.0  # m of arrow per m/s of current (0.2 m/s = 1 m)

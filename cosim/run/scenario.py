@@ -5,7 +5,7 @@ master couples them, for how long, and what is recorded. Every problem is report
 :class:`ScenarioError` naming the file and the key, *before* any FMU is loaded: variable
 names, types and causalities come from each FMU's ``modelDescription.xml`` (read with
 ``fmpy.read_model_description``, which does not load the binary). Built-in FMU names are
-built on first use, or rebuilt when out of date (``cosim.build.build_fmu``).
+built on first use, or rebuilt when out of date (``cosim.fmus.build.build_fmu``).
 
 Format (every key is checked; unknown keys are errors)::
 
@@ -71,7 +71,7 @@ from pydantic import (
 
 from cosim.errors import CosimError
 
-SCENARIO_FOLDER = Path(__file__).with_name("scenarios")
+SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
 BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot")
 DEFAULT_FMU_DIR = Path("build/fmus")
 StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
@@ -161,7 +161,7 @@ class Connection:
 
 @dataclass(frozen=True)
 class Coupling:
-    """How the master advances the instances (see ``cosim.master``)."""
+    """How the master advances the instances (see ``cosim.run.master``)."""
 
     step: float  # s, communication step h
     algorithm: Literal["jacobi", "gauss-seidel"]
@@ -588,7 +588,7 @@ _descriptions: dict[tuple[Path, float], Any] = {}
 
 def _builtin_fmu(name: str, fmu_dir: Path) -> Path:
     """A built-in FMU in ``fmu_dir``, built there if missing or out of date."""
-    from cosim.build import build_fmu
+    from cosim.fmus.build import build_fmu
 
     return build_fmu(name, fmu_dir)
 

@@ -6,7 +6,7 @@ command line. Three tools:
 * :func:`find_equilibria` - every equilibrium in the dissertation's search box
   D = {0 < u < 2, |v| <= 0.4, |r| <= 0.4} (5.1.50), plus |roll| < 90 deg for the lateral
   variant (Sec. 5.1.4: "x5 in (-pi/2, pi/2)"). Method: a root finder
-  (:func:`plant_fmu.analysis.find_equilibrium`, scipy's hybr) seeded on a fixed grid over
+  (:func:`cosim.analysis.equilibria.find_equilibrium`, scipy's hybr) seeded on a fixed grid over
   the box, then deduplication. Why not continuation alone: continuation needs a known
   point on every branch and cannot reach a branch that is not connected to it (an isola),
   whereas the equilibria of this small system (3 to 5 unknowns, a handful of isolated
@@ -63,16 +63,10 @@ from functools import cached_property, lru_cache
 import numpy as np
 from scipy.optimize import root
 
-from plant_fmu.analysis import (
-    Equilibrium,
-    find_equilibrium,
-    free_states,
-    input_vector,
-    linearize,
-    state_vector,
-)
-from plant_fmu.dynamics import STATE_INDEX, PlantModel, Variant, rotation_matrix
-from plant_fmu.parameters import VehicleParameters
+from cosim.analysis.equilibria import Equilibrium, find_equilibrium, free_states
+from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant, rotation_matrix
+from plant_fmu.model.linearization import input_vector, linearize, state_vector
+from plant_fmu.model.parameters import VehicleParameters
 
 # Search box D of (5.1.50): (low, high) per free state; u's lower bound is open.
 SEARCH_BOX: dict[str, tuple[float, float]] = {
