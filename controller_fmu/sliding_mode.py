@@ -32,7 +32,7 @@ the reaching law asks no more than the 6 cm stroke gives (lqr-1 then settles in 
 19 s; eta/Phi = 1 1/s takes 25 s, 5 1/s gains little and doubles the command's activity);
 h eta/Phi = 0.02 keeps the sampled reaching law far from its stability limit 2. The
 dissertation notes the design is only locally stable (the remainder f* can dominate); it
-stabilises lqr-1's initial state (tests/test_sliding_mode.py).
+stabilises lqr-1's initial state (tests/controller_fmu/test_sliding_mode.py).
 """
 
 from __future__ import annotations

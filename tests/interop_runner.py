@@ -1,6 +1,6 @@
 """Run exported systems in a third-party FMI master and write the traces as CSV.
 
-Run in a subprocess by ``tests/test_interop.py``, one system per process::
+Run in a subprocess by ``tests/cosim/export/test_interop.py``, one system per process::
 
     python tests/interop_runner.py JOB.json
 

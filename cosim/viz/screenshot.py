@@ -4,7 +4,7 @@ Starts ``rerun --headless`` bound to 127.0.0.1 on a free port (the viewer draws 
 through Vulkan; without a GPU, Mesa's lavapipe from Debian's ``mesa-vulkan-drivers`` does
 it), drives it with ``rerun.experimental.ViewerClient`` (open, move the time cursor,
 ``save_screenshot``) and stops it. The viewer writes its settings under HOME and the XDG
-folders of the environment given. Used by tests/test_screenshot.py and
+folders of the environment given. Used by tests/cosim/viz/test_screenshot.py and
 scripts/render_recording.py; browsers' own ``--screenshot`` shoots before the web viewer
 has loaded, hence the native viewer.
 """

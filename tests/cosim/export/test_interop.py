@@ -28,13 +28,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import TESTS
 
 from cosim.export.system import export_osp, export_ssp
 from cosim.run.scenario import load_scenario
 
 TOLERANCE = 1e-9  # absolute, in each variable's SI unit
 STOP_TIME = 10.0  # s
-RUNNER = Path(__file__).with_name("interop_runner.py")
+RUNNER = TESTS / "interop_runner.py"
 
 PLANT_ALONE = """\
 id = "plant-alone"

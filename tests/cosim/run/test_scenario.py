@@ -9,6 +9,7 @@ import tomllib
 from pathlib import Path
 
 import pytest
+from repo_paths import ROOT
 
 from cosim.run import master
 from cosim.run.scenario import (
@@ -203,7 +204,7 @@ def test_cli_rejects_a_bad_file_with_one_line_and_no_run(fmu_dir: Path, tmp_path
 
 
 def test_documented_example_resolves(fmu_dir: Path, no_fmu_loading: None) -> None:
-    example = Path(__file__).parent.parent / "docs" / "scenario-example.toml"
+    example = ROOT / "docs" / "scenario-example.toml"
     s = load_scenario(example, fmu_dir=fmu_dir)
     assert s.coupling.step_multiples == {"plant": 1, "controller": 5}
     assert len(s.connections) == 10 and not s.rrd

@@ -1,7 +1,7 @@
 """``auv-cosim export``: the SSP archive and the OSP system structure hold the scenario the
 master runs, are valid against the schemas, and a failed export leaves nothing behind.
 
-(That libcosim and ecos run the exports like our master is ``tests/test_interop.py``.)
+(That libcosim and ecos run the exports like our master is ``tests/cosim/export/test_interop.py``.)
 """
 
 from __future__ import annotations

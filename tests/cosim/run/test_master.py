@@ -3,7 +3,8 @@
 tests/fmus holds a pythonfmu integrator (x' = u, exact over a step) and a sampled gain
 (u = -k x at the start of each step). Their closed loop has recurrences derived by hand
 below, so the Jacobi, Gauss-Seidel and multi-rate orderings are checked exactly,
-independently of the AUV. The AUV FMUs through the master: test_scenarios_outcomes.py.
+independently of the AUV. The AUV FMUs through the master:
+tests/cosim/run/test_builtin_scenarios.py.
 """
 
 from __future__ import annotations
@@ -17,13 +18,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import TESTS
 
 from cosim.fmus.build import pythonfmu_build
 from cosim.run import master
 from cosim.run.runner import run_scenario
 from cosim.run.scenario import Scenario, scenario_from_toml
 
-HERE = Path(__file__).parent
+HERE = TESTS
 K, H, X0 = 2.0, 0.1, 1.0
 
 
