@@ -17,14 +17,19 @@ becomes an FMU parameter of the same name, unit and description.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from enum import IntEnum
 from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from controller_fmu.backstepping import BacksteppingGains, BacksteppingHeading
+from controller_fmu.backstepping import (
+    BacksteppingGains,
+    BacksteppingHeading,
+    BacksteppingSnapshot,
+)
 from controller_fmu.depth_pd import (
     DEFAULT_FIN_LIMIT,
     TABLE_6_2_GAMMA,
@@ -35,6 +40,7 @@ from controller_fmu.depth_pd import (
 from controller_fmu.guidance import desired_heading, mass_locked, wrap_angle
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, LqrHeading
+from controller_fmu.modes import DepthMode, HeadingMode, choices
 from controller_fmu.sliding_mode import SlidingModeHeading
 from plant_fmu.model.parameters import load_vehicle
 
@@ -49,9 +55,6 @@ MEASUREMENT_UNITS: tuple[str, ...] = (
 )  # fmt: skip
 COMMAND_NAMES: tuple[str, ...] = ("mass_position_cmd", "tunnel_force", "fin_angle", "thrust")
 COMMAND_UNITS: tuple[str, ...] = ("m", "N", "rad", "N")
-
-HEADING_MODES = {0: "off", 1: "LQR", 2: "sliding mode", 3: "backstepping + tunnel thruster"}
-DEPTH_MODES = {0: "off", 1: "PD pitch + P depth"}
 
 
 class AutopilotConfigError(ValueError):
@@ -210,16 +213,12 @@ class AutopilotConfig(BaseModel):
     @field_validator("heading_mode")
     @classmethod
     def _known_heading_mode(cls, value: int) -> int:
-        if value not in HEADING_MODES:
-            raise ValueError(f"expected one of {HEADING_MODES}")
-        return value
+        return _known_mode(HeadingMode, value)
 
     @field_validator("depth_mode")
     @classmethod
     def _known_depth_mode(cls, value: int) -> int:
-        if value not in DEPTH_MODES:
-            raise ValueError(f"expected one of {DEPTH_MODES}")
-        return value
+        return _known_mode(DepthMode, value)
 
     @classmethod
     def build(cls, **values: Any) -> AutopilotConfig:
@@ -243,6 +242,15 @@ def field_unit(name: str) -> str:
     return str(extra["unit"]) if isinstance(extra, dict) else ""
 
 
+def _known_mode(mode: type[IntEnum], value: int) -> int:
+    """``value`` if it is one of ``mode``'s values, else a ValueError listing them."""
+    try:
+        mode(value)
+    except ValueError:
+        raise ValueError(f"expected one of {choices(mode)}") from None
+    return value
+
+
 @dataclass(frozen=True)
 class Commands:
     """The actuator commands held over one communication step (plant input names)."""
@@ -255,6 +263,53 @@ class Commands:
     def values(self) -> tuple[float, float, float, float]:
         """In :data:`COMMAND_NAMES` order."""
         return (self.mass_position_cmd, self.tunnel_force, self.fin_angle, self.thrust)
+
+
+@dataclass(frozen=True)
+class AutopilotSnapshot:
+    """Everything :meth:`Autopilot.step` changes, for :meth:`Autopilot.restore`."""
+
+    commands: Commands  # the commands last computed
+    heading_setpoint: float  # psi_d of the last step, rad
+    backstepping: BacksteppingSnapshot | None  # None unless heading_mode is BACKSTEPPING
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-serialisable form (part of the FMU's serialised state)."""
+        return {
+            "commands": list(self.commands.values()),
+            "heading_setpoint": self.heading_setpoint,
+            "backstepping": None if self.backstepping is None else self.backstepping.to_json(),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> AutopilotSnapshot:
+        """The snapshot :meth:`to_json` wrote."""
+        backstepping = data["backstepping"]
+        return cls(
+            commands=Commands(*data["commands"]),
+            heading_setpoint=data["heading_setpoint"],
+            backstepping=None
+            if backstepping is None
+            else BacksteppingSnapshot.from_json(backstepping),
+        )
+
+
+HeadingLaw = Callable[[float, np.ndarray], tuple[float, float]]
+"""A heading law: (time s, x = [v_rel, r, p, roll, yaw - psi_d, mass_position,
+mass_velocity] in SI) -> the unsaturated (mass_position_cmd m, tunnel_force N)."""
+
+
+def _no_heading_control(time: float, x: np.ndarray) -> tuple[float, float]:
+    return 0.0, 0.0
+
+
+def _mass_only(command: Callable[[np.ndarray], float]) -> HeadingLaw:
+    """A heading law from a mass-command law y_d(x) that leaves the thruster at 0."""
+
+    def law(time: float, x: np.ndarray) -> tuple[float, float]:
+        return command(x), 0.0
+
+    return law
 
 
 def _clip(value: float, limit: float) -> float:
@@ -274,28 +329,48 @@ class Autopilot:
 
     def __init__(self, config: AutopilotConfig) -> None:
         self.config = config
-        c = config
-        self.params = load_vehicle(c.vehicle)
-        self.design = LateralDesignModel(self.params, c.design_speed)
+        self.params = load_vehicle(config.vehicle)
+        self.design = LateralDesignModel(self.params, config.design_speed)
+        self.heading_mode = HeadingMode(config.heading_mode)
         self.lqr: LqrHeading | None = None
         self.sliding_mode: SlidingModeHeading | None = None
         self.backstepping: BacksteppingHeading | None = None
+        self._heading_law = self._design_heading_law()
+        # True if the heading law's gains hold only at the sample time design_step.
+        self.designed_for_step = self.heading_mode in (HeadingMode.LQR, HeadingMode.SLIDING_MODE)
+        self.depth: DepthPd | None = None
+        if DepthMode(config.depth_mode) is DepthMode.PD:
+            self.depth = DepthPd(
+                config.depth_gamma, config.depth_k_p, config.depth_tau_d, config.fin_angle_limit
+            )
+        self.reset()
+
+    def _design_heading_law(self) -> HeadingLaw:
+        """Design the controller ``heading_mode`` selects (once) and return its law."""
+        c = self.config
         q_y = (c.lqr_q_r, c.lqr_q_p, c.lqr_q_roll, c.lqr_q_yaw, c.lqr_q_mass_position,
                c.lqr_q_mass_velocity)  # fmt: skip
-        if c.heading_mode == 1:
+        if self.heading_mode is HeadingMode.LQR:
             self.lqr = LqrHeading(self.design, c.design_step, q_y, c.lqr_r)
-        elif c.heading_mode == 2:
+            return _mass_only(self.lqr.command)
+        if self.heading_mode is HeadingMode.SLIDING_MODE:
             self.sliding_mode = SlidingModeHeading(
                 self.design, c.design_step, c.smc_eta, c.smc_boundary_layer, q_y, c.lqr_r
             )
-        elif c.heading_mode == 3:
+            return _mass_only(self.sliding_mode.command)
+        if self.heading_mode is HeadingMode.BACKSTEPPING:
             gains = BacksteppingGains(
                 c.k0, c.k1, c.k2, c.k3, c.k4,
                 c.eta0, c.thruster_boundary_layer, c.command_filter_frequency,
             )  # fmt: skip
             self.backstepping = BacksteppingHeading(self.design, gains)
-        self.depth = DepthPd(c.depth_gamma, c.depth_k_p, c.depth_tau_d, c.fin_angle_limit)
-        self.reset()
+            return self._backstepping_law
+        return _no_heading_control
+
+    def _backstepping_law(self, time: float, x: np.ndarray) -> tuple[float, float]:
+        v, r, p, phi, psi_e, y_v, _ = x.tolist()
+        out = self.backstepping.command(time, v, r, p, phi, psi_e, y_v)
+        return out.mass_position, out.tunnel_force
 
     def reset(self) -> None:
         """Back to the state right after construction."""
@@ -304,15 +379,19 @@ class Autopilot:
         if self.backstepping is not None:
             self.backstepping.reset()
 
-    def snapshot(self) -> tuple:
+    def snapshot(self) -> AutopilotSnapshot:
         """Everything :meth:`step` changes, for :meth:`restore`."""
         bs = self.backstepping.snapshot() if self.backstepping is not None else None
-        return (self.commands, self.heading_setpoint, bs)
+        return AutopilotSnapshot(self.commands, self.heading_setpoint, bs)
 
-    def restore(self, snapshot: tuple) -> None:
-        self.commands, self.heading_setpoint, bs = snapshot
+    def restore(self, snapshot: AutopilotSnapshot) -> None:
+        """Back to the state of :meth:`snapshot` (taken from an autopilot of this config)."""
+        self.commands = snapshot.commands
+        self.heading_setpoint = snapshot.heading_setpoint
         if self.backstepping is not None:
-            self.backstepping.restore(bs)
+            if snapshot.backstepping is None:
+                raise ValueError("the snapshot holds no backstepping state: not of this config")
+            self.backstepping.restore(snapshot.backstepping)
 
     def step(self, time: float, measurements: Mapping[str, float]) -> Commands:
         """The commands to hold from ``time`` (s) over the next communication step.
@@ -336,20 +415,11 @@ class Autopilot:
             [m["v_rel"], m["r"], m["p"], m["roll"], psi_e, m["mass_position"],
              m["mass_velocity"]]
         )  # fmt: skip
-        mass_cmd, tunnel = 0.0, 0.0
-        if self.lqr is not None:
-            mass_cmd = self.lqr.command(x)
-        elif self.sliding_mode is not None:
-            mass_cmd = self.sliding_mode.command(x)
-        elif self.backstepping is not None:
-            out = self.backstepping.command(
-                time, m["v_rel"], m["r"], m["p"], m["roll"], psi_e, m["mass_position"]
-            )
-            mass_cmd, tunnel = out.mass_position, out.tunnel_force
+        mass_cmd, tunnel = self._heading_law(time, x)
         if mass_locked(time, c.mass_lock_time):
             mass_cmd = 0.0
         fin = 0.0
-        if c.depth_mode == 1:
+        if self.depth is not None:
             fin = self.depth.fin_angle(m["depth_setpoint"], m["down"], m["pitch"], m["q"])
         commands = Commands(
             mass_position_cmd=_clip(mass_cmd, c.mass_position_cmd_limit),

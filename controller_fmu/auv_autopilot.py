@@ -51,7 +51,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 from pythonfmu.variables import Boolean, Integer, Real, String
@@ -63,6 +62,7 @@ from controller_fmu.autopilot import (
     MEASUREMENT_UNITS,
     Autopilot,
     AutopilotConfig,
+    AutopilotSnapshot,
     Commands,
     field_unit,
 )
@@ -161,7 +161,7 @@ class AuvAutopilot(SafeSlave):
         autopilot = self._autopilot
         design_step = autopilot.config.design_step
         if (
-            autopilot.config.heading_mode in (1, 2)
+            autopilot.designed_for_step
             and not self._step_warned
             and not math.isclose(step_size, design_step, rel_tol=1e-9)
         ):
@@ -183,14 +183,7 @@ class AuvAutopilot(SafeSlave):
     def _state_snapshot(self) -> dict[str, Any]:
         state: dict[str, Any] = {"outputs": list(self._outputs), "warned": self._step_warned}
         if self._autopilot is not None:
-            commands, heading_setpoint, bs = self._autopilot.snapshot()
-            state["autopilot"] = {
-                "commands": list(commands.values()),
-                "heading_setpoint": heading_setpoint,
-                "backstepping": None
-                if bs is None
-                else [bs[0], bs[1].tolist(), bs[2].tolist(), bs[3].tolist()],
-            }
+            state["autopilot"] = self._autopilot.snapshot().to_json()
         return state
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
@@ -202,14 +195,7 @@ class AuvAutopilot(SafeSlave):
         config = AutopilotConfig.build(**self._params)
         if self._autopilot is None or self._autopilot.config != config:
             self._autopilot = Autopilot(config)
-        bs = saved["backstepping"]
-        self._autopilot.restore(
-            (
-                Commands(*saved["commands"]),
-                saved["heading_setpoint"],
-                None if bs is None else (bs[0], np.array(bs[1]), np.array(bs[2]), np.array(bs[3])),
-            )
-        )
+        self._autopilot.restore(AutopilotSnapshot.from_json(saved))
 
 
 def _item_getter(values: list, i: int):

@@ -68,7 +68,9 @@ matrix), F_t = u~ / (d v'/d F_t). The parameters the dissertation leaves open, o
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -112,6 +114,35 @@ class BacksteppingOutput:
     errors: tuple[float, float, float, float, float]  # psi_e, z1, z2, z3, z4
 
 
+@dataclass(frozen=True)
+class BacksteppingSnapshot:
+    """The state of a :class:`BacksteppingHeading` between two samples."""
+
+    last_time: float | None  # s, the previous sample's time (None before the first)
+    last_alphas: np.ndarray  # alpha1..3 of the previous sample, held into the filters
+    filter_value: np.ndarray  # the command filters' outputs a_c
+    filter_rate: np.ndarray  # and their rates a_c' (the alpha_i' estimates)
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-serialisable form."""
+        return {
+            "last_time": self.last_time,
+            "last_alphas": self.last_alphas.tolist(),
+            "filter_value": self.filter_value.tolist(),
+            "filter_rate": self.filter_rate.tolist(),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> BacksteppingSnapshot:
+        """The snapshot :meth:`to_json` wrote."""
+        return cls(
+            last_time=data["last_time"],
+            last_alphas=np.array(data["last_alphas"], dtype=float),
+            filter_value=np.array(data["filter_value"], dtype=float),
+            filter_rate=np.array(data["filter_rate"], dtype=float),
+        )
+
+
 class BacksteppingHeading:
     """The sampled backstepping controller; its filters are its only state.
 
@@ -142,20 +173,21 @@ class BacksteppingHeading:
         self._last_alphas = np.zeros(3)
         self.filters.start(np.zeros(3))
 
-    def snapshot(self) -> tuple:
+    def snapshot(self) -> BacksteppingSnapshot:
         """The internal state, to restore with :meth:`restore`."""
-        return (
-            self._last_time,
-            self._last_alphas.copy(),
-            self.filters.value.copy(),
-            self.filters.rate.copy(),
+        return BacksteppingSnapshot(
+            last_time=self._last_time,
+            last_alphas=self._last_alphas.copy(),
+            filter_value=self.filters.value.copy(),
+            filter_rate=self.filters.rate.copy(),
         )
 
-    def restore(self, snapshot: tuple) -> None:
-        last_time, alphas, value, rate = snapshot
-        self._last_time = last_time
-        self._last_alphas = alphas.copy()
-        self.filters.value, self.filters.rate = value.copy(), rate.copy()
+    def restore(self, snapshot: BacksteppingSnapshot) -> None:
+        """Back to the state :meth:`snapshot` returned (the snapshot is not shared)."""
+        self._last_time = snapshot.last_time
+        self._last_alphas = snapshot.last_alphas.copy()
+        self.filters.value = snapshot.filter_value.copy()
+        self.filters.rate = snapshot.filter_rate.copy()
 
     def command(
         self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float

@@ -1,9 +1,11 @@
 """The Autopilot composition: guidance (6.3.74)-(6.3.75), the depth PD of Fig. 6.40 with
 Table 6.2's gains on the 6-DOF plant (vert-1, vert-2), the moving-mass lock, exact
-snapshot/restore, and bad input."""
+snapshot/restore (frozen snapshots), the heading and depth modes, and bad input."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 
 import numpy as np
@@ -14,9 +16,11 @@ from controller_fmu.autopilot import (
     Autopilot,
     AutopilotConfig,
     AutopilotConfigError,
+    AutopilotSnapshot,
 )
 from controller_fmu.depth_pd import DepthPd
 from controller_fmu.guidance import crab_angle, desired_heading, mass_locked
+from controller_fmu.modes import DepthMode, HeadingMode
 from cosim.analysis.closed_loop import measurements, simulate_closed_loop
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
@@ -136,6 +140,41 @@ def test_snapshot_and_restore_continue_bit_identically(remus):
     first = replay()
     autopilot.restore(saved)
     assert replay() == first
+    # The snapshot is a value: frozen, not shared with the autopilot, and it survives the
+    # JSON round trip of the FMU's serialised state exactly.
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        saved.heading_setpoint = 1.0
+    assert saved.backstepping.last_time == pytest.approx(2.0 - H)
+    autopilot.restore(AutopilotSnapshot.from_json(json.loads(json.dumps(saved.to_json()))))
+    assert replay() == first
+
+
+@pytest.mark.parametrize(
+    ("mode", "controller", "designed_for_step"),
+    [
+        (HeadingMode.OFF, None, False),
+        (HeadingMode.LQR, "lqr", True),
+        (HeadingMode.SLIDING_MODE, "sliding_mode", True),
+        (HeadingMode.BACKSTEPPING, "backstepping", False),
+    ],
+)
+def test_each_heading_mode_designs_only_its_own_controller(mode, controller, designed_for_step):
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=int(mode)))
+    designed = [n for n in ("lqr", "sliding_mode", "backstepping") if getattr(autopilot, n)]
+    assert designed == ([controller] if controller else [])
+    assert autopilot.heading_mode is mode
+    assert autopilot.designed_for_step is designed_for_step
+    snapshot = autopilot.snapshot()
+    assert (snapshot.backstepping is not None) == (mode is HeadingMode.BACKSTEPPING)
+
+
+def test_depth_mode_off_leaves_the_fins_at_zero_and_pd_moves_them(remus):
+    deep = _measured(remus, u=1.5, down=0.2)
+    deep["depth_setpoint"] = 1.0
+    off = Autopilot(AutopilotConfig.build(depth_mode=int(DepthMode.OFF)))
+    on = Autopilot(AutopilotConfig.build(depth_mode=int(DepthMode.PD)))
+    assert off.step(0.0, deep).fin_angle == 0.0
+    assert on.step(0.0, deep).fin_angle == DepthPd().fin_angle(1.0, 0.2, 0.0, 0.0) != 0.0
 
 
 def test_a_non_finite_or_missing_measurement_is_refused_by_name(remus):
@@ -152,8 +191,12 @@ def test_a_non_finite_or_missing_measurement_is_refused_by_name(remus):
 @pytest.mark.parametrize(
     ("values", "message"),
     [
-        ({"heading_mode": 7}, r"heading_mode = 7: .*expected one of \{0: 'off', 1: 'LQR'"),
-        ({"depth_mode": -1}, "depth_mode = -1"),
+        (
+            {"heading_mode": 7},
+            r"heading_mode = 7: .*expected one of 0 \(OFF\), 1 \(LQR\), 2 \(SLIDING_MODE\), "
+            r"3 \(BACKSTEPPING\)",
+        ),
+        ({"depth_mode": -1}, r"depth_mode = -1: .*expected one of 0 \(OFF\), 1 \(PD\)"),
         ({"design_speed": 0.0}, "design_speed = 0.0"),
         ({"k0": float("nan")}, "k0 = nan"),
         ({"rudder": 1.0}, "unknown autopilot parameter 'rudder'"),
