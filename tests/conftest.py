@@ -1,9 +1,9 @@
 """Shared fixtures: the built FMUs and a fresh-process Python runner.
 
 * ``fmu_paths`` (session): ``{"AuvPlant": Path, "AuvAutopilot": Path}`` built once per test
-  session into a temporary folder with :mod:`cosim.fmus.build`. Until
-  ``controller_fmu/auv_autopilot.py`` exists it holds only ``"AuvPlant"``; an FMU whose
-  build fails is absent too, and looking it up raises that build's error.
+  session into a temporary folder with :mod:`cosim.fmus.build`. An FMU whose build fails
+  is absent, and looking it up raises that build's error (so a broken FMU fails only the
+  tests that use it).
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
   ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). This folder is on
@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from cosim.errors import CosimError
-from cosim.fmus.build import FMUS, build_fmu, script_path
+from cosim.fmus.build import FMUS, build_fmu
 
 
 class BuiltFmus(dict):
@@ -46,11 +46,10 @@ def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     built: dict[str, Path] = {}
     failures: dict[str, Exception] = {}
     for name in FMUS:
-        if script_path(name).is_file():
-            try:
-                built[name] = build_fmu(name, out)
-            except CosimError as exc:
-                failures[name] = exc
+        try:
+            built[name] = build_fmu(name, out)
+        except CosimError as exc:
+            failures[name] = exc
     return BuiltFmus(built, failures)
 
 

@@ -85,15 +85,9 @@ def build_fmus(out_dir: Path, force: bool = False) -> dict[str, Path]:
     """Build both FMUs into ``out_dir`` (only those out of date unless ``force``).
 
     Raises:
-        CosimError: a script is missing (the autopilot before issue 4 lands) or a build
-            step failed; the message says which and why.
+        CosimError: a script is missing or a build step failed; the message says which
+            and why.
     """
-    missing = [name for name in FMUS if not script_path(name).is_file()]
-    if missing:
-        raise CosimError(
-            "cannot build "
-            + ", ".join(f"{n}.fmu: {script_path(n)} does not exist yet" for n in missing)
-        )
     return {name: build_fmu(name, out_dir, force=force) for name in FMUS}
 
 
@@ -111,7 +105,7 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     target = out_dir / f"{name}.fmu"
     hash_file = target.with_name(target.name + HASH_SUFFIX)
     if not script_path(name).is_file():
-        raise CosimError(f"cannot build {name}.fmu: {script_path(name)} does not exist yet")
+        raise CosimError(f"cannot build {name}.fmu: {script_path(name)} does not exist")
     files = shipped_files(name)
     digest = source_hash(files)
     if not force and target.is_file() and _read(hash_file) == digest:

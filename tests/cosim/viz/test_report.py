@@ -170,9 +170,7 @@ assert outcome.result.complete, outcome.result.error
 def test_report_of_a_bs3_run_through_the_master(fmu_paths, run_python, tmp_path):
     """Both FMUs through the master (fresh process: pythonfmu caches modules), then the
     report: every figure written and non-empty, the summary on the page."""
-    if "AuvAutopilot" not in fmu_paths:
-        pytest.skip("controller_fmu/auv_autopilot.py does not exist yet")
-    done = run_python(BS3_RUN, fmu_paths["AuvPlant"].parent, tmp_path / "bs-3")
+    done = run_python(BS3_RUN, fmu_paths["AuvAutopilot"].parent, tmp_path / "bs-3")
     assert done.returncode == 0, done.stderr
     index = write_report(tmp_path / "bs-3")
     figures = sorted(p.name for p in index.parent.glob("*.png"))
