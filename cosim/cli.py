@@ -10,8 +10,12 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
+
+if TYPE_CHECKING:
+    from cosim.analysis.bifurcation import OperatingConditions
 
 DEFAULT_FMU_DIR = Path("build/fmus")
 
@@ -52,9 +56,9 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from cosim.export.system import export_from_cli
+    from cosim.export.command import export_scenario
 
-    return export_from_cli(args)
+    return export_scenario(args.scenario, ssp=args.ssp, osp=args.osp, fmu_dir=args.fmu_dir)
 
 
 def _view(args: argparse.Namespace) -> int:
@@ -63,10 +67,37 @@ def _view(args: argparse.Namespace) -> int:
     return view_run(args.run_dir)
 
 
-def _analyze(args: argparse.Namespace) -> int:
-    from cosim.analysis.analyze import analyze_from_cli
+def _conditions(args: argparse.Namespace) -> OperatingConditions:
+    from cosim.analysis.analyze import operating_conditions
 
-    return analyze_from_cli(args)
+    return operating_conditions(
+        args.vehicle,
+        args.variant,
+        args.thrust,
+        args.roll_torque,
+        args.mass_position,
+        args.current_east,
+        sweep_parameter=getattr(args, "param", None),
+    )
+
+
+def _equilibria(args: argparse.Namespace) -> int:
+    from cosim.analysis.analyze import print_equilibria
+
+    return print_equilibria(_conditions(args), as_json=args.json)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from cosim.analysis.analyze import sweep_command
+
+    conditions = _conditions(args)
+    return sweep_command(conditions, args.param, args.start, args.stop, args.steps, args.out)
+
+
+def _phase_portrait(args: argparse.Namespace) -> int:
+    from cosim.analysis.analyze import phase_portrait_command
+
+    return phase_portrait_command(_conditions(args), args.out)
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -125,6 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
     a = asub.add_parser("equilibria", help="all equilibria in the search box, with stability")
     _add_model_options(a)
     a.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    a.set_defaults(func=_equilibria)
     a = asub.add_parser("sweep", help="continuation of equilibrium branches over a parameter")
     a.add_argument("param", choices=["roll_torque", "mass_position", "mu", "eta"])
     a.add_argument("start", type=float, metavar="FROM")
@@ -132,10 +164,11 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--steps", type=int, default=200, help="[%(default)s]")
     a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
     _add_model_options(a)
+    a.set_defaults(func=_sweep)
     a = asub.add_parser("phase-portrait", help="open-loop horizontal trajectories (Fig. 5.4)")
     a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
     _add_model_options(a)
-    p.set_defaults(func=_analyze)
+    a.set_defaults(func=_phase_portrait)
 
     p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
     p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")

@@ -16,7 +16,6 @@ from the options, prints tables or JSON, writes CSV files and the figures of
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
@@ -54,37 +53,34 @@ PHASE_VR0 = tuple((v, r) for v in (-0.4, 0.0, 0.4) for r in (-0.4, 0.0, 0.4))
 MANIFOLD_OFFSET = 0.01
 
 
-def analyze_from_cli(args: argparse.Namespace) -> int:
-    """Run ``auv-cosim analyze equilibria|sweep|phase-portrait``; 0 on success."""
-    conditions = _conditions(args)
-    if args.analysis == "equilibria":
-        return _equilibria(conditions, as_json=args.json)
-    if args.analysis == "sweep":
-        return _sweep(conditions, args.param, args.start, args.stop, args.steps, args.out)
-    if args.analysis == "phase-portrait":
-        return _phase_portrait(conditions, args.out)
-    raise CosimError(f"unknown analysis {args.analysis!r}")
+def operating_conditions(
+    vehicle: str,
+    variant: int | None,
+    thrust: float,
+    roll_torque: float,
+    mass_position: float,
+    current_east: float,
+    sweep_parameter: str | None = None,
+) -> OperatingConditions:
+    """The operating conditions an analysis runs at (SI: N, N.m, m, m/s).
 
-
-def _default_variant(args: argparse.Namespace) -> Variant:
-    """The variant an analysis needs when --variant is not given: roll torque and the moving
-    mass act through roll, so their sweeps need the lateral model (Sec. 5.1.3-5.1.4); the
-    rest are the horizontal analyses of Sec. 5.1.2."""
-    if args.variant is not None:
-        return Variant(args.variant)
-    if getattr(args, "param", None) in ("roll_torque", "mass_position"):
-        return Variant.LATERAL
-    return Variant.HORIZONTAL
-
-
-def _conditions(args: argparse.Namespace) -> OperatingConditions:
+    ``variant`` None picks what the analysis needs: roll torque and the moving mass act
+    through roll, so their sweeps (``sweep_parameter``) need the lateral model (Sec.
+    5.1.3-5.1.4); the rest are the horizontal analyses of Sec. 5.1.2.
+    """
+    if variant is not None:
+        chosen = Variant(variant)
+    elif sweep_parameter in ("roll_torque", "mass_position"):
+        chosen = Variant.LATERAL
+    else:
+        chosen = Variant.HORIZONTAL
     return OperatingConditions(
-        params=load_vehicle(args.vehicle),
-        variant=_default_variant(args),
-        thrust=args.thrust,
-        roll_torque=args.roll_torque,
-        mass_position=args.mass_position,
-        current_east=args.current_east,
+        params=load_vehicle(vehicle),
+        variant=chosen,
+        thrust=thrust,
+        roll_torque=roll_torque,
+        mass_position=mass_position,
+        current_east=current_east,
     )
 
 
@@ -115,7 +111,8 @@ def _ordered(eigenvalues: np.ndarray) -> np.ndarray:
     return np.array(sorted(eigenvalues, key=lambda z: (round(z.real, 12), z.imag)))
 
 
-def _equilibria(conditions: OperatingConditions, as_json: bool) -> int:
+def print_equilibria(conditions: OperatingConditions, as_json: bool) -> int:
+    """``auv-cosim analyze equilibria``: print the table (or JSON); 0 on success."""
     equilibria = find_equilibria(conditions)
     if as_json:
         print(json.dumps([equilibrium_record(eq) for eq in equilibria], indent=2))
@@ -164,7 +161,7 @@ def _complex(z: complex) -> str:
 # --- sweep ---------------------------------------------------------------------------------
 
 
-def _sweep(
+def sweep_command(
     conditions: OperatingConditions,
     parameter: str,
     start: float,
@@ -172,6 +169,7 @@ def _sweep(
     steps: int,
     out: Path,
 ) -> int:
+    """``auv-cosim analyze sweep``: write the sweep's files, print its special points."""
     result, paths = run_sweep(conditions, parameter, start, stop, steps, out)
     print(describe(conditions))
     print(special_points_table(result, conditions))
@@ -308,7 +306,8 @@ def phase_trajectories(
     return histories
 
 
-def _phase_portrait(conditions: OperatingConditions, out: Path) -> int:
+def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:
+    """``auv-cosim analyze phase-portrait``: write the figure, print the equilibria."""
     from cosim.analysis.plots import plot_phase_portrait
 
     if conditions.current_east != 0.0:

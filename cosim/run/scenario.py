@@ -4,7 +4,7 @@ A scenario says which FMUs run, with which start values, how they are connected,
 master couples them, for how long, and what is recorded. Every problem is reported as a
 :class:`ScenarioError` naming the file and the key, *before* any FMU is loaded: variable
 names, types and causalities come from each FMU's ``modelDescription.xml`` (read with
-``fmpy.read_model_description``, which does not load the binary). Built-in FMU names are
+:func:`cosim.fmus.interface.read_interface`, which does not load the binary). Built-in FMU names are
 built on first use, or rebuilt when out of date (``cosim.fmus.build.build_fmu``).
 
 Format (every key is checked; unknown keys are errors)::
@@ -70,6 +70,7 @@ from pydantic import (
 )
 
 from cosim.errors import CosimError
+from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
 
 SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
 BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot")
@@ -177,15 +178,20 @@ class Instance:
     fmu: str  # as written: a built-in name or an absolute path
     fmu_path: Path
     start: Mapping[str, bool | int | float | str]
-    model_description: Any = dataclasses.field(repr=False, compare=False)
+    interface: FmuInterface = dataclasses.field(repr=False, compare=False)
+
+    @property
+    def model_description(self) -> Any:
+        """fmpy's model description of the FMU (for driving it through fmpy)."""
+        return self.interface.model_description
 
     def variable(self, name: str) -> Any:
         """The fmpy ``ModelVariable`` called ``name``."""
-        return _variables(self.model_description)[name]
+        return self.interface.model_variables[name]
 
     def variables(self, causality: str) -> list[Any]:
-        """Variables with this causality, in modelDescription order."""
-        return [v for v in self.model_description.modelVariables if v.causality == causality]
+        """fmpy ``ModelVariable``s with this causality, in modelDescription order."""
+        return [self.variable(v.name) for v in self.interface.with_causality(causality)]
 
 
 @dataclass(frozen=True)
@@ -440,12 +446,14 @@ def _resolve_instance(
                 f"file (looked for {fmu_path})",
             )
         fmu_ref = str(fmu_path)
-    md = _model_description(fmu_path)
-    if md.coSimulation is None:
+    interface = _interface(fmu_path)
+    if interface.model_identifier is None:
         raise fail(f"instances.{name}.fmu", f"{fmu_path} is not a co-simulation FMU")
-    if md.fmiVersion != "2.0":
-        raise fail(f"instances.{name}.fmu", f"{fmu_path} is FMI {md.fmiVersion}, expected 2.0")
-    variables = _variables(md)
+    if interface.fmi_version != "2.0":
+        raise fail(
+            f"instances.{name}.fmu", f"{fmu_path} is FMI {interface.fmi_version}, expected 2.0"
+        )
+    variables = interface.variables
     start: dict[str, bool | int | float | str] = {}
     for var_name, value in spec.start.items():
         key = f"instances.{name}.start.{var_name}"
@@ -459,7 +467,7 @@ def _resolve_instance(
                 "and inputs take start values",
             )
         start[var_name] = _check_type(value, var, key, fail)
-    return Instance(name, fmu_ref, fmu_path, start, md)
+    return Instance(name, fmu_ref, fmu_path, start, interface)
 
 
 def _check_type(value: Any, var: Any, key: str, fail: Any) -> bool | int | float | str:
@@ -499,7 +507,7 @@ def _split(ref: str, instances: Mapping[str, Instance], key: str, fail: Any) -> 
         raise fail(
             key, f"{ref!r} is not <instance>.<variable> with an instance in {list(instances)}"
         )
-    var = _variables(instances[instance].model_description).get(variable)
+    var = instances[instance].interface.variables.get(variable)
     if var is None:
         fmu = instances[instance].fmu_path.name
         raise fail(key, f"{instance} ({fmu}) has no variable {variable!r}")
@@ -517,7 +525,7 @@ def _resolve_connections(
                     name
                     for name, inst in instances.items()
                     if name != target
-                    and (src := _variables(inst.model_description).get(var.name)) is not None
+                    and (src := inst.interface.variables.get(var.name)) is not None
                     and src.causality == "output"
                     and src.type == var.type == "Real"
                 ]
@@ -583,8 +591,6 @@ def _resolve_record(record: list[str] | None, scenario: Scenario, fail: Any) -> 
 
 # --- FMU look-up (no FMU is loaded here) -------------------------------------------------
 
-_descriptions: dict[tuple[Path, float], Any] = {}
-
 
 def _builtin_fmu(name: str, fmu_dir: Path) -> Path:
     """A built-in FMU in ``fmu_dir``, built there if missing or out of date."""
@@ -593,17 +599,9 @@ def _builtin_fmu(name: str, fmu_dir: Path) -> Path:
     return build_fmu(name, fmu_dir)
 
 
-def _model_description(path: Path) -> Any:
-    from fmpy import read_model_description
-
-    key = (path, path.stat().st_mtime)
-    if key not in _descriptions:
-        try:
-            _descriptions[key] = read_model_description(str(path))
-        except Exception as exc:  # fmpy raises plain Exception for invalid model descriptions
-            raise ScenarioError(f"{path}: not a valid FMU: {exc}") from None
-    return _descriptions[key]
-
-
-def _variables(md: Any) -> dict[str, Any]:
-    return {v.name: v for v in md.modelVariables}
+def _interface(path: Path) -> FmuInterface:
+    """The FMU's interface (:func:`cosim.fmus.interface.read_interface`, cached)."""
+    try:
+        return read_interface(path)
+    except FmuInterfaceError as exc:
+        raise ScenarioError(str(exc)) from None

@@ -15,7 +15,7 @@ from lxml import etree
 
 from cosim import cli
 from cosim.errors import CosimError
-from cosim.export.system import OSP_FILE, PARAMETER_SET, export_osp, export_ssp
+from cosim.export import OSP_FILE, PARAMETER_SET, export_osp, export_ssp
 from cosim.run.scenario import Scenario, load_scenario
 
 NS = {
@@ -315,13 +315,14 @@ def test_unwritable_paths_fail_and_write_nothing(
 def test_a_failure_while_writing_leaves_nothing(
     plant_alone: Scenario, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import cosim.export.system
+    import cosim.export.osp
+    import cosim.export.ssp
 
     def disk_full(*_args: object) -> None:
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(cosim.export.system, "_add_bytes", disk_full)
-    monkeypatch.setattr(cosim.export.system.shutil, "copyfile", disk_full)
+    monkeypatch.setattr(cosim.export.ssp, "_add_bytes", disk_full)
+    monkeypatch.setattr(cosim.export.osp.shutil, "copyfile", disk_full)
     with pytest.raises(CosimError, match="No space left on device"):
         export_ssp(plant_alone, tmp_path / "p.ssp")
     with pytest.raises(CosimError, match="No space left on device"):

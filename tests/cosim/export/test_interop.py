@@ -1,6 +1,6 @@
 """Our exported systems in third-party FMI masters: OSP's libcosim and ecos.
 
-Each system is exported with ``cosim.export.system`` and run in libcosim (``libcosimpy``: the SSP
+Each system is exported with ``cosim.export`` and run in libcosim (``libcosimpy``: the SSP
 archive and the OSP system structure) and in ecos (``ecospy``: the SSP archive), once per
 session, each run in its own subprocess (``tests/interop_runner.py``: a crashing master
 must not take pytest down, and a pythonfmu FMU cannot be loaded twice in one process).
@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 from repo_paths import TESTS
 
-from cosim.export.system import export_osp, export_ssp
+from cosim.export import export_osp, export_ssp
 from cosim.run.scenario import load_scenario
 
 TOLERANCE = 1e-9  # absolute, in each variable's SI unit

@@ -1,0 +1,141 @@
+"""What both export formats need: each instance with the FMU it packages and its interface.
+
+The scenario has resolved and checked every connection and start value against its FMUs
+(:mod:`cosim.run.scenario`); the exporters reuse that. An FMU packaged in place of the one
+the scenario resolved (given in ``fmu_paths``, or the same file rebuilt since) is only
+checked to offer every variable the scenario uses with the same type and causality, so the
+checked connections and start values hold for it too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from cosim.errors import CosimError
+from cosim.fmus.interface import FmuInterface, FmuInterfaceError, Variable, read_interface
+from cosim.run.scenario import Instance, Scenario
+
+StartValue = bool | int | float | str
+
+
+@dataclass(frozen=True)
+class Component:
+    """One instance as both formats write it."""
+
+    name: str  # instance name
+    fmu_path: Path
+    resource: str  # file name inside resources/ (SSP) or beside the XML (OSP)
+    interface: FmuInterface  # variables and unit definitions of the packaged FMU
+    start: Mapping[str, StartValue]
+    step_multiple: int
+
+    def variable(self, name: str) -> Variable:
+        return self.interface.variables[name]
+
+    def connector_names(self) -> list[str]:
+        """The component's interface in the SSD: every input and output, and the parameters
+        the scenario sets (in modelDescription order)."""
+        return [
+            v.name
+            for v in self.interface.variables.values()
+            if v.causality in ("input", "output")
+            or (v.causality == "parameter" and v.name in self.start)
+        ]
+
+
+def components(scenario: Scenario, fmu_paths: Mapping[str, Path] | None) -> list[Component]:
+    """The instances with the FMU each will package.
+
+    ``fmu_paths`` maps an instance name to the FMU file to package instead of the one the
+    scenario resolved (e.g. a copy built elsewhere); it must offer the same variables.
+
+    Raises:
+        CosimError: ``fmu_paths`` names an unknown instance, or an FMU it names is missing,
+            unreadable or lacks a variable the scenario uses.
+    """
+    overrides = dict(fmu_paths or {})
+    unknown = sorted(set(overrides) - set(scenario.instances))
+    if unknown:
+        raise CosimError(
+            f"fmu_paths names {unknown}, which are not instances of scenario "
+            f"{scenario.id!r} (instances: {list(scenario.instances)})"
+        )
+    result: list[Component] = []
+    resources: dict[str, Path] = {}
+    for name, instance in scenario.instances.items():
+        interface = _packaged(scenario, instance, Path(overrides.get(name, instance.fmu_path)))
+        fmu_path = interface.path
+        resource = fmu_path.name
+        if resources.get(resource, fmu_path) != fmu_path:  # two different FMUs, same name
+            resource = f"{fmu_path.stem}-{name}{fmu_path.suffix}"
+        resources[resource] = fmu_path
+        result.append(
+            Component(
+                name=name,
+                fmu_path=fmu_path,
+                resource=resource,
+                interface=interface,
+                start=dict(instance.start),
+                step_multiple=scenario.coupling.step_multiples.get(name, 1),
+            )
+        )
+    return result
+
+
+def _packaged(scenario: Scenario, instance: Instance, fmu_path: Path) -> FmuInterface:
+    """The interface of the FMU to package for ``instance``. Unless it is the one the
+    scenario resolved (another file, or the file rebuilt since), it must offer every
+    variable the scenario uses on that instance with the type and causality resolved."""
+    try:
+        interface = read_interface(fmu_path)
+    except FmuInterfaceError as exc:
+        raise CosimError(f"instance {instance.name!r}: {exc}") from None
+    if interface is instance.interface:
+        return interface
+    problems = []
+    for role, variable in _uses(scenario, instance.name):
+        resolved = instance.interface.variables[variable]
+        offered = interface.variables.get(variable)
+        where = interface.path.name
+        if offered is None:
+            problems.append(f"{role}: {where} has no variable {variable!r}")
+        elif offered.causality != resolved.causality:
+            problems.append(
+                f"{role}: it is {offered.causality} in {where}, expected {resolved.causality}"
+            )
+        elif offered.type != resolved.type:
+            problems.append(f"{role}: it is {offered.type} in {where}, expected {resolved.type}")
+    if problems:
+        raise CosimError(
+            f"cannot export scenario {scenario.id!r} with {fmu_path} as {instance.name}: "
+            + "; ".join(problems)
+        )
+    return interface
+
+
+def _uses(scenario: Scenario, instance: str) -> list[tuple[str, str]]:
+    """(role, variable) of every variable of ``instance`` the scenario connects or sets."""
+    uses = []
+    for c in scenario.connections:
+        role = f"connection {c.source} -> {c.target}"
+        if c.source_instance == instance:
+            uses.append((f"{role}: source {c.source}", c.source_variable))
+        if c.target_instance == instance:
+            uses.append((f"{role}: target {c.target}", c.target_variable))
+    for name in scenario.instances[instance].start:
+        uses.append((f"start value {instance}.{name}", name))
+    return uses
+
+
+def value_type(fmi_type: str) -> str:
+    """The type a start value of this FMI type is written as (Enumerations as Integer)."""
+    return "Integer" if fmi_type == "Enumeration" else fmi_type
+
+
+def xml_literal(value: StartValue) -> str:
+    """XML literal: xs:boolean for bools, the shortest exact decimal for floats."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)

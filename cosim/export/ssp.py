@@ -1,0 +1,255 @@
+"""A scenario as an SSP 1.0 archive: ``SystemStructure.ssd`` and the FMUs under ``resources/``.
+
+The SSD is built with pyssp-standard's object model (:func:`ssd_xml`); see
+:mod:`cosim.export` for what importers read from it.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import zipfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from lxml import etree
+from pyssp_standard.common_content_ssc import (
+    Annotation,
+    TopLevelMetaData,
+    TypeBoolean,
+    TypeInteger,
+    TypeReal,
+    TypeString,
+)
+from pyssp_standard.parameter_types import ParameterType
+from pyssp_standard.ssd import (
+    SSD,
+    Connection,
+    Connector,
+    DefaultExperiment,
+    ParameterBinding,
+    System,
+)
+from pyssp_standard.ssd import Component as SsdComponent
+from pyssp_standard.ssv import SSVElem
+from pyssp_standard.unit import BaseUnit, Unit, Units
+
+from cosim.errors import CosimError
+from cosim.export.components import Component, components, value_type, xml_literal
+from cosim.export.files import replacing_file
+from cosim.fmus.interface import Variable
+from cosim.run.scenario import Scenario
+
+PARAMETER_SET = "initial"
+"""Name of the SSP parameter set holding the scenario's start values."""
+
+NAMESPACES = {
+    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+    "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+    "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
+}
+# The SSD schema's order of the root's children (pyssp-standard writes Units too late).
+_ROOT_ORDER = ("System", "Enumerations", "Units", "DefaultExperiment", "Annotations")
+_SSC_TYPES = {"Real": TypeReal, "Integer": TypeInteger, "Enumeration": TypeInteger,
+              "Boolean": TypeBoolean, "String": TypeString}  # fmt: skip
+_DIMENSIONLESS = "1"
+# Fixed zip timestamps make the same scenario export to the same bytes.
+_ZIP_DATE = (2000, 1, 1, 0, 0, 0)
+
+
+def export_ssp(
+    scenario: Scenario, path: str | Path, fmu_paths: Mapping[str, Path] | None = None
+) -> Path:
+    """Write ``scenario`` as an SSP 1.0 archive at ``path``; returns the absolute path.
+
+    ``fmu_paths`` optionally maps instance names to the FMU files to package.
+    """
+    path = Path(path)
+    parts = components(scenario, fmu_paths)
+    ssd = ssd_xml(scenario, parts)
+    with replacing_file(path) as tmp, zipfile.ZipFile(tmp, "w") as archive:
+        _add_bytes(archive, "SystemStructure.ssd", ssd, zipfile.ZIP_DEFLATED)
+        for resource, fmu_path in sorted({c.resource: c.fmu_path for c in parts}.items()):
+            # FMUs are zip archives already: store them, do not compress again.
+            _add_bytes(archive, f"resources/{resource}", fmu_path.read_bytes(), zipfile.ZIP_STORED)
+    return path.resolve()
+
+
+def _add_bytes(archive: zipfile.ZipFile, name: str, data: bytes, compression: int) -> None:
+    info = zipfile.ZipInfo(name, date_time=_ZIP_DATE)
+    info.compress_type = compression
+    info.external_attr = 0o644 << 16
+    archive.writestr(info, data)
+
+
+def ssd_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
+    """``SystemStructure.ssd`` for ``scenario``, built with pyssp-standard's object model.
+
+    Units are declared as the FMUs' own ``UnitDefinitions`` define them (one source).
+    Workarounds for pyssp-standard 0.9.1 (each measured):
+    * a ``ssv:Real`` without a unit makes it write ``unit=None`` and fail, so every Real
+      start value gets a unit, dimensionless ones ``"1"`` (declared with an empty
+      ``BaseUnit``, as OMSimulator writes it);
+    * it declares ``ssv`` on each inline parameter set and nothing for annotations, so the
+      namespaces are all moved onto the root element afterwards (some importers resolve
+      prefixes only there);
+    * it writes ``ssd:Units`` after ``ssd:DefaultExperiment``, against the schema's order;
+    * it stamps the import time as ``generationDateAndTime``: left out, so the same
+      scenario exports to the same bytes.
+    """
+    units = _UnitTable()
+    system = System(name=scenario.id)
+    for comp in parts:
+        system.elements.append(_ssd_component(comp, units))
+    for c in scenario.connections:
+        system.connections.append(
+            Connection(
+                start_element=c.source_instance,
+                start_connector=c.source_variable,
+                end_element=c.target_instance,
+                end_connector=c.target_variable,
+            )
+        )
+    system.annotations.add_annotation(_openmodelica_step(scenario.coupling.step))
+    root = _written(scenario, system, units)
+    _add_step_size_hints(root, scenario, parts)
+    root[:] = sorted(root, key=lambda child: _ROOT_ORDER.index(etree.QName(child).localname))
+    etree.cleanup_namespaces(root, top_nsmap=NAMESPACES, keep_ns_prefixes=list(NAMESPACES))
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+
+
+class _UnitTable:
+    """The SSD's unit declarations: each unit once, as the FMU using it defines it."""
+
+    def __init__(self) -> None:
+        self.units: dict[str, Unit] = {}
+        self._defined: dict[str, tuple[Mapping[str, float], str]] = {}  # -> (exponents, FMU)
+
+    def name_of(self, comp: Component, var: Variable) -> str:
+        """The variable's unit name, declared in the SSD with the FMU's own definition.
+
+        Raises:
+            CosimError: the FMU gives no SI base units for it, or two FMUs define the same
+                unit name differently.
+        """
+        fmu = comp.fmu_path.name
+        if var.unit is None:
+            name, exponents = _DIMENSIONLESS, {}
+        else:
+            name, exponents = var.unit, comp.interface.units.get(var.unit)
+            if exponents is None:
+                raise CosimError(
+                    f"{fmu} declares no SI base units for unit {name!r} "
+                    f"(variable {var.name}); an SSP unit needs them"
+                )
+        if name not in self.units:
+            self.units[name] = Unit(name, base_unit=BaseUnit(dict(exponents)))
+            self._defined[name] = (exponents, fmu)
+        elif self._defined[name][0] != exponents:
+            first, where = self._defined[name]
+            raise CosimError(f"unit {name!r} means {first} in {where} but {exponents} in {fmu}")
+        return name
+
+
+def _ssd_component(comp: Component, units: _UnitTable) -> SsdComponent:
+    """The SSD component: its connectors and the start values as a parameter set."""
+    element = SsdComponent()
+    element.name = comp.name
+    element.component_type = "application/x-fmu-sharedlibrary"
+    element.source = f"resources/{comp.resource}"
+    for name in comp.connector_names():
+        var = comp.variable(name)
+        if var.type == "Real":  # a connector's unit is optional: only the FMU's
+            type_ = TypeReal(units.name_of(comp, var) if var.unit else None)
+        else:
+            type_ = _SSC_TYPES[var.type]()
+        element.connectors.append(Connector(name=name, kind=var.causality, type_=type_))
+    if comp.start:
+        element.parameter_bindings = [ParameterBinding(ssv=_parameter_set(comp, units))]
+    return element
+
+
+def _parameter_set(comp: Component, units: _UnitTable) -> SSVElem:
+    """The inline parameter set :data:`PARAMETER_SET` holding ``comp``'s start values."""
+    parameters = []
+    for name, value in comp.start.items():
+        var = comp.variable(name)
+        attributes = {"value": xml_literal(value)}
+        if var.type == "Real":
+            attributes["unit"] = units.name_of(comp, var)
+        kind = value_type(var.type)
+        parameters.append(
+            {"name": name, "type_name": kind, "type_value": ParameterType(kind, attributes)}
+        )
+    return SSVElem(
+        name=PARAMETER_SET,
+        parameters=parameters,
+        units=Units(),
+        enumerations=None,
+        top_level_metadata=TopLevelMetaData(generationTool="", generationDateAndTime=""),
+    )
+
+
+def _openmodelica_step(step: float) -> Annotation:
+    """OMSimulator's fixed-step master annotation for the system."""
+    oms = Annotation("org.openmodelica")
+    root = etree.SubElement(oms.root, f"{{{NAMESPACES['oms']}}}Annotations")
+    info = etree.SubElement(root, f"{{{NAMESPACES['oms']}}}SimulationInformation")
+    etree.SubElement(
+        info, f"{{{NAMESPACES['oms']}}}FixedStepMaster", description="oms-ma", stepSize=repr(step)
+    )
+    return oms
+
+
+def _experiment(scenario: Scenario) -> DefaultExperiment:
+    """Start and stop time, and libcosim's base step as an OSP annotation."""
+    experiment = DefaultExperiment()
+    experiment.start_time = 0.0
+    experiment.stop_time = scenario.stop_time
+    osp = Annotation("com.opensimulationplatform")
+    algorithm = etree.SubElement(osp.root, f"{{{NAMESPACES['osp']}}}Algorithm")
+    etree.SubElement(
+        algorithm,
+        f"{{{NAMESPACES['osp']}}}FixedStepAlgorithm",
+        baseStepSize=repr(scenario.coupling.step),
+    )
+    experiment.annotations.add_annotation(osp)
+    return experiment
+
+
+def _written(scenario: Scenario, system: System, units: _UnitTable) -> Any:
+    """The SSD pyssp-standard writes for ``system``, parsed back as an lxml root."""
+    with tempfile.TemporaryDirectory(prefix="auv-cosim-ssd-") as tmp:
+        ssd_path = Path(tmp) / "SystemStructure.ssd"
+        with SSD(ssd_path, mode="w") as ssd:
+            ssd.name = scenario.id
+            ssd.version = "1.0"
+            ssd.system = system
+            ssd.default_experiment = _experiment(scenario)
+            ssd.top_level_metadata.generationTool = "auv-cosim export (pyssp-standard)"
+            ssd.top_level_metadata.generationDateAndTime = ""
+            for unit in units.units.values():
+                ssd.units.add_unit(unit)
+        return etree.parse(str(ssd_path)).getroot()
+
+
+def _add_step_size_hints(root: Any, scenario: Scenario, parts: Sequence[Component]) -> None:
+    """libcosim's per-component step (``osp:StepSizeHint``) for instances stepping every
+    k*h; pyssp-standard's Component writes no annotations, so they are added here."""
+    for comp in parts:
+        if comp.step_multiple == 1:
+            continue
+        element = root.find(
+            f"ssd:System/ssd:Elements/ssd:Component[@name='{comp.name}']", NAMESPACES
+        )
+        annotations = etree.SubElement(element, f"{{{NAMESPACES['ssd']}}}Annotations")
+        annotation = etree.SubElement(
+            annotations, f"{{{NAMESPACES['ssc']}}}Annotation", type="com.opensimulationplatform"
+        )
+        etree.SubElement(
+            annotation,
+            f"{{{NAMESPACES['osp']}}}StepSizeHint",
+            value=repr(comp.step_multiple * scenario.coupling.step),
+        )

@@ -1,0 +1,145 @@
+"""An FMU's interface as its ``modelDescription.xml`` declares it: variables and units.
+
+:func:`read_interface` is the one reader of an FMU's interface: scenario loading
+(:mod:`cosim.run.scenario`) and the exporters (:mod:`cosim.export`) both use it. It is
+built on ``fmpy.read_model_description``, which reads the XML from the archive without
+loading the FMU's binary, and cached on (resolved path, modification time, size), so an
+FMU is read once per build however many scenarios use it, and a rebuilt FMU is read again.
+
+Values are typed as the FMI type says (``start``, ``min``, ``max``: float for Real, int for
+Integer and Enumeration, bool for Boolean, str for String); units are the variable's own
+or its declared type's, and ``units`` holds the FMU's ``UnitDefinitions`` as SI base-unit
+exponents (plus ``factor`` / ``offset`` where they are not 1 and 0).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from cosim.errors import CosimError
+
+Value = bool | int | float | str
+SI_BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+_CACHED_FMUS = 32
+
+
+class FmuInterfaceError(CosimError):
+    """An FMU that does not exist or whose model description cannot be read."""
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One scalar variable of an FMU."""
+
+    name: str
+    type: str  # Real, Integer, Enumeration, Boolean or String
+    causality: str  # parameter, calculatedParameter, input, output, local, independent
+    variability: str  # constant, fixed, tunable, discrete, continuous
+    value_reference: int
+    unit: str | None  # the variable's unit or its declared type's; None if it has none
+    start: Value | None
+    min: float | int | None
+    max: float | int | None
+    description: str
+
+
+@dataclass(frozen=True)
+class FmuInterface:
+    """What an FMU offers, read from its model description."""
+
+    path: Path  # resolved
+    fmi_version: str
+    guid: str
+    model_identifier: str | None  # of the co-simulation interface; None if it has none
+    variables: Mapping[str, Variable]  # by name, in modelDescription order
+    units: Mapping[str, Mapping[str, float] | None]  # unit -> SI exponents; None: name only
+    # fmpy's own description and variables, for code that calls the FMU through fmpy
+    model_description: Any = dataclasses.field(repr=False, compare=False)
+    model_variables: Mapping[str, Any] = dataclasses.field(repr=False, compare=False)
+
+    def with_causality(self, causality: str) -> list[Variable]:
+        """The variables of this causality, in modelDescription order."""
+        return [v for v in self.variables.values() if v.causality == causality]
+
+
+def read_interface(fmu_path: str | Path) -> FmuInterface:
+    """The interface of the FMU at ``fmu_path`` (cached until the file changes).
+
+    Raises:
+        FmuInterfaceError: the file does not exist or holds no valid model description.
+    """
+    path = Path(fmu_path).resolve()
+    try:
+        stat = path.stat()
+    except OSError:
+        raise FmuInterfaceError(f"FMU {path} does not exist") from None
+    if not path.is_file():
+        raise FmuInterfaceError(f"FMU {path} is not a file")
+    return _read(path, stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=_CACHED_FMUS)
+def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
+    """Read ``path``; ``mtime_ns`` and ``size`` are only the cache key's freshness."""
+    from fmpy import read_model_description
+
+    try:
+        md = read_model_description(str(path))
+    except Exception as exc:  # fmpy raises plain Exception for an invalid model description
+        raise FmuInterfaceError(f"{path}: not a valid FMU: {exc}") from None
+    return FmuInterface(
+        path=path,
+        fmi_version=md.fmiVersion,
+        guid=md.guid,
+        model_identifier=md.coSimulation.modelIdentifier if md.coSimulation else None,
+        variables={v.name: _variable(v) for v in md.modelVariables},
+        units={unit.name: _base_unit(unit.baseUnit) for unit in md.unitDefinitions},
+        model_description=md,
+        model_variables={v.name: v for v in md.modelVariables},
+    )
+
+
+def _variable(v: Any) -> Variable:
+    declared = v.declaredType
+    return Variable(
+        name=v.name,
+        type=v.type,
+        causality=v.causality,
+        variability=v.variability,
+        value_reference=v.valueReference,
+        unit=v.unit or (declared.unit if declared is not None else None),
+        start=_typed(v.type, v.start),
+        min=_typed(v.type, v.min),
+        max=_typed(v.type, v.max),
+        description=v.description or "",
+    )
+
+
+def _typed(fmi_type: str, text: str | None) -> Value | None:
+    """An attribute of the model description as the Python value of its FMI type."""
+    if text is None:
+        return None
+    if fmi_type == "Real":
+        return float(text)
+    if fmi_type in ("Integer", "Enumeration"):
+        return int(text)
+    if fmi_type == "Boolean":
+        return text in ("true", "1")
+    return text
+
+
+def _base_unit(base: Any) -> dict[str, float] | None:
+    """SI base-unit exponents of a unit definition (None if it declares none)."""
+    if base is None:
+        return None
+    exponents = {k: getattr(base, k) for k in SI_BASE_UNITS if getattr(base, k)}
+    if base.factor != 1.0:
+        exponents["factor"] = base.factor
+    if base.offset != 0.0:
+        exponents["offset"] = base.offset
+    return exponents
