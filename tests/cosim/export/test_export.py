@@ -6,6 +6,7 @@ master runs, are valid against the schemas, and a failed export leaves nothing b
 
 from __future__ import annotations
 
+import shutil
 import zipfile
 from pathlib import Path
 
@@ -343,6 +344,23 @@ def test_a_connection_the_fmus_lack_fails_and_writes_nothing(
     with pytest.raises(CosimError, match=r"connection plant\.yaw -> controller\.yaw"):
         export_osp(bs3, tmp_path / "osp", fmu_paths=wrong)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_fmu_packaged_instead_must_offer_the_variables_the_scenario_uses(
+    plant_alone: Scenario, bs3: Scenario, fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """The scenario's checked connections and start values are reused; a replacement FMU
+    only has to offer the same variables (a copy does; the autopilot is no plant)."""
+    copy = tmp_path / "elsewhere" / "AuvAutopilot.fmu"
+    copy.parent.mkdir()
+    shutil.copyfile(fmu_paths["AuvAutopilot"], copy)
+    archive = export_ssp(bs3, tmp_path / "bs-3.ssp", fmu_paths={"controller": copy})
+    with zipfile.ZipFile(archive) as z:
+        assert z.read("resources/AuvAutopilot.fmu") == copy.read_bytes()
+    wrong = {"plant": fmu_paths["AuvAutopilot"]}
+    with pytest.raises(CosimError, match=r"start value plant\.variant: AuvAutopilot\.fmu has no"):
+        export_osp(plant_alone, tmp_path / "osp", fmu_paths=wrong)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bs-3.ssp", "elsewhere"]
 
 
 def test_a_scenario_file_naming_a_missing_variable_fails(
