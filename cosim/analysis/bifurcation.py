@@ -94,6 +94,11 @@ DEDUPLICATION_TOLERANCE = 1e-6
 
 SWEEP_PARAMETERS = ("roll_torque", "mass_position", "mu", "eta")
 
+Progress = Callable[[int, int], None]
+"""Called as progress(done, total), in units of work, while a sweep proceeds."""
+StepDone = Callable[[], None]
+"""Called once per point a continuation adds to a branch."""
+
 # Roll torque of the REMUS propeller, N m (Example 5.4): the unit of Figs. 5.9-5.11.
 Q_PROP = -0.543
 
@@ -455,7 +460,7 @@ class _Continuation:
         direction: float,
         max_points: int,
         traced: Sequence[np.ndarray],
-        progress: Callable[[], None],
+        step_done: StepDone,
     ) -> list[tuple[np.ndarray, np.ndarray]]:
         """Points (y, t) from y0 (excluded) in ``direction`` (+1: towards the range's end)
         until the parameter range or the search box is left, or the trace runs along one
@@ -486,7 +491,7 @@ class _Continuation:
             _, DH = self.jacobians(y_new)
             t = self.tangent(DH, t)
             points.append((y_new, t))
-            progress()
+            step_done()
             merged = any(self.on_branch(y_new, branch, 0.1 * self.ds_max) for branch in traced)
             on_old = on_old + 1 if merged else 0
             y, ds = y_new, min(2.0 * ds, self.ds_max)
@@ -557,7 +562,7 @@ def sweep(
     steps: int = 200,
     seeds: Mapping[str, Sequence[float]] | None = None,
     search_points: int = 3,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Progress | None = None,
 ) -> Sweep:
     """Continue every equilibrium branch in the search box over ``parameter`` from
     ``start`` to ``stop``, with stability and special points (folds, branch points, Hopf).
@@ -582,6 +587,36 @@ def sweep(
         ValueError: unknown parameter, an empty range, too few steps, or a parameter value
             the vehicle cannot take (e.g. a mass position beyond the stroke).
     """
+    _check_sweep(conditions, parameter, start, stop, steps, search_points)
+    cont = _Continuation(conditions, parameter, start, stop, ds=1.0 / steps)
+    counter = _WorkCounter(search_points, progress)
+    starts = _branch_starts(cont, start, stop, search_points, seeds, counter)
+    counter.total += 2 * steps * len(starts)
+    traced, tangents = _trace_branches(cont, starts, steps, counter)
+    branches = [
+        Branch(
+            cont.names,
+            ys[:, -1] * cont.scale,
+            ys[:, :-1],
+            np.array([np.linalg.eigvals(cont.jacobians(y)[0]) for y in ys]),
+        )
+        for ys in traced
+    ]
+    specials = _special_points(cont, traced, tangents)
+    specials.sort(key=lambda s: (s.parameter - start) / (stop - start))
+    counter.finish()
+    return Sweep(parameter, start, stop, cont.names, branches, specials)
+
+
+def _check_sweep(
+    conditions: OperatingConditions,
+    parameter: str,
+    start: float,
+    stop: float,
+    steps: int,
+    search_points: int,
+) -> None:
+    """Raise ValueError naming the first bad argument of :func:`sweep`."""
     if parameter not in SWEEP_PARAMETERS:
         raise ValueError(
             f"unknown sweep parameter {parameter!r}: expected one of {SWEEP_PARAMETERS}"
@@ -595,28 +630,53 @@ def sweep(
     for value in (start, stop):
         conditions.with_parameter(parameter, value)  # raises for an impossible value
 
-    cont = _Continuation(conditions, parameter, start, stop, ds=1.0 / steps)
-    max_points = 20 * steps
-    total, done = search_points, 0
 
-    def tick(amount: int = 1) -> None:
-        nonlocal done
-        done += amount
-        if progress is not None:
-            progress(done, total)
+class _WorkCounter:
+    """Counts a sweep's units of work and reports them to a :data:`Progress` callback."""
 
+    def __init__(self, total: int, report: Progress | None) -> None:
+        self.total = total
+        self.done = 0
+        self._report = report
+
+    def tick(self, amount: int = 1) -> None:
+        self.done += amount
+        if self._report is not None:
+            self._report(self.done, self.total)
+
+    def finish(self) -> None:
+        if self._report is not None:
+            self._report(self.total, self.total)
+
+
+def _branch_starts(
+    cont: _Continuation,
+    start: float,
+    stop: float,
+    search_points: int,
+    seeds: Mapping[str, Sequence[float]] | None,
+    counter: _WorkCounter,
+) -> list[np.ndarray]:
+    """Continuation points (free states, scaled parameter) of every equilibrium found at
+    ``search_points`` parameter values spread over [start, stop]."""
     starts: list[np.ndarray] = []
     for value in np.linspace(start, stop, search_points):
         for eq in _relative_equilibria(cont.conditions_at(float(value)), seeds):
             starts.append(np.append(eq.state[cont.index], value / cont.scale))
-        tick()
-    total += 2 * steps * len(starts)
+        counter.tick()
+    return starts
 
+
+def _trace_branches(
+    cont: _Continuation, starts: Sequence[np.ndarray], steps: int, counter: _WorkCounter
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Each branch through a start not on a branch already traced, both ways: its points
+    and unit tangents, ordered along increasing arclength."""
     traced: list[np.ndarray] = []
     tangents: list[np.ndarray] = []
     for y0 in starts:
         if any(cont.on_branch(y0, branch, 0.5 * cont.ds_max) for branch in traced):
-            tick(2 * steps)
+            counter.tick(2 * steps)
             continue
         halves = []
         for direction in (-1.0, 1.0):
@@ -625,22 +685,26 @@ def sweep(
             def step_done(budget: list[int] = budget) -> None:
                 budget[0] += 1
                 if budget[0] <= steps:
-                    tick()
+                    counter.tick()
 
-            halves.append(cont.trace(y0, direction, max_points, traced, step_done))
-            tick(max(0, steps - budget[0]))
+            halves.append(cont.trace(y0, direction, 20 * steps, traced, step_done))
+            counter.tick(max(0, steps - budget[0]))
         backward, forward = halves
         _, DH = cont.jacobians(y0)
         t0 = cont.tangent(DH, None)
         points = [(y, -t) for y, t in reversed(backward)] + [(y0, t0)] + forward
         traced.append(np.array([y for y, _ in points]))
         tangents.append(np.array([t for _, t in points]))
+    return traced, tangents
 
-    branches: list[Branch] = []
+
+def _special_points(
+    cont: _Continuation, traced: Sequence[np.ndarray], tangents: Sequence[np.ndarray]
+) -> list[SpecialPoint]:
+    """Folds, branch points and Hopf points between consecutive points of every branch,
+    each once (a point reached along a second branch is not repeated)."""
     specials: list[SpecialPoint] = []
     for b, (ys, ts) in enumerate(zip(traced, tangents, strict=True)):
-        eigenvalues = np.array([np.linalg.eigvals(cont.jacobians(y)[0]) for y in ys])
-        branches.append(Branch(cont.names, ys[:, -1] * cont.scale, ys[:, :-1], eigenvalues))
         for k in range(len(ys) - 1):
             located = cont.locate(ys[k], ts[k], ys[k + 1], ts[k + 1])
             if located is None:
@@ -662,7 +726,4 @@ def sweep(
                     branch=b,
                 )
             )
-    specials.sort(key=lambda s: (s.parameter - start) / (stop - start))
-    if progress is not None:
-        progress(total, total)
-    return Sweep(parameter, start, stop, cont.names, branches, specials)
+    return specials

@@ -89,10 +89,51 @@ def log_static_scene(
     def has(name: str) -> bool:
         return f"plant.{name}" in recorded or f"controller.{name}" in recorded
 
-    show_mass = "plant.mass_position" in recorded
-    show_thruster, show_fins = has("tunnel_force"), has("fin_angle")
-    show_current = any(has(f"current_{axis}") for axis in ("north", "east", "down"))
     rec.log("world", rr.ViewCoordinates.FRD, static=True)
+    _log_hull_and_fins(rec, vehicle, show_fins=has("fin_angle"))
+    if "plant.mass_position" in recorded:
+        _log_mass_rail(rec, vehicle)
+    if has("tunnel_force"):
+        rec.log(
+            "world/vehicle/tunnel_force",
+            rr.Arrows3D.from_fields(
+                origins=[[0.0, 0.0, vehicle.z_t]],
+                colors=[THRUSTER],
+                radii=[0.015],
+            ),
+            static=True,
+        )
+    if any(has(f"current_{axis}") for axis in ("north", "east", "down")):
+        rec.log(
+            "world/current",
+            rr.Arrows3D.from_fields(
+                colors=[CURRENT],
+                radii=[0.02],
+            ),
+            static=True,
+        )
+    rec.log(
+        "world/trajectory",
+        rr.LineStrips3D.from_fields(colors=[TRAJECTORY], radii=rr.Radius.ui_points(1.5)),
+        static=True,
+    )
+    if show_depth_setpoint:
+        half = DEPTH_MARKER_HALF_SIZE
+        rec.log(
+            "world/depth_setpoint",
+            rr.Boxes3D(
+                half_sizes=[[half, half, 0.005]],
+                colors=[(*SETPOINT, 70)],
+                fill_mode="solid",
+            ),
+            static=True,
+        )
+
+
+def _log_hull_and_fins(
+    rec: rr.RecordingStream, vehicle: VehicleParameters, *, show_fins: bool
+) -> None:
+    """The hull capsule, the rudders and the stern planes (posed per step if recorded)."""
     radius = 0.5 * vehicle.diameter
     cylinder = vehicle.length - vehicle.diameter  # the capsule's caps add one diameter
     # Capsules3D are built along local +z: turn +z onto body +x (90 deg about y).
@@ -139,54 +180,22 @@ def log_static_scene(
             rr.Transform3D(translation=[hinge, 0.0, 0.0]),
             static=True,
         )
-    if show_mass:
-        rail = [[vehicle.x_v, -vehicle.mass_stroke, vehicle.z_g]]
-        rail.append([vehicle.x_v, vehicle.mass_stroke, vehicle.z_g])
-        rec.log(
-            "world/vehicle/mass_rail",
-            rr.LineStrips3D([rail], colors=[MASS], radii=[0.004]),
-            static=True,
-        )
-        rec.log(
-            "world/vehicle/moving_mass",
-            rr.Ellipsoids3D(half_sizes=[[MASS_RADIUS] * 3], colors=[MASS], fill_mode="solid"),
-            static=True,
-        )
-    if show_thruster:
-        rec.log(
-            "world/vehicle/tunnel_force",
-            rr.Arrows3D.from_fields(
-                origins=[[0.0, 0.0, vehicle.z_t]],
-                colors=[THRUSTER],
-                radii=[0.015],
-            ),
-            static=True,
-        )
-    if show_current:
-        rec.log(
-            "world/current",
-            rr.Arrows3D.from_fields(
-                colors=[CURRENT],
-                radii=[0.02],
-            ),
-            static=True,
-        )
+
+
+def _log_mass_rail(rec: rr.RecordingStream, vehicle: VehicleParameters) -> None:
+    """The moving mass's rail (as long as the stroke) and the mass itself."""
+    rail = [[vehicle.x_v, -vehicle.mass_stroke, vehicle.z_g]]
+    rail.append([vehicle.x_v, vehicle.mass_stroke, vehicle.z_g])
     rec.log(
-        "world/trajectory",
-        rr.LineStrips3D.from_fields(colors=[TRAJECTORY], radii=rr.Radius.ui_points(1.5)),
+        "world/vehicle/mass_rail",
+        rr.LineStrips3D([rail], colors=[MASS], radii=[0.004]),
         static=True,
     )
-    if show_depth_setpoint:
-        half = DEPTH_MARKER_HALF_SIZE
-        rec.log(
-            "world/depth_setpoint",
-            rr.Boxes3D(
-                half_sizes=[[half, half, 0.005]],
-                colors=[(*SETPOINT, 70)],
-                fill_mode="solid",
-            ),
-            static=True,
-        )
+    rec.log(
+        "world/vehicle/moving_mass",
+        rr.Ellipsoids3D(half_sizes=[[MASS_RADIUS] * 3], colors=[MASS], fill_mode="solid"),
+        static=True,
+    )
 
 
 def scene_legend() -> str:
