@@ -7,7 +7,8 @@
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
   ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). This folder is on
-  the child's ``PYTHONPATH`` (``from fmu_harness import Harness`` works). Use it where
+  the child's ``PYTHONPATH`` after the project's packages (``from fmu_harness import
+  Harness`` works, and ``tests/cosim`` does not shadow ``cosim``). Use it where
   pythonfmu's module caching or a possible crash of the host calls for a new process.
 """
 
@@ -22,6 +23,7 @@ from pathlib import Path
 
 import pytest
 
+import cosim
 from cosim.errors import CosimError
 from cosim.fmus.build import FMUS, build_fmu
 
@@ -58,7 +60,11 @@ def run_python(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> Callable[..., subprocess.CompletedProcess]:
     cwd = tmp_path_factory.mktemp("subprocess")
-    path = os.pathsep.join(filter(None, [str(Path(__file__).parent), os.environ.get("PYTHONPATH")]))
+    # The project's packages first: tests/ mirrors them (tests/cosim, tests/plant_fmu, ...
+    # without __init__.py), and those folders would shadow them as namespace packages.
+    packages = Path(cosim.__file__).resolve().parents[1]
+    parts = [str(packages), str(Path(__file__).parent), os.environ.get("PYTHONPATH")]
+    path = os.pathsep.join(filter(None, parts))
     env = {**os.environ, "PYTHONPATH": path}
 
     def run(code: str, *args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
