@@ -6,11 +6,16 @@ controller's columns held constant, fed to the sink in uneven batches as the mas
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import re
+import signal
 import socket
 import subprocess
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -404,6 +409,37 @@ def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path):
         sink.add_rows(np.zeros(1), np.zeros((1, 2)))
 
 
+@contextmanager
+def _server_group(command: list[str]) -> Iterator[subprocess.Popen]:
+    """Run ``command`` in its own process group and stop the whole group at the end: the
+    ``rerun`` launcher is a Python script that starts the viewer binary as its child, so
+    stopping the launcher alone would leave the server running."""
+    server = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    try:
+        yield server
+    finally:
+        _stop_group(server)
+
+
+def _stop_group(leader: subprocess.Popen, timeout: float = 10.0) -> None:
+    """SIGTERM the process group ``leader`` leads, SIGKILL what is left after ``timeout``."""
+    signals = [signal.SIGTERM, signal.SIGKILL]
+    deadline = time.monotonic() + timeout
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(leader.pid, signals.pop(0))
+        while True:
+            leader.poll()  # reap the launcher
+            os.killpg(leader.pid, 0)  # ProcessLookupError once the group is empty
+            if time.monotonic() > deadline and signals:
+                os.killpg(leader.pid, signals.pop(0))
+                deadline = time.monotonic() + timeout
+            elif time.monotonic() > deadline:
+                raise AssertionError(f"process group {leader.pid} does not stop")
+            time.sleep(0.05)
+
+
 def _port_open(port: int) -> bool:
     with socket.socket() as s:
         return s.connect_ex(("127.0.0.1", port)) == 0
@@ -418,8 +454,7 @@ def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path)
     received = tmp_path / "received.rrd"
     command = [rerun_executable(), "--serve-grpc", "--bind", "127.0.0.1", "--port", str(port)]
     command += ["--save", str(received)]
-    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
+    with _server_group(command) as server:
         deadline = time.monotonic() + 30
         while not _port_open(port):
             assert server.poll() is None and time.monotonic() < deadline, "server did not start"
@@ -442,9 +477,6 @@ def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path)
                 time.sleep(0.2)
             np.testing.assert_array_equal(yaw[:, 0, 0], expected)
         assert RrdReader(received).blueprints(), "the blueprint was not streamed"
-    finally:
-        server.terminate()
-        server.wait(timeout=10)
 
 
 def test_view_without_display_prints_how_to_open(tmp_path: Path, monkeypatch, capsys):
