@@ -1,9 +1,15 @@
 """In-process closed loop: the plant model and the autopilot, no FMI in between.
 
-The reference the FMUs are checked against, and the quickest way to try a controller: at
-each communication step the autopilot reads the plant's outputs (the same quantities, and
-the same arithmetic, the plant FMU publishes), its commands are held over the step, and
-:func:`plant_fmu.model.stepping.advance` integrates the plant (a sampled loop, Jacobi coupling).
+This is the reference the tests check the FMUs and the master against: the controller
+tests (``tests/controller_fmu/``) run the dissertation's scenarios through
+:func:`simulate_closed_loop`, and the FMU and recording tests compare what the FMUs,
+coupled by a master, produce with it. It is also the quickest way to try a controller.
+It is analysis code: neither FMU ships it.
+
+At each communication step the autopilot reads the plant's outputs (the same quantities,
+and the same arithmetic, the plant FMU publishes), its commands are held over the step,
+and :func:`plant_fmu.model.stepping.advance` integrates the plant: a sampled loop without
+delay, like a master's Gauss-Seidel order controller -> plant (the built-in scenarios').
 """
 
 from __future__ import annotations
