@@ -7,7 +7,7 @@ offline analysis needs, lives in :mod:`cosim.analysis.equilibria`.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -63,7 +63,9 @@ def linearize(
     x0 = np.asarray(x0, dtype=float)
     u0 = np.asarray(u0, dtype=float)
 
-    def column(vector: np.ndarray, k: int, evaluate) -> np.ndarray:
+    def column(
+        vector: np.ndarray, k: int, evaluate: Callable[[np.ndarray], np.ndarray]
+    ) -> np.ndarray:
         step = rel_step * max(1.0, abs(vector[k]))
         plus, minus = vector.copy(), vector.copy()
         plus[k] += step
