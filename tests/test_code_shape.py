@@ -1,0 +1,140 @@
+"""The shape of the code: short functions, no import cycle between the project's modules,
+and FMUs that ship only what their scripts run (no analysis, plotting or master code)."""
+
+from __future__ import annotations
+
+import ast
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from repo_paths import ROOT
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import connected_components
+
+from cosim.fmus.imports import import_closure, import_graph, package_modules
+
+PACKAGES = ("cosim", "plant_fmu", "controller_fmu", "fmu_runtime")
+MAX_FUNCTION_LINES = 80
+# Modules that belong to the offline analysis, the plots or the master, never in an FMU.
+NOT_IN_FMUS = ("bifurcation", "equilibria", "closed_loop", "plots", "master")
+# Long functions and import cycles in files other branches of issue 11 are reworking: the
+# test reports them as expected failures until those branches land, and fails on any other.
+BEING_REWORKED = {
+    "plant_fmu/auv_plant.py": "the FMU getter/setter rework",
+    "plant_fmu/model/dynamics.py": "the kinematics/inertia split",
+    "plant_fmu/model/parameters.py": "the kinematics/inertia split",
+}
+
+
+def _functions(tree: ast.AST, prefix: str = ""):
+    """(qualified name, node) of every function and method, nested ones included."""
+    for node in ast.iter_child_nodes(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            yield prefix + node.name, node
+            yield from _functions(node, f"{prefix}{node.name}.")
+        elif isinstance(node, ast.ClassDef):
+            yield from _functions(node, f"{prefix}{node.name}.")
+        else:
+            yield from _functions(node, prefix)
+
+
+def _project_modules() -> dict[str, Path]:
+    modules = {}
+    for package in PACKAGES:
+        modules.update(package_modules(ROOT / package, package))
+    return modules
+
+
+def _report(offenders: list[str], what: str) -> None:
+    """Fail on offenders outside :data:`BEING_REWORKED`; xfail naming the rest."""
+    pending = [o for o in offenders if o.split(":")[0] in BEING_REWORKED]
+    unexpected = [o for o in offenders if o not in pending]
+    assert not unexpected, f"{what}: " + ", ".join(unexpected)
+    if pending:
+        reasons = sorted({BEING_REWORKED[o.split(":")[0]] for o in pending})
+        pytest.xfail(f"{what} ({'; '.join(reasons)} on other branches): " + ", ".join(pending))
+
+
+def test_no_function_is_longer_than_80_lines() -> None:
+    offenders = []
+    for path in _project_modules().values():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for name, node in _functions(tree):
+            length = node.end_lineno - node.lineno + 1
+            if length > MAX_FUNCTION_LINES:
+                offenders.append(f"{path.relative_to(ROOT)}:{name}:{length}")
+    _report(offenders, f"functions over {MAX_FUNCTION_LINES} lines")
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (scipy's csgraph)."""
+    names = sorted(graph)
+    index = {name: i for i, name in enumerate(names)}
+    edges = [(index[m], index[t]) for m, targets in graph.items() for t in targets]
+    rows, cols = zip(*edges, strict=True) if edges else ((), ())
+    adjacency = csr_array((np.ones(len(rows)), (rows, cols)), shape=(len(names),) * 2)
+    count, labels = connected_components(adjacency, directed=True, connection="strong")
+    components = [sorted(np.array(names)[labels == k].tolist()) for k in range(count)]
+    return [c for c in components if len(c) > 1]
+
+
+def test_no_import_cycle_between_the_projects_modules() -> None:
+    modules = _project_modules()
+    offenders = [
+        f"{modules[name].relative_to(ROOT)}:{' <-> '.join(cycle)}"
+        for cycle in _cycles(import_graph(modules))
+        for name in cycle
+    ]
+    _report(offenders, "modules importing each other")
+
+
+def test_the_cycle_check_finds_a_cycle_closed_by_a_lazy_import(tmp_path: Path) -> None:
+    files = {
+        "__init__.py": "",
+        "x.py": "import p.y\n",
+        "y.py": "import p.z\n",
+        "z.py": "def f():\n    from p.x import g\n",
+        "w.py": "import p.x\n",
+    }
+    for name, text in files.items():
+        (tmp_path / "p").mkdir(exist_ok=True)
+        (tmp_path / "p" / name).write_text(text)
+    assert _cycles(import_graph(package_modules(tmp_path / "p", "p"))) == [["p.x", "p.y", "p.z"]]
+
+
+@pytest.mark.parametrize("name", ["AuvPlant", "AuvAutopilot"])
+def test_fmus_ship_only_what_their_script_runs(name: str, fmu_paths, tmp_path: Path) -> None:
+    with zipfile.ZipFile(fmu_paths[name]) as archive:
+        archive.extractall(tmp_path)
+    resources = tmp_path / "resources"
+    script = (resources / "slavemodule.txt").read_text().strip()
+    ours = sorted(
+        p.relative_to(resources).as_posix()
+        for p in resources.rglob("*.py")
+        if p.relative_to(resources).parts[0] != "pythonfmu"  # pythonfmu's own runtime
+    )
+    assert not [f for f in ours if f.startswith("cosim/")], ours
+    assert not [f for f in ours if Path(f).stem in NOT_IN_FMUS], ours
+    plotting = [f for f in ours if "matplotlib" in _imported_names(resources / f)]
+    assert not plotting, f"{name} ships modules that import matplotlib: {plotting}"
+    modules = {}
+    for folder in sorted(resources.iterdir()):
+        if (folder / "__init__.py").is_file() and folder.name != "pythonfmu":
+            modules.update(package_modules(folder, folder.name))
+    needed = import_closure(resources / f"{script}.py", script, modules)
+    unused = sorted(set(modules) - needed)
+    assert not unused, f"{name} ships modules its script {script}.py never imports: {unused}"
+    assert len(ours) == len(modules) + 1  # every shipped .py is the script or one of them
+
+
+def _imported_names(path: Path) -> set[str]:
+    """Top-level package names a file imports anywhere in it."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
