@@ -1,5 +1,5 @@
 """The shape of the code: short functions, no import cycle between the project's modules,
-and FMUs that ship only what their scripts run (no analysis, plotting or master code)."""
+and FMUs that ship only code an FMU runs (no analysis, plotting or master module)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from import_graph import import_closure, import_graph, package_modules
 from repo_paths import ROOT
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import connected_components
-
-from cosim.fmus.imports import import_closure, import_graph, package_modules
 
 PACKAGES = ("cosim", "plant_fmu", "controller_fmu", "fmu_runtime")
 MAX_FUNCTION_LINES = 80
@@ -91,42 +90,104 @@ def test_no_import_cycle_between_the_projects_modules() -> None:
 
 
 def test_the_cycle_check_finds_a_cycle_closed_by_a_lazy_import(tmp_path: Path) -> None:
-    files = {
-        "__init__.py": "",
-        "x.py": "import p.y\n",
-        "y.py": "import p.z\n",
-        "z.py": "def f():\n    from p.x import g\n",
-        "w.py": "import p.x\n",
-    }
-    for name, text in files.items():
-        (tmp_path / "p").mkdir(exist_ok=True)
-        (tmp_path / "p" / name).write_text(text)
+    _write_package(
+        tmp_path / "p",
+        {
+            "__init__.py": "",
+            "x.py": "import p.y\n",
+            "y.py": "import p.z\n",
+            "z.py": "def f():\n    from p.x import g\n",
+            "w.py": "import p.x\n",
+        },
+    )
     assert _cycles(import_graph(package_modules(tmp_path / "p", "p"))) == [["p.x", "p.y", "p.z"]]
 
 
-@pytest.mark.parametrize("name", ["AuvPlant", "AuvAutopilot"])
-def test_fmus_ship_only_what_their_script_runs(name: str, fmu_paths, tmp_path: Path) -> None:
-    with zipfile.ZipFile(fmu_paths[name]) as archive:
-        archive.extractall(tmp_path)
-    resources = tmp_path / "resources"
-    script = (resources / "slavemodule.txt").read_text().strip()
-    ours = sorted(
-        p.relative_to(resources).as_posix()
-        for p in resources.rglob("*.py")
-        if p.relative_to(resources).parts[0] != "pythonfmu"  # pythonfmu's own runtime
+def _write_package(root: Path, files: dict[str, str]) -> None:
+    for name, text in files.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+
+
+def test_a_scripts_closure_holds_what_it_runs_and_no_more(tmp_path: Path) -> None:
+    """Relative, lazy and ``from package import module`` imports are followed; other
+    packages (numpy) and modules nothing imports are left out."""
+    _write_package(
+        tmp_path / "p",
+        {
+            "__init__.py": "",
+            "a.py": "import numpy\nfrom . import b\n",
+            "b.py": "def later():\n    from .sub import c\n",
+            "sub/__init__.py": "",
+            "sub/c.py": "from .. import d\n",
+            "d.py": "",
+            "unused.py": "import p.a\n",
+        },
     )
-    assert not [f for f in ours if f.startswith("cosim/")], ours
-    assert not [f for f in ours if Path(f).stem in NOT_IN_FMUS], ours
-    plotting = [f for f in ours if "matplotlib" in _imported_names(resources / f)]
-    assert not plotting, f"{name} ships modules that import matplotlib: {plotting}"
+    (tmp_path / "script.py").write_text("from p.a import x\n")
+    closure = import_closure(tmp_path / "script.py", "script", package_modules(tmp_path / "p", "p"))
+    assert closure == {"p", "p.a", "p.b", "p.sub", "p.sub.c", "p.d"}
+
+
+@pytest.fixture(scope="module")
+def unzipped(fmu_paths, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """FMU name -> the ``resources/`` folder of the built FMU, unzipped."""
+    folders = {}
+    for name in ("AuvPlant", "AuvAutopilot"):
+        folder = tmp_path_factory.mktemp(name)
+        with zipfile.ZipFile(fmu_paths[name]) as archive:
+            archive.extractall(folder)
+        folders[name] = folder / "resources"
+    return folders
+
+
+def _script(resources: Path) -> tuple[Path, str]:
+    """The FMU's pythonfmu script and its module name."""
+    module = (resources / "slavemodule.txt").read_text().strip()
+    return resources / f"{module}.py", module
+
+
+def _shipped_modules(resources: Path) -> dict[str, Path]:
+    """Our modules in an FMU: its packages' (pythonfmu's own runtime is not ours)."""
     modules = {}
     for folder in sorted(resources.iterdir()):
         if (folder / "__init__.py").is_file() and folder.name != "pythonfmu":
             modules.update(package_modules(folder, folder.name))
-    needed = import_closure(resources / f"{script}.py", script, modules)
-    unused = sorted(set(modules) - needed)
-    assert not unused, f"{name} ships modules its script {script}.py never imports: {unused}"
-    assert len(ours) == len(modules) + 1  # every shipped .py is the script or one of them
+    return modules
+
+
+@pytest.mark.parametrize("name", ["AuvPlant", "AuvAutopilot"])
+def test_fmus_ship_no_analysis_plotting_or_master_module(name: str, unzipped) -> None:
+    resources = unzipped[name]
+    ours = sorted(
+        p.relative_to(resources).as_posix()
+        for p in resources.rglob("*.py")
+        if p.relative_to(resources).parts[0] != "pythonfmu"
+    )
+    assert [_script(resources)[0].name] == [f for f in ours if "/" not in f]
+    assert not [f for f in ours if f.startswith("cosim/")], ours
+    assert not [f for f in ours if Path(f).stem in NOT_IN_FMUS], ours
+    plotting = [f for f in ours if "matplotlib" in _imported_names(resources / f)]
+    assert not plotting, f"{name} ships modules that import matplotlib: {plotting}"
+
+
+def test_every_shipped_module_is_imported_by_an_fmu_script(unzipped) -> None:
+    """Each module an FMU ships is imported, directly or not, by its own script or, for a
+    package both FMUs ship, by the other FMU's script: a shared package ships whole, the
+    same files in both, because a host running both FMUs in one process (libcosim, ecos)
+    imports it once, from whichever FMU loads first, and the other must find its modules
+    there."""
+    shipped = {name: _shipped_modules(resources) for name, resources in unzipped.items()}
+    run = set()
+    for name, resources in unzipped.items():
+        run |= import_closure(*_script(resources), shipped[name])
+    for name, modules in shipped.items():
+        unused = sorted(set(modules) - run)
+        assert not unused, f"{name} ships modules no FMU script imports: {unused}"
+    plant, autopilot = (set(shipped[n]) for n in ("AuvPlant", "AuvAutopilot"))
+    for package in {m.split(".")[0] for m in plant & autopilot}:
+        in_plant = {m for m in plant if m.split(".")[0] == package}
+        assert in_plant == {m for m in autopilot if m.split(".")[0] == package}, package
 
 
 def _imported_names(path: Path) -> set[str]:

@@ -2,12 +2,11 @@
 
 Steps for one FMU (:func:`build_fmu`):
 
-1. Stage the sources in a temporary folder (:func:`shipped_files`): the pythonfmu script at
-   the top level (``auv_plant.py`` / ``auv_autopilot.py``, globally unique module names),
-   the modules of our packages it imports, directly or through each other (read with
-   :mod:`cosim.fmus.imports`; nothing else, so no analysis or plotting code ships), and
-   the ``*.toml`` data of the packages among them, located through the imported
-   packages' ``__file__`` so an installed (non-editable) distribution builds too.
+1. Stage the sources in a temporary folder: the pythonfmu script at the top level
+   (``auv_plant.py`` / ``auv_autopilot.py``, globally unique module names) and the packages
+   it imports (``plant_fmu``; ``controller_fmu`` + ``plant_fmu``), ``*.py`` and ``*.toml``
+   only, located through the imported packages' ``__file__`` so an installed
+   (non-editable) distribution builds too. Scripts are not shipped inside the packages.
 2. Run pythonfmu's builder in a subprocess (``python -m pythonfmu build``): it imports the
    script as a top-level module and puts the script's folder on ``sys.path``, which must
    not leak into the caller (a rebuilt class would otherwise shadow the FMU's own).
@@ -46,10 +45,9 @@ from xml.etree import ElementTree as ET
 
 from cosim.errors import CosimError
 from cosim.fmus import docs as fmu_docs
-from cosim.fmus.imports import import_closure, package_modules
 
 HASH_SUFFIX = ".sha256"
-DATA_SUFFIXES = (".toml",)  # data files shipped beside the modules (vehicle parameter sets)
+SHIPPED_SUFFIXES = (".py", ".toml")
 
 
 @dataclass(frozen=True)
@@ -58,7 +56,7 @@ class FmuSource:
 
     package: str  # the package holding the script
     script: str  # file name of the pythonfmu script in that package
-    ships: tuple[str, ...]  # packages whose modules it may import (those it does are shipped)
+    ships: tuple[str, ...]  # packages copied into resources/
 
 
 FMUS: dict[str, FmuSource] = {
@@ -67,6 +65,7 @@ FMUS: dict[str, FmuSource] = {
         "controller_fmu", "auv_autopilot.py", ("controller_fmu", "plant_fmu", "fmu_runtime")
     ),
 }
+_SCRIPTS = {source.script for source in FMUS.values()}
 
 # SI base-unit exponents of the unit symbols our variables use (FMI 2.0 BaseUnit).
 _BASE_UNITS: dict[str, dict[str, int]] = {
@@ -132,32 +131,21 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
 
 def shipped_files(name: str) -> dict[str, Path]:
     """``{path inside the staging folder: source file}`` for FMU ``name``: the script at the
-    top level, the modules of the shipped packages it imports (directly or through each
-    other, :func:`cosim.fmus.imports.import_closure`) and the data files (``*.toml``) of
-    the packages among them. Nothing the script does not run is shipped."""
+    top level and the ``*.py``/``*.toml`` files of every shipped package (no scripts)."""
     source = FMUS[name]
-    roots = {package: _package_dir(package) for package in source.ships}
-    modules = {}
-    for package, root in roots.items():
-        modules.update(package_modules(root, package))
-    needed = import_closure(script_path(name), Path(source.script).stem, modules)
     files = {source.script: script_path(name)}
-    for module in sorted(needed):
-        package, path = module.split(".")[0], modules[module]
-        files[f"{package}/{path.relative_to(roots[package]).as_posix()}"] = path
-    for package, root in roots.items():
+    for package in source.ships:
+        root = _package_dir(package)
         for path in sorted(root.rglob("*")):
-            if path.suffix in DATA_SUFFIXES and _holding_package(path, root, package) in needed:
-                files[f"{package}/{path.relative_to(root).as_posix()}"] = path
+            relative = path.relative_to(root)
+            if (
+                path.is_file()
+                and path.suffix in SHIPPED_SUFFIXES
+                and "__pycache__" not in relative.parts
+                and path.name not in _SCRIPTS
+            ):
+                files[f"{package}/{relative.as_posix()}"] = path
     return files
-
-
-def _holding_package(path: Path, root: Path, package: str) -> str:
-    """The innermost package (a folder with ``__init__.py``) that holds the data file."""
-    folder = path.parent
-    while folder != root and not (folder / "__init__.py").is_file():
-        folder = folder.parent
-    return ".".join([package, *folder.relative_to(root).parts])
 
 
 def source_hash(files: dict[str, Path]) -> str:
@@ -273,7 +261,7 @@ def _run_pythonfmu(name: str, stage: Path, dest: Path) -> Path:
         "--no-external-tool",
         "--handle-state",
         "--serialize-state",
-        *(str(folder) for folder in sorted(stage.iterdir()) if folder.is_dir()),
+        *(str(stage / package) for package in source.ships),
         cwd=stage,
     )
 

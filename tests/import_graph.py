@@ -1,10 +1,11 @@
 """Which of the project's modules a Python file imports, read with ast (nothing is run).
 
-The FMU build ships only the modules an FMU's script imports, directly or through other
-modules (:func:`import_closure`); the tests check with :func:`import_graph` that no two
-project modules import each other. Every import statement counts, at module level or
-inside a function (a lazy import is still an import); relative imports are resolved, and
-``from package import name`` counts the submodule ``package.name`` when there is one.
+For tests/test_code_shape.py: the import graph of our packages (no two modules may import
+each other) and the modules an FMU's script imports, directly or through each other (what
+a built FMU runs). Every import statement counts, at module level or inside a function (a
+lazy import is still an import); relative imports are resolved, and ``from package import
+name`` counts the package and the submodule ``package.name`` when there is one (importing
+it runs both).
 
 (Written with ast rather than the standard library's ``modulefinder``: that one compiles
 and follows every module on the path, numpy, scipy and the rest included, where only the
