@@ -9,9 +9,10 @@ with the moving mass), the low-speed equilibria of Sec. 6.3.3 and the Ch. 6 clos
 scenarios (run through the co-simulation master, ``cosim.run.runner.run_scenario``).
 
 Every "ours" number is computed here from the shipped model (``plant_fmu``) or from a
-run of the two FMUs; the dissertation's numbers are typed in as the claims they are.
-A printed value "agrees" when ours is within one unit of its last printed digit (or the
-stated tolerance), because the dissertation rounds and integrates numerically.
+run of the two FMUs; the dissertation's numbers come from ``docs/dissertation-values.toml``
+(the same file the tests read), with the digits they were printed with. A printed value
+"agrees" when ours is within one unit of its last printed digit (or the stated tolerance),
+because the dissertation rounds and integrates numerically.
 """
 
 from __future__ import annotations
@@ -39,12 +40,26 @@ from cosim.analysis.bifurcation import (
     sweep,
 )
 from cosim.analysis.plots import plot_phase_portrait, plot_sweep
+from cosim.analysis.reference_values import Reference, load_reference_values
+from cosim.run.results import settling_time
 from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 ZERO_TOLERANCE = 1e-3
+DISSERTATION = load_reference_values(ROOT / "docs" / "dissertation-values.toml")
+
+
+def printed(key: str) -> list[str]:
+    """The dissertation's value ``key`` as printed, a list of strings (a number: one)."""
+    text = DISSERTATION[key].text
+    return text if isinstance(text, list) else [text]
+
+
+def reference(key: str) -> Reference:
+    """The dissertation's value ``key`` (docs/dissertation-values.toml)."""
+    return DISSERTATION[key]
 
 
 @dataclass
@@ -114,22 +129,32 @@ def example_5_1(remus: VehicleParameters) -> list[Row]:
         fact_row(
             "number of equilibria in D = {0<u<2, |v|,|r|<=0.4}",
             "Ex. 5.1, (5.1.50)",
-            "3",
+            printed("example_5_1.equilibrium_count")[0],
             str(len(eqs)),
-            len(eqs) == 3,
+            len(eqs) == reference("example_5_1.equilibrium_count").value,
         )
     ]
     if len(eqs) != 3:
         return rows
     low, axis, high = eqs
     rows.append(
-        vector_row("x0 = [u, v, r]", "(5.1.50)", ["1.525", "0", "0"], _uvr(axis), note="T = 9 N")
+        vector_row(
+            "x0 = [u, v, r]",
+            "(5.1.50)",
+            printed("example_5_1.straight_line"),
+            _uvr(axis),
+            note="T = 9 N",
+        )
     )
     rows.append(
-        vector_row("x0' = [u, v, r]", "(5.1.50)", ["1.282", "0.1678", "-0.2291"], _uvr(high))
+        vector_row(
+            "x0' = [u, v, r]", "(5.1.50)", printed("example_5_1.turn_positive_v"), _uvr(high)
+        )
     )
     rows.append(
-        vector_row("x0'' = [u, v, r]", "(5.1.50)", ["1.282", "-0.1678", "0.2291"], _uvr(low))
+        vector_row(
+            "x0'' = [u, v, r]", "(5.1.50)", printed("example_5_1.turn_negative_v"), _uvr(low)
+        )
     )
     rows.append(
         fact_row(
@@ -150,18 +175,22 @@ def example_5_1(remus: VehicleParameters) -> list[Row]:
         vector_row(
             "unstable subspace E_u of x0",
             "Ex. 5.1",
-            ["0", "-0.3291", "0.9443"],
+            printed("example_5_1.unstable_subspace"),
             list(unstable),
         )
     )
     stable = vectors[:, values.real < 0].real
-    printed = np.array([0.0, -0.2723, -0.9622])
-    residual = np.linalg.norm(printed - stable @ np.linalg.lstsq(stable, printed, rcond=None)[0])
+    basis = reference("example_5_1.stable_subspace")
+    direction = basis.value[1]
+    residual = np.linalg.norm(
+        direction - stable @ np.linalg.lstsq(stable, direction, rcond=None)[0]
+    )
+    shown = [f"[{', '.join(vector)}]" for vector in basis.text]
     rows.append(
         fact_row(
-            "stable subspace E_s of x0 = span{[1,0,0], [0,-0.2723,-0.9622]}",
+            f"stable subspace E_s of x0 = span{{{', '.join(shown)}}}",
             "Ex. 5.1",
-            "[0, -0.2723, -0.9622] in E_s",
+            f"{shown[1]} in E_s",
             f"distance of it from our E_s: {residual:.1e}",
             residual < 2e-4,
         )
@@ -181,29 +210,16 @@ def lift_coefficients(remus: VehicleParameters, long_fins: VehicleParameters) ->
     """beta3, beta4, gamma3, gamma4 of (5.1.31), alpha: evaluated on the model as the
     viscous part of (M_RB + M_A) xdot per unit inertia at u = 1 m/s (horizontal variant)."""
     rows = []
-    printed = {
-        "remus100": {
-            "alpha": "-0.123",
-            "beta3": "-0.271",
-            "beta4": "0.131",
-            "gamma3": "0.549",
-            "gamma4": "-0.768",
-        },
-        "remus100-long-fins": {
-            "beta3": "-0.382",
-            "beta4": "0.402",
-            "gamma3": "4.802",
-            "gamma4": "-3.181",
-        },
-    }
-    for params, source in ((remus, "Ex. 5.1"), (long_fins, "Ex. 5.2")):
+    for params, source, key, names in (
+        (remus, "Ex. 5.1", "example_5_1", ["alpha", "beta3", "beta4", "gamma3", "gamma4"]),
+        (long_fins, "Ex. 5.2", "example_5_2", ["beta3", "beta4", "gamma3", "gamma4"]),
+    ):
         ours = _coefficients(params)
-        names = list(printed[params.name])
         rows.append(
             vector_row(
                 f"{', '.join(names)} ({params.name})",
                 source,
-                [printed[params.name][n] for n in names],
+                printed(f"{key}.coefficients"),
                 [ours[n] for n in names],
             )
         )
@@ -235,13 +251,14 @@ def example_5_2(long_fins: VehicleParameters) -> list[Row]:
     eqs = find_equilibria(OperatingConditions(long_fins))
     ok = len(eqs) == 1 and eqs[0].stable
     shown = "; ".join(f"[{', '.join(f'{x:.4f}' for x in _uvr(e))}] {_stability(e)}" for e in eqs)
+    expected = printed("example_5_2.straight_line")
     return [
         fact_row(
-            "only equilibrium in D: [1.525, 0, 0], asymptotically stable",
+            f"only equilibrium in D: [{', '.join(expected)}], asymptotically stable",
             "Ex. 5.2",
-            "[1.525, 0, 0] stable",
+            f"[{', '.join(expected)}] stable",
             shown,
-            ok and agrees("1.525", eqs[0].value("u")),
+            ok and all(agrees(p, o) for p, o in zip(expected, _uvr(eqs[0]), strict=True)),
         )
     ]
 
@@ -251,11 +268,10 @@ def example_5_3(remus: VehicleParameters) -> list[Row]:
     lateral = PlantModel(remus, Variant.LATERAL)
     names = ["v", "r", "p", "roll"]
     J, _ = linearize(lateral, state_vector({"u": 1.5}), input_vector({"thrust": 9.0}), names)
+    bar, delta = (reference(f"example_5_3.{k}").printed for k in ("jacobian_bar", "jacobian_delta"))
     printed_J = [
-        ["-0.5815", "-0.5241", "-0.0001", "-0.3301"],
-        ["-5.5369", "-0.9264", "0", "-0.0765"],
-        ["-1.4050", "2.3580", "-0.0066", "-24.4855"],
-        ["0", "0", "1", "0"],
+        [str(a + b) for a, b in zip(row_bar, row_delta, strict=True)]
+        for row_bar, row_delta in zip(bar, delta, strict=True)
     ]  # J-bar + delta-J as printed
     flat_ok = all(agrees(printed_J[i][j], J[i, j]) for i in range(4) for j in range(4))
     worst = max(abs(float(printed_J[i][j]) - J[i, j]) for i in range(4) for j in range(4))
@@ -274,7 +290,7 @@ def example_5_3(remus: VehicleParameters) -> list[Row]:
         vector_row(
             "eigenvalues of J-bar + delta-J (re, re, re +- i im)",
             "Ex. 5.3",
-            ["1.0132", "-2.5025", "-0.0125", "4.9629"],
+            _eigenvalue_text("example_5_3.eigenvalues"),
             [eig[0].real, eig[3].real, eig[1].real, abs(eig[1].imag)],
         )
     )
@@ -285,11 +301,12 @@ def example_5_3(remus: VehicleParameters) -> list[Row]:
         vector_row(
             "eigenvalues of J-bar (coupling J12 removed)",
             "Ex. 5.3",
-            ["0.9584", "-2.4662", "-0.0033", "4.9483"],
+            _eigenvalue_text("example_5_3.eigenvalues_bar"),
             [eig[0].real, eig[3].real, eig[1].real, abs(eig[1].imag)],
         )
     )
     eqs = _by_v(find_equilibria(OperatingConditions(remus, Variant.LATERAL)))
+    bank = printed("example_5_3.bank_angle")[0]
     if len(eqs) == 3:
         low, axis, high = eqs
         f = ("u", "v", "r", "p", "roll")
@@ -297,7 +314,7 @@ def example_5_3(remus: VehicleParameters) -> list[Row]:
             vector_row(
                 "x0' = [u, v, r, p, phi]",
                 "(5.1.70)",
-                ["1.272", "0.1724", "-0.2316", "0", "-0.0301"],
+                printed("example_5_3.turn_positive_v"),
                 [high.value(n) for n in f],
             )
         )
@@ -305,15 +322,15 @@ def example_5_3(remus: VehicleParameters) -> list[Row]:
             vector_row(
                 "x0'' = [u, v, r, p, phi]",
                 "(5.1.70)",
-                ["1.272", "-0.1724", "0.2316", "0", "0.0301"],
+                printed("example_5_3.turn_negative_v"),
                 [low.value(n) for n in f],
             )
         )
         rows.append(
             fact_row(
-                "x0', x0'' stable, x0 unstable; steady bank about 2 deg",
+                f"x0', x0'' stable, x0 unstable; steady bank about {bank} deg",
                 "Ex. 5.3",
-                "stable; |phi| ~ 2 deg",
+                f"stable; |phi| ~ {bank} deg",
                 f"{_stability(high)}, {_stability(low)}, x0 {_stability(axis)}; "
                 f"|phi| = {math.degrees(abs(high.value('roll'))):.2f} deg",
                 high.stable and low.stable and not axis.stable,
@@ -322,6 +339,12 @@ def example_5_3(remus: VehicleParameters) -> list[Row]:
     else:
         rows.append(fact_row("three equilibria", "(5.1.70)", "3", str(len(eqs)), False))
     return rows
+
+
+def _eigenvalue_text(key: str) -> list[str]:
+    """[re, re, re, im] of printed eigenvalues [[re, 0], [re, 0], [re, +im], [re, -im]]."""
+    (real_1, _), (real_2, _), (real_3, imag), _ = reference(key).text
+    return [real_1, real_2, real_3, imag]
 
 
 def roll_torque_claims(remus, long_fins, figures: Path) -> list[Row]:
@@ -335,13 +358,15 @@ def roll_torque_claims(remus, long_fins, figures: Path) -> list[Row]:
     )
     folds = result.folds
     ours = ", ".join(f"{f.parameter / Q_PROP:.3f} Q_prop" for f in folds) or "none"
+    fold = reference("example_5_4.fold_roll_torque")
     rows.append(
         fact_row(
-            "one fold (saddle-node) as |Q| grows, 'slightly larger than 4 Q_prop'",
+            f"one fold (saddle-node) as |Q| grows, 'slightly larger than {fold.text} Q_prop'",
             "Ex. 5.4, Fig. 5.9",
-            "> 4 Q_prop (Q_prop = -0.543 N m)",
+            f"> {fold.text} Q_prop (Q_prop = {Q_PROP} N m)",
             f"{len(folds)} fold at {ours} (Q = {folds[0].parameter:.4f} N m)" if folds else ours,
-            len(folds) == 1 and 4.0 < folds[0].parameter / Q_PROP < 5.0,
+            # "slightly larger": within one Q_prop
+            len(folds) == 1 and fold.value < folds[0].parameter / Q_PROP < fold.value + 1.0,
         )
     )
     after = find_equilibria(OperatingConditions(remus, Variant.LATERAL, roll_torque=5 * Q_PROP))
@@ -420,26 +445,30 @@ def mass_claims(remus: VehicleParameters, figures: Path) -> list[Row]:
     )
     folds = result.folds
     y_g = [100 * cg_offset(remus, f.parameter) for f in folds]
+    fold = reference("section_5_1_4.fold_cg_offset")
     rows.append(
         fact_row(
-            "one fold when |y_g| is 'slightly larger than 0.8 cm'",
+            f"one fold when |y_g| is 'slightly larger than {fold.text} cm'",
             "Sec. 5.1.4, Fig. 5.12",
-            "|y_g| > 0.8 cm",
+            f"|y_g| > {fold.text} cm",
             ", ".join(
                 f"y_g = {g:.3f} cm (y_v = {100 * f.parameter:.2f} cm)"
                 for g, f in zip(y_g, folds, strict=True)
             )
             or "none",
-            len(folds) == 1 and 0.8 < abs(y_g[0]) < 0.9,
+            # "slightly larger": within one unit of the printed digit
+            len(folds) == 1 and fold.value < abs(y_g[0]) < fold.value + fold.resolution,
             "y_g = m_v g y_v / W: the roll torque of our mass at rest equals W y_g cos(phi)",
         )
     )
-    y_v = mass_position_for_cg_offset(remus, -0.01)
+    beyond = reference("section_5_1_4.single_equilibrium_cg_offset")
+    y_v = mass_position_for_cg_offset(remus, beyond.value / 100)
     eqs = find_equilibria(OperatingConditions(remus, Variant.LATERAL, mass_position=y_v))
-    estimate = math.degrees(math.atan(-0.01 / remus.z_g))
+    estimate = math.degrees(math.atan(beyond.value / 100 / remus.z_g))
     rows.append(
         fact_row(
-            "y_g = -1.0 cm: one equilibrium, phi0 ~ arctan(y_g / z_g) 'with a slight difference'",
+            f"y_g = {beyond.text} cm: one equilibrium, phi0 ~ arctan(y_g / z_g) "
+            "'with a slight difference'",
             "(5.1.77), Fig. 5.12",
             f"arctan estimate {estimate:.1f} deg",
             ", ".join(
@@ -456,6 +485,7 @@ def mass_claims(remus: VehicleParameters, figures: Path) -> list[Row]:
 
 def fin_factor_claims(remus: VehicleParameters, figures: Path) -> list[Row]:
     rows = []
+    branch = reference("fin_factors.branch_point")
     for name, fig, source in (
         ("mu", "fig5_6_mu", "Fig. 5.6, (5.1.62)"),
         ("eta", "fig5_7_eta", "Fig. 5.7, (5.1.63)"),
@@ -470,12 +500,12 @@ def fin_factor_claims(remus: VehicleParameters, figures: Path) -> list[Row]:
         switches = [s for s in result.special_points if s.kind == "branch point"]
         rows.append(
             fact_row(
-                f"the turning pair merges into x0, which turns stable, at {name} ~ 2.0",
+                f"the turning pair merges into x0, which turns stable, at {name} ~ {branch.text}",
                 source,
-                "about 2.0",
+                f"about {branch.text}",
                 ", ".join(f"{s.kind} at {name} = {s.parameter:.3f}" for s in result.special_points)
                 or "none",
-                len(switches) == 1 and abs(switches[0].parameter - 2.0) < 0.15,
+                len(switches) == 1 and abs(switches[0].parameter - branch.value) < 0.15,
                 "a symmetric pitchfork: the fold-free branch point where x0 changes stability",
             )
         )
@@ -531,12 +561,8 @@ def linearised_6_3_19(remus: VehicleParameters) -> list[Row]:
         states,
         ["mass_position_cmd"],
     )
-    printed_A = [
-        ["-0.591", "-0.533", "0", "-0.332", "0", "2.366", "0.366"],
-        ["-5.629", "-0.695", "0", "-0.0768", "0", "2.306", "1.403"],
-        ["-1.428", "2.3973", "-0.007", "-24.48", "0", "204.76", "-0.855"],
-    ]
-    printed_B = ["-0.488", "-1.871", "1.140", "5.76"]
+    printed_A = reference("equation_6_3_19.A").text
+    printed_B = printed("equation_6_3_19.B")
     rows = []
     mismatches = [
         (i, j) for i in range(3) for j in range(7) if not agrees(printed_A[i][j], A[i, j])
@@ -556,20 +582,27 @@ def linearised_6_3_19(remus: VehicleParameters) -> list[Row]:
         Row(
             "A(2,2) = d(r_dot)/dr",
             "(6.3.19)",
-            "-0.695",
+            printed_A[1][1],
             f"{A[1, 1]:.3f}",
-            "differs (explained)" if not agrees("-0.695", A[1, 1]) else "agrees",
+            "differs (explained)" if not agrees(printed_A[1][1], A[1, 1]) else "agrees",
             "sign error in J'' of (6.2.33): -F - F H'' + gamma4 gives -0.942; Ex. 5.3's J-bar "
             "(-0.9264 at 1.5 m/s = -0.942 x 1.5/1.525) has the right sign",
         )
     )
-    ours_B = [B[0, 0], B[1, 0], B[2, 0], B[6, 0]]
-    rows.append(vector_row("B of (6.3.19) (rows v, r, p, y_vel)", "(6.3.19)", printed_B, ours_B))
+    rows_B = [0, 1, 2, 6]  # v, r, p, y_vel: the others are 0
+    rows.append(
+        vector_row(
+            "B of (6.3.19) (rows v, r, p, y_vel)",
+            "(6.3.19)",
+            [printed_B[i] for i in rows_B],
+            [B[i, 0] for i in rows_B],
+        )
+    )
     rows.append(
         vector_row(
             "servo rows: y_vel_dot = -k_v/m_v y_v - d_v/m_v y_vel",
             "(6.3.19)",
-            ["-5.76", "-4.32"],
+            printed_A[6][5:],
             [A[6, 5], A[6, 6]],
         )
     )
@@ -583,11 +616,16 @@ def low_speed(remus: VehicleParameters) -> list[Row]:
     low, axis, high = eqs
     note = "lateral variant (W != B): a small bank angle; within 0.5 %"
     return [
-        vector_row("T = 4 N: x0 = [u, v, r]", "Sec. 6.3.3", ["1.017", "0", "0"], _uvr(axis)),
+        vector_row(
+            "T = 4 N: x0 = [u, v, r]",
+            "Sec. 6.3.3",
+            printed("low_speed.straight_line")[:3],
+            _uvr(axis),
+        ),
         vector_row(
             "T = 4 N: x0' = [u, v, r]",
             "Sec. 6.3.3",
-            ["0.8467", "0.1147", "-0.1541"],
+            printed("low_speed.turn_positive_v")[:3],
             _uvr(high),
             rel=5e-3,
             note=note,
@@ -595,7 +633,7 @@ def low_speed(remus: VehicleParameters) -> list[Row]:
         vector_row(
             "T = 4 N: x0'' = [u, v, r]",
             "Sec. 6.3.3",
-            ["0.8467", "-0.1147", "0.1541"],
+            printed("low_speed.turn_negative_v")[:3],
             _uvr(low),
             rel=5e-3,
             note=note,
@@ -626,22 +664,13 @@ class RunData:
         return all(n in self.table for n in names)
 
 
-def settle(t: np.ndarray, x: np.ndarray, target: float, band: float) -> float | None:
-    """First time after which |x - target| < band to the end (angles wrapped)."""
-    error = np.angle(np.exp(1j * (x - target)))
-    outside = np.flatnonzero(np.abs(error) >= band)
-    if outside.size == 0:
-        return float(t[0])
-    return None if outside[-1] == len(t) - 1 else float(t[outside[-1] + 1])
-
-
 def heading_summary(t: np.ndarray, yaw: np.ndarray, band: float) -> tuple[str, float | None]:
     """'peak |psi| ... at ...; |psi| < band first at ... after the peak, for good from ...'
     and the settling time (for good)."""
     k0 = int(np.argmax(np.abs(yaw)))
     inside = np.flatnonzero(np.abs(yaw[k0:]) < band)
     first = float(t[k0 + inside[0]]) if inside.size else None
-    s = settle(t, yaw, 0.0, band)
+    s = settling_time(t, yaw, band, angle=True)
     text = (
         f"peak |psi| {math.degrees(abs(yaw[k0])):.1f} deg at {t[k0]:.1f} s; "
         f"|psi| < {math.degrees(band):.0f} deg first at {_fmt_time(first)}, "
@@ -655,6 +684,16 @@ def _fmt_time(value: float | None) -> str:
 
 
 DEG = math.radians(1.0)
+ABOUT = 5.0  # s: the slack we test an "about N seconds" of the text with
+LQR_1_TIME = reference("scenarios.lqr_1_settling_time")
+LQR_2_STOP = reference("scenarios.lqr_2_mass_stop")
+LQR_2_TIME = reference("scenarios.lqr_2_settling_time")
+BS_3_TIME = reference("scenarios.bs_3_settling_time")
+CUR_2_TIME = reference("scenarios.cur_2_settling_time")
+SLOW_2_TIME = reference("scenarios.slow_2_settling_time")
+HEADING_9_N = reference("current.heading_9_newton")
+HEADING_4_N = reference("current.heading_4_newton")
+DEPTH_STEADY = reference("scenarios.depth_steady_state")
 
 # id -> (claim, source, printed, check(run) -> (ours text, ok, note))
 ScenarioCheck = Callable[[RunData], tuple[str, bool, str]]
@@ -678,7 +717,8 @@ def _lqr2(run: RunData) -> tuple[str, bool, str]:
         f" Ours peaks at {peak:.1f} deg of yaw where Fig. 6.14's axis ends at 10 deg, with rail "
         f"speeds up to {rail_speed:.0f} cm/s (its axis: +-50 cm/s)."
     )
-    return text, abs(saturated + 0.06) < 1e-3 and s is not None and s <= 20.0, note
+    stop = LQR_2_STOP.value / 100  # cm -> m
+    return text, abs(saturated - stop) < 1e-3 and s is not None and s <= LQR_2_TIME.value, note
 
 
 def _current_drift(run: RunData) -> tuple[str, bool, str]:
@@ -704,7 +744,7 @@ def _current_track(target_deg: float, within: float) -> ScenarioCheck:
         course = math.degrees(math.atan2(v_east, v_north))
         yaw = run["plant.yaw"]
         final = math.degrees(float(np.mean(yaw[k])))
-        s = settle(t, yaw, math.radians(target_deg), 0.5 * DEG)
+        s = settling_time(t, yaw - math.radians(target_deg), 0.5 * DEG, angle=True)
         return (
             f"heading {final:.2f} deg (within 0.5 deg of psi_d from {_fmt_time(s)}), "
             f"course over ground {course:.2f} deg",
@@ -728,21 +768,29 @@ def _vert2(run: RunData) -> tuple[str, bool, str]:
     w = float(np.mean(run["plant.w"][k]))
     theta = float(np.mean(run["plant.pitch"][k]))
     fin = math.degrees(float(np.mean(run["controller.fin_angle"][k])))
-    ok = agrees("-0.07", w) and agrees("-0.045", theta, rel=0.25) and abs(fin + 5.0) < 1.5
+    w_text, theta_text, fin_text = DEPTH_STEADY.text
+    ok = (
+        agrees(w_text, w)
+        and agrees(theta_text, theta, rel=0.25)
+        and abs(fin - float(fin_text)) < 1.5
+    )
     return f"w = {w:.3f} m/s, theta = {theta:.3f} rad, mean delta_s = {fin:.2f} deg", ok, ""
 
 
 SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
     "lqr-1": (
-        "LQR, v0 = -0.01: converges within ~20 s",
+        f"LQR, v0 = -0.01: converges within ~{LQR_1_TIME.text} s",
         "Figs. 6.11-6.12",
-        "~20 s (tested: |psi| < 1 deg for good by 25 s)",
-        _heading_back(25.0),
+        f"~{LQR_1_TIME.text} s (tested: |psi| < 1 deg for good by "
+        f"{LQR_1_TIME.value + ABOUT:.0f} s)",
+        _heading_back(LQR_1_TIME.value + ABOUT),
     ),
     "lqr-2": (
-        "LQR, v0 = -0.05: y_v saturates at -6 cm, heading back within 20 s",
+        f"LQR, v0 = -0.05: y_v saturates at {LQR_2_STOP.text} cm, heading back within "
+        f"{LQR_2_TIME.text} s",
         "Figs. 6.13-6.14",
-        "-6 cm; 20 s (tested: |psi| < 1 deg for good by 20 s)",
+        f"{LQR_2_STOP.text} cm; {LQR_2_TIME.text} s (tested: |psi| < 1 deg for good by "
+        f"{LQR_2_TIME.text} s)",
         _lqr2,
     ),
     "lqr-3": (
@@ -764,22 +812,24 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
         _heading_back(20.0),
     ),
     "bs-3": (
-        "backstepping, v0 = -0.10: psi back to 0 within 10 s",
+        f"backstepping, v0 = -0.10: psi back to 0 within {BS_3_TIME.text} s",
         "Figs. 6.23-6.25",
-        "10 s (tested: |psi| < 1 deg for good by 10 s)",
-        _heading_back(10.0),
+        f"{BS_3_TIME.text} s (tested: |psi| < 1 deg for good by {BS_3_TIME.text} s)",
+        _heading_back(BS_3_TIME.value),
     ),
     "cur-1": (
-        "0.2 m/s current east, psi_d = 0: drifts east with sideslip",
+        f"{reference('current.speed').text} m/s current east, psi_d = 0: drifts east with sideslip",
         "Figs. 6.26-6.28",
         "drifts east",
         _current_drift,
     ),
     "cur-2": (
-        "psi_d = -beta = -7.55 deg: tracks along north, steady after about 20 s",
+        f"psi_d = -beta = {HEADING_9_N.text} deg: tracks along north, steady after about "
+        f"{CUR_2_TIME.text} s",
         "Figs. 6.29-6.31",
-        "course 0; ~20 s (tested: within 0.5 deg of psi_d, course within 1 deg, by 25 s)",
-        _current_track(-7.55, 25.0),
+        f"course 0; ~{CUR_2_TIME.text} s (tested: within 0.5 deg of psi_d, course within 1 deg, "
+        f"by {CUR_2_TIME.value + ABOUT:.0f} s)",
+        _current_track(HEADING_9_N.value, CUR_2_TIME.value + ABOUT),
     ),
     "slow-1": (
         "T = 4 N, v0 = -0.1: stabilised",
@@ -788,10 +838,10 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
         _heading_back(math.inf),
     ),
     "slow-2": (
-        "T = 4 N, current, psi_d = -11.3 deg: converges in ~20 s",
+        f"T = 4 N, current, psi_d = {HEADING_4_N.text} deg: converges in ~{SLOW_2_TIME.text} s",
         "Figs. 6.34-6.39",
-        "~20 s (tested as cur-2)",
-        _current_track(-11.3, 25.0),
+        f"~{SLOW_2_TIME.text} s (tested as cur-2)",
+        _current_track(HEADING_4_N.value, SLOW_2_TIME.value + ABOUT),
     ),
     "vert-1": (
         "6-DOF, z_d = 1 m: roll keeps oscillating",
@@ -800,17 +850,19 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
         _roll_keeps_oscillating,
     ),
     "vert-2": (
-        "6-DOF, mass locked after 15 s: w ~ -0.07, theta ~ -0.045, delta_s ~ -5 deg",
-        "Figs. 6.46-6.49",
-        "-0.07 m/s, -0.045 rad, -5 deg (tested: last 10 s means)",
+        "6-DOF, mass locked after 15 s: w ~ {}, theta ~ {}, delta_s ~ {} deg".format(
+            *DEPTH_STEADY.text
+        ),
+        "Figs. 6.46-6.49; Sec. 6.3.4",
+        "{} m/s, {} rad, {} deg (tested: last 10 s means)".format(*DEPTH_STEADY.text),
         _vert2,
     ),
 }
 
 SCENARIO_NOTES = {
     "lqr-2": "with the mass on its stop (y_v = -6 cm) the yaw moment it can make is capped "
-    "and the heading comes back on the slow closed-loop mode. The reference reproduction of "
-    "shared/spec/MODEL.md (continuous LQR gains, RK4 at 0.2 ms) also needs 28-34 s to stay "
+    "and the heading comes back on the slow closed-loop mode. An independent reproduction of "
+    "this case (continuous LQR gains, RK4 at 0.2 ms) also needs 28-34 s to stay "
     "within 1 deg, so the 20 s claim does not hold for this model. Like the dissertation "
     "(Sec. 6.3.1 bounds y_v and y_vel only), the scenario leaves the servo command "
     "unsaturated; saturating it at the 6 cm stroke slows the mass to ~6 cm/s and the "

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from reference_values import dissertation
 
 from controller_fmu.autopilot import (
     MEASUREMENT_NAMES,
@@ -38,15 +39,17 @@ def remus():
 
 
 @pytest.mark.parametrize(
-    ("speed", "printed_deg", "digits"),
-    [(1.525, -7.55, 0.02), (1.017, -11.3, 0.05)],  # (6.3.74) at 9 N, (6.3.75) at 4 N
+    ("speed", "printed", "digits"),
+    [(1.525, "current.heading_9_newton", 0.02), (1.017, "current.heading_4_newton", 0.05)],
 )
-def test_heading_into_a_cross_current_is_the_sideslip_angle(speed, printed_deg, digits):
-    psi_d = desired_heading(0.0, 0.0, 0.2, speed, compensate_current=True)
-    assert math.degrees(psi_d) == pytest.approx(printed_deg, abs=digits)
+def test_heading_into_a_cross_current_is_the_sideslip_angle(speed, printed, digits):
+    """(6.3.74) at 9 N (U0 = 1.525 m/s), (6.3.75) at 4 N (U0 = 1.017 m/s)."""
+    current = dissertation("current.speed")
+    psi_d = desired_heading(0.0, 0.0, current, speed, compensate_current=True)
+    assert math.degrees(psi_d) == pytest.approx(dissertation(printed), abs=digits)
     # Only the component across the course counts: heading east, the same current is along it.
-    assert desired_heading(math.pi / 2, 0.0, 0.2, speed, True) == pytest.approx(math.pi / 2)
-    assert desired_heading(0.3, 0.0, 0.2, speed, compensate_current=False) == 0.3
+    assert desired_heading(math.pi / 2, 0.0, current, speed, True) == pytest.approx(math.pi / 2)
+    assert desired_heading(0.3, 0.0, current, speed, compensate_current=False) == 0.3
 
 
 def test_a_cross_current_faster_than_the_vehicle_is_refused():
@@ -63,13 +66,17 @@ def test_mass_lock_starts_at_the_lock_time_and_never_when_negative():
 
 
 def test_depth_pd_signs_and_limit():
-    pd = DepthPd()  # Table 6.2
-    assert (pd.gamma, pd.k_p, pd.tau_d) == (-0.7720, 10.345, 0.21)
+    pd = DepthPd()
+    gamma, k_p, tau_d = dissertation("table_6_2.gains")
+    assert (pd.gamma, pd.k_p, pd.tau_d) == (gamma, k_p, tau_d)
     # Too shallow: nose down (theta_d < 0) by a positive fin (M_ds < 0 pitches nose down).
-    assert pd.pitch_setpoint(1.0, 0.9) == pytest.approx(-0.0772)
-    assert pd.fin_angle(1.0, 0.99, 0.0, 0.0) == pytest.approx(10.345 * 0.00772)
+    assert pd.pitch_setpoint(1.0, 0.9) == pytest.approx(0.1 * gamma)
+    assert pd.pitch_setpoint(1.0, 0.9) < 0.0
+    assert pd.fin_angle(1.0, 0.99, 0.0, 0.0) == pytest.approx(-k_p * 0.01 * gamma)
+    assert pd.fin_angle(1.0, 0.99, 0.0, 0.0) > 0.0
     # Pitching up (q > 0) is damped by a nose-down fin.
-    assert pd.fin_angle(1.0, 1.0, 0.0, 0.01) == pytest.approx(10.345 * 0.21 * 0.01)
+    assert pd.fin_angle(1.0, 1.0, 0.0, 0.01) == pytest.approx(k_p * tau_d * 0.01)
+    assert pd.fin_angle(1.0, 1.0, 0.0, 0.01) > 0.0
     assert pd.fin_angle(5.0, 0.0, 0.0, 0.0) == pd.fin_limit
     with pytest.raises(ValueError, match=r"fin_limit = 0\.0"):
         DepthPd(fin_limit=0.0)
@@ -92,9 +99,10 @@ def test_vert2_both_loops_settle_where_the_dissertation_reports(vertical):
     run = vertical["vert-2"]
     late = run.times >= 45.0
     # Sec. 6.3.4: w ~ -0.07 m/s, theta ~ -0.045 rad, mean delta_s ~ -5 deg (buoyancy offset).
-    assert run.state("w")[late].mean() == pytest.approx(-0.07, abs=0.01)
-    assert run.state("pitch")[late].mean() == pytest.approx(-0.045, abs=0.01)
-    assert np.degrees(run.command("fin_angle")[late]).mean() == pytest.approx(-5.0, abs=0.5)
+    w, theta, fin_deg = dissertation("scenarios.depth_steady_state")
+    assert run.state("w")[late].mean() == pytest.approx(w, abs=0.01)
+    assert run.state("pitch")[late].mean() == pytest.approx(theta, abs=0.01)
+    assert np.degrees(run.command("fin_angle")[late]).mean() == pytest.approx(fin_deg, abs=0.5)
     assert np.ptp(run.state("down")[late]) < 0.01  # settled
     assert 0.9 < run.state("down")[-1] < 1.0  # a P depth loop keeps a steady error
     assert np.all(run.command("mass_position_cmd")[run.times >= 15.0] == 0.0)

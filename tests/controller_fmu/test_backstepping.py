@@ -1,7 +1,7 @@
 """Backstepping on the moving mass + Lyapunov-redesigned tunnel thruster (6.3.53)-(6.3.73):
 model terms from the plant against (6.3.19)'s printed entries, the command filter, and the
 bs-*, cur-* and slow-1 outcomes in the in-process closed loop (plant model + Autopilot,
-10 ms, MODEL.md section 5)."""
+10 ms; the scenarios of docs/model.md#scenarios)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from reference_values import dissertation
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from controller_fmu.backstepping import BacksteppingGains, BacksteppingHeading
@@ -33,11 +34,12 @@ def test_model_gains_are_the_plants_and_match_the_printed_linearisation(remus):
     """(6.3.19) at U0 = 1.525 prints d r'/d v = -5.629 and d v'/d phi = -0.332; with the
     mass held still, d v'/d y_v = A(1,6) + B(1) = 2.366 - 0.488 and d p'/d y_v =
     A(3,6) + B(3) = 204.76 + 1.140 (it used W = m g with g = 9.8, hence 0.2 % off)."""
+    A, B = dissertation("equation_6_3_19.A"), dissertation("equation_6_3_19.B")
     bs = BacksteppingHeading(LateralDesignModel(remus, 1.525), BacksteppingGains())
-    assert bs.g1 == pytest.approx(-5.629, rel=2e-3)
-    assert bs.g2 == pytest.approx(-0.332, rel=1e-2)
-    assert bs.eps4 == pytest.approx(2.366 - 0.488, rel=2e-3)
-    assert bs.g3 == pytest.approx(204.76 + 1.140, rel=3e-3)
+    assert bs.g1 == pytest.approx(A[1, 0], rel=2e-3)
+    assert bs.g2 == pytest.approx(A[0, 3], rel=1e-2)
+    assert bs.eps4 == pytest.approx(A[0, 5] + B[0], rel=2e-3)
+    assert bs.g3 == pytest.approx(A[2, 5] + B[2], rel=3e-3)
     # (6.3.71)'s sway inertia m + a22, up to the mass matrix's sway-roll-yaw coupling.
     assert 1.0 / bs.thruster_gain == pytest.approx(remus.m + remus.a22, rel=0.05)
 
@@ -80,7 +82,7 @@ def test_bad_gains_are_refused_with_the_value_named(kwargs, message):
         BacksteppingGains(**kwargs)
 
 
-# --- closed loop, MODEL.md section 5 -----------------------------------------------------------
+# --- closed loop: the scenarios of docs/model.md#scenarios --------------------------------------
 
 
 def _run(remus, start, stop_time=30.0, current=None, yaw_setpoint=0.0, **config):
@@ -145,5 +147,6 @@ def test_cur1_holds_the_heading_and_drifts_east_with_the_current(in_current):
 def test_cur2_settles_at_minus_7_55_deg_with_no_eastward_drift(in_current):
     _, compensated = in_current
     late = compensated.times >= 40.0
-    assert np.degrees(compensated.state("yaw")[late]) == pytest.approx(-7.55, abs=0.05)
+    printed = dissertation("current.heading_9_newton")  # deg, (6.3.74)
+    assert np.degrees(compensated.state("yaw")[late]) == pytest.approx(printed, abs=0.05)
     assert abs(_east_speed(compensated, 40.0)) < 0.002

@@ -41,7 +41,7 @@ def linear(remus):
 def test_continuous_design_puts_a_servo_pole_no_sampled_loop_can_realise(linear):
     A, B = linear
     K, poles = continuous_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U)
-    # MODEL.md section 4: a closed-loop pole near -5760 1/s (the rail speed weight 1e6).
+    # A closed-loop pole near -5760 1/s (the rail speed weight 1e6; docs/model.md#lqr).
     assert poles.real.min() < -1000.0
     # The same gains held over 10 ms steps: the sampled loop is violently unstable.
     Ad, Bd = discretize(A, B, 0.01)
@@ -94,7 +94,7 @@ def test_bad_weights_and_sample_times_are_refused_with_the_value_named(linear):
         discrete_gain(A, B, DISSERTATION_Q_Y, 0.0, 0.01)
 
 
-# --- closed loop, MODEL.md section 5 ----------------------------------------------------------
+# --- closed loop: the scenarios of docs/model.md#scenarios -------------------------------------
 
 
 def _run(remus, v0: float, stop_time: float):

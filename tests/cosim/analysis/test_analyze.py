@@ -12,6 +12,7 @@ import subprocess
 import sys
 
 import pytest
+from reference_values import dissertation
 
 from cosim.analysis.bifurcation import Q_PROP
 from cosim.cli import main
@@ -27,7 +28,8 @@ def _run(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 def test_equilibria_json_is_the_documented_list(capsys):
-    """INTERFACES: a list of {state: {name: value}, eigenvalues: [[re, im]], stable}."""
+    """A list of {state: {name: value}, eigenvalues: [[re, im]], stable}, as
+    cosim/analysis/analyze.py documents it."""
     code, out, _ = _run(capsys, "analyze", "equilibria", "--json")
     assert code == 0
     records = json.loads(out)
@@ -42,9 +44,10 @@ def test_equilibria_json_is_the_documented_list(capsys):
     by_v = sorted(records, key=lambda r: r["state"]["v"])
     # Example 5.1 (5.1.50): the turning pair is stable, the straight line is not.
     assert [r["stable"] for r in by_v] == [True, False, True]
-    assert by_v[2]["state"]["u"] == pytest.approx(1.282, abs=6e-4)
-    assert by_v[2]["state"]["v"] == pytest.approx(0.1678, abs=6e-5)
-    assert by_v[2]["state"]["r"] == pytest.approx(-0.2291, abs=6e-5)
+    u, v, r = dissertation("example_5_1.turn_positive_v")
+    assert by_v[2]["state"]["u"] == pytest.approx(u, abs=6e-4)
+    assert by_v[2]["state"]["v"] == pytest.approx(v, abs=6e-5)
+    assert by_v[2]["state"]["r"] == pytest.approx(r, abs=6e-5)
 
 
 def test_equilibria_low_speed_lateral_json(capsys):
@@ -55,8 +58,11 @@ def test_equilibria_low_speed_lateral_json(capsys):
     assert code == 0
     by_v = sorted(json.loads(out), key=lambda r: r["state"]["v"])
     assert [r["stable"] for r in by_v] == [True, False, True]
-    assert by_v[1]["state"]["u"] == pytest.approx(1.017, rel=5e-3)
-    for name, value in (("u", 0.8467), ("v", 0.1147), ("r", -0.1541)):
+    assert by_v[1]["state"]["u"] == pytest.approx(
+        dissertation("low_speed.straight_line")[0], rel=5e-3
+    )
+    turn = dissertation("low_speed.turn_positive_v")
+    for name, value in zip(("u", "v", "r"), turn, strict=False):
         assert by_v[2]["state"][name] == pytest.approx(value, rel=5e-3)
     assert len(by_v[0]["eigenvalues"]) == 5  # u, v, p, r, roll
 

@@ -1,7 +1,7 @@
 """Equilibria, continuation and folds against the dissertation's Sec. 5.1.2-5.1.4.
 
 Expected values are the dissertation's printed numbers (Examples 5.1-5.4, Sec. 5.1.4,
-Figs. 5.6-5.7, the T = 4 N case of Sec. 6.3.3) as restated in shared/spec/MODEL.md.
+Figs. 5.6-5.7, the T = 4 N case of Sec. 6.3.3), read from docs/dissertation-values.toml.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from reference_values import dissertation
 
 from cosim.analysis.bifurcation import (
     Q_PROP,
@@ -55,8 +56,11 @@ def _assert_mirrored_pair(equilibria, expected, names, rel=None, abs_=None):
 def test_example_5_1_three_equilibria_two_stable(remus):
     """(5.1.50): x0 = [1.525, 0, 0] unstable, [1.282, +-0.1678, -+0.2291] stable."""
     equilibria = find_equilibria(OperatingConditions(remus, Variant.HORIZONTAL, thrust=9.0))
-    axis = _assert_mirrored_pair(equilibria, (1.282, 0.1678, -0.2291), ("u", "v", "r"), abs_=6e-4)
-    assert [axis.value(n) for n in ("u", "v", "r")] == pytest.approx([1.525, 0, 0], abs=5e-4)
+    turn = dissertation("example_5_1.turn_positive_v")
+    axis = _assert_mirrored_pair(equilibria, turn, ("u", "v", "r"), abs_=6e-4)
+    assert [axis.value(n) for n in ("u", "v", "r")] == pytest.approx(
+        dissertation("example_5_1.straight_line"), abs=5e-4
+    )
 
 
 def test_example_5_1_stable_and_unstable_subspaces(remus):
@@ -66,9 +70,10 @@ def test_example_5_1_stable_and_unstable_subspaces(remus):
     values, vectors = np.linalg.eig(axis.jacobian)
     assert np.sum(values.real > 0) == 1
     unstable = vectors[:, np.argmax(values.real)].real
-    assert abs(unstable @ np.array([0, -0.3291, 0.9443])) == pytest.approx(1.0, abs=1e-4)
+    e_u = dissertation("example_5_1.unstable_subspace")
+    assert abs(unstable @ e_u) == pytest.approx(1.0, abs=1e-4)
     stable = vectors[:, values.real < 0].real
-    for printed in ([1.0, 0, 0], [0, -0.2723, -0.9622]):
+    for printed in dissertation("example_5_1.stable_subspace"):
         residual = printed - stable @ np.linalg.lstsq(stable, printed, rcond=None)[0]
         assert np.linalg.norm(residual) < 2e-4
 
@@ -78,7 +83,9 @@ def test_example_5_2_long_fins_only_the_straight_line_stable():
     equilibria = find_equilibria(OperatingConditions(load_vehicle("remus100-long-fins")))
     assert len(equilibria) == 1
     (eq,) = equilibria
-    assert [eq.value(n) for n in ("u", "v", "r")] == pytest.approx([1.525, 0, 0], abs=5e-4)
+    assert [eq.value(n) for n in ("u", "v", "r")] == pytest.approx(
+        dissertation("example_5_2.straight_line"), abs=5e-4
+    )
     assert eq.stable
 
 
@@ -86,14 +93,16 @@ def test_example_5_3_lateral_equilibria_bank_in_turns(remus):
     """(5.1.70): [1.272, +-0.1724, -+0.2316, 0, -+0.0301] stable, x0 unstable."""
     equilibria = find_equilibria(OperatingConditions(remus, Variant.LATERAL))
     names = ("u", "v", "r", "p", "roll")
-    _assert_mirrored_pair(equilibria, (1.272, 0.1724, -0.2316, 0.0, -0.0301), names, abs_=6e-4)
+    turn = dissertation("example_5_3.turn_positive_v")
+    _assert_mirrored_pair(equilibria, turn, names, abs_=6e-4)
 
 
 def test_low_speed_equilibria_within_half_a_percent(remus):
     """Sec. 6.3.3, T = 4 N: [1.017, 0, 0] unstable, [0.8467, +-0.1147, -+0.1541] stable."""
     equilibria = find_equilibria(OperatingConditions(remus, Variant.LATERAL, thrust=4.0))
-    axis = _assert_mirrored_pair(equilibria, (0.8467, 0.1147, -0.1541), ("u", "v", "r"), rel=5e-3)
-    assert axis.value("u") == pytest.approx(1.017, rel=5e-3)
+    turn = dissertation("low_speed.turn_positive_v")[:3]
+    axis = _assert_mirrored_pair(equilibria, turn, ("u", "v", "r"), rel=5e-3)
+    assert axis.value("u") == pytest.approx(dissertation("low_speed.straight_line")[0], rel=5e-3)
 
 
 def test_every_equilibrium_is_a_root_inside_the_box(remus):
@@ -144,7 +153,8 @@ def test_roll_torque_sweep_has_one_fold_between_4_and_5_q_prop(remus):
     )
     assert len(result.folds) == 1, [(s.kind, s.parameter) for s in result.special_points]
     fold = result.folds[0]
-    assert 4.0 < fold.parameter / Q_PROP < 5.0
+    printed = dissertation("example_5_4.fold_roll_torque")  # "slightly larger than 4 Q_prop"
+    assert printed < fold.parameter / Q_PROP < printed + 1.0
     assert abs(fold.eigenvalues.real).min() < 1e-6  # a zero eigenvalue at the fold
     after = find_equilibria(OperatingConditions(remus, 1, roll_torque=5.5 * Q_PROP))
     assert len(after) == 1 and after[0].stable
@@ -176,8 +186,9 @@ def test_mass_position_sweep_has_one_fold_at_y_g_between_08_and_09_cm(remus):
         search_points=2,
     )
     assert len(result.folds) == 1, [(s.kind, s.parameter) for s in result.special_points]
-    y_g = cg_offset(remus, result.folds[0].parameter)
-    assert 0.008 < abs(y_g) < 0.009
+    y_g = 100 * cg_offset(remus, result.folds[0].parameter)  # cm
+    printed = dissertation("section_5_1_4.fold_cg_offset")  # "slightly larger than 0.8 cm"
+    assert printed < abs(y_g) < printed + 0.1
 
 
 @pytest.mark.parametrize("parameter", ["mu", "eta"])
@@ -197,10 +208,11 @@ def test_fin_factor_sweeps_stabilise_the_straight_line_near_2(remus, parameter):
     switches = [s for s in result.special_points if s.kind == "branch point"]
     assert len(switches) == 1
     switch = switches[0]
-    assert 1.8 < switch.parameter < 2.2
+    printed = dissertation("fin_factors.branch_point")  # "about 2.0"
+    assert printed - 0.2 < switch.parameter < printed + 0.2
     assert abs(switch.state["v"]) < 1e-6 and abs(switch.state["r"]) < 1e-6
-    below = find_equilibria(OperatingConditions(remus).with_parameter(parameter, 1.8))
-    above = find_equilibria(OperatingConditions(remus).with_parameter(parameter, 2.2))
+    below = find_equilibria(OperatingConditions(remus).with_parameter(parameter, printed - 0.2))
+    above = find_equilibria(OperatingConditions(remus).with_parameter(parameter, printed + 0.2))
     assert [e.stable for e in below] == [True, False, True]
     assert len(above) == 1 and above[0].stable
 

@@ -5,6 +5,7 @@ import itertools
 
 import numpy as np
 import pytest
+from reference_values import DISSERTATION, dissertation
 
 from cosim.analysis.equilibria import find_equilibrium
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
@@ -46,19 +47,29 @@ def _equilibria_in_box(model: PlantModel, thrust: float) -> list[np.ndarray]:
     return found
 
 
-def test_example_5_1_straight_line_is_unstable_with_printed_eigenvalues(horizontal):
+def test_example_5_1_straight_line_is_a_saddle(horizontal):
+    """Example 5.1: at x0 'one of the three eigenvalues is positive, and the other two are
+    negative'; the printed unstable direction E_u is the eigenvector of the positive one."""
     eq = find_equilibrium(horizontal, dict(u=1.5), dict(thrust=9.0))
-    np.testing.assert_allclose(_values(eq, HORIZONTAL), [1.525, 0, 0], atol=5e-4)
-    np.testing.assert_allclose(np.sort(eq.eigenvalues.real), [-2.539, -0.376, 1.014], atol=1.5e-3)
+    np.testing.assert_allclose(
+        _values(eq, HORIZONTAL), dissertation("example_5_1.straight_line"), atol=5e-4
+    )
+    assert np.all(np.abs(eq.eigenvalues.imag) < 1e-12)
+    assert np.sum(eq.eigenvalues.real > 0) == 1 and np.sum(eq.eigenvalues.real < 0) == 2
+    values, vectors = np.linalg.eig(eq.jacobian)
+    unstable = vectors[:, np.argmax(values.real)].real
+    assert abs(unstable @ dissertation("example_5_1.unstable_subspace")) == pytest.approx(
+        1.0, abs=1e-4
+    )
     assert not eq.stable
 
 
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_example_5_1_turning_equilibria_are_stable(horizontal, sign):
     eq = find_equilibrium(horizontal, dict(u=1.3, v=0.17 * sign, r=-0.23 * sign), dict(thrust=9.0))
-    np.testing.assert_allclose(
-        _values(eq, HORIZONTAL), [1.2821, 0.1678 * sign, -0.2291 * sign], atol=1e-4
-    )
+    turn = DISSERTATION["example_5_1.turn_positive_v"]
+    error = _values(eq, HORIZONTAL) - turn.value * [1, sign, sign]
+    assert np.all(np.abs(error) <= 0.5 * turn.resolution), error  # the printed digits
     assert eq.stable
 
 
@@ -75,14 +86,16 @@ def test_example_5_1_time_integration_reaches_the_turning_equilibrium(horizontal
     _, states = simulate(horizontal, x0, input_vector(thrust=9.0), duration=60.0, h=0.05)
     final = states[-1, [STATE_INDEX[n] for n in HORIZONTAL]]
     s = np.sign(v0)
-    np.testing.assert_allclose(final, [1.2821, 0.1678 * s, -0.2291 * s], atol=2e-4)
+    turn = DISSERTATION["example_5_1.turn_positive_v"]
+    error = final - turn.value * [1, s, s]
+    assert np.all(np.abs(error) <= 0.5 * turn.resolution + 1.5e-4), error  # 60 s: not quite there
 
 
 def test_example_5_2_long_fins_leave_only_the_stable_straight_line():
     model = PlantModel(load_vehicle("remus100-long-fins"), Variant.HORIZONTAL)
     found = _equilibria_in_box(model, thrust=9.0)
     assert len(found) == 1
-    np.testing.assert_allclose(found[0], [1.525, 0, 0], atol=5e-4)
+    np.testing.assert_allclose(found[0], dissertation("example_5_2.straight_line"), atol=5e-4)
     assert find_equilibrium(model, dict(u=1.5), dict(thrust=9.0)).stable
 
 
@@ -94,13 +107,15 @@ def test_low_speed_equilibria_with_4_newton_thrust(lateral):
     printed as 0)."""
     names = ("u", "v", "r", "p")
     straight = find_equilibrium(lateral, dict(u=1.0), dict(thrust=4.0))
-    np.testing.assert_allclose(_values(straight, names), [1.017, 0, 0, 0], atol=5e-4)
+    np.testing.assert_allclose(
+        _values(straight, names), dissertation("low_speed.straight_line")[:4], atol=5e-4
+    )
     for sign in (1.0, -1.0):
         guess = dict(u=0.85, v=0.11 * sign, r=-0.15 * sign, roll=-0.01 * sign)
         turn = find_equilibrium(lateral, guess, dict(thrust=4.0))
         np.testing.assert_allclose(
             _values(turn, ("u", "v", "r")),
-            np.array([0.8467, 0.1147, -0.1541]) * [1, sign, sign],
+            dissertation("low_speed.turn_positive_v")[:3] * [1, sign, sign],
             rtol=5e-3,
         )
         assert turn.stable and abs(turn.value("roll")) < 0.02
@@ -111,18 +126,20 @@ def test_example_5_3_lateral_turning_equilibria(lateral, sign):
     names = ("u", "v", "r", "p", "roll")
     guess = dict(u=1.3, v=0.17 * sign, r=-0.23 * sign, roll=-0.03 * sign)
     eq = find_equilibrium(lateral, guess, dict(thrust=9.0))
-    np.testing.assert_allclose(
-        _values(eq, names), [1.272, 0.1724 * sign, -0.2316 * sign, 0.0, -0.0301 * sign], atol=5e-4
-    )
+    printed = dissertation("example_5_3.turn_positive_v") * [1, sign, sign, sign, sign]
+    np.testing.assert_allclose(_values(eq, names), printed, atol=5e-4)
     assert eq.stable
 
 
 def test_example_5_3_jacobian_at_1_5_m_per_s(lateral):
-    """The printed Jacobians of Example 5.3 hold at U0 = 1.5 m/s (MODEL.md section 5)."""
+    """The printed Jacobian J-bar + delta-J of Example 5.3 and its eigenvalues hold at
+    u = 1.5 m/s (not at U0 = 1.525 m/s: the linear terms scale with u)."""
     A, _ = linearize(lateral, state_vector(dict(u=1.5)), input_vector(thrust=9.0),
                      ["v", "r", "p", "roll"])  # fmt: skip
+    printed = dissertation("example_5_3.jacobian_bar") + dissertation("example_5_3.jacobian_delta")
+    np.testing.assert_allclose(A, printed, atol=1e-4)
     eig = np.linalg.eigvals(A)
-    expected = np.array([1.0132, -2.5025, -0.0125 + 4.9629j, -0.0125 - 4.9629j])
+    expected = dissertation("example_5_3.eigenvalues") @ [1.0, 1.0j]
     for value in expected:
         assert np.min(np.abs(eig - value)) < 5e-4, (value, eig)
 
@@ -130,37 +147,26 @@ def test_example_5_3_jacobian_at_1_5_m_per_s(lateral):
 def test_linearised_lateral_model_reproduces_6_3_19():
     """(6.3.19) at U0 = 1.525 m/s with W = m g, g = 9.8 (as the dissertation computed it).
     Every entry matches to print precision except A(2,2), printed -0.695 from the sign error
-    in J'' of (6.2.33); the plant's own equations give -0.942."""
+    in J'' of (6.2.33); the plant's own equations give -0.942, which is Example 5.3's
+    d r'/d r = -0.9264 at 1.5 m/s scaled to 1.525 m/s (every term of it is linear in u)."""
     params = load_vehicle("remus100").replace(g=9.8, W=30.5 * 9.8)
     model = PlantModel(params, Variant.LATERAL)
     states = ["v", "r", "p", "roll", "yaw", "mass_position", "mass_velocity"]
     A, B = linearize(model, state_vector(dict(u=1.525)), input_vector(thrust=9.0), states,
                      ["mass_position_cmd"])  # fmt: skip
-    printed_A = np.array(
-        [
-            [-0.591, -0.533, 0, -0.332, 0, 2.366, 0.366],
-            [-5.629, -0.695, 0, -0.0768, 0, 2.306, 1.403],
-            [-1.428, 2.3973, -0.007, -24.48, 0, 204.76, -0.855],
-            [0, 0, 1, 0, 0, 0, 0],
-            [0, 1, 0, 0, 0, 0, 0],
-            [0, 0, 0, 0, 0, 0, 1],
-            [0, 0, 0, 0, 0, -5.76, -4.32],
-        ]
-    )
-    printed_B = np.array([-0.488, -1.871, 1.140, 0, 0, 0, 5.76])
-    # print precision: half a unit in the last printed digit
-    tolerance = np.array(
-        [
-            [5e-4, 5e-4, 5e-4, 5e-4, 5e-4, 5e-4, 5e-4],
-            [5e-4, 5e-4, 5e-4, 5e-5, 5e-4, 5e-4, 5e-4],
-            [5e-4, 5e-5, 5e-4, 5e-3, 5e-4, 5e-3, 5e-4],
-            *[[1e-9] * 7] * 3,
-            [1e-9, 1e-9, 1e-9, 1e-9, 1e-9, 5e-3, 5e-3],
-        ]
-    )
+    printed = DISSERTATION["equation_6_3_19.A"]
+    printed_A = printed.value
+    printed_B = dissertation("equation_6_3_19.B")
+    # print precision: half a unit in the last printed digit; a bare 0 or 1 is exact in the
+    # kinematic and servo rows and stands next to three decimals in the rows v, r, p
+    tolerance = 0.5 * printed.resolution
+    bare = printed.resolution == 1.0
+    tolerance[bare] = 1e-9
+    tolerance[:3][bare[:3]] = 5e-4
     defect = np.zeros_like(A, dtype=bool)
     defect[1, 1] = True
     assert np.all((np.abs(A - printed_A) <= tolerance) | defect), A - printed_A
-    assert A[1, 1] == pytest.approx(-0.942, abs=5e-4)
+    example_5_3 = dissertation("example_5_3.jacobian_bar")[1, 1] * 1.525 / 1.5
+    assert A[1, 1] == pytest.approx(example_5_3, abs=1e-4)
     assert abs(A[1, 1] - printed_A[1, 1]) > 0.2
     np.testing.assert_allclose(B[:, 0], printed_B, atol=5e-4)

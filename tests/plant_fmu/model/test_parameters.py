@@ -3,6 +3,7 @@
 from pathlib import Path
 
 import pytest
+from reference_values import dissertation
 
 from plant_fmu.model.parameters import VehicleParameterError, builtin_vehicles, load_vehicle
 
@@ -16,9 +17,12 @@ def test_builtin_sets_are_shipped_and_load():
 def test_remus100_matches_table_4_1_and_servo_design():
     p = load_vehicle("remus100")
     assert (p.m, p.W, p.B, p.I_xx, p.I_zz, p.z_g) == (30.5, 299.0, 306.0, 0.177, 3.45, 0.0196)
-    # (6.3.16): omega_n^2 = k_v/m_v = 5.76 and 2 zeta omega_n = d_v/m_v = 4.32, as (6.3.19) prints
-    assert p.k_v / p.m_v == pytest.approx(5.76)
-    assert p.d_v / p.m_v == pytest.approx(4.32)
+    # (6.3.16): omega_n^2 = k_v/m_v = 5.76 and 2 zeta omega_n = d_v/m_v = 4.32, the servo
+    # row of (6.3.19): y_vel' = -k_v/m_v y_v - d_v/m_v y_vel + k_v/m_v y_d
+    servo_row = dissertation("equation_6_3_19.A")[6]
+    assert p.k_v / p.m_v == pytest.approx(-servo_row[5])
+    assert p.d_v / p.m_v == pytest.approx(-servo_row[6])
+    assert p.k_v / p.m_v == pytest.approx(dissertation("equation_6_3_19.B")[6])
     assert p.m_v == pytest.approx(p.m / 6)
 
 

@@ -1,0 +1,142 @@
+"""The dissertation's printed numbers (``docs/dissertation-values.toml``), read in one place.
+
+The tests (through ``tests/reference_values.py``) and ``scripts/reproduce_dissertation.py``
+compare the model with these numbers. The file is repository data, not package data, so
+the caller passes its path.
+
+A value keeps the digits it was printed with: the file's floats are parsed as
+:class:`decimal.Decimal`, so ``1.4050`` keeps its four decimals, and
+:attr:`Reference.resolution` is one unit of the last printed digit (the tolerance the
+reproduction report calls "agrees").
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from decimal import Decimal
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+Printed = Decimal | list["Printed"]
+"""A number as printed, or a (nested) list of them."""
+
+
+class ReferenceValueError(ValueError):
+    """The reference-value file is missing, malformed, or an entry lacks what it needs."""
+
+
+class _Entry(BaseModel):
+    model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True)
+
+    value: Any
+    unit: str | list[str]
+    source: str
+    description: str
+
+
+@dataclass(frozen=True)
+class Reference:
+    """One printed value with its unit and where the dissertation prints it.
+
+    Attributes:
+        key: dotted name in the file, e.g. ``"example_5_1.turn_positive_v"``.
+        printed: the number(s) as printed (:class:`~decimal.Decimal`, nested lists).
+        unit: SI unit, or one per entry of a vector.
+        source: example, figure, table, section or equation number.
+        description: what the value is.
+    """
+
+    key: str
+    printed: Printed
+    unit: str | tuple[str, ...]
+    source: str
+    description: str
+
+    @property
+    def value(self) -> float | np.ndarray:
+        """The value as a float, or a float array of the printed shape."""
+        if isinstance(self.printed, Decimal):
+            return float(self.printed)
+        return np.array(_map(self.printed, float), dtype=float)
+
+    @property
+    def text(self) -> str | list:
+        """The value as printed: a string, or nested lists of strings."""
+        return _map(self.printed, str)
+
+    @property
+    def resolution(self) -> float | np.ndarray:
+        """One unit of the last printed digit (1 for an integer), per entry."""
+        if isinstance(self.printed, Decimal):
+            return _unit_of_last_digit(self.printed)
+        return np.array(_map(self.printed, _unit_of_last_digit), dtype=float)
+
+
+def load_reference_values(path: Path) -> dict[str, Reference]:
+    """Every entry of the TOML file at ``path``, by dotted key.
+
+    Raises:
+        ReferenceValueError: the file cannot be read or parsed, or an entry is not a table
+            of ``value`` (numbers, rectangular lists of numbers), ``unit``, ``source`` and
+            ``description``; the message names the entry.
+    """
+    try:
+        table = tomllib.loads(Path(path).read_text(encoding="utf-8"), parse_float=Decimal)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise ReferenceValueError(f"reference values {str(path)!r}: {exc}") from exc
+    references: dict[str, Reference] = {}
+    _collect(table, prefix="", out=references)
+    return references
+
+
+def _collect(table: dict[str, Any], prefix: str, out: dict[str, Reference]) -> None:
+    """Walk the groups down to the entries, the tables that hold a ``value``."""
+    for name, item in table.items():
+        key = f"{prefix}{name}"
+        if not isinstance(item, dict):
+            raise ReferenceValueError(
+                f"reference value {key!r}: expected a table with value, unit, source and "
+                f"description, got {item!r}"
+            )
+        if "value" not in item:
+            _collect(item, prefix=f"{key}.", out=out)
+            continue
+        try:
+            entry = _Entry.model_validate(item)
+        except ValidationError as exc:
+            problems = "; ".join(
+                f"{'.'.join(map(str, err['loc'])) or 'entry'}: {err['msg']}" for err in exc.errors()
+            )
+            raise ReferenceValueError(f"reference value {key!r}: {problems}") from None
+        unit = entry.unit if isinstance(entry.unit, str) else tuple(entry.unit)
+        out[key] = Reference(key, _number(entry.value, key), unit, entry.source, entry.description)
+
+
+def _number(value: Any, key: str) -> Printed:
+    """``value`` with integers as Decimal; refuses anything but numbers and even lists."""
+    if isinstance(value, bool) or not isinstance(value, Decimal | int | list):
+        raise ReferenceValueError(
+            f"reference value {key!r}: {value!r} is not a number or a list of numbers"
+        )
+    if not isinstance(value, list):
+        return Decimal(value)
+    items = [_number(item, key) for item in value]
+    if not items or len({np.shape(_map(item, float)) for item in items}) != 1:
+        raise ReferenceValueError(
+            f"reference value {key!r}: {value!r} is not a non-empty rectangular array"
+        )
+    return items
+
+
+def _map(printed: Printed, function: Any) -> Any:
+    if isinstance(printed, list):
+        return [_map(item, function) for item in printed]
+    return function(printed)
+
+
+def _unit_of_last_digit(number: Decimal) -> float:
+    return float(Decimal(1).scaleb(number.as_tuple().exponent))
