@@ -1,0 +1,145 @@
+"""The documentation stays true to the repository.
+
+* Every pointer to a file of the repository, in code and docs (``docs/model.md#lqr`` in a
+  docstring, a Markdown link ``[..](reproduction.md)``), names a file that exists and, with
+  a ``#section``, a heading that exists in it.
+* ``docs/model.md``: its parameter table holds remus100's values and units, every entry of
+  its equation index names a function that exists, and every equation number the code
+  cites is in the index.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+from repo_paths import ROOT
+
+from plant_fmu.model.parameters import VehicleParameters, load_vehicle
+
+MODEL_DOC = ROOT / "docs" / "model.md"
+SKIPPED_FOLDERS = {".git", ".venv", "build", "runs", "auv_cosim.egg-info", "__pycache__"}
+PACKAGES = ("docs", "plant_fmu", "controller_fmu", "fmu_runtime", "cosim", "scripts", "tests")
+REPO_PATH = re.compile(
+    rf"(?<![\w/.-])((?:{'|'.join(PACKAGES)})/[\w./-]*\w\.(?:md|py|toml))(#[\w-]+)?"
+)
+MARKDOWN_LINK = re.compile(r"\]\((?!https?:|mailto:)([^)\s#]*)(#[\w-]+)?\)")
+EQUATION = re.compile(r"\(((?:\d|A)\.\d+(?:\.\d+)?)\)")
+
+
+def _files(*suffixes: str) -> list[Path]:
+    return sorted(
+        path
+        for path in ROOT.rglob("*")
+        if path.suffix in suffixes
+        and path.is_file()
+        and not SKIPPED_FOLDERS & set(path.relative_to(ROOT).parts)
+    )
+
+
+def _anchors(markdown: Path) -> set[str]:
+    """GitHub's heading anchors: lower case, punctuation dropped, spaces to hyphens."""
+    headings = re.findall(r"^#+\s+(.+?)\s*$", markdown.read_text(encoding="utf-8"), re.M)
+    return {re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-") for h in headings}
+
+
+def _pointers() -> list[tuple[Path, Path, str | None]]:
+    """(file, target, anchor) of every pointer to a repository file."""
+    found = []
+    for path in _files(".py", ".md", ".toml"):
+        text = path.read_text(encoding="utf-8")
+        for match in REPO_PATH.finditer(text):
+            found.append((path, ROOT / match[1], match[2]))
+        if path.suffix == ".md":
+            for match in MARKDOWN_LINK.finditer(text):
+                target = (path.parent / match[1]) if match[1] else path
+                found.append((path, target, match[2]))
+    return found
+
+
+def test_every_pointer_names_a_file_and_section_of_the_repository():
+    pointers = _pointers()
+    assert len(pointers) > 20
+    broken = []
+    for source, target, anchor in pointers:
+        where = source.relative_to(ROOT)
+        if not target.exists():
+            broken.append(f"{where}: {target.relative_to(ROOT)} does not exist")
+        elif anchor and anchor[1:] not in _anchors(target):
+            broken.append(f"{where}: no section {anchor} in {target.relative_to(ROOT)}")
+    assert not broken, "\n".join(broken)
+
+
+def _table(heading: str) -> list[list[str]]:
+    """The rows (cells, backticks kept) of the first table after ``heading``."""
+    text = MODEL_DOC.read_text(encoding="utf-8")
+    section = text.split(heading, 1)[1]
+    rows = [line for line in section.splitlines() if line.startswith("|")]
+    table = []
+    for line in rows:
+        cells = [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+        if table and len(cells) != len(table[0]):
+            break  # the next table
+        table.append(cells)
+    return table[2:]  # past the header and its rule
+
+
+def test_parameter_table_is_remus100():
+    params = load_vehicle("remus100")
+    rows = {row[0].strip("`"): row for row in _table("`remus100`, field by field")}
+    physical = [
+        name for name in VehicleParameters.model_fields if name not in ("name", "description")
+    ]
+    assert sorted(rows) == sorted(physical)
+    for name in physical:
+        _, _, _, value, unit, _ = rows[name]
+        assert float(value) == pytest.approx(getattr(params, name), rel=1e-4), name
+        described = VehicleParameters.model_fields[name].description
+        assert unit == described.rsplit(", ", 1)[1].split(" (")[0], name
+
+
+def _index_targets() -> list[tuple[str, str]]:
+    targets = []
+    for row in _table("## Equation index"):
+        targets += re.findall(r"`([\w/]+\.py): ([\w.]+)`", row[2])
+    return targets
+
+
+def test_equation_index_names_functions_that_exist():
+    targets = _index_targets()
+    assert len(targets) > 30
+    for path, name in targets:
+        if path.startswith(("scripts/", "tests/")):  # not importable: look for the definition
+            assert re.search(rf"^def {name}\(", (ROOT / path).read_text(), re.M), (path, name)
+            continue
+        obj = importlib.import_module(path.removesuffix(".py").replace("/", "."))
+        for part in name.split("."):
+            obj = getattr(obj, part)  # AttributeError names what is missing
+
+
+def _covered(number: str, cell: str) -> bool:
+    """``number`` is named in ``cell``, alone or inside a range (a)-(b) of one chapter."""
+    if f"({number})" in cell:
+        return True
+    *chapter, last = number.split(".")
+    for low, high in re.findall(r"\(([\w.]+)\)-\(([\w.]+)\)", cell):
+        *low_chapter, low_last = low.split(".")
+        *high_chapter, high_last = high.split(".")
+        if low_chapter == high_chapter == chapter and int(low_last) <= int(last) <= int(high_last):
+            return True
+    return False
+
+
+def test_every_equation_the_code_cites_is_in_the_index():
+    index = [row[0] for row in _table("## Equation index")]
+    cited = {
+        number
+        for path in _files(".py")
+        for number in EQUATION.findall(path.read_text(encoding="utf-8"))
+        if number.count(".") == 2 or number.startswith("A.")
+    }
+    assert len(cited) > 40
+    missing = sorted(n for n in cited if not any(_covered(n, cell) for cell in index))
+    assert not missing, missing
