@@ -56,7 +56,7 @@ class LateralDesignModel:
     def linearize(self) -> tuple[np.ndarray, np.ndarray]:
         """A (7x7) and B (7x1) of x_dot = A x + B y_d about the straight run at U0, no roll,
         mass centred (6.3.17); the plant's own Jacobians, so (6.3.19) up to its two known
-        misprints (MODEL.md section 4)."""
+        misprints (docs/model.md#corrections-and-choices)."""
         return linearize(self.plant, self._x0, self._u0, CONTROL_STATES, ["mass_position_cmd"])
 
     def derivative(self, x: np.ndarray, y_d: float) -> np.ndarray:

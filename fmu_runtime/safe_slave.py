@@ -1,6 +1,6 @@
 """An exception-proof base class over pythonfmu's ``Fmi2Slave``, shared by both FMUs.
 
-Why it exists (``shared/spec/FMI_NOTES.md``): with pythonfmu 0.7 an exception escaping a
+Why it exists (``docs/fmi-notes.md``): with pythonfmu 0.7 an exception escaping a
 Python callback becomes fmi2Fatal and the C wrapper then releases the Python objects twice,
 so the host process crashes soon after. pythonfmu also accepts NaN inputs, lets a fixed
 parameter be written after initialisation, and saves only the registered variables as FMU

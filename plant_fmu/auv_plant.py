@@ -4,7 +4,7 @@ The pythonfmu script of ``AuvPlant.fmu`` (modelIdentifier ``AuvPlant``): FMI var
 one side, :class:`plant_fmu.model.dynamics.PlantModel` and :func:`plant_fmu.model.stepping.advance`
 on the other. No physics lives here.
 
-Variables (``shared/spec/INTERFACES.md``):
+Variables (``docs/interfaces.md#auvplant`` lists every one):
 
 * inputs ``thrust`` (N, start 9), ``roll_torque`` (N.m), ``tunnel_force`` (N),
   ``fin_angle`` (rad), ``mass_position_cmd`` (m; the rail stops bound the mass, not the command),

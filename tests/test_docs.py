@@ -6,12 +6,15 @@
 * ``docs/model.md``: its parameter table holds remus100's values and units, every entry of
   its equation index names a function that exists, and every equation number the code
   cites is in the index.
+* ``docs/interfaces.md`` is what ``scripts/interfaces_doc.py`` writes for the built FMUs.
 """
 
 from __future__ import annotations
 
 import importlib
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -143,3 +146,13 @@ def test_every_equation_the_code_cites_is_in_the_index():
     assert len(cited) > 40
     missing = sorted(n for n in cited if not any(_covered(n, cell) for cell in index))
     assert not missing, missing
+
+
+def test_interfaces_page_is_current(fmu_paths):
+    """Regenerate with ``python scripts/interfaces_doc.py`` when an FMU variable changes."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    assert fmu_paths["AuvAutopilot"].parent == fmu_dir
+    script = ROOT / "scripts" / "interfaces_doc.py"
+    check = [sys.executable, str(script), "--fmu-dir", str(fmu_dir), "--check"]
+    done = subprocess.run(check, capture_output=True, text=True, timeout=600, check=False)
+    assert done.returncode == 0, done.stderr

@@ -1,4 +1,4 @@
-"""Check built FMUs: fmpy's validation plus what our FMI contract (INTERFACES.md) adds.
+"""Check built FMUs: fmpy's validation plus what our FMI contract (docs/interfaces.md) adds.
 
 :func:`validate_fmus` returns a list of problems, each prefixed with the FMU's name; an
 empty list means valid. Checks per FMU:

@@ -44,7 +44,7 @@ Format (every key is checked; unknown keys are errors)::
 The resolved :class:`Scenario` (and :meth:`Scenario.to_toml`, which loads back to an equal
 scenario) spells everything out: the full connection list, the explicit start values per
 instance, the Gauss-Seidel order and every step multiple, and the recorded variables.
-``cosim/scenarios/*.toml`` are the built-in scenarios (MODEL.md section 5).
+``cosim/scenarios/*.toml`` are the built-in scenarios (docs/model.md#scenarios).
 """
 
 from __future__ import annotations

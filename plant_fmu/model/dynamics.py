@@ -5,7 +5,7 @@ Coriolis terms (A.62), the non-uniform-current terms (3.4.12, 3.4.20), viscous c
 and lift (4.2.6-4.2.9), hydrostatics (3.5.3), propeller, tunnel thruster (6.3.79), stern
 planes (Table 6.1) and the internal moving mass with its servo (6.3.12-6.3.13). The
 equation numbers refer to B. Li, *Dynamics and Control of Autonomous Underwater Vehicles
-with Internal Actuators*, FAU 2016; ``shared/spec/MODEL.md`` restates them.
+with Internal Actuators*, FAU 2016; ``docs/model.md`` restates them.
 
 The equation integrated is the full form (3.6.2 with viscous terms, 4.3.1), on the velocity
 over ground nu and the relative velocity nu_r = nu - nu_c::
@@ -64,7 +64,7 @@ _YV, _YVEL = 12, 13
 
 
 class Variant(IntEnum):
-    """Which degrees of freedom move (the ``variant`` codes of INTERFACES.md)."""
+    """Which degrees of freedom move (the plant FMU's ``variant`` codes, docs/model.md#variants)."""
 
     FULL = 0  # 6-DOF with moving mass, thruster and fins (6.3.78)-(6.3.79)
     LATERAL = 1  # u, v, r, p, phi, psi with the moving mass (6.3.13); w = q = theta = 0
@@ -301,8 +301,8 @@ class PlantModel:
         With r_b = 0 and V_u held constant over a step (3.4.12):
         nuc_dot = [-w x U + Phi u; 0], Mbar nuc_dot + Cbar nu_c = [mbar Phi u; 0], and the
         non-uniform term is -Phi [(A11 + mbar I) u_r + A12 w], Phi = R^T (dV_s/d eta1) R.
-        We write Phi u (the chain rule along the path) where MODEL.md prints Phi^T u: the two
-        agree for the symmetric gradients of (3.4.13) and differ only for a sheared current.
+        We write Phi u (the chain rule along the path) where the text of (3.4.12) has Phi^T u:
+        the two agree for the symmetric gradients of (3.4.13), differ for a sheared current.
 
         Args:
             R: body-to-earth rotation; current_body: U = R^T V_c; nu, nu_r: velocities.

@@ -2,7 +2,7 @@
 
 A parameter set is a TOML file whose tables (``[rigid_body]``, ``[added_mass]``, ...) only
 group the keys for the reader: every key is a field of :class:`VehicleParameters`, named
-after the symbol in ``shared/spec/MODEL.md`` section 3 (``X_uu`` is X_u|u|, ``K_pp`` is
+after the symbol in ``docs/model.md#parameters`` (``X_uu`` is X_u|u|, ``K_pp`` is
 K_p|p|, ...). A file may start from another set with ``base = "<name>"`` and override keys.
 
 Every value is SI. Bad input raises :class:`VehicleParameterError` naming the field, the

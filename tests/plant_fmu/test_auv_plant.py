@@ -281,7 +281,8 @@ def test_fresh_process_runs_the_code_shipped_in_the_fmu(plant, run_python):
 
 # --- model description -------------------------------------------------------------------------
 
-# INTERFACES.md, "FMU: AuvPlant": name -> (unit, start) of the inputs, unit of the outputs.
+# The contract (docs/interfaces.md#auvplant): name -> (unit, start) of the inputs, unit of
+# the outputs.
 CONTRACT_INPUTS = {
     "thrust": ("N", 9.0),
     "roll_torque": ("N.m", 0.0),

@@ -7,7 +7,7 @@ must not take pytest down, and a pythonfmu FMU cannot be loaded twice in one pro
 The traces are compared step by step with ``auv-cosim run SYSTEM --algorithm jacobi`` at
 the same step:
 
-* ``bs-3`` (backstepping autopilot + plant, MODEL.md section 5), 10 s at 10 ms;
+* ``bs-3`` (backstepping autopilot + plant, docs/model.md#scenarios), 10 s at 10 ms;
 * the plant alone with prescribed (constant) inputs, 10 s at 10 ms.
 
 libcosim and ecos both step every instance from the outputs of the previous communication

@@ -1,0 +1,142 @@
+"""Regenerate ``docs/interfaces.md``: the variables of both FMUs, from their model descriptions.
+
+    python scripts/interfaces_doc.py [--fmu-dir build/fmus] [--out docs/interfaces.md] [--check]
+
+The FMUs in ``--fmu-dir`` are built first if missing or out of date. The tables (name,
+type, unit, start, variability, description per causality) are read from each FMU's
+``modelDescription.xml`` with fmpy, so the page cannot disagree with what the FMUs
+declare; only the contract around them (:data:`CONTRACT`) is written here. ``--check``
+writes nothing and exits 1 if the page is not what this script would write.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from fmpy import read_model_description
+
+from cosim.errors import CosimError
+from cosim.fmus.build import FMUS, ensure_fmus
+
+ROOT = Path(__file__).resolve().parents[1]
+
+CONTRACT = """\
+# The FMUs' interface
+
+Generated from the built FMUs' `modelDescription.xml` by
+`python scripts/interfaces_doc.py`; do not edit by hand (the tests check it is current).
+
+`AuvPlant.fmu` (the vehicle in the water, [the model](model.md)) and `AuvAutopilot.fmu`
+(its heading and depth controllers) are FMI 2.0 co-simulation FMUs. What users, other FMI
+tools and our own checks may rely on:
+
+- **Names connect them.** The autopilot's inputs carry the names of the plant outputs
+  they measure (`yaw`, `r`, `p`, `roll`, `v_rel`, ...) plus the set-points `yaw_setpoint`
+  and `depth_setpoint` and the measured current; its outputs carry the names of the plant
+  inputs they drive (`mass_position_cmd`, `tunnel_force`, `fin_angle`, `thrust`). A
+  master connects same-named variables by default. In results, recordings and exported
+  SSP/OSP files the instances are named `plant` and `controller`, and a column is named
+  `<instance>.<variable>` (see the README's "What a run writes").
+- **Units**: SI, angles in radians, declared on every Real variable (with the unit
+  definitions in `modelDescription.xml`); every variable has a description.
+- **Model structure**: `needsExecutionTool="false"`; every output is listed with its
+  dependencies (none of ours depends directly on an input: each is computed at
+  initialisation or at the end of a step) and declared with an initial value, so
+  importers see no algebraic loop between plant and controller; a default experiment.
+- **Behaviour**: the same inputs give bit-identical outputs; `fmi2GetFMUstate` /
+  `fmi2SetFMUstate` save and restore the whole state, and a restored run continues
+  exactly as the original; bad input (NaN, a value out of range, a fixed parameter
+  written after initialisation) is refused with a logged reason, and a failure comes back
+  as fmi2Error or fmi2Discard, never as a crash of the host (see
+  [fmi-notes.md](fmi-notes.md) for why that takes care with pythonfmu).
+- **Hosts**: both load, validate and run in fmpy, OSP's libcosim (libcosimpy) and ecos
+  (ecospy), alone and connected, with the results of our own master under the same
+  coupling; the README's "Use the FMUs in other tools" shows how.
+"""
+
+SECTIONS = (
+    ("Inputs", ("input",)),
+    ("Outputs", ("output",)),
+    ("Parameters", ("parameter", "calculatedParameter")),
+    ("Other variables", ("local", "independent")),
+)
+
+
+def render(fmus: dict[str, Path]) -> str:
+    """The page for the FMUs ``{model identifier: path}``, in :data:`FMUS` order."""
+    parts = [CONTRACT]
+    for name in FMUS:
+        parts.append(_fmu_section(name, read_model_description(str(fmus[name]), validate=False)))
+    return "\n".join(parts)
+
+
+def _fmu_section(name: str, md: Any) -> str:
+    lines = [f"## {name}", ""]
+    if md.description:
+        lines += [md.description, ""]
+    experiment = md.defaultExperiment
+    facts = f"FMI {md.fmiVersion} co-simulation, modelIdentifier `{name}`"
+    if experiment is not None:
+        facts += (
+            f"; default experiment: {experiment.startTime} s to {experiment.stopTime} s, "
+            f"communication step {experiment.stepSize} s"
+        )
+    lines += [facts + ".", ""]
+    for title, causalities in SECTIONS:
+        variables = [v for v in md.modelVariables if v.causality in causalities]
+        if variables:
+            lines += [f"### {name}: {title.lower()}", "", *_table(variables), ""]
+    return "\n".join(lines)
+
+
+def _table(variables: list[Any]) -> list[str]:
+    rows = [
+        "| name | type | unit | start | variability | description |",
+        "|---|---|---|---|---|---|",
+    ]
+    for v in variables:
+        unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or ""
+        start = "" if v.start is None else str(v.start)
+        cells = (f"`{v.name}`", v.type, unit, start, v.variability or "", v.description or "")
+        rows.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+    return rows
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--fmu-dir", type=Path, default=ROOT / "build" / "fmus", help="[build/fmus]"
+    )
+    parser.add_argument(
+        "--out", type=Path, default=ROOT / "docs" / "interfaces.md", help="[docs/interfaces.md]"
+    )
+    parser.add_argument("--check", action="store_true", help="exit 1 if --out is not current")
+    args = parser.parse_args(argv)
+    try:
+        page = render(ensure_fmus(args.fmu_dir))
+    except CosimError as exc:
+        print(f"interfaces_doc: {exc}", file=sys.stderr)
+        return 2
+    if args.check:
+        current = args.out.read_text(encoding="utf-8") if args.out.is_file() else ""
+        if current != page:
+            print(
+                f"{args.out} is out of date: run python scripts/interfaces_doc.py", file=sys.stderr
+            )
+            return 1
+        return 0
+    args.out.write_text(page, encoding="utf-8")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
