@@ -409,27 +409,30 @@ def roll_torque_claims(remus, long_fins, figures: Path) -> list[Row]:
             ok and not result.special_points,
         )
     )
+    rows.append(_neutral_buoyancy_claim(long_fins))
+    return rows
+
+
+def _neutral_buoyancy_claim(long_fins: VehicleParameters) -> Row:
+    """Example 5.6: with W = B the roll torque only banks the vehicle, by (5.1.74)."""
     neutral = long_fins.replace(W=long_fins.B)
     eqs = find_equilibria(OperatingConditions(neutral, Variant.LATERAL, roll_torque=Q_PROP))
     expected = math.degrees(math.asin(Q_PROP / (neutral.W * neutral.z_g)))
-    rows.append(
-        fact_row(
-            "W = B, x_g = 0: equilibrium [U0, 0, 0, 0, phi0], sin phi0 = Q / (W z_g), stable",
-            "Ex. 5.6, (5.1.74)",
-            f"phi0 = {expected:.3f} deg at Q = Q_prop",
-            ", ".join(
-                f"v = {e.value('v'):.1e}, r = {e.value('r'):.1e}, "
-                f"phi = {math.degrees(e.value('roll')):.3f} deg, {_stability(e)}"
-                for e in eqs
-            ),
-            len(eqs) == 1
-            and eqs[0].stable
-            and abs(math.degrees(eqs[0].value("roll")) - expected) < 1e-3
-            and abs(eqs[0].value("v")) < 1e-9,
-            "(5.1.74) is exact here, so 1e-3 deg is the tolerance",
-        )
+    return fact_row(
+        "W = B, x_g = 0: equilibrium [U0, 0, 0, 0, phi0], sin phi0 = Q / (W z_g), stable",
+        "Ex. 5.6, (5.1.74)",
+        f"phi0 = {expected:.3f} deg at Q = Q_prop",
+        ", ".join(
+            f"v = {e.value('v'):.1e}, r = {e.value('r'):.1e}, "
+            f"phi = {math.degrees(e.value('roll')):.3f} deg, {_stability(e)}"
+            for e in eqs
+        ),
+        len(eqs) == 1
+        and eqs[0].stable
+        and abs(math.degrees(eqs[0].value("roll")) - expected) < 1e-3
+        and abs(eqs[0].value("v")) < 1e-9,
+        "(5.1.74) is exact here, so 1e-3 deg is the tolerance",
     )
-    return rows
 
 
 def mass_claims(remus: VehicleParameters, figures: Path) -> list[Row]:
