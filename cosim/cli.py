@@ -7,6 +7,7 @@ Every command exits 0 on success and non-zero with a one-line reason on stderr o
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -100,6 +101,30 @@ def _phase_portrait(args: argparse.Namespace) -> int:
     return phase_portrait_command(_conditions(args), args.out)
 
 
+def _sweep(args: argparse.Namespace) -> int:
+    from cosim.study.execution import tls_security
+    from cosim.study.runner import Cluster, report, run_study
+
+    if args.scheduler is not None and args.workers is not None:
+        raise CosimError("give --workers (a local cluster) or --scheduler, not both")
+    cluster = Cluster(
+        workers=args.workers if args.workers is not None else os.cpu_count() or 1,
+        scheduler=args.scheduler,
+        security=tls_security(args.tls_ca_file, args.tls_cert, args.tls_key),
+        dashboard=args.dashboard,
+    )
+    outcome = run_study(
+        args.study,
+        args.out,
+        cluster=cluster,
+        resume=args.resume,
+        fmu_dir=args.fmu_dir,
+        progress=not args.quiet and sys.stderr.isatty(),
+    )
+    print(report(outcome))
+    return 0
+
+
 def _report(args: argparse.Namespace) -> int:
     from cosim.viz.report import write_report
 
@@ -139,6 +164,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
+
+    p = sub.add_parser("sweep", help="a parameter sweep or Monte Carlo study on Dask")
+    p.add_argument("study", type=Path, help="study .toml file (see README, Studies)")
+    p.add_argument("--workers", type=int, help="local worker processes [one per core]")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
+    p.add_argument("--out", type=Path, help="study folder [studies/<study file name>]")
+    p.add_argument("--resume", action="store_true", help="skip the runs already in runs.csv")
+    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.add_argument(
+        "--dashboard",
+        action="store_true",
+        help="local Dask dashboard on 127.0.0.1:8787 (needs bokeh)",
+    )
+    p.add_argument("--tls-ca-file", type=Path, help="CA certificate for a tls:// scheduler")
+    p.add_argument("--tls-cert", type=Path, help="client certificate for a tls:// scheduler")
+    p.add_argument("--tls-key", type=Path, help="client private key for a tls:// scheduler")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_sweep)
 
     p = sub.add_parser("export", help="export a scenario as SSP or OSP system structure")
     p.add_argument("scenario", help="scenario id or .toml path")

@@ -1,0 +1,196 @@
+"""Running a study's runs on Dask: a local cluster of worker processes, or an existing one.
+
+Local (no scheduler address): ``dask.distributed.LocalCluster`` with N single-threaded
+worker PROCESSES (pythonfmu FMUs share one interpreter's modules per process, so never
+threads), scheduler, nannies and workers bound to 127.0.0.1; the dashboard is off unless
+asked for, and then on 127.0.0.1 too. Remote: ``Client(address)``; a ``tls://`` address
+needs certificates (:func:`tls_security`, Dask's ``Security``).
+
+Workers need the package installed, not a shared disk: the client reads each FMU once and
+a worker plugin (:class:`FmuUpload`) writes them into every worker's local directory,
+also for workers that join later; the plugin is removed (and the files with it) at the
+end. Each run is one task (:func:`run_on_worker`); a run that fails is a result, not an
+exception, and a task whose worker died is retried by the scheduler on another worker
+(``distributed.scheduler.allowed-failures`` times) before it is recorded as failed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import shutil
+import uuid
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from distributed import Client, LocalCluster, as_completed, get_worker
+from distributed.diagnostics.plugin import WorkerPlugin
+from distributed.security import Security
+
+from cosim.study.design import PlannedRun
+from cosim.study.factors import FactorKind, Value
+from cosim.study.spec import StudyError
+from cosim.study.task import Base, RunRecord, run_one
+
+LOCALHOST = "127.0.0.1"
+DASHBOARD_PORT = 8787
+CONNECT_TIMEOUT_S = 30
+FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
+
+
+@dataclass(frozen=True)
+class Job:
+    """What every task of a study shares (sent to each worker once)."""
+
+    base: Base
+    factors: Mapping[str, FactorKind]
+    keep: str
+    fmu_files: Mapping[str, str]  # instance -> its FMU's path in the uploaded folder
+    plugin: str  # name of the FmuUpload plugin holding the folder
+    session: str  # this study session's token (in task keys and the plugin name)
+
+
+class FmuUpload(WorkerPlugin):
+    """Writes the study's FMU files into the worker's local directory at set-up and
+    removes them at tear-down. ``files``: relative path -> content; ``name``: the
+    plugin's name, unique per study session (its folder's name too)."""
+
+    def __init__(self, files: Mapping[str, bytes], name: str) -> None:
+        self.files = dict(files)
+        self.name = name
+        self.folder: Path | None = None
+
+    def setup(self, worker: Any) -> None:
+        folder = Path(worker.local_directory) / FMU_FOLDER / self.name
+        for relative, content in self.files.items():
+            path = folder / relative
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(content)
+        self.folder = folder
+
+    def teardown(self, worker: Any) -> None:
+        if self.folder is not None:
+            shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[Job, FmuUpload]:
+    """The study's shared task data and the plugin carrying its FMUs (read once here)."""
+    session = uuid.uuid4().hex[:12]  # tasks and plugin of concurrent studies never clash
+    files: dict[str, bytes] = {}
+    paths: dict[str, str] = {}
+    for instance, path in base.fmu_paths.items():
+        content = path.read_bytes()
+        relative = f"{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
+        files[relative] = content
+        paths[instance] = relative
+    plugin = f"auv-cosim-fmus-{session}"
+    return Job(base, factors, keep, paths, plugin, session), FmuUpload(files, plugin)
+
+
+def run_on_worker(job: Job, values: Mapping[str, Value]) -> RunRecord:
+    """One task: one run, with the FMUs the plugin wrote on this worker."""
+    folder = get_worker().plugins[job.plugin].folder
+    paths = {instance: folder / relative for instance, relative in job.fmu_files.items()}
+    return run_one(job.base, paths, job.factors, values, job.keep)
+
+
+def tls_security(ca_file: Path | None, cert: Path | None, key: Path | None) -> Security | None:
+    """Dask ``Security`` for a ``tls://`` scheduler (None if no certificate is given)."""
+    given = {"--tls-ca-file": ca_file, "--tls-cert": cert, "--tls-key": key}
+    if not any(given.values()):
+        return None
+    missing = [flag for flag, path in given.items() if path is None]
+    if missing:
+        raise StudyError(
+            f"TLS needs all of --tls-ca-file, --tls-cert, --tls-key; missing: {', '.join(missing)}"
+        )
+    for flag, path in given.items():
+        if not Path(path).is_file():
+            raise StudyError(f"{flag} {path}: no such file")
+    return Security(
+        tls_ca_file=str(ca_file),
+        tls_client_cert=str(cert),
+        tls_client_key=str(key),
+        require_encryption=True,
+    )
+
+
+@contextmanager
+def open_client(
+    workers: int,
+    scheduler: str | None = None,
+    security: Security | None = None,
+    dashboard: bool = False,
+) -> Iterator[Client]:
+    """A Dask client: of an existing cluster at ``scheduler``, else of a local cluster
+    of ``workers`` single-threaded worker processes on 127.0.0.1 (closed at the end)."""
+    if scheduler is not None:
+        if scheduler.startswith("tls://") and security is None:
+            raise StudyError(
+                f"--scheduler {scheduler}: a tls:// address needs --tls-ca-file, "
+                "--tls-cert and --tls-key"
+            )
+        try:
+            client = Client(
+                scheduler, security=security, timeout=CONNECT_TIMEOUT_S, set_as_default=False
+            )
+        except (OSError, TimeoutError) as exc:
+            raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        with client:
+            yield client
+        return
+    if workers < 1:
+        raise StudyError(f"--workers {workers}: expected at least 1 worker process")
+    cluster = LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        host=LOCALHOST,
+        protocol="tcp://",
+        dashboard_address=f"{LOCALHOST}:{DASHBOARD_PORT}" if dashboard else None,
+        worker_dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
+    with cluster, Client(cluster, set_as_default=False) as client:
+        yield client
+
+
+def execute(
+    client: Client,
+    job: Job,
+    upload: FmuUpload,
+    runs: Sequence[PlannedRun],
+    on_record: Callable[[PlannedRun, RunRecord], None],
+) -> None:
+    """Run every run as one task and hand each record to ``on_record`` as it arrives
+    (in order of completion). The FMU plugin is registered first and removed at the end.
+    """
+    client.register_plugin(upload, name=job.plugin)
+    try:
+        shared = client.scatter(job, broadcast=True, hash=False)
+        pending = {
+            client.submit(
+                run_on_worker,
+                shared,
+                dict(run.values),
+                key=f"run-{run.id}-{job.session}",
+                pure=False,
+            ): run
+            for run in runs
+        }
+        for future in as_completed(pending, loop=client.loop):
+            run = pending.pop(future)
+            if future.status == "finished":
+                record = future.result()
+            else:  # the task itself failed: its workers died, or it could not be sent
+                exc = future.exception()
+                error = " ".join(f"{type(exc).__name__}: {exc}".split())
+                record = RunRecord("failed", error, {}, 0.0, 0.0)
+            future.release()
+            on_record(run, record)
+    finally:
+        with suppress(Exception):  # a broken connection must not hide the first error
+            client.unregister_worker_plugin(job.plugin)

@@ -1,0 +1,83 @@
+"""The study's index page ``index.html``: what ran, how it went, the figures inline.
+
+Laid out like ``auv-cosim report``'s page: a summary table (scenario, factors, runs
+complete and failed), links to ``runs.csv`` and ``runs.parquet``, each figure linked
+full size, the metrics not plotted (constant or missing), and the failed runs with their
+errors.
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+INDEX_PAGE = "index.html"
+FAILED_SHOWN = 50  # failed runs listed on the page (all are in runs.csv)
+
+
+def write_index(
+    out_dir: Path,
+    facts: Mapping[str, Any],
+    rows: Sequence[Mapping[str, Any]],
+    figures: Mapping[str, Path],
+    not_plotted: Sequence[str],
+) -> Path:
+    """Write ``out_dir/index.html``; ``facts`` are label -> value lines of the summary."""
+    summary = "\n".join(
+        f"<tr><th>{_e(label)}</th><td>{_e(value)}</td></tr>" for label, value in facts.items()
+    )
+    images = "\n".join(
+        f'<h2>{_e(title)}</h2>\n<p><a href="{_e(_rel(path, out_dir))}">'
+        f'<img src="{_e(_rel(path, out_dir))}" alt="{_e(title)}" style="max-width:100%">'
+        "</a></p>"
+        for title, path in figures.items()
+    )
+    quiet = (
+        f"<p>Not plotted (constant or missing in every run): {_e(', '.join(not_plotted))}</p>"
+        if not_plotted
+        else ""
+    )
+    failed = [row for row in rows if row["status"] != "complete"]
+    failures = ""
+    if failed:
+        items = "\n".join(
+            f"<li><code>{_e(row['run'])}</code>: {_e(row['error'])}</li>"
+            for row in failed[:FAILED_SHOWN]
+        )
+        more = (
+            f"<p>... and {len(failed) - FAILED_SHOWN} more in runs.csv</p>"
+            if len(failed) > FAILED_SHOWN
+            else ""
+        )
+        failures = f"<h2>Failed runs</h2>\n<ul>\n{items}\n</ul>\n{more}"
+    page = f"""<!DOCTYPE html>
+<html lang="en">
+<head><meta charset="utf-8"><title>auv-cosim study {_e(out_dir.resolve().name)}</title>
+<style>body {{ font-family: sans-serif; max-width: 1400px; margin: 2em auto; }}
+th {{ text-align: left; padding-right: 2em; }}</style></head>
+<body>
+<h1>Study {_e(out_dir.resolve().name)}</h1>
+<p>Results: <a href="runs.csv">runs.csv</a>, <a href="runs.parquet">runs.parquet</a>
+(one row per run)</p>
+<table>
+{summary}
+</table>
+{quiet}
+{images}
+{failures}
+</body>
+</html>
+"""
+    path = out_dir / INDEX_PAGE
+    path.write_text(page, encoding="utf-8")
+    return path
+
+
+def _e(value: Any) -> str:
+    return html.escape(str(value))
+
+
+def _rel(path: Path, out_dir: Path) -> str:
+    return path.relative_to(out_dir).as_posix()

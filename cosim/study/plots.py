@@ -1,0 +1,182 @@
+"""The study's figures (matplotlib, Agg backend), from the sorted table rows.
+
+* ``grid_<factor>.png`` for each grid factor: every metric against that factor (one
+  panel per metric), one line per combination of the other grid factors; with random
+  factors as well, each point is the mean over the samples at that grid point.
+* ``histograms.png`` (Monte Carlo): the distribution of every metric over the samples.
+* ``scatter_matrix.png`` (Monte Carlo): the random factors and the first metrics against
+  each other (histograms on the diagonal), at most :data:`SCATTER_MAX` variables.
+
+Only metrics with at least two distinct finite values are drawn (a constant or missing
+metric is a line on the index page instead); failed runs have no metrics and drop out.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.ticker import MaxNLocator
+
+PANEL_COLUMNS = 4
+PANEL_SIZE_IN = (3.4, 2.6)
+XTICKS_MAX = 5  # grid values labelled one by one up to this many
+SCATTER_MAX = 6  # variables in the scatter matrix (6 x 6 panels)
+HISTOGRAM_BINS = 20
+DPI = 100
+Row = Mapping[str, Any]
+
+
+def varying_metrics(rows: Sequence[Row], metrics: Sequence[str]) -> list[str]:
+    """Metrics with at least two distinct finite values (the ones worth a plot)."""
+    varying = []
+    for name in metrics:
+        values = _floats(rows, name)
+        finite = values[np.isfinite(values)]
+        if finite.size and np.unique(finite).size > 1:
+            varying.append(name)
+    return varying
+
+
+def write_figures(
+    rows: Sequence[Row],
+    grid: Mapping[str, Sequence[Any]],
+    random_factors: Sequence[str],
+    metrics: Sequence[str],
+    folder: Path,
+) -> dict[str, Path]:
+    """Every figure of the study into ``folder``; returns title -> path."""
+    folder.mkdir(parents=True, exist_ok=True)
+    shown = varying_metrics(rows, metrics)
+    figures: dict[str, Path] = {}
+    if not shown:
+        return figures
+    for factor in grid:
+        path = folder / f"grid_{_file_safe(factor)}.png"
+        figures[f"Metrics against {factor}"] = plot_grid_factor(rows, grid, factor, shown, path)
+    if random_factors:
+        figures["Distributions over the samples"] = plot_histograms(
+            rows, shown, folder / "histograms.png"
+        )
+        variables = [*random_factors, *shown][:SCATTER_MAX]
+        figures["Scatter matrix"] = plot_scatter_matrix(
+            rows, variables, folder / "scatter_matrix.png"
+        )
+    return figures
+
+
+def plot_grid_factor(
+    rows: Sequence[Row],
+    grid: Mapping[str, Sequence[Any]],
+    factor: str,
+    metrics: Sequence[str],
+    path: Path,
+) -> Path:
+    """Each metric against ``factor``: a line per combination of the other grid factors,
+    the mean over the runs sharing a grid point (the Monte Carlo samples, if any)."""
+    others = [name for name in grid if name != factor]
+    x_values = list(grid[factor])
+    numeric = all(_is_number(v) for v in x_values)
+    x = np.asarray(x_values, dtype=float) if numeric else np.arange(len(x_values))
+    by_point: dict[tuple[Any, ...], list[Row]] = {}
+    for row in rows:
+        by_point.setdefault(tuple(row[name] for name in grid), []).append(row)
+    fig, axes = _panels(len(metrics))
+    for combo in itertools.product(*(grid[name] for name in others)):
+        fixed = dict(zip(others, combo, strict=True))
+        label = ", ".join(f"{name} = {value}" for name, value in fixed.items())
+        points = [
+            by_point.get(tuple({**fixed, factor: value}[name] for name in grid), [])
+            for value in x_values
+        ]
+        for ax, metric in zip(axes, metrics, strict=False):
+            ax.plot(x, [_mean(point, metric) for point in points], marker="o", label=label or None)
+    for ax, metric in zip(axes, metrics, strict=False):
+        ax.set_title(metric, fontsize=9)
+        ax.set_xlabel(factor, fontsize=8)
+        if not numeric or len(x_values) <= XTICKS_MAX:
+            ax.set_xticks(x, [f"{v:g}" if numeric else str(v) for v in x_values])
+        else:
+            ax.xaxis.set_major_locator(MaxNLocator(nbins=XTICKS_MAX))
+    if others:
+        axes[0].legend(fontsize=7)
+    return _save(fig, path)
+
+
+def plot_histograms(rows: Sequence[Row], metrics: Sequence[str], path: Path) -> Path:
+    """One histogram per metric over every completed run."""
+    fig, axes = _panels(len(metrics))
+    for ax, metric in zip(axes, metrics, strict=False):
+        values = _floats(rows, metric)
+        ax.hist(values[np.isfinite(values)], bins=HISTOGRAM_BINS)
+        ax.set_title(metric, fontsize=9)
+        ax.set_ylabel("runs", fontsize=8)
+    return _save(fig, path)
+
+
+def plot_scatter_matrix(rows: Sequence[Row], variables: Sequence[str], path: Path) -> Path:
+    """Every pair of ``variables`` as a scatter plot, histograms on the diagonal."""
+    n = len(variables)
+    data = {name: _floats(rows, name) for name in variables}
+    fig, axes = plt.subplots(n, n, figsize=(2.2 * n, 2.2 * n), squeeze=False)
+    for (i, row_name), (j, col_name) in itertools.product(enumerate(variables), repeat=2):
+        ax = axes[i][j]
+        if i == j:
+            values = data[row_name]
+            ax.hist(values[np.isfinite(values)], bins=HISTOGRAM_BINS)
+        else:
+            ax.scatter(data[col_name], data[row_name], s=6)
+        if i == n - 1:
+            ax.set_xlabel(col_name, fontsize=7)
+        if j == 0:
+            ax.set_ylabel(row_name, fontsize=7)
+        ax.tick_params(labelsize=6)
+    return _save(fig, path)
+
+
+def _panels(n: int) -> tuple[plt.Figure, list[Any]]:
+    cols = min(PANEL_COLUMNS, n)
+    nrows = math.ceil(n / cols)
+    fig, axes = plt.subplots(
+        nrows, cols, figsize=(PANEL_SIZE_IN[0] * cols, PANEL_SIZE_IN[1] * nrows), squeeze=False
+    )
+    flat = [ax for row in axes for ax in row]
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    for ax in flat:
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.3)
+    return fig, flat[:n]
+
+
+def _floats(rows: Sequence[Row], name: str) -> np.ndarray:
+    return np.asarray([np.nan if r[name] is None else float(r[name]) for r in rows], dtype=float)
+
+
+def _mean(rows: Sequence[Row], metric: str) -> float:
+    """Mean of ``metric`` over ``rows`` (NaN if none has it)."""
+    values = [float(r[metric]) for r in rows if r[metric] is not None]
+    return float(np.mean(values)) if values else math.nan
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _file_safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "._-" else "_" for c in name)
+
+
+def _save(fig: plt.Figure, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path

@@ -1,0 +1,235 @@
+"""``auv-cosim sweep``: a study from its file to its table, figures and index page.
+
+:func:`run_study` reads and checks everything before the first run -- the study file, each
+factor against the scenario and its FMUs, each grid value (and the first sample) through
+the scenario's own checks, the metric names, the output folder -- then runs what is not
+yet in the table on Dask, appending each row as it arrives, and finally sorts the table and
+writes ``runs.parquet``, the figures (``figures/``) and ``index.html``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from cosim.study import folder as study_folder
+from cosim.study.design import PlannedRun, plan
+from cosim.study.execution import execute, make_job, open_client
+from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
+from cosim.study.page import write_index
+from cosim.study.plots import varying_metrics, write_figures
+from cosim.study.spec import StudyError, StudySpec, load_study
+from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
+from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
+
+STUDIES_DIR = Path("studies")
+FIGURES_FOLDER = "figures"
+DEFAULT_FMU_DIR = Path("build/fmus")
+
+
+@dataclass(frozen=True)
+class StudyOutcome:
+    """A finished study: where its outputs are and how its runs went."""
+
+    out_dir: Path
+    total: int
+    complete: int
+    failed: int
+    skipped: int  # already in the table when this session started
+    ran: int  # run by this session
+    elapsed_s: float
+    paths: Mapping[str, Path]
+
+
+@dataclass(frozen=True)
+class Cluster:
+    """Where the runs go: a local cluster of ``workers`` processes, or ``scheduler``."""
+
+    workers: int
+    scheduler: str | None = None
+    security: Any = None  # distributed.Security for a tls:// scheduler
+    dashboard: bool = False
+
+
+def run_study(
+    study_file: Path,
+    out_dir: Path | None = None,
+    *,
+    cluster: Cluster,
+    resume: bool = False,
+    fmu_dir: Path = DEFAULT_FMU_DIR,
+    progress: bool = False,
+) -> StudyOutcome:
+    """Run the study (or what a killed one left, with ``resume``) into ``out_dir``
+    (default ``studies/<study file name>``). Raises :class:`StudyError` (a CosimError)
+    for a study that cannot run; failed runs are rows of the table, not errors."""
+    started = time.perf_counter()
+    spec = load_study(study_file)
+    base, facts = prepare(_scenario_ref(spec.scenario, study_file.parent), spec.stop_time, fmu_dir)
+    factors = {name: resolve_factor(name, facts) for name in spec.factors}
+    metrics = _metrics(spec, facts)
+    runs = plan(spec, {name: factor.normalize for name, factor in factors.items()})
+    _check_values(base, factors, spec, runs)
+    out_dir = out_dir if out_dir is not None else STUDIES_DIR / study_file.stem
+    study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
+    csv_path = out_dir / CSV_NAME
+    if resume:
+        table = RunsTable.reopen(csv_path, spec.factors, metrics, runs)
+    else:
+        table = RunsTable.create(csv_path, spec.factors, metrics)
+    skipped = len(table.done)
+    todo = [run for run in runs if run.id not in table.done]
+    if todo:
+        _execute(out_dir, spec, base, factors, table, todo, cluster, progress, len(runs))
+    rows = table.finish()
+    paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
+    paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
+    complete = sum(row["status"] == "complete" for row in rows)
+    return StudyOutcome(
+        out_dir,
+        len(runs),
+        complete,
+        len(rows) - complete,
+        skipped,
+        len(todo),
+        time.perf_counter() - started,
+        paths,
+    )
+
+
+def report(outcome: StudyOutcome) -> str:
+    """The lines ``auv-cosim sweep`` prints at the end."""
+    lines = [
+        f"study {outcome.out_dir}: {outcome.total} runs, {outcome.complete} complete, "
+        f"{outcome.failed} failed ({outcome.skipped} already in the table, {outcome.ran} "
+        f"run now) in {outcome.elapsed_s:.1f} s"
+    ]
+    lines += [f"  {name:<8} {path}" for name, path in outcome.paths.items()]
+    return "\n".join(lines)
+
+
+def _execute(
+    out_dir: Path,
+    spec: StudySpec,
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    table: RunsTable,
+    todo: Sequence[PlannedRun],
+    cluster: Cluster,
+    progress: bool,
+    total: int,
+) -> None:
+    """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives."""
+    from tqdm import tqdm
+
+    job, upload = make_job(base, factors, spec.keep)
+    bar = tqdm(
+        total=total,
+        initial=total - len(todo),
+        unit="run",
+        disable=not progress,
+        desc="runs",
+        dynamic_ncols=True,
+    )
+    failed = 0
+
+    def on_record(run: PlannedRun, record: RunRecord) -> None:
+        nonlocal failed
+        table.append(run, record)
+        failed += record.status != "complete"
+        if spec.keep == "all" or (spec.keep == "failed" and record.status != "complete"):
+            text = scenario_text(base, factors, run.values)
+            study_folder.keep_run(out_dir, run.id, text, record.files, record.error)
+        bar.set_postfix(failed=failed, refresh=False)
+        bar.update(1)
+
+    try:
+        with open_client(
+            cluster.workers, cluster.scheduler, cluster.security, cluster.dashboard
+        ) as client:
+            execute(client, job, upload, todo, on_record)
+    finally:
+        bar.close()
+
+
+def _write_report(
+    out_dir: Path,
+    spec: StudySpec,
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    metrics: Sequence[str],
+    rows: Sequence[Mapping[str, Any]],
+) -> Path:
+    grid = {
+        name: [factors[name].normalize(v) for v in values] for name, values in spec.grid.items()
+    }
+    figures = write_figures(
+        rows, grid, list(spec.random.factors), metrics, out_dir / FIGURES_FOLDER
+    )
+    shown = set(varying_metrics(rows, metrics))
+    complete = sum(row["status"] == "complete" for row in rows)
+    random = "none"
+    if spec.random.factors:
+        laws = ", ".join(f"{k} ~ {d.model_dump()}" for k, d in spec.random.factors.items())
+        random = f"{laws}; n = {spec.random.n}, seed = {spec.random.seed}, {spec.random.sampling}"
+    facts = {
+        "scenario": f"{spec.scenario} ({base.scenario_id}), stop time {base.data['stop_time']} s",
+        "grid": ", ".join(f"{k} = {v}" for k, v in grid.items()) or "none",
+        "random": random,
+        "runs": f"{len(rows)}: {complete} complete, {len(rows) - complete} failed",
+    }
+    return write_index(out_dir, facts, rows, figures, [m for m in metrics if m not in shown])
+
+
+def _scenario_ref(ref: str, study_dir: Path) -> str | Path:
+    """A scenario file relative to the study file's folder, else the ref as given
+    (a built-in id, or a path relative to the working directory)."""
+    candidate = study_dir / ref
+    return candidate if candidate.is_file() else ref
+
+
+def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:
+    """The metric columns: those the study file lists (checked), else all of them."""
+    wanted = spec.metrics.collect
+    if wanted is None:
+        metrics = list(facts.metrics)
+    else:
+        unknown = [name for name in wanted if name not in facts.metrics]
+        if unknown:
+            raise StudyError(
+                f"[metrics] collect: unknown metric {unknown[0]!r}; a run reports: "
+                f"{', '.join(facts.metrics)}"
+            )
+        metrics = list(dict.fromkeys(wanted))
+    clash = set(metrics) & {"run", *spec.factors, "status", "error", "wall_clock_s"}
+    if clash:
+        raise StudyError(f"metric {sorted(clash)[0]!r} has the name of another column")
+    return metrics
+
+
+def _check_values(
+    base: Base, factors: Mapping[str, FactorKind], spec: StudySpec, runs: Sequence[PlannedRun]
+) -> None:
+    """Every grid value, and the first sample, through the scenario's own checks."""
+    for name, values in spec.grid.items():
+        for value in values:
+            check_values(base, {name: factors[name]}, {name: factors[name].normalize(value)})
+    if spec.random.factors:
+        first = runs[0].values
+        check_values(base, factors, {name: first[name] for name in spec.random.factors})
+
+
+def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
+    """What the table's rows depend on (study.json): settings, scenario, FMU content."""
+    return {
+        "study": spec.model_dump(mode="json", exclude={"keep"}),
+        "scenario": dict(base.data),
+        "fmus": {
+            name: hashlib.sha256(path.read_bytes()).hexdigest()
+            for name, path in base.fmu_paths.items()
+        },
+    }

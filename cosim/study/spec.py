@@ -1,0 +1,228 @@
+"""Study files: TOML -> a validated :class:`StudySpec`. A study file is data, never code.
+
+Format (every key is checked; unknown keys are errors)::
+
+    scenario = "bs-3"          # a built-in id or a scenario file (relative to this file)
+    stop_time = 20.0           # s, optional override of the scenario's stop time
+    keep = "none"              # per-run folders: "all", "failed" or "none" [none]
+
+    [grid]                     # full factorial over the listed values
+    "plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
+    "controller.k0" = [0.2, 0.5]
+
+    [random]                   # Monte Carlo: n samples, seeded
+    n = 100
+    seed = 1
+    sampling = "random"        # or "latin-hypercube" (scipy.stats.qmc) [random]
+    "plant.current_east" = { uniform = [0.0, 0.3] }     # low, high
+    "plant.yaw_0" = { normal = [0.0, 0.1] }             # mean, standard deviation
+
+    [metrics]                  # which summary values to collect [all of them]
+    collect = ["yaw_settling_time_s", "final.plant.yaw"]
+
+A factor is ``<instance>.<variable>``; what it may name is checked against the scenario
+(:mod:`cosim.study.factors`). With both a grid and random factors, every grid point is
+run with every one of the n samples (the same samples at each point).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    StrictStr,
+    Tag,
+    ValidationError,
+    model_validator,
+)
+
+from cosim.errors import CosimError
+
+KEEP_CHOICES = ("all", "failed", "none")
+FactorValue = StrictBool | StrictInt | StrictFloat | StrictStr
+
+
+class StudyError(CosimError):
+    """A study that cannot run: the message names the file (or folder) and the key."""
+
+
+def _finite(value: float) -> float:
+    if not math.isfinite(value):
+        raise ValueError(f"{value!r} is not a finite number")
+    return float(value)
+
+
+Number = Annotated[StrictInt | StrictFloat, AfterValidator(_finite)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Uniform(_Strict):
+    """Uniform on [low, high)."""
+
+    uniform: tuple[Number, Number]
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Uniform:
+        if not self.uniform[0] < self.uniform[1]:
+            raise ValueError(f"uniform = {list(self.uniform)}: expected [low, high], low < high")
+        return self
+
+
+class Normal(_Strict):
+    """Normal with this mean and standard deviation."""
+
+    normal: tuple[Number, Number]
+
+    @model_validator(mode="after")
+    def _positive_std(self) -> Normal:
+        if not self.normal[1] > 0.0:
+            raise ValueError(f"normal = {list(self.normal)}: expected [mean, std], std > 0")
+        return self
+
+
+def _distribution_kind(value: Any) -> str | None:
+    if isinstance(value, dict):
+        return next((kind for kind in ("uniform", "normal") if kind in value), None)
+    return None
+
+
+Distribution = Annotated[
+    Annotated[Uniform, Tag("uniform")] | Annotated[Normal, Tag("normal")],
+    Discriminator(
+        _distribution_kind,
+        custom_error_type="distribution",
+        custom_error_message="expected { uniform = [low, high] } or { normal = [mean, std] }",
+    ),
+]
+
+
+class RandomSpec(_Strict):
+    """``[random]``: the Monte Carlo part; factor keys sit beside n, seed and sampling."""
+
+    n: int = Field(default=0, ge=0, strict=True, description="number of samples")
+    seed: int = Field(default=0, ge=0, strict=True)
+    sampling: Literal["random", "latin-hypercube"] = "random"
+    factors: dict[str, Distribution] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _gather_factors(cls, data: Any) -> Any:
+        """Keys with a dot are factors (``"plant.current_east" = {...}``)."""
+        if not isinstance(data, dict):
+            return data
+        plain = {k: v for k, v in data.items() if "." not in k}
+        if "factors" in plain:
+            raise ValueError("write each factor as its own key, not under 'factors'")
+        factors = {k: v for k, v in data.items() if "." in k}
+        return {**plain, "factors": factors} if factors else plain
+
+
+class MetricsSpec(_Strict):
+    collect: list[StrictStr] | None = Field(default=None, min_length=1)
+
+
+def _unique(values: list[Any]) -> list[Any]:
+    seen = [(type(v), v) for v in values]
+    if len(set(seen)) != len(seen):
+        raise ValueError(f"{values!r} lists a value twice")
+    return values
+
+
+GridValues = Annotated[list[FactorValue], Field(min_length=1), AfterValidator(_unique)]
+
+
+class StudySpec(_Strict):
+    """One study file, checked key by key (types, ranges, no unknown keys)."""
+
+    scenario: StrictStr = Field(min_length=1)
+    stop_time: Annotated[Number, Field(gt=0.0)] | None = None
+    keep: Literal["all", "failed", "none"] = "none"
+    grid: dict[str, GridValues] = Field(default_factory=dict)
+    random: RandomSpec = Field(default_factory=RandomSpec)
+    metrics: MetricsSpec = Field(default_factory=MetricsSpec)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> StudySpec:
+        for name in [*self.grid, *self.random.factors]:
+            instance, _, variable = name.partition(".")
+            if not instance or not variable:
+                raise ValueError(f"factor {name!r}: expected <instance>.<variable>")
+        both = sorted(set(self.grid) & set(self.random.factors))
+        if both:
+            raise ValueError(f"factor {both[0]!r} is both in [grid] and in [random]")
+        if self.random.factors and self.random.n == 0:
+            raise ValueError("[random] has factors but n = 0: give n > 0 or remove them")
+        if self.random.n > 0 and not self.random.factors:
+            raise ValueError(f"[random] n = {self.random.n} but no factor to sample")
+        if not self.grid and not self.random.factors:
+            raise ValueError("the study varies nothing: give [grid] or [random] factors")
+        return self
+
+    @property
+    def factors(self) -> list[str]:
+        """Every factor, grid first, in file order (the table's factor columns)."""
+        return [*self.grid, *self.random.factors]
+
+
+def load_study(path: Path) -> StudySpec:
+    """Read and validate a study file; :class:`StudyError` names the file and the key."""
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise StudyError(f"study file {path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise StudyError(f"study file {path}: cannot read it: {exc}") from None
+    return study_from_dict(data, str(path))
+
+
+def study_from_dict(data: dict[str, Any], where: str) -> StudySpec:
+    """Validate study data (as read from TOML); :class:`StudyError` names ``where``."""
+    try:
+        return StudySpec.model_validate(data)
+    except ValidationError as exc:
+        problems: dict[str, str] = {}
+        for err in exc.errors():
+            key = _key(err["loc"])
+            message = err["msg"].removeprefix("Value error, ")
+            tags = {part for part in err["loc"] if part in _UNION_TAGS}
+            if err["type"] == "extra_forbidden":
+                problem = f"unknown key {key!r}"
+            elif err["type"] == "missing":
+                problem = f"key {key!r} is missing"
+            elif not key:
+                problem = message
+            else:
+                if tags:  # one failure per union member tried: say what would do
+                    message = "expected a number" if tags <= {"int", "float"} else _ANY_VALUE
+                problem = f"key {key!r} = {err.get('input')!r}: {message}"
+            problems.setdefault(key, problem)
+        raise StudyError(f"study file {where}: " + "; ".join(problems.values())) from None
+
+
+_UNION_TAGS = {"bool", "int", "float", "str"}  # pydantic puts the member tried in the loc
+_ANY_VALUE = "expected a number, an integer, true/false or a string"
+
+
+def _key(loc: tuple[Any, ...]) -> str:
+    """pydantic's error location as the study file's key."""
+    parts: list[str] = []
+    for part in loc:
+        if isinstance(part, int):
+            parts[-1:] = [f"{parts[-1] if parts else ''}[{part}]"]
+        elif part not in _UNION_TAGS | {"factors", "uniform", "normal"}:
+            parts.append(part)  # not RandomSpec's gathered factors nor a tag tried
+    return ".".join(parts)

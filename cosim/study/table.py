@@ -1,0 +1,144 @@
+"""The results table: ``runs.csv``, appended one row per finished run, and ``runs.parquet``.
+
+Columns: ``run`` (the stable id), one per factor by its full name, one per metric,
+``status`` (``complete``/``failed``), ``error`` (empty if complete) and ``wall_clock_s``
+(the whole run task: set-up, stepping loop, outputs). Every row is one line, written and
+flushed as its run finishes, so a killed study keeps every finished row; a line cut short
+by the kill is dropped when the table is opened again (:meth:`RunsTable.reopen`). At the
+end (:meth:`RunsTable.finish`) the rows are sorted by ``run`` and both files are written
+whole: the same study gives the same table whatever the number of workers or the order
+of completion (only ``wall_clock_s`` differs between identical runs).
+
+Cells: floats as their shortest round-trip text (``repr``), so the table reads back to the
+same doubles; booleans as ``true``/``false``; a missing metric (a failed run, a figure
+that does not exist, such as a settling time never reached) as an empty cell. The
+Parquet file holds the same rows with types (``pyarrow``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from cosim.study.design import PlannedRun
+from cosim.study.factors import Value
+from cosim.study.spec import StudyError
+from cosim.study.task import RunRecord
+
+CSV_NAME = "runs.csv"
+PARQUET_NAME = "runs.parquet"
+TAIL = ("status", "error", "wall_clock_s")
+Row = dict[str, Any]
+
+
+class RunsTable:
+    """The table of one study folder; rows are kept in memory for :meth:`finish`."""
+
+    def __init__(self, path: Path, factors: Sequence[str], metrics: Sequence[str]) -> None:
+        self.path = path
+        self.factors = list(factors)
+        self.metrics = list(metrics)
+        self.columns = ["run", *self.factors, *self.metrics, *TAIL]
+        self.rows: dict[str, Row] = {}
+
+    @classmethod
+    def create(cls, path: Path, factors: Sequence[str], metrics: Sequence[str]) -> RunsTable:
+        """A new table holding only the header."""
+        table = cls(path, factors, metrics)
+        with path.open("w", encoding="utf-8", newline="") as f:
+            f.write(_line(table.columns))
+        return table
+
+    @classmethod
+    def reopen(
+        cls, path: Path, factors: Sequence[str], metrics: Sequence[str], runs: Sequence[PlannedRun]
+    ) -> RunsTable:
+        """The table as a killed or finished study left it: a last line cut short is
+        removed from the file, every complete line is kept. ``runs`` are the study's
+        runs: a row of any other run, or another header, is an error."""
+        table = cls(path, factors, metrics)
+        content = path.read_bytes()
+        whole = content[: content.rfind(b"\n") + 1]
+        if len(whole) != len(content):
+            with path.open("r+b") as f:
+                f.truncate(len(whole))
+        lines = list(csv.reader(io.StringIO(whole.decode("utf-8"))))
+        if not lines:
+            path.write_text(_line(table.columns), encoding="utf-8")
+            return table
+        if lines[0] != table.columns:
+            raise StudyError(f"{path}: its columns {lines[0]} are not this study's {table.columns}")
+        by_id = {run.id: run for run in runs}
+        for number, cells in enumerate(lines[1:], start=2):
+            row = dict(zip(table.columns, cells, strict=False))
+            run = by_id.get(row["run"])
+            if run is None or len(cells) != len(table.columns):
+                raise StudyError(f"{path}, line {number}: not a row of this study's runs")
+            table.rows[run.id] = table._parse(run, row)
+        return table
+
+    @property
+    def done(self) -> set[str]:
+        """Ids of the runs in the table (complete or failed)."""
+        return set(self.rows)
+
+    def append(self, run: PlannedRun, record: RunRecord) -> None:
+        """Add a finished run's row and flush it to the file."""
+        row: Row = {"run": run.id, **run.values}
+        row.update({name: record.metrics.get(name) for name in self.metrics})
+        row.update(status=record.status, error=record.error, wall_clock_s=record.wall_clock_s)
+        with self.path.open("a", encoding="utf-8", newline="") as f:
+            f.write(_line(self._cells(row)))
+        self.rows[run.id] = row
+
+    def finish(self) -> list[Row]:
+        """Rewrite runs.csv sorted by run, write runs.parquet; returns the sorted rows."""
+        rows = [self.rows[run] for run in sorted(self.rows)]
+        text = _line(self.columns) + "".join(_line(self._cells(row)) for row in rows)
+        _replace(self.path, text.encode("utf-8"))
+        columns = {name: [row[name] for row in rows] for name in self.columns}
+        types = {name: pa.float64() for name in [*self.metrics, "wall_clock_s"]}
+        arrays = {name: pa.array(values, type=types.get(name)) for name, values in columns.items()}
+        parquet = self.path.with_name(PARQUET_NAME)
+        pq.write_table(pa.table(arrays), parquet.with_suffix(".tmp"))
+        os.replace(parquet.with_suffix(".tmp"), parquet)
+        return rows
+
+    def _cells(self, row: Row) -> list[str]:
+        return [_cell(row[name]) for name in self.columns]
+
+    def _parse(self, run: PlannedRun, cells: Mapping[str, str]) -> Row:
+        row: Row = {"run": run.id, **run.values}
+        for name in [*self.metrics, "wall_clock_s"]:
+            row[name] = float(cells[name]) if cells[name] else None
+        row["status"] = cells["status"]
+        row["error"] = cells["error"] or None
+        return row
+
+
+def _cell(value: Value | None) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def _line(cells: Sequence[str]) -> str:
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerow(cells)
+    return buffer.getvalue()
+
+
+def _replace(path: Path, content: bytes) -> None:
+    """Write ``path`` whole or not at all (a kill leaves the old file)."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_bytes(content)
+    os.replace(tmp, path)
