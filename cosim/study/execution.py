@@ -144,13 +144,17 @@ def open_client(
         return
     if workers < 1:
         raise StudyError(f"--workers {workers}: expected at least 1 worker process")
+    # An address without a host (dask's default ":8787") would listen on every interface;
+    # with the dashboard off the scheduler still serves /health on this (random) port.
+    port = DASHBOARD_PORT if dashboard else 0
     cluster = LocalCluster(
         n_workers=workers,
         threads_per_worker=1,
         processes=True,
         host=LOCALHOST,
         protocol="tcp://",
-        dashboard_address=f"{LOCALHOST}:{DASHBOARD_PORT}" if dashboard else None,
+        dashboard_address=f"{LOCALHOST}:{port}",
+        scheduler_kwargs={"dashboard": dashboard},
         worker_dashboard_address=None,
         silence_logs=logging.ERROR,
     )

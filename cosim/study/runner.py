@@ -72,8 +72,11 @@ def run_study(
     base, facts = prepare(_scenario_ref(spec.scenario, study_file.parent), spec.stop_time, fmu_dir)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     metrics = _metrics(spec, facts)
+    _check_grid_values(base, factors, spec)
     runs = plan(spec, {name: factor.normalize for name, factor in factors.items()})
-    _check_values(base, factors, spec, runs)
+    if spec.random.factors:  # the first sample stands for all: every one is a float
+        first = runs[0].values
+        check_values(base, factors, {name: first[name] for name in spec.random.factors})
     out_dir = out_dir if out_dir is not None else STUDIES_DIR / study_file.stem
     study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
     csv_path = out_dir / CSV_NAME
@@ -211,16 +214,11 @@ def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:
     return metrics
 
 
-def _check_values(
-    base: Base, factors: Mapping[str, FactorKind], spec: StudySpec, runs: Sequence[PlannedRun]
-) -> None:
-    """Every grid value, and the first sample, through the scenario's own checks."""
+def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: StudySpec) -> None:
+    """Every grid value through the scenario's own checks (type, finite)."""
     for name, values in spec.grid.items():
         for value in values:
             check_values(base, {name: factors[name]}, {name: factors[name].normalize(value)})
-    if spec.random.factors:
-        first = runs[0].values
-        check_values(base, factors, {name: first[name] for name in spec.random.factors})
 
 
 def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:

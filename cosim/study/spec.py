@@ -95,9 +95,9 @@ class Normal(_Strict):
 
 
 def _distribution_kind(value: Any) -> str | None:
-    if isinstance(value, dict):
-        return next((kind for kind in ("uniform", "normal") if kind in value), None)
-    return None
+    """The law's name: a key of the TOML table read, the field of the model dumped."""
+    keys = value if isinstance(value, dict) else getattr(type(value), "model_fields", {})
+    return next((kind for kind in ("uniform", "normal") if kind in keys), None)
 
 
 Distribution = Annotated[

@@ -1,0 +1,43 @@
+"""Study fixtures: the FMU folder, Dask's scratch space in a temporary folder, and one
+small reference study (grid x Latin hypercube, 12 runs of 2 s) run once with 2 workers,
+which the determinism, resume and distributed tests compare against."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import dask
+import pytest
+from sweep_helpers import SMALL_RUNS, SMALL_STUDY, sweep, table
+
+
+@pytest.fixture(scope="session")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    assert fmu_paths["AuvAutopilot"].parent == fmu_paths["AuvPlant"].parent
+    return fmu_paths["AuvPlant"].parent
+
+
+@pytest.fixture(scope="session", autouse=True)
+def dask_scratch(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Local clusters keep their worker space (and lock files) in a temporary folder."""
+    with dask.config.set({"temporary-directory": str(tmp_path_factory.mktemp("dask"))}):
+        yield
+
+
+@pytest.fixture(scope="session")
+def small_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("study") / "small.toml"
+    path.write_text(SMALL_STUDY, encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="session")
+def small_reference(
+    small_study: Path, fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory
+) -> list[dict[str, str]]:
+    """The small study's table run with 2 local workers, without wall_clock_s."""
+    out = tmp_path_factory.mktemp("reference")
+    sweep(small_study, out, fmu_dir, "--workers", "2")
+    rows = table(out)
+    assert len(rows) == SMALL_RUNS and all(r["status"] == "complete" for r in rows)
+    return rows

@@ -1,0 +1,98 @@
+"""Factors against a real scenario (bs-3 and its FMUs), and one run through the adapter."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from cosim.study import factors as factors_module
+from cosim.study.factors import ScenarioFacts, StartValue, resolve_factor
+from cosim.study.spec import StudyError
+from cosim.study.task import Base, check_values, prepare, run_one
+
+
+@pytest.fixture(scope="module")
+def bs3(fmu_paths: dict[str, Path]) -> tuple[Base, ScenarioFacts]:
+    return prepare("bs-3", 1.0, fmu_paths["AuvPlant"].parent)
+
+
+def test_start_values_and_parameters_are_factors(bs3: tuple[Base, ScenarioFacts]) -> None:
+    base, facts = bs3
+    v0 = resolve_factor("plant.v_0", facts)
+    assert v0 == StartValue("plant.v_0", "plant", "v_0", real=True)
+    assert v0.normalize(1) == 1.0 and isinstance(v0.normalize(1), float)
+    variant = resolve_factor("plant.variant", facts)
+    assert variant.normalize(2) == 2 and isinstance(variant.normalize(2), int)
+    data: dict[str, Any] = {"instances": {"plant": {"fmu": "AuvPlant"}}}
+    v0.apply(data, -0.2)
+    assert data["instances"]["plant"]["start"] == {"v_0": -0.2}
+    assert base.data["instances"]["plant"]["start"]["v_0"] == -0.10  # the base is untouched
+
+
+def test_unknown_factor_names_it_and_the_known_variables(
+    bs3: tuple[Base, ScenarioFacts],
+) -> None:
+    _, facts = bs3
+    with pytest.raises(StudyError) as info:
+        resolve_factor("plant.v0", facts)
+    message = str(info.value)
+    assert message.startswith("factor 'plant.v0': plant has no parameter or input 'v0'")
+    assert "v_0" in message and "max_substep" in message and "yaw," not in message
+    with pytest.raises(StudyError, match=r"no instance 'autopilot' \(instances: plant, contr"):
+        resolve_factor("autopilot.k0", facts)
+
+
+def test_outputs_and_connected_inputs_are_refused(bs3: tuple[Base, ScenarioFacts]) -> None:
+    _, facts = bs3
+    with pytest.raises(StudyError, match=r"plant\.yaw is a continuous output"):
+        resolve_factor("plant.yaw", facts)
+    with pytest.raises(StudyError, match=r"connected from controller\.thrust"):
+        resolve_factor("plant.thrust", facts)
+
+
+def test_the_dispatch_grows_by_a_kind(
+    bs3: tuple[Base, ScenarioFacts], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    @dataclass(frozen=True)
+    class EventTime:  # the shape issue 16's event times will take
+        name: str
+
+        @classmethod
+        def recognise(cls, name: str, facts: ScenarioFacts) -> EventTime | None:
+            return cls(name) if name.startswith("events.") else None
+
+    _, facts = bs3
+    kinds = (StartValue, EventTime)
+    monkeypatch.setattr(factors_module, "FACTOR_KINDS", kinds)
+    assert resolve_factor("events.turn", facts) == EventTime("events.turn")
+    assert isinstance(resolve_factor("plant.v_0", facts), StartValue)
+
+
+def test_values_the_scenario_refuses_are_errors_before_any_run(
+    bs3: tuple[Base, ScenarioFacts],
+) -> None:
+    base, facts = bs3
+    found = {n: resolve_factor(n, facts) for n in ("plant.v_0", "plant.variant")}
+    with pytest.raises(StudyError, match=r"v_0.*nan is not a finite number"):
+        check_values(base, found, {"plant.v_0": math.nan})
+    with pytest.raises(StudyError, match=r"0\.5 is not an integer \(variant is Integer\)"):
+        check_values(base, found, {"plant.variant": 0.5})
+    check_values(base, found, {"plant.variant": 7})  # a legal Integer: the FMU decides
+
+
+def test_a_run_the_fmu_refuses_is_a_failed_record(bs3: tuple[Base, ScenarioFacts]) -> None:
+    base, facts = bs3
+    found = {"plant.variant": resolve_factor("plant.variant", facts)}
+    record = run_one(base, base.fmu_paths, found, {"plant.variant": 7}, keep="failed")
+    assert record.status == "failed" and record.metrics == {}
+    assert "variant = 7: expected 0 (full 6-DOF), 1 (lateral) or 2" in record.error
+    assert "\n" not in record.error
+    good = run_one(base, base.fmu_paths, found, {"plant.variant": 1}, keep="all")
+    assert good.status == "complete" and good.error is None
+    assert good.metrics["time_reached"] == 1.0 and set(good.metrics) == set(facts.metrics)
+    assert set(good.files) == {"results.csv", "summary.json"}
+    assert 0.0 < good.loop_s < good.wall_clock_s

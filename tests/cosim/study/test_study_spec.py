@@ -1,0 +1,108 @@
+"""Study files: every key checked, a clear error naming the file and the key, data only."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cosim.study.spec import Normal, StudyError, Uniform, load_study, study_from_dict
+
+MINIMAL = {"scenario": "bs-3", "grid": {"plant.v_0": [-0.1, 0.1]}}
+
+
+def test_the_issue_example_reads_with_its_defaults(tmp_path: Path) -> None:
+    path = tmp_path / "study.toml"
+    path.write_text(
+        """
+scenario = "bs-3"
+stop_time = 20.0
+[grid]
+"plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
+"controller.k0" = [0.2, 0.5]
+[random]
+n = 0
+seed = 1
+[metrics]
+""",
+        encoding="utf-8",
+    )
+    spec = load_study(path)
+    assert spec.factors == ["plant.v_0", "controller.k0"]
+    assert spec.stop_time == 20.0 and spec.keep == "none" and spec.metrics.collect is None
+    assert spec.random.n == 0 and spec.random.sampling == "random"
+
+
+def test_random_factors_sit_beside_n_and_seed() -> None:
+    spec = study_from_dict(
+        {
+            "scenario": "bs-3",
+            "random": {
+                "n": 5,
+                "seed": 3,
+                "sampling": "latin-hypercube",
+                "plant.current_east": {"uniform": [0, 0.3]},
+                "plant.yaw_0": {"normal": [0.0, 0.1]},
+            },
+        },
+        "s.toml",
+    )
+    assert spec.random.factors == {
+        "plant.current_east": Uniform(uniform=(0.0, 0.3)),
+        "plant.yaw_0": Normal(normal=(0.0, 0.1)),
+    }
+    assert spec.factors == ["plant.current_east", "plant.yaw_0"]
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ({"gird": {}}, "unknown key 'gird'"),
+        ({"scenario": None}, "key 'scenario' is missing"),
+        ({"stop_time": "20"}, "key 'stop_time' = '20': expected a number"),
+        ({"stop_time": -1.0}, "key 'stop_time' = -1.0"),
+        ({"keep": "some"}, "key 'keep' = 'some'"),
+        ({"grid": {"plant.v_0": [0.1, 0.1]}}, "lists a value twice"),
+        ({"grid": {"plant.v_0": []}}, "key 'grid.plant.v_0' = []"),
+        ({"grid": {"plant.v_0": [[1]]}}, "expected a number, an integer, true/false or a string"),
+        ({"grid": {"v_0": [1.0]}}, "factor 'v_0': expected <instance>.<variable>"),
+        ({"grid": {}}, "the study varies nothing"),
+        ({"random": {"n": 4, "seed": 1}}, "n = 4 but no factor to sample"),
+        ({"random": {"n": 0, "plant.u_0": {"uniform": [1, 2]}}}, "has factors but n = 0"),
+        ({"random": {"n": 2, "plant.u_0": {"uniform": [2, 1]}}}, "low < high"),
+        ({"random": {"n": 2, "plant.u_0": {"normal": [0, 0]}}}, "std > 0"),
+        ({"random": {"n": 2, "plant.u_0": {"beta": [1, 2]}}}, "expected { uniform"),
+        ({"random": {"n": 2, "sampling": "sobol", "plant.u_0": {"uniform": [1, 2]}}}, "sobol"),
+        ({"random": {"n": 2, "plant.v_0": {"uniform": [1, 2]}}}, "both in [grid] and in [random]"),
+        ({"metrics": {"collect": []}}, "key 'metrics.collect' = []"),
+    ],
+)
+def test_bad_study_names_the_file_and_the_key(change: dict, expected: str) -> None:
+    data = {**MINIMAL, **change}
+    data = {k: v for k, v in data.items() if v is not None}
+    with pytest.raises(StudyError) as info:
+        study_from_dict(data, "my-study.toml")
+    assert str(info.value).startswith("study file my-study.toml: ")
+    assert expected in str(info.value)
+
+
+def test_a_study_file_is_data_never_code(tmp_path: Path) -> None:
+    # an expression is a string (the scenario then refuses it for a Real), never evaluated
+    path = tmp_path / "study.toml"
+    marker = tmp_path / "evaluated"
+    expression = f"__import__('pathlib').Path({str(marker)!r}).touch() or 0.1"
+    path.write_text(f'scenario = "bs-3"\n[grid]\n"plant.v_0" = ["{expression}"]\n', "utf-8")
+    assert load_study(path).grid["plant.v_0"] == [expression]
+    assert not marker.exists()
+    path.write_text('scenario = "bs-3"\nstop_time = "2 * 10"\n[grid]\n"plant.v_0" = [0.1]\n')
+    with pytest.raises(StudyError, match="stop_time"):
+        load_study(path)
+
+
+def test_unreadable_and_invalid_files_are_named(tmp_path: Path) -> None:
+    with pytest.raises(StudyError, match="cannot read it"):
+        load_study(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("scenario = \n", encoding="utf-8")
+    with pytest.raises(StudyError, match=r"bad\.toml: not valid TOML"):
+        load_study(bad)

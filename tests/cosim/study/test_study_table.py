@@ -1,0 +1,100 @@
+"""runs.csv: appended row by row, a torn last line dropped on reopening, sorted at the end,
+with runs.parquet holding the same rows."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from cosim.study.design import PlannedRun, run_id
+from cosim.study.spec import StudyError
+from cosim.study.table import RunsTable
+from cosim.study.task import RunRecord
+
+FACTORS = ["plant.v_0", "plant.ideal_fluid"]
+METRICS = ["yaw_settling_time_s", "final.plant.yaw"]
+
+
+def planned(v0: float, ideal: bool = False) -> PlannedRun:
+    values = {"plant.v_0": v0, "plant.ideal_fluid": ideal}
+    return PlannedRun(run_id(values), values)
+
+
+RUNS = [planned(v / 10) for v in range(-3, 4)] + [planned(0.1, True)]
+
+
+def record(run: PlannedRun) -> RunRecord:
+    if run.values["plant.ideal_fluid"]:
+        return RunRecord("failed", 'plant: doStep returned Error: "bad", really', {}, 0.5, 0.0)
+    v0 = run.values["plant.v_0"]
+    metrics = {"yaw_settling_time_s": None if v0 == 0 else 3.0 * v0, "final.plant.yaw": v0 / 3}
+    return RunRecord("complete", None, metrics, 1.25 + v0, 1.0)
+
+
+def rows_of(path: Path) -> list[dict[str, str]]:
+    with path.open(encoding="utf-8", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_rows_are_appended_as_runs_finish(tmp_path: Path) -> None:
+    path = tmp_path / "runs.csv"
+    table = RunsTable.create(path, FACTORS, METRICS)
+    for run in RUNS[:3]:
+        table.append(run, record(run))
+        assert len(rows_of(path)) == len(table.done)  # on disk at once, not at the end
+    first = rows_of(path)[0]
+    assert list(first) == ["run", *FACTORS, *METRICS, "status", "error", "wall_clock_s"]
+    assert first["plant.v_0"] == "-0.3" and first["plant.ideal_fluid"] == "false"
+    assert float(first["final.plant.yaw"]) == -0.3 / 3  # shortest round-trip text
+
+
+def test_reopen_drops_a_torn_last_line_and_keeps_every_whole_one(tmp_path: Path) -> None:
+    path = tmp_path / "runs.csv"
+    table = RunsTable.create(path, FACTORS, METRICS)
+    for run in RUNS[:4]:
+        table.append(run, record(run))
+    whole = path.read_bytes()
+    with path.open("ab") as f:  # a kill in the middle of a write
+        f.write(b"deadbeef00000000,0.2,fal")
+    reopened = RunsTable.reopen(path, FACTORS, METRICS, RUNS)
+    assert path.read_bytes() == whole
+    assert reopened.done == {run.id for run in RUNS[:4]}
+    assert reopened.rows == table.rows  # the same values, parsed back exactly
+    for run in RUNS[4:]:
+        reopened.append(run, record(run))
+    resumed = reopened.finish()
+
+    straight = RunsTable.create(tmp_path / "straight.csv", FACTORS, METRICS)
+    for run in reversed(RUNS):  # another order of completion
+        straight.append(run, record(run))
+    assert straight.finish() == resumed
+    assert (tmp_path / "straight.csv").read_text() == path.read_text()
+
+
+def test_finish_sorts_by_run_and_writes_the_same_rows_to_parquet(tmp_path: Path) -> None:
+    path = tmp_path / "runs.csv"
+    table = RunsTable.create(path, FACTORS, METRICS)
+    for run in RUNS:
+        table.append(run, record(run))
+    rows = table.finish()
+    assert [r["run"] for r in rows_of(path)] == sorted(run.id for run in RUNS)
+    failed = next(r for r in rows_of(path) if r["status"] == "failed")
+    assert failed["error"] == 'plant: doStep returned Error: "bad", really'
+    assert failed["yaw_settling_time_s"] == ""
+    parquet = pq.read_table(tmp_path / "runs.parquet")
+    assert parquet.to_pylist() == rows
+    assert str(parquet.schema.field("plant.ideal_fluid").type) == "bool"
+    assert str(parquet.schema.field("yaw_settling_time_s").type) == "double"
+
+
+def test_reopen_refuses_another_studys_table(tmp_path: Path) -> None:
+    path = tmp_path / "runs.csv"
+    table = RunsTable.create(path, FACTORS, METRICS)
+    table.append(RUNS[0], record(RUNS[0]))
+    with pytest.raises(StudyError, match="are not this study's"):
+        RunsTable.reopen(path, FACTORS, ["final.plant.yaw"], RUNS)
+    with pytest.raises(StudyError, match="line 2: not a row of this study's runs"):
+        RunsTable.reopen(path, FACTORS, METRICS, RUNS[1:])

@@ -1,0 +1,129 @@
+"""``auv-cosim sweep`` on a local cluster: the issue's study equals separate runs, failed
+runs are rows, results do not depend on the number of workers, bad studies fail early."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import pytest
+import tomli_w
+from repo_paths import ROOT
+from sweep_helpers import sweep, table
+
+from cosim.cli import main
+
+ISSUE_STUDY = """
+scenario = "bs-3"
+stop_time = 20.0
+[grid]
+"plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
+"controller.k0" = [0.2, 0.5]
+[random]
+n = 0
+seed = 1
+[metrics]
+"""
+
+
+def separate_run(tmp_path: Path, fmu_dir: Path, v0: float, k0: float) -> dict:
+    """bs-3 with these start values through `auv-cosim run`: its summary.json."""
+    data = tomllib.loads((ROOT / "cosim/scenarios/bs-3.toml").read_text(encoding="utf-8"))
+    data["instances"]["plant"]["start"]["v_0"] = v0
+    data["instances"]["controller"]["start"]["k0"] = k0
+    scenario = tmp_path / f"bs-3_{v0}_{k0}.toml"
+    scenario.write_text(tomli_w.dumps(data), encoding="utf-8")
+    out = tmp_path / scenario.stem
+    argv = ["run", str(scenario), "--stop-time", "20", "--no-rrd", "--quiet"]
+    assert main([*argv, "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 0
+    return json.loads((out / "summary.json").read_text(encoding="utf-8"))
+
+
+@pytest.mark.slow
+def test_the_issue_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) -> None:
+    study = tmp_path / "study.toml"
+    study.write_text(ISSUE_STUDY, encoding="utf-8")
+    sweep(study, tmp_path / "out", fmu_dir, "--workers", "2")
+    rows = table(tmp_path / "out")
+    assert len(rows) == 8 and {r["status"] for r in rows} == {"complete"}
+    assert rows == sorted(rows, key=lambda r: r["run"])
+    for row in rows:
+        summary = separate_run(tmp_path, fmu_dir, float(row["plant.v_0"]),
+                               float(row["controller.k0"]))  # fmt: skip
+        expected = {**summary["key_figures"], "time_reached": summary["time_reached"]}
+        expected |= {f"final.{k}": v for k, v in summary["final_values"].items()}
+        metrics = {k: v for k, v in row.items() if k not in ("run", "status", "error")}
+        metrics = {k: v for k, v in metrics.items() if k not in ("plant.v_0", "controller.k0")}
+        assert set(metrics) == set(expected)
+        for name, value in expected.items():  # exactly: the text reads back to the double
+            assert metrics[name] == ("" if value is None else repr(value)), name
+    assert any(r["yaw_settling_time_s"] for r in rows)  # 20 s: the settling time is there
+
+
+def test_a_refused_start_value_is_a_failed_row_the_others_complete(
+    tmp_path: Path, fmu_dir: Path
+) -> None:
+    study = tmp_path / "variants.toml"
+    text = 'scenario = "bs-3"\nstop_time = 1.0\nkeep = "failed"\n[grid]\n'
+    study.write_text(text + '"plant.variant" = [0, 7, 1]\n', encoding="utf-8")
+    out = tmp_path / "out"
+    sweep(study, out, fmu_dir, "--workers", "2")
+    rows = {int(r["plant.variant"]): r for r in table(out)}
+    assert [rows[v]["status"] for v in (0, 1, 7)] == ["complete", "complete", "failed"]
+    assert "variant = 7: expected 0 (full 6-DOF), 1 (lateral) or 2" in rows[7]["error"]
+    assert rows[7]["time_reached"] == "" and rows[1]["time_reached"] == "1.0"
+    kept = sorted(p.name for p in (out / "runs").iterdir())
+    assert kept == [rows[7]["run"]]  # keep = "failed": only the failed run's folder
+    folder = out / "runs" / rows[7]["run"]
+    assert rows[7]["error"] in (folder / "error.txt").read_text(encoding="utf-8")
+    # the kept scenario reproduces the failure with `auv-cosim run`
+    argv = ["run", str(folder / "scenario.toml"), "--no-rrd", "--out", str(tmp_path / "again")]
+    assert main([*argv, "--fmu-dir", str(fmu_dir), "--quiet"]) == 1
+    assert (out / "index.html").is_file() and "Failed runs" in (out / "index.html").read_text()
+
+    # the folder now holds this study: a new one is refused, so is resuming another study
+    assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
+    study.write_text(text.replace("1.0", "2.0") + '"plant.variant" = [0, 7, 1]\n')
+    argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--resume"]
+    assert main(argv) == 1
+
+
+def test_the_table_does_not_depend_on_the_number_of_workers(
+    small_study: Path, small_reference: list[dict[str, str]], fmu_dir: Path, tmp_path: Path
+) -> None:
+    sweep(small_study, tmp_path / "one", fmu_dir, "--workers", "1")
+    assert table(tmp_path / "one") == small_reference
+    assert (tmp_path / "one" / "figures" / "scatter_matrix.png").is_file()
+
+
+@pytest.mark.parametrize(
+    ("factor", "expected"),
+    [
+        ('"plant.v0" = [0.1]', "factor 'plant.v0': plant has no parameter or input 'v0'"),
+        ('"plant.yaw" = [0.1]', "plant.yaw is a continuous output"),
+        ('"plant.v_0" = ["fast"]', "'fast' is not a number (v_0 is Real)"),
+        ('"plant.v_0" = [nan]', "nan is not a finite number"),
+    ],
+)
+def test_a_bad_factor_fails_before_any_run_naming_it(
+    factor: str, expected: str, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    study = tmp_path / "bad.toml"
+    study.write_text(f'scenario = "bs-3"\n[grid]\n{factor}\n', encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
+    assert expected in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_unknown_metric_is_named_with_the_metrics_a_run_reports(
+    tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    study = tmp_path / "metrics.toml"
+    text = 'scenario = "bs-3"\n[grid]\n"plant.v_0" = [0.1]\n[metrics]\ncollect = ["settling"]\n'
+    study.write_text(text, encoding="utf-8")
+    assert main(["sweep", str(study), "--out", str(tmp_path / "out"),
+                 "--fmu-dir", str(fmu_dir)]) == 1  # fmt: skip
+    err = capsys.readouterr().err
+    assert "unknown metric 'settling'" in err and "yaw_settling_time_s" in err
