@@ -2,7 +2,7 @@
 
 Laid out like ``auv-cosim report``'s page: a summary table (scenario, factors, runs
 complete and failed), links to ``runs.csv`` and ``runs.parquet``, each figure linked
-full size, the metrics not plotted (constant or missing), and the failed runs with their
+full size, the metrics not plotted (constant, missing or too many), and the failed runs with their
 errors.
 """
 
@@ -12,6 +12,8 @@ import html
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from cosim.study.plots import PANELS_MAX
 
 INDEX_PAGE = "index.html"
 FAILED_SHOWN = 50  # failed runs listed on the page (all are in runs.csv)
@@ -35,7 +37,9 @@ def write_index(
         for title, path in figures.items()
     )
     quiet = (
-        f"<p>Not plotted (constant or missing in every run): {_e(', '.join(not_plotted))}</p>"
+        f"<p>Not plotted (constant or missing in every run, or beyond the first "
+        f"{PANELS_MAX} metrics; choose them with [metrics] collect): "
+        f"{_e(', '.join(not_plotted))}</p>"
         if not_plotted
         else ""
     )

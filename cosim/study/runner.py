@@ -21,7 +21,7 @@ from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import execute, make_job, open_client
 from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.page import write_index
-from cosim.study.plots import varying_metrics, write_figures
+from cosim.study.plots import plotted_metrics, write_figures
 from cosim.study.spec import StudyError, StudySpec, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
@@ -173,7 +173,7 @@ def _write_report(
     figures = write_figures(
         rows, grid, list(spec.random.factors), metrics, out_dir / FIGURES_FOLDER
     )
-    shown = set(varying_metrics(rows, metrics))
+    shown = set(plotted_metrics(rows, metrics))
     complete = sum(row["status"] == "complete" for row in rows)
     random = "none"
     if spec.random.factors:

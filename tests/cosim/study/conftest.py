@@ -1,5 +1,5 @@
 """Study fixtures: the FMU folder, Dask's scratch space in a temporary folder, and one
-small reference study (grid x Latin hypercube, 12 runs of 2 s) run once with 2 workers,
+small reference study (grid x Latin hypercube, 12 runs of 1 s) run once with 2 workers,
 which the determinism, resume and distributed tests compare against."""
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from cosim.cli import main
 
 SMALL_STUDY = """
 scenario = "bs-3"
-stop_time = 2.0
+stop_time = 1.0
 [grid]
 "plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
 [random]

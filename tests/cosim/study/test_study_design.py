@@ -22,8 +22,13 @@ def test_grid_is_the_full_factorial_last_factor_fastest() -> None:
     s = spec(grid={"plant.v_0": [-0.1, 0.1], "controller.k0": [0.2, 0.5, 1.0]})
     runs = plan(s, {"plant.v_0": same, "controller.k0": same})
     assert [tuple(r.values.values()) for r in runs] == [
-        (-0.1, 0.2), (-0.1, 0.5), (-0.1, 1.0), (0.1, 0.2), (0.1, 0.5), (0.1, 1.0)
-    ]  # fmt: skip
+        (-0.1, 0.2),
+        (-0.1, 0.5),
+        (-0.1, 1.0),
+        (0.1, 0.2),
+        (0.1, 0.5),
+        (0.1, 1.0),
+    ]
 
 
 def test_run_id_depends_on_the_values_only() -> None:
@@ -47,9 +52,15 @@ def test_normalize_gives_a_real_factor_one_id_for_1_and_1_0() -> None:
 @pytest.mark.parametrize("sampling", ["random", "latin-hypercube"])
 def test_samples_are_seeded_and_follow_their_laws(sampling: str) -> None:
     def draw(seed: int, n: int = 400) -> np.ndarray:
-        random = spec(random={"n": n, "seed": seed, "sampling": sampling,
-                              "plant.current_east": {"uniform": [0.1, 0.3]},
-                              "plant.yaw_0": {"normal": [0.5, 0.2]}}).random  # fmt: skip
+        random = spec(
+            random={
+                "n": n,
+                "seed": seed,
+                "sampling": sampling,
+                "plant.current_east": {"uniform": [0.1, 0.3]},
+                "plant.yaw_0": {"normal": [0.5, 0.2]},
+            }
+        ).random
         return np.array([list(s.values()) for s in random_samples(random)])
 
     a = draw(7)
@@ -61,9 +72,15 @@ def test_samples_are_seeded_and_follow_their_laws(sampling: str) -> None:
 
 def test_latin_hypercube_puts_one_sample_in_each_stratum() -> None:
     n = 10
-    random = spec(random={"n": n, "seed": 2, "sampling": "latin-hypercube",
-                          "plant.current_east": {"uniform": [0.0, 1.0]},
-                          "plant.current_north": {"uniform": [-1.0, 0.0]}}).random  # fmt: skip
+    random = spec(
+        random={
+            "n": n,
+            "seed": 2,
+            "sampling": "latin-hypercube",
+            "plant.current_east": {"uniform": [0.0, 1.0]},
+            "plant.current_north": {"uniform": [-1.0, 0.0]},
+        }
+    ).random
     samples = np.array([list(s.values()) for s in random_samples(random)])
     assert sorted(np.floor(samples[:, 0] * n).astype(int)) == list(range(n))
     assert sorted(np.floor((samples[:, 1] + 1.0) * n).astype(int)) == list(range(n))

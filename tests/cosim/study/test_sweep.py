@@ -49,8 +49,9 @@ def test_the_issue_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Pat
     assert len(rows) == 8 and {r["status"] for r in rows} == {"complete"}
     assert rows == sorted(rows, key=lambda r: r["run"])
     for row in rows:
-        summary = separate_run(tmp_path, fmu_dir, float(row["plant.v_0"]),
-                               float(row["controller.k0"]))  # fmt: skip
+        summary = separate_run(
+            tmp_path, fmu_dir, float(row["plant.v_0"]), float(row["controller.k0"])
+        )
         expected = {**summary["key_figures"], "time_reached": summary["time_reached"]}
         expected |= {f"final.{k}": v for k, v in summary["final_values"].items()}
         metrics = {k: v for k, v in row.items() if k not in ("run", "status", "error")}
@@ -123,7 +124,8 @@ def test_unknown_metric_is_named_with_the_metrics_a_run_reports(
     study = tmp_path / "metrics.toml"
     text = 'scenario = "bs-3"\n[grid]\n"plant.v_0" = [0.1]\n[metrics]\ncollect = ["settling"]\n'
     study.write_text(text, encoding="utf-8")
-    assert main(["sweep", str(study), "--out", str(tmp_path / "out"),
-                 "--fmu-dir", str(fmu_dir)]) == 1  # fmt: skip
+    assert (
+        main(["sweep", str(study), "--out", str(tmp_path / "out"), "--fmu-dir", str(fmu_dir)]) == 1
+    )
     err = capsys.readouterr().err
     assert "unknown metric 'settling'" in err and "yaw_settling_time_s" in err

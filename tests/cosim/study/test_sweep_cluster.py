@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -16,7 +17,11 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from distributed import Client
 from sweep_helpers import SMALL_RUNS, sweep, table
+
+from cosim.cli import main
+from cosim.study.execution import tls_security
 
 DASK = str(Path(sys.executable).parent / "dask")
 START_TIMEOUT_S = 120.0
@@ -71,9 +76,15 @@ if __name__ == "__main__":
 def test_the_local_cluster_listens_on_localhost_only(tmp_path: Path) -> None:
     # a fresh process, so that no other test's listening socket is counted (not the
     # run_python fixture: its PYTHONPATH=tests makes tests/cosim shadow the package)
-    proc = subprocess.run([sys.executable, "-c", LISTENING], cwd=tmp_path, timeout=180,
-                          env={**os.environ, "TMPDIR": str(tmp_path)},
-                          capture_output=True, text=True, check=False)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "-c", LISTENING],
+        cwd=tmp_path,
+        timeout=180,
+        env={**os.environ, "TMPDIR": str(tmp_path)},
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr
     found = json.loads(proc.stdout.strip().splitlines()[-1])
     addresses = [found["scheduler"], *found["workers"], *found["nannies"]]
@@ -87,34 +98,85 @@ def test_the_local_cluster_listens_on_localhost_only(tmp_path: Path) -> None:
     assert 8787 not in ports  # the dashboard is off by default
 
 
-@pytest.fixture
-def dask_cluster(tmp_path: Path) -> Iterator[str]:
-    """``dask scheduler`` and two ``dask worker --nthreads 1`` on 127.0.0.1, in a folder
-    without FMUs (they must travel); every process is ended afterwards."""
+def certificates(folder: Path) -> list[str]:
+    """A self-signed certificate for 127.0.0.1 (its own CA), as dask's TLS options."""
+    cert, key = folder / "cert.pem", folder / "key.pem"
+    command = "openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=auv-cosim-test"
+    command += " -addext subjectAltName=IP:127.0.0.1"
+    argv = [*command.split(), "-keyout", str(key), "-out", str(cert)]
+    subprocess.run(argv, check=True, capture_output=True, timeout=60)
+    return ["--tls-ca-file", str(cert), "--tls-cert", str(cert), "--tls-key", str(key)]
+
+
+@pytest.fixture(params=["tcp", "tls"])
+def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[list[str]]:
+    """``dask scheduler`` and two ``dask worker --nthreads 1`` on 127.0.0.1 (plain TCP,
+    or TLS with a test certificate), in a folder without FMUs (they must travel); yields
+    the sweep options that reach it. Every process is ended afterwards."""
+    if request.param == "tls" and shutil.which("openssl") is None:
+        pytest.skip("openssl is needed to make the TLS test certificate")
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
+    tls = certificates(elsewhere) if request.param == "tls" else []
     env = {**os.environ, "TMPDIR": str(elsewhere)}
     address_file = elsewhere / "scheduler.json"
     started: list[subprocess.Popen] = []
-    options = {"cwd": elsewhere, "env": env, "start_new_session": True,
-               "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}  # fmt: skip
+    options = {
+        "cwd": elsewhere,
+        "env": env,
+        "start_new_session": True,
+        "stdout": subprocess.DEVNULL,
+        "stderr": subprocess.DEVNULL,
+    }
     try:
-        started.append(subprocess.Popen([DASK, "scheduler", "--host", "127.0.0.1", "--port",
-                                         "0", "--no-dashboard", "--scheduler-file",
-                                         str(address_file)], **options))  # fmt: skip
+        started.append(
+            subprocess.Popen(
+                [
+                    DASK,
+                    "scheduler",
+                    "--protocol",
+                    request.param,
+                    "--host",
+                    "127.0.0.1",
+                    "--port",
+                    "0",
+                    "--no-dashboard",
+                    "--scheduler-file",
+                    str(address_file),
+                    *tls,
+                ],
+                **options,
+            )
+        )
         wait_for(address_file.is_file, "the scheduler")
         for i in range(2):
-            started.append(subprocess.Popen([DASK, "worker", "--scheduler-file",
-                                             str(address_file), "--nthreads", "1",
-                                             "--nworkers", "1", "--host", "127.0.0.1",
-                                             "--no-dashboard", "--local-directory",
-                                             str(elsewhere / f"w{i}")], **options))  # fmt: skip
+            started.append(
+                subprocess.Popen(
+                    [
+                        DASK,
+                        "worker",
+                        "--scheduler-file",
+                        str(address_file),
+                        "--nthreads",
+                        "1",
+                        "--nworkers",
+                        "1",
+                        "--host",
+                        "127.0.0.1",
+                        "--no-dashboard",
+                        "--local-directory",
+                        str(elsewhere / f"w{i}"),
+                        *tls,
+                    ],
+                    **options,
+                )
+            )
         address = json.loads(address_file.read_text())["address"]
-        from distributed import Client
-
-        with Client(address, timeout=START_TIMEOUT_S) as client:
+        assert address.startswith(f"{request.param}://127.0.0.1:")
+        security = tls_security(*(Path(p) for p in tls[1::2])) if tls else None
+        with Client(address, security=security, timeout=START_TIMEOUT_S) as client:
             client.wait_for_workers(2, timeout=START_TIMEOUT_S)
-        yield address
+        yield ["--scheduler", address, *tls]
     finally:
         for proc in reversed(started):
             end_group(proc)
@@ -124,15 +186,26 @@ def dask_cluster(tmp_path: Path) -> Iterator[str]:
 
 @pytest.mark.slow
 def test_a_distributed_cluster_gives_the_same_table(
-    dask_cluster: str,
+    dask_cluster: list[str],
     small_study: Path,
     small_reference: list[dict[str, str]],
     fmu_dir: Path,
     tmp_path: Path,
 ) -> None:
-    assert dask_cluster.startswith("tcp://127.0.0.1:")
-    sweep(small_study, tmp_path / "out", fmu_dir, "--scheduler", dask_cluster)
+    sweep(small_study, tmp_path / "out", fmu_dir, *dask_cluster)
     assert table(tmp_path / "out") == small_reference
+
+
+def test_a_tls_scheduler_needs_the_certificates(
+    small_study: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    argv = ["sweep", str(small_study), "--out", str(tmp_path / "out")]
+    assert main([*argv, "--scheduler", "tls://127.0.0.1:1"]) == 1
+    assert "a tls:// address needs --tls-ca-file, --tls-cert and --tls-key" in (
+        capsys.readouterr().err
+    )
+    assert main([*argv, "--scheduler", "tls://127.0.0.1:1", "--tls-cert", "c.pem"]) == 1
+    assert "missing: --tls-ca-file, --tls-key" in capsys.readouterr().err
 
 
 def whole_rows(csv_path: Path) -> int:
@@ -152,15 +225,30 @@ def test_sigkill_then_resume_gives_the_uninterrupted_table(
 ) -> None:
     out = tmp_path / "out"
     (tmp_path / "tmp").mkdir()
-    argv = [sys.executable, "-m", "cosim.cli", "sweep", str(small_study), "--out", str(out),
-            "--fmu-dir", str(fmu_dir), "--workers", "1", "--quiet"]  # fmt: skip
+    argv = [
+        sys.executable,
+        "-m",
+        "cosim.cli",
+        "sweep",
+        str(small_study),
+        "--out",
+        str(out),
+        "--fmu-dir",
+        str(fmu_dir),
+        "--workers",
+        "1",
+        "--quiet",
+    ]
     env = {**os.environ, "TMPDIR": str(tmp_path / "tmp")}
-    proc = subprocess.Popen(argv, env=env, start_new_session=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    proc = subprocess.Popen(
+        argv, env=env, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
     try:
         half = SMALL_RUNS // 2
-        wait_for(lambda: whole_rows(out / "runs.csv") >= half or proc.poll() is not None,
-                 "half of the runs")  # fmt: skip
+        wait_for(
+            lambda: whole_rows(out / "runs.csv") >= half or proc.poll() is not None,
+            "half of the runs",
+        )
         assert proc.poll() is None, "the study finished before it could be killed"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
