@@ -142,8 +142,6 @@ def open_client(
         with client:
             yield client
         return
-    if workers < 1:
-        raise StudyError(f"--workers {workers}: expected at least 1 worker process")
     # An address without a host (dask's default ":8787") would listen on every interface;
     # with the dashboard off the scheduler still serves /health on this (random) port.
     port = DASHBOARD_PORT if dashboard else 0
@@ -187,10 +185,11 @@ def execute(
         }
         for future in as_completed(pending, loop=client.loop):
             run = pending.pop(future)
-            if future.status == "finished":
-                record = future.result()
-            else:  # the task itself failed: its workers died, or it could not be sent
-                exc = future.exception()
+            try:
+                record = future.result()  # run_one itself never raises
+            except (KeyboardInterrupt, SystemExit):
+                raise
+            except BaseException as exc:  # the task's workers died, or it was cancelled
                 error = " ".join(f"{type(exc).__name__}: {exc}".split())
                 record = RunRecord("failed", error, {}, 0.0, 0.0)
             future.release()

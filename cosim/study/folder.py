@@ -24,7 +24,8 @@ RUNS_FOLDER = "runs"
 
 
 def claim(out_dir: Path, identity: Mapping[str, Any], resume: bool, table: str) -> None:
-    """Make ``out_dir`` this study's folder, or check it already is (``resume``)."""
+    """Make ``out_dir`` this study's folder, or check it already is (``resume``).
+    ``table``: the table's file name (a folder holding one holds a study)."""
     marker = out_dir / STUDY_JSON
     identity = json.loads(json.dumps(identity))  # as it reads back from the file
     if resume:
@@ -37,8 +38,6 @@ def claim(out_dir: Path, identity: Mapping[str, Any], resume: bool, table: str) 
                 f"--resume: {out_dir} holds another study (its {', '.join(differ)} "
                 "differ from this one's); give another --out to start this study"
             )
-        if not (out_dir / table).is_file():
-            raise StudyError(f"--resume: {out_dir} holds no {table}")
         return
     if marker.exists() or (out_dir / table).exists():
         raise StudyError(

@@ -54,6 +54,10 @@ class Cluster:
     security: Any = None  # distributed.Security for a tls:// scheduler
     dashboard: bool = False
 
+    def __post_init__(self) -> None:
+        if self.scheduler is None and self.workers < 1:
+            raise StudyError(f"--workers {self.workers}: expected at least 1 worker process")
+
 
 def run_study(
     study_file: Path,
@@ -80,7 +84,7 @@ def run_study(
     out_dir = out_dir if out_dir is not None else STUDIES_DIR / study_file.stem
     study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
     csv_path = out_dir / CSV_NAME
-    if resume:
+    if resume and csv_path.is_file():
         table = RunsTable.reopen(csv_path, spec.factors, metrics, runs)
     else:
         table = RunsTable.create(csv_path, spec.factors, metrics)

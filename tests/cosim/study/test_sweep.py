@@ -129,3 +129,20 @@ def test_unknown_metric_is_named_with_the_metrics_a_run_reports(
     )
     err = capsys.readouterr().err
     assert "unknown metric 'settling'" in err and "yaw_settling_time_s" in err
+
+
+@pytest.mark.parametrize(
+    ("options", "expected"),
+    [
+        (["--workers", "0"], "--workers 0: expected at least 1 worker process"),
+        (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "not both"),
+    ],
+)
+def test_bad_cluster_options_fail_before_anything_is_written(
+    options: list[str], expected: str, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    study = tmp_path / "study.toml"
+    study.write_text(ISSUE_STUDY, encoding="utf-8")
+    assert main(["sweep", str(study), "--out", str(tmp_path / "out"), *options]) == 1
+    assert expected in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
