@@ -101,7 +101,7 @@ def _phase_portrait(args: argparse.Namespace) -> int:
     return phase_portrait_command(_conditions(args), args.out)
 
 
-def _sweep(args: argparse.Namespace) -> int:
+def _study(args: argparse.Namespace) -> int:
     from cosim.study.execution import tls_security
     from cosim.study.runner import Cluster, report, run_study
 
@@ -165,23 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
-    p = sub.add_parser("sweep", help="a parameter sweep or Monte Carlo study on Dask")
-    p.add_argument("study", type=Path, help="study .toml file (see README, Studies)")
-    p.add_argument("--workers", type=int, help="local worker processes [one per core]")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
-    p.add_argument("--out", type=Path, help="study folder [studies/<study file name>]")
-    p.add_argument("--resume", action="store_true", help="skip the runs already in runs.csv")
-    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
-    p.add_argument(
-        "--dashboard",
-        action="store_true",
-        help="local Dask dashboard on 127.0.0.1:8787 (needs bokeh)",
-    )
-    p.add_argument("--tls-ca-file", type=Path, help="CA certificate for a tls:// scheduler")
-    p.add_argument("--tls-cert", type=Path, help="client certificate for a tls:// scheduler")
-    p.add_argument("--tls-key", type=Path, help="client private key for a tls:// scheduler")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=_sweep)
+    _add_sweep_parser(sub)
 
     p = sub.add_parser("export", help="export a scenario as SSP or OSP system structure")
     p.add_argument("scenario", help="scenario id or .toml path")
@@ -217,6 +201,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
     p.set_defaults(func=_report)
     return parser
+
+
+def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim sweep``: a study on a local or remote Dask cluster."""
+    p = sub.add_parser("sweep", help="a parameter sweep or Monte Carlo study on Dask")
+    p.add_argument("study", type=Path, help="study .toml file (see README, Studies)")
+    p.add_argument("--workers", type=int, help="local worker processes [one per core]")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
+    p.add_argument("--out", type=Path, help="study folder [studies/<study file name>]")
+    p.add_argument("--resume", action="store_true", help="skip the runs already in runs.csv")
+    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.add_argument(
+        "--dashboard",
+        action="store_true",
+        help="local Dask dashboard on 127.0.0.1:8787 (needs bokeh)",
+    )
+    p.add_argument("--tls-ca-file", type=Path, help="CA certificate for a tls:// scheduler")
+    p.add_argument("--tls-cert", type=Path, help="client certificate for a tls:// scheduler")
+    p.add_argument("--tls-key", type=Path, help="client private key for a tls:// scheduler")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_study)
 
 
 def _add_model_options(a: argparse.ArgumentParser) -> None:

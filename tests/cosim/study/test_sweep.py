@@ -40,7 +40,6 @@ def separate_run(tmp_path: Path, fmu_dir: Path, v0: float, k0: float) -> dict:
     return json.loads((out / "summary.json").read_text(encoding="utf-8"))
 
 
-@pytest.mark.slow
 def test_the_issue_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) -> None:
     study = tmp_path / "study.toml"
     study.write_text(ISSUE_STUDY, encoding="utf-8")

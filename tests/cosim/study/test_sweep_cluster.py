@@ -73,18 +73,9 @@ if __name__ == "__main__":
 """
 
 
-def test_the_local_cluster_listens_on_localhost_only(tmp_path: Path) -> None:
-    # a fresh process, so that no other test's listening socket is counted (not the
-    # run_python fixture: its PYTHONPATH=tests makes tests/cosim shadow the package)
-    proc = subprocess.run(
-        [sys.executable, "-c", LISTENING],
-        cwd=tmp_path,
-        timeout=180,
-        env={**os.environ, "TMPDIR": str(tmp_path)},
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+def test_the_local_cluster_listens_on_localhost_only(run_python) -> None:
+    # a fresh process, so that no other test's listening socket is counted
+    proc = run_python(LISTENING, timeout=180)
     assert proc.returncode == 0, proc.stderr
     found = json.loads(proc.stdout.strip().splitlines()[-1])
     addresses = [found["scheduler"], *found["workers"], *found["nannies"]]
@@ -184,7 +175,6 @@ def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[lis
         assert not list((elsewhere / f"w{i}").rglob("*.fmu"))
 
 
-@pytest.mark.slow
 def test_a_distributed_cluster_gives_the_same_table(
     dask_cluster: list[str],
     small_study: Path,
@@ -215,7 +205,6 @@ def whole_rows(csv_path: Path) -> int:
     return max(0, csv_path.read_bytes().count(b"\n") - 1)
 
 
-@pytest.mark.slow
 def test_sigkill_then_resume_gives_the_uninterrupted_table(
     small_study: Path,
     small_reference: list[dict[str, str]],
