@@ -20,6 +20,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import IntEnum
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -321,15 +322,18 @@ class Autopilot:
 
     Args:
         config: an :class:`AutopilotConfig`.
+        vehicles: the folder of the built-in vehicle sets ``config.vehicle`` may name
+            (default :func:`plant_fmu.model.parameters.vehicle_folder`; an FMU instance
+            passes its own extraction's).
 
     Raises:
         VehicleParameterError: ``config.vehicle`` is unknown or invalid.
         ValueError: a controller cannot be designed for these parameters.
     """
 
-    def __init__(self, config: AutopilotConfig) -> None:
+    def __init__(self, config: AutopilotConfig, vehicles: Path | None = None) -> None:
         self.config = config
-        self.params = load_vehicle(config.vehicle)
+        self.params = load_vehicle(config.vehicle, folder=vehicles)
         self.design = LateralDesignModel(self.params, config.design_speed)
         self.heading_mode = HeadingMode(config.heading_mode)
         self.lqr: LqrHeading | None = None

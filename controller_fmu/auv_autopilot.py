@@ -1,8 +1,9 @@
 """AuvAutopilot: the Ch. 6 autopilot as an FMI 2.0 co-simulation slave.
 
-The pythonfmu script of ``AuvAutopilot.fmu`` (modelIdentifier ``AuvAutopilot``): FMI
-variables on one side, :class:`controller_fmu.autopilot.Autopilot` on the other. No control
-law lives here.
+The slave class of ``AuvAutopilot.fmu`` (modelIdentifier ``AuvAutopilot``; the build ships
+this module in ``controller_fmu`` and a generated pythonfmu entry module that imports the
+class, see :mod:`fmu_runtime.entry`): FMI variables on one side,
+:class:`controller_fmu.autopilot.Autopilot` on the other. No control law lives here.
 
 Inputs (Real, named like the plant's outputs; start 0):
     yaw, r, p, roll, v_rel, u_rel, down, pitch, q, w_rel, mass_position, mass_velocity,
@@ -10,12 +11,12 @@ Inputs (Real, named like the plant's outputs; start 0):
 Outputs (Real, named like the plant's inputs):
     mass_position_cmd (m), tunnel_force (N), fin_angle (rad), thrust (N; start 9)
 
-Parameters (all fixed; names, units, defaults and descriptions come from
-:class:`controller_fmu.autopilot.AutopilotConfig`):
+Parameters (all fixed; names, units, defaults, descriptions and ranges (``min``/``max``;
+a write outside is refused) come from :class:`controller_fmu.autopilot.AutopilotConfig`):
     heading_mode (Integer: 0 off, 1 LQR, 2 sliding mode, 3 backstepping + tunnel thruster)
     depth_mode (Integer: 0 off, 1 PD pitch + P depth)
     mass_lock_time (s; < 0 never), compensate_current (Boolean), design_speed (m/s, 1.525),
-    vehicle (String, "remus100"), design_step (s, 0.01),
+    vehicle (String, "remus100": read from this instance's resources/), design_step (s, 0.01),
     thrust_command (N, 9: the value of the thrust output; 4 N for the slow scenarios)
     LQR:           lqr_q_r, lqr_q_p, lqr_q_roll, lqr_q_yaw, lqr_q_mass_position,
                    lqr_q_mass_velocity, lqr_r            (Q_y, R_u of Sec. 6.3.1)
@@ -67,6 +68,8 @@ from controller_fmu.autopilot import (
     field_unit,
 )
 from fmu_runtime.safe_slave import SafeSlave
+from fmu_runtime.variables import field_bounds, item_getter, item_setter
+from plant_fmu.model.parameters import vehicle_folder
 
 INPUT_DESCRIPTIONS: dict[str, str] = {
     "yaw": "measured yaw angle psi",
@@ -106,6 +109,7 @@ class AuvAutopilot(SafeSlave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        self._vehicles = vehicle_folder(self.resources)  # this extraction's data
         self._inputs = dict.fromkeys(MEASUREMENT_NAMES, 0.0)
         self._outputs = list(Commands(thrust=_DEFAULTS.thrust_command).values())
         self._params: dict[str, Any] = _DEFAULTS.model_dump()
@@ -121,8 +125,8 @@ class AuvAutopilot(SafeSlave):
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
                     description=INPUT_DESCRIPTIONS[name],
-                    getter=_key_getter(self._inputs, name),
-                    setter=_key_setter(self._inputs, name),
+                    getter=item_getter(self._inputs, name),
+                    setter=item_setter(self._inputs, name),
                 ),
                 unit=unit,
             )
@@ -134,7 +138,7 @@ class AuvAutopilot(SafeSlave):
                     variability=Fmi2Variability.discrete,
                     initial=Fmi2Initial.exact,
                     description=OUTPUT_DESCRIPTIONS[name],
-                    getter=_item_getter(self._outputs, i),
+                    getter=item_getter(self._outputs, i),
                 ),
                 unit=unit,
             )
@@ -144,16 +148,22 @@ class AuvAutopilot(SafeSlave):
             variable = kind(
                 name,
                 description=field.description,
-                getter=_key_getter(self._params, name),
-                setter=_key_setter(self._params, name),
+                getter=item_getter(self._params, name),
+                setter=item_setter(self._params, name),
                 **fixed,
             )
-            self.register(variable, unit=field_unit(name) if kind is Real else None)
+            minimum, maximum = field_bounds(field) if kind in (Integer, Real) else (None, None)
+            self.register(
+                variable,
+                unit=field_unit(name) if kind is Real else None,
+                minimum=minimum,
+                maximum=maximum,
+            )
 
     # --- SafeSlave hooks ---------------------------------------------------------------------
 
     def _initialize(self) -> None:
-        self._autopilot = Autopilot(AutopilotConfig.build(**self._params))
+        self._autopilot = Autopilot(AutopilotConfig.build(**self._params), self._vehicles)
         self._outputs[:] = self._autopilot.commands.values()
         self._step_warned = False
 
@@ -194,20 +204,5 @@ class AuvAutopilot(SafeSlave):
             return
         config = AutopilotConfig.build(**self._params)
         if self._autopilot is None or self._autopilot.config != config:
-            self._autopilot = Autopilot(config)
+            self._autopilot = Autopilot(config, self._vehicles)
         self._autopilot.restore(AutopilotSnapshot.from_json(saved))
-
-
-def _item_getter(values: list, i: int):
-    return lambda: values[i]
-
-
-def _key_getter(values: dict, key: str):
-    return lambda: values[key]
-
-
-def _key_setter(values: dict, key: str):
-    def setter(value: Any) -> None:
-        values[key] = value
-
-    return setter

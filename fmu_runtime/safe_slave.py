@@ -1,11 +1,12 @@
 """An exception-proof base class over pythonfmu's ``Fmi2Slave``, shared by both FMUs.
 
-Why it exists (``docs/fmi-notes.md``): with pythonfmu 0.7 an exception escaping a
-Python callback becomes fmi2Fatal and the C wrapper then releases the Python objects twice,
-so the host process crashes soon after. pythonfmu also accepts NaN inputs, lets a fixed
-parameter be written after initialisation, and saves only the registered variables as FMU
-state. This class closes those holes once, for the plant and the controller FMU alike,
-and installs :mod:`fmu_runtime.exit_guard` against pythonfmu's crash at process exit.
+Why it exists (``docs/fmi-notes.md``): with pythonfmu 0.7 an exception escaping a Python
+callback becomes fmi2Fatal and the C wrapper then releases the Python objects twice, so the
+host process crashes soon after. pythonfmu also accepts NaN inputs, lets a fixed parameter
+be written after initialisation, follows no FMI call sequence, and saves only the
+registered variables as FMU state. This class closes those holes once, for the plant and
+the controller FMU alike, installs :mod:`fmu_runtime.exit_guard` against pythonfmu's crash
+at process exit, and refuses to run another build's code (:mod:`fmu_runtime.provenance`).
 
 What a subclass writes (the whole API)::
 
@@ -18,6 +19,7 @@ What a subclass writes (the whole API)::
             self.register(Real("u", causality=Fmi2Causality.input, start=0.0,
                                variability=Fmi2Variability.continuous,
                                description="..."), unit="N")
+            self.register(Integer("mode", ...), minimum=0, maximum=2)
             ...
 
         def _initialize(self) -> None: ...            # exit_initialization_mode
@@ -28,30 +30,55 @@ What a subclass writes (the whole API)::
 ``_initialize`` and ``_step`` report a problem by raising (any exception): the base class
 catches it, logs the message with ``Fmi2Status.error`` and turns it into a failed
 initialisation or a Discard from ``fmi2DoStep``. ``_step`` must leave the state unchanged
-when it raises (compute, then commit), so a master can retry or roll back.
+when it raises (compute, then commit), so a master can retry or roll back. Files an
+instance reads come from ``self.resources`` (the extraction it was instantiated from),
+never from a location bound when its modules were imported: pythonfmu keeps those
+modules for the life of the process, across extractions a host may delete.
 
-Rules the base enforces (each refusal is logged with the variable, the value and what was
-expected):
+Rules the base enforces (each refusal is logged with status Error, naming the variable or
+call, the value and what was expected):
 
-* A Real written as NaN or +-inf is refused; the old value stays.
+* A Real written as NaN or +-inf is refused; so is a value outside the ``minimum`` /
+  ``maximum`` the variable declares (also written to modelDescription.xml as
+  ``min``/``max``). The old value stays.
 * Inputs and tunable parameters may be written at any time; fixed parameters only before
   ``exit_initialization_mode`` (a later write of the same value is accepted as a no-op);
   outputs, locals and calculated parameters never.
 * pythonfmu's setters cannot return an error status, so a refused write is remembered and
   the next ``do_step`` returns Discard naming it, until the variable is written validly.
-* ``do_step`` before a successful initialisation, after a failed one, or after
-  ``terminate`` returns Discard.
+* The FMI 2.0 call sequence: ``setupExperiment`` and ``enterInitializationMode`` only
+  right after instantiation, ``exitInitializationMode`` only in initialisation mode; a
+  call out of sequence is refused and changes nothing (pythonfmu returns fmi2OK from these
+  functions whatever Python does, so the refusal is the logged Error).
+* ``do_step`` returns Discard (the only non-OK status pythonfmu returns without
+  corrupting the host) before a successful initialisation, after a failed one, after
+  ``terminate``, for a step size that is not a finite number > 0, and for a
+  ``currentCommunicationPoint`` that is not the instance's current time (the start time,
+  then the end of the last step; FMI 2.0, ``fmi2DoStep``), within a relative 1e-9 for the
+  rounding of masters that compute ``t_n = n h``. A refused step changes nothing, so the
+  master may repeat it correctly.
+* Stale code: an instance of a build whose modules another build already imported in
+  this process logs why at instantiation and refuses to initialise and to step.
 * FMU state (``fmi2GetFMUstate``/``fmi2SetFMUstate``, also serialised) holds every
-  registered variable with a setter, the bookkeeping above, and ``_state_snapshot()``; a
-  restored instance continues bit-identically (floats survive JSON exactly).
+  registered variable with a setter, the bookkeeping above (including the time), and
+  ``_state_snapshot()``; a restored instance continues bit-identically (floats survive
+  JSON exactly).
 
 ``fmi2Reset`` in pythonfmu 0.7 does not call Python: it constructs a fresh instance, so a
 subclass's ``__init__`` must do nothing that can fail (assign defaults, register variables;
-load files in ``_initialize``).
+load files in ``_initialize``, or catch).
+
+Logging: ``__init__`` must not log. pythonfmu 0.7 passes a message to the host only at
+the end of the next FMI call, and ``fmi2FreeInstance`` deletes the host's logger before
+it flushes the messages still queued: a message logged during ``fmi2Instantiate`` (or
+``fmi2Reset``) kills a host that frees the instance next ("pure virtual method called").
+A problem found at instantiation is kept and logged by the next call that can refuse
+(``setupExperiment``, ``enterInitializationMode``, then every refusal it causes).
 
 Class attributes the build step reads from ``to_xml`` (build time only): the unit of every
-Real (``register(..., unit=...)``) and ``direct_feedthrough`` (ModelStructure dependencies;
-outputs not listed depend on no input directly).
+Real (``register(..., unit=...)``), the declared ``minimum``/``maximum``, and
+``direct_feedthrough`` (ModelStructure dependencies; outputs not listed depend on no input
+directly).
 """
 
 from __future__ import annotations
@@ -66,12 +93,19 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
 
-from fmu_runtime import exit_guard
+from fmu_runtime import entry, exit_guard, provenance
+from fmu_runtime.variables import attribute_getter, attribute_setter
 
 _WRITE_ANY_TIME = "any time"
 _WRITE_BEFORE_INIT = "before initialisation"
 _READ_ONLY = "never"
-_STATE_VERSION = 1
+_STATE_VERSION = 2
+# FMI 2.0 co-simulation states this class tracks (the names are used in messages)
+_INSTANTIATED = "instantiated"
+_INITIALIZATION = "in initialisation mode"
+_STEPPING = "initialised"
+_TERMINATED = "terminated"
+_TIME_TOLERANCE = 1e-9  # relative; see the module docstring (communication points)
 
 
 class SafeSlave(Fmi2Slave):
@@ -82,21 +116,35 @@ class SafeSlave(Fmi2Slave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         exit_guard.install(self.resources)  # pythonfmu 0.7's crash at process exit
+        self._phase = _INSTANTIATED
+        self._time = 0.0  # s: the start time, then the end of the last step
         self._initialized = False
-        self._terminated = False
         self._failure: str | None = None
         self._problems: dict[str, str] = {}
         self._written: set[str] = set()
         self._access: dict[int, str] = {}
         self._units: dict[str, str] = {}
+        self._bounds: dict[int, tuple[float | None, float | None]] = {}
+        # not logged here: see "Logging" in the module docstring
+        self._failure = _build_problem(self.resources)
+        self._failure_logged = False
 
     # --- what subclasses call / override ---------------------------------------------------
 
-    def register(self, var: ScalarVariable, unit: str | None = None) -> None:
+    def register(
+        self,
+        var: ScalarVariable,
+        unit: str | None = None,
+        minimum: float | None = None,
+        maximum: float | None = None,
+    ) -> None:
         """Register an FMU variable; a Real needs its ``unit``, every variable a description.
+        A Real or Integer may declare an inclusive range: writes outside it are refused,
+        and modelDescription.xml declares it as ``min``/``max``.
 
         Raises (at build time, where pythonfmu constructs the class): ValueError for a
-        missing unit, description or variability, so a runtime instance never has to.
+        missing unit, description or variability, or a range on a Boolean/String, so a
+        runtime instance never has to.
         """
         if not var.description:
             raise ValueError(f"variable {var.name!r}: a description is required")
@@ -104,9 +152,22 @@ class SafeSlave(Fmi2Slave):
             raise ValueError(f"Real variable {var.name!r}: a unit is required")
         if not isinstance(var, Real) and var.variability is None:
             raise ValueError(f"variable {var.name!r}: Integer/Boolean/String need a variability")
+        if (minimum, maximum) != (None, None) and not isinstance(var, Real | Integer):
+            raise ValueError(f"variable {var.name!r}: only Real and Integer take a range")
+        # pythonfmu's defaults, bound weakly: its own close over self (a reference cycle)
+        if var.getter is None:
+            var.getter = attribute_getter(self, var.local_name)
+        if (
+            var.setter is None
+            and hasattr(self, var.local_name)
+            and var.variability != Fmi2Variability.constant
+        ):
+            var.setter = attribute_setter(self, var.local_name)
         self.register_variable(var)
         if unit:
             self._units[var.name] = unit
+        if (minimum, maximum) != (None, None):
+            self._bounds[var.value_reference] = (minimum, maximum)
         if var.causality == Fmi2Causality.input or (
             var.causality == Fmi2Causality.parameter and var.variability == Fmi2Variability.tunable
         ):
@@ -142,14 +203,49 @@ class SafeSlave(Fmi2Slave):
 
     # --- FMI callbacks -----------------------------------------------------------------------
 
-    def setup_experiment(self, *args: Any, **kwargs: Any) -> None:
-        """Accepts pythonfmu's varying signatures; nothing to do."""
+    def setup_experiment(self, start_time: float = 0.0, *args: Any, **kwargs: Any) -> None:
+        """Record the start time (the first communication point); only right after
+        instantiation, and only a finite time."""
+        self._log_failure_once()
+        try:
+            if self._phase != _INSTANTIATED:
+                self._error(
+                    f"setupExperiment refused: the FMU is {self._phase} (FMI 2.0 "
+                    "allows it only between instantiation and initialisation)"
+                )
+            elif not math.isfinite(start_time):
+                self._error(
+                    f"setupExperiment refused: startTime = {start_time!r} s, "
+                    "expected a finite number"
+                )
+            else:
+                self._time = float(start_time)
+        except Exception as exc:
+            self._error(f"setupExperiment failed: {_reason(exc)}")
 
     def enter_initialization_mode(self) -> None:
-        """Nothing to do: parameters are applied in exit_initialization_mode."""
+        """Enter initialisation mode, once, right after instantiation (parameters are
+        applied in exit_initialization_mode)."""
+        self._log_failure_once()
+        if self._phase != _INSTANTIATED:
+            self._error(
+                f"enterInitializationMode refused: the FMU is {self._phase} "
+                "(FMI 2.0 allows it once, right after instantiation)"
+            )
+            return
+        self._phase = _INITIALIZATION
 
     def exit_initialization_mode(self) -> None:
+        if self._phase != _INITIALIZATION:
+            self._error(
+                f"exitInitializationMode refused: the FMU is {self._phase}, not in "
+                "initialisation mode (call enterInitializationMode first)"
+            )
+            return
+        self._phase = _STEPPING
         try:
+            if self._failure is not None:
+                raise ValueError(self._failure)
             if self._problems:
                 raise ValueError("; ".join(self._problems.values()))
             self._initialize()
@@ -160,11 +256,12 @@ class SafeSlave(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         try:
-            refusal = self._step_refusal(step_size)
+            refusal = self._step_refusal(current_time, step_size)
             if refusal is not None:
                 self._error(f"doStep at t = {current_time!r} s refused: {refusal}")
                 return False
             self._step(current_time, step_size)
+            self._time = current_time + step_size
             return True
         except Exception as exc:
             self._error(
@@ -173,7 +270,7 @@ class SafeSlave(Fmi2Slave):
             return False
 
     def terminate(self) -> None:
-        self._terminated = True
+        self._phase = _TERMINATED
 
     def get_real(self, vrs: list[int]) -> list[float]:
         return [self._get(vr, Real, float, 0.0) for vr in vrs]
@@ -208,8 +305,9 @@ class SafeSlave(Fmi2Slave):
                     var.name: var.getter() for var in self.vars.values() if var.setter is not None
                 },
                 "base": {
+                    "phase": self._phase,
+                    "time": self._time,
                     "initialized": self._initialized,
-                    "terminated": self._terminated,
                     "failure": self._failure,
                     "problems": dict(self._problems),
                     "written": sorted(self._written),
@@ -239,8 +337,9 @@ class SafeSlave(Fmi2Slave):
             for name, value in state["variables"].items():
                 by_name[name].setter(value)
             base = state["base"]
+            self._phase = base["phase"]
+            self._time = base["time"]
             self._initialized = base["initialized"]
-            self._terminated = base["terminated"]
             self._failure = base["failure"]
             self._problems = dict(base["problems"])
             self._written = set(base["written"])
@@ -276,6 +375,10 @@ class SafeSlave(Fmi2Slave):
             real = node.find("Real")
             if unit and real is not None:
                 real.set("unit", unit)
+            bounds = self._bounds.get(int(node.get("valueReference")), (None, None))
+            for attribute, value in zip(("min", "max"), bounds, strict=True):
+                if value is not None:  # node[0]: the <Real>/<Integer> element
+                    node[0].set(attribute, repr(value))
         outputs = root.find("ModelStructure/Outputs")
         inputs = {v.name for v in self.vars.values() if v.causality == Fmi2Causality.input}
         names = {i: name for name, i in index.items()}
@@ -294,17 +397,25 @@ class SafeSlave(Fmi2Slave):
 
     # --- internals ---------------------------------------------------------------------------
 
-    def _step_refusal(self, step_size: float) -> str | None:
+    def _step_refusal(self, current_time: float, step_size: float) -> str | None:
         if self._failure is not None:
             return self._failure
+        if self._phase == _TERMINATED:
+            return "the FMU is terminated"
         if not self._initialized:
             return "the FMU is not initialised (call exitInitializationMode first)"
-        if self._terminated:
-            return "the FMU is terminated"
         if self._problems:
             return "; ".join(self._problems.values())
         if not (math.isfinite(step_size) and step_size > 0.0):
             return f"communication step {step_size!r} s: expected a finite number > 0"
+        if not (
+            math.isfinite(current_time)
+            and abs(current_time - self._time) <= _TIME_TOLERANCE * max(1.0, abs(self._time))
+        ):
+            return (
+                f"currentCommunicationPoint = {current_time!r} s is not the FMU's current "
+                f"time {self._time!r} s (the start time or the end of the last step)"
+            )
         return None
 
     def _get(self, vr: int, kind: type, convert: type, fallback: Any) -> Any:
@@ -338,6 +449,8 @@ class SafeSlave(Fmi2Slave):
             refusal = f"{name} is a {type(var).__name__}, not a {kind.__name__}"
         elif kind is Real and not math.isfinite(value):
             refusal = f"{name} = {value!r} refused: expected a finite number"
+        elif not _within(value, self._bounds.get(vr, (None, None))):
+            refusal = f"{name} = {value!r} refused: expected {_range(name, self._bounds[vr])}"
         else:
             access = self._access[vr]
             if access == _WRITE_ANY_TIME or (
@@ -359,6 +472,12 @@ class SafeSlave(Fmi2Slave):
         self._problems[name] = refusal
         self._error(refusal)
 
+    def _log_failure_once(self) -> None:
+        """Log a failure found at instantiation (stale code) at the first call after it."""
+        if self._failure is not None and not self._failure_logged:
+            self._failure_logged = True
+            self._error(self._failure)
+
     def log(
         self,
         msg: str,
@@ -373,6 +492,31 @@ class SafeSlave(Fmi2Slave):
 
     def _error(self, message: str) -> None:
         self.log(message, Fmi2Status.error)
+
+
+def _build_problem(resources: str | None) -> str | None:
+    """Why this instance must not run (another build's code is imported), or None.
+    Also removes pythonfmu's ``sys.path`` entry for an FMU's extraction."""
+    try:
+        build = provenance.read_build(resources)
+        if build is None:  # constructed in-process or by pythonfmu's builder
+            return None
+        entry.release_search_path(resources)
+        return provenance.stale_code(build)
+    except Exception as exc:
+        return f"cannot check which build this FMU's code comes from: {_reason(exc)}"
+
+
+def _within(value: float, bounds: tuple[float | None, float | None]) -> bool:
+    minimum, maximum = bounds
+    return (minimum is None or value >= minimum) and (maximum is None or value <= maximum)
+
+
+def _range(name: str, bounds: tuple[float | None, float | None]) -> str:
+    minimum, maximum = bounds
+    parts = [f"{minimum!r} <=" if minimum is not None else "", name]
+    parts.append(f"<= {maximum!r}" if maximum is not None else "")
+    return " ".join(part for part in parts if part)
 
 
 def _reason(exc: BaseException) -> str:

@@ -1,7 +1,9 @@
 """AuvPlant: the REMUS 100 with internal actuators as an FMI 2.0 co-simulation slave.
 
-The pythonfmu script of ``AuvPlant.fmu`` (modelIdentifier ``AuvPlant``): FMI variables on
-one side, :class:`plant_fmu.model.dynamics.PlantModel` and :func:`plant_fmu.model.stepping.advance`
+The slave class of ``AuvPlant.fmu`` (modelIdentifier ``AuvPlant``; the build ships this
+module in ``plant_fmu`` and a generated pythonfmu entry module that imports the class, see
+:mod:`fmu_runtime.entry`): FMI variables on one side,
+:class:`plant_fmu.model.dynamics.PlantModel` and :func:`plant_fmu.model.stepping.advance`
 on the other. No physics lives here.
 
 Variables (``docs/interfaces.md#auvplant`` lists every one):
@@ -16,10 +18,12 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   values (all 0) are the outputs for the default parameters (the vehicle at rest);
 * parameters (fixed): the initial state ``north_0`` ... ``r_0``, ``mass_position_0``,
   ``mass_velocity_0`` (default 0), ``variant`` (0 full 6-DOF, 1 lateral (6.3.13),
-  2 horizontal (5.1.30)), ``ideal_fluid``, ``vehicle`` (a built-in set name or a .toml
-  path), ``current_shear_dUdy`` (1/s), ``max_substep`` (s, longest internal RK4 step),
-  and every field of :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``,
-  ``a22``, ``X_uu``, ``m_v``, ...), unit and description from its pydantic Field.
+  2 horizontal (5.1.30); a write outside 0..2 is refused), ``ideal_fluid``, ``vehicle``
+  (a built-in set name, read from this instance's ``resources/``, or a .toml path),
+  ``current_shear_dUdy`` (1/s), ``max_substep`` (s, longest internal RK4 step), and every
+  field of :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``, ``a22``,
+  ``X_uu``, ``m_v``, ...), unit, description and range (``min``/``max``) from its
+  pydantic Field.
 
 Physical parameters: ``vehicle`` picks the base set; each physical parameter the importer
 writes overrides it; the result is validated as a whole (``VehicleParameters.replace``).
@@ -34,6 +38,7 @@ applied at the start of the next step; inputs are held over each step.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -42,6 +47,7 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variabil
 from pythonfmu.variables import Boolean, Integer, Real, String
 
 from fmu_runtime.safe_slave import SafeSlave
+from fmu_runtime.variables import field_bounds, item_getter, item_setter
 from plant_fmu.model.dynamics import (
     INPUT_NAMES,
     INPUT_UNITS,
@@ -52,7 +58,7 @@ from plant_fmu.model.dynamics import (
     PlantModel,
     Variant,
 )
-from plant_fmu.model.parameters import VehicleParameters, load_vehicle
+from plant_fmu.model.parameters import VehicleParameters, load_vehicle, vehicle_folder
 from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance
 
 INPUT_DESCRIPTIONS: dict[str, str] = {
@@ -111,14 +117,15 @@ class AuvPlant(SafeSlave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        self._vehicles = vehicle_folder(self.resources)  # this extraction's data
         self._inputs = np.array([INPUT_STARTS.get(name, 0.0) for name in INPUT_NAMES])
         self._initial_state = np.zeros(N_STATES)
-        self._x = np.zeros(N_STATES)
+        self._x = np.zeros(N_STATES)  # updated in place: the output getters hold it
         self._derived = [0.0, 0.0, 0.0, 0.0]  # u_rel, v_rel, w_rel, kinetic_energy
         self._last_current = self._inputs[5:8].tolist()
         self._model: PlantModel | None = None
         self._model_key: tuple | None = None
-        self._physical = _default_physical_parameters()
+        self._physical = _default_physical_parameters(self._vehicles)
         self.variant = int(Variant.FULL)
         self.ideal_fluid = False
         self.vehicle = "remus100"
@@ -137,8 +144,8 @@ class AuvPlant(SafeSlave):
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
                     description=INPUT_DESCRIPTIONS[name],
-                    getter=_item_getter(self._inputs, i),
-                    setter=_item_setter(self._inputs, i),
+                    getter=item_getter(self._inputs, i),
+                    setter=item_setter(self._inputs, i),
                 ),
                 unit=unit,
             )
@@ -152,7 +159,7 @@ class AuvPlant(SafeSlave):
                 Real(
                     name,
                     description=STATE_DESCRIPTIONS[name],
-                    getter=self._state_getter(i),
+                    getter=item_getter(self._x, i),
                     **output,
                 ),
                 unit=unit,
@@ -163,7 +170,7 @@ class AuvPlant(SafeSlave):
                 Real(
                     name,
                     description=f"{axis} relative to the water, {axis} - (R^T V_c)_{axis}",
-                    getter=_item_getter(self._derived, i),
+                    getter=item_getter(self._derived, i),
                     **output,
                 ),
                 unit="m/s",
@@ -172,7 +179,7 @@ class AuvPlant(SafeSlave):
             Real(
                 "kinetic_energy",
                 description="kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r",
-                getter=_item_getter(self._derived, 3),
+                getter=item_getter(self._derived, 3),
                 **output,
             ),
             unit="J",
@@ -182,8 +189,8 @@ class AuvPlant(SafeSlave):
                 Real(
                     f"{name}_0",
                     description=f"initial {STATE_DESCRIPTIONS[name]}",
-                    getter=_item_getter(self._initial_state, i),
-                    setter=_item_setter(self._initial_state, i),
+                    getter=item_getter(self._initial_state, i),
+                    setter=item_setter(self._initial_state, i),
                     **fixed,
                 ),
                 unit=unit,
@@ -194,7 +201,9 @@ class AuvPlant(SafeSlave):
                 description="0 full 6-DOF, 1 lateral u-v-r-p-phi-psi (6.3.13), "
                 "2 horizontal u-v-r-psi (5.1.30)",
                 **fixed,
-            )
+            ),
+            minimum=int(min(Variant)),
+            maximum=int(max(Variant)),
         )
         self.register(
             Boolean("ideal_fluid", description="drop the viscous terms (Thm 5.1)", **fixed)
@@ -211,23 +220,25 @@ class AuvPlant(SafeSlave):
             unit="1/s",
         )
         self.register(
-            Real("max_substep", description="longest internal RK4 step", **fixed), unit="s"
+            Real("max_substep", description="longest internal RK4 step (> 0)", **fixed),
+            unit="s",
+            minimum=0.0,
         )
         for name in PHYSICAL_PARAMETERS:
             unit, description = field_unit_and_description(name)
+            minimum, maximum = field_bounds(VehicleParameters.model_fields[name])
             self.register(
                 Real(
                     name,
                     description=description,
-                    getter=_key_getter(self._physical, name),
-                    setter=_key_setter(self._physical, name),
+                    getter=item_getter(self._physical, name),
+                    setter=item_setter(self._physical, name),
                     **fixed,
                 ),
                 unit=unit,
+                minimum=minimum,
+                maximum=maximum,
             )
-
-    def _state_getter(self, i: int):
-        return lambda: self._x[i]
 
     # --- SafeSlave hooks ---------------------------------------------------------------------
 
@@ -250,7 +261,7 @@ class AuvPlant(SafeSlave):
                 f"{', '.join(frozen)} at 0: their initial values are ignored",
                 Fmi2Status.warning,
             )
-        self._x = model.project(x)
+        self._x[:] = model.project(x)
         self._last_current = self._inputs[5:8].tolist()
         self._refresh_outputs()
 
@@ -264,7 +275,7 @@ class AuvPlant(SafeSlave):
             change = np.subtract(current, self._last_current)
             x[6:12] += model.current_change_velocity_jump(x, change)
         x = advance(model, x, inputs, step_size, self.max_substep)
-        self._x = x
+        self._x[:] = x
         self._last_current = current
         self._refresh_outputs(inputs)
 
@@ -278,7 +289,7 @@ class AuvPlant(SafeSlave):
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
         if self.initialized and self._model_key != self._parameter_key():
             self._build_model()
-        self._x = np.array(snapshot["x"], dtype=float)
+        self._x[:] = snapshot["x"]
         self._last_current = [float(c) for c in snapshot["last_current"]]
         self._derived[:] = snapshot["derived"]
 
@@ -294,7 +305,7 @@ class AuvPlant(SafeSlave):
             )
         if not self.max_substep > 0.0:
             raise ValueError(f"max_substep = {self.max_substep!r} s: expected a number > 0")
-        base = load_vehicle(self.vehicle)
+        base = load_vehicle(self.vehicle, folder=self._vehicles)
         overrides = {n: self._physical[n] for n in PHYSICAL_PARAMETERS if self.was_written(n)}
         params = base.replace(**overrides) if overrides else base
         model = PlantModel(
@@ -326,33 +337,11 @@ class AuvPlant(SafeSlave):
         self._derived[3] = self._model.kinetic_energy(self._x, inputs)
 
 
-def _default_physical_parameters() -> dict[str, float]:
-    """The remus100 values (the parameters' start values); NaN if the set cannot be read,
-    which the getter reports and initialisation then explains."""
+def _default_physical_parameters(folder: Path) -> dict[str, float]:
+    """The remus100 values in ``folder`` (the parameters' start values); NaN if the set
+    cannot be read, which the getter reports and initialisation then explains."""
     try:
-        params = load_vehicle("remus100")
+        params = load_vehicle("remus100", folder=folder)
         return {name: float(getattr(params, name)) for name in PHYSICAL_PARAMETERS}
     except Exception:
         return dict.fromkeys(PHYSICAL_PARAMETERS, float("nan"))
-
-
-def _item_getter(values, i: int):
-    return lambda: values[i]
-
-
-def _item_setter(values, i: int):
-    def setter(value: float) -> None:
-        values[i] = value
-
-    return setter
-
-
-def _key_getter(values: dict[str, float], key: str):
-    return lambda: values[key]
-
-
-def _key_setter(values: dict[str, float], key: str):
-    def setter(value: float) -> None:
-        values[key] = value
-
-    return setter

@@ -94,6 +94,7 @@ def direct_class(steps: int) -> float:
     plant = AuvPlant(instance_name="bench")
     refs = {v.name: vr for vr, v in plant.vars.items()}
     outputs = [vr for vr, v in plant.vars.items() if v.causality.name == "output"]
+    plant.enter_initialization_mode()
     plant.set_real([refs[f"{n}_0"] for n in START], list(START.values()))
     plant.exit_initialization_mode()
     input_refs = [refs[n] for n in INPUT_NAMES]

@@ -13,14 +13,11 @@ from __future__ import annotations
 
 import math
 import tomllib
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
-
-_VEHICLE_FOLDER = resources.files("plant_fmu.model") / "vehicles"
 
 
 class VehicleParameterError(ValueError):
@@ -132,29 +129,47 @@ class VehicleParameters(BaseModel):
         return _validate({**self.model_dump(), **changes}, source=f"{self.name} (modified)")
 
 
-def builtin_vehicles() -> list[str]:
-    """Names of the parameter sets shipped in ``plant_fmu/model/vehicles``."""
-    return sorted(
-        p.name.removesuffix(".toml") for p in _VEHICLE_FOLDER.iterdir() if p.name.endswith(".toml")
-    )
+def vehicle_folder(package_root: str | Path | None = None) -> Path:
+    """The folder of the built-in parameter sets (``plant_fmu/model/vehicles``).
+
+    ``package_root`` is a folder holding the ``plant_fmu`` package, such as an FMU's
+    ``resources/``; without it, the folder beside this module. Resolved at each call,
+    never at import: an FMU's modules stay imported across extractions, so an FMU instance
+    passes the resources folder it was instantiated with.
+    """
+    if package_root is None:
+        return Path(__file__).resolve().parent / "vehicles"
+    return Path(package_root, *__name__.split(".")[:-1], "vehicles")
 
 
-def load_vehicle(name_or_path: str | Path = "remus100") -> VehicleParameters:
-    """Load a built-in set by name (``remus100``) or a TOML file by path."""
-    return _validate(_read_table(str(name_or_path), seen=()), source=str(name_or_path))
+def builtin_vehicles(folder: Path | None = None) -> list[str]:
+    """Names of the parameter sets in ``folder`` (default :func:`vehicle_folder`)."""
+    folder = vehicle_folder() if folder is None else folder
+    return sorted(p.name.removesuffix(".toml") for p in folder.glob("*.toml"))
 
 
-def _read_table(name_or_path: str, seen: tuple[str, ...]) -> dict[str, Any]:
+def load_vehicle(
+    name_or_path: str | Path = "remus100", folder: Path | None = None
+) -> VehicleParameters:
+    """Load a built-in set by name (``remus100``, from ``folder``, default
+    :func:`vehicle_folder`) or a TOML file by path."""
+    folder = vehicle_folder() if folder is None else folder
+    table = _read_table(str(name_or_path), seen=(), folder=folder)
+    return _validate(table, source=str(name_or_path))
+
+
+def _read_table(name_or_path: str, seen: tuple[str, ...], folder: Path) -> dict[str, Any]:
     if name_or_path in seen:
         raise VehicleParameterError(f"vehicle 'base' chain loops: {' -> '.join(seen)}")
     path = Path(name_or_path)
-    if name_or_path in builtin_vehicles():
-        text = _VEHICLE_FOLDER.joinpath(f"{name_or_path}.toml").read_text()
+    builtin = builtin_vehicles(folder)
+    if name_or_path in builtin:
+        text = folder.joinpath(f"{name_or_path}.toml").read_text()
     elif path.suffix == ".toml" and path.is_file():
         text = path.read_text()
     else:
         raise VehicleParameterError(
-            f"unknown vehicle {name_or_path!r}: expected one of {builtin_vehicles()} "
+            f"unknown vehicle {name_or_path!r}: expected one of {builtin} "
             "or the path of an existing .toml file"
         )
     try:
@@ -167,7 +182,7 @@ def _read_table(name_or_path: str, seen: tuple[str, ...]) -> dict[str, Any]:
     base = flat.pop("base", None)
     if base is None:
         return flat
-    return {**_read_table(str(base), seen=(*seen, name_or_path)), **flat}
+    return {**_read_table(str(base), seen=(*seen, name_or_path), folder=folder), **flat}
 
 
 def _flatten(table: dict[str, Any], source: str) -> dict[str, Any]:

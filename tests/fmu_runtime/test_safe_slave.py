@@ -3,12 +3,14 @@ callback raises, bad writes are refused and reported, FMU state round-trips exac
 
 from __future__ import annotations
 
+import gc
 import math
+import weakref
 from typing import ClassVar
 
 import pytest
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
-from pythonfmu.variables import Integer, Real
+from pythonfmu.variables import Boolean, Integer, Real
 
 from fmu_runtime.safe_slave import SafeSlave
 
@@ -87,11 +89,16 @@ def _errors(slave: SafeSlave) -> str:
     return "\n".join(m.msg for m in slave.log_queue if m.status >= Fmi2Status.error)
 
 
-@pytest.fixture
-def slave() -> Counter:
-    counter = Counter(instance_name="toy")
+def _initialise(counter: Counter, start_time: float = 0.0) -> Counter:
+    counter.setup_experiment(start_time, None, None)
+    counter.enter_initialization_mode()
     counter.exit_initialization_mode()
     return counter
+
+
+@pytest.fixture
+def slave() -> Counter:
+    return _initialise(Counter(instance_name="toy"))
 
 
 def test_step_before_initialisation_is_refused():
@@ -160,6 +167,7 @@ def test_failing_step_is_discarded_and_leaves_the_state(slave):
 
 def test_failed_initialisation_is_reported_and_blocks_stepping():
     counter = Counter(instance_name="toy")
+    counter.enter_initialization_mode()
     counter.set_real([_vr(counter, "k")], [-1.0])
     counter.exit_initialization_mode()
     assert counter.do_step(0.0, 0.1) is False
@@ -234,3 +242,105 @@ def test_description_has_units_and_declared_dependencies(monkeypatch):
     monkeypatch.setattr(Counter, "direct_feedthrough", {"y": ("k",)})
     with pytest.raises(ValueError, match="non-inputs"):
         counter.to_xml()
+
+
+# --- FMI 2.0 call sequence, communication points, ranges (issue 12) ---------------------------
+
+
+class Moded(Counter):
+    """Counter with a bounded Integer and a bounded Real parameter."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.mode = 0
+        self.rate = 1.0
+        fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
+        self.register(Integer("mode", description="0..2", **fixed), minimum=0, maximum=2)
+        self.register(Real("rate", description="> 0", **fixed), unit="1/s", minimum=0.0)
+
+
+def test_step_at_another_communication_point_is_refused_and_changes_nothing(slave):
+    assert slave.do_step(0.0, 0.1) is True
+    assert slave.do_step(0.0, 0.1) is False  # the FMU's time is 0.1 s now
+    assert slave.do_step(0.25, 0.1) is False
+    assert "currentCommunicationPoint = 0.25 s is not the FMU's current time 0.1 s" in _errors(
+        slave
+    )
+    assert (slave.steps, slave.y) == (1, pytest.approx(0.2))
+    assert slave.do_step(0.1, 0.1) is True  # the right point afterwards works
+    assert slave.do_step(0.2, 0.1) is True  # the FMU is at 0.2 + 0.1 = 0.30000000000000004 s
+    assert slave.do_step(0.3, 0.1) is True  # a master's t_3 = 0.3: rounding is accepted
+    assert slave.steps == 4
+
+
+def test_first_communication_point_is_the_start_time():
+    counter = _initialise(Counter(instance_name="toy"), start_time=5.0)
+    assert counter.do_step(0.0, 0.1) is False
+    assert "not the FMU's current time 5.0 s" in _errors(counter)
+    assert counter.do_step(5.0, 0.1) is True
+
+
+def test_restored_state_restores_the_time(slave):
+    slave.do_step(0.0, 0.1)
+    state = slave._get_fmu_state()
+    slave.do_step(0.1, 0.1)
+    slave._set_fmu_state(state)
+    assert slave.do_step(0.2, 0.1) is False
+    assert slave.do_step(0.1, 0.1) is True
+
+
+def test_initialisation_mode_is_entered_once_and_left_once():
+    counter = Counter(instance_name="toy")
+    counter.exit_initialization_mode()  # without enter: refused, nothing happens
+    assert not counter.initialized
+    counter.enter_initialization_mode()
+    counter.enter_initialization_mode()  # twice: refused, still in initialisation mode
+    counter.set_real([_vr(counter, "k")], [3.0])  # a fixed parameter: still writable
+    counter.exit_initialization_mode()
+    assert counter.initialized and counter.k == 3.0
+    counter.exit_initialization_mode()  # again: refused, stays initialised
+    counter.setup_experiment(1.0, None, None)  # too late: refused, the time stays 0
+    errors = _errors(counter)
+    assert "exitInitializationMode refused: the FMU is instantiated" in errors
+    assert "enterInitializationMode refused: the FMU is in initialisation mode" in errors
+    assert "exitInitializationMode refused: the FMU is initialised" in errors
+    assert "setupExperiment refused: the FMU is initialised" in errors
+    assert counter.do_step(0.0, 0.1) is True
+
+
+def test_values_outside_the_declared_range_are_refused_and_declared():
+    moded = Moded(instance_name="toy")
+    moded.enter_initialization_mode()
+    moded.set_integer([_vr(moded, "mode")], [7])
+    moded.set_real([_vr(moded, "rate")], [-1.0])
+    assert (moded.mode, moded.rate) == (0, 1.0)
+    errors = _errors(moded)
+    assert "mode = 7 refused: expected 0 <= mode <= 2" in errors
+    assert "rate = -1.0 refused: expected 0.0 <= rate" in errors
+    moded.set_integer([_vr(moded, "mode")], [2])  # a valid value clears the refusal
+    moded.set_real([_vr(moded, "rate")], [0.5])
+    moded.exit_initialization_mode()
+    assert moded.initialized and moded.do_step(0.0, 0.1) is True
+    declared = {
+        v.get("name"): (v[0].get("min"), v[0].get("max"))
+        for v in moded.to_xml().iter("ScalarVariable")
+    }
+    assert declared["mode"] == ("0", "2") and declared["rate"] == ("0.0", None)
+    assert declared["k"] == (None, None)
+    with pytest.raises(ValueError, match="only Real and Integer take a range"):
+        moded.register(Boolean("b", description="b", causality=Fmi2Causality.input,
+                               variability=Fmi2Variability.discrete), minimum=0)  # fmt: skip
+
+
+def test_a_freed_instance_is_released_at_once_without_the_garbage_collector():
+    """No reference cycle through the variables' getters and setters: pythonfmu's default
+    ones close over the slave, which left every freed instance to the cyclic collector."""
+    counter = _initialise(Counter(instance_name="toy"))
+    counter.do_step(0.0, 0.1)
+    gone = weakref.ref(counter)
+    gc.disable()
+    try:
+        del counter
+        assert gone() is None
+    finally:
+        gc.enable()
