@@ -50,6 +50,7 @@ initialisation with the reason logged, and every later doStep returns Discard.
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 from typing import Any
 
 from pythonfmu.default_experiment import DefaultExperiment
@@ -67,6 +68,7 @@ from controller_fmu.autopilot import (
     Commands,
     field_unit,
 )
+from controller_fmu.modes import DepthMode, HeadingMode
 from fmu_runtime.safe_slave import SafeSlave
 from fmu_runtime.variables import field_bounds, item_getter, item_setter
 from plant_fmu.model.parameters import vehicle_folder
@@ -96,6 +98,8 @@ OUTPUT_DESCRIPTIONS: dict[str, str] = {
     "thrust": "propeller thrust (the thrust_command parameter)",
 }
 _DEFAULTS = AutopilotConfig()
+# Integer parameters that choose among numbered modes: their FMI range (min/max)
+_MODES: dict[str, type[IntEnum]] = {"heading_mode": HeadingMode, "depth_mode": DepthMode}
 
 
 class AuvAutopilot(SafeSlave):
@@ -152,7 +156,10 @@ class AuvAutopilot(SafeSlave):
                 setter=item_setter(self._params, name),
                 **fixed,
             )
-            minimum, maximum = field_bounds(field) if kind in (Integer, Real) else (None, None)
+            if name in _MODES:
+                minimum, maximum = int(min(_MODES[name])), int(max(_MODES[name]))
+            else:
+                minimum, maximum = field_bounds(field) if kind is Real else (None, None)
             self.register(
                 variable,
                 unit=field_unit(name) if kind is Real else None,

@@ -21,30 +21,47 @@ fault). The build (:mod:`cosim.fmus.build`) therefore writes a generated entry m
 re-executes an import of a cached module, which creates nothing) and gives its namespace
 back the reference step 4 takes away (:func:`hold_namespace`). :func:`release_search_path`
 removes step 1's entry once the instance exists.
+
+Because the modules outlive the extraction they were imported from, which a host may
+delete after freeing the instance, the entry also imports every module of the packages
+the FMU ships at once (:func:`import_packages`): a second FMU sharing a package (the
+autopilot ships ``plant_fmu`` too) then finds every module it needs already imported,
+instead of looking for one in a deleted folder.
 """
 
 from __future__ import annotations
 
 import ctypes
+import importlib
+import pkgutil
 import sys
+from collections.abc import Iterable
 from pathlib import Path
+from types import ModuleType
 
 _ENTRY = '''"""pythonfmu entry module of {fmu}.fmu, written by the build.
 
-It defines nothing and binds the slave class by import: see fmu_runtime/entry.py.
+It defines nothing: it imports the shipped packages whole and binds the slave class by
+import (see fmu_runtime/entry.py).
 """
 
-from fmu_runtime.entry import hold_namespace
+from fmu_runtime.entry import hold_namespace, import_packages
 
 hold_namespace(globals())
+import_packages({packages!r})
 
 from {module} import {cls}  # noqa: E402
 '''
 
+# Process-wide by nature, like sys.modules: package name -> the package object whose
+# modules import_packages has imported.
+_imported: dict[str, ModuleType] = {}
 
-def entry_source(fmu: str, module: str, cls: str) -> str:
-    """The text of the entry module of FMU ``fmu`` whose slave class is ``module.cls``."""
-    return _ENTRY.format(fmu=fmu, module=module, cls=cls)
+
+def entry_source(fmu: str, module: str, cls: str, packages: Iterable[str]) -> str:
+    """The text of the entry module of FMU ``fmu`` whose slave class is ``module.cls`` and
+    which ships ``packages``."""
+    return _ENTRY.format(fmu=fmu, module=module, cls=cls, packages=tuple(packages))
 
 
 def hold_namespace(namespace: dict) -> None:
@@ -56,6 +73,18 @@ def hold_namespace(namespace: dict) -> None:
     namespace (compiled extensions such as numpy's need it too).
     """
     ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
+
+
+def import_packages(names: Iterable[str]) -> None:
+    """Import every module of the packages ``names`` (once per package object), while the
+    folder they are imported from exists."""
+    for name in names:
+        package = importlib.import_module(name)
+        if _imported.get(name) is package:
+            continue
+        for info in pkgutil.walk_packages(package.__path__, prefix=f"{name}."):
+            importlib.import_module(info.name)
+        _imported[name] = package
 
 
 def release_search_path(resources: str | Path) -> bool:

@@ -6,6 +6,7 @@ subprocesses (put this folder on ``sys.path`` first).
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Iterable
 from ctypes import byref
 from pathlib import Path
@@ -31,11 +32,18 @@ class Harness:
     """One FMU instance through fmpy, with its log messages in ``self.log``.
 
     ``Harness(path, instance="plant", **values)`` instantiates (logging on), enters
-    initialisation mode, writes ``values`` by name and exits initialisation mode.
+    initialisation mode, writes ``values`` by name and exits initialisation mode; with
+    ``initialize=False`` it only instantiates. Without ``unzip_dir`` it extracts the FMU
+    into a folder of its own, which ``close`` deletes.
     """
 
     def __init__(
-        self, path: Path | str, instance: str = "plant", unzip_dir: str | None = None, **values
+        self,
+        path: Path | str,
+        instance: str = "plant",
+        unzip_dir: str | None = None,
+        initialize: bool = True,
+        **values,
     ) -> None:
         md = read_model_description(str(path))
         self.variables = {v.name: v for v in md.modelVariables}
@@ -45,15 +53,17 @@ class Harness:
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         addLoggerProxy(byref(self._callbacks))
+        self._own_dir = None if unzip_dir else extract(str(path))
         self.slave = FMU2Slave(
             guid=md.guid,
-            unzipDirectory=unzip_dir or extract(str(path)),
+            unzipDirectory=unzip_dir or self._own_dir,
             modelIdentifier=md.coSimulation.modelIdentifier,
             instanceName=instance,
         )
         self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
         self.time = 0.0
-        self.initialize(**values)
+        if initialize:
+            self.initialize(**values)
 
     def initialize(self, **values) -> None:
         self.slave.setupExperiment(startTime=0.0)
@@ -81,13 +91,15 @@ class Harness:
     def get_all(self, names: Iterable[str]) -> np.ndarray:
         return np.array(self.slave.getReal([self.variables[n].valueReference for n in names]))
 
-    def step(self, h: float) -> int:
-        """One doStep of h seconds; the FMI status (0 OK, 2 Discard, ...)."""
+    def step(self, h: float, at: float | None = None) -> int:
+        """One doStep of h seconds from ``self.time`` (or the communication point ``at``);
+        the FMI status (0 OK, 2 Discard, ...). On success ``self.time`` is the step's end."""
+        t = self.time if at is None else at
         try:
-            self.slave.doStep(self.time, h)
+            self.slave.doStep(t, h)
         except FMICallException as exc:
             return exc.status
-        self.time += h
+        self.time = t + h
         return STATUS_OK
 
     def run(self, duration: float, h: float, names: Iterable[str]) -> np.ndarray:
@@ -103,3 +115,5 @@ class Harness:
     def close(self) -> None:
         self.slave.terminate()
         self.slave.freeInstance()
+        if self._own_dir is not None:
+            shutil.rmtree(self._own_dir, ignore_errors=True)

@@ -83,11 +83,14 @@ def main(job_file: str) -> int:
         if tool == "libcosim":
             import libcosimpy.CosimExecution  # noqa: F401
         else:
+            from cosim.export.ecos_support import preload_tbb
+
+            preload_tbb()  # libtbb.so.12 from the pip package tbb, where installed
             import ecospy  # noqa: F401
     except ImportError as exc:  # a pip package of the test extra: install it, no skip
         print(f"{tool}: {exc}; install the test extra: pip install '.[test]'", file=sys.stderr)
         return 1
-    except OSError as exc:  # a system library it needs (ecos: Debian's libtbb12) is missing
+    except OSError as exc:  # a library it needs (ecos: TBB, from pip or apt) is missing
         print(f"{tool} cannot be loaded here: {exc}", file=sys.stderr)
         return UNAVAILABLE
     rows = run_libcosim(job) if tool == "libcosim" else run_ecos(job)

@@ -2,9 +2,10 @@
 
 The page is generated from the FMU's own ``modelDescription.xml`` (read with fmpy), so it
 can never disagree with the variables the FMU declares: what the model is, its default
-experiment, and one table per causality (inputs, outputs, parameters) with type, unit,
-start value and description, followed by the references. Only the short "what it models"
-paragraph per model identifier is written here by hand (:data:`ABOUT`).
+experiment, one table per causality (inputs, outputs, parameters) with type, unit, start
+value, declared range and description, what a host may and may not do with the FMU
+(:data:`HOSTING`, the same for both), and the references. Only the short "what it
+models" paragraph per model identifier is written here by hand (:data:`ABOUT`).
 
 ``add_documentation(fmu)`` adds or replaces the page in a built FMU;
 ``documentation_html(fmu)`` returns it. (pythonfmu's ``build --doc FOLDER`` would copy a
@@ -51,6 +52,34 @@ ABOUT: dict[str, str] = {
     ),
 }
 
+HOSTING = (
+    "<h2>What a host may and may not do</h2><ul>"
+    "<li><b>Python.</b> The binary embeds CPython and runs the Python code in "
+    "<code>resources/</code>; numpy, scipy, pydantic and pythonfmu come from the host "
+    "process's Python environment. A non-Python host preloads that environment's "
+    "<code>libpython</code> and puts its <code>site-packages</code> on "
+    "<code>PYTHONPATH</code>.</li>"
+    "<li><b>Load, reload, free.</b> Any number of instances, at once or one after "
+    "another, from one extraction or a fresh extraction each time; each instance reads "
+    "its data from its own extraction. An instance may be freed at any time and its "
+    "extraction deleted afterwards. An instantiate/free cycle keeps about 1&nbsp;KiB.</li>"
+    "<li><b>One build per process.</b> The FMU's Python modules stay imported for the "
+    "life of the process, so an instance of another build (other sources) loaded after "
+    "this one would run this one's code: it logs <code>stale code</code> and refuses to "
+    "initialise and to step. Load another build in a new process; a rebuild of the same "
+    "sources is the same code and runs.</li>"
+    "<li><b>FMI 2.0 call sequence.</b> <code>fmi2SetupExperiment</code> and "
+    "<code>fmi2EnterInitializationMode</code> once after instantiation, "
+    "<code>fmi2ExitInitializationMode</code> once after that, <code>fmi2DoStep</code> from "
+    "the start time and each where the previous step ended (to a relative 1e-9), values "
+    "within their declared range and finite. Anything else is refused with an Error logged "
+    "and changes nothing; the functions other than <code>fmi2DoStep</code> return fmi2OK "
+    "even then (a pythonfmu limit: read the log), a refused <code>fmi2DoStep</code> "
+    "returns fmi2Discard and may be repeated correctly.</li>"
+    "<li><b>Process exit.</b> The pythonfmu 0.7 wrapper's crash at process exit is "
+    "defused by the FMU itself.</li></ul>"
+)
+
 _SECTIONS = (
     ("Inputs", ("input",)),
     ("Outputs", ("output",)),
@@ -88,6 +117,7 @@ def documentation_html(fmu: str | os.PathLike[str]) -> str:
             parts.append(f"<h2>{title} ({len(variables)})</h2>")
             parts.append(_table(variables))
     parts += [
+        HOSTING,
         "<h2>References</h2><ul>",
         f"<li>{DISSERTATION} Equation and table numbers above refer to it.</li>",
         "<li>Functional Mock-up Interface 2.0 for Model Exchange and Co-Simulation, "
@@ -122,7 +152,7 @@ def _facts(md: Any) -> str:
 
 def _table(variables: list[Any]) -> str:
     e = html.escape
-    columns = ("name", "type", "unit", "start", "variability", "description")
+    columns = ("name", "type", "unit", "start", "range", "variability", "description")
     head = "<tr>" + "".join(f"<th>{c}</th>" for c in columns) + "</tr>"
     rows = []
     for v in variables:
@@ -130,10 +160,21 @@ def _table(variables: list[Any]) -> str:
         start = "" if v.start is None else str(v.start)
         rows.append(
             f"<tr><td><code>{e(v.name)}</code></td><td>{e(v.type)}</td><td>{e(unit)}</td>"
-            f"<td>{e(start)}</td><td>{e(v.variability or '')}</td>"
+            f"<td>{e(start)}</td><td>{e(value_range(v))}</td><td>{e(v.variability or '')}</td>"
             f"<td>{e(v.description or '')}</td></tr>"
         )
     return f"<table>{head}{''.join(rows)}</table>"
+
+
+def value_range(variable: Any) -> str:
+    """The declared range of a variable as the page shows it: ``0 .. 2``, ``>= 0.0``,
+    ``<= 1``, or empty."""
+    low, high = variable.min, variable.max
+    if low is not None and high is not None:
+        return f"{low} .. {high}"
+    if low is not None:
+        return f">= {low}"
+    return "" if high is None else f"<= {high}"
 
 
 def add_documentation(fmu: str | os.PathLike[str]) -> None:

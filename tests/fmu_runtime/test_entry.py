@@ -11,7 +11,7 @@ from fmu_runtime.safe_slave import SafeSlave
 
 
 def test_re_executing_the_entry_creates_no_class_and_keeps_its_namespace_alive():
-    source = entry.entry_source("Toy", "fmu_runtime.safe_slave", "SafeSlave")
+    source = entry.entry_source("Toy", "fmu_runtime.safe_slave", "SafeSlave", ["fmu_runtime"])
     code = compile(source, "toy_entry.py", "exec")
     module = types.ModuleType("toy_entry")
     exec(code, module.__dict__)  # the first import

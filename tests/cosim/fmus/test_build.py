@@ -3,6 +3,8 @@ modelDescription.xml (units, capability flags, InitialUnknowns by the FMI 2.0 ru
 
 from __future__ import annotations
 
+import hashlib
+import json
 import shutil
 import subprocess
 import zipfile
@@ -13,6 +15,7 @@ import pytest
 
 from cosim.errors import CosimError
 from cosim.fmus import build
+from fmu_runtime import provenance
 from plant_fmu.auv_plant import AuvPlant
 
 
@@ -41,16 +44,16 @@ def test_every_plant_unit_has_si_base_units():
     assert all(build.base_units(unit) is not None for unit in units), units
 
 
-def test_plant_ships_its_package_and_data_but_no_scripts_or_caches():
+def test_plant_ships_its_packages_whole_and_data_but_no_caches():
     files = build.shipped_files("AuvPlant")
-    assert files["auv_plant.py"] == build.script_path("AuvPlant")
+    assert files["plant_fmu/auv_plant.py"] == build.script_path("AuvPlant")
     for expected in ("fmu_runtime/safe_slave.py", "plant_fmu/model/vehicles/remus100.toml"):
         assert expected in files
-    assert "plant_fmu/auv_plant.py" not in files
+    assert "auv_plant.py" not in files  # the entry module is generated
     assert not any("__pycache__" in name or name.endswith(".pyc") for name in files)
 
 
-def test_built_fmu_holds_exactly_the_shipped_sources(fmu_paths):
+def test_built_fmu_holds_exactly_the_shipped_sources_the_entry_and_their_manifest(fmu_paths):
     files = build.shipped_files("AuvPlant")
     with zipfile.ZipFile(fmu_paths["AuvPlant"]) as archive:
         shipped = {
@@ -58,8 +61,27 @@ def test_built_fmu_holds_exactly_the_shipped_sources(fmu_paths):
             for name in archive.namelist()
             if name.startswith("resources/") and not name.startswith("resources/pythonfmu/")
         }
-    shipped.pop("slavemodule.txt")
-    assert shipped == {name: path.read_bytes() for name, path in files.items()}
+        guid = ET.fromstring(archive.read("modelDescription.xml")).get("guid")
+    assert shipped.pop("slavemodule.txt") == b"auv_plant"
+    manifest = json.loads(shipped.pop(provenance.MANIFEST))
+    expected = {name: path.read_bytes() for name, path in files.items()}
+    expected["auv_plant.py"] = build.entry_module("AuvPlant").encode()
+    assert shipped == expected
+    assert (manifest["model"], manifest["guid"]) == ("AuvPlant", guid)
+    assert manifest["sha256"] == {
+        name: hashlib.sha256(data).hexdigest() for name, data in expected.items()
+    }
+
+
+def test_both_fmus_ship_the_same_plant_package(fmu_paths):
+    """So the package has one digest whichever FMU a process loads first."""
+    shipped = {}
+    for name in ("AuvPlant", "AuvAutopilot"):
+        with zipfile.ZipFile(fmu_paths[name]) as archive:
+            manifest = json.loads(archive.read(f"resources/{provenance.MANIFEST}"))
+        shipped[name] = {p: d for p, d in manifest["sha256"].items() if p.startswith("plant_fmu/")}
+    assert shipped["AuvPlant"] == shipped["AuvAutopilot"]
+    assert "plant_fmu/auv_plant.py" in shipped["AuvAutopilot"]
 
 
 def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):

@@ -11,7 +11,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from cosim.fmus.docs import DOC_ENTRY, add_documentation, documentation_html
+from cosim.fmus.docs import DOC_ENTRY, add_documentation, documentation_html, value_range
 
 
 class _Cells(HTMLParser):
@@ -60,16 +60,22 @@ def test_page_lists_every_variable_with_its_unit_and_description(documented: Pat
     parser = _Cells()
     parser.feed(page)
     assert parser.open == [], "unbalanced HTML"
-    rows = {row[0]: row for row in parser.rows if len(row) == 6 and row[0] != "name"}
+    rows = {row[0]: row for row in parser.rows if len(row) == 7 and row[0] != "name"}
     md = read_model_description(str(documented))
     assert set(rows) == {v.name for v in md.modelVariables}
     for v in md.modelVariables:
-        _name, kind, unit, start, _variability, description = rows[v.name]
+        _name, kind, unit, start, declared, _variability, description = rows[v.name]
         assert kind == v.type
         assert unit == (v.unit or (v.declaredType.unit if v.declaredType else "") or "")
         assert description == (v.description or "")
         assert start == ("" if v.start is None else str(v.start))
+        assert declared == value_range(v)
+    known = {"variant": "0 .. 2", "m": ">= 0.0", "heading_mode": "0 .. 3", "lqr_r": ">= 0.0"}
+    shown = {name: rows[name][4] for name in known if name in rows}
+    assert shown and shown == {name: known[name] for name in shown}
     assert "Dynamics and Control of Autonomous Underwater Vehicles with Internal" in page
+    for rule in ("Load, reload, free.", "One build per process.", "FMI 2.0 call sequence."):
+        assert rule in page  # what a host may and may not do
     assert md.coSimulation.modelIdentifier in page
 
 
