@@ -119,8 +119,9 @@ def _third_party(tool: str, systems: dict, exported: dict, folder: Path) -> dict
                    "out": str(folder / f"{name}.{fmt}.csv"), "variables": variables}  # fmt: skip
             spec = folder / f"{name}.{fmt}.json"
             spec.write_text(json.dumps(job))
-            done = subprocess.run([sys.executable, str(RUNNER), str(spec)], capture_output=True,
-                                  text=True, timeout=600, check=False)  # fmt: skip
+            # -P: not tests/ on sys.path, whose folders named like our packages shadow them
+            command = [sys.executable, "-P", str(RUNNER), str(spec)]
+            done = subprocess.run(command, capture_output=True, text=True, timeout=600, check=False)
             if done.returncode == 77:
                 pytest.skip(done.stderr.strip())
             assert done.returncode == 0, (
