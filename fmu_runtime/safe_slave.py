@@ -58,7 +58,8 @@ call, the value and what was expected):
   rounding of masters that compute ``t_n = n h``. A refused step changes nothing, so the
   master may repeat it correctly.
 * Stale code: an instance of a build whose modules another build already imported in
-  this process logs why at instantiation and refuses to initialise and to step.
+  this process finds so at instantiation, logs why at the next call, and refuses to
+  initialise and to step.
 * FMU state (``fmi2GetFMUstate``/``fmi2SetFMUstate``, also serialised) holds every
   registered variable with a setter, the bookkeeping above (including the time), and
   ``_state_snapshot()``; a restored instance continues bit-identically (floats survive
@@ -119,14 +120,13 @@ class SafeSlave(Fmi2Slave):
         self._phase = _INSTANTIATED
         self._time = 0.0  # s: the start time, then the end of the last step
         self._initialized = False
-        self._failure: str | None = None
         self._problems: dict[str, str] = {}
         self._written: set[str] = set()
         self._access: dict[int, str] = {}
         self._units: dict[str, str] = {}
         self._bounds: dict[int, tuple[float | None, float | None]] = {}
         # not logged here: see "Logging" in the module docstring
-        self._failure = _build_problem(self.resources)
+        self._failure: str | None = _build_problem(self.resources)
         self._failure_logged = False
 
     # --- what subclasses call / override ---------------------------------------------------

@@ -136,7 +136,10 @@ class AuvPlant(SafeSlave):
     # --- variables ---------------------------------------------------------------------------
 
     def _register_variables(self) -> None:
-        fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
+        self._register_inputs_and_outputs()
+        self._register_parameters()
+
+    def _register_inputs_and_outputs(self) -> None:
         for i, (name, unit) in enumerate(zip(INPUT_NAMES, INPUT_UNITS, strict=True)):
             self.register(
                 Real(
@@ -184,6 +187,9 @@ class AuvPlant(SafeSlave):
             ),
             unit="J",
         )
+
+    def _register_parameters(self) -> None:
+        fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         for i, (name, unit) in enumerate(zip(STATE_NAMES, STATE_UNITS, strict=True)):
             self.register(
                 Real(
