@@ -3,7 +3,7 @@
     python scripts/interfaces_doc.py [--fmu-dir build/fmus] [--out docs/interfaces.md] [--check]
 
 The FMUs in ``--fmu-dir`` are built first if missing or out of date. The tables (name,
-type, unit, start, variability, description per causality) are read from each FMU's
+type, unit, start, range, variability, description per causality) are read from each FMU's
 ``modelDescription.xml`` with fmpy, so the page cannot disagree with what the FMUs
 declare; only the contract around them (:data:`CONTRACT`) is written here. ``--check``
 writes nothing and exits 1 if the page is not what this script would write.
@@ -21,6 +21,7 @@ from fmpy import read_model_description
 
 from cosim.errors import CosimError
 from cosim.fmus.build import FMUS, ensure_fmus
+from cosim.fmus.docs import value_range
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -53,9 +54,13 @@ tools and our own checks may rely on:
   written after initialisation) is refused with a logged reason, and a failure comes back
   as fmi2Error or fmi2Discard, never as a crash of the host (see
   [fmi-notes.md](fmi-notes.md) for why that takes care with pythonfmu).
+- **Ranges**: every bounded Integer and Real parameter declares `min`/`max` (the range
+  column below); a value outside is refused, naming the variable.
 - **Hosts**: both load, validate and run in fmpy, OSP's libcosim (libcosimpy) and ecos
   (ecospy), alone and connected, with the results of our own master under the same
-  coupling; the README's "Use the FMUs in other tools" shows how.
+  coupling; the README's "Use the FMUs in other tools" shows how. A host may load, reload
+  and free them as often as it likes, from fresh extractions too, but runs one build per
+  process, in the FMI 2.0 call sequence (the README's "What a host needs").
 """
 
 SECTIONS = (
@@ -95,13 +100,14 @@ def _fmu_section(name: str, md: Any) -> str:
 
 def _table(variables: list[Any]) -> list[str]:
     rows = [
-        "| name | type | unit | start | variability | description |",
-        "|---|---|---|---|---|---|",
+        "| name | type | unit | start | range | variability | description |",
+        "|---|---|---|---|---|---|---|",
     ]
     for v in variables:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or ""
         start = "" if v.start is None else str(v.start)
-        cells = (f"`{v.name}`", v.type, unit, start, v.variability or "", v.description or "")
+        cells = (f"`{v.name}`", v.type, unit, start, value_range(v), v.variability or "",
+                 v.description or "")  # fmt: skip
         rows.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     return rows
 
