@@ -89,7 +89,7 @@ def test_a_run_the_fmu_refuses_is_a_failed_record(bs3: tuple[Base, ScenarioFacts
     found = {"plant.variant": resolve_factor("plant.variant", facts)}
     record = run_one(base, base.fmu_paths, found, {"plant.variant": 7}, keep="failed")
     assert record.status == "failed" and record.metrics == {}
-    assert "variant = 7: expected 0 (full 6-DOF), 1 (lateral) or 2" in record.error
+    assert "variant = 7 refused: expected 0 <= variant <= 2" in record.error
     assert "\n" not in record.error
     good = run_one(base, base.fmu_paths, found, {"plant.variant": 1}, keep="all")
     assert good.status == "complete" and good.error is None

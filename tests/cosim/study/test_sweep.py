@@ -71,7 +71,7 @@ def test_a_refused_start_value_is_a_failed_row_the_others_complete(
     sweep(study, out, fmu_dir, "--workers", "2")
     rows = {int(r["plant.variant"]): r for r in table(out)}
     assert [rows[v]["status"] for v in (0, 1, 7)] == ["complete", "complete", "failed"]
-    assert "variant = 7: expected 0 (full 6-DOF), 1 (lateral) or 2" in rows[7]["error"]
+    assert "variant = 7 refused: expected 0 <= variant <= 2" in rows[7]["error"]
     assert rows[7]["time_reached"] == "" and rows[1]["time_reached"] == "1.0"
     kept = sorted(p.name for p in (out / "runs").iterdir())
     assert kept == [rows[7]["run"]]  # keep = "failed": only the failed run's folder
