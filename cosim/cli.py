@@ -38,7 +38,7 @@ def _validate(args: argparse.Namespace) -> int:
         print(problem)
     if problems:
         raise CosimError(f"{len(problems)} problem(s) found in the FMUs")
-    print("both FMUs are valid")
+    print("every FMU is valid")
     return 0
 
 
@@ -140,12 +140,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    p = sub.add_parser("build", help="build AuvPlant.fmu and AuvAutopilot.fmu")
+    p = sub.add_parser("build", help="build AuvPlant.fmu, AuvAutopilot.fmu and AuvGuidance.fmu")
     p.add_argument("--out", type=Path, default=DEFAULT_FMU_DIR, help="output folder [%(default)s]")
     p.add_argument("--force", action="store_true", help="rebuild even if up to date")
     p.set_defaults(func=_build)
 
-    p = sub.add_parser("validate", help="validate both FMUs (fmpy + our own checks)")
+    p = sub.add_parser("validate", help="validate the FMUs (fmpy + our own checks)")
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.set_defaults(func=_validate)
 

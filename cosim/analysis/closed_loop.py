@@ -10,6 +10,9 @@ At each communication step the autopilot reads the plant's outputs (the same qua
 and the same arithmetic, the plant FMU publishes), its commands are held over the step,
 and :func:`plant_fmu.model.stepping.advance` integrates the plant: a sampled loop without
 delay, like a master's Gauss-Seidel order controller -> plant (the built-in scenarios').
+With a waypoint guidance (:class:`controller_fmu.los_guidance.LosGuidance`) the set-points
+come from it, sampled first at each step (the order guidance -> controller -> plant of the
+``survey`` scenario).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller_fmu.autopilot import COMMAND_NAMES, Autopilot
+from controller_fmu.los_guidance import LosGuidance
 from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel
 from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance
 
@@ -79,6 +83,7 @@ def simulate_closed_loop(
     yaw_setpoint: float = 0.0,
     depth_setpoint: float = 0.0,
     max_substep: float = DEFAULT_MAX_SUBSTEP,
+    guidance: LosGuidance | None = None,
 ) -> ClosedLoopRun:
     """Run plant + autopilot from x0 for stop_time seconds in steps of ``step``.
 
@@ -90,6 +95,8 @@ def simulate_closed_loop(
         current: constant earth-frame current ``{"current_north": ..., ...}``, m/s.
         yaw_setpoint, depth_setpoint: rad, m.
         max_substep: the plant's longest RK4 sub-step, s.
+        guidance: if given (it is not reset), its set-points replace ``yaw_setpoint`` and
+            ``depth_setpoint``; it measures the plant's position and the current.
     """
     n = round(stop_time / step)
     if n < 1 or not math.isclose(n * step, stop_time, rel_tol=1e-9):
@@ -105,6 +112,11 @@ def simulate_closed_loop(
     x = model.project(np.array(x0, dtype=float))
     states[0] = x
     for k in range(n):
+        if guidance is not None:
+            north, east = x[STATE_INDEX["north"]], x[STATE_INDEX["east"]]
+            current = inputs[[INPUT_INDEX["current_north"], INPUT_INDEX["current_east"]]]
+            out = guidance.step(north, east, *current.tolist(), step=step)
+            yaw_setpoint, depth_setpoint = out.yaw_setpoint, out.depth_setpoint
         meas = measurements(model, x, inputs, yaw_setpoint, depth_setpoint)
         held = autopilot.step(k * step, meas).values()
         commands[k] = held

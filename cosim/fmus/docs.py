@@ -50,6 +50,16 @@ ABOUT: dict[str, str] = {
         "outputs are computed from the inputs at the start of a communication step and "
         "held over it.</p>"
     ),
+    "AuvGuidance": (
+        "<p>Waypoint missions for the REMUS&nbsp;100: line-of-sight guidance (Fossen's "
+        "lookahead-based steering, or integral LOS against an unknown current) turns the "
+        "vehicle's position and a list of waypoints (the <code>waypoints</code> parameter, "
+        "<code>north, east, down; ...</code> in metres) into the heading and depth set-points "
+        "of the autopilot, with the heading into the current by the crab angle (6.3.74) when "
+        "<code>compensate_current</code> is on. It also reports the cross-track error and the "
+        "legs completed. Outputs are computed from the inputs at the start of a communication "
+        "step and held over it.</p>"
+    ),
 }
 
 HOSTING = (

@@ -73,7 +73,7 @@ from cosim.errors import CosimError
 from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
 
 SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
-BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot")
+BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
 DEFAULT_FMU_DIR = Path("build/fmus")
 StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
 _NAME = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]

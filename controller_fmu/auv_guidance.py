@@ -1,0 +1,191 @@
+"""AuvGuidance: waypoint missions (LOS guidance) as an FMI 2.0 co-simulation slave.
+
+The pythonfmu script of ``AuvGuidance.fmu`` (modelIdentifier ``AuvGuidance``): FMI
+variables on one side, :class:`controller_fmu.los_guidance.LosGuidance` on the other. No
+guidance law lives here.
+
+A third FMU rather than a mode of the autopilot: guidance (where to go) and control (how
+to get the actuators to do it) run at their own rates in real vehicles, the autopilot FMU
+stays exactly the heading/depth autopilot the Ch. 6 scenarios use, and the mission layer
+can be swapped (another guidance law, a planner, a human in the loop) without touching
+either of the other two FMUs: a master connects them by name.
+
+Inputs (Real, named like the plant's outputs; start 0):
+    north, east (m), the vehicle's position; current_north, current_east (m/s), the
+    measured current, used with compensate_current only
+Outputs (Real, named like the autopilot's inputs where they feed it):
+    yaw_setpoint (rad, psi_d), depth_setpoint (m, z_d), course_setpoint (rad, chi_d),
+    cross_track_error (m, > 0 starboard of the active leg), legs_completed (1, a whole
+    number: Real so that a master records it beside the others), waypoint_north,
+    waypoint_east, waypoint_down (m, the active leg's end)
+
+Parameters (all fixed; names, units, defaults and descriptions come from
+:class:`controller_fmu.los_guidance.GuidanceConfig`):
+    waypoints (String, "north, east, down; ..." in m), lookahead (m), acceptance_radius (m),
+    integral_gain (1), compensate_current (Boolean), design_speed (m/s)
+
+Timing: like the autopilot, a sampled system. ``doStep(t, h)`` computes the set-points from
+the position as set at t, publishes them at once (held over [t, t + h)) and advances the
+integral LOS state over h; no output depends directly on an input in the FMI sense. A
+Gauss-Seidel master with the order guidance -> controller -> plant closes the loop without
+delay. After initialisation the outputs are those for the inputs' start values (the
+vehicle at the origin unless the importer set them).
+
+Bad input: a waypoint string that does not parse (the log names the entry, e.g.
+``waypoint 3 ('40, x, 2'): east = 'x' is not a finite number``) or any parameter out of
+range fails initialisation with the reason logged, and every later doStep returns
+Discard; a NaN/inf input is refused by the base class (doStep then returns Discard).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pythonfmu.default_experiment import DefaultExperiment
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
+from pythonfmu.variables import Boolean, Real, String
+
+from controller_fmu.los_guidance import (
+    GuidanceConfig,
+    GuidanceOutput,
+    GuidanceState,
+    LosGuidance,
+    field_unit,
+)
+from fmu_runtime.safe_slave import SafeSlave
+
+INPUTS: dict[str, tuple[str, str]] = {  # name -> (unit, description)
+    "north": ("m", "vehicle position north (NED)"),
+    "east": ("m", "vehicle position east (NED)"),
+    "current_north": ("m/s", "measured current, north component (with compensate_current)"),
+    "current_east": ("m/s", "measured current, east component (with compensate_current)"),
+}
+OUTPUTS: dict[str, tuple[str, str]] = {
+    "yaw_setpoint": ("rad", "desired heading psi_d: chi_d, or chi_d - beta (6.3.74)"),
+    "depth_setpoint": ("m", "desired depth z_d: the path's depth one lookahead ahead"),
+    "course_setpoint": ("rad", "desired course over ground chi_d (LOS law)"),
+    "cross_track_error": ("m", "cross-track error on the active leg, > 0 to starboard"),
+    "legs_completed": ("1", "number of legs completed (a whole number)"),
+    "waypoint_north": ("m", "north of the active leg's end waypoint"),
+    "waypoint_east": ("m", "east of the active leg's end waypoint"),
+    "waypoint_down": ("m", "depth of the active leg's end waypoint"),
+}
+_DEFAULTS = GuidanceConfig()
+
+
+class AuvGuidance(SafeSlave):
+    """Line-of-sight waypoint guidance for heading and depth (a sampled system)."""
+
+    description = (
+        "Waypoint guidance of the REMUS 100: line-of-sight (proportional or integral) steering "
+        "for heading and depth, with the current compensation of B. Li, FAU 2016 (6.3.74)"
+    )
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=60.0, step_size=0.01)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self._inputs = dict.fromkeys(INPUTS, 0.0)
+        self._outputs = dict.fromkeys(OUTPUTS, 0.0)
+        self._params: dict[str, Any] = _DEFAULTS.model_dump()
+        self._guidance: LosGuidance | None = None
+        self._register_variables()
+
+    def _register_variables(self) -> None:
+        for name, (unit, description) in INPUTS.items():
+            self.register(
+                Real(
+                    name,
+                    causality=Fmi2Causality.input,
+                    variability=Fmi2Variability.continuous,
+                    description=description,
+                    getter=_key_getter(self._inputs, name),
+                    setter=_key_setter(self._inputs, name),
+                ),
+                unit=unit,
+            )
+        for name, (unit, description) in OUTPUTS.items():
+            self.register(
+                Real(
+                    name,
+                    causality=Fmi2Causality.output,
+                    variability=Fmi2Variability.discrete,
+                    initial=Fmi2Initial.exact,
+                    description=description,
+                    getter=_key_getter(self._outputs, name),
+                ),
+                unit=unit,
+            )
+        fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
+        for name, field in GuidanceConfig.model_fields.items():
+            kind = {bool: Boolean, str: String, float: Real}[field.annotation]
+            variable = kind(
+                name,
+                description=field.description,
+                getter=_key_getter(self._params, name),
+                setter=_key_setter(self._params, name),
+                **fixed,
+            )
+            self.register(variable, unit=field_unit(name) if kind is Real else None)
+
+    # --- SafeSlave hooks ---------------------------------------------------------------------
+
+    def _initialize(self) -> None:
+        self._guidance = LosGuidance(GuidanceConfig.build(**self._params))
+        self._publish(self._evaluate(0.0))
+
+    def _step(self, current_time: float, step_size: float) -> None:
+        guidance = self._guidance
+        before = guidance.state
+        try:
+            output = self._evaluate(step_size)
+        except Exception:
+            guidance.state = before
+            raise
+        self._publish(output)
+
+    def _evaluate(self, step_size: float) -> GuidanceOutput:
+        i = self._inputs
+        return self._guidance.step(
+            i["north"], i["east"], i["current_north"], i["current_east"], step_size
+        )
+
+    def _publish(self, output: GuidanceOutput) -> None:
+        self._outputs.update(
+            yaw_setpoint=output.yaw_setpoint,
+            depth_setpoint=output.depth_setpoint,
+            course_setpoint=output.course_setpoint,
+            cross_track_error=output.cross_track_error,
+            legs_completed=float(output.legs_completed),
+            waypoint_north=output.target.north,
+            waypoint_east=output.target.east,
+            waypoint_down=output.target.down,
+        )
+
+    def _state_snapshot(self) -> dict[str, Any]:
+        state: dict[str, Any] = {"outputs": dict(self._outputs)}
+        if self._guidance is not None:
+            s = self._guidance.state
+            state["guidance"] = [s.leg, s.legs_completed, s.integral]
+        return state
+
+    def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
+        self._outputs.update(snapshot["outputs"])
+        saved = snapshot.get("guidance")
+        if saved is None:
+            return
+        config = GuidanceConfig.build(**self._params)
+        if self._guidance is None or self._guidance.config != config:
+            self._guidance = LosGuidance(config)
+        leg, completed, integral = saved
+        self._guidance.state = GuidanceState(int(leg), int(completed), float(integral))
+
+
+def _key_getter(values: dict, key: str):
+    return lambda: values[key]
+
+
+def _key_setter(values: dict, key: str):
+    def setter(value: Any) -> None:
+        values[key] = value
+
+    return setter
