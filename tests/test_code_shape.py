@@ -4,6 +4,7 @@ and FMUs that ship only code an FMU runs (no analysis, plotting or master module
 from __future__ import annotations
 
 import ast
+import itertools
 import zipfile
 from pathlib import Path
 
@@ -17,7 +18,8 @@ from scipy.sparse.csgraph import connected_components
 PACKAGES = ("cosim", "plant_fmu", "controller_fmu", "fmu_runtime")
 MAX_FUNCTION_LINES = 80
 # Modules that belong to the offline analysis, the plots or the master, never in an FMU.
-NOT_IN_FMUS = ("bifurcation", "equilibria", "closed_loop", "plots", "master")
+NOT_IN_FMUS = ("bifurcation", "equilibria", "closed_loop", "plots", "master", "manoeuvres")
+FMU_NAMES = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
 # Long functions and import cycles in files other branches of issue 11 are reworking: the
 # test reports them as expected failures until those branches land, and fails on any other.
 BEING_REWORKED = {
@@ -133,7 +135,7 @@ def test_a_scripts_closure_holds_what_it_runs_and_no_more(tmp_path: Path) -> Non
 def unzipped(fmu_paths, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """FMU name -> the ``resources/`` folder of the built FMU, unzipped."""
     folders = {}
-    for name in ("AuvPlant", "AuvAutopilot"):
+    for name in FMU_NAMES:
         folder = tmp_path_factory.mktemp(name)
         with zipfile.ZipFile(fmu_paths[name]) as archive:
             archive.extractall(folder)
@@ -156,7 +158,7 @@ def _shipped_modules(resources: Path) -> dict[str, Path]:
     return modules
 
 
-@pytest.mark.parametrize("name", ["AuvPlant", "AuvAutopilot"])
+@pytest.mark.parametrize("name", FMU_NAMES)
 def test_fmus_ship_no_analysis_plotting_or_master_module(name: str, unzipped) -> None:
     resources = unzipped[name]
     ours = sorted(
@@ -173,9 +175,9 @@ def test_fmus_ship_no_analysis_plotting_or_master_module(name: str, unzipped) ->
 
 def test_every_shipped_module_is_imported_by_an_fmu_script(unzipped) -> None:
     """Each module an FMU ships is imported, directly or not, by its own script or, for a
-    package both FMUs ship, by the other FMU's script: a shared package ships whole, the
-    same files in both, because a host running both FMUs in one process (libcosim, ecos)
-    imports it once, from whichever FMU loads first, and the other must find its modules
+    package several FMUs ship, by another FMU's script: a shared package ships whole, the
+    same files in each, because a host running the FMUs in one process (libcosim, ecos)
+    imports it once, from whichever FMU loads first, and the others must find its modules
     there."""
     shipped = {name: _shipped_modules(resources) for name, resources in unzipped.items()}
     run = set()
@@ -184,10 +186,11 @@ def test_every_shipped_module_is_imported_by_an_fmu_script(unzipped) -> None:
     for name, modules in shipped.items():
         unused = sorted(set(modules) - run)
         assert not unused, f"{name} ships modules no FMU script imports: {unused}"
-    plant, autopilot = (set(shipped[n]) for n in ("AuvPlant", "AuvAutopilot"))
-    for package in {m.split(".")[0] for m in plant & autopilot}:
-        in_plant = {m for m in plant if m.split(".")[0] == package}
-        assert in_plant == {m for m in autopilot if m.split(".")[0] == package}, package
+    for (name, modules), (other, other_modules) in itertools.combinations(shipped.items(), 2):
+        for package in {m.split(".")[0] for m in set(modules) & set(other_modules)}:
+            ours = {m for m in modules if m.split(".")[0] == package}
+            theirs = {m for m in other_modules if m.split(".")[0] == package}
+            assert ours == theirs, f"{package} differs between {name} and {other}"
 
 
 def _imported_names(path: Path) -> set[str]:

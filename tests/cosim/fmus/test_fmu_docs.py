@@ -43,7 +43,7 @@ class _Cells(HTMLParser):
             self._cell.append(data)
 
 
-@pytest.fixture(scope="module", params=["AuvPlant", "AuvAutopilot"])
+@pytest.fixture(scope="module", params=["AuvPlant", "AuvAutopilot", "AuvGuidance"])
 def documented(
     request: pytest.FixtureRequest, fmu_paths: dict[str, Path], tmp_path_factory
 ) -> Path:

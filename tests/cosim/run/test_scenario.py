@@ -22,6 +22,7 @@ from cosim.run.scenario import (
 
 MODEL_MD_IDS = ["bs-1", "bs-2", "bs-3", "cur-1", "cur-2", "lqr-1", "lqr-2", "lqr-3",
                 "slow-1", "slow-2", "vert-1", "vert-2"]  # fmt: skip
+MANOEUVRE_IDS = ["survey", "turning-circle"]  # issue 16: a manoeuvre and a mission
 BS3 = (SCENARIO_FOLDER / "bs-3.toml").read_text()
 
 
@@ -44,7 +45,7 @@ def no_fmu_loading(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_builtin_scenarios_are_model_md_section_5() -> None:
     scenarios = builtin_scenarios()
-    assert sorted(scenarios) == MODEL_MD_IDS
+    assert sorted(scenarios) == sorted(MODEL_MD_IDS + MANOEUVRE_IDS)
     assert all(summary and "\n" not in summary for summary in scenarios.values())
 
 
@@ -62,6 +63,26 @@ def test_builtin_files_resolve_as_model_md_says(fmu_dir: Path, no_fmu_loading: N
         assert plant.get("current_east", 0.0) == controller.get("current_east", 0.0)
     thrust = load_scenario("bs-3", fmu_dir=fmu_dir).connections
     assert ("controller.thrust", "plant.thrust") in [(c.source, c.target) for c in thrust]
+
+
+def test_a_third_instance_connects_by_name(fmu_dir: Path, no_fmu_loading: None) -> None:
+    """survey: the guidance reads the plant's position and feeds the autopilot's set-points;
+    its measured current stays an unconnected input, held at its start value."""
+    s = load_scenario("survey", fmu_dir=fmu_dir)
+    assert list(s.instances) == ["plant", "controller", "guidance"]
+    assert s.instances["guidance"].fmu_path == fmu_dir / "AuvGuidance.fmu"
+    pairs = {(c.source, c.target) for c in s.connections}
+    assert {("plant.north", "guidance.north"), ("plant.east", "guidance.east"),
+            ("guidance.yaw_setpoint", "controller.yaw_setpoint"),
+            ("guidance.depth_setpoint", "controller.depth_setpoint")} <= pairs  # fmt: skip
+    assert {c.target for c in s.connections if c.target_instance == "guidance"} == {
+        "guidance.north",
+        "guidance.east",
+    }
+    assert s.unconnected_inputs("guidance") == ["current_north", "current_east"]
+    assert s.coupling.order == ("guidance", "controller", "plant")
+    assert {"guidance.cross_track_error", "guidance.legs_completed"} <= set(s.record)
+    assert scenario_from_toml(s.to_toml(), "resolved", fmu_dir=fmu_dir) == s
 
 
 def test_default_connections_and_record(fmu_dir: Path) -> None:
