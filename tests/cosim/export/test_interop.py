@@ -8,7 +8,8 @@ The traces are compared step by step with ``auv-cosim run SYSTEM --algorithm jac
 the same step:
 
 * ``bs-3`` (backstepping autopilot + plant, docs/model.md#scenarios), 10 s at 10 ms;
-* the plant alone with prescribed (constant) inputs, 10 s at 10 ms.
+* the plant alone with prescribed (constant) inputs, 10 s at 10 ms;
+* ``survey`` (three FMUs: waypoint guidance + autopilot + 6-DOF plant), 10 s at 10 ms.
 
 libcosim and ecos both step every instance from the outputs of the previous communication
 point (Jacobi), initialise the same way (start values, then the outputs after
@@ -61,6 +62,8 @@ current_east = 0.1
 PLANT_VARIABLES = ["plant.yaw", "plant.roll", "plant.v", "plant.r", "plant.north",
                    "plant.east", "plant.mass_position"]  # fmt: skip
 LOOP_VARIABLES = [*PLANT_VARIABLES, "controller.tunnel_force", "controller.mass_position_cmd"]
+MISSION_VARIABLES = [*LOOP_VARIABLES, "plant.down", "guidance.yaw_setpoint",
+                     "guidance.cross_track_error"]  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -71,9 +74,11 @@ def systems(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
     plant_file = folder / "plant-alone.toml"
     plant_file.write_text(PLANT_ALONE.format(stop_time=STOP_TIME, fmu=fmu_paths["AuvPlant"]))
     bs3 = load_scenario("bs-3", fmu_dir).with_overrides(stop_time=STOP_TIME)
+    survey = load_scenario("survey", fmu_dir).with_overrides(stop_time=STOP_TIME)
     return {
         "plant-alone": (load_scenario(plant_file, fmu_dir), PLANT_VARIABLES, plant_file),
         "bs-3": (bs3, LOOP_VARIABLES, "bs-3"),
+        "survey": (survey, MISSION_VARIABLES, "survey"),
     }
 
 
@@ -164,7 +169,7 @@ def _assert_same_trace(name: str, tool: str, theirs: tuple, master: tuple) -> No
         )
 
 
-SYSTEMS = ["plant-alone", "bs-3"]
+SYSTEMS = ["plant-alone", "bs-3", "survey"]
 
 
 @pytest.mark.parametrize("name", SYSTEMS)
