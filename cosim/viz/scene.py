@@ -21,6 +21,12 @@ is the body frame at the centre of buoyancy, FRD = x forward, y starboard, z dow
                                segment up to the time cursor, so the path grows)
     world/depth_setpoint       Boxes3D, a translucent square at the setpoint depth, centred
                                on the vehicle's north and east, when depth control is on
+    world/mission/path         LineStrips3D, the planned path through the waypoints of a
+                               waypoint guidance (static; :func:`log_static_scene`'s
+                               ``waypoints``, read by :func:`mission_waypoints`)
+    world/mission/waypoints    Points3D, the waypoints, labelled 1, 2, ... (static)
+    world/mission/target       Points3D per step: the waypoint the guidance steers for (its
+                               ``waypoint_north``/``_east``/``_down`` outputs, when recorded)
 
 Fins, thruster and current show what acts on the vehicle (:func:`acting`).
 
@@ -34,17 +40,20 @@ are drawn to look right, they do not enter the physics. Arrow lengths are scaled
 
 from __future__ import annotations
 
+import tomllib
 from collections.abc import Callable, Collection
 
 import numpy as np
 import rerun as rr
 from scipy.spatial.transform import Rotation
 
+from controller_fmu.los_guidance import DEFAULT_WAYPOINTS, parse_waypoints
 from cosim.viz.layout import (
     CURRENT,
     FIN,
     HULL,
     MASS,
+    PALE_SETPOINT,
     SETPOINT,
     THRUSTER,
     TRAJECTORY,
@@ -60,6 +69,9 @@ FIN_THICKNESS = 0.006  # m
 FIN_FROM_TAIL = 0.12  # m, fin root hinge ahead of the tail end
 MASS_RADIUS = 0.03  # m, drawn radius of the moving mass
 DEPTH_MARKER_HALF_SIZE = 2.0  # m, half side of the depth-setpoint square
+WAYPOINT_RADIUS = 0.4  # m, drawn radius of a waypoint (the active one: twice that)
+GUIDANCE_FMU = "AuvGuidance"
+TARGET_COLUMNS = tuple(f"guidance.waypoint_{axis}" for axis in ("north", "east", "down"))
 
 Columns = Callable[[str], np.ndarray | None]  # column name -> values (k,) or None
 
@@ -80,10 +92,12 @@ def log_static_scene(
     recorded: Collection[str],
     *,
     show_depth_setpoint: bool,
+    waypoints: np.ndarray | None = None,
 ) -> None:
     """Log the frames and every shape that does not change with time.
 
-    ``recorded`` are the run's columns: what they lack is not drawn.
+    ``recorded`` are the run's columns: what they lack is not drawn. ``waypoints`` (m, NED,
+    one row each; :func:`mission_waypoints`) draw the planned path of a mission.
     """
 
     def has(name: str) -> bool:
@@ -117,6 +131,14 @@ def log_static_scene(
         rr.LineStrips3D.from_fields(colors=[TRAJECTORY], radii=rr.Radius.ui_points(1.5)),
         static=True,
     )
+    if waypoints is not None:
+        log_mission(rec, waypoints)
+    if all(column in recorded for column in TARGET_COLUMNS):
+        rec.log(
+            "world/mission/target",
+            rr.Points3D.from_fields(colors=[SETPOINT], radii=[2.0 * WAYPOINT_RADIUS]),
+            static=True,
+        )
     if show_depth_setpoint:
         half = DEPTH_MARKER_HALF_SIZE
         rec.log(
@@ -128,6 +150,47 @@ def log_static_scene(
             ),
             static=True,
         )
+
+
+def mission_waypoints(scenario_toml: str) -> np.ndarray | None:
+    """The waypoints (m, NED, one row each) of the first ``AuvGuidance`` instance of a
+    resolved scenario (its ``waypoints`` start value, else the FMU's default mission);
+    None if it has none, or the text does not read as TOML or as waypoints."""
+    try:
+        instances = tomllib.loads(scenario_toml).get("instances", {})
+    except tomllib.TOMLDecodeError:
+        return None
+    for instance in instances.values() if isinstance(instances, dict) else ():
+        fmu = str(instance.get("fmu", "")) if isinstance(instance, dict) else ""
+        if fmu == GUIDANCE_FMU or fmu.endswith(f"{GUIDANCE_FMU}.fmu"):
+            text = instance.get("start", {}).get("waypoints", DEFAULT_WAYPOINTS)
+            try:
+                points = parse_waypoints(text)
+            except ValueError:
+                return None
+            return np.array([[w.north, w.east, w.down] for w in points])
+    return None
+
+
+def log_mission(rec: rr.RecordingStream, waypoints: np.ndarray) -> None:
+    """The planned path through ``waypoints`` (m, NED, one row each) and the waypoints,
+    labelled from 1 (static)."""
+    points = np.asarray(waypoints, dtype=float).reshape(-1, 3)
+    rec.log(
+        "world/mission/path",
+        rr.LineStrips3D([points], colors=[PALE_SETPOINT], radii=rr.Radius.ui_points(1.5)),
+        static=True,
+    )
+    rec.log(
+        "world/mission/waypoints",
+        rr.Points3D(
+            points,
+            radii=[WAYPOINT_RADIUS],
+            colors=[SETPOINT],
+            labels=[str(k) for k in range(1, len(points) + 1)],
+        ),
+        static=True,
+    )
 
 
 def _log_hull_and_fins(
@@ -207,6 +270,8 @@ def scene_legend() -> str:
         f"- cyan arrow: tunnel-thruster force, 1 m = {1 / FORCE_SCALE:g} N\n"
         f"- blue arrow above the vehicle: water current, 1 m = {1 / CURRENT_SCALE:g} m/s\n"
         "- white line: the path so far; orange square: the depth setpoint\n"
+        "- pale orange line and orange dots: a mission's planned path and its waypoints; "
+        "the large dot is the waypoint the guidance steers for\n"
         "- chase view: follows position and heading; its grid is level through the vehicle\n"
     )
 
@@ -293,6 +358,7 @@ class SceneWriter:
                 indexes=index,
                 columns=rr.Arrows3D.columns(origins=above, vectors=CURRENT_SCALE * vectors),
             )
+        self._send_target(index, column)
         depth = column("controller.depth_setpoint")
         if self._show_depth_setpoint and depth is not None:
             centers = np.column_stack([position[:, 0], position[:, 1], depth])
@@ -300,6 +366,16 @@ class SceneWriter:
                 "world/depth_setpoint",
                 indexes=index,
                 columns=rr.Boxes3D.columns(centers=centers),
+            )
+
+    def _send_target(self, index: list[rr.TimeColumn], column: Columns) -> None:
+        """The waypoint a guidance steers for, if its outputs are recorded."""
+        target = [column(name) for name in TARGET_COLUMNS]
+        if all(values is not None for values in target):
+            self._rec.send_columns(
+                "world/mission/target",
+                indexes=index,
+                columns=rr.Points3D.columns(positions=np.column_stack(target)),
             )
 
     def _send_trajectory(self, index: list[rr.TimeColumn], position: np.ndarray) -> None:
