@@ -8,7 +8,10 @@ The figures are laid out like the dissertation's Ch. 6 plots:
 * ``trajectory.png`` - the path over ground, north up and east to the right (Fig. 6.31),
   with a 3-D view when the depth changes (Fig. 6.44);
 * ``depth.png`` - depth (with its setpoint), pitch, w, q and the stern-plane angle, when
-  the run has a depth loop (Fig. 6.43).
+  the run has a depth loop (Fig. 6.43);
+* ``mission.png`` - a waypoint guidance's cross-track error and legs completed; the
+  trajectory then also shows the planned path and its waypoints (from the run's
+  ``scenario.toml``).
 
 Every series is optional: a panel whose columns the run did not record is left out, a
 figure with no panel is not written. The page ``report/index.html`` in the run folder
@@ -33,6 +36,7 @@ import numpy as np
 
 from cosim.errors import CosimError
 from cosim.run.results import read_csv
+from cosim.viz.mission import mission_waypoints
 
 REPORT_FOLDER = "report"
 INDEX_PAGE = "index.html"
@@ -76,6 +80,7 @@ FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
                 (
                     Series("plant.yaw", DEG, "yaw"),
                     Series("controller.yaw_setpoint", DEG, "setpoint", dashed=True),
+                    Series("guidance.yaw_setpoint", DEG, "guidance set-point", dashed=True),
                 ),
             ),
             Panel(
@@ -83,6 +88,7 @@ FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
                 (
                     Series("plant.mass_position", 100.0, "position"),
                     Series("controller.mass_position_cmd", 100.0, "command", dashed=True),
+                    Series("plant.mass_position_cmd", 100.0, "command (held)", dashed=True),
                 ),
             ),
             Panel("$y_{vel}$ (cm/s)", (Series("plant.mass_velocity", 100.0),)),
@@ -97,12 +103,20 @@ FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
                 (
                     Series("plant.down", 1.0, "depth"),
                     Series("controller.depth_setpoint", 1.0, "setpoint", dashed=True),
+                    Series("guidance.depth_setpoint", 1.0, "guidance set-point", dashed=True),
                 ),
             ),
             Panel(r"$\theta$ (deg)", (Series("plant.pitch", DEG),)),
             Panel("w (m/s)", (Series("plant.w"),)),
             Panel("q (deg/s)", (Series("plant.q", DEG),)),
             Panel(r"$\delta_s$ (deg)", (Series("controller.fin_angle", DEG),)),
+        ),
+    ),
+    "mission": (
+        "Waypoint guidance",
+        (
+            Panel("cross-track error (m)", (Series("guidance.cross_track_error"),)),
+            Panel("legs completed", (Series("guidance.legs_completed"),)),
         ),
     ),
 }
@@ -130,7 +144,8 @@ def write_report(run_dir: Path) -> Path:
             path = plot_time_histories(table, panels, title, out / f"{name}.png")
             if path is not None:
                 figures[name] = path
-        trajectory = plot_trajectory(table, out / "trajectory.png")
+        waypoints = _planned_path(run_dir)
+        trajectory = plot_trajectory(table, out / "trajectory.png", waypoints)
         if trajectory is not None:
             figures["trajectory"] = trajectory
         index = out / INDEX_PAGE
@@ -179,6 +194,15 @@ def load_summary(run_dir: Path) -> tuple[dict[str, Any], str | None]:
     if not isinstance(data, dict):
         return {}, "summary.json is not a JSON object"
     return data, None
+
+
+def _planned_path(run_dir: Path) -> np.ndarray | None:
+    """The waypoints of the run's guidance from its ``scenario.toml``, if any."""
+    try:
+        text = (run_dir / "scenario.toml").read_text(encoding="utf-8")
+    except OSError:
+        return None
+    return mission_waypoints(text)
 
 
 def _has_depth_loop(table: dict[str, np.ndarray]) -> bool:
@@ -244,9 +268,12 @@ def _main_range(curves: list[tuple[Series, np.ndarray]]) -> tuple[float, float] 
     return lo - 0.25 * span, hi + 0.25 * span
 
 
-def plot_trajectory(table: dict[str, np.ndarray], path: Path) -> Path | None:
+def plot_trajectory(
+    table: dict[str, np.ndarray], path: Path, waypoints: np.ndarray | None = None
+) -> Path | None:
     """North against east (x up, y right, equal scale), and a 3-D view when the depth
-    changes; None without ``plant.north`` and ``plant.east``."""
+    changes; with ``waypoints`` (m, NED, one row each) the planned path through them,
+    numbered. None without ``plant.north`` and ``plant.east``."""
     if "plant.north" not in table or "plant.east" not in table:
         return None
     north, east = table["plant.north"], table["plant.east"]
@@ -254,7 +281,9 @@ def plot_trajectory(table: dict[str, np.ndarray], path: Path) -> Path | None:
     three_d = down is not None and np.ptp(down) > 1e-3
     fig = plt.figure(figsize=(12 if three_d else 6.5, 6))
     ax = fig.add_subplot(1, 2 if three_d else 1, 1)
-    ax.plot(east, north, color="tab:blue")
+    if waypoints is not None:
+        _plot_waypoints(ax, waypoints)
+    ax.plot(east, north, color="tab:blue", label="track" if waypoints is not None else None)
     ax.plot(east[0], north[0], "o", color="tab:green", label="start")
     ax.plot(east[-1], north[-1], "s", color="tab:red", label="end")
     ax.set_xlabel("y, east (m)")
@@ -273,6 +302,15 @@ def plot_trajectory(table: dict[str, np.ndarray], path: Path) -> Path | None:
         ax3.set_title("earth frame (NED)")
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _plot_waypoints(ax: plt.Axes, waypoints: np.ndarray) -> None:
+    """The planned path (dashed) and its waypoints, numbered from 1, on a north-east plot."""
+    north, east = waypoints[:, 0], waypoints[:, 1]
+    ax.plot(east, north, "--", color="tab:orange", linewidth=1.0, label="planned path")
+    ax.plot(east, north, "o", color="tab:orange", markersize=4)
+    for k, (n, e) in enumerate(zip(north, east, strict=True), start=1):
+        ax.annotate(str(k), (e, n), textcoords="offset points", xytext=(4, 4), fontsize=8)
 
 
 def _save(fig: plt.Figure, path: Path) -> Path:

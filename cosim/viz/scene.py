@@ -23,7 +23,7 @@ is the body frame at the centre of buoyancy, FRD = x forward, y starboard, z dow
                                on the vehicle's north and east, when depth control is on
     world/mission/path         LineStrips3D, the planned path through the waypoints of a
                                waypoint guidance (static; :func:`log_static_scene`'s
-                               ``waypoints``, read by :func:`mission_waypoints`)
+                               ``waypoints``: :func:`cosim.viz.mission.mission_waypoints`)
     world/mission/waypoints    Points3D, the waypoints, labelled 1, 2, ... (static)
     world/mission/target       Points3D per step: the waypoint the guidance steers for (its
                                ``waypoint_north``/``_east``/``_down`` outputs, when recorded)
@@ -40,14 +40,12 @@ are drawn to look right, they do not enter the physics. Arrow lengths are scaled
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Callable, Collection
 
 import numpy as np
 import rerun as rr
 from scipy.spatial.transform import Rotation
 
-from controller_fmu.los_guidance import DEFAULT_WAYPOINTS, parse_waypoints
 from cosim.viz.layout import (
     CURRENT,
     FIN,
@@ -70,7 +68,6 @@ FIN_FROM_TAIL = 0.12  # m, fin root hinge ahead of the tail end
 MASS_RADIUS = 0.03  # m, drawn radius of the moving mass
 DEPTH_MARKER_HALF_SIZE = 2.0  # m, half side of the depth-setpoint square
 WAYPOINT_RADIUS = 0.4  # m, drawn radius of a waypoint (the active one: twice that)
-GUIDANCE_FMU = "AuvGuidance"
 TARGET_COLUMNS = tuple(f"guidance.waypoint_{axis}" for axis in ("north", "east", "down"))
 
 Columns = Callable[[str], np.ndarray | None]  # column name -> values (k,) or None
@@ -97,7 +94,7 @@ def log_static_scene(
     """Log the frames and every shape that does not change with time.
 
     ``recorded`` are the run's columns: what they lack is not drawn. ``waypoints`` (m, NED,
-    one row each; :func:`mission_waypoints`) draw the planned path of a mission.
+    one row each; :func:`cosim.viz.mission.mission_waypoints`) draw a mission's planned path.
     """
 
     def has(name: str) -> bool:
@@ -150,26 +147,6 @@ def log_static_scene(
             ),
             static=True,
         )
-
-
-def mission_waypoints(scenario_toml: str) -> np.ndarray | None:
-    """The waypoints (m, NED, one row each) of the first ``AuvGuidance`` instance of a
-    resolved scenario (its ``waypoints`` start value, else the FMU's default mission);
-    None if it has none, or the text does not read as TOML or as waypoints."""
-    try:
-        instances = tomllib.loads(scenario_toml).get("instances", {})
-    except tomllib.TOMLDecodeError:
-        return None
-    for instance in instances.values() if isinstance(instances, dict) else ():
-        fmu = str(instance.get("fmu", "")) if isinstance(instance, dict) else ""
-        if fmu == GUIDANCE_FMU or fmu.endswith(f"{GUIDANCE_FMU}.fmu"):
-            text = instance.get("start", {}).get("waypoints", DEFAULT_WAYPOINTS)
-            try:
-                points = parse_waypoints(text)
-            except ValueError:
-                return None
-            return np.array([[w.north, w.east, w.down] for w in points])
-    return None
 
 
 def log_mission(rec: rr.RecordingStream, waypoints: np.ndarray) -> None:

@@ -15,8 +15,9 @@ from rerun.chunk import RrdReader
 from controller_fmu.los_guidance import DEFAULT_WAYPOINTS, parse_waypoints
 from cosim.run.scenario import load_scenario
 from cosim.viz.layout import time_index
+from cosim.viz.mission import mission_waypoints
 from cosim.viz.recording import RerunSink
-from cosim.viz.scene import SceneWriter, log_static_scene, mission_waypoints
+from cosim.viz.scene import SceneWriter, log_static_scene
 from plant_fmu.model.parameters import load_vehicle
 
 TARGET = ["guidance.waypoint_north", "guidance.waypoint_east", "guidance.waypoint_down"]
