@@ -11,7 +11,8 @@ can be swapped (another guidance law, a planner, a human in the loop) without to
 either of the other two FMUs: a master connects them by name.
 
 Inputs (Real, named like the plant's outputs; start 0):
-    north, east (m), the vehicle's position; current_north, current_east (m/s), the
+    north, east (m), the vehicle's position; yaw (rad), its heading (the set-points are
+    given on its branch: within pi of it); current_north, current_east (m/s), the
     measured current, used with compensate_current only
 Outputs (Real, named like the autopilot's inputs where they feed it):
     yaw_setpoint (rad, psi_d), depth_setpoint (m, z_d), course_setpoint (rad, chi_d),
@@ -57,6 +58,7 @@ from fmu_runtime.safe_slave import SafeSlave
 INPUTS: dict[str, tuple[str, str]] = {  # name -> (unit, description)
     "north": ("m", "vehicle position north (NED)"),
     "east": ("m", "vehicle position east (NED)"),
+    "yaw": ("rad", "measured yaw psi: the set-points are given within pi of it"),
     "current_north": ("m/s", "measured current, north component (with compensate_current)"),
     "current_east": ("m/s", "measured current, east component (with compensate_current)"),
 }
@@ -146,7 +148,7 @@ class AuvGuidance(SafeSlave):
     def _evaluate(self, step_size: float) -> GuidanceOutput:
         i = self._inputs
         return self._guidance.step(
-            i["north"], i["east"], i["current_north"], i["current_east"], step_size
+            i["north"], i["east"], i["current_north"], i["current_east"], step_size, i["yaw"]
         )
 
     def _publish(self, output: GuidanceOutput) -> None:

@@ -25,7 +25,10 @@ Pettersen, IFAC CAMS 2008, as in Fossen's Handbook, 2nd ed. 2021, Sec. 12.4):
 * desired heading: ``psi_d = chi_d`` or, with the current compensation of the dissertation
   (6.3.74) (``compensate_current``), ``psi_d = chi_d - beta``, the crab angle from the
   measured current and the design speed (:func:`controller_fmu.guidance.desired_heading`,
-  the function the autopilot uses, so the two agree exactly);
+  the function the autopilot uses, so the two agree exactly). Both set-points are given
+  on the branch nearest the measured yaw, ``psi + wrap(psi_d - psi)``: the plant's yaw is
+  continuous (it counts whole turns), and so are the set-points then, while the autopilot,
+  which wraps the heading error, sees the same error as with wrapped angles;
 * depth: the depth of the path at the lookahead point,
   ``z_d = z_k + (z_k+1 - z_k) clip((s + Delta) / L, 0, 1)`` with L the leg's horizontal
   length. The autopilot's depth loop tracks a depth, not a flight-path angle, so the
@@ -245,8 +248,8 @@ class GuidanceState:
 class GuidanceOutput:
     """The set-points held over one sample, and what the guidance saw."""
 
-    yaw_setpoint: float  # psi_d, rad in [-pi, pi)
-    course_setpoint: float  # chi_d, rad in [-pi, pi)
+    yaw_setpoint: float  # psi_d, rad, within pi of the measured yaw
+    course_setpoint: float  # chi_d, rad, within pi of the measured yaw
     depth_setpoint: float  # z_d, m
     cross_track_error: float  # y on the active leg, m (> 0: starboard of the leg)
     legs_completed: int
@@ -276,12 +279,14 @@ class LosGuidance:
         current_north: float = 0.0,
         current_east: float = 0.0,
         step: float = 0.0,
+        yaw: float = 0.0,
     ) -> GuidanceOutput:
         """The set-points for the vehicle at (north, east), m; the state then advances over
         ``step`` seconds (0: evaluate without integrating, e.g. at initialisation).
 
         ``current_north``, ``current_east`` (m/s, earth frame) are the measured current,
-        used with ``compensate_current`` only.
+        used with ``compensate_current`` only; ``yaw`` (rad) the measured heading, whose
+        branch the angles are given on.
 
         Raises:
             ValueError: a non-finite input or step, or (with ``compensate_current``) a
@@ -289,7 +294,7 @@ class LosGuidance:
                 unchanged.
         """
         for name, value in (("north", north), ("east", east), ("current_north", current_north),
-                            ("current_east", current_east)):  # fmt: skip
+                            ("current_east", current_east), ("yaw", yaw)):  # fmt: skip
             if not math.isfinite(value):
                 raise ValueError(f"{name} = {value!r}: expected a finite number")
         if not (math.isfinite(step) and step >= 0.0):
@@ -305,8 +310,8 @@ class LosGuidance:
         )
         fraction = min(max((where.along_track + c.lookahead) / where.length, 0.0), 1.0)
         output = GuidanceOutput(
-            yaw_setpoint=psi_d,
-            course_setpoint=chi_d,
+            yaw_setpoint=yaw + wrap_angle(psi_d - yaw),
+            course_setpoint=yaw + wrap_angle(chi_d - yaw),
             depth_setpoint=start.down + (end.down - start.down) * fraction,
             cross_track_error=where.cross_track,
             legs_completed=state.legs_completed,

@@ -35,9 +35,10 @@ def _guidance(guidance_fmu, unzip_dir, **values) -> Harness:
     return Harness(guidance_fmu, instance="guidance", unzip_dir=unzip_dir, **values)
 
 
-def _path(t: float) -> tuple[float, float]:
-    """A position history that flies (roughly) the mission: out, across and back."""
-    return 1.5 * t + 0.8 * math.sin(0.3 * t), 0.6 * max(0.0, t - 18.0) - 0.5
+def _path(t: float) -> tuple[float, float, float]:
+    """(north, east, yaw): a position history that flies (roughly) the mission, and a yaw
+    that turns on past several whole turns (the set-points follow its branch)."""
+    return 1.5 * t + 0.8 * math.sin(0.3 * t), 0.6 * max(0.0, t - 18.0) - 0.5, 0.25 * t - 1.0
 
 
 def test_variables_follow_the_guidance_config(guidance_fmu):
@@ -67,11 +68,11 @@ def test_outputs_equal_the_in_process_guidance_step_for_step(guidance_fmu, unzip
     reference = LosGuidance(GuidanceConfig.build(waypoints=MISSION, **SETTINGS))
     rows, expected = [], []
     for k in range(round(60.0 / H)):
-        north, east = _path(k * H)
-        fmu.set(north=north, east=east)
+        north, east, yaw = _path(k * H)
+        fmu.set(north=north, east=east, yaw=yaw)
         assert fmu.step(H) == STATUS_OK, fmu.messages(3)
         rows.append(fmu.get_all(OUTPUTS))
-        out = reference.step(north, east, step=H)
+        out = reference.step(north, east, step=H, yaw=yaw)
         expected.append([out.yaw_setpoint, out.depth_setpoint, out.course_setpoint,
                          out.cross_track_error, out.legs_completed, out.target.north,
                          out.target.east, out.target.down])  # fmt: skip
@@ -81,6 +82,9 @@ def test_outputs_equal_the_in_process_guidance_step_for_step(guidance_fmu, unzip
     legs = rows[:, list(OUTPUTS).index("legs_completed")]
     assert legs[-1] == 2 and np.all(np.diff(legs) >= 0)  # two legs flown, none undone
     assert np.ptp(rows[:, list(OUTPUTS).index("depth_setpoint")]) == pytest.approx(2.0)
+    yaw = np.array([_path(k * H)[2] for k in range(len(rows))])
+    offset = rows[:, list(OUTPUTS).index("yaw_setpoint")] - yaw
+    assert np.abs(offset).max() <= math.pi and np.ptp(yaw) > 4.0 * math.pi
 
 
 def test_restored_state_continues_bit_identically(guidance_fmu, unzip_dir):
@@ -89,7 +93,7 @@ def test_restored_state_continues_bit_identically(guidance_fmu, unzip_dir):
     def drive(steps: int) -> np.ndarray:
         rows = []
         for _ in range(steps):
-            fmu.set(**dict(zip(("north", "east"), _path(fmu.time), strict=True)))
+            fmu.set(**dict(zip(("north", "east", "yaw"), _path(fmu.time), strict=True)))
             assert fmu.step(H) == STATUS_OK, fmu.messages(3)
             rows.append(fmu.get_all(OUTPUTS))
         return np.array(rows)

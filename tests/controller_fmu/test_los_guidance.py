@@ -146,6 +146,17 @@ def test_depth_setpoint_is_the_paths_depth_one_lookahead_ahead():
     assert los.step(95.0, 0.0).depth_setpoint == 5.0  # the lookahead point is past the end
 
 
+def test_set_points_are_on_the_branch_of_the_measured_yaw():
+    los = guidance("0,0,0; -100,0,0")  # a leg due south: chi_d = -pi, wrapped
+    assert los.step(0.0, 0.0).course_setpoint == -math.pi
+    turns = 4.0 * math.pi  # the plant's yaw after two whole turns to starboard, heading south
+    out = los.step(0.0, 0.0, yaw=turns + math.pi - 0.1)
+    assert out.course_setpoint == pytest.approx(turns + math.pi)
+    assert out.yaw_setpoint == out.course_setpoint
+    out = los.step(0.0, 0.0, yaw=-turns - math.pi + 0.1)  # two turns to port
+    assert out.course_setpoint == pytest.approx(-turns - math.pi)
+
+
 def test_current_compensation_heads_into_the_cross_current_by_the_crab_angle():
     los = guidance("0,0,0; 100,0,0", compensate_current=True, design_speed=1.525)
     out = los.step(0.0, 0.0, current_north=0.0, current_east=0.2)
