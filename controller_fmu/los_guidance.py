@@ -4,8 +4,9 @@ A mission is a list of waypoints ``(north, east, down)`` in metres (NED, earth f
 k runs from waypoint k to waypoint k + 1. At each sample the guidance reads the vehicle's
 position and returns the heading, course and depth set-points of the active leg
 (lookahead-based steering, T. I. Fossen, *Handbook of Marine Craft Hydrodynamics and
-Motion Control*, Wiley 2011, Sec. 10.3.2; integral LOS after Borhaug, Pavlov and
-Pettersen, IFAC CAMS 2008, as in Fossen's Handbook, 2nd ed. 2021, Sec. 12.4):
+Motion Control*, Wiley 2011, the chapter on guidance systems; integral LOS after Borhaug,
+Pavlov and Pettersen, "Integral LOS control for path following of underactuated marine
+surface vessels in the presence of constant ocean currents", IEEE CDC 2008):
 
 * path-tangential angle of leg k: ``alpha = atan2(east_k+1 - east_k, north_k+1 - north_k)``;
 * along-track distance and cross-track error, the position in the leg's frame::

@@ -2,7 +2,8 @@
 
 ``docs/manoeuvres.md`` states every definition; in short (IMO MSC.137(76) "Standards for
 ship manoeuvrability" with its explanatory notes MSC/Circ.1053, and T. I. Fossen,
-*Handbook of Marine Craft Hydrodynamics and Motion Control*, Wiley 2011, Sec. 13.3):
+*Handbook of Marine Craft Hydrodynamics and Motion Control*, Wiley 2011, on the
+turning-circle and zig-zag tests):
 
 * turning circle (:func:`turning_circle`): from the execute (the turning command), the
   advance (along the original course) and transfer (across it, towards the turn) where the
