@@ -1,4 +1,4 @@
-"""Regenerate ``docs/interfaces.md``: the variables of both FMUs, from their model descriptions.
+"""Regenerate ``docs/interfaces.md``: the variables of our FMUs, from their model descriptions.
 
     python scripts/interfaces_doc.py [--fmu-dir build/fmus] [--out docs/interfaces.md] [--check]
 
@@ -31,16 +31,19 @@ CONTRACT = """\
 Generated from the built FMUs' `modelDescription.xml` by
 `python scripts/interfaces_doc.py`; do not edit by hand (the tests check it is current).
 
-`AuvPlant.fmu` (the vehicle in the water, [the model](model.md)) and `AuvAutopilot.fmu`
-(its heading and depth controllers) are FMI 2.0 co-simulation FMUs. What users, other FMI
+`AuvPlant.fmu` (the vehicle in the water, [the model](model.md)), `AuvAutopilot.fmu`
+(its heading and depth controllers) and `AuvGuidance.fmu` (waypoint missions,
+[manoeuvres.md](manoeuvres.md)) are FMI 2.0 co-simulation FMUs. What users, other FMI
 tools and our own checks may rely on:
 
 - **Names connect them.** The autopilot's inputs carry the names of the plant outputs
   they measure (`yaw`, `r`, `p`, `roll`, `v_rel`, ...) plus the set-points `yaw_setpoint`
   and `depth_setpoint` and the measured current; its outputs carry the names of the plant
   inputs they drive (`mass_position_cmd`, `tunnel_force`, `fin_angle`, `thrust`). A
-  master connects same-named variables by default. In results, recordings and exported
-  SSP/OSP files the instances are named `plant` and `controller`, and a column is named
+  master connects same-named variables by default. The guidance reads the plant's
+  `north`, `east` and `yaw` and feeds the autopilot's `yaw_setpoint` and
+  `depth_setpoint`. In results, recordings and exported SSP/OSP files the built-in
+  scenarios name the instances `plant`, `controller` and `guidance`, and a column is named
   `<instance>.<variable>` (see the README's "What a run writes").
 - **Units**: SI, angles in radians, declared on every Real variable (with the unit
   definitions in `modelDescription.xml`); every variable has a description.
@@ -56,7 +59,7 @@ tools and our own checks may rely on:
   [fmi-notes.md](fmi-notes.md) for why that takes care with pythonfmu).
 - **Ranges**: every bounded Integer and Real parameter declares `min`/`max` (the range
   column below); a value outside is refused, naming the variable.
-- **Hosts**: both load, validate and run in fmpy, OSP's libcosim (libcosimpy) and ecos
+- **Hosts**: they load, validate and run in fmpy, OSP's libcosim (libcosimpy) and ecos
   (ecospy), alone and connected, with the results of our own master under the same
   coupling; the README's "Use the FMUs in other tools" shows how. A host may load, reload
   and free them as often as it likes, from fresh extractions too, but runs one build per

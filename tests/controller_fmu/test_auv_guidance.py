@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 from fmu_harness import STATUS_DISCARD, STATUS_OK, Harness
+from reference_values import dissertation
 
 from controller_fmu.auv_guidance import INPUTS, OUTPUTS
 from controller_fmu.los_guidance import GuidanceConfig, LosGuidance, field_unit
@@ -136,10 +137,11 @@ def test_a_nan_position_is_refused_and_the_next_valid_one_accepted(guidance_fmu,
 
 def test_a_cross_current_faster_than_the_vehicle_is_a_discard(guidance_fmu, unzip_dir):
     fmu = _guidance(guidance_fmu, unzip_dir, waypoints=MISSION, compensate_current=True)
-    fmu.set(current_east=0.2)
+    fmu.set(current_east=dissertation("current.speed"))
     assert fmu.step(H) == STATUS_OK
     yaw = fmu.get("yaw_setpoint")[0]
-    assert math.degrees(yaw) == pytest.approx(-7.55, abs=0.02)  # (6.3.74) on a north leg
+    printed = dissertation("current.heading_9_newton")  # (6.3.74): the first leg runs north
+    assert math.degrees(yaw) == pytest.approx(printed, abs=0.02)
     fmu.set(current_east=3.0)
     assert fmu.step(H) == STATUS_DISCARD
     assert "cross-current 3 m/s is not slower than the design speed" in fmu.messages(3)

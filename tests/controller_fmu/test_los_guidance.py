@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from reference_values import dissertation
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from controller_fmu.guidance import crab_angle, wrap_angle
@@ -158,11 +159,13 @@ def test_set_points_are_on_the_branch_of_the_measured_yaw():
 
 
 def test_current_compensation_heads_into_the_cross_current_by_the_crab_angle():
+    current = dissertation("current.speed")
     los = guidance("0,0,0; 100,0,0", compensate_current=True, design_speed=1.525)
-    out = los.step(0.0, 0.0, current_north=0.0, current_east=0.2)
+    out = los.step(0.0, 0.0, current_north=0.0, current_east=current)
     assert out.course_setpoint == 0.0
-    assert out.yaw_setpoint == pytest.approx(-crab_angle(0.0, 0.0, 0.2, 1.525))
-    assert math.degrees(out.yaw_setpoint) == pytest.approx(-7.55, abs=0.02)  # (6.3.74)
+    assert out.yaw_setpoint == pytest.approx(-crab_angle(0.0, 0.0, current, 1.525))
+    printed = dissertation("current.heading_9_newton")  # (6.3.74)
+    assert math.degrees(out.yaw_setpoint) == pytest.approx(printed, abs=0.02)
     with pytest.raises(ValueError, match="cross-current 2 m/s is not slower"):
         los.step(0.0, 0.0, current_east=2.0)
 
