@@ -45,8 +45,10 @@ def _validate(args: argparse.Namespace) -> int:
 def _scenarios(args: argparse.Namespace) -> int:
     from cosim.run.scenario import builtin_scenarios
 
-    for scenario_id, summary in builtin_scenarios().items():
-        print(f"{scenario_id:<8} {summary}")
+    scenarios = builtin_scenarios()
+    width = max(map(len, scenarios), default=0)
+    for scenario_id, summary in scenarios.items():
+        print(f"{scenario_id:<{width}} {summary}")
     return 0
 
 
