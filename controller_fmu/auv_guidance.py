@@ -54,6 +54,7 @@ from controller_fmu.los_guidance import (
     field_unit,
 )
 from fmu_runtime.safe_slave import SafeSlave
+from fmu_runtime.variables import item_getter, item_setter
 
 INPUTS: dict[str, tuple[str, str]] = {  # name -> (unit, description)
     "north": ("m", "vehicle position north (NED)"),
@@ -100,8 +101,8 @@ class AuvGuidance(SafeSlave):
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
                     description=description,
-                    getter=_key_getter(self._inputs, name),
-                    setter=_key_setter(self._inputs, name),
+                    getter=item_getter(self._inputs, name),
+                    setter=item_setter(self._inputs, name),
                 ),
                 unit=unit,
             )
@@ -113,7 +114,7 @@ class AuvGuidance(SafeSlave):
                     variability=Fmi2Variability.discrete,
                     initial=Fmi2Initial.exact,
                     description=description,
-                    getter=_key_getter(self._outputs, name),
+                    getter=item_getter(self._outputs, name),
                 ),
                 unit=unit,
             )
@@ -123,8 +124,8 @@ class AuvGuidance(SafeSlave):
             variable = kind(
                 name,
                 description=field.description,
-                getter=_key_getter(self._params, name),
-                setter=_key_setter(self._params, name),
+                getter=item_getter(self._params, name),
+                setter=item_setter(self._params, name),
                 **fixed,
             )
             self.register(variable, unit=field_unit(name) if kind is Real else None)
@@ -180,14 +181,3 @@ class AuvGuidance(SafeSlave):
             self._guidance = LosGuidance(config)
         leg, completed, integral = saved
         self._guidance.state = GuidanceState(int(leg), int(completed), float(integral))
-
-
-def _key_getter(values: dict, key: str):
-    return lambda: values[key]
-
-
-def _key_setter(values: dict, key: str):
-    def setter(value: Any) -> None:
-        values[key] = value
-
-    return setter
