@@ -64,7 +64,8 @@ import numpy as np
 from scipy.optimize import root
 
 from cosim.analysis.equilibria import Equilibrium, find_equilibrium, free_states
-from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant, rotation_matrix
+from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
+from plant_fmu.model.kinematics import rotation_matrix
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters
 

@@ -5,7 +5,8 @@ Coriolis terms (A.62), the non-uniform-current terms (3.4.12, 3.4.20), viscous c
 and lift (4.2.6-4.2.9), hydrostatics (3.5.3), propeller, tunnel thruster (6.3.79), stern
 planes (Table 6.1) and the internal moving mass with its servo (6.3.12-6.3.13). The
 equation numbers refer to B. Li, *Dynamics and Control of Autonomous Underwater Vehicles
-with Internal Actuators*, FAU 2016; ``docs/model.md`` restates them.
+with Internal Actuators*, FAU 2016; ``docs/model.md`` restates them. Kinematics live in
+:mod:`plant_fmu.model.kinematics`, the mass matrices in :mod:`plant_fmu.model.inertia`.
 
 The equation integrated is the full form (3.6.2 with viscous terms, 4.3.1), on the velocity
 over ground nu and the relative velocity nu_r = nu - nu_c::
@@ -36,6 +37,12 @@ from enum import IntEnum
 
 import numpy as np
 
+from plant_fmu.model.inertia import (
+    added_mass_matrix,
+    added_mass_matrix_times,
+    rigid_body_mass_matrix,
+)
+from plant_fmu.model.kinematics import cross, euler_rate_matrix, gravity_direction, rotation_matrix
 from plant_fmu.model.parameters import VehicleParameters
 
 STATE_NAMES: tuple[str, ...] = (
@@ -85,64 +92,6 @@ class Variant(IntEnum):
         """Names of the states that evolve in this variant."""
         free = [STATE_NAMES[i] for i in self.pose] + [STATE_NAMES[6 + i] for i in self.velocities]
         return (*free, "mass_position", "mass_velocity")
-
-
-# --- Kinematics (Ch. 2) -------------------------------------------------------------------
-
-
-def rotation_matrix(phi: float, theta: float, psi: float) -> np.ndarray:
-    """Body-to-earth rotation R = Rz(psi) Ry(theta) Rx(phi) (2.2.8)."""
-    cf, sf = math.cos(phi), math.sin(phi)
-    ct, st = math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
-    return np.array(
-        [
-            [cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st],
-            [sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf],
-            [-st, ct * sf, ct * cf],
-        ]
-    )
-
-
-def euler_rate_matrix(phi: float, theta: float) -> np.ndarray:
-    """T(eta2) with eta2_dot = T omega (2.2.15); singular at theta = +-90 deg."""
-    cf, sf = math.cos(phi), math.sin(phi)
-    ct, tt = math.cos(theta), math.tan(theta)
-    return np.array([[1.0, sf * tt, cf * tt], [0.0, cf, -sf], [0.0, sf / ct, cf / ct]])
-
-
-def skew(a: np.ndarray) -> np.ndarray:
-    """Cross-product matrix S(a) with S(a) b = a x b."""
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
-def _cross(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
-    # On 3-vectors np.cross costs ~10 us and numpy element access ~0.1 us per element; the
-    # terms below therefore work on Python floats (one array per term), which makes the
-    # right-hand side about 4x cheaper. Same product, same rounding.
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-# --- Inertia (2.3.11, Table 4.1) ----------------------------------------------------------
-
-
-def rigid_body_mass_matrix(p: VehicleParameters) -> np.ndarray:
-    """M_RB (2.3.11) about the CB, with r_g = [x_g, 0, z_g] and I_o = diag(I_xx, I_yy, I_zz)."""
-    r_g = np.array([p.x_g, 0.0, p.z_g])
-    M = np.zeros((6, 6))
-    M[:3, :3] = p.m * np.eye(3)
-    M[:3, 3:] = -p.m * skew(r_g)
-    M[3:, :3] = p.m * skew(r_g)
-    M[3:, 3:] = np.diag([p.I_xx, p.I_yy, p.I_zz])
-    return M
-
-
-def added_mass_matrix(p: VehicleParameters) -> np.ndarray:
-    """M_A: diag(a11..a66) with the sway-yaw (a26 = a62) and heave-pitch (a35 = a53) pairs."""
-    M = np.diag([p.a11, p.a22, p.a33, p.a44, p.a55, p.a66])
-    M[1, 5] = M[5, 1] = p.a26
-    M[2, 4] = M[4, 2] = p.a35
-    return M
 
 
 # --- The model -----------------------------------------------------------------------------
@@ -204,16 +153,16 @@ class PlantModel:
     def coriolis_rigid_body(self, nu: Sequence[float]) -> np.ndarray:
         """C_RB(nu) nu (2.3.13), linear-velocity-independent form:
         [m (w x v + w x (w x r_g)); m r_g x (w x v) + w x I_o w]."""
-        p = self.params
+        params = self.params
         v, w = nu[:3], nu[3:]
-        r_g = (p.x_g, 0.0, p.z_g)
-        w_x_v = _cross(w, v)
-        w_w_rg = _cross(w, _cross(w, r_g))
-        rg_w_v = _cross(r_g, w_x_v)
-        w_I_w = _cross(w, (p.I_xx * w[0], p.I_yy * w[1], p.I_zz * w[2]))
+        r_g = (params.x_g, 0.0, params.z_g)
+        w_x_v = cross(w, v)
+        w_w_rg = cross(w, cross(w, r_g))
+        rg_w_v = cross(r_g, w_x_v)
+        w_I_w = cross(w, (params.I_xx * w[0], params.I_yy * w[1], params.I_zz * w[2]))
         return np.array(
-            [p.m * (a + b) for a, b in zip(w_x_v, w_w_rg, strict=True)]
-            + [p.m * a + b for a, b in zip(rg_w_v, w_I_w, strict=True)]
+            [params.m * (a + b) for a, b in zip(w_x_v, w_w_rg, strict=True)]
+            + [params.m * a + b for a, b in zip(rg_w_v, w_I_w, strict=True)]
         )
 
     def coriolis_added_mass(self, nu_r: Sequence[float]) -> np.ndarray:
@@ -223,40 +172,54 @@ class PlantModel:
         lin, ang = impulse[:3], impulse[3:]
         u, w = nu_r[:3], nu_r[3:]
         return np.array(
-            [-a for a in _cross(lin, w)]
-            + [-a - b for a, b in zip(_cross(lin, u), _cross(ang, w), strict=True)]
+            [-a for a in cross(lin, w)]
+            + [-a - b for a, b in zip(cross(lin, u), cross(ang, w), strict=True)]
         )
 
     def viscous(self, nu_r: np.ndarray) -> np.ndarray:
         """Viscous cross-flow and lift forces on the right-hand side (4.2.6)-(4.2.9)."""
-        p = self.params
-        u, v, w, pp, q, r = nu_r
+        params = self.params
+        u, v, w, roll_rate, q, r = nu_r
         return np.array(
             [
-                p.X_uu * u * abs(u),
-                p.Y_vv * v * abs(v) + p.Y_rr * r * abs(r) + p.Y_uv * u * v + p.Y_ur * u * r,
-                p.Z_ww * w * abs(w) + p.Z_qq * q * abs(q) + p.Z_uw * u * w + p.Z_uq * u * q,
-                p.K_p * pp + p.K_pp * pp * abs(pp),
-                p.M_ww * w * abs(w) + p.M_qq * q * abs(q) + p.M_uw * u * w + p.M_uq * u * q,
-                p.N_vv * v * abs(v) + p.N_rr * r * abs(r) + p.N_uv * u * v + p.N_ur * u * r,
+                params.X_uu * u * abs(u),
+                params.Y_vv * v * abs(v)
+                + params.Y_rr * r * abs(r)
+                + params.Y_uv * u * v
+                + params.Y_ur * u * r,
+                params.Z_ww * w * abs(w)
+                + params.Z_qq * q * abs(q)
+                + params.Z_uw * u * w
+                + params.Z_uq * u * q,
+                params.K_p * roll_rate + params.K_pp * roll_rate * abs(roll_rate),
+                params.M_ww * w * abs(w)
+                + params.M_qq * q * abs(q)
+                + params.M_uw * u * w
+                + params.M_uq * u * q,
+                params.N_vv * v * abs(v)
+                + params.N_rr * r * abs(r)
+                + params.N_uv * u * v
+                + params.N_ur * u * r,
             ]
         )
 
     def restoring(self, phi: float, theta: float) -> np.ndarray:
         """Hydrostatic force and moment on the right-hand side (3.5.3), r_b = 0:
         [(W - B) Gamma; r_g x W Gamma], Gamma = R^T [0, 0, 1]."""
-        p = self.params
-        gamma = _gravity_direction(phi, theta)
-        moment = _cross((p.x_g, 0.0, p.z_g), gamma)
-        return np.array([(p.W - p.B) * c for c in gamma] + [p.W * c for c in moment])
+        params = self.params
+        gamma = gravity_direction(phi, theta)
+        moment = cross((params.x_g, 0.0, params.z_g), gamma)
+        return np.array([(params.W - params.B) * c for c in gamma] + [params.W * c for c in moment])
 
     def actuators(self, inputs: Sequence[float], u_r: float) -> np.ndarray:
         """Propeller thrust T and torque Q, tunnel thruster F_t at (0, 0, z_t) (6.3.79) and
         stern planes Z_ds (u_r/U0)^2 delta_s, M_ds (u_r/U0)^2 delta_s (Table 6.1)."""
-        p = self.params
+        params = self.params
         thrust, torque, f_t, delta_s = inputs[0], inputs[1], inputs[2], inputs[3]
-        scale = (u_r / p.fin_reference_speed) ** 2 * delta_s
-        return np.array([thrust, f_t, p.Z_ds * scale, torque - f_t * p.z_t, p.M_ds * scale, 0.0])
+        scale = (u_r / params.fin_reference_speed) ** 2 * delta_s
+        return np.array(
+            [thrust, f_t, params.Z_ds * scale, torque - f_t * params.z_t, params.M_ds * scale, 0.0]
+        )
 
     def moving_mass(
         self, x: Sequence[float], inputs: Sequence[float]
@@ -274,18 +237,22 @@ class PlantModel:
         Returns:
             (y' in m/s, y'' in m/s^2, generalised force on the hull [X, Y, Z, K, M, N]).
         """
-        p = self.params
+        params = self.params
         y_v, y_vel = x[_YV], x[_YVEL]
-        accel = (p.k_v * (inputs[4] - y_v) - p.d_v * y_vel) / p.m_v
-        if _against_stop(y_v, y_vel, accel, p.mass_stroke):
+        accel = (params.k_v * (inputs[4] - y_v) - params.d_v * y_vel) / params.m_v
+        if _against_stop(y_v, y_vel, accel, params.mass_stroke):
             y_vel, accel = 0.0, 0.0
-        elif p.mass_speed_limit > 0.0 and abs(y_vel) >= p.mass_speed_limit and accel * y_vel > 0:
+        elif (
+            params.mass_speed_limit > 0.0
+            and abs(y_vel) >= params.mass_speed_limit
+            and accel * y_vel > 0
+        ):
             accel = 0.0
-        f_mm = -p.m_v * accel
-        weight = p.m_v * p.g * y_v
+        f_mm = -params.m_v * accel
+        weight = params.m_v * params.g * y_v
         phi, theta = x[3], x[4]
-        roll = -p.z_g * f_mm + weight * math.cos(theta) * math.cos(phi)
-        yaw = p.x_v * f_mm + weight * math.sin(theta)
+        roll = -params.z_g * f_mm + weight * math.cos(theta) * math.cos(phi)
+        yaw = params.x_v * f_mm + weight * math.sin(theta)
         return y_vel, accel, np.array([0.0, f_mm, 0.0, roll, 0.0, yaw])
 
     def current_forcing(
@@ -307,7 +274,7 @@ class PlantModel:
         Args:
             R: body-to-earth rotation; current_body: U = R^T V_c; nu, nu_r: velocities.
         """
-        w_x_U = _cross(nu[3:], current_body)
+        w_x_U = cross(nu[3:], current_body)
         nuc_dot = [-w_x_U[0], -w_x_U[1], -w_x_U[2], 0.0, 0.0, 0.0]
         force = np.zeros(6)
         if self.current_shear != 0.0:
@@ -363,26 +330,28 @@ class PlantModel:
                 took from the hull while accelerating the mass comes back (without it, every
                 arrival at a stop would be a spurious kick). RK4 stage states pass False.
         """
-        p = self.params
+        params = self.params
         if self.variant is not Variant.FULL:
             frozen_nu = [6 + i for i in range(6) if i not in self.variant.velocities]
             x[frozen_nu] = 0.0
             x[[i for i in (2, 3, 4) if i not in self.variant.pose]] = 0.0
-        if abs(x[_YV]) >= p.mass_stroke:
-            x[_YV] = math.copysign(p.mass_stroke, x[_YV])
+        if abs(x[_YV]) >= params.mass_stroke:
+            x[_YV] = math.copysign(params.mass_stroke, x[_YV])
             if x[_YVEL] * x[_YV] > 0.0:  # moving into the stop
                 if collide:
                     x[_NU] += self.mass_collision_velocity_change(x[_YVEL])
                 x[_YVEL] = 0.0
-        if p.mass_speed_limit > 0.0:
-            x[_YVEL] = min(max(x[_YVEL], -p.mass_speed_limit), p.mass_speed_limit)
+        if params.mass_speed_limit > 0.0:
+            x[_YVEL] = min(max(x[_YVEL], -params.mass_speed_limit), params.mass_speed_limit)
         return x
 
     def mass_collision_velocity_change(self, mass_velocity: float) -> np.ndarray:
         """Hull velocity change when the moving mass, sliding at ``mass_velocity`` (m/s),
         stops dead against a rail stop: (M_RB + M_A) d nu = m_v y_vel [0, 1, 0, -z_g, 0, x_v]."""
-        p = self.params
-        impulse = p.m_v * mass_velocity * np.array([0.0, 1.0, 0.0, -p.z_g, 0.0, p.x_v])
+        params = self.params
+        impulse = (
+            params.m_v * mass_velocity * np.array([0.0, 1.0, 0.0, -params.z_g, 0.0, params.x_v])
+        )
         return self._inverse_mass @ impulse
 
     def current_change_velocity_jump(self, x: np.ndarray, delta_current: np.ndarray) -> np.ndarray:
@@ -395,19 +364,6 @@ class PlantModel:
         impulse = np.array(added_mass_matrix_times(self.params, d_nuc))
         impulse[:3] += self.params.m_bar * d_nuc[:3]
         return self._inverse_mass @ impulse
-
-
-def added_mass_matrix_times(p: VehicleParameters, nu: Sequence[float]) -> list[float]:
-    """M_A nu without building the matrix."""
-    u, v, w, pp, q, r = nu
-    return [p.a11 * u, p.a22 * v + p.a26 * r, p.a33 * w + p.a35 * q, p.a44 * pp,
-            p.a55 * q + p.a35 * w, p.a66 * r + p.a26 * v]  # fmt: skip
-
-
-def _gravity_direction(phi: float, theta: float) -> np.ndarray:
-    """Gamma = R^T [0, 0, 1] = [-sin theta, cos theta sin phi, cos theta cos phi] (3.5.3)."""
-    ct = math.cos(theta)
-    return np.array([-math.sin(theta), ct * math.sin(phi), ct * math.cos(phi)])
 
 
 def _against_stop(y_v: float, y_vel: float, accel: float, stroke: float) -> bool:

@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from plant_fmu.model.inertia import added_mass_matrix, rigid_body_mass_matrix
+
 
 class VehicleParameterError(ValueError):
     """A parameter set is missing, unknown, or holds a value outside its allowed range."""
@@ -96,9 +98,6 @@ class VehicleParameters(BaseModel):
 
     @model_validator(mode="after")
     def _mass_matrix_positive_definite(self) -> VehicleParameters:
-        # Imported here: dynamics builds the matrices and itself imports this module.
-        from plant_fmu.model.dynamics import added_mass_matrix, rigid_body_mass_matrix
-
         total = rigid_body_mass_matrix(self) + added_mass_matrix(self)
         eigenvalues = np.linalg.eigvalsh(0.5 * (total + total.T))
         if eigenvalues.min() <= 0.0:

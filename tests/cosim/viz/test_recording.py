@@ -34,8 +34,8 @@ from plant_fmu.model.dynamics import (
     STATE_NAMES,
     PlantModel,
     Variant,
-    rotation_matrix,
 )
+from plant_fmu.model.kinematics import rotation_matrix
 from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import simulate
 

@@ -12,9 +12,8 @@ from plant_fmu.model.dynamics import (
     STATE_INDEX,
     PlantModel,
     Variant,
-    euler_rate_matrix,
-    rotation_matrix,
 )
+from plant_fmu.model.kinematics import euler_rate_matrix, rotation_matrix
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import advance, simulate

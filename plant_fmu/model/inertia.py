@@ -1,0 +1,50 @@
+"""Inertia of hull and fluid: rigid-body and added-mass matrices (2.3.11, Table 4.1).
+
+Kept apart from :mod:`plant_fmu.model.dynamics` so that :mod:`plant_fmu.model.parameters`
+can check a parameter set's mass matrix without importing the dynamics (which imports the
+parameters). Units: kg, kg m, kg m^2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from plant_fmu.model.kinematics import skew
+
+if TYPE_CHECKING:  # parameters imports this module: the type is for annotations only
+    from plant_fmu.model.parameters import VehicleParameters
+
+
+def rigid_body_mass_matrix(params: VehicleParameters) -> np.ndarray:
+    """M_RB (2.3.11) about the CB, with r_g = [x_g, 0, z_g] and I_o = diag(I_xx, I_yy, I_zz)."""
+    r_g = np.array([params.x_g, 0.0, params.z_g])
+    M = np.zeros((6, 6))
+    M[:3, :3] = params.m * np.eye(3)
+    M[:3, 3:] = -params.m * skew(r_g)
+    M[3:, :3] = params.m * skew(r_g)
+    M[3:, 3:] = np.diag([params.I_xx, params.I_yy, params.I_zz])
+    return M
+
+
+def added_mass_matrix(params: VehicleParameters) -> np.ndarray:
+    """M_A: diag(a11..a66) with the sway-yaw (a26 = a62) and heave-pitch (a35 = a53) pairs."""
+    M = np.diag([params.a11, params.a22, params.a33, params.a44, params.a55, params.a66])
+    M[1, 5] = M[5, 1] = params.a26
+    M[2, 4] = M[4, 2] = params.a35
+    return M
+
+
+def added_mass_matrix_times(params: VehicleParameters, nu: Sequence[float]) -> list[float]:
+    """M_A nu without building the matrix (the added-mass impulse of nu)."""
+    u, v, w, roll_rate, q, r = nu
+    return [
+        params.a11 * u,
+        params.a22 * v + params.a26 * r,
+        params.a33 * w + params.a35 * q,
+        params.a44 * roll_rate,
+        params.a55 * q + params.a35 * w,
+        params.a66 * r + params.a26 * v,
+    ]
