@@ -12,7 +12,8 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   ``fin_angle`` (rad), ``mass_position_cmd`` (m; the rail stops bound the mass, not the command),
   ``current_north``, ``current_east``, ``current_down`` (m/s, earth frame);
 * outputs: the 14 states (``north`` ... ``r``, ``mass_position``, ``mass_velocity``),
-  ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - R^T V_c) and ``kinetic_energy``
+  ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - U, U the current in body axes:
+  ``PlantModel.current_in_body``) and ``kinetic_energy``
   (J, 1/2 nu_r^T (M_RB + M_A) nu_r). All are refreshed after initialisation and after each
   step, so none depends directly on an input (ModelStructure dependencies ""). Their start
   values (all 0) are the outputs for the default parameters (the vehicle at rest);
@@ -172,7 +173,7 @@ class AuvPlant(SafeSlave):
             self.register(
                 Real(
                     name,
-                    description=f"{axis} relative to the water, {axis} - (R^T V_c)_{axis}",
+                    description=f"{axis} relative to the water, {axis} - current_{axis} (body)",
                     getter=item_getter(self._derived, i),
                     **output,
                 ),

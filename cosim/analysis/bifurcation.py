@@ -65,7 +65,6 @@ from scipy.optimize import root
 
 from cosim.analysis.equilibria import Equilibrium, find_equilibrium, free_states
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
-from plant_fmu.model.kinematics import rotation_matrix
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters
 
@@ -211,13 +210,15 @@ class OperatingConditions:
         return state_vector({"mass_position": self.mass_position, **(values or {})})
 
     def over_ground(self, state: np.ndarray) -> np.ndarray:
-        """The relative-motion state with the current's body-frame velocity R^T V_c
-        (at yaw = 0) added to the free linear velocities."""
+        """The relative-motion state with the current in body axes (as the plant sees it,
+        :meth:`PlantModel.current_in_body`, at yaw = 0) added to the free linear velocities."""
         state = state.copy()
         if self.current_east == 0.0:
             return state
-        R = rotation_matrix(state[STATE_INDEX["roll"]], state[STATE_INDEX["pitch"]], 0.0)
-        current_body = R.T @ np.array([0.0, self.current_east, 0.0])
+        at_zero_yaw = state.copy()
+        at_zero_yaw[STATE_INDEX["yaw"]] = 0.0
+        current = input_vector({"current_east": self.current_east})
+        current_body = self.model.current_in_body(at_zero_yaw, current)
         for k, name in enumerate(("u", "v", "w")):
             if name in self.free_states:
                 state[STATE_INDEX[name]] += current_body[k]

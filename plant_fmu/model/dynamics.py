@@ -1,22 +1,32 @@
 """Equations of motion of the REMUS 100 with internal actuators: the one source of truth.
 
-Everything that moves the vehicle is here: rigid body (2.3.11, 2.3.13), added mass and its
-Coriolis terms (A.62), the non-uniform-current terms (3.4.12, 3.4.20), viscous cross-flow
-and lift (4.2.6-4.2.9), hydrostatics (3.5.3), propeller, tunnel thruster (6.3.79), stern
-planes (Table 6.1) and the internal moving mass with its servo (6.3.12-6.3.13). The
-equation numbers refer to B. Li, *Dynamics and Control of Autonomous Underwater Vehicles
-with Internal Actuators*, FAU 2016; ``docs/model.md`` restates them. Kinematics live in
+Everything that moves the vehicle is here or in the modules it draws on: rigid body
+(2.3.11, 2.3.13), added mass and its Coriolis terms (A.62), the current's terms
+(:mod:`plant_fmu.model.currents`: 3.4.12, 3.4.20, 5.2.10, 5.3.1), viscous cross-flow and
+lift (4.2.6-4.2.9), hydrostatics (3.5.3), propeller, tunnel thruster (6.3.79), stern planes
+(Table 6.1) and the internal moving mass with its servo (:mod:`plant_fmu.model.moving_mass`:
+6.3.11-6.3.13, or the full two-body equations 6.2.28). The equation numbers refer to
+B. Li, *Dynamics and Control of Autonomous Underwater Vehicles with Internal Actuators*,
+FAU 2016; ``docs/model.md`` restates them. Kinematics live in
 :mod:`plant_fmu.model.kinematics`, the mass matrices in :mod:`plant_fmu.model.inertia`.
 
-The equation integrated is the full form (3.6.2 with viscous terms, 4.3.1), on the velocity
-over ground nu and the relative velocity nu_r = nu - nu_c::
+The full 6-DOF variant integrates the full form (3.6.2 with viscous terms, 4.3.1), on the
+velocity over ground nu and the relative velocity nu_r = nu - nu_c::
 
     (M_RB + M_A) nu_dot = tau - C_RB(nu) nu - C_A*(nu_r) nu_r - D(nu_r) nu_r + g(eta)
                           + (Mbar + M_A) nuc_dot + Cbar(nu) nu_c
 
 (here g(eta) is the restoring force on the right-hand side). C_RB uses the
 linear-velocity-independent parametrisation, which makes this reduce exactly to the
-relative form (3.6.10) in a steady, uniform current.
+relative form (3.6.10) in a steady, uniform current. The lateral and horizontal variants
+integrate the relative form itself (their frozen attitude breaks that reduction: see
+:mod:`plant_fmu.model.currents`)::
+
+    (M_RB + M_A) nur_dot = tau - C_RB(nu_r) nu_r - C_A(nu_r) nu_r - D(nu_r) nu_r + g(eta)
+    nu_dot = nur_dot + [dU/dt; 0],   eta1_dot = R nu_r + V_c
+
+with U the horizontal current turned by the yaw only (5.2.10). The state always holds the
+velocity over ground, nu = nu_r + [U; 0].
 
 State vector (``STATE_NAMES``, SI, angles in rad)::
 
@@ -37,12 +47,25 @@ from enum import IntEnum
 
 import numpy as np
 
+from plant_fmu.model.currents import (
+    full_form_current_force,
+    planar_current,
+    relative_form_shear_force,
+)
 from plant_fmu.model.inertia import (
     added_mass_matrix,
     added_mass_matrix_times,
     rigid_body_mass_matrix,
 )
 from plant_fmu.model.kinematics import cross, euler_rate_matrix, gravity_direction, rotation_matrix
+from plant_fmu.model.moving_mass import (
+    MovingMassModel,
+    mass_matrix_shift,
+    rail_direction,
+    servo_motion,
+    two_body_force,
+    weight_moment,
+)
 from plant_fmu.model.parameters import VehicleParameters
 
 STATE_NAMES: tuple[str, ...] = (
@@ -107,30 +130,56 @@ class PlantModel:
         ideal_fluid: drop the viscous terms D(nu_r) nu_r (Sec. 5.1, Thm 5.1).
         current_shear: linear horizontal shear d(current_north)/d(east), 1/s. The current
             at the vehicle is V_c = [current_north + shear * east, current_east, current_down].
+        moving_mass_model: the dissertation's equations (0, default) or the full two-body
+            dynamics of hull and moving mass (1); see :class:`MovingMassModel`.
     """
 
     params: VehicleParameters
     variant: Variant = Variant.FULL
     ideal_fluid: bool = False
     current_shear: float = 0.0
+    moving_mass_model: MovingMassModel = MovingMassModel.DISSERTATION
     mass_matrix: np.ndarray = field(init=False, repr=False)
     _inverse_mass: np.ndarray = field(init=False, repr=False)
+    _rigid_mass: np.ndarray = field(init=False, repr=False)
+    _free: np.ndarray = field(init=False, repr=False)
     _frozen_pose: list[int] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "variant", Variant(self.variant))
+        if self.moving_mass_model not in tuple(MovingMassModel):
+            raise ValueError(
+                f"moving_mass_model = {self.moving_mass_model!r}: expected 0 (the "
+                "dissertation's equations) or 1 (two-body dynamics of hull and mass)"
+            )
+        object.__setattr__(self, "moving_mass_model", MovingMassModel(self.moving_mass_model))
         if not math.isfinite(self.current_shear):
             raise ValueError(f"current_shear = {self.current_shear!r}: expected a finite 1/s")
-        M = rigid_body_mass_matrix(self.params) + added_mass_matrix(self.params)
+        rigid = rigid_body_mass_matrix(self.params)
+        M = rigid + added_mass_matrix(self.params)
         free = np.array(self.variant.velocities)
         inverse = np.zeros((6, 6))
         inverse[np.ix_(free, free)] = np.linalg.inv(M[np.ix_(free, free)])
         object.__setattr__(self, "mass_matrix", M)
         object.__setattr__(self, "_inverse_mass", inverse)
+        object.__setattr__(self, "_rigid_mass", rigid)
+        object.__setattr__(self, "_free", free)
         frozen = [i for i in range(6) if i not in self.variant.pose]
         object.__setattr__(self, "_frozen_pose", frozen)
 
-    # The pieces of the right-hand side, each a generalised force on [X, Y, Z, K, M, N].
+    @property
+    def two_body(self) -> bool:
+        """True when the moving mass is modelled as a second body (model 1)."""
+        return self.moving_mass_model is MovingMassModel.TWO_BODY
+
+    def mass_matrix_at(self, mass_position: float) -> np.ndarray:
+        """M_RB + M_A with the moving mass at y_v = ``mass_position`` (m); model 0 keeps it
+        at the centre of its rail."""
+        if not self.two_body:
+            return self.mass_matrix
+        return self.mass_matrix + mass_matrix_shift(self.params, mass_position)
+
+    # The current at the vehicle.
 
     def current_velocity(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """Earth-frame water velocity at the vehicle, m/s (uniform part plus shear)."""
@@ -138,17 +187,32 @@ class PlantModel:
         v_c[0] += self.current_shear * x[1]
         return v_c
 
+    def current_in_body(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """U, the current in body axes, m/s: R^T V_c in the full variant; in the lateral and
+        horizontal variants the horizontal current turned by the yaw only (5.2.10)."""
+        v_c = self.current_velocity(x, inputs)
+        if self.variant is Variant.FULL:
+            return rotation_matrix(x[3], x[4], x[5]).T @ v_c
+        return np.array([*planar_current(x[5], v_c), 0.0])
+
     def relative_velocity(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
-        """nu_r = nu - [R^T V_c; 0], m/s and rad/s."""
-        R = rotation_matrix(x[3], x[4], x[5])
+        """nu_r = nu - [U; 0] (:meth:`current_in_body`), m/s and rad/s."""
         nu_r = np.array(x[_NU], dtype=float)
-        nu_r[:3] -= R.T @ self.current_velocity(x, inputs)
+        nu_r[:3] -= self.current_in_body(x, inputs)
         return nu_r
 
     def kinetic_energy(self, x: np.ndarray, inputs: np.ndarray) -> float:
-        """1/2 nu_r^T (M_RB + M_A) nu_r, J."""
+        """Kinetic energy of the motion relative to the water, J: 1/2 nu_r^T (M_RB + M_A)
+        nu_r; with the two-body model, of hull, fluid and moving mass together,
+        1/2 nu_r^T M(y_v) nu_r + m_v y' J.nu_r + 1/2 m_v y'^2."""
         nu_r = self.relative_velocity(x, inputs)
-        return 0.5 * float(nu_r @ self.mass_matrix @ nu_r)
+        if not self.two_body:
+            return 0.5 * float(nu_r @ self.mass_matrix @ nu_r)
+        y_v, y_vel, m_v = x[_YV], x[_YVEL], self.params.m_v
+        hull = 0.5 * float(nu_r @ self.mass_matrix_at(y_v) @ nu_r)
+        return hull + m_v * y_vel * float(rail_direction(self.params) @ nu_r) + 0.5 * m_v * y_vel**2
+
+    # The pieces of the right-hand side, each a generalised force on [X, Y, Z, K, M, N].
 
     def coriolis_rigid_body(self, nu: Sequence[float]) -> np.ndarray:
         """C_RB(nu) nu (2.3.13), linear-velocity-independent form:
@@ -224,100 +288,123 @@ class PlantModel:
     def moving_mass(
         self, x: Sequence[float], inputs: Sequence[float]
     ) -> tuple[float, float, np.ndarray]:
-        """Servo motion of the moving mass and its reaction on the hull (6.3.12-6.3.13).
+        """Servo motion of the moving mass and its reaction on the hull (6.3.11-6.3.13).
 
-        The servo m_v y'' + d_v y' + k_v y = k_v y_d follows the command as given: the stops,
-        not the command, bound the motion (Sec. 6.3.1 constrains y_v and y_vel only, and the
-        dissertation's LQR runs drive the mass at up to ~50 cm/s, Fig. 6.14, which a command
-        saturated at the stroke cannot). Against a stop (or at the rail-speed limit) the mass
-        does not accelerate outwards and exerts no servo reaction. The reaction
-        F_mm = -m_v y'' acts in sway at (x_v, ., z_g): sway +F_mm, roll -z_g F_mm,
-        yaw +x_v F_mm; the offset weight adds r x m_v g Gamma with r = [0, y_v, 0].
+        The servo (:func:`~plant_fmu.model.moving_mass.servo_motion`) sets y'' along the
+        rail; the reaction F_mm = -m_v y'' acts in sway at (x_v, ., z_g): sway +F_mm, roll
+        -z_g F_mm, yaw +x_v F_mm; the offset weight adds r x m_v g Gamma with
+        r = [0, y_v, 0]. The two-body model adds :func:`two_body_force` in the form being
+        integrated.
 
         Returns:
             (y' in m/s, y'' in m/s^2, generalised force on the hull [X, Y, Z, K, M, N]).
         """
         params = self.params
-        y_v, y_vel = x[_YV], x[_YVEL]
-        accel = (params.k_v * (inputs[4] - y_v) - params.d_v * y_vel) / params.m_v
-        if _against_stop(y_v, y_vel, accel, params.mass_stroke):
-            y_vel, accel = 0.0, 0.0
-        elif (
-            params.mass_speed_limit > 0.0
-            and abs(y_vel) >= params.mass_speed_limit
-            and accel * y_vel > 0
-        ):
-            accel = 0.0
+        y_vel, accel = servo_motion(params, x[_YV], x[_YVEL], inputs[4])
         f_mm = -params.m_v * accel
-        weight = params.m_v * params.g * y_v
-        phi, theta = x[3], x[4]
-        roll = -params.z_g * f_mm + weight * math.cos(theta) * math.cos(phi)
-        yaw = params.x_v * f_mm + weight * math.sin(theta)
+        roll_weight, yaw_weight = weight_moment(params, x[_YV], x[3], x[4])
+        roll = -params.z_g * f_mm + roll_weight
+        yaw = params.x_v * f_mm + yaw_weight
         return y_vel, accel, np.array([0.0, f_mm, 0.0, roll, 0.0, yaw])
-
-    def current_forcing(
-        self,
-        R: np.ndarray,
-        current_body: Sequence[float],
-        nu: Sequence[float],
-        nu_r: Sequence[float],
-    ) -> np.ndarray:
-        """Forces the moving water exerts beyond C_A*(nu_r) nu_r: (Mbar + M_A) nuc_dot +
-        Cbar(nu) nu_c minus the non-uniform term of (3.4.20).
-
-        With r_b = 0 and V_u held constant over a step (3.4.12):
-        nuc_dot = [-w x U + Phi u; 0], Mbar nuc_dot + Cbar nu_c = [mbar Phi u; 0], and the
-        non-uniform term is -Phi [(A11 + mbar I) u_r + A12 w], Phi = R^T (dV_s/d eta1) R.
-        We write Phi u (the chain rule along the path) where the text of (3.4.12) has Phi^T u:
-        the two agree for the symmetric gradients of (3.4.13), differ for a sheared current.
-
-        Args:
-            R: body-to-earth rotation; current_body: U = R^T V_c; nu, nu_r: velocities.
-        """
-        w_x_U = cross(nu[3:], current_body)
-        nuc_dot = [-w_x_U[0], -w_x_U[1], -w_x_U[2], 0.0, 0.0, 0.0]
-        force = np.zeros(6)
-        if self.current_shear != 0.0:
-            gradient = np.zeros((3, 3))
-            gradient[0, 1] = self.current_shear
-            phi_t = R.T @ gradient @ R
-            phi_u = phi_t @ np.asarray(nu[:3])
-            nuc_dot[:3] = (np.asarray(nuc_dot[:3]) + phi_u).tolist()
-            m_bar = self.params.m_bar
-            impulse = added_mass_matrix_times(self.params, nu_r)
-            force[:3] = m_bar * phi_u - phi_t @ (
-                np.asarray(impulse[:3]) + m_bar * np.asarray(nu_r[:3])
-            )
-        return force + added_mass_matrix_times(self.params, nuc_dot)
 
     def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """State derivative x_dot = f(x, inputs) of the active variant (frozen states: 0)."""
         xs, us = x.tolist(), inputs.tolist()
-        phi, theta, psi = xs[3], xs[4], xs[5]
-        nu = xs[6:12]
-        R = rotation_matrix(phi, theta, psi)
-        current_body = (R.T @ self.current_velocity(x, inputs)).tolist()
-        nu_r = [nu[0] - current_body[0], nu[1] - current_body[1], nu[2] - current_body[2], *nu[3:]]
+        phi, theta = xs[3], xs[4]
+        R = rotation_matrix(phi, theta, xs[5])
         mass_velocity, mass_accel, f_mm = self.moving_mass(xs, us)
-        force = (
-            self.actuators(us, nu_r[0])
-            + f_mm
-            + self.restoring(phi, theta)
-            - self.coriolis_rigid_body(nu)
-            - self.coriolis_added_mass(nu_r)
-            + self.current_forcing(R, current_body, nu, nu_r)
-        )
-        if not self.ideal_fluid:
-            force += self.viscous(nu_r)
         dx = np.empty(N_STATES)
-        dx[0:3] = R @ x[6:9]
         dx[3:6] = euler_rate_matrix(phi, theta) @ x[9:12]
-        dx[_NU] = self._inverse_mass @ force
+        base = (f_mm, self.restoring(phi, theta))
+        if self.variant is Variant.FULL:
+            dx[_NU], dx[0:3] = self._full_form(xs, us, R, base, mass_velocity)
+        else:
+            dx[_NU], dx[0:3] = self._relative_form(x, us, R, base, mass_velocity, dx[5])
         dx[_YV] = mass_velocity
         dx[_YVEL] = mass_accel
         if self._frozen_pose:
             dx[self._frozen_pose] = 0.0
         return dx
+
+    def _full_form(
+        self,
+        xs: list[float],
+        us: list[float],
+        R: np.ndarray,
+        base: tuple[np.ndarray, np.ndarray],
+        y_vel: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(nu_dot, eta1_dot) of the full form (3.6.2, 4.3.1) on the velocity over ground;
+        ``base`` holds the forces that depend on no velocity (moving mass, restoring)."""
+        nu = xs[6:12]
+        current_body = (R.T @ self.current_velocity(np.asarray(xs), np.asarray(us))).tolist()
+        nu_r = [nu[0] - current_body[0], nu[1] - current_body[1], nu[2] - current_body[2], *nu[3:]]
+        force = (
+            self.actuators(us, nu_r[0])
+            + base[0]
+            + base[1]
+            - self.coriolis_rigid_body(nu)
+            - self.coriolis_added_mass(nu_r)
+            + full_form_current_force(self.params, self.current_shear, R, current_body, nu, nu_r)
+        )
+        if not self.ideal_fluid:
+            force += self.viscous(nu_r)
+        if self.two_body:
+            force += two_body_force(self.params, nu, xs[_YV], y_vel)
+        return self._accelerate(xs[_YV], force), R @ np.asarray(nu[:3])
+
+    def _relative_form(
+        self,
+        x: np.ndarray,
+        us: list[float],
+        R: np.ndarray,
+        base: tuple[np.ndarray, np.ndarray],
+        y_vel: float,
+        yaw_rate: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(nu_dot, eta1_dot) of the lateral and horizontal variants: the relative form with
+        the current turned by the yaw only (5.2.10), nu_dot = nur_dot + [dU/dt; 0] with
+        dU/dt = psi' [U_y, -U_x, 0] + a (a: the water's acceleration along the path)."""
+        v_c = self.current_velocity(x, np.asarray(us))
+        current = planar_current(x[5], v_c)
+        nu_r = x[_NU].tolist()
+        nu_r[0] -= current[0]
+        nu_r[1] -= current[1]
+        position_rate = R @ np.asarray(nu_r[:3]) + v_c
+        force = (
+            self.actuators(us, nu_r[0])
+            + base[0]
+            + base[1]
+            - self.coriolis_rigid_body(nu_r)
+            - self.coriolis_added_mass(nu_r)
+        )
+        if not self.ideal_fluid:
+            force += self.viscous(nu_r)
+        if self.two_body:
+            force += two_body_force(self.params, nu_r, x[_YV], y_vel)
+        water_accel = (0.0, 0.0)
+        if self.current_shear != 0.0:
+            rigid = self._rigid_mass
+            if self.two_body:
+                rigid = rigid + mass_matrix_shift(self.params, x[_YV])
+            shear, water_accel = relative_form_shear_force(
+                self.params, self.current_shear, x[5], position_rate[1], nu_r, rigid
+            )
+            force += shear
+        nu_dot = self._accelerate(x[_YV], force)
+        nu_dot[0] += yaw_rate * current[1] + water_accel[0]
+        nu_dot[1] += -yaw_rate * current[0] + water_accel[1]
+        return nu_dot, position_rate
+
+    def _accelerate(self, mass_position: float, force: np.ndarray) -> np.ndarray:
+        """(M_RB + M_A)^-1 force on the free degrees of freedom (0 on the frozen ones)."""
+        if not self.two_body:
+            return self._inverse_mass @ force
+        free = self._free
+        M = self.mass_matrix_at(mass_position)
+        accel = np.zeros(6)
+        accel[free] = np.linalg.solve(M[np.ix_(free, free)], force[free])
+        return accel
 
     def project(self, x: np.ndarray, collide: bool = False) -> np.ndarray:
         """Enforce the constraints on a state in place: frozen DOFs at 0, the mass within its
@@ -325,10 +412,11 @@ class PlantModel:
 
         Args:
             collide: the state ends an integration step, so a mass that reached a stop with
-                speed y_vel hits it: the collision is inelastic and its impulse m_v y_vel,
-                along the rail at (x_v, ., z_g), goes to the hull, so the momentum the servo
-                took from the hull while accelerating the mass comes back (without it, every
-                arrival at a stop would be a spurious kick). RK4 stage states pass False.
+                speed y_vel hits it: the collision is inelastic and conserves the momentum
+                of hull, fluid and mass, (M_RB + M_A) nu + m_v y_vel J along the free
+                degrees of freedom, so the momentum the servo took from the hull while
+                accelerating the mass comes back (without it, every arrival at a stop would
+                be a spurious kick). RK4 stage states pass False.
         """
         params = self.params
         if self.variant is not Variant.FULL:
@@ -336,40 +424,41 @@ class PlantModel:
             x[frozen_nu] = 0.0
             x[[i for i in (2, 3, 4) if i not in self.variant.pose]] = 0.0
         if abs(x[_YV]) >= params.mass_stroke:
+            arrival = x[_YV]
             x[_YV] = math.copysign(params.mass_stroke, x[_YV])
             if x[_YVEL] * x[_YV] > 0.0:  # moving into the stop
                 if collide:
-                    x[_NU] += self.mass_collision_velocity_change(x[_YVEL])
+                    x[_NU] = self._velocity_after_impact(x[_NU], arrival, x[_YV], x[_YVEL])
                 x[_YVEL] = 0.0
         if params.mass_speed_limit > 0.0:
             x[_YVEL] = min(max(x[_YVEL], -params.mass_speed_limit), params.mass_speed_limit)
         return x
 
-    def mass_collision_velocity_change(self, mass_velocity: float) -> np.ndarray:
-        """Hull velocity change when the moving mass, sliding at ``mass_velocity`` (m/s),
-        stops dead against a rail stop: (M_RB + M_A) d nu = m_v y_vel [0, 1, 0, -z_g, 0, x_v]."""
-        params = self.params
-        impulse = (
-            params.m_v * mass_velocity * np.array([0.0, 1.0, 0.0, -params.z_g, 0.0, params.x_v])
-        )
-        return self._inverse_mass @ impulse
+    def _velocity_after_impact(
+        self, nu: np.ndarray, arrival: float, stop: float, mass_velocity: float
+    ) -> np.ndarray:
+        """Hull velocity after the mass, found at y_v = ``arrival`` sliding at
+        ``mass_velocity`` (m/s), is stopped dead at y_v = ``stop``: the momentum
+        M(arrival) nu + m_v y_vel J is the same before and after. With model 0, M does not
+        depend on y_v and (M_RB + M_A) d nu = m_v y_vel J."""
+        impulse = self.params.m_v * mass_velocity * rail_direction(self.params)
+        if not self.two_body:
+            return nu + self._inverse_mass @ impulse
+        momentum = self.mass_matrix_at(arrival) @ nu + impulse
+        after = nu.copy()
+        after[self._free] = self._accelerate(stop, momentum)[self._free]
+        return after
 
     def current_change_velocity_jump(self, x: np.ndarray, delta_current: np.ndarray) -> np.ndarray:
         """Velocity change of the hull when the uniform current jumps by delta_current (earth,
         m/s) between two steps: the impulse of the (Mbar + M_A) nuc_dot term,
-        (M_RB + M_A) d nu = (Mbar + M_A) [R^T dV; 0]."""
-        R = rotation_matrix(x[3], x[4], x[5])
+        (M_RB + M_A) d nu = (Mbar + M_A) [dU; 0], dU the jump in body axes
+        (:meth:`current_in_body`)."""
         d_nuc = np.zeros(6)
-        d_nuc[:3] = R.T @ np.asarray(delta_current, dtype=float)
+        if self.variant is Variant.FULL:
+            d_nuc[:3] = rotation_matrix(x[3], x[4], x[5]).T @ np.asarray(delta_current, float)
+        else:
+            d_nuc[:2] = planar_current(x[5], delta_current)
         impulse = np.array(added_mass_matrix_times(self.params, d_nuc))
         impulse[:3] += self.params.m_bar * d_nuc[:3]
-        return self._inverse_mass @ impulse
-
-
-def _against_stop(y_v: float, y_vel: float, accel: float, stroke: float) -> bool:
-    """True when the mass is at a stop and neither moves nor is pushed away from it."""
-    if y_v >= stroke:
-        return y_vel >= 0.0 and accel >= 0.0
-    if y_v <= -stroke:
-        return y_vel <= 0.0 and accel <= 0.0
-    return False
+        return self._accelerate(x[_YV], impulse)

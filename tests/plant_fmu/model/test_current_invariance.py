@@ -1,0 +1,52 @@
+"""Galilean invariance: in a steady, uniform current every variant moves relative to the
+water exactly as it moves in still water, and is carried along by V_c t."""
+
+import numpy as np
+import pytest
+
+from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import simulate
+
+NU = slice(6, 12)
+ATTITUDE_AND_MASS = [3, 4, 5, 12, 13]
+CURRENT = np.array([0.1, 0.2, 0.0])  # m/s, earth frame
+DURATION, STEP = 30.0, 0.01
+SUBSTEP = 0.005  # s: RK4 error of the over-ground integration (the full form's) < 1e-10
+
+
+def _still_and_current_runs(variant: Variant) -> tuple[PlantModel, np.ndarray, np.ndarray]:
+    """The same relative start (rolled, yawed, sway-disturbed) in still water and in
+    CURRENT, with thrust, tunnel force and a mass command acting."""
+    model = PlantModel(load_vehicle(), variant)
+    actuators = dict(thrust=9.0, tunnel_force=1.5, mass_position_cmd=0.02, fin_angle=0.05)
+    still = input_vector(actuators)
+    moving = input_vector({**actuators, "current_north": CURRENT[0], "current_east": CURRENT[1]})
+    x0 = model.project(
+        state_vector(
+            dict(u=1.4, v=0.15, w=0.03, p=0.2, q=0.02, r=-0.1, roll=0.3, pitch=0.05, yaw=0.8)
+        )
+    )
+    x0_current = x0.copy()  # over ground: the still-water velocity plus the current
+    x0_current[NU] += x0[NU] - model.relative_velocity(x0, moving)
+    _, in_still_water = simulate(model, x0, still, DURATION, STEP, SUBSTEP)
+    _, in_current = simulate(model, x0_current, moving, DURATION, STEP, SUBSTEP)
+    return model, in_still_water, in_current
+
+
+@pytest.mark.parametrize("variant", list(Variant))
+def test_steady_uniform_current_only_carries_the_vehicle_along(variant):
+    model, still, current = _still_and_current_runs(variant)
+    moving = input_vector(dict(current_north=CURRENT[0], current_east=CURRENT[1]))
+    relative = np.array([model.relative_velocity(x, moving) for x in current])
+    np.testing.assert_allclose(relative, still[:, NU], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        current[:, ATTITUDE_AND_MASS], still[:, ATTITUDE_AND_MASS], rtol=0, atol=1e-9
+    )
+    times = np.arange(len(still))[:, None] * STEP
+    np.testing.assert_allclose(current[:, :3] - still[:, :3], times * CURRENT, rtol=0, atol=1e-9)
+    # the start really is rolled and the motion really couples the degrees of freedom
+    assert np.ptp(still[:, STATE_INDEX["yaw"]]) > 0.1
+    if variant is not Variant.HORIZONTAL:
+        assert np.max(np.abs(still[:, STATE_INDEX["roll"]])) > 0.1
