@@ -5,6 +5,10 @@ group the keys for the reader: every key is a field of :class:`VehicleParameters
 after the symbol in ``docs/model.md#parameters`` (``X_uu`` is X_u|u|, ``K_pp`` is
 K_p|p|, ...). A file may start from another set with ``base = "<name>"`` and override keys.
 
+One gravity: a set states g, and its weight W = m g (the moving mass's weight m_v g and the
+displaced fluid's mass B / g use the same g). A set whose W differs from m g (a neutrally
+buoyant what-if, say) states why in a comment.
+
 Every value is SI. Bad input raises :class:`VehicleParameterError` naming the field, the
 value and what is allowed.
 """
@@ -36,9 +40,9 @@ class VehicleParameters(BaseModel):
 
     # Rigid body (Table 4.1)
     m: float = Field(gt=0.0, description="vehicle mass, kg")
-    W: float = Field(gt=0.0, description="weight, N")
+    W: float = Field(gt=0.0, description="weight, N (m g; a set that differs says why)")
     B: float = Field(gt=0.0, description="buoyancy, N")
-    g: float = Field(default=9.81, gt=0.0, description="gravitational acceleration, m/s^2")
+    g: float = Field(gt=0.0, description="gravitational acceleration, m/s^2 (one for all)")
     I_xx: float = Field(gt=0.0, description="roll inertia about the origin, kg m^2")
     I_yy: float = Field(gt=0.0, description="pitch inertia about the origin, kg m^2")
     I_zz: float = Field(gt=0.0, description="yaw inertia about the origin, kg m^2")

@@ -78,7 +78,7 @@ def test_simulate_fmu_settles_on_the_dissertation_equilibrium_like_the_model(
 
 def test_ideal_fluid_with_neutral_buoyancy_conserves_kinetic_energy(plant, unzip_dir):
     fmu = _harness(
-        plant, unzip_dir, ideal_fluid=True, B=299.0, W=299.0, z_g=0.0, thrust=0.0,
+        plant, unzip_dir, ideal_fluid=True, B=298.9, W=298.9, z_g=0.0, thrust=0.0,
         u_0=1.5, v_0=0.1, w_0=0.05, p_0=0.2, q_0=0.05, r_0=0.2,
     )  # fmt: skip
     energy_0 = fmu.get("kinetic_energy")[0]
@@ -147,7 +147,7 @@ def test_mass_command_of_five_metres_stays_within_the_stroke(plant, unzip_dir):
 
 def test_two_instances_with_different_parameters_are_independent(plant, unzip_dir, remus):
     slow = _harness(plant, unzip_dir, "slow", variant=2, v_0=0.01, thrust=4.0)
-    heavy = _harness(plant, unzip_dir, "heavy", variant=2, v_0=0.01, m=35.0, W=343.35)
+    heavy = _harness(plant, unzip_dir, "heavy", variant=2, v_0=0.01, m=35.0, W=343.0)
     rows_slow, rows_heavy = [], []
     for _ in range(500):
         rows_slow.append(slow.run(H, H, STATE_NAMES)[0])
@@ -159,7 +159,7 @@ def test_two_instances_with_different_parameters_are_independent(plant, unzip_di
         PlantModel(remus, Variant.HORIZONTAL), x0, input_vector(thrust=4.0), 5.0, H
     )
     _, expected_heavy = simulate(
-        PlantModel(remus.replace(m=35.0, W=343.35), Variant.HORIZONTAL),
+        PlantModel(remus.replace(m=35.0, W=343.0), Variant.HORIZONTAL),
         x0,
         input_vector(thrust=9.0),
         5.0,

@@ -145,12 +145,12 @@ def test_example_5_3_jacobian_at_1_5_m_per_s(lateral):
 
 
 def test_linearised_lateral_model_reproduces_6_3_19():
-    """(6.3.19) at U0 = 1.525 m/s with W = m g, g = 9.8 (as the dissertation computed it).
-    Every entry matches to print precision except A(2,2), printed -0.695 from the sign error
-    in J'' of (6.2.33); the plant's own equations give -0.942, which is Example 5.3's
-    d r'/d r = -0.9264 at 1.5 m/s scaled to 1.525 m/s (every term of it is linear in u)."""
-    params = load_vehicle("remus100").replace(g=9.8, W=30.5 * 9.8)
-    model = PlantModel(params, Variant.LATERAL)
+    """(6.3.19) at U0 = 1.525 m/s (remus100 has W = m g, g = 9.8, as the dissertation
+    computed it). Every entry matches to print precision except A(2,2), printed -0.695 from
+    the sign error in J'' of (6.2.33); the plant's own equations give -0.942, which is
+    Example 5.3's d r'/d r = -0.9264 at 1.5 m/s scaled to 1.525 m/s (every term of it is
+    linear in u)."""
+    model = PlantModel(load_vehicle("remus100"), Variant.LATERAL)
     states = ["v", "r", "p", "roll", "yaw", "mass_position", "mass_velocity"]
     A, B = linearize(model, state_vector(dict(u=1.525)), input_vector(thrust=9.0), states,
                      ["mass_position_cmd"])  # fmt: skip

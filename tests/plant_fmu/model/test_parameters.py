@@ -4,6 +4,7 @@ from pathlib import Path
 
 import pytest
 from reference_values import dissertation
+from repo_paths import ROOT
 
 from plant_fmu.model.parameters import VehicleParameterError, builtin_vehicles, load_vehicle
 
@@ -16,7 +17,8 @@ def test_builtin_sets_are_shipped_and_load():
 
 def test_remus100_matches_table_4_1_and_servo_design():
     p = load_vehicle("remus100")
-    assert (p.m, p.W, p.B, p.I_xx, p.I_zz, p.z_g) == (30.5, 299.0, 306.0, 0.177, 3.45, 0.0196)
+    assert (p.m, p.B, p.I_xx, p.I_zz, p.z_g, p.g) == (30.5, 306.0, 0.177, 3.45, 0.0196, 9.8)
+    assert round(p.W) == 299  # Table 4.1 prints m g rounded
     # (6.3.16): omega_n^2 = k_v/m_v = 5.76 and 2 zeta omega_n = d_v/m_v = 4.32, the servo
     # row of (6.3.19): y_vel' = -k_v/m_v y_v - d_v/m_v y_vel + k_v/m_v y_d
     servo_row = dissertation("equation_6_3_19.A")[6]
@@ -24,6 +26,22 @@ def test_remus100_matches_table_4_1_and_servo_design():
     assert p.d_v / p.m_v == pytest.approx(-servo_row[6])
     assert p.k_v / p.m_v == pytest.approx(dissertation("equation_6_3_19.B")[6])
     assert p.m_v == pytest.approx(p.m / 6)
+
+
+@pytest.mark.parametrize("name", builtin_vehicles())
+def test_builtin_sets_use_one_gravity(name):
+    """The weight is m g with the set's own g, the g the moving mass's weight uses."""
+    p = load_vehicle(name)
+    assert abs(p.W - p.m * p.g) <= 1e-12 * p.W
+
+
+def test_a_set_must_state_its_gravity(tmp_path):
+    table = (ROOT / "plant_fmu/model/vehicles/remus100.toml").read_text()
+    assert "\ng = 9.8 " in table
+    without_g = tmp_path / "no-g.toml"
+    without_g.write_text(table.replace("\ng = 9.8 ", "\n# g = 9.8 "))
+    with pytest.raises(VehicleParameterError, match="g is missing"):
+        load_vehicle(without_g)
 
 
 def test_variant_sets_differ_only_where_documented():
