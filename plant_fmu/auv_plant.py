@@ -13,18 +13,19 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   ``current_north``, ``current_east``, ``current_down`` (m/s, earth frame);
 * outputs: the 14 states (``north`` ... ``r``, ``mass_position``, ``mass_velocity``),
   ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - U, U the current in body axes:
-  ``PlantModel.current_in_body``) and ``kinetic_energy``
-  (J, 1/2 nu_r^T (M_RB + M_A) nu_r). All are refreshed after initialisation and after each
+  ``PlantModel.current_in_body``) and ``kinetic_energy`` (J, 1/2 nu_r^T (M_RB + M_A) nu_r;
+  with model 1 the moving mass's too). All are refreshed after initialisation and after each
   step, so none depends directly on an input (ModelStructure dependencies ""). Their start
   values (all 0) are the outputs for the default parameters (the vehicle at rest);
 * parameters (fixed): the initial state ``north_0`` ... ``r_0``, ``mass_position_0``,
   ``mass_velocity_0`` (default 0), ``variant`` (0 full 6-DOF, 1 lateral (6.3.13),
-  2 horizontal (5.1.30); a write outside 0..2 is refused), ``ideal_fluid``, ``vehicle``
-  (a built-in set name, read from this instance's ``resources/``, or a .toml path),
-  ``current_shear_dUdy`` (1/s), ``max_substep`` (s, longest internal RK4 step), and every
-  field of :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``, ``a22``,
-  ``X_uu``, ``m_v``, ...), unit, description and range (``min``/``max``) from its
-  pydantic Field.
+  2 horizontal (5.1.30); a write outside 0..2 is refused), ``moving_mass_model`` (0 the
+  dissertation's (6.3.11)-(6.3.13), 1 hull and moving mass as two bodies (6.2.28); a write
+  outside 0..1 is refused), ``ideal_fluid``, ``vehicle`` (a built-in set name, read from
+  this instance's ``resources/``, or a .toml path), ``current_shear_dUdy`` (1/s),
+  ``max_substep`` (s, longest internal RK4 step), and every field of
+  :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``, ``a22``, ``X_uu``,
+  ``m_v``, ...), unit, description and range (``min``/``max``) from its pydantic Field.
 
 Physical parameters: ``vehicle`` picks the base set; each physical parameter the importer
 writes overrides it; the result is validated as a whole (``VehicleParameters.replace``).
@@ -59,6 +60,7 @@ from plant_fmu.model.dynamics import (
     PlantModel,
     Variant,
 )
+from plant_fmu.model.moving_mass import MovingMassModel
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle, vehicle_folder
 from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance
 
@@ -128,6 +130,7 @@ class AuvPlant(SafeSlave):
         self._model_key: tuple | None = None
         self._physical = _default_physical_parameters(self._vehicles)
         self.variant = int(Variant.FULL)
+        self.moving_mass_model = int(MovingMassModel.DISSERTATION)
         self.ideal_fluid = False
         self.vehicle = "remus100"
         self.current_shear_dUdy = 0.0
@@ -182,7 +185,7 @@ class AuvPlant(SafeSlave):
         self.register(
             Real(
                 "kinetic_energy",
-                description="kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r",
+                description="kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r (+ the mass's, model 1)",
                 getter=item_getter(self._derived, 3),
                 **output,
             ),
@@ -211,6 +214,16 @@ class AuvPlant(SafeSlave):
             ),
             minimum=int(min(Variant)),
             maximum=int(max(Variant)),
+        )
+        self.register(
+            Integer(
+                "moving_mass_model",
+                description="0 the dissertation's moving mass (6.3.11)-(6.3.13), "
+                "1 hull and moving mass as two bodies (6.2.28)",
+                **fixed,
+            ),
+            minimum=int(min(MovingMassModel)),
+            maximum=int(max(MovingMassModel)),
         )
         self.register(
             Boolean("ideal_fluid", description="drop the viscous terms (Thm 5.1)", **fixed)
@@ -320,6 +333,7 @@ class AuvPlant(SafeSlave):
             variant=Variant(self.variant),
             ideal_fluid=bool(self.ideal_fluid),
             current_shear=float(self.current_shear_dUdy),
+            moving_mass_model=self.moving_mass_model,
         )
         self._physical.update({n: float(getattr(params, n)) for n in PHYSICAL_PARAMETERS})
         self._model = model
@@ -331,6 +345,7 @@ class AuvPlant(SafeSlave):
         return (
             self.vehicle,
             self.variant,
+            self.moving_mass_model,
             bool(self.ideal_fluid),
             self.current_shear_dUdy,
             tuple(self._physical[n] for n in PHYSICAL_PARAMETERS),

@@ -7,7 +7,9 @@ Prints, as medians over many repetitions (microseconds):
   (c) one FMU step through fmpy's FMU2Slave: setReal of the 8 inputs + doStep + getReal of
       the 18 outputs, and the ratio (c)/(a);
   (d) the same three calls on the AuvPlant class in Python (no C wrapper, no ctypes),
-      which splits (c) - (a) into our slave's overhead and pythonfmu's + fmpy's.
+      which splits (c) - (a) into our slave's overhead and pythonfmu's + fmpy's;
+  (e) one derivative evaluation with the two-body moving mass (moving_mass_model = 1),
+      and its ratio to (b).
 
 Usage: python scripts/bench_plant.py [--fmu-dir build/fmus] [--steps 3000]
 """
@@ -47,16 +49,21 @@ def median_us(call: Callable[[], object], repetitions: int) -> float:
     return statistics.median(times) / 1000.0
 
 
-def in_process(steps: int) -> tuple[float, float]:
+def in_process(steps: int) -> tuple[float, float, float]:
     model = PlantModel(load_vehicle("remus100"), Variant.FULL)
+    two_body = PlantModel(load_vehicle("remus100"), Variant.FULL, moving_mass_model=1)
     inputs = input_vector(INPUTS)
     state = {"x": state_vector(START)}
 
     def step() -> None:
         state["x"] = advance(model, state["x"], inputs, H)
 
-    x = state_vector(START)
-    return median_us(step, steps), median_us(lambda: model.derivative(x, inputs), steps * 4)
+    x = state_vector({**START, "mass_position": 0.02, "mass_velocity": 0.05})
+    return (
+        median_us(step, steps),
+        median_us(lambda: model.derivative(x, inputs), steps * 4),
+        median_us(lambda: two_body.derivative(x, inputs), steps * 4),
+    )
 
 
 def through_fmpy(fmu: Path, steps: int) -> float:
@@ -118,7 +125,7 @@ def main() -> None:
     args = parser.parse_args()
     fmu = build_fmu("AuvPlant", args.fmu_dir)
 
-    step_us, derivative_us = in_process(args.steps)
+    step_us, derivative_us, two_body_us = in_process(args.steps)
     fmu_us = through_fmpy(fmu, args.steps)
     class_us = direct_class(args.steps)
     print(f"(a) in-process 10 ms step, full 6-DOF (advance, RK4): {step_us:8.1f} us")
@@ -130,6 +137,10 @@ def main() -> None:
     print(
         f"    overhead over (a): slave {class_us - step_us:6.1f} us, "
         f"pythonfmu + fmpy {fmu_us - class_us:6.1f} us"
+    )
+    print(f"(e) one derivative, two-body moving mass:              {two_body_us:8.1f} us")
+    print(
+        f"    ratio (e)/(b):                                     {two_body_us / derivative_us:8.2f}"
     )
 
 

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from plant_fmu.model.kinematics import cross, skew
+from plant_fmu.model.kinematics import cross
 
 if TYPE_CHECKING:
     from plant_fmu.model.parameters import VehicleParameters
@@ -80,14 +80,21 @@ def weight_moment(
 def mass_matrix_shift(params: VehicleParameters, y_v: float) -> np.ndarray:
     """dM(y_v) = M_p(r_v) - M_p(r_v0): how the rigid-body mass matrix changes when the mass
     leaves the centre of its rail (r_v0 = [x_v, 0, z_g]), with the point-mass matrix
-    M_p(r) = m_v [[I, -S(r)], [S(r), -S(r) S(r)]] (2.3.11 for a point)."""
-    r_v = np.array([params.x_v, y_v, params.z_g])
-    r_0 = np.array([params.x_v, 0.0, params.z_g])
-    shift = np.zeros((6, 6))
-    shift[:3, 3:] = -params.m_v * (skew(r_v) - skew(r_0))
-    shift[3:, :3] = params.m_v * (skew(r_v) - skew(r_0))
-    shift[3:, 3:] = -params.m_v * (skew(r_v) @ skew(r_v) - skew(r_0) @ skew(r_0))
-    return shift
+    M_p(r) = m_v [[I, -S(r)], [S(r), |r|^2 I - r r^T]] (2.3.11 for a point). Written out:
+    S(r_v) - S(r_v0) = y_v S(e_y), and the inertia changes by
+    m_v [[y^2, -x_v y, 0], [-x_v y, 0, -z_g y], [0, -z_g y, y^2]]."""
+    m_y = params.m_v * y_v
+    m_xy, m_zy, m_yy = params.x_v * m_y, params.z_g * m_y, y_v * m_y
+    return np.array(
+        [
+            [0.0, 0.0, 0.0, 0.0, 0.0, -m_y],
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, m_y, 0.0, 0.0],
+            [0.0, 0.0, m_y, m_yy, -m_xy, 0.0],
+            [0.0, 0.0, 0.0, -m_xy, 0.0, -m_zy],
+            [-m_y, 0.0, 0.0, 0.0, -m_zy, m_yy],
+        ]
+    )
 
 
 def two_body_force(

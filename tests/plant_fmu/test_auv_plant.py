@@ -182,6 +182,25 @@ def test_vehicle_picks_the_set_and_written_parameters_override_it(plant, unzip_d
     np.testing.assert_array_equal(rows, expected[1:])
 
 
+@pytest.mark.parametrize("moving_mass_model", [0, 1])
+def test_moving_mass_model_is_selected_by_its_parameter(plant, unzip_dir, remus, moving_mass_model):
+    """The FMU runs the model it is asked for, bit for bit (model 0 is the default)."""
+    values = dict(variant=1, u_0=1.5, v_0=-0.05, mass_position_cmd=0.04, roll_torque=0.2)
+    if moving_mass_model:
+        values["moving_mass_model"] = moving_mass_model
+    fmu = _harness(plant, unzip_dir, **values)
+    rows = fmu.run(3.0, H, STATE_NAMES)
+    fmu.close()
+    x0 = state_vector(dict(u=1.5, v=-0.05))
+    inputs = input_vector(dict(thrust=9.0, mass_position_cmd=0.04, roll_torque=0.2))
+    expected = {
+        m: simulate(PlantModel(remus, Variant.LATERAL, moving_mass_model=m), x0, inputs, 3.0, H)[1]
+        for m in (0, 1)
+    }
+    np.testing.assert_array_equal(rows, expected[moving_mass_model][1:])
+    assert np.max(np.abs(expected[1] - expected[0])) > 1e-4  # the two models differ
+
+
 def test_reset_returns_to_a_fresh_instance(plant, unzip_dir):
     fmu = _harness(plant, unzip_dir, variant=2, v_0=0.01)
     first = fmu.run(1.0, H, STATE_NAMES)
@@ -211,6 +230,7 @@ def test_invalid_parameter_values_fail_initialisation_naming_them(plant, unzip_d
     for values, expected in [
         ({"vehicle": str(bad_file)}, "m = -1.0"),
         ({"variant": 7}, "variant = 7"),
+        ({"moving_mass_model": 2}, "moving_mass_model = 2"),
         ({"I_xx": -0.1}, "I_xx = -0.1"),
         ({"mass_position_0": 0.2}, "mass_position_0 = 0.2"),
     ]:
@@ -315,7 +335,8 @@ def test_model_description_is_valid_complete_and_matches_the_contract(plant):
     assert all(variables[n].initial == "exact" for n in outputs)
     parameters = {v.name for v in md.modelVariables if v.causality == "parameter"}
     expected = {f"{n}_0" for n in STATE_NAMES} | {
-        "variant", "ideal_fluid", "vehicle", "current_shear_dUdy", "max_substep",
+        "variant", "moving_mass_model", "ideal_fluid", "vehicle", "current_shear_dUdy",
+        "max_substep",
     } | {n for n, f in VehicleParameters.model_fields.items() if f.annotation is float}  # fmt: skip
     assert parameters == expected
     assert (variables["I_xx"].unit, variables["K_p"].unit) == ("kg.m2", "N.m.s")

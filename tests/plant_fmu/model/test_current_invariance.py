@@ -1,11 +1,13 @@
-"""Galilean invariance: in a steady, uniform current every variant moves relative to the
-water exactly as it moves in still water, and is carried along by V_c t."""
+"""Galilean invariance: in a steady, uniform current every variant, with either model of
+the moving mass, moves relative to the water exactly as it moves in still water, and is
+carried along by V_c t."""
 
 import numpy as np
 import pytest
 
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.moving_mass import MovingMassModel
 from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import simulate
 
@@ -16,10 +18,12 @@ DURATION, STEP = 30.0, 0.01
 SUBSTEP = 0.005  # s: RK4 error of the over-ground integration (the full form's) < 1e-10
 
 
-def _still_and_current_runs(variant: Variant) -> tuple[PlantModel, np.ndarray, np.ndarray]:
+def _still_and_current_runs(
+    variant: Variant, moving_mass_model: MovingMassModel
+) -> tuple[PlantModel, np.ndarray, np.ndarray]:
     """The same relative start (rolled, yawed, sway-disturbed) in still water and in
     CURRENT, with thrust, tunnel force and a mass command acting."""
-    model = PlantModel(load_vehicle(), variant)
+    model = PlantModel(load_vehicle(), variant, moving_mass_model=moving_mass_model)
     actuators = dict(thrust=9.0, tunnel_force=1.5, mass_position_cmd=0.02, fin_angle=0.05)
     still = input_vector(actuators)
     moving = input_vector({**actuators, "current_north": CURRENT[0], "current_east": CURRENT[1]})
@@ -35,9 +39,10 @@ def _still_and_current_runs(variant: Variant) -> tuple[PlantModel, np.ndarray, n
     return model, in_still_water, in_current
 
 
+@pytest.mark.parametrize("moving_mass_model", list(MovingMassModel))
 @pytest.mark.parametrize("variant", list(Variant))
-def test_steady_uniform_current_only_carries_the_vehicle_along(variant):
-    model, still, current = _still_and_current_runs(variant)
+def test_steady_uniform_current_only_carries_the_vehicle_along(variant, moving_mass_model):
+    model, still, current = _still_and_current_runs(variant, moving_mass_model)
     moving = input_vector(dict(current_north=CURRENT[0], current_east=CURRENT[1]))
     relative = np.array([model.relative_velocity(x, moving) for x in current])
     np.testing.assert_allclose(relative, still[:, NU], rtol=0, atol=1e-9)
@@ -50,3 +55,34 @@ def test_steady_uniform_current_only_carries_the_vehicle_along(variant):
     assert np.ptp(still[:, STATE_INDEX["yaw"]]) > 0.1
     if variant is not Variant.HORIZONTAL:
         assert np.max(np.abs(still[:, STATE_INDEX["roll"]])) > 0.1
+
+
+@pytest.mark.parametrize("moving_mass_model", list(MovingMassModel))
+@pytest.mark.parametrize("variant", [Variant.LATERAL, Variant.HORIZONTAL])
+def test_planar_relative_form_is_the_full_form_in_level_motion(variant, moving_mass_model):
+    """Level, unrolled motion in a sheared current: the planar variants' relative form with
+    the shear terms of (5.3.1) gives the full form's (3.4.20) rates, so the two ways of
+    writing the current agree wherever both apply."""
+    p = load_vehicle()
+    level = p.replace(W=p.B, z_g=0.0)  # no roll-sway coupling in M_RB: the planes decouple
+    options = dict(current_shear=0.05, moving_mass_model=moving_mass_model)
+    full = PlantModel(level, Variant.FULL, **options)
+    planar = PlantModel(level, variant, **options)
+    x = state_vector(dict(east=3.0, yaw=0.7, u=1.3, v=0.12, r=-0.15, mass_velocity=0.1))
+    inputs = input_vector(
+        dict(
+            thrust=9.0,
+            tunnel_force=2.0,
+            mass_position_cmd=0.03,
+            current_north=0.1,
+            current_east=-0.2,
+        )
+    )
+    compared = [0, 1, 5, 6, 7, 11, 12, 13]  # north, east, yaw, u, v, r and the mass
+    np.testing.assert_allclose(
+        planar.derivative(x, inputs)[compared],
+        full.derivative(x, inputs)[compared],
+        rtol=1e-12,
+        atol=1e-12,
+    )
+    assert abs(full.derivative(x, inputs)[7]) > 0.1  # sway really accelerates
