@@ -263,11 +263,13 @@ def example_5_2(long_fins: VehicleParameters) -> list[Row]:
     ]
 
 
-def example_5_3(remus: VehicleParameters) -> list[Row]:
-    rows = []
-    lateral = PlantModel(remus, Variant.LATERAL)
+def _example_5_3_jacobian(remus: VehicleParameters) -> tuple[Row, np.ndarray]:
+    """The Jacobian row of Example 5.3 and J itself, with Table 4.1's W as it was computed."""
     names = ["v", "r", "p", "roll"]
-    J, _ = linearize(lateral, state_vector({"u": 1.5}), input_vector({"thrust": 9.0}), names)
+    at_speed = state_vector({"u": 1.5}), input_vector({"thrust": 9.0})
+    ours_J, _ = linearize(PlantModel(remus, Variant.LATERAL), *at_speed, names)
+    weight = float(reference("table_4_1.weight").value)
+    J, _ = linearize(PlantModel(remus.replace(W=weight), Variant.LATERAL), *at_speed, names)
     bar, delta = (reference(f"example_5_3.{k}").printed for k in ("jacobian_bar", "jacobian_delta"))
     printed_J = [
         [str(a + b) for a, b in zip(row_bar, row_delta, strict=True)]
@@ -275,16 +277,24 @@ def example_5_3(remus: VehicleParameters) -> list[Row]:
     ]  # J-bar + delta-J as printed
     flat_ok = all(agrees(printed_J[i][j], J[i, j]) for i in range(4) for j in range(4))
     worst = max(abs(float(printed_J[i][j]) - J[i, j]) for i in range(4) for j in range(4))
-    rows.append(
-        fact_row(
-            "Jacobian J-bar + delta-J over [v, r, p, phi] (16 entries)",
-            "Ex. 5.3",
-            "as printed",
-            f"largest difference {worst:.1e}",
-            flat_ok,
-            "holds at u = 1.5 m/s (not U0 = 1.525)",
-        )
+    ours = max(abs(float(printed_J[i][j]) - ours_J[i, j]) for i in range(4) for j in range(4))
+    row = fact_row(
+        "Jacobian J-bar + delta-J over [v, r, p, phi] (16 entries)",
+        "Ex. 5.3",
+        "as printed",
+        f"largest difference {worst:.1e}",
+        flat_ok,
+        f"holds at u = 1.5 m/s (not U0 = 1.525) with Table 4.1's W = {weight:g} N; with "
+        f"remus100's W = m g = {remus.m * remus.g:.1f} N it is {ours:.1e}",
     )
+    return row, J
+
+
+def example_5_3(remus: VehicleParameters) -> list[Row]:
+    """Example 5.3 with Table 4.1's W = 299 N, as the dissertation computed it."""
+    row, J = _example_5_3_jacobian(remus)
+    rows = [row]
+    remus = remus.replace(W=float(reference("table_4_1.weight").value))
     eig = sorted(np.linalg.eigvals(J), key=lambda z: (-z.real, z.imag))
     rows.append(
         vector_row(
@@ -963,6 +973,11 @@ def markdown(sections: list[Section], figures: Path, out: Path) -> str:
         "Every 'ours' value is computed from the shipped model (`plant_fmu`) or a run of the "
         "two FMUs through our master; a printed value agrees when ours is within one unit "
         "of its last printed digit, or the stated tolerance.",
+        "",
+        "Beyond the dissertation: [the moving mass as a second body](moving-mass-model.md) "
+        "(plant parameter `moving_mass_model = 1`; what it changes in lqr-2, bs-3, vert-1 and "
+        "vert-2, from `python scripts/moving_mass_models.py`). One gravity, g = 9.8 m/s^2 and "
+        "W = m g, and the claims it moved: [model.md](model.md#gravity-and-the-moving-mass).",
         "",
         "Verdicts: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())) + ".",
         "",
