@@ -24,8 +24,6 @@ FMU_NAMES = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
 # test reports them as expected failures until those branches land, and fails on any other.
 BEING_REWORKED = {
     "plant_fmu/auv_plant.py": "the FMU getter/setter rework",
-    "plant_fmu/model/dynamics.py": "the kinematics/inertia split",
-    "plant_fmu/model/parameters.py": "the kinematics/inertia split",
 }
 
 

@@ -2,23 +2,41 @@
 
 Kept apart from :mod:`plant_fmu.model.dynamics` so that :mod:`plant_fmu.model.parameters`
 can check a parameter set's mass matrix without importing the dynamics (which imports the
-parameters). Units: kg, kg m, kg m^2.
+parameters); the functions take any object with the fields of :class:`InertiaParameters`
+(a ``VehicleParameters`` has them), so this module imports no parameter module.
+Units: kg, kg m, kg m^2.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from plant_fmu.model.kinematics import skew
 
-if TYPE_CHECKING:  # parameters imports this module: the type is for annotations only
-    from plant_fmu.model.parameters import VehicleParameters
+
+class InertiaParameters(Protocol):
+    """The fields of a parameter set the mass matrices use (SI, body origin at the CB)."""
+
+    m: float
+    x_g: float
+    z_g: float
+    I_xx: float
+    I_yy: float
+    I_zz: float
+    a11: float
+    a22: float
+    a33: float
+    a44: float
+    a55: float
+    a66: float
+    a26: float
+    a35: float
 
 
-def rigid_body_mass_matrix(params: VehicleParameters) -> np.ndarray:
+def rigid_body_mass_matrix(params: InertiaParameters) -> np.ndarray:
     """M_RB (2.3.11) about the CB, with r_g = [x_g, 0, z_g] and I_o = diag(I_xx, I_yy, I_zz)."""
     r_g = np.array([params.x_g, 0.0, params.z_g])
     M = np.zeros((6, 6))
@@ -29,7 +47,7 @@ def rigid_body_mass_matrix(params: VehicleParameters) -> np.ndarray:
     return M
 
 
-def added_mass_matrix(params: VehicleParameters) -> np.ndarray:
+def added_mass_matrix(params: InertiaParameters) -> np.ndarray:
     """M_A: diag(a11..a66) with the sway-yaw (a26 = a62) and heave-pitch (a35 = a53) pairs."""
     M = np.diag([params.a11, params.a22, params.a33, params.a44, params.a55, params.a66])
     M[1, 5] = M[5, 1] = params.a26
@@ -37,7 +55,7 @@ def added_mass_matrix(params: VehicleParameters) -> np.ndarray:
     return M
 
 
-def added_mass_matrix_times(params: VehicleParameters, nu: Sequence[float]) -> list[float]:
+def added_mass_matrix_times(params: InertiaParameters, nu: Sequence[float]) -> list[float]:
     """M_A nu without building the matrix (the added-mass impulse of nu)."""
     u, v, w, roll_rate, q, r = nu
     return [
