@@ -316,10 +316,11 @@ class PlantModel:
         dx = np.empty(N_STATES)
         dx[3:6] = euler_rate_matrix(phi, theta) @ x[9:12]
         base = (f_mm, self.restoring(phi, theta))
+        v_c = self.current_velocity(x, inputs)
         if self.variant is Variant.FULL:
-            dx[_NU], dx[0:3] = self._full_form(xs, us, R, base, mass_velocity)
+            dx[_NU], dx[0:3] = self._full_form(xs, us, R, v_c, base, mass_velocity)
         else:
-            dx[_NU], dx[0:3] = self._relative_form(x, us, R, base, mass_velocity, dx[5])
+            dx[_NU], dx[0:3] = self._relative_form(xs, us, R, v_c, base, mass_velocity, dx[5])
         dx[_YV] = mass_velocity
         dx[_YVEL] = mass_accel
         if self._frozen_pose:
@@ -331,13 +332,16 @@ class PlantModel:
         xs: list[float],
         us: list[float],
         R: np.ndarray,
+        v_c: np.ndarray,
         base: tuple[np.ndarray, np.ndarray],
         y_vel: float,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(nu_dot, eta1_dot) of the full form (3.6.2, 4.3.1) on the velocity over ground;
-        ``base`` holds the forces that depend on no velocity (moving mass, restoring)."""
+        ``v_c`` is the current at the vehicle (earth frame), ``base`` holds the forces that
+        depend on no velocity (moving mass, restoring). Python floats throughout, so an
+        overflow raises (OverflowError) instead of turning into inf."""
         nu = xs[6:12]
-        current_body = (R.T @ self.current_velocity(np.asarray(xs), np.asarray(us))).tolist()
+        current_body = (R.T @ v_c).tolist()
         nu_r = [nu[0] - current_body[0], nu[1] - current_body[1], nu[2] - current_body[2], *nu[3:]]
         force = (
             self.actuators(us, nu_r[0])
@@ -355,19 +359,20 @@ class PlantModel:
 
     def _relative_form(
         self,
-        x: np.ndarray,
+        xs: list[float],
         us: list[float],
         R: np.ndarray,
+        v_c: np.ndarray,
         base: tuple[np.ndarray, np.ndarray],
         y_vel: float,
         yaw_rate: float,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(nu_dot, eta1_dot) of the lateral and horizontal variants: the relative form with
         the current turned by the yaw only (5.2.10), nu_dot = nur_dot + [dU/dt; 0] with
-        dU/dt = psi' [U_y, -U_x, 0] + a (a: the water's acceleration along the path)."""
-        v_c = self.current_velocity(x, np.asarray(us))
-        current = planar_current(x[5], v_c)
-        nu_r = x[_NU].tolist()
+        dU/dt = psi' [U_y, -U_x, 0] + a (a: the water's acceleration along the path).
+        Arguments as :meth:`_full_form`, and yaw_rate = psi', rad/s."""
+        current = planar_current(xs[5], v_c.tolist())
+        nu_r = xs[6:12]
         nu_r[0] -= current[0]
         nu_r[1] -= current[1]
         position_rate = R @ np.asarray(nu_r[:3]) + v_c
@@ -381,17 +386,17 @@ class PlantModel:
         if not self.ideal_fluid:
             force += self.viscous(nu_r)
         if self.two_body:
-            force += two_body_force(self.params, nu_r, x[_YV], y_vel)
+            force += two_body_force(self.params, nu_r, xs[_YV], y_vel)
         water_accel = (0.0, 0.0)
         if self.current_shear != 0.0:
             rigid = self._rigid_mass
             if self.two_body:
-                rigid = rigid + mass_matrix_shift(self.params, x[_YV])
+                rigid = rigid + mass_matrix_shift(self.params, xs[_YV])
             shear, water_accel = relative_form_shear_force(
-                self.params, self.current_shear, x[5], position_rate[1], nu_r, rigid
+                self.params, self.current_shear, xs[5], position_rate[1], nu_r, rigid
             )
             force += shear
-        nu_dot = self._accelerate(x[_YV], force)
+        nu_dot = self._accelerate(xs[_YV], force)
         nu_dot[0] += yaw_rate * current[1] + water_accel[0]
         nu_dot[1] += -yaw_rate * current[0] + water_accel[1]
         return nu_dot, position_rate
