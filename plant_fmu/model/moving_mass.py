@@ -16,7 +16,8 @@ the internal force between hull and mass. Two models of what that motion does to
   hull's acceleration with every coupling term kept. A stop is an inelastic impact that
   conserves this momentum.
 
-Units SI; equation numbers refer to B. Li, FAU 2016.
+Units SI; equation numbers refer to B. Li, FAU 2016; docs/model.md#gravity-and-the-moving-mass
+derives model 1 and says what its tests check.
 """
 
 from __future__ import annotations

@@ -133,11 +133,17 @@ def test_example_5_3_lateral_turning_equilibria(lateral, sign):
 
 def test_example_5_3_jacobian_at_1_5_m_per_s(lateral):
     """The printed Jacobian J-bar + delta-J of Example 5.3 and its eigenvalues hold at
-    u = 1.5 m/s (not at U0 = 1.525 m/s: the linear terms scale with u)."""
-    A, _ = linearize(lateral, state_vector(dict(u=1.5)), input_vector(thrust=9.0),
-                     ["v", "r", "p", "roll"])  # fmt: skip
+    u = 1.5 m/s (not at U0 = 1.525 m/s: the linear terms scale with u) and with Table 4.1's
+    W = 299 N, which Example 5.3 was computed with (B - W = 7 N); remus100's W = m g =
+    298.9 N (one gravity, as Ch. 6 computes) moves the roll entries by up to 4e-3."""
+    weight = dissertation("table_4_1.weight")
+    table_model = PlantModel(lateral.params.replace(W=weight), Variant.LATERAL)
+    at_speed = state_vector(dict(u=1.5)), input_vector(thrust=9.0)
+    A, _ = linearize(table_model, *at_speed, ["v", "r", "p", "roll"])
     printed = dissertation("example_5_3.jacobian_bar") + dissertation("example_5_3.jacobian_delta")
     np.testing.assert_allclose(A, printed, atol=1e-4)
+    ours, _ = linearize(lateral, *at_speed, ["v", "r", "p", "roll"])
+    assert 1e-3 < np.max(np.abs(ours - printed)) < 1e-2
     eig = np.linalg.eigvals(A)
     expected = dissertation("example_5_3.eigenvalues") @ [1.0, 1.0j]
     for value in expected:
