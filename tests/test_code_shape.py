@@ -20,11 +20,6 @@ MAX_FUNCTION_LINES = 80
 # Modules that belong to the offline analysis, the plots or the master, never in an FMU.
 NOT_IN_FMUS = ("bifurcation", "equilibria", "closed_loop", "plots", "master", "manoeuvres")
 FMU_NAMES = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
-# Long functions and import cycles in files other branches of issue 11 are reworking: the
-# test reports them as expected failures until those branches land, and fails on any other.
-BEING_REWORKED = {
-    "plant_fmu/auv_plant.py": "the FMU getter/setter rework",
-}
 
 
 def _functions(tree: ast.AST, prefix: str = ""):
@@ -47,13 +42,8 @@ def _project_modules() -> dict[str, Path]:
 
 
 def _report(offenders: list[str], what: str) -> None:
-    """Fail on offenders outside :data:`BEING_REWORKED`; xfail naming the rest."""
-    pending = [o for o in offenders if o.split(":")[0] in BEING_REWORKED]
-    unexpected = [o for o in offenders if o not in pending]
-    assert not unexpected, f"{what}: " + ", ".join(unexpected)
-    if pending:
-        reasons = sorted({BEING_REWORKED[o.split(":")[0]] for o in pending})
-        pytest.xfail(f"{what} ({'; '.join(reasons)} on other branches): " + ", ".join(pending))
+    """Fail naming every offender."""
+    assert not offenders, f"{what}: " + ", ".join(offenders)
 
 
 def test_no_function_is_longer_than_80_lines() -> None:
