@@ -54,7 +54,7 @@ from controller_fmu.los_guidance import (
     field_unit,
 )
 from fmu_runtime.safe_slave import SafeSlave
-from fmu_runtime.variables import item_getter, item_setter
+from fmu_runtime.variables import field_bounds, item_getter, item_setter
 
 INPUTS: dict[str, tuple[str, str]] = {  # name -> (unit, description)
     "north": ("m", "vehicle position north (NED)"),
@@ -128,7 +128,13 @@ class AuvGuidance(SafeSlave):
                 setter=item_setter(self._params, name),
                 **fixed,
             )
-            self.register(variable, unit=field_unit(name) if kind is Real else None)
+            minimum, maximum = field_bounds(field) if kind is Real else (None, None)
+            self.register(
+                variable,
+                unit=field_unit(name) if kind is Real else None,
+                minimum=minimum,
+                maximum=maximum,
+            )
 
     # --- SafeSlave hooks ---------------------------------------------------------------------
 

@@ -70,7 +70,13 @@ def test_page_lists_every_variable_with_its_unit_and_description(documented: Pat
         assert description == (v.description or "")
         assert start == ("" if v.start is None else str(v.start))
         assert declared == value_range(v)
-    known = {"variant": "0 .. 2", "m": ">= 0.0", "heading_mode": "0 .. 3", "lqr_r": ">= 0.0"}
+    known = {
+        "variant": "0 .. 2",
+        "m": ">= 0.0",
+        "heading_mode": "0 .. 3",
+        "lqr_r": ">= 0.0",
+        "lookahead": ">= 0.0",
+    }
     shown = {name: rows[name][4] for name in known if name in rows}
     assert shown and shown == {name: known[name] for name in shown}
     assert "Dynamics and Control of Autonomous Underwater Vehicles with Internal" in page
