@@ -11,6 +11,9 @@ has loaded, hence the native viewer.
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import socket
 import subprocess
 import time
@@ -72,8 +75,14 @@ def render_screenshots(
     command = [executable, "--headless", "--bind", "127.0.0.1", "--port", str(port)]
     command += ["--hide-welcome-screen", "--threads", "1"]
     out = open(log, "wb") if log is not None else subprocess.DEVNULL  # noqa: SIM115
+    # Its own process group: the `rerun` launcher starts the viewer binary as a child, and
+    # ending only the launcher would leave the viewer running (see _stop).
     viewer = subprocess.Popen(
-        command, stdout=out, stderr=subprocess.STDOUT, env=None if env is None else dict(env)
+        command,
+        stdout=out,
+        stderr=subprocess.STDOUT,
+        env=None if env is None else dict(env),
+        start_new_session=True,
     )
     try:
         client = _connect(viewer, f"rerun+http://127.0.0.1:{port}/proxy")
@@ -91,14 +100,22 @@ def render_screenshots(
             for view in client.get_state().views
         ]
     finally:
-        viewer.terminate()
-        try:
-            viewer.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            viewer.kill()
-            viewer.wait()
+        _stop(viewer)
         if log is not None:
             out.close()  # type: ignore[union-attr]
+
+
+def _stop(viewer: subprocess.Popen[bytes]) -> None:
+    """End the viewer's whole process group (the launcher and the binary it started)."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(viewer.pid, signal.SIGTERM)
+    try:
+        viewer.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        viewer.kill()
+        viewer.wait()
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(viewer.pid, signal.SIGKILL)  # a binary that outlived its launcher
 
 
 def _settled_frame(client: ViewerClient) -> bytes:
