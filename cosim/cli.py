@@ -1,7 +1,8 @@
 """The ``auv-cosim`` command: parse, call one function, report. No logic lives here.
 
 Every command exits 0 on success and non-zero with a one-line reason on stderr on failure
-(2 for a usage error, 1 for a failed command, 130 for Ctrl-C).
+(2 for a usage error, 1 for a failed command, 130 for Ctrl-C). ``run`` also ends on SIGTERM
+(143) and SIGHUP (129) like on Ctrl-C, with its partial results written.
 """
 
 from __future__ import annotations
@@ -14,11 +15,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
+from cosim.paths import DEFAULT_FMU_DIR
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
-
-DEFAULT_FMU_DIR = Path("build/fmus")
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -53,9 +53,21 @@ def _scenarios(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from cosim.run.runner import run_from_cli
+    from cosim.run.runner import RunOptions, run_from_cli
 
-    return run_from_cli(args)
+    options = RunOptions(
+        out_dir=args.out,
+        stop_time=args.stop_time,
+        step=args.step,
+        algorithm=args.algorithm,
+        rrd=args.rrd,
+        no_rrd=args.no_rrd,
+        connect=args.connect,
+        fmu_dir=args.fmu_dir,
+        overwrite=args.overwrite,
+        progress=not args.quiet and sys.stderr.isatty(),
+    )
+    return run_from_cli(args.scenario, options)
 
 
 def _export(args: argparse.Namespace) -> int:
@@ -157,8 +169,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="run a built-in scenario id or a scenario TOML file")
     p.add_argument("scenario", help="scenario id (see `auv-cosim scenarios`) or .toml path")
     p.add_argument("--out", type=Path, help="run folder [runs/<scenario-id>]")
-    p.add_argument("--stop-time", type=float, help="override the stop time, s")
-    p.add_argument("--step", type=float, help="override the communication step, s")
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace an earlier run in the run folder"
+    )
+    p.add_argument("--stop-time", type=float, help="override the stop time, s (finite, > 0)")
+    p.add_argument("--step", type=float, help="override the communication step, s (finite, > 0)")
     p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="master algorithm")
     p.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
     p.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
@@ -177,7 +192,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_export)
 
     p = sub.add_parser("view", help="open a run's recording in the Rerun viewer")
-    p.add_argument("run_dir", type=Path, help="a run folder holding recording.rrd")
+    p.add_argument("run_dir", type=Path, help="a run folder holding recording.rrd, or a .rrd")
     p.set_defaults(func=_view)
 
     p = sub.add_parser("analyze", help="equilibria, continuation sweeps, phase portraits")

@@ -24,9 +24,10 @@ from pathlib import Path
 from fmpy.fmi2 import FMU2Slave
 
 from cosim.fmus.build import pythonfmu_build
+from cosim.paths import DEFAULT_FMU_DIR
 from cosim.run import master
 from cosim.run.runner import run_scenario
-from cosim.run.scenario import DEFAULT_FMU_DIR, Scenario, load_scenario, scenario_from_toml
+from cosim.run.scenario import Scenario, load_scenario, scenario_from_toml
 
 TESTS_FMUS = Path(__file__).resolve().parent.parent / "tests" / "fmus"
 TRIVIAL_LOOP = """

@@ -20,6 +20,7 @@ Usage: python scripts/bench_recording.py [--rows 3000] [--repeat 3] [--fmu-dir b
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -29,8 +30,9 @@ import numpy as np
 import rerun as rr
 
 import cosim.viz.recording
+from cosim.paths import DEFAULT_FMU_DIR
 from cosim.run.runner import run_scenario
-from cosim.run.scenario import DEFAULT_FMU_DIR, load_scenario
+from cosim.run.scenario import Scenario, load_scenario
 from cosim.viz.layout import time_index
 from cosim.viz.recording import RerunSink
 
@@ -52,9 +54,11 @@ def synthetic(rows: int) -> tuple[np.ndarray, np.ndarray]:
     return times, rng.standard_normal((rows, len(COLUMNS))) * 0.1
 
 
-def sink_run(folder: Path, times: np.ndarray, values: np.ndarray) -> tuple[float, float, float]:
+def sink_run(
+    folder: Path, scenario: Scenario, times: np.ndarray, values: np.ndarray
+) -> tuple[float, float, float]:
     t0 = time.perf_counter()
-    sink = RerunSink(folder / "sink.rrd", None, "bench", "", COLUMNS)
+    sink = RerunSink(scenario, folder / "sink.rrd")
     t1 = time.perf_counter()
     for k in range(0, len(times), 200):
         sink.add_rows(times[k : k + 200], values[k : k + 200])
@@ -82,9 +86,9 @@ class TimedSink(RerunSink):
 
     spent = 0.0
 
-    def __init__(self, *args: Any) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         t0 = time.perf_counter()
-        super().__init__(*args)
+        super().__init__(*args, **kwargs)
         TimedSink.spent += time.perf_counter() - t0
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
@@ -104,7 +108,7 @@ def real_run(folder: Path, rows: int, fmu_dir: Path, record: bool) -> tuple[floa
     cosim.viz.recording.RerunSink = TimedSink  # run_scenario imports it at call time
     TimedSink.spent = 0.0
     t0 = time.perf_counter()
-    run_scenario(scenario, folder / "run", no_rrd=not record, fmu_dir=fmu_dir)
+    run_scenario(scenario, folder / "run", no_rrd=not record, fmu_dir=fmu_dir, overwrite=True)
     return time.perf_counter() - t0, TimedSink.spent
 
 
@@ -116,11 +120,14 @@ def main() -> None:
     parser.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR)
     args = parser.parse_args()
     times, values = synthetic(args.rows)
+    scenario = load_scenario("bs-3", fmu_dir=args.fmu_dir)
+    scenario = dataclasses.replace(scenario, id="bench", record=tuple(COLUMNS))
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         time_index(times[:2])  # warm up the SDK once
         best = min(
-            (sink_run(folder, times, values) for _ in range(args.repeat)), key=lambda s: sum(s)
+            (sink_run(folder, scenario, times, values) for _ in range(args.repeat)),
+            key=lambda s: sum(s),
         )
         total = sum(best)
         print(f"(a) synthetic {args.rows} rows x {len(COLUMNS)} columns, batches of 200:")

@@ -6,6 +6,7 @@ The SSD is built with pyssp-standard's object model (:func:`ssd_xml`); see
 
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 import zipfile
 from collections.abc import Mapping, Sequence
@@ -64,16 +65,26 @@ def export_ssp(
 ) -> Path:
     """Write ``scenario`` as an SSP 1.0 archive at ``path``; returns the absolute path.
 
-    ``fmu_paths`` optionally maps instance names to the FMU files to package.
+    ``fmu_paths`` optionally maps instance names to the FMU files to package. Files that
+    start values name (a custom ``vehicle`` set) are packed as ``resources/<instance>/<name>``
+    and the start value becomes that path, relative to the archive's root.
     """
     path = Path(path)
     parts = components(scenario, fmu_paths)
+    packed: dict[str, Path] = {}
+    for i, part in enumerate(parts):
+        files = scenario.instances[part.name].files()
+        moved = {var: f"resources/{part.name}/{file.name}" for var, file in files.items()}
+        packed.update({moved[var]: file for var, file in files.items()})
+        parts[i] = dataclasses.replace(part, start={**part.start, **moved})
     ssd = ssd_xml(scenario, parts)
     with replacing_file(path) as tmp, zipfile.ZipFile(tmp, "w") as archive:
         _add_bytes(archive, "SystemStructure.ssd", ssd, zipfile.ZIP_DEFLATED)
         for resource, fmu_path in sorted({c.resource: c.fmu_path for c in parts}.items()):
             # FMUs are zip archives already: store them, do not compress again.
             _add_bytes(archive, f"resources/{resource}", fmu_path.read_bytes(), zipfile.ZIP_STORED)
+        for name, file in sorted(packed.items()):
+            _add_bytes(archive, name, file.read_bytes(), zipfile.ZIP_DEFLATED)
     return path.resolve()
 
 

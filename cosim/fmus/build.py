@@ -34,9 +34,11 @@ Steps for one FMU (:func:`build_fmu`):
    ``resources/fmu_sources.json`` records the GUID and the SHA-256 of every staged file,
    so an instance can tell another build's code from its own
    (:mod:`fmu_runtime.provenance`).
-4. Write ``<Name>.fmu`` atomically and ``<Name>.fmu.sha256`` beside it: the content hash
-   of every shipped file, this module and pythonfmu's version. :func:`ensure_fmus`
-   rebuilds only when that hash changed.
+4. Write ``<Name>.fmu`` atomically and ``<Name>.fmu.sha256`` beside it: a ``source`` line,
+   the content hash of every shipped file, this module and pythonfmu's version, and an
+   ``fmu`` line, the hash of the built file itself. :func:`ensure_fmus` rebuilds when the
+   sources changed, and when the FMU fails that integrity check (a truncated or edited
+   file is never used).
 """
 
 from __future__ import annotations
@@ -128,7 +130,7 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         raise CosimError(f"cannot build {name}.fmu: {script_path(name)} does not exist")
     files = shipped_files(name)
     digest = source_hash(files)
-    if not force and target.is_file() and _read(hash_file) == digest:
+    if not force and _is_intact(target, hash_file, digest):
         return target
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"build_{name}_") as tmp:
@@ -148,8 +150,29 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         partial = out_dir / f".{name}.fmu.{os.getpid()}.tmp"
         shutil.copyfile(built, partial)
         os.replace(partial, target)
-    hash_file.write_text(digest + "\n")
+    hash_file.write_text(f"source {digest}\nfmu {file_hash(target)}\n")
     return target
+
+
+def recorded_hashes(hash_file: Path) -> dict[str, str]:
+    """The ``source`` and ``fmu`` hashes a build recorded (empty if unreadable)."""
+    text = _read(hash_file) or ""
+    return dict(line.split(" ", 1) for line in text.splitlines() if " " in line)
+
+
+def file_hash(path: Path) -> str:
+    """SHA-256 of a file's bytes."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _is_intact(target: Path, hash_file: Path, digest: str) -> bool:
+    """The FMU exists, was built from these sources and is the file that build wrote."""
+    recorded = recorded_hashes(hash_file)
+    return (
+        target.is_file()
+        and recorded.get("source") == digest
+        and recorded.get("fmu") == file_hash(target)
+    )
 
 
 def shipped_files(name: str) -> dict[str, Path]:

@@ -34,11 +34,19 @@ def validate_fmus(paths: dict[str, Path]) -> list[str]:
 
 
 def _static_problems(path: Path) -> list[str]:
+    if not path.is_file():
+        return [f"{path} does not exist"]
+    try:
+        return _description_problems(path)
+    except Exception as exc:  # fmpy raises anything from a damaged archive: one line each
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        return [f"{path} is not a readable FMU ({type(exc).__name__}: {reason})"]
+
+
+def _description_problems(path: Path) -> list[str]:
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
 
-    if not path.is_file():
-        return [f"{path} does not exist"]
     problems = list(validate_fmu(str(path)))
     if problems:
         return problems

@@ -26,189 +26,78 @@ fmpy's ``simulateCS``. The hot path calls fmpy's thin ``fmi2SetReal``/``fmi2DoSt
 ``fmi2GetReal`` wrappers (they check the status and raise ``FMICallException``) with value
 reference arrays and numpy buffers resolved once: a step allocates nothing, builds no dict.
 
+The rows stream out as the run advances: they fill a buffer of ``rows_per_chunk`` rows that
+is handed to the sinks (:mod:`cosim.run.rows`) when full, and at least once every
+``hand_off_interval`` of wall clock, so memory does not grow with the stop time and a
+sink writing a file has it on disk within about a second. ``keep_rows`` also keeps every
+row in memory (tests, analyses).
+
+Before any FMU is instantiated, :func:`preflight` refuses what would hang a step: an
+instance with a ``max_substep`` parameter (the plant's longest internal RK4 step) that would
+take more than :data:`MAX_SUBSTEPS` sub-steps per communication step.
+
 Failures after initialisation -- a non-OK status (fmpy raises on Discard, Error, Fatal), a
-non-finite exchanged value, Ctrl-C -- stop the run; :func:`run` returns the rows so far with
-``complete=False`` and a one-line ``error`` naming the instance, the time and the FMU's
-logged reason. Ctrl-C only sets a flag checked once per step, so no ``KeyboardInterrupt``
-is raised inside an FMU's Python code (pythonfmu would turn it into fmi2Fatal and the host
-would crash).
+non-finite exchanged value, a sink that cannot write, a stop signal -- stop the run;
+:func:`run` returns the rows so far with ``complete=False`` and a one-line ``error`` naming
+the instance, the time and the FMU's logged reason. A signal (Ctrl-C, SIGTERM, SIGHUP)
+only sets a flag checked once per step (:mod:`cosim.run.signals`), so no
+``KeyboardInterrupt`` is raised inside an FMU's Python code (pythonfmu would turn it into
+fmi2Fatal and the host would crash).
 """
 
 from __future__ import annotations
 
-import atexit
-import collections
-import ctypes
-import shutil
-import signal
-import threading
+import math
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
 import numpy as np
-from fmpy import calloc, extract, free
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Slave,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-)
 
 from cosim.errors import CosimError
-from cosim.run.scenario import Instance, Scenario
-from fmu_runtime import exit_guard
+from cosim.run.rows import RowSink, RowTable
+from cosim.run.scenario import Scenario, ScenarioError
+from cosim.run.signals import StopRequest, stop_on_signals
+from cosim.run.slave import Slave, describe, reasons, unzipped
 
-STATUS_LABELS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
-LOG_LINES_KEPT = 20  # logged messages (warning or worse) kept per instance
-ROWS_PER_CHUNK = 200  # rows handed to `on_rows` at a time (recording, progress)
-RowsCallback = Callable[[np.ndarray, np.ndarray], None]
-_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+ROWS_PER_CHUNK = 200  # rows handed to the sinks at a time
+HAND_OFF_INTERVAL_S = 1.0  # ... and at least this often (wall clock), however slow the steps
+MAX_SUBSTEPS = 10_000  # sub-steps per communication step beyond which a run is refused
+SUBSTEP_PARAMETER = "max_substep"  # s, an FMU's longest internal step (AuvPlant has one)
 
 
 @dataclass
 class RunResult:
-    """What a run produced; ``times``/``values`` hold the rows computed (all if complete)."""
+    """How a run ended. ``times``/``values`` hold every row only if the run kept them."""
 
     scenario: Scenario
     columns: tuple[str, ...]
-    times: np.ndarray  # (rows,) s
-    values: np.ndarray  # (rows, len(columns)) SI
+    rows: int  # rows computed, t = 0 included
+    time_reached: float  # s, the time of the last row
+    final: np.ndarray  # (len(columns),) the last row, SI
     complete: bool
     error: str | None  # one line, None if complete
-    wall_clock_s: float  # the stepping loop alone (including the on_rows callbacks)
-    interrupted: bool = False
+    wall_clock_s: float  # the stepping loop alone (including the sinks)
+    stop_signal: int | None = None  # the signal that stopped the stepping, if any
     messages: dict[str, list[str]] = field(default_factory=dict)  # instance -> FMU log lines
+    times: np.ndarray | None = None  # (rows,) s, when kept
+    values: np.ndarray | None = None  # (rows, len(columns)) SI, when kept
+
+    @property
+    def interrupted(self) -> bool:
+        """Stopped by a signal (Ctrl-C, SIGTERM, SIGHUP) before the stop time."""
+        return self.stop_signal is not None
 
     def column(self, name: str) -> np.ndarray:
-        """The recorded time series ``"<instance>.<variable>"``."""
+        """The recorded time series ``"<instance>.<variable>"`` (the run kept its rows)."""
+        if self.values is None:
+            raise CosimError(
+                f"the rows of run {self.scenario.id!r} were not kept in memory: run it with "
+                "keep_rows=True or read its results.csv"
+            )
         return self.values[:, self.columns.index(name)]
-
-
-class _Slave:
-    """One FMU instance as the master drives it: the fmpy slave, pre-resolved value
-    references, its input buffer and output view, its logged messages and FMI state.
-
-    The FMI 2.0 call order is enforced by ``_expect``: new -> instantiated ->
-    initialization -> stepping -> terminated -> freed. After an Error status the instance
-    is only freed, after Fatal it is not touched again, as the standard requires.
-    """
-
-    def __init__(self, instance: Instance, unzip_dir: Path, k: int) -> None:
-        md = instance.model_description
-        self.name = instance.name
-        self.instance = instance
-        self.k = k
-        self.state = "new"
-        self.messages: collections.deque[str] = collections.deque(maxlen=LOG_LINES_KEPT)
-        self.fmu = FMU2Slave(
-            guid=md.guid,
-            unzipDirectory=str(unzip_dir),
-            modelIdentifier=md.coSimulation.modelIdentifier,
-            instanceName=instance.name,
-        )
-
-    def bind(
-        self, input_vrs: list[int], sources: list[int], output_vrs: list[int], out: np.ndarray
-    ) -> None:
-        """Resolve the buffers once: inputs come from ``z[sources]``, outputs go to ``out``."""
-        self.n_inputs, self.n_outputs = len(input_vrs), len(output_vrs)
-        self.input_vrs = (ctypes.c_uint * self.n_inputs)(*input_vrs)
-        self.inputs = np.zeros(self.n_inputs)
-        self.input_ptr = self.inputs.ctypes.data_as(_DOUBLE_P)
-        self.input_sources = np.asarray(sources, dtype=np.intp)
-        self.output_vrs = (ctypes.c_uint * self.n_outputs)(*output_vrs)
-        self.output_ptr = out.ctypes.data_as(_DOUBLE_P)
-        # fmpy's status-checking wrappers of the C functions, looked up once
-        self.set_real = self.fmu.fmi2SetReal
-        self.do_step = self.fmu.fmi2DoStep
-        self.get_real = self.fmu.fmi2GetReal
-
-    def _expect(self, *states: str) -> None:
-        if self.state not in states:
-            raise CosimError(f"{self.name}: FMI call out of order (in state {self.state!r})")
-
-    def set_up(self, stop_time: float) -> None:
-        """instantiate (logging on), setupExperiment, start values, initialise."""
-        from fmpy.logging import addLoggerProxy
-
-        self._expect("new")
-        self.callbacks = fmi2CallbackFunctions()  # kept on self: the FMU holds pointers into it
-        self.callbacks.logger = _LOGGER
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self.callbacks.componentEnvironment = id(self)
-        # fmpy's native proxy formats the FMU's printf-style messages; it keeps ONE target
-        # function per process, so every instance shares _LOGGER, which dispatches on the
-        # componentEnvironment the FMU passes back.
-        addLoggerProxy(ctypes.byref(self.callbacks))
-        _log_sinks[id(self)] = self.messages
-        self.fmu.instantiate(callbacks=self.callbacks, loggingOn=True)
-        self.state = "instantiated"
-        # any pythonfmu FMU, ours or not, can abort this process at exit: see exit_guard
-        exit_guard.install(Path(self.fmu.unzipDirectory) / "resources")
-        self.fmu.setupExperiment(startTime=0.0, stopTime=stop_time)
-        grouped: dict[str, tuple[list[int], list[Any]]] = {}
-        for name, value in self.instance.start.items():
-            var = self.instance.variable(name)
-            kind = "Integer" if var.type == "Enumeration" else var.type
-            vrs, values = grouped.setdefault(kind, ([], []))
-            vrs.append(var.valueReference)
-            values.append(value)
-        setters = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
-                   "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}  # fmt: skip
-        for kind, (vrs, values) in grouped.items():
-            setters[kind](vrs, values)
-        self.fmu.enterInitializationMode()
-        self.state = "initialization"
-        self.fmu.exitInitializationMode()
-        self.state = "stepping"
-        self.c = self.fmu.component
-
-    def read_outputs(self) -> None:
-        self._expect("stepping")
-        self.get_real(self.c, self.output_vrs, self.n_outputs, self.output_ptr)
-
-    def failed(self, status: int) -> None:
-        """Record a non-OK status: after Discard the instance may still be terminated,
-        after Error only freed, after Fatal not touched at all (FMI 2.0, 4.2.4)."""
-        if status >= 3:
-            self.state = "fatal" if status >= 4 else "error"
-
-    def finish(self) -> None:
-        """terminate + freeInstance as far as the state allows; never raises."""
-        try:
-            if self.state in ("initialization", "stepping"):
-                self.fmu.terminate()
-                self.state = "terminated"
-            if self.state in ("instantiated", "terminated", "error"):
-                self.state = "freed"
-                self.fmu.freeInstance()
-        except Exception as exc:  # a failing clean-up must not hide the run's own result
-            self.messages.append(f"[clean-up] {exc}")
-            self.state = "freed"
-        finally:
-            if self.state in ("freed", "new"):
-                _log_sinks.pop(id(self), None)
-
-
-_log_sinks: dict[int, collections.deque[str]] = {}  # componentEnvironment -> messages
-
-
-def _log(env: int | None, _name: bytes, status: int, _category: bytes, message: bytes) -> None:
-    """The FMUs' logger: keeps warnings and worse per instance. A C callback: never raises."""
-    sink = _log_sinks.get(env or 0)
-    if sink is not None and status >= 1:
-        label = STATUS_LABELS[status] if status < len(STATUS_LABELS) else str(status)
-        sink.append(f"[{label}] {(message or b'').decode('utf-8', 'replace')}")
-
-
-_LOGGER = fmi2CallbackLoggerTYPE(_log)
 
 
 @dataclass(frozen=True)
@@ -246,42 +135,84 @@ class _Layout:
         return len(self.index) - len(self.constants)
 
 
+def preflight(scenario: Scenario) -> None:
+    """Refuse, before any FMU is loaded, a scenario whose FMUs would hang in a step.
+
+    An instance with a Real parameter ``max_substep`` (s) integrates a communication step
+    of k h in ceil(k h / max_substep) sub-steps (``plant_fmu.model.stepping.advance``);
+    more than :data:`MAX_SUBSTEPS` is refused with the reason (one sub-step of the plant
+    takes tens of microseconds, so 1e-9 s would take hours per step and ignore Ctrl-C).
+    """
+    for name, inst in scenario.instances.items():
+        var = {v.name: v for v in inst.variables("parameter")}.get(SUBSTEP_PARAMETER)
+        if var is None or var.type != "Real":
+            continue
+        max_substep = scenario.start_value(name, SUBSTEP_PARAMETER)
+        step = scenario.coupling.step * scenario.coupling.step_multiples.get(name, 1)
+        if not (isinstance(max_substep, float) and max_substep > 0.0):
+            continue  # the FMU refuses it itself, with its own reason
+        substeps = math.ceil(step / max_substep - 1e-9)
+        if substeps > MAX_SUBSTEPS:
+            key = f"instances.{name}.start.{SUBSTEP_PARAMETER}"
+            given = SUBSTEP_PARAMETER in inst.start
+            raise ScenarioError(
+                f"scenario file {scenario.source or scenario.id}: key "
+                f"{key if given else 'coupling.step'!r}: {name}.{SUBSTEP_PARAMETER} = "
+                f"{max_substep!r} s would take {substeps:.3g} sub-steps per communication "
+                f"step of {step!r} s; at most {MAX_SUBSTEPS} are allowed (max_substep >= "
+                f"{step / MAX_SUBSTEPS:.3g} s)"
+            )
+
+
 def run(
     scenario: Scenario,
-    on_rows: RowsCallback | None = None,
+    sinks: Sequence[RowSink] = (),
+    *,
+    keep_rows: bool = True,
+    stop: StopRequest | None = None,
     rows_per_chunk: int = ROWS_PER_CHUNK,
+    hand_off_interval: float = HAND_OFF_INTERVAL_S,
 ) -> RunResult:
-    """Run ``scenario`` to its stop time (or the first failure) and return the results.
+    """Run ``scenario`` to its stop time (or the first failure), streaming its rows.
 
-    ``on_rows(times, values)`` receives the rows in order, ``rows_per_chunk`` at a time
-    (views into the result arrays: copy what you keep), also after a failure. Raises
-    :class:`CosimError` if an FMU cannot be set up (instantiation, start values,
-    initialisation); every failure after that is reported in the returned result.
+    ``sinks`` receive every row in order (:mod:`cosim.run.rows`); the caller closes them.
+    ``keep_rows`` also keeps the rows in the result (memory grows with the stop time).
+    ``stop`` is the caller's :class:`StopRequest` (its signal handlers installed); without
+    one, SIGINT/SIGTERM/SIGHUP are caught for the duration of the call.
+
+    Raises :class:`CosimError` if the scenario is refused (:func:`preflight`) or an FMU
+    cannot be set up (instantiation, start values, initialisation); every failure after
+    that is reported in the returned result.
     """
+    preflight(scenario)
+    table = RowTable(len(scenario.record)) if keep_rows else None
+    feed = [*sinks, table] if table is not None else list(sinks)
     layout = _Layout.of(scenario)
     z = np.zeros(len(layout.index))
     slaves = [
-        _Slave(inst, _unzipped(inst.fmu_path), scenario.coupling.step_multiples[name])
+        Slave(inst, unzipped(inst.fmu_path), scenario.coupling.step_multiples[name])
         for name, inst in scenario.instances.items()
     ]
-    stop = [False]  # set by Ctrl-C, also while the FMUs are set up or freed
-    with _ctrl_c_sets(stop):
+    guard = stop_on_signals(StopRequest()) if stop is None else nullcontext(stop)
+    with guard as stop_request:
         try:
             for slave in slaves:
                 _bind(slave, scenario, layout, z)
             for slave in slaves:
                 _set_up(slave, scenario, layout, z)
-            if stop[0]:
-                raise KeyboardInterrupt  # raised here, never inside an FMU's code
             by_name = {s.name: s for s in slaves}
             order = [by_name[name] for name in scenario.coupling.order]
-            return _loop(scenario, order, layout, z, on_rows, rows_per_chunk, stop)
+            rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval)
+            result = _loop(scenario, order, layout, z, rows, stop_request)
         finally:
             for slave in slaves:
                 slave.finish()
+    if table is not None:
+        result.times, result.values = table.table()
+    return result
 
 
-def _bind(slave: _Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
+def _bind(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
     inst, read = slave.instance, layout.read[slave.name]
     targets = [c for c in scenario.connections if c.target_instance == slave.name]
     start = layout.index[f"{slave.name}.{read[0]}"] if read else 0
@@ -293,7 +224,7 @@ def _bind(slave: _Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> 
     )
 
 
-def _set_up(slave: _Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
+def _set_up(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
     """Set up one instance and read its t = 0 outputs and recorded constant inputs."""
     try:
         slave.set_up(scenario.stop_time)
@@ -312,47 +243,92 @@ def _set_up(slave: _Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -
                 z[layout.index[ref]] = slave.fmu.getReal([vr])[0]
     except FMICallException as exc:
         slave.failed(exc.status)
-        raise CosimError(_describe(slave, exc.function, exc.status, 0.0)) from None
+        raise CosimError(describe(slave, exc.function, exc.status, 0.0)) from None
     except CosimError:
         raise
     except Exception as exc:  # fmpy raises a plain Exception when instantiation fails
         raise CosimError(f"{slave.name}: cannot set up {slave.instance.fmu_path.name}: {exc}"
-                         f"{_reasons(slave)}") from None  # fmt: skip
+                         f"{reasons(slave)}") from None  # fmt: skip
+
+
+class _Rows:
+    """The rows of a run, a chunk at a time: filled by the loop, handed to the sinks when
+    the chunk is full or ``interval`` s of wall clock have passed since the last hand-off."""
+
+    def __init__(
+        self, scenario: Scenario, sinks: list[RowSink], rows_per_chunk: int, interval: float
+    ) -> None:
+        self.h = scenario.coupling.step
+        self.buffer = np.empty((rows_per_chunk, len(scenario.record)))
+        self.first = 0  # row index of buffer[0]
+        self.filled = 0  # rows of the buffer filled
+        self.sinks = sinks
+        self.interval = interval
+        self.last_hand_off = time.perf_counter()
+        self.final = np.full(len(scenario.record), np.nan)
+        self.error: str | None = None  # the first sink failure
+
+    @property
+    def count(self) -> int:
+        return self.first + self.filled
+
+    def commit(self) -> None:
+        """The row ``buffer[filled]`` was written: count it, hand off when due."""
+        self.filled += 1
+        if (
+            self.filled == len(self.buffer)
+            or time.perf_counter() - self.last_hand_off >= self.interval
+        ):
+            self.hand_off()
+
+    def hand_off(self) -> None:
+        """Give the buffered rows to every sink; a failing sink is dropped, its reason kept."""
+        if self.filled:
+            # t_n = n h, never accumulated (no drift), as the loop computes it
+            times = np.arange(self.first, self.first + self.filled) * self.h
+            values = self.buffer[: self.filled]
+            for sink in list(self.sinks):
+                try:
+                    sink.add_rows(times, values)
+                except (OSError, CosimError) as exc:
+                    self.sinks.remove(sink)
+                    self.error = self.error or str(exc)
+            self.final = values[-1].copy()
+            self.first += self.filled
+            self.filled = 0
+        self.last_hand_off = time.perf_counter()
 
 
 def _loop(
     scenario: Scenario,
-    order: list[_Slave],
+    order: list[Slave],
     layout: _Layout,
     z: np.ndarray,
-    on_rows: RowsCallback | None,
-    rows_per_chunk: int,
-    stop: list[bool],
+    rows: _Rows,
+    stop: StopRequest,
 ) -> RunResult:
-    """The stepping loop proper (see the module docstring); ``stop[0]`` ends it early."""
+    """The stepping loop proper (see the module docstring); ``stop`` ends it early."""
     h, n_steps = scenario.coupling.step, scenario.n_steps
     jacobi = scenario.coupling.algorithm == "jacobi"
-    columns = scenario.record
-    record = np.asarray([layout.index[c] for c in columns], dtype=np.intp)
-    times = np.arange(n_steps + 1) * h  # t_n = n h, never accumulated (no drift)
-    t_list = times.tolist()
-    values = np.empty((n_steps + 1, len(columns)))
+    record = np.asarray([layout.index[c] for c in scenario.record], dtype=np.intp)
     exchanged = z[: layout.n_read]
     multi_rate = any(s.k != 1 for s in order)
 
     take = z.take  # z.take(indices, out=buffer): a gather without allocation
     probe = np.zeros(layout.n_read)  # x . 0 is NaN iff some x is NaN or infinite
     check_dot = exchanged.dot
+    buffer = rows.buffer
     error: str | None = None
-    rows = 1  # rows of `values` filled; row 0 is t = 0
-    sent = 0  # rows handed to on_rows
-    take(record, out=values[0])
+    take(record, out=buffer[0])
+    rows.commit()  # row 0 is t = 0
     slave, n = order[0], 0
     started = time.perf_counter()
     try:
         _check_finite(exchanged, layout, 0.0)
         for n in range(n_steps):
-            t = t_list[n]
+            if stop.requested or rows.error is not None:
+                break
+            t = n * h  # t_n = n h, never accumulated (no drift)
             due = [s for s in order if n % s.k == 0] if multi_rate else order
             if jacobi:  # every due instance takes the values at t before any steps
                 for slave in due:
@@ -363,36 +339,36 @@ def _loop(
                     take(slave.input_sources, out=slave.inputs)
                     slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
                 # step to t_{n+k} - t_n, as fmpy.simulate_fmu does (bit-identical runs)
-                slave.do_step(slave.c, t, t_list[min(n + slave.k, n_steps)] - t, 1)
+                slave.do_step(slave.c, t, min(n + slave.k, n_steps) * h - t, 1)
                 slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
             nan_if_bad = check_dot(probe)
             if nan_if_bad != nan_if_bad:
-                _check_finite(exchanged, layout, t_list[n + 1])
-            take(record, out=values[rows])
-            rows += 1
-            if on_rows is not None and rows - sent >= rows_per_chunk:
-                on_rows(times[sent:rows], values[sent:rows])
-                sent = rows
-            if stop[0]:
-                error = f"interrupted (Ctrl-C) at t = {t_list[n + 1]:.6g} s"
-                break
+                _check_finite(exchanged, layout, (n + 1) * h)
+            take(record, out=buffer[rows.filled])
+            rows.commit()
     except FMICallException as exc:
         slave.failed(exc.status)
-        error = _describe(slave, exc.function, exc.status, t_list[n])
+        error = describe(slave, exc.function, exc.status, n * h)
     except CosimError as exc:
         error = str(exc)
-    if on_rows is not None and rows > sent:
-        on_rows(times[sent:rows], values[sent:rows])
+    rows.hand_off()
     wall = time.perf_counter() - started
+    t_end = (rows.count - 1) * h
+    if error is None and rows.error is not None:
+        error = f"{rows.error} (at t = {t_end:.6g} s)"
+    stopped = stop.requested and error is None and rows.count < n_steps + 1
+    if stopped:
+        error = f"{stop.reason} at t = {t_end:.6g} s"
     return RunResult(
         scenario=scenario,
-        columns=columns,
-        times=times[:rows],
-        values=values[:rows],
-        complete=rows == n_steps + 1 and error is None,
+        columns=scenario.record,
+        rows=rows.count,
+        time_reached=t_end,
+        final=rows.final,
+        complete=rows.count == n_steps + 1 and error is None,
         error=error,
         wall_clock_s=wall,
-        interrupted=stop[0],
+        stop_signal=stop.signum if stopped else None,
         messages={s.name: list(s.messages) for s in order},
     )
 
@@ -403,50 +379,3 @@ def _check_finite(exchanged: np.ndarray, layout: _Layout, t: float) -> None:
         names = list(layout.index)
         listed = ", ".join(f"{names[i]} = {exchanged[i]}" for i in bad[:5])
         raise CosimError(f"non-finite value at t = {t:.6g} s: {listed}")
-
-
-def _describe(slave: _Slave, function: str, status: int, t: float) -> str:
-    label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
-    return f"{slave.name}: {function} returned {label} at t = {t:.6g} s{_reasons(slave)}"
-
-
-def _reasons(slave: _Slave) -> str:
-    """The FMU's last logged reason(s), one line."""
-    lines = [m for m in slave.messages if not m.startswith("[Warning]")][-3:]
-    return (": " + " | ".join(lines)) if lines else " (the FMU logged no reason)"
-
-
-@contextmanager
-def _ctrl_c_sets(flag: list[bool]) -> Iterator[None]:
-    """While active, Ctrl-C sets ``flag[0]`` instead of raising KeyboardInterrupt."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(_signum: int, _frame: Any) -> None:
-        flag[0] = True
-
-    previous = signal.signal(signal.SIGINT, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
-# --- unzipped FMUs, one folder per FMU file per process -----------------------------------
-
-_unzipped_dirs: dict[tuple[Path, float], Path] = {}
-
-
-def _unzipped(fmu_path: Path) -> Path:
-    """Extract an FMU once per process (pythonfmu keeps its modules imported anyway)."""
-    key = (fmu_path, fmu_path.stat().st_mtime)
-    if key not in _unzipped_dirs:
-        _unzipped_dirs[key] = Path(extract(str(fmu_path)))
-    return _unzipped_dirs[key]
-
-
-@atexit.register
-def _remove_unzipped() -> None:
-    for folder in _unzipped_dirs.values():
-        shutil.rmtree(folder, ignore_errors=True)

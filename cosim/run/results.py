@@ -1,131 +1,117 @@
-"""Run outputs: ``results.csv``, ``scenario.toml`` (resolved) and ``summary.json``.
+"""The formats of a run's files: ``results.csv`` and ``summary.json``.
 
 ``results.csv``: a ``time`` column (s), then one column per recorded variable named
 ``<instance>.<variable>``, SI units (angles in rad), one row per communication step
-including t = 0; values printed as the shortest text that reads back to the same double.
+including t = 0; values printed as the shortest text that reads back to the same double
+(Python's ``repr``: ``inf``/``nan`` for a non-finite value). Rows are appended as the run
+advances; every row ends with a newline, so a line without one is a row still being
+written and readers skip it.
 
-``summary.json``: scenario id, stop_time, step, algorithm, wall_clock_s (the stepping loop
-alone), complete, error (null if complete), the time reached, the final value of every
-column and the key figures of :func:`key_figures`.
+``summary.json`` (plain JSON: a non-finite number is written as null) exists from the
+start of a run with ``"status": "running"`` and is replaced (atomically) at its end by
+the full summary: ``status`` ``"complete"`` or ``"incomplete"``, ``complete``, ``error``
+(the one-line reason, null if complete), ``signal`` (the signal that stopped or
+interrupted the run, null if none), scenario id, stop_time, step, algorithm, pid,
+``outputs`` (the files the run writes), wall_clock_s (the stepping loop alone),
+real_time_factor, time_reached, rows, the final value of every column, the key figures
+(:mod:`cosim.run.figures`) and the FMUs' logged warnings and errors. A summary still
+saying ``running`` once its process is gone belongs to a run that was killed: its
+results.csv holds every row up to the last flush.
 """
 
 from __future__ import annotations
 
-import json
 import math
+import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cosim.errors import CosimError
-from cosim.run.master import RunResult
+if TYPE_CHECKING:  # types only: the readers of results.csv need not import the master
+    from cosim.run.master import RunResult
+    from cosim.run.scenario import Scenario
 
-YAW_TOLERANCE_RAD = math.radians(1.0)  # "settled" band of the yaw settling time
-
-
-def write_outputs(result: RunResult, out_dir: Path) -> dict[str, Path]:
-    """Write the three files into ``out_dir`` (created); returns name -> path."""
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        paths = {
-            "results": out_dir / "results.csv",
-            "scenario": out_dir / "scenario.toml",
-            "summary": out_dir / "summary.json",
-        }
-        write_csv(result, paths["results"])
-        paths["scenario"].write_text(result.scenario.to_toml(), encoding="utf-8")
-        paths["summary"].write_text(json.dumps(summary(result), indent=2) + "\n", encoding="utf-8")
-    except OSError as exc:
-        raise CosimError(f"cannot write the run outputs to {out_dir}: {exc}") from None
-    return paths
+RESULTS_FILE = "results.csv"
+SCENARIO_FILE = "scenario.toml"
+SUMMARY_FILE = "summary.json"
+RECORDING_FILE = "recording.rrd"  # the Rerun recording (cosim.viz.recording)
+REPORT_FOLDER = "report"  # what `auv-cosim report` adds (cosim.viz.report)
 
 
-def write_csv(result: RunResult, path: Path) -> None:
-    """Floats as Python's repr: the shortest text that reads back to the same double."""
-    table = np.column_stack([result.times, result.values]).tolist()
-    lines = [",".join(["time", *result.columns])]
-    lines += [",".join(map(repr, row)) for row in table]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+def csv_header(columns: tuple[str, ...] | list[str]) -> str:
+    """The first line of results.csv, newline included."""
+    return ",".join(["time", *columns]) + "\n"
+
+
+def csv_lines(times: np.ndarray, values: np.ndarray) -> str:
+    """Rows as results.csv lines, each ending with a newline."""
+    table = np.column_stack([times, values]).tolist()
+    return "".join(",".join(map(repr, row)) + "\n" for row in table)
 
 
 def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
-    """Column names and the (rows, columns) table of a results.csv (``time`` first)."""
-    with path.open(encoding="utf-8") as f:
-        columns = f.readline().strip().split(",")
-    return columns, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    """Column names and the (rows, columns) table of a results.csv (``time`` first).
+
+    A last line without its newline (a row being written, or torn by a crash) is skipped.
+    """
+    text = path.read_text(encoding="utf-8")
+    lines = text.split("\n")[:-1]  # the part after the last newline is incomplete
+    if not lines:
+        raise ValueError(f"{path} holds no complete header line")
+    columns = lines[0].strip().split(",")
+    if len(lines) == 1:
+        return columns, np.empty((0, len(columns)))
+    return columns, np.loadtxt(lines[1:], delimiter=",", ndmin=2)
 
 
-def summary(result: RunResult) -> dict[str, Any]:
-    """The content of summary.json (plain JSON types; NaN written as null)."""
-    scenario = result.scenario
-    final = dict(zip(result.columns, result.values[-1].tolist(), strict=True))
+def running_summary(scenario: Scenario, outputs: Mapping[str, Path], out_dir: Path) -> dict:
+    """summary.json while the run is going."""
     return {
         "scenario": scenario.id,
+        "status": "running",
+        "complete": False,
+        "error": None,
+        "signal": None,
         "stop_time": scenario.stop_time,
         "step": scenario.coupling.step,
         "algorithm": scenario.coupling.algorithm,
-        "wall_clock_s": result.wall_clock_s,
-        "real_time_factor": _finite(float(result.times[-1]) / result.wall_clock_s)
-        if result.wall_clock_s > 0
-        else None,
-        "complete": result.complete,
-        "error": result.error,
-        "time_reached": float(result.times[-1]),
+        "pid": os.getpid(),
+        "outputs": {name: _relative(path, out_dir) for name, path in outputs.items()},
+    }
+
+
+def final_summary(
+    running: dict[str, Any],
+    result: RunResult,
+    figures: dict[str, float | None],
+    error: str | None,
+    signal: str | None,
+) -> dict[str, Any]:
+    """summary.json at the end of a run: ``running`` completed with how it ended."""
+    wall = result.wall_clock_s
+    final = dict(zip(result.columns, result.final.tolist(), strict=True))
+    return {
+        **running,
+        "status": "complete" if error is None else "incomplete",
+        "complete": error is None,
+        "error": error,
+        "signal": signal,
+        "wall_clock_s": wall,
+        "real_time_factor": _finite(result.time_reached / wall) if wall > 0 else None,
+        "time_reached": result.time_reached,
+        "rows": result.rows,
         "final_values": {name: _finite(value) for name, value in final.items()},
-        "key_figures": key_figures(result),
+        "key_figures": figures,
         "fmu_messages": {name: lines for name, lines in result.messages.items() if lines},
     }
 
 
-def key_figures(result: RunResult) -> dict[str, float | None]:
-    """Settling time of yaw, peak |mass_position|, peak |tunnel_force| (None if not recorded).
-
-    ``yaw_settling_time_s``: the first time after which |yaw - yaw_setpoint| stays below
-    1 deg to the end of the run (angles compared on the circle); None if the last sample is
-    outside the band. The setpoint is ``controller.yaw_setpoint`` if recorded, else 0
-    (with the autopilot's ``compensate_current`` on, that set-point is the course; the
-    heading then settles off it by the crab angle, so the figure is None).
-    """
-    cols = set(result.columns)
-    figures: dict[str, float | None] = {
-        "yaw_settling_time_s": None,
-        "peak_abs_mass_position_m": None,
-        "peak_abs_tunnel_force_N": None,
-    }
-    if "plant.yaw" in cols:
-        setpoint = (
-            result.column("controller.yaw_setpoint") if "controller.yaw_setpoint" in cols else 0.0
-        )
-        figures["yaw_settling_time_s"] = settling_time(
-            result.times, result.column("plant.yaw") - setpoint, YAW_TOLERANCE_RAD, angle=True
-        )
-    if "plant.mass_position" in cols:
-        figures["peak_abs_mass_position_m"] = _peak(result.column("plant.mass_position"))
-    force = next((c for c in ("controller.tunnel_force", "plant.tunnel_force") if c in cols), None)
-    if force is not None:
-        figures["peak_abs_tunnel_force_N"] = _peak(result.column(force))
-    return figures
-
-
-def settling_time(
-    times: np.ndarray, error: np.ndarray, tolerance: float, angle: bool = False
-) -> float | None:
-    """First time after which |error| < tolerance to the end; None if the end is outside.
-
-    With ``angle`` the error is wrapped to (-pi, pi] first.
-    """
-    if angle:
-        error = np.angle(np.exp(1j * np.asarray(error)))
-    outside = np.flatnonzero(~(np.abs(error) < tolerance))
-    if outside.size == 0:
-        return float(times[0])
-    last = outside[-1]
-    return None if last == len(times) - 1 else float(times[last + 1])
-
-
-def _peak(values: np.ndarray) -> float | None:
-    return _finite(float(np.max(np.abs(values)))) if values.size else None
+def _relative(path: Path, folder: Path) -> str:
+    """``path`` relative to the run folder when inside it, else absolute."""
+    path, folder = path.resolve(), folder.resolve()
+    return str(path.relative_to(folder)) if path.is_relative_to(folder) else str(path)
 
 
 def _finite(value: float) -> float | None:

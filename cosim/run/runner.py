@@ -1,31 +1,67 @@
-"""``auv-cosim run``: load a scenario, run the master, write the outputs, report.
+"""``auv-cosim run``: check everything, claim the run folder, stream the run, report.
 
 :func:`run_scenario` is the programmatic entry (tests, benchmarks); :func:`run_from_cli`
-adapts the command line's arguments to it and prints where the outputs went and the key
-figures. A failed run keeps its partial results (``summary.json`` says ``"complete":
-false`` and why) and exits non-zero with a one-line reason.
+takes the command line's :class:`RunOptions` and prints where the outputs went and the key
+figures. The order of a run:
+
+1. the scenario is loaded and every input checked (:mod:`cosim.run.scenario`, the command
+   line's overrides, :func:`cosim.run.master.preflight`), the recording path too;
+2. SIGINT/SIGTERM/SIGHUP now only stop the run (:mod:`cosim.run.signals`);
+3. the run folder is claimed (:mod:`cosim.run.folder`) and every output opened
+   (:mod:`cosim.run.outputs`): nothing has stepped yet, and a failure so far leaves nothing;
+4. the master streams the rows to the outputs (:mod:`cosim.run.master`);
+5. the outputs are closed and summary.json says how the run ended, whatever signal comes.
+
+A run that stops early keeps its partial results (``summary.json`` says ``"complete":
+false`` and why) and exits non-zero with a one-line reason: 1 for a failure, 128 + the
+signal number for a signal (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), also when the signal
+came while the outputs were being completed.
 """
 
 from __future__ import annotations
 
-import argparse
+import math
+import signal
 import sys
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import Any, Literal
 
 from cosim.errors import CosimError
+from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
 from cosim.run import master
+from cosim.run.folder import RunFolder, check_recording_path
 from cosim.run.master import RunResult
-from cosim.run.results import key_figures, write_outputs
-from cosim.run.scenario import DEFAULT_FMU_DIR, Scenario, load_scenario
+from cosim.run.outputs import RunOutputs
+from cosim.run.results import RECORDING_FILE
+from cosim.run.scenario import Scenario, load_scenario
+from cosim.run.signals import REASONS, StopRequest, stop_on_signals
 
-RUNS_DIR = Path("runs")
-RECORDING_FILE = "recording.rrd"
 MESSAGES_SHOWN = 3  # FMU log lines (warnings and worse) printed per instance
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How to run a scenario: the command line's options, typed.
+
+    ``out_dir`` defaults to ``runs/<scenario id>``; the recording goes to ``rrd`` if given,
+    else to ``<out_dir>/recording.rrd`` unless the scenario's ``output.rrd`` is false;
+    ``no_rrd`` writes none; ``connect`` also streams to a running Rerun viewer;
+    ``overwrite`` replaces an earlier run in ``out_dir``; ``keep_rows`` also keeps every
+    row in memory (``outcome.result.column(...)``; memory grows with the stop time).
+    """
+
+    out_dir: Path | None = None
+    stop_time: float | None = None
+    step: float | None = None
+    algorithm: Literal["jacobi", "gauss-seidel"] | None = None
+    rrd: Path | None = None
+    no_rrd: bool = False
+    connect: str | None = None
+    fmu_dir: Path = DEFAULT_FMU_DIR
+    overwrite: bool = False
+    progress: bool = False
+    keep_rows: bool = False
 
 
 @dataclass
@@ -35,100 +71,122 @@ class RunOutcome:
     result: RunResult
     out_dir: Path
     paths: dict[str, Path]  # results, scenario, summary and (if written) recording
+    figures: dict[str, float | None]  # the key figures (cosim.run.figures)
+    signal: int | None = None  # the first stop signal received while the run was on
+
+    @property
+    def exit_code(self) -> int:
+        """0 complete, 128 + signal number if a signal came, else 1."""
+        if self.signal is not None:
+            return 128 + self.signal
+        return 0 if self.result.complete else 1
 
 
 def run_scenario(
-    scenario: str | Path | Scenario,
-    out_dir: Path | None = None,
-    *,
-    stop_time: float | None = None,
-    step: float | None = None,
-    algorithm: str | None = None,
-    rrd: Path | None = None,
-    no_rrd: bool = False,
-    connect: str | None = None,
-    fmu_dir: Path = DEFAULT_FMU_DIR,
-    progress: bool = False,
+    scenario: str | Path | Scenario, out_dir: Path | None = None, **options: Any
 ) -> RunOutcome:
-    """Run a scenario (id, file or loaded) and write its outputs to ``out_dir``
-    (default ``runs/<id>``). The recording goes to ``rrd`` if given, else to
-    ``<out_dir>/recording.rrd`` unless the scenario's ``output.rrd`` is false; ``no_rrd``
-    writes none. ``connect`` also streams it to a running Rerun viewer.
+    """Run a scenario (id, file or loaded) into ``out_dir``; ``options`` are the other
+    fields of :class:`RunOptions` (``stop_time=2.0, no_rrd=True, keep_rows=True``...).
 
-    Raises :class:`CosimError` if the scenario is invalid or the FMUs cannot be set up;
-    a failure during the run is reported in ``outcome.result`` (``complete`` false).
+    Raises :class:`CosimError` (one line) if the scenario, an option or a path is refused
+    or the FMUs cannot be set up: nothing has stepped and no output is left. A failure
+    during the run is reported in ``outcome.result`` (``complete`` false).
     """
+    return execute(scenario, RunOptions(out_dir=out_dir, **options))
+
+
+def execute(scenario: str | Path | Scenario, options: RunOptions) -> RunOutcome:
+    """:func:`run_scenario` with the options as one object (see the module docstring)."""
+    scenario = _checked_scenario(scenario, options)
+    out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / scenario.id
+    rrd = _recording_path(scenario, options, out_dir)
+    stop = StopRequest()
+    with stop_on_signals(stop):
+        folder = RunFolder.claim(out_dir, overwrite=options.overwrite)
+        stepped = False
+        try:
+            outputs = RunOutputs.open(scenario, folder, rrd, options.connect, options.progress)
+            try:
+                result = master.run(scenario, outputs.sinks, keep_rows=options.keep_rows, stop=stop)
+            except BaseException:  # refused or not set up: it never stepped
+                outputs.discard()
+                raise
+            stepped = True
+            _complete(outputs, result, stop)
+        finally:
+            folder.release(unused=not stepped)
+    return RunOutcome(result, out_dir, outputs.paths, outputs.figures.figures(), stop.signum)
+
+
+def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> Scenario:
+    """The scenario with the overrides applied, every input checked; nothing written."""
+    for flag, value in (("--stop-time", options.stop_time), ("--step", options.step)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise CosimError(f"{flag} {value!r}: expected a finite number of seconds > 0")
     if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario, fmu_dir=fmu_dir)
-    if stop_time is not None or step is not None or algorithm is not None:
-        scenario = scenario.with_overrides(stop_time=stop_time, step=step, algorithm=algorithm)
-    out_dir = out_dir if out_dir is not None else RUNS_DIR / scenario.id
-    if no_rrd:
-        rrd_path = None
-    elif rrd is not None:  # asked for explicitly: wins over the scenario's output.rrd
-        rrd_path = rrd
-    else:
-        rrd_path = out_dir / RECORDING_FILE if scenario.rrd else None
-    sink = _open_sink(scenario, rrd_path, connect)
-    bar: list[Any] = []  # the progress bar, opened when the stepping starts
-
-    def on_rows(times: np.ndarray, values: np.ndarray) -> None:
-        if sink is not None:
-            sink.add_rows(times, values)
-        if progress:
-            if not bar:
-                bar.append(_progress_bar(scenario))
-            bar[0].update(len(times))
-
-    try:
-        result = master.run(scenario, on_rows=on_rows if sink is not None or progress else None)
-    finally:
-        for b in bar:
-            b.close()
-        if sink is not None:
-            sink.close()
-    paths = write_outputs(result, out_dir)
-    if rrd_path is not None and sink is not None:
-        paths["recording"] = rrd_path
-    return RunOutcome(result, out_dir, paths)
+        scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
+    if options.stop_time is not None or options.step is not None or options.algorithm:
+        scenario = scenario.with_overrides(
+            stop_time=options.stop_time, step=options.step, algorithm=options.algorithm
+        )
+    master.preflight(scenario)
+    return scenario
 
 
-def run_from_cli(args: argparse.Namespace) -> int:
-    """``auv-cosim run``: 0 if the run completed, 130 if interrupted, 1 on failure."""
-    quiet = bool(args.quiet)
-    outcome = run_scenario(
-        args.scenario,
-        args.out,
-        stop_time=args.stop_time,
-        step=args.step,
-        algorithm=args.algorithm,
-        rrd=args.rrd,
-        no_rrd=args.no_rrd,
-        connect=args.connect,
-        fmu_dir=args.fmu_dir,
-        progress=not quiet and sys.stderr.isatty(),
-    )
+def _recording_path(scenario: Scenario, options: RunOptions, out_dir: Path) -> Path | None:
+    if options.no_rrd:
+        return None
+    if options.rrd is not None:  # asked for explicitly: wins over the scenario's output.rrd
+        check_recording_path(out_dir, options.rrd, options.overwrite)
+        return options.rrd
+    return out_dir / RECORDING_FILE if scenario.rrd else None
+
+
+def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest) -> None:
+    """Close the outputs and write the final summary; a failure makes the run incomplete
+    (a summary that cannot be written keeps saying "running", and the reason is printed)."""
+    problem = outputs.close()
+    if problem is not None and result.error is None:
+        result.complete, result.error = False, problem
+    problem = outputs.finish(result, result.error, stop.signum)
+    if problem is not None and result.error is None:
+        result.complete, result.error = False, problem
+
+
+def run_from_cli(scenario: str, options: RunOptions) -> int:
+    """``auv-cosim run``: 0 if the run completed, 128 + signal number if a signal came,
+    1 on failure."""
+    outcome = execute(scenario, options)
     result = outcome.result
-    print(_report(outcome))
-    if result.complete:
-        return 0
-    print(f"auv-cosim run: {result.error} (partial results in {outcome.out_dir})", file=sys.stderr)
-    return 130 if result.interrupted else 1
+    print(report(outcome))
+    if outcome.signal is not None and result.complete:
+        reason = REASONS.get(signal.Signals(outcome.signal).name, "stopped")
+        print(
+            f"auv-cosim run: {reason} while the outputs were completed; the run is complete "
+            f"in {outcome.out_dir}",
+            file=sys.stderr,
+        )
+    elif not result.complete:
+        print(
+            f"auv-cosim run: {result.error} (partial results in {outcome.out_dir})",
+            file=sys.stderr,
+        )
+    return outcome.exit_code
 
 
-def _report(outcome: RunOutcome) -> str:
+def report(outcome: RunOutcome) -> str:
+    """The lines printed after a run: how far it got, where the outputs are, key figures."""
     result = outcome.result
     scenario = result.scenario
-    t_end = float(result.times[-1])
+    t_end, wall = result.time_reached, result.wall_clock_s
     lines = [
         f"scenario {scenario.id}: {'complete' if result.complete else 'INCOMPLETE'}, "
-        f"t = {t_end:g} of {scenario.stop_time:g} s, {len(result.times) - 1} steps of "
+        f"t = {t_end:g} of {scenario.stop_time:g} s, {result.rows - 1} steps of "
         f"{scenario.coupling.step:g} s ({scenario.coupling.algorithm}), "
-        f"{result.wall_clock_s:.2f} s wall clock"
-        + (f" ({t_end / result.wall_clock_s:.1f}x real time)" if result.wall_clock_s > 0 else "")
+        f"{wall:.2f} s wall clock" + (f" ({t_end / wall:.1f}x real time)" if wall > 0 else "")
     ]
     lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
-    figures = key_figures(result)
+    figures = outcome.figures
     lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in figures.items()))
     for name, messages in result.messages.items():
         lines += [f"  {name} logged: {message}" for message in messages[:MESSAGES_SHOWN]]
@@ -139,26 +197,3 @@ def _report(outcome: RunOutcome) -> str:
 
 def _fmt(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.4g}"
-
-
-def _open_sink(scenario: Scenario, rrd_path: Path | None, connect: str | None) -> Any:
-    """The Rerun sink (cosim.viz.recording), or None if nothing is to be recorded."""
-    if rrd_path is None and connect is None:
-        return None
-    try:
-        from cosim.viz.recording import RerunSink
-    except ImportError as exc:
-        warnings.warn(
-            f"no Rerun recording: cannot import cosim.viz.recording ({exc})", stacklevel=2
-        )
-        return None
-    try:
-        return RerunSink(rrd_path, connect, scenario.id, scenario.to_toml(), list(scenario.record))
-    except (OSError, ValueError) as exc:
-        raise CosimError(f"cannot start the Rerun recording: {exc}") from None
-
-
-def _progress_bar(scenario: Scenario) -> Any:
-    from tqdm import tqdm
-
-    return tqdm(total=scenario.n_steps + 1, unit="step", desc=scenario.id, leave=False)

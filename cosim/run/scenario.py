@@ -9,9 +9,11 @@ built on first use, or rebuilt when out of date (``cosim.fmus.build.build_fmu``)
 
 Format (every key is checked; unknown keys are errors)::
 
-    id = "bs-3"                          # optional; default: the file name without .toml
+    id = "bs-3"                          # optional; default: the file name without .toml;
+                                         # a plain name (letters, digits, _ . -, not first . or -)
     summary = "one line for `auv-cosim scenarios`"
-    stop_time = 30.0                     # s, a whole number of communication steps
+    stop_time = 30.0                     # s, a whole number of communication steps, at most
+                                         # MAX_STEPS (1e8) of them
 
     [coupling]
     step = 0.01                          # s, communication step h
@@ -25,6 +27,8 @@ Format (every key is checked; unknown keys are errors)::
     [instances.plant.start]              # parameters and unconnected inputs, SI units
     variant = 1
     v_0 = -0.10
+    vehicle = "myveh.toml"               # a string ending in .toml is a file, relative to
+                                         # this file (passed to the FMU as an absolute path)
 
     [instances.controller]
     fmu = "AuvAutopilot"
@@ -35,11 +39,17 @@ Format (every key is checked; unknown keys are errors)::
     same_names = true                    # output x of one instance -> input x of another [true]
     remove = ["plant.fin_angle"]         # inputs to leave unconnected (hold their start value)
     add = [{ from = "controller.thrust", to = "plant.thrust" }]  # add, or replace the source
+                                         # (an input appears at most once in add)
 
     [output]
     record = ["plant.yaw", "controller.yaw_setpoint"]  # [every output and every
                                                        #  unconnected input of every instance]
     rrd = true                           # write recording.rrd [true]
+
+Types are strict: a string where a number belongs, a float step multiple or start value of
+an Integer, an integer outside the FMI 32-bit range or outside the variable's declared
+min/max, infinity or NaN are errors, never coerced. The file is UTF-8, with or without a
+byte-order mark.
 
 The resolved :class:`Scenario` (and :meth:`Scenario.to_toml`, which loads back to an equal
 scenario) spells everything out: the full connection list, the explicit start values per
@@ -51,6 +61,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -71,12 +82,16 @@ from pydantic import (
 
 from cosim.errors import CosimError
 from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
+from cosim.paths import DEFAULT_FMU_DIR
 
 SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
 BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
-DEFAULT_FMU_DIR = Path("build/fmus")
+MAX_STEPS = 100_000_000  # communication steps per run: more is refused (days of wall clock)
+FILE_SUFFIXES = (".toml",)  # a String start value ending so names a file (vehicle sets)
+FMI_INTEGER_RANGE = (-(2**31), 2**31 - 1)  # fmi2Integer is a C int (32 bits)
 StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
 _NAME = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
+_PLAIN_NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"  # a scenario id: a safe folder name
 # A stop time within this fraction of a step of a whole number of steps counts as whole.
 _STEP_TOLERANCE = 1e-9
 
@@ -89,11 +104,12 @@ class ScenarioError(CosimError):
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # strict: "2.0" is not a number and 2.0 not an integer (an int is a valid float)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class CouplingSpec(_Strict):
-    step: float = Field(gt=0.0, description="communication step h, s")
+    step: float = Field(gt=0.0, allow_inf_nan=False, description="communication step h, s")
     algorithm: Literal["jacobi", "gauss-seidel"] = "gauss-seidel"
     order: list[_NAME] | None = Field(default=None, description="Gauss-Seidel order")
     step_multiples: dict[_NAME, Annotated[int, Field(ge=1)]] = Field(default_factory=dict)
@@ -105,7 +121,7 @@ class InstanceSpec(_Strict):
 
 
 class ConnectionSpec(_Strict):
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, populate_by_name=True)
     from_: str = Field(alias="from", description="<instance>.<output>")
     to: str = Field(description="<instance>.<input>")
 
@@ -124,9 +140,9 @@ class OutputSpec(_Strict):
 class ScenarioSpec(_Strict):
     """One scenario file, checked key by key (types, ranges, no unknown keys)."""
 
-    id: str | None = Field(default=None, pattern=r"^[A-Za-z0-9_.-]+$")
+    id: str | None = Field(default=None, pattern=_PLAIN_NAME)
     summary: str = ""
-    stop_time: float = Field(gt=0.0, description="s")
+    stop_time: float = Field(gt=0.0, allow_inf_nan=False, description="s")
     coupling: CouplingSpec
     instances: dict[_NAME, InstanceSpec] = Field(min_length=1)
     connections: ConnectionsSpec = Field(default_factory=ConnectionsSpec)
@@ -193,6 +209,15 @@ class Instance:
         """fmpy ``ModelVariable``s with this causality, in modelDescription order."""
         return [self.variable(v.name) for v in self.interface.with_causality(causality)]
 
+    def files(self) -> dict[str, Path]:
+        """Start values that name files (String values ending in :data:`FILE_SUFFIXES`,
+        resolved to absolute paths when the scenario was loaded): variable -> file."""
+        return {
+            name: Path(value)
+            for name, value in self.start.items()
+            if isinstance(value, str) and value.endswith(FILE_SUFFIXES)
+        }
+
 
 @dataclass(frozen=True)
 class Scenario:
@@ -219,6 +244,15 @@ class Scenario:
         """Inputs of ``instance`` that no connection drives (they hold their start value)."""
         driven = {c.target_variable for c in self.connections if c.target_instance == instance}
         return [v.name for v in self.instances[instance].variables("input") if v.name not in driven]
+
+    def start_value(self, instance: str, name: str) -> bool | int | float | str | None:
+        """The value ``instance.name`` starts with: the scenario's, else the FMU's declared
+        start (converted to its type), else None (no such variable or no start)."""
+        inst = self.instances[instance]
+        if name in inst.start:
+            return inst.start[name]
+        var = inst.interface.variables.get(name)
+        return None if var is None else var.start
 
     def with_overrides(
         self,
@@ -248,10 +282,12 @@ class Scenario:
                     start["design_step"] = step * multiple
         if stop_time is not None:
             data["stop_time"] = stop_time
-        where = f"{self.source or self.id} (with command-line overrides)"
+        given = {"stop_time": stop_time, "coupling.step": step, "coupling.algorithm": algorithm}
+        overrides = ", ".join(f"{k} = {v!r}" for k, v in given.items() if v is not None)
+        where = f"{self.source or self.id} (with the override {overrides})"
         spec = _validate_spec(data, where)
         base_dir = self.source.parent if self.source else Path.cwd()
-        return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, where)
+        return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, _Source(where))
 
     def to_toml(self) -> str:
         """The resolved scenario as a scenario file that loads back to an equal scenario."""
@@ -311,6 +347,14 @@ def scenario_path(id_or_path: str | Path) -> Path:
     )
 
 
+def scenario_id(id_or_path: str | Path) -> str:
+    """The id a scenario runs under (its ``id`` key, else the file name), read without
+    touching any FMU: what the default run folder ``runs/<id>`` is named after."""
+    path = scenario_path(id_or_path)
+    spec = _validate_spec(_read_toml(path), str(path))
+    return _scenario_id(spec, path.stem, _Source(str(path)))
+
+
 def load_scenario(id_or_path: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> Scenario:
     """Read, validate and resolve a built-in scenario id or a scenario file.
 
@@ -319,7 +363,9 @@ def load_scenario(id_or_path: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> Sc
     """
     path = scenario_path(id_or_path)
     spec = _validate_spec(_read_toml(path), str(path))
-    return _resolve(spec, spec.id or path.stem, path.resolve(), path.parent, fmu_dir, str(path))
+    src = _Source(str(path))
+    sid = _scenario_id(spec, path.stem, src)
+    return _resolve(spec, sid, path.resolve(), path.parent, fmu_dir, src)
 
 
 def scenario_from_toml(
@@ -328,13 +374,15 @@ def scenario_from_toml(
     base_dir: Path | None = None,
     fmu_dir: Path = DEFAULT_FMU_DIR,
 ) -> Scenario:
-    """Like :func:`load_scenario` for scenario text (relative FMU paths from ``base_dir``)."""
+    """Like :func:`load_scenario` for scenario text (relative paths from ``base_dir``)."""
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(text.removeprefix("\ufeff"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"scenario {where}: not valid TOML: {exc}") from None
     spec = _validate_spec(data, where)
-    return _resolve(spec, spec.id or "scenario", None, base_dir or Path.cwd(), fmu_dir, where)
+    src = _Source(where)
+    sid = _scenario_id(spec, "scenario", src)
+    return _resolve(spec, sid, None, base_dir or Path.cwd(), fmu_dir, src)
 
 
 def _natural_key(path: Path) -> tuple[str, int]:
@@ -343,11 +391,11 @@ def _natural_key(path: Path) -> tuple[str, int]:
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+    try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
+        return tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"scenario file {path}: not valid TOML: {exc}") from None
-    except OSError as exc:
+    except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"scenario file {path}: cannot read it: {exc}") from None
 
 
@@ -379,42 +427,56 @@ def _is_union_tag(part: Any) -> bool:
 # --- resolution against the FMUs' model descriptions --------------------------------------
 
 
+@dataclass(frozen=True)
+class _Source:
+    """Where a scenario comes from: every problem found resolving it names it."""
+
+    where: str  # the file, or a description of the text
+
+    def error(self, key: str, problem: str) -> ScenarioError:
+        """The error for ``key`` of this scenario (raise it)."""
+        return ScenarioError(f"scenario file {self.where}: key {key!r}: {problem}")
+
+
+def _scenario_id(spec: ScenarioSpec, default: str, src: _Source) -> str:
+    """The ``id`` key, else ``default`` (the file name), which must be a plain name too."""
+    if spec.id is not None:
+        return spec.id
+    if re.fullmatch(_PLAIN_NAME, default) is None:
+        raise src.error(
+            "id",
+            f"missing, and the file name {default!r} is not a plain name (letters, digits, "
+            "_ . -, not starting with . or -): set id",
+        )
+    return default
+
+
 def _resolve(
     spec: ScenarioSpec,
     scenario_id: str,
     source: Path | None,
     base_dir: Path,
     fmu_dir: Path,
-    where: str,
+    src: _Source,
 ) -> Scenario:
-    def fail(key: str, problem: str) -> ScenarioError:
-        return ScenarioError(f"scenario file {where}: key {key!r}: {problem}")
-
+    _check_step_count(spec, src)
     names = list(spec.instances)
     instances = {
-        name: _resolve_instance(name, inst, base_dir, fmu_dir, fail)
+        name: _resolve_instance(name, inst, base_dir, fmu_dir, src)
         for name, inst in spec.instances.items()
     }
-    coupling = _resolve_coupling(spec, names, fail)
-    connections = _resolve_connections(spec.connections, instances, fail)
-    driven = {c.target for c in connections}
+    coupling = _resolve_coupling(spec, names, src)
+    connections = _resolve_connections(spec.connections, instances, src)
+    driven = {c.target: c.source for c in connections}
     for name, inst in instances.items():
         for var_name in inst.start:
             if f"{name}.{var_name}" in driven:
-                source_of = next(c.source for c in connections if c.target == f"{name}.{var_name}")
-                raise fail(
+                raise src.error(
                     f"instances.{name}.start.{var_name}",
-                    f"input {name}.{var_name} is connected from {source_of}, so a start value "
-                    f"would be overwritten; add {name}.{var_name!r} to connections.remove "
-                    "to hold it instead",
+                    f"input {name}.{var_name} is connected from {driven[f'{name}.{var_name}']}, "
+                    f"so a start value would be overwritten; add {name}.{var_name!r} to "
+                    "connections.remove to hold it instead",
                 )
-    stop_steps = spec.stop_time / coupling.step
-    if abs(stop_steps - round(stop_steps)) > _STEP_TOLERANCE * max(1.0, stop_steps):
-        raise fail(
-            "stop_time",
-            f"{spec.stop_time} s is not a whole number of communication steps "
-            f"(coupling.step = {coupling.step} s)",
-        )
     scenario = Scenario(
         id=scenario_id,
         summary=spec.summary,
@@ -428,19 +490,37 @@ def _resolve(
         spec=spec,
         fmu_dir=fmu_dir,
     )
-    record = _resolve_record(spec.output.record, scenario, fail)
+    record = _resolve_record(spec.output.record, scenario, src)
     return dataclasses.replace(scenario, record=record)
 
 
+def _check_step_count(spec: ScenarioSpec, src: _Source) -> None:
+    """A whole number of communication steps, and not more than :data:`MAX_STEPS`."""
+    step = spec.coupling.step
+    stop_steps = spec.stop_time / step
+    if stop_steps > MAX_STEPS:
+        raise src.error(
+            "stop_time",
+            f"{spec.stop_time!r} s is {stop_steps:.3g} communication steps of "
+            f"{step!r} s (coupling.step); at most {MAX_STEPS:.0e} are run",
+        )
+    if abs(stop_steps - round(stop_steps)) > _STEP_TOLERANCE * max(1.0, stop_steps):
+        raise src.error(
+            "stop_time",
+            f"{spec.stop_time} s is not a whole number of communication steps "
+            f"(coupling.step = {step} s)",
+        )
+
+
 def _resolve_instance(
-    name: str, spec: InstanceSpec, base_dir: Path, fmu_dir: Path, fail: Any
+    name: str, spec: InstanceSpec, base_dir: Path, fmu_dir: Path, src: _Source
 ) -> Instance:
     if spec.fmu in BUILTIN_FMUS:
         fmu_ref, fmu_path = spec.fmu, _builtin_fmu(spec.fmu, fmu_dir)
     else:
         fmu_path = (base_dir / spec.fmu).resolve()
         if not fmu_path.is_file():
-            raise fail(
+            raise src.error(
                 f"instances.{name}.fmu",
                 f"{spec.fmu!r} is neither a built-in FMU {list(BUILTIN_FMUS)} nor an existing "
                 f"file (looked for {fmu_path})",
@@ -448,9 +528,9 @@ def _resolve_instance(
         fmu_ref = str(fmu_path)
     interface = _interface(fmu_path)
     if interface.model_identifier is None:
-        raise fail(f"instances.{name}.fmu", f"{fmu_path} is not a co-simulation FMU")
+        raise src.error(f"instances.{name}.fmu", f"{fmu_path} is not a co-simulation FMU")
     if interface.fmi_version != "2.0":
-        raise fail(
+        raise src.error(
             f"instances.{name}.fmu", f"{fmu_path} is FMI {interface.fmi_version}, expected 2.0"
         )
     variables = interface.variables
@@ -459,18 +539,21 @@ def _resolve_instance(
         key = f"instances.{name}.start.{var_name}"
         var = variables.get(var_name)
         if var is None:
-            raise fail(key, f"{name} ({fmu_path.name}) has no variable {var_name!r}")
+            raise src.error(key, f"{name} ({fmu_path.name}) has no variable {var_name!r}")
         if var.causality not in ("parameter", "input") or var.variability == "constant":
-            raise fail(
+            raise src.error(
                 key,
                 f"{name}.{var_name} is a {var.variability} {var.causality}; only parameters "
                 "and inputs take start values",
             )
-        start[var_name] = _check_type(value, var, key, fail)
+        start[var_name] = _check_value(value, var, key, src)
+        if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
+            start[var_name] = str(_existing_file(value, base_dir, key, src))
     return Instance(name, fmu_ref, fmu_path, start, interface)
 
 
-def _check_type(value: Any, var: Any, key: str, fail: Any) -> bool | int | float | str:
+def _check_value(value: Any, var: Any, key: str, src: _Source) -> bool | int | float | str:
+    """``value`` as a start value of ``var``: its FMI type, finite, within its range."""
     expected = {"Real": "a number", "Integer": "an integer", "Enumeration": "an integer",
                 "Boolean": "true or false", "String": "a string"}[var.type]  # fmt: skip
     ok = {
@@ -481,92 +564,133 @@ def _check_type(value: Any, var: Any, key: str, fail: Any) -> bool | int | float
         "String": isinstance(value, str),
     }[var.type]
     if not ok:
-        raise fail(key, f"{value!r} is not {expected} ({var.name} is {var.type})")
+        raise src.error(key, f"{value!r} is not {expected} ({var.name} is {var.type})")
     if var.type == "Real":
         value = float(value)
         if not math.isfinite(value):
-            raise fail(key, f"{value!r} is not a finite number")
+            raise src.error(key, f"{value!r} is not a finite number")
+    if var.type in ("Integer", "Enumeration"):
+        low, high = _integer_range(var)
+        if not low <= value <= high:
+            raise src.error(key, f"{value} is outside [{low}, {high}], the range {var.name} takes")
     return value
 
 
-def _resolve_coupling(spec: ScenarioSpec, names: list[str], fail: Any) -> Coupling:
+def _integer_range(var: Any) -> tuple[int, int]:
+    """The FMI 32-bit range, narrowed by the variable's declared ``min``/``max``."""
+    low, high = FMI_INTEGER_RANGE
+    if var.min is not None:
+        low = max(low, var.min)
+    if var.max is not None:
+        high = min(high, var.max)
+    return low, high
+
+
+def _existing_file(value: str, base_dir: Path, key: str, src: _Source) -> Path:
+    """A file named in a start value, relative to the scenario's folder; must exist."""
+    path = (base_dir / value).resolve()
+    if not path.is_file():
+        raise src.error(key, f"{value!r} names no file (looked for {path})")
+    return path
+
+
+def _resolve_coupling(spec: ScenarioSpec, names: list[str], src: _Source) -> Coupling:
     c = spec.coupling
     order = tuple(c.order) if c.order is not None else tuple(names)
     if sorted(order) != sorted(names):
-        raise fail("coupling.order", f"{list(order)} must name every instance {names} once")
+        raise src.error("coupling.order", f"{list(order)} must name every instance {names} once")
     for name in c.step_multiples:
         if name not in names:
-            raise fail(f"coupling.step_multiples.{name}", f"no instance {name!r} in {names}")
+            raise src.error(f"coupling.step_multiples.{name}", f"no instance {name!r} in {names}")
     multiples = {name: c.step_multiples.get(name, 1) for name in names}
     return Coupling(step=c.step, algorithm=c.algorithm, order=order, step_multiples=multiples)
 
 
-def _split(ref: str, instances: Mapping[str, Instance], key: str, fail: Any) -> tuple[str, Any]:
+def _split(ref: str, instances: Mapping[str, Instance], key: str, src: _Source) -> tuple[str, Any]:
     instance, _, variable = ref.partition(".")
     if instance not in instances or not variable:
-        raise fail(
+        raise src.error(
             key, f"{ref!r} is not <instance>.<variable> with an instance in {list(instances)}"
         )
     var = instances[instance].interface.variables.get(variable)
     if var is None:
         fmu = instances[instance].fmu_path.name
-        raise fail(key, f"{instance} ({fmu}) has no variable {variable!r}")
+        raise src.error(key, f"{instance} ({fmu}) has no variable {variable!r}")
     return instance, var
 
 
 def _resolve_connections(
-    spec: ConnectionsSpec, instances: Mapping[str, Instance], fail: Any
+    spec: ConnectionsSpec, instances: Mapping[str, Instance], src: _Source
 ) -> list[Connection]:
-    by_target: dict[str, Connection] = {}
-    if spec.same_names:
-        for target, target_inst in instances.items():
-            for var in target_inst.variables("input"):
-                sources = [
-                    name
-                    for name, inst in instances.items()
-                    if name != target
-                    and (src := inst.interface.variables.get(var.name)) is not None
-                    and src.causality == "output"
-                    and src.type == var.type == "Real"
-                ]
-                if len(sources) > 1:
-                    raise fail(
-                        "connections.same_names",
-                        f"input {target}.{var.name} has several same-named outputs {sources}: "
-                        "connect it explicitly in connections.add",
-                    )
-                if sources:
-                    tgt = f"{target}.{var.name}"
-                    by_target[tgt] = Connection(f"{sources[0]}.{var.name}", tgt)
+    by_target = _same_name_connections(instances, src) if spec.same_names else {}
     for i, ref in enumerate(spec.remove):
         key = f"connections.remove[{i}]"
-        _, var = _split(ref, instances, key, fail)
+        _, var = _split(ref, instances, key, src)
         if var.causality != "input":
-            raise fail(
+            raise src.error(
                 key, f"{ref!r} is {_a(var.causality)}; remove names an input to leave unconnected"
             )
         by_target.pop(ref, None)
+    added: dict[str, int] = {}  # target -> index in connections.add
     for i, conn in enumerate(spec.add):
         key = f"connections.add[{i}]"
-        src_inst, src = _split(conn.from_, instances, f"{key}.from", fail)
-        tgt_inst, tgt = _split(conn.to, instances, f"{key}.to", fail)
-        if src.causality != "output":
-            raise fail(f"{key}.from", f"{conn.from_!r} is {_a(src.causality)}, not an output")
-        if tgt.causality != "input":
-            raise fail(f"{key}.to", f"{conn.to!r} is {_a(tgt.causality)}, not an input")
+        src_inst, source = _split(conn.from_, instances, f"{key}.from", src)
+        tgt_inst, target = _split(conn.to, instances, f"{key}.to", src)
+        if source.causality != "output":
+            raise src.error(
+                f"{key}.from", f"{conn.from_!r} is {_a(source.causality)}, not an output"
+            )
+        if target.causality != "input":
+            raise src.error(f"{key}.to", f"{conn.to!r} is {_a(target.causality)}, not an input")
         if src_inst == tgt_inst:
-            raise fail(key, f"{conn.from_!r} -> {conn.to!r} connects an instance to itself")
-        if src.type != "Real" or tgt.type != "Real":
-            raise fail(key, f"only Real connections are supported ({src.type} -> {tgt.type})")
+            raise src.error(key, f"{conn.from_!r} -> {conn.to!r} connects an instance to itself")
+        if source.type != "Real" or target.type != "Real":
+            raise src.error(
+                key, f"only Real connections are supported ({source.type} -> {target.type})"
+            )
+        if conn.to in added:
+            raise src.error(
+                f"{key}.to",
+                f"{conn.to!r} is driven twice: by connections.add[{added[conn.to]}] "
+                f"({by_target[conn.to].source}) and here ({conn.from_}); an input has one source",
+            )
+        added[conn.to] = i
         by_target[conn.to] = Connection(conn.from_, conn.to)
     return sorted(by_target.values(), key=lambda c: (c.target_instance, c.target_variable))
+
+
+def _same_name_connections(
+    instances: Mapping[str, Instance], src: _Source
+) -> dict[str, Connection]:
+    """Every input driven by the one Real output of the same name in another instance."""
+    by_target: dict[str, Connection] = {}
+    for target, target_inst in instances.items():
+        for var in target_inst.variables("input"):
+            sources = [
+                name
+                for name, inst in instances.items()
+                if name != target
+                and (out := inst.interface.variables.get(var.name)) is not None
+                and out.causality == "output"
+                and out.type == var.type == "Real"
+            ]
+            if len(sources) > 1:
+                raise src.error(
+                    "connections.same_names",
+                    f"input {target}.{var.name} has several same-named outputs {sources}: "
+                    "connect it explicitly in connections.add",
+                )
+            if sources:
+                tgt = f"{target}.{var.name}"
+                by_target[tgt] = Connection(f"{sources[0]}.{var.name}", tgt)
+    return by_target
 
 
 def _a(word: str) -> str:
     return ("an " if word[0] in "aeiou" else "a ") + word
 
 
-def _resolve_record(record: list[str] | None, scenario: Scenario, fail: Any) -> tuple[str, ...]:
+def _resolve_record(record: list[str] | None, scenario: Scenario, src: _Source) -> tuple[str, ...]:
     if record is None:
         columns = []
         for name, inst in scenario.instances.items():
@@ -579,13 +703,13 @@ def _resolve_record(record: list[str] | None, scenario: Scenario, fail: Any) -> 
             ]
         return tuple(columns)
     for i, ref in enumerate(record):
-        _, var = _split(ref, scenario.instances, f"output.record[{i}]", fail)
+        _, var = _split(ref, scenario.instances, f"output.record[{i}]", src)
         if var.type != "Real":
-            raise fail(
+            raise src.error(
                 f"output.record[{i}]", f"{ref!r} is {var.type}; only Real variables are recorded"
             )
     if len(set(record)) != len(record):
-        raise fail("output.record", "lists a variable twice")
+        raise src.error("output.record", "lists a variable twice")
     return tuple(record)
 
 

@@ -2,15 +2,21 @@
 
 The master hands over rows of results (``add_rows``, a few hundred steps at a time); the
 sink buffers them (a second of wall time or 2,000 rows at most) and sends each group of
-signals as columns (``send_columns``) on the ``sim_time`` timeline (a duration, s). One
-``rr.log`` per signal per step would cost 30-60x more (``scripts/bench_recording.py``),
-so there are none. What the recording shows is laid out in :mod:`cosim.viz.layout`
-(plots, colours, blueprint) and :mod:`cosim.viz.scene` (the 3D scene). Each sink owns
-its own ``rr.RecordingStream``, so several runs in one process never mix.
+signals as columns (``send_columns``) on the ``sim_time`` timeline (a duration, s), then
+flushes the file, so a killed run leaves a recording readable up to its last flush (it
+lacks only the footer ``rerun rrd verify`` asks for; ``rerun rrd migrate`` adds one). A
+file that cannot be written (disk full) raises ``OSError`` at the next send, which ends
+the run. One ``rr.log`` per signal per step would cost 30-60x more
+(``scripts/bench_recording.py``), so there are none. What the recording shows is laid out
+in :mod:`cosim.viz.layout` (plots, colours, blueprint) and :mod:`cosim.viz.scene` (the 3D
+scene). Each sink owns its own ``rr.RecordingStream``, so several runs in one process
+never mix.
 
 The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``), the
 scenario id as the recording name and a property, and the resolved scenario TOML as a
-static text document at ``/scenario``.
+static text document at ``/scenario``. What the 3D scene needs to know about the run --
+the vehicle parameter set, whether depth control is on -- is read from the
+:class:`~cosim.run.scenario.Scenario` itself.
 """
 
 from __future__ import annotations
@@ -21,7 +27,6 @@ import socket
 import subprocess
 import sys
 import time
-import tomllib
 import warnings
 from pathlib import Path
 from typing import Any
@@ -31,6 +36,8 @@ import numpy as np
 import rerun as rr
 
 from cosim.errors import CosimError
+from cosim.run.results import RECORDING_FILE
+from cosim.run.scenario import Scenario
 from cosim.viz.layout import (
     build_blueprint,
     plan_panels,
@@ -41,7 +48,7 @@ from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
 APPLICATION_ID = "auv-cosim"
-RECORDING_FILE = "recording.rrd"
+RRD_MAGIC = b"RRF"  # the first bytes of an .rrd file (RRF2 in rerun 0.41)
 # Each send costs ~25 send_columns calls of ~70 us whatever their length, so rows are
 # buffered: sent once BATCH_ROWS have gathered, or once SEND_INTERVAL has passed since the
 # last send (a live viewer then sees the run advance about once a second).
@@ -54,14 +61,13 @@ class RerunSink:
     """Stream a run's results to a ``.rrd`` file and/or a running Rerun viewer.
 
     Args:
+        scenario: the resolved scenario: its id names the recording, its TOML is stored as
+            text, its ``vehicle`` start value (or the FMU's default) picks the geometry of
+            the 3D body and its ``depth_mode`` whether the depth setpoint is drawn; its
+            ``record`` are the columns of the value rows given to :meth:`add_rows`
+            (``plant.yaw``, ...; any may be missing).
         rrd_path: the recording file to write (its folder is created), or None.
         connect_url: a viewer's gRPC URL (``rerun+http://127.0.0.1:9876/proxy``), or None.
-        scenario_id: the scenario's id, used as the recording name.
-        scenario_toml: the fully resolved scenario, stored as text; its plant ``vehicle``
-            picks the geometry of the 3D body and its controller ``depth_mode`` whether the
-            depth setpoint is drawn.
-        columns: the recorded variables, ``<instance>.<variable>`` (``plant.yaw``), in the
-            order of the value rows given to :meth:`add_rows`. Any may be missing.
 
     Raises:
         ValueError: neither a file nor a URL, duplicate columns, a malformed URL or no
@@ -71,14 +77,14 @@ class RerunSink:
 
     def __init__(
         self,
-        rrd_path: Path | None,
-        connect_url: str | None,
-        scenario_id: str,
-        scenario_toml: str,
-        columns: list[str],
+        scenario: Scenario,
+        rrd_path: Path | None = None,
+        connect_url: str | None = None,
     ) -> None:
         if rrd_path is None and connect_url is None:
             raise ValueError("RerunSink needs an rrd_path, a connect_url or both; got neither")
+        columns = list(scenario.record)
+        scenario_id = scenario.id
         if len(set(columns)) != len(columns):
             duplicates = sorted({c for c in columns if columns.count(c) > 1})
             raise ValueError(f"recorded columns must be unique, got duplicates {duplicates}")
@@ -90,8 +96,10 @@ class RerunSink:
         self._pending_rows = 0
         self._closed = False
         self._last_send = time.monotonic()
+        self._rrd_path = None if rrd_path is None else Path(rrd_path)
+        self._viewer_warned = False
 
-        vehicle, depth_mode = _scenario_facts(scenario_toml)
+        vehicle, depth_mode = _scenario_facts(scenario)
         has_depth = "controller.depth_setpoint" in self._index and "plant.down" in self._index
         depth_control = has_depth if depth_mode is None else depth_mode != 0 and has_depth
 
@@ -116,7 +124,7 @@ class RerunSink:
             "scenario",
             rr.TextDocument(
                 f"# Scenario `{scenario_id}`\n\n{scene_legend()}\n"
-                f"## Resolved scenario\n\n```toml\n{scenario_toml}\n```\n",
+                f"## Resolved scenario\n\n```toml\n{scenario.to_toml()}\n```\n",
                 media_type=rr.MediaType.MARKDOWN,
             ),
             static=True,
@@ -125,6 +133,7 @@ class RerunSink:
             self._rec.log(panel.entity, series_style(panel), static=True)
         log_static_scene(self._rec, vehicle, self._columns, show_depth_setpoint=depth_control)
         self._scene = SceneWriter(self._rec, vehicle, show_depth_setpoint=depth_control)
+        self._flush()  # the static part is on disk before the first step
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         """Queue k rows: ``times`` (k,) in s, ``values`` (k, len(columns)) in SI units.
@@ -149,25 +158,34 @@ class RerunSink:
         now = time.monotonic()
         if self._pending_rows >= BATCH_ROWS or now - self._last_send >= SEND_INTERVAL:
             self._send_pending()
+            self._flush()
             self._last_send = now
 
     def close(self) -> None:
         """Send what is queued, flush and close the file; safe to call twice.
 
-        A viewer that went away during the run does not make this raise (the master
-        calls it before writing the results): it warns, and the file is still completed.
+        Raises OSError if the file could not be completed (disk full). A viewer that went
+        away during the run does not make this raise: it warns.
         """
         if self._closed:
             return
         self._closed = True
         try:
             self._send_pending()
+            self._flush()
         finally:
-            try:
-                self._rec.flush(timeout_sec=FLUSH_TIMEOUT)
-            except RuntimeError as exc:  # the bindings' error for a sink that failed
-                warnings.warn(f"Rerun recording: {exc}", stacklevel=2)
             self._rec.disconnect()
+
+    def _flush(self) -> None:
+        """Wait until what was sent is written; a file that failed raises OSError."""
+        try:
+            self._rec.flush(timeout_sec=FLUSH_TIMEOUT)
+        except RuntimeError as exc:  # the bindings' error for a sink that failed
+            if self._rrd_path is not None:
+                raise OSError(_write_failure(self._rrd_path, exc)) from None
+            if not self._viewer_warned:
+                self._viewer_warned = True
+                warnings.warn(f"Rerun viewer: {exc}", stacklevel=3)
 
     def __enter__(self) -> RerunSink:
         return self
@@ -219,41 +237,42 @@ def _viewer_sink(url: str) -> rr.GrpcSink:
     return sink
 
 
-def _scenario_facts(scenario_toml: str) -> tuple[VehicleParameters, int | None]:
-    """The vehicle (for the 3D geometry) and the depth_mode a scenario sets, if any.
+def _scenario_facts(scenario: Scenario) -> tuple[VehicleParameters, int | None]:
+    """The vehicle (for the 3D geometry) and the depth_mode the scenario runs with, if any.
 
-    Looks for the keys ``vehicle`` and ``depth_mode`` anywhere in the TOML, so it does not
-    depend on the scenario file's table layout; falls back to ``remus100`` with a warning.
+    The vehicle is the ``vehicle`` parameter of the ``plant`` instance (else of the first
+    instance that has one), as set or by the FMU's default; remus100 with a warning if it
+    cannot be loaded, or without one if no instance has that parameter.
     """
-    try:
-        tree = tomllib.loads(scenario_toml)
-    except tomllib.TOMLDecodeError as exc:
-        warnings.warn(f"scenario TOML not readable ({exc}); drawing remus100", stacklevel=3)
-        tree = {}
-    vehicles = _find_key(tree, "vehicle")
-    modes = [m for m in _find_key(tree, "depth_mode") if isinstance(m, int)]
-    name = vehicles[0] if vehicles and isinstance(vehicles[0], str) else "remus100"
+    vehicle_of = _first_value(scenario, "vehicle", prefer="plant")
+    depth_mode = _first_value(scenario, "depth_mode", prefer="controller")
+    name = vehicle_of if isinstance(vehicle_of, str) else "remus100"
     try:
         vehicle = load_vehicle(name)
     except (VehicleParameterError, OSError) as exc:
         warnings.warn(f"vehicle {name!r} not loadable ({exc}); drawing remus100", stacklevel=3)
         vehicle = load_vehicle("remus100")
-    return vehicle, (modes[0] if modes else None)
+    return vehicle, (depth_mode if isinstance(depth_mode, int) else None)
 
 
-def _find_key(tree: Any, key: str) -> list[Any]:
-    """Every value stored under ``key`` in nested tables and arrays, depth first."""
-    found: list[Any] = []
-    if isinstance(tree, dict):
-        for k, v in tree.items():
-            if k == key and not isinstance(v, dict | list):
-                found.append(v)
-            else:
-                found.extend(_find_key(v, key))
-    elif isinstance(tree, list):
-        for item in tree:
-            found.extend(_find_key(item, key))
-    return found
+def _first_value(scenario: Scenario, variable: str, prefer: str) -> Any:
+    """``variable``'s start value in instance ``prefer``, else in the first that has it."""
+    names = sorted(scenario.instances, key=lambda name: name != prefer)
+    for name in names:
+        value = scenario.start_value(name, variable)
+        if value is not None:
+            return value
+    return None
+
+
+def _write_failure(path: Path, exc: Exception) -> str:
+    """The reason a recording file failed, with the free space of its disk."""
+    try:
+        stat = os.statvfs(path.parent)
+        free = f"; {stat.f_bavail * stat.f_frsize} bytes free on its disk"
+    except (OSError, AttributeError):  # statvfs: POSIX only
+        free = ""
+    return f"cannot write the recording {path}: {exc}{free}"
 
 
 def rerun_executable() -> str | None:
@@ -266,21 +285,27 @@ def rerun_executable() -> str | None:
 
 
 def view_run(run_dir: Path) -> int:
-    """Open ``RUN_DIR/recording.rrd`` in the native viewer, or say how to open it.
+    """Open ``RUN_DIR/recording.rrd`` (or the ``.rrd`` given) in the native viewer, or say
+    how to open it.
 
     With a display (``DISPLAY`` or ``WAYLAND_DISPLAY`` set) and the ``rerun`` binary found,
     runs the viewer on the file and returns its exit code. Otherwise prints the command
     lines for the native and the web viewer and returns 0.
 
     Raises:
-        CosimError: the folder holds no recording.
+        CosimError: the folder holds no recording, or the file is not a Rerun recording.
     """
     run_dir = Path(run_dir)
     rrd = run_dir if run_dir.is_file() else run_dir / RECORDING_FILE  # a folder, or the file
     if not rrd.is_file():
         raise CosimError(
             f"no recording at {rrd}: expected a run folder holding {RECORDING_FILE} "
-            f"(written by `auv-cosim run` unless --no-rrd)"
+            f"(written by `auv-cosim run` unless --no-rrd) or a .rrd file"
+        )
+    if not is_recording(rrd):
+        raise CosimError(
+            f"{rrd} is not a Rerun recording (it does not start like an .rrd file): expected "
+            f"a run folder holding {RECORDING_FILE} or a .rrd file"
         )
     executable = rerun_executable()
     has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
@@ -301,3 +326,12 @@ def view_run(run_dir: Path) -> int:
         f"    rerun --web-viewer --bind 127.0.0.1 {rrd}"
     )
     return 0
+
+
+def is_recording(path: Path) -> bool:
+    """Whether ``path`` starts like a Rerun .rrd file (its magic bytes)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(RRD_MAGIC)) == RRD_MAGIC
+    except OSError:
+        return False

@@ -35,10 +35,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from cosim.errors import CosimError
-from cosim.run.results import read_csv
+from cosim.run.results import REPORT_FOLDER, read_csv
 from cosim.viz.mission import mission_waypoints
 
-REPORT_FOLDER = "report"
 INDEX_PAGE = "index.html"
 
 
@@ -259,10 +258,13 @@ def _main_range(curves: list[tuple[Series, np.ndarray]]) -> tuple[float, float] 
     metres beside a mass that moves centimetres; None when the automatic limits do."""
     if len(curves) < 2:
         return None
-    main = curves[0][1]
+    main = curves[0][1][np.isfinite(curves[0][1])]  # a failed run may end on inf or nan
+    others = np.concatenate([values for _, values in curves[1:]])
+    others = others[np.isfinite(others)]
+    if main.size == 0 or others.size == 0:
+        return None
     lo, hi = float(np.min(main)), float(np.max(main))
     span = max(hi - lo, 1e-9)
-    others = np.concatenate([values for _, values in curves[1:]])
     if np.min(others) >= lo - 2.0 * span and np.max(others) <= hi + 2.0 * span:
         return None
     return lo - 0.25 * span, hi + 0.25 * span
@@ -332,6 +334,7 @@ def index_page(
     name = summary.get("scenario") or run_dir.resolve().name
     rows = [
         ("scenario", summary.get("scenario")),
+        ("status", summary.get("status")),
         ("complete", summary.get("complete")),
         ("error", summary.get("error")),
         ("stop time (s)", summary.get("stop_time")),
@@ -349,7 +352,12 @@ def index_page(
         if value is not None
     )
     note = f"<p><em>{html.escape(summary_problem)}</em></p>" if summary_problem else ""
-    if summary.get("complete") is False:
+    if summary.get("status") == "running":
+        note += (
+            "<p><strong>summary.json says the run is still running (or its process was "
+            "killed): the figures show the rows written so far.</strong></p>"
+        )
+    elif summary.get("complete") is False:
         note += (
             "<p><strong>The run did not complete: the figures show its partial "
             "results.</strong></p>"

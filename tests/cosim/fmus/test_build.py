@@ -90,14 +90,28 @@ def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
     hash_file = tmp_path / (source.name + build.HASH_SUFFIX)
     shutil.copy2(source, fmu)
     shutil.copy2(source.with_name(hash_file.name), hash_file)
-    assert hash_file.read_text().strip() == build.source_hash(build.shipped_files("AuvPlant"))
+    digest = build.source_hash(build.shipped_files("AuvPlant"))
+    assert build.recorded_hashes(hash_file) == {"source": digest, "fmu": build.file_hash(fmu)}
     before = fmu.read_bytes()
     assert build.build_fmu("AuvPlant", tmp_path) == fmu
     assert fmu.read_bytes() == before
     hash_file.write_text("stale\n")
     build.build_fmu("AuvPlant", tmp_path)
     assert fmu.read_bytes() != before  # a new build (pythonfmu writes a new guid)
-    assert hash_file.read_text().strip() == build.source_hash(build.shipped_files("AuvPlant"))
+    assert build.recorded_hashes(hash_file) == {"source": digest, "fmu": build.file_hash(fmu)}
+
+
+def test_a_built_fmu_failing_its_integrity_check_is_rebuilt(fmu_paths, tmp_path):
+    """Issue 14: a truncated FMU beside an up-to-date source hash was used as it was."""
+    source = fmu_paths["AuvPlant"]
+    fmu = tmp_path / source.name
+    shutil.copy2(source.with_name(source.name + build.HASH_SUFFIX), tmp_path)
+    fmu.write_bytes(source.read_bytes()[:1000])  # truncated
+    assert build.build_fmu("AuvPlant", tmp_path) == fmu
+    assert zipfile.ZipFile(fmu).testzip() is None  # a whole FMU again
+    assert build.recorded_hashes(fmu.with_name(fmu.name + build.HASH_SUFFIX))["fmu"] == (
+        build.file_hash(fmu)
+    )
 
 
 def test_source_hash_changes_with_any_shipped_byte(tmp_path):

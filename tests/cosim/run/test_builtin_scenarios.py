@@ -21,8 +21,9 @@ from controller_fmu.los_guidance import parse_waypoints
 from cosim.analysis.equilibria import find_equilibrium
 from cosim.analysis.manoeuvres import manoeuvre_metrics
 from cosim.run import master
+from cosim.run.figures import settling_time
 from cosim.run.master import RunResult
-from cosim.run.results import read_csv, settling_time
+from cosim.run.results import read_csv
 from cosim.run.runner import RunOutcome, run_scenario
 from cosim.run.scenario import builtin_scenarios, load_scenario, scenario_from_toml
 from plant_fmu.model.dynamics import INPUT_NAMES, STATE_INDEX, STATE_NAMES, PlantModel, Variant
@@ -43,7 +44,9 @@ def runs(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, R
     """Every built-in scenario, run once through `run_scenario` (outputs written, no rrd)."""
     out = tmp_path_factory.mktemp("runs")
     return {
-        scenario_id: run_scenario(scenario_id, out / scenario_id, no_rrd=True, fmu_dir=fmu_dir)
+        scenario_id: run_scenario(
+            scenario_id, out / scenario_id, no_rrd=True, fmu_dir=fmu_dir, keep_rows=True
+        )
         for scenario_id in builtin_scenarios()
     }
 

@@ -150,7 +150,7 @@ def test_fmu_error_stops_the_run_with_its_reason_and_partial_results(
     fmu_dir: Path, tmp_path: Path
 ) -> None:
     outcome = run_scenario(
-        loop(fmu_dir, plant_start="fail_at = 0.5"), tmp_path / "run", no_rrd=True
+        loop(fmu_dir, plant_start="fail_at = 0.5"), tmp_path / "run", no_rrd=True, keep_rows=True
     )
     result = outcome.result
     assert not result.complete

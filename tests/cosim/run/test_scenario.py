@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from repo_paths import ROOT
 
-from cosim.run import master
+from cosim.run import slave
 from cosim.run.scenario import (
     SCENARIO_FOLDER,
     ScenarioError,
@@ -39,7 +39,7 @@ def no_fmu_loading(monkeypatch: pytest.MonkeyPatch) -> None:
     def refuse(*args: object, **kwargs: object) -> None:
         raise AssertionError("an FMU was loaded while validating a scenario")
 
-    monkeypatch.setattr(master, "FMU2Slave", refuse)
+    monkeypatch.setattr(slave, "FMU2Slave", refuse)
     monkeypatch.setattr("fmpy.fmi2.FMU2Slave.__init__", refuse)
 
 

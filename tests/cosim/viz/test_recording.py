@@ -10,6 +10,7 @@ import contextlib
 import math
 import os
 import re
+import shutil
 import signal
 import socket
 import subprocess
@@ -22,6 +23,7 @@ import numpy as np
 import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
+from scenario_factory import auv_scenario
 
 from cosim.cli import main
 from cosim.errors import CosimError
@@ -50,15 +52,8 @@ CONTROLLER = {  # recorded controller column -> plant input it drives (or a cons
     "controller.yaw_setpoint": math.radians(-7.55),
     "controller.depth_setpoint": 1.0,
 }
-SCENARIO_TOML = """id = "rec-test"
-stop_time = 4.0
-[instances.plant.start]
-vehicle = "remus100"
-variant = 0
-[instances.controller.start]
-depth_mode = 1
-heading_mode = 3
-"""
+PLANT_START = 'vehicle = "remus100"\nvariant = 0'
+CONTROLLER_START = "depth_mode = 1\nheading_mode = 3"
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -106,12 +101,23 @@ def feed(sink: RerunSink, times: np.ndarray, values: np.ndarray) -> None:
 
 
 @pytest.fixture(scope="module")
-def recorded(tmp_path_factory: pytest.TempPathFactory, scratch_home: Path):
+def fmu_dir(fmu_paths) -> Path:
+    return fmu_paths["AuvAutopilot"].parent
+
+
+def sink_for(fmu_dir: Path, path: Path | None, scenario_id: str, columns, url=None) -> RerunSink:
+    """A sink for a plant + autopilot scenario recording ``columns``."""
+    return RerunSink(auv_scenario(fmu_dir, scenario_id, columns), path, url)
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory, scratch_home: Path, fmu_dir: Path):
     times, columns, values = plant_run()
     path = tmp_path_factory.mktemp("rec") / RECORDING_FILE
+    scenario = auv_scenario(fmu_dir, "rec-test", columns, PLANT_START, CONTROLLER_START)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr("cosim.viz.recording.BATCH_ROWS", 100)  # several sends, not one at close
-        with RerunSink(path, None, "rec-test", SCENARIO_TOML, columns) as sink:
+        with RerunSink(scenario, path) as sink:
             feed(sink, times, values)
     return path, times, columns, values
 
@@ -343,20 +349,21 @@ def test_blueprint_has_world_chase_and_loop_panels_over_recorded_entities(record
     assert plotted <= entities  # every plot shows data that exists
 
 
-def test_metadata_holds_scenario_id_and_resolved_toml(recorded):
-    path = recorded[0]
+def test_metadata_holds_scenario_id_and_resolved_toml(recorded, fmu_dir: Path):
+    path, _, columns, _ = recorded
+    scenario = auv_scenario(fmu_dir, "rec-test", columns, PLANT_START, CONTROLLER_START)
     text = read_static(path, "/scenario", "TextDocument:text")[0][0]
-    assert SCENARIO_TOML.strip() in text
+    assert scenario.to_toml().strip() in text
     assert read_static(path, "/__properties/scenario", "id")[0] == ["rec-test"]
     assert read_static(path, "/__properties", "RecordingInfo:name")[0] == ["rec-test"]
 
 
-def test_two_sinks_in_one_process_do_not_mix(tmp_path: Path):
+def test_two_sinks_in_one_process_do_not_mix(tmp_path: Path, fmu_dir: Path):
     times, columns, values = plant_run(1.0)
     other = values.copy()
     other[:, columns.index("plant.yaw")] += 1.0
-    a = RerunSink(tmp_path / "a.rrd", None, "a", "", columns)
-    b = RerunSink(tmp_path / "b.rrd", None, "b", "", columns)
+    a = sink_for(fmu_dir, tmp_path / "a.rrd", "a", columns)
+    b = sink_for(fmu_dir, tmp_path / "b.rrd", "b", columns)
     for k in range(0, len(times), 40):  # interleaved
         a.add_rows(times[k : k + 40], values[k : k + 40])
         b.add_rows(times[k : k + 40], other[k : k + 40])
@@ -368,12 +375,13 @@ def test_two_sinks_in_one_process_do_not_mix(tmp_path: Path):
         np.testing.assert_array_equal(yaw[:, 0, 0], np.degrees(col(columns, data, "plant.yaw")))
 
 
-def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path):
+def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path, fmu_dir: Path):
     columns = ["plant.yaw", "controller.tunnel_force", "plant.battery_level"]
     times = np.arange(5) * 0.1
     values = np.column_stack([times, 2 * times, 3 * times])
-    with pytest.warns(UserWarning, match="scenario TOML not readable"):
-        sink = RerunSink(tmp_path / "r.rrd", None, "partial", "not = [valid toml", columns)
+    with pytest.warns(UserWarning, match="vehicle 'nosuch' not loadable"):
+        scenario = auv_scenario(fmu_dir, "partial", columns, 'vehicle = "nosuch"', None)
+        sink = RerunSink(scenario, tmp_path / "r.rrd")
     with sink:
         sink.add_rows(times, values)
     entities = set(RrdReader(tmp_path / "r.rrd").stream().collect().schema().entity_paths())
@@ -386,21 +394,21 @@ def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path):
     np.testing.assert_array_equal(pose, 0.0)  # no position recorded: the vehicle stays put
 
 
-def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path):
+def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path, fmu_dir: Path):
     with pytest.raises(ValueError, match="rrd_path, a connect_url"):
-        RerunSink(None, None, "x", "", ["plant.yaw"])
+        sink_for(fmu_dir, None, "x", ["plant.yaw"])
     with pytest.raises(ValueError, match=r"duplicates \['plant.yaw'\]"):
-        RerunSink(tmp_path / "d.rrd", None, "x", "", ["plant.yaw", "plant.yaw"])
+        sink_for(fmu_dir, tmp_path / "d.rrd", "x", ["plant.yaw", "plant.yaw"])
     with pytest.raises(ValueError, match=re.escape("--connect URL 'http://127.0.0.1:9876'")):
-        RerunSink(None, "http://127.0.0.1:9876", "x", "", ["plant.yaw"])
+        sink_for(fmu_dir, None, "x", ["plant.yaw"], url="http://127.0.0.1:9876")
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         url = f"rerun+http://127.0.0.1:{s.getsockname()[1]}/proxy"
     with pytest.raises(ValueError, match=re.escape(f"no Rerun viewer listens at {url}")):
-        RerunSink(tmp_path / "v.rrd", url, "x", "", ["plant.yaw"])
+        sink_for(fmu_dir, tmp_path / "v.rrd", "x", ["plant.yaw"], url=url)
     with pytest.raises(OSError, match=re.escape(f"cannot write the recording {tmp_path}")):
-        RerunSink(tmp_path, None, "x", "", ["plant.yaw"])  # a folder, not a file
-    sink = RerunSink(tmp_path / "s.rrd", None, "x", "", ["plant.yaw", "plant.north"])
+        sink_for(fmu_dir, tmp_path, "x", ["plant.yaw"])  # a folder, not a file
+    sink = sink_for(fmu_dir, tmp_path / "s.rrd", "x", ["plant.yaw", "plant.north"])
     with pytest.raises(ValueError, match=r"\(k, 2\), got \(3,\) and \(3, 3\)"):
         sink.add_rows(np.zeros(3), np.zeros((3, 3)))
     sink.close()
@@ -447,7 +455,7 @@ def _port_open(port: int) -> bool:
 
 @pytest.mark.skipif(rerun_executable() is None, reason="the rerun CLI is not installed")
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the server was still writing
-def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path):
+def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path, fmu_dir: Path):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
@@ -461,7 +469,7 @@ def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path)
             time.sleep(0.1)
         times, columns, values = plant_run(1.0)
         url = f"rerun+http://127.0.0.1:{port}/proxy"
-        with RerunSink(tmp_path / "file.rrd", url, "live", "", columns) as sink:
+        with sink_for(fmu_dir, tmp_path / "file.rrd", "live", columns, url=url) as sink:
             feed(sink, times, values)
         expected = np.degrees(col(columns, values, "plant.yaw"))
         for path in (tmp_path / "file.rrd", received):
@@ -479,8 +487,8 @@ def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path)
         assert RrdReader(received).blueprints(), "the blueprint was not streamed"
 
 
-def test_view_without_display_prints_how_to_open(tmp_path: Path, monkeypatch, capsys):
-    (tmp_path / RECORDING_FILE).write_bytes(b"")
+def test_view_without_display_prints_how_to_open(recorded, tmp_path: Path, monkeypatch, capsys):
+    shutil.copyfile(recorded[0], tmp_path / RECORDING_FILE)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     assert main(["view", str(tmp_path)]) == 0
@@ -490,14 +498,26 @@ def test_view_without_display_prints_how_to_open(tmp_path: Path, monkeypatch, ca
     assert f"rerun --web-viewer --bind 127.0.0.1 {rrd}" in out
 
 
-def test_view_with_display_runs_the_viewer_on_the_file(tmp_path: Path, monkeypatch):
-    (tmp_path / RECORDING_FILE).write_bytes(b"")
+def test_view_with_display_runs_the_viewer_on_the_file(recorded, tmp_path: Path, monkeypatch):
+    shutil.copyfile(recorded[0], tmp_path / RECORDING_FILE)
     monkeypatch.setenv("DISPLAY", ":99")
     monkeypatch.setattr("cosim.viz.recording.rerun_executable", lambda: "/opt/rerun")
     calls = []
     monkeypatch.setattr("cosim.viz.recording.subprocess.call", lambda argv: calls.append(argv) or 0)
     assert view_run(tmp_path) == 0
     assert calls == [["/opt/rerun", str(tmp_path / RECORDING_FILE)]]
+
+
+def test_view_of_something_that_is_not_a_recording_exits_non_zero(tmp_path: Path, capsys):
+    """Issue 14: `view some-file` opened the viewer on any file and exited 0."""
+    some_file = tmp_path / "notes.txt"
+    some_file.write_text("not a recording\n")
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / RECORDING_FILE).write_text("results,not,a,recording\n")
+    for target in (some_file, tmp_path / "run"):
+        assert main(["view", str(target)]) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "is not a Rerun recording" in err
 
 
 def test_view_of_a_folder_without_recording_names_it(tmp_path: Path, capsys):

@@ -14,6 +14,7 @@ import sys
 import numpy as np
 import pytest
 from matplotlib.image import imread
+from scenario_factory import auv_scenario
 from test_recording import feed, plant_run
 
 from cosim.viz.layout import BLUE
@@ -36,7 +37,7 @@ pytestmark = pytest.mark.skipif(_why_not() is not None, reason=str(_why_not()))
 
 
 @pytest.fixture(scope="module")
-def rendered(tmp_path_factory: pytest.TempPathFactory):
+def rendered(tmp_path_factory: pytest.TempPathFactory, fmu_paths):
     folder = tmp_path_factory.mktemp("shot")
     env = dict(os.environ, HOME=str(folder / "home"))
     for name in ("XDG_CONFIG_HOME", "XDG_DATA_HOME", "XDG_CACHE_HOME", "XDG_RUNTIME_DIR"):
@@ -46,7 +47,8 @@ def rendered(tmp_path_factory: pytest.TempPathFactory):
     )
     times, columns, values = plant_run(4.0)
     rrd = folder / "recording.rrd"
-    with RerunSink(rrd, None, "shot", "[plant]\nvehicle = 'remus100'\n", columns) as sink:
+    scenario = auv_scenario(fmu_paths["AuvAutopilot"].parent, "shot", columns)
+    with RerunSink(scenario, rrd) as sink:
         feed(sink, times, values)
     shots = [(0.5, folder / "early.png"), (3.5, folder / "late.png")]
     reports = render_screenshots(rrd, shots, env=env, log=folder / "viewer.log")
