@@ -2,17 +2,21 @@
 
 :meth:`RunFolder.claim` creates the folder (or refuses a path that cannot be one), takes an
 exclusive lock on it (a second run into a locked folder fails at once, naming the process
-that holds it), and refuses a folder holding an earlier run unless ``overwrite``, which
-removes that run's files first (and nothing else). A folder holding other files, with no
-earlier run, is refused: a run never mixes its files with someone else's.
+that holds it), and refuses a folder holding an earlier run unless ``overwrite``; once the
+run is known to be valid, :meth:`RunFolder.clear_earlier_run` removes that run's files
+(and nothing else). A folder holding other files, with no earlier run, is refused: a run
+never mixes its files with someone else's. This module imports nothing heavy, so a
+refusal comes before numpy, fmpy or any FMU is loaded.
 
 The lock is ``flock`` on :data:`LOCK_FILE` in the folder (holding the locking process's
 pid and command line, for the message), removed again when the run ends. The kernel
 releases it when the process dies, however it dies.
 
-:meth:`RunFolder.guard_tail` starts the tail guard (:mod:`cosim.run.tail_guard`) for
-results.csv: a tiny process that outlives a killed run just long enough to cut a torn
-last row off. It inherits the lock, so the folder stays locked until the file is whole.
+:meth:`RunFolder.start_guard` starts the tail guard (:mod:`cosim.run.tail_guard`) for
+results.csv and the recording: a tiny process that outlives a killed run just long enough
+to cut a torn last row off and the recording back to its last flush
+(:meth:`RunFolder.recording_flushed` tells it where). It inherits the lock, so the folder
+stays locked until the files are whole.
 """
 
 from __future__ import annotations
@@ -26,13 +30,6 @@ import sys
 from pathlib import Path
 
 from cosim.errors import CosimError
-from cosim.run.results import (
-    RECORDING_FILE,
-    REPORT_FOLDER,
-    RESULTS_FILE,
-    SCENARIO_FILE,
-    SUMMARY_FILE,
-)
 
 try:
     import fcntl
@@ -40,6 +37,11 @@ except ImportError:  # Windows: msvcrt's byte-range lock instead
     fcntl = None  # type: ignore[assignment]
     import msvcrt
 
+RESULTS_FILE = "results.csv"  # formats: cosim.run.results
+SCENARIO_FILE = "scenario.toml"  # the resolved scenario
+SUMMARY_FILE = "summary.json"
+RECORDING_FILE = "recording.rrd"  # the Rerun recording (cosim.viz.recording)
+REPORT_FOLDER = "report"  # what `auv-cosim report` adds (cosim.viz.report)
 LOCK_FILE = ".auv-cosim.lock"
 OUTPUT_NAMES = (RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RECORDING_FILE, REPORT_FOLDER)
 GUARD_SCRIPT = Path(__file__).with_name("tail_guard.py")
@@ -56,12 +58,13 @@ class RunFolder:
     def __init__(self, path: Path, lock_fd: int, created: bool) -> None:
         self.path = path
         self.created = created  # the folder did not exist before the claim
+        self.earlier: dict | None = None  # the summary of an earlier run to replace
         self._lock_fd = lock_fd
         self._guard: subprocess.Popen[bytes] | None = None
 
     @classmethod
     def claim(cls, path: Path, overwrite: bool = False) -> RunFolder:
-        """Create and lock ``path``, clearing an earlier run's files if ``overwrite``.
+        """Create and lock ``path``; an earlier run there needs ``overwrite``.
 
         Raises:
             RunFolderError: not creatable, not a folder, locked by another run, holding an
@@ -81,29 +84,53 @@ class RunFolder:
             raise RunFolderError(f"--out {path}: exists and is not a folder")
         folder = cls(path, _lock(path), created)
         try:
-            _clear_earlier_run(path, overwrite)
+            folder.earlier = _earlier_run(path, overwrite)
         except BaseException:
             folder.release()
             raise
         return folder
 
-    def guard_tail(self, file: Path) -> None:
-        """Start the tail guard for ``file`` (see the module docstring)."""
+    def clear_earlier_run(self) -> None:
+        """Remove the files of the earlier run :meth:`claim` found (with ``overwrite``)."""
+        if self.earlier is None:
+            return
+        try:
+            for name in _earlier_outputs(self.path, self.earlier):
+                target = self.path / name
+                if target.is_dir() and not target.is_symlink():
+                    shutil.rmtree(target)
+                else:
+                    target.unlink(missing_ok=True)
+        except OSError as exc:
+            raise RunFolderError(
+                f"--out {self.path}: cannot remove the earlier run's files: {exc.strerror or exc}"
+            ) from None
+        self.earlier = None
+
+    def start_guard(self, results: Path, recording: Path | None) -> None:
+        """Start the tail guard for these files (see the module docstring)."""
         kwargs: dict = {"start_new_session": True}
         if fcntl is not None:
             kwargs["pass_fds"] = (self._lock_fd,)  # the guard keeps the folder locked
+        files = [str(results)] + ([str(recording)] if recording is not None else [])
         self._guard = subprocess.Popen(
-            [sys.executable, "-I", "-S", str(GUARD_SCRIPT), str(file)],
+            [sys.executable, "-I", "-S", str(GUARD_SCRIPT), *files],
             stdin=subprocess.PIPE,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
             **kwargs,
         )
 
+    def recording_flushed(self, size: int) -> None:
+        """The recording holds whole messages up to ``size`` bytes (tell the guard)."""
+        self._tell_guard(f"rrd {size}\n")
+
     def release(self, unused: bool = False) -> None:
-        """Stop the tail guard, remove the lock file and unlock; never raises. With
-        ``unused`` (the run never stepped) a folder the claim created goes too if empty."""
+        """Tell the tail guard the files are complete, remove the lock file and unlock;
+        never raises. With ``unused`` (the run never stepped) a folder the claim created
+        goes too if empty."""
         if self._guard is not None:
+            self._tell_guard("done\n")
             with contextlib.suppress(OSError, subprocess.TimeoutExpired):
                 if self._guard.stdin is not None:
                     self._guard.stdin.close()
@@ -118,6 +145,13 @@ class RunFolder:
         if unused and self.created:
             with contextlib.suppress(OSError):
                 self.path.rmdir()  # only if empty
+
+    def _tell_guard(self, line: str) -> None:
+        if self._guard is None or self._guard.stdin is None:
+            return
+        with contextlib.suppress(OSError, ValueError):  # a guard gone is no reason to stop
+            self._guard.stdin.write(line.encode())
+            self._guard.stdin.flush()
 
 
 def check_recording_path(out_dir: Path, rrd: Path, overwrite: bool) -> None:
@@ -189,10 +223,11 @@ def _holder(fd: int) -> str:
     return f"process {pid}" + (f" ({command})" if command else "")
 
 
-def _clear_earlier_run(path: Path, overwrite: bool) -> None:
+def _earlier_run(path: Path, overwrite: bool) -> dict | None:
+    """The summary of the earlier run in ``path`` (None if empty); refusals as documented."""
     entries = sorted(e.name for e in path.iterdir() if e.name != LOCK_FILE)
     if not entries:
-        return
+        return None
     summary = path / SUMMARY_FILE
     if not summary.is_file():
         shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
@@ -207,17 +242,7 @@ def _clear_earlier_run(path: Path, overwrite: bool) -> None:
             f"--out {path}: the folder holds an earlier run ({what}); pass --overwrite to "
             "replace it, or choose another folder"
         )
-    try:
-        for name in _earlier_outputs(path, earlier):
-            target = path / name
-            if target.is_dir() and not target.is_symlink():
-                shutil.rmtree(target)
-            else:
-                target.unlink(missing_ok=True)
-    except OSError as exc:
-        raise RunFolderError(
-            f"--out {path}: cannot remove the earlier run's files: {exc.strerror or exc}"
-        ) from None
+    return earlier
 
 
 def _read_summary(path: Path) -> dict:

@@ -17,20 +17,15 @@ import contextlib
 import os
 import signal
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from cosim.errors import CosimError
 from cosim.run.figures import KeyFigures
-from cosim.run.folder import RunFolder
+from cosim.run.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
 from cosim.run.master import RunResult
-from cosim.run.results import (
-    RESULTS_FILE,
-    SCENARIO_FILE,
-    SUMMARY_FILE,
-    final_summary,
-    running_summary,
-)
+from cosim.run.results import final_summary, running_summary
 from cosim.run.rows import RowSink
 from cosim.run.scenario import Scenario
 from cosim.run.sinks import CsvSink, ProgressSink, write_json_atomically
@@ -79,16 +74,16 @@ class RunOutputs:
         csv = CsvSink(self.paths["results"], self.scenario.record)
         self._created.append(self.paths["results"])
         self.sinks.insert(0, csv)
-        self.folder.guard_tail(self.paths["results"])
+        self.folder.start_guard(self.paths["results"], rrd)
         if rrd is not None:
-            sink = _rerun_sink(self.scenario, rrd, None)
+            sink = _rerun_sink(self.scenario, rrd, None, self.folder.recording_flushed)
             if sink is not None:
                 self._created.append(rrd)
                 self.sinks.append(sink)
             else:
                 del self.paths["recording"]
         if connect is not None:
-            sink = _rerun_sink(self.scenario, None, connect)
+            sink = _rerun_sink(self.scenario, None, connect, None)
             if sink is not None:
                 self.sinks.append(sink)
         if progress:
@@ -135,7 +130,12 @@ class RunOutputs:
                 os.unlink(path)
 
 
-def _rerun_sink(scenario: Scenario, rrd: Path | None, url: str | None) -> Any:
+def _rerun_sink(
+    scenario: Scenario,
+    rrd: Path | None,
+    url: str | None,
+    on_flushed: Callable[[int], None] | None,
+) -> Any:
     """A Rerun sink for the file or the viewer; None (with a warning) without rerun."""
     try:
         from cosim.viz.recording import RerunSink
@@ -145,6 +145,6 @@ def _rerun_sink(scenario: Scenario, rrd: Path | None, url: str | None) -> Any:
         )
         return None
     try:
-        return RerunSink(scenario, rrd, url)
+        return RerunSink(scenario, rrd, url, on_flushed)
     except (OSError, ValueError) as exc:
         raise CosimError(f"cannot start the Rerun recording: {exc}") from None

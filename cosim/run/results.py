@@ -33,12 +33,6 @@ if TYPE_CHECKING:  # types only: the readers of results.csv need not import the 
     from cosim.run.master import RunResult
     from cosim.run.scenario import Scenario
 
-RESULTS_FILE = "results.csv"
-SCENARIO_FILE = "scenario.toml"
-SUMMARY_FILE = "summary.json"
-RECORDING_FILE = "recording.rrd"  # the Rerun recording (cosim.viz.recording)
-REPORT_FOLDER = "report"  # what `auv-cosim report` adds (cosim.viz.report)
-
 
 def csv_header(columns: tuple[str, ...] | list[str]) -> str:
     """The first line of results.csv, newline included."""

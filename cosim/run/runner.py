@@ -4,11 +4,15 @@
 takes the command line's :class:`RunOptions` and prints where the outputs went and the key
 figures. The order of a run:
 
-1. the scenario is loaded and every input checked (:mod:`cosim.run.scenario`, the command
-   line's overrides, :func:`cosim.run.master.preflight`), the recording path too;
-2. SIGINT/SIGTERM/SIGHUP now only stop the run (:mod:`cosim.run.signals`);
-3. the run folder is claimed (:mod:`cosim.run.folder`) and every output opened
-   (:mod:`cosim.run.outputs`): nothing has stepped yet, and a failure so far leaves nothing;
+1. the command line's numbers and the recording path are checked, and from now on
+   SIGINT/SIGTERM/SIGHUP only stop the run (:mod:`cosim.run.signals`);
+2. the run folder is claimed (:mod:`cosim.run.folder`): a folder another run holds, or
+   an earlier run without ``overwrite``, is refused at once, before numpy, fmpy or an FMU
+   is loaded (this module imports those only then);
+3. the scenario is loaded and every input checked (:mod:`cosim.run.scenario`, the
+   overrides, :func:`cosim.run.master.preflight`); then the earlier run's files are removed
+   and every output opened (:mod:`cosim.run.outputs`): nothing has stepped yet, and a
+   failure so far leaves nothing behind;
 4. the master streams the rows to the outputs (:mod:`cosim.run.master`);
 5. the outputs are closed and summary.json says how the run ended, whatever signal comes.
 
@@ -25,17 +29,17 @@ import signal
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
-from cosim.run import master
-from cosim.run.folder import RunFolder, check_recording_path
-from cosim.run.master import RunResult
-from cosim.run.outputs import RunOutputs
-from cosim.run.results import RECORDING_FILE
-from cosim.run.scenario import Scenario, load_scenario
+from cosim.run.folder import RECORDING_FILE, RunFolder, check_recording_path
 from cosim.run.signals import REASONS, StopRequest, stop_on_signals
+
+if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (step 2)
+    from cosim.run.master import RunResult
+    from cosim.run.outputs import RunOutputs
+    from cosim.run.scenario import Scenario
 
 MESSAGES_SHOWN = 3  # FMU log lines (warnings and worse) printed per instance
 
@@ -97,17 +101,24 @@ def run_scenario(
 
 def execute(scenario: str | Path | Scenario, options: RunOptions) -> RunOutcome:
     """:func:`run_scenario` with the options as one object (see the module docstring)."""
-    scenario = _checked_scenario(scenario, options)
-    out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / scenario.id
-    rrd = _recording_path(scenario, options, out_dir)
+    for flag, value in (("--stop-time", options.stop_time), ("--step", options.step)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise CosimError(f"{flag} {value!r}: expected a finite number of seconds > 0")
+    out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
+    if options.rrd is not None and not options.no_rrd:
+        check_recording_path(out_dir, options.rrd, options.overwrite)
     stop = StopRequest()
     with stop_on_signals(stop):
         folder = RunFolder.claim(out_dir, overwrite=options.overwrite)
         stepped = False
         try:
-            outputs = RunOutputs.open(scenario, folder, rrd, options.connect, options.progress)
+            from cosim.run import master
+
+            loaded = _checked_scenario(scenario, options)
+            folder.clear_earlier_run()
+            outputs = _open_outputs(loaded, folder, options)
             try:
-                result = master.run(scenario, outputs.sinks, keep_rows=options.keep_rows, stop=stop)
+                result = master.run(loaded, outputs.sinks, keep_rows=options.keep_rows, stop=stop)
             except BaseException:  # refused or not set up: it never stepped
                 outputs.discard()
                 raise
@@ -118,11 +129,17 @@ def execute(scenario: str | Path | Scenario, options: RunOptions) -> RunOutcome:
     return RunOutcome(result, out_dir, outputs.paths, outputs.figures.figures(), stop.signum)
 
 
+def _id_of(scenario: str | Path | Scenario) -> str:
+    from cosim.run.scenario import Scenario, scenario_id
+
+    return scenario.id if isinstance(scenario, Scenario) else scenario_id(scenario)
+
+
 def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> Scenario:
     """The scenario with the overrides applied, every input checked; nothing written."""
-    for flag, value in (("--stop-time", options.stop_time), ("--step", options.step)):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise CosimError(f"{flag} {value!r}: expected a finite number of seconds > 0")
+    from cosim.run import master
+    from cosim.run.scenario import Scenario, load_scenario
+
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
     if options.stop_time is not None or options.step is not None or options.algorithm:
@@ -133,13 +150,16 @@ def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> S
     return scenario
 
 
-def _recording_path(scenario: Scenario, options: RunOptions, out_dir: Path) -> Path | None:
+def _open_outputs(scenario: Scenario, folder: RunFolder, options: RunOptions) -> RunOutputs:
+    from cosim.run.outputs import RunOutputs
+
     if options.no_rrd:
-        return None
-    if options.rrd is not None:  # asked for explicitly: wins over the scenario's output.rrd
-        check_recording_path(out_dir, options.rrd, options.overwrite)
-        return options.rrd
-    return out_dir / RECORDING_FILE if scenario.rrd else None
+        rrd = None
+    elif options.rrd is not None:  # asked for explicitly: wins over the scenario's output.rrd
+        rrd = options.rrd
+    else:
+        rrd = folder.path / RECORDING_FILE if scenario.rrd else None
+    return RunOutputs.open(scenario, folder, rrd, options.connect, options.progress)
 
 
 def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest) -> None:

@@ -1,12 +1,16 @@
-"""Cut a torn last row off a results.csv once the run writing it is gone, however it ended.
+"""Leave a killed run's files whole: cut a torn last row off results.csv and a recording
+back to its last flush, once the run writing them is gone, however it ended.
 
-Run as ``python -I -S tail_guard.py FILE`` by the run folder (:mod:`cosim.run.folder`),
+Run as ``python -I -S tail_guard.py CSV [RRD]`` by the run folder (:mod:`cosim.run.folder`),
 in a session of its own (so a signal for the run's process group does not reach it), with
-a pipe from the run on its standard input: it waits until the pipe closes -- the run
-closed it at its end, or the kernel did when the run was killed (SIGKILL included) -- and
-then truncates FILE after its last newline. The run's writer leaves only whole rows, but
-the kernel may stop a write at a page boundary when the process is killed, which Python
-cannot prevent: this is the one place that can finish the job.
+a pipe from the run on its standard input. The run writes ``rrd SIZE`` lines on it each
+time the recording is flushed (SIZE: the file's size then, a message boundary) and
+``done`` when its files are complete. When the pipe closes -- the run closed it at its
+end, or the kernel did when the run was killed (SIGKILL included) -- without ``done``,
+CSV is truncated after its last newline and RRD to the last SIZE. The writers leave whole
+rows and messages, but the kernel may stop a write at a page boundary when the process
+is killed, and rerun writes its stream in pieces: this is the one place that can finish
+the job.
 
 Standard library only, and nothing imported from the package: it starts in a few
 milliseconds, isolated (``-I -S``) from the environment.
@@ -26,7 +30,7 @@ def cut_torn_tail(path: str) -> int:
     try:
         fd = os.open(path, os.O_RDWR)
     except FileNotFoundError:
-        return 0  # removed meanwhile (a new run with --overwrite): nothing to repair
+        return 0  # removed meanwhile: nothing to repair
     try:
         size = os.fstat(fd).st_size
         start = max(0, size - TAIL_BYTES)
@@ -41,14 +45,38 @@ def cut_torn_tail(path: str) -> int:
         os.close(fd)
 
 
+def cut_to(path: str, size: int) -> int:
+    """Truncate ``path`` to ``size`` bytes if it is longer; return the bytes cut."""
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except FileNotFoundError:
+        return 0
+    try:
+        extra = os.fstat(fd).st_size - size
+        if extra > 0:
+            os.ftruncate(fd, size)
+        return max(extra, 0)
+    finally:
+        os.close(fd)
+
+
 def main(argv: list[str]) -> int:
     for name in ("SIGINT", "SIGHUP"):  # a terminal's signals are the run's to handle
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), signal.SIG_IGN)
-    while os.read(0, 65536):  # until the run closes the pipe or dies
-        pass
-    for path in argv:
-        cut_torn_tail(path)
+    done, rrd_size, pending = False, None, b""
+    while chunk := os.read(0, 65536):  # until the run closes the pipe or dies
+        lines = (pending + chunk).split(b"\n")
+        pending = lines.pop()  # an incomplete line waits for the rest
+        for line in lines:
+            if line == b"done":
+                done = True
+            elif line.startswith(b"rrd "):
+                rrd_size = int(line[4:])
+    if not done:
+        cut_torn_tail(argv[0])
+        if len(argv) > 1 and rrd_size is not None:
+            cut_to(argv[1], rrd_size)
     return 0
 
 

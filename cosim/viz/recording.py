@@ -21,6 +21,7 @@ the vehicle parameter set, whether depth control is on -- is read from the
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import socket
@@ -28,6 +29,7 @@ import subprocess
 import sys
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -36,7 +38,7 @@ import numpy as np
 import rerun as rr
 
 from cosim.errors import CosimError
-from cosim.run.results import RECORDING_FILE
+from cosim.run.folder import RECORDING_FILE
 from cosim.run.scenario import Scenario
 from cosim.viz.layout import (
     build_blueprint,
@@ -44,6 +46,7 @@ from cosim.viz.layout import (
     series_style,
     time_index,
 )
+from cosim.viz.rrd_file import RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
@@ -68,6 +71,8 @@ class RerunSink:
             (``plant.yaw``, ...; any may be missing).
         rrd_path: the recording file to write (its folder is created), or None.
         connect_url: a viewer's gRPC URL (``rerun+http://127.0.0.1:9876/proxy``), or None.
+        on_flushed: called with the file's size each time everything sent is in the file
+            (a message boundary; the run folder's tail guard cuts a killed run's file there).
 
     Raises:
         ValueError: neither a file nor a URL, duplicate columns, a malformed URL or no
@@ -80,11 +85,11 @@ class RerunSink:
         scenario: Scenario,
         rrd_path: Path | None = None,
         connect_url: str | None = None,
+        on_flushed: Callable[[int], None] | None = None,
     ) -> None:
         if rrd_path is None and connect_url is None:
             raise ValueError("RerunSink needs an rrd_path, a connect_url or both; got neither")
         columns = list(scenario.record)
-        scenario_id = scenario.id
         if len(set(columns)) != len(columns):
             duplicates = sorted({c for c in columns if columns.count(c) > 1})
             raise ValueError(f"recorded columns must be unique, got duplicates {duplicates}")
@@ -97,25 +102,47 @@ class RerunSink:
         self._closed = False
         self._last_send = time.monotonic()
         self._rrd_path = None if rrd_path is None else Path(rrd_path)
+        self._on_flushed = on_flushed
+        self._file: RrdFile | None = None
         self._viewer_warned = False
 
         vehicle, depth_mode = _scenario_facts(scenario)
         has_depth = "controller.depth_setpoint" in self._index and "plant.down" in self._index
         depth_control = has_depth if depth_mode is None else depth_mode != 0 and has_depth
 
-        self._rec = rr.RecordingStream(APPLICATION_ID)
         sinks: list[Any] = []
         if connect_url is not None:
             sinks.append(_viewer_sink(connect_url))
-        if rrd_path is not None:
-            rrd_path = Path(rrd_path)
-            rrd_path.parent.mkdir(parents=True, exist_ok=True)
-            sinks.append(rr.FileSink(str(rrd_path)))
-        blueprint = build_blueprint(self._panels, depth_control=depth_control)
+        self._rec = rr.RecordingStream(APPLICATION_ID)
         try:
-            self._rec.set_sinks(*sinks, default_blueprint=blueprint)
-        except RuntimeError as exc:  # rerun-sdk's error for a file it cannot create
-            raise OSError(f"cannot write the recording {rrd_path}: {exc}") from None
+            if self._rrd_path is not None:
+                sinks.append(self._open_file(self._rrd_path))
+            blueprint = build_blueprint(self._panels, depth_control=depth_control)
+            try:
+                self._rec.set_sinks(*sinks, default_blueprint=blueprint)
+            except RuntimeError as exc:  # rerun-sdk's error for a file it cannot create
+                raise OSError(f"cannot write the recording {rrd_path}: {exc}") from None
+            self._log_static(scenario, vehicle, depth_control)
+            self._flush()  # the static part is on disk before the first step
+        except BaseException:
+            with contextlib.suppress(OSError):  # the first failure is the one to report
+                self._disconnect()
+            raise
+
+    def _open_file(self, path: Path) -> Any:
+        """The sink writing ``path`` (through :class:`RrdFile` where possible)."""
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if not pumped():
+                return file_sink(path)
+            self._file = RrdFile(path)
+        except OSError as exc:
+            raise OSError(f"cannot write the recording {path}: {exc.strerror or exc}") from None
+        return self._file.sink()
+
+    def _log_static(self, scenario: Scenario, vehicle: VehicleParameters, depth: bool) -> None:
+        """The recording's name and properties, the scenario text, styles and the scene."""
+        scenario_id, columns = scenario.id, self._columns
         self._rec.send_recording_name(scenario_id)
         self._rec.send_property(
             "scenario", rr.AnyValues(id=scenario_id, vehicle=vehicle.name, columns=len(columns))
@@ -131,9 +158,8 @@ class RerunSink:
         )
         for panel in self._panels:
             self._rec.log(panel.entity, series_style(panel), static=True)
-        log_static_scene(self._rec, vehicle, self._columns, show_depth_setpoint=depth_control)
-        self._scene = SceneWriter(self._rec, vehicle, show_depth_setpoint=depth_control)
-        self._flush()  # the static part is on disk before the first step
+        log_static_scene(self._rec, vehicle, self._columns, show_depth_setpoint=depth)
+        self._scene = SceneWriter(self._rec, vehicle, show_depth_setpoint=depth)
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         """Queue k rows: ``times`` (k,) in s, ``values`` (k, len(columns)) in SI units.
@@ -174,18 +200,33 @@ class RerunSink:
             self._send_pending()
             self._flush()
         finally:
-            self._rec.disconnect()
+            self._disconnect()
+
+    def _disconnect(self) -> None:
+        """Let go of the sinks (rerun writes the file's footer), then close the file;
+        raises OSError if the file failed."""
+        self._rec.disconnect()
+        if self._file is not None:
+            file, self._file = self._file, None
+            file.close(timeout=FLUSH_TIMEOUT)
 
     def _flush(self) -> None:
         """Wait until what was sent is written; a file that failed raises OSError."""
         try:
             self._rec.flush(timeout_sec=FLUSH_TIMEOUT)
         except RuntimeError as exc:  # the bindings' error for a sink that failed
-            if self._rrd_path is not None:
+            if self._file is None and self._rrd_path is not None:  # rerun's own file writer
                 raise OSError(_write_failure(self._rrd_path, exc)) from None
             if not self._viewer_warned:
                 self._viewer_warned = True
                 warnings.warn(f"Rerun viewer: {exc}", stacklevel=3)
+        if self._file is not None:
+            try:
+                size = self._file.sync(FLUSH_TIMEOUT)
+            except OSError as exc:
+                raise OSError(_with_free_space(str(exc), self._file.path)) from None
+            if self._on_flushed is not None:
+                self._on_flushed(size)
 
     def __enter__(self) -> RerunSink:
         return self
@@ -266,13 +307,16 @@ def _first_value(scenario: Scenario, variable: str, prefer: str) -> Any:
 
 
 def _write_failure(path: Path, exc: Exception) -> str:
-    """The reason a recording file failed, with the free space of its disk."""
+    """The reason rerun's own file writer failed, with the free space of its disk."""
+    return _with_free_space(f"cannot write the recording {path}: {exc}", path)
+
+
+def _with_free_space(reason: str, path: Path) -> str:
     try:
         stat = os.statvfs(path.parent)
-        free = f"; {stat.f_bavail * stat.f_frsize} bytes free on its disk"
+        return f"{reason} ({stat.f_bavail * stat.f_frsize} bytes free on its disk)"
     except (OSError, AttributeError):  # statvfs: POSIX only
-        free = ""
-    return f"cannot write the recording {path}: {exc}{free}"
+        return reason
 
 
 def rerun_executable() -> str | None:

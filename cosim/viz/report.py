@@ -35,7 +35,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from cosim.errors import CosimError
-from cosim.run.results import REPORT_FOLDER, read_csv
+from cosim.run.folder import REPORT_FOLDER
+from cosim.run.results import read_csv
 from cosim.viz.mission import mission_waypoints
 
 INDEX_PAGE = "index.html"
