@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -257,7 +258,13 @@ def _add_model_options(a: argparse.ArgumentParser) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command. With ``argv`` None (the process's own command line), ``run``
+    ignores stop signals outside the run itself, which records them
+    (:mod:`cosim.run.signals`): one arriving after the run, while the interpreter shuts
+    down, cannot turn a finished run's exit code into a death by signal."""
     args = build_parser().parse_args(argv)
+    if argv is None and args.command == "run":
+        _ignore_stop_signals()
     try:
         return int(args.func(args) or 0)
     except CosimError as exc:
@@ -269,6 +276,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ValueError, OSError, RuntimeError) as exc:
         print(f"auv-cosim {args.command}: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
+
+
+def _ignore_stop_signals() -> None:
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
 
 
 if __name__ == "__main__":

@@ -4,6 +4,8 @@
   session into a temporary folder with :mod:`cosim.fmus.build`. An FMU whose build fails
   is absent, and looking it up raises that build's error (so a broken FMU fails only the
   tests that use it).
+* ``test_fmu_dir`` (session): the folder holding the master tests' FMUs built from
+  tests/fmus (``CosimTestIntegrator.fmu``, ``CosimTestGain.fmu``).
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
   ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). This folder is on
@@ -25,7 +27,7 @@ import pytest
 
 import cosim
 from cosim.errors import CosimError
-from cosim.fmus.build import FMUS, build_fmu
+from cosim.fmus.build import FMUS, build_fmu, pythonfmu_build
 
 
 class BuiltFmus(dict):
@@ -53,6 +55,19 @@ def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         except CosimError as exc:
             failures[name] = exc
     return BuiltFmus(built, failures)
+
+
+@pytest.fixture(scope="session")
+def test_fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The master tests' own FMUs (tests/fmus: an integrator and a sampled gain), built once
+    per session, in a fresh process (pythonfmu caches modules)."""
+    out = tmp_path_factory.mktemp("test_fmus")
+    for script, model in (
+        ("cosim_test_integrator.py", "CosimTestIntegrator"),
+        ("cosim_test_gain.py", "CosimTestGain"),
+    ):
+        pythonfmu_build(Path(__file__).parent / "fmus" / script, out, model)
+    return out
 
 
 @pytest.fixture(scope="session")

@@ -1,5 +1,7 @@
-"""Scenarios for tests that need a :class:`~cosim.run.scenario.Scenario` object (the Rerun
-sink takes one): the two built FMUs with chosen start values and recorded columns."""
+"""Scenarios for tests: :func:`auv_scenario` (the two built FMUs with chosen start values and
+recorded columns, for tests that need a Scenario object, like the Rerun sink) and
+:func:`loop_toml` (the master tests' integrator under a sampled gain, tests/fmus, built by
+the ``test_fmu_dir`` fixture)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,8 @@ import dataclasses
 from pathlib import Path
 
 from cosim.run.scenario import Scenario, scenario_from_toml
+
+K, H, X0 = 2.0, 0.1, 1.0  # the loop's gain, step (s) and initial state
 
 
 def auv_scenario(
@@ -28,3 +32,31 @@ def auv_scenario(
     if columns is None:
         return scenario
     return dataclasses.replace(scenario, record=tuple(columns))
+
+
+def loop_toml(
+    algorithm: str = "gauss-seidel",
+    stop_time: float = 1.0,
+    controller_multiple: int = 1,
+    plant_start: str = "",
+    step: float = H,
+) -> str:
+    """The loop's scenario text: the FMUs are named relative to the folder they are in."""
+    return f"""
+summary = "integrator under a sampled gain"
+stop_time = {stop_time}
+[coupling]
+step = {step}
+algorithm = "{algorithm}"
+order = ["controller", "plant"]
+step_multiples = {{ controller = {controller_multiple} }}
+[instances.plant]
+fmu = "CosimTestIntegrator.fmu"
+[instances.plant.start]
+x0 = {X0}
+{plant_start}
+[instances.controller]
+fmu = "CosimTestGain.fmu"
+[instances.controller.start]
+k = {K}
+"""

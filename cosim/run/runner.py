@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import signal
 import sys
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -99,16 +100,24 @@ def run_scenario(
     return execute(scenario, RunOptions(out_dir=out_dir, **options))
 
 
-def execute(scenario: str | Path | Scenario, options: RunOptions) -> RunOutcome:
-    """:func:`run_scenario` with the options as one object (see the module docstring)."""
+def execute(
+    scenario: str | Path | Scenario, options: RunOptions, stop: StopRequest | None = None
+) -> RunOutcome:
+    """:func:`run_scenario` with the options as one object (see the module docstring).
+
+    ``stop``: the caller's :class:`StopRequest`, its signal handlers installed (else this
+    call installs them for its duration)."""
     for flag, value in (("--stop-time", options.stop_time), ("--step", options.step)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise CosimError(f"{flag} {value!r}: expected a finite number of seconds > 0")
     out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
     if options.rrd is not None and not options.no_rrd:
         check_recording_path(out_dir, options.rrd, options.overwrite)
-    stop = StopRequest()
-    with stop_on_signals(stop):
+    handlers: AbstractContextManager[StopRequest] = nullcontext(stop)
+    if stop is None:
+        stop = StopRequest()
+        handlers = stop_on_signals(stop)
+    with handlers:
         folder = RunFolder.claim(out_dir, overwrite=options.overwrite)
         stepped = False
         try:
@@ -175,8 +184,15 @@ def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest) -> None
 
 def run_from_cli(scenario: str, options: RunOptions) -> int:
     """``auv-cosim run``: 0 if the run completed, 128 + signal number if a signal came,
-    1 on failure."""
-    outcome = execute(scenario, options)
+    1 on failure. A signal while the report is printed is ignored too."""
+    stop = StopRequest()
+    with stop_on_signals(stop):
+        outcome = execute(scenario, options, stop)
+        _print_outcome(outcome)
+    return outcome.exit_code
+
+
+def _print_outcome(outcome: RunOutcome) -> None:
     result = outcome.result
     print(report(outcome))
     if outcome.signal is not None and result.complete:
@@ -191,7 +207,6 @@ def run_from_cli(scenario: str, options: RunOptions) -> int:
             f"auv-cosim run: {result.error} (partial results in {outcome.out_dir})",
             file=sys.stderr,
         )
-    return outcome.exit_code
 
 
 def report(outcome: RunOutcome) -> str:

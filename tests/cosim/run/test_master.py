@@ -18,54 +18,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from repo_paths import TESTS
+from scenario_factory import X0, H, K, loop_toml
 
-from cosim.fmus.build import pythonfmu_build
 from cosim.run import master
 from cosim.run.runner import run_scenario
 from cosim.run.scenario import Scenario, scenario_from_toml
 
-HERE = TESTS
-K, H, X0 = 2.0, 0.1, 1.0
-
 
 @pytest.fixture(scope="module")
-def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Build the two test FMUs once, in a fresh process (pythonfmu caches modules)."""
-    out = tmp_path_factory.mktemp("test_fmus")
-    for script, model in (
-        ("cosim_test_integrator.py", "CosimTestIntegrator"),
-        ("cosim_test_gain.py", "CosimTestGain"),
-    ):
-        pythonfmu_build(HERE / "fmus" / script, out, model)
-    return out
-
-
-def loop_toml(
-    algorithm: str = "gauss-seidel",
-    stop_time: float = 1.0,
-    controller_multiple: int = 1,
-    plant_start: str = "",
-    step: float = H,
-) -> str:
-    return f"""
-summary = "integrator under a sampled gain"
-stop_time = {stop_time}
-[coupling]
-step = {step}
-algorithm = "{algorithm}"
-order = ["controller", "plant"]
-step_multiples = {{ controller = {controller_multiple} }}
-[instances.plant]
-fmu = "CosimTestIntegrator.fmu"
-[instances.plant.start]
-x0 = {X0}
-{plant_start}
-[instances.controller]
-fmu = "CosimTestGain.fmu"
-[instances.controller.start]
-k = {K}
-"""
+def fmu_dir(test_fmu_dir: Path) -> Path:
+    return test_fmu_dir
 
 
 def loop(fmu_dir: Path, **kwargs) -> Scenario:
