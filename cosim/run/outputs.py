@@ -39,6 +39,7 @@ class RunOutputs:
         self.folder = folder
         self.paths = paths  # results, scenario, summary and (if written) recording
         self.figures = KeyFigures(scenario.record)
+        self.csv: CsvSink | None = None
         self.sinks: list[RowSink] = [self.figures]
         self._created: list[Path] = []
         self._running: dict[str, Any] = {}
@@ -71,9 +72,9 @@ class RunOutputs:
         return outputs
 
     def _open_sinks(self, rrd: Path | None, connect: str | None, progress: bool) -> None:
-        csv = CsvSink(self.paths["results"], self.scenario.record)
+        self.csv = CsvSink(self.paths["results"], self.scenario.record)
         self._created.append(self.paths["results"])
-        self.sinks.insert(0, csv)
+        self.sinks.insert(0, self.csv)
         self.folder.start_guard(self.paths["results"], rrd)
         if rrd is not None:
             sink = _rerun_sink(self.scenario, rrd, None, self.folder.recording_flushed)
@@ -113,7 +114,8 @@ class RunOutputs:
     def finish(self, result: RunResult, error: str | None, signum: int | None) -> str | None:
         """Replace summary.json with the final summary; the failure to write it, if any."""
         name = signal.Signals(signum).name if signum is not None else None
-        data = final_summary(self._running, result, self.figures.figures(), error, name)
+        rows = self.csv.rows if self.csv is not None else 0
+        data = final_summary(self._running, result, self.figures.figures(), error, name, rows)
         try:
             write_json_atomically(self.paths["summary"], data)
         except CosimError as exc:

@@ -13,7 +13,9 @@ the full summary: ``status`` ``"complete"`` or ``"incomplete"``, ``complete``, `
 (the one-line reason, null if complete), ``signal`` (the signal that stopped or
 interrupted the run, null if none), scenario id, stop_time, step, algorithm, pid,
 ``outputs`` (the files the run writes), wall_clock_s (the stepping loop alone),
-real_time_factor, time_reached, rows, the final value of every column, the key figures
+real_time_factor, time_reached (the last row computed), rows (the rows in results.csv:
+fewer than computed only when results.csv could not be written), the final value of
+every column, the key figures
 (:mod:`cosim.run.figures`) and the FMUs' logged warnings and errors. A summary still
 saying ``running`` once its process is gone belongs to a run that was killed: its
 results.csv holds every row up to the last flush.
@@ -82,8 +84,10 @@ def final_summary(
     figures: dict[str, float | None],
     error: str | None,
     signal: str | None,
+    rows: int,
 ) -> dict[str, Any]:
-    """summary.json at the end of a run: ``running`` completed with how it ended."""
+    """summary.json at the end of a run: ``running`` completed with how it ended;
+    ``rows``: those in results.csv."""
     wall = result.wall_clock_s
     final = dict(zip(result.columns, result.final.tolist(), strict=True))
     return {
@@ -95,7 +99,7 @@ def final_summary(
         "wall_clock_s": wall,
         "real_time_factor": _finite(result.time_reached / wall) if wall > 0 else None,
         "time_reached": result.time_reached,
-        "rows": result.rows,
+        "rows": rows,
         "final_values": {name: _finite(value) for name, value in final.items()},
         "key_figures": figures,
         "fmu_messages": {name: lines for name, lines in result.messages.items() if lines},

@@ -32,6 +32,7 @@ class CsvSink:
 
     def __init__(self, path: Path, columns: tuple[str, ...]) -> None:
         self.path = path
+        self.rows = 0  # data rows in the file
         self._written = 0  # bytes of whole rows in the file
         try:
             self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
@@ -41,6 +42,7 @@ class CsvSink:
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         self._write(csv_lines(times, values).encode())
+        self.rows += len(times)
 
     def close(self) -> None:
         """Close the file; safe to call twice."""

@@ -397,3 +397,21 @@ def test_cli_export_writes_and_reports_the_archive(
     # the scenario couples Gauss-Seidel (the default), which neither format can express
     assert "compare with `auv-cosim run plant-alone --algorithm jacobi`" in out
     assert zipfile.ZipFile(tmp_path / "p.ssp").testzip() is None
+
+
+def test_ssp_packs_a_custom_vehicle_file(
+    fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 14: `vehicle = "myveh.toml"` in a scenario was not packed by `export`."""
+    folder = tmp_path / "mission"
+    folder.mkdir()
+    vehicle = 'base = "remus100"\nm = 31.0\n'
+    (folder / "myveh.toml").write_text(vehicle)
+    text = PLANT_ALONE.format(fmu=fmu_paths["AuvPlant"]).replace("remus100", "myveh.toml")
+    (folder / "custom.toml").write_text(text)
+    archive = tmp_path / "custom.ssp"
+    assert cli.main(["export", str(folder / "custom.toml"), "--ssp", str(archive)]) == 0
+    with zipfile.ZipFile(archive) as z:
+        assert z.read("resources/plant/myveh.toml").decode() == vehicle
+    (value,) = _ssd(archive).iterfind(".//ssv:Parameter[@name='vehicle']/ssv:String", NS)
+    assert value.get("value") == "resources/plant/myveh.toml"

@@ -187,3 +187,27 @@ def test_smoke_run_reports_a_dead_host_and_when_it_died(monkeypatch, stdout, whe
     assert validation.smoke_run({"AuvPlant": Path("AuvPlant.fmu")}) == [
         f"smoke run: the host process died {when} (exit code -6): corrupted double-linked list"
     ]
+
+
+def test_validating_a_corrupt_fmu_is_one_line(fmu_paths, tmp_path):
+    """Issue 14: `validate` on a truncated FMU ended in a traceback."""
+    from cosim.fmus.validation import validate_fmus
+
+    broken = tmp_path / "AuvPlant.fmu"
+    broken.write_bytes(fmu_paths["AuvPlant"].read_bytes()[:5000])
+    (problem,) = validate_fmus({"AuvPlant": broken})
+    assert problem.startswith(f"AuvPlant: {broken} is not a readable FMU (BadZipFile: ")
+    assert "\n" not in problem
+
+
+def test_validate_rebuilds_a_truncated_fmu_in_the_fmu_folder(fmu_paths, tmp_path, capsys):
+    """Issue 14: a truncated FMU in the FMU folder was never rebuilt."""
+    from cosim.cli import main
+
+    for name in ("AuvPlant", "AuvAutopilot"):
+        source = fmu_paths[name]
+        shutil.copy2(source, tmp_path)
+        shutil.copy2(source.with_name(source.name + build.HASH_SUFFIX), tmp_path)
+    (tmp_path / "AuvPlant.fmu").write_bytes(fmu_paths["AuvPlant"].read_bytes()[:5000])
+    assert main(["validate", "--fmu-dir", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.strip().endswith("both FMUs are valid")

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from repo_paths import ROOT
 
-from cosim.run import slave
+from cosim.run import master, slave
 from cosim.run.scenario import (
     SCENARIO_FOLDER,
     ScenarioError,
@@ -171,6 +171,28 @@ BAD_EDITS = [
     ("step = 0.01", "step = 0.01\nstep_multiples = { ctrl = 5 }",
      r"coupling\.step_multiples\.ctrl.*no instance 'ctrl'"),
     ('fmu = "AuvPlant"', 'fmu = "NoSuch.fmu"', r"instances\.plant\.fmu.*neither a built-in"),
+    # issue 14: no coercion, no wrap-around, no infinity, no last-one-wins, no "..", no
+    # step count beyond the ceiling
+    ("stop_time = 60.0", 'stop_time = "2.0"', r"key 'stop_time' = '2\.0': .* valid number"),
+    ("step = 0.01", 'step = "0.01"', r"key 'coupling\.step' = '0\.01': .* valid number"),
+    ("step = 0.01", "step = inf", r"key 'coupling\.step' = inf: .* finite number"),
+    ("stop_time = 60.0", "stop_time = nan", r"key 'stop_time' = nan: .* finite number"),
+    ("step = 0.01", "step = 0.01\nstep_multiples = { controller = 2.0 }",
+     r"'coupling\.step_multiples\.controller' = 2\.0: Input should be a valid integer"),
+    ("stop_time = 60.0", "stop_time = 1e12",
+     r"key 'stop_time': 1000000000000\.0 s is 1e\+14 communication steps .* at most 1e\+08"),
+    ("stop_time = 60.0", 'id = ".."\nstop_time = 60.0', r"key 'id' = '\.\.': String should match"),
+    ("stop_time = 60.0", 'id = "../x"\nstop_time = 60.0', r"key 'id' = '\.\./x'"),
+    ("heading_mode = 3", "heading_mode = 4294967297",
+     r"start\.heading_mode': 4294967297 is outside \[-2147483648, 2147483647\]"),
+    ("variant = 1", "variant = 4294967297",
+     r"start\.variant': 4294967297 is outside \[-2147483648, 2147483647\]"),
+    (REMOVE, REMOVE + "\n" + 'add = [{ from = "controller.thrust", to = "plant.thrust" }, '
+     '{ from = "controller.tunnel_force", to = "plant.thrust" }]',
+     r"add\[1\]\.to.*'plant\.thrust' is driven twice: by connections\.add\[0\] "
+     r"\(controller\.thrust\) and here \(controller\.tunnel_force\)"),
+    ("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "nosuch.toml"',
+     r"start\.vehicle': 'nosuch\.toml' names no file \(looked for .*/nosuch\.toml\)"),
 ]  # fmt: skip
 
 
@@ -227,3 +249,64 @@ def test_documented_example_resolves(fmu_dir: Path, no_fmu_loading: None) -> Non
     assert s.coupling.step_multiples == {"plant": 1, "controller": 5}
     assert len(s.connections) == 10 and not s.rrd
     assert s.record[0] == "plant.yaw"
+
+
+def test_a_utf8_byte_order_mark_is_accepted(fmu_dir: Path, tmp_path: Path) -> None:
+    """Issue 14: a BOM made the file "Invalid statement"."""
+    path = tmp_path / "bs-3.toml"
+    path.write_bytes("\ufeff".encode() + BS3.encode())
+    assert load_scenario(path, fmu_dir=fmu_dir) == load_scenario("bs-3", fmu_dir=fmu_dir)
+
+
+def test_files_named_in_a_scenario_are_relative_to_it(fmu_dir: Path, tmp_path: Path) -> None:
+    """Issue 14: `vehicle = "myveh.toml"` was resolved against the current folder."""
+    folder = tmp_path / "mission"
+    folder.mkdir()
+    (folder / "myveh.toml").write_text('base = "remus100"\nm = 31.0\n')
+    (folder / "s.toml").write_text(
+        BS3.replace("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "myveh.toml"')
+    )
+    scenario = load_scenario(folder / "s.toml", fmu_dir=fmu_dir)
+    assert scenario.instances["plant"].start["vehicle"] == str(folder / "myveh.toml")
+    assert scenario.instances["plant"].files() == {"vehicle": folder / "myveh.toml"}
+    assert scenario_from_toml(scenario.to_toml(), "resolved", fmu_dir=fmu_dir) == scenario
+
+
+def test_an_integer_outside_its_declared_range_is_refused(
+    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An FMU's declared min/max bound an Integer start value before any FMU call."""
+    plant = load_scenario("bs-3", fmu_dir=fmu_dir).instances["plant"]
+    variant = plant.variable("variant")
+    monkeypatch.setattr(variant, "min", "0")
+    monkeypatch.setattr(variant, "max", "2")
+    with pytest.raises(ScenarioError, match=r"start\.variant': 3 is outside \[0, 2\]"):
+        scenario_from_toml(
+            BS3.replace("variant = 1", "variant = 3"), "bs-3 edited", fmu_dir=fmu_dir
+        )
+    scenario_from_toml(BS3.replace("variant = 1", "variant = 2"), "bs-3 edited", fmu_dir=fmu_dir)
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        ("max_substep = 1e-9", "instances.plant.start.max_substep"),
+        ("max_substep = 0.000001", None),  # 10,000 sub-steps: the limit itself runs
+    ],
+)
+def test_a_substep_that_would_hang_a_step_is_refused_before_loading(
+    fmu_dir: Path, no_fmu_loading: None, edit: str, key: str | None
+) -> None:
+    """Issue 14: `max_substep = 1e-9` made no progress after 17 min and ignored Ctrl-C."""
+    scenario = scenario_from_toml(
+        BS3.replace("v_0 = -0.10", f"v_0 = -0.10\n{edit}"), "bs-3 edited", fmu_dir=fmu_dir
+    )
+    if key is None:
+        master.preflight(scenario)
+        return
+    with pytest.raises(ScenarioError, match=rf"key '{key}': plant\.max_substep = 1e-09 s would "
+                       r"take 1e\+07 sub-steps per communication step of 0\.01 s; at most "
+                       r"10000 are allowed \(max_substep >= 1e-06 s\)"):  # fmt: skip
+        master.preflight(scenario)
+    with pytest.raises(ScenarioError, match="sub-steps"):
+        master.run(scenario)  # the master itself refuses it too, before any FMU

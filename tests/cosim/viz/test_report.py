@@ -129,6 +129,34 @@ def test_incomplete_run_is_flagged_on_the_page(tmp_path):
     assert "did not complete" in page and "plant: NaN at t = 2 s" in page
 
 
+@pytest.mark.parametrize("value", ["inf", "-inf", "nan"])
+def test_a_partial_run_ending_on_a_non_finite_value_is_reported(tmp_path, value):
+    """Issue 14: `report` on a partial run with inf at t = 0 ended in a ValueError."""
+    run = tmp_path / "partial"
+    run.mkdir()
+    (run / "results.csv").write_text(
+        "time,plant.yaw,controller.yaw_setpoint,plant.mass_position,controller.mass_position_cmd\n"
+        f"0.0,0.1,0.0,{value},0.01\n"
+    )
+    (run / "summary.json").write_text(
+        json.dumps({"scenario": "partial", "status": "incomplete", "complete": False,
+                    "error": f"non-finite value at t = 0 s: plant.mass_position = {value}"})
+    )  # fmt: skip
+    page = write_report(run).read_text()
+    assert "did not complete" in page and "non-finite value at t = 0 s" in page
+    assert (run / "report" / "attitude_actuators.png").read_bytes().startswith(PNG_SIGNATURE)
+
+
+def test_a_run_still_being_written_is_reported(tmp_path):
+    """A killed (or running) run: summary.json says running, the last row is unfinished."""
+    summary = {"scenario": "killed", "status": "running", "complete": False}
+    run = _write_run(tmp_path / "killed", Variant.HORIZONTAL, {"u": 1.5}, {}, 2.0, summary)
+    with (run / "results.csv").open("a") as f:
+        f.write("2.05,1.5,0.0")  # torn: no newline
+    page = write_report(run).read_text()
+    assert "still running (or its process was killed)" in page
+
+
 def test_folder_without_results_is_a_clear_error(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     with pytest.raises(CosimError, match=r"no results\.csv in .*empty"):
