@@ -52,12 +52,19 @@ from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters,
 
 APPLICATION_ID = "auv-cosim"
 RRD_MAGIC = b"RRF"  # the first bytes of an .rrd file (RRF2 in rerun 0.41)
-# Each send costs ~25 send_columns calls of ~70 us whatever their length, so rows are
-# buffered: sent once BATCH_ROWS have gathered, or once SEND_INTERVAL has passed since the
-# last send (a live viewer then sees the run advance about once a second).
-BATCH_ROWS = 2000
+# Each send costs ~25 send_columns calls of ~70 us whatever their length, and each leaves
+# ~100 kB in memory until the file is closed (measured on vert-2: the chunk index of
+# rerun-sdk 0.41's file footer), so rows are buffered: sent once BATCH_ROWS have gathered,
+# or once the send interval has passed since the last send: SEND_INTERVAL at first with a
+# live viewer (it sees the run advance about once a second), FILE_SEND_INTERVAL for a file
+# alone, and SEND_INTERVAL_GROWTH of the time the sink has been open once that is longer,
+# so the sends of a long run grow with the logarithm of its duration, and the memory with
+# them, not in proportion (scripts/bench_memory.py).
+BATCH_ROWS = 5000
+FILE_SEND_INTERVAL = 5.0  # s of wall-clock time
+SEND_INTERVAL_GROWTH = 0.02
 FLUSH_TIMEOUT = 10.0  # s to wait for a viewer to take the last rows on close
-SEND_INTERVAL = 1.0  # s of wall-clock time
+SEND_INTERVAL = 1.0  # s of wall-clock time, the shortest send interval
 
 
 class RerunSink:
@@ -100,7 +107,8 @@ class RerunSink:
         self._pending_values: list[np.ndarray] = []
         self._pending_rows = 0
         self._closed = False
-        self._last_send = time.monotonic()
+        self._opened = self._last_send = time.monotonic()
+        self._send_interval = SEND_INTERVAL if connect_url is not None else FILE_SEND_INTERVAL
         self._rrd_path = None if rrd_path is None else Path(rrd_path)
         self._on_flushed = on_flushed
         self._file: RrdFile | None = None
@@ -164,8 +172,8 @@ class RerunSink:
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         """Queue k rows: ``times`` (k,) in s, ``values`` (k, len(columns)) in SI units.
 
-        Rows are sent once ``BATCH_ROWS`` have gathered or ``SEND_INTERVAL`` has passed since
-        the last send, and the rest on :meth:`close`.
+        Rows are sent once ``BATCH_ROWS`` have gathered or the send interval has passed
+        since the last send (see ``BATCH_ROWS``), and the rest on :meth:`close`.
         """
         if self._closed:
             raise ValueError("add_rows on a closed RerunSink")
@@ -182,7 +190,8 @@ class RerunSink:
         self._pending_values.append(values.copy())
         self._pending_rows += len(times)
         now = time.monotonic()
-        if self._pending_rows >= BATCH_ROWS or now - self._last_send >= SEND_INTERVAL:
+        interval = max(self._send_interval, SEND_INTERVAL_GROWTH * (now - self._opened))
+        if self._pending_rows >= BATCH_ROWS or now - self._last_send >= interval:
             self._send_pending()
             self._flush()
             self._last_send = now
