@@ -28,6 +28,7 @@ from cosim.paths import DEFAULT_FMU_DIR
 from cosim.run import master
 from cosim.run.runner import run_scenario
 from cosim.run.scenario import Scenario, load_scenario, scenario_from_toml
+from cosim.run.slave import unzipped
 
 TESTS_FMUS = Path(__file__).resolve().parent.parent / "tests" / "fmus"
 TRIVIAL_LOOP = """
@@ -49,7 +50,7 @@ def bare_fmpy_loop(scenario: Scenario) -> float:
         md = inst.model_description
         fmu = FMU2Slave(
             guid=md.guid,
-            unzipDirectory=str(master._unzipped(inst.fmu_path)),
+            unzipDirectory=str(unzipped(inst.fmu_path)),
             modelIdentifier=md.coSimulation.modelIdentifier,
             instanceName=name,
         )
@@ -98,7 +99,7 @@ def overhead_ratio(scenario: Scenario, repeat: int) -> tuple[float, float, float
     """(master s, bare s, ratio), best of ``repeat`` interleaved runs each."""
     ours, bare = [], []
     for _ in range(repeat):
-        result = master.run(scenario)
+        result = master.run(scenario, keep_rows=False)  # rows recorded, streamed to no sink
         if not result.complete:
             raise SystemExit(f"{scenario.id}: {result.error}")
         ours.append(result.wall_clock_s)

@@ -252,51 +252,38 @@ def _set_up(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) ->
 
 
 class _Rows:
-    """The rows of a run, a chunk at a time: filled by the loop, handed to the sinks when
-    the chunk is full or ``interval`` s of wall clock have passed since the last hand-off."""
+    """The rows of a run, a chunk at a time: the loop fills ``slots`` (one view per row of
+    the chunk buffer) and hands them to the sinks with :meth:`hand_off` when the chunk is
+    full or ``interval`` s of wall clock have passed since the last hand-off."""
 
     def __init__(
         self, scenario: Scenario, sinks: list[RowSink], rows_per_chunk: int, interval: float
     ) -> None:
         self.h = scenario.coupling.step
         self.buffer = np.empty((rows_per_chunk, len(scenario.record)))
-        self.first = 0  # row index of buffer[0]
-        self.filled = 0  # rows of the buffer filled
+        self.slots = list(self.buffer)  # made once: the loop indexes a list, not the array
+        self.count = 0  # rows handed off
         self.sinks = sinks
         self.interval = interval
-        self.last_hand_off = time.perf_counter()
         self.final = np.full(len(scenario.record), np.nan)
         self.error: str | None = None  # the first sink failure
 
-    @property
-    def count(self) -> int:
-        return self.first + self.filled
-
-    def commit(self) -> None:
-        """The row ``buffer[filled]`` was written: count it, hand off when due."""
-        self.filled += 1
-        if (
-            self.filled == len(self.buffer)
-            or time.perf_counter() - self.last_hand_off >= self.interval
-        ):
-            self.hand_off()
-
-    def hand_off(self) -> None:
-        """Give the buffered rows to every sink; a failing sink is dropped, its reason kept."""
-        if self.filled:
-            # t_n = n h, never accumulated (no drift), as the loop computes it
-            times = np.arange(self.first, self.first + self.filled) * self.h
-            values = self.buffer[: self.filled]
-            for sink in list(self.sinks):
-                try:
-                    sink.add_rows(times, values)
-                except (OSError, CosimError) as exc:
-                    self.sinks.remove(sink)
-                    self.error = self.error or str(exc)
-            self.final = values[-1].copy()
-            self.first += self.filled
-            self.filled = 0
-        self.last_hand_off = time.perf_counter()
+    def hand_off(self, filled: int) -> None:
+        """Give the first ``filled`` rows of the buffer to every sink; a failing sink is
+        dropped and its reason kept in ``error``."""
+        if not filled:
+            return
+        # t_n = n h, never accumulated (no drift), as the loop computes it
+        times = np.arange(self.count, self.count + filled) * self.h
+        values = self.buffer[:filled]
+        for sink in list(self.sinks):
+            try:
+                sink.add_rows(times, values)
+            except (OSError, CosimError) as exc:
+                self.sinks.remove(sink)
+                self.error = self.error or str(exc)
+        self.final = values[-1].copy()
+        self.count += filled
 
 
 def _loop(
@@ -317,16 +304,17 @@ def _loop(
     take = z.take  # z.take(indices, out=buffer): a gather without allocation
     probe = np.zeros(layout.n_read)  # x . 0 is NaN iff some x is NaN or infinite
     check_dot = exchanged.dot
-    buffer = rows.buffer
+    slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
     error: str | None = None
-    take(record, out=buffer[0])
-    rows.commit()  # row 0 is t = 0
+    take(record, out=slots[0])  # row 0 is t = 0
+    filled = 1
     slave, n = order[0], 0
-    started = time.perf_counter()
+    started = hand_off_at = clock()
+    hand_off_at += interval
     try:
         _check_finite(exchanged, layout, 0.0)
         for n in range(n_steps):
-            if stop.requested or rows.error is not None:
+            if stop.signum is not None:
                 break
             t = n * h  # t_n = n h, never accumulated (no drift)
             due = [s for s in order if n % s.k == 0] if multi_rate else order
@@ -344,16 +332,33 @@ def _loop(
             nan_if_bad = check_dot(probe)
             if nan_if_bad != nan_if_bad:
                 _check_finite(exchanged, layout, (n + 1) * h)
-            take(record, out=buffer[rows.filled])
-            rows.commit()
+            take(record, out=slots[filled])
+            filled += 1
+            if filled == chunk or clock() >= hand_off_at:
+                rows.hand_off(filled)
+                filled, hand_off_at = 0, clock() + interval
+                if rows.error is not None:
+                    break
     except FMICallException as exc:
         slave.failed(exc.status)
         error = describe(slave, exc.function, exc.status, n * h)
     except CosimError as exc:
         error = str(exc)
-    rows.hand_off()
-    wall = time.perf_counter() - started
-    t_end = (rows.count - 1) * h
+    rows.hand_off(filled)
+    return _result(scenario, order, rows, error, stop, clock() - started)
+
+
+def _result(
+    scenario: Scenario,
+    order: list[Slave],
+    rows: _Rows,
+    error: str | None,
+    stop: StopRequest,
+    wall: float,
+) -> RunResult:
+    """How the loop ended, as a :class:`RunResult` (the sinks' failure or the stop signal
+    named as the reason when nothing else failed)."""
+    n_steps, t_end = scenario.n_steps, (rows.count - 1) * scenario.coupling.step
     if error is None and rows.error is not None:
         error = f"{rows.error} (at t = {t_end:.6g} s)"
     stopped = stop.requested and error is None and rows.count < n_steps + 1
