@@ -41,7 +41,7 @@ from cosim.analysis.bifurcation import (
 )
 from cosim.analysis.plots import plot_phase_portrait, plot_sweep
 from cosim.analysis.reference_values import Reference, load_reference_values
-from cosim.run.results import settling_time
+from cosim.run.figures import settling_time
 from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle

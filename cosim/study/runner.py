@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cosim.paths import DEFAULT_FMU_DIR
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import execute, make_job, open_client
@@ -28,7 +29,6 @@ from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_te
 
 STUDIES_DIR = Path("studies")
 FIGURES_FOLDER = "figures"
-DEFAULT_FMU_DIR = Path("build/fmus")
 
 
 @dataclass(frozen=True)

@@ -6,12 +6,14 @@ study's stop time through ``Scenario.with_overrides``), keeps it as resolved TOM
 calls :func:`run_one` per run: the FMU references point at the worker's own copies, the
 run's factor values are written into the TOML data, and the text is resolved again
 (``scenario_from_toml``, so every value passes the scenario's own checks) and run
-(``run_scenario(..., no_rrd=True)``); the metrics are the numeric values of ``summary``.
+(``run_scenario(..., no_rrd=True)``); the metrics are the numeric values of the run's
+``summary.json``.
 """
 
 from __future__ import annotations
 
 import copy
+import json
 import tempfile
 import time
 import tomllib
@@ -20,12 +22,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import tomli_w
 
 from cosim.errors import CosimError
-from cosim.run.master import RunResult
-from cosim.run.results import summary
+from cosim.run.figures import KeyFigures
 from cosim.run.runner import run_scenario
 from cosim.run.scenario import Scenario, load_scenario, scenario_from_toml
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
@@ -78,7 +78,7 @@ def prepare(
         data=tomllib.loads(scenario.to_toml()),
         fmu_paths={name: inst.fmu_path for name, inst in scenario.instances.items()},
     )
-    return base, ScenarioFacts(instances, tuple(_metrics(summary(_empty_result(scenario)))))
+    return base, ScenarioFacts(instances, _metric_names(scenario))
 
 
 def check_values(
@@ -116,9 +116,9 @@ def run_one(
             error = None if result.complete else result.error or "the run stopped early"
             if keep == "all" or (keep == "failed" and error is not None):
                 files = {outcome.paths[k].name: outcome.paths[k].read_bytes() for k in KEEP_FILES}
+            if error is None:
+                metrics = _metrics(json.loads(outcome.paths["summary"].read_text("utf-8")))
         loop_s = result.wall_clock_s
-        if error is None:
-            metrics = _metrics(summary(result))
     except CosimError as exc:
         error = str(exc)
     except Exception as exc:  # any other failure is this run's, not the study's
@@ -161,7 +161,7 @@ def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
     return metrics
 
 
-def _empty_result(scenario: Scenario) -> RunResult:
-    """A one-row result of zeros: its summary names every metric a run reports."""
-    zeros = np.zeros((1, len(scenario.record)))
-    return RunResult(scenario, scenario.record, np.zeros(1), zeros, True, None, 0.0)
+def _metric_names(scenario: Scenario) -> tuple[str, ...]:
+    """The names :func:`_metrics` gives a run of ``scenario``, in the same order."""
+    figures = KeyFigures(scenario.record).figures()
+    return (*figures, "time_reached", *(f"final.{c}" for c in scenario.record))

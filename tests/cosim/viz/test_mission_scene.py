@@ -11,6 +11,7 @@ import pyarrow as pa
 import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
+from scenario_factory import auv_scenario
 
 from controller_fmu.los_guidance import DEFAULT_WAYPOINTS, parse_waypoints
 from cosim.run.scenario import load_scenario
@@ -110,13 +111,14 @@ def test_a_run_without_a_mission_draws_none(tmp_path: Path) -> None:
     assert not [e for e in entities(path) if e.startswith("/world/mission")]
 
 
-def test_the_sink_draws_the_target_of_a_recorded_guidance(tmp_path: Path) -> None:
+def test_the_sink_draws_the_target_of_a_recorded_guidance(fmu_paths, tmp_path: Path) -> None:
     """What a run's recording shows today (the sink passes no waypoints yet: the static
     path needs ``waypoints=mission_waypoints(scenario_toml)`` from the sink)."""
     columns = ["plant.north", "plant.east", "plant.down", *TARGET]
     times = np.arange(3) * 0.01
     values = np.array([[0.0, 0.0, 2.0, 50.0, 0.0, 2.0]] * 3)
-    with RerunSink(tmp_path / "run.rrd", None, "survey", 'id = "survey"\n', columns) as sink:
+    scenario = auv_scenario(fmu_paths["AuvPlant"].parent, "survey", columns, controller=None)
+    with RerunSink(scenario, tmp_path / "run.rrd") as sink:
         sink.add_rows(times, values)
     target = components(tmp_path / "run.rrd", "/world/mission/target")
     positions = [row for row in target["Points3D:positions"] if row]
