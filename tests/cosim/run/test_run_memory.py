@@ -11,7 +11,6 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
-import pytest
 from repo_paths import ROOT
 
 SHORT, LONG = 20.0, 200.0  # s of vert-2
@@ -32,6 +31,3 @@ def test_peak_memory_does_not_grow_with_the_stop_time(fmu_paths, tmp_path: Path)
     long = peak("vert-2", LONG, tmp_path / "long", fmu_dir, "--no-rrd")
     assert long - short < BOUND_MB, f"{short:.1f} MB at {SHORT:g} s, {long:.1f} MB at {LONG:g} s"
     assert short > 50.0  # measured what it should: a whole run with its FMUs
-
-
-pytestmark = pytest.mark.slow

@@ -81,17 +81,18 @@ def test_values_the_scenario_refuses_are_errors_before_any_run(
         check_values(base, found, {"plant.v_0": math.nan})
     with pytest.raises(StudyError, match=r"0\.5 is not an integer \(variant is Integer\)"):
         check_values(base, found, {"plant.variant": 0.5})
-    check_values(base, found, {"plant.variant": 7})  # a legal Integer: the FMU decides
+    with pytest.raises(StudyError, match=r"7 is outside \[0, 2\], the range variant takes"):
+        check_values(base, found, {"plant.variant": 7})  # the FMU's declared range (issue 14)
 
 
 def test_a_run_the_fmu_refuses_is_a_failed_record(bs3: tuple[Base, ScenarioFacts]) -> None:
     base, facts = bs3
-    found = {"plant.variant": resolve_factor("plant.variant", facts)}
-    record = run_one(base, base.fmu_paths, found, {"plant.variant": 7}, keep="failed")
+    found = {"plant.max_substep": resolve_factor("plant.max_substep", facts)}
+    record = run_one(base, base.fmu_paths, found, {"plant.max_substep": -1.0}, keep="failed")
     assert record.status == "failed" and record.metrics == {}
-    assert "variant = 7 refused: expected 0 <= variant <= 2" in record.error
+    assert "max_substep = -1.0 refused: expected 0.0 <= max_substep" in record.error
     assert "\n" not in record.error
-    good = run_one(base, base.fmu_paths, found, {"plant.variant": 1}, keep="all")
+    good = run_one(base, base.fmu_paths, found, {"plant.max_substep": 0.01}, keep="all")
     assert good.status == "complete" and good.error is None
     assert good.metrics["time_reached"] == 1.0 and set(good.metrics) == set(facts.metrics)
     assert set(good.files) == {"results.csv", "summary.json"}

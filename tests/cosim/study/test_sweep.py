@@ -66,17 +66,19 @@ def test_a_refused_start_value_is_a_failed_row_the_others_complete(
 ) -> None:
     study = tmp_path / "variants.toml"
     text = 'scenario = "bs-3"\nstop_time = 1.0\nkeep = "failed"\n[grid]\n'
-    study.write_text(text + '"plant.variant" = [0, 7, 1]\n', encoding="utf-8")
+    # the plant refuses max_substep = -1 (the scenario takes any finite number)
+    grid = '"plant.max_substep" = [0.01, -1.0, 0.005]\n'
+    study.write_text(text + grid, encoding="utf-8")
     out = tmp_path / "out"
     sweep(study, out, fmu_dir, "--workers", "2")
-    rows = {int(r["plant.variant"]): r for r in table(out)}
-    assert [rows[v]["status"] for v in (0, 1, 7)] == ["complete", "complete", "failed"]
-    assert "variant = 7 refused: expected 0 <= variant <= 2" in rows[7]["error"]
-    assert rows[7]["time_reached"] == "" and rows[1]["time_reached"] == "1.0"
+    rows = {float(r["plant.max_substep"]): r for r in table(out)}
+    assert [rows[v]["status"] for v in (0.01, 0.005, -1.0)] == ["complete", "complete", "failed"]
+    assert "max_substep = -1.0 refused: expected 0.0 <= max_substep" in rows[-1.0]["error"]
+    assert rows[-1.0]["time_reached"] == "" and rows[0.005]["time_reached"] == "1.0"
     kept = sorted(p.name for p in (out / "runs").iterdir())
-    assert kept == [rows[7]["run"]]  # keep = "failed": only the failed run's folder
-    folder = out / "runs" / rows[7]["run"]
-    assert rows[7]["error"] in (folder / "error.txt").read_text(encoding="utf-8")
+    assert kept == [rows[-1.0]["run"]]  # keep = "failed": only the failed run's folder
+    folder = out / "runs" / rows[-1.0]["run"]
+    assert rows[-1.0]["error"] in (folder / "error.txt").read_text(encoding="utf-8")
     # the kept scenario reproduces the failure with `auv-cosim run`
     argv = ["run", str(folder / "scenario.toml"), "--no-rrd", "--out", str(tmp_path / "again")]
     assert main([*argv, "--fmu-dir", str(fmu_dir), "--quiet"]) == 1
@@ -84,7 +86,7 @@ def test_a_refused_start_value_is_a_failed_row_the_others_complete(
 
     # the folder now holds this study: a new one is refused, so is resuming another study
     assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
-    study.write_text(text.replace("1.0", "2.0") + '"plant.variant" = [0, 7, 1]\n')
+    study.write_text(text.replace("1.0", "2.0") + grid)
     argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--resume"]
     assert main(argv) == 1
 
