@@ -25,6 +25,7 @@ import numpy as np
 
 from controller_fmu.autopilot import COMMAND_NAMES, Autopilot
 from controller_fmu.los_guidance import LosGuidance
+from plant_fmu.model.compiled import CompiledPlant
 from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel
 from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance
 
@@ -84,6 +85,7 @@ def simulate_closed_loop(
     depth_setpoint: float = 0.0,
     max_substep: float = DEFAULT_MAX_SUBSTEP,
     guidance: LosGuidance | None = None,
+    compiled: CompiledPlant | None = None,
 ) -> ClosedLoopRun:
     """Run plant + autopilot from x0 for stop_time seconds in steps of ``step``.
 
@@ -97,6 +99,8 @@ def simulate_closed_loop(
         max_substep: the plant's longest RK4 sub-step, s.
         guidance: if given (it is not reset), its set-points replace ``yaw_setpoint`` and
             ``depth_setpoint``; it measures the plant's position and the current.
+        compiled: step the plant with this compiled path of ``model``
+            (:class:`plant_fmu.model.compiled.CompiledPlant`) instead of the reference.
     """
     n = round(stop_time / step)
     if n < 1 or not math.isclose(n * step, stop_time, rel_tol=1e-9):
@@ -122,7 +126,7 @@ def simulate_closed_loop(
         held = autopilot.step(k * step, meas).values()
         commands[k] = held
         inputs[_COMMAND_INPUTS] = held
-        x = advance(model, x, inputs, step, max_substep)
+        x = advance(model, x, inputs, step, max_substep, compiled)
         states[k + 1] = x
     commands[n] = commands[n - 1]
     return ClosedLoopRun(np.arange(n + 1) * step, states, commands)

@@ -1,0 +1,396 @@
+"""The plant's compiled fast path: the derivative, the projection and the RK4 step of
+:mod:`plant_fmu.model.dynamics` and :mod:`plant_fmu.model.stepping`, flat and
+allocation-free, compiled with numba (``njit(cache=True)``, no fastmath).
+
+Why by hand: no library compiles a pydantic/numpy model like ours; the reference
+(:class:`~plant_fmu.model.dynamics.PlantModel`) stays the readable source of truth, and
+this module writes the same equations term by term in the same order of operations, on a
+flat float64 parameter array built once from the model (:func:`flat_parameters`, which
+takes every coefficient and matrix from the model itself: nothing is re-typed). The test
+``tests/plant_fmu/model/test_compiled.py`` holds the two to 1e-12 over whole scenarios
+(the two differ only in the rounding of the matrix products, which numpy hands to BLAS).
+
+Covered: the three variants, ideal fluid, current shear, and the dissertation's moving
+mass (``moving_mass_model = 0``). Not covered: the two-body moving mass (model 1), whose
+mass matrix depends on y_v; :func:`supports` says so and the plant FMU then steps the
+reference. Equation numbers: B. Li, FAU 2016; units SI.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from plant_fmu.model.dynamics import PlantModel
+from plant_fmu.model.jit import load_numba
+
+numba, NO_JIT_REASON = load_numba()
+AVAILABLE = numba is not None
+
+
+def _jit(func):
+    """numba.njit(cache=True) when numba is usable, else the Python function unchanged."""
+    return numba.njit(cache=True)(func) if AVAILABLE else func
+
+
+# Layout of the flat parameter array (indices are compile-time constants in numba).
+_SCALARS = (
+    "m", "W", "B", "g", "I_xx", "I_yy", "I_zz", "x_g", "z_g",
+    "a11", "a22", "a33", "a44", "a55", "a66", "a26", "a35",
+    "X_uu", "Y_vv", "Y_rr", "Y_uv", "Y_ur", "N_vv", "N_rr", "N_uv", "N_ur", "K_p", "K_pp",
+    "Z_ww", "Z_qq", "Z_uw", "Z_uq", "M_ww", "M_qq", "M_uw", "M_uq",
+    "Z_ds", "M_ds", "fin_reference_speed", "m_v", "x_v", "mass_stroke", "mass_speed_limit",
+    "z_t", "k_v", "d_v", "m_bar",
+)  # fmt: skip
+(M, W, B, G, IXX, IYY, IZZ, XG, ZG, A11, A22, A33, A44, A55, A66, A26, A35,
+ XUU, YVV, YRR, YUV, YUR, NVV, NRR, NUV, NUR, KP, KPP,
+ ZWW, ZQQ, ZUW, ZUQ, MWW, MQQ, MUW, MUQ,
+ ZDS, MDS, FINREF, MV, XV, STROKE, SPEEDLIM, ZT, KV, DV, MBAR) = range(len(_SCALARS))  # fmt: skip
+VARIANT = len(_SCALARS)
+IDEAL = VARIANT + 1
+SHEAR = VARIANT + 2
+INV = VARIANT + 3  # (M_RB + M_A)^-1 on the free DOFs, 36 values row by row
+RIGID = INV + 36  # M_RB, 36 values row by row
+N_PARAMETERS = RIGID + 36
+
+
+def supports(model: PlantModel) -> str:
+    """"" when the compiled path covers ``model``, else why not."""
+    if not AVAILABLE:
+        return NO_JIT_REASON
+    if model.two_body:
+        return "moving_mass_model = 1 (two bodies) has no compiled path"
+    return ""
+
+
+def flat_parameters(model: PlantModel) -> np.ndarray:
+    """The flat float64 parameter array of ``model`` (built once per model)."""
+    params = model.params
+    p = np.empty(N_PARAMETERS)
+    p[:VARIANT] = [float(getattr(params, name)) for name in _SCALARS]
+    p[VARIANT] = int(model.variant)
+    p[IDEAL] = 1.0 if model.ideal_fluid else 0.0
+    p[SHEAR] = model.current_shear
+    p[INV:RIGID] = model._inverse_mass.ravel()
+    p[RIGID:] = model._rigid_mass.ravel()
+    return p
+
+
+@_jit
+def _cross(a0, a1, a2, b0, b1, b2):
+    """a x b on scalars (the reference's ``kinematics.cross``, same rounding)."""
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@_jit
+def _mat_vec(p, start, v, out):
+    """out = A v with A the 6x6 block of p at ``start`` (row by row, left to right)."""
+    for i in range(6):
+        acc = 0.0
+        for j in range(6):
+            acc += p[start + 6 * i + j] * v[j]
+        out[i] = acc
+
+
+@_jit
+def _coriolis(p, nu, nu_r, f):
+    """f -= C_RB(nu) nu (2.3.13) + C_A(nu_r) nu_r (A.62), as the reference writes them."""
+    m, xg, zg = p[M], p[XG], p[ZG]
+    v0, v1, v2, w0, w1, w2 = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
+    a0, a1, a2 = _cross(w0, w1, w2, v0, v1, v2)
+    c0, c1, c2 = _cross(w0, w1, w2, xg, 0.0, zg)
+    b0, b1, b2 = _cross(w0, w1, w2, c0, c1, c2)
+    d0, d1, d2 = _cross(xg, 0.0, zg, a0, a1, a2)
+    e0, e1, e2 = _cross(w0, w1, w2, p[IXX] * w0, p[IYY] * w1, p[IZZ] * w2)
+    crb = (m * (a0 + b0), m * (a1 + b1), m * (a2 + b2), m * d0 + e0, m * d1 + e1, m * d2 + e2)
+    u, v, w, pr, q, r = nu_r[0], nu_r[1], nu_r[2], nu_r[3], nu_r[4], nu_r[5]
+    l0, l1, l2 = p[A11] * u, p[A22] * v + p[A26] * r, p[A33] * w + p[A35] * q
+    g0, g1, g2 = p[A44] * pr, p[A55] * q + p[A35] * w, p[A66] * r + p[A26] * v
+    h0, h1, h2 = _cross(l0, l1, l2, pr, q, r)
+    i0, i1, i2 = _cross(l0, l1, l2, u, v, w)
+    j0, j1, j2 = _cross(g0, g1, g2, pr, q, r)
+    ca = (-h0, -h1, -h2, -i0 - j0, -i1 - j1, -i2 - j2)
+    for k in range(6):
+        f[k] = f[k] - crb[k] - ca[k]
+
+
+@_jit
+def _viscous(p, nu_r, f):
+    """f += the viscous cross-flow and lift forces (4.2.6)-(4.2.9)."""
+    u, v, w, pr, q, r = nu_r[0], nu_r[1], nu_r[2], nu_r[3], nu_r[4], nu_r[5]
+    f[0] += p[XUU] * u * abs(u)
+    f[1] += p[YVV] * v * abs(v) + p[YRR] * r * abs(r) + p[YUV] * u * v + p[YUR] * u * r
+    f[2] += p[ZWW] * w * abs(w) + p[ZQQ] * q * abs(q) + p[ZUW] * u * w + p[ZUQ] * u * q
+    f[3] += p[KP] * pr + p[KPP] * pr * abs(pr)
+    f[4] += p[MWW] * w * abs(w) + p[MQQ] * q * abs(q) + p[MUW] * u * w + p[MUQ] * u * q
+    f[5] += p[NVV] * v * abs(v) + p[NRR] * r * abs(r) + p[NUV] * u * v + p[NUR] * u * r
+
+
+@_jit
+def _base_force(p, x, inputs, u_r, f):
+    """f = actuators (6.3.79, Table 6.1) + moving-mass reaction and offset weight
+    (6.3.11-6.3.13) + restoring (3.5.3); returns (y', y'') of the mass (6.3.12)."""
+    y_v, y_vel, phi, theta = x[12], x[13], x[3], x[4]
+    accel = (p[KV] * (inputs[4] - y_v) - p[DV] * y_vel) / p[MV]
+    stroke, limit = p[STROKE], p[SPEEDLIM]
+    if (y_v >= stroke and y_vel >= 0.0 and accel >= 0.0) or (
+        y_v <= -stroke and y_vel <= 0.0 and accel <= 0.0
+    ):
+        y_vel, accel = 0.0, 0.0
+    elif limit > 0.0 and abs(y_vel) >= limit and accel * y_vel > 0:
+        accel = 0.0
+    f_mm = -p[MV] * accel
+    weight = p[MV] * p[G] * y_v
+    roll = -p[ZG] * f_mm + weight * math.cos(theta) * math.cos(phi)
+    yaw = p[XV] * f_mm + weight * math.sin(theta)
+    ct = math.cos(theta)
+    g0, g1, g2 = -math.sin(theta), ct * math.sin(phi), ct * math.cos(phi)
+    m0, m1, m2 = _cross(p[XG], 0.0, p[ZG], g0, g1, g2)
+    wb = p[W] - p[B]
+    thrust, f_t, delta_s = inputs[0], inputs[2], inputs[3]
+    scale = (u_r / p[FINREF]) ** 2 * delta_s
+    f[0] = thrust + 0.0 + wb * g0
+    f[1] = f_t + f_mm + wb * g1
+    f[2] = p[ZDS] * scale + 0.0 + wb * g2
+    f[3] = inputs[1] - f_t * p[ZT] + roll + p[W] * m0
+    f[4] = p[MDS] * scale + 0.0 + p[W] * m1
+    f[5] = 0.0 + yaw + p[W] * m2
+    return y_vel, accel
+
+
+@_jit
+def _rotation(phi, theta, psi, R):
+    """R = Rz(psi) Ry(theta) Rx(phi) (2.2.8) into the 3x3 array R."""
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, st = math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    R[0, 0], R[0, 1], R[0, 2] = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
+    R[1, 0], R[1, 1], R[1, 2] = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
+    R[2, 0], R[2, 1], R[2, 2] = -st, ct * sf, ct * cf
+
+
+@_jit
+def _added_mass_times(p, n0, n1, n2, n3, n4, n5):
+    """M_A n (the reference's ``added_mass_matrix_times``)."""
+    return (
+        p[A11] * n0,
+        p[A22] * n1 + p[A26] * n5,
+        p[A33] * n2 + p[A35] * n4,
+        p[A44] * n3,
+        p[A55] * n4 + p[A35] * n2,
+        p[A66] * n5 + p[A26] * n1,
+    )
+
+
+@_jit
+def _phi_row(a, R, v0, v1, v2):
+    """Row i of Phi = R^T (dV/d eta1) R times v, with a = R[0, i] * shear (the only
+    non-zero gradient is d(current_north)/d(east)): Phi[i, j] = a R[1, j]."""
+    return (a * R[1, 0]) * v0 + (a * R[1, 1]) * v1 + (a * R[1, 2]) * v2
+
+
+@_jit
+def _full_form(p, x, inputs, R, work, dx):
+    """nu_dot and eta1_dot of the full form (3.6.2, 4.3.1) into dx, with the current's
+    forces (3.4.12-3.4.20: ``currents.full_form_current_force``)."""
+    nu, nu_r, f, cur = work[0], work[1], work[2], work[3]
+    for i in range(6):
+        nu[i] = x[6 + i]
+        nu_r[i] = x[6 + i]
+    v0, v1, v2 = inputs[5] + p[SHEAR] * x[1], inputs[6], inputs[7]
+    cb0 = R[0, 0] * v0 + R[1, 0] * v1 + R[2, 0] * v2
+    cb1 = R[0, 1] * v0 + R[1, 1] * v1 + R[2, 1] * v2
+    cb2 = R[0, 2] * v0 + R[1, 2] * v1 + R[2, 2] * v2
+    nu_r[0], nu_r[1], nu_r[2] = nu[0] - cb0, nu[1] - cb1, nu[2] - cb2
+    y_vel, accel = _base_force(p, x, inputs, nu_r[0], f)
+    _coriolis(p, nu, nu_r, f)
+    a0, a1, a2 = _cross(nu[3], nu[4], nu[5], cb0, cb1, cb2)
+    d0, d1, d2 = -a0, -a1, -a2
+    for i in range(6):
+        cur[i] = 0.0
+    shear = p[SHEAR]
+    if shear != 0.0:
+        a0, a1, a2 = R[0, 0] * shear, R[0, 1] * shear, R[0, 2] * shear  # rows of Phi
+        pu0 = _phi_row(a0, R, nu[0], nu[1], nu[2])
+        pu1 = _phi_row(a1, R, nu[0], nu[1], nu[2])
+        pu2 = _phi_row(a2, R, nu[0], nu[1], nu[2])
+        d0, d1, d2 = d0 + pu0, d1 + pu1, d2 + pu2
+        mb = p[MBAR]
+        im = _added_mass_times(p, nu_r[0], nu_r[1], nu_r[2], nu_r[3], nu_r[4], nu_r[5])
+        s0, s1, s2 = im[0] + mb * nu_r[0], im[1] + mb * nu_r[1], im[2] + mb * nu_r[2]
+        cur[0] = mb * pu0 - _phi_row(a0, R, s0, s1, s2)
+        cur[1] = mb * pu1 - _phi_row(a1, R, s0, s1, s2)
+        cur[2] = mb * pu2 - _phi_row(a2, R, s0, s1, s2)
+    md = _added_mass_times(p, d0, d1, d2, 0.0, 0.0, 0.0)
+    for i in range(6):
+        f[i] = f[i] + (cur[i] + md[i])
+    if p[IDEAL] == 0.0:
+        _viscous(p, nu_r, f)
+    _mat_vec(p, INV, f, work[4])
+    for i in range(6):
+        dx[6 + i] = work[4][i]
+    for i in range(3):
+        dx[i] = R[i, 0] * nu[0] + R[i, 1] * nu[1] + R[i, 2] * nu[2]
+    return y_vel, accel
+
+
+@_jit
+def _relative_form(p, x, inputs, R, work, dx):
+    """nu_dot and eta1_dot of the lateral and horizontal variants (the relative form with
+    the yaw-turned current, 5.2.10; the sheared current's terms, 5.3.1) into dx."""
+    nu_r, f = work[1], work[2]
+    v0, v1, v2 = inputs[5] + p[SHEAR] * x[1], inputs[6], inputs[7]
+    cp, sp = math.cos(x[5]), math.sin(x[5])
+    c0, c1 = cp * v0 + sp * v1, -sp * v0 + cp * v1
+    for i in range(6):
+        nu_r[i] = x[6 + i]
+    nu_r[0] -= c0
+    nu_r[1] -= c1
+    for i in range(3):
+        dx[i] = (R[i, 0] * nu_r[0] + R[i, 1] * nu_r[1] + R[i, 2] * nu_r[2]) + (v0, v1, v2)[i]
+    y_vel, accel = _base_force(p, x, inputs, nu_r[0], f)
+    _coriolis(p, nu_r, nu_r, f)
+    if p[IDEAL] == 0.0:
+        _viscous(p, nu_r, f)
+    shear, wa0, wa1 = p[SHEAR], 0.0, 0.0
+    if shear != 0.0:
+        k = shear * dx[1]
+        wa0, wa1 = cp * k, -sp * k
+        im = _added_mass_times(p, nu_r[0], nu_r[1], nu_r[2], nu_r[3], nu_r[4], nu_r[5])
+        mb = p[MBAR]
+        s = shear * (sp * (im[0] + mb * nu_r[0]) + cp * (im[1] + mb * nu_r[1]))
+        pf0, pf1 = cp * s, -sp * s
+        for i in range(6):
+            r = RIGID + 6 * i
+            sf = -p[r] * wa0 + -p[r + 1] * wa1 + -p[r + 2] * 0.0
+            if i == 0:
+                sf += mb * wa0 - pf0
+            elif i == 1:
+                sf += mb * wa1 - pf1
+            elif i == 2:
+                sf += mb * 0.0 - 0.0 * s
+            f[i] += sf
+    _mat_vec(p, INV, f, work[4])
+    for i in range(6):
+        dx[6 + i] = work[4][i]
+    dx[6] += dx[5] * c1 + wa0
+    dx[7] += -dx[5] * c0 + wa1
+    return y_vel, accel
+
+
+@_jit
+def derivative_into(p, x, inputs, R, work, dx):
+    """x_dot = f(x, inputs) into dx (``PlantModel.derivative``); R (3x3) and work (5x6)
+    are scratch arrays."""
+    phi, theta = x[3], x[4]
+    _rotation(phi, theta, x[5], R)
+    cf, sf, ct, tt = math.cos(phi), math.sin(phi), math.cos(theta), math.tan(theta)
+    pr, q, r = x[9], x[10], x[11]
+    dx[3] = 1.0 * pr + sf * tt * q + cf * tt * r
+    dx[4] = 0.0 * pr + cf * q + -sf * r
+    dx[5] = 0.0 * pr + sf / ct * q + cf / ct * r
+    variant = p[VARIANT]
+    if variant == 0.0:
+        y_vel, accel = _full_form(p, x, inputs, R, work, dx)
+    else:
+        y_vel, accel = _relative_form(p, x, inputs, R, work, dx)
+    dx[12], dx[13] = y_vel, accel
+    if variant != 0.0:
+        dx[2], dx[4] = 0.0, 0.0
+        if variant == 2.0:
+            dx[3] = 0.0
+
+
+@_jit
+def project(p, x, collide):
+    """``PlantModel.project`` in place: frozen DOFs at 0, the mass within its stops (an
+    arrival at a stop with ``collide`` hands its momentum m_v y' J to the hull) and under
+    the speed limit. Model 0 only (J = [0, 1, 0, -z_g, 0, x_v])."""
+    variant = p[VARIANT]
+    if variant != 0.0:
+        x[8], x[10], x[2], x[4] = 0.0, 0.0, 0.0, 0.0
+        if variant == 2.0:
+            x[9], x[3] = 0.0, 0.0
+    stroke = p[STROKE]
+    if abs(x[12]) >= stroke:
+        x[12] = math.copysign(stroke, x[12])
+        if x[13] * x[12] > 0.0:
+            if collide:
+                k = p[MV] * x[13]
+                j0, j1, j2, j3, j4, j5 = k * 0.0, k * 1.0, k * 0.0, k * -p[ZG], k * 0.0, k * p[XV]
+                for i in range(6):
+                    r = INV + 6 * i
+                    x[6 + i] = x[6 + i] + (
+                        p[r] * j0
+                        + p[r + 1] * j1
+                        + p[r + 2] * j2
+                        + p[r + 3] * j3
+                        + p[r + 4] * j4
+                        + p[r + 5] * j5
+                    )
+            x[13] = 0.0
+    limit = p[SPEEDLIM]
+    if limit > 0.0:
+        x[13] = min(max(x[13], -limit), limit)
+
+
+@_jit
+def advance_into(p, x, inputs, n, dt):
+    """n RK4 steps of dt seconds from x, in place, projected after each stage like
+    ``stepping.advance``. Returns 0, or 1 for a non-finite input, 2 for a non-finite
+    state (x untouched), 3 for a state that became non-finite."""
+    for i in range(inputs.size):
+        if not math.isfinite(inputs[i]):
+            return 1
+    for i in range(14):
+        if not math.isfinite(x[i]):
+            return 2
+    R, work = np.empty((3, 3)), np.empty((5, 6))
+    k1, k2, k3, k4, y = np.empty(14), np.empty(14), np.empty(14), np.empty(14), np.empty(14)
+    half, sixth = 0.5 * dt, dt / 6.0
+    project(p, x, False)
+    for _ in range(n):
+        derivative_into(p, x, inputs, R, work, k1)
+        for i in range(14):
+            y[i] = x[i] + half * k1[i]
+        project(p, y, False)
+        derivative_into(p, y, inputs, R, work, k2)
+        for i in range(14):
+            y[i] = x[i] + half * k2[i]
+        project(p, y, False)
+        derivative_into(p, y, inputs, R, work, k3)
+        for i in range(14):
+            y[i] = x[i] + dt * k3[i]
+        project(p, y, False)
+        derivative_into(p, y, inputs, R, work, k4)
+        for i in range(14):
+            x[i] = x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        project(p, x, True)
+    for i in range(14):
+        if not math.isfinite(x[i]):
+            return 3
+    return 0
+
+
+class CompiledPlant:
+    """The compiled derivative and step of one :class:`PlantModel` (see :func:`supports`)."""
+
+    def __init__(self, model: PlantModel) -> None:
+        reason = supports(model)
+        if reason:
+            raise ValueError(f"no compiled path for this plant: {reason}")
+        self.model = model
+        self.parameters = flat_parameters(model)
+        self._R, self._work = np.empty((3, 3)), np.empty((5, 6))
+
+    def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """``PlantModel.derivative`` (a new array)."""
+        dx = np.empty(14)
+        derivative_into(self.parameters, x, inputs, self._R, self._work, dx)
+        return dx
+
+    def advance(self, x: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
+        """n RK4 steps of dt s on the float64 array x in place; :func:`advance_into`'s code."""
+        return advance_into(self.parameters, x, inputs, n, dt)
+
