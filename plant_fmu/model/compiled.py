@@ -56,7 +56,7 @@ N_PARAMETERS = RIGID + 36
 
 
 def supports(model: PlantModel) -> str:
-    """"" when the compiled path covers ``model``, else why not."""
+    """ "" when the compiled path covers ``model``, else why not."""
     if not AVAILABLE:
         return NO_JIT_REASON
     if model.two_body:
@@ -393,4 +393,3 @@ class CompiledPlant:
     def advance(self, x: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
         """n RK4 steps of dt s on the float64 array x in place; :func:`advance_into`'s code."""
         return advance_into(self.parameters, x, inputs, n, dt)
-

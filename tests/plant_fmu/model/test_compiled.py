@@ -32,9 +32,8 @@ SCENARIOS = {
         Variant.LATERAL,
         {"u": 1.5},
         {"current_east": 0.2},
-        {"heading_mode": 3, "depth_mode": 0, "k0": 0.3, "k1": 0.8,
-         "compensate_current": False},
-    ),  # fmt: skip
+        {"heading_mode": 3, "depth_mode": 0, "k0": 0.3, "k1": 0.8, "compensate_current": False},
+    ),
 }
 SETPOINTS = {"bs-3": (0.0, 0.0), "vert-2": (0.0, 1.0), "cur-2": (-0.13177042745465108, 0.0)}
 
@@ -53,9 +52,16 @@ def test_closed_loop_runs_agree_with_the_reference(scenario):
     model = PlantModel(load_vehicle("remus100"), variant=variant)
     runs = [
         simulate_closed_loop(
-            Autopilot(AutopilotConfig.build(**gains)), model, _state(x0), 60.0, 0.01,
-            current=current, yaw_setpoint=yaw, depth_setpoint=depth, compiled=fast,
-        )  # fmt: skip
+            Autopilot(AutopilotConfig.build(**gains)),
+            model,
+            _state(x0),
+            60.0,
+            0.01,
+            current=current,
+            yaw_setpoint=yaw,
+            depth_setpoint=depth,
+            compiled=fast,
+        )
         for fast in (None, compiled.CompiledPlant(model))
     ]
     assert np.abs(runs[0].states).max() > 0.1  # the vehicle moved
@@ -106,9 +112,9 @@ def test_non_finite_input_and_state_are_named():
     model = PlantModel(load_vehicle("remus100"))
     fast = compiled.CompiledPlant(model)
     inputs = np.array([9.0, 0, 0, 0, 0, 0, 0, np.nan])
-    with pytest.raises(ValueError, match="current_down = nan"):
+    with pytest.raises(ValueError, match=r"input current_down = .*nan"):
         advance(model, np.zeros(N_STATES), inputs, 0.01, compiled=fast)
     x = np.zeros(N_STATES)
     x[STATE_INDEX["q"]] = np.inf
-    with pytest.raises(ValueError, match="state q = inf"):
+    with pytest.raises(ValueError, match=r"state q = .*inf"):
         advance(model, x, np.zeros(8), 0.01, compiled=fast)
