@@ -9,7 +9,9 @@ Prints, as medians over many repetitions (microseconds):
   (d) the same three calls on the AuvPlant class in Python (no C wrapper, no ctypes),
       which splits (c) - (a) into our slave's overhead and pythonfmu's + fmpy's;
   (e) one derivative evaluation with the two-body moving mass (moving_mass_model = 1),
-      and its ratio to (b).
+      and its ratio to (b);
+  (f) (a) and (b) with the compiled plant (plant_fmu.model.compiled, numba), and the
+      speed-up over the reference in the same process.
 
 Usage: python scripts/bench_plant.py [--fmu-dir build/fmus] [--steps 3000]
 """
@@ -27,6 +29,7 @@ from fmpy.fmi2 import FMU2Slave
 
 from cosim.fmus.build import build_fmu
 from plant_fmu.auv_plant import AuvPlant
+from plant_fmu.model.compiled import CompiledPlant
 from plant_fmu.model.dynamics import INPUT_NAMES, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import load_vehicle
@@ -64,6 +67,20 @@ def in_process(steps: int) -> tuple[float, float, float]:
         median_us(lambda: model.derivative(x, inputs), steps * 4),
         median_us(lambda: two_body.derivative(x, inputs), steps * 4),
     )
+
+
+def compiled_in_process(steps: int) -> tuple[float, float]:
+    """(10 ms step via advance(..., compiled), one compiled derivative), microseconds."""
+    model = PlantModel(load_vehicle("remus100"), Variant.FULL)
+    fast = CompiledPlant(model)
+    inputs = input_vector(INPUTS)
+    state = {"x": state_vector(START)}
+
+    def step() -> None:
+        state["x"] = advance(model, state["x"], inputs, H, compiled=fast)
+
+    x = state_vector({**START, "mass_position": 0.02, "mass_velocity": 0.05})
+    return median_us(step, steps), median_us(lambda: fast.derivative(x, inputs), steps * 4)
 
 
 def through_fmpy(fmu: Path, steps: int) -> float:
@@ -142,6 +159,12 @@ def main() -> None:
     print(
         f"    ratio (e)/(b):                                     {two_body_us / derivative_us:8.2f}"
     )
+    fast_step, fast_derivative = compiled_in_process(args.steps)
+    print(f"(f) compiled 10 ms step (target <= 10 us): {fast_step:6.1f} us, "
+          f"{step_us / fast_step:.0f}x faster than (a)")  # fmt: skip
+    speedup = derivative_us / fast_derivative
+    print(f"    compiled derivative (target <= 2 us, incl. the Python call): "
+          f"{fast_derivative:6.2f} us, {speedup:.0f}x faster than (b)")  # fmt: skip
 
 
 if __name__ == "__main__":
