@@ -371,6 +371,9 @@ class AuvPlant(SafeSlave):
 
     def _refresh_outputs(self, inputs: np.ndarray | None = None) -> None:
         inputs = self._inputs if inputs is None else inputs
+        if self._compiled is not None:
+            self._derived[:] = self._compiled.outputs(self._x, inputs)
+            return
         nu_r = self._model.relative_velocity(self._x, inputs)
         self._derived[:3] = nu_r[:3].tolist()
         self._derived[3] = self._model.kinetic_energy(self._x, inputs)

@@ -52,7 +52,8 @@ IDEAL = VARIANT + 1
 SHEAR = VARIANT + 2
 INV = VARIANT + 3  # (M_RB + M_A)^-1 on the free DOFs, 36 values row by row
 RIGID = INV + 36  # M_RB, 36 values row by row
-N_PARAMETERS = RIGID + 36
+MASS = RIGID + 36  # M_RB + M_A, 36 values row by row
+N_PARAMETERS = MASS + 36
 
 
 def supports(model: PlantModel) -> str:
@@ -73,7 +74,8 @@ def flat_parameters(model: PlantModel) -> np.ndarray:
     p[IDEAL] = 1.0 if model.ideal_fluid else 0.0
     p[SHEAR] = model.current_shear
     p[INV:RIGID] = model._inverse_mass.ravel()
-    p[RIGID:] = model._rigid_mass.ravel()
+    p[RIGID:MASS] = model._rigid_mass.ravel()
+    p[MASS:] = model.mass_matrix.ravel()
     return p
 
 
@@ -373,6 +375,30 @@ def advance_into(p, x, inputs, n, dt):
     return 0
 
 
+@_jit
+def outputs_into(p, x, inputs, R, out):
+    """The plant FMU's derived outputs into out: u_rel, v_rel, w_rel (nu - U,
+    ``PlantModel.relative_velocity``) and the kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r
+    (``PlantModel.kinetic_energy``, model 0), J."""
+    v0, v1, v2 = inputs[5] + p[SHEAR] * x[1], inputs[6], inputs[7]
+    if p[VARIANT] == 0.0:
+        _rotation(x[3], x[4], x[5], R)
+        c0 = R[0, 0] * v0 + R[1, 0] * v1 + R[2, 0] * v2
+        c1 = R[0, 1] * v0 + R[1, 1] * v1 + R[2, 1] * v2
+        c2 = R[0, 2] * v0 + R[1, 2] * v1 + R[2, 2] * v2
+    else:
+        cp, sp = math.cos(x[5]), math.sin(x[5])
+        c0, c1, c2 = cp * v0 + sp * v1, -sp * v0 + cp * v1, 0.0
+    nu_r = (x[6] - c0, x[7] - c1, x[8] - c2, x[9], x[10], x[11])
+    energy = 0.0
+    for j in range(6):
+        column = 0.0
+        for i in range(6):
+            column += nu_r[i] * p[MASS + 6 * i + j]
+        energy += column * nu_r[j]
+    out[0], out[1], out[2], out[3] = nu_r[0], nu_r[1], nu_r[2], 0.5 * energy
+
+
 class CompiledPlant:
     """The compiled derivative and step of one :class:`PlantModel` (see :func:`supports`)."""
 
@@ -389,6 +415,12 @@ class CompiledPlant:
         dx = np.empty(14)
         derivative_into(self.parameters, x, inputs, self._R, self._work, dx)
         return dx
+
+    def outputs(self, x: np.ndarray, inputs: np.ndarray) -> list[float]:
+        """[u_rel, v_rel, w_rel, kinetic_energy] (see :func:`outputs_into`)."""
+        out = np.empty(4)
+        outputs_into(self.parameters, x, inputs, self._R, out)
+        return out.tolist()
 
     def advance(self, x: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
         """n RK4 steps of dt s on the float64 array x in place; :func:`advance_into`'s code."""

@@ -91,6 +91,9 @@ def test_every_option_agrees_from_random_states(options):
         np.testing.assert_allclose(
             fast.derivative(x, inputs), model.derivative(x, inputs), rtol=1e-13, atol=1e-13
         )
+        nu_r = model.relative_velocity(x, inputs)
+        expected = [*nu_r[:3], model.kinetic_energy(x, inputs)]
+        np.testing.assert_allclose(fast.outputs(x, inputs), expected, rtol=1e-14, atol=1e-14)
         # stepping into the stops with the mass fast: the impact path of project
         x[STATE_INDEX["mass_position"]], x[STATE_INDEX["mass_velocity"]] = 0.0199, 0.5
         inputs[4] = 0.05
