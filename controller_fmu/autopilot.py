@@ -441,12 +441,16 @@ class Autopilot:
 def _checked(time: float, measurements: Mapping[str, float]) -> dict[str, float]:
     if not math.isfinite(time):
         raise ValueError(f"time = {time!r}: expected a finite number of seconds")
-    values = {}
+    try:  # the hot path: one comprehension, one finiteness check over all
+        values = {name: float(measurements[name]) for name in MEASUREMENT_NAMES}
+        if all(map(math.isfinite, values.values())):
+            return values
+    except (KeyError, TypeError, ValueError):
+        pass
     for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS, strict=True):
         if name not in measurements:
             raise ValueError(f"measurement {name!r} is missing: expected {list(MEASUREMENT_NAMES)}")
         value = float(measurements[name])
         if not math.isfinite(value):
             raise ValueError(f"measurement {name} = {value!r}: expected a finite number ({unit})")
-        values[name] = value
-    return values
+    raise AssertionError("unreachable: the hot path accepted every measurement")

@@ -200,6 +200,7 @@ class BacksteppingHeading:
         if self._last_time is not None:
             self.filters.advance(self._last_alphas, time - self._last_time)
         v_dot, r_dot, p_dot = self.design.static_mass_rates(v, r, p, phi, 0.0)
+        rate = self.filters.rate.tolist()  # Python floats: numpy scalars cost ~10x
         f1 = r_dot - self.g1 * v
         f2 = v_dot - self.g2 * phi
         f3 = p_dot
@@ -209,11 +210,11 @@ class BacksteppingHeading:
         alpha0_dot = -k.k0 * r
         alpha1 = (-k.k1 * z1 - psi_e - f1 + alpha0_dot) / self.g1
         z2 = v - alpha1
-        alpha2 = (-k.k2 * z2 - self.g1 * z1 - f2 + self.filters.rate[0]) / self.g2
+        alpha2 = (-k.k2 * z2 - self.g1 * z1 - f2 + rate[0]) / self.g2
         z3 = phi - alpha2
-        alpha3 = -k.k3 * z3 - self.g2 * z2 + self.filters.rate[1]
+        alpha3 = -k.k3 * z3 - self.g2 * z2 + rate[1]
         z4 = p - alpha3
-        mass = (-k.k4 * z4 - z3 - f3 + self.filters.rate[2]) / self.g3
+        mass = (-k.k4 * z4 - z3 - f3 + rate[2]) / self.g3
 
         bound = k.eta0 + abs(self.eps4 * y_v)
         saturated = min(max(z2 / k.boundary_layer, -1.0), 1.0)

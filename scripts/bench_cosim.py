@@ -1,46 +1,54 @@
-"""Benchmark the co-simulation master (issue 5). Prints three figures:
+"""Benchmark the co-simulation (issues 5 and 15). Prints, in one run:
 
-1. The stepping loop's overhead: ``cosim.run.master.run`` against a bare fmpy loop doing the
-   same calls (``setReal`` of the connected inputs, ``doStep``, ``getReal`` of the outputs,
-   per instance, Gauss-Seidel order) on the same FMUs in the same process, as a ratio of
-   wall-clock times (target <= 1.25). The bare loop records nothing and checks nothing.
-   Measured on the AUV FMUs (bs-3) and, if ``tests/fmus`` is present, on two trivial
-   FMUs whose own cost is tiny, which shows the master's overhead per step.
-2. The real-time factor of bs-3 at a 10 ms communication step (simulated s / wall s).
-3. The recording overhead: bs-3 with and without ``recording.rrd``, ratio of the
-   stepping-loop wall clocks (target <= 1.10).
+1. Per scenario (bs-3 and vert-2, 60 s at 10 ms, no recording, through ``run_scenario``,
+   what ``auv-cosim run --no-rrd`` does): the real-time factor, the FMI floor and the
+   ratio of the two loop wall clocks (target <= 2.0). The floor is two trivial pythonfmu
+   FMUs with our interface shape (8 inputs / 20 outputs and back, ``scripts/bench_fmus``,
+   built here) stepped by a bare fmpy loop: what any pair of pythonfmu FMUs costs.
+2. In process: one 10 ms step of the full 6-DOF plant (RK4 + projection), one derivative
+   (targets 10 us, 2 us), one autopilot step of vert-2 (backstepping + depth PD, 10 us);
+   compiled and reference.
+3. Start-up: ``auv-cosim run bs-3 --no-rrd`` as a whole command, first run (fresh FMU
+   folder and numba cache: build plus compilation, target <= 20 s) and second (<= 3 s).
+4. The stepping loop against a bare fmpy loop doing the same FMI calls on our FMUs
+   (target <= 1.25), and the recording overhead (bs-3 with and without recording.rrd,
+   target <= 1.10).
 
 Each timing is the best of ``--repeat`` runs (interleaved) to damp other load.
-Usage: ``python scripts/bench_cosim.py [--stop-time 20] [--repeat 3] [--fmu-dir DIR]``.
+Usage: ``python scripts/bench_cosim.py [--stop-time 60] [--repeat 3] [--fmu-dir DIR]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
+import statistics
+import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 
+from controller_fmu.autopilot import Autopilot, AutopilotConfig
+from cosim.analysis.closed_loop import measurements
 from cosim.fmus.build import pythonfmu_build
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.run import master
 from cosim.run.runner import run_scenario
-from cosim.run.scenario import Scenario, load_scenario, scenario_from_toml
+from cosim.run.scenario import Scenario, load_scenario
 from cosim.run.slave import unzipped
+from plant_fmu.model.compiled import CompiledPlant
+from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import advance
 
-TESTS_FMUS = Path(__file__).resolve().parent.parent / "tests" / "fmus"
-TRIVIAL_LOOP = """
-stop_time = {stop_time}
-[coupling]
-step = 0.001
-order = ["controller", "plant"]
-[instances.plant]
-fmu = "CosimTestIntegrator.fmu"
-[instances.controller]
-fmu = "CosimTestGain.fmu"
-"""
+FLOOR_FMUS = Path(__file__).resolve().parent / "bench_fmus"
 
 
 def bare_fmpy_loop(scenario: Scenario) -> float:
@@ -107,53 +115,130 @@ def overhead_ratio(scenario: Scenario, repeat: int) -> tuple[float, float, float
     return min(ours), min(bare), min(ours) / min(bare)
 
 
-def trivial_scenario(stop_time: float, folder: Path) -> Scenario | None:
-    """Two trivial test FMUs built from tests/fmus (None if that folder is absent)."""
-    if not TESTS_FMUS.is_dir():
-        return None
-    for script, model in (
-        ("cosim_test_integrator.py", "CosimTestIntegrator"),
-        ("cosim_test_gain.py", "CosimTestGain"),
-    ):
-        pythonfmu_build(TESTS_FMUS / script, folder, model)
-    return scenario_from_toml(
-        TRIVIAL_LOOP.format(stop_time=stop_time), "trivial loop", base_dir=folder
-    )
+def floor_per_step(folder: Path, n_steps: int) -> float:
+    """Seconds per 10 ms step of the trivial pythonfmu pair in a bare fmpy loop."""
+    slaves = []
+    for name in ("BenchTrivialController", "BenchTrivialPlant"):
+        script = FLOOR_FMUS / f"bench_trivial_{name.removeprefix('BenchTrivial').lower()}.py"
+        fmu = pythonfmu_build(script, folder, name)
+        md = read_model_description(str(fmu))
+        slave = FMU2Slave(guid=md.guid, unzipDirectory=str(unzipped(fmu)),
+                          modelIdentifier=name, instanceName=name)  # fmt: skip
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        refs = {v.causality: [] for v in md.modelVariables}
+        for v in md.modelVariables:
+            refs[v.causality].append(v.valueReference)
+        slaves.append((slave, refs["input"], refs["output"]))
+    latest = [0.0] * 20
+    started = time.perf_counter()
+    for n in range(n_steps):
+        for slave, inputs, outputs in slaves:
+            slave.setReal(inputs, latest[: len(inputs)])
+            slave.doStep(n * 0.01, 0.01)
+            latest = slave.getReal(outputs)
+    elapsed = time.perf_counter() - started
+    for slave, _, _ in slaves:
+        slave.terminate()
+        slave.freeInstance()
+    return elapsed / n_steps
+
+
+def median_us(call: Callable[[], object], repetitions: int) -> float:
+    """Median wall time of ``call()``, microseconds (each call timed on its own)."""
+    for _ in range(100):
+        call()
+    times = []
+    for _ in range(repetitions):
+        start = time.perf_counter_ns()
+        call()
+        times.append(time.perf_counter_ns() - start)
+    return statistics.median(times) / 1000.0
+
+
+def in_process(repetitions: int) -> dict[str, float]:
+    """Microseconds: plant step and derivative (compiled, reference), autopilot step."""
+    model = PlantModel(load_vehicle("remus100"), Variant.FULL)
+    fast = CompiledPlant(model)
+    inputs = input_vector({"thrust": 9.0, "tunnel_force": 1.0, "fin_angle": 0.05,
+                           "mass_position_cmd": 0.03})  # fmt: skip
+    x = state_vector({"u": 1.5, "v": 0.1, "w": 0.02, "p": 0.1, "q": 0.02, "r": 0.2,
+                      "roll": 0.1, "pitch": 0.05, "mass_position": 0.02})  # fmt: skip
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=3, depth_mode=1))
+    meas = measurements(model, x, inputs, 0.0, 1.0)
+    clock = iter(np.arange(0.0, 1e6, 0.01))
+    return {
+        "step": median_us(lambda: advance(model, x, inputs, 0.01, compiled=fast), repetitions),
+        "step_ref": median_us(lambda: advance(model, x, inputs, 0.01), repetitions // 10),
+        "derivative": median_us(lambda: fast.derivative(x, inputs), repetitions),
+        "derivative_ref": median_us(lambda: model.derivative(x, inputs), repetitions // 10),
+        "autopilot": median_us(lambda: autopilot.step(next(clock), meas), repetitions),
+    }
+
+
+def startup(folder: Path) -> tuple[float, float]:
+    """Wall clock of ``auv-cosim run bs-3 --no-rrd``, first (fresh FMU folder and numba
+    cache) and second run, s."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(folder / "numba")}
+    command = ["auv-cosim", "run", "bs-3", "--no-rrd", "--quiet", "--fmu-dir",
+               str(folder / "fmus"), "--out", str(folder / "run")]  # fmt: skip
+    times = []
+    for _ in range(2):
+        started = time.perf_counter()
+        subprocess.run(command, env=env, check=True, capture_output=True)
+        times.append(time.perf_counter() - started)
+    shutil.rmtree(folder / "numba", ignore_errors=True)
+    return times[0], times[1]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--stop-time", type=float, default=20.0, help="bs-3 stop time, s [20]")
+    parser.add_argument("--stop-time", type=float, default=60.0, help="scenario stop time, s")
     parser.add_argument("--repeat", type=int, default=3, help="runs per timing [3]")
     parser.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR)
     args = parser.parse_args()
-
-    bs3 = load_scenario("bs-3", fmu_dir=args.fmu_dir).with_overrides(
-        stop_time=args.stop_time, step=0.01
-    )
-    steps = bs3.n_steps
-    ours, bare, ratio = overhead_ratio(bs3, args.repeat)
-    print(f"1. stepping loop vs bare fmpy loop, bs-3, {steps} steps of 10 ms:")
-    print(f"   master {ours:.3f} s ({1e6 * ours / steps:.0f} us/step), bare {bare:.3f} s "
-          f"({1e6 * bare / steps:.0f} us/step): ratio {ratio:.3f} (target <= 1.25)")  # fmt: skip
+    scenarios = {
+        sid: load_scenario(sid, fmu_dir=args.fmu_dir).with_overrides(
+            stop_time=args.stop_time, step=0.01
+        )
+        for sid in ("bs-3", "vert-2")
+    }
     with tempfile.TemporaryDirectory(prefix="bench_cosim_") as tmp:
-        trivial = trivial_scenario(10.0, Path(tmp))
-        if trivial is not None:
-            ours_t, bare_t, ratio_t = overhead_ratio(trivial, args.repeat)
-            n = trivial.n_steps
-            print(f"   trivial FMUs, {n} steps: master {1e6 * ours_t / n:.1f} us/step, bare "
-                  f"{1e6 * bare_t / n:.1f} us/step: ratio {ratio_t:.3f}")  # fmt: skip
-
-        plain, recorded = [], []
-        for i in range(args.repeat):
-            out = Path(tmp) / f"run{i}"
-            plain.append(run_scenario(bs3, out / "plain", no_rrd=True).result.wall_clock_s)
-            recorded.append(run_scenario(bs3, out / "rrd").result.wall_clock_s)
-    print(f"2. real-time factor, bs-3 at 10 ms: {bs3.stop_time / min(plain):.1f}x real time "
-          f"({bs3.stop_time:g} s simulated in {min(plain):.2f} s)")  # fmt: skip
-    ratio = min(recorded) / min(plain)
-    print(f"3. recording overhead, bs-3: {min(recorded):.3f} s with recording.rrd, "
-          f"{min(plain):.3f} s without: ratio {ratio:.3f} (target <= 1.10)")  # fmt: skip
+        folder = Path(tmp)
+        steps = scenarios["bs-3"].n_steps
+        floor = min(floor_per_step(folder, steps) for _ in range(args.repeat))
+        print(f"1. FMI floor (trivial pythonfmu pair, bare fmpy loop): {1e6 * floor:.1f} us "
+              f"per 10 ms step, {0.01 / floor:.0f}x real time")  # fmt: skip
+        loops = {}
+        for sid, scenario in scenarios.items():
+            loops[sid] = min(
+                run_scenario(scenario, folder / f"{sid}-{i}", no_rrd=True).result.wall_clock_s
+                for i in range(args.repeat)
+            )
+            ratio = loops[sid] / (floor * scenario.n_steps)
+            print(f"   {sid}: {scenario.stop_time / loops[sid]:.0f}x real time, "
+                  f"{1e6 * loops[sid] / scenario.n_steps:.1f} us/step: {ratio:.2f}x the floor "
+                  "(target <= 2.0)")  # fmt: skip
+        us = in_process(20000)
+        print(f"2. in process: 10 ms plant step {us['step']:.1f} us (target <= 10; reference "
+              f"{us['step_ref']:.0f}), derivative {us['derivative']:.2f} us (target <= 2; "
+              f"reference {us['derivative_ref']:.1f}), autopilot step (vert-2 laws) "
+              f"{us['autopilot']:.1f} us (target <= 10)")  # fmt: skip
+        first, second = startup(folder / "startup")
+        print(f"3. start-up, auv-cosim run bs-3 --no-rrd: first run {first:.1f} s (target "
+              f"<= 20), second {second:.1f} s (target <= 3)")  # fmt: skip
+        ours, bare, ratio = overhead_ratio(scenarios["bs-3"], args.repeat)
+        print(f"4. master vs bare fmpy loop, bs-3: {ours:.3f} s vs {bare:.3f} s: ratio "
+              f"{ratio:.3f} (target <= 1.25)")  # fmt: skip
+        recorded = min(
+            run_scenario(scenarios["bs-3"], folder / f"rrd-{i}").result.wall_clock_s
+            for i in range(args.repeat)
+        )
+        print(f"   recording overhead, bs-3: {recorded:.3f} s with recording.rrd, "
+              f"{loops['bs-3']:.3f} s without: ratio {recorded / loops['bs-3']:.3f} "
+              "(target <= 1.10)")  # fmt: skip
 
 
 if __name__ == "__main__":
