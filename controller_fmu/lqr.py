@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import control
 import numpy as np
 
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
@@ -67,6 +66,9 @@ def continuous_gain(
     """The dissertation's continuous LQR (control.lqr): gain K (7,) with y_d = -K x, and
     the closed-loop eigenvalues of A - B K."""
     _check_r(r_u)
+    import control  # here, not at module level: importing it takes ~1 s (scipy.signal),
+    # which every autopilot start-up would pay for the LQR modes only
+
     K, _, poles = control.lqr(A, B, state_weight(q_y), r_u)
     return np.asarray(K).ravel(), np.asarray(poles)
 
@@ -75,6 +77,8 @@ def discretize(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.
     """Zero-order-hold discretisation (control.c2d) at sample time dt, s (> 0)."""
     if not (np.isfinite(dt) and dt > 0.0):
         raise ValueError(f"sample time {dt!r}: expected a finite time > 0 s")
+    import control  # lazily: see continuous_gain
+
     sys_d = control.c2d(control.ss(A, B, np.eye(A.shape[0]), np.zeros(B.shape)), dt, "zoh")
     return np.asarray(sys_d.A), np.asarray(sys_d.B)
 
@@ -86,6 +90,8 @@ def discrete_gain(
     y_d[k] = -K x[k], and the closed-loop eigenvalues of Ad - Bd K (|z| < 1 when stable)."""
     _check_r(r_u)
     Ad, Bd = discretize(A, B, dt)
+    import control  # lazily: see continuous_gain
+
     K, _, poles = control.dlqr(Ad, Bd, state_weight(q_y), r_u)
     return np.asarray(K).ravel(), np.asarray(poles)
 

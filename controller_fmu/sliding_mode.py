@@ -40,7 +40,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import control
 import numpy as np
 
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
@@ -89,6 +88,8 @@ class SlidingModeHeading:
         q_reduced = [q for i, q in enumerate(q_y) if i != _PSI - 1]
         C = np.eye(len(_REDUCED))[1:]
         Q = C.T @ np.diag(q_reduced) @ C
+        import control  # lazily: see lqr.continuous_gain
+
         k_reduced, _, _ = control.dlqr(Ad[np.ix_(_REDUCED, _REDUCED)], Bd[_REDUCED], Q, r_u)
         self.k = np.zeros(len(CONTROL_STATES))
         self.k[_REDUCED] = np.asarray(k_reduced).ravel()
