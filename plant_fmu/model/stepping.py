@@ -66,7 +66,8 @@ def advance(
         ValueError: a non-finite state or input, a non-positive step, or a state that
             became non-finite (the vehicle left the model's range, e.g. pitch at 90 deg).
     """
-    x = np.array(x, dtype=float)
+    start = x
+    x = np.array(start, dtype=float)
     inputs = np.asarray(inputs, dtype=float)
     if x.shape != (N_STATES,) or inputs.shape != (N_INPUTS,):
         raise ValueError(
@@ -79,13 +80,14 @@ def advance(
         raise ValueError(f"max_substep = {max_substep!r}: expected a finite number of s > 0")
     n = max(1, math.ceil(h / max_substep - 1e-9))
     dt = h / n
-    if compiled is not None:  # checks the inputs and the state first, leaving x untouched
-        code = compiled.advance(x, inputs, n, dt)
-        if code == 0:
+    if compiled is not None:
+        if compiled.advance(x, inputs, n, dt) == 0:
             return x
+        # A non-finite input or state: the reference below repeats the step from the start
+        # and reports what went wrong in its own words (an OverflowError, a named state).
+        x = np.array(start, dtype=float)
     check_finite(inputs, INPUT_NAMES, "input")
-    after = compiled is not None and code == 3
-    check_finite(x, STATE_NAMES, "state after the step:" if after else "state")
+    check_finite(x, STATE_NAMES, "state")
     f = model.derivative
     model.project(x)
     for _ in range(n):
