@@ -107,13 +107,15 @@ def simulate(
     duration: float,
     h: float,
     max_substep: float = DEFAULT_MAX_SUBSTEP,
+    compiled: CompiledPlant | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Open-loop run with constant inputs: (times [n+1], states [n+1, N_STATES])."""
+    """Open-loop run with constant inputs: (times [n+1], states [n+1, N_STATES]);
+    ``compiled`` as in :func:`advance`."""
     steps = round(duration / h)
     if steps < 1 or not math.isclose(steps * h, duration, rel_tol=1e-9, abs_tol=1e-12):
         raise ValueError(f"duration {duration!r} s is not a whole number of steps h = {h!r} s")
     states = np.empty((steps + 1, N_STATES))
     states[0] = model.project(np.array(x0, dtype=float))
     for k in range(steps):
-        states[k + 1] = advance(model, states[k], inputs, h, max_substep)
+        states[k + 1] = advance(model, states[k], inputs, h, max_substep, compiled)
     return np.arange(steps + 1) * h, states

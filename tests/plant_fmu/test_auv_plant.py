@@ -15,6 +15,7 @@ from fmu_harness import STATUS_DISCARD, STATUS_OK, Harness
 from reference_values import dissertation
 
 from cosim.fmus.validation import validate_fmus
+from plant_fmu.model import compiled
 from plant_fmu.model.dynamics import STATE_NAMES, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import VehicleParameters, builtin_vehicles, load_vehicle
@@ -134,7 +135,7 @@ def test_current_step_applies_the_velocity_jump_at_the_next_step(plant, unzip_di
     jump = model.current_change_velocity_jump(x, np.array([0.0, 0.2, 0.0]))
     x[6:12] += jump
     assert abs(jump[1]) > 0.1  # the hull is carried along with the water
-    np.testing.assert_array_equal(after, advance(model, x, inputs, H))
+    np.testing.assert_array_equal(after, advance(model, x, inputs, H, compiled=_fmu_path(model)))
 
 
 def test_mass_command_of_five_metres_stays_within_the_stroke(plant, unzip_dir):
@@ -155,16 +156,10 @@ def test_two_instances_with_different_parameters_are_independent(plant, unzip_di
     slow.close()
     heavy.close()
     x0 = state_vector(dict(v=0.01))
-    _, expected_slow = simulate(
-        PlantModel(remus, Variant.HORIZONTAL), x0, input_vector(thrust=4.0), 5.0, H
-    )
-    _, expected_heavy = simulate(
-        PlantModel(remus.replace(m=35.0, W=343.0), Variant.HORIZONTAL),
-        x0,
-        input_vector(thrust=9.0),
-        5.0,
-        H,
-    )
+    slow_model = PlantModel(remus, Variant.HORIZONTAL)
+    heavy_model = PlantModel(remus.replace(m=35.0, W=343.0), Variant.HORIZONTAL)
+    _, expected_slow = _simulate_as_fmu(slow_model, x0, input_vector(thrust=4.0), 5.0)
+    _, expected_heavy = _simulate_as_fmu(heavy_model, x0, input_vector(thrust=9.0), 5.0)
     np.testing.assert_array_equal(np.array(rows_slow), expected_slow[1:])
     np.testing.assert_array_equal(np.array(rows_heavy), expected_heavy[1:])
 
@@ -178,7 +173,7 @@ def test_vehicle_picks_the_set_and_written_parameters_override_it(plant, unzip_d
     assert in_use[0] == printed.M_uq != load_vehicle("remus100").M_uq
     assert in_use[1] == -5.0
     model = PlantModel(printed.replace(X_uu=-5.0), Variant.FULL)
-    _, expected = simulate(model, state_vector(dict(u=1.5)), input_vector(thrust=9.0), 2.0, H)
+    _, expected = _simulate_as_fmu(model, state_vector(dict(u=1.5)), input_vector(thrust=9.0), 2.0)
     np.testing.assert_array_equal(rows, expected[1:])
 
 
@@ -194,7 +189,9 @@ def test_moving_mass_model_is_selected_by_its_parameter(plant, unzip_dir, remus,
     x0 = state_vector(dict(u=1.5, v=-0.05))
     inputs = input_vector(dict(thrust=9.0, mass_position_cmd=0.04, roll_torque=0.2))
     expected = {
-        m: simulate(PlantModel(remus, Variant.LATERAL, moving_mass_model=m), x0, inputs, 3.0, H)[1]
+        m: _simulate_as_fmu(
+            PlantModel(remus, Variant.LATERAL, moving_mass_model=m), x0, inputs, 3.0
+        )[1]
         for m in (0, 1)
     }
     np.testing.assert_array_equal(rows, expected[moving_mass_model][1:])
@@ -349,3 +346,14 @@ def test_model_description_is_valid_complete_and_matches_the_contract(plant):
 
 def test_our_validation_finds_no_problem(plant):
     assert validate_fmus({"AuvPlant": plant}) == []
+
+
+def _fmu_path(model: PlantModel) -> compiled.CompiledPlant | None:
+    """The stepping path the plant FMU takes for ``model``: the compiled one when it covers
+    the model (bit for bit the FMU's arithmetic), else the reference."""
+    return compiled.CompiledPlant(model) if compiled.supports(model) == "" else None
+
+
+def _simulate_as_fmu(model: PlantModel, x0, inputs, duration: float):
+    """``simulate`` on the path the FMU takes (see :func:`_fmu_path`), step H."""
+    return simulate(model, x0, inputs, duration, H, compiled=_fmu_path(model))
