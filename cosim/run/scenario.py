@@ -60,7 +60,6 @@ instance, the Gauss-Seidel order and every step multiple, and the recorded varia
 from __future__ import annotations
 
 import dataclasses
-import math
 import re
 import tomllib
 from collections.abc import Mapping
@@ -70,7 +69,6 @@ from typing import Annotated, Any, Literal
 
 import tomli_w
 from pydantic import (
-    BaseModel,
     ConfigDict,
     Field,
     StrictBool,
@@ -80,15 +78,21 @@ from pydantic import (
     ValidationError,
 )
 
-from cosim.errors import CosimError
 from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
 from cosim.paths import DEFAULT_FMU_DIR
+from cosim.run.checks import (
+    ScenarioError,
+    Source,
+    Strict,
+    a,
+    check_value,
+    split_ref,
+)
 
 SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
 BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
 MAX_STEPS = 100_000_000  # communication steps per run: more is refused (days of wall clock)
 FILE_SUFFIXES = (".toml",)  # a String start value ending so names a file (vehicle sets)
-FMI_INTEGER_RANGE = (-(2**31), 2**31 - 1)  # fmi2Integer is a C int (32 bits)
 StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
 _NAME = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
 _PLAIN_NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"  # a scenario id: a safe folder name
@@ -96,48 +100,39 @@ _PLAIN_NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"  # a scenario id: a safe folder n
 _STEP_TOLERANCE = 1e-9
 
 
-class ScenarioError(CosimError):
-    """A scenario that cannot run: the message names the file and the key."""
-
-
 # --- the file as written (pydantic, every key checked) ------------------------------------
 
 
-class _Strict(BaseModel):
-    # strict: "2.0" is not a number and 2.0 not an integer (an int is a valid float)
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
-
-
-class CouplingSpec(_Strict):
+class CouplingSpec(Strict):
     step: float = Field(gt=0.0, allow_inf_nan=False, description="communication step h, s")
     algorithm: Literal["jacobi", "gauss-seidel"] = "gauss-seidel"
     order: list[_NAME] | None = Field(default=None, description="Gauss-Seidel order")
     step_multiples: dict[_NAME, Annotated[int, Field(ge=1)]] = Field(default_factory=dict)
 
 
-class InstanceSpec(_Strict):
+class InstanceSpec(Strict):
     fmu: str = Field(min_length=1, description="built-in FMU name or .fmu path")
     start: dict[str, StartValue] = Field(default_factory=dict)
 
 
-class ConnectionSpec(_Strict):
+class ConnectionSpec(Strict):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, populate_by_name=True)
     from_: str = Field(alias="from", description="<instance>.<output>")
     to: str = Field(description="<instance>.<input>")
 
 
-class ConnectionsSpec(_Strict):
+class ConnectionsSpec(Strict):
     same_names: bool = True
     remove: list[str] = Field(default_factory=list)
     add: list[ConnectionSpec] = Field(default_factory=list)
 
 
-class OutputSpec(_Strict):
+class OutputSpec(Strict):
     record: list[str] | None = None
     rrd: bool = True
 
 
-class ScenarioSpec(_Strict):
+class ScenarioSpec(Strict):
     """One scenario file, checked key by key (types, ranges, no unknown keys)."""
 
     id: str | None = Field(default=None, pattern=_PLAIN_NAME)
@@ -287,7 +282,7 @@ class Scenario:
         where = f"{self.source or self.id} (with the override {overrides})"
         spec = _validate_spec(data, where)
         base_dir = self.source.parent if self.source else Path.cwd()
-        return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, _Source(where))
+        return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, Source(where))
 
     def to_toml(self) -> str:
         """The resolved scenario as a scenario file that loads back to an equal scenario."""
@@ -352,7 +347,7 @@ def scenario_id(id_or_path: str | Path) -> str:
     touching any FMU: what the default run folder ``runs/<id>`` is named after."""
     path = scenario_path(id_or_path)
     spec = _validate_spec(_read_toml(path), str(path))
-    return _scenario_id(spec, path.stem, _Source(str(path)))
+    return _scenario_id(spec, path.stem, Source(str(path)))
 
 
 def load_scenario(id_or_path: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> Scenario:
@@ -363,7 +358,7 @@ def load_scenario(id_or_path: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> Sc
     """
     path = scenario_path(id_or_path)
     spec = _validate_spec(_read_toml(path), str(path))
-    src = _Source(str(path))
+    src = Source(str(path))
     sid = _scenario_id(spec, path.stem, src)
     return _resolve(spec, sid, path.resolve(), path.parent, fmu_dir, src)
 
@@ -380,7 +375,7 @@ def scenario_from_toml(
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"scenario {where}: not valid TOML: {exc}") from None
     spec = _validate_spec(data, where)
-    src = _Source(where)
+    src = Source(where)
     sid = _scenario_id(spec, "scenario", src)
     return _resolve(spec, sid, None, base_dir or Path.cwd(), fmu_dir, src)
 
@@ -427,18 +422,7 @@ def _is_union_tag(part: Any) -> bool:
 # --- resolution against the FMUs' model descriptions --------------------------------------
 
 
-@dataclass(frozen=True)
-class _Source:
-    """Where a scenario comes from: every problem found resolving it names it."""
-
-    where: str  # the file, or a description of the text
-
-    def error(self, key: str, problem: str) -> ScenarioError:
-        """The error for ``key`` of this scenario (raise it)."""
-        return ScenarioError(f"scenario file {self.where}: key {key!r}: {problem}")
-
-
-def _scenario_id(spec: ScenarioSpec, default: str, src: _Source) -> str:
+def _scenario_id(spec: ScenarioSpec, default: str, src: Source) -> str:
     """The ``id`` key, else ``default`` (the file name), which must be a plain name too."""
     if spec.id is not None:
         return spec.id
@@ -457,7 +441,7 @@ def _resolve(
     source: Path | None,
     base_dir: Path,
     fmu_dir: Path,
-    src: _Source,
+    src: Source,
 ) -> Scenario:
     _check_step_count(spec, src)
     names = list(spec.instances)
@@ -494,7 +478,7 @@ def _resolve(
     return dataclasses.replace(scenario, record=record)
 
 
-def _check_step_count(spec: ScenarioSpec, src: _Source) -> None:
+def _check_step_count(spec: ScenarioSpec, src: Source) -> None:
     """A whole number of communication steps, and not more than :data:`MAX_STEPS`."""
     step = spec.coupling.step
     stop_steps = spec.stop_time / step
@@ -513,7 +497,7 @@ def _check_step_count(spec: ScenarioSpec, src: _Source) -> None:
 
 
 def _resolve_instance(
-    name: str, spec: InstanceSpec, base_dir: Path, fmu_dir: Path, src: _Source
+    name: str, spec: InstanceSpec, base_dir: Path, fmu_dir: Path, src: Source
 ) -> Instance:
     if spec.fmu in BUILTIN_FMUS:
         fmu_ref, fmu_path = spec.fmu, _builtin_fmu(spec.fmu, fmu_dir)
@@ -546,47 +530,13 @@ def _resolve_instance(
                 f"{name}.{var_name} is a {var.variability} {var.causality}; only parameters "
                 "and inputs take start values",
             )
-        start[var_name] = _check_value(value, var, key, src)
+        start[var_name] = check_value(value, var, key, src)
         if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
             start[var_name] = str(_existing_file(value, base_dir, key, src))
     return Instance(name, fmu_ref, fmu_path, start, interface)
 
 
-def _check_value(value: Any, var: Any, key: str, src: _Source) -> bool | int | float | str:
-    """``value`` as a start value of ``var``: its FMI type, finite, within its range."""
-    expected = {"Real": "a number", "Integer": "an integer", "Enumeration": "an integer",
-                "Boolean": "true or false", "String": "a string"}[var.type]  # fmt: skip
-    ok = {
-        "Real": isinstance(value, int | float) and not isinstance(value, bool),
-        "Integer": isinstance(value, int) and not isinstance(value, bool),
-        "Enumeration": isinstance(value, int) and not isinstance(value, bool),
-        "Boolean": isinstance(value, bool),
-        "String": isinstance(value, str),
-    }[var.type]
-    if not ok:
-        raise src.error(key, f"{value!r} is not {expected} ({var.name} is {var.type})")
-    if var.type == "Real":
-        value = float(value)
-        if not math.isfinite(value):
-            raise src.error(key, f"{value!r} is not a finite number")
-    if var.type in ("Integer", "Enumeration"):
-        low, high = _integer_range(var)
-        if not low <= value <= high:
-            raise src.error(key, f"{value} is outside [{low}, {high}], the range {var.name} takes")
-    return value
-
-
-def _integer_range(var: Any) -> tuple[int, int]:
-    """The FMI 32-bit range, narrowed by the variable's declared ``min``/``max``."""
-    low, high = FMI_INTEGER_RANGE
-    if var.min is not None:
-        low = max(low, var.min)
-    if var.max is not None:
-        high = min(high, var.max)
-    return low, high
-
-
-def _existing_file(value: str, base_dir: Path, key: str, src: _Source) -> Path:
+def _existing_file(value: str, base_dir: Path, key: str, src: Source) -> Path:
     """A file named in a start value, relative to the scenario's folder; must exist."""
     path = (base_dir / value).resolve()
     if not path.is_file():
@@ -594,7 +544,7 @@ def _existing_file(value: str, base_dir: Path, key: str, src: _Source) -> Path:
     return path
 
 
-def _resolve_coupling(spec: ScenarioSpec, names: list[str], src: _Source) -> Coupling:
+def _resolve_coupling(spec: ScenarioSpec, names: list[str], src: Source) -> Coupling:
     c = spec.coupling
     order = tuple(c.order) if c.order is not None else tuple(names)
     if sorted(order) != sorted(names):
@@ -606,42 +556,29 @@ def _resolve_coupling(spec: ScenarioSpec, names: list[str], src: _Source) -> Cou
     return Coupling(step=c.step, algorithm=c.algorithm, order=order, step_multiples=multiples)
 
 
-def _split(ref: str, instances: Mapping[str, Instance], key: str, src: _Source) -> tuple[str, Any]:
-    instance, _, variable = ref.partition(".")
-    if instance not in instances or not variable:
-        raise src.error(
-            key, f"{ref!r} is not <instance>.<variable> with an instance in {list(instances)}"
-        )
-    var = instances[instance].interface.variables.get(variable)
-    if var is None:
-        fmu = instances[instance].fmu_path.name
-        raise src.error(key, f"{instance} ({fmu}) has no variable {variable!r}")
-    return instance, var
-
-
 def _resolve_connections(
-    spec: ConnectionsSpec, instances: Mapping[str, Instance], src: _Source
+    spec: ConnectionsSpec, instances: Mapping[str, Instance], src: Source
 ) -> list[Connection]:
     by_target = _same_name_connections(instances, src) if spec.same_names else {}
     for i, ref in enumerate(spec.remove):
         key = f"connections.remove[{i}]"
-        _, var = _split(ref, instances, key, src)
+        _, var = split_ref(ref, instances, key, src)
         if var.causality != "input":
             raise src.error(
-                key, f"{ref!r} is {_a(var.causality)}; remove names an input to leave unconnected"
+                key, f"{ref!r} is {a(var.causality)}; remove names an input to leave unconnected"
             )
         by_target.pop(ref, None)
     added: dict[str, int] = {}  # target -> index in connections.add
     for i, conn in enumerate(spec.add):
         key = f"connections.add[{i}]"
-        src_inst, source = _split(conn.from_, instances, f"{key}.from", src)
-        tgt_inst, target = _split(conn.to, instances, f"{key}.to", src)
+        src_inst, source = split_ref(conn.from_, instances, f"{key}.from", src)
+        tgt_inst, target = split_ref(conn.to, instances, f"{key}.to", src)
         if source.causality != "output":
             raise src.error(
-                f"{key}.from", f"{conn.from_!r} is {_a(source.causality)}, not an output"
+                f"{key}.from", f"{conn.from_!r} is {a(source.causality)}, not an output"
             )
         if target.causality != "input":
-            raise src.error(f"{key}.to", f"{conn.to!r} is {_a(target.causality)}, not an input")
+            raise src.error(f"{key}.to", f"{conn.to!r} is {a(target.causality)}, not an input")
         if src_inst == tgt_inst:
             raise src.error(key, f"{conn.from_!r} -> {conn.to!r} connects an instance to itself")
         if source.type != "Real" or target.type != "Real":
@@ -659,9 +596,7 @@ def _resolve_connections(
     return sorted(by_target.values(), key=lambda c: (c.target_instance, c.target_variable))
 
 
-def _same_name_connections(
-    instances: Mapping[str, Instance], src: _Source
-) -> dict[str, Connection]:
+def _same_name_connections(instances: Mapping[str, Instance], src: Source) -> dict[str, Connection]:
     """Every input driven by the one Real output of the same name in another instance."""
     by_target: dict[str, Connection] = {}
     for target, target_inst in instances.items():
@@ -686,11 +621,7 @@ def _same_name_connections(
     return by_target
 
 
-def _a(word: str) -> str:
-    return ("an " if word[0] in "aeiou" else "a ") + word
-
-
-def _resolve_record(record: list[str] | None, scenario: Scenario, src: _Source) -> tuple[str, ...]:
+def _resolve_record(record: list[str] | None, scenario: Scenario, src: Source) -> tuple[str, ...]:
     if record is None:
         columns = []
         for name, inst in scenario.instances.items():
@@ -703,7 +634,7 @@ def _resolve_record(record: list[str] | None, scenario: Scenario, src: _Source) 
             ]
         return tuple(columns)
     for i, ref in enumerate(record):
-        _, var = _split(ref, scenario.instances, f"output.record[{i}]", src)
+        _, var = split_ref(ref, scenario.instances, f"output.record[{i}]", src)
         if var.type != "Real":
             raise src.error(
                 f"output.record[{i}]", f"{ref!r} is {var.type}; only Real variables are recorded"
