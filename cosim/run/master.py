@@ -52,6 +52,7 @@ import time
 from collections.abc import Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -61,6 +62,7 @@ from cosim.run.rows import RowSink, RowTable
 from cosim.run.scenario import Scenario, ScenarioError
 from cosim.run.signals import StopRequest, stop_on_signals
 from cosim.run.slave import Slave, describe, reasons, unzipped
+from cosim.run.timeline import Timeline
 
 ROWS_PER_CHUNK = 200  # rows handed to the sinks at a time
 HAND_OFF_INTERVAL_S = 1.0  # ... and at least this often (wall clock), however slow the steps
@@ -82,6 +84,7 @@ class RunResult:
     wall_clock_s: float  # the stepping loop alone (including the sinks)
     stop_signal: int | None = None  # the signal that stopped the stepping, if any
     messages: dict[str, list[str]] = field(default_factory=dict)  # instance -> FMU log lines
+    events: list[dict[str, Any]] = field(default_factory=list)  # fired: name, time, set
     times: np.ndarray | None = None  # (rows,) s, when kept
     values: np.ndarray | None = None  # (rows, len(columns)) SI, when kept
 
@@ -105,7 +108,8 @@ class _Layout:
     """Where every exchanged or recorded value lives, resolved once before the loop.
 
     ``z`` = [outputs read after every step, instance by instance | recorded inputs that no
-    connection drives, read once after initialisation]; ``index``: "<inst>.<var>" -> z.
+    connection drives, read once after initialisation | the faults' ``fault.<name>``
+    columns]; ``index``: "<inst>.<var>" (or the column) -> z.
     """
 
     read: dict[str, list[str]]  # instance -> variables read after each of its steps
@@ -115,6 +119,7 @@ class _Layout:
     @classmethod
     def of(cls, scenario: Scenario) -> _Layout:
         wanted = {c.source for c in scenario.connections} | set(scenario.record)
+        wanted |= {f.hold_source for f in scenario.faults if f.hold_source is not None}
         read: dict[str, list[str]] = {}
         constants: list[str] = []
         for name, inst in scenario.instances.items():
@@ -128,11 +133,12 @@ class _Layout:
                 else:
                     read[name].append(var.name)
         order = [f"{n}.{v}" for n, names in read.items() for v in names] + constants
+        order += scenario.columns[len(scenario.record) :]  # the faults' columns, last
         return cls(read, constants, {ref: i for i, ref in enumerate(order)})
 
     @property
     def n_read(self) -> int:
-        return len(self.index) - len(self.constants)
+        return sum(len(names) for names in self.read.values())
 
 
 def preflight(scenario: Scenario) -> None:
@@ -185,7 +191,7 @@ def run(
     that is reported in the returned result.
     """
     preflight(scenario)
-    table = RowTable(len(scenario.record)) if keep_rows else None
+    table = RowTable(len(scenario.columns)) if keep_rows else None
     feed = [*sinks, table] if table is not None else list(sinks)
     layout = _Layout.of(scenario)
     z = np.zeros(len(layout.index))
@@ -202,8 +208,15 @@ def run(
                 _set_up(slave, scenario, layout, z)
             by_name = {s.name: s for s in slaves}
             order = [by_name[name] for name in scenario.coupling.order]
-            rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval)
-            result = _loop(scenario, order, layout, z, rows, stop_request)
+            if scenario.events or scenario.faults:
+                timeline = Timeline(scenario, by_name, layout.index, z)
+                rows = _TimelineRows(scenario, feed, rows_per_chunk, hand_off_interval)
+                rows.timeline = timeline
+                result = _timeline_loop(scenario, order, layout, z, rows, stop_request, timeline)
+                result.events = timeline.fired
+            else:  # the plain loop: no event or fault costs it anything
+                rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval)
+                result = _loop(scenario, order, layout, z, rows, stop_request)
         finally:
             for slave in slaves:
                 slave.finish()
@@ -260,12 +273,12 @@ class _Rows:
         self, scenario: Scenario, sinks: list[RowSink], rows_per_chunk: int, interval: float
     ) -> None:
         self.h = scenario.coupling.step
-        self.buffer = np.empty((rows_per_chunk, len(scenario.record)))
+        self.buffer = np.empty((rows_per_chunk, len(scenario.columns)))
         self.slots = list(self.buffer)  # made once: the loop indexes a list, not the array
         self.count = 0  # rows handed off
         self.sinks = sinks
         self.interval = interval
-        self.final = np.full(len(scenario.record), np.nan)
+        self.final = np.full(len(scenario.columns), np.nan)
         self.error: str | None = None  # the first sink failure
 
     def hand_off(self, filled: int) -> None:
@@ -297,7 +310,7 @@ def _loop(
     """The stepping loop proper (see the module docstring); ``stop`` ends it early."""
     h, n_steps = scenario.coupling.step, scenario.n_steps
     jacobi = scenario.coupling.algorithm == "jacobi"
-    record = np.asarray([layout.index[c] for c in scenario.record], dtype=np.intp)
+    record = np.asarray([layout.index[c] for c in scenario.columns], dtype=np.intp)
     exchanged = z[: layout.n_read]
     multi_rate = any(s.k != 1 for s in order)
 
@@ -348,6 +361,91 @@ def _loop(
     return _result(scenario, order, rows, error, stop, clock() - started)
 
 
+class _TimelineRows(_Rows):
+    """The rows of a run with events or faults: each hand-off first gives the sinks that
+    take them (``add_notes(notes)``, notes being (t in s, text)) the timeline's notes so
+    far -- events fired, faults started and stopped."""
+
+    timeline: Timeline
+
+    def hand_off(self, filled: int) -> None:
+        notes, self.timeline.notes = self.timeline.notes, []
+        for sink in list(self.sinks) if notes else ():
+            add_notes = getattr(sink, "add_notes", None)
+            if add_notes is None:
+                continue
+            try:
+                add_notes(notes)
+            except (OSError, CosimError) as exc:
+                self.sinks.remove(sink)
+                self.error = self.error or str(exc)
+        super().hand_off(filled)
+
+
+def _timeline_loop(
+    scenario: Scenario,
+    order: list[Slave],
+    layout: _Layout,
+    z: np.ndarray,
+    rows: _Rows,
+    stop: StopRequest,
+    timeline: Timeline,
+) -> RunResult:
+    """:func:`_loop` with the scenario's events and faults (:mod:`cosim.run.timeline`):
+    ``timeline.at(n)`` at every communication point before its row is recorded and before
+    any instance steps from it, ``timeline.deliver`` after each gather of inputs. A copy of
+    :func:`_loop` with two calls added, so that a run without events pays nothing for them."""
+    h, n_steps = scenario.coupling.step, scenario.n_steps
+    jacobi = scenario.coupling.algorithm == "jacobi"
+    record = np.asarray([layout.index[c] for c in scenario.columns], dtype=np.intp)
+    exchanged = z[: layout.n_read]
+    multi_rate = any(s.k != 1 for s in order)
+    take, at, deliver = z.take, timeline.at, timeline.deliver
+    slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
+    error: str | None = None
+    filled, slave, n = 0, order[0], 0
+    started = hand_off_at = clock()
+    hand_off_at += interval
+    try:
+        _check_finite(exchanged, layout, 0.0)
+        at(0)
+        take(record, out=slots[0])  # row 0 is t = 0
+        filled = 1
+        for n in range(n_steps):
+            if stop.signum is not None:
+                break
+            t = n * h  # t_n = n h, never accumulated (no drift)
+            due = [s for s in order if n % s.k == 0] if multi_rate else order
+            if jacobi:  # every due instance takes the values at t before any steps
+                for slave in due:
+                    take(slave.input_sources, out=slave.inputs)
+                    deliver(slave, n)
+                    slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+            for slave in due:
+                if not jacobi:  # the latest values, including those stepped just now
+                    take(slave.input_sources, out=slave.inputs)
+                    deliver(slave, n)
+                    slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+                slave.do_step(slave.c, t, min(n + slave.k, n_steps) * h - t, 1)
+                slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
+            _check_finite(exchanged, layout, (n + 1) * h)
+            at(n + 1)
+            take(record, out=slots[filled])
+            filled += 1
+            if filled == chunk or clock() >= hand_off_at:
+                rows.hand_off(filled)
+                filled, hand_off_at = 0, clock() + interval
+                if rows.error is not None:
+                    break
+    except FMICallException as exc:
+        slave.failed(exc.status)
+        error = describe(slave, exc.function, exc.status, n * h)
+    except CosimError as exc:
+        error = str(exc)
+    rows.hand_off(filled)
+    return _result(scenario, order, rows, error, stop, clock() - started)
+
+
 def _result(
     scenario: Scenario,
     order: list[Slave],
@@ -366,7 +464,7 @@ def _result(
         error = f"{stop.reason} at t = {t_end:.6g} s"
     return RunResult(
         scenario=scenario,
-        columns=scenario.record,
+        columns=scenario.columns,
         rows=rows.count,
         time_reached=t_end,
         final=rows.final,

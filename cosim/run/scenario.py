@@ -88,9 +88,20 @@ from cosim.run.checks import (
     check_value,
     split_ref,
 )
+from cosim.run.timeline_spec import (
+    Event,
+    EventSpec,
+    Fault,
+    FaultSpec,
+    event_table,
+    fault_table,
+    resolve_events,
+    resolve_faults,
+)
 
 SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
 BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
+FAULT_COLUMN_PREFIX = "fault."  # results.csv column of a fault: "fault.<name>"
 MAX_STEPS = 100_000_000  # communication steps per run: more is refused (days of wall clock)
 FILE_SUFFIXES = (".toml",)  # a String start value ending so names a file (vehicle sets)
 StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
@@ -142,6 +153,8 @@ class ScenarioSpec(Strict):
     instances: dict[_NAME, InstanceSpec] = Field(min_length=1)
     connections: ConnectionsSpec = Field(default_factory=ConnectionsSpec)
     output: OutputSpec = Field(default_factory=OutputSpec)
+    events: list[EventSpec] = Field(default_factory=list)
+    faults: list[FaultSpec] = Field(default_factory=list)
 
 
 # --- the resolved scenario ---------------------------------------------------------------
@@ -229,6 +242,14 @@ class Scenario:
     rrd: bool
     spec: ScenarioSpec = dataclasses.field(repr=False, compare=False)
     fmu_dir: Path = dataclasses.field(repr=False, compare=False, default=DEFAULT_FMU_DIR)
+    events: tuple[Event, ...] = ()  # cosim.run.timeline_spec
+    faults: tuple[Fault, ...] = ()
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The columns of results.csv after ``time``: ``record``, then ``fault.<name>`` per
+        fault (1.0 while it acts, else 0.0)."""
+        return self.record + tuple(f"{FAULT_COLUMN_PREFIX}{f.name}" for f in self.faults)
 
     @property
     def n_steps(self) -> int:
@@ -307,6 +328,10 @@ class Scenario:
             },
             "output": {"record": list(self.record), "rrd": self.rrd},
         }
+        if self.events:
+            data["events"] = [event_table(event) for event in self.events]
+        if self.faults:
+            data["faults"] = [fault_table(fault) for fault in self.faults]
         origin = f" (from {self.source})" if self.source else ""
         header = (
             f"# Resolved scenario {self.id!r}{origin}.\n"
@@ -474,8 +499,14 @@ def _resolve(
         spec=spec,
         fmu_dir=fmu_dir,
     )
-    record = _resolve_record(spec.output.record, scenario, src)
-    return dataclasses.replace(scenario, record=record)
+    scenario = dataclasses.replace(
+        scenario, record=_resolve_record(spec.output.record, scenario, src)
+    )
+    return dataclasses.replace(
+        scenario,
+        events=resolve_events(spec.events, scenario, base_dir, src),
+        faults=resolve_faults(spec.faults, scenario, src),
+    )
 
 
 def _check_step_count(spec: ScenarioSpec, src: Source) -> None:
