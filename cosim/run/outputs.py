@@ -72,7 +72,7 @@ class RunOutputs:
         return outputs
 
     def _open_sinks(self, rrd: Path | None, connect: str | None, progress: bool) -> None:
-        self.csv = CsvSink(self.paths["results"], self.scenario.record)
+        self.csv = CsvSink(self.paths["results"], self.scenario.columns)
         self._created.append(self.paths["results"])
         self.sinks.insert(0, self.csv)
         self.folder.start_guard(self.paths["results"], rrd)

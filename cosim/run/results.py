@@ -1,7 +1,8 @@
 """The formats of a run's files: ``results.csv`` and ``summary.json``.
 
 ``results.csv``: a ``time`` column (s), then one column per recorded variable named
-``<instance>.<variable>``, SI units (angles in rad), one row per communication step
+``<instance>.<variable>``, SI units (angles in rad), then a column ``fault.<name>`` per
+fault of the scenario (1.0 while it acts, else 0.0), one row per communication step
 including t = 0; values printed as the shortest text that reads back to the same double
 (Python's ``repr``: ``inf``/``nan`` for a non-finite value). Rows are appended as the run
 advances; every row ends with a newline, so a line without one is a row still being
@@ -16,8 +17,10 @@ interrupted the run, null if none), scenario id, stop_time, step, algorithm, pid
 real_time_factor, time_reached (the last row computed), rows (the rows in results.csv:
 fewer than computed only when results.csv could not be written), the final value of
 every column, the key figures
-(:mod:`cosim.run.figures`) and the FMUs' logged warnings and errors. A summary still
-saying ``running`` once its process is gone belongs to a run that was killed: its
+(:mod:`cosim.run.figures`), the FMUs' logged warnings and errors, ``events`` (each firing
+of an event: ``name``, ``time`` in s, the values it ``set``; docs/events.md) and
+``faults`` (``name``, ``kind``, ``target``, ``start`` and ``stop`` in s, null: never).
+A summary still saying ``running`` once its process is gone belongs to a run that was killed: its
 results.csv holds every row up to the last flush.
 """
 
@@ -103,6 +106,11 @@ def final_summary(
         "final_values": {name: _finite(value) for name, value in final.items()},
         "key_figures": figures,
         "fmu_messages": {name: lines for name, lines in result.messages.items() if lines},
+        "events": result.events,
+        "faults": [
+            {"name": f.name, "kind": f.kind, "target": f.target, "start": f.start, "stop": f.stop}
+            for f in result.scenario.faults
+        ],
     }
 
 

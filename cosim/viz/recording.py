@@ -65,6 +65,7 @@ FILE_SEND_INTERVAL = 5.0  # s of wall-clock time
 SEND_INTERVAL_GROWTH = 0.02
 FLUSH_TIMEOUT = 10.0  # s to wait for a viewer to take the last rows on close
 SEND_INTERVAL = 1.0  # s of wall-clock time, the shortest send interval
+NOTES_ENTITY = "events"  # TextLog: events fired, faults started and stopped
 
 
 class RerunSink:
@@ -74,7 +75,7 @@ class RerunSink:
         scenario: the resolved scenario: its id names the recording, its TOML is stored as
             text, its ``vehicle`` start value (or the FMU's default) picks the geometry of
             the 3D body and its ``depth_mode`` whether the depth setpoint is drawn; its
-            ``record`` are the columns of the value rows given to :meth:`add_rows`
+            ``columns`` are those of the value rows given to :meth:`add_rows`
             (``plant.yaw``, ...; any may be missing).
         rrd_path: the recording file to write (its folder is created), or None.
         connect_url: a viewer's gRPC URL (``rerun+http://127.0.0.1:9876/proxy``), or None.
@@ -96,7 +97,7 @@ class RerunSink:
     ) -> None:
         if rrd_path is None and connect_url is None:
             raise ValueError("RerunSink needs an rrd_path, a connect_url or both; got neither")
-        columns = list(scenario.record)
+        columns = list(scenario.columns)
         if len(set(columns)) != len(columns):
             duplicates = sorted({c for c in columns if columns.count(c) > 1})
             raise ValueError(f"recorded columns must be unique, got duplicates {duplicates}")
@@ -195,6 +196,20 @@ class RerunSink:
             self._send_pending()
             self._flush()
             self._last_send = now
+
+    def add_notes(self, notes: list[tuple[float, str]]) -> None:
+        """Log what happened at a time -- an event fired, a fault started or stopped
+        (:mod:`cosim.run.timeline`) -- as ``rr.TextLog`` entries under :data:`NOTES_ENTITY`
+        at their ``sim_time`` (s); the master hands them over before the rows they precede."""
+        if self._closed:
+            raise ValueError("add_notes on a closed RerunSink")
+        if not notes:
+            return
+        times = np.asarray([t for t, _ in notes], dtype=float)
+        texts = [text for _, text in notes]
+        self._rec.send_columns(
+            NOTES_ENTITY, indexes=time_index(times), columns=rr.TextLog.columns(text=texts)
+        )
 
     def close(self) -> None:
         """Send what is queued, flush and close the file; safe to call twice.

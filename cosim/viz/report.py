@@ -13,6 +13,10 @@ The figures are laid out like the dissertation's Ch. 6 plots:
   trajectory then also shows the planned path and its waypoints (from the run's
   ``scenario.toml``).
 
+Each event the run fired and each fault's start and stop (``summary.json``'s ``events``
+and ``faults``, docs/events.md) is a vertical marker on every time-history panel, named
+in the first panel's legend.
+
 Every series is optional: a panel whose columns the run did not record is left out, a
 figure with no panel is not written. The page ``report/index.html`` in the run folder
 shows the run's summary (``summary.json``) and links the figures.
@@ -50,6 +54,29 @@ class Series:
     scale: float = 1.0
     label: str = ""
     dashed: bool = False
+
+
+@dataclass(frozen=True)
+class Marker:
+    """A vertical line at ``time`` (s) on every time-history panel."""
+
+    time: float
+    label: str
+    color: str
+    style: str
+
+
+def markers_of(summary: dict[str, Any]) -> list[Marker]:
+    """The events fired and the faults' starts and stops listed in ``summary.json``."""
+    markers = []
+    for event in summary.get("events") or []:
+        markers.append(Marker(float(event["time"]), f"event {event['name']}", "tab:orange", "-"))
+    for fault in summary.get("faults") or []:
+        name = f"fault {fault['name']} ({fault['kind']})"
+        markers.append(Marker(float(fault["start"]), f"{name} starts", "tab:red", "--"))
+        if fault.get("stop") is not None:
+            markers.append(Marker(float(fault["stop"]), f"{name} stops", "tab:red", ":"))
+    return markers
 
 
 @dataclass(frozen=True)
@@ -141,7 +168,9 @@ def write_report(run_dir: Path) -> Path:
         for name, (title, panels) in FIGURES.items():
             if name == "depth" and not _has_depth_loop(table):
                 continue
-            path = plot_time_histories(table, panels, title, out / f"{name}.png")
+            path = plot_time_histories(
+                table, panels, title, out / f"{name}.png", markers_of(summary)
+            )
             if path is not None:
                 figures[name] = path
         waypoints = _planned_path(run_dir)
@@ -215,9 +244,14 @@ def _has_depth_loop(table: dict[str, np.ndarray]) -> bool:
 
 
 def plot_time_histories(
-    table: dict[str, np.ndarray], panels: tuple[Panel, ...], title: str, path: Path
+    table: dict[str, np.ndarray],
+    panels: tuple[Panel, ...],
+    title: str,
+    path: Path,
+    markers: list[Marker] | None = None,
 ) -> Path | None:
-    """Stacked panels sharing the time axis; None if the run recorded none of them."""
+    """Stacked panels sharing the time axis, ``markers`` drawn across each; None if the
+    run recorded none of the panels."""
     present = [p for p in panels if p.series[0].column in table]
     if not present:
         return None
@@ -240,6 +274,11 @@ def plot_time_histories(
                 label=label or None,
             )
         drawn = len(curves)
+        for marker in markers or ():
+            first = ax is axes[0, 0]
+            ax.axvline(marker.time, color=marker.color, linestyle=marker.style, linewidth=1.0,
+                       label=marker.label if first else None)  # fmt: skip
+            drawn += first
         if limits is not None:
             ax.set_ylim(*limits)
         ax.set_ylabel(panel.ylabel)
