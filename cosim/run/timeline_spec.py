@@ -275,7 +275,7 @@ def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Sourc
             key, f"{spec.series!r}: header {header} is not 'time,<instance.variable>,...'"
         )
     for ref in header[1:]:
-        _settable(ref, 0.0, scenario, f"{key} column {ref}", True, src)
+        _settable(ref, 0.0, scenario, f"{key} = {spec.series!r}, column {ref}", True, src)
     table = _numbers(rows[1:], len(header), key, spec.series, src)
     times = [row[0] for row in table]
     if not times:
