@@ -125,7 +125,7 @@ def test_a_bad_series_file_is_refused_naming_it(
     for fmu in test_fmu_dir.glob("*.fmu"):
         (tmp_path / fmu.name).symlink_to(fmu)
     write_series(tmp_path, "profile.csv", text)
-    with pytest.raises(ScenarioError, match="events\\[0\\].series") as info:
+    with pytest.raises(ScenarioError, match=r"events\[0\]\.series") as info:
         resolve(tmp_path, '[[events]]\nseries = "profile.csv"', remove_u=True)
     assert expected in str(info.value) and "'profile.csv'" in str(info.value)
 
