@@ -15,6 +15,7 @@ from lxml import etree
 
 from cosim.export.components import Component, components, value_type, xml_literal
 from cosim.export.files import replacing_folder
+from cosim.export.transformations import linear_transformations
 from cosim.run.scenario import Scenario
 
 OSP_FILE = "OspSystemStructure.xml"
@@ -30,6 +31,7 @@ def export_osp(
     ``fmu_paths`` optionally maps instance names to the FMU files to package.
     """
     folder = Path(folder)
+    linear_transformations(scenario, "OSP")  # refuse what OSP cannot carry, before work
     parts = components(scenario, fmu_paths)
     xml = osp_xml(scenario, parts)
     with replacing_folder(folder, OSP_FILE) as tmp:
@@ -62,8 +64,21 @@ def osp_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
         )  # fmt: skip
         if comp.start:
             _initial_values(simulator, comp)
+    transformations = linear_transformations(scenario, "OSP")
+    if transformations:
+        functions = _sub(root, "Functions")
+        for target, (factor, offset) in transformations.items():
+            _sub(functions, "LinearTransformation", name=f"fault-{target}",
+                 factor=repr(factor), offset=repr(offset))  # fmt: skip
     connections = _sub(root, "Connections")
     for c in scenario.connections:
+        if c.target in transformations:  # source -> function "in", function "out" -> target
+            for end, signal in ((c.source, "in"), (c.target, "out")):
+                connection = _sub(connections, "SignalConnection")
+                instance, variable = end.split(".", 1)
+                _sub(connection, "Variable", simulator=instance, name=variable)
+                _sub(connection, "Signal", function=f"fault-{c.target}", name=signal)
+            continue
         connection = _sub(connections, "VariableConnection")
         _sub(connection, "Variable", simulator=c.source_instance, name=c.source_variable)
         _sub(connection, "Variable", simulator=c.target_instance, name=c.target_variable)

@@ -38,6 +38,7 @@ from pyssp_standard.unit import BaseUnit, Unit, Units
 from cosim.errors import CosimError
 from cosim.export.components import Component, components, value_type, xml_literal
 from cosim.export.files import replacing_file
+from cosim.export.transformations import linear_transformations
 from cosim.fmus.interface import Variable
 from cosim.run.scenario import Scenario
 
@@ -70,6 +71,7 @@ def export_ssp(
     and the start value becomes that path, relative to the archive's root.
     """
     path = Path(path)
+    linear_transformations(scenario, "SSP")  # refuse what SSP cannot carry, before work
     parts = components(scenario, fmu_paths)
     packed: dict[str, Path] = {}
     for i, part in enumerate(parts):
@@ -126,6 +128,7 @@ def ssd_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
     system.annotations.add_annotation(_openmodelica_step(scenario.coupling.step))
     root = _written(scenario, system, units)
     _add_step_size_hints(root, scenario, parts)
+    _add_linear_transformations(root, scenario)
     root[:] = sorted(root, key=lambda child: _ROOT_ORDER.index(etree.QName(child).localname))
     etree.cleanup_namespaces(root, top_nsmap=NAMESPACES, keep_ns_prefixes=list(NAMESPACES))
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
@@ -263,4 +266,22 @@ def _add_step_size_hints(root: Any, scenario: Scenario, parts: Sequence[Componen
             annotation,
             f"{{{NAMESPACES['osp']}}}StepSizeHint",
             value=repr(comp.step_multiple * scenario.coupling.step),
+        )
+
+
+def _add_linear_transformations(root: Any, scenario: Scenario) -> None:
+    """Each whole-run gain or bias fault as its connection's ``ssc:LinearTransformation``
+    (:mod:`cosim.export.transformations`); pyssp-standard 0.9.1 writes none itself."""
+    for target, (factor, offset) in linear_transformations(scenario, "SSP").items():
+        instance, variable = target.split(".", 1)
+        connection = root.find(
+            f"ssd:System/ssd:Connections/ssd:Connection[@endElement='{instance}']"
+            f"[@endConnector='{variable}']",
+            NAMESPACES,
+        )
+        etree.SubElement(
+            connection,
+            f"{{{NAMESPACES['ssc']}}}LinearTransformation",
+            factor=repr(factor),
+            offset=repr(offset),
         )
