@@ -18,6 +18,10 @@ communication step (with each instance's step multiple).
   tools load; it has no unit attribute, so each initial value carries its unit in a
   comment).
 
+Of a scenario's events and faults, only gain and bias faults over the whole run are
+exported, as linear transformations of their connections; anything else is refused
+(:mod:`cosim.export.transformations`).
+
 libcosim and ecos both step every instance at t from the outputs of t - h (Jacobi); the
 master's Gauss-Seidel order has no counterpart in either file.
 

@@ -46,6 +46,10 @@ Format (every key is checked; unknown keys are errors)::
                                                        #  unconnected input of every instance]
     rrd = true                           # write recording.rrd [true]
 
+    [[events]]                           # values set during the run, and
+    [[faults]]                           # faults on connections and actuators: see
+                                         # cosim/run/timeline_spec.py and docs/events.md
+
 Types are strict: a string where a number belongs, a float step multiple or start value of
 an Integer, an integer outside the FMI 32-bit range or outside the variable's declared
 min/max, infinity or NaN are errors, never coerced. The file is UTF-8, with or without a

@@ -250,6 +250,7 @@ def test_documented_example_resolves(fmu_dir: Path, no_fmu_loading: None) -> Non
     assert s.coupling.step_multiples == {"plant": 1, "controller": 5}
     assert len(s.connections) == 10 and not s.rrd
     assert s.record[0] == "plant.yaw"
+    assert [e.name for e in s.events] == ["turn"] and [f.name for f in s.faults] == ["weak-mass"]
 
 
 def test_a_utf8_byte_order_mark_is_accepted(fmu_dir: Path, tmp_path: Path) -> None:
