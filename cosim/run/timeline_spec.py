@@ -188,11 +188,6 @@ def resolve_events(
                 key, f"has {triggers or 'none'} of time / when / series: expected exactly one"
             )
         _check_event_keys(spec, key, src)
-        if spec.time is not None and spec.time > scenario.stop_time:
-            raise src.error(
-                f"{key}.time",
-                f"{spec.time!r} s is after stop_time = {scenario.stop_time!r} s: never fires",
-            )
         when = _condition(spec.when, scenario, f"{key}.when", src) if spec.when else None
         series = _series(spec, scenario, base_dir, f"{key}.series", src) if spec.series else None
         values = {
@@ -312,7 +307,7 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
     targets = {c.target for c in scenario.connections}
     for i, spec in enumerate(specs):
         key = f"faults[{i}]"
-        _check_fault_keys(spec, key, scenario.stop_time, src)
+        _check_fault_keys(spec, key, src)
         if spec.kind in ACTUATOR_FAULTS:
             if spec.target is not None:
                 raise src.error(
@@ -336,7 +331,7 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
     return tuple(faults)
 
 
-def _check_fault_keys(spec: FaultSpec, key: str, stop_time: float, src: Source) -> None:
+def _check_fault_keys(spec: FaultSpec, key: str, src: Source) -> None:
     for optional in ("value", "std", "seed", "steps", "probability"):
         if getattr(spec, optional) is not None and optional not in _FAULT_KEYS[spec.kind]:
             raise src.error(
@@ -351,10 +346,6 @@ def _check_fault_keys(spec: FaultSpec, key: str, stop_time: float, src: Source) 
         raise src.error(f"{key}.target", f"missing: kind {spec.kind!r} acts on a connection")
     if spec.stop is not None and spec.stop <= spec.start:
         raise src.error(f"{key}.stop", f"{spec.stop!r} s is not after start = {spec.start!r} s")
-    if spec.start >= stop_time:
-        raise src.error(
-            f"{key}.start", f"{spec.start!r} s is not before stop_time = {stop_time!r} s"
-        )
 
 
 def _actuator(kind: str, scenario: Any, key: str, src: Source) -> tuple[str, str | None]:
