@@ -6,7 +6,8 @@ ratios (best of ``--repeat`` interleaved runs):
 * a gain fault of 1.0 over the whole run on plant.tunnel_force (delivered every step);
 
 and the plain loop's own figure, so a change to it shows. A scenario without events or
-faults runs the plain loop (``cosim.run.master._loop``), so its cost is the baseline.
+faults runs the same loop (``cosim.run.master._loop``) with no-op calls: its cost is the
+baseline.
 Usage: ``python scripts/bench_events.py [--stop-time 20] [--repeat 3] [--fmu-dir DIR]``.
 """
 

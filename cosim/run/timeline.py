@@ -1,6 +1,7 @@
 """A run's events and faults as the master applies them (docs/events.md).
 
-The master's event loop (``cosim.run.master._timeline_loop``) calls
+The master's stepping loop (``cosim.run.master._loop``), when a scenario has events or
+faults, calls
 
 * :meth:`Timeline.at` once per communication point t_n = n h (n = 0 .. N), after every due
   instance has stepped to t_n and its outputs were read, before row n is recorded and
