@@ -74,6 +74,7 @@ from typing import Any
 
 import numpy as np
 
+from controller_fmu import compiled_backstepping as fast
 from controller_fmu.command_filter import CommandFilterBank
 from controller_fmu.lateral_model import LateralDesignModel
 
@@ -164,14 +165,42 @@ class BacksteppingHeading:
         for name in ("g1", "g2", "g3", "thruster_gain"):
             if abs(getattr(self, name)) < 1e-9:
                 raise ValueError(f"backstepping model gain {name} is 0 for this vehicle/U0")
-        self.filters = CommandFilterBank(3, gains.filter_frequency)
+        # All state in one flat array (compiled_backstepping's layout), which the compiled
+        # law updates in place and the reference reads through views.
+        self._state = np.zeros(fast.STATE_SIZE)
+        self._last_alphas = self._state[fast.ALPHAS : fast.VALUES]
+        self.filters = CommandFilterBank(
+            3, gains.filter_frequency, storage=self._state[fast.VALUES : fast.STATE_SIZE]
+        )
+        self._law = None if design.compiled_plant is None else self._flat_law()
+        self._next_slot = 0  # the law's interval slot the next new interval takes
         self.reset()
+
+    def _flat_law(self) -> np.ndarray:
+        """The compiled law's constants (:mod:`compiled_backstepping`'s ``law`` layout)."""
+        k = self.gains
+        law = np.full(fast.LAW_SIZE, np.nan)
+        gains = (k.k0, k.k1, k.k2, k.k3, k.k4, k.eta0, k.boundary_layer)
+        law[: fast.DESIGN_STATE] = (
+            *gains,
+            self.g1,
+            self.g2,
+            self.g3,
+            self.eps4,
+            self.thruster_gain,
+        )
+        law[fast.DESIGN_STATE : fast.DESIGN_INPUTS] = self.design.design_state
+        law[fast.DESIGN_INPUTS : fast.INTERVALS] = self.design.design_inputs
+        return law
+
+    @property
+    def _last_time(self) -> float | None:
+        """The previous sample's time, s (None before the first)."""
+        return float(self._state[fast.LAST_TIME]) if self._state[fast.STARTED] else None
 
     def reset(self) -> None:
         """Forget the filters; the next call starts them on its own virtual controls."""
-        self._last_time: float | None = None
-        self._last_alphas = np.zeros(3)
-        self.filters.start(np.zeros(3))
+        self._state[:] = 0.0
 
     def snapshot(self) -> BacksteppingSnapshot:
         """The internal state, to restore with :meth:`restore`."""
@@ -184,17 +213,45 @@ class BacksteppingHeading:
 
     def restore(self, snapshot: BacksteppingSnapshot) -> None:
         """Back to the state :meth:`snapshot` returned (the snapshot is not shared)."""
-        self._last_time = snapshot.last_time
-        self._last_alphas = snapshot.last_alphas.copy()
-        self.filters.value = snapshot.filter_value.copy()
-        self.filters.rate = snapshot.filter_rate.copy()
+        started = snapshot.last_time is not None
+        self._state[fast.STARTED] = 1.0 if started else 0.0
+        self._state[fast.LAST_TIME] = snapshot.last_time if started else 0.0
+        self._last_alphas[:] = snapshot.last_alphas
+        self.filters.value[:] = snapshot.filter_value
+        self.filters.rate[:] = snapshot.filter_rate
+
+    def command_values(
+        self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
+    ) -> tuple[float, float]:
+        """(y_v command m, F_t N) of :meth:`command`, from the compiled law when numba is
+        usable (:mod:`controller_fmu.compiled_backstepping`), else from the reference."""
+        if self._law is None:
+            out = self.command(time, v, r, p, phi, psi_e, y_v)
+            return out.mass_position, out.tunnel_force
+        return self._compiled(time, v, r, p, phi, psi_e, y_v)[1:3]
+
+    def _compiled(
+        self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
+    ) -> tuple[float, ...]:
+        """The compiled law's 7 values; writes the filter transition it asks for first."""
+        params, law, state = self.design.compiled_plant.parameters, self._law, self._state
+        out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v)
+        if out[0]:  # a new interval: its exact transition (scipy's expm, cached)
+            interval = time - float(state[fast.LAST_TIME])
+            phi, gamma = self.filters.transition(interval)
+            slot = fast.INTERVALS + 7 * self._next_slot
+            law[slot : slot + 7] = (interval, *phi.ravel().tolist(), *gamma.tolist())
+            self._next_slot = (self._next_slot + 1) % fast.N_INTERVALS
+            out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v)
+        return out
 
     def command(
         self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
     ) -> BacksteppingOutput:
         """Commands at ``time`` (s) from the measured relative sway velocity v (m/s), rates
         r, p (rad/s), roll phi, heading error psi_e = psi - psi_d (rad) and mass position
-        y_v (m). Advances the filters from the previous call with its alphas held."""
+        y_v (m). Advances the filters from the previous call with its alphas held. The
+        reference law, in Python; :meth:`command_values` steps the compiled one."""
         k = self.gains
         # The filters are at rest (rate 0) until the first sample has started them.
         if self._last_time is not None:
@@ -220,9 +277,9 @@ class BacksteppingHeading:
         saturated = min(max(z2 / k.boundary_layer, -1.0), 1.0)
         force = -bound * saturated / self.thruster_gain
 
-        alphas = np.array([alpha1, alpha2, alpha3])
+        alphas = (alpha1, alpha2, alpha3)
         if self._last_time is None:  # first sample: filters start at rest on the alphas
             self.filters.start(alphas)
-        self._last_time = time
-        self._last_alphas = alphas
+        self._state[fast.STARTED], self._state[fast.LAST_TIME] = 1.0, time
+        self._last_alphas[:] = alphas
         return BacksteppingOutput(mass, force, (psi_e, z1, z2, z3, z4))

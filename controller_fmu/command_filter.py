@@ -28,9 +28,13 @@ class CommandFilterBank:
         n: number of filters.
         frequency: omega, rad/s (> 0).
         damping: zeta (> 0).
+        storage: optional float64 array of 2 n values the filters keep their outputs a_c
+            (first n) and rates a_c' (last n) in, updated in place (a caller's flat state).
     """
 
-    def __init__(self, n: int, frequency: float, damping: float = 1.0) -> None:
+    def __init__(
+        self, n: int, frequency: float, damping: float = 1.0, storage: np.ndarray | None = None
+    ) -> None:
         if not (math.isfinite(frequency) and frequency > 0.0):
             raise ValueError(f"command filter frequency {frequency!r}: expected > 0 rad/s")
         if not (math.isfinite(damping) and damping > 0.0):
@@ -39,22 +43,25 @@ class CommandFilterBank:
         self.frequency = float(frequency)
         self.damping = float(damping)
         self._cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-        self.value = np.zeros(n)  # a_c
-        self.rate = np.zeros(n)  # a_c'
+        storage = np.zeros(2 * n) if storage is None else storage
+        self.value = storage[:n]  # a_c (views: every update is in place)
+        self.rate = storage[n : 2 * n]  # a_c'
 
     def start(self, inputs: np.ndarray) -> None:
         """Start at rest on the given inputs (a_c = a, a_c' = 0)."""
-        self.value = np.array(inputs, dtype=float)
-        self.rate = np.zeros(self.n)
+        self.value[:] = inputs
+        self.rate[:] = 0.0
 
     def advance(self, inputs: np.ndarray, interval: float) -> None:
         """Advance by ``interval`` seconds with ``inputs`` held."""
-        Phi, Gamma = self._transition(interval)
+        Phi, Gamma = self.transition(interval)
         state = np.stack([self.value, self.rate])  # 2 x n
         new = Phi @ state + np.outer(Gamma, inputs)
-        self.value, self.rate = new[0].copy(), new[1].copy()
+        self.value[:], self.rate[:] = new[0], new[1]
 
-    def _transition(self, interval: float) -> tuple[np.ndarray, np.ndarray]:
+    def transition(self, interval: float) -> tuple[np.ndarray, np.ndarray]:
+        """(Phi 2x2, Gamma 2) of the exact zero-order-hold discretisation over ``interval``
+        s (cached; not to be modified)."""
         cached = self._cache.get(interval)
         if cached is None:
             w, z = self.frequency, self.damping

@@ -40,12 +40,16 @@ class LateralDesignModel:
     Args:
         params: the vehicle parameter set the controller is designed for.
         design_speed: U0, the surge speed relative to the water, m/s (> 0).
+        use_compiled: evaluate the plant through its compiled derivative when numba is
+            usable (False: always the numpy reference, as the agreement tests compare).
 
     Raises:
         ValueError: design_speed is not a finite positive number.
     """
 
-    def __init__(self, params: VehicleParameters, design_speed: float) -> None:
+    def __init__(
+        self, params: VehicleParameters, design_speed: float, use_compiled: bool = True
+    ) -> None:
         if not (np.isfinite(design_speed) and design_speed > 0.0):
             raise ValueError(f"design_speed = {design_speed!r}: expected a finite speed > 0 m/s")
         self.params = params
@@ -55,8 +59,24 @@ class LateralDesignModel:
         self._u0 = input_vector()
         # The plant's compiled derivative (same arithmetic, ~50x cheaper) when numba is
         # usable: static_mass_rates runs at every backstepping step.
-        self._fast = compiled.CompiledPlant(self.plant) if compiled.AVAILABLE else None
+        usable = use_compiled and compiled.AVAILABLE
+        self._fast = compiled.CompiledPlant(self.plant) if usable else None
         self._x_work, self._u_work = self._x0.copy(), self._u0.copy()
+
+    @property
+    def compiled_plant(self) -> compiled.CompiledPlant | None:
+        """The plant's compiled derivative, or None when numba is off."""
+        return self._fast
+
+    @property
+    def design_state(self) -> np.ndarray:
+        """The plant state of the straight run at U0 (a copy), plant order."""
+        return self._x0.copy()
+
+    @property
+    def design_inputs(self) -> np.ndarray:
+        """The plant inputs of the straight run (a copy): all 0."""
+        return self._u0.copy()
 
     def linearize(self) -> tuple[np.ndarray, np.ndarray]:
         """A (7x7) and B (7x1) of x_dot = A x + B y_d about the straight run at U0, no roll,

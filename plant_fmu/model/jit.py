@@ -26,7 +26,9 @@ from pathlib import Path
 from types import ModuleType
 
 NO_JIT_VARIABLE = "AUV_COSIM_NO_JIT"
-_CACHED_MODULES = ("compiled.py",)  # file names whose functions use the content-keyed cache
+# file names whose functions use the content-keyed cache (plant_fmu/model/compiled.py,
+# controller_fmu/compiled_backstepping.py)
+_CACHED_MODULES = ("compiled.py", "compiled_backstepping.py")
 
 
 def default_cache_dir() -> Path:
@@ -65,7 +67,7 @@ def _install_locator(caching: ModuleType) -> None:
 
         def __init__(self, py_func, py_file):
             super().__init__(py_func, py_file)
-            self._cache_path = os.path.join(caching.config.CACHE_DIR, "plant_fmu_model")
+            self._cache_path = os.path.join(caching.config.CACHE_DIR, "auv_cosim")
 
         @classmethod
         def from_function(cls, py_func, py_file):
