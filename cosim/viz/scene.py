@@ -43,6 +43,7 @@ from __future__ import annotations
 from collections.abc import Callable, Collection
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 from scipy.spatial.transform import Rotation
 
@@ -254,9 +255,42 @@ def scene_legend() -> str:
 
 
 def euler_to_quaternions(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    """Quaternions [x, y, z, w] of R = Rz(yaw) Ry(pitch) Rx(roll) (2.2.8), one per row."""
-    # Intrinsic "ZYX" = Rz(psi) Ry(theta) Rx(phi), the zyx convention of Ch. 2.
-    return Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll])).as_quat()
+    """Quaternions [x, y, z, w] of R = Rz(yaw) Ry(pitch) Rx(roll) (2.2.8), one per row.
+
+    The product q_z(yaw) q_y(pitch) q_x(roll) of the three elementary quaternions, written
+    out: what scipy's ``Rotation.from_euler("ZYX", ...).as_quat()`` returns (same sign,
+    to rounding; the test compares), at a tenth of its cost per batch, which a recording
+    pays for every row of the run (``scripts/bench_cosim.py``, recording overhead).
+    """
+    cr, sr = np.cos(0.5 * roll), np.sin(0.5 * roll)
+    cp, sp = np.cos(0.5 * pitch), np.sin(0.5 * pitch)
+    cy, sy = np.cos(0.5 * yaw), np.sin(0.5 * yaw)
+    return np.column_stack(
+        [
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+            cr * cp * cy + sr * sp * sy,
+        ]
+    )
+
+
+def pitch_quaternions(angle: np.ndarray) -> np.ndarray:
+    """Quaternions [x, y, z, w] of rotations by ``angle`` (rad) about the body y axis."""
+    zeros = np.zeros_like(angle)
+    return np.column_stack([zeros, np.sin(0.5 * angle), zeros, np.cos(0.5 * angle)])
+
+
+def strips_of_segments(segments: np.ndarray) -> pa.Array:
+    """The LineStrips3D strips column of n two-point segments ((n, 2, 3) array), built as
+    one Arrow list array: rerun's own conversion loops in Python over the strips (~5 us
+    each), the rows of the run here."""
+    n = len(segments)
+    points = rr.components.LineStrip3DBatch._ARROW_DATATYPE  # list<fixed_size_list<f32, 3>>
+    flat = pa.array(segments.reshape(-1).astype(np.float32))
+    inner = pa.FixedSizeListArray.from_arrays(flat, type=points.value_type)
+    offsets = pa.array(np.arange(0, 2 * n + 1, 2, dtype=np.int32))
+    return pa.ListArray.from_arrays(offsets, inner, type=points)
 
 
 class SceneWriter:
@@ -302,7 +336,7 @@ class SceneWriter:
         fin = acting(column, "fin_angle")
         if fin is not None:
             hinge = np.tile([-0.5 * self._vehicle.length + FIN_FROM_TAIL, 0.0, 0.0], (n, 1))
-            turn = Rotation.from_rotvec(np.outer(fin, [0.0, 1.0, 0.0])).as_quat()
+            turn = pitch_quaternions(fin)
             self._rec.send_columns(
                 "world/vehicle/stern_planes",
                 indexes=index,
@@ -365,5 +399,5 @@ class SceneWriter:
         self._rec.send_columns(
             "world/trajectory",
             indexes=index,
-            columns=rr.LineStrips3D.columns(strips=segments),
+            columns=rr.LineStrips3D.columns(strips=strips_of_segments(segments)),
         )
