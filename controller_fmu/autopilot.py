@@ -406,7 +406,8 @@ class Autopilot:
 
         Raises:
             ValueError: a measurement is missing or not finite, or (with
-                ``compensate_current``) the cross-current reaches the design speed.
+                ``compensate_current``) the cross-current reaches the design speed, or a
+                command came out non-finite; the autopilot is then as before the call.
         """
         m = _checked(time, measurements)
         c = self.config
@@ -417,6 +418,7 @@ class Autopilot:
         psi_e = wrap_angle(m["yaw"] - psi_d)
         x = (m["v_rel"], m["r"], m["p"], m["roll"], psi_e, m["mass_position"],
              m["mass_velocity"])  # fmt: skip
+        saved = None if self.backstepping is None else self.backstepping.state_values()
         mass_cmd, tunnel = self._heading_law(time, x)
         if mass_locked(time, c.mass_lock_time):
             mass_cmd = 0.0
@@ -427,6 +429,8 @@ class Autopilot:
         tunnel = _clip(tunnel, c.tunnel_force_limit)
         commands = Commands(mass_cmd, tunnel, fin, c.thrust_command)
         if not (math.isfinite(mass_cmd) and math.isfinite(tunnel) and math.isfinite(fin)):
+            if saved is not None:
+                self.backstepping.load_state_values(saved)
             raise ValueError(f"the autopilot computed a non-finite command {commands}")
         self.commands = commands
         self.heading_setpoint = psi_d

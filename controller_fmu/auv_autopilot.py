@@ -189,13 +189,9 @@ class AuvAutopilot(SafeSlave):
                 Fmi2Status.warning,
             )
             self._step_warned = True
-        before = autopilot.snapshot()
-        try:
-            commands = autopilot.step(current_time, self._inputs)
-        except Exception:
-            autopilot.restore(before)
-            raise
-        self._outputs[:] = commands.values()
+        # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
+        # the step with its state unchanged
+        self._outputs[:] = autopilot.step(current_time, self._inputs)
 
     def _state_snapshot(self) -> dict[str, Any]:
         state: dict[str, Any] = {"outputs": list(self._outputs), "warned": self._step_warned}

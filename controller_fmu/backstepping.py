@@ -211,6 +211,14 @@ class BacksteppingHeading:
             filter_rate=self.filters.rate.copy(),
         )
 
+    def state_values(self) -> np.ndarray:
+        """A copy of the flat state (cheaper than :meth:`snapshot`, for a rollback)."""
+        return self._state.copy()
+
+    def load_state_values(self, values: np.ndarray) -> None:
+        """Back to the flat state :meth:`state_values` returned."""
+        self._state[:] = values
+
     def restore(self, snapshot: BacksteppingSnapshot) -> None:
         """Back to the state :meth:`snapshot` returned (the snapshot is not shared)."""
         started = snapshot.last_time is not None

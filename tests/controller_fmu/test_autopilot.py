@@ -133,6 +133,19 @@ def test_heading_off_commands_nothing_but_the_thrust(remus):
     assert commands.values() == (0.0, 0.0, 0.0, 4.0)
 
 
+def test_a_non_finite_command_leaves_the_autopilot_as_it_was(remus):
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=3))
+    good = _measured(remus, u=1.5, v=-0.1)
+    autopilot.step(0.0, good)
+    before = autopilot.snapshot().to_json()
+    with np.errstate(all="ignore"), pytest.raises(ValueError, match="non-finite command"):
+        autopilot.step(0.01, {**good, "r": 1e300, "p": -1e300})  # the model terms overflow
+    assert autopilot.snapshot().to_json() == before
+    untouched = Autopilot(autopilot.config)
+    untouched.step(0.0, good)
+    assert autopilot.step(0.01, good) == untouched.step(0.01, good)
+
+
 def test_snapshot_and_restore_continue_bit_identically(remus):
     autopilot = Autopilot(AutopilotConfig.build(heading_mode=3))
     model = PlantModel(remus, variant=Variant.LATERAL)
