@@ -282,10 +282,10 @@ class SafeSlave(Fmi2Slave):
         self._phase = _TERMINATED
 
     def get_real(self, vrs: list[int]) -> list[float]:
-        getters = self._real_plan(vrs, self._get_plans, _readable)
-        if getters is not None:  # the hot path: one lookup per call, finite values
+        plan = self._real_plan(vrs, self._get_plans, _readable)
+        if plan is not None:  # the hot path: one lookup per call, finite values
             try:
-                values = [float(getter()) for getter in getters[0]]
+                values = [float(var.getter()) for var in plan[0]]
                 if all(map(math.isfinite, values)):
                     return values
             except Exception:
@@ -304,9 +304,9 @@ class SafeSlave(Fmi2Slave):
     def set_real(self, vrs: list[int], values: list[float]) -> None:
         plan = self._real_plan(vrs, self._set_plans, self._writable_any_time)
         if plan is not None and len(values) == len(plan[0]) and all(map(math.isfinite, values)):
-            setters, names = plan  # the hot path: inputs without a range, finite values
-            for setter, value in zip(setters, values, strict=True):
-                setter(value)
+            variables, names = plan  # the hot path: inputs without a range, finite values
+            for var, value in zip(variables, values, strict=True):
+                var.setter(value)
             self._written.update(names)
             if self._problems:
                 for name in names:
@@ -451,10 +451,10 @@ class SafeSlave(Fmi2Slave):
         plans: dict[tuple[int, ...], tuple[tuple[Any, ...], tuple[str, ...]] | None],
         eligible: Callable[[Any], bool],
     ) -> tuple[tuple[Any, ...], tuple[str, ...]] | None:
-        """(getters or setters, names) of ``vrs`` when every one is a Real ``eligible``
-        accepts, else None; cached per list of value references, as a host asks for the
-        same list at every step. The cached plan spares each value the checked path's
-        lookups (~1 us per value), which is most of what an FMU step costs."""
+        """(variables, names) of ``vrs`` when every one is a Real ``eligible`` accepts,
+        else None; cached per list of value references, as a host asks for the same list
+        at every step. The cached plan spares each value the checked path's lookups and
+        checks (~1 us per value), which is most of what an FMU step costs."""
         key = tuple(vrs)
         try:
             return plans[key]
@@ -463,9 +463,7 @@ class SafeSlave(Fmi2Slave):
         variables = [self.vars.get(vr) for vr in key]
         plan = None
         if all(isinstance(var, Real) and eligible(var) for var in variables):
-            reading = plans is self._get_plans
-            accessors = tuple(v.getter if reading else v.setter for v in variables)
-            plan = (accessors, tuple(v.name for v in variables))
+            plan = (tuple(variables), tuple(v.name for v in variables))
         if len(plans) >= _MAX_PLANS:
             plans.clear()
         plans[key] = plan

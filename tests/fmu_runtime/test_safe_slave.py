@@ -119,6 +119,25 @@ def test_non_finite_input_is_refused_until_a_valid_value_is_written(slave):
     assert slave.y == pytest.approx(0.6)
 
 
+def test_repeated_reads_and_writes_keep_every_rule(slave):
+    # a host repeats the same lists every step: the cached fast path must refuse and
+    # report exactly what the checked path does
+    u, gain, y, echo = (_vr(slave, n) for n in ("u", "gain", "y", "echo"))
+    for k in range(3):
+        slave.set_real([u, gain], [2.0 + k, 0.5])
+        assert slave.do_step(0.1 * k, 0.1) is True
+        assert slave.get_real([y, echo]) == [pytest.approx(slave.y), 2.0 + k]
+    assert slave.was_written("u") and slave.was_written("gain")
+    slave.set_real([u, gain], [math.nan, 0.25])
+    assert (slave.u, slave.gain) == (4.0, 0.25) and "u = nan refused" in _errors(slave)
+    assert slave.do_step(0.3, 0.1) is False
+    slave.set_real([u, gain], [1.0, 0.25])  # a good value clears the refusal
+    assert slave.do_step(0.3, 0.1) is True
+    slave.echo = math.inf
+    assert slave.get_real([y, echo])[1] == math.inf
+    assert "echo = inf is not finite" in _errors(slave)
+
+
 def test_fixed_parameter_is_refused_after_initialisation_tunable_is_not(slave):
     slave.set_real([_vr(slave, "k"), _vr(slave, "gain")], [5.0, 0.5])
     assert (slave.k, slave.gain) == (2.0, 0.5)
