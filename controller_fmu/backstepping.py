@@ -246,9 +246,9 @@ class BacksteppingHeading:
         out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v)
         if out[0]:  # a new interval: its exact transition (scipy's expm, cached)
             interval = time - float(state[fast.LAST_TIME])
-            phi, gamma = self.filters.transition(interval)
+            transition, gamma = self.filters.transition(interval)
             slot = fast.INTERVALS + 7 * self._next_slot
-            law[slot : slot + 7] = (interval, *phi.ravel().tolist(), *gamma.tolist())
+            law[slot : slot + 7] = (interval, *transition.ravel().tolist(), *gamma.tolist())
             self._next_slot = (self._next_slot + 1) % fast.N_INTERVALS
             out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v)
         return out

@@ -5,9 +5,10 @@ and the thruster (6.3.72)-(6.3.73)) in one numba call, on flat float64 arrays.
 Why by hand: the Python law costs ~10 us per sample, most of it interpreter overhead
 around a few dozen multiplications; no library compiles it for us. The reference stays
 :meth:`BacksteppingHeading.command` (used when numba is off), and this kernel writes the
-same operations in the same order, so the two agree to the last bit but for the plant
-derivative's matrix products (``tests/controller_fmu/test_compiled_backstepping.py``:
-1e-12). Nothing is re-typed: the model terms f1, f2, f3 come from the plant's compiled
+same operations in the same order, so the two agree to the last bit but for the matrix
+products of the plant derivative and of the filters (Phi @ state, which numpy hands to
+BLAS, possibly with fused multiply-adds): ``tests/controller_fmu/test_compiled_backstepping.py``
+holds them to 1e-12. Nothing is re-typed: the model terms f1, f2, f3 come from the plant's compiled
 derivative (:func:`plant_fmu.model.compiled.derivative_into`) on the design model's flat
 parameters, and g1, g2, g3, eps4', d v'/d F_t, the gains and the command filters'
 zero-order-hold transition (scipy's expm, computed in Python) are handed in by
