@@ -14,7 +14,7 @@
    (target <= 1.25), and the recording overhead (bs-3 with and without recording.rrd,
    target <= 1.10).
 
-Each timing is the best of ``--repeat`` runs (interleaved) to damp other load.
+Each timing is the best of ``--repeat`` runs, interleaved in rounds, to damp other load.
 Usage: ``python scripts/bench_cosim.py [--stop-time 60] [--repeat 3] [--fmu-dir DIR]``.
 """
 
@@ -182,7 +182,7 @@ def startup(folder: Path) -> tuple[float, float]:
     """Wall clock of ``auv-cosim run bs-3 --no-rrd``, first (fresh FMU folder and numba
     cache) and second run, s."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(folder / "numba")}
-    command = ["auv-cosim", "run", "bs-3", "--no-rrd", "--quiet", "--fmu-dir",
+    command = ["auv-cosim", "run", "bs-3", "--no-rrd", "--quiet", "--overwrite", "--fmu-dir",
                str(folder / "fmus"), "--out", str(folder / "run")]  # fmt: skip
     times = []
     for _ in range(2):
@@ -191,6 +191,25 @@ def startup(folder: Path) -> tuple[float, float]:
         times.append(time.perf_counter() - started)
     shutil.rmtree(folder / "numba", ignore_errors=True)
     return times[0], times[1]
+
+
+def rounds(
+    scenarios: dict[str, Scenario], folder: Path, repeat: int
+) -> tuple[float, dict[str, float], float]:
+    """(floor s per step, loop s of each scenario without recording, loop s of bs-3 with
+    recording.rrd), each the best of ``repeat`` rounds; a round measures all of them in a
+    row, so a burst of other load on this shared machine hits a whole round, not one
+    figure of a ratio."""
+    floors, recorded = [], []
+    loops: dict[str, list[float]] = {sid: [] for sid in scenarios}
+    for i in range(repeat):
+        floors.append(floor_per_step(folder, scenarios["bs-3"].n_steps))
+        for sid, scenario in scenarios.items():
+            outcome = run_scenario(scenario, folder / f"{sid}-{i}", no_rrd=True)
+            loops[sid].append(outcome.result.wall_clock_s)
+        outcome = run_scenario(scenarios["bs-3"], folder / f"rrd-{i}")
+        recorded.append(outcome.result.wall_clock_s)
+    return min(floors), {sid: min(times) for sid, times in loops.items()}, min(recorded)
 
 
 def main() -> None:
@@ -207,16 +226,10 @@ def main() -> None:
     }
     with tempfile.TemporaryDirectory(prefix="bench_cosim_") as tmp:
         folder = Path(tmp)
-        steps = scenarios["bs-3"].n_steps
-        floor = min(floor_per_step(folder, steps) for _ in range(args.repeat))
+        floor, loops, recorded = rounds(scenarios, folder, args.repeat)
         print(f"1. FMI floor (trivial pythonfmu pair, bare fmpy loop): {1e6 * floor:.1f} us "
               f"per 10 ms step, {0.01 / floor:.0f}x real time")  # fmt: skip
-        loops = {}
         for sid, scenario in scenarios.items():
-            loops[sid] = min(
-                run_scenario(scenario, folder / f"{sid}-{i}", no_rrd=True).result.wall_clock_s
-                for i in range(args.repeat)
-            )
             ratio = loops[sid] / (floor * scenario.n_steps)
             print(f"   {sid}: {scenario.stop_time / loops[sid]:.0f}x real time, "
                   f"{1e6 * loops[sid] / scenario.n_steps:.1f} us/step: {ratio:.2f}x the floor "
@@ -232,10 +245,6 @@ def main() -> None:
         ours, bare, ratio = overhead_ratio(scenarios["bs-3"], args.repeat)
         print(f"4. master vs bare fmpy loop, bs-3: {ours:.3f} s vs {bare:.3f} s: ratio "
               f"{ratio:.3f} (target <= 1.25)")  # fmt: skip
-        recorded = min(
-            run_scenario(scenarios["bs-3"], folder / f"rrd-{i}").result.wall_clock_s
-            for i in range(args.repeat)
-        )
         print(f"   recording overhead, bs-3: {recorded:.3f} s with recording.rrd, "
               f"{loops['bs-3']:.3f} s without: ratio {recorded / loops['bs-3']:.3f} "
               "(target <= 1.10)")  # fmt: skip
