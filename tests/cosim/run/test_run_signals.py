@@ -268,8 +268,9 @@ def test_a_second_run_into_a_running_folder_fails_at_once(fmu_dir: Path, tmp_pat
 
 def test_rows_reach_results_csv_at_least_every_second(fmu_dir: Path, tmp_path: Path):
     """A slow run (the full 6-DOF plant sub-steps every 1.2 us, or 0.1 ms on the 50x slower
-    reference path: fewer than ROWS_PER_CHUNK rows a second, so a full chunk alone would take longer
-    than a second) still has its rows on disk within about a second of computing them."""
+    reference path: fewer than ROWS_PER_CHUNK rows a second, so a full chunk alone would
+    take longer than a second) still has its rows on disk within about a second of
+    computing them."""
     scenario = tmp_path / "slow.toml"
     text = scenario_path("bs-3").read_text().replace("variant = 1", "variant = 0")
     substep = "1.2e-6" if compiled.AVAILABLE else "1e-4"
