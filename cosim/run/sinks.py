@@ -41,7 +41,7 @@ class CsvSink:
         self._write(csv_header(columns).encode())
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
-        self._write(csv_lines(times, values).encode())
+        self._write(csv_lines(times, values))
         self.rows += len(times)
 
     def close(self) -> None:
