@@ -135,6 +135,7 @@ def _study(args: argparse.Namespace) -> int:
         resume=args.resume,
         fmu_dir=args.fmu_dir,
         progress=not args.quiet and sys.stderr.isatty(),
+        overlay=args.overlay,
     )
     print(report(outcome))
     return 0
@@ -238,6 +239,12 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tls-ca-file", type=Path, help="CA certificate for a tls:// scheduler")
     p.add_argument("--tls-cert", type=Path, help="client certificate for a tls:// scheduler")
     p.add_argument("--tls-key", type=Path, help="client private key for a tls:// scheduler")
+    p.add_argument(
+        "--overlay",
+        type=int,
+        metavar="N",
+        help="draw N runs spread over the study in overlay.rrd (instead of the file's overlay)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_study)
 

@@ -54,12 +54,12 @@ def parallel(client, base, factors, runs: list[PlannedRun]) -> tuple[float, list
     """Seconds from the WORKERS-th completion to the last (the runs after each worker's
     first, which loads the FMUs), and the records of those runs."""
     done: list[tuple[float, RunRecord]] = []
-    job, upload = make_job(base, factors, "none")
+    job, plugin = make_job(base, factors, "none")
 
     def on_record(_run: PlannedRun, record: RunRecord) -> None:
         done.append((time.perf_counter(), record))
 
-    execute(client, job, upload, runs, on_record)
+    execute(client, job, plugin, runs, on_record)
     assert all(record.status == "complete" for _, record in done), done
     steady = done[WORKERS - 1 :]
     return steady[-1][0] - steady[0][0], [record for _, record in steady[1:]]

@@ -7,11 +7,15 @@ asked for, and then on 127.0.0.1 too. Remote: ``Client(address)``; a ``tls://`` 
 needs certificates (:func:`tls_security`, Dask's ``Security``).
 
 Workers need the package installed, not a shared disk: the client reads each FMU once and
-a worker plugin (:class:`FmuUpload`) writes them into every worker's local directory,
-also for workers that join later; the plugin is removed (and the files with it) at the
-end. Each run is one task (:func:`run_on_worker`); a run that fails is a result, not an
-exception, and a task whose worker died is retried by the scheduler on another worker
-(``distributed.scheduler.allowed-failures`` times) before it is recorded as failed.
+a worker plugin (:class:`StudyPlugin`) carries them and the study's shared data
+(:class:`Job`) to every worker -- the FMUs written into its local directory -- also to
+workers that join later or are restarted by their nanny; the plugin is removed (and the
+files with it) at the end. Each run is one task (:func:`run_on_worker`) that needs nothing
+but the plugin, so no task depends on data held by a worker that may be lost. A run that
+fails is a result, not an exception. A task whose worker died is rescheduled by the
+scheduler on another worker, up to ``distributed.scheduler.allowed-failures`` times (3 by
+default, the scheduler's setting); only when that is exhausted (``KilledWorker``) is the
+run recorded as failed, with an error saying so.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from typing import Any
 
 from distributed import Client, LocalCluster, as_completed, get_worker
 from distributed.diagnostics.plugin import WorkerPlugin
+from distributed.scheduler import KilledWorker
 from distributed.security import Security
 
 from cosim.study.design import PlannedRun
@@ -43,24 +48,26 @@ FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
 
 @dataclass(frozen=True)
 class Job:
-    """What every task of a study shares (sent to each worker once)."""
+    """What every task of a study shares (carried to each worker by its plugin)."""
 
     base: Base
     factors: Mapping[str, FactorKind]
     keep: str
     fmu_files: Mapping[str, str]  # instance -> its FMU's path in the uploaded folder
-    plugin: str  # name of the FmuUpload plugin holding the folder
+    plugin: str  # name of the StudyPlugin carrying the job and the FMUs
     session: str  # this study session's token (in task keys and the plugin name)
 
 
-class FmuUpload(WorkerPlugin):
-    """Writes the study's FMU files into the worker's local directory at set-up and
-    removes them at tear-down. ``files``: relative path -> content; ``name``: the
-    plugin's name, unique per study session (its folder's name too)."""
+class StudyPlugin(WorkerPlugin):
+    """Carries a study's :class:`Job` to every worker and writes its FMU files into the
+    worker's local directory at set-up; removes them at tear-down. ``files``: relative
+    path -> content. The scheduler keeps the plugin, so a worker that joins later or is
+    restarted after a crash gets it too."""
 
-    def __init__(self, files: Mapping[str, bytes], name: str) -> None:
+    def __init__(self, job: Job, files: Mapping[str, bytes]) -> None:
+        self.job = job
         self.files = dict(files)
-        self.name = name
+        self.name = job.plugin
         self.folder: Path | None = None
 
     def setup(self, worker: Any) -> None:
@@ -76,8 +83,8 @@ class FmuUpload(WorkerPlugin):
             shutil.rmtree(self.folder, ignore_errors=True)
 
 
-def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[Job, FmuUpload]:
-    """The study's shared task data and the plugin carrying its FMUs (read once here)."""
+def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[Job, StudyPlugin]:
+    """The study's shared task data and the plugin carrying it and its FMUs (read once)."""
     session = uuid.uuid4().hex[:12]  # tasks and plugin of concurrent studies never clash
     files: dict[str, bytes] = {}
     paths: dict[str, str] = {}
@@ -86,15 +93,28 @@ def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[
         relative = f"{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
         files[relative] = content
         paths[instance] = relative
-    plugin = f"auv-cosim-fmus-{session}"
-    return Job(base, factors, keep, paths, plugin, session), FmuUpload(files, plugin)
+    job = Job(base, factors, keep, paths, f"auv-cosim-study-{session}", session)
+    return job, StudyPlugin(job, files)
 
 
-def run_on_worker(job: Job, values: Mapping[str, Value]) -> RunRecord:
-    """One task: one run, with the FMUs the plugin wrote on this worker."""
-    folder = get_worker().plugins[job.plugin].folder
+def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
+    """One task: one run, with the job and the FMUs the plugin brought to this worker."""
+    plugin = get_worker().plugins[plugin_name]
+    job, folder = plugin.job, plugin.folder
     paths = {instance: folder / relative for instance, relative in job.fmu_files.items()}
     return run_one(job.base, paths, job.factors, values, job.keep)
+
+
+def lost_run_error(exc: KilledWorker) -> str:
+    """The table's one-line error of a run whose every worker died running it."""
+    died = exc.allowed_failures + 1
+    return (
+        f"lost: {died} worker process{'es' if died > 1 else ''} died while running this run "
+        f"(the last {exc.last_worker.address}); the scheduler's retries "
+        f"(distributed.scheduler.allowed-failures = {exc.allowed_failures}) are exhausted: "
+        "the run may crash its worker (an FMU fault, out of memory; see the workers' logs) "
+        "or the cluster lost workers"
+    )
 
 
 def tls_security(ca_file: Path | None, cert: Path | None, key: Path | None) -> Security | None:
@@ -163,20 +183,20 @@ def open_client(
 def execute(
     client: Client,
     job: Job,
-    upload: FmuUpload,
+    plugin: StudyPlugin,
     runs: Sequence[PlannedRun],
     on_record: Callable[[PlannedRun, RunRecord], None],
 ) -> None:
     """Run every run as one task and hand each record to ``on_record`` as it arrives
-    (in order of completion). The FMU plugin is registered first and removed at the end.
-    """
-    client.register_plugin(upload, name=job.plugin)
+    (in order of completion). The study's plugin is registered first and removed at the
+    end. A lost worker's tasks are retried by the scheduler; a run is recorded as failed
+    for that only once its retries are exhausted (:func:`lost_run_error`)."""
+    client.register_plugin(plugin, name=job.plugin)
     try:
-        shared = client.scatter(job, broadcast=True, hash=False)
         pending = {
             client.submit(
                 run_on_worker,
-                shared,
+                job.plugin,
                 dict(run.values),
                 key=f"run-{run.id}-{job.session}",
                 pure=False,
@@ -187,9 +207,11 @@ def execute(
             run = pending.pop(future)
             try:
                 record = future.result()  # run_one itself never raises
+            except KilledWorker as exc:
+                record = RunRecord("failed", lost_run_error(exc), {}, 0.0, 0.0)
             except (KeyboardInterrupt, SystemExit):
                 raise
-            except BaseException as exc:  # the task's workers died, or it was cancelled
+            except BaseException as exc:  # cancelled, or the scheduler went away
                 error = " ".join(f"{type(exc).__name__}: {exc}".split())
                 record = RunRecord("failed", error, {}, 0.0, 0.0)
             future.release()

@@ -4,28 +4,42 @@
 factor against the scenario and its FMUs, each grid value (and the first sample) through
 the scenario's own checks, the metric names, the output folder -- then runs what is not
 yet in the table on Dask, appending each row as it arrives, and finally sorts the table and
-writes ``runs.parquet``, the figures (``figures/``) and ``index.html``.
+writes ``runs.parquet``, the figures (``figures/``) and ``index.html``, and, if the study
+asks for one, ``overlay.rrd`` (:mod:`cosim.study.overlay`, :mod:`cosim.viz.overlay`).
+
+The overlay is drawn from the chosen runs' ``results.csv``. A run kept in ``runs/<id>/``
+is read from there; the others are run again, after the table is done, with their files
+kept (``runs/<id>/``, as with ``keep = "all"``). Re-running is the cheaper way: best and
+worst are known only at the end, so keeping them as they ran would mean shipping every
+run's results to the client; a run is deterministic (its row depends on its factor
+values alone), so the re-run is the run; and at most OVERLAY_CAP runs run twice. It also
+serves ``--resume`` of a study whose runs were never kept.
 """
 
 from __future__ import annotations
 
 import hashlib
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
-from cosim.study.execution import execute, make_job, open_client
+from cosim.study.execution import Job, StudyPlugin, execute, make_job, open_client
 from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
+from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import plotted_metrics, write_figures
 from cosim.study.spec import StudyError, StudySpec, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
+from cosim.viz.overlay import OverlayRun, write_overlay
+from cosim.viz.report import load_results
 
 STUDIES_DIR = Path("studies")
 FIGURES_FOLDER = "figures"
@@ -43,6 +57,7 @@ class StudyOutcome:
     ran: int  # run by this session
     elapsed_s: float
     paths: Mapping[str, Path]
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -67,10 +82,13 @@ def run_study(
     resume: bool = False,
     fmu_dir: Path = DEFAULT_FMU_DIR,
     progress: bool = False,
+    overlay: int | None = None,
 ) -> StudyOutcome:
     """Run the study (or what a killed one left, with ``resume``) into ``out_dir``
-    (default ``studies/<study file name>``). Raises :class:`StudyError` (a CosimError)
-    for a study that cannot run; failed runs are rows of the table, not errors."""
+    (default ``studies/<study file name>``). ``overlay``: draw that many runs, spread over
+    the study, in overlay.rrd (instead of the study file's ``overlay``). Raises
+    :class:`StudyError` (a CosimError) for a study that cannot run; failed runs are rows
+    of the table, not errors."""
     started = time.perf_counter()
     spec = load_study(study_file)
     base, facts = prepare(_scenario_ref(spec.scenario, study_file.parent), spec.stop_time, fmu_dir)
@@ -81,6 +99,9 @@ def run_study(
     if spec.random.factors:  # the first sample stands for all: every one is a float
         first = runs[0].values
         check_values(base, factors, {name: first[name] for name in spec.random.factors})
+    entries = spread(runs, overlay) if overlay is not None else spec.overlay
+    if entries:
+        check_choice(entries, runs, metrics)
     out_dir = out_dir if out_dir is not None else STUDIES_DIR / study_file.stem
     study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
     csv_path = out_dir / CSV_NAME
@@ -90,11 +111,18 @@ def run_study(
         table = RunsTable.create(csv_path, spec.factors, metrics)
     skipped = len(table.done)
     todo = [run for run in runs if run.id not in table.done]
-    if todo:
-        _execute(out_dir, spec, base, factors, table, todo, cluster, progress, len(runs))
-    rows = table.finish()
-    paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
-    paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
+    warnings: list[str] = []
+    with ExitStack() as stack:
+        session = _Session(cluster, stack)
+        if todo:
+            _execute(out_dir, spec, base, factors, table, todo, session, progress, len(runs))
+        rows = table.finish()
+        paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
+        paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
+        if entries:
+            paths["overlay"], warnings = _overlay(
+                out_dir, entries, base, factors, runs, rows, session
+            )
     complete = sum(row["status"] == "complete" for row in rows)
     return StudyOutcome(
         out_dir,
@@ -105,6 +133,7 @@ def run_study(
         len(todo),
         time.perf_counter() - started,
         paths,
+        tuple(warnings),
     )
 
 
@@ -116,6 +145,7 @@ def report(outcome: StudyOutcome) -> str:
         f"run now) in {outcome.elapsed_s:.1f} s"
     ]
     lines += [f"  {name:<8} {path}" for name, path in outcome.paths.items()]
+    lines += [f"  warning: {warning}" for warning in outcome.warnings]
     return "\n".join(lines)
 
 
@@ -126,14 +156,14 @@ def _execute(
     factors: Mapping[str, FactorKind],
     table: RunsTable,
     todo: Sequence[PlannedRun],
-    cluster: Cluster,
+    session: _Session,
     progress: bool,
     total: int,
 ) -> None:
     """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives."""
     from tqdm import tqdm
 
-    job, upload = make_job(base, factors, spec.keep)
+    job, plugin = make_job(base, factors, spec.keep)
     bar = tqdm(
         total=total,
         initial=total - len(todo),
@@ -155,12 +185,79 @@ def _execute(
         bar.update(1)
 
     try:
-        with open_client(
-            cluster.workers, cluster.scheduler, cluster.security, cluster.dashboard
-        ) as client:
-            execute(client, job, upload, todo, on_record)
+        session.run(job, plugin, todo, on_record)
     finally:
         bar.close()
+
+
+class _Session:
+    """The cluster's client, opened by the first task and closed with ``stack``: a study
+    with nothing left to run starts no cluster, and the overlay's re-runs use the
+    cluster the study's runs used."""
+
+    def __init__(self, cluster: Cluster, stack: ExitStack) -> None:
+        self.cluster = cluster
+        self.stack = stack
+        self.client: Any = None
+
+    def run(
+        self,
+        job: Job,
+        plugin: StudyPlugin,
+        runs: Sequence[PlannedRun],
+        on_record: Callable[[PlannedRun, RunRecord], None],
+    ) -> None:
+        if self.client is None:
+            c = self.cluster
+            self.client = self.stack.enter_context(
+                open_client(c.workers, c.scheduler, c.security, c.dashboard)
+            )
+        execute(self.client, job, plugin, runs, on_record)
+
+
+def _overlay(
+    out_dir: Path,
+    entries: Sequence[str],
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    runs: Sequence[PlannedRun],
+    rows: Sequence[Mapping[str, Any]],
+    session: _Session,
+) -> tuple[Path, list[str]]:
+    """overlay.rrd of the chosen runs (those not kept run again, and kept now), and
+    warnings for entries that chose nothing and runs without results."""
+    by_id = {run.id: run for run in runs}
+    by_row = {row["run"]: row for row in rows}
+    chosen, empty = choose(entries, runs, by_row)
+    folder = out_dir / study_folder.RUNS_FOLDER
+
+    def results(run_id: str) -> Mapping[str, Any] | None:
+        try:
+            return load_results(folder / run_id)
+        except CosimError:
+            return None
+
+    again = [by_id[run_id] for run_id in chosen if results(run_id) is None]
+    if again:
+        job, plugin = make_job(base, factors, "all")
+
+        def keep(run: PlannedRun, record: RunRecord) -> None:
+            text = scenario_text(base, factors, run.values)
+            study_folder.keep_run(out_dir, run.id, text, record.files, record.error)
+
+        session.run(job, plugin, again, keep)
+    found = {run_id: results(run_id) for run_id in chosen}
+    missing = [run_id for run_id, found_results in found.items() if found_results is None]
+    shown = [
+        OverlayRun(run_id, label(by_id[run_id]), found[run_id])
+        for run_id in chosen
+        if run_id not in missing
+    ]
+    text = notes(chosen, by_id, by_row, missing, empty)
+    path = write_overlay(out_dir / OVERLAY_FILE, shown, f"study {out_dir.name}", text)
+    warnings = [f"overlay: {entry} chose no run (no complete run has a value)" for entry in empty]
+    warnings += [f"overlay: run {run_id} left no results.csv" for run_id in missing]
+    return path, warnings
 
 
 def _write_report(
@@ -228,7 +325,7 @@ def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: Stud
 def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
     """What the table's rows depend on (study.json): settings, scenario, FMU content."""
     return {
-        "study": spec.model_dump(mode="json", exclude={"keep"}),
+        "study": spec.model_dump(mode="json", exclude={"keep", "overlay"}),
         "scenario": dict(base.data),
         "fmus": {
             name: hashlib.sha256(path.read_bytes()).hexdigest()

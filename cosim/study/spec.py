@@ -5,6 +5,10 @@ Format (every key is checked; unknown keys are errors)::
     scenario = "bs-3"          # a built-in id or a scenario file (relative to this file)
     stop_time = 20.0           # s, optional override of the scenario's stop time
     keep = "none"              # per-run folders: "all", "failed" or "none" [none]
+    overlay = ["best:yaw_settling_time_s", "worst:yaw_settling_time_s"]
+                               # runs drawn together in overlay.rrd [none]: run ids (16 hex
+                               # digits), "best:<metric>" (its lowest value),
+                               # "worst:<metric>" (highest) or "all"; OVERLAY_CAP runs at most
 
     [grid]                     # full factorial over the listed values
     "plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
@@ -28,6 +32,7 @@ run with every one of the n samples (the same samples at each point).
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -50,6 +55,8 @@ from pydantic import (
 from cosim.errors import CosimError
 
 KEEP_CHOICES = ("all", "failed", "none")
+OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
+_RUN_ID = re.compile(r"[0-9a-f]{16}")  # cosim.study.design.run_id
 FactorValue = StrictBool | StrictInt | StrictFloat | StrictStr
 
 
@@ -142,6 +149,16 @@ def _unique(values: list[Any]) -> list[Any]:
     return values
 
 
+def _overlay_entry(entry: str) -> str:
+    kind, _, metric = entry.partition(":")
+    if entry == "all" or _RUN_ID.fullmatch(entry) or (kind in ("best", "worst") and metric):
+        return entry
+    raise ValueError(
+        f"{entry!r}: expected a run id (16 hex digits), 'best:<metric>', 'worst:<metric>' or 'all'"
+    )
+
+
+OverlayEntry = Annotated[StrictStr, AfterValidator(_overlay_entry)]
 GridValues = Annotated[list[FactorValue], Field(min_length=1), AfterValidator(_unique)]
 
 
@@ -154,6 +171,9 @@ class StudySpec(_Strict):
     grid: dict[str, GridValues] = Field(default_factory=dict)
     random: RandomSpec = Field(default_factory=RandomSpec)
     metrics: MetricsSpec = Field(default_factory=MetricsSpec)
+    overlay: Annotated[list[OverlayEntry], Field(min_length=1, max_length=OVERLAY_CAP)] | None = (
+        None
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> StudySpec:

@@ -1,11 +1,27 @@
-"""Helpers of the study tests: the small reference study, running sweep, reading runs.csv."""
+"""Helpers of the study tests: the small reference study, running sweep, reading runs.csv,
+a real Dask cluster of processes (``dask scheduler`` + ``dask worker``) and ending them."""
 
 from __future__ import annotations
 
 import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
+from distributed import Client
+
 from cosim.cli import main
+from cosim.study.execution import tls_security
+
+DASK = str(Path(sys.executable).parent / "dask")
+START_TIMEOUT_S = 120.0
 
 SMALL_STUDY = """
 scenario = "bs-3"
@@ -34,3 +50,93 @@ def table(out: Path) -> list[dict[str, str]]:
     for row in rows:
         del row["wall_clock_s"]
     return rows
+
+
+def wait_for(condition: Callable[[], bool], what: str, timeout: float = START_TIMEOUT_S) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+def end_group(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
+    """Stop the process group this test started (its leader is ``proc``) and reap it."""
+    if proc.poll() is None:
+        os.killpg(proc.pid, sig)
+    try:
+        proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
+def group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def certificates(folder: Path) -> list[str]:
+    """A self-signed certificate for 127.0.0.1 (its own CA), as dask's TLS options."""
+    cert, key = folder / "cert.pem", folder / "key.pem"
+    command = "openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=auv-cosim-test"
+    command += " -addext subjectAltName=IP:127.0.0.1"
+    argv = [*command.split(), "-keyout", str(key), "-out", str(cert)]
+    subprocess.run(argv, check=True, capture_output=True, timeout=60)
+    return ["--tls-ca-file", str(cert), "--tls-cert", str(cert), "--tls-key", str(key)]
+
+
+@dataclass
+class DaskProcesses:
+    """A running cluster: its address, the sweep options that reach it, the security a
+    client needs, and the two ``dask worker`` process groups (each its own session)."""
+
+    address: str
+    options: list[str]
+    security: object
+    workers: list[subprocess.Popen]
+
+
+@contextmanager
+def dask_processes(
+    folder: Path, protocol: str = "tcp", scheduler_env: Mapping[str, str] | None = None
+) -> Iterator[DaskProcesses]:
+    """``dask scheduler`` and two ``dask worker --nthreads 1`` on 127.0.0.1 (``protocol``
+    tcp, or tls with a test certificate), working in ``folder`` (created; no FMUs there,
+    they must travel). ``scheduler_env``: extra environment of the scheduler (Dask config).
+    Every process is ended afterwards; the surviving workers must have removed the
+    study's FMU files (the plugin's tear-down)."""
+    folder.mkdir(parents=True)
+    tls = certificates(folder) if protocol == "tls" else []
+    env = {**os.environ, "TMPDIR": str(folder)}
+    address_file = folder / "scheduler.json"
+    started: list[subprocess.Popen] = []
+    options = {"cwd": folder, "start_new_session": True, "stdout": subprocess.DEVNULL}
+    options["stderr"] = subprocess.DEVNULL
+    scheduler = [DASK, "scheduler", "--protocol", protocol, "--host", "127.0.0.1"]
+    scheduler += ["--port", "0", "--no-dashboard", "--scheduler-file", str(address_file)]
+    worker = [DASK, "worker", "--scheduler-file", str(address_file), "--nthreads", "1"]
+    worker += ["--nworkers", "1", "--host", "127.0.0.1", "--no-dashboard"]
+    try:
+        started.append(
+            subprocess.Popen([*scheduler, *tls], env={**env, **(scheduler_env or {})}, **options)
+        )
+        wait_for(address_file.is_file, "the scheduler")
+        for i in range(2):
+            local = ["--local-directory", str(folder / f"w{i}")]
+            started.append(subprocess.Popen([*worker, *local, *tls], env=env, **options))
+        address = json.loads(address_file.read_text())["address"]
+        assert address.startswith(f"{protocol}://127.0.0.1:")
+        security = tls_security(*(Path(p) for p in tls[1::2])) if tls else None
+        with Client(address, security=security, timeout=START_TIMEOUT_S) as client:
+            client.wait_for_workers(2, timeout=START_TIMEOUT_S)
+        yield DaskProcesses(address, ["--scheduler", address, *tls], security, started[1:])
+    finally:
+        alive = [proc.poll() is None for proc in started[1:]]
+        for proc in reversed(started):
+            end_group(proc)
+    for i, was_alive in enumerate(alive):  # the plugin was removed at the end, its files too
+        assert not was_alive or not list((folder / f"w{i}").rglob("*.fmu"))

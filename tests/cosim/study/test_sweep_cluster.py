@@ -12,47 +12,21 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from distributed import Client
-from sweep_helpers import SMALL_RUNS, sweep, table
+from sweep_helpers import (
+    SMALL_RUNS,
+    dask_processes,
+    end_group,
+    group_alive,
+    sweep,
+    table,
+    wait_for,
+)
 
 from cosim.cli import main
-from cosim.study.execution import tls_security
-
-DASK = str(Path(sys.executable).parent / "dask")
-START_TIMEOUT_S = 120.0
-
-
-def wait_for(condition, what: str, timeout: float = START_TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.05)
-
-
-def end_group(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
-    """Stop the process group this test started (its leader is ``proc``) and reap it."""
-    if proc.poll() is None:
-        os.killpg(proc.pid, sig)
-    try:
-        proc.wait(timeout=30)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-
-
-def group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    return True
-
 
 LISTENING = """
 import json, os, psutil
@@ -89,90 +63,14 @@ def test_the_local_cluster_listens_on_localhost_only(run_python) -> None:
     assert 8787 not in ports  # the dashboard is off by default
 
 
-def certificates(folder: Path) -> list[str]:
-    """A self-signed certificate for 127.0.0.1 (its own CA), as dask's TLS options."""
-    cert, key = folder / "cert.pem", folder / "key.pem"
-    command = "openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=auv-cosim-test"
-    command += " -addext subjectAltName=IP:127.0.0.1"
-    argv = [*command.split(), "-keyout", str(key), "-out", str(cert)]
-    subprocess.run(argv, check=True, capture_output=True, timeout=60)
-    return ["--tls-ca-file", str(cert), "--tls-cert", str(cert), "--tls-key", str(key)]
-
-
 @pytest.fixture(params=["tcp", "tls"])
 def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[list[str]]:
-    """``dask scheduler`` and two ``dask worker --nthreads 1`` on 127.0.0.1 (plain TCP,
-    or TLS with a test certificate), in a folder without FMUs (they must travel); yields
-    the sweep options that reach it. Every process is ended afterwards."""
+    """``dask scheduler`` and two ``dask worker`` (plain TCP, or TLS with a test
+    certificate) in a folder without FMUs; yields the sweep options that reach it."""
     if request.param == "tls" and shutil.which("openssl") is None:
         pytest.skip("openssl is needed to make the TLS test certificate")
-    elsewhere = tmp_path / "elsewhere"
-    elsewhere.mkdir()
-    tls = certificates(elsewhere) if request.param == "tls" else []
-    env = {**os.environ, "TMPDIR": str(elsewhere)}
-    address_file = elsewhere / "scheduler.json"
-    started: list[subprocess.Popen] = []
-    options = {
-        "cwd": elsewhere,
-        "env": env,
-        "start_new_session": True,
-        "stdout": subprocess.DEVNULL,
-        "stderr": subprocess.DEVNULL,
-    }
-    try:
-        started.append(
-            subprocess.Popen(
-                [
-                    DASK,
-                    "scheduler",
-                    "--protocol",
-                    request.param,
-                    "--host",
-                    "127.0.0.1",
-                    "--port",
-                    "0",
-                    "--no-dashboard",
-                    "--scheduler-file",
-                    str(address_file),
-                    *tls,
-                ],
-                **options,
-            )
-        )
-        wait_for(address_file.is_file, "the scheduler")
-        for i in range(2):
-            started.append(
-                subprocess.Popen(
-                    [
-                        DASK,
-                        "worker",
-                        "--scheduler-file",
-                        str(address_file),
-                        "--nthreads",
-                        "1",
-                        "--nworkers",
-                        "1",
-                        "--host",
-                        "127.0.0.1",
-                        "--no-dashboard",
-                        "--local-directory",
-                        str(elsewhere / f"w{i}"),
-                        *tls,
-                    ],
-                    **options,
-                )
-            )
-        address = json.loads(address_file.read_text())["address"]
-        assert address.startswith(f"{request.param}://127.0.0.1:")
-        security = tls_security(*(Path(p) for p in tls[1::2])) if tls else None
-        with Client(address, security=security, timeout=START_TIMEOUT_S) as client:
-            client.wait_for_workers(2, timeout=START_TIMEOUT_S)
-        yield ["--scheduler", address, *tls]
-    finally:
-        for proc in reversed(started):
-            end_group(proc)
-    for i in range(2):  # the FMU plugin was removed at the end of the study, its files too
-        assert not list((elsewhere / f"w{i}").rglob("*.fmu"))
+    with dask_processes(tmp_path / "elsewhere", request.param) as cluster:
+        yield cluster.options
 
 
 def test_a_distributed_cluster_gives_the_same_table(

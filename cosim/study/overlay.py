@@ -1,0 +1,116 @@
+"""Which runs of a study ``overlay.rrd`` draws together, and the recording's notes.
+
+A choice is a list of entries (the study file's ``overlay``, or ``--overlay N``): a run id;
+``"best:<metric>"`` / ``"worst:<metric>"``, the complete run with the lowest / highest
+value of a collected metric (the first in the study's order on a tie); ``"all"``. Ids,
+metrics and the number of runs (at most :data:`OVERLAY_CAP`) are checked before the first
+run (:func:`check_choice`); best and worst are known once the table is (:func:`choose`).
+``--overlay N`` picks N runs spread evenly over the study's order (:func:`spread`), which
+for a grid means its corners and points between.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from cosim.study.design import PlannedRun
+from cosim.study.spec import OVERLAY_CAP, StudyError
+
+OVERLAY_FILE = "overlay.rrd"
+
+
+def check_choice(
+    entries: Sequence[str], runs: Sequence[PlannedRun], metrics: Sequence[str]
+) -> None:
+    """:class:`StudyError` naming the entry if a run id is not one of the study's, a
+    metric is not collected, or the choice can hold more than OVERLAY_CAP runs."""
+    ids = {run.id for run in runs}
+    for entry in entries:
+        kind, _, metric = entry.partition(":")
+        if kind in ("best", "worst") and metric not in metrics:
+            raise StudyError(
+                f"overlay entry {entry!r}: {metric!r} is not a collected metric "
+                f"(collected: {', '.join(metrics)})"
+            )
+        if kind not in ("best", "worst", "all") and entry not in ids:
+            raise StudyError(f"overlay entry {entry!r}: no run of this study has that id")
+    most = len(runs) if "all" in entries else len(set(entries))
+    if most > OVERLAY_CAP:
+        raise StudyError(
+            f"overlay {list(entries)}: up to {most} runs, more than the cap of {OVERLAY_CAP}; "
+            "name fewer runs or use --overlay N"
+        )
+
+
+def spread(runs: Sequence[PlannedRun], n: int) -> list[str]:
+    """``--overlay N``: n run ids evenly spread over the study's order (first and last
+    included); :class:`StudyError` unless 1 <= n <= OVERLAY_CAP."""
+    if not 1 <= n <= OVERLAY_CAP:
+        raise StudyError(f"--overlay {n}: expected a number of runs from 1 to {OVERLAY_CAP}")
+    if n >= len(runs):
+        return [run.id for run in runs]
+    last = len(runs) - 1
+    picks = dict.fromkeys(round(k * last / max(1, n - 1)) for k in range(n))
+    return [runs[i].id for i in picks]
+
+
+def choose(
+    entries: Sequence[str], runs: Sequence[PlannedRun], rows: Mapping[str, Mapping[str, Any]]
+) -> tuple[dict[str, list[str]], list[str]]:
+    """The chosen run ids, in the order first chosen, each with the entries that chose it,
+    and the entries that chose nothing (a metric no complete run has a value of)."""
+    chosen: dict[str, list[str]] = {}
+    empty: list[str] = []
+    for entry in entries:
+        kind, _, metric = entry.partition(":")
+        if kind == "all":
+            picks = [run.id for run in runs]
+        elif kind in ("best", "worst"):
+            valued = [
+                run.id
+                for run in runs
+                if rows[run.id]["status"] == "complete" and rows[run.id][metric] is not None
+            ]
+            sign = 1.0 if kind == "best" else -1.0
+            picks = [min(valued, key=lambda i: sign * rows[i][metric])] if valued else []
+        else:
+            picks = [entry]
+        if not picks:
+            empty.append(entry)
+        for run_id in picks:
+            chosen.setdefault(run_id, []).append(entry)
+    return chosen, empty
+
+
+def label(run: PlannedRun) -> str:
+    """A run's name in the overlay: its id and its factor values."""
+    values = ", ".join(f"{name} = {_short(value)}" for name, value in run.values.items())
+    return f"{run.id}: {values}"
+
+
+def notes(
+    chosen: Mapping[str, list[str]],
+    runs: Mapping[str, PlannedRun],
+    rows: Mapping[str, Mapping[str, Any]],
+    missing: Sequence[str],
+    empty: Sequence[str],
+) -> str:
+    """The overlay's text document (Markdown): each run shown, why, its status."""
+    lines = [
+        "# Runs in this overlay",
+        "",
+        "| run | chosen by | factors | status |",
+        "|---|---|---|---|",
+    ]
+    for run_id, why in chosen.items():
+        factors = label(runs[run_id]).partition(": ")[2]
+        status = rows[run_id]["status"] + (" (no results)" if run_id in missing else "")
+        lines.append(f"| `{run_id}` | {', '.join(why)} | {factors} | {status} |")
+    if empty:
+        lines += ["", f"Chose nothing (no complete run has a value): {', '.join(empty)}"]
+    return "\n".join(lines) + "\n"
+
+
+def _short(value: Any) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else str(value)

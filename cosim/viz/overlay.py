@@ -1,0 +1,142 @@
+"""One Rerun recording overlaying several runs of a study: their paths in one 3D view and
+their yaw, roll and depth on shared time axes.
+
+Entity tree (one entity per run and signal, the run's id as the last path part; its label
+-- the run id and its factor values -- as the line's name in the legend and as the 3D
+path's label)::
+
+    world                    ViewCoordinates.FRD (static): NED, x north, y east, z down
+    world/paths/<run id>     LineStrips3D (static): the whole path [north, east, down], m
+    world/vehicles/<run id>  Points3D per step: where the run's vehicle is at the cursor
+    yaw_deg/<run id>         Scalars per step: plant.yaw in degrees
+    roll_deg/<run id>        Scalars per step: plant.roll in degrees
+    depth_m/<run id>         Scalars per step: plant.down, m
+    study                    TextDocument (static): the runs shown and why
+
+Each run gets its own colour (matplotlib's ``tab20`` cycle). The data comes from each
+run's ``results.csv`` (time in s, angles in rad, positions in m).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+from matplotlib import colormaps
+
+from cosim.viz.layout import time_index
+from cosim.viz.recording import APPLICATION_ID, FLUSH_TIMEOUT
+from cosim.viz.rrd_file import RrdFile, file_sink, pumped
+
+POSITION = ("plant.north", "plant.east", "plant.down")
+SERIES = {  # entity root -> (results column, display scale)
+    "yaw_deg": ("plant.yaw", float(np.degrees(1.0))),
+    "roll_deg": ("plant.roll", float(np.degrees(1.0))),
+    "depth_m": ("plant.down", 1.0),
+}
+REQUIRED = ("time", *POSITION, *(column for column, _ in SERIES.values()))
+POINT_RADIUS = 0.3  # m, drawn radius of a run's vehicle in the 3D view
+
+
+@dataclass(frozen=True)
+class OverlayRun:
+    """One run to overlay: its id, its label and its results (column -> values, SI)."""
+
+    id: str
+    label: str
+    results: Mapping[str, np.ndarray]
+
+    def __post_init__(self) -> None:
+        missing = [name for name in REQUIRED if name not in self.results]
+        if missing:
+            raise ValueError(f"run {self.id}: its results lack {', '.join(missing)}")
+
+
+def write_overlay(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> Path:
+    """Write ``path`` (replaced whole: written beside it, then renamed) overlaying ``runs``.
+
+    ``title`` names the recording; ``notes`` (Markdown) is the ``study`` text document.
+    Raises OSError if the file cannot be written.
+    """
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        _write(tmp, runs, title, notes)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    os.replace(tmp, path)
+    return path
+
+
+def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> None:
+    rec = rr.RecordingStream(APPLICATION_ID)
+    file = RrdFile(path) if pumped() else None  # see cosim.viz.rrd_file: why not FileSink
+    try:
+        sink = file.sink() if file is not None else file_sink(path)
+        rec.set_sinks(sink, default_blueprint=_blueprint())
+        rec.send_recording_name(title)
+        rec.log("world", rr.ViewCoordinates.FRD, static=True)
+        rec.log("study", rr.TextDocument(notes, media_type=rr.MediaType.MARKDOWN), static=True)
+        colors = colormaps["tab20"].colors
+        for k, run in enumerate(runs):
+            _log_run(rec, run, tuple(int(255 * c) for c in colors[k % len(colors)]))
+        rec.flush(timeout_sec=FLUSH_TIMEOUT)
+    finally:
+        rec.disconnect()
+        if file is not None:
+            file.close(timeout=FLUSH_TIMEOUT)  # OSError if a write failed
+
+
+def _log_run(rec: rr.RecordingStream, run: OverlayRun, color: tuple[int, ...]) -> None:
+    """A run's static path and label, and its per-step position and signals."""
+    position = np.column_stack([run.results[name] for name in POSITION])
+    index = time_index(run.results["time"])
+    rec.log(
+        f"world/paths/{run.id}",
+        rr.LineStrips3D([position], colors=[color], labels=[run.label], radii=[0.05]),
+        static=True,
+    )
+    rec.log(
+        f"world/vehicles/{run.id}",
+        rr.Points3D.from_fields(colors=[color], radii=[POINT_RADIUS]),
+        static=True,
+    )
+    rec.send_columns(
+        f"world/vehicles/{run.id}", indexes=index, columns=rr.Points3D.columns(positions=position)
+    )
+    for root, (column, scale) in SERIES.items():
+        entity = f"{root}/{run.id}"
+        rec.log(entity, rr.SeriesLines(names=[run.label], colors=[color]), static=True)
+        values = np.asarray(run.results[column], dtype=float) * scale
+        rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values))
+
+
+def _blueprint() -> rrb.Blueprint:
+    """The 3D view of every path beside the three time-series panels and the notes."""
+    legend = rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True)
+    plots = [
+        rrb.TimeSeriesView(origin=f"/{root}", name=name, plot_legend=legend)
+        for root, name in (
+            ("yaw_deg", "Yaw, deg"),
+            ("roll_deg", "Roll, deg"),
+            ("depth_m", "Depth, m"),
+        )
+    ]
+    world = rrb.Spatial3DView(
+        origin="/world",
+        name="Paths (NED, grid 10 m)",
+        line_grid=rrb.LineGrid3D(visible=True, spacing=10.0),
+    )
+    notes = rrb.TextDocumentView(origin="/study", name="Runs")
+    return rrb.Blueprint(
+        rrb.Horizontal(rrb.Vertical(world, notes, row_shares=[4, 1]), rrb.Vertical(*plots)),
+        rrb.TimePanel(state="collapsed"),
+        auto_views=False,
+    )

@@ -1,0 +1,138 @@
+"""The study's Rerun overlay: ``overlay = [...]`` in the study file or ``--overlay N``
+writes overlay.rrd with the chosen runs' paths and yaw/roll/depth series (read back with
+rerun.chunk.RrdReader), from their results.csv (kept, or run again and kept); choices
+that cannot be met are refused before the first run."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rerun.chunk import RrdReader
+from sweep_helpers import sweep, table
+
+from cosim.cli import main
+from cosim.study.design import run_id
+from cosim.viz.report import load_results
+
+STUDY = """
+scenario = "bs-3"
+stop_time = 2.0
+overlay = [{entries}]
+[grid]
+"plant.v_0" = [-0.10, 0.0, 0.10]
+"plant.current_east" = [0.0, 0.2]
+[metrics]
+collect = ["final.plant.north", "final.plant.yaw"]
+"""
+NAMED = {"plant.v_0": 0.0, "plant.current_east": 0.2}
+
+
+def recording(path: Path) -> dict[str, dict[str, list]]:
+    """Entity path -> component -> the values of every row (static rows first)."""
+    found: dict[str, dict[str, list]] = {}
+    for chunk in RrdReader(path).stream():
+        batch = chunk.to_record_batch()
+        components = found.setdefault(chunk.entity_path, {})
+        for name in batch.schema.names:
+            components.setdefault(name, []).extend(batch.column(name).to_pylist())
+    return found
+
+
+def write_study(folder: Path, entries: str) -> Path:
+    path = folder / "overlay.toml"
+    path.write_text(STUDY.format(entries=entries), encoding="utf-8")
+    return path
+
+
+def runs_in(rrd: dict[str, dict[str, list]]) -> set[str]:
+    return {entity.rsplit("/", 1)[1] for entity in rrd if entity.startswith("/world/paths/")}
+
+
+def test_the_overlay_holds_the_chosen_runs(fmu_dir: Path, tmp_path: Path) -> None:
+    named = run_id(NAMED)
+    study = write_study(tmp_path, f'"best:final.plant.north", "worst:final.plant.yaw", "{named}"')
+    out = tmp_path / "out"
+    sweep(study, out, fmu_dir, "--workers", "2")
+    rows = table(out)
+    best = min(rows, key=lambda row: float(row["final.plant.north"]))["run"]
+    worst = max(rows, key=lambda row: float(row["final.plant.yaw"]))["run"]
+    chosen = {best, worst, named}
+    rrd = recording(out / "overlay.rrd")
+    assert runs_in(rrd) == chosen
+    by_run = {row["run"]: row for row in rows}
+    for run in chosen:
+        label = rrd[f"/world/paths/{run}"]["LineStrips3D:labels"][0][0]
+        factors = ", ".join(f"{name} = {float(by_run[run][name]):.6g}" for name in NAMED)
+        assert label == f"{run}: {factors}"
+        # the chosen runs were kept (run again: the table's runs kept nothing) ...
+        results = load_results(out / "runs" / run)
+        summary = json.loads((out / "runs" / run / "summary.json").read_text())
+        # ... and the re-run is the run of the table's row
+        assert repr(summary["final_values"]["plant.north"]) == by_run[run]["final.plant.north"]
+        for root, column, scale in (
+            ("yaw_deg", "plant.yaw", np.degrees(1.0)),
+            ("roll_deg", "plant.roll", np.degrees(1.0)),
+            ("depth_m", "plant.down", 1.0),
+        ):
+            entity = rrd[f"/{root}/{run}"]
+            assert entity["SeriesLines:names"] == [[label]]
+            values = np.concatenate([v for v in entity["Scalars:scalars"] if v is not None])
+            np.testing.assert_array_equal(values, results[column] * scale)
+        strip = np.asarray(rrd[f"/world/paths/{run}"]["LineStrips3D:strips"][0][0])
+        path = np.column_stack([results[f"plant.{axis}"] for axis in ("north", "east", "down")])
+        np.testing.assert_allclose(strip, path, rtol=1e-6)  # stored as float32
+    assert sorted(p.name for p in (out / "runs").iterdir()) == sorted(chosen)
+    notes = rrd["/study"]["TextDocument:text"][0][0]
+    assert f"| `{best}` | best:final.plant.north" in notes
+    assert f"| `{named}` | {named} | plant.v_0 = 0, plant.current_east = 0.2 | complete |" in notes
+
+    # --overlay N on the finished study: N runs spread over its order, first and last
+    argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--quiet"]
+    assert main([*argv, "--workers", "2", "--resume", "--overlay", "2"]) == 0
+    first, last = (
+        run_id({"plant.v_0": -0.10, "plant.current_east": 0.0}),
+        run_id({"plant.v_0": 0.10, "plant.current_east": 0.2}),
+    )
+    assert runs_in(recording(out / "overlay.rrd")) == {first, last}
+    assert table(out) == rows
+    assert not list(out.glob("*.tmp"))
+
+
+@pytest.mark.parametrize(
+    ("entries", "option", "message"),
+    [
+        ('"best:wall_clock"', [], "overlay entry 'best:wall_clock': 'wall_clock' is not a"),
+        ('"0123456789abcdef"', [], "overlay entry '0123456789abcdef': no run of this study"),
+        ('"fastest"', [], "'fastest': expected a run id (16 hex digits), 'best:<metric>'"),
+        ('"all"', ["--overlay", "21"], "--overlay 21: expected a number of runs from 1 to 20"),
+        ('"all"', ["--overlay", "0"], "--overlay 0: expected a number of runs from 1 to 20"),
+    ],
+)
+def test_an_overlay_that_cannot_be_drawn_is_refused_before_any_run(
+    entries: str,
+    option: list[str],
+    message: str,
+    fmu_dir: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+) -> None:
+    study = write_study(tmp_path, entries)
+    argv = ["sweep", str(study), "--out", str(tmp_path / "out"), "--fmu-dir", str(fmu_dir)]
+    assert main([*argv, "--workers", "1", *option]) == 1
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_all_is_capped(fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    study = tmp_path / "big.toml"
+    values = ", ".join(str(k / 100) for k in range(21))
+    study.write_text(
+        f'scenario = "bs-3"\noverlay = ["all"]\n[grid]\n"plant.v_0" = [{values}]\n',
+        encoding="utf-8",
+    )
+    argv = ["sweep", str(study), "--out", str(tmp_path / "out"), "--fmu-dir", str(fmu_dir)]
+    assert main([*argv, "--workers", "1"]) == 1
+    assert "up to 21 runs, more than the cap of 20" in capsys.readouterr().err
