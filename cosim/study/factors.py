@@ -3,16 +3,23 @@
 A factor is resolved once, up front, against :class:`ScenarioFacts` (plain data the
 adapter :mod:`cosim.study.task` reads from the scenario and its FMUs) by the kinds in
 :data:`FACTOR_KINDS`, tried in order; the first that recognises the name wins. A resolved
-:class:`FactorKind` then writes each run's value into the resolved scenario's TOML data. Today
-there is one kind, start values (parameters and unconnected inputs); event times and fault
-parameters will be further kinds. A name no kind recognises is an error naming the factor
-and the instance's known start values.
+:class:`FactorKind` then writes each run's value into the resolved scenario's TOML data,
+which the scenario's own checks then resolve again. The kinds:
+
+* ``<instance>.<variable>``: a start value (a parameter or an unconnected input);
+* ``events.<name>.time``, ``events.<name>.ramp``, ``events.<name>.set.<instance>.<variable>``:
+  a key of the ``[[events]]`` table of that name (``event-<k>`` by position if unnamed);
+* ``faults.<name>.<key>`` (start, stop, value, std, seed, steps, probability): a key of
+  the ``[[faults]]`` table of that name (``fault-<k>``); whether the fault's kind takes
+  the key is the scenario's own check, made on every grid value before the first run.
+
+A name no kind recognises is an error naming the factor and what it could name.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from cosim.study.spec import StudyError
@@ -43,6 +50,8 @@ class ScenarioFacts:
 
     instances: Mapping[str, Mapping[str, Variable]]
     metrics: tuple[str, ...]
+    events: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # name -> table
+    faults: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # name -> table
 
 
 class FactorKind(Protocol):
@@ -94,11 +103,117 @@ class StartValue:
         data["instances"][self.instance].setdefault("start", {})[self.variable] = value
 
     def normalize(self, value: Value) -> Value:
-        real_int = self.real and isinstance(value, int) and not isinstance(value, bool)
-        return float(value) if real_int else value
+        return _real(value) if self.real else value
 
 
-FACTOR_KINDS: tuple[type[FactorKind], ...] = (StartValue,)
+FAULT_KEYS = ("start", "stop", "value", "std", "seed", "steps", "probability")
+INTEGER_FAULT_KEYS = ("seed", "steps")
+
+
+def _entry(facts: ScenarioFacts, section: str, name: str, factor: str) -> Mapping[str, Any]:
+    """The ``[[section]]`` table called ``name``; StudyError listing the known names."""
+    tables = facts.events if section == "events" else facts.faults
+    if name not in tables:
+        known = ", ".join(tables) if tables else "none"
+        raise StudyError(
+            f"factor {factor!r}: the scenario has no {section[:-1]} {name!r} ({section}: {known})"
+        )
+    return tables[name]
+
+
+def _table(data: dict[str, Any], section: str, name: str) -> dict[str, Any]:
+    """The TOML table of that name in ``data[section]`` (default names by position)."""
+    for k, table in enumerate(data[section], start=1):
+        if table.get("name", f"{section[:-1]}-{k}") == name:
+            return table
+    raise KeyError(f"{section}.{name}")  # resolve_factor checked it exists
+
+
+@dataclass(frozen=True)
+class EventKey:
+    """``events.<name>.time`` or ``events.<name>.ramp`` (s), or
+    ``events.<name>.set.<instance>.<variable>``: a value the event sets."""
+
+    name: str
+    event: str
+    key: str  # "time", "ramp" or "set"
+    target: str | None  # the set's "<instance>.<variable>"
+    real: bool
+
+    @classmethod
+    def recognise(cls, name: str, facts: ScenarioFacts) -> EventKey | None:
+        section, _, rest = name.partition(".")
+        if section != "events" or "events" in facts.instances:
+            return None
+        event, _, key = rest.partition(".")
+        table = _entry(facts, "events", event, name)
+        key, _, target = key.partition(".")
+        if key in ("time", "ramp") and not target:
+            if "set" not in table or (key == "time" and "time" not in table):
+                fires = "a series" if "series" in table else "a condition (when)"
+                raise StudyError(
+                    f"factor {name!r}: event {event!r} follows {fires}; it has no {key} to vary"
+                )
+            return cls(name, event, key, None, True)
+        if key == "set" and target in table.get("set", {}):
+            instance, _, variable = target.partition(".")
+            var = facts.instances.get(instance, {}).get(variable)
+            return cls(name, event, key, target, var is not None and var.type == "Real")
+        sets = ", ".join(f"events.{event}.set.{t}" for t in table.get("set", {}))
+        raise StudyError(
+            f"factor {name!r}: expected events.{event}.time, events.{event}.ramp or one of "
+            f"the values it sets ({sets or 'none'}); to vary another value, add it to the "
+            "event's set in the scenario"
+        )
+
+    def apply(self, data: dict[str, Any], value: Value) -> None:
+        table = _table(data, "events", self.event)
+        if self.target is None:
+            table[self.key] = value
+        else:
+            table["set"][self.target] = value
+
+    def normalize(self, value: Value) -> Value:
+        return _real(value) if self.real else value
+
+
+@dataclass(frozen=True)
+class FaultKey:
+    """``faults.<name>.<key>``: start, stop (s), value, std, seed, steps or probability of
+    the fault called ``name``."""
+
+    name: str
+    fault: str
+    key: str
+
+    @classmethod
+    def recognise(cls, name: str, facts: ScenarioFacts) -> FaultKey | None:
+        section, _, rest = name.partition(".")
+        if section != "faults" or "faults" in facts.instances:
+            return None
+        fault, _, key = rest.partition(".")
+        table = _entry(facts, "faults", fault, name)
+        if key not in FAULT_KEYS:
+            raise StudyError(
+                f"factor {name!r}: a fault's factor is faults.{fault}.<key>, key one of "
+                f"{', '.join(FAULT_KEYS)}; got {key!r} (fault {fault!r} is "
+                f"{table.get('kind')!r})"
+            )
+        return cls(name, fault, key)
+
+    def apply(self, data: dict[str, Any], value: Value) -> None:
+        _table(data, "faults", self.fault)[self.key] = value
+
+    def normalize(self, value: Value) -> Value:
+        return value if self.key in INTEGER_FAULT_KEYS else _real(value)
+
+
+def _real(value: Value) -> Value:
+    """An integer as the float a Real holds (booleans and strings stay as they are)."""
+    return float(value) if isinstance(value, int) and not isinstance(value, bool) else value
+
+
+FACTOR_KINDS: tuple[type[FactorKind], ...] = (EventKey, FaultKey, StartValue)
 
 
 def resolve_factor(name: str, facts: ScenarioFacts) -> FactorKind:

@@ -78,7 +78,13 @@ def prepare(
         data=tomllib.loads(scenario.to_toml()),
         fmu_paths={name: inst.fmu_path for name, inst in scenario.instances.items()},
     )
-    return base, ScenarioFacts(instances, _metric_names(scenario))
+    tables = {
+        section: {t.get("name", f"{section[:-1]}-{k}"): t for k, t in enumerate(found, start=1)}
+        for section in ("events", "faults")
+        for found in [base.data.get(section, [])]
+    }
+    facts = ScenarioFacts(instances, _metric_names(scenario), tables["events"], tables["faults"])
+    return base, facts
 
 
 def check_values(

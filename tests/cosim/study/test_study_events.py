@@ -1,0 +1,126 @@
+"""Event and fault factors (issue 16's [[events]] / [[faults]]): a grid over an event's
+time and a fault's gain gives the rows of separate runs of the edited scenarios; a factor
+naming an event, a fault or a key the scenario does not have is refused before any run."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import pytest
+import tomli_w
+from repo_paths import ROOT
+from sweep_helpers import sweep, table
+
+from cosim.cli import main
+
+EVENTS = """
+[[events]]
+name = "turn"                     # a yaw setpoint step
+time = 10.0
+set = { "controller.yaw_setpoint" = 0.3 }
+
+[[faults]]                        # unnamed: "fault-1"
+kind = "gain"
+target = "plant.mass_position_cmd"
+start = 5.0
+value = 1.0
+"""
+METRICS = ["final.plant.yaw", "final.plant.north", "final.plant.east", "final.plant.r"]
+STUDY = f"""
+scenario = "turning.toml"
+stop_time = 20.0
+[grid]
+"events.turn.time" = [10.0, 15]
+"faults.fault-1.value" = [1.0, 0.5]
+[metrics]
+collect = {json.dumps([*METRICS, "time_reached"])}
+"""
+
+
+@pytest.fixture
+def scenario(tmp_path: Path) -> Path:
+    """bs-3 with a yaw setpoint step at 10 s and a gain fault on the mass command."""
+    path = tmp_path / "turning.toml"
+    bs3 = (ROOT / "cosim/scenarios/bs-3.toml").read_text(encoding="utf-8")
+    path.write_text(bs3 + EVENTS, encoding="utf-8")
+    return path
+
+
+def separate_run(scenario: Path, fmu_dir: Path, time: float, gain: float) -> dict:
+    """The scenario with the event at ``time`` and the fault's gain ``gain``, through
+    ``auv-cosim run``: its summary.json."""
+    data = tomllib.loads(scenario.read_text(encoding="utf-8"))
+    data["events"][0]["time"] = time
+    data["faults"][0]["value"] = gain
+    edited = scenario.with_name(f"turning_{time}_{gain}.toml")
+    edited.write_text(tomli_w.dumps(data), encoding="utf-8")
+    out = scenario.parent / edited.stem
+    argv = ["run", str(edited), "--stop-time", "20", "--no-rrd", "--quiet", "--out", str(out)]
+    assert main([*argv, "--fmu-dir", str(fmu_dir)]) == 0
+    return json.loads((out / "summary.json").read_text(encoding="utf-8"))
+
+
+def test_event_time_and_fault_gain_factors_equal_separate_runs(
+    scenario: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY, encoding="utf-8")
+    sweep(study, tmp_path / "out", fmu_dir, "--workers", "2")
+    rows = table(tmp_path / "out")
+    assert len(rows) == 4 and {r["status"] for r in rows} == {"complete"}
+    assert {(r["events.turn.time"], r["faults.fault-1.value"]) for r in rows} == {
+        (t, g) for t in ("10.0", "15.0") for g in ("1.0", "0.5")
+    }  # the integer 15 became the float time 15.0
+    finals = set()
+    for row in rows:
+        time, gain = float(row["events.turn.time"]), float(row["faults.fault-1.value"])
+        summary = separate_run(scenario, fmu_dir, time, gain)
+        for metric in METRICS:
+            value = summary["final_values"][metric.removeprefix("final.")]
+            assert row[metric] == repr(value), (row["run"], metric)
+        assert row["time_reached"] == repr(summary["time_reached"])
+        finals.add(row["final.plant.yaw"])
+    assert len(finals) == 4  # each factor changes the run
+
+
+@pytest.mark.parametrize(
+    ("factor", "expected"),
+    [
+        ("events.trun.time", "factor 'events.trun.time': the scenario has no event 'trun' "
+         "(events: turn)"),
+        ("faults.jam.value", "the scenario has no fault 'jam' (faults: fault-1)"),
+        ("events.turn.speed", "expected events.turn.time, events.turn.ramp or one of the "
+         "values it sets (events.turn.set.controller.yaw_setpoint)"),
+        ("events.turn.set.plant.u_0", "(events.turn.set.controller.yaw_setpoint); to vary"),
+        ("faults.fault-1.gain", "key one of start, stop, value, std, seed, steps, "
+         "probability; got 'gain' (fault 'fault-1' is 'gain')"),
+    ],
+)  # fmt: skip
+def test_a_bad_event_or_fault_factor_is_refused_naming_it(
+    factor: str,
+    expected: str,
+    scenario: Path,
+    fmu_dir: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+) -> None:
+    study = tmp_path / "bad.toml"
+    study.write_text(f'scenario = "turning.toml"\n[grid]\n"{factor}" = [1.0]\n', "utf-8")
+    out = tmp_path / "out"
+    assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
+    assert expected in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_key_the_fault_s_kind_does_not_take_is_refused_by_the_scenario(
+    scenario: Path, fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    study = tmp_path / "std.toml"
+    study.write_text('scenario = "turning.toml"\n[grid]\n"faults.fault-1.std" = [0.1]\n', "utf-8")
+    out = tmp_path / "out"
+    assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
+    error = capsys.readouterr().err
+    assert "factor values {'faults.fault-1.std': 0.1}" in error and "std" in error
+    assert not out.exists()
