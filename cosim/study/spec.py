@@ -24,8 +24,9 @@ Format (every key is checked; unknown keys are errors)::
     [metrics]                  # which summary values to collect [all of them]
     collect = ["yaw_settling_time_s", "final.plant.yaw"]
 
-A factor is ``<instance>.<variable>``; what it may name is checked against the scenario
-(:mod:`cosim.study.factors`). With both a grid and random factors, every grid point is
+A factor is ``<instance>.<variable>`` (a start value), ``events.<name>.time|ramp``,
+``events.<name>.set.<instance>.<variable>`` or ``faults.<name>.<key>``; what it may name is
+checked against the scenario (:mod:`cosim.study.factors`). With both a grid and random factors, every grid point is
 run with every one of the n samples (the same samples at each point).
 """
 
