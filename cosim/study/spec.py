@@ -26,8 +26,9 @@ Format (every key is checked; unknown keys are errors)::
 
 A factor is ``<instance>.<variable>`` (a start value), ``events.<name>.time|ramp``,
 ``events.<name>.set.<instance>.<variable>`` or ``faults.<name>.<key>``; what it may name is
-checked against the scenario (:mod:`cosim.study.factors`). With both a grid and random factors, every grid point is
-run with every one of the n samples (the same samples at each point).
+checked against the scenario (:mod:`cosim.study.factors`). With both a grid and random
+factors, every grid point is run with every one of the n samples (the same samples at each
+point).
 """
 
 from __future__ import annotations
