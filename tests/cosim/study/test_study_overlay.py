@@ -14,7 +14,8 @@ from rerun.chunk import RrdReader
 from sweep_helpers import sweep, table
 
 from cosim.cli import main
-from cosim.study.design import run_id
+from cosim.study.design import PlannedRun, run_id
+from cosim.study.overlay import choose, spread
 from cosim.viz.report import load_results
 
 STUDY = """
@@ -136,3 +137,27 @@ def test_all_is_capped(fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixt
     argv = ["sweep", str(study), "--out", str(tmp_path / "out"), "--fmu-dir", str(fmu_dir)]
     assert main([*argv, "--workers", "1"]) == 1
     assert "up to 21 runs, more than the cap of 20" in capsys.readouterr().err
+
+
+def planned(n: int) -> list[PlannedRun]:
+    return [PlannedRun(run_id({"plant.v_0": k / 10}), {"plant.v_0": k / 10}) for k in range(n)]
+
+
+@pytest.mark.parametrize(("total", "n", "picked"), [(9, 3, [0, 4, 8]), (5, 1, [0]), (2, 5, [0, 1])])
+def test_overlay_n_spreads_over_the_study(total: int, n: int, picked: list[int]) -> None:
+    runs = planned(total)
+    assert spread(runs, n) == [runs[i].id for i in picked]
+
+
+def test_best_and_worst_skip_failed_runs_and_runs_without_a_value() -> None:
+    runs = planned(4)
+    values = [None, 2.0, -1.0, -9.0]  # the last run failed: its value is not looked at
+    rows = {
+        run.id: {"status": "failed" if k == 3 else "complete", "m": values[k]}
+        for k, run in enumerate(runs)
+    }
+    chosen, empty = choose(["best:m", "worst:m", runs[0].id], runs, rows)
+    assert chosen == {runs[2].id: ["best:m"], runs[1].id: ["worst:m"], runs[0].id: [runs[0].id]}
+    assert empty == []
+    nothing = {run.id: {"status": "failed", "m": None} for run in runs}
+    assert choose(["best:m"], runs, nothing) == ({}, ["best:m"])
