@@ -475,16 +475,15 @@ def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path,
         for path in (tmp_path / "file.rrd", received):
             deadline = time.monotonic() + 30
             while True:  # the server writes what it receives a little later
-                try:
+                try:  # a file still being written may end in a torn frame (RuntimeError)
                     _, yaw = read_temporal(path, "/attitude/yaw_deg", "Scalars:scalars", 1)
-                    if len(yaw) == len(times):
+                    if len(yaw) == len(times) and RrdReader(path).blueprints():
                         break
-                except (AssertionError, OSError, ValueError):
+                except (AssertionError, OSError, ValueError, RuntimeError):
                     pass
-                assert time.monotonic() < deadline, f"{path.name} never got every row"
+                assert time.monotonic() < deadline, f"{path.name}: not every row, or no blueprint"
                 time.sleep(0.2)
             np.testing.assert_array_equal(yaw[:, 0, 0], expected)
-        assert RrdReader(received).blueprints(), "the blueprint was not streamed"
 
 
 def test_view_without_display_prints_how_to_open(recorded, tmp_path: Path, monkeypatch, capsys):
