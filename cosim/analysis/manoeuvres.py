@@ -13,28 +13,44 @@ turning-circle and zig-zag tests):
 * zig-zag (:func:`zigzag`): the first and second overshoot angles and the period;
 * depth steps (:func:`depth_steps`): rise time, overshoot, settling time and steady error
   of each step of the depth set-point;
-* survey (:func:`survey`): RMS and largest cross-track error over the run, legs completed.
+* survey (:func:`survey`): RMS and largest cross-track error over the run, legs completed;
+* fault recovery (:func:`fault_recovery`): what a heading autopilot still achieves after
+  a fault: the largest and the final heading error from the fault on, and the time it
+  takes to settle within 1 deg.
 
 Positions are the body origin (the centre of buoyancy, mid-length on REMUS 100), the
 point IMO calls the midship point. Times in s, lengths in m, angles in the inputs in rad;
 the metrics carry their unit in their name. A metric the run cannot give (the heading
-never turned 90 deg, a step never settled) is None.
+never turned 90 deg, a step never settled, a run stopped before it had any rows) is None.
 
 :func:`manoeuvre_metrics` is the one call a run's summary needs: ``kind`` and the run's
 columns (``results.csv`` names: ``time``, ``plant.yaw``, ...) in, a flat
-``{name: value}`` out.
+``{name: value}`` out; :func:`manoeuvre_columns` says which columns it reads (what a
+run must record), :func:`metric_names` which metrics it gives.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
+
+from cosim.run.figures import settling_time
 
 Metrics = dict[str, float | int | None]
 STEADY_TURN_RAD = 2.0 * math.pi  # the steady part of a turning circle: its last full turn
 SETTLING_BAND = 0.02  # settled: within 2 % of the step's change of its final value
+DEPTH_STEP_METRICS = ("rise_time_s", "overshoot_pct", "settling_time_s", "steady_error_m")
+HEADING_BAND_DEG = 1.0  # fault recovery: the heading has settled within 1 deg
+TURNING_CIRCLE_METRICS = (
+    "advance_m",
+    "transfer_m",
+    "tactical_diameter_m",
+    "steady_turning_diameter_m",
+    "steady_roll_deg",
+    "speed_loss_pct",
+)
 
 
 # --- turning circle ------------------------------------------------------------------------
@@ -63,6 +79,8 @@ def turning_circle(
     Speed over ground is the track's own rate (central differences).
     """
     times, north, east = (np.asarray(a, dtype=float) for a in (times, north, east))
+    if times.size < 3:  # a run stopped at once: no track to measure
+        return dict.fromkeys(TURNING_CIRCLE_METRICS)
     heading = np.unwrap(np.asarray(yaw, dtype=float))
     speed_north = np.gradient(north, times, edge_order=2)
     speed_east = np.gradient(east, times, edge_order=2)
@@ -75,14 +93,10 @@ def turning_circle(
                      + (east - east[execute]) * math.cos(course))  # fmt: skip
     at_90 = _first_crossing(change, math.pi / 2, execute)
     at_180 = _first_crossing(change, math.pi, execute)
-    metrics: Metrics = {
-        "advance_m": _interpolate(along, at_90),
-        "transfer_m": _interpolate(across, at_90),
-        "tactical_diameter_m": _interpolate(across, at_180),
-        "steady_turning_diameter_m": None,
-        "steady_roll_deg": None,
-        "speed_loss_pct": None,
-    }
+    metrics: Metrics = dict.fromkeys(TURNING_CIRCLE_METRICS)
+    metrics["advance_m"] = _interpolate(along, at_90)
+    metrics["transfer_m"] = _interpolate(across, at_90)
+    metrics["tactical_diameter_m"] = _interpolate(across, at_180)
     steady = np.flatnonzero(change >= change[-1] - STEADY_TURN_RAD)
     if at_180 is None or change[-1] - STEADY_TURN_RAD < math.pi or steady.size < 3:
         return metrics
@@ -177,16 +191,12 @@ def depth_steps(
     times, depth = np.asarray(times, dtype=float), np.asarray(depth, dtype=float)
     setpoint = np.asarray(setpoint, dtype=float)
     starts = (np.flatnonzero(np.diff(setpoint) != 0.0) + 1).tolist()
-    result = []
-    for start, end in zip(starts, [*starts[1:], len(times)], strict=True):
+    result: list[Metrics] = []
+    for start, end in zip(starts, [*starts[1:], len(times)][: len(starts)], strict=True):
         t, z = times[start:end] - times[start], depth[start:end]
         final, change = z[-1], z[-1] - z[0]
-        metrics: Metrics = {
-            "rise_time_s": None,
-            "overshoot_pct": None,
-            "settling_time_s": None,
-            "steady_error_m": float(setpoint[start] - final),
-        }
+        metrics: Metrics = dict.fromkeys(DEPTH_STEP_METRICS)
+        metrics["steady_error_m"] = float(setpoint[start] - final)
         if change != 0.0:
             progress = (z - z[0]) / change
             t10, t90 = _crossing_time(t, progress, 0.1), _crossing_time(t, progress, 0.9)
@@ -206,6 +216,8 @@ def survey(cross_track_error: np.ndarray, legs_completed: np.ndarray) -> Metrics
     """RMS and largest |cross-track error| over the whole run (m), and the legs completed
     at its end (the guidance's own outputs, sampled every communication step)."""
     error = np.asarray(cross_track_error, dtype=float)
+    if error.size == 0:  # a run stopped before its first row
+        return dict.fromkeys(("cross_track_rms_m", "cross_track_max_m", "legs_completed"))
     return {
         "cross_track_rms_m": float(np.sqrt(np.mean(error**2))),
         "cross_track_max_m": float(np.max(np.abs(error))),
@@ -213,66 +225,136 @@ def survey(cross_track_error: np.ndarray, legs_completed: np.ndarray) -> Metrics
     }
 
 
+# --- fault recovery ------------------------------------------------------------------------
+
+
+def fault_recovery(
+    times: np.ndarray, yaw: np.ndarray, setpoint: np.ndarray, start: float = 0.0
+) -> Metrics:
+    """What a heading autopilot still achieves after a fault that starts at ``start`` (s).
+
+    Args:
+        times, yaw, setpoint: s, rad, rad (the heading error is yaw - set-point, wrapped
+            to (-180, 180] deg).
+        start: when the fault starts (s).
+
+    ``heading_error_at_fault_deg``: |error| at the fault's start; ``heading_error_max_deg``
+    and ``heading_error_final_deg``: the largest |error| from the start on and |error| at
+    the end of the run; ``heading_settling_time_s``: the time from the start after which
+    |error| stays below :data:`HEADING_BAND_DEG` to the end (0 if it never leaves that
+    band), None if the run ends outside it (the autopilot does not recover).
+    """
+    times = np.asarray(times, dtype=float)
+    error = np.angle(np.exp(1j * (np.asarray(yaw, dtype=float) - np.asarray(setpoint))))
+    after = times >= start - 1e-9
+    metrics: Metrics = dict.fromkeys(
+        ("heading_error_at_fault_deg", "heading_error_max_deg", "heading_error_final_deg",
+         "heading_settling_time_s")
+    )  # fmt: skip
+    if not after.any():  # the run stopped before the fault
+        return metrics
+    degrees = np.degrees(np.abs(error[after]))
+    settled = settling_time(times[after], error[after], math.radians(HEADING_BAND_DEG))
+    metrics["heading_error_at_fault_deg"] = float(degrees[0])
+    metrics["heading_error_max_deg"] = float(np.max(degrees))
+    metrics["heading_error_final_deg"] = float(degrees[-1])
+    metrics["heading_settling_time_s"] = None if settled is None else settled - float(start)
+    return metrics
+
+
 # --- one call for a run's summary ----------------------------------------------------------
 
+# The variables each kind reads besides ``time`` (looked up as in manoeuvre_metrics).
+VARIABLES: dict[str, tuple[str, ...]] = {
+    "turning-circle": ("north", "east", "yaw", "roll", "mass_position_cmd"),
+    "zigzag": ("yaw", "yaw_setpoint"),
+    "depth-steps": ("down", "depth_setpoint"),
+    "survey": ("cross_track_error", "legs_completed"),
+    "fault-recovery": ("yaw", "yaw_setpoint"),
+}
 
-def manoeuvre_metrics(kind: str, columns: Mapping[str, np.ndarray]) -> Metrics:
+
+def manoeuvre_metrics(
+    kind: str, columns: Mapping[str, np.ndarray], fault_start: float = 0.0
+) -> Metrics:
     """The metrics of manoeuvre ``kind`` from a run's columns (``results.csv`` names).
 
-    Kinds: ``turning-circle``, ``zigzag``, ``depth-steps``, ``survey`` (:data:`KINDS`).
-    A variable is looked up as ``plant.<name>`` (what acts on the vehicle), else as the
-    one column ``<instance>.<name>`` of any instance; depth steps come out numbered,
-    ``step_1_rise_time_s``, ...
+    Kinds: ``turning-circle``, ``zigzag``, ``depth-steps``, ``survey``,
+    ``fault-recovery`` (:data:`KINDS`; ``fault_start``, s, is when the fault starts, for
+    the last). The columns are found by :func:`manoeuvre_columns`; depth steps come out
+    numbered, ``step_1_rise_time_s``, ...
 
     Raises:
         ValueError: an unknown kind, or a column it needs is missing or ambiguous (the
             message names it and the columns there are).
     """
+    names = manoeuvre_columns(kind, [name for name in columns if name != "time"])
+    values = {name: np.asarray(columns[column], dtype=float) for name, column in names.items()}
+    values["time"] = np.asarray(columns["time"], dtype=float)
+    return KINDS[kind](values, fault_start)
+
+
+def manoeuvre_columns(kind: str, columns: Sequence[str]) -> dict[str, str]:
+    """Which of ``columns`` (``<instance>.<variable>``) manoeuvre ``kind`` reads: variable
+    -> column. A variable is the column of its own name if there is one, else
+    ``plant.<name>`` when the plant records it (what acts on the vehicle), else the one
+    column ``<instance>.<name>`` of any instance.
+
+    Raises:
+        ValueError: an unknown kind, or a variable with no column or several.
+    """
     if kind not in KINDS:
         raise ValueError(f"unknown manoeuvre {kind!r}: expected one of {sorted(KINDS)}")
-    return KINDS[kind](_Columns(kind, columns))
-
-
-class _Columns:
-    """A run's columns looked up by variable name (see :func:`manoeuvre_metrics`)."""
-
-    def __init__(self, kind: str, columns: Mapping[str, np.ndarray]) -> None:
-        self.kind, self.columns = kind, columns
-
-    def __call__(self, name: str) -> np.ndarray:
-        if name in self.columns:
-            return np.asarray(self.columns[name], dtype=float)
-        if f"plant.{name}" in self.columns:
-            return np.asarray(self.columns[f"plant.{name}"], dtype=float)
-        found = [c for c in self.columns if c.endswith(f".{name}")]
-        if len(found) != 1:
-            problem = f"several columns {found}" if found else "no column"
+    found = {}
+    for name in VARIABLES[kind]:
+        exact = [c for c in (name, f"plant.{name}") if c in columns]
+        if exact:
+            found[name] = exact[0]
+            continue
+        matches = [c for c in columns if c.endswith(f".{name}")]
+        if len(matches) != 1:
+            problem = f"several columns {matches}" if matches else "no column"
             raise ValueError(
-                f"manoeuvre {self.kind!r} needs the variable {name!r}, but the run has "
-                f"{problem} for it (columns: {', '.join(self.columns)})"
+                f"manoeuvre {kind!r} needs the variable {name!r}, but the run has "
+                f"{problem} for it (columns: {', '.join(columns)})"
             )
-        return np.asarray(self.columns[found[0]], dtype=float)
+        found[name] = matches[0]
+    return found
 
 
-def _turning_circle_metrics(column: _Columns) -> Metrics:
-    command = column("mass_position_cmd")
-    active = np.flatnonzero(command != 0.0)
+def metric_names(kind: str, steps: int = 0) -> tuple[str, ...]:
+    """The metrics manoeuvre ``kind`` gives, in order; ``steps``: the depth-set-point
+    steps of a ``depth-steps`` run (its names are numbered per step)."""
+    if kind == "depth-steps":
+        return tuple(f"step_{k}_{m}" for k in range(1, steps + 1) for m in DEPTH_STEP_METRICS)
+    empty = {name: np.empty(0) for name in ("time", *VARIABLES[kind])}
+    return tuple(KINDS[kind](empty, 0.0))
+
+
+Columns = Mapping[str, np.ndarray]
+
+
+def _turning_circle_metrics(column: Columns, _: float) -> Metrics:
+    active = np.flatnonzero(column["mass_position_cmd"] != 0.0)
     return turning_circle(
-        column("time"), column("north"), column("east"), column("yaw"), column("roll"),
+        column["time"], column["north"], column["east"], column["yaw"], column["roll"],
         execute=int(active[0]) if active.size else 0,
     )  # fmt: skip
 
 
-def _depth_steps_metrics(column: _Columns) -> Metrics:
-    steps = depth_steps(column("time"), column("down"), column("depth_setpoint"))
+def _depth_steps_metrics(column: Columns, _: float) -> Metrics:
+    steps = depth_steps(column["time"], column["down"], column["depth_setpoint"])
     return {f"step_{k}_{name}": v for k, step in enumerate(steps, 1) for name, v in step.items()}
 
 
-KINDS: dict[str, Callable[[_Columns], Metrics]] = {
+KINDS: dict[str, Callable[[Columns, float], Metrics]] = {
     "turning-circle": _turning_circle_metrics,
-    "zigzag": lambda column: zigzag(column("time"), column("yaw"), column("yaw_setpoint")),
+    "zigzag": lambda column, _: zigzag(column["time"], column["yaw"], column["yaw_setpoint"]),
     "depth-steps": _depth_steps_metrics,
-    "survey": lambda column: survey(column("cross_track_error"), column("legs_completed")),
+    "survey": lambda column, _: survey(column["cross_track_error"], column["legs_completed"]),
+    "fault-recovery": lambda column, start: fault_recovery(
+        column["time"], column["yaw"], column["yaw_setpoint"], start
+    ),
 }
 
 

@@ -3,7 +3,8 @@
 In a claimed run folder (:mod:`cosim.run.folder`), :meth:`RunOutputs.open` writes
 ``scenario.toml`` and ``summary.json`` (``"status": "running"``) and opens the sinks:
 results.csv (:class:`cosim.run.sinks.CsvSink`, with the folder's tail guard), the key
-figures (:class:`cosim.run.figures.KeyFigures`), the Rerun recording and the live viewer
+figures (:class:`cosim.run.figures.KeyFigures`), the manoeuvre metrics of a scenario that
+names one (:class:`cosim.run.manoeuvre.ManoeuvreSink`), the Rerun recording and the live viewer
 (:class:`cosim.viz.recording.RerunSink`, one each) and the progress bar. Creating them
 probes that every path is writable before the first step. :meth:`RunOutputs.close`
 closes them and :meth:`RunOutputs.finish` replaces summary.json with how the run ended.
@@ -24,6 +25,7 @@ from typing import Any
 from cosim.errors import CosimError
 from cosim.run.figures import KeyFigures
 from cosim.run.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
+from cosim.run.manoeuvre import ManoeuvreSink
 from cosim.run.master import RunResult
 from cosim.run.results import final_summary, running_summary
 from cosim.run.rows import RowSink
@@ -39,8 +41,15 @@ class RunOutputs:
         self.folder = folder
         self.paths = paths  # results, scenario, summary and (if written) recording
         self.figures = KeyFigures(scenario.record)
+        self.manoeuvre = (
+            None if scenario.manoeuvre is None
+            else ManoeuvreSink(scenario.manoeuvre, scenario.record)
+        )  # fmt: skip
         self.csv: CsvSink | None = None
         self.sinks: list[RowSink] = [self.figures]
+        if self.manoeuvre is not None:
+            self.sinks.append(self.manoeuvre)
+        self.manoeuvre_summary: dict[str, Any] | None = None  # set by finish
         self._created: list[Path] = []
         self._running: dict[str, Any] = {}
 
@@ -115,7 +124,10 @@ class RunOutputs:
         """Replace summary.json with the final summary; the failure to write it, if any."""
         name = signal.Signals(signum).name if signum is not None else None
         rows = self.csv.rows if self.csv is not None else 0
-        data = final_summary(self._running, result, self.figures.figures(), error, name, rows)
+        if self.manoeuvre is not None:
+            self.manoeuvre_summary = self.manoeuvre.summary()
+        figures, manoeuvre = self.figures.figures(), self.manoeuvre_summary
+        data = final_summary(self._running, result, figures, error, name, rows, manoeuvre)
         try:
             write_json_atomically(self.paths["summary"], data)
         except CosimError as exc:

@@ -20,7 +20,10 @@ every column, the key figures
 (:mod:`cosim.run.figures`), the FMUs' logged warnings and errors, ``events`` (each firing
 of an event: ``name``, ``time`` in s, the values it ``set``; docs/events.md) and
 ``faults`` (``name``, ``kind``, ``target``, ``start`` and ``stop`` in s, null: never).
-A summary still saying ``running`` once its process is gone belongs to a run that was killed: its
+A scenario with a ``manoeuvre`` adds at the top level, from the start,
+``"manoeuvre": <kind>`` and, at the end, its metrics (:mod:`cosim.run.manoeuvre`:
+``tactical_diameter_m``, ...; null where the run cannot give one). A summary still
+saying ``running`` once its process is gone belongs to a run that was killed: its
 results.csv holds every row up to the last flush.
 """
 
@@ -80,8 +83,10 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 
 def running_summary(scenario: Scenario, outputs: Mapping[str, Path], out_dir: Path) -> dict:
     """summary.json while the run is going."""
+    manoeuvre = {} if scenario.manoeuvre is None else {"manoeuvre": scenario.manoeuvre}
     return {
         "scenario": scenario.id,
+        **manoeuvre,
         "status": "running",
         "complete": False,
         "error": None,
@@ -101,9 +106,11 @@ def final_summary(
     error: str | None,
     signal: str | None,
     rows: int,
+    manoeuvre: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """summary.json at the end of a run: ``running`` completed with how it ended;
-    ``rows``: those in results.csv."""
+    ``rows``: those in results.csv; ``manoeuvre``: the manoeuvre and its metrics
+    (:meth:`cosim.run.manoeuvre.ManoeuvreSink.summary`), put at the top level."""
     wall = result.wall_clock_s
     final = dict(zip(result.columns, result.final.tolist(), strict=True))
     return {
@@ -124,6 +131,7 @@ def final_summary(
             {"name": f.name, "kind": f.kind, "target": f.target, "start": f.start, "stop": f.stop}
             for f in result.scenario.faults
         ],
+        **(manoeuvre or {}),
     }
 
 

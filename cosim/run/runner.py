@@ -78,6 +78,7 @@ class RunOutcome:
     paths: dict[str, Path]  # results, scenario, summary and (if written) recording
     figures: dict[str, float | None]  # the key figures (cosim.run.figures)
     signal: int | None = None  # the first stop signal received while the run was on
+    manoeuvre: dict[str, Any] | None = None  # the manoeuvre and its metrics (summary.json)
 
     @property
     def exit_code(self) -> int:
@@ -135,7 +136,10 @@ def execute(
             _complete(outputs, result, stop)
         finally:
             folder.release(unused=not stepped)
-    return RunOutcome(result, out_dir, outputs.paths, outputs.figures.figures(), stop.signum)
+    figures = outputs.figures.figures()
+    return RunOutcome(
+        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary
+    )
 
 
 def _id_of(scenario: str | Path | Scenario) -> str:
@@ -223,6 +227,11 @@ def report(outcome: RunOutcome) -> str:
     lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
     figures = outcome.figures
     lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in figures.items()))
+    if outcome.manoeuvre:
+        metrics = {k: v for k, v in outcome.manoeuvre.items() if k != "manoeuvre"}
+        lines.append(f"  {outcome.manoeuvre['manoeuvre']}: " + ", ".join(
+            f"{k} = {v if isinstance(v, str) else _fmt(v)}" for k, v in metrics.items()
+        ))  # fmt: skip
     for name, messages in result.messages.items():
         lines += [f"  {name} logged: {message}" for message in messages[:MESSAGES_SHOWN]]
         if len(messages) > MESSAGES_SHOWN:

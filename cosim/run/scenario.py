@@ -14,6 +14,8 @@ Format (every key is checked; unknown keys are errors)::
     summary = "one line for `auv-cosim scenarios`"
     stop_time = 30.0                     # s, a whole number of communication steps, at most
                                          # MAX_STEPS (1e8) of them
+    manoeuvre = "turning-circle"         # optional: the standard manoeuvre it flies; its
+                                         # metrics go into summary.json (docs/manoeuvres.md)
 
     [coupling]
     step = 0.01                          # s, communication step h
@@ -82,6 +84,7 @@ from pydantic import (
     ValidationError,
 )
 
+from cosim.analysis.manoeuvres import KINDS, manoeuvre_columns
 from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.run.checks import (
@@ -153,6 +156,7 @@ class ScenarioSpec(Strict):
     id: str | None = Field(default=None, pattern=_PLAIN_NAME)
     summary: str = ""
     stop_time: float = Field(gt=0.0, allow_inf_nan=False, description="s")
+    manoeuvre: str | None = Field(default=None, description="cosim.analysis.manoeuvres kind")
     coupling: CouplingSpec
     instances: dict[_NAME, InstanceSpec] = Field(min_length=1)
     connections: ConnectionsSpec = Field(default_factory=ConnectionsSpec)
@@ -246,6 +250,7 @@ class Scenario:
     rrd: bool
     spec: ScenarioSpec = dataclasses.field(repr=False, compare=False)
     fmu_dir: Path = dataclasses.field(repr=False, compare=False, default=DEFAULT_FMU_DIR)
+    manoeuvre: str | None = None  # a cosim.analysis.manoeuvres kind: metrics in the summary
     events: tuple[Event, ...] = ()  # cosim.run.timeline_spec
     faults: tuple[Fault, ...] = ()
 
@@ -332,6 +337,8 @@ class Scenario:
             },
             "output": {"record": list(self.record), "rrd": self.rrd},
         }
+        if self.manoeuvre is not None:
+            data["manoeuvre"] = self.manoeuvre
         if self.events:
             data["events"] = [event_table(event) for event in self.events]
         if self.faults:
@@ -503,14 +510,26 @@ def _resolve(
         spec=spec,
         fmu_dir=fmu_dir,
     )
-    scenario = dataclasses.replace(
-        scenario, record=_resolve_record(spec.output.record, scenario, src)
-    )
+    record = _resolve_record(spec.output.record, scenario, src)
+    _check_manoeuvre(spec.manoeuvre, record, src)
+    scenario = dataclasses.replace(scenario, record=record, manoeuvre=spec.manoeuvre)
     return dataclasses.replace(
         scenario,
         events=resolve_events(spec.events, scenario, base_dir, src),
         faults=resolve_faults(spec.faults, scenario, src),
     )
+
+
+def _check_manoeuvre(kind: str | None, record: tuple[str, ...], src: Source) -> None:
+    """A known manoeuvre whose variables the run records (it measures them at the end)."""
+    if kind is None:
+        return
+    if kind not in KINDS:
+        raise src.error("manoeuvre", f"{kind!r} is not a manoeuvre: expected one of {list(KINDS)}")
+    try:
+        manoeuvre_columns(kind, record)
+    except ValueError as exc:
+        raise src.error("manoeuvre", f"{exc}; record it in output.record") from None
 
 
 def _check_step_count(spec: ScenarioSpec, src: Source) -> None:

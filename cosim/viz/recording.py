@@ -14,9 +14,10 @@ never mix.
 
 The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``), the
 scenario id as the recording name and a property, and the resolved scenario TOML as a
-static text document at ``/scenario``. What the 3D scene needs to know about the run --
-the vehicle parameter set, whether depth control is on -- is read from the
-:class:`~cosim.run.scenario.Scenario` itself.
+static text document at ``/scenario``; a scenario with a waypoint guidance gets its
+planned path and waypoints in the 3D scene (:func:`cosim.viz.mission.mission_waypoints`).
+What the 3D scene needs to know about the run -- the vehicle parameter set, whether depth
+control is on -- is read from the :class:`~cosim.run.scenario.Scenario` itself.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ from cosim.viz.layout import (
     series_style,
     time_index,
 )
+from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
@@ -151,7 +153,7 @@ class RerunSink:
 
     def _log_static(self, scenario: Scenario, vehicle: VehicleParameters, depth: bool) -> None:
         """The recording's name and properties, the scenario text, styles and the scene."""
-        scenario_id, columns = scenario.id, self._columns
+        scenario_id, columns, toml = scenario.id, self._columns, scenario.to_toml()
         self._rec.send_recording_name(scenario_id)
         self._rec.send_property(
             "scenario", rr.AnyValues(id=scenario_id, vehicle=vehicle.name, columns=len(columns))
@@ -160,14 +162,17 @@ class RerunSink:
             "scenario",
             rr.TextDocument(
                 f"# Scenario `{scenario_id}`\n\n{scene_legend()}\n"
-                f"## Resolved scenario\n\n```toml\n{scenario.to_toml()}\n```\n",
+                f"## Resolved scenario\n\n```toml\n{toml}\n```\n",
                 media_type=rr.MediaType.MARKDOWN,
             ),
             static=True,
         )
         for panel in self._panels:
             self._rec.log(panel.entity, series_style(panel), static=True)
-        log_static_scene(self._rec, vehicle, self._columns, show_depth_setpoint=depth)
+        log_static_scene(
+            self._rec, vehicle, columns, show_depth_setpoint=depth,
+            waypoints=mission_waypoints(toml),  # None without a waypoint guidance
+        )  # fmt: skip
         self._scene = SceneWriter(self._rec, vehicle, show_depth_setpoint=depth)
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:

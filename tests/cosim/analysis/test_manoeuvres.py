@@ -11,9 +11,14 @@ import pytest
 
 from cosim.analysis.equilibria import find_equilibrium
 from cosim.analysis.manoeuvres import (
+    KINDS,
+    VARIABLES,
     depth_steps,
+    fault_recovery,
     fit_circle,
+    manoeuvre_columns,
     manoeuvre_metrics,
+    metric_names,
     survey,
     turning_circle,
     zigzag,
@@ -229,7 +234,7 @@ def test_manoeuvre_metrics_names_what_is_missing_or_ambiguous():
         manoeuvre_metrics("zig-zag", {})
     columns = {"time": np.zeros(3), "guidance.cross_track_error": np.zeros(3)}
     missing = r"'survey' needs the variable 'legs_completed', but the run has no column for it "
-    missing += r"\(columns: time, guidance\.cross_track_error\)"
+    missing += r"\(columns: guidance\.cross_track_error\)"
     with pytest.raises(ValueError, match=missing):
         manoeuvre_metrics("survey", columns)
     columns["a.legs_completed"] = columns["b.legs_completed"] = np.ones(3)
@@ -237,3 +242,56 @@ def test_manoeuvre_metrics_names_what_is_missing_or_ambiguous():
         manoeuvre_metrics("survey", columns)
     columns["plant.legs_completed"] = np.full(3, 4.0)  # the plant's wins
     assert manoeuvre_metrics("survey", columns)["legs_completed"] == 4
+
+
+def test_manoeuvre_columns_are_what_a_run_must_record():
+    recorded = ["plant.yaw", "controller.yaw_setpoint", "guidance.yaw_setpoint", "plant.roll"]
+    assert manoeuvre_columns("fault-recovery", recorded[:2]) == {
+        "yaw": "plant.yaw",
+        "yaw_setpoint": "controller.yaw_setpoint",
+    }
+    ambiguous = r"'zigzag' needs the variable 'yaw_setpoint', but the run has several columns "
+    ambiguous += r"\['controller\.yaw_setpoint', 'guidance"
+    with pytest.raises(ValueError, match=ambiguous):
+        manoeuvre_columns("zigzag", recorded)
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+@pytest.mark.parametrize("rows", [0, 1, 2])
+def test_a_run_stopped_early_gets_its_metric_names_with_none(kind, rows):
+    """A run killed or stopped after a few rows: every metric it names, None or finite,
+    never an exception (the summary of a partial run is still written)."""
+    columns = {"time": np.arange(rows) * H}
+    columns.update({f"plant.{name}": np.full(rows, 0.1) for name in VARIABLES[kind]})
+    metrics = manoeuvre_metrics(kind, columns)
+    assert tuple(metrics) == metric_names(kind, steps=0)
+    assert all(v is None or math.isfinite(v) for v in metrics.values())
+
+
+def test_metric_names_number_the_depth_steps():
+    t, depth, setpoint = depth_run()
+    steps = manoeuvre_metrics("depth-steps", {"time": t, "down": depth, "depth_setpoint": setpoint})
+    assert tuple(steps) == metric_names("depth-steps", steps=2)
+
+
+# --- fault recovery -------------------------------------------------------------------------
+
+
+def test_fault_recovery_of_a_known_heading():
+    """Heading error 10 deg decaying with tau = 2 s from the fault at t = 3 s: below 1 deg
+    from 3 + 2 ln 10 s on."""
+    t = np.arange(2001) * H
+    error = np.radians(np.where(t < 3.0, 10.0, 10.0 * np.exp(-(t - 3.0) / 2.0)))
+    setpoint = np.full_like(t, 3.0)  # near pi: the error is taken on the circle
+    metrics = fault_recovery(t, setpoint - error - 2 * math.pi, setpoint, start=3.0)
+    assert metrics["heading_error_at_fault_deg"] == pytest.approx(10.0)
+    assert metrics["heading_error_max_deg"] == pytest.approx(10.0)
+    assert metrics["heading_error_final_deg"] == pytest.approx(10.0 * math.exp(-8.5), rel=1e-6)
+    assert metrics["heading_settling_time_s"] == pytest.approx(2.0 * math.log(10.0), abs=H)
+    drifting = fault_recovery(t, np.radians(0.1 * t), np.zeros_like(t), start=3.0)
+    assert drifting["heading_settling_time_s"] is None  # 2 deg at the end: not recovered
+    assert drifting["heading_error_max_deg"] == pytest.approx(2.0)
+    assert (
+        fault_recovery(t, np.zeros_like(t), np.zeros_like(t), 3.0)["heading_settling_time_s"] == 0.0
+    )
+    assert set(fault_recovery(t, t, t, start=30.0).values()) == {None}  # stopped before it

@@ -14,6 +14,7 @@ from rerun.chunk import RrdReader
 from scenario_factory import auv_scenario
 
 from controller_fmu.los_guidance import DEFAULT_WAYPOINTS, parse_waypoints
+from cosim.run.runner import run_scenario
 from cosim.run.scenario import load_scenario
 from cosim.viz.layout import time_index
 from cosim.viz.mission import mission_waypoints
@@ -112,8 +113,7 @@ def test_a_run_without_a_mission_draws_none(tmp_path: Path) -> None:
 
 
 def test_the_sink_draws_the_target_of_a_recorded_guidance(fmu_paths, tmp_path: Path) -> None:
-    """What a run's recording shows today (the sink passes no waypoints yet: the static
-    path needs ``waypoints=mission_waypoints(scenario_toml)`` from the sink)."""
+    """A scenario without a waypoint guidance that records a target: the target alone."""
     columns = ["plant.north", "plant.east", "plant.down", *TARGET]
     times = np.arange(3) * 0.01
     values = np.array([[0.0, 0.0, 2.0, 50.0, 0.0, 2.0]] * 3)
@@ -123,3 +123,21 @@ def test_the_sink_draws_the_target_of_a_recorded_guidance(fmu_paths, tmp_path: P
     target = components(tmp_path / "run.rrd", "/world/mission/target")
     positions = [row for row in target["Points3D:positions"] if row]
     assert np.array(positions)[:, 0, :].tolist() == [[50.0, 0.0, 2.0]] * 3
+    assert "/world/mission/path" not in entities(tmp_path / "run.rrd")
+
+
+def test_the_survey_runs_recording_shows_its_planned_path(fmu_paths, tmp_path: Path) -> None:
+    """`auv-cosim run survey` (its first 2 s): the recording draws the mission's path and
+    waypoints, the guidance's own, in the 3D scene, and the target it steers for."""
+    fmu_dir = fmu_paths["AuvGuidance"].parent
+    outcome = run_scenario("survey", tmp_path / "run", stop_time=2.0, fmu_dir=fmu_dir)
+    assert outcome.result.complete, outcome.result.error
+    rrd = outcome.paths["recording"]
+    guidance = outcome.result.scenario.instances["guidance"].start["waypoints"]
+    expected = [[w.north, w.east, w.down] for w in parse_waypoints(guidance)]
+    strip = components(rrd, "/world/mission/path")["LineStrips3D:strips"]
+    np.testing.assert_array_equal(np.array(strip[0][0]), expected)
+    marks = components(rrd, "/world/mission/waypoints")
+    np.testing.assert_array_equal(np.array(marks["Points3D:positions"][0]), expected)
+    assert marks["Points3D:labels"][0] == [str(k) for k in range(1, len(expected) + 1)]
+    assert "/world/mission/target" in entities(rrd)
