@@ -100,6 +100,8 @@ def turning_circle(
     steady = np.flatnonzero(change >= change[-1] - STEADY_TURN_RAD)
     if at_180 is None or change[-1] - STEADY_TURN_RAD < math.pi or steady.size < 3:
         return metrics
+    if not np.isfinite(np.concatenate([north[steady], east[steady]])).all():
+        return metrics  # a track that blew up has no steady turn (and LAPACK would complain)
     _, radius = fit_circle(north[steady], east[steady])
     metrics["steady_turning_diameter_m"] = 2.0 * radius
     metrics["steady_roll_deg"] = math.degrees(float(np.mean(np.asarray(roll)[steady])))
@@ -329,6 +331,25 @@ def metric_names(kind: str, steps: int = 0) -> tuple[str, ...]:
         return tuple(f"step_{k}_{m}" for k in range(1, steps + 1) for m in DEPTH_STEP_METRICS)
     empty = {name: np.empty(0) for name in ("time", *VARIABLES[kind])}
     return tuple(KINDS[kind](empty, 0.0))
+
+
+def summary_metrics(summary: Mapping[str, object]) -> Metrics:
+    """The manoeuvre metrics of a run's ``summary.json`` (its top level): those of its
+    ``manoeuvre``, the depth steps as many as it has; {} for a run without one."""
+    kind = summary.get("manoeuvre")
+    if kind not in KINDS:
+        return {}
+    steps = 0
+    while f"step_{steps + 1}_{DEPTH_STEP_METRICS[0]}" in summary:
+        steps += 1
+    names = metric_names(str(kind), steps)
+    return {name: _number(summary.get(name)) for name in names}
+
+
+def _number(value: object) -> float | int | None:
+    """A metric as read from JSON: a number, else None."""
+    is_number = isinstance(value, int | float) and not isinstance(value, bool)
+    return value if is_number else None  # type: ignore[return-value]
 
 
 Columns = Mapping[str, np.ndarray]

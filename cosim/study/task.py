@@ -24,6 +24,7 @@ from typing import Any
 
 import tomli_w
 
+from cosim.analysis.manoeuvres import metric_names, summary_metrics
 from cosim.errors import CosimError
 from cosim.run.figures import KeyFigures
 from cosim.run.runner import run_scenario
@@ -159,9 +160,11 @@ def _scenario(
 
 def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
     """The numeric summary values that describe the run's motion: the key figures, the
-    time reached and every final value (``final.<column>``). Wall clock and real-time
-    factor are left out (they vary between identical runs), as are the settings."""
+    manoeuvre metrics of a scenario with a ``manoeuvre`` (``tactical_diameter_m``, ...),
+    the time reached and every final value (``final.<column>``). Wall clock and
+    real-time factor are left out (they vary between identical runs), as are the settings."""
     metrics = dict(run_summary["key_figures"])
+    metrics.update(summary_metrics(run_summary))
     metrics["time_reached"] = run_summary["time_reached"]
     metrics.update({f"final.{k}": v for k, v in run_summary["final_values"].items()})
     return metrics
@@ -170,4 +173,5 @@ def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
 def _metric_names(scenario: Scenario) -> tuple[str, ...]:
     """The names :func:`_metrics` gives a run of ``scenario``, in the same order."""
     figures = KeyFigures(scenario.record).figures()
-    return (*figures, "time_reached", *(f"final.{c}" for c in scenario.record))
+    manoeuvre = () if scenario.manoeuvre is None else metric_names(scenario.manoeuvre)
+    return (*figures, *manoeuvre, "time_reached", *(f"final.{c}" for c in scenario.record))

@@ -19,7 +19,7 @@ from reference_values import dissertation
 
 from controller_fmu.los_guidance import parse_waypoints
 from cosim.analysis.equilibria import find_equilibrium
-from cosim.analysis.manoeuvres import manoeuvre_metrics
+from cosim.analysis.manoeuvres import manoeuvre_metrics, metric_names
 from cosim.run import master
 from cosim.run.figures import settling_time
 from cosim.run.master import RunResult
@@ -169,14 +169,20 @@ def test_vert_1_keeps_rolling(results: dict[str, RunResult]) -> None:
 
 
 def manoeuvre(kind: str, outcome: RunOutcome) -> dict:
-    """The manoeuvre metrics of a run, from its results.csv."""
+    """The manoeuvre metrics of a run from its summary.json (top level), checked against
+    the same metrics computed from its results.csv."""
+    summary = json.loads(outcome.paths["summary"].read_text())
+    assert summary["manoeuvre"] == kind
     columns, table = read_csv(outcome.paths["results"])
-    return manoeuvre_metrics(kind, dict(zip(columns, table.T, strict=True)))
+    from_csv = manoeuvre_metrics(kind, dict(zip(columns, table.T, strict=True)))
+    assert {name: summary[name] for name in from_csv} == pytest.approx(from_csv, rel=1e-12)
+    return {name: summary[name] for name in metric_names(kind)}
 
 
 def test_turning_circle_is_the_plants_own_steady_turn(runs: dict[str, RunOutcome]) -> None:
     outcome = runs["turning-circle"]
     metrics = manoeuvre("turning-circle", outcome)
+    assert None not in metrics.values()  # advance, transfer, tactical and steady diameter, ...
     # The plant's own steady turn: the equilibrium of the model's reduced dynamics with the
     # scenario's inputs (the mass at its stop), from the run's last state.
     plant = outcome.result.scenario.instances["plant"]
@@ -201,6 +207,7 @@ def test_turning_circle_is_the_plants_own_steady_turn(runs: dict[str, RunOutcome
 def test_survey_completes_every_leg_in_the_cross_current(runs: dict[str, RunOutcome]) -> None:
     outcome = runs["survey"]
     metrics = manoeuvre("survey", outcome)
+    assert isinstance(metrics["legs_completed"], int)
     legs = len(parse_waypoints(outcome.result.scenario.instances["guidance"].start["waypoints"]))
     assert metrics["legs_completed"] == legs - 1 == 7
     assert metrics["cross_track_rms_m"] < 2.0  # 1.60 m, most of it in the turns

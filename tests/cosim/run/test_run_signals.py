@@ -21,6 +21,7 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
+from cosim.analysis.manoeuvres import manoeuvre_metrics, metric_names
 from cosim.run.folder import LOCK_FILE
 from cosim.run.master import ROWS_PER_CHUNK
 from cosim.run.results import read_csv
@@ -306,3 +307,23 @@ def test_a_huge_stop_time_streams_with_bounded_memory(fmu_dir: Path, tmp_path: P
     assert os.waitstatus_to_exitcode(status) == 143
     assert usage.ru_maxrss < 600 * 1024, f"peak RSS {usage.ru_maxrss / 1024:.0f} MB"
     proc.communicate()
+
+
+def test_a_stopped_manoeuvre_gets_the_metrics_of_what_it_ran(fmu_dir: Path, tmp_path: Path):
+    """Issue 16: a turning circle stopped by SIGTERM after 3 s: summary.json names the
+    manoeuvre and has every metric, measured over the rows it ran (the 90 deg point is
+    not reached by then: None), exactly as from its partial results.csv."""
+    out = tmp_path / "run"
+    proc = start(fmu_dir, out, "--stop-time", "600", "--no-rrd", scenario="turning-circle")
+    wait_for_rows(proc, out, 300)
+    proc.send_signal(signal.SIGTERM)
+    returncode, err = finish(proc)
+    assert returncode == 128 + signal.SIGTERM, err
+    done = summary(out)
+    assert done["status"] == "incomplete" and done["manoeuvre"] == "turning-circle"
+    names, table = read_csv(out / "results.csv")
+    expected = manoeuvre_metrics("turning-circle", dict(zip(names, table.T, strict=True)))
+    assert tuple(expected) == metric_names("turning-circle")
+    assert {name: done[name] for name in expected} == expected
+    if done["time_reached"] < 5.0:  # the heading turns 90 deg after about 8 s
+        assert done["advance_m"] is None

@@ -107,6 +107,13 @@ def test_to_toml_loads_back_to_an_equal_scenario(fmu_dir: Path, tmp_path: Path) 
     resolved = tomllib.loads(s.to_toml())
     assert resolved["connections"]["same_names"] is False
     assert len(resolved["connections"]["add"]) == len(s.connections)
+    assert "manoeuvre" not in resolved
+    turn = load_scenario("turning-circle", fmu_dir=fmu_dir)
+    assert turn.manoeuvre == "turning-circle"
+    assert scenario_from_toml(turn.to_toml(), "resolved", fmu_dir=fmu_dir).manoeuvre == (
+        "turning-circle"
+    )
+    assert turn.with_overrides(stop_time=2.0).manoeuvre == "turning-circle"
 
 
 def test_overrides_are_validated(fmu_dir: Path) -> None:
@@ -194,6 +201,13 @@ BAD_EDITS = [
      r"\(controller\.thrust\) and here \(controller\.tunnel_force\)"),
     ("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "nosuch.toml"',
      r"start\.vehicle': 'nosuch\.toml' names no file \(looked for .*/nosuch\.toml\)"),
+    # issue 16: a manoeuvre is a known kind whose variables the run records
+    ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "zig-zag"',
+     r"key 'manoeuvre': 'zig-zag' is not a manoeuvre: expected one of \['turning-circle', "),
+    ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "survey"',
+     r"key 'manoeuvre': manoeuvre 'survey' needs the variable 'cross_track_error', but the "
+     r"run has no column for it \(columns: .*\); record it in output\.record"),
+    ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = 2', r"key 'manoeuvre' = 2: .*string"),
 ]  # fmt: skip
 
 

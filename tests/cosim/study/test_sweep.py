@@ -12,6 +12,7 @@ import tomli_w
 from repo_paths import ROOT
 from sweep_helpers import sweep, table
 
+from cosim.analysis.manoeuvres import metric_names
 from cosim.cli import main
 
 ISSUE_STUDY = """
@@ -147,3 +148,23 @@ def test_bad_cluster_options_fail_before_anything_is_written(
     assert main(["sweep", str(study), "--out", str(tmp_path / "out"), *options]) == 1
     assert expected in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_study_of_a_manoeuvre_collects_its_metrics(tmp_path: Path, fmu_dir: Path) -> None:
+    """Issue 16: a study over turning-circle has the manoeuvre's metrics as columns, each
+    run's as its summary.json gives them (tactical diameter: 180 deg after about 16 s)."""
+    study = tmp_path / "turns.toml"
+    text = 'scenario = "turning-circle"\nstop_time = 20.0\nkeep = "all"\n[grid]\n'
+    study.write_text(text + '"plant.mass_position_cmd" = [0.04, 0.06]\n', encoding="utf-8")
+    out = tmp_path / "out"
+    sweep(study, out, fmu_dir, "--workers", "1")
+    rows = {float(r["plant.mass_position_cmd"]): r for r in table(out)}
+    for row in rows.values():
+        summary = json.loads((out / "runs" / row["run"] / "summary.json").read_text("utf-8"))
+        for name in metric_names("turning-circle"):
+            value = summary[name]
+            assert row[name] == ("" if value is None else repr(value)), name
+    # both reach the 180 deg point, each on its own circle; 20 s hold no steady full turn
+    diameters = {float(row["tactical_diameter_m"]) for row in rows.values()}
+    assert len(diameters) == 2 and min(diameters) > 5.0
+    assert rows[0.06]["steady_turning_diameter_m"] == ""
