@@ -81,22 +81,12 @@ def turning_circle(
     times, north, east = (np.asarray(a, dtype=float) for a in (times, north, east))
     if times.size < 3:  # a run stopped at once: no track to measure
         return dict.fromkeys(TURNING_CIRCLE_METRICS)
-    heading = np.unwrap(np.asarray(yaw, dtype=float))
-    speed_north = np.gradient(north, times, edge_order=2)
-    speed_east = np.gradient(east, times, edge_order=2)
-    speed = np.hypot(speed_north, speed_east)
-    course = math.atan2(speed_east[execute], speed_north[execute])
-    turn = math.copysign(1.0, heading[-1] - heading[execute])
-    change = turn * (heading - heading[execute])
-    along = (north - north[execute]) * math.cos(course) + (east - east[execute]) * math.sin(course)
-    across = turn * (-(north - north[execute]) * math.sin(course)
-                     + (east - east[execute]) * math.cos(course))  # fmt: skip
-    at_90 = _first_crossing(change, math.pi / 2, execute)
-    at_180 = _first_crossing(change, math.pi, execute)
+    turn = _Turn(times, north, east, yaw, execute)
+    change, at_90, at_180 = turn.change, turn.at_90, turn.at_180
     metrics: Metrics = dict.fromkeys(TURNING_CIRCLE_METRICS)
-    metrics["advance_m"] = _interpolate(along, at_90)
-    metrics["transfer_m"] = _interpolate(across, at_90)
-    metrics["tactical_diameter_m"] = _interpolate(across, at_180)
+    metrics["advance_m"] = _interpolate(turn.along, at_90)
+    metrics["transfer_m"] = _interpolate(turn.across, at_90)
+    metrics["tactical_diameter_m"] = _interpolate(turn.across, at_180)
     steady = np.flatnonzero(change >= change[-1] - STEADY_TURN_RAD)
     if at_180 is None or change[-1] - STEADY_TURN_RAD < math.pi or steady.size < 3:
         return metrics
@@ -105,9 +95,62 @@ def turning_circle(
     _, radius = fit_circle(north[steady], east[steady])
     metrics["steady_turning_diameter_m"] = 2.0 * radius
     metrics["steady_roll_deg"] = math.degrees(float(np.mean(np.asarray(roll)[steady])))
-    approach = float(speed[execute])
-    metrics["speed_loss_pct"] = 100.0 * (approach - float(np.mean(speed[steady]))) / approach
+    approach = float(turn.speed[execute])
+    metrics["speed_loss_pct"] = 100.0 * (approach - float(np.mean(turn.speed[steady]))) / approach
     return metrics
+
+
+class _Turn:
+    """A turning circle's frame: the original course and the heading change from the
+    execute (see :func:`turning_circle`), and the track along and across that course."""
+
+    def __init__(
+        self, times: np.ndarray, north: np.ndarray, east: np.ndarray, yaw: np.ndarray, execute: int
+    ) -> None:
+        heading = np.unwrap(np.asarray(yaw, dtype=float))
+        speed_north = np.gradient(north, times, edge_order=2)
+        speed_east = np.gradient(east, times, edge_order=2)
+        self.speed = np.hypot(speed_north, speed_east)
+        self.course = math.atan2(speed_east[execute], speed_north[execute])
+        self.direction = math.copysign(1.0, heading[-1] - heading[execute])
+        self.change = self.direction * (heading - heading[execute])
+        dn, de = north - north[execute], east - east[execute]
+        self.along = dn * math.cos(self.course) + de * math.sin(self.course)
+        self.across = self.direction * (-dn * math.sin(self.course) + de * math.cos(self.course))
+        self.at_90 = _first_crossing(self.change, math.pi / 2, execute)
+        self.at_180 = _first_crossing(self.change, math.pi, execute)
+
+
+def turning_circle_marks(columns: Mapping[str, np.ndarray]) -> dict[str, object] | None:
+    """Where a turning circle's metrics are measured, to draw them on its track: the
+    ``execute``, ``at_90`` and ``at_180`` points (north, east in m; None where the run
+    does not get there), the original ``course`` (rad) and the turn's ``direction`` (+1
+    to starboard). ``columns`` as for :func:`manoeuvre_metrics`; None for a run too short
+    (fewer than 3 rows) or without the columns."""
+    try:
+        used = manoeuvre_columns("turning-circle", [c for c in columns if c != "time"])
+    except ValueError:
+        return None
+    column = {name: np.asarray(columns[c], dtype=float) for name, c in used.items()}
+    times = np.asarray(columns["time"], dtype=float)
+    if times.size < 3:
+        return None
+    execute = _execute(column)
+    north, east = column["north"], column["east"]
+    turn = _Turn(times, north, east, column["yaw"], execute)
+
+    def point(index: float | None) -> tuple[float, float] | None:
+        if index is None:
+            return None
+        return (_interpolate(north, index), _interpolate(east, index))  # type: ignore[return-value]
+
+    return {
+        "execute": (float(north[execute]), float(east[execute])),
+        "at_90": point(turn.at_90),
+        "at_180": point(turn.at_180),
+        "course": turn.course,
+        "direction": turn.direction,
+    }
 
 
 def fit_circle(x: np.ndarray, y: np.ndarray) -> tuple[tuple[float, float], float]:
@@ -356,11 +399,16 @@ Columns = Mapping[str, np.ndarray]
 
 
 def _turning_circle_metrics(column: Columns, _: float) -> Metrics:
-    active = np.flatnonzero(column["mass_position_cmd"] != 0.0)
     return turning_circle(
         column["time"], column["north"], column["east"], column["yaw"], column["roll"],
-        execute=int(active[0]) if active.size else 0,
+        execute=_execute(column),
     )  # fmt: skip
+
+
+def _execute(column: Columns) -> int:
+    """A turning circle's execute: the first sample with a moving-mass command."""
+    active = np.flatnonzero(np.asarray(column["mass_position_cmd"]) != 0.0)
+    return int(active[0]) if active.size else 0
 
 
 def _depth_steps_metrics(column: Columns, _: float) -> Metrics:

@@ -17,6 +17,11 @@ Each event the run fired and each fault's start and stop (``summary.json``'s ``e
 and ``faults``, docs/events.md) is a vertical marker on every time-history panel, named
 in the first panel's legend.
 
+A run of a standard manoeuvre (its ``summary.json`` names a ``manoeuvre``) gets its
+metrics in a table of their own on the page; a turning circle also gets them marked on
+its trajectory: the execute and the original course, advance and transfer at the 90 deg
+point, the tactical diameter at the 180 deg point.
+
 Every series is optional: a panel whose columns the run did not record is left out, a
 figure with no panel is not written. The page ``report/index.html`` in the run folder
 shows the run's summary (``summary.json``) and links the figures.
@@ -38,6 +43,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from cosim.analysis.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.errors import CosimError
 from cosim.run.folder import REPORT_FOLDER
 from cosim.run.results import read_csv
@@ -54,6 +60,15 @@ class Series:
     scale: float = 1.0
     label: str = ""
     dashed: bool = False
+
+
+@dataclass(frozen=True)
+class TurnMarks:
+    """Where a turning circle's metrics were measured (``turning_circle_marks``) and their
+    values (summary.json)."""
+
+    points: dict[str, Any]
+    metrics: dict[str, float | int | None]
 
 
 @dataclass(frozen=True)
@@ -174,7 +189,8 @@ def write_report(run_dir: Path) -> Path:
             if path is not None:
                 figures[name] = path
         waypoints = _planned_path(run_dir)
-        trajectory = plot_trajectory(table, out / "trajectory.png", waypoints)
+        marks = _turning_marks(table, summary)
+        trajectory = plot_trajectory(table, out / "trajectory.png", waypoints, marks)
         if trajectory is not None:
             figures["trajectory"] = trajectory
         index = out / INDEX_PAGE
@@ -232,6 +248,15 @@ def _planned_path(run_dir: Path) -> np.ndarray | None:
     except OSError:
         return None
     return mission_waypoints(text)
+
+
+def _turning_marks(table: dict[str, np.ndarray], summary: dict[str, Any]) -> TurnMarks | None:
+    """A turning circle's marks (see :func:`_plot_turning_marks`), for a run whose summary
+    names that manoeuvre."""
+    if summary.get("manoeuvre") != "turning-circle":
+        return None
+    points = turning_circle_marks(table)
+    return None if points is None else TurnMarks(points, summary_metrics(summary))
 
 
 def _has_depth_loop(table: dict[str, np.ndarray]) -> bool:
@@ -311,11 +336,15 @@ def _main_range(curves: list[tuple[Series, np.ndarray]]) -> tuple[float, float] 
 
 
 def plot_trajectory(
-    table: dict[str, np.ndarray], path: Path, waypoints: np.ndarray | None = None
+    table: dict[str, np.ndarray],
+    path: Path,
+    waypoints: np.ndarray | None = None,
+    marks: TurnMarks | None = None,
 ) -> Path | None:
     """North against east (x up, y right, equal scale), and a 3-D view when the depth
     changes; with ``waypoints`` (m, NED, one row each) the planned path through them,
-    numbered. None without ``plant.north`` and ``plant.east``."""
+    numbered; with ``marks`` a turning circle's metrics. None without ``plant.north`` and
+    ``plant.east``."""
     if "plant.north" not in table or "plant.east" not in table:
         return None
     north, east = table["plant.north"], table["plant.east"]
@@ -328,6 +357,8 @@ def plot_trajectory(
     ax.plot(east, north, color="tab:blue", label="track" if waypoints is not None else None)
     ax.plot(east[0], north[0], "o", color="tab:green", label="start")
     ax.plot(east[-1], north[-1], "s", color="tab:red", label="end")
+    if marks is not None:
+        _plot_turning_marks(ax, marks)
     ax.set_xlabel("y, east (m)")
     ax.set_ylabel("x, north (m)")
     ax.set_aspect("equal", adjustable="datalim")
@@ -353,6 +384,38 @@ def _plot_waypoints(ax: plt.Axes, waypoints: np.ndarray) -> None:
     ax.plot(east, north, "o", color="tab:orange", markersize=4)
     for k, (n, e) in enumerate(zip(north, east, strict=True), start=1):
         ax.annotate(str(k), (e, n), textcoords="offset points", xytext=(4, 4), fontsize=8)
+
+
+def _plot_turning_marks(ax: plt.Axes, marks: TurnMarks) -> None:
+    """The execute and the original course (dashed), and from the course line to the 90
+    and 180 deg points: the advance along it, the transfer and the tactical diameter
+    across it (docs/manoeuvres.md)."""
+    execute = np.array(marks.points["execute"])  # north, east
+    course = np.array([math.cos(marks.points["course"]), math.sin(marks.points["course"])])
+    metrics = marks.metrics
+    ax.plot(execute[1], execute[0], "x", color="black", label="execute")
+    labels = {
+        "at_90": f"90 deg: advance {_metre(metrics.get('advance_m'))}, "
+        f"transfer {_metre(metrics.get('transfer_m'))}",
+        "at_180": f"180 deg: tactical diameter {_metre(metrics.get('tactical_diameter_m'))}",
+    }
+    reach = 0.0
+    for key, colour in (("at_90", "tab:purple"), ("at_180", "tab:brown")):
+        if marks.points[key] is None:
+            continue
+        point = np.array(marks.points[key])
+        along = float((point - execute) @ course)
+        foot = execute + along * course  # on the original course line
+        reach = max(reach, along)
+        ax.plot([foot[1], point[1]], [foot[0], point[0]], ":", color=colour, linewidth=1.2)
+        ax.plot(point[1], point[0], "D", color=colour, markersize=5, label=labels[key])
+    end = execute + max(reach, 1.0) * 1.1 * course
+    ax.plot([execute[1], end[1]], [execute[0], end[0]], "--", color="tab:gray",
+            linewidth=1.0, label="original course")  # fmt: skip
+
+
+def _metre(value: float | int | None) -> str:
+    return "n/a" if value is None else f"{value:.2f} m"
 
 
 def _save(fig: plt.Figure, path: Path) -> Path:
@@ -420,10 +483,28 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 <table>
 {table}
 </table>
+{_manoeuvre_table(summary)}
 {images}
 </body>
 </html>
 """
+
+
+def _manoeuvre_table(summary: dict[str, Any]) -> str:
+    """The metrics of a manoeuvre run as an HTML table ("" for another run)."""
+    metrics = summary_metrics(summary)
+    if not metrics:
+        return ""
+    rows = "\n".join(
+        f"<tr><th>{html.escape(name)}</th>"
+        f"<td>{html.escape('n/a' if value is None else _text(value))}</td></tr>"
+        for name, value in metrics.items()
+    )
+    kind = html.escape(str(summary["manoeuvre"]))
+    return (
+        f'<h2>Manoeuvre metrics: {kind}</h2>\n<table class="manoeuvre">\n{rows}\n</table>\n'
+        "<p>Definitions: docs/manoeuvres.md of auv-cosim.</p>\n"
+    )
 
 
 def _text(value: Any) -> str:
