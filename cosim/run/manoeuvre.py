@@ -12,10 +12,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cosim.analysis.manoeuvres import manoeuvre_columns, manoeuvre_metrics, metric_names
+
+if TYPE_CHECKING:
+    from cosim.run.scenario import Scenario
+
+DEPTH_SETPOINT = "depth_setpoint"  # what a depth-steps scenario's time events set
 
 
 class ManoeuvreSink:
@@ -60,6 +66,27 @@ class ManoeuvreSink:
             return result
         result.update({name: _finite(value) for name, value in metrics.items()})
         return result
+
+
+def fault_start(scenario: Scenario) -> float:
+    """When the first of the scenario's faults starts (s); 0 without any."""
+    return min((fault.start for fault in scenario.faults), default=0.0)
+
+
+def scenario_metric_names(scenario: Scenario) -> tuple[str, ...]:
+    """The manoeuvre metrics a run of ``scenario`` reports (none without a manoeuvre).
+
+    A ``depth-steps`` run has one set per step: each distinct time at which a time event
+    sets a ``depth_setpoint`` (a ramped set-point changes at every step, so it is not a
+    depth-steps manoeuvre)."""
+    if scenario.manoeuvre is None:
+        return ()
+    times = {
+        event.time
+        for event in scenario.events
+        if event.time is not None and any(k.endswith(f".{DEPTH_SETPOINT}") for k in event.set)
+    }
+    return metric_names(scenario.manoeuvre, steps=len(times))
 
 
 def _finite(value: float | int | None) -> float | int | None:

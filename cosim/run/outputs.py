@@ -25,7 +25,7 @@ from typing import Any
 from cosim.errors import CosimError
 from cosim.run.figures import KeyFigures
 from cosim.run.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
-from cosim.run.manoeuvre import ManoeuvreSink
+from cosim.run.manoeuvre import ManoeuvreSink, fault_start
 from cosim.run.master import RunResult
 from cosim.run.results import final_summary, running_summary
 from cosim.run.rows import RowSink
@@ -43,7 +43,7 @@ class RunOutputs:
         self.figures = KeyFigures(scenario.record)
         self.manoeuvre = (
             None if scenario.manoeuvre is None
-            else ManoeuvreSink(scenario.manoeuvre, scenario.record)
+            else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario))
         )  # fmt: skip
         self.csv: CsvSink | None = None
         self.sinks: list[RowSink] = [self.figures]

@@ -24,9 +24,10 @@ from typing import Any
 
 import tomli_w
 
-from cosim.analysis.manoeuvres import metric_names, summary_metrics
+from cosim.analysis.manoeuvres import summary_metrics
 from cosim.errors import CosimError
 from cosim.run.figures import KeyFigures
+from cosim.run.manoeuvre import scenario_metric_names
 from cosim.run.runner import run_scenario
 from cosim.run.scenario import Scenario, load_scenario, scenario_from_toml
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
@@ -173,5 +174,5 @@ def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
 def _metric_names(scenario: Scenario) -> tuple[str, ...]:
     """The names :func:`_metrics` gives a run of ``scenario``, in the same order."""
     figures = KeyFigures(scenario.record).figures()
-    manoeuvre = () if scenario.manoeuvre is None else metric_names(scenario.manoeuvre)
+    manoeuvre = scenario_metric_names(scenario)
     return (*figures, *manoeuvre, "time_reached", *(f"final.{c}" for c in scenario.record))

@@ -298,12 +298,13 @@ def plot_time_histories(
                 linewidth=1.0 if series.dashed else 1.3,
                 label=label or None,
             )
-        drawn = len(curves)
-        for marker in markers or ():
-            first = ax is axes[0, 0]
+        drawn, named = len(curves), set()
+        for marker in markers or ():  # each name once in the legend (a repeated event)
+            new = ax is axes[0, 0] and marker.label not in named
+            named.add(marker.label)
             ax.axvline(marker.time, color=marker.color, linestyle=marker.style, linewidth=1.0,
-                       label=marker.label if first else None)  # fmt: skip
-            drawn += first
+                       label=marker.label if new else None)  # fmt: skip
+            drawn += new
         if limits is not None:
             ax.set_ylim(*limits)
         ax.set_ylabel(panel.ylabel)

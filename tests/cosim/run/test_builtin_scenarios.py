@@ -19,9 +19,10 @@ from reference_values import dissertation
 
 from controller_fmu.los_guidance import parse_waypoints
 from cosim.analysis.equilibria import find_equilibrium
-from cosim.analysis.manoeuvres import manoeuvre_metrics, metric_names
+from cosim.analysis.manoeuvres import manoeuvre_metrics, metric_names, summary_metrics
 from cosim.run import master
 from cosim.run.figures import settling_time
+from cosim.run.manoeuvre import fault_start
 from cosim.run.master import RunResult
 from cosim.run.results import read_csv
 from cosim.run.runner import RunOutcome, run_scenario
@@ -174,9 +175,11 @@ def manoeuvre(kind: str, outcome: RunOutcome) -> dict:
     summary = json.loads(outcome.paths["summary"].read_text())
     assert summary["manoeuvre"] == kind
     columns, table = read_csv(outcome.paths["results"])
-    from_csv = manoeuvre_metrics(kind, dict(zip(columns, table.T, strict=True)))
-    assert {name: summary[name] for name in from_csv} == pytest.approx(from_csv, rel=1e-12)
-    return {name: summary[name] for name in metric_names(kind)}
+    start = fault_start(outcome.result.scenario)  # 0 without faults
+    from_csv = manoeuvre_metrics(kind, dict(zip(columns, table.T, strict=True)), start)
+    assert {name: summary[name] for name in from_csv} == from_csv  # the same doubles
+    assert set(summary_metrics(summary)) == set(from_csv)
+    return summary_metrics(summary)
 
 
 def test_turning_circle_is_the_plants_own_steady_turn(runs: dict[str, RunOutcome]) -> None:
@@ -338,3 +341,59 @@ def test_plant_failing_initialisation_is_reported_with_its_reason(
     assert proc.returncode == 1
     assert proc.stderr.startswith("auv-cosim run: plant: error logged during initialisation: ")
     assert "unknown vehicle 'remus200'" in proc.stderr and "remus100" in proc.stderr
+
+
+def test_zigzag_switches_at_the_test_angle_and_overshoots(runs: dict[str, RunOutcome]) -> None:
+    outcome = runs["zigzag-20"]
+    metrics = manoeuvre("zigzag", outcome)
+    for name in ("overshoot_1_deg", "overshoot_2_deg", "period_s"):
+        assert metrics[name] is not None and 0.0 < metrics[name] < math.inf, name
+    result = outcome.result
+    yaw, setpoint = result.column("plant.yaw"), result.column("controller.yaw_setpoint")
+    switches = np.flatnonzero(np.diff(setpoint)) + 1
+    assert len(switches) >= 4  # e2 .. e5: two overshoots and a period from e2 on
+    # each counter-command comes at the first communication point with yaw past +-20 deg
+    for k in switches:
+        new = setpoint[k]
+        assert abs(new) == pytest.approx(20 * DEG)
+        assert -np.sign(new) * yaw[k] > 20 * DEG >= -np.sign(new) * yaw[k - 1]
+    cycles = result.times[switches[2:]] - result.times[switches[:-2]]  # e2 -> e4, e3 -> e5, ..
+    assert metrics["period_s"] == pytest.approx(np.mean(cycles))
+
+
+def test_depth_steps_rise_overshoot_and_settle(runs: dict[str, RunOutcome]) -> None:
+    outcome = runs["depth-steps"]
+    metrics = manoeuvre("depth-steps", outcome)
+    assert set(metrics) == set(metric_names("depth-steps", steps=2))
+    for step in (1, 2):
+        rise, settle = metrics[f"step_{step}_rise_time_s"], metrics[f"step_{step}_settling_time_s"]
+        assert 0.0 < rise < settle < 50.0  # both settle before the next step / the end
+        assert metrics[f"step_{step}_overshoot_pct"] > 0.0
+        assert abs(metrics[f"step_{step}_steady_error_m"]) < 0.1  # the PD's offset, 5 cm
+    down = outcome.result.column("plant.down")
+    assert down[-1] == pytest.approx(2.0, abs=0.1) and down.max() > 3.0  # 1 -> 3 -> 2 m
+
+
+@pytest.mark.parametrize("scenario_id", ["mass-jam", "thruster-failure"])
+def test_fault_recovery_metrics_are_finite(runs: dict[str, RunOutcome], scenario_id: str) -> None:
+    metrics = manoeuvre("fault-recovery", runs[scenario_id])
+    for name in ("heading_error_at_fault_deg", "heading_error_max_deg", "heading_error_final_deg"):
+        assert metrics[name] is not None and math.isfinite(metrics[name]), name
+    assert metrics["heading_error_max_deg"] >= metrics["heading_error_final_deg"]
+    fault = runs[scenario_id].result.column(
+        f"fault.{'jam' if scenario_id == 'mass-jam' else 'thruster'}"
+    )
+    assert fault[runs[scenario_id].result.times >= 3.0].min() == 1.0  # on from 3 s to the end
+
+
+def test_the_jammed_mass_stays_where_it_was(runs: dict[str, RunOutcome]) -> None:
+    result = runs["mass-jam"].result
+    mass, times = result.column("plant.mass_position"), result.times
+    at_jam = mass[np.searchsorted(times, 3.0)]
+    # the servo brings the mass to rest at the held command (it was moving at 3 s) ...
+    assert np.abs(mass[times >= 3.0] - at_jam).max() < 1e-3
+    assert np.abs(mass[times >= 8.0] - at_jam).max() < 1e-6
+    # ... whatever the autopilot asks for
+    assert np.ptp(result.column("controller.mass_position_cmd")[times >= 3.0]) > 0.01
+    # the tunnel thruster alone holds the heading to a steady offset
+    assert runs["mass-jam"].result.column("plant.yaw")[-1] == pytest.approx(0.0, abs=3 * DEG)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from cosim.analysis.manoeuvres import manoeuvre_metrics, metric_names
-from cosim.run.manoeuvre import ManoeuvreSink
+from cosim.run.manoeuvre import ManoeuvreSink, fault_start, scenario_metric_names
+from cosim.run.scenario import load_scenario
 
 H = 0.01
 RECORD = ["plant.roll", "plant.north", "plant.east", "plant.yaw", "plant.mass_position_cmd",
@@ -60,3 +61,15 @@ def test_a_run_ending_on_nan_or_without_rows_gets_none():
 def test_a_column_the_kind_needs_must_be_recorded():
     with pytest.raises(ValueError, match=r"'zigzag' needs the variable 'yaw_setpoint'"):
         ManoeuvreSink("zigzag", RECORD)
+
+
+def test_a_scenarios_metric_names_and_fault_start(fmu_paths) -> None:
+    """What a study's table is laid out by before any run: a depth step per time event
+    that sets a depth set-point; the fault-recovery metrics count from the first fault."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    depth = load_scenario("depth-steps", fmu_dir=fmu_dir)
+    assert scenario_metric_names(depth) == metric_names("depth-steps", steps=2)
+    jam = load_scenario("mass-jam", fmu_dir=fmu_dir)
+    assert fault_start(jam) == 3.0 and scenario_metric_names(jam)[0] == "heading_error_at_fault_deg"
+    plain = load_scenario("bs-3", fmu_dir=fmu_dir)
+    assert fault_start(plain) == 0.0 and scenario_metric_names(plain) == ()

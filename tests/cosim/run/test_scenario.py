@@ -23,7 +23,14 @@ from cosim.run.scenario import (
 
 MODEL_MD_IDS = ["bs-1", "bs-2", "bs-3", "cur-1", "cur-2", "lqr-1", "lqr-2", "lqr-3",
                 "slow-1", "slow-2", "vert-1", "vert-2"]  # fmt: skip
-MANOEUVRE_IDS = ["survey", "turning-circle"]  # issue 16: a manoeuvre and a mission
+MANOEUVRE_IDS = [
+    "depth-steps",
+    "mass-jam",
+    "survey",
+    "thruster-failure",
+    "turning-circle",
+    "zigzag-20",
+]  # issue 16: standard manoeuvres, faults and a mission
 BS3 = (SCENARIO_FOLDER / "bs-3.toml").read_text()
 
 
