@@ -55,16 +55,19 @@ class RunFolderError(CosimError):
 class RunFolder:
     """A claimed run folder: use :meth:`claim`, then :meth:`release` (never raises)."""
 
-    def __init__(self, path: Path, lock_fd: int, created: bool) -> None:
+    def __init__(self, path: Path, lock_fd: int, created: bool, tail_guard: bool = True) -> None:
         self.path = path
+        self.tail_guard = tail_guard  # start_guard starts one (else it does nothing)
         self.created = created  # the folder did not exist before the claim
         self.earlier: dict | None = None  # the summary of an earlier run to replace
         self._lock_fd = lock_fd
         self._guard: subprocess.Popen[bytes] | None = None
 
     @classmethod
-    def claim(cls, path: Path, overwrite: bool = False) -> RunFolder:
-        """Create and lock ``path``; an earlier run there needs ``overwrite``.
+    def claim(cls, path: Path, overwrite: bool = False, tail_guard: bool = True) -> RunFolder:
+        """Create and lock ``path``; an earlier run there needs ``overwrite``. Without
+        ``tail_guard``, :meth:`start_guard` starts no guard process (for a caller that
+        discards a killed run's folder anyway: a study's task, whose run is run again).
 
         Raises:
             RunFolderError: not creatable, not a folder, locked by another run, holding an
@@ -82,7 +85,7 @@ class RunFolder:
             ) from None
         if not path.is_dir():
             raise RunFolderError(f"--out {path}: exists and is not a folder")
-        folder = cls(path, _lock(path), created)
+        folder = cls(path, _lock(path), created, tail_guard)
         try:
             folder.earlier = _earlier_run(path, overwrite)
         except BaseException:
@@ -108,7 +111,10 @@ class RunFolder:
         self.earlier = None
 
     def start_guard(self, results: Path, recording: Path | None) -> None:
-        """Start the tail guard for these files (see the module docstring)."""
+        """Start the tail guard for these files (see the module docstring), if the folder
+        was claimed with one."""
+        if not self.tail_guard:
+            return
         kwargs: dict = {"start_new_session": True}
         if fcntl is not None:
             kwargs["pass_fds"] = (self._lock_fd,)  # the guard keeps the folder locked

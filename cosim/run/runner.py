@@ -53,7 +53,10 @@ class RunOptions:
     else to ``<out_dir>/recording.rrd`` unless the scenario's ``output.rrd`` is false;
     ``no_rrd`` writes none; ``connect`` also streams to a running Rerun viewer;
     ``overwrite`` replaces an earlier run in ``out_dir``; ``keep_rows`` also keeps every
-    row in memory (``outcome.result.column(...)``; memory grows with the stop time).
+    row in memory (``outcome.result.column(...)``; memory grows with the stop time);
+    ``tail_guard`` starts the process that cuts a killed run's torn last row
+    (:mod:`cosim.run.tail_guard`; a study's task, whose killed run is run again, goes
+    without: it costs ~20 ms a run).
     """
 
     out_dir: Path | None = None
@@ -67,6 +70,7 @@ class RunOptions:
     overwrite: bool = False
     progress: bool = False
     keep_rows: bool = False
+    tail_guard: bool = True
 
 
 @dataclass
@@ -119,7 +123,7 @@ def execute(
         stop = StopRequest()
         handlers = stop_on_signals(stop)
     with handlers:
-        folder = RunFolder.claim(out_dir, overwrite=options.overwrite)
+        folder = RunFolder.claim(out_dir, options.overwrite, options.tail_guard)
         stepped = False
         try:
             from cosim.run import master

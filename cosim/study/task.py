@@ -6,7 +6,8 @@ study's stop time through ``Scenario.with_overrides``), keeps it as resolved TOM
 calls :func:`run_one` per run: the FMU references point at the worker's own copies, the
 run's factor values are written into the TOML data, and the text is resolved again
 (``scenario_from_toml``, so every value passes the scenario's own checks) and run
-(``run_scenario(..., no_rrd=True)``); the metrics are the numeric values of the run's
+(``run_scenario(..., no_rrd=True, tail_guard=False)``: a killed task's run is run
+again, so its folder needs no guard); the metrics are the numeric values of the run's
 ``summary.json``.
 """
 
@@ -119,7 +120,7 @@ def run_one(
     try:
         scenario = _scenario(base, fmu_paths, factors, values)
         with tempfile.TemporaryDirectory(prefix="auv-cosim-run-") as tmp:
-            outcome = run_scenario(scenario, Path(tmp), no_rrd=True)
+            outcome = run_scenario(scenario, Path(tmp), no_rrd=True, tail_guard=False)
             result = outcome.result
             error = None if result.complete else result.error or "the run stopped early"
             if keep == "all" or (keep == "failed" and error is not None):

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import math
+import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from cosim.run.folder import GUARD_SCRIPT
+from cosim.run.runner import run_scenario
 from cosim.study import factors as factors_module
 from cosim.study.factors import ScenarioFacts, StartValue, resolve_factor
 from cosim.study.spec import StudyError
@@ -97,3 +100,26 @@ def test_a_run_the_fmu_refuses_is_a_failed_record(bs3: tuple[Base, ScenarioFacts
     assert good.metrics["time_reached"] == 1.0 and set(good.metrics) == set(facts.metrics)
     assert set(good.files) == {"results.csv", "summary.json"}
     assert 0.0 < good.loop_s < good.wall_clock_s
+
+
+def test_a_study_task_runs_without_a_tail_guard(
+    bs3: tuple[Base, ScenarioFacts], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A study's run starts no tail-guard process (~20 ms a run, a third of a run's fixed
+    cost: scripts/bench_sweep.py); a run from the command line still does."""
+    started: list[Path] = []
+    real_popen = subprocess.Popen
+
+    def popen(args, *more, **kwargs):
+        if str(GUARD_SCRIPT) in map(str, args):
+            started.append(Path(args[-1]))
+        return real_popen(args, *more, **kwargs)
+
+    monkeypatch.setattr(subprocess, "Popen", popen)
+    base, facts = bs3
+    found = {"plant.v_0": resolve_factor("plant.v_0", facts)}
+    record = run_one(base, base.fmu_paths, found, {"plant.v_0": -0.05})
+    assert record.status == "complete" and started == []
+    outcome = run_scenario("bs-3", tmp_path / "run", stop_time=0.1, no_rrd=True,
+                           fmu_dir=base.fmu_paths["plant"].parent)  # fmt: skip
+    assert outcome.result.complete and started == [outcome.paths["results"]]
