@@ -282,14 +282,14 @@ class SafeSlave(Fmi2Slave):
         self._phase = _TERMINATED
 
     def get_real(self, vrs: list[int]) -> list[float]:
-        plan = self._real_plan(vrs, self._get_plans, _readable)
-        if plan is not None:  # the hot path: one lookup per call, finite values
-            try:
+        try:  # the hot path: one lookup per call, finite values
+            plan = self._real_plan(vrs, self._get_plans, _readable)
+            if plan is not None:
                 values = [float(var.getter()) for var in plan[0]]
                 if all(map(math.isfinite, values)):
                     return values
-            except Exception:
-                pass
+        except Exception:  # anything unusual: the checked path below names and reports it
+            pass
         return [self._get(vr, Real, float, 0.0) for vr in vrs]
 
     def get_integer(self, vrs: list[int]) -> list[int]:
@@ -302,17 +302,27 @@ class SafeSlave(Fmi2Slave):
         return [self._get(vr, String, str, "") for vr in vrs]
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
-        plan = self._real_plan(vrs, self._set_plans, self._writable_any_time)
-        if plan is not None and len(values) == len(plan[0]) and all(map(math.isfinite, values)):
-            variables, names = plan  # the hot path: inputs without a range, finite values
-            for var, value in zip(variables, values, strict=True):
-                var.setter(value)
-            self._written.update(names)
-            if self._problems:
-                for name in names:
-                    self._problems.pop(name, None)
-            return
+        try:
+            if self._set_planned(vrs, values):
+                return
+        except Exception:  # anything unusual: the checked path below names and reports it
+            pass
         self._set_all(vrs, values, Real)
+
+    def _set_planned(self, vrs: list[int], values: list[float]) -> bool:
+        """The hot path of :meth:`set_real` (inputs without a range, finite values); False
+        if the call is not one it takes."""
+        plan = self._real_plan(vrs, self._set_plans, self._writable_any_time)
+        if plan is None or len(values) != len(plan[0]) or not all(map(math.isfinite, values)):
+            return False
+        variables, names = plan
+        for var, value in zip(variables, values, strict=True):
+            var.setter(value)
+        self._written.update(names)
+        if self._problems:
+            for name in names:
+                self._problems.pop(name, None)
+        return True
 
     def set_integer(self, vrs: list[int], values: list[int]) -> None:
         self._set_all(vrs, values, Integer)

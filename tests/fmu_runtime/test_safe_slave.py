@@ -138,6 +138,18 @@ def test_repeated_reads_and_writes_keep_every_rule(slave):
     assert "echo = inf is not finite" in _errors(slave)
 
 
+def test_a_failing_setter_on_the_fast_path_is_reported_not_raised(slave):
+    """The cached fast path of set_real calls the setters directly: an exception there is
+    reported through the checked path, never raised into the host."""
+    u = _vr(slave, "u")
+    slave.set_real([u], [2.0])  # the list's plan is cached now
+    slave.vars[u].setter = lambda value: 1 / 0
+    slave.set_real([u], [3.0])
+    assert "setReal of valueReference" in _errors(slave) and "ZeroDivisionError" in _errors(slave)
+    slave.set_real([u], ["three"])  # not a number: refused, not raised
+    assert "TypeError" in _errors(slave)
+
+
 def test_fixed_parameter_is_refused_after_initialisation_tunable_is_not(slave):
     slave.set_real([_vr(slave, "k"), _vr(slave, "gain")], [5.0, 0.5])
     assert (slave.k, slave.gain) == (2.0, 0.5)
