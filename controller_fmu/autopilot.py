@@ -31,6 +31,7 @@ from controller_fmu.backstepping import (
     BacksteppingHeading,
     BacksteppingSnapshot,
 )
+from controller_fmu.config_errors import validation_message
 from controller_fmu.depth_pd import (
     DEFAULT_FIN_LIMIT,
     TABLE_6_2_GAMMA,
@@ -227,14 +228,7 @@ class AutopilotConfig(BaseModel):
         try:
             return cls.model_validate(values)
         except ValidationError as exc:
-            problems = []
-            for err in exc.errors():
-                name = ".".join(str(part) for part in err["loc"]) or "(config)"
-                if err["type"] == "extra_forbidden":
-                    problems.append(f"unknown autopilot parameter {name!r}")
-                else:
-                    problems.append(f"{name} = {err.get('input')!r}: {err['msg']}")
-            raise AutopilotConfigError("; ".join(problems)) from None
+            raise AutopilotConfigError(validation_message(exc, "autopilot")) from None
 
 
 def field_unit(name: str) -> str:

@@ -54,6 +54,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from controller_fmu.config_errors import validation_message
 from controller_fmu.guidance import desired_heading, wrap_angle
 
 DEFAULT_WAYPOINTS = "0, 0, 0; 100, 0, 0"
@@ -191,16 +192,9 @@ class GuidanceConfig(BaseModel):
         try:
             return cls.model_validate(values)
         except ValidationError as exc:
-            problems = []
-            for err in exc.errors():
-                name = ".".join(str(part) for part in err["loc"]) or "(config)"
-                if err["type"] == "extra_forbidden":
-                    problems.append(f"unknown guidance parameter {name!r}")
-                elif name == "waypoints" and err["type"] == "value_error":
-                    problems.append(str(err["ctx"]["error"]))
-                else:
-                    problems.append(f"{name} = {err.get('input')!r}: {err['msg']}")
-            raise GuidanceConfigError("; ".join(problems)) from None
+            raise GuidanceConfigError(
+                validation_message(exc, "guidance", standalone=("waypoints",))
+            ) from None
 
 
 def field_unit(name: str) -> str:
