@@ -20,8 +20,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, get_args
 
+from cosim.run.timeline_spec import FaultSpec
 from cosim.study.spec import StudyError
 
 Value = bool | int | float | str
@@ -106,8 +107,11 @@ class StartValue:
         return _real(value) if self.real else value
 
 
-FAULT_KEYS = ("start", "stop", "value", "std", "seed", "steps", "probability")
-INTEGER_FAULT_KEYS = ("seed", "steps")
+# a fault's numeric keys and which of them are integers, as the scenario's FaultSpec has them
+FAULT_KEYS = tuple(k for k in FaultSpec.model_fields if k not in ("name", "kind", "target"))
+INTEGER_FAULT_KEYS = tuple(
+    k for k in FAULT_KEYS if int in get_args(FaultSpec.model_fields[k].annotation)
+)
 
 
 def _entry(facts: ScenarioFacts, section: str, name: str, factor: str) -> Mapping[str, Any]:
