@@ -16,6 +16,7 @@ value and what is allowed.
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -155,26 +156,61 @@ def load_vehicle(
     name_or_path: str | Path = "remus100", folder: Path | None = None
 ) -> VehicleParameters:
     """Load a built-in set by name (``remus100``, from ``folder``, default
-    :func:`vehicle_folder`) or a TOML file by path."""
+    :func:`vehicle_folder`) or a TOML file by path.
+
+    A set is immutable, so a process parses and validates it once and hands out the same
+    object for as long as the files it was read from hold the same text: an FMU instance
+    loads its set when it is created, when it is initialised and in the controller's
+    design, in every run of a study (~1 ms each, most of it TOML parsing and validation;
+    reading the files again to compare takes microseconds).
+    """
     folder = vehicle_folder() if folder is None else folder
-    table = _read_table(str(name_or_path), seen=(), folder=folder)
-    return _validate(table, source=str(name_or_path))
+    key = (str(name_or_path), str(folder), os.getcwd())
+    cached = _loaded.get(key)
+    if cached is not None and all(_text(path) == text for path, text in cached[0]):
+        return cached[1]
+    read: list[tuple[Path, str]] = []
+    table = _read_table(str(name_or_path), seen=(), folder=folder, read=read)
+    params = _validate(table, source=str(name_or_path))
+    if len(_loaded) >= _LOADED_KEPT:
+        del _loaded[next(iter(_loaded))]  # the oldest
+    _loaded[key] = (tuple(read), params)
+    return params
 
 
-def _read_table(name_or_path: str, seen: tuple[str, ...], folder: Path) -> dict[str, Any]:
+_LOADED_KEPT = 64  # sets kept by load_vehicle (one per name, folder and working directory)
+_loaded: dict[tuple[str, str, str], tuple[tuple[tuple[Path, str], ...], VehicleParameters]] = {}
+
+
+def _text(path: Path) -> str | None:
+    """A file's text, None if it cannot be read."""
+    try:
+        return path.read_text()
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def _read_table(
+    name_or_path: str,
+    seen: tuple[str, ...],
+    folder: Path,
+    read: list[tuple[Path, str]],
+) -> dict[str, Any]:
+    """The flat table of a set and of the sets it is based on; each file read is
+    appended to ``read`` with its text."""
     if name_or_path in seen:
         raise VehicleParameterError(f"vehicle 'base' chain loops: {' -> '.join(seen)}")
     path = Path(name_or_path)
     builtin = builtin_vehicles(folder)
     if name_or_path in builtin:
-        text = folder.joinpath(f"{name_or_path}.toml").read_text()
-    elif path.suffix == ".toml" and path.is_file():
-        text = path.read_text()
-    else:
+        path = folder.joinpath(f"{name_or_path}.toml")
+    elif not (path.suffix == ".toml" and path.is_file()):
         raise VehicleParameterError(
             f"unknown vehicle {name_or_path!r}: expected one of {builtin} "
             "or the path of an existing .toml file"
         )
+    text = path.read_text()
+    read.append((path.resolve(), text))
     try:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -185,7 +221,7 @@ def _read_table(name_or_path: str, seen: tuple[str, ...], folder: Path) -> dict[
     base = flat.pop("base", None)
     if base is None:
         return flat
-    return {**_read_table(str(base), seen=(*seen, name_or_path), folder=folder), **flat}
+    return {**_read_table(str(base), seen=(*seen, name_or_path), folder=folder, read=read), **flat}
 
 
 def _flatten(table: dict[str, Any], source: str) -> dict[str, Any]:

@@ -116,3 +116,19 @@ def test_base_loop_is_refused(tmp_path: Path):
     b.write_text(f'base = "{a}"\n')
     with pytest.raises(VehicleParameterError, match="loops"):
         load_vehicle(a)
+
+
+def test_a_set_is_parsed_once_while_its_files_hold_the_same_text(tmp_path: Path):
+    base, custom = tmp_path / "base.toml", tmp_path / "custom.toml"
+    base.write_text('base = "remus100"\nname = "base"\n[rigid_body]\nW = 306.0\n')
+    custom.write_text(f'base = "{base}"\nname = "custom"\n')
+    first = load_vehicle(custom)
+    assert load_vehicle(custom) is first  # the same immutable object, not parsed again
+    # a file of the 'base' chain changes (same length, so neither size nor, within one
+    # clock tick, the modification time tells): the set is read again
+    base.write_text(base.read_text().replace("306.0", "307.0"))
+    changed = load_vehicle(custom)
+    assert (first.W, changed.W, changed.name) == (306.0, 307.0, "custom")
+    base.unlink()
+    with pytest.raises(VehicleParameterError, match="unknown vehicle"):
+        load_vehicle(custom)
