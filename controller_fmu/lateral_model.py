@@ -17,6 +17,8 @@ relative velocities replace the absolute ones), and the input is the servo comma
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from plant_fmu.model import compiled
@@ -107,23 +109,11 @@ class LateralDesignModel:
     def static_mass_jacobian(self) -> dict[str, float]:
         """Partial derivatives of (v_dot, r_dot, p_dot) with the mass held still, at the
         straight run, keyed ``"<rate>/<variable>"`` (e.g. ``"r/v"`` = d r_dot / d v);
-        plus ``"v/tunnel_force"``, the sway acceleration per newton of tunnel thrust."""
-        names = ("v", "r", "p", "roll", "mass_position")
-        rates = ("v", "r", "p")
-        step = 1e-6
-        jac: dict[str, float] = {}
-        for k, name in enumerate(names):
-            plus, minus = np.zeros(5), np.zeros(5)
-            plus[k], minus[k] = step, -step
-            # the reference derivative: a central difference divides its rounding by 2e-6,
-            # so the gains must not depend on whether numba is usable
-            rates_plus = self._rates(self.plant.derivative, *plus)
-            diff = (np.array(rates_plus) - self._rates(self.plant.derivative, *minus)) / (2 * step)
-            for i, rate in enumerate(rates):
-                jac[f"{rate}/{name}"] = float(diff[i])
-        _, b_t = linearize(self.plant, self._x0, self._u0, ["v"], ["tunnel_force"])
-        jac["v/tunnel_force"] = float(b_t[0, 0])
-        return jac
+        plus ``"v/tunnel_force"``, the sway acceleration per newton of tunnel thrust.
+
+        A function of the parameter set and U0 alone, so computed once per process for
+        each (:func:`_static_mass_jacobian`): every run of a study designs the same law."""
+        return dict(_static_mass_jacobian(self.params, self.design_speed))
 
     def _plant_state(self, x: np.ndarray) -> np.ndarray:
         full = self._x0.copy()
@@ -134,3 +124,28 @@ class LateralDesignModel:
         inputs = self._u0.copy()
         inputs[_Y_D] = y_d
         return inputs
+
+
+@functools.lru_cache(maxsize=32)
+def _static_mass_jacobian(
+    params: VehicleParameters, design_speed: float
+) -> tuple[tuple[str, float], ...]:
+    """:meth:`LateralDesignModel.static_mass_jacobian` by central differences of the
+    reference derivative (a parameter set is frozen and hashable, so it keys the cache)."""
+    model = LateralDesignModel(params, design_speed, use_compiled=False)
+    names = ("v", "r", "p", "roll", "mass_position")
+    rates = ("v", "r", "p")
+    step = 1e-6
+    jac: dict[str, float] = {}
+    for k, name in enumerate(names):
+        plus, minus = np.zeros(5), np.zeros(5)
+        plus[k], minus[k] = step, -step
+        # the reference derivative: a central difference divides its rounding by 2e-6,
+        # so the gains must not depend on whether numba is usable
+        rates_plus = model._rates(model.plant.derivative, *plus)
+        diff = (np.array(rates_plus) - model._rates(model.plant.derivative, *minus)) / (2 * step)
+        for i, rate in enumerate(rates):
+            jac[f"{rate}/{name}"] = float(diff[i])
+    _, b_t = linearize(model.plant, model._x0, model._u0, ["v"], ["tunnel_force"])
+    jac["v/tunnel_force"] = float(b_t[0, 0])
+    return tuple(jac.items())

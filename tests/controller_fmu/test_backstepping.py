@@ -45,6 +45,24 @@ def test_model_gains_are_the_plants_and_match_the_printed_linearisation(remus):
     assert 1.0 / bs.thruster_gain == pytest.approx(remus.m + remus.a22, rel=0.05)
 
 
+def test_model_gains_are_designed_once_per_vehicle_and_speed(remus, monkeypatch):
+    """Every run of a study designs the same law: the plant's Jacobian is computed once per
+    parameter set and U0; each caller gets its own copy, and another U0 its own values."""
+    design = LateralDesignModel(remus, 1.525)
+    jac = design.static_mass_jacobian()
+    jac["r/v"] = 0.0  # a caller's copy: changing it changes no later design
+    evaluations = []
+    derivative = PlantModel.derivative
+    monkeypatch.setattr(
+        PlantModel, "derivative", lambda *a: evaluations.append(1) or derivative(*a)
+    )
+    again = LateralDesignModel(remus.model_copy(), 1.525).static_mass_jacobian()  # equal set
+    assert evaluations == []  # not computed again
+    assert again["r/v"] == BacksteppingHeading(design, BacksteppingGains()).g1 != 0.0
+    assert LateralDesignModel(remus, 1.2345).static_mass_jacobian()["r/v"] != again["r/v"]
+    assert evaluations  # another U0 is another design
+
+
 def test_command_filter_is_exact_for_any_step_and_settles_on_a_held_input():
     one = CommandFilterBank(2, frequency=10.0)
     two = CommandFilterBank(2, frequency=10.0)
