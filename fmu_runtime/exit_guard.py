@@ -43,6 +43,7 @@ SYMBOL = "finalizePythonInterpreter"
 # Process-wide by nature: one exit hook per loaded wrapper library, whatever the number
 # of instances (each instantiate would otherwise add a handler).
 _guarded: set[Path] = set()
+_guarded_resources: set[str] = set()  # resources folders whose library is in _guarded
 
 
 def wrapper_library(resources: str | Path) -> Path | None:
@@ -64,11 +65,14 @@ def install(resources: str | Path | None) -> bool:
     try:
         if resources is None or not sys.platform.startswith("linux"):
             return False
+        if str(resources) in _guarded_resources:  # every instance of every run asks
+            return True
         library = wrapper_library(resources)
         if library is None:
             return False
         library = library.resolve()
         if library in _guarded:
+            _guarded_resources.add(str(resources))
             return True
         finalize = getattr(ctypes.CDLL(str(library)), SYMBOL, None)
         if finalize is None:
@@ -78,6 +82,7 @@ def install(resources: str | Path | None) -> bool:
         if libc.__cxa_atexit(ctypes.cast(finalize, ctypes.c_void_p), None, None) != 0:
             return False
         _guarded.add(library)
+        _guarded_resources.add(str(resources))
         return True
     except Exception:  # an FMU constructor must not raise (see safe_slave.py)
         return False
