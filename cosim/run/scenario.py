@@ -410,6 +410,17 @@ def scenario_from_toml(
         data = tomllib.loads(text.removeprefix("\ufeff"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"scenario {where}: not valid TOML: {exc}") from None
+    return scenario_from_data(data, where, base_dir, fmu_dir)
+
+
+def scenario_from_data(
+    data: Mapping[str, Any],
+    where: str = "<data>",
+    base_dir: Path | None = None,
+    fmu_dir: Path = DEFAULT_FMU_DIR,
+) -> Scenario:
+    """Like :func:`scenario_from_toml` for the parsed TOML (a study's runs: no text to
+    write and parse again); ``data`` passes the same checks and is not modified."""
     spec = _validate_spec(data, where)
     src = Source(where)
     sid = _scenario_id(spec, "scenario", src)
@@ -430,7 +441,7 @@ def _read_toml(path: Path) -> dict[str, Any]:
         raise ScenarioError(f"scenario file {path}: cannot read it: {exc}") from None
 
 
-def _validate_spec(data: dict[str, Any], where: str) -> ScenarioSpec:
+def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:

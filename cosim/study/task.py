@@ -4,8 +4,8 @@ The client calls :func:`prepare` once: it loads the scenario (``load_scenario``,
 study's stop time through ``Scenario.with_overrides``), keeps it as resolved TOML data
 (``Scenario.to_toml``), and reads the facts a study checks factors against. A worker
 calls :func:`run_one` per run: the FMU references point at the worker's own copies, the
-run's factor values are written into the TOML data, and the text is resolved again
-(``scenario_from_toml``, so every value passes the scenario's own checks) and run
+run's factor values are written into the TOML data, and the data is resolved again
+(``scenario_from_data``, so every value passes the scenario's own checks) and run
 (``run_scenario(..., no_rrd=True, tail_guard=False)``: a killed task's run is run
 again, so its folder needs no guard); the metrics are the numeric values of the run's
 ``summary.json``.
@@ -30,7 +30,7 @@ from cosim.errors import CosimError
 from cosim.run.figures import KeyFigures
 from cosim.run.manoeuvre import scenario_metric_names
 from cosim.run.runner import run_scenario
-from cosim.run.scenario import Scenario, load_scenario, scenario_from_toml
+from cosim.run.scenario import Scenario, load_scenario, scenario_from_data
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
 
@@ -156,8 +156,7 @@ def _scenario(
     for name, path in fmu_paths.items():
         data["instances"][name]["fmu"] = str(path)
     apply_values(data, factors, values)
-    where = f"{base.scenario_id} with {dict(values)}"
-    return scenario_from_toml(tomli_w.dumps(data), where=where)
+    return scenario_from_data(data, where=f"{base.scenario_id} with {dict(values)}")
 
 
 def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
