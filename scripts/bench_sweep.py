@@ -4,32 +4,47 @@
    the baseline, with no Dask at all.
 2. Throughput with 2 workers (runs/s): the same runs as a study's tasks on a local Dask
    cluster of 2 single-threaded worker processes (``cosim.study.execution``).
-3. Their ratio (goal on a 2-core machine: >= 1.7).
+3. Their ratio (goal on a 2-core machine: >= 1.7), beside the ratio of 2 plain worker
+   processes without Dask (``multiprocessing``): what the machine itself gives two
+   processes at once, the ceiling of the first.
 4. The per-run overhead beyond the run's own stepping loop, as a fraction of that loop
    (goal <= 10% of a 20 s bs-3 run): serially, the elapsed time per run minus its loop; in
    the study, each task's time on its worker minus its loop (Dask's own scheduling shows
    in the ratio of item 3).
 
-Both throughputs are steady state: the serial loop starts timing after one warm-up run
-(imports, FMU loading), the study after each worker's first run, so cluster start-up and
-the first FMU load in each process are left out (start-up is printed). Serial and study
-measurements alternate ``--repeat`` times and the best of each is reported, to damp other
-load on the machine; a busy machine still lowers the ratio.
+All throughputs are steady state: the serial loop starts timing after one warm-up run
+(imports, FMU loading), the cluster runs one untimed study first and each timed one is
+timed from its workers' first completions on, so cluster start-up and the first FMU load
+in each process are left out (start-up is printed). Every process runs with one BLAS /
+OpenMP thread, as Dask's nanny starts its workers (``distributed.nanny.pre-spawn-environ``),
+so the serial baseline is not slowed by idle BLAS threads spinning beside a busy cluster.
+The measurements alternate ``--repeat`` times and the best of each is reported, to damp
+other load on the machine; a busy machine still lowers the ratios.
 Usage: ``python scripts/bench_sweep.py [--runs 8] [--stop-time 20] [--repeat 3]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import os
 import statistics
 import time
 from pathlib import Path
 
-from cosim.fmus.build import ensure_fmus
-from cosim.study.design import PlannedRun, run_id
-from cosim.study.execution import execute, make_job, open_client
-from cosim.study.factors import resolve_factor
-from cosim.study.task import RunRecord, prepare, run_one
+# One BLAS / OpenMP thread, as Dask's nanny starts its workers (checked in main); set
+# before numpy is imported, here and (inherited) in the plain worker processes.
+ONE_THREAD = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+for _name, _value in ONE_THREAD.items():
+    os.environ.setdefault(_name, _value)
+
+import dask  # noqa: E402
+
+from cosim.fmus.build import ensure_fmus  # noqa: E402
+from cosim.study.design import PlannedRun, run_id  # noqa: E402
+from cosim.study.execution import execute, make_job, open_client  # noqa: E402
+from cosim.study.factors import resolve_factor  # noqa: E402
+from cosim.study.task import RunRecord, prepare, run_one  # noqa: E402
 
 WORKERS = 2
 
@@ -65,6 +80,30 @@ def parallel(client, base, factors, runs: list[PlannedRun]) -> tuple[float, list
     return steady[-1][0] - steady[0][0], [record for _, record in steady[1:]]
 
 
+_plain_job: tuple = ()  # (base, factors) in a plain worker process
+
+
+def _plain_start(base, factors) -> None:
+    """A plain worker's initialiser: keep the job, and one warm-up run (FMU loading)."""
+    global _plain_job
+    _plain_job = (base, factors)
+    run_one(base, base.fmu_paths, factors, planned(1)[0].values)
+
+
+def _plain_run(values) -> RunRecord:
+    base, factors = _plain_job
+    return run_one(base, base.fmu_paths, factors, values)
+
+
+def plain(pool, runs: list[PlannedRun]) -> float:
+    """Seconds from the WORKERS-th completion to the last, as :func:`parallel` times them,
+    for the runs on a pool of WORKERS plain processes."""
+    done = []
+    for _record in pool.imap_unordered(_plain_run, [run.values for run in runs]):
+        done.append(time.perf_counter())
+    return done[-1] - done[WORKERS - 1]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=8, help="timed runs [%(default)s]")
@@ -72,25 +111,39 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="best of [%(default)s]")
     parser.add_argument("--fmu-dir", type=Path, default=Path("build/fmus"))
     args = parser.parse_args()
+    workers_environ = dask.config.get("distributed.nanny.pre-spawn-environ")
+    if any(str(workers_environ.get(k)) != v for k, v in ONE_THREAD.items()):
+        print(f"note: Dask's workers start with {workers_environ}, this process {ONE_THREAD}")
     ensure_fmus(args.fmu_dir)
     base, facts = prepare("bs-3", args.stop_time, args.fmu_dir)
     factors = {"plant.v_0": resolve_factor("plant.v_0", facts)}
     n = args.runs
     run_one(base, base.fmu_paths, factors, planned(1)[0].values)  # warm-up: FMU loading
     started = time.perf_counter()
-    with open_client(WORKERS) as client:
+    spawn = multiprocessing.get_context("spawn")
+    with (
+        open_client(WORKERS) as client,
+        spawn.Pool(WORKERS, _plain_start, (base, factors)) as pool,
+    ):
         up_s = time.perf_counter() - started
-        serials, parallels = [], []
-        for _ in range(args.repeat):  # interleaved, so both see the same other load
+        parallel(client, base, factors, planned(2 * WORKERS))  # warm-up: FMU loading
+        serials, parallels, plains = [], [], []
+        for _ in range(args.repeat):  # interleaved, so all see the same other load
             serials.append(serial(base, factors, planned(n)))
             parallels.append(parallel(client, base, factors, planned(n + WORKERS)))
+            plains.append(plain(pool, planned(n + WORKERS)))
     serial_s, serial_records = min(serials, key=lambda x: x[0])
     parallel_s, parallel_records = min(parallels, key=lambda x: x[0])
-    report(args.stop_time, n, up_s, serial_s, serial_records, parallel_s, parallel_records)
+    report(
+        args.stop_time, n, up_s, serial_s, serial_records, parallel_s, parallel_records,
+        min(plains),
+    )  # fmt: skip
 
 
-def report(stop_time, n, up_s, serial_s, serial_records, parallel_s, parallel_records) -> None:
-    serial_rate, parallel_rate = n / serial_s, n / parallel_s
+def report(
+    stop_time, n, up_s, serial_s, serial_records, parallel_s, parallel_records, plain_s
+) -> None:
+    serial_rate, parallel_rate, plain_rate = n / serial_s, n / parallel_s, n / plain_s
     loop = statistics.mean(r.loop_s for r in serial_records)
     serial_overhead = serial_s / n - loop
     parallel_loop = statistics.mean(r.loop_s for r in parallel_records)
@@ -101,7 +154,10 @@ def report(stop_time, n, up_s, serial_s, serial_records, parallel_s, parallel_re
         f"throughput with {WORKERS} workers:         {parallel_rate:.3f} runs/s "
         f"(cluster start-up {up_s:.1f} s, not counted)"
     )
-    print(f"ratio:                             {parallel_rate / serial_rate:.2f} (goal >= 1.7)")
+    print(
+        f"ratio:                             {parallel_rate / serial_rate:.2f} (goal >= 1.7; "
+        f"{WORKERS} plain processes without Dask: {plain_rate / serial_rate:.2f})"
+    )
     print(
         f"per-run overhead beyond the loop:  serial {serial_overhead * 1e3:.0f} ms = "
         f"{serial_overhead / loop:.1%} of the {loop:.2f} s loop; in a study task "
