@@ -187,9 +187,10 @@ _idle_libraries: dict[tuple[str, str, str, str], list[FMU2Slave]] = {}
 def _library(key: tuple[str, str, str, str]) -> FMU2Slave:
     """An fmpy ``FMU2Slave`` with the library loaded and no instance: an idle one of an
     earlier run, else a new one."""
-    idle = _idle_libraries.get(key)
-    if idle:
-        return idle.pop()
+    try:
+        return _idle_libraries[key].pop()  # atomic: two runs in threads never share one
+    except (KeyError, IndexError):
+        pass
     unzip_dir, model_identifier, guid, instance_name = key
     return FMU2Slave(
         guid=guid,
