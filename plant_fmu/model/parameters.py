@@ -165,7 +165,9 @@ def load_vehicle(
     reading the files again to compare takes microseconds).
     """
     folder = vehicle_folder() if folder is None else folder
-    key = (str(name_or_path), str(folder), os.getcwd())
+    path = Path(name_or_path)
+    relative = path.suffix == ".toml" and not path.is_absolute()  # a built-in name is not
+    key = (str(name_or_path), str(folder), os.getcwd() if relative else "")
     cached = _loaded.get(key)
     if cached is not None and all(_text(path) == text for path, text in cached[0]):
         return cached[1]
@@ -178,7 +180,8 @@ def load_vehicle(
     return params
 
 
-_LOADED_KEPT = 64  # sets kept by load_vehicle (one per name, folder and working directory)
+_LOADED_KEPT = 64  # sets kept by load_vehicle (per name, folder and, for a relative
+# path, working directory)
 _loaded: dict[tuple[str, str, str], tuple[tuple[tuple[Path, str], ...], VehicleParameters]] = {}
 
 

@@ -132,3 +132,14 @@ def test_a_set_is_parsed_once_while_its_files_hold_the_same_text(tmp_path: Path)
     base.unlink()
     with pytest.raises(VehicleParameterError, match="unknown vehicle"):
         load_vehicle(custom)
+
+
+def test_a_built_in_set_loads_in_a_process_whose_working_directory_is_gone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """A host may run from a deleted folder; only a relative path depends on it."""
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.chdir(gone)
+    gone.rmdir()
+    assert load_vehicle("remus100").name == "remus100"
