@@ -23,14 +23,13 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import statistics
 import subprocess
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from bench_timing import median_us
 from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 
@@ -144,18 +143,6 @@ def floor_per_step(folder: Path, n_steps: int) -> float:
         slave.terminate()
         slave.freeInstance()
     return elapsed / n_steps
-
-
-def median_us(call: Callable[[], object], repetitions: int) -> float:
-    """Median wall time of ``call()``, microseconds (each call timed on its own)."""
-    for _ in range(100):
-        call()
-    times = []
-    for _ in range(repetitions):
-        start = time.perf_counter_ns()
-        call()
-        times.append(time.perf_counter_ns() - start)
-    return statistics.median(times) / 1000.0
 
 
 def in_process(repetitions: int) -> dict[str, float]:

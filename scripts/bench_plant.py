@@ -19,11 +19,9 @@ Usage: python scripts/bench_plant.py [--fmu-dir build/fmus] [--steps 3000]
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
-from collections.abc import Callable
 from pathlib import Path
 
+from bench_timing import median_us
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
@@ -38,18 +36,6 @@ from plant_fmu.model.stepping import advance
 H = 0.01
 START = dict(u=1.5, v=0.1, w=0.02, p=0.1, q=0.02, r=0.2, roll=0.1, pitch=0.05)
 INPUTS = dict(thrust=9.0, tunnel_force=1.0, fin_angle=0.05, mass_position_cmd=0.03)
-
-
-def median_us(call: Callable[[], object], repetitions: int) -> float:
-    """Median wall time of ``call()`` in microseconds (each call timed on its own)."""
-    for _ in range(min(100, repetitions)):
-        call()
-    times = []
-    for _ in range(repetitions):
-        start = time.perf_counter_ns()
-        call()
-        times.append(time.perf_counter_ns() - start)
-    return statistics.median(times) / 1000.0
 
 
 def in_process(steps: int) -> tuple[float, float, float]:
