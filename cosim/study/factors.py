@@ -114,15 +114,23 @@ INTEGER_FAULT_KEYS = tuple(
 )
 
 
-def _entry(facts: ScenarioFacts, section: str, name: str, factor: str) -> Mapping[str, Any]:
-    """The ``[[section]]`` table called ``name``; StudyError listing the known names."""
+def _entry(
+    facts: ScenarioFacts, section: str, factor: str
+) -> tuple[str, str, Mapping[str, Any]] | None:
+    """For a factor ``<section>.<name>.<rest>`` (section "events" or "faults", unless an
+    instance has that name): (name, rest, the ``[[section]]`` table called name); None for
+    any other factor; StudyError listing the known names if no table has that name."""
+    head, _, tail = factor.partition(".")
+    if head != section or section in facts.instances:
+        return None
+    name, _, rest = tail.partition(".")
     tables = facts.events if section == "events" else facts.faults
     if name not in tables:
         known = ", ".join(tables) if tables else "none"
         raise StudyError(
             f"factor {factor!r}: the scenario has no {section[:-1]} {name!r} ({section}: {known})"
         )
-    return tables[name]
+    return name, rest, tables[name]
 
 
 def _table(data: dict[str, Any], section: str, name: str) -> dict[str, Any]:
@@ -146,11 +154,10 @@ class EventKey:
 
     @classmethod
     def recognise(cls, name: str, facts: ScenarioFacts) -> EventKey | None:
-        section, _, rest = name.partition(".")
-        if section != "events" or "events" in facts.instances:
+        found = _entry(facts, "events", name)
+        if found is None:
             return None
-        event, _, key = rest.partition(".")
-        table = _entry(facts, "events", event, name)
+        event, key, table = found
         key, _, target = key.partition(".")
         if key in ("time", "ramp") and not target:
             if "set" not in table or (key == "time" and "time" not in table):
@@ -192,11 +199,10 @@ class FaultKey:
 
     @classmethod
     def recognise(cls, name: str, facts: ScenarioFacts) -> FaultKey | None:
-        section, _, rest = name.partition(".")
-        if section != "faults" or "faults" in facts.instances:
+        found = _entry(facts, "faults", name)
+        if found is None:
             return None
-        fault, _, key = rest.partition(".")
-        table = _entry(facts, "faults", fault, name)
+        fault, key, table = found
         if key not in FAULT_KEYS:
             raise StudyError(
                 f"factor {name!r}: a fault's factor is faults.{fault}.<key>, key one of "
