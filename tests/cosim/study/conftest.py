@@ -8,7 +8,7 @@ from pathlib import Path
 
 import dask
 import pytest
-from sweep_helpers import SMALL_RUNS, SMALL_STUDY, sweep, table
+from sweep_helpers import SMALL_RUNS, SMALL_STUDY, complete_table
 
 
 @pytest.fixture(scope="session")
@@ -36,8 +36,4 @@ def small_reference(
     small_study: Path, fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> list[dict[str, str]]:
     """The small study's table run with 2 local workers, without wall_clock_s."""
-    out = tmp_path_factory.mktemp("reference")
-    sweep(small_study, out, fmu_dir, "--workers", "2")
-    rows = table(out)
-    assert len(rows) == SMALL_RUNS and all(r["status"] == "complete" for r in rows)
-    return rows
+    return complete_table(small_study, tmp_path_factory.mktemp("reference"), fmu_dir, SMALL_RUNS)

@@ -43,6 +43,15 @@ def sweep(study: Path, out: Path, fmu_dir: Path, *args: str) -> None:
     assert main([*argv, *args]) == 0
 
 
+def complete_table(study: Path, out: Path, fmu_dir: Path, runs: int) -> list[dict[str, str]]:
+    """The study's :func:`table` run with 2 local workers; fails the test unless all
+    ``runs`` runs complete."""
+    sweep(study, out, fmu_dir, "--workers", "2")
+    rows = table(out)
+    assert len(rows) == runs and all(r["status"] == "complete" for r in rows)
+    return rows
+
+
 def table(out: Path) -> list[dict[str, str]]:
     """runs.csv's rows without the wall clock (the one column identical runs differ in)."""
     with (out / "runs.csv").open(encoding="utf-8", newline="") as f:

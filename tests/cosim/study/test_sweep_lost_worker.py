@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 from distributed import Client
-from sweep_helpers import dask_processes, end_group, sweep, table, wait_for
+from sweep_helpers import complete_table, dask_processes, end_group, table, wait_for
 
 LONG_RUNS = """
 scenario = "bs-3"
@@ -37,11 +37,7 @@ def long_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def uninterrupted(
     long_study: Path, fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> list[dict[str, str]]:
-    out = tmp_path_factory.mktemp("uninterrupted")
-    sweep(long_study, out, fmu_dir, "--workers", "2")
-    rows = table(out)
-    assert len(rows) == RUNS and all(r["status"] == "complete" for r in rows)
-    return rows
+    return complete_table(long_study, tmp_path_factory.mktemp("uninterrupted"), fmu_dir, RUNS)
 
 
 def rows_written(csv_path: Path) -> int:
