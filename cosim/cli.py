@@ -44,7 +44,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _scenarios(args: argparse.Namespace) -> int:
-    from cosim.run.scenario import builtin_scenarios
+    from cosim.scenario.spec import builtin_scenarios
 
     scenarios = builtin_scenarios()
     width = max(map(len, scenarios), default=0)
@@ -54,7 +54,7 @@ def _scenarios(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from cosim.run.runner import RunOptions, run_from_cli
+    from cosim.runner import RunOptions, run_from_cli
 
     options = RunOptions(
         out_dir=args.out,
@@ -267,7 +267,7 @@ def _add_model_options(a: argparse.ArgumentParser) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. With ``argv`` None (the process's own command line), ``run``
     ignores stop signals outside the run itself, which records them
-    (:mod:`cosim.run.signals`): one arriving after the run, while the interpreter shuts
+    (:mod:`cosim.engine.signals`): one arriving after the run, while the interpreter shuts
     down, cannot turn a finished run's exit code into a death by signal."""
     args = build_parser().parse_args(argv)
     if argv is None and args.command == "run":

@@ -35,12 +35,12 @@ from fmpy.fmi2 import FMU2Slave
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from cosim.analysis.closed_loop import measurements
+from cosim.engine import master
+from cosim.engine.slave import unzipped
 from cosim.fmus.build import pythonfmu_build
 from cosim.paths import DEFAULT_FMU_DIR
-from cosim.run import master
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import Scenario, load_scenario
-from cosim.run.slave import unzipped
+from cosim.runner import run_scenario
+from cosim.scenario.spec import Scenario, load_scenario
 from plant_fmu.model.compiled import CompiledPlant
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector

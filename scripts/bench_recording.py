@@ -31,8 +31,8 @@ import rerun as rr
 
 import cosim.viz.recording
 from cosim.paths import DEFAULT_FMU_DIR
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import Scenario, load_scenario
+from cosim.runner import run_scenario
+from cosim.scenario.spec import Scenario, load_scenario
 from cosim.viz.layout import time_index
 from cosim.viz.recording import RerunSink
 

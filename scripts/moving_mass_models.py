@@ -27,9 +27,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 import tomli_w
 
-from cosim.run.results import YAW_TOLERANCE_RAD, read_csv, settling_time
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import load_scenario, scenario_from_toml
+from cosim.outputs.results import YAW_TOLERANCE_RAD, read_csv, settling_time
+from cosim.runner import run_scenario
+from cosim.scenario.spec import load_scenario, scenario_from_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("lqr-2", "bs-3", "vert-1", "vert-2")

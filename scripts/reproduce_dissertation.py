@@ -6,7 +6,7 @@ the printed value, ours, and the verdict, with the figures beside it.
 Sources (B. Li, FAU 2016): Examples 5.1-5.6 and Sec. 5.1.2-5.1.4 (open-loop equilibria,
 Jacobians, folds and the fin factors mu, eta), (6.3.19) (the linearised lateral model
 with the moving mass), the low-speed equilibria of Sec. 6.3.3 and the Ch. 6 closed-loop
-scenarios (run through the co-simulation master, ``cosim.run.runner.run_scenario``).
+scenarios (run through the co-simulation master, ``cosim.runner.run_scenario``).
 
 Every "ours" number is computed here from the shipped model (``plant_fmu``) or from a
 run of the two FMUs; the dissertation's numbers come from ``docs/dissertation-values.toml``
@@ -41,7 +41,7 @@ from cosim.analysis.bifurcation import (
 )
 from cosim.analysis.plots import plot_phase_portrait, plot_sweep
 from cosim.analysis.reference_values import Reference, load_reference_values
-from cosim.run.figures import settling_time
+from cosim.metrics.key_figures import settling_time
 from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle
@@ -888,9 +888,9 @@ SCENARIO_FIGURES = ("lqr-2", "bs-3", "cur-2", "vert-2")
 
 def scenario_claims(figures: Path, work: Path) -> list[Row]:
     try:
-        from cosim.run.results import read_csv
-        from cosim.run.runner import run_scenario
-        from cosim.run.scenario import builtin_scenarios
+        from cosim.outputs.results import read_csv
+        from cosim.runner import run_scenario
+        from cosim.scenario.spec import builtin_scenarios
         from cosim.viz.report import write_report
     except ImportError as exc:
         return [_not_run(sid, f"the master is not available ({exc})") for sid in SCENARIO_CLAIMS]

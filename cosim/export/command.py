@@ -7,7 +7,7 @@ from pathlib import Path
 from cosim.errors import CosimError
 from cosim.export.osp import export_osp
 from cosim.export.ssp import export_ssp
-from cosim.run.scenario import load_scenario
+from cosim.scenario.spec import load_scenario
 
 
 def export_scenario(

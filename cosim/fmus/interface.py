@@ -1,7 +1,7 @@
 """An FMU's interface as its ``modelDescription.xml`` declares it: variables and units.
 
 :func:`read_interface` is the one reader of an FMU's interface: scenario loading
-(:mod:`cosim.run.scenario`) and the exporters (:mod:`cosim.export`) both use it. It is
+(:mod:`cosim.scenario.spec`) and the exporters (:mod:`cosim.export`) both use it. It is
 built on ``fmpy.read_model_description``, which reads the XML from the archive without
 loading the FMU's binary, and cached on (resolved path, modification time, size), so an
 FMU is read once per build however many scenarios use it, and a rebuilt FMU is read again.

@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, get_args
 
-from cosim.run.timeline_spec import FaultSpec
+from cosim.scenario.timeline_spec import FaultSpec
 from cosim.study.spec import StudyError
 
 Value = bool | int | float | str

@@ -43,10 +43,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from cosim.analysis.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.errors import CosimError
-from cosim.run.folder import REPORT_FOLDER
-from cosim.run.results import read_csv
+from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
+from cosim.outputs.folder import REPORT_FOLDER
+from cosim.outputs.results import read_csv
 from cosim.viz.mission import mission_waypoints
 
 INDEX_PAGE = "index.html"

@@ -17,7 +17,7 @@ from lxml import etree
 from cosim import cli
 from cosim.errors import CosimError
 from cosim.export import OSP_FILE, PARAMETER_SET, export_osp, export_ssp
-from cosim.run.scenario import Scenario, load_scenario
+from cosim.scenario.spec import Scenario, load_scenario
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",

@@ -10,8 +10,8 @@ from typing import Any
 
 import pytest
 
-from cosim.run.folder import GUARD_SCRIPT
-from cosim.run.runner import run_scenario
+from cosim.outputs.folder import GUARD_SCRIPT
+from cosim.runner import run_scenario
 from cosim.study import factors as factors_module
 from cosim.study.factors import ScenarioFacts, StartValue, resolve_factor
 from cosim.study.spec import StudyError

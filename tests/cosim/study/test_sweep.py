@@ -12,8 +12,8 @@ import tomli_w
 from repo_paths import ROOT
 from sweep_helpers import sweep, table
 
-from cosim.analysis.manoeuvres import metric_names
 from cosim.cli import main
+from cosim.metrics.manoeuvres import metric_names
 
 ISSUE_STUDY = """
 scenario = "bs-3"

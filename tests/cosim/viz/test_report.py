@@ -187,7 +187,7 @@ def test_cli_prints_the_index_path(lateral_run, capsys):
 BS3_RUN = """
 import sys
 from pathlib import Path
-from cosim.run.runner import run_scenario
+from cosim.runner import run_scenario
 
 fmu_dir, out = Path(sys.argv[1]), Path(sys.argv[2])
 outcome = run_scenario("bs-3", out, stop_time=20.0, no_rrd=True, fmu_dir=fmu_dir)
