@@ -1,6 +1,8 @@
 """Execute the copy-paste examples of the documentation, in order, as a user would.
 
-Every fenced code block in :data:`DOCUMENTS` must be preceded by one marker line:
+:data:`DOCUMENTS` are the README, CONTRIBUTING.md and every page of docs/, run in that
+order in one working folder: a page may use files an earlier one wrote (docs/studies.md
+the README's ``turn.toml``). Every fenced code block must be preceded by one marker line:
 
 * ``<!-- run -->``: run it (```` ```bash ```` with bash, ```` ```python ```` with this
   interpreter) in one working folder shared by the document's blocks, in document order;
@@ -31,7 +33,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCUMENTS = [ROOT / "README.md"]
+DOCUMENTS = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md"))]
 MARKER = re.compile(
     r"^<!-- (run|run: expect (?P<expect>.+)|excerpt of (?P<path>\S+)|not run: (?P<reason>.+)) -->$"
 )
@@ -95,6 +97,7 @@ def test_every_code_block_is_marked(document: Path) -> None:
     assert not unmarked, f"code blocks without a run/excerpt/not-run marker: {unmarked}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: p.name)
 def test_examples_run_in_order(document: Path, workdir: Path) -> None:
     """All of a document's examples, one after another (later ones use earlier files)."""
@@ -127,7 +130,8 @@ def test_examples_run_in_order(document: Path, workdir: Path) -> None:
                 f"{block.id}: output does not match {match.group('expect')!r}:\n{done.stdout}"
             )
         ran += 1
-    assert ran > 0, f"{document.name} has no runnable example"
+    if ran == 0 and not missing:
+        pytest.skip(f"{document.name} has no runnable example")
     if missing:
         pytest.skip(f"{ran} examples ran; skipped: " + "; ".join(missing))
 
