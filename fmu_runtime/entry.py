@@ -14,7 +14,7 @@ What ``fmi2Instantiate`` of pythonfmu 0.7's wrapper library does, every time:
    returns a borrowed reference).
 
 So a slave class defined in the entry module is created anew at each instantiation and
-kept alive by the leaked list (the 47 KiB per instance of issue 12), and a namespace whose
+kept alive by the leaked list (47 KiB per instance, before this was fixed), and a namespace whose
 functions do not hold extra references is freed after a few instances (a segmentation
 fault). The build (:mod:`cosim.fmus.build`) therefore writes a generated entry module,
 :func:`entry_source`, that defines nothing: it binds the slave class by import (step 3

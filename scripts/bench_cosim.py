@@ -1,4 +1,4 @@
-"""Benchmark the co-simulation (issues 5 and 15). Prints, in one run:
+"""Benchmark the co-simulation. Prints, in one run:
 
 1. Per scenario (bs-3 and vert-2, 60 s at 10 ms, no recording, through ``run_scenario``,
    what ``auv-cosim run --no-rrd`` does): the real-time factor, the FMI floor and the

@@ -1,4 +1,4 @@
-"""Benchmark the cost of events and faults in the master (issue 16). Prints, for bs-3, the
+"""Benchmark the cost of events and faults in the master. Prints, for bs-3, the
 stepping loop's wall clock with a timeline against the plain loop in the same process, as
 ratios (best of ``--repeat`` interleaved runs):
 

@@ -1,5 +1,5 @@
 """The built-in scenarios through the master (both FMUs built, fmpy), against the outcomes
-the dissertation reports (docs/model.md#scenarios, issue 4's list), and the master's coupling
+the dissertation reports (docs/model.md#scenarios), and the master's coupling
 and failure behaviour on the real FMUs.
 
 Each built-in scenario runs once per session, to its own stop time (module fixture).
@@ -84,7 +84,7 @@ def test_lqr_1_converges(results: dict[str, RunResult]) -> None:
 
 
 def test_lqr_2_saturates_the_mass_and_comes_back(results: dict[str, RunResult]) -> None:
-    """Issue 4 asks for |yaw| < 1 deg after 45 s; with the unsaturated command the
+    """The dissertation's text asks for |yaw| < 1 deg after 45 s; with the unsaturated command the
     dissertation used (Sec. 6.3.1) we match an independent reproduction of this case
     (continuous LQR gains, RK4 at 0.2 ms: 28-34 s, not the text's 20 s) and the fast mass
     of Fig. 6.14 (rail speeds of tens of cm/s)."""

@@ -1,4 +1,4 @@
-"""A run's memory does not grow with its stop time (issue 14: vert-2 --stop-time 3600 took
+"""A run's memory does not grow with its stop time (a regression: vert-2 --stop-time 3600 took
 250 MB while stepping and 1.21 GB while writing its results.csv).
 
 scripts/bench_memory.py measures the issue's pair (vert-2 at 3600 s against 60 s, with the

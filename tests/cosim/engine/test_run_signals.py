@@ -1,4 +1,4 @@
-"""Every way a run ends leaves a consistent folder (issue 14): SIGKILL, SIGTERM, SIGHUP,
+"""Every way a run ends leaves a consistent folder: SIGKILL, SIGTERM, SIGHUP,
 Ctrl-C once or twice, during the stepping or while the outputs are completed, and a second
 run into the same folder. The command line runs in a subprocess (``python -m cosim.cli``),
 on the built FMUs (bs-3)."""
@@ -173,7 +173,7 @@ def test_sigkill_leaves_whole_rows_of_the_uninterrupted_run(fmu_dir: Path, tmp_p
 def test_sigterm_and_sighup_end_a_run_like_ctrl_c(
     fmu_dir: Path, tmp_path: Path, signum: int, code: int, reason: str, options: tuple[str, ...]
 ):
-    """Issue 14: `timeout -s TERM 6 auv-cosim run bs-3 --stop-time 600` left a recording
+    """Regression: `timeout -s TERM 6 auv-cosim run bs-3 --stop-time 600` left a recording
     without footer (and nothing at all with --no-rrd)."""
     out = tmp_path / "run"
     proc = start(fmu_dir, out, "--stop-time", "600", *options)
@@ -193,7 +193,7 @@ def test_sigterm_and_sighup_end_a_run_like_ctrl_c(
 
 
 def test_two_ctrl_c_in_quick_succession_still_complete_the_folder(fmu_dir: Path, tmp_path: Path):
-    """Issue 14: two Ctrl-C 0.02-0.3 s apart left an empty run folder."""
+    """Regression: two Ctrl-C 0.02-0.3 s apart left an empty run folder."""
     out = tmp_path / "run"
     proc = start(fmu_dir, out, "--stop-time", "600")
     wait_for_rows(proc, out, 300)
@@ -233,7 +233,7 @@ sys.exit(main(["run", "bs-3", "--stop-time", "2", "--fmu-dir", sys.argv[1], "--o
 def test_ctrl_c_while_the_outputs_are_written_does_not_abort_them(
     fmu_dir: Path, tmp_path: Path, run_python
 ):
-    """Issue 14: one Ctrl-C after vert-2 finished stepping, while the outputs were written,
+    """Regression: one Ctrl-C after vert-2 finished stepping, while the outputs were written,
     left an empty run folder (rc 130)."""
     out = tmp_path / "run"
     proc = run_python(CTRL_C_WHILE_WRITING, fmu_dir, out)
@@ -249,7 +249,7 @@ def test_ctrl_c_while_the_outputs_are_written_does_not_abort_them(
 
 
 def test_a_second_run_into_a_running_folder_fails_at_once(fmu_dir: Path, tmp_path: Path):
-    """Issue 14: `run bs-3 --out same & run bs-1 --out same` both exited 0 and the
+    """Regression: `run bs-3 --out same & run bs-1 --out same` both exited 0 and the
     recording failed its CRC."""
     out = tmp_path / "same"
     first = start(fmu_dir, out, "--stop-time", "30")
@@ -298,7 +298,7 @@ def test_rows_reach_results_csv_at_least_every_second(fmu_dir: Path, tmp_path: P
 
 
 def test_a_huge_stop_time_streams_with_bounded_memory(fmu_dir: Path, tmp_path: Path):
-    """Issue 14: `--stop-time 1e6` took 4.3 GB before the first step."""
+    """Regression: `--stop-time 1e6` took 4.3 GB before the first step."""
     out = tmp_path / "run"
     proc = start(fmu_dir, out, "--stop-time", "1e6", "--no-rrd")
     wait_for_rows(proc, out, 400, timeout=60)
@@ -327,7 +327,7 @@ def peak_rss_kb(pid: int) -> int:
 
 
 def test_a_stopped_manoeuvre_gets_the_metrics_of_what_it_ran(fmu_dir: Path, tmp_path: Path):
-    """Issue 16: a turning circle stopped by SIGTERM after 3 s: summary.json names the
+    """Regression: a turning circle stopped by SIGTERM after 3 s: summary.json names the
     manoeuvre and has every metric, measured over the rows it ran (the 90 deg point is
     not reached by then: None), exactly as from its partial results.csv."""
     out = tmp_path / "run"

@@ -1,4 +1,4 @@
-"""Events and faults on the AUV (issue 16's acceptance): bs-3 turned to a new heading by an
+"""Events and faults on the AUV: bs-3 turned to a new heading by an
 event under Jacobi, Gauss-Seidel and step multiples; the actuator faults."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""A full disk ends a run incomplete with exit 1 and the reason (issue 14: a recording whose
+"""A full disk ends a run incomplete with exit 1 and the reason (a regression: a recording whose
 disk filled up left rc 0, "complete" and an unreadable .rrd).
 
 The mid-run cases write to a small tmpfs (mounted here when the tests run as root, else

@@ -1,4 +1,4 @@
-"""Run folders are owned (issue 14): refused before the first step when they cannot be
+"""Run folders are owned: refused before the first step when they cannot be
 used, reused only with --overwrite (which removes the earlier run's files first), and the
 recording may not point at another output. On the test FMUs of tests/fmus, in process."""
 
@@ -43,7 +43,7 @@ def one_line(capsys: pytest.CaptureFixture[str]) -> str:
 
 
 def test_a_finished_run_folder_is_reused_only_with_overwrite(loop_file: Path, tmp_path, capsys):
-    """Issue 14: `run bs-3 --out d; run bs-1 --out d --no-rrd` left bs-3's recording beside
+    """Regression: `run bs-3 --out d; run bs-1 --out d --no-rrd` left bs-3's recording beside
     bs-1's results."""
     out = tmp_path / "d"
     assert main(["run", str(loop_file), "--out", str(out)]) == 0
@@ -89,7 +89,7 @@ def test_overwrite_keeps_files_that_no_run_wrote(loop_file: Path, tmp_path: Path
 def test_unusable_outputs_are_refused_before_the_first_step(
     loop_file: Path, tmp_path: Path, capsys, no_stepping: None, make, flags, message
 ):
-    """Issue 14: `--out /proc/x`, `--out` an existing file ran the whole simulation, then
+    """Regression: `--out /proc/x`, `--out` an existing file ran the whole simulation, then
     rc 1; `--rrd runs/x/results.csv` overwrote the CSV."""
     (tmp_path / "afile").write_text("not a folder\n")
     (tmp_path / "full").mkdir()
@@ -115,7 +115,7 @@ def test_unusable_outputs_are_refused_before_the_first_step(
 def test_bad_times_on_the_command_line_are_one_line(
     loop_file: Path, tmp_path: Path, capsys, no_stepping: None, flag: str, value: str, message
 ):
-    """Issue 14: `--stop-time inf` / `1e12` ended in a Python traceback."""
+    """Regression: `--stop-time inf` / `1e12` ended in a Python traceback."""
     assert main(["run", str(loop_file), "--out", str(tmp_path / "r"), f"{flag}={value}"]) == 1
     assert message in one_line(capsys)
     assert not (tmp_path / "r").exists()

@@ -30,7 +30,7 @@ MANOEUVRE_IDS = [
     "thruster-failure",
     "turning-circle",
     "zigzag-20",
-]  # issue 16: standard manoeuvres, faults and a mission
+]  # standard manoeuvres, faults and a mission
 BS3 = (SCENARIO_FOLDER / "bs-3.toml").read_text()
 
 
@@ -186,7 +186,7 @@ BAD_EDITS = [
     ("step = 0.01", "step = 0.01\nstep_multiples = { ctrl = 5 }",
      r"coupling\.step_multiples\.ctrl.*no instance 'ctrl'"),
     ('fmu = "AuvPlant"', 'fmu = "NoSuch.fmu"', r"instances\.plant\.fmu.*neither a built-in"),
-    # issue 14: no coercion, no wrap-around, no infinity, no last-one-wins, no "..", no
+    # no coercion, no wrap-around, no infinity, no last-one-wins, no "..", no
     # step count beyond the ceiling
     ("stop_time = 60.0", 'stop_time = "2.0"', r"key 'stop_time' = '2\.0': .* valid number"),
     ("step = 0.01", 'step = "0.01"', r"key 'coupling\.step' = '0\.01': .* valid number"),
@@ -208,7 +208,7 @@ BAD_EDITS = [
      r"\(controller\.thrust\) and here \(controller\.tunnel_force\)"),
     ("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "nosuch.toml"',
      r"start\.vehicle': 'nosuch\.toml' names no file \(looked for .*/nosuch\.toml\)"),
-    # issue 16: a manoeuvre is a known kind whose variables the run records
+    # a manoeuvre is a known kind whose variables the run records
     ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "zig-zag"',
      r"key 'manoeuvre': 'zig-zag' is not a manoeuvre: expected one of \['turning-circle', "),
     ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "survey"',
@@ -275,14 +275,14 @@ def test_documented_example_resolves(fmu_dir: Path, no_fmu_loading: None) -> Non
 
 
 def test_a_utf8_byte_order_mark_is_accepted(fmu_dir: Path, tmp_path: Path) -> None:
-    """Issue 14: a BOM made the file "Invalid statement"."""
+    """Regression: a BOM made the file "Invalid statement"."""
     path = tmp_path / "bs-3.toml"
     path.write_bytes("\ufeff".encode() + BS3.encode())
     assert load_scenario(path, fmu_dir=fmu_dir) == load_scenario("bs-3", fmu_dir=fmu_dir)
 
 
 def test_files_named_in_a_scenario_are_relative_to_it(fmu_dir: Path, tmp_path: Path) -> None:
-    """Issue 14: `vehicle = "myveh.toml"` was resolved against the current folder."""
+    """Regression: `vehicle = "myveh.toml"` was resolved against the current folder."""
     folder = tmp_path / "mission"
     folder.mkdir()
     (folder / "myveh.toml").write_text('base = "remus100"\nm = 31.0\n')
@@ -298,7 +298,7 @@ def test_files_named_in_a_scenario_are_relative_to_it(fmu_dir: Path, tmp_path: P
 def test_an_integer_outside_the_fmi_range_is_refused_without_a_declared_one(
     fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """fmi2Integer is 32 bits: 2**32 + 1 would wrap to 1 in the FMU call (issue 14), also
+    """fmi2Integer is 32 bits: 2**32 + 1 would wrap to 1 in the FMU call, also
     for a variable declaring no min/max."""
     interface = load_scenario("bs-3", fmu_dir=fmu_dir).instances["plant"].interface
     unbounded = dataclasses.replace(interface.variables["variant"], min=None, max=None)
@@ -322,7 +322,7 @@ def test_an_integer_outside_the_fmi_range_is_refused_without_a_declared_one(
 def test_a_substep_that_would_hang_a_step_is_refused_before_loading(
     fmu_dir: Path, no_fmu_loading: None, edit: str, key: str | None
 ) -> None:
-    """Issue 14: `max_substep = 1e-9` made no progress after 17 min and ignored Ctrl-C."""
+    """Regression: `max_substep = 1e-9` made no progress after 17 min and ignored Ctrl-C."""
     scenario = scenario_from_toml(
         BS3.replace("v_0 = -0.10", f"v_0 = -0.10\n{edit}"), "bs-3 edited", fmu_dir=fmu_dir
     )

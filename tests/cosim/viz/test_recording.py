@@ -508,7 +508,7 @@ def test_view_with_display_runs_the_viewer_on_the_file(recorded, tmp_path: Path,
 
 
 def test_view_of_something_that_is_not_a_recording_exits_non_zero(tmp_path: Path, capsys):
-    """Issue 14: `view some-file` opened the viewer on any file and exited 0."""
+    """Regression: `view some-file` opened the viewer on any file and exited 0."""
     some_file = tmp_path / "notes.txt"
     some_file.write_text("not a recording\n")
     (tmp_path / "run").mkdir()

@@ -131,7 +131,7 @@ def test_incomplete_run_is_flagged_on_the_page(tmp_path):
 
 @pytest.mark.parametrize("value", ["inf", "-inf", "nan"])
 def test_a_partial_run_ending_on_a_non_finite_value_is_reported(tmp_path, value):
-    """Issue 14: `report` on a partial run with inf at t = 0 ended in a ValueError."""
+    """Regression: `report` on a partial run with inf at t = 0 ended in a ValueError."""
     run = tmp_path / "partial"
     run.mkdir()
     (run / "results.csv").write_text(
