@@ -74,13 +74,13 @@ class AutopilotConfig(BaseModel):
 
     heading_mode: int = Field(
         default=0,
-        description="heading controller: 0 off, 1 LQR (6.3.17), 2 sliding mode (6.3.45), "
+        description="heading controller: 0 off, 1 lqr (6.3.17), 2 sliding_mode (6.3.45), "
         "3 backstepping + tunnel thruster (6.3.64, 6.3.72)",
         json_schema_extra=_unit(""),
     )
     depth_mode: int = Field(
         default=0,
-        description="depth controller: 0 off, 1 PD pitch + P depth (Fig. 6.40)",
+        description="depth controller: 0 off, 1 pd: PD pitch + P depth (Fig. 6.40)",
         json_schema_extra=_unit(""),
     )
     mass_lock_time: float = Field(

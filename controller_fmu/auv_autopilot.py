@@ -98,7 +98,7 @@ OUTPUT_DESCRIPTIONS: dict[str, str] = {
     "thrust": "propeller thrust (the thrust_command parameter)",
 }
 _DEFAULTS = AutopilotConfig()
-# Integer parameters that choose among numbered modes: their FMI range (min/max)
+# Integer parameters that choose among named modes (their range and names in the FMU)
 _MODES: dict[str, type[IntEnum]] = {"heading_mode": HeadingMode, "depth_mode": DepthMode}
 
 
@@ -156,15 +156,13 @@ class AuvAutopilot(SafeSlave):
                 setter=item_setter(self._params, name),
                 **fixed,
             )
-            if name in _MODES:
-                minimum, maximum = int(min(_MODES[name])), int(max(_MODES[name]))
-            else:
-                minimum, maximum = field_bounds(field) if kind is Real else (None, None)
+            minimum, maximum = field_bounds(field) if kind is Real else (None, None)
             self.register(
                 variable,
                 unit=field_unit(name) if kind is Real else None,
                 minimum=minimum,
                 maximum=maximum,
+                names=_MODES.get(name),
             )
 
     # --- SafeSlave hooks ---------------------------------------------------------------------

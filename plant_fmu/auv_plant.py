@@ -220,18 +220,16 @@ class AuvPlant(SafeSlave):
                 "2 horizontal u-v-r-psi (5.1.30)",
                 **fixed,
             ),
-            minimum=int(min(Variant)),
-            maximum=int(max(Variant)),
+            names=Variant,
         )
         self.register(
             Integer(
                 "moving_mass_model",
-                description="0 the dissertation's moving mass (6.3.11)-(6.3.13), "
-                "1 hull and moving mass as two bodies (6.2.28)",
+                description="0 dissertation: its moving mass (6.3.11)-(6.3.13), "
+                "1 two_body: hull and moving mass as two bodies (6.2.28)",
                 **fixed,
             ),
-            minimum=int(min(MovingMassModel)),
-            maximum=int(max(MovingMassModel)),
+            names=MovingMassModel,
         )
         self.register(
             Boolean("ideal_fluid", description="drop the viscous terms (Thm 5.1)", **fixed)

@@ -9,13 +9,17 @@ FMU is read once per build however many scenarios use it, and a rebuilt FMU is r
 Values are typed as the FMI type says (``start``, ``min``, ``max``: float for Real, int for
 Integer and Enumeration, bool for Boolean, str for String); units are the variable's own
 or its declared type's, and ``units`` holds the FMU's ``UnitDefinitions`` as SI base-unit
-exponents (plus ``factor`` / ``offset`` where they are not 1 and 0).
+exponents (plus ``factor`` / ``offset`` where they are not 1 and 0). An Integer that
+chooses among named values (``heading_mode``: ``"backstepping"`` is 3) has them in
+``names``, read from our annotation on the variable (``<Tool name="auv-cosim">``, which
+fmpy does not read).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +50,7 @@ class Variable:
     min: float | int | None
     max: float | int | None
     description: str
+    names: Mapping[str, int] = dataclasses.field(default_factory=dict)  # name -> value
 
 
 @dataclass(frozen=True)
@@ -92,19 +97,34 @@ def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
         md = read_model_description(str(path))
     except Exception as exc:  # fmpy raises plain Exception for an invalid model description
         raise FmuInterfaceError(f"{path}: not a valid FMU: {exc}") from None
+    names = _named_values(path)
     return FmuInterface(
         path=path,
         fmi_version=md.fmiVersion,
         guid=md.guid,
         model_identifier=md.coSimulation.modelIdentifier if md.coSimulation else None,
-        variables={v.name: _variable(v) for v in md.modelVariables},
+        variables={v.name: _variable(v, names.get(v.name, {})) for v in md.modelVariables},
         units={unit.name: _base_unit(unit.baseUnit) for unit in md.unitDefinitions},
         model_description=md,
         model_variables={v.name: v for v in md.modelVariables},
     )
 
 
-def _variable(v: Any) -> Variable:
+def _named_values(path: Path) -> dict[str, dict[str, int]]:
+    """``{variable: {name: value}}`` from the annotations our FMUs put on their variables
+    (see :mod:`fmu_runtime.safe_slave`); empty for another FMU."""
+    from lxml import etree
+
+    with zipfile.ZipFile(path) as archive:
+        root = etree.fromstring(archive.read("modelDescription.xml"))
+    return {
+        variable.get("name"): {item.get("name"): int(item.get("value")) for item in values}
+        for variable in root.iterfind("ModelVariables/ScalarVariable")
+        for values in variable.iterfind("Annotations/Tool[@name='auv-cosim']/NamedValues")
+    }
+
+
+def _variable(v: Any, names: Mapping[str, int]) -> Variable:
     declared = v.declaredType
     return Variable(
         name=v.name,
@@ -117,6 +137,7 @@ def _variable(v: Any) -> Variable:
         min=_typed(v.type, v.min),
         max=_typed(v.type, v.max),
         description=v.description or "",
+        names=names,
     )
 
 

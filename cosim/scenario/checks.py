@@ -44,7 +44,12 @@ class Source:
 
 def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | float | str:
     """``value`` as a value of ``var`` (an FMU interface variable): its FMI type, finite,
-    within its range."""
+    within its range; the name of one of its named values stands for that value."""
+    if isinstance(value, str) and var.names:
+        if value not in var.names:
+            named = ", ".join(f"{name!r} ({number})" for name, number in var.names.items())
+            raise src.error(key, f"{value!r} is not a {var.name}: expected one of {named}")
+        value = var.names[value]
     expected = {"Real": "a number", "Integer": "an integer", "Enumeration": "an integer",
                 "Boolean": "true or false", "String": "a string"}[var.type]  # fmt: skip
     ok = {

@@ -273,7 +273,7 @@ def test_rows_reach_results_csv_at_least_every_second(fmu_dir: Path, tmp_path: P
     take longer than a second) still has its rows on disk within about a second of
     computing them."""
     scenario = tmp_path / "slow.toml"
-    text = scenario_path("bs-3").read_text().replace("variant = 1", "variant = 0")
+    text = scenario_path("bs-3").read_text().replace('variant = "lateral"', 'variant = "full"')
     substep = "1.2e-6" if compiled.AVAILABLE else "1e-4"
     scenario.write_text(text.replace("v_0 = -0.10", f"v_0 = -0.10\nmax_substep = {substep}"))
     out = tmp_path / "run"

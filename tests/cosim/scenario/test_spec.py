@@ -166,7 +166,10 @@ BAD_EDITS = [
     # wrong types and values
     ("step = 0.01", 'step = "fast"', r"key 'coupling\.step' = 'fast'"),
     ('algorithm = "gauss-seidel"', 'algorithm = "euler"', r"'coupling\.algorithm' = 'euler'"),
-    ("heading_mode = 3", "heading_mode = 3.5", r"start\.heading_mode.*not an integer"),
+    ('heading_mode = "backstepping"', "heading_mode = 3.5", r"start\.heading_mode.*not an integer"),
+    ('heading_mode = "backstepping"', 'heading_mode = "pid"',
+     r"start\.heading_mode': 'pid' is not a heading_mode: expected one of 'off' \(0\), 'lqr' "
+     r"\(1\), 'sliding_mode' \(2\), 'backstepping' \(3\)$"),
     ("v_0 = -0.10", 'v_0 = "-0.10"', r"instances\.plant\.start\.v_0.*not a number"),
     # start values for what takes none
     ("v_0 = -0.10", "v_0 = -0.10\nyaw = 1.0", r"plant\.start\.yaw.*continuous output"),
@@ -198,9 +201,9 @@ BAD_EDITS = [
      r"key 'stop_time': 1000000000000\.0 s is 1e\+14 communication steps .* at most 1e\+08"),
     ("stop_time = 60.0", 'id = ".."\nstop_time = 60.0', r"key 'id' = '\.\.': String should match"),
     ("stop_time = 60.0", 'id = "../x"\nstop_time = 60.0', r"key 'id' = '\.\./x'"),
-    ("heading_mode = 3", "heading_mode = 4294967297",
+    ('heading_mode = "backstepping"', "heading_mode = 4294967297",
      r"start\.heading_mode': 4294967297 is outside \[0, 3\], the range heading_mode takes"),
-    ("variant = 1", "variant = 4294967297",
+    ('variant = "lateral"', "variant = 4294967297",
      r"start\.variant': 4294967297 is outside \[0, 2\], the range variant takes"),
     (REMOVE, REMOVE + "\n" + 'add = [{ from = "controller.thrust", to = "plant.thrust" }, '
      '{ from = "controller.tunnel_force", to = "plant.thrust" }]',
@@ -303,10 +306,10 @@ def test_an_integer_outside_the_fmi_range_is_refused_without_a_declared_one(
     interface = load_scenario("bs-3", fmu_dir=fmu_dir).instances["plant"].interface
     unbounded = dataclasses.replace(interface.variables["variant"], min=None, max=None)
     monkeypatch.setitem(interface.variables, "variant", unbounded)  # the cached interface
-    edited = BS3.replace("variant = 1", "variant = 4294967297")
+    edited = BS3.replace('variant = "lateral"', "variant = 4294967297")
     with pytest.raises(ScenarioError, match=r"4294967297 is outside \[-2147483648, 2147483647\]"):
         scenario_from_toml(edited, "bs-3 edited", fmu_dir=fmu_dir)
-    edited = BS3.replace("variant = 1", "variant = 2147483647")
+    edited = BS3.replace('variant = "lateral"', "variant = 2147483647")
     assert scenario_from_toml(edited, "bs-3", fmu_dir=fmu_dir).instances["plant"].start[
         "variant"
     ] == (2**31 - 1)  # the scenario takes it; the FMU judges it at its write
@@ -335,3 +338,24 @@ def test_a_substep_that_would_hang_a_step_is_refused_before_loading(
         master.preflight(scenario)
     with pytest.raises(ScenarioError, match="sub-steps"):
         master.run(scenario)  # the master itself refuses it too, before any FMU
+
+
+@pytest.mark.parametrize(
+    ("plant", "controller", "expected"),
+    [
+        ('variant = "horizontal"', 'heading_mode = "sliding_mode"', (2, 2)),
+        ("variant = 2", "heading_mode = 2", (2, 2)),  # the numbers still work
+    ],
+)
+def test_a_mode_is_given_by_its_name_or_its_number(
+    fmu_dir: Path, plant: str, controller: str, expected: tuple[int, int]
+) -> None:
+    """Named values come from the FMU's own model description (its annotation of the
+    Integer), and resolve to the number the FMU is given."""
+    text = BS3.replace('variant = "lateral"', plant).replace(
+        'heading_mode = "backstepping"', controller
+    )
+    scenario = scenario_from_toml(text, "named", fmu_dir=fmu_dir)
+    starts = scenario.instances["plant"].start, scenario.instances["controller"].start
+    assert (starts[0]["variant"], starts[1]["heading_mode"]) == expected
+    assert scenario_from_toml(scenario.to_toml(), "named", fmu_dir=fmu_dir) == scenario
