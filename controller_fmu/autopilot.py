@@ -39,10 +39,10 @@ from controller_fmu.depth_pd import (
     TABLE_6_2_TAU_D,
     DepthPd,
 )
-from controller_fmu.guidance import desired_heading, mass_locked, wrap_angle
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, LqrHeading
 from controller_fmu.modes import DepthMode, HeadingMode, choices
+from controller_fmu.setpoint_shaping import desired_heading, mass_locked, wrap_angle
 from controller_fmu.sliding_mode import SlidingModeHeading
 from plant_fmu.model.parameters import load_vehicle
 

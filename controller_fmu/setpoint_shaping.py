@@ -1,4 +1,4 @@
-"""Guidance: the heading set-point the heading controllers track, and the moving-mass lock.
+"""Set-point shaping: the heading set-point the heading controllers track, and the mass lock.
 
 * Current compensation (6.3.74)-(6.3.75): to make the velocity over ground point along the
   desired course chi in a steady uniform current, the vehicle heads into the current by the
