@@ -1,66 +1,11 @@
 """Scenario files: TOML -> a validated, fully resolved :class:`Scenario`.
 
-A scenario says which FMUs run, with which start values, how they are connected, how the
-master couples them, for how long, and what is recorded. Every problem is reported as a
-:class:`ScenarioError` naming the file and the key, *before* any FMU is loaded: variable
-names, types and causalities come from each FMU's ``modelDescription.xml`` (read with
-:func:`cosim.fmus.interface.read_interface`, which does not load the binary). Built-in FMU names are
-built on first use, or rebuilt when out of date (``cosim.fmus.build.build_fmu``).
-
-Format (every key is checked; unknown keys are errors)::
-
-    id = "bs-3"                          # optional; default: the file name without .toml;
-                                         # a plain name (letters, digits, _ . -, not first . or -)
-    summary = "one line for `auv-cosim scenarios`"
-    stop_time = 30.0                     # s, a whole number of communication steps, at most
-                                         # MAX_STEPS (1e8) of them
-    manoeuvre = "turning-circle"         # optional: the standard manoeuvre it flies; its
-                                         # metrics go into summary.json (docs/manoeuvres.md)
-
-    [coupling]
-    step = 0.01                          # s, communication step h
-    algorithm = "gauss-seidel"           # or "jacobi" [gauss-seidel]
-    order = ["controller", "plant"]      # Gauss-Seidel order [instances in file order]
-    step_multiples = { controller = 1 }  # instance steps every k*h (multi-rate) [1]
-
-    [instances.plant]                    # instance name -> FMU
-    fmu = "AuvPlant"                     # built-in "AuvPlant" / "AuvAutopilot" or a path
-                                         # (relative to this file)
-    [instances.plant.start]              # parameters and unconnected inputs, SI units
-    variant = 1
-    v_0 = -0.10
-    vehicle = "myveh.toml"               # a string ending in .toml is a file, relative to
-                                         # this file (passed to the FMU as an absolute path)
-
-    [instances.controller]
-    fmu = "AuvAutopilot"
-    [instances.controller.start]
-    heading_mode = 3
-
-    [connections]
-    same_names = true                    # output x of one instance -> input x of another [true]
-    remove = ["plant.fin_angle"]         # inputs to leave unconnected (hold their start value)
-    add = [{ from = "controller.thrust", to = "plant.thrust" }]  # add, or replace the source
-                                         # (an input appears at most once in add)
-
-    [output]
-    record = ["plant.yaw", "controller.yaw_setpoint"]  # [every output and every
-                                                       #  unconnected input of every instance]
-    rrd = true                           # write recording.rrd [true]
-
-    [[events]]                           # values set during the run, and
-    [[faults]]                           # faults on connections and actuators: see
-                                         # cosim/scenario/timeline_spec.py and docs/events.md
-
-Types are strict: a string where a number belongs, a float step multiple or start value of
-an Integer, an integer outside the FMI 32-bit range or outside the variable's declared
-min/max, infinity or NaN are errors, never coerced. The file is UTF-8, with or without a
-byte-order mark.
-
-The resolved :class:`Scenario` (and :meth:`Scenario.to_toml`, which loads back to an equal
-scenario) spells everything out: the full connection list, the explicit start values per
-instance, the Gauss-Seidel order and every step multiple, and the recorded variables.
-``cosim/scenarios/*.toml`` are the built-in scenarios (docs/model.md#scenarios).
+The format is stated once, in docs/scenario-example.toml (every key, with comments). Every
+problem is a :class:`ScenarioError` naming the file and the key, raised *before* any FMU is
+loaded: variable names, types and causalities come from each FMU's ``modelDescription.xml``
+(:func:`cosim.fmus.interface.read_interface`, which does not load the binary). Built-in FMU
+names are built on first use, or rebuilt when out of date (``cosim.fmus.build.build_fmu``).
+:meth:`Scenario.to_toml` writes the resolved scenario, which loads back to an equal one.
 """
 
 from __future__ import annotations
