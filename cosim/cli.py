@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
-from cosim.paths import DEFAULT_FMU_DIR
+from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -149,6 +149,17 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _reproduce(args: argparse.Namespace) -> int:
+    import time
+
+    from cosim.analysis.reproduction import reproduce
+
+    started = time.perf_counter()
+    page = reproduce(args.out, args.values, scenarios=not args.skip_scenarios)
+    print(f"wrote {page} in {time.perf_counter() - started:.0f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="auv-cosim",
@@ -215,6 +226,17 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
     _add_model_options(a)
     a.set_defaults(func=_phase_portrait)
+
+    p = sub.add_parser("reproduce", help="check the dissertation's numbers: docs/reproduction.md")
+    p.add_argument("--out", type=Path, default=DOCS_DIR, help="docs folder [%(default)s]")
+    p.add_argument(
+        "--values",
+        type=Path,
+        default=DOCS_DIR / "dissertation-values.toml",
+        help="the dissertation's printed values [%(default)s]",
+    )
+    p.add_argument("--skip-scenarios", action="store_true", help="no closed-loop runs (Ch. 6)")
+    p.set_defaults(func=_reproduce)
 
     p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
     p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
