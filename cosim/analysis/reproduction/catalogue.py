@@ -5,21 +5,31 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 
 from cosim.analysis.reference_values import Reference
-from cosim.analysis.reproduction import chapter6, lateral, open_loop, roll_torque, scenarios
+from cosim.analysis.reproduction.chapter6 import equation_6_3_19, low_speed
+from cosim.analysis.reproduction.lateral import example_5_3
+from cosim.analysis.reproduction.open_loop import (
+    coefficient_claims,
+    example_5_1,
+    example_5_2,
+    fin_factors,
+    phase_portraits,
+)
 from cosim.analysis.reproduction.record import Claim, Section
+from cosim.analysis.reproduction.roll_torque import moving_mass, roll_torque
+from cosim.analysis.reproduction.scenarios import closed_loop
 
 SECTIONS: tuple[Callable[[Mapping[str, Reference]], Section], ...] = (
-    open_loop.example_5_1,
-    open_loop.coefficient_claims,
-    open_loop.example_5_2,
-    open_loop.phase_portraits,
-    open_loop.fin_factors,
-    lateral.example_5_3,
-    roll_torque.roll_torque,
-    roll_torque.moving_mass,
-    chapter6.equation_6_3_19,
-    chapter6.low_speed,
-    scenarios.closed_loop,
+    example_5_1,
+    coefficient_claims,
+    example_5_2,
+    phase_portraits,
+    fin_factors,
+    example_5_3,
+    roll_torque,
+    moving_mass,
+    equation_6_3_19,
+    low_speed,
+    closed_loop,
 )
 
 

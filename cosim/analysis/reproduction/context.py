@@ -21,11 +21,14 @@ import numpy as np
 from cosim.analysis.bifurcation import OperatingConditions, find_equilibria
 from cosim.analysis.equilibria import Equilibrium
 from cosim.analysis.reference_values import Reference
-from cosim.analysis.reproduction.record import NotRunError
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 
 T = TypeVar("T")
 CHAPTER_5_WEIGHT = "table_4_1.weight"  # the reference value Chapter 5 was computed with
+
+
+class NotRunError(Exception):
+    """Ours was not computed (scenarios skipped); the reason."""
 
 
 @dataclass(frozen=True)

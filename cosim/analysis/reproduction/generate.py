@@ -11,9 +11,9 @@ from pathlib import Path
 
 from cosim.analysis.reference_values import load_reference_values
 from cosim.analysis.reproduction.catalogue import catalogue
-from cosim.analysis.reproduction.context import Context
+from cosim.analysis.reproduction.context import Context, NotRunError
 from cosim.analysis.reproduction.page import Evaluated, render
-from cosim.analysis.reproduction.record import Figure, NotRunError, evaluate
+from cosim.analysis.reproduction.record import Figure, evaluate
 from cosim.analysis.reproduction.scenarios import runner
 
 PAGE = "reproduction.md"

@@ -14,9 +14,10 @@ from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal, Protocol
 
+from cosim.analysis.reproduction.context import Context, NotRunError
+
 if TYPE_CHECKING:
     from cosim.analysis.reference_values import Reference
-    from cosim.analysis.reproduction.context import Context
 
 Verdict = Literal["agrees", "differs (explained)", "differs", "not run"]
 ZERO_TOLERANCE = 1e-3  # a bare printed "0" beside figures with 3-4 decimals
@@ -28,10 +29,6 @@ class Cost(Enum):
     INSTANT = "instant"  # linearisations and equilibria: under a second
     SWEEP = "sweep"  # continuations and phase portraits: seconds
     SCENARIO = "scenario"  # a closed-loop run of the two FMUs: tens of seconds
-
-
-class NotRunError(Exception):
-    """Ours was not computed (scenarios skipped, the master unavailable); the reason."""
 
 
 def decimals(text: str) -> int:

@@ -45,15 +45,19 @@ LQR_2 = (
 )
 
 
-def runner(work: Path, log: Callable[[str], None] | None = None) -> Callable[[str], RunData]:
-    """Runs a built-in scenario into ``work/<id>`` (no recording) and reads its results."""
+def runner(
+    work: Path, log: Callable[[str], None] | None = None, fmu_dir: Path | None = None
+) -> Callable[[str], RunData]:
+    """Runs a built-in scenario into ``work/<id>`` (no recording; the FMUs in ``fmu_dir``,
+    default: the master's) and reads its results."""
+    options = {} if fmu_dir is None else {"fmu_dir": fmu_dir}
 
     def run(scenario_id: str) -> RunData:
         from cosim.run.results import read_csv
         from cosim.run.runner import run_scenario
 
         started = time.perf_counter()
-        outcome = run_scenario(scenario_id, work / scenario_id, no_rrd=True)
+        outcome = run_scenario(scenario_id, work / scenario_id, no_rrd=True, **options)
         if log is not None:
             log(f"  {scenario_id}: ran in {time.perf_counter() - started:.0f} s")
         if not outcome.result.complete:
