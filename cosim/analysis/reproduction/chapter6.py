@@ -48,10 +48,13 @@ def linearised(ctx: Context) -> tuple[np.ndarray, np.ndarray]:
 
 def _A_rows(printed_A: list[list[str]], ctx: Context) -> Finding:
     A, _ = linearised(ctx)
-    tolerance = LastDigit()
     cells = [(i, j) for i in range(3) for j in range(7) if (i, j) != A22]
-    off = [(i, j) for i, j in cells if not tolerance.accepts(printed_A[i][j], A[i, j])]
-    return Finding(shown="all agree" if not off else f"differ at {off}", holds=not off)
+    off = [(i, j) for i, j in cells if not LastDigit().accepts(printed_A[i][j], A[i, j])]
+    return Finding(
+        values=tuple(A[i, j] for i, j in cells),
+        against=tuple(printed_A[i][j] for i, j in cells),
+        shown="all agree" if not off else f"differ at {off}",
+    )
 
 
 def _A22(ctx: Context) -> Finding:
