@@ -46,7 +46,7 @@ def linearised(ctx: Context) -> tuple[np.ndarray, np.ndarray]:
     return ctx.memo("(6.3.19)", compute)
 
 
-def _A_rows(printed_A: list[list[str]], ctx: Context) -> Finding:
+def _A_rows(printed_A: list, ctx: Context) -> Finding:
     A, _ = linearised(ctx)
     cells = [(i, j) for i in range(3) for j in range(7) if (i, j) != A22]
     off = [(i, j) for i, j in cells if not LastDigit().accepts(printed_A[i][j], A[i, j])]
@@ -80,7 +80,7 @@ def equation_6_3_19(refs: Mapping[str, Reference]) -> Section:
             A.source,
             "as printed",
             "SI",
-            partial(_A_rows, A.text),
+            partial(_A_rows, [list(row) for row in A.text]),
             note=f"at U0 = {U0} m/s with g = 9.8 (W = m g), as the dissertation computed it",
         ),
         Claim(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from decimal import Decimal
 from functools import partial
 
 import numpy as np
@@ -35,9 +36,11 @@ def jacobian(params: VehicleParameters) -> np.ndarray:
 
 def printed_jacobian(refs: Mapping[str, Reference]) -> tuple[str, ...]:
     """J-bar + delta-J as printed, row by row (16 entries, with their digits)."""
-    bar, delta = (refs[f"example_5_3.{k}"].printed for k in ("jacobian_bar", "jacobian_delta"))
+    bar, delta = (refs[f"example_5_3.{k}"].text for k in ("jacobian_bar", "jacobian_delta"))
     return tuple(
-        str(a + b) for ra, rb in zip(bar, delta, strict=True) for a, b in zip(ra, rb, strict=True)
+        str(Decimal(a) + Decimal(b))
+        for ra, rb in zip(bar, delta, strict=True)
+        for a, b in zip(ra, rb, strict=True)
     )
 
 
@@ -64,7 +67,7 @@ def _eigenvalues(coupled: bool, ctx: Context) -> Finding:
 
 def _eigenvalue_text(ref: Reference) -> tuple[str, ...]:
     """[re, re, re, im] of printed eigenvalues [[re, 0], [re, 0], [re, +im], [re, -im]]."""
-    (real_1, _), (real_2, _), (real_3, imag), _ = ref.text
+    (real_1, _), (real_2, _), (real_3, imag), _ = list(ref.text)
     return real_1, real_2, real_3, imag
 
 
@@ -116,7 +119,7 @@ def example_5_3(refs: Mapping[str, Reference]) -> Section:
                 f"eigenvalues of {what} (re, re, re +- i im)",
                 ref.source,
                 _eigenvalue_text(ref),
-                ref.unit,
+                unit_text(ref),
                 partial(_eigenvalues, coupled),
             )
         )

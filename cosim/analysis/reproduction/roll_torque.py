@@ -36,6 +36,7 @@ from cosim.analysis.reproduction.record import (
     Section,
     SlightlyAbove,
     printed,
+    unit_text,
 )
 from plant_fmu.model.dynamics import Variant
 
@@ -86,7 +87,7 @@ def _beyond_the_fold(ctx: Context) -> Finding:
 
 def _long_fins(ctx: Context) -> Finding:
     vehicle = ctx.chapter_5(ctx.long_fins)
-    holds, shown = True, []
+    holds, shown = True, list[str]()
     for k in LONG_FIN_TORQUES:
         conditions = OperatingConditions(vehicle, Variant.LATERAL, roll_torque=k * Q_PROP)
         eqs = find_equilibria(conditions)
@@ -223,7 +224,7 @@ def moving_mass(refs: Mapping[str, Reference]) -> Section:
             f"one fold when |y_g| is 'slightly larger than {fold.text} cm'",
             fold.source,
             printed(fold),
-            fold.unit,
+            unit_text(fold),
             _mass_fold,
             tolerance=SlightlyAbove(float(fold.resolution)),
             cost=Cost.SWEEP,

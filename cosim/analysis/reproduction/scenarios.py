@@ -27,6 +27,8 @@ from cosim.analysis.reproduction.record import (
     LastDigit,
     Relative,
     Section,
+    Tolerance,
+    unit_text,
 )
 from cosim.run.figures import settling_time
 
@@ -179,19 +181,18 @@ def _depth_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
     """vert-2's steady state: w, theta and delta_s, each with its tolerance."""
     steady = refs["scenarios.depth_steady_state"]
     claims = []
-    for k, (name, column, scale, tolerance) in enumerate(
-        (
-            ("w", "plant.w", 1.0, LastDigit()),
-            ("theta", "plant.pitch", 1.0, Relative(0.25)),
-            ("mean delta_s", "controller.fin_angle", math.degrees(1.0), Absolute(1.5)),
-        )
-    ):
+    means: tuple[tuple[str, str, float, Tolerance], ...] = (
+        ("w", "plant.w", 1.0, LastDigit()),
+        ("theta", "plant.pitch", 1.0, Relative(0.25)),
+        ("mean delta_s", "controller.fin_angle", math.degrees(1.0), Absolute(1.5)),
+    )
+    for k, (name, column, scale, tolerance) in enumerate(means):
         claims.append(
             Claim(
                 f"6-DOF, mass locked after 15 s: {name} ~ {steady.text[k]}",
                 "Figs. 6.46-6.49; Sec. 6.3.4 (vert-2)",
                 (steady.text[k],),
-                steady.unit[k],
+                unit_text(steady, [k]),
                 partial(_steady_mean, column, scale),
                 tolerance=tolerance,
                 cost=Cost.SCENARIO,
