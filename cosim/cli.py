@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
-from cosim.paths import DEFAULT_FMU_DIR
+from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -149,6 +149,17 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _reproduce(args: argparse.Namespace) -> int:
+    import time
+
+    from cosim.reproduction import reproduce
+
+    started = time.perf_counter()
+    page = reproduce(args.out, args.values, scenarios=not args.skip_scenarios)
+    print(f"wrote {page} in {time.perf_counter() - started:.0f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="auv-cosim",
@@ -216,6 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_model_options(a)
     a.set_defaults(func=_phase_portrait)
 
+    _add_reproduce_parser(sub)
+
     p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
     p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
     p.set_defaults(func=_report)
@@ -247,6 +260,20 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_study)
+
+
+def _add_reproduce_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim reproduce``: regenerate docs/reproduction.md."""
+    p = sub.add_parser("reproduce", help="check the dissertation's numbers: docs/reproduction.md")
+    p.add_argument("--out", type=Path, default=DOCS_DIR, help="docs folder [%(default)s]")
+    p.add_argument(
+        "--values",
+        type=Path,
+        default=DOCS_DIR / "dissertation-values.toml",
+        help="the dissertation's printed values [%(default)s]",
+    )
+    p.add_argument("--skip-scenarios", action="store_true", help="no closed-loop runs (Ch. 6)")
+    p.set_defaults(func=_reproduce)
 
 
 def _add_model_options(a: argparse.ArgumentParser) -> None:

@@ -1,8 +1,8 @@
 """The dissertation's printed numbers (``docs/dissertation-values.toml``), read in one place.
 
-The tests (through ``tests/reference_values.py``) and ``scripts/reproduce_dissertation.py``
-compare the model with these numbers. The file is repository data, not package data, so
-the caller passes its path.
+The tests (through ``tests/reference_values.py``) and the reproduction
+(``cosim/reproduction/``) compare the model with these numbers. The file is repository
+data, not package data, so the caller passes its path.
 
 A value keeps the digits it was printed with: the file's floats are parsed as
 :class:`decimal.Decimal`, so ``1.4050`` keeps its four decimals, and
