@@ -105,6 +105,8 @@ class LiveControl:
     def latest(self, refs: Sequence[str]) -> tuple[float | None, dict[str, float]]:
         """(t in s, the values at the last communication point) of recorded or exchanged
         variables; :class:`OverrideError` names one that is neither."""
+        if not self._index:
+            raise OverrideError("get: the run has not reached t = 0 yet (its FMUs are set up)")
         unknown = [ref for ref in refs if ref not in self._index]
         if unknown:
             raise OverrideError(
@@ -115,6 +117,12 @@ class LiveControl:
             return None, {}
         t, z = snapshot
         return t, {ref: float(z[self._index[ref]]) for ref in refs}
+
+    @property
+    def time(self) -> float | None:
+        """t (s) of the last communication point (None before t = 0)."""
+        snapshot = self._latest
+        return None if snapshot is None else snapshot[0]
 
     # --- the master's thread --------------------------------------------------------------
 

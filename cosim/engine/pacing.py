@@ -6,17 +6,19 @@ communication point n (t_n = n h of simulated time) no earlier than its absolute
     d_n = t0 + n h / f         (wall clock, ``time.monotonic``; t0 when point 0 is released)
 
 so the sleeps never add up (no drift): a step that ran late is followed by shorter sleeps,
-or none, until the run is back on its deadlines. When the FMUs are slower than the target
-the run goes on as fast as it can and says so once (``say``), when it first falls
-:data:`BEHIND_S` behind. A pause (:meth:`Pacer.pause` / :meth:`Pacer.resume`) moves t0 by
-its length, so a resumed run is not "late".
+or none, until the run is back on its deadlines. A run that falls :data:`BEHIND_S` behind
+(the FMUs are slower than the target, or the machine was busy) says so once (``say``),
+drops that backlog (t0 moves on: the run does not race to make up lost time, which a viewer
+or a program in the loop would see as a burst) and goes on, as fast as it can while it
+cannot keep up. A pause (:meth:`Pacer.pause` / :meth:`Pacer.resume`) moves t0 by its
+length, so a resumed run is not "late".
 
 Figures, all in wall-clock seconds: a point is *late* when it is computed after its
 deadline; its lateness is how long after its deadline it was released (the computation's
 delay, plus the sleep's own overshoot for a point that slept). The rolling real-time factor
 is the simulated time advanced over the last :data:`ROLLING_WINDOW_S` of wall clock divided
-by that wall time, the total one the simulated time reached over the wall time since t0
-(pauses excluded).
+by that wall time, the total one the simulated time reached over the wall time since
+point 0 (pauses excluded).
 
 Written by hand: no library paces a loop on absolute deadlines with these figures (libcosim's
 ``real_time_timer`` is C++ inside its execution; ``sched`` or ``asyncio`` schedule callbacks,
@@ -62,6 +64,8 @@ class Pacer:
         self.h, self.factor = h, factor
         self.clock, self.sleep, self.say = clock, sleep, say
         self.t0: float | None = None
+        self._started = 0.0  # clock() at point 0
+        self._paused_s = 0.0  # wall clock spent paused
         self.n = 0  # the last point released
         self.late_steps = 0
         self.max_lateness = 0.0  # s
@@ -78,7 +82,8 @@ class Pacer:
         """Wait until point n is due (point 0 starts the clock); account for lateness."""
         now = self.clock()
         if self.t0 is None or n == 0:
-            self.t0, self.n = now, n
+            self.t0 = self._started = now
+            self.n = n
             self._samples.append((now, n))
             return
         due = self.deadline(n)
@@ -87,19 +92,25 @@ class Pacer:
             now = self.clock()
         else:
             self.late_steps += 1
-            if not self.behind and now - due >= BEHIND_S:
-                self.behind = True
-                self.say(
-                    f"real time: cannot keep up with {self.factor:g}x real time at "
-                    f"t = {n * self.h:.6g} s ({now - due:.2f} s behind); going on as fast "
-                    "as possible"
-                )
+            if now - due >= BEHIND_S:
+                self._fall_behind(n, now - due)
         self.max_lateness = max(self.max_lateness, now - due)
         self.n = n
         if now - self._samples[-1][0] >= _SAMPLE_S:
             self._samples.append((now, n))
             while now - self._samples[0][0] > ROLLING_WINDOW_S and len(self._samples) > 2:
                 self._samples.popleft()
+
+    def _fall_behind(self, n: int, lag: float) -> None:
+        """Say once that the run cannot keep up; drop the backlog of ``lag`` s."""
+        if not self.behind:
+            self.behind = True
+            self.say(
+                f"real time: cannot keep up with {self.factor:g}x real time at "
+                f"t = {n * self.h:.6g} s ({lag:.2f} s behind); going on as fast as possible"
+            )
+        assert self.t0 is not None
+        self.t0 += lag
 
     def pause(self) -> None:
         """Stop the clock (the run waits); :meth:`resume` moves the deadlines on."""
@@ -110,6 +121,7 @@ class Pacer:
         if self._paused_at is not None:
             paused = self.clock() - self._paused_at
             self._paused_at = None
+            self._paused_s += paused
             if self.t0 is not None:
                 self.t0 += paused
                 self._samples = collections.deque((t + paused, n) for t, n in self._samples)
@@ -125,7 +137,7 @@ class Pacer:
         """Simulated time reached over the wall time since point 0 (pauses excluded)."""
         if self.t0 is None:
             return None
-        wall = (self._paused_at or self.clock()) - self.t0
+        wall = (self._paused_at or self.clock()) - self._started - self._paused_s
         return self.n * self.h / wall if wall > 0 else None
 
     def status(self) -> str:
