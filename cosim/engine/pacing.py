@@ -90,7 +90,7 @@ class Pacer:
         if now < due:
             self.sleep(due - now)
             now = self.clock()
-        else:
+        elif now > due:
             self.late_steps += 1
             if now - due >= BEHIND_S:
                 self._fall_behind(n, now - due)
