@@ -2,7 +2,7 @@
 
 One JSON object per line each way (the JSON Lines convention, https://jsonlines.org: UTF-8,
 one value per ``\\n``-terminated line), so any language's JSON library and a socket are a
-client (docs/live_client.py is one in 20 lines). Requests, one reply line each::
+client (scripts/live_client.py is one in about 20 lines). Requests, one reply line each::
 
     {"set": {"controller.yaw_setpoint": 0.5}}  -> {"ok": true, "set": {...}}
     {"get": ["plant.yaw", "plant.down"]}       -> {"t": 12.3, "values": {"plant.yaw": ...}}
