@@ -224,10 +224,10 @@ class Timeline:
                 k += 1
             name = f"{OVERRIDE_PREFIX}{k}"
             self._taken.add(name)
-            self._fire(Event(name, time=t, set=values), t, f"override from {source}")
+            self._fire(Event(name, time=t, set=values), t, "override", f" from {source}")
             self.overrides.append({"name": name, "time": t, "set": values, "source": source})
 
-    def _fire(self, event: Event, t: float, what: str = "event") -> None:
+    def _fire(self, event: Event, t: float, what: str = "event", origin: str = "") -> None:
         why = f"{what} {event.name!r} at t = {t:.6g} s"
         for ref, value in event.set.items():
             if event.ramp is not None:
@@ -237,7 +237,7 @@ class Timeline:
         self.fired.append({"name": event.name, "time": t, "set": dict(event.set)})
         told = ", ".join(f"{ref} = {value!r}" for ref, value in event.set.items())
         ramp = f" (ramp over {event.ramp!r} s)" if event.ramp is not None else ""
-        self.notes.append((t, f"{what} {event.name}: {told}{ramp}"))
+        self.notes.append((t, f"{what} {event.name}{origin}: {told}{ramp}"))
 
     def _advance_ramps(self, t: float) -> None:
         for ref, (v0, v1, t0, duration) in list(self._ramps.items()):

@@ -2,7 +2,8 @@
 
 The command line runs in a subprocess (its own process group, killed in a ``finally``) on
 the built FMUs (bs-3); a client sets the yaw set-point twice and reads the yaw back over
-JSON lines; the run folder's scenario.toml, run again, gives a byte-identical results.csv.
+JSON lines; summary.json, results.csv and the recording log both overrides, and the run
+folder's scenario.toml, run again, gives a byte-identical results.csv.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from rerun.chunk import RrdReader
 
 from cosim.engine.live import LiveControl, OverrideError
 from cosim.outputs.results import read_csv
@@ -39,7 +41,7 @@ def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
 def cli_run(fmu_dir: Path, out: Path, *options: str) -> Iterator[subprocess.Popen]:
     """`auv-cosim run bs-3 ...` in its own process group, killed on the way out."""
     command = [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--fmu-dir", str(fmu_dir),
-               "--out", str(out), "--quiet", "--no-rrd", *options]  # fmt: skip
+               "--out", str(out), "--quiet", *options]  # fmt: skip
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)  # fmt: skip
     try:
@@ -120,6 +122,19 @@ def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
     assert summary["real_time"]["target_factor"] == 4.0
     assert summary["real_time"]["achieved_factor"] > 0.0
 
+    notes = []  # the recording marks each override at its time
+    for chunk in RrdReader(out / "recording.rrd").stream():
+        if chunk.entity_path == "/events":
+            batch = chunk.to_record_batch()
+            texts = [t for row in batch.column("TextLog:text").to_pylist() for t in row]
+            nanos = batch.column("sim_time").cast("int64").to_pylist()
+            notes += list(zip(nanos, texts, strict=True))
+    assert sorted(notes) == [
+        (round(o["time"] * 1e9), f"override {o['name']} from {o['source']}: "
+                                 f"controller.yaw_setpoint = {value}")
+        for o, value in zip(overrides, (0.3, 0.6), strict=True)
+    ]  # fmt: skip
+
     replay = run_scenario(out / "scenario.toml", tmp_path / "replay", fmu_dir=fmu_dir,
                           no_rrd=True, tail_guard=False)  # fmt: skip
     assert replay.result.complete, replay.result.error
@@ -130,7 +145,7 @@ def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
 def test_the_endpoint_refuses_bad_requests_with_one_line_each(
     fmu_dir: Path, tmp_path: Path
 ) -> None:
-    with cli_run(fmu_dir, tmp_path / "run", "--stop-time", "60", "--real-time", "1",
+    with cli_run(fmu_dir, tmp_path / "run", "--no-rrd", "--stop-time", "60", "--real-time", "1",
                  "--control", "0") as proc:  # fmt: skip
         host, port = endpoint(proc)
         assert host == "127.0.0.1"  # the default interface, port 0: any free port
