@@ -45,6 +45,7 @@ from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
 
 if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (step 2)
     from cosim.engine.master import RunResult
+    from cosim.outputs.background import BackgroundSink
     from cosim.outputs.run_outputs import RunOutputs
     from cosim.scenario.spec import Scenario
     from cosim.viz.recording import RerunSink
@@ -208,9 +209,24 @@ def _open_outputs(
     else:
         rrd = folder.path / RECORDING_FILE if scenario.rrd else None
     progress = options.progress and not options.interactive  # the keys' status line instead
+    recorder = rerun_sink if options.real_time is None else _background_rerun_sink
     return RunOutputs.open(
-        scenario, folder, rrd, options.connect, progress, recorder=rerun_sink, status=status
+        scenario, folder, rrd, options.connect, progress, recorder=recorder, status=status
     )
+
+
+def _background_rerun_sink(
+    scenario: Scenario,
+    rrd: Path | None,
+    url: str | None,
+    on_flushed: Callable[[int], None] | None,
+) -> BackgroundSink | None:
+    """:func:`rerun_sink` fed from a thread of its own (a paced run: its sends would make
+    steps late, :mod:`cosim.outputs.background`)."""
+    from cosim.outputs.background import BackgroundSink
+
+    sink = rerun_sink(scenario, rrd, url, on_flushed)
+    return None if sink is None else BackgroundSink(sink)
 
 
 def rerun_sink(
