@@ -37,7 +37,8 @@ def paced_run(fmu_dir: Path, factor: float, stop_time: float) -> str:
         f"{factor:g}x over {stop_time:g} s: wall clock {wall:.3f} s for {target:g} s "
         f"({100 * (wall - target) / target:+.2f} %), achieved {paced['achieved_factor']:.4f}x, "
         f"{paced['late_steps']} of {summary['rows'] - 1} steps late, at most "
-        f"{1e3 * paced['max_lateness_s']:.1f} ms; load average "
+        f"{1e3 * paced['max_lateness_s']:.1f} ms (at t = {paced['max_lateness_at_s']} s); "
+        "load average "
         f"{load[0]:.2f} before, {os.getloadavg()[0]:.2f} after (1 min, {os.cpu_count()} cores)"
     )
 

@@ -69,6 +69,7 @@ class Pacer:
         self.n = 0  # the last point released
         self.late_steps = 0
         self.max_lateness = 0.0  # s
+        self.latest_at: float | None = None  # s of simulated time: the latest point's t_n
         self.behind = False  # said once that the machine cannot keep up
         self._paused_at: float | None = None
         self._samples: collections.deque[tuple[float, int]] = collections.deque()
@@ -94,7 +95,8 @@ class Pacer:
             self.late_steps += 1
             if now - due >= BEHIND_S:
                 self._fall_behind(n, now - due)
-        self.max_lateness = max(self.max_lateness, now - due)
+        if now - due > self.max_lateness:
+            self.max_lateness, self.latest_at = now - due, n * self.h
         self.n = n
         if now - self._samples[-1][0] >= _SAMPLE_S:
             self._samples.append((now, n))
@@ -153,5 +155,6 @@ class Pacer:
             "achieved_factor": self.total_factor(),
             "late_steps": self.late_steps,
             "max_lateness_s": self.max_lateness,
+            "max_lateness_at_s": self.latest_at,
             "fell_behind": self.behind,
         }

@@ -23,7 +23,8 @@ of an event: ``name``, ``time`` in s, the values it ``set``; docs/events.md) and
 ``overrides`` (each value set while the run went on, docs/live-runs.md: ``name``, ``time``
 in s, the values it ``set``, ``source``: where it came from) and ``real_time`` (a paced
 run's ``target_factor``, ``achieved_factor``, ``late_steps``, ``max_lateness_s``,
-``fell_behind``; null for a run not paced).
+``max_lateness_at_s`` (the simulated time of that step), ``fell_behind``; null for a run
+not paced).
 A scenario with a ``manoeuvre`` adds at the top level, from the start,
 ``"manoeuvre": <kind>`` and, at the end, its metrics (:mod:`cosim.outputs.manoeuvre`:
 ``tactical_diameter_m``, ...; null where the run cannot give one). A summary still
