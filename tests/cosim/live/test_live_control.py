@@ -86,6 +86,17 @@ class Client:
             time.sleep(0.02)
         raise AssertionError(f"the run did not reach t = {t} s")
 
+    def time_held(self) -> float:
+        """Poll until two reads 0.2 s of wall clock apart give the same time; that time."""
+        deadline, before = time.monotonic() + TIMEOUT_S, None
+        while time.monotonic() < deadline:
+            now = self.ask({"get": []})["t"]
+            if now == before:
+                return now
+            before = now
+            time.sleep(0.2)
+        raise AssertionError("the run did not pause")
+
 
 @pytest.mark.slow
 def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
@@ -158,6 +169,10 @@ def test_the_endpoint_refuses_bad_requests_with_one_line_each(
             client.raw('{"get": ["plant.no_such_output"]}'),
             client.raw("not json"),
         ]
+        assert client.ask({"pause": True}) == {"ok": True, "paused": True}
+        held = client.time_held()  # the run waits at a communication point
+        assert client.ask({"pause": False}) == {"ok": True, "paused": False}
+        assert client.time_at_least(held + 0.05) > held  # and goes on once resumed
         client.ask({"stop": True})
         proc.communicate(timeout=TIMEOUT_S)
         assert proc.returncode == 130  # stopped like Ctrl-C
