@@ -67,6 +67,9 @@ def _run(args: argparse.Namespace) -> int:
         fmu_dir=args.fmu_dir,
         overwrite=args.overwrite,
         progress=not args.quiet and sys.stderr.isatty(),
+        real_time=args.real_time,
+        control=args.control,
+        interactive=args.interactive,
     )
     return run_from_cli(args.scenario, options)
 
@@ -193,6 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_live_options(p)
     p.set_defaults(func=_run)
 
     _add_sweep_parser(sub)
@@ -233,6 +237,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
     p.set_defaults(func=_report)
     return parser
+
+
+def _add_live_options(p: argparse.ArgumentParser) -> None:
+    """``auv-cosim run``'s live options: pacing, the control endpoint, keys."""
+    p.add_argument(
+        "--real-time",
+        nargs="?",
+        const=1.0,
+        type=float,
+        metavar="FACTOR",
+        help="pace the run at FACTOR x real time [1.0] (docs/live-runs.md)",
+    )
+    p.add_argument(
+        "--control",
+        metavar="[HOST:]PORT",
+        help="JSON-lines control endpoint, host 127.0.0.1 unless given; no authentication",
+    )
+    p.add_argument("--interactive", action="store_true", help="steer with keys (needs --real-time)")
 
 
 def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:

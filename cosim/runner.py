@@ -13,8 +13,12 @@ figures. The order of a run:
    overrides, :func:`cosim.engine.master.preflight`); then the earlier run's files are removed
    and every output opened (:mod:`cosim.outputs.run_outputs`): nothing has stepped yet, and a
    failure so far leaves nothing behind;
-4. the master streams the rows to the outputs (:mod:`cosim.engine.master`);
-5. the outputs are closed and summary.json says how the run ended, whatever signal comes.
+4. the master streams the rows to the outputs (:mod:`cosim.engine.master`), paced and
+   steered live if asked (:mod:`cosim.live.session`: ``--real-time``, ``--control``,
+   ``--interactive``; docs/live-runs.md);
+5. the outputs are closed and summary.json says how the run ended, whatever signal comes;
+   a run that took live overrides rewrites scenario.toml with them as ``[[events]]``, so
+   running that file replays it.
 
 A run that stops early keeps its partial results (``summary.json`` says ``"complete":
 false`` and why) and exits non-zero with a one-line reason: 1 for a failure, 128 + the
@@ -41,6 +45,7 @@ from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
 
 if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (step 2)
     from cosim.engine.master import RunResult
+    from cosim.outputs.background import BackgroundSink
     from cosim.outputs.run_outputs import RunOutputs
     from cosim.scenario.spec import Scenario
     from cosim.viz.recording import RerunSink
@@ -59,7 +64,9 @@ class RunOptions:
     row in memory (``outcome.result.column(...)``; memory grows with the stop time);
     ``tail_guard`` starts the process that cuts a killed run's torn last row
     (:mod:`cosim.outputs.tail_guard`; a study's task, whose killed run is run again, goes
-    without: it costs ~20 ms a run).
+    without: it costs ~20 ms a run). ``real_time`` paces the run at that real-time factor,
+    ``control`` opens the control endpoint at that HOST:PORT, ``interactive`` reads keys
+    from the terminal (docs/live-runs.md).
     """
 
     out_dir: Path | None = None
@@ -74,6 +81,9 @@ class RunOptions:
     progress: bool = False
     keep_rows: bool = False
     tail_guard: bool = True
+    real_time: float | None = None
+    control: str | None = None
+    interactive: bool = False
 
 
 @dataclass
@@ -130,16 +140,33 @@ def execute(
         stepped = False
         try:
             from cosim.engine import master
+            from cosim.live.session import LiveSession
 
             loaded = _checked_scenario(scenario, options)
-            folder.clear_earlier_run()
-            outputs = _open_outputs(loaded, folder, options)
+            session = LiveSession.open(
+                loaded, options.real_time, options.control, options.interactive
+            )
             try:
-                result = master.run(loaded, outputs.sinks, keep_rows=options.keep_rows, stop=stop)
-            except BaseException:  # refused or not set up: it never stepped
-                outputs.discard()
-                raise
-            stepped = True
+                folder.clear_earlier_run()
+                outputs = _open_outputs(loaded, folder, options, session.status)
+                if session.pacer is not None and outputs.csv is not None:
+                    outputs.csv.warm_up()
+                try:
+                    result = master.run(
+                        loaded,
+                        outputs.sinks,
+                        keep_rows=options.keep_rows,
+                        stop=stop,
+                        hand_off_interval=session.hand_off_interval or master.HAND_OFF_INTERVAL_S,
+                        pacer=session.pacer,
+                        live=session.live,
+                    )
+                except BaseException:  # refused or not set up: it never stepped
+                    outputs.discard()
+                    raise
+                stepped = True
+            finally:
+                session.close()
             _complete(outputs, result, stop)
         finally:
             folder.release(unused=not stepped)
@@ -170,7 +197,9 @@ def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> S
     return scenario
 
 
-def _open_outputs(scenario: Scenario, folder: RunFolder, options: RunOptions) -> RunOutputs:
+def _open_outputs(
+    scenario: Scenario, folder: RunFolder, options: RunOptions, status: Callable[[], str]
+) -> RunOutputs:
     from cosim.outputs.run_outputs import RunOutputs
 
     if options.no_rrd:
@@ -179,9 +208,25 @@ def _open_outputs(scenario: Scenario, folder: RunFolder, options: RunOptions) ->
         rrd = options.rrd
     else:
         rrd = folder.path / RECORDING_FILE if scenario.rrd else None
+    progress = options.progress and not options.interactive  # the keys' status line instead
+    recorder = rerun_sink if options.real_time is None else _background_rerun_sink
     return RunOutputs.open(
-        scenario, folder, rrd, options.connect, options.progress, recorder=rerun_sink
+        scenario, folder, rrd, options.connect, progress, recorder=recorder, status=status
     )
+
+
+def _background_rerun_sink(
+    scenario: Scenario,
+    rrd: Path | None,
+    url: str | None,
+    on_flushed: Callable[[int], None] | None,
+) -> BackgroundSink | None:
+    """:func:`rerun_sink` fed from a thread of its own (a paced run: its sends would make
+    steps late, :mod:`cosim.outputs.background`)."""
+    from cosim.outputs.background import BackgroundSink
+
+    sink = rerun_sink(scenario, rrd, url, on_flushed)
+    return None if sink is None else BackgroundSink(sink)
 
 
 def rerun_sink(
@@ -208,7 +253,13 @@ def rerun_sink(
 def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest) -> None:
     """Close the outputs and write the final summary; a failure makes the run incomplete
     (a summary that cannot be written keeps saying "running", and the reason is printed)."""
+    from cosim.live.session import replay_scenario
+
     problem = outputs.close()
+    if problem is not None and result.error is None:
+        result.complete, result.error = False, problem
+    replay = replay_scenario(result.scenario, result)
+    problem = outputs.write_scenario(replay) if replay is not None else None
     if problem is not None and result.error is None:
         result.complete, result.error = False, problem
     problem = outputs.finish(result, result.error, stop.signum)
@@ -254,6 +305,16 @@ def report(outcome: RunOutcome) -> str:
         f"{scenario.coupling.step:g} s ({scenario.coupling.algorithm}), "
         f"{wall:.2f} s wall clock" + (f" ({t_end / wall:.1f}x real time)" if wall > 0 else "")
     ]
+    if result.real_time is not None:
+        paced = result.real_time
+        lines.append(
+            f"  paced at {paced['target_factor']:g}x real time: achieved "
+            f"{_fmt(paced['achieved_factor'])}x, {paced['late_steps']} late step(s), "
+            f"at most {paced['max_lateness_s'] * 1e3:.1f} ms late"
+        )
+    if result.overrides:
+        lines.append(f"  {len(result.overrides)} live override(s) (summary.json; "
+                     "scenario.toml replays them)")  # fmt: skip
     lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
     figures = outcome.figures
     lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in figures.items()))

@@ -43,13 +43,19 @@ the instance, the time and the FMU's logged reason. A signal (Ctrl-C, SIGTERM, S
 only sets a flag checked once per step (:mod:`cosim.engine.signals`), so no
 ``KeyboardInterrupt`` is raised inside an FMU's Python code (pythonfmu would turn it into
 fmi2Fatal and the host would crash).
+
+A paced run (``pacer``, :mod:`cosim.engine.pacing`) releases communication point n at its
+wall-clock deadline; a live run (``live``, :mod:`cosim.engine.live`) applies the overrides
+queued by other threads at each point, publishes the point's values and waits while paused.
+Both hook into the per-point call the loop already makes (``at``), so an unpaced run's loop
+is the same as before.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any
@@ -57,6 +63,8 @@ from typing import Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
+from cosim.engine.live import LiveControl
+from cosim.engine.pacing import Pacer
 from cosim.engine.rows import RowSink, RowTable
 from cosim.engine.signals import StopRequest, stop_on_signals
 from cosim.engine.slave import Slave, describe, reasons, unzipped
@@ -85,6 +93,8 @@ class RunResult:
     stop_signal: int | None = None  # the signal that stopped the stepping, if any
     messages: dict[str, list[str]] = field(default_factory=dict)  # instance -> FMU log lines
     events: list[dict[str, Any]] = field(default_factory=list)  # fired: name, time, set
+    overrides: list[dict[str, Any]] = field(default_factory=list)  # + source (live runs)
+    real_time: dict[str, Any] | None = None  # a paced run's figures (Pacer.summary)
     times: np.ndarray | None = None  # (rows,) s, when kept
     values: np.ndarray | None = None  # (rows, len(columns)) SI, when kept
 
@@ -178,13 +188,16 @@ def run(
     stop: StopRequest | None = None,
     rows_per_chunk: int = ROWS_PER_CHUNK,
     hand_off_interval: float = HAND_OFF_INTERVAL_S,
+    pacer: Pacer | None = None,
+    live: LiveControl | None = None,
 ) -> RunResult:
     """Run ``scenario`` to its stop time (or the first failure), streaming its rows.
 
     ``sinks`` receive every row in order (:mod:`cosim.engine.rows`); the caller closes them.
     ``keep_rows`` also keeps the rows in the result (memory grows with the stop time).
     ``stop`` is the caller's :class:`StopRequest` (its signal handlers installed); without
-    one, SIGINT/SIGTERM/SIGHUP are caught for the duration of the call.
+    one, SIGINT/SIGTERM/SIGHUP are caught for the duration of the call. ``pacer`` paces
+    the communication points on the wall clock, ``live`` takes overrides while it runs.
 
     Raises :class:`CosimError` if the scenario is refused (:func:`preflight`) or an FMU
     cannot be set up (instantiation, start values, initialisation); every failure after
@@ -208,11 +221,18 @@ def run(
                 _set_up(slave, scenario, layout, z)
             by_name = {s.name: s for s in slaves}
             order = [by_name[name] for name in scenario.coupling.order]
-            timed = scenario.events or scenario.faults
-            timeline = Timeline(scenario, by_name, layout.index, z) if timed else None
+            timed = scenario.events or scenario.faults or live is not None
+            timeline = Timeline(scenario, by_name, layout.index, z, live) if timed else None
             rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval, timeline)
-            result = _loop(scenario, order, layout, z, rows, stop_request, timeline)
+            at = timeline.at if timeline is not None else _no_event
+            if live is not None:
+                live.bind(layout.index, stop_request)
+            if live is not None or pacer is not None:
+                at = _live_point(at, pacer, live, z, scenario.coupling.step, stop_request)
+            result = _loop(scenario, order, layout, z, rows, stop_request, timeline, at)
             result.events = timeline.fired if timeline is not None else []
+            result.overrides = timeline.overrides if timeline is not None else []
+            result.real_time = pacer.summary() if pacer is not None else None
         finally:
             for slave in slaves:
                 slave.finish()
@@ -324,6 +344,7 @@ def _loop(
     rows: _Rows,
     stop: StopRequest,
     timeline: Timeline | None,
+    at: Callable[[int], None],
 ) -> RunResult:
     """The stepping loop proper (see the module docstring); ``stop`` ends it early.
 
@@ -331,6 +352,8 @@ def _loop(
     ``timeline.at(n)`` runs at every communication point before its row is recorded and
     before any instance steps from it, and ``timeline.deliver`` after each gather of inputs;
     without one, both are no-ops (about 0.1 us a step: nothing against an FMU's doStep).
+    ``at`` is ``timeline.at`` (or the no-op), wrapped by :func:`_live_point` in a paced or
+    live run.
     """
     h, n_steps = scenario.coupling.step, scenario.n_steps
     jacobi = scenario.coupling.algorithm == "jacobi"
@@ -339,7 +362,7 @@ def _loop(
     multi_rate = any(s.k != 1 for s in order)
 
     take = z.take  # z.take(indices, out=buffer): a gather without allocation
-    at, deliver = (timeline.at, timeline.deliver) if timeline else (_no_event, _no_fault)
+    deliver = timeline.deliver if timeline else _no_fault
     probe = np.zeros(layout.n_read)  # x . 0 is NaN iff some x is NaN or infinite
     check_dot = exchanged.dot
     slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
@@ -388,6 +411,34 @@ def _loop(
         error = str(exc)
     rows.hand_off(filled)
     return _result(scenario, order, rows, error, stop, clock() - started)
+
+
+def _live_point(
+    at: Callable[[int], None],
+    pacer: Pacer | None,
+    live: LiveControl | None,
+    z: np.ndarray,
+    h: float,
+    stop: StopRequest,
+) -> Callable[[int], None]:
+    """``at`` followed, at each communication point n, by the live run's work: publish the
+    values, wait while paused (the pacer's clock stopped), then wait for n's deadline."""
+
+    def point(n: int) -> None:
+        at(n)
+        if live is not None:
+            live.publish(n * h, z)
+            if live.paused:
+                if pacer is not None:
+                    pacer.pause()
+                while not live.wait_while_paused(0.1) and stop.signum is None:
+                    pass
+                if pacer is not None:
+                    pacer.resume()
+        if pacer is not None:
+            pacer.release(n)
+
+    return point
 
 
 def _no_event(n: int) -> None:

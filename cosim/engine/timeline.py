@@ -10,7 +10,8 @@ faults, calls
   their values for t_n, ``when`` conditions are evaluated on the values at t_n (including
   what was just written) and fire on a false -> true crossing (never at n = 0), then the
   faults' ``fault.<name>`` columns are set and actuator faults on unconnected inputs hold
-  their input;
+  their input. In a live run (:mod:`cosim.engine.live`) the overrides queued since the last
+  point fire right after the time events, each as a time event at t_n would;
 * :meth:`Timeline.deliver` for an instance right after the master gathered its connected
   inputs (``z.take(input_sources, out=inputs)``) and before ``fmi2SetReal``: each active
   fault on one of those connections replaces the gathered value in its slot.
@@ -26,7 +27,7 @@ import bisect
 import collections
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -35,6 +36,11 @@ from cosim.engine.slave import STATUS_LABELS, Slave
 from cosim.errors import CosimError
 from cosim.scenario.spec import FAULT_COLUMN_PREFIX, Scenario
 from cosim.scenario.timeline_spec import Event, Fault
+
+if TYPE_CHECKING:
+    from cosim.engine.live import LiveControl
+
+OVERRIDE_PREFIX = "live-"  # the names of applied overrides as events: live-1, live-2, ...
 
 _TOLERANCE = 1e-9  # of a step: a time within it of t_n counts as t_n
 
@@ -151,10 +157,14 @@ class Timeline:
         slaves: Mapping[str, Slave],
         index: Mapping[str, int],
         z: np.ndarray,
+        live: LiveControl | None = None,
     ) -> None:
         self.h = scenario.coupling.step
         self.z = z
+        self.live = live
         self.fired: list[dict[str, Any]] = []  # {"name", "time", "set"} per firing
+        self.overrides: list[dict[str, Any]] = []  # {"name", "time", "set", "source"}
+        self._taken = {e.name for e in scenario.events}  # names an override cannot have
         self.notes: list[tuple[float, str]] = []  # (t, text) not yet handed to the sinks
         self._writer = _Writer(slaves, index, z)
         self._events = [_EventRun(e, self.h) for e in scenario.events]
@@ -187,6 +197,8 @@ class Timeline:
         for run in self._events:
             if run.n_fire == n:
                 self._fire(run.event, t)
+        if self.live is not None:
+            self._apply_overrides(t)
         self._advance_ramps(t)
         for run in self._events:
             if run.event.series is not None:
@@ -203,8 +215,20 @@ class Timeline:
                 self._fire(run.event, t)
         self._fault_points(n, t)
 
-    def _fire(self, event: Event, t: float) -> None:
-        why = f"event {event.name!r} at t = {t:.6g} s"
+    def _apply_overrides(self, t: float) -> None:
+        """Fire every override queued since the last point as a time event at ``t``."""
+        assert self.live is not None
+        for values, source in self.live.drain():
+            k = len(self.overrides) + 1
+            while f"{OVERRIDE_PREFIX}{k}" in self._taken:
+                k += 1
+            name = f"{OVERRIDE_PREFIX}{k}"
+            self._taken.add(name)
+            self._fire(Event(name, time=t, set=values), t, "override", f" from {source}")
+            self.overrides.append({"name": name, "time": t, "set": values, "source": source})
+
+    def _fire(self, event: Event, t: float, what: str = "event", origin: str = "") -> None:
+        why = f"{what} {event.name!r} at t = {t:.6g} s"
         for ref, value in event.set.items():
             if event.ramp is not None:
                 self._ramps[ref] = (self._writer.get(ref), float(value), t, event.ramp)
@@ -213,7 +237,7 @@ class Timeline:
         self.fired.append({"name": event.name, "time": t, "set": dict(event.set)})
         told = ", ".join(f"{ref} = {value!r}" for ref, value in event.set.items())
         ramp = f" (ramp over {event.ramp!r} s)" if event.ramp is not None else ""
-        self.notes.append((t, f"event {event.name}: {told}{ramp}"))
+        self.notes.append((t, f"{what} {event.name}{origin}: {told}{ramp}"))
 
     def _advance_ramps(self, t: float) -> None:
         for ref, (v0, v1, t0, duration) in list(self._ramps.items()):

@@ -19,7 +19,12 @@ fewer than computed only when results.csv could not be written), the final value
 every column, the key figures
 (:mod:`cosim.metrics.key_figures`), the FMUs' logged warnings and errors, ``events`` (each firing
 of an event: ``name``, ``time`` in s, the values it ``set``; docs/events.md) and
-``faults`` (``name``, ``kind``, ``target``, ``start`` and ``stop`` in s, null: never).
+``faults`` (``name``, ``kind``, ``target``, ``start`` and ``stop`` in s, null: never),
+``overrides`` (each value set while the run went on, docs/live-runs.md: ``name``, ``time``
+in s, the values it ``set``, ``source``: where it came from) and ``real_time`` (a paced
+run's ``target_factor``, ``achieved_factor``, ``late_steps``, ``max_lateness_s``,
+``max_lateness_at_s`` (the simulated time of that step), ``fell_behind``; null for a run
+not paced).
 A scenario with a ``manoeuvre`` adds at the top level, from the start,
 ``"manoeuvre": <kind>`` and, at the end, its metrics (:mod:`cosim.outputs.manoeuvre`:
 ``tactical_diameter_m``, ...; null where the run cannot give one). A summary still
@@ -131,6 +136,8 @@ def final_summary(
             {"name": f.name, "kind": f.kind, "target": f.target, "start": f.start, "stop": f.stop}
             for f in result.scenario.faults
         ],
+        "overrides": result.overrides,
+        "real_time": result.real_time,
         **(manoeuvre or {}),
     }
 

@@ -84,11 +84,12 @@ class RunOutputs:
         connect: str | None,
         progress: bool,
         recorder: Recorder | None = None,
+        status: Callable[[], str] | None = None,
     ) -> RunOutputs:
         """Write scenario.toml and the running summary, open every sink.
 
         Raises :class:`CosimError` naming the path that cannot be written; what was
-        created by then is removed again.
+        created by then is removed again. ``status``: text shown after the progress bar.
         """
         paths = {name: folder.path / file for name, file in
                  (("results", RESULTS_FILE), ("scenario", SCENARIO_FILE),
@@ -97,14 +98,19 @@ class RunOutputs:
             paths["recording"] = rrd
         outputs = cls(scenario, folder, paths)
         try:
-            outputs._open_sinks(rrd, connect, progress, recorder)
+            outputs._open_sinks(rrd, connect, progress, recorder, status)
         except BaseException:
             outputs.discard()
             raise
         return outputs
 
     def _open_sinks(
-        self, rrd: Path | None, connect: str | None, progress: bool, recorder: Recorder | None
+        self,
+        rrd: Path | None,
+        connect: str | None,
+        progress: bool,
+        recorder: Recorder | None,
+        status: Callable[[], str] | None,
     ) -> None:
         self.csv = CsvSink(self.paths["results"], self.scenario.columns)
         self._created.append(self.paths["results"])
@@ -125,7 +131,7 @@ class RunOutputs:
             if sink is not None:
                 self._add(sink)
         if progress:
-            self._add(ProgressSink(self.scenario.n_steps + 1, self.scenario.id))
+            self._add(ProgressSink(self.scenario.n_steps + 1, self.scenario.id, status))
         try:
             self.paths["scenario"].write_text(self.scenario.to_toml(), encoding="utf-8")
         except OSError as exc:
@@ -161,6 +167,19 @@ class RunOutputs:
             write_json_atomically(self.paths["summary"], data)
         except CosimError as exc:
             return str(exc)
+        return None
+
+    def write_scenario(self, scenario: Scenario) -> str | None:
+        """Replace scenario.toml (a live run's, its overrides as events: a replay); the
+        failure to write it, if any."""
+        path = self.paths["scenario"]
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        try:
+            tmp.write_text(scenario.to_toml(), encoding="utf-8")
+            os.replace(tmp, path)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            return f"cannot write {path}: {exc.strerror or exc}"
         return None
 
     def discard(self) -> None:

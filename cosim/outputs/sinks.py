@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +45,12 @@ class CsvSink(NotesIgnored):
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         self._write(csv_lines(times, values))
         self.rows += len(times)
+
+    def warm_up(self) -> None:
+        """Do the CSV writer's one-time set-up now, writing nothing: pyarrow's first CSV
+        write takes seconds (its lazy initialisation), which would make a paced run's first
+        hand-off late by as much."""
+        csv_lines(np.zeros(1), np.zeros((1, 1)))
 
     def close(self) -> None:
         """Close the file; safe to call twice."""
@@ -79,11 +86,15 @@ def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
 
 
 class ProgressSink(NotesIgnored):
-    """A tqdm progress bar on stderr, opened when the first rows arrive."""
+    """A tqdm progress bar on stderr, opened when the first rows arrive; ``status`` (a
+    paced run's real-time factors) is shown after it, refreshed with every chunk."""
 
-    def __init__(self, total_rows: int, label: str) -> None:
+    def __init__(
+        self, total_rows: int, label: str, status: Callable[[], str] | None = None
+    ) -> None:
         self._total = total_rows
         self._label = label
+        self._status = status
         self._bar: Any = None
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
@@ -91,6 +102,8 @@ class ProgressSink(NotesIgnored):
             from tqdm import tqdm
 
             self._bar = tqdm(total=self._total, unit="step", desc=self._label, leave=False)
+        if self._status is not None:
+            self._bar.set_postfix_str(self._status(), refresh=False)
         self._bar.update(len(times))
 
     def close(self) -> None:

@@ -191,7 +191,7 @@ def resolve_events(
         when = _condition(spec.when, scenario, f"{key}.when", src) if spec.when else None
         series = _series(spec, scenario, base_dir, f"{key}.series", src) if spec.series else None
         values = {
-            ref: _settable(ref, value, scenario, f"{key}.set.{ref}", spec.ramp is not None, src)
+            ref: settable(ref, value, scenario, f"{key}.set.{ref}", spec.ramp is not None, src)
             for ref, value in (spec.set or {}).items()
         }
         event = Event(name, spec.time, when, bool(spec.repeat), values, spec.ramp, series)
@@ -234,7 +234,7 @@ def _condition(text: str, scenario: Any, key: str, src: Source) -> Condition:
     return Condition(ref, match["op"], float(match["number"]))  # type: ignore[arg-type]
 
 
-def _settable(
+def settable(
     ref: str, value: Any, scenario: Any, key: str, ramp: bool, src: Source
 ) -> bool | int | float:
     """The value an event writes to ``ref``: an unconnected input or a tunable parameter."""
@@ -270,7 +270,7 @@ def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Sourc
             key, f"{spec.series!r}: header {header} is not 'time,<instance.variable>,...'"
         )
     for ref in header[1:]:
-        _settable(ref, 0.0, scenario, f"{key} = {spec.series!r}, column {ref}", True, src)
+        settable(ref, 0.0, scenario, f"{key} = {spec.series!r}, column {ref}", True, src)
     table = _numbers(rows[1:], len(header), key, spec.series, src)
     times = [row[0] for row in table]
     if not times:
