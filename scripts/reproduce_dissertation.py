@@ -26,7 +26,9 @@ import time
 import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from decimal import Decimal
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -181,9 +183,9 @@ def example_5_1(remus: VehicleParameters) -> list[Row]:
     )
     stable = vectors[:, values.real < 0].real
     basis = reference("example_5_1.stable_subspace")
-    direction = basis.value[1]
-    residual = np.linalg.norm(
-        direction - stable @ np.linalg.lstsq(stable, direction, rcond=None)[0]
+    direction = np.asarray(basis.value)[1]
+    residual = float(
+        np.linalg.norm(direction - stable @ np.linalg.lstsq(stable, direction, rcond=None)[0])
     )
     shown = [f"[{', '.join(vector)}]" for vector in basis.text]
     rows.append(
@@ -270,7 +272,10 @@ def _example_5_3_jacobian(remus: VehicleParameters) -> tuple[Row, np.ndarray]:
     ours_J, _ = linearize(PlantModel(remus, Variant.LATERAL), *at_speed, names)
     weight = float(reference("table_4_1.weight").value)
     J, _ = linearize(PlantModel(remus.replace(W=weight), Variant.LATERAL), *at_speed, names)
-    bar, delta = (reference(f"example_5_3.{k}").printed for k in ("jacobian_bar", "jacobian_delta"))
+    bar, delta = (
+        cast(list[list[Decimal]], reference(f"example_5_3.{k}").printed)  # 4 x 4 as printed
+        for k in ("jacobian_bar", "jacobian_delta")
+    )
     printed_J = [
         [str(a + b) for a, b in zip(row_bar, row_delta, strict=True)]
         for row_bar, row_delta in zip(bar, delta, strict=True)
@@ -353,7 +358,7 @@ def example_5_3(remus: VehicleParameters) -> list[Row]:
 
 def _eigenvalue_text(key: str) -> list[str]:
     """[re, re, re, im] of printed eigenvalues [[re, 0], [re, 0], [re, +im], [re, -im]]."""
-    (real_1, _), (real_2, _), (real_3, imag), _ = reference(key).text
+    (real_1, _), (real_2, _), (real_3, imag), _ = cast(list[list[str]], reference(key).text)
     return [real_1, real_2, real_3, imag]
 
 
@@ -376,7 +381,8 @@ def roll_torque_claims(remus, long_fins, figures: Path) -> list[Row]:
             f"> {fold.text} Q_prop (Q_prop = {Q_PROP} N m)",
             f"{len(folds)} fold at {ours} (Q = {folds[0].parameter:.4f} N m)" if folds else ours,
             # "slightly larger": within one Q_prop
-            len(folds) == 1 and fold.value < folds[0].parameter / Q_PROP < fold.value + 1.0,
+            len(folds) == 1
+            and float(fold.value) < folds[0].parameter / Q_PROP < float(fold.value) + 1.0,
         )
     )
     after = find_equilibria(OperatingConditions(remus, Variant.LATERAL, roll_torque=5 * Q_PROP))
@@ -470,12 +476,13 @@ def mass_claims(remus: VehicleParameters, figures: Path) -> list[Row]:
             )
             or "none",
             # "slightly larger": within one unit of the printed digit
-            len(folds) == 1 and fold.value < abs(y_g[0]) < fold.value + fold.resolution,
+            len(folds) == 1
+            and float(fold.value) < abs(y_g[0]) < float(fold.value) + float(fold.resolution),
             "y_g = m_v g y_v / W: the roll torque of our mass at rest equals W y_g cos(phi)",
         )
     )
     beyond = reference("section_5_1_4.single_equilibrium_cg_offset")
-    y_v = mass_position_for_cg_offset(remus, beyond.value / 100)
+    y_v = mass_position_for_cg_offset(remus, float(beyond.value) / 100)
     eqs = find_equilibria(OperatingConditions(remus, Variant.LATERAL, mass_position=y_v))
     estimate = math.degrees(math.atan(beyond.value / 100 / remus.z_g))
     rows.append(
@@ -518,7 +525,7 @@ def fin_factor_claims(remus: VehicleParameters, figures: Path) -> list[Row]:
                 f"about {branch.text}",
                 ", ".join(f"{s.kind} at {name} = {s.parameter:.3f}" for s in result.special_points)
                 or "none",
-                len(switches) == 1 and abs(switches[0].parameter - branch.value) < 0.15,
+                len(switches) == 1 and abs(switches[0].parameter - float(branch.value)) < 0.15,
                 "a symmetric pitchfork: the fold-free branch point where x0 changes stability",
             )
         )
@@ -730,8 +737,9 @@ def _lqr2(run: RunData) -> tuple[str, bool, str]:
         f" Ours peaks at {peak:.1f} deg of yaw where Fig. 6.14's axis ends at 10 deg, with rail "
         f"speeds up to {rail_speed:.0f} cm/s (its axis: +-50 cm/s)."
     )
-    stop = LQR_2_STOP.value / 100  # cm -> m
-    return text, abs(saturated - stop) < 1e-3 and s is not None and s <= LQR_2_TIME.value, note
+    stop = float(LQR_2_STOP.value) / 100  # cm -> m
+    settled = s is not None and s <= float(LQR_2_TIME.value)
+    return text, abs(saturated - stop) < 1e-3 and settled, note
 
 
 def _current_drift(run: RunData) -> tuple[str, bool, str]:
@@ -781,7 +789,7 @@ def _vert2(run: RunData) -> tuple[str, bool, str]:
     w = float(np.mean(run["plant.w"][k]))
     theta = float(np.mean(run["plant.pitch"][k]))
     fin = math.degrees(float(np.mean(run["controller.fin_angle"][k])))
-    w_text, theta_text, fin_text = DEPTH_STEADY.text
+    w_text, theta_text, fin_text = cast(list[str], DEPTH_STEADY.text)
     ok = (
         agrees(w_text, w)
         and agrees(theta_text, theta, rel=0.25)
@@ -796,7 +804,7 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
         "Figs. 6.11-6.12",
         f"~{LQR_1_TIME.text} s (tested: |psi| < 1 deg for good by "
         f"{LQR_1_TIME.value + ABOUT:.0f} s)",
-        _heading_back(LQR_1_TIME.value + ABOUT),
+        _heading_back(float(LQR_1_TIME.value) + ABOUT),
     ),
     "lqr-2": (
         f"LQR, v0 = -0.05: y_v saturates at {LQR_2_STOP.text} cm, heading back within "
@@ -828,7 +836,7 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
         f"backstepping, v0 = -0.10: psi back to 0 within {BS_3_TIME.text} s",
         "Figs. 6.23-6.25",
         f"{BS_3_TIME.text} s (tested: |psi| < 1 deg for good by {BS_3_TIME.text} s)",
-        _heading_back(BS_3_TIME.value),
+        _heading_back(float(BS_3_TIME.value)),
     ),
     "cur-1": (
         f"{reference('current.speed').text} m/s current east, psi_d = 0: drifts east with sideslip",
@@ -842,7 +850,7 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
         "Figs. 6.29-6.31",
         f"course 0; ~{CUR_2_TIME.text} s (tested: within 0.5 deg of psi_d, course within 1 deg, "
         f"by {CUR_2_TIME.value + ABOUT:.0f} s)",
-        _current_track(HEADING_9_N.value, CUR_2_TIME.value + ABOUT),
+        _current_track(float(HEADING_9_N.value), float(CUR_2_TIME.value) + ABOUT),
     ),
     "slow-1": (
         "T = 4 N, v0 = -0.1: stabilised",
@@ -854,7 +862,7 @@ SCENARIO_CLAIMS: dict[str, tuple[str, str, str, ScenarioCheck]] = {
         f"T = 4 N, current, psi_d = {HEADING_4_N.text} deg: converges in ~{SLOW_2_TIME.text} s",
         "Figs. 6.34-6.39",
         f"~{SLOW_2_TIME.text} s (tested as cur-2)",
-        _current_track(HEADING_4_N.value, SLOW_2_TIME.value + ABOUT),
+        _current_track(float(HEADING_4_N.value), float(SLOW_2_TIME.value) + ABOUT),
     ),
     "vert-1": (
         "6-DOF, z_d = 1 m: roll keeps oscillating",
