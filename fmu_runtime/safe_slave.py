@@ -431,7 +431,8 @@ class SafeSlave(Fmi2Slave):
         root: Element = super().to_xml(model_options or {})
         index = {var.name: i + 1 for i, var in enumerate(self.vars.values())}
         for node in root.findall("ModelVariables/*"):
-            unit = self._units.get(node.attrib["name"])
+            variable = node.attrib["name"]
+            unit = self._units.get(variable)
             real = node.find("Real")
             if unit and real is not None:
                 real.set("unit", unit)
@@ -439,8 +440,8 @@ class SafeSlave(Fmi2Slave):
             for attribute, value in zip(("min", "max"), bounds, strict=True):
                 if value is not None:  # node[0]: the <Real>/<Integer> element
                     node[0].set(attribute, repr(value))
-            if node.get("name") in self._names:
-                _annotate_names(node, self._names[node.get("name")])
+            if variable in self._names:
+                _annotate_names(node, self._names[variable])
         outputs = root.find("ModelStructure/Outputs")
         inputs = {v.name for v in self.vars.values() if v.causality == Fmi2Causality.input}
         names = {i: name for name, i in index.items()}

@@ -118,7 +118,7 @@ def _named_values(path: Path) -> dict[str, dict[str, int]]:
     with zipfile.ZipFile(path) as archive:
         root = etree.fromstring(archive.read("modelDescription.xml"))
     return {
-        variable.get("name"): {item.get("name"): int(item.get("value")) for item in values}
+        variable.attrib["name"]: {item.attrib["name"]: int(item.attrib["value"]) for item in values}
         for variable in root.iterfind("ModelVariables/ScalarVariable")
         for values in variable.iterfind("Annotations/Tool[@name='auv-cosim']/NamedValues")
     }
