@@ -258,7 +258,7 @@ class Commands(NamedTuple):
 
     def values(self) -> tuple[float, float, float, float]:
         """In :data:`COMMAND_NAMES` order."""
-        return tuple(self)
+        return self.mass_position_cmd, self.tunnel_force, self.fin_angle, self.thrust
 
 
 @dataclass(frozen=True)
@@ -368,6 +368,7 @@ class Autopilot:
 
     def _backstepping_law(self, time: float, x: tuple[float, ...]) -> tuple[float, float]:
         v, r, p, phi, psi_e, y_v, _ = x
+        assert self.backstepping is not None, "set with this law by _design_heading_law"
         return self.backstepping.command_values(time, v, r, p, phi, psi_e, y_v)
 
     def reset(self) -> None:
@@ -423,7 +424,7 @@ class Autopilot:
         tunnel = _clip(tunnel, c.tunnel_force_limit)
         commands = Commands(mass_cmd, tunnel, fin, c.thrust_command)
         if not (math.isfinite(mass_cmd) and math.isfinite(tunnel) and math.isfinite(fin)):
-            if saved is not None:
+            if saved is not None and self.backstepping is not None:
                 self.backstepping.load_state_values(saved)
             raise ValueError(f"the autopilot computed a non-finite command {commands}")
         self.commands = commands

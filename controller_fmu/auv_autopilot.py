@@ -148,7 +148,8 @@ class AuvAutopilot(SafeSlave):
             )
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         for name, field in AutopilotConfig.model_fields.items():
-            kind = {int: Integer, bool: Boolean, str: String, float: Real}[field.annotation]
+            kinds: dict[object, Any] = {int: Integer, bool: Boolean, str: String, float: Real}
+            kind = kinds[field.annotation]
             variable = kind(
                 name,
                 description=field.description,
@@ -174,6 +175,7 @@ class AuvAutopilot(SafeSlave):
 
     def _step(self, current_time: float, step_size: float) -> None:
         autopilot = self._autopilot
+        assert autopilot is not None, "SafeSlave steps only an initialised instance"
         design_step = autopilot.config.design_step
         if (
             autopilot.designed_for_step

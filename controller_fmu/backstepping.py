@@ -184,9 +184,11 @@ class BacksteppingHeading:
 
     def _compiled(
         self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
-    ) -> tuple[float, ...]:
+    ) -> fast.Sample:
         """The compiled law's 7 values; writes the filter transition it asks for first."""
-        params, law, state = self.design.compiled_plant.parameters, self._law, self._state
+        plant, law, state = self.design.compiled_plant, self._law, self._state
+        assert plant is not None and law is not None, "the compiled law needs numba"
+        params = plant.parameters
         out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v)
         if out[0]:  # a new interval: its exact transition (scipy's expm, cached)
             interval = time - float(state[fast.LAST_TIME])

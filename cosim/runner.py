@@ -131,7 +131,7 @@ def execute(
     out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
     if options.rrd is not None and not options.no_rrd:
         check_recording_path(out_dir, options.rrd, options.overwrite)
-    handlers: AbstractContextManager[StopRequest] = nullcontext(stop)
+    handlers: AbstractContextManager[StopRequest | None] = nullcontext(stop)
     if stop is None:
         stop = StopRequest()
         handlers = stop_on_signals(stop)

@@ -38,6 +38,7 @@ import sys
 from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 _ENTRY = '''"""pythonfmu entry module of {fmu}.fmu, written by the build.
 
@@ -64,7 +65,7 @@ def entry_source(fmu: str, module: str, cls: str, packages: Iterable[str]) -> st
     return _ENTRY.format(fmu=fmu, module=module, cls=cls, packages=tuple(packages))
 
 
-def hold_namespace(namespace: dict) -> None:
+def hold_namespace(namespace: dict[str, Any]) -> None:
     """Take one more reference to an entry module's namespace (run by every execution of
     the entry module, so it balances the reference pythonfmu releases after each one).
 

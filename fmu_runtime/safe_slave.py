@@ -418,7 +418,8 @@ class SafeSlave(Fmi2Slave):
     @staticmethod
     def _fmu_state_from_bytes(state: bytes) -> dict[str, Any]:
         try:
-            return json.loads(state.decode("utf-8"))
+            decoded: dict[str, Any] = json.loads(state.decode("utf-8"))
+            return decoded
         except Exception as exc:
             return {"error": f"cannot deserialise the FMU state: {exc}"}
 
@@ -427,24 +428,25 @@ class SafeSlave(Fmi2Slave):
     def to_xml(self, model_options: dict[str, str] | None = None) -> Element:
         """pythonfmu's description plus a ``unit`` on every Real and the declared
         ``direct_feedthrough`` as ModelStructure dependencies (used by the build only)."""
-        root = super().to_xml(model_options or {})
+        root: Element = super().to_xml(model_options or {})
         index = {var.name: i + 1 for i, var in enumerate(self.vars.values())}
-        for node in root.find("ModelVariables"):
-            unit = self._units.get(node.get("name"))
+        for node in root.findall("ModelVariables/*"):
+            variable = node.attrib["name"]
+            unit = self._units.get(variable)
             real = node.find("Real")
             if unit and real is not None:
                 real.set("unit", unit)
-            bounds = self._bounds.get(int(node.get("valueReference")), (None, None))
+            bounds = self._bounds.get(int(node.attrib["valueReference"]), (None, None))
             for attribute, value in zip(("min", "max"), bounds, strict=True):
                 if value is not None:  # node[0]: the <Real>/<Integer> element
                     node[0].set(attribute, repr(value))
-            if node.get("name") in self._names:
-                _annotate_names(node, self._names[node.get("name")])
+            if variable in self._names:
+                _annotate_names(node, self._names[variable])
         outputs = root.find("ModelStructure/Outputs")
         inputs = {v.name for v in self.vars.values() if v.causality == Fmi2Causality.input}
         names = {i: name for name, i in index.items()}
         for unknown in outputs if outputs is not None else []:
-            name = names[int(unknown.get("index"))]
+            name = names[int(unknown.attrib["index"])]
             depends_on = self.direct_feedthrough.get(name, ())
             unknown_inputs = set(depends_on) - inputs
             if unknown_inputs:
@@ -508,7 +510,7 @@ class SafeSlave(Fmi2Slave):
         any_time = self._access.get(vr) == _WRITE_ANY_TIME
         return any_time and vr not in self._bounds and var.setter is not None
 
-    def _get(self, vr: int, kind: type, convert: type, fallback: Any) -> Any:
+    def _get(self, vr: int, kind: type[ScalarVariable], convert: type, fallback: Any) -> Any:
         try:
             var = self.vars[vr]
             if not isinstance(var, kind):
@@ -521,7 +523,7 @@ class SafeSlave(Fmi2Slave):
             self._error(f"get{kind.__name__} of valueReference {vr!r} failed: {_reason(exc)}")
             return fallback
 
-    def _set_all(self, vrs: list[int], values: list[Any], kind: type) -> None:
+    def _set_all(self, vrs: list[int], values: list[Any], kind: type[ScalarVariable]) -> None:
         for vr, value in zip(vrs, values, strict=False):
             try:
                 self._set(vr, value, kind)
@@ -530,7 +532,7 @@ class SafeSlave(Fmi2Slave):
                 self._problems[f"vr {vr}"] = message
                 self._error(message)
 
-    def _set(self, vr: int, value: Any, kind: type) -> None:
+    def _set(self, vr: int, value: Any, kind: type[ScalarVariable]) -> None:
         var = self.vars.get(vr)
         if var is None:
             raise KeyError(f"no variable has valueReference {vr!r}")
@@ -589,7 +591,7 @@ def _build_problem(resources: str | None) -> str | None:
     Also removes pythonfmu's ``sys.path`` entry for an FMU's extraction."""
     try:
         build = provenance.read_build(resources)
-        if build is None:  # constructed in-process or by pythonfmu's builder
+        if build is None or resources is None:  # constructed in-process or by pythonfmu's builder
             return None
         entry.release_search_path(resources)
         return provenance.stale_code(build)

@@ -135,7 +135,7 @@ class AuvPlant(SafeSlave):
         self._last_current = self._inputs[5:8].tolist()
         self._model: PlantModel | None = None
         self._compiled: compiled.CompiledPlant | None = None
-        self._model_key: tuple | None = None
+        self._model_key: tuple[object, ...] | None = None
         self._physical = _default_physical_parameters(self._vehicles)
         self.variant = int(Variant.FULL)
         self.moving_mass_model = int(MovingMassModel.DISSERTATION)
@@ -293,6 +293,7 @@ class AuvPlant(SafeSlave):
 
     def _step(self, current_time: float, step_size: float) -> None:
         model = self._model
+        assert model is not None, "SafeSlave steps only an initialised instance"
         inputs = self._inputs.copy()
         x = self._x
         current = inputs[5:8].tolist()
@@ -339,7 +340,7 @@ class AuvPlant(SafeSlave):
             variant=Variant(self.variant),
             ideal_fluid=bool(self.ideal_fluid),
             current_shear=float(self.current_shear_dUdy),
-            moving_mass_model=self.moving_mass_model,
+            moving_mass_model=MovingMassModel(self.moving_mass_model),
         )
         self._physical.update({n: float(getattr(params, n)) for n in PHYSICAL_PARAMETERS})
         self._model = model
@@ -355,7 +356,7 @@ class AuvPlant(SafeSlave):
             )
         return model
 
-    def _parameter_key(self) -> tuple:
+    def _parameter_key(self) -> tuple[object, ...]:
         """Everything the model is built from (to rebuild it after a state restore)."""
         return (
             self.vehicle,
@@ -372,9 +373,11 @@ class AuvPlant(SafeSlave):
         if self._compiled is not None:
             self._derived[:] = self._compiled.outputs(self._x, inputs)
             return
-        nu_r = self._model.relative_velocity(self._x, inputs)
+        model = self._model
+        assert model is not None, "outputs are refreshed only once the model is built"
+        nu_r = model.relative_velocity(self._x, inputs)
         self._derived[:3] = nu_r[:3].tolist()
-        self._derived[3] = self._model.kinetic_energy(self._x, inputs)
+        self._derived[3] = model.kinetic_energy(self._x, inputs)
 
 
 def _default_physical_parameters(folder: Path) -> dict[str, float]:

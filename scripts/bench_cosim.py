@@ -127,7 +127,7 @@ def floor_per_step(folder: Path, n_steps: int) -> float:
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
         slave.exitInitializationMode()
-        refs = {v.causality: [] for v in md.modelVariables}
+        refs: dict[str, list[int]] = {v.causality: [] for v in md.modelVariables}
         for v in md.modelVariables:
             refs[v.causality].append(v.valueReference)
         slaves.append((slave, refs["input"], refs["output"]))

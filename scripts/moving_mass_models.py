@@ -27,7 +27,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import tomli_w
 
-from cosim.outputs.results import YAW_TOLERANCE_RAD, read_csv, settling_time
+from cosim.metrics.key_figures import YAW_TOLERANCE_RAD, settling_time
+from cosim.outputs.results import read_csv
 from cosim.runner import run_scenario
 from cosim.scenario.spec import load_scenario, scenario_from_toml
 

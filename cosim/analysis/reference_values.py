@@ -139,4 +139,7 @@ def _map(printed: Printed, function: Any) -> Any:
 
 
 def _unit_of_last_digit(number: Decimal) -> float:
-    return float(Decimal(1).scaleb(number.as_tuple().exponent))
+    exponent = number.as_tuple().exponent
+    if not isinstance(exponent, int):  # "n", "N", "F": NaN or infinity
+        raise ValueError(f"printed value {number}: expected a finite number")
+    return float(Decimal(1).scaleb(exponent))

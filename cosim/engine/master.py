@@ -224,7 +224,7 @@ def run(
             timed = scenario.events or scenario.faults or live is not None
             timeline = Timeline(scenario, by_name, layout.index, z, live) if timed else None
             rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval, timeline)
-            at = timeline.at if timeline is not None else _no_event
+            at: Callable[[int], None] = timeline.at if timeline is not None else _no_event
             if live is not None:
                 live.bind(layout.index, stop_request)
             if live is not None or pacer is not None:

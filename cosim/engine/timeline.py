@@ -141,7 +141,7 @@ class _FaultRun:
         if kind == "bias":
             return gathered + fault.value  # type: ignore[operator]
         if kind == "noise":
-            return gathered + float(self.rng.normal(0.0, fault.std))  # type: ignore[union-attr]
+            return gathered + float(self.rng.normal(0.0, fault.std))  # type: ignore[union-attr,arg-type]
         if kind == "delay":
             return self.history[0]  # `steps` deliveries ago (the first one before that)
         lost = float(self.rng.random()) < fault.probability  # type: ignore[union-attr,operator]

@@ -149,6 +149,7 @@ class _UnitTable:
                 unit name differently.
         """
         fmu = comp.fmu_path.name
+        exponents: Mapping[str, float] | None
         if var.unit is None:
             name, exponents = _DIMENSIONLESS, {}
         else:

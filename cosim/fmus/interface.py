@@ -118,7 +118,7 @@ def _named_values(path: Path) -> dict[str, dict[str, int]]:
     with zipfile.ZipFile(path) as archive:
         root = etree.fromstring(archive.read("modelDescription.xml"))
     return {
-        variable.get("name"): {item.get("name"): int(item.get("value")) for item in values}
+        variable.attrib["name"]: {item.attrib["name"]: int(item.attrib["value"]) for item in values}
         for variable in root.iterfind("ModelVariables/ScalarVariable")
         for values in variable.iterfind("Annotations/Tool[@name='auv-cosim']/NamedValues")
     }
@@ -134,8 +134,8 @@ def _variable(v: Any, names: Mapping[str, int]) -> Variable:
         value_reference=v.valueReference,
         unit=v.unit or (declared.unit if declared is not None else None),
         start=_typed(v.type, v.start),
-        min=_typed(v.type, v.min),
-        max=_typed(v.type, v.max),
+        min=_bound(v.type, v.min),
+        max=_bound(v.type, v.max),
         description=v.description or "",
         names=names,
     )
@@ -152,6 +152,12 @@ def _typed(fmi_type: str, text: str | None) -> Value | None:
     if fmi_type == "Boolean":
         return text in ("true", "1")
     return text
+
+
+def _bound(fmi_type: str, text: str | None) -> float | int | None:
+    """A min or max attribute: a number (FMI declares them on numeric types only)."""
+    value = _typed(fmi_type, text)
+    return value if isinstance(value, int | float) else None
 
 
 def _base_unit(base: Any) -> dict[str, float] | None:

@@ -115,6 +115,7 @@ class ControlServer:
     def __init__(self, server: _Server) -> None:
         self._server = server
         host, port = server.server_address[:2]
+        host = host.decode() if isinstance(host, bytes) else host
         self.address = f"{host}:{port}"  # as bound (the port chosen for port 0)
         self._thread = threading.Thread(
             target=server.serve_forever, kwargs={"poll_interval": 0.1}, daemon=True

@@ -315,7 +315,7 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
                 )
             target, hold = _actuator(spec.kind, scenario, f"{key}.kind", src)
         else:
-            if spec.target not in targets:
+            if spec.target is None or spec.target not in targets:
                 raise src.error(
                     f"{key}.target",
                     f"{spec.target!r} is not the target of a connection: expected one of "

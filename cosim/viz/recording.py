@@ -30,7 +30,7 @@ import subprocess
 import sys
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -202,7 +202,7 @@ class RerunSink:
             self._flush()
             self._last_send = now
 
-    def add_notes(self, notes: list[tuple[float, str]]) -> None:
+    def add_notes(self, notes: Sequence[tuple[float, str]]) -> None:
         """Log what happened at a time -- an event fired, a fault started or stopped
         (:mod:`cosim.engine.timeline`) -- as ``rr.TextLog`` entries under :data:`NOTES_ENTITY`
         at their ``sim_time`` (s); the master hands them over before the rows they precede."""

@@ -381,8 +381,8 @@ class SceneWriter:
 
     def _send_target(self, index: list[rr.TimeColumn], column: Columns) -> None:
         """The waypoint a guidance steers for, if its outputs are recorded."""
-        target = [column(name) for name in TARGET_COLUMNS]
-        if all(values is not None for values in target):
+        target = [values for name in TARGET_COLUMNS if (values := column(name)) is not None]
+        if len(target) == len(TARGET_COLUMNS):
             self._rec.send_columns(
                 "world/mission/target",
                 indexes=index,

@@ -177,7 +177,8 @@ class PlantModel:
         at the centre of its rail."""
         if not self.two_body:
             return self.mass_matrix
-        return self.mass_matrix + mass_matrix_shift(self.params, mass_position)
+        shifted: np.ndarray = self.mass_matrix + mass_matrix_shift(self.params, mass_position)
+        return shifted
 
     # The current at the vehicle.
 
@@ -192,7 +193,8 @@ class PlantModel:
         horizontal variants the horizontal current turned by the yaw only (5.2.10)."""
         v_c = self.current_velocity(x, inputs)
         if self.variant is Variant.FULL:
-            return rotation_matrix(x[3], x[4], x[5]).T @ v_c
+            body: np.ndarray = rotation_matrix(x[3], x[4], x[5]).T @ v_c
+            return body
         return np.array([*planar_current(x[5], v_c), 0.0])
 
     def relative_velocity(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
@@ -210,7 +212,10 @@ class PlantModel:
             return 0.5 * float(nu_r @ self.mass_matrix @ nu_r)
         y_v, y_vel, m_v = x[_YV], x[_YVEL], self.params.m_v
         hull = 0.5 * float(nu_r @ self.mass_matrix_at(y_v) @ nu_r)
-        return hull + m_v * y_vel * float(rail_direction(self.params) @ nu_r) + 0.5 * m_v * y_vel**2
+        energy: float = (
+            hull + m_v * y_vel * float(rail_direction(self.params) @ nu_r) + 0.5 * m_v * y_vel**2
+        )
+        return energy
 
     # The pieces of the right-hand side, each a generalised force on [X, Y, Z, K, M, N].
 
@@ -240,7 +245,7 @@ class PlantModel:
             + [-a - b for a, b in zip(cross(lin, u), cross(ang, w), strict=True)]
         )
 
-    def viscous(self, nu_r: np.ndarray) -> np.ndarray:
+    def viscous(self, nu_r: Sequence[float] | np.ndarray) -> np.ndarray:
         """Viscous cross-flow and lift forces on the right-hand side (4.2.6)-(4.2.9)."""
         params = self.params
         u, v, w, roll_rate, q, r = nu_r
@@ -387,7 +392,7 @@ class PlantModel:
             force += self.viscous(nu_r)
         if self.two_body:
             force += two_body_force(self.params, nu_r, xs[_YV], y_vel)
-        water_accel = (0.0, 0.0)
+        water_accel: tuple[float, float] | np.ndarray = (0.0, 0.0)
         if self.current_shear != 0.0:
             rigid = self._rigid_mass
             if self.two_body:
@@ -404,7 +409,8 @@ class PlantModel:
     def _accelerate(self, mass_position: float, force: np.ndarray) -> np.ndarray:
         """(M_RB + M_A)^-1 force on the free degrees of freedom (0 on the frozen ones)."""
         if not self.two_body:
-            return self._inverse_mass @ force
+            accelerated: np.ndarray = self._inverse_mass @ force
+            return accelerated
         free = self._free
         M = self.mass_matrix_at(mass_position)
         accel = np.zeros(6)
@@ -464,6 +470,6 @@ class PlantModel:
             d_nuc[:3] = rotation_matrix(x[3], x[4], x[5]).T @ np.asarray(delta_current, float)
         else:
             d_nuc[:2] = planar_current(x[5], delta_current)
-        impulse = np.array(added_mass_matrix_times(self.params, d_nuc))
+        impulse: np.ndarray = np.array(added_mass_matrix_times(self.params, d_nuc))
         impulse[:3] += self.params.m_bar * d_nuc[:3]
         return self._accelerate(x[_YV], impulse)
