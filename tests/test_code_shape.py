@@ -46,6 +46,7 @@ def _report(offenders: list[str], what: str) -> None:
     assert not offenders, f"{what}: " + ", ".join(offenders)
 
 
+@pytest.mark.slow
 def test_no_function_is_longer_than_80_lines() -> None:
     """In the packages and in scripts/ alike."""
     offenders = []
@@ -72,6 +73,7 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return [c for c in components if len(c) > 1]
 
 
+@pytest.mark.slow
 def test_no_import_cycle_between_the_projects_modules() -> None:
     modules = _project_modules()
     offenders = [

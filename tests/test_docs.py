@@ -148,6 +148,7 @@ def test_every_equation_the_code_cites_is_in_the_index():
     assert not missing, missing
 
 
+@pytest.mark.slow
 def test_interfaces_page_is_current(fmu_paths):
     """Regenerate with ``python scripts/interfaces_doc.py`` when an FMU variable changes."""
     fmu_dir = fmu_paths["AuvPlant"].parent

@@ -95,6 +95,7 @@ def vertical(remus):
     return runs
 
 
+@pytest.mark.slow
 def test_vert2_both_loops_settle_where_the_dissertation_reports(vertical):
     run = vertical["vert-2"]
     late = run.times >= 45.0
@@ -170,6 +171,7 @@ def test_snapshot_and_restore_continue_bit_identically(remus):
     assert replay() == first
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("mode", "controller", "designed_for_step"),
     [

@@ -49,6 +49,7 @@ def _controller(fmu_paths, unzip_dirs, instance="controller", **values) -> Harne
     return Harness(path, instance=instance, unzip_dir=unzip_dirs["AuvAutopilot"], **values)
 
 
+@pytest.mark.slow
 def test_fmu_closed_loop_reproduces_the_in_process_bs3_to_1e_9(fmu_paths, unzip_dirs):
     """The scenarios' coupling: each step the controller samples the plant's outputs at t,
     then the plant steps with the new commands (Gauss-Seidel, controller first)."""
@@ -78,6 +79,7 @@ def test_fmu_closed_loop_reproduces_the_in_process_bs3_to_1e_9(fmu_paths, unzip_
     assert np.abs(np.degrees(reference.state("yaw")[-500:])).max() < 1.0  # it did settle
 
 
+@pytest.mark.slow
 def test_variables_follow_the_contract(autopilot_fmu):
     md = read_model_description(str(autopilot_fmu))
     assert md.coSimulation.modelIdentifier == "AuvAutopilot"
@@ -135,6 +137,7 @@ def test_a_step_other_than_the_design_step_is_logged_as_a_warning(fmu_paths, unz
     assert "differs from design_step = 0.01" in controller.messages(1)
 
 
+@pytest.mark.slow
 def test_nan_measurement_is_refused_and_the_host_survives(autopilot_fmu, run_python):
     result = run_python(
         """
@@ -164,6 +167,7 @@ def test_nan_measurement_is_refused_and_the_host_survives(autopilot_fmu, run_pyt
     assert all(np.isfinite(report["commands"]))
 
 
+@pytest.mark.slow
 def test_unknown_heading_mode_fails_with_the_reason_and_the_host_survives(
     autopilot_fmu, run_python
 ):

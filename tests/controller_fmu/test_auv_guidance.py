@@ -42,6 +42,7 @@ def _path(t: float) -> tuple[float, float, float]:
     return 1.5 * t + 0.8 * math.sin(0.3 * t), 0.6 * max(0.0, t - 18.0) - 0.5, 0.25 * t - 1.0
 
 
+@pytest.mark.slow
 def test_variables_follow_the_guidance_config(guidance_fmu):
     md = read_model_description(str(guidance_fmu))
     assert md.coSimulation.modelIdentifier == "AuvGuidance"
@@ -64,6 +65,7 @@ def test_variables_follow_the_guidance_config(guidance_fmu):
     assert validate_fmus({"AuvGuidance": guidance_fmu}) == []
 
 
+@pytest.mark.slow
 def test_outputs_equal_the_in_process_guidance_step_for_step(guidance_fmu, unzip_dir):
     fmu = _guidance(guidance_fmu, unzip_dir, waypoints=MISSION, **SETTINGS)
     reference = LosGuidance(GuidanceConfig.build(waypoints=MISSION, **SETTINGS))
@@ -88,6 +90,7 @@ def test_outputs_equal_the_in_process_guidance_step_for_step(guidance_fmu, unzip
     assert np.abs(offset).max() <= math.pi and np.ptp(yaw) > 4.0 * math.pi
 
 
+@pytest.mark.slow
 def test_restored_state_continues_bit_identically(guidance_fmu, unzip_dir):
     fmu = _guidance(guidance_fmu, unzip_dir, waypoints=MISSION, **SETTINGS)
 

@@ -119,6 +119,7 @@ def _yaw_error_after(run, t: float, setpoint: float = 0.0) -> float:
     return float(np.abs(np.degrees(run.state("yaw") - setpoint)[run.times >= t]).max())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "start"),
     [("bs-1", {"u": 1.50, "v": -0.05}), ("bs-3", {"u": 1.50, "v": -0.10})],
@@ -129,11 +130,13 @@ def test_sway_disturbances_are_rejected_within_15_s(remus, name, start):
     assert _yaw_error_after(run, 0.0) > 1.0, name  # the disturbance turned the vehicle first
 
 
+@pytest.mark.slow
 def test_bs2_heading_error_of_30_deg_is_removed(remus):
     run = _run(remus, {"u": 1.50, "yaw": math.radians(30.0)})
     assert _yaw_error_after(run, 20.0) < 1.0
 
 
+@pytest.mark.slow
 def test_slow1_low_speed_vehicle_is_stabilised_within_20_s(remus):
     run = _run(remus, {"u": 1.0, "v": -0.10}, **CURRENT_GAINS, **SLOW)
     assert _yaw_error_after(run, 20.0) < 1.0
@@ -156,6 +159,7 @@ def _east_speed(run, since: float) -> float:
     return float(np.polyfit(run.times[late], run.state("east")[late], 1)[0])
 
 
+@pytest.mark.slow
 def test_cur1_holds_the_heading_and_drifts_east_with_the_current(in_current):
     drift, _ = in_current
     assert _yaw_error_after(drift, 30.0) < 1.0

@@ -34,6 +34,7 @@ def _controller(speed: float, gains: BacksteppingGains, use_compiled: bool) -> B
     return BacksteppingHeading(design, gains)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_compiled_law_agrees_with_the_reference_over_a_closed_loop_run(case):
     x0, config, speed = CASES[case]

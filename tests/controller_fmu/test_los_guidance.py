@@ -213,6 +213,7 @@ def fly(los: LosGuidance, x0: dict, stop_time: float, current_east: float = 0.0,
     return run, cross
 
 
+@pytest.mark.slow
 def test_heading_converges_to_the_path_from_an_offset_start():
     # 15 m to port of a leg heading 30 deg, pointing north: joins it and stays on it
     alpha = math.radians(30.0)
@@ -225,6 +226,7 @@ def test_heading_converges_to_the_path_from_an_offset_start():
     assert np.abs(np.degrees(yaw - alpha)).max() < 0.5  # heading along it
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("settings", "offset_m"),
     [

@@ -108,12 +108,14 @@ def _after(run, t: float) -> np.ndarray:
     return np.abs(np.degrees(run.state("yaw")[run.times >= t]))
 
 
+@pytest.mark.slow
 def test_lqr1_small_sway_disturbance_settles_within_25_s(remus):
     run = _run(remus, v0=-0.01, stop_time=40.0)
     assert _after(run, 25.0).max() < 1.0
     assert _after(run, 0.0).max() > 1.0  # it was disturbed, and came back
 
 
+@pytest.mark.slow
 def test_lqr2_mass_reaches_its_stop_and_heading_returns_within_45_s(remus):
     run = _run(remus, v0=-0.05, stop_time=60.0)
     assert run.state("mass_position").min() == pytest.approx(-0.06, abs=1e-12)

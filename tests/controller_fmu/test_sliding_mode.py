@@ -64,6 +64,7 @@ def test_one_sampled_step_moves_s_by_the_reaching_law(remus, design, start):
     assert smc.sliding_variable(x1[_IDX]) - s0 == pytest.approx(expected, rel=0.01)
 
 
+@pytest.mark.slow
 def test_sliding_mode_stabilises_the_lqr1_initial_state(remus):
     autopilot = Autopilot(AutopilotConfig.build(heading_mode=2))
     model = PlantModel(remus, variant=Variant.LATERAL)

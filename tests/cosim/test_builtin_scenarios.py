@@ -65,6 +65,7 @@ def window(result: RunResult, name: str, t0: float, t1: float) -> np.ndarray:
     return result.column(name)[(result.times >= t0 - 1e-9) & (result.times < t1 - 1e-9)]
 
 
+@pytest.mark.slow
 def test_every_builtin_scenario_runs_to_its_stop_time(results: dict[str, RunResult]) -> None:
     for scenario_id, result in results.items():
         scenario = result.scenario
@@ -253,6 +254,7 @@ def bs3(fmu_dir: Path, step: float, algorithm: str, stop_time: float = 6.0) -> R
     return result
 
 
+@pytest.mark.slow
 def test_jacobi_and_gauss_seidel_agree_at_1_ms_and_drift_apart_with_the_step(fmu_dir: Path) -> None:
     # Jacobi feeds the plant the command computed one step earlier: a delay of h in the
     # loop, so the two differ by O(h). Documented tolerance: at h = 1 ms the yaw histories
@@ -314,6 +316,7 @@ def cli_run(fmu_dir: Path, tmp_path: Path, scenario_text: str) -> subprocess.Com
     )
 
 
+@pytest.mark.slow
 def test_plant_refusing_a_start_value_stops_the_run(fmu_dir: Path, tmp_path: Path) -> None:
     # an absurd propeller thrust (held, unconnected) overflows the first step: the plant
     # returns a non-OK status with its reason; the master stops, keeps t = 0, exits 1
@@ -331,6 +334,7 @@ def test_plant_refusing_a_start_value_stops_the_run(fmu_dir: Path, tmp_path: Pat
     assert (tmp_path / "run" / "results.csv").read_text().count("\n") == 2  # header + t = 0
 
 
+@pytest.mark.slow
 def test_plant_failing_initialisation_is_reported_with_its_reason(
     fmu_dir: Path, tmp_path: Path
 ) -> None:

@@ -37,6 +37,7 @@ print(sorted(p.name for p in exit_guard._guarded))
 """
 
 
+@pytest.mark.slow
 def test_every_fmu_installs_the_guard(fmu_paths, run_python):
     done = run_python(LOAD_AND_FREE, "guarded", fmu_paths["AuvPlant"], fmu_paths["AuvAutopilot"])
     assert done.returncode == 0, done.stderr
@@ -64,6 +65,7 @@ def _invalid_accesses_in_fmu_binary(log: str) -> list[str]:
     ]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
 @pytest.mark.parametrize("mode", ["guarded", "unguarded"])
 def test_no_use_after_free_at_exit(mode, fmu_paths, run_python, tmp_path: Path):

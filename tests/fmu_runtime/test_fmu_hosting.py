@@ -96,6 +96,7 @@ def _json_result(done) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_a_parameter_loop_in_one_process_matches_fresh_processes(name, fmu_paths, run_python):
     case = CASES[name]
@@ -139,6 +140,7 @@ print(build_fmu("AuvPlant", Path(sys.argv[2])))
 """
 
 
+@pytest.mark.slow
 def test_a_second_build_in_the_same_process_refuses_with_the_reason(
     fmu_paths, run_python, tmp_path
 ):
@@ -164,6 +166,7 @@ def test_a_second_build_in_the_same_process_refuses_with_the_reason(
     assert "initialisation failed: stale code" in errors
 
 
+@pytest.mark.slow
 def test_instantiate_free_cycles_keep_under_2_mb_per_1000(fmu_paths, run_python):
     """300 cycles of each of our FMUs after a warm-up; 2 MB per 1,000 cycles, scaled."""
     script = (
@@ -241,6 +244,7 @@ print(json.dumps(report))
 """
 
 
+@pytest.mark.slow
 def test_calls_against_the_fmi_rules_are_refused_and_the_host_survives(fmu_paths, run_python):
     report = _json_result(run_python(RULES, fmu_paths["AuvPlant"], fmu_paths["AuvAutopilot"]))
     assert (report["first step"], report["wrong point"], report["right point"]) == (0, 2, 0)

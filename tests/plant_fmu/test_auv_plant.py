@@ -47,6 +47,7 @@ def _harness(plant, unzip_dir, instance="plant", **values) -> Harness:
 # --- dissertation examples and equality with the in-process model ---------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("variant", "names", "printed", "tolerance"),
     [
@@ -77,6 +78,7 @@ def test_simulate_fmu_settles_on_the_dissertation_equilibrium_like_the_model(
     assert np.max(np.abs(fmu_states - states)) <= 1e-12
 
 
+@pytest.mark.slow
 def test_ideal_fluid_with_neutral_buoyancy_conserves_kinetic_energy(plant, unzip_dir):
     fmu = _harness(
         plant, unzip_dir, ideal_fluid=True, B=298.9, W=298.9, z_g=0.0, thrust=0.0,
@@ -177,6 +179,7 @@ def test_vehicle_picks_the_set_and_written_parameters_override_it(plant, unzip_d
     np.testing.assert_array_equal(rows, expected[1:])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("moving_mass_model", [0, 1])
 def test_moving_mass_model_is_selected_by_its_parameter(plant, unzip_dir, remus, moving_mass_model):
     """The FMU runs the model it is asked for, bit for bit (model 0 is the default)."""
@@ -253,6 +256,7 @@ def test_parameter_written_after_initialisation_is_refused(plant, unzip_dir):
     assert recovered == STATUS_OK
 
 
+@pytest.mark.slow
 def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
     result = run_python(
         """
@@ -278,6 +282,7 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
     assert np.isfinite(report["u"])
 
 
+@pytest.mark.slow
 def test_fresh_process_runs_the_code_shipped_in_the_fmu(plant, run_python):
     result = run_python(
         """
@@ -344,6 +349,7 @@ def test_model_description_is_valid_complete_and_matches_the_contract(plant):
     assert float(md.defaultExperiment.stepSize) == H
 
 
+@pytest.mark.slow
 def test_our_validation_finds_no_problem(plant):
     assert validate_fmus({"AuvPlant": plant}) == []
 

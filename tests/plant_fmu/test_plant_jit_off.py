@@ -22,6 +22,7 @@ print("\\n".join(result.messages.get("plant", [])))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", ["bs-3", "vert-2"])
 def test_plant_fmu_agrees_with_the_compiled_path_off(scenario, fmu_paths, run_python, tmp_path):
     fmu_dir = fmu_paths["AuvPlant"].parent

@@ -50,6 +50,7 @@ def test_equilibria_json_is_the_documented_list(capsys):
     assert by_v[2]["state"]["r"] == pytest.approx(r, abs=6e-5)
 
 
+@pytest.mark.slow
 def test_equilibria_low_speed_lateral_json(capsys):
     """Sec. 6.3.3 (T = 4 N): [1.017, 0, 0] unstable, [0.8467, +-0.1147, -+0.1541] stable."""
     code, out, _ = _run(
@@ -99,6 +100,7 @@ def test_bad_input_exits_1_with_a_one_line_reason(capsys, tmp_path, argv, messag
     assert len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_roll_torque_sweep_writes_figure_and_csv_with_one_fold(capsys, tmp_path):
     """Example 5.4: one fold between 4 and 5 Q_prop, in the CSV and on stdout."""
     code, out, _ = _run(
@@ -123,6 +125,7 @@ def test_roll_torque_sweep_writes_figure_and_csv_with_one_fold(capsys, tmp_path)
     assert "fold" in out and "Q_prop" in out
 
 
+@pytest.mark.slow
 def test_mass_position_sweep_reports_the_cg_offset(capsys, tmp_path):
     code, out, _ = _run(
         capsys,
@@ -140,6 +143,7 @@ def test_mass_position_sweep_reports_the_cg_offset(capsys, tmp_path):
     assert "y_g = -0.8" in out  # the fold, Sec. 5.1.4: "slightly larger than 0.8 cm"
 
 
+@pytest.mark.slow
 def test_phase_portrait_writes_a_png(capsys, tmp_path):
     code, out, _ = _run(capsys, "analyze", "phase-portrait", "--out", str(tmp_path))
     assert code == 0
@@ -148,6 +152,7 @@ def test_phase_portrait_writes_a_png(capsys, tmp_path):
     assert "29 trajectories" in out  # 27 grid starts + 2 on the unstable manifold of x0
 
 
+@pytest.mark.slow
 def test_console_entry_point_runs_in_a_fresh_process():
     result = subprocess.run(
         [sys.executable, "-m", "cosim.cli", "analyze", "equilibria", "--json"],

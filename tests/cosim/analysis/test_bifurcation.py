@@ -78,6 +78,7 @@ def test_example_5_1_stable_and_unstable_subspaces(remus):
         assert np.linalg.norm(residual) < 2e-4
 
 
+@pytest.mark.slow
 def test_example_5_2_long_fins_only_the_straight_line_stable():
     """Example 5.2 (Table 5.3 fins): only [1.525, 0, 0] in D, asymptotically stable."""
     equilibria = find_equilibria(OperatingConditions(load_vehicle("remus100-long-fins")))
@@ -89,6 +90,7 @@ def test_example_5_2_long_fins_only_the_straight_line_stable():
     assert eq.stable
 
 
+@pytest.mark.slow
 def test_example_5_3_lateral_equilibria_bank_in_turns(remus):
     """(5.1.70): [1.272, +-0.1724, -+0.2316, 0, -+0.0301] stable, x0 unstable."""
     equilibria = find_equilibria(OperatingConditions(remus, Variant.LATERAL))
@@ -97,6 +99,7 @@ def test_example_5_3_lateral_equilibria_bank_in_turns(remus):
     _assert_mirrored_pair(equilibria, turn, names, abs_=6e-4)
 
 
+@pytest.mark.slow
 def test_low_speed_equilibria_within_half_a_percent(remus):
     """Sec. 6.3.3, T = 4 N: [1.017, 0, 0] unstable, [0.8467, +-0.1147, -+0.1541] stable."""
     equilibria = find_equilibria(OperatingConditions(remus, Variant.LATERAL, thrust=4.0))
@@ -105,6 +108,7 @@ def test_low_speed_equilibria_within_half_a_percent(remus):
     assert axis.value("u") == pytest.approx(dissertation("low_speed.straight_line")[0], rel=5e-3)
 
 
+@pytest.mark.slow
 def test_every_equilibrium_is_a_root_inside_the_box(remus):
     conditions = OperatingConditions(remus, Variant.LATERAL, roll_torque=2 * Q_PROP)
     equilibria = find_equilibria(conditions)
@@ -115,6 +119,7 @@ def test_every_equilibrium_is_a_root_inside_the_box(remus):
         assert in_box(eq.free_states, [eq.value(n) for n in eq.free_states])
 
 
+@pytest.mark.slow
 def test_roll_torque_sign_mirrors_the_equilibria(remus):
     """Sec. 5.1.3: the flow with Q is that with -Q mirrored about the u axis
     (v, r, p, roll change sign)."""
@@ -127,6 +132,7 @@ def test_roll_torque_sign_mirrors_the_equilibria(remus):
     np.testing.assert_allclose(sorted(plus), mirrored, atol=1e-7)
 
 
+@pytest.mark.slow
 def test_a_current_shifts_the_ground_velocity_not_the_relative_equilibria(remus):
     """(5.2.10)-(5.2.15): in a uniform current the relative motion has the still-water
     equilibria; heading north in a 0.2 m/s eastward current adds 0.2 m/s to v."""
@@ -139,6 +145,7 @@ def test_a_current_shifts_the_ground_velocity_not_the_relative_equilibria(remus)
         assert b.stable == a.stable
 
 
+@pytest.mark.slow
 def test_roll_torque_sweep_has_one_fold_between_4_and_5_q_prop(remus):
     """Example 5.4 / Fig. 5.9: the unstable and a stable equilibrium coalesce when |Q| is
     "slightly larger than 4 Q_prop"; beyond it one stable equilibrium remains."""
@@ -173,6 +180,7 @@ def test_roll_torque_sweep_has_one_fold_between_4_and_5_q_prop(remus):
     assert start_stability == sorted(e.stable for e in find_equilibria(conditions))
 
 
+@pytest.mark.slow
 def test_mass_position_sweep_has_one_fold_at_y_g_between_08_and_09_cm(remus):
     """Sec. 5.1.4 / Fig. 5.12: "when the length of y_g is slightly larger than 0.8 cm,
     the bifurcation occurs"; y_g = m_v g y_v / W for our moving mass."""
@@ -191,6 +199,7 @@ def test_mass_position_sweep_has_one_fold_at_y_g_between_08_and_09_cm(remus):
     assert printed < abs(y_g) < printed + 0.1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("parameter", ["mu", "eta"])
 def test_fin_factor_sweeps_stabilise_the_straight_line_near_2(remus, parameter):
     """Figs. 5.6-5.7: as mu (fin arm) or eta (fin area) grows, the stable turning

@@ -73,11 +73,13 @@ def test_example_5_1_turning_equilibria_are_stable(horizontal, sign):
     assert eq.stable
 
 
+@pytest.mark.slow
 def test_example_5_1_has_exactly_three_equilibria_in_the_box(horizontal):
     found = _equilibria_in_box(horizontal, thrust=9.0)
     assert len(found) == 3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("v0", [0.01, -0.01])
 def test_example_5_1_time_integration_reaches_the_turning_equilibrium(horizontal, v0):
     """A 1 cm/s sway disturbance leaves the unstable straight line for the stable turn
@@ -91,6 +93,7 @@ def test_example_5_1_time_integration_reaches_the_turning_equilibrium(horizontal
     assert np.all(np.abs(error) <= 0.5 * turn.resolution + 1.5e-4), error  # 60 s: not quite there
 
 
+@pytest.mark.slow
 def test_example_5_2_long_fins_leave_only_the_stable_straight_line():
     model = PlantModel(load_vehicle("remus100-long-fins"), Variant.HORIZONTAL)
     found = _equilibria_in_box(model, thrust=9.0)

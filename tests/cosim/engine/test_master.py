@@ -34,6 +34,7 @@ def loop(fmu_dir: Path, **kwargs) -> Scenario:
     return scenario_from_toml(loop_toml(**kwargs), base_dir=fmu_dir)
 
 
+@pytest.mark.slow
 def test_gauss_seidel_is_the_sampled_loop_without_delay(fmu_dir: Path) -> None:
     # controller first: u_n = -k x_n, then x_{n+1} = x_n + h u_n = (1 - k h) x_n
     result = master.run(loop(fmu_dir))
@@ -108,6 +109,7 @@ def test_plant_alone_equals_fmpy_simulate_fmu(fmu_dir: Path) -> None:
     assert np.all(ours.column("plant.u") == -0.7)
 
 
+@pytest.mark.slow
 def test_fmu_error_stops_the_run_with_its_reason_and_partial_results(
     fmu_dir: Path, tmp_path: Path
 ) -> None:
@@ -133,6 +135,7 @@ def test_non_finite_exchanged_value_stops_the_run_naming_it(fmu_dir: Path) -> No
     assert np.isfinite(result.values).all() and result.times[-1] == pytest.approx(0.2)
 
 
+@pytest.mark.slow
 def test_cli_failure_exits_non_zero_with_one_line(fmu_dir: Path, tmp_path: Path) -> None:
     scenario = tmp_path / "failing.toml"
     scenario.write_text(
@@ -155,6 +158,7 @@ def _run_command(scenario: Path, out: Path) -> list[str]:
     return [sys.executable, "-m", "cosim.cli", "run", str(scenario), "--out", str(out), "--no-rrd"]
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_cleanly_with_partial_results(fmu_dir: Path, tmp_path: Path) -> None:
     started = tmp_path / "started"
     scenario = tmp_path / "long.toml"

@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import pytest
 from repo_paths import ROOT
 
 SHORT, LONG = 20.0, 200.0  # s of vert-2
@@ -24,6 +25,7 @@ def _bench_memory():
     return module
 
 
+@pytest.mark.slow
 def test_peak_memory_does_not_grow_with_the_stop_time(fmu_paths, tmp_path: Path):
     fmu_dir = fmu_paths["AuvAutopilot"].parent
     peak = _bench_memory().peak_rss_mb

@@ -128,6 +128,7 @@ def entities(rrd: Path) -> set[str]:
     return {chunk.entity_path for chunk in RrdReader(rrd).stream()}
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # a killed run has none
 def test_sigkill_leaves_whole_rows_of_the_uninterrupted_run(fmu_dir: Path, tmp_path: Path):
     moments = [random.uniform(0.3, 3.0) for _ in range(3)]
@@ -162,6 +163,7 @@ def test_sigkill_leaves_whole_rows_of_the_uninterrupted_run(fmu_dir: Path, tmp_p
         np.testing.assert_array_equal(yaw, np.degrees(table[: len(yaw), yaw_column]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("signum", "code", "reason", "options"),
     [
@@ -192,6 +194,7 @@ def test_sigterm_and_sighup_end_a_run_like_ctrl_c(
         verify(out / "recording.rrd")
 
 
+@pytest.mark.slow
 def test_two_ctrl_c_in_quick_succession_still_complete_the_folder(fmu_dir: Path, tmp_path: Path):
     """Regression: two Ctrl-C 0.02-0.3 s apart left an empty run folder."""
     out = tmp_path / "run"
@@ -230,6 +233,7 @@ sys.exit(main(["run", "bs-3", "--stop-time", "2", "--fmu-dir", sys.argv[1], "--o
 """
 
 
+@pytest.mark.slow
 def test_ctrl_c_while_the_outputs_are_written_does_not_abort_them(
     fmu_dir: Path, tmp_path: Path, run_python
 ):
@@ -248,6 +252,7 @@ def test_ctrl_c_while_the_outputs_are_written_does_not_abort_them(
     verify(out / "recording.rrd")
 
 
+@pytest.mark.slow
 def test_a_second_run_into_a_running_folder_fails_at_once(fmu_dir: Path, tmp_path: Path):
     """Regression: `run bs-3 --out same & run bs-1 --out same` both exited 0 and the
     recording failed its CRC."""
@@ -267,6 +272,7 @@ def test_a_second_run_into_a_running_folder_fails_at_once(fmu_dir: Path, tmp_pat
     verify(out / "recording.rrd")
 
 
+@pytest.mark.slow
 def test_rows_reach_results_csv_at_least_every_second(fmu_dir: Path, tmp_path: Path):
     """A slow run (the full 6-DOF plant sub-steps every 1.2 us, or 0.1 ms on the 50x slower
     reference path: fewer than ROWS_PER_CHUNK rows a second, so a full chunk alone would
@@ -297,6 +303,7 @@ def test_rows_reach_results_csv_at_least_every_second(fmu_dir: Path, tmp_path: P
     assert longest < 1.6, f"{longest:.2f} s without new rows in results.csv"
 
 
+@pytest.mark.slow
 def test_a_huge_stop_time_streams_with_bounded_memory(fmu_dir: Path, tmp_path: Path):
     """Regression: `--stop-time 1e6` took 4.3 GB before the first step."""
     out = tmp_path / "run"
@@ -326,6 +333,7 @@ def peak_rss_kb(pid: int) -> int:
                  if line.startswith("VmHWM:")), 0)  # fmt: skip
 
 
+@pytest.mark.slow
 def test_a_stopped_manoeuvre_gets_the_metrics_of_what_it_ran(fmu_dir: Path, tmp_path: Path):
     """Regression: a turning circle stopped by SIGTERM after 3 s: summary.json names the
     manoeuvre and has every metric, measured over the rows it ran (the 90 deg point is

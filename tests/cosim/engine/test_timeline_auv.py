@@ -45,6 +45,7 @@ def bs3(
     return result
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_bs3_turns_to_the_new_heading_set_at_20_s(fmu_dir: Path, algorithm: str) -> None:
     result = bs3(fmu_dir, TURN.format(time=20.0), algorithm=algorithm)
@@ -76,6 +77,7 @@ def test_with_the_controller_every_2_steps_the_event_fires_at_the_next_point(
     assert cmd[n + 1] == cmd[n + 2] and cmd[n + 3] != cmd[n + 2]
 
 
+@pytest.mark.slow
 def test_mass_jam_holds_the_mass_and_thruster_off_zeroes_the_thruster(fmu_dir: Path) -> None:
     turn = TURN.format(time=20.0)
     jam = bs3(fmu_dir, turn + '[[faults]]\nkind = "mass-jam"\nstart = 15.0\n', stop_time=30.0)

@@ -181,6 +181,7 @@ def test_ssp_declares_each_unit_it_uses_as_the_fmus_define_it(
     assert declared["rad/s"] == {"rad": 1, "s": -1}
 
 
+@pytest.mark.slow
 def test_ssp_is_valid_against_the_ssp_schemas(bs3: Scenario, tmp_path: Path) -> None:
     """Two independent validators: pyssp-standard's and fmpy's bundled SSP 1.0 schemas."""
     from fmpy.ssp.ssd import read_ssd

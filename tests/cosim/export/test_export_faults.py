@@ -120,6 +120,7 @@ def _libcosim_trace(source: Path, folder: Path) -> np.ndarray:
     return _read(folder / "trace.csv")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["ssp", "osp"])
 def test_libcosim_runs_the_exported_gain_fault_like_our_master(
     faulty: tuple[Scenario, Path], fmu_dir: Path, tmp_path: Path, fmt: str

@@ -172,6 +172,7 @@ def _assert_same_trace(name: str, tool: str, theirs: tuple, master: tuple) -> No
 SYSTEMS = ["plant-alone", "bs-3", "survey"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SYSTEMS)
 @pytest.mark.parametrize("fmt", ["ssp", "osp"])
 def test_libcosim_matches_master(
@@ -180,6 +181,7 @@ def test_libcosim_matches_master(
     _assert_same_trace(name, f"libcosim ({fmt})", libcosim_traces[name, fmt], master_traces[name])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SYSTEMS)
 def test_ecos_matches_master(name: str, ecos_traces: dict, master_traces: dict) -> None:
     _assert_same_trace(name, "ecos (ssp)", ecos_traces[name, "ssp"], master_traces[name])

@@ -84,6 +84,7 @@ def test_both_fmus_ship_the_same_plant_package(fmu_paths):
     assert "plant_fmu/auv_plant.py" in shipped["AuvAutopilot"]
 
 
+@pytest.mark.slow
 def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
     source = fmu_paths["AuvPlant"]
     fmu = tmp_path / source.name
@@ -101,6 +102,7 @@ def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
     assert build.recorded_hashes(hash_file) == {"source": digest, "fmu": build.file_hash(fmu)}
 
 
+@pytest.mark.slow
 def test_a_built_fmu_failing_its_integrity_check_is_rebuilt(fmu_paths, tmp_path):
     """Regression: a truncated FMU beside an up-to-date source hash was used as it was."""
     source = fmu_paths["AuvPlant"]
@@ -127,6 +129,7 @@ def test_source_hash_changes_with_any_shipped_byte(tmp_path):
     assert build.source_hash(files) != original
 
 
+@pytest.mark.slow
 def test_missing_script_fails_the_build_with_its_path(monkeypatch, tmp_path):
     monkeypatch.setitem(build.FMUS, "Ghost", build.FmuSource("plant_fmu", "ghost.py", ()))
     with pytest.raises(CosimError, match=r"Ghost\.fmu: .*plant_fmu/ghost\.py does not exist"):
@@ -200,6 +203,7 @@ def test_validating_a_corrupt_fmu_is_one_line(fmu_paths, tmp_path):
     assert "\n" not in problem
 
 
+@pytest.mark.slow
 def test_validate_rebuilds_a_truncated_fmu_in_the_fmu_folder(fmu_paths, tmp_path, capsys):
     """Regression: a truncated FMU in the FMU folder was never rebuilt."""
     from cosim.cli import main

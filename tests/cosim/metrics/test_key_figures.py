@@ -6,6 +6,7 @@ import itertools
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -26,6 +27,7 @@ errors = st.lists(st.sampled_from([0.0, 0.05, -0.05, 0.2, -0.3, math.nan]), min_
 cuts = st.lists(st.integers(min_value=0, max_value=40), max_size=6)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(errors, cuts)
 def test_streamed_settling_time_is_the_whole_series_one(values: list[float], cut: list[int]):

@@ -96,6 +96,7 @@ def lateral_turn():
     return model, inputs, times, states
 
 
+@pytest.mark.slow
 def test_steady_turning_diameter_is_2U_over_r_of_the_plants_own_steady_turn(lateral_turn):
     model, inputs, times, states = lateral_turn
 

@@ -49,6 +49,7 @@ def run_cli(fmu_dir: Path, *options: str) -> subprocess.CompletedProcess:
     return subprocess.run([*command, "--quiet", *options], capture_output=True, text=True)
 
 
+@pytest.mark.slow
 def test_results_filling_the_disk_end_the_run_with_the_reason(fmu_dir: Path, small_disk: Path):
     out = small_disk / "run"
     done = run_cli(fmu_dir, "--out", str(out), "--stop-time", "60", "--no-rrd")
@@ -61,6 +62,7 @@ def test_results_filling_the_disk_end_the_run_with_the_reason(fmu_dir: Path, sma
     assert text.endswith("\n") and text.count("\n") - 1 == summary["rows"]
 
 
+@pytest.mark.slow
 def test_a_recording_filling_the_disk_ends_the_run_with_the_reason(
     fmu_dir: Path, small_disk: Path, tmp_path: Path
 ):
@@ -75,6 +77,7 @@ def test_a_recording_filling_the_disk_ends_the_run_with_the_reason(
     assert 0 < summary["time_reached"] < 3600.0  # it failed while running, not before
 
 
+@pytest.mark.slow
 def test_a_recording_on_a_device_refusing_every_write_is_refused(fmu_dir: Path, tmp_path: Path):
     if not DEV_FULL.exists():
         pytest.skip("no /dev/full")

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -14,6 +15,7 @@ from cosim.outputs.results import csv_header, csv_lines, read_csv
 doubles = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(values=hnp.arrays(np.float64, hnp.array_shapes(min_dims=2, max_dims=2), elements=doubles))
 def test_every_double_reads_back_bit_for_bit(values: np.ndarray, tmp_path_factory) -> None:

@@ -42,6 +42,7 @@ def one_line(capsys: pytest.CaptureFixture[str]) -> str:
     return err
 
 
+@pytest.mark.slow
 def test_a_finished_run_folder_is_reused_only_with_overwrite(loop_file: Path, tmp_path, capsys):
     """Regression: `run bs-3 --out d; run bs-1 --out d --no-rrd` left bs-3's recording beside
     bs-1's results."""

@@ -244,6 +244,7 @@ def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
         load_scenario("bs-9")
 
 
+@pytest.mark.slow
 def test_cli_rejects_a_bad_file_with_one_line_and_no_run(fmu_dir: Path, tmp_path: Path) -> None:
     path = tmp_path / "bad.toml"
     path.write_text(BS3.replace("stop_time = 60.0", "stop_time = 60.0\ncolour = 'red'"))

@@ -62,6 +62,7 @@ def separate_run(scenario: Path, fmu_dir: Path, time: float, gain: float) -> dic
     return json.loads((out / "summary.json").read_text(encoding="utf-8"))
 
 
+@pytest.mark.slow
 def test_event_time_and_fault_gain_factors_equal_separate_runs(
     scenario: Path, fmu_dir: Path, tmp_path: Path
 ) -> None:

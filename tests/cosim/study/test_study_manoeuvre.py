@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 from sweep_helpers import sweep, table
 
 STUDY = """
@@ -18,6 +19,7 @@ collect = ["steady_turning_diameter_m", "tactical_diameter_m"]
 """
 
 
+@pytest.mark.slow
 def test_a_turning_circle_study_collects_the_steady_turning_diameter(
     tmp_path: Path, fmu_dir: Path
 ) -> None:

@@ -52,6 +52,7 @@ def runs_in(rrd: dict[str, dict[str, list]]) -> set[str]:
     return {entity.rsplit("/", 1)[1] for entity in rrd if entity.startswith("/world/paths/")}
 
 
+@pytest.mark.slow
 def test_the_overlay_holds_the_chosen_runs(fmu_dir: Path, tmp_path: Path) -> None:
     named = run_id(NAMED)
     study = write_study(tmp_path, f'"best:final.plant.north", "worst:final.plant.yaw", "{named}"')

@@ -41,6 +41,7 @@ def separate_run(tmp_path: Path, fmu_dir: Path, v0: float, k0: float) -> dict:
     return json.loads((out / "summary.json").read_text(encoding="utf-8"))
 
 
+@pytest.mark.slow
 def test_the_issue_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) -> None:
     study = tmp_path / "study.toml"
     study.write_text(ISSUE_STUDY, encoding="utf-8")
@@ -62,6 +63,7 @@ def test_the_issue_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Pat
     assert any(r["yaw_settling_time_s"] for r in rows)  # 20 s: the settling time is there
 
 
+@pytest.mark.slow
 def test_a_refused_start_value_is_a_failed_row_the_others_complete(
     tmp_path: Path, fmu_dir: Path
 ) -> None:
@@ -92,6 +94,7 @@ def test_a_refused_start_value_is_a_failed_row_the_others_complete(
     assert main(argv) == 1
 
 
+@pytest.mark.slow
 def test_the_table_does_not_depend_on_the_number_of_workers(
     small_study: Path, small_reference: list[dict[str, str]], fmu_dir: Path, tmp_path: Path
 ) -> None:
@@ -150,6 +153,7 @@ def test_bad_cluster_options_fail_before_anything_is_written(
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_a_study_of_a_manoeuvre_collects_its_metrics(tmp_path: Path, fmu_dir: Path) -> None:
     """Regression: a study over turning-circle has the manoeuvre's metrics as columns, each
     run's as its summary.json gives them (tactical diameter: 180 deg after about 16 s)."""

@@ -47,6 +47,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow
 def test_the_local_cluster_listens_on_localhost_only(run_python) -> None:
     # a fresh process, so that no other test's listening socket is counted
     proc = run_python(LISTENING, timeout=180)
@@ -73,6 +74,7 @@ def dask_cluster(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[lis
         yield cluster.options
 
 
+@pytest.mark.slow
 def test_a_distributed_cluster_gives_the_same_table(
     dask_cluster: list[str],
     small_study: Path,
@@ -84,6 +86,7 @@ def test_a_distributed_cluster_gives_the_same_table(
     assert table(tmp_path / "out") == small_reference
 
 
+@pytest.mark.slow
 def test_a_tls_scheduler_needs_the_certificates(
     small_study: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
@@ -103,6 +106,7 @@ def whole_rows(csv_path: Path) -> int:
     return max(0, csv_path.read_bytes().count(b"\n") - 1)
 
 
+@pytest.mark.slow
 def test_sigkill_then_resume_gives_the_uninterrupted_table(
     small_study: Path,
     small_reference: list[dict[str, str]],

@@ -91,6 +91,7 @@ def sweep_losing_a_worker(
     return lost
 
 
+@pytest.mark.slow
 def test_a_lost_worker_s_runs_are_retried(
     long_study: Path, uninterrupted: list[dict[str, str]], fmu_dir: Path, tmp_path: Path
 ) -> None:
@@ -101,6 +102,7 @@ def test_a_lost_worker_s_runs_are_retried(
     assert rows == uninterrupted  # sorted by run: the same values to the last digit
 
 
+@pytest.mark.slow
 def test_runs_lost_without_retries_are_failed_with_the_reason(
     long_study: Path, uninterrupted: list[dict[str, str]], fmu_dir: Path, tmp_path: Path
 ) -> None:

@@ -52,6 +52,7 @@ def _drawn(run_dir: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, np.ndarr
     return drawn
 
 
+@pytest.mark.slow
 def test_a_turning_circle_gets_its_metrics_on_the_page_and_the_track(tmp_path, monkeypatch):
     run_dir = _turning_run(tmp_path / "run")
     drawn = _drawn(run_dir, monkeypatch)
@@ -71,6 +72,7 @@ def test_a_turning_circle_gets_its_metrics_on_the_page_and_the_track(tmp_path, m
         assert f"<tr><th>{name}</th><td>{'n/a' if value is None else f'{value:.6g}'}</td>" in page
 
 
+@pytest.mark.slow
 def test_other_runs_get_no_marks_and_no_metric_table(tmp_path, monkeypatch):
     run_dir = _turning_run(tmp_path / "run")
     summary = json.loads((run_dir / "summary.json").read_text())
@@ -80,6 +82,7 @@ def test_other_runs_get_no_marks_and_no_metric_table(tmp_path, monkeypatch):
     assert "Manoeuvre metrics" not in (run_dir / "report" / "index.html").read_text()
 
 
+@pytest.mark.slow
 def test_a_survey_page_lists_its_metrics(tmp_path, monkeypatch):
     run_dir = _turning_run(tmp_path / "run")
     metrics = {"cross_track_rms_m": 1.6, "cross_track_max_m": 5.0, "legs_completed": 7}

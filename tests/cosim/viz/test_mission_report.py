@@ -54,6 +54,7 @@ def _planned_paths(run_dir: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, 
     return drawn
 
 
+@pytest.mark.slow
 def test_the_trajectory_shows_the_planned_path_of_the_runs_guidance(tmp_path, monkeypatch):
     drawn = _planned_paths(_write_run(tmp_path / "run", SCENARIO), monkeypatch)
     assert drawn["trajectory.png"] == [[[0.0, 0.0], [0.0, 40.0], [15.0, 40.0]]]  # east, north
@@ -61,6 +62,7 @@ def test_the_trajectory_shows_the_planned_path_of_the_runs_guidance(tmp_path, mo
     assert (tmp_path / "run" / "report" / "mission.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_a_run_without_guidance_has_no_planned_path(tmp_path, monkeypatch):
     drawn = _planned_paths(_write_run(tmp_path / "plain", None), monkeypatch)
     assert drawn["trajectory.png"] == []

@@ -453,6 +453,7 @@ def _port_open(port: int) -> bool:
         return s.connect_ex(("127.0.0.1", port)) == 0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(rerun_executable() is None, reason="the rerun CLI is not installed")
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the server was still writing
 def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path, fmu_dir: Path):
@@ -574,6 +575,7 @@ def read_results(run: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return table[:, 0], dict(zip(names, table.T, strict=True))
 
 
+@pytest.mark.slow
 def test_closed_loop_recording_equals_results_csv(real_runs: Path):
     rrd = real_runs / "bs-3" / RECORDING_FILE
     times, csv = read_results(real_runs / "bs-3")

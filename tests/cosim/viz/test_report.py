@@ -75,6 +75,7 @@ def _assert_png(path: Path) -> None:
     assert len(data) > 10_000  # axes, ticks and curves, not an empty canvas
 
 
+@pytest.mark.slow
 def test_lateral_run_gets_velocity_attitude_and_trajectory_figures(lateral_run):
     index = write_report(lateral_run)
     assert index == lateral_run / "report" / "index.html"
@@ -89,6 +90,7 @@ def test_lateral_run_gets_velocity_attitude_and_trajectory_figures(lateral_run):
     assert "open-loop" in page and "peak abs mass position m" in page
 
 
+@pytest.mark.slow
 def test_depth_loop_gets_its_figure_and_a_3d_trajectory(tmp_path):
     """Full 6-DOF from the surface with the fins deflected: the depth changes."""
     run = _write_run(
@@ -116,6 +118,7 @@ def test_missing_columns_leave_their_panels_and_figures_out(tmp_path):
     assert sorted(p.name for p in index.parent.glob("*.png")) == ["velocities.png"]
 
 
+@pytest.mark.slow
 def test_incomplete_run_is_flagged_on_the_page(tmp_path):
     run = _write_run(
         tmp_path / "broken",
@@ -147,6 +150,7 @@ def test_a_partial_run_ending_on_a_non_finite_value_is_reported(tmp_path, value)
     assert (run / "report" / "attitude_actuators.png").read_bytes().startswith(PNG_SIGNATURE)
 
 
+@pytest.mark.slow
 def test_a_run_still_being_written_is_reported(tmp_path):
     """A killed (or running) run: summary.json says running, the last row is unfinished."""
     summary = {"scenario": "killed", "status": "running", "complete": False}
@@ -179,6 +183,7 @@ def test_results_without_rows_or_time_are_refused(tmp_path):
         write_report(no_time)
 
 
+@pytest.mark.slow
 def test_cli_prints_the_index_path(lateral_run, capsys):
     assert main(["report", str(lateral_run)]) == 0
     assert capsys.readouterr().out.strip() == f"report: {lateral_run / 'report' / 'index.html'}"
@@ -195,6 +200,7 @@ assert outcome.result.complete, outcome.result.error
 """
 
 
+@pytest.mark.slow
 def test_report_of_a_bs3_run_through_the_master(fmu_paths, run_python, tmp_path):
     """Both FMUs through the master (fresh process: pythonfmu caches modules), then the
     report: every figure written and non-empty, the summary on the page."""

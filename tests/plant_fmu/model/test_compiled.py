@@ -45,6 +45,7 @@ def _state(values: dict[str, float]) -> np.ndarray:
     return x
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", sorted(SCENARIOS))
 def test_closed_loop_runs_agree_with_the_reference(scenario):
     variant, x0, current, gains = SCENARIOS[scenario]
@@ -69,6 +70,7 @@ def test_closed_loop_runs_agree_with_the_reference(scenario):
     np.testing.assert_allclose(runs[1].commands, runs[0].commands, rtol=0.0, atol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "options",
     [

@@ -39,6 +39,7 @@ def _still_and_current_runs(
     return model, in_still_water, in_current
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("moving_mass_model", list(MovingMassModel))
 @pytest.mark.parametrize("variant", list(Variant))
 def test_steady_uniform_current_only_carries_the_vehicle_along(variant, moving_mass_model):

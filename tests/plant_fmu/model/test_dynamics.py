@@ -33,6 +33,7 @@ def _impulses(model: PlantModel, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return impulse[:3], impulse[3:]
 
 
+@pytest.mark.slow
 def test_ideal_fluid_conserves_energy_and_both_casimirs():
     """Thm 5.1 / (5.1.12): in an ideal fluid with W = B and r_g = 0 the motion is Kirchhoff's:
     kinetic energy, |p|^2/2 and p.pi are constant, here over 60 s of tumbling."""
@@ -51,6 +52,7 @@ def test_ideal_fluid_conserves_energy_and_both_casimirs():
 _speeds = st.floats(-0.5, 0.5, allow_nan=False)
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None)
 @given(
     u=st.floats(0.05, 2.0),
@@ -111,6 +113,7 @@ def _relative_form_derivative(model: PlantModel, x_rel: np.ndarray, inputs: np.n
     return dx
 
 
+@pytest.mark.slow
 def test_steady_uniform_current_full_form_equals_relative_form():
     """In a steady, uniform current the full form (3.6.2/4.3.1) reduces exactly to the
     relative-velocity form (3.6.10, 4.3.2): the same trajectory to 1e-9."""
@@ -158,6 +161,7 @@ def lateral() -> PlantModel:
     return PlantModel(load_vehicle(), Variant.LATERAL)
 
 
+@pytest.mark.slow
 def test_moving_mass_stays_within_its_stops_and_rests_without_reacting(lateral):
     x0 = state_vector(dict(u=1.5))
     inputs = input_vector(dict(thrust=9.0, mass_position_cmd=5.0))
@@ -173,6 +177,7 @@ def test_moving_mass_stays_within_its_stops_and_rests_without_reacting(lateral):
     assert force[3] == pytest.approx(p.m_v * p.g * 0.06 * np.cos(phi))
 
 
+@pytest.mark.slow
 def test_out_of_range_command_is_stopped_not_integrated(lateral):
     """A 5 m command drives the mass into its stop, where it stays: the stroke bounds the
     position, the command is not integrated past it."""
@@ -204,6 +209,7 @@ def test_mass_hitting_a_stop_gives_its_momentum_back_to_the_hull():
         assert np.max(np.abs([i[k] for i in impulse])) < 1e-3 * impact
 
 
+@pytest.mark.slow
 def test_rail_speed_limit_when_set():
     params = load_vehicle().replace(mass_speed_limit=0.03)
     model = PlantModel(params, Variant.LATERAL)
@@ -226,6 +232,7 @@ def test_frozen_degrees_of_freedom_stay_frozen(variant):
         assert moved == (name in free), name
 
 
+@pytest.mark.slow
 def test_same_inputs_give_bit_identical_trajectories():
     model = PlantModel(load_vehicle(), Variant.FULL)
     x0 = state_vector(dict(u=1.5, v=0.05, roll=0.1))

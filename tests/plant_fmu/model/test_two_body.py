@@ -121,6 +121,7 @@ def two_body_tumble():
     return _tumble(MovingMassModel.TWO_BODY)
 
 
+@pytest.mark.slow
 def test_two_body_model_conserves_momentum(two_body_tumble):
     """Linear momentum is conserved (W = B); the angular momentum changes by exactly the
     angular impulse of the offset weight's couple, the only external torque, so H minus
@@ -150,6 +151,7 @@ def test_two_body_energy_changes_by_the_servo_work(two_body_tumble):
         assert bodies.model.kinetic_energy(x, still) == pytest.approx(bodies.kinetic(x), 1e-12)
 
 
+@pytest.mark.slow
 def test_the_dissertations_model_does_not_conserve_momentum():
     """Why model 1 exists: model 0 leaves out the mass's Coriolis and centripetal terms
     and its inertia's change, so the same run drifts."""
