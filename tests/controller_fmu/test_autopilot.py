@@ -111,6 +111,7 @@ def test_vert2_both_loops_settle_where_the_dissertation_reports(vertical):
     assert np.abs(np.degrees(run.state("yaw")[late])).max() < 1.0
 
 
+@pytest.mark.slow
 def test_vert1_keeps_rolling_while_the_mass_is_active(vertical):
     """Sec. 6.3.4: without the lock the (m + a33) p w coupling keeps the roll oscillating."""
     late_1 = vertical["vert-1"].times >= 40.0

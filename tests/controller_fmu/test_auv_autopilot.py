@@ -104,6 +104,7 @@ def test_variables_follow_the_contract(autopilot_fmu):
     assert validate_fmus({"AuvAutopilot": autopilot_fmu}) == []
 
 
+@pytest.mark.slow
 def test_restored_state_continues_bit_identically(fmu_paths, unzip_dirs):
     controller = _controller(fmu_paths, unzip_dirs, heading_mode=3, k0=0.3, k1=0.8)
 

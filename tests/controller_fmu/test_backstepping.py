@@ -167,6 +167,7 @@ def test_cur1_holds_the_heading_and_drifts_east_with_the_current(in_current):
     assert _east_speed(drift, 40.0) == pytest.approx(0.2, abs=0.005)
 
 
+@pytest.mark.slow
 def test_cur2_settles_at_minus_7_55_deg_with_no_eastward_drift(in_current):
     _, compensated = in_current
     late = compensated.times >= 40.0

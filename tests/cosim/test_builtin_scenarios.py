@@ -79,11 +79,13 @@ def test_every_builtin_scenario_runs_to_its_stop_time(results: dict[str, RunResu
             assert np.abs(result.column("controller.tunnel_force")).max() <= 10.0 + 1e-9
 
 
+@pytest.mark.slow
 def test_lqr_1_converges(results: dict[str, RunResult]) -> None:
     assert np.abs(after(results["lqr-1"], "plant.yaw", 25.0)).max() < 1 * DEG
     assert np.all(results["lqr-1"].column("controller.tunnel_force") == 0.0)  # mass alone steers
 
 
+@pytest.mark.slow
 def test_lqr_2_saturates_the_mass_and_comes_back(results: dict[str, RunResult]) -> None:
     """The dissertation's text asks for |yaw| < 1 deg after 45 s; with the unsaturated command the
     dissertation used (Sec. 6.3.1) we match an independent reproduction of this case
@@ -97,12 +99,14 @@ def test_lqr_2_saturates_the_mass_and_comes_back(results: dict[str, RunResult]) 
     assert np.abs(result.column("plant.mass_velocity")).max() > 0.15
 
 
+@pytest.mark.slow
 def test_lqr_3_heading_returns(results: dict[str, RunResult]) -> None:
     result = results["lqr-3"]
     assert result.column("plant.yaw").max() > 30 * DEG  # "the yaw angle has to rise" first
     assert np.abs(after(result, "plant.yaw", 60.0)).max() < 1 * DEG
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario_id", ["bs-1", "bs-3"])
 def test_backstepping_converges_within_15_s(
     results: dict[str, RunResult], scenario_id: str
@@ -111,11 +115,13 @@ def test_backstepping_converges_within_15_s(
     assert np.abs(results[scenario_id].column("controller.tunnel_force")).max() > 1.0  # it helps
 
 
+@pytest.mark.slow
 def test_bs_2_heading_back_within_a_short_time(results: dict[str, RunResult]) -> None:
     result = results["bs-2"]
     assert settling_time(result.times, result.column("plant.yaw"), 1 * DEG) < 15.0
 
 
+@pytest.mark.slow
 def test_cur_1_drifts_east_with_the_nose_north(results: dict[str, RunResult]) -> None:
     result = results["cur-1"]
     assert np.abs(after(result, "plant.yaw", 30.0)).max() < 1 * DEG
@@ -123,6 +129,7 @@ def test_cur_1_drifts_east_with_the_nose_north(results: dict[str, RunResult]) ->
     assert east[-1] - east[result.times.searchsorted(30.0)] > 5.0  # still drifting, m
 
 
+@pytest.mark.slow
 def test_cur_2_heads_into_the_current_and_tracks_north(results: dict[str, RunResult]) -> None:
     result = results["cur-2"]
     yaw = after(result, "plant.yaw", 30.0)
@@ -132,12 +139,14 @@ def test_cur_2_heads_into_the_current_and_tracks_north(results: dict[str, RunRes
     assert result.column("plant.north")[-1] > 80.0  # while making way north
 
 
+@pytest.mark.slow
 def test_slow_1_stabilised_within_20_s(results: dict[str, RunResult]) -> None:
     result = results["slow-1"]
     assert np.abs(after(result, "plant.yaw", 20.0)).max() < 1 * DEG
     assert np.all(result.column("controller.thrust") == 4.0)
 
 
+@pytest.mark.slow
 def test_slow_2_converges_to_minus_11_3_deg_in_about_20_s(results: dict[str, RunResult]) -> None:
     result = results["slow-2"]
     error = result.column("plant.yaw") - dissertation("current.heading_4_newton") * DEG
@@ -145,6 +154,7 @@ def test_slow_2_converges_to_minus_11_3_deg_in_about_20_s(results: dict[str, Run
     assert settling_time(result.times, error, 1 * DEG) < about + 5.0
 
 
+@pytest.mark.slow
 def test_vert_2_settles_like_the_dissertation(results: dict[str, RunResult]) -> None:
     # Sec. 6.3.4: w ~ -0.07 m/s, theta ~ -0.045 rad, mean delta_s ~ -5 deg; no integral
     # term, so the depth stays short of z_d = 1 m against the positive buoyancy
@@ -162,6 +172,7 @@ def test_vert_2_settles_like_the_dissertation(results: dict[str, RunResult]) -> 
     assert np.abs(after(result, "plant.yaw", 40.0)).max() < 1 * DEG
 
 
+@pytest.mark.slow
 def test_vert_1_keeps_rolling(results: dict[str, RunResult]) -> None:
     # without the lock the roll oscillation persists (Figs. 6.42, 6.45), with it it decays
     for t0 in (40.0, 45.0, 50.0, 55.0):
@@ -183,6 +194,7 @@ def manoeuvre(kind: str, outcome: RunOutcome) -> dict:
     return summary_metrics(summary)
 
 
+@pytest.mark.slow
 def test_turning_circle_is_the_plants_own_steady_turn(runs: dict[str, RunOutcome]) -> None:
     outcome = runs["turning-circle"]
     metrics = manoeuvre("turning-circle", outcome)
@@ -208,6 +220,7 @@ def test_turning_circle_is_the_plants_own_steady_turn(runs: dict[str, RunOutcome
     assert metrics["tactical_diameter_m"] > metrics["steady_turning_diameter_m"]
 
 
+@pytest.mark.slow
 def test_survey_completes_every_leg_in_the_cross_current(runs: dict[str, RunOutcome]) -> None:
     outcome = runs["survey"]
     metrics = manoeuvre("survey", outcome)
@@ -227,6 +240,7 @@ def test_survey_completes_every_leg_in_the_cross_current(runs: dict[str, RunOutc
     assert np.abs(result.column("plant.down")[result.times > 5.0] - 2.0).max() < 0.2
 
 
+@pytest.mark.slow
 def test_run_outputs_hold_the_result_exactly(runs: dict[str, RunOutcome]) -> None:
     outcome = runs["bs-3"]
     columns, table = read_csv(outcome.paths["results"])
@@ -347,6 +361,7 @@ def test_plant_failing_initialisation_is_reported_with_its_reason(
     assert "unknown vehicle 'remus200'" in proc.stderr and "remus100" in proc.stderr
 
 
+@pytest.mark.slow
 def test_zigzag_switches_at_the_test_angle_and_overshoots(runs: dict[str, RunOutcome]) -> None:
     outcome = runs["zigzag-20"]
     metrics = manoeuvre("zigzag", outcome)
@@ -365,6 +380,7 @@ def test_zigzag_switches_at_the_test_angle_and_overshoots(runs: dict[str, RunOut
     assert metrics["period_s"] == pytest.approx(np.mean(cycles))
 
 
+@pytest.mark.slow
 def test_depth_steps_rise_overshoot_and_settle(runs: dict[str, RunOutcome]) -> None:
     outcome = runs["depth-steps"]
     metrics = manoeuvre("depth-steps", outcome)
@@ -378,6 +394,7 @@ def test_depth_steps_rise_overshoot_and_settle(runs: dict[str, RunOutcome]) -> N
     assert down[-1] == pytest.approx(2.0, abs=0.1) and down.max() > 3.0  # 1 -> 3 -> 2 m
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario_id", ["mass-jam", "thruster-failure"])
 def test_fault_recovery_metrics_are_finite(runs: dict[str, RunOutcome], scenario_id: str) -> None:
     metrics = manoeuvre("fault-recovery", runs[scenario_id])
@@ -390,6 +407,7 @@ def test_fault_recovery_metrics_are_finite(runs: dict[str, RunOutcome], scenario
     assert fault[runs[scenario_id].result.times >= 3.0].min() == 1.0  # on from 3 s to the end
 
 
+@pytest.mark.slow
 def test_the_jammed_mass_stays_where_it_was(runs: dict[str, RunOutcome]) -> None:
     result = runs["mass-jam"].result
     mass, times = result.column("plant.mass_position"), result.times

@@ -597,6 +597,7 @@ def test_closed_loop_recording_equals_results_csv(real_runs: Path):
     np.testing.assert_allclose(wrap(euler - expected), 0.0, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_plant_alone_recording_shows_its_held_inputs(real_runs: Path):
     """Without an autopilot the plant's held inputs fill the actuator plots and arrows."""
     rrd = real_runs / "open-loop" / RECORDING_FILE

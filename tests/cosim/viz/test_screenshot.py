@@ -55,6 +55,7 @@ def rendered(tmp_path_factory: pytest.TempPathFactory, fmu_paths):
     return [imread(png)[..., :3] for _, png in shots], reports
 
 
+@pytest.mark.slow
 def test_screenshot_is_not_blank_and_the_3d_views_show_the_motion(rendered):
     (early, late), _ = rendered
     height, width, _ = early.shape
@@ -66,6 +67,7 @@ def test_screenshot_is_not_blank_and_the_3d_views_show_the_motion(rendered):
     assert moved.mean() > 0.001  # the vehicle and its path moved between 0.5 s and 3.5 s
 
 
+@pytest.mark.slow
 def test_viewer_applied_the_blueprint_without_visualizer_errors(rendered):
     _, reports = rendered
     names = {r.name for r in reports}
@@ -73,6 +75,7 @@ def test_viewer_applied_the_blueprint_without_visualizer_errors(rendered):
     assert {r.name: r.problems for r in reports if r.problems} == {}
 
 
+@pytest.mark.slow
 def test_yaw_line_is_drawn_in_its_colour(rendered):
     (_, late), _ = rendered
     width = late.shape[1]

@@ -139,6 +139,7 @@ def test_two_body_model_conserves_momentum(two_body_tumble):
     assert np.max(np.linalg.norm(extras[:, :3], axis=1)) > 1e-3 * np.linalg.norm(angular_0)
 
 
+@pytest.mark.slow
 def test_two_body_energy_changes_by_the_servo_work(two_body_tumble):
     bodies, states, extras = two_body_tumble
     energy = np.array([bodies.energy(x) for x in states])
