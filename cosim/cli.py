@@ -74,7 +74,9 @@ def _run(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     from cosim.export.command import export_scenario
 
-    return export_scenario(args.scenario, ssp=args.ssp, osp=args.osp, fmu_dir=args.fmu_dir)
+    return export_scenario(
+        args.scenario, ssp=args.ssp, osp=args.osp, fmu_dir=args.fmu_dir, force=args.force
+    )
 
 
 def _view(args: argparse.Namespace) -> int:
@@ -190,6 +192,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", help="scenario id or .toml path")
     p.add_argument("--ssp", type=Path, help="write an SSP 1.0 archive to this file")
     p.add_argument("--osp", type=Path, help="write OspSystemStructure.xml + FMUs to this folder")
+    p.add_argument("--force", action="store_true", help="replace an --ssp file no export wrote")
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.set_defaults(func=_export)
 
