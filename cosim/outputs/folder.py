@@ -111,7 +111,7 @@ class RunFolder:
             ) from None
         if not path.is_dir():
             raise RunFolderError(f"--out {path}: exists and is not a folder")
-        folder = cls(path, _lock(path), created, tail_guard)
+        folder = cls(path, lock_folder(path), created, tail_guard)
         try:
             folder.earlier = _earlier_run(path, overwrite, default_for)
         except BaseException:
@@ -208,10 +208,7 @@ class RunFolder:
                 self._guard.wait(timeout=GUARD_TIMEOUT_S)
             self._guard = None
         if self._lock_fd >= 0:
-            with contextlib.suppress(OSError):
-                (self.path / LOCK_FILE).unlink()
-            with contextlib.suppress(OSError):
-                os.close(self._lock_fd)  # closing the last descriptor releases the lock
+            unlock_folder(self.path, self._lock_fd)
             self._lock_fd = -1
         self._release_recording(unused)
         if unused and self._written:
@@ -267,21 +264,23 @@ def _write_atomically(path: Path, text: str) -> None:
         raise
 
 
-def _lock(path: Path) -> int:
-    """Lock ``path``'s lock file without waiting; return its descriptor."""
+def lock_folder(path: Path, kind: str = "run") -> int:
+    """Lock the folder ``path`` (a ``kind`` folder: "run" or "study") without waiting;
+    return the lock's descriptor (:func:`unlock_folder` releases it). Raises
+    RunFolderError naming the process holding it."""
     lock = path / LOCK_FILE
     for _ in range(5):  # a previous holder may remove the file between open and lock
         try:
             fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
         except OSError as exc:
             raise RunFolderError(
-                f"--out {path}: cannot write in the run folder: {exc.strerror or exc}"
+                f"--out {path}: cannot write in the {kind} folder: {exc.strerror or exc}"
             ) from None
         if not _try_lock(fd):
             holder = _holder(fd)
             os.close(fd)
             raise RunFolderError(
-                f"run folder {path} is in use by {holder}: wait for that run to end or "
+                f"{kind} folder {path} is in use by {holder}: wait for that {kind} to end or "
                 "choose another --out"
             )
         try:
@@ -293,7 +292,15 @@ def _lock(path: Path) -> int:
             os.write(fd, f"{os.getpid()} {' '.join(sys.argv)}\n".encode())
             return fd
         os.close(fd)
-    raise RunFolderError(f"run folder {path}: cannot take its lock (it keeps changing)")
+    raise RunFolderError(f"{kind} folder {path}: cannot take its lock (it keeps changing)")
+
+
+def unlock_folder(path: Path, fd: int) -> None:
+    """Remove the lock file :func:`lock_folder` made and release the lock; never raises."""
+    with contextlib.suppress(OSError):
+        (path / LOCK_FILE).unlink()
+    with contextlib.suppress(OSError):
+        os.close(fd)  # closing the last descriptor releases the lock
 
 
 def _try_lock(fd: int) -> bool:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import shutil
+import socket
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager, suppress
@@ -31,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from distributed import Client, LocalCluster, as_completed, get_worker
+from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.diagnostics.plugin import WorkerPlugin
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
@@ -43,6 +45,7 @@ from cosim.study.task import Base, RunRecord, run_one
 LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
 CONNECT_TIMEOUT_S = 30
+PROBE_TIMEOUT_S = 5.0  # a scheduler that does not accept a connection by then is refused
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
 
 
@@ -136,6 +139,26 @@ def tls_security(ca_file: Path | None, cert: Path | None, key: Path | None) -> S
         tls_client_key=str(key),
         require_encryption=True,
     )
+
+
+def check_scheduler(address: str) -> None:
+    """Refuse, in seconds and before anything is written, a scheduler address that is not
+    ``tcp://`` or ``tls://HOST:PORT`` or accepts no connection (a TCP connect with a
+    PROBE_TIMEOUT_S timeout: Dask's own client would retry for CONNECT_TIMEOUT_S)."""
+    try:
+        protocol, location = parse_address(address)
+        host, port = parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise StudyError(
+            f"--scheduler {address}: expected tcp://HOST:PORT or tls://HOST:PORT ({exc})"
+        ) from None
+    if protocol not in ("tcp", "tls"):
+        raise StudyError(f"--scheduler {address}: expected tcp://HOST:PORT or tls://HOST:PORT")
+    try:
+        socket.create_connection((host, port), timeout=PROBE_TIMEOUT_S).close()
+    except OSError as exc:
+        reason = exc.strerror or str(exc) or type(exc).__name__
+        raise StudyError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
 
 
 @contextmanager

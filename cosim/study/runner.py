@@ -30,7 +30,14 @@ from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
-from cosim.study.execution import Job, StudyPlugin, execute, make_job, open_client
+from cosim.study.execution import (
+    Job,
+    StudyPlugin,
+    check_scheduler,
+    execute,
+    make_job,
+    open_client,
+)
 from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
@@ -90,6 +97,8 @@ def run_study(
     :class:`StudyError` (a CosimError) for a study that cannot run; failed runs are rows
     of the table, not errors."""
     started = time.perf_counter()
+    if cluster.scheduler is not None:
+        check_scheduler(cluster.scheduler)
     spec = load_study(study_file)
     base, facts = prepare(_scenario_ref(spec.scenario, study_file.parent), spec.stop_time, fmu_dir)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
@@ -103,26 +112,34 @@ def run_study(
     if entries:
         check_choice(entries, runs, metrics)
     out_dir = out_dir if out_dir is not None else STUDIES_DIR / study_file.stem
-    study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
-    csv_path = out_dir / CSV_NAME
-    if resume and csv_path.is_file():
-        table = RunsTable.reopen(csv_path, spec.factors, metrics, runs)
-    else:
-        table = RunsTable.create(csv_path, spec.factors, metrics)
-    skipped = len(table.done)
-    todo = [run for run in runs if run.id not in table.done]
-    warnings: list[str] = []
-    with ExitStack() as stack:
-        session = _Session(cluster, stack)
-        if todo:
-            _execute(out_dir, spec, base, factors, table, todo, session, progress, len(runs))
-        rows = table.finish()
-        paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
-        paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
-        if entries:
-            paths["overlay"], warnings = _overlay(
-                out_dir, entries, base, factors, runs, rows, session
-            )
+    with study_folder.lock(out_dir):
+        study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
+        csv_path = out_dir / CSV_NAME
+        if resume and csv_path.is_file():
+            table = RunsTable.reopen(csv_path, spec.factors, metrics, runs)
+        else:
+            table = RunsTable.create(csv_path, spec.factors, metrics)
+        skipped = len(table.done)
+        todo = [run for run in runs if run.id not in table.done]
+        warnings: list[str] = []
+        with ExitStack() as stack:
+            session = _Session(cluster, stack)
+            try:
+                if todo:
+                    _execute(
+                        out_dir, spec, base, factors, table, todo, session, progress, len(runs)
+                    )
+            except BaseException:
+                if not resume and not table.done:  # nothing to resume: leave no study
+                    study_folder.discard_new(out_dir, CSV_NAME)
+                raise
+            rows = table.finish()
+            paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
+            paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
+            if entries:
+                paths["overlay"], warnings = _overlay(
+                    out_dir, entries, base, factors, runs, rows, session
+                )
     complete = sum(row["status"] == "complete" for row in rows)
     return StudyOutcome(
         out_dir,
@@ -323,7 +340,8 @@ def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: Stud
 
 
 def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
-    """What the table's rows depend on (study.json): settings, scenario, FMU content."""
+    """What the table's rows depend on (study.json): settings, scenario, FMU content and
+    the content of every other file the scenario reads."""
     return {
         "study": spec.model_dump(mode="json", exclude={"keep", "overlay"}),
         "scenario": dict(base.data),
@@ -331,4 +349,5 @@ def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
             name: hashlib.sha256(path.read_bytes()).hexdigest()
             for name, path in base.fmu_paths.items()
         },
+        "files": dict(base.files),
     }
