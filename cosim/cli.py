@@ -31,10 +31,9 @@ def _build(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from cosim.fmus.build import ensure_fmus
-    from cosim.fmus.validation import validate_fmus
+    from cosim.fmus.validation import validate_folder
 
-    problems = validate_fmus(ensure_fmus(args.fmu_dir))
+    problems = validate_folder(args.fmu_dir)
     for problem in problems:
         print(problem)
     if problems:
@@ -163,7 +162,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="rebuild even if up to date")
     p.set_defaults(func=_build)
 
-    p = sub.add_parser("validate", help="validate the FMUs (fmpy + our own checks)")
+    p = sub.add_parser(
+        "validate", help="validate the built FMUs as they are (fmpy + our own checks)"
+    )
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.set_defaults(func=_validate)
 

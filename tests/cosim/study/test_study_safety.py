@@ -41,6 +41,7 @@ def sweep(study: Path, out: Path, fmu_dir: Path, *args: str) -> int:
     return main([*argv, "--workers", "1", *args])
 
 
+@pytest.mark.slow
 def test_a_new_study_refuses_a_folder_holding_other_files(
     study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
 ) -> None:
