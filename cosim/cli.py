@@ -118,13 +118,26 @@ def _phase_portrait(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
+    from cosim.study.spec import MAX_RUNS, check_size, load_study
+
+    max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
+    check_size(load_study(args.study), str(args.study), max_runs)  # before dask is imported
     from cosim.study.execution import tls_security
     from cosim.study.runner import Cluster, report, run_study
 
     if args.scheduler is not None and args.workers is not None:
         raise CosimError("give --workers (a local cluster) or --scheduler, not both")
+    cores = os.cpu_count() or 1
+    workers = args.workers if args.workers is not None else cores
+    if workers > cores and not args.oversubscribe:
+        print(
+            f"auv-cosim sweep: --workers {workers} capped at the {cores} cores "
+            f"(--oversubscribe starts {workers})",
+            file=sys.stderr,
+        )
+        workers = cores
     cluster = Cluster(
-        workers=args.workers if args.workers is not None else os.cpu_count() or 1,
+        workers=workers,
         scheduler=args.scheduler,
         security=tls_security(args.tls_ca_file, args.tls_cert, args.tls_key),
         dashboard=args.dashboard,
@@ -137,6 +150,7 @@ def _study(args: argparse.Namespace) -> int:
         fmu_dir=args.fmu_dir,
         progress=not args.quiet and sys.stderr.isatty(),
         overlay=args.overlay,
+        max_runs=max_runs,
     )
     print(report(outcome))
     return 0
@@ -234,6 +248,17 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
     p.add_argument("--out", type=Path, help="study folder [studies/<study file name>]")
     p.add_argument("--resume", action="store_true", help="skip the runs already in runs.csv")
+    p.add_argument(
+        "--max-runs",
+        type=int,
+        metavar="N",
+        help="refuse a study of more runs than N [100000]",
+    )
+    p.add_argument(
+        "--oversubscribe",
+        action="store_true",
+        help="start every --workers process even beyond the cores [capped at the cores]",
+    )
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.add_argument(
         "--dashboard",

@@ -42,7 +42,7 @@ from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import plotted_metrics, write_figures
-from cosim.study.spec import StudyError, StudySpec, load_study
+from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
 from cosim.viz.overlay import OverlayRun, write_overlay
@@ -90,16 +90,19 @@ def run_study(
     fmu_dir: Path = DEFAULT_FMU_DIR,
     progress: bool = False,
     overlay: int | None = None,
+    max_runs: int = MAX_RUNS,
 ) -> StudyOutcome:
     """Run the study (or what a killed one left, with ``resume``) into ``out_dir``
     (default ``studies/<study file name>``). ``overlay``: draw that many runs, spread over
-    the study, in overlay.rrd (instead of the study file's ``overlay``). Raises
+    the study, in overlay.rrd (instead of the study file's ``overlay``); a study of more
+    than ``max_runs`` runs is refused before any is built. Raises
     :class:`StudyError` (a CosimError) for a study that cannot run; failed runs are rows
     of the table, not errors."""
     started = time.perf_counter()
     if cluster.scheduler is not None:
         check_scheduler(cluster.scheduler)
     spec = load_study(study_file)
+    check_size(spec, str(study_file), max_runs)
     base, facts = prepare(_scenario_ref(spec.scenario, study_file.parent), spec.stop_time, fmu_dir)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     metrics = _metrics(spec, facts)
