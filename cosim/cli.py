@@ -20,6 +20,7 @@ from cosim.paths import DEFAULT_FMU_DIR
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
+    from cosim.study.runner import Cluster
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -118,42 +119,64 @@ def _phase_portrait(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
+    """``auv-cosim sweep``: 0 if any run completed (failed runs are rows of the table), 1
+    if none did, 128 + the signal number if a stop signal ended it."""
     from cosim.study.spec import MAX_RUNS, check_size, load_study
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
     check_size(load_study(args.study), str(args.study), max_runs)  # before dask is imported
+    from cosim.study.runner import report, run_study
+    from cosim.study.signals import StudyStopped, stop_study_on_signals
+
+    cluster = _cluster(args)
+    try:
+        with stop_study_on_signals():
+            outcome = run_study(
+                args.study,
+                args.out,
+                cluster=cluster,
+                resume=args.resume,
+                fmu_dir=args.fmu_dir,
+                progress=not args.quiet and sys.stderr.isatty(),
+                overlay=args.overlay,
+                max_runs=max_runs,
+            )
+    except StudyStopped as stop:
+        print(f"auv-cosim sweep: {stop}", file=sys.stderr)
+        return stop.exit_code
+    print(report(outcome))
+    if outcome.total and not outcome.complete:
+        print(
+            f"auv-cosim sweep: no run completed ({outcome.failed} failed: see the error "
+            f"column of {outcome.paths['table']})",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _cluster(args: argparse.Namespace) -> Cluster:
+    """The cluster the options ask for; local workers capped at the cores, said so."""
     from cosim.study.execution import tls_security
-    from cosim.study.runner import Cluster, report, run_study
+    from cosim.study.runner import Cluster
 
     if args.scheduler is not None and args.workers is not None:
         raise CosimError("give --workers (a local cluster) or --scheduler, not both")
     cores = os.cpu_count() or 1
     workers = args.workers if args.workers is not None else cores
-    if workers > cores and not args.oversubscribe:
+    if workers > cores and not args.oversubscribe and args.scheduler is None:
         print(
             f"auv-cosim sweep: --workers {workers} capped at the {cores} cores "
             f"(--oversubscribe starts {workers})",
             file=sys.stderr,
         )
         workers = cores
-    cluster = Cluster(
+    return Cluster(
         workers=workers,
         scheduler=args.scheduler,
         security=tls_security(args.tls_ca_file, args.tls_cert, args.tls_key),
         dashboard=args.dashboard,
     )
-    outcome = run_study(
-        args.study,
-        args.out,
-        cluster=cluster,
-        resume=args.resume,
-        fmu_dir=args.fmu_dir,
-        progress=not args.quiet and sys.stderr.isatty(),
-        overlay=args.overlay,
-        max_runs=max_runs,
-    )
-    print(report(outcome))
-    return 0
 
 
 def _report(args: argparse.Namespace) -> int:

@@ -39,6 +39,7 @@ from distributed.security import Security
 
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
+from cosim.study.signals import StudyStopped, workers_ignore_sigint
 from cosim.study.spec import StudyError
 from cosim.study.task import Base, RunRecord, run_one
 
@@ -188,17 +189,18 @@ def open_client(
     # An address without a host (dask's default ":8787") would listen on every interface;
     # with the dashboard off the scheduler still serves /health on this (random) port.
     port = DASHBOARD_PORT if dashboard else 0
-    cluster = LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        host=LOCALHOST,
-        protocol="tcp://",
-        dashboard_address=f"{LOCALHOST}:{port}",
-        scheduler_kwargs={"dashboard": dashboard},
-        worker_dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
+    with workers_ignore_sigint():  # a Ctrl-C is the client's to handle (cosim.study.signals)
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            host=LOCALHOST,
+            protocol="tcp://",
+            dashboard_address=f"{LOCALHOST}:{port}",
+            scheduler_kwargs={"dashboard": dashboard},
+            worker_dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
     with cluster, Client(cluster, set_as_default=False) as client:
         yield client
 
@@ -232,7 +234,7 @@ def execute(
                 record = future.result()  # run_one itself never raises
             except KilledWorker as exc:
                 record = RunRecord("failed", lost_run_error(exc), {}, 0.0, 0.0)
-            except (KeyboardInterrupt, SystemExit):
+            except (KeyboardInterrupt, SystemExit, StudyStopped):
                 raise
             except BaseException as exc:  # cancelled, or the scheduler went away
                 error = " ".join(f"{type(exc).__name__}: {exc}".split())

@@ -42,6 +42,7 @@ from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import plotted_metrics, write_figures
+from cosim.study.signals import StudyStopped
 from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
@@ -132,9 +133,11 @@ def run_study(
                     _execute(
                         out_dir, spec, base, factors, table, todo, session, progress, len(runs)
                     )
-            except BaseException:
+            except BaseException as exc:
                 if not resume and not table.done:  # nothing to resume: leave no study
                     study_folder.discard_new(out_dir, CSV_NAME)
+                elif isinstance(exc, StudyStopped):
+                    exc.where = f"{len(table.done)} finished runs kept in {csv_path} (--resume)"
                 raise
             rows = table.finish()
             paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
