@@ -111,7 +111,14 @@ class RunFolder:
             ) from None
         if not path.is_dir():
             raise RunFolderError(f"--out {path}: exists and is not a folder")
-        folder = cls(path, lock_folder(path), created, tail_guard)
+        try:
+            lock_fd = lock_folder(path)
+        except RunFolderError:
+            if created:
+                with contextlib.suppress(OSError):
+                    path.rmdir()
+            raise
+        folder = cls(path, lock_fd, created, tail_guard)
         try:
             folder.earlier = _earlier_run(path, overwrite, default_for)
         except BaseException:
@@ -288,8 +295,14 @@ def lock_folder(path: Path, kind: str = "run") -> int:
         except FileNotFoundError:
             current = False
         if current:
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()} {' '.join(sys.argv)}\n".encode())
+            try:
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()} {' '.join(sys.argv)}\n".encode())
+            except OSError as exc:  # a full disk: no lock file left behind
+                unlock_folder(path, fd)
+                raise RunFolderError(
+                    f"--out {path}: cannot write {lock}: {exc.strerror or exc}"
+                ) from None
             return fd
         os.close(fd)
     raise RunFolderError(f"{kind} folder {path}: cannot take its lock (it keeps changing)")

@@ -159,7 +159,9 @@ class RunOutputs:
         if self.manoeuvre is not None:
             self.manoeuvre_summary = self.manoeuvre.summary()
         figures, manoeuvre = self.figures.figures(), self.manoeuvre_summary
-        data = final_summary(self._running, result, figures, error, name, rows, manoeuvre)
+        short = self.csv is not None and self.csv.rows < result.rows
+        last = self.csv.last if short and self.csv is not None else None
+        data = final_summary(self._running, result, figures, error, name, rows, manoeuvre, last)
         try:
             write_json_atomically(self.paths["summary"], data)
         except CosimError as exc:
