@@ -142,10 +142,16 @@ def tls_security(ca_file: Path | None, cert: Path | None, key: Path | None) -> S
     )
 
 
-def check_scheduler(address: str) -> None:
+def check_scheduler(address: str, security: Security | None = None) -> None:
     """Refuse, in seconds and before anything is written, a scheduler address that is not
-    ``tcp://`` or ``tls://HOST:PORT`` or accepts no connection (a TCP connect with a
-    PROBE_TIMEOUT_S timeout: Dask's own client would retry for CONNECT_TIMEOUT_S)."""
+    ``tcp://`` or ``tls://HOST:PORT``, a ``tls://`` one without certificates, or one that
+    accepts no connection (a TCP connect with a PROBE_TIMEOUT_S timeout: Dask's own client
+    would retry for CONNECT_TIMEOUT_S)."""
+    if address.startswith("tls://") and security is None:
+        raise StudyError(
+            f"--scheduler {address}: a tls:// address needs --tls-ca-file, --tls-cert and "
+            "--tls-key"
+        )
     try:
         protocol, location = parse_address(address)
         host, port = parse_host_port(location)

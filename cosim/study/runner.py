@@ -101,7 +101,7 @@ def run_study(
     of the table, not errors."""
     started = time.perf_counter()
     if cluster.scheduler is not None:
-        check_scheduler(cluster.scheduler)
+        check_scheduler(cluster.scheduler, cluster.security)
     spec = load_study(study_file)
     check_size(spec, str(study_file), max_runs)
     base, facts = prepare(_scenario_ref(spec.scenario, study_file.parent), spec.stop_time, fmu_dir)
