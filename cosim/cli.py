@@ -20,6 +20,7 @@ from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
+    from cosim.study.runner import Cluster
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -31,10 +32,9 @@ def _build(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from cosim.fmus.build import ensure_fmus
-    from cosim.fmus.validation import validate_fmus
+    from cosim.fmus.validation import validate_folder
 
-    problems = validate_fmus(ensure_fmus(args.fmu_dir))
+    problems = validate_folder(args.fmu_dir)
     for problem in problems:
         print(problem)
     if problems:
@@ -77,7 +77,9 @@ def _run(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     from cosim.export.command import export_scenario
 
-    return export_scenario(args.scenario, ssp=args.ssp, osp=args.osp, fmu_dir=args.fmu_dir)
+    return export_scenario(
+        args.scenario, ssp=args.ssp, osp=args.osp, fmu_dir=args.fmu_dir, force=args.force
+    )
 
 
 def _view(args: argparse.Namespace) -> int:
@@ -120,28 +122,64 @@ def _phase_portrait(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
+    """``auv-cosim sweep``: 0 if any run completed (failed runs are rows of the table), 1
+    if none did, 128 + the signal number if a stop signal ended it."""
+    from cosim.study.spec import MAX_RUNS, check_size, load_study
+
+    max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
+    check_size(load_study(args.study), str(args.study), max_runs)  # before dask is imported
+    from cosim.study.runner import report, run_study
+    from cosim.study.signals import StudyStopped, stop_study_on_signals
+
+    cluster = _cluster(args)
+    try:
+        with stop_study_on_signals():
+            outcome = run_study(
+                args.study,
+                args.out,
+                cluster=cluster,
+                resume=args.resume,
+                fmu_dir=args.fmu_dir,
+                progress=not args.quiet and sys.stderr.isatty(),
+                overlay=args.overlay,
+                max_runs=max_runs,
+            )
+    except StudyStopped as stop:
+        print(f"auv-cosim sweep: {stop}", file=sys.stderr)
+        return stop.exit_code
+    print(report(outcome))
+    if outcome.total and not outcome.complete:
+        print(
+            f"auv-cosim sweep: no run completed ({outcome.failed} failed: see the error "
+            f"column of {outcome.paths['table']})",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _cluster(args: argparse.Namespace) -> Cluster:
+    """The cluster the options ask for; local workers capped at the cores, said so."""
     from cosim.study.execution import tls_security
-    from cosim.study.runner import Cluster, report, run_study
+    from cosim.study.runner import Cluster
 
     if args.scheduler is not None and args.workers is not None:
         raise CosimError("give --workers (a local cluster) or --scheduler, not both")
-    cluster = Cluster(
-        workers=args.workers if args.workers is not None else os.cpu_count() or 1,
+    cores = os.cpu_count() or 1
+    workers = args.workers if args.workers is not None else cores
+    if workers > cores and not args.oversubscribe and args.scheduler is None:
+        print(
+            f"auv-cosim sweep: --workers {workers} capped at the {cores} cores "
+            f"(--oversubscribe starts {workers})",
+            file=sys.stderr,
+        )
+        workers = cores
+    return Cluster(
+        workers=workers,
         scheduler=args.scheduler,
         security=tls_security(args.tls_ca_file, args.tls_cert, args.tls_key),
         dashboard=args.dashboard,
     )
-    outcome = run_study(
-        args.study,
-        args.out,
-        cluster=cluster,
-        resume=args.resume,
-        fmu_dir=args.fmu_dir,
-        progress=not args.quiet and sys.stderr.isatty(),
-        overlay=args.overlay,
-    )
-    print(report(outcome))
-    return 0
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -175,7 +213,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="rebuild even if up to date")
     p.set_defaults(func=_build)
 
-    p = sub.add_parser("validate", help="validate the FMUs (fmpy + our own checks)")
+    p = sub.add_parser(
+        "validate", help="validate the built FMUs as they are (fmpy + our own checks)"
+    )
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.set_defaults(func=_validate)
 
@@ -205,6 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", help="scenario id or .toml path")
     p.add_argument("--ssp", type=Path, help="write an SSP 1.0 archive to this file")
     p.add_argument("--osp", type=Path, help="write OspSystemStructure.xml + FMUs to this folder")
+    p.add_argument("--force", action="store_true", help="replace an --ssp file no export wrote")
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.set_defaults(func=_export)
 
@@ -265,6 +306,17 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
     p.add_argument("--out", type=Path, help="study folder [studies/<study file name>]")
     p.add_argument("--resume", action="store_true", help="skip the runs already in runs.csv")
+    p.add_argument(
+        "--max-runs",
+        type=int,
+        metavar="N",
+        help="refuse a study of more runs than N [100000]",
+    )
+    p.add_argument(
+        "--oversubscribe",
+        action="store_true",
+        help="start every --workers process even beyond the cores [capped at the cores]",
+    )
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.add_argument(
         "--dashboard",

@@ -96,6 +96,7 @@ class RunOutcome:
     figures: dict[str, float | None]  # the key figures (cosim.metrics.key_figures)
     signal: int | None = None  # the first stop signal received while the run was on
     manoeuvre: dict[str, Any] | None = None  # the manoeuvre and its metrics (summary.json)
+    replaced: str | None = None  # what replacing an earlier run removed and kept (one line)
 
     @property
     def exit_code(self) -> int:
@@ -128,7 +129,8 @@ def execute(
     for flag, value in (("--stop-time", options.stop_time), ("--step", options.step)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise CosimError(f"{flag} {value!r}: expected a finite number of seconds > 0")
-    out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
+    default_for = _id_of(scenario) if options.out_dir is None else None
+    out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / str(default_for)
     if options.rrd is not None and not options.no_rrd:
         check_recording_path(out_dir, options.rrd, options.overwrite)
     handlers: AbstractContextManager[StopRequest | None] = nullcontext(stop)
@@ -136,7 +138,7 @@ def execute(
         stop = StopRequest()
         handlers = stop_on_signals(stop)
     with handlers:
-        folder = RunFolder.claim(out_dir, options.overwrite, options.tail_guard)
+        folder = RunFolder.claim(out_dir, options.overwrite, options.tail_guard, default_for)
         stepped = False
         try:
             from cosim.engine import master
@@ -147,8 +149,11 @@ def execute(
                 loaded, options.real_time, options.control, options.interactive
             )
             try:
-                folder.clear_earlier_run()
-                outputs = _open_outputs(loaded, folder, options, session.status)
+                replaced = folder.clear_earlier_run()
+                rrd = _recording_path(loaded, folder, options)
+                if rrd is not None:
+                    folder.lock_recording(rrd)
+                outputs = _open_outputs(loaded, folder, options, session.status, rrd)
                 if session.pacer is not None and outputs.csv is not None:
                     outputs.csv.warm_up()
                 try:
@@ -172,7 +177,7 @@ def execute(
             folder.release(unused=not stepped)
     figures = outputs.figures.figures()
     return RunOutcome(
-        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary
+        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary, replaced
     )
 
 
@@ -198,16 +203,14 @@ def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> S
 
 
 def _open_outputs(
-    scenario: Scenario, folder: RunFolder, options: RunOptions, status: Callable[[], str]
+    scenario: Scenario,
+    folder: RunFolder,
+    options: RunOptions,
+    status: Callable[[], str],
+    rrd: Path | None,
 ) -> RunOutputs:
     from cosim.outputs.run_outputs import RunOutputs
 
-    if options.no_rrd:
-        rrd = None
-    elif options.rrd is not None:  # asked for explicitly: wins over the scenario's output.rrd
-        rrd = options.rrd
-    else:
-        rrd = folder.path / RECORDING_FILE if scenario.rrd else None
     progress = options.progress and not options.interactive  # the keys' status line instead
     recorder = rerun_sink if options.real_time is None else _background_rerun_sink
     return RunOutputs.open(
@@ -227,6 +230,14 @@ def _background_rerun_sink(
 
     sink = rerun_sink(scenario, rrd, url, on_flushed)
     return None if sink is None else BackgroundSink(sink)
+
+
+def _recording_path(scenario: Scenario, folder: RunFolder, options: RunOptions) -> Path | None:
+    if options.no_rrd:
+        return None
+    if options.rrd is not None:  # asked for explicitly: wins over the scenario's output.rrd
+        return options.rrd
+    return folder.path / RECORDING_FILE if scenario.rrd else None
 
 
 def rerun_sink(
@@ -279,6 +290,8 @@ def run_from_cli(scenario: str, options: RunOptions) -> int:
 
 def _print_outcome(outcome: RunOutcome) -> None:
     result = outcome.result
+    if outcome.replaced is not None:
+        print(f"auv-cosim run: {outcome.replaced}", file=sys.stderr)
     print(report(outcome))
     if outcome.signal is not None and result.complete:
         reason = REASONS.get(signal.Signals(outcome.signal).name, "stopped")

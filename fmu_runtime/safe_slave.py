@@ -44,8 +44,12 @@ call, the value and what was expected):
 * Inputs and tunable parameters may be written at any time; fixed parameters only before
   ``exit_initialization_mode`` (a later write of the same value is accepted as a no-op);
   outputs, locals and calculated parameters never.
-* pythonfmu's setters cannot return an error status, so a refused write is remembered and
-  the next ``do_step`` returns Discard naming it, until the variable is written validly.
+* pythonfmu's setters cannot return an error status, so a refused *value* (non-finite, out
+  of range) of a writable variable is remembered and the next ``do_step`` returns Discard
+  naming it, until the variable is written validly: the host meant to change an input
+  and the step would use the old one. A write the variable does not allow at all (a fixed
+  parameter after initialisation, an output, a wrong type, an unknown reference) is
+  refused and changes nothing, the later steps included: it is logged, not remembered.
 * The FMI 2.0 call sequence: ``setupExperiment`` and ``enterInitializationMode`` only
   right after instantiation, ``exitInitializationMode`` only in initialisation mode; a
   call out of sequence is refused and changes nothing (pythonfmu returns fmi2OK from these
@@ -535,33 +539,34 @@ class SafeSlave(Fmi2Slave):
     def _set(self, vr: int, value: Any, kind: type[ScalarVariable]) -> None:
         var = self.vars.get(vr)
         if var is None:
-            raise KeyError(f"no variable has valueReference {vr!r}")
+            self._error(f"set{kind.__name__} refused: no variable has valueReference {vr!r}")
+            return  # refused, changes nothing: no later step is discarded for it
         name = var.name
         if not isinstance(var, kind):
-            refusal = f"{name} is a {type(var).__name__}, not a {kind.__name__}"
-        elif kind is Real and not math.isfinite(value):
-            refusal = f"{name} = {value!r} refused: expected a finite number"
-        elif not _within(value, self._bounds.get(vr, (None, None))):
-            refusal = f"{name} = {value!r} refused: expected {_range(name, self._bounds[vr])}"
-        else:
-            access = self._access[vr]
-            if access == _WRITE_ANY_TIME or (
-                access == _WRITE_BEFORE_INIT and not self._initialized
-            ):
-                var.setter(value)
-                self._written.add(name)
-                self._problems.pop(name, None)
-                return
+            self._error(f"{name} is a {type(var).__name__}, not a {kind.__name__}")
+            return
+        access = self._access[vr]
+        if access != _WRITE_ANY_TIME and (access != _WRITE_BEFORE_INIT or self._initialized):
             if access == _WRITE_BEFORE_INIT and var.getter() == value:
-                self._problems.pop(name, None)
+                self._problems.pop(name, None)  # the value in use: a no-op
                 return
-            refusal = (
+            self._error(
                 f"{name} = {value!r} refused: a fixed parameter can only be set before "
                 "initialisation"
                 if access == _WRITE_BEFORE_INIT
                 else f"{name} = {value!r} refused: a {var.causality.name} cannot be set"
             )
-        self._problems[name] = refusal
+            return
+        if kind is Real and not math.isfinite(value):
+            refusal = f"{name} = {value!r} refused: expected a finite number"
+        elif not _within(value, self._bounds.get(vr, (None, None))):
+            refusal = f"{name} = {value!r} refused: expected {_range(name, self._bounds[vr])}"
+        else:
+            var.setter(value)
+            self._written.add(name)
+            self._problems.pop(name, None)
+            return
+        self._problems[name] = refusal  # the step would use the old value: Discard it
         self._error(refusal)
 
     def _log_failure_once(self) -> None:

@@ -7,15 +7,18 @@ terminate and fmi2FreeInstance, with a full garbage collection before each readi
 Prints the growth of the resident set (``/proc/self/statm``, Linux) over the measured
 cycles, per cycle, and the 2 MB per 1,000 cycles budget scaled to ``--cycles``:
 
-    AuvPlant: 1000 cycles grow RSS by 1.02 MB (1.0 KiB per cycle; budget 2.00 MB)
+    AuvPlant: 2000 cycles grow RSS by 2.05 MB (1.0 KiB per cycle; budget 4.00 MB)
 
-What remains is pythonfmu 0.7's own, about 1 KiB per fmi2Instantiate (the MRO list and
-class reprs it never releases and the ``resources`` string; see fmu_runtime/entry.py).
+What remains is pythonfmu 0.7's own, 0.8-1.0 KiB per fmi2Instantiate, linear in the
+cycles (the MRO list and class reprs it never releases and the ``resources`` string; see
+fmu_runtime/entry.py and docs/fmi-notes.md for the figures). The warm-up matters: the
+first instance loads the compiled plant and scipy (about 170 MB, once), which a reading
+without enough warm-up would spread over the cycles.
 Before the entry module stopped redefining the slave class, each cycle kept about 47 KiB
 (plant) and 26 KiB (autopilot).
 
-Usage: python scripts/bench_instances.py [--fmu-dir build/fmus] [--cycles 1000]
-                                         [--warmup 50] [--fmu AuvPlant ...]
+Usage: python scripts/bench_instances.py [--fmu-dir build/fmus] [--cycles 2000]
+                                         [--warmup 200] [--fmu AuvPlant ...]
 """
 
 from __future__ import annotations
@@ -77,8 +80,8 @@ def growth_mb(fmu: Path, cycles: int, warmup: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fmu-dir", type=Path, default=Path("build/fmus"))
-    parser.add_argument("--cycles", type=int, default=1000)
-    parser.add_argument("--warmup", type=int, default=50)
+    parser.add_argument("--cycles", type=int, default=2000)
+    parser.add_argument("--warmup", type=int, default=200)
     parser.add_argument("--fmu", action="append", choices=sorted(FMUS), help="default: both")
     args = parser.parse_args()
     budget = BUDGET_MB_PER_1000 * args.cycles / 1000

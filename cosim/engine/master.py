@@ -70,6 +70,7 @@ from cosim.engine.signals import StopRequest, stop_on_signals
 from cosim.engine.slave import Slave, describe, reasons, unzipped
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
+from cosim.fmus.interface import check_binary
 from cosim.scenario.spec import Scenario, ScenarioError
 
 ROWS_PER_CHUNK = 200  # rows handed to the sinks at a time
@@ -152,13 +153,16 @@ class _Layout:
 
 
 def preflight(scenario: Scenario) -> None:
-    """Refuse, before any FMU is loaded, a scenario whose FMUs would hang in a step.
+    """Refuse, before any FMU is loaded, a scenario whose FMUs lack a binary for this
+    platform (:func:`cosim.fmus.interface.check_binary`) or would hang in a step.
 
     An instance with a Real parameter ``max_substep`` (s) integrates a communication step
     of k h in ceil(k h / max_substep) sub-steps (``plant_fmu.model.stepping.advance``);
     more than :data:`MAX_SUBSTEPS` is refused with the reason (one sub-step of the plant
     takes tens of microseconds, so 1e-9 s would take hours per step and ignore Ctrl-C).
     """
+    for inst in scenario.instances.values():
+        check_binary(inst.fmu_path, inst.interface.model_identifier)
     for name, inst in scenario.instances.items():
         var = {v.name: v for v in inst.variables("parameter")}.get(SUBSTEP_PARAMETER)
         if var is None or var.type != "Real":

@@ -11,12 +11,18 @@ from cosim.scenario.spec import load_scenario
 
 
 def export_scenario(
-    scenario: str | Path, *, ssp: Path | None, osp: Path | None, fmu_dir: Path
+    scenario: str | Path,
+    *,
+    ssp: Path | None,
+    osp: Path | None,
+    fmu_dir: Path,
+    force: bool = False,
 ) -> int:
     """Export the built-in scenario id or scenario file ``scenario`` as an SSP archive at
     ``ssp`` or an OSP system structure in the folder ``osp`` (exactly one); 0 on success.
 
-    ``fmu_dir`` is where the built-in FMUs live (built there on first use).
+    ``fmu_dir`` is where the built-in FMUs live (built there on first use). An existing
+    ``ssp`` file is replaced only if an earlier export wrote it, or with ``force``.
 
     Raises:
         CosimError: both or neither of ``ssp`` and ``osp`` given, or the export failed.
@@ -25,7 +31,7 @@ def export_scenario(
         raise CosimError("give exactly one of --ssp FILE or --osp DIR")
     resolved = load_scenario(scenario, fmu_dir=fmu_dir)
     if ssp is not None:
-        print(f"SSP archive: {export_ssp(resolved, ssp)}")
+        print(f"SSP archive: {export_ssp(resolved, ssp, overwrite=force)}")
     elif osp is not None:
         print(f"OSP system structure: {export_osp(resolved, osp)}")
     if resolved.coupling.algorithm != "jacobi":

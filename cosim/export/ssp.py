@@ -62,9 +62,15 @@ _ZIP_DATE = (2000, 1, 1, 0, 0, 0)
 
 
 def export_ssp(
-    scenario: Scenario, path: str | Path, fmu_paths: Mapping[str, Path] | None = None
+    scenario: Scenario,
+    path: str | Path,
+    fmu_paths: Mapping[str, Path] | None = None,
+    overwrite: bool = False,
 ) -> Path:
     """Write ``scenario`` as an SSP 1.0 archive at ``path``; returns the absolute path.
+
+    An existing file at ``path`` is replaced only if an earlier export wrote it, or with
+    ``overwrite``.
 
     ``fmu_paths`` optionally maps instance names to the FMU files to package. Files that
     start values name (a custom ``vehicle`` set) are packed as ``resources/<instance>/<name>``
@@ -80,7 +86,7 @@ def export_ssp(
         packed.update({moved[var]: file for var, file in files.items()})
         parts[i] = dataclasses.replace(part, start={**part.start, **moved})
     ssd = ssd_xml(scenario, parts)
-    with replacing_file(path) as tmp, zipfile.ZipFile(tmp, "w") as archive:
+    with replacing_file(path, overwrite) as tmp, zipfile.ZipFile(tmp, "w") as archive:
         _add_bytes(archive, "SystemStructure.ssd", ssd, zipfile.ZIP_DEFLATED)
         for resource, fmu_path in sorted({c.resource: c.fmu_path for c in parts}.items()):
             # FMUs are zip archives already: store them, do not compress again.

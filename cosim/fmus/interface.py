@@ -19,11 +19,13 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import re
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
+from xml.etree import ElementTree
 
 from cosim.errors import CosimError
 
@@ -88,15 +90,61 @@ def read_interface(fmu_path: str | Path) -> FmuInterface:
     return _read(path, stat.st_mtime_ns, stat.st_size)
 
 
+def check_archive(path: Path) -> None:
+    """Refuse, in one line naming ``path``, an FMU that is not a zip archive, holds a path
+    that is absolute or leaves its folder, has no modelDescription.xml or is not FMI 2.0
+    (read from the description's root before fmpy's schema check, whose report of an FMI
+    1.0 description is a page of schema errors)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = archive.namelist()
+            description = archive.read("modelDescription.xml")
+            root = ElementTree.fromstring(description)
+    except KeyError:
+        raise FmuInterfaceError(f"{path}: not a valid FMU: no modelDescription.xml") from None
+    except (OSError, zipfile.BadZipFile, ElementTree.ParseError, ValueError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise FmuInterfaceError(f"{path}: not a valid FMU: {reason}") from None
+    for name in names:
+        parts = PurePosixPath(name.replace("\\", "/")).parts
+        if name.startswith(("/", "\\")) or ".." in parts or re.match(r"[A-Za-z]:", name):
+            raise FmuInterfaceError(
+                f"{path}: not a valid FMU: illegal path {name!r} in the archive (absolute or "
+                "leaving the FMU's folder)"
+            )
+    version = root.get("fmiVersion")
+    if version != "2.0":
+        raise FmuInterfaceError(f"{path}: fmiVersion {version!r}: expected an FMI 2.0 FMU")
+
+
+def check_binary(path: Path, model_identifier: str | None) -> None:
+    """Refuse, in one line naming ``path``, an FMU without the co-simulation binary for
+    this platform (fmpy would end in a traceback when loading it)."""
+    from fmpy import platform, sharedLibraryExtension
+
+    member = f"binaries/{platform}/{model_identifier}{sharedLibraryExtension}"
+    try:
+        with zipfile.ZipFile(path) as archive:
+            found = member in archive.namelist()
+    except (OSError, zipfile.BadZipFile):
+        found = False
+    if not found:
+        raise FmuInterfaceError(
+            f"{path}: no {member} in the FMU: expected a co-simulation binary for {platform}"
+        )
+
+
 @functools.lru_cache(maxsize=_CACHED_FMUS)
 def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
     """Read ``path``; ``mtime_ns`` and ``size`` are only the cache key's freshness."""
     from fmpy import read_model_description
 
+    check_archive(path)
     try:
         md = read_model_description(str(path))
     except Exception as exc:  # fmpy raises plain Exception for an invalid model description
-        raise FmuInterfaceError(f"{path}: not a valid FMU: {exc}") from None
+        reason = " ".join(str(exc).split())  # its schema report spans lines: one line here
+        raise FmuInterfaceError(f"{path}: not a valid FMU: {reason}") from None
     names = _named_values(path)
     return FmuInterface(
         path=path,

@@ -1,7 +1,10 @@
 """Check built FMUs: fmpy's validation plus what our FMI contract (docs/interfaces.md) adds.
 
 :func:`validate_fmus` returns a list of problems, each prefixed with the FMU's name; an
-empty list means valid. Checks per FMU:
+empty list means valid. :func:`validate_folder` checks the built-in FMUs of a folder as
+they are (``auv-cosim validate``): it never builds or repairs one (that is ``auv-cosim
+build``'s job); a missing folder is an error, a missing FMU or one that is not the file
+the build wrote (its ``.sha256`` record) a problem. Checks per FMU:
 
 * ``fmpy.validation.validate_fmu`` (schema, names, start values, units, ModelStructure);
 * ``needsExecutionTool="false"``, a ``DefaultExperiment``;
@@ -21,6 +24,37 @@ import sys
 from pathlib import Path
 
 SMOKE_TIMEOUT_S = 120.0
+
+
+def validate_folder(fmu_dir: Path) -> list[str]:
+    """Problems of the built-in FMUs in ``fmu_dir`` as they are (nothing is built).
+
+    Raises:
+        CosimError: ``fmu_dir`` is not a folder.
+    """
+    from cosim.errors import CosimError
+    from cosim.fmus.build import FMUS, HASH_SUFFIX, file_hash, recorded_hashes
+
+    fmu_dir = Path(fmu_dir)
+    if not fmu_dir.is_dir():
+        raise CosimError(
+            f"--fmu-dir {fmu_dir}: no such folder; `auv-cosim build --out {fmu_dir}` builds "
+            "the FMUs there"
+        )
+    paths = {name: fmu_dir / f"{name}.fmu" for name in FMUS}
+    problems = []
+    for name, path in paths.items():
+        if not path.is_file():
+            problems.append(f"{name}: {path} does not exist (`auv-cosim build --out {fmu_dir}`)")
+            continue
+        recorded = recorded_hashes(path.with_name(path.name + HASH_SUFFIX)).get("fmu")
+        if recorded is not None and recorded != file_hash(path):
+            problems.append(
+                f"{name}: {path} is not the file the build wrote (its SHA-256 differs from "
+                f"{path.name}{HASH_SUFFIX}): damaged or replaced; `auv-cosim build --out "
+                f"{fmu_dir} --force` rebuilds it"
+            )
+    return problems or validate_fmus(paths)
 
 
 def validate_fmus(paths: dict[str, Path]) -> list[str]:

@@ -15,8 +15,9 @@ the full summary: ``status`` ``"complete"`` or ``"incomplete"``, ``complete``, `
 interrupted the run, null if none), scenario id, stop_time, step, algorithm, pid,
 ``outputs`` (the files the run writes), wall_clock_s (the stepping loop alone),
 real_time_factor, time_reached (the last row computed), rows (the rows in results.csv:
-fewer than computed only when results.csv could not be written), the final value of
-every column, the key figures
+fewer than computed only when results.csv could not be written, and then time_reached
+and the final values are those of its last row), the final value of every column, the
+key figures
 (:mod:`cosim.metrics.key_figures`), the FMUs' logged warnings and errors, ``events`` (each firing
 of an event: ``name``, ``time`` in s, the values it ``set``; docs/events.md) and
 ``faults`` (``name``, ``kind``, ``target``, ``start`` and ``stop`` in s, null: never),
@@ -112,12 +113,19 @@ def final_summary(
     signal: str | None,
     rows: int,
     manoeuvre: Mapping[str, Any] | None = None,
+    last_row: tuple[float, np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """summary.json at the end of a run: ``running`` completed with how it ended;
     ``rows``: those in results.csv; ``manoeuvre``: the manoeuvre and its metrics
-    (:meth:`cosim.outputs.manoeuvre.ManoeuvreSink.summary`), put at the top level."""
+    (:meth:`cosim.outputs.manoeuvre.ManoeuvreSink.summary`), put at the top level;
+    ``last_row``: (time, values) of results.csv's last row when the file stopped short
+    of the rows computed (a full disk): time_reached and the final values are then that
+    row's, so the summary agrees with the file."""
     wall = result.wall_clock_s
-    final = dict(zip(result.columns, result.final.tolist(), strict=True))
+    time_reached, values = result.time_reached, result.final
+    if last_row is not None:
+        time_reached, values = last_row
+    final = dict(zip(result.columns, values.tolist(), strict=True))
     return {
         **running,
         "status": "complete" if error is None else "incomplete",
@@ -126,7 +134,7 @@ def final_summary(
         "signal": signal,
         "wall_clock_s": wall,
         "real_time_factor": _finite(result.time_reached / wall) if wall > 0 else None,
-        "time_reached": result.time_reached,
+        "time_reached": time_reached,
         "rows": rows,
         "final_values": {name: _finite(value) for name, value in final.items()},
         "key_figures": figures,

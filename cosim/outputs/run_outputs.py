@@ -114,6 +114,7 @@ class RunOutputs:
     ) -> None:
         self.csv = CsvSink(self.paths["results"], self.scenario.columns)
         self._created.append(self.paths["results"])
+        self.folder.wrote(self.paths["results"])
         self.sinks.insert(0, self.csv)
         self._closable.append(self.csv)
         self.folder.start_guard(self.paths["results"], rrd)
@@ -121,6 +122,7 @@ class RunOutputs:
             sink = recorder(self.scenario, rrd, None, self.folder.recording_flushed)
             if sink is not None:
                 self._created.append(rrd)
+                self.folder.wrote(rrd)
                 self._add(sink)
             else:
                 del self.paths["recording"]
@@ -137,6 +139,7 @@ class RunOutputs:
         except OSError as exc:
             raise CosimError(f"cannot write {self.paths['scenario']}: {exc.strerror}") from None
         self._created.append(self.paths["scenario"])
+        self.folder.wrote(self.paths["scenario"])
         self._running = running_summary(self.scenario, self.paths, self.folder.path)
         self._created.append(self.paths["summary"])
         write_json_atomically(self.paths["summary"], self._running)
@@ -162,7 +165,9 @@ class RunOutputs:
         if self.manoeuvre is not None:
             self.manoeuvre_summary = self.manoeuvre.summary()
         figures, manoeuvre = self.figures.figures(), self.manoeuvre_summary
-        data = final_summary(self._running, result, figures, error, name, rows, manoeuvre)
+        short = self.csv is not None and self.csv.rows < result.rows
+        last = self.csv.last if short and self.csv is not None else None
+        data = final_summary(self._running, result, figures, error, name, rows, manoeuvre, last)
         try:
             write_json_atomically(self.paths["summary"], data)
         except CosimError as exc:

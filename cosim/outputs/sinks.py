@@ -35,16 +35,33 @@ class CsvSink(NotesIgnored):
     def __init__(self, path: Path, columns: tuple[str, ...]) -> None:
         self.path = path
         self.rows = 0  # data rows in the file
+        self.last: tuple[float, np.ndarray] | None = None  # the last row in the file
         self._written = 0  # bytes of whole rows in the file
         try:
-            self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+            self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            created = True
+        except FileExistsError:  # not ours to remove if the header cannot be written
+            created = False
+            try:
+                self._fd = os.open(path, os.O_WRONLY | os.O_TRUNC)
+            except OSError as exc:
+                raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
         except OSError as exc:
             raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
-        self._write(csv_header(columns).encode())
+        try:
+            self._write(csv_header(columns).encode())
+        except CosimError:  # a full disk: no empty results.csv left behind
+            self.close()
+            if created:
+                with contextlib.suppress(OSError):
+                    os.unlink(path)
+            raise
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         self._write(csv_lines(times, values))
         self.rows += len(times)
+        if len(times):
+            self.last = (float(times[-1]), np.array(values[-1], dtype=float))
 
     def warm_up(self) -> None:
         """Do the CSV writer's one-time set-up now, writing nothing: pyarrow's first CSV

@@ -31,10 +31,13 @@ write them back as TOML tables (``Scenario.to_toml``).
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import math
 import operator
+import os
 import re
+import stat
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +56,8 @@ ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
 MASS_POSITION = "mass_position"  # the plant output a mass-jam holds the command at
 _PLAIN = r"^[A-Za-z0-9_-]+$"
 # "<instance>.<variable> <op> <number>": one comparison, nothing evaluated
+MAX_DELAY_STEPS = 100_000_000  # a run's most communication steps (cosim.scenario.spec)
+SERIES_MAX_BYTES = 64 << 20  # a series CSV larger than this is refused, not read
 _WHEN = re.compile(
     r"^\s*(?P<ref>[A-Za-z_]\w*\.[A-Za-z_][\w.\[\]]*)\s*(?P<op><=|>=|<|>)\s*"
     r"(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*$"
@@ -97,7 +102,7 @@ class FaultSpec(Strict):
     value: float | None = Field(default=None, allow_inf_nan=False)
     std: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
     seed: int | None = Field(default=None, ge=0)
-    steps: int | None = Field(default=None, ge=1)
+    steps: int | None = Field(default=None, ge=1, le=MAX_DELAY_STEPS)
     probability: float | None = Field(default=None, ge=0.0, le=1.0)
 
 
@@ -231,7 +236,10 @@ def _condition(text: str, scenario: Any, key: str, src: Source) -> Condition:
         raise src.error(
             key, f"{ref!r} is neither a recorded Real variable nor a connection's source"
         )
-    return Condition(ref, match["op"], float(match["number"]))  # type: ignore[arg-type]
+    number = float(match["number"])
+    if not math.isfinite(number):  # 1e999999 reads as inf: a crossing that never comes
+        raise src.error(key, f"{text!r}: {match['number']} is not a finite number")
+    return Condition(ref, match["op"], number)  # type: ignore[arg-type]
 
 
 def settable(
@@ -259,16 +267,15 @@ def settable(
 
 def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Source) -> Series:
     path = (base_dir / str(spec.series)).resolve()
-    try:
-        with path.open(encoding="utf-8-sig", newline="") as file:
-            rows = list(csv.reader(file))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise src.error(key, f"{spec.series!r}: cannot read {path}: {exc}") from None
+    rows = _series_rows(path, key, spec.series, src)
     header = [cell.strip() for cell in rows[0]] if rows else []
     if len(header) < 2 or header[0] != "time":
         raise src.error(
             key, f"{spec.series!r}: header {header} is not 'time,<instance.variable>,...'"
         )
+    twice = sorted({ref for ref in header if header.count(ref) > 1})
+    if twice:
+        raise src.error(key, f"{spec.series!r}: column {twice[0]!r} appears twice in the header")
     for ref in header[1:]:
         settable(ref, 0.0, scenario, f"{key} = {spec.series!r}, column {ref}", True, src)
     table = _numbers(rows[1:], len(header), key, spec.series, src)
@@ -282,6 +289,27 @@ def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Sourc
             )
     columns = {ref: tuple(row[j + 1] for row in table) for j, ref in enumerate(header[1:])}
     return Series(path, spec.interpolation or "hold", tuple(times), columns)
+
+
+def _series_rows(path: Path, key: str, name: Any, src: Source) -> list[list[str]]:
+    """The CSV rows of a series file: a regular file of at most SERIES_MAX_BYTES (a device
+    like /dev/zero, a FIFO or a huge file is refused, never read)."""
+    try:
+        info = os.stat(path)  # before opening: opening a FIFO would wait for a writer
+        if not stat.S_ISREG(info.st_mode):
+            raise src.error(key, f"{name!r}: {path} is not a regular file")
+        if info.st_size > SERIES_MAX_BYTES:
+            raise src.error(
+                key, f"{name!r}: {path} is {info.st_size} bytes; at most {SERIES_MAX_BYTES}"
+            )
+        with path.open("rb") as file:
+            data = file.read(SERIES_MAX_BYTES + 1)
+        if len(data) > SERIES_MAX_BYTES:
+            raise src.error(key, f"{name!r}: {path} is over {SERIES_MAX_BYTES} bytes")
+        text = data.decode("utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise src.error(key, f"{name!r}: cannot read {path}: {exc}") from None
+    return list(csv.reader(io.StringIO(text, newline="")))
 
 
 def _numbers(

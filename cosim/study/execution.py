@@ -23,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import shutil
+import socket
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager, suppress
@@ -31,18 +32,21 @@ from pathlib import Path
 from typing import Any, cast
 
 from distributed import Client, LocalCluster, as_completed, get_worker
+from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.diagnostics.plugin import WorkerPlugin
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
 
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
+from cosim.study.signals import StudyStopped, workers_ignore_sigint
 from cosim.study.spec import StudyError
 from cosim.study.task import Base, RunRecord, run_one
 
 LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
 CONNECT_TIMEOUT_S = 30
+PROBE_TIMEOUT_S = 5.0  # a scheduler that does not accept a connection by then is refused
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
 
 
@@ -141,6 +145,31 @@ def tls_security(ca_file: Path | None, cert: Path | None, key: Path | None) -> S
     )
 
 
+def check_scheduler(address: str, security: Security | None = None) -> None:
+    """Refuse, in seconds and before anything is written, a scheduler address that is not
+    ``tcp://`` or ``tls://HOST:PORT``, a ``tls://`` one without certificates, or one that
+    accepts no connection (a TCP connect with a PROBE_TIMEOUT_S timeout: Dask's own client
+    would retry for CONNECT_TIMEOUT_S)."""
+    if address.startswith("tls://") and security is None:
+        raise StudyError(
+            f"--scheduler {address}: a tls:// address needs --tls-ca-file, --tls-cert and --tls-key"
+        )
+    try:
+        protocol, location = parse_address(address)
+        host, port = parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise StudyError(
+            f"--scheduler {address}: expected tcp://HOST:PORT or tls://HOST:PORT ({exc})"
+        ) from None
+    if protocol not in ("tcp", "tls"):
+        raise StudyError(f"--scheduler {address}: expected tcp://HOST:PORT or tls://HOST:PORT")
+    try:
+        socket.create_connection((host, port), timeout=PROBE_TIMEOUT_S).close()
+    except OSError as exc:
+        reason = exc.strerror or str(exc) or type(exc).__name__
+        raise StudyError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
+
+
 @contextmanager
 def open_client(
     workers: int,
@@ -168,17 +197,18 @@ def open_client(
     # An address without a host (dask's default ":8787") would listen on every interface;
     # with the dashboard off the scheduler still serves /health on this (random) port.
     port = DASHBOARD_PORT if dashboard else 0
-    cluster = LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        host=LOCALHOST,
-        protocol="tcp://",
-        dashboard_address=f"{LOCALHOST}:{port}",
-        scheduler_kwargs={"dashboard": dashboard},
-        worker_dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
+    with workers_ignore_sigint():  # a Ctrl-C is the client's to handle (cosim.study.signals)
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            host=LOCALHOST,
+            protocol="tcp://",
+            dashboard_address=f"{LOCALHOST}:{port}",
+            scheduler_kwargs={"dashboard": dashboard},
+            worker_dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
     with cluster, Client(cluster, set_as_default=False) as client:
         yield client
 
@@ -212,7 +242,7 @@ def execute(
                 record = future.result()  # run_one itself never raises
             except KilledWorker as exc:
                 record = RunRecord("failed", lost_run_error(exc), {}, 0.0, 0.0)
-            except (KeyboardInterrupt, SystemExit):
+            except (KeyboardInterrupt, SystemExit, StudyStopped):
                 raise
             except BaseException as exc:  # cancelled, or the scheduler went away
                 error = " ".join(f"{type(exc).__name__}: {exc}".split())

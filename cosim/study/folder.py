@@ -1,9 +1,14 @@
 """The study folder: what study it holds (``study.json``), and the kept per-run folders.
 
 ``study.json`` records what the table's rows depend on: the study file's settings, the
-resolved scenario and the FMUs' content hashes. A new study refuses a folder that already
-holds one; ``--resume`` refuses a folder whose study differs (another scenario, other
-factors or metrics, rebuilt FMUs), so a table never mixes two studies.
+resolved scenario, the FMUs' content hashes and those of every other file the scenario
+reads (a vehicle set, a series CSV). A new study needs a new or empty folder (a folder
+holding anything else is refused: a study never writes over a user's ``index.html`` or
+into their ``figures/``) and refuses one that already holds a study; ``--resume`` refuses
+a folder whose study differs (another scenario, other factors or metrics, rebuilt FMUs, a
+changed vehicle file), so a table never mixes two studies. A study locks its folder for
+as long as it runs (:func:`lock`, the run folder's lock): a second study into it, resumed
+or not, is refused at once.
 
 Per-run folders ``runs/<run id>/`` (only with ``keep = "all"`` or ``"failed"``) hold the
 scenario the run ran (``scenario.toml``, for ``auv-cosim run``), its ``results.csv`` and
@@ -12,20 +17,50 @@ scenario the run ran (``scenario.toml``, for ``auv-cosim run``), its ``results.c
 
 from __future__ import annotations
 
+import contextlib
 import json
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from cosim.errors import CosimError
+from cosim.outputs.folder import LOCK_FILE, lock_folder, unlock_folder
 from cosim.study.spec import StudyError
 
 STUDY_JSON = "study.json"
 RUNS_FOLDER = "runs"
 
 
+@contextlib.contextmanager
+def lock(out_dir: Path) -> Iterator[bool]:
+    """Create (if needed) and lock ``out_dir`` while the study runs; yields whether it was
+    created. A folder this made is removed again if the study left nothing in it."""
+    created = not out_dir.exists()
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise StudyError(
+            f"--out {out_dir}: cannot create the study folder: {exc.strerror or exc}"
+        ) from None
+    try:
+        fd = lock_folder(out_dir, "study")
+    except CosimError as exc:
+        if created:
+            with contextlib.suppress(OSError):
+                out_dir.rmdir()
+        raise StudyError(str(exc)) from None
+    try:
+        yield created
+    finally:
+        unlock_folder(out_dir, fd)
+        if created:
+            with contextlib.suppress(OSError):
+                out_dir.rmdir()  # only if empty
+
+
 def claim(out_dir: Path, identity: Mapping[str, Any], resume: bool, table: str) -> None:
-    """Make ``out_dir`` this study's folder, or check it already is (``resume``).
-    ``table``: the table's file name (a folder holding one holds a study)."""
+    """Make the locked ``out_dir`` this study's folder, or check it already is
+    (``resume``). ``table``: the table's file name (a folder holding one holds a study)."""
     marker = out_dir / STUDY_JSON
     identity = json.loads(json.dumps(identity))  # as it reads back from the file
     if resume:
@@ -36,15 +71,37 @@ def claim(out_dir: Path, identity: Mapping[str, Any], resume: bool, table: str) 
         if differ:
             raise StudyError(
                 f"--resume: {out_dir} holds another study (its {', '.join(differ)} "
-                "differ from this one's); give another --out to start this study"
+                f"differ from this one's{_changed_files(stored, identity)}); give another "
+                "--out to start this study"
             )
         return
     if marker.exists() or (out_dir / table).exists():
         raise StudyError(
             f"{out_dir} already holds a study: add --resume to continue it, or give another --out"
         )
-    out_dir.mkdir(parents=True, exist_ok=True)
+    entries = sorted(p.name for p in out_dir.iterdir() if p.name != LOCK_FILE)
+    if entries:
+        shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+        raise StudyError(
+            f"--out {out_dir}: the folder is not empty ({shown}) and holds no study; "
+            "choose a new or empty folder"
+        )
     marker.write_text(json.dumps(identity, indent=2) + "\n", encoding="utf-8")
+
+
+def _changed_files(stored: Mapping[str, Any], identity: Mapping[str, Any]) -> str:
+    """'; changed: <file>' naming the scenario's files whose content changed."""
+    old, new = stored.get("files") or {}, identity.get("files") or {}
+    changed = sorted(k for k in {*old, *new} if old.get(k) != new.get(k))
+    return f"; changed: {', '.join(changed[:3])}" if changed else ""
+
+
+def discard_new(out_dir: Path, table: str) -> None:
+    """Remove what a new study that ran nothing wrote (its study.json and empty table),
+    so the next attempt is not refused as a study already there."""
+    for name in (STUDY_JSON, table):
+        with contextlib.suppress(OSError):
+            (out_dir / name).unlink()
 
 
 def keep_run(

@@ -30,12 +30,20 @@ from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
-from cosim.study.execution import Job, StudyPlugin, execute, make_job, open_client
+from cosim.study.execution import (
+    Job,
+    StudyPlugin,
+    check_scheduler,
+    execute,
+    make_job,
+    open_client,
+)
 from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import plotted_metrics, write_figures
-from cosim.study.spec import StudyError, StudySpec, load_study
+from cosim.study.signals import StudyStopped
+from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
 from cosim.viz.overlay import OverlayRun, write_overlay
@@ -83,14 +91,19 @@ def run_study(
     fmu_dir: Path = DEFAULT_FMU_DIR,
     progress: bool = False,
     overlay: int | None = None,
+    max_runs: int = MAX_RUNS,
 ) -> StudyOutcome:
     """Run the study (or what a killed one left, with ``resume``) into ``out_dir``
     (default ``studies/<study file name>``). ``overlay``: draw that many runs, spread over
-    the study, in overlay.rrd (instead of the study file's ``overlay``). Raises
+    the study, in overlay.rrd (instead of the study file's ``overlay``); a study of more
+    than ``max_runs`` runs is refused before any is built. Raises
     :class:`StudyError` (a CosimError) for a study that cannot run; failed runs are rows
     of the table, not errors."""
     started = time.perf_counter()
+    if cluster.scheduler is not None:
+        check_scheduler(cluster.scheduler, cluster.security)
     spec = load_study(study_file)
+    check_size(spec, str(study_file), max_runs)
     base, facts = prepare(_scenario_ref(spec.scenario, study_file.parent), spec.stop_time, fmu_dir)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     metrics = _metrics(spec, facts)
@@ -103,26 +116,36 @@ def run_study(
     if entries:
         check_choice(entries, runs, metrics)
     out_dir = out_dir if out_dir is not None else STUDIES_DIR / study_file.stem
-    study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
-    csv_path = out_dir / CSV_NAME
-    if resume and csv_path.is_file():
-        table = RunsTable.reopen(csv_path, spec.factors, metrics, runs)
-    else:
-        table = RunsTable.create(csv_path, spec.factors, metrics)
-    skipped = len(table.done)
-    todo = [run for run in runs if run.id not in table.done]
-    warnings: list[str] = []
-    with ExitStack() as stack:
-        session = _Session(cluster, stack)
-        if todo:
-            _execute(out_dir, spec, base, factors, table, todo, session, progress, len(runs))
-        rows = table.finish()
-        paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
-        paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
-        if entries:
-            paths["overlay"], warnings = _overlay(
-                out_dir, entries, base, factors, runs, rows, session
-            )
+    with study_folder.lock(out_dir):
+        study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
+        csv_path = out_dir / CSV_NAME
+        if resume and csv_path.is_file():
+            table = RunsTable.reopen(csv_path, spec.factors, metrics, runs)
+        else:
+            table = RunsTable.create(csv_path, spec.factors, metrics)
+        skipped = len(table.done)
+        todo = [run for run in runs if run.id not in table.done]
+        warnings: list[str] = []
+        with ExitStack() as stack:
+            session = _Session(cluster, stack)
+            try:
+                if todo:
+                    _execute(
+                        out_dir, spec, base, factors, table, todo, session, progress, len(runs)
+                    )
+            except BaseException as exc:
+                if not resume and not table.done:  # nothing to resume: leave no study
+                    study_folder.discard_new(out_dir, CSV_NAME)
+                elif isinstance(exc, StudyStopped):
+                    exc.where = f"{len(table.done)} finished runs kept in {csv_path} (--resume)"
+                raise
+            rows = table.finish()
+            paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
+            paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
+            if entries:
+                paths["overlay"], warnings = _overlay(
+                    out_dir, entries, base, factors, runs, rows, session
+                )
     complete = sum(row["status"] == "complete" for row in rows)
     return StudyOutcome(
         out_dir,
@@ -323,7 +346,8 @@ def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: Stud
 
 
 def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
-    """What the table's rows depend on (study.json): settings, scenario, FMU content."""
+    """What the table's rows depend on (study.json): settings, scenario, FMU content and
+    the content of every other file the scenario reads."""
     return {
         "study": spec.model_dump(mode="json", exclude={"keep", "overlay"}),
         "scenario": dict(base.data),
@@ -331,4 +355,5 @@ def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
             name: hashlib.sha256(path.read_bytes()).hexdigest()
             for name, path in base.fmu_paths.items()
         },
+        "files": dict(base.files),
     }

@@ -58,6 +58,7 @@ from cosim.errors import CosimError
 
 KEEP_CHOICES = ("all", "failed", "none")
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
+MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
 _RUN_ID = re.compile(r"[0-9a-f]{16}")  # cosim.study.design.run_id
 FactorValue = StrictBool | StrictInt | StrictFloat | StrictStr
 
@@ -198,6 +199,23 @@ class StudySpec(_Strict):
     def factors(self) -> list[str]:
         """Every factor, grid first, in file order (the table's factor columns)."""
         return [*self.grid, *self.random.factors]
+
+
+def run_count(spec: StudySpec) -> int:
+    """The study's number of runs, counted without building them: grid points x samples."""
+    return math.prod(len(values) for values in spec.grid.values()) * max(spec.random.n, 1)
+
+
+def check_size(spec: StudySpec, where: str, max_runs: int = MAX_RUNS) -> None:
+    """Refuse a study of more than ``max_runs`` runs, before any is built (the design of
+    a larger one would take the memory and time of building every run first)."""
+    count = run_count(spec)
+    if count > max_runs:
+        grid = " x ".join(str(len(values)) for values in spec.grid.values()) or "1"
+        raise StudyError(
+            f"study file {where}: {count:.4g} runs ({grid} grid points x "
+            f"{max(spec.random.n, 1)} samples); at most {max_runs} (--max-runs N raises the cap)"
+        )
 
 
 def load_study(path: Path) -> StudySpec:

@@ -14,6 +14,7 @@ again, so its folder needs no guard); the metrics are the numeric values of the 
 from __future__ import annotations
 
 import copy
+import hashlib
 import json
 import tempfile
 import time
@@ -44,6 +45,7 @@ class Base:
     scenario_id: str
     data: Mapping[str, Any]  # the resolved scenario as TOML data (FMUs as referenced)
     fmu_paths: Mapping[str, Path]  # instance -> its FMU file on the client
+    files: Mapping[str, str] = field(default_factory=dict)  # file it reads -> its SHA-256
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,7 @@ def prepare(
         scenario_id=scenario.id,
         data=tomllib.loads(scenario.to_toml()),
         fmu_paths={name: inst.fmu_path for name, inst in scenario.instances.items()},
+        files=referenced_files(scenario),
     )
     tables = {
         section: {t.get("name", f"{section[:-1]}-{k}"): t for k, t in enumerate(found, start=1)}
@@ -88,6 +91,20 @@ def prepare(
     }
     facts = ScenarioFacts(instances, _metric_names(scenario), tables["events"], tables["faults"])
     return base, facts
+
+
+def referenced_files(scenario: Scenario) -> dict[str, str]:
+    """Every file the scenario reads besides its FMUs (vehicle sets, series CSVs) -> the
+    SHA-256 of its content: a study's rows depend on them."""
+    paths = [p for inst in scenario.instances.values() for p in inst.files().values()]
+    paths += [e.series.path for e in scenario.events if e.series is not None]
+    found = {}
+    for path in sorted(set(paths)):
+        try:
+            found[str(path)] = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        except OSError as exc:
+            raise StudyError(f"cannot read {path}: {exc.strerror or exc}") from None
+    return found
 
 
 def check_values(

@@ -28,6 +28,7 @@ class Counter(SafeSlave):
         self.y = 0.0
         self.echo = 0.0
         self.steps = 0
+        self.level = 1
         self._count = 0
         io = {"variability": Fmi2Variability.continuous}
         out = {"causality": Fmi2Causality.output, "initial": Fmi2Initial.exact, **io}
@@ -51,6 +52,14 @@ class Counter(SafeSlave):
                 variability=Fmi2Variability.fixed,
             ),
             unit="1",
+        )
+        self.register(
+            Integer(
+                "level",
+                description="a fixed Integer parameter",
+                causality=Fmi2Causality.parameter,
+                variability=Fmi2Variability.fixed,
+            )
         )
         self.register(
             Real(
@@ -153,11 +162,19 @@ def test_a_failing_setter_on_the_fast_path_is_reported_not_raised(slave):
 def test_fixed_parameter_is_refused_after_initialisation_tunable_is_not(slave):
     slave.set_real([_vr(slave, "k"), _vr(slave, "gain")], [5.0, 0.5])
     assert (slave.k, slave.gain) == (2.0, 0.5)
-    assert slave.do_step(0.0, 1.0) is False
     assert "k = 5.0 refused: a fixed parameter" in _errors(slave)
-    slave.set_real([_vr(slave, "k")], [2.0])  # the value in use: accepted, clears it
-    assert slave.do_step(0.0, 1.0) is True
+    assert slave.do_step(0.0, 1.0) is True  # the refused write changed nothing
     assert slave.y == pytest.approx(1.0)
+    slave.set_real([_vr(slave, "k")], [2.0])  # the value in use: accepted
+    assert slave.do_step(1.0, 1.0) is True
+
+
+def test_a_refused_set_integer_of_a_fixed_parameter_changes_nothing(slave):
+    """A refused setInteger of a fixed parameter after initialisation made every later
+    doStep return Discard."""
+    slave.set_integer([_vr(slave, "level")], [2])
+    assert slave.level == 1 and "level = 2 refused: a fixed parameter" in _errors(slave)
+    assert [slave.do_step(0.1 * n, 0.1) for n in range(3)] == [True, True, True]
 
 
 def test_outputs_unknown_references_and_wrong_types_are_refused(slave):
@@ -169,7 +186,7 @@ def test_outputs_unknown_references_and_wrong_types_are_refused(slave):
     assert "y = 7.0 refused: a output cannot be set" in errors
     assert "u is a Real, not a Integer" in errors
     assert "no variable has valueReference 999" in errors
-    assert slave.do_step(0.0, 0.1) is False
+    assert slave.do_step(0.0, 0.1) is True  # refused calls changed nothing
 
 
 def test_getters_never_raise(slave):

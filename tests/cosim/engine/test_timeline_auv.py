@@ -4,6 +4,9 @@ event under Jacobi, Gauss-Seidel and step multiples; the actuator faults."""
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -104,3 +107,23 @@ def test_an_actuator_fault_on_an_unconnected_input_holds_it_then_lets_go(fmu_dir
     t, force = result.times, result.column("plant.tunnel_force")
     off = (t >= 0.5 - 1e-9) & (t < 0.8 - 1e-9)
     assert np.all(force[off] == 0.0) and np.all(force[~off] == 5.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ['kind = "gain"\nvalue = 1e308', 'kind = "noise"\nstd = 1e300'])
+def test_a_fault_driving_the_plant_out_of_range_is_one_line_without_warnings(
+    fmu_dir: Path, tmp_path: Path, fault: str
+) -> None:
+    """A fault gain of 1e308 or noise of std 1e300 printed numpy's RuntimeWarnings (from
+    the plant, in the host's process) before the reason."""
+    text = (SCENARIO_FOLDER / "bs-3.toml").read_text(encoding="utf-8")
+    text = text.replace("stop_time = 60.0", "stop_time = 1.0")
+    scenario = tmp_path / "f.toml"
+    scenario.write_text(text + f'[[faults]]\ntarget = "plant.mass_position_cmd"\n{fault}\n')
+    command = [sys.executable, "-m", "cosim.cli", "run", str(scenario), "--no-rrd", "--quiet"]
+    command += ["--out", str(tmp_path / "out"), "--fmu-dir", str(fmu_dir)]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300, env=env)
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert "Warning" not in done.stderr
+    assert "= nan: expected a finite number" in done.stderr

@@ -259,7 +259,8 @@ def test_same_scenario_exports_to_the_same_bytes(plant_alone: Scenario, tmp_path
 
 def test_export_replaces_an_earlier_export(plant_alone: Scenario, tmp_path: Path) -> None:
     ssp = tmp_path / "p.ssp"
-    ssp.write_bytes(b"old")
+    export_ssp(plant_alone, ssp)
+    ssp.touch()  # an earlier export, still recognised as one
     export_ssp(plant_alone, ssp)
     assert zipfile.is_zipfile(ssp)
     folder = tmp_path / "osp"
@@ -270,6 +271,32 @@ def test_export_replaces_an_earlier_export(plant_alone: Scenario, tmp_path: Path
         "plant"
     ].fmu_path.read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["osp", "p.ssp"]  # no temporaries left
+
+
+def test_export_never_replaces_a_file_it_did_not_write(
+    plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`export bs-3 --ssp base/results.csv` replaced another run's results with a zip."""
+    results = tmp_path / "results.csv"
+    results.write_text("time,plant.yaw\n0,0\n")
+    code, err = _export(capsys, plant_alone.source, "--ssp", results)
+    assert code == 1 and err.count("\n") == 1
+    assert f"cannot write {results}: it exists and is not an archive" in err and "--force" in err
+    assert results.read_text() == "time,plant.yaw\n0,0\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.csv"]  # no temporaries
+    assert cli.main(["export", str(plant_alone.source), "--ssp", str(results), "--force"]) == 0
+    assert zipfile.is_zipfile(results)
+
+
+def test_osp_export_never_removes_a_file_it_did_not_write(
+    plant_alone: Scenario, tmp_path: Path
+) -> None:
+    folder = tmp_path / "osp"
+    export_osp(plant_alone, folder)
+    (folder / "notes.txt").write_text("mine\n")
+    with pytest.raises(CosimError, match=r"holds files an export does not write \(notes.txt\)"):
+        export_osp(plant_alone, folder)
+    assert (folder / "notes.txt").read_text() == "mine\n"
 
 
 # --- failures: a clear message and nothing written -----------------------------------------

@@ -204,14 +204,34 @@ def test_validating_a_corrupt_fmu_is_one_line(fmu_paths, tmp_path):
 
 
 @pytest.mark.slow
-def test_validate_rebuilds_a_truncated_fmu_in_the_fmu_folder(fmu_paths, tmp_path, capsys):
-    """Regression: a truncated FMU in the FMU folder was never rebuilt."""
+@pytest.mark.parametrize("damage", ["truncate", "flip"])
+def test_validate_reports_a_damaged_fmu_and_builds_nothing(fmu_paths, tmp_path, capsys, damage):
+    """`validate --fmu-dir DIR` rebuilt a truncated or bit-flipped FMU over itself and
+    printed "every FMU is valid"."""
     from cosim.cli import main
 
     for name in build.FMUS:
         source = fmu_paths[name]
         shutil.copy2(source, tmp_path)
         shutil.copy2(source.with_name(source.name + build.HASH_SUFFIX), tmp_path)
-    (tmp_path / "AuvPlant.fmu").write_bytes(fmu_paths["AuvPlant"].read_bytes()[:5000])
-    assert main(["validate", "--fmu-dir", str(tmp_path)]) == 0
-    assert capsys.readouterr().out.strip().endswith("every FMU is valid")
+    data = bytearray(fmu_paths["AuvPlant"].read_bytes())
+    if damage == "truncate":
+        data = data[:5000]
+    else:
+        data[len(data) // 2] ^= 0x01
+    (tmp_path / "AuvPlant.fmu").write_bytes(bytes(data))
+    assert main(["validate", "--fmu-dir", str(tmp_path)]) == 1
+    captured = capsys.readouterr()
+    assert "AuvPlant: " in captured.out and "is not the file the build wrote" in captured.out
+    assert "every FMU is valid" not in captured.out
+    assert (tmp_path / "AuvPlant.fmu").read_bytes() == bytes(data)  # left as it was
+
+
+def test_validate_refuses_a_missing_folder_and_creates_nothing(tmp_path, capsys):
+    from cosim.cli import main
+
+    missing = tmp_path / "nowhere"
+    assert main(["validate", "--fmu-dir", str(missing)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--fmu-dir {missing}: no such folder" in err
+    assert not missing.exists()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -69,3 +70,50 @@ def test_scenario_and_export_share_one_reading(fmu_paths) -> None:
         )
     exported = {c.name: c.interface for c in components(scenario, None)}
     assert all(exported[n] is i.interface for n, i in scenario.instances.items())
+
+
+def _copy_fmu(source: Path, target: Path, drop: str = "", extra: str = "", fmi: str = "") -> Path:
+    """``source`` rewritten: members starting with ``drop`` left out, a member ``extra``
+    added, the description's fmiVersion set to ``fmi``."""
+    with zipfile.ZipFile(source) as old, zipfile.ZipFile(target, "w") as new:
+        for name in old.namelist():
+            data = old.read(name)
+            if drop and name.startswith(drop):
+                continue
+            if fmi and name == "modelDescription.xml":
+                data = data.replace(b'fmiVersion="2.0"', f'fmiVersion="{fmi}"'.encode())
+            new.writestr(name, data)
+        if extra:
+            new.writestr(extra, b"x")
+    return target
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ({"fmi": "1.0"}, "fmiVersion '1.0': expected an FMI 2.0 FMU"),
+        ({"extra": "../outside.txt"}, "illegal path '../outside.txt' in the archive"),
+        ({"extra": "/etc/x"}, "illegal path '/etc/x' in the archive"),
+        ({"drop": "binaries/"}, "no binaries/"),
+    ],
+)
+def test_a_broken_fmu_is_one_line_naming_it(
+    change: dict[str, str],
+    expected: str,
+    fmu_paths,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+) -> None:
+    """An FMU without binaries/ ended in a traceback, one with fmiVersion 1.0 in a 5-line
+    schema dump; one with illegal zip paths ran."""
+    from cosim.cli import main
+
+    broken = _copy_fmu(fmu_paths["AuvPlant"], tmp_path / "Broken.fmu", **change)
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(
+        f'id = "s"\nstop_time = 0.1\n[coupling]\nstep = 0.1\n[instances.plant]\nfmu = "{broken}"\n'
+    )
+    assert main(["run", str(scenario), "--out", str(tmp_path / "out"), "--no-rrd"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(broken) in err and expected in err, err
+    assert not (tmp_path / "out").exists()

@@ -8,6 +8,7 @@ possible."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -60,6 +61,42 @@ def test_results_filling_the_disk_end_the_run_with_the_reason(fmu_dir: Path, sma
     assert summary["status"] == "incomplete" and "No space left on device" in summary["error"]
     text = (out / "results.csv").read_text()
     assert text.endswith("\n") and text.count("\n") - 1 == summary["rows"]
+    # the summary agrees with the file's last row (it said t = 2 s beyond it)
+    header, last = text.splitlines()[0].split(","), text.splitlines()[-1].split(",")
+    assert summary["time_reached"] == float(last[0])
+    final = summary["final_values"]
+    assert all(
+        final[name] == float(value) for name, value in zip(header[1:], last[1:], strict=True)
+    )
+
+
+def fill(mount: Path, leave_pages: int = 0) -> None:
+    """Fill the disk at ``mount``, then free ``leave_pages`` pages of 4 KiB."""
+    filler = mount / "filler"
+    with filler.open("wb", buffering=0) as f:
+        try:
+            while f.write(b"\0" * 4096):
+                pass
+        except OSError:
+            pass
+    size = filler.stat().st_size
+    os.truncate(filler, max(0, size - 4096 * leave_pages))
+
+
+@pytest.mark.parametrize(
+    ("pages", "file"), [(0, ".auv-cosim.lock"), (1, "results.csv")], ids=["lock", "results"]
+)
+def test_a_disk_full_at_the_start_leaves_nothing_behind(
+    fmu_dir: Path, small_disk: Path, pages: int, file: str
+):
+    """A full disk at the start left an empty results.csv (a folder later runs refused
+    even with --overwrite) or, with 0 bytes free, a bare OSError and the lock file."""
+    fill(small_disk, pages)
+    out = small_disk / "run"
+    done = run_cli(fmu_dir, "--out", str(out), "--stop-time", "1", "--no-rrd")
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert f"cannot write {out / file}: No space left on device" in done.stderr
+    assert not out.exists()
 
 
 @pytest.mark.slow

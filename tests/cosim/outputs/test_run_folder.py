@@ -13,6 +13,7 @@ from scenario_factory import loop_toml
 from cosim.cli import main
 from cosim.engine import master
 from cosim.outputs.folder import LOCK_FILE, RunFolder, RunFolderError
+from cosim.outputs.folder import MANIFEST_FILE as MANIFEST
 
 
 @pytest.fixture
@@ -49,7 +50,7 @@ def test_a_finished_run_folder_is_reused_only_with_overwrite(loop_file: Path, tm
     out = tmp_path / "d"
     assert main(["run", str(loop_file), "--out", str(out)]) == 0
     first = contents(out)
-    assert set(first) == {"results.csv", "scenario.toml", "summary.json", "recording.rrd"}
+    assert set(first) == {"results.csv", "scenario.toml", "summary.json", "recording.rrd", MANIFEST}
     other = tmp_path / "other.toml"
     other.write_text(loop_file.read_text().replace('id = "loop"', 'id = "other"'))
     capsys.readouterr()
@@ -61,7 +62,7 @@ def test_a_finished_run_folder_is_reused_only_with_overwrite(loop_file: Path, tm
     assert contents(out) == first  # refused: nothing touched
 
     assert main(["run", str(other), "--out", str(out), "--no-rrd", "--overwrite"]) == 0
-    assert set(contents(out)) == {"results.csv", "scenario.toml", "summary.json"}
+    assert set(contents(out)) == {"results.csv", "scenario.toml", "summary.json", MANIFEST}
     assert json.loads((out / "summary.json").read_text())["scenario"] == "other"
 
 
@@ -72,7 +73,7 @@ def test_overwrite_keeps_files_that_no_run_wrote(loop_file: Path, tmp_path: Path
     (out / "report").mkdir()  # what `auv-cosim report` adds: the earlier run's
     assert main(["run", str(loop_file), "--out", str(out), "--overwrite"]) == 0
     assert (out / "notes.txt").read_text() == "mine\n"
-    assert not (out / "report").exists()
+    assert (out / "report").is_dir()  # derived from the earlier run: kept, and said so
     assert (out / "recording.rrd").is_file()
 
 

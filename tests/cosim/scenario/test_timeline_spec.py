@@ -55,6 +55,11 @@ BAD_ROWS = [
     (f'[[events]]\nwhen = "plant.x >> 1"\n{SET_K}',
      ["events[0].when", "'plant.x >> 1'", "one comparison"]),
     (f'[[events]]\nwhen = "plant.x > 1 + 2"\n{SET_K}', ["events[0].when", "one comparison"]),
+    # 1e999999 reads as inf: a crossing that could never come, refused like `< inf`
+    (f'[[events]]\nwhen = "plant.x > 1e999999"\n{SET_K}',
+     ["events[0].when", "1e999999 is not a finite number"]),
+    # a device is never read (it hung, RSS growing ~300 MB/s)
+    ('[[events]]\nseries = "/dev/zero"', ["events[0].series", "/dev/zero is not a regular file"]),
     (f'[[events]]\nwhen = "plant.x0 > 1"\n{SET_K}',
      ["events[0].when", "'plant.x0'", "neither a recorded Real variable"]),
     (f"[[events]]\ntime = 0.5\nrepeat = true\n{SET_K}",
@@ -82,6 +87,9 @@ BAD_ROWS = [
      ["faults.0.probability", "1.5", "less than or equal to 1"]),
     ('[[faults]]\nkind = "delay"\ntarget = "controller.x"\nsteps = 0',
      ["faults.0.steps", "0", "greater than or equal to 1"]),
+    # 2^63-1 steps ended in an OverflowError traceback
+    ('[[faults]]\nkind = "delay"\ntarget = "controller.x"\nsteps = 9223372036854775807',
+     ["faults.0.steps", "9223372036854775807", "less than or equal to 100000000"]),
     ('[[faults]]\nkind = "gain"\ntarget = "controller.x"\nvalue = 2.0\nstd = 0.1',
      ["faults[0].std", "kind 'gain' takes ['value']"]),
     ('[[faults]]\nkind = "wobble"\ntarget = "controller.x"', ["faults.0.kind", "'wobble'"]),
@@ -114,6 +122,7 @@ def test_a_bad_event_or_fault_is_refused_in_one_line_naming_the_key(
         ("time,plant.u\n0,1\n0.2,2\n0.2,3\n", "row 3: time 0.2 s is not after 0.2 s"),
         ("time,plant.u\n0,1\n0.2,oops\n", "row 2: ['0.2', 'oops'] is not 2 finite numbers"),
         ("time,plant.u\n", "no rows below the header"),
+        ("time,plant.u,plant.u\n0,1,2\n", "column 'plant.u' appears twice in the header"),
     ],
 )
 def test_a_bad_series_file_is_refused_naming_it(

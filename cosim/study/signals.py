@@ -1,0 +1,74 @@
+"""A study ends on SIGINT, SIGTERM or SIGHUP as a run does: one line, exit 128 + the signal
+number (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), the finished rows kept in ``runs.csv``.
+
+While :func:`stop_study_on_signals` is active, the first of these signals raises
+:class:`StudyStopped` in the client's main thread (waiting for the next result); later
+ones are ignored, so closing the cluster is not interrupted. The local cluster's worker
+processes are started with SIGINT ignored (:func:`workers_ignore_sigint`; a child
+inherits an ignored signal through fork and exec, and Python then installs no
+KeyboardInterrupt handler): a Ctrl-C in the terminal reaches the whole process group, and
+the workers would each print a traceback; the client stops them instead.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+from cosim.engine.signals import REASONS, STOP_SIGNALS
+
+
+class StudyStopped(BaseException):  # like KeyboardInterrupt: not an error
+    """A stop signal ended the study; ``where`` says what was kept (set by the runner)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+        self.where = ""
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+    def __str__(self) -> str:
+        reason = REASONS.get(signal.Signals(self.signum).name, "stopped")
+        return reason + (f"; {self.where}" if self.where else "")
+
+
+@contextmanager
+def stop_study_on_signals() -> Iterator[None]:
+    """While active, the first stop signal raises :class:`StudyStopped`; later ones are
+    ignored. Outside the main thread nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    stopped = False
+
+    def handler(signum: int, _frame: Any) -> None:
+        nonlocal stopped
+        if not stopped:
+            stopped = True
+            raise StudyStopped(signum)
+
+    previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, old in previous.items():
+            signal.signal(s, old)
+
+
+@contextmanager
+def workers_ignore_sigint() -> Iterator[None]:
+    """Processes started inside this block inherit SIGINT ignored (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -1,0 +1,110 @@
+"""A study's size is counted before any run is built: one over the cap (--max-runs) is
+refused at once, in little memory, with one line; --workers is capped at the cores."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from cosim.cli import main
+from cosim.study import runner
+
+HUGE_GRID = "\n".join(f'"plant.f{i}" = {list(range(100))}' for i in range(5))  # 10^10 runs
+# The process's peak RSS is its VmHWM: getrusage's ru_maxrss keeps the parent's peak
+# across fork and exec, so it would report the test process's own size.
+MEASURE = """
+import re, sys, time
+from cosim.cli import main
+started = time.perf_counter()
+code = main(sys.argv[1:])
+elapsed = time.perf_counter() - started
+status = open("/proc/self/status").read()
+rss_mb = int(re.search(r"VmHWM:\\s+(\\d+) kB", status).group(1)) / 1024
+print(code, elapsed, rss_mb)
+"""
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "study.toml"
+    path.write_text('scenario = "bs-3"\n' + text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="needs /proc (Linux)")
+def test_a_ten_billion_run_grid_is_refused_fast_in_little_memory(tmp_path: Path) -> None:
+    """A [grid] of 100^5 points hung before any output, RSS growing ~130 MB/s."""
+    study = write(tmp_path, "[grid]\n" + HUGE_GRID + "\n")
+    argv = ["sweep", str(study), "--out", str(tmp_path / "out")]
+    process = subprocess.Popen(
+        [sys.executable, "-c", MEASURE, *argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    try:
+        out, err = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    code, elapsed, rss_mb = out.split()
+    assert code == "1" and err.count("\n") == 1, err
+    assert "1e+10 runs (100 x 100 x 100 x 100 x 100 grid points x 1 samples)" in err
+    assert "--max-runs N raises the cap" in err
+    assert float(elapsed) < 2.0 and float(rss_mb) < 200.0, (elapsed, rss_mb)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("n", "expected"),
+    [
+        ("1000000000000", "1e+12 runs (1 grid points x 1000000000000 samples)"),
+        ("1e12", "key 'random.n' = 1000000000000.0: Input should be a valid integer"),
+    ],
+)
+def test_a_huge_random_n_is_one_line(
+    n: str, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`[random] n = 1e12` ended in a numpy MemoryError traceback."""
+    study = write(tmp_path, f'[random]\nn = {n}\n"plant.v_0" = {{ uniform = [0.0, 0.1] }}\n')
+    assert main(["sweep", str(study), "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and expected in err, err
+
+
+def test_the_cap_is_raised_by_max_runs(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    study = write(tmp_path, '[grid]\n"plant.v_0" = [0.0, 0.1, 0.2]\n')
+    assert main(["sweep", str(study), "--out", str(tmp_path / "o"), "--max-runs", "2"]) == 1
+    assert "3 runs (3 grid points x 1 samples); at most 2" in capsys.readouterr().err
+
+
+@pytest.fixture
+def clusters(monkeypatch: pytest.MonkeyPatch) -> list[runner.Cluster]:
+    """The clusters `sweep` would start (no study runs)."""
+    seen: list[runner.Cluster] = []
+
+    def record(study: Path, out: Path | None, *, cluster: runner.Cluster, **kw: object) -> None:
+        seen.append(cluster)
+        raise runner.StudyError("stopped by the test")
+
+    monkeypatch.setattr(runner, "run_study", record)
+    return seen
+
+
+def test_workers_are_capped_at_the_cores_unless_told(
+    tmp_path: Path, capsys: pytest.CaptureFixture, clusters: list[runner.Cluster]
+) -> None:
+    """`--workers 100` on 2 cores started ~100 processes and no run finished in 300 s."""
+    study = write(tmp_path, '[grid]\n"plant.v_0" = [0.0]\n')
+    cores = os.cpu_count() or 1
+    main(["sweep", str(study), "--workers", str(cores + 98)])
+    assert f"--workers {cores + 98} capped at the {cores} cores" in capsys.readouterr().err
+    main(["sweep", str(study), "--workers", str(cores + 98), "--oversubscribe"])
+    assert [c.workers for c in clusters] == [cores, cores + 98]

@@ -1,0 +1,110 @@
+"""A study never writes over what is not its own, never mixes two studies in one table and
+never runs twice at once in one folder: a new study needs a new or empty folder, its
+identity covers every file the scenario reads, its folder is locked while it runs, and a
+study that could not start leaves no folder that refuses the next attempt."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+from pathlib import Path
+
+import pytest
+
+from cosim.cli import main
+
+PLANT = """\
+id = "plant-alone"
+stop_time = 0.2
+[coupling]
+step = 0.1
+[instances.plant]
+fmu = "{fmu}"
+[instances.plant.start]
+vehicle = "myveh.toml"
+"""
+STUDY = 'scenario = "plant.toml"\n[grid]\n"plant.v_0" = [0.0]\n'
+
+
+@pytest.fixture
+def study(tmp_path: Path, fmu_paths: dict[str, Path]) -> Path:
+    """A one-run study of the plant alone with a vehicle file beside its scenario."""
+    (tmp_path / "myveh.toml").write_text('base = "remus100"\nm = 31.0\n')
+    (tmp_path / "plant.toml").write_text(PLANT.format(fmu=fmu_paths["AuvPlant"]))
+    path = tmp_path / "study.toml"
+    path.write_text(STUDY)
+    return path
+
+
+def sweep(study: Path, out: Path, fmu_dir: Path, *args: str) -> int:
+    argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--quiet"]
+    return main([*argv, "--workers", "1", *args])
+
+
+@pytest.mark.slow
+def test_a_new_study_refuses_a_folder_holding_other_files(
+    study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`sweep --out` into an existing folder overwrote the user's index.html and wrote
+    into their figures/."""
+    out = tmp_path / "mine"
+    (out / "figures").mkdir(parents=True)
+    (out / "index.html").write_text("<p>my page</p>\n")
+    (out / "figures" / "plot.png").write_bytes(b"png")
+    assert sweep(study, out, fmu_dir) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is not empty (figures, index.html) and holds no study" in err
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
+        "figures",
+        "figures/plot.png",
+        "index.html",
+    ]
+    assert (out / "index.html").read_text() == "<p>my page</p>\n"
+
+
+@pytest.mark.slow
+def test_a_resume_after_a_referenced_file_changed_is_refused(
+    study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A study resumed after the vehicle .toml changed mixed two vehicles in one table."""
+    out = tmp_path / "out"
+    assert sweep(study, out, fmu_dir) == 0
+    (tmp_path / "myveh.toml").write_text('base = "remus100"\nm = 35.0\n')
+    capsys.readouterr()
+    assert sweep(study, out, fmu_dir, "--resume") == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds another study (its files differ" in err
+    assert f"changed: {(tmp_path / 'myveh.toml').resolve()}" in err
+
+
+def test_a_study_folder_in_use_is_refused(
+    study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Two concurrent `sweep --resume` into one folder both ran every remaining run."""
+    out = tmp_path / "out"
+    out.mkdir()
+    fd = os.open(out / ".auv-cosim.lock", os.O_RDWR | os.O_CREAT)
+    try:
+        os.write(fd, b"4242 auv-cosim sweep study.toml\n")
+        fcntl.flock(fd, fcntl.LOCK_EX)  # as the study running there holds it
+        assert sweep(study, out, fmu_dir) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1
+        assert f"study folder {out} is in use by process 4242 (auv-cosim sweep" in err
+        assert sorted(p.name for p in out.iterdir()) == [".auv-cosim.lock"]
+    finally:
+        os.close(fd)
+
+
+@pytest.mark.parametrize("address", ["tcp://127.0.0.1:1", "tcp://no such host:x"])
+def test_an_unreachable_scheduler_leaves_no_study_behind(
+    address: str, study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`--scheduler tcp://127.0.0.1:1` took 36 s to fail and left a study folder that
+    refused the next attempt; a garbage address ended in a TimeoutError traceback."""
+    out = tmp_path / "out"
+    argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]
+    assert main([*argv, "--scheduler", address]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and address in err, err
+    assert not out.exists()

@@ -1,0 +1,88 @@
+"""A study ends on a stop signal as a run does (exit 128 + signal, one line, the finished
+rows kept, no worker tracebacks), and a study in which no run completed exits 1."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cosim.cli import main
+
+LONG_STUDY = 'scenario = "bs-3"\nstop_time = 2.0\n[grid]\n"plant.v_0" = {values}\n'
+
+
+def rows(table: Path) -> list[dict[str, str]]:
+    if not table.is_file():
+        return []
+    with table.open(encoding="utf-8", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("signum", "group"), [(signal.SIGINT, True), (signal.SIGTERM, False)])
+def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
+    signum: int, group: bool, tmp_path: Path, fmu_dir: Path
+) -> None:
+    """Ctrl-C flooded stderr with worker tracebacks; SIGTERM killed the study without a
+    reason and with leaked-semaphore warnings. Ctrl-C goes to the whole process group,
+    as a terminal sends it."""
+    study = tmp_path / "long.toml"
+    values = [round(-0.2 + 0.01 * i, 2) for i in range(40)]
+    study.write_text(LONG_STUDY.format(values=values), encoding="utf-8")
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--out", str(out)]
+    command += ["--fmu-dir", str(fmu_dir), "--workers", "1", "--quiet"]
+    process = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    try:
+        deadline = time.monotonic() + 240
+        while not rows(out / "runs.csv") and time.monotonic() < deadline:
+            assert process.poll() is None, process.communicate()
+            time.sleep(0.2)
+        if group:
+            os.killpg(process.pid, signum)
+        else:
+            process.send_signal(signum)
+        _, err = process.communicate(timeout=120)
+    finally:
+        with contextlib.suppress(ProcessLookupError):  # the study and any worker left
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    assert process.returncode == 128 + signum, err
+    assert "Traceback" not in err and "leaked semaphore" not in err, err
+    name = "interrupted (Ctrl-C)" if signum == signal.SIGINT else "terminated (SIGTERM)"
+    (line,) = [line for line in err.splitlines() if line.startswith("auv-cosim sweep:")]
+    assert line.startswith(f"auv-cosim sweep: {name}; ") and "finished runs kept" in line
+    kept = rows(out / "runs.csv")
+    assert 1 <= len(kept) < len(values)
+    assert all(row["status"] == "complete" for row in kept)
+
+
+@pytest.mark.slow
+def test_a_study_in_which_no_run_completed_exits_1(
+    tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A study in which every run failed exited 0."""
+    study = tmp_path / "failing.toml"
+    # the plant refuses a negative max_substep (the scenario takes any finite number)
+    study.write_text('scenario = "bs-3"\nstop_time = 1.0\n[grid]\n"plant.max_substep" = [-1.0]\n')
+    out = tmp_path / "out"
+    argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--quiet"]
+    assert main([*argv, "--workers", "1"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no run completed (1 failed: see the error column" in err
+    assert [row["status"] for row in rows(out / "runs.csv")] == ["failed"]
