@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import signal
 import sys
+import time
 import warnings
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
@@ -42,6 +43,7 @@ from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
 if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (step 2)
     from cosim.engine.master import RunResult
     from cosim.outputs.run_outputs import RunOutputs
+    from cosim.outputs.sinks import ProgressSink
     from cosim.scenario.spec import Scenario
     from cosim.viz.recording import RerunSink
 
@@ -127,21 +129,33 @@ def execute(
         handlers = stop_on_signals(stop)
     with handlers:
         folder = RunFolder.claim(out_dir, options.overwrite, options.tail_guard)
+        progress = _progress(_id_of(scenario), options)
         stepped = False
         try:
             from cosim.engine import master
 
-            loaded = _checked_scenario(scenario, options)
+            started = time.perf_counter()
+            loaded = _checked_scenario(scenario, options, progress)
+            prepared = time.perf_counter()
             folder.clear_earlier_run()
-            outputs = _open_outputs(loaded, folder, options)
+            outputs = _open_outputs(loaded, folder, options, progress)
+            opened = time.perf_counter()
             try:
-                result = master.run(loaded, outputs.sinks, keep_rows=options.keep_rows, stop=stop)
+                result = master.run(
+                    loaded, outputs.sinks, keep_rows=options.keep_rows, stop=stop,
+                    on_phase=progress.phase if progress is not None else None,
+                )  # fmt: skip
             except BaseException:  # refused or not set up: it never stepped
                 outputs.discard()
                 raise
+            result.startup_s = {
+                "prepare": prepared - started, "outputs": opened - prepared, **result.startup_s
+            }  # fmt: skip
             stepped = True
             _complete(outputs, result, stop)
         finally:
+            if progress is not None:
+                progress.close()
             folder.release(unused=not stepped)
     figures = outputs.figures.figures()
     return RunOutcome(
@@ -155,11 +169,28 @@ def _id_of(scenario: str | Path | Scenario) -> str:
     return scenario.id if isinstance(scenario, Scenario) else scenario_id(scenario)
 
 
-def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> Scenario:
-    """The scenario with the overrides applied, every input checked; nothing written."""
+def _progress(label: str, options: RunOptions) -> ProgressSink | None:
+    """The progress bar, when asked for (it first says what the run does before stepping)."""
+    if not options.progress:
+        return None
+    from cosim.outputs.sinks import ProgressSink
+
+    return ProgressSink(None, label)
+
+
+def _checked_scenario(
+    scenario: str | Path | Scenario, options: RunOptions, progress: ProgressSink | None = None
+) -> Scenario:
+    """The scenario with the overrides applied, every input checked; nothing written. The
+    built-in FMUs are built here when out of date (the progress bar says so)."""
     from cosim.engine import master
     from cosim.scenario.spec import Scenario, load_scenario
 
+    if progress is not None:
+        from cosim.fmus.build import out_of_date
+
+        stale = out_of_date(options.fmu_dir)
+        progress.phase(f"building FMUs ({', '.join(stale)})" if stale else "loading the scenario")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
     if options.stop_time is not None or options.step is not None or options.algorithm:
@@ -170,7 +201,9 @@ def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> S
     return scenario
 
 
-def _open_outputs(scenario: Scenario, folder: RunFolder, options: RunOptions) -> RunOutputs:
+def _open_outputs(
+    scenario: Scenario, folder: RunFolder, options: RunOptions, progress: ProgressSink | None
+) -> RunOutputs:
     from cosim.outputs.run_outputs import RunOutputs
 
     if options.no_rrd:
@@ -179,9 +212,7 @@ def _open_outputs(scenario: Scenario, folder: RunFolder, options: RunOptions) ->
         rrd = options.rrd
     else:
         rrd = folder.path / RECORDING_FILE if scenario.rrd else None
-    return RunOutputs.open(
-        scenario, folder, rrd, options.connect, options.progress, recorder=rerun_sink
-    )
+    return RunOutputs.open(scenario, folder, rrd, options.connect, progress, recorder=rerun_sink)
 
 
 def rerun_sink(
@@ -247,12 +278,11 @@ def report(outcome: RunOutcome) -> str:
     """The lines printed after a run: how far it got, where the outputs are, key figures."""
     result = outcome.result
     scenario = result.scenario
-    t_end, wall = result.time_reached, result.wall_clock_s
+    t_end = result.time_reached
     lines = [
         f"scenario {scenario.id}: {'complete' if result.complete else 'INCOMPLETE'}, "
         f"t = {t_end:g} of {scenario.stop_time:g} s, {result.rows - 1} steps of "
-        f"{scenario.coupling.step:g} s ({scenario.coupling.algorithm}), "
-        f"{wall:.2f} s wall clock" + (f" ({t_end / wall:.1f}x real time)" if wall > 0 else "")
+        f"{scenario.coupling.step:g} s ({scenario.coupling.algorithm})"
     ]
     lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
     figures = outcome.figures
@@ -266,7 +296,28 @@ def report(outcome: RunOutcome) -> str:
         lines += [f"  {name} logged: {message}" for message in messages[:MESSAGES_SHOWN]]
         if len(messages) > MESSAGES_SHOWN:
             lines.append(f"  {name} logged {len(messages) - MESSAGES_SHOWN} more (summary.json)")
+    lines.append(timing(result))
     return "\n".join(lines)
+
+
+STARTUP_LABELS = {
+    "prepare": "scenario and FMU build",
+    "outputs": "outputs",
+    "load_fmus": "loading FMUs",
+    "initialise": "initialising (and compiling)",
+}
+
+
+def timing(result: RunResult) -> str:
+    """The report's last line: the start-up before the loop, by phase, and the stepping
+    loop with its real-time factor (only the loop's speed is the simulator's)."""
+    wall, startup = result.wall_clock_s, result.startup_s
+    speed = f" ({result.time_reached / wall:.1f}x real time)" if wall > 0 else ""
+    phases = ", ".join(f"{STARTUP_LABELS.get(k, k)} {v:.2f}" for k, v in startup.items())
+    return (
+        f"  wall clock: start-up {sum(startup.values()):.2f} s ({phases}), "
+        f"stepping loop {wall:.2f} s{speed}"
+    )
 
 
 def _fmt(value: float | None) -> str:

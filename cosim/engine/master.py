@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any
@@ -82,6 +82,9 @@ class RunResult:
     complete: bool
     error: str | None  # one line, None if complete
     wall_clock_s: float  # the stepping loop alone (including the sinks)
+    # s before the loop: "load_fmus" (unzip, load, instantiate, start values) and
+    # "initialise" (enter/exit initialisation mode, where an FMU may compile its code)
+    startup_s: dict[str, float] = field(default_factory=dict)
     stop_signal: int | None = None  # the signal that stopped the stepping, if any
     messages: dict[str, list[str]] = field(default_factory=dict)  # instance -> FMU log lines
     events: list[dict[str, Any]] = field(default_factory=list)  # fired: name, time, set
@@ -178,23 +181,29 @@ def run(
     stop: StopRequest | None = None,
     rows_per_chunk: int = ROWS_PER_CHUNK,
     hand_off_interval: float = HAND_OFF_INTERVAL_S,
+    on_phase: Callable[[str], None] | None = None,
 ) -> RunResult:
     """Run ``scenario`` to its stop time (or the first failure), streaming its rows.
 
     ``sinks`` receive every row in order (:mod:`cosim.engine.rows`); the caller closes them.
     ``keep_rows`` also keeps the rows in the result (memory grows with the stop time).
     ``stop`` is the caller's :class:`StopRequest` (its signal handlers installed); without
-    one, SIGINT/SIGTERM/SIGHUP are caught for the duration of the call.
+    one, SIGINT/SIGTERM/SIGHUP are caught for the duration of the call. ``on_phase`` is
+    told what the run does before its loop: "loading FMUs", then "initialising" (a
+    progress bar shows it); the result's ``startup_s`` says how long each took.
 
     Raises :class:`CosimError` if the scenario is refused (:func:`preflight`) or an FMU
     cannot be set up (instantiation, start values, initialisation); every failure after
     that is reported in the returned result.
     """
     preflight(scenario)
+    phase = on_phase or _no_phase
     table = RowTable(len(scenario.columns)) if keep_rows else None
     feed = [*sinks, table] if table is not None else list(sinks)
     layout = _Layout.of(scenario)
     z = np.zeros(len(layout.index))
+    phase("loading FMUs")
+    started = time.perf_counter()
     slaves = [
         Slave(inst, unzipped(inst.fmu_path), scenario.coupling.step_multiples[name])
         for name, inst in scenario.instances.items()
@@ -205,7 +214,12 @@ def run(
             for slave in slaves:
                 _bind(slave, scenario, layout, z)
             for slave in slaves:
-                _set_up(slave, scenario, layout, z)
+                _set_up(slave, scenario, layout, z, initialise=False)
+            loaded = time.perf_counter()
+            phase("initialising")
+            for slave in slaves:
+                _set_up(slave, scenario, layout, z, initialise=True)
+            startup = {"load_fmus": loaded - started, "initialise": time.perf_counter() - loaded}
             by_name = {s.name: s for s in slaves}
             order = [by_name[name] for name in scenario.coupling.order]
             timed = scenario.events or scenario.faults
@@ -213,6 +227,7 @@ def run(
             rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval, timeline)
             result = _loop(scenario, order, layout, z, rows, stop_request, timeline)
             result.events = timeline.fired if timeline is not None else []
+            result.startup_s = startup
         finally:
             for slave in slaves:
                 slave.finish()
@@ -233,10 +248,16 @@ def _bind(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> N
     )
 
 
-def _set_up(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
-    """Set up one instance and read its t = 0 outputs and recorded constant inputs."""
+def _set_up(
+    slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray, initialise: bool
+) -> None:
+    """Load one instance (instantiate, start values) or, with ``initialise``, initialise
+    it and read its t = 0 outputs and recorded constant inputs."""
     try:
-        slave.set_up(scenario.stop_time)
+        if not initialise:
+            slave.load(scenario.stop_time)
+            return
+        slave.initialise()
         # pythonfmu cannot return a status from exitInitializationMode: an FMU whose
         # initialisation failed logs an Error (and refuses to step), so that counts too
         logged = [m for m in slave.messages if m.startswith(("[Error]", "[Fatal]"))]
@@ -388,6 +409,10 @@ def _loop(
         error = str(exc)
     rows.hand_off(filled)
     return _result(scenario, order, rows, error, stop, clock() - started)
+
+
+def _no_phase(text: str) -> None:
+    """No one to tell what the run is doing."""
 
 
 def _no_event(n: int) -> None:

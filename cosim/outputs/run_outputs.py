@@ -82,10 +82,11 @@ class RunOutputs:
         folder: RunFolder,
         rrd: Path | None,
         connect: str | None,
-        progress: bool,
+        progress: ProgressSink | None,
         recorder: Recorder | None = None,
     ) -> RunOutputs:
-        """Write scenario.toml and the running summary, open every sink.
+        """Write scenario.toml and the running summary, open every sink (``progress``:
+        the bar, if one is shown, its total set here).
 
         Raises :class:`CosimError` naming the path that cannot be written; what was
         created by then is removed again.
@@ -104,7 +105,11 @@ class RunOutputs:
         return outputs
 
     def _open_sinks(
-        self, rrd: Path | None, connect: str | None, progress: bool, recorder: Recorder | None
+        self,
+        rrd: Path | None,
+        connect: str | None,
+        progress: ProgressSink | None,
+        recorder: Recorder | None,
     ) -> None:
         self.csv = CsvSink(self.paths["results"], self.scenario.columns)
         self._created.append(self.paths["results"])
@@ -124,8 +129,9 @@ class RunOutputs:
             sink = recorder(self.scenario, None, connect, None)
             if sink is not None:
                 self._add(sink)
-        if progress:
-            self._add(ProgressSink(self.scenario.n_steps + 1, self.scenario.id))
+        if progress is not None:
+            progress.total_rows = self.scenario.n_steps + 1
+            self._add(progress)
         try:
             self.paths["scenario"].write_text(self.scenario.to_toml(), encoding="utf-8")
         except OSError as exc:

@@ -79,21 +79,39 @@ def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
 
 
 class ProgressSink(NotesIgnored):
-    """A tqdm progress bar on stderr, opened when the first rows arrive."""
+    """A tqdm progress bar on stderr: what the run is doing before it steps (:meth:`phase`:
+    "building FMUs", "loading FMUs", "initialising"...), then the steps as rows arrive.
+    ``total_rows`` may be set once the scenario is known."""
 
-    def __init__(self, total_rows: int, label: str) -> None:
-        self._total = total_rows
+    def __init__(self, total_rows: int | None, label: str) -> None:
+        self.total_rows = total_rows
         self._label = label
         self._bar: Any = None
+        self._status: Any = None
+
+    def phase(self, text: str) -> None:
+        """Show ``text`` (and the time it has taken so far) until the next phase or row."""
+        from tqdm import tqdm
+
+        if self._status is None:
+            self._status = tqdm(total=None, bar_format="{desc} [{elapsed}]", leave=False)
+        self._status.set_description_str(f"{self._label}: {text}")
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         if self._bar is None:
             from tqdm import tqdm
 
-            self._bar = tqdm(total=self._total, unit="step", desc=self._label, leave=False)
+            self._close_status()
+            self._bar = tqdm(total=self.total_rows, unit="step", desc=self._label, leave=False)
         self._bar.update(len(times))
 
     def close(self) -> None:
+        self._close_status()
         if self._bar is not None:
             self._bar.close()
             self._bar = None
+
+    def _close_status(self) -> None:
+        if self._status is not None:
+            self._status.close()
+            self._status = None
