@@ -117,26 +117,34 @@ def _phase_portrait(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
-    from cosim.study.execution import tls_security
-    from cosim.study.runner import Cluster, report, run_study
+    from contextlib import nullcontext
+
+    from cosim.study.execution import early_client, tls_security
 
     if args.scheduler is not None and args.workers is not None:
         raise CosimError("give --workers (a local cluster) or --scheduler, not both")
-    cluster = Cluster(
-        workers=args.workers if args.workers is not None else os.cpu_count() or 1,
-        scheduler=args.scheduler,
-        security=tls_security(args.tls_ca_file, args.tls_cert, args.tls_key),
-        dashboard=args.dashboard,
-    )
-    outcome = run_study(
-        args.study,
-        args.out,
-        cluster=cluster,
-        resume=args.resume,
-        fmu_dir=args.fmu_dir,
-        progress=not args.quiet and sys.stderr.isatty(),
-        overlay=args.overlay,
-    )
+    workers = args.workers if args.workers is not None else os.cpu_count() or 1
+    if workers < 1 and args.scheduler is None:
+        raise CosimError(f"--workers {workers}: expected at least 1 worker process")
+    security = tls_security(args.tls_ca_file, args.tls_cert, args.tls_key)
+    # the cluster starts while the study's modules are imported and the study checked; a
+    # resumed study may have nothing left to run, and then starts none
+    early = nullcontext(None) if args.resume else early_client(
+        workers, args.scheduler, security, args.dashboard
+    )  # fmt: skip
+    with early as client:
+        from cosim.study.runner import Cluster, report, run_study
+
+        cluster = Cluster(workers, args.scheduler, security, args.dashboard, client)
+        outcome = run_study(
+            args.study,
+            args.out,
+            cluster=cluster,
+            resume=args.resume,
+            fmu_dir=args.fmu_dir,
+            progress=not args.quiet and sys.stderr.isatty(),
+            overlay=args.overlay,
+        )
     print(report(outcome))
     return 0
 

@@ -68,6 +68,7 @@ class Cluster:
     scheduler: str | None = None
     security: Any = None  # distributed.Security for a tls:// scheduler
     dashboard: bool = False
+    client: Callable[[], Any] | None = None  # waits for a client started early, if any
 
     def __post_init__(self) -> None:
         if self.scheduler is None and self.workers < 1:
@@ -207,7 +208,9 @@ class _Session:
         runs: Sequence[PlannedRun],
         on_record: Callable[[PlannedRun, RunRecord], None],
     ) -> None:
-        if self.client is None:
+        if self.client is None and self.cluster.client is not None:
+            self.client = self.cluster.client()  # started early (execution.early_client)
+        elif self.client is None:
             c = self.cluster
             self.client = self.stack.enter_context(
                 open_client(c.workers, c.scheduler, c.security, c.dashboard)
