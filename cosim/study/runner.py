@@ -34,10 +34,11 @@ from cosim.study.execution import Job, StudyPlugin, execute, make_job, open_clie
 from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
-from cosim.study.plots import plotted_metrics, write_figures
+from cosim.study.plots import default_metrics, plotted_metrics, write_figures
 from cosim.study.spec import StudyError, StudySpec, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
+from cosim.study.units import units
 from cosim.viz.overlay import OverlayRun, write_overlay
 from cosim.viz.report import load_results
 
@@ -274,10 +275,12 @@ def _write_report(
     grid = {
         name: [factors[name].normalize(v) for v in values] for name, values in spec.grid.items()
     }
+    candidates = metrics if spec.metrics.collect is not None else default_metrics(metrics)
+    quantities = units([*spec.factors, *candidates], base.fmu_paths)
     figures = write_figures(
-        rows, grid, list(spec.random.factors), metrics, out_dir / FIGURES_FOLDER
+        rows, grid, list(spec.random.factors), candidates, out_dir / FIGURES_FOLDER, quantities
     )
-    shown = set(plotted_metrics(rows, metrics))
+    shown = set(plotted_metrics(rows, candidates))
     complete = sum(row["status"] == "complete" for row in rows)
     random = "none"
     if spec.random.factors:
