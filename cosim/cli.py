@@ -32,13 +32,16 @@ def _build(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     from cosim.fmus.build import ensure_fmus
-    from cosim.fmus.validation import validate_fmus
+    from cosim.fmus.validation import checked, validate_fmus
 
-    problems = validate_fmus(ensure_fmus(args.fmu_dir))
+    paths = ensure_fmus(args.fmu_dir)
+    problems = validate_fmus(paths)
     for problem in problems:
         print(problem)
     if problems:
         raise CosimError(f"{len(problems)} problem(s) found in the FMUs")
+    for line in checked(paths):
+        print(line)
     print("every FMU is valid")
     return 0
 

@@ -211,3 +211,16 @@ def test_validate_rebuilds_a_truncated_fmu_in_the_fmu_folder(fmu_paths, tmp_path
     (tmp_path / "AuvPlant.fmu").write_bytes(fmu_paths["AuvPlant"].read_bytes()[:5000])
     assert main(["validate", "--fmu-dir", str(tmp_path)]) == 0
     assert capsys.readouterr().out.strip().endswith("every FMU is valid")
+
+
+@pytest.mark.slow
+def test_validate_prints_per_fmu_what_was_checked(fmu_paths, capsys):
+    from cosim.cli import main
+
+    assert main(["validate", "--fmu-dir", str(fmu_paths["AuvPlant"].parent)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[-1] == "every FMU is valid"
+    for name in build.FMUS:
+        (line,) = [text for text in lines if text.startswith(f"{name} ({name}.fmu): ")]
+        assert "fmpy's validation" in line and "variables described" in line
+        assert "Reals with a unit" in line and "finite Real outputs" in line
