@@ -39,8 +39,6 @@ from cosim.study.spec import StudyError, StudySpec, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
 from cosim.study.units import units
-from cosim.viz.overlay import OverlayRun, write_overlay
-from cosim.viz.report import load_results
 
 STUDIES_DIR = Path("studies")
 FIGURES_FOLDER = "figures"
@@ -230,6 +228,10 @@ def _overlay(
 ) -> tuple[Path, list[str]]:
     """overlay.rrd of the chosen runs (those not kept run again, and kept now), and
     warnings for entries that chose nothing and runs without results."""
+    # imported here, for a study with an overlay only: rerun takes ~0.5 s to import
+    from cosim.viz.overlay import OverlayRun, write_overlay
+    from cosim.viz.report import load_results
+
     by_id = {run.id: run for run in runs}
     by_row = {row["run"]: row for row in rows}
     chosen, empty = choose(entries, runs, by_row)
