@@ -130,11 +130,11 @@ def _study(args: argparse.Namespace) -> int:
     if workers < 1 and args.scheduler is None:
         raise CosimError(f"--workers {workers}: expected at least 1 worker process")
     security = tls_security(args.tls_ca_file, args.tls_cert, args.tls_key)
-    # the cluster starts while the study's modules are imported and the study checked; a
-    # resumed study may have nothing left to run, and then starts none
-    early = nullcontext(None) if args.resume else early_client(
-        workers, args.scheduler, security, args.dashboard
-    )  # fmt: skip
+    # a local cluster starts while the study's modules are imported and the study checked
+    # (a remote scheduler is reached, and refused, after the checks as before); a resumed
+    # study may have nothing left to run, and then starts none
+    local = args.scheduler is None and not args.resume
+    early = early_client(workers, args.dashboard) if local else nullcontext(None)
     with early as client:
         from cosim.study.runner import Cluster, report, run_study
 

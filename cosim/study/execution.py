@@ -195,20 +195,14 @@ def open_client(
 
 
 @contextmanager
-def early_client(
-    workers: int,
-    scheduler: str | None = None,
-    security: Security | None = None,
-    dashboard: bool = False,
-) -> Iterator[Callable[[], Client]]:
-    """:func:`open_client` started now, on a thread, so the cluster starts while the
-    caller imports and checks its study; yields a function that waits for the client
-    (and raises what opening it raised). The client is closed at the end."""
+def early_client(workers: int, dashboard: bool = False) -> Iterator[Callable[[], Client]]:
+    """:func:`open_client` of a local cluster started now, on a thread, so the cluster
+    starts while the caller imports and checks its study; yields a function that waits
+    for the client (and raises what starting it raised). The cluster is closed at the
+    end (after it has finished starting, if the caller gave up before)."""
     stack = ExitStack()
     pool = ThreadPoolExecutor(1, thread_name_prefix="auv-cosim-cluster")
-    future = pool.submit(
-        lambda: stack.enter_context(open_client(workers, scheduler, security, dashboard))
-    )
+    future = pool.submit(lambda: stack.enter_context(open_client(workers, dashboard=dashboard)))
     try:
         yield future.result
     finally:
