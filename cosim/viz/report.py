@@ -359,17 +359,20 @@ def plot_time_histories(
     if not present:
         return None
     time = table["time"]
-    columns = 1 if zoom is None else 2
-    fig, axes = plt.subplots(
-        len(present), columns, sharex="col", figsize=(9 if columns == 1 else 13,
-        1.9 * len(present) + 0.8), squeeze=False, width_ratios=[3, 2][:columns],
-    )  # fmt: skip
     end = time[-1] if time[-1] > time[0] else time[0] + 1.0
+    spans = [(time[0], end)] if zoom is None else [(time[0], end), (time[0], zoom)]
+    fig, axes = plt.subplots(
+        len(present),
+        len(spans),
+        sharex="col",
+        figsize=(9 if zoom is None else 13, 1.9 * len(present) + 0.8),
+        squeeze=False,
+        width_ratios=[3, 2][: len(spans)],
+    )
     for row, panel in enumerate(present):
-        for col, (t0, t1) in enumerate([(time[0], end), (time[0], zoom)][:columns]):
-            ax = axes[row, col]
-            _draw_panel(ax, table, panel, markers or [], (limits or {}), (t0, t1), row == 0)
-            ax.set_xlim(t0, t1)
+        for col, span in enumerate(spans):
+            _draw_panel(axes[row, col], table, panel, markers or [], limits or {}, span, row == 0)
+            axes[row, col].set_xlim(*span)
     axes[-1, 0].set_xlabel("Time (s)")
     if zoom is not None:
         axes[0, 1].set_title(f"the transient: first {zoom:g} s", fontsize="medium")
