@@ -129,11 +129,12 @@ def execute(
         handlers = stop_on_signals(stop)
     with handlers:
         folder = RunFolder.claim(out_dir, options.overwrite, options.tail_guard)
-        progress = _progress(_id_of(scenario), options)
+        progress: ProgressSink | None = None
         stepped = False
         try:
             from cosim.engine import master
 
+            progress = _progress(_id_of(scenario), options)
             started = time.perf_counter()
             loaded = _checked_scenario(scenario, options, progress)
             prepared = time.perf_counter()
