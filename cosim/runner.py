@@ -188,9 +188,7 @@ def _checked_scenario(
     from cosim.scenario.spec import Scenario, load_scenario
 
     if progress is not None:
-        from cosim.fmus.build import out_of_date
-
-        stale = out_of_date(options.fmu_dir)
+        stale = _fmus_to_build(scenario, options.fmu_dir)
         progress.phase(f"building FMUs ({', '.join(stale)})" if stale else "loading the scenario")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
@@ -200,6 +198,25 @@ def _checked_scenario(
         )
     master.preflight(scenario)
     return scenario
+
+
+def _fmus_to_build(scenario: str | Path | Scenario, fmu_dir: Path) -> list[str]:
+    """The built-in FMUs the scenario file names (``fmu = "AuvPlant"``) that are missing
+    or out of date in ``fmu_dir``: loading it builds them. None for a loaded Scenario, or
+    a file that does not read (loading it then says why)."""
+    import tomllib
+
+    from cosim.fmus.build import out_of_date
+    from cosim.scenario.spec import Scenario, ScenarioError, scenario_path
+
+    if isinstance(scenario, Scenario):
+        return []
+    try:
+        instances = tomllib.loads(scenario_path(scenario).read_text("utf-8"))["instances"]
+        named = {str(instance.get("fmu")) for instance in instances.values()}
+    except (OSError, KeyError, AttributeError, tomllib.TOMLDecodeError, ScenarioError):
+        return []
+    return [name for name in out_of_date(fmu_dir) if name in named]
 
 
 def _open_outputs(

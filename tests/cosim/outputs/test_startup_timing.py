@@ -44,3 +44,11 @@ def test_progress_bar_says_what_it_does_before_stepping(capsys: pytest.CaptureFi
     err = capsys.readouterr().err
     assert "bs-3: building FMUs (AuvPlant)" in err
     assert err.index("building FMUs") < err.index("bs-3: initialising") < err.index("/3 ")
+
+
+def test_the_bar_names_only_the_fmus_the_scenario_builds(tmp_path: Path) -> None:
+    from cosim.runner import _fmus_to_build
+
+    assert sorted(_fmus_to_build("bs-3", tmp_path)) == ["AuvAutopilot", "AuvPlant"]
+    assert "AuvGuidance" in _fmus_to_build("survey", tmp_path)
+    assert _fmus_to_build(tmp_path / "missing.toml", tmp_path) == []
