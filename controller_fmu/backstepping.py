@@ -119,6 +119,10 @@ class BacksteppingHeading:
         self._law = None if design.compiled_plant is None else self._flat_law()
         self._next_slot = 0  # the law's interval slot the next new interval takes
         self.reset()
+        compiled = design.compiled_plant
+        if self._law is not None and compiled is not None:  # compile (or load) it now,
+            params = compiled.parameters  # not in the first doStep
+            fast.command(params, self._law.copy(), self._state.copy(), 0.0, *[0.0] * 6)
 
     def _flat_law(self) -> np.ndarray:
         """The compiled law's constants (:mod:`compiled_backstepping`'s ``law`` layout)."""

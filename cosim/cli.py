@@ -20,7 +20,6 @@ from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
-    from cosim.study.runner import Cluster
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -32,13 +31,17 @@ def _build(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from cosim.fmus.validation import validate_folder
+    from cosim.fmus.build import FMUS
+    from cosim.fmus.validation import checked, validate_folder
 
     problems = validate_folder(args.fmu_dir)
+    paths = {name: args.fmu_dir / f"{name}.fmu" for name in FMUS}
     for problem in problems:
         print(problem)
     if problems:
         raise CosimError(f"{len(problems)} problem(s) found in the FMUs")
+    for line in checked(paths):
+        print(line)
     print("every FMU is valid")
     return 0
 
@@ -124,26 +127,38 @@ def _phase_portrait(args: argparse.Namespace) -> int:
 def _study(args: argparse.Namespace) -> int:
     """``auv-cosim sweep``: 0 if any run completed (failed runs are rows of the table), 1
     if none did, 128 + the signal number if a stop signal ended it."""
+    from contextlib import nullcontext
+
     from cosim.study.spec import MAX_RUNS, check_size, load_study
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
     check_size(load_study(args.study), str(args.study), max_runs)  # before dask is imported
-    from cosim.study.runner import report, run_study
+    from cosim.study.execution import early_client, tls_security
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
-    cluster = _cluster(args)
+    workers = _workers(args)
+    security = tls_security(args.tls_ca_file, args.tls_cert, args.tls_key)
+    # a local cluster starts while the study's modules are imported and the study checked
+    # (a remote scheduler is reached, and refused, after the checks); a resumed study may
+    # have nothing left to run, and then starts none
+    local = args.scheduler is None and not args.resume
     try:
         with stop_study_on_signals():
-            outcome = run_study(
-                args.study,
-                args.out,
-                cluster=cluster,
-                resume=args.resume,
-                fmu_dir=args.fmu_dir,
-                progress=not args.quiet and sys.stderr.isatty(),
-                overlay=args.overlay,
-                max_runs=max_runs,
-            )
+            early = early_client(workers, args.dashboard) if local else nullcontext(None)
+            with early as client:
+                from cosim.study.runner import Cluster, report, run_study
+
+                cluster = Cluster(workers, args.scheduler, security, args.dashboard, client)
+                outcome = run_study(
+                    args.study,
+                    args.out,
+                    cluster=cluster,
+                    resume=args.resume,
+                    fmu_dir=args.fmu_dir,
+                    progress=not args.quiet and sys.stderr.isatty(),
+                    overlay=args.overlay,
+                    max_runs=max_runs,
+                )
     except StudyStopped as stop:
         print(f"auv-cosim sweep: {stop}", file=sys.stderr)
         return stop.exit_code
@@ -158,15 +173,14 @@ def _study(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cluster(args: argparse.Namespace) -> Cluster:
-    """The cluster the options ask for; local workers capped at the cores, said so."""
-    from cosim.study.execution import tls_security
-    from cosim.study.runner import Cluster
-
+def _workers(args: argparse.Namespace) -> int:
+    """The local workers the options ask for, capped at the cores (said so)."""
     if args.scheduler is not None and args.workers is not None:
         raise CosimError("give --workers (a local cluster) or --scheduler, not both")
     cores = os.cpu_count() or 1
     workers = args.workers if args.workers is not None else cores
+    if workers < 1 and args.scheduler is None:
+        raise CosimError(f"--workers {workers}: expected at least 1 worker process")
     if workers > cores and not args.oversubscribe and args.scheduler is None:
         print(
             f"auv-cosim sweep: --workers {workers} capped at the {cores} cores "
@@ -174,12 +188,7 @@ def _cluster(args: argparse.Namespace) -> Cluster:
             file=sys.stderr,
         )
         workers = cores
-    return Cluster(
-        workers=workers,
-        scheduler=args.scheduler,
-        security=tls_security(args.tls_ca_file, args.tls_cert, args.tls_key),
-        dashboard=args.dashboard,
-    )
+    return workers
 
 
 def _report(args: argparse.Namespace) -> int:

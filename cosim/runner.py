@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 import signal
 import sys
+import time
 import warnings
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
@@ -45,8 +46,10 @@ from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
 
 if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (step 2)
     from cosim.engine.master import RunResult
+    from cosim.live.session import LiveSession
     from cosim.outputs.background import BackgroundSink
     from cosim.outputs.run_outputs import RunOutputs
+    from cosim.outputs.sinks import ProgressSink
     from cosim.scenario.spec import Scenario
     from cosim.viz.recording import RerunSink
 
@@ -139,46 +142,77 @@ def execute(
         handlers = stop_on_signals(stop)
     with handlers:
         folder = RunFolder.claim(out_dir, options.overwrite, options.tail_guard, default_for)
+        progress: ProgressSink | None = None
         stepped = False
         try:
-            from cosim.engine import master
-            from cosim.live.session import LiveSession
-
-            loaded = _checked_scenario(scenario, options)
-            session = LiveSession.open(
-                loaded, options.real_time, options.control, options.interactive
-            )
+            progress = _progress(_id_of(scenario), options)
+            started = time.perf_counter()
+            loaded = _checked_scenario(scenario, options, progress)
+            prepared = time.perf_counter()
+            session = _live_session(loaded, options, progress)
             try:
                 replaced = folder.clear_earlier_run()
-                rrd = _recording_path(loaded, folder, options)
-                if rrd is not None:
-                    folder.lock_recording(rrd)
-                outputs = _open_outputs(loaded, folder, options, session.status, rrd)
-                if session.pacer is not None and outputs.csv is not None:
-                    outputs.csv.warm_up()
-                try:
-                    result = master.run(
-                        loaded,
-                        outputs.sinks,
-                        keep_rows=options.keep_rows,
-                        stop=stop,
-                        hand_off_interval=session.hand_off_interval or master.HAND_OFF_INTERVAL_S,
-                        pacer=session.pacer,
-                        live=session.live,
-                    )
-                except BaseException:  # refused or not set up: it never stepped
-                    outputs.discard()
-                    raise
+                outputs = _open_outputs(loaded, folder, options, progress)
+                opened = time.perf_counter()
+                result = _step(loaded, outputs, options, stop, session, progress)
                 stepped = True
             finally:
                 session.close()
+            result.startup_s = {
+                "prepare": prepared - started, "outputs": opened - prepared, **result.startup_s
+            }  # fmt: skip
             _complete(outputs, result, stop)
         finally:
+            if progress is not None:
+                progress.close()
             folder.release(unused=not stepped)
     figures = outputs.figures.figures()
     return RunOutcome(
         result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary, replaced
     )
+
+
+def _live_session(
+    scenario: Scenario, options: RunOptions, progress: ProgressSink | None
+) -> LiveSession:
+    """The run's pacing and live control as the options ask (nothing for a plain run); a
+    paced run's real-time factors follow the progress bar."""
+    from cosim.live.session import LiveSession
+
+    session = LiveSession.open(scenario, options.real_time, options.control, options.interactive)
+    if progress is not None:
+        progress.status = session.status
+    return session
+
+
+def _step(
+    scenario: Scenario,
+    outputs: RunOutputs,
+    options: RunOptions,
+    stop: StopRequest,
+    session: LiveSession,
+    progress: ProgressSink | None,
+) -> RunResult:
+    """Step the run through the master into the outputs; on a refusal before the first
+    step the outputs are discarded and the error raised."""
+    from cosim.engine import master
+
+    if session.pacer is not None and outputs.csv is not None:
+        outputs.csv.warm_up()
+    try:
+        return master.run(
+            scenario,
+            outputs.sinks,
+            keep_rows=options.keep_rows,
+            stop=stop,
+            hand_off_interval=session.hand_off_interval or master.HAND_OFF_INTERVAL_S,
+            pacer=session.pacer,
+            live=session.live,
+            on_phase=progress.phase if progress is not None else None,
+        )
+    except BaseException:  # refused or not set up: it never stepped
+        outputs.discard()
+        raise
 
 
 def _id_of(scenario: str | Path | Scenario) -> str:
@@ -187,11 +221,26 @@ def _id_of(scenario: str | Path | Scenario) -> str:
     return scenario.id if isinstance(scenario, Scenario) else scenario_id(scenario)
 
 
-def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> Scenario:
-    """The scenario with the overrides applied, every input checked; nothing written."""
+def _progress(label: str, options: RunOptions) -> ProgressSink | None:
+    """The progress bar, when asked for (it first says what the run does before stepping)."""
+    if not options.progress or options.interactive:  # the keys' status line instead
+        return None
+    from cosim.outputs.sinks import ProgressSink
+
+    return ProgressSink(None, label)
+
+
+def _checked_scenario(
+    scenario: str | Path | Scenario, options: RunOptions, progress: ProgressSink | None = None
+) -> Scenario:
+    """The scenario with the overrides applied, every input checked; nothing written. The
+    built-in FMUs are built here when out of date (the progress bar says so)."""
     from cosim.engine import master
     from cosim.scenario.spec import Scenario, load_scenario
 
+    if progress is not None:
+        stale = _fmus_to_build(scenario, options.fmu_dir)
+        progress.phase(f"building FMUs ({', '.join(stale)})" if stale else "loading the scenario")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
     if options.stop_time is not None or options.step is not None or options.algorithm:
@@ -202,20 +251,36 @@ def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> S
     return scenario
 
 
+def _fmus_to_build(scenario: str | Path | Scenario, fmu_dir: Path) -> list[str]:
+    """The built-in FMUs the scenario file names (``fmu = "AuvPlant"``) that are missing
+    or out of date in ``fmu_dir``: loading it builds them. None for a loaded Scenario, or
+    a file that does not read (loading it then says why)."""
+    import tomllib
+
+    from cosim.fmus.build import out_of_date
+    from cosim.scenario.spec import Scenario, ScenarioError, scenario_path
+
+    if isinstance(scenario, Scenario):
+        return []
+    try:
+        instances = tomllib.loads(scenario_path(scenario).read_text("utf-8"))["instances"]
+        named = {str(instance.get("fmu")) for instance in instances.values()}
+    except (OSError, KeyError, AttributeError, tomllib.TOMLDecodeError, ScenarioError):
+        return []
+    return [name for name in out_of_date(fmu_dir) if name in named]
+
+
 def _open_outputs(
-    scenario: Scenario,
-    folder: RunFolder,
-    options: RunOptions,
-    status: Callable[[], str],
-    rrd: Path | None,
+    scenario: Scenario, folder: RunFolder, options: RunOptions, progress: ProgressSink | None
 ) -> RunOutputs:
+    """Lock the recording the run writes, then open every output."""
     from cosim.outputs.run_outputs import RunOutputs
 
-    progress = options.progress and not options.interactive  # the keys' status line instead
+    rrd = _recording_path(scenario, folder, options)
+    if rrd is not None:
+        folder.lock_recording(rrd)
     recorder = rerun_sink if options.real_time is None else _background_rerun_sink
-    return RunOutputs.open(
-        scenario, folder, rrd, options.connect, progress, recorder=recorder, status=status
-    )
+    return RunOutputs.open(scenario, folder, rrd, options.connect, progress, recorder=recorder)
 
 
 def _background_rerun_sink(
@@ -311,12 +376,11 @@ def report(outcome: RunOutcome) -> str:
     """The lines printed after a run: how far it got, where the outputs are, key figures."""
     result = outcome.result
     scenario = result.scenario
-    t_end, wall = result.time_reached, result.wall_clock_s
+    t_end = result.time_reached
     lines = [
         f"scenario {scenario.id}: {'complete' if result.complete else 'INCOMPLETE'}, "
         f"t = {t_end:g} of {scenario.stop_time:g} s, {result.rows - 1} steps of "
-        f"{scenario.coupling.step:g} s ({scenario.coupling.algorithm}), "
-        f"{wall:.2f} s wall clock" + (f" ({t_end / wall:.1f}x real time)" if wall > 0 else "")
+        f"{scenario.coupling.step:g} s ({scenario.coupling.algorithm})"
     ]
     if result.real_time is not None:
         paced = result.real_time
@@ -340,7 +404,28 @@ def report(outcome: RunOutcome) -> str:
         lines += [f"  {name} logged: {message}" for message in messages[:MESSAGES_SHOWN]]
         if len(messages) > MESSAGES_SHOWN:
             lines.append(f"  {name} logged {len(messages) - MESSAGES_SHOWN} more (summary.json)")
+    lines.append(timing(result))
     return "\n".join(lines)
+
+
+STARTUP_LABELS = {
+    "prepare": "scenario and FMU build",
+    "outputs": "outputs",
+    "load_fmus": "loading FMUs",
+    "initialise": "initialising (and compiling)",
+}
+
+
+def timing(result: RunResult) -> str:
+    """The report's last line: the start-up before the loop, by phase, and the stepping
+    loop with its real-time factor (only the loop's speed is the simulator's)."""
+    wall, startup = result.wall_clock_s, result.startup_s
+    speed = f" ({result.time_reached / wall:.1f}x real time)" if wall > 0 else ""
+    phases = ", ".join(f"{STARTUP_LABELS.get(k, k)} {v:.2f}" for k, v in startup.items())
+    return (
+        f"  wall clock: start-up {sum(startup.values()):.2f} s ({phases}), "
+        f"stepping loop {wall:.2f} s{speed}"
+    )
 
 
 def _fmt(value: float | None) -> str:

@@ -290,6 +290,8 @@ class AuvPlant(SafeSlave):
         self._x[:] = model.project(x)
         self._last_current = self._inputs[5:8].tolist()
         self._refresh_outputs()
+        if self._compiled is not None:  # compile now, not in the first doStep
+            self._compiled.warm_up(self._x, self._inputs)
 
     def _step(self, current_time: float, step_size: float) -> None:
         model = self._model

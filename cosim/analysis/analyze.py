@@ -84,13 +84,19 @@ def operating_conditions(
     )
 
 
-def describe(conditions: OperatingConditions) -> str:
-    """One line naming the vehicle, variant and inputs."""
+def describe(conditions: OperatingConditions, swept: str | None = None) -> str:
+    """One line naming the vehicle, variant and inputs; the ``swept`` parameter (a sweep's)
+    is named as swept, not with the fixed value it does not keep."""
+    inputs = {
+        "roll_torque": f"roll torque {conditions.roll_torque:g} N.m",
+        "mass_position": f"mass position {conditions.mass_position:g} m",
+    }
+    if swept is not None:
+        inputs[swept] = f"{swept.replace('_', ' ')} swept"
     return (
         f"vehicle {conditions.params.name}, variant {int(conditions.variant)} "
         f"({conditions.variant.name.lower()}), thrust {conditions.thrust:g} N, "
-        f"roll torque {conditions.roll_torque:g} N.m, mass position "
-        f"{conditions.mass_position:g} m, current east {conditions.current_east:g} m/s"
+        f"{', '.join(inputs.values())}, current east {conditions.current_east:g} m/s"
     )
 
 
@@ -171,7 +177,7 @@ def sweep_command(
 ) -> int:
     """``auv-cosim analyze sweep``: write the sweep's files, print its special points."""
     result, paths = run_sweep(conditions, parameter, start, stop, steps, out)
-    print(describe(conditions))
+    print(describe(conditions, swept=parameter))
     print(special_points_table(result, conditions))
     for name, path in paths.items():
         print(f"  {name:<15} {path}")
@@ -207,7 +213,8 @@ def run_sweep(
         out.mkdir(parents=True, exist_ok=True)
         branches = write_branches_csv(result, conditions, out / f"{stem}.csv")
         special = write_special_points_csv(result, out / f"{stem}_special_points.csv")
-        title = f"{conditions.params.name}: equilibria over {parameter} ({describe(conditions)})"
+        setting = describe(conditions, swept=parameter)
+        title = f"{conditions.params.name}: equilibria over {parameter} ({setting})"
         figure = plot_sweep(result, conditions.params, out / f"{stem}.png", title=title)
     except OSError as exc:
         raise CosimError(f"cannot write the sweep outputs to {out}: {exc}") from None
@@ -297,7 +304,8 @@ def phase_trajectories(
             starts.append(x0)
     model, inputs = conditions.model, conditions.inputs()
     histories = []
-    for x0 in starts:
+    bar = tqdm(starts, desc="phase portrait", unit="trajectory", disable=None, leave=False)
+    for x0 in bar:
         try:
             _, states = simulate(model, x0, inputs, duration, step, max_substep=step)
         except ValueError:
@@ -315,7 +323,9 @@ def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:
             f"--current-east {conditions.current_east:g}: the phase portrait is of the motion "
             "in still water (Figs. 5.4-5.5); drop the current"
         )
-    equilibria = find_equilibria(conditions)
+    with tqdm(desc="phase portrait: finding the equilibria", total=None, disable=None,
+              leave=False, bar_format="{desc} [{elapsed}]"):  # fmt: skip
+        equilibria = find_equilibria(conditions)
     trajectories = phase_trajectories(conditions, equilibria)
     title = f"open-loop phase portrait: {describe(conditions)}"
     try:

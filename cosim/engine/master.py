@@ -91,6 +91,9 @@ class RunResult:
     complete: bool
     error: str | None  # one line, None if complete
     wall_clock_s: float  # the stepping loop alone (including the sinks)
+    # s before the loop: "load_fmus" (unzip, load, instantiate, start values) and
+    # "initialise" (enter/exit initialisation mode, where an FMU may compile its code)
+    startup_s: dict[str, float] = field(default_factory=dict)
     stop_signal: int | None = None  # the signal that stopped the stepping, if any
     messages: dict[str, list[str]] = field(default_factory=dict)  # instance -> FMU log lines
     events: list[dict[str, Any]] = field(default_factory=list)  # fired: name, time, set
@@ -194,6 +197,7 @@ def run(
     hand_off_interval: float = HAND_OFF_INTERVAL_S,
     pacer: Pacer | None = None,
     live: LiveControl | None = None,
+    on_phase: Callable[[str], None] | None = None,
 ) -> RunResult:
     """Run ``scenario`` to its stop time (or the first failure), streaming its rows.
 
@@ -202,16 +206,22 @@ def run(
     ``stop`` is the caller's :class:`StopRequest` (its signal handlers installed); without
     one, SIGINT/SIGTERM/SIGHUP are caught for the duration of the call. ``pacer`` paces
     the communication points on the wall clock, ``live`` takes overrides while it runs.
+    ``on_phase`` is told what the run does before its loop: "loading FMUs", then
+    "initialising" (a progress bar shows it); the result's ``startup_s`` says how long each
+    took.
 
     Raises :class:`CosimError` if the scenario is refused (:func:`preflight`) or an FMU
     cannot be set up (instantiation, start values, initialisation); every failure after
     that is reported in the returned result.
     """
     preflight(scenario)
+    phase = on_phase or _no_phase
     table = RowTable(len(scenario.columns)) if keep_rows else None
     feed = [*sinks, table] if table is not None else list(sinks)
     layout = _Layout.of(scenario)
     z = np.zeros(len(layout.index))
+    phase("loading FMUs")
+    started = time.perf_counter()
     slaves = [
         Slave(inst, unzipped(inst.fmu_path), scenario.coupling.step_multiples[name])
         for name, inst in scenario.instances.items()
@@ -222,7 +232,12 @@ def run(
             for slave in slaves:
                 _bind(slave, scenario, layout, z)
             for slave in slaves:
-                _set_up(slave, scenario, layout, z)
+                _set_up(slave, scenario, layout, z, initialise=False)
+            loaded = time.perf_counter()
+            phase("initialising")
+            for slave in slaves:
+                _set_up(slave, scenario, layout, z, initialise=True)
+            startup = {"load_fmus": loaded - started, "initialise": time.perf_counter() - loaded}
             by_name = {s.name: s for s in slaves}
             order = [by_name[name] for name in scenario.coupling.order]
             timed = scenario.events or scenario.faults or live is not None
@@ -237,6 +252,7 @@ def run(
             result.events = timeline.fired if timeline is not None else []
             result.overrides = timeline.overrides if timeline is not None else []
             result.real_time = pacer.summary() if pacer is not None else None
+            result.startup_s = startup
         finally:
             for slave in slaves:
                 slave.finish()
@@ -257,10 +273,16 @@ def _bind(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> N
     )
 
 
-def _set_up(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
-    """Set up one instance and read its t = 0 outputs and recorded constant inputs."""
+def _set_up(
+    slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray, initialise: bool
+) -> None:
+    """Load one instance (instantiate, start values) or, with ``initialise``, initialise
+    it and read its t = 0 outputs and recorded constant inputs."""
     try:
-        slave.set_up(scenario.stop_time)
+        if not initialise:
+            slave.load(scenario.stop_time)
+            return
+        slave.initialise()
         # pythonfmu cannot return a status from exitInitializationMode: an FMU whose
         # initialisation failed logs an Error (and refuses to step), so that counts too
         logged = [m for m in slave.messages if m.startswith(("[Error]", "[Fatal]"))]
@@ -443,6 +465,10 @@ def _live_point(
             pacer.release(n)
 
     return point
+
+
+def _no_phase(text: str) -> None:
+    """No one to tell what the run is doing."""
 
 
 def _no_event(n: int) -> None:

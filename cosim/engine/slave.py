@@ -76,8 +76,8 @@ class Slave:
         if self.state not in states:
             raise CosimError(f"{self.name}: FMI call out of order (in state {self.state!r})")
 
-    def set_up(self, stop_time: float) -> None:
-        """instantiate (logging on), setupExperiment, start values, initialise."""
+    def load(self, stop_time: float) -> None:
+        """instantiate (logging on), setupExperiment and the start values."""
         from fmpy.logging import addLoggerProxy
 
         self._expect("new")
@@ -107,6 +107,11 @@ class Slave:
                    "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}  # fmt: skip
         for kind, (vrs, values) in grouped.items():
             setters[kind](vrs, values)
+
+    def initialise(self) -> None:
+        """enter and exit initialisation mode (an FMU may compile or load its code here,
+        as AuvPlant does, so that its first doStep costs what every other does)."""
+        self._expect("instantiated")
         self.fmu.enterInitializationMode()
         self.state = "initialization"
         self.fmu.exitInitializationMode()

@@ -118,6 +118,20 @@ def ensure_fmus(out_dir: Path) -> dict[str, Path]:
     return build_fmus(out_dir, force=False)
 
 
+def out_of_date(out_dir: Path) -> list[str]:
+    """The FMUs of :data:`FMUS` that :func:`ensure_fmus` would build in ``out_dir`` now."""
+    out_dir = Path(out_dir)
+    return [
+        name
+        for name in FMUS
+        if not _is_intact(
+            out_dir / f"{name}.fmu",
+            out_dir / f"{name}.fmu{HASH_SUFFIX}",
+            source_hash(shipped_files(name)),
+        )
+    ]
+
+
 def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     """Build the FMU ``name`` (a key of :data:`FMUS`) into ``out_dir`` if it is missing, out
     of date or ``force``; return its path."""

@@ -14,10 +14,13 @@ the full summary: ``status`` ``"complete"`` or ``"incomplete"``, ``complete``, `
 (the one-line reason, null if complete), ``signal`` (the signal that stopped or
 interrupted the run, null if none), scenario id, stop_time, step, algorithm, pid,
 ``outputs`` (the files the run writes), wall_clock_s (the stepping loop alone),
-real_time_factor, time_reached (the last row computed), rows (the rows in results.csv:
-fewer than computed only when results.csv could not be written, and then time_reached
-and the final values are those of its last row), the final value of every column, the
-key figures
+real_time_factor (of the loop), ``startup_s`` (s before the loop, by phase: ``prepare``
+the scenario and any FMU build, ``outputs`` opening the files and recording,
+``load_fmus`` loading and instantiating the FMUs, ``initialise`` their initialisation,
+where the plant compiles or loads its numba code) and ``startup_total_s``,
+time_reached (the last row computed), rows (the rows in results.csv: fewer than computed
+only when results.csv could not be written, and then time_reached and the final values
+are those of its last row), the final value of every column, the key figures
 (:mod:`cosim.metrics.key_figures`), the FMUs' logged warnings and errors, ``events`` (each firing
 of an event: ``name``, ``time`` in s, the values it ``set``; docs/events.md) and
 ``faults`` (``name``, ``kind``, ``target``, ``start`` and ``stop`` in s, null: never),
@@ -134,6 +137,8 @@ def final_summary(
         "signal": signal,
         "wall_clock_s": wall,
         "real_time_factor": _finite(result.time_reached / wall) if wall > 0 else None,
+        "startup_s": result.startup_s,
+        "startup_total_s": sum(result.startup_s.values()),
         "time_reached": time_reached,
         "rows": rows,
         "final_values": {name: _finite(value) for name, value in final.items()},

@@ -82,14 +82,14 @@ class RunOutputs:
         folder: RunFolder,
         rrd: Path | None,
         connect: str | None,
-        progress: bool,
+        progress: ProgressSink | None,
         recorder: Recorder | None = None,
-        status: Callable[[], str] | None = None,
     ) -> RunOutputs:
-        """Write scenario.toml and the running summary, open every sink.
+        """Write scenario.toml and the running summary, open every sink (``progress``:
+        the bar, if one is shown, its total set here).
 
         Raises :class:`CosimError` naming the path that cannot be written; what was
-        created by then is removed again. ``status``: text shown after the progress bar.
+        created by then is removed again.
         """
         paths = {name: folder.path / file for name, file in
                  (("results", RESULTS_FILE), ("scenario", SCENARIO_FILE),
@@ -98,7 +98,7 @@ class RunOutputs:
             paths["recording"] = rrd
         outputs = cls(scenario, folder, paths)
         try:
-            outputs._open_sinks(rrd, connect, progress, recorder, status)
+            outputs._open_sinks(rrd, connect, progress, recorder)
         except BaseException:
             outputs.discard()
             raise
@@ -108,9 +108,8 @@ class RunOutputs:
         self,
         rrd: Path | None,
         connect: str | None,
-        progress: bool,
+        progress: ProgressSink | None,
         recorder: Recorder | None,
-        status: Callable[[], str] | None,
     ) -> None:
         self.csv = CsvSink(self.paths["results"], self.scenario.columns)
         self._created.append(self.paths["results"])
@@ -132,8 +131,9 @@ class RunOutputs:
             sink = recorder(self.scenario, None, connect, None)
             if sink is not None:
                 self._add(sink)
-        if progress:
-            self._add(ProgressSink(self.scenario.n_steps + 1, self.scenario.id, status))
+        if progress is not None:
+            progress.total_rows = self.scenario.n_steps + 1
+            self._add(progress)
         try:
             self.paths["scenario"].write_text(self.scenario.to_toml(), encoding="utf-8")
         except OSError as exc:

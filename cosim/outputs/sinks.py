@@ -103,27 +103,45 @@ def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
 
 
 class ProgressSink(NotesIgnored):
-    """A tqdm progress bar on stderr, opened when the first rows arrive; ``status`` (a
-    paced run's real-time factors) is shown after it, refreshed with every chunk."""
+    """A tqdm progress bar on stderr: what the run is doing before it steps (:meth:`phase`:
+    "building FMUs", "loading FMUs", "initialising"...), then the steps as rows arrive.
+    ``total_rows`` may be set once the scenario is known; ``status`` (a paced run's
+    real-time factors) is shown after the bar, refreshed with every chunk."""
 
     def __init__(
-        self, total_rows: int, label: str, status: Callable[[], str] | None = None
+        self, total_rows: int | None, label: str, status: Callable[[], str] | None = None
     ) -> None:
-        self._total = total_rows
+        self.total_rows = total_rows
         self._label = label
-        self._status = status
+        self.status = status  # a paced run's real-time factors, settable once known
         self._bar: Any = None
+        self._phase: Any = None
+
+    def phase(self, text: str) -> None:
+        """Show ``text`` (and the time it has taken so far) until the next phase or row."""
+        from tqdm import tqdm
+
+        if self._phase is None:
+            self._phase = tqdm(total=None, bar_format="{desc} [{elapsed}]", leave=False)
+        self._phase.set_description_str(f"{self._label}: {text}")
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         if self._bar is None:
             from tqdm import tqdm
 
-            self._bar = tqdm(total=self._total, unit="step", desc=self._label, leave=False)
-        if self._status is not None:
-            self._bar.set_postfix_str(self._status(), refresh=False)
+            self._close_phase()
+            self._bar = tqdm(total=self.total_rows, unit="step", desc=self._label, leave=False)
+        if self.status is not None:
+            self._bar.set_postfix_str(self.status(), refresh=False)
         self._bar.update(len(times))
 
     def close(self) -> None:
+        self._close_phase()
         if self._bar is not None:
             self._bar.close()
             self._bar = None
+
+    def _close_phase(self) -> None:
+        if self._phase is not None:
+            self._phase.close()
+            self._phase = None

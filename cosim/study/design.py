@@ -17,8 +17,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
-from scipy.stats import qmc
 
 from cosim.study.factors import Value
 from cosim.study.spec import Normal, RandomSpec, StudyError, StudySpec
@@ -57,6 +55,11 @@ def random_samples(random: RandomSpec) -> list[dict[str, Value]]:
     names = list(random.factors)
     if random.n == 0 or not names:
         return []
+    # imported here: scipy.stats takes ~0.5 s to import, which a grid-only study (and every
+    # worker, which imports this module to run a task) would otherwise wait for
+    from scipy import stats
+    from scipy.stats import qmc
+
     if random.sampling == "latin-hypercube":
         unit = qmc.LatinHypercube(d=len(names), rng=random.seed).random(random.n)
     else:

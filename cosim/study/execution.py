@@ -10,12 +10,21 @@ Workers need the package installed, not a shared disk: the client reads each FMU
 a worker plugin (:class:`StudyPlugin`) carries them and the study's shared data
 (:class:`Job`) to every worker -- the FMUs written into its local directory -- also to
 workers that join later or are restarted by their nanny; the plugin is removed (and the
-files with it) at the end. Each run is one task (:func:`run_on_worker`) that needs nothing
-but the plugin, so no task depends on data held by a worker that may be lost. A run that
-fails is a result, not an exception. A task whose worker died is rescheduled by the
-scheduler on another worker, up to ``distributed.scheduler.allowed-failures`` times (3 by
-default, the scheduler's setting); only when that is exhausted (``KilledWorker``) is the
-run recorded as failed, with an error saying so.
+files with it) at the end. The plugin's set-up also runs the scenario for one step
+(:func:`cosim.study.task.warm_up`), so each worker loads its FMU libraries and compiled
+code once, all workers at the same time, before its first task. Each run is one task
+(:func:`run_on_worker`) that needs nothing but the plugin, so no task depends on data held
+by a worker that may be lost. A run that fails is a result, not an exception. A task whose
+worker died is rescheduled by the scheduler on another worker, up to
+``distributed.scheduler.allowed-failures`` times (3 by default, the scheduler's setting);
+only when that is exhausted (``KilledWorker``) is the run recorded as failed, with an
+error saying so.
+
+What a user waits for beyond the runs is mostly fixed cost (docs/performance.md): the
+command's imports, the local cluster's start-up and each worker's first run. So
+:func:`early_client` starts the local cluster on a thread while the client imports and
+checks the study, and each local worker imports the run's modules as it starts
+(:mod:`cosim.study.preload`).
 """
 
 from __future__ import annotations
@@ -26,7 +35,8 @@ import shutil
 import socket
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager, suppress
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
@@ -41,13 +51,14 @@ from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
 from cosim.study.signals import StudyStopped, workers_ignore_sigint
 from cosim.study.spec import StudyError
-from cosim.study.task import Base, RunRecord, run_one
+from cosim.study.task import Base, RunRecord, run_one, warm_up
 
 LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
 CONNECT_TIMEOUT_S = 30
 PROBE_TIMEOUT_S = 5.0  # a scheduler that does not accept a connection by then is refused
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
+PRELOAD = "cosim.study.preload"  # imported by each local worker as it starts
 
 
 @dataclass(frozen=True)
@@ -81,6 +92,8 @@ class StudyPlugin(WorkerPlugin):
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(content)
         self.folder = folder
+        paths = {instance: folder / relative for instance, relative in self.job.fmu_files.items()}
+        warm_up(self.job.base, paths)
 
     def teardown(self, worker: Any) -> None:
         if self.folder is not None:
@@ -208,9 +221,28 @@ def open_client(
             scheduler_kwargs={"dashboard": dashboard},
             worker_dashboard_address=None,
             silence_logs=logging.ERROR,
+            preload=[PRELOAD],
         )
     with cluster, Client(cluster, set_as_default=False) as client:
         yield client
+
+
+@contextmanager
+def early_client(workers: int, dashboard: bool = False) -> Iterator[Callable[[], Client]]:
+    """:func:`open_client` of a local cluster started now, on a thread, so the cluster
+    starts while the caller imports and checks its study; yields a function that waits
+    for the client (and raises what starting it raised). The cluster is closed at the
+    end (after it has finished starting, if the caller gave up before)."""
+    stack = ExitStack()
+    pool = ThreadPoolExecutor(1, thread_name_prefix="auv-cosim-cluster")
+    future = pool.submit(lambda: stack.enter_context(open_client(workers, dashboard=dashboard)))
+    try:
+        yield future.result
+    finally:
+        with suppress(Exception):  # a cluster that failed to start has nothing to close
+            future.result()
+        stack.close()
+        pool.shutdown()
 
 
 def execute(

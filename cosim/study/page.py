@@ -37,8 +37,9 @@ def write_index(
         for title, path in figures.items()
     )
     quiet = (
-        f"<p>Not plotted (constant or missing in every run, or beyond the first "
-        f"{PANELS_MAX} metrics; choose them with [metrics] collect): "
+        f"<p>Not plotted (constant or missing in every run, beyond the "
+        f"{PANELS_MAX} that vary most, or not a key figure or manoeuvre metric; choose "
+        f"them with [metrics] collect; all are in runs.csv): "
         f"{_e(', '.join(not_plotted))}</p>"
         if not_plotted
         else ""

@@ -9,9 +9,12 @@
   each other (histograms on the diagonal), at most :data:`SCATTER_MAX` variables.
 
 Only metrics with at least two distinct finite values are drawn (a constant or missing
-metric is a line on the index page instead), and of those the first :data:`PANELS_MAX` in
-table order (the key figures come first; ``[metrics] collect`` chooses others); failed
-runs have no metrics and drop out.
+metric is a line on the index page instead), the one that varies most first (its range
+over the largest magnitude it takes: a final value at noise level comes last), at most
+:data:`PANELS_MAX`; failed runs have no metrics and drop out. The study chooses which
+metrics are candidates (:func:`default_metrics` when ``[metrics]`` lists none). Every
+axis is labelled with its unit and its tick labels are plain numbers (no offset such as
+``1e-5+1.5249``, which reads as a different number).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
 PANEL_COLUMNS = 4
 PANEL_SIZE_IN = (3.4, 2.6)
@@ -40,15 +43,34 @@ DPI = 100
 Row = Mapping[str, Any]
 
 
+def default_metrics(metrics: Sequence[str]) -> list[str]:
+    """The metrics a study plots unless ``[metrics] collect`` names some: the key figures
+    and the manoeuvre metrics, not ``time_reached`` or the final values."""
+    return [m for m in metrics if m != "time_reached" and not m.startswith("final.")]
+
+
 def plotted_metrics(rows: Sequence[Row], metrics: Sequence[str]) -> list[str]:
-    """The metrics drawn: the first PANELS_MAX with two distinct finite values or more."""
-    varying = []
+    """The metrics drawn: those with two distinct finite values or more, the one that
+    varies most (:func:`variation`) first, at most PANELS_MAX."""
+    spread = {}
     for name in metrics:
         values = _floats(rows, name)
         finite = values[np.isfinite(values)]
         if finite.size and np.unique(finite).size > 1:
-            varying.append(name)
-    return varying[:PANELS_MAX]
+            spread[name] = variation(finite)
+    return sorted(spread, key=lambda name: -spread[name])[:PANELS_MAX]
+
+
+def variation(values: np.ndarray) -> float:
+    """How much finite ``values`` vary: their range over the largest magnitude among
+    them (1 or more for values of both signs, ~1e-5 for noise on a constant)."""
+    scale = float(np.max(np.abs(values)))
+    return float(np.ptp(values)) / scale if scale > 0 else 0.0
+
+
+def axis_label(name: str, units: Mapping[str, str]) -> str:
+    """An axis label: the quantity and its unit, "name [unit]"."""
+    return f"{name} [{units.get(name, '1')}]"
 
 
 def write_figures(
@@ -57,8 +79,10 @@ def write_figures(
     random_factors: Sequence[str],
     metrics: Sequence[str],
     folder: Path,
+    units: Mapping[str, str],
 ) -> dict[str, Path]:
-    """Every figure of the study into ``folder``; returns title -> path."""
+    """Every figure of the study into ``folder``; returns title -> path. ``units``: the
+    unit of each factor and metric (:mod:`cosim.study.units`)."""
     folder.mkdir(parents=True, exist_ok=True)
     shown = plotted_metrics(rows, metrics)
     figures: dict[str, Path] = {}
@@ -66,14 +90,16 @@ def write_figures(
         return figures
     for factor in grid:
         path = folder / f"grid_{_file_safe(factor)}.png"
-        figures[f"Metrics against {factor}"] = plot_grid_factor(rows, grid, factor, shown, path)
+        figures[f"Metrics against {factor}"] = plot_grid_factor(
+            rows, grid, factor, shown, path, units
+        )
     if random_factors:
         figures["Distributions over the samples"] = plot_histograms(
-            rows, shown, folder / "histograms.png"
+            rows, shown, folder / "histograms.png", units
         )
         variables = [*random_factors, *shown][:SCATTER_MAX]
         figures["Scatter matrix"] = plot_scatter_matrix(
-            rows, variables, folder / "scatter_matrix.png"
+            rows, variables, folder / "scatter_matrix.png", units
         )
     return figures
 
@@ -84,6 +110,7 @@ def plot_grid_factor(
     factor: str,
     metrics: Sequence[str],
     path: Path,
+    units: Mapping[str, str],
 ) -> Path:
     """Each metric against ``factor``: a line per combination of the other grid factors,
     the mean over the runs sharing a grid point (the Monte Carlo samples, if any)."""
@@ -106,7 +133,8 @@ def plot_grid_factor(
             ax.plot(x, [_mean(point, metric) for point in points], marker="o", label=label or None)
     for ax, metric in zip(axes, metrics, strict=False):
         ax.set_title(metric, fontsize=9)
-        ax.set_xlabel(factor, fontsize=8)
+        ax.set_xlabel(axis_label(factor, units), fontsize=8)
+        ax.set_ylabel(f"[{units.get(metric, '1')}]", fontsize=8)
         if not numeric or len(x_values) <= XTICKS_MAX:
             ax.set_xticks(x, [f"{v:g}" if numeric else str(v) for v in x_values])
         else:
@@ -116,18 +144,23 @@ def plot_grid_factor(
     return _save(fig, path)
 
 
-def plot_histograms(rows: Sequence[Row], metrics: Sequence[str], path: Path) -> Path:
+def plot_histograms(
+    rows: Sequence[Row], metrics: Sequence[str], path: Path, units: Mapping[str, str]
+) -> Path:
     """One histogram per metric over every completed run."""
     fig, axes = _panels(len(metrics))
     for ax, metric in zip(axes, metrics, strict=False):
         values = _floats(rows, metric)
         ax.hist(values[np.isfinite(values)], bins=HISTOGRAM_BINS)
         ax.set_title(metric, fontsize=9)
+        ax.set_xlabel(f"[{units.get(metric, '1')}]", fontsize=8)
         ax.set_ylabel("runs", fontsize=8)
     return _save(fig, path)
 
 
-def plot_scatter_matrix(rows: Sequence[Row], variables: Sequence[str], path: Path) -> Path:
+def plot_scatter_matrix(
+    rows: Sequence[Row], variables: Sequence[str], path: Path, units: Mapping[str, str]
+) -> Path:
     """Every pair of ``variables`` as a scatter plot, histograms on the diagonal."""
     n = len(variables)
     data = {name: _floats(rows, name) for name in variables}
@@ -141,10 +174,11 @@ def plot_scatter_matrix(rows: Sequence[Row], variables: Sequence[str], path: Pat
         else:
             ax.scatter(data[col_name], data[row_name], s=6)
         if i == n - 1:
-            ax.set_xlabel(col_name, fontsize=7)
+            ax.set_xlabel(axis_label(col_name, units), fontsize=7)
         if j == 0:
-            ax.set_ylabel(row_name, fontsize=7)
+            ax.set_ylabel(axis_label(row_name, units), fontsize=7)
         ax.tick_params(labelsize=6)
+        _plain_ticks(ax)
     return _save(fig, path)
 
 
@@ -161,7 +195,17 @@ def _panels(n: int) -> tuple[Figure, list[Any]]:
     for ax in flat:
         ax.tick_params(labelsize=7)
         ax.grid(True, alpha=0.3)
+        _plain_ticks(ax)
     return fig, flat[:n]
+
+
+def _plain_ticks(ax: Any) -> None:
+    """Tick labels as the numbers themselves: no offset ("+1.5249") and no common factor
+    ("1e-5") above the axis, which read as another number."""
+    for axis in (ax.xaxis, ax.yaxis):
+        formatter = ScalarFormatter(useOffset=False)
+        formatter.set_scientific(False)
+        axis.set_major_formatter(formatter)
 
 
 def _margins(fig: Figure) -> None:

@@ -41,13 +41,12 @@ from cosim.study.execution import (
 from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
-from cosim.study.plots import plotted_metrics, write_figures
+from cosim.study.plots import default_metrics, plotted_metrics, write_figures
 from cosim.study.signals import StudyStopped
 from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
-from cosim.viz.overlay import OverlayRun, write_overlay
-from cosim.viz.report import load_results
+from cosim.study.units import units
 
 STUDIES_DIR = Path("studies")
 FIGURES_FOLDER = "figures"
@@ -76,6 +75,7 @@ class Cluster:
     scheduler: str | None = None
     security: Any = None  # distributed.Security for a tls:// scheduler
     dashboard: bool = False
+    client: Callable[[], Any] | None = None  # waits for a client started early, if any
 
     def __post_init__(self) -> None:
         if self.scheduler is None and self.workers < 1:
@@ -230,7 +230,9 @@ class _Session:
         runs: Sequence[PlannedRun],
         on_record: Callable[[PlannedRun, RunRecord], None],
     ) -> None:
-        if self.client is None:
+        if self.client is None and self.cluster.client is not None:
+            self.client = self.cluster.client()  # started early (execution.early_client)
+        elif self.client is None:
             c = self.cluster
             self.client = self.stack.enter_context(
                 open_client(c.workers, c.scheduler, c.security, c.dashboard)
@@ -249,6 +251,10 @@ def _overlay(
 ) -> tuple[Path, list[str]]:
     """overlay.rrd of the chosen runs (those not kept run again, and kept now), and
     warnings for entries that chose nothing and runs without results."""
+    # imported here, for a study with an overlay only: rerun takes ~0.5 s to import
+    from cosim.viz.overlay import OverlayRun, write_overlay
+    from cosim.viz.report import load_results
+
     by_id = {run.id: run for run in runs}
     by_row = {row["run"]: row for row in rows}
     chosen, empty = choose(entries, runs, by_row)
@@ -294,10 +300,12 @@ def _write_report(
     grid = {
         name: [factors[name].normalize(v) for v in values] for name, values in spec.grid.items()
     }
+    candidates = metrics if spec.metrics.collect is not None else default_metrics(metrics)
+    quantities = units([*spec.factors, *candidates], base.fmu_paths)
     figures = write_figures(
-        rows, grid, list(spec.random.factors), metrics, out_dir / FIGURES_FOLDER
+        rows, grid, list(spec.random.factors), candidates, out_dir / FIGURES_FOLDER, quantities
     )
-    shown = set(plotted_metrics(rows, metrics))
+    shown = set(plotted_metrics(rows, candidates))
     complete = sum(row["status"] == "complete" for row in rows)
     random = "none"
     if spec.random.factors:

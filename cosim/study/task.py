@@ -154,6 +154,19 @@ def run_one(
     return RunRecord(status, error, metrics, time.perf_counter() - started, loop_s, files)
 
 
+def warm_up(base: Base, fmu_paths: Mapping[str, Path]) -> None:
+    """Run the base scenario for one communication step and throw the result away: this
+    process then has the FMUs extracted and their libraries loaded, their Python modules
+    imported and their compiled code loaded (what a process's first run pays for, ~1-3 s),
+    so its first real run costs what every later one does. Never raises: a run that fails
+    here fails again, with its reason, as a task."""
+    data = copy.deepcopy(dict(base.data))
+    data["stop_time"] = data["coupling"]["step"]
+    for timed in ("events", "faults"):  # they may be refused beyond the short stop time
+        data.pop(timed, None)
+    run_one(Base(base.scenario_id, data, base.fmu_paths), fmu_paths, {}, {})
+
+
 def scenario_text(
     base: Base, factors: Mapping[str, FactorKind], values: Mapping[str, Value]
 ) -> str:

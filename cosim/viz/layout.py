@@ -52,6 +52,7 @@ CURRENT: Rgb = (90, 200, 250)  # the water current
 HULL: Rgb = (250, 200, 40)  # REMUS yellow
 TRAJECTORY: Rgb = (240, 240, 240)
 
+PLOT_COLUMNS = 2  # time-series plots side by side in a loop's grid
 TIMELINE = "sim_time"
 CHASE_EYE = (-1.6, -0.9, -0.6)  # m in the chase frame: behind, to port, above the vehicle
 DEG = math.degrees(1.0)
@@ -242,6 +243,10 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
     in tabs: the depth loop (depth and setpoint, pitch, pitch rate, heave, fins, surge),
     the rest of the vehicle state, any unknown columns, and the scenario text. The depth
     tab is the active one when depth control is on, the vehicle tab otherwise.
+
+    The plots of a loop sit in a grid of :data:`PLOT_COLUMNS` columns, not one stack: six
+    stacked plots of ~130 px each leave the viewer room for a single y tick ("0") on most
+    of them; three rows of ~300 px show several ticks, so values can be read off.
     """
     present = {p.entity: p for p in panels}
 
@@ -282,11 +287,11 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
     )
     columns: list[rrb.Container | rrb.View] = [rrb.Vertical(world, chase, row_shares=[3, 2])]
     if heading := plots(HEADING_LOOP):
-        columns.append(rrb.Vertical(*heading, name="Heading loop"))
+        columns.append(rrb.Grid(*heading, grid_columns=PLOT_COLUMNS, name="Heading loop"))
     tabs: list[rrb.Container | rrb.View] = []
     for title, entities in (("Depth loop", DEPTH_LOOP), ("Vehicle", VEHICLE)):
         if views := plots(entities):
-            tabs.append(rrb.Vertical(*views, name=title))
+            tabs.append(rrb.Grid(*views, grid_columns=PLOT_COLUMNS, name=title))
     if any(p.entity.startswith("other/") for p in panels):
         tabs.append(rrb.TimeSeriesView(origin="/other", name="Other signals"))
     tabs.append(rrb.TextDocumentView(origin="/scenario", name="Scenario"))
@@ -294,7 +299,7 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
     first = "Depth loop" if depth_control else "Vehicle"
     columns.append(rrb.Tabs(*tabs, active_tab=names.index(first) if first in names else 0))
     return rrb.Blueprint(
-        rrb.Horizontal(*columns, column_shares=[5, 3, 3][: len(columns)]),
+        rrb.Horizontal(*columns, column_shares=[4, 5, 4][: len(columns)]),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
         rrb.TimePanel(state="collapsed"),

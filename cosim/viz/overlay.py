@@ -2,8 +2,9 @@
 their yaw, roll and depth on shared time axes.
 
 Entity tree (one entity per run and signal, the run's id as the last path part; its label
--- the run id and its factor values -- as the line's name in the legend and as the 3D
-path's label)::
+-- the run id and its factor values -- as the line's name in the legends; the 3D paths
+carry it too but do not print it: the paths start at one point, where every label would
+print over the others)::
 
     world                    ViewCoordinates.FRD (static): NED, x north, y east, z down
     world/paths/<run id>     LineStrips3D (static): the whole path [north, east, down], m
@@ -100,7 +101,9 @@ def _log_run(rec: rr.RecordingStream, run: OverlayRun, color: tuple[int, ...]) -
     index = time_index(run.results["time"])
     rec.log(
         f"world/paths/{run.id}",
-        rr.LineStrips3D([position], colors=[color], labels=[run.label], radii=[0.05]),
+        rr.LineStrips3D(
+            [position], colors=[color], labels=[run.label], radii=[0.05], show_labels=False
+        ),
         static=True,
     )
     rec.log(

@@ -13,9 +13,18 @@ The figures are laid out like the dissertation's Ch. 6 plots:
   trajectory then also shows the planned path and its waypoints (from the run's
   ``scenario.toml``).
 
+* ``lateral_deviation.png`` - the sideways deviation from the initial course against the
+  distance along it (a drift of 0.5 m in 90 m is invisible on the equal-scale trajectory).
+
 Each event the run fired and each fault's start and stop (``summary.json``'s ``events``
-and ``faults``, docs/events.md) is a vertical marker on every time-history panel, named
-in the first panel's legend.
+and ``faults``, docs/events.md), and the yaw settling time (its key figure), is a
+vertical marker on every time-history panel, named in the first panel's legend. The
+actuator limits -- the moving mass's rail stops (the plant's ``mass_stroke``) and the
+tunnel thruster's force limit (the autopilot's ``tunnel_force_limit``), read from the
+run's start values, else from the FMU's model description -- are horizontal lines on
+their panels. When the yaw settles within the first third of the run, the velocity and
+attitude figures get a second column: the transient, the first
+:data:`ZOOM_SETTLING_TIMES` settling times.
 
 A run of a standard manoeuvre (its ``summary.json`` names a ``manoeuvre``) gets its
 metrics in a table of their own on the page; a turning circle also gets them marked on
@@ -32,6 +41,7 @@ from __future__ import annotations
 import html
 import json
 import math
+import tomllib
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,12 +56,21 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from cosim.errors import CosimError
+from cosim.fmus.interface import read_interface
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
 from cosim.outputs.results import read_csv
+from cosim.paths import DEFAULT_FMU_DIR
 from cosim.viz.mission import mission_waypoints
 
 INDEX_PAGE = "index.html"
+ZOOM_SETTLING_TIMES = 3.0  # the transient column shows this many settling times
+SETTLING_FIGURE = "yaw_settling_time_s"
+# (FMU model identifier, parameter) -> the column whose panel shows it as +- limit lines
+LIMITS = {
+    ("AuvPlant", "mass_stroke"): "mass_position",
+    ("AuvAutopilot", "tunnel_force_limit"): "tunnel_force",
+}
 
 
 @dataclass(frozen=True)
@@ -84,8 +103,12 @@ class Marker:
 
 
 def markers_of(summary: dict[str, Any]) -> list[Marker]:
-    """The events fired and the faults' starts and stops listed in ``summary.json``."""
+    """The events fired, the faults' starts and stops listed in ``summary.json`` and the
+    yaw settling time (its key figure)."""
     markers = []
+    settled = (summary.get("key_figures") or {}).get(SETTLING_FIGURE)
+    if settled is not None:
+        markers.append(Marker(float(settled), f"yaw settled ({settled:g} s)", "tab:green", "-."))
     for event in summary.get("events") or []:
         markers.append(Marker(float(event["time"]), f"event {event['name']}", "tab:orange", "-"))
     for fault in summary.get("faults") or []:
@@ -164,6 +187,8 @@ FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
         ),
     ),
 }
+TITLES = {"trajectory": "Trajectory", "lateral_deviation": "Lateral deviation"}
+ZOOMED = ("velocities", "attitude_actuators")  # the figures with a transient column
 # The depth figure is drawn only for a run with a depth loop: fins commanded or depth moving.
 DEPTH_EVIDENCE = ("controller.fin_angle", "controller.depth_setpoint")
 
@@ -179,6 +204,8 @@ def write_report(run_dir: Path) -> Path:
     table = load_results(run_dir)
     summary, summary_problem = load_summary(run_dir)
     out = run_dir / REPORT_FOLDER
+    limits = actuator_limits(run_dir)
+    zoom = _zoom(table, summary)
     try:
         out.mkdir(exist_ok=True)
         figures = {}
@@ -186,8 +213,9 @@ def write_report(run_dir: Path) -> Path:
             if name == "depth" and not _has_depth_loop(table):
                 continue
             path = plot_time_histories(
-                table, panels, title, out / f"{name}.png", markers_of(summary)
-            )
+                table, panels, title, out / f"{name}.png", markers_of(summary), limits,
+                zoom if name in ZOOMED else None,
+            )  # fmt: skip
             if path is not None:
                 figures[name] = path
         waypoints = _planned_path(run_dir)
@@ -195,6 +223,10 @@ def write_report(run_dir: Path) -> Path:
         trajectory = plot_trajectory(table, out / "trajectory.png", waypoints, marks)
         if trajectory is not None:
             figures["trajectory"] = trajectory
+        if waypoints is None and marks is None:
+            deviation = plot_lateral_deviation(table, out / "lateral_deviation.png")
+            if deviation is not None:
+                figures["lateral_deviation"] = deviation
         index = out / INDEX_PAGE
         index.write_text(index_page(run_dir, summary, summary_problem, figures), "utf-8")
     except OSError as exc:
@@ -243,6 +275,48 @@ def load_summary(run_dir: Path) -> tuple[dict[str, Any], str | None]:
     return data, None
 
 
+def actuator_limits(run_dir: Path) -> dict[str, float]:
+    """``{"<instance>.<column>": limit}`` for the actuators of :data:`LIMITS` in the run's
+    ``scenario.toml``: the instance's start value of the limit parameter, else the FMU's
+    declared start (its model description; a built-in FMU is looked up where runs build
+    it). Empty where the scenario or the FMU cannot be read."""
+    try:
+        instances = tomllib.loads((run_dir / "scenario.toml").read_text("utf-8"))["instances"]
+    except (OSError, KeyError, tomllib.TOMLDecodeError):
+        return {}
+    limits = {}
+    for name, instance in instances.items():
+        fmu = str(instance.get("fmu", ""))
+        for (model, parameter), column in LIMITS.items():
+            if fmu not in (model, f"{model}.fmu") and not fmu.endswith(f"/{model}.fmu"):
+                continue
+            value = instance.get("start", {}).get(parameter)
+            if value is None:
+                value = _declared_start(run_dir, fmu, model, parameter)
+            if isinstance(value, int | float) and value > 0:
+                limits[f"{name}.{column}"] = float(value)
+    return limits
+
+
+def _declared_start(run_dir: Path, fmu: str, model: str, parameter: str) -> Any:
+    path = DEFAULT_FMU_DIR / f"{model}.fmu" if fmu == model else run_dir / fmu
+    try:
+        variable = read_interface(path).variables.get(parameter)
+    except CosimError:
+        return None
+    return None if variable is None else variable.start
+
+
+def _zoom(table: dict[str, np.ndarray], summary: dict[str, Any]) -> float | None:
+    """The end of the transient column (s): ZOOM_SETTLING_TIMES settling times, when that
+    is within the first third of the run; else None (no column)."""
+    settled = (summary.get("key_figures") or {}).get(SETTLING_FIGURE)
+    if not settled:
+        return None
+    end = ZOOM_SETTLING_TIMES * float(settled)
+    return end if end <= float(table["time"][-1]) / 3.0 else None
+
+
 def _planned_path(run_dir: Path) -> np.ndarray | None:
     """The waypoints of the run's guidance from its ``scenario.toml``, if any."""
     try:
@@ -276,48 +350,81 @@ def plot_time_histories(
     title: str,
     path: Path,
     markers: list[Marker] | None = None,
+    limits: dict[str, float] | None = None,
+    zoom: float | None = None,
 ) -> Path | None:
-    """Stacked panels sharing the time axis, ``markers`` drawn across each; None if the
-    run recorded none of the panels."""
+    """Stacked panels sharing the time axis, ``markers`` drawn across each, ``limits``
+    (column -> limit, SI) as +-limit lines on the panel of that column; with ``zoom`` (s)
+    a second column shows the first ``zoom`` seconds. None if the run recorded none of
+    the panels."""
     present = [p for p in panels if p.series[0].column in table]
     if not present:
         return None
     time = table["time"]
+    end = time[-1] if time[-1] > time[0] else time[0] + 1.0
+    spans = [(time[0], end)] if zoom is None else [(time[0], end), (time[0], zoom)]
     fig, axes = plt.subplots(
-        len(present), 1, sharex=True, figsize=(9, 1.9 * len(present) + 0.8), squeeze=False
+        len(present),
+        len(spans),
+        sharex="col",
+        figsize=(9 if zoom is None else 13, 1.9 * len(present) + 0.8),
+        squeeze=False,
+        width_ratios=[3, 2][: len(spans)],
     )
-    for ax, panel in zip(axes[:, 0], present, strict=True):
-        curves = [(s, table[s.column] * s.scale) for s in panel.series if s.column in table]
-        limits = _main_range(curves)
-        for series, values in curves:
-            clipped = limits is not None and np.any((values < limits[0]) | (values > limits[1]))
-            label = series.label + (" (beyond the axis)" if clipped else "")
-            ax.plot(
-                time,
-                values,
-                "--" if series.dashed else "-",
-                color="tab:gray" if series.dashed else "tab:blue",
-                linewidth=1.0 if series.dashed else 1.3,
-                label=label or None,
-            )
-        drawn, named = len(curves), set()
-        for marker in markers or ():  # each name once in the legend (a repeated event)
-            new = ax is axes[0, 0] and marker.label not in named
-            named.add(marker.label)
-            ax.axvline(marker.time, color=marker.color, linestyle=marker.style, linewidth=1.0,
-                       label=marker.label if new else None)  # fmt: skip
-            drawn += new
-        if limits is not None:
-            ax.set_ylim(*limits)
-        ax.set_ylabel(panel.ylabel)
-        ax.grid(True, alpha=0.3)
-        if drawn > 1:
-            ax.legend(loc="upper right", fontsize="small")
+    for row, panel in enumerate(present):
+        for col, span in enumerate(spans):
+            _draw_panel(axes[row, col], table, panel, markers or [], limits or {}, span, row == 0)
+            axes[row, col].set_xlim(*span)
     axes[-1, 0].set_xlabel("Time (s)")
-    axes[-1, 0].set_xlim(time[0], time[-1] if time[-1] > time[0] else time[0] + 1.0)
+    if zoom is not None:
+        axes[0, 1].set_title(f"the transient: first {zoom:g} s", fontsize="medium")
+        axes[-1, 1].set_xlabel("Time (s)")
     fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _draw_panel(
+    ax: plt.Axes,
+    table: dict[str, np.ndarray],
+    panel: Panel,
+    markers: list[Marker],
+    limits: dict[str, float],
+    span: tuple[float, float],
+    first: bool,
+) -> None:
+    """One panel over the time ``span`` (its y range from the data inside it); the
+    markers are named in the legend of the ``first`` panel only."""
+    time = table["time"]
+    inside = (time >= span[0]) & (time <= span[1])
+    curves = [(s, table[s.column] * s.scale) for s in panel.series if s.column in table]
+    shown = _main_range([(s, v[inside]) for s, v in curves])
+    for series, values in curves:
+        clipped = shown is not None and np.any((values < shown[0]) | (values > shown[1]))
+        label = series.label + (" (beyond the axis)" if clipped else "")
+        ax.plot(time[inside], values[inside], "--" if series.dashed else "-",
+                color="tab:gray" if series.dashed else "tab:blue",
+                linewidth=1.0 if series.dashed else 1.3, label=label or None)  # fmt: skip
+    drawn, named = len(curves), set()
+    for marker in markers:  # each name once in the legend (a repeated event)
+        new = first and marker.label not in named
+        named.add(marker.label)
+        ax.axvline(marker.time, color=marker.color, linestyle=marker.style, linewidth=1.0,
+                   label=marker.label if new else None)  # fmt: skip
+        drawn += new
+    limit = limits.get(panel.series[0].column)
+    if limit is not None:
+        scaled = limit * panel.series[0].scale
+        for sign in (1.0, -1.0):
+            ax.axhline(sign * scaled, color="tab:red", linestyle=":", linewidth=1.0,
+                       label=f"limit +-{scaled:g}" if sign > 0 else None)  # fmt: skip
+        drawn += 1
+    if shown is not None:
+        ax.set_ylim(*shown)
+    ax.set_ylabel(panel.ylabel)
+    ax.grid(True, alpha=0.3)
+    if drawn > 1:
+        ax.legend(loc="upper right", fontsize="small")
 
 
 def _main_range(curves: list[tuple[Series, np.ndarray]]) -> tuple[float, float] | None:
@@ -376,6 +483,30 @@ def plot_trajectory(
         ax3.set_zlabel("z, down (m)")
         ax3.invert_zaxis()
         ax3.set_title("earth frame (NED)")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_lateral_deviation(table: dict[str, np.ndarray], path: Path) -> Path | None:
+    """The sideways deviation from the initial course (m, positive to starboard) against
+    the distance along it (m), on axes of their own scales: the initial course is the
+    yaw at t = 0, the origin the start. None without ``plant.north``, ``plant.east`` and
+    ``plant.yaw``."""
+    if not all(c in table for c in ("plant.north", "plant.east", "plant.yaw")):
+        return None
+    course = float(table["plant.yaw"][0])
+    d_north = table["plant.north"] - table["plant.north"][0]
+    d_east = table["plant.east"] - table["plant.east"][0]
+    along = d_north * math.cos(course) + d_east * math.sin(course)
+    across = -d_north * math.sin(course) + d_east * math.cos(course)
+    fig, ax = plt.subplots(figsize=(9, 3.2))
+    ax.plot(along, across, color="tab:blue")
+    ax.axhline(0.0, color="tab:gray", linestyle="--", linewidth=1.0, label="initial course")
+    ax.set_xlabel("distance along the initial course (m)")
+    ax.set_ylabel("lateral deviation (m)")
+    ax.set_title(f"deviation from the initial course ({math.degrees(course):.3g} deg)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -469,7 +600,7 @@ def index_page(
             "results.</strong></p>"
         )
     images = "\n".join(
-        f"<h2>{html.escape(FIGURES[key][0] if key in FIGURES else 'Trajectory')}</h2>\n"
+        f"<h2>{html.escape(FIGURES[key][0] if key in FIGURES else TITLES[key])}</h2>\n"
         f'<p><a href="{path.name}"><img src="{path.name}" alt="{key}" '
         'style="max-width:100%"></a></p>'
         for key, path in figures.items()

@@ -461,3 +461,10 @@ class CompiledPlant:
     def advance(self, x: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
         """n RK4 steps of dt s on the float64 array x in place; :func:`advance_into`'s code."""
         return advance_into(self.parameters, x, inputs, n, dt)
+
+    def warm_up(self, x: np.ndarray, inputs: np.ndarray) -> None:
+        """Compile (or load from numba's cache) every function a step calls, by one RK4
+        step of 1 ms on copies of ``x`` and ``inputs``: numba compiles on a function's
+        first call, which would otherwise be the first doStep (seconds on a first run,
+        ~0.5 s of cache loading later), counted as stepping time."""
+        self.advance(np.array(x, dtype=float), np.array(inputs, dtype=float), 1, 1e-3)

@@ -141,6 +141,22 @@ def test_mass_position_sweep_reports_the_cg_offset(capsys, tmp_path):
             float(row["mass_position"]) / 6, rel=3e-3
         )
     assert "y_g = -0.8" in out  # the fold, Sec. 5.1.4: "slightly larger than 0.8 cm"
+    # the conditions printed (and the figure's title) name the swept parameter as swept,
+    # not with the fixed value it does not keep
+    assert "mass position swept" in out and "mass position 0 m" not in out
+
+
+def test_sweep_title_names_the_swept_parameter() -> None:
+    from cosim.analysis.analyze import describe
+    from cosim.analysis.bifurcation import OperatingConditions
+    from plant_fmu.model.parameters import load_vehicle
+
+    conditions = OperatingConditions(load_vehicle("remus100"))
+    assert "mass position 0 m" in describe(conditions)
+    for swept, fixed in (("mass_position", "mass position 0 m"), ("roll_torque", "roll torque")):
+        text = describe(conditions, swept=swept)
+        assert f"{swept.replace('_', ' ')} swept" in text
+        assert fixed + " " not in text.replace(f"{swept.replace('_', ' ')} swept", "")
 
 
 @pytest.mark.slow

@@ -227,6 +227,19 @@ def test_validate_reports_a_damaged_fmu_and_builds_nothing(fmu_paths, tmp_path, 
     assert (tmp_path / "AuvPlant.fmu").read_bytes() == bytes(data)  # left as it was
 
 
+@pytest.mark.slow
+def test_validate_prints_per_fmu_what_was_checked(fmu_paths, capsys):
+    from cosim.cli import main
+
+    assert main(["validate", "--fmu-dir", str(fmu_paths["AuvPlant"].parent)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[-1] == "every FMU is valid"
+    for name in build.FMUS:
+        (line,) = [text for text in lines if text.startswith(f"{name} ({name}.fmu): ")]
+        assert "fmpy's validation" in line and "variables described" in line
+        assert "Reals with a unit" in line and "finite Real outputs" in line
+
+
 def test_validate_refuses_a_missing_folder_and_creates_nothing(tmp_path, capsys):
     from cosim.cli import main
 

@@ -81,7 +81,12 @@ def test_lateral_run_gets_velocity_attitude_and_trajectory_figures(lateral_run):
     assert index == lateral_run / "report" / "index.html"
     figures = sorted(p.name for p in index.parent.glob("*.png"))
     # No depth loop: no fins, no depth setpoint, depth constant in the lateral variant.
-    assert figures == ["attitude_actuators.png", "trajectory.png", "velocities.png"]
+    assert figures == [
+        "attitude_actuators.png",
+        "lateral_deviation.png",
+        "trajectory.png",
+        "velocities.png",
+    ]
     for name in figures:
         _assert_png(index.parent / name)
     page = index.read_text()
@@ -208,7 +213,12 @@ def test_report_of_a_bs3_run_through_the_master(fmu_paths, run_python, tmp_path)
     assert done.returncode == 0, done.stderr
     index = write_report(tmp_path / "bs-3")
     figures = sorted(p.name for p in index.parent.glob("*.png"))
-    assert figures == ["attitude_actuators.png", "trajectory.png", "velocities.png"]
+    assert figures == [
+        "attitude_actuators.png",
+        "lateral_deviation.png",
+        "trajectory.png",
+        "velocities.png",
+    ]
     for name in figures:
         _assert_png(index.parent / name)
     page = index.read_text()
@@ -227,3 +237,43 @@ def test_a_far_reference_curve_does_not_flatten_the_main_one() -> None:
     assert limits is not None and -0.1 < limits[0] < -0.06 and 0.06 < limits[1] < 0.1
     near = _main_range([(Series("p"), position), (Series("c"), position + 0.01)])
     assert near is None
+
+
+def test_transient_column_settling_time_and_actuator_limits_are_drawn(
+    tmp_path, monkeypatch
+) -> None:
+    """A run that settles in 2 s of 20: the attitude figure gets a column for the first
+    6 s, the settling time is a named marker, the mass stops and the thruster limit (from
+    the run's start values) are lines at +-limit on their panels."""
+    from cosim.viz import report
+
+    run = _write_run(
+        tmp_path / "run", Variant.LATERAL, {"u": 1.5, "v": -0.1},
+        {"tunnel_force": 1.0, "mass_position_cmd": 0.02, "yaw_setpoint": 0.0},
+        summary={"key_figures": {"yaw_settling_time_s": 2.0}},
+    )  # fmt: skip
+    (run / "scenario.toml").write_text(
+        '[instances.plant]\nfmu = "AuvPlant"\n[instances.plant.start]\nmass_stroke = 0.05\n'
+        '[instances.controller]\nfmu = "AuvAutopilot"\n'
+        "[instances.controller.start]\ntunnel_force_limit = 8.0\n"
+    )
+    assert report.actuator_limits(run) == {
+        "plant.mass_position": 0.05,
+        "controller.tunnel_force": 8.0,
+    }
+    kept = {}
+    monkeypatch.setattr(report, "_save", lambda fig, path: kept.setdefault(path.name, fig) and path)
+    write_report(run)
+    fig = kept["attitude_actuators.png"]
+    panels = [ax for ax in fig.axes if ax.get_ylabel()]
+    assert len(panels) == 2 * 5  # roll, yaw, mass, rail speed, F_t: two columns each
+    assert panels[1].get_xlim() == pytest.approx((0.0, 6.0))
+    legend = [t.get_text() for t in panels[0].get_legend().get_texts()]
+    assert "yaw settled (2 s)" in legend
+    mass = next(ax for ax in panels if ax.get_ylabel() == "$y_v$ (cm)")
+    levels = sorted(line.get_ydata()[0] for line in mass.lines if line.get_linestyle() == ":")
+    assert levels == pytest.approx([-5.0, 5.0])  # the 5 cm stops, in cm
+    thruster = next(ax for ax in panels if ax.get_ylabel() == "$F_t$ (N)")
+    levels = sorted(line.get_ydata()[0] for line in thruster.lines if line.get_linestyle() == ":")
+    assert levels == pytest.approx([-8.0, 8.0])
+    assert "lateral_deviation.png" in kept
