@@ -10,6 +10,11 @@ takes every coefficient and matrix from the model itself: nothing is re-typed). 
 ``tests/plant_fmu/model/test_compiled.py`` holds the two to 1e-12 over whole scenarios
 (the two differ only in the rounding of the matrix products, which numpy hands to BLAS).
 
+The step works on the stepping state of :mod:`plant_fmu.model.state_layout` (the state
+and the attitude quaternion, 18 values): the full variant integrates the quaternion
+(``PlantModel.step_derivative``), the planar variants their Euler angles;
+:func:`derivative_into` is ``PlantModel.derivative`` (Euler angles) for the analysis tools.
+
 Covered: the three variants, ideal fluid, current shear, and the dissertation's moving
 mass (``moving_mass_model = 0``). Not covered: the two-body moving mass (model 1), whose
 mass matrix depends on y_v; :func:`supports` says so and the plant FMU then steps the
@@ -24,6 +29,7 @@ import numpy as np
 
 from plant_fmu.model.dynamics import PlantModel
 from plant_fmu.model.jit import load_numba
+from plant_fmu.model.state_layout import N_STATES, N_STEP_STATES
 
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
@@ -130,10 +136,11 @@ def _viscous(p, nu_r, f):
 
 
 @_jit
-def _base_force(p, x, inputs, u_r, f):
+def _base_force(p, x, inputs, u_r, R, f):
     """f = actuators (6.3.79, Table 6.1) + moving-mass reaction and offset weight
-    (6.3.11-6.3.13) + restoring (3.5.3); returns (y', y'') of the mass (6.3.12)."""
-    y_v, y_vel, phi, theta = x[12], x[13], x[3], x[4]
+    (6.3.11-6.3.13) + restoring (3.5.3), with Gamma = R^T [0, 0, 1] the third row of R;
+    returns (y', y'') of the mass (6.3.12)."""
+    y_v, y_vel = x[12], x[13]
     accel = (p[KV] * (inputs[4] - y_v) - p[DV] * y_vel) / p[MV]
     stroke, limit = p[STROKE], p[SPEEDLIM]
     if (y_v >= stroke and y_vel >= 0.0 and accel >= 0.0) or (
@@ -143,11 +150,10 @@ def _base_force(p, x, inputs, u_r, f):
     elif limit > 0.0 and abs(y_vel) >= limit and accel * y_vel > 0:
         accel = 0.0
     f_mm = -p[MV] * accel
+    g0, g1, g2 = R[2, 0], R[2, 1], R[2, 2]
     weight = p[MV] * p[G] * y_v
-    roll = -p[ZG] * f_mm + weight * math.cos(theta) * math.cos(phi)
-    yaw = p[XV] * f_mm + weight * math.sin(theta)
-    ct = math.cos(theta)
-    g0, g1, g2 = -math.sin(theta), ct * math.sin(phi), ct * math.cos(phi)
+    roll = -p[ZG] * f_mm + weight * g2
+    yaw = p[XV] * f_mm + weight * -g0
     m0, m1, m2 = _cross(p[XG], 0.0, p[ZG], g0, g1, g2)
     wb = p[W] - p[B]
     thrust, f_t, delta_s = inputs[0], inputs[2], inputs[3]
@@ -170,6 +176,17 @@ def _rotation(phi, theta, psi, R):
     R[0, 0], R[0, 1], R[0, 2] = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
     R[1, 0], R[1, 1], R[1, 2] = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
     R[2, 0], R[2, 1], R[2, 2] = -st, ct * sf, ct * cf
+
+
+@_jit
+def _quaternion_rotation(z, R):
+    """R of the quaternion z[14:18] = [w, x, y, z], normalised on the way
+    (``kinematics.quaternion_rotation_matrix``)."""
+    w, x, y, c = z[14], z[15], z[16], z[17]
+    s = 2.0 / (w * w + x * x + y * y + c * c)
+    R[0, 0], R[0, 1], R[0, 2] = 1.0 - s * (y * y + c * c), s * (x * y - w * c), s * (x * c + w * y)
+    R[1, 0], R[1, 1], R[1, 2] = s * (x * y + w * c), 1.0 - s * (x * x + c * c), s * (y * c - w * x)
+    R[2, 0], R[2, 1], R[2, 2] = s * (x * c - w * y), s * (y * c + w * x), 1.0 - s * (x * x + y * y)
 
 
 @_jit
@@ -205,7 +222,7 @@ def _full_form(p, x, inputs, R, work, dx):
     cb1 = R[0, 1] * v0 + R[1, 1] * v1 + R[2, 1] * v2
     cb2 = R[0, 2] * v0 + R[1, 2] * v1 + R[2, 2] * v2
     nu_r[0], nu_r[1], nu_r[2] = nu[0] - cb0, nu[1] - cb1, nu[2] - cb2
-    y_vel, accel = _base_force(p, x, inputs, nu_r[0], f)
+    y_vel, accel = _base_force(p, x, inputs, nu_r[0], R, f)
     _coriolis(p, nu, nu_r, f)
     a0, a1, a2 = _cross(nu[3], nu[4], nu[5], cb0, cb1, cb2)
     d0, d1, d2 = -a0, -a1, -a2
@@ -251,7 +268,7 @@ def _relative_form(p, x, inputs, R, work, dx):
     nu_r[1] -= c1
     for i in range(3):
         dx[i] = (R[i, 0] * nu_r[0] + R[i, 1] * nu_r[1] + R[i, 2] * nu_r[2]) + (v0, v1, v2)[i]
-    y_vel, accel = _base_force(p, x, inputs, nu_r[0], f)
+    y_vel, accel = _base_force(p, x, inputs, nu_r[0], R, f)
     _coriolis(p, nu_r, nu_r, f)
     if p[IDEAL] == 0.0:
         _viscous(p, nu_r, f)
@@ -292,16 +309,44 @@ def derivative_into(p, x, inputs, R, work, dx):
     dx[3] = 1.0 * pr + sf * tt * q + cf * tt * r
     dx[4] = 0.0 * pr + cf * q + -sf * r
     dx[5] = 0.0 * pr + sf / ct * q + cf / ct * r
+    _rates(p, x, inputs, R, work, dx)
     variant = p[VARIANT]
-    if variant == 0.0:
-        y_vel, accel = _full_form(p, x, inputs, R, work, dx)
-    else:
-        y_vel, accel = _relative_form(p, x, inputs, R, work, dx)
-    dx[12], dx[13] = y_vel, accel
     if variant != 0.0:
         dx[2], dx[4] = 0.0, 0.0
         if variant == 2.0:
             dx[3] = 0.0
+
+
+@_jit
+def _rates(p, x, inputs, R, work, dx):
+    """Everything but the attitude's rate into dx, the attitude given as R
+    (``PlantModel._rates``)."""
+    if p[VARIANT] == 0.0:
+        y_vel, accel = _full_form(p, x, inputs, R, work, dx)
+    else:
+        y_vel, accel = _relative_form(p, x, inputs, R, work, dx)
+    dx[12], dx[13] = y_vel, accel
+
+
+@_jit
+def step_derivative_into(p, z, inputs, R, work, dz):
+    """The stepping state's derivative into dz (``PlantModel.step_derivative``): the full
+    variant's quaternion q_dot = 1/2 q (x) [0, omega], Euler entries still; the planar
+    variants' Euler angles (:func:`derivative_into`), quaternion still."""
+    if p[VARIANT] != 0.0:
+        derivative_into(p, z, inputs, R, work, dz)
+        for i in range(14, 18):
+            dz[i] = 0.0
+        return
+    _quaternion_rotation(z, R)
+    _rates(p, z, inputs, R, work, dz)
+    dz[3], dz[4], dz[5] = 0.0, 0.0, 0.0
+    w, x, y, c = z[14], z[15], z[16], z[17]
+    pr, q, r = z[9], z[10], z[11]
+    dz[14] = 0.5 * (-x * pr - y * q - c * r)
+    dz[15] = 0.5 * (w * pr + y * r - c * q)
+    dz[16] = 0.5 * (w * q + c * pr - x * r)
+    dz[17] = 0.5 * (w * r + x * q - y * pr)
 
 
 @_jit
@@ -335,61 +380,66 @@ def project(p, x, collide):
     limit = p[SPEEDLIM]
     if limit > 0.0:
         x[13] = min(max(x[13], -limit), limit)
+    if collide and x.size == 18:
+        norm = math.sqrt(x[14] * x[14] + x[15] * x[15] + x[16] * x[16] + x[17] * x[17])
+        for i in range(14, 18):
+            x[i] = x[i] / norm
 
 
 @_jit
-def advance_into(p, x, inputs, n, dt):
-    """n RK4 steps of dt seconds from x, in place, projected after each stage like
-    ``stepping.advance``. Returns 0, or 1 for a non-finite input, 2 for a non-finite
-    state (x untouched), 3 for a state that became non-finite."""
+def advance_into(p, z, inputs, n, dt):
+    """n RK4 steps of dt seconds from the stepping state z (18 values), in place, projected
+    after each stage like ``stepping.advance`` (which then refreshes the attitude the
+    variant does not integrate). Returns 0, or 1 for a non-finite input, 2 for a
+    non-finite state (z untouched), 3 for a state that became non-finite."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
             return 1
-    for i in range(14):
-        if not math.isfinite(x[i]):
+    for i in range(18):
+        if not math.isfinite(z[i]):
             return 2
     R, work = np.empty((3, 3)), np.empty((5, 6))
-    k1, k2, k3, k4, y = np.empty(14), np.empty(14), np.empty(14), np.empty(14), np.empty(14)
+    k1, k2, k3, k4, y = np.empty(18), np.empty(18), np.empty(18), np.empty(18), np.empty(18)
     half, sixth = 0.5 * dt, dt / 6.0
-    project(p, x, False)
+    project(p, z, False)
     for _ in range(n):
-        derivative_into(p, x, inputs, R, work, k1)
-        for i in range(14):
-            y[i] = x[i] + half * k1[i]
+        step_derivative_into(p, z, inputs, R, work, k1)
+        for i in range(18):
+            y[i] = z[i] + half * k1[i]
         project(p, y, False)
-        derivative_into(p, y, inputs, R, work, k2)
-        for i in range(14):
-            y[i] = x[i] + half * k2[i]
+        step_derivative_into(p, y, inputs, R, work, k2)
+        for i in range(18):
+            y[i] = z[i] + half * k2[i]
         project(p, y, False)
-        derivative_into(p, y, inputs, R, work, k3)
-        for i in range(14):
-            y[i] = x[i] + dt * k3[i]
+        step_derivative_into(p, y, inputs, R, work, k3)
+        for i in range(18):
+            y[i] = z[i] + dt * k3[i]
         project(p, y, False)
-        derivative_into(p, y, inputs, R, work, k4)
-        for i in range(14):
-            x[i] = x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-        project(p, x, True)
-    for i in range(14):
-        if not math.isfinite(x[i]):
+        step_derivative_into(p, y, inputs, R, work, k4)
+        for i in range(18):
+            z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        project(p, z, True)
+    for i in range(18):
+        if not math.isfinite(z[i]):
             return 3
     return 0
 
 
 @_jit
-def outputs_into(p, x, inputs, R, out):
-    """The plant FMU's derived outputs into out: u_rel, v_rel, w_rel (nu - U,
-    ``PlantModel.relative_velocity``) and the kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r
-    (``PlantModel.kinetic_energy``, model 0), J."""
-    v0, v1, v2 = inputs[5] + p[SHEAR] * x[1], inputs[6], inputs[7]
+def outputs_into(p, z, inputs, R, out):
+    """The plant FMU's derived outputs into out from the stepping state z: u_rel, v_rel,
+    w_rel (nu - U, ``PlantModel.relative_velocity``) and the kinetic energy
+    1/2 nu_r^T (M_RB + M_A) nu_r (``PlantModel.kinetic_energy``, model 0), J."""
+    v0, v1, v2 = inputs[5] + p[SHEAR] * z[1], inputs[6], inputs[7]
     if p[VARIANT] == 0.0:
-        _rotation(x[3], x[4], x[5], R)
+        _quaternion_rotation(z, R)
         c0 = R[0, 0] * v0 + R[1, 0] * v1 + R[2, 0] * v2
         c1 = R[0, 1] * v0 + R[1, 1] * v1 + R[2, 1] * v2
         c2 = R[0, 2] * v0 + R[1, 2] * v1 + R[2, 2] * v2
     else:
-        cp, sp = math.cos(x[5]), math.sin(x[5])
+        cp, sp = math.cos(z[5]), math.sin(z[5])
         c0, c1, c2 = cp * v0 + sp * v1, -sp * v0 + cp * v1, 0.0
-    nu_r = (x[6] - c0, x[7] - c1, x[8] - c2, x[9], x[10], x[11])
+    nu_r = (z[6] - c0, z[7] - c1, z[8] - c2, z[9], z[10], z[11])
     energy = 0.0
     for j in range(6):
         column = 0.0
@@ -412,16 +462,24 @@ class CompiledPlant:
 
     def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """``PlantModel.derivative`` (a new array)."""
-        dx = np.empty(14)
+        dx = np.empty(N_STATES)
         derivative_into(self.parameters, x, inputs, self._R, self._work, dx)
         return dx
 
-    def outputs(self, x: np.ndarray, inputs: np.ndarray) -> list[float]:
-        """[u_rel, v_rel, w_rel, kinetic_energy] (see :func:`outputs_into`)."""
+    def step_derivative(self, z: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """``PlantModel.step_derivative`` (a new array)."""
+        dz = np.empty(N_STEP_STATES)
+        step_derivative_into(self.parameters, z, inputs, self._R, self._work, dz)
+        return dz
+
+    def outputs(self, z: np.ndarray, inputs: np.ndarray) -> list[float]:
+        """[u_rel, v_rel, w_rel, kinetic_energy] of a stepping state (see
+        :func:`outputs_into`)."""
         out = np.empty(4)
-        outputs_into(self.parameters, x, inputs, self._R, out)
+        outputs_into(self.parameters, z, inputs, self._R, out)
         return out.tolist()
 
-    def advance(self, x: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
-        """n RK4 steps of dt s on the float64 array x in place; :func:`advance_into`'s code."""
-        return advance_into(self.parameters, x, inputs, n, dt)
+    def advance(self, z: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
+        """n RK4 steps of dt s on the float64 stepping state z in place;
+        :func:`advance_into`'s code."""
+        return advance_into(self.parameters, z, inputs, n, dt)

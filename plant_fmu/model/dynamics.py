@@ -486,7 +486,8 @@ class PlantModel:
         if params.mass_speed_limit > 0.0:
             x[_YVEL] = min(max(x[_YVEL], -params.mass_speed_limit), params.mass_speed_limit)
         if collide and len(x) == N_STEP_STATES:
-            x[QUATERNION] /= math.sqrt(float(x[QUATERNION] @ x[QUATERNION]))
+            w, a, b, c = x[QUATERNION].tolist()
+            x[QUATERNION] /= math.sqrt(w * w + a * a + b * b + c * c)
         return x
 
     def _velocity_after_impact(
