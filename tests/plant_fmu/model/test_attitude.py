@@ -95,9 +95,9 @@ def test_tumbling_through_the_vertical_keeps_the_impulse():
 def _loop(duration: float, fast: bool):
     """A loop: a vehicle without restoring moment at 3 m/s, 40 N of thrust and the stern
     planes hard over, started pitching up at 2 rad/s with a trace of roll and yaw rate:
-    its nose passes within 0.05 deg of straight up at 1.05 s and it carries on over. The attitude, and the
-    body rates it came from, every 2 ms (fine enough for a spline through the rates to
-    hold them to 1e-8)."""
+    its nose passes within 0.05 deg of straight up at 1.05 s and it carries on over. The
+    attitude, and the body rates it came from, every 2 ms (fine enough for a spline
+    through the rates to hold them to 1e-8)."""
     model = PlantModel(_balanced(), Variant.FULL)
     inputs = input_vector(dict(fin_angle=-0.5), thrust=40.0)
     x0 = state_vector(dict(u=3.0, q=2.0, p=0.005, r=0.002, pitch=0.8))
