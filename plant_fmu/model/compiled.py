@@ -387,17 +387,84 @@ def project(p, x, collide):
 
 
 @_jit
-def advance_into(p, z, inputs, n, dt):
-    """n RK4 steps of dt seconds from the stepping state z (18 values), in place, projected
-    after each stage like ``stepping.advance`` (which then refreshes the attitude the
-    variant does not integrate). Returns 0, or 1 for a non-finite input, 2 for a
-    non-finite state (z untouched), 3 for a state that became non-finite."""
+def _quaternion_from_euler(phi, theta, psi, z):
+    """z[14:18] = the quaternion of R = Rz(psi) Ry(theta) Rx(phi)
+    (``kinematics.quaternion_from_euler``)."""
+    cr, sr = math.cos(0.5 * phi), math.sin(0.5 * phi)
+    cp, sp = math.cos(0.5 * theta), math.sin(0.5 * theta)
+    cy, sy = math.cos(0.5 * psi), math.sin(0.5 * psi)
+    z[14] = cr * cp * cy + sr * sp * sy
+    z[15] = sr * cp * cy - cr * sp * sy
+    z[16] = cr * sp * cy + sr * cp * sy
+    z[17] = cr * cp * sy - sr * sp * cy
+
+
+@_jit
+def _nearest_turn(angle, previous):
+    """angle + 2 pi k nearest ``previous`` (``kinematics._nearest_turn``)."""
+    return angle + 2.0 * math.pi * math.floor((previous - angle) / (2.0 * math.pi) + 0.5)
+
+
+@_jit
+def _euler_from_quaternion(z, R, a0, a1, a2):
+    """z[3:6] = the Euler angles of z's quaternion nearest (a0, a1, a2)
+    (``kinematics.euler_from_quaternion``, which says why)."""
+    _quaternion_rotation(z, R)
+    cos_theta = math.sqrt(R[0, 0] * R[0, 0] + R[1, 0] * R[1, 0])  # not hypot: numba's differs
+    theta = math.atan2(-R[2, 0], cos_theta)
+    if cos_theta > 1e-12:
+        phi, psi = math.atan2(R[2, 1], R[2, 2]), math.atan2(R[1, 0], R[0, 0])
+    else:
+        phi = a0
+        if theta > 0:
+            psi = phi - math.atan2(R[0, 1], R[0, 2])
+        else:
+            psi = math.atan2(-R[0, 1], -R[0, 2]) - phi
+    f0, f1, f2 = _nearest_turn(phi, a0), _nearest_turn(theta, a1), _nearest_turn(psi, a2)
+    s0 = _nearest_turn(phi + math.pi, a0)
+    s1 = _nearest_turn(math.pi - theta, a1)
+    s2 = _nearest_turn(psi + math.pi, a2)
+    first = abs(f0 - a0) + abs(f1 - a1) + abs(f2 - a2)
+    second = abs(s0 - a0) + abs(s1 - a1) + abs(s2 - a2)
+    if first <= second:
+        z[3], z[4], z[5] = f0, f1, f2
+    else:
+        z[3], z[4], z[5] = s0, s1, s2
+
+
+@_jit
+def _start(x, z):
+    """z = the stepping state of x (``stepping.stepping_state``): False for a zero
+    quaternion."""
+    for i in range(14):
+        z[i] = x[i]
+    if x.size == 14:
+        _quaternion_from_euler(x[3], x[4], x[5], z)
+        return True
+    w, a, b, c = x[14], x[15], x[16], x[17]
+    norm = math.sqrt(w * w + a * a + b * b + c * c)
+    if not norm > 0.0:
+        return False
+    for i in range(14, 18):
+        z[i] = x[i] / norm
+    return True
+
+
+@_jit
+def advance_into(p, x, z, inputs, n, dt):
+    """z = the stepping state n RK4 steps of dt seconds after x (a state or a stepping
+    state), projected after each stage, the attitude refreshed at the end, like
+    ``stepping.advance``. Returns 0, or 1 for a non-finite input, 2 for a non-finite state
+    or a zero quaternion, 3 for a state that became non-finite."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
             return 1
-    for i in range(18):
-        if not math.isfinite(z[i]):
+    for i in range(x.size):
+        if not math.isfinite(x[i]):
             return 2
+    if not _start(x, z):
+        return 2
+    a0, a1, a2 = z[3], z[4], z[5]
     R, work = np.empty((3, 3)), np.empty((5, 6))
     k1, k2, k3, k4, y = np.empty(18), np.empty(18), np.empty(18), np.empty(18), np.empty(18)
     half, sixth = 0.5 * dt, dt / 6.0
@@ -422,6 +489,10 @@ def advance_into(p, z, inputs, n, dt):
     for i in range(18):
         if not math.isfinite(z[i]):
             return 3
+    if p[VARIANT] == 0.0:
+        _euler_from_quaternion(z, R, a0, a1, a2)
+    else:
+        _quaternion_from_euler(z[3], z[4], z[5], z)
     return 0
 
 
@@ -479,7 +550,7 @@ class CompiledPlant:
         outputs_into(self.parameters, z, inputs, self._R, out)
         return out.tolist()
 
-    def advance(self, z: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
-        """n RK4 steps of dt s on the float64 stepping state z in place;
-        :func:`advance_into`'s code."""
-        return advance_into(self.parameters, z, inputs, n, dt)
+    def advance(self, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
+        """z (a float64 stepping state) = n RK4 steps of dt s after x (a state or a
+        stepping state); :func:`advance_into`'s code."""
+        return advance_into(self.parameters, x, z, inputs, n, dt)

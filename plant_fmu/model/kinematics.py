@@ -121,7 +121,7 @@ def euler_from_quaternion(q: Sequence[float], previous: Sequence[float]) -> tupl
     phi then keeps its previous value.
     """
     R = quaternion_rotation_matrix(q)
-    cos_theta = math.hypot(R[0, 0], R[1, 0])
+    cos_theta = math.sqrt(R[0, 0] * R[0, 0] + R[1, 0] * R[1, 0])  # not hypot: numba's differs
     theta = math.atan2(-R[2, 0], cos_theta)
     if cos_theta > 1e-12:
         phi, psi = math.atan2(R[2, 1], R[2, 2]), math.atan2(R[1, 0], R[0, 0])
@@ -140,4 +140,4 @@ def euler_from_quaternion(q: Sequence[float], previous: Sequence[float]) -> tupl
 
 def _nearest_turn(angle: float, previous: float) -> float:
     """angle + 2 pi k, with k the whole number of turns that brings it nearest ``previous``."""
-    return angle + 2.0 * math.pi * round((previous - angle) / (2.0 * math.pi))
+    return angle + 2.0 * math.pi * math.floor((previous - angle) / (2.0 * math.pi) + 0.5)

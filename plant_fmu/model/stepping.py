@@ -72,7 +72,8 @@ def stepping_state(x: np.ndarray) -> np.ndarray:
             f"quaternion), got shape {x.shape}"
         )
     z = x.copy()
-    norm = math.sqrt(float(z[QUATERNION] @ z[QUATERNION]))
+    w, a, b, c = z[QUATERNION].tolist()
+    norm = math.sqrt(w * w + a * a + b * b + c * c)
     if not norm > 0.0:
         raise ValueError(f"attitude quaternion {z[QUATERNION].tolist()}: expected |q| > 0")
     z[QUATERNION] /= norm
@@ -133,17 +134,16 @@ def advance(
         raise ValueError(f"max_substep = {max_substep!r}: expected a finite number of s > 0")
     n = max(1, math.ceil(h / max_substep - 1e-9))
     dt = h / n
-    check_finite(x, STEP_STATE_NAMES, "state")
-    z = stepping_state(x)
-    previous = z[EULER].copy()
     if compiled is not None:
-        if compiled.advance(z, inputs, n, dt) == 0:
-            refresh_attitude(model, z, previous)
+        z = np.empty(N_STEP_STATES)
+        if compiled.advance(x, z, inputs, n, dt) == 0:
             return z if len(x) == N_STEP_STATES else z[STATE]
         # A non-finite input or result: the reference below repeats the step from the
         # start and reports what went wrong in its own words (an OverflowError, a name).
-        z = stepping_state(x)
+    check_finite(x, STEP_STATE_NAMES, "state")
     check_finite(inputs, INPUT_NAMES, "input")
+    z = stepping_state(x)
+    previous = z[EULER].copy()
     model.project(z)
     for _ in range(n):
         z = _substep(model, z, inputs, dt)
