@@ -68,6 +68,7 @@ from plant_fmu.model.kinematics import (
     gravity_direction,
     quaternion_rate,
     quaternion_rotation_matrix,
+    rotate,
     rotation_matrix,
 )
 from plant_fmu.model.moving_mass import (
@@ -209,7 +210,7 @@ class PlantModel:
         ``x`` is a state or a stepping state (:meth:`rotation`)."""
         v_c = self.current_velocity(x, inputs)
         if self.variant is Variant.FULL:
-            return self.rotation(x).T @ v_c
+            return rotate(self.rotation(x), v_c, transpose=True)
         return np.array([*planar_current(x[5], v_c), 0.0])
 
     def relative_velocity(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
@@ -388,7 +389,7 @@ class PlantModel:
         depend on no velocity (moving mass, restoring). Python floats throughout, so an
         overflow raises (OverflowError) instead of turning into inf."""
         nu = xs[6:12]
-        current_body = (R.T @ v_c).tolist()
+        current_body = rotate(R, v_c, transpose=True).tolist()
         nu_r = [nu[0] - current_body[0], nu[1] - current_body[1], nu[2] - current_body[2], *nu[3:]]
         force = (
             self.actuators(us, nu_r[0])
@@ -402,7 +403,7 @@ class PlantModel:
             force += self.viscous(nu_r)
         if self.two_body:
             force += two_body_force(self.params, nu, xs[_YV], y_vel)
-        return self._accelerate(xs[_YV], force), R @ np.asarray(nu[:3])
+        return self._accelerate(xs[_YV], force), rotate(R, nu[:3])
 
     def _relative_form(
         self,
@@ -422,7 +423,7 @@ class PlantModel:
         nu_r = xs[6:12]
         nu_r[0] -= current[0]
         nu_r[1] -= current[1]
-        position_rate = R @ np.asarray(nu_r[:3]) + v_c
+        position_rate = rotate(R, nu_r[:3]) + v_c
         force = (
             self.actuators(us, nu_r[0])
             + base[0]

@@ -50,6 +50,14 @@ def cross(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
+def rotate(R: np.ndarray, v: Sequence[float], transpose: bool = False) -> np.ndarray:
+    """R v (or R^T v) of a 3-vector, summed left to right as the compiled path sums it
+    (numpy's BLAS product may round differently, which a closed loop can amplify)."""
+    m = R.T if transpose else R
+    rows = m.tolist()
+    return np.array([r[0] * v[0] + r[1] * v[1] + r[2] * v[2] for r in rows])
+
+
 def gravity_direction(phi: float, theta: float) -> np.ndarray:
     """Gamma = R^T [0, 0, 1] = [-sin theta, cos theta sin phi, cos theta cos phi] (3.5.3):
     the earth's down axis in body coordinates."""
