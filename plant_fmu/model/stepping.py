@@ -19,6 +19,13 @@ adaptive ``solve_ivp``:
 
 The number of sub-steps is ceil(h / max_substep); the default 10 ms makes a 10 ms
 communication step one RK4 step, and users who want more accuracy lower ``max_substep``.
+
+What is integrated is the stepping state (:mod:`plant_fmu.model.state_layout`): the
+full variant's attitude as a unit quaternion, normalised after every sub-step, its Euler
+angles refreshed from it after the step (:func:`refresh_attitude`), so a vehicle passes
+pitch +-90 deg (see :mod:`plant_fmu.model.dynamics` for why the derivative the analysis
+tools use keeps Euler angles). With the two-body moving mass a sub-step in which the mass
+reaches a stop ends at its arrival (:func:`_substep_through_stop`).
 """
 
 from __future__ import annotations
