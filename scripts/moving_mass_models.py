@@ -27,7 +27,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import tomli_w
 
-from cosim.run.results import YAW_TOLERANCE_RAD, read_csv, settling_time
+from cosim.run.figures import YAW_TOLERANCE_RAD, settling_time
+from cosim.run.results import read_csv
 from cosim.run.runner import run_scenario
 from cosim.run.scenario import load_scenario, scenario_from_toml
 
