@@ -39,10 +39,10 @@ from controller_fmu.depth_pd import (
     TABLE_6_2_TAU_D,
     DepthPd,
 )
-from controller_fmu.guidance import desired_heading, mass_locked, wrap_angle
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, LqrHeading
 from controller_fmu.modes import DepthMode, HeadingMode, choices
+from controller_fmu.setpoint_shaping import desired_heading, mass_locked, wrap_angle
 from controller_fmu.sliding_mode import SlidingModeHeading
 from plant_fmu.model.parameters import load_vehicle
 
@@ -74,13 +74,13 @@ class AutopilotConfig(BaseModel):
 
     heading_mode: int = Field(
         default=0,
-        description="heading controller: 0 off, 1 LQR (6.3.17), 2 sliding mode (6.3.45), "
+        description="heading controller: 0 off, 1 lqr (6.3.17), 2 sliding_mode (6.3.45), "
         "3 backstepping + tunnel thruster (6.3.64, 6.3.72)",
         json_schema_extra=_unit(""),
     )
     depth_mode: int = Field(
         default=0,
-        description="depth controller: 0 off, 1 PD pitch + P depth (Fig. 6.40)",
+        description="depth controller: 0 off, 1 pd: PD pitch + P depth (Fig. 6.40)",
         json_schema_extra=_unit(""),
     )
     mass_lock_time: float = Field(
@@ -258,7 +258,7 @@ class Commands(NamedTuple):
 
     def values(self) -> tuple[float, float, float, float]:
         """In :data:`COMMAND_NAMES` order."""
-        return tuple(self)
+        return self.mass_position_cmd, self.tunnel_force, self.fin_angle, self.thrust
 
 
 @dataclass(frozen=True)
@@ -368,6 +368,7 @@ class Autopilot:
 
     def _backstepping_law(self, time: float, x: tuple[float, ...]) -> tuple[float, float]:
         v, r, p, phi, psi_e, y_v, _ = x
+        assert self.backstepping is not None, "set with this law by _design_heading_law"
         return self.backstepping.command_values(time, v, r, p, phi, psi_e, y_v)
 
     def reset(self) -> None:
@@ -423,7 +424,7 @@ class Autopilot:
         tunnel = _clip(tunnel, c.tunnel_force_limit)
         commands = Commands(mass_cmd, tunnel, fin, c.thrust_command)
         if not (math.isfinite(mass_cmd) and math.isfinite(tunnel) and math.isfinite(fin)):
-            if saved is not None:
+            if saved is not None and self.backstepping is not None:
                 self.backstepping.load_state_values(saved)
             raise ValueError(f"the autopilot computed a non-finite command {commands}")
         self.commands = commands

@@ -98,7 +98,7 @@ OUTPUT_DESCRIPTIONS: dict[str, str] = {
     "thrust": "propeller thrust (the thrust_command parameter)",
 }
 _DEFAULTS = AutopilotConfig()
-# Integer parameters that choose among numbered modes: their FMI range (min/max)
+# Integer parameters that choose among named modes (their range and names in the FMU)
 _MODES: dict[str, type[IntEnum]] = {"heading_mode": HeadingMode, "depth_mode": DepthMode}
 
 
@@ -148,7 +148,8 @@ class AuvAutopilot(SafeSlave):
             )
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         for name, field in AutopilotConfig.model_fields.items():
-            kind = {int: Integer, bool: Boolean, str: String, float: Real}[field.annotation]
+            kinds: dict[object, Any] = {int: Integer, bool: Boolean, str: String, float: Real}
+            kind = kinds[field.annotation]
             variable = kind(
                 name,
                 description=field.description,
@@ -156,15 +157,13 @@ class AuvAutopilot(SafeSlave):
                 setter=item_setter(self._params, name),
                 **fixed,
             )
-            if name in _MODES:
-                minimum, maximum = int(min(_MODES[name])), int(max(_MODES[name]))
-            else:
-                minimum, maximum = field_bounds(field) if kind is Real else (None, None)
+            minimum, maximum = field_bounds(field) if kind is Real else (None, None)
             self.register(
                 variable,
                 unit=field_unit(name) if kind is Real else None,
                 minimum=minimum,
                 maximum=maximum,
+                names=_MODES.get(name),
             )
 
     # --- SafeSlave hooks ---------------------------------------------------------------------
@@ -176,6 +175,7 @@ class AuvAutopilot(SafeSlave):
 
     def _step(self, current_time: float, step_size: float) -> None:
         autopilot = self._autopilot
+        assert autopilot is not None, "SafeSlave steps only an initialised instance"
         design_step = autopilot.config.design_step
         if (
             autopilot.designed_for_step

@@ -120,7 +120,8 @@ class AuvGuidance(SafeSlave):
             )
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         for name, field in GuidanceConfig.model_fields.items():
-            kind = {bool: Boolean, str: String, float: Real}[field.annotation]
+            kinds: dict[object, Any] = {bool: Boolean, str: String, float: Real}
+            kind = kinds[field.annotation]
             variable = kind(
                 name,
                 description=field.description,
@@ -140,21 +141,22 @@ class AuvGuidance(SafeSlave):
 
     def _initialize(self) -> None:
         self._guidance = LosGuidance(GuidanceConfig.build(**self._params))
-        self._publish(self._evaluate(0.0))
+        self._publish(self._evaluate(self._guidance, 0.0))
 
     def _step(self, current_time: float, step_size: float) -> None:
         guidance = self._guidance
+        assert guidance is not None, "SafeSlave steps only an initialised instance"
         before = guidance.state
         try:
-            output = self._evaluate(step_size)
+            output = self._evaluate(guidance, step_size)
         except Exception:
             guidance.state = before
             raise
         self._publish(output)
 
-    def _evaluate(self, step_size: float) -> GuidanceOutput:
+    def _evaluate(self, guidance: LosGuidance, step_size: float) -> GuidanceOutput:
         i = self._inputs
-        return self._guidance.step(
+        return guidance.step(
             i["north"], i["east"], i["current_north"], i["current_east"], step_size, i["yaw"]
         )
 

@@ -1,68 +1,12 @@
 """Backstepping heading autopilot on the moving mass with a Lyapunov-redesigned tunnel
 thruster (Sec. 6.3.3, (6.3.53)-(6.3.73)).
 
-The chain (6.3.53), with the plant's own right-hand sides::
-
-    psi'  = r                              (psi_e = psi - psi_d)
-    r'    = f1 + g1 v
-    v'    = f2 + g2 phi + delta + u~       (u~: tunnel thruster, delta: mass disturbance)
-    phi'  = p
-    p'    = f3 + g3 y_v
-
-Model terms. g1 = d r'/d v, g2 = d v'/d phi, g3 = d p'/d y_v and eps4' = d v'/d y_v are
-Jacobians of the LATERAL plant at the straight run at U0 with the mass held still
-(:meth:`LateralDesignModel.static_mass_jacobian`), and f1, f2, f3 are the plant's rates
-r', v', p' at the measured (v, r, p, phi) with the mass at the centre, minus the g-terms:
-f1 = r' - g1 v, f2 = v' - g2 phi, f3 = p'. So nothing is re-typed, and the terms (6.3.53)
-drops for a strict-feedback form (Gamma3' in yaw, the p terms in sway, sin phi ~ phi) are
-kept: with filtered derivatives (below) nothing is differentiated analytically, so the
-f's may depend on the whole measured state. The mass enters only through g3 y_v and the
-disturbance delta = eps4' y_v + (the servo's inertia force), as in (6.3.52)-(6.3.53).
-
-Control law (Steps 1-5 and (6.3.55)-(6.3.64)), gains k0..k4::
-
-    alpha0 = -k0 psi_e,                 z1 = r - alpha0,   alpha0' = -k0 r     (exact)
-    alpha1 = (-k1 z1 - psi_e - f1 + alpha0') / g1,          z2 = v - alpha1
-    alpha2 = (-k2 z2 - g1 z1 - f2 + alpha1'_c) / g2,        z3 = phi - alpha2
-    alpha3 = -k3 z3 - g2 z2 + alpha2'_c,                    z4 = p - alpha3
-    y_v    = (-k4 z4 - z3 - f3 + alpha3'_c) / g3            (6.3.64), sent as y_d
-    F_t    = -(eta0 + |eps4' y_v|) sat(z2 / Phi) / (d v'/d F_t)      (6.3.72)-(6.3.73)
-
-Derivatives of the virtual controls: alpha0' is exact (psi_d is piecewise constant, so
-alpha0' = -k0 r). alpha1', alpha2', alpha3' are COMMAND-FILTERED: each alpha_i passes
-through a critically damped second-order filter (:mod:`command_filter`, omega_f) whose rate
-output replaces alpha_i' (the dynamic-surface form of command-filtered backstepping; the
-alternative Sec. 6.3.3 names). Why not exact:
-* the plant's terms contain v|v|, r|r|, p|p|: alpha3' needs third derivatives of f1, which
-  do not exist at v = 0 or r = 0, and the f's are evaluated numerically from the plant, so
-  exact derivatives would need nested finite differences of a non-smooth function;
-* the exact design assumes y_v is set instantly, but our plant moves the mass through its
-  servo (omega_n = 2.4 rad/s: 130 deg of lag at the 5 rad/s roll frequency whose spring
-  the law cancels), so the faster alpha3' follows the roll, the harder y_d bangs between
-  the stops. The filter bandwidth omega_f = 10 rad/s (zeta = 1) sits above the designed
-  error dynamics (|eigenvalues| of -Lambda + S up to 5.8 rad/s) yet keeps the command
-  smooth. Measured on bs-3 (60 s, 10 ms): omega_f = 6-10 rad/s gives a total variation
-  of y_d of 0.3-0.45 m, 15 rad/s 2.0 m, 20 rad/s 22.5 m (bang-bang between the stops, the
-  thruster chattering too); every one of them settles within 5 s.
-Farrell's compensating signals are left out on purpose: they integrate the difference
-between the saturated and the wanted commands and wound up in our trials whenever the
-mass sat on a stop (bs-3 then never settled).
-
-Thruster (Lyapunov redesign, (6.3.67)-(6.3.73)). The thruster's acceleration u~ enters the
-sway equation: with d v'/d F_t taken from the plant (1/64.1 kg for REMUS 100; (6.3.71)
-writes 1/(m + a22) = 1/66 kg, the difference being the sway-roll-yaw coupling of the mass
-matrix), F_t = u~ / (d v'/d F_t). The parameters the dissertation leaves open, our choices:
-* eta0 = 0.08 m/s^2 (5.1 N): the margin over |delta| must also cover what (6.3.72) drops,
-  the mass's inertia force (up to k_v * 12 cm = 3.5 N plus damping, i.e. 0.05-0.1 m/s^2),
-  and the sampled-data error. Measured settling (|psi| < 1 deg) of bs-3: eta0 = 0 never
-  (a limit cycle of +-6 deg), 0.02 m/s^2 13 s (with a residual wobble), 0.03 8.3 s,
-  0.05 5.3 s, 0.08 3.2 s, 0.15 3.0 s: 0.08 is where the gain flattens out.
-* boundary layer Phi = 0.01 m/s on z2 (a sway-velocity error): the thruster's gain inside
-  the layer, (eta0 + |eps4' y_v|) / Phi <= 20 1/s, keeps the 10 ms sampled loop far from
-  its stability limit 2/h = 200 1/s and removes the chattering of sgn (6.3.73), while the
-  layer is small against the scenarios' sway velocities (0.05-0.2 m/s).
-* F_t limit 10 N (applied by the autopilot): the largest force in the dissertation's
-  thruster plots (Figs. 6.21, 6.24); (6.3.72) asks at most 64.1 (0.08 + 1.88 * 0.06) = 12.4 N.
+The chain (6.3.53) with the plant's own right-hand sides (g1, g2, g3, eps4' Jacobians of
+the lateral plant with the mass held still, :meth:`LateralDesignModel.static_mass_jacobian`;
+f1..f3 its rates minus the g terms), the virtual controls (6.3.55)-(6.3.64) with
+command-filtered derivatives (:mod:`controller_fmu.command_filter`), and the thruster law
+(6.3.72)-(6.3.73): docs/model.md#backstepping states them, with why the derivatives are
+filtered and how eta0, Phi and the force limit were chosen.
 """
 
 from __future__ import annotations
@@ -240,9 +184,11 @@ class BacksteppingHeading:
 
     def _compiled(
         self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
-    ) -> tuple[float, ...]:
+    ) -> fast.Sample:
         """The compiled law's 7 values; writes the filter transition it asks for first."""
-        params, law, state = self.design.compiled_plant.parameters, self._law, self._state
+        plant, law, state = self.design.compiled_plant, self._law, self._state
+        assert plant is not None and law is not None, "the compiled law needs numba"
+        params = plant.parameters
         out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v)
         if out[0]:  # a new interval: its exact transition (scipy's expm, cached)
             interval = time - float(state[fast.LAST_TIME])

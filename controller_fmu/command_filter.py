@@ -14,6 +14,7 @@ cached per interval length, so the result does not depend on any inner integrati
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.linalg import expm
@@ -47,7 +48,7 @@ class CommandFilterBank:
         self.value = storage[:n]  # a_c (views: every update is in place)
         self.rate = storage[n : 2 * n]  # a_c'
 
-    def start(self, inputs: np.ndarray) -> None:
+    def start(self, inputs: Sequence[float] | np.ndarray) -> None:
         """Start at rest on the given inputs (a_c = a, a_c' = 0)."""
         self.value[:] = inputs
         self.rate[:] = 0.0

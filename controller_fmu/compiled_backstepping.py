@@ -45,8 +45,23 @@ STATE_SIZE = 11
 _V, _P, _R, _ROLL, _YV, _Y_D = 7, 9, 11, 3, 12, 4
 
 
+# (needs_transition, y_v command m, F_t N, z1, z2, z3, z4): see :func:`command`
+Sample = tuple[float, float, float, float, float, float, float]
+
+
 @_jit
-def command(p, law, state, time, v, r, pp, phi, psi_e, y_v):
+def command(
+    p: np.ndarray,
+    law: np.ndarray,
+    state: np.ndarray,
+    time: float,
+    v: float,
+    r: float,
+    pp: float,
+    phi: float,
+    psi_e: float,
+    y_v: float,
+) -> Sample:
     """One sample: (needs_transition, y_v command m, F_t N, z1, z2, z3, z4), the state
     advanced in place. ``needs_transition`` = 1.0 (nothing changed) when the filters
     must advance over an interval whose transition ``law`` does not hold yet: the

@@ -18,6 +18,7 @@ relative velocities replace the absolute ones), and the input is the servo comma
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import numpy as np
 
@@ -98,12 +99,20 @@ class LateralDesignModel:
         derivative = self.plant.derivative if self._fast is None else self._fast.derivative
         return self._rates(derivative, v, r, p, phi, y_v)
 
-    def _rates(self, derivative, v: float, r: float, p: float, phi: float, y_v: float):
+    def _rates(
+        self,
+        derivative: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        v: float,
+        r: float,
+        p: float,
+        phi: float,
+        y_v: float,
+    ) -> tuple[float, float, float]:
         """(v_dot, r_dot, p_dot) from ``derivative`` (the reference's or the compiled one)."""
         x, inputs = self._x_work, self._u_work
         x[_V], x[_R], x[_P], x[_ROLL], x[_YV] = v, r, p, phi, y_v
         inputs[_Y_D] = y_v
-        rates = derivative(x, inputs).tolist()
+        rates: list[float] = derivative(x, inputs).tolist()
         return rates[_V], rates[_R], rates[_P]
 
     def static_mass_jacobian(self) -> dict[str, float]:

@@ -25,7 +25,7 @@ surface vessels in the presence of constant ocean currents", IEEE CDC 2008):
   belongs to the leg's direction relative to the current;
 * desired heading: ``psi_d = chi_d`` or, with the current compensation of the dissertation
   (6.3.74) (``compensate_current``), ``psi_d = chi_d - beta``, the crab angle from the
-  measured current and the design speed (:func:`controller_fmu.guidance.desired_heading`,
+  measured current and the design speed (:func:`controller_fmu.setpoint_shaping.desired_heading`,
   the function the autopilot uses, so the two agree exactly). Both set-points are given
   on the branch nearest the measured yaw, ``psi + wrap(psi_d - psi)``: the plant's yaw is
   continuous (it counts whole turns), and so are the set-points then, while the autopilot,
@@ -55,7 +55,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from controller_fmu.config_errors import validation_message
-from controller_fmu.guidance import desired_heading, wrap_angle
+from controller_fmu.setpoint_shaping import desired_heading, wrap_angle
 
 DEFAULT_WAYPOINTS = "0, 0, 0; 100, 0, 0"
 WAYPOINT_FORMAT = "'north, east, down' (three numbers in m, NED)"

@@ -45,14 +45,19 @@ def state_weight(q_y: Sequence[float]) -> np.ndarray:
     Raises:
         ValueError: q_y is not 6 finite non-negative weights.
     """
-    q_y = np.asarray(q_y, dtype=float)
-    if q_y.shape != (len(OUTPUT_STATES),) or not np.all(np.isfinite(q_y)) or np.any(q_y < 0):
+    weights = np.asarray(q_y, dtype=float)
+    if (
+        weights.shape != (len(OUTPUT_STATES),)
+        or not np.all(np.isfinite(weights))
+        or np.any(weights < 0)
+    ):
         raise ValueError(
-            f"Q_y = {q_y.tolist()!r}: expected {len(OUTPUT_STATES)} finite weights >= 0 on "
+            f"Q_y = {weights.tolist()!r}: expected {len(OUTPUT_STATES)} finite weights >= 0 on "
             f"{list(OUTPUT_STATES)}"
         )
     C = output_matrix()
-    return C.T @ np.diag(q_y) @ C
+    Q: np.ndarray = C.T @ np.diag(weights) @ C
+    return Q
 
 
 def _check_r(r_u: float) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
-from cosim.paths import DEFAULT_FMU_DIR
+from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -44,7 +44,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _scenarios(args: argparse.Namespace) -> int:
-    from cosim.run.scenario import builtin_scenarios
+    from cosim.scenario.spec import builtin_scenarios
 
     scenarios = builtin_scenarios()
     width = max(map(len, scenarios), default=0)
@@ -54,7 +54,7 @@ def _scenarios(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from cosim.run.runner import RunOptions, run_from_cli
+    from cosim.runner import RunOptions, run_from_cli
 
     options = RunOptions(
         out_dir=args.out,
@@ -67,6 +67,9 @@ def _run(args: argparse.Namespace) -> int:
         fmu_dir=args.fmu_dir,
         overwrite=args.overwrite,
         progress=not args.quiet and sys.stderr.isatty(),
+        real_time=args.real_time,
+        control=args.control,
+        interactive=args.interactive,
     )
     return run_from_cli(args.scenario, options)
 
@@ -149,6 +152,17 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _reproduce(args: argparse.Namespace) -> int:
+    import time
+
+    from cosim.reproduction import reproduce
+
+    started = time.perf_counter()
+    page = reproduce(args.out, args.values, scenarios=not args.skip_scenarios)
+    print(f"wrote {page} in {time.perf_counter() - started:.0f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="auv-cosim",
@@ -182,6 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_live_options(p)
     p.set_defaults(func=_run)
 
     _add_sweep_parser(sub)
@@ -216,10 +231,30 @@ def build_parser() -> argparse.ArgumentParser:
     _add_model_options(a)
     a.set_defaults(func=_phase_portrait)
 
+    _add_reproduce_parser(sub)
+
     p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
     p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
     p.set_defaults(func=_report)
     return parser
+
+
+def _add_live_options(p: argparse.ArgumentParser) -> None:
+    """``auv-cosim run``'s live options: pacing, the control endpoint, keys."""
+    p.add_argument(
+        "--real-time",
+        nargs="?",
+        const=1.0,
+        type=float,
+        metavar="FACTOR",
+        help="pace the run at FACTOR x real time [1.0] (docs/live-runs.md)",
+    )
+    p.add_argument(
+        "--control",
+        metavar="[HOST:]PORT",
+        help="JSON-lines control endpoint, host 127.0.0.1 unless given; no authentication",
+    )
+    p.add_argument("--interactive", action="store_true", help="steer with keys (needs --real-time)")
 
 
 def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
@@ -249,6 +284,20 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_study)
 
 
+def _add_reproduce_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim reproduce``: regenerate docs/reproduction.md."""
+    p = sub.add_parser("reproduce", help="check the dissertation's numbers: docs/reproduction.md")
+    p.add_argument("--out", type=Path, default=DOCS_DIR, help="docs folder [%(default)s]")
+    p.add_argument(
+        "--values",
+        type=Path,
+        default=DOCS_DIR / "dissertation-values.toml",
+        help="the dissertation's printed values [%(default)s]",
+    )
+    p.add_argument("--skip-scenarios", action="store_true", help="no closed-loop runs (Ch. 6)")
+    p.set_defaults(func=_reproduce)
+
+
 def _add_model_options(a: argparse.ArgumentParser) -> None:
     a.add_argument("--vehicle", default="remus100", help="parameter set name or file")
     a.add_argument(
@@ -267,7 +316,7 @@ def _add_model_options(a: argparse.ArgumentParser) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. With ``argv`` None (the process's own command line), ``run``
     ignores stop signals outside the run itself, which records them
-    (:mod:`cosim.run.signals`): one arriving after the run, while the interpreter shuts
+    (:mod:`cosim.engine.signals`): one arriving after the run, while the interpreter shuts
     down, cannot turn a finished run's exit code into a death by signal."""
     args = build_parser().parse_args(argv)
     if argv is None and args.command == "run":

@@ -14,7 +14,7 @@ What ``fmi2Instantiate`` of pythonfmu 0.7's wrapper library does, every time:
    returns a borrowed reference).
 
 So a slave class defined in the entry module is created anew at each instantiation and
-kept alive by the leaked list (the 47 KiB per instance of issue 12), and a namespace whose
+kept alive by the leaked list (47 KiB per instance, before this was fixed), and a namespace whose
 functions do not hold extra references is freed after a few instances (a segmentation
 fault). The build (:mod:`cosim.fmus.build`) therefore writes a generated entry module,
 :func:`entry_source`, that defines nothing: it binds the slave class by import (step 3
@@ -38,6 +38,7 @@ import sys
 from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 _ENTRY = '''"""pythonfmu entry module of {fmu}.fmu, written by the build.
 
@@ -64,7 +65,7 @@ def entry_source(fmu: str, module: str, cls: str, packages: Iterable[str]) -> st
     return _ENTRY.format(fmu=fmu, module=module, cls=cls, packages=tuple(packages))
 
 
-def hold_namespace(namespace: dict) -> None:
+def hold_namespace(namespace: dict[str, Any]) -> None:
     """Take one more reference to an entry module's namespace (run by every execution of
     the entry module, so it balances the reference pythonfmu releases after each one).
 

@@ -85,10 +85,11 @@ def stale_code(build: Build) -> str | None:
     for path, expected in sorted(build.sha256.items()):
         name = _module_name(path)
         module = sys.modules.get(name) if name else None
-        if module is None or getattr(module, "__file__", None) is None:
+        file = getattr(module, "__file__", None)
+        if name is None or module is None or file is None:
             continue
-        if _loaded_sha256(name, module) != expected:
-            differing.append(f"{name} (from {module.__file__})")
+        if _loaded_sha256(name, module, file) != expected:
+            differing.append(f"{name} (from {file})")
     if not differing:
         return None
     shown = ", ".join(differing[:3]) + (f" and {len(differing) - 3} more" if differing[3:] else "")
@@ -108,14 +109,14 @@ def _module_name(path: str) -> str | None:
     return path.removesuffix(".py").removesuffix("/__init__").replace("/", ".")
 
 
-def _loaded_sha256(name: str, module: ModuleType) -> str:
-    """The SHA-256 of the source file ``module`` was loaded from, read the first time an
+def _loaded_sha256(name: str, module: ModuleType, file: str) -> str:
+    """The SHA-256 of ``file``, the source ``module`` was loaded from, read the first time an
     instance meets this module object (a file that cannot be read gives a non-digest)."""
     known = _loaded.get(name)
     if known is not None and known[0] is module:
         return known[1]
     try:
-        sha256 = hashlib.sha256(Path(module.__file__).read_bytes()).hexdigest()
+        sha256 = hashlib.sha256(Path(file).read_bytes()).hexdigest()
     except OSError as exc:
         sha256 = f"unreadable: {exc}"
     _loaded[name] = (module, sha256)

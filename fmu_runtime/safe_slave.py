@@ -88,8 +88,9 @@ import copy
 import json
 import math
 from collections.abc import Callable
+from enum import IntEnum
 from typing import Any, ClassVar
-from xml.etree.ElementTree import Element
+from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
@@ -109,6 +110,16 @@ _STEPPING = "initialised"
 _TERMINATED = "terminated"
 _TIME_TOLERANCE = 1e-9  # relative; see the module docstring (communication points)
 _MAX_PLANS = 64  # cached get_real / set_real plans per instance
+TOOL = "auv-cosim"  # the <Tool name> of our annotations in modelDescription.xml
+
+
+def _annotate_names(node: Element, names: type[IntEnum]) -> None:
+    """``<Annotations><Tool name="auv-cosim"><NamedValues><Item name="lqr" value="1"/>...``
+    on the ScalarVariable ``node`` (FMI 2.0 allows one element of any XML in a Tool)."""
+    tool = SubElement(SubElement(node, "Annotations"), "Tool", name=TOOL)
+    values = SubElement(tool, "NamedValues")
+    for member in names:
+        SubElement(values, "Item", name=member.name.lower(), value=str(int(member)))
 
 
 def _readable(var: Any) -> bool:
@@ -131,6 +142,7 @@ class SafeSlave(Fmi2Slave):
         self._access: dict[int, str] = {}
         self._units: dict[str, str] = {}
         self._bounds: dict[int, tuple[float | None, float | None]] = {}
+        self._names: dict[str, type[IntEnum]] = {}  # Integer variable -> its named values
         # hot-path plans of get_real / set_real, per list of value references
         self._get_plans: dict[tuple[int, ...], Any] = {}
         self._set_plans: dict[tuple[int, ...], Any] = {}
@@ -146,10 +158,15 @@ class SafeSlave(Fmi2Slave):
         unit: str | None = None,
         minimum: float | None = None,
         maximum: float | None = None,
+        names: type[IntEnum] | None = None,
     ) -> None:
         """Register an FMU variable; a Real needs its ``unit``, every variable a description.
         A Real or Integer may declare an inclusive range: writes outside it are refused,
-        and modelDescription.xml declares it as ``min``/``max``.
+        and modelDescription.xml declares it as ``min``/``max``. An Integer that chooses
+        among ``names`` (an IntEnum) takes their range, and modelDescription.xml lists each
+        value's name (lower case) in an annotation, so that scenario files can say
+        ``heading_mode = "backstepping"`` (an FMI Enumeration would say the same, but
+        libcosim and ecos read no Enumeration variables).
 
         Raises (at build time, where pythonfmu constructs the class): ValueError for a
         missing unit, description or variability, or a range on a Boolean/String, so a
@@ -163,6 +180,11 @@ class SafeSlave(Fmi2Slave):
             raise ValueError(f"variable {var.name!r}: Integer/Boolean/String need a variability")
         if (minimum, maximum) != (None, None) and not isinstance(var, Real | Integer):
             raise ValueError(f"variable {var.name!r}: only Real and Integer take a range")
+        if names is not None:
+            if not isinstance(var, Integer):
+                raise ValueError(f"variable {var.name!r}: only an Integer takes named values")
+            self._names[var.name] = names
+            minimum, maximum = int(min(names)), int(max(names))
         # pythonfmu's defaults, bound weakly: its own close over self (a reference cycle)
         if var.getter is None:
             var.getter = attribute_getter(self, var.local_name)
@@ -396,7 +418,8 @@ class SafeSlave(Fmi2Slave):
     @staticmethod
     def _fmu_state_from_bytes(state: bytes) -> dict[str, Any]:
         try:
-            return json.loads(state.decode("utf-8"))
+            decoded: dict[str, Any] = json.loads(state.decode("utf-8"))
+            return decoded
         except Exception as exc:
             return {"error": f"cannot deserialise the FMU state: {exc}"}
 
@@ -405,22 +428,25 @@ class SafeSlave(Fmi2Slave):
     def to_xml(self, model_options: dict[str, str] | None = None) -> Element:
         """pythonfmu's description plus a ``unit`` on every Real and the declared
         ``direct_feedthrough`` as ModelStructure dependencies (used by the build only)."""
-        root = super().to_xml(model_options or {})
+        root: Element = super().to_xml(model_options or {})
         index = {var.name: i + 1 for i, var in enumerate(self.vars.values())}
-        for node in root.find("ModelVariables"):
-            unit = self._units.get(node.get("name"))
+        for node in root.findall("ModelVariables/*"):
+            variable = node.attrib["name"]
+            unit = self._units.get(variable)
             real = node.find("Real")
             if unit and real is not None:
                 real.set("unit", unit)
-            bounds = self._bounds.get(int(node.get("valueReference")), (None, None))
+            bounds = self._bounds.get(int(node.attrib["valueReference"]), (None, None))
             for attribute, value in zip(("min", "max"), bounds, strict=True):
                 if value is not None:  # node[0]: the <Real>/<Integer> element
                     node[0].set(attribute, repr(value))
+            if variable in self._names:
+                _annotate_names(node, self._names[variable])
         outputs = root.find("ModelStructure/Outputs")
         inputs = {v.name for v in self.vars.values() if v.causality == Fmi2Causality.input}
         names = {i: name for name, i in index.items()}
         for unknown in outputs if outputs is not None else []:
-            name = names[int(unknown.get("index"))]
+            name = names[int(unknown.attrib["index"])]
             depends_on = self.direct_feedthrough.get(name, ())
             unknown_inputs = set(depends_on) - inputs
             if unknown_inputs:
@@ -484,7 +510,7 @@ class SafeSlave(Fmi2Slave):
         any_time = self._access.get(vr) == _WRITE_ANY_TIME
         return any_time and vr not in self._bounds and var.setter is not None
 
-    def _get(self, vr: int, kind: type, convert: type, fallback: Any) -> Any:
+    def _get(self, vr: int, kind: type[ScalarVariable], convert: type, fallback: Any) -> Any:
         try:
             var = self.vars[vr]
             if not isinstance(var, kind):
@@ -497,7 +523,7 @@ class SafeSlave(Fmi2Slave):
             self._error(f"get{kind.__name__} of valueReference {vr!r} failed: {_reason(exc)}")
             return fallback
 
-    def _set_all(self, vrs: list[int], values: list[Any], kind: type) -> None:
+    def _set_all(self, vrs: list[int], values: list[Any], kind: type[ScalarVariable]) -> None:
         for vr, value in zip(vrs, values, strict=False):
             try:
                 self._set(vr, value, kind)
@@ -506,7 +532,7 @@ class SafeSlave(Fmi2Slave):
                 self._problems[f"vr {vr}"] = message
                 self._error(message)
 
-    def _set(self, vr: int, value: Any, kind: type) -> None:
+    def _set(self, vr: int, value: Any, kind: type[ScalarVariable]) -> None:
         var = self.vars.get(vr)
         if var is None:
             raise KeyError(f"no variable has valueReference {vr!r}")
@@ -565,7 +591,7 @@ def _build_problem(resources: str | None) -> str | None:
     Also removes pythonfmu's ``sys.path`` entry for an FMU's extraction."""
     try:
         build = provenance.read_build(resources)
-        if build is None:  # constructed in-process or by pythonfmu's builder
+        if build is None or resources is None:  # constructed in-process or by pythonfmu's builder
             return None
         entry.release_search_path(resources)
         return provenance.stale_code(build)

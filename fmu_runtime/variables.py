@@ -20,24 +20,21 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Callable, Hashable
-from typing import Any, Protocol, TypeVar
+from typing import Any, Protocol
 
 from pydantic.fields import FieldInfo
 
-K = TypeVar("K", bound=Hashable)
-V = TypeVar("V")
-K_contra = TypeVar("K_contra", contravariant=True)
+
+class Items(Protocol):
+    """A container indexed by a key (a list, a numpy array, a dict). The key type is not a
+    type parameter: mypy cannot infer one from numpy's overloaded ``__getitem__``."""
+
+    def __getitem__(self, key: Any, /) -> Any: ...
+
+    def __setitem__(self, key: Any, value: Any, /) -> None: ...
 
 
-class Items(Protocol[K_contra]):
-    """A container indexed by ``K`` (a list, a numpy array, a dict)."""
-
-    def __getitem__(self, key: K_contra, /) -> Any: ...
-
-    def __setitem__(self, key: K_contra, value: Any, /) -> None: ...
-
-
-def item_getter(values: Items[K], key: K) -> Callable[[], Any]:
+def item_getter(values: Items, key: Hashable) -> Callable[[], Any]:
     """A pythonfmu getter returning ``values[key]`` at the time of the call."""
 
     def getter() -> Any:
@@ -46,7 +43,7 @@ def item_getter(values: Items[K], key: K) -> Callable[[], Any]:
     return getter
 
 
-def item_setter(values: Items[K], key: K) -> Callable[[Any], None]:
+def item_setter(values: Items, key: Hashable) -> Callable[[Any], None]:
     """A pythonfmu setter storing its value in ``values[key]``."""
 
     def setter(value: Any) -> None:

@@ -147,7 +147,7 @@ class AuvPlant(SafeSlave):
         self._last_current = self._inputs[CURRENT].tolist()
         self._model: PlantModel | None = None
         self._compiled: compiled.CompiledPlant | None = None
-        self._model_key: tuple | None = None
+        self._model_key: tuple[object, ...] | None = None
         self._physical = _default_physical_parameters(self._vehicles)
         self.variant = int(Variant.FULL)
         self.moving_mass_model = int(MovingMassModel.DISSERTATION)
@@ -233,18 +233,16 @@ class AuvPlant(SafeSlave):
                 "2 horizontal u-v-r-psi (5.1.30)",
                 **fixed,
             ),
-            minimum=int(min(Variant)),
-            maximum=int(max(Variant)),
+            names=Variant,
         )
         self.register(
             Integer(
                 "moving_mass_model",
-                description="0 the dissertation's moving mass (6.3.11)-(6.3.13), "
-                "1 hull and moving mass as two bodies (6.2.28)",
+                description="0 dissertation: its moving mass (6.3.11)-(6.3.13), "
+                "1 two_body: hull and moving mass as two bodies (6.2.28)",
                 **fixed,
             ),
-            minimum=int(min(MovingMassModel)),
-            maximum=int(max(MovingMassModel)),
+            names=MovingMassModel,
         )
         self.register(
             Boolean("ideal_fluid", description="drop the viscous terms (Thm 5.1)", **fixed)
@@ -310,6 +308,7 @@ class AuvPlant(SafeSlave):
 
     def _step(self, current_time: float, step_size: float) -> None:
         model = self._model
+        assert model is not None, "SafeSlave steps only an initialised instance"
         inputs = self._inputs.copy()
         x = self._x
         current = inputs[CURRENT].tolist()
@@ -356,7 +355,7 @@ class AuvPlant(SafeSlave):
             variant=Variant(self.variant),
             ideal_fluid=bool(self.ideal_fluid),
             current_shear=float(self.current_shear_dUdy),
-            moving_mass_model=self.moving_mass_model,
+            moving_mass_model=MovingMassModel(self.moving_mass_model),
         )
         self._physical.update({n: float(getattr(params, n)) for n in PHYSICAL_PARAMETERS})
         self._model = model
@@ -372,7 +371,7 @@ class AuvPlant(SafeSlave):
             )
         return model
 
-    def _parameter_key(self) -> tuple:
+    def _parameter_key(self) -> tuple[object, ...]:
         """Everything the model is built from (to rebuild it after a state restore)."""
         return (
             self.vehicle,
@@ -389,9 +388,11 @@ class AuvPlant(SafeSlave):
         if self._compiled is not None:
             self._derived[:] = self._compiled.outputs(self._x, inputs)
             return
-        nu_r = self._model.relative_velocity(self._x, inputs)
+        model = self._model
+        assert model is not None, "outputs are refreshed only once the model is built"
+        nu_r = model.relative_velocity(self._x, inputs)
         self._derived[:3] = nu_r[:3].tolist()
-        self._derived[3] = self._model.kinetic_energy(self._x, inputs)
+        self._derived[3] = model.kinetic_energy(self._x, inputs)
 
 
 def _default_physical_parameters(folder: Path) -> dict[str, float]:

@@ -1,4 +1,4 @@
-"""Benchmark the co-simulation (issues 5 and 15). Prints, in one run:
+"""Benchmark the co-simulation. Prints, in one run:
 
 1. Per scenario (bs-3 and vert-2, 60 s at 10 ms, no recording, through ``run_scenario``,
    what ``auv-cosim run --no-rrd`` does): the real-time factor, the FMI floor and the
@@ -35,12 +35,12 @@ from fmpy.fmi2 import FMU2Slave
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from cosim.analysis.closed_loop import measurements
+from cosim.engine import master
+from cosim.engine.slave import unzipped
 from cosim.fmus.build import pythonfmu_build
 from cosim.paths import DEFAULT_FMU_DIR
-from cosim.run import master
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import Scenario, load_scenario
-from cosim.run.slave import unzipped
+from cosim.runner import run_scenario
+from cosim.scenario.spec import Scenario, load_scenario
 from plant_fmu.model.compiled import CompiledPlant
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
@@ -127,7 +127,7 @@ def floor_per_step(folder: Path, n_steps: int) -> float:
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
         slave.exitInitializationMode()
-        refs = {v.causality: [] for v in md.modelVariables}
+        refs: dict[str, list[int]] = {v.causality: [] for v in md.modelVariables}
         for v in md.modelVariables:
             refs[v.causality].append(v.valueReference)
         slaves.append((slave, refs["input"], refs["output"]))

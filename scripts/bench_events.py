@@ -1,4 +1,4 @@
-"""Benchmark the cost of events and faults in the master (issue 16). Prints, for bs-3, the
+"""Benchmark the cost of events and faults in the master. Prints, for bs-3, the
 stepping loop's wall clock with a timeline against the plain loop in the same process, as
 ratios (best of ``--repeat`` interleaved runs):
 
@@ -6,7 +6,7 @@ ratios (best of ``--repeat`` interleaved runs):
 * a gain fault of 1.0 over the whole run on plant.tunnel_force (delivered every step);
 
 and the plain loop's own figure, so a change to it shows. A scenario without events or
-faults runs the same loop (``cosim.run.master._loop``) with no-op calls: its cost is the
+faults runs the same loop (``cosim.engine.master._loop``) with no-op calls: its cost is the
 baseline.
 Usage: ``python scripts/bench_events.py [--stop-time 20] [--repeat 3] [--fmu-dir DIR]``.
 """
@@ -16,9 +16,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cosim.engine import master
 from cosim.paths import DEFAULT_FMU_DIR
-from cosim.run import master
-from cosim.run.scenario import SCENARIO_FOLDER, scenario_from_toml
+from cosim.scenario.spec import SCENARIO_FOLDER, scenario_from_toml
 
 VARIANTS = {
     "plain": "",

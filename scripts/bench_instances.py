@@ -1,4 +1,4 @@
-"""Memory kept per FMU instance: RSS growth over instantiate/free cycles (issue 12).
+"""Memory kept per FMU instance: RSS growth over instantiate/free cycles.
 
 For each FMU, in this process, through one fmpy ``FMU2Slave`` (the library loaded once,
 as a host that creates and frees instances does): ``--warmup`` cycles, then ``--cycles``
@@ -11,7 +11,8 @@ cycles, per cycle, and the 2 MB per 1,000 cycles budget scaled to ``--cycles``:
 
 What remains is pythonfmu 0.7's own, about 1 KiB per fmi2Instantiate (the MRO list and
 class reprs it never releases and the ``resources`` string; see fmu_runtime/entry.py).
-Before issue 12 each cycle kept about 47 KiB (plant) and 26 KiB (autopilot).
+Before the entry module stopped redefining the slave class, each cycle kept about 47 KiB
+(plant) and 26 KiB (autopilot).
 
 Usage: python scripts/bench_instances.py [--fmu-dir build/fmus] [--cycles 1000]
                                          [--warmup 50] [--fmu AuvPlant ...]

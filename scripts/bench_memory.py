@@ -3,7 +3,7 @@
 Each run is ``auv-cosim run vert-2 --stop-time T`` (recording included, as users run it) in a
 fresh process; its peak resident set size is the kernel's ``ru_maxrss`` for that child
 (``os.wait4``). The rows stream to results.csv and the recording, so memory should not grow
-with the stop time (issue 14's target: the 3600 s run within 50 MB of the 60 s one).
+with the stop time (the target: the 3600 s run within 50 MB of the 60 s one).
 Prints both peaks, their difference and ratio.
 
 Usage: python scripts/bench_memory.py [--long 3600] [--short 60] [--scenario vert-2]

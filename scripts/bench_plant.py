@@ -30,6 +30,7 @@ from plant_fmu.auv_plant import AuvPlant
 from plant_fmu.model.compiled import CompiledPlant
 from plant_fmu.model.dynamics import INPUT_NAMES, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.moving_mass import MovingMassModel
 from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import advance
 
@@ -40,7 +41,9 @@ INPUTS = dict(thrust=9.0, tunnel_force=1.0, fin_angle=0.05, mass_position_cmd=0.
 
 def in_process(steps: int) -> tuple[float, float, float]:
     model = PlantModel(load_vehicle("remus100"), Variant.FULL)
-    two_body = PlantModel(load_vehicle("remus100"), Variant.FULL, moving_mass_model=1)
+    two_body = PlantModel(
+        load_vehicle("remus100"), Variant.FULL, moving_mass_model=MovingMassModel.TWO_BODY
+    )
     inputs = input_vector(INPUTS)
     state = {"x": state_vector(START)}
 

@@ -25,14 +25,15 @@ import tempfile
 import time
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 import numpy as np
 import rerun as rr
 
 import cosim.viz.recording
 from cosim.paths import DEFAULT_FMU_DIR
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import Scenario, load_scenario
+from cosim.runner import run_scenario
+from cosim.scenario.spec import Scenario, load_scenario
 from cosim.viz.layout import time_index
 from cosim.viz.recording import RerunSink
 
@@ -105,11 +106,12 @@ class TimedSink(RerunSink):
 def real_run(folder: Path, rows: int, fmu_dir: Path, record: bool) -> tuple[float, float]:
     """(run_scenario's wall time, time spent in the sink), s."""
     scenario = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(stop_time=rows * 0.01)
-    cosim.viz.recording.RerunSink = TimedSink  # run_scenario imports it at call time
     TimedSink.spent = 0.0
-    t0 = time.perf_counter()
-    run_scenario(scenario, folder / "run", no_rrd=not record, fmu_dir=fmu_dir, overwrite=True)
-    return time.perf_counter() - t0, TimedSink.spent
+    # run_scenario imports RerunSink at call time
+    with mock.patch.object(cosim.viz.recording, "RerunSink", TimedSink):
+        t0 = time.perf_counter()
+        run_scenario(scenario, folder / "run", no_rrd=not record, fmu_dir=fmu_dir, overwrite=True)
+        return time.perf_counter() - t0, TimedSink.spent
 
 
 def main() -> None:

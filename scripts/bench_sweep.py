@@ -1,4 +1,4 @@
-"""Benchmark studies (issue 17). Prints four figures for N runs of bs-3 (20 s each):
+"""Benchmark studies. Prints four figures for N runs of bs-3 (20 s each):
 
 1. Serial throughput (runs/s): ``cosim.study.task.run_one`` in a loop in this process --
    the baseline, with no Dask at all.

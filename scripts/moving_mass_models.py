@@ -27,10 +27,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 import tomli_w
 
-from cosim.run.figures import YAW_TOLERANCE_RAD, settling_time
-from cosim.run.results import read_csv
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import load_scenario, scenario_from_toml
+from cosim.metrics.key_figures import YAW_TOLERANCE_RAD, settling_time
+from cosim.outputs.results import read_csv
+from cosim.runner import run_scenario
+from cosim.scenario.spec import load_scenario, scenario_from_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("lqr-2", "bs-3", "vert-1", "vert-2")

@@ -6,6 +6,7 @@
   tests that use it).
 * ``test_fmu_dir`` (session): the folder holding the master tests' FMUs built from
   tests/fmus (``CosimTestIntegrator.fmu``, ``CosimTestGain.fmu``).
+* Every test using ``fmu_paths`` or ``test_fmu_dir`` is marked ``fmu``.
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
   ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). This folder is on
@@ -94,3 +95,13 @@ def run_python(
         )
 
     return run
+
+
+FMU_FIXTURES = {"fmu_paths", "test_fmu_dir"}
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark every test that builds or loads FMUs (through the fixtures above) ``fmu``."""
+    for item in items:
+        if FMU_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.fmu)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from cosim.run.scenario import Scenario, scenario_from_toml
+from cosim.scenario.spec import Scenario, scenario_from_toml
 
 K, H, X0 = 2.0, 0.1, 1.0  # the loop's gain, step (s) and initial state
 

@@ -241,7 +241,7 @@ class OperatingConditions:
 # --- Equilibria --------------------------------------------------------------------------
 
 
-def in_box(names: Sequence[str], values: Sequence[float]) -> bool:
+def in_box(names: Sequence[str], values: Sequence[float] | np.ndarray) -> bool:
     """True when every free state lies in the search box (0 < u < 2, |v|, |r| <= 0.4, ...)."""
     for name, value in zip(names, values, strict=True):
         low, high = SEARCH_BOX.get(name, (-math.inf, math.inf))

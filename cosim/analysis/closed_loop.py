@@ -118,9 +118,10 @@ def simulate_closed_loop(
     for k in range(n):
         if guidance is not None:
             north, east = x[STATE_INDEX["north"]], x[STATE_INDEX["east"]]
-            current = inputs[[INPUT_INDEX["current_north"], INPUT_INDEX["current_east"]]]
+            water = inputs[[INPUT_INDEX["current_north"], INPUT_INDEX["current_east"]]]
+            water_north, water_east = water.tolist()
             yaw = x[STATE_INDEX["yaw"]]
-            out = guidance.step(north, east, *current.tolist(), step=step, yaw=yaw)
+            out = guidance.step(north, east, water_north, water_east, step=step, yaw=yaw)
             yaw_setpoint, depth_setpoint = out.yaw_setpoint, out.depth_setpoint
         meas = measurements(model, x, inputs, yaw_setpoint, depth_setpoint)
         held = autopilot.step(k * step, meas).values()

@@ -9,12 +9,15 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from cosim.analysis.bifurcation import Q_PROP, Sweep, cg_offset
@@ -30,7 +33,7 @@ PARAMETER_LABELS = {
 }
 # Display scale of the swept parameter (mass position in cm, as Fig. 5.12).
 PARAMETER_SCALE = {"roll_torque": 1.0, "mass_position": 100.0, "mu": 1.0, "eta": 1.0}
-SPECIAL_MARKERS = {
+SPECIAL_MARKERS: dict[str, dict[str, Any]] = {
     "fold": dict(marker="X", color="tab:red", s=90),
     "branch point": dict(marker="D", color="black", s=50),
     "hopf": dict(marker="*", color="tab:green", s=120),
@@ -116,14 +119,18 @@ def plot_sweep(result: Sweep, params: VehicleParameters, path: Path, title: str 
     return _save(fig, path)
 
 
-def _secondary_axis(ax: plt.Axes, parameter: str, params: VehicleParameters) -> None:
+def _secondary_axis(ax: Axes, parameter: str, params: VehicleParameters) -> None:
     """A top axis in the dissertation's unit: Q / Q_prop (Fig. 5.9), y_g in cm (Fig. 5.12)."""
     if parameter == "roll_torque":
-        top = ax.secondary_xaxis("top", functions=(lambda q: q / Q_PROP, lambda k: k * Q_PROP))
+        top = ax.secondary_xaxis(
+            "top", functions=(lambda q: np.divide(q, Q_PROP), lambda k: np.multiply(k, Q_PROP))
+        )
         top.set_xlabel(r"Q / $Q_{prop}$")
     elif parameter == "mass_position":
         ratio = cg_offset(params, 1.0)  # y_g per y_v (both in cm here)
-        top = ax.secondary_xaxis("top", functions=(lambda y: y * ratio, lambda g: g / ratio))
+        top = ax.secondary_xaxis(
+            "top", functions=(lambda y: np.multiply(y, ratio), lambda g: np.divide(g, ratio))
+        )
         top.set_xlabel("CG offset $y_g = m_v g y_v / W$ (cm)")
 
 
@@ -152,7 +159,9 @@ def plot_phase_portrait(
         ax2d.scatter(x[0, iv], x[0, ir], color=color, s=6)
     for k, eq in enumerate(equilibria):
         face = colors(k % 10) if eq.stable else "white"
-        style = dict(s=80, edgecolors="black", facecolors=face, zorder=5, depthshade=False)
+        style: dict[str, Any] = dict(
+            s=80, edgecolors="black", facecolors=face, zorder=5, depthshade=False
+        )
         ax3d.scatter(eq.state[iv], eq.state[iu], eq.state[ir], **style)
         style.pop("depthshade")
         ax2d.scatter(eq.state[iv], eq.state[ir], **style)
@@ -167,7 +176,7 @@ def plot_phase_portrait(
     return _save(fig, path)
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def _save(fig: Figure, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)

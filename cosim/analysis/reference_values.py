@@ -1,8 +1,8 @@
 """The dissertation's printed numbers (``docs/dissertation-values.toml``), read in one place.
 
-The tests (through ``tests/reference_values.py``) and ``scripts/reproduce_dissertation.py``
-compare the model with these numbers. The file is repository data, not package data, so
-the caller passes its path.
+The tests (through ``tests/reference_values.py``) and the reproduction
+(``cosim/reproduction/``) compare the model with these numbers. The file is repository
+data, not package data, so the caller passes its path.
 
 A value keeps the digits it was printed with: the file's floats are parsed as
 :class:`decimal.Decimal`, so ``1.4050`` keeps its four decimals, and
@@ -139,4 +139,7 @@ def _map(printed: Printed, function: Any) -> Any:
 
 
 def _unit_of_last_digit(number: Decimal) -> float:
-    return float(Decimal(1).scaleb(number.as_tuple().exponent))
+    exponent = number.as_tuple().exponent
+    if not isinstance(exponent, int):  # "n", "N", "F": NaN or infinity
+        raise ValueError(f"printed value {number}: expected a finite number")
+    return float(Decimal(1).scaleb(exponent))

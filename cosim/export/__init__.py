@@ -1,6 +1,6 @@
 """Export a scenario for other FMI tools: an SSP 1.0 archive or an OSP system structure.
 
-Both exports are written from the same resolved :class:`cosim.run.scenario.Scenario` the
+Both exports are written from the same resolved :class:`cosim.scenario.spec.Scenario` the
 master runs: the instances (named as in the scenario, ``plant`` and ``controller``), their
 FMUs, every explicit start value (with its unit), every connection, the stop time and the
 communication step (with each instance's step multiple).

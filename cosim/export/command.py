@@ -7,7 +7,7 @@ from pathlib import Path
 from cosim.errors import CosimError
 from cosim.export.osp import export_osp
 from cosim.export.ssp import export_ssp
-from cosim.run.scenario import load_scenario
+from cosim.scenario.spec import load_scenario
 
 
 def export_scenario(
@@ -26,7 +26,7 @@ def export_scenario(
     resolved = load_scenario(scenario, fmu_dir=fmu_dir)
     if ssp is not None:
         print(f"SSP archive: {export_ssp(resolved, ssp)}")
-    else:
+    elif osp is not None:
         print(f"OSP system structure: {export_osp(resolved, osp)}")
     if resolved.coupling.algorithm != "jacobi":
         print(

@@ -1,7 +1,7 @@
 """What both export formats need: each instance with the FMU it packages and its interface.
 
 The scenario has resolved and checked every connection and start value against its FMUs
-(:mod:`cosim.run.scenario`); the exporters reuse that. An FMU packaged in place of the one
+(:mod:`cosim.scenario.spec`); the exporters reuse that. An FMU packaged in place of the one
 the scenario resolved (given in ``fmu_paths``, or the same file rebuilt since) is only
 checked to offer every variable the scenario uses with the same type and causality, so the
 checked connections and start values hold for it too.
@@ -15,7 +15,7 @@ from pathlib import Path
 
 from cosim.errors import CosimError
 from cosim.fmus.interface import FmuInterface, FmuInterfaceError, Variable, read_interface
-from cosim.run.scenario import Instance, Scenario
+from cosim.scenario.spec import Instance, Scenario
 
 StartValue = bool | int | float | str
 

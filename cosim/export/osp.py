@@ -16,7 +16,7 @@ from lxml import etree
 from cosim.export.components import Component, components, value_type, xml_literal
 from cosim.export.files import replacing_folder
 from cosim.export.transformations import linear_transformations
-from cosim.run.scenario import Scenario
+from cosim.scenario.spec import Scenario
 
 OSP_FILE = "OspSystemStructure.xml"
 _OSP_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"

@@ -40,7 +40,7 @@ from cosim.export.components import Component, components, value_type, xml_liter
 from cosim.export.files import replacing_file
 from cosim.export.transformations import linear_transformations
 from cosim.fmus.interface import Variable
-from cosim.run.scenario import Scenario
+from cosim.scenario.spec import Scenario
 
 PARAMETER_SET = "initial"
 """Name of the SSP parameter set holding the scenario's start values."""
@@ -149,6 +149,7 @@ class _UnitTable:
                 unit name differently.
         """
         fmu = comp.fmu_path.name
+        exponents: Mapping[str, float] | None
         if var.unit is None:
             name, exponents = _DIMENSIONLESS, {}
         else:

@@ -12,7 +12,7 @@ either format, so :func:`linear_transformations` refuses them, all in one messag
 from __future__ import annotations
 
 from cosim.errors import CosimError
-from cosim.run.scenario import Scenario
+from cosim.scenario.spec import Scenario
 
 
 def linear_transformations(scenario: Scenario, fmt: str) -> dict[str, tuple[float, float]]:

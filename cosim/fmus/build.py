@@ -204,7 +204,7 @@ def add_manifest(fmu: Path, name: str, staged: dict[str, bytes]) -> None:
     """Add ``resources/fmu_sources.json`` (:func:`fmu_runtime.provenance.manifest`) to the
     built ``fmu``: its GUID and the digest of every ``staged`` file."""
     with zipfile.ZipFile(fmu, "a") as archive:
-        guid = ET.fromstring(archive.read("modelDescription.xml")).get("guid")
+        guid = ET.fromstring(archive.read("modelDescription.xml")).attrib["guid"]
         archive.writestr(
             f"resources/{provenance.MANIFEST}", provenance.manifest(name, guid, staged)
         )
@@ -236,7 +236,7 @@ def complete_fmu(fmu: Path) -> None:
 def complete_model_description(xml: bytes) -> bytes:
     """The FMI 2.0 description pythonfmu wrote, completed (see the module docstring)."""
     root = ET.fromstring(xml)
-    cosim = root.find("CoSimulation")
+    cosim = _child(root, "CoSimulation")
     for flag, value in (
         ("needsExecutionTool", "false"),
         ("canGetAndSetFMUstate", "true"),
@@ -244,8 +244,8 @@ def complete_model_description(xml: bytes) -> bytes:
     ):
         cosim.set(flag, value)
 
-    variables = list(root.find("ModelVariables"))
-    units = sorted({real.get("unit") for real in root.iter("Real") if real.get("unit")})
+    variables = list(_child(root, "ModelVariables"))
+    units = sorted({unit for real in root.iter("Real") if (unit := real.get("unit"))})
     for old in root.findall("UnitDefinitions"):
         root.remove(old)
     if units:
@@ -257,7 +257,7 @@ def complete_model_description(xml: bytes) -> bytes:
                 ET.SubElement(node, "BaseUnit", {k: str(v) for k, v in exponents.items()})
         root.insert(list(root).index(cosim) + 1, definitions)
 
-    structure = root.find("ModelStructure")
+    structure = _child(root, "ModelStructure")
     for old in structure.findall("InitialUnknowns"):
         structure.remove(old)
     initial_unknowns = [
@@ -271,7 +271,16 @@ def complete_model_description(xml: bytes) -> bytes:
         for index in initial_unknowns:
             ET.SubElement(node, "Unknown", index=str(index))
     ET.indent(root, space="  ")
-    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+    completed: bytes = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+    return completed
+
+
+def _child(root: ET.Element, tag: str) -> ET.Element:
+    """The ``tag`` element of a model description (pythonfmu always writes it)."""
+    node = root.find(tag)
+    if node is None:
+        raise ValueError(f"modelDescription.xml has no <{tag}>: expected pythonfmu's layout")
+    return node
 
 
 def base_units(unit: str) -> dict[str, int] | None:

@@ -1,7 +1,7 @@
 """An FMU's interface as its ``modelDescription.xml`` declares it: variables and units.
 
 :func:`read_interface` is the one reader of an FMU's interface: scenario loading
-(:mod:`cosim.run.scenario`) and the exporters (:mod:`cosim.export`) both use it. It is
+(:mod:`cosim.scenario.spec`) and the exporters (:mod:`cosim.export`) both use it. It is
 built on ``fmpy.read_model_description``, which reads the XML from the archive without
 loading the FMU's binary, and cached on (resolved path, modification time, size), so an
 FMU is read once per build however many scenarios use it, and a rebuilt FMU is read again.
@@ -9,13 +9,17 @@ FMU is read once per build however many scenarios use it, and a rebuilt FMU is r
 Values are typed as the FMI type says (``start``, ``min``, ``max``: float for Real, int for
 Integer and Enumeration, bool for Boolean, str for String); units are the variable's own
 or its declared type's, and ``units`` holds the FMU's ``UnitDefinitions`` as SI base-unit
-exponents (plus ``factor`` / ``offset`` where they are not 1 and 0).
+exponents (plus ``factor`` / ``offset`` where they are not 1 and 0). An Integer that
+chooses among named values (``heading_mode``: ``"backstepping"`` is 3) has them in
+``names``, read from our annotation on the variable (``<Tool name="auv-cosim">``, which
+fmpy does not read).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +50,7 @@ class Variable:
     min: float | int | None
     max: float | int | None
     description: str
+    names: Mapping[str, int] = dataclasses.field(default_factory=dict)  # name -> value
 
 
 @dataclass(frozen=True)
@@ -92,19 +97,34 @@ def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
         md = read_model_description(str(path))
     except Exception as exc:  # fmpy raises plain Exception for an invalid model description
         raise FmuInterfaceError(f"{path}: not a valid FMU: {exc}") from None
+    names = _named_values(path)
     return FmuInterface(
         path=path,
         fmi_version=md.fmiVersion,
         guid=md.guid,
         model_identifier=md.coSimulation.modelIdentifier if md.coSimulation else None,
-        variables={v.name: _variable(v) for v in md.modelVariables},
+        variables={v.name: _variable(v, names.get(v.name, {})) for v in md.modelVariables},
         units={unit.name: _base_unit(unit.baseUnit) for unit in md.unitDefinitions},
         model_description=md,
         model_variables={v.name: v for v in md.modelVariables},
     )
 
 
-def _variable(v: Any) -> Variable:
+def _named_values(path: Path) -> dict[str, dict[str, int]]:
+    """``{variable: {name: value}}`` from the annotations our FMUs put on their variables
+    (see :mod:`fmu_runtime.safe_slave`); empty for another FMU."""
+    from lxml import etree
+
+    with zipfile.ZipFile(path) as archive:
+        root = etree.fromstring(archive.read("modelDescription.xml"))
+    return {
+        variable.attrib["name"]: {item.attrib["name"]: int(item.attrib["value"]) for item in values}
+        for variable in root.iterfind("ModelVariables/ScalarVariable")
+        for values in variable.iterfind("Annotations/Tool[@name='auv-cosim']/NamedValues")
+    }
+
+
+def _variable(v: Any, names: Mapping[str, int]) -> Variable:
     declared = v.declaredType
     return Variable(
         name=v.name,
@@ -114,9 +134,10 @@ def _variable(v: Any) -> Variable:
         value_reference=v.valueReference,
         unit=v.unit or (declared.unit if declared is not None else None),
         start=_typed(v.type, v.start),
-        min=_typed(v.type, v.min),
-        max=_typed(v.type, v.max),
+        min=_bound(v.type, v.min),
+        max=_bound(v.type, v.max),
         description=v.description or "",
+        names=names,
     )
 
 
@@ -131,6 +152,12 @@ def _typed(fmi_type: str, text: str | None) -> Value | None:
     if fmi_type == "Boolean":
         return text in ("true", "1")
     return text
+
+
+def _bound(fmi_type: str, text: str | None) -> float | int | None:
+    """A min or max attribute: a number (FMI declares them on numeric types only)."""
+    value = _typed(fmi_type, text)
+    return value if isinstance(value, int | float) else None
 
 
 def _base_unit(base: Any) -> dict[str, float] | None:

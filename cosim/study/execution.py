@@ -28,7 +28,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from distributed import Client, LocalCluster, as_completed, get_worker
 from distributed.diagnostics.plugin import WorkerPlugin
@@ -99,8 +99,11 @@ def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[
 
 def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
     """One task: one run, with the job and the FMUs the plugin brought to this worker."""
-    plugin = get_worker().plugins[plugin_name]
+    # the StudyPlugin registered under this name before the tasks were submitted
+    plugin = cast(StudyPlugin, get_worker().plugins[plugin_name])
     job, folder = plugin.job, plugin.folder
+    if folder is None:  # setup runs when the plugin is registered, before any task
+        raise StudyError(f"study plugin {plugin_name}: not set up on this worker")
     paths = {instance: folder / relative for instance, relative in job.fmu_files.items()}
     return run_one(job.base, paths, job.factors, values, job.keep)
 
@@ -128,7 +131,7 @@ def tls_security(ca_file: Path | None, cert: Path | None, key: Path | None) -> S
             f"TLS needs all of --tls-ca-file, --tls-cert, --tls-key; missing: {', '.join(missing)}"
         )
     for flag, path in given.items():
-        if not Path(path).is_file():
+        if path is not None and not Path(path).is_file():
             raise StudyError(f"{flag} {path}: no such file")
     return Security(
         tls_ca_file=str(ca_file),

@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, get_args
 
-from cosim.run.timeline_spec import FaultSpec
+from cosim.scenario.timeline_spec import FaultSpec
 from cosim.study.spec import StudyError
 
 Value = bool | int | float | str
@@ -58,7 +58,9 @@ class ScenarioFacts:
 class FactorKind(Protocol):
     """A kind of factor: recognises its names and writes a value into the scenario."""
 
-    name: str
+    @property
+    def name(self) -> str:
+        """The factor's name as the study file writes it (read-only: kinds are frozen)."""
 
     @classmethod
     def recognise(cls, name: str, facts: ScenarioFacts) -> FactorKind | None:

@@ -27,6 +27,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 PANEL_COLUMNS = 4
@@ -147,7 +148,7 @@ def plot_scatter_matrix(rows: Sequence[Row], variables: Sequence[str], path: Pat
     return _save(fig, path)
 
 
-def _panels(n: int) -> tuple[plt.Figure, list[Any]]:
+def _panels(n: int) -> tuple[Figure, list[Any]]:
     cols = min(PANEL_COLUMNS, n)
     nrows = math.ceil(n / cols)
     fig, axes = plt.subplots(
@@ -163,7 +164,7 @@ def _panels(n: int) -> tuple[plt.Figure, list[Any]]:
     return fig, flat[:n]
 
 
-def _margins(fig: plt.Figure) -> None:
+def _margins(fig: Figure) -> None:
     """Fixed margins in inches (tight_layout would double the time to save a figure)."""
     width, height = fig.get_size_inches()
     fig.subplots_adjust(
@@ -194,7 +195,7 @@ def _file_safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "._-" else "_" for c in name)
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def _save(fig: Figure, path: Path) -> Path:
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path

@@ -249,9 +249,9 @@ def _overlay(
     found = {run_id: results(run_id) for run_id in chosen}
     missing = [run_id for run_id, found_results in found.items() if found_results is None]
     shown = [
-        OverlayRun(run_id, label(by_id[run_id]), found[run_id])
+        OverlayRun(run_id, label(by_id[run_id]), run_results)
         for run_id in chosen
-        if run_id not in missing
+        if (run_results := found[run_id]) is not None
     ]
     text = notes(chosen, by_id, by_row, missing, empty)
     path = write_overlay(out_dir / OVERLAY_FILE, shown, f"study {out_dir.name}", text)

@@ -25,12 +25,12 @@ from typing import Any
 
 import tomli_w
 
-from cosim.analysis.manoeuvres import summary_metrics
 from cosim.errors import CosimError
-from cosim.run.figures import KeyFigures
-from cosim.run.manoeuvre import scenario_metric_names
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import Scenario, load_scenario, scenario_from_data
+from cosim.metrics.key_figures import KeyFigures
+from cosim.metrics.manoeuvres import summary_metrics
+from cosim.outputs.manoeuvre import scenario_metric_names
+from cosim.runner import run_scenario
+from cosim.scenario.spec import Scenario, load_scenario, scenario_from_data
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
 

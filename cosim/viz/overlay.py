@@ -84,9 +84,9 @@ def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> No
         rec.send_recording_name(title)
         rec.log("world", rr.ViewCoordinates.FRD, static=True)
         rec.log("study", rr.TextDocument(notes, media_type=rr.MediaType.MARKDOWN), static=True)
-        colors = colormaps["tab20"].colors
+        colors = colormaps["tab20"]  # 20 qualitative colours
         for k, run in enumerate(runs):
-            _log_run(rec, run, tuple(int(255 * c) for c in colors[k % len(colors)]))
+            _log_run(rec, run, tuple(int(255 * c) for c in colors(k % colors.N)[:3]))
         rec.flush(timeout_sec=FLUSH_TIMEOUT)
     finally:
         rec.disconnect()

@@ -17,7 +17,7 @@ scenario id as the recording name and a property, and the resolved scenario TOML
 static text document at ``/scenario``; a scenario with a waypoint guidance gets its
 planned path and waypoints in the 3D scene (:func:`cosim.viz.mission.mission_waypoints`).
 What the 3D scene needs to know about the run -- the vehicle parameter set, whether depth
-control is on -- is read from the :class:`~cosim.run.scenario.Scenario` itself.
+control is on -- is read from the :class:`~cosim.scenario.spec.Scenario` itself.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import subprocess
 import sys
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -39,8 +39,8 @@ import numpy as np
 import rerun as rr
 
 from cosim.errors import CosimError
-from cosim.run.folder import RECORDING_FILE
-from cosim.run.scenario import Scenario
+from cosim.outputs.folder import RECORDING_FILE
+from cosim.scenario.spec import Scenario
 from cosim.viz.layout import (
     build_blueprint,
     plan_panels,
@@ -202,9 +202,9 @@ class RerunSink:
             self._flush()
             self._last_send = now
 
-    def add_notes(self, notes: list[tuple[float, str]]) -> None:
+    def add_notes(self, notes: Sequence[tuple[float, str]]) -> None:
         """Log what happened at a time -- an event fired, a fault started or stopped
-        (:mod:`cosim.run.timeline`) -- as ``rr.TextLog`` entries under :data:`NOTES_ENTITY`
+        (:mod:`cosim.engine.timeline`) -- as ``rr.TextLog`` entries under :data:`NOTES_ENTITY`
         at their ``sim_time`` (s); the master hands them over before the rows they precede."""
         if self._closed:
             raise ValueError("add_notes on a closed RerunSink")

@@ -42,11 +42,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
-from cosim.analysis.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.errors import CosimError
-from cosim.run.folder import REPORT_FOLDER
-from cosim.run.results import read_csv
+from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
+from cosim.outputs.folder import REPORT_FOLDER
+from cosim.outputs.results import read_csv
 from cosim.viz.mission import mission_waypoints
 
 INDEX_PAGE = "index.html"
@@ -378,7 +380,7 @@ def plot_trajectory(
     return _save(fig, path)
 
 
-def _plot_waypoints(ax: plt.Axes, waypoints: np.ndarray) -> None:
+def _plot_waypoints(ax: Axes, waypoints: np.ndarray) -> None:
     """The planned path (dashed) and its waypoints, numbered from 1, on a north-east plot."""
     north, east = waypoints[:, 0], waypoints[:, 1]
     ax.plot(east, north, "--", color="tab:orange", linewidth=1.0, label="planned path")
@@ -387,7 +389,7 @@ def _plot_waypoints(ax: plt.Axes, waypoints: np.ndarray) -> None:
         ax.annotate(str(k), (e, n), textcoords="offset points", xytext=(4, 4), fontsize=8)
 
 
-def _plot_turning_marks(ax: plt.Axes, marks: TurnMarks) -> None:
+def _plot_turning_marks(ax: Axes, marks: TurnMarks) -> None:
     """The execute and the original course (dashed), and from the course line to the 90
     and 180 deg points: the advance along it, the transfer and the tactical diameter
     across it (docs/manoeuvres.md)."""
@@ -419,7 +421,7 @@ def _metre(value: float | int | None) -> str:
     return "n/a" if value is None else f"{value:.2f} m"
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def _save(fig: Figure, path: Path) -> Path:
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path

@@ -315,8 +315,9 @@ class SceneWriter:
         exact through pitch +-90 deg, where roll and yaw alone are ill-defined) when
         recorded, else built from roll, pitch and yaw."""
         parts = [column(f"plant.quat_{axis}") for axis in "xyzw"]
-        if all(part is not None for part in parts):
-            return np.column_stack(parts)
+        recorded = [part for part in parts if part is not None]
+        if len(recorded) == len(parts):
+            return np.column_stack(recorded)
         return euler_to_quaternions(get("plant.roll"), get("plant.pitch"), yaw)
 
     def send(self, index: list[rr.TimeColumn], n: int, column: Columns) -> None:
@@ -392,8 +393,8 @@ class SceneWriter:
 
     def _send_target(self, index: list[rr.TimeColumn], column: Columns) -> None:
         """The waypoint a guidance steers for, if its outputs are recorded."""
-        target = [column(name) for name in TARGET_COLUMNS]
-        if all(values is not None for values in target):
+        target = [values for name in TARGET_COLUMNS if (values := column(name)) is not None]
+        if len(target) == len(TARGET_COLUMNS):
             self._rec.send_columns(
                 "world/mission/target",
                 indexes=index,

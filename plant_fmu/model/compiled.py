@@ -24,6 +24,8 @@ reference. Equation numbers: B. Li, FAU 2016; units SI.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -33,11 +35,15 @@ from plant_fmu.model.state_layout import N_STATES, N_STEP_STATES
 
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
+_F = TypeVar("_F", bound=Callable[..., Any])
 
 
-def _jit(func):
+def _jit(func: _F) -> _F:
     """numba.njit(cache=True) when numba is usable, else the Python function unchanged."""
-    return numba.njit(cache=True)(func) if AVAILABLE else func
+    if numba is None:
+        return func
+    compiled: _F = numba.njit(cache=True)(func)
+    return compiled
 
 
 # Layout of the flat parameter array (indices are compile-time constants in numba).
@@ -86,13 +92,15 @@ def flat_parameters(model: PlantModel) -> np.ndarray:
 
 
 @_jit
-def _cross(a0, a1, a2, b0, b1, b2):
+def _cross(
+    a0: float, a1: float, a2: float, b0: float, b1: float, b2: float
+) -> tuple[float, float, float]:
     """a x b on scalars (the reference's ``kinematics.cross``, same rounding)."""
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
 @_jit
-def _mat_vec(p, start, v, out):
+def _mat_vec(p: np.ndarray, start: int, v: np.ndarray, out: np.ndarray) -> None:
     """out = A v with A the 6x6 block of p at ``start`` (row by row, left to right)."""
     for i in range(6):
         acc = 0.0
@@ -102,7 +110,7 @@ def _mat_vec(p, start, v, out):
 
 
 @_jit
-def _coriolis(p, nu, nu_r, f):
+def _coriolis(p: np.ndarray, nu: np.ndarray, nu_r: np.ndarray, f: np.ndarray) -> None:
     """f -= C_RB(nu) nu (2.3.13) + C_A(nu_r) nu_r (A.62), as the reference writes them."""
     m, xg, zg = p[M], p[XG], p[ZG]
     v0, v1, v2, w0, w1, w2 = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
@@ -124,7 +132,7 @@ def _coriolis(p, nu, nu_r, f):
 
 
 @_jit
-def _viscous(p, nu_r, f):
+def _viscous(p: np.ndarray, nu_r: np.ndarray, f: np.ndarray) -> None:
     """f += the viscous cross-flow and lift forces (4.2.6)-(4.2.9)."""
     u, v, w, pr, q, r = nu_r[0], nu_r[1], nu_r[2], nu_r[3], nu_r[4], nu_r[5]
     f[0] += p[XUU] * u * abs(u)
@@ -136,7 +144,9 @@ def _viscous(p, nu_r, f):
 
 
 @_jit
-def _base_force(p, x, inputs, u_r, R, f):
+def _base_force(
+    p: np.ndarray, x: np.ndarray, inputs: np.ndarray, u_r: float, R: np.ndarray, f: np.ndarray
+) -> tuple[float, float]:
     """f = actuators (6.3.79, Table 6.1) + moving-mass reaction and offset weight
     (6.3.11-6.3.13) + restoring (3.5.3), with Gamma = R^T [0, 0, 1] the third row of R;
     returns (y', y'') of the mass (6.3.12)."""
@@ -168,7 +178,7 @@ def _base_force(p, x, inputs, u_r, R, f):
 
 
 @_jit
-def _rotation(phi, theta, psi, R):
+def _rotation(phi: float, theta: float, psi: float, R: np.ndarray) -> None:
     """R = Rz(psi) Ry(theta) Rx(phi) (2.2.8) into the 3x3 array R."""
     cf, sf = math.cos(phi), math.sin(phi)
     ct, st = math.cos(theta), math.sin(theta)
@@ -179,7 +189,7 @@ def _rotation(phi, theta, psi, R):
 
 
 @_jit
-def _quaternion_rotation(z, R):
+def _quaternion_rotation(z: np.ndarray, R: np.ndarray) -> None:
     """R of the quaternion z[14:18] = [w, x, y, z], normalised on the way
     (``kinematics.quaternion_rotation_matrix``)."""
     w, x, y, c = z[14], z[15], z[16], z[17]
@@ -190,7 +200,9 @@ def _quaternion_rotation(z, R):
 
 
 @_jit
-def _added_mass_times(p, n0, n1, n2, n3, n4, n5):
+def _added_mass_times(
+    p: np.ndarray, n0: float, n1: float, n2: float, n3: float, n4: float, n5: float
+) -> tuple[float, float, float, float, float, float]:
     """M_A n (the reference's ``added_mass_matrix_times``)."""
     return (
         p[A11] * n0,
@@ -203,14 +215,22 @@ def _added_mass_times(p, n0, n1, n2, n3, n4, n5):
 
 
 @_jit
-def _phi_row(a, R, v0, v1, v2):
+def _phi_row(a: float, R: np.ndarray, v0: float, v1: float, v2: float) -> float:
     """Row i of Phi = R^T (dV/d eta1) R times v, with a = R[0, i] * shear (the only
     non-zero gradient is d(current_north)/d(east)): Phi[i, j] = a R[1, j]."""
-    return (a * R[1, 0]) * v0 + (a * R[1, 1]) * v1 + (a * R[1, 2]) * v2
+    row: float = (a * R[1, 0]) * v0 + (a * R[1, 1]) * v1 + (a * R[1, 2]) * v2
+    return row
 
 
 @_jit
-def _full_form(p, x, inputs, R, work, dx):
+def _full_form(
+    p: np.ndarray,
+    x: np.ndarray,
+    inputs: np.ndarray,
+    R: np.ndarray,
+    work: np.ndarray,
+    dx: np.ndarray,
+) -> tuple[float, float]:
     """nu_dot and eta1_dot of the full form (3.6.2, 4.3.1) into dx, with the current's
     forces (3.4.12-3.4.20: ``currents.full_form_current_force``)."""
     nu, nu_r, f, cur = work[0], work[1], work[2], work[3]
@@ -255,7 +275,14 @@ def _full_form(p, x, inputs, R, work, dx):
 
 
 @_jit
-def _relative_form(p, x, inputs, R, work, dx):
+def _relative_form(
+    p: np.ndarray,
+    x: np.ndarray,
+    inputs: np.ndarray,
+    R: np.ndarray,
+    work: np.ndarray,
+    dx: np.ndarray,
+) -> tuple[float, float]:
     """nu_dot and eta1_dot of the lateral and horizontal variants (the relative form with
     the yaw-turned current, 5.2.10; the sheared current's terms, 5.3.1) into dx."""
     nu_r, f = work[1], work[2]
@@ -299,7 +326,14 @@ def _relative_form(p, x, inputs, R, work, dx):
 
 
 @_jit
-def derivative_into(p, x, inputs, R, work, dx):
+def derivative_into(
+    p: np.ndarray,
+    x: np.ndarray,
+    inputs: np.ndarray,
+    R: np.ndarray,
+    work: np.ndarray,
+    dx: np.ndarray,
+) -> None:
     """x_dot = f(x, inputs) into dx (``PlantModel.derivative``); R (3x3) and work (5x6)
     are scratch arrays."""
     phi, theta = x[3], x[4]
@@ -318,7 +352,14 @@ def derivative_into(p, x, inputs, R, work, dx):
 
 
 @_jit
-def _rates(p, x, inputs, R, work, dx):
+def _rates(
+    p: np.ndarray,
+    x: np.ndarray,
+    inputs: np.ndarray,
+    R: np.ndarray,
+    work: np.ndarray,
+    dx: np.ndarray,
+) -> None:
     """Everything but the attitude's rate into dx, the attitude given as R
     (``PlantModel._rates``)."""
     if p[VARIANT] == 0.0:
@@ -329,7 +370,14 @@ def _rates(p, x, inputs, R, work, dx):
 
 
 @_jit
-def step_derivative_into(p, z, inputs, R, work, dz):
+def step_derivative_into(
+    p: np.ndarray,
+    z: np.ndarray,
+    inputs: np.ndarray,
+    R: np.ndarray,
+    work: np.ndarray,
+    dz: np.ndarray,
+) -> None:
     """The stepping state's derivative into dz (``PlantModel.step_derivative``): the full
     variant's quaternion q_dot = 1/2 q (x) [0, omega], Euler entries still; the planar
     variants' Euler angles (:func:`derivative_into`), quaternion still."""
@@ -350,7 +398,7 @@ def step_derivative_into(p, z, inputs, R, work, dz):
 
 
 @_jit
-def project(p, x, collide):
+def project(p: np.ndarray, x: np.ndarray, collide: bool) -> None:
     """``PlantModel.project`` in place: frozen DOFs at 0, the mass within its stops (an
     arrival at a stop with ``collide`` hands its momentum m_v y' J to the hull) and under
     the speed limit. Model 0 only (J = [0, 1, 0, -z_g, 0, x_v])."""
@@ -387,7 +435,7 @@ def project(p, x, collide):
 
 
 @_jit
-def _quaternion_from_euler(phi, theta, psi, z):
+def _quaternion_from_euler(phi: float, theta: float, psi: float, z: np.ndarray) -> None:
     """z[14:18] = the quaternion of R = Rz(psi) Ry(theta) Rx(phi)
     (``kinematics.quaternion_from_euler``)."""
     cr, sr = math.cos(0.5 * phi), math.sin(0.5 * phi)
@@ -400,13 +448,13 @@ def _quaternion_from_euler(phi, theta, psi, z):
 
 
 @_jit
-def _nearest_turn(angle, previous):
+def _nearest_turn(angle: float, previous: float) -> float:
     """angle + 2 pi k nearest ``previous`` (``kinematics._nearest_turn``)."""
     return angle + 2.0 * math.pi * math.floor((previous - angle) / (2.0 * math.pi) + 0.5)
 
 
 @_jit
-def _euler_from_quaternion(z, R, a0, a1, a2):
+def _euler_from_quaternion(z: np.ndarray, R: np.ndarray, a0: float, a1: float, a2: float) -> None:
     """z[3:6] = the Euler angles of z's quaternion nearest (a0, a1, a2)
     (``kinematics.euler_from_quaternion``, which says why)."""
     _quaternion_rotation(z, R)
@@ -433,7 +481,7 @@ def _euler_from_quaternion(z, R, a0, a1, a2):
 
 
 @_jit
-def _start(x, z):
+def _start(x: np.ndarray, z: np.ndarray) -> bool:
     """z = the stepping state of x (``stepping.stepping_state``): False for a zero
     quaternion."""
     for i in range(14):
@@ -451,7 +499,9 @@ def _start(x, z):
 
 
 @_jit
-def advance_into(p, x, z, inputs, n, dt):
+def advance_into(
+    p: np.ndarray, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float
+) -> int:
     """z = the stepping state n RK4 steps of dt seconds after x (a state or a stepping
     state), projected after each stage, the attitude refreshed at the end, like
     ``stepping.advance``. Returns 0, or 1 for a non-finite input, 2 for a non-finite state
@@ -497,7 +547,9 @@ def advance_into(p, x, z, inputs, n, dt):
 
 
 @_jit
-def outputs_into(p, z, inputs, R, out):
+def outputs_into(
+    p: np.ndarray, z: np.ndarray, inputs: np.ndarray, R: np.ndarray, out: np.ndarray
+) -> None:
     """The plant FMU's derived outputs into out from the stepping state z: u_rel, v_rel,
     w_rel (nu - U, ``PlantModel.relative_velocity``) and the kinetic energy
     1/2 nu_r^T (M_RB + M_A) nu_r (``PlantModel.kinetic_energy``, model 0), J."""

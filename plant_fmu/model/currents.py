@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from plant_fmu.model.parameters import VehicleParameters
 
 
-def planar_current(psi: float, v_c: Sequence[float]) -> tuple[float, float]:
+def planar_current(psi: float, v_c: Sequence[float] | np.ndarray) -> tuple[float, float]:
     """The horizontal current in the yaw-turned frame, Rz(psi)^T [V_N, V_E], m/s (5.2.10)."""
     cp, sp = math.cos(psi), math.sin(psi)
     return cp * v_c[0] + sp * v_c[1], -sp * v_c[0] + cp * v_c[1]

@@ -90,7 +90,6 @@ from plant_fmu.model.state_layout import (
     POSITION,
     QUATERNION,
     STATE,
-    STATE_NAMES,
 )
 from plant_fmu.model.state_layout import INPUT_INDEX as INPUT_INDEX
 from plant_fmu.model.state_layout import INPUT_NAMES as INPUT_NAMES
@@ -100,6 +99,7 @@ from plant_fmu.model.state_layout import MASS_VELOCITY as _YVEL
 from plant_fmu.model.state_layout import N_INPUTS as N_INPUTS
 from plant_fmu.model.state_layout import N_STATES as N_STATES
 from plant_fmu.model.state_layout import STATE_INDEX as STATE_INDEX
+from plant_fmu.model.state_layout import STATE_NAMES as STATE_NAMES
 from plant_fmu.model.state_layout import STATE_UNITS as STATE_UNITS
 
 
@@ -187,7 +187,8 @@ class PlantModel:
         at the centre of its rail."""
         if not self.two_body:
             return self.mass_matrix
-        return self.mass_matrix + mass_matrix_shift(self.params, mass_position)
+        shifted: np.ndarray = self.mass_matrix + mass_matrix_shift(self.params, mass_position)
+        return shifted
 
     # The current at the vehicle.
 
@@ -228,7 +229,10 @@ class PlantModel:
             return 0.5 * float(nu_r @ self.mass_matrix @ nu_r)
         y_v, y_vel, m_v = x[_YV], x[_YVEL], self.params.m_v
         hull = 0.5 * float(nu_r @ self.mass_matrix_at(y_v) @ nu_r)
-        return hull + m_v * y_vel * float(rail_direction(self.params) @ nu_r) + 0.5 * m_v * y_vel**2
+        energy: float = (
+            hull + m_v * y_vel * float(rail_direction(self.params) @ nu_r) + 0.5 * m_v * y_vel**2
+        )
+        return energy
 
     # The pieces of the right-hand side, each a generalised force on [X, Y, Z, K, M, N].
 
@@ -258,7 +262,7 @@ class PlantModel:
             + [-a - b for a, b in zip(cross(lin, u), cross(ang, w), strict=True)]
         )
 
-    def viscous(self, nu_r: np.ndarray) -> np.ndarray:
+    def viscous(self, nu_r: Sequence[float] | np.ndarray) -> np.ndarray:
         """Viscous cross-flow and lift forces on the right-hand side (4.2.6)-(4.2.9)."""
         params = self.params
         u, v, w, roll_rate, q, r = nu_r
@@ -290,7 +294,7 @@ class PlantModel:
         [(W - B) Gamma; r_g x W Gamma], Gamma = R^T [0, 0, 1]."""
         return self.hydrostatics(gravity_direction(phi, theta))
 
-    def hydrostatics(self, gamma: Sequence[float]) -> np.ndarray:
+    def hydrostatics(self, gamma: Sequence[float] | np.ndarray) -> np.ndarray:
         """:meth:`restoring` for the earth's down axis in body coordinates, Gamma (the
         third row of R), however the attitude is held."""
         params = self.params
@@ -308,7 +312,10 @@ class PlantModel:
         )
 
     def moving_mass(
-        self, x: Sequence[float], inputs: Sequence[float], gamma: Sequence[float] | None = None
+        self,
+        x: Sequence[float],
+        inputs: Sequence[float],
+        gamma: Sequence[float] | np.ndarray | None = None,
     ) -> tuple[float, float, np.ndarray]:
         """Servo motion of the moving mass and its reaction on the hull (6.3.11-6.3.13).
 
@@ -325,9 +332,8 @@ class PlantModel:
         params = self.params
         y_vel, accel = servo_motion(params, x[_YV], x[_YVEL], inputs[MASS_COMMAND])
         f_mm = -params.m_v * accel
-        if gamma is None:
-            gamma = gravity_direction(x[3], x[4])
-        roll_weight, yaw_weight = weight_moment(params, x[_YV], gamma)
+        down = gravity_direction(x[3], x[4]) if gamma is None else gamma
+        roll_weight, yaw_weight = weight_moment(params, x[_YV], down)
         roll = -params.z_g * f_mm + roll_weight
         yaw = params.x_v * f_mm + yaw_weight
         return y_vel, accel, np.array([0.0, f_mm, 0.0, roll, 0.0, yaw])
@@ -435,7 +441,7 @@ class PlantModel:
             force += self.viscous(nu_r)
         if self.two_body:
             force += two_body_force(self.params, nu_r, xs[_YV], y_vel)
-        water_accel = (0.0, 0.0)
+        water_accel: tuple[float, float] | np.ndarray = (0.0, 0.0)
         if self.current_shear != 0.0:
             rigid = self._rigid_mass
             if self.two_body:
@@ -452,7 +458,8 @@ class PlantModel:
     def _accelerate(self, mass_position: float, force: np.ndarray) -> np.ndarray:
         """(M_RB + M_A)^-1 force on the free degrees of freedom (0 on the frozen ones)."""
         if not self.two_body:
-            return self._inverse_mass @ force
+            accelerated: np.ndarray = self._inverse_mass @ force
+            return accelerated
         free = self._free
         M = self.mass_matrix_at(mass_position)
         accel = np.zeros(6)
@@ -504,7 +511,8 @@ class PlantModel:
         impulse = self.params.m_v * mass_velocity * rail_direction(self.params)
         if not self.two_body:
             return nu + self._inverse_mass @ impulse
-        return nu + self._accelerate(stop, impulse)
+        after: np.ndarray = nu + self._accelerate(stop, impulse)
+        return after
 
     @cached_property
     def without_stops(self) -> PlantModel:
@@ -526,6 +534,6 @@ class PlantModel:
             d_nuc[:3] = self.rotation(x).T @ np.asarray(delta_current, float)
         else:
             d_nuc[:2] = planar_current(x[5], delta_current)
-        impulse = np.array(added_mass_matrix_times(self.params, d_nuc))
+        impulse: np.ndarray = np.array(added_mass_matrix_times(self.params, d_nuc))
         impulse[:3] += self.params.m_bar * d_nuc[:3]
         return self._accelerate(x[_YV], impulse)

@@ -55,7 +55,9 @@ def added_mass_matrix(params: InertiaParameters) -> np.ndarray:
     return M
 
 
-def added_mass_matrix_times(params: InertiaParameters, nu: Sequence[float]) -> list[float]:
+def added_mass_matrix_times(
+    params: InertiaParameters, nu: Sequence[float] | np.ndarray
+) -> list[float]:
     """M_A nu without building the matrix (the added-mass impulse of nu)."""
     u, v, w, roll_rate, q, r = nu
     return [

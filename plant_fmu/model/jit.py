@@ -22,8 +22,10 @@ is atomic, so a reader sees an old complete file or a new complete one, never a 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 NO_JIT_VARIABLE = "AUV_COSIM_NO_JIT"
 # file names whose functions use the content-keyed cache (plant_fmu/model/compiled.py,
@@ -44,36 +46,39 @@ def load_numba() -> tuple[ModuleType | None, str]:
     os.environ.setdefault("NUMBA_CACHE_DIR", str(default_cache_dir()))
     try:
         import numba
-        from numba.core import caching
+        import numba.core.caching  # what _install_locator extends
     except ImportError as exc:
         return None, f"numba cannot be imported ({exc})"
-    _install_locator(caching)
+    _install_locator()
     return numba, ""
 
 
-def _install_locator(caching: ModuleType) -> None:
+def _install_locator() -> None:
     """Put :class:`_ContentCacheLocator` first in numba's list of cache locators (once).
 
     numba has no public hook for this (``NUMBA_CACHE_LOCATOR_CLASSES`` would replace the
     locators of every numba user in the process); the class answers only for our files.
     """
-    base = caching.UserProvidedCacheLocator
+    from numba.core import caching  # imported by load_numba, after NUMBA_CACHE_DIR is set
 
-    class _ContentCacheLocator(base):
+    class _ContentCacheLocator(caching.UserProvidedCacheLocator):
         """numba's user-folder locator with the folder named after the source file only:
         numba's own names it after the file's folder, which differs for every unzipped
         copy of an FMU. The stamp stays numba's (a SHA-256 of the file's content), so a
         changed file recompiles."""
 
-        def __init__(self, py_func, py_file):
+        def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
             super().__init__(py_func, py_file)
             self._cache_path = os.path.join(caching.config.CACHE_DIR, "auv_cosim")
 
         @classmethod
-        def from_function(cls, py_func, py_file):
+        def from_function(
+            cls, py_func: Callable[..., Any], py_file: str
+        ) -> _ContentCacheLocator | None:
             if os.path.basename(py_file) not in _CACHED_MODULES:
                 return None
-            return super().from_function(py_func, py_file)
+            located: _ContentCacheLocator | None = super().from_function(py_func, py_file)
+            return located
 
     locators = caching.CacheImpl._locator_classes
     if not any(getattr(c, "__name__", "") == "_ContentCacheLocator" for c in locators):

@@ -40,7 +40,9 @@ def skew(a: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
-def cross(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
+def cross(
+    a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray
+) -> tuple[float, float, float]:
     """a x b of two 3-sequences of floats, as a tuple of Python floats.
 
     On 3-vectors np.cross costs ~10 us and numpy element access ~0.1 us per element; the
@@ -50,7 +52,7 @@ def cross(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def rotate(R: np.ndarray, v: Sequence[float], transpose: bool = False) -> np.ndarray:
+def rotate(R: np.ndarray, v: Sequence[float] | np.ndarray, transpose: bool = False) -> np.ndarray:
     """R v (or R^T v) of a 3-vector, summed left to right as the compiled path sums it
     (numpy's BLAS product may round differently, which a closed loop can amplify)."""
     m = R.T if transpose else R
@@ -89,7 +91,7 @@ def quaternion_from_euler(phi: float, theta: float, psi: float) -> np.ndarray:
     )
 
 
-def quaternion_rotation_matrix(q: Sequence[float]) -> np.ndarray:
+def quaternion_rotation_matrix(q: Sequence[float] | np.ndarray) -> np.ndarray:
     """Body-to-earth rotation R of the quaternion q = [w, x, y, z], normalised on the way
     (s = 2 / |q|^2), so the RK4 stage states, which leave the unit sphere by O(h^2), still
     give a rotation."""
@@ -104,7 +106,9 @@ def quaternion_rotation_matrix(q: Sequence[float]) -> np.ndarray:
     )
 
 
-def quaternion_rate(q: Sequence[float], omega: Sequence[float]) -> tuple[float, ...]:
+def quaternion_rate(
+    q: Sequence[float] | np.ndarray, omega: Sequence[float] | np.ndarray
+) -> tuple[float, ...]:
     """q_dot = 1/2 q (x) [0, omega], omega = [p, q, r] the body rates: the kinematics of a
     unit quaternion (Fossen, *Handbook of Marine Craft Hydrodynamics*, 2011, Sec. 2.2.2),
     singular nowhere, unlike T(eta2) of (2.2.15)."""
@@ -118,7 +122,9 @@ def quaternion_rate(q: Sequence[float], omega: Sequence[float]) -> tuple[float, 
     )
 
 
-def euler_from_quaternion(q: Sequence[float], previous: Sequence[float]) -> tuple[float, ...]:
+def euler_from_quaternion(
+    q: Sequence[float] | np.ndarray, previous: Sequence[float] | np.ndarray
+) -> tuple[float, ...]:
     """(phi, theta, psi) of the rotation q, the triple nearest to ``previous``.
 
     A rotation has two Euler triples, (phi, theta, psi) with |theta| <= 90 deg and

@@ -33,7 +33,9 @@ def input_vector(values: Mapping[str, float] | None = None, thrust: float = 0.0)
     return vector
 
 
-def _vector(values: Mapping[str, float] | None, index: dict, n: int, what: str) -> np.ndarray:
+def _vector(
+    values: Mapping[str, float] | None, index: Mapping[str, int], n: int, what: str
+) -> np.ndarray:
     vector = np.zeros(n)
     for name, value in (values or {}).items():
         if name not in index:
@@ -70,7 +72,8 @@ def linearize(
         plus, minus = vector.copy(), vector.copy()
         plus[k] += step
         minus[k] -= step
-        return (evaluate(plus)[s_idx] - evaluate(minus)[s_idx]) / (2.0 * step)
+        difference: np.ndarray = (evaluate(plus)[s_idx] - evaluate(minus)[s_idx]) / (2.0 * step)
+        return difference
 
     A = np.column_stack([column(x0, k, lambda x: model.derivative(x, u0)) for k in s_idx])
     B = (
@@ -81,7 +84,7 @@ def linearize(
     return A, B
 
 
-def _index(name: str, index: dict, what: str) -> int:
+def _index(name: str, index: Mapping[str, int], what: str) -> int:
     if name not in index:
         raise ValueError(f"unknown {what} {name!r}: expected one of {list(index)}")
     return index[name]

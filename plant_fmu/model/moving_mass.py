@@ -69,7 +69,7 @@ def servo_motion(
 
 
 def weight_moment(
-    params: VehicleParameters, y_v: float, gamma: Sequence[float]
+    params: VehicleParameters, y_v: float, gamma: Sequence[float] | np.ndarray
 ) -> tuple[float, float]:
     """Roll and yaw moments of the offset weight, r x m_v g Gamma with r = [0, y_v, 0] and
     Gamma = R^T [0, 0, 1] = [-sin theta, cos theta sin phi, cos theta cos phi] (3.5.3):

@@ -166,7 +166,8 @@ def _rk4(model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float) -> np.
     k2 = f(stage(z + 0.5 * dt * k1), inputs)
     k3 = f(stage(z + 0.5 * dt * k2), inputs)
     k4 = f(stage(z + dt * k3), inputs)
-    return z + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    end: np.ndarray = z + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return end
 
 
 def _substep(model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:

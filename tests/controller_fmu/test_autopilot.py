@@ -20,8 +20,8 @@ from controller_fmu.autopilot import (
     AutopilotSnapshot,
 )
 from controller_fmu.depth_pd import DepthPd
-from controller_fmu.guidance import crab_angle, desired_heading, mass_locked
 from controller_fmu.modes import DepthMode, HeadingMode
+from controller_fmu.setpoint_shaping import crab_angle, desired_heading, mass_locked
 from cosim.analysis.closed_loop import measurements, simulate_closed_loop
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector

@@ -1,4 +1,4 @@
-"""AuvAutopilot.fmu through fmpy (issue 4 acceptance): coupled to AuvPlant.fmu by a minimal
+"""AuvAutopilot.fmu through fmpy : coupled to AuvPlant.fmu by a minimal
 loop it reproduces the in-process closed loop (bs-3) to 1e-9; its variables match the
 contract; FMU state save/restore; bad input gives a non-OK status with a logged reason and
 the host survives."""

@@ -10,8 +10,8 @@ import pytest
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from controller_fmu.backstepping import BacksteppingGains, BacksteppingHeading
-from controller_fmu.guidance import wrap_angle
 from controller_fmu.lateral_model import LateralDesignModel
+from controller_fmu.setpoint_shaping import wrap_angle
 from cosim.analysis.closed_loop import simulate_closed_loop
 from plant_fmu.model import compiled
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant

@@ -15,7 +15,6 @@ from hypothesis import strategies as st
 from reference_values import dissertation
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
-from controller_fmu.guidance import crab_angle, wrap_angle
 from controller_fmu.los_guidance import (
     GuidanceConfig,
     GuidanceConfigError,
@@ -25,6 +24,7 @@ from controller_fmu.los_guidance import (
     leg_position,
     parse_waypoints,
 )
+from controller_fmu.setpoint_shaping import crab_angle, wrap_angle
 from cosim.analysis.closed_loop import simulate_closed_loop
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import state_vector

@@ -1,4 +1,4 @@
-"""Both built FMUs as a host sees them (issue 12), each case in fresh processes, since
+"""Both built FMUs as a host sees them, each case in fresh processes, since
 pythonfmu keeps an FMU's modules for the life of a process and a broken FMU may crash it:
 
 * a parameter loop (a fresh extraction per run, deleted after it) gives bit-identically

@@ -275,7 +275,7 @@ def test_description_has_units_and_declared_dependencies(monkeypatch):
         counter.to_xml()
 
 
-# --- FMI 2.0 call sequence, communication points, ranges (issue 12) ---------------------------
+# --- FMI 2.0 call sequence, communication points, ranges ---------------------------
 
 
 class Moded(Counter):

@@ -1,4 +1,4 @@
-"""AuvPlant.fmu through fmpy (issue 3 acceptance): equilibria of Examples 5.1 and 5.3,
+"""AuvPlant.fmu through fmpy : equilibria of Examples 5.1 and 5.3,
 equality with the in-process model, energy conservation, state save/restore, bad input,
 independent instances and a complete, valid modelDescription.xml."""
 

@@ -12,8 +12,8 @@ if sys.argv[3] == "off":
     os.environ["AUV_COSIM_NO_JIT"] = "1"
 from pathlib import Path
 import numpy as np
-from cosim.run import master
-from cosim.run.scenario import load_scenario
+from cosim.engine import master
+from cosim.scenario.spec import load_scenario
 scenario = load_scenario(sys.argv[1], fmu_dir=Path(sys.argv[2])).with_overrides(stop_time=10.0)
 result = master.run(scenario)
 assert result.complete, result.error

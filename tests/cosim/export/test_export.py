@@ -17,7 +17,7 @@ from lxml import etree
 from cosim import cli
 from cosim.errors import CosimError
 from cosim.export import OSP_FILE, PARAMETER_SET, export_osp, export_ssp
-from cosim.run.scenario import Scenario, load_scenario
+from cosim.scenario.spec import Scenario, load_scenario
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -402,7 +402,7 @@ def test_cli_export_writes_and_reports_the_archive(
 def test_ssp_packs_a_custom_vehicle_file(
     fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Issue 14: `vehicle = "myveh.toml"` in a scenario was not packed by `export`."""
+    """Regression: `vehicle = "myveh.toml"` in a scenario was not packed by `export`."""
     folder = tmp_path / "mission"
     folder.mkdir()
     vehicle = 'base = "remus100"\nm = 31.0\n'

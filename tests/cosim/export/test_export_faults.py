@@ -19,7 +19,7 @@ from repo_paths import TESTS
 
 from cosim.errors import CosimError
 from cosim.export import export_osp, export_ssp
-from cosim.run.scenario import SCENARIO_FOLDER, Scenario, load_scenario
+from cosim.scenario.spec import SCENARIO_FOLDER, Scenario, load_scenario
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",

@@ -32,7 +32,7 @@ import pytest
 from repo_paths import TESTS
 
 from cosim.export import export_osp, export_ssp
-from cosim.run.scenario import load_scenario
+from cosim.scenario.spec import load_scenario
 
 TOLERANCE = 1e-9  # absolute, in each variable's SI unit
 STOP_TIME = 10.0  # s

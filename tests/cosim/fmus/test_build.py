@@ -102,7 +102,7 @@ def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
 
 
 def test_a_built_fmu_failing_its_integrity_check_is_rebuilt(fmu_paths, tmp_path):
-    """Issue 14: a truncated FMU beside an up-to-date source hash was used as it was."""
+    """Regression: a truncated FMU beside an up-to-date source hash was used as it was."""
     source = fmu_paths["AuvPlant"]
     fmu = tmp_path / source.name
     shutil.copy2(source.with_name(source.name + build.HASH_SUFFIX), tmp_path)
@@ -190,7 +190,7 @@ def test_smoke_run_reports_a_dead_host_and_when_it_died(monkeypatch, stdout, whe
 
 
 def test_validating_a_corrupt_fmu_is_one_line(fmu_paths, tmp_path):
-    """Issue 14: `validate` on a truncated FMU ended in a traceback."""
+    """Regression: `validate` on a truncated FMU ended in a traceback."""
     from cosim.fmus.validation import validate_fmus
 
     broken = tmp_path / "AuvPlant.fmu"
@@ -201,7 +201,7 @@ def test_validating_a_corrupt_fmu_is_one_line(fmu_paths, tmp_path):
 
 
 def test_validate_rebuilds_a_truncated_fmu_in_the_fmu_folder(fmu_paths, tmp_path, capsys):
-    """Issue 14: a truncated FMU in the FMU folder was never rebuilt."""
+    """Regression: a truncated FMU in the FMU folder was never rebuilt."""
     from cosim.cli import main
 
     for name in build.FMUS:

@@ -11,7 +11,7 @@ import pytest
 
 from cosim.export.components import components
 from cosim.fmus.interface import FmuInterfaceError, read_interface
-from cosim.run.scenario import load_scenario
+from cosim.scenario.spec import load_scenario
 from plant_fmu.model.dynamics import INPUT_NAMES, Variant
 
 

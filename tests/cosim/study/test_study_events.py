@@ -1,4 +1,4 @@
-"""Event and fault factors (issue 16's [[events]] / [[faults]]): a grid over an event's
+"""Event and fault factors (the scenario's [[events]] / [[faults]]): a grid over an event's
 time and a fault's gain gives the rows of separate runs of the edited scenarios; a factor
 naming an event, a fault or a key the scenario does not have is refused before any run."""
 

@@ -10,8 +10,8 @@ from typing import Any
 
 import pytest
 
-from cosim.run.folder import GUARD_SCRIPT
-from cosim.run.runner import run_scenario
+from cosim.outputs.folder import GUARD_SCRIPT
+from cosim.runner import run_scenario
 from cosim.study import factors as factors_module
 from cosim.study.factors import ScenarioFacts, StartValue, resolve_factor
 from cosim.study.spec import StudyError
@@ -61,7 +61,7 @@ def test_the_dispatch_grows_by_a_kind(
     bs3: tuple[Base, ScenarioFacts], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     @dataclass(frozen=True)
-    class EventTime:  # the shape issue 16's event times will take
+    class EventTime:  # the shape of an event-time factor
         name: str
 
         @classmethod
@@ -85,7 +85,7 @@ def test_values_the_scenario_refuses_are_errors_before_any_run(
     with pytest.raises(StudyError, match=r"0\.5 is not an integer \(variant is Integer\)"):
         check_values(base, found, {"plant.variant": 0.5})
     with pytest.raises(StudyError, match=r"7 is outside \[0, 2\], the range variant takes"):
-        check_values(base, found, {"plant.variant": 7})  # the FMU's declared range (issue 14)
+        check_values(base, found, {"plant.variant": 7})  # the FMU's declared range
 
 
 def test_a_run_the_fmu_refuses_is_a_failed_record(bs3: tuple[Base, ScenarioFacts]) -> None:

@@ -1,4 +1,4 @@
-"""A study of a manoeuvre (issue 16's summary.json metrics): the turning circle with two
+"""A study of a manoeuvre (its metrics in summary.json): the turning circle with two
 moving-mass commands collects the steady turning diameter of each run."""
 
 from __future__ import annotations

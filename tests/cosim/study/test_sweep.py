@@ -12,8 +12,8 @@ import tomli_w
 from repo_paths import ROOT
 from sweep_helpers import sweep, table
 
-from cosim.analysis.manoeuvres import metric_names
 from cosim.cli import main
+from cosim.metrics.manoeuvres import metric_names
 
 ISSUE_STUDY = """
 scenario = "bs-3"
@@ -151,7 +151,7 @@ def test_bad_cluster_options_fail_before_anything_is_written(
 
 
 def test_a_study_of_a_manoeuvre_collects_its_metrics(tmp_path: Path, fmu_dir: Path) -> None:
-    """Issue 16: a study over turning-circle has the manoeuvre's metrics as columns, each
+    """Regression: a study over turning-circle has the manoeuvre's metrics as columns, each
     run's as its summary.json gives them (tactical diameter: 180 deg after about 16 s)."""
     study = tmp_path / "turns.toml"
     text = 'scenario = "turning-circle"\nstop_time = 20.0\nkeep = "all"\n[grid]\n'

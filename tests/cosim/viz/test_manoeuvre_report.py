@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.analysis.manoeuvres import manoeuvre_metrics, metric_names
+from cosim.metrics.manoeuvres import manoeuvre_metrics, metric_names
 from cosim.viz import report
 
 H = 0.05

@@ -14,8 +14,8 @@ from rerun.chunk import RrdReader
 from scenario_factory import auv_scenario
 
 from controller_fmu.los_guidance import DEFAULT_WAYPOINTS, parse_waypoints
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import load_scenario
+from cosim.runner import run_scenario
+from cosim.scenario.spec import load_scenario
 from cosim.viz.layout import time_index
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.recording import RerunSink

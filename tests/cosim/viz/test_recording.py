@@ -508,7 +508,7 @@ def test_view_with_display_runs_the_viewer_on_the_file(recorded, tmp_path: Path,
 
 
 def test_view_of_something_that_is_not_a_recording_exits_non_zero(tmp_path: Path, capsys):
-    """Issue 14: `view some-file` opened the viewer on any file and exited 0."""
+    """Regression: `view some-file` opened the viewer on any file and exited 0."""
     some_file = tmp_path / "notes.txt"
     some_file.write_text("not a recording\n")
     (tmp_path / "run").mkdir()
@@ -529,8 +529,8 @@ def test_view_of_a_folder_without_recording_names_it(tmp_path: Path, capsys):
 REAL_RUNS = """
 import sys
 from pathlib import Path
-from cosim.run.runner import run_scenario
-from cosim.run.scenario import load_scenario, scenario_from_toml
+from cosim.runner import run_scenario
+from cosim.scenario.spec import load_scenario, scenario_from_toml
 
 fmu_dir, out = Path(sys.argv[1]), Path(sys.argv[2])
 closed = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(stop_time=2.0)
@@ -568,7 +568,7 @@ def real_runs(fmu_paths, run_python, tmp_path_factory: pytest.TempPathFactory) -
 
 
 def read_results(run: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    from cosim.run.results import read_csv
+    from cosim.outputs.results import read_csv
 
     names, table = read_csv(run / "results.csv")
     return table[:, 0], dict(zip(names, table.T, strict=True))

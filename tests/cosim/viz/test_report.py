@@ -131,7 +131,7 @@ def test_incomplete_run_is_flagged_on_the_page(tmp_path):
 
 @pytest.mark.parametrize("value", ["inf", "-inf", "nan"])
 def test_a_partial_run_ending_on_a_non_finite_value_is_reported(tmp_path, value):
-    """Issue 14: `report` on a partial run with inf at t = 0 ended in a ValueError."""
+    """Regression: `report` on a partial run with inf at t = 0 ended in a ValueError."""
     run = tmp_path / "partial"
     run.mkdir()
     (run / "results.csv").write_text(
@@ -187,7 +187,7 @@ def test_cli_prints_the_index_path(lateral_run, capsys):
 BS3_RUN = """
 import sys
 from pathlib import Path
-from cosim.run.runner import run_scenario
+from cosim.runner import run_scenario
 
 fmu_dir, out = Path(sys.argv[1]), Path(sys.argv[2])
 outcome = run_scenario("bs-3", out, stop_time=20.0, no_rrd=True, fmu_dir=fmu_dir)

@@ -1,0 +1,487 @@
+"""The co-simulation master: steps the FMU instances of a :class:`Scenario` with fmpy.
+
+For a communication step h and N = stop_time / h steps::
+
+    instantiate all -> setupExperiment + start values -> enter/exitInitializationMode
+    read the outputs (row 0, t = 0)
+    for n in 0 .. N-1, t = n h:
+        jacobi:        every due instance takes its inputs from the outputs at t; then every
+                       due instance does doStep(t, k h) and its outputs are read
+        gauss-seidel:  in `coupling.order`, each due instance takes its inputs from the
+                       latest outputs (including those of instances already stepped at t),
+                       does doStep(t, k h), and its outputs are read
+        check every exchanged value is finite; record row n + 1 (t = (n+1) h)
+    terminate all -> freeInstance all
+
+An instance with step multiple k is *due* when n is a multiple of k; it then steps k h
+(shortened at the stop time) and holds its outputs in between (multi-rate). Row n holds
+every instance's latest outputs once the due instances have advanced to t = n h. Connected
+inputs are first set at t = 0, just before an instance's first doStep: there is no
+exchange in initialisation mode (our FMUs' initial outputs depend on parameters only), so
+under Jacobi the first step of the plant sees the controller's initial outputs.
+
+Why a loop of our own: ``fmpy.simulate_fmu`` runs one FMU, and ``fmpy.ssp`` has no
+Gauss-Seidel order, multi-rate, per-step NaN check or partial results. The style follows
+fmpy's ``simulateCS``. The hot path calls fmpy's thin ``fmi2SetReal``/``fmi2DoStep``/
+``fmi2GetReal`` wrappers (they check the status and raise ``FMICallException``) with value
+reference arrays and numpy buffers resolved once: a step allocates nothing, builds no dict.
+
+The rows stream out as the run advances: they fill a buffer of ``rows_per_chunk`` rows that
+is handed to the sinks (:mod:`cosim.engine.rows`) when full, and at least once every
+``hand_off_interval`` of wall clock, so memory does not grow with the stop time and a
+sink writing a file has it on disk within about a second. ``keep_rows`` also keeps every
+row in memory (tests, analyses).
+
+Before any FMU is instantiated, :func:`preflight` refuses what would hang a step: an
+instance with a ``max_substep`` parameter (the plant's longest internal RK4 step) that would
+take more than :data:`MAX_SUBSTEPS` sub-steps per communication step.
+
+Failures after initialisation -- a non-OK status (fmpy raises on Discard, Error, Fatal), a
+non-finite exchanged value, a sink that cannot write, a stop signal -- stop the run;
+:func:`run` returns the rows so far with ``complete=False`` and a one-line ``error`` naming
+the instance, the time and the FMU's logged reason. A signal (Ctrl-C, SIGTERM, SIGHUP)
+only sets a flag checked once per step (:mod:`cosim.engine.signals`), so no
+``KeyboardInterrupt`` is raised inside an FMU's Python code (pythonfmu would turn it into
+fmi2Fatal and the host would crash).
+
+A paced run (``pacer``, :mod:`cosim.engine.pacing`) releases communication point n at its
+wall-clock deadline; a live run (``live``, :mod:`cosim.engine.live`) applies the overrides
+queued by other threads at each point, publishes the point's values and waits while paused.
+Both hook into the per-point call the loop already makes (``at``), so an unpaced run's loop
+is the same as before.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from contextlib import nullcontext
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from fmpy.fmi1 import FMICallException
+
+from cosim.engine.live import LiveControl
+from cosim.engine.pacing import Pacer
+from cosim.engine.rows import RowSink, RowTable
+from cosim.engine.signals import StopRequest, stop_on_signals
+from cosim.engine.slave import Slave, describe, reasons, unzipped
+from cosim.engine.timeline import Timeline
+from cosim.errors import CosimError
+from cosim.scenario.spec import Scenario, ScenarioError
+
+ROWS_PER_CHUNK = 200  # rows handed to the sinks at a time
+HAND_OFF_INTERVAL_S = 1.0  # ... and at least this often (wall clock), however slow the steps
+MAX_SUBSTEPS = 10_000  # sub-steps per communication step beyond which a run is refused
+SUBSTEP_PARAMETER = "max_substep"  # s, an FMU's longest internal step (AuvPlant has one)
+
+
+@dataclass
+class RunResult:
+    """How a run ended. ``times``/``values`` hold every row only if the run kept them."""
+
+    scenario: Scenario
+    columns: tuple[str, ...]
+    rows: int  # rows computed, t = 0 included
+    time_reached: float  # s, the time of the last row
+    final: np.ndarray  # (len(columns),) the last row, SI
+    complete: bool
+    error: str | None  # one line, None if complete
+    wall_clock_s: float  # the stepping loop alone (including the sinks)
+    stop_signal: int | None = None  # the signal that stopped the stepping, if any
+    messages: dict[str, list[str]] = field(default_factory=dict)  # instance -> FMU log lines
+    events: list[dict[str, Any]] = field(default_factory=list)  # fired: name, time, set
+    overrides: list[dict[str, Any]] = field(default_factory=list)  # + source (live runs)
+    real_time: dict[str, Any] | None = None  # a paced run's figures (Pacer.summary)
+    times: np.ndarray | None = None  # (rows,) s, when kept
+    values: np.ndarray | None = None  # (rows, len(columns)) SI, when kept
+
+    @property
+    def interrupted(self) -> bool:
+        """Stopped by a signal (Ctrl-C, SIGTERM, SIGHUP) before the stop time."""
+        return self.stop_signal is not None
+
+    def column(self, name: str) -> np.ndarray:
+        """The recorded time series ``"<instance>.<variable>"`` (the run kept its rows)."""
+        if self.values is None:
+            raise CosimError(
+                f"the rows of run {self.scenario.id!r} were not kept in memory: run it with "
+                "keep_rows=True or read its results.csv"
+            )
+        return self.values[:, self.columns.index(name)]
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where every exchanged or recorded value lives, resolved once before the loop.
+
+    ``z`` = [outputs read after every step, instance by instance | recorded inputs that no
+    connection drives, read once after initialisation | the faults' ``fault.<name>``
+    columns]; ``index``: "<inst>.<var>" (or the column) -> z.
+    """
+
+    read: dict[str, list[str]]  # instance -> variables read after each of its steps
+    constants: list[str]  # "<instance>.<input>" recorded but never driven
+    index: dict[str, int]
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> _Layout:
+        wanted = {c.source for c in scenario.connections} | set(scenario.record)
+        wanted |= {f.hold_source for f in scenario.faults if f.hold_source is not None}
+        read: dict[str, list[str]] = {}
+        constants: list[str] = []
+        for name, inst in scenario.instances.items():
+            unconnected = set(scenario.unconnected_inputs(name))
+            read[name] = []
+            for var in inst.model_description.modelVariables:
+                if f"{name}.{var.name}" not in wanted:
+                    continue
+                if var.causality == "input" and var.name in unconnected:
+                    constants.append(f"{name}.{var.name}")
+                else:
+                    read[name].append(var.name)
+        order = [f"{n}.{v}" for n, names in read.items() for v in names] + constants
+        order += scenario.columns[len(scenario.record) :]  # the faults' columns, last
+        return cls(read, constants, {ref: i for i, ref in enumerate(order)})
+
+    @property
+    def n_read(self) -> int:
+        return sum(len(names) for names in self.read.values())
+
+
+def preflight(scenario: Scenario) -> None:
+    """Refuse, before any FMU is loaded, a scenario whose FMUs would hang in a step.
+
+    An instance with a Real parameter ``max_substep`` (s) integrates a communication step
+    of k h in ceil(k h / max_substep) sub-steps (``plant_fmu.model.stepping.advance``);
+    more than :data:`MAX_SUBSTEPS` is refused with the reason (one sub-step of the plant
+    takes tens of microseconds, so 1e-9 s would take hours per step and ignore Ctrl-C).
+    """
+    for name, inst in scenario.instances.items():
+        var = {v.name: v for v in inst.variables("parameter")}.get(SUBSTEP_PARAMETER)
+        if var is None or var.type != "Real":
+            continue
+        max_substep = scenario.start_value(name, SUBSTEP_PARAMETER)
+        step = scenario.coupling.step * scenario.coupling.step_multiples.get(name, 1)
+        if not (isinstance(max_substep, float) and max_substep > 0.0):
+            continue  # the FMU refuses it itself, with its own reason
+        substeps = math.ceil(step / max_substep - 1e-9)
+        if substeps > MAX_SUBSTEPS:
+            key = f"instances.{name}.start.{SUBSTEP_PARAMETER}"
+            given = SUBSTEP_PARAMETER in inst.start
+            raise ScenarioError(
+                f"scenario file {scenario.source or scenario.id}: key "
+                f"{key if given else 'coupling.step'!r}: {name}.{SUBSTEP_PARAMETER} = "
+                f"{max_substep!r} s would take {substeps:.3g} sub-steps per communication "
+                f"step of {step!r} s; at most {MAX_SUBSTEPS} are allowed (max_substep >= "
+                f"{step / MAX_SUBSTEPS:.3g} s)"
+            )
+
+
+def run(
+    scenario: Scenario,
+    sinks: Sequence[RowSink] = (),
+    *,
+    keep_rows: bool = True,
+    stop: StopRequest | None = None,
+    rows_per_chunk: int = ROWS_PER_CHUNK,
+    hand_off_interval: float = HAND_OFF_INTERVAL_S,
+    pacer: Pacer | None = None,
+    live: LiveControl | None = None,
+) -> RunResult:
+    """Run ``scenario`` to its stop time (or the first failure), streaming its rows.
+
+    ``sinks`` receive every row in order (:mod:`cosim.engine.rows`); the caller closes them.
+    ``keep_rows`` also keeps the rows in the result (memory grows with the stop time).
+    ``stop`` is the caller's :class:`StopRequest` (its signal handlers installed); without
+    one, SIGINT/SIGTERM/SIGHUP are caught for the duration of the call. ``pacer`` paces
+    the communication points on the wall clock, ``live`` takes overrides while it runs.
+
+    Raises :class:`CosimError` if the scenario is refused (:func:`preflight`) or an FMU
+    cannot be set up (instantiation, start values, initialisation); every failure after
+    that is reported in the returned result.
+    """
+    preflight(scenario)
+    table = RowTable(len(scenario.columns)) if keep_rows else None
+    feed = [*sinks, table] if table is not None else list(sinks)
+    layout = _Layout.of(scenario)
+    z = np.zeros(len(layout.index))
+    slaves = [
+        Slave(inst, unzipped(inst.fmu_path), scenario.coupling.step_multiples[name])
+        for name, inst in scenario.instances.items()
+    ]
+    guard = stop_on_signals(StopRequest()) if stop is None else nullcontext(stop)
+    with guard as stop_request:
+        try:
+            for slave in slaves:
+                _bind(slave, scenario, layout, z)
+            for slave in slaves:
+                _set_up(slave, scenario, layout, z)
+            by_name = {s.name: s for s in slaves}
+            order = [by_name[name] for name in scenario.coupling.order]
+            timed = scenario.events or scenario.faults or live is not None
+            timeline = Timeline(scenario, by_name, layout.index, z, live) if timed else None
+            rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval, timeline)
+            at: Callable[[int], None] = timeline.at if timeline is not None else _no_event
+            if live is not None:
+                live.bind(layout.index, stop_request)
+            if live is not None or pacer is not None:
+                at = _live_point(at, pacer, live, z, scenario.coupling.step, stop_request)
+            result = _loop(scenario, order, layout, z, rows, stop_request, timeline, at)
+            result.events = timeline.fired if timeline is not None else []
+            result.overrides = timeline.overrides if timeline is not None else []
+            result.real_time = pacer.summary() if pacer is not None else None
+        finally:
+            for slave in slaves:
+                slave.finish()
+    if table is not None:
+        result.times, result.values = table.table()
+    return result
+
+
+def _bind(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
+    inst, read = slave.instance, layout.read[slave.name]
+    targets = [c for c in scenario.connections if c.target_instance == slave.name]
+    start = layout.index[f"{slave.name}.{read[0]}"] if read else 0
+    slave.bind(
+        input_vrs=[inst.variable(c.target_variable).valueReference for c in targets],
+        sources=[layout.index[c.source] for c in targets],
+        output_vrs=[inst.variable(v).valueReference for v in read],
+        out=z[start : start + len(read)],
+    )
+
+
+def _set_up(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
+    """Set up one instance and read its t = 0 outputs and recorded constant inputs."""
+    try:
+        slave.set_up(scenario.stop_time)
+        # pythonfmu cannot return a status from exitInitializationMode: an FMU whose
+        # initialisation failed logs an Error (and refuses to step), so that counts too
+        logged = [m for m in slave.messages if m.startswith(("[Error]", "[Fatal]"))]
+        if logged:
+            raise CosimError(
+                f"{slave.name}: error logged during initialisation: {' | '.join(logged[-3:])}"
+            )
+        slave.read_outputs()
+        for ref in layout.constants:
+            instance, variable = ref.split(".", 1)
+            if instance == slave.name:
+                vr = slave.instance.variable(variable).valueReference
+                z[layout.index[ref]] = slave.fmu.getReal([vr])[0]
+    except FMICallException as exc:
+        slave.failed(exc.status)
+        raise CosimError(describe(slave, exc.function, exc.status, 0.0)) from None
+    except CosimError:
+        raise
+    except Exception as exc:  # fmpy raises a plain Exception when instantiation fails
+        raise CosimError(f"{slave.name}: cannot set up {slave.instance.fmu_path.name}: {exc}"
+                         f"{reasons(slave)}") from None  # fmt: skip
+
+
+class _Rows:
+    """The rows of a run, a chunk at a time: the loop fills ``slots`` (one view per row of
+    the chunk buffer) and hands them to the sinks with :meth:`hand_off` when the chunk is
+    full or ``interval`` s of wall clock have passed since the last hand-off. With a
+    ``timeline`` (events or faults), each hand-off first gives the sinks that take them
+    (``add_notes(notes)``, notes being (t in s, text)) the timeline's notes so far: events
+    fired, faults started and stopped."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        sinks: list[RowSink],
+        rows_per_chunk: int,
+        interval: float,
+        timeline: Timeline | None = None,
+    ) -> None:
+        self.h = scenario.coupling.step
+        self.timeline = timeline
+        self.buffer = np.empty((rows_per_chunk, len(scenario.columns)))
+        self.slots = list(self.buffer)  # made once: the loop indexes a list, not the array
+        self.count = 0  # rows handed off
+        self.sinks = sinks
+        self.interval = interval
+        self.final = np.full(len(scenario.columns), np.nan)
+        self.error: str | None = None  # the first sink failure
+
+    def hand_off(self, filled: int) -> None:
+        """Give the first ``filled`` rows of the buffer to every sink; a failing sink is
+        dropped and its reason kept in ``error``."""
+        if self.timeline is not None and self.timeline.notes:
+            self._hand_off_notes()
+        if not filled:
+            return
+        # t_n = n h, never accumulated (no drift), as the loop computes it
+        times = np.arange(self.count, self.count + filled) * self.h
+        values = self.buffer[:filled]
+        for sink in list(self.sinks):
+            try:
+                sink.add_rows(times, values)
+            except (OSError, CosimError) as exc:
+                self.sinks.remove(sink)
+                self.error = self.error or str(exc)
+        self.final = values[-1].copy()
+        self.count += filled
+
+    def _hand_off_notes(self) -> None:
+        assert self.timeline is not None
+        notes, self.timeline.notes = self.timeline.notes, []
+        for sink in list(self.sinks):
+            try:
+                sink.add_notes(notes)
+            except (OSError, CosimError) as exc:
+                self.sinks.remove(sink)
+                self.error = self.error or str(exc)
+
+
+def _loop(
+    scenario: Scenario,
+    order: list[Slave],
+    layout: _Layout,
+    z: np.ndarray,
+    rows: _Rows,
+    stop: StopRequest,
+    timeline: Timeline | None,
+    at: Callable[[int], None],
+) -> RunResult:
+    """The stepping loop proper (see the module docstring); ``stop`` ends it early.
+
+    With a ``timeline`` (:mod:`cosim.engine.timeline`: the scenario's events and faults),
+    ``timeline.at(n)`` runs at every communication point before its row is recorded and
+    before any instance steps from it, and ``timeline.deliver`` after each gather of inputs;
+    without one, both are no-ops (about 0.1 us a step: nothing against an FMU's doStep).
+    ``at`` is ``timeline.at`` (or the no-op), wrapped by :func:`_live_point` in a paced or
+    live run.
+    """
+    h, n_steps = scenario.coupling.step, scenario.n_steps
+    jacobi = scenario.coupling.algorithm == "jacobi"
+    record = np.asarray([layout.index[c] for c in scenario.columns], dtype=np.intp)
+    exchanged = z[: layout.n_read]
+    multi_rate = any(s.k != 1 for s in order)
+
+    take = z.take  # z.take(indices, out=buffer): a gather without allocation
+    deliver = timeline.deliver if timeline else _no_fault
+    probe = np.zeros(layout.n_read)  # x . 0 is NaN iff some x is NaN or infinite
+    check_dot = exchanged.dot
+    slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
+    error: str | None = None
+    filled, slave, n = 0, order[0], 0
+    started = hand_off_at = clock()
+    hand_off_at += interval
+    try:
+        at(0)
+        take(record, out=slots[0])  # row 0 is t = 0
+        filled = 1
+        _check_finite(exchanged, layout, 0.0)
+        for n in range(n_steps):
+            if stop.signum is not None:
+                break
+            t = n * h  # t_n = n h, never accumulated (no drift)
+            due = [s for s in order if n % s.k == 0] if multi_rate else order
+            if jacobi:  # every due instance takes the values at t before any steps
+                for slave in due:
+                    take(slave.input_sources, out=slave.inputs)
+                    deliver(slave, n)
+                    slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+            for slave in due:
+                if not jacobi:  # the latest values, including those stepped just now
+                    take(slave.input_sources, out=slave.inputs)
+                    deliver(slave, n)
+                    slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+                # step to t_{n+k} - t_n, as fmpy.simulate_fmu does (bit-identical runs)
+                slave.do_step(slave.c, t, min(n + slave.k, n_steps) * h - t, 1)
+                slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
+            nan_if_bad = check_dot(probe)
+            if nan_if_bad != nan_if_bad:
+                _check_finite(exchanged, layout, (n + 1) * h)
+            at(n + 1)
+            take(record, out=slots[filled])
+            filled += 1
+            if filled == chunk or clock() >= hand_off_at:
+                rows.hand_off(filled)
+                filled, hand_off_at = 0, clock() + interval
+                if rows.error is not None:
+                    break
+    except FMICallException as exc:
+        slave.failed(exc.status)
+        error = describe(slave, exc.function, exc.status, n * h)
+    except CosimError as exc:
+        error = str(exc)
+    rows.hand_off(filled)
+    return _result(scenario, order, rows, error, stop, clock() - started)
+
+
+def _live_point(
+    at: Callable[[int], None],
+    pacer: Pacer | None,
+    live: LiveControl | None,
+    z: np.ndarray,
+    h: float,
+    stop: StopRequest,
+) -> Callable[[int], None]:
+    """``at`` followed, at each communication point n, by the live run's work: publish the
+    values, wait while paused (the pacer's clock stopped), then wait for n's deadline."""
+
+    def point(n: int) -> None:
+        at(n)
+        if live is not None:
+            live.publish(n * h, z)
+            if live.paused:
+                if pacer is not None:
+                    pacer.pause()
+                while not live.wait_while_paused(0.1) and stop.signum is None:
+                    pass
+                if pacer is not None:
+                    pacer.resume()
+        if pacer is not None:
+            pacer.release(n)
+
+    return point
+
+
+def _no_event(n: int) -> None:
+    """The timeline of a scenario without events or faults."""
+
+
+def _no_fault(slave: Slave, n: int) -> None:
+    """Deliver the gathered inputs unchanged (no fault)."""
+
+
+def _result(
+    scenario: Scenario,
+    order: list[Slave],
+    rows: _Rows,
+    error: str | None,
+    stop: StopRequest,
+    wall: float,
+) -> RunResult:
+    """How the loop ended, as a :class:`RunResult` (the sinks' failure or the stop signal
+    named as the reason when nothing else failed)."""
+    n_steps, t_end = scenario.n_steps, (rows.count - 1) * scenario.coupling.step
+    if error is None and rows.error is not None:
+        error = f"{rows.error} (at t = {t_end:.6g} s)"
+    stopped = stop.requested and error is None and rows.count < n_steps + 1
+    if stopped:
+        error = f"{stop.reason} at t = {t_end:.6g} s"
+    return RunResult(
+        scenario=scenario,
+        columns=scenario.columns,
+        rows=rows.count,
+        time_reached=t_end,
+        final=rows.final,
+        complete=rows.count == n_steps + 1 and error is None,
+        error=error,
+        wall_clock_s=wall,
+        stop_signal=stop.signum if stopped else None,
+        messages={s.name: list(s.messages) for s in order},
+    )
+
+
+def _check_finite(exchanged: np.ndarray, layout: _Layout, t: float) -> None:
+    bad = np.flatnonzero(~np.isfinite(exchanged))
+    if bad.size:
+        names = list(layout.index)
+        listed = ", ".join(f"{names[i]} = {exchanged[i]}" for i in bad[:5])
+        raise CosimError(f"non-finite value at t = {t:.6g} s: {listed}")

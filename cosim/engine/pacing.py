@@ -1,0 +1,160 @@
+"""Real-time pacing of a run: communication points released on a monotonic clock.
+
+A paced run at real-time factor f (1.0: real time, 10: ten times faster) releases
+communication point n (t_n = n h of simulated time) no earlier than its absolute deadline
+
+    d_n = t0 + n h / f         (wall clock, ``time.monotonic``; t0 when point 0 is released)
+
+so the sleeps never add up (no drift): a step that ran late is followed by shorter sleeps,
+or none, until the run is back on its deadlines. A run that falls :data:`BEHIND_S` behind
+(the FMUs are slower than the target, or the machine was busy) says so once (``say``),
+drops that backlog (t0 moves on: the run does not race to make up lost time, which a viewer
+or a program in the loop would see as a burst) and goes on, as fast as it can while it
+cannot keep up. A pause (:meth:`Pacer.pause` / :meth:`Pacer.resume`) moves t0 by its
+length, so a resumed run is not "late".
+
+Figures, all in wall-clock seconds: a point is *late* when it is computed after its
+deadline; its lateness is how long after its deadline it was released (the computation's
+delay, plus the sleep's own overshoot for a point that slept). The rolling real-time factor
+is the simulated time advanced over the last :data:`ROLLING_WINDOW_S` of wall clock divided
+by that wall time, the total one the simulated time reached over the wall time since
+point 0 (pauses excluded).
+
+Written by hand: no library paces a loop on absolute deadlines with these figures (libcosim's
+``real_time_timer`` is C++ inside its execution; ``sched`` or ``asyncio`` schedule callbacks,
+not a loop that must stay in the calling thread). The clock and the sleep are injectable, so
+tests check the deadlines and the accounting on a fake clock, with no timed assertion.
+"""
+
+from __future__ import annotations
+
+import collections
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+ROLLING_WINDOW_S = 1.0  # wall clock over which the rolling real-time factor is taken
+BEHIND_S = 0.5  # s of wall clock behind the deadlines at which the run says it cannot keep up
+_SAMPLE_S = 0.05  # wall clock between two samples of the rolling window
+
+
+def _stderr_line(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+class Pacer:
+    """Releases communication points at ``t0 + n h / factor`` (see the module docstring).
+
+    ``clock`` (s, monotonic) and ``sleep`` are ``time.monotonic`` and ``time.sleep`` unless
+    a test gives its own; ``say`` gets the one line printed when the run falls behind.
+    """
+
+    def __init__(
+        self,
+        h: float,
+        factor: float = 1.0,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+        say: Callable[[str], None] = _stderr_line,
+    ) -> None:
+        if not (factor > 0.0 and factor < float("inf")):
+            raise ValueError(f"real-time factor {factor!r}: expected a finite number > 0")
+        self.h, self.factor = h, factor
+        self.clock, self.sleep, self.say = clock, sleep, say
+        self.t0: float | None = None
+        self._started = 0.0  # clock() at point 0
+        self._paused_s = 0.0  # wall clock spent paused
+        self.n = 0  # the last point released
+        self.late_steps = 0
+        self.max_lateness = 0.0  # s
+        self.latest_at: float | None = None  # s of simulated time: the latest point's t_n
+        self.behind = False  # said once that the machine cannot keep up
+        self._paused_at: float | None = None
+        self._samples: collections.deque[tuple[float, int]] = collections.deque()
+
+    def deadline(self, n: int) -> float:
+        """The wall-clock time (``clock``) at which point n is due."""
+        assert self.t0 is not None, "point 0 not released yet"
+        return self.t0 + n * self.h / self.factor
+
+    def release(self, n: int) -> None:
+        """Wait until point n is due (point 0 starts the clock); account for lateness."""
+        now = self.clock()
+        if self.t0 is None or n == 0:
+            self.t0 = self._started = now
+            self.n = n
+            self._samples.append((now, n))
+            return
+        due = self.deadline(n)
+        if now < due:
+            self.sleep(due - now)
+            now = self.clock()
+        elif now > due:
+            self.late_steps += 1
+            if now - due >= BEHIND_S:
+                self._fall_behind(n, now - due)
+        if now - due > self.max_lateness:
+            self.max_lateness, self.latest_at = now - due, n * self.h
+        self.n = n
+        if now - self._samples[-1][0] >= _SAMPLE_S:
+            self._samples.append((now, n))
+            while now - self._samples[0][0] > ROLLING_WINDOW_S and len(self._samples) > 2:
+                self._samples.popleft()
+
+    def _fall_behind(self, n: int, lag: float) -> None:
+        """Say once that the run cannot keep up; drop the backlog of ``lag`` s."""
+        if not self.behind:
+            self.behind = True
+            self.say(
+                f"real time: cannot keep up with {self.factor:g}x real time at "
+                f"t = {n * self.h:.6g} s ({lag:.2f} s behind); going on as fast as possible"
+            )
+        assert self.t0 is not None
+        self.t0 += lag
+
+    def pause(self) -> None:
+        """Stop the clock (the run waits); :meth:`resume` moves the deadlines on."""
+        if self._paused_at is None:
+            self._paused_at = self.clock()
+
+    def resume(self) -> None:
+        if self._paused_at is not None:
+            paused = self.clock() - self._paused_at
+            self._paused_at = None
+            self._paused_s += paused
+            if self.t0 is not None:
+                self.t0 += paused
+                self._samples = collections.deque((t + paused, n) for t, n in self._samples)
+
+    def rolling_factor(self) -> float | None:
+        """Simulated over wall time across the last second (None before there is one)."""
+        if len(self._samples) < 2:
+            return None
+        (t_old, n_old), (t_new, n_new) = self._samples[0], self._samples[-1]
+        return (n_new - n_old) * self.h / (t_new - t_old) if t_new > t_old else None
+
+    def total_factor(self) -> float | None:
+        """Simulated time reached over the wall time since point 0 (pauses excluded)."""
+        if self.t0 is None:
+            return None
+        wall = (self._paused_at or self.clock()) - self._started - self._paused_s
+        return self.n * self.h / wall if wall > 0 else None
+
+    def status(self) -> str:
+        """The progress line's text: ``rt 1.00x (total 1.00x)``."""
+        rolling, total = self.rolling_factor(), self.total_factor()
+        fmt = lambda f: "-" if f is None else f"{f:.2f}x"  # noqa: E731
+        return f"rt {fmt(rolling)} (total {fmt(total)}, target {self.factor:g}x)"
+
+    def summary(self) -> dict[str, Any]:
+        """What summary.json records under ``real_time``."""
+        return {
+            "target_factor": self.factor,
+            "achieved_factor": self.total_factor(),
+            "late_steps": self.late_steps,
+            "max_lateness_s": self.max_lateness,
+            "max_lateness_at_s": self.latest_at,
+            "fell_behind": self.behind,
+        }

@@ -1,0 +1,227 @@
+"""One FMU instance as the master drives it (fmpy ``FMU2Slave``), and its log.
+
+:class:`Slave` holds the pre-resolved value references, the input buffer and output view
+the stepping loop uses, the FMU's logged messages (warnings and worse) and its FMI state;
+:func:`describe` turns a failed call into the one-line reason a run reports. FMU files are
+extracted once per process (:func:`unzipped`), and each FMU's shared library is loaded
+once per process and instance name: a finished run's fmpy ``FMU2Slave`` waits, instance
+freed and library loaded, for the next run of this process (:func:`_library`).
+"""
+
+from __future__ import annotations
+
+import atexit
+import collections
+import ctypes
+import hashlib
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from fmpy import calloc, extract, free
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+
+from cosim.errors import CosimError
+from cosim.scenario.spec import Instance
+from fmu_runtime import exit_guard
+
+STATUS_LABELS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
+LOG_LINES_KEPT = 20  # logged messages (warning or worse) kept per instance
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+
+
+class Slave:
+    """One FMU instance as the master drives it: the fmpy slave, pre-resolved value
+    references, its input buffer and output view, its logged messages and FMI state.
+
+    The FMI 2.0 call order is enforced by ``_expect``: new -> instantiated ->
+    initialization -> stepping -> terminated -> freed. After an Error status the instance
+    is only freed, after Fatal it is not touched again, as the standard requires.
+    """
+
+    def __init__(self, instance: Instance, unzip_dir: Path, k: int) -> None:
+        md = instance.model_description
+        self.name = instance.name
+        self.instance = instance
+        self.k = k
+        self.state = "new"
+        self.messages: collections.deque[str] = collections.deque(maxlen=LOG_LINES_KEPT)
+        self._key = (str(unzip_dir), md.coSimulation.modelIdentifier, md.guid, instance.name)
+        self.fmu = _library(self._key)
+
+    def bind(
+        self, input_vrs: list[int], sources: list[int], output_vrs: list[int], out: np.ndarray
+    ) -> None:
+        """Resolve the buffers once: inputs come from ``z[sources]``, outputs go to ``out``."""
+        self.n_inputs, self.n_outputs = len(input_vrs), len(output_vrs)
+        self.input_vrs = (ctypes.c_uint * self.n_inputs)(*input_vrs)
+        self.inputs = np.zeros(self.n_inputs)
+        self.input_ptr = self.inputs.ctypes.data_as(_DOUBLE_P)
+        self.input_sources = np.asarray(sources, dtype=np.intp)
+        self.output_vrs = (ctypes.c_uint * self.n_outputs)(*output_vrs)
+        self.output_ptr = out.ctypes.data_as(_DOUBLE_P)
+        # fmpy's status-checking wrappers of the C functions, looked up once
+        self.set_real = self.fmu.fmi2SetReal
+        self.do_step = self.fmu.fmi2DoStep
+        self.get_real = self.fmu.fmi2GetReal
+
+    def _expect(self, *states: str) -> None:
+        if self.state not in states:
+            raise CosimError(f"{self.name}: FMI call out of order (in state {self.state!r})")
+
+    def set_up(self, stop_time: float) -> None:
+        """instantiate (logging on), setupExperiment, start values, initialise."""
+        from fmpy.logging import addLoggerProxy
+
+        self._expect("new")
+        self.callbacks = fmi2CallbackFunctions()  # kept on self: the FMU holds pointers into it
+        self.callbacks.logger = _LOGGER
+        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        self.callbacks.componentEnvironment = id(self)
+        # fmpy's native proxy formats the FMU's printf-style messages; it keeps ONE target
+        # function per process, so every instance shares _LOGGER, which dispatches on the
+        # componentEnvironment the FMU passes back.
+        addLoggerProxy(ctypes.byref(self.callbacks))
+        _log_sinks[id(self)] = self.messages
+        self.fmu.instantiate(callbacks=self.callbacks, loggingOn=True)
+        self.state = "instantiated"
+        # any pythonfmu FMU, ours or not, can abort this process at exit: see exit_guard
+        exit_guard.install(Path(self.fmu.unzipDirectory) / "resources")
+        self.fmu.setupExperiment(startTime=0.0, stopTime=stop_time)
+        grouped: dict[str, tuple[list[int], list[Any]]] = {}
+        for name, value in self.instance.start.items():
+            var = self.instance.variable(name)
+            kind = "Integer" if var.type == "Enumeration" else var.type
+            vrs, values = grouped.setdefault(kind, ([], []))
+            vrs.append(var.valueReference)
+            values.append(value)
+        setters = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
+                   "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}  # fmt: skip
+        for kind, (vrs, values) in grouped.items():
+            setters[kind](vrs, values)
+        self.fmu.enterInitializationMode()
+        self.state = "initialization"
+        self.fmu.exitInitializationMode()
+        self.state = "stepping"
+        self.c = self.fmu.component
+
+    def read_outputs(self) -> None:
+        self._expect("stepping")
+        self.get_real(self.c, self.output_vrs, self.n_outputs, self.output_ptr)
+
+    def failed(self, status: int) -> None:
+        """Record a non-OK status: after Discard the instance may still be terminated,
+        after Error only freed, after Fatal not touched at all (FMI 2.0, 4.2.4)."""
+        if status >= 3:
+            self.state = "fatal" if status >= 4 else "error"
+
+    def finish(self) -> None:
+        """terminate + freeInstance as far as the state allows; never raises. The fmpy
+        object, its library still loaded, waits for this process's next run (not after a
+        Fatal status: that instance is never touched again)."""
+        try:
+            if self.state in ("initialization", "stepping"):
+                self.fmu.terminate()
+                self.state = "terminated"
+            if self.state in ("instantiated", "terminated", "error"):
+                self.state = "freed"
+                self.fmu.fmi2FreeInstance(self.fmu.component)  # the library stays loaded
+                self.fmu.component = None
+                _idle_libraries.setdefault(self._key, []).append(self.fmu)
+            elif self.state == "new":  # never instantiated (or instantiation failed)
+                self.state = "freed"
+                _idle_libraries.setdefault(self._key, []).append(self.fmu)
+        except Exception as exc:  # a failing clean-up must not hide the run's own result
+            self.messages.append(f"[clean-up] {exc}")
+            self.state = "freed"
+        finally:
+            if self.state == "freed":
+                _log_sinks.pop(id(self), None)
+
+
+_log_sinks: dict[int, collections.deque[str]] = {}  # componentEnvironment -> messages
+
+
+def _log(env: int | None, _name: bytes, status: int, _category: bytes, message: bytes) -> None:
+    """The FMUs' logger: keeps warnings and worse per instance. A C callback: never raises."""
+    sink = _log_sinks.get(env or 0)
+    if sink is not None and status >= 1:
+        label = STATUS_LABELS[status] if status < len(STATUS_LABELS) else str(status)
+        sink.append(f"[{label}] {(message or b'').decode('utf-8', 'replace')}")
+
+
+_LOGGER = fmi2CallbackLoggerTYPE(_log)
+
+
+def describe(slave: Slave, function: str, status: int, t: float) -> str:
+    """One line: which call of which instance failed, when, and the FMU's logged reason."""
+    label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
+    return f"{slave.name}: {function} returned {label} at t = {t:.6g} s{reasons(slave)}"
+
+
+def reasons(slave: Slave) -> str:
+    """The FMU's last logged reason(s), one line."""
+    lines = [m for m in slave.messages if not m.startswith("[Warning]")][-3:]
+    return (": " + " | ".join(lines)) if lines else " (the FMU logged no reason)"
+
+
+# --- loaded FMU libraries, reused by the runs of one process -------------------------------
+
+# (unzip folder, model identifier, guid, instance name) -> FMU2Slave objects whose
+# instance was freed (a Fatal one is never put back). Written by hand: fmpy loads the
+# library and resolves its ~40 functions with ctypes in every FMU2Slave (~3 ms, as long as
+# a tenth of a 20 s run's set-up in a study), and its freeInstance unloads the library
+# again. Reusing the object skips both; a new instance is instantiated in it as FMI 2.0
+# allows any number of instantiate/freeInstance cycles per loaded library.
+_idle_libraries: dict[tuple[str, str, str, str], list[FMU2Slave]] = {}
+
+
+def _library(key: tuple[str, str, str, str]) -> FMU2Slave:
+    """An fmpy ``FMU2Slave`` with the library loaded and no instance: an idle one of an
+    earlier run, else a new one."""
+    try:
+        return _idle_libraries[key].pop()  # atomic: two runs in threads never share one
+    except (KeyError, IndexError):
+        pass
+    unzip_dir, model_identifier, guid, instance_name = key
+    return FMU2Slave(
+        guid=guid,
+        unzipDirectory=unzip_dir,
+        modelIdentifier=model_identifier,
+        instanceName=instance_name,
+    )
+
+
+# --- unzipped FMUs, one folder per FMU content per process ---------------------------------
+
+_digests: dict[tuple[Path, int, int], str] = {}  # (file, mtime ns, size) -> its SHA-256
+_unzipped_dirs: dict[str, Path] = {}  # SHA-256 of an FMU file -> where it was extracted
+
+
+def unzipped(fmu_path: Path) -> Path:
+    """Extract an FMU once per process and content (pythonfmu keeps its modules imported
+    anyway): another copy of the same file -- a study's FMUs, uploaded to a worker again
+    for each study -- reuses the extraction, and with it the loaded library
+    (:func:`_library`). A file changed in place is extracted again."""
+    status = fmu_path.stat()
+    key = (fmu_path.resolve(), status.st_mtime_ns, status.st_size)
+    digest = _digests.get(key)
+    if digest is None:
+        digest = _digests[key] = hashlib.sha256(fmu_path.read_bytes()).hexdigest()
+    if digest not in _unzipped_dirs:
+        _unzipped_dirs[digest] = Path(extract(str(fmu_path)))
+    return _unzipped_dirs[digest]
+
+
+@atexit.register
+def _remove_unzipped() -> None:
+    for folder in _unzipped_dirs.values():
+        shutil.rmtree(folder, ignore_errors=True)

@@ -1,0 +1,288 @@
+"""A run's events and faults as the master applies them (docs/events.md).
+
+The master's stepping loop (``cosim.engine.master._loop``), when a scenario has events or
+faults, calls
+
+* :meth:`Timeline.at` once per communication point t_n = n h (n = 0 .. N), after every due
+  instance has stepped to t_n and its outputs were read, before row n is recorded and
+  before any instance steps from t_n. In this order: time events due at t_n fire (the
+  first point with t_n >= time, within 1e-9 of a step), running ramps and series write
+  their values for t_n, ``when`` conditions are evaluated on the values at t_n (including
+  what was just written) and fire on a false -> true crossing (never at n = 0), then the
+  faults' ``fault.<name>`` columns are set and actuator faults on unconnected inputs hold
+  their input. In a live run (:mod:`cosim.engine.live`) the overrides queued since the last
+  point fire right after the time events, each as a time event at t_n would;
+* :meth:`Timeline.deliver` for an instance right after the master gathered its connected
+  inputs (``z.take(input_sources, out=inputs)``) and before ``fmi2SetReal``: each active
+  fault on one of those connections replaces the gathered value in its slot.
+
+Values are written with fmpy's ``setReal``/``setInteger``/``setBoolean`` on the instance; a
+recorded unconnected input's column follows the value written. An instance that is not
+due at t_n (step multiple k > 1) sees a value written at t_n when it next steps.
+"""
+
+from __future__ import annotations
+
+import bisect
+import collections
+import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from fmpy.fmi1 import FMICallException
+
+from cosim.engine.slave import STATUS_LABELS, Slave
+from cosim.errors import CosimError
+from cosim.scenario.spec import FAULT_COLUMN_PREFIX, Scenario
+from cosim.scenario.timeline_spec import Event, Fault
+
+if TYPE_CHECKING:
+    from cosim.engine.live import LiveControl
+
+OVERRIDE_PREFIX = "live-"  # the names of applied overrides as events: live-1, live-2, ...
+
+_TOLERANCE = 1e-9  # of a step: a time within it of t_n counts as t_n
+
+
+def step_index(time: float, h: float) -> int:
+    """The first communication point n with n h >= ``time`` (s), within 1e-9 of a step."""
+    return max(0, math.ceil(time / h - _TOLERANCE))
+
+
+class _Writer:
+    """Reads and writes ``"<instance>.<variable>"`` of the running instances; a written
+    recorded input's column (its slot in ``z``) follows."""
+
+    def __init__(self, slaves: Mapping[str, Slave], index: Mapping[str, int], z: np.ndarray):
+        self.slaves, self.index, self.z = slaves, index, z
+        self.assigned: dict[str, float] = {}  # the last value an event gave each variable
+
+    def _resolve(self, ref: str) -> tuple[Slave, Any]:
+        instance, variable = ref.split(".", 1)
+        slave = self.slaves[instance]
+        return slave, slave.instance.variable(variable)
+
+    def get(self, ref: str) -> float:
+        """The present value (of a Real)."""
+        if ref in self.index:
+            return float(self.z[self.index[ref]])
+        slave, var = self._resolve(ref)
+        return float(slave.fmu.getReal([var.valueReference])[0])
+
+    def set(self, ref: str, value: bool | int | float, why: str, assign: bool = True) -> None:
+        """Write ``value``; ``assign``: an event's value (restored when a fault ends)."""
+        slave, var = self._resolve(ref)
+        setter = {"Real": slave.fmu.setReal, "Boolean": slave.fmu.setBoolean}.get(
+            var.type, slave.fmu.setInteger
+        )
+        try:
+            setter([var.valueReference], [value])
+        except FMICallException as exc:
+            slave.failed(exc.status)
+            raise CosimError(
+                f"{why}: setting {ref} = {value!r} returned {STATUS_LABELS[exc.status]}"
+            ) from None
+        if ref in self.index:
+            self.z[self.index[ref]] = value
+        if assign:
+            self.assigned[ref] = float(value)
+
+
+class _EventRun:
+    """One event's state: when it fires, whether its condition held at the last point."""
+
+    def __init__(self, event: Event, h: float) -> None:
+        self.event = event
+        self.n_fire = step_index(event.time, h) if event.time is not None else None
+        self.was_true: bool | None = None  # the condition at the previous point
+        self.fired = False
+
+
+class _FaultRun:
+    """One fault's state; :meth:`deliver` turns the gathered value into the delivered one."""
+
+    def __init__(self, fault: Fault, h: float, index: Mapping[str, int]) -> None:
+        self.fault = fault
+        self.n_start = step_index(fault.start, h)
+        self.n_stop = step_index(fault.stop, h) if fault.stop is not None else None
+        self.rng = np.random.default_rng(fault.seed) if fault.seed is not None else None
+        steps = fault.steps or 0
+        self.history: collections.deque[float] = collections.deque(maxlen=steps + 1)
+        self.hold_index = index[fault.hold_source] if fault.hold_source else None
+        self.last: float | None = None  # the value delivered last
+        self.held: float | None = None  # stuck, plane-stuck, mass-jam: the value held
+
+    def active(self, n: int) -> bool:
+        return self.n_start <= n and (self.n_stop is None or n < self.n_stop)
+
+    def deliver(self, gathered: float, n: int, z: np.ndarray) -> float:
+        """The value delivered at point n for ``gathered`` (the connection's own value)."""
+        if self.fault.kind == "delay":
+            self.history.append(gathered)
+        value = self._faulty(gathered, z) if self.active(n) else gathered
+        self.last = value
+        return value
+
+    def _faulty(self, gathered: float, z: np.ndarray) -> float:
+        fault = self.fault
+        kind = fault.kind
+        if kind in ("stuck", "plane-stuck", "mass-jam"):
+            if self.held is None:  # the present value when the fault starts
+                if self.hold_index is not None:
+                    self.held = float(z[self.hold_index])
+                else:
+                    self.held = self.last if self.last is not None else gathered
+            return self.held
+        if kind == "thruster-off":
+            return 0.0
+        if kind == "gain":
+            return gathered * fault.value  # type: ignore[operator]
+        if kind == "bias":
+            return gathered + fault.value  # type: ignore[operator]
+        if kind == "noise":
+            return gathered + float(self.rng.normal(0.0, fault.std))  # type: ignore[union-attr,arg-type]
+        if kind == "delay":
+            return self.history[0]  # `steps` deliveries ago (the first one before that)
+        lost = float(self.rng.random()) < fault.probability  # type: ignore[union-attr,operator]
+        return self.last if lost and self.last is not None else gathered  # dropout
+
+
+class Timeline:
+    """The events and faults of one run (see the module docstring)."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        slaves: Mapping[str, Slave],
+        index: Mapping[str, int],
+        z: np.ndarray,
+        live: LiveControl | None = None,
+    ) -> None:
+        self.h = scenario.coupling.step
+        self.z = z
+        self.live = live
+        self.fired: list[dict[str, Any]] = []  # {"name", "time", "set"} per firing
+        self.overrides: list[dict[str, Any]] = []  # {"name", "time", "set", "source"}
+        self._taken = {e.name for e in scenario.events}  # names an override cannot have
+        self.notes: list[tuple[float, str]] = []  # (t, text) not yet handed to the sinks
+        self._writer = _Writer(slaves, index, z)
+        self._events = [_EventRun(e, self.h) for e in scenario.events]
+        self._ramps: dict[str, tuple[float, float, float, float]] = {}  # ref -> v0, v1, t0, T
+        self._faults = [_FaultRun(f, self.h, index) for f in scenario.faults]
+        self._flags = [index[f"{FAULT_COLUMN_PREFIX}{f.name}"] for f in scenario.faults]
+        # faults on connections, by target instance: (slot in its input buffer, fault)
+        self.on_inputs: dict[str, list[tuple[int, _FaultRun]]] = {}
+        driven = [c.target for c in scenario.connections]
+        self._held: list[_FaultRun] = []  # actuator faults on unconnected inputs
+        self._saved: dict[str, float] = {}  # their inputs' values before they started
+        for run in self._faults:
+            target = run.fault.target
+            if target in driven:
+                instance = target.split(".", 1)[0]
+                mine = [c for c in driven if c.split(".", 1)[0] == instance]
+                self.on_inputs.setdefault(instance, []).append((mine.index(target), run))
+            else:
+                self._held.append(run)
+
+    def deliver(self, slave: Slave, n: int) -> None:
+        """Replace the gathered inputs of ``slave`` at point n by what its faults deliver."""
+        inputs = slave.inputs
+        for slot, run in self.on_inputs.get(slave.name, ()):
+            inputs[slot] = run.deliver(float(inputs[slot]), n, self.z)
+
+    def at(self, n: int) -> None:
+        """Everything that happens at communication point n (see the module docstring)."""
+        t = n * self.h
+        for run in self._events:
+            if run.n_fire == n:
+                self._fire(run.event, t)
+        if self.live is not None:
+            self._apply_overrides(t)
+        self._advance_ramps(t)
+        for run in self._events:
+            if run.event.series is not None:
+                self._apply_series(run, t)
+        for run in self._events:
+            condition = run.event.when
+            if condition is None:
+                continue
+            now = condition.holds(self._writer.get(condition.ref))
+            crossed = run.was_true is False and now
+            run.was_true = now
+            if crossed and (run.event.repeat or not run.fired):
+                run.fired = True
+                self._fire(run.event, t)
+        self._fault_points(n, t)
+
+    def _apply_overrides(self, t: float) -> None:
+        """Fire every override queued since the last point as a time event at ``t``."""
+        assert self.live is not None
+        for values, source in self.live.drain():
+            k = len(self.overrides) + 1
+            while f"{OVERRIDE_PREFIX}{k}" in self._taken:
+                k += 1
+            name = f"{OVERRIDE_PREFIX}{k}"
+            self._taken.add(name)
+            self._fire(Event(name, time=t, set=values), t, "override", f" from {source}")
+            self.overrides.append({"name": name, "time": t, "set": values, "source": source})
+
+    def _fire(self, event: Event, t: float, what: str = "event", origin: str = "") -> None:
+        why = f"{what} {event.name!r} at t = {t:.6g} s"
+        for ref, value in event.set.items():
+            if event.ramp is not None:
+                self._ramps[ref] = (self._writer.get(ref), float(value), t, event.ramp)
+            else:
+                self._writer.set(ref, value, why)
+        self.fired.append({"name": event.name, "time": t, "set": dict(event.set)})
+        told = ", ".join(f"{ref} = {value!r}" for ref, value in event.set.items())
+        ramp = f" (ramp over {event.ramp!r} s)" if event.ramp is not None else ""
+        self.notes.append((t, f"{what} {event.name}{origin}: {told}{ramp}"))
+
+    def _advance_ramps(self, t: float) -> None:
+        for ref, (v0, v1, t0, duration) in list(self._ramps.items()):
+            fraction = (t - t0) / duration
+            if fraction <= 0.0:
+                continue
+            if fraction >= 1.0:
+                del self._ramps[ref]
+                self._writer.set(ref, v1, f"ramp to {ref} = {v1!r}")
+            else:
+                self._writer.set(ref, v0 + (v1 - v0) * fraction, f"ramp to {ref} = {v1!r}")
+
+    def _apply_series(self, run: _EventRun, t: float) -> None:
+        series = run.event.series
+        times = series.times  # type: ignore[union-attr]
+        if t < times[0] - _TOLERANCE * self.h:
+            return
+        values = {}
+        for ref, column in series.columns.items():  # type: ignore[union-attr]
+            if series.interpolation == "linear":  # type: ignore[union-attr]
+                value = float(np.interp(t, times, column))
+            else:
+                value = column[bisect.bisect_right(times, t + _TOLERANCE * self.h) - 1]
+            values[ref] = value
+            self._writer.set(ref, value, f"series {run.event.name!r} at t = {t:.6g} s")
+        if not run.fired:
+            run.fired = True
+            self.fired.append({"name": run.event.name, "time": t, "set": values})
+            self.notes.append((t, f"event {run.event.name}: series from {series.path.name}"))  # type: ignore[union-attr]
+
+    def _fault_points(self, n: int, t: float) -> None:
+        for run, flag in zip(self._faults, self._flags, strict=True):
+            self.z[flag] = 1.0 if run.active(n) else 0.0
+            fault = run.fault
+            if n == run.n_start:
+                self.notes.append((t, f"fault {fault.name} starts: {fault.kind} on {fault.target}"))
+            elif n == run.n_stop:
+                self.notes.append((t, f"fault {fault.name} stops: {fault.kind} on {fault.target}"))
+        for run in self._held:
+            target, why = run.fault.target, f"fault {run.fault.name!r} at t = {t:.6g} s"
+            if n == run.n_start:  # what the input goes back to if no event sets it meanwhile
+                self._saved[target] = self._writer.get(target)
+            if run.active(n):
+                held = run.deliver(self._writer.get(target), n, self.z)
+                self._writer.set(target, held, why, assign=False)
+            elif n == run.n_stop:
+                restored = self._writer.assigned.get(target, self._saved[target])
+                self._writer.set(target, restored, why, assign=False)

@@ -1,0 +1,1 @@
+"""Metrics that runs, studies and viewers share: key figures and manoeuvre metrics (a leaf)."""

@@ -1,0 +1,97 @@
+"""Key figures of a run, computed as its rows stream by (no row is kept).
+
+``yaw_settling_time_s``: the first time after which |yaw - yaw_setpoint| stays below
+1 deg to the end of the run (angles compared on the circle); None if the last sample is
+outside the band. The setpoint is ``controller.yaw_setpoint`` if recorded, else 0 (with
+the autopilot's ``compensate_current`` on, that set-point is the course; the heading then
+settles off it by the crab angle, so the figure is None).
+``peak_abs_mass_position_m``, ``peak_abs_tunnel_force_N``: the largest magnitudes
+(``controller.tunnel_force``, else ``plant.tunnel_force``). A figure whose columns were not
+recorded is None, and so is one that is not finite.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+YAW_TOLERANCE_RAD = math.radians(1.0)  # "settled" band of the yaw settling time
+_FORCES = ("controller.tunnel_force", "plant.tunnel_force")
+
+
+def settling_time(
+    times: np.ndarray, error: np.ndarray, tolerance: float, angle: bool = False
+) -> float | None:
+    """First time after which |error| < tolerance to the end; None if the end is outside.
+
+    With ``angle`` the error is wrapped to (-pi, pi] first.
+    """
+    tracker = SettlingTime(tolerance, angle)
+    tracker.add(np.asarray(times), np.asarray(error))
+    return tracker.value
+
+
+class SettlingTime:
+    """:func:`settling_time` over a series given in consecutive pieces."""
+
+    def __init__(self, tolerance: float, angle: bool = False) -> None:
+        self.tolerance = tolerance
+        self.angle = angle
+        self.since: float | None = None  # start of the current run of samples inside
+        self.pending = True  # the last sample seen was outside (or none seen yet)
+
+    def add(self, times: np.ndarray, error: np.ndarray) -> None:
+        if times.size == 0:
+            return
+        if self.angle:
+            error = np.angle(np.exp(1j * error))
+        outside = np.flatnonzero(~(np.abs(error) < self.tolerance))
+        if outside.size == 0:
+            if self.pending:
+                self.since, self.pending = float(times[0]), False
+        elif outside[-1] == len(times) - 1:
+            self.since, self.pending = None, True
+        else:
+            self.since, self.pending = float(times[outside[-1] + 1]), False
+
+    @property
+    def value(self) -> float | None:
+        return None if self.pending else self.since
+
+
+class KeyFigures:
+    """A row sink that keeps the key figures of the rows it is given (see the module)."""
+
+    def __init__(self, columns: tuple[str, ...] | list[str]) -> None:
+        index = {name: i for i, name in enumerate(columns)}
+        self._yaw = index.get("plant.yaw")
+        self._setpoint = index.get("controller.yaw_setpoint")
+        self._mass = index.get("plant.mass_position")
+        self._force = next((index[c] for c in _FORCES if c in index), None)
+        self._settling = SettlingTime(YAW_TOLERANCE_RAD, angle=True)
+        self._peaks = {"mass": -math.inf, "force": -math.inf}
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        if self._yaw is not None:
+            setpoint = values[:, self._setpoint] if self._setpoint is not None else 0.0
+            self._settling.add(times, values[:, self._yaw] - setpoint)
+        for key, i in (("mass", self._mass), ("force", self._force)):
+            if i is not None and len(times):  # np.max: a NaN anywhere makes the peak NaN
+                peak = np.max(np.abs(values[:, i]))
+                self._peaks[key] = float(np.max([self._peaks[key], peak]))
+
+    def add_notes(self, notes: object) -> None:
+        """Events and faults change no key figure: ``notes`` are dropped."""
+
+    def figures(self) -> dict[str, float | None]:
+        """The figures of the rows so far (plain floats or None)."""
+        return {
+            "yaw_settling_time_s": self._settling.value if self._yaw is not None else None,
+            "peak_abs_mass_position_m": _finite(self._peaks["mass"]),
+            "peak_abs_tunnel_force_N": _finite(self._peaks["force"]),
+        }
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None

@@ -1,0 +1,1 @@
+"""A run's outputs: the run folder, results.csv, summary.json and the sinks that write them."""

@@ -1,0 +1,94 @@
+"""A run's manoeuvre metrics (``manoeuvre`` key of the scenario), for its summary.json.
+
+The metrics (:mod:`cosim.metrics.manoeuvres`) need a whole time series (a turning
+circle's last full turn, a zig-zag's executes), so :class:`ManoeuvreSink` keeps, as the
+rows stream by, only the time and the few columns its kind reads (a turning circle: five;
+8 bytes a value, about 50 MB over a million rows) and measures them when asked, over the
+rows it has: a run stopped early gets the metrics of what it ran, None where they cannot
+be measured, never an exception.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cosim.engine.rows import NotesIgnored
+from cosim.metrics.manoeuvres import manoeuvre_columns, manoeuvre_metrics, metric_names
+
+if TYPE_CHECKING:
+    from cosim.scenario.spec import Scenario
+
+DEPTH_SETPOINT = "depth_setpoint"  # what a depth-steps scenario's time events set
+
+
+class ManoeuvreSink(NotesIgnored):
+    """A row sink keeping the columns manoeuvre ``kind`` reads (see the module).
+
+    Args:
+        kind: a :data:`cosim.metrics.manoeuvres.KINDS` name.
+        record: the run's columns (``<instance>.<variable>``, the rows' order).
+        fault_start: s, when the fault of a ``fault-recovery`` run starts.
+
+    Raises:
+        ValueError: the run does not record a column ``kind`` needs.
+    """
+
+    def __init__(self, kind: str, record: Sequence[str], fault_start: float = 0.0) -> None:
+        self.kind = kind
+        self.fault_start = fault_start
+        used = manoeuvre_columns(kind, list(record))
+        self._names = list(used)
+        self._index = [list(record).index(column) for column in used.values()]
+        self._times: list[np.ndarray] = []
+        self._values: list[np.ndarray] = []
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        self._times.append(np.array(times, dtype=float))
+        self._values.append(np.asarray(values, dtype=float)[:, self._index])  # a copy
+
+    def summary(self) -> dict[str, str | float | int | None]:
+        """``{"manoeuvre": kind, <metric>: value, ...}`` over the rows so far; a value that
+        is not finite is None. A failure to measure (a run that ended on NaN) leaves every
+        metric None and says why in ``manoeuvre_error``."""
+        times = np.concatenate(self._times) if self._times else np.empty(0)
+        values = np.concatenate(self._values) if self._values else np.empty((0, len(self._index)))
+        columns = {"time": times, **dict(zip(self._names, values.T, strict=True))}
+        result: dict[str, str | float | int | None] = {"manoeuvre": self.kind}
+        try:
+            with np.errstate(all="ignore"):  # NaN in, None out
+                metrics = manoeuvre_metrics(self.kind, columns, self.fault_start)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            result.update(dict.fromkeys(metric_names(self.kind)))
+            result["manoeuvre_error"] = f"cannot measure the {self.kind} metrics: {exc}"
+            return result
+        result.update({name: _finite(value) for name, value in metrics.items()})
+        return result
+
+
+def fault_start(scenario: Scenario) -> float:
+    """When the first of the scenario's faults starts (s); 0 without any."""
+    return min((fault.start for fault in scenario.faults), default=0.0)
+
+
+def scenario_metric_names(scenario: Scenario) -> tuple[str, ...]:
+    """The manoeuvre metrics a run of ``scenario`` reports (none without a manoeuvre).
+
+    A ``depth-steps`` run has one set per step: each distinct time at which a time event
+    sets a ``depth_setpoint`` (a ramped set-point changes at every step, so it is not a
+    depth-steps manoeuvre)."""
+    if scenario.manoeuvre is None:
+        return ()
+    times = {
+        event.time
+        for event in scenario.events
+        if event.time is not None and any(k.endswith(f".{DEPTH_SETPOINT}") for k in event.set)
+    }
+    return metric_names(scenario.manoeuvre, steps=len(times))
+
+
+def _finite(value: float | int | None) -> float | int | None:
+    return value if value is None or math.isfinite(value) else None

@@ -1,0 +1,152 @@
+"""The formats of a run's files: ``results.csv`` and ``summary.json``.
+
+``results.csv``: a ``time`` column (s), then one column per recorded variable named
+``<instance>.<variable>``, SI units (angles in rad), then a column ``fault.<name>`` per
+fault of the scenario (1.0 while it acts, else 0.0), one row per communication step
+including t = 0; values printed as the shortest text that reads back to the same double
+(Arrow's CSV writer: ``0.1``, ``1``, ``2.5e-7``, ``inf``/``nan`` for a non-finite
+value). Rows are appended as the run advances; every row ends with a newline, so a line
+without one is a row still being written and readers skip it.
+
+``summary.json`` (plain JSON: a non-finite number is written as null) exists from the
+start of a run with ``"status": "running"`` and is replaced (atomically) at its end by
+the full summary: ``status`` ``"complete"`` or ``"incomplete"``, ``complete``, ``error``
+(the one-line reason, null if complete), ``signal`` (the signal that stopped or
+interrupted the run, null if none), scenario id, stop_time, step, algorithm, pid,
+``outputs`` (the files the run writes), wall_clock_s (the stepping loop alone),
+real_time_factor, time_reached (the last row computed), rows (the rows in results.csv:
+fewer than computed only when results.csv could not be written), the final value of
+every column, the key figures
+(:mod:`cosim.metrics.key_figures`), the FMUs' logged warnings and errors, ``events`` (each firing
+of an event: ``name``, ``time`` in s, the values it ``set``; docs/events.md) and
+``faults`` (``name``, ``kind``, ``target``, ``start`` and ``stop`` in s, null: never),
+``overrides`` (each value set while the run went on, docs/live-runs.md: ``name``, ``time``
+in s, the values it ``set``, ``source``: where it came from) and ``real_time`` (a paced
+run's ``target_factor``, ``achieved_factor``, ``late_steps``, ``max_lateness_s``,
+``max_lateness_at_s`` (the simulated time of that step), ``fell_behind``; null for a run
+not paced).
+A scenario with a ``manoeuvre`` adds at the top level, from the start,
+``"manoeuvre": <kind>`` and, at the end, its metrics (:mod:`cosim.outputs.manoeuvre`:
+``tactical_diameter_m``, ...; null where the run cannot give one). A summary still
+saying ``running`` once its process is gone belongs to a run that was killed: its
+results.csv holds every row up to the last flush.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pa_csv
+
+if TYPE_CHECKING:  # types only: the readers of results.csv need not import the master
+    from cosim.engine.master import RunResult
+    from cosim.scenario.spec import Scenario
+
+
+_CSV_OPTIONS = pa_csv.WriteOptions(include_header=False, quoting_style="none")
+
+
+def csv_header(columns: tuple[str, ...] | list[str]) -> str:
+    """The first line of results.csv, newline included."""
+    return ",".join(["time", *columns]) + "\n"
+
+
+def csv_lines(times: np.ndarray, values: np.ndarray) -> bytes:
+    """Rows as results.csv lines (UTF-8), each ending with a newline.
+
+    pyarrow's CSV writer, not ``repr`` per value: it prints the same shortest round-trip
+    text in C++ at about a quarter of the cost (the CSV was the largest per-row cost of a
+    run beyond the FMUs' own steps; scripts/bench_cosim.py).
+    """
+    columns = [pa.array(times), *(pa.array(values[:, i]) for i in range(values.shape[1]))]
+    table = pa.Table.from_arrays(columns, names=[str(i) for i in range(len(columns))])
+    sink = pa.BufferOutputStream()
+    pa_csv.write_csv(table, sink, _CSV_OPTIONS)
+    return sink.getvalue().to_pybytes()
+
+
+def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
+    """Column names and the (rows, columns) table of a results.csv (``time`` first).
+
+    A last line without its newline (a row being written, or torn by a crash) is skipped.
+    """
+    text = path.read_text(encoding="utf-8")
+    lines = text.split("\n")[:-1]  # the part after the last newline is incomplete
+    if not lines:
+        raise ValueError(f"{path} holds no complete header line")
+    columns = lines[0].strip().split(",")
+    if len(lines) == 1:
+        return columns, np.empty((0, len(columns)))
+    return columns, np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+
+
+def running_summary(scenario: Scenario, outputs: Mapping[str, Path], out_dir: Path) -> dict:
+    """summary.json while the run is going."""
+    manoeuvre = {} if scenario.manoeuvre is None else {"manoeuvre": scenario.manoeuvre}
+    return {
+        "scenario": scenario.id,
+        **manoeuvre,
+        "status": "running",
+        "complete": False,
+        "error": None,
+        "signal": None,
+        "stop_time": scenario.stop_time,
+        "step": scenario.coupling.step,
+        "algorithm": scenario.coupling.algorithm,
+        "pid": os.getpid(),
+        "outputs": {name: _relative(path, out_dir) for name, path in outputs.items()},
+    }
+
+
+def final_summary(
+    running: dict[str, Any],
+    result: RunResult,
+    figures: dict[str, float | None],
+    error: str | None,
+    signal: str | None,
+    rows: int,
+    manoeuvre: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """summary.json at the end of a run: ``running`` completed with how it ended;
+    ``rows``: those in results.csv; ``manoeuvre``: the manoeuvre and its metrics
+    (:meth:`cosim.outputs.manoeuvre.ManoeuvreSink.summary`), put at the top level."""
+    wall = result.wall_clock_s
+    final = dict(zip(result.columns, result.final.tolist(), strict=True))
+    return {
+        **running,
+        "status": "complete" if error is None else "incomplete",
+        "complete": error is None,
+        "error": error,
+        "signal": signal,
+        "wall_clock_s": wall,
+        "real_time_factor": _finite(result.time_reached / wall) if wall > 0 else None,
+        "time_reached": result.time_reached,
+        "rows": rows,
+        "final_values": {name: _finite(value) for name, value in final.items()},
+        "key_figures": figures,
+        "fmu_messages": {name: lines for name, lines in result.messages.items() if lines},
+        "events": result.events,
+        "faults": [
+            {"name": f.name, "kind": f.kind, "target": f.target, "start": f.start, "stop": f.stop}
+            for f in result.scenario.faults
+        ],
+        "overrides": result.overrides,
+        "real_time": result.real_time,
+        **(manoeuvre or {}),
+    }
+
+
+def _relative(path: Path, folder: Path) -> str:
+    """``path`` relative to the run folder when inside it, else absolute."""
+    path, folder = path.resolve(), folder.resolve()
+    return str(path.relative_to(folder)) if path.is_relative_to(folder) else str(path)
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None

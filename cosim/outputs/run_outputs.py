@@ -1,0 +1,192 @@
+"""Every output of a run as a sink of the master's row stream, each given the Scenario.
+
+In a claimed run folder (:mod:`cosim.outputs.folder`), :meth:`RunOutputs.open` writes
+``scenario.toml`` and ``summary.json`` (``"status": "running"``) and opens the sinks:
+results.csv (:class:`cosim.outputs.sinks.CsvSink`, with the folder's tail guard), the key
+figures (:class:`cosim.metrics.key_figures.KeyFigures`), the manoeuvre metrics of a scenario that
+names one (:class:`cosim.outputs.manoeuvre.ManoeuvreSink`), the recording and the live viewer
+(made by the ``recorder`` the command hands over, one each: this room knows no viewer) and
+the progress bar. Creating them
+probes that every path is writable before the first step. :meth:`RunOutputs.close`
+closes them and :meth:`RunOutputs.finish` replaces summary.json with how the run ended.
+A run that fails before its first step calls :meth:`RunOutputs.discard` instead: what it
+created is removed again.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Protocol
+
+from cosim.engine.master import RunResult
+from cosim.engine.rows import RowSink
+from cosim.errors import CosimError
+from cosim.metrics.key_figures import KeyFigures
+from cosim.outputs.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
+from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start
+from cosim.outputs.results import final_summary, running_summary
+from cosim.outputs.sinks import CsvSink, ProgressSink, write_json_atomically
+from cosim.scenario.spec import Scenario
+
+
+class ClosableSink(RowSink, Protocol):
+    """A sink that holds a file or a connection: :meth:`RunOutputs.close` closes it."""
+
+    def close(self) -> None: ...
+
+
+class Recorder(Protocol):
+    """Makes the sink that records a run to ``rrd`` or streams it to the viewer at ``url``
+    (one of the two given); None if recording is unavailable (it warns why). Raises
+    :class:`CosimError` if the recording cannot start."""
+
+    def __call__(
+        self,
+        scenario: Scenario,
+        rrd: Path | None,
+        url: str | None,
+        on_flushed: Callable[[int], None] | None,
+    ) -> ClosableSink | None: ...
+
+
+class RunOutputs:
+    """The open outputs of one run (use :meth:`open`)."""
+
+    def __init__(self, scenario: Scenario, folder: RunFolder, paths: dict[str, Path]) -> None:
+        self.scenario = scenario
+        self.folder = folder
+        self.paths = paths  # results, scenario, summary and (if written) recording
+        self.figures = KeyFigures(scenario.record)
+        self.manoeuvre = (
+            None if scenario.manoeuvre is None
+            else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario))
+        )  # fmt: skip
+        self.csv: CsvSink | None = None
+        self.sinks: list[RowSink] = [self.figures]
+        if self.manoeuvre is not None:
+            self.sinks.append(self.manoeuvre)
+        self.manoeuvre_summary: dict[str, Any] | None = None  # set by finish
+        self._created: list[Path] = []
+        self._closable: list[ClosableSink] = []  # the sinks this object opened
+        self._running: dict[str, Any] = {}
+
+    @classmethod
+    def open(
+        cls,
+        scenario: Scenario,
+        folder: RunFolder,
+        rrd: Path | None,
+        connect: str | None,
+        progress: bool,
+        recorder: Recorder | None = None,
+        status: Callable[[], str] | None = None,
+    ) -> RunOutputs:
+        """Write scenario.toml and the running summary, open every sink.
+
+        Raises :class:`CosimError` naming the path that cannot be written; what was
+        created by then is removed again. ``status``: text shown after the progress bar.
+        """
+        paths = {name: folder.path / file for name, file in
+                 (("results", RESULTS_FILE), ("scenario", SCENARIO_FILE),
+                  ("summary", SUMMARY_FILE))}  # fmt: skip
+        if rrd is not None:
+            paths["recording"] = rrd
+        outputs = cls(scenario, folder, paths)
+        try:
+            outputs._open_sinks(rrd, connect, progress, recorder, status)
+        except BaseException:
+            outputs.discard()
+            raise
+        return outputs
+
+    def _open_sinks(
+        self,
+        rrd: Path | None,
+        connect: str | None,
+        progress: bool,
+        recorder: Recorder | None,
+        status: Callable[[], str] | None,
+    ) -> None:
+        self.csv = CsvSink(self.paths["results"], self.scenario.columns)
+        self._created.append(self.paths["results"])
+        self.sinks.insert(0, self.csv)
+        self._closable.append(self.csv)
+        self.folder.start_guard(self.paths["results"], rrd)
+        if rrd is not None and recorder is not None:
+            sink = recorder(self.scenario, rrd, None, self.folder.recording_flushed)
+            if sink is not None:
+                self._created.append(rrd)
+                self._add(sink)
+            else:
+                del self.paths["recording"]
+        elif rrd is not None:
+            del self.paths["recording"]
+        if connect is not None and recorder is not None:
+            sink = recorder(self.scenario, None, connect, None)
+            if sink is not None:
+                self._add(sink)
+        if progress:
+            self._add(ProgressSink(self.scenario.n_steps + 1, self.scenario.id, status))
+        try:
+            self.paths["scenario"].write_text(self.scenario.to_toml(), encoding="utf-8")
+        except OSError as exc:
+            raise CosimError(f"cannot write {self.paths['scenario']}: {exc.strerror}") from None
+        self._created.append(self.paths["scenario"])
+        self._running = running_summary(self.scenario, self.paths, self.folder.path)
+        self._created.append(self.paths["summary"])
+        write_json_atomically(self.paths["summary"], self._running)
+
+    def _add(self, sink: ClosableSink) -> None:
+        self.sinks.append(sink)
+        self._closable.append(sink)
+
+    def close(self) -> str | None:
+        """Close every sink (the recording's last rows are flushed); the first failure."""
+        error = None
+        for sink in self._closable:
+            try:
+                sink.close()
+            except (OSError, CosimError) as exc:
+                error = error or str(exc)
+        return error
+
+    def finish(self, result: RunResult, error: str | None, signum: int | None) -> str | None:
+        """Replace summary.json with the final summary; the failure to write it, if any."""
+        name = signal.Signals(signum).name if signum is not None else None
+        rows = self.csv.rows if self.csv is not None else 0
+        if self.manoeuvre is not None:
+            self.manoeuvre_summary = self.manoeuvre.summary()
+        figures, manoeuvre = self.figures.figures(), self.manoeuvre_summary
+        data = final_summary(self._running, result, figures, error, name, rows, manoeuvre)
+        try:
+            write_json_atomically(self.paths["summary"], data)
+        except CosimError as exc:
+            return str(exc)
+        return None
+
+    def write_scenario(self, scenario: Scenario) -> str | None:
+        """Replace scenario.toml (a live run's, its overrides as events: a replay); the
+        failure to write it, if any."""
+        path = self.paths["scenario"]
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        try:
+            tmp.write_text(scenario.to_toml(), encoding="utf-8")
+            os.replace(tmp, path)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            return f"cannot write {path}: {exc.strerror or exc}"
+        return None
+
+    def discard(self) -> None:
+        """Close the sinks and remove every file this run created (it never stepped)."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self.close()
+        for path in self._created:
+            with contextlib.suppress(OSError):
+                os.unlink(path)

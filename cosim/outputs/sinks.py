@@ -1,0 +1,112 @@
+"""The file sinks of a run: results.csv streamed row chunk by row chunk, summary.json
+replaced atomically, and the progress bar.
+
+:class:`CsvSink` writes each chunk the master hands over with one ``os.write`` loop
+straight to the file (no user-space buffer), so the rows are in the file within the
+master's hand-off interval (a second) and survive the process being killed. A failed
+write (disk full) cuts the partial chunk off again and raises with the reason, so the file
+always ends with a whole row. A ``SIGKILL`` in the middle of a write can still tear the
+last row (the kernel stops a write at a page boundary for a fatal signal): the run
+folder's tail guard (:mod:`cosim.outputs.folder`) cuts it off once the process is gone.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosim.engine.rows import NotesIgnored
+from cosim.errors import CosimError
+from cosim.outputs.results import csv_header, csv_lines
+
+
+class CsvSink(NotesIgnored):
+    """results.csv (:mod:`cosim.outputs.results` describes the format), written as rows come.
+
+    Raises :class:`CosimError` naming the file when it cannot be created or written.
+    """
+
+    def __init__(self, path: Path, columns: tuple[str, ...]) -> None:
+        self.path = path
+        self.rows = 0  # data rows in the file
+        self._written = 0  # bytes of whole rows in the file
+        try:
+            self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        except OSError as exc:
+            raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
+        self._write(csv_header(columns).encode())
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        self._write(csv_lines(times, values))
+        self.rows += len(times)
+
+    def warm_up(self) -> None:
+        """Do the CSV writer's one-time set-up now, writing nothing: pyarrow's first CSV
+        write takes seconds (its lazy initialisation), which would make a paced run's first
+        hand-off late by as much."""
+        csv_lines(np.zeros(1), np.zeros((1, 1)))
+
+    def close(self) -> None:
+        """Close the file; safe to call twice."""
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+    def _write(self, data: bytes) -> None:
+        if self._fd < 0:
+            raise CosimError(f"cannot write {self.path}: the file was closed")
+        view = memoryview(data)
+        try:
+            while view:
+                view = view[os.write(self._fd, view) :]
+        except OSError as exc:
+            with contextlib.suppress(OSError):  # leave whole rows; the reason is below
+                os.ftruncate(self._fd, self._written)
+            raise CosimError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+        self._written += len(data)
+
+
+def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
+    """Write ``data`` as JSON to ``path`` so that a reader sees the old file or the new
+    one, never a part: a temporary file beside it, then a rename. Non-finite numbers are
+    refused (they are not JSON). Raises :class:`CosimError` naming the file."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+class ProgressSink(NotesIgnored):
+    """A tqdm progress bar on stderr, opened when the first rows arrive; ``status`` (a
+    paced run's real-time factors) is shown after it, refreshed with every chunk."""
+
+    def __init__(
+        self, total_rows: int, label: str, status: Callable[[], str] | None = None
+    ) -> None:
+        self._total = total_rows
+        self._label = label
+        self._status = status
+        self._bar: Any = None
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        if self._bar is None:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=self._total, unit="step", desc=self._label, leave=False)
+        if self._status is not None:
+            self._bar.set_postfix_str(self._status(), refresh=False)
+        self._bar.update(len(times))
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None

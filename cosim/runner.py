@@ -1,0 +1,334 @@
+"""``auv-cosim run``: check everything, claim the run folder, stream the run, report.
+
+:func:`run_scenario` is the programmatic entry (tests, benchmarks); :func:`run_from_cli`
+takes the command line's :class:`RunOptions` and prints where the outputs went and the key
+figures. The order of a run:
+
+1. the command line's numbers and the recording path are checked, and from now on
+   SIGINT/SIGTERM/SIGHUP only stop the run (:mod:`cosim.engine.signals`);
+2. the run folder is claimed (:mod:`cosim.outputs.folder`): a folder another run holds, or
+   an earlier run without ``overwrite``, is refused at once, before numpy, fmpy or an FMU
+   is loaded (this module imports those only then);
+3. the scenario is loaded and every input checked (:mod:`cosim.scenario.spec`, the
+   overrides, :func:`cosim.engine.master.preflight`); then the earlier run's files are removed
+   and every output opened (:mod:`cosim.outputs.run_outputs`): nothing has stepped yet, and a
+   failure so far leaves nothing behind;
+4. the master streams the rows to the outputs (:mod:`cosim.engine.master`), paced and
+   steered live if asked (:mod:`cosim.live.session`: ``--real-time``, ``--control``,
+   ``--interactive``; docs/live-runs.md);
+5. the outputs are closed and summary.json says how the run ended, whatever signal comes;
+   a run that took live overrides rewrites scenario.toml with them as ``[[events]]``, so
+   running that file replays it.
+
+A run that stops early keeps its partial results (``summary.json`` says ``"complete":
+false`` and why) and exits non-zero with a one-line reason: 1 for a failure, 128 + the
+signal number for a signal (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), also when the signal
+came while the outputs were being completed.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import warnings
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+from cosim.engine.signals import REASONS, StopRequest, stop_on_signals
+from cosim.errors import CosimError
+from cosim.outputs.folder import RECORDING_FILE, RunFolder, check_recording_path
+from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
+
+if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (step 2)
+    from cosim.engine.master import RunResult
+    from cosim.outputs.background import BackgroundSink
+    from cosim.outputs.run_outputs import RunOutputs
+    from cosim.scenario.spec import Scenario
+    from cosim.viz.recording import RerunSink
+
+MESSAGES_SHOWN = 3  # FMU log lines (warnings and worse) printed per instance
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How to run a scenario: the command line's options, typed.
+
+    ``out_dir`` defaults to ``runs/<scenario id>``; the recording goes to ``rrd`` if given,
+    else to ``<out_dir>/recording.rrd`` unless the scenario's ``output.rrd`` is false;
+    ``no_rrd`` writes none; ``connect`` also streams to a running Rerun viewer;
+    ``overwrite`` replaces an earlier run in ``out_dir``; ``keep_rows`` also keeps every
+    row in memory (``outcome.result.column(...)``; memory grows with the stop time);
+    ``tail_guard`` starts the process that cuts a killed run's torn last row
+    (:mod:`cosim.outputs.tail_guard`; a study's task, whose killed run is run again, goes
+    without: it costs ~20 ms a run). ``real_time`` paces the run at that real-time factor,
+    ``control`` opens the control endpoint at that HOST:PORT, ``interactive`` reads keys
+    from the terminal (docs/live-runs.md).
+    """
+
+    out_dir: Path | None = None
+    stop_time: float | None = None
+    step: float | None = None
+    algorithm: Literal["jacobi", "gauss-seidel"] | None = None
+    rrd: Path | None = None
+    no_rrd: bool = False
+    connect: str | None = None
+    fmu_dir: Path = DEFAULT_FMU_DIR
+    overwrite: bool = False
+    progress: bool = False
+    keep_rows: bool = False
+    tail_guard: bool = True
+    real_time: float | None = None
+    control: str | None = None
+    interactive: bool = False
+
+
+@dataclass
+class RunOutcome:
+    """A finished (or stopped) run and where its outputs are."""
+
+    result: RunResult
+    out_dir: Path
+    paths: dict[str, Path]  # results, scenario, summary and (if written) recording
+    figures: dict[str, float | None]  # the key figures (cosim.metrics.key_figures)
+    signal: int | None = None  # the first stop signal received while the run was on
+    manoeuvre: dict[str, Any] | None = None  # the manoeuvre and its metrics (summary.json)
+
+    @property
+    def exit_code(self) -> int:
+        """0 complete, 128 + signal number if a signal came, else 1."""
+        if self.signal is not None:
+            return 128 + self.signal
+        return 0 if self.result.complete else 1
+
+
+def run_scenario(
+    scenario: str | Path | Scenario, out_dir: Path | None = None, **options: Any
+) -> RunOutcome:
+    """Run a scenario (id, file or loaded) into ``out_dir``; ``options`` are the other
+    fields of :class:`RunOptions` (``stop_time=2.0, no_rrd=True, keep_rows=True``...).
+
+    Raises :class:`CosimError` (one line) if the scenario, an option or a path is refused
+    or the FMUs cannot be set up: nothing has stepped and no output is left. A failure
+    during the run is reported in ``outcome.result`` (``complete`` false).
+    """
+    return execute(scenario, RunOptions(out_dir=out_dir, **options))
+
+
+def execute(
+    scenario: str | Path | Scenario, options: RunOptions, stop: StopRequest | None = None
+) -> RunOutcome:
+    """:func:`run_scenario` with the options as one object (see the module docstring).
+
+    ``stop``: the caller's :class:`StopRequest`, its signal handlers installed (else this
+    call installs them for its duration)."""
+    for flag, value in (("--stop-time", options.stop_time), ("--step", options.step)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise CosimError(f"{flag} {value!r}: expected a finite number of seconds > 0")
+    out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
+    if options.rrd is not None and not options.no_rrd:
+        check_recording_path(out_dir, options.rrd, options.overwrite)
+    handlers: AbstractContextManager[StopRequest | None] = nullcontext(stop)
+    if stop is None:
+        stop = StopRequest()
+        handlers = stop_on_signals(stop)
+    with handlers:
+        folder = RunFolder.claim(out_dir, options.overwrite, options.tail_guard)
+        stepped = False
+        try:
+            from cosim.engine import master
+            from cosim.live.session import LiveSession
+
+            loaded = _checked_scenario(scenario, options)
+            session = LiveSession.open(
+                loaded, options.real_time, options.control, options.interactive
+            )
+            try:
+                folder.clear_earlier_run()
+                outputs = _open_outputs(loaded, folder, options, session.status)
+                if session.pacer is not None and outputs.csv is not None:
+                    outputs.csv.warm_up()
+                try:
+                    result = master.run(
+                        loaded,
+                        outputs.sinks,
+                        keep_rows=options.keep_rows,
+                        stop=stop,
+                        hand_off_interval=session.hand_off_interval or master.HAND_OFF_INTERVAL_S,
+                        pacer=session.pacer,
+                        live=session.live,
+                    )
+                except BaseException:  # refused or not set up: it never stepped
+                    outputs.discard()
+                    raise
+                stepped = True
+            finally:
+                session.close()
+            _complete(outputs, result, stop)
+        finally:
+            folder.release(unused=not stepped)
+    figures = outputs.figures.figures()
+    return RunOutcome(
+        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary
+    )
+
+
+def _id_of(scenario: str | Path | Scenario) -> str:
+    from cosim.scenario.spec import Scenario, scenario_id
+
+    return scenario.id if isinstance(scenario, Scenario) else scenario_id(scenario)
+
+
+def _checked_scenario(scenario: str | Path | Scenario, options: RunOptions) -> Scenario:
+    """The scenario with the overrides applied, every input checked; nothing written."""
+    from cosim.engine import master
+    from cosim.scenario.spec import Scenario, load_scenario
+
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
+    if options.stop_time is not None or options.step is not None or options.algorithm:
+        scenario = scenario.with_overrides(
+            stop_time=options.stop_time, step=options.step, algorithm=options.algorithm
+        )
+    master.preflight(scenario)
+    return scenario
+
+
+def _open_outputs(
+    scenario: Scenario, folder: RunFolder, options: RunOptions, status: Callable[[], str]
+) -> RunOutputs:
+    from cosim.outputs.run_outputs import RunOutputs
+
+    if options.no_rrd:
+        rrd = None
+    elif options.rrd is not None:  # asked for explicitly: wins over the scenario's output.rrd
+        rrd = options.rrd
+    else:
+        rrd = folder.path / RECORDING_FILE if scenario.rrd else None
+    progress = options.progress and not options.interactive  # the keys' status line instead
+    recorder = rerun_sink if options.real_time is None else _background_rerun_sink
+    return RunOutputs.open(
+        scenario, folder, rrd, options.connect, progress, recorder=recorder, status=status
+    )
+
+
+def _background_rerun_sink(
+    scenario: Scenario,
+    rrd: Path | None,
+    url: str | None,
+    on_flushed: Callable[[int], None] | None,
+) -> BackgroundSink | None:
+    """:func:`rerun_sink` fed from a thread of its own (a paced run: its sends would make
+    steps late, :mod:`cosim.outputs.background`)."""
+    from cosim.outputs.background import BackgroundSink
+
+    sink = rerun_sink(scenario, rrd, url, on_flushed)
+    return None if sink is None else BackgroundSink(sink)
+
+
+def rerun_sink(
+    scenario: Scenario,
+    rrd: Path | None,
+    url: str | None,
+    on_flushed: Callable[[int], None] | None,
+) -> RerunSink | None:
+    """The Rerun sink for the file or the viewer (the outputs' ``Recorder``); None, with
+    a warning, where rerun cannot be imported."""
+    try:
+        from cosim.viz.recording import RerunSink
+    except ImportError as exc:
+        warnings.warn(
+            f"no Rerun recording: cannot import cosim.viz.recording ({exc})", stacklevel=3
+        )
+        return None
+    try:
+        return RerunSink(scenario, rrd, url, on_flushed)
+    except (OSError, ValueError) as exc:
+        raise CosimError(f"cannot start the Rerun recording: {exc}") from None
+
+
+def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest) -> None:
+    """Close the outputs and write the final summary; a failure makes the run incomplete
+    (a summary that cannot be written keeps saying "running", and the reason is printed)."""
+    from cosim.live.session import replay_scenario
+
+    problem = outputs.close()
+    if problem is not None and result.error is None:
+        result.complete, result.error = False, problem
+    replay = replay_scenario(result.scenario, result)
+    problem = outputs.write_scenario(replay) if replay is not None else None
+    if problem is not None and result.error is None:
+        result.complete, result.error = False, problem
+    problem = outputs.finish(result, result.error, stop.signum)
+    if problem is not None and result.error is None:
+        result.complete, result.error = False, problem
+
+
+def run_from_cli(scenario: str, options: RunOptions) -> int:
+    """``auv-cosim run``: 0 if the run completed, 128 + signal number if a signal came,
+    1 on failure. A signal while the report is printed is ignored too."""
+    stop = StopRequest()
+    with stop_on_signals(stop):
+        outcome = execute(scenario, options, stop)
+        _print_outcome(outcome)
+    return outcome.exit_code
+
+
+def _print_outcome(outcome: RunOutcome) -> None:
+    result = outcome.result
+    print(report(outcome))
+    if outcome.signal is not None and result.complete:
+        reason = REASONS.get(signal.Signals(outcome.signal).name, "stopped")
+        print(
+            f"auv-cosim run: {reason} while the outputs were completed; the run is complete "
+            f"in {outcome.out_dir}",
+            file=sys.stderr,
+        )
+    elif not result.complete:
+        print(
+            f"auv-cosim run: {result.error} (partial results in {outcome.out_dir})",
+            file=sys.stderr,
+        )
+
+
+def report(outcome: RunOutcome) -> str:
+    """The lines printed after a run: how far it got, where the outputs are, key figures."""
+    result = outcome.result
+    scenario = result.scenario
+    t_end, wall = result.time_reached, result.wall_clock_s
+    lines = [
+        f"scenario {scenario.id}: {'complete' if result.complete else 'INCOMPLETE'}, "
+        f"t = {t_end:g} of {scenario.stop_time:g} s, {result.rows - 1} steps of "
+        f"{scenario.coupling.step:g} s ({scenario.coupling.algorithm}), "
+        f"{wall:.2f} s wall clock" + (f" ({t_end / wall:.1f}x real time)" if wall > 0 else "")
+    ]
+    if result.real_time is not None:
+        paced = result.real_time
+        lines.append(
+            f"  paced at {paced['target_factor']:g}x real time: achieved "
+            f"{_fmt(paced['achieved_factor'])}x, {paced['late_steps']} late step(s), "
+            f"at most {paced['max_lateness_s'] * 1e3:.1f} ms late"
+        )
+    if result.overrides:
+        lines.append(f"  {len(result.overrides)} live override(s) (summary.json; "
+                     "scenario.toml replays them)")  # fmt: skip
+    lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
+    figures = outcome.figures
+    lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in figures.items()))
+    if outcome.manoeuvre:
+        metrics = {k: v for k, v in outcome.manoeuvre.items() if k != "manoeuvre"}
+        lines.append(f"  {outcome.manoeuvre['manoeuvre']}: " + ", ".join(
+            f"{k} = {v if isinstance(v, str) else _fmt(v)}" for k, v in metrics.items()
+        ))  # fmt: skip
+    for name, messages in result.messages.items():
+        lines += [f"  {name} logged: {message}" for message in messages[:MESSAGES_SHOWN]]
+        if len(messages) > MESSAGES_SHOWN:
+            lines.append(f"  {name} logged {len(messages) - MESSAGES_SHOWN} more (summary.json)")
+    return "\n".join(lines)
+
+
+def _fmt(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.4g}"

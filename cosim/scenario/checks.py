@@ -1,0 +1,102 @@
+"""What every part of a scenario file is checked with: the error, the strict pydantic base,
+where the file comes from, and the look-up and type check of one ``<instance>.<variable>``.
+
+Shared by :mod:`cosim.scenario.spec` (instances, connections, records) and
+:mod:`cosim.scenario.timeline_spec` (events and faults), so that both report a problem the same
+way: one line naming the file, the key, the bad value and what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+
+from cosim.errors import CosimError
+
+FMI_INTEGER_RANGE = (-(2**31), 2**31 - 1)  # fmi2Integer is a C int (32 bits)
+
+
+class ScenarioError(CosimError):
+    """A scenario that cannot run: the message names the file and the key."""
+
+
+class Strict(BaseModel):
+    """The base of every part of a scenario file: unknown keys are errors, nothing coerced."""
+
+    # strict: "2.0" is not a number and 2.0 not an integer (an int is a valid float)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where a scenario comes from: every problem found resolving it names it."""
+
+    where: str  # the file, or a description of the text
+
+    def error(self, key: str, problem: str) -> ScenarioError:
+        """The error for ``key`` of this scenario (raise it)."""
+        return ScenarioError(f"scenario file {self.where}: key {key!r}: {problem}")
+
+
+def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | float | str:
+    """``value`` as a value of ``var`` (an FMU interface variable): its FMI type, finite,
+    within its range; the name of one of its named values stands for that value."""
+    if isinstance(value, str) and var.names:
+        if value not in var.names:
+            named = ", ".join(f"{name!r} ({number})" for name, number in var.names.items())
+            raise src.error(key, f"{value!r} is not a {var.name}: expected one of {named}")
+        value = var.names[value]
+    expected = {"Real": "a number", "Integer": "an integer", "Enumeration": "an integer",
+                "Boolean": "true or false", "String": "a string"}[var.type]  # fmt: skip
+    ok = {
+        "Real": isinstance(value, int | float) and not isinstance(value, bool),
+        "Integer": isinstance(value, int) and not isinstance(value, bool),
+        "Enumeration": isinstance(value, int) and not isinstance(value, bool),
+        "Boolean": isinstance(value, bool),
+        "String": isinstance(value, str),
+    }[var.type]
+    if not ok:
+        raise src.error(key, f"{value!r} is not {expected} ({var.name} is {var.type})")
+    if var.type == "Real":
+        value = float(value)
+        if not math.isfinite(value):
+            raise src.error(key, f"{value!r} is not a finite number")
+    if var.type in ("Integer", "Enumeration"):
+        low, high = integer_range(var)
+        if not low <= value <= high:
+            raise src.error(key, f"{value} is outside [{low}, {high}], the range {var.name} takes")
+    return value
+
+
+def integer_range(var: Any) -> tuple[int, int]:
+    """The FMI 32-bit range, narrowed by the variable's declared ``min``/``max``."""
+    low, high = FMI_INTEGER_RANGE
+    if var.min is not None:
+        low = max(low, var.min)
+    if var.max is not None:
+        high = min(high, var.max)
+    return low, high
+
+
+def split_ref(ref: str, instances: Mapping[str, Any], key: str, src: Source) -> tuple[str, Any]:
+    """``"<instance>.<variable>"`` -> (instance name, its interface variable); ``instances``
+    maps names to resolved instances (``.interface``, ``.fmu_path``)."""
+    instance, _, variable = ref.partition(".")
+    if instance not in instances or not variable:
+        raise src.error(
+            key, f"{ref!r} is not <instance>.<variable> with an instance in {list(instances)}"
+        )
+    var = instances[instance].interface.variables.get(variable)
+    if var is None:
+        fmu = instances[instance].fmu_path.name
+        raise src.error(key, f"{instance} ({fmu}) has no variable {variable!r}")
+    return instance, var
+
+
+def a(word: str) -> str:
+    """``word`` with its indefinite article ("an input", "a parameter")."""
+    return ("an " if word[0] in "aeiou" else "a ") + word

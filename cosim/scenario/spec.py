@@ -1,0 +1,672 @@
+"""Scenario files: TOML -> a validated, fully resolved :class:`Scenario`.
+
+The format is stated once, in docs/scenario-example.toml (every key, with comments). Every
+problem is a :class:`ScenarioError` naming the file and the key, raised *before* any FMU is
+loaded: variable names, types and causalities come from each FMU's ``modelDescription.xml``
+(:func:`cosim.fmus.interface.read_interface`, which does not load the binary). Built-in FMU
+names are built on first use, or rebuilt when out of date (``cosim.fmus.build.build_fmu``).
+:meth:`Scenario.to_toml` writes the resolved scenario, which loads back to an equal one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import tomli_w
+from pydantic import (
+    ConfigDict,
+    Field,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    StrictStr,
+    ValidationError,
+)
+
+from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
+from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
+from cosim.paths import DEFAULT_FMU_DIR
+from cosim.scenario.checks import (
+    ScenarioError,
+    Source,
+    Strict,
+    a,
+    check_value,
+    split_ref,
+)
+from cosim.scenario.timeline_spec import (
+    Event,
+    EventSpec,
+    Fault,
+    FaultSpec,
+    event_table,
+    fault_table,
+    resolve_events,
+    resolve_faults,
+)
+
+SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
+BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
+FAULT_COLUMN_PREFIX = "fault."  # results.csv column of a fault: "fault.<name>"
+MAX_STEPS = 100_000_000  # communication steps per run: more is refused (days of wall clock)
+FILE_SUFFIXES = (".toml",)  # a String start value ending so names a file (vehicle sets)
+StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
+_NAME = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
+_PLAIN_NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"  # a scenario id: a safe folder name
+# A stop time within this fraction of a step of a whole number of steps counts as whole.
+_STEP_TOLERANCE = 1e-9
+
+
+# --- the file as written (pydantic, every key checked) ------------------------------------
+
+
+class CouplingSpec(Strict):
+    step: float = Field(gt=0.0, allow_inf_nan=False, description="communication step h, s")
+    algorithm: Literal["jacobi", "gauss-seidel"] = "gauss-seidel"
+    order: list[_NAME] | None = Field(default=None, description="Gauss-Seidel order")
+    step_multiples: dict[_NAME, Annotated[int, Field(ge=1)]] = Field(default_factory=dict)
+
+
+class InstanceSpec(Strict):
+    fmu: str = Field(min_length=1, description="built-in FMU name or .fmu path")
+    start: dict[str, StartValue] = Field(default_factory=dict)
+
+
+class ConnectionSpec(Strict):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, populate_by_name=True)
+    from_: str = Field(alias="from", description="<instance>.<output>")
+    to: str = Field(description="<instance>.<input>")
+
+
+class ConnectionsSpec(Strict):
+    same_names: bool = True
+    remove: list[str] = Field(default_factory=list)
+    add: list[ConnectionSpec] = Field(default_factory=list)
+
+
+class OutputSpec(Strict):
+    record: list[str] | None = None
+    rrd: bool = True
+
+
+class ScenarioSpec(Strict):
+    """One scenario file, checked key by key (types, ranges, no unknown keys)."""
+
+    id: str | None = Field(default=None, pattern=_PLAIN_NAME)
+    summary: str = ""
+    stop_time: float = Field(gt=0.0, allow_inf_nan=False, description="s")
+    manoeuvre: str | None = Field(default=None, description="cosim.metrics.manoeuvres kind")
+    coupling: CouplingSpec
+    instances: dict[_NAME, InstanceSpec] = Field(min_length=1)
+    connections: ConnectionsSpec = Field(default_factory=ConnectionsSpec)
+    output: OutputSpec = Field(default_factory=OutputSpec)
+    events: list[EventSpec] = Field(default_factory=list)
+    faults: list[FaultSpec] = Field(default_factory=list)
+
+
+# --- the resolved scenario ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Connection:
+    """Real output ``source`` (``"plant.yaw"``) drives Real input ``target``."""
+
+    source: str
+    target: str
+
+    @property
+    def source_instance(self) -> str:
+        return self.source.split(".", 1)[0]
+
+    @property
+    def source_variable(self) -> str:
+        return self.source.split(".", 1)[1]
+
+    @property
+    def target_instance(self) -> str:
+        return self.target.split(".", 1)[0]
+
+    @property
+    def target_variable(self) -> str:
+        return self.target.split(".", 1)[1]
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """How the master advances the instances (see ``cosim.engine.master``)."""
+
+    step: float  # s, communication step h
+    algorithm: Literal["jacobi", "gauss-seidel"]
+    order: tuple[str, ...]  # Gauss-Seidel order; every instance once
+    step_multiples: Mapping[str, int]  # instance -> k: it steps every k*h
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One FMU instance: its FMU (as referenced and as a file) and explicit start values."""
+
+    name: str
+    fmu: str  # as written: a built-in name or an absolute path
+    fmu_path: Path
+    start: Mapping[str, bool | int | float | str]
+    interface: FmuInterface = dataclasses.field(repr=False, compare=False)
+
+    @property
+    def model_description(self) -> Any:
+        """fmpy's model description of the FMU (for driving it through fmpy)."""
+        return self.interface.model_description
+
+    def variable(self, name: str) -> Any:
+        """The fmpy ``ModelVariable`` called ``name``."""
+        return self.interface.model_variables[name]
+
+    def variables(self, causality: str) -> list[Any]:
+        """fmpy ``ModelVariable``s with this causality, in modelDescription order."""
+        return [self.variable(v.name) for v in self.interface.with_causality(causality)]
+
+    def files(self) -> dict[str, Path]:
+        """Start values that name files (String values ending in :data:`FILE_SUFFIXES`,
+        resolved to absolute paths when the scenario was loaded): variable -> file."""
+        return {
+            name: Path(value)
+            for name, value in self.start.items()
+            if isinstance(value, str) and value.endswith(FILE_SUFFIXES)
+        }
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A fully resolved scenario: what the master, the results and the exporters use."""
+
+    id: str
+    summary: str
+    source: Path | None = dataclasses.field(compare=False)  # the file it was read from
+    stop_time: float  # s
+    coupling: Coupling
+    instances: Mapping[str, Instance]
+    connections: tuple[Connection, ...]
+    record: tuple[str, ...]  # "<instance>.<variable>" columns of results.csv
+    rrd: bool
+    spec: ScenarioSpec = dataclasses.field(repr=False, compare=False)
+    fmu_dir: Path = dataclasses.field(repr=False, compare=False, default=DEFAULT_FMU_DIR)
+    manoeuvre: str | None = None  # a cosim.metrics.manoeuvres kind: metrics in the summary
+    events: tuple[Event, ...] = ()  # cosim.scenario.timeline_spec
+    faults: tuple[Fault, ...] = ()
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The columns of results.csv after ``time``: ``record``, then ``fault.<name>`` per
+        fault (1.0 while it acts, else 0.0)."""
+        return self.record + tuple(f"{FAULT_COLUMN_PREFIX}{f.name}" for f in self.faults)
+
+    @property
+    def n_steps(self) -> int:
+        """Number of communication steps to the stop time."""
+        return round(self.stop_time / self.coupling.step)
+
+    def unconnected_inputs(self, instance: str) -> list[str]:
+        """Inputs of ``instance`` that no connection drives (they hold their start value)."""
+        driven = {c.target_variable for c in self.connections if c.target_instance == instance}
+        return [v.name for v in self.instances[instance].variables("input") if v.name not in driven]
+
+    def start_value(self, instance: str, name: str) -> bool | int | float | str | None:
+        """The value ``instance.name`` starts with: the scenario's, else the FMU's declared
+        start (converted to its type), else None (no such variable or no start)."""
+        inst = self.instances[instance]
+        if name in inst.start:
+            return inst.start[name]
+        var = inst.interface.variables.get(name)
+        return None if var is None else var.start
+
+    def with_overrides(
+        self,
+        stop_time: float | None = None,
+        step: float | None = None,
+        algorithm: str | None = None,
+    ) -> Scenario:
+        """A re-validated copy with the command line's overrides applied.
+
+        A new step also moves every instance's ``design_step`` start value that equalled
+        that instance's old communication step (a sampled controller designed for the step
+        it runs at, like the autopilot's discrete LQR), so ``--step`` never leaves a
+        controller designed for another sample time.
+        """
+        coupling: dict[str, Any] = {}
+        if step is not None:
+            coupling["step"] = step
+        if algorithm is not None:
+            coupling["algorithm"] = algorithm
+        data = self.spec.model_dump(by_alias=True, exclude_none=True)
+        data["coupling"].update(coupling)
+        if step is not None:
+            for name, instance in data.get("instances", {}).items():
+                multiple = self.coupling.step_multiples.get(name, 1)
+                start = instance.get("start", {})
+                if start.get("design_step") == self.coupling.step * multiple:
+                    start["design_step"] = step * multiple
+        if stop_time is not None:
+            data["stop_time"] = stop_time
+        given = {"stop_time": stop_time, "coupling.step": step, "coupling.algorithm": algorithm}
+        overrides = ", ".join(f"{k} = {v!r}" for k, v in given.items() if v is not None)
+        where = f"{self.source or self.id} (with the override {overrides})"
+        spec = _validate_spec(data, where)
+        base_dir = self.source.parent if self.source else Path.cwd()
+        return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, Source(where))
+
+    def to_toml(self) -> str:
+        """The resolved scenario as a scenario file that loads back to an equal scenario."""
+        data: dict[str, Any] = {
+            "id": self.id,
+            "summary": self.summary,
+            "stop_time": self.stop_time,
+            "coupling": {
+                "step": self.coupling.step,
+                "algorithm": self.coupling.algorithm,
+                "order": list(self.coupling.order),
+                "step_multiples": dict(self.coupling.step_multiples),
+            },
+            "instances": {
+                name: {"fmu": inst.fmu, "start": dict(inst.start)}
+                for name, inst in self.instances.items()
+            },
+            "connections": {
+                "same_names": False,
+                "remove": [],
+                "add": [{"from": c.source, "to": c.target} for c in self.connections],
+            },
+            "output": {"record": list(self.record), "rrd": self.rrd},
+        }
+        if self.manoeuvre is not None:
+            data["manoeuvre"] = self.manoeuvre
+        if self.events:
+            data["events"] = [event_table(event) for event in self.events]
+        if self.faults:
+            data["faults"] = [fault_table(fault) for fault in self.faults]
+        origin = f" (from {self.source})" if self.source else ""
+        header = (
+            f"# Resolved scenario {self.id!r}{origin}.\n"
+            "# Every connection, start value, step multiple and recorded variable is spelled\n"
+            "# out; run it with `auv-cosim run <this file>`.\n"
+        )
+        return header + tomli_w.dumps(data)
+
+
+# --- loading -----------------------------------------------------------------------------
+
+
+def builtin_scenarios() -> dict[str, str]:
+    """Built-in scenario ids -> one-line summaries (read without touching any FMU)."""
+    result = {}
+    for path in sorted(SCENARIO_FOLDER.glob("*.toml"), key=_natural_key):
+        spec = _validate_spec(_read_toml(path), str(path))
+        result[spec.id or path.stem] = spec.summary
+    return result
+
+
+def scenario_path(id_or_path: str | Path) -> Path:
+    """The file of a built-in scenario id, or ``id_or_path`` itself if it is a file."""
+    candidate = SCENARIO_FOLDER / f"{id_or_path}.toml"
+    if "/" not in str(id_or_path) and candidate.is_file():
+        return candidate
+    path = Path(id_or_path)
+    if path.is_file():
+        return path
+    raise ScenarioError(
+        f"unknown scenario {str(id_or_path)!r}: expected a built-in id "
+        f"({', '.join(builtin_scenarios())}) or the path of a scenario .toml file"
+    )
+
+
+def scenario_id(id_or_path: str | Path) -> str:
+    """The id a scenario runs under (its ``id`` key, else the file name), read without
+    touching any FMU: what the default run folder ``runs/<id>`` is named after."""
+    path = scenario_path(id_or_path)
+    spec = _validate_spec(_read_toml(path), str(path))
+    return _scenario_id(spec, path.stem, Source(str(path)))
+
+
+def load_scenario(id_or_path: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> Scenario:
+    """Read, validate and resolve a built-in scenario id or a scenario file.
+
+    ``fmu_dir`` is where the built-in FMUs live (built there on first use).
+    Raises :class:`ScenarioError` naming the file and the key on any problem.
+    """
+    path = scenario_path(id_or_path)
+    spec = _validate_spec(_read_toml(path), str(path))
+    src = Source(str(path))
+    sid = _scenario_id(spec, path.stem, src)
+    return _resolve(spec, sid, path.resolve(), path.parent, fmu_dir, src)
+
+
+def scenario_from_toml(
+    text: str,
+    where: str = "<string>",
+    base_dir: Path | None = None,
+    fmu_dir: Path = DEFAULT_FMU_DIR,
+) -> Scenario:
+    """Like :func:`load_scenario` for scenario text (relative paths from ``base_dir``)."""
+    try:
+        data = tomllib.loads(text.removeprefix("\ufeff"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"scenario {where}: not valid TOML: {exc}") from None
+    return scenario_from_data(data, where, base_dir, fmu_dir)
+
+
+def scenario_from_data(
+    data: Mapping[str, Any],
+    where: str = "<data>",
+    base_dir: Path | None = None,
+    fmu_dir: Path = DEFAULT_FMU_DIR,
+) -> Scenario:
+    """Like :func:`scenario_from_toml` for the parsed TOML (a study's runs: no text to
+    write and parse again); ``data`` passes the same checks and is not modified."""
+    spec = _validate_spec(data, where)
+    src = Source(where)
+    sid = _scenario_id(spec, "scenario", src)
+    return _resolve(spec, sid, None, base_dir or Path.cwd(), fmu_dir, src)
+
+
+def _natural_key(path: Path) -> tuple[str, int]:
+    stem, _, number = path.stem.rpartition("-")
+    return (stem, int(number)) if number.isdigit() else (path.stem, 0)
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
+        return tomllib.loads(path.read_text(encoding="utf-8-sig"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"scenario file {path}: not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"scenario file {path}: cannot read it: {exc}") from None
+
+
+def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
+    try:
+        return ScenarioSpec.model_validate(data)
+    except ValidationError as exc:
+        problems: dict[str, str] = {}  # key -> problem, the first one per key
+        for err in exc.errors():
+            key = ".".join(str(part) for part in err["loc"] if not _is_union_tag(part))
+            if err["type"] == "extra_forbidden":
+                problem = f"unknown key {key!r}"
+            elif err["type"] == "missing":
+                problem = f"key {key!r} is missing"
+            elif any(_is_union_tag(part) for part in err["loc"]):  # a start value
+                problem = f"key {key!r} = {err.get('input')!r}: expected a number, an integer, "
+                problem += "true/false or a string"
+            else:
+                problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
+            problems.setdefault(key, problem)
+        raise ScenarioError(f"scenario file {where}: " + "; ".join(problems.values())) from None
+
+
+def _is_union_tag(part: Any) -> bool:
+    """pydantic puts the union member tried ('float', 'str', ...) in the error location."""
+    return isinstance(part, str) and part in {"bool", "int", "float", "str"}
+
+
+# --- resolution against the FMUs' model descriptions --------------------------------------
+
+
+def _scenario_id(spec: ScenarioSpec, default: str, src: Source) -> str:
+    """The ``id`` key, else ``default`` (the file name), which must be a plain name too."""
+    if spec.id is not None:
+        return spec.id
+    if re.fullmatch(_PLAIN_NAME, default) is None:
+        raise src.error(
+            "id",
+            f"missing, and the file name {default!r} is not a plain name (letters, digits, "
+            "_ . -, not starting with . or -): set id",
+        )
+    return default
+
+
+def _resolve(
+    spec: ScenarioSpec,
+    scenario_id: str,
+    source: Path | None,
+    base_dir: Path,
+    fmu_dir: Path,
+    src: Source,
+) -> Scenario:
+    _check_step_count(spec, src)
+    names = list(spec.instances)
+    instances = {
+        name: _resolve_instance(name, inst, base_dir, fmu_dir, src)
+        for name, inst in spec.instances.items()
+    }
+    coupling = _resolve_coupling(spec, names, src)
+    connections = _resolve_connections(spec.connections, instances, src)
+    driven = {c.target: c.source for c in connections}
+    for name, inst in instances.items():
+        for var_name in inst.start:
+            if f"{name}.{var_name}" in driven:
+                raise src.error(
+                    f"instances.{name}.start.{var_name}",
+                    f"input {name}.{var_name} is connected from {driven[f'{name}.{var_name}']}, "
+                    f"so a start value would be overwritten; add {name}.{var_name!r} to "
+                    "connections.remove to hold it instead",
+                )
+    scenario = Scenario(
+        id=scenario_id,
+        summary=spec.summary,
+        source=source,
+        stop_time=spec.stop_time,
+        coupling=coupling,
+        instances=instances,
+        connections=tuple(connections),
+        record=(),
+        rrd=spec.output.rrd,
+        spec=spec,
+        fmu_dir=fmu_dir,
+    )
+    record = _resolve_record(spec.output.record, scenario, src)
+    _check_manoeuvre(spec.manoeuvre, record, src)
+    scenario = dataclasses.replace(scenario, record=record, manoeuvre=spec.manoeuvre)
+    return dataclasses.replace(
+        scenario,
+        events=resolve_events(spec.events, scenario, base_dir, src),
+        faults=resolve_faults(spec.faults, scenario, src),
+    )
+
+
+def _check_manoeuvre(kind: str | None, record: tuple[str, ...], src: Source) -> None:
+    """A known manoeuvre whose variables the run records (it measures them at the end)."""
+    if kind is None:
+        return
+    if kind not in KINDS:
+        raise src.error("manoeuvre", f"{kind!r} is not a manoeuvre: expected one of {list(KINDS)}")
+    try:
+        manoeuvre_columns(kind, record)
+    except ValueError as exc:
+        raise src.error("manoeuvre", f"{exc}; record it in output.record") from None
+
+
+def _check_step_count(spec: ScenarioSpec, src: Source) -> None:
+    """A whole number of communication steps, and not more than :data:`MAX_STEPS`."""
+    step = spec.coupling.step
+    stop_steps = spec.stop_time / step
+    if stop_steps > MAX_STEPS:
+        raise src.error(
+            "stop_time",
+            f"{spec.stop_time!r} s is {stop_steps:.3g} communication steps of "
+            f"{step!r} s (coupling.step); at most {MAX_STEPS:.0e} are run",
+        )
+    if abs(stop_steps - round(stop_steps)) > _STEP_TOLERANCE * max(1.0, stop_steps):
+        raise src.error(
+            "stop_time",
+            f"{spec.stop_time} s is not a whole number of communication steps "
+            f"(coupling.step = {step} s)",
+        )
+
+
+def _resolve_instance(
+    name: str, spec: InstanceSpec, base_dir: Path, fmu_dir: Path, src: Source
+) -> Instance:
+    if spec.fmu in BUILTIN_FMUS:
+        fmu_ref, fmu_path = spec.fmu, _builtin_fmu(spec.fmu, fmu_dir)
+    else:
+        fmu_path = (base_dir / spec.fmu).resolve()
+        if not fmu_path.is_file():
+            raise src.error(
+                f"instances.{name}.fmu",
+                f"{spec.fmu!r} is neither a built-in FMU {list(BUILTIN_FMUS)} nor an existing "
+                f"file (looked for {fmu_path})",
+            )
+        fmu_ref = str(fmu_path)
+    interface = _interface(fmu_path)
+    if interface.model_identifier is None:
+        raise src.error(f"instances.{name}.fmu", f"{fmu_path} is not a co-simulation FMU")
+    if interface.fmi_version != "2.0":
+        raise src.error(
+            f"instances.{name}.fmu", f"{fmu_path} is FMI {interface.fmi_version}, expected 2.0"
+        )
+    variables = interface.variables
+    start: dict[str, bool | int | float | str] = {}
+    for var_name, value in spec.start.items():
+        key = f"instances.{name}.start.{var_name}"
+        var = variables.get(var_name)
+        if var is None:
+            raise src.error(key, f"{name} ({fmu_path.name}) has no variable {var_name!r}")
+        if var.causality not in ("parameter", "input") or var.variability == "constant":
+            raise src.error(
+                key,
+                f"{name}.{var_name} is a {var.variability} {var.causality}; only parameters "
+                "and inputs take start values",
+            )
+        start[var_name] = check_value(value, var, key, src)
+        if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
+            start[var_name] = str(_existing_file(value, base_dir, key, src))
+    return Instance(name, fmu_ref, fmu_path, start, interface)
+
+
+def _existing_file(value: str, base_dir: Path, key: str, src: Source) -> Path:
+    """A file named in a start value, relative to the scenario's folder; must exist."""
+    path = (base_dir / value).resolve()
+    if not path.is_file():
+        raise src.error(key, f"{value!r} names no file (looked for {path})")
+    return path
+
+
+def _resolve_coupling(spec: ScenarioSpec, names: list[str], src: Source) -> Coupling:
+    c = spec.coupling
+    order = tuple(c.order) if c.order is not None else tuple(names)
+    if sorted(order) != sorted(names):
+        raise src.error("coupling.order", f"{list(order)} must name every instance {names} once")
+    for name in c.step_multiples:
+        if name not in names:
+            raise src.error(f"coupling.step_multiples.{name}", f"no instance {name!r} in {names}")
+    multiples = {name: c.step_multiples.get(name, 1) for name in names}
+    return Coupling(step=c.step, algorithm=c.algorithm, order=order, step_multiples=multiples)
+
+
+def _resolve_connections(
+    spec: ConnectionsSpec, instances: Mapping[str, Instance], src: Source
+) -> list[Connection]:
+    by_target = _same_name_connections(instances, src) if spec.same_names else {}
+    for i, ref in enumerate(spec.remove):
+        key = f"connections.remove[{i}]"
+        _, var = split_ref(ref, instances, key, src)
+        if var.causality != "input":
+            raise src.error(
+                key, f"{ref!r} is {a(var.causality)}; remove names an input to leave unconnected"
+            )
+        by_target.pop(ref, None)
+    added: dict[str, int] = {}  # target -> index in connections.add
+    for i, conn in enumerate(spec.add):
+        key = f"connections.add[{i}]"
+        src_inst, source = split_ref(conn.from_, instances, f"{key}.from", src)
+        tgt_inst, target = split_ref(conn.to, instances, f"{key}.to", src)
+        if source.causality != "output":
+            raise src.error(
+                f"{key}.from", f"{conn.from_!r} is {a(source.causality)}, not an output"
+            )
+        if target.causality != "input":
+            raise src.error(f"{key}.to", f"{conn.to!r} is {a(target.causality)}, not an input")
+        if src_inst == tgt_inst:
+            raise src.error(key, f"{conn.from_!r} -> {conn.to!r} connects an instance to itself")
+        if source.type != "Real" or target.type != "Real":
+            raise src.error(
+                key, f"only Real connections are supported ({source.type} -> {target.type})"
+            )
+        if conn.to in added:
+            raise src.error(
+                f"{key}.to",
+                f"{conn.to!r} is driven twice: by connections.add[{added[conn.to]}] "
+                f"({by_target[conn.to].source}) and here ({conn.from_}); an input has one source",
+            )
+        added[conn.to] = i
+        by_target[conn.to] = Connection(conn.from_, conn.to)
+    return sorted(by_target.values(), key=lambda c: (c.target_instance, c.target_variable))
+
+
+def _same_name_connections(instances: Mapping[str, Instance], src: Source) -> dict[str, Connection]:
+    """Every input driven by the one Real output of the same name in another instance."""
+    by_target: dict[str, Connection] = {}
+    for target, target_inst in instances.items():
+        for var in target_inst.variables("input"):
+            sources = [
+                name
+                for name, inst in instances.items()
+                if name != target
+                and (out := inst.interface.variables.get(var.name)) is not None
+                and out.causality == "output"
+                and out.type == var.type == "Real"
+            ]
+            if len(sources) > 1:
+                raise src.error(
+                    "connections.same_names",
+                    f"input {target}.{var.name} has several same-named outputs {sources}: "
+                    "connect it explicitly in connections.add",
+                )
+            if sources:
+                tgt = f"{target}.{var.name}"
+                by_target[tgt] = Connection(f"{sources[0]}.{var.name}", tgt)
+    return by_target
+
+
+def _resolve_record(record: list[str] | None, scenario: Scenario, src: Source) -> tuple[str, ...]:
+    if record is None:
+        columns = []
+        for name, inst in scenario.instances.items():
+            columns += [f"{name}.{v.name}" for v in inst.variables("output") if v.type == "Real"]
+            unconnected = set(scenario.unconnected_inputs(name))
+            columns += [
+                f"{name}.{v.name}"
+                for v in inst.variables("input")
+                if v.name in unconnected and v.type == "Real"
+            ]
+        return tuple(columns)
+    for i, ref in enumerate(record):
+        _, var = split_ref(ref, scenario.instances, f"output.record[{i}]", src)
+        if var.type != "Real":
+            raise src.error(
+                f"output.record[{i}]", f"{ref!r} is {var.type}; only Real variables are recorded"
+            )
+    if len(set(record)) != len(record):
+        raise src.error("output.record", "lists a variable twice")
+    return tuple(record)
+
+
+# --- FMU look-up (no FMU is loaded here) -------------------------------------------------
+
+
+def _builtin_fmu(name: str, fmu_dir: Path) -> Path:
+    """A built-in FMU in ``fmu_dir``, built there if missing or out of date."""
+    from cosim.fmus.build import build_fmu
+
+    return build_fmu(name, fmu_dir)
+
+
+def _interface(path: Path) -> FmuInterface:
+    """The FMU's interface (:func:`cosim.fmus.interface.read_interface`, cached)."""
+    try:
+        return read_interface(path)
+    except FmuInterfaceError as exc:
+        raise ScenarioError(str(exc)) from None

@@ -1,0 +1,410 @@
+"""A scenario's ``[[events]]`` and ``[[faults]]``: as written (pydantic), resolved and checked.
+
+Format (docs/events.md; every key checked, unknown keys are errors)::
+
+    [[events]]
+    name = "turn"              # optional plain name; default "event-<position>"; unique
+    time = 20.0                # s; exactly one of time / when / series
+    # when = "plant.yaw > 0.35"  # <instance>.<variable> (recorded or a connection's source)
+    #                            # <, <=, > or >= a number: fires on a false -> true crossing
+    # repeat = true            # only with when: every crossing [false: the first only]
+    set = { "controller.yaw_setpoint" = 0.5 }   # unconnected inputs, tunable parameters
+    # ramp = 5.0               # s: linearly from the present value (Real targets only)
+    # series = "profile.csv"   # instead of time and set: header time,<instance.variable>,...
+    # interpolation = "hold"   # series only: "hold" [default] or "linear"
+
+    [[faults]]
+    name = "jam"               # optional plain name; default "fault-<position>"; unique
+    kind = "stuck"             # stuck | bias | gain | noise | delay | dropout (connections)
+                               # mass-jam | thruster-off | plane-stuck (the plant's actuators)
+    target = "plant.mass_position_cmd"  # connection faults: the target of a connection
+    start = 3.0                # s [0]
+    stop = 10.0                # s [never]
+    # value (bias: offset, gain: factor), std + seed (noise), steps (delay),
+    # probability + seed (dropout)
+
+Nothing is evaluated: ``when`` is parsed with a regular expression. The resolved
+:class:`Event` and :class:`Fault` are frozen; :func:`event_table` and :func:`fault_table`
+write them back as TOML tables (``Scenario.to_toml``).
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import math
+import operator
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, StrictBool, StrictFloat, StrictInt
+
+from cosim.scenario.checks import Source, Strict, check_value, split_ref
+
+CONNECTION_FAULTS = ("stuck", "bias", "gain", "noise", "delay", "dropout")
+ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
+    "mass-jam": "mass_position_cmd",
+    "thruster-off": "tunnel_force",
+    "plane-stuck": "fin_angle",
+}
+MASS_POSITION = "mass_position"  # the plant output a mass-jam holds the command at
+_PLAIN = r"^[A-Za-z0-9_-]+$"
+# "<instance>.<variable> <op> <number>": one comparison, nothing evaluated
+_WHEN = re.compile(
+    r"^\s*(?P<ref>[A-Za-z_]\w*\.[A-Za-z_][\w.\[\]]*)\s*(?P<op><=|>=|<|>)\s*"
+    r"(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*$"
+)
+_OPERATORS: dict[str, Callable[[float, float], bool]] = {
+    "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
+}  # fmt: skip
+_FAULT_KEYS = {  # the optional keys each kind takes
+    "stuck": set(), "bias": {"value"}, "gain": {"value"}, "noise": {"std", "seed"},
+    "delay": {"steps"}, "dropout": {"probability", "seed"},
+    "mass-jam": set(), "thruster-off": set(), "plane-stuck": set(),
+}  # fmt: skip
+_REQUIRED = {"bias": "value", "gain": "value", "noise": "std", "delay": "steps",
+             "dropout": "probability"}  # fmt: skip
+SetValue = StrictBool | StrictInt | StrictFloat
+
+
+class EventSpec(Strict):
+    """One ``[[events]]`` table as written."""
+
+    name: str | None = Field(default=None, pattern=_PLAIN)
+    time: float | None = Field(default=None, ge=0.0, allow_inf_nan=False, description="s")
+    when: str | None = None
+    repeat: bool | None = None
+    set: dict[str, SetValue] | None = None
+    ramp: float | None = Field(default=None, gt=0.0, allow_inf_nan=False, description="s")
+    series: str | None = Field(default=None, min_length=1)
+    interpolation: Literal["hold", "linear"] | None = None
+
+
+class FaultSpec(Strict):
+    """One ``[[faults]]`` table as written."""
+
+    name: str | None = Field(default=None, pattern=_PLAIN)
+    kind: Literal[
+        "stuck", "bias", "gain", "noise", "delay", "dropout",
+        "mass-jam", "thruster-off", "plane-stuck",
+    ]  # fmt: skip
+    target: str | None = None
+    start: float = Field(default=0.0, ge=0.0, allow_inf_nan=False, description="s")
+    stop: float | None = Field(default=None, allow_inf_nan=False, description="s")
+    value: float | None = Field(default=None, allow_inf_nan=False)
+    std: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
+    seed: int | None = Field(default=None, ge=0)
+    steps: int | None = Field(default=None, ge=1)
+    probability: float | None = Field(default=None, ge=0.0, le=1.0)
+
+
+@dataclass(frozen=True)
+class Condition:
+    """``ref op threshold``: true when the value of ``ref`` compares so with ``threshold``."""
+
+    ref: str  # "<instance>.<variable>"
+    op: Literal["<", "<=", ">", ">="]
+    threshold: float
+
+    def holds(self, value: float) -> bool:
+        return _OPERATORS[self.op](value, self.threshold)
+
+    def __str__(self) -> str:
+        return f"{self.ref} {self.op} {self.threshold!r}"
+
+
+@dataclass(frozen=True)
+class Series:
+    """A CSV profile: ``columns[ref][i]`` applies from ``times[i]`` (s, strictly increasing)."""
+
+    path: Path  # absolute
+    interpolation: Literal["hold", "linear"]
+    times: tuple[float, ...]
+    columns: Mapping[str, tuple[float, ...]]
+
+
+@dataclass(frozen=True)
+class Event:
+    """One resolved event: at ``time``, on the crossing of ``when``, or a ``series``."""
+
+    name: str
+    time: float | None = None  # s
+    when: Condition | None = None
+    repeat: bool = False
+    set: Mapping[str, bool | int | float] = field(default_factory=dict)
+    ramp: float | None = None  # s
+    series: Series | None = None
+
+    def targets(self) -> tuple[str, ...]:
+        """Every ``<instance>.<variable>`` this event writes."""
+        return tuple(self.series.columns) if self.series is not None else tuple(self.set)
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One resolved fault on the input ``target`` (for actuator faults, the plant's input)."""
+
+    name: str
+    kind: str
+    target: str  # "<instance>.<input>"
+    start: float = 0.0  # s
+    stop: float | None = None  # s, None: never
+    value: float | None = None  # bias: offset; gain: factor
+    std: float | None = None  # noise: standard deviation, the target's unit
+    seed: int | None = None  # noise, dropout: numpy default_rng seed
+    steps: int | None = None  # delay: communication steps of the target instance
+    probability: float | None = None  # dropout
+    hold_source: str | None = None  # mass-jam: "<plant>.mass_position"
+
+    @property
+    def actuator(self) -> bool:
+        """An actuator fault: acts on the plant's input whether connected or not."""
+        return self.kind in ACTUATOR_FAULTS
+
+    @property
+    def whole_run(self) -> bool:
+        """Active from t = 0 to the end of the run."""
+        return self.start == 0.0 and self.stop is None
+
+
+def resolve_events(
+    specs: Sequence[EventSpec],
+    scenario: Any,
+    base_dir: Path,
+    src: Source,
+) -> tuple[Event, ...]:
+    """Check and resolve ``[[events]]`` against the resolved ``scenario`` (its instances,
+    connections, record and stop time); raises :class:`ScenarioError` naming the key."""
+    events = []
+    for i, spec in enumerate(specs):
+        key = f"events[{i}]"
+        name = spec.name or f"event-{i + 1}"
+        triggers = [k for k in ("time", "when", "series") if getattr(spec, k) is not None]
+        if len(triggers) != 1:
+            raise src.error(
+                key, f"has {triggers or 'none'} of time / when / series: expected exactly one"
+            )
+        _check_event_keys(spec, key, src)
+        when = _condition(spec.when, scenario, f"{key}.when", src) if spec.when else None
+        series = _series(spec, scenario, base_dir, f"{key}.series", src) if spec.series else None
+        values = {
+            ref: settable(ref, value, scenario, f"{key}.set.{ref}", spec.ramp is not None, src)
+            for ref, value in (spec.set or {}).items()
+        }
+        event = Event(name, spec.time, when, bool(spec.repeat), values, spec.ramp, series)
+        events.append(event)
+    _unique([e.name for e in events], "events", src)
+    return tuple(events)
+
+
+def _check_event_keys(spec: EventSpec, key: str, src: Source) -> None:
+    if spec.repeat is not None and spec.when is None:
+        raise src.error(f"{key}.repeat", f"{spec.repeat!r}: repeat is only for a `when` event")
+    if spec.series is None:
+        if not spec.set:
+            raise src.error(f"{key}.set", "missing or empty: a time or when event sets values")
+        if spec.interpolation is not None:
+            raise src.error(
+                f"{key}.interpolation", f"{spec.interpolation!r}: only for a series event"
+            )
+    else:
+        for other in ("set", "ramp"):
+            if getattr(spec, other) is not None:
+                raise src.error(f"{key}.{other}", "not with series (the file holds the values)")
+
+
+def _condition(text: str, scenario: Any, key: str, src: Source) -> Condition:
+    match = _WHEN.fullmatch(text)
+    if match is None:
+        raise src.error(
+            key,
+            f"{text!r} is not one comparison '<instance>.<variable> <op> <number>' with op "
+            "one of <, <=, >, >=",
+        )
+    ref = match["ref"]
+    _, var = split_ref(ref, scenario.instances, key, src)
+    sources = {c.source for c in scenario.connections}
+    if var.type != "Real" or (ref not in scenario.record and ref not in sources):
+        raise src.error(
+            key, f"{ref!r} is neither a recorded Real variable nor a connection's source"
+        )
+    return Condition(ref, match["op"], float(match["number"]))  # type: ignore[arg-type]
+
+
+def settable(
+    ref: str, value: Any, scenario: Any, key: str, ramp: bool, src: Source
+) -> bool | int | float:
+    """The value an event writes to ``ref``: an unconnected input or a tunable parameter."""
+    _, var = split_ref(ref, scenario.instances, key, src)
+    driven = {c.target: c.source for c in scenario.connections}
+    if ref in driven:
+        raise src.error(
+            key, f"{ref} is connected from {driven[ref]}: an event sets unconnected inputs only"
+        )
+    tunable = var.causality == "parameter" and var.variability == "tunable"
+    if var.causality != "input" and not tunable:
+        raise src.error(
+            key,
+            f"{ref} is a {var.variability} {var.causality}: expected an unconnected input or "
+            "a tunable parameter",
+        )
+    if var.type == "String" or (ramp and var.type != "Real"):
+        what = "a ramp" if ramp else "an event"
+        raise src.error(key, f"{ref} is {var.type}: {what} sets Real, Integer or Boolean ones")
+    return check_value(value, var, key, src)  # type: ignore[return-value]
+
+
+def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Source) -> Series:
+    path = (base_dir / str(spec.series)).resolve()
+    try:
+        with path.open(encoding="utf-8-sig", newline="") as file:
+            rows = list(csv.reader(file))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise src.error(key, f"{spec.series!r}: cannot read {path}: {exc}") from None
+    header = [cell.strip() for cell in rows[0]] if rows else []
+    if len(header) < 2 or header[0] != "time":
+        raise src.error(
+            key, f"{spec.series!r}: header {header} is not 'time,<instance.variable>,...'"
+        )
+    for ref in header[1:]:
+        settable(ref, 0.0, scenario, f"{key} = {spec.series!r}, column {ref}", True, src)
+    table = _numbers(rows[1:], len(header), key, spec.series, src)
+    times = [row[0] for row in table]
+    if not times:
+        raise src.error(key, f"{spec.series!r}: no rows below the header")
+    for line, (before, after) in enumerate(itertools.pairwise(times), start=3):
+        if after <= before:
+            raise src.error(
+                key, f"{spec.series!r} row {line - 1}: time {after!r} s is not after {before!r} s"
+            )
+    columns = {ref: tuple(row[j + 1] for row in table) for j, ref in enumerate(header[1:])}
+    return Series(path, spec.interpolation or "hold", tuple(times), columns)
+
+
+def _numbers(
+    rows: list[list[str]], width: int, key: str, name: Any, src: Source
+) -> list[list[float]]:
+    table = []
+    for line, row in enumerate(rows, start=2):
+        if not row:
+            continue
+        try:
+            values = [float(cell) for cell in row]
+        except ValueError:
+            values = []
+        if len(values) != width or not all(math.isfinite(v) for v in values):
+            raise src.error(key, f"{name!r} row {line - 1}: {row} is not {width} finite numbers")
+        table.append(values)
+    return table
+
+
+def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tuple[Fault, ...]:
+    """Check and resolve ``[[faults]]`` against the resolved ``scenario``."""
+    faults = []
+    targets = {c.target for c in scenario.connections}
+    for i, spec in enumerate(specs):
+        key = f"faults[{i}]"
+        _check_fault_keys(spec, key, src)
+        if spec.kind in ACTUATOR_FAULTS:
+            if spec.target is not None:
+                raise src.error(
+                    f"{key}.target", f"{spec.target!r}: an actuator fault ({spec.kind}) has none"
+                )
+            target, hold = _actuator(spec.kind, scenario, f"{key}.kind", src)
+        else:
+            if spec.target is None or spec.target not in targets:
+                raise src.error(
+                    f"{key}.target",
+                    f"{spec.target!r} is not the target of a connection: expected one of "
+                    f"{sorted(targets)}",
+                )
+            target, hold = spec.target, None
+        values = spec.model_dump(exclude={"name", "kind", "target"})
+        if spec.kind in ("noise", "dropout") and values["seed"] is None:
+            values["seed"] = 0
+        faults.append(Fault(spec.name or f"fault-{i + 1}", spec.kind, target, **values,
+                            hold_source=hold))  # fmt: skip
+    _unique([f.name for f in faults], "faults", src)
+    return tuple(faults)
+
+
+def _check_fault_keys(spec: FaultSpec, key: str, src: Source) -> None:
+    for optional in ("value", "std", "seed", "steps", "probability"):
+        if getattr(spec, optional) is not None and optional not in _FAULT_KEYS[spec.kind]:
+            raise src.error(
+                f"{key}.{optional}",
+                f"{getattr(spec, optional)!r}: kind {spec.kind!r} takes "
+                f"{sorted(_FAULT_KEYS[spec.kind]) or 'none of value/std/seed/steps/probability'}",
+            )
+    needed = _REQUIRED.get(spec.kind)
+    if needed is not None and getattr(spec, needed) is None:
+        raise src.error(f"{key}.{needed}", f"missing: kind {spec.kind!r} needs it")
+    if spec.kind not in ACTUATOR_FAULTS and spec.target is None:
+        raise src.error(f"{key}.target", f"missing: kind {spec.kind!r} acts on a connection")
+    if spec.stop is not None and spec.stop <= spec.start:
+        raise src.error(f"{key}.stop", f"{spec.stop!r} s is not after start = {spec.start!r} s")
+
+
+def _actuator(kind: str, scenario: Any, key: str, src: Source) -> tuple[str, str | None]:
+    """The one instance with the plant input an actuator fault acts on (and, for a
+    mass-jam, the mass position output on the same instance)."""
+    wanted = ACTUATOR_FAULTS[kind]
+    owners = []
+    for name, inst in scenario.instances.items():
+        var = inst.interface.variables.get(wanted)
+        if var is not None and var.causality == "input" and var.type == "Real":
+            owners.append(name)
+    if len(owners) != 1:
+        raise src.error(
+            key,
+            f"{kind!r} acts on the plant input {wanted!r}, which {len(owners)} instances "
+            f"({owners}) have: expected exactly one",
+        )
+    plant = owners[0]
+    if kind != "mass-jam":
+        return f"{plant}.{wanted}", None
+    out = scenario.instances[plant].interface.variables.get(MASS_POSITION)
+    if out is None or out.causality != "output":
+        raise src.error(key, f"'mass-jam' needs the output {plant}.{MASS_POSITION}: none")
+    return f"{plant}.{wanted}", f"{plant}.{MASS_POSITION}"
+
+
+def _unique(names: list[str], key: str, src: Source) -> None:
+    seen: set[str] = set()
+    for i, name in enumerate(names):
+        if name in seen:
+            raise src.error(f"{key}[{i}].name", f"{name!r} is used twice: names are unique")
+        seen.add(name)
+
+
+def event_table(event: Event) -> dict[str, Any]:
+    """An event as the ``[[events]]`` table that resolves to it."""
+    table: dict[str, Any] = {"name": event.name}
+    if event.series is not None:
+        table["series"] = str(event.series.path)
+        table["interpolation"] = event.series.interpolation
+        return table
+    if event.when is not None:
+        table["when"] = str(event.when)
+        table["repeat"] = event.repeat
+    else:
+        table["time"] = event.time
+    table["set"] = dict(event.set)
+    if event.ramp is not None:
+        table["ramp"] = event.ramp
+    return table
+
+
+def fault_table(fault: Fault) -> dict[str, Any]:
+    """A fault as the ``[[faults]]`` table that resolves to it."""
+    table: dict[str, Any] = {"name": fault.name, "kind": fault.kind}
+    if not fault.actuator:
+        table["target"] = fault.target
+    table["start"] = fault.start
+    for key in ("stop", "value", "std", "seed", "steps", "probability"):
+        if getattr(fault, key) is not None:
+            table[key] = getattr(fault, key)
+    return table

@@ -1,0 +1,103 @@
+"""The pacer's deadlines and accounting on a fake clock (no timed assertion): absolute
+deadlines t0 + n h / f that do not drift with the steps' own time, late steps and the
+maximum lateness, the one line said when the run falls behind, pauses, and the factors."""
+
+from __future__ import annotations
+
+import pytest
+
+from cosim.engine.pacing import BEHIND_S, Pacer
+
+
+class FakeClock:
+    """A monotonic clock that moves only when the test or the pacer's sleep moves it."""
+
+    def __init__(self) -> None:
+        self.now = 100.0
+        self.slept: list[float] = []
+
+    def __call__(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.slept.append(seconds)
+        self.now += seconds
+
+
+def pacer(factor: float = 1.0, h: float = 0.01) -> tuple[Pacer, FakeClock, list[str]]:
+    clock, said = FakeClock(), []
+    return Pacer(h, factor, clock=clock, sleep=clock.sleep, say=said.append), clock, said
+
+
+def test_points_are_released_on_absolute_deadlines_without_drift() -> None:
+    paced, clock, _ = pacer(factor=10.0)  # h / f = 1 ms per point
+    paced.release(0)
+    for n in range(1, 1001):
+        clock.now += 0.0003 if n % 2 else 0.0007  # the steps' own time varies
+        paced.release(n)
+        assert clock.now == pytest.approx(100.0 + n * 0.001, abs=1e-9)
+    assert paced.late_steps == 0
+    assert paced.total_factor() == pytest.approx(10.0)
+
+
+def test_a_late_step_is_counted_and_the_next_ones_catch_up() -> None:
+    paced, clock, said = pacer()
+    paced.release(0)
+    clock.now += 0.015  # step 1 takes 15 ms: 5 ms after its 10 ms deadline
+    paced.release(1)
+    assert (paced.late_steps, paced.max_lateness) == (1, pytest.approx(0.005))
+    clock.now += 0.001  # step 2 is quick: released at its own deadline, 20 ms after t0
+    paced.release(2)
+    assert clock.now == pytest.approx(100.02)
+    assert paced.late_steps == 1 and said == []
+    assert paced.summary()["max_lateness_s"] == pytest.approx(0.005)
+
+
+def test_falling_behind_is_said_once_and_the_backlog_dropped() -> None:
+    paced, clock, said = pacer()
+    paced.release(0)
+    clock.now += BEHIND_S + 0.2  # step 1 far too slow
+    paced.release(1)
+    clock.now += 0.002
+    paced.release(2)  # paced again from where it is: due 10 ms after point 1's release
+    assert clock.now == pytest.approx(100.0 + BEHIND_S + 0.2 + 0.01)
+    clock.now += 2 * BEHIND_S
+    paced.release(3)
+    assert len(said) == 1 and "cannot keep up" in said[0] and "1x real time" in said[0]
+    summary = paced.summary()
+    assert summary["fell_behind"] and summary["late_steps"] == 2
+    assert summary["max_lateness_s"] == pytest.approx(2 * BEHIND_S - 0.01)
+
+
+def test_a_pause_moves_the_deadlines_and_is_not_counted() -> None:
+    paced, clock, _ = pacer()
+    paced.release(0)
+    clock.now += 0.01
+    paced.release(1)
+    paced.pause()
+    clock.now += 5.0
+    paced.resume()
+    paced.release(2)
+    assert clock.now == pytest.approx(100.0 + 5.0 + 0.02)
+    assert paced.late_steps == 0
+    assert paced.total_factor() == pytest.approx(1.0)
+
+
+def test_the_rolling_factor_covers_the_last_second_only() -> None:
+    paced, clock, _ = pacer(factor=2.0, h=0.1)  # 50 ms a point
+    paced.release(0)
+    for n in range(1, 41):  # 2 s on target
+        paced.release(n)
+    assert paced.rolling_factor() == pytest.approx(2.0)
+    for n in range(41, 61):  # then 20 points at 100 ms each (1x), each late
+        clock.now += 0.1
+        paced.release(n)
+    assert paced.rolling_factor() == pytest.approx(1.0, rel=0.06)
+    assert paced.total_factor() == pytest.approx(6.0 / 4.0)
+    assert "rt 1.0" in paced.status() and "target 2x" in paced.status()
+
+
+@pytest.mark.parametrize("factor", [0.0, -1.0, float("inf"), float("nan")])
+def test_a_factor_that_is_not_finite_and_positive_is_refused(factor: float) -> None:
+    with pytest.raises(ValueError, match="real-time factor"):
+        Pacer(0.01, factor)

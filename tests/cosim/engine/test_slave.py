@@ -1,0 +1,51 @@
+"""What one process keeps between runs (cosim.engine.slave): each FMU file's extraction and
+each FMU's loaded library, so that the many runs of a study's worker do not pay for them
+again -- and a reused library runs exactly like a fresh one."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+from scenario_factory import loop_toml
+
+from cosim.engine import master, slave
+from cosim.scenario.spec import scenario_from_toml
+
+
+def test_later_runs_reuse_the_loaded_libraries_and_give_the_same_rows(
+    test_fmu_dir: Path, monkeypatch
+) -> None:
+    first = master.run(scenario_from_toml(loop_toml(), base_dir=test_fmu_dir))
+    loaded: list[str] = []
+    fmu2slave = slave.FMU2Slave
+
+    def counted(**kwargs):
+        loaded.append(kwargs["instanceName"])
+        return fmu2slave(**kwargs)
+
+    monkeypatch.setattr(slave, "FMU2Slave", counted)
+    failing = loop_toml(plant_start="fail_at = 0.5")  # a run that stops on an FMU failure
+    failed = master.run(scenario_from_toml(failing, base_dir=test_fmu_dir))
+    again = master.run(scenario_from_toml(loop_toml(), base_dir=test_fmu_dir))
+    assert loaded == []  # neither run loaded a library again
+    assert not failed.complete and "injected failure" in failed.error
+    assert again.complete
+    np.testing.assert_array_equal(again.values, first.values)
+    # instance names are part of what an instance is: another name gets its own library
+    renamed = loop_toml().replace("instances.plant", "instances.vehicle")
+    renamed = renamed.replace('"plant"]', '"vehicle"]')
+    master.run(scenario_from_toml(renamed, base_dir=test_fmu_dir))
+    assert loaded == ["vehicle"]
+
+
+def test_a_copy_of_an_fmu_file_reuses_its_extraction(test_fmu_dir: Path, tmp_path: Path) -> None:
+    original = test_fmu_dir / "CosimTestIntegrator.fmu"
+    other = test_fmu_dir / "CosimTestGain.fmu"
+    copy = tmp_path / "uploaded" / original.name  # as a study's worker receives it
+    copy.parent.mkdir()
+    shutil.copyfile(original, copy)
+    assert slave.unzipped(copy) == slave.unzipped(original)
+    shutil.copyfile(other, copy)  # the same path, another content: extracted on its own
+    assert slave.unzipped(copy) == slave.unzipped(other) != slave.unzipped(original)

@@ -1,0 +1,104 @@
+"""Events and faults on the AUV: bs-3 turned to a new heading by an
+event under Jacobi, Gauss-Seidel and step multiples; the actuator faults."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.engine import master
+from cosim.engine.master import RunResult
+from cosim.scenario.spec import SCENARIO_FOLDER, scenario_from_toml
+
+TURN = '\n[[events]]\nname = "turn"\ntime = {time}\nset = {{ "controller.yaw_setpoint" = 0.5 }}\n'
+RECORD = (
+    '[output]\nrecord = ["plant.yaw", "plant.mass_position", "plant.tunnel_force", '
+    '"plant.mass_position_cmd", "controller.yaw_setpoint"]\n'
+)
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    return fmu_paths["AuvAutopilot"].parent
+
+
+def bs3(
+    fmu_dir: Path,
+    extra: str,
+    stop_time: float = 45.0,
+    coupling: str = "",
+    algorithm: str = "gauss-seidel",
+) -> RunResult:
+    """bs-3 to ``stop_time`` with ``extra`` TOML (events, faults), more coupling lines."""
+    text = (SCENARIO_FOLDER / "bs-3.toml").read_text(encoding="utf-8")
+    text = text.replace("stop_time = 60.0", f"stop_time = {stop_time}")
+    text = text.replace('algorithm = "gauss-seidel"', f'algorithm = "{algorithm}"')
+    text = text.replace(
+        'order = ["controller", "plant"]', f'order = ["controller", "plant"]\n{coupling}'
+    )
+    scenario = scenario_from_toml(text + RECORD + extra, "bs3", SCENARIO_FOLDER, fmu_dir)
+    result = master.run(scenario)
+    assert result.complete, result.error
+    return result
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_bs3_turns_to_the_new_heading_set_at_20_s(fmu_dir: Path, algorithm: str) -> None:
+    result = bs3(fmu_dir, TURN.format(time=20.0), algorithm=algorithm)
+    assert result.events == [
+        {"name": "turn", "time": 20.0, "set": {"controller.yaw_setpoint": 0.5}}
+    ]
+    t, yaw = result.times, result.column("plant.yaw")
+    setpoint = result.column("controller.yaw_setpoint")
+    assert np.array_equal(setpoint, np.where(t >= 20.0, 0.5, 0.0))  # the recorded input follows
+    assert np.max(np.abs(yaw[(t >= 15.0) & (t <= 20.0)])) < math.radians(1.0)  # following 0
+    assert np.max(np.abs(yaw[t >= 40.0] - 0.5)) < math.radians(1.0)
+
+
+def test_with_the_controller_every_2_steps_the_event_fires_at_the_next_point(
+    fmu_dir: Path,
+) -> None:
+    # 20.005 s: the first point at or after it is t = 20.01 (n = 2001), where the
+    # controller (due at even n) is not due: it sees the setpoint at its step from 20.02
+    coupling = "step_multiples = { controller = 2 }"
+    result = bs3(fmu_dir, TURN.format(time=20.005), stop_time=20.05, coupling=coupling)
+    assert [e["time"] for e in result.events] == [pytest.approx(20.01, abs=1e-12)]
+    t, cmd = result.times, result.column("plant.mass_position_cmd")
+    setpoint = result.column("controller.yaw_setpoint")
+    assert setpoint[t < 20.005].max() == 0.0 and setpoint[t > 20.005].min() == 0.5
+    # plant.mass_position_cmd in row n is what the plant was given at t_{n-1}: the
+    # controller's command from its step at 20.00 holds over rows 2001-2002 and changes
+    # only with its step from t = 20.02 (row 2003): the new setpoint, seen then
+    n = int(np.argmin(np.abs(t - 20.0)))
+    assert cmd[n + 1] == cmd[n + 2] and cmd[n + 3] != cmd[n + 2]
+
+
+def test_mass_jam_holds_the_mass_and_thruster_off_zeroes_the_thruster(fmu_dir: Path) -> None:
+    turn = TURN.format(time=20.0)
+    jam = bs3(fmu_dir, turn + '[[faults]]\nkind = "mass-jam"\nstart = 15.0\n', stop_time=30.0)
+    t, mass = jam.times, jam.column("plant.mass_position")
+    after = t >= 15.0
+    assert np.ptp(mass[after]) < 1e-4  # jammed (it settles from its speed at 15 s)
+    assert np.all(jam.column("plant.mass_position_cmd")[1:][t[:-1] >= 15.0] == mass[t == 15.0])
+    off = bs3(fmu_dir, turn + '[[faults]]\nkind = "thruster-off"\nstart = 15.0\n', stop_time=30.0)
+    force = off.column("plant.tunnel_force")  # row n: what the plant was given at t_{n-1}
+    assert np.all(force[1:][off.times[:-1] >= 15.0] == 0.0)
+    assert np.max(np.abs(force[1:][off.times[:-1] < 15.0])) > 1.0
+    assert np.ptp(off.column("plant.mass_position")[after]) > 0.05  # the mass still moves
+    assert np.array_equal(off.column("fault.fault-1"), after.astype(float))
+
+
+def test_an_actuator_fault_on_an_unconnected_input_holds_it_then_lets_go(fmu_dir: Path) -> None:
+    text = (
+        'id = "plant-alone"\nstop_time = 1.0\n[coupling]\nstep = 0.01\n'
+        '[instances.plant]\nfmu = "AuvPlant"\n[instances.plant.start]\n'
+        "variant = 1\nu_0 = 1.5\ntunnel_force = 5.0\n"
+        '[[faults]]\nkind = "thruster-off"\nstart = 0.5\nstop = 0.8\n'
+    )
+    result = master.run(scenario_from_toml(text, "plant-alone", fmu_dir=fmu_dir))
+    t, force = result.times, result.column("plant.tunnel_force")
+    off = (t >= 0.5 - 1e-9) & (t < 0.8 - 1e-9)
+    assert np.all(force[off] == 0.0) and np.all(force[~off] == 5.0)

@@ -1,0 +1,204 @@
+"""A paced run steered through the control endpoint, then replayed from its run folder.
+
+The command line runs in a subprocess (its own process group, killed in a ``finally``) on
+the built FMUs (bs-3); a client sets the yaw set-point twice and reads the yaw back over
+JSON lines; summary.json, results.csv and the recording log both overrides, and the run
+folder's scenario.toml, run again, gives a byte-identical results.csv.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from rerun.chunk import RrdReader
+
+from cosim.engine.live import LiveControl, OverrideError
+from cosim.outputs.results import read_csv
+from cosim.runner import run_scenario
+from cosim.scenario.spec import load_scenario
+
+TIMEOUT_S = 120.0  # generous: the machine may be busy; nothing here is timed
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    return fmu_paths["AuvAutopilot"].parent
+
+
+@contextlib.contextmanager
+def cli_run(fmu_dir: Path, out: Path, *options: str) -> Iterator[subprocess.Popen]:
+    """`auv-cosim run bs-3 ...` in its own process group, killed on the way out."""
+    command = [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--fmu-dir", str(fmu_dir),
+               "--out", str(out), "--quiet", *options]  # fmt: skip
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)  # fmt: skip
+    try:
+        yield proc
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+
+
+def endpoint(proc: subprocess.Popen) -> tuple[str, int]:
+    """The address the run printed: ``control endpoint: HOST:PORT``."""
+    assert proc.stderr is not None
+    line = proc.stderr.readline()
+    assert line.startswith("control endpoint: "), line
+    host, _, port = line.split(": ", 1)[1].strip().rpartition(":")
+    return host, int(port)
+
+
+class Client:
+    """One JSON line out, one JSON line back."""
+
+    def __init__(self, address: tuple[str, int]) -> None:
+        self.sock = socket.create_connection(address, timeout=TIMEOUT_S)
+        self.file = self.sock.makefile("rw", encoding="utf-8")
+
+    def raw(self, text: str) -> str:
+        self.file.write(text + "\n")
+        self.file.flush()
+        return self.file.readline()
+
+    def ask(self, request: object) -> dict:
+        return json.loads(self.raw(json.dumps(request)))
+
+    def time_at_least(self, t: float) -> float:
+        """Poll until the run has reached ``t`` (s); the time it has reached."""
+        deadline = time.monotonic() + TIMEOUT_S
+        while time.monotonic() < deadline:
+            reply = self.ask({"get": ["plant.yaw"]})
+            if "t" in reply and reply["t"] is not None and reply["t"] >= t:
+                return reply["t"]
+            time.sleep(0.02)
+        raise AssertionError(f"the run did not reach t = {t} s")
+
+    def time_held(self) -> float:
+        """Poll until two reads 0.2 s of wall clock apart give the same time; that time."""
+        deadline, before = time.monotonic() + TIMEOUT_S, None
+        while time.monotonic() < deadline:
+            now = self.ask({"get": []})["t"]
+            if now == before:
+                return now
+            before = now
+            time.sleep(0.2)
+        raise AssertionError("the run did not pause")
+
+
+@pytest.mark.slow
+def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "live"
+    with cli_run(fmu_dir, out, "--stop-time", "60", "--real-time", "4",
+                 "--control", "127.0.0.1:0") as proc:  # fmt: skip
+        host, port = endpoint(proc)
+        client = Client((host, port))
+        t_first = client.time_at_least(0.5)
+        assert client.ask({"set": {"controller.yaw_setpoint": 0.3}}) == {
+            "ok": True, "set": {"controller.yaw_setpoint": 0.3}}  # fmt: skip
+        t_second = client.time_at_least(t_first + 0.5)
+        assert client.ask({"set": {"controller.yaw_setpoint": 0.6}})["ok"]
+        t_read = client.time_at_least(t_second + 1.0)
+        reply = client.ask({"get": ["plant.yaw", "controller.yaw_setpoint"]})
+        assert reply["t"] >= t_read and reply["values"]["controller.yaw_setpoint"] == 0.6
+        assert 0.0 < reply["values"]["plant.yaw"] < 1.0  # turning towards the set-points
+        assert client.ask({"stop": True}) == {"ok": True}
+        _, err = proc.communicate(timeout=TIMEOUT_S)
+        assert proc.returncode == 130, err  # stopped like Ctrl-C, partial results kept
+    assert host == "127.0.0.1"
+    summary = json.loads((out / "summary.json").read_text())
+    overrides = summary["overrides"]
+    assert [o["set"] for o in overrides] == [{"controller.yaw_setpoint": v} for v in (0.3, 0.6)]
+    assert all(o["source"].startswith("control 127.0.0.1:") for o in overrides)
+    assert t_first < overrides[0]["time"] <= t_second < overrides[1]["time"] <= t_read
+    columns, table = read_csv(out / "results.csv")
+    setpoint = table[:, columns.index("controller.yaw_setpoint")]
+    times = table[:, 0]
+    assert set(setpoint[times < overrides[0]["time"]]) == {0.0}
+    assert set(setpoint[times >= overrides[1]["time"]]) == {0.6}
+    assert summary["real_time"]["target_factor"] == 4.0
+    assert summary["real_time"]["achieved_factor"] > 0.0
+
+    notes = []  # the recording marks each override at its time
+    for chunk in RrdReader(out / "recording.rrd").stream():
+        if chunk.entity_path == "/events":
+            batch = chunk.to_record_batch()
+            texts = [t for row in batch.column("TextLog:text").to_pylist() for t in row]
+            nanos = batch.column("sim_time").cast("int64").to_pylist()
+            notes += list(zip(nanos, texts, strict=True))
+    assert sorted(notes) == [
+        (round(o["time"] * 1e9), f"override {o['name']} from {o['source']}: "
+                                 f"controller.yaw_setpoint = {value}")
+        for o, value in zip(overrides, (0.3, 0.6), strict=True)
+    ]  # fmt: skip
+
+    replay = run_scenario(out / "scenario.toml", tmp_path / "replay", fmu_dir=fmu_dir,
+                          no_rrd=True, tail_guard=False)  # fmt: skip
+    assert replay.result.complete, replay.result.error
+    assert (tmp_path / "replay" / "results.csv").read_bytes() == (out / "results.csv").read_bytes()
+
+
+@pytest.mark.slow
+def test_the_endpoint_refuses_bad_requests_with_one_line_each(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    with cli_run(fmu_dir, tmp_path / "run", "--no-rrd", "--stop-time", "60", "--real-time", "1",
+                 "--control", "0") as proc:  # fmt: skip
+        host, port = endpoint(proc)
+        assert host == "127.0.0.1"  # the default interface, port 0: any free port
+        client = Client((host, port))
+        client.time_at_least(0.0)
+        replies = [
+            client.raw('{"set": {"controller.no_such_input": 1.0}}'),
+            client.raw('{"set": {"controller.yaw_setpoint": 1e999}}'),
+            client.raw('{"set": {"plant.mass_position_cmd": 0.01}}'),
+            client.raw('{"get": ["plant.no_such_output"]}'),
+            client.raw("not json"),
+        ]
+        assert client.ask({"pause": True}) == {"ok": True, "paused": True}
+        held = client.time_held()  # the run waits at a communication point
+        assert client.ask({"pause": False}) == {"ok": True, "paused": False}
+        assert client.time_at_least(held + 0.05) > held  # and goes on once resumed
+        client.ask({"stop": True})
+        proc.communicate(timeout=TIMEOUT_S)
+        assert proc.returncode == 130  # stopped like Ctrl-C
+    errors = [json.loads(reply)["error"] for reply in replies]
+    assert all(reply.count("\n") == 1 for reply in replies)
+    assert "has no variable 'no_such_input'" in errors[0]
+    assert "inf is not a finite number" in errors[1]
+    assert "is connected from controller.mass_position_cmd" in errors[2]
+    assert "'plant.no_such_output'" in errors[3]
+    assert "not a JSON line" in errors[4]
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["overrides"] == []
+
+
+def test_a_value_outside_the_declared_range_is_refused(fmu_dir: Path) -> None:
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    inst = scenario.instances["controller"]
+    var = dataclasses.replace(inst.interface.variables["yaw_setpoint"], min=-math.pi, max=math.pi)
+    interface = dataclasses.replace(
+        inst.interface, variables={**inst.interface.variables, "yaw_setpoint": var}
+    )
+    instances = {**scenario.instances, "controller": dataclasses.replace(inst, interface=interface)}
+    live = LiveControl(dataclasses.replace(scenario, instances=instances))
+    assert live.check("controller.yaw_setpoint", 3.0) == 3.0
+    with pytest.raises(OverrideError, match=r"4\.0 is outside \[-3\.14.*, 3\.14.*\]"):
+        live.request({"controller.yaw_setpoint": 4.0}, "test")
+    with pytest.raises(OverrideError, match="is a fixed parameter"):
+        live.request({"controller.yaw_setpoint": 0.1, "controller.heading_mode": 1}, "test")
+    assert live.drain() == []  # a refused request queues nothing, not even its good values

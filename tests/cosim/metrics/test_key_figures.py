@@ -1,0 +1,73 @@
+"""Key figures computed as the rows stream by equal those of the whole series at once."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cosim.metrics.key_figures import KeyFigures, SettlingTime, settling_time
+
+TOLERANCE = 0.1
+
+
+def whole_series_settling_time(times: np.ndarray, error: np.ndarray) -> float | None:
+    """The definition, evaluated on the whole series by brute force."""
+    for i in range(len(times)):
+        if np.all(np.abs(error[i:]) < TOLERANCE):
+            return float(times[i])
+    return None
+
+
+errors = st.lists(st.sampled_from([0.0, 0.05, -0.05, 0.2, -0.3, math.nan]), min_size=1, max_size=40)
+cuts = st.lists(st.integers(min_value=0, max_value=40), max_size=6)
+
+
+@settings(max_examples=300, deadline=None)
+@given(errors, cuts)
+def test_streamed_settling_time_is_the_whole_series_one(values: list[float], cut: list[int]):
+    error = np.array(values)
+    times = np.arange(len(error)) * 0.5
+    tracker = SettlingTime(TOLERANCE)
+    bounds = sorted({0, len(error), *(c for c in cut if c <= len(error))})
+    for lo, hi in itertools.pairwise(bounds):
+        tracker.add(times[lo:hi], error[lo:hi])
+    expected = whole_series_settling_time(times, error)
+    assert tracker.value == expected
+    assert settling_time(times, error, TOLERANCE) == expected
+
+
+def test_key_figures_of_chunks_equal_those_of_the_whole_run():
+    rng = np.random.default_rng(3)
+    columns = ("plant.yaw", "controller.yaw_setpoint", "plant.mass_position", "plant.tunnel_force")
+    times = np.arange(500) * 0.01
+    values = rng.normal(0.0, 0.002, (500, 4))
+    values[:200, 0] += np.linspace(0.5, 0.0, 200)  # yaw settles at t = 2 s
+    values[:, 1] = 0.0
+    values[123, 2] = -0.06  # the peak of |mass_position|
+    values[321, 3] = 9.5  # and of |tunnel_force|
+    whole, chunked = KeyFigures(columns), KeyFigures(columns)
+    whole.add_rows(times, values)
+    for lo in range(0, 500, 37):
+        chunked.add_rows(times[lo : lo + 37], values[lo : lo + 37])
+    assert chunked.figures() == whole.figures()
+    figures = whole.figures()
+    assert figures["peak_abs_mass_position_m"] == 0.06
+    assert figures["peak_abs_tunnel_force_N"] == 9.5
+    assert figures["yaw_settling_time_s"] == settling_time(
+        times, values[:, 0], math.radians(1.0), angle=True
+    )
+    assert 1.0 < figures["yaw_settling_time_s"] < 2.0
+
+
+def test_figures_of_columns_not_recorded_are_none():
+    figures = KeyFigures(("plant.north",))
+    figures.add_rows(np.arange(3.0), np.zeros((3, 1)))
+    assert figures.figures() == {
+        "yaw_settling_time_s": None,
+        "peak_abs_mass_position_m": None,
+        "peak_abs_tunnel_force_N": None,
+    }

@@ -1,0 +1,297 @@
+"""Manoeuvre metrics (cosim.metrics.manoeuvres): on synthetic signals whose answers are
+known in closed form, and on the plant itself: the turning circle of the lateral plant
+with the moving mass at its stop against the plant's own steady turn."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosim.analysis.equilibria import find_equilibrium
+from cosim.metrics.manoeuvres import (
+    KINDS,
+    VARIABLES,
+    depth_steps,
+    fault_recovery,
+    fit_circle,
+    manoeuvre_columns,
+    manoeuvre_metrics,
+    metric_names,
+    survey,
+    turning_circle,
+    zigzag,
+)
+from plant_fmu.model.dynamics import STATE_INDEX, STATE_NAMES, PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import simulate
+
+H = 0.01
+
+
+# --- turning circle -------------------------------------------------------------------------
+
+
+def circle_track(turn: float, psi0: float, t_end: float = 50.0) -> dict[str, np.ndarray]:
+    """Straight at U0 = 1.5 m/s for 2 s after the execute at t = 0, then a circle of radius
+    5 m at 1.2 m/s towards ``turn`` (+1 starboard, -1 port), rolled 0.3 rad into it."""
+    radius, u0, u1, t_straight = 5.0, 1.5, 1.2, 2.0
+    t = np.arange(round(t_end / H) + 1) * H
+    theta = np.clip(u1 * (t - t_straight) / radius, 0.0, None)
+    along = np.where(t < t_straight, u0 * t, u0 * t_straight + radius * np.sin(theta))
+    side = radius * (1.0 - np.cos(theta))  # towards the turn
+    forward, starboard = (
+        np.array([math.cos(psi0), math.sin(psi0)]),
+        turn * np.array([-math.sin(psi0), math.cos(psi0)]),
+    )
+    north, east = np.outer(along, forward).T + np.outer(side, starboard).T + [[3.0], [-7.0]]
+    yaw = np.angle(np.exp(1j * (psi0 + turn * theta)))  # wrapped, as a master may record it
+    roll = np.where(t < t_straight, 0.0, turn * 0.3)
+    return {"time": t, "north": north, "east": east, "yaw": yaw, "roll": roll}
+
+
+@pytest.mark.parametrize(("turn", "psi0"), [(1.0, 0.0), (-1.0, 0.0), (1.0, 2.5), (-1.0, -3.0)])
+def test_turning_circle_of_a_known_track(turn, psi0):
+    track = circle_track(turn, psi0)
+    metrics = turning_circle(track["time"], track["north"], track["east"], track["yaw"],
+                             track["roll"])  # fmt: skip
+    assert metrics["advance_m"] == pytest.approx(3.0 + 5.0, abs=1e-4)  # straight 3 m + R
+    assert metrics["transfer_m"] == pytest.approx(5.0, abs=1e-4)  # R, towards the turn
+    assert metrics["tactical_diameter_m"] == pytest.approx(10.0, abs=1e-4)
+    assert metrics["steady_turning_diameter_m"] == pytest.approx(10.0, rel=1e-9)
+    assert metrics["steady_roll_deg"] == pytest.approx(turn * math.degrees(0.3))
+    # 1.5 -> 1.2 m/s; central differences on the circle read U (1 - (r h)^2 / 6)
+    assert metrics["speed_loss_pct"] == pytest.approx(20.0, abs=1e-4)
+
+
+def test_turning_circle_metrics_the_run_cannot_give_are_none():
+    short = circle_track(1.0, 0.0, t_end=10.0)  # 1.92 rad: past 90 deg, not 180
+    metrics = turning_circle(short["time"], short["north"], short["east"], short["yaw"],
+                             short["roll"])  # fmt: skip
+    assert metrics["advance_m"] == pytest.approx(8.0, abs=1e-4)
+    assert metrics["tactical_diameter_m"] is None
+    assert metrics["steady_turning_diameter_m"] is None and metrics["speed_loss_pct"] is None
+    # a full turn after 180 deg is needed for the steady part: 1.5 turns are not enough
+    medium = circle_track(1.0, 0.0, t_end=2.0 + 3.0 * math.pi * 5.0 / 1.2 - 0.5)
+    assert turning_circle(medium["time"], medium["north"], medium["east"], medium["yaw"],
+                          medium["roll"])["steady_turning_diameter_m"] is None  # fmt: skip
+
+
+def test_circle_fit_is_exact_on_a_circle_far_from_the_origin():
+    angle = np.linspace(0.0, 2.0 * math.pi, 400, endpoint=False)
+    centre, radius = fit_circle(1e4 + 7.5 * np.cos(angle), -3e3 + 7.5 * np.sin(angle))
+    assert radius == pytest.approx(7.5, rel=1e-10)
+    assert centre == pytest.approx((1e4, -3e3), abs=1e-7)
+
+
+@pytest.fixture(scope="module")
+def lateral_turn():
+    """The lateral plant from straight running at 1.525 m/s (T = 9 N), the moving mass
+    commanded to its +6 cm stop at t = 0 and held, 60 s at 10 ms."""
+    model = PlantModel(load_vehicle("remus100"), variant=Variant.LATERAL)
+    inputs = input_vector({"thrust": 9.0, "mass_position_cmd": 0.06})
+    times, states = simulate(model, state_vector({"u": 1.525}), inputs, 60.0, H)
+    return model, inputs, times, states
+
+
+def test_steady_turning_diameter_is_2U_over_r_of_the_plants_own_steady_turn(lateral_turn):
+    model, inputs, times, states = lateral_turn
+
+    def state(name: str) -> np.ndarray:
+        return states[:, STATE_INDEX[name]]
+
+    metrics = turning_circle(times, state("north"), state("east"), state("yaw"), state("roll"))
+    # The plant's own steady turn: the equilibrium of its reduced dynamics (the mass at its
+    # stop), from the end of the run; U and the turn rate are its kinematics' own rates.
+    guess = dict(zip(STATE_NAMES, states[-1].tolist(), strict=True))
+    steady = find_equilibrium(model, guess, inputs)
+    rates = model.derivative(steady.state, inputs)
+    speed = math.hypot(rates[STATE_INDEX["north"]], rates[STATE_INDEX["east"]])
+    diameter = 2.0 * speed / rates[STATE_INDEX["yaw"]]
+    assert metrics["steady_turning_diameter_m"] == pytest.approx(diameter, rel=0.01)
+    assert metrics["steady_roll_deg"] == pytest.approx(math.degrees(steady.value("roll")), abs=0.5)
+    approach = states[0, STATE_INDEX["u"]]
+    assert metrics["speed_loss_pct"] == pytest.approx(100 * (1 - speed / approach), abs=0.5)
+    # the turn builds up: the vehicle runs on before it turns, and the tactical diameter
+    # (at 180 deg) exceeds the steady one
+    assert metrics["advance_m"] > metrics["transfer_m"] > 0.0
+    assert metrics["tactical_diameter_m"] > metrics["steady_turning_diameter_m"]
+
+
+# --- zig-zag --------------------------------------------------------------------------------
+
+
+def zigzag_run(t_end: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heading 25 sin(2 pi t / 30 s) + 2 deg with a +-20 deg set-point switched each time
+    the heading crosses it (a 20/20 zig-zag with peaks at +27 and -23 deg)."""
+    t = np.arange(round(t_end / H) + 1) * H
+    yaw = np.radians(25.0 * np.sin(2.0 * math.pi * t / 30.0) + 2.0)
+    setpoint = np.empty_like(t)
+    value = math.radians(20.0)
+    for k, psi in enumerate(yaw):
+        if (value > 0.0 and psi >= value) or (value < 0.0 and psi <= value):
+            value = -value
+        setpoint[k] = value
+    return t, yaw, setpoint
+
+
+def test_zigzag_overshoots_and_period_of_a_known_heading():
+    t, yaw, setpoint = zigzag_run(100.0)
+    metrics = zigzag(t, yaw, setpoint)
+    slope = 25.0 * 2.0 * math.pi / 30.0 * H  # deg the heading moves in one sample, at most
+    assert 7.0 - slope <= metrics["overshoot_1_deg"] <= 7.0
+    assert 3.0 - slope <= metrics["overshoot_2_deg"] <= 3.0
+    assert metrics["period_s"] == pytest.approx(30.0, abs=H)
+    # the same with the heading mirrored (a first turn to port)
+    mirrored = zigzag(t, -yaw, -setpoint)
+    assert mirrored["overshoot_1_deg"] == pytest.approx(metrics["overshoot_1_deg"])
+
+
+def test_zigzag_metrics_need_the_executes_after_them():
+    t, yaw, setpoint = zigzag_run(20.0)  # executes at 0 s and 3.9 s only
+    assert zigzag(t, yaw, setpoint) == {
+        "overshoot_1_deg": None,
+        "overshoot_2_deg": None,
+        "period_s": None,
+    }
+    t, yaw, setpoint = zigzag_run(30.0)  # a third execute (20.1 s), no fourth
+    metrics = zigzag(t, yaw, setpoint)
+    assert metrics["overshoot_1_deg"] is not None and metrics["overshoot_2_deg"] is None
+
+
+# --- depth steps ----------------------------------------------------------------------------
+
+
+def depth_run() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Set-point 1 -> 3 m at 10 s -> 2 m at 60 s. The first step a first-order response
+    (tau = 2 s) that stops 5 cm short; the second an underdamped second-order one
+    (zeta = 0.5, omega_n = 1 rad/s) onto 2 m."""
+    t = np.arange(round(120.0 / H) + 1) * H
+    setpoint = np.where(t < 10.0, 1.0, np.where(t < 60.0, 3.0, 2.0))
+    first = 1.0 + 1.95 * (1.0 - np.exp(-(t - 10.0) / 2.0))
+    top = first[t < 60.0][-1]
+    zeta, s = 0.5, t - 60.0
+    damped = math.sqrt(1.0 - zeta**2)
+    unit = 1.0 - np.exp(-zeta * s) / damped * np.sin(damped * s + math.acos(zeta))
+    depth = np.where(t < 10.0, 1.0, np.where(t < 60.0, first, top + (2.0 - top) * unit))
+    return t, depth, setpoint
+
+
+def test_depth_steps_of_known_responses():
+    t, depth, setpoint = depth_run()
+    first, second = depth_steps(t, depth, setpoint)
+    assert first["rise_time_s"] == pytest.approx(2.0 * math.log(9.0), abs=1e-3)  # tau ln 9
+    assert first["settling_time_s"] == pytest.approx(2.0 * math.log(50.0), abs=H)  # 2 %
+    assert first["overshoot_pct"] == 0.0
+    assert first["steady_error_m"] == pytest.approx(0.05, abs=1e-9)
+    overshoot = 100.0 * math.exp(-0.5 * math.pi / math.sqrt(0.75))  # 16.3 %
+    assert second["overshoot_pct"] == pytest.approx(overshoot, abs=1e-3)
+    assert second["steady_error_m"] == pytest.approx(0.0, abs=1e-9)
+    assert 0.0 < second["rise_time_s"] < second["settling_time_s"] < 10.0
+
+
+# --- survey ---------------------------------------------------------------------------------
+
+
+def test_survey_metrics():
+    metrics = survey(np.array([3.0, -4.0, 3.0, -4.0]), np.array([0.0, 1.0, 1.0, 2.0]))
+    assert metrics == {
+        "cross_track_rms_m": pytest.approx(math.sqrt(12.5)),
+        "cross_track_max_m": 4.0,
+        "legs_completed": 2,
+    }
+
+
+# --- the one call ---------------------------------------------------------------------------
+
+
+def test_manoeuvre_metrics_finds_the_columns_by_variable_name():
+    track = circle_track(1.0, 0.0)
+    columns = {"time": track["time"]}
+    columns.update({f"plant.{name}": track[name] for name in ("north", "east", "yaw", "roll")})
+    command = np.where(track["time"] < 0.5, 0.0, 0.06)  # the execute at 0.5 s
+    columns["controller.mass_position_cmd"] = command
+    late = manoeuvre_metrics("turning-circle", columns)
+    columns["controller.mass_position_cmd"] = np.full_like(command, 0.06)  # from t = 0
+    assert manoeuvre_metrics("turning-circle", columns)["advance_m"] == pytest.approx(8.0, 1e-4)
+    assert late["advance_m"] == pytest.approx(8.0 - 0.75, abs=1e-4)  # 0.5 s less straight
+    t, depth, setpoint = depth_run()
+    steps = manoeuvre_metrics("depth-steps", {"time": t, "plant.down": depth,
+                                              "guidance.depth_setpoint": setpoint})  # fmt: skip
+    assert steps["step_1_steady_error_m"] == pytest.approx(0.05)
+    names = ("rise_time_s", "overshoot_pct", "settling_time_s", "steady_error_m")
+    assert set(steps) == {f"step_{k}_{name}" for k in (1, 2) for name in names}
+    t, yaw, setpoint = zigzag_run(100.0)
+    zig = manoeuvre_metrics("zigzag", {"time": t, "plant.yaw": yaw,
+                                       "controller.yaw_setpoint": setpoint})  # fmt: skip
+    assert zig == zigzag(t, yaw, setpoint)
+
+
+def test_manoeuvre_metrics_names_what_is_missing_or_ambiguous():
+    with pytest.raises(ValueError, match=r"unknown manoeuvre 'zig-zag': expected one of \["):
+        manoeuvre_metrics("zig-zag", {})
+    columns = {"time": np.zeros(3), "guidance.cross_track_error": np.zeros(3)}
+    missing = r"'survey' needs the variable 'legs_completed', but the run has no column for it "
+    missing += r"\(columns: guidance\.cross_track_error\)"
+    with pytest.raises(ValueError, match=missing):
+        manoeuvre_metrics("survey", columns)
+    columns["a.legs_completed"] = columns["b.legs_completed"] = np.ones(3)
+    with pytest.raises(ValueError, match=r"several columns \['a\.legs_completed', 'b\.legs"):
+        manoeuvre_metrics("survey", columns)
+    columns["plant.legs_completed"] = np.full(3, 4.0)  # the plant's wins
+    assert manoeuvre_metrics("survey", columns)["legs_completed"] == 4
+
+
+def test_manoeuvre_columns_are_what_a_run_must_record():
+    recorded = ["plant.yaw", "controller.yaw_setpoint", "guidance.yaw_setpoint", "plant.roll"]
+    assert manoeuvre_columns("fault-recovery", recorded[:2]) == {
+        "yaw": "plant.yaw",
+        "yaw_setpoint": "controller.yaw_setpoint",
+    }
+    ambiguous = r"'zigzag' needs the variable 'yaw_setpoint', but the run has several columns "
+    ambiguous += r"\['controller\.yaw_setpoint', 'guidance"
+    with pytest.raises(ValueError, match=ambiguous):
+        manoeuvre_columns("zigzag", recorded)
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+@pytest.mark.parametrize("rows", [0, 1, 2])
+def test_a_run_stopped_early_gets_its_metric_names_with_none(kind, rows):
+    """A run killed or stopped after a few rows: every metric it names, None or finite,
+    never an exception (the summary of a partial run is still written)."""
+    columns = {"time": np.arange(rows) * H}
+    columns.update({f"plant.{name}": np.full(rows, 0.1) for name in VARIABLES[kind]})
+    metrics = manoeuvre_metrics(kind, columns)
+    assert tuple(metrics) == metric_names(kind, steps=0)
+    assert all(v is None or math.isfinite(v) for v in metrics.values())
+
+
+def test_metric_names_number_the_depth_steps():
+    t, depth, setpoint = depth_run()
+    steps = manoeuvre_metrics("depth-steps", {"time": t, "down": depth, "depth_setpoint": setpoint})
+    assert tuple(steps) == metric_names("depth-steps", steps=2)
+
+
+# --- fault recovery -------------------------------------------------------------------------
+
+
+def test_fault_recovery_of_a_known_heading():
+    """Heading error 10 deg decaying with tau = 2 s from the fault at t = 3 s: below 1 deg
+    from 3 + 2 ln 10 s on."""
+    t = np.arange(2001) * H
+    error = np.radians(np.where(t < 3.0, 10.0, 10.0 * np.exp(-(t - 3.0) / 2.0)))
+    setpoint = np.full_like(t, 3.0)  # near pi: the error is taken on the circle
+    metrics = fault_recovery(t, setpoint - error - 2 * math.pi, setpoint, start=3.0)
+    assert metrics["heading_error_at_fault_deg"] == pytest.approx(10.0)
+    assert metrics["heading_error_max_deg"] == pytest.approx(10.0)
+    assert metrics["heading_error_final_deg"] == pytest.approx(10.0 * math.exp(-8.5), rel=1e-6)
+    assert metrics["heading_settling_time_s"] == pytest.approx(2.0 * math.log(10.0), abs=H)
+    drifting = fault_recovery(t, np.radians(0.1 * t), np.zeros_like(t), start=3.0)
+    assert drifting["heading_settling_time_s"] is None  # 2 deg at the end: not recovered
+    assert drifting["heading_error_max_deg"] == pytest.approx(2.0)
+    assert (
+        fault_recovery(t, np.zeros_like(t), np.zeros_like(t), 3.0)["heading_settling_time_s"] == 0.0
+    )
+    assert set(fault_recovery(t, t, t, start=30.0).values()) == {None}  # stopped before it

@@ -1,0 +1,91 @@
+"""A full disk ends a run incomplete with exit 1 and the reason (a regression: a recording whose
+disk filled up left rc 0, "complete" and an unreadable .rrd).
+
+The mid-run cases write to a small tmpfs (mounted here when the tests run as root, else
+skipped); /dev/full, which refuses every write with ENOSPC, stands in where no mount is
+possible."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from cosim.errors import CosimError
+from cosim.outputs.sinks import CsvSink
+
+DEV_FULL = Path("/dev/full")
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    return fmu_paths["AuvAutopilot"].parent
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Iterator[Path]:
+    """A 1 MB tmpfs at tmp_path/small, unmounted afterwards."""
+    mount = tmp_path / "small"
+    mount.mkdir()
+    done = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mount)],
+        capture_output=True,
+        text=True,
+    )
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {done.stderr.strip()}")
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], check=True)
+
+
+def run_cli(fmu_dir: Path, *options: str) -> subprocess.CompletedProcess:
+    command = [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--fmu-dir", str(fmu_dir)]
+    return subprocess.run([*command, "--quiet", *options], capture_output=True, text=True)
+
+
+def test_results_filling_the_disk_end_the_run_with_the_reason(fmu_dir: Path, small_disk: Path):
+    out = small_disk / "run"
+    done = run_cli(fmu_dir, "--out", str(out), "--stop-time", "60", "--no-rrd")
+    assert done.returncode == 1
+    assert done.stderr.count("\n") == 1
+    assert f"cannot write {out / 'results.csv'}: No space left on device" in done.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "incomplete" and "No space left on device" in summary["error"]
+    text = (out / "results.csv").read_text()
+    assert text.endswith("\n") and text.count("\n") - 1 == summary["rows"]
+
+
+def test_a_recording_filling_the_disk_ends_the_run_with_the_reason(
+    fmu_dir: Path, small_disk: Path, tmp_path: Path
+):
+    # long enough that the rows reach the recording while the run steps (a 60 s run may
+    # be done before its first hand-off to the sinks)
+    out, rrd = tmp_path / "run", small_disk / "recording.rrd"
+    done = run_cli(fmu_dir, "--out", str(out), "--stop-time", "3600", "--rrd", str(rrd))
+    assert done.returncode == 1
+    assert f"cannot write the recording {rrd}: No space left on device" in done.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "incomplete" and "No space left on device" in summary["error"]
+    assert 0 < summary["time_reached"] < 3600.0  # it failed while running, not before
+
+
+def test_a_recording_on_a_device_refusing_every_write_is_refused(fmu_dir: Path, tmp_path: Path):
+    if not DEV_FULL.exists():
+        pytest.skip("no /dev/full")
+    done = run_cli(fmu_dir, "--out", str(tmp_path / "run"), "--rrd", str(DEV_FULL), "--overwrite")
+    assert done.returncode == 1 and done.stderr.count("\n") == 1
+    assert "cannot write the recording /dev/full: No space left on device" in done.stderr
+    assert not (tmp_path / "run").exists()  # refused before the first step
+
+
+def test_results_on_a_device_refusing_every_write_name_it():
+    if not DEV_FULL.exists():
+        pytest.skip("no /dev/full")
+    with pytest.raises(CosimError, match="cannot write /dev/full: No space left on device"):
+        CsvSink(DEV_FULL, ("plant.yaw",))

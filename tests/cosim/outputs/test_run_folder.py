@@ -1,0 +1,136 @@
+"""Run folders are owned: refused before the first step when they cannot be
+used, reused only with --overwrite (which removes the earlier run's files first), and the
+recording may not point at another output. On the test FMUs of tests/fmus, in process."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from scenario_factory import loop_toml
+
+from cosim.cli import main
+from cosim.engine import master
+from cosim.outputs.folder import LOCK_FILE, RunFolder, RunFolderError
+
+
+@pytest.fixture
+def loop_file(test_fmu_dir: Path, tmp_path: Path) -> Path:
+    path = tmp_path / "loop.toml"
+    path.write_text('id = "loop"\n' + loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim'))
+    return path
+
+
+@pytest.fixture
+def no_stepping(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fail the test if a run gets as far as the master."""
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the run was not refused before the master started")
+
+    monkeypatch.setattr(master, "run", refuse)
+
+
+def contents(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def one_line(capsys: pytest.CaptureFixture[str]) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    return err
+
+
+def test_a_finished_run_folder_is_reused_only_with_overwrite(loop_file: Path, tmp_path, capsys):
+    """Regression: `run bs-3 --out d; run bs-1 --out d --no-rrd` left bs-3's recording beside
+    bs-1's results."""
+    out = tmp_path / "d"
+    assert main(["run", str(loop_file), "--out", str(out)]) == 0
+    first = contents(out)
+    assert set(first) == {"results.csv", "scenario.toml", "summary.json", "recording.rrd"}
+    other = tmp_path / "other.toml"
+    other.write_text(loop_file.read_text().replace('id = "loop"', 'id = "other"'))
+    capsys.readouterr()
+
+    assert main(["run", str(other), "--out", str(out), "--no-rrd"]) == 1
+    err = one_line(capsys)
+    assert "holds an earlier run (scenario 'loop', status 'complete')" in err
+    assert "--overwrite" in err
+    assert contents(out) == first  # refused: nothing touched
+
+    assert main(["run", str(other), "--out", str(out), "--no-rrd", "--overwrite"]) == 0
+    assert set(contents(out)) == {"results.csv", "scenario.toml", "summary.json"}
+    assert json.loads((out / "summary.json").read_text())["scenario"] == "other"
+
+
+def test_overwrite_keeps_files_that_no_run_wrote(loop_file: Path, tmp_path: Path):
+    out = tmp_path / "d"
+    assert main(["run", str(loop_file), "--out", str(out), "--no-rrd"]) == 0
+    (out / "notes.txt").write_text("mine\n")
+    (out / "report").mkdir()  # what `auv-cosim report` adds: the earlier run's
+    assert main(["run", str(loop_file), "--out", str(out), "--overwrite"]) == 0
+    assert (out / "notes.txt").read_text() == "mine\n"
+    assert not (out / "report").exists()
+    assert (out / "recording.rrd").is_file()
+
+
+@pytest.mark.parametrize(
+    ("make", "flags", "message"),
+    [
+        (lambda t: t / "afile", [], "--out {out}: exists and is not a folder"),
+        (lambda t: Path("/proc/auv-cosim-test/x"), [], "--out {out}: cannot create the run folder"),
+        (lambda t: t / "full", [], "is not empty (mine.txt) and holds no earlier run"),
+        (lambda t: t / "r", ["--rrd", "{out}/results.csv"], "that is the run's results.csv"),
+        (lambda t: t / "r", ["--rrd", "{out}/summary.json"], "that is the run's summary.json"),
+        (lambda t: t / "r", ["--rrd", "{tmp}"], "is a folder; expected the path of a .rrd file"),
+    ],
+)
+def test_unusable_outputs_are_refused_before_the_first_step(
+    loop_file: Path, tmp_path: Path, capsys, no_stepping: None, make, flags, message
+):
+    """Regression: `--out /proc/x`, `--out` an existing file ran the whole simulation, then
+    rc 1; `--rrd runs/x/results.csv` overwrote the CSV."""
+    (tmp_path / "afile").write_text("not a folder\n")
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "mine.txt").write_text("mine\n")
+    out = make(tmp_path)
+    options = [f.format(out=out, tmp=tmp_path) for f in flags]
+    assert main(["run", str(loop_file), "--out", str(out), *options]) == 1
+    assert message.format(out=out) in one_line(capsys)
+    assert (tmp_path / "afile").read_text() == "not a folder\n"
+    assert not (tmp_path / "r").exists()  # a refused run leaves no folder behind
+    assert sorted(p.name for p in (tmp_path / "full").iterdir()) == ["mine.txt"]
+
+
+@pytest.mark.parametrize(
+    ("flag", "value", "message"),
+    [
+        ("--stop-time", "inf", "--stop-time inf: expected a finite number of seconds > 0"),
+        ("--stop-time", "nan", "--stop-time nan: expected a finite number of seconds > 0"),
+        ("--step", "-0.1", "--step -0.1: expected a finite number of seconds > 0"),
+        ("--stop-time", "1e12", "is 1e+13 communication steps of 0.1 s (coupling.step); at most"),
+    ],
+)
+def test_bad_times_on_the_command_line_are_one_line(
+    loop_file: Path, tmp_path: Path, capsys, no_stepping: None, flag: str, value: str, message
+):
+    """Regression: `--stop-time inf` / `1e12` ended in a Python traceback."""
+    assert main(["run", str(loop_file), "--out", str(tmp_path / "r"), f"{flag}={value}"]) == 1
+    assert message in one_line(capsys)
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_locked_folder_is_refused_naming_the_process(loop_file: Path, tmp_path: Path, capsys):
+    out = tmp_path / "d"
+    holder = RunFolder.claim(out)
+    try:
+        assert (out / LOCK_FILE).is_file()
+        with pytest.raises(RunFolderError, match=r"is in use by process \d+ \("):
+            RunFolder.claim(out)
+        assert main(["run", str(loop_file), "--out", str(out)]) == 1
+        assert f"run folder {out} is in use by process" in one_line(capsys)
+    finally:
+        holder.release()
+    assert not (out / LOCK_FILE).exists()
+    assert main(["run", str(loop_file), "--out", str(out), "--no-rrd"]) == 0

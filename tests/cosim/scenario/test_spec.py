@@ -1,0 +1,361 @@
+"""Scenario files: the built-ins, the resolved model, and bad files failing before any FMU
+is loaded with the file and the key named."""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+from repo_paths import ROOT
+
+from cosim.engine import master, slave
+from cosim.scenario.spec import (
+    SCENARIO_FOLDER,
+    ScenarioError,
+    builtin_scenarios,
+    load_scenario,
+    scenario_from_toml,
+)
+
+MODEL_MD_IDS = ["bs-1", "bs-2", "bs-3", "cur-1", "cur-2", "lqr-1", "lqr-2", "lqr-3",
+                "slow-1", "slow-2", "vert-1", "vert-2"]  # fmt: skip
+MANOEUVRE_IDS = [
+    "depth-steps",
+    "mass-jam",
+    "survey",
+    "thruster-failure",
+    "turning-circle",
+    "zigzag-20",
+]  # standard manoeuvres, faults and a mission
+BS3 = (SCENARIO_FOLDER / "bs-3.toml").read_text()
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    """The folder holding both built FMUs (a failed build fails the tests using it)."""
+    return fmu_paths["AuvAutopilot"].parent
+
+
+@pytest.fixture
+def no_fmu_loading(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fail the test if anything tries to load an FMU's binary."""
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("an FMU was loaded while validating a scenario")
+
+    monkeypatch.setattr(slave, "FMU2Slave", refuse)
+    monkeypatch.setattr("fmpy.fmi2.FMU2Slave.__init__", refuse)
+
+
+def test_builtin_scenarios_are_model_md_section_5() -> None:
+    scenarios = builtin_scenarios()
+    assert sorted(scenarios) == sorted(MODEL_MD_IDS + MANOEUVRE_IDS)
+    assert all(summary and "\n" not in summary for summary in scenarios.values())
+
+
+def test_builtin_files_resolve_as_model_md_says(fmu_dir: Path, no_fmu_loading: None) -> None:
+    for scenario_id in MODEL_MD_IDS:
+        s = load_scenario(scenario_id, fmu_dir=fmu_dir)
+        plant, controller = s.instances["plant"].start, s.instances["controller"].start
+        assert s.id == scenario_id and s.coupling.step == 0.01
+        assert plant["variant"] == (0 if scenario_id.startswith("vert") else 1)
+        assert plant["u_0"] == (1.0 if scenario_id.startswith("slow") else 1.5)
+        fin = [c for c in s.connections if c.target == "plant.fin_angle"]
+        assert fin == [] or scenario_id.startswith("vert")  # only vert-* uses the planes
+        assert controller.get("depth_mode", 0) == (1 if scenario_id.startswith("vert") else 0)
+        # the current reaches both the plant and the controller, or neither
+        assert plant.get("current_east", 0.0) == controller.get("current_east", 0.0)
+    thrust = load_scenario("bs-3", fmu_dir=fmu_dir).connections
+    assert ("controller.thrust", "plant.thrust") in [(c.source, c.target) for c in thrust]
+
+
+def test_a_third_instance_connects_by_name(fmu_dir: Path, no_fmu_loading: None) -> None:
+    """survey: the guidance reads the plant's position and feeds the autopilot's set-points;
+    its measured current stays an unconnected input, held at its start value."""
+    s = load_scenario("survey", fmu_dir=fmu_dir)
+    assert list(s.instances) == ["plant", "controller", "guidance"]
+    assert s.instances["guidance"].fmu_path == fmu_dir / "AuvGuidance.fmu"
+    pairs = {(c.source, c.target) for c in s.connections}
+    assert {("plant.north", "guidance.north"), ("plant.east", "guidance.east"),
+            ("guidance.yaw_setpoint", "controller.yaw_setpoint"),
+            ("guidance.depth_setpoint", "controller.depth_setpoint")} <= pairs  # fmt: skip
+    guided = {c.target for c in s.connections if c.target_instance == "guidance"}
+    assert guided == {"guidance.north", "guidance.east", "guidance.yaw"}
+    assert s.unconnected_inputs("guidance") == ["current_north", "current_east"]
+    assert s.coupling.order == ("guidance", "controller", "plant")
+    assert {"guidance.cross_track_error", "guidance.legs_completed"} <= set(s.record)
+    assert scenario_from_toml(s.to_toml(), "resolved", fmu_dir=fmu_dir) == s
+
+
+def test_default_connections_and_record(fmu_dir: Path) -> None:
+    s = load_scenario("vert-1", fmu_dir=fmu_dir)
+    pairs = {(c.source, c.target) for c in s.connections}
+    for name in ("mass_position_cmd", "tunnel_force", "fin_angle", "thrust"):
+        assert (f"controller.{name}", f"plant.{name}") in pairs
+    for name in ("yaw", "r", "p", "roll", "v_rel", "u_rel", "down", "pitch", "q", "w_rel"):
+        assert (f"plant.{name}", f"controller.{name}") in pairs
+    assert all(c.source_instance != c.target_instance for c in s.connections)
+    # every output, plus the inputs nothing drives: set-points and the current
+    expected = ["plant.yaw", "plant.kinetic_energy", "controller.tunnel_force",
+                "controller.yaw_setpoint", "controller.depth_setpoint",
+                "controller.current_east", "plant.current_east", "plant.roll_torque"]  # fmt: skip
+    assert set(expected) <= set(s.record)
+    assert "controller.yaw" not in s.record  # a connected input repeats plant.yaw
+
+
+def test_to_toml_loads_back_to_an_equal_scenario(fmu_dir: Path, tmp_path: Path) -> None:
+    s = load_scenario("cur-2", fmu_dir=fmu_dir)
+    again = scenario_from_toml(s.to_toml(), "resolved", fmu_dir=fmu_dir)
+    assert again == s
+    resolved = tomllib.loads(s.to_toml())
+    assert resolved["connections"]["same_names"] is False
+    assert len(resolved["connections"]["add"]) == len(s.connections)
+    assert "manoeuvre" not in resolved
+    turn = load_scenario("turning-circle", fmu_dir=fmu_dir)
+    assert turn.manoeuvre == "turning-circle"
+    assert scenario_from_toml(turn.to_toml(), "resolved", fmu_dir=fmu_dir).manoeuvre == (
+        "turning-circle"
+    )
+    assert turn.with_overrides(stop_time=2.0).manoeuvre == "turning-circle"
+
+
+def test_overrides_are_validated(fmu_dir: Path) -> None:
+    s = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(
+        stop_time=2.0, step=0.02, algorithm="jacobi"
+    )
+    assert (s.stop_time, s.coupling.step, s.coupling.algorithm, s.n_steps) == (
+        2.0,
+        0.02,
+        "jacobi",
+        100,
+    )
+    with pytest.raises(
+        ScenarioError, match=r"stop_time.*not a whole number of communication steps"
+    ):
+        s.with_overrides(stop_time=1.005)
+    with pytest.raises(ScenarioError, match=r"coupling\.step.*greater than 0"):
+        s.with_overrides(step=-0.01)
+
+
+def test_step_override_redesigns_a_controller_tied_to_the_step(fmu_dir: Path) -> None:
+    """lqr-1 designs its discrete LQR for design_step = coupling step; --step 0.05 must not
+    leave it designed for 10 ms. An explicit, different design_step is left alone."""
+    lqr = load_scenario("lqr-1", fmu_dir=fmu_dir)
+    assert lqr.instances["controller"].start["design_step"] == lqr.coupling.step
+    moved = lqr.with_overrides(step=0.05)
+    assert moved.instances["controller"].start["design_step"] == 0.05
+    assert (
+        "design_step"
+        not in load_scenario("bs-3", fmu_dir=fmu_dir)
+        .with_overrides(step=0.05)
+        .instances["controller"]
+        .start
+    )
+
+
+REMOVE = 'remove = ["plant.fin_angle"]'
+ADD = 'add = [{{ from = "{}", to = "{}" }}]'
+BAD_EDITS = [
+    # unknown keys, top level and nested
+    ("stop_time = 60.0", "stop_time = 60.0\nstop_tme = 3", r"unknown key 'stop_tme'"),
+    ("step = 0.01", "step = 0.01\nstep_size = 1", r"unknown key 'coupling\.step_size'"),
+    # wrong types and values
+    ("step = 0.01", 'step = "fast"', r"key 'coupling\.step' = 'fast'"),
+    ('algorithm = "gauss-seidel"', 'algorithm = "euler"', r"'coupling\.algorithm' = 'euler'"),
+    ('heading_mode = "backstepping"', "heading_mode = 3.5", r"start\.heading_mode.*not an integer"),
+    ('heading_mode = "backstepping"', 'heading_mode = "pid"',
+     r"start\.heading_mode': 'pid' is not a heading_mode: expected one of 'off' \(0\), 'lqr' "
+     r"\(1\), 'sliding_mode' \(2\), 'backstepping' \(3\)$"),
+    ("v_0 = -0.10", 'v_0 = "-0.10"', r"instances\.plant\.start\.v_0.*not a number"),
+    # start values for what takes none
+    ("v_0 = -0.10", "v_0 = -0.10\nyaw = 1.0", r"plant\.start\.yaw.*continuous output"),
+    ("v_0 = -0.10", "v_0 = -0.10\nv_00 = 1.0", r"start\.v_00.*has no variable 'v_00'"),
+    ("v_0 = -0.10", "v_0 = -0.10\nthrust = 4.0", r"plant\.thrust is connected from controller"),
+    # connections: a missing variable, output -> output, input -> input, bad names
+    (REMOVE, ADD.format("controller.tunnel_forse", "plant.tunnel_force"),
+     r"add\[0\]\.from.*controller \(AuvAutopilot\.fmu\) has no variable 'tunnel_forse'"),
+    (REMOVE, ADD.format("plant.yaw", "controller.tunnel_force"),
+     r"add\[0\]\.to.*'controller\.tunnel_force' is an output, not an input"),
+    (REMOVE, ADD.format("controller.yaw", "plant.thrust"),
+     r"add\[0\]\.from.*'controller\.yaw' is an input, not an output"),
+    (REMOVE, 'remove = ["plant.yaw"]', r"remove\[0\].*'plant\.yaw' is an output"),
+    (REMOVE, 'remove = ["autopilot.fin_angle"]', r"not <instance>\.<variable>"),
+    # coupling and FMUs
+    ('order = ["controller", "plant"]', 'order = ["controller"]', r"coupling\.order.*every"),
+    ("step = 0.01", "step = 0.01\nstep_multiples = { ctrl = 5 }",
+     r"coupling\.step_multiples\.ctrl.*no instance 'ctrl'"),
+    ('fmu = "AuvPlant"', 'fmu = "NoSuch.fmu"', r"instances\.plant\.fmu.*neither a built-in"),
+    # no coercion, no wrap-around, no infinity, no last-one-wins, no "..", no
+    # step count beyond the ceiling
+    ("stop_time = 60.0", 'stop_time = "2.0"', r"key 'stop_time' = '2\.0': .* valid number"),
+    ("step = 0.01", 'step = "0.01"', r"key 'coupling\.step' = '0\.01': .* valid number"),
+    ("step = 0.01", "step = inf", r"key 'coupling\.step' = inf: .* finite number"),
+    ("stop_time = 60.0", "stop_time = nan", r"key 'stop_time' = nan: .* finite number"),
+    ("step = 0.01", "step = 0.01\nstep_multiples = { controller = 2.0 }",
+     r"'coupling\.step_multiples\.controller' = 2\.0: Input should be a valid integer"),
+    ("stop_time = 60.0", "stop_time = 1e12",
+     r"key 'stop_time': 1000000000000\.0 s is 1e\+14 communication steps .* at most 1e\+08"),
+    ("stop_time = 60.0", 'id = ".."\nstop_time = 60.0', r"key 'id' = '\.\.': String should match"),
+    ("stop_time = 60.0", 'id = "../x"\nstop_time = 60.0', r"key 'id' = '\.\./x'"),
+    ('heading_mode = "backstepping"', "heading_mode = 4294967297",
+     r"start\.heading_mode': 4294967297 is outside \[0, 3\], the range heading_mode takes"),
+    ('variant = "lateral"', "variant = 4294967297",
+     r"start\.variant': 4294967297 is outside \[0, 2\], the range variant takes"),
+    (REMOVE, REMOVE + "\n" + 'add = [{ from = "controller.thrust", to = "plant.thrust" }, '
+     '{ from = "controller.tunnel_force", to = "plant.thrust" }]',
+     r"add\[1\]\.to.*'plant\.thrust' is driven twice: by connections\.add\[0\] "
+     r"\(controller\.thrust\) and here \(controller\.tunnel_force\)"),
+    ("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "nosuch.toml"',
+     r"start\.vehicle': 'nosuch\.toml' names no file \(looked for .*/nosuch\.toml\)"),
+    # a manoeuvre is a known kind whose variables the run records
+    ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "zig-zag"',
+     r"key 'manoeuvre': 'zig-zag' is not a manoeuvre: expected one of \['turning-circle', "),
+    ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "survey"',
+     r"key 'manoeuvre': manoeuvre 'survey' needs the variable 'cross_track_error', but the "
+     r"run has no column for it \(columns: .*\); record it in output\.record"),
+    ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = 2', r"key 'manoeuvre' = 2: .*string"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("old", "new", "message"), BAD_EDITS)
+def test_bad_scenario_fails_before_loading_naming_the_key(
+    fmu_dir: Path, tmp_path: Path, no_fmu_loading: None, old: str, new: str, message: str
+) -> None:
+    assert old in BS3
+    path = tmp_path / "bad.toml"
+    path.write_text(BS3.replace(old, new, 1))
+    with pytest.raises(ScenarioError, match=message) as info:
+        load_scenario(path, fmu_dir=fmu_dir)
+    assert str(info.value).startswith(f"scenario file {path}: ")
+
+
+def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
+    path = tmp_path / "broken.toml"
+    path.write_text("stop_time = = 3\n")
+    with pytest.raises(ScenarioError, match=f"scenario file {path}: not valid TOML"):
+        load_scenario(path)
+    with pytest.raises(
+        ScenarioError, match=r"unknown scenario 'bs-9': expected a built-in id \(bs-1, "
+    ):
+        load_scenario("bs-9")
+
+
+def test_cli_rejects_a_bad_file_with_one_line_and_no_run(fmu_dir: Path, tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(BS3.replace("stop_time = 60.0", "stop_time = 60.0\ncolour = 'red'"))
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cosim.cli",
+            "run",
+            str(path),
+            "--fmu-dir",
+            str(fmu_dir),
+            "--out",
+            "out",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 1
+    assert proc.stderr == f"auv-cosim run: scenario file {path}: unknown key 'colour'\n"
+    assert not (tmp_path / "out").exists()
+
+
+def test_documented_example_resolves(fmu_dir: Path, no_fmu_loading: None) -> None:
+    example = ROOT / "docs" / "scenario-example.toml"
+    s = load_scenario(example, fmu_dir=fmu_dir)
+    assert s.coupling.step_multiples == {"plant": 1, "controller": 5}
+    assert len(s.connections) == 10 and not s.rrd
+    assert s.record[0] == "plant.yaw"
+    assert [e.name for e in s.events] == ["turn"] and [f.name for f in s.faults] == ["weak-mass"]
+
+
+def test_a_utf8_byte_order_mark_is_accepted(fmu_dir: Path, tmp_path: Path) -> None:
+    """Regression: a BOM made the file "Invalid statement"."""
+    path = tmp_path / "bs-3.toml"
+    path.write_bytes("\ufeff".encode() + BS3.encode())
+    assert load_scenario(path, fmu_dir=fmu_dir) == load_scenario("bs-3", fmu_dir=fmu_dir)
+
+
+def test_files_named_in_a_scenario_are_relative_to_it(fmu_dir: Path, tmp_path: Path) -> None:
+    """Regression: `vehicle = "myveh.toml"` was resolved against the current folder."""
+    folder = tmp_path / "mission"
+    folder.mkdir()
+    (folder / "myveh.toml").write_text('base = "remus100"\nm = 31.0\n')
+    (folder / "s.toml").write_text(
+        BS3.replace("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "myveh.toml"')
+    )
+    scenario = load_scenario(folder / "s.toml", fmu_dir=fmu_dir)
+    assert scenario.instances["plant"].start["vehicle"] == str(folder / "myveh.toml")
+    assert scenario.instances["plant"].files() == {"vehicle": folder / "myveh.toml"}
+    assert scenario_from_toml(scenario.to_toml(), "resolved", fmu_dir=fmu_dir) == scenario
+
+
+def test_an_integer_outside_the_fmi_range_is_refused_without_a_declared_one(
+    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """fmi2Integer is 32 bits: 2**32 + 1 would wrap to 1 in the FMU call, also
+    for a variable declaring no min/max."""
+    interface = load_scenario("bs-3", fmu_dir=fmu_dir).instances["plant"].interface
+    unbounded = dataclasses.replace(interface.variables["variant"], min=None, max=None)
+    monkeypatch.setitem(interface.variables, "variant", unbounded)  # the cached interface
+    edited = BS3.replace('variant = "lateral"', "variant = 4294967297")
+    with pytest.raises(ScenarioError, match=r"4294967297 is outside \[-2147483648, 2147483647\]"):
+        scenario_from_toml(edited, "bs-3 edited", fmu_dir=fmu_dir)
+    edited = BS3.replace('variant = "lateral"', "variant = 2147483647")
+    assert scenario_from_toml(edited, "bs-3", fmu_dir=fmu_dir).instances["plant"].start[
+        "variant"
+    ] == (2**31 - 1)  # the scenario takes it; the FMU judges it at its write
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        ("max_substep = 1e-9", "instances.plant.start.max_substep"),
+        ("max_substep = 0.000001", None),  # 10,000 sub-steps: the limit itself runs
+    ],
+)
+def test_a_substep_that_would_hang_a_step_is_refused_before_loading(
+    fmu_dir: Path, no_fmu_loading: None, edit: str, key: str | None
+) -> None:
+    """Regression: `max_substep = 1e-9` made no progress after 17 min and ignored Ctrl-C."""
+    scenario = scenario_from_toml(
+        BS3.replace("v_0 = -0.10", f"v_0 = -0.10\n{edit}"), "bs-3 edited", fmu_dir=fmu_dir
+    )
+    if key is None:
+        master.preflight(scenario)
+        return
+    with pytest.raises(ScenarioError, match=rf"key '{key}': plant\.max_substep = 1e-09 s would "
+                       r"take 1e\+07 sub-steps per communication step of 0\.01 s; at most "
+                       r"10000 are allowed \(max_substep >= 1e-06 s\)"):  # fmt: skip
+        master.preflight(scenario)
+    with pytest.raises(ScenarioError, match="sub-steps"):
+        master.run(scenario)  # the master itself refuses it too, before any FMU
+
+
+@pytest.mark.parametrize(
+    ("plant", "controller", "expected"),
+    [
+        ('variant = "horizontal"', 'heading_mode = "sliding_mode"', (2, 2)),
+        ("variant = 2", "heading_mode = 2", (2, 2)),  # the numbers still work
+    ],
+)
+def test_a_mode_is_given_by_its_name_or_its_number(
+    fmu_dir: Path, plant: str, controller: str, expected: tuple[int, int]
+) -> None:
+    """Named values come from the FMU's own model description (its annotation of the
+    Integer), and resolve to the number the FMU is given."""
+    text = BS3.replace('variant = "lateral"', plant).replace(
+        'heading_mode = "backstepping"', controller
+    )
+    scenario = scenario_from_toml(text, "named", fmu_dir=fmu_dir)
+    starts = scenario.instances["plant"].start, scenario.instances["controller"].start
+    assert (starts[0]["variant"], starts[1]["heading_mode"]) == expected
+    assert scenario_from_toml(scenario.to_toml(), "named", fmu_dir=fmu_dir) == scenario

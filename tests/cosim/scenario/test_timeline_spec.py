@@ -1,0 +1,172 @@
+"""[[events]] and [[faults]] in a scenario file: each bad row refused before any FMU is
+loaded, with one line naming the key, the bad value and what was expected; a resolved
+scenario with events and faults written back by to_toml loads to an equal one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from scenario_factory import loop_toml
+
+from cosim.engine import slave
+from cosim.scenario.spec import ScenarioError, scenario_from_toml
+
+# the loop (tests/fmus): controller.x <- plant.x, plant.u <- controller.u; controller.k and
+# plant.x0 are tunable parameters
+SET_K = 'set = { "controller.k" = 3.0 }'
+
+
+@pytest.fixture(autouse=True)
+def no_fmu_loading(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fail the test if anything tries to load an FMU's binary."""
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("an FMU was loaded while validating a scenario")
+
+    monkeypatch.setattr(slave, "FMU2Slave", refuse)
+
+
+def resolve(fmu_dir: Path, extra: str, remove_u: bool = False):
+    text = loop_toml() + ('[connections]\nremove = ["plant.u"]\n' if remove_u else "") + extra
+    return scenario_from_toml(text, "loop.toml", base_dir=fmu_dir, fmu_dir=fmu_dir)
+
+
+def write_series(folder: Path, name: str, text: str) -> str:
+    (folder / name).write_text(text, encoding="utf-8")
+    return name
+
+
+BAD_ROWS = [
+    # (the [[events]]/[[faults]] text, what the one-line message must contain)
+    (f"[[events]]\ntime = 0.5\n{SET_K.replace('controller.k', 'nobody.k')}",
+     ["events[0].set.nobody.k", "'nobody.k' is not <instance>.<variable>"]),
+    (f"[[events]]\ntime = 0.5\n{SET_K.replace('controller.k', 'controller.kk')}",
+     ["events[0].set.controller.kk", "has no variable 'kk'"]),
+    ('[[events]]\ntime = 0.5\nset = { "controller.x" = 1.0 }',
+     ["events[0].set.controller.x", "connected from plant.x"]),
+    ('[[events]]\ntime = 0.5\nset = { "controller.u" = 1.0 }',
+     ["events[0].set.controller.u", "continuous output", "expected an unconnected input"]),
+    ('[[events]]\ntime = 0.5\nset = { "controller.k" = "3" }',
+     ["events.0.set.controller.k", "'3'", "expected a number"]),
+    (f'[[events]]\ntime = 0.5\nwhen = "plant.x > 1"\n{SET_K}',
+     ["events[0]", "['time', 'when']", "expected exactly one"]),
+    (f"[[events]]\n{SET_K}", ["events[0]", "none of time / when / series"]),
+    (f'[[events]]\nwhen = "plant.x >> 1"\n{SET_K}',
+     ["events[0].when", "'plant.x >> 1'", "one comparison"]),
+    (f'[[events]]\nwhen = "plant.x > 1 + 2"\n{SET_K}', ["events[0].when", "one comparison"]),
+    (f'[[events]]\nwhen = "plant.x0 > 1"\n{SET_K}',
+     ["events[0].when", "'plant.x0'", "neither a recorded Real variable"]),
+    (f"[[events]]\ntime = 0.5\nrepeat = true\n{SET_K}",
+     ["events[0].repeat", "only for a `when` event"]),
+    (f"[[events]]\ntime = -1.0\n{SET_K}", ["events.0.time", "-1.0", "greater than or equal"]),
+    (f"[[events]]\ntime = 0.5\n{SET_K}\nramp = 0.0", ["events.0.ramp", "0.0", "greater"]),
+    ("[[events]]\ntime = 0.5", ["events[0].set", "missing"]),
+    ('[[events]]\nseries = "missing.csv"', ["events[0].series", "'missing.csv'", "cannot read"]),
+    ('[[events]]\nseries = "SERIES"\n' + SET_K, ["events[0].set", "not with series"]),
+    (f'[[events]]\nname = "a"\ntime = 0.1\n{SET_K}\n[[events]]\nname = "a"\ntime = 0.2\n{SET_K}',
+     ["events[1].name", "'a' is used twice"]),
+    (f'[[events]]\nname = "a b"\ntime = 0.1\n{SET_K}', ["events.0.name", "'a b'", "pattern"]),
+    (f"[[events]]\ntime = 0.1\n{SET_K}\nspeed = 1", ["unknown key 'events.0.speed'"]),
+    ('[[faults]]\nkind = "gain"\ntarget = "plant.x"\nvalue = 2.0',
+     ["faults[0].target", "'plant.x' is not the target of a connection",
+      "['controller.x', 'plant.u']"]),
+    ('[[faults]]\nkind = "gain"\ntarget = "controller.x"',
+     ["faults[0].value", "missing: kind 'gain' needs it"]),
+    ('[[faults]]\nkind = "stuck"', ["faults[0].target", "missing"]),
+    ('[[faults]]\nkind = "bias"\ntarget = "controller.x"\nvalue = 1.0\nstart = 0.5\nstop = 0.5',
+     ["faults[0].stop", "0.5 s is not after start = 0.5 s"]),
+    ('[[faults]]\nkind = "noise"\ntarget = "controller.x"\nstd = -0.1',
+     ["faults.0.std", "-0.1", "greater than or equal to 0"]),
+    ('[[faults]]\nkind = "dropout"\ntarget = "controller.x"\nprobability = 1.5',
+     ["faults.0.probability", "1.5", "less than or equal to 1"]),
+    ('[[faults]]\nkind = "delay"\ntarget = "controller.x"\nsteps = 0',
+     ["faults.0.steps", "0", "greater than or equal to 1"]),
+    ('[[faults]]\nkind = "gain"\ntarget = "controller.x"\nvalue = 2.0\nstd = 0.1',
+     ["faults[0].std", "kind 'gain' takes ['value']"]),
+    ('[[faults]]\nkind = "wobble"\ntarget = "controller.x"', ["faults.0.kind", "'wobble'"]),
+    ('[[faults]]\nkind = "thruster-off"',
+     ["faults[0].kind", "tunnel_force", "0 instances", "expected exactly one"]),
+    ('[[faults]]\nname = "f"\nkind = "stuck"\ntarget = "controller.x"\n'
+     '[[faults]]\nname = "f"\nkind = "stuck"\ntarget = "plant.u"',
+     ["faults[1].name", "'f' is used twice"]),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("extra", "expected"), BAD_ROWS)
+def test_a_bad_event_or_fault_is_refused_in_one_line_naming_the_key(
+    test_fmu_dir: Path, extra: str, expected: list[str]
+) -> None:
+    with pytest.raises(ScenarioError) as info:
+        resolve(test_fmu_dir, extra)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("scenario file loop.toml")
+    for part in expected:
+        assert part in message, message
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("x,plant.u\n0,1\n", "header ['x', 'plant.u'] is not 'time,<instance.variable>,...'"),
+        ("time\n0\n", "header ['time'] is not"),
+        ("time,controller.x\n0,1\n", "connected from plant.x"),
+        ("time,plant.u\n0,1\n0.2,2\n0.2,3\n", "row 3: time 0.2 s is not after 0.2 s"),
+        ("time,plant.u\n0,1\n0.2,oops\n", "row 2: ['0.2', 'oops'] is not 2 finite numbers"),
+        ("time,plant.u\n", "no rows below the header"),
+    ],
+)
+def test_a_bad_series_file_is_refused_naming_it(
+    test_fmu_dir: Path, tmp_path: Path, text: str, expected: str
+) -> None:
+    for fmu in test_fmu_dir.glob("*.fmu"):
+        (tmp_path / fmu.name).symlink_to(fmu)
+    write_series(tmp_path, "profile.csv", text)
+    with pytest.raises(ScenarioError, match=r"events\[0\]\.series") as info:
+        resolve(tmp_path, '[[events]]\nseries = "profile.csv"', remove_u=True)
+    assert expected in str(info.value) and "'profile.csv'" in str(info.value)
+
+
+def test_events_and_faults_resolve_with_default_names_and_write_back(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    for fmu in test_fmu_dir.glob("*.fmu"):
+        (tmp_path / fmu.name).symlink_to(fmu)
+    write_series(tmp_path, "profile.csv", "time,plant.u\n0,1\n0.5,2\n")
+    extra = f"""
+[[events]]
+time = 0.25
+{SET_K}
+ramp = 0.2
+[[events]]
+name = "crossing"
+when = "plant.x >= 1.3"
+repeat = true
+set = {{ "plant.x0" = 2 }}
+[[events]]
+series = "profile.csv"
+interpolation = "linear"
+[[faults]]
+kind = "noise"
+target = "controller.x"
+std = 0.01
+start = 0.2
+[[faults]]
+name = "late"
+kind = "delay"
+target = "controller.x"
+steps = 2
+stop = 0.8
+"""
+    scenario = resolve(tmp_path, extra, remove_u=True)
+    assert [e.name for e in scenario.events] == ["event-1", "crossing", "event-3"]
+    assert [f.name for f in scenario.faults] == ["fault-1", "late"]
+    assert scenario.events[1].when is not None and scenario.events[1].when.op == ">="
+    assert scenario.events[1].set == {"plant.x0": 2.0}  # an integer for a Real: a float
+    assert scenario.events[2].series is not None
+    assert scenario.events[2].series.columns == {"plant.u": (1.0, 2.0)}
+    assert scenario.faults[0].seed == 0  # the default seed, written out
+    assert scenario.columns[-2:] == ("fault.fault-1", "fault.late")
+    again = scenario_from_toml(scenario.to_toml(), "again", base_dir=Path("/"), fmu_dir=tmp_path)
+    assert again == scenario
+    assert "fault.fault-1" not in scenario.to_toml()  # the columns are not record entries
