@@ -11,12 +11,16 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
 * inputs ``thrust`` (N, start 9), ``roll_torque`` (N.m), ``tunnel_force`` (N),
   ``fin_angle`` (rad), ``mass_position_cmd`` (m; the rail stops bound the mass, not the command),
   ``current_north``, ``current_east``, ``current_down`` (m/s, earth frame);
-* outputs: the 14 states (``north`` ... ``r``, ``mass_position``, ``mass_velocity``),
-  ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - U, U the current in body axes:
-  ``PlantModel.current_in_body``) and ``kinetic_energy`` (J, 1/2 nu_r^T (M_RB + M_A) nu_r;
-  with model 1 the moving mass's too). All are refreshed after initialisation and after each
-  step, so none depends directly on an input (ModelStructure dependencies ""). Their start
-  values (all 0) are the outputs for the default parameters (the vehicle at rest);
+* outputs: the 14 states (``north`` ... ``r``, ``mass_position``, ``mass_velocity``), the
+  attitude quaternion ``quat_w``, ``quat_x``, ``quat_y``, ``quat_z`` (body to earth, scalar
+  first; the full variant integrates it, and roll, pitch and yaw are the Euler angles of it
+  that continue the previous ones, so they run on past +-180 deg and through +-90 deg of
+  pitch without jumping), ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - U, U the current in
+  body axes: ``PlantModel.current_in_body``) and ``kinetic_energy`` (J, 1/2 nu_r^T (M_RB +
+  M_A) nu_r; with model 1 the moving mass's too). All are refreshed after initialisation and
+  after each step, so none depends directly on an input (ModelStructure dependencies "").
+  Their start values (all 0, ``quat_w`` 1) are the outputs for the default parameters (the
+  vehicle at rest);
 * parameters (fixed): the initial state ``north_0`` ... ``r_0``, ``mass_position_0``,
   ``mass_velocity_0`` (default 0), ``variant`` (0 full 6-DOF, 1 lateral (6.3.13),
   2 horizontal (5.1.30); a write outside 0..2 is refused), ``moving_mass_model`` (0 the
@@ -57,19 +61,22 @@ from pythonfmu.variables import Boolean, Integer, Real, String
 from fmu_runtime.safe_slave import SafeSlave
 from fmu_runtime.variables import field_bounds, item_getter, item_setter
 from plant_fmu.model import compiled
-from plant_fmu.model.dynamics import (
-    INPUT_NAMES,
-    INPUT_UNITS,
-    N_STATES,
-    STATE_INDEX,
-    STATE_NAMES,
-    STATE_UNITS,
-    PlantModel,
-    Variant,
-)
+from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.moving_mass import MovingMassModel
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle, vehicle_folder
-from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance
+from plant_fmu.model.state_layout import (
+    CURRENT,
+    INPUT_NAMES,
+    INPUT_UNITS,
+    MASS_POSITION,
+    N_STATES,
+    NU,
+    QUATERNION_NAMES,
+    STATE_NAMES,
+    STATE_UNITS,
+    STEP_STATE_NAMES,
+)
+from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance, stepping_state
 
 INPUT_DESCRIPTIONS: dict[str, str] = {
     "thrust": "propeller surge thrust T",
@@ -97,6 +104,10 @@ STATE_DESCRIPTIONS: dict[str, str] = {
     "r": "yaw rate",
     "mass_position": "moving-mass position y_v on its rail",
     "mass_velocity": "moving-mass rail speed y_v'",
+    "quat_w": "attitude quaternion (body to earth), scalar part",
+    "quat_x": "attitude quaternion (body to earth), x part",
+    "quat_y": "attitude quaternion (body to earth), y part",
+    "quat_z": "attitude quaternion (body to earth), z part",
 }
 RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
 PHYSICAL_PARAMETERS: tuple[str, ...] = tuple(
@@ -130,9 +141,10 @@ class AuvPlant(SafeSlave):
         self._vehicles = vehicle_folder(self.resources)  # this extraction's data
         self._inputs = np.array([INPUT_STARTS.get(name, 0.0) for name in INPUT_NAMES])
         self._initial_state = np.zeros(N_STATES)
-        self._x = np.zeros(N_STATES)  # updated in place: the output getters hold it
+        # the stepping state (state + quaternion), updated in place: the output getters hold it
+        self._x = stepping_state(self._initial_state)
         self._derived = [0.0, 0.0, 0.0, 0.0]  # u_rel, v_rel, w_rel, kinetic_energy
-        self._last_current = self._inputs[5:8].tolist()
+        self._last_current = self._inputs[CURRENT].tolist()
         self._model: PlantModel | None = None
         self._compiled: compiled.CompiledPlant | None = None
         self._model_key: tuple[object, ...] | None = None
@@ -169,7 +181,8 @@ class AuvPlant(SafeSlave):
             "variability": Fmi2Variability.continuous,
             "initial": Fmi2Initial.exact,
         }
-        for i, (name, unit) in enumerate(zip(STATE_NAMES, STATE_UNITS, strict=True)):
+        units = STATE_UNITS + ("1",) * len(QUATERNION_NAMES)
+        for i, (name, unit) in enumerate(zip(STEP_STATE_NAMES, units, strict=True)):
             self.register(
                 Real(
                     name,
@@ -272,14 +285,16 @@ class AuvPlant(SafeSlave):
         model = self._build_model()
         x = self._initial_state.copy()
         stroke = model.params.mass_stroke
-        mass_position_0 = float(x[STATE_INDEX["mass_position"]])
+        mass_position_0 = float(x[MASS_POSITION])
         if abs(mass_position_0) > stroke:
             raise ValueError(
                 f"mass_position_0 = {mass_position_0!r} m: expected "
                 f"|mass_position_0| <= mass_stroke = {stroke!r} m"
             )
         frozen = [
-            n for n in STATE_NAMES[:12] if n not in model.variant.states and x[STATE_INDEX[n]]
+            n
+            for i, n in enumerate(STATE_NAMES[:MASS_POSITION])
+            if n not in model.variant.states and x[i]
         ]
         if frozen:
             self.log(
@@ -287,8 +302,8 @@ class AuvPlant(SafeSlave):
                 f"{', '.join(frozen)} at 0: their initial values are ignored",
                 Fmi2Status.warning,
             )
-        self._x[:] = model.project(x)
-        self._last_current = self._inputs[5:8].tolist()
+        self._x[:] = model.project(stepping_state(x))
+        self._last_current = self._inputs[CURRENT].tolist()
         self._refresh_outputs()
         if self._compiled is not None:  # compile now, not in the first doStep
             self._compiled.warm_up(self._x, self._inputs)
@@ -298,11 +313,11 @@ class AuvPlant(SafeSlave):
         assert model is not None, "SafeSlave steps only an initialised instance"
         inputs = self._inputs.copy()
         x = self._x
-        current = inputs[5:8].tolist()
+        current = inputs[CURRENT].tolist()
         if current != self._last_current:
             x = x.copy()
             change = np.subtract(current, self._last_current)
-            x[6:12] += model.current_change_velocity_jump(x, change)
+            x[NU] += model.current_change_velocity_jump(x, change)
         x = advance(model, x, inputs, step_size, self.max_substep, self._compiled)
         self._x[:] = x
         self._last_current = current

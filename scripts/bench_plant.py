@@ -5,7 +5,7 @@ Prints, as medians over many repetitions (microseconds):
       one RK4 step, four derivative evaluations, projections and checks);
   (b) one derivative evaluation, and the ratio (a)/(b);
   (c) one FMU step through fmpy's FMU2Slave: setReal of the 8 inputs + doStep + getReal of
-      the 18 outputs, and the ratio (c)/(a);
+      the 22 outputs, and the ratio (c)/(a);
   (d) the same three calls on the AuvPlant class in Python (no C wrapper, no ctypes),
       which splits (c) - (a) into our slave's overhead and pythonfmu's + fmpy's;
   (e) one derivative evaluation with the two-body moving mass (moving_mass_model = 1),
@@ -137,7 +137,7 @@ def main() -> None:
     print(f"(a) in-process 10 ms step, full 6-DOF (advance, RK4): {step_us:8.1f} us")
     print(f"(b) one derivative evaluation:                         {derivative_us:8.1f} us")
     print(f"    ratio (a)/(b):                                     {step_us / derivative_us:8.2f}")
-    print(f"(c) FMU step via fmpy (setReal 8 + doStep + getReal 18): {fmu_us:6.1f} us")
+    print(f"(c) FMU step via fmpy (setReal 8 + doStep + getReal 22): {fmu_us:6.1f} us")
     print(f"    ratio (c)/(a):                                     {fmu_us / step_us:8.2f}")
     print(f"(d) same calls on the AuvPlant class in Python:        {class_us:8.1f} us")
     print(

@@ -5,7 +5,8 @@ is the body frame at the centre of buoyancy, FRD = x forward, y starboard, z dow
 
     world                      ViewCoordinates.FRD (static)
     world/vehicle              Transform3D per step: translation [north, east, down] and the
-                               rotation R = Rz(psi) Ry(theta) Rx(phi) (2.2.8) as a quaternion
+                               attitude quaternion (the plant's quat_* outputs, or
+                               R = Rz(psi) Ry(theta) Rx(phi) (2.2.8) when not recorded)
     world/chase                Transform3D per step: the same translation, turned by yaw only;
                                the chase view's frame, so its eye stays behind the vehicle
                                and its grid stays level while the vehicle rolls and pitches
@@ -308,6 +309,17 @@ class SceneWriter:
         self._show_depth_setpoint = show_depth_setpoint
         self._last_position: np.ndarray | None = None
 
+    @staticmethod
+    def _attitude(column: Columns, yaw: np.ndarray, get: Callable[[str], np.ndarray]) -> np.ndarray:
+        """Quaternions [x, y, z, w] of the vehicle: the plant's own (``plant.quat_w`` ...,
+        exact through pitch +-90 deg, where roll and yaw alone are ill-defined) when
+        recorded, else built from roll, pitch and yaw."""
+        parts = [column(f"plant.quat_{axis}") for axis in "xyzw"]
+        recorded = [part for part in parts if part is not None]
+        if len(recorded) == len(parts):
+            return np.column_stack(recorded)
+        return euler_to_quaternions(get("plant.roll"), get("plant.pitch"), yaw)
+
     def send(self, index: list[rr.TimeColumn], n: int, column: Columns) -> None:
         """Send the poses, actuator states, current and path of n rows at ``index``."""
         zeros = np.zeros(n)
@@ -318,7 +330,7 @@ class SceneWriter:
 
         position = np.column_stack([get("plant.north"), get("plant.east"), get("plant.down")])
         yaw = get("plant.yaw")
-        quaternions = euler_to_quaternions(get("plant.roll"), get("plant.pitch"), yaw)
+        quaternions = self._attitude(column, yaw, get)
         self._rec.send_columns(
             "world/vehicle",
             indexes=index,

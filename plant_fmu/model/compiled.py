@@ -10,6 +10,11 @@ takes every coefficient and matrix from the model itself: nothing is re-typed). 
 ``tests/plant_fmu/model/test_compiled.py`` holds the two to 1e-12 over whole scenarios
 (the two differ only in the rounding of the matrix products, which numpy hands to BLAS).
 
+The step works on the stepping state of :mod:`plant_fmu.model.state_layout` (the state
+and the attitude quaternion, 18 values): the full variant integrates the quaternion
+(``PlantModel.step_derivative``), the planar variants their Euler angles;
+:func:`derivative_into` is ``PlantModel.derivative`` (Euler angles) for the analysis tools.
+
 Covered: the three variants, ideal fluid, current shear, and the dissertation's moving
 mass (``moving_mass_model = 0``). Not covered: the two-body moving mass (model 1), whose
 mass matrix depends on y_v; :func:`supports` says so and the plant FMU then steps the
@@ -26,6 +31,7 @@ import numpy as np
 
 from plant_fmu.model.dynamics import PlantModel
 from plant_fmu.model.jit import load_numba
+from plant_fmu.model.state_layout import N_STATES, N_STEP_STATES
 
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
@@ -139,11 +145,12 @@ def _viscous(p: np.ndarray, nu_r: np.ndarray, f: np.ndarray) -> None:
 
 @_jit
 def _base_force(
-    p: np.ndarray, x: np.ndarray, inputs: np.ndarray, u_r: float, f: np.ndarray
+    p: np.ndarray, x: np.ndarray, inputs: np.ndarray, u_r: float, R: np.ndarray, f: np.ndarray
 ) -> tuple[float, float]:
     """f = actuators (6.3.79, Table 6.1) + moving-mass reaction and offset weight
-    (6.3.11-6.3.13) + restoring (3.5.3); returns (y', y'') of the mass (6.3.12)."""
-    y_v, y_vel, phi, theta = x[12], x[13], x[3], x[4]
+    (6.3.11-6.3.13) + restoring (3.5.3), with Gamma = R^T [0, 0, 1] the third row of R;
+    returns (y', y'') of the mass (6.3.12)."""
+    y_v, y_vel = x[12], x[13]
     accel = (p[KV] * (inputs[4] - y_v) - p[DV] * y_vel) / p[MV]
     stroke, limit = p[STROKE], p[SPEEDLIM]
     if (y_v >= stroke and y_vel >= 0.0 and accel >= 0.0) or (
@@ -153,11 +160,10 @@ def _base_force(
     elif limit > 0.0 and abs(y_vel) >= limit and accel * y_vel > 0:
         accel = 0.0
     f_mm = -p[MV] * accel
+    g0, g1, g2 = R[2, 0], R[2, 1], R[2, 2]
     weight = p[MV] * p[G] * y_v
-    roll = -p[ZG] * f_mm + weight * math.cos(theta) * math.cos(phi)
-    yaw = p[XV] * f_mm + weight * math.sin(theta)
-    ct = math.cos(theta)
-    g0, g1, g2 = -math.sin(theta), ct * math.sin(phi), ct * math.cos(phi)
+    roll = -p[ZG] * f_mm + weight * g2
+    yaw = p[XV] * f_mm + weight * -g0
     m0, m1, m2 = _cross(p[XG], 0.0, p[ZG], g0, g1, g2)
     wb = p[W] - p[B]
     thrust, f_t, delta_s = inputs[0], inputs[2], inputs[3]
@@ -180,6 +186,17 @@ def _rotation(phi: float, theta: float, psi: float, R: np.ndarray) -> None:
     R[0, 0], R[0, 1], R[0, 2] = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
     R[1, 0], R[1, 1], R[1, 2] = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
     R[2, 0], R[2, 1], R[2, 2] = -st, ct * sf, ct * cf
+
+
+@_jit
+def _quaternion_rotation(z: np.ndarray, R: np.ndarray) -> None:
+    """R of the quaternion z[14:18] = [w, x, y, z], normalised on the way
+    (``kinematics.quaternion_rotation_matrix``)."""
+    w, x, y, c = z[14], z[15], z[16], z[17]
+    s = 2.0 / (w * w + x * x + y * y + c * c)
+    R[0, 0], R[0, 1], R[0, 2] = 1.0 - s * (y * y + c * c), s * (x * y - w * c), s * (x * c + w * y)
+    R[1, 0], R[1, 1], R[1, 2] = s * (x * y + w * c), 1.0 - s * (x * x + c * c), s * (y * c - w * x)
+    R[2, 0], R[2, 1], R[2, 2] = s * (x * c - w * y), s * (y * c + w * x), 1.0 - s * (x * x + y * y)
 
 
 @_jit
@@ -225,7 +242,7 @@ def _full_form(
     cb1 = R[0, 1] * v0 + R[1, 1] * v1 + R[2, 1] * v2
     cb2 = R[0, 2] * v0 + R[1, 2] * v1 + R[2, 2] * v2
     nu_r[0], nu_r[1], nu_r[2] = nu[0] - cb0, nu[1] - cb1, nu[2] - cb2
-    y_vel, accel = _base_force(p, x, inputs, nu_r[0], f)
+    y_vel, accel = _base_force(p, x, inputs, nu_r[0], R, f)
     _coriolis(p, nu, nu_r, f)
     a0, a1, a2 = _cross(nu[3], nu[4], nu[5], cb0, cb1, cb2)
     d0, d1, d2 = -a0, -a1, -a2
@@ -278,7 +295,7 @@ def _relative_form(
     nu_r[1] -= c1
     for i in range(3):
         dx[i] = (R[i, 0] * nu_r[0] + R[i, 1] * nu_r[1] + R[i, 2] * nu_r[2]) + (v0, v1, v2)[i]
-    y_vel, accel = _base_force(p, x, inputs, nu_r[0], f)
+    y_vel, accel = _base_force(p, x, inputs, nu_r[0], R, f)
     _coriolis(p, nu_r, nu_r, f)
     if p[IDEAL] == 0.0:
         _viscous(p, nu_r, f)
@@ -326,16 +343,58 @@ def derivative_into(
     dx[3] = 1.0 * pr + sf * tt * q + cf * tt * r
     dx[4] = 0.0 * pr + cf * q + -sf * r
     dx[5] = 0.0 * pr + sf / ct * q + cf / ct * r
+    _rates(p, x, inputs, R, work, dx)
     variant = p[VARIANT]
-    if variant == 0.0:
-        y_vel, accel = _full_form(p, x, inputs, R, work, dx)
-    else:
-        y_vel, accel = _relative_form(p, x, inputs, R, work, dx)
-    dx[12], dx[13] = y_vel, accel
     if variant != 0.0:
         dx[2], dx[4] = 0.0, 0.0
         if variant == 2.0:
             dx[3] = 0.0
+
+
+@_jit
+def _rates(
+    p: np.ndarray,
+    x: np.ndarray,
+    inputs: np.ndarray,
+    R: np.ndarray,
+    work: np.ndarray,
+    dx: np.ndarray,
+) -> None:
+    """Everything but the attitude's rate into dx, the attitude given as R
+    (``PlantModel._rates``)."""
+    if p[VARIANT] == 0.0:
+        y_vel, accel = _full_form(p, x, inputs, R, work, dx)
+    else:
+        y_vel, accel = _relative_form(p, x, inputs, R, work, dx)
+    dx[12], dx[13] = y_vel, accel
+
+
+@_jit
+def step_derivative_into(
+    p: np.ndarray,
+    z: np.ndarray,
+    inputs: np.ndarray,
+    R: np.ndarray,
+    work: np.ndarray,
+    dz: np.ndarray,
+) -> None:
+    """The stepping state's derivative into dz (``PlantModel.step_derivative``): the full
+    variant's quaternion q_dot = 1/2 q (x) [0, omega], Euler entries still; the planar
+    variants' Euler angles (:func:`derivative_into`), quaternion still."""
+    if p[VARIANT] != 0.0:
+        derivative_into(p, z, inputs, R, work, dz)
+        for i in range(14, 18):
+            dz[i] = 0.0
+        return
+    _quaternion_rotation(z, R)
+    _rates(p, z, inputs, R, work, dz)
+    dz[3], dz[4], dz[5] = 0.0, 0.0, 0.0
+    w, x, y, c = z[14], z[15], z[16], z[17]
+    pr, q, r = z[9], z[10], z[11]
+    dz[14] = 0.5 * (-x * pr - y * q - c * r)
+    dz[15] = 0.5 * (w * pr + y * r - c * q)
+    dz[16] = 0.5 * (w * q + c * pr - x * r)
+    dz[17] = 0.5 * (w * r + x * q - y * pr)
 
 
 @_jit
@@ -369,63 +428,141 @@ def project(p: np.ndarray, x: np.ndarray, collide: bool) -> None:
     limit = p[SPEEDLIM]
     if limit > 0.0:
         x[13] = min(max(x[13], -limit), limit)
+    if collide and x.size == 18:
+        norm = math.sqrt(x[14] * x[14] + x[15] * x[15] + x[16] * x[16] + x[17] * x[17])
+        for i in range(14, 18):
+            x[i] = x[i] / norm
 
 
 @_jit
-def advance_into(p: np.ndarray, x: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
-    """n RK4 steps of dt seconds from x, in place, projected after each stage like
-    ``stepping.advance``. Returns 0, or 1 for a non-finite input, 2 for a non-finite
-    state (x untouched), 3 for a state that became non-finite."""
+def _quaternion_from_euler(phi: float, theta: float, psi: float, z: np.ndarray) -> None:
+    """z[14:18] = the quaternion of R = Rz(psi) Ry(theta) Rx(phi)
+    (``kinematics.quaternion_from_euler``)."""
+    cr, sr = math.cos(0.5 * phi), math.sin(0.5 * phi)
+    cp, sp = math.cos(0.5 * theta), math.sin(0.5 * theta)
+    cy, sy = math.cos(0.5 * psi), math.sin(0.5 * psi)
+    z[14] = cr * cp * cy + sr * sp * sy
+    z[15] = sr * cp * cy - cr * sp * sy
+    z[16] = cr * sp * cy + sr * cp * sy
+    z[17] = cr * cp * sy - sr * sp * cy
+
+
+@_jit
+def _nearest_turn(angle: float, previous: float) -> float:
+    """angle + 2 pi k nearest ``previous`` (``kinematics._nearest_turn``)."""
+    return angle + 2.0 * math.pi * math.floor((previous - angle) / (2.0 * math.pi) + 0.5)
+
+
+@_jit
+def _euler_from_quaternion(z: np.ndarray, R: np.ndarray, a0: float, a1: float, a2: float) -> None:
+    """z[3:6] = the Euler angles of z's quaternion nearest (a0, a1, a2)
+    (``kinematics.euler_from_quaternion``, which says why)."""
+    _quaternion_rotation(z, R)
+    cos_theta = math.sqrt(R[0, 0] * R[0, 0] + R[1, 0] * R[1, 0])  # not hypot: numba's differs
+    theta = math.atan2(-R[2, 0], cos_theta)
+    if cos_theta > 1e-12:
+        phi, psi = math.atan2(R[2, 1], R[2, 2]), math.atan2(R[1, 0], R[0, 0])
+    else:
+        phi = a0
+        if theta > 0:
+            psi = phi - math.atan2(R[0, 1], R[0, 2])
+        else:
+            psi = math.atan2(-R[0, 1], -R[0, 2]) - phi
+    f0, f1, f2 = _nearest_turn(phi, a0), _nearest_turn(theta, a1), _nearest_turn(psi, a2)
+    s0 = _nearest_turn(phi + math.pi, a0)
+    s1 = _nearest_turn(math.pi - theta, a1)
+    s2 = _nearest_turn(psi + math.pi, a2)
+    first = abs(f0 - a0) + abs(f1 - a1) + abs(f2 - a2)
+    second = abs(s0 - a0) + abs(s1 - a1) + abs(s2 - a2)
+    if first <= second:
+        z[3], z[4], z[5] = f0, f1, f2
+    else:
+        z[3], z[4], z[5] = s0, s1, s2
+
+
+@_jit
+def _start(x: np.ndarray, z: np.ndarray) -> bool:
+    """z = the stepping state of x (``stepping.stepping_state``): False for a zero
+    quaternion."""
+    for i in range(14):
+        z[i] = x[i]
+    if x.size == 14:
+        _quaternion_from_euler(x[3], x[4], x[5], z)
+        return True
+    w, a, b, c = x[14], x[15], x[16], x[17]
+    norm = math.sqrt(w * w + a * a + b * b + c * c)
+    if not norm > 0.0:
+        return False
+    for i in range(14, 18):
+        z[i] = x[i] / norm
+    return True
+
+
+@_jit
+def advance_into(
+    p: np.ndarray, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float
+) -> int:
+    """z = the stepping state n RK4 steps of dt seconds after x (a state or a stepping
+    state), projected after each stage, the attitude refreshed at the end, like
+    ``stepping.advance``. Returns 0, or 1 for a non-finite input, 2 for a non-finite state
+    or a zero quaternion, 3 for a state that became non-finite."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
             return 1
-    for i in range(14):
+    for i in range(x.size):
         if not math.isfinite(x[i]):
             return 2
+    if not _start(x, z):
+        return 2
+    a0, a1, a2 = z[3], z[4], z[5]
     R, work = np.empty((3, 3)), np.empty((5, 6))
-    k1, k2, k3, k4, y = np.empty(14), np.empty(14), np.empty(14), np.empty(14), np.empty(14)
+    k1, k2, k3, k4, y = np.empty(18), np.empty(18), np.empty(18), np.empty(18), np.empty(18)
     half, sixth = 0.5 * dt, dt / 6.0
-    project(p, x, False)
+    project(p, z, False)
     for _ in range(n):
-        derivative_into(p, x, inputs, R, work, k1)
-        for i in range(14):
-            y[i] = x[i] + half * k1[i]
+        step_derivative_into(p, z, inputs, R, work, k1)
+        for i in range(18):
+            y[i] = z[i] + half * k1[i]
         project(p, y, False)
-        derivative_into(p, y, inputs, R, work, k2)
-        for i in range(14):
-            y[i] = x[i] + half * k2[i]
+        step_derivative_into(p, y, inputs, R, work, k2)
+        for i in range(18):
+            y[i] = z[i] + half * k2[i]
         project(p, y, False)
-        derivative_into(p, y, inputs, R, work, k3)
-        for i in range(14):
-            y[i] = x[i] + dt * k3[i]
+        step_derivative_into(p, y, inputs, R, work, k3)
+        for i in range(18):
+            y[i] = z[i] + dt * k3[i]
         project(p, y, False)
-        derivative_into(p, y, inputs, R, work, k4)
-        for i in range(14):
-            x[i] = x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-        project(p, x, True)
-    for i in range(14):
-        if not math.isfinite(x[i]):
+        step_derivative_into(p, y, inputs, R, work, k4)
+        for i in range(18):
+            z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        project(p, z, True)
+    for i in range(18):
+        if not math.isfinite(z[i]):
             return 3
+    if p[VARIANT] == 0.0:
+        _euler_from_quaternion(z, R, a0, a1, a2)
+    else:
+        _quaternion_from_euler(z[3], z[4], z[5], z)
     return 0
 
 
 @_jit
 def outputs_into(
-    p: np.ndarray, x: np.ndarray, inputs: np.ndarray, R: np.ndarray, out: np.ndarray
+    p: np.ndarray, z: np.ndarray, inputs: np.ndarray, R: np.ndarray, out: np.ndarray
 ) -> None:
-    """The plant FMU's derived outputs into out: u_rel, v_rel, w_rel (nu - U,
-    ``PlantModel.relative_velocity``) and the kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r
-    (``PlantModel.kinetic_energy``, model 0), J."""
-    v0, v1, v2 = inputs[5] + p[SHEAR] * x[1], inputs[6], inputs[7]
+    """The plant FMU's derived outputs into out from the stepping state z: u_rel, v_rel,
+    w_rel (nu - U, ``PlantModel.relative_velocity``) and the kinetic energy
+    1/2 nu_r^T (M_RB + M_A) nu_r (``PlantModel.kinetic_energy``, model 0), J."""
+    v0, v1, v2 = inputs[5] + p[SHEAR] * z[1], inputs[6], inputs[7]
     if p[VARIANT] == 0.0:
-        _rotation(x[3], x[4], x[5], R)
+        _quaternion_rotation(z, R)
         c0 = R[0, 0] * v0 + R[1, 0] * v1 + R[2, 0] * v2
         c1 = R[0, 1] * v0 + R[1, 1] * v1 + R[2, 1] * v2
         c2 = R[0, 2] * v0 + R[1, 2] * v1 + R[2, 2] * v2
     else:
-        cp, sp = math.cos(x[5]), math.sin(x[5])
+        cp, sp = math.cos(z[5]), math.sin(z[5])
         c0, c1, c2 = cp * v0 + sp * v1, -sp * v0 + cp * v1, 0.0
-    nu_r = (x[6] - c0, x[7] - c1, x[8] - c2, x[9], x[10], x[11])
+    nu_r = (z[6] - c0, z[7] - c1, z[8] - c2, z[9], z[10], z[11])
     energy = 0.0
     for j in range(6):
         column = 0.0
@@ -448,23 +585,32 @@ class CompiledPlant:
 
     def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """``PlantModel.derivative`` (a new array)."""
-        dx = np.empty(14)
+        dx = np.empty(N_STATES)
         derivative_into(self.parameters, x, inputs, self._R, self._work, dx)
         return dx
 
-    def outputs(self, x: np.ndarray, inputs: np.ndarray) -> list[float]:
-        """[u_rel, v_rel, w_rel, kinetic_energy] (see :func:`outputs_into`)."""
+    def step_derivative(self, z: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """``PlantModel.step_derivative`` (a new array)."""
+        dz = np.empty(N_STEP_STATES)
+        step_derivative_into(self.parameters, z, inputs, self._R, self._work, dz)
+        return dz
+
+    def outputs(self, z: np.ndarray, inputs: np.ndarray) -> list[float]:
+        """[u_rel, v_rel, w_rel, kinetic_energy] of a stepping state (see
+        :func:`outputs_into`)."""
         out = np.empty(4)
-        outputs_into(self.parameters, x, inputs, self._R, out)
+        outputs_into(self.parameters, z, inputs, self._R, out)
         return out.tolist()
 
-    def advance(self, x: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
-        """n RK4 steps of dt s on the float64 array x in place; :func:`advance_into`'s code."""
-        return advance_into(self.parameters, x, inputs, n, dt)
+    def advance(self, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
+        """z (a float64 stepping state) = n RK4 steps of dt s after x (a state or a
+        stepping state); :func:`advance_into`'s code."""
+        return advance_into(self.parameters, x, z, inputs, n, dt)
 
     def warm_up(self, x: np.ndarray, inputs: np.ndarray) -> None:
         """Compile (or load from numba's cache) every function a step calls, by one RK4
         step of 1 ms on copies of ``x`` and ``inputs``: numba compiles on a function's
         first call, which would otherwise be the first doStep (seconds on a first run,
         ~0.5 s of cache loading later), counted as stepping time."""
-        self.advance(np.array(x, dtype=float), np.array(inputs, dtype=float), 1, 1e-3)
+        z = np.empty(N_STEP_STATES)
+        self.advance(np.array(x, dtype=float), z, np.array(inputs, dtype=float), 1, 1e-3)

@@ -28,14 +28,18 @@ integrate the relative form itself (their frozen attitude breaks that reduction:
 with U the horizontal current turned by the yaw only (5.2.10). The state always holds the
 velocity over ground, nu = nu_r + [U; 0].
 
-State vector (``STATE_NAMES``, SI, angles in rad)::
+The state and input vectors are laid out in :mod:`plant_fmu.model.state_layout`.
 
-    [north, east, down, roll, pitch, yaw, u, v, w, p, q, r, mass_position, mass_velocity]
-
-Input vector (``INPUT_NAMES``), held constant over a step::
-
-    [thrust, roll_torque, tunnel_force, fin_angle, mass_position_cmd,
-     current_north, current_east, current_down]
+Attitude: :meth:`PlantModel.derivative` writes the state with Euler angles and their
+rates T(eta2) omega (2.2.15), the form the dissertation linearises and every analysis tool
+(equilibria, continuation, the controllers' linearisations) differentiates: near their
+operating points T is regular and the gains they get are the dissertation's. T is singular
+at pitch +-90 deg, so the stepping (:mod:`plant_fmu.model.stepping`) integrates the full
+variant's attitude as a unit quaternion instead (:meth:`PlantModel.step_derivative`, the
+same forces from the same rotation matrix) and refreshes the Euler angles from it after
+every step. The lateral and horizontal variants keep integrating Euler angles: their
+pitch is frozen at 0 (no singularity), and their frozen attitude does not turn as the body
+rates say (psi' = r cos phi with theta held), which a quaternion could not follow.
 """
 
 from __future__ import annotations
@@ -44,6 +48,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
+from functools import cached_property
 
 import numpy as np
 
@@ -57,7 +62,15 @@ from plant_fmu.model.inertia import (
     added_mass_matrix_times,
     rigid_body_mass_matrix,
 )
-from plant_fmu.model.kinematics import cross, euler_rate_matrix, gravity_direction, rotation_matrix
+from plant_fmu.model.kinematics import (
+    cross,
+    euler_rate_matrix,
+    gravity_direction,
+    quaternion_rate,
+    quaternion_rotation_matrix,
+    rotate,
+    rotation_matrix,
+)
 from plant_fmu.model.moving_mass import (
     MovingMassModel,
     mass_matrix_shift,
@@ -67,30 +80,27 @@ from plant_fmu.model.moving_mass import (
     weight_moment,
 )
 from plant_fmu.model.parameters import VehicleParameters
-
-STATE_NAMES: tuple[str, ...] = (
-    "north", "east", "down", "roll", "pitch", "yaw",
-    "u", "v", "w", "p", "q", "r",
-    "mass_position", "mass_velocity",
-)  # fmt: skip
-STATE_UNITS: tuple[str, ...] = (
-    "m", "m", "m", "rad", "rad", "rad",
-    "m/s", "m/s", "m/s", "rad/s", "rad/s", "rad/s",
-    "m", "m/s",
-)  # fmt: skip
-INPUT_NAMES: tuple[str, ...] = (
-    "thrust", "roll_torque", "tunnel_force", "fin_angle", "mass_position_cmd",
-    "current_north", "current_east", "current_down",
-)  # fmt: skip
-INPUT_UNITS: tuple[str, ...] = ("N", "N.m", "N", "rad", "m", "m/s", "m/s", "m/s")
-
-STATE_INDEX = {name: i for i, name in enumerate(STATE_NAMES)}
-INPUT_INDEX = {name: i for i, name in enumerate(INPUT_NAMES)}
-N_STATES = len(STATE_NAMES)
-N_INPUTS = len(INPUT_NAMES)
-_POSE = slice(0, 6)
-_NU = slice(6, 12)
-_YV, _YVEL = 12, 13
+from plant_fmu.model.state_layout import (
+    ANGULAR_VELOCITY,
+    CURRENT,
+    EULER,
+    MASS_COMMAND,
+    N_STEP_STATES,
+    NU,
+    POSITION,
+    QUATERNION,
+    STATE,
+)
+from plant_fmu.model.state_layout import INPUT_INDEX as INPUT_INDEX
+from plant_fmu.model.state_layout import INPUT_NAMES as INPUT_NAMES
+from plant_fmu.model.state_layout import INPUT_UNITS as INPUT_UNITS
+from plant_fmu.model.state_layout import MASS_POSITION as _YV
+from plant_fmu.model.state_layout import MASS_VELOCITY as _YVEL
+from plant_fmu.model.state_layout import N_INPUTS as N_INPUTS
+from plant_fmu.model.state_layout import N_STATES as N_STATES
+from plant_fmu.model.state_layout import STATE_INDEX as STATE_INDEX
+from plant_fmu.model.state_layout import STATE_NAMES as STATE_NAMES
+from plant_fmu.model.state_layout import STATE_UNITS as STATE_UNITS
 
 
 class Variant(IntEnum):
@@ -184,22 +194,29 @@ class PlantModel:
 
     def current_velocity(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """Earth-frame water velocity at the vehicle, m/s (uniform part plus shear)."""
-        v_c = inputs[5:8].copy()
+        v_c = np.array(inputs[CURRENT], dtype=float)
         v_c[0] += self.current_shear * x[1]
         return v_c
 
+    def rotation(self, x: np.ndarray) -> np.ndarray:
+        """Body-to-earth rotation R of a state (Euler angles, 2.2.8) or of a stepping state
+        of the full variant (its quaternion, which stays accurate at pitch +-90 deg)."""
+        if len(x) == N_STEP_STATES and self.variant is Variant.FULL:
+            return quaternion_rotation_matrix(x[QUATERNION])
+        return rotation_matrix(x[3], x[4], x[5])
+
     def current_in_body(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """U, the current in body axes, m/s: R^T V_c in the full variant; in the lateral and
-        horizontal variants the horizontal current turned by the yaw only (5.2.10)."""
+        horizontal variants the horizontal current turned by the yaw only (5.2.10).
+        ``x`` is a state or a stepping state (:meth:`rotation`)."""
         v_c = self.current_velocity(x, inputs)
         if self.variant is Variant.FULL:
-            body: np.ndarray = rotation_matrix(x[3], x[4], x[5]).T @ v_c
-            return body
+            return rotate(self.rotation(x), v_c, transpose=True)
         return np.array([*planar_current(x[5], v_c), 0.0])
 
     def relative_velocity(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """nu_r = nu - [U; 0] (:meth:`current_in_body`), m/s and rad/s."""
-        nu_r = np.array(x[_NU], dtype=float)
+        nu_r = np.array(x[NU], dtype=float)
         nu_r[:3] -= self.current_in_body(x, inputs)
         return nu_r
 
@@ -275,8 +292,12 @@ class PlantModel:
     def restoring(self, phi: float, theta: float) -> np.ndarray:
         """Hydrostatic force and moment on the right-hand side (3.5.3), r_b = 0:
         [(W - B) Gamma; r_g x W Gamma], Gamma = R^T [0, 0, 1]."""
+        return self.hydrostatics(gravity_direction(phi, theta))
+
+    def hydrostatics(self, gamma: Sequence[float] | np.ndarray) -> np.ndarray:
+        """:meth:`restoring` for the earth's down axis in body coordinates, Gamma (the
+        third row of R), however the attitude is held."""
         params = self.params
-        gamma = gravity_direction(phi, theta)
         moment = cross((params.x_g, 0.0, params.z_g), gamma)
         return np.array([(params.W - params.B) * c for c in gamma] + [params.W * c for c in moment])
 
@@ -291,7 +312,10 @@ class PlantModel:
         )
 
     def moving_mass(
-        self, x: Sequence[float], inputs: Sequence[float]
+        self,
+        x: Sequence[float],
+        inputs: Sequence[float],
+        gamma: Sequence[float] | np.ndarray | None = None,
     ) -> tuple[float, float, np.ndarray]:
         """Servo motion of the moving mass and its reaction on the hull (6.3.11-6.3.13).
 
@@ -299,38 +323,63 @@ class PlantModel:
         rail; the reaction F_mm = -m_v y'' acts in sway at (x_v, ., z_g): sway +F_mm, roll
         -z_g F_mm, yaw +x_v F_mm; the offset weight adds r x m_v g Gamma with
         r = [0, y_v, 0]. The two-body model adds :func:`two_body_force` in the form being
-        integrated.
+        integrated. ``gamma``: the earth's down axis in body coordinates (default: from the
+        Euler angles of x).
 
         Returns:
             (y' in m/s, y'' in m/s^2, generalised force on the hull [X, Y, Z, K, M, N]).
         """
         params = self.params
-        y_vel, accel = servo_motion(params, x[_YV], x[_YVEL], inputs[4])
+        y_vel, accel = servo_motion(params, x[_YV], x[_YVEL], inputs[MASS_COMMAND])
         f_mm = -params.m_v * accel
-        roll_weight, yaw_weight = weight_moment(params, x[_YV], x[3], x[4])
+        down = gravity_direction(x[3], x[4]) if gamma is None else gamma
+        roll_weight, yaw_weight = weight_moment(params, x[_YV], down)
         roll = -params.z_g * f_mm + roll_weight
         yaw = params.x_v * f_mm + yaw_weight
         return y_vel, accel, np.array([0.0, f_mm, 0.0, roll, 0.0, yaw])
 
     def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
-        """State derivative x_dot = f(x, inputs) of the active variant (frozen states: 0)."""
-        xs, us = x.tolist(), inputs.tolist()
-        phi, theta = xs[3], xs[4]
-        R = rotation_matrix(phi, theta, xs[5])
-        mass_velocity, mass_accel, f_mm = self.moving_mass(xs, us)
+        """State derivative x_dot = f(x, inputs) of the active variant (frozen states: 0),
+        attitude as Euler angles: eta2_dot = T(eta2) omega (2.2.15), singular at pitch
+        +-90 deg. The form the analysis tools differentiate; stepping uses
+        :meth:`step_derivative`."""
+        phi, theta = float(x[3]), float(x[4])
         dx = np.empty(N_STATES)
-        dx[3:6] = euler_rate_matrix(phi, theta) @ x[9:12]
-        base = (f_mm, self.restoring(phi, theta))
-        v_c = self.current_velocity(x, inputs)
-        if self.variant is Variant.FULL:
-            dx[_NU], dx[0:3] = self._full_form(xs, us, R, v_c, base, mass_velocity)
-        else:
-            dx[_NU], dx[0:3] = self._relative_form(xs, us, R, v_c, base, mass_velocity, dx[5])
-        dx[_YV] = mass_velocity
-        dx[_YVEL] = mass_accel
+        dx[EULER] = euler_rate_matrix(phi, theta) @ x[ANGULAR_VELOCITY]
+        self._rates(x, inputs, rotation_matrix(phi, theta, float(x[5])), dx)
         if self._frozen_pose:
             dx[self._frozen_pose] = 0.0
         return dx
+
+    def step_derivative(self, z: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """Derivative of a stepping state (``STEP_STATE_NAMES``). Full variant: the
+        attitude is the quaternion, q_dot = 1/2 q (x) [0, omega], and the Euler entries do
+        not move (the stepping refreshes them from q); lateral and horizontal variants:
+        :meth:`derivative`, with a quaternion that does not move."""
+        dz = np.zeros(N_STEP_STATES)
+        if self.variant is not Variant.FULL:
+            dz[STATE] = self.derivative(z[STATE], inputs)
+            return dz
+        q = z[QUATERNION]
+        self._rates(z, inputs, quaternion_rotation_matrix(q), dz)
+        dz[QUATERNION] = quaternion_rate(q, z[ANGULAR_VELOCITY])
+        return dz
+
+    def _rates(self, x: np.ndarray, inputs: np.ndarray, R: np.ndarray, dx: np.ndarray) -> None:
+        """Everything but the attitude's rate into dx: eta1_dot, nu_dot and the mass's
+        motion, with the attitude given as the rotation R (forces need only R; the planar
+        variants also read the yaw x[5] and its rate dx[5])."""
+        xs, us = x[STATE].tolist(), inputs.tolist()
+        gamma = R[2].tolist()  # Gamma = R^T [0, 0, 1]
+        mass_velocity, mass_accel, f_mm = self.moving_mass(xs, us, gamma)
+        base = (f_mm, self.hydrostatics(gamma))
+        v_c = self.current_velocity(x, inputs)
+        if self.variant is Variant.FULL:
+            dx[NU], dx[POSITION] = self._full_form(xs, us, R, v_c, base, mass_velocity)
+        else:
+            dx[NU], dx[POSITION] = self._relative_form(xs, us, R, v_c, base, mass_velocity, dx[5])
+        dx[_YV] = mass_velocity
+        dx[_YVEL] = mass_accel
 
     def _full_form(
         self,
@@ -346,7 +395,7 @@ class PlantModel:
         depend on no velocity (moving mass, restoring). Python floats throughout, so an
         overflow raises (OverflowError) instead of turning into inf."""
         nu = xs[6:12]
-        current_body = (R.T @ v_c).tolist()
+        current_body = rotate(R, v_c, transpose=True).tolist()
         nu_r = [nu[0] - current_body[0], nu[1] - current_body[1], nu[2] - current_body[2], *nu[3:]]
         force = (
             self.actuators(us, nu_r[0])
@@ -360,7 +409,7 @@ class PlantModel:
             force += self.viscous(nu_r)
         if self.two_body:
             force += two_body_force(self.params, nu, xs[_YV], y_vel)
-        return self._accelerate(xs[_YV], force), R @ np.asarray(nu[:3])
+        return self._accelerate(xs[_YV], force), rotate(R, nu[:3])
 
     def _relative_form(
         self,
@@ -380,7 +429,7 @@ class PlantModel:
         nu_r = xs[6:12]
         nu_r[0] -= current[0]
         nu_r[1] -= current[1]
-        position_rate = R @ np.asarray(nu_r[:3]) + v_c
+        position_rate = rotate(R, nu_r[:3]) + v_c
         force = (
             self.actuators(us, nu_r[0])
             + base[0]
@@ -418,16 +467,18 @@ class PlantModel:
         return accel
 
     def project(self, x: np.ndarray, collide: bool = False) -> np.ndarray:
-        """Enforce the constraints on a state in place: frozen DOFs at 0, the mass within its
-        stops (resting, y_vel = 0, when pushed against one) and under the speed limit.
+        """Enforce the constraints on a state or stepping state in place: frozen DOFs at 0,
+        the mass within its stops (resting, y_vel = 0, when pushed against one) and under
+        the speed limit.
 
         Args:
             collide: the state ends an integration step, so a mass that reached a stop with
                 speed y_vel hits it: the collision is inelastic and conserves the momentum
-                of hull, fluid and mass, (M_RB + M_A) nu + m_v y_vel J along the free
+                of hull, fluid and mass, (M(stop) + M_A) nu + m_v y_vel J along the free
                 degrees of freedom, so the momentum the servo took from the hull while
                 accelerating the mass comes back (without it, every arrival at a stop would
-                be a spurious kick). RK4 stage states pass False.
+                be a spurious kick); and a stepping state's quaternion is normalised. RK4
+                stage states pass False.
         """
         params = self.params
         if self.variant is not Variant.FULL:
@@ -435,39 +486,52 @@ class PlantModel:
             x[frozen_nu] = 0.0
             x[[i for i in (2, 3, 4) if i not in self.variant.pose]] = 0.0
         if abs(x[_YV]) >= params.mass_stroke:
-            arrival = x[_YV]
             x[_YV] = math.copysign(params.mass_stroke, x[_YV])
             if x[_YVEL] * x[_YV] > 0.0:  # moving into the stop
                 if collide:
-                    x[_NU] = self._velocity_after_impact(x[_NU], arrival, x[_YV], x[_YVEL])
+                    x[NU] = self._velocity_after_impact(x[NU], x[_YV], x[_YVEL])
                 x[_YVEL] = 0.0
         if params.mass_speed_limit > 0.0:
             x[_YVEL] = min(max(x[_YVEL], -params.mass_speed_limit), params.mass_speed_limit)
+        if collide and len(x) == N_STEP_STATES:
+            w, a, b, c = x[QUATERNION].tolist()
+            x[QUATERNION] /= math.sqrt(w * w + a * a + b * b + c * c)
         return x
 
     def _velocity_after_impact(
-        self, nu: np.ndarray, arrival: float, stop: float, mass_velocity: float
+        self, nu: np.ndarray, stop: float, mass_velocity: float
     ) -> np.ndarray:
-        """Hull velocity after the mass, found at y_v = ``arrival`` sliding at
-        ``mass_velocity`` (m/s), is stopped dead at y_v = ``stop``: the momentum
-        M(arrival) nu + m_v y_vel J is the same before and after. With model 0, M does not
-        depend on y_v and (M_RB + M_A) d nu = m_v y_vel J."""
+        """Hull velocity after the mass, sliding at ``mass_velocity`` (m/s), is stopped dead
+        at y_v = ``stop``: the stop's impulse m_v y_vel J on the hull (the rail speed is the
+        same in every frame) changes its momentum, M(stop) d nu = m_v y_vel J, with M(stop)
+        = M_RB + M_A + dM(stop) at the stop (M_RB + M_A with model 0). Relative velocity
+        and velocity over ground change alike, so the impact is frame-independent; the
+        stepping (:mod:`plant_fmu.model.stepping`) ends the two-body model's step at the
+        moment the mass arrives, so no overshoot enters."""
         impulse = self.params.m_v * mass_velocity * rail_direction(self.params)
         if not self.two_body:
             return nu + self._inverse_mass @ impulse
-        momentum = self.mass_matrix_at(arrival) @ nu + impulse
-        after = nu.copy()
-        after[self._free] = self._accelerate(stop, momentum)[self._free]
+        after: np.ndarray = nu + self._accelerate(stop, impulse)
         return after
+
+    @cached_property
+    def without_stops(self) -> PlantModel:
+        """This plant with the rail's stops out of reach: the two-body stepping integrates
+        with it up to the moment the mass arrives at a stop (before that, stage states that
+        touch the stop must not be held there)."""
+        params = self.params.replace(mass_stroke=1e9)  # m: a rail no mass reaches the end of
+        return PlantModel(
+            params, self.variant, self.ideal_fluid, self.current_shear, self.moving_mass_model
+        )
 
     def current_change_velocity_jump(self, x: np.ndarray, delta_current: np.ndarray) -> np.ndarray:
         """Velocity change of the hull when the uniform current jumps by delta_current (earth,
         m/s) between two steps: the impulse of the (Mbar + M_A) nuc_dot term,
         (M_RB + M_A) d nu = (Mbar + M_A) [dU; 0], dU the jump in body axes
-        (:meth:`current_in_body`)."""
+        (:meth:`current_in_body`); ``x`` a state or a stepping state."""
         d_nuc = np.zeros(6)
         if self.variant is Variant.FULL:
-            d_nuc[:3] = rotation_matrix(x[3], x[4], x[5]).T @ np.asarray(delta_current, float)
+            d_nuc[:3] = self.rotation(x).T @ np.asarray(delta_current, float)
         else:
             d_nuc[:2] = planar_current(x[5], delta_current)
         impulse: np.ndarray = np.array(added_mass_matrix_times(self.params, d_nuc))

@@ -52,8 +52,106 @@ def cross(
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
+def rotate(R: np.ndarray, v: Sequence[float] | np.ndarray, transpose: bool = False) -> np.ndarray:
+    """R v (or R^T v) of a 3-vector, summed left to right as the compiled path sums it
+    (numpy's BLAS product may round differently, which a closed loop can amplify)."""
+    m = R.T if transpose else R
+    rows = m.tolist()
+    return np.array([r[0] * v[0] + r[1] * v[1] + r[2] * v[2] for r in rows])
+
+
 def gravity_direction(phi: float, theta: float) -> np.ndarray:
     """Gamma = R^T [0, 0, 1] = [-sin theta, cos theta sin phi, cos theta cos phi] (3.5.3):
     the earth's down axis in body coordinates."""
     ct = math.cos(theta)
     return np.array([-math.sin(theta), ct * math.sin(phi), ct * math.cos(phi)])
+
+
+# --- The attitude as a unit quaternion ----------------------------------------------------
+#
+# Written out by hand, not taken from scipy.spatial.transform.Rotation: these run four times
+# per RK4 step inside the plant (a Rotation costs ~10 us per call, the whole derivative ~30)
+# and the compiled path (plant_fmu.model.compiled) repeats them term by term in numba.
+# Quaternions are [w, x, y, z] (Hamilton, scalar first) of the body-to-earth rotation.
+
+
+def quaternion_from_euler(phi: float, theta: float, psi: float) -> np.ndarray:
+    """q = q_z(psi) q_y(theta) q_x(phi), the quaternion of R = Rz(psi) Ry(theta) Rx(phi)
+    (2.2.8); scipy's ``Rotation.from_euler("ZYX", [psi, theta, phi])`` up to sign."""
+    cr, sr = math.cos(0.5 * phi), math.sin(0.5 * phi)
+    cp, sp = math.cos(0.5 * theta), math.sin(0.5 * theta)
+    cy, sy = math.cos(0.5 * psi), math.sin(0.5 * psi)
+    return np.array(
+        [
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ]
+    )
+
+
+def quaternion_rotation_matrix(q: Sequence[float] | np.ndarray) -> np.ndarray:
+    """Body-to-earth rotation R of the quaternion q = [w, x, y, z], normalised on the way
+    (s = 2 / |q|^2), so the RK4 stage states, which leave the unit sphere by O(h^2), still
+    give a rotation."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    return np.array(
+        [
+            [1.0 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y)],
+            [s * (x * y + w * z), 1.0 - s * (x * x + z * z), s * (y * z - w * x)],
+            [s * (x * z - w * y), s * (y * z + w * x), 1.0 - s * (x * x + y * y)],
+        ]
+    )
+
+
+def quaternion_rate(
+    q: Sequence[float] | np.ndarray, omega: Sequence[float] | np.ndarray
+) -> tuple[float, ...]:
+    """q_dot = 1/2 q (x) [0, omega], omega = [p, q, r] the body rates: the kinematics of a
+    unit quaternion (Fossen, *Handbook of Marine Craft Hydrodynamics*, 2011, Sec. 2.2.2),
+    singular nowhere, unlike T(eta2) of (2.2.15)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    p, qr, r = omega[0], omega[1], omega[2]
+    return (
+        0.5 * (-x * p - y * qr - z * r),
+        0.5 * (w * p + y * r - z * qr),
+        0.5 * (w * qr + z * p - x * r),
+        0.5 * (w * r + x * qr - y * p),
+    )
+
+
+def euler_from_quaternion(
+    q: Sequence[float] | np.ndarray, previous: Sequence[float] | np.ndarray
+) -> tuple[float, ...]:
+    """(phi, theta, psi) of the rotation q, the triple nearest to ``previous``.
+
+    A rotation has two Euler triples, (phi, theta, psi) with |theta| <= 90 deg and
+    (phi + pi, pi - theta, psi + pi), each up to whole turns. Of these we return the one
+    closest to the previous output, so the angles run on continuously: yaw past +-180 deg
+    in a turning circle, pitch past 90 deg in a loop, where roll and yaw would otherwise
+    jump by 180 deg. At theta = +-90 deg exactly only phi - psi (or phi + psi) is defined;
+    phi then keeps its previous value.
+    """
+    R = quaternion_rotation_matrix(q)
+    cos_theta = math.sqrt(R[0, 0] * R[0, 0] + R[1, 0] * R[1, 0])  # not hypot: numba's differs
+    theta = math.atan2(-R[2, 0], cos_theta)
+    if cos_theta > 1e-12:
+        phi, psi = math.atan2(R[2, 1], R[2, 2]), math.atan2(R[1, 0], R[0, 0])
+    else:  # R[0, 1:] = [sin, cos] of phi - psi (theta = 90 deg) or -(phi + psi) (-90 deg)
+        phi = previous[0]
+        turn = math.atan2(R[0, 1], R[0, 2]) if theta > 0 else math.atan2(-R[0, 1], -R[0, 2])
+        psi = phi - turn if theta > 0 else turn - phi
+    first = [_nearest_turn(a, b) for a, b in zip((phi, theta, psi), previous, strict=True)]
+    second = [
+        _nearest_turn(a, b)
+        for a, b in zip((phi + math.pi, math.pi - theta, psi + math.pi), previous, strict=True)
+    ]
+    distance = [sum(abs(a - b) for a, b in zip(t, previous, strict=True)) for t in (first, second)]
+    return tuple(first if distance[0] <= distance[1] else second)
+
+
+def _nearest_turn(angle: float, previous: float) -> float:
+    """angle + 2 pi k, with k the whole number of turns that brings it nearest ``previous``."""
+    return angle + 2.0 * math.pi * math.floor((previous - angle) / (2.0 * math.pi) + 0.5)

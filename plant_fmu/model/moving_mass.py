@@ -22,7 +22,6 @@ derives model 1 and says what its tests check.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from enum import IntEnum
 from typing import TYPE_CHECKING
@@ -70,12 +69,13 @@ def servo_motion(
 
 
 def weight_moment(
-    params: VehicleParameters, y_v: float, phi: float, theta: float
+    params: VehicleParameters, y_v: float, gamma: Sequence[float] | np.ndarray
 ) -> tuple[float, float]:
-    """Roll and yaw moments of the offset weight, r x m_v g Gamma with r = [0, y_v, 0]
-    (3.5.3): (m_v g y_v cos theta cos phi, m_v g y_v sin theta), N m."""
+    """Roll and yaw moments of the offset weight, r x m_v g Gamma with r = [0, y_v, 0] and
+    Gamma = R^T [0, 0, 1] = [-sin theta, cos theta sin phi, cos theta cos phi] (3.5.3):
+    (m_v g y_v cos theta cos phi, m_v g y_v sin theta), N m."""
     weight = params.m_v * params.g * y_v
-    return weight * math.cos(theta) * math.cos(phi), weight * math.sin(theta)
+    return weight * gamma[2], weight * -gamma[0]
 
 
 def mass_matrix_shift(params: VehicleParameters, y_v: float) -> np.ndarray:

@@ -19,6 +19,13 @@ adaptive ``solve_ivp``:
 
 The number of sub-steps is ceil(h / max_substep); the default 10 ms makes a 10 ms
 communication step one RK4 step, and users who want more accuracy lower ``max_substep``.
+
+What is integrated is the stepping state (:mod:`plant_fmu.model.state_layout`): the
+full variant's attitude as a unit quaternion, normalised after every sub-step, its Euler
+angles refreshed from it after the step (:func:`refresh_attitude`), so a vehicle passes
+pitch +-90 deg (see :mod:`plant_fmu.model.dynamics` for why the derivative the analysis
+tools use keeps Euler angles). With the two-body moving mass a sub-step in which the mass
+reaches a stop ends at its arrival (:func:`_substep_through_stop`).
 """
 
 from __future__ import annotations
@@ -27,8 +34,21 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.optimize import brentq
 
-from plant_fmu.model.dynamics import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES, PlantModel
+from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model.kinematics import euler_from_quaternion, quaternion_from_euler
+from plant_fmu.model.state_layout import (
+    EULER,
+    INPUT_NAMES,
+    MASS_POSITION,
+    N_INPUTS,
+    N_STATES,
+    N_STEP_STATES,
+    QUATERNION,
+    STATE,
+    STEP_STATE_NAMES,
+)
 
 if TYPE_CHECKING:
     from plant_fmu.model.compiled import CompiledPlant
@@ -43,6 +63,41 @@ def check_finite(values: np.ndarray, names: tuple[str, ...], what: str) -> None:
         raise ValueError(f"{what} {names[bad]} = {float(values[bad])!r}: expected a finite number")
 
 
+def stepping_state(x: np.ndarray) -> np.ndarray:
+    """A new stepping state (``STEP_STATE_NAMES``) from a state (the quaternion of its
+    Euler angles) or from a stepping state (copied, its quaternion normalised).
+
+    Raises:
+        ValueError: a vector of another length, or a zero quaternion.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.shape == (N_STATES,):
+        return np.concatenate([x, quaternion_from_euler(*x[EULER].tolist())])
+    if x.shape != (N_STEP_STATES,):
+        raise ValueError(
+            f"expected a state of {N_STATES} values (or {N_STEP_STATES} with the attitude "
+            f"quaternion), got shape {x.shape}"
+        )
+    z = x.copy()
+    w, a, b, c = z[QUATERNION].tolist()
+    norm = math.sqrt(w * w + a * a + b * b + c * c)
+    if not norm > 0.0:
+        raise ValueError(f"attitude quaternion {z[QUATERNION].tolist()}: expected |q| > 0")
+    z[QUATERNION] /= norm
+    return z
+
+
+def refresh_attitude(model: PlantModel, z: np.ndarray, previous: np.ndarray) -> None:
+    """Make a stepping state's two attitudes agree, in place, from the one the variant
+    integrates: the full variant's Euler angles from its quaternion (the triple nearest
+    ``previous``, so they run on continuously: ``kinematics.euler_from_quaternion``), the
+    planar variants' quaternion from their Euler angles."""
+    if model.variant is Variant.FULL:
+        z[EULER] = euler_from_quaternion(z[QUATERNION].tolist(), previous.tolist())
+    else:
+        z[QUATERNION] = quaternion_from_euler(*z[EULER].tolist())
+
+
 def advance(
     model: PlantModel,
     x: np.ndarray,
@@ -55,24 +110,30 @@ def advance(
 
     Args:
         model: the plant.
-        x: state, ``STATE_NAMES`` order (not modified).
+        x: a state (``STATE_NAMES``) or a stepping state (``STEP_STATE_NAMES``, whose
+            quaternion is the full variant's attitude, while its Euler angles only say
+            which of the equivalent triples to continue from); not modified. Callers that
+            step through pitch +-90 deg carry the stepping state: a state's Euler angles
+            hold the attitude there only to about 1e-16 / cos(pitch).
         inputs: inputs, ``INPUT_NAMES`` order.
         h: step, s (> 0).
         max_substep: longest internal RK4 step, s (> 0).
         compiled: the compiled path of ``model`` (:mod:`plant_fmu.model.compiled`), or
             None for this module's reference loop; both do the same arithmetic.
 
+    Returns:
+        the new state, as long as ``x`` (a stepping state for a stepping state).
+
     Raises:
         ValueError: a non-finite state or input, a non-positive step, or a state that
-            became non-finite (the vehicle left the model's range, e.g. pitch at 90 deg).
+            became non-finite (the vehicle left the model's range).
     """
-    start = x
-    x = np.array(start, dtype=float)
+    x = np.asarray(x, dtype=float)
     inputs = np.asarray(inputs, dtype=float)
-    if x.shape != (N_STATES,) or inputs.shape != (N_INPUTS,):
+    if x.shape not in ((N_STATES,), (N_STEP_STATES,)) or inputs.shape != (N_INPUTS,):
         raise ValueError(
-            f"expected a state of {N_STATES} and inputs of {N_INPUTS} values, "
-            f"got shapes {x.shape} and {inputs.shape}"
+            f"expected a state of {N_STATES} values (or {N_STEP_STATES} with the attitude "
+            f"quaternion) and inputs of {N_INPUTS}, got shapes {x.shape} and {inputs.shape}"
         )
     if not (h > 0.0 and math.isfinite(h)):
         raise ValueError(f"step h = {h!r}: expected a finite number of seconds > 0")
@@ -81,26 +142,75 @@ def advance(
     n = max(1, math.ceil(h / max_substep - 1e-9))
     dt = h / n
     if compiled is not None:
-        if compiled.advance(x, inputs, n, dt) == 0:
-            return x
-        # A non-finite input or state: the reference below repeats the step from the start
-        # and reports what went wrong in its own words (an OverflowError, a named state).
-        x = np.array(start, dtype=float)
+        z = np.empty(N_STEP_STATES)
+        if compiled.advance(x, z, inputs, n, dt) == 0:
+            return z if len(x) == N_STEP_STATES else z[STATE]
+        # A non-finite input or result: the reference below repeats the step from the
+        # start and reports what went wrong in its own words (an OverflowError, a name).
+    check_finite(x, STEP_STATE_NAMES, "state")
     check_finite(inputs, INPUT_NAMES, "input")
-    check_finite(x, STATE_NAMES, "state")
-    f = model.derivative
+    z = stepping_state(x)
+    previous = z[EULER].copy()
     # An input far outside the model's range (a fault's gain of 1e308) overflows on the way:
     # the check below says so in one line, numpy's warnings would reach the host's stderr.
     with np.errstate(all="ignore"):
-        model.project(x)
+        model.project(z)
         for _ in range(n):
-            k1 = f(x, inputs)
-            k2 = f(model.project(x + 0.5 * dt * k1), inputs)
-            k3 = f(model.project(x + 0.5 * dt * k2), inputs)
-            k4 = f(model.project(x + dt * k3), inputs)
-            x = model.project(x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4), collide=True)
-    check_finite(x, STATE_NAMES, "state after the step:")
-    return x
+            z = _substep(model, z, inputs, dt)
+    check_finite(z, STEP_STATE_NAMES, "state after the step:")
+    refresh_attitude(model, z, previous)
+    return z if len(x) == N_STEP_STATES else z[STATE]
+
+
+def _rk4(model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
+    """One classical RK4 step of dt seconds on a stepping state, each stage projected."""
+    f, stage = model.step_derivative, model.project
+    k1 = f(z, inputs)
+    k2 = f(stage(z + 0.5 * dt * k1), inputs)
+    k3 = f(stage(z + 0.5 * dt * k2), inputs)
+    k4 = f(stage(z + dt * k3), inputs)
+    end: np.ndarray = z + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return end
+
+
+def _substep(model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
+    """One RK4 sub-step, the constraints enforced at its end (a stop's impact included)."""
+    end = _rk4(model, z, inputs, dt)
+    stroke = model.params.mass_stroke
+    arrival = end[MASS_POSITION]
+    if model.two_body and abs(arrival) > stroke > abs(z[MASS_POSITION]):
+        return _substep_through_stop(model, z, inputs, dt, math.copysign(stroke, arrival))
+    return model.project(end, collide=True)
+
+
+def _substep_through_stop(
+    model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float, stop: float
+) -> np.ndarray:
+    """A two-body sub-step in which the mass reaches ``stop`` (m): integrate to the moment
+    it arrives, let it hit the stop there, then integrate the rest of the sub-step.
+
+    Why: projecting an overshot mass back onto the stop at the step's end moves it without
+    the time that takes; with the two-body model's mass matrix M(y_v) that shift changes
+    the system's momentum and, on the velocity over ground, depends on the frame (a
+    current's). Locating the arrival (Brent's method, :func:`scipy.optimize.brentq`, on the
+    RK4 step length: the mass's motion on its rail depends on nothing but the servo, so
+    the arrival time is the same in every frame) leaves the impact alone to change the
+    hull's momentum, by exactly the stop's impulse. Up to the arrival the stops are out of
+    the way (:attr:`PlantModel.without_stops`): stage states a hair past the stop must not
+    be held there.
+    """
+    free = model.without_stops
+
+    def gap(length: float) -> float:
+        return float(_rk4(free, z, inputs, length)[MASS_POSITION] - stop)
+
+    if gap(dt) * stop <= 0.0:  # with the stops out of the way it does not get there
+        return model.project(_rk4(model, z, inputs, dt), collide=True)
+    arrival = brentq(gap, 0.0, dt, xtol=1e-15, rtol=4.0 * np.finfo(float).eps)
+    z = model.project(_rk4(free, z, inputs, arrival), collide=True)
+    if dt - arrival <= 0.0:
+        return z
+    return model.project(_rk4(model, z, inputs, dt - arrival), collide=True)
 
 
 def simulate(
@@ -112,13 +222,15 @@ def simulate(
     max_substep: float = DEFAULT_MAX_SUBSTEP,
     compiled: CompiledPlant | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Open-loop run with constant inputs: (times [n+1], states [n+1, N_STATES]);
-    ``compiled`` as in :func:`advance`."""
+    """Open-loop run with constant inputs: (times [n+1], states [n+1, len(x0)]), carrying
+    the stepping state from step to step whatever x0 is (so the attitude is followed
+    through pitch +-90 deg); ``compiled`` as in :func:`advance`."""
     steps = round(duration / h)
     if steps < 1 or not math.isclose(steps * h, duration, rel_tol=1e-9, abs_tol=1e-12):
         raise ValueError(f"duration {duration!r} s is not a whole number of steps h = {h!r} s")
-    states = np.empty((steps + 1, N_STATES))
-    states[0] = model.project(np.array(x0, dtype=float))
+    z = model.project(stepping_state(x0))
+    states = np.empty((steps + 1, N_STEP_STATES))
+    states[0] = z
     for k in range(steps):
         states[k + 1] = advance(model, states[k], inputs, h, max_substep, compiled)
-    return np.arange(steps + 1) * h, states
+    return np.arange(steps + 1) * h, states[:, : len(np.asarray(x0))]

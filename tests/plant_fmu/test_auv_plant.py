@@ -321,6 +321,7 @@ CONTRACT_OUTPUTS = {
     **dict.fromkeys(("u", "v", "w", "u_rel", "v_rel", "w_rel", "mass_velocity"), "m/s"),
     **dict.fromkeys(("p", "q", "r"), "rad/s"),
     "kinetic_energy": "J",
+    **dict.fromkeys(("quat_w", "quat_x", "quat_y", "quat_z"), "1"),
 }
 
 

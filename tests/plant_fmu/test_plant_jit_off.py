@@ -36,4 +36,7 @@ def test_plant_fmu_agrees_with_the_compiled_path_off(scenario, fmu_paths, run_py
     assert "AUV_COSIM_NO_JIT=1 turns the compiled path off" in logs["off"]
     assert "compiled plant is off" not in logs["on"]
     assert np.abs(values["on"]).max() > 0.1
-    np.testing.assert_allclose(values["off"], values["on"], rtol=0.0, atol=1e-12)
+    # relative as well as absolute: the autopilot's compiled backstepping rounds apart from
+    # its reference by 1e-17, which the chattering tunnel force of vert-2 amplifies to
+    # 1e-12 of its 5-10 N
+    np.testing.assert_allclose(values["off"], values["on"], rtol=1e-12, atol=1e-12)

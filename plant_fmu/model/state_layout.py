@@ -1,0 +1,66 @@
+"""Where each quantity sits in the plant's state and input vectors, defined once.
+
+Two state vectors (SI, angles in rad):
+
+* the *state* (``STATE_NAMES``, 14 values): what the FMU outputs, the start values, the
+  derivative :meth:`~plant_fmu.model.dynamics.PlantModel.derivative` (attitude as Euler
+  angles) and every analysis tool (equilibria, linearisations) use::
+
+      [north, east, down, roll, pitch, yaw, u, v, w, p, q, r, mass_position, mass_velocity]
+
+* the *stepping state* (``STEP_STATE_NAMES``, 18 values): the state followed by the unit
+  quaternion [q_w, q_x, q_y, q_z] of the body-to-earth rotation (Hamilton convention,
+  scalar first). :mod:`plant_fmu.model.stepping` integrates the attitude of the full
+  6-DOF variant as this quaternion (no singularity at pitch +-90 deg) and refreshes the
+  Euler angles from it after every step.
+
+Inputs (``INPUT_NAMES``), held constant over a step::
+
+    [thrust, roll_torque, tunnel_force, fin_angle, mass_position_cmd,
+     current_north, current_east, current_down]
+
+The slices and indices below are the only place that spells these positions out.
+"""
+
+from __future__ import annotations
+
+STATE_NAMES: tuple[str, ...] = (
+    "north", "east", "down", "roll", "pitch", "yaw",
+    "u", "v", "w", "p", "q", "r",
+    "mass_position", "mass_velocity",
+)  # fmt: skip
+STATE_UNITS: tuple[str, ...] = (
+    "m", "m", "m", "rad", "rad", "rad",
+    "m/s", "m/s", "m/s", "rad/s", "rad/s", "rad/s",
+    "m", "m/s",
+)  # fmt: skip
+QUATERNION_NAMES: tuple[str, ...] = ("quat_w", "quat_x", "quat_y", "quat_z")
+STEP_STATE_NAMES: tuple[str, ...] = STATE_NAMES + QUATERNION_NAMES
+INPUT_NAMES: tuple[str, ...] = (
+    "thrust", "roll_torque", "tunnel_force", "fin_angle", "mass_position_cmd",
+    "current_north", "current_east", "current_down",
+)  # fmt: skip
+INPUT_UNITS: tuple[str, ...] = ("N", "N.m", "N", "rad", "m", "m/s", "m/s", "m/s")
+
+STATE_INDEX = {name: i for i, name in enumerate(STATE_NAMES)}
+INPUT_INDEX = {name: i for i, name in enumerate(INPUT_NAMES)}
+N_STATES = len(STATE_NAMES)
+N_STEP_STATES = len(STEP_STATE_NAMES)
+N_INPUTS = len(INPUT_NAMES)
+
+# state
+POSITION = slice(0, 3)  # north, east, down (earth frame)
+EULER = slice(3, 6)  # roll, pitch, yaw
+POSE = slice(0, 6)  # eta = [position; Euler angles]
+NU = slice(6, 12)  # nu = [u, v, w, p, q, r] (body frame, over ground)
+LINEAR_VELOCITY = slice(6, 9)  # [u, v, w]
+ANGULAR_VELOCITY = slice(9, 12)  # [p, q, r]
+MASS_POSITION = 12  # y_v
+MASS_VELOCITY = 13  # y_v'
+STATE = slice(0, N_STATES)  # the state within the stepping state
+QUATERNION = slice(N_STATES, N_STEP_STATES)  # [q_w, q_x, q_y, q_z] in the stepping state
+
+# inputs
+ACTUATORS = slice(0, 5)  # thrust ... mass_position_cmd
+MASS_COMMAND = 4  # mass_position_cmd
+CURRENT = slice(5, 8)  # current_north, current_east, current_down (earth frame)
