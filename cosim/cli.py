@@ -80,7 +80,7 @@ def _export(args: argparse.Namespace) -> int:
 def _view(args: argparse.Namespace) -> int:
     from cosim.viz.recording import view_run
 
-    return view_run(args.run_dir)
+    return view_run(args.run_dir, args.web or args.open, args.open, args.web_port, args.grpc_port)
 
 
 def _conditions(args: argparse.Namespace) -> OperatingConditions:
@@ -193,8 +193,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.set_defaults(func=_export)
 
-    p = sub.add_parser("view", help="open a run's recording in the Rerun viewer")
-    p.add_argument("run_dir", type=Path, help="a run folder holding recording.rrd, or a .rrd")
+    p = sub.add_parser("view", help="open a run's or a study's recording in the Rerun viewer")
+    p.add_argument(
+        "run_dir",
+        type=Path,
+        help="a run folder (recording.rrd), a study folder (overlay.rrd) or a .rrd file",
+    )
+    p.add_argument(
+        "--web",
+        action="store_true",
+        help="serve it to the web viewer on 127.0.0.1, print the URL that opens it (Ctrl-C stops)",
+    )
+    p.add_argument("--open", action="store_true", help="--web, and open the URL in a browser")
+    p.add_argument(
+        "--web-port", type=int, default=9090, help="web viewer page, 0 any free [%(default)s]"
+    )
+    p.add_argument(
+        "--grpc-port", type=int, default=9876, help="recording server, 0 any free [%(default)s]"
+    )
     p.set_defaults(func=_view)
 
     p = sub.add_parser("analyze", help="equilibria, continuation sweeps, phase portraits")
