@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR
+from cosim.viz.web_viewer import GRPC_PORT, WEB_PORT
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -193,25 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.set_defaults(func=_export)
 
-    p = sub.add_parser("view", help="open a run's or a study's recording in the Rerun viewer")
-    p.add_argument(
-        "run_dir",
-        type=Path,
-        help="a run folder (recording.rrd), a study folder (overlay.rrd) or a .rrd file",
-    )
-    p.add_argument(
-        "--web",
-        action="store_true",
-        help="serve it to the web viewer on 127.0.0.1, print the URL that opens it (Ctrl-C stops)",
-    )
-    p.add_argument("--open", action="store_true", help="--web, and open the URL in a browser")
-    p.add_argument(
-        "--web-port", type=int, default=9090, help="web viewer page, 0 any free [%(default)s]"
-    )
-    p.add_argument(
-        "--grpc-port", type=int, default=9876, help="recording server, 0 any free [%(default)s]"
-    )
-    p.set_defaults(func=_view)
+    _add_view_parser(sub)
 
     p = sub.add_parser("analyze", help="equilibria, continuation sweeps, phase portraits")
     asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")
@@ -236,6 +219,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
     p.set_defaults(func=_report)
     return parser
+
+
+def _add_view_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim view``: the native viewer, or the web viewer served on 127.0.0.1."""
+    p = sub.add_parser("view", help="open a run's or a study's recording in the Rerun viewer")
+    p.add_argument(
+        "run_dir",
+        type=Path,
+        help="a run folder (recording.rrd), a study folder (overlay.rrd) or a .rrd file",
+    )
+    p.add_argument(
+        "--web",
+        action="store_true",
+        help="serve it to the web viewer on 127.0.0.1, print the URL that opens it (Ctrl-C stops)",
+    )
+    p.add_argument("--open", action="store_true", help="--web, and open the URL in a browser")
+    p.add_argument(
+        "--web-port", type=int, default=WEB_PORT, help="web viewer page, 0 any free [%(default)s]"
+    )
+    p.add_argument(
+        "--grpc-port",
+        type=int,
+        default=GRPC_PORT,
+        help="recording server, 0 any free [%(default)s]",
+    )
+    p.set_defaults(func=_view)
 
 
 def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:

@@ -37,11 +37,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
 from cosim.errors import CosimError
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
@@ -281,9 +279,8 @@ def plot_time_histories(
     if not present:
         return None
     time = table["time"]
-    fig, axes = plt.subplots(
-        len(present), 1, sharex=True, figsize=(9, 1.9 * len(present) + 0.8), squeeze=False
-    )
+    fig = Figure(figsize=(9, 1.9 * len(present) + 0.8))
+    axes = fig.subplots(len(present), 1, sharex=True, squeeze=False)
     for ax, panel in zip(axes[:, 0], present, strict=True):
         curves = [(s, table[s.column] * s.scale) for s in panel.series if s.column in table]
         limits = _main_range(curves)
@@ -351,7 +348,7 @@ def plot_trajectory(
     north, east = table["plant.north"], table["plant.east"]
     down = table.get("plant.down")
     three_d = down is not None and np.ptp(down) > 1e-3
-    fig = plt.figure(figsize=(12 if three_d else 6.5, 6))
+    fig = Figure(figsize=(12 if three_d else 6.5, 6))
     ax = fig.add_subplot(1, 2 if three_d else 1, 1)
     if waypoints is not None:
         _plot_waypoints(ax, waypoints)
@@ -378,7 +375,7 @@ def plot_trajectory(
     return _save(fig, path)
 
 
-def _plot_waypoints(ax: plt.Axes, waypoints: np.ndarray) -> None:
+def _plot_waypoints(ax: Axes, waypoints: np.ndarray) -> None:
     """The planned path (dashed) and its waypoints, numbered from 1, on a north-east plot."""
     north, east = waypoints[:, 0], waypoints[:, 1]
     ax.plot(east, north, "--", color="tab:orange", linewidth=1.0, label="planned path")
@@ -387,7 +384,7 @@ def _plot_waypoints(ax: plt.Axes, waypoints: np.ndarray) -> None:
         ax.annotate(str(k), (e, n), textcoords="offset points", xytext=(4, 4), fontsize=8)
 
 
-def _plot_turning_marks(ax: plt.Axes, marks: TurnMarks) -> None:
+def _plot_turning_marks(ax: Axes, marks: TurnMarks) -> None:
     """The execute and the original course (dashed), and from the course line to the 90
     and 180 deg points: the advance along it, the transfer and the tactical diameter
     across it (docs/manoeuvres.md)."""
@@ -419,9 +416,8 @@ def _metre(value: float | int | None) -> str:
     return "n/a" if value is None else f"{value:.2f} m"
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def _save(fig: Figure, path: Path) -> Path:
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path
 
 

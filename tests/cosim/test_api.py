@@ -213,3 +213,23 @@ def test_build_fmus_is_the_build_command(tmp_path: Path, fmu_dir: Path) -> None:
     assert all(
         path.is_file() and path.parent == folder / "build" / "fmus" for path in built.values()
     )
+
+
+def test_importing_the_plotting_modules_keeps_the_callers_backend(
+    run_python: Callable[..., subprocess.CompletedProcess], tmp_path: Path
+) -> None:
+    """A notebook's plots stay inline after a sweep or a report: the modules that draw
+    figures never switch matplotlib's backend, and still write their PNGs."""
+    done = run_python(
+        "import sys, matplotlib\n"
+        "matplotlib.use('svg')\n"
+        "import matplotlib.pyplot as plt\n"
+        "import cosim.analysis.plots, cosim.study.plots, cosim.viz.report\n"
+        "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()\n"
+        "from cosim.study.plots import plot_scatter_matrix\n"
+        "rows = [{'a': float(i), 'b': float(i * i)} for i in range(5)]\n"
+        "path = plot_scatter_matrix(rows, ['a', 'b'], __import__('pathlib').Path(sys.argv[1]))\n"
+        "assert path.read_bytes()[:4] == b'\\x89PNG' and plt.get_fignums() == []\n",
+        str(tmp_path / "matrix.png"),
+    )
+    assert done.returncode == 0, done.stderr
