@@ -56,11 +56,14 @@ def test_notebook_runs(path: Path, fmu_paths: dict[str, Path], tmp_path: Path) -
         client.execute()
     except nbclient.exceptions.CellExecutionError as exc:
         pytest.fail(f"{path.name}: a cell raised:\n{exc}")
-    images = [
-        output
-        for cell in notebook.cells
-        if cell.cell_type == "code"
-        for output in cell.outputs
-        if "image/png" in output.get("data", {})
+    shown = [
+        i
+        for i, cell in enumerate(notebook.cells)
+        if cell.cell_type == "code" and "plt.show()" in cell.source
     ]
-    assert images, f"{path.name}: no plot was drawn"
+    blank = [
+        i
+        for i in shown
+        if not any("image/png" in out.get("data", {}) for out in notebook.cells[i].outputs)
+    ]
+    assert shown and blank == [], f"{path.name}: cells {blank} drew no figure"
