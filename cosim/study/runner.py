@@ -32,7 +32,7 @@ from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import Job, StudyPlugin, execute, make_job, open_client
 from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
-from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
+from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import plotted_metrics, write_figures
 from cosim.study.spec import StudyError, StudySpec, load_study
@@ -40,6 +40,7 @@ from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
 from cosim.viz.overlay import OverlayRun, write_overlay
 from cosim.viz.report import load_results
+from cosim.viz.rrd_file import OVERLAY_FILE
 
 STUDIES_DIR = Path("studies")
 FIGURES_FOLDER = "figures"

@@ -41,7 +41,6 @@ import rerun as rr
 from cosim.errors import CosimError
 from cosim.outputs.folder import RECORDING_FILE
 from cosim.scenario.spec import Scenario
-from cosim.study.overlay import OVERLAY_FILE
 from cosim.viz.layout import (
     build_blueprint,
     plan_panels,
@@ -49,7 +48,7 @@ from cosim.viz.layout import (
     time_index,
 )
 from cosim.viz.mission import mission_waypoints
-from cosim.viz.rrd_file import RrdFile, file_sink, pumped
+from cosim.viz.rrd_file import OVERLAY_FILE, RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
 from cosim.viz.web_viewer import GRPC_PORT, WEB_PORT, serve, viewer_url
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
