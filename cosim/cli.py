@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
+from cosim.viz.web_viewer import GRPC_PORT, WEB_PORT
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -88,7 +89,7 @@ def _export(args: argparse.Namespace) -> int:
 def _view(args: argparse.Namespace) -> int:
     from cosim.viz.recording import view_run
 
-    return view_run(args.run_dir)
+    return view_run(args.run_dir, args.web or args.open, args.open, args.web_port, args.grpc_port)
 
 
 def _conditions(args: argparse.Namespace) -> OperatingConditions:
@@ -258,9 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.set_defaults(func=_export)
 
-    p = sub.add_parser("view", help="open a run's recording in the Rerun viewer")
-    p.add_argument("run_dir", type=Path, help="a run folder holding recording.rrd, or a .rrd")
-    p.set_defaults(func=_view)
+    _add_view_parser(sub)
 
     p = sub.add_parser("analyze", help="equilibria, continuation sweeps, phase portraits")
     asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")
@@ -305,6 +304,32 @@ def _add_live_options(p: argparse.ArgumentParser) -> None:
         help="JSON-lines control endpoint, host 127.0.0.1 unless given; no authentication",
     )
     p.add_argument("--interactive", action="store_true", help="steer with keys (needs --real-time)")
+
+
+def _add_view_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim view``: the native viewer, or the web viewer served on 127.0.0.1."""
+    p = sub.add_parser("view", help="open a run's or a study's recording in the Rerun viewer")
+    p.add_argument(
+        "run_dir",
+        type=Path,
+        help="a run folder (recording.rrd), a study folder (overlay.rrd) or a .rrd file",
+    )
+    p.add_argument(
+        "--web",
+        action="store_true",
+        help="serve it to the web viewer on 127.0.0.1, print the URL that opens it (Ctrl-C stops)",
+    )
+    p.add_argument("--open", action="store_true", help="--web, and open the URL in a browser")
+    p.add_argument(
+        "--web-port", type=int, default=WEB_PORT, help="web viewer page, 0 any free [%(default)s]"
+    )
+    p.add_argument(
+        "--grpc-port",
+        type=int,
+        default=GRPC_PORT,
+        help="recording server, 0 any free [%(default)s]",
+    )
+    p.set_defaults(func=_view)
 
 
 def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:

@@ -1,7 +1,7 @@
 """Figures of the open-loop analysis: bifurcation diagrams (Figs. 5.6, 5.7, 5.9, 5.12) and
-phase portraits (Figs. 5.4, 5.5). matplotlib with the Agg backend; no physics here: the
-branches and trajectories come from :mod:`cosim.analysis.bifurcation` and
-:mod:`plant_fmu.model.stepping`.
+phase portraits (Figs. 5.4, 5.5). matplotlib figures without pyplot (the caller's backend is
+left alone); no physics here: the branches and trajectories come from
+:mod:`cosim.analysis.bifurcation` and :mod:`plant_fmu.model.stepping`.
 """
 
 from __future__ import annotations
@@ -12,9 +12,6 @@ from pathlib import Path
 from typing import Any
 
 import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
@@ -63,11 +60,11 @@ def plot_sweep(result: Sweep, params: VehicleParameters, path: Path, title: str 
     (solid: stable, dashed: unstable; markers at folds, branch points, Hopf points)."""
     scale = PARAMETER_SCALE[result.parameter]
     against = [n for n in ("roll", "v", "r", "u") if n in result.free_states]
-    fig = plt.figure(figsize=(15, 7.5), constrained_layout=True)
+    fig = Figure(figsize=(15, 7.5), constrained_layout=True)
     grid = fig.add_gridspec(2, 4)
     ax3d = fig.add_subplot(grid[:, 0:2], projection="3d")
     axes = [fig.add_subplot(grid[k // 2, 2 + k % 2]) for k in range(len(against))]
-    colors = plt.get_cmap("tab10")
+    colors = matplotlib.colormaps["tab10"]
     for b, branch in enumerate(result.branches):
         color = colors(b % 10)
         stable = branch.stable
@@ -144,10 +141,10 @@ def plot_phase_portrait(
     (v, u, r) as in Figs. 5.4-5.5, and onto the (v, r) plane; each trajectory coloured by
     the equilibrium it ends nearest to; equilibria filled if stable, hollow if not."""
     iu, iv, ir = STATE_INDEX["u"], STATE_INDEX["v"], STATE_INDEX["r"]
-    fig = plt.figure(figsize=(13, 6), constrained_layout=True)
+    fig = Figure(figsize=(13, 6), constrained_layout=True)
     ax3d = fig.add_subplot(1, 2, 1, projection="3d")
     ax2d = fig.add_subplot(1, 2, 2)
-    colors = plt.get_cmap("tab10")
+    colors = matplotlib.colormaps["tab10"]
     targets = np.array([[e.state[iu], e.state[iv], e.state[ir]] for e in equilibria])
     for x in trajectories:
         end = x[-1, [iu, iv, ir]]
@@ -179,5 +176,4 @@ def plot_phase_portrait(
 def _save(fig: Figure, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -254,7 +254,31 @@ class Scenario:
             data["stop_time"] = stop_time
         given = {"stop_time": stop_time, "coupling.step": step, "coupling.algorithm": algorithm}
         overrides = ", ".join(f"{k} = {v!r}" for k, v in given.items() if v is not None)
-        where = f"{self.source or self.id} (with the override {overrides})"
+        return self._revalidated(data, f"{self.source or self.id} (with the override {overrides})")
+
+    def with_start(self, values: Mapping[str, StartValue]) -> Scenario:
+        """A re-validated copy with these start values added or replaced.
+
+        ``values`` maps ``"<instance>.<variable>"`` to a value in SI units (a bool, int,
+        float or string, as in ``[instances.<instance>.start]``); each passes the checks a
+        scenario file's start value passes (the variable exists, is a parameter or an
+        unconnected input, the value has its type). Raises :class:`ScenarioError`.
+        """
+        data = self.spec.model_dump(by_alias=True, exclude_none=True)
+        where = f"{self.source or self.id} (with the start values {dict(values)})"
+        for ref, value in values.items():
+            instance, dot, variable = ref.partition(".") if isinstance(ref, str) else ("", "", "")
+            if not dot or instance not in data["instances"] or not variable:
+                raise ScenarioError(
+                    f"scenario file {where}: start value {ref!r}: expected '<instance>.<variable>' "
+                    f"with an instance of {list(data['instances'])}"
+                )
+            start = data["instances"][instance].setdefault("start", {})
+            start[variable] = value.item() if hasattr(value, "item") else value  # numpy scalar
+        return self._revalidated(data, where)
+
+    def _revalidated(self, data: dict[str, Any], where: str) -> Scenario:
+        """The scenario of the changed file data ``data``, checked like a file."""
         spec = _validate_spec(data, where)
         base_dir = self.source.parent if self.source else Path.cwd()
         return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, Source(where))

@@ -17,8 +17,6 @@ from typing import Any
 from cosim.study.design import PlannedRun
 from cosim.study.spec import OVERLAY_CAP, StudyError
 
-OVERLAY_FILE = "overlay.rrd"
-
 
 def check_choice(
     entries: Sequence[str], runs: Sequence[PlannedRun], metrics: Sequence[str]

@@ -1,4 +1,5 @@
-"""The study's figures (matplotlib, Agg backend), from the sorted table rows.
+"""The study's figures (matplotlib figures drawn without pyplot, so a notebook's
+backend is left alone), from the sorted table rows.
 
 * ``grid_<factor>.png`` for each grid factor: every metric against that factor (one
   panel per metric), one line per combination of the other grid factors; with random
@@ -25,10 +26,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator, ScalarFormatter
@@ -164,7 +161,8 @@ def plot_scatter_matrix(
     """Every pair of ``variables`` as a scatter plot, histograms on the diagonal."""
     n = len(variables)
     data = {name: _floats(rows, name) for name in variables}
-    fig, axes = plt.subplots(n, n, figsize=(2.2 * n, 2.2 * n), squeeze=False)
+    fig = Figure(figsize=(2.2 * n, 2.2 * n))
+    axes = fig.subplots(n, n, squeeze=False)
     _margins(fig)
     for (i, row_name), (j, col_name) in itertools.product(enumerate(variables), repeat=2):
         ax = axes[i][j]
@@ -185,9 +183,8 @@ def plot_scatter_matrix(
 def _panels(n: int) -> tuple[Figure, list[Any]]:
     cols = min(PANEL_COLUMNS, n)
     nrows = math.ceil(n / cols)
-    fig, axes = plt.subplots(
-        nrows, cols, figsize=(PANEL_SIZE_IN[0] * cols, PANEL_SIZE_IN[1] * nrows), squeeze=False
-    )
+    fig = Figure(figsize=(PANEL_SIZE_IN[0] * cols, PANEL_SIZE_IN[1] * nrows))
+    axes = fig.subplots(nrows, cols, squeeze=False)
     _margins(fig)
     flat = [ax for row in axes for ax in row]
     for ax in flat[n:]:
@@ -241,5 +238,4 @@ def _file_safe(name: str) -> str:
 
 def _save(fig: Figure, path: Path) -> Path:
     fig.savefig(path, dpi=DPI)
-    plt.close(fig)
     return path

@@ -39,7 +39,7 @@ from cosim.study.execution import (
     open_client,
 )
 from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
-from cosim.study.overlay import OVERLAY_FILE, check_choice, choose, label, notes, spread
+from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import default_metrics, plotted_metrics, write_figures
 from cosim.study.signals import StudyStopped
@@ -47,6 +47,9 @@ from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_s
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
 from cosim.study.units import units
+from cosim.viz.overlay import OverlayRun, write_overlay
+from cosim.viz.report import load_results
+from cosim.viz.rrd_file import OVERLAY_FILE
 
 STUDIES_DIR = Path("studies")
 FIGURES_FOLDER = "figures"
@@ -252,8 +255,6 @@ def _overlay(
     """overlay.rrd of the chosen runs (those not kept run again, and kept now), and
     warnings for entries that chose nothing and runs without results."""
     # imported here, for a study with an overlay only: rerun takes ~0.5 s to import
-    from cosim.viz.overlay import OverlayRun, write_overlay
-    from cosim.viz.report import load_results
 
     by_id = {run.id: run for run in runs}
     by_row = {row["run"]: row for row in rows}

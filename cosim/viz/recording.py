@@ -48,8 +48,9 @@ from cosim.viz.layout import (
     time_index,
 )
 from cosim.viz.mission import mission_waypoints
-from cosim.viz.rrd_file import RrdFile, file_sink, pumped
+from cosim.viz.rrd_file import OVERLAY_FILE, RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
+from cosim.viz.web_viewer import GRPC_PORT, WEB_PORT, serve, viewer_url
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
 APPLICATION_ID = "auv-cosim"
@@ -357,30 +358,32 @@ def rerun_executable() -> str | None:
     return str(beside) if beside.is_file() and os.access(beside, os.X_OK) else None
 
 
-def view_run(run_dir: Path) -> int:
-    """Open ``RUN_DIR/recording.rrd`` (or the ``.rrd`` given) in the native viewer, or say
-    how to open it.
+def view_run(
+    run_dir: Path,
+    web: bool = False,
+    open_browser: bool = False,
+    web_port: int = WEB_PORT,
+    grpc_port: int = GRPC_PORT,
+) -> int:
+    """Open a run's ``recording.rrd``, a study's ``overlay.rrd`` (RUN_DIR is the folder)
+    or the ``.rrd`` given, in the native viewer or the web viewer, or say how to open it.
 
-    With a display (``DISPLAY`` or ``WAYLAND_DISPLAY`` set) and the ``rerun`` binary found,
-    runs the viewer on the file and returns its exit code. Otherwise prints the command
-    lines for the native and the web viewer and returns 0.
+    With ``web``, serves it to Rerun's web viewer on 127.0.0.1 and prints the one URL
+    that opens it (:func:`cosim.viz.web_viewer.serve`; ``open_browser`` opens it), until
+    Ctrl-C. Else, with a display (``DISPLAY`` or ``WAYLAND_DISPLAY`` set) and the
+    ``rerun`` binary found, runs the viewer on the file and returns its exit code;
+    otherwise prints how to open it (native viewer elsewhere, or ``--web`` and its URL)
+    and returns 0.
 
     Raises:
         CosimError: the folder holds no recording, or the file is not a Rerun recording.
     """
-    run_dir = Path(run_dir)
-    rrd = run_dir if run_dir.is_file() else run_dir / RECORDING_FILE  # a folder, or the file
-    if not rrd.is_file():
-        raise CosimError(
-            f"no recording at {rrd}: expected a run folder holding {RECORDING_FILE} "
-            f"(written by `auv-cosim run` unless --no-rrd) or a .rrd file"
-        )
-    if not is_recording(rrd):
-        raise CosimError(
-            f"{rrd} is not a Rerun recording (it does not start like an .rrd file): expected "
-            f"a run folder holding {RECORDING_FILE} or a .rrd file"
-        )
+    rrd = recording_in(Path(run_dir))
     executable = rerun_executable()
+    if web:
+        if executable is None:
+            raise CosimError("the `rerun` binary is not on PATH (it comes with rerun-sdk)")
+        return serve(executable, rrd, web_port, grpc_port, open_browser)
     has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
     if has_display and executable is not None:
         print(f"opening {rrd} in the Rerun viewer")
@@ -394,11 +397,38 @@ def view_run(run_dir: Path) -> int:
         f"Cannot open a viewer here: {reason}. To look at the recording:\n"
         f"  native viewer, on a machine with a display:\n"
         f"    rerun {rrd}\n"
-        f"  web viewer, then browse to http://127.0.0.1:9090 (forward ports 9090 and 9876\n"
-        f"  over ssh when remote: ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 HOST):\n"
-        f"    rerun --web-viewer --bind 127.0.0.1 {rrd}"
+        f"  web viewer, served on 127.0.0.1 until Ctrl-C (forward ports {WEB_PORT} and "
+        f"{GRPC_PORT}\n  over ssh when remote: ssh -L {WEB_PORT}:127.0.0.1:{WEB_PORT} "
+        f"-L {GRPC_PORT}:127.0.0.1:{GRPC_PORT} HOST):\n"
+        f"    auv-cosim view {run_dir} --web\n"
+        f"  then open {viewer_url()}"
     )
     return 0
+
+
+def recording_in(path: Path) -> Path:
+    """The recording ``path`` names: the file itself, else the folder's
+    ``recording.rrd`` (a run) or ``overlay.rrd`` (a study).
+
+    Raises:
+        CosimError: there is none, or the file is not a Rerun recording.
+    """
+    rrd = path
+    if not path.is_file():
+        found = [path / name for name in (RECORDING_FILE, OVERLAY_FILE) if (path / name).is_file()]
+        rrd = found[0] if found else path / RECORDING_FILE
+    if not rrd.is_file():
+        raise CosimError(
+            f"no recording at {rrd}: expected a run folder holding {RECORDING_FILE} "
+            f"(written by `auv-cosim run` unless --no-rrd), a study folder holding "
+            f"{OVERLAY_FILE}, or a .rrd file"
+        )
+    if not is_recording(rrd):
+        raise CosimError(
+            f"{rrd} is not a Rerun recording (it does not start like an .rrd file): expected "
+            f"a run folder holding {RECORDING_FILE} or a .rrd file"
+        )
+    return rrd
 
 
 def is_recording(path: Path) -> bool:

@@ -47,10 +47,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
@@ -363,13 +359,9 @@ def plot_time_histories(
     time = table["time"]
     end = time[-1] if time[-1] > time[0] else time[0] + 1.0
     spans = [(time[0], end)] if zoom is None else [(time[0], end), (time[0], zoom)]
-    fig, axes = plt.subplots(
-        len(present),
-        len(spans),
-        sharex="col",
-        figsize=(9 if zoom is None else 13, 1.9 * len(present) + 0.8),
-        squeeze=False,
-        width_ratios=[3, 2][: len(spans)],
+    fig = Figure(figsize=(9 if zoom is None else 13, 1.9 * len(present) + 0.8))
+    axes = fig.subplots(
+        len(present), len(spans), sharex="col", squeeze=False, width_ratios=[3, 2][: len(spans)]
     )
     for row, panel in enumerate(present):
         for col, span in enumerate(spans):
@@ -385,7 +377,7 @@ def plot_time_histories(
 
 
 def _draw_panel(
-    ax: plt.Axes,
+    ax: Axes,
     table: dict[str, np.ndarray],
     panel: Panel,
     markers: list[Marker],
@@ -460,7 +452,7 @@ def plot_trajectory(
     north, east = table["plant.north"], table["plant.east"]
     down = table.get("plant.down")
     three_d = down is not None and np.ptp(down) > 1e-3
-    fig = plt.figure(figsize=(12 if three_d else 6.5, 6))
+    fig = Figure(figsize=(12 if three_d else 6.5, 6))
     ax = fig.add_subplot(1, 2 if three_d else 1, 1)
     if waypoints is not None:
         _plot_waypoints(ax, waypoints)
@@ -499,7 +491,8 @@ def plot_lateral_deviation(table: dict[str, np.ndarray], path: Path) -> Path | N
     d_east = table["plant.east"] - table["plant.east"][0]
     along = d_north * math.cos(course) + d_east * math.sin(course)
     across = -d_north * math.sin(course) + d_east * math.cos(course)
-    fig, ax = plt.subplots(figsize=(9, 3.2))
+    fig = Figure(figsize=(9, 3.2))
+    ax = fig.subplots()
     ax.plot(along, across, color="tab:blue")
     ax.axhline(0.0, color="tab:gray", linestyle="--", linewidth=1.0, label="initial course")
     ax.set_xlabel("distance along the initial course (m)")
@@ -554,7 +547,6 @@ def _metre(value: float | int | None) -> str:
 
 def _save(fig: Figure, path: Path) -> Path:
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path
 
 

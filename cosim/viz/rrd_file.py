@@ -32,6 +32,7 @@ try:  # FIONREAD: the bytes waiting in a pipe
 except ImportError:  # Windows
     fcntl = termios = None  # type: ignore[assignment]
 
+OVERLAY_FILE = "overlay.rrd"  # a study folder's recording of several runs (cosim.viz.overlay)
 PIPE_FOLDER = Path("/dev/fd")
 READ_SIZE = 1 << 20
 

@@ -495,7 +495,11 @@ def test_view_without_display_prints_how_to_open(recorded, tmp_path: Path, monke
     out = capsys.readouterr().out
     rrd = str(tmp_path / RECORDING_FILE)
     assert f"rerun {rrd}" in out
-    assert f"rerun --web-viewer --bind 127.0.0.1 {rrd}" in out
+    # the web viewer: the command that serves it, and the URL that opens this recording
+    # (the bare page shows Rerun's welcome screen)
+    assert f"auv-cosim view {tmp_path} --web" in out
+    proxy = "rerun%2Bhttp%3A%2F%2F127.0.0.1%3A9876%2Fproxy"
+    assert f"then open http://127.0.0.1:9090/?url={proxy}\n" in out
 
 
 def test_view_with_display_runs_the_viewer_on_the_file(recorded, tmp_path: Path, monkeypatch):

@@ -1,0 +1,184 @@
+"""``auv-cosim view RUN --web``: a recording in Rerun's web viewer, on 127.0.0.1 only.
+
+The ``rerun`` binary (rerun-sdk 0.41) serves both halves: ``rerun --serve-web --bind
+127.0.0.1 --port G --web-viewer-port W FILE`` loads the file into its gRPC server
+(port G) and hosts the web viewer's page (port W). The page alone shows Rerun's welcome
+screen; the viewer opens the recording only when told where it is, by the ``url`` query
+parameter naming the gRPC proxy, URL-encoded -- :func:`viewer_url` builds that one URL
+(rerun's own log line names ``localhost``, which a browser may resolve to ``::1``, where
+nothing listens). Both servers bind 127.0.0.1, never every interface (rerun's default
+``--bind`` is 0.0.0.0): to look from another machine, forward the two ports over ssh.
+
+The server runs in this process's process group, so Ctrl-C in the terminal (and a test
+ending the group) ends it too; :func:`serve` also ends it on SIGTERM/SIGHUP or any error.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import socket
+import subprocess
+import tempfile
+import time
+import webbrowser
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+from cosim.errors import CosimError
+
+HOST = "127.0.0.1"
+WEB_PORT = 9090  # rerun's defaults: the web viewer's page ...
+GRPC_PORT = 9876  # ... and the gRPC proxy that serves the recording
+START_TIMEOUT = 60.0  # s for the rerun binary to start listening
+
+
+def viewer_url(web_port: int = WEB_PORT, grpc_port: int = GRPC_PORT) -> str:
+    """The web viewer's address with ``?url=`` naming the recording's gRPC proxy."""
+    proxy = f"rerun+http://{HOST}:{grpc_port}/proxy"
+    return f"http://{HOST}:{web_port}/?url={quote(proxy, safe='')}"
+
+
+def serve_command(executable: str, rrd: Path, web_port: int, grpc_port: int) -> list[str]:
+    """The rerun command line serving ``rrd`` to the web viewer on :data:`HOST` only."""
+    return [
+        executable,
+        "--serve-web",
+        "--bind",
+        HOST,
+        "--port",
+        str(grpc_port),
+        "--web-viewer-port",
+        str(web_port),
+        str(rrd),
+    ]
+
+
+def serve(executable: str, rrd: Path, web_port: int, grpc_port: int, open_browser: bool) -> int:
+    """Serve ``rrd`` until Ctrl-C (or SIGTERM/SIGHUP); print the one URL that opens it.
+
+    A port of 0 picks a free one. Returns 130 after Ctrl-C, 128 + the signal number
+    after SIGTERM/SIGHUP, else the server's exit code.
+
+    Raises:
+        CosimError: a port is taken or the server did not start (its last log line).
+    """
+    executable = _binary(executable)
+    web_port, grpc_port = (_free_port(port) for port in (web_port, grpc_port))
+    if web_port == grpc_port:
+        raise CosimError(f"--web-port and --grpc-port are both {web_port}: give two ports")
+    command = serve_command(executable, rrd, web_port, grpc_port)
+    with tempfile.TemporaryFile() as log, _stop_signals_raise():
+        server = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=log)
+        try:
+            _wait_listening(server, (web_port, grpc_port), log)
+            url = viewer_url(web_port, grpc_port)
+            print(f"serving {rrd} on {HOST} only; open this URL (Ctrl-C stops):\n  {url}")
+            print(_forward_hint(web_port, grpc_port), flush=True)
+            if open_browser:
+                _open(url)
+            return server.wait()
+        except _StopSignalError as stop:
+            return 128 + stop.signum
+        except KeyboardInterrupt:
+            return 130
+        finally:
+            _end(server)
+
+
+def _binary(executable: str) -> str:
+    """The rerun binary itself where rerun-sdk's package has it: pip's ``rerun`` is a
+    Python wrapper that runs the binary as a child and, when sent SIGTERM, exits and
+    leaves the server running."""
+    try:
+        import rerun_cli
+    except ImportError:
+        return executable
+    binary = Path(rerun_cli.__file__).with_name("rerun")
+    return str(binary) if binary.is_file() else executable
+
+
+def _free_port(port: int) -> int:
+    """``port`` if nothing listens on it on :data:`HOST`, a free one for 0."""
+    if not 0 <= port <= 65535:
+        raise CosimError(f"port {port}: expected 0 (any free port) to 65535")
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind((HOST, port))
+        except OSError as exc:
+            raise CosimError(
+                f"port {port} on {HOST} is taken ({exc.strerror}): another viewer is "
+                "running; stop it or give --web-port/--grpc-port (0 picks a free port)"
+            ) from None
+        return probe.getsockname()[1]
+
+
+def _wait_listening(server: subprocess.Popen, ports: tuple[int, ...], log: Any) -> None:
+    """Return once every port accepts connections; raise if the server exits first."""
+    deadline = time.monotonic() + START_TIMEOUT
+    waiting = list(ports)
+    while waiting:
+        if server.poll() is not None:
+            log.seek(0)
+            lines = log.read().decode("utf-8", "replace").strip().splitlines()
+            last = lines[-1] if lines else "no output"
+            raise CosimError(f"the rerun server exited ({server.returncode}): {last}")
+        if time.monotonic() > deadline:
+            raise CosimError(f"the rerun server did not listen on {waiting} within "
+                             f"{START_TIMEOUT:g} s")  # fmt: skip
+        with contextlib.suppress(OSError), socket.create_connection((HOST, waiting[0]), 0.5):
+            waiting.pop(0)
+            continue
+        time.sleep(0.1)
+
+
+def _forward_hint(web_port: int, grpc_port: int) -> str:
+    return (
+        f"  (from another machine: ssh -L {web_port}:{HOST}:{web_port} "
+        f"-L {grpc_port}:{HOST}:{grpc_port} HOST, then open the same URL there)"
+    )
+
+
+def _open(url: str) -> None:
+    """Open ``url`` in a browser if this machine has one; else say so."""
+    try:
+        opened = webbrowser.get().open(url)
+    except webbrowser.Error:
+        opened = False
+    if not opened:
+        print("no browser found here: open the URL above yourself", flush=True)
+
+
+def _end(server: subprocess.Popen) -> None:
+    """Stop the server and reap it (SIGTERM, then SIGKILL after 10 s)."""
+    if server.poll() is None:
+        server.terminate()
+        try:
+            server.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+
+
+class _StopSignalError(Exception):
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _stop_signals_raise() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise :class:`_StopSignalError` (so the server is ended) while on."""
+
+    def stop(signum: int, _frame: Any) -> None:
+        raise _StopSignalError(signum)
+
+    names = [name for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)]
+    previous = {name: signal.signal(getattr(signal, name), stop) for name in names}
+    try:
+        yield
+    finally:
+        for name, handler in previous.items():
+            signal.signal(getattr(signal, name), handler)

@@ -1,0 +1,235 @@
+"""The Python API (cosim.run, load_scenario, sweep, build_fmus): the same runs, files and
+errors as the command line, results as DataFrames, no folder unless asked for."""
+
+from __future__ import annotations
+
+import csv
+import os
+import pkgutil
+import shutil
+import subprocess
+import sys
+import tempfile
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import tomli_w
+
+import cosim
+from cosim.errors import CosimError
+from cosim.scenario.checks import ScenarioError
+from cosim.scenario.spec import SCENARIO_FOLDER, load_scenario, scenario_from_toml
+
+ACCEPTANCE = (
+    "import cosim; r = cosim.run('bs-3', stop_time=5.0, start={'plant.v_0': -0.05}); "
+    "print(r.results['plant.yaw'].iloc[-1])"
+)
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    assert fmu_paths["AuvAutopilot"].parent == fmu_paths["AuvPlant"].parent
+    return fmu_paths["AuvPlant"].parent
+
+
+def _user_folder(tmp_path: Path, fmu_dir: Path) -> Path:
+    """A working folder as a user has it after ``auv-cosim build``: build/fmus up to date."""
+    fmus = tmp_path / "build" / "fmus"
+    fmus.mkdir(parents=True)
+    for path in fmu_dir.glob("*.fmu*"):
+        shutil.copyfile(path, fmus / path.name)
+    return tmp_path
+
+
+def _environment() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(Path(cosim.__file__).resolve().parents[1])
+    return env
+
+
+def _results_column(results_csv: Path, column: str) -> list[float]:
+    with results_csv.open(encoding="utf-8", newline="") as f:
+        return [float(row[column]) for row in csv.DictReader(f)]
+
+
+@pytest.mark.slow
+def test_api_run_matches_the_command_line_bit_for_bit(tmp_path: Path, fmu_dir: Path) -> None:
+    """The acceptance one-liner prints the very yaw ``auv-cosim run`` writes for a
+    scenario file with the same start value."""
+    folder = _user_folder(tmp_path, fmu_dir)
+    data = tomllib.loads((SCENARIO_FOLDER / "bs-3.toml").read_text(encoding="utf-8"))
+    data["instances"]["plant"]["start"]["v_0"] = -0.05
+    (folder / "case.toml").write_text(tomli_w.dumps(data), encoding="utf-8")
+    cli = [sys.executable, "-m", "cosim.cli", "run", "case.toml", "--stop-time", "5.0"]
+    cli += ["--out", "cli-run", "--no-rrd", "--quiet"]
+    for command in (cli, [sys.executable, "-c", ACCEPTANCE]):
+        done = subprocess.run(command, cwd=folder, env=_environment(), capture_output=True,
+                              text=True, timeout=600, check=False)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+    printed = float(done.stdout.strip().splitlines()[-1])
+    written = _results_column(folder / "cli-run" / "results.csv", "plant.yaw")[-1]
+    assert printed.hex() == written.hex()
+    assert printed != 0.0
+
+
+@pytest.mark.slow
+def test_run_keeps_results_in_memory_and_leaves_no_folder(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    monkeypatch.chdir(tmp_path)
+    run = cosim.run("bs-3", stop_time=0.5, fmu_dir=fmu_dir)
+    assert run.out_dir is None and run.complete
+    left = [p.name for p in scratch.iterdir() if p.name.startswith("auv-cosim-")]
+    assert left == [] and not (tmp_path / "runs").exists()  # (fmpy's unzipped FMUs stay)
+    results = run.results
+    assert results.index.name == "time" and results.shape == (51, len(run.scenario.columns))
+    assert list(results.columns) == list(run.scenario.columns)
+    assert results.index[-1] == pytest.approx(0.5)
+    assert run.summary["complete"] is True and run.summary["rows"] == 51
+    assert run.summary["final_values"]["plant.yaw"] == results["plant.yaw"].iloc[-1]
+    times, values = results.index.to_numpy(), results.to_numpy()
+    assert times.dtype == values.dtype == np.float64
+
+
+@pytest.mark.slow
+def test_run_with_out_writes_the_command_lines_folder(tmp_path: Path, fmu_dir: Path) -> None:
+    run = cosim.run("bs-3", stop_time=0.3, out=tmp_path / "run", fmu_dir=fmu_dir)
+    assert run.out_dir == tmp_path / "run"
+    names = {p.name for p in run.out_dir.iterdir()}
+    assert {"results.csv", "summary.json", "scenario.toml", "recording.rrd"} <= names
+    for column in ("plant.yaw", "controller.thrust"):
+        written = _results_column(run.out_dir / "results.csv", column)
+        assert written == run.results[column].tolist()
+    with pytest.raises(CosimError, match="overwrite"):  # an earlier run is kept, as on the CLI
+        cosim.run("bs-3", stop_time=0.3, out=tmp_path / "run", fmu_dir=fmu_dir)
+
+
+def test_errors_are_the_command_lines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """The same exception type and one-line message as ``auv-cosim run`` prints."""
+    from cosim.cli import main
+
+    assert main(["run", "bs-3", "--stop-time", "-1", "--out", str(tmp_path / "r")]) == 1
+    printed = capsys.readouterr().err.strip()
+    with pytest.raises(CosimError) as raised:
+        cosim.run("bs-3", stop_time=-1.0, out=tmp_path / "r")
+    assert printed == f"auv-cosim run: {raised.value}"
+    with pytest.raises(ScenarioError, match="expected a built-in id"):
+        cosim.run("no-such-scenario")
+
+
+def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
+    base = load_scenario("bs-3", fmu_dir=fmu_dir)
+    changed = base.with_start({"plant.v_0": np.float64(-0.05), "controller.k0": 0.3})
+    assert changed.instances["plant"].start["v_0"] == -0.05
+    assert changed.instances["controller"].start["k0"] == 0.3
+    assert base.instances["plant"].start["v_0"] == -0.10  # a copy
+    text = (SCENARIO_FOLDER / "bs-3.toml").read_text(encoding="utf-8")
+    from_file = scenario_from_toml(
+        text.replace("v_0 = -0.10", "v_0 = -0.05").replace(
+            "yaw_setpoint", "k0 = 0.3\nyaw_setpoint"
+        ),
+        fmu_dir=fmu_dir,
+    )
+    assert changed.instances == from_file.instances
+    refused = {
+        "plant.no_such": "has no variable 'no_such'",
+        "plant.variant": "1.5 is not an integer",  # given 1.5 below
+        "plant.yaw": "only parameters and inputs take start values",
+        "nowhere.v_0": "expected '<instance>.<variable>'",
+        "v_0": "expected '<instance>.<variable>'",
+    }
+    for ref, message in refused.items():
+        value = 1.5 if ref == "plant.variant" else 0.1
+        with pytest.raises(ScenarioError, match=message) as raised:
+            base.with_start({ref: value})
+        assert "\n" not in str(raised.value)
+
+
+def test_connected_input_refuses_a_start_value(fmu_dir: Path) -> None:
+    base = load_scenario("bs-3", fmu_dir=fmu_dir)
+    with pytest.raises(ScenarioError, match=r"connections\.remove"):
+        base.with_start({"plant.thrust": 5.0})
+
+
+def test_public_names_have_numpy_docstrings() -> None:
+    assert sorted(cosim.__all__) == sorted(
+        ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
+    )
+    for name in ("run", "load_scenario", "sweep", "build_fmus"):
+        doc = getattr(cosim, name).__doc__
+        assert "Returns\n    -------" in doc and "Raises\n    ------" in doc, name
+    for name in ("Run", "Study"):
+        assert "Attributes\n    ----------" in getattr(cosim, name).__doc__
+
+
+def test_run_survives_importing_every_module(
+    run_python: Callable[..., subprocess.CompletedProcess],
+) -> None:
+    """Importing a submodule sets an attribute on its package: no module may be named
+    like a function of the API, whatever is imported first."""
+    names = [m.name for m in pkgutil.walk_packages(cosim.__path__, "cosim.")]
+    assert not [n for n in names if n.rpartition(".")[2] in cosim.__all__]
+    done = run_python(
+        "import importlib, sys\n"
+        "import cosim\n"
+        "for name in sys.argv[1:]:\n"
+        "    importlib.import_module(name)\n"
+        "import cosim.api\n"
+        "assert all(getattr(cosim, n) is getattr(cosim.api, n) for n in cosim.__all__)\n"
+        "assert callable(cosim.run) and cosim.run.__module__ == 'cosim.api'\n"
+        "print('ok', len(sys.argv) - 1)\n",
+        *names,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("ok")
+
+
+@pytest.mark.slow
+def test_sweep_of_a_dict_returns_its_table(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [-0.1, 0.1]}}
+    result = cosim.sweep(study, workers=1, fmu_dir=fmu_dir)
+    assert result.out_dir is None and list(tmp_path.iterdir()) == []
+    table = result.table
+    assert isinstance(table, pd.DataFrame) and len(table) == 2
+    assert sorted(table["plant.v_0"]) == [-0.1, 0.1]
+    assert (table["status"] == "complete").all()
+    assert table["final.plant.v"].iloc[0] != table["final.plant.v"].iloc[1]
+
+
+def test_build_fmus_is_the_build_command(tmp_path: Path, fmu_dir: Path) -> None:
+    folder = _user_folder(tmp_path, fmu_dir)
+    built = cosim.build_fmus(folder / "build" / "fmus")  # up to date: nothing rebuilt
+    assert set(built) >= {"AuvPlant", "AuvAutopilot"}
+    assert all(
+        path.is_file() and path.parent == folder / "build" / "fmus" for path in built.values()
+    )
+
+
+def test_importing_the_plotting_modules_keeps_the_callers_backend(
+    run_python: Callable[..., subprocess.CompletedProcess], tmp_path: Path
+) -> None:
+    """A notebook's plots stay inline after a sweep or a report: the modules that draw
+    figures never switch matplotlib's backend, and still write their PNGs."""
+    done = run_python(
+        "import sys, matplotlib\n"
+        "matplotlib.use('svg')\n"
+        "import matplotlib.pyplot as plt\n"
+        "import cosim.analysis.plots, cosim.study.plots, cosim.viz.report\n"
+        "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()\n"
+        "from cosim.study.plots import plot_scatter_matrix\n"
+        "rows = [{'a': float(i), 'b': float(i * i)} for i in range(5)]\n"
+        "path = plot_scatter_matrix(rows, ['a', 'b'], __import__('pathlib').Path(sys.argv[1]))\n"
+        "assert path.read_bytes()[:4] == b'\\x89PNG' and plt.get_fignums() == []\n",
+        str(tmp_path / "matrix.png"),
+    )
+    assert done.returncode == 0, done.stderr

@@ -1,0 +1,52 @@
+"""``auv-cosim view --web`` without a browser: the URL it prints, the recording a folder
+names, and the refusals (tests/cosim/viz/test_browser.py opens the served page)."""
+
+from __future__ import annotations
+
+import socket
+from pathlib import Path
+
+import pytest
+
+from cosim.cli import main
+from cosim.errors import CosimError
+from cosim.viz.recording import recording_in
+from cosim.viz.web_viewer import HOST, serve_command, viewer_url
+
+FAKE_RRD = b"RRF2" + bytes(60)  # starts like a recording: enough for the checks before serving
+
+
+def test_the_url_names_the_recordings_proxy_url_encoded() -> None:
+    """The bare page shows Rerun's welcome screen: the URL must say where the recording is."""
+    assert viewer_url(9090, 9876) == (
+        "http://127.0.0.1:9090/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A9876%2Fproxy"
+    )
+
+
+def test_the_server_binds_localhost_only() -> None:
+    command = serve_command("rerun", Path("r.rrd"), 9090, 9876)
+    assert command[command.index("--bind") + 1] == HOST == "127.0.0.1"
+    assert command[command.index("--port") + 1] == "9876"
+    assert command[command.index("--web-viewer-port") + 1] == "9090"
+
+
+def test_a_study_folder_views_its_overlay(tmp_path: Path) -> None:
+    (tmp_path / "overlay.rrd").write_bytes(FAKE_RRD)
+    assert recording_in(tmp_path) == tmp_path / "overlay.rrd"
+    (tmp_path / "recording.rrd").write_bytes(FAKE_RRD)  # a run folder's own comes first
+    assert recording_in(tmp_path) == tmp_path / "recording.rrd"
+    with pytest.raises(CosimError, match=r"overlay\.rrd"):
+        recording_in(tmp_path / "empty")
+
+
+def test_a_taken_port_is_refused_in_one_line(tmp_path: Path, capsys) -> None:
+    (tmp_path / "recording.rrd").write_bytes(FAKE_RRD)
+    with socket.socket() as taken:
+        taken.bind((HOST, 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["view", str(tmp_path), "--web", "--web-port", str(port)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"port {port} on 127.0.0.1 is taken" in err
+    assert main(["view", str(tmp_path), "--web", "--web-port", "0", "--grpc-port", "70000"]) == 1
+    assert "port 70000: expected 0 (any free port) to 65535" in capsys.readouterr().err
