@@ -59,6 +59,7 @@ from xml.etree import ElementTree as ET
 
 from cosim.errors import CosimError
 from cosim.fmus import docs as fmu_docs
+from cosim.fmus import native
 from fmu_runtime import entry, provenance
 
 HASH_SUFFIX = ".sha256"
@@ -143,6 +144,7 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         built = _run_pythonfmu(name, stage, dest)
         complete_fmu(built)
         add_manifest(built, name, staged)
+        _say_once(native.install_loader(built, name))  # the FMU's binary: our loader
         fmu_docs.add_documentation(built)  # documentation/index.html from the description
         problems = _check_built(built)
         if problems:
@@ -152,6 +154,17 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         os.replace(partial, target)
     hash_file.write_text(f"source {digest}\nfmu {file_hash(target)}\n")
     return target
+
+
+_said: set[str] = set()  # process-wide: each build note is printed once per process
+
+
+def _say_once(notes: list[str]) -> None:
+    """Print each build note (no compiler, a platform's loader not built) once."""
+    for note in notes:
+        if note not in _said:
+            _said.add(note)
+            print(f"auv-cosim build: {note}", file=sys.stderr)
 
 
 def recorded_hashes(hash_file: Path) -> dict[str, str]:
@@ -212,10 +225,17 @@ def add_manifest(fmu: Path, name: str, staged: dict[str, bytes]) -> None:
 
 def source_hash(files: dict[str, Path]) -> str:
     """SHA-256 over the shipped files (names and bytes), this module, the documentation
-    generator (:mod:`cosim.fmus.docs`) and pythonfmu's version."""
+    generator (:mod:`cosim.fmus.docs`), the native loader (its C sources, the compiler
+    that builds it and the Python runtime it records: :func:`cosim.fmus.native.source_digest`)
+    and pythonfmu's version."""
     digest = hashlib.sha256()
     digest.update(f"pythonfmu {metadata.version('pythonfmu')}\n".encode())
-    generators = {"<cosim/fmus/build.py>": Path(__file__), "<fmu_docs>": Path(fmu_docs.__file__)}
+    digest.update(f"loader {native.source_digest()}\n".encode())
+    generators = {
+        "<cosim/fmus/build.py>": Path(__file__),
+        "<fmu_docs>": Path(fmu_docs.__file__),
+        "<fmu_native>": Path(native.__file__),
+    }
     for relative, path in sorted({**files, **generators}.items()):
         digest.update(f"{relative}\n{len(path.read_bytes())}\n".encode())
         digest.update(path.read_bytes())
