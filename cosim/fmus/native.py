@@ -101,9 +101,7 @@ def compile_loader(chain: Toolchain, platform: str, out: Path) -> str | None:
     if chain.cross:
         command += ["-target", target]
     command += ["-o", str(out), *(str(SOURCE_DIR / s) for s in SOURCES), *libs]
-    with tempfile.TemporaryDirectory(prefix="zig_cache_") as cache:
-        env = {**os.environ, "ZIG_GLOBAL_CACHE_DIR": os.environ.get("ZIG_GLOBAL_CACHE_DIR", cache)}
-        done = subprocess.run(command, capture_output=True, text=True, env=env, check=False)
+    done = subprocess.run(command, capture_output=True, text=True, check=False)
     if done.returncode == 0 and out.is_file():
         return None
     lines = (done.stderr or done.stdout or f"exit code {done.returncode}").strip().splitlines()
@@ -165,24 +163,37 @@ def install_loader(fmu: Path, name: str) -> list[str]:
     if chain is None:
         return [NO_COMPILER]
     notes: list[str] = []
-    with tempfile.TemporaryDirectory(prefix="loader_") as tmp:
-        built: dict[str, Path] = {}
-        for platform, use in (("linux64", chain), ("win64", chain if chain.cross else zig())):
-            if use is None:
-                continue
-            out = Path(tmp) / f"{platform}{_TARGETS[platform][1]}"
-            problem = compile_loader(use, platform, out)
-            if problem is None:
-                built[platform] = out
-            else:
-                notes.append(f"{platform} loader not built ({use.name}): {problem}")
-        if "linux64" not in built:
-            notes.append("the FMUs keep pythonfmu's binary: " + notes[0])
-        _rewrite(fmu, name, built)
+    loaders: dict[str, bytes] = {}
+    for platform, use in (("linux64", chain), ("win64", chain if chain.cross else zig())):
+        if use is None:
+            continue
+        built = _compiled(use, platform)
+        if isinstance(built, bytes):
+            loaders[platform] = built
+        else:
+            notes.append(f"{platform} loader not built ({use.name}): {built}")
+    if "linux64" not in loaders:
+        notes.append("the FMUs keep pythonfmu's binary: " + notes[0])
+    _rewrite(fmu, name, loaders)
     return notes
 
 
-def _rewrite(fmu: Path, name: str, loaders: dict[str, Path]) -> None:
+# Process-wide: (compiler, platform, sources digest) -> the library's bytes or the
+# compiler's complaint; the three FMUs of a build share one compilation per platform.
+_COMPILED: dict[tuple[str, str, str], bytes | str] = {}
+
+
+def _compiled(chain: Toolchain, platform: str) -> bytes | str:
+    key = (chain.name, platform, source_digest())
+    if key not in _COMPILED:
+        with tempfile.TemporaryDirectory(prefix="loader_") as tmp:
+            out = Path(tmp) / f"loader{_TARGETS[platform][1]}"
+            problem = compile_loader(chain, platform, out)
+            _COMPILED[key] = out.read_bytes() if problem is None else problem
+    return _COMPILED[key]
+
+
+def _rewrite(fmu: Path, name: str, loaders: dict[str, bytes]) -> None:
     with zipfile.ZipFile(fmu) as archive:
         entries = [(info, archive.read(info)) for info in archive.infolist()]
         description = archive.read("modelDescription.xml")
@@ -192,12 +203,16 @@ def _rewrite(fmu: Path, name: str, loaders: dict[str, Path]) -> None:
             for info, data in entries:
                 platform, _, file = info.filename.removeprefix("binaries/").partition("/")
                 suffix = _TARGETS.get(platform, ("", "", ()))[1]
-                if info.filename.startswith("binaries/") and file == f"{name}{suffix}":
-                    if platform in loaders:
-                        info = _renamed(info, f"binaries/{platform}/{name}{WRAPPER_SUFFIX}{suffix}")
-                        archive.writestr(info, data)
-                        archive.write(loaders[platform], f"binaries/{platform}/{name}{suffix}")
-                        continue
+                if (
+                    info.filename.startswith("binaries/")
+                    and file == f"{name}{suffix}"
+                    and platform in loaders
+                ):
+                    info = _renamed(info, f"binaries/{platform}/{name}{WRAPPER_SUFFIX}{suffix}")
+                    archive.writestr(info, data)
+                    loader = _renamed(info, f"binaries/{platform}/{name}{suffix}")
+                    archive.writestr(loader, loaders[platform])
+                    continue
                 archive.writestr(info, data)
             archive.writestr(f"resources/{RUNTIME_FILE}", runtime_record())
             archive.writestr(f"resources/{VARIABLES_FILE}", variables_table(description))
