@@ -33,7 +33,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-SOURCE_DIR = Path(__file__).resolve().parents[2] / "fmu_runtime" / "native"
+import fmu_runtime
+
+SOURCE_DIR = Path(fmu_runtime.__file__).resolve().parent / "native"  # package data
 SOURCES = ("loader.c", "runtime.c")
 HEADERS = ("loader.h",)
 RUNTIME_FILE = "python_runtime.txt"

@@ -133,9 +133,10 @@ static int cycles(int n, int steps)
 }
 
 /* The first variable in resources/fmu_variables.txt matching a type, causality and
- * variability ("*" for any) that declares a max if ``bounded``: its vr, start and max. */
+ * variability ("*" for any) that declares a min or max if ``bounded``: its vr, start and a
+ * value just outside its range. */
 static int find(const char *type, const char *causality, const char *variability, int bounded,
-                Vr *vr, double *start, double *max)
+                Vr *vr, double *start, double *outside)
 {
     char path[4300], line[512], t[4], ca[32], va[32], lo[40], hi[40], st[40], name[128];
     snprintf(path, sizeof path, "%s/fmu_variables.txt", resources + 7);
@@ -146,9 +147,9 @@ static int find(const char *type, const char *causality, const char *variability
                    name) == 8 &&
             !strcmp(t, type) && (!strcmp(causality, "*") || !strcmp(ca, causality)) &&
             (!strcmp(variability, "*") || !strcmp(va, variability)) &&
-            (!bounded || strcmp(hi, "-"))) {
+            (!bounded || strcmp(hi, "-") || strcmp(lo, "-"))) {
             *start = strtod(st, NULL);
-            *max = strtod(hi, NULL);
+            *outside = strcmp(hi, "-") ? strtod(hi, NULL) + 1.0 : strtod(lo, NULL) - 1.0;
             found = 1;
         }
     }
@@ -175,9 +176,9 @@ static int illegal(void)
     stop(c);
 
     Vr vr;
-    double start_value, max;
+    double start_value, outside;
     c = start(1);
-    if (find("R", "parameter", "fixed", 0, &vr, &start_value, &max)) {
+    if (find("R", "parameter", "fixed", 0, &vr, &start_value, &outside)) {
         double changed = start_value + 1.0;
         printf("setReal-fixed-parameter-after-initialisation %d\n", set_real(c, &vr, 1, &changed));
     }
@@ -186,12 +187,12 @@ static int illegal(void)
     c = start(0);
     setup(c, 0, 0.0, 0.0, 0, 0.0);
     enter_init(c);
-    if (find("I", "*", "*", 1, &vr, &start_value, &max)) {
-        int above = (int)max + 1;
-        printf("setInteger-above-max %d\n", set_integer(c, &vr, 1, &above));
-    } else if (find("R", "*", "*", 1, &vr, &start_value, &max)) {
-        double above = max + 1.0;
-        printf("setReal-above-max %d\n", set_real(c, &vr, 1, &above));
+    if (find("I", "*", "*", 1, &vr, &start_value, &outside)) {
+        int value = (int)outside;
+        printf("setInteger-outside-range %d\n", set_integer(c, &vr, 1, &value));
+    }
+    if (find("R", "*", "*", 1, &vr, &start_value, &outside)) {
+        printf("setReal-outside-range %d\n", set_real(c, &vr, 1, &outside));
     }
     printf("valid-initialisation-after-refusals %d\n", exit_init(c));
     stop(c);
