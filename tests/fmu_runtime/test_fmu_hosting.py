@@ -207,9 +207,9 @@ plant, autopilot = sys.argv[1], sys.argv[2]
 report = {}
 
 
-def status(call, *args):
+def status(call, *args, **kwargs):
     try:
-        call(*args)
+        call(*args, **kwargs)
     except FMICallException as exc:
         return exc.status
     return 0
