@@ -1,73 +1,84 @@
 """Benchmark the native loader's cost per communication step (fmu_runtime/native/).
 
-The bs-3 pair (AuvPlant + AuvAutopilot, backstepping) stepped by a bare fmpy loop doing
-what a master does every 10 ms step (``fmi2SetReal`` of each FMU's inputs from the other's
-same-named outputs, ``fmi2DoStep``, ``fmi2GetReal`` of the outputs), once with the FMUs as
-built (the loader in front of pythonfmu's library) and once with pythonfmu's library alone
-(the loader removed from copies of the same FMUs). Each timing runs in a fresh process
-(pythonfmu keeps its modules per process), times ``--steps`` steps after 200 warm-up steps,
-and is the best of ``--repeat`` rounds, interleaved to damp other load. Prints us per step
-of each and the ratio (target <= 1.03).
+The bs-3 pair (AuvPlant + AuvAutopilot) stepped by a bare fmpy loop doing what a master
+does every 10 ms step (``fmi2GetReal`` of each FMU's outputs, ``fmi2SetReal`` of the other's
+same-named inputs, ``fmi2DoStep``), twice in one process: once with the FMUs as built (the
+loader in front of pythonfmu's library) and once with pythonfmu's library alone (copies of
+the same FMUs with the loader removed; the same build, so one process runs both). Blocks of
+``--steps`` steps alternate between the two for ``--rounds`` rounds; each block is timed
+in CPU time of this thread (the machine's other load then matters less than for a wall
+clock), and the ratio is the median of the rounds' ratios. Prints us per step of each
+(median) and the ratio (target <= 1.03).
 
-Usage: ``python scripts/bench_loader.py [--steps 3000] [--repeat 3] [--fmu-dir DIR]``.
+Usage: ``python scripts/bench_loader.py [--steps 300] [--rounds 30] [--fmu-dir DIR]``.
 """
 
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
+import statistics
 import tempfile
+import time
 import zipfile
 from pathlib import Path
+
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
 
 from cosim.fmus.build import ensure_fmus
 from cosim.paths import DEFAULT_FMU_DIR
 
-LOOP = """
-import sys, time
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
-
-paths, steps = sys.argv[1:3], int(sys.argv[3])
-slaves, inputs, outputs = [], [], []
-for path, start in zip(paths, ({"variant": 1}, {"heading_mode": 3})):
-    md = read_model_description(path)
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(path),
-                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName=path)
-    slave.instantiate()
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    variables = {v.name: v for v in md.modelVariables}
-    for name, value in start.items():
-        slave.setInteger([variables[name].valueReference], [value])
-    slave.exitInitializationMode()
-    slaves.append(slave)
-    inputs.append({v.name: v.valueReference for v in md.modelVariables
-                   if v.causality == "input" and v.type == "Real"})
-    outputs.append({v.name: v.valueReference for v in md.modelVariables
-                    if v.causality == "output" and v.type == "Real"})
-links = []  # (to, [input vr], from, [output vr]) for same-named variables
-for to, other in ((0, 1), (1, 0)):
-    names = sorted(set(inputs[to]) & set(outputs[other]))
-    links.append((to, [inputs[to][n] for n in names], other, [outputs[other][n] for n in names]))
-h = 0.01
+H = 0.01  # s, bs-3's communication step
 
 
-def run(first, n):
-    for k in range(first, first + n):
-        values = [slaves[o].getReal(vrs) for _, _, o, vrs in links]
-        for (to, vrs, _, _), v in zip(links, values):
-            slaves[to].setReal(vrs, v)
-        for slave in slaves:
-            slave.doStep(k * h, h)
+class Pair:
+    """The plant (lateral variant) and the autopilot (backstepping) connected by name."""
+
+    def __init__(self, plant: Path, autopilot: Path, label: str) -> None:
+        self.slaves, self.links, self.k = [], [], 0
+        inputs, outputs = [], []
+        for path, start in ((plant, {"variant": 1}), (autopilot, {"heading_mode": 3})):
+            md = read_model_description(str(path))
+            slave = FMU2Slave(
+                guid=md.guid,
+                unzipDirectory=extract(str(path)),
+                modelIdentifier=md.coSimulation.modelIdentifier,
+                instanceName=f"{label} {path.stem}",
+            )
+            slave.instantiate()
+            slave.setupExperiment(startTime=0.0)
+            slave.enterInitializationMode()
+            refs = {v.name: v for v in md.modelVariables}
+            for name, value in start.items():
+                slave.setInteger([refs[name].valueReference], [value])
+            slave.exitInitializationMode()
+            self.slaves.append(slave)
+            inputs.append(_real_refs(md, "input"))
+            outputs.append(_real_refs(md, "output"))
+        for to, other in ((0, 1), (1, 0)):
+            names = sorted(set(inputs[to]) & set(outputs[other]))
+            ins, outs = [inputs[to][n] for n in names], [outputs[other][n] for n in names]
+            self.links.append((to, ins, other, outs))
+
+    def run(self, steps: int) -> float:
+        """CPU seconds of this thread for ``steps`` communication steps."""
+        start = time.thread_time()
+        for k in range(self.k, self.k + steps):
+            values = [self.slaves[other].getReal(outs) for _, _, other, outs in self.links]
+            for (to, ins, _, _), v in zip(self.links, values, strict=True):
+                self.slaves[to].setReal(ins, v)
+            for slave in self.slaves:
+                slave.doStep(k * H, H)
+        self.k += steps
+        return time.thread_time() - start
 
 
-run(0, 200)
-start = time.perf_counter()
-run(200, steps)
-print((time.perf_counter() - start) / steps * 1e6)
-"""
+def _real_refs(md, causality: str) -> dict[str, int]:
+    return {
+        v.name: v.valueReference
+        for v in md.modelVariables
+        if v.causality == causality and v.type == "Real"
+    }
 
 
 def without_loader(fmu: Path, folder: Path) -> Path:
@@ -83,35 +94,32 @@ def without_loader(fmu: Path, folder: Path) -> Path:
     return copy
 
 
-def time_loop(plant: Path, autopilot: Path, steps: int) -> float:
-    """us per step of the bs-3 pair in a fresh process."""
-    command = [sys.executable, "-c", LOOP, str(plant), str(autopilot), str(steps)]
-    done = subprocess.run(command, capture_output=True, text=True, check=True)
-    return float(done.stdout.strip().splitlines()[-1])
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=3000, help="timed steps [3000]")
-    parser.add_argument("--repeat", type=int, default=3, help="rounds [3]")
+    parser.add_argument("--steps", type=int, default=300, help="steps per block [300]")
+    parser.add_argument("--rounds", type=int, default=30, help="rounds of two blocks [30]")
     parser.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR)
     args = parser.parse_args()
     fmus = ensure_fmus(args.fmu_dir)
     with tempfile.TemporaryDirectory(prefix="bench_loader_") as tmp:
-        variants = {
-            "loader": (fmus["AuvPlant"], fmus["AuvAutopilot"]),
-            "pythonfmu alone": tuple(
-                without_loader(fmus[n], Path(tmp)) for n in ("AuvPlant", "AuvAutopilot")
-            ),
+        alone = [without_loader(fmus[n], Path(tmp)) for n in ("AuvPlant", "AuvAutopilot")]
+        pairs = {
+            "loader": Pair(fmus["AuvPlant"], fmus["AuvAutopilot"], "loader"),
+            "pythonfmu alone": Pair(*alone, "alone"),
         }
-        best = dict.fromkeys(variants, float("inf"))
-        for _ in range(args.repeat):
-            for name, (plant, autopilot) in variants.items():
-                best[name] = min(best[name], time_loop(plant, autopilot, args.steps))
-    for name, us in best.items():
-        print(f"{name}: {us:.1f} us per bs-3 step (plant + autopilot)")
-    ratio = best["loader"] / best["pythonfmu alone"]
-    print(f"loader / pythonfmu alone: {ratio:.3f} (target <= 1.03)")
+        for pair in pairs.values():
+            pair.run(100)  # warm-up
+        times = {name: [] for name in pairs}
+        for _ in range(args.rounds):
+            for name, pair in pairs.items():
+                times[name].append(pair.run(args.steps) / args.steps)
+    for name, seconds in times.items():
+        print(f"{name}: {statistics.median(seconds) * 1e6:.1f} us CPU per bs-3 step (median)")
+    ratios = [a / b for a, b in zip(times["loader"], times["pythonfmu alone"], strict=True)]
+    print(
+        f"loader / pythonfmu alone: {statistics.median(ratios):.3f} (median of {args.rounds}"
+        " rounds; target <= 1.03)"
+    )
 
 
 if __name__ == "__main__":

@@ -187,40 +187,51 @@ static const char *TYPE_NAMES(char type)
     return type == 'R' ? "Real" : type == 'I' ? "Integer" : type == 'B' ? "Boolean" : "String";
 }
 
-/* Why writing ``x`` (a String's is NAN) to ``vr`` now is refused, or NULL. */
+static void show_value(char type, double x, char *out)
+{
+    if (type == 'I') snprintf(out, 40, "%d", (int)x);
+    else if (type == 'B') strcpy(out, x != 0 ? "True" : "False");
+    else if (type == 'S') strcpy(out, "the string");
+    else show(x, out);
+}
+
+/* Why writing ``x`` (a String's is NAN) to ``vr`` now is refused, or NULL. The value is
+ * formatted only for a refusal: formatting costs more than every check together. */
 static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char type, double x,
                                  char *why, size_t n)
 {
-    char shown[40];
     const Variable *v = vr < c->count && c->vars[vr].known ? &c->vars[vr] : NULL;
     if (!v) {
         snprintf(why, n, "set%s of valueReference %u refused: no such variable",
                  TYPE_NAMES(type), vr);
         return why;
     }
-    if (type == 'I') snprintf(shown, sizeof shown, "%d", (int)x);
-    else if (type == 'B') strcpy(shown, x != 0 ? "True" : "False");
-    else if (type == 'S') strcpy(shown, "the string");
-    else show(x, shown);
+    const char *problem = NULL;
     if (v->type != type) {
         snprintf(why, n, "%s is a %s, not a %s", v->name, TYPE_NAMES(v->type), TYPE_NAMES(type));
+        return why;
     } else if (type == 'R' && !isfinite(x)) {
-        snprintf(why, n, "%s = %s refused: expected a finite number", v->name, shown);
+        problem = "expected a finite number";
     } else if (x < v->low || x > v->high) {
-        snprintf(why, n, "%s = %s refused: expected %s%s%s%s%s", v->name, shown, v->min,
-                 v->min[0] ? " <= " : "", v->name, v->max[0] ? " <= " : "", v->max);
-    } else if (!strcmp(v->variability, "constant")) {
-        snprintf(why, n, "%s = %s refused: a constant cannot be set", v->name, shown);
+        problem = "range";
+    } else if (v->variability[0] == 'c' && !strcmp(v->variability, "constant")) {
+        problem = "a constant cannot be set";
     } else if (!strcmp(v->causality, "input") ||
                (!strcmp(v->causality, "parameter") && strcmp(v->variability, "fixed"))) {
         return NULL;
     } else if (!strcmp(v->causality, "parameter")) {
         if (c->phase <= INITIALIZATION || (type != 'S' && x == v->value)) return NULL;
-        snprintf(why, n,
-                 "%s = %s refused: a fixed parameter can only be set before initialisation",
-                 v->name, shown);
-    } else {
+        problem = "a fixed parameter can only be set before initialisation";
+    }
+    char shown[40];
+    show_value(type, x, shown);
+    if (!problem) {
         snprintf(why, n, "%s = %s refused: a %s cannot be set", v->name, shown, v->causality);
+    } else if (!strcmp(problem, "range")) {
+        snprintf(why, n, "%s = %s refused: expected %s%s%s%s%s", v->name, shown, v->min,
+                 v->min[0] ? " <= " : "", v->name, v->max[0] ? " <= " : "", v->max);
+    } else {
+        snprintf(why, n, "%s = %s refused: %s", v->name, shown, problem);
     }
     return why;
 }
@@ -398,18 +409,20 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real 
 {
     INSTANCE(component);
     char at[40], shown[40], now[40];
-    show(t, at);
     if (c->phase != INITIALIZED) {
+        show(t, at);
         return refuse(c, "doStep at t = %s s refused: the FMU is %s%s", at, PHASES[c->phase],
                       c->phase < INITIALIZED ? " (call exitInitializationMode first)" : "");
     }
     if (!(isfinite(h) && h > 0.0)) {
+        show(t, at);
         return refuse(c,
                       "doStep at t = %s s refused: communication step %s s: expected a finite "
                       "number > 0",
                       at, show(h, shown));
     }
     if (!(isfinite(t) && fabs(t - c->time) <= TIME_TOLERANCE * fmax(1.0, fabs(c->time)))) {
+        show(t, at);
         return refuse(c,
                       "doStep at t = %s s refused: currentCommunicationPoint = %s s is not the "
                       "FMU's current time %s s (the start time or the end of the last step)",
