@@ -5,10 +5,14 @@ does every 10 ms step (``fmi2GetReal`` of each FMU's outputs, ``fmi2SetReal`` of
 same-named inputs, ``fmi2DoStep``), twice in one process: once with the FMUs as built (the
 loader in front of pythonfmu's library) and once with pythonfmu's library alone (copies of
 the same FMUs with the loader removed; the same build, so one process runs both). Blocks of
-``--steps`` steps alternate between the two for ``--rounds`` rounds; each block is timed
+``--steps`` steps alternate between the two for ``--rounds`` rounds (each goes first in
+every other round); each block is timed
 in CPU time of this thread (the machine's other load then matters less than for a wall
 clock), and the ratio is the median of the rounds' ratios. Prints us per step of each
-(median) and the ratio (target <= 1.03).
+(median) and the ratio (target <= 1.03). For the loader's own share of the CPU time, a
+profile is sharper than any A/B timing on a busy machine: ``perf record -g python ...``
+then ``perf report --sort dso`` shows ``<model>.so`` (the loader) beside
+``<model>_pythonfmu.so``.
 
 Usage: ``python scripts/bench_loader.py [--steps 300] [--rounds 30] [--fmu-dir DIR]``.
 """
@@ -110,9 +114,9 @@ def main() -> None:
         for pair in pairs.values():
             pair.run(100)  # warm-up
         times = {name: [] for name in pairs}
-        for _ in range(args.rounds):
-            for name, pair in pairs.items():
-                times[name].append(pair.run(args.steps) / args.steps)
+        for r in range(args.rounds):  # ABBA: neither goes first every time
+            for name in list(pairs)[:: 1 if r % 2 == 0 else -1]:
+                times[name].append(pairs[name].run(args.steps) / args.steps)
     for name, seconds in times.items():
         print(f"{name}: {statistics.median(seconds) * 1e6:.1f} us CPU per bs-3 step (median)")
     ratios = [a / b for a, b in zip(times["loader"], times["pythonfmu alone"], strict=True)]
