@@ -133,7 +133,7 @@ static void parse_runtime(FILE *in, Runtime *rt)
 
 static const char QUERY[] =
     "import os,sys,sysconfig as s;v=s.get_config_var;"
-    "print(\"libpython=\"+(os.path.join(v(\"BINDIR\"),\"python%d%d.dll\"%sys.version_info[:2])"
+    "print(\"libpython=\"+(os.path.join(sys.base_prefix,\"python%d%d.dll\"%sys.version_info[:2])"
     " if os.name==\"nt\" else os.path.join(v(\"LIBDIR\") or \"\",v(\"INSTSONAME\") or \"\")));"
     "print(\"home=\"+sys.base_prefix);print(\"site=\"+s.get_paths()[\"purelib\"]);"
     "print(\"executable=\"+sys.executable)";
@@ -158,7 +158,18 @@ static int query_python(const char *named, Runtime *rt, char *why, size_t n)
                  named);
         return 0;
     }
+#ifdef _WIN32
+    /* cmd.exe: the whole line in one more pair of quotes; the script's quotes as \" */
+    char script[2 * sizeof QUERY], *out_char = script;
+    for (const char *q = QUERY; *q; q++) {
+        if (*q == '"') *out_char++ = '\\';
+        *out_char++ = *q;
+    }
+    *out_char = '\0';
+    snprintf(command, sizeof command, "\"\"%s\" -c \"%s\"\"", exe, script);
+#else
     snprintf(command, sizeof command, "\"%s\" -c '%s'", exe, QUERY);
+#endif
     FILE *out = popen(command, "r");
     if (out) {
         parse_runtime(out, rt);
