@@ -34,6 +34,10 @@ Steps for one FMU (:func:`build_fmu`):
    ``resources/fmu_sources.json`` records the GUID and the SHA-256 of every staged file,
    so an instance can tell another build's code from its own
    (:mod:`fmu_runtime.provenance`).
+   Then the native loader (:mod:`cosim.fmus.native`, ``docs/native-loader.md``) becomes
+   the FMU's binary, in front of pythonfmu's renamed library, with its two records in
+   ``resources/``; without a C compiler the FMU keeps pythonfmu's binary and the build
+   says so in one line. The documentation page says which binary the FMU has.
 4. Write ``<Name>.fmu`` atomically and ``<Name>.fmu.sha256`` beside it: a ``source`` line,
    the content hash of every shipped file, this module and pythonfmu's version, and an
    ``fmu`` line, the hash of the built file itself. :func:`ensure_fmus` rebuilds when the

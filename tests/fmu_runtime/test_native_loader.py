@@ -86,6 +86,15 @@ def extracted(fmu_paths, tmp_path_factory) -> dict[str, Path]:
     return folders
 
 
+def test_each_fmu_page_says_its_binary_is_the_loader_and_how_to_point_it_at_python(fmu_paths):
+    for name in FMUS:
+        with zipfile.ZipFile(fmu_paths[name]) as archive:
+            page = archive.read("documentation/index.html").decode()
+            names = archive.namelist()
+        assert f"binaries/linux64/{name}_pythonfmu.so" in names
+        assert "native loader" in page and OVERRIDE_VARIABLE in page
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(FMUS))
 def test_a_c_host_in_a_clean_environment_runs_100_cycles_of_1000_steps(
