@@ -226,6 +226,7 @@ typedef struct {
     void (*initialize_ex)(int);
     int (*run_simple_string)(const char *);
     void *(*save_thread)(void);
+    void (*raw_free)(void *);
 } PythonApi;
 
 static int start_python(Library python, const Runtime *rt, char *why, size_t n)
@@ -237,6 +238,7 @@ static int start_python(Library python, const Runtime *rt, char *why, size_t n)
         (void (*)(int))symbol(python, "Py_InitializeEx"),
         (int (*)(const char *))symbol(python, "PyRun_SimpleString"),
         (void *(*)(void))symbol(python, "PyEval_SaveThread"),
+        (void (*)(void *))symbol(python, "PyMem_RawFree"),
     };
     if (!api.is_initialized || !api.decode_locale || !api.set_home || !api.initialize_ex ||
         !api.run_simple_string || !api.save_thread) {
@@ -246,7 +248,9 @@ static int start_python(Library python, const Runtime *rt, char *why, size_t n)
     }
     if (api.is_initialized()) return 1;
     if (!getenv("PYTHONHOME") && rt->home[0]) {
-        api.set_home(api.decode_locale(rt->home, NULL)); /* Python keeps the pointer */
+        wchar_t *home = api.decode_locale(rt->home, NULL);
+        api.set_home(home); /* copies it (Python 3.8 and later) */
+        if (home && api.raw_free) api.raw_free(home);
     }
     api.initialize_ex(0);
     size_t size = sizeof BOOTSTRAP + 2 * (strlen(rt->site) + strlen(rt->executable));

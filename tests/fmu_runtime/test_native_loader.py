@@ -157,16 +157,19 @@ def test_the_override_names_the_environment_when_the_record_is_gone(host, extrac
 
 def _loader_records(log: str, name: str) -> list[str]:
     """valgrind error records (invalid accesses, definitely lost blocks) made by the
-    loader (``<name>.so``, not ``<name>_pythonfmu.so``): one of the first three frames,
-    the access or allocation and its callers through a libc helper, is the loader's. The
+    loader (``<name>.so``, not ``<name>_pythonfmu.so``): the innermost frame in a library
+    without debug information, other than valgrind's allocator, is the loader's. (CPython
+    and glibc carry debug information here, so their frames name a source file; the
+    loader, pythonfmu's library and the extension modules show ``(in <library>)``.) The
     dynamic linker's over-reads in ``strncmp`` while a library loads (glibc's optimised
-    string functions, a known valgrind false positive) have the linker's frames there."""
+    string functions, a known valgrind false positive) come from deeper callers."""
     mine = []
     for record in re.split(r"==\d+== \n", log):
         if not re.search(r"Invalid (read|write|free)|definitely lost", record):
             continue
-        frames = re.findall(r"(?:at|by) 0x[0-9A-F]+: .*", record)[:3]
-        if any(f"/{name}.so)" in frame for frame in frames):
+        frames = re.findall(r"(?:at|by) 0x[0-9A-F]+: .*\(in (\S+)\)", record)
+        first = next((lib for lib in frames if "vgpreload" not in lib), "")
+        if first.endswith(f"/{name}.so"):
             mine.append(record)
     return mine
 
