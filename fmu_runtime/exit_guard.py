@@ -13,6 +13,12 @@ in every process that instantiated and freed one of our FMUs; when the freed chu
 in one of glibc's doubly linked bins, the decrement corrupts the list and the host aborts
 with "corrupted double-linked list" (it happened once in CI, in the validation smoke run).
 
+Our FMUs' native loader (``fmu_runtime/native/runtime.c``) registers the same handler
+in C right after it loads pythonfmu's library (renamed ``<model>_pythonfmu.so`` beside
+it); this module then finds two libraries and stands aside. It still guards an FMU whose
+binary is pythonfmu's alone (built where no C compiler was found) and any other pythonfmu
+FMU ``auv-cosim run`` loads.
+
 The fix, done from the FMU side so that every host benefits (fmpy, our master,
 libcosimpy, ecospy, the ecos and cosim command-line programs): once per loaded wrapper
 library, register ``finalizePythonInterpreter`` itself as a C exit handler with

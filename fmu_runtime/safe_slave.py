@@ -61,6 +61,10 @@ call, the value and what was expected):
   then the end of the last step; FMI 2.0, ``fmi2DoStep``), within a relative 1e-9 for the
   rounding of masters that compute ``t_n = n h``. A refused step changes nothing, so the
   master may repeat it correctly.
+* Behind the FMUs' native loader (``fmu_runtime/native/``, ``docs/native-loader.md``) the
+  call-sequence, communication-point, causality and range rules are checked in C before
+  Python is called, and any Error logged here during a call makes that call return
+  fmi2Error to the host; the checks here remain for a binary that is pythonfmu's alone.
 * Stale code: an instance of a build whose modules another build already imported in
   this process finds so at instantiation, logs why at the next call, and refuses to
   initialise and to step.

@@ -25,7 +25,17 @@ from fmpy.fmi2 import (
 )
 from fmpy.logging import addLoggerProxy
 
-STATUS_OK, STATUS_DISCARD = 0, 2
+STATUS_OK, STATUS_DISCARD, STATUS_ERROR = 0, 2, 3
+
+
+def status_of(call, *args, **kwargs) -> int:
+    """The FMI status of an fmpy call: 0 if it returned, else the status fmpy raised
+    (fmpy raises on Discard, Error and Fatal)."""
+    try:
+        call(*args, **kwargs)
+    except FMICallException as exc:
+        return exc.status
+    return STATUS_OK
 
 
 class Harness:
@@ -78,6 +88,15 @@ class Harness:
     def messages(self, min_status: int = 0) -> str:
         """The log messages with at least ``min_status`` (3 = error), one per line."""
         return "\n".join(text for status, text in self.log if status >= min_status)
+
+    def try_initialize(self, **values) -> tuple[int, int]:
+        """Initialise, writing ``values`` in initialisation mode, without raising: the
+        worst status of the writes and the status of exitInitializationMode."""
+        self.slave.setupExperiment(startTime=0.0)
+        self.slave.enterInitializationMode()
+        writes = [status_of(self.set, **{name: value}) for name, value in values.items()]
+        self.time = 0.0
+        return max(writes, default=STATUS_OK), status_of(self.slave.exitInitializationMode)
 
     def set(self, **values) -> None:
         for name, value in values.items():

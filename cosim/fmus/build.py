@@ -34,6 +34,10 @@ Steps for one FMU (:func:`build_fmu`):
    ``resources/fmu_sources.json`` records the GUID and the SHA-256 of every staged file,
    so an instance can tell another build's code from its own
    (:mod:`fmu_runtime.provenance`).
+   Then the native loader (:mod:`cosim.fmus.native`, ``docs/native-loader.md``) becomes
+   the FMU's binary, in front of pythonfmu's renamed library, with its two records in
+   ``resources/``; without a C compiler the FMU keeps pythonfmu's binary and the build
+   says so in one line. The documentation page says which binary the FMU has.
 4. Write ``<Name>.fmu`` atomically and ``<Name>.fmu.sha256`` beside it: a ``source`` line,
    the content hash of every shipped file, this module and pythonfmu's version, and an
    ``fmu`` line, the hash of the built file itself. :func:`ensure_fmus` rebuilds when the
@@ -59,6 +63,7 @@ from xml.etree import ElementTree as ET
 
 from cosim.errors import CosimError
 from cosim.fmus import docs as fmu_docs
+from cosim.fmus import native
 from fmu_runtime import entry, provenance
 
 HASH_SUFFIX = ".sha256"
@@ -157,6 +162,7 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         built = _run_pythonfmu(name, stage, dest)
         complete_fmu(built)
         add_manifest(built, name, staged)
+        _say_once(native.install_loader(built, name))  # the FMU's binary: our loader
         fmu_docs.add_documentation(built)  # documentation/index.html from the description
         problems = _check_built(built)
         if problems:
@@ -166,6 +172,17 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         os.replace(partial, target)
     hash_file.write_text(f"source {digest}\nfmu {file_hash(target)}\n")
     return target
+
+
+_said: set[str] = set()  # process-wide: each build note is printed once per process
+
+
+def _say_once(notes: list[str]) -> None:
+    """Print each build note (no compiler, a platform's loader not built) once."""
+    for note in notes:
+        if note not in _said:
+            _said.add(note)
+            print(f"auv-cosim build: {note}", file=sys.stderr)
 
 
 def recorded_hashes(hash_file: Path) -> dict[str, str]:
@@ -226,10 +243,17 @@ def add_manifest(fmu: Path, name: str, staged: dict[str, bytes]) -> None:
 
 def source_hash(files: dict[str, Path]) -> str:
     """SHA-256 over the shipped files (names and bytes), this module, the documentation
-    generator (:mod:`cosim.fmus.docs`) and pythonfmu's version."""
+    generator (:mod:`cosim.fmus.docs`), the native loader (its C sources, the compiler
+    that builds it and the Python runtime it records: :func:`cosim.fmus.native.source_digest`)
+    and pythonfmu's version."""
     digest = hashlib.sha256()
     digest.update(f"pythonfmu {metadata.version('pythonfmu')}\n".encode())
-    generators = {"<cosim/fmus/build.py>": Path(__file__), "<fmu_docs>": Path(fmu_docs.__file__)}
+    digest.update(f"loader {native.source_digest()}\n".encode())
+    generators = {
+        "<cosim/fmus/build.py>": Path(__file__),
+        "<fmu_docs>": Path(fmu_docs.__file__),
+        "<fmu_native>": Path(native.__file__),
+    }
     for relative, path in sorted({**files, **generators}.items()):
         digest.update(f"{relative}\n{len(path.read_bytes())}\n".encode())
         digest.update(path.read_bytes())

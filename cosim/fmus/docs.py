@@ -4,7 +4,8 @@ The page is generated from the FMU's own ``modelDescription.xml`` (read with fmp
 can never disagree with the variables the FMU declares: what the model is, its default
 experiment, one table per causality (inputs, outputs, parameters) with type, unit, start
 value, declared range and description, what a host may and may not do with the FMU
-(:data:`HOSTING`, the same for both), and the references. Only the short "what it
+(:func:`hosting`: the same for every FMU, and says whether its binary is the
+native loader or pythonfmu's alone), and the references. Only the short "what it
 models" paragraph per model identifier is written here by hand (:data:`ABOUT`).
 
 ``add_documentation(fmu)`` adds or replaces the page in a built FMU;
@@ -62,13 +63,31 @@ ABOUT: dict[str, str] = {
     ),
 }
 
-HOSTING = (
-    "<h2>What a host may and may not do</h2><ul>"
-    "<li><b>Python.</b> The binary embeds CPython and runs the Python code in "
-    "<code>resources/</code>; numpy, scipy, pydantic and pythonfmu come from the host "
+_LOADER = (
+    "<li><b>Any FMI host, nothing to set up.</b> The binary is a small native loader "
+    "(<code>fmu_runtime/native/</code>) in front of pythonfmu's library "
+    "(<code>&lt;id&gt;_pythonfmu.so</code> beside it). In a host without Python it loads "
+    "the Python recorded at build time in <code>resources/python_runtime.txt</code> "
+    "(libpython, base prefix, site-packages with numpy, scipy, pydantic and pythonfmu) and "
+    "starts it; a Python host (fmpy, libcosimpy, ecospy) runs the FMU in its own "
+    "interpreter. On another machine or environment, set <code>AUV_FMU_PYTHON</code> to a "
+    "Python executable or virtual environment that has auv-cosim installed; if no usable "
+    "Python is found, <code>fmi2Instantiate</code> returns NULL and logs what it looked "
+    "for.</li>"
+    "<li><b>Platforms.</b> linux64 was tested (a C host, ecos, fmpy, libcosim); the win64 "
+    "loader, when present, is cross-compiled and was not run.</li>"
+)
+_NO_LOADER = (
+    "<li><b>Python.</b> This FMU was built without a C compiler, so its binary is "
+    "pythonfmu's alone: it embeds CPython and runs the Python code in "
+    "<code>resources/</code> with numpy, scipy, pydantic and pythonfmu from the host "
     "process's Python environment. A non-Python host preloads that environment's "
     "<code>libpython</code> and puts its <code>site-packages</code> on "
-    "<code>PYTHONPATH</code>.</li>"
+    "<code>PYTHONPATH</code>; calls against the FMI rules are refused in Python with an "
+    "Error logged, but every function but <code>fmi2DoStep</code> returns fmi2OK "
+    "(a pythonfmu limit: read the log).</li>"
+)
+_COMMON = (
     "<li><b>Load, reload, free.</b> Any number of instances, at once or one after "
     "another, from one extraction or a fresh extraction each time; each instance reads "
     "its data from its own extraction. An instance may be freed at any time and its "
@@ -82,13 +101,26 @@ HOSTING = (
     "<code>fmi2EnterInitializationMode</code> once after instantiation, "
     "<code>fmi2ExitInitializationMode</code> once after that, <code>fmi2DoStep</code> from "
     "the start time and each where the previous step ended (to a relative 1e-9), values "
-    "within their declared range and finite. Anything else is refused with an Error logged "
-    "and changes nothing; the functions other than <code>fmi2DoStep</code> return fmi2OK "
-    "even then (a pythonfmu limit: read the log), a refused <code>fmi2DoStep</code> "
-    "returns fmi2Discard and may be repeated correctly.</li>"
+    "within their declared range and finite, fixed parameters only before "
+    "initialisation. Anything else is refused with an Error logged and changes nothing; "
+    "the call returns fmi2Error, and the instance may go on with valid calls. A failed "
+    "initialisation leaves the instance in the error state; a step the model cannot take "
+    "returns fmi2Discard and may be repeated.</li>"
     "<li><b>Process exit.</b> The pythonfmu 0.7 wrapper's crash at process exit is "
-    "defused by the FMU itself.</li></ul>"
+    "defused by the FMU itself.</li>"
 )
+
+
+def hosting(with_loader: bool) -> str:
+    """The "what a host may and may not do" section, for a binary with or without the
+    native loader."""
+    return (
+        "<h2>What a host may and may not do</h2><ul>"
+        + (_LOADER if with_loader else _NO_LOADER)
+        + _COMMON
+        + "</ul>"
+    )
+
 
 _SECTIONS = (
     ("Inputs", ("input",)),
@@ -127,7 +159,7 @@ def documentation_html(fmu: str | os.PathLike[str]) -> str:
             parts.append(f"<h2>{title} ({len(variables)})</h2>")
             parts.append(_table(variables))
     parts += [
-        HOSTING,
+        hosting(_has_loader(fmu)),
         "<h2>References</h2><ul>",
         f"<li>{DISSERTATION} Equation and table numbers above refer to it.</li>",
         "<li>Functional Mock-up Interface 2.0 for Model Exchange and Co-Simulation, "
@@ -135,6 +167,14 @@ def documentation_html(fmu: str | os.PathLike[str]) -> str:
         "</ul></body></html>",
     ]
     return "\n".join(part for part in parts if part) + "\n"
+
+
+def _has_loader(fmu: str | os.PathLike[str]) -> bool:
+    """True if ``fmu`` is an FMU file whose binary is the native loader."""
+    if not zipfile.is_zipfile(fmu):
+        return False
+    with zipfile.ZipFile(fmu) as archive:
+        return any(name.endswith("_pythonfmu.so") for name in archive.namelist())
 
 
 def _facts(md: Any) -> str:

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
-from fmu_harness import STATUS_DISCARD, STATUS_OK, Harness
+from fmu_harness import STATUS_DISCARD, STATUS_ERROR, STATUS_OK, Harness, status_of
 from reference_values import dissertation
 
 from controller_fmu.auv_guidance import INPUTS, OUTPUTS
@@ -118,20 +118,21 @@ def test_restored_state_continues_bit_identically(guidance_fmu, unzip_dir):
 
 
 def test_a_bad_waypoint_fails_initialisation_naming_the_entry(guidance_fmu, unzip_dir):
-    fmu = _guidance(guidance_fmu, unzip_dir, waypoints="0, 0, 2; 30, 0, 2; 30, x, 4")
+    fmu = Harness(guidance_fmu, instance="guidance", unzip_dir=unzip_dir, initialize=False)
+    statuses = fmu.try_initialize(waypoints="0, 0, 2; 30, 0, 2; 30, x, 4")
+    assert statuses == (STATUS_OK, STATUS_ERROR)  # initialisation fails: fmi2Error
     assert "initialisation failed: waypoint 3 ('30, x, 4'): east = 'x' is not a finite" in (
         fmu.messages(3)
     )
-    assert fmu.step(H) == STATUS_DISCARD
-    assert "doStep at t = 0.0 s refused: initialisation failed: waypoint 3" in fmu.messages(3)
+    assert fmu.step(H) == STATUS_ERROR  # the instance is in the error state
+    assert "doStep at t = 0.0 s refused: the FMU is in the error state" in fmu.messages(3)
     fmu.close()
 
 
 def test_a_nan_position_is_refused_and_the_next_valid_one_accepted(guidance_fmu, unzip_dir):
     fmu = _guidance(guidance_fmu, unzip_dir, waypoints=MISSION)
-    fmu.set(north=float("nan"))
+    assert status_of(fmu.set, north=float("nan")) == STATUS_ERROR
     assert "north = nan refused: expected a finite number" in fmu.messages(3)
-    assert fmu.step(H) == STATUS_DISCARD
     fmu.set(north=1.0)
     assert fmu.step(H) == STATUS_OK
     assert np.isfinite(fmu.get_all(OUTPUTS)).all()

@@ -357,7 +357,10 @@ def test_plant_failing_initialisation_is_reported_with_its_reason(
         fmu_dir, tmp_path, text.replace("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "remus200"', 1)
     )
     assert proc.returncode == 1
-    assert proc.stderr.startswith("auv-cosim run: plant: error logged during initialisation: ")
+    # the FMU's loader answers the failed initialisation with fmi2Error
+    assert proc.stderr.startswith(
+        "auv-cosim run: plant: fmi2ExitInitializationMode returned Error at t = 0 s: "
+    )
     assert "unknown vehicle 'remus200'" in proc.stderr and "remus100" in proc.stderr
 
 

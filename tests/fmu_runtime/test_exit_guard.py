@@ -1,5 +1,7 @@
-"""pythonfmu 0.7's use-after-free at process exit, and our guard against it
-(``fmu_runtime/exit_guard.py``).
+"""pythonfmu 0.7's use-after-free at process exit, and our guards against it: the native
+loader's (``fmu_runtime/native/runtime.c``) in front of the wrapper, and
+``fmu_runtime/exit_guard.py`` for an FMU whose binary is pythonfmu's alone (built without
+a C compiler; :func:`pythonfmu_binary_only` makes one from a built FMU).
 
 The bug aborted one CI run ("corrupted double-linked list") but shows as a crash only
 when glibc's heap happens to be in the wrong state, so the regression test asks valgrind
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import re
 import shutil
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -37,11 +40,43 @@ print(sorted(p.name for p in exit_guard._guarded))
 """
 
 
+def pythonfmu_binary_only(fmu: Path, folder: Path) -> Path:
+    """A copy of ``fmu`` in ``folder`` whose linux64 binary is pythonfmu's library alone,
+    as a build without a C compiler makes it."""
+    copy = folder / fmu.name
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(copy, "w") as target:
+        for info in source.infolist():
+            name = info.filename
+            if name == f"binaries/linux64/{fmu.stem}.so":
+                continue  # the native loader
+            data = source.read(info)
+            info.filename = name.replace("_pythonfmu.so", ".so")
+            target.writestr(info, data)
+    return copy
+
+
+@pytest.fixture(scope="module")
+def binary_only(fmu_paths, tmp_path_factory) -> dict[str, Path]:
+    folder = tmp_path_factory.mktemp("pythonfmu_binary")
+    return {name: pythonfmu_binary_only(fmu_paths[name], folder) for name in FMU_NAMES}
+
+
+FMU_NAMES = ("AuvPlant", "AuvAutopilot")
+
+
 @pytest.mark.slow
-def test_every_fmu_installs_the_guard(fmu_paths, run_python):
-    done = run_python(LOAD_AND_FREE, "guarded", fmu_paths["AuvPlant"], fmu_paths["AuvAutopilot"])
+def test_every_fmu_installs_the_guard_without_the_loader(binary_only, run_python):
+    done = run_python(LOAD_AND_FREE, "guarded", *binary_only.values())
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1] == "['AuvAutopilot.so', 'AuvPlant.so']"
+
+
+def test_behind_the_loader_the_python_guard_stands_aside(fmu_paths, run_python):
+    """Two libraries beside each other: the Python guard finds no single wrapper, as the
+    loader has registered the same exit handler itself."""
+    done = run_python(LOAD_AND_FREE, "guarded", *(fmu_paths[n] for n in FMU_NAMES))
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "[]"
 
 
 def test_install_does_not_apply_without_a_wrapper_library(tmp_path: Path):
@@ -67,12 +102,13 @@ def _invalid_accesses_in_fmu_binary(log: str) -> list[str]:
 
 @pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
-@pytest.mark.parametrize("mode", ["guarded", "unguarded"])
-def test_no_use_after_free_at_exit(mode, fmu_paths, run_python, tmp_path: Path):
-    """valgrind memcheck over a process that instantiates and frees the plant FMU (the
-    guard sits in the base class both FMUs share, and the test above shows both install
-    it): with the guard, no invalid access in the wrapper library; without it, the read
-    of freed memory in ``finalizePythonInterpreter`` that once crashed CI."""
+@pytest.mark.parametrize("mode", ["loader", "guarded", "unguarded"])
+def test_no_use_after_free_at_exit(mode, fmu_paths, binary_only, run_python, tmp_path: Path):
+    """valgrind memcheck over a process that instantiates and frees the plant FMU: behind
+    the native loader, and with pythonfmu's binary alone with the Python guard (the guard
+    sits in the base class both FMUs share, and the test above shows both install it), no
+    invalid access in an FMU binary; without any guard, the read of freed memory in
+    ``finalizePythonInterpreter`` that once crashed CI."""
     log = tmp_path / "valgrind.log"
     code = (
         "import os, subprocess, sys\n"
@@ -80,10 +116,11 @@ def test_no_use_after_free_at_exit(mode, fmu_paths, run_python, tmp_path: Path):
         f"sys.exit(subprocess.call(['valgrind', '--log-file={log}', sys.executable, '-c',"
         " sys.argv[1], *sys.argv[2:]], env=env))\n"
     )
-    done = run_python(code, LOAD_AND_FREE, mode, fmu_paths["AuvPlant"], timeout=600)
+    fmu = fmu_paths["AuvPlant"] if mode == "loader" else binary_only["AuvPlant"]
+    done = run_python(code, LOAD_AND_FREE, mode, fmu, timeout=600)
     assert done.returncode == 0, done.stderr
     invalid = _invalid_accesses_in_fmu_binary(log.read_text())
-    if mode == "guarded":
-        assert invalid == []
-    else:
+    if mode == "unguarded":
         assert invalid and all("finalizePythonInterpreter" in r for r in invalid), invalid
+    else:
+        assert invalid == []

@@ -6,8 +6,8 @@ pythonfmu keeps an FMU's modules for the life of a process and a broken FMU may 
 * a second build of AuvPlant.fmu, one source line apart, loaded after the first in the
   same process, refuses with the reason logged, and the host exits 0;
 * instantiate/free cycles keep (almost) no memory (``scripts/bench_instances.py``);
-* calls against the FMI 2.0 rules are refused with the reason logged, the host survives,
-  and the valid call afterwards works.
+* calls against the FMI 2.0 rules return fmi2Error with the reason logged, the host
+  survives, and the valid call afterwards works.
 """
 
 from __future__ import annotations
@@ -117,16 +117,30 @@ def test_a_parameter_loop_in_one_process_matches_fresh_processes(name, fmu_paths
 
 TWO_BUILDS = """
 import json, sys
+from fmpy.fmi1 import FMICallException
 from fmu_harness import Harness
+
+
+def status(call, *args, **kwargs):
+    try:
+        call(*args, **kwargs)
+    except FMICallException as exc:
+        return exc.status
+    return 0
+
 
 first = Harness(sys.argv[1], u_0=1.5)
 first_status = first.step(0.01)
 first.close()
-second = Harness(sys.argv[2], u_0=1.5)
+second = Harness(sys.argv[2], initialize=False)
+setup = status(second.slave.setupExperiment, startTime=0.0)
+second.slave.enterInitializationMode()
+leave = status(second.slave.exitInitializationMode)
 second_status = second.step(0.01)
 second.close()
 print(json.dumps({"first": first_status, "first_errors": first.messages(3),
-                  "second": second_status, "second_errors": second.messages(3)}))
+                  "second": [setup, leave, second_status],
+                  "second_errors": second.messages(3)}))
 """
 
 BUILD_ELSEWHERE = """
@@ -155,7 +169,9 @@ def test_a_second_build_in_the_same_process_refuses_with_the_reason(
 
     report = _json_result(run_python(TWO_BUILDS, fmu_paths["AuvPlant"], other))
     assert (report["first"], report["first_errors"]) == (0, "")
-    assert report["second"] == 2  # fmi2Discard
+    # fmi2Error from setupExperiment (the reason), exitInitializationMode (initialisation
+    # fails) and doStep (the instance is in the error state)
+    assert report["second"] == [3, 3, 3]
     errors = report["second_errors"]
     assert re.search(
         r"stale code: this process already imported plant_fmu\.model\.stepping \(from "
@@ -187,10 +203,20 @@ def test_instantiate_free_cycles_keep_under_2_mb_per_1000(fmu_paths, run_python)
 RULES = """
 import json, sys
 from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException
 from fmu_harness import Harness
 
 plant, autopilot = sys.argv[1], sys.argv[2]
 report = {}
+
+
+def status(call, *args, **kwargs):
+    try:
+        call(*args, **kwargs)
+    except FMICallException as exc:
+        return exc.status
+    return 0
+
 
 fmu = Harness(plant, u_0=1.5)  # wrong communication point, then the right one
 report["first step"] = fmu.step(0.01)
@@ -202,7 +228,7 @@ fmu.close()
 fmu = Harness(plant, initialize=False)  # initialisation mode entered twice
 fmu.slave.setupExperiment(startTime=0.0)
 fmu.slave.enterInitializationMode()
-fmu.slave.enterInitializationMode()
+report["double enter"] = status(fmu.slave.enterInitializationMode)
 fmu.slave.exitInitializationMode()
 report["double enter step"] = fmu.step(0.01)
 report["double enter errors"] = fmu.messages(3)
@@ -210,7 +236,7 @@ fmu.close()
 
 fmu = Harness(plant, initialize=False)  # left without being entered
 fmu.slave.setupExperiment(startTime=0.0)
-fmu.slave.exitInitializationMode()
+report["exit without enter"] = status(fmu.slave.exitInitializationMode)
 report["exit without enter step"] = fmu.step(0.01)
 fmu.slave.enterInitializationMode()
 fmu.slave.exitInitializationMode()
@@ -221,7 +247,7 @@ fmu.close()
 fmu = Harness(plant, initialize=False)  # out-of-range Integer, then a valid one
 fmu.slave.setupExperiment(startTime=0.0)
 fmu.slave.enterInitializationMode()
-fmu.set(variant=7)
+report["variant 7"] = status(fmu.set, variant=7)
 report["variant after 7"] = fmu.slave.getInteger([fmu.variables["variant"].valueReference])[0]
 fmu.set(variant=1)
 fmu.slave.exitInitializationMode()
@@ -229,8 +255,12 @@ report["variant 1 step"] = fmu.step(0.01)
 report["variant errors"] = fmu.messages(3)
 fmu.close()
 
-fmu = Harness(autopilot, instance="controller", depth_mode=5)  # after the plant was freed
-report["depth_mode 5 step"] = fmu.step(0.01)                    # and its extraction deleted
+fmu = Harness(autopilot, instance="controller", initialize=False)  # after the plant was
+fmu.slave.setupExperiment(startTime=0.0)                           # freed and its
+fmu.slave.enterInitializationMode()                                # extraction deleted
+report["depth_mode 5"] = status(fmu.set, depth_mode=5)
+fmu.slave.exitInitializationMode()
+report["depth_mode 5 step"] = fmu.step(0.01)
 report["depth_mode errors"] = fmu.messages(3)
 fmu.close()
 
@@ -246,27 +276,30 @@ print(json.dumps(report))
 
 @pytest.mark.slow
 def test_calls_against_the_fmi_rules_are_refused_and_the_host_survives(fmu_paths, run_python):
+    """Each refused call returns fmi2Error (3), names the reason in the log and changes
+    nothing: the valid call afterwards works."""
     report = _json_result(run_python(RULES, fmu_paths["AuvPlant"], fmu_paths["AuvAutopilot"]))
-    assert (report["first step"], report["wrong point"], report["right point"]) == (0, 2, 0)
+    assert (report["first step"], report["wrong point"], report["right point"]) == (0, 3, 0)
     assert (
         "doStep at t = 0.5 s refused: currentCommunicationPoint = 0.5 s is not the FMU's "
         "current time 0.01 s"
     ) in report["wrong point errors"]
-    assert report["double enter step"] == 0
+    assert (report["double enter"], report["double enter step"]) == (3, 0)
     assert (
         "enterInitializationMode refused: the FMU is in initialisation mode"
         in report["double enter errors"]
     )
-    assert report["exit without enter step"] == 2  # not initialised
+    assert (report["exit without enter"], report["exit without enter step"]) == (3, 3)
     assert report["after enter step"] == 0
     assert (
         "exitInitializationMode refused: the FMU is instantiated"
         in report["exit without enter errors"]
     )
+    assert report["variant 7"] == 3
     assert report["variant after 7"] == 0  # the write was refused: the old value stays
     assert "variant = 7 refused: expected 0 <= variant <= 2" in report["variant errors"]
     assert report["variant 1 step"] == 0
-    assert report["depth_mode 5 step"] == 2
+    assert (report["depth_mode 5"], report["depth_mode 5 step"]) == (3, 0)
     assert "depth_mode = 5 refused: expected 0 <= depth_mode <= 1" in report["depth_mode errors"]
     assert report["declared"] == {
         "variant": ["0", "2"],

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
-from fmu_harness import STATUS_DISCARD, STATUS_OK, Harness
+from fmu_harness import STATUS_ERROR, STATUS_OK, Harness, status_of
 from reference_values import dissertation
 
 from cosim.fmus.validation import validate_fmus
@@ -215,45 +215,53 @@ def test_reset_returns_to_a_fresh_instance(plant, unzip_dir):
 
 
 def test_unknown_vehicle_fails_initialisation_listing_the_known_sets(plant, unzip_dir):
-    fmu = _harness(plant, unzip_dir, vehicle="remus999")
+    fmu = Harness(plant, unzip_dir=unzip_dir, initialize=False)
+    statuses = fmu.try_initialize(vehicle="remus999")
     status = fmu.step(H)
     errors = fmu.messages(3)
     fmu.close()
-    assert status == STATUS_DISCARD
+    assert statuses == (STATUS_OK, STATUS_ERROR)  # initialisation fails: fmi2Error
+    assert status == STATUS_ERROR  # then the instance is in the error state
     assert "initialisation failed" in errors and "remus999" in errors
     assert all(name in errors for name in builtin_vehicles())
 
 
-def test_invalid_parameter_values_fail_initialisation_naming_them(plant, unzip_dir, tmp_path):
+def test_invalid_parameter_values_are_refused_naming_them(plant, unzip_dir, tmp_path):
+    """A value outside its declared range is refused when written (fmi2Error, the old
+    value stays and the instance initialises); one only the model can judge fails the
+    initialisation (fmi2Error, then the error state)."""
     bad_file = tmp_path / "bad.toml"
     bad_file.write_text('base = "remus100"\nm = -1.0\n')
-    for values, expected in [
-        ({"vehicle": str(bad_file)}, "m = -1.0"),
-        ({"variant": 7}, "variant = 7"),
-        ({"moving_mass_model": 2}, "moving_mass_model = 2"),
-        ({"I_xx": -0.1}, "I_xx = -0.1"),
-        ({"mass_position_0": 0.2}, "mass_position_0 = 0.2"),
+    for values, expected, at_write in [
+        ({"vehicle": str(bad_file)}, "m = -1.0", False),
+        ({"variant": 7}, "variant = 7", True),
+        ({"moving_mass_model": 2}, "moving_mass_model = 2", True),
+        ({"I_xx": -0.1}, "I_xx = -0.1", True),
+        ({"mass_position_0": 0.2}, "mass_position_0 = 0.2", False),
     ]:
-        fmu = _harness(plant, unzip_dir, **values)
+        fmu = Harness(plant, unzip_dir=unzip_dir, initialize=False)
+        statuses = fmu.try_initialize(**values)
         status = fmu.step(H)
         errors = fmu.messages(3)
         fmu.close()
-        assert status == STATUS_DISCARD, values
+        if at_write:
+            assert (statuses, status) == ((STATUS_ERROR, STATUS_OK), STATUS_OK), values
+        else:
+            assert (statuses, status) == ((STATUS_OK, STATUS_ERROR), STATUS_ERROR), values
         assert expected in errors, errors
 
 
 def test_parameter_written_after_initialisation_is_refused(plant, unzip_dir):
     fmu = _harness(plant, unzip_dir, variant=2)
-    fmu.set(m=40.0)
-    refused = fmu.step(H)
+    refused = status_of(fmu.set, m=40.0)
     message = fmu.messages(3)
     unchanged = fmu.get("m")[0]
-    fmu.set(m=unchanged)  # writing the value in use is harmless and clears the refusal
-    recovered = fmu.step(H)
+    same_value = status_of(fmu.set, m=unchanged)  # writing the value in use is harmless
+    stepped = fmu.step(H)
     fmu.close()
-    assert refused == STATUS_DISCARD and "m = 40.0 refused" in message
+    assert refused == STATUS_ERROR and "m = 40.0 refused" in message
     assert unchanged == 30.5
-    assert recovered == STATUS_OK
+    assert (same_value, stepped) == (STATUS_OK, STATUS_OK)
 
 
 @pytest.mark.slow
@@ -261,23 +269,24 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
     result = run_python(
         """
         import json, sys
-        from fmu_harness import Harness
+        from fmu_harness import Harness, status_of
         fmu = Harness(sys.argv[1], variant=2, u_0=1.5)
         ok = fmu.step(0.01)
-        fmu.set(thrust=float("nan"))
-        refused = fmu.step(0.01)
+        refused = status_of(fmu.set, thrust=float("nan"))
+        after = fmu.step(0.01)  # with the thrust it had
         u_after = float(fmu.get("u")[0])
         fmu.set(thrust=9.0)
         recovered = fmu.step(0.01)
         fmu.close()
-        print(json.dumps(dict(ok=ok, refused=refused, recovered=recovered, u=u_after,
-                              errors=fmu.messages(3))))
+        print(json.dumps(dict(ok=ok, refused=refused, after=after, recovered=recovered,
+                              u=u_after, errors=fmu.messages(3))))
         """,
         plant,
     )
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout.strip().splitlines()[-1])
-    assert (report["ok"], report["refused"], report["recovered"]) == (0, STATUS_DISCARD, 0)
+    statuses = (report["ok"], report["refused"], report["after"], report["recovered"])
+    assert statuses == (0, STATUS_ERROR, 0, 0)
     assert "thrust = nan refused" in report["errors"]
     assert np.isfinite(report["u"])
 

@@ -14,7 +14,7 @@ from xml.etree import ElementTree as ET
 import pytest
 
 from cosim.errors import CosimError
-from cosim.fmus import build
+from cosim.fmus import build, native
 from fmu_runtime import provenance
 from plant_fmu.auv_plant import AuvPlant
 
@@ -64,6 +64,9 @@ def test_built_fmu_holds_exactly_the_shipped_sources_the_entry_and_their_manifes
         guid = ET.fromstring(archive.read("modelDescription.xml")).get("guid")
     assert shipped.pop("slavemodule.txt") == b"auv_plant"
     manifest = json.loads(shipped.pop(provenance.MANIFEST))
+    # the native loader's records: the Python runtime and the variables' rules
+    assert shipped.pop(native.RUNTIME_FILE).decode() == native.runtime_record()
+    assert b" R input continuous " in shipped.pop(native.VARIABLES_FILE)
     expected = {name: path.read_bytes() for name, path in files.items()}
     expected["auv_plant.py"] = build.entry_module("AuvPlant").encode()
     assert shipped == expected
