@@ -131,6 +131,7 @@ def test_restored_state_continues_bit_identically(fmu_paths, unzip_dirs):
     assert np.abs(first[:, 1]).max() > 0.0  # the thruster was active
 
 
+@pytest.mark.slow
 def test_a_step_other_than_the_design_step_is_logged_as_a_warning(fmu_paths, unzip_dirs):
     controller = _controller(fmu_paths, unzip_dirs, heading_mode=1, design_step=0.01)
     assert controller.step(0.02) == STATUS_OK

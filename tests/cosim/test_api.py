@@ -169,6 +169,7 @@ def test_public_names_have_numpy_docstrings() -> None:
         assert "Attributes\n    ----------" in getattr(cosim, name).__doc__
 
 
+@pytest.mark.slow
 def test_run_survives_importing_every_module(
     run_python: Callable[..., subprocess.CompletedProcess],
 ) -> None:
@@ -228,7 +229,8 @@ def test_importing_the_plotting_modules_keeps_the_callers_backend(
         "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()\n"
         "from cosim.study.plots import plot_scatter_matrix\n"
         "rows = [{'a': float(i), 'b': float(i * i)} for i in range(5)]\n"
-        "path = plot_scatter_matrix(rows, ['a', 'b'], __import__('pathlib').Path(sys.argv[1]))\n"
+        "out = __import__('pathlib').Path(sys.argv[1])\n"
+        "path = plot_scatter_matrix(rows, ['a', 'b'], out, {})\n"
         "assert path.read_bytes()[:4] == b'\\x89PNG' and plt.get_fignums() == []\n",
         str(tmp_path / "matrix.png"),
     )

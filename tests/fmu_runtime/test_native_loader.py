@@ -105,6 +105,7 @@ def test_a_c_host_in_a_clean_environment_runs_100_cycles_of_1000_steps(
     assert "cycles: 100 x 1000 ok" in done.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(FMUS))
 def test_calls_the_standard_forbids_return_fmi2error(name, host, extracted, tmp_path):
     """Each forbidden call on a fresh instance returns fmi2Error (3) with one Error logged,

@@ -62,6 +62,7 @@ def test_bs3_turns_to_the_new_heading_set_at_20_s(fmu_dir: Path, algorithm: str)
     assert np.max(np.abs(yaw[t >= 40.0] - 0.5)) < math.radians(1.0)
 
 
+@pytest.mark.slow
 def test_with_the_controller_every_2_steps_the_event_fires_at_the_next_point(
     fmu_dir: Path,
 ) -> None:

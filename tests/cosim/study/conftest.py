@@ -17,6 +17,18 @@ def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
     return fmu_paths["AuvPlant"].parent
 
 
+@pytest.fixture
+def no_early_cluster(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`auv-cosim sweep` without the local cluster it starts while the study is checked
+    (for tests of refusals: a refused study would wait for that cluster to start and stop;
+    tests/cosim/study/test_worker_warm_up.py tests the early start itself)."""
+    from contextlib import nullcontext
+
+    from cosim.study import execution
+
+    monkeypatch.setattr(execution, "early_client", lambda *args, **kw: nullcontext(None))
+
+
 @pytest.fixture(scope="session", autouse=True)
 def dask_scratch(tmp_path_factory: pytest.TempPathFactory) -> None:
     """Local clusters keep their worker space (and lock files) in a temporary folder."""

@@ -7,12 +7,13 @@ import os
 import signal
 import subprocess
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
 import pytest
 
 from cosim.cli import main
-from cosim.study import runner
+from cosim.study import execution, runner
 
 HUGE_GRID = "\n".join(f'"plant.f{i}" = {list(range(100))}' for i in range(5))  # 10^10 runs
 # The process's peak RSS is its VmHWM: getrusage's ru_maxrss keeps the parent's peak
@@ -87,8 +88,9 @@ def test_the_cap_is_raised_by_max_runs(tmp_path: Path, capsys: pytest.CaptureFix
 
 @pytest.fixture
 def clusters(monkeypatch: pytest.MonkeyPatch) -> list[runner.Cluster]:
-    """The clusters `sweep` would start (no study runs)."""
+    """The clusters `sweep` would start (no study runs, no local cluster started early)."""
     seen: list[runner.Cluster] = []
+    monkeypatch.setattr(execution, "early_client", lambda *args, **kw: nullcontext(None))
 
     def record(study: Path, out: Path | None, *, cluster: runner.Cluster, **kw: object) -> None:
         seen.append(cluster)

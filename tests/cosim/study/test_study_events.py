@@ -15,6 +15,8 @@ from sweep_helpers import sweep, table
 
 from cosim.cli import main
 
+pytestmark = pytest.mark.usefixtures("no_early_cluster")  # refusals wait for no cluster
+
 EVENTS = """
 [[events]]
 name = "turn"                     # a yaw setpoint step

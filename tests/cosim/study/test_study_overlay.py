@@ -18,6 +18,8 @@ from cosim.study.design import PlannedRun, run_id
 from cosim.study.overlay import choose, spread
 from cosim.viz.report import load_results
 
+pytestmark = pytest.mark.usefixtures("no_early_cluster")  # refusals wait for no cluster
+
 STUDY = """
 scenario = "bs-3"
 stop_time = 2.0

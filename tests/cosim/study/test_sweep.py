@@ -15,6 +15,8 @@ from sweep_helpers import sweep, table
 from cosim.cli import main
 from cosim.metrics.manoeuvres import metric_names
 
+pytestmark = pytest.mark.usefixtures("no_early_cluster")  # refusals wait for no cluster
+
 ISSUE_STUDY = """
 scenario = "bs-3"
 stop_time = 20.0
