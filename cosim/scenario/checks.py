@@ -97,6 +97,6 @@ def split_ref(ref: str, instances: Mapping[str, Any], key: str, src: Source) -> 
     return instance, var
 
 
-def a(word: str) -> str:
+def with_article(word: str) -> str:
     """``word`` with its indefinite article ("an input", "a parameter")."""
     return ("an " if word[0] in "aeiou" else "a ") + word

@@ -36,9 +36,9 @@ from cosim.scenario.checks import (
     ScenarioError,
     Source,
     Strict,
-    a,
     check_value,
     split_ref,
+    with_article,
 )
 from cosim.scenario.timeline_spec import (
     Event,
@@ -598,9 +598,8 @@ def _resolve_connections(
         key = f"connections.remove[{i}]"
         _, var = split_ref(ref, instances, key, src)
         if var.causality != "input":
-            raise src.error(
-                key, f"{ref!r} is {a(var.causality)}; remove names an input to leave unconnected"
-            )
+            what = with_article(var.causality)
+            raise src.error(key, f"{ref!r} is {what}; remove names an input to leave unconnected")
         by_target.pop(ref, None)
     added: dict[str, int] = {}  # target -> index in connections.add
     for i, conn in enumerate(spec.add):
@@ -609,10 +608,12 @@ def _resolve_connections(
         tgt_inst, target = split_ref(conn.to, instances, f"{key}.to", src)
         if source.causality != "output":
             raise src.error(
-                f"{key}.from", f"{conn.from_!r} is {a(source.causality)}, not an output"
+                f"{key}.from", f"{conn.from_!r} is {with_article(source.causality)}, not an output"
             )
         if target.causality != "input":
-            raise src.error(f"{key}.to", f"{conn.to!r} is {a(target.causality)}, not an input")
+            raise src.error(
+                f"{key}.to", f"{conn.to!r} is {with_article(target.causality)}, not an input"
+            )
         if src_inst == tgt_inst:
             raise src.error(key, f"{conn.from_!r} -> {conn.to!r} connects an instance to itself")
         if source.type != "Real" or target.type != "Real":

@@ -28,11 +28,12 @@ def write_index(
 ) -> Path:
     """Write ``out_dir/index.html``; ``facts`` are label -> value lines of the summary."""
     summary = "\n".join(
-        f"<tr><th>{_e(label)}</th><td>{_e(value)}</td></tr>" for label, value in facts.items()
+        f"<tr><th>{_escape(label)}</th><td>{_escape(value)}</td></tr>"
+        for label, value in facts.items()
     )
     images = "\n".join(
-        f'<h2>{_e(title)}</h2>\n<p><a href="{_e(_rel(path, out_dir))}">'
-        f'<img src="{_e(_rel(path, out_dir))}" alt="{_e(title)}" style="max-width:100%">'
+        f'<h2>{_escape(title)}</h2>\n<p><a href="{_escape(_rel(path, out_dir))}">'
+        f'<img src="{_escape(_rel(path, out_dir))}" alt="{_escape(title)}" style="max-width:100%">'
         "</a></p>"
         for title, path in figures.items()
     )
@@ -40,7 +41,7 @@ def write_index(
         f"<p>Not plotted (constant or missing in every run, beyond the "
         f"{PANELS_MAX} that vary most, or not a key figure or manoeuvre metric; choose "
         f"them with [metrics] collect; all are in runs.csv): "
-        f"{_e(', '.join(not_plotted))}</p>"
+        f"{_escape(', '.join(not_plotted))}</p>"
         if not_plotted
         else ""
     )
@@ -48,7 +49,7 @@ def write_index(
     failures = ""
     if failed:
         items = "\n".join(
-            f"<li><code>{_e(row['run'])}</code>: {_e(row['error'])}</li>"
+            f"<li><code>{_escape(row['run'])}</code>: {_escape(row['error'])}</li>"
             for row in failed[:FAILED_SHOWN]
         )
         more = (
@@ -59,11 +60,11 @@ def write_index(
         failures = f"<h2>Failed runs</h2>\n<ul>\n{items}\n</ul>\n{more}"
     page = f"""<!DOCTYPE html>
 <html lang="en">
-<head><meta charset="utf-8"><title>auv-cosim study {_e(out_dir.resolve().name)}</title>
+<head><meta charset="utf-8"><title>auv-cosim study {_escape(out_dir.resolve().name)}</title>
 <style>body {{ font-family: sans-serif; max-width: 1400px; margin: 2em auto; }}
 th {{ text-align: left; padding-right: 2em; }}</style></head>
 <body>
-<h1>Study {_e(out_dir.resolve().name)}</h1>
+<h1>Study {_escape(out_dir.resolve().name)}</h1>
 <p>Results: <a href="runs.csv">runs.csv</a>, <a href="runs.parquet">runs.parquet</a>
 (one row per run)</p>
 <table>
@@ -80,7 +81,7 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
     return path
 
 
-def _e(value: Any) -> str:
+def _escape(value: Any) -> str:
     return html.escape(str(value))
 
 

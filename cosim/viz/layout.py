@@ -87,78 +87,78 @@ class Panel:
     series: tuple[Series, ...]
 
 
-def _s(column: str, label: str, color: Rgb, scale: float = 1.0) -> Series:
+def _series(column: str, label: str, color: Rgb, scale: float = 1.0) -> Series:
     return Series(column, label, color, scale)
 
 
 PANELS: tuple[Panel, ...] = (
     Panel("attitude/yaw_deg", "Yaw ψ (deg)", (
-        _s("plant.yaw", "yaw ψ (deg)", BLUE, DEG),
-        _s("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG),
+        _series("plant.yaw", "yaw ψ (deg)", BLUE, DEG),
+        _series("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG),
     )),
-    Panel("attitude/roll_deg", "Roll φ (deg)", (_s("plant.roll", "roll φ (deg)", RED, DEG),)),
+    Panel("attitude/roll_deg", "Roll φ (deg)", (_series("plant.roll", "roll φ (deg)", RED, DEG),)),
     Panel("attitude/pitch_deg", "Pitch θ (deg)", (
-        _s("plant.pitch", "pitch θ (deg)", GREEN, DEG),
+        _series("plant.pitch", "pitch θ (deg)", GREEN, DEG),
     )),
     Panel("rates/roll_yaw_deg_s", "Roll and yaw rates (deg/s)", (
-        _s("plant.p", "roll rate p (deg/s)", RED, DEG),
-        _s("plant.r", "yaw rate r (deg/s)", BLUE, DEG),
+        _series("plant.p", "roll rate p (deg/s)", RED, DEG),
+        _series("plant.r", "yaw rate r (deg/s)", BLUE, DEG),
     )),
     Panel("rates/pitch_deg_s", "Pitch rate (deg/s)", (
-        _s("plant.q", "pitch rate q (deg/s)", GREEN, DEG),
+        _series("plant.q", "pitch rate q (deg/s)", GREEN, DEG),
     )),
     Panel("velocity/surge_m_s", "Surge (m/s)", (
-        _s("plant.u", "u over ground (m/s)", RED),
-        _s("plant.u_rel", "u through water (m/s)", PALE_RED),
+        _series("plant.u", "u over ground (m/s)", RED),
+        _series("plant.u_rel", "u through water (m/s)", PALE_RED),
     )),
     Panel("velocity/sway_m_s", "Sway (m/s)", (
-        _s("plant.v", "v over ground (m/s)", GREEN),
-        _s("plant.v_rel", "v through water (m/s)", PALE_GREEN),
+        _series("plant.v", "v over ground (m/s)", GREEN),
+        _series("plant.v_rel", "v through water (m/s)", PALE_GREEN),
     )),
     Panel("velocity/heave_m_s", "Heave (m/s)", (
-        _s("plant.w", "w over ground (m/s)", BLUE),
-        _s("plant.w_rel", "w through water (m/s)", PALE_BLUE),
+        _series("plant.w", "w over ground (m/s)", BLUE),
+        _series("plant.w_rel", "w through water (m/s)", PALE_BLUE),
     )),
     Panel("position/horizontal_m", "Position (m)", (
-        _s("plant.north", "north (m)", RED),
-        _s("plant.east", "east (m)", GREEN),
+        _series("plant.north", "north (m)", RED),
+        _series("plant.east", "east (m)", GREEN),
     )),
     Panel("position/depth_m", "Depth (m)", (
-        _s("plant.down", "depth (m)", BLUE),
-        _s("controller.depth_setpoint", "depth setpoint (m)", SETPOINT),
+        _series("plant.down", "depth (m)", BLUE),
+        _series("controller.depth_setpoint", "depth setpoint (m)", SETPOINT),
     )),
     Panel("moving_mass/position_cm", "Moving mass y_v (cm)", (
-        _s("plant.mass_position", "mass position y_v (cm)", MASS, 100.0),
-        _s("controller.mass_position_cmd", "mass command y_d (cm)", SETPOINT, 100.0),
-        _s("plant.mass_position_cmd", "mass command at the plant (cm)", PALE_SETPOINT, 100.0),
+        _series("plant.mass_position", "mass position y_v (cm)", MASS, 100.0),
+        _series("controller.mass_position_cmd", "mass command y_d (cm)", SETPOINT, 100.0),
+        _series("plant.mass_position_cmd", "mass command at the plant (cm)", PALE_SETPOINT, 100.0),
     )),
     Panel("moving_mass/velocity_cm_s", "Moving-mass rail speed (cm/s)", (
-        _s("plant.mass_velocity", "rail speed (cm/s)", MASS, 100.0),
+        _series("plant.mass_velocity", "rail speed (cm/s)", MASS, 100.0),
     )),
     Panel("actuators/tunnel_force_N", "Tunnel thruster (N)", (
-        _s("controller.tunnel_force", "tunnel force F_t (N)", THRUSTER),
-        _s("plant.tunnel_force", "F_t at the plant (N)", pale(THRUSTER)),
+        _series("controller.tunnel_force", "tunnel force F_t (N)", THRUSTER),
+        _series("plant.tunnel_force", "F_t at the plant (N)", pale(THRUSTER)),
     )),
     Panel("actuators/fin_angle_deg", "Stern planes (deg)", (
-        _s("controller.fin_angle", "fin angle δs (deg)", FIN, DEG),
-        _s("plant.fin_angle", "δs at the plant (deg)", pale(FIN), DEG),
+        _series("controller.fin_angle", "fin angle δs (deg)", FIN, DEG),
+        _series("plant.fin_angle", "δs at the plant (deg)", pale(FIN), DEG),
     )),
     Panel("actuators/thrust_N", "Propeller thrust (N)", (
-        _s("controller.thrust", "thrust T (N)", THRUST),
-        _s("plant.thrust", "T at the plant (N)", pale(THRUST)),
+        _series("controller.thrust", "thrust T (N)", THRUST),
+        _series("plant.thrust", "T at the plant (N)", pale(THRUST)),
     )),
     Panel("actuators/roll_torque_Nm", "Propeller roll torque (N m)", (
-        _s("plant.roll_torque", "roll torque Q (N m)", THRUST),
+        _series("plant.roll_torque", "roll torque Q (N m)", THRUST),
     )),
     Panel("energy/kinetic_J", "Kinetic energy (J)", (
-        _s("plant.kinetic_energy", "kinetic energy (J)", ENERGY),
+        _series("plant.kinetic_energy", "kinetic energy (J)", ENERGY),
     )),
     Panel("environment/current_m_s", "Current, earth axes (m/s)", (
-        _s("plant.current_north", "current north (m/s)", RED),
-        _s("plant.current_east", "current east (m/s)", GREEN),
-        _s("plant.current_down", "current down (m/s)", BLUE),
-        _s("controller.current_north", "north, as the autopilot knows it (m/s)", PALE_RED),
-        _s("controller.current_east", "east, as the autopilot knows it (m/s)", PALE_GREEN),
+        _series("plant.current_north", "current north (m/s)", RED),
+        _series("plant.current_east", "current east (m/s)", GREEN),
+        _series("plant.current_down", "current down (m/s)", BLUE),
+        _series("controller.current_north", "north, as the autopilot knows it (m/s)", PALE_RED),
+        _series("controller.current_east", "east, as the autopilot knows it (m/s)", PALE_GREEN),
     )),
 )  # fmt: skip
 
@@ -217,7 +217,7 @@ def plan_panels(columns: list[str]) -> list[PlannedPanel]:
             planned.append(PlannedPanel(panel.entity, panel.title, present, indices, scales))
     for i, name in enumerate(columns):
         if i not in shown:
-            series = _s(name, name, ENERGY)
+            series = _series(name, name, ENERGY)
             entity = "other/" + name.replace(".", "/")
             planned.append(PlannedPanel(entity, name, (series,), (i,), (1.0,)))
     return planned
