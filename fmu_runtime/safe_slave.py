@@ -35,59 +35,8 @@ instance reads come from ``self.resources`` (the extraction it was instantiated 
 never from a location bound when its modules were imported: pythonfmu keeps those
 modules for the life of the process, across extractions a host may delete.
 
-Rules the base enforces (each refusal is logged with status Error, naming the variable or
-call, the value and what was expected):
-
-* A Real written as NaN or +-inf is refused; so is a value outside the ``minimum`` /
-  ``maximum`` the variable declares (also written to modelDescription.xml as
-  ``min``/``max``). The old value stays.
-* Inputs and tunable parameters may be written at any time; fixed parameters only before
-  ``exit_initialization_mode`` (a later write of the same value is accepted as a no-op);
-  outputs, locals and calculated parameters never.
-* pythonfmu's setters cannot return an error status, so a refused *value* (non-finite, out
-  of range) of a writable variable is remembered and the next ``do_step`` returns Discard
-  naming it, until the variable is written validly: the host meant to change an input
-  and the step would use the old one. A write the variable does not allow at all (a fixed
-  parameter after initialisation, an output, a wrong type, an unknown reference) is
-  refused and changes nothing, the later steps included: it is logged, not remembered.
-* The FMI 2.0 call sequence: ``setupExperiment`` and ``enterInitializationMode`` only
-  right after instantiation, ``exitInitializationMode`` only in initialisation mode; a
-  call out of sequence is refused and changes nothing (pythonfmu returns fmi2OK from these
-  functions whatever Python does, so the refusal is the logged Error).
-* ``do_step`` returns Discard (the only non-OK status pythonfmu returns without
-  corrupting the host) before a successful initialisation, after a failed one, after
-  ``terminate``, for a step size that is not a finite number > 0, and for a
-  ``currentCommunicationPoint`` that is not the instance's current time (the start time,
-  then the end of the last step; FMI 2.0, ``fmi2DoStep``), within a relative 1e-9 for the
-  rounding of masters that compute ``t_n = n h``. A refused step changes nothing, so the
-  master may repeat it correctly.
-* Behind the FMUs' native loader (``fmu_runtime/native/``, ``docs/native-loader.md``) the
-  call-sequence, communication-point, causality and range rules are checked in C before
-  Python is called, and any Error logged here during a call makes that call return
-  fmi2Error to the host; the checks here remain for a binary that is pythonfmu's alone.
-* Stale code: an instance of a build whose modules another build already imported in
-  this process finds so at instantiation, logs why at the next call, and refuses to
-  initialise and to step.
-* FMU state (``fmi2GetFMUstate``/``fmi2SetFMUstate``, also serialised) holds every
-  registered variable with a setter, the bookkeeping above (including the time), and
-  ``_state_snapshot()``; a restored instance continues bit-identically (floats survive
-  JSON exactly).
-
-``fmi2Reset`` in pythonfmu 0.7 does not call Python: it constructs a fresh instance, so a
-subclass's ``__init__`` must do nothing that can fail (assign defaults, register variables;
-load files in ``_initialize``, or catch).
-
-Logging: ``__init__`` must not log. pythonfmu 0.7 passes a message to the host only at
-the end of the next FMI call, and ``fmi2FreeInstance`` deletes the host's logger before
-it flushes the messages still queued: a message logged during ``fmi2Instantiate`` (or
-``fmi2Reset``) kills a host that frees the instance next ("pure virtual method called").
-A problem found at instantiation is kept and logged by the next call that can refuse
-(``setupExperiment``, ``enterInitializationMode``, then every refusal it causes).
-
-Class attributes the build step reads from ``to_xml`` (build time only): the unit of every
-Real (``register(..., unit=...)``), the declared ``minimum``/``maximum``, and
-``direct_feedthrough`` (ModelStructure dependencies; outputs not listed depend on no input
-directly).
+The rules it enforces, how it logs, ``fmi2Reset`` and what the build reads from
+``to_xml``: docs/fmi-notes.md#what-safeslave-enforces.
 """
 
 from __future__ import annotations
