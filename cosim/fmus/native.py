@@ -3,7 +3,10 @@
 pythonfmu's library uses CPython's symbols without linking libpython, so a host that is
 not Python cannot even load it, and it answers fmi2OK for calls our FMUs refuse. The
 loader, a small C library compiled here, becomes ``binaries/linux64/<id>.so`` (and
-``binaries/win64/<id>.dll`` when a win64 cross-compiler is at hand); pythonfmu's library
+``binaries/win64/<id>.dll`` when asked for with ``AUV_FMU_WIN64=1`` and a win64
+cross-compiler, zig, is at hand: zig's first cross-compile on a machine takes about two
+minutes, which a first ``auv-cosim run`` should not pay, and the DLL is untested on
+Windows); pythonfmu's library
 moves beside it as ``<id>_pythonfmu.so`` / ``.dll``. Two files go into ``resources/``:
 
 * ``python_runtime.txt``: the Python environment the FMU is built in (libpython, base
@@ -83,12 +86,18 @@ def zig() -> Toolchain | None:
     return Toolchain("zig", (sys.executable, "-m", "ziglang", "cc"), cross=True)
 
 
+def win64_wanted() -> bool:
+    """Whether the build cross-compiles the win64 loader too (``AUV_FMU_WIN64=1``)."""
+    return os.environ.get("AUV_FMU_WIN64") == "1"
+
+
 def source_digest() -> str:
     """SHA-256 of the loader's C sources and header (part of the FMUs' rebuild key), and
     which compiler would build it (an FMU built without one is rebuilt once there is)."""
     digest = hashlib.sha256()
     chain = toolchain()
     digest.update(f"compiler {chain.name if chain else 'none'}\n".encode())
+    digest.update(f"win64 {win64_wanted()}\n".encode())
     for name in (*SOURCES, *HEADERS):
         digest.update(f"{name}\n".encode() + (SOURCE_DIR / name).read_bytes())
     digest.update(runtime_record().encode())
@@ -162,13 +171,14 @@ def _number(start: str | None) -> str:
 def install_loader(fmu: Path, name: str) -> list[str]:
     """Put the loader in front of pythonfmu's binaries in the built ``fmu`` (model
     identifier ``name``), in place; return what it could not do, one line each (empty:
-    the loader is in for linux64, and for win64 when zig is installed)."""
+    the loader is in for linux64, and for win64 when asked for and zig is installed)."""
     chain = toolchain()
     if chain is None:
         return [NO_COMPILER]
     notes: list[str] = []
     loaders: dict[str, bytes] = {}
-    for platform, use in (("linux64", chain), ("win64", chain if chain.cross else zig())):
+    win64 = (chain if chain.cross else zig()) if win64_wanted() else None
+    for platform, use in (("linux64", chain), ("win64", win64)):
         if use is None:
             continue
         built = _compiled(use, platform)
