@@ -83,7 +83,7 @@ def checked(paths: dict[str, Path]) -> list[str]:
             v.type == "Real" and v.causality in ("input", "output", "parameter") and bool(v.unit)
             for v in variables
         )
-        step = (md.defaultExperiment.stepSize if md.defaultExperiment else None) or 0.01
+        step = float((md.defaultExperiment.stepSize if md.defaultExperiment else None) or 0.01)
         finite = sum(v.causality == "output" and v.type == "Real" for v in variables)
         lines.append(
             f"{name} ({Path(path).name}): fmpy's validation; {len(variables)} variables "
@@ -169,7 +169,7 @@ def _smoke_main(arguments: str) -> None:
     for name, path in json.loads(arguments).items():
         try:
             md = read_model_description(path)
-            step = (md.defaultExperiment.stepSize if md.defaultExperiment else None) or 0.01
+            step = float((md.defaultExperiment.stepSize if md.defaultExperiment else None) or 0.01)
             slave = FMU2Slave(
                 guid=md.guid,
                 unzipDirectory=extract(path),

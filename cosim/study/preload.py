@@ -11,3 +11,14 @@ plant's code sets numba's cache folder before numba is first imported).
 import fmpy.fmi2  # noqa: F401  (loaded once, now)
 
 import cosim.study.task  # noqa: F401  (the run's modules: runner, engine, outputs)
+
+
+def dask_setup(worker: object) -> None:
+    """A local worker ignores SIGINT: a Ctrl-C is the client's to handle, which ends the
+    study and its cluster (:mod:`cosim.study.signals`); the workers of a cluster started
+    on a thread (early, while the study is checked) do not inherit the client's ignoring."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -214,9 +214,8 @@ ECOS_CSV_PRECISION = 5e-7  # ecos writes 6 decimals: half a unit in the last one
 
 @pytest.mark.slow
 def test_the_ecos_command_line_runs_the_ssp_in_a_clean_environment(fmu_paths, tmp_path):
-    from cosim.run.scenario import load_scenario
-
     from cosim.export import export_ssp
+    from cosim.scenario.spec import load_scenario
 
     fmu_dir = fmu_paths["AuvPlant"].parent
     program, tbb = _ecos()

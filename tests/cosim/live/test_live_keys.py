@@ -57,6 +57,22 @@ class Terminal:
                     break
         raise AssertionError(f"no {pattern!r} in the terminal: {self.text[-2000:]!r}")
 
+    def time_shown(self) -> float:
+        """The simulated time (s) the status line shows last."""
+        return float(re.findall(r"t (\d+\.\d+) s", self.text)[-1])
+
+    def read_past(self, seconds: float) -> None:
+        """Read until the status line shows a time ``seconds`` past the one shown now: the
+        overrides requested before have then been applied at a communication point."""
+        target = self.time_shown() + seconds
+        deadline = time.monotonic() + TIMEOUT_S
+        while self.time_shown() < target:
+            if time.monotonic() > deadline:
+                raise AssertionError(f"the run did not reach t = {target} s: {self.text[-500:]!r}")
+            ready, _, _ = select.select([self.fd], [], [], 0.1)
+            if ready:
+                self.text += os.read(self.fd, 4096).decode("utf-8", "replace")
+
     def type(self, keys: str) -> None:
         os.write(self.fd, keys.encode())
 
@@ -78,6 +94,7 @@ def test_keys_change_the_set_points_and_q_ends_the_run(fmu_dir: Path, tmp_path: 
         terminal.read_until(r"yaw_sp \+10\.0 deg")
         terminal.type("\x1b[B")  # down: deeper by one step
         terminal.read_until(r"depth_sp 1\.0 m")
+        terminal.read_past(0.2)  # the three set-points applied before the run is ended
         terminal.type("1")  # heading mode: a fixed parameter of the autopilot
         terminal.read_until(r"heading_mode is a fixed parameter")
         terminal.type("q")

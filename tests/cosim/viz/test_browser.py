@@ -69,7 +69,7 @@ def folders(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
     base = tmp_path_factory.mktemp("browser")
     run = cosim.run("bs-3", stop_time=3.0, out=base / "run", fmu_dir=fmu_dir)
     report = write_report(run.out_dir)
-    study = {"scenario": "bs-3", "stop_time": 1.0, "grid": {"plant.v_0": [-0.1, 0.1]}}
+    study = {"scenario": "bs-3", "stop_time": 1.0, "grid": {"plant.v_0": [-0.1, 0.05]}}
     done = cosim.sweep(study, workers=1, out=base / "study", overlay=2, fmu_dir=fmu_dir)
     assert (done.out_dir / "overlay.rrd").is_file()
     pages = {"run": report, "study": done.out_dir / "index.html"}
