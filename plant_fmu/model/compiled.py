@@ -11,8 +11,8 @@ takes every coefficient and matrix from the model itself: nothing is re-typed). 
 (the two differ only in the rounding of the matrix products, which numpy hands to BLAS).
 
 The step works on the stepping state of :mod:`plant_fmu.model.state_layout` (the state
-and the attitude quaternion, 18 values): the full variant integrates the quaternion
-(``PlantModel.step_derivative``), the planar variants their Euler angles;
+and the attitude quaternion, 18 values), each sub-step in the attitude chart
+``stepping.uses_quaternion`` picks (``PlantModel.step_derivative``);
 :func:`derivative_into` is ``PlantModel.derivative`` (Euler angles) for the analysis tools.
 
 Covered: the three variants, ideal fluid, current shear, and the dissertation's moving
@@ -31,7 +31,7 @@ import numpy as np
 
 from plant_fmu.model.dynamics import PlantModel
 from plant_fmu.model.jit import load_numba
-from plant_fmu.model.state_layout import N_STATES, N_STEP_STATES
+from plant_fmu.model.state_layout import N_STATES, N_STEP_STATES, QUATERNION_CHART_PITCH
 
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
@@ -377,11 +377,13 @@ def step_derivative_into(
     R: np.ndarray,
     work: np.ndarray,
     dz: np.ndarray,
+    quaternion: bool,
 ) -> None:
-    """The stepping state's derivative into dz (``PlantModel.step_derivative``): the full
-    variant's quaternion q_dot = 1/2 q (x) [0, omega], Euler entries still; the planar
-    variants' Euler angles (:func:`derivative_into`), quaternion still."""
-    if p[VARIANT] != 0.0:
+    """The stepping state's derivative into dz in one attitude chart
+    (``PlantModel.step_derivative``): with ``quaternion`` (full variant) q_dot =
+    1/2 q (x) [0, omega], Euler entries still; else :func:`derivative_into`, quaternion
+    still."""
+    if not quaternion:
         derivative_into(p, z, inputs, R, work, dz)
         for i in range(14, 18):
             dz[i] = 0.0
@@ -499,13 +501,34 @@ def _start(x: np.ndarray, z: np.ndarray) -> bool:
 
 
 @_jit
+def _stage(
+    p: np.ndarray,
+    z: np.ndarray,
+    k: np.ndarray,
+    scale: float,
+    inputs: np.ndarray,
+    scratch: tuple[np.ndarray, np.ndarray, np.ndarray],
+    out: np.ndarray,
+    quaternion: bool,
+) -> None:
+    """An RK4 stage: out = the derivative at z + scale k, projected; ``scratch`` holds R
+    (3x3), work (5x6) and the stage state (18)."""
+    R, work, y = scratch
+    for i in range(18):
+        y[i] = z[i] + scale * k[i]
+    project(p, y, False)
+    step_derivative_into(p, y, inputs, R, work, out, quaternion)
+
+
+@_jit
 def advance_into(
     p: np.ndarray, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float
 ) -> int:
     """z = the stepping state n RK4 steps of dt seconds after x (a state or a stepping
-    state), projected after each stage, the attitude refreshed at the end, like
-    ``stepping.advance``. Returns 0, or 1 for a non-finite input, 2 for a non-finite state
-    or a zero quaternion, 3 for a state that became non-finite."""
+    state), projected after each stage, each sub-step in the attitude chart its start
+    picks and the other chart refreshed at its end, like ``stepping.advance``. Returns 0,
+    or 1 for a non-finite input, 2 for a non-finite state or a zero quaternion, 3 for a
+    state that became non-finite."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
             return 1
@@ -514,35 +537,28 @@ def advance_into(
             return 2
     if not _start(x, z):
         return 2
-    a0, a1, a2 = z[3], z[4], z[5]
-    R, work = np.empty((3, 3)), np.empty((5, 6))
-    k1, k2, k3, k4, y = np.empty(18), np.empty(18), np.empty(18), np.empty(18), np.empty(18)
+    R, work, y = np.empty((3, 3)), np.empty((5, 6)), np.empty(18)
+    scratch = (R, work, y)
+    k1, k2, k3, k4 = np.empty(18), np.empty(18), np.empty(18), np.empty(18)
     half, sixth = 0.5 * dt, dt / 6.0
     project(p, z, False)
     for _ in range(n):
-        step_derivative_into(p, z, inputs, R, work, k1)
-        for i in range(18):
-            y[i] = z[i] + half * k1[i]
-        project(p, y, False)
-        step_derivative_into(p, y, inputs, R, work, k2)
-        for i in range(18):
-            y[i] = z[i] + half * k2[i]
-        project(p, y, False)
-        step_derivative_into(p, y, inputs, R, work, k3)
-        for i in range(18):
-            y[i] = z[i] + dt * k3[i]
-        project(p, y, False)
-        step_derivative_into(p, y, inputs, R, work, k4)
+        quaternion = p[VARIANT] == 0.0 and abs(z[4]) > QUATERNION_CHART_PITCH
+        a0, a1, a2 = z[3], z[4], z[5]
+        step_derivative_into(p, z, inputs, R, work, k1, quaternion)
+        _stage(p, z, k1, half, inputs, scratch, k2, quaternion)
+        _stage(p, z, k2, half, inputs, scratch, k3, quaternion)
+        _stage(p, z, k3, dt, inputs, scratch, k4, quaternion)
         for i in range(18):
             z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
         project(p, z, True)
+        if quaternion:
+            _euler_from_quaternion(z, R, a0, a1, a2)
+        else:
+            _quaternion_from_euler(z[3], z[4], z[5], z)
     for i in range(18):
         if not math.isfinite(z[i]):
             return 3
-    if p[VARIANT] == 0.0:
-        _euler_from_quaternion(z, R, a0, a1, a2)
-    else:
-        _quaternion_from_euler(z[3], z[4], z[5], z)
     return 0
 
 
@@ -555,7 +571,10 @@ def outputs_into(
     1/2 nu_r^T (M_RB + M_A) nu_r (``PlantModel.kinetic_energy``, model 0), J."""
     v0, v1, v2 = inputs[5] + p[SHEAR] * z[1], inputs[6], inputs[7]
     if p[VARIANT] == 0.0:
-        _quaternion_rotation(z, R)
+        if abs(z[4]) > QUATERNION_CHART_PITCH:  # the chart the stepping integrates there
+            _quaternion_rotation(z, R)
+        else:
+            _rotation(z[3], z[4], z[5], R)
         c0 = R[0, 0] * v0 + R[1, 0] * v1 + R[2, 0] * v2
         c1 = R[0, 1] * v0 + R[1, 1] * v1 + R[2, 1] * v2
         c2 = R[0, 2] * v0 + R[1, 2] * v1 + R[2, 2] * v2
@@ -589,10 +608,10 @@ class CompiledPlant:
         derivative_into(self.parameters, x, inputs, self._R, self._work, dx)
         return dx
 
-    def step_derivative(self, z: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+    def step_derivative(self, z: np.ndarray, inputs: np.ndarray, quaternion: bool) -> np.ndarray:
         """``PlantModel.step_derivative`` (a new array)."""
         dz = np.empty(N_STEP_STATES)
-        step_derivative_into(self.parameters, z, inputs, self._R, self._work, dz)
+        step_derivative_into(self.parameters, z, inputs, self._R, self._work, dz, quaternion)
         return dz
 
     def outputs(self, z: np.ndarray, inputs: np.ndarray) -> list[float]:

@@ -34,12 +34,12 @@ Attitude: :meth:`PlantModel.derivative` writes the state with Euler angles and t
 rates T(eta2) omega (2.2.15), the form the dissertation linearises and every analysis tool
 (equilibria, continuation, the controllers' linearisations) differentiates: near their
 operating points T is regular and the gains they get are the dissertation's. T is singular
-at pitch +-90 deg, so the stepping (:mod:`plant_fmu.model.stepping`) integrates the full
-variant's attitude as a unit quaternion instead (:meth:`PlantModel.step_derivative`, the
-same forces from the same rotation matrix) and refreshes the Euler angles from it after
-every step. The lateral and horizontal variants keep integrating Euler angles: their
-pitch is frozen at 0 (no singularity), and their frozen attitude does not turn as the body
-rates say (psi' = r cos phi with theta held), which a quaternion could not follow.
+at pitch +-90 deg, so beyond 70 deg of pitch the stepping (:mod:`plant_fmu.model.stepping`)
+integrates the full variant's attitude as a unit quaternion instead
+(:meth:`PlantModel.step_derivative`, the same forces from the same rotation matrix) and
+refreshes the Euler angles from it after every sub-step (below 70 deg it integrates the
+Euler angles, as the lateral and horizontal variants always do:
+:func:`plant_fmu.model.stepping.uses_quaternion` says why).
 """
 
 from __future__ import annotations
@@ -87,8 +87,10 @@ from plant_fmu.model.state_layout import (
     MASS_COMMAND,
     N_STEP_STATES,
     NU,
+    PITCH,
     POSITION,
     QUATERNION,
+    QUATERNION_CHART_PITCH,
     STATE,
 )
 from plant_fmu.model.state_layout import INPUT_INDEX as INPUT_INDEX
@@ -199,9 +201,14 @@ class PlantModel:
         return v_c
 
     def rotation(self, x: np.ndarray) -> np.ndarray:
-        """Body-to-earth rotation R of a state (Euler angles, 2.2.8) or of a stepping state
-        of the full variant (its quaternion, which stays accurate at pitch +-90 deg)."""
-        if len(x) == N_STEP_STATES and self.variant is Variant.FULL:
+        """Body-to-earth rotation R of a state (Euler angles, 2.2.8) or of a stepping state,
+        from the attitude chart the stepping integrates there: the full variant's
+        quaternion beyond ``QUATERNION_CHART_PITCH`` (accurate at pitch +-90 deg)."""
+        if (
+            len(x) == N_STEP_STATES
+            and self.variant is Variant.FULL
+            and abs(float(x[PITCH])) > QUATERNION_CHART_PITCH
+        ):
             return quaternion_rotation_matrix(x[QUATERNION])
         return rotation_matrix(x[3], x[4], x[5])
 
@@ -351,13 +358,13 @@ class PlantModel:
             dx[self._frozen_pose] = 0.0
         return dx
 
-    def step_derivative(self, z: np.ndarray, inputs: np.ndarray) -> np.ndarray:
-        """Derivative of a stepping state (``STEP_STATE_NAMES``). Full variant: the
-        attitude is the quaternion, q_dot = 1/2 q (x) [0, omega], and the Euler entries do
-        not move (the stepping refreshes them from q); lateral and horizontal variants:
-        :meth:`derivative`, with a quaternion that does not move."""
+    def step_derivative(self, z: np.ndarray, inputs: np.ndarray, quaternion: bool) -> np.ndarray:
+        """Derivative of a stepping state (``STEP_STATE_NAMES``) in one attitude chart
+        (the other chart's entries do not move; the stepping refreshes them). ``quaternion``
+        (full variant only): q_dot = 1/2 q (x) [0, omega], the forces from R(q); else
+        :meth:`derivative` on the Euler angles."""
         dz = np.zeros(N_STEP_STATES)
-        if self.variant is not Variant.FULL:
+        if not quaternion:
             dz[STATE] = self.derivative(z[STATE], inputs)
             return dz
         q = z[QUATERNION]

@@ -10,9 +10,10 @@ Two state vectors (SI, angles in rad):
 
 * the *stepping state* (``STEP_STATE_NAMES``, 18 values): the state followed by the unit
   quaternion [q_w, q_x, q_y, q_z] of the body-to-earth rotation (Hamilton convention,
-  scalar first). :mod:`plant_fmu.model.stepping` integrates the attitude of the full
-  6-DOF variant as this quaternion (no singularity at pitch +-90 deg) and refreshes the
-  Euler angles from it after every step.
+  scalar first). The two describe one attitude; :mod:`plant_fmu.model.stepping`
+  integrates one of them (the *chart*) and refreshes the other after every sub-step: the
+  Euler angles while |pitch| <= ``QUATERNION_CHART_PITCH``, the quaternion beyond it (the
+  full 6-DOF variant only: no singularity at pitch +-90 deg).
 
 Inputs (``INPUT_NAMES``), held constant over a step::
 
@@ -59,6 +60,14 @@ MASS_POSITION = 12  # y_v
 MASS_VELOCITY = 13  # y_v'
 STATE = slice(0, N_STATES)  # the state within the stepping state
 QUATERNION = slice(N_STATES, N_STEP_STATES)  # [q_w, q_x, q_y, q_z] in the stepping state
+PITCH = 4  # theta, within EULER
+
+# Beyond this |pitch| (rad) the full variant's sub-steps integrate the quaternion, below it
+# the Euler angles. Why a switch, not the quaternion everywhere: both are exact, but RK4
+# truncates them differently (~1e-6 over a minute of chattering thruster), and below 70 deg
+# the Euler angles give every earlier result bit for bit (the built-in scenarios reach 58
+# deg); near 90 deg their rates grow as 1/cos(pitch) and stop at the singularity.
+QUATERNION_CHART_PITCH = 1.2217304763960306  # 70 deg
 
 # inputs
 ACTUATORS = slice(0, 5)  # thrust ... mass_position_cmd

@@ -20,11 +20,13 @@ adaptive ``solve_ivp``:
 The number of sub-steps is ceil(h / max_substep); the default 10 ms makes a 10 ms
 communication step one RK4 step, and users who want more accuracy lower ``max_substep``.
 
-What is integrated is the stepping state (:mod:`plant_fmu.model.state_layout`): the
-full variant's attitude as a unit quaternion, normalised after every sub-step, its Euler
-angles refreshed from it after the step (:func:`refresh_attitude`), so a vehicle passes
-pitch +-90 deg (see :mod:`plant_fmu.model.dynamics` for why the derivative the analysis
-tools use keeps Euler angles). With the two-body moving mass a sub-step in which the mass
+What is integrated is the stepping state (:mod:`plant_fmu.model.state_layout`). Each
+sub-step integrates the attitude in one chart, chosen at its start (:func:`uses_quaternion`):
+the Euler angles, or, for the full variant beyond ``QUATERNION_CHART_PITCH``, the unit
+quaternion (normalised), so a vehicle passes pitch +-90 deg; the other chart is refreshed
+from it at the sub-step's end (:func:`_sync_attitude`). See
+:mod:`plant_fmu.model.dynamics` for why the derivative the analysis tools use keeps Euler
+angles. With the two-body moving mass a sub-step in which the mass
 reaches a stop ends at its arrival (:func:`_substep_through_stop`).
 """
 
@@ -34,7 +36,6 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import brentq
 
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.kinematics import euler_from_quaternion, quaternion_from_euler
@@ -45,7 +46,9 @@ from plant_fmu.model.state_layout import (
     N_INPUTS,
     N_STATES,
     N_STEP_STATES,
+    PITCH,
     QUATERNION,
+    QUATERNION_CHART_PITCH,
     STATE,
     STEP_STATE_NAMES,
 )
@@ -87,12 +90,20 @@ def stepping_state(x: np.ndarray) -> np.ndarray:
     return z
 
 
-def refresh_attitude(model: PlantModel, z: np.ndarray, previous: np.ndarray) -> None:
-    """Make a stepping state's two attitudes agree, in place, from the one the variant
-    integrates: the full variant's Euler angles from its quaternion (the triple nearest
-    ``previous``, so they run on continuously: ``kinematics.euler_from_quaternion``), the
-    planar variants' quaternion from their Euler angles."""
-    if model.variant is Variant.FULL:
+def uses_quaternion(model: PlantModel, z: np.ndarray) -> bool:
+    """Whether a sub-step from the stepping state ``z`` integrates the quaternion (the full
+    variant beyond ``QUATERNION_CHART_PITCH``) rather than the Euler angles. The planar
+    variants always keep Euler angles: their pitch is frozen at 0, and their frozen
+    attitude does not turn as the body rates say (psi' = r cos phi with theta held), which
+    a quaternion could not follow."""
+    return model.variant is Variant.FULL and abs(float(z[PITCH])) > QUATERNION_CHART_PITCH
+
+
+def _sync_attitude(z: np.ndarray, quaternion: bool, previous: np.ndarray) -> None:
+    """Refresh, in place, the chart a sub-step did not integrate: the Euler angles from the
+    quaternion (the triple nearest ``previous``, so they run on continuously:
+    ``kinematics.euler_from_quaternion``), or the quaternion from the Euler angles."""
+    if quaternion:
         z[EULER] = euler_from_quaternion(z[QUATERNION].tolist(), previous.tolist())
     else:
         z[QUATERNION] = quaternion_from_euler(*z[EULER].tolist())
@@ -110,11 +121,11 @@ def advance(
 
     Args:
         model: the plant.
-        x: a state (``STATE_NAMES``) or a stepping state (``STEP_STATE_NAMES``, whose
-            quaternion is the full variant's attitude, while its Euler angles only say
-            which of the equivalent triples to continue from); not modified. Callers that
-            step through pitch +-90 deg carry the stepping state: a state's Euler angles
-            hold the attitude there only to about 1e-16 / cos(pitch).
+        x: a state (``STATE_NAMES``) or a stepping state (``STEP_STATE_NAMES``, its two
+            attitudes in agreement, as every step leaves them; the first sub-step
+            integrates the chart :func:`uses_quaternion` picks); not modified. Callers
+            that step through pitch +-90 deg carry the stepping state: a state's Euler
+            angles hold the attitude there only to about 1e-16 / cos(pitch).
         inputs: inputs, ``INPUT_NAMES`` order.
         h: step, s (> 0).
         max_substep: longest internal RK4 step, s (> 0).
@@ -150,7 +161,6 @@ def advance(
     check_finite(x, STEP_STATE_NAMES, "state")
     check_finite(inputs, INPUT_NAMES, "input")
     z = stepping_state(x)
-    previous = z[EULER].copy()
     # An input far outside the model's range (a fault's gain of 1e308) overflows on the way:
     # the check below says so in one line, numpy's warnings would reach the host's stderr.
     with np.errstate(all="ignore"):
@@ -158,36 +168,49 @@ def advance(
         for _ in range(n):
             z = _substep(model, z, inputs, dt)
     check_finite(z, STEP_STATE_NAMES, "state after the step:")
-    refresh_attitude(model, z, previous)
     return z if len(x) == N_STEP_STATES else z[STATE]
 
 
-def _rk4(model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
-    """One classical RK4 step of dt seconds on a stepping state, each stage projected."""
-    f, stage = model.step_derivative, model.project
-    k1 = f(z, inputs)
-    k2 = f(stage(z + 0.5 * dt * k1), inputs)
-    k3 = f(stage(z + 0.5 * dt * k2), inputs)
-    k4 = f(stage(z + dt * k3), inputs)
+def _rk4(
+    model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float, quaternion: bool
+) -> np.ndarray:
+    """One classical RK4 step of dt seconds on a stepping state in one attitude chart
+    (:func:`uses_quaternion`), each stage projected."""
+    stage = model.project
+
+    def f(s: np.ndarray) -> np.ndarray:
+        return model.step_derivative(s, inputs, quaternion)
+
+    k1 = f(z)
+    k2 = f(stage(z + 0.5 * dt * k1))
+    k3 = f(stage(z + 0.5 * dt * k2))
+    k4 = f(stage(z + dt * k3))
     end: np.ndarray = z + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
     return end
 
 
 def _substep(model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
-    """One RK4 sub-step, the constraints enforced at its end (a stop's impact included)."""
-    end = _rk4(model, z, inputs, dt)
+    """One RK4 sub-step, the constraints enforced at its end (a stop's impact included),
+    the attitude chart it did not integrate refreshed."""
+    quaternion = uses_quaternion(model, z)
+    end = _rk4(model, z, inputs, dt, quaternion)
     stroke = model.params.mass_stroke
     arrival = end[MASS_POSITION]
     if model.two_body and abs(arrival) > stroke > abs(z[MASS_POSITION]):
-        return _substep_through_stop(model, z, inputs, dt, math.copysign(stroke, arrival))
-    return model.project(end, collide=True)
+        stop = math.copysign(stroke, arrival)
+        end = _substep_through_stop(model, z, inputs, dt, stop, quaternion)
+    else:
+        end = model.project(end, collide=True)
+    _sync_attitude(end, quaternion, z[EULER])
+    return end
 
 
 def _substep_through_stop(
-    model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float, stop: float
+    model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float, stop: float, quaternion: bool
 ) -> np.ndarray:
     """A two-body sub-step in which the mass reaches ``stop`` (m): integrate to the moment
-    it arrives, let it hit the stop there, then integrate the rest of the sub-step.
+    it arrives, let it hit the stop there, then integrate the rest of the sub-step (in the
+    attitude chart ``quaternion`` says).
 
     Why: projecting an overshot mass back onto the stop at the step's end moves it without
     the time that takes; with the two-body model's mass matrix M(y_v) that shift changes
@@ -199,18 +222,22 @@ def _substep_through_stop(
     the way (:attr:`PlantModel.without_stops`): stage states a hair past the stop must not
     be held there.
     """
+    # imported here: scipy.optimize takes ~0.6 s to import, which every process that
+    # steps the plant would pay, while only a two-body run that hits a stop calls it
+    from scipy.optimize import brentq
+
     free = model.without_stops
 
     def gap(length: float) -> float:
-        return float(_rk4(free, z, inputs, length)[MASS_POSITION] - stop)
+        return float(_rk4(free, z, inputs, length, quaternion)[MASS_POSITION] - stop)
 
     if gap(dt) * stop <= 0.0:  # with the stops out of the way it does not get there
-        return model.project(_rk4(model, z, inputs, dt), collide=True)
+        return model.project(_rk4(model, z, inputs, dt, quaternion), collide=True)
     arrival = brentq(gap, 0.0, dt, xtol=1e-15, rtol=4.0 * np.finfo(float).eps)
-    z = model.project(_rk4(free, z, inputs, arrival), collide=True)
+    z = model.project(_rk4(free, z, inputs, arrival, quaternion), collide=True)
     if dt - arrival <= 0.0:
         return z
-    return model.project(_rk4(model, z, inputs, dt - arrival), collide=True)
+    return model.project(_rk4(model, z, inputs, dt - arrival, quaternion), collide=True)
 
 
 def simulate(
