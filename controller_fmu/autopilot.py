@@ -59,6 +59,12 @@ COMMAND_NAMES: tuple[str, ...] = ("mass_position_cmd", "tunnel_force", "fin_angl
 COMMAND_UNITS: tuple[str, ...] = ("m", "N", "rad", "N")
 
 
+# What an importer may change while a run goes on (FMI tunable parameters), taking effect
+# at the next step: the heading law switches (designed then, its state fresh) and the
+# moving mass locks (or, with a negative time, is released).
+TUNABLE_PARAMETERS: tuple[str, ...] = ("heading_mode", "mass_lock_time")
+
+
 class AutopilotConfigError(ValueError):
     """An autopilot parameter is out of range (the message names it and what is allowed)."""
 
@@ -312,6 +318,27 @@ def _clip(value: float, limit: float) -> float:
     return min(max(value, -limit), limit)
 
 
+def _design_heading_controller(
+    mode: HeadingMode, c: AutopilotConfig, design: LateralDesignModel
+) -> tuple[LqrHeading | None, SlidingModeHeading | None, BacksteppingHeading | None]:
+    """The controller ``mode`` selects, designed for ``c`` on the plant's linearisation
+    ``design``, in its slot of (LQR, sliding mode, backstepping); None elsewhere."""
+    q_y = (c.lqr_q_r, c.lqr_q_p, c.lqr_q_roll, c.lqr_q_yaw, c.lqr_q_mass_position,
+           c.lqr_q_mass_velocity)  # fmt: skip
+    if mode is HeadingMode.LQR:
+        return LqrHeading(design, c.design_step, q_y, c.lqr_r), None, None
+    if mode is HeadingMode.SLIDING_MODE:
+        eta, layer = c.smc_eta, c.smc_boundary_layer
+        return None, SlidingModeHeading(design, c.design_step, eta, layer, q_y, c.lqr_r), None
+    if mode is HeadingMode.BACKSTEPPING:
+        gains = BacksteppingGains(
+            c.k0, c.k1, c.k2, c.k3, c.k4,
+            c.eta0, c.thruster_boundary_layer, c.command_filter_frequency,
+        )  # fmt: skip
+        return None, None, BacksteppingHeading(design, gains)
+    return None, None, None
+
+
 class Autopilot:
     """The sampled autopilot of Ch. 6.
 
@@ -330,13 +357,11 @@ class Autopilot:
         self.config = config
         self.params = load_vehicle(config.vehicle, folder=vehicles)
         self.design = LateralDesignModel(self.params, config.design_speed)
-        self.heading_mode = HeadingMode(config.heading_mode)
-        self.lqr: LqrHeading | None = None
-        self.sliding_mode: SlidingModeHeading | None = None
-        self.backstepping: BacksteppingHeading | None = None
-        self._heading_law = self._design_heading_law()
-        # True if the heading law's gains hold only at the sample time design_step.
-        self.designed_for_step = self.heading_mode in (HeadingMode.LQR, HeadingMode.SLIDING_MODE)
+        self.lqr: LqrHeading | None
+        self.sliding_mode: SlidingModeHeading | None
+        self.backstepping: BacksteppingHeading | None
+        self._heading_law: HeadingLaw
+        self._use_heading_mode(config)
         self.depth: DepthPd | None = None
         if DepthMode(config.depth_mode) is DepthMode.PD:
             self.depth = DepthPd(
@@ -344,31 +369,50 @@ class Autopilot:
             )
         self.reset()
 
-    def _design_heading_law(self) -> HeadingLaw:
-        """Design the controller ``heading_mode`` selects (once) and return its law."""
-        c = self.config
-        q_y = (c.lqr_q_r, c.lqr_q_p, c.lqr_q_roll, c.lqr_q_yaw, c.lqr_q_mass_position,
-               c.lqr_q_mass_velocity)  # fmt: skip
-        if self.heading_mode is HeadingMode.LQR:
-            self.lqr = LqrHeading(self.design, c.design_step, q_y, c.lqr_r)
-            return _mass_only(self.lqr.command)
-        if self.heading_mode is HeadingMode.SLIDING_MODE:
-            self.sliding_mode = SlidingModeHeading(
-                self.design, c.design_step, c.smc_eta, c.smc_boundary_layer, q_y, c.lqr_r
+    def retune(self, **values: Any) -> None:
+        """Change tunable parameters (:data:`TUNABLE_PARAMETERS`) between steps: a new
+        ``heading_mode`` designs its law now and starts it fresh (the backstepping's filters
+        from zero); ``mass_lock_time`` applies from the next step.
+
+        Raises:
+            AutopilotConfigError: a name that is not tunable, or a value out of range.
+            ValueError: the new law cannot be designed; the autopilot is then unchanged.
+        """
+        fixed = sorted(set(values) - set(TUNABLE_PARAMETERS))
+        if fixed:
+            raise AutopilotConfigError(
+                f"{', '.join(fixed)}: not tunable while running (tunable: "
+                f"{', '.join(TUNABLE_PARAMETERS)})"
             )
-            return _mass_only(self.sliding_mode.command)
-        if self.heading_mode is HeadingMode.BACKSTEPPING:
-            gains = BacksteppingGains(
-                c.k0, c.k1, c.k2, c.k3, c.k4,
-                c.eta0, c.thruster_boundary_layer, c.command_filter_frequency,
-            )  # fmt: skip
-            self.backstepping = BacksteppingHeading(self.design, gains)
-            return self._backstepping_law
-        return _no_heading_control
+        config = AutopilotConfig.build(**{**self.config.model_dump(), **values})
+        if config.heading_mode == self.config.heading_mode:
+            self.config = config
+            return
+        self._use_heading_mode(config)
+        if self.backstepping is not None:
+            self.backstepping.reset()
+
+    def _use_heading_mode(self, config: AutopilotConfig) -> None:
+        """Take ``config`` with the heading law its ``heading_mode`` selects, designed now
+        (the autopilot is unchanged if the design fails)."""
+        mode = HeadingMode(config.heading_mode)
+        lqr, sliding_mode, backstepping = _design_heading_controller(mode, config, self.design)
+        self.config, self.heading_mode = config, mode
+        self.lqr, self.sliding_mode, self.backstepping = lqr, sliding_mode, backstepping
+        if lqr is not None:
+            self._heading_law = _mass_only(lqr.command)
+        elif sliding_mode is not None:
+            self._heading_law = _mass_only(sliding_mode.command)
+        elif backstepping is not None:
+            self._heading_law = self._backstepping_law
+        else:
+            self._heading_law = _no_heading_control
+        # True if the heading law's gains hold only at the sample time design_step.
+        self.designed_for_step = mode in (HeadingMode.LQR, HeadingMode.SLIDING_MODE)
 
     def _backstepping_law(self, time: float, x: tuple[float, ...]) -> tuple[float, float]:
         v, r, p, phi, psi_e, y_v, _ = x
-        assert self.backstepping is not None, "set with this law by _design_heading_law"
+        assert self.backstepping is not None, "set with this law by _use_heading_mode"
         return self.backstepping.command_values(time, v, r, p, phi, psi_e, y_v)
 
     def reset(self) -> None:

@@ -11,8 +11,10 @@ Inputs (Real, named like the plant's outputs; start 0):
 Outputs (Real, named like the plant's inputs):
     mass_position_cmd (m), tunnel_force (N), fin_angle (rad), thrust (N; start 9)
 
-Parameters (all fixed; names, units, defaults, descriptions and ranges (``min``/``max``;
-a write outside is refused) come from :class:`controller_fmu.autopilot.AutopilotConfig`):
+Parameters (names, units, defaults, descriptions and ranges (``min``/``max``; a write
+outside is refused) come from :class:`controller_fmu.autopilot.AutopilotConfig`; all fixed
+but ``heading_mode`` and ``mass_lock_time``, tunable: a new value takes effect at the next
+doStep, see :data:`controller_fmu.autopilot.TUNABLE_PARAMETERS`):
     heading_mode (Integer: 0 off, 1 LQR, 2 sliding mode, 3 backstepping + tunnel thruster)
     depth_mode (Integer: 0 off, 1 PD pitch + P depth)
     mass_lock_time (s; < 0 never), compensate_current (Boolean), design_speed (m/s, 1.525),
@@ -62,6 +64,7 @@ from controller_fmu.autopilot import (
     COMMAND_UNITS,
     MEASUREMENT_NAMES,
     MEASUREMENT_UNITS,
+    TUNABLE_PARAMETERS,
     Autopilot,
     AutopilotConfig,
     AutopilotSnapshot,
@@ -146,7 +149,6 @@ class AuvAutopilot(SafeSlave):
                 ),
                 unit=unit,
             )
-        fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         for name, field in AutopilotConfig.model_fields.items():
             kinds: dict[object, Any] = {int: Integer, bool: Boolean, str: String, float: Real}
             kind = kinds[field.annotation]
@@ -155,7 +157,10 @@ class AuvAutopilot(SafeSlave):
                 description=field.description,
                 getter=item_getter(self._params, name),
                 setter=item_setter(self._params, name),
-                **fixed,
+                causality=Fmi2Causality.parameter,
+                variability=Fmi2Variability.tunable
+                if name in TUNABLE_PARAMETERS
+                else Fmi2Variability.fixed,
             )
             minimum, maximum = field_bounds(field) if kind is Real else (None, None)
             self.register(
@@ -189,23 +194,34 @@ class AuvAutopilot(SafeSlave):
                 Fmi2Status.warning,
             )
             self._step_warned = True
+        tuned = {n: self._params[n] for n in TUNABLE_PARAMETERS}
+        if any(getattr(autopilot.config, n) != value for n, value in tuned.items()):
+            autopilot.retune(**tuned)  # unchanged if it fails: the step is discarded
         # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
         # the step with its state unchanged
         self._outputs[:] = autopilot.step(current_time, self._inputs)
 
     def _state_snapshot(self) -> dict[str, Any]:
-        state: dict[str, Any] = {"outputs": list(self._outputs), "warned": self._step_warned}
+        state: dict[str, Any] = {
+            "outputs": list(self._outputs),
+            "warned": self._step_warned,
+            "tuned": {name: self._params[name] for name in TUNABLE_PARAMETERS},
+        }
         if self._autopilot is not None:
             state["autopilot"] = self._autopilot.snapshot().to_json()
+            # the tunable values in effect (a value set since the last step applies at the next)
+            config = self._autopilot.config
+            state["applied"] = {name: getattr(config, name) for name in TUNABLE_PARAMETERS}
         return state
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
         self._outputs[:] = snapshot["outputs"]
         self._step_warned = snapshot["warned"]
+        self._params.update(snapshot["tuned"])
         saved = snapshot.get("autopilot")
         if saved is None:
             return
-        config = AutopilotConfig.build(**self._params)
+        config = AutopilotConfig.build(**{**self._params, **snapshot["applied"]})
         if self._autopilot is None or self._autopilot.config != config:
             self._autopilot = Autopilot(config, self._vehicles)
         self._autopilot.restore(AutopilotSnapshot.from_json(saved))

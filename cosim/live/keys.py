@@ -6,16 +6,17 @@ key        what it does (each change is an override, checked and logged)
 <- / ->    yaw set-point -/+ :data:`YAW_STEP` (``<instance>.yaw_setpoint``)
 up / down  depth set-point -/+ :data:`DEPTH_STEP` (up: shallower; ``.depth_setpoint``)
 0 .. 3     heading mode (``.heading_mode``: 0 off, 1 LQR, 2 sliding mode, 3 backstepping)
-m          lock the moving mass (``.mass_lock_time`` = now)
+m          lock the moving mass at the centre (``.mass_lock_time`` = now); again: release (-1)
 p          pause / resume
 q          end the run like Ctrl-C (partial results, exit code 130)
 =========  =====================================================================
 
 The set-points belong to the first instance with that input unconnected (the autopilot
-``controller`` of the built-in scenarios). A value the FMU does not take while running
-(the autopilot declares ``heading_mode`` and ``mass_lock_time`` fixed parameters) is
-refused like any override; the status line shows the reason. The status line (stderr)
-shows the set-points, the simulated time, the real-time factor and the last message.
+``controller`` of the built-in scenarios), whose tunable parameters ``heading_mode`` and
+``mass_lock_time`` take effect at its next step. A value the FMU does not take while
+running is refused like any override; the status line shows the reason. The status line
+(stderr) shows the set-points, the heading mode, the mass (free or locked), the simulated
+time, the real-time factor and the last message.
 
 The terminal is put in cbreak mode (``tty.setcbreak``: keys arrive one by one, Ctrl-C still
 sends SIGINT) and restored by :meth:`KeyPad.close` -- and at interpreter exit if that was
@@ -67,8 +68,8 @@ def _owner(scenario: Scenario, variable: str) -> str:
     return (free or having or list(scenario.instances))[0]
 
 
-def _number(value: object) -> float:
-    return float(value) if isinstance(value, int | float) else 0.0
+def _number(value: object, default: float) -> float:
+    return float(value) if isinstance(value, int | float) else default
 
 
 class KeyPad:
@@ -90,7 +91,8 @@ class KeyPad:
         controller = _owner(scenario, "yaw_setpoint")
         names = ("yaw_setpoint", "depth_setpoint", "heading_mode", "mass_lock_time")
         self.refs = {name: f"{controller}.{name}" for name in names}
-        self.values = {name: _number(scenario.start_value(controller, name)) for name in names[:2]}
+        unset = dict(zip(names, (0.0, 0.0, 0.0, -1.0), strict=True))  # off, for a missing one
+        self.values = {n: _number(scenario.start_value(controller, n), unset[n]) for n in names}
         self.message = "keys: <- -> yaw, up/down depth, 0-3 mode, m mass, p pause, q quit"
         self._saved = termios.tcgetattr(self.fd)
         self._done = threading.Event()
@@ -148,7 +150,8 @@ class KeyPad:
         elif key in "0123" and len(key) == 1:
             self._set("heading_mode", int(key))
         elif key == "m":
-            self._set("mass_lock_time", self.live.time or 0.0)
+            locked = self.values["mass_lock_time"] >= 0.0
+            self._set("mass_lock_time", -1.0 if locked else (self.live.time or 0.0))
         self.draw()
 
     def _set(self, name: str, value: float | int) -> None:
@@ -168,6 +171,11 @@ class KeyPad:
         yaw, depth = math.degrees(self.values["yaw_setpoint"]), self.values["depth_setpoint"]
         rt = f"  {self.status()}" if self.status is not None else ""
         clock = "-" if t is None else f"{t:.2f}"
-        line = f"yaw_sp {yaw:+.1f} deg  depth_sp {depth:.1f} m  t {clock} s{rt}  | {self.message}"
+        mode = int(self.values["heading_mode"])
+        mass = "locked" if self.values["mass_lock_time"] >= 0.0 else "free"
+        line = (
+            f"yaw_sp {yaw:+.1f} deg  depth_sp {depth:.1f} m  mode {mode}  mass {mass}  "
+            f"t {clock} s{rt}  | {self.message}"
+        )
         self.out.write(f"\r\x1b[K{line}")
         self.out.flush()

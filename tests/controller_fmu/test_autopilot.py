@@ -172,6 +172,44 @@ def test_snapshot_and_restore_continue_bit_identically(remus):
     assert replay() == first
 
 
+def test_a_heading_mode_switched_while_running_starts_as_a_fresh_autopilot(remus):
+    """Retuned to backstepping after 1 s with heading off, the autopilot commands what one
+    built in backstepping mode commands from the same measurements: the law is designed at
+    the switch and starts fresh."""
+    switched = Autopilot(AutopilotConfig.build(heading_mode=0))
+    fresh = Autopilot(AutopilotConfig.build(heading_mode=3))
+    model = PlantModel(remus, variant=Variant.LATERAL)
+    run = simulate_closed_loop(switched, model, state_vector({"u": 1.5, "v": -0.1}), 1.0, H)
+    switched.retune(heading_mode=3)
+    assert switched.heading_mode is HeadingMode.BACKSTEPPING
+    assert switched.backstepping is not None and switched.lqr is None
+    for k, x in enumerate(run.states[::10]):
+        m = measurements(model, x, input_vector(thrust=9.0))
+        assert switched.step(1.0 + k * H, m) == fresh.step(1.0 + k * H, m)
+    assert switched.config == fresh.config
+
+
+def test_a_mass_lock_set_while_running_holds_the_mass_from_then_and_releases(remus):
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=3))
+    m = _measured(remus, u=1.5, v=-0.1, yaw=0.3)
+    assert autopilot.step(0.0, m).mass_position_cmd != 0.0
+    autopilot.retune(mass_lock_time=0.5)
+    assert autopilot.step(0.01, m).mass_position_cmd != 0.0  # not yet
+    assert autopilot.step(0.5, m).mass_position_cmd == 0.0
+    autopilot.retune(mass_lock_time=-1.0)
+    assert autopilot.step(0.51, m).mass_position_cmd != 0.0
+
+
+def test_retuning_a_fixed_parameter_or_out_of_range_is_refused_unchanged():
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=3))
+    before = autopilot.config
+    with pytest.raises(AutopilotConfigError, match="k0: not tunable while running"):
+        autopilot.retune(k0=0.3, heading_mode=1)
+    with pytest.raises(AutopilotConfigError, match="heading_mode"):
+        autopilot.retune(heading_mode=7)
+    assert autopilot.config is before and autopilot.heading_mode is HeadingMode.BACKSTEPPING
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("mode", "controller", "designed_for_step"),

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 from fmpy.validation import validate_fmu
-from fmu_harness import STATUS_ERROR, STATUS_OK, Harness
+from fmu_harness import STATUS_ERROR, STATUS_OK, Harness, status_of
 
 from controller_fmu.autopilot import (
     COMMAND_NAMES,
     MEASUREMENT_NAMES,
+    TUNABLE_PARAMETERS,
     Autopilot,
     AutopilotConfig,
     field_unit,
@@ -94,7 +95,8 @@ def test_variables_follow_the_contract(autopilot_fmu):
     for name, field in AutopilotConfig.model_fields.items():
         if field.annotation is float:
             assert variables[name].unit == field_unit(name), name
-        assert variables[name].variability == "fixed", name
+        tunable = name in TUNABLE_PARAMETERS
+        assert variables[name].variability == ("tunable" if tunable else "fixed"), name
     assert variables["heading_mode"].type == "Integer"
     assert variables["compensate_current"].type == "Boolean"
     assert variables["vehicle"].type == "String"
@@ -129,6 +131,36 @@ def test_restored_state_continues_bit_identically(fmu_paths, unzip_dirs):
     controller.close()
     assert np.array_equal(first, again)
     assert np.abs(first[:, 1]).max() > 0.0  # the thruster was active
+
+
+@pytest.mark.slow
+def test_heading_mode_and_mass_lock_are_tunable_while_stepping(fmu_paths, unzip_dirs):
+    """Written between steps, heading_mode and mass_lock_time apply at the next doStep (and
+    a restored state brings back the mode it was saved in); a fixed parameter is refused."""
+    controller = _controller(fmu_paths, unzip_dirs, heading_mode=0)
+    controller.set(yaw=0.3, v_rel=-0.1, u_rel=1.5)
+
+    def commands() -> np.ndarray:
+        assert controller.step(H) == STATUS_OK, controller.messages(3)
+        return controller.get_all(COMMAND_NAMES)
+
+    off = commands()
+    state = controller.slave.getFMUstate()
+    t_saved = controller.time
+    controller.set(heading_mode=3)
+    steering = commands()
+    controller.set(mass_lock_time=controller.time)
+    locked = commands()
+    assert off[:2].tolist() == [0.0, 0.0]
+    assert steering[0] != 0.0 and steering[1] != 0.0
+    assert locked[0] == 0.0 and locked[1] != 0.0  # the thruster still steers
+    assert status_of(controller.set, k0=0.3) == STATUS_ERROR
+    assert "k0 = 0.3 refused: a fixed parameter" in controller.messages(3)
+    controller.slave.setFMUstate(state)  # back to heading off, mass free
+    controller.time = t_saved
+    assert commands()[:2].tolist() == [0.0, 0.0]
+    controller.slave.freeFMUstate(state)
+    controller.close()
 
 
 @pytest.mark.slow

@@ -200,5 +200,5 @@ def test_a_value_outside_the_declared_range_is_refused(fmu_dir: Path) -> None:
     with pytest.raises(OverrideError, match=r"4\.0 is outside \[-3\.14.*, 3\.14.*\]"):
         live.request({"controller.yaw_setpoint": 4.0}, "test")
     with pytest.raises(OverrideError, match="is a fixed parameter"):
-        live.request({"controller.yaw_setpoint": 0.1, "controller.heading_mode": 1}, "test")
+        live.request({"controller.yaw_setpoint": 0.1, "controller.k0": 0.3}, "test")
     assert live.drain() == []  # a refused request queues nothing, not even its good values

@@ -21,6 +21,7 @@ import termios
 import time
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from cosim.live.keys import DEPTH_STEP, YAW_STEP, keys_of
@@ -95,8 +96,11 @@ def test_keys_change_the_set_points_and_q_ends_the_run(fmu_dir: Path, tmp_path: 
         terminal.type("\x1b[B")  # down: deeper by one step
         terminal.read_until(r"depth_sp 1\.0 m")
         terminal.read_past(0.2)  # the three set-points applied before the run is ended
-        terminal.type("1")  # heading mode: a fixed parameter of the autopilot
-        terminal.read_until(r"heading_mode is a fixed parameter")
+        terminal.type("2")  # heading mode: sliding mode
+        terminal.read_until(r"mode 2 ")
+        terminal.type("m")  # lock the moving mass now
+        terminal.read_until(r"mass locked")
+        terminal.read_past(0.2)
         terminal.type("q")
         assert proc.wait(timeout=TIMEOUT_S) == 130  # ended like Ctrl-C
         after = termios.tcgetattr(child)
@@ -109,9 +113,17 @@ def test_keys_change_the_set_points_and_q_ends_the_run(fmu_dir: Path, tmp_path: 
     assert after == before  # the terminal is back in the mode it was found in
     summary = json.loads((out / "summary.json").read_text())
     applied = [(o["set"], o["source"]) for o in summary["overrides"]]
+    locked = summary["overrides"][-1]["set"]["controller.mass_lock_time"]
     assert applied == [
         ({"controller.yaw_setpoint": YAW_STEP}, "keys"),
         ({"controller.yaw_setpoint": 2 * YAW_STEP}, "keys"),
         ({"controller.depth_setpoint": DEPTH_STEP}, "keys"),
+        ({"controller.heading_mode": 2}, "keys"),
+        ({"controller.mass_lock_time": locked}, "keys"),
     ]
+    assert locked > 0.0  # the simulated time the key was pressed
+    results = pd.read_csv(out / "results.csv")
+    applied_at = summary["overrides"][-1]["time"]  # the communication point it applied at
+    held = results[results["time"] >= applied_at + 0.011]
+    assert len(held) > 0 and (held["controller.mass_position_cmd"] == 0.0).all()
     assert math.isclose(2 * YAW_STEP, math.radians(10.0))
