@@ -197,8 +197,6 @@ def _step(
     step the outputs are discarded and the error raised."""
     from cosim.engine import master
 
-    if session.pacer is not None and outputs.csv is not None:
-        outputs.csv.warm_up()
     try:
         return master.run(
             scenario,
@@ -280,7 +278,10 @@ def _open_outputs(
     if rrd is not None:
         folder.lock_recording(rrd)
     recorder = rerun_sink if options.real_time is None else _background_rerun_sink
-    return RunOutputs.open(scenario, folder, rrd, options.connect, progress, recorder=recorder)
+    outputs = RunOutputs.open(scenario, folder, rrd, options.connect, progress, recorder=recorder)
+    if outputs.csv is not None:
+        outputs.csv.warm_up()
+    return outputs
 
 
 def _background_rerun_sink(

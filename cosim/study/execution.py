@@ -35,7 +35,7 @@ import shutil
 import socket
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
@@ -227,22 +227,54 @@ def open_client(
         yield client
 
 
-@contextmanager
-def early_client(workers: int, dashboard: bool = False) -> Iterator[Callable[[], Client]]:
-    """:func:`open_client` of a local cluster started now, on a thread, so the cluster
-    starts while the caller imports and checks its study; yields a function that waits
-    for the client (and raises what starting it raised). The cluster is closed at the
-    end (after it has finished starting, if the caller gave up before)."""
-    stack = ExitStack()
-    pool = ThreadPoolExecutor(1, thread_name_prefix="auv-cosim-cluster")
-    future = pool.submit(lambda: stack.enter_context(open_client(workers, dashboard=dashboard)))
-    try:
-        yield future.result
-    finally:
+class EarlyClient:
+    """A local cluster started on a thread (:func:`early_client`): call it to wait for the
+    client (it raises what starting the cluster raised); :meth:`close_soon` starts closing
+    the cluster on that thread, once no more tasks will be sent."""
+
+    def __init__(self, workers: int, dashboard: bool) -> None:
+        self._stack = ExitStack()
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="auv-cosim-cluster")
+        self._started = self._pool.submit(
+            lambda: self._stack.enter_context(open_client(workers, dashboard=dashboard))
+        )
+        self._closing: Future[None] | None = None
+
+    def __call__(self) -> Client:
+        return self._started.result()
+
+    def close_soon(self) -> None:
+        """Close the cluster on its thread (after it has finished starting), while the
+        caller goes on; :meth:`close` waits for that. Idempotent."""
+        if self._closing is None:
+            self._closing = self._pool.submit(self._close)
+
+    def close(self) -> None:
+        """Close the cluster (or wait for :meth:`close_soon`'s closing) and the thread."""
+        self.close_soon()
+        assert self._closing is not None
+        try:
+            self._closing.result()
+        finally:
+            self._pool.shutdown()
+
+    def _close(self) -> None:
         with suppress(Exception):  # a cluster that failed to start has nothing to close
-            future.result()
-        stack.close()
-        pool.shutdown()
+            self._started.result()
+        self._stack.close()
+
+
+@contextmanager
+def early_client(workers: int, dashboard: bool = False) -> Iterator[EarlyClient]:
+    """:func:`open_client` of a local cluster started now, on a thread, so the cluster
+    starts while the caller imports and checks its study; closed at the end (after it has
+    finished starting, if the caller gave up before), or earlier with
+    :meth:`EarlyClient.close_soon`."""
+    early = EarlyClient(workers, dashboard)
+    try:
+        yield early
+    finally:
+        early.close()
 
 
 def execute(

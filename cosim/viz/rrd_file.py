@@ -23,8 +23,10 @@ import struct
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import rerun as rr
+if TYPE_CHECKING:  # rerun itself is imported where a sink is made: it takes ~0.3 s
+    import rerun as rr
 
 try:  # FIONREAD: the bytes waiting in a pipe
     import fcntl
@@ -59,6 +61,8 @@ class RrdFile:
 
     def sink(self) -> rr.FileSink:
         """The rerun sink that feeds this file."""
+        import rerun as rr
+
         return rr.FileSink(str(PIPE_FOLDER / str(self._write)))
 
     def sync(self, timeout: float) -> int:
@@ -120,6 +124,8 @@ class RrdFile:
 
 def file_sink(path: Path) -> rr.FileSink:
     """rerun's own file writer (where :func:`pumped` is false)."""
+    import rerun as rr
+
     return rr.FileSink(str(path))
 
 
