@@ -32,17 +32,18 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-STUDY = """\
-scenario = "bs-3"
-stop_time = 20.0
-[grid]
-"plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
-"controller.k0" = [0.2, 0.5]
-[random]
-n = 0
-seed = 1
-[metrics]
-"""
+HEREDOC = "cat > study.toml <<'END'\n"
+
+
+def example_study() -> str:
+    """The example study of docs/studies.md (the file its first command writes), the one
+    the README points to: measured as it is written there."""
+    text = (REPO / "docs" / "studies.md").read_text(encoding="utf-8")
+    start = text.index(HEREDOC) + len(HEREDOC)
+    return text[start : text.index("\nEND\n", start) + 1]
+
+
+STUDY = example_study()
 
 
 def timed(args: list[str], cwd: Path, env: dict[str, str]) -> float:

@@ -25,20 +25,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+from bench_user import STUDY  # the README's example study (scripts/ is on the path)
+
 from cosim.viz.screenshot import ScreenshotError, render_screenshots
 
 REPO = Path(__file__).resolve().parents[1]
-STUDY = """\
-scenario = "bs-3"
-stop_time = 20.0
-[grid]
-"plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
-"controller.k0" = [0.2, 0.5]
-[random]
-n = 0
-seed = 1
-[metrics]
-"""
 RECORDING_TIME_S = 6.0  # the time cursor of the recording's picture
 
 

@@ -157,3 +157,20 @@ def test_interfaces_page_is_current(fmu_paths):
     check = [sys.executable, str(script), "--fmu-dir", str(fmu_dir), "--check"]
     done = subprocess.run(check, capture_output=True, text=True, timeout=600, check=False)
     assert done.returncode == 0, done.stderr
+
+
+def test_the_user_benchmark_times_the_example_study_of_the_docs(tmp_path):
+    """scripts/bench_user.py reads the study it times out of docs/studies.md, so the figure
+    it publishes is for the study the docs show: eight runs of bs-3 on a grid."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        bench_user = importlib.import_module("bench_user")
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+    from cosim.study.spec import load_study
+
+    path = tmp_path / "study.toml"
+    path.write_text(bench_user.STUDY)
+    spec = load_study(path)
+    assert spec.scenario == "bs-3" and spec.stop_time == 20.0
+    assert spec.grid == {"plant.v_0": [-0.10, -0.05, 0.05, 0.10], "controller.k0": [0.2, 0.5]}
