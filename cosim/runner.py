@@ -196,18 +196,21 @@ def _step(
     """Step the run through the master into the outputs; on a refusal before the first
     step the outputs are discarded and the error raised."""
     from cosim.engine import master
+    from cosim.engine.pacing import interpreter_for_pacing
 
+    paced = interpreter_for_pacing() if session.pacer is not None else nullcontext()
     try:
-        return master.run(
-            scenario,
-            outputs.sinks,
-            keep_rows=options.keep_rows,
-            stop=stop,
-            hand_off_interval=session.hand_off_interval or master.HAND_OFF_INTERVAL_S,
-            pacer=session.pacer,
-            live=session.live,
-            on_phase=progress.phase if progress is not None else None,
-        )
+        with paced:
+            return master.run(
+                scenario,
+                outputs.sinks,
+                keep_rows=options.keep_rows,
+                stop=stop,
+                hand_off_interval=session.hand_off_interval or master.HAND_OFF_INTERVAL_S,
+                pacer=session.pacer,
+                live=session.live,
+                on_phase=progress.phase if progress is not None else None,
+            )
     except BaseException:  # refused or not set up: it never stepped
         outputs.discard()
         raise

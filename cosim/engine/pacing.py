@@ -29,14 +29,43 @@ tests check the deadlines and the accounting on a fake clock, with no timed asse
 from __future__ import annotations
 
 import collections
+import gc
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 ROLLING_WINDOW_S = 1.0  # wall clock over which the rolling real-time factor is taken
 BEHIND_S = 0.5  # s of wall clock behind the deadlines at which the run says it cannot keep up
 _SAMPLE_S = 0.05  # wall clock between two samples of the rolling window
+SWITCH_INTERVAL_S = 0.0005  # the interpreter's thread switch interval in a paced loop
+
+
+@contextmanager
+def interpreter_for_pacing() -> Iterator[None]:
+    """The interpreter set for a paced loop, until the end:
+
+    * collect once, then move every object that exists (the imported libraries, the FMUs,
+      the outputs: ~1e5 objects) out of the garbage collector's reach (``gc.freeze``). A
+      full collection over them took 50-80 ms (rerun, numba, scipy and pandas loaded) at a
+      moment the interpreter chooses: a step late by as much. The loop's own objects are
+      collected as before.
+    * hand the GIL over every :data:`SWITCH_INTERVAL_S` instead of 5 ms
+      (``sys.setswitchinterval``): the recording's thread (:mod:`cosim.outputs.background`)
+      runs Python for tens of ms per send, and the stepping thread waking from its sleep
+      waited up to the interval, several times over, to get the interpreter back.
+    """
+    interval, frozen = sys.getswitchinterval(), gc.get_freeze_count()
+    gc.collect()
+    gc.freeze()
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(interval)
+        if not frozen:  # gc.unfreeze takes back every freeze: not a caller's own
+            gc.unfreeze()
 
 
 def _stderr_line(text: str) -> None:
