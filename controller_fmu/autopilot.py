@@ -389,8 +389,6 @@ class Autopilot:
             self.config = config
             return
         self._use_heading_mode(config)
-        if self.backstepping is not None:
-            self.backstepping.reset()
 
     def _use_heading_mode(self, config: AutopilotConfig) -> None:
         """Take ``config`` with the heading law its ``heading_mode`` selects, designed now

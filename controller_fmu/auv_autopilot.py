@@ -52,6 +52,7 @@ initialisation with the reason logged, and every later doStep returns Discard.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from enum import IntEnum
 from typing import Any
 
@@ -122,6 +123,7 @@ class AuvAutopilot(SafeSlave):
         self._params: dict[str, Any] = _DEFAULTS.model_dump()
         self._autopilot: Autopilot | None = None
         self._step_warned = False
+        self._tuned = False  # a tunable parameter written since the autopilot took them
         self._register_variables()
 
     def _register_variables(self) -> None:
@@ -156,7 +158,9 @@ class AuvAutopilot(SafeSlave):
                 name,
                 description=field.description,
                 getter=item_getter(self._params, name),
-                setter=item_setter(self._params, name),
+                setter=self._tunable_setter(name)
+                if name in TUNABLE_PARAMETERS
+                else item_setter(self._params, name),
                 causality=Fmi2Causality.parameter,
                 variability=Fmi2Variability.tunable
                 if name in TUNABLE_PARAMETERS
@@ -171,16 +175,30 @@ class AuvAutopilot(SafeSlave):
                 names=_MODES.get(name),
             )
 
+    def _tunable_setter(self, name: str) -> Callable[[Any], None]:
+        """Store a tunable parameter and note it, for the next doStep to apply."""
+        store = item_setter(self._params, name)
+
+        def setter(value: Any) -> None:
+            store(value)
+            self._tuned = True
+
+        return setter
+
     # --- SafeSlave hooks ---------------------------------------------------------------------
 
     def _initialize(self) -> None:
         self._autopilot = Autopilot(AutopilotConfig.build(**self._params), self._vehicles)
         self._outputs[:] = self._autopilot.commands.values()
         self._step_warned = False
+        self._tuned = False
 
     def _step(self, current_time: float, step_size: float) -> None:
         autopilot = self._autopilot
         assert autopilot is not None, "SafeSlave steps only an initialised instance"
+        if self._tuned:  # retuned first: the step-size warning is about the law in use
+            autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
+            self._tuned = False  # not if it failed: the step is discarded, the next retries
         design_step = autopilot.config.design_step
         if (
             autopilot.designed_for_step
@@ -194,9 +212,6 @@ class AuvAutopilot(SafeSlave):
                 Fmi2Status.warning,
             )
             self._step_warned = True
-        tuned = {n: self._params[n] for n in TUNABLE_PARAMETERS}
-        if any(getattr(autopilot.config, n) != value for n, value in tuned.items()):
-            autopilot.retune(**tuned)  # unchanged if it fails: the step is discarded
         # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
         # the step with its state unchanged
         self._outputs[:] = autopilot.step(current_time, self._inputs)
@@ -221,6 +236,7 @@ class AuvAutopilot(SafeSlave):
         saved = snapshot.get("autopilot")
         if saved is None:
             return
+        self._tuned = snapshot["tuned"] != snapshot["applied"]  # written, not yet applied
         config = AutopilotConfig.build(**{**self._params, **snapshot["applied"]})
         if self._autopilot is None or self._autopilot.config != config:
             self._autopilot = Autopilot(config, self._vehicles)
