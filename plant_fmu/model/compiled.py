@@ -11,8 +11,9 @@ takes every coefficient and matrix from the model itself: nothing is re-typed). 
 (the two differ only in the rounding of the matrix products, which numpy hands to BLAS).
 
 The step works on the stepping state of :mod:`plant_fmu.model.state_layout` (the state
-and the attitude quaternion, 18 values), each sub-step in the attitude chart
-``stepping.uses_quaternion`` picks (``PlantModel.step_derivative``);
+and the attitude quaternion, 18 values), each sub-step in the attitude chart that
+``PlantModel.uses_quaternion`` picks (:func:`_quaternion_chart`), with
+``PlantModel.step_derivative``;
 :func:`derivative_into` is ``PlantModel.derivative`` (Euler angles) for the analysis tools.
 
 Covered: the three variants, ideal fluid, current shear, and the dissertation's moving
@@ -501,6 +502,13 @@ def _start(x: np.ndarray, z: np.ndarray) -> bool:
 
 
 @_jit
+def _quaternion_chart(p: np.ndarray, z: np.ndarray) -> bool:
+    """``PlantModel.uses_quaternion``: the full variant beyond ``QUATERNION_CHART_PITCH``."""
+    chart: bool = p[VARIANT] == 0.0 and abs(z[4]) > QUATERNION_CHART_PITCH
+    return chart
+
+
+@_jit
 def _stage(
     p: np.ndarray,
     z: np.ndarray,
@@ -543,7 +551,7 @@ def advance_into(
     half, sixth = 0.5 * dt, dt / 6.0
     project(p, z, False)
     for _ in range(n):
-        quaternion = p[VARIANT] == 0.0 and abs(z[4]) > QUATERNION_CHART_PITCH
+        quaternion = _quaternion_chart(p, z)
         a0, a1, a2 = z[3], z[4], z[5]
         step_derivative_into(p, z, inputs, R, work, k1, quaternion)
         _stage(p, z, k1, half, inputs, scratch, k2, quaternion)
@@ -571,7 +579,7 @@ def outputs_into(
     1/2 nu_r^T (M_RB + M_A) nu_r (``PlantModel.kinetic_energy``, model 0), J."""
     v0, v1, v2 = inputs[5] + p[SHEAR] * z[1], inputs[6], inputs[7]
     if p[VARIANT] == 0.0:
-        if abs(z[4]) > QUATERNION_CHART_PITCH:  # the chart the stepping integrates there
+        if _quaternion_chart(p, z):  # the rotation of the chart the stepping integrates
             _quaternion_rotation(z, R)
         else:
             _rotation(z[3], z[4], z[5], R)

@@ -39,7 +39,7 @@ integrates the full variant's attitude as a unit quaternion instead
 (:meth:`PlantModel.step_derivative`, the same forces from the same rotation matrix) and
 refreshes the Euler angles from it after every sub-step (below 70 deg it integrates the
 Euler angles, as the lateral and horizontal variants always do:
-:func:`plant_fmu.model.stepping.uses_quaternion` says why).
+:meth:`PlantModel.uses_quaternion` says why).
 """
 
 from __future__ import annotations
@@ -200,15 +200,19 @@ class PlantModel:
         v_c[0] += self.current_shear * x[1]
         return v_c
 
+    def uses_quaternion(self, z: np.ndarray) -> bool:
+        """Whether the stepping integrates the quaternion of the stepping state ``z`` (the
+        full variant beyond ``QUATERNION_CHART_PITCH``) rather than its Euler angles. The
+        planar variants always keep Euler angles: their pitch is frozen at 0, and their
+        frozen attitude does not turn as the body rates say (psi' = r cos phi with theta
+        held), which a quaternion could not follow."""
+        return self.variant is Variant.FULL and abs(float(z[PITCH])) > QUATERNION_CHART_PITCH
+
     def rotation(self, x: np.ndarray) -> np.ndarray:
         """Body-to-earth rotation R of a state (Euler angles, 2.2.8) or of a stepping state,
         from the attitude chart the stepping integrates there: the full variant's
         quaternion beyond ``QUATERNION_CHART_PITCH`` (accurate at pitch +-90 deg)."""
-        if (
-            len(x) == N_STEP_STATES
-            and self.variant is Variant.FULL
-            and abs(float(x[PITCH])) > QUATERNION_CHART_PITCH
-        ):
+        if len(x) == N_STEP_STATES and self.uses_quaternion(x):
             return quaternion_rotation_matrix(x[QUATERNION])
         return rotation_matrix(x[3], x[4], x[5])
 

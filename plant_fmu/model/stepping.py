@@ -21,13 +21,13 @@ The number of sub-steps is ceil(h / max_substep); the default 10 ms makes a 10 m
 communication step one RK4 step, and users who want more accuracy lower ``max_substep``.
 
 What is integrated is the stepping state (:mod:`plant_fmu.model.state_layout`). Each
-sub-step integrates the attitude in one chart, chosen at its start (:func:`uses_quaternion`):
-the Euler angles, or, for the full variant beyond ``QUATERNION_CHART_PITCH``, the unit
-quaternion (normalised), so a vehicle passes pitch +-90 deg; the other chart is refreshed
-from it at the sub-step's end (:func:`_sync_attitude`). See
-:mod:`plant_fmu.model.dynamics` for why the derivative the analysis tools use keeps Euler
-angles. With the two-body moving mass a sub-step in which the mass
-reaches a stop ends at its arrival (:func:`_substep_through_stop`).
+sub-step integrates the attitude in one chart, chosen at its start
+(:meth:`PlantModel.uses_quaternion`): the Euler angles, or, for the full variant beyond
+``QUATERNION_CHART_PITCH``, the unit quaternion (normalised), so a vehicle passes pitch
++-90 deg; the other chart is refreshed from it at the sub-step's end
+(:func:`_sync_attitude`). See :mod:`plant_fmu.model.dynamics` for why the derivative the
+analysis tools use keeps Euler angles. With the two-body moving mass a sub-step in which
+the mass reaches a stop ends at its arrival (:func:`_substep_through_stop`).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model.dynamics import PlantModel
 from plant_fmu.model.kinematics import euler_from_quaternion, quaternion_from_euler
 from plant_fmu.model.state_layout import (
     EULER,
@@ -46,9 +46,7 @@ from plant_fmu.model.state_layout import (
     N_INPUTS,
     N_STATES,
     N_STEP_STATES,
-    PITCH,
     QUATERNION,
-    QUATERNION_CHART_PITCH,
     STATE,
     STEP_STATE_NAMES,
 )
@@ -90,15 +88,6 @@ def stepping_state(x: np.ndarray) -> np.ndarray:
     return z
 
 
-def uses_quaternion(model: PlantModel, z: np.ndarray) -> bool:
-    """Whether a sub-step from the stepping state ``z`` integrates the quaternion (the full
-    variant beyond ``QUATERNION_CHART_PITCH``) rather than the Euler angles. The planar
-    variants always keep Euler angles: their pitch is frozen at 0, and their frozen
-    attitude does not turn as the body rates say (psi' = r cos phi with theta held), which
-    a quaternion could not follow."""
-    return model.variant is Variant.FULL and abs(float(z[PITCH])) > QUATERNION_CHART_PITCH
-
-
 def _sync_attitude(z: np.ndarray, quaternion: bool, previous: np.ndarray) -> None:
     """Refresh, in place, the chart a sub-step did not integrate: the Euler angles from the
     quaternion (the triple nearest ``previous``, so they run on continuously:
@@ -123,7 +112,7 @@ def advance(
         model: the plant.
         x: a state (``STATE_NAMES``) or a stepping state (``STEP_STATE_NAMES``, its two
             attitudes in agreement, as every step leaves them; the first sub-step
-            integrates the chart :func:`uses_quaternion` picks); not modified. Callers
+            integrates the chart :meth:`PlantModel.uses_quaternion` picks); not modified. Callers
             that step through pitch +-90 deg carry the stepping state: a state's Euler
             angles hold the attitude there only to about 1e-16 / cos(pitch).
         inputs: inputs, ``INPUT_NAMES`` order.
@@ -175,7 +164,7 @@ def _rk4(
     model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float, quaternion: bool
 ) -> np.ndarray:
     """One classical RK4 step of dt seconds on a stepping state in one attitude chart
-    (:func:`uses_quaternion`), each stage projected."""
+    (:meth:`PlantModel.uses_quaternion`), each stage projected."""
     stage = model.project
 
     def f(s: np.ndarray) -> np.ndarray:
@@ -192,7 +181,7 @@ def _rk4(
 def _substep(model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
     """One RK4 sub-step, the constraints enforced at its end (a stop's impact included),
     the attitude chart it did not integrate refreshed."""
-    quaternion = uses_quaternion(model, z)
+    quaternion = model.uses_quaternion(z)
     end = _rk4(model, z, inputs, dt, quaternion)
     stroke = model.params.mass_stroke
     arrival = end[MASS_POSITION]
