@@ -106,6 +106,19 @@ _DEFAULTS = AutopilotConfig()
 _MODES: dict[str, type[IntEnum]] = {"heading_mode": HeadingMode, "depth_mode": DepthMode}
 
 
+def _noting_setter(values: dict[str, Any], written: set[str], key: str) -> Callable[[Any], None]:
+    """A pythonfmu setter storing its value in ``values[key]`` and adding ``key`` to
+    ``written``. It holds the two containers, not the slave: a closure over the slave would
+    make a reference cycle that keeps every freed instance alive until a collection."""
+    store = item_setter(values, key)
+
+    def setter(value: Any) -> None:
+        store(value)
+        written.add(key)
+
+    return setter
+
+
 class AuvAutopilot(SafeSlave):
     """Heading (LQR / sliding mode / backstepping + thruster) and depth (PD) autopilot."""
 
@@ -123,7 +136,7 @@ class AuvAutopilot(SafeSlave):
         self._params: dict[str, Any] = _DEFAULTS.model_dump()
         self._autopilot: Autopilot | None = None
         self._step_warned = False
-        self._tuned = False  # a tunable parameter written since the autopilot took them
+        self._tuned: set[str] = set()  # tunable parameters written since the autopilot took them
         self._register_variables()
 
     def _register_variables(self) -> None:
@@ -158,7 +171,7 @@ class AuvAutopilot(SafeSlave):
                 name,
                 description=field.description,
                 getter=item_getter(self._params, name),
-                setter=self._tunable_setter(name)
+                setter=_noting_setter(self._params, self._tuned, name)
                 if name in TUNABLE_PARAMETERS
                 else item_setter(self._params, name),
                 causality=Fmi2Causality.parameter,
@@ -175,30 +188,20 @@ class AuvAutopilot(SafeSlave):
                 names=_MODES.get(name),
             )
 
-    def _tunable_setter(self, name: str) -> Callable[[Any], None]:
-        """Store a tunable parameter and note it, for the next doStep to apply."""
-        store = item_setter(self._params, name)
-
-        def setter(value: Any) -> None:
-            store(value)
-            self._tuned = True
-
-        return setter
-
     # --- SafeSlave hooks ---------------------------------------------------------------------
 
     def _initialize(self) -> None:
         self._autopilot = Autopilot(AutopilotConfig.build(**self._params), self._vehicles)
         self._outputs[:] = self._autopilot.commands.values()
         self._step_warned = False
-        self._tuned = False
+        self._tuned.clear()
 
     def _step(self, current_time: float, step_size: float) -> None:
         autopilot = self._autopilot
         assert autopilot is not None, "SafeSlave steps only an initialised instance"
         if self._tuned:  # retuned first: the step-size warning is about the law in use
             autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
-            self._tuned = False  # not if it failed: the step is discarded, the next retries
+            self._tuned.clear()  # not if it failed: the step is discarded, the next retries
         design_step = autopilot.config.design_step
         if (
             autopilot.designed_for_step
@@ -236,7 +239,8 @@ class AuvAutopilot(SafeSlave):
         saved = snapshot.get("autopilot")
         if saved is None:
             return
-        self._tuned = snapshot["tuned"] != snapshot["applied"]  # written, not yet applied
+        self._tuned.clear()  # those written but not yet applied when the state was saved:
+        self._tuned.update(n for n, v in snapshot["tuned"].items() if snapshot["applied"][n] != v)
         config = AutopilotConfig.build(**{**self._params, **snapshot["applied"]})
         if self._autopilot is None or self._autopilot.config != config:
             self._autopilot = Autopilot(config, self._vehicles)
