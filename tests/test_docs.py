@@ -33,12 +33,14 @@ EQUATION = re.compile(r"\(((?:\d|A)\.\d+(?:\.\d+)?)\)")
 
 
 def _files(*suffixes: str) -> list[Path]:
+    # a virtual environment in the clone, whatever its name (the README's .venv, or .v)
+    skipped = SKIPPED_FOLDERS | {cfg.parent.name for cfg in ROOT.glob("*/pyvenv.cfg")}
     return sorted(
         path
         for path in ROOT.rglob("*")
         if path.suffix in suffixes
         and path.is_file()
-        and not SKIPPED_FOLDERS & set(path.relative_to(ROOT).parts)
+        and not skipped & set(path.relative_to(ROOT).parts)
     )
 
 
