@@ -48,7 +48,7 @@ BAD_ROWS = [
     ('[[events]]\ntime = 0.5\nset = { "controller.u" = 1.0 }',
      ["events[0].set.controller.u", "continuous output", "expected an unconnected input"]),
     ('[[events]]\ntime = 0.5\nset = { "controller.k" = "3" }',
-     ["events.0.set.controller.k", "'3'", "expected a number"]),
+     ["events[0].set.controller.k", "'3' is not a number (k is Real)"]),
     (f'[[events]]\ntime = 0.5\nwhen = "plant.x > 1"\n{SET_K}',
      ["events[0]", "['time', 'when']", "expected exactly one"]),
     (f"[[events]]\n{SET_K}", ["events[0]", "none of time / when / series"]),
