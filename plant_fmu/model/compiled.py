@@ -571,6 +571,66 @@ def advance_into(
 
 
 @_jit
+def _inputs_at(inputs: np.ndarray, rates: np.ndarray, tau: float, out: np.ndarray) -> None:
+    """out = the inputs tau seconds into the step: u + tau u' + tau^2 / 2 u''."""
+    for i in range(inputs.size):
+        out[i] = inputs[i] + tau * rates[0, i] + 0.5 * tau * tau * rates[1, i]
+
+
+@_jit
+def advance_varying_into(
+    p: np.ndarray,
+    x: np.ndarray,
+    z: np.ndarray,
+    inputs: np.ndarray,
+    rates: np.ndarray,
+    n: int,
+    dt: float,
+) -> int:
+    """:func:`advance_into` with inputs that vary over the step: ``rates`` (2 x inputs)
+    their first and second time derivatives at its start, each RK4 stage taking the
+    inputs at its own time (``stepping.advance`` with ``rates``). Returns as
+    :func:`advance_into` does; 1 also for a non-finite rate."""
+    for i in range(inputs.size):
+        if not (math.isfinite(inputs[i]) and math.isfinite(rates[0, i])):
+            return 1
+        if not math.isfinite(rates[1, i]):
+            return 1
+    for i in range(x.size):
+        if not math.isfinite(x[i]):
+            return 2
+    if not _start(x, z):
+        return 2
+    R, work, y = np.empty((3, 3)), np.empty((5, 6)), np.empty(18)
+    scratch = (R, work, y)
+    k1, k2, k3, k4 = np.empty(18), np.empty(18), np.empty(18), np.empty(18)
+    u0, u1, u2 = np.empty(inputs.size), np.empty(inputs.size), np.empty(inputs.size)
+    half, sixth = 0.5 * dt, dt / 6.0
+    project(p, z, False)
+    for j in range(n):
+        _inputs_at(inputs, rates, j * dt, u0)
+        _inputs_at(inputs, rates, j * dt + half, u1)
+        _inputs_at(inputs, rates, (j + 1) * dt, u2)
+        quaternion = _quaternion_chart(p, z)
+        a0, a1, a2 = z[3], z[4], z[5]
+        step_derivative_into(p, z, u0, R, work, k1, quaternion)
+        _stage(p, z, k1, half, u1, scratch, k2, quaternion)
+        _stage(p, z, k2, half, u1, scratch, k3, quaternion)
+        _stage(p, z, k3, dt, u2, scratch, k4, quaternion)
+        for i in range(18):
+            z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        project(p, z, True)
+        if quaternion:
+            _euler_from_quaternion(z, R, a0, a1, a2)
+        else:
+            _quaternion_from_euler(z[3], z[4], z[5], z)
+    for i in range(18):
+        if not math.isfinite(z[i]):
+            return 3
+    return 0
+
+
+@_jit
 def outputs_into(
     p: np.ndarray, z: np.ndarray, inputs: np.ndarray, R: np.ndarray, out: np.ndarray
 ) -> None:
@@ -629,10 +689,21 @@ class CompiledPlant:
         outputs_into(self.parameters, z, inputs, self._R, out)
         return out.tolist()
 
-    def advance(self, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
+    def advance(
+        self,
+        x: np.ndarray,
+        z: np.ndarray,
+        inputs: np.ndarray,
+        n: int,
+        dt: float,
+        rates: np.ndarray | None = None,
+    ) -> int:
         """z (a float64 stepping state) = n RK4 steps of dt s after x (a state or a
-        stepping state); :func:`advance_into`'s code."""
-        return advance_into(self.parameters, x, z, inputs, n, dt)
+        stepping state); :func:`advance_into`'s code, or :func:`advance_varying_into`'s
+        with ``rates`` (the inputs' derivatives, 2 x inputs)."""
+        if rates is None:
+            return advance_into(self.parameters, x, z, inputs, n, dt)
+        return advance_varying_into(self.parameters, x, z, inputs, rates, n, dt)
 
     def warm_up(self, x: np.ndarray, inputs: np.ndarray) -> None:
         """Compile (or load from numba's cache) every function a step calls, by one RK4
