@@ -223,6 +223,8 @@ class Scenario:
     rrd: bool
     spec: ScenarioSpec = dataclasses.field(repr=False, compare=False)
     fmu_dir: Path = dataclasses.field(repr=False, compare=False, default=DEFAULT_FMU_DIR)
+    # where relative paths in it are resolved from (its file's folder, or the caller's)
+    base_dir: Path | None = dataclasses.field(repr=False, compare=False, default=None)
     manoeuvre: str | None = None  # a cosim.metrics.manoeuvres kind: metrics in the summary
     events: tuple[Event, ...] = ()  # cosim.scenario.timeline_spec
     faults: tuple[Fault, ...] = ()
@@ -314,7 +316,7 @@ class Scenario:
     def _revalidated(self, data: dict[str, Any], where: str) -> Scenario:
         """The scenario of the changed file data ``data``, checked like a file."""
         spec = _validate_spec(data, where)
-        base_dir = self.source.parent if self.source else Path.cwd()
+        base_dir = self.base_dir or (self.source.parent if self.source else Path.cwd())
         return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, Source(where))
 
     def to_toml(self) -> str:
@@ -531,6 +533,7 @@ def _resolve(
         rrd=spec.output.rrd,
         spec=spec,
         fmu_dir=fmu_dir,
+        base_dir=base_dir,
     )
     record = _resolve_record(spec.output.record, scenario, src)
     _check_manoeuvre(spec.manoeuvre, record, src)

@@ -46,7 +46,7 @@ BAD_ROWS = [
     ('[[events]]\ntime = 0.5\nset = { "controller.x" = 1.0 }',
      ["events[0].set.controller.x", "connected from plant.x"]),
     ('[[events]]\ntime = 0.5\nset = { "controller.u" = 1.0 }',
-     ["events[0].set.controller.u", "continuous output", "expected an unconnected input"]),
+     ["events[0].set.controller.u", "discrete output", "expected an unconnected input"]),
     ('[[events]]\ntime = 0.5\nset = { "controller.k" = "3" }',
      ["events[0].set.controller.k", "'3' is not a number (k is Real)"]),
     (f'[[events]]\ntime = 0.5\nwhen = "plant.x > 1"\n{SET_K}',
