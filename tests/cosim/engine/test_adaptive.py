@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scenario_factory import K, X0, loop_toml
+from scenario_factory import X0, K, loop_toml
 
 from cosim.engine import master
 from cosim.engine.adaptive import MIN_LEVEL, grid_step

@@ -18,7 +18,7 @@ class FakeFmu:
     def __init__(self) -> None:
         self.calls: list[dict[tuple[int, int], float]] = []
 
-    def fmi2SetRealInputDerivatives(self, c, vrs, n, orders, values) -> None:  # noqa: N802
+    def fmi2SetRealInputDerivatives(self, c, vrs, n, orders, values) -> None:
         doubles = ctypes.cast(values, ctypes.POINTER(ctypes.c_double))
         self.calls.append({(vrs[i], orders[i]): doubles[i] for i in range(n)})
 

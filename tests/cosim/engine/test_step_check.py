@@ -6,7 +6,7 @@ import math
 from pathlib import Path
 
 import pytest
-from scenario_factory import K, X0, loop_toml
+from scenario_factory import X0, K, loop_toml
 
 from cosim.engine import master
 from cosim.engine.step_check import check_step, summary_line
