@@ -91,6 +91,10 @@ class _Stepper:
             slave.do_step(slave.c, t, (n + span) * self.grid - t, 1)
             self.do_steps[slave.name] += 1
             slave.read_outputs()
+        for slave in self.order:
+            if slave.feeds_through:  # as the fixed-step loop does (cosim.engine.master)
+                self.give(slave, n + units, (n + units) * self.grid)
+                slave.read_outputs()
 
     def save(self) -> tuple[Any, ...]:
         fmu_states = [s.fmu.getFMUstate() for s in self.order]

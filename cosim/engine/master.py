@@ -15,7 +15,10 @@ For a communication step h and N = stop_time / h steps::
 
 An instance with step multiple k is *due* when n is a multiple of k; it then steps k h
 (shortened at the stop time) and holds its outputs in between (multi-rate). Row n holds
-every instance's latest outputs once the due instances have advanced to t = n h.
+every instance's latest outputs once the due instances have advanced to t = n h; an
+instance with an output that feeds a connected input through (ModelStructure) then takes
+its inputs at t = n h once more and its outputs are read again, so under Jacobi too a
+feedthrough passes on the value of the same point, not the one before.
 
 Initialisation (FMI 2.0, section 4.2.4): every instance enters initialisation mode; then,
 in ``coupling.order``, each takes its connected inputs from the latest outputs and its
@@ -87,6 +90,7 @@ from cosim.engine.slave import Slave, describe, reasons, unzipped
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
 from cosim.fmus.interface import check_binary
+from cosim.scenario.coupling_graph import feedthrough
 from cosim.scenario.spec import Scenario, ScenarioError
 
 INIT_PASSES = 50  # exchanges in initialisation mode before the values must have settled
@@ -332,6 +336,10 @@ def _bind(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> N
     real = [v.valueReference for v, _ in inputs if v.type == "Real"]
     rates = InputRates(slave.fmu, real, order) if order and slave.interpolates and real else None
     slave.bind(inputs, [inst.variable(v) for v in read], z[start : start + len(read)], rates)
+    driven = {c.target_variable for c in targets}
+    slave.feeds_through = any(
+        driven & inputs for inputs in feedthrough(inst.model_description).values()
+    )
 
 
 def _set_up(slave: Slave, call: Callable[[], None]) -> None:
@@ -421,6 +429,7 @@ def _loop(
     record = np.asarray([layout.index[c] for c in scenario.columns], dtype=np.intp)
     exchanged = z[: layout.n_read]
     multi_rate = any(s.k != 1 for s in order)
+    through = [s for s in order if s.feeds_through]  # refreshed at every point
 
     take = z.take  # z.take(indices, out=buffer): a gather without allocation
     give = inputs_giver(z, timeline)
@@ -452,6 +461,9 @@ def _loop(
                 slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
                 if slave.others:
                     slave.get_others()
+            for slave in through:  # its outputs follow its inputs at t_{n+1}
+                give(slave, n + 1, (n + 1) * h)
+                slave.read_outputs()
             nan_if_bad = check_dot(probe)
             if nan_if_bad != nan_if_bad:
                 check_finite(exchanged, layout.index, (n + 1) * h)

@@ -56,6 +56,8 @@ class Slave:
         self.k = k
         # takes input derivatives (fmi2SetRealInputDerivatives, cosim.engine.extrapolation)
         self.interpolates = bool(md.coSimulation.canInterpolateInputs)
+        # an output depends directly on a connected input: refreshed at every point
+        self.feeds_through = False
         self.state = "new"
         self.messages: collections.deque[str] = collections.deque(maxlen=LOG_LINES_KEPT)
         self._key = (str(unzip_dir), md.coSimulation.modelIdentifier, md.guid, instance.name)

@@ -205,3 +205,15 @@ def test_a_when_event_on_a_slow_instance_fires_at_its_own_point(test_fmu_dir: Pa
                  order="step_multiples = { src = 3 }")  # fmt: skip
     result = run(test_fmu_dir, text)
     assert [e["time"] for e in result.events] == [pytest.approx(0.6)]
+
+
+def test_under_jacobi_a_feedthrough_passes_on_the_value_of_the_same_point(
+    test_fmu_dir: Path,
+) -> None:
+    """clock -> feedthrough -> integrator under Jacobi integrates exactly what clock ->
+    integrator does: the feedthrough's output is refreshed at every point."""
+    through = run(test_fmu_dir, chain("jacobi"))
+    direct_text = chain("jacobi").replace('{ from = "ft.y", to = "plant.u" }',
+                                          '{ from = "src.x", to = "plant.u" }')  # fmt: skip
+    direct = run(test_fmu_dir, direct_text)
+    np.testing.assert_array_equal(through.column("plant.x"), direct.column("plant.x"))
