@@ -345,11 +345,14 @@ class AuvPlant(SafeSlave):
         derivative = self._input_derivative
         if derivative is None:
             return None
+        first = [derivative(INPUT_NAMES[i], 1) for i in _ACTUATOR_INPUTS]
+        if not any(first):  # held (every first derivative exactly 0: the second is not asked)
+            return None
         rates = np.zeros((2, len(INPUT_NAMES)))
-        for i in _ACTUATOR_INPUTS:
-            rates[0, i] = derivative(INPUT_NAMES[i], 1)
+        for i, value in zip(_ACTUATOR_INPUTS, first, strict=True):
+            rates[0, i] = value
             rates[1, i] = derivative(INPUT_NAMES[i], 2)
-        return rates if rates.any() else None
+        return rates
 
     def _state_snapshot(self) -> dict[str, Any]:
         return {

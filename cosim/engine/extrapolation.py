@@ -51,6 +51,7 @@ class InputRates:
         self._values = np.zeros(order * n)
         self._ptr = self._values.ctypes.data_as(_DOUBLE_P)
         self._past = np.zeros((2, n))  # the values at the previous two steps
+        self._slope = np.zeros(n)
         self._times = [0.0, 0.0]
         self.count = 0  # steps in the history (since the last epoch)
         self.epoch = 0
@@ -61,23 +62,28 @@ class InputRates:
         starts the history again: nothing is sent at its first step."""
         if epoch != self.epoch:
             self.epoch, self.count = epoch, 0
-        past, values = self._past, self._values
-        n = self.n
-        if self.count >= 1 and t > self._times[0]:
-            slope = (inputs - past[0]) / (t - self._times[0])  # [u_n, u_n-1]
+        past, times = self._past, self._times
+        if self.count >= 1 and t > times[0]:
+            n, first, second = self.n, self._values[: self.n], self._values[self.n :]
+            slope = self._slope  # [u_n, u_n-1], in place: a step allocates nothing
+            np.subtract(inputs, past[0], out=slope)
+            slope *= 1.0 / (t - times[0])
             if self.order == 2 and self.count >= 2:
-                before = (past[0] - past[1]) / (self._times[0] - self._times[1])
-                curvature = (slope - before) / (t - self._times[1])  # [u_n, u_n-1, u_n-2]
-                values[:n] = slope + (t - self._times[0]) * curvature
-                values[n:] = 2.0 * curvature
+                np.subtract(past[0], past[1], out=second)  # [u_n-1, u_n-2] ...
+                second *= 1.0 / (times[0] - times[1])
+                np.subtract(slope, second, out=second)  # ... then [u_n, u_n-1, u_n-2]
+                second *= 1.0 / (t - times[1])
+                np.multiply(second, t - times[0], out=first)
+                first += slope
+                second *= 2.0
             else:
-                values[:n] = slope
-                values[n:] = 0.0
+                first[:] = slope
+                second[:] = 0.0
             self._set(self._fmu.component, self._vrs, self.order * n, self._orders, self._ptr)
-        if self.count == 0 or t > self._times[0]:
+        if self.count == 0 or t > times[0]:
             past[1] = past[0]
             past[0] = inputs
-            self._times[1], self._times[0] = self._times[0], t
+            times[1], times[0] = times[0], t
             self.count += 1
 
     def snapshot(self) -> tuple[np.ndarray, list[float], int, int]:

@@ -707,8 +707,11 @@ class CompiledPlant:
 
     def warm_up(self, x: np.ndarray, inputs: np.ndarray) -> None:
         """Compile (or load from numba's cache) every function a step calls, by one RK4
-        step of 1 ms on copies of ``x`` and ``inputs``: numba compiles on a function's
-        first call, which would otherwise be the first doStep (seconds on a first run,
-        ~0.5 s of cache loading later), counted as stepping time."""
+        step of 1 ms on copies of ``x`` and ``inputs``, held and with input derivatives:
+        numba compiles on a function's first call, which would otherwise be the first
+        doStep (seconds on a first run, ~0.5 s of cache loading later), counted as
+        stepping time."""
         z = np.empty(N_STEP_STATES)
-        self.advance(np.array(x, dtype=float), z, np.array(inputs, dtype=float), 1, 1e-3)
+        x, inputs = np.array(x, dtype=float), np.array(inputs, dtype=float)
+        self.advance(x, z, inputs, 1, 1e-3)
+        self.advance(x, z, inputs, 1, 1e-3, np.zeros((2, inputs.size)))  # input derivatives
