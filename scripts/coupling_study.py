@@ -3,6 +3,7 @@
     python scripts/coupling_study.py shipped [--scenarios bs-3 vert-1 ...] [--write]
     python scripts/coupling_study.py check-step [--scenarios bs-3 vert-1] [--write]
     python scripts/coupling_study.py adaptive [--tolerance 1e-3] [--write]
+    python scripts/coupling_study.py readme [--write]
 
 ``shipped``: every built-in scenario (or those named) as shipped, and again at 2.5, 1.25
 and 0.625 ms with the same coupling: the continuous-time limit of each key figure by
@@ -16,6 +17,10 @@ against its true error (the run minus the run at 1/32 of its step).
 with the same extrapolation: each run's error (the largest distance of the plant's
 outputs from a run at 0.3125 ms, |y - y_ref| / (|y_ref| + 1)), its communication steps
 and its doSteps; the fixed step whose error is no larger than the adaptive run's.
+
+``readme``: the yaw settling times of README.md's built-in scenario table, each written
+after its marker ``<!-- <scenario id> -->`` (three significant digits, s), from the
+scenarios run as shipped.
 
 ``--write`` replaces the table between the markers ``<!-- coupling_study.py <part> -->``
 and ``<!-- end -->`` in docs/coupling.md; without it the table is printed. Runs go through
@@ -145,6 +150,27 @@ def adaptive(tolerance: float) -> str:
     return "\n".join(lines)
 
 
+README = ROOT / "README.md"
+README_MARKER = re.compile(r"<!-- (?P<id>[\w.-]+) -->(?P<value>[0-9.]+)")
+
+
+def readme(write_it: bool) -> str:
+    """The settling times after README's markers, from the scenarios as shipped."""
+    text = README.read_text(encoding="utf-8")
+    values = {}
+    for sid in dict.fromkeys(m["id"] for m in README_MARKER.finditer(text)):
+        settled = figures_of(load_scenario(sid))[0]["yaw_settling_time_s"]
+        if settled is None:
+            raise RuntimeError(f"{sid}: the yaw does not settle: README's figure cannot be given")
+        values[sid] = f"{settled:.3g}"
+        print(f"  {sid}: {values[sid]} s", file=sys.stderr)
+    new = README_MARKER.sub(lambda m: f"<!-- {m['id']} -->{values[m['id']]}", text)
+    if write_it:
+        README.write_text(new, encoding="utf-8")
+        return f"wrote the settling times of {README}"
+    return "\n".join(f"{sid}: {value} s" for sid, value in values.items())
+
+
 def _rows(scenario: Scenario) -> master.RunResult:
     result = master.run(scenario)
     if not result.complete:
@@ -182,11 +208,14 @@ def write(part: str, table: str) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=["shipped", "check-step", "adaptive"])
+    parser.add_argument("part", choices=["shipped", "check-step", "adaptive", "readme"])
     parser.add_argument("--scenarios", nargs="+", help="built-in ids [every one / bs-3 vert-1]")
     parser.add_argument("--tolerance", type=float, default=1e-3, help="adaptive [1e-3]")
     parser.add_argument("--write", action="store_true", help="into docs/coupling.md")
     args = parser.parse_args(argv)
+    if args.part == "readme":
+        print(readme(args.write))
+        return 0
     if args.part == "shipped":
         table = shipped(args.scenarios or list(builtin_scenarios()))
     elif args.part == "check-step":
