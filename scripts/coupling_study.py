@@ -10,8 +10,9 @@ and 0.625 ms with the same coupling: the continuous-time limit of each key figur
 Richardson from the runs at 1.25 and 0.625 ms (the order observed on 2.5 / 1.25 / 0.625
 ms, else the coupling's nominal one) and the shipped run's error against it.
 
-``check-step``: what ``auv-cosim run --check-step`` estimates for a scenario as shipped,
-against its true error (the run minus the run at 1/32 of its step).
+``check-step``: what ``auv-cosim run --check-step`` estimates for a scenario as shipped
+and with held inputs (``extrapolation = "none"``), against its true error (the run minus
+the run at 1/32 of its step).
 
 ``adaptive``: vert-1 with ``algorithm = "adaptive"`` at a tolerance, against fixed steps
 with the same extrapolation: each run's error (the largest distance of the plant's
@@ -30,7 +31,6 @@ the master (no files written); the machine's load is printed beside the times.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import re
 import sys
@@ -100,25 +100,27 @@ def shipped(ids: Sequence[str]) -> str:
 
 def check_steps(ids: Sequence[str]) -> str:
     lines = [
-        "| scenario | key figure | estimated error | true error (against h/32) | ratio |",
-        "|---|---|---|---|---|",
+        "| scenario | inputs | key figure | estimated error | true error (against h/32) | ratio |",
+        "|---|---|---|---|---|---|",
     ]
     for sid in ids:
-        base = load_scenario(sid)
-        figures, result = figures_of(base)
-        check = check_step(base, figures, result.final)
-        truth, _ = figures_of(base.with_overrides(step=base.coupling.step / 32))
-        for key, (label, scale, unit) in FIGURES.items():
-            estimate, value, fine = check["key_figures"].get(key), figures[key], truth[key]
-            if estimate is None or value is None or fine is None:
-                continue
-            true_error = value - fine
-            ratio = estimate["error"] / true_error if true_error else math.nan
-            lines.append(
-                f"| {sid} | {label} | {scale * estimate['error']:+.3g} {unit} | "
-                f"{scale * true_error:+.3g} {unit} | {ratio:.2f} |"
-            )
-        print(f"  {sid}: done ({_load()})", file=sys.stderr)
+        shipped_scenario = load_scenario(sid)
+        for base in (shipped_scenario, shipped_scenario.with_overrides(extrapolation="none")):
+            figures, result = figures_of(base)
+            check = check_step(base, figures, result.final)
+            truth, _ = figures_of(base.with_overrides(step=base.coupling.step / 32))
+            for key, (label, scale, unit) in FIGURES.items():
+                estimate, value, fine = check["key_figures"].get(key), figures[key], truth[key]
+                if estimate is None or value is None or fine is None:
+                    continue
+                true_error = value - fine
+                ratio = f"{estimate['error'] / true_error:.2f}" if true_error else "(both 0)"
+                lines.append(
+                    f"| {sid} | {base.coupling.extrapolation} | {label} | "
+                    f"{scale * estimate['error']:+.3g} {unit} | {scale * true_error:+.3g} {unit} "
+                    f"| {ratio} |"
+                )
+            print(f"  {sid} ({base.coupling.extrapolation}): done ({_load()})", file=sys.stderr)
     return "\n".join(lines)
 
 
