@@ -8,24 +8,28 @@ exchanged values are kept; everything is restored and they take two steps of H /
 point, and a row, at t + H / 2). The difference estimates the error of the two half
 steps (Richardson)::
 
-    err = max_i |y_i(two halves) - y_i(one step)| / ((2^p - 1) tol (|y_i| + nominal_i))
+    err = max_i |y_i(two halves) - y_i(one step)| / ((2^p - 1) tol (Y_i + 1e-3 nominal_i))
 
-over every continuous Real value the master reads (y_i with its FMU's ``nominal``, 1 if
-none). A discrete output (``variability="discrete"``, like the autopilot's commands) is
-left out: a sampled value, computed from the inputs at the start of its step, differs
-between one step and two halves by the sampling itself, not by an error. p is the
-coupling's order: 1 + the extrapolation's order when every instance with connected Real
-inputs interpolates them, else 1. err <= 1 accepts the half steps (the instances are
-already at t + H); a step that was not shortened and has err below 2^-(p + 1) doubles
-for the next one. err > 1 restores the saved states and halves H (or more, by err^(-1 /
-(p + 1))) and tries again. Steps are H = step 2^j, from ``step`` / 2^:data:`MIN_LEVEL`
-(taken without a check when even that misses the tolerance: counted in the summary) to
-``max_step``; every point is a whole number of the smallest step (``grid_step``), so
-the events and faults (``Timeline`` at that grid), the sample points of the instances
-with a step multiple k (every k ``step``), and the stop time are points a step ends on.
+over every continuous Real value the master reads, Y_i the largest |y_i| of the run so
+far (so a value is held to ``tol`` of its own size, the moving mass's 3 cm as much as the
+distance run), nominal_i its FMU's ``nominal`` (1 if none). A discrete output
+(``variability="discrete"``, like the autopilot's commands) is left out: a sampled value,
+computed from the inputs at the start of its step, differs between one step and two
+halves by the sampling itself, not by an error. p is the coupling's order
+(:func:`coupling_order`): 2 when every instance with connected Real inputs takes their
+derivatives, else 1. err <= 1 accepts the half steps (the instances are already at
+t + H); a step that was not shortened and has err below 2^-(p + 1) doubles for the next
+one. err > 1 restores the saved states and halves H (or more, by err^(-1 / (p + 1))) and
+tries again. Steps are H = step 2^j, from ``step`` / 2^:data:`MIN_LEVEL` (taken without a
+check when even that misses the tolerance: counted in the summary) to ``max_step``; every
+point is a whole number of the smallest step (``grid_step``), so the events and faults
+(``Timeline`` at that grid), the sample points of the instances with a step multiple k
+(every k ``step``), and the stop time are points a step ends on. ``tol`` bounds the error
+of each step: the run's error is larger where the loop carries errors on (docs/coupling.md
+measures it).
 
-Costs: an accepted step takes three doSteps per instance and a state save and restore;
-a rejected one two more. The summary's ``coupling`` says how many of each were taken.
+Costs: an accepted step takes three doSteps per instance and a state save and restore, a
+rejected one as many. The summary's ``coupling`` says how many of each were taken.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ if TYPE_CHECKING:
 
 MIN_LEVEL = 10  # the smallest step is coupling.step / 2**MIN_LEVEL
 SAFETY = 0.9  # of the step the error estimate proposes after a rejection
+FLOOR = 1e-3  # of a value's nominal: the smallest magnitude its error is relative to
 
 
 def grid_step(coupling: Coupling) -> float:
@@ -118,10 +123,13 @@ class _Stepper:
 
 
 def coupling_order(scenario: Scenario, order: list[Slave]) -> int:
-    """p: the order at which the coupling converges (see the module docstring)."""
+    """p: the order at which the coupling converges (see the module docstring): 1 with
+    held inputs, 2 when every instance with connected Real inputs takes their derivatives
+    (quadratic extrapolation included: a sampled controller's first-order hold, as the
+    autopilot's, keeps the loop at second order)."""
     receivers = [s for s in order if s.n_inputs]
     extrapolated = all(s.input_rates is not None for s in receivers)
-    return 1 + (scenario.coupling.extrapolation_order if extrapolated else 0)
+    return 2 if extrapolated and scenario.coupling.extrapolation_order else 1
 
 
 def run(
@@ -234,6 +242,7 @@ class _Control:
             nominal[i] = abs(float(var.nominal)) if var.nominal else 1.0
             continuous[i] = var.type == "Real" and var.variability == "continuous"
         self.nominal, self.continuous = nominal, continuous
+        self.peak = np.zeros(n_read)  # the largest |value| of each so far
         self.accepted, self.rejected, self.forced = 0, 0, 0
         self.smallest, self.largest = math.inf, 0.0
         self.grid = grid_step(coupling)
@@ -252,7 +261,8 @@ class _Control:
         """The scaled error estimate of the two half steps (module docstring)."""
         if not self.continuous.any():
             return 0.0
-        scale = self.tolerance * (np.abs(halves) + self.nominal) * (2**self.p - 1)
+        np.maximum(self.peak, np.abs(halves), out=self.peak)
+        scale = self.tolerance * (self.peak + FLOOR * self.nominal) * (2**self.p - 1)
         return float(np.max((np.abs(halves - big) / scale)[self.continuous]))
 
     def judge(self, err: float, units: int, wanted: int) -> bool:

@@ -106,3 +106,20 @@ def test_a_paced_run_is_refused(test_fmu_dir: Path) -> None:
 def test_the_grid_is_a_power_of_two_below_the_step() -> None:
     scenario_step = 0.01
     assert grid_step(type("C", (), {"step": scenario_step})()) == scenario_step / 2**MIN_LEVEL  # type: ignore[arg-type]
+
+
+def test_steps_it_never_rejects_give_the_fixed_step_run_of_their_halves(
+    test_fmu_dir: Path,
+) -> None:
+    """Every step rolled back and redone in halves: with a tolerance it always meets and
+    its longest step its first, an adaptive run at 0.2 s is the fixed run at 0.1 s to the
+    bit (the states, the extrapolation's history and an event restored exactly)."""
+    extra = '[[events]]\ntime = 0.6\nset = { "controller.k" = 3.0 }'
+    text = adaptive(0.99, extra).replace("step = 0.1", "step = 0.2\nmax_step = 0.2")
+    halves = run(test_fmu_dir, text)
+    fixed = run(
+        test_fmu_dir, loop_toml(stop_time=2.0).replace("[coupling]", f"{extra}\n[coupling]")
+    )
+    assert halves.coupling["rejected_steps"] == 0
+    np.testing.assert_array_equal(halves.times, fixed.times)
+    np.testing.assert_array_equal(halves.values, fixed.values)
