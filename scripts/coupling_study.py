@@ -88,7 +88,7 @@ def shipped(ids: Sequence[str]) -> str:
             finite = [v for v in values if v is not None]
             if value is None or len(finite) < len(values):
                 continue
-            f0, order = limit(finite, 1.0 + coupling.extrapolation_order)
+            f0, order = limit(finite, 2.0 if coupling.extrapolation_order else 1.0)
             error = (value - f0) / abs(f0) * 100.0 if f0 else 0.0
             lines.append(
                 f"| {sid} | {how} | {label} | {scale * value:.4g} {unit} | "

@@ -54,7 +54,7 @@ def check_step(
         if not result.complete:
             raise CosimError(f"--check-step: the run at h = {step!r} s stopped: {result.error}")
         values.append(_named(sink.figures(), scenario.columns, result.final))
-    nominal = 1.0 + coupling.extrapolation_order
+    nominal = 2.0 if coupling.extrapolation_order else 1.0  # as adaptive.coupling_order
     estimates, order = estimate(values, nominal)
     figures_part = {k: e.as_dict() for k, e in estimates.items() if k in figures}
     finals = {k: e for k, e in estimates.items() if k.startswith(FINAL_PREFIX)}
