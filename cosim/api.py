@@ -155,18 +155,9 @@ def run(
     ----------
     scenario : str, pathlib.Path or Scenario
         A built-in id, a scenario ``.toml`` file, or a loaded :class:`Scenario`.
-    stop_time, step : float, optional
-        Override the stop time and the communication step, s (``--stop-time``, ``--step``).
-    algorithm : {"jacobi", "gauss-seidel", "adaptive"}, optional
-        Override the master algorithm (``--algorithm``).
-    extrapolation : {"none", "linear", "quadratic"}, optional
-        Override how exchanged values go across a step (``--extrapolation``,
-        docs/coupling.md).
-    tolerance : float, optional
-        The adaptive algorithm's relative error per step (``--tolerance``).
-    check_step : bool
-        Also run at half and a quarter of the step and estimate the coupling error of
-        every key figure and final value (``--check-step``): ``Run.coupling_error``.
+    stop_time, step, algorithm, extrapolation, tolerance, check_step : optional
+        The command line's ``--stop-time``, ``--step`` (s) and coupling options
+        (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
     start : mapping, optional
         Start values ``{"<instance>.<variable>": value}`` in SI units, checked like the
         scenario file's (:meth:`Scenario.with_start`).

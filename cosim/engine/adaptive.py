@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from cosim.engine.points import check_finite, end_of_simulation
+from cosim.engine.points import check_finite, end_of_simulation, refresh
 from cosim.engine.signals import StopRequest
 from cosim.engine.slave import Slave, describe
 from cosim.engine.timeline import Timeline
@@ -79,6 +79,7 @@ class _Stepper:
         self.period = {s.name: s.k * 2**MIN_LEVEL for s in order}  # grid points per step
         self.do_steps = dict.fromkeys(self.period, 0)
         self.current = order[0]  # the instance called last (a failure names it)
+        self.through = [s for s in order if s.feeds_through]
 
     def advance(self, n: int, units: int) -> None:
         """Every instance due at point n steps ``units`` grid points (one with step
@@ -96,10 +97,7 @@ class _Stepper:
             slave.do_step(slave.c, t, (n + span) * self.grid - t, 1)
             self.do_steps[slave.name] += 1
             slave.read_outputs()
-        for slave in self.order:
-            if slave.feeds_through:  # as the fixed-step loop does (cosim.engine.master)
-                self.give(slave, n + units, (n + units) * self.grid)
-                slave.read_outputs()
+        refresh(self.through, self.give, n + units, (n + units) * self.grid)
 
     def save(self) -> tuple[Any, ...]:
         fmu_states = [s.fmu.getFMUstate() for s in self.order]

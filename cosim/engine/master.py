@@ -83,7 +83,13 @@ from cosim.engine import adaptive
 from cosim.engine.extrapolation import InputRates
 from cosim.engine.live import LiveControl
 from cosim.engine.pacing import Pacer
-from cosim.engine.points import RowBuffer, check_finite, end_of_simulation, inputs_giver
+from cosim.engine.points import (
+    RowBuffer,
+    check_finite,
+    end_of_simulation,
+    inputs_giver,
+    refresh,
+)
 from cosim.engine.rows import RowSink, RowTable
 from cosim.engine.signals import StopRequest, stop_on_signals
 from cosim.engine.slave import Slave, describe, reasons, unzipped
@@ -421,8 +427,7 @@ def _loop(
     before any instance steps from it, and ``timeline.deliver`` after each gather of inputs;
     without one, both are no-ops (about 0.1 us a step: nothing against an FMU's doStep).
     ``at`` is ``timeline.at`` (or the no-op), wrapped by :func:`_live_point` in a paced or
-    live run. Integer/Boolean values (``slave.others``) and input derivatives
-    (``slave.input_rates``) cost one attribute test per step when a run has none.
+    live run.
     """
     h, n_steps = scenario.coupling.step, scenario.n_steps
     jacobi = scenario.coupling.algorithm == "jacobi"
@@ -461,9 +466,7 @@ def _loop(
                 slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
                 if slave.others:
                     slave.get_others()
-            for slave in through:  # its outputs follow its inputs at t_{n+1}
-                give(slave, n + 1, (n + 1) * h)
-                slave.read_outputs()
+            refresh(through, give, n + 1, (n + 1) * h)  # feedthroughs follow their inputs
             nan_if_bad = check_dot(probe)
             if nan_if_bad != nan_if_bad:
                 check_finite(exchanged, layout.index, (n + 1) * h)

@@ -113,6 +113,17 @@ def inputs_giver(z: np.ndarray, timeline: Timeline | None) -> Callable[[Slave, i
     return give
 
 
+def refresh(
+    slaves: list[Slave], give: Callable[[Slave, int, float], None], n: int, t: float
+) -> None:
+    """Give each of ``slaves`` (instances with an output that feeds a connected input
+    through) its inputs at point n (t, s) again and read its outputs: under Jacobi too a
+    feedthrough then passes on the value of the same point."""
+    for slave in slaves:
+        give(slave, n, t)
+        slave.read_outputs()
+
+
 def end_of_simulation(
     slave: Slave,
     exc: FMICallException,
