@@ -21,6 +21,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
@@ -108,10 +109,12 @@ def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
         host, port = endpoint(proc)
         client = Client((host, port))
         t_first = client.time_at_least(0.5)
-        assert client.ask({"set": {"controller.yaw_setpoint": 0.3}}) == {
-            "ok": True, "set": {"controller.yaw_setpoint": 0.3}}  # fmt: skip
+        first = client.ask({"set": {"controller.yaw_setpoint": 0.3}})
+        assert first == {"ok": True, "set": {"controller.yaw_setpoint": 0.3}, "name": "live-1",
+                         "t": first["t"]}  # fmt: skip
         t_second = client.time_at_least(t_first + 0.5)
-        assert client.ask({"set": {"controller.yaw_setpoint": 0.6}})["ok"]
+        second = client.ask({"set": {"controller.yaw_setpoint": 0.6}})
+        assert second["ok"] and second["name"] == "live-2"
         t_read = client.time_at_least(t_second + 1.0)
         reply = client.ask({"get": ["plant.yaw", "controller.yaw_setpoint"]})
         assert reply["t"] >= t_read and reply["values"]["controller.yaw_setpoint"] == 0.6
@@ -125,6 +128,7 @@ def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
     assert [o["set"] for o in overrides] == [{"controller.yaw_setpoint": v} for v in (0.3, 0.6)]
     assert all(o["source"].startswith("control 127.0.0.1:") for o in overrides)
     assert t_first < overrides[0]["time"] <= t_second < overrides[1]["time"] <= t_read
+    assert [o["time"] for o in overrides] == [first["t"], second["t"]]  # as the replies said
     columns, table = read_csv(out / "results.csv")
     setpoint = table[:, columns.index("controller.yaw_setpoint")]
     times = table[:, 0]
@@ -201,4 +205,5 @@ def test_a_value_outside_the_declared_range_is_refused(fmu_dir: Path) -> None:
         live.request({"controller.yaw_setpoint": 4.0}, "test")
     with pytest.raises(OverrideError, match="is a fixed parameter"):
         live.request({"controller.yaw_setpoint": 0.1, "controller.k0": 0.3}, "test")
-    assert live.drain() == []  # a refused request queues nothing, not even its good values
+    # a refused request queues nothing, not even its good values
+    assert list(live.take(0, 0.0, np.zeros(1))) == []
