@@ -305,3 +305,29 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
         rrb.TimePanel(state="collapsed"),
         auto_views=False,
     )
+
+
+def notebook_blueprint(panels: list[PlannedPanel]) -> rrb.Blueprint:
+    """The layout for a notebook cell (``cosim.viz.notebook``): the world view beside the
+    heading loop's plots, two columns in the cell's width, every side panel collapsed."""
+    present = {p.entity: p for p in panels}
+    heading = [
+        rrb.TimeSeriesView(origin="/" + entity, name=present[entity].title)
+        for entity in HEADING_LOOP
+        if entity in present
+    ]
+    world = rrb.Spatial3DView(
+        origin="/world",
+        name="World (NED, grid 10 m)",
+        line_grid=rrb.LineGrid3D(visible=True, spacing=10.0),
+    )
+    views: list[rrb.Container | rrb.View] = [world]
+    if heading:
+        views.append(rrb.Grid(*heading, grid_columns=PLOT_COLUMNS, name="Heading loop"))
+    return rrb.Blueprint(
+        rrb.Horizontal(*views, column_shares=[2, 3][: len(views)]),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed"),
+        auto_views=False,
+    )
