@@ -50,3 +50,18 @@ def test_a_taken_port_is_refused_in_one_line(tmp_path: Path, capsys) -> None:
     assert err.count("\n") == 1 and f"port {port} on 127.0.0.1 is taken" in err
     assert main(["view", str(tmp_path), "--web", "--web-port", "0", "--grpc-port", "70000"]) == 1
     assert "port 70000: expected 0 (any free port) to 65535" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("display", [{}, {"DISPLAY": ""}, {"WAYLAND_DISPLAY": ""}])
+def test_view_without_a_display_fails_in_one_line_saying_to_use_web(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys, display: dict[str, str]
+) -> None:
+    (tmp_path / "recording.rrd").write_bytes(FAKE_RRD)
+    for name in ("DISPLAY", "WAYLAND_DISPLAY"):
+        monkeypatch.delenv(name, raising=False)
+    for name, value in display.items():
+        monkeypatch.setenv(name, value)
+    assert main(["view", str(tmp_path)]) == 1
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and captured.out == "", captured
+    assert "no display" in captured.err and f"auv-cosim view {tmp_path} --web" in captured.err
