@@ -6,8 +6,9 @@ git repository holding it with the project's .gitignore and .gitattributes and t
 CONTRIBUTING.md sets up, with the session's built FMUs in ``build/fmus`` (as after ``auv-cosim
 build``); the executed notebook is saved over itself (what JupyterLab's autosave does) with
 a checkpoint beside it, and after ``git add --all`` (git lists a file whose size changed as
-modified until it hashes it through the filter) ``git status`` must show nothing to commit. A cell that raises fails the
-test, naming the cell. The kernel is shut down by nbclient, also when a cell fails.
+modified until it hashes it through the filter) ``git status`` must show nothing to commit.
+A cell that raises fails the test, naming the cell. The kernel is shut down by nbclient,
+also when a cell fails.
 
 "Stored without outputs" reads the notebook as git holds it (the index), where the filter
 and the pre-commit hook keep it clean; outside a git checkout, the file itself.

@@ -50,7 +50,7 @@ from cosim.viz.layout import (
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import OVERLAY_FILE, RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
-from cosim.viz.web_viewer import GRPC_PORT, WEB_PORT, serve
+from cosim.viz.web_viewer import FILE_PORT, WEB_PORT, serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
 APPLICATION_ID = "auv-cosim"
@@ -363,7 +363,7 @@ def view_run(
     web: bool = False,
     open_browser: bool = False,
     web_port: int = WEB_PORT,
-    grpc_port: int = GRPC_PORT,
+    file_port: int = FILE_PORT,
 ) -> int:
     """Open a run's ``recording.rrd``, a study's ``overlay.rrd`` (RUN_DIR is the folder)
     or the ``.rrd`` given, in the native viewer or the web viewer, or say how to open it.
@@ -382,7 +382,7 @@ def view_run(
     if web:
         if executable is None:
             raise CosimError("the `rerun` binary is not on PATH (it comes with rerun-sdk)")
-        return serve(executable, rrd, web_port, grpc_port, open_browser)
+        return serve(executable, rrd, web_port, file_port, open_browser)
     has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
     if has_display and executable is not None:
         print(f"opening {rrd} in the Rerun viewer")

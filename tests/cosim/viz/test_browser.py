@@ -112,7 +112,7 @@ def _read_until(proc: subprocess.Popen, pattern: re.Pattern[str], timeout: float
 def _served(path: Path) -> Iterator[tuple[subprocess.Popen, str]]:
     """``auv-cosim view PATH --web`` on free ports: (its process, the URL it printed)."""
     command = [sys.executable, "-m", "cosim.cli", "view", str(path), "--web"]
-    command += ["--web-port", "0", "--grpc-port", "0"]
+    command += ["--web-port", "0", "--file-port", "0"]
     proc = subprocess.Popen(
         command,
         stdout=subprocess.PIPE,
@@ -355,7 +355,7 @@ def test_the_notebooks_inline_viewer_shows_the_run_offline(
                 )
                 page.evaluate("(m) => window.deliver(m)", kernel["events"])
                 page.wait_for_function(  # the run's own timeline shown: its data is in
-                    "window.sent.some((e) => e.includes('\"timeline\":\"sim_time\"'))",
+                    'window.sent.some((e) => e.includes(\'"timeline":"sim_time"\'))',
                     timeout=LOAD_TIMEOUT_S * 1e3,
                 )
                 opened = [json.loads(e) for e in page.evaluate("window.sent") if "{" in e]
