@@ -237,8 +237,9 @@ def test_a_live_run_replays_byte_identical(fmu_dir: Path, tmp_path: Path, case: 
         elif case == "stopped without override":
             client.time_at_least(0.5)
             assert client.ask({"stop": True}) == {"ok": True}
-        else:
-            reply = client.ask({"set": {"plant.roll_torque": 1e300}})  # the plant fails
+        else:  # the plant fails in the step after the override, well after t = 0
+            client.time_at_least(0.5)
+            reply = client.ask({"set": {"plant.roll_torque": 1e300}})
             assert reply["ok"], reply
         proc.communicate(timeout=TIMEOUT_S)
     summary = json.loads((out / "summary.json").read_text())
