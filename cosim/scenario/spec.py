@@ -549,8 +549,9 @@ def _check_reachable_times(scenario: Scenario, src: Source) -> None:
         if time is not None and time / step > MAX_STEPS:
             raise src.error(
                 key,
-                f"{time!r} s is {time / step:.3g} communication steps of {step!r} s; no run "
-                f"goes beyond {MAX_STEPS:.0e} steps ({MAX_STEPS * step:.6g} s at this step)",
+                f"{time!r} s is beyond {MAX_STEPS:.0e} communication steps of {step!r} s, "
+                f"the most a run takes: no run reaches it (at most {MAX_STEPS * step:.6g} s "
+                "at this step)",
             )
 
 
