@@ -273,7 +273,7 @@ def test_every_set_around_the_end_of_a_run_is_applied_and_logged_or_answered_not
     summary = json.loads((out / "summary.json").read_text())
     logged = {o["name"]: (o["time"], o["set"]) for o in summary["overrides"]}
     acked = {r["name"]: (r["t"], r["set"]) for r in replies if "ok" in r}
-    assert acked == logged and len(acked) > 10
+    assert acked == logged and acked  # however many the client got in before the end
     refused = [r["error"] for r in replies if "ok" not in r]
     assert refused == [refused[0]] and "not applied: the run ended at t = 1 s" in refused[0]
     assert "stop: the run ended at t = 1 s" in after["error"]
