@@ -13,8 +13,8 @@ from cosim.analysis.reference_values import load_reference_values
 from cosim.reproduction.catalogue import catalogue
 from cosim.reproduction.context import Context, NotRunError
 from cosim.reproduction.page import Evaluated, render
-from cosim.reproduction.record import Figure, evaluate
-from cosim.reproduction.scenarios import runner
+from cosim.reproduction.record import Figure, effect_of, evaluate
+from cosim.reproduction.runs import runner
 
 PAGE = "reproduction.md"
 FIGURES = "figures"
@@ -33,8 +33,8 @@ def reproduce(
     Args:
         out: the docs folder.
         values: the dissertation's printed values (``docs/dissertation-values.toml``).
-        scenarios: run the closed-loop scenarios (minutes); without, their claims read
-            "not run".
+        scenarios: run the closed-loop scenarios (minutes: each at two steps,
+            :mod:`cosim.reproduction.runs`); without, their claims read "not run".
         log: receives one progress line per section.
     """
     refs = load_reference_values(values)
@@ -48,8 +48,9 @@ def reproduce(
         for section in catalogue(refs):
             started = time.perf_counter()
             rows = tuple(evaluate(claim, ctx) for claim in section.claims)
+            effects = tuple(effect_of(choice, ctx) for choice in section.choices)
             drawn = tuple(f.name for f in section.figures if _draw(f, ctx, figures, log))
-            evaluated.append(Evaluated(section, rows, drawn))
+            evaluated.append(Evaluated(section, rows, drawn, effects))
             log(f"{section.title}: {time.perf_counter() - started:.1f} s")
     page = out / PAGE
     page.write_text(render(evaluated, ctx), encoding="utf-8")
