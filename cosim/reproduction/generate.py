@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 import sys
 import tempfile
 import time
@@ -27,8 +28,9 @@ def _stderr(message: str) -> None:
 def reproduce(
     out: Path, values: Path, scenarios: bool = True, log: Callable[[str], None] = _stderr
 ) -> Path:
-    """Write ``out/reproduction.md`` and its figures in ``out/figures`` (the PNGs there
-    are replaced); return the page.
+    """Write ``out/reproduction.md`` and its figures in ``out/figures`` (the figures the
+    earlier page showed are removed first; other pages' figures there are left alone);
+    return the page.
 
     Args:
         out: the docs folder.
@@ -40,8 +42,7 @@ def reproduce(
     refs = load_reference_values(values)
     figures = out / FIGURES
     figures.mkdir(parents=True, exist_ok=True)
-    for old in figures.glob("*.png"):
-        old.unlink()
+    remove_figures_of(out / PAGE)
     evaluated = []
     with tempfile.TemporaryDirectory() as work:
         ctx = Context.create(refs, runner(Path(work), log) if scenarios else None)
@@ -55,6 +56,15 @@ def reproduce(
     page = out / PAGE
     page.write_text(render(evaluated, ctx), encoding="utf-8")
     return page
+
+
+def remove_figures_of(page: Path) -> None:
+    """Remove the figures ``page`` shows (``![..](figures/NAME.png)``), if it exists: the
+    folder is shared with other pages' figures, which stay."""
+    if not page.is_file():
+        return
+    for name in re.findall(rf"\]\({FIGURES}/([\w.-]+\.png)\)", page.read_text(encoding="utf-8")):
+        (page.parent / FIGURES / name).unlink(missing_ok=True)
 
 
 def _draw(figure: Figure, ctx: Context, folder: Path, log: Callable[[str], None]) -> bool:

@@ -22,6 +22,7 @@ from cosim.cli import main
 from cosim.reproduction import Claim, Context, Cost, Finding, all_claims, evaluate
 from cosim.reproduction.catalogue import catalogue
 from cosim.reproduction.context import NotRunError, RunData
+from cosim.reproduction.generate import remove_figures_of
 from cosim.reproduction.lateral import jacobian, printed_jacobian
 from cosim.reproduction.model_choices import WithoutReaction, momentum_drift
 from cosim.reproduction.page import Evaluated, render
@@ -352,6 +353,23 @@ def test_the_folds_of_example_5_4_and_sec_5_1_4_use_the_weight_of_example_5_3() 
 
 
 # --- the command ----------------------------------------------------------------------------
+
+
+def test_reproduce_removes_only_the_figures_its_earlier_page_showed(tmp_path: Path) -> None:
+    """docs/figures holds other pages' figures too (the README's screenshots): a rerun
+    of reproduce replaces its own and leaves those."""
+    figures = tmp_path / "figures"
+    figures.mkdir()
+    for name in ("fig5_4_phase_portrait.png", "gone-since.png", "user-study-grid.png"):
+        (figures / name).write_bytes(b"png")
+    page = tmp_path / "reproduction.md"
+    page.write_text(
+        "![a](figures/fig5_4_phase_portrait.png)\n\n![b](figures/gone-since.png)\n",
+        encoding="utf-8",
+    )
+    remove_figures_of(page)
+    assert sorted(p.name for p in figures.iterdir()) == ["user-study-grid.png"]
+    remove_figures_of(tmp_path / "no-page-yet.md")  # a first run has nothing to remove
 
 
 def test_reproduce_refuses_a_missing_values_file(tmp_path: Path, capsys) -> None:
