@@ -427,6 +427,9 @@ def _check_built(fmu: Path) -> list[str]:
 
 
 def _run_pythonfmu(name: str, stage: Path, dest: Path) -> Path:
+    # pythonfmu's command line sets every capability flag, canInterpolateInputs="false"
+    # unless told: a slave that takes input derivatives (SafeSlave.interpolates_inputs) says so
+    interpolates = getattr(slave_class(name), "interpolates_inputs", False)
     return pythonfmu_build(
         stage / FMUS[name].script,
         dest,
@@ -434,9 +437,18 @@ def _run_pythonfmu(name: str, stage: Path, dest: Path) -> Path:
         "--no-external-tool",
         "--handle-state",
         "--serialize-state",
+        *(("--interpolate-inputs",) if interpolates else ()),
         *(str(stage / package) for package in PACKAGES),
         cwd=stage,
     )
+
+
+def slave_class(name: str) -> type:
+    """FMU ``name``'s slave class, imported in this process."""
+    source = FMUS[name]
+    module = importlib.import_module(f"{source.package}.{source.script.removesuffix('.py')}")
+    cls: type = getattr(module, name)
+    return cls
 
 
 def pythonfmu_build(

@@ -208,6 +208,9 @@ static void explain(Answer *a, int finished, int waited, int status, Buffer *err
     } else if (waited && WIFSIGNALED(status)) {
         snprintf(a->failure, sizeof a->failure, "was killed by signal %d%s%s", WTERMSIG(status),
                  sep, said);
+    } else if (waited && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+        snprintf(a->failure, sizeof a->failure, "gave no answer the runtime understands%s%s",
+                 sep, said);
     } else if (waited && WIFEXITED(status)) {
         snprintf(a->failure, sizeof a->failure, "exited with status %d before answering%s%s",
                  WEXITSTATUS(status), sep, said);

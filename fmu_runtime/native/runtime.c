@@ -196,7 +196,8 @@ static void list_candidates(Instance *c, Candidate k[CANDIDATES])
     snprintf(k[0].shown, sizeof k[0].shown, "the Python running in this process");
     snprintf(k[0].why, sizeof k[0].why, "none runs");
     variable_candidate(&k[1]);
-    snprintf(k[2].shown, sizeof k[2].shown, "the build's Python %s", c->record.build_python);
+    snprintf(k[2].shown, sizeof k[2].shown, "the build's Python%s%s",
+             c->record.build_python[0] ? " " : "", c->record.build_python);
     snprintf(k[2].executable, sizeof k[2].executable, "%s", c->record.build_python);
     if (!c->record.build_python[0]) {
         snprintf(k[2].why, sizeof k[2].why, "not recorded in resources/%s", RECORD_FILE);

@@ -14,6 +14,7 @@ import os
 import shutil
 import signal
 import subprocess
+import tempfile
 from pathlib import Path
 
 from fmu_runtime.entry import RECORD_FILE
@@ -49,7 +50,7 @@ def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
 def moved(extraction: Path, folder: Path) -> Path:
     """A copy of ``extraction`` in ``folder`` whose record names a build Python that is not
     on this machine (everything else the build recorded is kept)."""
-    copy = folder / extraction.name
+    copy = Path(tempfile.mkdtemp(prefix="moved-", dir=folder)) / extraction.name
     shutil.copytree(extraction, copy)
     record = copy / "resources" / RECORD_FILE
     lines = record.read_text().splitlines()

@@ -409,3 +409,93 @@ def test_the_runtime_and_pythonfmus_binary_give_the_same_results(name, fmu_paths
         for runtime in ("", "pythonfmu")
     )
     assert ours == theirs  # bit-identical outputs, the same serialised state size
+
+
+DERIVATIVES = """
+import json, os, sys
+from fmpy.fmi1 import FMICallException
+from fmu_harness import Harness
+
+
+def status(call, *args):
+    try:
+        call(*args)
+    except FMICallException as exc:
+        return exc.status
+    return 0
+
+
+report = {}
+for runtime, path in (("", sys.argv[1]), ("pythonfmu", sys.argv[1]), ("", sys.argv[2])):
+    os.environ["AUV_FMU_RUNTIME"] = runtime
+    fmu = Harness(path, initialize=False)
+    vr = {n: v.valueReference for n, v in fmu.variables.items()}
+    set_derivatives = fmu.slave.setRealInputDerivatives
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    statuses = {"initialisation mode": status(set_derivatives, [vr["thrust"]], [1], [0.5])}
+    fmu.slave.exitInitializationMode()
+    statuses["first step"] = fmu.step(0.01)
+    statuses["second step"] = fmu.step(0.01)
+    statuses["both orders"] = status(set_derivatives, [vr["thrust"]] * 2, [1, 2], [0.25, -1.0])
+    statuses["third step"] = fmu.step(0.01)
+    for case, args in {"order 3": ([vr["thrust"]], [3], [1.0]),
+                       "not finite": ([vr["thrust"]], [1], [float("inf")]),
+                       "an output": ([vr["u"]], [1], [1.0]),
+                       "a parameter": ([vr["u_0"]], [1], [1.0])}.items():
+        statuses[case] = status(set_derivatives, *args)
+    fmu.slave.terminate()
+    statuses["terminated"] = status(set_derivatives, [vr["thrust"]], [1], [0.5])
+    seen = [text for level, text in fmu.log if text.startswith("thrust derivatives")]
+    report[f"{runtime or 'runtime'} {os.path.basename(os.path.dirname(path))}"] = {
+        "statuses": statuses, "seen": seen, "errors": fmu.messages(3)}
+    fmu.slave.freeInstance()
+print(json.dumps(report))
+"""
+
+
+@pytest.mark.slow
+def test_input_derivatives_reach_a_slave_that_takes_them_and_no_other(
+    fmu_paths, run_python, tmp_path
+):
+    """A plant built with ``interpolates_inputs = True`` (and a line logging what it
+    sees): derivatives of Real inputs, orders 1 and 2, in initialisation mode and when
+    initialised, reach the next step only; anything else is refused, and so is every
+    call to an FMU that does not take them or under pythonfmu's binary."""
+    src = tmp_path / "src"
+    for package in ("plant_fmu", "controller_fmu", "fmu_runtime"):
+        shutil.copytree(ROOT / package, src / package, ignore=shutil.ignore_patterns("__pycache__"))
+    plant = src / "plant_fmu" / "auv_plant.py"
+    text = plant.read_text()
+    step = "    def _step(self, current_time: float, step_size: float) -> None:\n"
+    seen = (
+        "        self.log(f\"thrust derivatives {self.input_derivative('thrust', 1)!r} \"\n"
+        "                 f\"{self.input_derivative('thrust', 2)!r}\")\n"
+    )
+    assert step in text
+    text = text.replace(step, step + seen).replace(
+        "    default_experiment = ", "    interpolates_inputs = True\n    default_experiment = "
+    )
+    plant.write_text(text)
+    built = run_python(BUILD_ELSEWHERE, src, tmp_path / "interpolating")
+    assert built.returncode == 0, built.stderr[-3000:]
+    interpolating = Path(built.stdout.strip().splitlines()[-1])
+    report = _json_result(run_python(DERIVATIVES, interpolating, fmu_paths["AuvPlant"]))
+    taken = report["runtime interpolating"]
+    assert taken["statuses"] == {
+        "initialisation mode": 0, "first step": 0, "second step": 0, "both orders": 0,
+        "third step": 0, "order 3": 3, "not finite": 3, "an output": 3, "a parameter": 3,
+        "terminated": 3,
+    }  # fmt: skip
+    assert taken["seen"] == [
+        "thrust derivatives 0.5 0.0", "thrust derivatives 0.0 0.0",
+        "thrust derivatives 0.25 -1.0",
+    ]  # fmt: skip
+    assert "order 3, expected 1 or 2" in taken["errors"]
+    for other, reason in (
+        ("pythonfmu interpolating", "need the FMU's own runtime"),
+        ("runtime " + fmu_paths["AuvPlant"].parent.name, "this FMU takes no input derivatives"),
+    ):
+        assert report[other]["statuses"]["initialisation mode"] == 3
+        assert set(report[other]["seen"]) <= {"thrust derivatives 0.0 0.0"}  # none taken
+        assert reason in report[other]["errors"]
