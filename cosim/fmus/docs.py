@@ -104,7 +104,7 @@ _COMMON = (
     "with an Error logged and changes nothing; the call returns fmi2Error, and the "
     "instance may go on with valid calls. A failed initialisation leaves the instance in "
     "the error state; a step the model cannot take returns fmi2Discard and may be "
-    "repeated. Outputs declared <code>initial=\"calculated\"</code> depend on parameters: "
+    'repeated. Outputs declared <code>initial="calculated"</code> depend on parameters: '
     "read in initialisation mode, they give the values the FMU will start from.</li>"
     "<li><b>Process exit.</b> A host may exit without terminating or freeing its "
     "instances.</li>"

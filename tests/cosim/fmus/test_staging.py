@@ -60,6 +60,4 @@ def test_the_package_name_is_a_function_of_the_content():
     assert name.startswith("auvfmu_") and len(name) == len("auvfmu_") + 12
     assert staging.package_name(dict(reversed(list(files.items())))) == name
     assert staging.package_name({**files, "pkg/b.toml": b"m = 2\n"}) != name
-    assert (
-        staging.package_name({"pkg/c.py": b"x = 1\n", "pkg/b.toml": b"m = 1\n"}) != name
-    )
+    assert staging.package_name({"pkg/c.py": b"x = 1\n", "pkg/b.toml": b"m = 1\n"}) != name
