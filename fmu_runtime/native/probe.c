@@ -144,7 +144,7 @@ static void unhex(const char *hex, size_t n, char *out, size_t size)
 static void unhex_path(const char *text, Answer *a)
 {
     size_t length = strlen(text);
-    a->path = calloc(length / 2 + 2, 1);
+    a->path = calloc(length + 2, 1); /* each entry's bytes and NUL fit in its hex digits */
     if (!a->path) return;
     char *out = a->path;
     while (*text) {
