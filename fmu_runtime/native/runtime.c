@@ -222,7 +222,7 @@ static int same_file(const char *a, const char *b)
 }
 
 /* Why the asked candidate cannot run the FMU (into ``why``), or 0 if it can. */
-static int unsuitable(const char *exe, const Answer *a, const char *loaded, char *why, size_t n)
+static int unsuitable(const Answer *a, const char *loaded, char *why, size_t n)
 {
     if (a->major && (a->major < 3 || (a->major == 3 && a->minor < 9))) {
         return snprintf(why, n, "Python %d.%d.%d is too old: the FMU needs CPython >= 3.9",
@@ -240,8 +240,9 @@ static int unsuitable(const char *exe, const Answer *a, const char *loaded, char
                         a->major, a->minor, a->micro);
     }
     if (!a->numpy[0]) {
-        return snprintf(why, n, "Python %d.%d.%d cannot import numpy (%s); fix: %s -m pip install numpy",
-                        a->major, a->minor, a->micro, a->numpy_error, exe);
+        return snprintf(why, n,
+                        "Python %d.%d.%d cannot import numpy (%s); fix: %s -m pip install numpy",
+                        a->major, a->minor, a->micro, a->numpy_error, a->executable);
     }
     char os_py[PATH_SIZE + 16];
     snprintf(os_py, sizeof os_py, "%s/os.py", a->stdlib);
@@ -374,7 +375,7 @@ static int find_and_start(Instance *c)
                             : "no such file or folder");
         } else if (!a) {
             snprintf(k[i].why, sizeof k[i].why, "out of memory");
-        } else if (!unsuitable(k[i].executable, a, loaded, k[i].why, sizeof k[i].why) &&
+        } else if (!unsuitable(a, loaded, k[i].why, sizeof k[i].why) &&
                    start(a, k[i].why, sizeof k[i].why)) {
             char used[LINE_SIZE];
             snprintf(used, sizeof used, "Python %d.%d.%d (%s), numba %s", a->major, a->minor,

@@ -132,10 +132,8 @@ def test_a_virtual_environment_folder_is_used_and_a_venv_without_numpy_passed_ov
     assert "instantiate returned NULL" in done.stdout and done.stderr == ""
     line = _candidate(done, 2)
     assert line.startswith(f"{OVERRIDE_VARIABLE}={bare}/: Python "), line
-    assert (
-        f"cannot import numpy (ModuleNotFoundError: No module named 'numpy'); fix: "
-        f"{bare}//bin/python3 -m pip install numpy"
-    ) in line
+    assert "cannot import numpy (ModuleNotFoundError: No module named 'numpy'); fix: " in line
+    assert re.search(rf"fix: {re.escape(str(bare))}/+bin/python3 -m pip install numpy$", line)
 
     with_numpy = tmp_path / "with-numpy"  # this environment's packages, seen through a venv
     subprocess.run(

@@ -21,6 +21,7 @@ Every process runs in its own process group, ended by the test even on failure.
 from __future__ import annotations
 
 import csv
+import importlib.util
 import re
 import shutil
 import subprocess
@@ -29,9 +30,11 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from c_hosts import moved, run_clean
+from c_hosts import HOST_SOURCE, moved, run_clean
+from elf_symbols import glibc_versions, unresolvable
 from repo_paths import ROOT
 
+from cosim.fmus import native
 from cosim.fmus.build import FMUS
 from cosim.fmus.native import NO_COMPILER, OVERRIDE_VARIABLE, RUNTIME_VARIABLE
 
@@ -357,3 +360,51 @@ def test_a_build_without_a_compiler_keeps_pythonfmus_binary_and_says_so(run_pyth
     ran = run_python(RUN_PLANT, fmu)
     assert ran.returncode == 0, ran.stderr[-3000:]
     assert "steps [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]" in ran.stdout
+
+
+def _with_runtime(extraction: Path, runtime: Path, folder: Path) -> Path:
+    """A copy of ``extraction`` whose linux64 binary is ``runtime``."""
+    copy = folder / extraction.name
+    shutil.copytree(extraction, copy)
+    shutil.copyfile(runtime, copy / "binaries" / "linux64" / f"{copy.name.rstrip('0123456789')}.so")
+    return copy
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(importlib.util.find_spec("ziglang") is None, reason="ziglang not installed")
+def test_a_runtime_built_by_zig_for_glibc_2_17_runs(host, extracted, tmp_path, clean_home):
+    """Where there is no cc: ``zig cc -target x86_64-linux-gnu.2.17``."""
+    zig = native.Toolchain("zig", (sys.executable, "-m", "ziglang", "cc"), zig=True)
+    runtime = tmp_path / "runtime.so"
+    done = subprocess.run(native.compile_command(zig, runtime), capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert glibc_versions(runtime)[-1] <= (2, 17) and unresolvable(runtime) == []
+    folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
+    done = run_clean([host, folder, "AuvPlant", "cycles", 2, 50], clean_home)
+    assert "cycles: 2 x 50 ok" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]
+
+
+SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1", "-g")
+
+
+@pytest.mark.slow
+def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_path, clean_home):
+    """The runtime and the C host built with ASan and UBSan: cycles, the forbidden calls
+    and the hostile arguments run to the end, any finding aborts with a report."""
+    chain = native.toolchain()
+    if chain is None or chain.zig:
+        pytest.skip("no cc")
+    runtime, host = tmp_path / "runtime.so", tmp_path / "fmi_host"
+    for command in (
+        native.compile_command(chain, runtime, *SANITIZERS),
+        [*chain.command, *SANITIZERS, "-o", str(host), str(HOST_SOURCE), "-ldl"],
+    ):
+        done = subprocess.run(command, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-3000:]
+    folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
+    environment = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
+                   "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
+    for mode in (["cycles", 2, 20], ["illegal"], ["hostile"]):
+        done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **environment)
+        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+        assert "Sanitizer" not in done.stderr and "runtime error" not in done.stderr

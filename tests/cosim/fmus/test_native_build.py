@@ -4,8 +4,6 @@ is shipped unchanged (it needs glibc 2.32: docs/hosts.md says so)."""
 
 from __future__ import annotations
 
-import importlib.util
-import re
 import shutil
 import subprocess
 import zipfile
@@ -13,29 +11,12 @@ from pathlib import Path
 
 import pytest
 import pythonfmu
+from elf_symbols import glibc_versions, unresolvable
 
 from cosim.fmus import native
 from cosim.fmus.build import FMUS
 
 pytestmark = pytest.mark.skipif(shutil.which("objdump") is None, reason="no objdump")
-
-
-def _glibc_versions(library: Path) -> list[tuple[int, ...]]:
-    """Every GLIBC_x.y version the library's dynamic symbols need, oldest first."""
-    out = subprocess.run(["objdump", "-T", str(library)], capture_output=True, text=True).stdout
-    found = {tuple(map(int, v.split("."))) for v in re.findall(r"GLIBC_([0-9.]+)\b", out)}
-    return sorted(found)
-
-
-def _unresolvable(library: Path) -> list[str]:
-    """Functions the library needs that no versioned glibc symbol provides (a library the
-    link forgot, as libm's fmax once was): strong undefined symbols without a version."""
-    out = subprocess.run(["objdump", "-T", str(library)], capture_output=True, text=True).stdout
-    return [
-        line.split()[-1]
-        for line in out.splitlines()
-        if "*UND*" in line and " w " not in line and "GLIBC_" not in line
-    ]
 
 
 def _binary(fmu: Path, name: str, folder: Path) -> Path:
@@ -48,9 +29,9 @@ def _binary(fmu: Path, name: str, folder: Path) -> Path:
 @pytest.mark.parametrize("name", sorted(FMUS))
 def test_the_runtime_needs_glibc_2_17_at_most_and_nothing_unversioned(name, fmu_paths, tmp_path):
     runtime = _binary(fmu_paths[name], f"binaries/linux64/{name}.so", tmp_path)
-    versions = _glibc_versions(runtime)
+    versions = glibc_versions(runtime)
     assert versions and versions[-1] <= (2, 17), versions
-    assert _unresolvable(runtime) == []
+    assert unresolvable(runtime) == []
 
 
 def test_the_fallback_and_the_win64_binary_are_pythonfmus_unchanged(fmu_paths, tmp_path):
@@ -61,7 +42,7 @@ def test_the_fallback_and_the_win64_binary_are_pythonfmus_unchanged(fmu_paths, t
             win64 = archive.read(f"binaries/win64/{name}.dll")
         assert fallback == (wheel / "linux64" / "libpythonfmu-export.so").read_bytes()
         assert win64 == (wheel / "win64" / "pythonfmu-export.dll").read_bytes()
-    glibc = _glibc_versions(wheel / "linux64" / "libpythonfmu-export.so")
+    glibc = glibc_versions(wheel / "linux64" / "libpythonfmu-export.so")
     assert glibc[-1] == (2, 32)  # what docs/hosts.md tells a user the fallback needs
 
 
@@ -75,17 +56,3 @@ def test_the_runtime_compiles_with_cc_without_a_warning(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert done.stderr == ""
-
-
-@pytest.mark.slow
-@pytest.mark.skipif(importlib.util.find_spec("ziglang") is None, reason="ziglang not installed")
-def test_zig_builds_the_runtime_for_glibc_2_17_too(tmp_path):
-    """Where there is no cc: ``zig cc -target x86_64-linux-gnu.2.17``."""
-    import sys
-
-    zig = native.Toolchain("zig", (sys.executable, "-m", "ziglang", "cc"), zig=True)
-    out = tmp_path / "runtime.so"
-    done = subprocess.run(native.compile_command(zig, out), capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert _glibc_versions(out)[-1] <= (2, 17)
-    assert _unresolvable(out) == []
