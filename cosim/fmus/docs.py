@@ -90,7 +90,7 @@ _COMMON = (
     "<li><b>Load, reload, free.</b> Any number of instances, at once or one after "
     "another, from one extraction or a fresh extraction each time; each instance reads "
     "its data from its own extraction. An instance may be freed at any time and its "
-    "extraction deleted afterwards. An instantiate/free cycle keeps about 1&nbsp;KiB.</li>"
+    "extraction deleted afterwards. An instantiate/free cycle keeps no memory.</li>"
     "<li><b>Several builds per process.</b> The FMU's Python code lives in a package "
     "named after its content (<code>resources/auvfmu_&lt;hash&gt;</code>): another build "
     "of this FMU in the same process runs its own code, and two extractions of this build "
