@@ -63,13 +63,17 @@ def our_answer(**changes: str) -> dict[str, str]:
     return {**answer, **changes}
 
 
-def _run(host, extracted, folder: Path, home: Path, **extra: str):
+def _run_cycles(host, extracted, folder: Path, home: Path, cycles: int, **extra: str):
     return run_clean(
-        [host, moved(extracted["AuvPlant"], folder), "AuvPlant", "cycles", 1, 2],
+        [host, moved(extracted["AuvPlant"], folder), "AuvPlant", "cycles", cycles, 2],
         home,
         PATH="/nonexistent",
         **extra,
     )
+
+
+def _run(host, extracted, folder: Path, home: Path, **extra: str):
+    return _run_cycles(host, extracted, folder, home, 1, **extra)
 
 
 def _candidate(done, number: int) -> str:
@@ -190,3 +194,14 @@ def test_messages_never_name_an_empty_path(host, extracted, tmp_path, clean_home
         assert len(texts) == 5, done.stdout
         assert [t for t in texts if EMPTY_SLOT.search(t)] == []
         assert "the build's Python: not recorded in resources/fmu_runtime.txt" in texts[2]
+
+
+@pytest.mark.slow
+def test_each_candidate_is_asked_once_per_process(host, extracted, tmp_path, clean_home):
+    """Three instantiate/free cycles in one host: the candidate's probe ran once."""
+    calls = tmp_path / "calls"
+    fake = fake_python(tmp_path, our_answer())
+    fake.write_text(fake.read_text().replace("#!/bin/sh\n", f"#!/bin/sh\necho x >> {calls}\n"))
+    done = _run_cycles(host, extracted, tmp_path, clean_home, 3, **{OVERRIDE_VARIABLE: str(fake)})
+    assert "cycles: 3 x 2 ok" in done.stdout, done.stdout + done.stderr
+    assert calls.read_text() == "x\n"
