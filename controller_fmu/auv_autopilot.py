@@ -173,7 +173,8 @@ class AuvAutopilot(SafeSlave):
                     name,
                     causality=Fmi2Causality.output,
                     variability=Fmi2Variability.discrete,
-                    initial=Fmi2Initial.exact,
+                    # thrust is the thrust_command parameter: calculated from it
+                    initial=Fmi2Initial.calculated if name == "thrust" else Fmi2Initial.exact,
                     description=OUTPUT_DESCRIPTIONS[name],
                     getter=item_getter(self._outputs, i),
                 ),

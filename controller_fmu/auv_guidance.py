@@ -112,7 +112,7 @@ class AuvGuidance(SafeSlave):
                     name,
                     causality=Fmi2Causality.output,
                     variability=Fmi2Variability.discrete,
-                    initial=Fmi2Initial.exact,
+                    initial=Fmi2Initial.calculated,  # from the waypoints and the inputs
                     description=description,
                     getter=item_getter(self._outputs, name),
                 ),

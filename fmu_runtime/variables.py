@@ -10,10 +10,11 @@ closures over the slave, a reference cycle (slave -> variables -> closure -> sla
 leaves every freed instance, hundreds of objects, to the cyclic garbage collector instead
 of freeing it in ``fmi2FreeInstance``. No helper here holds a strong reference to a slave.
 
-:func:`field_bounds` reads the range a pydantic field declares (``gt``/``ge``/``lt``/
-``le``), so an FMU parameter generated from a model field declares the same ``min``/``max``
-in modelDescription.xml (through :meth:`fmu_runtime.safe_slave.SafeSlave.register`)
-without re-typing it.
+:func:`field_bounds` reads the range a field declares (``gt``/``ge``/``lt``/``le``
+constraints in its ``metadata``, as pydantic's fields and annotated-types carry them), so an
+FMU parameter generated from a model field declares the same ``min``/``max`` in
+modelDescription.xml (through :meth:`fmu_runtime.safe_slave.SafeSlave.register`) without
+re-typing it. It only reads attributes, so the FMU needs no pydantic at run time.
 """
 
 from __future__ import annotations
@@ -21,8 +22,6 @@ from __future__ import annotations
 import weakref
 from collections.abc import Callable, Hashable
 from typing import Any, Protocol
-
-from pydantic.fields import FieldInfo
 
 
 class Items(Protocol):
@@ -72,8 +71,9 @@ def attribute_setter(owner: object, name: str) -> Callable[[Any], None]:
     return setter
 
 
-def field_bounds(field: FieldInfo) -> tuple[float | None, float | None]:
-    """``(minimum, maximum)`` a pydantic field declares (None where it declares none).
+def field_bounds(field: Any) -> tuple[float | None, float | None]:
+    """``(minimum, maximum)`` a field declares through the constraints in its ``metadata``
+    (None where it declares none).
 
     FMI's ``min``/``max`` are inclusive, so a strict bound (``gt=0``) becomes the inclusive
     ``min = 0``: a looser range that importers can check, while the model's own validation

@@ -198,10 +198,10 @@ class Slave:
         object, its library still loaded, waits for this process's next run (not after a
         Fatal status: that instance is never touched again)."""
         try:
-            if self.state in ("initialization", "stepping"):
+            if self.state == "stepping":  # FMI 2.0 allows fmi2Terminate only once initialised
                 self.fmu.terminate()
                 self.state = "terminated"
-            if self.state in ("instantiated", "terminated", "error"):
+            if self.state in ("instantiated", "initialization", "terminated", "error"):
                 self.state = "freed"
                 self.fmu.fmi2FreeInstance(self.fmu.component)  # the library stays loaded
                 self.fmu.component = None

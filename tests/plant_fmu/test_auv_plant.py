@@ -344,7 +344,9 @@ def test_model_description_is_valid_complete_and_matches_the_contract(plant):
     assert outputs == CONTRACT_OUTPUTS
     assert all(v.description for v in md.modelVariables)
     assert all(v.unit for v in md.modelVariables if v.type == "Real")
-    assert all(variables[n].initial == "exact" for n in outputs)
+    # from the initial state, the vehicle and the currents: read in initialisation mode,
+    # they give the values the plant starts from
+    assert all(variables[n].initial == "calculated" for n in outputs)
     parameters = {v.name for v in md.modelVariables if v.causality == "parameter"}
     expected = {f"{n}_0" for n in STATE_NAMES} | {
         "variant", "moving_mass_model", "ideal_fluid", "vehicle", "current_shear_dUdy",
