@@ -135,7 +135,7 @@ class SafeSlave(Fmi2Slave):
             raise ValueError(f"Real variable {var.name!r}: a unit is required")
         if not isinstance(var, Real) and var.variability is None:
             raise ValueError(f"variable {var.name!r}: Integer/Boolean/String need a variability")
-        if (minimum, maximum) != (None, None) and not isinstance(var, Real | Integer):
+        if (minimum, maximum) != (None, None) and not isinstance(var, (Real, Integer)):
             raise ValueError(f"variable {var.name!r}: only Real and Integer take a range")
         if names is not None:
             if not isinstance(var, Integer):
@@ -295,7 +295,7 @@ class SafeSlave(Fmi2Slave):
         if plan is None or len(values) != len(plan[0]) or not all(map(math.isfinite, values)):
             return False
         variables, names = plan
-        for var, value in zip(variables, values, strict=True):
+        for var, value in zip(variables, values):
             var.setter(value)
         self._written.update(names)
         if self._problems:
@@ -394,7 +394,7 @@ class SafeSlave(Fmi2Slave):
             if unit and real is not None:
                 real.set("unit", unit)
             bounds = self._bounds.get(int(node.attrib["valueReference"]), (None, None))
-            for attribute, value in zip(("min", "max"), bounds, strict=True):
+            for attribute, value in zip(("min", "max"), bounds):
                 if value is not None:  # node[0]: the <Real>/<Integer> element
                     node[0].set(attribute, repr(value))
             if variable in self._names:
@@ -481,7 +481,7 @@ class SafeSlave(Fmi2Slave):
             return fallback
 
     def _set_all(self, vrs: list[int], values: list[Any], kind: type[ScalarVariable]) -> None:
-        for vr, value in zip(vrs, values, strict=False):
+        for vr, value in zip(vrs, values):
             try:
                 self._set(vr, value, kind)
             except Exception as exc:

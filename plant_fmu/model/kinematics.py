@@ -143,12 +143,12 @@ def euler_from_quaternion(
         phi = previous[0]
         turn = math.atan2(R[0, 1], R[0, 2]) if theta > 0 else math.atan2(-R[0, 1], -R[0, 2])
         psi = phi - turn if theta > 0 else turn - phi
-    first = [_nearest_turn(a, b) for a, b in zip((phi, theta, psi), previous, strict=True)]
+    first = [_nearest_turn(a, b) for a, b in zip((phi, theta, psi), previous)]
     second = [
         _nearest_turn(a, b)
-        for a, b in zip((phi + math.pi, math.pi - theta, psi + math.pi), previous, strict=True)
+        for a, b in zip((phi + math.pi, math.pi - theta, psi + math.pi), previous)
     ]
-    distance = [sum(abs(a - b) for a, b in zip(t, previous, strict=True)) for t in (first, second)]
+    distance = [sum(abs(a - b) for a, b in zip(t, previous)) for t in (first, second)]
     return tuple(first if distance[0] <= distance[1] else second)
 
 
