@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
-from cosim.viz.web_viewer import GRPC_PORT, WEB_PORT
+from cosim.viz.web_viewer import FILE_PORT, WEB_PORT
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -90,7 +90,7 @@ def _export(args: argparse.Namespace) -> int:
 def _view(args: argparse.Namespace) -> int:
     from cosim.viz.recording import view_run
 
-    return view_run(args.run_dir, args.web or args.open, args.open, args.web_port, args.grpc_port)
+    return view_run(args.run_dir, args.web or args.open, args.open, args.web_port, args.file_port)
 
 
 def _conditions(args: argparse.Namespace) -> OperatingConditions:
@@ -325,10 +325,12 @@ def _add_view_parser(sub: argparse._SubParsersAction) -> None:
         "--web-port", type=int, default=WEB_PORT, help="web viewer page, 0 any free [%(default)s]"
     )
     p.add_argument(
-        "--grpc-port",
+        "--file-port",
+        "--grpc-port",  # its name while rerun's gRPC proxy served the recording
+        dest="file_port",
         type=int,
-        default=GRPC_PORT,
-        help="recording server, 0 any free [%(default)s]",
+        default=FILE_PORT,
+        help="the recording's HTTP server, 0 any free [%(default)s]",
     )
     p.set_defaults(func=_view)
 

@@ -161,7 +161,7 @@ def execute(
             result.startup_s = {
                 "prepare": prepared - started, "outputs": opened - prepared, **result.startup_s
             }  # fmt: skip
-            _complete(outputs, result, stop)
+            _complete(outputs, result, stop, live=session.live is not None)
         finally:
             if progress is not None:
                 progress.close()
@@ -330,15 +330,17 @@ def rerun_sink(
         raise CosimError(f"cannot start the Rerun recording: {exc}") from None
 
 
-def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest) -> None:
+def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest, live: bool) -> None:
     """Close the outputs and write the final summary; a failure makes the run incomplete
-    (a summary that cannot be written keeps saying "running", and the reason is printed)."""
+    (a summary that cannot be written keeps saying "running", and the reason is printed).
+    A ``live`` run's scenario.toml is rewritten to replay it (its overrides, where it
+    stopped)."""
     from cosim.live.session import replay_scenario
 
     problem = outputs.close()
     if problem is not None and result.error is None:
         result.complete, result.error = False, problem
-    replay = replay_scenario(result.scenario, result)
+    replay = replay_scenario(result.scenario, result, live)
     problem = outputs.write_scenario(replay) if replay is not None else None
     if problem is not None and result.error is None:
         result.complete, result.error = False, problem

@@ -13,9 +13,9 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   ``current_north``, ``current_east``, ``current_down`` (m/s, earth frame);
 * outputs: the 14 states (``north`` ... ``r``, ``mass_position``, ``mass_velocity``), the
   attitude quaternion ``quat_w``, ``quat_x``, ``quat_y``, ``quat_z`` (body to earth, scalar
-  first; the full variant integrates it, and roll, pitch and yaw are the Euler angles of it
-  that continue the previous ones, so they run on past +-180 deg and through +-90 deg of
-  pitch without jumping), ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - U, U the current in
+  first; the full variant integrates it, and roll, pitch and yaw are its Euler angles with
+  |pitch| <= 90 deg, roll and yaw continuing the previous ones by whole turns, so yaw runs
+  on past +-180 deg), ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - U, U the current in
   body axes: ``PlantModel.current_in_body``) and ``kinetic_energy`` (J, 1/2 nu_r^T (M_RB +
   M_A) nu_r; with model 1 the moving mass's too). All are refreshed after initialisation and
   after each step, so none depends directly on an input (ModelStructure dependencies "").

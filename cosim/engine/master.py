@@ -245,7 +245,7 @@ def run(
             rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval, timeline)
             at: Callable[[int], None] = timeline.at if timeline is not None else _no_event
             if live is not None:
-                live.bind(layout.index, stop_request)
+                live.bind(layout.index, stop_request, pacer)
             if live is not None or pacer is not None:
                 at = _live_point(at, pacer, live, z, scenario.coupling.step, stop_request)
             result = _loop(scenario, order, layout, z, rows, stop_request, timeline, at)
@@ -254,6 +254,8 @@ def run(
             result.real_time = pacer.summary() if pacer is not None else None
             result.startup_s = startup
         finally:
+            if live is not None:  # a request still waiting is answered: not applied
+                live.close()
             for slave in slaves:
                 slave.finish()
     if table is not None:
@@ -447,22 +449,17 @@ def _live_point(
     h: float,
     stop: StopRequest,
 ) -> Callable[[int], None]:
-    """``at`` followed, at each communication point n, by the live run's work: publish the
-    values, wait while paused (the pacer's clock stopped), then wait for n's deadline."""
+    """``at`` wrapped for a paced or live run: at each communication point n, wait for n's
+    deadline (a stop ends the wait at once), then ``at`` (which applies the overrides and
+    holds a paused run, :meth:`LiveControl.take`), then publish the point's values."""
+    stopping = (lambda: live.stopping) if live is not None else (lambda: stop.requested)
 
     def point(n: int) -> None:
+        if pacer is not None:
+            pacer.release(n, stopping)
         at(n)
         if live is not None:
             live.publish(n * h, z)
-            if live.paused:
-                if pacer is not None:
-                    pacer.pause()
-                while not live.wait_while_paused(0.1) and stop.signum is None:
-                    pass
-                if pacer is not None:
-                    pacer.resume()
-        if pacer is not None:
-            pacer.release(n)
 
     return point
 

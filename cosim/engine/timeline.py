@@ -198,7 +198,7 @@ class Timeline:
             if run.n_fire == n:
                 self._fire(run.event, t)
         if self.live is not None:
-            self._apply_overrides(t)
+            self._apply_overrides(n, t)
         self._advance_ramps(t)
         for run in self._events:
             if run.event.series is not None:
@@ -215,17 +215,27 @@ class Timeline:
                 self._fire(run.event, t)
         self._fault_points(n, t)
 
-    def _apply_overrides(self, t: float) -> None:
-        """Fire every override queued since the last point as a time event at ``t``."""
-        assert self.live is not None
-        for values, source in self.live.drain():
+    def _apply_overrides(self, n: int, t: float) -> None:
+        """Fire every override queued since the last point as a time event at ``t`` (and,
+        while the run is paused here, each one that arrives); tell each request's ticket."""
+        live = self.live
+        assert live is not None
+        for ticket in live.take(n, t, self.z):
             k = len(self.overrides) + 1
             while f"{OVERRIDE_PREFIX}{k}" in self._taken:
                 k += 1
             name = f"{OVERRIDE_PREFIX}{k}"
             self._taken.add(name)
-            self._fire(Event(name, time=t, set=values), t, "override", f" from {source}")
-            self.overrides.append({"name": name, "time": t, "set": values, "source": source})
+            event = Event(name, time=t, set=ticket.values)
+            try:
+                self._fire(event, t, "override", f" from {ticket.source}")
+            except CosimError as exc:
+                live.failed(ticket, str(exc))
+                raise
+            self.overrides.append({"name": name, "time": t, "set": ticket.values,
+                                   "source": ticket.source})  # fmt: skip
+            live.applied(ticket, name, t)
+        self.notes += [(t, note) for note in live.take_notes()]
 
     def _fire(self, event: Event, t: float, what: str = "event", origin: str = "") -> None:
         why = f"{what} {event.name!r} at t = {t:.6g} s"

@@ -493,11 +493,13 @@ def _resolve(
     record = _resolve_record(spec.output.record, scenario, src)
     _check_manoeuvre(spec.manoeuvre, record, src)
     scenario = dataclasses.replace(scenario, record=record, manoeuvre=spec.manoeuvre)
-    return dataclasses.replace(
+    scenario = dataclasses.replace(
         scenario,
         events=resolve_events(spec.events, scenario, base_dir, src),
         faults=resolve_faults(spec.faults, scenario, src),
     )
+    _check_reachable_times(scenario, src)
+    return scenario
 
 
 def _check_manoeuvre(kind: str | None, record: tuple[str, ...], src: Source) -> None:
@@ -522,12 +524,35 @@ def _check_step_count(spec: ScenarioSpec, src: Source) -> None:
             f"{spec.stop_time!r} s is {stop_steps:.3g} communication steps of "
             f"{step!r} s (coupling.step); at most {MAX_STEPS:.0e} are run",
         )
+    if round(stop_steps) < 1:
+        raise src.error(
+            "stop_time",
+            f"{spec.stop_time!r} s is less than one communication step of {step!r} s "
+            "(coupling.step): a run takes at least one step",
+        )
     if abs(stop_steps - round(stop_steps)) > _STEP_TOLERANCE * max(1.0, stop_steps):
         raise src.error(
             "stop_time",
             f"{spec.stop_time} s is not a whole number of communication steps "
             f"(coupling.step = {step} s)",
         )
+
+
+def _check_reachable_times(scenario: Scenario, src: Source) -> None:
+    """Every event time and fault start/stop within :data:`MAX_STEPS` communication steps:
+    a later one can never be reached (and t / h would overflow the step count)."""
+    step = scenario.coupling.step
+    times = [(f"events[{i}].time", e.time) for i, e in enumerate(scenario.events)]
+    for i, fault in enumerate(scenario.faults):
+        times += [(f"faults[{i}].start", fault.start), (f"faults[{i}].stop", fault.stop)]
+    for key, time in times:
+        if time is not None and time / step > MAX_STEPS:
+            raise src.error(
+                key,
+                f"{time!r} s is beyond {MAX_STEPS:.0e} communication steps of {step!r} s, "
+                f"the most a run takes: no run reaches it (at most {MAX_STEPS * step:.6g} s "
+                "at this step)",
+            )
 
 
 def _resolve_instance(

@@ -1,13 +1,18 @@
 """``auv-cosim view RUN --web``: a recording in Rerun's web viewer, on 127.0.0.1 only.
 
-The ``rerun`` binary (rerun-sdk 0.41) serves both halves: ``rerun --serve-web --bind
-127.0.0.1 --port G --web-viewer-port W FILE`` loads the file into its gRPC server
-(port G) and hosts the web viewer's page (port W). The page alone shows Rerun's welcome
-screen; the viewer opens the recording only when told where it is, by the ``url`` query
-parameter naming the gRPC proxy, URL-encoded -- :func:`viewer_url` builds that one URL
-(rerun's own log line names ``localhost``, which a browser may resolve to ``::1``, where
-nothing listens). Both servers bind 127.0.0.1, never every interface (rerun's default
-``--bind`` is 0.0.0.0): to look from another machine, forward the two ports over ssh.
+The recording is served as a file: this process serves it over HTTP (port F, only that
+file, to the viewer's page only), and the ``rerun`` binary (rerun-sdk 0.41) hosts the web
+viewer's page: ``rerun --serve-web --bind 127.0.0.1 --web-viewer-port W
+http://127.0.0.1:F/recording.rrd``. Given a URL the viewer can open itself, rerun starts no
+gRPC server, and the viewer loads the file as a file. (Loaded into rerun's gRPC proxy, a
+file reached the viewer as a live stream, and the viewer showed a "latency" counter of the
+seconds since the file's rows were logged, which means nothing for a file.) The page alone
+shows Rerun's welcome screen; the viewer opens the recording only when told where it is, by
+the ``url`` query parameter naming the file's URL, URL-encoded -- :func:`viewer_url` builds
+that one URL (rerun's own log line names ``localhost``, which a browser may resolve to
+``::1``, where nothing listens). Both servers bind 127.0.0.1, never every interface
+(rerun's default ``--bind`` is 0.0.0.0): to look from another machine, forward the two ports
+over ssh.
 
 The server runs in this process's process group, so Ctrl-C in the terminal (and a test
 ending the group) ends it too; :func:`serve` also ends it on SIGTERM/SIGHUP or any error.
@@ -16,10 +21,13 @@ ending the group) ends it too; :func:`serve` also ends it on SIGTERM/SIGHUP or a
 from __future__ import annotations
 
 import contextlib
+import http.server
+import shutil
 import signal
 import socket
 import subprocess
 import tempfile
+import threading
 import time
 import webbrowser
 from collections.abc import Iterator
@@ -30,33 +38,65 @@ from urllib.parse import quote
 from cosim.errors import CosimError
 
 HOST = "127.0.0.1"
-WEB_PORT = 9090  # rerun's defaults: the web viewer's page ...
-GRPC_PORT = 9876  # ... and the gRPC proxy that serves the recording
+WEB_PORT = 9090  # rerun's default for the web viewer's page
+FILE_PORT = 9876  # the recording, served over HTTP by this process
 START_TIMEOUT = 60.0  # s for the rerun binary to start listening
 
 
-def viewer_url(web_port: int = WEB_PORT, grpc_port: int = GRPC_PORT) -> str:
-    """The web viewer's address with ``?url=`` naming the recording's gRPC proxy."""
-    proxy = f"rerun+http://{HOST}:{grpc_port}/proxy"
-    return f"http://{HOST}:{web_port}/?url={quote(proxy, safe='')}"
+def file_url(rrd: Path, file_port: int = FILE_PORT) -> str:
+    """Where this process serves the recording ``rrd`` over HTTP."""
+    return f"http://{HOST}:{file_port}/{quote(rrd.name)}"
 
 
-def serve_command(executable: str, rrd: Path, web_port: int, grpc_port: int) -> list[str]:
-    """The rerun command line serving ``rrd`` to the web viewer on :data:`HOST` only."""
-    return [
-        executable,
-        "--serve-web",
-        "--bind",
-        HOST,
-        "--port",
-        str(grpc_port),
-        "--web-viewer-port",
-        str(web_port),
-        str(rrd),
-    ]
+def viewer_url(rrd: Path, web_port: int = WEB_PORT, file_port: int = FILE_PORT) -> str:
+    """The web viewer's address with ``?url=`` naming the recording's file URL."""
+    return f"http://{HOST}:{web_port}/?url={quote(file_url(rrd, file_port), safe='')}"
 
 
-def serve(executable: str, rrd: Path, web_port: int, grpc_port: int, open_browser: bool) -> int:
+def serve_command(executable: str, rrd: Path, web_port: int, file_port: int) -> list[str]:
+    """The rerun command line hosting the web viewer's page on :data:`HOST` only, for the
+    recording served at :func:`file_url` (a URL: rerun starts no gRPC server)."""
+    url = file_url(rrd, file_port)
+    return [executable, "--serve-web", "--bind", HOST, "--web-viewer-port", str(web_port), url]
+
+
+@contextlib.contextmanager
+def _file_server(rrd: Path, port: int, web_port: int) -> Iterator[None]:
+    """``rrd`` served over HTTP on :data:`HOST` at :func:`file_url` while inside: that one
+    path only, readable by the web viewer's page (CORS: its origin only).
+
+    Written with the standard library's ``http.server``: rerun's binary serves a file only
+    through its gRPC proxy (the live stream above)."""
+    name, origin = f"/{quote(rrd.name)}", f"http://{HOST}:{web_port}"
+
+    class Recording(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            if self.path != name:
+                self.send_error(404)
+                return
+            with contextlib.suppress(OSError), rrd.open("rb") as file:
+                self.send_response(200)
+                self.send_header("Content-Type", "application/octet-stream")
+                self.send_header("Content-Length", str(rrd.stat().st_size))
+                self.send_header("Access-Control-Allow-Origin", origin)
+                self.end_headers()
+                shutil.copyfileobj(file, self.wfile)
+
+        def log_message(self, *args: Any) -> None:
+            """Quiet: the terminal shows the URL, not each request."""
+
+    server = http.server.ThreadingHTTPServer((HOST, port), Recording)
+    server.daemon_threads = True
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browser: bool) -> int:
     """Serve ``rrd`` until Ctrl-C (or SIGTERM/SIGHUP); print the one URL that opens it.
 
     A port of 0 picks a free one. Returns 130 after Ctrl-C, 128 + the signal number
@@ -66,17 +106,21 @@ def serve(executable: str, rrd: Path, web_port: int, grpc_port: int, open_browse
         CosimError: a port is taken or the server did not start (its last log line).
     """
     executable = _binary(executable)
-    web_port, grpc_port = (_free_port(port) for port in (web_port, grpc_port))
-    if web_port == grpc_port:
-        raise CosimError(f"--web-port and --grpc-port are both {web_port}: give two ports")
-    command = serve_command(executable, rrd, web_port, grpc_port)
-    with tempfile.TemporaryFile() as log, _stop_signals_raise():
+    web_port, file_port = (_free_port(port) for port in (web_port, file_port))
+    if web_port == file_port:
+        raise CosimError(f"--web-port and --file-port are both {web_port}: give two ports")
+    command = serve_command(executable, rrd, web_port, file_port)
+    with (
+        tempfile.TemporaryFile() as log,
+        _stop_signals_raise(),
+        _file_server(rrd, file_port, web_port),
+    ):
         server = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=log)
         try:
-            _wait_listening(server, (web_port, grpc_port), log)
-            url = viewer_url(web_port, grpc_port)
+            _wait_listening(server, (web_port,), log)
+            url = viewer_url(rrd, web_port, file_port)
             print(f"serving {rrd} on {HOST} only; open this URL (Ctrl-C stops):\n  {url}")
-            print(_forward_hint(web_port, grpc_port), flush=True)
+            print(_forward_hint(web_port, file_port), flush=True)
             if open_browser:
                 _open(url)
             return server.wait()
@@ -110,7 +154,7 @@ def _free_port(port: int) -> int:
         except OSError as exc:
             raise CosimError(
                 f"port {port} on {HOST} is taken ({exc.strerror}): another viewer is "
-                "running; stop it or give --web-port/--grpc-port (0 picks a free port)"
+                "running; stop it or give --web-port/--file-port (0 picks a free port)"
             ) from None
         return probe.getsockname()[1]
 
@@ -134,10 +178,10 @@ def _wait_listening(server: subprocess.Popen, ports: tuple[int, ...], log: Any) 
         time.sleep(0.1)
 
 
-def _forward_hint(web_port: int, grpc_port: int) -> str:
+def _forward_hint(web_port: int, file_port: int) -> str:
     return (
         f"  (from another machine: ssh -L {web_port}:{HOST}:{web_port} "
-        f"-L {grpc_port}:{HOST}:{grpc_port} HOST, then open the same URL there)"
+        f"-L {file_port}:{HOST}:{file_port} HOST, then open the same URL there)"
     )
 
 

@@ -457,9 +457,10 @@ def _nearest_turn(angle: float, previous: float) -> float:
 
 
 @_jit
-def _euler_from_quaternion(z: np.ndarray, R: np.ndarray, a0: float, a1: float, a2: float) -> None:
-    """z[3:6] = the Euler angles of z's quaternion nearest (a0, a1, a2)
-    (``kinematics.euler_from_quaternion``, which says why)."""
+def _euler_from_quaternion(z: np.ndarray, R: np.ndarray, a0: float, a2: float) -> None:
+    """z[3:6] = the Euler angles of z's quaternion with |theta| <= 90 deg, roll and yaw
+    continued by whole turns from a0 and a2 (``kinematics.euler_from_quaternion``, which
+    says why)."""
     _quaternion_rotation(z, R)
     cos_theta = math.sqrt(R[0, 0] * R[0, 0] + R[1, 0] * R[1, 0])  # not hypot: numba's differs
     theta = math.atan2(-R[2, 0], cos_theta)
@@ -471,16 +472,7 @@ def _euler_from_quaternion(z: np.ndarray, R: np.ndarray, a0: float, a1: float, a
             psi = phi - math.atan2(R[0, 1], R[0, 2])
         else:
             psi = math.atan2(-R[0, 1], -R[0, 2]) - phi
-    f0, f1, f2 = _nearest_turn(phi, a0), _nearest_turn(theta, a1), _nearest_turn(psi, a2)
-    s0 = _nearest_turn(phi + math.pi, a0)
-    s1 = _nearest_turn(math.pi - theta, a1)
-    s2 = _nearest_turn(psi + math.pi, a2)
-    first = abs(f0 - a0) + abs(f1 - a1) + abs(f2 - a2)
-    second = abs(s0 - a0) + abs(s1 - a1) + abs(s2 - a2)
-    if first <= second:
-        z[3], z[4], z[5] = f0, f1, f2
-    else:
-        z[3], z[4], z[5] = s0, s1, s2
+    z[3], z[4], z[5] = _nearest_turn(phi, a0), theta, _nearest_turn(psi, a2)
 
 
 @_jit
@@ -552,7 +544,7 @@ def advance_into(
     project(p, z, False)
     for _ in range(n):
         quaternion = _quaternion_chart(p, z)
-        a0, a1, a2 = z[3], z[4], z[5]
+        a0, a2 = z[3], z[5]
         step_derivative_into(p, z, inputs, R, work, k1, quaternion)
         _stage(p, z, k1, half, inputs, scratch, k2, quaternion)
         _stage(p, z, k2, half, inputs, scratch, k3, quaternion)
@@ -561,7 +553,7 @@ def advance_into(
             z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
         project(p, z, True)
         if quaternion:
-            _euler_from_quaternion(z, R, a0, a1, a2)
+            _euler_from_quaternion(z, R, a0, a2)
         else:
             _quaternion_from_euler(z[3], z[4], z[5], z)
     for i in range(18):

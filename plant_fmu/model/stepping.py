@@ -91,8 +91,9 @@ def stepping_state(x: np.ndarray) -> np.ndarray:
 
 def _sync_attitude(z: np.ndarray, quaternion: bool, previous: np.ndarray) -> None:
     """Refresh, in place, the chart a sub-step did not integrate: the Euler angles from the
-    quaternion (the triple nearest ``previous``, so they run on continuously:
-    ``kinematics.euler_from_quaternion``), or the quaternion from the Euler angles."""
+    quaternion (the triple with |pitch| <= 90 deg, roll and yaw continued by whole turns
+    from ``previous``: ``kinematics.euler_from_quaternion``), or the quaternion from the
+    Euler angles."""
     if quaternion:
         z[EULER] = euler_from_quaternion(z[QUATERNION].tolist(), previous.tolist())
     else:
