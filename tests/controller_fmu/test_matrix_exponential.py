@@ -7,7 +7,7 @@ import control
 import numpy as np
 import pytest
 import scipy.linalg
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -19,6 +19,7 @@ from plant_fmu.model.parameters import load_vehicle
 SQUARE = st.integers(1, 8).flatmap(lambda n: arrays(float, (n, n), elements=st.floats(-1.0, 1.0)))
 
 
+@settings(max_examples=40)  # the fast tier's minute
 @given(matrix=SQUARE, scale=st.sampled_from([1e-4, 1e-2, 0.3, 1.0, 3.0, 30.0]))
 def test_expm_agrees_with_scipy_at_every_norm(matrix, scale):
     """Every branch: Pade 3, 5, 7, 9 and 13 with 0 to a few squarings. The tolerance is
@@ -29,6 +30,7 @@ def test_expm_agrees_with_scipy_at_every_norm(matrix, scale):
     assert np.abs(ours - theirs).max() <= 1e-10 * max(1.0, float(np.abs(theirs).max()))
 
 
+@settings(max_examples=40)
 @given(matrix=SQUARE, scale=st.sampled_from([1e-4, 0.3, 3.0, 30.0]))
 def test_expm_of_a_symmetric_matrix_is_its_eigenvalues_exponential(matrix, scale):
     """An exact reference: exp(S) = V diag(exp(lambda)) V^T for S = V diag(lambda) V^T,

@@ -9,7 +9,7 @@ import tomllib
 from pathlib import Path
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from plant_fmu.model import parameters, vehicle_toml
@@ -39,6 +39,7 @@ def _render(value: object, literal: bool) -> str:
     return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")  # TOML's escapes
 
 
+@settings(max_examples=50)  # the fast tier's minute
 @given(
     top=st.dictionaries(KEYS, VALUES, max_size=3),
     tables=st.dictionaries(KEYS, st.dictionaries(KEYS, VALUES, max_size=4), max_size=3),
