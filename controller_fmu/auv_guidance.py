@@ -89,7 +89,7 @@ class AuvGuidance(SafeSlave):
         super().__init__(**kwargs)
         self._inputs = dict.fromkeys(INPUTS, 0.0)
         self._outputs = dict.fromkeys(OUTPUTS, 0.0)
-        self._params: dict[str, Any] = _DEFAULTS.model_dump()
+        self._params: dict[str, Any] = _DEFAULTS.as_dict()
         self._guidance: LosGuidance | None = None
         self._register_variables()
 
@@ -119,9 +119,9 @@ class AuvGuidance(SafeSlave):
                 unit=unit,
             )
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        for name, field in GuidanceConfig.model_fields.items():
+        for name, field in GuidanceConfig.field_info().items():
             kinds: dict[object, Any] = {bool: Boolean, str: String, float: Real}
-            kind = kinds[field.annotation]
+            kind = kinds[field.kind]
             variable = kind(
                 name,
                 description=field.description,

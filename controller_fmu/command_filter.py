@@ -7,8 +7,10 @@ Each filter follows its input a (held constant between samples) with
 and supplies a_c' as the estimate of the input's time derivative: the standard
 "command filter" of command-filtered backstepping (Farrell et al., IEEE TAC 54(6), 2009;
 Sec. 6.3.3's remark). Because the filter is linear and its input is held, its state is
-advanced by the exact zero-order-hold transition matrix (scipy.linalg.expm), which is
-cached per interval length, so the result does not depend on any inner integration step.
+advanced by the exact zero-order-hold transition matrix
+(:func:`controller_fmu.matrix_exponential.expm`, numpy only: an FMU's host has no scipy),
+which is cached per interval length, so the result does not depend on any inner
+integration step.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.linalg import expm
+
+from controller_fmu.matrix_exponential import expm
 
 _MAX_CACHED_INTERVALS = 16
 

@@ -348,8 +348,8 @@ class SafeSlave(Fmi2Slave):
         if plan is None or len(values) != len(plan[0]) or not all(map(math.isfinite, values)):
             return False
         variables, names = plan
-        for i, var in enumerate(variables):
-            var.setter(values[i])
+        for var, value in zip(variables, values):
+            var.setter(value)
         self._written.update(names)
         self._outputs_stale = True
         if self._problems:
@@ -457,7 +457,7 @@ class SafeSlave(Fmi2Slave):
             if unit and real is not None:
                 real.set("unit", unit)
             bounds = self._bounds.get(int(node.attrib["valueReference"]), (None, None))
-            for attribute, value in (("min", bounds[0]), ("max", bounds[1])):
+            for attribute, value in zip(("min", "max"), bounds):
                 if value is not None:  # node[0]: the <Real>/<Integer> element
                     node[0].set(attribute, repr(value))
             if variable in self._names:
@@ -544,8 +544,7 @@ class SafeSlave(Fmi2Slave):
             return fallback
 
     def _set_all(self, vrs: list[int], values: list[Any], kind: type[ScalarVariable]) -> None:
-        for i, vr in enumerate(vrs[: len(values)]):  # (no zip(strict=): CPython 3.9)
-            value = values[i]
+        for vr, value in zip(vrs, values):
             try:
                 self._set(vr, value, kind)
             except Exception as exc:
