@@ -40,7 +40,7 @@ Discard; a NaN/inf input is refused by the base class (doStep then returns Disca
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
@@ -78,6 +78,11 @@ _DEFAULTS = GuidanceConfig()
 
 class AuvGuidance(SafeSlave):
     """Line-of-sight waypoint guidance for heading and depth (a sampled system)."""
+
+    # the first set-point is for the start position
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = dict.fromkeys(
+        OUTPUTS, tuple(INPUTS)
+    )
 
     description = (
         "Waypoint guidance of the REMUS 100: line-of-sight (proportional or integral) steering "

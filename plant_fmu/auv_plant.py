@@ -52,7 +52,7 @@ applied at the start of the next step; inputs are held over each step.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from pythonfmu.default_experiment import DefaultExperiment
@@ -136,6 +136,11 @@ class AuvPlant(SafeSlave):
         "6-DOF / lateral / horizontal plant, B. Li, FAU 2016"
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=60.0, step_size=0.01)
+    # the velocities relative to the water, and the energy of that motion, start from the
+    # current; every other output from the parameters alone
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = dict.fromkeys(
+        (*RELATIVE_VELOCITIES, "kinetic_energy"), ("current_north", "current_east", "current_down")
+    )
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
