@@ -24,14 +24,12 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from controller_fmu.backstepping import (
     BacksteppingGains,
     BacksteppingHeading,
     BacksteppingSnapshot,
 )
-from controller_fmu.config_errors import validation_message
 from controller_fmu.depth_pd import (
     DEFAULT_FIN_LIMIT,
     TABLE_6_2_GAMMA,
@@ -45,6 +43,7 @@ from controller_fmu.modes import DepthMode, HeadingMode, choices
 from controller_fmu.setpoint_shaping import desired_heading, mass_locked, wrap_angle
 from controller_fmu.sliding_mode import SlidingModeHeading
 from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.validated import CheckedRecord, checked_field
 
 MEASUREMENT_NAMES: tuple[str, ...] = (
     "yaw", "r", "p", "roll", "v_rel", "u_rel", "down", "pitch", "q", "w_rel",
@@ -69,194 +68,181 @@ class AutopilotConfigError(ValueError):
     """An autopilot parameter is out of range (the message names it and what is allowed)."""
 
 
-def _unit(unit: str) -> dict[str, Any]:
-    return {"unit": unit}
+def _known_mode(mode: type[IntEnum]) -> Callable[[int], None]:
+    """A check that a value is one of ``mode``'s (a ValueError listing them if not)."""
+
+    def check(value: int) -> None:
+        try:
+            mode(value)
+        except ValueError:
+            raise ValueError(f"expected one of {choices(mode)}") from None
+
+    return check
 
 
-class AutopilotConfig(BaseModel):
-    """Every parameter of the autopilot (SI). Field names are the FMU parameter names."""
+@dataclass(frozen=True)
+class AutopilotConfig(CheckedRecord):
+    """Every parameter of the autopilot (SI). Field names are the FMU parameter names.
 
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+    Validated and immutable (:class:`plant_fmu.model.validated.CheckedRecord`)."""
 
-    heading_mode: int = Field(
+    error_type = AutopilotConfigError
+    unknown_key = "unknown autopilot parameter {name!r}"
+
+    heading_mode: int = checked_field(
         default=0,
         description="heading controller: 0 off, 1 lqr (6.3.17), 2 sliding_mode (6.3.45), "
         "3 backstepping + tunnel thruster (6.3.64, 6.3.72)",
-        json_schema_extra=_unit(""),
+        check=_known_mode(HeadingMode),
     )
-    depth_mode: int = Field(
+    depth_mode: int = checked_field(
         default=0,
         description="depth controller: 0 off, 1 pd: PD pitch + P depth (Fig. 6.40)",
-        json_schema_extra=_unit(""),
+        check=_known_mode(DepthMode),
     )
-    mass_lock_time: float = Field(
+    mass_lock_time: float = checked_field(
         default=-1.0,
         description="time after which the moving-mass command is 0 and held; < 0: never",
-        json_schema_extra=_unit("s"),
+        unit="s",
     )
-    compensate_current: bool = Field(
+    compensate_current: bool = checked_field(
         default=False,
         description="head into the current so the course over ground is yaw_setpoint (6.3.74)",
-        json_schema_extra=_unit(""),
     )
-    design_speed: float = Field(
+    design_speed: float = checked_field(
         default=1.525,
         gt=0.0,
         description="U0: surge speed through the water the controllers are designed for",
-        json_schema_extra=_unit("m/s"),
+        unit="m/s",
     )
-    vehicle: str = Field(
+    vehicle: str = checked_field(
         default="remus100",
         min_length=1,
         description="vehicle parameter set the controllers' model terms come from "
         "(built-in name or .toml path)",
-        json_schema_extra=_unit(""),
     )
-    design_step: float = Field(
+    design_step: float = checked_field(
         default=0.01,
         gt=0.0,
         description="sample time the discrete LQR and sliding mode are designed for; "
         "should equal the communication step (or sample_period)",
-        json_schema_extra=_unit("s"),
+        unit="s",
     )
-    sample_period: float = Field(
+    sample_period: float = checked_field(
         default=0.0,
         ge=0.0,
         description="a digital autopilot: samples at multiples of this period and holds its "
         "commands in between; 0: at every communication point (the continuous laws)",
-        json_schema_extra=_unit("s"),
+        unit="s",
     )
-    thrust_command: float = Field(
+    thrust_command: float = checked_field(
         default=9.0,
         description="propeller thrust sent on the thrust output (9 N: 1.525 m/s; 4 N: 1.017 m/s)",
-        json_schema_extra=_unit("N"),
+        unit="N",
     )
-    lqr_q_r: float = Field(
+    lqr_q_r: float = checked_field(
         default=DISSERTATION_Q_Y[0], ge=0.0, description="LQR weight on r (Q_y)",
-        json_schema_extra=_unit("s2/rad2"),
+        unit="s2/rad2",
     )  # fmt: skip
-    lqr_q_p: float = Field(
+    lqr_q_p: float = checked_field(
         default=DISSERTATION_Q_Y[1], ge=0.0, description="LQR weight on p (Q_y)",
-        json_schema_extra=_unit("s2/rad2"),
+        unit="s2/rad2",
     )  # fmt: skip
-    lqr_q_roll: float = Field(
+    lqr_q_roll: float = checked_field(
         default=DISSERTATION_Q_Y[2], ge=0.0, description="LQR weight on phi (Q_y)",
-        json_schema_extra=_unit("1/rad2"),
+        unit="1/rad2",
     )  # fmt: skip
-    lqr_q_yaw: float = Field(
+    lqr_q_yaw: float = checked_field(
         default=DISSERTATION_Q_Y[3], ge=0.0, description="LQR weight on psi - psi_d (Q_y)",
-        json_schema_extra=_unit("1/rad2"),
+        unit="1/rad2",
     )  # fmt: skip
-    lqr_q_mass_position: float = Field(
+    lqr_q_mass_position: float = checked_field(
         default=DISSERTATION_Q_Y[4], ge=0.0, description="LQR weight on y_v (Q_y)",
-        json_schema_extra=_unit("1/m2"),
+        unit="1/m2",
     )  # fmt: skip
-    lqr_q_mass_velocity: float = Field(
+    lqr_q_mass_velocity: float = checked_field(
         default=DISSERTATION_Q_Y[5], ge=0.0, description="LQR weight on y_vel (Q_y)",
-        json_schema_extra=_unit("s2/m2"),
+        unit="s2/m2",
     )  # fmt: skip
-    lqr_r: float = Field(
+    lqr_r: float = checked_field(
         default=DISSERTATION_R_U, gt=0.0, description="LQR weight on y_d (R_u)",
-        json_schema_extra=_unit("1/m2"),
+        unit="1/m2",
     )  # fmt: skip
-    smc_eta: float = Field(
+    smc_eta: float = checked_field(
         default=1.0, gt=0.0, description="sliding-mode reaching rate eta (6.3.38)",
-        json_schema_extra=_unit("rad/s"),
+        unit="rad/s",
     )  # fmt: skip
-    smc_boundary_layer: float = Field(
+    smc_boundary_layer: float = checked_field(
         default=0.5, gt=0.0, description="sliding-mode boundary layer Phi on s (6.3.73)",
-        json_schema_extra=_unit("rad"),
+        unit="rad",
     )  # fmt: skip
-    k0: float = Field(
+    k0: float = checked_field(
         default=0.5, gt=0.0, description="backstepping gain k0 (6.3.55); 0.3 in currents/slow",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    k1: float = Field(
+    k1: float = checked_field(
         default=1.0, gt=0.0, description="backstepping gain k1 (6.3.58); 0.8 in currents/slow",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    k2: float = Field(
+    k2: float = checked_field(
         default=1.0, gt=0.0, description="backstepping gain k2 (6.3.60)",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    k3: float = Field(
+    k3: float = checked_field(
         default=1.0, gt=0.0, description="backstepping gain k3 (6.3.62)",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    k4: float = Field(
+    k4: float = checked_field(
         default=1.0, gt=0.0, description="backstepping gain k4 (6.3.64)",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    eta0: float = Field(
+    eta0: float = checked_field(
         default=0.08, ge=0.0, description="thruster margin eta0 (6.3.72), sway acceleration",
-        json_schema_extra=_unit("m/s2"),
+        unit="m/s2",
     )  # fmt: skip
-    thruster_boundary_layer: float = Field(
+    thruster_boundary_layer: float = checked_field(
         default=0.01, gt=0.0, description="thruster boundary layer Phi on z2 (6.3.73)",
-        json_schema_extra=_unit("m/s"),
+        unit="m/s",
     )  # fmt: skip
-    command_filter_frequency: float = Field(
+    command_filter_frequency: float = checked_field(
         default=10.0, gt=0.0,
         description="natural frequency of the command filters giving alpha1..3 derivatives",
-        json_schema_extra=_unit("rad/s"),
+        unit="rad/s",
     )  # fmt: skip
-    depth_gamma: float = Field(
+    depth_gamma: float = checked_field(
         default=TABLE_6_2_GAMMA, description="depth loop gain gamma, theta_d per depth error "
-        "(Table 6.2)", json_schema_extra=_unit("rad/m"),
+        "(Table 6.2)", unit="rad/m",
     )  # fmt: skip
-    depth_k_p: float = Field(
+    depth_k_p: float = checked_field(
         default=TABLE_6_2_K_P, description="pitch loop gain K_p, fin per pitch error (Table 6.2)",
-        json_schema_extra=_unit("1"),
+        unit="1",
     )  # fmt: skip
-    depth_tau_d: float = Field(
+    depth_tau_d: float = checked_field(
         default=TABLE_6_2_TAU_D, ge=0.0, description="pitch loop derivative time tau_d "
-        "(Table 6.2)", json_schema_extra=_unit("s"),
+        "(Table 6.2)", unit="s",
     )  # fmt: skip
-    fin_angle_limit: float = Field(
+    fin_angle_limit: float = checked_field(
         default=DEFAULT_FIN_LIMIT, gt=0.0, description="stern-plane limit |delta_s| (25 deg)",
-        json_schema_extra=_unit("rad"),
+        unit="rad",
     )  # fmt: skip
-    mass_position_cmd_limit: float = Field(
+    mass_position_cmd_limit: float = checked_field(
         default=0.06, gt=0.0, description="moving-mass command limit |y_d| (the 6 cm stroke)",
-        json_schema_extra=_unit("m"),
+        unit="m",
     )  # fmt: skip
-    tunnel_force_limit: float = Field(
+    tunnel_force_limit: float = checked_field(
         default=10.0, ge=0.0, description="tunnel-thruster force limit |F_t|",
-        json_schema_extra=_unit("N"),
+        unit="N",
     )  # fmt: skip
-
-    @field_validator("heading_mode")
-    @classmethod
-    def _known_heading_mode(cls, value: int) -> int:
-        return _known_mode(HeadingMode, value)
-
-    @field_validator("depth_mode")
-    @classmethod
-    def _known_depth_mode(cls, value: int) -> int:
-        return _known_mode(DepthMode, value)
 
     @classmethod
     def build(cls, **values: Any) -> AutopilotConfig:
         """Validate ``values``; raise :class:`AutopilotConfigError` naming every bad one."""
-        try:
-            return cls.model_validate(values)
-        except ValidationError as exc:
-            raise AutopilotConfigError(validation_message(exc, "autopilot")) from None
+        return cls.from_mapping(values)
 
 
 def field_unit(name: str) -> str:
     """The unit of an :class:`AutopilotConfig` field ('' if dimensionless)."""
-    extra = AutopilotConfig.model_fields[name].json_schema_extra
-    return str(extra["unit"]) if isinstance(extra, dict) else ""
-
-
-def _known_mode(mode: type[IntEnum], value: int) -> int:
-    """``value`` if it is one of ``mode``'s values, else a ValueError listing them."""
-    try:
-        mode(value)
-    except ValueError:
-        raise ValueError(f"expected one of {choices(mode)}") from None
-    return value
+    return AutopilotConfig.field_info()[name].unit
 
 
 class Commands(NamedTuple):
@@ -396,7 +382,7 @@ class Autopilot:
                 f"{', '.join(fixed)}: not tunable while running (tunable: "
                 f"{', '.join(TUNABLE_PARAMETERS)})"
             )
-        config = AutopilotConfig.build(**{**self.config.model_dump(), **values})
+        config = self.config.replace(**values)
         if config.heading_mode == self.config.heading_mode:
             self.config = config
             return
@@ -518,7 +504,7 @@ def _checked(time: float, measurements: Mapping[str, float]) -> dict[str, float]
             return values
     except (KeyError, TypeError, ValueError):
         pass
-    for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS, strict=True):
+    for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS):
         if name not in measurements:
             raise ValueError(f"measurement {name!r} is missing: expected {list(MEASUREMENT_NAMES)}")
         value = float(measurements[name])

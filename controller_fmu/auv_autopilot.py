@@ -145,7 +145,7 @@ class AuvAutopilot(SafeSlave):
         self._vehicles = vehicle_folder(self.resources)  # this extraction's data
         self._inputs = dict.fromkeys(MEASUREMENT_NAMES, 0.0)
         self._outputs = list(Commands(thrust=_DEFAULTS.thrust_command).values())
-        self._params: dict[str, Any] = _DEFAULTS.model_dump()
+        self._params: dict[str, Any] = _DEFAULTS.as_dict()
         self._autopilot: Autopilot | None = None
         self._step_warned = False
         self._tuned: set[str] = set()  # tunable parameters written since the autopilot took them
@@ -155,7 +155,7 @@ class AuvAutopilot(SafeSlave):
         self._register_variables()
 
     def _register_variables(self) -> None:
-        for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS, strict=True):
+        for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS):
             self.register(
                 Real(
                     name,
@@ -167,7 +167,7 @@ class AuvAutopilot(SafeSlave):
                 ),
                 unit=unit,
             )
-        for i, (name, unit) in enumerate(zip(COMMAND_NAMES, COMMAND_UNITS, strict=True)):
+        for i, (name, unit) in enumerate(zip(COMMAND_NAMES, COMMAND_UNITS)):
             self.register(
                 Real(
                     name,
@@ -180,9 +180,9 @@ class AuvAutopilot(SafeSlave):
                 ),
                 unit=unit,
             )
-        for name, field in AutopilotConfig.model_fields.items():
+        for name, field in AutopilotConfig.field_info().items():
             kinds: dict[object, Any] = {int: Integer, bool: Boolean, str: String, float: Real}
-            kind = kinds[field.annotation]
+            kind = kinds[field.kind]
             variable = kind(
                 name,
                 description=field.description,

@@ -212,7 +212,7 @@ class BacksteppingHeading:
         assert plant is not None and law is not None, "the compiled law needs numba"
         params = plant.parameters
         out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v, ramp)
-        if out[0]:  # a new interval: its exact transition (scipy's expm, cached)
+        if out[0]:  # a new interval: its exact transition (expm, cached)
             interval = time - float(state[fast.LAST_TIME])
             transition, gamma = self.filters.transition(interval)
             slot = fast.INTERVALS + fast.SLOT * self._next_slot

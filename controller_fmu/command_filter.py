@@ -7,11 +7,12 @@ Each filter follows its input a (held constant between samples) with
 and supplies a_c' as the estimate of the input's time derivative: the standard
 "command filter" of command-filtered backstepping (Farrell et al., IEEE TAC 54(6), 2009;
 Sec. 6.3.3's remark). Because the filter is linear and its input is held, its state is
-advanced by the exact zero-order-hold transition matrix (scipy.linalg.expm), which is
-cached per interval length, so the result does not depend on any inner integration step.
-When the input is taken as going linearly from one sample to the next (a first-order
-hold: the continuous-time law between samples, second-order accurate in the interval),
-:meth:`CommandFilterBank.ramp` adds the exact response to that ramp.
+advanced by the exact zero-order-hold transition matrix
+(:func:`controller_fmu.matrix_exponential.expm`, numpy only: an FMU's host has no scipy),
+which is cached per interval length, so the result does not depend on any inner
+integration step. When the input is taken as going linearly from one sample to the next
+(a first-order hold: the continuous-time law between samples, second-order accurate in
+the interval), :meth:`CommandFilterBank.ramp` adds the exact response to that ramp.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.linalg import expm
+
+from controller_fmu.matrix_exponential import expm
 
 _MAX_CACHED_INTERVALS = 16
 

@@ -11,8 +11,8 @@ BLAS, possibly with fused multiply-adds): ``tests/controller_fmu/test_compiled_b
 holds them to 1e-12. Nothing is re-typed: the model terms f1, f2, f3 come from the plant's compiled
 derivative (:func:`plant_fmu.model.compiled.derivative_into`) on the design model's flat
 parameters, and g1, g2, g3, eps4', d v'/d F_t, the gains and the command filters'
-zero-order-hold transition (scipy's expm, computed in Python) are handed in by
-:class:`BacksteppingHeading`.
+zero-order-hold transition (the expm of :mod:`controller_fmu.matrix_exponential`) are handed
+in by :class:`BacksteppingHeading`.
 
 Layouts (float64, SI):
 

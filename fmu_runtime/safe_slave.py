@@ -58,7 +58,7 @@ from enum import IntEnum
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element, SubElement
 
-from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
 
@@ -98,6 +98,9 @@ class SafeSlave(Fmi2Slave):
     direct_feedthrough: ClassVar[dict[str, tuple[str, ...]]] = {}
     # True: the slave uses input derivatives (fmi2SetRealInputDerivatives, orders 1 and 2)
     interpolates_inputs: ClassVar[bool] = False
+    # the inputs an output ``_initialize`` computes depends on (besides the parameters, on
+    # which every such output may depend); declared in ModelStructure/InitialUnknowns
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = {}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -348,8 +351,8 @@ class SafeSlave(Fmi2Slave):
         if plan is None or len(values) != len(plan[0]) or not all(map(math.isfinite, values)):
             return False
         variables, names = plan
-        for i, var in enumerate(variables):
-            var.setter(values[i])
+        for var, value in zip(variables, values):
+            var.setter(value)
         self._written.update(names)
         self._outputs_stale = True
         if self._problems:
@@ -457,7 +460,7 @@ class SafeSlave(Fmi2Slave):
             if unit and real is not None:
                 real.set("unit", unit)
             bounds = self._bounds.get(int(node.attrib["valueReference"]), (None, None))
-            for attribute, value in (("min", bounds[0]), ("max", bounds[1])):
+            for attribute, value in zip(("min", "max"), bounds):
                 if value is not None:  # node[0]: the <Real>/<Integer> element
                     node[0].set(attribute, repr(value))
             if variable in self._names:
@@ -476,7 +479,29 @@ class SafeSlave(Fmi2Slave):
             unknown.set("dependencies", " ".join(str(index[d]) for d in depends_on))
             if depends_on:
                 unknown.set("dependenciesKind", " ".join("dependent" for _ in depends_on))
+        self._declare_initial_unknowns(root, index)
         return root
+
+    def _declare_initial_unknowns(self, root: Element, index: dict[str, int]) -> None:
+        """ModelStructure/InitialUnknowns for the calculated outputs, with what they depend
+        on: the parameters, and the inputs ``initial_dependencies`` names. Without a
+        dependencies list an importer must assume every input, which OMSimulator takes for
+        an algebraic loop between our FMUs at initialisation."""
+        structure = root.find("ModelStructure")
+        parameters = [v.name for v in self.vars.values() if v.causality == Fmi2Causality.parameter]
+        calculated = [
+            v.name
+            for v in self.vars.values()
+            if v.causality == Fmi2Causality.output and v.initial == Fmi2Initial.calculated
+        ]
+        if structure is None or not calculated:
+            return
+        node = SubElement(structure, "InitialUnknowns")
+        for name in calculated:
+            inputs = self.initial_dependencies.get(name, ())
+            depends_on = sorted(index[n] for n in (*parameters, *inputs))
+            SubElement(node, "Unknown", index=str(index[name]),
+                       dependencies=" ".join(map(str, depends_on)))  # fmt: skip
 
     # --- internals ---------------------------------------------------------------------------
 
@@ -544,8 +569,7 @@ class SafeSlave(Fmi2Slave):
             return fallback
 
     def _set_all(self, vrs: list[int], values: list[Any], kind: type[ScalarVariable]) -> None:
-        for i, vr in enumerate(vrs[: len(values)]):  # (no zip(strict=): CPython 3.9)
-            value = values[i]
+        for vr, value in zip(vrs, values):
             try:
                 self._set(vr, value, kind)
             except Exception as exc:

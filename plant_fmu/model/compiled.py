@@ -2,7 +2,7 @@
 :mod:`plant_fmu.model.dynamics` and :mod:`plant_fmu.model.stepping`, flat and
 allocation-free, compiled with numba (``njit(cache=True)``, no fastmath).
 
-Why by hand: no library compiles a pydantic/numpy model like ours; the reference
+Why by hand: no library compiles a numpy model like ours; the reference
 (:class:`~plant_fmu.model.dynamics.PlantModel`) stays the readable source of truth, and
 this module writes the same equations term by term in the same order of operations, on a
 flat float64 parameter array built once from the model (:func:`flat_parameters`, which

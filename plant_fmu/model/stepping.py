@@ -39,6 +39,7 @@ import numpy as np
 
 from plant_fmu.model.dynamics import PlantModel
 from plant_fmu.model.kinematics import euler_from_quaternion, quaternion_from_euler
+from plant_fmu.model.root_finding import brent_root
 from plant_fmu.model.state_layout import (
     EULER,
     INPUT_NAMES,
@@ -239,17 +240,14 @@ def _substep_through_stop(
     Why: projecting an overshot mass back onto the stop at the step's end moves it without
     the time that takes; with the two-body model's mass matrix M(y_v) that shift changes
     the system's momentum and, on the velocity over ground, depends on the frame (a
-    current's). Locating the arrival (Brent's method, :func:`scipy.optimize.brentq`, on the
+    current's). Locating the arrival (Brent's method,
+    :func:`plant_fmu.model.root_finding.brent_root`, on the
     RK4 step length: the mass's motion on its rail depends on nothing but the servo, so
     the arrival time is the same in every frame) leaves the impact alone to change the
     hull's momentum, by exactly the stop's impulse. Up to the arrival the stops are out of
     the way (:attr:`PlantModel.without_stops`): stage states a hair past the stop must not
     be held there.
     """
-    # imported here: scipy.optimize takes ~0.6 s to import, which every process that
-    # steps the plant would pay, while only a two-body run that hits a stop calls it
-    from scipy.optimize import brentq
-
     free = model.without_stops
 
     def gap(length: float) -> float:
@@ -257,7 +255,7 @@ def _substep_through_stop(
 
     if gap(dt) * stop <= 0.0:  # with the stops out of the way it does not get there
         return model.project(_rk4(model, z, inputs, dt, quaternion), collide=True)
-    arrival = brentq(gap, 0.0, dt, xtol=1e-15, rtol=4.0 * np.finfo(float).eps)
+    arrival = brent_root(gap, 0.0, dt, xtol=1e-15, rtol=4.0 * np.finfo(float).eps)
     z = model.project(_rk4(free, z, inputs, arrival, quaternion), collide=True)
     if dt - arrival <= 0.0:
         return z
