@@ -125,7 +125,14 @@ class AutopilotConfig(CheckedRecord):
         default=0.01,
         gt=0.0,
         description="sample time the discrete LQR and sliding mode are designed for; "
-        "should equal the communication step",
+        "should equal the communication step (or sample_period)",
+        unit="s",
+    )
+    sample_period: float = checked_field(
+        default=0.0,
+        ge=0.0,
+        description="a digital autopilot: samples at multiples of this period and holds its "
+        "commands in between; 0: at every communication point (the continuous laws)",
         unit="s",
     )
     thrust_command: float = checked_field(
@@ -260,6 +267,7 @@ class AutopilotSnapshot:
     commands: Commands  # the commands last computed
     heading_setpoint: float  # psi_d of the last step, rad
     backstepping: BacksteppingSnapshot | None  # None unless heading_mode is BACKSTEPPING
+    next_sample: float | None = None  # s, a digital autopilot's next sample time
 
     def to_json(self) -> dict[str, Any]:
         """A JSON-serialisable form (part of the FMU's serialised state)."""
@@ -267,6 +275,7 @@ class AutopilotSnapshot:
             "commands": list(self.commands.values()),
             "heading_setpoint": self.heading_setpoint,
             "backstepping": None if self.backstepping is None else self.backstepping.to_json(),
+            "next_sample": self.next_sample,
         }
 
     @classmethod
@@ -279,22 +288,25 @@ class AutopilotSnapshot:
             backstepping=None
             if backstepping is None
             else BacksteppingSnapshot.from_json(backstepping),
+            next_sample=data.get("next_sample"),
         )
 
 
-HeadingLaw = Callable[[float, tuple[float, ...]], tuple[float, float]]
+HeadingLaw = Callable[[float, tuple[float, ...], bool], tuple[float, float]]
 """A heading law: (time s, x = (v_rel, r, p, roll, yaw - psi_d, mass_position,
-mass_velocity) in SI) -> the unsaturated (mass_position_cmd m, tunnel_force N)."""
+mass_velocity) in SI, whether the measurements went linearly from the last sample to these
+(a law with filters follows them so; else they were held)) -> the unsaturated
+(mass_position_cmd m, tunnel_force N)."""
 
 
-def _no_heading_control(time: float, x: tuple[float, ...]) -> tuple[float, float]:
+def _no_heading_control(time: float, x: tuple[float, ...], ramp: bool) -> tuple[float, float]:
     return 0.0, 0.0
 
 
 def _mass_only(command: Callable[[np.ndarray], float]) -> HeadingLaw:
     """A heading law from a mass-command law y_d(x) that leaves the thruster at 0."""
 
-    def law(time: float, x: tuple[float, ...]) -> tuple[float, float]:
+    def law(time: float, x: tuple[float, ...], ramp: bool) -> tuple[float, float]:
         return command(np.array(x)), 0.0
 
     return law
@@ -394,38 +406,51 @@ class Autopilot:
         # True if the heading law's gains hold only at the sample time design_step.
         self.designed_for_step = mode in (HeadingMode.LQR, HeadingMode.SLIDING_MODE)
 
-    def _backstepping_law(self, time: float, x: tuple[float, ...]) -> tuple[float, float]:
+    def _backstepping_law(
+        self, time: float, x: tuple[float, ...], ramp: bool
+    ) -> tuple[float, float]:
         v, r, p, phi, psi_e, y_v, _ = x
         assert self.backstepping is not None, "set with this law by _use_heading_mode"
-        return self.backstepping.command_values(time, v, r, p, phi, psi_e, y_v)
+        return self.backstepping.command_values(time, v, r, p, phi, psi_e, y_v, ramp)
 
     def reset(self) -> None:
         """Back to the state right after construction."""
         self.commands = Commands(thrust=self.config.thrust_command)
         self.heading_setpoint = 0.0  # psi_d of the last step, rad
+        self.next_sample: float | None = None  # s, a digital autopilot's next sample time
         if self.backstepping is not None:
             self.backstepping.reset()
 
     def snapshot(self) -> AutopilotSnapshot:
         """Everything :meth:`step` changes, for :meth:`restore`."""
         bs = self.backstepping.snapshot() if self.backstepping is not None else None
-        return AutopilotSnapshot(self.commands, self.heading_setpoint, bs)
+        return AutopilotSnapshot(self.commands, self.heading_setpoint, bs, self.next_sample)
 
     def restore(self, snapshot: AutopilotSnapshot) -> None:
         """Back to the state of :meth:`snapshot` (taken from an autopilot of this config)."""
         self.commands = snapshot.commands
         self.heading_setpoint = snapshot.heading_setpoint
+        self.next_sample = snapshot.next_sample
         if self.backstepping is not None:
             if snapshot.backstepping is None:
                 raise ValueError("the snapshot holds no backstepping state: not of this config")
             self.backstepping.restore(snapshot.backstepping)
 
-    def step(self, time: float, measurements: Mapping[str, float]) -> Commands:
+    def step(
+        self, time: float, measurements: Mapping[str, float], varying: bool = False
+    ) -> Commands:
         """The commands to hold from ``time`` (s) over the next communication step.
 
         Args:
             time: current time, s.
             measurements: every name of :data:`MEASUREMENT_NAMES`, SI.
+            varying: the measurements went linearly from the last sample's to these
+                (the importer extrapolates them: input derivatives), so the
+                backstepping's filters follow them so (a first-order hold, second-order
+                accurate in the step) instead of holding the last sample's. A digital
+                autopilot (``sample_period`` > 0) samples at its own times only, at the
+                first call at or after each multiple of the period, holding its
+                commands from one sample to the next and its filters' inputs too.
 
         Raises:
             ValueError: a measurement is missing or not finite, or (with
@@ -434,6 +459,12 @@ class Autopilot:
         """
         m = _checked(time, measurements)
         c = self.config
+        next_sample = self.next_sample
+        if c.sample_period > 0.0:
+            if next_sample is not None and time < next_sample - _SAMPLE_SLACK * c.sample_period:
+                return self.commands
+            next_sample = (math.floor(time / c.sample_period + _SAMPLE_SLACK) + 1) * c.sample_period
+            varying = False
         psi_d = desired_heading(
             m["yaw_setpoint"], m["current_north"], m["current_east"], c.design_speed,
             c.compensate_current,
@@ -442,7 +473,7 @@ class Autopilot:
         x = (m["v_rel"], m["r"], m["p"], m["roll"], psi_e, m["mass_position"],
              m["mass_velocity"])  # fmt: skip
         saved = None if self.backstepping is None else self.backstepping.state_values()
-        mass_cmd, tunnel = self._heading_law(time, x)
+        mass_cmd, tunnel = self._heading_law(time, x, varying)
         if mass_locked(time, c.mass_lock_time):
             mass_cmd = 0.0
         fin = 0.0
@@ -457,7 +488,11 @@ class Autopilot:
             raise ValueError(f"the autopilot computed a non-finite command {commands}")
         self.commands = commands
         self.heading_setpoint = psi_d
+        self.next_sample = next_sample
         return commands
+
+
+_SAMPLE_SLACK = 1e-9  # of a sample period: a call this close before a sample time is at it
 
 
 def _checked(time: float, measurements: Mapping[str, float]) -> dict[str, float]:

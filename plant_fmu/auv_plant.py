@@ -47,6 +47,12 @@ Currents: the uniform current inputs at initialisation set the start. When they 
 between steps, the hull's velocity over ground jumps by
 ``PlantModel.current_change_velocity_jump`` (the impulse of the (Mbar + M_A) nuc_dot term),
 applied at the start of the next step; inputs are held over each step.
+
+Input derivatives (``canInterpolateInputs="true"``): an importer that extrapolates its
+values (``fmi2SetRealInputDerivatives``, orders 1 and 2) gets them used inside the step,
+every RK4 stage taking the actuator inputs at its own time (``stepping.advance`` with
+``rates``), so a closed loop converges at second or third order in the communication step
+instead of first. The currents stay held over a step (see above).
 """
 
 from __future__ import annotations
@@ -111,6 +117,10 @@ STATE_DESCRIPTIONS: dict[str, str] = {
     "quat_z": "attitude quaternion (body to earth), z part",
 }
 RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
+# the inputs whose derivatives the step uses: all but the currents (module docstring)
+_ACTUATOR_INPUTS = tuple(
+    i for i in range(len(INPUT_NAMES)) if i not in range(len(INPUT_NAMES))[CURRENT]
+)
 PHYSICAL_PARAMETERS: tuple[str, ...] = tuple(
     name for name, field in VehicleParameters.field_info().items() if field.kind is float
 )
@@ -130,6 +140,8 @@ def field_unit_and_description(name: str) -> tuple[str, str]:
 
 class AuvPlant(SafeSlave):
     """REMUS 100 AUV plant with moving mass, tunnel thruster and stern planes."""
+
+    interpolates_inputs: ClassVar[bool] = True  # uses input derivatives (module docstring)
 
     description = (
         "REMUS 100 AUV with internal actuators (moving mass, tunnel thruster, stern planes): "
@@ -161,6 +173,9 @@ class AuvPlant(SafeSlave):
         self.vehicle = "remus100"
         self.current_shear_dUdy = 0.0
         self.max_substep = DEFAULT_MAX_SUBSTEP
+        # SafeSlave's input_derivative under the native runtime; pythonfmu's own wrapper
+        # never passes derivatives on (and the FMU then declares none)
+        self._input_derivative = getattr(self, "input_derivative", None)
         self._register_variables()
 
     # --- variables ---------------------------------------------------------------------------
@@ -324,10 +339,26 @@ class AuvPlant(SafeSlave):
             x = x.copy()
             change = np.subtract(current, self._last_current)
             x[NU] += model.current_change_velocity_jump(x, change)
-        x = advance(model, x, inputs, step_size, self.max_substep, self._compiled)
+        rates = self._input_rates()
+        x = advance(model, x, inputs, step_size, self.max_substep, self._compiled, rates)
         self._x[:] = x
         self._last_current = current
         self._refresh_outputs(inputs)
+
+    def _input_rates(self) -> np.ndarray | None:
+        """(2, inputs): the first and second time derivatives the importer set for this
+        step's actuator inputs (1/s, 1/s^2; the currents' stay 0), None if it set none."""
+        derivative = self._input_derivative
+        if derivative is None:
+            return None
+        first = [derivative(INPUT_NAMES[i], 1) for i in _ACTUATOR_INPUTS]
+        if not any(first):  # held (every first derivative exactly 0: the second is not asked)
+            return None
+        rates = np.zeros((2, len(INPUT_NAMES)))
+        for i, value in zip(_ACTUATOR_INPUTS, first, strict=True):
+            rates[0, i] = value
+            rates[1, i] = derivative(INPUT_NAMES[i], 2)
+        return rates
 
     def _state_snapshot(self) -> dict[str, Any]:
         return {
