@@ -41,9 +41,11 @@ import os
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from cosim.outputs.earlier_run import EarlierRun, ScenarioRef, SetAside, find_earlier_run
+from cosim.outputs.report_folder import mark_stale
 from cosim.outputs.run_files import (
     LOCK_FILE,
     MANIFEST_FILE,
@@ -164,13 +166,26 @@ class RunFolder:
         self._tell_guard("commit\n")
         if not moved:
             return
+        kept = [*(self.earlier.kept if self.earlier is not None else []), *left]
+        if f"{REPORT_FOLDER}/" in kept and mark_stale(
+            self.path / REPORT_FOLDER, self._stale_note()
+        ):
+            kept[kept.index(f"{REPORT_FOLDER}/")] = (
+                f"{REPORT_FOLDER}/ (marked stale: made from the earlier run)"
+            )
         inside = [t for t, _ in moved if t.is_relative_to(self.path)]
         shown = sorted(str(t.relative_to(self.path)) for t in inside)
         shown = [n for n in shown if not Path(n).name.startswith(".")]
         shown += [str(t) for t, _ in moved if not t.is_relative_to(self.path)]
-        kept = [*(self.earlier.kept if self.earlier is not None else []), *left]
         self.replaced = f"replaced the earlier run in {self.path}: removed {', '.join(shown)}" + (
             f"; kept {', '.join(kept)}" if kept else ""
+        )
+
+    def _stale_note(self) -> str:
+        when = time.strftime("%Y-%m-%d %H:%M:%S %Z")
+        return (
+            f"this report was made from an earlier run in {self.path}, replaced by another "
+            f"run at {when}; run `auv-cosim report {self.path}` to make it again"
         )
 
     def restore(self) -> None:
