@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
+import os
 import tempfile
 from collections.abc import Mapping
 from contextlib import ExitStack
@@ -124,7 +126,7 @@ def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR
     """
     from cosim.scenario.spec import load_scenario as load
 
-    return load(scenario, fmu_dir=Path(fmu_dir))
+    return load(_path("scenario", scenario), fmu_dir=_folder("fmu_dir", fmu_dir))
 
 
 def run(
@@ -178,18 +180,25 @@ def run(
     RunError
         The run stopped before its stop time (an FMU failed, Ctrl-C): the message says
         why, and ``error.run`` holds the partial results.
+
+    Every argument is checked first: a value of another type (a Decimal, a list for the
+    mapping, a string for a flag), a number out of range or a path with a NUL byte is a
+    :class:`~cosim.errors.CosimError` naming it and what was expected.
     """
+    recording = _flag("recording", recording)
     options = RunOptions(
-        out_dir=None if out is None else Path(out),
-        stop_time=stop_time,
-        step=step,
-        algorithm=algorithm,
+        out_dir=None if out is None else _folder("out", out),
+        stop_time=_seconds("stop_time", stop_time),
+        step=_seconds("step", step),
+        algorithm=_algorithm(algorithm),
         no_rrd=out is None or not recording,
-        fmu_dir=Path(fmu_dir),
-        overwrite=overwrite,
+        fmu_dir=_folder("fmu_dir", fmu_dir),
+        overwrite=_flag("overwrite", overwrite),
         keep_rows=True,
         tail_guard=out is not None,  # a temporary folder needs no guard: it is removed
     )
+    start = _start(start)
+    scenario = scenario if _is_scenario(scenario) else _path("scenario", scenario)
     if start:
         scenario = _loaded(scenario, options.fmu_dir).with_start(start)
     with ExitStack() as stack:
@@ -207,11 +216,12 @@ def run(
 def sweep(
     study: str | Path | Mapping[str, Any],
     *,
-    workers: int = 2,
+    workers: int | None = None,
     out: str | Path | None = None,
     resume: bool = False,
     overlay: int | None = None,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    oversubscribe: bool = False,
 ) -> Study:
     """Run a parameter sweep or Monte Carlo study on a local Dask cluster, like
     ``auv-cosim sweep``.
@@ -222,8 +232,9 @@ def sweep(
         A study ``.toml`` file, or a dict with the same keys (``scenario``, ``[grid]``,
         ``[random]``, ...); a relative scenario path in a dict is relative to the
         working folder.
-    workers : int
-        Local worker processes.
+    workers : int, optional
+        Local worker processes, at most the machine's cores unless ``oversubscribe``.
+        Default: one per core.
     out : str or pathlib.Path, optional
         Write the study folder there (runs.csv, runs.parquet, figures, index.html, and
         overlay.rrd if asked for). Default: no folder, the table only.
@@ -233,6 +244,8 @@ def sweep(
         Draw that many runs, spread over the study, in ``out``/overlay.rrd.
     fmu_dir : str or pathlib.Path
         Where the built-in FMUs are (built there on first use).
+    oversubscribe : bool
+        Allow more ``workers`` than cores (``--oversubscribe``).
 
     Returns
     -------
@@ -242,12 +255,29 @@ def sweep(
     Raises
     ------
     cosim.study.spec.StudyError
-        The study cannot run (a bad key, factor or value); failed runs are rows of the
-        table, not errors.
+        The study cannot run (a bad key, factor or value, an argument of the wrong type
+        or out of range), or it is called at the top level of a script without an
+        ``if __name__ == "__main__":`` guard (each worker process imports the script
+        again); failed runs are rows of the table, not errors.
+
+    Notes
+    -----
+    In a script, call it under ``if __name__ == "__main__":``: the local workers are
+    new processes that import the script again.
     """
     import pandas as pd
 
+    from cosim.study.execution import check_main_guard, local_workers
     from cosim.study.runner import Cluster, run_study
+
+    check_main_guard("cosim.sweep")
+    if not isinstance(study, Mapping):
+        study = _path("study", study)
+    workers = local_workers(workers, _flag("oversubscribe", oversubscribe))
+    out = None if out is None else _folder("out", out)
+    resume = _flag("resume", resume)
+    overlay = None if overlay is None else _count("overlay", overlay)
+    fmu_dir = _folder("fmu_dir", fmu_dir)
 
     with ExitStack() as stack:
         temporary = None
@@ -283,7 +313,7 @@ def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dic
     """
     from cosim.fmus.build import build_fmus as build
 
-    return build(Path(out), force=force)
+    return build(_folder("out", out), force=_flag("force", force))
 
 
 def _loaded(scenario: str | Path | Scenario, fmu_dir: Path) -> Scenario:
@@ -318,3 +348,85 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
     except (TypeError, ValueError) as exc:
         raise CosimError(f"study {dict(study)!r}: cannot be written as TOML: {exc}") from None
     return path
+
+
+# --- the arguments, checked: one line naming the value and what was expected -------------
+
+
+def _shown(value: object) -> str:
+    """``value`` as a message shows it: its repr, shortened if long (a huge int)."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
+
+
+def _seconds(name: str, value: object) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise CosimError(f"{name}={_shown(value)}: expected a number of seconds (float or int)")
+    number = float(value) if abs(value) <= 1e300 else math.inf
+    if not (math.isfinite(number) and number > 0):
+        raise CosimError(f"{name}={_shown(value)}: expected a finite number of seconds > 0")
+    return number
+
+
+def _flag(name: str, value: object) -> bool:
+    if not isinstance(value, bool):
+        raise CosimError(f"{name}={_shown(value)}: expected True or False")
+    return value
+
+
+def _count(name: str, value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise CosimError(f"{name}={_shown(value)}: expected a whole number >= 1")
+    return value
+
+
+def _algorithm(value: object) -> Literal["jacobi", "gauss-seidel"] | None:
+    if value is None or value in ("jacobi", "gauss-seidel"):
+        return value
+    raise CosimError(f"algorithm={_shown(value)}: expected 'jacobi' or 'gauss-seidel'")
+
+
+def _path(name: str, value: object) -> Path:
+    """A path argument: a str or os.PathLike without a NUL byte."""
+    if not isinstance(value, str | os.PathLike):
+        raise CosimError(f"{name}={_shown(value)}: expected a str or pathlib.Path")
+    text = os.fspath(value)
+    if not isinstance(text, str) or "\0" in text:
+        raise CosimError(f"{name}={_shown(value)}: expected a path without a NUL byte")
+    return Path(text)
+
+
+def _folder(name: str, value: object) -> Path:
+    """A folder argument: a path (:func:`_path`) that is a folder if it exists."""
+    path = _path(name, value)
+    if path.exists() and not path.is_dir():
+        raise CosimError(f"{name}={_shown(value)}: is a file; expected a folder")
+    return path
+
+
+def _is_scenario(value: object) -> bool:
+    from cosim.scenario.spec import Scenario
+
+    return isinstance(value, Scenario)
+
+
+def _start(value: object) -> dict[str, StartValue] | None:
+    """Start values: a mapping of "<instance>.<variable>" to a bool, int, float or str."""
+    if value is None:
+        return None
+    if not isinstance(value, Mapping):
+        raise CosimError(
+            f"start={_shown(value)}: expected a mapping {{'<instance>.<variable>': value}}"
+        )
+    for key, item in value.items():
+        if not isinstance(key, str) or "\0" in key:
+            raise CosimError(f"start key {_shown(key)}: expected '<instance>.<variable>'")
+        if not isinstance(item, bool | int | float | str):
+            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a bool, int, float or str")
+        if isinstance(item, int) and not isinstance(item, bool) and abs(item) > 1e300:
+            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a number within range")
+        if isinstance(item, str) and "\0" in item:
+            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a string without a NUL byte")
+    return dict(value)

@@ -29,10 +29,14 @@ checks the study, and each local worker imports the run's modules as it starts
 
 from __future__ import annotations
 
+import ast
+import asyncio
 import hashlib
 import logging
+import os
 import shutil
 import socket
+import sys
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -57,6 +61,7 @@ LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
 CONNECT_TIMEOUT_S = 30
 PROBE_TIMEOUT_S = 5.0  # a scheduler that does not accept a connection by then is refused
+MAX_WORKERS_PER_CORE = 16  # local worker processes beyond this are refused, oversubscribed
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
 PRELOAD = "cosim.study.preload"  # imported by each local worker as it starts
 
@@ -98,6 +103,73 @@ class StudyPlugin(WorkerPlugin):
     def teardown(self, worker: Any) -> None:
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def local_workers(requested: object, oversubscribe: bool = False) -> int:
+    """The local worker processes of a study asked for ``requested`` (None: one per core):
+    a whole number >= 1, at most the cores unless ``oversubscribe``. Raises StudyError."""
+    cores = os.cpu_count() or 1
+    if requested is None:
+        return cores
+    shown = repr(requested) if len(repr(requested)) <= 40 else f"{repr(requested)[:30]}..."
+    if isinstance(requested, bool) or not isinstance(requested, int) or requested < 1:
+        raise StudyError(f"workers={shown}: expected a whole number of worker processes >= 1")
+    if requested > cores and not oversubscribe:
+        raise StudyError(
+            f"workers={shown}: more than the {cores} cores of this machine; expected at most "
+            f"{cores}, or oversubscribe=True to start them all"
+        )
+    if requested > MAX_WORKERS_PER_CORE * cores:
+        raise StudyError(
+            f"workers={shown}: expected at most {MAX_WORKERS_PER_CORE * cores} worker "
+            f"processes ({MAX_WORKERS_PER_CORE} per core), even oversubscribed"
+        )
+    return requested
+
+
+def check_main_guard(caller: str) -> None:
+    """Refuse, in one line, a call made at the top level of the script Python runs (its
+    ``__main__``) outside an ``if __name__ == "__main__":`` block: each local worker is a
+    new process (Dask starts them with multiprocessing's "spawn") that imports that script
+    again, which would call ``caller`` again and flood the terminal with tracebacks.
+
+    Written by hand: multiprocessing finds the problem only in the child, too late. The
+    call is placed by the stack (the script's module-level frame and its line) and the
+    script's syntax tree (the ``if __name__ == "__main__":`` blocks).
+    """
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if main is None or not path or getattr(main, "__name__", None) != "__main__":
+        return  # an interactive session, python -c, a notebook: nothing is imported again
+    frame = sys._getframe(1)
+    while frame is not None and not (
+        frame.f_code.co_name == "<module>" and frame.f_globals is vars(main)
+    ):
+        frame = frame.f_back  # type: ignore[assignment]
+    if frame is None:
+        return
+    try:
+        tree = ast.parse(Path(path).read_text(encoding="utf-8"))
+    except (OSError, SyntaxError, ValueError):
+        return
+    line = frame.f_lineno
+    guards = [n for n in ast.walk(tree) if isinstance(n, ast.If) and _is_main_test(n.test)]
+    if any(n.lineno <= line <= (n.end_lineno or n.lineno) for n in guards):
+        return
+    raise StudyError(
+        f"{caller} is called at the top level of {path} (line {line}), which each worker "
+        'process imports again: put the call under `if __name__ == "__main__":`'
+    )
+
+
+def _is_main_test(test: ast.expr) -> bool:
+    """``__name__ == "__main__"`` (either way round)."""
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1):
+        return False
+    sides = [test.left, test.comparators[0]]
+    names = [s.id for s in sides if isinstance(s, ast.Name)]
+    values = [s.value for s in sides if isinstance(s, ast.Constant)]
+    return isinstance(test.ops[0], ast.Eq) and names == ["__name__"] and values == ["__main__"]
 
 
 def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[Job, StudyPlugin]:
@@ -181,6 +253,39 @@ def check_scheduler(address: str, security: Security | None = None) -> None:
     except OSError as exc:
         reason = exc.strerror or str(exc) or type(exc).__name__
         raise StudyError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
+    _handshake(address, security)
+
+
+def _handshake(address: str, security: Security | None) -> None:
+    """Exchange Dask's handshake with ``address`` within PROBE_TIMEOUT_S: a server that
+    accepts the connection but says nothing, or says something else (an HTTP server's
+    reply read as a frame length asks for exabytes), is refused in one line. Dask's own
+    ``connect`` waits for the handshake without a time limit."""
+    from distributed.comm import connect
+
+    arguments = security.get_connection_args("client") if security is not None else {}
+
+    async def probe() -> None:
+        comm = await connect(address, timeout=PROBE_TIMEOUT_S, **arguments)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(probe(), PROBE_TIMEOUT_S))
+    except TimeoutError:
+        raise StudyError(
+            f"--scheduler {address}: the server accepts connections but sends no Dask "
+            f"handshake within {PROBE_TIMEOUT_S:g} s; is it a Dask scheduler?"
+        ) from None
+    except MemoryError:  # a frame length read from bytes that are no Dask message
+        reason = "bytes that are no Dask message; an HTTP or other server?"
+        raise StudyError(
+            f"--scheduler {address}: not a Dask scheduler (it answered {reason})"
+        ) from None
+    except Exception as exc:  # anything else a non-scheduler makes Dask raise
+        reason = " ".join(f"{type(exc).__name__}: {exc}".split())[:160]
+        raise StudyError(
+            f"--scheduler {address}: not a Dask scheduler (its reply to Dask's handshake: {reason})"
+        ) from None
 
 
 @contextmanager
