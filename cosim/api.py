@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import tempfile
 from collections.abc import Mapping
@@ -360,14 +359,15 @@ def _shown(value: object) -> str:
 
 
 def _seconds(name: str, value: object) -> float | None:
+    """A time in s: a float or int (the runner checks it is finite and > 0, in the command
+    line's words); an int beyond the floats is refused here."""
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise CosimError(f"{name}={_shown(value)}: expected a number of seconds (float or int)")
-    number = float(value) if abs(value) <= 1e300 else math.inf
-    if not (math.isfinite(number) and number > 0):
+    if abs(value) > 1e300:
         raise CosimError(f"{name}={_shown(value)}: expected a finite number of seconds > 0")
-    return number
+    return float(value)
 
 
 def _flag(name: str, value: object) -> bool:
