@@ -184,18 +184,7 @@ def run(
     mapping, a string for a flag), a number out of range or a path with a NUL byte is a
     :class:`~cosim.errors.CosimError` naming it and what was expected.
     """
-    recording = _flag("recording", recording)
-    options = RunOptions(
-        out_dir=None if out is None else _folder("out", out),
-        stop_time=_seconds("stop_time", stop_time),
-        step=_seconds("step", step),
-        algorithm=_algorithm(algorithm),
-        no_rrd=out is None or not recording,
-        fmu_dir=_folder("fmu_dir", fmu_dir),
-        overwrite=_flag("overwrite", overwrite),
-        keep_rows=True,
-        tail_guard=out is not None,  # a temporary folder needs no guard: it is removed
-    )
+    options = _run_options(out, stop_time, step, algorithm, recording, fmu_dir, overwrite)
     start = _start(start)
     scenario = scenario if _is_scenario(scenario) else _path("scenario", scenario)
     if start:
@@ -274,10 +263,7 @@ def sweep(
         study = _path("study", study)
     workers = local_workers(workers, _flag("oversubscribe", oversubscribe))
     out = None if out is None else _folder("out", out)
-    resume = _flag("resume", resume)
     overlay = None if overlay is None else _count("overlay", overlay)
-    fmu_dir = _folder("fmu_dir", fmu_dir)
-
     with ExitStack() as stack:
         temporary = None
         if out is None or isinstance(study, Mapping):
@@ -285,13 +271,9 @@ def sweep(
         study_file = _study_file(study, temporary)
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
         outcome = run_study(
-            study_file,
-            out_dir,
-            cluster=Cluster(workers=workers),
-            resume=resume,
-            fmu_dir=Path(fmu_dir),
-            overlay=overlay,
-        )
+            study_file, out_dir, cluster=Cluster(workers=workers),
+            resume=_flag("resume", resume), fmu_dir=_folder("fmu_dir", fmu_dir), overlay=overlay,
+        )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir)
 
@@ -350,6 +332,30 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
 
 
 # --- the arguments, checked: one line naming the value and what was expected -------------
+
+
+def _run_options(
+    out: object,
+    stop_time: object,
+    step: object,
+    algorithm: object,
+    recording: object,
+    fmu_dir: object,
+    overwrite: object,
+) -> RunOptions:
+    """:func:`run`'s options, each checked."""
+    recording = _flag("recording", recording)
+    return RunOptions(
+        out_dir=None if out is None else _folder("out", out),
+        stop_time=_seconds("stop_time", stop_time),
+        step=_seconds("step", step),
+        algorithm=_algorithm(algorithm),
+        no_rrd=out is None or not recording,
+        fmu_dir=_folder("fmu_dir", fmu_dir),
+        overwrite=_flag("overwrite", overwrite),
+        keep_rows=True,
+        tail_guard=out is not None,  # a temporary folder needs no guard: it is removed
+    )
 
 
 def _shown(value: object) -> str:
