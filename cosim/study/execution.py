@@ -45,12 +45,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
 
+import dask
 from distributed import Client, LocalCluster, as_completed, get_worker
 from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.diagnostics.plugin import WorkerPlugin
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
 
+from cosim.study import fork_server
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
 from cosim.study.signals import StudyStopped, workers_ignore_sigint
@@ -316,24 +318,40 @@ def open_client(
     # An address without a host (dask's default ":8787") would listen on every interface;
     # with the dashboard off the scheduler still serves /health on this (random) port.
     port = DASHBOARD_PORT if dashboard else 0
-    with workers_ignore_sigint():  # a Ctrl-C is the client's to handle (cosim.study.signals)
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            host=LOCALHOST,
-            protocol="tcp://",
-            dashboard_address=f"{LOCALHOST}:{port}",
-            scheduler_kwargs={"dashboard": dashboard},
-            worker_dashboard_address=None,
-            silence_logs=logging.ERROR,
-            preload=[PRELOAD],
-        )
-    with cluster, Client(cluster, set_as_default=False) as client:
-        try:
-            yield client
-        finally:
-            stop_heartbeats(client)
+    with _forked_workers():  # also for a worker its nanny starts again later
+        with workers_ignore_sigint():  # a Ctrl-C is the client's (cosim.study.signals)
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host=LOCALHOST,
+                protocol="tcp://",
+                dashboard_address=f"{LOCALHOST}:{port}",
+                scheduler_kwargs={"dashboard": dashboard},
+                worker_dashboard_address=None,
+                silence_logs=logging.ERROR,
+                preload=[PRELOAD],
+            )
+        with cluster, Client(cluster, set_as_default=False) as client:
+            try:
+                yield client
+            finally:
+                stop_heartbeats(client)
+
+
+@contextmanager
+def _forked_workers() -> Iterator[None]:
+    """While on, Dask starts local worker processes from the fork server
+    (:mod:`cosim.study.fork_server`, started now if not yet), where the platform has one."""
+    if not fork_server.available():
+        yield
+        return
+    import distributed.utils
+
+    fork_server.start()
+    distributed.utils._forkserver_preload_set = True  # Dask's own preload comes too late
+    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
+        yield
 
 
 def stop_heartbeats(client: Client) -> None:
