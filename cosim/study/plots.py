@@ -31,13 +31,14 @@ import itertools
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
 from cosim.study.units import shown, title
+
+if TYPE_CHECKING:  # matplotlib is imported where a figure is drawn (~0.35 s, at the end)
+    from matplotlib.figure import Figure
 
 PANEL_COLUMNS = 4
 PANEL_SIZE_IN = (3.4, 2.6)
@@ -151,6 +152,8 @@ def plot_grid_factor(
         if not numeric or len(x_values) <= XTICKS_MAX:
             ax.set_xticks(x, [f"{v * scale:g}" if numeric else str(v) for v in x_values])
         else:
+            from matplotlib.ticker import MaxNLocator
+
             ax.xaxis.set_major_locator(MaxNLocator(nbins=XTICKS_MAX))
     if others:
         axes[0].legend(fontsize=7)
@@ -235,6 +238,8 @@ def plot_scatter_matrix(
     """Every pair of ``variables`` as a scatter plot, histograms on the diagonal."""
     n = len(variables)
     data = {name: _floats(rows, name) * shown(name, units)[0] for name in variables}
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(2.2 * n, 2.2 * n))
     axes = fig.subplots(n, n, squeeze=False)
     _margins(fig)
@@ -261,6 +266,8 @@ def plot_scatter_matrix(
 def _panels(n: int) -> tuple[Figure, list[Any]]:
     cols = min(PANEL_COLUMNS, n)
     nrows = math.ceil(n / cols)
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(PANEL_SIZE_IN[0] * cols, PANEL_SIZE_IN[1] * nrows))
     axes = fig.subplots(nrows, cols, squeeze=False)
     _margins(fig)
@@ -278,6 +285,8 @@ def _plain_ticks(ax: Any) -> None:
     """Tick labels as the numbers themselves: no offset ("+1.5249") and no common factor
     ("1e-5") above the axis, which read as another number."""
     for axis in (ax.xaxis, ax.yaxis):
+        from matplotlib.ticker import ScalarFormatter
+
         formatter = ScalarFormatter(useOffset=False)
         formatter.set_scientific(False)
         axis.set_major_formatter(formatter)
