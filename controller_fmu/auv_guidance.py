@@ -40,7 +40,7 @@ Discard; a NaN/inf input is refused by the base class (doStep then returns Disca
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
@@ -79,6 +79,11 @@ _DEFAULTS = GuidanceConfig()
 class AuvGuidance(SafeSlave):
     """Line-of-sight waypoint guidance for heading and depth (a sampled system)."""
 
+    # the first set-point is for the start position
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = dict.fromkeys(
+        OUTPUTS, tuple(INPUTS)
+    )
+
     description = (
         "Waypoint guidance of the REMUS 100: line-of-sight (proportional or integral) steering "
         "for heading and depth, with the current compensation of B. Li, FAU 2016 (6.3.74)"
@@ -89,7 +94,7 @@ class AuvGuidance(SafeSlave):
         super().__init__(**kwargs)
         self._inputs = dict.fromkeys(INPUTS, 0.0)
         self._outputs = dict.fromkeys(OUTPUTS, 0.0)
-        self._params: dict[str, Any] = _DEFAULTS.model_dump()
+        self._params: dict[str, Any] = _DEFAULTS.as_dict()
         self._guidance: LosGuidance | None = None
         self._register_variables()
 
@@ -112,16 +117,16 @@ class AuvGuidance(SafeSlave):
                     name,
                     causality=Fmi2Causality.output,
                     variability=Fmi2Variability.discrete,
-                    initial=Fmi2Initial.exact,
+                    initial=Fmi2Initial.calculated,  # from the waypoints and the inputs
                     description=description,
                     getter=item_getter(self._outputs, name),
                 ),
                 unit=unit,
             )
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        for name, field in GuidanceConfig.model_fields.items():
+        for name, field in GuidanceConfig.field_info().items():
             kinds: dict[object, Any] = {bool: Boolean, str: String, float: Real}
-            kind = kinds[field.annotation]
+            kind = kinds[field.kind]
             variable = kind(
                 name,
                 description=field.description,

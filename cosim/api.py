@@ -41,6 +41,8 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 __all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
 
 STUDY_FILE = "study.toml"  # a study given as a dict is written to this file first
+ALGORITHMS = ("jacobi", "gauss-seidel", "adaptive")  # RunOptions.algorithm
+EXTRAPOLATIONS = ("none", "linear", "quadratic")  # RunOptions.extrapolation
 
 
 class RunError(CosimError):
@@ -82,6 +84,13 @@ class Run:
     def complete(self) -> bool:
         """Whether the run reached its stop time."""
         return bool(self.summary["complete"])
+
+    @property
+    def coupling_error(self) -> dict[str, Any] | None:
+        """With ``check_step``: the estimated error of every key figure and final value
+        (summary.json's ``coupling.check_step``); None without."""
+        check: dict[str, Any] | None = self.summary.get("coupling", {}).get("check_step")
+        return check
 
 
 @dataclass(frozen=True)
@@ -133,7 +142,10 @@ def run(
     *,
     stop_time: float | None = None,
     step: float | None = None,
-    algorithm: Literal["jacobi", "gauss-seidel"] | None = None,
+    algorithm: Literal["jacobi", "gauss-seidel", "adaptive"] | None = None,
+    extrapolation: Literal["none", "linear", "quadratic"] | None = None,
+    tolerance: float | None = None,
+    check_step: bool = False,
     start: Mapping[str, StartValue] | None = None,
     out: str | Path | None = None,
     overwrite: bool = False,
@@ -146,10 +158,9 @@ def run(
     ----------
     scenario : str, pathlib.Path or Scenario
         A built-in id, a scenario ``.toml`` file, or a loaded :class:`Scenario`.
-    stop_time, step : float, optional
-        Override the stop time and the communication step, s (``--stop-time``, ``--step``).
-    algorithm : {"jacobi", "gauss-seidel"}, optional
-        Override the master algorithm (``--algorithm``).
+    stop_time, step, algorithm, extrapolation, tolerance, check_step : optional
+        The command line's ``--stop-time``, ``--step`` (s) and coupling options
+        (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
     start : mapping, optional
         Start values ``{"<instance>.<variable>": value}`` in SI units, checked like the
         scenario file's (:meth:`Scenario.with_start`).
@@ -184,7 +195,11 @@ def run(
     mapping, a string for a flag), a number out of range or a path with a NUL byte is a
     :class:`~cosim.errors.CosimError` naming it and what was expected.
     """
-    options = _run_options(out, stop_time, step, algorithm, recording, fmu_dir, overwrite)
+    settings = {
+        "stop_time": stop_time, "step": step, "algorithm": algorithm,
+        "extrapolation": extrapolation, "tolerance": tolerance, "check_step": check_step,
+    }  # fmt: skip
+    options = _run_options(out, recording, fmu_dir, overwrite, settings)
     start = _start(start)
     scenario = scenario if _is_scenario(scenario) else _path("scenario", scenario)
     if start:
@@ -335,21 +350,18 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
 
 
 def _run_options(
-    out: object,
-    stop_time: object,
-    step: object,
-    algorithm: object,
-    recording: object,
-    fmu_dir: object,
-    overwrite: object,
+    out: object, recording: object, fmu_dir: object, overwrite: object, settings: Mapping[str, Any]
 ) -> RunOptions:
-    """:func:`run`'s options, each checked."""
+    """:func:`run`'s options, each checked (``settings``: the run's overrides by name)."""
     recording = _flag("recording", recording)
     return RunOptions(
         out_dir=None if out is None else _folder("out", out),
-        stop_time=_seconds("stop_time", stop_time),
-        step=_seconds("step", step),
-        algorithm=_algorithm(algorithm),
+        stop_time=_seconds("stop_time", settings["stop_time"]),
+        step=_seconds("step", settings["step"]),
+        algorithm=_choice("algorithm", settings["algorithm"], ALGORITHMS),  # type: ignore[arg-type]
+        extrapolation=_choice("extrapolation", settings["extrapolation"], EXTRAPOLATIONS),  # type: ignore[arg-type]
+        tolerance=_number("tolerance", settings["tolerance"]),
+        check_step=_flag("check_step", settings["check_step"]),
         no_rrd=out is None or not recording,
         fmu_dir=_folder("fmu_dir", fmu_dir),
         overwrite=_flag("overwrite", overwrite),
@@ -388,10 +400,20 @@ def _count(name: str, value: object) -> int:
     return value
 
 
-def _algorithm(value: object) -> Literal["jacobi", "gauss-seidel"] | None:
-    if value is None or value in ("jacobi", "gauss-seidel"):
+def _choice(name: str, value: object, choices: tuple[str, ...]) -> str | None:
+    """None or one of ``choices``."""
+    if value is None or value in choices:
         return value
-    raise CosimError(f"algorithm={_shown(value)}: expected 'jacobi' or 'gauss-seidel'")
+    raise CosimError(f"{name}={_shown(value)}: expected one of {', '.join(map(repr, choices))}")
+
+
+def _number(name: str, value: object) -> float | None:
+    """None or a float or int within the floats (the runner checks its range)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or abs(value) > 1e300:
+        raise CosimError(f"{name}={_shown(value)}: expected a finite number (float or int)")
+    return float(value)
 
 
 def _path(name: str, value: object) -> Path:

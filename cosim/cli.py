@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
-from cosim.viz.web_viewer import GRPC_PORT, WEB_PORT
+from cosim.viz.web_viewer import FILE_PORT, WEB_PORT
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -66,6 +66,9 @@ def _run(args: argparse.Namespace) -> int:
         stop_time=args.stop_time,
         step=args.step,
         algorithm=args.algorithm,
+        extrapolation=args.extrapolation,
+        tolerance=args.tolerance,
+        check_step=args.check_step,
         rrd=args.rrd,
         no_rrd=args.no_rrd,
         connect=args.connect,
@@ -90,7 +93,7 @@ def _export(args: argparse.Namespace) -> int:
 def _view(args: argparse.Namespace) -> int:
     from cosim.viz.recording import view_run
 
-    return view_run(args.run_dir, args.web or args.open, args.open, args.web_port, args.grpc_port)
+    return view_run(args.run_dir, args.web or args.open, args.open, args.web_port, args.file_port)
 
 
 def _conditions(args: argparse.Namespace) -> OperatingConditions:
@@ -216,6 +219,24 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_coupling_options(p: argparse.ArgumentParser) -> None:
+    """``auv-cosim run``'s coupling options (docs/coupling.md)."""
+    p.add_argument(
+        "--algorithm", choices=["jacobi", "gauss-seidel", "adaptive"], help="master algorithm"
+    )
+    p.add_argument(
+        "--extrapolation",
+        choices=["none", "linear", "quadratic"],
+        help="exchanged values across a step (docs/coupling.md)",
+    )
+    p.add_argument("--tolerance", type=float, help="adaptive: relative error per step")
+    p.add_argument(
+        "--check-step",
+        action="store_true",
+        help="also run at h/2 and h/4: the estimated coupling error (summary.json)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="auv-cosim",
@@ -245,7 +266,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--stop-time", type=float, help="override the stop time, s (finite, > 0)")
     p.add_argument("--step", type=float, help="override the communication step, s (finite, > 0)")
-    p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="master algorithm")
+    _add_coupling_options(p)
     p.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
     p.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
     p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
@@ -329,10 +350,12 @@ def _add_view_parser(sub: argparse._SubParsersAction) -> None:
         "--web-port", type=int, default=WEB_PORT, help="web viewer page, 0 any free [%(default)s]"
     )
     p.add_argument(
-        "--grpc-port",
+        "--file-port",
+        "--grpc-port",  # its name while rerun's gRPC proxy served the recording
+        dest="file_port",
         type=int,
-        default=GRPC_PORT,
-        help="recording server, 0 any free [%(default)s]",
+        default=FILE_PORT,
+        help="the recording's HTTP server, 0 any free [%(default)s]",
     )
     p.set_defaults(func=_view)
 

@@ -1,11 +1,26 @@
-"""The pythonfmu entry module of our FMUs, shaped around how pythonfmu 0.7 instantiates.
+"""How an FMU's Python code is laid out and entered: its build package and pythonfmu's entry.
 
-What ``fmi2Instantiate`` of pythonfmu 0.7's wrapper library does, every time:
+The build (:mod:`cosim.fmus.build`) puts the FMU's packages (``plant_fmu``,
+``controller_fmu``, ``fmu_runtime`` and pythonfmu's own) under one top-level package named
+after their content, ``auvfmu_<hash>``, with their imports renamed to it. The FMU's runtime
+imports that package from the FMU's own ``resources/`` and constructs the slave class
+itself (``fmu_runtime/native/slave.c``): two builds in one process never share a module,
+and two extractions of one build share the same code. The package's ``__init__``
+(:func:`package_init_source`) imports every module of the shipped packages at once
+(:func:`import_packages`), while the folder they come from exists: modules outlive the
+extraction they were imported from, which a host may delete after freeing the instance,
+and a later instance of the same build then finds every module it needs already imported.
+
+pythonfmu's own binary, kept in the FMU as the fallback (``AUV_FMU_RUNTIME=pythonfmu``),
+needs a top-level entry module named in ``resources/slavemodule.txt``; the build writes
+one, named after the build package too (:func:`entry_source`). What pythonfmu 0.7's
+``fmi2Instantiate`` does with it, every time:
 
 1. it inserts the instance's ``resources`` folder at ``sys.path[0]`` (a new entry per
-   instance, never removed);
-2. it imports the module named in ``resources/slavemodule.txt``: after the first time in a
-   process that is the module in ``sys.modules``, from whichever extraction it came;
+   instance, never removed: :func:`release_search_path` removes it once the instance
+   exists);
+2. it imports the entry module (after the first time in a process, the one in
+   ``sys.modules``);
 3. it compiles that module's file again and executes it with the cached module's namespace
    as globals and a fresh dict as locals, takes the name of the ``Fmi2Slave`` subclass
    found in the fresh dict, and constructs the class of that *name* from the cached module;
@@ -13,20 +28,10 @@ What ``fmi2Instantiate`` of pythonfmu 0.7's wrapper library does, every time:
    and releases a reference to the module namespace it never took (``PyModule_GetDict``
    returns a borrowed reference).
 
-So a slave class defined in the entry module is created anew at each instantiation and
-kept alive by the leaked list (47 KiB per instance, before this was fixed), and a namespace whose
-functions do not hold extra references is freed after a few instances (a segmentation
-fault). The build (:mod:`cosim.fmus.build`) therefore writes a generated entry module,
-:func:`entry_source`, that defines nothing: it binds the slave class by import (step 3
-re-executes an import of a cached module, which creates nothing) and gives its namespace
-back the reference step 4 takes away (:func:`hold_namespace`). :func:`release_search_path`
-removes step 1's entry once the instance exists.
-
-Because the modules outlive the extraction they were imported from, which a host may
-delete after freeing the instance, the entry also imports every module of the packages
-the FMU ships at once (:func:`import_packages`): a second FMU sharing a package (the
-autopilot ships ``plant_fmu`` too) then finds every module it needs already imported,
-instead of looking for one in a deleted folder.
+So the entry defines nothing (step 3 re-executes an import of a cached module, which
+creates no class) and gives its namespace back the reference step 4 takes away
+(:func:`hold_namespace`); without that, a few instances in, the namespace is freed under
+its module (a segmentation fault).
 """
 
 from __future__ import annotations
@@ -40,29 +45,49 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-_ENTRY = '''"""pythonfmu entry module of {fmu}.fmu, written by the build.
+_PACKAGE_INIT = '''"""The Python code of {fmu}.fmu and its siblings of one build (by the build).
 
-It defines nothing: it imports the shipped packages whole and binds the slave class by
-import (see fmu_runtime/entry.py).
+{packages}, with their imports renamed under this package, whose name is taken from their
+content: another build never shares a module with this one in a process.
 """
 
-from fmu_runtime.entry import hold_namespace, import_packages
+from .fmu_runtime.entry import import_packages
+
+import_packages(__name__, {names!r})
+'''
+
+_ENTRY = '''"""pythonfmu entry module of {fmu}.fmu, written by the build.
+
+pythonfmu's own binary (AUV_FMU_RUNTIME=pythonfmu) imports it; it defines nothing, it binds
+the slave class by import (see fmu_runtime/entry.py). The FMU's runtime does not use it.
+"""
+
+from {package}.fmu_runtime.entry import hold_namespace
 
 hold_namespace(globals())
-import_packages({packages!r})
 
 from {module} import {cls}  # noqa: E402
 '''
+
+# resources/<this>, written by the build for the FMU's runtime (fmu_runtime/native/loader.h)
+RECORD_FILE = "fmu_runtime.txt"
 
 # Process-wide by nature, like sys.modules: package name -> the package object whose
 # modules import_packages has imported.
 _imported: dict[str, ModuleType] = {}
 
 
-def entry_source(fmu: str, module: str, cls: str, packages: Iterable[str]) -> str:
-    """The text of the entry module of FMU ``fmu`` whose slave class is ``module.cls`` and
-    which ships ``packages``."""
-    return _ENTRY.format(fmu=fmu, module=module, cls=cls, packages=tuple(packages))
+def package_init_source(fmu: str, names: Iterable[str], shipped: Iterable[str]) -> str:
+    """The ``__init__.py`` of a build package shipping the packages ``shipped``, whose
+    ``names`` are imported whole at once."""
+    packages = ", ".join(f"``{name}``" for name in shipped)
+    return _PACKAGE_INIT.format(fmu=fmu, packages=packages, names=tuple(names))
+
+
+def entry_source(fmu: str, package: str, module: str, cls: str) -> str:
+    """The text of pythonfmu's entry module of FMU ``fmu`` whose slave class is
+    ``module.cls`` (``module`` inside the build package ``package``)."""
+    return _ENTRY.format(fmu=fmu, package=package, module=module, cls=cls)
 
 
 def hold_namespace(namespace: dict[str, Any]) -> None:
@@ -76,16 +101,17 @@ def hold_namespace(namespace: dict[str, Any]) -> None:
     ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
 
 
-def import_packages(names: Iterable[str]) -> None:
-    """Import every module of the packages ``names`` (once per package object), while the
-    folder they are imported from exists."""
+def import_packages(package: str, names: Iterable[str]) -> None:
+    """Import every module of the subpackages ``names`` of ``package`` (once per package
+    object), while the folder they are imported from exists."""
     for name in names:
-        package = importlib.import_module(name)
-        if _imported.get(name) is package:
+        full = f"{package}.{name}"
+        module = importlib.import_module(full)
+        if _imported.get(full) is module:
             continue
-        for info in pkgutil.walk_packages(package.__path__, prefix=f"{name}."):
+        for info in pkgutil.walk_packages(module.__path__, prefix=f"{full}."):
             importlib.import_module(info.name)
-        _imported[name] = package
+        _imported[full] = module
 
 
 def release_search_path(resources: str | Path) -> bool:
@@ -94,9 +120,10 @@ def release_search_path(resources: str | Path) -> bool:
 
     Safe once the instance exists: its packages are imported, and their submodules are
     found through each package's ``__path__``, not ``sys.path``. Only for an FMU's
-    extraction: pythonfmu's builder removes its own entry itself.
+    extraction (it holds :data:`RECORD_FILE`): pythonfmu's builder removes its own entry
+    itself.
     """
-    if sys.path and sys.path[0] == str(resources):
+    if sys.path and sys.path[0] == str(resources) and Path(resources, RECORD_FILE).is_file():
         del sys.path[0]
         return True
     return False

@@ -5,8 +5,10 @@ callback becomes fmi2Fatal and the C wrapper then releases the Python objects tw
 host process crashes soon after. pythonfmu also accepts NaN inputs, lets a fixed parameter
 be written after initialisation, follows no FMI call sequence, and saves only the
 registered variables as FMU state. This class closes those holes once, for the plant and
-the controller FMU alike, installs :mod:`fmu_runtime.exit_guard` against pythonfmu's crash
-at process exit, and refuses to run another build's code (:mod:`fmu_runtime.provenance`).
+the controller FMU alike, and installs :mod:`fmu_runtime.exit_guard` against pythonfmu's
+crash at process exit. The FMU's native runtime (``fmu_runtime/native/``) constructs the
+class and calls these methods itself; pythonfmu's own binary, the fallback, calls the same
+ones.
 
 What a subclass writes (the whole API)::
 
@@ -26,6 +28,13 @@ What a subclass writes (the whole API)::
         def _step(self, t: float, h: float) -> None: ...  # do_step
         def _state_snapshot(self) -> dict: ...        # the internal state, JSON-serialisable
         def _restore_snapshot(self, snapshot: dict) -> None: ...
+
+``_initialize`` computes the outputs the FMU starts from, from the parameters and inputs:
+it also runs when an output is read in initialisation mode after a write (so that read
+gives the value the FMU will start from, as FMI 2.0 asks of ``initial="calculated"``
+outputs), and must therefore be repeatable. A class that takes input derivatives sets
+``interpolates_inputs = True`` (the build then declares ``canInterpolateInputs``) and reads
+them in ``_step`` with :meth:`SafeSlave.input_derivative`.
 
 ``_initialize`` and ``_step`` report a problem by raising (any exception): the base class
 catches it, logs the message with ``Fmi2Status.error`` and turns it into a failed
@@ -49,17 +58,17 @@ from enum import IntEnum
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element, SubElement
 
-from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
 
-from fmu_runtime import entry, exit_guard, provenance
+from fmu_runtime import entry, exit_guard
 from fmu_runtime.variables import attribute_getter, attribute_setter
 
 _WRITE_ANY_TIME = "any time"
 _WRITE_BEFORE_INIT = "before initialisation"
 _READ_ONLY = "never"
-_STATE_VERSION = 2
+_STATE_VERSION = 3
 # FMI 2.0 co-simulation states this class tracks (the names are used in messages)
 _INSTANTIATED = "instantiated"
 _INITIALIZATION = "in initialisation mode"
@@ -87,10 +96,17 @@ class SafeSlave(Fmi2Slave):
     """``Fmi2Slave`` whose callbacks never raise; see the module docstring for the API."""
 
     direct_feedthrough: ClassVar[dict[str, tuple[str, ...]]] = {}
+    # True: the slave uses input derivatives (fmi2SetRealInputDerivatives, orders 1 and 2)
+    interpolates_inputs: ClassVar[bool] = False
+    # the inputs an output ``_initialize`` computes depends on (besides the parameters, on
+    # which every such output may depend); declared in ModelStructure/InitialUnknowns
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = {}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         exit_guard.install(self.resources)  # pythonfmu 0.7's crash at process exit
+        if self.resources is not None:  # pythonfmu's binary put it on sys.path: not needed
+            entry.release_search_path(self.resources)
         self._phase = _INSTANTIATED
         self._time = 0.0  # s: the start time, then the end of the last step
         self._initialized = False
@@ -103,9 +119,9 @@ class SafeSlave(Fmi2Slave):
         # hot-path plans of get_real / set_real, per list of value references
         self._get_plans: dict[tuple[int, ...], Any] = {}
         self._set_plans: dict[tuple[int, ...], Any] = {}
-        # not logged here: see "Logging" in the module docstring
-        self._failure: str | None = _build_problem(self.resources)
-        self._failure_logged = False
+        self._failure: str | None = None
+        self._outputs_stale = True  # written to since the initial outputs were computed
+        self._derivatives: dict[tuple[str, int], float] = {}  # (input, order) -> value
 
     # --- what subclasses call / override ---------------------------------------------------
 
@@ -135,7 +151,7 @@ class SafeSlave(Fmi2Slave):
             raise ValueError(f"Real variable {var.name!r}: a unit is required")
         if not isinstance(var, Real) and var.variability is None:
             raise ValueError(f"variable {var.name!r}: Integer/Boolean/String need a variability")
-        if (minimum, maximum) != (None, None) and not isinstance(var, Real | Integer):
+        if (minimum, maximum) != (None, None) and not isinstance(var, (Real, Integer)):
             raise ValueError(f"variable {var.name!r}: only Real and Integer take a range")
         if names is not None:
             if not isinstance(var, Integer):
@@ -194,7 +210,6 @@ class SafeSlave(Fmi2Slave):
     def setup_experiment(self, start_time: float = 0.0, *args: Any, **kwargs: Any) -> None:
         """Record the start time (the first communication point); only right after
         instantiation, and only a finite time."""
-        self._log_failure_once()
         try:
             if self._phase != _INSTANTIATED:
                 self._error(
@@ -214,7 +229,6 @@ class SafeSlave(Fmi2Slave):
     def enter_initialization_mode(self) -> None:
         """Enter initialisation mode, once, right after instantiation (parameters are
         applied in exit_initialization_mode)."""
-        self._log_failure_once()
         if self._phase != _INSTANTIATED:
             self._error(
                 f"enterInitializationMode refused: the FMU is {self._phase} "
@@ -222,6 +236,7 @@ class SafeSlave(Fmi2Slave):
             )
             return
         self._phase = _INITIALIZATION
+        self._outputs_stale = True
 
     def exit_initialization_mode(self) -> None:
         if self._phase != _INITIALIZATION:
@@ -236,7 +251,9 @@ class SafeSlave(Fmi2Slave):
                 raise ValueError(self._failure)
             if self._problems:
                 raise ValueError("; ".join(self._problems.values()))
-            self._initialize()
+            if self._outputs_stale:  # else computed when read, nothing written since
+                self._initialize()
+            self._outputs_stale = False
             self._initialized = True
         except Exception as exc:
             self._failure = f"initialisation failed: {_reason(exc)}"
@@ -256,11 +273,44 @@ class SafeSlave(Fmi2Slave):
                 f"doStep at t = {current_time!r} s, h = {step_size!r} s failed: {_reason(exc)}"
             )
             return False
+        finally:  # they belong to the communication point this step started from
+            self._derivatives.clear()
+
+    def set_real_input_derivatives(
+        self, vrs: list[int], orders: list[int], values: list[float]
+    ) -> None:
+        """Take the derivatives of Real inputs (order 1: unit/s, 2: unit/s^2) at the
+        current communication point, for the next doStep only (``fmi2SetRealInputDerivatives``;
+        refused, with nothing stored, unless the class sets ``interpolates_inputs``)."""
+        try:
+            taken = {}
+            for i, vr in enumerate(vrs):  # (no zip(strict=): CPython 3.9)
+                var, order, value = self.vars.get(vr), orders[i], values[i]
+                if not self.interpolates_inputs:
+                    raise ValueError("this FMU takes no input derivatives")
+                if not isinstance(var, Real) or var.causality != Fmi2Causality.input:
+                    raise ValueError(f"valueReference {vr!r} is not a Real input")
+                if order not in (1, 2) or not math.isfinite(value):
+                    raise ValueError(
+                        f"{var.name}: derivative of order {order!r} = {value!r}: expected "
+                        "order 1 or 2 and a finite number"
+                    )
+                taken[(var.name, int(order))] = float(value)
+            self._derivatives.update(taken)
+        except Exception as exc:
+            self._error(f"fmi2SetRealInputDerivatives refused: {_reason(exc)}")
+
+    def input_derivative(self, name: str, order: int) -> float:
+        """The derivative of order ``order`` (1: unit/s, 2: unit/s^2) of Real input
+        ``name`` set for the current step, 0.0 when none was set."""
+        return self._derivatives.get((name, order), 0.0)
 
     def terminate(self) -> None:
         self._phase = _TERMINATED
 
     def get_real(self, vrs: list[int]) -> list[float]:
+        if self._outputs_stale and self._phase == _INITIALIZATION:
+            self._compute_initial_outputs()
         try:  # the hot path: one lookup per call, finite values
             plan = self._real_plan(vrs, self._get_plans, _readable)
             if plan is not None:
@@ -272,12 +322,18 @@ class SafeSlave(Fmi2Slave):
         return [self._get(vr, Real, float, 0.0) for vr in vrs]
 
     def get_integer(self, vrs: list[int]) -> list[int]:
+        if self._outputs_stale and self._phase == _INITIALIZATION:
+            self._compute_initial_outputs()
         return [self._get(vr, Integer, int, 0) for vr in vrs]
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
+        if self._outputs_stale and self._phase == _INITIALIZATION:
+            self._compute_initial_outputs()
         return [self._get(vr, Boolean, bool, False) for vr in vrs]
 
     def get_string(self, vrs: list[int]) -> list[str]:
+        if self._outputs_stale and self._phase == _INITIALIZATION:
+            self._compute_initial_outputs()
         return [self._get(vr, String, str, "") for vr in vrs]
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
@@ -295,9 +351,10 @@ class SafeSlave(Fmi2Slave):
         if plan is None or len(values) != len(plan[0]) or not all(map(math.isfinite, values)):
             return False
         variables, names = plan
-        for var, value in zip(variables, values, strict=True):
+        for var, value in zip(variables, values):
             var.setter(value)
         self._written.update(names)
+        self._outputs_stale = True
         if self._problems:
             for name in names:
                 self._problems.pop(name, None)
@@ -327,6 +384,8 @@ class SafeSlave(Fmi2Slave):
                     "failure": self._failure,
                     "problems": dict(self._problems),
                     "written": sorted(self._written),
+                    "stale": self._outputs_stale,
+                    "derivatives": [[n, o, v] for (n, o), v in self._derivatives.items()],
                 },
                 "internal": copy.deepcopy(self._state_snapshot()),
             }
@@ -359,6 +418,8 @@ class SafeSlave(Fmi2Slave):
             self._failure = base["failure"]
             self._problems = dict(base["problems"])
             self._written = set(base["written"])
+            self._outputs_stale = base["stale"]
+            self._derivatives = {(n, int(o)): float(v) for n, o, v in base["derivatives"]}
             self._restore_snapshot(copy.deepcopy(state["internal"]))
         except Exception as exc:
             message = f"fmi2SetFMUstate failed: {_reason(exc)}"
@@ -386,6 +447,11 @@ class SafeSlave(Fmi2Slave):
         """pythonfmu's description plus a ``unit`` on every Real and the declared
         ``direct_feedthrough`` as ModelStructure dependencies (used by the build only)."""
         root: Element = super().to_xml(model_options or {})
+        if self.interpolates_inputs:
+            cosimulation = root.find("CoSimulation")
+            if cosimulation is not None:
+                cosimulation.set("canInterpolateInputs", "true")
+                cosimulation.set("maxOutputDerivativeOrder", "0")
         index = {var.name: i + 1 for i, var in enumerate(self.vars.values())}
         for node in root.findall("ModelVariables/*"):
             variable = node.attrib["name"]
@@ -394,7 +460,7 @@ class SafeSlave(Fmi2Slave):
             if unit and real is not None:
                 real.set("unit", unit)
             bounds = self._bounds.get(int(node.attrib["valueReference"]), (None, None))
-            for attribute, value in zip(("min", "max"), bounds, strict=True):
+            for attribute, value in zip(("min", "max"), bounds):
                 if value is not None:  # node[0]: the <Real>/<Integer> element
                     node[0].set(attribute, repr(value))
             if variable in self._names:
@@ -413,7 +479,29 @@ class SafeSlave(Fmi2Slave):
             unknown.set("dependencies", " ".join(str(index[d]) for d in depends_on))
             if depends_on:
                 unknown.set("dependenciesKind", " ".join("dependent" for _ in depends_on))
+        self._declare_initial_unknowns(root, index)
         return root
+
+    def _declare_initial_unknowns(self, root: Element, index: dict[str, int]) -> None:
+        """ModelStructure/InitialUnknowns for the calculated outputs, with what they depend
+        on: the parameters, and the inputs ``initial_dependencies`` names. Without a
+        dependencies list an importer must assume every input, which OMSimulator takes for
+        an algebraic loop between our FMUs at initialisation."""
+        structure = root.find("ModelStructure")
+        parameters = [v.name for v in self.vars.values() if v.causality == Fmi2Causality.parameter]
+        calculated = [
+            v.name
+            for v in self.vars.values()
+            if v.causality == Fmi2Causality.output and v.initial == Fmi2Initial.calculated
+        ]
+        if structure is None or not calculated:
+            return
+        node = SubElement(structure, "InitialUnknowns")
+        for name in calculated:
+            inputs = self.initial_dependencies.get(name, ())
+            depends_on = sorted(index[n] for n in (*parameters, *inputs))
+            SubElement(node, "Unknown", index=str(index[name]),
+                       dependencies=" ".join(map(str, depends_on)))  # fmt: skip
 
     # --- internals ---------------------------------------------------------------------------
 
@@ -481,7 +569,7 @@ class SafeSlave(Fmi2Slave):
             return fallback
 
     def _set_all(self, vrs: list[int], values: list[Any], kind: type[ScalarVariable]) -> None:
-        for vr, value in zip(vrs, values, strict=False):
+        for vr, value in zip(vrs, values):
             try:
                 self._set(vr, value, kind)
             except Exception as exc:
@@ -518,15 +606,22 @@ class SafeSlave(Fmi2Slave):
             var.setter(value)
             self._written.add(name)
             self._problems.pop(name, None)
+            self._outputs_stale = True
             return
         self._problems[name] = refusal  # the step would use the old value: Discard it
         self._error(refusal)
 
-    def _log_failure_once(self) -> None:
-        """Log a failure found at instantiation (stale code) at the first call after it."""
-        if self._failure is not None and not self._failure_logged:
-            self._failure_logged = True
-            self._error(self._failure)
+    def _compute_initial_outputs(self) -> None:
+        """The outputs the FMU will start from, read in initialisation mode after a write
+        (``_initialize`` on the values written so far). Not while a refused value or a
+        failure stands: exitInitializationMode reports those."""
+        if self._failure is not None or self._problems:
+            return
+        try:
+            self._initialize()
+            self._outputs_stale = False
+        except Exception as exc:
+            self._error(f"the outputs to start from cannot be computed yet: {_reason(exc)}")
 
     def log(
         self,
@@ -542,19 +637,6 @@ class SafeSlave(Fmi2Slave):
 
     def _error(self, message: str) -> None:
         self.log(message, Fmi2Status.error)
-
-
-def _build_problem(resources: str | None) -> str | None:
-    """Why this instance must not run (another build's code is imported), or None.
-    Also removes pythonfmu's ``sys.path`` entry for an FMU's extraction."""
-    try:
-        build = provenance.read_build(resources)
-        if build is None or resources is None:  # constructed in-process or by pythonfmu's builder
-            return None
-        entry.release_search_path(resources)
-        return provenance.stale_code(build)
-    except Exception as exc:
-        return f"cannot check which build this FMU's code comes from: {_reason(exc)}"
 
 
 def _within(value: float, bounds: tuple[float | None, float | None]) -> bool:

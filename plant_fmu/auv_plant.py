@@ -13,14 +13,14 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   ``current_north``, ``current_east``, ``current_down`` (m/s, earth frame);
 * outputs: the 14 states (``north`` ... ``r``, ``mass_position``, ``mass_velocity``), the
   attitude quaternion ``quat_w``, ``quat_x``, ``quat_y``, ``quat_z`` (body to earth, scalar
-  first; the full variant integrates it, and roll, pitch and yaw are the Euler angles of it
-  that continue the previous ones, so they run on past +-180 deg and through +-90 deg of
-  pitch without jumping), ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - U, U the current in
+  first; the full variant integrates it, and roll, pitch and yaw are its Euler angles with
+  |pitch| <= 90 deg, roll and yaw continuing the previous ones by whole turns, so yaw runs
+  on past +-180 deg), ``u_rel``, ``v_rel``, ``w_rel`` (m/s, nu - U, U the current in
   body axes: ``PlantModel.current_in_body``) and ``kinetic_energy`` (J, 1/2 nu_r^T (M_RB +
   M_A) nu_r; with model 1 the moving mass's too). All are refreshed after initialisation and
   after each step, so none depends directly on an input (ModelStructure dependencies "").
-  Their start values (all 0, ``quat_w`` 1) are the outputs for the default parameters (the
-  vehicle at rest);
+  They depend on the parameters (``initial="calculated"``): read in initialisation mode,
+  they give the values the plant will start from;
 * parameters (fixed): the initial state ``north_0`` ... ``r_0``, ``mass_position_0``,
   ``mass_velocity_0`` (default 0), ``variant`` (0 full 6-DOF, 1 lateral (6.3.13),
   2 horizontal (5.1.30); a write outside 0..2 is refused), ``moving_mass_model`` (0 the
@@ -29,7 +29,7 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   this instance's ``resources/``, or a .toml path), ``current_shear_dUdy`` (1/s),
   ``max_substep`` (s, longest internal RK4 step), and every field of
   :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``, ``a22``, ``X_uu``,
-  ``m_v``, ...), unit, description and range (``min``/``max``) from its pydantic Field.
+  ``m_v``, ...), unit, description and range (``min``/``max``) from its declaration.
 
 Physical parameters: ``vehicle`` picks the base set; each physical parameter the importer
 writes overrides it; the result is validated as a whole (``VehicleParameters.replace``).
@@ -39,19 +39,26 @@ values in modelDescription.xml are those of ``remus100``.
 Speed: the plant steps with the compiled path of :mod:`plant_fmu.model.compiled` (numba)
 when it covers the model; with ``moving_mass_model = 1`` it steps the reference
 (:func:`plant_fmu.model.stepping.advance`'s numpy loop), and in a host where numba cannot
-be used (not installed, or ``AUV_COSIM_NO_JIT=1``) it steps the reference and logs a
-Warning saying why. Both do the same arithmetic (agreement to 1e-12 is tested).
+be used (not installed: numba is optional, or ``AUV_COSIM_NO_JIT=1``) it steps the
+reference and logs a Warning, once per instance, saying why and what it costs. Both do
+the same arithmetic (agreement to 1e-12 is tested).
 
 Currents: the uniform current inputs at initialisation set the start. When they change
 between steps, the hull's velocity over ground jumps by
 ``PlantModel.current_change_velocity_jump`` (the impulse of the (Mbar + M_A) nuc_dot term),
 applied at the start of the next step; inputs are held over each step.
+
+Input derivatives (``canInterpolateInputs="true"``): an importer that extrapolates its
+values (``fmi2SetRealInputDerivatives``, orders 1 and 2) gets them used inside the step,
+every RK4 stage taking the actuator inputs at its own time (``stepping.advance`` with
+``rates``), so a closed loop converges at second or third order in the communication step
+instead of first. The currents stay held over a step (see above).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from pythonfmu.default_experiment import DefaultExperiment
@@ -110,15 +117,19 @@ STATE_DESCRIPTIONS: dict[str, str] = {
     "quat_z": "attitude quaternion (body to earth), z part",
 }
 RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
+# the inputs whose derivatives the step uses: all but the currents (module docstring)
+_ACTUATOR_INPUTS = tuple(
+    i for i in range(len(INPUT_NAMES)) if i not in range(len(INPUT_NAMES))[CURRENT]
+)
 PHYSICAL_PARAMETERS: tuple[str, ...] = tuple(
-    name for name, field in VehicleParameters.model_fields.items() if field.annotation is float
+    name for name, field in VehicleParameters.field_info().items() if field.kind is float
 )
 
 
 def field_unit_and_description(name: str) -> tuple[str, str]:
-    """(FMI unit, description) of a VehicleParameters field from its pydantic description
+    """(FMI unit, description) of a VehicleParameters field from its description
     ``"<meaning>, <unit>[ (<note>)]"``; ``kg m^2`` becomes ``kg.m2``."""
-    text = VehicleParameters.model_fields[name].description or ""
+    text = VehicleParameters.field_info()[name].description
     meaning, _, unit = text.rpartition(", ")
     unit, _, note = unit.partition(" (")
     if not meaning or not unit:
@@ -130,11 +141,18 @@ def field_unit_and_description(name: str) -> tuple[str, str]:
 class AuvPlant(SafeSlave):
     """REMUS 100 AUV plant with moving mass, tunnel thruster and stern planes."""
 
+    interpolates_inputs: ClassVar[bool] = True  # uses input derivatives (module docstring)
+
     description = (
         "REMUS 100 AUV with internal actuators (moving mass, tunnel thruster, stern planes): "
         "6-DOF / lateral / horizontal plant, B. Li, FAU 2016"
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=60.0, step_size=0.01)
+    # the velocities relative to the water, and the energy of that motion, start from the
+    # current; every other output from the parameters alone
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = dict.fromkeys(
+        (*RELATIVE_VELOCITIES, "kinetic_energy"), ("current_north", "current_east", "current_down")
+    )
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -155,6 +173,9 @@ class AuvPlant(SafeSlave):
         self.vehicle = "remus100"
         self.current_shear_dUdy = 0.0
         self.max_substep = DEFAULT_MAX_SUBSTEP
+        # SafeSlave's input_derivative under the native runtime; pythonfmu's own wrapper
+        # never passes derivatives on (and the FMU then declares none)
+        self._input_derivative = getattr(self, "input_derivative", None)
         self._register_variables()
 
     # --- variables ---------------------------------------------------------------------------
@@ -164,7 +185,7 @@ class AuvPlant(SafeSlave):
         self._register_parameters()
 
     def _register_inputs_and_outputs(self) -> None:
-        for i, (name, unit) in enumerate(zip(INPUT_NAMES, INPUT_UNITS, strict=True)):
+        for i, (name, unit) in enumerate(zip(INPUT_NAMES, INPUT_UNITS)):
             self.register(
                 Real(
                     name,
@@ -179,10 +200,10 @@ class AuvPlant(SafeSlave):
         output = {
             "causality": Fmi2Causality.output,
             "variability": Fmi2Variability.continuous,
-            "initial": Fmi2Initial.exact,
+            "initial": Fmi2Initial.calculated,  # from the initial state and the currents
         }
         units = STATE_UNITS + ("1",) * len(QUATERNION_NAMES)
-        for i, (name, unit) in enumerate(zip(STEP_STATE_NAMES, units, strict=True)):
+        for i, (name, unit) in enumerate(zip(STEP_STATE_NAMES, units)):
             self.register(
                 Real(
                     name,
@@ -215,7 +236,7 @@ class AuvPlant(SafeSlave):
 
     def _register_parameters(self) -> None:
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        for i, (name, unit) in enumerate(zip(STATE_NAMES, STATE_UNITS, strict=True)):
+        for i, (name, unit) in enumerate(zip(STATE_NAMES, STATE_UNITS)):
             self.register(
                 Real(
                     f"{name}_0",
@@ -265,7 +286,7 @@ class AuvPlant(SafeSlave):
         )
         for name in PHYSICAL_PARAMETERS:
             unit, description = field_unit_and_description(name)
-            minimum, maximum = field_bounds(VehicleParameters.model_fields[name])
+            minimum, maximum = field_bounds(VehicleParameters.field_info()[name])
             self.register(
                 Real(
                     name,
@@ -318,10 +339,26 @@ class AuvPlant(SafeSlave):
             x = x.copy()
             change = np.subtract(current, self._last_current)
             x[NU] += model.current_change_velocity_jump(x, change)
-        x = advance(model, x, inputs, step_size, self.max_substep, self._compiled)
+        rates = self._input_rates()
+        x = advance(model, x, inputs, step_size, self.max_substep, self._compiled, rates)
         self._x[:] = x
         self._last_current = current
         self._refresh_outputs(inputs)
+
+    def _input_rates(self) -> np.ndarray | None:
+        """(2, inputs): the first and second time derivatives the importer set for this
+        step's actuator inputs (1/s, 1/s^2; the currents' stay 0), None if it set none."""
+        derivative = self._input_derivative
+        if derivative is None:
+            return None
+        first = [derivative(INPUT_NAMES[i], 1) for i in _ACTUATOR_INPUTS]
+        if not any(first):  # held (every first derivative exactly 0: the second is not asked)
+            return None
+        rates = np.zeros((2, len(INPUT_NAMES)))
+        for i, value in zip(_ACTUATOR_INPUTS, first, strict=True):
+            rates[0, i] = value
+            rates[1, i] = derivative(INPUT_NAMES[i], 2)
+        return rates
 
     def _state_snapshot(self) -> dict[str, Any]:
         return {
@@ -366,9 +403,10 @@ class AuvPlant(SafeSlave):
         if compiled.supports(model) == "":
             self._compiled = compiled.CompiledPlant(model)
         elif not compiled.AVAILABLE:
-            self.log(
+            self.log(  # the cost measured by scripts/bench_no_numba.py (docs/performance.md)
                 f"the compiled plant is off ({compiled.NO_JIT_REASON}): stepping the numpy "
-                "reference, same results, about 50x slower",
+                "reference, same results, each step about 16 times as long (0.17 ms instead "
+                "of 0.011 ms); install numba in this Python for the compiled plant",
                 Fmi2Status.warning,
             )
         return model

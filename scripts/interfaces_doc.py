@@ -49,8 +49,10 @@ tools and our own checks may rely on:
   definitions in `modelDescription.xml`); every variable has a description.
 - **Model structure**: `needsExecutionTool="false"`; every output is listed with its
   dependencies (none of ours depends directly on an input: each is computed at
-  initialisation or at the end of a step) and declared with an initial value, so
-  importers see no algebraic loop between plant and controller; a default experiment.
+  initialisation or at the end of a step), so importers see no algebraic loop between
+  plant and controller; an output that depends on parameters is `initial="calculated"`
+  (no start in the tables below: read in initialisation mode, it gives the value the FMU
+  starts from), any other `initial="exact"` with its start value; a default experiment.
 - **Behaviour**: the same inputs give bit-identical outputs; `fmi2GetFMUstate` /
   `fmi2SetFMUstate` save and restore the whole state, and a restored run continues
   exactly as the original; bad input (NaN, a value out of range, a fixed parameter
@@ -62,8 +64,8 @@ tools and our own checks may rely on:
 - **Hosts**: they load, validate and run in fmpy, OSP's libcosim (libcosimpy) and ecos
   (ecospy), alone and connected, with the results of our own master under the same
   coupling; the README's "Use the FMUs in other tools" shows how. A host may load, reload
-  and free them as often as it likes, from fresh extractions too, but runs one build per
-  process, in the FMI 2.0 call sequence (the README's "What a host needs").
+  and free them as often as it likes, from fresh extractions too, several builds in one
+  process, in the FMI 2.0 call sequence (docs/hosts.md, "What a host needs").
 """
 
 SECTIONS = (

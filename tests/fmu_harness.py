@@ -72,6 +72,7 @@ class Harness:
         )
         self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
         self.time = 0.0
+        self.initialised = False  # fmi2Terminate is allowed only then (FMI 2.0)
         if initialize:
             self.initialize(**values)
 
@@ -80,6 +81,7 @@ class Harness:
         self.slave.enterInitializationMode()
         self.set(**values)
         self.slave.exitInitializationMode()
+        self.initialised = True
         self.time = 0.0
 
     def _on_log(self, component, instance, status, category, message) -> None:
@@ -96,7 +98,9 @@ class Harness:
         self.slave.enterInitializationMode()
         writes = [status_of(self.set, **{name: value}) for name, value in values.items()]
         self.time = 0.0
-        return max(writes, default=STATUS_OK), status_of(self.slave.exitInitializationMode)
+        leave = status_of(self.slave.exitInitializationMode)
+        self.initialised = leave == STATUS_OK
+        return max(writes, default=STATUS_OK), leave
 
     def set(self, **values) -> None:
         for name, value in values.items():
@@ -132,7 +136,9 @@ class Harness:
         return np.array(rows)
 
     def close(self) -> None:
-        self.slave.terminate()
+        """Terminate (when initialised) and free the instance, delete its extraction."""
+        if self.initialised:
+            self.slave.terminate()
         self.slave.freeInstance()
         if self._own_dir is not None:
             shutil.rmtree(self._own_dir, ignore_errors=True)

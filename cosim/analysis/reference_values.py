@@ -7,19 +7,22 @@ data, not package data, so the caller passes its path.
 A value keeps the digits it was printed with: the file's floats are parsed as
 :class:`decimal.Decimal`, so ``1.4050`` keeps its four decimals, and
 :attr:`Reference.resolution` is one unit of the last printed digit (the tolerance the
-reproduction report calls "agrees").
+reproduction report calls "agrees"). An entry may give another ``tolerance`` (the text's
+"within", "slightly larger than", "about") and, when that is wider than the printed
+digits, its ``tolerance_reason``.
 """
 
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 Printed = Decimal | list["Printed"]
 """A number as printed, or a (nested) list of them."""
@@ -29,6 +32,9 @@ class ReferenceValueError(ValueError):
     """The reference-value file is missing, malformed, or an entry lacks what it needs."""
 
 
+TOLERANCE_KINDS = ("absolute", "relative", "slightly_above", "at_most")
+
+
 class _Entry(BaseModel):
     model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True)
 
@@ -36,6 +42,15 @@ class _Entry(BaseModel):
     unit: str | list[str]
     source: str
     description: str
+    tolerance: dict[str, float | bool] = {}
+    tolerance_reason: str = ""
+
+    @field_validator("tolerance")
+    @classmethod
+    def _one_kind(cls, value: dict[str, float | bool]) -> dict[str, float | bool]:
+        if len(value) != 1 or next(iter(value)) not in TOLERANCE_KINDS:
+            raise ValueError(f"expected one of {', '.join(TOLERANCE_KINDS)}, got {value}")
+        return value
 
 
 @dataclass(frozen=True)
@@ -48,6 +63,11 @@ class Reference:
         unit: SI unit, or one per entry of a vector.
         source: example, figure, table, section or equation number.
         description: what the value is.
+        tolerance: how ours is compared with it when not to its printed precision (one
+            unit of the last digit): ``{"absolute": x}``, ``{"relative": f}``,
+            ``{"slightly_above": x}`` (the text's "slightly larger than") or
+            ``{"at_most": True}`` (the text's "within"); empty for the printed precision.
+        tolerance_reason: why, when that tolerance is wider than the printed precision.
     """
 
     key: str
@@ -55,6 +75,8 @@ class Reference:
     unit: str | tuple[str, ...]
     source: str
     description: str
+    tolerance: Mapping[str, float | bool] = field(default_factory=dict)
+    tolerance_reason: str = ""
 
     @property
     def value(self) -> float | np.ndarray:
@@ -113,7 +135,15 @@ def _collect(table: dict[str, Any], prefix: str, out: dict[str, Reference]) -> N
             )
             raise ReferenceValueError(f"reference value {key!r}: {problems}") from None
         unit = entry.unit if isinstance(entry.unit, str) else tuple(entry.unit)
-        out[key] = Reference(key, _number(entry.value, key), unit, entry.source, entry.description)
+        out[key] = Reference(
+            key,
+            _number(entry.value, key),
+            unit,
+            entry.source,
+            entry.description,
+            entry.tolerance,
+            entry.tolerance_reason,
+        )
 
 
 def _number(value: Any, key: str) -> Printed:

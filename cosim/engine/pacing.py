@@ -36,6 +36,8 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+MAX_STEP_WALL_S = 86_400.0  # s of wall clock one communication step may take: a day
+SLEEP_SLICE_S = 0.05  # s: a long wait for a deadline checks for a stop this often
 ROLLING_WINDOW_S = 1.0  # wall clock over which the rolling real-time factor is taken
 BEHIND_S = 0.5  # s of wall clock behind the deadlines at which the run says it cannot keep up
 _SAMPLE_S = 0.05  # wall clock between two samples of the rolling window
@@ -108,8 +110,11 @@ class Pacer:
         assert self.t0 is not None, "point 0 not released yet"
         return self.t0 + n * self.h / self.factor
 
-    def release(self, n: int) -> None:
-        """Wait until point n is due (point 0 starts the clock); account for lateness."""
+    def release(self, n: int, stopping: Callable[[], bool] | None = None) -> None:
+        """Wait until point n is due (point 0 starts the clock); account for lateness.
+
+        ``stopping``, if given, is asked every :data:`SLEEP_SLICE_S` of a wait: once it
+        says True the point is released at once (a stop does not wait out a long step)."""
         now = self.clock()
         if self.t0 is None or n == 0:
             self.t0 = self._started = now
@@ -118,8 +123,12 @@ class Pacer:
             return
         due = self.deadline(n)
         if now < due:
-            self.sleep(due - now)
-            now = self.clock()
+            while now < due and not (stopping is not None and stopping()):
+                self.sleep(min(due - now, SLEEP_SLICE_S))
+                now = self.clock()
+            if now < due:  # stopped early: not late, and no sample of a rushed point
+                self.n = n
+                return
         elif now > due:
             self.late_steps += 1
             if now - due >= BEHIND_S:
@@ -176,6 +185,11 @@ class Pacer:
         rolling, total = self.rolling_factor(), self.total_factor()
         fmt = lambda f: "-" if f is None else f"{f:.2f}x"  # noqa: E731
         return f"rt {fmt(rolling)} (total {fmt(total)}, target {self.factor:g}x)"
+
+    def short_status(self) -> str:
+        """The rolling factor alone, for a status line short of room: ``rt 1.00x``."""
+        rolling = self.rolling_factor()
+        return "rt -" if rolling is None else f"rt {rolling:.2f}x"
 
     def summary(self) -> dict[str, Any]:
         """What summary.json records under ``real_time``."""

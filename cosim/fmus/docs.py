@@ -5,7 +5,7 @@ can never disagree with the variables the FMU declares: what the model is, its d
 experiment, one table per causality (inputs, outputs, parameters) with type, unit, start
 value, declared range and description, what a host may and may not do with the FMU
 (:func:`hosting`: the same for every FMU, and says whether its binary is the
-native loader or pythonfmu's alone), and the references. Only the short "what it
+FMU's runtime or pythonfmu's alone), and the references. Only the short "what it
 models" paragraph per model identifier is written here by hand (:data:`ABOUT`).
 
 ``add_documentation(fmu)`` adds or replaces the page in a built FMU;
@@ -64,56 +64,56 @@ ABOUT: dict[str, str] = {
 }
 
 _LOADER = (
-    "<li><b>Any FMI host, nothing to set up.</b> The binary is a small native loader "
-    "(<code>fmu_runtime/native/</code>) in front of pythonfmu's library "
-    "(<code>&lt;id&gt;_pythonfmu.so</code> beside it). In a host without Python it loads "
-    "the Python recorded at build time in <code>resources/python_runtime.txt</code> "
-    "(libpython, base prefix, site-packages with numpy, scipy, pydantic and pythonfmu) and "
-    "starts it; a Python host (fmpy, libcosimpy, ecospy) runs the FMU in its own "
-    "interpreter. On another machine or environment, set <code>AUV_FMU_PYTHON</code> to a "
-    "Python executable or virtual environment that has auv-cosim installed; if no usable "
-    "Python is found, <code>fmi2Instantiate</code> returns NULL and logs what it looked "
-    "for.</li>"
-    "<li><b>Platforms.</b> linux64 was tested (a C host, ecos, fmpy, libcosim); the win64 "
-    "loader, when present, is cross-compiled and was not run.</li>"
+    "<li><b>Any FMI host, nothing to set up.</b> The linux64 binary is the FMU's own "
+    "runtime (<code>fmu_runtime/native/</code>): it answers every FMI call and runs the "
+    "Python code in <code>resources/</code> in the host's Python, or, in a host without "
+    "one, in the first usable of: <code>AUV_FMU_PYTHON</code> (a Python executable or a "
+    "virtual environment's folder), the Python the FMU was built with, "
+    "<code>python3</code> on PATH. It needs CPython&nbsp;3.9 or later with a shared "
+    "libpython and numpy (numba is used when present) and glibc&nbsp;2.17 or later. If no "
+    "Python can be used, <code>fmi2Instantiate</code> returns NULL and logs one line per "
+    "candidate, with the fix.</li>"
+    "<li><b>Fallback.</b> <code>AUV_FMU_RUNTIME=pythonfmu</code> runs pythonfmu's own "
+    "library instead (<code>&lt;id&gt;_pythonfmu.so</code>, unchanged; it needs "
+    "glibc&nbsp;2.32); the win64 binary is pythonfmu's (not tested).</li>"
 )
 _NO_LOADER = (
     "<li><b>Python.</b> This FMU was built without a C compiler, so its binary is "
     "pythonfmu's alone: it embeds CPython and runs the Python code in "
-    "<code>resources/</code> with numpy, scipy, pydantic and pythonfmu from the host "
-    "process's Python environment. A non-Python host preloads that environment's "
-    "<code>libpython</code> and puts its <code>site-packages</code> on "
-    "<code>PYTHONPATH</code>; calls against the FMI rules are refused in Python with an "
-    "Error logged, but every function but <code>fmi2DoStep</code> returns fmi2OK "
-    "(a pythonfmu limit: read the log).</li>"
+    "<code>resources/</code> with numpy from the host process's Python environment. A "
+    "non-Python host preloads that environment's <code>libpython</code> and puts its "
+    "<code>site-packages</code> on <code>PYTHONPATH</code>; calls against the FMI rules "
+    "are refused in Python with an Error logged, but every function but "
+    "<code>fmi2DoStep</code> returns fmi2OK (a pythonfmu limit: read the log).</li>"
 )
 _COMMON = (
     "<li><b>Load, reload, free.</b> Any number of instances, at once or one after "
     "another, from one extraction or a fresh extraction each time; each instance reads "
     "its data from its own extraction. An instance may be freed at any time and its "
-    "extraction deleted afterwards. An instantiate/free cycle keeps about 1&nbsp;KiB.</li>"
-    "<li><b>One build per process.</b> The FMU's Python modules stay imported for the "
-    "life of the process, so an instance of another build (other sources) loaded after "
-    "this one would run this one's code: it logs <code>stale code</code> and refuses to "
-    "initialise and to step. Load another build in a new process; a rebuild of the same "
-    "sources is the same code and runs.</li>"
+    "extraction deleted afterwards. An instantiate/free cycle keeps no memory.</li>"
+    "<li><b>Several builds per process.</b> The FMU's Python code lives in a package "
+    "named after its content (<code>resources/auvfmu_&lt;hash&gt;</code>): another build "
+    "of this FMU in the same process runs its own code, and two extractions of this build "
+    "share theirs.</li>"
     "<li><b>FMI 2.0 call sequence.</b> <code>fmi2SetupExperiment</code> and "
     "<code>fmi2EnterInitializationMode</code> once after instantiation, "
     "<code>fmi2ExitInitializationMode</code> once after that, <code>fmi2DoStep</code> from "
     "the start time and each where the previous step ended (to a relative 1e-9), values "
     "within their declared range and finite, fixed parameters only before "
-    "initialisation. Anything else is refused with an Error logged and changes nothing; "
-    "the call returns fmi2Error, and the instance may go on with valid calls. A failed "
-    "initialisation leaves the instance in the error state; a step the model cannot take "
-    "returns fmi2Discard and may be repeated.</li>"
-    "<li><b>Process exit.</b> The pythonfmu 0.7 wrapper's crash at process exit is "
-    "defused by the FMU itself.</li>"
+    "initialisation, <code>fmi2Terminate</code> once initialised. Anything else is refused "
+    "with an Error logged and changes nothing; the call returns fmi2Error, and the "
+    "instance may go on with valid calls. A failed initialisation leaves the instance in "
+    "the error state; a step the model cannot take returns fmi2Discard and may be "
+    'repeated. Outputs declared <code>initial="calculated"</code> depend on parameters: '
+    "read in initialisation mode, they give the values the FMU will start from.</li>"
+    "<li><b>Process exit.</b> A host may exit without terminating or freeing its "
+    "instances.</li>"
 )
 
 
 def hosting(with_loader: bool) -> str:
     """The "what a host may and may not do" section, for a binary with or without the
-    native loader."""
+    FMU's runtime."""
     return (
         "<h2>What a host may and may not do</h2><ul>"
         + (_LOADER if with_loader else _NO_LOADER)
@@ -170,7 +170,7 @@ def documentation_html(fmu: str | os.PathLike[str]) -> str:
 
 
 def _has_loader(fmu: str | os.PathLike[str]) -> bool:
-    """True if ``fmu`` is an FMU file whose binary is the native loader."""
+    """True if ``fmu`` is an FMU file whose binary is the FMU's runtime."""
     if not zipfile.is_zipfile(fmu):
         return False
     with zipfile.ZipFile(fmu) as archive:

@@ -13,10 +13,19 @@ q          end the run like Ctrl-C (partial results, exit code 130)
 
 The set-points belong to the first instance with that input unconnected (the autopilot
 ``controller`` of the built-in scenarios), whose tunable parameters ``heading_mode`` and
-``mass_lock_time`` take effect at its next step. A value the FMU does not take while
-running is refused like any override; the status line shows the reason. The status line
-(stderr) shows the set-points, the heading mode, the mass (free or locked), the simulated
-time, the real-time factor and the last message.
+``mass_lock_time`` take effect at its next step. An arrow starts from the set-point the run
+has now (:meth:`cosim.engine.live.LiveControl.current`: one a program set over the control
+endpoint, or an event, counts). A value the FMU does not take while running is refused like
+any override; the status line shows the reason. The status line (stderr) shows the
+set-points, the heading mode, the mass (free or locked), the simulated time, the real-time
+factor and the last message (queued, applied at t, not applied and why; "designing" while a
+new heading law is designed, which holds the run for a moment), cut to the terminal's width.
+
+A terminal sends a key that is not a character as an escape sequence: ESC [ parameters
+final byte (CSI: F5-F12, Insert, Page Up, modified arrows such as Shift+Up ``ESC [ 1 ; 2
+A``), ESC O final byte (SS3: F1-F4, arrows in application mode) or ESC and a character (Alt
+and a key). Each is read whole (:func:`keys_of`, ECMA-48's grammar), also when split over
+two reads, so no part of one is taken for a key of its own: only the plain arrows act.
 
 The terminal is put in cbreak mode (``tty.setcbreak``: keys arrive one by one, Ctrl-C still
 sends SIGINT) and restored by :meth:`KeyPad.close` -- and at interpreter exit if that was
@@ -29,7 +38,9 @@ import atexit
 import contextlib
 import math
 import os
+import re
 import select
+import shutil
 import sys
 import termios
 import threading
@@ -37,7 +48,7 @@ import tty
 from collections.abc import Callable
 from typing import IO
 
-from cosim.engine.live import LiveControl, OverrideError
+from cosim.engine.live import LiveControl, OverrideError, Ticket
 from cosim.errors import CosimError
 from cosim.scenario.spec import Scenario
 
@@ -45,20 +56,41 @@ YAW_STEP = math.radians(5.0)  # rad per arrow press
 DEPTH_STEP = 1.0  # m per arrow press
 _ARROWS = {"A": "up", "B": "down", "C": "right", "D": "left"}
 _REFRESH_S = 0.5  # the status line is redrawn at least this often
+_ESCAPE_WAIT_S = 0.05  # s for the rest of an escape sequence split over two reads
+# ECMA-48: CSI = ESC [ parameter bytes (0x30-0x3F)* intermediate bytes (0x20-0x2F)* final
+# byte (0x40-0x7E); SS3 = ESC O and one byte; ESC and any other character (Alt+key)
+_SEQUENCE = re.compile(r"\x1b(?:\[([\x30-\x3f]*[\x20-\x2f]*)([\x40-\x7e])|O(.)|(.))", re.DOTALL)
+_PARTIAL = re.compile(r"\x1b(?:\[[\x20-\x3f]*|O)?\Z")
+DESIGNED_MODES = (1, 2)  # heading modes designed when switched to (LQR, sliding mode)
+STATUS_WIDTH = 80  # columns of the status line when the terminal's width is unknown
 
 
 def keys_of(data: str) -> list[str]:
-    """The keys in what the terminal sent: ``"up"`` for ESC [ A (or ESC O A), else the
-    character itself."""
+    """The keys in what the terminal sent: ``"up"``/``"down"``/``"left"``/``"right"`` for a
+    plain arrow (``ESC [ A``, ``ESC O A``), ``"escape"`` for any other escape sequence
+    (read whole), else the character itself. An escape sequence cut off at the end of
+    ``data`` is one ``"escape"`` too (:func:`split_partial` keeps it for the next read)."""
     keys, i = [], 0
     while i < len(data):
-        if data[i] == "\x1b" and data[i + 1 : i + 2] in ("[", "O") and i + 2 < len(data):
-            keys.append(_ARROWS.get(data[i + 2], "escape"))
-            i += 3
-        else:
+        if data[i] != "\x1b":
             keys.append(data[i])
             i += 1
+            continue
+        found = _SEQUENCE.match(data, i)
+        if found is None:  # a lone ESC at the end
+            keys.append("escape")
+            break
+        params, final, ss3, _ = found.groups()
+        arrow = (final if params == "" else None) if final is not None else ss3
+        keys.append(_ARROWS.get(arrow or "", "escape"))
+        i = found.end()
     return keys
+
+
+def split_partial(data: str) -> tuple[str, str]:
+    """``data`` cut before an escape sequence it ends in the middle of: (whole, rest)."""
+    partial = _PARTIAL.search(data)
+    return (data, "") if partial is None else (data[: partial.start()], data[partial.start() :])
 
 
 def _owner(scenario: Scenario, variable: str) -> str:
@@ -70,6 +102,18 @@ def _owner(scenario: Scenario, variable: str) -> str:
 
 def _number(value: object, default: float) -> float:
     return float(value) if isinstance(value, int | float) else default
+
+
+def _terminal_fd() -> int:
+    """Standard input's file descriptor, a terminal; :class:`CosimError` if it is not."""
+    try:
+        fd = sys.stdin.fileno()
+        terminal = os.isatty(fd)
+    except (AttributeError, OSError, ValueError):  # closed: sys.stdin None, or fd 0 closed
+        raise CosimError("--interactive: standard input is closed (keys need a terminal)") from None
+    if not terminal:
+        raise CosimError("--interactive: standard input is not a terminal")
+    return fd
 
 
 class KeyPad:
@@ -84,7 +128,7 @@ class KeyPad:
         out: IO[str] | None = None,
     ) -> None:
         self.live, self.status = live, status
-        self.fd = sys.stdin.fileno() if fd is None else fd
+        self.fd = _terminal_fd() if fd is None else fd
         self.out = sys.stderr if out is None else out
         if not os.isatty(self.fd):
             raise CosimError("--interactive: standard input is not a terminal")
@@ -92,11 +136,17 @@ class KeyPad:
         names = ("yaw_setpoint", "depth_setpoint", "heading_mode", "mass_lock_time")
         self.refs = {name: f"{controller}.{name}" for name in names}
         unset = dict(zip(names, (0.0, 0.0, 0.0, -1.0), strict=True))  # off, for a missing one
-        self.values = {n: _number(scenario.start_value(controller, n), unset[n]) for n in names}
-        self.message = "keys: <- -> yaw, up/down depth, 0-3 mode, m mass, p pause, q quit"
+        self.initial = {n: _number(scenario.start_value(controller, n), unset[n]) for n in names}
+        self.message = "<- -> yaw, up/down depth, 0-3 mode, m mass, p pause, q quit"
+        self._last: tuple[str, Ticket] | None = None  # the last override asked for
         self._saved = termios.tcgetattr(self.fd)
         self._done = threading.Event()
         self._thread = threading.Thread(target=self._read, daemon=True)
+
+    def value(self, name: str) -> float:
+        """The value ``name`` (``"yaw_setpoint"``, ...) has in the run now (or will have at
+        the next point, if a change is queued); its start value if none is known."""
+        return _number(self.live.current(self.refs[name]), self.initial[name])
 
     def start(self) -> None:
         """cbreak mode on, reading keys from now on."""
@@ -120,62 +170,86 @@ class KeyPad:
             self.out.flush()
 
     def _read(self) -> None:
+        pending = ""
         try:
             while not self._done.is_set():
-                ready, _, _ = select.select([self.fd], [], [], _REFRESH_S)
+                wait = _ESCAPE_WAIT_S if pending else _REFRESH_S
+                ready, _, _ = select.select([self.fd], [], [], wait)
                 if ready:
                     data = os.read(self.fd, 64).decode("utf-8", "replace")
                     if not data:
                         return  # end of input
-                    for key in keys_of(data):
-                        self.press(key)
+                    whole, pending = split_partial(pending + data)
+                else:  # nothing more came: what is pending was all there is (a lone ESC)
+                    whole, pending = pending, ""
+                for key in keys_of(whole):
+                    self.press(key)
                 self.draw()
         except (OSError, ValueError):
             return  # the terminal went away: the run goes on without keys
 
     def press(self, key: str) -> None:
         """What ``key`` does (see the module docstring)."""
-        if key == "q":
-            self.message = "stopping"
-            self.live.stop()
-        elif key == "p":
-            self.live.resume() if self.live.paused else self.live.pause()
-            self.message = "paused (p resumes)" if self.live.paused else "running"
-        elif key in ("left", "right"):
-            sign = 1.0 if key == "right" else -1.0
-            self._set("yaw_setpoint", self.values["yaw_setpoint"] + sign * YAW_STEP)
-        elif key in ("up", "down"):
-            sign = -1.0 if key == "up" else 1.0
-            self._set("depth_setpoint", self.values["depth_setpoint"] + sign * DEPTH_STEP)
-        elif key in "0123" and len(key) == 1:
-            self._set("heading_mode", int(key))
-        elif key == "m":
-            locked = self.values["mass_lock_time"] >= 0.0
-            self._set("mass_lock_time", -1.0 if locked else (self.live.time or 0.0))
+        try:
+            if key == "q":
+                self.live.stop()
+                self._last, self.message = None, "stopping"
+            elif key == "p":
+                self.live.resume() if self.live.paused else self.live.pause("keys")
+                self._last = None
+                self.message = "paused (p resumes)" if self.live.paused else "running"
+            elif key in ("left", "right"):
+                sign = 1.0 if key == "right" else -1.0
+                self._set("yaw_setpoint", self.value("yaw_setpoint") + sign * YAW_STEP)
+            elif key in ("up", "down"):
+                sign = -1.0 if key == "up" else 1.0
+                self._set("depth_setpoint", self.value("depth_setpoint") + sign * DEPTH_STEP)
+            elif key in "0123" and len(key) == 1:
+                self._set("heading_mode", int(key))
+            elif key == "m":
+                locked = self.value("mass_lock_time") >= 0.0
+                self._set("mass_lock_time", -1.0 if locked else (self.live.time or 0.0))
+        except OverrideError as exc:  # refused, or the run has ended
+            self._last, self.message = None, str(exc)
         self.draw()
 
     def _set(self, name: str, value: float | int) -> None:
-        ref = self.refs[name]
-        try:
-            self.live.request({ref: value}, "keys")
-        except OverrideError as exc:
-            self.message = str(exc)
-            return
-        if name in self.values:
-            self.values[name] = float(value)
-        self.message = f"{ref} = {value:.6g}"
+        self._last = (name, self.live.request({self.refs[name]: value}, "keys"))
+
+    def _feedback(self) -> str:
+        """The message about the last override asked for: queued, designing (a new heading
+        law holds the run while it is designed), applied, or not applied and why."""
+        if self._last is None:
+            return self.message
+        name, ticket = self._last
+        value = next(iter(ticket.values.values()))
+        if ticket.refused is not None:
+            return f"{name}: {ticket.refused}"
+        if not ticket.done:
+            return f"{name} = {value:.4g} queued"
+        t = self.live.time
+        if name == "heading_mode" and value in DESIGNED_MODES and t == ticket.time:
+            return f"mode {value}: designing the heading law (the run waits)"
+        return f"{name} = {value:.4g} applied at t = {ticket.time:.2f} s"
+
+    def status_line(self, width: int) -> str:
+        """The status line, at most ``width - 1`` characters (no wrap at the last column)."""
+        t = self.live.time
+        clock = "-" if t is None else f"{t:.2f}"
+        yaw, depth = math.degrees(self.value("yaw_setpoint")), self.value("depth_setpoint")
+        mode = int(self.value("heading_mode"))
+        mass = "locked" if self.value("mass_lock_time") >= 0.0 else "free"
+        paced = f" {self.status()}" if self.status is not None else ""
+        message = self._feedback() if self._last is not None else self.message
+        line = (f"t {clock} s yaw_sp {yaw:+.1f} deg depth_sp {depth:.1f} m mode {mode} "
+                f"mass {mass}{paced} | {message}")  # fmt: skip
+        limit = max(width - 1, 1)
+        return line if len(line) <= limit else line[: limit - 3] + "..."
 
     def draw(self) -> None:
-        """Redraw the status line: set-points, time, real-time factor, last message."""
-        t = self.live.time
-        yaw, depth = math.degrees(self.values["yaw_setpoint"]), self.values["depth_setpoint"]
-        rt = f"  {self.status()}" if self.status is not None else ""
-        clock = "-" if t is None else f"{t:.2f}"
-        mode = int(self.values["heading_mode"])
-        mass = "locked" if self.values["mass_lock_time"] >= 0.0 else "free"
-        line = (
-            f"yaw_sp {yaw:+.1f} deg  depth_sp {depth:.1f} m  mode {mode}  mass {mass}  "
-            f"t {clock} s{rt}  | {self.message}"
-        )
-        self.out.write(f"\r\x1b[K{line}")
+        """Redraw the status line, cut to the terminal's width."""
+        width = shutil.get_terminal_size((STATUS_WIDTH, 24)).columns
+        with contextlib.suppress(OSError):
+            width = os.get_terminal_size(self.fd).columns or width
+        self.out.write(f"\r\x1b[K{self.status_line(width)}")
         self.out.flush()

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from cosim.engine.live import LiveControl, replay_events
 from cosim.engine.master import RunResult
-from cosim.engine.pacing import Pacer
+from cosim.engine.pacing import MAX_STEP_WALL_S, Pacer
 from cosim.errors import CosimError
 from cosim.live.control import ControlServer
 from cosim.live.keys import KeyPad
@@ -42,8 +42,8 @@ class LiveSession:
         interactive: bool,
     ) -> LiveSession:
         """Everything the options ask for; :class:`CosimError` (one line) if refused."""
-        if real_time is not None and not (math.isfinite(real_time) and real_time > 0):
-            raise CosimError(f"--real-time {real_time!r}: expected a finite factor > 0")
+        if real_time is not None:
+            _check_factor(real_time, scenario.coupling.step)
         if interactive and real_time is None:
             raise CosimError("--interactive needs --real-time [FACTOR] (keys steer a paced run)")
         session = cls()
@@ -55,8 +55,10 @@ class LiveSession:
             if control is not None:
                 session.server = ControlServer.open(session.live, control)  # type: ignore[arg-type]
                 print(f"control endpoint: {session.server.address}", file=sys.stderr, flush=True)
+                if session.server.reachable_from_network:
+                    print(_network_warning(session.server.address), file=sys.stderr, flush=True)
             if interactive:
-                status = session.pacer.status if session.pacer is not None else None
+                status = session.pacer.short_status if session.pacer is not None else None
                 session.keys = KeyPad(session.live, scenario, status)  # type: ignore[arg-type]
                 session.keys.start()
         except BaseException:
@@ -74,21 +76,46 @@ class LiveSession:
         return self.pacer.status() if self.pacer is not None else ""
 
     def close(self) -> None:
-        """End the keys (terminal restored) and the endpoint; safe to call twice."""
+        """End the keys (terminal restored) and the endpoint, after answering every request
+        still waiting (not applied: the run has ended); safe to call twice."""
+        if self.live is not None:
+            self.live.close()
         if self.keys is not None:
             self.keys.close()
         if self.server is not None:
             self.server.close()
 
 
-def replay_scenario(scenario: Scenario, result: RunResult) -> Scenario | None:
+def _network_warning(address: str) -> str:
+    return (
+        f"control endpoint: WARNING: {address} is reachable from the network and has no "
+        "authentication: anyone who reaches it can change, pause or stop this run "
+        "(docs/live-runs.md, Security)"
+    )
+
+
+def _check_factor(factor: float, step: float) -> None:
+    """A real-time factor that is finite, > 0 and gives a step at most
+    :data:`cosim.engine.pacing.MAX_STEP_WALL_S` of wall clock; :class:`CosimError` if not."""
+    if not (math.isfinite(factor) and factor > 0):
+        raise CosimError(f"--real-time {factor!r}: expected a finite factor > 0")
+    if step / factor > MAX_STEP_WALL_S:
+        raise CosimError(
+            f"--real-time {factor!r}: one communication step of {step:g} s would last "
+            f"{step / factor:.3g} s of wall clock; expected a factor >= "
+            f"{step / MAX_STEP_WALL_S:.3g} (at most a day per step)"
+        )
+
+
+def replay_scenario(scenario: Scenario, result: RunResult, live: bool) -> Scenario | None:
     """``scenario`` with the run's accepted overrides as ``[[events]]`` at the times they
-    were applied (and the time reached as stop time, if stopped early): running it gives
-    the same results.csv. None for a run without overrides."""
-    if not result.overrides:
+    were applied, and, for a live run that was stopped, the time reached as stop time:
+    running it gives the same results.csv. A run that failed keeps its stop time (its
+    replay fails at the same step). None when there is nothing to rewrite (no override,
+    and not a stopped live run)."""
+    stopped = result.stop_signal is not None and result.time_reached > 0
+    if not result.overrides and not (live and stopped):
         return None
     events = scenario.events + replay_events(result.overrides)
-    stop_time = scenario.stop_time
-    if result.rows < scenario.n_steps + 1 and result.time_reached > 0:
-        stop_time = result.time_reached
+    stop_time = result.time_reached if stopped else scenario.stop_time
     return dataclasses.replace(scenario, events=events, stop_time=stop_time)

@@ -5,8 +5,11 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 
 from cosim.analysis.reference_values import Reference
-from cosim.reproduction.chapter6 import equation_6_3_19, low_speed
+from cosim.reproduction.chapter6 import equation_6_3_19, moving_mass_servo
+from cosim.reproduction.depth_plane import depth_plane
 from cosim.reproduction.lateral import example_5_3
+from cosim.reproduction.low_speed import low_speed
+from cosim.reproduction.model_choices import model_choices
 from cosim.reproduction.open_loop import (
     coefficient_claims,
     example_5_1,
@@ -27,9 +30,12 @@ SECTIONS: tuple[Callable[[Mapping[str, Reference]], Section], ...] = (
     example_5_3,
     roll_torque,
     moving_mass,
+    moving_mass_servo,
     equation_6_3_19,
     low_speed,
+    depth_plane,
     closed_loop,
+    model_choices,
 )
 
 

@@ -2,7 +2,7 @@
 weight convention of each chapter, and results computed once and shared between claims
 and figures (equilibria, sweeps, scenario runs).
 
-The weight convention: the dissertation computed Chapter 5 with Table 4.1's printed
+The weight convention: the dissertation computed Chapter 5 with Table 5.4's printed
 W = 299 N (Example 5.3's printed Jacobian holds with it, not with m g) and Chapter 6 with
 W = m g, g = 9.8 ((6.3.19)), which is what ``remus100`` states (``docs/model.md``, one
 gravity). :meth:`Context.chapter_5` gives a vehicle the Chapter 5 weight; every Chapter 5
@@ -24,7 +24,11 @@ from cosim.analysis.reference_values import Reference
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 
 T = TypeVar("T")
-CHAPTER_5_WEIGHT = "table_4_1.weight"  # the reference value Chapter 5 was computed with
+CHAPTER_5_WEIGHT = "table_5_4.weight"  # the reference value Chapter 5 was computed with
+
+
+Runner = Callable[[str, float, Mapping[str, float]], "RunData"]
+"""Runs a built-in scenario (id, communication step in s, start values) and reads it."""
 
 
 class NotRunError(Exception):
@@ -50,19 +54,19 @@ class Context:
         references: the printed values, ``docs/dissertation-values.toml`` by dotted key.
         remus: ``remus100`` as shipped.
         long_fins: ``remus100-long-fins`` (Table 5.3) as shipped.
-        runner: runs a built-in scenario by id; None when scenarios are skipped.
+        runner: runs a built-in scenario by id at a communication step (s) with start
+            values added (``{"<instance>.<variable>": value}``); None when scenarios are
+            skipped.
     """
 
     references: Mapping[str, Reference]
     remus: VehicleParameters
     long_fins: VehicleParameters
-    runner: Callable[[str], RunData] | None = None
+    runner: Runner | None = None
     _memo: dict[Any, Any] = field(default_factory=dict, repr=False)
 
     @classmethod
-    def create(
-        cls, references: Mapping[str, Reference], runner: Callable[[str], RunData] | None = None
-    ) -> Context:
+    def create(cls, references: Mapping[str, Reference], runner: Runner | None = None) -> Context:
         """A context on the shipped vehicles."""
         return cls(references, load_vehicle("remus100"), load_vehicle("remus100-long-fins"), runner)
 
@@ -72,7 +76,7 @@ class Context:
 
     @property
     def chapter_5_weight(self) -> float:
-        """W (N) of every Chapter 5 claim: Table 4.1's printed 299 N."""
+        """W (N) of every Chapter 5 claim: Table 5.4's printed 299 N."""
         return float(self.ref(CHAPTER_5_WEIGHT).value)
 
     def chapter_5(self, params: VehicleParameters) -> VehicleParameters:
@@ -92,12 +96,16 @@ class Context:
             lambda: sorted(find_equilibria(conditions), key=lambda e: e.value("v")),
         )
 
-    def run(self, scenario_id: str) -> RunData:
-        """The results of built-in scenario ``scenario_id``, run once."""
+    def run(
+        self, scenario_id: str, step: float, start: Mapping[str, float] | None = None
+    ) -> RunData:
+        """The results of built-in scenario ``scenario_id`` at the communication step
+        ``step`` (s) with the start values ``start`` added, run once."""
         if self.runner is None:
             raise NotRunError("scenarios skipped")
-        runner = self.runner
-        return self.memo(("run", scenario_id), lambda: runner(scenario_id))
+        runner, values = self.runner, dict(start or {})
+        key = ("run", scenario_id, step, tuple(sorted(values.items())))
+        return self.memo(key, lambda: runner(scenario_id, step, values))
 
 
 def uvr(eq: Equilibrium) -> tuple[float, float, float]:

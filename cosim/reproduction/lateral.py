@@ -1,6 +1,6 @@
 """Example 5.3: the lateral model's Jacobian, its eigenvalues and the banked turns.
 
-The vehicle carries the Chapter 5 weight, Table 4.1's W = 299 N
+The vehicle carries the Chapter 5 weight, Table 5.4's W = 299 N
 (:meth:`Context.chapter_5`), with which the printed Jacobian holds.
 """
 
@@ -12,6 +12,7 @@ from decimal import Decimal
 from functools import partial
 
 import numpy as np
+import scipy.linalg
 
 from cosim.analysis.bifurcation import OperatingConditions
 from cosim.analysis.equilibria import Equilibrium
@@ -65,6 +66,25 @@ def _eigenvalues(coupled: bool, ctx: Context) -> Finding:
     return Finding(values=(eig[0].real, eig[3].real, eig[1].real, abs(eig[1].imag)))
 
 
+def _condition_numbers(ctx: Context) -> Finding:
+    """The individual condition numbers of J-bar's eigenvalues, 1/|y^H x| for unit left
+    and right eigenvectors y, x, in the printed order: the unstable one, the stable one,
+    the roll pair."""
+    J = jacobian(ctx.chapter_5(ctx.remus))
+    J[:2, 2:] = 0.0
+    values, left, right = scipy.linalg.eig(J, left=True, right=True)
+    condition = [
+        float(
+            np.linalg.norm(left[:, k])
+            * np.linalg.norm(right[:, k])
+            / abs(left[:, k].conj() @ right[:, k])
+        )
+        for k in range(len(values))
+    ]
+    order = sorted(range(len(values)), key=lambda k: (abs(values[k].imag) > 0, -values[k].real))
+    return Finding(values=tuple(condition[k] for k in order[:3]))
+
+
 def _eigenvalue_text(ref: Reference) -> tuple[str, ...]:
     """[re, re, re, im] of printed eigenvalues [[re, 0], [re, 0], [re, +im], [re, -im]]."""
     (real_1, _), (real_2, _), (real_3, imag), _ = list(ref.text)
@@ -96,7 +116,7 @@ def _turn_stability(ctx: Context) -> Finding:
 
 def example_5_3(refs: Mapping[str, Reference]) -> Section:
     """Example 5.3: the Jacobian, its eigenvalues with and without coupling, the turns."""
-    weight = refs["table_4_1.weight"]
+    weight = refs["table_5_4.weight"]
     bank = refs["example_5_3.bank_angle"]
     claims = [
         Claim(
@@ -105,7 +125,7 @@ def example_5_3(refs: Mapping[str, Reference]) -> Section:
             "as printed",
             "SI",
             partial(_jacobian, printed_jacobian(refs)),
-            note=f"holds at u = {JACOBIAN_SPEED} m/s (not U0 = 1.525) with Table 4.1's "
+            note=f"holds at u = {JACOBIAN_SPEED} m/s (not U0 = 1.525) with Table 5.4's "
             f"W = {weight.text} N;",
         )
     ]
@@ -121,8 +141,20 @@ def example_5_3(refs: Mapping[str, Reference]) -> Section:
                 _eigenvalue_text(ref),
                 unit_text(ref),
                 partial(_eigenvalues, coupled),
+                reference=ref.key,
             )
         )
+    cond = refs["example_5_3.condition_numbers"]
+    claims.append(
+        Claim(
+            "condition numbers of J-bar's eigenvalues (0.9584, -2.4662, the roll pair)",
+            cond.source,
+            printed(cond),
+            unit_text(cond),
+            _condition_numbers,
+            reference=cond.key,
+        )
+    )
     for name, key, which in (("x0'", "turn_positive_v", 2), ("x0''", "turn_negative_v", 0)):
         ref = refs[f"example_5_3.{key}"]
         claims.append(
@@ -132,6 +164,7 @@ def example_5_3(refs: Mapping[str, Reference]) -> Section:
                 printed(ref),
                 unit_text(ref),
                 partial(_turn, which),
+                reference=ref.key,
             )
         )
     claims.append(

@@ -35,7 +35,7 @@ from plant_fmu.model.linearization import linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters
 
 ENDS_AT_EQUILIBRIUM = 1e-3  # distance in (u, v, r) of a trajectory's end from an equilibrium
-BRANCH_POINT_TOLERANCE = 0.15  # on mu, eta: "about 2.0"
+SUBSPACE_DISTANCE = 2**0.5 * 1e-4  # two 4-decimal entries, each one unit of the last digit
 
 
 def example_5_1_equilibria(ctx: Context) -> tuple[Equilibrium, Equilibrium, Equilibrium]:
@@ -85,9 +85,12 @@ def _stable_subspace(direction: np.ndarray, ctx: Context) -> Finding:
 
 
 def coefficients(params: VehicleParameters) -> dict[str, float]:
-    """alpha, beta3, beta4, gamma3, gamma4 of (5.1.31): the viscous part of
-    (M_RB + M_A) xdot per unit inertia at u = 1 m/s (horizontal variant), alpha as
-    x1_dot = alpha x1|x1| at x1 = 1 with no thrust."""
+    """The coefficients of (5.1.14) and (5.1.31) from the plant's own equations
+    (horizontal variant): A = (m + a22)/(m + a11) from its mass matrix; C (the Munk moment
+    per unit yaw inertia) from the ideal-fluid linearisation at u = 1 m/s; beta3, beta4,
+    gamma3, gamma4 as the viscous part of (M_RB + M_A) xdot per unit inertia there; beta1,
+    beta2, gamma1, gamma2 as the cross-flow drag at v = 1 m/s and r = 1 rad/s per unit
+    inertia; alpha as x1_dot = alpha x1|x1| at x1 = 1 with no thrust."""
     real = PlantModel(params, Variant.HORIZONTAL)
     ideal = PlantModel(params, Variant.HORIZONTAL, ideal_fluid=True)
     x0 = state_vector({"u": 1.0})
@@ -97,13 +100,38 @@ def coefficients(params: VehicleParameters) -> dict[str, float]:
     A_real, _ = linearize(real, x0, inputs, names)
     A_ideal, _ = linearize(ideal, x0, inputs, names)
     force = M @ (A_real - A_ideal)  # d(viscous force)/d(u, v, r) at u = 1
+    munk = M @ A_ideal  # d(ideal-fluid force)/d(u, v, r) at u = 1
+    sway = real.viscous([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])  # cross-flow drag at v = 1 m/s
+    yaw = real.viscous([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # and at r = 1 rad/s
     return {
+        "A": M[1, 1] / M[0, 0],
+        "C": munk[2, 1] / M[2, 2],
         "alpha": real.derivative(x0, inputs)[STATE_INDEX["u"]],
+        "beta1": sway[1] / M[1, 1],
+        "beta2": yaw[1] / M[1, 1],
         "beta3": force[1, 1] / M[1, 1],
         "beta4": force[1, 2] / M[1, 1],
+        "gamma1": sway[5] / M[2, 2],
+        "gamma2": yaw[5] / M[2, 2],
         "gamma3": force[2, 1] / M[2, 2],
         "gamma4": force[2, 2] / M[2, 2],
     }
+
+
+def bound_coefficients(params: VehicleParameters) -> tuple[float, float]:
+    """The coefficients of U0 y2^2 and U0 y3^2 in (5.1.60)'s bound on V_dot(y) for the
+    linear part y_dot = Df(x0) y of (5.1.57): with P = (M_RB + M_A)/(m + a11) (5.1.61),
+    the diagonal of P Df(x0) / U0 over (y2, y3) plus half the magnitude of its cross
+    coefficient (|y2 y3| <= (y2^2 + y3^2)/2). Df(x0) is the plant's Jacobian at the
+    straight run; it is linear in U0."""
+    model = PlantModel(params, Variant.HORIZONTAL)
+    M = model.mass_matrix[np.ix_([0, 1, 5], [0, 1, 5])]
+    jacobian, _ = linearize(
+        model, state_vector({"u": 1.0}), np.zeros(len(INPUT_INDEX)), ["u", "v", "r"]
+    )
+    Q = M @ jacobian / M[0, 0]
+    half_cross = abs(Q[1, 2] + Q[2, 1]) / 2
+    return Q[1, 1] + half_cross, Q[2, 2] + half_cross
 
 
 def _coefficients(long: bool, names: tuple[str, ...], ctx: Context) -> Finding:
@@ -186,6 +214,7 @@ def example_5_1(refs: Mapping[str, Reference]) -> Section:
             unit_text(count),
             _count,
             tolerance=Absolute(0.0),
+            reference=count.key,
         ),
         Claim(
             "x0 = [u, v, r]",
@@ -194,12 +223,20 @@ def example_5_1(refs: Mapping[str, Reference]) -> Section:
             unit_text(straight),
             partial(_equilibrium, 1),
             note="T = 9 N",
+            reference=straight.key,
         ),
     ]
     for claim, key, which in turns:
         ref = refs[f"example_5_1.{key}"]
         claims.append(
-            Claim(claim, ref.source, printed(ref), unit_text(ref), partial(_equilibrium, which))
+            Claim(
+                claim,
+                ref.source,
+                printed(ref),
+                unit_text(ref),
+                partial(_equilibrium, which),
+                reference=ref.key,
+            )
         )
     subspace = refs["example_5_1.unstable_subspace"]
     claims += [
@@ -216,6 +253,7 @@ def example_5_1(refs: Mapping[str, Reference]) -> Section:
             printed(subspace),
             unit_text(subspace),
             _unstable_subspace,
+            reference=subspace.key,
         ),
         Claim(
             f"stable subspace E_s of x0 = span{{{', '.join(spans)}}}",
@@ -223,20 +261,39 @@ def example_5_1(refs: Mapping[str, Reference]) -> Section:
             f"{spans[1]} in E_s",
             unit_text(basis),
             partial(_stable_subspace, np.asarray(basis.value)[1]),
-            tolerance=Absolute(2e-4),
+            tolerance=Absolute(SUBSPACE_DISTANCE),
+            reference=basis.key,
+            tolerance_reason="a distance from a vector printed to 4 decimals, two of its "
+            "entries each off by up to one unit of the last digit: sqrt(2) x 1e-4",
         ),
     ]
     return Section("Example 5.1: the REMUS 100 in the horizontal plane", tuple(claims))
 
 
 def coefficient_claims(refs: Mapping[str, Reference]) -> Section:
-    """alpha, beta3, beta4, gamma3, gamma4 of (5.1.31) for both fin sets."""
+    """The coefficients of (5.1.14), (5.1.31) for both fin sets."""
     claims = []
     for key, vehicle, long, names in (
-        ("example_5_1", "remus100", False, ("alpha", "beta3", "beta4", "gamma3", "gamma4")),
-        ("example_5_2", "remus100-long-fins", True, ("beta3", "beta4", "gamma3", "gamma4")),
+        (
+            "example_5_1.coefficients",
+            "remus100",
+            False,
+            ("alpha", "beta3", "beta4", "gamma3", "gamma4"),
+        ),
+        (
+            "example_5_1.other_coefficients",
+            "remus100",
+            False,
+            ("A", "C", "beta1", "beta2", "gamma1", "gamma2"),
+        ),
+        (
+            "example_5_2.coefficients",
+            "remus100-long-fins",
+            True,
+            ("beta3", "beta4", "gamma3", "gamma4"),
+        ),
     ):
-        ref = refs[f"{key}.coefficients"]
+        ref = refs[key]
         claims.append(
             Claim(
                 f"{', '.join(names)} ({vehicle})",
@@ -244,22 +301,43 @@ def coefficient_claims(refs: Mapping[str, Reference]) -> Section:
                 printed(ref),
                 unit_text(ref),
                 partial(_coefficients, long, names),
+                reference=ref.key,
             )
         )
-    return Section("Coefficients of (5.1.31)", tuple(claims))
+    return Section("Coefficients of (5.1.14) and (5.1.31)", tuple(claims))
+
+
+def _bound(ctx: Context) -> Finding:
+    return Finding(values=bound_coefficients(ctx.chapter_5(ctx.long_fins)))
 
 
 def example_5_2(refs: Mapping[str, Reference]) -> Section:
-    """Example 5.2: the long fins leave one, stable, equilibrium."""
+    """Example 5.2: the long fins leave one, stable, equilibrium, which (5.1.60) proves."""
     ref = refs["example_5_2.straight_line"]
-    claim = Claim(
-        f"only equilibrium in D: [{', '.join(printed(ref))}], asymptotically stable",
-        ref.source,
-        printed(ref),
-        unit_text(ref),
-        _example_5_2,
+    bound = refs["example_5_2.bound_coefficients"]
+    claims = (
+        Claim(
+            f"only equilibrium in D: [{', '.join(printed(ref))}], asymptotically stable",
+            ref.source,
+            printed(ref),
+            unit_text(ref),
+            _example_5_2,
+            reference=ref.key,
+        ),
+        Claim(
+            "V_dot(y) <= alpha y1^2 (...) + c2 U0 y2^2 + c3 U0 y3^2: [c2, c3], both < 0",
+            bound.source,
+            printed(bound),
+            unit_text(bound),
+            _bound,
+            reference=bound.key,
+            explained="c2 is the dissertation's arithmetic: A beta3 + (-A + A beta4 + "
+            "(1 - A) gamma3 / C)/2 with its own printed A, beta3, beta4, gamma3, C gives "
+            "-0.794 too, and c3, from the same cross term, agrees; both stay negative, so "
+            "V_dot < 0 and the conclusion holds",
+        ),
     )
-    return Section("Example 5.2: the modified fins", (claim,))
+    return Section("Example 5.2: the modified fins", claims)
 
 
 def phase_portraits(refs: Mapping[str, Reference]) -> Section:
@@ -300,8 +378,8 @@ def fin_factors(refs: Mapping[str, Reference]) -> Section:
                 printed(branch),
                 unit_text(branch),
                 partial(_branch_point, name),
-                tolerance=Absolute(BRANCH_POINT_TOLERANCE),
                 cost=Cost.SWEEP,
+                reference=branch.key,
                 note="a symmetric pitchfork: the fold-free branch point where x0 changes stability",
             )
         )

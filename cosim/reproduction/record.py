@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from decimal import Decimal
 from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal, Protocol
@@ -28,7 +29,7 @@ class Cost(Enum):
 
     INSTANT = "instant"  # linearisations and equilibria: under a second
     SWEEP = "sweep"  # continuations and phase portraits: seconds
-    SCENARIO = "scenario"  # a closed-loop run of the two FMUs: tens of seconds
+    SCENARIO = "scenario"  # closed-loop runs of the two FMUs: tens of seconds
 
 
 def decimals(text: str) -> int:
@@ -37,22 +38,38 @@ def decimals(text: str) -> int:
     return len(mantissa.split(".")[1]) if "." in mantissa else 0
 
 
+def resolution(text: str) -> float:
+    """One unit of the last printed digit of ``text`` ("1.282" -> 0.001, "20" -> 1; a
+    bare "0" beside figures with decimals: ``ZERO_TOLERANCE``): the printed precision."""
+    if float(text) == 0.0 and decimals(text) == 0:
+        return ZERO_TOLERANCE
+    exponent = Decimal(text).as_tuple().exponent
+    if not isinstance(exponent, int):
+        raise ValueError(f"printed value {text!r}: expected a finite number")
+    return float(Decimal(1).scaleb(exponent))
+
+
 class Tolerance(Protocol):
     """When ours agrees with a printed number; ``str()`` says it in the table."""
 
     def accepts(self, printed: str, ours: float) -> bool: ...
 
+    def width(self, printed: str) -> float:
+        """How far beyond the printed value ours may lie and still agree (the printed
+        precision, or less, unless the row says why)."""
+        ...
+
 
 @dataclass(frozen=True)
 class LastDigit:
     """Within one unit of the last printed digit (a bare 0: within 1e-3), because the
-    dissertation rounds what it prints."""
+    dissertation rounds what it prints: the printed precision."""
 
     def accepts(self, printed: str, ours: float) -> bool:
-        value = float(printed)
-        if value == 0.0 and decimals(printed) == 0:
-            return abs(ours) <= ZERO_TOLERANCE
-        return abs(ours - value) <= 10.0 ** (-decimals(printed)) * (1 + 1e-9)
+        return abs(ours - float(printed)) <= self.width(printed) * (1 + 1e-9)
+
+    def width(self, printed: str) -> float:
+        return resolution(printed)
 
     def __str__(self) -> str:
         return "last digit"
@@ -70,6 +87,10 @@ class Relative:
             return LastDigit().accepts(printed, ours)
         return abs(ours - value) <= self.fraction * abs(value)
 
+    def width(self, printed: str) -> float:
+        value = float(printed)
+        return resolution(printed) if value == 0.0 else self.fraction * abs(value)
+
     def __str__(self) -> str:
         return f"{100 * self.fraction:g} %"
 
@@ -83,21 +104,58 @@ class Absolute:
     def accepts(self, printed: str, ours: float) -> bool:
         return abs(ours - float(printed)) <= self.bound
 
+    def width(self, printed: str) -> float:
+        return self.bound
+
     def __str__(self) -> str:
-        return f"+- {self.bound:g}"
+        return f"+- {self.bound:.3g}"
 
 
 @dataclass(frozen=True)
 class SlightlyAbove:
     """The text's "slightly larger than": ``printed < |ours| < printed + width``."""
 
-    width: float
+    above: float
 
     def accepts(self, printed: str, ours: float) -> bool:
-        return float(printed) < abs(ours) < float(printed) + self.width
+        return float(printed) < abs(ours) < float(printed) + self.above
+
+    def width(self, printed: str) -> float:
+        return self.above
 
     def __str__(self) -> str:
-        return f"above it, by < {self.width:g}"
+        return f"above it, by < {self.above:g}"
+
+
+@dataclass(frozen=True)
+class AtMost:
+    """The text's "within N seconds", "less than": ``ours <= printed``, nothing beyond."""
+
+    def accepts(self, printed: str, ours: float) -> bool:
+        return ours <= float(printed)
+
+    def width(self, printed: str) -> float:
+        return 0.0
+
+    def __str__(self) -> str:
+        return "at most"
+
+
+def tolerance_of(reference: Reference) -> Tolerance:
+    """The tolerance ``docs/dissertation-values.toml`` gives a printed value: its
+    ``tolerance`` table (``absolute``, ``relative``, ``slightly_above`` or ``at_most``), or
+    the printed precision (:class:`LastDigit`) when it gives none."""
+    spec = reference.tolerance
+    if not spec:
+        return LastDigit()
+    ((kind, amount),) = spec.items()
+    if kind == "absolute":
+        return Absolute(float(amount))
+    if kind == "relative":
+        return Relative(float(amount))
+    if kind == "slightly_above":
+        return SlightlyAbove(float(amount))
+    return AtMost()
 
 
 @dataclass(frozen=True)
@@ -113,6 +171,9 @@ class Finding:
         against: the numbers to compare with (as text, with their digits) when they are
             not the printed ones: a formula the dissertation states (Example 5.6's
             sin(phi0) = Q / (W z_g)), or a sum of printed matrices.
+        errors: the numerical error of each of ``values`` (a closed-loop run's coupling
+            error), empty if none is measured; a value whose error reaches the printed
+            precision cannot be judged and makes the row differ.
         note: what the reader should know about ours.
     """
 
@@ -120,6 +181,7 @@ class Finding:
     shown: str = ""
     holds: bool = True
     against: tuple[str, ...] | None = None
+    errors: tuple[float, ...] = ()
     note: str = ""
 
 
@@ -135,8 +197,13 @@ class Claim:
         ours: computes ours from the shipped model or a run.
         tolerance: when ours agrees with a printed number.
         cost: what computing ours takes.
-        explained: why ours differs, for a known difference ("" if none is known).
+        explained: why ours differs, for a known difference whose cause is known.
+        unexplained: what is known of a difference whose cause is not.
         note: how the claim is read or computed.
+        reference: the key of the printed numbers in ``docs/dissertation-values.toml``
+            ("" when ours is compared with a formula the text states, not a number).
+        tolerance_reason: why the tolerance is wider than the printed precision (shown
+            next to the row; "" when it is not).
     """
 
     claim: str
@@ -147,7 +214,10 @@ class Claim:
     tolerance: Tolerance = LastDigit()
     cost: Cost = Cost.INSTANT
     explained: str = ""
+    unexplained: str = ""
     note: str = ""
+    reference: str = ""
+    tolerance_reason: str = ""
 
     @property
     def printed_text(self) -> str:
@@ -157,17 +227,23 @@ class Claim:
         text = ", ".join(self.printed)
         return text if len(self.printed) == 1 else f"[{text}]"
 
+    @property
+    def known_difference(self) -> str:
+        """What the page says of a difference we know of ("" if ours should agree)."""
+        return self.explained or self.unexplained
+
 
 @dataclass(frozen=True)
 class Row:
-    """An evaluated claim: the record, ours as shown, the verdict, the notes, and whether
-    numbers were compared under the claim's tolerance."""
+    """An evaluated claim: the record, ours as shown, the verdict, the notes, whether
+    numbers were compared under the claim's tolerance, and by how much they differ."""
 
     claim: Claim
     ours: str
     verdict: Verdict
     note: str = ""
     compared: bool = False
+    size: str = ""
 
 
 def evaluate(claim: Claim, context: Context) -> Row:
@@ -179,28 +255,63 @@ def evaluate(claim: Claim, context: Context) -> Row:
         return Row(claim, "-", "not run", str(exc))
     except Exception as exc:  # a broken check is reported in the table
         return Row(claim, f"{type(exc).__name__}: {exc}", "differs", "the check failed")
-    ok = finding.holds and _within(claim, finding)
-    verdict: Verdict = "agrees" if ok else "differs (explained)" if claim.explained else "differs"
-    note = " ".join(n for n in (claim.note, finding.note) if n)
-    if not ok and claim.explained:
-        note = " ".join(n for n in (claim.explained, finding.note) if n)
+    expected = _expected(claim, finding)
+    unconverged = _unconverged(expected, finding)
+    ok = finding.holds and not unconverged and _within(claim, expected, finding.values)
+    verdict: Verdict = "agrees"
+    if not ok:
+        verdict = "differs (explained)" if claim.explained else "differs"
+    notes = [claim.note, finding.note]
+    if not ok and claim.known_difference:
+        notes = [claim.known_difference, finding.note]
+    if unconverged:
+        notes.append(unconverged)
     shown = finding.shown or _shown(claim.printed, finding.values)
-    return Row(claim, shown, verdict, note, compared=bool(finding.values))
+    size = "" if ok else _size(expected, finding.values)
+    note = " ".join(n for n in notes if n)
+    return Row(claim, shown, verdict, note, compared=bool(finding.values), size=size)
 
 
-def _within(claim: Claim, finding: Finding) -> bool:
-    """Every number of ``finding`` within the tolerance of its printed (or stated) one."""
+def _expected(claim: Claim, finding: Finding) -> list[str]:
+    """The numbers ``finding`` is compared with: ``against``, else the printed ones."""
     if not finding.values:
-        return True
+        return []
     if finding.against is not None:
-        expected = list(finding.against)
-    elif isinstance(claim.printed, str):
+        return list(finding.against)
+    if isinstance(claim.printed, str):
         raise ValueError(f"claim {claim.claim!r}: numbers to compare but no printed numbers")
-    else:
-        expected = list(claim.printed)
-    if len(expected) != len(finding.values):
+    return list(claim.printed)
+
+
+def _within(claim: Claim, expected: list[str], values: tuple[float, ...]) -> bool:
+    """Every number of ``values`` within the tolerance of its printed (or stated) one."""
+    if len(expected) != len(values):
         return False
-    return all(claim.tolerance.accepts(p, o) for p, o in zip(expected, finding.values, strict=True))
+    return all(claim.tolerance.accepts(p, o) for p, o in zip(expected, values, strict=True))
+
+
+def _unconverged(expected: list[str], finding: Finding) -> str:
+    """Why a value cannot be judged: its numerical error reaches the printed precision."""
+    bad = [
+        f"{e:.2g} (printed precision {resolution(p):g})"
+        for p, e in zip(expected, finding.errors, strict=False)
+        if not e < resolution(p)
+    ]
+    return f"Not converged: numerical error {', '.join(bad)}." if bad else ""
+
+
+def _size(expected: list[str], values: tuple[float, ...]) -> str:
+    """By how much ours differs: 'by 0.014 (0.19 %)' for one number, 'by up to 0.23 %'
+    (the largest relative difference) for several."""
+    if not values or len(expected) != len(values):
+        return ""
+    if len(values) == 1:
+        printed, gap = float(expected[0]), abs(values[0] - float(expected[0]))
+        return f"by {gap:.2g}" + (f" ({100 * gap / abs(printed):.2g} %)" if printed else "")
+    relative = [
+        abs(o - float(p)) / abs(float(p)) for p, o in zip(expected, values, strict=True) if float(p)
+    ]
+    return f"by up to {100 * max(relative):.2g} %" if relative else ""
 
 
 def _shown(printed: Sequence[str] | str, values: Sequence[float]) -> str:
@@ -222,12 +333,44 @@ class Figure:
 
 
 @dataclass(frozen=True)
+class Choice:
+    """A choice of our model where the dissertation's differs or is silent, and what it
+    changes, computed (a Chapter 6 figure at a converged step, :mod:`.runs`).
+
+    Attributes:
+        choice: what we chose, in a few words.
+        dissertation: what the dissertation does, and where.
+        why: why ours.
+        effect: computes what the choice changes, as the page shows it.
+        cost: what computing the effect takes.
+    """
+
+    choice: str
+    dissertation: str
+    why: str
+    effect: Callable[[Context], str]
+    cost: Cost = Cost.INSTANT
+
+
+def effect_of(choice: Choice, context: Context) -> str:
+    """What ``choice`` changes, or why it was not computed."""
+    try:
+        return choice.effect(context)
+    except NotRunError as exc:
+        return f"not run ({exc})"
+    except Exception as exc:  # a broken computation is reported on the page
+        return f"not computed: {type(exc).__name__}: {exc}"
+
+
+@dataclass(frozen=True)
 class Section:
-    """A table of the report: its claims and the figures shown under it."""
+    """A part of the report: a table of claims (or of model choices) and the figures shown
+    under it."""
 
     title: str
     claims: tuple[Claim, ...]
     figures: tuple[Figure, ...] = ()
+    choices: tuple[Choice, ...] = ()
 
 
 def printed(reference: Reference, pick: Sequence[int] | None = None) -> tuple[str, ...]:

@@ -3,7 +3,7 @@ straight-line stable vehicle (Example 5.5, Fig. 5.11), the neutrally buoyant one
 (Example 5.6, (5.1.74)) and the moving mass as a centre-of-gravity offset y_g
 (Sec. 5.1.4, Figs. 5.12-5.13, (5.1.77)).
 
-Every vehicle carries the Chapter 5 weight, Table 4.1's W = 299 N, as Example 5.3
+Every vehicle carries the Chapter 5 weight, Table 5.4's W = 299 N, as Example 5.3
 (:meth:`Context.chapter_5`); Example 5.6 sets W = B itself. The offset y_g = m_v g y_v / W
 uses the same W.
 """
@@ -105,22 +105,27 @@ def _long_fins(ctx: Context) -> Finding:
 
 
 def _neutral_buoyancy(ctx: Context) -> Finding:
-    """Example 5.6: with W = B the roll torque only banks the vehicle, by (5.1.74)."""
-    neutral = ctx.long_fins.replace(W=ctx.long_fins.B)
-    eqs = find_equilibria(OperatingConditions(neutral, Variant.LATERAL, roll_torque=Q_PROP))
-    expected = math.degrees(math.asin(Q_PROP / (neutral.W * neutral.z_g)))
-    shown = ", ".join(
-        f"v = {e.value('v'):.1e}, r = {e.value('r'):.1e}, "
-        f"phi = {math.degrees(e.value('roll')):.3f} deg, {stability(e)}"
-        for e in eqs
-    )
-    if len(eqs) != 1:
-        return Finding(shown=shown or "none", holds=False)
+    """Example 5.6: with W = B the roll torque only banks the vehicle, by (5.1.74); the
+    stability it claims is for a vehicle inherently stable in the horizontal plane, the
+    long fins. With the original fins that equilibrium exists but is unstable."""
+    expected, found = {}, {}
+    for name, vehicle in (("long fins", ctx.long_fins), ("original fins", ctx.remus)):
+        neutral = vehicle.replace(W=vehicle.B)
+        eqs = find_equilibria(OperatingConditions(neutral, Variant.LATERAL, roll_torque=Q_PROP))
+        expected[name] = math.degrees(math.asin(Q_PROP / (neutral.W * neutral.z_g)))
+        found[name] = [e for e in eqs if abs(e.value("v")) < 1e-9 and abs(e.value("r")) < 1e-9]
+    if len(found["long fins"]) != 1 or len(found["original fins"]) != 1:
+        return Finding(shown=f"banked straight runs found: {found}", holds=False)
+    (eq,), (original,) = found["long fins"], found["original fins"]
+    bank = math.degrees(eq.value("roll"))
     return Finding(
-        values=(math.degrees(eqs[0].value("roll")),),
-        against=(repr(expected),),
-        shown=f"{shown} (sin phi0 = Q / (W z_g): {expected:.3f} deg)",
-        holds=eqs[0].stable and abs(eqs[0].value("v")) < 1e-9,
+        values=(bank,),
+        against=(repr(expected["long fins"]),),
+        shown=f"long fins: v = {eq.value('v'):.1e}, r = {eq.value('r'):.1e}, phi = "
+        f"{bank:.3f} deg, {stability(eq)} (sin phi0 = Q / (W z_g): {expected['long fins']:.3f} "
+        f"deg); original fins: phi = {math.degrees(original.value('roll')):.3f} deg, "
+        f"{stability(original)}",
+        holds=eq.stable and not original.stable,
     )
 
 
@@ -176,6 +181,7 @@ def roll_torque(refs: Mapping[str, Reference]) -> Section:
             _roll_torque_fold,
             tolerance=SlightlyAbove(FOLD_ABOVE),
             cost=Cost.SWEEP,
+            reference=fold.key,
         ),
         Claim(
             "beyond the fold one equilibrium remains, stable, banked to port (phi < 0)",
@@ -193,13 +199,18 @@ def roll_torque(refs: Mapping[str, Reference]) -> Section:
             cost=Cost.SWEEP,
         ),
         Claim(
-            "W = B, x_g = 0: equilibrium [U0, 0, 0, 0, phi0], sin phi0 = Q / (W z_g), stable",
+            "W = B, x_g = 0, a vehicle stable in the horizontal plane (remus100-long-fins): "
+            "equilibrium [U0, 0, 0, 0, phi0], sin phi0 = Q / (W z_g), stable",
             "Ex. 5.6, (5.1.74)",
             "phi0 from (5.1.74) at Q = Q_prop",
             "deg",
             _neutral_buoyancy,
             tolerance=Absolute(EXACT_BANK),
-            note="(5.1.74) is exact here",
+            cost=Cost.SWEEP,
+            note="(5.1.74) is exact here; with the original fins the same equilibrium is "
+            "unstable, as the example's condition implies",
+            tolerance_reason="a formula, not a printed number: (5.1.74) is exact for W = B, "
+            "so ours must equal it to within the continuation's accuracy",
         ),
     )
     figures = (
@@ -228,6 +239,7 @@ def moving_mass(refs: Mapping[str, Reference]) -> Section:
             _mass_fold,
             tolerance=SlightlyAbove(float(fold.resolution)),
             cost=Cost.SWEEP,
+            reference=fold.key,
             note="y_g = m_v g y_v / W: the roll torque of our mass at rest equals W y_g cos(phi)",
         ),
         Claim(
@@ -239,6 +251,8 @@ def moving_mass(refs: Mapping[str, Reference]) -> Section:
             partial(_single_equilibrium, float(beyond.value)),
             tolerance=Absolute(ESTIMATE_BANK),
             note="the estimate ignores the coupling terms, as the text says",
+            tolerance_reason="a formula the text says differs 'slightly' from the true angle "
+            "(it ignores the coupling terms): up to 3 deg, a tenth of the angle",
         ),
     )
     figure = Figure(

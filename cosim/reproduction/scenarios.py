@@ -1,15 +1,18 @@
-"""Chapter 6's closed-loop simulations: the built-in scenarios run through our master
-(``cosim.run``) and checked against what the text says about them.
+"""Chapter 6's closed-loop simulations: the built-in scenarios run through our master and
+checked against what the text says about them, every figure at a converged step
+(:mod:`.runs`: the Richardson limit of 1.25 ms and 0.625 ms, with the coupling error).
 
-Expensive (tens of seconds a run): ``auv-cosim reproduce --skip-scenarios`` leaves them
-out. The vehicle is ``remus100`` as shipped (W = m g, g = 9.8), as in Chapter 6.
+Expensive (minutes): ``auv-cosim reproduce --skip-scenarios`` leaves them out. The
+vehicle is ``remus100`` as shipped (W = m g, g = 9.8), as in Chapter 6. "Settled" means
+|psi - psi_d| inside a band for good: 1 deg for "back to zero" after a disturbance; for a
+step of the set-point ("reaches the steady state" at psi_d), the standard settling time,
+2 % of the step.
 """
 
 from __future__ import annotations
 
 import math
 import shutil
-import time
 from collections.abc import Callable, Mapping
 from functools import partial
 from pathlib import Path
@@ -20,23 +23,24 @@ from cosim.analysis.reference_values import Reference
 from cosim.metrics.key_figures import settling_time
 from cosim.reproduction.context import Context, RunData
 from cosim.reproduction.record import (
-    Absolute,
     Claim,
     Cost,
     Figure,
     Finding,
-    LastDigit,
-    Relative,
     Section,
-    Tolerance,
+    printed,
+    tolerance_of,
     unit_text,
 )
+from cosim.reproduction.runs import FINE, converged, finest
 
 BAND = math.radians(1.0)  # "back to zero": |psi| < 1 deg for good
-ABOUT = 5.0  # s: the slack an "about N seconds" of the text is tested with
+STEP_BAND = 0.02  # "reaches the steady state" after a set-point step: within 2 % of it
 LAST = 10.0  # s: the window of a steady state at the end of a run
+IN_PHASE = 0.5  # correlation above which two signals are "in the same phase"
+DECAY_FROM, DECAY_WINDOW = 20.0, 5.0  # s: vert-2's roll decay, windows after the lock at 15 s
 REPORT_FIGURES = ("velocities", "attitude_actuators", "trajectory", "depth")
-FIGURE_SCENARIOS = ("lqr-2", "bs-3", "cur-2", "vert-2")
+FIGURE_SCENARIOS = ("lqr-2", "bs-3", "cur-2", "vert-1", "vert-2")
 LQR_2 = (
     "with the mass on its stop (y_v = -6 cm) the yaw moment it can make is capped and the "
     "heading comes back on the slow closed-loop mode. An independent reproduction of this "
@@ -45,124 +49,161 @@ LQR_2 = (
     "y_v and y_vel only), the scenario leaves the servo command unsaturated; saturating it "
     "at the 6 cm stroke slows the mass to ~6 cm/s and the settling to 43 s."
 )
+FIRST_LQR = (
+    "said of the first design (on (6.2.33), without the servo's dynamics), which we do not "
+    "ship; ours is lqr-1, the second design (6.3.17)-(6.3.19), of whose Figs. 6.11-6.12 the "
+    "text says only that the state 'converges quickly'"
+)
+IN_PHASE_DIFFERS = (
+    "Qualitatively: in our vert-1 the roll keeps oscillating, as the text says, but "
+    "(m + a33) p w is not locked in phase with the thruster. Why is not known."
+)
 
 
-def runner(
-    work: Path, log: Callable[[str], None] | None = None, fmu_dir: Path | None = None
-) -> Callable[[str], RunData]:
-    """Runs a built-in scenario into ``work/<id>`` (no recording; the FMUs in ``fmu_dir``,
-    default: the master's) and reads its results."""
-    options = {} if fmu_dir is None else {"fmu_dir": fmu_dir}
-
-    def run(scenario_id: str) -> RunData:
-        from cosim.outputs.results import read_csv
-        from cosim.runner import run_scenario
-
-        started = time.perf_counter()
-        outcome = run_scenario(scenario_id, work / scenario_id, no_rrd=True, **options)
-        if log is not None:
-            log(f"  {scenario_id}: ran in {time.perf_counter() - started:.0f} s")
-        if not outcome.result.complete:
-            raise RuntimeError(f"the run did not complete: {outcome.result.error}")
-        columns, values = read_csv(outcome.paths["results"])
-        table = {name: values[:, k] for k, name in enumerate(columns)}
-        return RunData(table, work / scenario_id)
-
-    return run
+def _settled(setpoint_deg: float, band: float, run: RunData) -> float | None:
+    """When |psi - psi_d| stays inside ``band`` for good (s), or None."""
+    error = run["plant.yaw"] - math.radians(setpoint_deg)
+    return settling_time(run["time"], error, band, angle=True)
 
 
-def _time(value: float | None) -> str:
-    return "never" if value is None else f"{value:.1f} s"
-
-
-def heading_summary(run: RunData) -> tuple[str, float | None]:
-    """'peak |psi| ..., |psi| < 1 deg first at ..., for good from ...' and the settling
-    time (for good, s; None if never)."""
-    t, yaw = run["time"], run["plant.yaw"]
-    k0 = int(np.argmax(np.abs(yaw)))
-    inside = np.flatnonzero(np.abs(yaw[k0:]) < BAND)
-    first = float(t[k0 + inside[0]]) if inside.size else None
-    settled = settling_time(t, yaw, BAND, angle=True)
-    text = (
-        f"peak |psi| {math.degrees(abs(yaw[k0])):.1f} deg at {t[k0]:.1f} s; "
-        f"|psi| < {math.degrees(BAND):.0f} deg first at {_time(first)}, "
-        f"for good from {_time(settled)}"
-    )
-    return text, settled
-
-
-def _heading_back(scenario_id: str, within: float, ctx: Context) -> Finding:
-    text, settled = heading_summary(ctx.run(scenario_id))
-    return Finding(shown=text, holds=settled is not None and settled <= within)
-
-
-def _lqr_2(stop_cm: float, within: float, ctx: Context) -> Finding:
-    run = ctx.run("lqr-2")
-    text, settled = heading_summary(run)
-    saturated = float(np.min(run["plant.mass_position"]))
-    peak = math.degrees(float(np.max(np.abs(run["plant.yaw"]))))
-    rail_speed = 100 * float(np.max(np.abs(run["plant.mass_velocity"])))
+def _settling(scenario_id: str, setpoint_deg: float, band: float, ctx: Context) -> Finding:
+    limit, error = converged(ctx, scenario_id, partial(_settled, setpoint_deg, band))
     return Finding(
-        shown=f"min y_v = {100 * saturated:.2f} cm; {text}",
-        holds=abs(saturated - stop_cm / 100) < 1e-3 and settled is not None and settled <= within,
-        note=f"Ours peaks at {peak:.1f} deg of yaw where Fig. 6.14's axis ends at 10 deg, "
-        f"with rail speeds up to {rail_speed:.0f} cm/s (its axis: +-50 cm/s).",
+        values=(limit,), errors=(error,), shown=f"{limit:.2f} s (coupling error {error:.1g} s)"
     )
 
 
-def _course(run: RunData) -> tuple[float, float, np.ndarray]:
-    """Course over ground (deg) and east speed (m/s) over the last 10 s, and that window."""
+def _step_settling(scenario_id: str, setpoint_deg: float, ctx: Context) -> Finding:
+    """The settling time after a set-point step (2 % of it), the course over ground held
+    north, and for comparison when the heading stays within 0.5 deg."""
+    band = STEP_BAND * math.radians(abs(setpoint_deg))
+    limit, error = converged(ctx, scenario_id, partial(_settled, setpoint_deg, band))
+    run = finest(ctx, scenario_id)
+    course = _course(run)[0]
+    half_degree = _settled(setpoint_deg, math.radians(0.5), run)
+    return Finding(
+        values=(limit,),
+        errors=(error,),
+        shown=f"{limit:.2f} s (coupling error {error:.1g} s; within 0.5 deg from "
+        f"{half_degree:.1f} s); course over ground {course:.2f} deg",
+        holds=abs(course) < 1.0,
+    )
+
+
+def _mass_stop(run: RunData) -> float:
+    return 100 * float(np.min(run["plant.mass_position"]))
+
+
+def _lqr_2_stop(ctx: Context) -> Finding:
+    limit, error = converged(ctx, "lqr-2", _mass_stop)
+    run = finest(ctx, "lqr-2")
+    peak = math.degrees(float(np.max(np.abs(run["plant.yaw"]))))
+    rail = 100 * float(np.max(np.abs(run["plant.mass_velocity"])))
+    return Finding(
+        values=(limit,),
+        errors=(error,),
+        shown=f"{limit:.2f} (coupling error {error:.1g})",
+        note=f"Ours peaks at {peak:.1f} deg of yaw where Fig. 6.14's axis ends at 10 deg, "
+        f"with rail speeds up to {rail:.0f} cm/s (its axis: +-50 cm/s).",
+    )
+
+
+def _back_to_zero(scenario_id: str, within: float, ctx: Context) -> Finding:
+    """Qualitative: settled (|psi| < 1 deg for good) within ``within`` s of the FINE run."""
+    run = finest(ctx, scenario_id)
+    t, yaw = run["time"], run["plant.yaw"]
+    k = int(np.argmax(np.abs(yaw)))
+    settled = settling_time(t, yaw, BAND, angle=True)
+    when = "never" if settled is None else f"{settled:.1f} s"
+    return Finding(
+        shown=f"peak |psi| {math.degrees(abs(yaw[k])):.1f} deg at {t[k]:.1f} s; "
+        f"|psi| < 1 deg for good from {when}",
+        holds=settled is not None and settled <= within,
+    )
+
+
+def _course(run: RunData) -> tuple[float, float]:
+    """Course over ground (deg) and east speed (m/s) over the last 10 s."""
     t = run["time"]
     last = t >= t[-1] - LAST
     v_north = np.polyfit(t[last], run["plant.north"][last], 1)[0]
     v_east = np.polyfit(t[last], run["plant.east"][last], 1)[0]
-    return math.degrees(math.atan2(v_east, v_north)), float(v_east), last
+    return math.degrees(math.atan2(v_east, v_north)), float(v_east)
 
 
-def _current_drift(ctx: Context) -> Finding:
-    run = ctx.run("cur-1")
-    course, v_east, _ = _course(run)
-    yaw = math.degrees(run["plant.yaw"][-1])
+def _drift(ctx: Context) -> Finding:
+    limit, error = converged(ctx, "cur-1", lambda run: _course(run)[1])
+    yaw = math.degrees(float(finest(ctx, "cur-1")["plant.yaw"][-1]))
     return Finding(
-        shown=f"heading {yaw:.2f} deg, course over ground {course:.2f} deg, "
-        f"east drift {v_east:.3f} m/s",
-        holds=abs(yaw) < 1.0 and v_east > 0.15,
+        values=(limit,),
+        errors=(error,),
+        shown=f"east drift {limit:.3f} m/s (coupling error {error:.1g}) at heading {yaw:.2f} deg",
+        holds=abs(yaw) < 1.0,
     )
 
 
-def _current_track(scenario_id: str, target_deg: float, within: float, ctx: Context) -> Finding:
-    run = ctx.run(scenario_id)
-    course, _, last = _course(run)
-    yaw = run["plant.yaw"]
-    settled = settling_time(run["time"], yaw - math.radians(target_deg), 0.5 * BAND, angle=True)
-    return Finding(
-        shown=f"heading {math.degrees(float(np.mean(yaw[last]))):.2f} deg (within 0.5 deg of "
-        f"psi_d from {_time(settled)}), course over ground {course:.2f} deg",
-        holds=settled is not None and settled <= within and abs(course) < 1.0,
-    )
-
-
-def _roll_keeps_oscillating(ctx: Context) -> Finding:
-    run = ctx.run("vert-1")
+def _oscillates(ctx: Context) -> Finding:
+    run = finest(ctx, "vert-1")
     t = run["time"]
     swing = math.degrees(float(np.ptp(run["plant.roll"][t >= t[-1] - 2 * LAST])))
     return Finding(
-        shown=f"roll swings {swing:.2f} deg peak to peak over the last 20 s", holds=swing > 1.0
+        shown=f"roll swings {swing:.1f} deg peak to peak over the last 20 s", holds=swing > 1.0
     )
 
 
-def _steady_mean(column: str, scale: float, ctx: Context) -> Finding:
-    """The mean of ``column`` of vert-2 over its last 10 s, times ``scale``."""
-    run = ctx.run("vert-2")
+def _mean(column: str, scale: float, run: RunData) -> float:
+    """``scale`` times the mean of ``column`` over the last 10 s."""
     t = run["time"]
-    return Finding(values=(scale * float(np.mean(run[column][t >= t[-1] - LAST])),))
+    return scale * float(np.mean(run[column][t >= t[-1] - LAST]))
+
+
+def _steady(column: str, scale: float, ctx: Context) -> Finding:
+    limit, error = converged(ctx, "vert-1", partial(_mean, column, scale))
+    return Finding(
+        values=(limit,), errors=(error,), shown=f"{limit:.4f} (coupling error {error:.1g})"
+    )
+
+
+def _in_phase(ctx: Context) -> Finding:
+    """Fig. 6.45: (m + a33) p w against the tunnel thruster after 20 s."""
+    run, params = finest(ctx, "vert-1"), ctx.remus
+    late = run["time"] > 20.0
+    coupling = (params.m + params.a33) * run["plant.p"][late] * run["plant.w"][late]
+    thrust = run["controller.tunnel_force"][late]
+    r = float(np.corrcoef(coupling, thrust)[0, 1])
+    return Finding(
+        shown=f"correlation {r:+.2f} over t > 20 s (amplitudes: (m + a33) p w "
+        f"{np.ptp(coupling):.1f} N, thruster {np.ptp(thrust):.1f} N peak to peak)",
+        holds=r > IN_PHASE,
+    )
+
+
+def _locked(ctx: Context) -> Finding:
+    """Figs. 6.46-6.49: with the mass locked, the roll decays (its peak to peak falls from
+    one 5 s window to the next) and both loops settle."""
+    run = finest(ctx, "vert-2")
+    t = run["time"]
+    starts = np.arange(DECAY_FROM, t[-1] - DECAY_WINDOW + 1e-9, DECAY_WINDOW)
+    swings = [
+        math.degrees(float(np.ptp(run["plant.roll"][(t >= a) & (t < a + DECAY_WINDOW)])))
+        for a in starts
+    ]
+    last = t >= t[-1] - LAST
+    yaw = math.degrees(float(np.max(np.abs(run["plant.yaw"][last]))))
+    depth = float(np.ptp(run["plant.down"][last]))
+    return Finding(
+        shown=f"roll peak to peak in 5 s windows from {DECAY_FROM:g} s: "
+        f"{', '.join(f'{s:.1f}' for s in swings)} deg; over the last 10 s |psi| <= "
+        f"{yaw:.2f} deg, depth within {100 * depth:.1f} cm",
+        holds=bool(np.all(np.diff(swings) < 0)) and yaw < 1.0 and depth < 0.05,
+    )
 
 
 def _report_figure(scenario_id: str, name: str, ctx: Context, path: Path) -> None:
-    """Copy the run report's ``name`` figure of ``scenario_id`` (if it draws one)."""
+    """Copy the run report's ``name`` figure of the FINE run of ``scenario_id``."""
     from cosim.viz.report import write_report
 
-    run = ctx.run(scenario_id)
+    run = finest(ctx, scenario_id)
     index = ctx.memo(("report", scenario_id), lambda: write_report(run.folder))
     figure = index.parent / f"{name}.png"
     if figure.is_file():
@@ -177,129 +218,167 @@ def _figures() -> tuple[Figure, ...]:
     )
 
 
-def _depth_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
-    """vert-2's steady state: w, theta and delta_s, each with its tolerance."""
-    steady = refs["scenarios.depth_steady_state"]
-    claims = []
-    means: tuple[tuple[str, str, float, Tolerance], ...] = (
-        ("w", "plant.w", 1.0, LastDigit()),
-        ("theta", "plant.pitch", 1.0, Relative(0.25)),
-        ("mean delta_s", "controller.fin_angle", math.degrees(1.0), Absolute(1.5)),
-    )
-    for k, (name, column, scale, tolerance) in enumerate(means):
-        claims.append(
-            Claim(
-                f"6-DOF, mass locked after 15 s: {name} ~ {steady.text[k]}",
-                "Figs. 6.46-6.49; Sec. 6.3.4 (vert-2)",
-                (steady.text[k],),
-                unit_text(steady, [k]),
-                partial(_steady_mean, column, scale),
-                tolerance=tolerance,
-                cost=Cost.SCENARIO,
-                note="mean over the last 10 s",
-            )
-        )
-    return tuple(claims)
-
-
-def _scenario(claim: str, source: str, printed: str, ours: Callable[[Context], Finding]) -> Claim:
-    return Claim(claim, source, printed, "-", ours, cost=Cost.SCENARIO)
-
-
-def _heading_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
-    """lqr-1 to bs-3 and slow-1: the heading comes back to zero."""
-    lqr_1, bs_3 = refs["scenarios.lqr_1_settling_time"], refs["scenarios.bs_3_settling_time"]
-    stop, lqr_2 = refs["scenarios.lqr_2_mass_stop"], refs["scenarios.lqr_2_settling_time"]
-    within = float(lqr_1.value) + ABOUT
-    test = "tested: |psi| < 1 deg for good"
-    lqr_2_claim = Claim(
-        f"LQR, v0 = -0.05: y_v saturates at {stop.text} cm, heading back within {lqr_2.text} s",
-        "Figs. 6.13-6.14 (lqr-2)",
-        f"{stop.text} cm; {lqr_2.text} s ({test} by {lqr_2.text} s)",
-        "-",
-        partial(_lqr_2, float(stop.value), float(lqr_2.value)),
+def _numeric(ref: Reference, claim: str, ours: Callable[[Context], Finding], **more) -> Claim:
+    """A claim on the printed number(s) ``ref``, with the TOML's tolerance and reason."""
+    return Claim(
+        claim,
+        ref.source,
+        printed(ref, more.pop("pick", None)),
+        unit_text(ref, more.pop("unit_pick", None)),
+        ours,
+        tolerance=tolerance_of(ref),
         cost=Cost.SCENARIO,
-        explained=LQR_2,
+        reference=ref.key,
+        tolerance_reason=ref.tolerance_reason,
+        **more,
+    )
+
+
+def _statement(
+    claim: str, source: str, printed: str, ours: Callable[[Context], Finding], **more
+) -> Claim:
+    return Claim(claim, source, printed, "-", ours, cost=Cost.SCENARIO, **more)
+
+
+def _lqr_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
+    first, stop, lqr_2 = (
+        refs["scenarios.lqr_first_design_settling_time"],
+        refs["scenarios.lqr_2_mass_stop"],
+        refs["scenarios.lqr_2_settling_time"],
     )
     return (
-        _scenario(
-            f"LQR, v0 = -0.01: converges within ~{lqr_1.text} s",
-            "Figs. 6.11-6.12 (lqr-1)",
-            f"~{lqr_1.text} s ({test} by {within:.0f} s)",
-            partial(_heading_back, "lqr-1", within),
+        _numeric(
+            first,
+            f"LQR, v0 = -0.01 m/s: all states converge within {first.text} s",
+            partial(_settling, "lqr-1", 0.0, BAND),
+            note=f"settled: |psi| < 1 deg for good; {FIRST_LQR}",
         ),
-        lqr_2_claim,
-        _scenario(
-            "LQR, psi0 = 30 deg: heading returns",
-            "Figs. 6.15-6.16 (lqr-3)",
-            f"returns ({test} within the run)",
-            partial(_heading_back, "lqr-3", math.inf),
+        _numeric(stop, "LQR, v0 = -0.05 m/s: the mass saturates at its stop", _lqr_2_stop),
+        _numeric(
+            lqr_2,
+            f"LQR, v0 = -0.05 m/s: heading back to zero within {lqr_2.text} s",
+            partial(_settling, "lqr-2", 0.0, BAND),
+            explained=LQR_2,
+            note="settled: |psi| < 1 deg for good",
         ),
-        _scenario(
-            "backstepping + thruster, v0 = -0.05: fast convergence",
-            "Figs. 6.17-6.19 (bs-1)",
-            f"fast ({test} by 15 s)",
-            partial(_heading_back, "bs-1", 15.0),
+        _statement(
+            "LQR, psi0 = 30 deg: the heading rises, then comes back",
+            "Sec. 6.3.1, Figs. 6.15-6.16 (lqr-3)",
+            "returns (tested: |psi| < 1 deg for good within the run)",
+            partial(_back_to_zero, "lqr-3", math.inf),
         ),
-        _scenario(
-            "backstepping, psi0 = 30 deg: back within a short time",
-            "Figs. 6.20-6.22 (bs-2)",
-            f"short ({test} by 20 s)",
-            partial(_heading_back, "bs-2", 20.0),
+    )
+
+
+def _backstepping_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
+    bs_3 = refs["scenarios.bs_3_settling_time"]
+    return (
+        _statement(
+            "backstepping + thruster, v0 = -0.05 m/s: the state converges quickly",
+            "Sec. 6.3.3, Figs. 6.17-6.19 (bs-1)",
+            "quickly (tested: |psi| < 1 deg for good by 15 s)",
+            partial(_back_to_zero, "bs-1", 15.0),
         ),
-        _scenario(
-            f"backstepping, v0 = -0.10: psi back to 0 within {bs_3.text} s",
-            "Figs. 6.23-6.25 (bs-3)",
-            f"{bs_3.text} s ({test} by {bs_3.text} s)",
-            partial(_heading_back, "bs-3", float(bs_3.value)),
+        _statement(
+            "backstepping, psi0 = 30 deg: back to zero within a short time",
+            "Sec. 6.3.3, Figs. 6.20-6.22 (bs-2)",
+            "short (tested: |psi| < 1 deg for good by 20 s)",
+            partial(_back_to_zero, "bs-2", 20.0),
+        ),
+        _numeric(
+            bs_3,
+            f"backstepping, v0 = -0.10 m/s: psi converges to zero within {bs_3.text} s",
+            partial(_settling, "bs-3", 0.0, BAND),
+            note="settled: |psi| < 1 deg for good; the moving mass's reaction kept on the hull "
+            "(see the model choices below)",
         ),
     )
 
 
 def _current_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
-    """cur-1, cur-2, slow-1, slow-2 and vert-1."""
-    speed, cur_2 = refs["current.speed"], refs["scenarios.cur_2_settling_time"]
-    slow_2, h9, h4 = (
+    drift, cur_2, slow_2 = (
+        refs["scenarios.cur_1_drift"],
+        refs["scenarios.cur_2_settling_time"],
         refs["scenarios.slow_2_settling_time"],
-        refs["current.heading_9_newton"],
-        refs["current.heading_4_newton"],
     )
+    h9, h4 = refs["current.heading_9_newton"], refs["current.heading_4_newton"]
+    steady = "settled: within 2 % of the set-point step for good"
     return (
-        _scenario(
-            f"{speed.text} m/s current east, psi_d = 0: drifts east with sideslip",
-            "Figs. 6.26-6.28 (cur-1)",
-            "drifts east",
-            _current_drift,
+        _numeric(drift, "0.2 m/s current east, psi_d = 0: drifts east, v = U_c", _drift),
+        _numeric(
+            cur_2,
+            f"psi_d = {h9.text} deg: steady, course north, after about {cur_2.text} s",
+            partial(_step_settling, "cur-2", float(h9.value)),
+            note=steady,
         ),
-        _scenario(
-            f"psi_d = -beta = {h9.text} deg: tracks along north, steady after about {cur_2.text} s",
-            "Figs. 6.29-6.31 (cur-2)",
-            f"course 0; ~{cur_2.text} s (tested: within 0.5 deg of psi_d, course within "
-            f"1 deg, by {float(cur_2.value) + ABOUT:.0f} s)",
-            partial(_current_track, "cur-2", float(h9.value), float(cur_2.value) + ABOUT),
-        ),
-        _scenario(
-            "T = 4 N, v0 = -0.1: stabilised",
-            "Figs. 6.32-6.33 (slow-1)",
+        _statement(
+            "T = 4 N, v0 = -0.1 m/s: stabilised",
+            "Sec. 6.3.3, Figs. 6.32-6.33 (slow-1)",
             "stabilised (tested: |psi| < 1 deg for good within the run)",
-            partial(_heading_back, "slow-1", math.inf),
+            partial(_back_to_zero, "slow-1", math.inf),
         ),
-        _scenario(
-            f"T = 4 N, current, psi_d = {h4.text} deg: converges in ~{slow_2.text} s",
-            "Figs. 6.34-6.39 (slow-2)",
-            f"~{slow_2.text} s (tested as cur-2)",
-            partial(_current_track, "slow-2", float(h4.value), float(slow_2.value) + ABOUT),
-        ),
-        _scenario(
-            "6-DOF, z_d = 1 m: roll keeps oscillating",
-            "Figs. 6.41-6.45 (vert-1)",
-            "oscillates (tested: > 1 deg peak to peak over the last 20 s)",
-            _roll_keeps_oscillating,
+        _numeric(
+            slow_2,
+            f"T = 4 N, current, psi_d = {h4.text} deg: psi converges to psi_d in about "
+            f"{slow_2.text} s",
+            partial(_step_settling, "slow-2", float(h4.value)),
+            note=steady,
         ),
     )
+
+
+def _depth_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
+    """vert-1's steady state, its oscillation, Fig. 6.45, and vert-2."""
+    steady = refs["scenarios.depth_steady_state"]
+    means = (
+        ("w", "plant.w", 1.0),
+        ("theta", "plant.pitch", 1.0),
+        ("mean delta_s", "controller.fin_angle", math.degrees(1.0)),
+    )
+    claims = [
+        _statement(
+            "6-DOF, z_d = 1 m: the vehicle keeps rolling",
+            "Sec. 6.3.4, Figs. 6.41-6.42 (vert-1)",
+            "keeps rolling (tested: > 1 deg peak to peak over the last 20 s)",
+            _oscillates,
+        )
+    ]
+    for k, (name, column, scale) in enumerate(means):
+        claims.append(
+            _numeric(
+                steady,
+                f"6-DOF, z_d = 1 m: {name} ~ {steady.text[k]} after convergence",
+                partial(_steady, column, scale),
+                pick=[k],
+                unit_pick=[k],
+                note="mean over the last 10 s",
+            )
+        )
+    claims += [
+        _statement(
+            "after 20 s, (m + a33) p w is in the same phase as the tunnel thrust",
+            "Sec. 6.3.4, Fig. 6.45 (vert-1)",
+            f"in phase (tested: correlation > {IN_PHASE:g})",
+            _in_phase,
+            unexplained=IN_PHASE_DIFFERS,
+        ),
+        _statement(
+            "mass locked after 15 s: p and phi decay to zero, both loops work",
+            "Sec. 6.3.4, Figs. 6.46-6.49 (vert-2)",
+            "decay (tested: roll peak to peak falls in every 5 s window from 20 s; over the "
+            "last 10 s |psi| < 1 deg, depth within 5 cm)",
+            _locked,
+        ),
+    ]
+    return tuple(claims)
 
 
 def closed_loop(refs: Mapping[str, Reference]) -> Section:
-    """The Chapter 6 scenarios and the figures of four of them."""
-    claims = _heading_claims(refs) + _current_claims(refs) + _depth_claims(refs)
-    return Section("Closed-loop scenarios (Ch. 6)", claims, _figures())
+    """The Chapter 6 scenarios and the figures of five of them."""
+    claims = (
+        _lqr_claims(refs) + _backstepping_claims(refs) + _current_claims(refs) + _depth_claims(refs)
+    )
+    title = (
+        f"Closed-loop scenarios (Ch. 6), at a converged step (figures: the {1e3 * FINE:g} ms runs)"
+    )
+    return Section(title, claims, _figures())

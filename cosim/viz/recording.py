@@ -50,7 +50,7 @@ from cosim.viz.layout import (
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import OVERLAY_FILE, RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
-from cosim.viz.web_viewer import GRPC_PORT, WEB_PORT, serve, viewer_url
+from cosim.viz.web_viewer import FILE_PORT, WEB_PORT, serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
 APPLICATION_ID = "auv-cosim"
@@ -363,7 +363,7 @@ def view_run(
     web: bool = False,
     open_browser: bool = False,
     web_port: int = WEB_PORT,
-    grpc_port: int = GRPC_PORT,
+    file_port: int = FILE_PORT,
 ) -> int:
     """Open a run's ``recording.rrd``, a study's ``overlay.rrd`` (RUN_DIR is the folder)
     or the ``.rrd`` given, in the native viewer or the web viewer, or say how to open it.
@@ -371,19 +371,18 @@ def view_run(
     With ``web``, serves it to Rerun's web viewer on 127.0.0.1 and prints the one URL
     that opens it (:func:`cosim.viz.web_viewer.serve`; ``open_browser`` opens it), until
     Ctrl-C. Else, with a display (``DISPLAY`` or ``WAYLAND_DISPLAY`` set) and the
-    ``rerun`` binary found, runs the viewer on the file and returns its exit code;
-    otherwise prints how to open it (native viewer elsewhere, or ``--web`` and its URL)
-    and returns 0.
+    ``rerun`` binary found, runs the viewer on the file and returns its exit code.
 
     Raises:
-        CosimError: the folder holds no recording, or the file is not a Rerun recording.
+        CosimError: the folder holds no recording, the file is not a Rerun recording, or
+            there is no display (the one line says to use ``--web``).
     """
     rrd = recording_in(Path(run_dir))
     executable = rerun_executable()
     if web:
         if executable is None:
             raise CosimError("the `rerun` binary is not on PATH (it comes with rerun-sdk)")
-        return serve(executable, rrd, web_port, grpc_port, open_browser)
+        return serve(executable, rrd, web_port, file_port, open_browser)
     has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
     if has_display and executable is not None:
         print(f"opening {rrd} in the Rerun viewer")
@@ -391,19 +390,12 @@ def view_run(
     reason = (
         "no display (DISPLAY / WAYLAND_DISPLAY unset)"
         if not has_display
-        else ("the `rerun` viewer is not on PATH (it comes with `pip install rerun-sdk`)")
+        else "the `rerun` viewer is not on PATH (it comes with `pip install rerun-sdk`)"
     )
-    print(
-        f"Cannot open a viewer here: {reason}. To look at the recording:\n"
-        f"  native viewer, on a machine with a display:\n"
-        f"    rerun {rrd}\n"
-        f"  web viewer, served on 127.0.0.1 until Ctrl-C (forward ports {WEB_PORT} and "
-        f"{GRPC_PORT}\n  over ssh when remote: ssh -L {WEB_PORT}:127.0.0.1:{WEB_PORT} "
-        f"-L {GRPC_PORT}:127.0.0.1:{GRPC_PORT} HOST):\n"
-        f"    auv-cosim view {run_dir} --web\n"
-        f"  then open {viewer_url()}"
+    raise CosimError(
+        f"cannot open a viewer here: {reason}; use `auv-cosim view {run_dir} --web` to serve "
+        f"the recording to a browser (or `rerun {rrd}` on a machine with a display)"
     )
-    return 0
 
 
 def recording_in(path: Path) -> Path:

@@ -1,13 +1,18 @@
 """``auv-cosim view RUN --web``: a recording in Rerun's web viewer, on 127.0.0.1 only.
 
-The ``rerun`` binary (rerun-sdk 0.41) serves both halves: ``rerun --serve-web --bind
-127.0.0.1 --port G --web-viewer-port W FILE`` loads the file into its gRPC server
-(port G) and hosts the web viewer's page (port W). The page alone shows Rerun's welcome
-screen; the viewer opens the recording only when told where it is, by the ``url`` query
-parameter naming the gRPC proxy, URL-encoded -- :func:`viewer_url` builds that one URL
-(rerun's own log line names ``localhost``, which a browser may resolve to ``::1``, where
-nothing listens). Both servers bind 127.0.0.1, never every interface (rerun's default
-``--bind`` is 0.0.0.0): to look from another machine, forward the two ports over ssh.
+The recording is served as a file: this process serves it over HTTP (port F, only that
+file, to the viewer's page only), and the ``rerun`` binary (rerun-sdk 0.41) hosts the web
+viewer's page: ``rerun --serve-web --bind 127.0.0.1 --web-viewer-port W
+http://127.0.0.1:F/recording.rrd``. Given a URL the viewer can open itself, rerun starts no
+gRPC server, and the viewer loads the file as a file. (Loaded into rerun's gRPC proxy, a
+file reached the viewer as a live stream, and the viewer showed a "latency" counter of the
+seconds since the file's rows were logged, which means nothing for a file.) The page alone
+shows Rerun's welcome screen; the viewer opens the recording only when told where it is, by
+the ``url`` query parameter naming the file's URL, URL-encoded -- :func:`viewer_url` builds
+that one URL (rerun's own log line names ``localhost``, which a browser may resolve to
+``::1``, where nothing listens). Both servers bind 127.0.0.1, never every interface
+(rerun's default ``--bind`` is 0.0.0.0): to look from another machine, forward the two ports
+over ssh.
 
 The server runs in this process's process group, so Ctrl-C in the terminal (and a test
 ending the group) ends it too; :func:`serve` also ends it on SIGTERM/SIGHUP or any error,
@@ -15,7 +20,7 @@ and on Linux the kernel ends it when this process dies, however it dies (SIGKILL
 included: the parent-death signal, :func:`_die_with_parent`).
 
 A recording cut short -- its run was killed, or is still writing it -- has no footer, and
-rerun's importer then waits for the rest of the file forever (the viewer never finishes
+rerun's importer waited for the rest of such a file forever (the viewer never finished
 loading): :func:`whole_recording` serves a copy completed by ``rerun rrd migrate``
 instead, and says so.
 """
@@ -25,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import ctypes.util
+import http.server
 import os
 import shutil
 import signal
@@ -32,6 +38,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import webbrowser
 from collections.abc import Iterator
@@ -42,36 +49,68 @@ from urllib.parse import quote
 from cosim.errors import CosimError
 
 HOST = "127.0.0.1"
-WEB_PORT = 9090  # rerun's defaults: the web viewer's page ...
-GRPC_PORT = 9876  # ... and the gRPC proxy that serves the recording
+WEB_PORT = 9090  # rerun's default for the web viewer's page
+FILE_PORT = 9876  # the recording, served over HTTP by this process
 START_TIMEOUT = 60.0  # s for the rerun binary to start listening
 MIGRATE_TIMEOUT = 120.0  # s for `rerun rrd migrate` to complete a copy of a cut recording
 FOOTER = b"FOOT"  # rerun 0.41: a whole .rrd ends with its 4-byte magic, FOOT, a version
 PR_SET_PDEATHSIG = 1  # prctl(2): the signal a Linux process gets when its parent dies
 
 
-def viewer_url(web_port: int = WEB_PORT, grpc_port: int = GRPC_PORT) -> str:
-    """The web viewer's address with ``?url=`` naming the recording's gRPC proxy."""
-    proxy = f"rerun+http://{HOST}:{grpc_port}/proxy"
-    return f"http://{HOST}:{web_port}/?url={quote(proxy, safe='')}"
+def file_url(rrd: Path, file_port: int = FILE_PORT) -> str:
+    """Where this process serves the recording ``rrd`` over HTTP."""
+    return f"http://{HOST}:{file_port}/{quote(rrd.name)}"
 
 
-def serve_command(executable: str, rrd: Path, web_port: int, grpc_port: int) -> list[str]:
-    """The rerun command line serving ``rrd`` to the web viewer on :data:`HOST` only."""
-    return [
-        executable,
-        "--serve-web",
-        "--bind",
-        HOST,
-        "--port",
-        str(grpc_port),
-        "--web-viewer-port",
-        str(web_port),
-        str(rrd),
-    ]
+def viewer_url(rrd: Path, web_port: int = WEB_PORT, file_port: int = FILE_PORT) -> str:
+    """The web viewer's address with ``?url=`` naming the recording's file URL."""
+    return f"http://{HOST}:{web_port}/?url={quote(file_url(rrd, file_port), safe='')}"
 
 
-def serve(executable: str, rrd: Path, web_port: int, grpc_port: int, open_browser: bool) -> int:
+def serve_command(executable: str, rrd: Path, web_port: int, file_port: int) -> list[str]:
+    """The rerun command line hosting the web viewer's page on :data:`HOST` only, for the
+    recording served at :func:`file_url` (a URL: rerun starts no gRPC server)."""
+    url = file_url(rrd, file_port)
+    return [executable, "--serve-web", "--bind", HOST, "--web-viewer-port", str(web_port), url]
+
+
+@contextlib.contextmanager
+def _file_server(rrd: Path, port: int, web_port: int) -> Iterator[None]:
+    """``rrd`` served over HTTP on :data:`HOST` at :func:`file_url` while inside: that one
+    path only, readable by the web viewer's page (CORS: its origin only).
+
+    Written with the standard library's ``http.server``: rerun's binary serves a file only
+    through its gRPC proxy (the live stream above)."""
+    name, origin = f"/{quote(rrd.name)}", f"http://{HOST}:{web_port}"
+
+    class Recording(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            if self.path != name:
+                self.send_error(404)
+                return
+            with contextlib.suppress(OSError), rrd.open("rb") as file:
+                self.send_response(200)
+                self.send_header("Content-Type", "application/octet-stream")
+                self.send_header("Content-Length", str(rrd.stat().st_size))
+                self.send_header("Access-Control-Allow-Origin", origin)
+                self.end_headers()
+                shutil.copyfileobj(file, self.wfile)
+
+        def log_message(self, *args: Any) -> None:
+            """Quiet: the terminal shows the URL, not each request."""
+
+    server = http.server.ThreadingHTTPServer((HOST, port), Recording)
+    server.daemon_threads = True
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browser: bool) -> int:
     """Serve ``rrd`` until Ctrl-C (or SIGTERM/SIGHUP); print the one URL that opens it.
 
     A port of 0 picks a free one. Returns 130 after Ctrl-C, 128 + the signal number
@@ -81,50 +120,48 @@ def serve(executable: str, rrd: Path, web_port: int, grpc_port: int, open_browse
         CosimError: a port is taken or the server did not start (its last log line).
     """
     executable = _binary(executable)
-    web_port, grpc_port = (_free_port(port) for port in (web_port, grpc_port))
-    if web_port == grpc_port:
-        raise CosimError(f"--web-port and --grpc-port are both {web_port}: give two ports")
+    web_port, file_port = (_free_port(port) for port in (web_port, file_port))
+    if web_port == file_port:
+        raise CosimError(f"--web-port and --file-port are both {web_port}: give two ports")
     with (
         tempfile.TemporaryDirectory(prefix="auv-cosim-view-") as folder,
         tempfile.TemporaryFile() as log,
         _stop_signals_raise(),
     ):
         served = whole_recording(executable, rrd, Path(folder))
-        command = serve_command(executable, served, web_port, grpc_port)
-        server = subprocess.Popen(
-            command, stdin=subprocess.DEVNULL, stdout=log, stderr=log,
-            preexec_fn=_die_with_parent(),
-        )  # fmt: skip
-        try:
-            _wait_listening(server, (web_port, grpc_port), log)
-            url = viewer_url(web_port, grpc_port)
-            print(f"serving {rrd} on {HOST} only; open this URL (Ctrl-C stops):\n  {url}")
-            print(_forward_hint(web_port, grpc_port), flush=True)
-            if open_browser:
-                _open(url)
-            return server.wait()
-        except _StopSignalError as stop:
-            return 128 + stop.signum
-        except KeyboardInterrupt:
-            return 130
-        finally:
-            _end(server)
+        command = serve_command(executable, served, web_port, file_port)
+        with _file_server(served, file_port, web_port):
+            server = subprocess.Popen(
+                command, stdin=subprocess.DEVNULL, stdout=log, stderr=log,
+                preexec_fn=_die_with_parent(),
+            )  # fmt: skip
+            try:
+                _wait_listening(server, (web_port,), log)
+                url = viewer_url(served, web_port, file_port)
+                print(f"serving {rrd} on {HOST} only; open this URL (Ctrl-C stops):\n  {url}")
+                print(_forward_hint(web_port, file_port), flush=True)
+                if open_browser:
+                    _open(url)
+                return server.wait()
+            except _StopSignalError as stop:
+                return 128 + stop.signum
+            except KeyboardInterrupt:
+                return 130
+            finally:
+                _end(server)
 
 
 def whole_recording(executable: str, rrd: Path, folder: Path) -> Path:
-    """What to serve for ``rrd``: the file itself if it ends with rerun's footer, or if a
-    run is writing it (locked: rerun's importer follows it as it grows); else a copy in
-    ``folder`` completed by ``rerun rrd migrate`` (what the file holds, with a footer),
-    after saying so.
+    """What to serve for ``rrd``: the file itself if it ends with rerun's footer; else a
+    copy in ``folder`` completed by ``rerun rrd migrate`` (what the file holds now, with a
+    footer), after saying so (the file is served once, so a run still writing it is shown
+    as far as it got).
 
     Raises:
         CosimError: the file holds no recording yet (cut short before any data: the
             viewer would show its welcome page forever), or the copy cannot be made.
     """
     if _ends_with_footer(rrd):
-        return rrd
-    if _being_written(rrd):
-        print(f"note: a run is still writing {rrd}: the viewer follows it as it grows", flush=True)
         return rrd
     copy = folder / "recording.rrd"
     try:
@@ -147,10 +184,9 @@ def whole_recording(executable: str, rrd: Path, folder: Path) -> Path:
             f"{rrd} holds no recording yet: it was cut short after {rrd.stat().st_size} bytes, "
             "before any data (its run was killed as it started)"
         )
+    why = "a run is still writing it" if _being_written(rrd) else "its run was killed"
     print(
-        f"note: {rrd} was cut short (its run was killed): serving a completed copy of what "
-        "it holds",
-        flush=True,
+        f"note: {rrd} was cut short ({why}): serving a completed copy of what it holds", flush=True
     )
     return copy
 
@@ -234,7 +270,7 @@ def _free_port(port: int) -> int:
         except OSError as exc:
             raise CosimError(
                 f"port {port} on {HOST} is taken ({exc.strerror}): another viewer is "
-                "running; stop it or give --web-port/--grpc-port (0 picks a free port)"
+                "running; stop it or give --web-port/--file-port (0 picks a free port)"
             ) from None
         return probe.getsockname()[1]
 
@@ -258,10 +294,10 @@ def _wait_listening(server: subprocess.Popen, ports: tuple[int, ...], log: Any) 
         time.sleep(0.1)
 
 
-def _forward_hint(web_port: int, grpc_port: int) -> str:
+def _forward_hint(web_port: int, file_port: int) -> str:
     return (
         f"  (from another machine: ssh -L {web_port}:{HOST}:{web_port} "
-        f"-L {grpc_port}:{HOST}:{grpc_port} HOST, then open the same URL there)"
+        f"-L {file_port}:{HOST}:{file_port} HOST, then open the same URL there)"
     )
 
 

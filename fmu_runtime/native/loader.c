@@ -1,30 +1,39 @@
-/* The FMU's binary: FMI 2.0 co-simulation functions that enforce the standard's state
- * machine and the variables' declared rules, then forward to pythonfmu's wrapper library.
+/* The FMU's binary: the FMI 2.0 co-simulation functions. Each enforces the standard's call
+ * sequence and the variables' declared rules, then hands the call to a backend: the FMU's
+ * Python slave called directly (slave.c), or pythonfmu's own binary (forward.c,
+ * AUV_FMU_RUNTIME=pythonfmu).
  *
- * Written by hand because pythonfmu's wrapper cannot do it: it returns fmi2OK from every
- * function but doStep whatever the Python side decides, and it needs its host to have
- * started Python (runtime.c does that here).
+ * Written by hand because no library does it: pythonfmu's binary returns fmi2OK from every
+ * function but doStep whatever the Python side decides, crashes on NULL arguments, and
+ * needs its host to have started Python.
  *
- * Refused without calling Python, with fmi2Error, one Error logged and nothing changed:
- * a call out of the FMI 2.0 co-simulation sequence (instantiated -> initialisation mode ->
+ * Refused without calling Python, with fmi2Error (NULL from fmi2Instantiate), one Error
+ * logged and nothing changed: a NULL instance name, resource location or GUID, a GUID
+ * that is not this build's; a NULL value-reference, value or byte array (n > 0); a call
+ * out of the FMI 2.0 co-simulation sequence (instantiated -> initialisation mode ->
  * initialised -> terminated; the error state after a failed initialisation or a fatal
  * error); a doStep whose step is not a finite number > 0 or whose
  * currentCommunicationPoint is not the FMU's current time (the start time, then the end
- * of the last step) within a relative 1e-9; a write of a variable that cannot be written
- * then (outputs, locals, constants; a fixed parameter after initialisation, unless it is
- * the value it has), of a non-finite Real, or of a value outside the declared min/max.
- * The variables' rules come from resources/fmu_variables.txt, which the build writes from
- * modelDescription.xml.
+ * of the last step) within a relative 1e-9; a read of an unknown value reference or of
+ * the wrong type; a write of a variable that cannot be written then (outputs, locals,
+ * constants; a fixed parameter after initialisation, unless it is the value it has), of a
+ * non-finite Real, or of a value outside the declared min/max; input derivatives the FMU
+ * does not take. The variables' rules come from resources/fmu_variables.txt, the GUID and
+ * the slave class from resources/fmu_runtime.txt; the build writes both.
  *
  * Refusals made in Python (fmu_runtime/safe_slave.py logs each with status Error): the
- * loader hands pythonfmu its own logger callback, which forwards every message to the
- * host's and remembers the worst status logged during the current call; pythonfmu flushes
- * an instance's messages before each call returns, so a call during which an Error was
- * logged returns fmi2Error (a refused doStep keeps pythonfmu's fmi2Discard). pythonfmu
- * itself always logs (it is instantiated with loggingOn); the loader passes OK-status
- * messages to the host only while the host has logging on.
+ * backends pass every message the slave logs to the host's logger, with a category
+ * (never NULL), and remember the worst status logged during the current call: a call
+ * during which an Error was logged returns fmi2Error (a refused doStep keeps its
+ * fmi2Discard). OK-status messages reach the host only while it has logging on.
+ *
+ * Once the interpreter has shut down under live instances (a Python host exiting without
+ * freeing them, then destructors calling fmi2Terminate or fmi2FreeInstance), every call
+ * returns fmi2Error without a message (the host's logger may be Python code) and
+ * fmi2FreeInstance frees only C memory.
  */
 #include "loader.h"
+#include "python.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -36,85 +45,75 @@ enum Phase { INSTANTIATED, INITIALIZATION, INITIALIZED, TERMINATED, FAILED };
 static const char *const PHASES[] = {"instantiated", "in initialisation mode", "initialised",
                                      "terminated", "in the error state"};
 #define TIME_TOLERANCE 1e-9 /* relative: masters compute t_n = n h */
-#define NAME_SIZE 128
-#define BOUND_SIZE 32
-
-typedef struct {
-    int known;
-    char type;             /* R I B S */
-    char causality[24];    /* as in modelDescription.xml */
-    char variability[16];  /* as in modelDescription.xml */
-    char min[BOUND_SIZE];  /* "" if none */
-    char max[BOUND_SIZE];
-    double low, high;      /* -inf / +inf if none */
-    double value;          /* a fixed parameter's value: start, then each accepted write */
-    double start;
-    char name[NAME_SIZE];
-} Variable;
-
-typedef struct {
-    fmi2Component inner;
-    const Wrapper *w;
-    fmi2CallbackFunctions host, relay;
-    char name[NAME_SIZE];
-    int phase, logging;
-    double time; /* s: the start time, then the end of the last step */
-    fmi2Status logged; /* the worst status pythonfmu logged during the current call */
-    Variable *vars;    /* indexed by value reference */
-    size_t count;
-} Instance;
 
 typedef struct {
     unsigned magic;
     int phase;
     double time;
-    fmi2FMUstate inner;
+    void *inner; /* the backend's state */
 } Saved;
 #define SAVED_MAGIC 0x4155564cu /* "AUVL" */
 #define SAVED_HEADER (sizeof(unsigned) + sizeof(int) + sizeof(double))
 
 /* ---- logging ------------------------------------------------------------------------ */
 
-static void emit(const fmi2CallbackFunctions *host, const char *instance, fmi2Status status,
-                 const char *text)
+static const char *category_of(fmi2Status status)
 {
-    char escaped[2048]; /* hosts treat the message as a printf format */
-    size_t j = 0;
-    for (size_t i = 0; text[i] && j + 2 < sizeof escaped; i++) {
-        if (text[i] == '%') escaped[j++] = '%';
-        escaped[j++] = text[i];
-    }
-    escaped[j] = '\0';
+    static const char *const names[] = {"logAll", "logStatusWarning", "logStatusDiscard",
+                                        "logStatusError", "logStatusFatal", "logAll"};
+    return status <= fmi2Pending ? names[status] : "logAll";
+}
+
+static void emit(const fmi2CallbackFunctions *host, const char *instance, fmi2Status status,
+                 const char *category, const char *message)
+{
     if (host && host->logger) {
         host->logger(host->componentEnvironment, instance, status,
-                     status >= fmi2Error ? "logStatusError" : "logAll", escaped);
+                     category ? category : category_of(status), message);
     } else {
-        fprintf(stderr, "%s: %s\n", instance ? instance : "FMU", text);
+        fprintf(stderr, "%s: %s\n", instance ? instance : "FMU", message);
     }
 }
 
-static fmi2Status refuse(Instance *c, const char *format, ...)
+void instance_log(Instance *c, fmi2Status status, const char *category, const char *message)
 {
-    char text[1536];
+    if (status > c->logged) c->logged = status;
+    if (c->logging || status >= fmi2Warning) emit(&c->host, c->name, status, category, message);
+}
+
+/* ``text`` with every % doubled: hosts treat the message as a printf format. */
+static void escape(const char *text, char *out, size_t size)
+{
+    size_t j = 0;
+    for (size_t i = 0; text[i] && j + 2 < size; i++) {
+        if (text[i] == '%') out[j++] = '%';
+        out[j++] = text[i];
+    }
+    out[j] = '\0';
+}
+
+fmi2Status refuse(Instance *c, const char *format, ...)
+{
+    char text[LINE_SIZE], escaped[2 * LINE_SIZE];
     va_list args;
     va_start(args, format);
     vsnprintf(text, sizeof text, format, args);
     va_end(args);
-    emit(&c->host, c->name, fmi2Error, text);
+    escape(text, escaped, sizeof escaped);
+    instance_log(c, fmi2Error, "logStatusError", escaped);
     return fmi2Error;
 }
 
-static void relay(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
-                  fmi2String category, fmi2String message, ...)
+/* A refusal before an instance exists: to the host's logger, or stderr without one. */
+static void refuse_instantiation(const fmi2CallbackFunctions *host, const char *name,
+                                 const char *text)
 {
-    Instance *c = (Instance *)env;
-    if (status > c->logged) c->logged = status;
-    if (c->host.logger && (c->logging || status >= fmi2Warning)) {
-        c->host.logger(c->host.componentEnvironment, instance, status, category, message);
-    }
+    char escaped[2 * LINE_SIZE];
+    escape(text, escaped, sizeof escaped);
+    emit(host, name ? name : "FMU", fmi2Error, "logStatusError", escaped);
 }
 
-/* What pythonfmu answered, raised to fmi2Error if Python logged an Error meanwhile. */
+/* What the backend answered, raised to fmi2Error if an Error was logged meanwhile. */
 static fmi2Status answer(Instance *c, fmi2Status status)
 {
     if (status == fmi2Fatal || c->logged == fmi2Fatal) {
@@ -137,18 +136,26 @@ static const char *show(double x, char *out)
     return out;
 }
 
-/* ---- the variables' rules ----------------------------------------------------------- */
+/* ---- the build's records ------------------------------------------------------------ */
 
-static double bound(const char *text, double none)
+static double bound(const char *text, double none) { return text[0] ? strtod(text, NULL) : none; }
+
+static int grow(Instance *c, unsigned vr)
 {
-    return text[0] ? strtod(text, NULL) : none;
+    if (vr < c->count) return 1;
+    Variable *grown = realloc(c->vars, (vr + 1) * sizeof *grown);
+    if (!grown) return 0;
+    memset(grown + c->count, 0, (vr + 1 - c->count) * sizeof *grown);
+    c->vars = grown;
+    c->count = vr + 1;
+    return 1;
 }
 
 /* Lines "vr type causality variability min max start name" ("-" for none). */
-static int read_variables(Instance *c, const char *resources)
+static int read_variables(Instance *c)
 {
-    char path[4200], line[512];
-    snprintf(path, sizeof path, "%s/fmu_variables.txt", resources);
+    char path[PATH_SIZE + 32], line[512];
+    snprintf(path, sizeof path, "%s/%s", c->resources, VARIABLES_FILE);
     FILE *in = fopen(path, "r");
     if (!in) return 0;
     while (fgets(line, sizeof line, in)) {
@@ -156,15 +163,9 @@ static int read_variables(Instance *c, const char *resources)
         char type, causality[24], variability[16], min[BOUND_SIZE], max[BOUND_SIZE],
             start[BOUND_SIZE], name[NAME_SIZE];
         if (sscanf(line, "%u %c %23s %15s %31s %31s %31s %127s", &vr, &type, causality,
-                   variability, min, max, start, name) != 8 || vr > 100000) {
+                   variability, min, max, start, name) != 8 ||
+            vr > 100000 || !grow(c, vr)) {
             continue;
-        }
-        if (vr >= c->count) {
-            Variable *grown = realloc(c->vars, (vr + 1) * sizeof *grown);
-            if (!grown) break;
-            memset(grown + c->count, 0, (vr + 1 - c->count) * sizeof *grown);
-            c->vars = grown;
-            c->count = vr + 1;
         }
         Variable *v = &c->vars[vr];
         v->known = 1;
@@ -182,9 +183,42 @@ static int read_variables(Instance *c, const char *resources)
     return 1;
 }
 
-static const char *TYPE_NAMES(char type)
+/* key=value lines; unknown keys are ignored. */
+static int read_record(const char *resources, Record *r)
+{
+    char path[PATH_SIZE + 32], line[PATH_SIZE + 64];
+    snprintf(path, sizeof path, "%s/%s", resources, RECORD_FILE);
+    FILE *in = fopen(path, "r");
+    if (!in) return 0;
+    memset(r, 0, sizeof *r);
+    while (fgets(line, sizeof line, in)) {
+        line[strcspn(line, "\r\n")] = '\0';
+        char *value = strchr(line, '=');
+        if (!value) continue;
+        *value++ = '\0';
+        if (!strcmp(line, "guid")) snprintf(r->guid, sizeof r->guid, "%s", value);
+        if (!strcmp(line, "package")) snprintf(r->package, sizeof r->package, "%s", value);
+        if (!strcmp(line, "module")) snprintf(r->module, sizeof r->module, "%s", value);
+        if (!strcmp(line, "class")) snprintf(r->slave_class, sizeof r->slave_class, "%s", value);
+        if (!strcmp(line, "build_python")) {
+            snprintf(r->build_python, sizeof r->build_python, "%s", value);
+        }
+        if (!strcmp(line, "interpolates_inputs")) r->interpolates_inputs = !strcmp(value, "1");
+    }
+    fclose(in);
+    return r->guid[0] && r->package[0] && r->module[0] && r->slave_class[0];
+}
+
+/* ---- the variables' rules ----------------------------------------------------------- */
+
+static const char *type_name(char type)
 {
     return type == 'R' ? "Real" : type == 'I' ? "Integer" : type == 'B' ? "Boolean" : "String";
+}
+
+static const Variable *variable(const Instance *c, fmi2ValueReference vr)
+{
+    return vr < c->count && c->vars[vr].known ? &c->vars[vr] : NULL;
 }
 
 static void show_value(char type, double x, char *out)
@@ -200,21 +234,21 @@ static void show_value(char type, double x, char *out)
 static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char type, double x,
                                  char *why, size_t n)
 {
-    const Variable *v = vr < c->count && c->vars[vr].known ? &c->vars[vr] : NULL;
+    const Variable *v = variable(c, vr);
     if (!v) {
-        snprintf(why, n, "set%s of valueReference %u refused: no such variable",
-                 TYPE_NAMES(type), vr);
+        snprintf(why, n, "set%s of valueReference %u refused: no such variable", type_name(type),
+                 vr);
         return why;
     }
     const char *problem = NULL;
     if (v->type != type) {
-        snprintf(why, n, "%s is a %s, not a %s", v->name, TYPE_NAMES(v->type), TYPE_NAMES(type));
+        snprintf(why, n, "%s is a %s, not a %s", v->name, type_name(v->type), type_name(type));
         return why;
     } else if (type == 'R' && !isfinite(x)) {
         problem = "expected a finite number";
     } else if (x < v->low || x > v->high) {
         problem = "range";
-    } else if (v->variability[0] == 'c' && !strcmp(v->variability, "constant")) {
+    } else if (!strcmp(v->variability, "constant")) {
         problem = "a constant cannot be set";
     } else if (!strcmp(v->causality, "input") ||
                (!strcmp(v->causality, "parameter") && strcmp(v->variability, "fixed"))) {
@@ -236,17 +270,38 @@ static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char 
     return why;
 }
 
+/* NULL arrays (n > 0) are refused: FMI hosts pass them, and reading one would crash. */
+#define NEED(array, what, call)                                                          \
+    if (n > 0 && !(array)) return refuse(c, "%s refused: the %s is NULL (n = %zu)", call, \
+                                         what, n)
+
 /* Check every value first: a refused call writes nothing. */
 static fmi2Status check_writes(Instance *c, const fmi2ValueReference vr[], size_t n, char type,
                                const double *values)
 {
     char why[512];
     if (c->phase >= TERMINATED) {
-        return refuse(c, "fmi2Set%s refused: the FMU is %s", TYPE_NAMES(type), PHASES[c->phase]);
+        return refuse(c, "fmi2Set%s refused: the FMU is %s", type_name(type), PHASES[c->phase]);
     }
     for (size_t i = 0; i < n; i++) {
         if (write_refusal(c, vr[i], type, values ? values[i] : NAN, why, sizeof why)) {
             return refuse(c, "%s", why);
+        }
+    }
+    return fmi2OK;
+}
+
+static fmi2Status check_reads(Instance *c, const fmi2ValueReference vr[], size_t n, char type)
+{
+    for (size_t i = 0; i < n; i++) {
+        const Variable *v = variable(c, vr[i]);
+        if (!v) {
+            return refuse(c, "get%s of valueReference %u refused: no such variable",
+                          type_name(type), vr[i]);
+        }
+        if (v->type != type) {
+            return refuse(c, "get%s refused: %s is a %s, not a %s", type_name(type), v->name,
+                          type_name(v->type), type_name(type));
         }
     }
     return fmi2OK;
@@ -268,12 +323,9 @@ static void reset_values(Instance *c)
 /* A file:// URI (or a plain path) as a path, %XX decoded. */
 static void uri_to_path(const char *uri, char *out, size_t n)
 {
-    const char *p = uri ? uri : "";
+    const char *p = uri;
     if (!strncmp(p, "file://", 7)) p += 7;
     else if (!strncmp(p, "file:", 5)) p += 5;
-#ifdef _WIN32
-    if (p[0] == '/' && p[1] && p[2] == ':') p++; /* file:///C:/... */
-#endif
     size_t j = 0;
     for (; *p && j + 1 < n; p++) {
         unsigned code;
@@ -285,7 +337,44 @@ static void uri_to_path(const char *uri, char *out, size_t n)
         }
     }
     out[j] = '\0';
-    while (j > 1 && (out[j - 1] == '/' || out[j - 1] == '\\')) out[--j] = '\0';
+    while (j > 1 && out[j - 1] == '/') out[--j] = '\0';
+}
+
+/* Why this instantiation cannot go on (into ``why``), or 0; fills the instance's paths,
+ * record and backend. */
+static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
+                                 fmi2String resources, char *why, size_t n)
+{
+    const char *runtime = getenv(RUNTIME_VARIABLE);
+    if (type != fmi2CoSimulation) return snprintf(why, n, "the FMU supports co-simulation only");
+    if (!resources || !resources[0]) return snprintf(why, n, "fmuResourceLocation is empty");
+    snprintf(c->resources_uri, sizeof c->resources_uri, "%s", resources);
+    uri_to_path(resources, c->resources, sizeof c->resources);
+    if (!read_record(c->resources, &c->record)) {
+        return snprintf(why, n, "%s/%s is missing or incomplete (not this FMU's extraction?)",
+                        c->resources, RECORD_FILE);
+    }
+    if (!guid) return snprintf(why, n, "the GUID is NULL, expected %s", c->record.guid);
+    if (strcmp(guid, c->record.guid)) {
+        return snprintf(why, n,
+                        "GUID %s is not this FMU's (%s): the host read another build's "
+                        "modelDescription.xml",
+                        guid, c->record.guid);
+    }
+    if (!read_variables(c)) {
+        return snprintf(why, n, "%s/%s is missing", c->resources, VARIABLES_FILE);
+    }
+    if (!runtime || !runtime[0] || !strcmp(runtime, "native")) {
+        c->backend = &python_backend;
+    } else if (!strcmp(runtime, "pythonfmu")) {
+        c->backend = &pythonfmu_backend;
+    } else {
+        return snprintf(why, n,
+                        "%s=%s: expected \"pythonfmu\" (pythonfmu's own binary) or nothing (the "
+                        "FMU's runtime)",
+                        RUNTIME_VARIABLE, runtime);
+    }
+    return 0;
 }
 
 FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid,
@@ -293,44 +382,34 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
                                           const fmi2CallbackFunctions *functions,
                                           fmi2Boolean visible, fmi2Boolean loggingOn)
 {
-    char path[4096], why[3072];
-    uri_to_path(resources, path, sizeof path);
-    const Wrapper *w = loader_runtime(path, why, sizeof why);
-    if (!w) {
-        char line[3200];
-        snprintf(line, sizeof line, "the FMU's loader cannot start Python: %s", why);
-        emit(functions, name, fmi2Error, line);
+    char why[LINE_SIZE], line[LINE_SIZE + 64];
+    if (python_gone()) return NULL; /* the process is shutting down: no message either */
+    if (!name) {
+        refuse_instantiation(functions, NULL, "fmi2Instantiate refused: instanceName is NULL");
         return NULL;
     }
     Instance *c = calloc(1, sizeof *c);
     if (!c) return NULL;
     if (functions) c->host = *functions;
-    c->relay = c->host;
-    c->relay.logger = relay;
-    c->relay.componentEnvironment = c;
     c->logging = loggingOn;
-    snprintf(c->name, sizeof c->name, "%s", name ? name : "");
-    if (type != fmi2CoSimulation || !read_variables(c, path)) {
-        refuse(c, type != fmi2CoSimulation
-                      ? "fmi2Instantiate refused: the FMU supports co-simulation only"
-                      : "fmi2Instantiate refused: resources/fmu_variables.txt is missing");
-    } else {
-        c->w = w;
-        c->inner = w->instantiate(name, type, guid, resources, &c->relay, visible, fmi2True);
+    c->visible = visible;
+    snprintf(c->name, sizeof c->name, "%s", name);
+    if (instantiation_refusal(c, type, guid, resources, why, sizeof why)) {
+        snprintf(line, sizeof line, "fmi2Instantiate refused: %s", why);
+        refuse_instantiation(functions, name, line);
+    } else if (runtime_python(c) && c->backend->start(c)) {
+        return c;
     }
-    if (!c->inner) {
-        free(c->vars);
-        free(c);
-        return NULL;
-    }
-    return c;
+    free(c->vars);
+    free(c);
+    return NULL;
 }
 
 FMI2_EXPORT void fmi2FreeInstance(fmi2Component component)
 {
     Instance *c = (Instance *)component;
     if (!c) return;
-    c->w->freeInstance(c->inner);
+    c->backend->stop(c);
     free(c->vars);
     free(c);
 }
@@ -341,7 +420,7 @@ FMI2_EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 FMI2_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean loggingOn,
                                            size_t n, const fmi2String categories[])
 {
-    (void)n, (void)categories; /* pythonfmu stays logging: the loader needs its Errors */
+    (void)n, (void)categories; /* the slave always logs: the runtime needs its Errors */
     if (!component) return fmi2Error;
     ((Instance *)component)->logging = loggingOn;
     return fmi2OK;
@@ -349,9 +428,9 @@ FMI2_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean 
 
 /* ---- the call sequence -------------------------------------------------------------- */
 
-#define INSTANCE(component)                    \
-    Instance *c = (Instance *)(component);     \
-    if (!c) return fmi2Error;                  \
+#define INSTANCE(component)                       \
+    Instance *c = (Instance *)(component);        \
+    if (!c || python_gone()) return fmi2Error;    \
     c->logged = fmi2OK
 
 FMI2_EXPORT fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean hasTolerance,
@@ -370,8 +449,8 @@ FMI2_EXPORT fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean 
         return refuse(c, "setupExperiment refused: startTime = %s s, expected a finite number",
                       show(startTime, shown));
     }
-    fmi2Status s = answer(c, c->w->setupExperiment(c->inner, hasTolerance, tolerance, startTime,
-                                                   hasStop, stopTime));
+    fmi2Status s =
+        answer(c, c->backend->setup(c, hasTolerance, tolerance, startTime, hasStop, stopTime));
     if (s == fmi2OK) c->time = startTime;
     return s;
 }
@@ -385,7 +464,7 @@ FMI2_EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component component)
                       "right after instantiation)",
                       PHASES[c->phase]);
     }
-    fmi2Status s = answer(c, c->w->enterInitializationMode(c->inner));
+    fmi2Status s = answer(c, c->backend->enter(c));
     if (s == fmi2OK) c->phase = INITIALIZATION;
     return s;
 }
@@ -399,7 +478,7 @@ FMI2_EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component component)
                       "mode (call enterInitializationMode first)",
                       PHASES[c->phase]);
     }
-    fmi2Status s = answer(c, c->w->exitInitializationMode(c->inner));
+    fmi2Status s = answer(c, c->backend->exit(c));
     c->phase = s <= fmi2Warning ? INITIALIZED : FAILED;
     return s;
 }
@@ -409,26 +488,26 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real 
 {
     INSTANCE(component);
     char at[40], shown[40], now[40];
+    show(t, at);
     if (c->phase != INITIALIZED) {
-        show(t, at);
         return refuse(c, "doStep at t = %s s refused: the FMU is %s%s", at, PHASES[c->phase],
                       c->phase < INITIALIZED ? " (call exitInitializationMode first)" : "");
     }
     if (!(isfinite(h) && h > 0.0)) {
-        show(t, at);
         return refuse(c,
                       "doStep at t = %s s refused: communication step %s s: expected a finite "
                       "number > 0",
                       at, show(h, shown));
     }
-    if (!(isfinite(t) && fabs(t - c->time) <= TIME_TOLERANCE * fmax(1.0, fabs(c->time)))) {
-        show(t, at);
+    double scale = c->time > 1.0 ? c->time : c->time < -1.0 ? -c->time : 1.0;
+    double off = t > c->time ? t - c->time : c->time - t;
+    if (!(isfinite(t) && off <= TIME_TOLERANCE * scale)) {
         return refuse(c,
                       "doStep at t = %s s refused: currentCommunicationPoint = %s s is not the "
                       "FMU's current time %s s (the start time or the end of the last step)",
                       at, at, show(c->time, now));
     }
-    fmi2Status s = answer(c, c->w->doStep(c->inner, t, h, noSetFMUStatePriorToCurrentPoint));
+    fmi2Status s = answer(c, c->backend->step(c, t, h, noSetFMUStatePriorToCurrentPoint));
     if (s <= fmi2Warning) c->time = t + h;
     return s;
 }
@@ -436,7 +515,13 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real 
 FMI2_EXPORT fmi2Status fmi2Terminate(fmi2Component component)
 {
     INSTANCE(component);
-    fmi2Status s = answer(c, c->w->terminate(c->inner));
+    if (c->phase != INITIALIZED) {
+        return refuse(c,
+                      "fmi2Terminate refused: the FMU is %s (FMI 2.0 allows it only once "
+                      "initialised)",
+                      PHASES[c->phase]);
+    }
+    fmi2Status s = answer(c, c->backend->terminate(c));
     if (c->phase != FAILED) c->phase = TERMINATED;
     return s;
 }
@@ -444,7 +529,7 @@ FMI2_EXPORT fmi2Status fmi2Terminate(fmi2Component component)
 FMI2_EXPORT fmi2Status fmi2Reset(fmi2Component component)
 {
     INSTANCE(component);
-    fmi2Status s = answer(c, c->w->reset(c->inner));
+    fmi2Status s = answer(c, c->backend->reset(c));
     if (s <= fmi2Warning) {
         c->phase = INSTANTIATED;
         c->time = 0.0;
@@ -455,104 +540,123 @@ FMI2_EXPORT fmi2Status fmi2Reset(fmi2Component component)
 
 /* ---- values ------------------------------------------------------------------------- */
 
-#define FORWARD(function, ...) \
-    (c->w->function ? answer(c, c->w->function(c->inner, __VA_ARGS__)) : fmi2Error)
+static fmi2Status get(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
+                      void *values, const char *call)
+{
+    NEED(vr, "value-reference array", call);
+    NEED(values, "value array", call);
+    if (check_reads(c, vr, n, type) != fmi2OK) return fmi2Error;
+    return n ? answer(c, c->backend->get(c, type, vr, n, values)) : fmi2OK;
+}
 
 FMI2_EXPORT fmi2Status fmi2GetReal(fmi2Component component, const fmi2ValueReference vr[],
                                    size_t n, fmi2Real values[])
 {
     INSTANCE(component);
-    return FORWARD(getReal, vr, n, values);
+    return get(c, 'R', vr, n, values, "fmi2GetReal");
 }
 
 FMI2_EXPORT fmi2Status fmi2GetInteger(fmi2Component component, const fmi2ValueReference vr[],
                                       size_t n, fmi2Integer values[])
 {
     INSTANCE(component);
-    return FORWARD(getInteger, vr, n, values);
+    return get(c, 'I', vr, n, values, "fmi2GetInteger");
 }
 
 FMI2_EXPORT fmi2Status fmi2GetBoolean(fmi2Component component, const fmi2ValueReference vr[],
                                       size_t n, fmi2Boolean values[])
 {
     INSTANCE(component);
-    return FORWARD(getBoolean, vr, n, values);
+    return get(c, 'B', vr, n, values, "fmi2GetBoolean");
 }
 
 FMI2_EXPORT fmi2Status fmi2GetString(fmi2Component component, const fmi2ValueReference vr[],
                                      size_t n, fmi2String values[])
 {
     INSTANCE(component);
-    return FORWARD(getString, vr, n, values);
+    return get(c, 'S', vr, n, values, "fmi2GetString");
+}
+
+/* Check the values (as doubles: an Integer or Boolean fits), write them, remember them. */
+static fmi2Status set(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
+                      const void *values, const double *x, const char *call)
+{
+    NEED(vr, "value-reference array", call);
+    NEED(values, "value array", call);
+    if (check_writes(c, vr, n, type, x) != fmi2OK) return fmi2Error;
+    fmi2Status s = n ? answer(c, c->backend->set(c, type, vr, n, values)) : fmi2OK;
+    if (s == fmi2OK && x) remember_writes(c, vr, n, x);
+    return s;
 }
 
 FMI2_EXPORT fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueReference vr[],
                                    size_t n, const fmi2Real values[])
 {
     INSTANCE(component);
-    if (check_writes(c, vr, n, 'R', values) != fmi2OK) return fmi2Error;
-    fmi2Status s = FORWARD(setReal, vr, n, values);
-    if (s == fmi2OK) remember_writes(c, vr, n, values);
-    return s;
+    return set(c, 'R', vr, n, values, values, "fmi2SetReal");
 }
 
-/* An Integer's or Boolean's values as doubles for the checks (a small array on the stack
- * for the usual few values). */
-#define AS_DOUBLES(values, n, out, buffer)                                   \
-    double buffer[16] = {0}, *out = n <= 16 ? buffer : malloc(n * sizeof(double)); \
-    if (!out) return fmi2Error;                                              \
-    for (size_t i = 0; i < n; i++) out[i] = values[i]
+/* An Integer's or Boolean's values as doubles for the checks (on the stack for the usual
+ * few values). */
+static fmi2Status set_ints(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
+                           const int values[], const char *call)
+{
+    double buffer[16], *x = n <= 16 ? buffer : malloc(n * sizeof(double));
+    if (!x) return refuse(c, "%s refused: out of memory for %zu values", call, n);
+    for (size_t i = 0; values && i < n; i++) x[i] = type == 'B' ? values[i] != 0 : values[i];
+    fmi2Status s = set(c, type, vr, n, values, values ? x : NULL, call);
+    if (x != buffer) free(x);
+    return s;
+}
 
 FMI2_EXPORT fmi2Status fmi2SetInteger(fmi2Component component, const fmi2ValueReference vr[],
                                       size_t n, const fmi2Integer values[])
 {
     INSTANCE(component);
-    AS_DOUBLES(values, n, x, buffer);
-    fmi2Status s = check_writes(c, vr, n, 'I', x);
-    if (s == fmi2OK) s = FORWARD(setInteger, vr, n, values);
-    if (s == fmi2OK) remember_writes(c, vr, n, x);
-    if (x != buffer) free(x);
-    return s;
+    return set_ints(c, 'I', vr, n, values, "fmi2SetInteger");
 }
 
 FMI2_EXPORT fmi2Status fmi2SetBoolean(fmi2Component component, const fmi2ValueReference vr[],
                                       size_t n, const fmi2Boolean values[])
 {
     INSTANCE(component);
-    AS_DOUBLES(values, n, x, buffer);
-    for (size_t i = 0; i < n; i++) x[i] = x[i] != 0;
-    fmi2Status s = check_writes(c, vr, n, 'B', x);
-    if (s == fmi2OK) s = FORWARD(setBoolean, vr, n, values);
-    if (s == fmi2OK) remember_writes(c, vr, n, x);
-    if (x != buffer) free(x);
-    return s;
+    return set_ints(c, 'B', vr, n, values, "fmi2SetBoolean");
 }
 
 FMI2_EXPORT fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueReference vr[],
                                      size_t n, const fmi2String values[])
 {
     INSTANCE(component);
-    if (check_writes(c, vr, n, 'S', NULL) != fmi2OK) return fmi2Error;
-    return FORWARD(setString, vr, n, values);
+    for (size_t i = 0; values && i < n; i++) {
+        if (!values[i]) return refuse(c, "fmi2SetString refused: value %zu is NULL", i);
+    }
+    return set(c, 'S', vr, n, values, NULL, "fmi2SetString");
 }
 
-/* ---- FMU state: pythonfmu's, with the loader's phase and time ---------------------- */
+/* ---- FMU state: the backend's, with the runtime's phase and time -------------------- */
+
+static Saved *saved_state(fmi2FMUstate state)
+{
+    Saved *saved = (Saved *)state;
+    return saved && saved->magic == SAVED_MAGIC ? saved : NULL;
+}
 
 FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
 {
     INSTANCE(component);
-    Saved *saved = state && *state ? (Saved *)*state : calloc(1, sizeof *saved);
-    if (!state || !saved || (*state && saved->magic != SAVED_MAGIC)) {
+    if (!state || (*state && !saved_state(*state))) {
         return refuse(c, "fmi2GetFMUstate refused: not an FMU state of this FMU");
     }
-    fmi2Status s = FORWARD(getFMUstate, &saved->inner);
+    Saved *saved = *state ? (Saved *)*state : calloc(1, sizeof *saved);
+    if (!saved) return refuse(c, "fmi2GetFMUstate refused: out of memory");
+    void *inner = NULL;
+    fmi2Status s = answer(c, c->backend->save(c, &inner));
     if (s > fmi2Warning) {
         if (!*state) free(saved);
         return s;
     }
-    saved->magic = SAVED_MAGIC;
-    saved->phase = c->phase;
-    saved->time = c->time;
+    if (saved->inner) c->backend->discard(c, saved->inner);
+    *saved = (Saved){SAVED_MAGIC, c->phase, c->time, inner};
     *state = saved;
     return s;
 }
@@ -560,11 +664,9 @@ FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *st
 FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate state)
 {
     INSTANCE(component);
-    Saved *saved = (Saved *)state;
-    if (!saved || saved->magic != SAVED_MAGIC) {
-        return refuse(c, "fmi2SetFMUstate refused: not an FMU state of this FMU");
-    }
-    fmi2Status s = FORWARD(setFMUstate, saved->inner);
+    Saved *saved = saved_state(state);
+    if (!saved) return refuse(c, "fmi2SetFMUstate refused: not an FMU state of this FMU");
+    fmi2Status s = answer(c, c->backend->restore(c, saved->inner));
     if (s <= fmi2Warning) {
         c->phase = saved->phase;
         c->time = saved->time;
@@ -576,20 +678,25 @@ FMI2_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *s
 {
     INSTANCE(component);
     if (!state || !*state) return fmi2OK;
-    Saved *saved = (Saved *)*state;
-    fmi2Status s = FORWARD(freeFMUstate, &saved->inner);
+    Saved *saved = saved_state(*state);
+    if (!saved) return refuse(c, "fmi2FreeFMUstate refused: not an FMU state of this FMU");
+    c->backend->discard(c, saved->inner);
+    saved->magic = 0;
     free(saved);
     *state = NULL;
-    return s;
+    return fmi2OK;
 }
 
 FMI2_EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2FMUstate state,
                                                   size_t *size)
 {
     INSTANCE(component);
-    Saved *saved = (Saved *)state;
-    if (!saved || saved->magic != SAVED_MAGIC) return refuse(c, "not an FMU state of this FMU");
-    fmi2Status s = FORWARD(serializedFMUstateSize, saved->inner, size);
+    Saved *saved = saved_state(state);
+    if (!saved || !size) {
+        return refuse(c, "fmi2SerializedFMUstateSize refused: %s",
+                      saved ? "size is NULL" : "not an FMU state of this FMU");
+    }
+    fmi2Status s = answer(c, c->backend->state_bytes(c, saved->inner, NULL, 0, size));
     if (s <= fmi2Warning) *size += SAVED_HEADER;
     return s;
 }
@@ -598,47 +705,56 @@ FMI2_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUsta
                                              fmi2Byte bytes[], size_t size)
 {
     INSTANCE(component);
-    Saved *saved = (Saved *)state;
-    if (!saved || saved->magic != SAVED_MAGIC || size < SAVED_HEADER) {
-        return refuse(c, "fmi2SerializeFMUstate refused: not an FMU state of this FMU");
+    Saved *saved = saved_state(state);
+    if (!saved) return refuse(c, "fmi2SerializeFMUstate refused: not an FMU state of this FMU");
+    if (!bytes || size < SAVED_HEADER) {
+        return refuse(c, "fmi2SerializeFMUstate refused: %s",
+                      bytes ? "the byte array is too small" : "the byte array is NULL");
+    }
+    size_t needed = 0;
+    fmi2Status s = answer(c, c->backend->state_bytes(c, saved->inner, bytes + SAVED_HEADER,
+                                                     size - SAVED_HEADER, &needed));
+    if (s > fmi2Warning) return s;
+    if (needed > size - SAVED_HEADER) {
+        return refuse(c, "fmi2SerializeFMUstate refused: size = %zu bytes, the state needs %zu",
+                      size, needed + SAVED_HEADER);
     }
     memcpy(bytes, &saved->magic, sizeof(unsigned));
     memcpy(bytes + sizeof(unsigned), &saved->phase, sizeof(int));
     memcpy(bytes + sizeof(unsigned) + sizeof(int), &saved->time, sizeof(double));
-    return FORWARD(serializeFMUstate, saved->inner, bytes + SAVED_HEADER, size - SAVED_HEADER);
+    return s;
 }
 
 FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2Byte bytes[],
                                                size_t size, fmi2FMUstate *state)
 {
     INSTANCE(component);
-    unsigned magic = 0;
-    if (size >= SAVED_HEADER) memcpy(&magic, bytes, sizeof magic);
-    Saved *saved = magic == SAVED_MAGIC ? calloc(1, sizeof *saved) : NULL;
-    if (!saved) return refuse(c, "fmi2DeSerializeFMUstate refused: not a state of this FMU");
-    saved->magic = magic;
-    memcpy(&saved->phase, bytes + sizeof(unsigned), sizeof(int));
-    memcpy(&saved->time, bytes + sizeof(unsigned) + sizeof(int), sizeof(double));
-    fmi2Status s =
-        FORWARD(deSerializeFMUstate, bytes + SAVED_HEADER, size - SAVED_HEADER, &saved->inner);
-    if (s > fmi2Warning || saved->phase < INSTANTIATED || saved->phase > FAILED) {
-        free(saved);
-        return s > fmi2Warning ? s : refuse(c, "fmi2DeSerializeFMUstate refused: bad phase");
+    Saved header = {0, 0, 0.0, NULL};
+    if (!state) return refuse(c, "fmi2DeSerializeFMUstate refused: the state pointer is NULL");
+    if (!bytes || size < SAVED_HEADER) {
+        return refuse(c, "fmi2DeSerializeFMUstate refused: %s",
+                      bytes ? "too few bytes for a state of this FMU" : "the byte array is NULL");
     }
+    memcpy(&header.magic, bytes, sizeof(unsigned));
+    memcpy(&header.phase, bytes + sizeof(unsigned), sizeof(int));
+    memcpy(&header.time, bytes + sizeof(unsigned) + sizeof(int), sizeof(double));
+    if (header.magic != SAVED_MAGIC || header.phase < INSTANTIATED || header.phase > FAILED) {
+        return refuse(c, "fmi2DeSerializeFMUstate refused: not a state of this FMU");
+    }
+    Saved *saved = calloc(1, sizeof *saved);
+    if (!saved) return refuse(c, "fmi2DeSerializeFMUstate refused: out of memory");
+    fmi2Status s = answer(c, c->backend->state_from_bytes(c, bytes + SAVED_HEADER,
+                                                          size - SAVED_HEADER, &header.inner));
+    if (s > fmi2Warning) {
+        free(saved);
+        return s;
+    }
+    *saved = header;
     *state = saved;
     return s;
 }
 
-/* ---- the rest, forwarded ------------------------------------------------------------ */
-
-FMI2_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component component,
-                                                    const fmi2ValueReference u[], size_t nu,
-                                                    const fmi2ValueReference z[], size_t nz,
-                                                    const fmi2Real dv[], fmi2Real dz[])
-{
-    INSTANCE(component);
-    return FORWARD(getDirectionalDerivative, u, nu, z, nz, dv, dz);
-}
+/* ---- derivatives -------------------------------------------------------------------- */
 
 FMI2_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component component,
                                                    const fmi2ValueReference vr[], size_t n,
@@ -646,54 +762,113 @@ FMI2_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component component,
                                                    const fmi2Real values[])
 {
     INSTANCE(component);
-    return FORWARD(setRealInputDerivatives, vr, n, order, values);
+    const char *call = "fmi2SetRealInputDerivatives";
+    char shown[40];
+    NEED(vr, "value-reference array", call);
+    NEED(order, "order array", call);
+    NEED(values, "value array", call);
+    if (!c->record.interpolates_inputs || !c->backend->derivatives) {
+        return refuse(c, "%s refused: %s", call,
+                      c->record.interpolates_inputs
+                          ? "input derivatives need the FMU's own runtime (" RUNTIME_VARIABLE
+                            "=pythonfmu is set)"
+                          : "this FMU takes no input derivatives (canInterpolateInputs=\"false\")");
+    }
+    if (c->phase != INITIALIZATION && c->phase != INITIALIZED) {
+        return refuse(c, "%s refused: the FMU is %s", call, PHASES[c->phase]);
+    }
+    for (size_t i = 0; i < n; i++) {
+        const Variable *v = variable(c, vr[i]);
+        if (!v || v->type != 'R' || strcmp(v->causality, "input")) {
+            return refuse(c, "%s refused: valueReference %u is not a Real input", call, vr[i]);
+        }
+        if (order[i] != 1 && order[i] != 2) {
+            return refuse(c, "%s refused: %s: order %d, expected 1 or 2", call, v->name, order[i]);
+        }
+        if (!isfinite(values[i])) {
+            return refuse(c, "%s refused: %s: derivative of order %d = %s, expected a finite "
+                          "number", call, v->name, order[i], show(values[i], shown));
+        }
+    }
+    return n ? answer(c, c->backend->derivatives(c, vr, n, order, values)) : fmi2OK;
 }
 
 FMI2_EXPORT fmi2Status fmi2GetRealOutputDerivatives(fmi2Component component,
                                                     const fmi2ValueReference vr[], size_t n,
                                                     const fmi2Integer order[], fmi2Real values[])
 {
+    (void)vr, (void)n, (void)order, (void)values;
     INSTANCE(component);
-    return FORWARD(getRealOutputDerivatives, vr, n, order, values);
+    return refuse(c, "fmi2GetRealOutputDerivatives refused: maxOutputDerivativeOrder is 0");
 }
+
+FMI2_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component component,
+                                                    const fmi2ValueReference u[], size_t nu,
+                                                    const fmi2ValueReference z[], size_t nz,
+                                                    const fmi2Real dv[], fmi2Real dz[])
+{
+    (void)u, (void)nu, (void)z, (void)nz, (void)dv, (void)dz;
+    INSTANCE(component);
+    return refuse(c, "fmi2GetDirectionalDerivative refused: the FMU provides no directional "
+                     "derivatives");
+}
+
+/* ---- status: answered here, the same with either backend ---------------------------- */
 
 FMI2_EXPORT fmi2Status fmi2CancelStep(fmi2Component component)
 {
     INSTANCE(component);
-    return c->w->cancelStep ? answer(c, c->w->cancelStep(c->inner)) : fmi2Error;
+    return refuse(c, "fmi2CancelStep refused: doStep never returns fmi2Pending");
 }
 
 FMI2_EXPORT fmi2Status fmi2GetStatus(fmi2Component component, const fmi2StatusKind kind,
                                      fmi2Status *value)
 {
+    (void)kind, (void)value;
     INSTANCE(component);
-    return FORWARD(getStatus, kind, value);
+    instance_log(c, fmi2Discard, "logStatusDiscard",
+                 "fmi2GetStatus: no step is pending (doStep never returns fmi2Pending)");
+    return fmi2Discard;
 }
 
 FMI2_EXPORT fmi2Status fmi2GetRealStatus(fmi2Component component, const fmi2StatusKind kind,
                                          fmi2Real *value)
 {
     INSTANCE(component);
-    return FORWARD(getRealStatus, kind, value);
+    if (!value) return refuse(c, "fmi2GetRealStatus refused: value is NULL");
+    if (kind != fmi2LastSuccessfulTime) {
+        return refuse(c, "fmi2GetRealStatus refused: kind %d, expected fmi2LastSuccessfulTime",
+                      (int)kind);
+    }
+    *value = c->time;
+    return fmi2OK;
 }
 
 FMI2_EXPORT fmi2Status fmi2GetIntegerStatus(fmi2Component component, const fmi2StatusKind kind,
                                             fmi2Integer *value)
 {
+    (void)kind, (void)value;
     INSTANCE(component);
-    return FORWARD(getIntegerStatus, kind, value);
+    return refuse(c, "fmi2GetIntegerStatus refused: FMI 2.0 defines no Integer status");
 }
 
 FMI2_EXPORT fmi2Status fmi2GetBooleanStatus(fmi2Component component, const fmi2StatusKind kind,
                                             fmi2Boolean *value)
 {
     INSTANCE(component);
-    return FORWARD(getBooleanStatus, kind, value);
+    if (!value) return refuse(c, "fmi2GetBooleanStatus refused: value is NULL");
+    if (kind != fmi2Terminated) {
+        return refuse(c, "fmi2GetBooleanStatus refused: kind %d, expected fmi2Terminated",
+                      (int)kind);
+    }
+    *value = fmi2False; /* the slaves never end a simulation themselves */
+    return fmi2OK;
 }
 
 FMI2_EXPORT fmi2Status fmi2GetStringStatus(fmi2Component component, const fmi2StatusKind kind,
                                            fmi2String *value)
 {
+    (void)kind, (void)value;
     INSTANCE(component);
-    return FORWARD(getStringStatus, kind, value);
+    return refuse(c, "fmi2GetStringStatus refused: no step is pending");
 }

@@ -1,20 +1,26 @@
-/* The native loader in front of pythonfmu's wrapper library: shared declarations.
+/* The FMU's native runtime: declarations shared by its C files.
+ *
+ * loader.c   the exported FMI 2.0 co-simulation functions: the standard's call sequence,
+ *            the variables' rules, the status functions; each call then goes to a backend
+ * runtime.c  finds a Python for the process (the candidates, in order) and starts it
+ * probe.c    asks one candidate Python, in a subprocess, what it is
+ * python.c   the CPython C API, every function resolved with dlsym from the libpython in
+ *            the process (no link-time dependency: one binary for every CPython >= 3.9)
+ * slave.c    the default backend: constructs the Python slave class and calls it directly
+ * forward.c  the fallback backend (AUV_FMU_RUNTIME=pythonfmu): pythonfmu's own binary
  *
  * The FMI 2.0 types are declared here rather than taken from the standard's headers so
- * that the loader compiles from this folder alone, with any C compiler (cc, zig cc,
- * a win64 cross-compiler); they are the ABI of fmi2TypesPlatform.h and
- * fmi2FunctionTypes.h (FMI 2.0.x, "default" platform).
+ * that the runtime compiles from this folder alone; they are the ABI of
+ * fmi2TypesPlatform.h and fmi2FunctionTypes.h (FMI 2.0.x, "default" platform).
  */
 #ifndef AUV_FMU_LOADER_H
 #define AUV_FMU_LOADER_H
 
+#include "glibc_floor.h"
+
 #include <stddef.h>
 
-#ifdef _WIN32
-#define FMI2_EXPORT __declspec(dllexport)
-#else
 #define FMI2_EXPORT __attribute__((visibility("default")))
-#endif
 
 typedef void *fmi2Component;
 typedef void *fmi2ComponentEnvironment;
@@ -53,60 +59,99 @@ typedef struct {
 #define fmi2True 1
 #define fmi2False 0
 
-/* The FMI 2.0 co-simulation functions of pythonfmu's wrapper library, as resolved by
- * runtime.c (a function the wrapper does not export is NULL). */
+#define PATH_SIZE 4096
+#define NAME_SIZE 128
+#define BOUND_SIZE 32
+#define LINE_SIZE 2048 /* one log line */
+
+/* The environment variables a user sets (docs/native-loader.md). */
+#define PYTHON_VARIABLE "AUV_FMU_PYTHON"   /* a Python executable or a venv's folder */
+#define RUNTIME_VARIABLE "AUV_FMU_RUNTIME" /* "pythonfmu": pythonfmu's own binary */
+#define RECORD_FILE "fmu_runtime.txt"      /* in resources/, written by the build */
+#define VARIABLES_FILE "fmu_variables.txt" /* in resources/, written by the build */
+
+/* resources/fmu_runtime.txt: what the build knows that the runtime needs. */
 typedef struct {
-    fmi2Status (*setDebugLogging)(fmi2Component, fmi2Boolean, size_t, const fmi2String[]);
-    fmi2Component (*instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String,
-                                 const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
-    void (*freeInstance)(fmi2Component);
-    fmi2Status (*setupExperiment)(fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean,
-                                  fmi2Real);
-    fmi2Status (*enterInitializationMode)(fmi2Component);
-    fmi2Status (*exitInitializationMode)(fmi2Component);
-    fmi2Status (*terminate)(fmi2Component);
-    fmi2Status (*reset)(fmi2Component);
-    fmi2Status (*getReal)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]);
-    fmi2Status (*getInteger)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Integer[]);
-    fmi2Status (*getBoolean)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Boolean[]);
-    fmi2Status (*getString)(fmi2Component, const fmi2ValueReference[], size_t, fmi2String[]);
-    fmi2Status (*setReal)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Real[]);
-    fmi2Status (*setInteger)(fmi2Component, const fmi2ValueReference[], size_t,
-                             const fmi2Integer[]);
-    fmi2Status (*setBoolean)(fmi2Component, const fmi2ValueReference[], size_t,
-                             const fmi2Boolean[]);
-    fmi2Status (*setString)(fmi2Component, const fmi2ValueReference[], size_t,
-                            const fmi2String[]);
-    fmi2Status (*getFMUstate)(fmi2Component, fmi2FMUstate *);
-    fmi2Status (*setFMUstate)(fmi2Component, fmi2FMUstate);
-    fmi2Status (*freeFMUstate)(fmi2Component, fmi2FMUstate *);
-    fmi2Status (*serializedFMUstateSize)(fmi2Component, fmi2FMUstate, size_t *);
-    fmi2Status (*serializeFMUstate)(fmi2Component, fmi2FMUstate, fmi2Byte[], size_t);
-    fmi2Status (*deSerializeFMUstate)(fmi2Component, const fmi2Byte[], size_t, fmi2FMUstate *);
-    fmi2Status (*getDirectionalDerivative)(fmi2Component, const fmi2ValueReference[], size_t,
-                                           const fmi2ValueReference[], size_t, const fmi2Real[],
-                                           fmi2Real[]);
-    fmi2Status (*setRealInputDerivatives)(fmi2Component, const fmi2ValueReference[], size_t,
-                                          const fmi2Integer[], const fmi2Real[]);
-    fmi2Status (*getRealOutputDerivatives)(fmi2Component, const fmi2ValueReference[], size_t,
-                                           const fmi2Integer[], fmi2Real[]);
-    fmi2Status (*doStep)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
-    fmi2Status (*cancelStep)(fmi2Component);
-    fmi2Status (*getStatus)(fmi2Component, const fmi2StatusKind, fmi2Status *);
-    fmi2Status (*getRealStatus)(fmi2Component, const fmi2StatusKind, fmi2Real *);
-    fmi2Status (*getIntegerStatus)(fmi2Component, const fmi2StatusKind, fmi2Integer *);
-    fmi2Status (*getBooleanStatus)(fmi2Component, const fmi2StatusKind, fmi2Boolean *);
-    fmi2Status (*getStringStatus)(fmi2Component, const fmi2StatusKind, fmi2String *);
-} Wrapper;
+    char guid[64];
+    char package[64];      /* the build's top-level package, auvfmu_<hash> */
+    char module[256];      /* the slave class's module, inside that package */
+    char slave_class[128]; /* the slave class's name */
+    char build_python[PATH_SIZE]; /* the Python the FMU was built with */
+    int interpolates_inputs;      /* canInterpolateInputs: the slave takes input derivatives */
+} Record;
 
-/* The environment variable that names the Python to use instead of the one recorded at
- * build time: a Python executable, or a virtual environment's folder. */
-#define LOADER_PYTHON_VARIABLE "AUV_FMU_PYTHON"
+typedef struct {
+    int known;
+    char type;            /* R I B S */
+    char causality[24];   /* as in modelDescription.xml */
+    char variability[16]; /* as in modelDescription.xml */
+    char min[BOUND_SIZE]; /* "" if none */
+    char max[BOUND_SIZE];
+    double low, high; /* -inf / +inf if none */
+    double value;     /* a fixed parameter's value: start, then each accepted write */
+    double start;
+    char name[NAME_SIZE];
+} Variable;
 
-/* Make sure an initialised CPython is in the process and pythonfmu's wrapper library is
- * loaded (once per process; thread-safe). ``resources`` is the FMU's resources folder
- * (a path, not a URI). Returns the wrapper's functions, or NULL with one line in ``why``
- * saying what was looked for and what to set. */
-const Wrapper *loader_runtime(const char *resources, char *why, size_t why_size);
+typedef struct Backend Backend;
+
+typedef struct {
+    const Backend *backend;
+    void *slave; /* the backend's own instance (a PyObject *, or pythonfmu's component) */
+    void *extra; /* the backend's per-instance data */
+    fmi2CallbackFunctions host;
+    char name[NAME_SIZE];
+    char resources[PATH_SIZE];     /* a path */
+    char resources_uri[PATH_SIZE]; /* as the host gave it */
+    Record record;
+    int phase, logging, visible;
+    double time;       /* s: the start time, then the end of the last step */
+    fmi2Status logged; /* the worst status logged during the current call */
+    Variable *vars;    /* indexed by value reference */
+    size_t count;
+} Instance;
+
+/* What the FMI functions need from whatever runs the slave. Each returns the status the
+ * backend answers; what it logs meanwhile goes through instance_log. */
+struct Backend {
+    int (*start)(Instance *); /* makes c->slave; 0 (with a line logged) on failure */
+    void (*stop)(Instance *);
+    fmi2Status (*setup)(Instance *, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real);
+    fmi2Status (*enter)(Instance *);
+    fmi2Status (*exit)(Instance *);
+    fmi2Status (*step)(Instance *, fmi2Real, fmi2Real, fmi2Boolean);
+    fmi2Status (*terminate)(Instance *);
+    fmi2Status (*reset)(Instance *);
+    /* values: double[] for 'R', int[] for 'I' and 'B', fmi2String[] for 'S' */
+    fmi2Status (*get)(Instance *, char type, const fmi2ValueReference *, size_t, void *);
+    fmi2Status (*set)(Instance *, char type, const fmi2ValueReference *, size_t, const void *);
+    fmi2Status (*save)(Instance *, void **state);
+    fmi2Status (*restore)(Instance *, void *state);
+    void (*discard)(Instance *, void *state);
+    /* the state's bytes: their number in *size, and copied to out when capacity allows */
+    fmi2Status (*state_bytes)(Instance *, void *state, fmi2Byte *out, size_t capacity,
+                              size_t *size);
+    fmi2Status (*state_from_bytes)(Instance *, const fmi2Byte *, size_t, void **state);
+    fmi2Status (*derivatives)(Instance *, const fmi2ValueReference *, size_t,
+                              const fmi2Integer *, const fmi2Real *);
+};
+
+extern const Backend python_backend;    /* slave.c */
+extern const Backend pythonfmu_backend; /* forward.c */
+
+/* loader.c: one message to the host's logger (``message`` is passed as the printf format,
+ * so a literal % must come doubled), remembered as the call's worst status. */
+void instance_log(Instance *c, fmi2Status status, const char *category, const char *message);
+/* printf-style: one Error line (its % escaped for the host); returns fmi2Error. */
+fmi2Status refuse(Instance *c, const char *format, ...)
+    __attribute__((format(printf, 2, 3)));
+
+/* runtime.c: an initialised CPython >= 3.9 that imports numpy in this process (started
+ * once per process if none runs), or 0 after one Error line per candidate passed over. */
+int runtime_python(Instance *c);
+
+/* runtime.c: the file of this runtime library, and whether ``path`` names something. */
+int own_path(char *out, size_t size);
+int path_exists(const char *path);
 
 #endif

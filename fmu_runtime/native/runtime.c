@@ -1,374 +1,408 @@
-/* Find and start the Python runtime, then load pythonfmu's wrapper library (once per process).
+/* Find a Python for the process and start it (once per process).
  *
- * Written by hand because no library does this job: pythonfmu's binary expects the host to
- * have CPython's symbols loaded and an interpreter that can import the FMU's packages.
+ * Written by hand because no library does this job: an FMI host may be any program, with
+ * or without Python, on a machine the FMU has just been copied to.
  *
- * Where Python comes from, in this order:
- * 1. A Python already running in the process (a Python host such as fmpy, or a host that
- *    preloaded libpython and started it): used as it is, nothing is changed.
- * 2. The variable AUV_FMU_PYTHON, naming a Python executable or a virtual environment's
- *    folder: that Python is asked (``python -c``) for its libpython, base prefix and
- *    site-packages.
- * 3. ``resources/python_runtime.txt``, written by the build: the same three paths (and
- *    the executable) of the environment the FMU was built in.
- * The loader then loads libpython with RTLD_GLOBAL (pythonfmu's library and compiled
- * extensions such as numpy's resolve CPython's symbols from it), sets the interpreter's
- * home to the base prefix (unless the host set PYTHONHOME), initialises it without signal
- * handlers, puts the site-packages folder (with its .pth files) on sys.path ahead of the
- * base installation's, releases the GIL and never finalises the interpreter: no FMU owns
- * Python, so freeing or unloading one FMU cannot stop it under another.
- *
- * pythonfmu 0.7's wrapper releases its interpreter guard twice at process exit (a static
- * destructor, then its ``finalizePythonInterpreter``): right after loading the wrapper the
- * loader registers ``finalizePythonInterpreter`` as an exit handler, which runs first
- * (exit handlers run last-registered first) while the guard is alive and leaves nothing
- * for the two later releases (fmu_runtime/exit_guard.py does the same from Python for a
- * wrapper loaded without this loader).
+ * The candidates, in this order; the first that can run the FMU is used:
+ * 1. the Python running in this process (a Python host such as fmpy, or a host that
+ *    started libpython itself): used as it is, or refused, never joined by a second
+ *    CPython. A libpython loaded but not started admits only a candidate using that file;
+ * 2. AUV_FMU_PYTHON: a Python executable, or a virtual environment's folder (its
+ *    bin/python3, else bin/python);
+ * 3. the Python the FMU was built with (resources/fmu_runtime.txt);
+ * 4. python3, then python, on PATH.
+ * Each candidate executable is asked once per process, in one subprocess (probe.c): its
+ * version, shared libpython, base prefix, standard library, sys.path, numpy and numba. It
+ * can run the FMU when it is CPython >= 3.9 with a shared libpython, imports numpy, and
+ * its base prefix holds that version's standard library. The runtime then loads its
+ * libpython (RTLD_GLOBAL: numpy's extension modules resolve CPython's symbols from it),
+ * checks that the library is the version the executable said, sets the interpreter's
+ * home to the base prefix (Py_SetPythonHome wins over a PYTHONHOME in the host's
+ * environment), initialises it without signal handlers, gives it the candidate's
+ * sys.path (with its site-packages' .pth files) and sys.executable, releases the GIL, and
+ * never finalises it: no FMU owns Python.
+ * When no candidate can: one Error line per candidate, saying why it was passed over and
+ * what would fix it, and fmi2Instantiate returns NULL.
  */
-#ifndef _WIN32
-#define _GNU_SOURCE /* dladdr, RTLD_DEFAULT */
-#endif
+#define _GNU_SOURCE /* dladdr, dl_iterate_phdr, RTLD_DEFAULT, RTLD_NOLOAD */
 #include "loader.h"
+#include "probe.h"
+#include "python.h"
 
+#include <dlfcn.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <link.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <wchar.h>
+#include <unistd.h>
 
-#ifdef _WIN32
-#include <windows.h>
-typedef HMODULE Library;
-#define PATH_SEP "\\"
-#define popen _popen
-#define pclose _pclose
-static SRWLOCK runtime_lock = SRWLOCK_INIT;
-static void lock(void) { AcquireSRWLockExclusive(&runtime_lock); }
-static void unlock(void) { ReleaseSRWLockExclusive(&runtime_lock); }
-static Library open_global(const char *path) { return LoadLibraryA(path); }
-static Library open_local(const char *path) { return LoadLibraryA(path); }
-static void *symbol(Library library, const char *name)
-{
-    return library ? (void *)GetProcAddress(library, name) : NULL;
-}
-static Library loaded_python(const char *libpython)
-{
-    const char *base = strrchr(libpython, '\\');
-    return libpython[0] ? GetModuleHandleA(base ? base + 1 : libpython) : NULL;
-}
-static int own_path(char *out, size_t size)
-{
-    HMODULE self = NULL;
-    GetModuleHandleExA(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS |
-                           GET_MODULE_HANDLE_EX_FLAG_UNCHANGED_REFCOUNT,
-                       (LPCSTR)&loader_runtime, &self);
-    DWORD n = GetModuleFileNameA(self, out, (DWORD)size);
-    return n > 0 && n < size;
-}
-static const char *library_error(void) { return "LoadLibrary failed"; }
-static void guard_exit(Library wrapper) { (void)wrapper; } /* DllMain runs in order there */
-#else
-#include <dlfcn.h>
-#include <pthread.h>
-typedef void *Library;
-#define PATH_SEP "/"
-static pthread_mutex_t runtime_lock = PTHREAD_MUTEX_INITIALIZER;
-static void lock(void) { pthread_mutex_lock(&runtime_lock); }
-static void unlock(void) { pthread_mutex_unlock(&runtime_lock); }
-static Library open_global(const char *path) { return dlopen(path, RTLD_NOW | RTLD_GLOBAL); }
-static Library open_local(const char *path) { return dlopen(path, RTLD_NOW | RTLD_LOCAL); }
-static void *symbol(Library library, const char *name) { return dlsym(library, name); }
-static Library loaded_python(const char *libpython)
-{
-    (void)libpython;
-    return dlsym(RTLD_DEFAULT, "Py_IsInitialized") ? RTLD_DEFAULT : NULL;
-}
-static int own_path(char *out, size_t size)
-{
-    Dl_info info;
-    if (!dladdr((void *)&loader_runtime, &info) || !info.dli_fname) return 0;
-    return snprintf(out, size, "%s", info.dli_fname) < (int)size;
-}
-static const char *library_error(void)
-{
-    const char *e = dlerror();
-    return e ? e : "unknown error";
-}
-extern int __cxa_atexit(void (*)(void *), void *, void *);
-static void guard_exit(Library wrapper)
-{
-    void (*finalize)(void *) = (void (*)(void *))dlsym(wrapper, "finalizePythonInterpreter");
-    if (finalize) __cxa_atexit(finalize, NULL, NULL);
-}
-#endif
-
-#define PATH_SIZE 4096
+#define CANDIDATES 5
+#define SHOWN_SIZE (PATH_SIZE + 64)
 
 typedef struct {
-    char libpython[PATH_SIZE];
-    char home[PATH_SIZE];
-    char site[PATH_SIZE];
+    char shown[SHOWN_SIZE];      /* how the line names it */
+    char executable[PATH_SIZE]; /* "" when there is none; then ``why`` says so */
+    char why[LINE_SIZE];         /* why it was passed over */
+} Candidate;
+
+typedef struct Probed {
     char executable[PATH_SIZE];
-} Runtime;
+    Answer answer;
+    struct Probed *next;
+} Probed;
 
-static Wrapper wrapper;
-static int wrapper_ready;
+static pthread_mutex_t runtime_lock = PTHREAD_MUTEX_INITIALIZER;
+static int ready;       /* Python runs in the process and suits the FMU */
+static Probed *probed;  /* every candidate asked so far (each is asked once) */
 
-/* key=value lines (libpython, home, site, executable); unknown keys are ignored. */
-static void parse_runtime(FILE *in, Runtime *rt)
+int path_exists(const char *path) { return path[0] && access(path, F_OK) == 0; }
+
+static int is_directory(const char *path)
 {
-    char line[PATH_SIZE + 32];
-    while (fgets(line, sizeof line, in)) {
-        line[strcspn(line, "\r\n")] = '\0';
-        char *value = strchr(line, '=');
-        if (!value) continue;
-        *value++ = '\0';
-        char *field = !strcmp(line, "libpython")    ? rt->libpython
-                      : !strcmp(line, "home")       ? rt->home
-                      : !strcmp(line, "site")       ? rt->site
-                      : !strcmp(line, "executable") ? rt->executable
-                                                    : NULL;
-        if (field) snprintf(field, PATH_SIZE, "%s", value);
-    }
+    int fd = open(path, O_RDONLY | O_DIRECTORY);
+    if (fd < 0) return 0;
+    close(fd);
+    return 1;
 }
 
-static const char QUERY[] =
-    "import os,sys,sysconfig as s;v=s.get_config_var;"
-    "print(\"libpython=\"+(os.path.join(sys.base_prefix,\"python%d%d.dll\"%sys.version_info[:2])"
-    " if os.name==\"nt\" else os.path.join(v(\"LIBDIR\") or \"\",v(\"INSTSONAME\") or \"\")));"
-    "print(\"home=\"+sys.base_prefix);print(\"site=\"+s.get_paths()[\"purelib\"]);"
-    "print(\"executable=\"+sys.executable)";
-
-/* Ask the Python named by AUV_FMU_PYTHON (an executable or a venv folder) for its paths. */
-static int query_python(const char *named, Runtime *rt, char *why, size_t n)
+int own_path(char *out, size_t size)
 {
-    char exe[PATH_SIZE], command[2 * PATH_SIZE];
-    FILE *probe = fopen(named, "rb");
-    if (probe) {
-        fclose(probe);
-        snprintf(exe, sizeof exe, "%s", named);
-    } else {
-#ifdef _WIN32
-        snprintf(exe, sizeof exe, "%s\\Scripts\\python.exe", named);
-#else
-        snprintf(exe, sizeof exe, "%s/bin/python3", named);
-#endif
+    Dl_info info;
+    if (!dladdr((void *)&runtime_python, &info) || !info.dli_fname) return 0;
+    return snprintf(out, size, "%s", info.dli_fname) < (int)size;
+}
+
+static const Answer *ask(const char *executable)
+{
+    for (Probed *p = probed; p; p = p->next) {
+        if (!strcmp(p->executable, executable)) return &p->answer;
     }
-    if (strpbrk(exe, "\"$`")) {
-        snprintf(why, n, "%s=%s: the path may not contain \" $ or `", LOADER_PYTHON_VARIABLE,
-                 named);
-        return 0;
+    Probed *p = calloc(1, sizeof *p);
+    if (!p) return NULL;
+    snprintf(p->executable, sizeof p->executable, "%s", executable);
+    probe(executable, &p->answer);
+    p->next = probed;
+    probed = p;
+    return &p->answer;
+}
+
+/* ---- a libpython already in the process ---------------------------------------------- */
+
+static int find_libpython(struct dl_phdr_info *info, size_t size, void *data)
+{
+    (void)size;
+    char *found = data;
+    if (info->dlpi_name && strstr(info->dlpi_name, "/libpython")) {
+        snprintf(found, PATH_SIZE, "%s", info->dlpi_name);
+        return 1;
     }
-#ifdef _WIN32
-    /* cmd.exe: the whole line in one more pair of quotes; the script's quotes as \" */
-    char script[2 * sizeof QUERY], *out_char = script;
-    for (const char *q = QUERY; *q; q++) {
-        if (*q == '"') *out_char++ = '\\';
-        *out_char++ = *q;
-    }
-    *out_char = '\0';
-    snprintf(command, sizeof command, "\"\"%s\" -c \"%s\"\"", exe, script);
-#else
-    snprintf(command, sizeof command, "\"%s\" -c '%s'", exe, QUERY);
-#endif
-    FILE *out = popen(command, "r");
-    if (out) {
-        parse_runtime(out, rt);
-        if (pclose(out) == 0 && rt->home[0]) return 1;
-    }
-    snprintf(why, n, "%s=%s: could not run %s to ask for its libpython and site-packages",
-             LOADER_PYTHON_VARIABLE, named, exe);
     return 0;
 }
 
-static int read_runtime(const char *resources, Runtime *rt, char *why, size_t n)
+/* A CPython in the process: 1 with its file in ``loaded`` and its API resolved, or 0. */
+static int python_in_process(char *loaded)
 {
-    memset(rt, 0, sizeof *rt);
-    const char *named = getenv(LOADER_PYTHON_VARIABLE);
-    if (named && named[0]) return query_python(named, rt, why, n);
-    char path[PATH_SIZE];
-    snprintf(path, sizeof path, "%s" PATH_SEP "python_runtime.txt", resources);
-    FILE *in = fopen(path, "r");
-    if (!in) {
-        snprintf(why, n,
-                 "no Python in the process and no %s (the build's record); set %s to a "
-                 "Python executable or virtual environment with auv-cosim installed",
-                 path, LOADER_PYTHON_VARIABLE);
-        return 0;
+    void *symbol = dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+    Dl_info info;
+    const char *missing = "";
+    if (symbol && dladdr(symbol, &info) && info.dli_fname) {
+        snprintf(loaded, PATH_SIZE, "%s", info.dli_fname);
+        return python_resolve(RTLD_DEFAULT, &missing);
     }
-    parse_runtime(in, rt);
-    fclose(in);
-    return 1;
+    loaded[0] = '\0';
+    dl_iterate_phdr(find_libpython, loaded); /* loaded with RTLD_LOCAL: not in dlsym's scope */
+    void *library = loaded[0] ? dlopen(loaded, RTLD_NOW | RTLD_NOLOAD) : NULL;
+    return library && python_resolve(library, &missing);
 }
 
-static void hex(const char *text, char *out)
+/* The Python running in this process: "" if it can run the FMU, else why not. */
+static void check_running(const char *loaded, char *why, size_t n)
 {
-    for (; *text; text++, out += 2) sprintf(out, "%02x", (unsigned char)*text);
-    *out = '\0';
+    int major, minor;
+    python_version(&major, &minor);
+    if (major < 3 || (major == 3 && minor < 9)) {
+        snprintf(why, n, "Python %d.%d (%s) is too old: the FMU needs CPython >= 3.9", major,
+                 minor, loaded);
+        return;
+    }
+    int gil = py.GILState_Ensure();
+    PyObject *check = python_helper("check");
+    PyObject *args = check ? py.Tuple_New(0) : NULL;
+    PyObject *result = args ? py.Call(check, args, NULL) : NULL;
+    const char *text = result ? py.Unicode_AsUTF8(result) : NULL;
+    if (text) {
+        snprintf(why, n, "%s", text);
+    } else {
+        char error[512];
+        python_error(error, sizeof error);
+        snprintf(why, n, "cannot be asked what it imports (%s)", error);
+    }
+    PyObject *objects[] = {result, args, check};
+    for (size_t i = 0; i < 3; i++) {
+        if (objects[i]) py.DecRef(objects[i]);
+    }
+    py.GILState_Release(gil);
 }
 
-/* sys.path gets the environment's site-packages (and its .pth files) ahead of the base
- * installation's; sys.executable becomes that environment's Python, not the host. */
-static const char BOOTSTRAP[] =
-    "import site, sys\n"
-    "s, e = bytes.fromhex('%s').decode(), bytes.fromhex('%s').decode()\n"
-    "n = len(sys.path)\n"
-    "site.addsitedir(s)\n"
-    "new = sys.path[n:]\n"
-    "del sys.path[n:]\n"
-    "i = next((k for k, p in enumerate(sys.path) if p.endswith('site-packages')), n)\n"
-    "sys.path[i:i] = new\n"
-    "if e: sys.executable = e\n";
+/* ---- the candidates ------------------------------------------------------------------ */
 
-typedef struct {
-    int (*is_initialized)(void);
-    wchar_t *(*decode_locale)(const char *, size_t *);
-    void (*set_home)(const wchar_t *);
-    void (*initialize_ex)(int);
-    int (*run_simple_string)(const char *);
-    void *(*save_thread)(void);
-    void (*raw_free)(void *);
-} PythonApi;
-
-static int start_python(Library python, const Runtime *rt, char *why, size_t n)
+/* ``name`` on PATH, into ``out``; 0 if not found. */
+static int on_path(const char *name, char *out, size_t size)
 {
-    PythonApi api = {
-        (int (*)(void))symbol(python, "Py_IsInitialized"),
-        (wchar_t * (*)(const char *, size_t *)) symbol(python, "Py_DecodeLocale"),
-        (void (*)(const wchar_t *))symbol(python, "Py_SetPythonHome"),
-        (void (*)(int))symbol(python, "Py_InitializeEx"),
-        (int (*)(const char *))symbol(python, "PyRun_SimpleString"),
-        (void *(*)(void))symbol(python, "PyEval_SaveThread"),
-        (void (*)(void *))symbol(python, "PyMem_RawFree"),
-    };
-    if (!api.is_initialized || !api.decode_locale || !api.set_home || !api.initialize_ex ||
-        !api.run_simple_string || !api.save_thread) {
-        snprintf(why, n, "%s lacks the CPython functions the loader needs (Python 3.8-3.14)",
-                 rt->libpython);
-        return 0;
+    const char *path = getenv("PATH");
+    while (path && *path) {
+        size_t n = strcspn(path, ":");
+        snprintf(out, size, "%.*s/%s", (int)n, n ? path : ".", name);
+        if (access(out, X_OK) == 0 && !is_directory(out)) return 1;
+        path += n + (path[n] == ':');
     }
-    if (api.is_initialized()) return 1;
-    if (!getenv("PYTHONHOME") && rt->home[0]) {
-        wchar_t *home = api.decode_locale(rt->home, NULL);
-        api.set_home(home); /* copies it (Python 3.8 and later) */
-        if (home && api.raw_free) api.raw_free(home);
-    }
-    api.initialize_ex(0);
-    size_t size = sizeof BOOTSTRAP + 2 * (strlen(rt->site) + strlen(rt->executable));
-    char *code = malloc(size), *s = malloc(2 * PATH_SIZE + 1), *e = malloc(2 * PATH_SIZE + 1);
-    int failed = !code || !s || !e;
-    if (!failed) {
-        hex(rt->site, s);
-        hex(rt->executable, e);
-        snprintf(code, size, BOOTSTRAP, s, e);
-        failed = api.run_simple_string(code) != 0;
-    }
-    free(code);
-    free(s);
-    free(e);
-    api.save_thread(); /* pythonfmu takes the GIL with PyGILState_Ensure in every call */
-    if (failed) snprintf(why, n, "could not add %s to Python's search path", rt->site);
-    return !failed;
+    out[0] = '\0';
+    return 0;
 }
 
-static int ensure_python(const char *resources, char *why, size_t n)
+static void variable_candidate(Candidate *k)
 {
-    Runtime rt;
-    Library python = loaded_python("");
-    if (python) {
-        int (*is_initialized)(void) = (int (*)(void))symbol(python, "Py_IsInitialized");
-        if (is_initialized && is_initialized()) return 1; /* a Python host: change nothing */
+    const char *named = getenv(PYTHON_VARIABLE);
+    if (!named || !named[0]) {
+        snprintf(k->shown, sizeof k->shown, "%s", PYTHON_VARIABLE);
+        snprintf(k->why, sizeof k->why,
+                 "not set (set it to a Python executable or a virtual environment's folder: "
+                 "CPython >= 3.9 with a shared libpython and numpy)");
+        return;
     }
-    if (!read_runtime(resources, &rt, why, n)) return 0;
-    if (!python) python = loaded_python(rt.libpython);
-    if (!python) {
-        if (!rt.libpython[0]) {
-            snprintf(why, n,
-                     "the Python at %s has no shared libpython; set %s to a Python executable "
-                     "or virtual environment whose Python has one (pyenv, conda, Debian's)",
-                     rt.home, LOADER_PYTHON_VARIABLE);
-            return 0;
-        }
-        python = open_global(rt.libpython);
-        if (!python) {
-            snprintf(why, n,
-                     "cannot load libpython %s (%s); set %s to a Python executable or virtual "
-                     "environment with auv-cosim installed",
-                     rt.libpython, library_error(), LOADER_PYTHON_VARIABLE);
-            return 0;
+    snprintf(k->shown, sizeof k->shown, "%s=%s", PYTHON_VARIABLE, named);
+    if (!is_directory(named)) {
+        snprintf(k->executable, sizeof k->executable, "%s", named);
+        return;
+    }
+    const char *names[] = {"bin/python3", "bin/python"};
+    for (int i = 0; i < 2 && !k->executable[0]; i++) {
+        snprintf(k->executable, sizeof k->executable, "%s/%s", named, names[i]);
+        if (!path_exists(k->executable)) k->executable[0] = '\0';
+    }
+    if (!k->executable[0]) {
+        snprintf(k->why, sizeof k->why,
+                 "the folder has no bin/python3 or bin/python (expected a virtual "
+                 "environment's folder or a Python executable)");
+    }
+}
+
+static void list_candidates(Instance *c, Candidate k[CANDIDATES])
+{
+    memset(k, 0, CANDIDATES * sizeof *k);
+    snprintf(k[0].shown, sizeof k[0].shown, "the Python running in this process");
+    snprintf(k[0].why, sizeof k[0].why, "none runs");
+    variable_candidate(&k[1]);
+    snprintf(k[2].shown, sizeof k[2].shown, "the build's Python%s%s",
+             c->record.build_python[0] ? " " : "", c->record.build_python);
+    snprintf(k[2].executable, sizeof k[2].executable, "%s", c->record.build_python);
+    if (!c->record.build_python[0]) {
+        snprintf(k[2].why, sizeof k[2].why, "not recorded in resources/%s", RECORD_FILE);
+    }
+    const char *names[] = {"python3", "python"};
+    for (int i = 0; i < 2; i++) {
+        Candidate *p = &k[3 + i];
+        snprintf(p->shown, sizeof p->shown, "%s on PATH", names[i]);
+        if (!on_path(names[i], p->executable, sizeof p->executable)) {
+            snprintf(p->why, sizeof p->why, "not found");
+        } else {
+            snprintf(p->shown, sizeof p->shown, "%s on PATH (%s)", names[i], p->executable);
         }
     }
-    return start_python(python, &rt, why, n);
 }
 
-#define RESOLVE(field, name) wrapper.field = (void *)symbol(library, name)
-
-static void resolve(Library library)
+/* 1 if two paths name one file. */
+static int same_file(const char *a, const char *b)
 {
-    RESOLVE(setDebugLogging, "fmi2SetDebugLogging");
-    RESOLVE(instantiate, "fmi2Instantiate");
-    RESOLVE(freeInstance, "fmi2FreeInstance");
-    RESOLVE(setupExperiment, "fmi2SetupExperiment");
-    RESOLVE(enterInitializationMode, "fmi2EnterInitializationMode");
-    RESOLVE(exitInitializationMode, "fmi2ExitInitializationMode");
-    RESOLVE(terminate, "fmi2Terminate");
-    RESOLVE(reset, "fmi2Reset");
-    RESOLVE(getReal, "fmi2GetReal");
-    RESOLVE(getInteger, "fmi2GetInteger");
-    RESOLVE(getBoolean, "fmi2GetBoolean");
-    RESOLVE(getString, "fmi2GetString");
-    RESOLVE(setReal, "fmi2SetReal");
-    RESOLVE(setInteger, "fmi2SetInteger");
-    RESOLVE(setBoolean, "fmi2SetBoolean");
-    RESOLVE(setString, "fmi2SetString");
-    RESOLVE(getFMUstate, "fmi2GetFMUstate");
-    RESOLVE(setFMUstate, "fmi2SetFMUstate");
-    RESOLVE(freeFMUstate, "fmi2FreeFMUstate");
-    RESOLVE(serializedFMUstateSize, "fmi2SerializedFMUstateSize");
-    RESOLVE(serializeFMUstate, "fmi2SerializeFMUstate");
-    RESOLVE(deSerializeFMUstate, "fmi2DeSerializeFMUstate");
-    RESOLVE(getDirectionalDerivative, "fmi2GetDirectionalDerivative");
-    RESOLVE(setRealInputDerivatives, "fmi2SetRealInputDerivatives");
-    RESOLVE(getRealOutputDerivatives, "fmi2GetRealOutputDerivatives");
-    RESOLVE(doStep, "fmi2DoStep");
-    RESOLVE(cancelStep, "fmi2CancelStep");
-    RESOLVE(getStatus, "fmi2GetStatus");
-    RESOLVE(getRealStatus, "fmi2GetRealStatus");
-    RESOLVE(getIntegerStatus, "fmi2GetIntegerStatus");
-    RESOLVE(getBooleanStatus, "fmi2GetBooleanStatus");
-    RESOLVE(getStringStatus, "fmi2GetStringStatus");
+    char ra[PATH_MAX], rb[PATH_MAX];
+    return realpath(a, ra) && realpath(b, rb) && !strcmp(ra, rb);
 }
 
-/* pythonfmu's library: this library's own file name with "_pythonfmu" before the suffix. */
-static int load_wrapper(char *why, size_t n)
+/* Why the asked candidate cannot run the FMU (into ``why``), or 0 if it can. */
+static int unsuitable(const Answer *a, const char *loaded, char *why, size_t n)
 {
-    char path[PATH_SIZE];
-    if (!own_path(path, sizeof path - 16)) {
-        snprintf(why, n, "cannot find the loader's own file");
-        return 0;
+    if (a->major && (a->major < 3 || (a->major == 3 && a->minor < 9))) {
+        return snprintf(why, n, "Python %d.%d.%d is too old: the FMU needs CPython >= 3.9",
+                        a->major, a->minor, a->micro);
     }
-    char *dot = strrchr(path, '.');
-    char suffix[16];
-    snprintf(suffix, sizeof suffix, "%s", dot ? dot : "");
-    snprintf(dot ? dot : path + strlen(path), 32, "_pythonfmu%s", suffix);
-    Library library = open_local(path);
+    if (!a->answered) return snprintf(why, n, "%s", a->failure);
+    if (strcmp(a->implementation, "CPython")) {
+        return snprintf(why, n, "is %s, not CPython", a->implementation);
+    }
+    if (!a->libpython[0]) {
+        return snprintf(why, n,
+                        "Python %d.%d.%d has no shared libpython (built without "
+                        "--enable-shared; pyenv with PYTHON_CONFIGURE_OPTS=--enable-shared, "
+                        "conda and Debian's python3 have one)",
+                        a->major, a->minor, a->micro);
+    }
+    if (!a->numpy[0]) {
+        return snprintf(why, n,
+                        "Python %d.%d.%d cannot import numpy (%s); fix: %s -m pip install numpy",
+                        a->major, a->minor, a->micro, a->numpy_error, a->executable);
+    }
+    char os_py[PATH_SIZE + 16];
+    snprintf(os_py, sizeof os_py, "%s/os.py", a->stdlib);
+    if (strncmp(a->stdlib, a->base_prefix, strlen(a->base_prefix)) || !path_exists(os_py)) {
+        return snprintf(why, n, "its base prefix %s holds no standard library (no %s)",
+                        a->base_prefix, os_py);
+    }
+    if (loaded[0] && !same_file(a->libpython, loaded)) {
+        return snprintf(why, n,
+                        "uses %s, but %s is already loaded in this process (never two "
+                        "CPythons in one process)",
+                        a->libpython, loaded);
+    }
+    return 0;
+}
+
+/* The candidate's sys.path as a Python list, then helpers.configure(path, executable). */
+static int configure(const Answer *a, char *why, size_t n)
+{
+    PyObject *path = py.List_New((Py_ssize_t)a->paths);
+    const char *entry = a->path;
+    for (size_t i = 0; path && i < a->paths; i++, entry += strlen(entry) + 1) {
+        py.List_SetItem(path, (Py_ssize_t)i, py.Unicode_DecodeFSDefault(entry));
+    }
+    PyObject *function = python_helper("configure");
+    PyObject *args = py.Tuple_New(2);
+    PyObject *result = NULL;
+    if (path && function && args) {
+        py.Tuple_SetItem(args, 0, path);
+        py.Tuple_SetItem(args, 1, py.Unicode_DecodeFSDefault(a->executable));
+        path = NULL; /* the tuple owns it */
+        result = py.Call(function, args, NULL);
+    }
+    if (!result) {
+        char error[512];
+        python_error(error, sizeof error);
+        snprintf(why, n, "Python started, but its search path could not be set (%s)", error);
+    }
+    PyObject *objects[] = {result, args, function, path};
+    for (size_t i = 0; i < 4; i++) {
+        if (objects[i]) py.DecRef(objects[i]);
+    }
+    return result != NULL;
+}
+
+/* Load the candidate's libpython, check it, initialise it; 1, or 0 with ``why``. */
+static int start(const Answer *a, char *why, size_t n)
+{
+    void *library = dlopen(a->libpython, RTLD_NOW | RTLD_LOCAL);
+    const char *missing = "";
+    int major = 0, minor = 0;
     if (!library) {
-        snprintf(why, n, "cannot load pythonfmu's library %s (%s)", path, library_error());
+        const char *error = dlerror();
+        snprintf(why, n, "cannot load its libpython %s (%s)", a->libpython, error ? error : "");
         return 0;
     }
-    guard_exit(library);
-    resolve(library);
-    if (!wrapper.instantiate || !wrapper.freeInstance || !wrapper.doStep) {
-        snprintf(why, n, "%s is not an FMI 2.0 co-simulation library", path);
-        return 0;
+    if (!python_resolve(library, &missing)) {
+        snprintf(why, n, "its libpython %s lacks %s (the runtime needs CPython 3.9 or later)",
+                 a->libpython, missing);
+    } else if (python_version(&major, &minor), major != a->major || minor != a->minor) {
+        snprintf(why, n, "its libpython %s is Python %d.%d, not %d.%d", a->libpython, major,
+                 minor, a->major, a->minor);
+    } else if (!py.IsInitialized()) {
+        dlopen(a->libpython, RTLD_NOW | RTLD_GLOBAL | RTLD_NOLOAD); /* for extensions */
+        wchar_t *home = py.DecodeLocale(a->base_prefix, NULL);
+        py.SetPythonHome(home); /* copies it (3.8 and later) */
+        if (home) py.RawFree(home);
+        py.InitializeEx(0); /* 0: no signal handlers, the host keeps its own */
+        int ok = configure(a, why, n);
+        py.SaveThread(); /* the GIL is taken with PyGILState_Ensure in every call */
+        return ok;
+    } else {
+        return 1; /* started meanwhile by another copy of this runtime, from this library */
     }
-    return 1;
+    memset(&py, 0, sizeof py);
+    dlclose(library);
+    return 0;
 }
 
-const Wrapper *loader_runtime(const char *resources, char *why, size_t why_size)
+/* ---- choosing ------------------------------------------------------------------------ */
+
+static void say(Instance *c, fmi2Status status, const char *format, const char *what,
+                const char *why)
 {
-    lock();
-    int ok = wrapper_ready || (ensure_python(resources, why, why_size) && load_wrapper(why, why_size));
-    wrapper_ready = ok;
-    unlock();
-    return ok ? &wrapper : NULL;
+    char line[LINE_SIZE + SHOWN_SIZE + 128];
+    snprintf(line, sizeof line, format, what, why);
+    char escaped[2 * sizeof line];
+    size_t j = 0;
+    for (size_t i = 0; line[i] && j + 2 < sizeof escaped; i++) {
+        if (line[i] == '%') escaped[j++] = '%';
+        escaped[j++] = line[i];
+    }
+    escaped[j] = '\0';
+    instance_log(c, status, status >= fmi2Error ? "logStatusError" : "logAll", escaped);
+}
+
+static int use_running(Instance *c, const char *loaded)
+{
+    char why[LINE_SIZE] = "";
+    if (py.IsFinalizing && py.IsFinalizing()) {
+        snprintf(why, sizeof why, "it is shutting down");
+    } else {
+        check_running(loaded, why, sizeof why);
+    }
+    if (!why[0]) return 1;
+    say(c, fmi2Error, "no Python for this FMU: 1. %s: %s", "the Python running in this process",
+        why);
+    say(c, fmi2Error, "no Python for this FMU: %s: %s", "the other candidates",
+        "not tried: a Python runs in this process, and two CPythons cannot share one");
+    return 0;
+}
+
+static int find_and_start(Instance *c)
+{
+    char loaded[PATH_SIZE] = "";
+    if (python_in_process(loaded) && py.IsInitialized()) return use_running(c, loaded);
+    Candidate k[CANDIDATES];
+    list_candidates(c, k);
+    if (loaded[0]) {
+        snprintf(k[0].why, sizeof k[0].why,
+                 "%s is loaded but not started: only a candidate using it can be", loaded);
+    }
+    for (int i = 1; i < CANDIDATES; i++) {
+        if (k[i].why[0]) continue;
+        const Answer *a = path_exists(k[i].executable) ? ask(k[i].executable) : NULL;
+        if (!path_exists(k[i].executable)) {
+            snprintf(k[i].why, sizeof k[i].why, "%s",
+                     i == 2 ? "does not exist (the FMU was built in an environment that is not "
+                              "on this machine)"
+                            : "no such file or folder");
+        } else if (!a) {
+            snprintf(k[i].why, sizeof k[i].why, "out of memory");
+        } else if (!unsuitable(a, loaded, k[i].why, sizeof k[i].why) &&
+                   start(a, k[i].why, sizeof k[i].why)) {
+            char used[LINE_SIZE];
+            snprintf(used, sizeof used, "Python %d.%d.%d (%s), numba %s", a->major, a->minor,
+                     a->micro, a->libpython, a->numba ? "installed" : "not installed");
+            for (int j = 1; j < i; j++) { /* named, found, yet not used: say why */
+                if (k[j].executable[0]) say(c, fmi2Warning, "passed over %s: %s", k[j].shown, k[j].why);
+            }
+            say(c, fmi2OK, "the FMU runs in %s: %s", k[i].shown, used);
+            return 1;
+        }
+        for (int j = i + 1; j < CANDIDATES && python_alive(); j++) {
+            snprintf(k[j].why, sizeof k[j].why, "not tried: %s", "the Python started above runs");
+        }
+    }
+    for (int i = 0; i < CANDIDATES; i++) {
+        char what[SHOWN_SIZE + 8];
+        snprintf(what, sizeof what, "%d. %s", i + 1, k[i].shown);
+        say(c, fmi2Error, "no Python for this FMU: %s: %s", what, k[i].why);
+    }
+    return 0;
+}
+
+int runtime_python(Instance *c)
+{
+    pthread_mutex_lock(&runtime_lock);
+    int ok = (ready && python_alive()) || find_and_start(c);
+    ready = ok;
+    pthread_mutex_unlock(&runtime_lock);
+    return ok;
 }

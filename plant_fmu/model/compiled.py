@@ -2,7 +2,7 @@
 :mod:`plant_fmu.model.dynamics` and :mod:`plant_fmu.model.stepping`, flat and
 allocation-free, compiled with numba (``njit(cache=True)``, no fastmath).
 
-Why by hand: no library compiles a pydantic/numpy model like ours; the reference
+Why by hand: no library compiles a numpy model like ours; the reference
 (:class:`~plant_fmu.model.dynamics.PlantModel`) stays the readable source of truth, and
 this module writes the same equations term by term in the same order of operations, on a
 flat float64 parameter array built once from the model (:func:`flat_parameters`, which
@@ -457,9 +457,10 @@ def _nearest_turn(angle: float, previous: float) -> float:
 
 
 @_jit
-def _euler_from_quaternion(z: np.ndarray, R: np.ndarray, a0: float, a1: float, a2: float) -> None:
-    """z[3:6] = the Euler angles of z's quaternion nearest (a0, a1, a2)
-    (``kinematics.euler_from_quaternion``, which says why)."""
+def _euler_from_quaternion(z: np.ndarray, R: np.ndarray, a0: float, a2: float) -> None:
+    """z[3:6] = the Euler angles of z's quaternion with |theta| <= 90 deg, roll and yaw
+    continued by whole turns from a0 and a2 (``kinematics.euler_from_quaternion``, which
+    says why)."""
     _quaternion_rotation(z, R)
     cos_theta = math.sqrt(R[0, 0] * R[0, 0] + R[1, 0] * R[1, 0])  # not hypot: numba's differs
     theta = math.atan2(-R[2, 0], cos_theta)
@@ -471,16 +472,7 @@ def _euler_from_quaternion(z: np.ndarray, R: np.ndarray, a0: float, a1: float, a
             psi = phi - math.atan2(R[0, 1], R[0, 2])
         else:
             psi = math.atan2(-R[0, 1], -R[0, 2]) - phi
-    f0, f1, f2 = _nearest_turn(phi, a0), _nearest_turn(theta, a1), _nearest_turn(psi, a2)
-    s0 = _nearest_turn(phi + math.pi, a0)
-    s1 = _nearest_turn(math.pi - theta, a1)
-    s2 = _nearest_turn(psi + math.pi, a2)
-    first = abs(f0 - a0) + abs(f1 - a1) + abs(f2 - a2)
-    second = abs(s0 - a0) + abs(s1 - a1) + abs(s2 - a2)
-    if first <= second:
-        z[3], z[4], z[5] = f0, f1, f2
-    else:
-        z[3], z[4], z[5] = s0, s1, s2
+    z[3], z[4], z[5] = _nearest_turn(phi, a0), theta, _nearest_turn(psi, a2)
 
 
 @_jit
@@ -548,22 +540,90 @@ def advance_into(
     R, work, y = np.empty((3, 3)), np.empty((5, 6)), np.empty(18)
     scratch = (R, work, y)
     k1, k2, k3, k4 = np.empty(18), np.empty(18), np.empty(18), np.empty(18)
-    half, sixth = 0.5 * dt, dt / 6.0
     project(p, z, False)
+    stages = (k1, k2, k3, k4)
     for _ in range(n):
-        quaternion = _quaternion_chart(p, z)
-        a0, a1, a2 = z[3], z[4], z[5]
-        step_derivative_into(p, z, inputs, R, work, k1, quaternion)
-        _stage(p, z, k1, half, inputs, scratch, k2, quaternion)
-        _stage(p, z, k2, half, inputs, scratch, k3, quaternion)
-        _stage(p, z, k3, dt, inputs, scratch, k4, quaternion)
-        for i in range(18):
-            z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-        project(p, z, True)
-        if quaternion:
-            _euler_from_quaternion(z, R, a0, a1, a2)
-        else:
-            _quaternion_from_euler(z[3], z[4], z[5], z)
+        _substep(p, z, inputs, inputs, inputs, dt, scratch, stages)
+    for i in range(18):
+        if not math.isfinite(z[i]):
+            return 3
+    return 0
+
+
+@_jit
+def _substep(
+    p: np.ndarray,
+    z: np.ndarray,
+    u0: np.ndarray,
+    u1: np.ndarray,
+    u2: np.ndarray,
+    dt: float,
+    scratch: tuple[np.ndarray, np.ndarray, np.ndarray],
+    stages: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """One RK4 sub-step of dt s on z in place, the inputs u0 at its start, u1 at its
+    middle and u2 at its end (all three the same when held), projected, the attitude chart
+    it did not integrate refreshed (``stepping._substep``)."""
+    R, work, _ = scratch
+    k1, k2, k3, k4 = stages
+    half, sixth = 0.5 * dt, dt / 6.0
+    quaternion = _quaternion_chart(p, z)
+    a0, a2 = z[3], z[5]
+    step_derivative_into(p, z, u0, R, work, k1, quaternion)
+    _stage(p, z, k1, half, u1, scratch, k2, quaternion)
+    _stage(p, z, k2, half, u1, scratch, k3, quaternion)
+    _stage(p, z, k3, dt, u2, scratch, k4, quaternion)
+    for i in range(18):
+        z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    project(p, z, True)
+    if quaternion:
+        _euler_from_quaternion(z, R, a0, a2)
+    else:
+        _quaternion_from_euler(z[3], z[4], z[5], z)
+
+
+@_jit
+def _inputs_at(inputs: np.ndarray, rates: np.ndarray, tau: float, out: np.ndarray) -> None:
+    """out = the inputs tau seconds into the step: u + tau u' + tau^2 / 2 u''."""
+    for i in range(inputs.size):
+        out[i] = inputs[i] + tau * rates[0, i] + 0.5 * tau * tau * rates[1, i]
+
+
+@_jit
+def advance_varying_into(
+    p: np.ndarray,
+    x: np.ndarray,
+    z: np.ndarray,
+    inputs: np.ndarray,
+    rates: np.ndarray,
+    n: int,
+    dt: float,
+) -> int:
+    """:func:`advance_into` with inputs that vary over the step: ``rates`` (2 x inputs)
+    their first and second time derivatives at its start, each RK4 stage taking the
+    inputs at its own time (``stepping.advance`` with ``rates``). Returns as
+    :func:`advance_into` does; 1 also for a non-finite rate."""
+    for i in range(inputs.size):
+        if not (math.isfinite(inputs[i]) and math.isfinite(rates[0, i])):
+            return 1
+        if not math.isfinite(rates[1, i]):
+            return 1
+    for i in range(x.size):
+        if not math.isfinite(x[i]):
+            return 2
+    if not _start(x, z):
+        return 2
+    R, work, y = np.empty((3, 3)), np.empty((5, 6)), np.empty(18)
+    scratch = (R, work, y)
+    k1, k2, k3, k4 = np.empty(18), np.empty(18), np.empty(18), np.empty(18)
+    u0, u1, u2 = np.empty(inputs.size), np.empty(inputs.size), np.empty(inputs.size)
+    stages = (k1, k2, k3, k4)
+    project(p, z, False)
+    for j in range(n):
+        _inputs_at(inputs, rates, j * dt, u0)
+        _inputs_at(inputs, rates, j * dt + 0.5 * dt, u1)
+        _inputs_at(inputs, rates, (j + 1) * dt, u2)
+        _substep(p, z, u0, u1, u2, dt, scratch, stages)
     for i in range(18):
         if not math.isfinite(z[i]):
             return 3
@@ -629,15 +689,29 @@ class CompiledPlant:
         outputs_into(self.parameters, z, inputs, self._R, out)
         return out.tolist()
 
-    def advance(self, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
+    def advance(
+        self,
+        x: np.ndarray,
+        z: np.ndarray,
+        inputs: np.ndarray,
+        n: int,
+        dt: float,
+        rates: np.ndarray | None = None,
+    ) -> int:
         """z (a float64 stepping state) = n RK4 steps of dt s after x (a state or a
-        stepping state); :func:`advance_into`'s code."""
-        return advance_into(self.parameters, x, z, inputs, n, dt)
+        stepping state); :func:`advance_into`'s code, or :func:`advance_varying_into`'s
+        with ``rates`` (the inputs' derivatives, 2 x inputs)."""
+        if rates is None:
+            return advance_into(self.parameters, x, z, inputs, n, dt)
+        return advance_varying_into(self.parameters, x, z, inputs, rates, n, dt)
 
     def warm_up(self, x: np.ndarray, inputs: np.ndarray) -> None:
         """Compile (or load from numba's cache) every function a step calls, by one RK4
-        step of 1 ms on copies of ``x`` and ``inputs``: numba compiles on a function's
-        first call, which would otherwise be the first doStep (seconds on a first run,
-        ~0.5 s of cache loading later), counted as stepping time."""
+        step of 1 ms on copies of ``x`` and ``inputs``, held and with input derivatives:
+        numba compiles on a function's first call, which would otherwise be the first
+        doStep (seconds on a first run, ~0.5 s of cache loading later), counted as
+        stepping time."""
         z = np.empty(N_STEP_STATES)
-        self.advance(np.array(x, dtype=float), z, np.array(inputs, dtype=float), 1, 1e-3)
+        x, inputs = np.array(x, dtype=float), np.array(inputs, dtype=float)
+        self.advance(x, z, inputs, 1, 1e-3)
+        self.advance(x, z, inputs, 1, 1e-3, np.zeros((2, inputs.size)))  # input derivatives

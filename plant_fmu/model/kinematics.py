@@ -125,14 +125,20 @@ def quaternion_rate(
 def euler_from_quaternion(
     q: Sequence[float] | np.ndarray, previous: Sequence[float] | np.ndarray
 ) -> tuple[float, ...]:
-    """(phi, theta, psi) of the rotation q, the triple nearest to ``previous``.
+    """(phi, theta, psi) of the rotation q: the triple with |theta| <= 90 deg, roll and yaw
+    continued by whole turns from ``previous``.
 
     A rotation has two Euler triples, (phi, theta, psi) with |theta| <= 90 deg and
-    (phi + pi, pi - theta, psi + pi), each up to whole turns. Of these we return the one
-    closest to the previous output, so the angles run on continuously: yaw past +-180 deg
-    in a turning circle, pitch past 90 deg in a loop, where roll and yaw would otherwise
-    jump by 180 deg. At theta = +-90 deg exactly only phi - psi (or phi + psi) is defined;
-    phi then keeps its previous value.
+    (phi + pi, pi - theta, psi + pi), each up to whole turns. Which one is output is a rule
+    of the attitude alone: always the first, the one the Euler-angle equations (2.2.15)
+    follow, since their solution reaches |theta| = 90 deg only by passing exactly through
+    the vertical. (Choosing the triple nearest the previous output instead made the choice
+    after a pass near the vertical depend on the step: roll and yaw swing by nearly 180 deg
+    there, and a coarse step found the other triple nearer.) Only the whole turns of roll
+    and yaw come from ``previous``, so yaw runs on past +-180 deg in a turning circle.
+    Pitch stays within +-90 deg; over the top of a loop roll and yaw turn by 180 deg.
+    At theta = +-90 deg exactly only phi - psi (or phi + psi) is defined; phi then keeps
+    its previous value.
     """
     R = quaternion_rotation_matrix(q)
     cos_theta = math.sqrt(R[0, 0] * R[0, 0] + R[1, 0] * R[1, 0])  # not hypot: numba's differs
@@ -143,13 +149,7 @@ def euler_from_quaternion(
         phi = previous[0]
         turn = math.atan2(R[0, 1], R[0, 2]) if theta > 0 else math.atan2(-R[0, 1], -R[0, 2])
         psi = phi - turn if theta > 0 else turn - phi
-    first = [_nearest_turn(a, b) for a, b in zip((phi, theta, psi), previous, strict=True)]
-    second = [
-        _nearest_turn(a, b)
-        for a, b in zip((phi + math.pi, math.pi - theta, psi + math.pi), previous, strict=True)
-    ]
-    distance = [sum(abs(a - b) for a, b in zip(t, previous, strict=True)) for t in (first, second)]
-    return tuple(first if distance[0] <= distance[1] else second)
+    return _nearest_turn(phi, previous[0]), theta, _nearest_turn(psi, previous[2])
 
 
 def _nearest_turn(angle: float, previous: float) -> float:

@@ -10,8 +10,24 @@ from fmu_runtime import entry
 from fmu_runtime.safe_slave import SafeSlave
 
 
-def test_re_executing_the_entry_creates_no_class_and_keeps_its_namespace_alive():
-    source = entry.entry_source("Toy", "fmu_runtime.safe_slave", "SafeSlave", ["fmu_runtime"])
+def _build_package(folder, name: str) -> None:
+    """A build package ``name`` in ``folder`` holding this fmu_runtime (a link)."""
+    (folder / name).mkdir()
+    (folder / name / "__init__.py").write_text("")
+    (folder / name / "fmu_runtime").symlink_to(sys.modules["fmu_runtime"].__path__[0])
+
+
+def _forget(package: str) -> None:
+    for name in [m for m in sys.modules if m.split(".")[0] == package]:
+        del sys.modules[name]
+
+
+def test_re_executing_the_entry_creates_no_class_and_keeps_its_namespace_alive(
+    tmp_path, monkeypatch
+):
+    _build_package(tmp_path, "auvfmu_000000000001")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    source = entry.entry_source("Toy", "auvfmu_000000000001", "fmu_runtime.safe_slave", "SafeSlave")
     code = compile(source, "toy_entry.py", "exec")
     module = types.ModuleType("toy_entry")
     exec(code, module.__dict__)  # the first import
@@ -24,10 +40,30 @@ def test_re_executing_the_entry_creates_no_class_and_keeps_its_namespace_alive()
         classes = {name: value for name, value in fresh.items() if isinstance(value, type)}
         assert classes == {"SafeSlave": SafeSlave}  # the class itself, not a new one
     assert module.SafeSlave is SafeSlave
+    _forget("auvfmu_000000000001")
 
 
-def test_search_path_entry_is_removed_only_when_it_is_the_instance_s(monkeypatch, tmp_path):
+def test_the_build_package_imports_every_module_of_its_packages_at_once(tmp_path, monkeypatch):
+    """While the extraction exists: a later instance never looks for a module in an
+    extraction a host may have deleted."""
+    _build_package(tmp_path, "auvfmu_000000000002")
+    root = tmp_path / "auvfmu_000000000002"
+    (root / "pkg" / "sub").mkdir(parents=True)
+    (root / "__init__.py").write_text(entry.package_init_source("Toy", ["pkg"], ["pkg"]))
+    (root / "pkg" / "__init__.py").write_text("")
+    (root / "pkg" / "sub" / "__init__.py").write_text("")
+    (root / "pkg" / "sub" / "leaf.py").write_text("VALUE = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import auvfmu_000000000002  # noqa: F401
+
+    assert "auvfmu_000000000002.pkg.sub.leaf" in sys.modules
+    _forget("auvfmu_000000000002")
+
+
+def test_search_path_entry_is_removed_only_when_it_is_an_fmu_extraction(monkeypatch, tmp_path):
     monkeypatch.setattr(sys, "path", [str(tmp_path), "/elsewhere"])
+    assert entry.release_search_path(tmp_path) is False  # pythonfmu's builder's folder
+    (tmp_path / entry.RECORD_FILE).write_text("guid=x\n")
     assert entry.release_search_path(tmp_path) is True
     assert sys.path == ["/elsewhere"]
     assert entry.release_search_path(tmp_path) is False

@@ -21,22 +21,36 @@ import pytest
 from fmu_runtime import exit_guard
 
 LOAD_AND_FREE = """
-import sys
+import importlib, sys
+from pathlib import Path
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-if sys.argv[1] == "unguarded":
-    from fmu_runtime import exit_guard  # the FMU reuses this module (shared sys.modules)
-    exit_guard.install = lambda resources: False
-guarded = []
+
+def guard_of(folder):
+    \"\"\"The exit_guard module of the FMU's own build package (imported if need be).\"\"\"
+    resources = Path(folder) / "resources"
+    lines = (resources / "fmu_runtime.txt").read_text().split()
+    record = dict(line.split("=", 1) for line in lines)
+    sys.path.insert(0, str(resources))
+    try:
+        return importlib.import_module(record["package"] + ".fmu_runtime.exit_guard")
+    finally:
+        sys.path.remove(str(resources))
+
+
+guards = []
 for path in sys.argv[2:]:
     md = read_model_description(path)
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(path),
+    folder = extract(path)
+    guards.append(guard_of(folder))
+    if sys.argv[1] == "unguarded":
+        guards[-1].install = lambda resources: False
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=folder,
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
     slave.instantiate(loggingOn=True)
     slave.freeInstance()
-from fmu_runtime import exit_guard
-print(sorted(p.name for p in exit_guard._guarded))
+print(sorted({p.name for guard in guards for p in guard._guarded}))
 """
 
 

@@ -1,13 +1,16 @@
-"""Both built FMUs as a host sees them, each case in fresh processes, since
-pythonfmu keeps an FMU's modules for the life of a process and a broken FMU may crash it:
+"""Our built FMUs as a Python host (fmpy) sees them, each case in fresh processes, since an
+FMU's modules stay imported for the life of a process and a broken FMU may crash it:
 
 * a parameter loop (a fresh extraction per run, deleted after it) gives bit-identically
   the results of fresh processes, through ``simulate_fmu`` and through ``FMU2Slave``;
-* a second build of AuvPlant.fmu, one source line apart, loaded after the first in the
-  same process, refuses with the reason logged, and the host exits 0;
+* a second build of AuvPlant.fmu with other sources, loaded after the first in the same
+  process, runs its own code;
 * instantiate/free cycles keep (almost) no memory (``scripts/bench_instances.py``);
 * calls against the FMI 2.0 rules return fmi2Error with the reason logged, the host
-  survives, and the valid call afterwards works.
+  survives, and the valid call afterwards works;
+* every output read in initialisation mode is the value the FMU starts from;
+* a host whose exit handlers terminate and free instances after Python has shut down
+  exits cleanly; the FMU's runtime and pythonfmu's binary give the same results.
 """
 
 from __future__ import annotations
@@ -117,30 +120,16 @@ def test_a_parameter_loop_in_one_process_matches_fresh_processes(name, fmu_paths
 
 TWO_BUILDS = """
 import json, sys
-from fmpy.fmi1 import FMICallException
 from fmu_harness import Harness
 
-
-def status(call, *args, **kwargs):
-    try:
-        call(*args, **kwargs)
-    except FMICallException as exc:
-        return exc.status
-    return 0
-
-
-first = Harness(sys.argv[1], u_0=1.5)
-first_status = first.step(0.01)
-first.close()
-second = Harness(sys.argv[2], initialize=False)
-setup = status(second.slave.setupExperiment, startTime=0.0)
-second.slave.enterInitializationMode()
-leave = status(second.slave.exitInitializationMode)
-second_status = second.step(0.01)
-second.close()
-print(json.dumps({"first": first_status, "first_errors": first.messages(3),
-                  "second": [setup, leave, second_status],
-                  "second_errors": second.messages(3)}))
+report = {}
+for key, path in (("first", sys.argv[1]), ("second", sys.argv[2])):
+    fmu = Harness(path, u_0=1.5)
+    report[key] = {"thrust": float(fmu.get("thrust")[0]), "step": fmu.step(0.01),
+                   "errors": fmu.messages(3)}
+    fmu.close()
+report["packages"] = sorted({m.split(".")[0] for m in sys.modules if m.startswith("auvfmu_")})
+print(json.dumps(report))
 """
 
 BUILD_ELSEWHERE = """
@@ -155,31 +144,24 @@ print(build_fmu("AuvPlant", Path(sys.argv[2])))
 
 
 @pytest.mark.slow
-def test_a_second_build_in_the_same_process_refuses_with_the_reason(
-    fmu_paths, run_python, tmp_path
-):
+def test_a_second_build_in_the_same_process_runs_its_own_code(fmu_paths, run_python, tmp_path):
+    """Its thrust input starts at 8 N where the first build's starts at 9 N: each
+    instance runs the code of the build it came from."""
     src = tmp_path / "src"
-    for package in ("plant_fmu", "fmu_runtime"):
+    for package in ("plant_fmu", "controller_fmu", "fmu_runtime"):
         shutil.copytree(ROOT / package, src / package, ignore=shutil.ignore_patterns("__pycache__"))
-    stepping = src / "plant_fmu" / "model" / "stepping.py"
-    stepping.write_text(stepping.read_text() + "# one more source line: another build\n")
+    plant = src / "plant_fmu" / "auv_plant.py"
+    text = plant.read_text()
+    assert 'INPUT_STARTS: dict[str, float] = {"thrust": 9.0}' in text
+    plant.write_text(text.replace('{"thrust": 9.0}', '{"thrust": 8.0}'))
     built = run_python(BUILD_ELSEWHERE, src, tmp_path / "other")
     assert built.returncode == 0, built.stderr[-3000:]
     other = Path(built.stdout.strip().splitlines()[-1])
 
     report = _json_result(run_python(TWO_BUILDS, fmu_paths["AuvPlant"], other))
-    assert (report["first"], report["first_errors"]) == (0, "")
-    # fmi2Error from setupExperiment (the reason), exitInitializationMode (initialisation
-    # fails) and doStep (the instance is in the error state)
-    assert report["second"] == [3, 3, 3]
-    errors = report["second_errors"]
-    assert re.search(
-        r"stale code: this process already imported plant_fmu\.model\.stepping \(from "
-        r"\S+/resources/plant_fmu/model/stepping\.py\) from another build than this "
-        r"AuvPlant\.fmu \(GUID [0-9a-f-]+\)",
-        errors,
-    ), errors
-    assert "initialisation failed: stale code" in errors
+    assert report["first"] == {"thrust": 9.0, "step": 0, "errors": ""}
+    assert report["second"] == {"thrust": 8.0, "step": 0, "errors": ""}
+    assert len(report["packages"]) == 2  # one package per build, side by side
 
 
 @pytest.mark.slow
@@ -307,3 +289,280 @@ def test_calls_against_the_fmi_rules_are_refused_and_the_host_survives(fmu_paths
         "heading_mode": ["0", "3"],
         "depth_mode": ["0", "1"],
     }
+
+
+# Non-default parameters and inputs for each FMU: the outputs then differ from the
+# defaults' (the plant moves, the autopilot's thrust is 4 N, the guidance has a mission).
+STARTS = {
+    "AuvPlant": {
+        "variant": 0, "u_0": 1.5, "v_0": -0.1, "w_0": 0.05, "roll_0": 0.1, "pitch_0": 0.05,
+        "yaw_0": 0.3, "r_0": 0.01, "down_0": 2.0, "mass_position_0": 0.01, "current_north": 0.2,
+    },
+    "AuvAutopilot": {"heading_mode": 3, "thrust_command": 4.0, "yaw_setpoint": 0.2},
+    "AuvGuidance": {"waypoints": "10, 0, 2; 10, 10, 2", "north": 1.0, "east": 0.5, "yaw": 0.1},
+}  # fmt: skip
+
+OUTPUTS_IN_INITIALISATION = """
+import json, sys
+from fmpy import read_model_description
+from fmu_harness import Harness
+
+path, starts = sys.argv[1], json.loads(sys.argv[2])
+outputs = [v for v in read_model_description(path).modelVariables
+           if v.causality == "output" and v.type == "Real"]
+names = [v.name for v in outputs]
+fmu = Harness(path, initialize=False)
+fmu.slave.setupExperiment(startTime=0.0)
+fmu.slave.enterInitializationMode()
+fmu.set(**starts)
+during = fmu.get_all(names).tolist()
+fmu.slave.exitInitializationMode()
+after = fmu.get_all(names).tolist()
+fmu.close()
+print(json.dumps({"names": names, "during": during, "after": after, "errors": fmu.messages(3),
+                  "declared": {v.name: [v.initial, v.start] for v in outputs}}))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(FMUS))
+def test_every_output_read_in_initialisation_mode_is_the_value_the_fmu_starts_from(
+    name, fmu_paths, run_python
+):
+    """With non-default parameters and inputs written in initialisation mode: each Real
+    output read there equals the value after exitInitializationMode, and an output
+    declared initial="exact" starts from its declared start value."""
+    report = _json_result(
+        run_python(OUTPUTS_IN_INITIALISATION, fmu_paths[name], json.dumps(STARTS[name]))
+    )
+    assert report["errors"] == ""
+    assert dict(zip(report["names"], report["during"], strict=True)) == dict(
+        zip(report["names"], report["after"], strict=True)
+    )
+    after = dict(zip(report["names"], report["after"], strict=True))
+    exact = {n: float(start) for n, (initial, start) in report["declared"].items()
+             if initial == "exact"}  # fmt: skip
+    assert {n: after[n] for n in exact} == exact
+    calculated = [n for n, (initial, _) in report["declared"].items() if initial == "calculated"]
+    assert calculated and any(after[n] != 0.0 for n in calculated)  # the values moved
+
+
+INITIAL_DEPENDENCIES = """
+import json, sys
+from xml.etree import ElementTree as ET
+from zipfile import ZipFile
+from fmpy import read_model_description
+from fmu_harness import Harness
+
+path, starts = sys.argv[1], json.loads(sys.argv[2])
+root = ET.fromstring(ZipFile(path).read("modelDescription.xml"))
+variables = root.findall("ModelVariables/ScalarVariable")
+declared = {variables[int(u.get("index")) - 1].get("name"):
+            [variables[int(i) - 1].get("name") for i in (u.get("dependencies") or "").split()]
+            for u in root.findall("ModelStructure/InitialUnknowns/Unknown")
+            if u.get("dependencies") is not None}
+model = read_model_description(path)
+inputs = [v for v in model.modelVariables if v.causality == "input" and v.type == "Real"]
+outputs = sorted(declared)
+
+
+def outputs_in_initialisation(nudged=None):
+    fmu = Harness(path, initialize=False)
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    fmu.set(**starts)
+    if nudged is not None:
+        fmu.set(**{nudged.name: float(fmu.get_all([nudged.name])[0]) + 0.125})
+    values = dict(zip(outputs, fmu.get_all(outputs).tolist()))
+    fmu.close()
+    return values
+
+
+base = outputs_in_initialisation()
+moved = {v.name: sorted(n for n, x in outputs_in_initialisation(v).items() if x != base[n])
+         for v in inputs}
+print(json.dumps({"declared": declared, "inputs": [v.name for v in inputs], "moved": moved,
+                  "causality": {v.name: v.causality for v in model.modelVariables}}))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(FMUS))
+def test_outputs_computed_in_initialisation_depend_on_what_the_fmu_declares(
+    name, fmu_paths, run_python
+):
+    """ModelStructure/InitialUnknowns lists what each calculated output depends on: the
+    parameters and the inputs it may depend on: every input that moves it in
+    initialisation mode (each nudged in turn) is declared, and an FMU declares inputs only
+    if some output moves with one. Without the list an importer must assume every input:
+    OMSimulator then reports an algebraic loop between the plant and the autopilot, whose
+    outputs depend on none of their inputs there."""
+    report = _json_result(
+        run_python(INITIAL_DEPENDENCIES, fmu_paths[name], json.dumps(STARTS[name]))
+    )
+    declared, causality = report["declared"], report["causality"]
+    assert declared and report["inputs"]
+    for output, depends_on in declared.items():
+        assert {causality[n] for n in depends_on} <= {"parameter", "input"}
+        declared_inputs = {n for n in depends_on if causality[n] == "input"}
+        moved_by = {i for i, outputs in report["moved"].items() if output in outputs}
+        assert moved_by <= declared_inputs, output
+    declares_inputs = any(causality[n] == "input" for d in declared.values() for n in d)
+    assert declares_inputs == any(report["moved"].values())
+    driven = {"AuvPlant": {"thrust", "roll_torque", "tunnel_force", "fin_angle",
+                           "mass_position_cmd"}, "AuvAutopilot": set(report["inputs"])}  # fmt: skip
+    assert not driven.get(name, set()) & {n for d in declared.values() for n in d}
+
+
+LATE_EXIT = """
+import ctypes, sys
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+md = read_model_description(sys.argv[1])
+slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(sys.argv[1]), instanceName="late",
+                  modelIdentifier=md.coSimulation.modelIdentifier)
+slave.instantiate(loggingOn=True)
+slave.setupExperiment(startTime=0.0)
+slave.enterInitializationMode()
+slave.exitInitializationMode()
+slave.doStep(0.0, 0.01)
+# as a host's C++ destructors do: terminate and free after the interpreter has finalised
+libc = ctypes.CDLL(None)
+libc.__cxa_atexit.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+for name in ("fmi2FreeInstance", "fmi2Terminate"):  # exit handlers run last-registered first
+    function = ctypes.cast(getattr(slave.dll, name), ctypes.c_void_p)
+    libc.__cxa_atexit(function, ctypes.c_void_p(slave.component), None)
+print("exiting")
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", ["", "pythonfmu"])
+def test_calls_after_python_has_shut_down_do_not_crash_the_host(
+    runtime, fmu_paths, run_python, monkeypatch
+):
+    """A Python host whose exit handlers call fmi2Terminate and fmi2FreeInstance after
+    the interpreter has finalised (libcosimpy's and ecospy's C++ destructors do): the calls
+    return without entering Python or its logger, and the process exits 0."""
+    monkeypatch.setenv("AUV_FMU_RUNTIME", runtime)
+    done = run_python(LATE_EXIT, fmu_paths["AuvPlant"])
+    assert (done.returncode, done.stdout.strip()) == (0, "exiting"), done.stderr[-3000:]
+
+
+BOTH_RUNTIMES = """
+import json, os, sys
+from fmu_harness import Harness
+
+os.environ["AUV_FMU_RUNTIME"] = sys.argv[3]
+fmu = Harness(sys.argv[1], **json.loads(sys.argv[2]))
+names = [n for n, v in fmu.variables.items() if v.causality == "output" and v.type == "Real"]
+rows = [fmu.get_all(names).tolist()]
+for _ in range(50):
+    assert fmu.step(0.01) == 0, fmu.messages(3)
+    rows.append(fmu.get_all(names).tolist())
+state = fmu.slave.serializeFMUstate(fmu.slave.getFMUstate())
+fmu.close()
+print(json.dumps({"rows": rows, "state": len(state)}))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(FMUS))
+def test_the_runtime_and_pythonfmus_binary_give_the_same_results(name, fmu_paths, run_python):
+    starts = json.dumps(STARTS[name])
+    ours, theirs = (
+        _json_result(run_python(BOTH_RUNTIMES, fmu_paths[name], starts, runtime))
+        for runtime in ("", "pythonfmu")
+    )
+    assert ours == theirs  # bit-identical outputs, the same serialised state size
+
+
+DERIVATIVES = """
+import json, os, sys
+from fmpy.fmi1 import FMICallException
+from fmu_harness import Harness
+
+
+def status(call, *args):
+    try:
+        call(*args)
+    except FMICallException as exc:
+        return exc.status
+    return 0
+
+
+report = {}
+for runtime, path in (("", sys.argv[1]), ("pythonfmu", sys.argv[1]), ("", sys.argv[2])):
+    os.environ["AUV_FMU_RUNTIME"] = runtime
+    fmu = Harness(path, initialize=False)
+    vr = {n: v.valueReference for n, v in fmu.variables.items()}
+    set_derivatives = fmu.slave.setRealInputDerivatives
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    statuses = {"initialisation mode": status(set_derivatives, [vr["thrust"]], [1], [0.5])}
+    fmu.slave.exitInitializationMode()
+    statuses["first step"] = fmu.step(0.01)
+    statuses["second step"] = fmu.step(0.01)
+    statuses["both orders"] = status(set_derivatives, [vr["thrust"]] * 2, [1, 2], [0.25, -1.0])
+    statuses["third step"] = fmu.step(0.01)
+    for case, args in {"order 3": ([vr["thrust"]], [3], [1.0]),
+                       "not finite": ([vr["thrust"]], [1], [float("inf")]),
+                       "an output": ([vr["u"]], [1], [1.0]),
+                       "a parameter": ([vr["u_0"]], [1], [1.0])}.items():
+        statuses[case] = status(set_derivatives, *args)
+    fmu.slave.terminate()
+    statuses["terminated"] = status(set_derivatives, [vr["thrust"]], [1], [0.5])
+    seen = [text for level, text in fmu.log if text.startswith("thrust derivatives")]
+    report[f"{runtime or 'runtime'} {os.path.basename(os.path.dirname(path))}"] = {
+        "statuses": statuses, "seen": seen, "errors": fmu.messages(3)}
+    fmu.slave.freeInstance()
+print(json.dumps(report))
+"""
+
+
+@pytest.mark.slow
+def test_input_derivatives_reach_a_slave_that_takes_them_and_no_other(
+    fmu_paths, run_python, tmp_path
+):
+    """A plant built with ``interpolates_inputs = True`` (and a line logging what it
+    sees): derivatives of Real inputs, orders 1 and 2, in initialisation mode and when
+    initialised, reach the next step only; anything else is refused, and so is every
+    call to an FMU that does not take them or under pythonfmu's binary."""
+    src = tmp_path / "src"
+    for package in ("plant_fmu", "controller_fmu", "fmu_runtime"):
+        shutil.copytree(ROOT / package, src / package, ignore=shutil.ignore_patterns("__pycache__"))
+    plant = src / "plant_fmu" / "auv_plant.py"
+    text = plant.read_text()
+    step = "    def _step(self, current_time: float, step_size: float) -> None:\n"
+    seen = (
+        "        self.log(f\"thrust derivatives {self.input_derivative('thrust', 1)!r} \"\n"
+        "                 f\"{self.input_derivative('thrust', 2)!r}\")\n"
+    )
+    assert step in text
+    text = text.replace(step, step + seen).replace(
+        "    default_experiment = ", "    interpolates_inputs = True\n    default_experiment = "
+    )
+    plant.write_text(text)
+    built = run_python(BUILD_ELSEWHERE, src, tmp_path / "interpolating")
+    assert built.returncode == 0, built.stderr[-3000:]
+    interpolating = Path(built.stdout.strip().splitlines()[-1])
+    report = _json_result(run_python(DERIVATIVES, interpolating, fmu_paths["AuvPlant"]))
+    taken = report["runtime interpolating"]
+    assert taken["statuses"] == {
+        "initialisation mode": 0, "first step": 0, "second step": 0, "both orders": 0,
+        "third step": 0, "order 3": 3, "not finite": 3, "an output": 3, "a parameter": 3,
+        "terminated": 3,
+    }  # fmt: skip
+    assert taken["seen"] == [
+        "thrust derivatives 0.5 0.0", "thrust derivatives 0.0 0.0",
+        "thrust derivatives 0.25 -1.0",
+    ]  # fmt: skip
+    assert "order 3, expected 1 or 2" in taken["errors"]
+    for other, reason in (
+        ("pythonfmu interpolating", "need the FMU's own runtime"),
+        ("runtime " + fmu_paths["AuvPlant"].parent.name, "this FMU takes no input derivatives"),
+    ):
+        assert report[other]["statuses"]["initialisation mode"] == 3
+        assert set(report[other]["seen"]) <= {"thrust derivatives 0.0 0.0"}  # none taken
+        assert reason in report[other]["errors"]

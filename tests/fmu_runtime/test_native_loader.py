@@ -1,12 +1,16 @@
-"""Our FMUs in non-Python hosts through the native loader (fmu_runtime/native/), each run in a
-clean environment (``env -i`` with PATH and HOME only: no preload, no PYTHONPATH):
+"""Our FMUs in non-Python hosts through their runtime (fmu_runtime/native/), each run in a
+clean environment (``env -i`` with PATH and HOME only: no preload, no PYTHONPATH), with the
+FMU's own runtime and with pythonfmu's binary behind it (``AUV_FMU_RUNTIME=pythonfmu``):
 
-* a minimal FMI 2.0 host in C (``hosts/fmi_host.c``, compiled here) instantiates,
-  initialises, steps and frees every FMU, many times, and gets fmi2Error for each call the
-  standard forbids (the loader's own checks, made without calling Python);
-* without a usable Python, fmi2Instantiate returns NULL and one log line says what was
-  looked for and what to set; the override variable names another environment;
-* valgrind memcheck finds no invalid access and no definitely lost block in the loader;
+* a minimal FMI 2.0 host in C (``hosts/fmi_host.c``, compiled here with ``-Werror``)
+  instantiates, initialises, steps and frees every FMU, many times, and gets fmi2Error for
+  each call the standard forbids (the runtime's own checks, made without calling Python);
+* what FMI hosts pass that crashed them before (NULL arrays, a NULL instance name, wrong
+  GUIDs), one build extracted twice in one process, and a host that exits without
+  terminating or freeing: fmi2Error or NULL with one line, never a crash;
+* without a usable Python, fmi2Instantiate returns NULL and logs one line per candidate;
+  ``AUV_FMU_PYTHON`` set to a virtual environment's folder is used;
+* valgrind memcheck finds no invalid access and no definitely lost block in the runtime;
 * the ecos command-line program runs the exported bs-3 SSP and matches
   ``auv-cosim run bs-3 --algorithm jacobi`` to the 6 decimals of its CSV;
 * a build on a machine without a C compiler still gives working FMUs, and says so.
@@ -16,144 +20,200 @@ Every process runs in its own process group, ended by the test even on failure.
 
 from __future__ import annotations
 
-import contextlib
 import csv
-import os
+import importlib.util
 import re
 import shutil
-import signal
 import subprocess
 import sys
 import zipfile
 from pathlib import Path
 
 import pytest
+from c_hosts import HOST_SOURCE, moved, run_clean
+from elf_symbols import glibc_versions, unresolvable
 from repo_paths import ROOT
 
+from cosim.fmus import native
 from cosim.fmus.build import FMUS
-from cosim.fmus.native import NO_COMPILER, OVERRIDE_VARIABLE, RUNTIME_FILE
+from cosim.fmus.native import NO_COMPILER, OVERRIDE_VARIABLE, RUNTIME_VARIABLE
 
-HOST_SOURCE = Path(__file__).parent / "hosts" / "fmi_host.c"
+RUNTIMES = {"runtime": {}, "pythonfmu": {RUNTIME_VARIABLE: "pythonfmu"}}
 ILLEGAL = {  # case printed by the host -> what the standard forbids
     "second-enterInitializationMode": "initialisation mode entered twice",
     "doStep-before-initialisation": "a step before exitInitializationMode",
     "doStep-at-wrong-point": "currentCommunicationPoint is not the end of the last step",
     "setReal-fixed-parameter-after-initialisation": "a fixed parameter after initialisation",
+    "terminate-before-initialisation": "fmi2Terminate before initialisation",
+    "terminate-in-initialisation-mode": "fmi2Terminate in initialisation mode",
+    "second-terminate": "fmi2Terminate twice",
 }
+CANDIDATE_LINE = re.compile(
+    r"^log host \[3\] \{logStatusError\} no Python for this FMU: (\d)\. (.+)$"
+)
 
 
-def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
-    """``command`` in a clean environment (PATH, HOME and ``extra`` only), in its own
-    process group, which is ended whatever happens."""
-    env = {"PATH": "/usr/bin:/bin", "HOME": str(home), **extra}
-    process = subprocess.Popen(
-        [str(part) for part in command],
-        env=env,
-        cwd=home,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        out, err = process.communicate(timeout=timeout)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signal.SIGKILL)
-        process.wait()
-    return subprocess.CompletedProcess(process.args, process.returncode, out, err)
+def _statuses(stdout: str) -> dict[str, str]:
+    return dict(re.findall(r"^([\w-]+) (\d|NULL|instance)$", stdout, re.M))
 
 
-@pytest.fixture(scope="module")
-def host(tmp_path_factory) -> Path:
-    cc = shutil.which("cc")
-    if cc is None:
-        pytest.skip("no C compiler (cc) to build the test host")
-    binary = tmp_path_factory.mktemp("host") / "fmi_host"
-    subprocess.run([cc, "-O1", "-g", "-o", binary, HOST_SOURCE, "-ldl"], check=True)
-    return binary
+def _log_lines(stdout: str, status: int) -> list[str]:
+    return re.findall(rf"^log \S+ \[{status}\] \{{(\S+)\}} (.+)$", stdout, re.M)
 
 
-@pytest.fixture(scope="module")
-def extracted(fmu_paths, tmp_path_factory) -> dict[str, Path]:
-    """Every FMU extracted into a folder of its own."""
-    folders = {}
-    for name in FMUS:
-        folder = tmp_path_factory.mktemp(name)
-        with zipfile.ZipFile(fmu_paths[name]) as archive:
-            archive.extractall(folder)
-        folders[name] = folder
-    return folders
-
-
-def test_each_fmu_page_says_its_binary_is_the_loader_and_how_to_point_it_at_python(fmu_paths):
+def test_each_fmu_page_says_its_binary_is_the_runtime_and_how_to_point_it_at_python(
+    fmu_paths,
+):
     for name in FMUS:
         with zipfile.ZipFile(fmu_paths[name]) as archive:
             page = archive.read("documentation/index.html").decode()
             names = archive.namelist()
         assert f"binaries/linux64/{name}_pythonfmu.so" in names
-        assert "native loader" in page and OVERRIDE_VARIABLE in page
+        assert "runtime" in page and OVERRIDE_VARIABLE in page and RUNTIME_VARIABLE in page
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(FMUS))
 def test_a_c_host_in_a_clean_environment_runs_100_cycles_of_1000_steps(
-    name, host, extracted, tmp_path
+    name, host, extracted, clean_home
 ):
-    done = run_clean([host, extracted[name], name, "cycles", 100, 1000], tmp_path)
+    done = run_clean([host, extracted[name], name, "cycles", 100, 1000], clean_home)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert "cycles: 100 x 1000 ok" in done.stdout
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", sorted(FMUS))
-def test_calls_the_standard_forbids_return_fmi2error(name, host, extracted, tmp_path):
+@pytest.mark.parametrize(
+    ("name", "runtime"),
+    [*((name, "runtime") for name in sorted(FMUS)), ("AuvPlant", "pythonfmu")],
+)
+def test_calls_the_standard_forbids_return_fmi2error(name, runtime, host, extracted, clean_home):
     """Each forbidden call on a fresh instance returns fmi2Error (3) with one Error logged,
     and the valid call after the refusals still works (0)."""
-    done = run_clean([host, extracted[name], name, "illegal"], tmp_path)
+    done = run_clean([host, extracted[name], name, "illegal"], clean_home, **RUNTIMES[runtime])
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-    statuses = dict(re.findall(r"^([\w-]+) (\d)$", done.stdout, re.M))
-    errors = re.findall(r"^log host \[3\] (.+)$", done.stdout, re.M)
+    statuses = _statuses(done.stdout)
+    errors = _log_lines(done.stdout, 3)
     ranges = [case for case in statuses if case.endswith("-outside-range")]
     assert set(ILLEGAL) <= set(statuses) and ranges, done.stdout
     assert {case: statuses[case] for case in [*ILLEGAL, *ranges]} == dict.fromkeys(
         [*ILLEGAL, *ranges], "3"
     )
     assert statuses["valid-step-after-refusals"] == "0"
+    assert statuses["valid-terminate-after-refusals"] == "0"
     assert statuses["valid-initialisation-after-refusals"] == "0"
     assert len(errors) == len(ILLEGAL) + len(ranges), errors
-    assert any("refused: expected" in e for e in errors), errors
+    assert all(category == "logStatusError" for category, _ in errors), errors
+    assert any("refused: expected" in text for _, text in errors), errors
+    assert sum("fmi2Terminate refused" in text for _, text in errors) == 3, errors
 
 
-def test_without_a_usable_python_instantiate_returns_null_and_says_what_to_set(
-    host, extracted, tmp_path
-):
-    missing = tmp_path / "no-such-venv"
-    done = run_clean(
-        [host, extracted["AuvPlant"], "AuvPlant", "cycles", 1, 1],
-        tmp_path,
-        **{OVERRIDE_VARIABLE: str(missing)},
-    )
-    assert "instantiate returned NULL" in done.stdout
-    lines = [line for line in done.stdout.splitlines() if line.startswith("log ")]
-    assert len(lines) == 1, done.stdout
-    assert f"{OVERRIDE_VARIABLE}={missing}" in lines[0]
-    assert "cannot start Python" in lines[0]
+HOSTILE = [  # what FMI hosts pass: each refused, with one Error line
+    "getReal-null-references", "getReal-null-values", "setReal-null-references",
+    "setReal-null-values", "getInteger-null-references", "getInteger-null-values",
+    "setInteger-null-references", "setInteger-null-values", "getString-null-values",
+    "setString-null-values", "setString-null-string", "deSerialize-null-bytes",
+    "deSerialize-null-state", "getFMUstate-null-state", "serialize-null-bytes",
+]  # fmt: skip
+REFUSED_INSTANTIATIONS = [
+    "instantiate-null-name", "instantiate-null-guid", "instantiate-wrong-guid",
+    "instantiate-null-resources",
+]  # fmt: skip
 
 
 @pytest.mark.slow
-def test_the_override_names_the_environment_when_the_record_is_gone(host, extracted, tmp_path):
-    """An extraction without the build's record of its Python: refused with the file and
-    the variable named; with the variable set to a Python executable, it runs."""
-    moved = tmp_path / "moved"
-    shutil.copytree(extracted["AuvPlant"], moved)
-    (moved / "resources" / RUNTIME_FILE).unlink()
-    command = [host, moved, "AuvPlant", "cycles", 1, 10]
-    refused = run_clean(command, tmp_path)
-    assert "instantiate returned NULL" in refused.stdout
-    assert RUNTIME_FILE in refused.stdout and OVERRIDE_VARIABLE in refused.stdout
-    done = run_clean(command, tmp_path, **{OVERRIDE_VARIABLE: sys.executable})
-    assert "cycles: 1 x 10 ok" in done.stdout, done.stdout + done.stderr
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_null_arguments_and_wrong_guids_are_refused_not_crashed_on(
+    runtime, host, extracted, clean_home
+):
+    """A NULL value-reference, value, string or byte array (n > 0), a NULL or wrong GUID,
+    a NULL instance name or resource location: fmi2Error, or NULL from fmi2Instantiate,
+    each with one Error line (never a NULL category), and the instance goes on."""
+    done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "hostile"], clean_home,
+                     **RUNTIMES[runtime])  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    statuses = _statuses(done.stdout)
+    assert {case: statuses.get(case) for case in HOSTILE} == dict.fromkeys(HOSTILE, "3")
+    assert {case: statuses.get(case) for case in REFUSED_INSTANTIATIONS} == dict.fromkeys(
+        REFUSED_INSTANTIATIONS, "NULL"
+    )
+    assert statuses["valid-step-after-refusals"] == "0"
+    errors = _log_lines(done.stdout, 3)
+    assert len(errors) == len(HOSTILE) + len(REFUSED_INSTANTIATIONS), errors
+    assert all(category == "logStatusError" for category, _ in errors), errors
+    guid = next(text for _, text in errors if "is not this FMU's" in text)
+    assert re.search(
+        r"GUID \{0{8}-0{4}-0{4}-0{4}-0{12}\} is not this FMU's \([0-9a-f-]{36}\)", guid
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_one_build_extracted_twice_runs_in_one_process(
+    runtime, host, extracted, clean_home, tmp_path
+):
+    """Two extractions of one FMU, an instance of each, the second instantiated while the
+    first is in initialisation mode: each goes through its own sequence."""
+    second = tmp_path / "second"
+    shutil.copytree(extracted["AuvPlant"], second)
+    done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "twice", second], clean_home,
+                     **RUNTIMES[runtime])  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    cases = [f"{call}-{k}" for call in ("setup", "enter", "exit") for k in (0, 1)]
+    assert {case: _statuses(done.stdout).get(case) for case in [*cases, "steps"]} == (
+        dict.fromkeys([*cases, "steps"], "0")
+    ), done.stdout
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_a_c_host_may_exit_without_terminating_or_freeing(runtime, host, extracted, clean_home):
+    done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "abandon"], clean_home,
+                     **RUNTIMES[runtime])  # fmt: skip
+    assert (done.returncode, done.stdout.splitlines()[-1:]) == (0, ["abandoned"]), (
+        done.stdout[-2000:] + done.stderr[-2000:]
+    )
+    assert done.stderr == ""
+
+
+@pytest.mark.slow
+def test_a_garbage_pythonhome_in_the_host_changes_nothing(host, extracted, clean_home):
+    """The runtime sets the interpreter's home itself: a host's PYTHONHOME, garbage or of
+    another Python, never reaches CPython's start-up (which would kill the host)."""
+    mine = f"python{sys.version_info[0]}.{sys.version_info[1]}"
+    others = [  # a Python installed beside this one (pyenv), of another version
+        str(p) for p in Path(sys.base_prefix).parent.glob("3.*")
+        if (p / "lib").is_dir() and not (p / "lib" / mine).is_dir()
+    ]  # fmt: skip
+    for home in ("/nonexistent/python-home", *others[:1]):
+        done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "cycles", 1, 10], clean_home,
+                         PYTHONHOME=home)  # fmt: skip
+        assert (done.returncode, done.stderr) == (0, ""), done.stdout[-2000:] + done.stderr
+        assert "cycles: 1 x 10 ok" in done.stdout
+
+
+def test_without_a_usable_python_instantiate_returns_null_with_a_line_per_candidate(
+    host, extracted, tmp_path
+):
+    """Each candidate in order, with why it was passed over; nothing on the host's stderr."""
+    missing = tmp_path / "no-such-venv"
+    done = run_clean(
+        [host, moved(extracted["AuvPlant"], tmp_path), "AuvPlant", "cycles", 1, 1],
+        tmp_path,
+        PATH="/nonexistent",  # no python3 on PATH either
+        **{OVERRIDE_VARIABLE: str(missing)},
+    )
+    assert "instantiate returned NULL" in done.stdout
+    assert done.stderr == ""
+    lines = [CANDIDATE_LINE.match(line) for line in done.stdout.splitlines()]
+    found = [(int(m.group(1)), m.group(2)) for m in lines if m]
+    assert [k for k, _ in found] == [1, 2, 3, 4, 5], done.stdout
+    text = dict(found)
+    assert text[1] == "the Python running in this process: none runs"
+    assert text[2] == f"{OVERRIDE_VARIABLE}={missing}: no such file or folder"
+    assert text[3].startswith("the build's Python /nonexistent/build-environment/bin/python: ")
+    assert "does not exist" in text[3]
+    assert text[4] == "python3 on PATH: not found" and text[5] == "python on PATH: not found"
 
 
 def _loader_records(log: str, name: str) -> list[str]:
@@ -300,3 +360,51 @@ def test_a_build_without_a_compiler_keeps_pythonfmus_binary_and_says_so(run_pyth
     ran = run_python(RUN_PLANT, fmu)
     assert ran.returncode == 0, ran.stderr[-3000:]
     assert "steps [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]" in ran.stdout
+
+
+def _with_runtime(extraction: Path, runtime: Path, folder: Path) -> Path:
+    """A copy of ``extraction`` whose linux64 binary is ``runtime``."""
+    copy = folder / extraction.name
+    shutil.copytree(extraction, copy)
+    shutil.copyfile(runtime, copy / "binaries" / "linux64" / f"{copy.name.rstrip('0123456789')}.so")
+    return copy
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(importlib.util.find_spec("ziglang") is None, reason="ziglang not installed")
+def test_a_runtime_built_by_zig_for_glibc_2_17_runs(host, extracted, tmp_path, clean_home):
+    """Where there is no cc: ``zig cc -target x86_64-linux-gnu.2.17``."""
+    zig = native.Toolchain("zig", (sys.executable, "-m", "ziglang", "cc"), zig=True)
+    runtime = tmp_path / "runtime.so"
+    done = subprocess.run(native.compile_command(zig, runtime), capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert glibc_versions(runtime)[-1] <= (2, 17) and unresolvable(runtime) == []
+    folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
+    done = run_clean([host, folder, "AuvPlant", "cycles", 2, 50], clean_home)
+    assert "cycles: 2 x 50 ok" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]
+
+
+SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1", "-g")
+
+
+@pytest.mark.slow
+def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_path, clean_home):
+    """The runtime and the C host built with ASan and UBSan: cycles, the forbidden calls
+    and the hostile arguments run to the end, any finding aborts with a report."""
+    chain = native.toolchain()
+    if chain is None or chain.zig:
+        pytest.skip("no cc")
+    runtime, host = tmp_path / "runtime.so", tmp_path / "fmi_host"
+    for command in (
+        native.compile_command(chain, runtime, *SANITIZERS),
+        [*chain.command, *SANITIZERS, "-o", str(host), str(HOST_SOURCE), "-ldl"],
+    ):
+        done = subprocess.run(command, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-3000:]
+    folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
+    environment = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
+                   "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
+    for mode in (["cycles", 2, 20], ["illegal"], ["hostile"]):
+        done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **environment)
+        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+        assert "Sanitizer" not in done.stderr and "runtime error" not in done.stderr

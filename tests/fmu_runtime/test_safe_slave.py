@@ -392,3 +392,99 @@ def test_a_freed_instance_is_released_at_once_without_the_garbage_collector():
         assert gone() is None
     finally:
         gc.enable()
+
+
+class Ramp(Counter):
+    """A Counter that takes input derivatives and starts its output from a parameter."""
+
+    interpolates_inputs = True
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.seen: list[tuple[float, float]] = []
+        self.initialisations = 0
+
+    def _initialize(self):
+        super()._initialize()
+        self.initialisations += 1
+        self.y = 10.0 * self.k  # the output to start from depends on a parameter
+
+    def _step(self, current_time, step_size):
+        self.seen.append((self.input_derivative("u", 1), self.input_derivative("u", 2)))
+        super()._step(current_time, step_size)
+
+
+def test_input_derivatives_apply_to_the_next_step_only():
+    ramp = _initialise(Ramp(instance_name="ramp"))
+    u = _vr(ramp, "u")
+    ramp.set_real_input_derivatives([u, u], [1, 2], [0.5, -2.0])
+    assert ramp.do_step(0.0, 0.1) and ramp.do_step(0.1, 0.1)
+    assert ramp.seen == [(0.5, -2.0), (0.0, 0.0)]  # cleared after the step they belong to
+    assert _errors(ramp) == ""
+
+
+@pytest.mark.parametrize(
+    ("name", "order", "value", "reason"),
+    [
+        ("y", 1, 1.0, "valueReference 1 is not a Real input"),
+        ("steps", 1, 1.0, "is not a Real input"),
+        ("u", 3, 1.0, "expected order 1 or 2"),
+        ("u", 1, math.nan, "expected order 1 or 2 and a finite number"),
+    ],
+)
+def test_bad_input_derivatives_are_refused_and_none_is_taken(name, order, value, reason):
+    ramp = _initialise(Ramp(instance_name="ramp"))
+    u = _vr(ramp, "u")
+    ramp.set_real_input_derivatives([u, _vr(ramp, name)], [1, order], [0.5, value])
+    assert reason in _errors(ramp)
+    ramp.do_step(0.0, 0.1)
+    assert ramp.seen == [(0.0, 0.0)]  # the valid one in the refused call was not taken
+
+
+def test_a_slave_that_does_not_interpolate_refuses_input_derivatives(slave):
+    slave.set_real_input_derivatives([_vr(slave, "u")], [1], [0.5])
+    assert "this FMU takes no input derivatives" in _errors(slave)
+    assert slave.input_derivative("u", 1) == 0.0
+
+
+def test_input_derivatives_are_kept_in_the_fmu_state_and_declared_in_the_description():
+    ramp = _initialise(Ramp(instance_name="ramp"))
+    u = _vr(ramp, "u")
+    ramp.set_real_input_derivatives([u], [1], [0.25])
+    saved = Ramp._fmu_state_from_bytes(Ramp._fmu_state_to_bytes(ramp._get_fmu_state()))
+    ramp.do_step(0.0, 0.1)
+    ramp._set_fmu_state(saved)
+    ramp.do_step(0.0, 0.1)
+    assert ramp.seen == [(0.25, 0.0), (0.25, 0.0)]
+    cosimulation = ramp.to_xml().find("CoSimulation")
+    assert cosimulation.get("canInterpolateInputs") == "true"
+    assert cosimulation.get("maxOutputDerivativeOrder") == "0"
+    plain = Counter(instance_name="toy").to_xml().find("CoSimulation")
+    assert plain.get("canInterpolateInputs") == "false"
+
+
+def test_an_output_read_in_initialisation_mode_is_the_value_the_fmu_starts_from():
+    ramp = Ramp(instance_name="ramp")
+    ramp.setup_experiment(0.0, None, None)
+    ramp.enter_initialization_mode()
+    ramp.set_real([_vr(ramp, "k")], [3.0])
+    assert ramp.get_real([_vr(ramp, "y")]) == [30.0]
+    ramp.set_real([_vr(ramp, "k")], [4.0])  # a later write is seen by the next read
+    assert ramp.get_real([_vr(ramp, "y")]) == [40.0]
+    assert ramp.get_real([_vr(ramp, "y")]) == [40.0]
+    ramp.exit_initialization_mode()
+    assert ramp.get_real([_vr(ramp, "y")]) == [40.0]
+    assert ramp.initialisations == 2  # once per write read after, not again at exit
+    assert _errors(ramp) == ""
+
+
+def test_outputs_that_cannot_be_computed_yet_say_why_and_initialisation_fails():
+    ramp = Ramp(instance_name="ramp")
+    ramp.setup_experiment(0.0, None, None)
+    ramp.enter_initialization_mode()
+    ramp.set_real([_vr(ramp, "k")], [-1.0])
+    ramp.get_real([_vr(ramp, "y")])
+    assert "the outputs to start from cannot be computed yet: k = -1.0" in _errors(ramp)
+    ramp.exit_initialization_mode()
+    assert not ramp.initialized
+    assert "initialisation failed: k = -1.0: expected >= 0" in _errors(ramp)

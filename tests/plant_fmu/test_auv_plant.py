@@ -344,12 +344,14 @@ def test_model_description_is_valid_complete_and_matches_the_contract(plant):
     assert outputs == CONTRACT_OUTPUTS
     assert all(v.description for v in md.modelVariables)
     assert all(v.unit for v in md.modelVariables if v.type == "Real")
-    assert all(variables[n].initial == "exact" for n in outputs)
+    # from the initial state, the vehicle and the currents: read in initialisation mode,
+    # they give the values the plant starts from
+    assert all(variables[n].initial == "calculated" for n in outputs)
     parameters = {v.name for v in md.modelVariables if v.causality == "parameter"}
     expected = {f"{n}_0" for n in STATE_NAMES} | {
         "variant", "moving_mass_model", "ideal_fluid", "vehicle", "current_shear_dUdy",
         "max_substep",
-    } | {n for n, f in VehicleParameters.model_fields.items() if f.annotation is float}  # fmt: skip
+    } | {n for n, f in VehicleParameters.field_info().items() if f.kind is float}  # fmt: skip
     assert parameters == expected
     assert (variables["I_xx"].unit, variables["K_p"].unit) == ("kg.m2", "N.m.s")
     assert md.coSimulation.needsExecutionTool is False

@@ -136,10 +136,10 @@ def test_example_5_3_lateral_turning_equilibria(lateral, sign):
 
 def test_example_5_3_jacobian_at_1_5_m_per_s(lateral):
     """The printed Jacobian J-bar + delta-J of Example 5.3 and its eigenvalues hold at
-    u = 1.5 m/s (not at U0 = 1.525 m/s: the linear terms scale with u) and with Table 4.1's
+    u = 1.5 m/s (not at U0 = 1.525 m/s: the linear terms scale with u) and with Table 5.4's
     W = 299 N, which Example 5.3 was computed with (B - W = 7 N); remus100's W = m g =
     298.9 N (one gravity, as Ch. 6 computes) moves the roll entries by up to 4e-3."""
-    weight = dissertation("table_4_1.weight")
+    weight = dissertation("table_5_4.weight")
     table_model = PlantModel(lateral.params.replace(W=weight), Variant.LATERAL)
     at_speed = state_vector(dict(u=1.5)), input_vector(thrust=9.0)
     A, _ = linearize(table_model, *at_speed, ["v", "r", "p", "roll"])

@@ -30,6 +30,15 @@ def test_values_keep_their_printed_digits():
     assert (count.text, count.value, count.resolution) == ("3", 3.0, 1.0)
 
 
+def test_an_entry_may_give_its_tolerance_and_why():
+    about = DISSERTATION["scenarios.cur_2_settling_time"]
+    assert dict(about.tolerance) == {"absolute": 5.0} and "gridline" in about.tolerance_reason
+    within = DISSERTATION["scenarios.bs_3_settling_time"]
+    assert dict(within.tolerance) == {"at_most": True}
+    plain = DISSERTATION["example_5_1.turn_positive_v"]
+    assert (dict(plain.tolerance), plain.tolerance_reason) == ({}, "")
+
+
 def test_mirrored_equilibria_are_printed_as_mirror_images():
     for group in ("example_5_1", "example_5_3", "low_speed"):
         plus = DISSERTATION[f"{group}.turn_positive_v"].value
@@ -45,6 +54,16 @@ def test_mirrored_equilibria_are_printed_as_mirror_images():
         ('[a.b]\nvalue = [[1, 2], [3]]\nunit = "m"\nsource = "x"\ndescription = "y"\n', "rectang"),
         ("[a]\nb = 3\n", r"'a\.b': expected a table"),
         ("[a\n", "reference values"),
+        (
+            '[a.b]\nvalue = 1\nunit = "m"\nsource = "x"\ndescription = "y"\n'
+            "tolerance = {absolute = 1, relative = 0.1}\n",
+            r"'a\.b'.*tolerance.*expected one of",
+        ),
+        (
+            '[a.b]\nvalue = 1\nunit = "m"\nsource = "x"\ndescription = "y"\n'
+            "tolerance = {about = 1}\n",
+            r"'a\.b'.*tolerance.*expected one of",
+        ),
     ],
 )
 def test_a_malformed_file_is_refused_naming_the_entry(tmp_path, text, message):

@@ -9,7 +9,13 @@ import sys
 
 import pytest
 
-from cosim.engine.pacing import BEHIND_S, SWITCH_INTERVAL_S, Pacer, interpreter_for_pacing
+from cosim.engine.pacing import (
+    BEHIND_S,
+    SLEEP_SLICE_S,
+    SWITCH_INTERVAL_S,
+    Pacer,
+    interpreter_for_pacing,
+)
 
 
 class FakeClock:
@@ -117,3 +123,15 @@ def test_a_paced_loop_runs_with_start_up_frozen_and_a_short_switch_interval():
         raise RuntimeError("the loop failed")
     assert gc.get_freeze_count() == frozen
     assert sys.getswitchinterval() == before
+
+
+def test_a_stop_ends_a_long_wait_for_a_deadline_at_once() -> None:
+    """Ctrl-C, SIGTERM, stop or q while the run waits 1000 s for its next point."""
+    paced, clock, _ = pacer(factor=1e-5)  # 1000 s of wall clock per 10 ms step
+    paced.release(0)
+    asked: list[float] = []
+    paced.release(1, lambda: asked.append(clock.now) or len(asked) > 3)
+    assert sum(clock.slept) <= 4 * SLEEP_SLICE_S  # not 1000 s
+    assert paced.late_steps == 0 and paced.n == 1
+    paced.release(2)  # without a stop, the next point waits for its own deadline
+    assert clock.now == pytest.approx(100.0 + 2000.0)

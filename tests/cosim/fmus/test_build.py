@@ -1,12 +1,13 @@
-"""The build step: what the FMU ships, the content-hash cache, and the completion of
-modelDescription.xml (units, capability flags, InitialUnknowns by the FMI 2.0 rule)."""
+"""The build step: what the FMU ships and how it lays it out, the content GUID, the
+content-hash cache, and the completion of modelDescription.xml (units, capability flags,
+InitialUnknowns by the FMI 2.0 rule)."""
 
 from __future__ import annotations
 
-import hashlib
-import json
+import re
 import shutil
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -14,8 +15,8 @@ from xml.etree import ElementTree as ET
 import pytest
 
 from cosim.errors import CosimError
-from cosim.fmus import build, native
-from fmu_runtime import provenance
+from cosim.fmus import build, native, staging
+from fmu_runtime.entry import RECORD_FILE
 from plant_fmu.auv_plant import AuvPlant
 
 
@@ -44,47 +45,93 @@ def test_every_plant_unit_has_si_base_units():
     assert all(build.base_units(unit) is not None for unit in units), units
 
 
-def test_plant_ships_its_packages_whole_and_data_but_no_caches():
-    files = build.shipped_files("AuvPlant")
+def test_every_fmu_ships_the_packages_whole_with_pythonfmu_and_data_but_no_caches():
+    files = build.shipped_files()
     assert files["plant_fmu/auv_plant.py"] == build.script_path("AuvPlant")
-    for expected in ("fmu_runtime/safe_slave.py", "plant_fmu/model/vehicles/remus100.toml"):
+    for expected in (
+        "fmu_runtime/safe_slave.py",
+        "controller_fmu/auv_guidance.py",
+        "plant_fmu/model/vehicles/remus100.toml",
+        "pythonfmu/fmi2slave.py",
+        "pythonfmu/LICENSE",
+    ):
         assert expected in files
-    assert "auv_plant.py" not in files  # the entry module is generated
     assert not any("__pycache__" in name or name.endswith(".pyc") for name in files)
+    assert not any(name.startswith("pythonfmu/") and "/" in name[10:] for name in files)
 
 
-def test_built_fmu_holds_exactly_the_shipped_sources_the_entry_and_their_manifest(fmu_paths):
-    files = build.shipped_files("AuvPlant")
-    with zipfile.ZipFile(fmu_paths["AuvPlant"]) as archive:
-        shipped = {
+def _resources(fmu: Path) -> dict[str, bytes]:
+    with zipfile.ZipFile(fmu) as archive:
+        return {
             name.removeprefix("resources/"): archive.read(name)
             for name in archive.namelist()
-            if name.startswith("resources/") and not name.startswith("resources/pythonfmu/")
+            if name.startswith("resources/")
         }
-        guid = ET.fromstring(archive.read("modelDescription.xml")).get("guid")
-    assert shipped.pop("slavemodule.txt") == b"auv_plant"
-    manifest = json.loads(shipped.pop(provenance.MANIFEST))
-    # the native loader's records: the Python runtime and the variables' rules
-    assert shipped.pop(native.RUNTIME_FILE).decode() == native.runtime_record()
-    assert b" R input continuous " in shipped.pop(native.VARIABLES_FILE)
-    expected = {name: path.read_bytes() for name, path in files.items()}
-    expected["auv_plant.py"] = build.entry_module("AuvPlant").encode()
-    assert shipped == expected
-    assert (manifest["model"], manifest["guid"]) == ("AuvPlant", guid)
-    assert manifest["sha256"] == {
-        name: hashlib.sha256(data).hexdigest() for name, data in expected.items()
+
+
+def test_built_fmu_holds_the_shipped_sources_under_the_build_package(fmu_paths):
+    """Every shipped file under auvfmu_<hash> (its imports renamed, every line where it
+    was), pythonfmu's entry named after the package, and the runtime's two records."""
+    files = build.shipped_files()
+    shipped = {name: path.read_bytes() for name, path in files.items()}
+    package = staging.package_name(shipped)
+    resources = _resources(fmu_paths["AuvPlant"])
+    entry = resources.pop("slavemodule.txt").decode()
+    assert re.fullmatch(r"auvfmu_[0-9a-f]{12}", package) and entry == f"{package}_auv_plant"
+    assert (
+        f"from {package}.plant_fmu.auv_plant import AuvPlant"
+        in resources.pop(f"{entry}.py").decode()
+    )
+    record = dict(line.split("=", 1) for line in resources.pop(RECORD_FILE).decode().splitlines())
+    assert record["package"] == package and record["class"] == "AuvPlant"
+    assert record["module"] == f"{package}.plant_fmu.auv_plant"
+    assert record["build_python"] == sys.executable
+    assert record["interpolates_inputs"] == "1"  # the plant takes input derivatives
+    assert b" R input continuous " in resources.pop(native.VARIABLES_FILE)
+    assert resources.pop(f"{package}/__init__.py").startswith(b'"""The Python code of')
+    assert sorted(resources) == sorted(f"{package}/{name}" for name in shipped)
+    for name, data in shipped.items():
+        built = resources[f"{package}/{name}"]
+        if name.endswith(".py"):
+            assert built.count(b"\n") == data.count(b"\n"), name
+            assert built.replace(f"{package}.".encode(), b"") == data, name
+        else:
+            assert built == data, name
+
+
+def test_the_three_fmus_ship_one_package(fmu_paths):
+    """So a process running them together imports one copy of the code."""
+    packages = {
+        name: dict(
+            line.split("=", 1)
+            for line in _resources(fmu_paths[name])[RECORD_FILE].decode().splitlines()
+        )["package"]
+        for name in build.FMUS
     }
+    assert len(set(packages.values())) == 1, packages
 
 
-def test_both_fmus_ship_the_same_plant_package(fmu_paths):
-    """So the package has one digest whichever FMU a process loads first."""
-    shipped = {}
-    for name in ("AuvPlant", "AuvAutopilot"):
+def test_the_guid_is_a_name_based_uuid_of_the_sources(fmu_paths):
+    digest = build.source_hash(build.shipped_files())
+    for name in build.FMUS:
         with zipfile.ZipFile(fmu_paths[name]) as archive:
-            manifest = json.loads(archive.read(f"resources/{provenance.MANIFEST}"))
-        shipped[name] = {p: d for p, d in manifest["sha256"].items() if p.startswith("plant_fmu/")}
-    assert shipped["AuvPlant"] == shipped["AuvAutopilot"]
-    assert "plant_fmu/auv_plant.py" in shipped["AuvAutopilot"]
+            guid = ET.fromstring(archive.read("modelDescription.xml")).get("guid")
+        assert guid == build.guid(name, digest)
+        assert guid[14] == "5"  # version 5: a SHA-1 of a name, no MAC address, no time
+        record = _resources(fmu_paths[name])[RECORD_FILE].decode()
+        assert f"guid={guid}\n" in record
+    assert build.guid("AuvPlant", digest) != build.guid("AuvPlant", "0" * 64)
+
+
+@pytest.mark.slow
+def test_two_builds_of_the_same_sources_have_the_same_guid_and_package(fmu_paths, tmp_path):
+    again = build.build_fmu("AuvPlant", tmp_path, force=True)
+    first, second = (
+        (ET.fromstring(zipfile.ZipFile(f).read("modelDescription.xml")).get("guid"),
+         _resources(f)[RECORD_FILE])
+        for f in (fmu_paths["AuvPlant"], again)
+    )  # fmt: skip
+    assert first == second
 
 
 @pytest.mark.slow
@@ -94,14 +141,14 @@ def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
     hash_file = tmp_path / (source.name + build.HASH_SUFFIX)
     shutil.copy2(source, fmu)
     shutil.copy2(source.with_name(hash_file.name), hash_file)
-    digest = build.source_hash(build.shipped_files("AuvPlant"))
+    digest = build.source_hash(build.shipped_files())
     assert build.recorded_hashes(hash_file) == {"source": digest, "fmu": build.file_hash(fmu)}
     before = fmu.read_bytes()
     assert build.build_fmu("AuvPlant", tmp_path) == fmu
     assert fmu.read_bytes() == before
     hash_file.write_text("stale\n")
     build.build_fmu("AuvPlant", tmp_path)
-    assert fmu.read_bytes() != before  # a new build (pythonfmu writes a new guid)
+    assert fmu.read_bytes() != before  # a new build (pythonfmu dates it)
     assert build.recorded_hashes(hash_file) == {"source": digest, "fmu": build.file_hash(fmu)}
 
 
@@ -121,7 +168,7 @@ def test_a_built_fmu_failing_its_integrity_check_is_rebuilt(fmu_paths, tmp_path)
 
 def test_source_hash_changes_with_any_shipped_byte(tmp_path):
     files = {}
-    for name, path in build.shipped_files("AuvPlant").items():
+    for name, path in build.shipped_files().items():
         copy = tmp_path / name
         copy.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(path, copy)
@@ -134,7 +181,7 @@ def test_source_hash_changes_with_any_shipped_byte(tmp_path):
 
 @pytest.mark.slow
 def test_missing_script_fails_the_build_with_its_path(monkeypatch, tmp_path):
-    monkeypatch.setitem(build.FMUS, "Ghost", build.FmuSource("plant_fmu", "ghost.py", ()))
+    monkeypatch.setitem(build.FMUS, "Ghost", build.FmuSource("plant_fmu", "ghost.py"))
     with pytest.raises(CosimError, match=r"Ghost\.fmu: .*plant_fmu/ghost\.py does not exist"):
         build.build_fmus(tmp_path)
     with pytest.raises(CosimError, match="unknown FMU 'Nope'"):
@@ -161,9 +208,10 @@ MINIMAL = b"""<?xml version="1.0" encoding="UTF-8"?>
 
 
 def test_model_description_completion_is_generic_and_idempotent():
-    once = build.complete_model_description(MINIMAL)
+    once = build.complete_model_description(MINIMAL, "4f2e3a1c-0000-5000-8000-000000000000")
     assert build.complete_model_description(once) == once
     root = ET.fromstring(once)
+    assert root.get("guid") == "4f2e3a1c-0000-5000-8000-000000000000"
     assert [child.tag for child in root][:3] == ["CoSimulation", "UnitDefinitions", "LogCategories"]
     cosim = root.find("CoSimulation")
     assert cosim.get("needsExecutionTool") == "false"

@@ -31,7 +31,9 @@ def test_variables_are_typed_as_the_model_description_declares(fmu_paths) -> Non
     assert plant.variables["vehicle"].start == "remus100"
     yaw = plant.variables["yaw"]
     assert (yaw.type, yaw.causality, yaw.unit) == ("Real", "output", "rad")
-    assert isinstance(yaw.start, float) and yaw.description
+    assert yaw.start is None and yaw.description  # initial="calculated": from yaw_0
+    fin = read_interface(fmu_paths["AuvAutopilot"]).variables["fin_angle"]
+    assert fin.causality == "output" and fin.start == 0.0 and type(fin.start) is float
     assert [v.name for v in plant.with_causality("input")] == list(INPUT_NAMES)
     # The unit definitions as SI base-unit exponents; N is kg m / s^2.
     assert plant.units["N"] == {"kg": 1, "m": 1, "s": -2}

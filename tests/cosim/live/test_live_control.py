@@ -21,6 +21,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
@@ -108,10 +109,12 @@ def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
         host, port = endpoint(proc)
         client = Client((host, port))
         t_first = client.time_at_least(0.5)
-        assert client.ask({"set": {"controller.yaw_setpoint": 0.3}}) == {
-            "ok": True, "set": {"controller.yaw_setpoint": 0.3}}  # fmt: skip
+        first = client.ask({"set": {"controller.yaw_setpoint": 0.3}})
+        assert first == {"ok": True, "set": {"controller.yaw_setpoint": 0.3}, "name": "live-1",
+                         "t": first["t"]}  # fmt: skip
         t_second = client.time_at_least(t_first + 0.5)
-        assert client.ask({"set": {"controller.yaw_setpoint": 0.6}})["ok"]
+        second = client.ask({"set": {"controller.yaw_setpoint": 0.6}})
+        assert second["ok"] and second["name"] == "live-2"
         t_read = client.time_at_least(t_second + 1.0)
         reply = client.ask({"get": ["plant.yaw", "controller.yaw_setpoint"]})
         assert reply["t"] >= t_read and reply["values"]["controller.yaw_setpoint"] == 0.6
@@ -125,6 +128,7 @@ def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
     assert [o["set"] for o in overrides] == [{"controller.yaw_setpoint": v} for v in (0.3, 0.6)]
     assert all(o["source"].startswith("control 127.0.0.1:") for o in overrides)
     assert t_first < overrides[0]["time"] <= t_second < overrides[1]["time"] <= t_read
+    assert [o["time"] for o in overrides] == [first["t"], second["t"]]  # as the replies said
     columns, table = read_csv(out / "results.csv")
     setpoint = table[:, columns.index("controller.yaw_setpoint")]
     times = table[:, 0]
@@ -201,4 +205,75 @@ def test_a_value_outside_the_declared_range_is_refused(fmu_dir: Path) -> None:
         live.request({"controller.yaw_setpoint": 4.0}, "test")
     with pytest.raises(OverrideError, match="is a fixed parameter"):
         live.request({"controller.yaw_setpoint": 0.1, "controller.k0": 0.3}, "test")
-    assert live.drain() == []  # a refused request queues nothing, not even its good values
+    # a refused request queues nothing, not even its good values
+    assert list(live.take(0, 0.0, np.zeros(1))) == []
+
+
+def _replayed(out: Path, fmu_dir: Path, tmp_path: Path) -> tuple[bool, bytes]:
+    """Run the live run's scenario.toml again: (complete, its results.csv)."""
+    replay = run_scenario(out / "scenario.toml", tmp_path / "replay", fmu_dir=fmu_dir,
+                          no_rrd=True, tail_guard=False)  # fmt: skip
+    return replay.result.complete, (tmp_path / "replay" / "results.csv").read_bytes()
+
+
+def _pipelined(client: Client, *requests: object) -> list[dict]:
+    """Send every request at once, then read one reply each."""
+    client.file.write("".join(json.dumps(r) + "\n" for r in requests))
+    client.file.flush()
+    return [json.loads(client.file.readline()) for _ in requests]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", ["set then stop before t = 0", "stopped without override",
+                                  "broken by an override"])  # fmt: skip
+def test_a_live_run_replays_byte_identical(fmu_dir: Path, tmp_path: Path, case: str) -> None:
+    out = tmp_path / "live"
+    with cli_run(fmu_dir, out, "--no-rrd", "--stop-time", "5", "--real-time", "10",
+                 "--control", "0") as proc:  # fmt: skip
+        client = Client(endpoint(proc))
+        if case == "set then stop before t = 0":  # both sent while the FMUs are set up
+            replies = _pipelined(client, {"set": {"controller.yaw_setpoint": 0.2}}, {"stop": True})
+            assert replies[0]["ok"] and replies[0]["t"] == 0.0 and replies[1] == {"ok": True}
+        elif case == "stopped without override":
+            client.time_at_least(0.5)
+            assert client.ask({"stop": True}) == {"ok": True}
+        else:  # the plant fails in the step after the override, well after t = 0
+            client.time_at_least(0.5)
+            reply = client.ask({"set": {"plant.roll_torque": 1e300}})
+            assert reply["ok"], reply
+        proc.communicate(timeout=TIMEOUT_S)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False
+    complete, replayed = _replayed(out, fmu_dir, tmp_path)
+    assert replayed == (out / "results.csv").read_bytes()
+    assert complete == (case != "broken by an override")  # a replay of a failure fails too
+    if case == "set then stop before t = 0":
+        assert replayed.count(b"\n") == 3  # header, t = 0 and t = h: one step, then stopped
+
+
+@pytest.mark.slow
+def test_every_set_around_the_end_of_a_run_is_applied_and_logged_or_answered_not(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A client sets the yaw set-point as fast as it can across the run's end (and after a
+    stop): each "ok" names a point where summary.json logs it; every other reply says
+    "not applied"."""
+    out = tmp_path / "run"
+    with cli_run(fmu_dir, out, "--no-rrd", "--stop-time", "1", "--real-time", "10",
+                 "--control", "0") as proc:  # fmt: skip
+        clients = [Client(endpoint(proc))]
+        replies: list[dict] = []
+        k = 0
+        while not replies or "ok" in replies[-1]:
+            k += 1
+            replies.append(clients[0].ask({"set": {"controller.yaw_setpoint": k * 1e-4}}))
+        after = clients[0].ask({"stop": True})
+        proc.communicate(timeout=TIMEOUT_S)
+        assert proc.returncode == 0  # complete: the stop came after the end
+    summary = json.loads((out / "summary.json").read_text())
+    logged = {o["name"]: (o["time"], o["set"]) for o in summary["overrides"]}
+    acked = {r["name"]: (r["t"], r["set"]) for r in replies if "ok" in r}
+    assert acked == logged and acked  # however many the client got in before the end
+    refused = [r["error"] for r in replies if "ok" not in r]
+    assert refused == [refused[0]] and "not applied: the run ended at t = 1 s" in refused[0]
+    assert "stop: the run ended at t = 1 s" in after["error"]

@@ -8,6 +8,7 @@ the autopilot refuses while running, and ``q``, and reads the status line and su
 from __future__ import annotations
 
 import contextlib
+import io
 import json
 import math
 import os
@@ -19,12 +20,20 @@ import subprocess
 import sys
 import termios
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
-from cosim.live.keys import DEPTH_STEP, YAW_STEP, keys_of
+from cosim.cli import main
+from cosim.engine.live import LiveControl
+from cosim.engine.signals import StopRequest
+from cosim.live.keys import DEPTH_STEP, YAW_STEP, KeyPad, keys_of, split_partial
+from cosim.scenario.spec import Scenario, load_scenario
 
 TIMEOUT_S = 120.0  # generous: the machine may be busy; nothing here is timed
 
@@ -36,6 +45,134 @@ def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
 
 def test_arrow_escape_sequences_are_keys() -> None:
     assert keys_of("\x1b[A\x1b[Bq\x1bOC\x1b[D1") == ["up", "down", "q", "right", "left", "1"]
+
+
+ACTING = {"q", "p", "m", "0", "1", "2", "3", "up", "down", "left", "right"}
+REAL_SEQUENCES = {
+    "F1": "\x1bOP", "F5": "\x1b[15~", "F9": "\x1b[20~", "F10": "\x1b[21~", "F11": "\x1b[23~",
+    "F12": "\x1b[24~", "Shift+F3": "\x1b[1;2R", "Insert": "\x1b[2~", "Page Up": "\x1b[5~",
+    "Shift+Up": "\x1b[1;2A", "Alt+Left": "\x1b[1;3D", "Ctrl+Right": "\x1b[1;5C",
+    "Alt+1": "\x1b1", "Alt+q": "\x1bq", "Alt+m": "\x1bm", "bracketed paste": "\x1b[200~",
+    "mouse": "\x1b[<0;12;30M", "focus in": "\x1b[I",
+}  # fmt: skip
+
+csi = st.builds(
+    lambda params, inter, final: "\x1b[" + params + inter + final,
+    st.text(st.characters(min_codepoint=0x30, max_codepoint=0x3F), max_size=8),
+    st.text(st.characters(min_codepoint=0x20, max_codepoint=0x2F), max_size=2),
+    st.characters(min_codepoint=0x40, max_codepoint=0x7E),
+)
+ss3 = st.characters(min_codepoint=0x20, max_codepoint=0x7E).map(lambda c: "\x1bO" + c)
+alt = st.characters(min_codepoint=0x20, max_codepoint=0x7E).filter(lambda c: c not in "[O")
+sequences = st.one_of(csi, ss3, alt.map(lambda c: "\x1b" + c))
+
+
+@pytest.mark.parametrize("name", list(REAL_SEQUENCES))
+def test_function_and_modified_keys_do_nothing(name: str) -> None:
+    assert keys_of(REAL_SEQUENCES[name]) == ["escape"]
+
+
+@given(sequences, st.text(alphabet="abc", max_size=3))
+def test_every_escape_sequence_is_one_key_that_acts_only_if_a_plain_arrow(
+    sequence: str, after: str
+) -> None:
+    keys = keys_of(sequence + after)
+    assert keys[1:] == list(after)  # the sequence is read whole: nothing of it is left over
+    plain = sequence in ("\x1b[A", "\x1b[B", "\x1b[C", "\x1b[D") or (
+        sequence.startswith("\x1bO") and sequence[2:] in "ABCD"
+    )
+    assert (keys[0] in ACTING) == plain and (plain or keys[0] == "escape")
+
+
+@given(sequences, st.integers(min_value=1, max_value=12))
+def test_an_escape_sequence_split_over_two_reads_is_read_whole(sequence: str, cut: int) -> None:
+    cut = min(cut, len(sequence))
+    whole, rest = split_partial("x" + sequence[:cut])
+    keys = keys_of(whole) + keys_of(rest + sequence[cut:]) if cut < len(sequence) else None
+    assert keys is None or keys == ["x", *keys_of(sequence)]
+
+
+@pytest.fixture
+def terminal() -> Iterator[int]:
+    parent, child = pty.openpty()
+    yield child
+    os.close(parent)
+    os.close(child)
+
+
+@pytest.fixture(scope="module")
+def bs3(fmu_dir: Path) -> Scenario:
+    return load_scenario("bs-3", fmu_dir=fmu_dir)
+
+
+def test_the_arrow_keys_start_from_the_set_point_a_client_set(bs3: Scenario, terminal: int) -> None:
+    live = LiveControl(bs3)
+    live.bind({}, StopRequest())
+    pad = KeyPad(live, bs3, fd=terminal, out=io.StringIO())
+    client = live.request({"controller.yaw_setpoint": 0.5}, "control 127.0.0.1:1")
+    for ticket in live.take(1, 0.01, np.zeros(1)):
+        live.applied(ticket, "live-1", 0.01)
+    assert client.done
+    pad.press("right")
+    pad.press("right")  # builds on the queued value, not on what the run had before
+    queued = list(live.take(2, 0.02, np.zeros(1)))
+    assert [t.values for t in queued] == [
+        {"controller.yaw_setpoint": 0.5 + YAW_STEP},
+        {"controller.yaw_setpoint": 0.5 + 2 * YAW_STEP},
+    ]
+
+
+def test_interactive_with_a_closed_standard_input_says_so_in_one_line(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    monkeypatch.setattr(sys, "stdin", None)  # what Python makes of a closed fd 0
+    code = main(["run", "bs-3", "--fmu-dir", str(fmu_dir), "--out", str(tmp_path / "run"),
+                 "--no-rrd", "--real-time", "--interactive"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1, err
+    assert "--interactive: standard input is closed" in err
+
+
+@given(
+    yaw=st.floats(-1e3, 1e3),
+    depth=st.floats(-1e4, 1e4),
+    t=st.one_of(st.none(), st.floats(0.0, 1e7)),
+    message=st.text(max_size=300),
+    width=st.integers(min_value=20, max_value=300),
+)
+def test_the_status_line_fits_the_terminal_width(
+    bs3: Scenario, yaw: float, depth: float, t: float | None, message: str, width: int
+) -> None:
+    live = LiveControl(bs3)
+    index = {"controller.yaw_setpoint": 0, "controller.depth_setpoint": 1}
+    live.bind(index, StopRequest())
+    if t is not None:
+        live.publish(t, np.array([yaw, depth]))
+    with open(os.devnull) as null:
+        pad = KeyPad.__new__(KeyPad)  # no terminal needed to compose the line
+        pad.live, pad.status, pad.fd, pad.out = live, lambda: "rt 123.45x", null.fileno(), null
+        names = ("yaw_setpoint", "depth_setpoint", "heading_mode", "mass_lock_time")
+        pad.refs = {n: f"controller.{n}" for n in names}
+        pad.initial = dict.fromkeys(pad.refs, 0.0)
+        pad.message, pad._last = message.replace("\n", " "), None
+        line = pad.status_line(width)
+    assert len(line) <= width - 1
+
+
+def test_switching_to_lqr_says_designing_until_the_run_goes_on(
+    bs3: Scenario, terminal: int
+) -> None:
+    live = LiveControl(bs3)
+    live.bind({}, StopRequest())
+    pad = KeyPad(live, bs3, fd=terminal, out=io.StringIO())
+    pad.press("1")
+    assert "heading_mode = 1 queued" in pad.status_line(200)
+    for ticket in live.take(7, 0.07, np.zeros(1)):
+        live.applied(ticket, "live-1", 0.07)
+    live.publish(0.07, np.zeros(1))  # applied; the FMU designs the law in its next step
+    assert "designing" in pad.status_line(200)
+    live.publish(0.08, np.zeros(1))
+    assert "heading_mode = 1 applied at t = 0.07 s" in pad.status_line(200)
 
 
 class Terminal:

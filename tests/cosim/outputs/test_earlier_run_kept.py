@@ -153,7 +153,8 @@ def test_a_vehicle_the_plant_refuses_at_initialisation_leaves_the_earlier_run(
     before = tree(out)
     capsys.readouterr()
     assert main(["run", str(bad), "--out", str(out), "--no-rrd", "--overwrite"]) == 1
-    assert "initialisation" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unknown key 'no_such_key'" in err, err
     assert tree(out) == before
 
 

@@ -5,7 +5,9 @@ web viewer; the browser opens the one URL it prints, waits until the viewer hold
 recording (its page's ``_handle.save_recording()``, which fails while the welcome
 screen shows), and the screenshot it takes is not blank. The same browser opens
 ``auv-cosim report``'s and a study's index.html: every image loads, no console error.
-``view --web`` listens on 127.0.0.1 only, and Ctrl-C ends it with its server.
+``view --web`` listens on 127.0.0.1 only, and Ctrl-C ends it with its server. The
+notebook's inline viewer (docs/notebooks/quickstart.ipynb's last cell) loads with every
+request off the machine refused, and opens the run's recording.
 
 Chromium is Debian's (``apt-get install chromium``, done by .ci/run), started by the test
 in its own process group with a DevTools port that Playwright's Python package connects
@@ -17,6 +19,8 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import http.server
+import json
 import os
 import re
 import select
@@ -24,6 +28,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -32,6 +37,7 @@ import numpy as np
 import psutil
 import pytest
 from PIL import Image
+from repo_paths import ROOT
 from rerun.chunk import RrdReader
 
 import cosim
@@ -106,7 +112,7 @@ def _read_until(proc: subprocess.Popen, pattern: re.Pattern[str], timeout: float
 def _served(path: Path) -> Iterator[tuple[subprocess.Popen, str]]:
     """``auv-cosim view PATH --web`` on free ports: (its process, the URL it printed)."""
     command = [sys.executable, "-m", "cosim.cli", "view", str(path), "--web"]
-    command += ["--web-port", "0", "--grpc-port", "0"]
+    command += ["--web-port", "0", "--file-port", "0"]
     proc = subprocess.Popen(
         command,
         stdout=subprocess.PIPE,
@@ -240,3 +246,133 @@ def test_report_pages_load_every_image_without_console_errors(
     assert images, f"{kind} index.html shows no image"
     broken = [src for src, complete, width in images if not complete or width == 0]
     assert broken == [] and errors == [], (broken, errors)
+
+
+NOTEBOOK = ROOT / "docs" / "notebooks" / "quickstart.ipynb"
+# The Python side of the notebook's viewer cell, in a fresh interpreter (rerun-notebook reads
+# its asset source once, at import): the widget's state, the recording's bytes queued for
+# it and the address of its viewer code, as one JSON line; then it serves the viewer's
+# assets until its standard input closes.
+KERNEL_SIDE = """
+import base64, json, sys, types
+from pathlib import Path
+import nbformat
+cells = nbformat.read(sys.argv[1], as_version=4).cells
+cell = [c for c in cells if c.cell_type == "code" and "viewer" in c.source][-1]
+names = {"base": types.SimpleNamespace(out_dir=Path(sys.argv[2]))}
+exec(cell.source, names)
+import rerun_notebook
+widget = names["viewer"]._viewer
+state = {k: getattr(widget, k) for k in
+         ("_width", "_height", "_panel_states", "_url", "_theme", "_fallback_token")}
+events = [[e, [base64.b64encode(bytes(b)).decode() for b in bufs or []]]
+          for e, bufs in widget._event_queue]
+print(json.dumps({"esm": str(rerun_notebook.ESM_MOD), "state": state, "events": events}))
+sys.stdout.flush()
+sys.stdin.read()
+"""
+# A page holding the widget as JupyterLab does (anywidget's render({model, el})), with a
+# model that hands it the kernel side's state and messages.
+NOTEBOOK_PAGE = """<!doctype html><html><body style="margin:0"><div id="cell" style="width:%dpx">
+</div><script type="module">
+const state = %s, handlers = {};
+window.sent = [];
+const model = {get: (k) => state[k], on: (e, f) => (handlers[e] ??= []).push(f),
+               send: (m) => window.sent.push(m)};
+window.deliver = (messages) => {
+  for (const [msg, encoded] of messages) {
+    const buffers = encoded.map((b) => new DataView(Uint8Array.from(atob(b), (c) =>
+      c.charCodeAt(0)).buffer));
+    for (const f of handlers["msg:custom"] ?? []) f(msg, buffers);
+  }
+};
+(await import(%s)).default.render({model, el: document.getElementById("cell")});
+</script></body></html>"""
+CELL_WIDTH = 900  # px: a notebook cell in JupyterLab on a laptop
+VERSION_CHECK = "https://api.github.com/repos/rerun-io/rerun/releases/latest"
+
+
+@contextlib.contextmanager
+def _page_server(html: str) -> Iterator[str]:
+    """``html`` served on 127.0.0.1 (a secure context, as JupyterLab's localhost is)."""
+
+    class Page(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            body = html.encode()
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args: object) -> None:
+            """Quiet."""
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Page)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+@contextlib.contextmanager
+def _kernel_side(run_dir: Path) -> Iterator[dict]:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", KERNEL_SIDE, str(NOTEBOOK), str(run_dir)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    try:
+        line = " "
+        while line and not line.startswith("{"):  # rerun-notebook says what it serves first
+            line = proc.stdout.readline()  # type: ignore[union-attr]
+        assert line, f"the notebook's viewer cell failed (exit {proc.poll()})"
+        yield json.loads(line)
+    finally:
+        _end_group(proc)
+
+
+def test_the_notebooks_inline_viewer_shows_the_run_offline(
+    folders: dict, browser, tmp_path: Path
+) -> None:
+    """The viewer's code and WebAssembly come from this machine; every request that would
+    leave it is refused, and the viewer still opens the run's recording, in a widget of the
+    cell's width and its set height."""
+    with _kernel_side(folders["run"]) as kernel:
+        assert re.match(r"http://(localhost|127\.0\.0\.1):\d+/widget\.js$", kernel["esm"])
+        html = NOTEBOOK_PAGE % (CELL_WIDTH, json.dumps(kernel["state"]), json.dumps(kernel["esm"]))
+        with _page_server(html) as url:
+            page = browser.new_page(viewport={"width": 1000, "height": 900})
+            left: list[str] = []
+            local = re.compile(r"^(?!http://(127\.0\.0\.1|localhost)[:/]|data:|blob:)")
+            page.route(local, lambda route: (left.append(route.request.url), route.abort()))
+            try:
+                page.goto(url)
+                page.wait_for_function(
+                    "window.sent.includes('ready')", timeout=LOAD_TIMEOUT_S * 1e3
+                )
+                page.evaluate("(m) => window.deliver(m)", kernel["events"])
+                page.wait_for_function(  # the run's own timeline shown: its data is in
+                    'window.sent.some((e) => e.includes(\'"timeline":"sim_time"\'))',
+                    timeout=LOAD_TIMEOUT_S * 1e3,
+                )
+                opened = [json.loads(e) for e in page.evaluate("window.sent") if "{" in e]
+                box = page.evaluate(
+                    "(() => { const r = document.querySelector('.rerun_notebook')"
+                    ".getBoundingClientRect(); return [r.width, r.height]; })()"
+                )
+                time.sleep(5.0)  # let the frames be drawn
+                page.locator(".rerun_notebook").screenshot(path=tmp_path / "notebook.png")
+            finally:
+                page.close()
+    stored = RrdReader(recording_in(folders["run"])).recordings()[0]
+    assert {e["recording_id"] for e in opened if e["type"] == "recording_open"} == {
+        stored.recording_id
+    }
+    assert set(left) <= {VERSION_CHECK}, left  # only rerun's check for a newer version
+    assert box == [CELL_WIDTH, kernel["state"]["_height"]]
+    assert kernel["state"]["_panel_states"] == {
+        "blueprint": "collapsed", "selection": "collapsed", "time": "collapsed"}  # fmt: skip
+    _not_blank(tmp_path / "notebook.png")

@@ -1,5 +1,6 @@
-"""The recording's default layout leaves the time-series plots room for y ticks, and a
-study overlay does not print every run's label over the others at the common start."""
+"""The recording's default layout leaves the time-series plots room for y ticks, its world
+view follows the vehicle, its neutral lines show on both themes, and a study overlay does
+not print every run's label over the others at the common start."""
 
 from __future__ import annotations
 
@@ -7,9 +8,12 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 import rerun.blueprint as rrb
+from repo_paths import ROOT
 
-from cosim.viz.layout import PANELS, build_blueprint, plan_panels
+from cosim.viz import layout
+from cosim.viz.layout import PANELS, build_blueprint, notebook_blueprint, plan_panels
 
 MAX_STACKED = 3  # plots in one column of a loop: more leave one y tick ("0") each
 
@@ -66,3 +70,52 @@ def test_overlay_paths_do_not_print_their_labels(tmp_path: Path) -> None:
             if name.endswith("show_labels"):
                 assert batch.column(name).to_pylist() == [[False]]
     assert shown, "the paths say nothing about their labels"
+
+
+def _contrast(a: tuple[int, int, int], b: tuple[int, int, int]) -> float:
+    """The WCAG 2 contrast ratio of two sRGB colours (1: none, 21: black on white)."""
+
+    def luminance(rgb: tuple[int, int, int]) -> float:
+        c = [v / 255 for v in rgb]
+        lin = [v / 12.92 if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4 for v in c]
+        return 0.2126 * lin[0] + 0.7152 * lin[1] + 0.0722 * lin[2]
+
+    high, low = sorted((luminance(a), luminance(b)), reverse=True)
+    return (high + 0.05) / (low + 0.05)
+
+
+LIGHT_THEME_BACKGROUND = (255, 255, 255)
+DARK_THEME_BACKGROUND = (13, 16, 17)  # rerun's dark panels
+
+
+@pytest.mark.parametrize("name", ["TRAJECTORY", "ENERGY", "NEUTRAL"])
+@pytest.mark.parametrize("background", [LIGHT_THEME_BACKGROUND, DARK_THEME_BACKGROUND])
+def test_the_track_and_neutral_lines_stand_out_on_both_themes(
+    name: str, background: tuple[int, int, int]
+) -> None:
+    """The track was near white (240, 240, 240): invisible on the light theme."""
+    assert _contrast(getattr(layout, name), background) >= 3.0
+
+
+def _world_views(container) -> list:
+    found = []
+    for item in container.contents or []:
+        if isinstance(item, rrb.Spatial3DView) and item.origin == "/world":
+            found.append(item)
+        elif hasattr(item, "contents"):
+            found += _world_views(item)
+    return found
+
+
+def test_the_world_view_follows_the_vehicle() -> None:
+    """In the recording's layout and the notebook's, the world view's eye tracks the
+    vehicle's frame (the entity the scene moves every step), so the vehicle stays in view."""
+    columns = [s.column for panel in PANELS for s in panel.series]
+    panels = plan_panels(columns)
+    for blueprint in (build_blueprint(panels, depth_control=True), notebook_blueprint(panels)):
+        (world,) = _world_views(blueprint.root_container)
+        eye = world.properties["EyeControls3D"]
+        assert [str(e) for e in eye.tracking_entity.as_arrow_array().to_pylist()] == [
+            layout.VEHICLE_ENTITY
+        ]
+    assert layout.VEHICLE_ENTITY.lstrip("/") in (ROOT / "cosim/viz/scene.py").read_text()

@@ -487,19 +487,18 @@ def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path,
             np.testing.assert_array_equal(yaw[:, 0, 0], expected)
 
 
-def test_view_without_display_prints_how_to_open(recorded, tmp_path: Path, monkeypatch, capsys):
+def test_view_without_display_fails_saying_how_to_open(
+    recorded, tmp_path: Path, monkeypatch, capsys
+):
     shutil.copyfile(recorded[0], tmp_path / RECORDING_FILE)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    assert main(["view", str(tmp_path)]) == 0
-    out = capsys.readouterr().out
+    assert main(["view", str(tmp_path)]) == 1  # a script sees that nothing was shown
+    err = capsys.readouterr().err
     rrd = str(tmp_path / RECORDING_FILE)
-    assert f"rerun {rrd}" in out
-    # the web viewer: the command that serves it, and the URL that opens this recording
-    # (the bare page shows Rerun's welcome screen)
-    assert f"auv-cosim view {tmp_path} --web" in out
-    proxy = "rerun%2Bhttp%3A%2F%2F127.0.0.1%3A9876%2Fproxy"
-    assert f"then open http://127.0.0.1:9090/?url={proxy}\n" in out
+    assert err.count("\n") == 1
+    # the web viewer's command, and the native viewer's on a machine with a display
+    assert f"auv-cosim view {tmp_path} --web" in err and f"rerun {rrd}" in err
 
 
 def test_view_with_display_runs_the_viewer_on_the_file(recorded, tmp_path: Path, monkeypatch):

@@ -1,11 +1,18 @@
 /* A minimal FMI 2.0 co-simulation host in C, compiled by the tests: what a non-Python tool
  * (a C/C++ master, a command-line program) does with one of our FMUs.
  *
- *   fmi_host DIR ID cycles N STEPS   N times: instantiate, initialise, STEPS doSteps of
- *                                    10 ms, terminate, free; prints "cycles: N x STEPS ok"
- *   fmi_host DIR ID illegal          each call FMI 2.0 forbids, on a fresh instance;
- *                                    prints "<case> <status>" per case, then whether a
- *                                    valid step still works after the refusals
+ *   fmi_host DIR ID cycles N STEPS  N times: instantiate, initialise, STEPS doSteps of
+ *                                   10 ms, terminate, free; prints "cycles: N x STEPS ok"
+ *   fmi_host DIR ID illegal         each call FMI 2.0 forbids, on a fresh instance;
+ *                                   prints "<case> <status>" per case, then whether a
+ *                                   valid call still works after the refusals
+ *   fmi_host DIR ID hostile         NULL arguments FMI hosts pass, and wrong GUIDs: prints
+ *                                   "<case> <status>" (or NULL / instance for
+ *                                   fmi2Instantiate), then a valid step after them
+ *   fmi_host DIR ID twice DIR2      one build extracted twice (DIR, DIR2), an instance of
+ *                                   each, stepped in turn: prints "<case> <status>"
+ *   fmi_host DIR ID abandon         instantiate, initialise, step, then exit without
+ *                                   terminating or freeing; prints "abandoned"
  *
  * DIR is the FMU's extraction folder, ID its model identifier. It loads
  * DIR/binaries/linux64/ID.so with dlopen and nothing else: no Python, no preload.
@@ -27,31 +34,41 @@ typedef struct {
     void *environment;
 } Callbacks;
 
-static Component (*instantiate)(const char *, int, const char *, const char *,
-                                const Callbacks *, int, int);
-static void (*free_instance)(Component);
-static int (*setup)(Component, int, double, double, int, double);
-static int (*enter_init)(Component);
-static int (*exit_init)(Component);
-static int (*do_step)(Component, double, double, int);
-static int (*terminate)(Component);
-static int (*set_real)(Component, const Vr *, size_t, const double *);
-static int (*set_integer)(Component, const Vr *, size_t, const int *);
+typedef struct {
+    Component (*instantiate)(const char *, int, const char *, const char *, const Callbacks *,
+                             int, int);
+    void (*free_instance)(Component);
+    int (*setup)(Component, int, double, double, int, double);
+    int (*enter_init)(Component);
+    int (*exit_init)(Component);
+    int (*do_step)(Component, double, double, int);
+    int (*terminate)(Component);
+    int (*get_real)(Component, const Vr *, size_t, double *);
+    int (*set_real)(Component, const Vr *, size_t, const double *);
+    int (*get_integer)(Component, const Vr *, size_t, int *);
+    int (*set_integer)(Component, const Vr *, size_t, const int *);
+    int (*get_string)(Component, const Vr *, size_t, const char **);
+    int (*set_string)(Component, const Vr *, size_t, const char *const *);
+    int (*get_state)(Component, void **);
+    int (*serialize)(Component, void *, char *, size_t);
+    int (*deserialize)(Component, const char *, size_t, void **);
+    char guid[128], resources[4200], dir[4096];
+} Fmu;
 
-static char guid[128], resources[4200];
 static int quiet;
 
 static void logger(void *env, const char *name, int status, const char *category,
                    const char *message, ...)
 {
-    (void)env, (void)category;
+    (void)env;
     if (quiet && status < 3) return;
-    char text[2048];
+    char text[4096];
     va_list args;
     va_start(args, message);
     vsnprintf(text, sizeof text, message, args);
     va_end(args);
-    printf("log %s [%d] %s\n", name, status, text);
+    printf("log %s [%d] {%s} %s\n", name ? name : "(null)", status,
+           category ? category : "(null)", text);
 }
 
 static const Callbacks callbacks = {logger, calloc, free, NULL, NULL};
@@ -66,7 +83,7 @@ static void *need(void *library, const char *name)
     return f;
 }
 
-static void load(const char *dir, const char *id)
+static void load(Fmu *f, const char *dir, const char *id)
 {
     char path[4200], text[65536];
     snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, id);
@@ -75,58 +92,66 @@ static void load(const char *dir, const char *id)
         printf("dlopen failed: %s\n", dlerror());
         exit(2);
     }
-    instantiate = need(library, "fmi2Instantiate");
-    free_instance = need(library, "fmi2FreeInstance");
-    setup = need(library, "fmi2SetupExperiment");
-    enter_init = need(library, "fmi2EnterInitializationMode");
-    exit_init = need(library, "fmi2ExitInitializationMode");
-    do_step = need(library, "fmi2DoStep");
-    terminate = need(library, "fmi2Terminate");
-    set_real = need(library, "fmi2SetReal");
-    set_integer = need(library, "fmi2SetInteger");
+    *(void **)&f->instantiate = need(library, "fmi2Instantiate");
+    *(void **)&f->free_instance = need(library, "fmi2FreeInstance");
+    *(void **)&f->setup = need(library, "fmi2SetupExperiment");
+    *(void **)&f->enter_init = need(library, "fmi2EnterInitializationMode");
+    *(void **)&f->exit_init = need(library, "fmi2ExitInitializationMode");
+    *(void **)&f->do_step = need(library, "fmi2DoStep");
+    *(void **)&f->terminate = need(library, "fmi2Terminate");
+    *(void **)&f->get_real = need(library, "fmi2GetReal");
+    *(void **)&f->set_real = need(library, "fmi2SetReal");
+    *(void **)&f->get_integer = need(library, "fmi2GetInteger");
+    *(void **)&f->set_integer = need(library, "fmi2SetInteger");
+    *(void **)&f->get_string = need(library, "fmi2GetString");
+    *(void **)&f->set_string = need(library, "fmi2SetString");
+    *(void **)&f->get_state = need(library, "fmi2GetFMUstate");
+    *(void **)&f->serialize = need(library, "fmi2SerializeFMUstate");
+    *(void **)&f->deserialize = need(library, "fmi2DeSerializeFMUstate");
     snprintf(path, sizeof path, "%s/modelDescription.xml", dir);
     FILE *md = fopen(path, "r");
     size_t n = md ? fread(text, 1, sizeof text - 1, md) : 0;
     if (md) fclose(md);
     text[n] = '\0';
     char *g = strstr(text, "guid=\"");
-    if (g) sscanf(g + 6, "%127[^\"]", guid);
-    snprintf(resources, sizeof resources, "file://%s/resources", dir);
+    if (g) sscanf(g + 6, "%127[^\"]", f->guid);
+    snprintf(f->resources, sizeof f->resources, "file://%s/resources", dir);
+    snprintf(f->dir, sizeof f->dir, "%s", dir);
 }
 
-static Component start(int initialise)
+static Component start(const Fmu *f, int initialise)
 {
-    Component c = instantiate("host", 1, guid, resources, &callbacks, 0, 1);
+    Component c = f->instantiate("host", 1, f->guid, f->resources, &callbacks, 0, 1);
     if (!c) {
         printf("instantiate returned NULL\n");
         exit(3);
     }
-    if (initialise && (setup(c, 0, 0.0, 0.0, 0, 0.0) || enter_init(c) || exit_init(c))) {
+    if (initialise && (f->setup(c, 0, 0.0, 0.0, 0, 0.0) || f->enter_init(c) || f->exit_init(c))) {
         printf("initialisation failed\n");
         exit(3);
     }
     return c;
 }
 
-static void stop(Component c)
+static void stop(const Fmu *f, Component c)
 {
-    terminate(c);
-    free_instance(c);
+    f->terminate(c);
+    f->free_instance(c);
 }
 
-static int cycles(int n, int steps)
+static int cycles(const Fmu *f, int n, int steps)
 {
     quiet = 1;
     for (int k = 0; k < n; k++) {
-        Component c = start(1);
+        Component c = start(f, 1);
         for (int i = 0; i < steps; i++) {
-            int s = do_step(c, i * 0.01, 0.01, 1);
+            int s = f->do_step(c, i * 0.01, 0.01, 1);
             if (s != 0) {
                 printf("cycle %d step %d: status %d\n", k, i, s);
                 return 1;
             }
         }
-        stop(c);
+        stop(f, c);
     }
     printf("cycles: %d x %d ok\n", n, steps);
     return 0;
@@ -135,11 +160,11 @@ static int cycles(int n, int steps)
 /* The first variable in resources/fmu_variables.txt matching a type, causality and
  * variability ("*" for any) that declares a min or max if ``bounded``: its vr, start and a
  * value just outside its range. */
-static int find(const char *type, const char *causality, const char *variability, int bounded,
-                Vr *vr, double *start, double *outside)
+static int find(const Fmu *f, const char *type, const char *causality, const char *variability,
+                int bounded, Vr *vr, double *start, double *outside)
 {
     char path[4300], line[512], t[4], ca[32], va[32], lo[40], hi[40], st[40], name[128];
-    snprintf(path, sizeof path, "%s/fmu_variables.txt", resources + 7);
+    snprintf(path, sizeof path, "%s/fmu_variables.txt", f->resources + 7);
     FILE *in = fopen(path, "r");
     int found = 0;
     while (in && !found && fgets(line, sizeof line, in)) {
@@ -157,58 +182,152 @@ static int find(const char *type, const char *causality, const char *variability
     return found;
 }
 
-static int illegal(void)
+static void illegal_sequence(const Fmu *f)
 {
-    Component c = start(0);
-    setup(c, 0, 0.0, 0.0, 0, 0.0);
-    enter_init(c);
-    printf("second-enterInitializationMode %d\n", enter_init(c));
-    stop(c);
+    Component c = start(f, 0);
+    printf("terminate-before-initialisation %d\n", f->terminate(c));
+    f->setup(c, 0, 0.0, 0.0, 0, 0.0);
+    f->enter_init(c);
+    printf("second-enterInitializationMode %d\n", f->enter_init(c));
+    printf("terminate-in-initialisation-mode %d\n", f->terminate(c));
+    f->free_instance(c);
 
-    c = start(0);
-    printf("doStep-before-initialisation %d\n", do_step(c, 0.0, 0.01, 1));
-    stop(c);
+    c = start(f, 0);
+    printf("doStep-before-initialisation %d\n", f->do_step(c, 0.0, 0.01, 1));
+    f->free_instance(c);
 
-    c = start(1);
-    do_step(c, 0.0, 0.01, 1);
-    printf("doStep-at-wrong-point %d\n", do_step(c, 0.5, 0.01, 1));
-    printf("valid-step-after-refusals %d\n", do_step(c, 0.01, 0.01, 1));
-    stop(c);
+    c = start(f, 1);
+    f->do_step(c, 0.0, 0.01, 1);
+    printf("doStep-at-wrong-point %d\n", f->do_step(c, 0.5, 0.01, 1));
+    printf("valid-step-after-refusals %d\n", f->do_step(c, 0.01, 0.01, 1));
+    printf("valid-terminate-after-refusals %d\n", f->terminate(c));
+    printf("second-terminate %d\n", f->terminate(c));
+    f->free_instance(c);
+}
 
+static int illegal(const Fmu *f)
+{
+    illegal_sequence(f);
     Vr vr;
     double start_value, outside;
-    c = start(1);
-    if (find("R", "parameter", "fixed", 0, &vr, &start_value, &outside)) {
+    Component c = start(f, 1);
+    if (find(f, "R", "parameter", "fixed", 0, &vr, &start_value, &outside)) {
         double changed = start_value + 1.0;
-        printf("setReal-fixed-parameter-after-initialisation %d\n", set_real(c, &vr, 1, &changed));
+        printf("setReal-fixed-parameter-after-initialisation %d\n",
+               f->set_real(c, &vr, 1, &changed));
     }
-    stop(c);
+    stop(f, c);
 
-    c = start(0);
-    setup(c, 0, 0.0, 0.0, 0, 0.0);
-    enter_init(c);
-    if (find("I", "*", "*", 1, &vr, &start_value, &outside)) {
+    c = start(f, 0);
+    f->setup(c, 0, 0.0, 0.0, 0, 0.0);
+    f->enter_init(c);
+    if (find(f, "I", "*", "*", 1, &vr, &start_value, &outside)) {
         int value = (int)outside;
-        printf("setInteger-outside-range %d\n", set_integer(c, &vr, 1, &value));
+        printf("setInteger-outside-range %d\n", f->set_integer(c, &vr, 1, &value));
     }
-    if (find("R", "*", "*", 1, &vr, &start_value, &outside)) {
-        printf("setReal-outside-range %d\n", set_real(c, &vr, 1, &outside));
+    if (find(f, "R", "*", "*", 1, &vr, &start_value, &outside)) {
+        printf("setReal-outside-range %d\n", f->set_real(c, &vr, 1, &outside));
     }
-    printf("valid-initialisation-after-refusals %d\n", exit_init(c));
-    stop(c);
+    printf("valid-initialisation-after-refusals %d\n", f->exit_init(c));
+    stop(f, c);
     return 0;
+}
+
+static void instantiations(const Fmu *f)
+{
+    const char *cases[][3] = {
+        {"instantiate-null-name", NULL, f->guid},
+        {"instantiate-null-guid", "host", NULL},
+        {"instantiate-wrong-guid", "host", "{00000000-0000-0000-0000-000000000000}"},
+    };
+    for (int i = 0; i < 3; i++) {
+        Component c = f->instantiate(cases[i][1], 1, cases[i][2], f->resources, &callbacks, 0, 1);
+        printf("%s %s\n", cases[i][0], c ? "instance" : "NULL");
+        if (c) f->free_instance(c);
+    }
+    Component c = f->instantiate("host", 1, f->guid, NULL, &callbacks, 0, 1);
+    printf("instantiate-null-resources %s\n", c ? "instance" : "NULL");
+    if (c) f->free_instance(c);
+}
+
+static int hostile(const Fmu *f)
+{
+    instantiations(f);
+    Component c = start(f, 1);
+    Vr vr = 0;
+    double real = 0.0;
+    int integer = 0;
+    const char *text = NULL;
+    void *state = NULL;
+    printf("getReal-null-references %d\n", f->get_real(c, NULL, 1, &real));
+    printf("getReal-null-values %d\n", f->get_real(c, &vr, 1, NULL));
+    printf("setReal-null-references %d\n", f->set_real(c, NULL, 1, &real));
+    printf("setReal-null-values %d\n", f->set_real(c, &vr, 1, NULL));
+    printf("getInteger-null-references %d\n", f->get_integer(c, NULL, 1, &integer));
+    printf("getInteger-null-values %d\n", f->get_integer(c, &vr, 1, NULL));
+    printf("setInteger-null-references %d\n", f->set_integer(c, NULL, 1, &integer));
+    printf("setInteger-null-values %d\n", f->set_integer(c, &vr, 1, NULL));
+    printf("getString-null-values %d\n", f->get_string(c, &vr, 1, NULL));
+    printf("setString-null-values %d\n", f->set_string(c, &vr, 1, NULL));
+    printf("setString-null-string %d\n", f->set_string(c, &vr, 1, &text));
+    printf("deSerialize-null-bytes %d\n", f->deserialize(c, NULL, 64, &state));
+    printf("deSerialize-null-state %d\n", f->deserialize(c, "0123456789abcdef", 16, NULL));
+    printf("getFMUstate-null-state %d\n", f->get_state(c, NULL));
+    if (f->get_state(c, &state) == 0) {
+        printf("serialize-null-bytes %d\n", f->serialize(c, state, NULL, 64));
+    }
+    printf("valid-step-after-refusals %d\n", f->do_step(c, 0.0, 0.01, 1));
+    stop(f, c);
+    return 0;
+}
+
+static int twice(const Fmu *first, const char *dir, const char *id)
+{
+    Fmu second;
+    load(&second, dir, id);
+    const Fmu *fmus[2] = {first, &second};
+    Component c[2];
+    for (int k = 0; k < 2; k++) { /* the second made while the first is initialising */
+        c[k] = start(fmus[k], 0);
+        printf("setup-%d %d\n", k, fmus[k]->setup(c[k], 0, 0, 0, 0, 0));
+        printf("enter-%d %d\n", k, fmus[k]->enter_init(c[k]));
+    }
+    for (int k = 0; k < 2; k++) printf("exit-%d %d\n", k, fmus[k]->exit_init(c[k]));
+    int worst = 0;
+    for (int i = 0; i < 50; i++) {
+        for (int k = 0; k < 2; k++) {
+            int s = fmus[k]->do_step(c[k], i * 0.01, 0.01, 1);
+            worst = s > worst ? s : worst;
+        }
+    }
+    printf("steps %d\n", worst);
+    for (int k = 0; k < 2; k++) stop(fmus[k], c[k]);
+    return 0;
+}
+
+static int abandon(const Fmu *f)
+{
+    Component c = start(f, 1);
+    for (int i = 0; i < 5; i++) f->do_step(c, i * 0.01, 0.01, 1);
+    printf("abandoned\n");
+    return 0; /* exit() with the instance alive, never terminated */
 }
 
 int main(int argc, char **argv)
 {
     setvbuf(stdout, NULL, _IOLBF, 0);
     if (argc < 4) {
-        fprintf(stderr, "usage: fmi_host DIR ID cycles N STEPS | fmi_host DIR ID illegal\n");
+        fprintf(stderr, "usage: fmi_host DIR ID MODE [ARGS]\n");
         return 2;
     }
-    load(argv[1], argv[2]);
-    if (!strcmp(argv[3], "cycles") && argc == 6) return cycles(atoi(argv[4]), atoi(argv[5]));
-    if (!strcmp(argv[3], "illegal")) return illegal();
-    fprintf(stderr, "unknown mode %s\n", argv[3]);
+    Fmu f;
+    load(&f, argv[1], argv[2]);
+    const char *mode = argv[3];
+    if (!strcmp(mode, "cycles") && argc == 6) return cycles(&f, atoi(argv[4]), atoi(argv[5]));
+    if (!strcmp(mode, "illegal")) return illegal(&f);
+    if (!strcmp(mode, "hostile")) return hostile(&f);
+    if (!strcmp(mode, "twice") && argc == 5) return twice(&f, argv[4], argv[2]);
+    if (!strcmp(mode, "abandon")) return abandon(&f);
+    fprintf(stderr, "unknown mode %s\n", mode);
     return 2;
 }

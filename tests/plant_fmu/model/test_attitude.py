@@ -1,10 +1,13 @@
 """The attitude through any orientation: beyond 70 deg of pitch the stepping integrates a
 unit quaternion, so a vehicle that tumbles, loops or dives vertically passes pitch +-90 deg
-with its physics intact, and the Euler-angle outputs run on continuously; below, it
-integrates the Euler angles as it always did."""
+with its physics intact, and the Euler-angle outputs are a rule of the attitude (the triple
+with |pitch| <= 90 deg, roll and yaw continued by whole turns), the same at every step;
+below, it integrates the Euler angles as it always did."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
@@ -19,6 +22,7 @@ from plant_fmu.model.stepping import simulate
 
 NU = slice(6, 12)
 PITCH = 4
+YAW = 5
 
 
 def _balanced():
@@ -82,7 +86,8 @@ def test_tumbling_through_the_vertical_keeps_the_impulse_short():
     """0.7 s, through pitch 90 deg at 0.35 s (the reference path)."""
     model, states = _tumble(0.7, fast=False)
     _check_tumble(model, states, floor=1e-9)
-    assert np.ptp(states[:, PITCH]) > 0.7  # pitch runs on past 90 deg
+    assert np.max(np.abs(states[:, PITCH])) <= np.pi / 2  # the triple with |pitch| <= 90 deg
+    assert np.ptp(states[:, YAW]) > 2.5  # yaw swings round the vertical by nearly 180 deg
 
 
 @pytest.mark.slow
@@ -91,7 +96,8 @@ def test_tumbling_through_the_vertical_keeps_the_impulse():
     (the compiled path, which the plant FMU steps)."""
     model, states = _tumble(30.0, fast=True)
     _check_tumble(model, states, floor=1e-7)
-    assert np.ptp(states[:, PITCH]) > 3.0  # over and over
+    assert np.ptp(states[:, PITCH]) > 2.8  # nose from near straight up to below -70 deg
+    assert np.ptp(states[:, YAW]) > 10 * np.pi  # over and over: more than five turns
 
 
 def _loop(duration: float, fast: bool):
@@ -139,15 +145,54 @@ def test_a_loop_turns_the_vehicle_as_its_body_rates_say(duration, fast):
     assert np.max(-stepped.as_matrix()[:, 2, 0]) > 0.99999
 
 
-def test_euler_angles_continue_the_previous_ones():
-    """Past pitch 90 deg the triple (phi + pi, pi - theta, psi + pi) is the continuation;
-    yaw runs on past 180 deg."""
-    beyond = Rotation.from_euler("ZYX", [3.1416 + 0.3, 3.1416 - 1.60, 3.1416 + 0.1])
+def test_past_the_vertical_the_triple_with_pitch_within_90_deg_is_output():
+    """Of the two triples (phi, theta, psi) and (phi + pi, pi - theta, psi + pi), the one
+    with |theta| <= 90 deg, even where the other is nearer the previous output; roll and
+    yaw keep their whole turns (yaw runs on past 180 deg)."""
+    beyond = Rotation.from_euler("ZYX", [0.3, 1.60, 0.1])  # pitch just past 90 deg
     q = np.roll(beyond.as_quat(), 1)  # [w, x, y, z]
-    phi, theta, psi = euler_from_quaternion(q, (0.1, 1.55, 0.3))
-    assert (phi, theta, psi) == pytest.approx((0.1, 1.60, 0.3), abs=1e-4)
+    phi, theta, psi = euler_from_quaternion(q, (0.5, 1.55, 0.6))
+    assert (phi, theta, psi) == pytest.approx((0.1 + np.pi, np.pi - 1.60, 0.3 + np.pi), abs=1e-9)
     q = np.roll(Rotation.from_euler("ZYX", [-3.0, 0.0, 0.0]).as_quat(), 1)
     assert euler_from_quaternion(q, (0.0, 0.0, 3.2))[2] == pytest.approx(2 * np.pi - 3.0)
+
+
+_ANGLE = st.floats(-10.0, 10.0, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.tuples(_ANGLE, _ANGLE, _ANGLE), st.tuples(_ANGLE, _ANGLE, _ANGLE))
+def test_the_triple_is_a_rule_of_the_attitude_alone(euler, previous):
+    """For any attitude and any previous output, the triple describes the attitude, has
+    |pitch| <= 90 deg, and differs from the principal triple (scipy's) by whole turns of
+    roll and yaw only: the previous output never picks the other triple."""
+    attitude = Rotation.from_euler("ZYX", euler[::-1])
+    if abs(np.cos(attitude.as_euler("ZYX")[1])) < 1e-6:
+        return  # at the vertical itself roll and yaw separately are not defined
+    q = np.roll(attitude.as_quat(), 1)
+    phi, theta, psi = euler_from_quaternion(q, previous)
+    np.testing.assert_allclose(rotation_matrix(phi, theta, psi), attitude.as_matrix(), atol=1e-9)
+    yaw, pitch, roll = attitude.as_euler("ZYX")
+    assert theta == pytest.approx(pitch, abs=1e-9)
+    for ours, principal in ((phi, roll), (psi, yaw)):
+        turns = (ours - principal) / (2 * np.pi)
+        assert turns == pytest.approx(round(turns), abs=1e-9)
+
+
+@pytest.mark.parametrize("fast", [False, True])
+def test_after_a_pass_near_the_vertical_the_attitude_output_does_not_depend_on_the_step(fast):
+    """The tumble passes within 0.4 deg of straight up at 0.35 s, where roll and yaw swing
+    by nearly 180 deg: stepped at 10, 5 and 2.5 ms it ends with the same roll, pitch and yaw
+    at 1 s (to RK4's error), not one triple at one step and the other at another."""
+    model = PlantModel(_balanced(), Variant.FULL, ideal_fluid=True)
+    x0 = state_vector(dict(u=0.3, v=0.1, w=0.05, p=0.3, q=1.0, r=-0.2, roll=0.2, pitch=1.2))
+    ends = []
+    for step in (0.01, 0.005, 0.0025):
+        path = compiled.CompiledPlant(model) if fast and compiled.AVAILABLE else None
+        _, states = simulate(model, x0, input_vector(), 1.0, step, compiled=path)
+        ends.append(states[-1, 3:6])
+    np.testing.assert_allclose(ends[0], ends[2], atol=1e-5)
+    np.testing.assert_allclose(ends[1], ends[2], atol=1e-6)
 
 
 def _euler_rk4(model: PlantModel, x: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:

@@ -1,0 +1,228 @@
+/* The fallback backend (AUV_FMU_RUNTIME=pythonfmu): pythonfmu's own binary, shipped
+ * unchanged beside this library as <model identifier>_pythonfmu.so, with every call
+ * forwarded to it once the FMI rules are checked (loader.c) and Python started
+ * (runtime.c). pythonfmu's binary needs glibc 2.32.
+ *
+ * It hands pythonfmu a logger of its own, which passes every message to the host's (a
+ * NULL category replaced: some hosts crash on one) and feeds the call's worst status.
+ *
+ * pythonfmu 0.7's wrapper releases its interpreter guard twice at process exit (a static
+ * destructor, then its ``finalizePythonInterpreter``): right after loading it, its
+ * ``finalizePythonInterpreter`` is registered as an exit handler, which runs first (exit
+ * handlers run last-registered first) while the guard is alive and leaves nothing for the
+ * two later releases (fmu_runtime/exit_guard.py does the same from Python for a wrapper
+ * loaded without this runtime).
+ */
+#define _GNU_SOURCE
+#include "loader.h"
+#include "python.h"
+
+#include <dlfcn.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {
+    fmi2Component (*instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String,
+                                 const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
+    void (*freeInstance)(fmi2Component);
+    fmi2Status (*setupExperiment)(fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean,
+                                  fmi2Real);
+    fmi2Status (*enterInitializationMode)(fmi2Component);
+    fmi2Status (*exitInitializationMode)(fmi2Component);
+    fmi2Status (*terminate)(fmi2Component);
+    fmi2Status (*reset)(fmi2Component);
+    fmi2Status (*getReal)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]);
+    fmi2Status (*getInteger)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Integer[]);
+    fmi2Status (*getBoolean)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Boolean[]);
+    fmi2Status (*getString)(fmi2Component, const fmi2ValueReference[], size_t, fmi2String[]);
+    fmi2Status (*setReal)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Real[]);
+    fmi2Status (*setInteger)(fmi2Component, const fmi2ValueReference[], size_t,
+                             const fmi2Integer[]);
+    fmi2Status (*setBoolean)(fmi2Component, const fmi2ValueReference[], size_t,
+                             const fmi2Boolean[]);
+    fmi2Status (*setString)(fmi2Component, const fmi2ValueReference[], size_t,
+                            const fmi2String[]);
+    fmi2Status (*getFMUstate)(fmi2Component, fmi2FMUstate *);
+    fmi2Status (*setFMUstate)(fmi2Component, fmi2FMUstate);
+    fmi2Status (*freeFMUstate)(fmi2Component, fmi2FMUstate *);
+    fmi2Status (*serializedFMUstateSize)(fmi2Component, fmi2FMUstate, size_t *);
+    fmi2Status (*serializeFMUstate)(fmi2Component, fmi2FMUstate, fmi2Byte[], size_t);
+    fmi2Status (*deSerializeFMUstate)(fmi2Component, const fmi2Byte[], size_t, fmi2FMUstate *);
+    fmi2Status (*doStep)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
+} Wrapper;
+
+typedef struct {
+    const char *name;
+    void **slot;
+} Entry;
+
+static Wrapper wrapper;
+static int wrapper_loaded;
+static pthread_mutex_t wrapper_lock = PTHREAD_MUTEX_INITIALIZER;
+
+extern int __cxa_atexit(void (*)(void *), void *, void *);
+
+#define ENTRY(field, name) {name, (void **)&wrapper.field}
+
+static int resolve(void *library)
+{
+    const Entry entries[] = {
+        ENTRY(instantiate, "fmi2Instantiate"),
+        ENTRY(freeInstance, "fmi2FreeInstance"),
+        ENTRY(setupExperiment, "fmi2SetupExperiment"),
+        ENTRY(enterInitializationMode, "fmi2EnterInitializationMode"),
+        ENTRY(exitInitializationMode, "fmi2ExitInitializationMode"),
+        ENTRY(terminate, "fmi2Terminate"),
+        ENTRY(reset, "fmi2Reset"),
+        ENTRY(getReal, "fmi2GetReal"),
+        ENTRY(getInteger, "fmi2GetInteger"),
+        ENTRY(getBoolean, "fmi2GetBoolean"),
+        ENTRY(getString, "fmi2GetString"),
+        ENTRY(setReal, "fmi2SetReal"),
+        ENTRY(setInteger, "fmi2SetInteger"),
+        ENTRY(setBoolean, "fmi2SetBoolean"),
+        ENTRY(setString, "fmi2SetString"),
+        ENTRY(getFMUstate, "fmi2GetFMUstate"),
+        ENTRY(setFMUstate, "fmi2SetFMUstate"),
+        ENTRY(freeFMUstate, "fmi2FreeFMUstate"),
+        ENTRY(serializedFMUstateSize, "fmi2SerializedFMUstateSize"),
+        ENTRY(serializeFMUstate, "fmi2SerializeFMUstate"),
+        ENTRY(deSerializeFMUstate, "fmi2DeSerializeFMUstate"),
+        ENTRY(doStep, "fmi2DoStep"),
+    };
+    for (size_t i = 0; i < sizeof entries / sizeof entries[0]; i++) {
+        *entries[i].slot = dlsym(library, entries[i].name);
+        if (!*entries[i].slot) return 0;
+    }
+    return 1;
+}
+
+/* pythonfmu's library: this library's own file name with "_pythonfmu" before ".so". */
+static int load_wrapper(Instance *c)
+{
+    char path[PATH_SIZE];
+    if (!own_path(path, sizeof path - 16) || !strstr(path, ".so")) {
+        refuse(c, "fmi2Instantiate: the runtime cannot find its own file");
+        return 0;
+    }
+    char *dot = strrchr(path, '.');
+    snprintf(dot, 16, "_pythonfmu.so");
+    void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!library) {
+        const char *error = dlerror();
+        refuse(c, "fmi2Instantiate: cannot load pythonfmu's library %s (%s)", path,
+               error ? error : "");
+        return 0;
+    }
+    void (*finalize)(void *) = (void (*)(void *))dlsym(library, "finalizePythonInterpreter");
+    if (finalize) __cxa_atexit(finalize, NULL, NULL);
+    if (!resolve(library)) {
+        refuse(c, "fmi2Instantiate: %s is not an FMI 2.0 co-simulation library", path);
+        return 0;
+    }
+    return 1;
+}
+
+/* pythonfmu's messages to the host's logger, with a category, feeding the call's status. */
+static void relay(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
+                  fmi2String category, fmi2String message, ...)
+{
+    (void)instance;
+    instance_log((Instance *)env, status, category, message ? message : "");
+}
+
+static int start(Instance *c)
+{
+    pthread_mutex_lock(&wrapper_lock);
+    wrapper_loaded = wrapper_loaded || load_wrapper(c);
+    pthread_mutex_unlock(&wrapper_lock);
+    if (!wrapper_loaded) return 0;
+    fmi2CallbackFunctions *callbacks = calloc(1, sizeof *callbacks);
+    if (!callbacks) return 0;
+    *callbacks = c->host;
+    callbacks->logger = relay;
+    callbacks->componentEnvironment = c;
+    c->extra = callbacks; /* pythonfmu keeps the pointer */
+    c->slave = wrapper.instantiate(c->name, fmi2CoSimulation, c->record.guid, c->resources_uri,
+                                   callbacks, c->visible, fmi2True);
+    if (!c->slave) free(callbacks);
+    return c->slave != NULL;
+}
+
+static void stop(Instance *c)
+{
+    if (!python_gone()) wrapper.freeInstance(c->slave); /* it would enter Python */
+    free(c->extra);
+}
+
+static fmi2Status setup(Instance *c, fmi2Boolean has_tolerance, fmi2Real tolerance,
+                        fmi2Real start_time, fmi2Boolean has_stop, fmi2Real stop_time)
+{
+    return wrapper.setupExperiment(c->slave, has_tolerance, tolerance, start_time, has_stop,
+                                   stop_time);
+}
+
+static fmi2Status enter(Instance *c) { return wrapper.enterInitializationMode(c->slave); }
+static fmi2Status leave(Instance *c) { return wrapper.exitInitializationMode(c->slave); }
+static fmi2Status terminate(Instance *c) { return wrapper.terminate(c->slave); }
+static fmi2Status reset(Instance *c) { return wrapper.reset(c->slave); }
+
+static fmi2Status step(Instance *c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_state)
+{
+    return wrapper.doStep(c->slave, t, h, no_set_state);
+}
+
+static fmi2Status get(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
+                      void *values)
+{
+    if (type == 'R') return wrapper.getReal(c->slave, vr, n, values);
+    if (type == 'I') return wrapper.getInteger(c->slave, vr, n, values);
+    if (type == 'B') return wrapper.getBoolean(c->slave, vr, n, values);
+    return wrapper.getString(c->slave, vr, n, values);
+}
+
+static fmi2Status set(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
+                      const void *values)
+{
+    if (type == 'R') return wrapper.setReal(c->slave, vr, n, values);
+    if (type == 'I') return wrapper.setInteger(c->slave, vr, n, values);
+    if (type == 'B') return wrapper.setBoolean(c->slave, vr, n, values);
+    return wrapper.setString(c->slave, vr, n, values);
+}
+
+static fmi2Status save(Instance *c, void **state)
+{
+    *state = NULL;
+    return wrapper.getFMUstate(c->slave, state);
+}
+
+static fmi2Status restore(Instance *c, void *state)
+{
+    return wrapper.setFMUstate(c->slave, state);
+}
+
+static void discard(Instance *c, void *state)
+{
+    if (state) wrapper.freeFMUstate(c->slave, &state);
+}
+
+static fmi2Status state_bytes(Instance *c, void *state, fmi2Byte *out, size_t capacity,
+                              size_t *size)
+{
+    fmi2Status s = wrapper.serializedFMUstateSize(c->slave, state, size);
+    if (s > fmi2Warning || !out || capacity < *size) return s;
+    return wrapper.serializeFMUstate(c->slave, state, out, *size);
+}
+
+static fmi2Status state_from_bytes(Instance *c, const fmi2Byte *bytes, size_t size, void **state)
+{
+    *state = NULL;
+    return wrapper.deSerializeFMUstate(c->slave, bytes, size, state);
+}
+
+const Backend pythonfmu_backend = {
+    start, stop,    setup,   enter,       leave,            step, terminate, reset, get, set,
+    save,  restore, discard, state_bytes, state_from_bytes, NULL,
+};

@@ -1,0 +1,30 @@
+/* Ask one candidate Python what it is, in a subprocess of its own. */
+#ifndef AUV_FMU_PROBE_H
+#define AUV_FMU_PROBE_H
+
+#include "loader.h"
+
+#define PROBE_TIMEOUT_S 60
+
+typedef struct {
+    int answered;       /* it printed its whole answer */
+    char failure[512];  /* why not: could not run, exit status, last line of its stderr */
+    int major, minor, micro;
+    char implementation[32]; /* platform.python_implementation(): CPython, PyPy, ... */
+    char libpython[PATH_SIZE]; /* its shared libpython, "" if it has none */
+    char base_prefix[PATH_SIZE];
+    char stdlib[PATH_SIZE];
+    char executable[PATH_SIZE];
+    char *path;   /* its sys.path, each entry followed by a '\0' (malloc'd) */
+    size_t paths; /* how many entries */
+    char numpy[64];        /* numpy.__version__, "" if it cannot import numpy */
+    char numpy_error[512]; /* why it cannot */
+    int numba;             /* 1 if numba is installed */
+} Answer;
+
+/* Run ``executable -c <probe>`` once (posix_spawn, no shell, stdin from /dev/null, stdout
+ * and stderr captured: nothing reaches the host's terminal; PYTHONHOME left out of its
+ * environment, since the runtime sets the home itself) and fill ``answer``. */
+void probe(const char *executable, Answer *answer);
+
+#endif

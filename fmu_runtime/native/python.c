@@ -1,0 +1,192 @@
+/* The CPython C API through dlsym, and the runtime's few Python-side helpers.
+ *
+ * Written by hand because no library does it: the runtime must serve whichever CPython
+ * the host runs or the runtime finds (3.9 and later), so it cannot link one libpython,
+ * and it uses only exported functions (macros and struct layouts differ between
+ * versions).
+ */
+#define _GNU_SOURCE
+#include "python.h"
+
+#include "loader.h"
+
+#include <dlfcn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PY_FILE_INPUT 257 /* Py_file_input of CPython's compile.h, the same in every 3.x */
+
+PythonApi py;
+
+/* The helpers run in a module of their own (not __main__, which a Python host owns), and
+ * never through sys.path: the FMU's package is found in its own resources folder only. */
+static const char HELPERS[] =
+    "import sys\n"
+    "\n"
+    "\n"
+    "def check():\n"
+    "    import importlib.util\n"
+    "    if importlib.util.find_spec('numpy') is None:\n"
+    "        exe = sys.executable or 'python'\n"
+    "        return 'it cannot import numpy (fix: %s -m pip install numpy)' % exe\n"
+    "    return ''\n"
+    "\n"
+    "\n"
+    "def configure(path, executable):\n"
+    "    import site\n"
+    "    sys.path[:] = path\n"
+    "    for entry in path:\n"
+    "        if entry.endswith(('site-packages', 'dist-packages')):\n"
+    "            site.addsitedir(entry)\n"
+    "    if executable:\n"
+    "        sys.executable = executable\n"
+    "\n"
+    "\n"
+    "def load(package, resources, module, name):\n"
+    "    import importlib, importlib.machinery, importlib.util\n"
+    "    if package not in sys.modules:\n"
+    "        spec = importlib.machinery.PathFinder.find_spec(package, [resources])\n"
+    "        if spec is None or spec.loader is None:\n"
+    "            raise ImportError('no package %s in %s' % (package, resources))\n"
+    "        top = importlib.util.module_from_spec(spec)\n"
+    "        sys.modules[package] = top\n"
+    "        try:\n"
+    "            spec.loader.exec_module(top)\n"
+    "        except BaseException:\n"
+    "            del sys.modules[package]\n"
+    "            raise\n"
+    "    return getattr(importlib.import_module(module), name)\n";
+
+static PyObject *helpers; /* the helpers' namespace (never released: Python outlives it) */
+
+typedef struct {
+    const char *name;
+    void **slot;
+} Symbol;
+
+#define SYMBOL(field, name) {name, (void **)&py.field}
+
+int python_resolve(void *library, const char **missing)
+{
+    const Symbol symbols[] = {
+        SYMBOL(IsInitialized, "Py_IsInitialized"),
+        SYMBOL(GetVersion, "Py_GetVersion"),
+        SYMBOL(DecodeLocale, "Py_DecodeLocale"),
+        SYMBOL(SetPythonHome, "Py_SetPythonHome"),
+        SYMBOL(InitializeEx, "Py_InitializeEx"),
+        SYMBOL(RawFree, "PyMem_RawFree"),
+        SYMBOL(SaveThread, "PyEval_SaveThread"),
+        SYMBOL(GILState_Ensure, "PyGILState_Ensure"),
+        SYMBOL(GILState_Release, "PyGILState_Release"),
+        SYMBOL(IncRef, "Py_IncRef"),
+        SYMBOL(DecRef, "Py_DecRef"),
+        SYMBOL(None, "_Py_NoneStruct"),
+        SYMBOL(GetAttrString, "PyObject_GetAttrString"),
+        SYMBOL(Call, "PyObject_Call"),
+        SYMBOL(IsTrue, "PyObject_IsTrue"),
+        SYMBOL(Str, "PyObject_Str"),
+        SYMBOL(Float_FromDouble, "PyFloat_FromDouble"),
+        SYMBOL(Float_AsDouble, "PyFloat_AsDouble"),
+        SYMBOL(Long_FromLong, "PyLong_FromLong"),
+        SYMBOL(Long_FromUnsignedLong, "PyLong_FromUnsignedLong"),
+        SYMBOL(Long_AsLong, "PyLong_AsLong"),
+        SYMBOL(Bool_FromLong, "PyBool_FromLong"),
+        SYMBOL(Unicode_FromString, "PyUnicode_FromString"),
+        SYMBOL(Unicode_DecodeFSDefault, "PyUnicode_DecodeFSDefault"),
+        SYMBOL(Unicode_AsUTF8, "PyUnicode_AsUTF8"),
+        SYMBOL(Bytes_FromStringAndSize, "PyBytes_FromStringAndSize"),
+        SYMBOL(Bytes_AsStringAndSize, "PyBytes_AsStringAndSize"),
+        SYMBOL(List_New, "PyList_New"),
+        SYMBOL(List_SetItem, "PyList_SetItem"),
+        SYMBOL(List_GetItem, "PyList_GetItem"),
+        SYMBOL(List_Size, "PyList_Size"),
+        SYMBOL(List_SetSlice, "PyList_SetSlice"),
+        SYMBOL(Tuple_New, "PyTuple_New"),
+        SYMBOL(Tuple_SetItem, "PyTuple_SetItem"),
+        SYMBOL(Dict_New, "PyDict_New"),
+        SYMBOL(Dict_SetItemString, "PyDict_SetItemString"),
+        SYMBOL(Module_New, "PyModule_New"),
+        SYMBOL(Module_GetDict, "PyModule_GetDict"),
+        SYMBOL(Import_ImportModule, "PyImport_ImportModule"),
+        SYMBOL(CompileString, "Py_CompileString"),
+        SYMBOL(Eval_EvalCode, "PyEval_EvalCode"),
+        SYMBOL(Err_Occurred, "PyErr_Occurred"),
+        SYMBOL(Err_Fetch, "PyErr_Fetch"),
+        SYMBOL(Err_Clear, "PyErr_Clear"),
+    };
+    for (size_t i = 0; i < sizeof symbols / sizeof symbols[0]; i++) {
+        *symbols[i].slot = dlsym(library, symbols[i].name);
+        if (!*symbols[i].slot) {
+            *missing = symbols[i].name;
+            return 0;
+        }
+    }
+    /* public from 3.13; the private name before: either tells a shutdown in progress */
+    *(void **)&py.IsFinalizing = dlsym(library, "Py_IsFinalizing");
+    if (!py.IsFinalizing) *(void **)&py.IsFinalizing = dlsym(library, "_Py_IsFinalizing");
+    return 1;
+}
+
+int python_alive(void)
+{
+    return py.IsInitialized && py.IsInitialized() && !(py.IsFinalizing && py.IsFinalizing());
+}
+
+int python_gone(void) { return py.IsInitialized && !python_alive(); }
+
+void python_version(int *major, int *minor)
+{
+    *major = *minor = 0;
+    if (py.GetVersion && sscanf(py.GetVersion(), "%d.%d", major, minor) != 2) {
+        *major = *minor = 0;
+    }
+}
+
+PyObject *python_none(void)
+{
+    py.IncRef(py.None);
+    return py.None;
+}
+
+PyObject *python_helper(const char *name)
+{
+    if (!helpers) {
+        PyObject *module = py.Module_New("auv_fmu_runtime_helpers");
+        PyObject *builtins = py.Import_ImportModule("builtins");
+        PyObject *code = py.CompileString(HELPERS, "<auv-fmu-runtime>", PY_FILE_INPUT);
+        PyObject *namespace = module ? py.Module_GetDict(module) : NULL; /* borrowed */
+        PyObject *done = NULL;
+        if (namespace && builtins && code &&
+            py.Dict_SetItemString(namespace, "__builtins__", builtins) == 0) {
+            done = py.Eval_EvalCode(code, namespace, namespace);
+        }
+        if (done) {
+            helpers = module; /* kept: it owns the namespace */
+            module = NULL;
+            py.DecRef(done);
+        }
+        if (module) py.DecRef(module);
+        if (builtins) py.DecRef(builtins);
+        if (code) py.DecRef(code);
+        if (!helpers) return NULL;
+    }
+    return py.GetAttrString(helpers, name);
+}
+
+void python_error(char *out, size_t size)
+{
+    PyObject *type = NULL, *value = NULL, *traceback = NULL;
+    py.Err_Fetch(&type, &value, &traceback);
+    const char *kind = "error";
+    PyObject *name = type ? py.GetAttrString(type, "__name__") : NULL;
+    PyObject *text = value ? py.Str(value) : NULL;
+    if (name) kind = py.Unicode_AsUTF8(name);
+    const char *message = text ? py.Unicode_AsUTF8(text) : NULL;
+    snprintf(out, size, "%s: %s", kind ? kind : "error", message ? message : "(no message)");
+    py.Err_Clear(); /* a failed str() or attribute lookup above leaves its own */
+    PyObject *objects[] = {name, text, type, value, traceback};
+    for (size_t i = 0; i < sizeof objects / sizeof objects[0]; i++) {
+        if (objects[i]) py.DecRef(objects[i]);
+    }
+}

@@ -1,0 +1,45 @@
+"""scripts/live_client.py, started before the run it steers (as docs/live-runs.md shows, with
+``&``): it waits for the endpoint to open instead of failing with "connection refused", and
+its first request reaches the run."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+from repo_paths import ROOT
+
+TIMEOUT_S = 60.0  # generous: the machine may be busy; nothing here is timed
+
+
+@pytest.mark.slow
+def test_the_live_client_waits_for_the_runs_endpoint() -> None:
+    with socket.socket() as probe:  # a port nothing listens on yet
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    client = subprocess.Popen(
+        [sys.executable, str(ROOT / "scripts" / "live_client.py"), str(port)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    try:
+        time.sleep(1.0)  # the client starts first and finds no endpoint (not a measurement)
+        assert client.poll() is None, client.communicate()
+        with socket.create_server(("127.0.0.1", port)) as endpoint:  # the run opens it now
+            endpoint.settimeout(TIMEOUT_S)
+            connection, _ = endpoint.accept()
+            with connection, connection.makefile("rw") as channel:
+                request = json.loads(channel.readline())
+        assert request == {"set": {"controller.yaw_setpoint": 0.35}}
+        _, err = client.communicate(timeout=TIMEOUT_S)
+        assert "the run has ended" in err and "Traceback" not in err  # closed without reply
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(client.pid, signal.SIGKILL)
+        client.wait()

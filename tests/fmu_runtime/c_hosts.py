@@ -1,0 +1,62 @@
+"""Helpers for running our FMUs in hosts that are not the test process (the fixtures that
+use them are in this folder's conftest.py):
+
+* :func:`run_clean`: a command in a clean environment (``env -i`` with PATH, HOME and what
+  the test adds), in its own process group, ended whatever happens;
+* :func:`moved`: a copy of an extraction whose record names a build environment that does
+  not exist, as on a machine the FMU was copied to.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+from pathlib import Path
+
+from fmu_runtime.entry import RECORD_FILE
+
+HOST_SOURCE = Path(__file__).parent / "hosts" / "fmi_host.c"
+CLEAN_PATH = "/usr/bin:/bin"
+
+
+def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
+    """``command`` in a clean environment (PATH, HOME and ``extra`` only), in its own
+    process group, which is ended whatever happens. ``home`` is its working folder too;
+    pass the same one (the ``clean_home`` fixture) to share the FMU's numba cache, which
+    lives under ``$HOME/.cache``, between runs."""
+    env = {"PATH": CLEAN_PATH, "HOME": str(home), **extra}
+    process = subprocess.Popen(
+        [str(part) for part in command],
+        env=env,
+        cwd=home,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        out, err = process.communicate(timeout=timeout)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    return subprocess.CompletedProcess(process.args, process.returncode, out, err)
+
+
+def moved(extraction: Path, folder: Path) -> Path:
+    """A copy of ``extraction`` in ``folder`` whose record names a build Python that is not
+    on this machine (everything else the build recorded is kept)."""
+    copy = Path(tempfile.mkdtemp(prefix="moved-", dir=folder)) / extraction.name
+    shutil.copytree(extraction, copy)
+    record = copy / "resources" / RECORD_FILE
+    lines = record.read_text().splitlines()
+    gone = "/nonexistent/build-environment/bin/python"
+    record.write_text(
+        "\n".join(f"build_python={gone}" if line.startswith("build_python=") else line
+                  for line in lines) + "\n"
+    )  # fmt: skip
+    return copy

@@ -1,0 +1,48 @@
+"""Fixtures for running our FMUs in hosts that are not this test process:
+
+* ``host`` (module): the C host ``hosts/fmi_host.c`` compiled with ``-Wall -Wextra
+  -Werror`` (skipped without ``cc``);
+* ``extracted`` (module): every built FMU extracted into a folder of its own;
+* ``clean_home`` (session): one HOME for the clean environments, so that the FMUs'
+  numba cache (under ``$HOME/.cache``) is compiled once, not in every test.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+import pytest
+from c_hosts import HOST_SOURCE
+
+from cosim.fmus.build import FMUS
+
+
+@pytest.fixture(scope="module")
+def host(tmp_path_factory) -> Path:
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler (cc) to build the test host")
+    binary = tmp_path_factory.mktemp("host") / "fmi_host"
+    flags = ["-O1", "-g", "-Wall", "-Wextra", "-Werror"]
+    subprocess.run([cc, *flags, "-o", binary, HOST_SOURCE, "-ldl"], check=True)
+    return binary
+
+
+@pytest.fixture(scope="module")
+def extracted(fmu_paths, tmp_path_factory) -> dict[str, Path]:
+    """Every FMU extracted into a folder of its own."""
+    folders = {}
+    for name in FMUS:
+        folder = tmp_path_factory.mktemp(name)
+        with zipfile.ZipFile(fmu_paths[name]) as archive:
+            archive.extractall(folder)
+        folders[name] = folder
+    return folders
+
+
+@pytest.fixture(scope="session")
+def clean_home(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("home")

@@ -1,0 +1,207 @@
+"""How the FMU's runtime finds a Python in a host without one (fmu_runtime/native/runtime.c),
+seen from a C host in a clean environment: the candidates in order, each asked once in a
+subprocess whose output never reaches the host, and every way a candidate can be unfit
+refused with NULL from fmi2Instantiate and a line, never CPython's fatal error.
+
+Unfit candidates are made to order where a real one is hard to come by: a "Python" that is
+a shell script answering the runtime's probe with what a broken installation would say.
+The extraction is moved (its record names a build Python that does not exist) and PATH
+holds no Python, so only the candidate under test can be used.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import pytest
+from c_hosts import moved, run_clean
+
+from cosim.fmus.native import OVERRIDE_VARIABLE
+
+OUR_LIBPYTHON = Path(sysconfig.get_config_var("LIBDIR") or "") / (
+    sysconfig.get_config_var("INSTSONAME") or ""
+)
+pytestmark = pytest.mark.skipif(not OUR_LIBPYTHON.is_file(), reason="no shared libpython")
+LINE = re.compile(r"^log host \[(\d)\] \{(\w+)\} (.*)$", re.M)
+
+
+def _hex(text: str | Path) -> str:
+    return str(text).encode().hex()
+
+
+def fake_python(folder: Path, answer: dict[str, str], stderr: str = "", status: int = 0) -> Path:
+    """An executable that answers the runtime's probe with ``answer`` (paths hex-encoded
+    as the probe does), writes ``stderr`` and exits with ``status``."""
+    lines = " ".join(f"'{key}={value}'" for key, value in answer.items())  # no quote in any
+    script = folder / "python3"  # shell builtins only: the host's PATH holds nothing
+    script.write_text(
+        f"#!/bin/sh\nprintf '%s\\n' {lines}\nprintf '%s' '{stderr}' >&2\nexit {status}\n"
+    )
+    script.chmod(0o755)
+    return script
+
+
+def our_answer(**changes: str) -> dict[str, str]:
+    """What this test process's Python would answer, with ``changes``."""
+    major, minor, micro = sys.version_info[:3]
+    answer = {
+        "version": f"{major}.{minor}.{micro}",
+        "implementation": "CPython",
+        "libpython": _hex(OUR_LIBPYTHON),
+        "base_prefix": _hex(sys.base_prefix),
+        "stdlib": _hex(sysconfig.get_path("stdlib")),
+        "executable": _hex(sys.executable),
+        "path": ":".join(_hex(p) for p in sys.path if p),
+        "numpy": "2.0",
+        "numba": "no",
+        "end": "yes",
+    }
+    return {**answer, **changes}
+
+
+def _run_cycles(host, extracted, folder: Path, home: Path, cycles: int, **extra: str):
+    return run_clean(
+        [host, moved(extracted["AuvPlant"], folder), "AuvPlant", "cycles", cycles, 2],
+        home,
+        PATH="/nonexistent",
+        **extra,
+    )
+
+
+def _run(host, extracted, folder: Path, home: Path, **extra: str):
+    return _run_cycles(host, extracted, folder, home, 1, **extra)
+
+
+def _candidate(done, number: int) -> str:
+    """The line of candidate ``number`` (2 is AUV_FMU_PYTHON)."""
+    for _, _, text in LINE.findall(done.stdout):
+        match = re.match(rf"no Python for this FMU: {number}\. (.*)$", text)
+        if match:
+            return match.group(1)
+    raise AssertionError(f"no line for candidate {number}:\n{done.stdout}")
+
+
+@pytest.mark.parametrize(
+    ("changes", "reason"),
+    [
+        ({"base_prefix": _hex("/nonexistent"), "stdlib": _hex("/nonexistent/lib/python3")},
+         r"its base prefix /nonexistent holds no standard library \(no /nonexistent/lib/"
+         r"python3/os\.py\)"),
+        ({"version": "3.9.18"}, r"its libpython \S+ is Python \d+\.\d+, not 3\.9"),
+        ({"version": "3.8.18"}, r"Python 3\.8\.18 is too old: the FMU needs CPython >= 3\.9"),
+        ({"libpython": ""}, r"Python [\d.]+ has no shared libpython \(built without "),
+        ({"numpy": "", "numpy_error": _hex("ModuleNotFoundError: No module named 'numpy'")},
+         r"cannot import numpy \(ModuleNotFoundError: No module named 'numpy'\); fix: \S+ -m "
+         r"pip install numpy"),
+        ({"implementation": "PyPy"}, r"is PyPy, not CPython"),
+    ],
+)  # fmt: skip
+def test_an_unfit_python_is_refused_with_a_line_not_a_fatal_error(
+    changes, reason, host, extracted, tmp_path, clean_home
+):
+    """A home of another version or none, a libpython of another version, too old, no
+    shared libpython, no numpy, not CPython: NULL and the line, the host alive."""
+    fake = fake_python(tmp_path, our_answer(**changes))
+    done = _run(host, extracted, tmp_path, clean_home, **{OVERRIDE_VARIABLE: str(fake)})
+    assert (done.returncode, done.stderr) == (3, ""), done.stdout + done.stderr
+    assert "instantiate returned NULL" in done.stdout
+    assert re.search(reason, _candidate(done, 2)), _candidate(done, 2)
+
+
+def test_what_a_probe_writes_never_reaches_the_host_and_its_last_line_is_said(
+    host, extracted, tmp_path, clean_home
+):
+    fake = fake_python(tmp_path, {}, stderr="Fatal Python error: no encodings", status=1)
+    done = _run(host, extracted, tmp_path, clean_home, **{OVERRIDE_VARIABLE: str(fake)})
+    assert done.stderr == ""
+    assert _candidate(done, 2) == (
+        f"{OVERRIDE_VARIABLE}={fake}: exited with status 1 before answering: "
+        "Fatal Python error: no encodings"
+    )
+
+
+@pytest.mark.slow
+def test_a_virtual_environment_folder_is_used_and_a_venv_without_numpy_passed_over(
+    host, extracted, tmp_path, clean_home
+):
+    """``AUV_FMU_PYTHON`` naming a venv's folder: its bin/python3 is asked (here a venv
+    without numpy: refused, with the fix), then the same venv's Python with numpy."""
+    bare = tmp_path / "bare"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", bare], check=True)
+    done = _run(host, extracted, tmp_path, clean_home, **{OVERRIDE_VARIABLE: f"{bare}/"})
+    assert "instantiate returned NULL" in done.stdout and done.stderr == ""
+    line = _candidate(done, 2)
+    assert line.startswith(f"{OVERRIDE_VARIABLE}={bare}/: Python "), line
+    assert "cannot import numpy (ModuleNotFoundError: No module named 'numpy'); fix: " in line
+    assert re.search(rf"fix: {re.escape(str(bare))}/+bin/python3 -m pip install numpy$", line)
+
+    with_numpy = tmp_path / "with-numpy"  # this environment's packages, seen through a venv
+    subprocess.run(
+        [sys.executable, "-m", "venv", "--without-pip", "--system-site-packages", with_numpy],
+        check=True,
+    )
+    base = Path(sys.base_prefix)
+    if not (base / "lib" / f"python{sys.version_info[0]}.{sys.version_info[1]}" /
+            "site-packages" / "numpy").is_dir():  # fmt: skip
+        pytest.skip("the base Python of this environment has no numpy")
+    done = _run(host, extracted, tmp_path, clean_home, **{OVERRIDE_VARIABLE: str(with_numpy)})
+    # the only candidate there is: the build's Python is gone, PATH holds none
+    assert "cycles: 1 x 2 ok" in done.stdout, done.stdout + done.stderr
+
+
+@pytest.mark.slow
+def test_a_libpython_already_in_the_process_is_never_joined_by_another(
+    host, extracted, tmp_path, clean_home
+):
+    """A host that loaded another libpython (here preloaded, not started): every candidate
+    using a different libpython is refused; one using that file is used."""
+    others = [
+        lib
+        for lib in Path(sys.base_prefix).parent.glob("3.*/lib/libpython3.*.so.1.0")
+        if lib.resolve() != OUR_LIBPYTHON.resolve()
+    ]
+    if not others:
+        pytest.skip("no other shared libpython beside this Python's")
+    fake = fake_python(tmp_path, our_answer())
+    done = _run(host, extracted, tmp_path, clean_home, LD_PRELOAD=str(others[0]),
+                **{OVERRIDE_VARIABLE: str(fake)})  # fmt: skip
+    assert "instantiate returned NULL" in done.stdout and done.stderr == ""
+    assert f"but {others[0]} is already loaded in this process" in _candidate(done, 2)
+    assert _candidate(done, 1).startswith(f"the Python running in this process: {others[0]}")
+    done = _run(host, extracted, tmp_path, clean_home, LD_PRELOAD=str(OUR_LIBPYTHON),
+                **{OVERRIDE_VARIABLE: str(fake)})  # fmt: skip
+    assert "cycles: 1 x 2 ok" in done.stdout, done.stdout + done.stderr
+
+
+EMPTY_SLOT = re.compile(r"(\s{2}|\(\)|''|(?<![<>=!])=\s|=$|:\s*:|:\s*$|\s$|\(\s|\s\))")
+
+
+def test_messages_never_name_an_empty_path(host, extracted, tmp_path, clean_home):
+    """A garbage record (no build Python), an empty AUV_FMU_PYTHON, a Python that answers
+    nothing: every line names what it is about."""
+    folder = moved(extracted["AuvPlant"], tmp_path)
+    record = folder / "resources" / "fmu_runtime.txt"
+    record.write_text(re.sub(r"build_python=.*", "build_python=", record.read_text()))
+    silent = fake_python(tmp_path, {})
+    for value in ("", str(silent)):
+        done = run_clean([host, folder, "AuvPlant", "cycles", 1, 1], clean_home,
+                         PATH="/nonexistent", **{OVERRIDE_VARIABLE: value})  # fmt: skip
+        texts = [text for _, _, text in LINE.findall(done.stdout)]
+        assert len(texts) == 5, done.stdout
+        assert [t for t in texts if EMPTY_SLOT.search(t)] == []
+        assert "the build's Python: not recorded in resources/fmu_runtime.txt" in texts[2]
+
+
+@pytest.mark.slow
+def test_each_candidate_is_asked_once_per_process(host, extracted, tmp_path, clean_home):
+    """Three instantiate/free cycles in one host: the candidate's probe ran once."""
+    calls = tmp_path / "calls"
+    fake = fake_python(tmp_path, our_answer())
+    fake.write_text(fake.read_text().replace("#!/bin/sh\n", f"#!/bin/sh\necho x >> {calls}\n"))
+    done = _run_cycles(host, extracted, tmp_path, clean_home, 3, **{OVERRIDE_VARIABLE: str(fake)})
+    assert "cycles: 3 x 2 ok" in done.stdout, done.stdout + done.stderr
+    assert calls.read_text() == "x\n"

@@ -1,0 +1,139 @@
+"""Our FMUs away from the environment that built them, as a colleague receives them: copied
+with the build's Python recorded nowhere, run from a fresh virtual environment holding
+only fmpy and numpy, from a C host in ``env -i`` pointed at such an environment, and from
+CPython 3.9 with numpy alone. Each gives the build environment's results.
+
+The environments are made once per session with pip (slow); a test skips, saying why,
+when pip cannot reach the package index or no CPython 3.9 is installed (pyenv).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from c_hosts import run_clean
+from repo_paths import TESTS
+
+from cosim.fmus.build import FMUS
+from cosim.fmus.native import OVERRIDE_VARIABLE
+from fmu_runtime.entry import RECORD_FILE
+
+pytestmark = pytest.mark.slow
+AGREEMENT = 1e-9
+RUNS = {  # start values and inputs of a 2 s run of each FMU alone
+    "AuvPlant": {"u_0": 1.5, "v_0": -0.1, "mass_position_cmd": 0.02, "tunnel_force": 0.5},
+    "AuvAutopilot": {"heading_mode": 3, "yaw": 0.1, "r": 0.01, "v_rel": -0.05, "u_rel": 1.5},
+}
+
+RUN = """
+import json, sys
+from fmu_harness import Harness
+
+fmu = Harness(sys.argv[1], instance="portable", **json.loads(sys.argv[2]))
+names = [n for n, v in fmu.variables.items() if v.causality == "output" and v.type == "Real"]
+rows = fmu.run(2.0, 0.01, names)
+fmu.close()
+print(json.dumps(rows.tolist()))
+"""
+
+
+def _venv(folder: Path, python: str | Path, *packages: str) -> Path:
+    """A virtual environment of ``python`` holding ``packages`` only, or a skip."""
+    subprocess.run([str(python), "-m", "venv", str(folder)], check=True)
+    done = subprocess.run(
+        [str(folder / "bin" / "python"), "-m", "pip", "install", "-q", *packages],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    if done.returncode != 0:
+        pytest.skip(f"pip could not install {packages}: {done.stderr.strip()[-300:]}")
+    return folder
+
+
+@pytest.fixture(scope="session")
+def fresh_venv(tmp_path_factory) -> Path:
+    """fmpy and numpy (and what they depend on), nothing of auv-cosim."""
+    return _venv(tmp_path_factory.mktemp("fresh") / "venv", sys._base_executable, "fmpy", "numpy")
+
+
+@pytest.fixture(scope="session")
+def python39_venv(tmp_path_factory) -> Path:
+    """CPython 3.9 (pyenv, shared libpython) with numpy alone."""
+    found = sorted(Path("/root/.pyenv/versions").glob("3.9.*/bin/python3.9"))
+    if not found or not list(found[-1].parents[1].glob("lib/libpython3.9.so*")):
+        pytest.skip("no CPython 3.9 with a shared libpython in /root/.pyenv/versions")
+    return _venv(tmp_path_factory.mktemp("py39") / "venv", found[-1], "numpy")
+
+
+@pytest.fixture(scope="module")
+def travelled(fmu_paths, tmp_path_factory) -> dict[str, Path]:
+    """Copies of the built FMUs whose record names a build Python that is nowhere, as on a
+    colleague's machine."""
+    folder = tmp_path_factory.mktemp("travelled")
+    copies = {}
+    for name in FMUS:
+        copy = folder / f"{name}.fmu"
+        with zipfile.ZipFile(fmu_paths[name]) as source, zipfile.ZipFile(copy, "w") as target:
+            for info in source.infolist():
+                data = source.read(info)
+                if info.filename == f"resources/{RECORD_FILE}":
+                    data = re.sub(rb"build_python=.*", b"build_python=/nonexistent/bin/python",
+                                  data)  # fmt: skip
+                target.writestr(info, data)
+        copies[name] = copy
+    return copies
+
+
+def _harness_only(folder: Path) -> Path:
+    """A folder holding tests/fmu_harness.py alone (the tests' folder would bring more)."""
+    folder.mkdir(exist_ok=True)
+    shutil.copy(TESTS / "fmu_harness.py", folder)
+    return folder
+
+
+def _rows(python: Path, fmu: Path, name: str, home: Path) -> np.ndarray:
+    done = run_clean([python, "-c", RUN, fmu, json.dumps(RUNS[name])], home,
+                     PYTHONPATH=str(_harness_only(home / "harness")))  # fmt: skip
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+    return np.array(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+@pytest.mark.parametrize("name", sorted(RUNS))
+def test_a_fresh_venv_with_fmpy_and_numpy_gets_the_build_environments_results(
+    name, travelled, fresh_venv, clean_home
+):
+    ours = _rows(Path(sys.executable), travelled[name], name, clean_home)
+    theirs = _rows(fresh_venv / "bin" / "python", travelled[name], name, clean_home)
+    assert ours.shape == theirs.shape == (200, ours.shape[1])
+    assert np.max(np.abs(ours - theirs)) <= AGREEMENT
+
+
+def test_a_c_host_in_env_i_runs_the_plant_from_a_venv_folder(
+    travelled, fresh_venv, host, tmp_path, clean_home
+):
+    with zipfile.ZipFile(travelled["AuvPlant"]) as archive:
+        archive.extractall(tmp_path / "plant")
+    done = run_clean([host, tmp_path / "plant", "AuvPlant", "cycles", 2, 200], clean_home,
+                     PATH="/nonexistent", **{OVERRIDE_VARIABLE: str(fresh_venv)})  # fmt: skip
+    assert "cycles: 2 x 200 ok" in done.stdout, done.stdout[-3000:] + done.stderr[-3000:]
+    assert done.stderr == ""
+
+
+def test_cpython_3_9_with_numpy_alone_runs_the_plant(
+    travelled, python39_venv, host, tmp_path, clean_home
+):
+    with zipfile.ZipFile(travelled["AuvPlant"]) as archive:
+        archive.extractall(tmp_path / "plant")
+    done = run_clean([host, tmp_path / "plant", "AuvPlant", "cycles", 2, 200], clean_home,
+                     PATH="/nonexistent", **{OVERRIDE_VARIABLE: str(python39_venv)})  # fmt: skip
+    assert "cycles: 2 x 200 ok" in done.stdout, done.stdout[-3000:] + done.stderr[-3000:]
+    assert done.stderr == ""
