@@ -424,7 +424,7 @@ def test_cli_export_writes_and_reports_the_archive(
     out = capsys.readouterr().out
     assert f"SSP archive: {tmp_path / 'p.ssp'}" in out
     # the scenario couples Gauss-Seidel (the default), which neither format can express
-    assert "compare with `auv-cosim run plant-alone --algorithm jacobi`" in out
+    assert "compare with `auv-cosim run plant-alone --algorithm jacobi --extrapolation none`" in out
     assert zipfile.ZipFile(tmp_path / "p.ssp").testzip() is None
 
 
