@@ -59,6 +59,7 @@ from cosim.errors import CosimError
 KEEP_CHOICES = ("all", "failed", "none")
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
 MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
+MAX_RUNS_CEILING = 10_000_000  # --max-runs at most: the design of every run is built first
 _RUN_ID = re.compile(r"[0-9a-f]{16}")  # cosim.study.design.run_id
 FactorValue = StrictBool | StrictInt | StrictFloat | StrictStr
 
@@ -208,7 +209,14 @@ def run_count(spec: StudySpec) -> int:
 
 def check_size(spec: StudySpec, where: str, max_runs: int = MAX_RUNS) -> None:
     """Refuse a study of more than ``max_runs`` runs, before any is built (the design of
-    a larger one would take the memory and time of building every run first)."""
+    a larger one would take the memory and time of building every run first), and a
+    ``max_runs`` beyond :data:`MAX_RUNS_CEILING` (or below 1)."""
+    if isinstance(max_runs, bool) or not 1 <= max_runs <= MAX_RUNS_CEILING:
+        shown = str(max_runs) if len(str(max_runs)) <= 30 else f"{str(max_runs)[:20]}..."
+        raise StudyError(
+            f"--max-runs {shown}: expected 1 to {MAX_RUNS_CEILING} (the runs of a study are "
+            "planned in memory before the first one starts)"
+        )
     count = run_count(spec)
     if count > max_runs:
         grid = " x ".join(str(len(values)) for values in spec.grid.values()) or "1"
