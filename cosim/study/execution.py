@@ -76,6 +76,7 @@ class Job:
     base: Base
     factors: Mapping[str, FactorKind]
     keep: str
+    check_step: bool  # each run also at h / 2 and h / 4: its coupling error metrics
     fmu_files: Mapping[str, str]  # instance -> its FMU's path in the uploaded folder
     plugin: str  # name of the StudyPlugin carrying the job and the FMUs
     session: str  # this study session's token (in task keys and the plugin name)
@@ -175,7 +176,9 @@ def _is_main_test(test: ast.expr) -> bool:
     return isinstance(test.ops[0], ast.Eq) and names == ["__name__"] and values == ["__main__"]
 
 
-def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[Job, StudyPlugin]:
+def make_job(
+    base: Base, factors: Mapping[str, FactorKind], keep: str, check_step: bool = False
+) -> tuple[Job, StudyPlugin]:
     """The study's shared task data and the plugin carrying it and its FMUs (read once)."""
     session = uuid.uuid4().hex[:12]  # tasks and plugin of concurrent studies never clash
     files: dict[str, bytes] = {}
@@ -185,7 +188,7 @@ def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[
         relative = f"{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
         files[relative] = content
         paths[instance] = relative
-    job = Job(base, factors, keep, paths, f"auv-cosim-study-{session}", session)
+    job = Job(base, factors, keep, check_step, paths, f"auv-cosim-study-{session}", session)
     return job, StudyPlugin(job, files)
 
 
@@ -197,7 +200,7 @@ def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
     if folder is None:  # setup runs when the plugin is registered, before any task
         raise StudyError(f"study plugin {plugin_name}: not set up on this worker")
     paths = {instance: folder / relative for instance, relative in job.fmu_files.items()}
-    return run_one(job.base, paths, job.factors, values, job.keep)
+    return run_one(job.base, paths, job.factors, values, job.keep, job.check_step)
 
 
 def lost_run_error(exc: KilledWorker) -> str:

@@ -109,7 +109,8 @@ def run_study(
         check_scheduler(cluster.scheduler, cluster.security)
     spec = load_study(study_file)
     check_size(spec, str(study_file), max_runs)
-    base, facts = prepare(_scenario_ref(spec.scenario, study_file.parent), spec.stop_time, fmu_dir)
+    scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
+    base, facts = prepare(scenario_ref, spec.stop_time, fmu_dir, spec.check_step)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     metrics = _metrics(spec, facts)
     _check_grid_values(base, factors, spec)
@@ -193,7 +194,7 @@ def _execute(
     """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives."""
     from tqdm import tqdm
 
-    job, plugin = make_job(base, factors, spec.keep)
+    job, plugin = make_job(base, factors, spec.keep, spec.check_step)
     bar = tqdm(
         total=total,
         initial=total - len(todo),
@@ -380,11 +381,17 @@ def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: Stud
             check_values(base, {name: factors[name]}, {name: factors[name].normalize(value)})
 
 
+# Settings a study's rows do not depend on; check_step, left out while false, keeps the
+# identity of a study folder written before the setting existed (resume still works)
+_NOT_IDENTITY = {False: {"keep", "overlay", "check_step"}, True: {"keep", "overlay"}}
+
+
 def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
     """What the table's rows depend on (study.json): settings, scenario, FMU content and
     the content of every other file the scenario reads."""
     return {
-        "study": spec.model_dump(mode="json", exclude={"keep", "overlay"}),
+        # without check_step the identity of a study written before it existed
+        "study": spec.model_dump(mode="json", exclude=_NOT_IDENTITY[spec.check_step]),
         "scenario": dict(base.data),
         "fmus": {
             name: hashlib.sha256(path.read_bytes()).hexdigest()

@@ -5,6 +5,8 @@ Format (every key is checked; unknown keys are errors)::
     scenario = "bs-3"          # a built-in id or a scenario file (relative to this file)
     stop_time = 20.0           # s, optional override of the scenario's stop time
     keep = "none"              # per-run folders: "all", "failed" or "none" [none]
+    check_step = false         # also run each at h/2 and h/4: coupling_error.<metric>
+                               # columns, as `auv-cosim run --check-step` [false]
     overlay = ["best:yaw_settling_time_s", "worst:yaw_settling_time_s"]
                                # runs drawn together in overlay.rrd [none]: run ids (16 hex
                                # digits), "best:<metric>" (its lowest value),
@@ -172,6 +174,7 @@ class StudySpec(_Strict):
     scenario: StrictStr = Field(min_length=1)
     stop_time: Annotated[Number, Field(gt=0.0)] | None = None
     keep: Literal["all", "failed", "none"] = "none"
+    check_step: StrictBool = False  # each run's coupling error (docs/coupling.md)
     grid: dict[str, GridValues] = Field(default_factory=dict)
     random: RandomSpec = Field(default_factory=RandomSpec)
     metrics: MetricsSpec = Field(default_factory=MetricsSpec)
