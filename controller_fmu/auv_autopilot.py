@@ -131,13 +131,16 @@ class AuvAutopilot(SafeSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._vehicles = vehicle_folder(self.resources)  # this extraction's data
-        self._inputs = dict.fromkeys(MEASUREMENT_NAMES, 0.0)
-        self._outputs = list(Commands(thrust=_DEFAULTS.thrust_command).values())
         self._params: dict[str, Any] = _DEFAULTS.model_dump()
         self._autopilot: Autopilot | None = None
         self._step_warned = False
         self._tuned: set[str] = set()  # tunable parameters written since the autopilot took them
         self._register_variables()
+        # views of the FMU's value buffers (the runtime reads and writes them in C): the
+        # step reads the measurements and writes the commands in place
+        self._inputs = self.values_of(MEASUREMENT_NAMES)
+        self._outputs = self.values_of(COMMAND_NAMES)
+        self._outputs[:] = Commands(thrust=_DEFAULTS.thrust_command).values()
 
     def _register_variables(self) -> None:
         for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS, strict=True):
@@ -147,12 +150,10 @@ class AuvAutopilot(SafeSlave):
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
                     description=INPUT_DESCRIPTIONS[name],
-                    getter=item_getter(self._inputs, name),
-                    setter=item_setter(self._inputs, name),
                 ),
                 unit=unit,
             )
-        for i, (name, unit) in enumerate(zip(COMMAND_NAMES, COMMAND_UNITS, strict=True)):
+        for name, unit in zip(COMMAND_NAMES, COMMAND_UNITS, strict=True):
             self.register(
                 Real(
                     name,
@@ -161,7 +162,6 @@ class AuvAutopilot(SafeSlave):
                     # thrust is the thrust_command parameter: calculated from it
                     initial=Fmi2Initial.calculated if name == "thrust" else Fmi2Initial.exact,
                     description=OUTPUT_DESCRIPTIONS[name],
-                    getter=item_getter(self._outputs, i),
                 ),
                 unit=unit,
             )
@@ -218,11 +218,11 @@ class AuvAutopilot(SafeSlave):
             self._step_warned = True
         # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
         # the step with its state unchanged
-        self._outputs[:] = autopilot.step(current_time, self._inputs)
+        autopilot.step_into(current_time, self._inputs, self._outputs)
 
     def _state_snapshot(self) -> dict[str, Any]:
+        # the measurements and the commands are in the value buffers, saved with them
         state: dict[str, Any] = {
-            "outputs": list(self._outputs),
             "warned": self._step_warned,
             "tuned": {name: self._params[name] for name in TUNABLE_PARAMETERS},
         }
@@ -234,7 +234,6 @@ class AuvAutopilot(SafeSlave):
         return state
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
-        self._outputs[:] = snapshot["outputs"]
         self._step_warned = snapshot["warned"]
         self._params.update(snapshot["tuned"])
         saved = snapshot.get("autopilot")

@@ -23,6 +23,12 @@ Layouts (float64, SI):
   of intervals that differ in the last bits (14 in 60 s at 10 ms, 20 in an hour).
 * ``state``: :data:`STATE_SIZE` values: started (1.0 once a sample was taken), the last
   sample's time (s), its alpha1..3, the filters' outputs a_c (3) and rates a_c' (3).
+* ``scratch``: :data:`SCRATCH_SIZE` values the sample works in (the design state and
+  inputs with the measurements in, the derivative, R, work): nothing is allocated.
+
+The plant's kernels are imported absolutely (``plant_fmu`` is a sibling top-level package
+here, so no relative import reaches it); numba's cache stamp of this file ignores the
+build's package prefix the build puts before that import (``plant_fmu/model/jit.py``).
 """
 
 from __future__ import annotations
@@ -41,6 +47,9 @@ LAW_SIZE = INTERVALS + 7 * N_INTERVALS
 # state
 STARTED, LAST_TIME, ALPHAS, VALUES, RATES = 0, 1, 2, 5, 8
 STATE_SIZE = 11
+# scratch
+_SCRATCH_X, _SCRATCH_INPUTS, _SCRATCH_DX, _SCRATCH_R, _SCRATCH_WORK = 0, 14, 22, 36, 45
+SCRATCH_SIZE = _SCRATCH_WORK + 30
 # plant state and input indices the law reads and writes (plant_fmu.model.dynamics order)
 _V, _P, _R, _ROLL, _YV, _Y_D = 7, 9, 11, 3, 12, 4
 
@@ -54,6 +63,7 @@ def command(
     p: np.ndarray,
     law: np.ndarray,
     state: np.ndarray,
+    scratch: np.ndarray,
     time: float,
     v: float,
     r: float,
@@ -63,9 +73,10 @@ def command(
     y_v: float,
 ) -> Sample:
     """One sample: (needs_transition, y_v command m, F_t N, z1, z2, z3, z4), the state
-    advanced in place. ``needs_transition`` = 1.0 (nothing changed) when the filters
-    must advance over an interval whose transition ``law`` does not hold yet: the
-    caller writes it into a slot and calls again."""
+    advanced in place, ``scratch`` (:data:`SCRATCH_SIZE`) worked in. ``needs_transition``
+    = 1.0 (nothing changed) when the filters must advance over an interval whose
+    transition ``law`` does not hold yet: the caller writes it into a slot and calls
+    again."""
     started = state[STARTED] != 0.0
     if started:
         interval = time - state[LAST_TIME]
@@ -82,11 +93,18 @@ def command(
             value, rate, held = state[VALUES + i], state[RATES + i], state[ALPHAS + i]
             state[VALUES + i] = p00 * value + p01 * rate + g0 * held
             state[RATES + i] = p10 * value + p11 * rate + g1 * held
-    x, inputs = law[DESIGN_STATE:DESIGN_INPUTS].copy(), law[DESIGN_INPUTS:INTERVALS].copy()
+    x = scratch[_SCRATCH_X:_SCRATCH_INPUTS]
+    inputs = scratch[_SCRATCH_INPUTS:_SCRATCH_DX]
+    for i in range(14):
+        x[i] = law[DESIGN_STATE + i]
+    for i in range(8):
+        inputs[i] = law[DESIGN_INPUTS + i]
     x[_V], x[_R], x[_P], x[_ROLL], x[_YV] = v, r, pp, phi, 0.0
     inputs[_Y_D] = 0.0
-    dx = np.empty(14)
-    derivative_into(p, x, inputs, np.empty((3, 3)), np.empty((5, 6)), dx)
+    dx = scratch[_SCRATCH_DX:_SCRATCH_R]
+    R = scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3))
+    work = scratch[_SCRATCH_WORK:SCRATCH_SIZE].reshape((5, 6))
+    derivative_into(p, x, inputs, R, work, dx)
     f1 = dx[_R] - law[G1] * v
     f2 = dx[_V] - law[G2] * phi
     f3 = dx[_P]

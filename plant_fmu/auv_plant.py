@@ -50,6 +50,7 @@ applied at the start of the next step; inputs are held over each step.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -69,7 +70,6 @@ from plant_fmu.model.state_layout import (
     INPUT_NAMES,
     INPUT_UNITS,
     MASS_POSITION,
-    N_STATES,
     NU,
     QUATERNION_NAMES,
     STATE_NAMES,
@@ -139,12 +139,6 @@ class AuvPlant(SafeSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._vehicles = vehicle_folder(self.resources)  # this extraction's data
-        self._inputs = np.array([INPUT_STARTS.get(name, 0.0) for name in INPUT_NAMES])
-        self._initial_state = np.zeros(N_STATES)
-        # the stepping state (state + quaternion), updated in place: the output getters hold it
-        self._x = stepping_state(self._initial_state)
-        self._derived = [0.0, 0.0, 0.0, 0.0]  # u_rel, v_rel, w_rel, kinetic_energy
-        self._last_current = self._inputs[CURRENT].tolist()
         self._model: PlantModel | None = None
         self._compiled: compiled.CompiledPlant | None = None
         self._model_key: tuple[object, ...] | None = None
@@ -156,6 +150,18 @@ class AuvPlant(SafeSlave):
         self.current_shear_dUdy = 0.0
         self.max_substep = DEFAULT_MAX_SUBSTEP
         self._register_variables()
+        # The inputs, the outputs and the initial state live in the FMU's value buffers,
+        # which the FMU's runtime reads and writes in C: these are views of them, and the
+        # step reads and writes them in place.
+        self._inputs = self.values_of(INPUT_NAMES)
+        self._inputs[:] = [INPUT_STARTS.get(name, 0.0) for name in INPUT_NAMES]
+        # the stepping state (state + quaternion), then u_rel, v_rel, w_rel, kinetic_energy
+        self._x = self.values_of(STEP_STATE_NAMES)
+        self._derived = self.values_of((*RELATIVE_VELOCITIES, "kinetic_energy"))
+        self._initial_state = self.values_of(f"{name}_0" for name in STATE_NAMES)
+        self._x[:] = stepping_state(self._initial_state)
+        self._last_current = self._inputs[CURRENT].copy()  # the currents of the last step
+        self._step_scratch = np.empty(compiled.STEP_SCRATCH)  # the compiled step's arrays
 
     # --- variables ---------------------------------------------------------------------------
 
@@ -164,15 +170,13 @@ class AuvPlant(SafeSlave):
         self._register_parameters()
 
     def _register_inputs_and_outputs(self) -> None:
-        for i, (name, unit) in enumerate(zip(INPUT_NAMES, INPUT_UNITS, strict=True)):
+        for name, unit in zip(INPUT_NAMES, INPUT_UNITS, strict=True):
             self.register(
                 Real(
                     name,
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
                     description=INPUT_DESCRIPTIONS[name],
-                    getter=item_getter(self._inputs, i),
-                    setter=item_setter(self._inputs, i),
                 ),
                 unit=unit,
             )
@@ -182,23 +186,14 @@ class AuvPlant(SafeSlave):
             "initial": Fmi2Initial.calculated,  # from the initial state and the currents
         }
         units = STATE_UNITS + ("1",) * len(QUATERNION_NAMES)
-        for i, (name, unit) in enumerate(zip(STEP_STATE_NAMES, units, strict=True)):
-            self.register(
-                Real(
-                    name,
-                    description=STATE_DESCRIPTIONS[name],
-                    getter=item_getter(self._x, i),
-                    **output,
-                ),
-                unit=unit,
-            )
-        for i, name in enumerate(RELATIVE_VELOCITIES):
+        for name, unit in zip(STEP_STATE_NAMES, units, strict=True):
+            self.register(Real(name, description=STATE_DESCRIPTIONS[name], **output), unit=unit)
+        for name in RELATIVE_VELOCITIES:
             axis = name[0]
             self.register(
                 Real(
                     name,
                     description=f"{axis} relative to the water, {axis} - current_{axis} (body)",
-                    getter=item_getter(self._derived, i),
                     **output,
                 ),
                 unit="m/s",
@@ -207,7 +202,6 @@ class AuvPlant(SafeSlave):
             Real(
                 "kinetic_energy",
                 description="kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r (+ the mass's, model 1)",
-                getter=item_getter(self._derived, 3),
                 **output,
             ),
             unit="J",
@@ -215,15 +209,9 @@ class AuvPlant(SafeSlave):
 
     def _register_parameters(self) -> None:
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        for i, (name, unit) in enumerate(zip(STATE_NAMES, STATE_UNITS, strict=True)):
+        for name, unit in zip(STATE_NAMES, STATE_UNITS, strict=True):
             self.register(
-                Real(
-                    f"{name}_0",
-                    description=f"initial {STATE_DESCRIPTIONS[name]}",
-                    getter=item_getter(self._initial_state, i),
-                    setter=item_setter(self._initial_state, i),
-                    **fixed,
-                ),
+                Real(f"{name}_0", description=f"initial {STATE_DESCRIPTIONS[name]}", **fixed),
                 unit=unit,
             )
         self.register(
@@ -303,39 +291,50 @@ class AuvPlant(SafeSlave):
                 Fmi2Status.warning,
             )
         self._x[:] = model.project(stepping_state(x))
-        self._last_current = self._inputs[CURRENT].tolist()
+        self._last_current[:] = self._inputs[CURRENT]
         self._refresh_outputs()
         if self._compiled is not None:  # compile now, not in the first doStep
             self._compiled.warm_up(self._x, self._inputs)
 
     def _step(self, current_time: float, step_size: float) -> None:
+        """From the value buffers to the compiled integrator and back, allocating nothing
+        (:func:`plant_fmu.model.compiled.step_into`); the reference path (numpy, the same
+        arithmetic) where the compiled one does not apply: numba off, the two-body moving
+        mass, a change of the currents, or a step it refuses (the reference then says why)."""
+        fast, max_substep = self._compiled, self.max_substep
+        if fast is not None and math.isfinite(max_substep):
+            n = max(1, math.ceil(step_size / max_substep - 1e-9))  # as stepping.advance
+            p, x, scratch = fast.parameters, self._x, self._step_scratch
+            inputs, derived, last = self._inputs, self._derived, self._last_current
+            if compiled.step_into(p, inputs, x, derived, last, scratch, n, step_size / n) == 0:
+                return
+        self._reference_step(step_size)
+
+    def _reference_step(self, step_size: float) -> None:
+        """:meth:`_step` through :func:`plant_fmu.model.stepping.advance` (raises on a state
+        or input it cannot step, leaving the instance unchanged)."""
         model = self._model
         assert model is not None, "SafeSlave steps only an initialised instance"
         inputs = self._inputs.copy()
         x = self._x
         current = inputs[CURRENT].tolist()
-        if current != self._last_current:
+        if current != self._last_current.tolist():
             x = x.copy()
             change = np.subtract(current, self._last_current)
             x[NU] += model.current_change_velocity_jump(x, change)
         x = advance(model, x, inputs, step_size, self.max_substep, self._compiled)
         self._x[:] = x
-        self._last_current = current
+        self._last_current[:] = current
         self._refresh_outputs(inputs)
 
     def _state_snapshot(self) -> dict[str, Any]:
-        return {
-            "x": self._x.tolist(),
-            "last_current": list(self._last_current),
-            "derived": list(self._derived),
-        }
+        # the state, the outputs and the inputs are in the value buffers, saved with them
+        return {"last_current": self._last_current.tolist()}
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
         if self.initialized and self._model_key != self._parameter_key():
             self._build_model()
-        self._x[:] = snapshot["x"]
-        self._last_current = [float(c) for c in snapshot["last_current"]]
-        self._derived[:] = snapshot["derived"]
+        self._last_current[:] = snapshot["last_current"]
 
     # --- internals ---------------------------------------------------------------------------
 

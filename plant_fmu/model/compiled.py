@@ -30,9 +30,12 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from plant_fmu.model.dynamics import PlantModel
-from plant_fmu.model.jit import load_numba
-from plant_fmu.model.state_layout import N_STATES, N_STEP_STATES, QUATERNION_CHART_PITCH
+# Relative imports: the build renames absolute imports of the project's packages (under
+# its own package name, cosim/fmus/staging.py), which would change this file's text, and
+# so numba's cache stamp of it, in every build.
+from .dynamics import PlantModel
+from .jit import load_numba
+from .state_layout import CURRENT, N_STATES, N_STEP_STATES, QUATERNION_CHART_PITCH
 
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
@@ -520,15 +523,29 @@ def _stage(
     step_derivative_into(p, y, inputs, R, work, out, quaternion)
 
 
+# The scratch array of :func:`advance_into` and :func:`step_into` (float64): R (3x3), work
+# (5x6), the stage state (18), the RK4 slopes k1..k4 (4x18), the new stepping state (18).
+_SCRATCH_R, _SCRATCH_WORK, _SCRATCH_Y, _SCRATCH_K, _SCRATCH_Z = 0, 9, 39, 57, 129
+STEP_SCRATCH = _SCRATCH_Z + 18
+CURRENT_CHANGED = 4  # step_into: the currents changed since the last step, nothing done
+
+
 @_jit
 def advance_into(
-    p: np.ndarray, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float
+    p: np.ndarray,
+    x: np.ndarray,
+    z: np.ndarray,
+    inputs: np.ndarray,
+    n: int,
+    dt: float,
+    scratch: np.ndarray,
 ) -> int:
     """z = the stepping state n RK4 steps of dt seconds after x (a state or a stepping
     state), projected after each stage, each sub-step in the attitude chart its start
-    picks and the other chart refreshed at its end, like ``stepping.advance``. Returns 0,
-    or 1 for a non-finite input, 2 for a non-finite state or a zero quaternion, 3 for a
-    state that became non-finite."""
+    picks and the other chart refreshed at its end, like ``stepping.advance``; its
+    working arrays are slices of ``scratch`` (:data:`STEP_SCRATCH` values), so it
+    allocates nothing. Returns 0, or 1 for a non-finite input, 2 for a non-finite state
+    or a zero quaternion, 3 for a state that became non-finite."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
             return 1
@@ -537,18 +554,21 @@ def advance_into(
             return 2
     if not _start(x, z):
         return 2
-    R, work, y = np.empty((3, 3)), np.empty((5, 6)), np.empty(18)
-    scratch = (R, work, y)
-    k1, k2, k3, k4 = np.empty(18), np.empty(18), np.empty(18), np.empty(18)
+    R = scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3))
+    work = scratch[_SCRATCH_WORK:_SCRATCH_Y].reshape((5, 6))
+    y = scratch[_SCRATCH_Y:_SCRATCH_K]
+    scratch_ = (R, work, y)
+    slopes = scratch[_SCRATCH_K:_SCRATCH_Z].reshape((4, 18))
+    k1, k2, k3, k4 = slopes[0], slopes[1], slopes[2], slopes[3]
     half, sixth = 0.5 * dt, dt / 6.0
     project(p, z, False)
     for _ in range(n):
         quaternion = _quaternion_chart(p, z)
         a0, a2 = z[3], z[5]
         step_derivative_into(p, z, inputs, R, work, k1, quaternion)
-        _stage(p, z, k1, half, inputs, scratch, k2, quaternion)
-        _stage(p, z, k2, half, inputs, scratch, k3, quaternion)
-        _stage(p, z, k3, dt, inputs, scratch, k4, quaternion)
+        _stage(p, z, k1, half, inputs, scratch_, k2, quaternion)
+        _stage(p, z, k2, half, inputs, scratch_, k3, quaternion)
+        _stage(p, z, k3, dt, inputs, scratch_, k4, quaternion)
         for i in range(18):
             z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
         project(p, z, True)
@@ -591,6 +611,41 @@ def outputs_into(
     out[0], out[1], out[2], out[3] = nu_r[0], nu_r[1], nu_r[2], 0.5 * energy
 
 
+@_jit
+def step_into(
+    p: np.ndarray,
+    inputs: np.ndarray,
+    x: np.ndarray,
+    derived: np.ndarray,
+    last_current: np.ndarray,
+    scratch: np.ndarray,
+    n: int,
+    dt: float,
+) -> int:
+    """One communication step of the plant FMU, in place: the stepping state x (18) n RK4
+    steps of dt seconds on (:func:`advance_into`), then its derived outputs into
+    ``derived`` (:func:`outputs_into`), the inputs held. Nothing is allocated: the FMU
+    passes views of its value buffers and a preallocated ``scratch``
+    (:data:`STEP_SCRATCH`). Returns 0; or, with nothing changed, :data:`CURRENT_CHANGED`
+    when the current inputs differ from ``last_current`` (the velocity jump of a current
+    change is computed by the reference, ``PlantModel.current_change_velocity_jump``), or
+    :func:`advance_into`'s code of a non-finite input or state."""
+    for i in range(3):
+        if inputs[_CURRENT_START + i] != last_current[i]:
+            return CURRENT_CHANGED
+    z = scratch[_SCRATCH_Z:STEP_SCRATCH]
+    status = advance_into(p, x, z, inputs, n, dt, scratch)
+    if status != 0:
+        return status
+    for i in range(18):
+        x[i] = z[i]
+    outputs_into(p, x, inputs, scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3)), derived)
+    return 0
+
+
+_CURRENT_START = CURRENT.start  # the first current input (north, east, down follow)
+
+
 class CompiledPlant:
     """The compiled derivative and step of one :class:`PlantModel` (see :func:`supports`)."""
 
@@ -601,6 +656,7 @@ class CompiledPlant:
         self.model = model
         self.parameters = flat_parameters(model)
         self._R, self._work = np.empty((3, 3)), np.empty((5, 6))
+        self._scratch = np.empty(STEP_SCRATCH)
 
     def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """``PlantModel.derivative`` (a new array)."""
@@ -624,7 +680,7 @@ class CompiledPlant:
     def advance(self, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
         """z (a float64 stepping state) = n RK4 steps of dt s after x (a state or a
         stepping state); :func:`advance_into`'s code."""
-        return advance_into(self.parameters, x, z, inputs, n, dt)
+        return advance_into(self.parameters, x, z, inputs, n, dt, self._scratch)
 
     def warm_up(self, x: np.ndarray, inputs: np.ndarray) -> None:
         """Compile (or load from numba's cache) every function a step calls, by one RK4
@@ -632,4 +688,9 @@ class CompiledPlant:
         first call, which would otherwise be the first doStep (seconds on a first run,
         ~0.5 s of cache loading later), counted as stepping time."""
         z = np.empty(N_STEP_STATES)
-        self.advance(np.array(x, dtype=float), z, np.array(inputs, dtype=float), 1, 1e-3)
+        x, inputs = np.array(x, dtype=float), np.array(inputs, dtype=float)
+        self.advance(x, z, inputs, 1, 1e-3)
+        if len(x) == N_STEP_STATES:  # and the FMU's step, on arrays of the same types
+            last_current = inputs[CURRENT].copy()
+            scratch = np.empty(STEP_SCRATCH)
+            step_into(self.parameters, inputs, x, np.empty(4), last_current, scratch, 1, 1e-3)
