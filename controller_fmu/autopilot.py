@@ -513,6 +513,11 @@ class Autopilot:
                 done = fast.sample(p, law, state, self._work, measurements, commands, time)
             if done == fast.OK:
                 return
+        # (a method of its own: its comprehension's cell would be allocated at every call)
+        self._step_reference(time, measurements, commands)
+
+    def _step_reference(self, time: float, measurements: np.ndarray, commands: np.ndarray) -> None:
+        """:meth:`step_into` through :meth:`step`."""
         values = measurements.tolist()
         named = {name: values[i] for i, name in enumerate(MEASUREMENT_NAMES)}
         commands[:] = self.step(time, named).values()

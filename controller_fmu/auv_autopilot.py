@@ -201,14 +201,24 @@ class AuvAutopilot(SafeSlave):
         autopilot = self._autopilot
         assert autopilot is not None, "SafeSlave steps only an initialised instance"
         if self._tuned:  # retuned first: the step-size warning is about the law in use
-            autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
-            self._tuned.clear()  # not if it failed: the step is discarded, the next retries
+            self._retune(autopilot)
+        if autopilot.designed_for_step and not self._step_warned:
+            self._check_step_size(autopilot, step_size)
+        # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
+        # the step with its state unchanged. (No comprehension or closure in this method:
+        # its cell would be allocated at every step.)
+        autopilot.step_into(current_time, self._inputs, self._outputs)
+
+    def _retune(self, autopilot: Autopilot) -> None:
+        """The tunable parameters written since the last step to the autopilot."""
+        autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
+        self._tuned.clear()  # not if it failed: the step is discarded, the next retries
+
+    def _check_step_size(self, autopilot: Autopilot, step_size: float) -> None:
+        """Warn (once) when a communication step is not the step the LQR or the sliding
+        mode is designed for."""
         design_step = autopilot.config.design_step
-        if (
-            autopilot.designed_for_step
-            and not self._step_warned
-            and not math.isclose(step_size, design_step, rel_tol=1e-9)
-        ):
+        if not math.isclose(step_size, design_step, rel_tol=1e-9):
             self.log(
                 f"communication step {step_size!r} s differs from design_step = "
                 f"{design_step!r} s: the LQR / sliding-mode gains are designed for "
@@ -216,9 +226,6 @@ class AuvAutopilot(SafeSlave):
                 Fmi2Status.warning,
             )
             self._step_warned = True
-        # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
-        # the step with its state unchanged
-        autopilot.step_into(current_time, self._inputs, self._outputs)
 
     def _state_snapshot(self) -> dict[str, Any]:
         # the measurements and the commands are in the value buffers, saved with them
