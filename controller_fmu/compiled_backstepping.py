@@ -26,9 +26,8 @@ Layouts (float64, SI):
 * ``scratch``: :data:`SCRATCH_SIZE` values the sample works in (the design state and
   inputs with the measurements in, the derivative, R, work): nothing is allocated.
 
-The plant's kernels are imported absolutely (``plant_fmu`` is a sibling top-level package
-here, so no relative import reaches it); numba's cache stamp of this file ignores the
-build's package prefix the build puts before that import (``plant_fmu/model/jit.py``).
+The plant's kernels are imported absolutely: ``plant_fmu`` is a sibling top-level package
+in the source tree, where no relative import reaches it.
 """
 
 from __future__ import annotations

@@ -30,9 +30,9 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-# Relative imports: the build renames absolute imports of the project's packages (under
-# its own package name, cosim/fmus/staging.py), which would change this file's text, and
-# so numba's cache stamp of it, in every build.
+# Relative imports: the build renames the absolute imports of the project's packages
+# (cosim/fmus/staging.py), which would make this file's text differ between the source
+# tree and every build.
 from .dynamics import PlantModel
 from .jit import load_numba
 from .state_layout import CURRENT, N_STATES, N_STEP_STATES, QUATERNION_CHART_PITCH

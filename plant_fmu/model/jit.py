@@ -11,13 +11,16 @@ Cache folder: numba's default is ``__pycache__`` next to the source, which for a
 the fresh temporary folder the importer unzips it into, so every run would compile again
 (several seconds). We therefore set ``NUMBA_CACHE_DIR`` to a per-user folder,
 ``$XDG_CACHE_HOME/auv-cosim/numba`` (``~/.cache/auv-cosim/numba``), unless the user has set
-it, before numba is imported; and we key the cache of our own modules by file name and
-content, not by the folder they were loaded from (numba keys it by folder: see
+it, before numba is imported; and we key the cache of our own modules by their package
+and content, not by the folder they were loaded from (numba keys it by folder: see
 :class:`_ContentCacheLocator`), so every unzipped copy of the same FMU shares one cache.
 The content is that of every kernel file (:data:`KERNEL_FILES`: a compiled function holds
-the code of the jitted functions it calls), read without the package name a build puts
-before the project's imports (:func:`kernel_stamp`), so a rebuild whose kernels did not
-change keeps the cache, and any change to one of them recompiles all.
+the code of the jitted functions it calls and the constants it reads), so a change to any
+of them recompiles all (:func:`kernel_stamp`). The package is the top-level one (an FMU
+build's ``auvfmu_<hash>``, or ``plant_fmu``/``controller_fmu`` in the source tree), one
+folder each: numba's cached code imports its module by name when it is loaded, so a cache
+written by one build cannot serve another (whose modules have other names), and folders of
+their own keep two builds, or a build and the source tree, from evicting each other's.
 Concurrent processes (sweeps start many at once) can share the folder: numba writes each
 cache file to a unique temporary name and moves it into place with ``os.replace``, which
 is atomic, so a reader sees an old complete file or a new complete one, never a torn one.
@@ -28,7 +31,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
-import re
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -48,9 +50,6 @@ KERNEL_FILES = (
 )
 # file names whose functions use the content-keyed cache
 _CACHED_MODULES = tuple(os.path.basename(path) for path in KERNEL_FILES)
-# The package name a build puts before the imports of the project's packages
-# (cosim/fmus/staging.py: "auvfmu_" and 12 hex digits): not part of the code.
-_BUILD_PACKAGE = re.compile(rb"\bauvfmu_[0-9a-f]{12}\.")
 
 
 def default_cache_dir() -> Path:
@@ -82,15 +81,16 @@ def _install_locator() -> None:
     from numba.core import caching  # imported by load_numba, after NUMBA_CACHE_DIR is set
 
     class _ContentCacheLocator(caching.UserProvidedCacheLocator):
-        """numba's user-folder locator with the folder named after the source file only:
-        numba's own names it after the file's folder, which differs for every unzipped
-        copy of an FMU. The stamp is :func:`kernel_stamp` (numba's is a SHA-256 of the
-        function's own file), so a change to any kernel file recompiles, and a rebuild
-        that changes none of them keeps the cache."""
+        """numba's user-folder locator with the folder named after the function's
+        top-level package: numba's own names it after the file's folder, which differs
+        for every unzipped copy of an FMU. The stamp is :func:`kernel_stamp` (numba's is
+        a SHA-256 of the function's own file), so a change to any kernel file
+        recompiles."""
 
         def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
             super().__init__(py_func, py_file)
-            self._cache_path = os.path.join(caching.config.CACHE_DIR, "auv_cosim")
+            package = str(py_func.__module__).partition(".")[0]
+            self._cache_path = os.path.join(caching.config.CACHE_DIR, "auv_cosim", package)
 
         def get_source_stamp(self) -> str:
             return kernel_stamp(self._py_file)
@@ -120,8 +120,7 @@ def kernel_root(py_file: str) -> Path | None:
 
 def kernel_stamp(py_file: str) -> str:
     """numba's cache stamp of a kernel file's functions: a SHA-256 of every file of
-    :data:`KERNEL_FILES` beside it, without the build's package name (a rebuild that
-    changes none of them keeps the cache)."""
+    :data:`KERNEL_FILES` beside it."""
     root = kernel_root(py_file)
     files = [root / name for name in KERNEL_FILES] if root is not None else [Path(py_file)]
     return _stamp(tuple((str(f), *_file_key(f)) for f in files))
@@ -142,5 +141,5 @@ def _stamp(files: tuple[tuple[str, int, int], ...]) -> str:
     for name, _, size in files:
         data = Path(name).read_bytes() if size >= 0 else b"(missing)"
         digest.update(f"{os.path.basename(name)}\n".encode())
-        digest.update(_BUILD_PACKAGE.sub(b"", data))
+        digest.update(data)
     return digest.hexdigest()
