@@ -18,16 +18,32 @@ What a subclass writes (the whole API)::
 
         def __init__(self, **kwargs):
             super().__init__(**kwargs)      # then only assign defaults and register:
+            self.mode = 0                   # kept in an attribute of its own (watched)
             self.register(Real("u", causality=Fmi2Causality.input, start=0.0,
                                variability=Fmi2Variability.continuous,
-                               description="..."), unit="N")
+                               description="..."), unit="N")  # kept in the buffers
             self.register(Integer("mode", ...), minimum=0, maximum=2)
             ...
+            self._u = self.values_of(["u"])  # last: numpy views of the buffers
 
         def _initialize(self) -> None: ...            # exit_initialization_mode
         def _step(self, t: float, h: float) -> None: ...  # do_step
         def _state_snapshot(self) -> dict: ...        # the internal state, JSON-serialisable
         def _restore_snapshot(self, snapshot: dict) -> None: ...
+
+Where values live: every Real, Integer and Boolean variable has a slot in its type's value
+buffer (:mod:`fmu_runtime.value_buffers`), which the FMU's runtime reads and writes in C:
+``fmi2Get*`` and ``fmi2Set*`` never enter Python there, and ``fmi2DoStep`` is the one call
+into Python of a step. A variable registered with no getter, no setter and no attribute
+of its name lives in its slot: the slave reads and writes it through numpy views of the
+buffers (:meth:`SafeSlave.values_of`, contiguous runs of variables registered one after
+the other), in place, in ``_step``. Any other variable keeps its own storage (an
+attribute, a container through its getter and setter: *watched*): a value written to it
+is handed to its setter at the slave's next call, and its getter's value is copied to its
+slot after every call but a step (after a step too for an output). Strings keep their own
+storage; the runtime keeps copies. Parameters and Strings must not change in ``_step``.
+Under pythonfmu's binary (the fallback) nothing else shares the buffers and this class
+answers the calls from them itself: a subclass's code is the same in both runtimes.
 
 ``_initialize`` computes the outputs the FMU starts from, from the parameters and inputs:
 it also runs when an output is read in initialisation mode after a write (so that read

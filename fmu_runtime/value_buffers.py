@@ -113,6 +113,8 @@ class ValueBuffers:
         self.flags = bytearray(WATCHED if watched else 0 for watched in self._watched)
         self._derivative_bytes = bytearray(16 * self.count(REAL))
         self.derivatives = np.frombuffer(self._derivative_bytes).reshape(2, self.count(REAL))
+        # exports of every buffer for as long as this object lives: none can be resized
+        self._pinned = [memoryview(buffer) for buffer in (self.flags, self.control)]
         self.sealed = True
 
     def buffers(self) -> tuple[bytearray, ...]:

@@ -408,7 +408,11 @@ def test_the_runtime_and_pythonfmus_binary_give_the_same_results(name, fmu_paths
         _json_result(run_python(BOTH_RUNTIMES, fmu_paths[name], starts, runtime))
         for runtime in ("", "pythonfmu")
     )
-    assert ours == theirs  # bit-identical outputs, the same serialised state size
+    assert ours["rows"] == theirs["rows"]  # bit-identical outputs
+    # each serialises its state its own way (the runtime: the value buffers' bytes and
+    # the slave's part; pythonfmu's binary: the slave's JSON alone, the buffers in hex);
+    # test_values_in_c.py restores each bit-identically
+    assert ours["state"] > 0 and theirs["state"] > 0
 
 
 DERIVATIVES = """
