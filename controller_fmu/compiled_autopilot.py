@@ -15,8 +15,9 @@ thruster, (6.3.55)-(6.3.73)), the mass lock (Sec. 6.3.4), the depth PD (Fig. 6.4
 :mod:`controller_fmu.setpoint_shaping`'s own functions, compiled; the two lines of
 ``crab_angle`` and of ``DepthPd.fin_angle`` are repeated here (their Python versions raise
 with formatted messages, which numba cannot compile). Python's ``min``/``max`` are
-spelled out (:func:`_python_min`, :func:`_python_max`) so that a signed zero comes out as
-it does in Python.
+spelled out as CPython defines them (:func:`_python_min`, :func:`_python_max`: the first
+argument unless the second is strictly smaller/larger), so a signed zero or a NaN comes
+out as in Python whatever numba's builtins do.
 
 Layout of ``work`` (float64, :data:`WORK_SIZE`): the configuration (:data:`CONFIG_SIZE`
 values from :data:`HEADING` to :data:`THRUST`, written by the autopilot when it takes a
