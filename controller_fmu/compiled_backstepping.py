@@ -34,7 +34,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from plant_fmu.model.compiled import _jit, derivative_into
+from plant_fmu.model.compiled import _jit as _jit  # (also compiled_autopilot's)
+from plant_fmu.model.compiled import derivative_into
 
 # law
 K0, K1, K2, K3, K4, ETA0, PHI, G1, G2, G3, EPS4, THRUSTER = range(12)

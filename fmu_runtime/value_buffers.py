@@ -42,7 +42,6 @@ import numpy as np
 REAL, INTEGER, BOOLEAN = "R", "I", "B"
 KINDS = (REAL, INTEGER, BOOLEAN)
 _DTYPES = {REAL: np.float64, INTEGER: np.int32, BOOLEAN: np.int32}  # fmi2Boolean is an int
-_FORMATS = {REAL: "d", INTEGER: "i", BOOLEAN: "i"}
 _ITEM_SIZES = {REAL: 8, INTEGER: 4, BOOLEAN: 4}
 
 # flags, one byte per value reference
@@ -109,7 +108,7 @@ class ValueBuffers:
             array = np.frombuffer(data, dtype=_DTYPES[kind])
             array[:] = pending
             self.bytes[kind], self.arrays[kind] = data, array
-            self.values[kind] = memoryview(data).cast(_FORMATS[kind])
+            self.values[kind] = memoryview(data).cast("d" if kind == REAL else "i")
         self.flags = bytearray(WATCHED if watched else 0 for watched in self._watched)
         self._derivative_bytes = bytearray(16 * self.count(REAL))
         self.derivatives = np.frombuffer(self._derivative_bytes).reshape(2, self.count(REAL))
