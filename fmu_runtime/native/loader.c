@@ -17,8 +17,10 @@
  * of the last step) within a relative 1e-9; a read of an unknown value reference or of
  * the wrong type; a write of a variable that cannot be written then (outputs, locals,
  * constants; a fixed parameter after initialisation, unless it is the value it has), of a
- * non-finite Real, or of a value outside the declared min/max; input derivatives the FMU
- * does not take. The variables' rules come from resources/fmu_variables.txt, the GUID and
+ * non-finite Real, of a value outside the declared min/max, or of a String that is not
+ * UTF-8; input derivatives the FMU does not take. With the default backend the values
+ * themselves are read and written in C (values.c): a Real read back non-finite is refused
+ * there. The variables' rules come from resources/fmu_variables.txt, the GUID and
  * the slave class from resources/fmu_runtime.txt; the build writes both.
  *
  * Refusals made in Python (fmu_runtime/safe_slave.py logs each with status Error): the
