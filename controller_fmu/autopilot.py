@@ -24,7 +24,6 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from controller_fmu import compiled_autopilot as fast
 from controller_fmu.backstepping import (
@@ -32,7 +31,6 @@ from controller_fmu.backstepping import (
     BacksteppingHeading,
     BacksteppingSnapshot,
 )
-from controller_fmu.config_errors import validation_message
 from controller_fmu.depth_pd import (
     DEFAULT_FIN_LIMIT,
     TABLE_6_2_GAMMA,
@@ -46,6 +44,7 @@ from controller_fmu.modes import DepthMode, HeadingMode, choices
 from controller_fmu.setpoint_shaping import desired_heading, mass_locked, wrap_angle
 from controller_fmu.sliding_mode import SlidingModeHeading
 from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.validated import CheckedRecord, checked_field
 
 MEASUREMENT_NAMES: tuple[str, ...] = (
     "yaw", "r", "p", "roll", "v_rel", "u_rel", "down", "pitch", "q", "w_rel",
@@ -70,187 +69,181 @@ class AutopilotConfigError(ValueError):
     """An autopilot parameter is out of range (the message names it and what is allowed)."""
 
 
-def _unit(unit: str) -> dict[str, Any]:
-    return {"unit": unit}
+def _known_mode(mode: type[IntEnum]) -> Callable[[int], None]:
+    """A check that a value is one of ``mode``'s (a ValueError listing them if not)."""
+
+    def check(value: int) -> None:
+        try:
+            mode(value)
+        except ValueError:
+            raise ValueError(f"expected one of {choices(mode)}") from None
+
+    return check
 
 
-class AutopilotConfig(BaseModel):
-    """Every parameter of the autopilot (SI). Field names are the FMU parameter names."""
+@dataclass(frozen=True)
+class AutopilotConfig(CheckedRecord):
+    """Every parameter of the autopilot (SI). Field names are the FMU parameter names.
 
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+    Validated and immutable (:class:`plant_fmu.model.validated.CheckedRecord`)."""
 
-    heading_mode: int = Field(
+    error_type = AutopilotConfigError
+    unknown_key = "unknown autopilot parameter {name!r}"
+
+    heading_mode: int = checked_field(
         default=0,
         description="heading controller: 0 off, 1 lqr (6.3.17), 2 sliding_mode (6.3.45), "
         "3 backstepping + tunnel thruster (6.3.64, 6.3.72)",
-        json_schema_extra=_unit(""),
+        check=_known_mode(HeadingMode),
     )
-    depth_mode: int = Field(
+    depth_mode: int = checked_field(
         default=0,
         description="depth controller: 0 off, 1 pd: PD pitch + P depth (Fig. 6.40)",
-        json_schema_extra=_unit(""),
+        check=_known_mode(DepthMode),
     )
-    mass_lock_time: float = Field(
+    mass_lock_time: float = checked_field(
         default=-1.0,
         description="time after which the moving-mass command is 0 and held; < 0: never",
-        json_schema_extra=_unit("s"),
+        unit="s",
     )
-    compensate_current: bool = Field(
+    compensate_current: bool = checked_field(
         default=False,
         description="head into the current so the course over ground is yaw_setpoint (6.3.74)",
-        json_schema_extra=_unit(""),
     )
-    design_speed: float = Field(
+    design_speed: float = checked_field(
         default=1.525,
         gt=0.0,
         description="U0: surge speed through the water the controllers are designed for",
-        json_schema_extra=_unit("m/s"),
+        unit="m/s",
     )
-    vehicle: str = Field(
+    vehicle: str = checked_field(
         default="remus100",
         min_length=1,
         description="vehicle parameter set the controllers' model terms come from "
         "(built-in name or .toml path)",
-        json_schema_extra=_unit(""),
     )
-    design_step: float = Field(
+    design_step: float = checked_field(
         default=0.01,
         gt=0.0,
         description="sample time the discrete LQR and sliding mode are designed for; "
-        "should equal the communication step",
-        json_schema_extra=_unit("s"),
+        "should equal the communication step (or sample_period)",
+        unit="s",
     )
-    thrust_command: float = Field(
+    sample_period: float = checked_field(
+        default=0.0,
+        ge=0.0,
+        description="a digital autopilot: samples at multiples of this period and holds its "
+        "commands in between; 0: at every communication point (the continuous laws)",
+        unit="s",
+    )
+    thrust_command: float = checked_field(
         default=9.0,
         description="propeller thrust sent on the thrust output (9 N: 1.525 m/s; 4 N: 1.017 m/s)",
-        json_schema_extra=_unit("N"),
+        unit="N",
     )
-    lqr_q_r: float = Field(
+    lqr_q_r: float = checked_field(
         default=DISSERTATION_Q_Y[0], ge=0.0, description="LQR weight on r (Q_y)",
-        json_schema_extra=_unit("s2/rad2"),
+        unit="s2/rad2",
     )  # fmt: skip
-    lqr_q_p: float = Field(
+    lqr_q_p: float = checked_field(
         default=DISSERTATION_Q_Y[1], ge=0.0, description="LQR weight on p (Q_y)",
-        json_schema_extra=_unit("s2/rad2"),
+        unit="s2/rad2",
     )  # fmt: skip
-    lqr_q_roll: float = Field(
+    lqr_q_roll: float = checked_field(
         default=DISSERTATION_Q_Y[2], ge=0.0, description="LQR weight on phi (Q_y)",
-        json_schema_extra=_unit("1/rad2"),
+        unit="1/rad2",
     )  # fmt: skip
-    lqr_q_yaw: float = Field(
+    lqr_q_yaw: float = checked_field(
         default=DISSERTATION_Q_Y[3], ge=0.0, description="LQR weight on psi - psi_d (Q_y)",
-        json_schema_extra=_unit("1/rad2"),
+        unit="1/rad2",
     )  # fmt: skip
-    lqr_q_mass_position: float = Field(
+    lqr_q_mass_position: float = checked_field(
         default=DISSERTATION_Q_Y[4], ge=0.0, description="LQR weight on y_v (Q_y)",
-        json_schema_extra=_unit("1/m2"),
+        unit="1/m2",
     )  # fmt: skip
-    lqr_q_mass_velocity: float = Field(
+    lqr_q_mass_velocity: float = checked_field(
         default=DISSERTATION_Q_Y[5], ge=0.0, description="LQR weight on y_vel (Q_y)",
-        json_schema_extra=_unit("s2/m2"),
+        unit="s2/m2",
     )  # fmt: skip
-    lqr_r: float = Field(
+    lqr_r: float = checked_field(
         default=DISSERTATION_R_U, gt=0.0, description="LQR weight on y_d (R_u)",
-        json_schema_extra=_unit("1/m2"),
+        unit="1/m2",
     )  # fmt: skip
-    smc_eta: float = Field(
+    smc_eta: float = checked_field(
         default=1.0, gt=0.0, description="sliding-mode reaching rate eta (6.3.38)",
-        json_schema_extra=_unit("rad/s"),
+        unit="rad/s",
     )  # fmt: skip
-    smc_boundary_layer: float = Field(
+    smc_boundary_layer: float = checked_field(
         default=0.5, gt=0.0, description="sliding-mode boundary layer Phi on s (6.3.73)",
-        json_schema_extra=_unit("rad"),
+        unit="rad",
     )  # fmt: skip
-    k0: float = Field(
+    k0: float = checked_field(
         default=0.5, gt=0.0, description="backstepping gain k0 (6.3.55); 0.3 in currents/slow",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    k1: float = Field(
+    k1: float = checked_field(
         default=1.0, gt=0.0, description="backstepping gain k1 (6.3.58); 0.8 in currents/slow",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    k2: float = Field(
+    k2: float = checked_field(
         default=1.0, gt=0.0, description="backstepping gain k2 (6.3.60)",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    k3: float = Field(
+    k3: float = checked_field(
         default=1.0, gt=0.0, description="backstepping gain k3 (6.3.62)",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    k4: float = Field(
+    k4: float = checked_field(
         default=1.0, gt=0.0, description="backstepping gain k4 (6.3.64)",
-        json_schema_extra=_unit("1/s"),
+        unit="1/s",
     )  # fmt: skip
-    eta0: float = Field(
+    eta0: float = checked_field(
         default=0.08, ge=0.0, description="thruster margin eta0 (6.3.72), sway acceleration",
-        json_schema_extra=_unit("m/s2"),
+        unit="m/s2",
     )  # fmt: skip
-    thruster_boundary_layer: float = Field(
+    thruster_boundary_layer: float = checked_field(
         default=0.01, gt=0.0, description="thruster boundary layer Phi on z2 (6.3.73)",
-        json_schema_extra=_unit("m/s"),
+        unit="m/s",
     )  # fmt: skip
-    command_filter_frequency: float = Field(
+    command_filter_frequency: float = checked_field(
         default=10.0, gt=0.0,
         description="natural frequency of the command filters giving alpha1..3 derivatives",
-        json_schema_extra=_unit("rad/s"),
+        unit="rad/s",
     )  # fmt: skip
-    depth_gamma: float = Field(
+    depth_gamma: float = checked_field(
         default=TABLE_6_2_GAMMA, description="depth loop gain gamma, theta_d per depth error "
-        "(Table 6.2)", json_schema_extra=_unit("rad/m"),
+        "(Table 6.2)", unit="rad/m",
     )  # fmt: skip
-    depth_k_p: float = Field(
+    depth_k_p: float = checked_field(
         default=TABLE_6_2_K_P, description="pitch loop gain K_p, fin per pitch error (Table 6.2)",
-        json_schema_extra=_unit("1"),
+        unit="1",
     )  # fmt: skip
-    depth_tau_d: float = Field(
+    depth_tau_d: float = checked_field(
         default=TABLE_6_2_TAU_D, ge=0.0, description="pitch loop derivative time tau_d "
-        "(Table 6.2)", json_schema_extra=_unit("s"),
+        "(Table 6.2)", unit="s",
     )  # fmt: skip
-    fin_angle_limit: float = Field(
+    fin_angle_limit: float = checked_field(
         default=DEFAULT_FIN_LIMIT, gt=0.0, description="stern-plane limit |delta_s| (25 deg)",
-        json_schema_extra=_unit("rad"),
+        unit="rad",
     )  # fmt: skip
-    mass_position_cmd_limit: float = Field(
+    mass_position_cmd_limit: float = checked_field(
         default=0.06, gt=0.0, description="moving-mass command limit |y_d| (the 6 cm stroke)",
-        json_schema_extra=_unit("m"),
+        unit="m",
     )  # fmt: skip
-    tunnel_force_limit: float = Field(
+    tunnel_force_limit: float = checked_field(
         default=10.0, ge=0.0, description="tunnel-thruster force limit |F_t|",
-        json_schema_extra=_unit("N"),
+        unit="N",
     )  # fmt: skip
-
-    @field_validator("heading_mode")
-    @classmethod
-    def _known_heading_mode(cls, value: int) -> int:
-        return _known_mode(HeadingMode, value)
-
-    @field_validator("depth_mode")
-    @classmethod
-    def _known_depth_mode(cls, value: int) -> int:
-        return _known_mode(DepthMode, value)
 
     @classmethod
     def build(cls, **values: Any) -> AutopilotConfig:
         """Validate ``values``; raise :class:`AutopilotConfigError` naming every bad one."""
-        try:
-            return cls.model_validate(values)
-        except ValidationError as exc:
-            raise AutopilotConfigError(validation_message(exc, "autopilot")) from None
+        return cls.from_mapping(values)
 
 
 def field_unit(name: str) -> str:
     """The unit of an :class:`AutopilotConfig` field ('' if dimensionless)."""
-    extra = AutopilotConfig.model_fields[name].json_schema_extra
-    return str(extra["unit"]) if isinstance(extra, dict) else ""
-
-
-def _known_mode(mode: type[IntEnum], value: int) -> int:
-    """``value`` if it is one of ``mode``'s values, else a ValueError listing them."""
-    try:
-        mode(value)
-    except ValueError:
-        raise ValueError(f"expected one of {choices(mode)}") from None
-    return value
+    return AutopilotConfig.field_info()[name].unit
 
 
 class Commands(NamedTuple):
@@ -275,6 +268,7 @@ class AutopilotSnapshot:
     commands: Commands  # the commands last computed
     heading_setpoint: float  # psi_d of the last step, rad
     backstepping: BacksteppingSnapshot | None  # None unless heading_mode is BACKSTEPPING
+    next_sample: float | None = None  # s, a digital autopilot's next sample time
 
     def to_json(self) -> dict[str, Any]:
         """A JSON-serialisable form (part of the FMU's serialised state)."""
@@ -282,6 +276,7 @@ class AutopilotSnapshot:
             "commands": list(self.commands.values()),
             "heading_setpoint": self.heading_setpoint,
             "backstepping": None if self.backstepping is None else self.backstepping.to_json(),
+            "next_sample": self.next_sample,
         }
 
     @classmethod
@@ -294,22 +289,25 @@ class AutopilotSnapshot:
             backstepping=None
             if backstepping is None
             else BacksteppingSnapshot.from_json(backstepping),
+            next_sample=data.get("next_sample"),
         )
 
 
-HeadingLaw = Callable[[float, tuple[float, ...]], tuple[float, float]]
+HeadingLaw = Callable[[float, tuple[float, ...], bool], tuple[float, float]]
 """A heading law: (time s, x = (v_rel, r, p, roll, yaw - psi_d, mass_position,
-mass_velocity) in SI) -> the unsaturated (mass_position_cmd m, tunnel_force N)."""
+mass_velocity) in SI, whether the measurements went linearly from the last sample to these
+(a law with filters follows them so; else they were held)) -> the unsaturated
+(mass_position_cmd m, tunnel_force N)."""
 
 
-def _no_heading_control(time: float, x: tuple[float, ...]) -> tuple[float, float]:
+def _no_heading_control(time: float, x: tuple[float, ...], ramp: bool) -> tuple[float, float]:
     return 0.0, 0.0
 
 
 def _mass_only(command: Callable[[np.ndarray], float]) -> HeadingLaw:
     """A heading law from a mass-command law y_d(x) that leaves the thruster at 0."""
 
-    def law(time: float, x: tuple[float, ...]) -> tuple[float, float]:
+    def law(time: float, x: tuple[float, ...], ramp: bool) -> tuple[float, float]:
         return command(np.array(x)), 0.0
 
     return law
@@ -377,7 +375,8 @@ class Autopilot:
         if self._kernel is not None:  # compile (or load) the sample now, not in the first step
             p, law, state = self._kernel
             inputs, outputs = np.zeros(len(MEASUREMENT_NAMES)), np.zeros(len(COMMAND_NAMES))
-            fast.sample(p, law.copy(), state.copy(), self._work.copy(), inputs, outputs, 0.0)
+            work = self._work.copy()
+            fast.sample(p, law.copy(), state.copy(), work, inputs, inputs, outputs, 0.0)
 
     def retune(self, **values: Any) -> None:
         """Change tunable parameters (:data:`TUNABLE_PARAMETERS`) between steps: a new
@@ -394,7 +393,7 @@ class Autopilot:
                 f"{', '.join(fixed)}: not tunable while running (tunable: "
                 f"{', '.join(TUNABLE_PARAMETERS)})"
             )
-        config = AutopilotConfig.build(**{**self.config.model_dump(), **values})
+        config = self.config.replace(**values)
         if config.heading_mode == self.config.heading_mode:
             self._set_config(config)
             return
@@ -468,66 +467,86 @@ class Autopilot:
     def heading_setpoint(self, psi_d: float) -> None:
         self._work[fast.PUBLISHED] = psi_d
 
-    def _backstepping_law(self, time: float, x: tuple[float, ...]) -> tuple[float, float]:
+    def _backstepping_law(
+        self, time: float, x: tuple[float, ...], ramp: bool
+    ) -> tuple[float, float]:
         v, r, p, phi, psi_e, y_v, _ = x
         assert self.backstepping is not None, "set with this law by _use_heading_mode"
-        return self.backstepping.command_values(time, v, r, p, phi, psi_e, y_v)
+        return self.backstepping.command_values(time, v, r, p, phi, psi_e, y_v, ramp)
 
     def reset(self) -> None:
         """Back to the state right after construction."""
         self.commands = Commands(thrust=self.config.thrust_command)
         self.heading_setpoint = 0.0  # psi_d of the last step, rad
+        self.next_sample: float | None = None  # s, a digital autopilot's next sample time
         if self.backstepping is not None:
             self.backstepping.reset()
 
     def snapshot(self) -> AutopilotSnapshot:
         """Everything :meth:`step` changes, for :meth:`restore`."""
         bs = self.backstepping.snapshot() if self.backstepping is not None else None
-        return AutopilotSnapshot(self.commands, self.heading_setpoint, bs)
+        return AutopilotSnapshot(self.commands, self.heading_setpoint, bs, self.next_sample)
 
     def restore(self, snapshot: AutopilotSnapshot) -> None:
         """Back to the state of :meth:`snapshot` (taken from an autopilot of this config)."""
         self.commands = snapshot.commands
         self.heading_setpoint = snapshot.heading_setpoint
+        self.next_sample = snapshot.next_sample
         if self.backstepping is not None:
             if snapshot.backstepping is None:
                 raise ValueError("the snapshot holds no backstepping state: not of this config")
             self.backstepping.restore(snapshot.backstepping)
 
-    def step_into(self, time: float, measurements: np.ndarray, commands: np.ndarray) -> None:
+    def step_into(
+        self, time: float, measurements: np.ndarray, commands: np.ndarray, rates: np.ndarray
+    ) -> None:
         """:meth:`step` from and into arrays: ``measurements`` in :data:`MEASUREMENT_NAMES`
-        order, the commands into ``commands`` (:data:`COMMAND_NAMES` order). With the
-        heading law off or backstepping and numba usable, one compiled call that
-        allocates nothing (:func:`controller_fmu.compiled_autopilot.sample`, the same
-        arithmetic); else, and to raise what a refused sample gets, :meth:`step`.
+        order, the commands into ``commands`` (:data:`COMMAND_NAMES` order), ``rates`` the
+        measurements' first time derivatives the importer set (0.0 where none: the step
+        is ``varying`` when one is not 0). With the heading law off or backstepping, no
+        ``sample_period`` and numba usable, one compiled call that allocates nothing
+        (:func:`controller_fmu.compiled_autopilot.sample`, the same arithmetic); else,
+        and to raise what a refused sample gets, :meth:`step`.
 
         Raises:
             ValueError: as :meth:`step`; the autopilot is then as before the call.
         """
         kernel = self._kernel
-        if kernel is not None:
+        if kernel is not None and self.config.sample_period == 0.0:
             p, law, state = kernel
-            done = fast.sample(p, law, state, self._work, measurements, commands, time)
+            work = self._work
+            done = fast.sample(p, law, state, work, measurements, rates, commands, time)
             if done == fast.NEEDS_TRANSITION and self.backstepping is not None:
                 self.backstepping.add_transition(time)
-                done = fast.sample(p, law, state, self._work, measurements, commands, time)
+                done = fast.sample(p, law, state, work, measurements, rates, commands, time)
             if done == fast.OK:
                 return
         # (a method of its own: its comprehension's cell would be allocated at every call)
-        self._step_reference(time, measurements, commands)
+        self._step_reference(time, measurements, commands, rates)
 
-    def _step_reference(self, time: float, measurements: np.ndarray, commands: np.ndarray) -> None:
+    def _step_reference(
+        self, time: float, measurements: np.ndarray, commands: np.ndarray, rates: np.ndarray
+    ) -> None:
         """:meth:`step_into` through :meth:`step`."""
         values = measurements.tolist()
         named = {name: values[i] for i, name in enumerate(MEASUREMENT_NAMES)}
-        commands[:] = self.step(time, named).values()
+        commands[:] = self.step(time, named, bool(rates.any())).values()
 
-    def step(self, time: float, measurements: Mapping[str, float]) -> Commands:
+    def step(
+        self, time: float, measurements: Mapping[str, float], varying: bool = False
+    ) -> Commands:
         """The commands to hold from ``time`` (s) over the next communication step.
 
         Args:
             time: current time, s.
             measurements: every name of :data:`MEASUREMENT_NAMES`, SI.
+            varying: the measurements went linearly from the last sample's to these
+                (the importer extrapolates them: input derivatives), so the
+                backstepping's filters follow them so (a first-order hold, second-order
+                accurate in the step) instead of holding the last sample's. A digital
+                autopilot (``sample_period`` > 0) samples at its own times only, at the
+                first call at or after each multiple of the period, holding its
+                commands from one sample to the next and its filters' inputs too.
 
         Raises:
             ValueError: a measurement is missing or not finite, or (with
@@ -536,6 +555,12 @@ class Autopilot:
         """
         m = _checked(time, measurements)
         c = self.config
+        next_sample = self.next_sample
+        if c.sample_period > 0.0:
+            if next_sample is not None and time < next_sample - _SAMPLE_SLACK * c.sample_period:
+                return self.commands
+            next_sample = (math.floor(time / c.sample_period + _SAMPLE_SLACK) + 1) * c.sample_period
+            varying = False
         psi_d = desired_heading(
             m["yaw_setpoint"], m["current_north"], m["current_east"], c.design_speed,
             c.compensate_current,
@@ -544,7 +569,7 @@ class Autopilot:
         x = (m["v_rel"], m["r"], m["p"], m["roll"], psi_e, m["mass_position"],
              m["mass_velocity"])  # fmt: skip
         saved = None if self.backstepping is None else self.backstepping.state_values()
-        mass_cmd, tunnel = self._heading_law(time, x)
+        mass_cmd, tunnel = self._heading_law(time, x, varying)
         if mass_locked(time, c.mass_lock_time):
             mass_cmd = 0.0
         fin = 0.0
@@ -559,7 +584,11 @@ class Autopilot:
             raise ValueError(f"the autopilot computed a non-finite command {commands}")
         self.commands = commands
         self.heading_setpoint = psi_d
+        self.next_sample = next_sample
         return commands
+
+
+_SAMPLE_SLACK = 1e-9  # of a sample period: a call this close before a sample time is at it
 
 
 def _checked(time: float, measurements: Mapping[str, float]) -> dict[str, float]:
@@ -571,7 +600,7 @@ def _checked(time: float, measurements: Mapping[str, float]) -> dict[str, float]
             return values
     except (KeyError, TypeError, ValueError):
         pass
-    for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS, strict=True):
+    for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS):
         if name not in measurements:
             raise ValueError(f"measurement {name!r} is missing: expected {list(MEASUREMENT_NAMES)}")
         value = float(measurements[name])

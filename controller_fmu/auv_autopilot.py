@@ -38,6 +38,16 @@ delay. No output depends directly on an input in the FMI sense (they change only
 doStep), so ModelStructure declares no dependencies and importers see no algebraic loop.
 After initialisation the outputs are zero commands and ``thrust`` = ``thrust_command``.
 
+Input derivatives (``canInterpolateInputs="true"``): when the importer extrapolates the
+inputs (``fmi2SetRealInputDerivatives``), the step takes them as going linearly from the
+last sample's values to these: the backstepping's command filters then follow the
+continuous-time law with a first-order hold (second order in the step) instead of holding
+the last sample's alphas. The laws themselves are evaluated at the sample.
+
+Digital autopilot: ``sample_period`` > 0 makes it sample at the first doStep at or after
+each multiple of the period and hold its commands in between, whatever the communication
+step (input derivatives are then ignored); 0 (the default) samples at every doStep.
+
 Sample time. The discrete LQR and the sampled sliding mode are designed at initialisation
 for the parameter ``design_step`` (default 0.01 s), not for the first doStep's step size,
 so every design error is reported by exitInitializationMode and a master with varying steps
@@ -54,7 +64,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from enum import IntEnum
-from typing import Any
+from typing import Any, ClassVar
 
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
@@ -122,6 +132,8 @@ def _noting_setter(values: dict[str, Any], written: set[str], key: str) -> Calla
 class AuvAutopilot(SafeSlave):
     """Heading (LQR / sliding mode / backstepping + thruster) and depth (PD) autopilot."""
 
+    interpolates_inputs: ClassVar[bool] = True  # input derivatives: the module docstring
+
     description = (
         "Autopilot of the REMUS 100 with internal actuators: moving-mass heading control "
         "(LQR, sliding mode, backstepping + tunnel thruster) and depth PD, B. Li, FAU 2016 Ch. 6"
@@ -131,7 +143,7 @@ class AuvAutopilot(SafeSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._vehicles = vehicle_folder(self.resources)  # this extraction's data
-        self._params: dict[str, Any] = _DEFAULTS.model_dump()
+        self._params: dict[str, Any] = _DEFAULTS.as_dict()
         self._autopilot: Autopilot | None = None
         self._step_warned = False
         self._tuned: set[str] = set()  # tunable parameters written since the autopilot took them
@@ -140,10 +152,12 @@ class AuvAutopilot(SafeSlave):
         # step reads the measurements and writes the commands in place
         self._inputs = self.values_of(MEASUREMENT_NAMES)
         self._outputs = self.values_of(COMMAND_NAMES)
+        # the measurements' first derivatives set for the next step (input derivatives)
+        self._rates = self.derivatives_of(MEASUREMENT_NAMES)[0]
         self._outputs[:] = Commands(thrust=_DEFAULTS.thrust_command).values()
 
     def _register_variables(self) -> None:
-        for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS, strict=True):
+        for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS):
             self.register(
                 Real(
                     name,
@@ -153,7 +167,7 @@ class AuvAutopilot(SafeSlave):
                 ),
                 unit=unit,
             )
-        for name, unit in zip(COMMAND_NAMES, COMMAND_UNITS, strict=True):
+        for name, unit in zip(COMMAND_NAMES, COMMAND_UNITS):
             self.register(
                 Real(
                     name,
@@ -165,9 +179,9 @@ class AuvAutopilot(SafeSlave):
                 ),
                 unit=unit,
             )
-        for name, field in AutopilotConfig.model_fields.items():
+        for name, field in AutopilotConfig.field_info().items():
             kinds: dict[object, Any] = {int: Integer, bool: Boolean, str: String, float: Real}
-            kind = kinds[field.annotation]
+            kind = kinds[field.kind]
             variable = kind(
                 name,
                 description=field.description,
@@ -207,7 +221,7 @@ class AuvAutopilot(SafeSlave):
         # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
         # the step with its state unchanged. (No comprehension or closure in this method:
         # its cell would be allocated at every step.)
-        autopilot.step_into(current_time, self._inputs, self._outputs)
+        autopilot.step_into(current_time, self._inputs, self._outputs, self._rates)
 
     def _retune(self, autopilot: Autopilot) -> None:
         """The tunable parameters written since the last step to the autopilot."""
@@ -215,14 +229,15 @@ class AuvAutopilot(SafeSlave):
         self._tuned.clear()  # not if it failed: the step is discarded, the next retries
 
     def _check_step_size(self, autopilot: Autopilot, step_size: float) -> None:
-        """Warn (once) when a communication step is not the step the LQR or the sliding
-        mode is designed for."""
+        """Warn (once) when the law's sample time (``sample_period``, else the
+        communication step) is not the step the LQR or the sliding mode is designed for."""
         design_step = autopilot.config.design_step
-        if not math.isclose(step_size, design_step, rel_tol=1e-9):
+        sampled = autopilot.config.sample_period or step_size  # the law's sample time
+        if not math.isclose(sampled, design_step, rel_tol=1e-9):
+            what = "sample_period" if autopilot.config.sample_period else "communication step"
             self.log(
-                f"communication step {step_size!r} s differs from design_step = "
-                f"{design_step!r} s: the LQR / sliding-mode gains are designed for "
-                "design_step (set it to the communication step)",
+                f"{what} {sampled!r} s differs from design_step = {design_step!r} s: the "
+                f"LQR / sliding-mode gains are designed for design_step (set it to the {what})",
                 Fmi2Status.warning,
             )
             self._step_warned = True

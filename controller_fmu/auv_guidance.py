@@ -40,7 +40,7 @@ Discard; a NaN/inf input is refused by the base class (doStep then returns Disca
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
@@ -79,6 +79,11 @@ _DEFAULTS = GuidanceConfig()
 class AuvGuidance(SafeSlave):
     """Line-of-sight waypoint guidance for heading and depth (a sampled system)."""
 
+    # the first set-point is for the start position
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = dict.fromkeys(
+        OUTPUTS, tuple(INPUTS)
+    )
+
     description = (
         "Waypoint guidance of the REMUS 100: line-of-sight (proportional or integral) steering "
         "for heading and depth, with the current compensation of B. Li, FAU 2016 (6.3.74)"
@@ -87,7 +92,7 @@ class AuvGuidance(SafeSlave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self._params: dict[str, Any] = _DEFAULTS.model_dump()
+        self._params: dict[str, Any] = _DEFAULTS.as_dict()
         self._guidance: LosGuidance | None = None
         self._register_variables()
         # views of the FMU's value buffers (the runtime reads and writes them in C)
@@ -117,9 +122,9 @@ class AuvGuidance(SafeSlave):
                 unit=unit,
             )
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        for name, field in GuidanceConfig.model_fields.items():
+        for name, field in GuidanceConfig.field_info().items():
             kinds: dict[object, Any] = {bool: Boolean, str: String, float: Real}
-            kind = kinds[field.annotation]
+            kind = kinds[field.kind]
             variable = kind(
                 name,
                 description=field.description,

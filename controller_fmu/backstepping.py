@@ -123,8 +123,10 @@ class BacksteppingHeading:
         compiled = design.compiled_plant
         if self._law is not None and compiled is not None:  # compile (or load) it now,
             params = compiled.parameters  # not in the first doStep
-            law, state = self._law.copy(), self._state.copy()
-            fast.command(params, law, state, self.scratch, 0.0, *[0.0] * 6)
+            for ramp in (False, True):
+                law, state = self._law.copy(), self._state.copy()
+                fast.command(params, law, state, self.scratch, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                             ramp)  # fmt: skip
 
     def _flat_law(self) -> np.ndarray:
         """The compiled law's constants (:mod:`compiled_backstepping`'s ``law`` layout)."""
@@ -179,26 +181,42 @@ class BacksteppingHeading:
         self.filters.rate[:] = snapshot.filter_rate
 
     def command_values(
-        self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
+        self,
+        time: float,
+        v: float,
+        r: float,
+        p: float,
+        phi: float,
+        psi_e: float,
+        y_v: float,
+        ramp: bool = False,
     ) -> tuple[float, float]:
         """(y_v command m, F_t N) of :meth:`command`, from the compiled law when numba is
         usable (:mod:`controller_fmu.compiled_backstepping`), else from the reference."""
         if self._law is None:
-            out = self.command(time, v, r, p, phi, psi_e, y_v)
+            out = self.command(time, v, r, p, phi, psi_e, y_v, ramp)
             return out.mass_position, out.tunnel_force
-        return self._compiled(time, v, r, p, phi, psi_e, y_v)[1:3]
+        return self._compiled(time, v, r, p, phi, psi_e, y_v, ramp)[1:3]
 
     def _compiled(
-        self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
+        self,
+        time: float,
+        v: float,
+        r: float,
+        p: float,
+        phi: float,
+        psi_e: float,
+        y_v: float,
+        ramp: bool = False,
     ) -> fast.Sample:
         """The compiled law's 7 values; writes the filter transition it asks for first."""
         plant, law, state = self.design.compiled_plant, self._law, self._state
         assert plant is not None and law is not None, "the compiled law needs numba"
         params, scratch = plant.parameters, self.scratch
-        out = fast.command(params, law, state, scratch, time, v, r, p, phi, psi_e, y_v)
-        if out[0]:  # a new interval: its exact transition (scipy's expm, cached)
+        out = fast.command(params, law, state, scratch, time, v, r, p, phi, psi_e, y_v, ramp)
+        if out[0]:  # a new interval: its exact transition (expm, cached)
             self.add_transition(time)
-            out = fast.command(params, law, state, scratch, time, v, r, p, phi, psi_e, y_v)
+            out = fast.command(params, law, state, scratch, time, v, r, p, phi, psi_e, y_v, ramp)
         return out
 
     @property
@@ -218,23 +236,41 @@ class BacksteppingHeading:
         assert law is not None, "the compiled law needs numba"
         interval = time - float(self._state[fast.LAST_TIME])
         transition, gamma = self.filters.transition(interval)
-        slot = fast.INTERVALS + 7 * self._next_slot
-        law[slot : slot + 7] = (interval, *transition.ravel().tolist(), *gamma.tolist())
+        slot = fast.INTERVALS + fast.SLOT * self._next_slot
+        law[slot : slot + fast.SLOT] = (
+            interval,
+            *transition.ravel().tolist(),
+            *gamma.tolist(),
+            *self.filters.ramp(interval).tolist(),
+        )
         self._next_slot = (self._next_slot + 1) % fast.N_INTERVALS
 
     def command(
-        self, time: float, v: float, r: float, p: float, phi: float, psi_e: float, y_v: float
+        self,
+        time: float,
+        v: float,
+        r: float,
+        p: float,
+        phi: float,
+        psi_e: float,
+        y_v: float,
+        ramp: bool = False,
     ) -> BacksteppingOutput:
         """Commands at ``time`` (s) from the measured relative sway velocity v (m/s), rates
         r, p (rad/s), roll phi, heading error psi_e = psi - psi_d (rad) and mass position
-        y_v (m). Advances the filters from the previous call with its alphas held. The
+        y_v (m). Advances the filters from the previous call with its alphas held, or, with
+        ``ramp``, going linearly to this call's (each filter once its alpha is known). The
         reference law, in Python; :meth:`command_values` steps the compiled one."""
         k = self.gains
         # The filters are at rest (rate 0) until the first sample has started them.
-        if self._last_time is not None:
-            self.filters.advance(self._last_alphas, time - self._last_time)
+        last = self._last_time
+        interval = 0.0 if last is None else time - last
+        if last is not None and not ramp:
+            self.filters.advance(self._last_alphas, interval)
+        held = self._last_alphas.tolist()
+        ramped = last is not None and ramp
         v_dot, r_dot, p_dot = self.design.static_mass_rates(v, r, p, phi, 0.0)
-        rate = self.filters.rate.tolist()  # Python floats: numpy scalars cost ~10x
+        rate = self.filters.rate  # read after each filter advanced
         f1 = r_dot - self.g1 * v
         f2 = v_dot - self.g2 * phi
         f3 = p_dot
@@ -243,12 +279,18 @@ class BacksteppingHeading:
         z1 = r - alpha0
         alpha0_dot = -k.k0 * r
         alpha1 = (-k.k1 * z1 - psi_e - f1 + alpha0_dot) / self.g1
+        if ramped:
+            self.filters.advance_ramp(0, held[0], alpha1, interval)
         z2 = v - alpha1
-        alpha2 = (-k.k2 * z2 - self.g1 * z1 - f2 + rate[0]) / self.g2
+        alpha2 = (-k.k2 * z2 - self.g1 * z1 - f2 + float(rate[0])) / self.g2
+        if ramped:
+            self.filters.advance_ramp(1, held[1], alpha2, interval)
         z3 = phi - alpha2
-        alpha3 = -k.k3 * z3 - self.g2 * z2 + rate[1]
+        alpha3 = -k.k3 * z3 - self.g2 * z2 + float(rate[1])
+        if ramped:
+            self.filters.advance_ramp(2, held[2], alpha3, interval)
         z4 = p - alpha3
-        mass = (-k.k4 * z4 - z3 - f3 + rate[2]) / self.g3
+        mass = (-k.k4 * z4 - z3 - f3 + float(rate[2])) / self.g3
 
         bound = k.eta0 + abs(self.eps4 * y_v)
         saturated = min(max(z2 / k.boundary_layer, -1.0), 1.0)

@@ -7,8 +7,12 @@ Each filter follows its input a (held constant between samples) with
 and supplies a_c' as the estimate of the input's time derivative: the standard
 "command filter" of command-filtered backstepping (Farrell et al., IEEE TAC 54(6), 2009;
 Sec. 6.3.3's remark). Because the filter is linear and its input is held, its state is
-advanced by the exact zero-order-hold transition matrix (scipy.linalg.expm), which is
-cached per interval length, so the result does not depend on any inner integration step.
+advanced by the exact zero-order-hold transition matrix
+(:func:`controller_fmu.matrix_exponential.expm`, numpy only: an FMU's host has no scipy),
+which is cached per interval length, so the result does not depend on any inner
+integration step. When the input is taken as going linearly from one sample to the next
+(a first-order hold: the continuous-time law between samples, second-order accurate in
+the interval), :meth:`CommandFilterBank.ramp` adds the exact response to that ramp.
 """
 
 from __future__ import annotations
@@ -17,7 +21,8 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.linalg import expm
+
+from controller_fmu.matrix_exponential import expm
 
 _MAX_CACHED_INTERVALS = 16
 
@@ -44,6 +49,7 @@ class CommandFilterBank:
         self.frequency = float(frequency)
         self.damping = float(damping)
         self._cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._ramps: dict[float, np.ndarray] = {}
         storage = np.zeros(2 * n) if storage is None else storage
         self.value = storage[:n]  # a_c (views: every update is in place)
         self.rate = storage[n : 2 * n]  # a_c'
@@ -59,6 +65,33 @@ class CommandFilterBank:
         state = np.stack([self.value, self.rate])  # 2 x n
         new = Phi @ state + np.outer(Gamma, inputs)
         self.value[:], self.rate[:] = new[0], new[1]
+
+    def advance_ramp(self, i: int, held: float, new: float, interval: float) -> None:
+        """Advance filter i by ``interval`` seconds with its input going linearly from
+        ``held`` to ``new`` (first-order hold)."""
+        Phi, Gamma = self.transition(interval)
+        ramp = self.ramp(interval)
+        value, rate = float(self.value[i]), float(self.rate[i])
+        change = new - held
+        self.value[i] = Phi[0, 0] * value + Phi[0, 1] * rate + Gamma[0] * held + ramp[0] * change
+        self.rate[i] = Phi[1, 0] * value + Phi[1, 1] * rate + Gamma[1] * held + ramp[1] * change
+
+    def ramp(self, interval: float) -> np.ndarray:
+        """The state ``interval`` s after rest under an input going linearly from 0 to 1
+        (2 values, cached; not to be modified): the first-order hold's term, added to
+        :meth:`transition`'s for an input from a to a + 1."""
+        cached = self._ramps.get(interval)
+        if cached is None:
+            w, z = self.frequency, self.damping
+            augmented = np.zeros((4, 4))  # [a_c, a_c', a, a's rate times the interval]
+            augmented[0, 1] = interval
+            augmented[1, :3] = (-(w**2) * interval, -2.0 * z * w * interval, w**2 * interval)
+            augmented[2, 3] = 1.0
+            cached = expm(augmented)[:2, 3].copy()
+            if len(self._ramps) >= _MAX_CACHED_INTERVALS:
+                self._ramps.clear()
+            self._ramps[interval] = cached
+        return cached
 
     def transition(self, interval: float) -> tuple[np.ndarray, np.ndarray]:
         """(Phi 2x2, Gamma 2) of the exact zero-order-hold discretisation over ``interval``

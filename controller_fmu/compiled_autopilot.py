@@ -104,16 +104,20 @@ def sample(
     state: np.ndarray,
     work: np.ndarray,
     inputs: np.ndarray,
+    rates: np.ndarray,
     outputs: np.ndarray,
     time: float,
 ) -> int:
     """One sample at ``time`` (s): the commands into ``outputs`` and ``work``'s published
-    values. Returns :data:`OK`; or, with nothing changed, :data:`NEEDS_TRANSITION` (the
-    backstepping filters need the transition of a new interval: the caller adds it to
-    ``law`` and calls again) or :data:`REFUSED` (a non-finite time or measurement, a
-    cross-current the compensation cannot hold, a non-finite command: the reference says
-    which). ``p``, ``law`` and ``state`` are the backstepping law's (its design plant's
-    parameters, constants and state; unused with the heading law off)."""
+    values. ``rates``: the inputs' first time derivatives the importer set; when one is
+    not 0 the inputs went linearly from the last sample's to these, and the backstepping's
+    filters follow them so (``Autopilot.step``'s ``varying``). Returns :data:`OK`; or,
+    with nothing changed, :data:`NEEDS_TRANSITION` (the backstepping filters need the
+    transition of a new interval: the caller adds it to ``law`` and calls again) or
+    :data:`REFUSED` (a non-finite time or measurement, a cross-current the compensation
+    cannot hold, a non-finite command: the reference says which). ``p``, ``law`` and
+    ``state`` are the backstepping law's (its design plant's parameters, constants and
+    state; unused with the heading law off)."""
     if not math.isfinite(time):
         return REFUSED
     for i in range(inputs.size):
@@ -129,8 +133,13 @@ def sample(
     if backstepping:
         for i in range(STATE_SIZE):
             saved[i] = state[i]
+        ramp = False
+        for i in range(rates.size):
+            if rates[i] != 0.0:
+                ramp = True
         out = command(p, law, state, work[_SCRATCH:WORK_SIZE], time, inputs[_V_REL],
-                      inputs[_R], inputs[_P], inputs[_ROLL], psi_e, inputs[_Y_V])  # fmt: skip
+                      inputs[_R], inputs[_P], inputs[_ROLL], psi_e, inputs[_Y_V],
+                      ramp)  # fmt: skip
         if out[0] != 0.0:
             return NEEDS_TRANSITION
         mass, tunnel = out[1], out[2]

@@ -11,15 +11,16 @@ BLAS, possibly with fused multiply-adds): ``tests/controller_fmu/test_compiled_b
 holds them to 1e-12. Nothing is re-typed: the model terms f1, f2, f3 come from the plant's compiled
 derivative (:func:`plant_fmu.model.compiled.derivative_into`) on the design model's flat
 parameters, and g1, g2, g3, eps4', d v'/d F_t, the gains and the command filters'
-zero-order-hold transition (scipy's expm, computed in Python) are handed in by
-:class:`BacksteppingHeading`.
+zero-order-hold transition (the expm of :mod:`controller_fmu.matrix_exponential`) are handed
+in by :class:`BacksteppingHeading`.
 
 Layouts (float64, SI):
 
 * ``law``: the constants, :data:`LAW_SIZE` values: k0..k4, eta0, Phi, g1, g2, g3, eps4',
   d v'/d F_t; the design model's plant state (14) and inputs (8) at the straight run;
-  then :data:`N_INTERVALS` slots of 7: a filter interval (s, NaN: free) and its
-  transition Phi00, Phi01, Phi10, Phi11, Gamma0, Gamma1. Sample times n h give a handful
+  then :data:`N_INTERVALS` slots of 9: a filter interval (s, NaN: free), its
+  transition Phi00, Phi01, Phi10, Phi11, Gamma0, Gamma1 and the first-order hold's ramp
+  terms Ramp0, Ramp1 (:meth:`CommandFilterBank.ramp`). Sample times n h give a handful
   of intervals that differ in the last bits (14 in 60 s at 10 ms, 20 in an hour).
 * ``state``: :data:`STATE_SIZE` values: started (1.0 once a sample was taken), the last
   sample's time (s), its alpha1..3, the filters' outputs a_c (3) and rates a_c' (3).
@@ -41,9 +42,10 @@ from plant_fmu.model.compiled import derivative_into
 K0, K1, K2, K3, K4, ETA0, PHI, G1, G2, G3, EPS4, THRUSTER = range(12)
 DESIGN_STATE = 12  # 14 plant states at the straight run
 DESIGN_INPUTS = DESIGN_STATE + 14  # 8 plant inputs
-INTERVALS = DESIGN_INPUTS + 8  # slots: interval s, Phi00, Phi01, Phi10, Phi11, Gamma0, Gamma1
+INTERVALS = DESIGN_INPUTS + 8  # slots: interval s, Phi00..Phi11, Gamma0, Gamma1, Ramp0, Ramp1
+SLOT = 9  # values per slot
 N_INTERVALS = 16
-LAW_SIZE = INTERVALS + 7 * N_INTERVALS
+LAW_SIZE = INTERVALS + SLOT * N_INTERVALS
 # state
 STARTED, LAST_TIME, ALPHAS, VALUES, RATES = 0, 1, 2, 5, 8
 STATE_SIZE = 11
@@ -59,6 +61,20 @@ Sample = tuple[float, float, float, float, float, float, float]
 
 
 @_jit
+def _ramp(state: np.ndarray, i: int, new: float, law: np.ndarray, slot: int) -> None:
+    """Advance filter i over the interval of ``slot`` with its input going linearly from
+    the held alpha to ``new`` (first-order hold)."""
+    value, rate, held = state[VALUES + i], state[RATES + i], state[ALPHAS + i]
+    change = new - held
+    state[VALUES + i] = (
+        law[slot] * value + law[slot + 1] * rate + law[slot + 4] * held + law[slot + 6] * change
+    )
+    state[RATES + i] = (
+        law[slot + 2] * value + law[slot + 3] * rate + law[slot + 5] * held + law[slot + 7] * change
+    )
+
+
+@_jit
 def command(
     p: np.ndarray,
     law: np.ndarray,
@@ -71,28 +87,33 @@ def command(
     phi: float,
     psi_e: float,
     y_v: float,
+    ramp: bool,
 ) -> Sample:
     """One sample: (needs_transition, y_v command m, F_t N, z1, z2, z3, z4), the state
     advanced in place, ``scratch`` (:data:`SCRATCH_SIZE`) worked in. ``needs_transition``
     = 1.0 (nothing changed) when the filters must advance over an interval whose
     transition ``law`` does not hold yet: the caller writes it into a slot and calls
-    again."""
+    again. ``ramp``: the filters' inputs went linearly from the last sample's alphas to
+    these (a first-order hold, each filter advanced once the alpha it follows is known),
+    else they were held."""
     started = state[STARTED] != 0.0
+    slot = -1
     if started:
         interval = time - state[LAST_TIME]
-        slot = -1
         for i in range(N_INTERVALS):
-            if law[INTERVALS + 7 * i] == interval:
-                slot = INTERVALS + 7 * i + 1
+            if law[INTERVALS + SLOT * i] == interval:
+                slot = INTERVALS + SLOT * i + 1
                 break
         if slot < 0:
             return 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         p00, p01, p10, p11 = law[slot], law[slot + 1], law[slot + 2], law[slot + 3]
         g0, g1 = law[slot + 4], law[slot + 5]
-        for i in range(3):
-            value, rate, held = state[VALUES + i], state[RATES + i], state[ALPHAS + i]
-            state[VALUES + i] = p00 * value + p01 * rate + g0 * held
-            state[RATES + i] = p10 * value + p11 * rate + g1 * held
+        if not ramp:  # held: every filter advances before the law (they need no alpha)
+            for i in range(3):
+                value, rate, held = state[VALUES + i], state[RATES + i], state[ALPHAS + i]
+                state[VALUES + i] = p00 * value + p01 * rate + g0 * held
+                state[RATES + i] = p10 * value + p11 * rate + g1 * held
+    step = started and ramp
     x = scratch[_SCRATCH_X:_SCRATCH_INPUTS]
     inputs = scratch[_SCRATCH_INPUTS:_SCRATCH_DX]
     for i in range(14):
@@ -113,10 +134,16 @@ def command(
     z1 = r - alpha0
     alpha0_dot = -law[K0] * r
     alpha1 = (-law[K1] * z1 - psi_e - f1 + alpha0_dot) / law[G1]
+    if step:
+        _ramp(state, 0, alpha1, law, slot)
     z2 = v - alpha1
     alpha2 = (-law[K2] * z2 - law[G1] * z1 - f2 + state[RATES]) / law[G2]
+    if step:
+        _ramp(state, 1, alpha2, law, slot)
     z3 = phi - alpha2
     alpha3 = -law[K3] * z3 - law[G2] * z2 + state[RATES + 1]
+    if step:
+        _ramp(state, 2, alpha3, law, slot)
     z4 = pp - alpha3
     mass = (-law[K4] * z4 - z3 - f3 + state[RATES + 2]) / law[G3]
 

@@ -52,10 +52,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
-
-from controller_fmu.config_errors import validation_message
 from controller_fmu.setpoint_shaping import desired_heading, wrap_angle
+from plant_fmu.model.validated import CheckedRecord, checked_field
 
 DEFAULT_WAYPOINTS = "0, 0, 0; 100, 0, 0"
 WAYPOINT_FORMAT = "'north, east, down' (three numbers in m, NED)"
@@ -114,7 +112,7 @@ def _parse_entry(number: int, entry: str) -> Waypoint:
             f"value{'s' if len(parts) != 1 else ''}"
         )
     values = []
-    for axis, part in zip(("north", "east", "down"), parts, strict=True):
+    for axis, part in zip(("north", "east", "down"), parts):
         try:
             value = float(part)
         except ValueError:
@@ -137,70 +135,63 @@ def format_waypoints(waypoints: Sequence[Waypoint]) -> str:
     return "; ".join(f"{w.north!r}, {w.east!r}, {w.down!r}" for w in waypoints)
 
 
-class GuidanceConfig(BaseModel):
-    """Every parameter of the guidance (SI). Field names are the FMU parameter names."""
+@dataclass(frozen=True)
+class GuidanceConfig(CheckedRecord):
+    """Every parameter of the guidance (SI). Field names are the FMU parameter names.
 
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+    Validated and immutable (:class:`plant_fmu.model.validated.CheckedRecord`); the
+    waypoints are parsed to check them."""
 
-    waypoints: str = Field(
+    error_type = GuidanceConfigError
+    unknown_key = "unknown guidance parameter {name!r}"
+
+    waypoints: str = checked_field(
         default=DEFAULT_WAYPOINTS,
         description="the mission: waypoints 'north, east, down; ...' in m (NED), at least "
         "two; leg k runs from waypoint k to waypoint k+1",
-        json_schema_extra={"unit": ""},
+        check=parse_waypoints,
+        standalone=True,  # its message names the waypoint and what was expected
     )
-    lookahead: float = Field(
+    lookahead: float = checked_field(
         default=8.0,
         gt=0.0,
         description="LOS lookahead distance Delta along the leg",
-        json_schema_extra={"unit": "m"},
+        unit="m",
     )
-    acceptance_radius: float = Field(
+    acceptance_radius: float = checked_field(
         default=5.0,
         gt=0.0,
         description="radius of acceptance: the next leg starts within it of the leg's end "
         "(or once past the end along the track)",
-        json_schema_extra={"unit": "m"},
+        unit="m",
     )
-    integral_gain: float = Field(
+    integral_gain: float = checked_field(
         default=0.0,
         ge=0.0,
         description="integral LOS gain kappa on the cross-track error (0: proportional LOS)",
-        json_schema_extra={"unit": "1"},
+        unit="1",
     )
-    compensate_current: bool = Field(
+    compensate_current: bool = checked_field(
         default=False,
         description="head into the measured current by the crab angle, psi_d = chi_d - beta "
         "(6.3.74); leave the autopilot's compensate_current off then",
-        json_schema_extra={"unit": ""},
     )
-    design_speed: float = Field(
+    design_speed: float = checked_field(
         default=1.525,
         gt=0.0,
         description="U0: speed through the water the crab angle is computed for (6.3.74)",
-        json_schema_extra={"unit": "m/s"},
+        unit="m/s",
     )
-
-    @field_validator("waypoints")
-    @classmethod
-    def _parseable(cls, value: str) -> str:
-        parse_waypoints(value)
-        return value
 
     @classmethod
     def build(cls, **values: Any) -> GuidanceConfig:
         """Validate ``values``; raise :class:`GuidanceConfigError` naming every bad one."""
-        try:
-            return cls.model_validate(values)
-        except ValidationError as exc:
-            raise GuidanceConfigError(
-                validation_message(exc, "guidance", standalone=("waypoints",))
-            ) from None
+        return cls.from_mapping(values)
 
 
 def field_unit(name: str) -> str:
     """The unit of a :class:`GuidanceConfig` field ('' for text and switches)."""
-    extra = GuidanceConfig.model_fields[name].json_schema_extra
-    return str(extra["unit"]) if isinstance(extra, dict) else ""
+    return GuidanceConfig.field_info()[name].unit
 
 
 @dataclass(frozen=True)

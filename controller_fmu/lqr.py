@@ -10,8 +10,10 @@ for a rail speed that follows y_d within 0.2 ms. A controller that holds its out
 10 ms communication step cannot realise that pole; the continuous gains sampled at 10 ms
 give a closed loop with an eigenvalue of modulus ~57 (violently unstable). So the gain the
 autopilot uses is the discrete-time LQR for the zero-order-hold discretisation of the same
-plant at the controller's sample time (python-control ``c2d`` + ``dlqr``) with the same
-Q and R. Its slow closed-loop poles match the continuous design's (about -0.16 +- 0.16i
+plant at the controller's sample time (zero-order hold + discrete LQR, as python-control's
+``c2d`` + ``dlqr``, computed in numpy by :mod:`controller_fmu.matrix_exponential` and
+:mod:`controller_fmu.riccati`: the FMU's host has no scipy or python-control) with the
+same Q and R. Its slow closed-loop poles match the continuous design's (about -0.16 +- 0.16i
 1/s at U0 = 1.525 m/s), and it is stable at every sample time from 1 to 50 ms.
 
 The matrices come from linearising the plant's own equations (:mod:`lateral_model`) at
@@ -24,7 +26,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from controller_fmu import riccati
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
+from controller_fmu.matrix_exponential import zero_order_hold
 
 DISSERTATION_Q_Y: tuple[float, ...] = (1.0, 5e3, 1e2, 1e3, 1e3, 1e6)
 """Q_y on y = [r, p, phi, psi, y_v, y_vel] (Sec. 6.3.1)."""
@@ -68,36 +72,27 @@ def _check_r(r_u: float) -> None:
 def continuous_gain(
     A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The dissertation's continuous LQR (control.lqr): gain K (7,) with y_d = -K x, and
-    the closed-loop eigenvalues of A - B K."""
+    """The dissertation's continuous LQR (as control.lqr): gain K (7,) with y_d = -K x,
+    and the closed-loop eigenvalues of A - B K."""
     _check_r(r_u)
-    import control  # here, not at module level: importing it takes ~1 s (scipy.signal),
-    # which every autopilot start-up would pay for the LQR modes only
-
-    K, _, poles = control.lqr(A, B, state_weight(q_y), r_u)
+    K, _, poles = riccati.lqr(A, B, state_weight(q_y), r_u)
     return np.asarray(K).ravel(), np.asarray(poles)
 
 
 def discretize(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-order-hold discretisation (control.c2d) at sample time dt, s (> 0)."""
-    if not (np.isfinite(dt) and dt > 0.0):
-        raise ValueError(f"sample time {dt!r}: expected a finite time > 0 s")
-    import control  # lazily: see continuous_gain
-
-    sys_d = control.c2d(control.ss(A, B, np.eye(A.shape[0]), np.zeros(B.shape)), dt, "zoh")
-    return np.asarray(sys_d.A), np.asarray(sys_d.B)
+    """Zero-order-hold discretisation (as control.c2d) at sample time dt, s (> 0)."""
+    return zero_order_hold(A, B, dt)
 
 
 def discrete_gain(
     A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float, dt: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Discrete LQR (c2d + control.dlqr) for sample time dt: gain K (7,) with
-    y_d[k] = -K x[k], and the closed-loop eigenvalues of Ad - Bd K (|z| < 1 when stable)."""
+    """Discrete LQR (zero-order hold + dlqr, as control's c2d + dlqr) for sample time dt:
+    gain K (7,) with y_d[k] = -K x[k], and the closed-loop eigenvalues of Ad - Bd K
+    (|z| < 1 when stable)."""
     _check_r(r_u)
     Ad, Bd = discretize(A, B, dt)
-    import control  # lazily: see continuous_gain
-
-    K, _, poles = control.dlqr(Ad, Bd, state_weight(q_y), r_u)
+    K, _, poles = riccati.dlqr(Ad, Bd, state_weight(q_y), r_u)
     return np.asarray(K).ravel(), np.asarray(poles)
 
 

@@ -13,8 +13,8 @@ makes s' = -eta sgn(s) (6.3.39), after which x slides to the origin on s = 0.
 Sampled version (why and how). As for the LQR (:mod:`lqr`), the reduced LQR with the
 dissertation's weights has a servo pole near -100..-5800 1/s that a 10 ms zero-order hold
 cannot realise, so:
-* k is the discrete LQR (c2d + dlqr) of the reduced system at the sample time h, with the
-  LQR weights minus the psi entry;
+* k is the discrete LQR (zero-order hold + dlqr, :mod:`controller_fmu.riccati`) of the
+  reduced system at the sample time h, with the LQR weights minus the psi entry;
 * A_c becomes the discrete closed loop Ad - Bd k^T; it keeps an eigenvalue 1 in psi (psi
   is cyclic, k_psi = 0), and w is its left eigenvector, scaled so w_psi = 1 (s in rad);
 * with one Euler step for the nonlinear remainder, s[k+1] = s[k] + w^T Bd y*_d
@@ -42,6 +42,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from controller_fmu import riccati
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
 from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, discretize
 
@@ -88,9 +89,7 @@ class SlidingModeHeading:
         q_reduced = [q for i, q in enumerate(q_y) if i != _PSI - 1]
         C = np.eye(len(_REDUCED))[1:]
         Q = C.T @ np.diag(q_reduced) @ C
-        import control  # lazily: see lqr.continuous_gain
-
-        k_reduced, _, _ = control.dlqr(Ad[np.ix_(_REDUCED, _REDUCED)], Bd[_REDUCED], Q, r_u)
+        k_reduced, _, _ = riccati.dlqr(Ad[np.ix_(_REDUCED, _REDUCED)], Bd[_REDUCED], Q, r_u)
         self.k = np.zeros(len(CONTROL_STATES))
         self.k[_REDUCED] = np.asarray(k_reduced).ravel()
 

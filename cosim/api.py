@@ -82,6 +82,13 @@ class Run:
         """Whether the run reached its stop time."""
         return bool(self.summary["complete"])
 
+    @property
+    def coupling_error(self) -> dict[str, Any] | None:
+        """With ``check_step``: the estimated error of every key figure and final value
+        (summary.json's ``coupling.check_step``); None without."""
+        check: dict[str, Any] | None = self.summary.get("coupling", {}).get("check_step")
+        return check
+
 
 @dataclass(frozen=True)
 class Study:
@@ -132,7 +139,10 @@ def run(
     *,
     stop_time: float | None = None,
     step: float | None = None,
-    algorithm: Literal["jacobi", "gauss-seidel"] | None = None,
+    algorithm: Literal["jacobi", "gauss-seidel", "adaptive"] | None = None,
+    extrapolation: Literal["none", "linear", "quadratic"] | None = None,
+    tolerance: float | None = None,
+    check_step: bool = False,
     start: Mapping[str, StartValue] | None = None,
     out: str | Path | None = None,
     overwrite: bool = False,
@@ -145,10 +155,9 @@ def run(
     ----------
     scenario : str, pathlib.Path or Scenario
         A built-in id, a scenario ``.toml`` file, or a loaded :class:`Scenario`.
-    stop_time, step : float, optional
-        Override the stop time and the communication step, s (``--stop-time``, ``--step``).
-    algorithm : {"jacobi", "gauss-seidel"}, optional
-        Override the master algorithm (``--algorithm``).
+    stop_time, step, algorithm, extrapolation, tolerance, check_step : optional
+        The command line's ``--stop-time``, ``--step`` (s) and coupling options
+        (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
     start : mapping, optional
         Start values ``{"<instance>.<variable>": value}`` in SI units, checked like the
         scenario file's (:meth:`Scenario.with_start`).
@@ -184,6 +193,9 @@ def run(
         stop_time=stop_time,
         step=step,
         algorithm=algorithm,
+        extrapolation=extrapolation,
+        tolerance=tolerance,
+        check_step=check_step,
         no_rrd=out is None or not recording,
         fmu_dir=Path(fmu_dir),
         overwrite=overwrite,

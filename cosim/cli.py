@@ -66,6 +66,9 @@ def _run(args: argparse.Namespace) -> int:
         stop_time=args.stop_time,
         step=args.step,
         algorithm=args.algorithm,
+        extrapolation=args.extrapolation,
+        tolerance=args.tolerance,
+        check_step=args.check_step,
         rrd=args.rrd,
         no_rrd=args.no_rrd,
         connect=args.connect,
@@ -212,6 +215,24 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_coupling_options(p: argparse.ArgumentParser) -> None:
+    """``auv-cosim run``'s coupling options (docs/coupling.md)."""
+    p.add_argument(
+        "--algorithm", choices=["jacobi", "gauss-seidel", "adaptive"], help="master algorithm"
+    )
+    p.add_argument(
+        "--extrapolation",
+        choices=["none", "linear", "quadratic"],
+        help="exchanged values across a step (docs/coupling.md)",
+    )
+    p.add_argument("--tolerance", type=float, help="adaptive: relative error per step")
+    p.add_argument(
+        "--check-step",
+        action="store_true",
+        help="also run at h/2 and h/4: the estimated coupling error (summary.json)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="auv-cosim",
@@ -241,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--stop-time", type=float, help="override the stop time, s (finite, > 0)")
     p.add_argument("--step", type=float, help="override the communication step, s (finite, > 0)")
-    p.add_argument("--algorithm", choices=["jacobi", "gauss-seidel"], help="master algorithm")
+    _add_coupling_options(p)
     p.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
     p.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
     p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")

@@ -69,13 +69,18 @@ class RunOptions:
     (:mod:`cosim.outputs.tail_guard`; a study's task, whose killed run is run again, goes
     without: it costs ~20 ms a run). ``real_time`` paces the run at that real-time factor,
     ``control`` opens the control endpoint at that HOST:PORT, ``interactive`` reads keys
-    from the terminal (docs/live-runs.md).
+    from the terminal (docs/live-runs.md). ``extrapolation`` and ``tolerance`` override
+    the scenario's ``[coupling]``; ``check_step`` also runs it at h / 2 and h / 4 and puts
+    the estimated coupling error into the summary (:mod:`cosim.engine.step_check`).
     """
 
     out_dir: Path | None = None
     stop_time: float | None = None
     step: float | None = None
-    algorithm: Literal["jacobi", "gauss-seidel"] | None = None
+    algorithm: Literal["jacobi", "gauss-seidel", "adaptive"] | None = None
+    extrapolation: Literal["none", "linear", "quadratic"] | None = None
+    tolerance: float | None = None
+    check_step: bool = False
     rrd: Path | None = None
     no_rrd: bool = False
     connect: str | None = None
@@ -156,6 +161,8 @@ def execute(
                 opened = time.perf_counter()
                 result = _step(loaded, outputs, options, stop, session, progress)
                 stepped = True
+                if options.check_step and result.complete:
+                    _check_step(loaded, outputs, result, stop, progress)
             finally:
                 session.close()
             result.startup_s = {
@@ -216,6 +223,26 @@ def _step(
         raise
 
 
+def _check_step(
+    scenario: Scenario,
+    outputs: RunOutputs,
+    result: RunResult,
+    stop: StopRequest,
+    progress: ProgressSink | None,
+) -> None:
+    """``--check-step``: the coupling error of the complete run, into ``result.coupling``
+    (summary.json); a check that cannot be made leaves its reason there instead."""
+    from cosim.engine.step_check import check_step
+
+    if progress is not None:
+        progress.phase("checking the step (h / 2, h / 4)")
+    try:
+        figures = outputs.figures.figures()
+        result.coupling["check_step"] = check_step(scenario, figures, result.final, stop)
+    except CosimError as exc:
+        result.coupling["check_step"] = {"error": str(exc)}
+
+
 def _id_of(scenario: str | Path | Scenario) -> str:
     from cosim.scenario.spec import Scenario, scenario_id
 
@@ -244,9 +271,15 @@ def _checked_scenario(
         progress.phase(f"building FMUs ({', '.join(stale)})" if stale else "loading the scenario")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
-    if options.stop_time is not None or options.step is not None or options.algorithm:
+    given = (options.stop_time, options.step, options.algorithm, options.extrapolation,
+             options.tolerance)  # fmt: skip
+    if any(value is not None for value in given):
         scenario = scenario.with_overrides(
-            stop_time=options.stop_time, step=options.step, algorithm=options.algorithm
+            stop_time=options.stop_time,
+            step=options.step,
+            algorithm=options.algorithm,
+            extrapolation=options.extrapolation,
+            tolerance=options.tolerance,
         )
     master.preflight(scenario)
     return scenario
@@ -385,9 +418,13 @@ def report(outcome: RunOutcome) -> str:
     t_end = result.time_reached
     lines = [
         f"scenario {scenario.id}: {'complete' if result.complete else 'INCOMPLETE'}, "
-        f"t = {t_end:g} of {scenario.stop_time:g} s, {result.rows - 1} steps of "
-        f"{scenario.coupling.step:g} s ({scenario.coupling.algorithm})"
+        f"t = {t_end:g} of {scenario.stop_time:g} s, {_steps(result)}"
     ]
+    if result.ended is not None:
+        lines.append(f"  {result.ended}")
+    if scenario.unrecorded:
+        lines.append(f"  not recorded (String: results.csv holds numbers): "
+                     f"{', '.join(scenario.unrecorded)}")  # fmt: skip
     if result.real_time is not None:
         paced = result.real_time
         lines.append(
@@ -411,7 +448,33 @@ def report(outcome: RunOutcome) -> str:
         if len(messages) > MESSAGES_SHOWN:
             lines.append(f"  {name} logged {len(messages) - MESSAGES_SHOWN} more (summary.json)")
     lines.append(timing(result))
+    check = result.coupling.get("check_step")
+    if check is not None:
+        lines.append(_check_line(check))
     return "\n".join(lines)
+
+
+def _steps(result: RunResult) -> str:
+    """What the run stepped: its steps, their size and the coupling."""
+    coupling = result.scenario.coupling
+    if coupling.algorithm == "adaptive":
+        taken = result.coupling
+        return (
+            f"{taken.get('accepted_steps')} adaptive steps of {_fmt(taken.get('smallest_step_s'))}"
+            f" to {_fmt(taken.get('largest_step_s'))} s ({taken.get('rejected_steps')} "
+            f"rejected, tolerance {coupling.tolerance:g})"
+        )
+    inputs = f", inputs {coupling.extrapolation}" if coupling.extrapolation != "none" else ""
+    return f"{result.rows - 1} steps of {coupling.step:g} s ({coupling.algorithm}{inputs})"
+
+
+def _check_line(check: dict[str, Any]) -> str:
+    """The report's last line for ``--check-step``: the estimate, or why there is none."""
+    from cosim.engine.step_check import summary_line
+
+    if "error" in check:
+        return f"  coupling error not estimated: {check['error']}"
+    return summary_line(check)
 
 
 STARTUP_LABELS = {

@@ -50,7 +50,8 @@ it also runs when an output is read in initialisation mode after a write (so tha
 gives the value the FMU will start from, as FMI 2.0 asks of ``initial="calculated"``
 outputs), and must therefore be repeatable. A class that takes input derivatives sets
 ``interpolates_inputs = True`` (the build then declares ``canInterpolateInputs``) and reads
-them in ``_step`` with :meth:`SafeSlave.input_derivative`.
+them in ``_step`` with :meth:`SafeSlave.input_derivative`, or through a view
+(:meth:`SafeSlave.derivatives_of`); both runtimes hand them over.
 
 ``_initialize`` and ``_step`` report a problem by raising (any exception): the base class
 catches it, logs the message with ``Fmi2Status.error`` and turns it into a failed
@@ -69,13 +70,15 @@ from __future__ import annotations
 import copy
 import json
 import math
+import threading
+import weakref
 from collections.abc import Callable, Iterable
 from enum import IntEnum
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element, SubElement
 
 import numpy as np
-from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
 
@@ -119,15 +122,36 @@ def _readable(var: Any) -> bool:
     return var.getter is not None
 
 
+# the last SafeSlave constructed on each thread (weakly): claim_constructed
+_constructed = threading.local()
+
+
+def claim_constructed() -> SafeSlave | None:
+    """The last SafeSlave constructed on this thread, if it still lives (then forgotten).
+
+    The FMU's runtime calls this right after pythonfmu's binary, its fallback backend,
+    constructed a slave in fmi2Instantiate on this thread, to hand that slave the calls
+    pythonfmu's binary does not pass on (fmi2SetRealInputDerivatives: see
+    fmu_runtime/native/forward.c)."""
+    ref = getattr(_constructed, "slave", None)
+    _constructed.slave = None
+    slave: SafeSlave | None = ref() if ref is not None else None
+    return slave
+
+
 class SafeSlave(Fmi2Slave):
     """``Fmi2Slave`` whose callbacks never raise; see the module docstring for the API."""
 
     direct_feedthrough: ClassVar[dict[str, tuple[str, ...]]] = {}
     # True: the slave uses input derivatives (fmi2SetRealInputDerivatives, orders 1 and 2)
     interpolates_inputs: ClassVar[bool] = False
+    # the inputs an output ``_initialize`` computes depends on (besides the parameters, on
+    # which every such output may depend); declared in ModelStructure/InitialUnknowns
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = {}
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        _constructed.slave = weakref.ref(self)  # (claim_constructed)
         exit_guard.install(self.resources)  # pythonfmu 0.7's crash at process exit
         if self.resources is not None:  # pythonfmu's binary put it on sys.path: not needed
             entry.release_search_path(self.resources)
@@ -260,6 +284,26 @@ class SafeSlave(Fmi2Slave):
         self._seal()
         return values.view(kinds.pop(), slots[0], len(slots))
 
+    def derivatives_of(self, names: Iterable[str]) -> np.ndarray:
+        """A numpy view (2 x len(names), float64) of the input derivatives of orders 1
+        (unit/s) and 2 (unit/s^2) set for the next step of the Real inputs ``names``, a run
+        as :meth:`values_of` takes: 0.0 where none was set. The FMU's runtime writes them
+        in C (``fmi2SetRealInputDerivatives``); with pythonfmu's binary (the fallback) the
+        runtime hands them to :meth:`set_real_input_derivatives`; they are cleared after
+        each step. A step may
+        change the view (it is cleared after it anyway).
+
+        Raises ValueError (at build time) when the variables are not such a run of
+        Real inputs."""
+        names = list(names)
+        view = self.values_of(names)
+        if view.dtype != np.float64 or any(
+            self.vars[self._vr_of[name]].causality != Fmi2Causality.input for name in names
+        ):
+            raise ValueError(f"variables {names}: expected a run of Real inputs")
+        first = self._values.slots[self._vr_of[names[0]]]
+        return self._values.derivatives[:, first : first + len(names)]
+
     def was_written(self, name: str) -> bool:
         """True if the importer wrote variable ``name`` (accepted) since instantiation."""
         return bool(self._values.flags[self._vr_of[name]] & WRITTEN)
@@ -370,7 +414,8 @@ class SafeSlave(Fmi2Slave):
         """Take the derivatives of Real inputs (order 1: unit/s, 2: unit/s^2) at the
         current communication point, for the next doStep only (``fmi2SetRealInputDerivatives``;
         refused, with nothing stored, unless the class sets ``interpolates_inputs``). The
-        FMU's runtime stores them itself, in the same buffer."""
+        FMU's runtime stores them itself, in the same buffer; with pythonfmu's binary (the
+        fallback, which does not pass the call on) the runtime calls this."""
         try:
             self._enter()
             slots = []
@@ -440,8 +485,8 @@ class SafeSlave(Fmi2Slave):
         if plan is None or len(values) != len(plan[0]) or not all(map(math.isfinite, values)):
             return False
         variables, names = plan
-        for i, var in enumerate(variables):
-            var.setter(values[i])
+        for var, value in zip(variables, values):
+            var.setter(value)
             self._values.mark_written(var.value_reference)
         if self._problems:
             for name in names:
@@ -644,7 +689,7 @@ class SafeSlave(Fmi2Slave):
             if unit and real is not None:
                 real.set("unit", unit)
             bounds = self._bounds.get(int(node.attrib["valueReference"]), (None, None))
-            for attribute, value in (("min", bounds[0]), ("max", bounds[1])):
+            for attribute, value in zip(("min", "max"), bounds):
                 if value is not None:  # node[0]: the <Real>/<Integer> element
                     node[0].set(attribute, repr(value))
             if variable in self._names:
@@ -663,7 +708,29 @@ class SafeSlave(Fmi2Slave):
             unknown.set("dependencies", " ".join(str(index[d]) for d in depends_on))
             if depends_on:
                 unknown.set("dependenciesKind", " ".join("dependent" for _ in depends_on))
+        self._declare_initial_unknowns(root, index)
         return root
+
+    def _declare_initial_unknowns(self, root: Element, index: dict[str, int]) -> None:
+        """ModelStructure/InitialUnknowns for the calculated outputs, with what they depend
+        on: the parameters, and the inputs ``initial_dependencies`` names. Without a
+        dependencies list an importer must assume every input, which OMSimulator takes for
+        an algebraic loop between our FMUs at initialisation."""
+        structure = root.find("ModelStructure")
+        parameters = [v.name for v in self.vars.values() if v.causality == Fmi2Causality.parameter]
+        calculated = [
+            v.name
+            for v in self.vars.values()
+            if v.causality == Fmi2Causality.output and v.initial == Fmi2Initial.calculated
+        ]
+        if structure is None or not calculated:
+            return
+        node = SubElement(structure, "InitialUnknowns")
+        for name in calculated:
+            inputs = self.initial_dependencies.get(name, ())
+            depends_on = sorted(index[n] for n in (*parameters, *inputs))
+            SubElement(node, "Unknown", index=str(index[name]),
+                       dependencies=" ".join(map(str, depends_on)))  # fmt: skip
 
     # --- internals ---------------------------------------------------------------------------
 
@@ -731,8 +798,7 @@ class SafeSlave(Fmi2Slave):
             return fallback
 
     def _set_all(self, vrs: list[int], values: list[Any], kind: type[ScalarVariable]) -> None:
-        for i, vr in enumerate(vrs[: len(values)]):  # (no zip(strict=): CPython 3.9)
-            value = values[i]
+        for vr, value in zip(vrs, values):
             try:
                 self._set(vr, value, kind)
             except Exception as exc:

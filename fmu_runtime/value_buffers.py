@@ -74,6 +74,7 @@ class ValueBuffers:
         self.control = bytearray(CONTROL_SIZE)
         self.derivatives = np.zeros((2, 0))
         self._derivative_bytes = bytearray()
+        self._flag_array = np.zeros(0, dtype=np.uint8)
 
     # --- layout ---------------------------------------------------------------------------
 
@@ -110,6 +111,7 @@ class ValueBuffers:
             self.bytes[kind], self.arrays[kind] = data, array
             self.values[kind] = memoryview(data).cast("d" if kind == REAL else "i")
         self.flags = bytearray(WATCHED if watched else 0 for watched in self._watched)
+        self._flag_array = np.frombuffer(self.flags, dtype=np.uint8)
         self._derivative_bytes = bytearray(16 * self.count(REAL))
         self.derivatives = np.frombuffer(self._derivative_bytes).reshape(2, self.count(REAL))
         # exports of every buffer for as long as this object lives: none can be resized
@@ -183,10 +185,7 @@ class ValueBuffers:
     def clear_derivatives(self) -> None:
         """No input derivative set any more (after each step)."""
         self.derivatives.fill(0.0)
-        keep = ~(DERIVATIVE_1 | DERIVATIVE_2) & 0xFF
-        for vr, f in enumerate(self.flags):
-            if f & (DERIVATIVE_1 | DERIVATIVE_2):
-                self.flags[vr] = f & keep
+        self._flag_array &= ~(DERIVATIVE_1 | DERIVATIVE_2) & 0xFF
         self.control[DERIVATIVES] = 0
 
     # --- FMU state ------------------------------------------------------------------------

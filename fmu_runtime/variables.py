@@ -10,11 +10,10 @@ closures over the slave, a reference cycle (slave -> variables -> closure -> sla
 leaves every freed instance, hundreds of objects, to the cyclic garbage collector instead
 of freeing it in ``fmi2FreeInstance``. No helper here holds a strong reference to a slave.
 
-:func:`field_bounds` reads the range a field declares (``gt``/``ge``/``lt``/``le``
-constraints in its ``metadata``, as pydantic's fields and annotated-types carry them), so an
-FMU parameter generated from a model field declares the same ``min``/``max`` in
-modelDescription.xml (through :meth:`fmu_runtime.safe_slave.SafeSlave.register`) without
-re-typing it. It only reads attributes, so the FMU needs no pydantic at run time.
+:func:`field_bounds` reads the range a field of a parameter record declares (``gt``/``ge``/
+``lt``/``le``, e.g. :class:`plant_fmu.model.validated.FieldInfo`), so an FMU parameter
+generated from a record's field declares the same ``min``/``max`` in modelDescription.xml
+(through :meth:`fmu_runtime.safe_slave.SafeSlave.register`) without re-typing it.
 """
 
 from __future__ import annotations
@@ -71,18 +70,30 @@ def attribute_setter(owner: object, name: str) -> Callable[[Any], None]:
     return setter
 
 
-def field_bounds(field: Any) -> tuple[float | None, float | None]:
-    """``(minimum, maximum)`` a field declares through the constraints in its ``metadata``
-    (None where it declares none).
+class Bounded(Protocol):
+    """A field declaring an exclusive (``gt``/``lt``) or inclusive (``ge``/``le``) bound,
+    None where it declares none."""
+
+    @property
+    def gt(self) -> float | None: ...
+
+    @property
+    def ge(self) -> float | None: ...
+
+    @property
+    def lt(self) -> float | None: ...
+
+    @property
+    def le(self) -> float | None: ...
+
+
+def field_bounds(field: Bounded) -> tuple[float | None, float | None]:
+    """``(minimum, maximum)`` a field declares (None where it declares none).
 
     FMI's ``min``/``max`` are inclusive, so a strict bound (``gt=0``) becomes the inclusive
     ``min = 0``: a looser range that importers can check, while the model's own validation
     still refuses the bound itself.
     """
-    bounds: dict[str, float] = {}
-    for constraint in field.metadata:  # annotated_types.Gt(gt=0.0), Le(le=3), Interval(...)
-        for name in ("gt", "ge", "lt", "le"):
-            value = getattr(constraint, name, None)
-            if value is not None:
-                bounds["min" if name in ("gt", "ge") else "max"] = value
-    return bounds.get("min"), bounds.get("max")
+    minimum = field.ge if field.gt is None else field.gt
+    maximum = field.le if field.lt is None else field.lt
+    return minimum, maximum

@@ -29,7 +29,7 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   this instance's ``resources/``, or a .toml path), ``current_shear_dUdy`` (1/s),
   ``max_substep`` (s, longest internal RK4 step), and every field of
   :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``, ``a22``, ``X_uu``,
-  ``m_v``, ...), unit, description and range (``min``/``max``) from its pydantic Field.
+  ``m_v``, ...), unit, description and range (``min``/``max``) from its declaration.
 
 Physical parameters: ``vehicle`` picks the base set; each physical parameter the importer
 writes overrides it; the result is validated as a whole (``VehicleParameters.replace``).
@@ -39,20 +39,27 @@ values in modelDescription.xml are those of ``remus100``.
 Speed: the plant steps with the compiled path of :mod:`plant_fmu.model.compiled` (numba)
 when it covers the model; with ``moving_mass_model = 1`` it steps the reference
 (:func:`plant_fmu.model.stepping.advance`'s numpy loop), and in a host where numba cannot
-be used (not installed, or ``AUV_COSIM_NO_JIT=1``) it steps the reference and logs a
-Warning saying why. Both do the same arithmetic (agreement to 1e-12 is tested).
+be used (not installed: numba is optional, or ``AUV_COSIM_NO_JIT=1``) it steps the
+reference and logs a Warning, once per instance, saying why and what it costs. Both do
+the same arithmetic (agreement to 1e-12 is tested).
 
 Currents: the uniform current inputs at initialisation set the start. When they change
 between steps, the hull's velocity over ground jumps by
 ``PlantModel.current_change_velocity_jump`` (the impulse of the (Mbar + M_A) nuc_dot term),
 applied at the start of the next step; inputs are held over each step.
+
+Input derivatives (``canInterpolateInputs="true"``): an importer that extrapolates its
+values (``fmi2SetRealInputDerivatives``, orders 1 and 2) gets them used inside the step,
+every RK4 stage taking the actuator inputs at its own time (``stepping.advance`` with
+``rates``), so a closed loop converges at second or third order in the communication step
+instead of first. The currents stay held over a step (see above).
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from pythonfmu.default_experiment import DefaultExperiment
@@ -110,15 +117,19 @@ STATE_DESCRIPTIONS: dict[str, str] = {
     "quat_z": "attitude quaternion (body to earth), z part",
 }
 RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
+# the inputs whose derivatives the step uses: all but the currents (module docstring)
+_ACTUATOR_INPUTS = list(
+    i for i in range(len(INPUT_NAMES)) if i not in range(len(INPUT_NAMES))[CURRENT]
+)
 PHYSICAL_PARAMETERS: tuple[str, ...] = tuple(
-    name for name, field in VehicleParameters.model_fields.items() if field.annotation is float
+    name for name, field in VehicleParameters.field_info().items() if field.kind is float
 )
 
 
 def field_unit_and_description(name: str) -> tuple[str, str]:
-    """(FMI unit, description) of a VehicleParameters field from its pydantic description
+    """(FMI unit, description) of a VehicleParameters field from its description
     ``"<meaning>, <unit>[ (<note>)]"``; ``kg m^2`` becomes ``kg.m2``."""
-    text = VehicleParameters.model_fields[name].description or ""
+    text = VehicleParameters.field_info()[name].description
     meaning, _, unit = text.rpartition(", ")
     unit, _, note = unit.partition(" (")
     if not meaning or not unit:
@@ -130,11 +141,18 @@ def field_unit_and_description(name: str) -> tuple[str, str]:
 class AuvPlant(SafeSlave):
     """REMUS 100 AUV plant with moving mass, tunnel thruster and stern planes."""
 
+    interpolates_inputs: ClassVar[bool] = True  # uses input derivatives (module docstring)
+
     description = (
         "REMUS 100 AUV with internal actuators (moving mass, tunnel thruster, stern planes): "
         "6-DOF / lateral / horizontal plant, B. Li, FAU 2016"
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=60.0, step_size=0.01)
+    # the velocities relative to the water, and the energy of that motion, start from the
+    # current; every other output from the parameters alone
+    initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = dict.fromkeys(
+        (*RELATIVE_VELOCITIES, "kinetic_energy"), ("current_north", "current_east", "current_down")
+    )
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -159,6 +177,8 @@ class AuvPlant(SafeSlave):
         self._x = self.values_of(STEP_STATE_NAMES)
         self._derived = self.values_of((*RELATIVE_VELOCITIES, "kinetic_energy"))
         self._initial_state = self.values_of(f"{name}_0" for name in STATE_NAMES)
+        # the input derivatives set for the next step (2 x inputs, 1/s and 1/s^2)
+        self._rates = self.derivatives_of(INPUT_NAMES)
         self._x[:] = stepping_state(self._initial_state)
         self._last_current = self._inputs[CURRENT].copy()  # the currents of the last step
         self._step_scratch = np.empty(compiled.STEP_SCRATCH)  # the compiled step's arrays
@@ -170,7 +190,7 @@ class AuvPlant(SafeSlave):
         self._register_parameters()
 
     def _register_inputs_and_outputs(self) -> None:
-        for name, unit in zip(INPUT_NAMES, INPUT_UNITS, strict=True):
+        for name, unit in zip(INPUT_NAMES, INPUT_UNITS):
             self.register(
                 Real(
                     name,
@@ -186,7 +206,7 @@ class AuvPlant(SafeSlave):
             "initial": Fmi2Initial.calculated,  # from the initial state and the currents
         }
         units = STATE_UNITS + ("1",) * len(QUATERNION_NAMES)
-        for name, unit in zip(STEP_STATE_NAMES, units, strict=True):
+        for name, unit in zip(STEP_STATE_NAMES, units):
             self.register(Real(name, description=STATE_DESCRIPTIONS[name], **output), unit=unit)
         for name in RELATIVE_VELOCITIES:
             axis = name[0]
@@ -209,7 +229,7 @@ class AuvPlant(SafeSlave):
 
     def _register_parameters(self) -> None:
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        for name, unit in zip(STATE_NAMES, STATE_UNITS, strict=True):
+        for name, unit in zip(STATE_NAMES, STATE_UNITS):
             self.register(
                 Real(f"{name}_0", description=f"initial {STATE_DESCRIPTIONS[name]}", **fixed),
                 unit=unit,
@@ -253,7 +273,7 @@ class AuvPlant(SafeSlave):
         )
         for name in PHYSICAL_PARAMETERS:
             unit, description = field_unit_and_description(name)
-            minimum, maximum = field_bounds(VehicleParameters.model_fields[name])
+            minimum, maximum = field_bounds(VehicleParameters.field_info()[name])
             self.register(
                 Real(
                     name,
@@ -294,19 +314,22 @@ class AuvPlant(SafeSlave):
         self._last_current[:] = self._inputs[CURRENT]
         self._refresh_outputs()
         if self._compiled is not None:  # compile now, not in the first doStep
-            self._compiled.warm_up(self._x, self._inputs)
+            self._compiled.warm_up(self._x, self._inputs, self._rates)
 
     def _step(self, current_time: float, step_size: float) -> None:
         """From the value buffers to the compiled integrator and back, allocating nothing
         (:func:`plant_fmu.model.compiled.step_into`); the reference path (numpy, the same
         arithmetic) where the compiled one does not apply: numba off, the two-body moving
-        mass, a change of the currents, or a step it refuses (the reference then says why)."""
+        mass, a change of the currents, or a step it refuses (the reference then says why).
+        Both take the input derivatives the importer set (module docstring)."""
         fast, max_substep = self._compiled, self.max_substep
         if fast is not None and math.isfinite(max_substep):
             n = max(1, math.ceil(step_size / max_substep - 1e-9))  # as stepping.advance
             p, x, scratch = fast.parameters, self._x, self._step_scratch
             inputs, derived, last = self._inputs, self._derived, self._last_current
-            if compiled.step_into(p, inputs, x, derived, last, scratch, n, step_size / n) == 0:
+            code = compiled.step_into(p, inputs, self._rates, x, derived, last, scratch, n,
+                                      step_size / n)  # fmt: skip
+            if code == 0:
                 return
         self._reference_step(step_size)
 
@@ -322,10 +345,19 @@ class AuvPlant(SafeSlave):
             x = x.copy()
             change = np.subtract(current, self._last_current)
             x[NU] += model.current_change_velocity_jump(x, change)
-        x = advance(model, x, inputs, step_size, self.max_substep, self._compiled)
+        rates = self._input_rates()
+        x = advance(model, x, inputs, step_size, self.max_substep, self._compiled, rates)
         self._x[:] = x
         self._last_current[:] = current
         self._refresh_outputs(inputs)
+
+    def _input_rates(self) -> np.ndarray | None:
+        """(2, inputs): the first and second time derivatives the importer set for this
+        step's actuator inputs (1/s, 1/s^2; the currents' taken as 0), None if every
+        actuator input's first derivative is 0 (held, as :func:`compiled.step_into`)."""
+        rates = np.zeros((2, len(INPUT_NAMES)))
+        rates[:, _ACTUATOR_INPUTS] = self._rates[:, _ACTUATOR_INPUTS]
+        return rates if rates[0].any() else None
 
     def _state_snapshot(self) -> dict[str, Any]:
         # the state, the outputs and the inputs are in the value buffers, saved with them
@@ -365,9 +397,10 @@ class AuvPlant(SafeSlave):
         if compiled.supports(model) == "":
             self._compiled = compiled.CompiledPlant(model)
         elif not compiled.AVAILABLE:
-            self.log(
+            self.log(  # the cost measured by scripts/bench_no_numba.py (docs/performance.md)
                 f"the compiled plant is off ({compiled.NO_JIT_REASON}): stepping the numpy "
-                "reference, same results, about 50x slower",
+                "reference, same results, each step about 16 times as long (0.17 ms instead "
+                "of 0.011 ms); install numba in this Python for the compiled plant",
                 Fmi2Status.warning,
             )
         return model

@@ -95,13 +95,13 @@ def test_parameter_table_is_remus100():
     params = load_vehicle("remus100")
     rows = {row[0].strip("`"): row for row in _table("`remus100`, field by field")}
     physical = [
-        name for name in VehicleParameters.model_fields if name not in ("name", "description")
+        name for name in VehicleParameters.field_info() if name not in ("name", "description")
     ]
     assert sorted(rows) == sorted(physical)
     for name in physical:
         _, _, _, value, unit, _ = rows[name]
         assert float(value) == pytest.approx(getattr(params, name), rel=1e-4), name
-        described = VehicleParameters.model_fields[name].description
+        described = VehicleParameters.field_info()[name].description
         assert unit == described.rsplit(", ", 1)[1].split(" (")[0], name
 
 

@@ -15,10 +15,25 @@ For a communication step h and N = stop_time / h steps::
 
 An instance with step multiple k is *due* when n is a multiple of k; it then steps k h
 (shortened at the stop time) and holds its outputs in between (multi-rate). Row n holds
-every instance's latest outputs once the due instances have advanced to t = n h. Connected
-inputs are first set at t = 0, just before an instance's first doStep: there is no
-exchange in initialisation mode (our FMUs' initial outputs depend on parameters only), so
-under Jacobi the first step of the plant sees the controller's initial outputs.
+every instance's latest outputs once the due instances have advanced to t = n h; an
+instance with an output that feeds a connected input through (ModelStructure) then takes
+its inputs at t = n h once more and its outputs are read again, so under Jacobi too a
+feedthrough passes on the value of the same point, not the one before.
+
+Initialisation (FMI 2.0, section 4.2.4): every instance enters initialisation mode; then,
+in ``coupling.order``, each takes its connected inputs from the latest outputs and its
+outputs are read, pass after pass until no value changes (:data:`INIT_PASSES` at most),
+so an output that feeds an input through (ModelStructure) starts consistent with its
+source; then every instance exits initialisation mode and row 0 is read. Integer,
+Enumeration and Boolean connections and recorded values travel as numbers (Booleans 0
+and 1) beside the Real ones; with ``[coupling] extrapolation`` the instances that can
+interpolate their inputs get their derivatives too (:mod:`cosim.engine.extrapolation`).
+``algorithm = "adaptive"`` steps with :mod:`cosim.engine.adaptive` instead of the loop
+below.
+
+An instance whose doStep returns Discard with ``fmi2Terminated`` true ended the
+simulation (FMI 2.0, section 4.2.3): the run ends there, complete, its last row at the
+time that instance reached.
 
 Why a loop of our own: ``fmpy.simulate_fmu`` runs one FMU, and ``fmpy.ssp`` has no
 Gauss-Seidel order, multi-rate, per-step NaN check or partial results. The style follows
@@ -53,6 +68,7 @@ is the same as before.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -63,16 +79,27 @@ from typing import Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
+from cosim.engine import adaptive
+from cosim.engine.extrapolation import InputRates
 from cosim.engine.live import LiveControl
 from cosim.engine.pacing import Pacer
+from cosim.engine.points import (
+    RowBuffer,
+    check_finite,
+    end_of_simulation,
+    inputs_giver,
+    refresh,
+)
 from cosim.engine.rows import RowSink, RowTable
 from cosim.engine.signals import StopRequest, stop_on_signals
 from cosim.engine.slave import Slave, describe, reasons, unzipped
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
 from cosim.fmus.interface import check_binary
+from cosim.scenario.coupling_graph import feedthrough
 from cosim.scenario.spec import Scenario, ScenarioError
 
+INIT_PASSES = 50  # exchanges in initialisation mode before the values must have settled
 ROWS_PER_CHUNK = 200  # rows handed to the sinks at a time
 HAND_OFF_INTERVAL_S = 1.0  # ... and at least this often (wall clock), however slow the steps
 MAX_SUBSTEPS = 10_000  # sub-steps per communication step beyond which a run is refused
@@ -99,6 +126,8 @@ class RunResult:
     events: list[dict[str, Any]] = field(default_factory=list)  # fired: name, time, set
     overrides: list[dict[str, Any]] = field(default_factory=list)  # + source (live runs)
     real_time: dict[str, Any] | None = None  # a paced run's figures (Pacer.summary)
+    ended: str | None = None  # "<instance> ended the simulation at t = ... s", if one did
+    coupling: dict[str, Any] = field(default_factory=dict)  # the steps taken (summary.json)
     times: np.ndarray | None = None  # (rows,) s, when kept
     values: np.ndarray | None = None  # (rows, len(columns)) SI, when kept
 
@@ -146,6 +175,8 @@ class _Layout:
                     constants.append(f"{name}.{var.name}")
                 else:
                     read[name].append(var.name)
+            # the Real outputs first: one fmi2GetReal fills them (Slave.bind)
+            read[name].sort(key=functools.partial(_not_real, inst))
         order = [f"{n}.{v}" for n, names in read.items() for v in names] + constants
         order += scenario.columns[len(scenario.record) :]  # the faults' columns, last
         return cls(read, constants, {ref: i for i, ref in enumerate(order)})
@@ -153,6 +184,10 @@ class _Layout:
     @property
     def n_read(self) -> int:
         return sum(len(names) for names in self.read.values())
+
+
+def _not_real(instance: Any, variable: str) -> bool:
+    return bool(instance.variable(variable).type != "Real")
 
 
 def preflight(scenario: Scenario) -> None:
@@ -226,32 +261,20 @@ def run(
         Slave(inst, unzipped(inst.fmu_path), scenario.coupling.step_multiples[name])
         for name, inst in scenario.instances.items()
     ]
+    by_name = {s.name: s for s in slaves}
+    order = [by_name[name] for name in scenario.coupling.order]
     guard = stop_on_signals(StopRequest()) if stop is None else nullcontext(stop)
     with guard as stop_request:
         try:
             for slave in slaves:
                 _bind(slave, scenario, layout, z)
-            for slave in slaves:
-                _set_up(slave, scenario, layout, z, initialise=False)
+                _set_up(slave, functools.partial(slave.load, scenario.stop_time))
             loaded = time.perf_counter()
             phase("initialising")
-            for slave in slaves:
-                _set_up(slave, scenario, layout, z, initialise=True)
+            _initialise(order, layout, z)
             startup = {"load_fmus": loaded - started, "initialise": time.perf_counter() - loaded}
-            by_name = {s.name: s for s in slaves}
-            order = [by_name[name] for name in scenario.coupling.order]
-            timed = scenario.events or scenario.faults or live is not None
-            timeline = Timeline(scenario, by_name, layout.index, z, live) if timed else None
-            rows = _Rows(scenario, feed, rows_per_chunk, hand_off_interval, timeline)
-            at: Callable[[int], None] = timeline.at if timeline is not None else _no_event
-            if live is not None:
-                live.bind(layout.index, stop_request, pacer)
-            if live is not None or pacer is not None:
-                at = _live_point(at, pacer, live, z, scenario.coupling.step, stop_request)
-            result = _loop(scenario, order, layout, z, rows, stop_request, timeline, at)
-            result.events = timeline.fired if timeline is not None else []
-            result.overrides = timeline.overrides if timeline is not None else []
-            result.real_time = pacer.summary() if pacer is not None else None
+            result = _step(scenario, order, layout, z, feed, stop_request,
+                           rows_per_chunk, hand_off_interval, pacer, live)  # fmt: skip
             result.startup_s = startup
         finally:
             if live is not None:  # a request still waiting is answered: not applied
@@ -263,41 +286,75 @@ def run(
     return result
 
 
+def _step(
+    scenario: Scenario,
+    order: list[Slave],
+    layout: _Layout,
+    z: np.ndarray,
+    feed: list[RowSink],
+    stop: StopRequest,
+    rows_per_chunk: int,
+    hand_off_interval: float,
+    pacer: Pacer | None,
+    live: LiveControl | None,
+) -> RunResult:
+    """The stepping of an initialised run: the fixed-step loop or the adaptive one."""
+    by_name = {s.name: s for s in order}
+    timed = scenario.events or scenario.faults or live is not None
+    h = scenario.coupling.step
+    grid = adaptive.grid_step(scenario.coupling) if scenario.coupling.algorithm == "adaptive" else h
+    timeline = Timeline(scenario, by_name, layout.index, z, live, grid) if timed else None
+    rows = RowBuffer(scenario, feed, rows_per_chunk, hand_off_interval, timeline, grid)
+    if scenario.coupling.algorithm == "adaptive":
+        if live is not None or pacer is not None:
+            raise CosimError("a paced or live run needs a fixed step: algorithm 'adaptive' "
+                             "chooses its own")  # fmt: skip
+        started = time.perf_counter()
+        give = inputs_giver(z, timeline)
+        error, figures = adaptive.run(
+            scenario, order, layout.index, layout.n_read, z, rows, stop, timeline, give
+        )
+        result = _result(scenario, order, rows, error, stop, time.perf_counter() - started)
+        result.coupling = figures
+    else:
+        at: Callable[[int], None] = timeline.at if timeline is not None else _no_event
+        if live is not None:
+            live.bind(layout.index, stop, pacer)
+        if live is not None or pacer is not None:
+            at = _live_point(at, pacer, live, z, h, stop)
+        result = _loop(scenario, order, layout, z, rows, stop, timeline, at)
+        result.coupling = {
+            "algorithm": scenario.coupling.algorithm,
+            "step_s": h,
+            "extrapolation": scenario.coupling.extrapolation,
+            "input_derivatives": [s.name for s in order if s.input_rates is not None],
+        }
+    result.events = timeline.fired if timeline is not None else []
+    result.overrides = timeline.overrides if timeline is not None else []
+    result.real_time = pacer.summary() if pacer is not None else None
+    return result
+
+
 def _bind(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> None:
     inst, read = slave.instance, layout.read[slave.name]
     targets = [c for c in scenario.connections if c.target_instance == slave.name]
     start = layout.index[f"{slave.name}.{read[0]}"] if read else 0
-    slave.bind(
-        input_vrs=[inst.variable(c.target_variable).valueReference for c in targets],
-        sources=[layout.index[c.source] for c in targets],
-        output_vrs=[inst.variable(v).valueReference for v in read],
-        out=z[start : start + len(read)],
+    inputs = [(inst.variable(c.target_variable), layout.index[c.source]) for c in targets]
+    order = scenario.coupling.extrapolation_order
+    real = [v.valueReference for v, _ in inputs if v.type == "Real"]
+    rates = InputRates(slave.fmu, real, order) if order and slave.interpolates and real else None
+    slave.bind(inputs, [inst.variable(v) for v in read], z[start : start + len(read)], rates)
+    driven = {c.target_variable for c in targets}
+    slave.feeds_through = any(
+        driven & inputs for inputs in feedthrough(inst.model_description).values()
     )
 
 
-def _set_up(
-    slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray, initialise: bool
-) -> None:
-    """Load one instance (instantiate, start values) or, with ``initialise``, initialise
-    it and read its t = 0 outputs and recorded constant inputs."""
+def _set_up(slave: Slave, call: Callable[[], None]) -> None:
+    """Run one set-up ``call`` of ``slave`` (load, initialisation), a failure turned into
+    a one-line :class:`CosimError` naming the instance and the FMU's reason."""
     try:
-        if not initialise:
-            slave.load(scenario.stop_time)
-            return
-        slave.initialise()
-        # pythonfmu cannot return a status from exitInitializationMode: an FMU whose
-        # initialisation failed logs an Error (and refuses to step), so that counts too
-        logged = [m for m in slave.messages if m.startswith(("[Error]", "[Fatal]"))]
-        if logged:
-            raise CosimError(
-                f"{slave.name}: error logged during initialisation: {' | '.join(logged[-3:])}"
-            )
-        slave.read_outputs()
-        for ref in layout.constants:
-            instance, variable = ref.split(".", 1)
-            if instance == slave.name:
-                vr = slave.instance.variable(variable).valueReference
-                z[layout.index[ref]] = slave.fmu.getReal([vr])[0]
+        call()
     except FMICallException as exc:
         slave.failed(exc.status)
         raise CosimError(describe(slave, exc.function, exc.status, 0.0)) from None
@@ -308,60 +365,51 @@ def _set_up(
                          f"{reasons(slave)}") from None  # fmt: skip
 
 
-class _Rows:
-    """The rows of a run, a chunk at a time: the loop fills ``slots`` (one view per row of
-    the chunk buffer) and hands them to the sinks with :meth:`hand_off` when the chunk is
-    full or ``interval`` s of wall clock have passed since the last hand-off. With a
-    ``timeline`` (events or faults), each hand-off first gives the sinks that take them
-    (``add_notes(notes)``, notes being (t in s, text)) the timeline's notes so far: events
-    fired, faults started and stopped."""
+def _initialise(order: list[Slave], layout: _Layout, z: np.ndarray) -> None:
+    """Initialisation mode for every instance, the connected values exchanged until they
+    settle (see the module docstring), then row 0's values: every output, and the
+    recorded inputs no connection drives."""
+    for slave in order:
+        _set_up(slave, slave.enter_initialisation)
+    for _ in range(INIT_PASSES):
+        before = z.copy()
+        for slave in order:
+            _set_up(slave, functools.partial(slave.exchange, z))
+        if np.array_equal(before, z, equal_nan=True):
+            break
+    else:
+        moving = [name for name, i in layout.index.items() if before[i] != z[i]]
+        raise CosimError(
+            f"the connected values did not settle in initialisation mode after {INIT_PASSES} "
+            f"exchanges: {', '.join(moving[:5])} still change (an algebraic loop with no "
+            "solution, or one the exchanges do not converge on)"
+        )
+    for slave in order:
+        _set_up(slave, slave.exit_initialisation)
+        # pythonfmu cannot return a status from exitInitializationMode: an FMU whose
+        # initialisation failed logs an Error (and refuses to step), so that counts too
+        logged = [m for m in slave.messages if m.startswith(("[Error]", "[Fatal]"))]
+        if logged:
+            raise CosimError(
+                f"{slave.name}: error logged during initialisation: {' | '.join(logged[-3:])}"
+            )
+    for slave in order:
+        _set_up(slave, functools.partial(_read_initial, slave, layout, z))
 
-    def __init__(
-        self,
-        scenario: Scenario,
-        sinks: list[RowSink],
-        rows_per_chunk: int,
-        interval: float,
-        timeline: Timeline | None = None,
-    ) -> None:
-        self.h = scenario.coupling.step
-        self.timeline = timeline
-        self.buffer = np.empty((rows_per_chunk, len(scenario.columns)))
-        self.slots = list(self.buffer)  # made once: the loop indexes a list, not the array
-        self.count = 0  # rows handed off
-        self.sinks = sinks
-        self.interval = interval
-        self.final = np.full(len(scenario.columns), np.nan)
-        self.error: str | None = None  # the first sink failure
 
-    def hand_off(self, filled: int) -> None:
-        """Give the first ``filled`` rows of the buffer to every sink; a failing sink is
-        dropped and its reason kept in ``error``."""
-        if self.timeline is not None and self.timeline.notes:
-            self._hand_off_notes()
-        if not filled:
-            return
-        # t_n = n h, never accumulated (no drift), as the loop computes it
-        times = np.arange(self.count, self.count + filled) * self.h
-        values = self.buffer[:filled]
-        for sink in list(self.sinks):
-            try:
-                sink.add_rows(times, values)
-            except (OSError, CosimError) as exc:
-                self.sinks.remove(sink)
-                self.error = self.error or str(exc)
-        self.final = values[-1].copy()
-        self.count += filled
-
-    def _hand_off_notes(self) -> None:
-        assert self.timeline is not None
-        notes, self.timeline.notes = self.timeline.notes, []
-        for sink in list(self.sinks):
-            try:
-                sink.add_notes(notes)
-            except (OSError, CosimError) as exc:
-                self.sinks.remove(sink)
-                self.error = self.error or str(exc)
+def _read_initial(slave: Slave, layout: _Layout, z: np.ndarray) -> None:
+    """Row 0 of one instance: its inputs set once more from the latest outputs (an FMU
+    that computes its outputs only as it leaves initialisation mode feeds them through
+    now), its outputs read, and its recorded inputs no connection drives."""
+    slave.exchange(z)
+    for ref in layout.constants:
+        instance, variable = ref.split(".", 1)
+        if instance == slave.name:
+            var = slave.instance.variable(variable)
+            get = {"Real": slave.fmu.getReal, "Boolean": slave.fmu.getBoolean}.get(
+                var.type, slave.fmu.getInteger
+            )
+            z[layout.index[ref]] = float(get([var.valueReference])[0])
 
 
 def _loop(
@@ -369,7 +417,7 @@ def _loop(
     order: list[Slave],
     layout: _Layout,
     z: np.ndarray,
-    rows: _Rows,
+    rows: RowBuffer,
     stop: StopRequest,
     timeline: Timeline | None,
     at: Callable[[int], None],
@@ -388,9 +436,10 @@ def _loop(
     record = np.asarray([layout.index[c] for c in scenario.columns], dtype=np.intp)
     exchanged = z[: layout.n_read]
     multi_rate = any(s.k != 1 for s in order)
+    through = [s for s in order if s.feeds_through]  # refreshed at every point
 
     take = z.take  # z.take(indices, out=buffer): a gather without allocation
-    deliver = timeline.deliver if timeline else _no_fault
+    give = inputs_giver(z, timeline)
     probe = np.zeros(layout.n_read)  # x . 0 is NaN iff some x is NaN or infinite
     check_dot = exchanged.dot
     slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
@@ -402,7 +451,7 @@ def _loop(
         at(0)
         take(record, out=slots[0])  # row 0 is t = 0
         filled = 1
-        _check_finite(exchanged, layout, 0.0)
+        check_finite(exchanged, layout.index, 0.0)
         for n in range(n_steps):
             if stop.signum is not None:
                 break
@@ -410,20 +459,19 @@ def _loop(
             due = [s for s in order if n % s.k == 0] if multi_rate else order
             if jacobi:  # every due instance takes the values at t before any steps
                 for slave in due:
-                    take(slave.input_sources, out=slave.inputs)
-                    deliver(slave, n)
-                    slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+                    give(slave, n, t)
             for slave in due:
                 if not jacobi:  # the latest values, including those stepped just now
-                    take(slave.input_sources, out=slave.inputs)
-                    deliver(slave, n)
-                    slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+                    give(slave, n, t)
                 # step to t_{n+k} - t_n, as fmpy.simulate_fmu does (bit-identical runs)
                 slave.do_step(slave.c, t, min(n + slave.k, n_steps) * h - t, 1)
                 slave.get_real(slave.c, slave.output_vrs, slave.n_outputs, slave.output_ptr)
+                if slave.others:
+                    slave.get_others()
+            refresh(through, give, n + 1, (n + 1) * h)  # feedthroughs follow their inputs
             nan_if_bad = check_dot(probe)
             if nan_if_bad != nan_if_bad:
-                _check_finite(exchanged, layout, (n + 1) * h)
+                check_finite(exchanged, layout.index, (n + 1) * h)
             at(n + 1)
             take(record, out=slots[filled])
             filled += 1
@@ -433,8 +481,12 @@ def _loop(
                 if rows.error is not None:
                     break
     except FMICallException as exc:
-        slave.failed(exc.status)
-        error = describe(slave, exc.function, exc.status, n * h)
+        ended = end_of_simulation(slave, exc, z, record, rows, filled, n * h)
+        if ended is None:
+            slave.failed(exc.status)
+            error = describe(slave, exc.function, exc.status, n * h)
+        else:
+            rows.ended, filled = ended
     except CosimError as exc:
         error = str(exc)
     rows.hand_off(filled)
@@ -472,24 +524,21 @@ def _no_event(n: int) -> None:
     """The timeline of a scenario without events or faults."""
 
 
-def _no_fault(slave: Slave, n: int) -> None:
-    """Deliver the gathered inputs unchanged (no fault)."""
-
-
 def _result(
     scenario: Scenario,
     order: list[Slave],
-    rows: _Rows,
+    rows: RowBuffer,
     error: str | None,
     stop: StopRequest,
     wall: float,
 ) -> RunResult:
     """How the loop ended, as a :class:`RunResult` (the sinks' failure or the stop signal
     named as the reason when nothing else failed)."""
-    n_steps, t_end = scenario.n_steps, (rows.count - 1) * scenario.coupling.step
+    t_end = rows.time_reached
     if error is None and rows.error is not None:
         error = f"{rows.error} (at t = {t_end:.6g} s)"
-    stopped = stop.requested and error is None and rows.count < n_steps + 1
+    reached = rows.ended is not None or t_end >= scenario.stop_time - 1e-6 * scenario.coupling.step
+    stopped = stop.requested and error is None and not reached
     if stopped:
         error = f"{stop.reason} at t = {t_end:.6g} s"
     return RunResult(
@@ -498,17 +547,10 @@ def _result(
         rows=rows.count,
         time_reached=t_end,
         final=rows.final,
-        complete=rows.count == n_steps + 1 and error is None,
+        complete=reached and error is None,
         error=error,
         wall_clock_s=wall,
         stop_signal=stop.signum if stopped else None,
         messages={s.name: list(s.messages) for s in order},
+        ended=rows.ended,
     )
-
-
-def _check_finite(exchanged: np.ndarray, layout: _Layout, t: float) -> None:
-    bad = np.flatnonzero(~np.isfinite(exchanged))
-    if bad.size:
-        names = list(layout.index)
-        listed = ", ".join(f"{names[i]} = {exchanged[i]}" for i in bad[:5])
-        raise CosimError(f"non-finite value at t = {t:.6g} s: {listed}")

@@ -26,8 +26,11 @@ from fmpy.fmi2 import (
     fmi2CallbackFreeMemoryTYPE,
     fmi2CallbackFunctions,
     fmi2CallbackLoggerTYPE,
+    fmi2LastSuccessfulTime,
+    fmi2Terminated,
 )
 
+from cosim.engine.extrapolation import InputRates
 from cosim.errors import CosimError
 from cosim.scenario.spec import Instance
 from fmu_runtime import exit_guard
@@ -51,26 +54,67 @@ class Slave:
         self.name = instance.name
         self.instance = instance
         self.k = k
+        # takes input derivatives (fmi2SetRealInputDerivatives, cosim.engine.extrapolation)
+        self.interpolates = bool(md.coSimulation.canInterpolateInputs)
+        # an output depends directly on a connected input: refreshed at every point
+        self.feeds_through = False
         self.state = "new"
         self.messages: collections.deque[str] = collections.deque(maxlen=LOG_LINES_KEPT)
         self._key = (str(unzip_dir), md.coSimulation.modelIdentifier, md.guid, instance.name)
         self.fmu = _library(self._key)
 
     def bind(
-        self, input_vrs: list[int], sources: list[int], output_vrs: list[int], out: np.ndarray
+        self,
+        inputs: list[tuple[Any, int]],
+        outputs: list[Any],
+        out: np.ndarray,
+        input_rates: InputRates | None = None,
     ) -> None:
-        """Resolve the buffers once: inputs come from ``z[sources]``, outputs go to ``out``."""
-        self.n_inputs, self.n_outputs = len(input_vrs), len(output_vrs)
-        self.input_vrs = (ctypes.c_uint * self.n_inputs)(*input_vrs)
+        """Resolve the buffers once: each input (an fmpy variable) comes from ``z[index]``,
+        the outputs go to ``out`` (a view of z, the Real ones first). Integer, Enumeration
+        and Boolean values travel as numbers in z (``others``), outside the Real fast
+        path. ``input_rates`` sends the Real inputs' derivatives (extrapolation)."""
+        real_inputs = [(v.valueReference, i) for v, i in inputs if v.type == "Real"]
+        real_outputs = [v.valueReference for v in outputs if v.type == "Real"]
+        self.n_inputs, self.n_outputs = len(real_inputs), len(real_outputs)
+        self.input_vrs = (ctypes.c_uint * self.n_inputs)(*(vr for vr, _ in real_inputs))
         self.inputs = np.zeros(self.n_inputs)
         self.input_ptr = self.inputs.ctypes.data_as(_DOUBLE_P)
-        self.input_sources = np.asarray(sources, dtype=np.intp)
-        self.output_vrs = (ctypes.c_uint * self.n_outputs)(*output_vrs)
+        self.input_sources = np.asarray([i for _, i in real_inputs], dtype=np.intp)
+        self.output_vrs = (ctypes.c_uint * self.n_outputs)(*real_outputs)
         self.output_ptr = out.ctypes.data_as(_DOUBLE_P)
+        self.other_inputs = [(v.type, [v.valueReference], i) for v, i in inputs if v.type != "Real"]
+        self.other_outputs = [
+            (v.type, [v.valueReference], out[j:]) for j, v in enumerate(outputs) if v.type != "Real"
+        ]
+        self.others = bool(self.other_inputs or self.other_outputs)
+        self.input_rates = input_rates
         # fmpy's status-checking wrappers of the C functions, looked up once
         self.set_real = self.fmu.fmi2SetReal
         self.do_step = self.fmu.fmi2DoStep
         self.get_real = self.fmu.fmi2GetReal
+
+    def set_others(self, z: np.ndarray) -> None:
+        """Set the connected Integer, Enumeration and Boolean inputs from z."""
+        for kind, vrs, i in self.other_inputs:
+            if kind == "Boolean":
+                self.fmu.setBoolean(vrs, [bool(z[i])])
+            else:
+                self.fmu.setInteger(vrs, [int(z[i])])
+
+    def get_others(self) -> None:
+        """Read the Integer, Enumeration and Boolean outputs into z (Booleans as 0, 1)."""
+        for kind, vrs, view in self.other_outputs:
+            get = self.fmu.getBoolean if kind == "Boolean" else self.fmu.getInteger
+            view[0] = float(get(vrs)[0])
+
+    def exchange(self, z: np.ndarray) -> None:
+        """Set every connected input from z and read every output back (not the hot path:
+        initialisation, rollback and the adaptive algorithm)."""
+        z.take(self.input_sources, out=self.inputs)
+        self.set_real(self.c, self.input_vrs, self.n_inputs, self.input_ptr)
+        self.set_others(z)
+        self.read_outputs()
 
     def _expect(self, *states: str) -> None:
         if self.state not in states:
@@ -108,19 +152,40 @@ class Slave:
         for kind, (vrs, values) in grouped.items():
             setters[kind](vrs, values)
 
-    def initialise(self) -> None:
-        """enter and exit initialisation mode (an FMU may compile or load its code here,
-        as AuvPlant does, so that its first doStep costs what every other does)."""
+    def enter_initialisation(self) -> None:
+        """enterInitializationMode: the master may now exchange values with the instance
+        (FMI 2.0, section 4.2.4) before :meth:`exit_initialisation`."""
         self._expect("instantiated")
         self.fmu.enterInitializationMode()
         self.state = "initialization"
-        self.fmu.exitInitializationMode()
-        self.state = "stepping"
         self.c = self.fmu.component
 
+    def exit_initialisation(self) -> None:
+        """exitInitializationMode (an FMU may compile or load its code here, as AuvPlant
+        does, so that its first doStep costs what every other does)."""
+        self._expect("initialization")
+        self.fmu.exitInitializationMode()
+        self.state = "stepping"
+
     def read_outputs(self) -> None:
-        self._expect("stepping")
+        self._expect("initialization", "stepping")
         self.get_real(self.c, self.output_vrs, self.n_outputs, self.output_ptr)
+        if self.others:
+            self.get_others()
+
+    def ended_simulation(self) -> float | None:
+        """After a doStep returned Discard: the time the instance reached if it ended the
+        simulation (``fmi2GetBooleanStatus(fmi2Terminated)`` true: FMI 2.0, section
+        4.2.3), else None. A Discard whose last logged line is an Error is a failure:
+        pythonfmu answers Terminated true after any doStep that returned False."""
+        if self.messages and self.messages[-1].startswith(("[Error]", "[Fatal]")):
+            return None
+        try:
+            if self.fmu.getBooleanStatus(fmi2Terminated):
+                return float(self.fmu.getRealStatus(fmi2LastSuccessfulTime))
+        except Exception:  # a status it cannot give: the Discard stands as a failure
+            return None
+        return None
 
     def failed(self, status: int) -> None:
         """Record a non-OK status: after Discard the instance may still be terminated,

@@ -70,12 +70,14 @@ class _Writer:
         slave, var = self._resolve(ref)
         return float(slave.fmu.getReal([var.valueReference])[0])
 
-    def set(self, ref: str, value: bool | int | float, why: str, assign: bool = True) -> None:
+    def set(self, ref: str, value: bool | int | float | str, why: str, assign: bool = True) -> None:
         """Write ``value``; ``assign``: an event's value (restored when a fault ends)."""
         slave, var = self._resolve(ref)
-        setter = {"Real": slave.fmu.setReal, "Boolean": slave.fmu.setBoolean}.get(
-            var.type, slave.fmu.setInteger
-        )
+        setter = {
+            "Real": slave.fmu.setReal,
+            "Boolean": slave.fmu.setBoolean,
+            "String": slave.fmu.setString,
+        }.get(var.type, slave.fmu.setInteger)
         try:
             setter([var.valueReference], [value])
         except FMICallException as exc:
@@ -83,6 +85,8 @@ class _Writer:
             raise CosimError(
                 f"{why}: setting {ref} = {value!r} returned {STATUS_LABELS[exc.status]}"
             ) from None
+        if isinstance(value, str):
+            return  # a String is neither recorded nor restored
         if ref in self.index:
             self.z[self.index[ref]] = value
         if assign:
@@ -158,9 +162,11 @@ class Timeline:
         index: Mapping[str, int],
         z: np.ndarray,
         live: LiveControl | None = None,
+        h: float | None = None,
     ) -> None:
-        self.h = scenario.coupling.step
+        self.h = scenario.coupling.step if h is None else h  # s, point n is at n h
         self.z = z
+        self.epoch = 0  # counts the points at which something jumped (extrapolation)
         self.live = live
         self.fired: list[dict[str, Any]] = []  # {"name", "time", "set"} per firing
         self.overrides: list[dict[str, Any]] = []  # {"name", "time", "set", "source"}
@@ -174,16 +180,73 @@ class Timeline:
         # faults on connections, by target instance: (slot in its input buffer, fault)
         self.on_inputs: dict[str, list[tuple[int, _FaultRun]]] = {}
         driven = [c.target for c in scenario.connections]
+        multiples = scenario.coupling.step_multiples
         self._held: list[_FaultRun] = []  # actuator faults on unconnected inputs
         self._saved: dict[str, float] = {}  # their inputs' values before they started
         for run in self._faults:
             target = run.fault.target
             if target in driven:
                 instance = target.split(".", 1)[0]
-                mine = [c for c in driven if c.split(".", 1)[0] == instance]
+                inst = scenario.instances[instance]
+                mine = [  # the instance's Real input buffer (cosim.engine.slave.Slave.bind)
+                    c
+                    for c in driven
+                    if c.split(".", 1)[0] == instance
+                    and inst.variable(c.split(".", 1)[1]).type == "Real"
+                ]
                 self.on_inputs.setdefault(instance, []).append((mine.index(target), run))
             else:
                 self._held.append(run)
+        # a `when` on a slow instance's output (step multiple k) is evaluated at that
+        # instance's own points only: in between, z holds its value from the end of the
+        # step it is in, which lies ahead of t_n
+        points = round(scenario.coupling.step / self.h)  # points per communication step
+        self._every = {
+            i: k * points if (k := multiples.get(e.when.ref.split(".", 1)[0], 1)) > 1 else 1
+            for i, e in enumerate(scenario.events)
+            if e.when is not None
+        }
+
+    def points(self) -> list[int]:
+        """The points n at which something is due to happen whatever the values: time
+        events, the times of a series, faults starting and stopping (an adaptive step
+        ends on each)."""
+        due = {run.n_fire for run in self._events if run.n_fire is not None}
+        for run in self._events:
+            if run.event.series is not None:
+                due |= {step_index(t, self.h) for t in run.event.series.times}
+        for fault in self._faults:
+            due |= {n for n in (fault.n_start, fault.n_stop) if n is not None}
+        return sorted(due)
+
+    def snapshot(self) -> tuple[Any, ...]:
+        """Everything :meth:`at` and :meth:`deliver` change, for :meth:`restore` (the
+        adaptive algorithm rolls a rejected step back)."""
+        faults = [
+            (list(r.history), r.last, r.held, None if r.rng is None else r.rng.bit_generator.state)
+            for r in self._faults
+        ]
+        return (
+            len(self.fired), len(self.overrides), len(self.notes), self.epoch,
+            [(r.was_true, r.fired) for r in self._events], dict(self._ramps), faults,
+            dict(self._saved), dict(self._writer.assigned),
+        )  # fmt: skip
+
+    def restore(self, saved: tuple[Any, ...]) -> None:
+        """Back to :meth:`snapshot`'s state (the FMUs' own values are restored apart)."""
+        fired, overrides, notes, self.epoch, events, ramps, faults, kept, assigned = saved
+        del self.fired[fired:], self.overrides[overrides:], self.notes[notes:]
+        for event, (was_true, done) in zip(self._events, events, strict=True):
+            event.was_true, event.fired = was_true, done
+        self._ramps = dict(ramps)
+        for fault, (history, last, held, rng) in zip(self._faults, faults, strict=True):
+            fault.history.clear()
+            fault.history.extend(history)
+            fault.last, fault.held = last, held
+            if fault.rng is not None:
+                fault.rng.bit_generator.state = rng
+        self._saved = dict(kept)
+        self._writer.assigned = dict(assigned)
 
     def deliver(self, slave: Slave, n: int) -> None:
         """Replace the gathered inputs of ``slave`` at point n by what its faults deliver."""
@@ -203,9 +266,9 @@ class Timeline:
         for run in self._events:
             if run.event.series is not None:
                 self._apply_series(run, t)
-        for run in self._events:
+        for i, run in enumerate(self._events):
             condition = run.event.when
-            if condition is None:
+            if condition is None or n % self._every[i]:
                 continue
             now = condition.holds(self._writer.get(condition.ref))
             crossed = run.was_true is False and now
@@ -245,6 +308,7 @@ class Timeline:
             else:
                 self._writer.set(ref, value, why)
         self.fired.append({"name": event.name, "time": t, "set": dict(event.set)})
+        self.epoch += 1
         told = ", ".join(f"{ref} = {value!r}" for ref, value in event.set.items())
         ramp = f" (ramp over {event.ramp!r} s)" if event.ramp is not None else ""
         self.notes.append((t, f"{what} {event.name}{origin}: {told}{ramp}"))
@@ -282,6 +346,8 @@ class Timeline:
         for run, flag in zip(self._faults, self._flags, strict=True):
             self.z[flag] = 1.0 if run.active(n) else 0.0
             fault = run.fault
+            if n in (run.n_start, run.n_stop):
+                self.epoch += 1
             if n == run.n_start:
                 self.notes.append((t, f"fault {fault.name} starts: {fault.kind} on {fault.target}"))
             elif n == run.n_stop:

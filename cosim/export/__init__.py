@@ -5,6 +5,12 @@ master runs: the instances (named as in the scenario, ``plant`` and ``controller
 FMUs, every explicit start value (with its unit), every connection, the stop time and the
 communication step (with each instance's step multiple).
 
+Every name they write is an identifier every importer accepts
+(:data:`cosim.export.components.IDENTIFIER`, OMSimulator's rule, the strictest): the SSD's
+model and system are named after the scenario id with every other character an underscore
+(``bs-3`` -> ``bs_3``, :func:`cosim.export.components.model_name`), and the id itself is in
+their ``description``; a scenario whose instance names break the rule is refused.
+
 * ``export_ssp(scenario, "bs-3.ssp")`` (:mod:`cosim.export.ssp`) writes
   ``SystemStructure.ssd`` and the FMUs under ``resources/`` in one zip archive (SSP 1.0).
   The start values are an inline parameter set named :data:`PARAMETER_SET` on each

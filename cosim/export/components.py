@@ -9,6 +9,7 @@ checked connections and start values hold for it too.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,23 @@ from cosim.fmus.interface import FmuInterface, FmuInterfaceError, Variable, read
 from cosim.scenario.spec import Instance, Scenario
 
 StartValue = bool | int | float | str
+
+IDENTIFIER = re.compile(r"[a-zA-Z][a-zA-Z0-9_]*")
+"""What every importer accepts as a model, system or component name: OMSimulator's rule
+(``^[a-zA-Z][a-zA-Z0-9_]*$``, its ComRef::isValidIdent) is the strictest of them."""
+
+
+def model_name(scenario: Scenario) -> str:
+    """The scenario's id as an identifier (:data:`IDENTIFIER`), the SSD's model and system
+    name: every other character an underscore (``bs-3`` -> ``bs_3``), ``scenario_`` before
+    one that does not start with a letter. The id itself goes into the description."""
+    name = re.sub(r"[^a-zA-Z0-9_]", "_", scenario.id)
+    return name if IDENTIFIER.fullmatch(name) else f"scenario_{name}"
+
+
+def description(scenario: Scenario) -> str:
+    """What the exports say the model is: the scenario's id and summary."""
+    return f"auv-cosim scenario {scenario.id}: {scenario.summary}"
 
 
 @dataclass(frozen=True)
@@ -52,10 +70,17 @@ def components(scenario: Scenario, fmu_paths: Mapping[str, Path] | None) -> list
     scenario resolved (e.g. a copy built elsewhere); it must offer the same variables.
 
     Raises:
-        CosimError: ``fmu_paths`` names an unknown instance, or an FMU it names is missing,
-            unreadable or lacks a variable the scenario uses.
+        CosimError: an instance name is not an :data:`IDENTIFIER`, ``fmu_paths`` names an
+            unknown instance, or an FMU it names is missing, unreadable or lacks a variable
+            the scenario uses.
     """
     overrides = dict(fmu_paths or {})
+    named = [name for name in scenario.instances if not IDENTIFIER.fullmatch(name)]
+    if named:
+        raise CosimError(
+            f"instance names {named} of scenario {scenario.id!r} are not names every FMI "
+            "importer accepts (OMSimulator: a letter, then letters, digits or '_'): rename them"
+        )
     unknown = sorted(set(overrides) - set(scenario.instances))
     if unknown:
         raise CosimError(

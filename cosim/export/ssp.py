@@ -36,7 +36,14 @@ from pyssp_standard.ssv import SSVElem
 from pyssp_standard.unit import BaseUnit, Unit, Units
 
 from cosim.errors import CosimError
-from cosim.export.components import Component, components, value_type, xml_literal
+from cosim.export.components import (
+    Component,
+    components,
+    description,
+    model_name,
+    value_type,
+    xml_literal,
+)
 from cosim.export.files import replacing_file
 from cosim.export.transformations import linear_transformations
 from cosim.fmus.interface import Variable
@@ -106,7 +113,9 @@ def _add_bytes(archive: zipfile.ZipFile, name: str, data: bytes, compression: in
 def ssd_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
     """``SystemStructure.ssd`` for ``scenario``, built with pyssp-standard's object model.
 
-    Units are declared as the FMUs' own ``UnitDefinitions`` define them (one source).
+    The model and system are named :func:`~cosim.export.components.model_name` (an
+    identifier every importer accepts), their description holds the scenario's id. Units
+    are declared as the FMUs' own ``UnitDefinitions`` define them (one source).
     Workarounds for pyssp-standard 0.9.1 (each measured):
     * a ``ssv:Real`` without a unit makes it write ``unit=None`` and fail, so every Real
       start value gets a unit, dimensionless ones ``"1"`` (declared with an empty
@@ -119,7 +128,7 @@ def ssd_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
       scenario exports to the same bytes.
     """
     units = _UnitTable()
-    system = System(name=scenario.id)
+    system = System(name=model_name(scenario))
     for comp in parts:
         system.elements.append(_ssd_component(comp, units))
     for c in scenario.connections:
@@ -133,6 +142,8 @@ def ssd_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
         )
     system.annotations.add_annotation(_openmodelica_step(scenario.coupling.step))
     root = _written(scenario, system, units)
+    for element in (root, root.find("ssd:System", NAMESPACES)):  # pyssp-standard writes none
+        element.set("description", description(scenario))
     _add_step_size_hints(root, scenario, parts)
     _add_linear_transformations(root, scenario)
     root[:] = sorted(root, key=lambda child: _ROOT_ORDER.index(etree.QName(child).localname))
@@ -245,7 +256,7 @@ def _written(scenario: Scenario, system: System, units: _UnitTable) -> Any:
     with tempfile.TemporaryDirectory(prefix="auv-cosim-ssd-") as tmp:
         ssd_path = Path(tmp) / "SystemStructure.ssd"
         with SSD(ssd_path, mode="w") as ssd:
-            ssd.name = scenario.id
+            ssd.name = model_name(scenario)
             ssd.version = "1.0"
             ssd.system = system
             ssd.default_experiment = _experiment(scenario)

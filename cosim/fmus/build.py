@@ -357,6 +357,11 @@ def complete_model_description(xml: bytes, guid: str | None = None) -> bytes:
         root.insert(list(root).index(cosim) + 1, definitions)
 
     structure = _child(root, "ModelStructure")
+    declared = {  # what the slave declared its initial unknowns depend on (SafeSlave.to_xml)
+        unknown.get("index"): unknown.get("dependencies")
+        for old in structure.findall("InitialUnknowns")
+        for unknown in old
+    }
     for old in structure.findall("InitialUnknowns"):
         structure.remove(old)
     initial_unknowns = [
@@ -368,7 +373,9 @@ def complete_model_description(xml: bytes, guid: str | None = None) -> bytes:
     if initial_unknowns:
         node = ET.SubElement(structure, "InitialUnknowns")
         for index in initial_unknowns:
-            ET.SubElement(node, "Unknown", index=str(index))
+            unknown = ET.SubElement(node, "Unknown", index=str(index))
+            if declared.get(str(index)) is not None:  # else: depends on every known
+                unknown.set("dependencies", str(declared[str(index)]))
     ET.indent(root, space="  ")
     completed: bytes = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
     return completed

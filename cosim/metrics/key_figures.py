@@ -1,7 +1,9 @@
 """Key figures of a run, computed as its rows stream by (no row is kept).
 
 ``yaw_settling_time_s``: the first time after which |yaw - yaw_setpoint| stays below
-1 deg to the end of the run (angles compared on the circle); None if the last sample is
+1 deg to the end of the run (angles compared on the circle), where the error crosses into
+the band, interpolated linearly between the two rows around the crossing (so the figure
+moves continuously with the step instead of by whole rows); None if the last sample is
 outside the band. The setpoint is ``controller.yaw_setpoint`` if recorded, else 0 (with
 the autopilot's ``compensate_current`` on, that set-point is the course; the heading then
 settles off it by the crab angle, so the figure is None).
@@ -25,6 +27,8 @@ def settling_time(
 ) -> float | None:
     """First time after which |error| < tolerance to the end; None if the end is outside.
 
+    The time is where |error| crosses ``tolerance`` on the line between the last sample
+    outside and the first inside (the first sample's time if every sample is inside).
     With ``angle`` the error is wrapped to (-pi, pi] first.
     """
     tracker = SettlingTime(tolerance, angle)
@@ -40,20 +44,35 @@ class SettlingTime:
         self.angle = angle
         self.since: float | None = None  # start of the current run of samples inside
         self.pending = True  # the last sample seen was outside (or none seen yet)
+        self.last: tuple[float, float] | None = None  # (t, |error|) of the last sample
 
     def add(self, times: np.ndarray, error: np.ndarray) -> None:
         if times.size == 0:
             return
         if self.angle:
             error = np.angle(np.exp(1j * error))
-        outside = np.flatnonzero(~(np.abs(error) < self.tolerance))
+        magnitude = np.abs(error)
+        outside = np.flatnonzero(~(magnitude < self.tolerance))
         if outside.size == 0:
             if self.pending:
-                self.since, self.pending = float(times[0]), False
+                self.since = self._entry(self.last, float(times[0]), float(magnitude[0]))
+                self.pending = False
         elif outside[-1] == len(times) - 1:
             self.since, self.pending = None, True
         else:
-            self.since, self.pending = float(times[outside[-1] + 1]), False
+            i = int(outside[-1])
+            before = (float(times[i]), float(magnitude[i]))
+            self.since = self._entry(before, float(times[i + 1]), float(magnitude[i + 1]))
+            self.pending = False
+        self.last = (float(times[-1]), float(magnitude[-1]))
+
+    def _entry(self, before: tuple[float, float] | None, t: float, inside: float) -> float:
+        """Where the error enters the band between the sample ``before`` (outside; None:
+        there was none) and the sample (t, ``inside``)."""
+        if before is None or not math.isfinite(before[1]):
+            return t
+        t0, outside = before
+        return t0 + (t - t0) * (outside - self.tolerance) / (outside - inside)
 
     @property
     def value(self) -> float | None:

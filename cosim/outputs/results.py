@@ -28,7 +28,9 @@ of an event: ``name``, ``time`` in s, the values it ``set``; docs/events.md) and
 in s, the values it ``set``, ``source``: where it came from) and ``real_time`` (a paced
 run's ``target_factor``, ``achieved_factor``, ``late_steps``, ``max_lateness_s``,
 ``max_lateness_at_s`` (the simulated time of that step), ``fell_behind``; null for a run
-not paced).
+not paced), ``ended`` (the FMU that ended the simulation and when, null if none) and
+``coupling`` (how the run stepped: docs/coupling.md; with ``--check-step`` its
+``check_step`` holds the estimated error of every key figure and final value).
 A scenario with a ``manoeuvre`` adds at the top level, from the start,
 ``"manoeuvre": <kind>`` and, at the end, its metrics (:mod:`cosim.outputs.manoeuvre`:
 ``tactical_diameter_m``, ...; null where the run cannot give one). A summary still
@@ -151,6 +153,8 @@ def final_summary(
         ],
         "overrides": result.overrides,
         "real_time": result.real_time,
+        "ended": result.ended,
+        "coupling": result.coupling,
         **(manoeuvre or {}),
     }
 

@@ -40,6 +40,7 @@ from cosim.scenario.checks import (
     split_ref,
     with_article,
 )
+from cosim.scenario.coupling_graph import algebraic_loop, connection_order, feedthrough
 from cosim.scenario.timeline_spec import (
     Event,
     EventSpec,
@@ -57,6 +58,15 @@ FAULT_COLUMN_PREFIX = "fault."  # results.csv column of a fault: "fault.<name>"
 MAX_STEPS = 100_000_000  # communication steps per run: more is refused (days of wall clock)
 FILE_SUFFIXES = (".toml",)  # a String start value ending so names a file (vehicle sets)
 StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
+Algorithm = Literal["jacobi", "gauss-seidel", "adaptive"]
+Extrapolation = Literal["none", "linear", "quadratic"]
+# What a scenario's exchanged values do across a step when it says nothing: extrapolated
+# (second order) unless the file names its algorithm as "jacobi" or "gauss-seidel", which
+# keeps the held values of the files written before extrapolation existed.
+DEFAULT_EXTRAPOLATION: Extrapolation = "quadratic"
+EXTRAPOLATION_ORDER: Mapping[str, int] = {"none": 0, "linear": 1, "quadratic": 2}
+DEFAULT_TOLERANCE = 1e-3  # adaptive: the error a step may make, relative (docs/coupling.md)
+DEFAULT_MAX_STEPS = 64  # adaptive: the longest step in communication steps, by default
 _NAME = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
 _PLAIN_NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"  # a scenario id: a safe folder name
 # A stop time within this fraction of a step of a whole number of steps counts as whole.
@@ -68,9 +78,18 @@ _STEP_TOLERANCE = 1e-9
 
 class CouplingSpec(Strict):
     step: float = Field(gt=0.0, allow_inf_nan=False, description="communication step h, s")
-    algorithm: Literal["jacobi", "gauss-seidel"] = "gauss-seidel"
+    algorithm: Algorithm = "gauss-seidel"
     order: list[_NAME] | None = Field(default=None, description="Gauss-Seidel order")
     step_multiples: dict[_NAME, Annotated[int, Field(ge=1)]] = Field(default_factory=dict)
+    extrapolation: Extrapolation | None = Field(
+        default=None, description="inputs across a step; default: see DEFAULT_EXTRAPOLATION"
+    )
+    tolerance: float | None = Field(
+        default=None, gt=0.0, lt=1.0, allow_inf_nan=False, description="adaptive: error"
+    )
+    max_step: float | None = Field(
+        default=None, gt=0.0, allow_inf_nan=False, description="adaptive: longest step, s"
+    )
 
 
 class InstanceSpec(Strict):
@@ -139,12 +158,21 @@ class Connection:
 
 @dataclass(frozen=True)
 class Coupling:
-    """How the master advances the instances (see ``cosim.engine.master``)."""
+    """How the master advances the instances (see ``cosim.engine.master``;
+    docs/coupling.md)."""
 
-    step: float  # s, communication step h
-    algorithm: Literal["jacobi", "gauss-seidel"]
+    step: float  # s, communication step h (adaptive: the first step and the grid unit)
+    algorithm: Algorithm
     order: tuple[str, ...]  # Gauss-Seidel order; every instance once
     step_multiples: Mapping[str, int]  # instance -> k: it steps every k*h
+    extrapolation: Extrapolation = "none"  # exchanged Real values across a step
+    tolerance: float | None = None  # adaptive: relative error a step may make
+    max_step: float | None = None  # adaptive: the longest step, s
+
+    @property
+    def extrapolation_order(self) -> int:
+        """0 (values held over a step), 1 (linear) or 2 (quadratic)."""
+        return EXTRAPOLATION_ORDER[self.extrapolation]
 
 
 @dataclass(frozen=True)
@@ -195,9 +223,12 @@ class Scenario:
     rrd: bool
     spec: ScenarioSpec = dataclasses.field(repr=False, compare=False)
     fmu_dir: Path = dataclasses.field(repr=False, compare=False, default=DEFAULT_FMU_DIR)
+    # where relative paths in it are resolved from (its file's folder, or the caller's)
+    base_dir: Path | None = dataclasses.field(repr=False, compare=False, default=None)
     manoeuvre: str | None = None  # a cosim.metrics.manoeuvres kind: metrics in the summary
     events: tuple[Event, ...] = ()  # cosim.scenario.timeline_spec
     faults: tuple[Fault, ...] = ()
+    unrecorded: tuple[str, ...] = ()  # outputs left out of the default record (String)
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -229,31 +260,36 @@ class Scenario:
         stop_time: float | None = None,
         step: float | None = None,
         algorithm: str | None = None,
+        extrapolation: str | None = None,
+        tolerance: float | None = None,
     ) -> Scenario:
         """A re-validated copy with the command line's overrides applied.
 
         A new step also moves every instance's ``design_step`` start value that equalled
         that instance's old communication step (a sampled controller designed for the step
         it runs at, like the autopilot's discrete LQR), so ``--step`` never leaves a
-        controller designed for another sample time.
+        controller designed for another sample time; an instance with a ``sample_period``
+        of its own (a digital controller) keeps both.
         """
         coupling: dict[str, Any] = {}
-        if step is not None:
-            coupling["step"] = step
-        if algorithm is not None:
-            coupling["algorithm"] = algorithm
+        given = {"step": step, "algorithm": algorithm, "extrapolation": extrapolation,
+                 "tolerance": tolerance}  # fmt: skip
+        coupling.update({key: value for key, value in given.items() if value is not None})
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
+        if "algorithm" not in self.spec.coupling.model_fields_set:
+            data["coupling"].pop("algorithm")  # unnamed: the extrapolation keeps its default
         data["coupling"].update(coupling)
         if step is not None:
             for name, instance in data.get("instances", {}).items():
                 multiple = self.coupling.step_multiples.get(name, 1)
                 start = instance.get("start", {})
-                if start.get("design_step") == self.coupling.step * multiple:
+                digital = start.get("sample_period", 0.0) > 0.0
+                if start.get("design_step") == self.coupling.step * multiple and not digital:
                     start["design_step"] = step * multiple
         if stop_time is not None:
             data["stop_time"] = stop_time
-        given = {"stop_time": stop_time, "coupling.step": step, "coupling.algorithm": algorithm}
-        overrides = ", ".join(f"{k} = {v!r}" for k, v in given.items() if v is not None)
+        named = {"stop_time": stop_time, **{f"coupling.{k}": v for k, v in given.items()}}
+        overrides = ", ".join(f"{k} = {v!r}" for k, v in named.items() if v is not None)
         return self._revalidated(data, f"{self.source or self.id} (with the override {overrides})")
 
     def with_start(self, values: Mapping[str, StartValue]) -> Scenario:
@@ -280,7 +316,7 @@ class Scenario:
     def _revalidated(self, data: dict[str, Any], where: str) -> Scenario:
         """The scenario of the changed file data ``data``, checked like a file."""
         spec = _validate_spec(data, where)
-        base_dir = self.source.parent if self.source else Path.cwd()
+        base_dir = self.base_dir or (self.source.parent if self.source else Path.cwd())
         return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, Source(where))
 
     def to_toml(self) -> str:
@@ -289,12 +325,7 @@ class Scenario:
             "id": self.id,
             "summary": self.summary,
             "stop_time": self.stop_time,
-            "coupling": {
-                "step": self.coupling.step,
-                "algorithm": self.coupling.algorithm,
-                "order": list(self.coupling.order),
-                "step_multiples": dict(self.coupling.step_multiples),
-            },
+            "coupling": _coupling_table(self.coupling),
             "instances": {
                 name: {"fmu": inst.fmu, "start": dict(inst.start)}
                 for name, inst in self.instances.items()
@@ -319,6 +350,20 @@ class Scenario:
             "# out; run it with `auv-cosim run <this file>`.\n"
         )
         return header + tomli_w.dumps(data)
+
+
+def _coupling_table(coupling: Coupling) -> dict[str, Any]:
+    """``[coupling]`` as :meth:`Scenario.to_toml` writes it: every key spelled out."""
+    table: dict[str, Any] = {
+        "step": coupling.step,
+        "algorithm": coupling.algorithm,
+        "order": list(coupling.order),
+        "step_multiples": dict(coupling.step_multiples),
+        "extrapolation": coupling.extrapolation,
+    }
+    if coupling.algorithm == "adaptive":
+        table.update(tolerance=coupling.tolerance, max_step=coupling.max_step)
+    return table
 
 
 # --- loading -----------------------------------------------------------------------------
@@ -460,13 +505,12 @@ def _resolve(
     src: Source,
 ) -> Scenario:
     _check_step_count(spec, src)
-    names = list(spec.instances)
     instances = {
         name: _resolve_instance(name, inst, base_dir, fmu_dir, src)
         for name, inst in spec.instances.items()
     }
-    coupling = _resolve_coupling(spec, names, src)
     connections = _resolve_connections(spec.connections, instances, src)
+    coupling = _resolve_coupling(spec, instances, connections, src)
     driven = {c.target: c.source for c in connections}
     for name, inst in instances.items():
         for var_name in inst.start:
@@ -489,10 +533,13 @@ def _resolve(
         rrd=spec.output.rrd,
         spec=spec,
         fmu_dir=fmu_dir,
+        base_dir=base_dir,
     )
     record = _resolve_record(spec.output.record, scenario, src)
     _check_manoeuvre(spec.manoeuvre, record, src)
-    scenario = dataclasses.replace(scenario, record=record, manoeuvre=spec.manoeuvre)
+    scenario = dataclasses.replace(
+        scenario, record=record, manoeuvre=spec.manoeuvre, unrecorded=_unrecorded(scenario)
+    )
     scenario = dataclasses.replace(
         scenario,
         events=resolve_events(spec.events, scenario, base_dir, src),
@@ -603,16 +650,92 @@ def _existing_file(value: str, base_dir: Path, key: str, src: Source) -> Path:
     return path
 
 
-def _resolve_coupling(spec: ScenarioSpec, names: list[str], src: Source) -> Coupling:
-    c = spec.coupling
-    order = tuple(c.order) if c.order is not None else tuple(names)
+def _resolve_coupling(
+    spec: ScenarioSpec,
+    instances: Mapping[str, Instance],
+    connections: list[Connection],
+    src: Source,
+) -> Coupling:
+    """The coupling as written, its defaults filled in (docs/coupling.md): the order the
+    connections imply, the extrapolation, the adaptive algorithm's tolerance and longest
+    step; an algebraic loop is refused, naming it."""
+    c, names = spec.coupling, list(instances)
+    passes = {name: feedthrough(inst.model_description) for name, inst in instances.items()}
+    pairs = [(conn.source, conn.target) for conn in connections]
+    loop = algebraic_loop(passes, pairs)
+    if loop is not None:
+        raise src.error(
+            "connections",
+            f"algebraic loop {' -> '.join(loop)}: every output in it depends directly on the "
+            "input before it (the FMUs' ModelStructure), so no order gives each instance its "
+            "inputs at the same point; remove one of its connections",
+        )
+    order = tuple(c.order) if c.order is not None else connection_order(names, passes, pairs)
     if sorted(order) != sorted(names):
         raise src.error("coupling.order", f"{list(order)} must name every instance {names} once")
     for name in c.step_multiples:
         if name not in names:
             raise src.error(f"coupling.step_multiples.{name}", f"no instance {name!r} in {names}")
     multiples = {name: c.step_multiples.get(name, 1) for name in names}
-    return Coupling(step=c.step, algorithm=c.algorithm, order=order, step_multiples=multiples)
+    adaptive = c.algorithm == "adaptive"
+    for key in ("tolerance", "max_step"):
+        if getattr(c, key) is not None and not adaptive:
+            raise src.error(f"coupling.{key}", f"applies to algorithm = 'adaptive' only, "
+                            f"not {c.algorithm!r}")  # fmt: skip
+    if c.extrapolation is not None:
+        extrapolation = c.extrapolation
+    elif "algorithm" in c.model_fields_set and not adaptive:
+        extrapolation = "none"  # a file naming its algorithm keeps the held values
+    else:
+        extrapolation = DEFAULT_EXTRAPOLATION
+    coupling = Coupling(
+        step=c.step,
+        algorithm=c.algorithm,
+        order=order,
+        step_multiples=multiples,
+        extrapolation=extrapolation,
+        tolerance=(c.tolerance or DEFAULT_TOLERANCE) if adaptive else None,
+        max_step=(c.max_step or DEFAULT_MAX_STEPS * c.step) if adaptive else None,
+    )
+    _check_step_sizes(spec, coupling, instances, src)
+    return coupling
+
+
+def _check_step_sizes(
+    spec: ScenarioSpec, coupling: Coupling, instances: Mapping[str, Instance], src: Source
+) -> None:
+    """What the FMUs' co-simulation capabilities allow: an FMU that cannot change its
+    step (``canHandleVariableCommunicationStepSize="false"``) steps k h to the stop time
+    without a shorter last step, and never under the adaptive algorithm, which also rolls
+    every FMU back (``canGetAndSetFMUstate``)."""
+    for name, inst in instances.items():
+        cs = inst.model_description.coSimulation
+        k = coupling.step_multiples[name]
+        if coupling.algorithm == "adaptive":
+            if coupling.max_step is not None and coupling.max_step < coupling.step:
+                raise src.error(
+                    "coupling.max_step",
+                    f"{coupling.max_step!r} s is shorter than coupling.step = {coupling.step!r} s",
+                )
+            for flag in ("canHandleVariableCommunicationStepSize", "canGetAndSetFMUstate"):
+                if not getattr(cs, flag):
+                    raise src.error(
+                        "coupling.algorithm",
+                        f"'adaptive' changes every step and rolls rejected steps back, but "
+                        f'{name} ({inst.fmu_path.name}) declares {flag}="false": use '
+                        "'gauss-seidel' or 'jacobi' with a fixed step",
+                    )
+            continue
+        steps = spec.stop_time / (k * coupling.step)
+        whole = abs(steps - round(steps)) <= _STEP_TOLERANCE * max(1.0, steps)
+        if not cs.canHandleVariableCommunicationStepSize and not whole:
+            raise src.error(
+                "stop_time",
+                f"{spec.stop_time!r} s is not a whole number of {name}'s steps of "
+                f"{k * coupling.step!r} s, and {name} ({inst.fmu_path.name}) declares "
+                'canHandleVariableCommunicationStepSize="false": its last step cannot be '
+                "shortened; choose a stop time that is a multiple of its step",
+            )
 
 
 def _resolve_connections(
@@ -641,10 +764,8 @@ def _resolve_connections(
             )
         if src_inst == tgt_inst:
             raise src.error(key, f"{conn.from_!r} -> {conn.to!r} connects an instance to itself")
-        if source.type != "Real" or target.type != "Real":
-            raise src.error(
-                key, f"only Real connections are supported ({source.type} -> {target.type})"
-            )
+        if not _connectable(source.type, target.type):
+            raise src.error(key, _type_mismatch(source.type, target.type))
         if conn.to in added:
             raise src.error(
                 f"{key}.to",
@@ -667,7 +788,8 @@ def _same_name_connections(instances: Mapping[str, Instance], src: Source) -> di
                 if name != target
                 and (out := inst.interface.variables.get(var.name)) is not None
                 and out.causality == "output"
-                and out.type == var.type == "Real"
+                and out.type == var.type
+                and _connectable(out.type, var.type)
             ]
             if len(sources) > 1:
                 raise src.error(
@@ -681,27 +803,64 @@ def _same_name_connections(instances: Mapping[str, Instance], src: Source) -> di
     return by_target
 
 
+def _connectable(source: str, target: str) -> bool:
+    """An output of FMI type ``source`` can drive an input of type ``target``: the same
+    numeric type (an Enumeration is an Integer on the wire); not a String."""
+    integer = ("Integer", "Enumeration")
+    return source != "String" and (source == target or (source in integer and target in integer))
+
+
+def _type_mismatch(source: str, target: str) -> str:
+    if "String" in (source, target):
+        return (
+            f"{source} -> {target}: String values are not exchanged (the master exchanges "
+            "Real, Integer, Enumeration and Boolean values)"
+        )
+    return f"{source} -> {target}: an output drives an input of its own type only"
+
+
+RECORDABLE = ("Real", "Integer", "Enumeration", "Boolean")  # results.csv holds numbers
+
+
 def _resolve_record(record: list[str] | None, scenario: Scenario, src: Source) -> tuple[str, ...]:
+    """The recorded columns: ``record`` checked, or every output and unconnected input
+    whose type results.csv can hold (Booleans as 0 and 1)."""
     if record is None:
         columns = []
         for name, inst in scenario.instances.items():
-            columns += [f"{name}.{v.name}" for v in inst.variables("output") if v.type == "Real"]
+            columns += [
+                f"{name}.{v.name}" for v in inst.variables("output") if v.type in RECORDABLE
+            ]
             unconnected = set(scenario.unconnected_inputs(name))
             columns += [
                 f"{name}.{v.name}"
                 for v in inst.variables("input")
-                if v.name in unconnected and v.type == "Real"
+                if v.name in unconnected and v.type in RECORDABLE
             ]
         return tuple(columns)
     for i, ref in enumerate(record):
         _, var = split_ref(ref, scenario.instances, f"output.record[{i}]", src)
-        if var.type != "Real":
+        if var.type not in RECORDABLE:
             raise src.error(
-                f"output.record[{i}]", f"{ref!r} is {var.type}; only Real variables are recorded"
+                f"output.record[{i}]",
+                f"{ref!r} is {var.type}: results.csv holds numbers, so "
+                f"{', '.join(RECORDABLE)} variables are recorded, not {var.type} ones",
             )
     if len(set(record)) != len(record):
         raise src.error("output.record", "lists a variable twice")
     return tuple(record)
+
+
+def _unrecorded(scenario: Scenario) -> tuple[str, ...]:
+    """The outputs a scenario without ``output.record`` leaves out (String ones)."""
+    if scenario.spec.output.record is not None:
+        return ()
+    return tuple(
+        f"{name}.{v.name}"
+        for name, inst in scenario.instances.items()
+        for v in inst.variables("output")
+        if v.type not in RECORDABLE
+    )
 
 
 # --- FMU look-up (no FMU is loaded here) -------------------------------------------------

@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, StrictBool, StrictFloat, StrictInt
+from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
 from cosim.scenario.checks import Source, Strict, check_value, split_ref
 
@@ -72,7 +72,7 @@ _FAULT_KEYS = {  # the optional keys each kind takes
 }  # fmt: skip
 _REQUIRED = {"bias": "value", "gain": "value", "noise": "std", "delay": "steps",
              "dropout": "probability"}  # fmt: skip
-SetValue = StrictBool | StrictInt | StrictFloat
+SetValue = StrictBool | StrictInt | StrictFloat | StrictStr
 
 
 class EventSpec(Strict):
@@ -139,7 +139,7 @@ class Event:
     time: float | None = None  # s
     when: Condition | None = None
     repeat: bool = False
-    set: Mapping[str, bool | int | float] = field(default_factory=dict)
+    set: Mapping[str, bool | int | float | str] = field(default_factory=dict)
     ramp: float | None = None  # s
     series: Series | None = None
 
@@ -196,7 +196,7 @@ def resolve_events(
         when = _condition(spec.when, scenario, f"{key}.when", src) if spec.when else None
         series = _series(spec, scenario, base_dir, f"{key}.series", src) if spec.series else None
         values = {
-            ref: settable(ref, value, scenario, f"{key}.set.{ref}", spec.ramp is not None, src)
+            ref: event_value(ref, value, scenario, f"{key}.set.{ref}", spec.ramp is not None, src)
             for ref, value in (spec.set or {}).items()
         }
         event = Event(name, spec.time, when, bool(spec.repeat), values, spec.ramp, series)
@@ -245,6 +245,17 @@ def _condition(text: str, scenario: Any, key: str, src: Source) -> Condition:
 def settable(
     ref: str, value: Any, scenario: Any, key: str, ramp: bool, src: Source
 ) -> bool | int | float:
+    """The number a live override or a ramp writes to ``ref`` (:func:`event_value`; a
+    String variable is refused: those take an event's ``set`` only)."""
+    checked = event_value(ref, value, scenario, key, ramp, src)
+    if isinstance(checked, str):
+        raise src.error(key, f"{ref} is String: set it with an event's set, not here")
+    return checked
+
+
+def event_value(
+    ref: str, value: Any, scenario: Any, key: str, ramp: bool, src: Source
+) -> bool | int | float | str:
     """The value an event writes to ``ref``: an unconnected input or a tunable parameter."""
     _, var = split_ref(ref, scenario.instances, key, src)
     driven = {c.target: c.source for c in scenario.connections}
@@ -259,10 +270,9 @@ def settable(
             f"{ref} is a {var.variability} {var.causality}: expected an unconnected input or "
             "a tunable parameter",
         )
-    if var.type == "String" or (ramp and var.type != "Real"):
-        what = "a ramp" if ramp else "an event"
-        raise src.error(key, f"{ref} is {var.type}: {what} sets Real, Integer or Boolean ones")
-    return check_value(value, var, key, src)  # type: ignore[return-value]
+    if ramp and var.type != "Real":
+        raise src.error(key, f"{ref} is {var.type}: a ramp sets Real variables only")
+    return check_value(value, var, key, src)
 
 
 def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Source) -> Series:

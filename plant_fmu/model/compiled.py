@@ -2,7 +2,7 @@
 :mod:`plant_fmu.model.dynamics` and :mod:`plant_fmu.model.stepping`, flat and
 allocation-free, compiled with numba (``njit(cache=True)``, no fastmath).
 
-Why by hand: no library compiles a pydantic/numpy model like ours; the reference
+Why by hand: no library compiles a numpy model like ours; the reference
 (:class:`~plant_fmu.model.dynamics.PlantModel`) stays the readable source of truth, and
 this module writes the same equations term by term in the same order of operations, on a
 flat float64 parameter array built once from the model (:func:`flat_parameters`, which
@@ -35,7 +35,13 @@ import numpy as np
 # tree and every build.
 from .dynamics import PlantModel
 from .jit import load_numba
-from .state_layout import CURRENT, N_STATES, N_STEP_STATES, QUATERNION_CHART_PITCH
+from .state_layout import (
+    CURRENT,
+    N_INPUTS,
+    N_STATES,
+    N_STEP_STATES,
+    QUATERNION_CHART_PITCH,
+)
 
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
@@ -524,10 +530,62 @@ def _stage(
 
 
 # The scratch array of :func:`advance_into` and :func:`step_into` (float64): R (3x3), work
-# (5x6), the stage state (18), the RK4 slopes k1..k4 (4x18), the new stepping state (18).
-_SCRATCH_R, _SCRATCH_WORK, _SCRATCH_Y, _SCRATCH_K, _SCRATCH_Z = 0, 9, 39, 57, 129
-STEP_SCRATCH = _SCRATCH_Z + 18
+# (5x6), the stage state (18), the RK4 slopes k1..k4 (4x18), the new stepping state (18),
+# the inputs at a sub-step's start, middle and end when they vary (3 x inputs).
+_SCRATCH_R, _SCRATCH_WORK, _SCRATCH_Y, _SCRATCH_K, _SCRATCH_Z, _SCRATCH_U = 0, 9, 39, 57, 129, 147
+STEP_SCRATCH = _SCRATCH_U + 3 * N_INPUTS
 CURRENT_CHANGED = 4  # step_into: the currents changed since the last step, nothing done
+_CURRENT_START = CURRENT.start  # the first current input (north, east, down follow)
+
+
+@_jit
+def _substep(
+    p: np.ndarray,
+    z: np.ndarray,
+    u0: np.ndarray,
+    u1: np.ndarray,
+    u2: np.ndarray,
+    dt: float,
+    scratch: tuple[np.ndarray, np.ndarray, np.ndarray],
+    stages: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """One RK4 sub-step of dt s on z in place, the inputs u0 at its start, u1 at its
+    middle and u2 at its end (all three the same when held), projected, the attitude chart
+    it did not integrate refreshed (``stepping._substep``)."""
+    R, work, _ = scratch
+    k1, k2, k3, k4 = stages
+    half, sixth = 0.5 * dt, dt / 6.0
+    quaternion = _quaternion_chart(p, z)
+    a0, a2 = z[3], z[5]
+    step_derivative_into(p, z, u0, R, work, k1, quaternion)
+    _stage(p, z, k1, half, u1, scratch, k2, quaternion)
+    _stage(p, z, k2, half, u1, scratch, k3, quaternion)
+    _stage(p, z, k3, dt, u2, scratch, k4, quaternion)
+    for i in range(18):
+        z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    project(p, z, True)
+    if quaternion:
+        _euler_from_quaternion(z, R, a0, a2)
+    else:
+        _quaternion_from_euler(z[3], z[4], z[5], z)
+
+
+@_jit
+def _inputs_at(inputs: np.ndarray, rates: np.ndarray, tau: float, out: np.ndarray) -> None:
+    """out = the inputs tau seconds into the step: u + tau u' + tau^2 / 2 u''."""
+    for i in range(inputs.size):
+        out[i] = inputs[i] + tau * rates[0, i] + 0.5 * tau * tau * rates[1, i]
+
+
+@_jit
+def varies(rates: np.ndarray) -> bool:
+    """True if some input has a first time derivative other than 0 in ``rates``
+    (2 x inputs): the step then follows them, else it holds every input."""
+    varying = False  # (a loop, not any(): numba compiles no generator into this)
+    for i in range(rates.shape[1]):
+        if rates[0, i] != 0.0:
+            varying = True
+    return varying
 
 
 @_jit
@@ -536,18 +594,24 @@ def advance_into(
     x: np.ndarray,
     z: np.ndarray,
     inputs: np.ndarray,
+    rates: np.ndarray,
+    varying: bool,
     n: int,
     dt: float,
     scratch: np.ndarray,
 ) -> int:
     """z = the stepping state n RK4 steps of dt seconds after x (a state or a stepping
     state), projected after each stage, each sub-step in the attitude chart its start
-    picks and the other chart refreshed at its end, like ``stepping.advance``; its
-    working arrays are slices of ``scratch`` (:data:`STEP_SCRATCH` values), so it
-    allocates nothing. Returns 0, or 1 for a non-finite input, 2 for a non-finite state
-    or a zero quaternion, 3 for a state that became non-finite."""
+    picks and the other chart refreshed at its end, like ``stepping.advance``: the inputs
+    held, or (``varying``) following ``rates`` (2 x inputs: their first and second time
+    derivatives at the step's start), each RK4 stage taking the inputs at its own time.
+    Its working arrays are slices of ``scratch`` (:data:`STEP_SCRATCH` values), so it
+    allocates nothing. Returns 0, or 1 for a non-finite input or rate, 2 for a non-finite
+    state or a zero quaternion, 3 for a state that became non-finite."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
+            return 1
+        if varying and not (math.isfinite(rates[0, i]) and math.isfinite(rates[1, i])):
             return 1
     for i in range(x.size):
         if not math.isfinite(x[i]):
@@ -557,25 +621,21 @@ def advance_into(
     R = scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3))
     work = scratch[_SCRATCH_WORK:_SCRATCH_Y].reshape((5, 6))
     y = scratch[_SCRATCH_Y:_SCRATCH_K]
-    scratch_ = (R, work, y)
     slopes = scratch[_SCRATCH_K:_SCRATCH_Z].reshape((4, 18))
-    k1, k2, k3, k4 = slopes[0], slopes[1], slopes[2], slopes[3]
-    half, sixth = 0.5 * dt, dt / 6.0
+    stages = (slopes[0], slopes[1], slopes[2], slopes[3])
+    m = inputs.size
+    u0 = scratch[_SCRATCH_U : _SCRATCH_U + m]
+    u1 = scratch[_SCRATCH_U + m : _SCRATCH_U + 2 * m]
+    u2 = scratch[_SCRATCH_U + 2 * m : _SCRATCH_U + 3 * m]
     project(p, z, False)
-    for _ in range(n):
-        quaternion = _quaternion_chart(p, z)
-        a0, a2 = z[3], z[5]
-        step_derivative_into(p, z, inputs, R, work, k1, quaternion)
-        _stage(p, z, k1, half, inputs, scratch_, k2, quaternion)
-        _stage(p, z, k2, half, inputs, scratch_, k3, quaternion)
-        _stage(p, z, k3, dt, inputs, scratch_, k4, quaternion)
-        for i in range(18):
-            z[i] = z[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-        project(p, z, True)
-        if quaternion:
-            _euler_from_quaternion(z, R, a0, a2)
+    for j in range(n):
+        if varying:
+            _inputs_at(inputs, rates, j * dt, u0)
+            _inputs_at(inputs, rates, j * dt + 0.5 * dt, u1)
+            _inputs_at(inputs, rates, (j + 1) * dt, u2)
+            _substep(p, z, u0, u1, u2, dt, (R, work, y), stages)
         else:
-            _quaternion_from_euler(z[3], z[4], z[5], z)
+            _substep(p, z, inputs, inputs, inputs, dt, (R, work, y), stages)
     for i in range(18):
         if not math.isfinite(z[i]):
             return 3
@@ -615,6 +675,7 @@ def outputs_into(
 def step_into(
     p: np.ndarray,
     inputs: np.ndarray,
+    rates: np.ndarray,
     x: np.ndarray,
     derived: np.ndarray,
     last_current: np.ndarray,
@@ -624,26 +685,29 @@ def step_into(
 ) -> int:
     """One communication step of the plant FMU, in place: the stepping state x (18) n RK4
     steps of dt seconds on (:func:`advance_into`), then its derived outputs into
-    ``derived`` (:func:`outputs_into`), the inputs held. Nothing is allocated: the FMU
-    passes views of its value buffers and a preallocated ``scratch``
-    (:data:`STEP_SCRATCH`). Returns 0; or, with nothing changed, :data:`CURRENT_CHANGED`
-    when the current inputs differ from ``last_current`` (the velocity jump of a current
-    change is computed by the reference, ``PlantModel.current_change_velocity_jump``), or
-    :func:`advance_into`'s code of a non-finite input or state."""
+    ``derived`` (:func:`outputs_into`). ``rates`` (2 x inputs) are the input derivatives
+    the importer set for this step: the currents' are set to 0 here (the currents are held
+    over a step), and the step follows the others when one of their first derivatives is
+    not 0 (:func:`varies`), else holds every input. Nothing is allocated: the FMU passes
+    views of its value buffers and a preallocated ``scratch`` (:data:`STEP_SCRATCH`).
+    Returns 0; or, with nothing changed, :data:`CURRENT_CHANGED` when the current inputs
+    differ from ``last_current`` (the velocity jump of a current change is computed by the
+    reference, ``PlantModel.current_change_velocity_jump``), or :func:`advance_into`'s
+    code of a non-finite input, rate or state."""
     for i in range(3):
         if inputs[_CURRENT_START + i] != last_current[i]:
             return CURRENT_CHANGED
-    z = scratch[_SCRATCH_Z:STEP_SCRATCH]
-    status = advance_into(p, x, z, inputs, n, dt, scratch)
+    for i in range(3):
+        rates[0, _CURRENT_START + i] = 0.0
+        rates[1, _CURRENT_START + i] = 0.0
+    z = scratch[_SCRATCH_Z:_SCRATCH_U]
+    status = advance_into(p, x, z, inputs, rates, varies(rates), n, dt, scratch)
     if status != 0:
         return status
     for i in range(18):
         x[i] = z[i]
     outputs_into(p, x, inputs, scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3)), derived)
     return 0
-
-
-_CURRENT_START = CURRENT.start  # the first current input (north, east, down follow)
 
 
 class CompiledPlant:
@@ -657,6 +721,7 @@ class CompiledPlant:
         self.parameters = flat_parameters(model)
         self._R, self._work = np.empty((3, 3)), np.empty((5, 6))
         self._scratch = np.empty(STEP_SCRATCH)
+        self._no_rates = np.zeros((2, N_INPUTS))  # (not read when the inputs are held)
 
     def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """``PlantModel.derivative`` (a new array)."""
@@ -677,20 +742,42 @@ class CompiledPlant:
         outputs_into(self.parameters, z, inputs, self._R, out)
         return out.tolist()
 
-    def advance(self, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float) -> int:
+    def advance(
+        self,
+        x: np.ndarray,
+        z: np.ndarray,
+        inputs: np.ndarray,
+        n: int,
+        dt: float,
+        rates: np.ndarray | None = None,
+    ) -> int:
         """z (a float64 stepping state) = n RK4 steps of dt s after x (a state or a
-        stepping state); :func:`advance_into`'s code."""
-        return advance_into(self.parameters, x, z, inputs, n, dt, self._scratch)
+        stepping state); :func:`advance_into`'s code, the inputs held, or following
+        ``rates`` (the inputs' derivatives, 2 x inputs) when given."""
+        varying = rates is not None
+        held = self._no_rates if rates is None else rates
+        return advance_into(self.parameters, x, z, inputs, held, varying, n, dt, self._scratch)
 
-    def warm_up(self, x: np.ndarray, inputs: np.ndarray) -> None:
+    def warm_up(self, x: np.ndarray, inputs: np.ndarray, rates: np.ndarray | None = None) -> None:
         """Compile (or load from numba's cache) every function a step calls, by one RK4
-        step of 1 ms on copies of ``x`` and ``inputs``: numba compiles on a function's
-        first call, which would otherwise be the first doStep (seconds on a first run,
-        ~0.5 s of cache loading later), counted as stepping time."""
+        step of 1 ms on copies of ``x``, ``inputs`` and ``rates`` (the FMU's input
+        derivatives, 2 x inputs, of the array type the FMU steps with), held and with
+        input derivatives: numba compiles on a function's first call, which would
+        otherwise be the first doStep (seconds on a first run, ~0.5 s of cache loading
+        later), counted as stepping time."""
         z = np.empty(N_STEP_STATES)
         x, inputs = np.array(x, dtype=float), np.array(inputs, dtype=float)
         self.advance(x, z, inputs, 1, 1e-3)
-        if len(x) == N_STEP_STATES:  # and the FMU's step, on arrays of the same types
+        self.advance(x, z, inputs, 1, 1e-3, np.zeros((2, inputs.size)))  # input derivatives
+        if len(x) == N_STEP_STATES and rates is not None:  # and the FMU's step, same types
             last_current = inputs[CURRENT].copy()
             scratch = np.empty(STEP_SCRATCH)
-            step_into(self.parameters, inputs, x, np.empty(4), last_current, scratch, 1, 1e-3)
+            rates = rates.copy() if rates.flags.c_contiguous else _strided_zeros(rates.shape)
+            step_into(self.parameters, inputs, rates, x, np.empty(4), last_current, scratch, 1,
+                      1e-3)  # fmt: skip
+
+
+def _strided_zeros(shape: tuple[int, ...]) -> np.ndarray:
+    """Zeros of ``shape`` (2, m) in a non-contiguous array, as numba types a view of some
+    of the FMU's derivative buffer's columns."""
+    return np.zeros((shape[0], shape[1] + 1))[:, : shape[1]]

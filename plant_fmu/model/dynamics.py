@@ -258,8 +258,8 @@ class PlantModel:
         rg_w_v = cross(r_g, w_x_v)
         w_I_w = cross(w, (params.I_xx * w[0], params.I_yy * w[1], params.I_zz * w[2]))
         return np.array(
-            [params.m * (a + b) for a, b in zip(w_x_v, w_w_rg, strict=True)]
-            + [params.m * a + b for a, b in zip(rg_w_v, w_I_w, strict=True)]
+            [params.m * (a + b) for a, b in zip(w_x_v, w_w_rg)]
+            + [params.m * a + b for a, b in zip(rg_w_v, w_I_w)]
         )
 
     def coriolis_added_mass(self, nu_r: Sequence[float]) -> np.ndarray:
@@ -269,8 +269,7 @@ class PlantModel:
         lin, ang = impulse[:3], impulse[3:]
         u, w = nu_r[:3], nu_r[3:]
         return np.array(
-            [-a for a in cross(lin, w)]
-            + [-a - b for a, b in zip(cross(lin, u), cross(ang, w), strict=True)]
+            [-a for a in cross(lin, w)] + [-a - b for a, b in zip(cross(lin, u), cross(ang, w))]
         )
 
     def viscous(self, nu_r: Sequence[float] | np.ndarray) -> np.ndarray:

@@ -18,22 +18,50 @@ from plant_fmu.model.kinematics import skew
 
 
 class InertiaParameters(Protocol):
-    """The fields of a parameter set the mass matrices use (SI, body origin at the CB)."""
+    """The fields of a parameter set the mass matrices use (SI, body origin at the CB),
+    read-only (a parameter set is frozen)."""
 
-    m: float
-    x_g: float
-    z_g: float
-    I_xx: float
-    I_yy: float
-    I_zz: float
-    a11: float
-    a22: float
-    a33: float
-    a44: float
-    a55: float
-    a66: float
-    a26: float
-    a35: float
+    @property
+    def m(self) -> float: ...
+
+    @property
+    def x_g(self) -> float: ...
+
+    @property
+    def z_g(self) -> float: ...
+
+    @property
+    def I_xx(self) -> float: ...
+
+    @property
+    def I_yy(self) -> float: ...
+
+    @property
+    def I_zz(self) -> float: ...
+
+    @property
+    def a11(self) -> float: ...
+
+    @property
+    def a22(self) -> float: ...
+
+    @property
+    def a33(self) -> float: ...
+
+    @property
+    def a44(self) -> float: ...
+
+    @property
+    def a55(self) -> float: ...
+
+    @property
+    def a66(self) -> float: ...
+
+    @property
+    def a26(self) -> float: ...
+
+    @property
+    def a35(self) -> float: ...
 
 
 def rigid_body_mass_matrix(params: InertiaParameters) -> np.ndarray:

@@ -17,92 +17,99 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from plant_fmu.model import vehicle_toml
 from plant_fmu.model.inertia import added_mass_matrix, rigid_body_mass_matrix
+from plant_fmu.model.validated import CheckedRecord, checked_field
 
 
 class VehicleParameterError(ValueError):
     """A parameter set is missing, unknown, or holds a value outside its allowed range."""
 
 
-class VehicleParameters(BaseModel):
-    """Physical parameters of one vehicle variant (SI units, body origin at the CB)."""
+@dataclass(frozen=True)
+class VehicleParameters(CheckedRecord):
+    """Physical parameters of one vehicle variant (SI units, body origin at the CB).
 
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+    Validated and immutable (:class:`plant_fmu.model.validated.CheckedRecord`: every field
+    is checked against its range when a set is made, then the mass matrix), hashable.
+    """
 
-    name: str = "custom"
-    description: str = ""
+    error_type = VehicleParameterError
+
+    name: str = checked_field("custom", description="name of the set")
+    description: str = checked_field("", description="what the set is")
 
     # Rigid body (Table 4.1)
-    m: float = Field(gt=0.0, description="vehicle mass, kg")
-    W: float = Field(gt=0.0, description="weight, N (m g; a set that differs says why)")
-    B: float = Field(gt=0.0, description="buoyancy, N")
-    g: float = Field(gt=0.0, description="gravitational acceleration, m/s^2 (one for all)")
-    I_xx: float = Field(gt=0.0, description="roll inertia about the origin, kg m^2")
-    I_yy: float = Field(gt=0.0, description="pitch inertia about the origin, kg m^2")
-    I_zz: float = Field(gt=0.0, description="yaw inertia about the origin, kg m^2")
-    x_g: float = Field(description="x of the centre of gravity, m")
-    z_g: float = Field(description="z of the centre of gravity (down positive), m")
-    length: float = Field(gt=0.0, description="hull length, m")
-    diameter: float = Field(gt=0.0, description="hull diameter, m")
+    m: float = checked_field(gt=0.0, description="vehicle mass, kg")
+    W: float = checked_field(gt=0.0, description="weight, N (m g; a set that differs says why)")
+    B: float = checked_field(gt=0.0, description="buoyancy, N")
+    g: float = checked_field(gt=0.0, description="gravitational acceleration, m/s^2 (one for all)")
+    I_xx: float = checked_field(gt=0.0, description="roll inertia about the origin, kg m^2")
+    I_yy: float = checked_field(gt=0.0, description="pitch inertia about the origin, kg m^2")
+    I_zz: float = checked_field(gt=0.0, description="yaw inertia about the origin, kg m^2")
+    x_g: float = checked_field(description="x of the centre of gravity, m")
+    z_g: float = checked_field(description="z of the centre of gravity (down positive), m")
+    length: float = checked_field(gt=0.0, description="hull length, m")
+    diameter: float = checked_field(gt=0.0, description="hull diameter, m")
 
     # Added mass (Table 4.1 / 5.1)
-    a11: float = Field(ge=0.0, description="surge added mass, kg")
-    a22: float = Field(ge=0.0, description="sway added mass, kg")
-    a33: float = Field(ge=0.0, description="heave added mass, kg")
-    a44: float = Field(ge=0.0, description="roll added inertia, kg m^2")
-    a55: float = Field(ge=0.0, description="pitch added inertia, kg m^2")
-    a66: float = Field(ge=0.0, description="yaw added inertia, kg m^2")
-    a26: float = Field(description="sway-yaw added mass coupling, kg m")
-    a35: float = Field(description="heave-pitch added mass coupling, kg m")
+    a11: float = checked_field(ge=0.0, description="surge added mass, kg")
+    a22: float = checked_field(ge=0.0, description="sway added mass, kg")
+    a33: float = checked_field(ge=0.0, description="heave added mass, kg")
+    a44: float = checked_field(ge=0.0, description="roll added inertia, kg m^2")
+    a55: float = checked_field(ge=0.0, description="pitch added inertia, kg m^2")
+    a66: float = checked_field(ge=0.0, description="yaw added inertia, kg m^2")
+    a26: float = checked_field(description="sway-yaw added mass coupling, kg m")
+    a35: float = checked_field(description="heave-pitch added mass coupling, kg m")
 
     # Viscous terms (4.2.6)-(4.2.9), Tables 5.1, 5.4, 6.3
-    X_uu: float = Field(description="X_u|u|, kg/m")
-    Y_vv: float = Field(description="Y_v|v|, kg/m")
-    Y_rr: float = Field(description="Y_r|r|, kg m")
-    Y_uv: float = Field(description="Y_uv, kg/m")
-    Y_ur: float = Field(description="Y_ur, kg")
-    N_vv: float = Field(description="N_v|v|, kg")
-    N_rr: float = Field(description="N_r|r|, kg m^2")
-    N_uv: float = Field(description="N_uv, kg")
-    N_ur: float = Field(description="N_ur, kg m")
-    K_p: float = Field(description="linear roll damping K_p, N m s")
-    K_pp: float = Field(description="K_p|p|, kg m^2")
-    Z_ww: float = Field(description="Z_w|w|, kg/m")
-    Z_qq: float = Field(description="Z_q|q|, kg m")
-    Z_uw: float = Field(description="Z_uw, kg/m")
-    Z_uq: float = Field(description="Z_uq, kg")
-    M_ww: float = Field(description="M_w|w|, kg")
-    M_qq: float = Field(description="M_q|q|, kg m^2")
-    M_uw: float = Field(description="M_uw, kg")
-    M_uq: float = Field(description="M_uq, kg m")
+    X_uu: float = checked_field(description="X_u|u|, kg/m")
+    Y_vv: float = checked_field(description="Y_v|v|, kg/m")
+    Y_rr: float = checked_field(description="Y_r|r|, kg m")
+    Y_uv: float = checked_field(description="Y_uv, kg/m")
+    Y_ur: float = checked_field(description="Y_ur, kg")
+    N_vv: float = checked_field(description="N_v|v|, kg")
+    N_rr: float = checked_field(description="N_r|r|, kg m^2")
+    N_uv: float = checked_field(description="N_uv, kg")
+    N_ur: float = checked_field(description="N_ur, kg m")
+    K_p: float = checked_field(description="linear roll damping K_p, N m s")
+    K_pp: float = checked_field(description="K_p|p|, kg m^2")
+    Z_ww: float = checked_field(description="Z_w|w|, kg/m")
+    Z_qq: float = checked_field(description="Z_q|q|, kg m")
+    Z_uw: float = checked_field(description="Z_uw, kg/m")
+    Z_uq: float = checked_field(description="Z_uq, kg")
+    M_ww: float = checked_field(description="M_w|w|, kg")
+    M_qq: float = checked_field(description="M_q|q|, kg m^2")
+    M_uw: float = checked_field(description="M_uw, kg")
+    M_uq: float = checked_field(description="M_uq, kg m")
 
     # Stern planes (Table 6.1), scaled with (u_r / fin_reference_speed)^2
-    Z_ds: float = Field(description="fin heave force per fin angle at the reference speed, N/rad")
-    M_ds: float = Field(
+    Z_ds: float = checked_field(
+        description="fin heave force per fin angle at the reference speed, N/rad"
+    )
+    M_ds: float = checked_field(
         description="fin pitch moment per fin angle at the reference speed, N m/rad"
     )
-    fin_reference_speed: float = Field(gt=0.0, description="speed Z_ds, M_ds hold at, m/s")
+    fin_reference_speed: float = checked_field(gt=0.0, description="speed Z_ds, M_ds hold at, m/s")
 
     # Internal moving mass (6.3.12)-(6.3.16)
-    m_v: float = Field(gt=0.0, description="moving mass, kg")
-    x_v: float = Field(description="x of the moving-mass rail, m")
-    mass_natural_frequency: float = Field(gt=0.0, description="servo omega_n, rad/s")
-    mass_damping_ratio: float = Field(gt=0.0, description="servo damping ratio zeta, 1")
-    mass_stroke: float = Field(gt=0.0, description="rail stop |y_v| <= stroke, m")
-    mass_speed_limit: float = Field(ge=0.0, description="rail speed limit, m/s (0 = off)")
+    m_v: float = checked_field(gt=0.0, description="moving mass, kg")
+    x_v: float = checked_field(description="x of the moving-mass rail, m")
+    mass_natural_frequency: float = checked_field(gt=0.0, description="servo omega_n, rad/s")
+    mass_damping_ratio: float = checked_field(gt=0.0, description="servo damping ratio zeta, 1")
+    mass_stroke: float = checked_field(gt=0.0, description="rail stop |y_v| <= stroke, m")
+    mass_speed_limit: float = checked_field(ge=0.0, description="rail speed limit, m/s (0 = off)")
 
     # Thrusters
-    z_t: float = Field(default=0.0, description="tunnel-thruster z in body axes, m")
+    z_t: float = checked_field(default=0.0, description="tunnel-thruster z in body axes, m")
 
-    @model_validator(mode="after")
-    def _mass_matrix_positive_definite(self) -> VehicleParameters:
+    def _check_record(self) -> None:
         total = rigid_body_mass_matrix(self) + added_mass_matrix(self)
         eigenvalues = np.linalg.eigvalsh(0.5 * (total + total.T))
         if eigenvalues.min() <= 0.0:
@@ -110,7 +117,6 @@ class VehicleParameters(BaseModel):
                 f"M_RB + M_A must be positive definite, but its smallest eigenvalue is "
                 f"{eigenvalues.min():.6g} (check a26, a35, x_g, z_g against the inertias)"
             )
-        return self
 
     # Derived quantities (one place, so nothing re-types them)
     @property
@@ -130,7 +136,7 @@ class VehicleParameters(BaseModel):
 
     def replace(self, **changes: Any) -> VehicleParameters:
         """A validated copy with some fields changed (``p.replace(W=306.0, z_g=0.0)``)."""
-        return _validate({**self.model_dump(), **changes}, source=f"{self.name} (modified)")
+        return _validate({**self.as_dict(), **changes}, source=f"{self.name} (modified)")
 
 
 def vehicle_folder(package_root: str | Path | None = None) -> Path:
@@ -215,11 +221,9 @@ def _read_table(
     text = path.read_text()
     read.append((path.resolve(), text))
     try:
-        table = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise VehicleParameterError(
-            f"vehicle file {name_or_path!r} is not valid TOML: {exc}"
-        ) from exc
+        table = vehicle_toml.loads(text)
+    except vehicle_toml.VehicleTomlError as exc:
+        raise VehicleParameterError(f"vehicle file {name_or_path!r}: {exc}") from None
     flat = _flatten(table, source=name_or_path)
     base = flat.pop("base", None)
     if base is None:
@@ -241,17 +245,6 @@ def _flatten(table: dict[str, Any], source: str) -> dict[str, Any]:
 
 def _validate(values: dict[str, Any], source: str) -> VehicleParameters:
     try:
-        return VehicleParameters.model_validate(values)
-    except ValidationError as exc:
-        problems = []
-        for err in exc.errors():
-            field = ".".join(str(part) for part in err["loc"])
-            if not field:  # a check across fields: the message says it all
-                problems.append(err["msg"].removeprefix("Value error, "))
-            elif err["type"] == "extra_forbidden":
-                problems.append(f"unknown key {field!r} (value {err['input']!r})")
-            elif err["type"] == "missing":
-                problems.append(f"{field} is missing")
-            else:
-                problems.append(f"{field} = {err.get('input')!r}: {err['msg']}")
-        raise VehicleParameterError(f"vehicle {source!r}: " + "; ".join(problems)) from None
+        return VehicleParameters.from_mapping(values)
+    except VehicleParameterError as exc:
+        raise VehicleParameterError(f"vehicle {source!r}: {exc}") from None

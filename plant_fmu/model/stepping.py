@@ -39,6 +39,7 @@ import numpy as np
 
 from plant_fmu.model.dynamics import PlantModel
 from plant_fmu.model.kinematics import euler_from_quaternion, quaternion_from_euler
+from plant_fmu.model.root_finding import brent_root
 from plant_fmu.model.state_layout import (
     EULER,
     INPUT_NAMES,
@@ -106,8 +107,10 @@ def advance(
     h: float,
     max_substep: float = DEFAULT_MAX_SUBSTEP,
     compiled: CompiledPlant | None = None,
+    rates: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The state after h seconds from x with the inputs held constant (RK4, projected).
+    """The state after h seconds from x with the inputs held constant (RK4, projected),
+    or, with ``rates``, following u(s) = u + s u' + s^2 / 2 u'' over the step.
 
     Args:
         model: the plant.
@@ -121,6 +124,11 @@ def advance(
         max_substep: longest internal RK4 step, s (> 0).
         compiled: the compiled path of ``model`` (:mod:`plant_fmu.model.compiled`), or
             None for this module's reference loop; both do the same arithmetic.
+        rates: None (inputs held), or (2, inputs) their first and second time derivatives
+            at the step's start (per s, per s^2: the master's input extrapolation, FMI
+            input derivatives); each RK4 stage then takes the inputs at its own time, so
+            the step's error in the inputs is third order instead of first. A sub-step in
+            which the two-body mass reaches a stop holds its mid-sub-step inputs.
 
     Returns:
         the new state, as long as ``x`` (a stepping state for a stepping state).
@@ -144,51 +152,78 @@ def advance(
     dt = h / n
     if compiled is not None:
         z = np.empty(N_STEP_STATES)
-        if compiled.advance(x, z, inputs, n, dt) == 0:
+        if compiled.advance(x, z, inputs, n, dt, rates) == 0:
             return z if len(x) == N_STEP_STATES else z[STATE]
         # A non-finite input or result: the reference below repeats the step from the
         # start and reports what went wrong in its own words (an OverflowError, a name).
     check_finite(x, STEP_STATE_NAMES, "state")
     check_finite(inputs, INPUT_NAMES, "input")
+    if rates is not None:
+        check_finite(np.ravel(rates), INPUT_NAMES * 2, "input derivative of")
     z = stepping_state(x)
     # An input far outside the model's range (a fault's gain of 1e308) overflows on the way:
     # the check below says so in one line, numpy's warnings would reach the host's stderr.
     with np.errstate(all="ignore"):
         model.project(z)
-        for _ in range(n):
-            z = _substep(model, z, inputs, dt)
+        for j in range(n):
+            if rates is None:
+                z = _substep(model, z, inputs, dt)
+            else:
+                later = (_inputs_at(inputs, rates, (j + 0.5) * dt),
+                         _inputs_at(inputs, rates, (j + 1) * dt))  # fmt: skip
+                z = _substep(model, z, _inputs_at(inputs, rates, j * dt), dt, later)
     check_finite(z, STEP_STATE_NAMES, "state after the step:")
     return z if len(x) == N_STEP_STATES else z[STATE]
 
 
+def _inputs_at(inputs: np.ndarray, rates: np.ndarray, tau: float) -> np.ndarray:
+    """The inputs tau seconds into the step: u + tau u' + tau^2 / 2 u''."""
+    at: np.ndarray = inputs + tau * rates[0] + 0.5 * tau * tau * rates[1]
+    return at
+
+
 def _rk4(
-    model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float, quaternion: bool
+    model: PlantModel,
+    z: np.ndarray,
+    inputs: np.ndarray,
+    dt: float,
+    quaternion: bool,
+    later: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """One classical RK4 step of dt seconds on a stepping state in one attitude chart
-    (:meth:`PlantModel.uses_quaternion`), each stage projected."""
+    (:meth:`PlantModel.uses_quaternion`), each stage projected; ``later``: the inputs at
+    dt / 2 and dt when they vary (``inputs`` are then those at the start)."""
     stage = model.project
+    middle, end_inputs = (inputs, inputs) if later is None else later
 
-    def f(s: np.ndarray) -> np.ndarray:
-        return model.step_derivative(s, inputs, quaternion)
+    def f(s: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return model.step_derivative(s, u, quaternion)
 
-    k1 = f(z)
-    k2 = f(stage(z + 0.5 * dt * k1))
-    k3 = f(stage(z + 0.5 * dt * k2))
-    k4 = f(stage(z + dt * k3))
+    k1 = f(z, inputs)
+    k2 = f(stage(z + 0.5 * dt * k1), middle)
+    k3 = f(stage(z + 0.5 * dt * k2), middle)
+    k4 = f(stage(z + dt * k3), end_inputs)
     end: np.ndarray = z + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
     return end
 
 
-def _substep(model: PlantModel, z: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
+def _substep(
+    model: PlantModel,
+    z: np.ndarray,
+    inputs: np.ndarray,
+    dt: float,
+    later: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
     """One RK4 sub-step, the constraints enforced at its end (a stop's impact included),
-    the attitude chart it did not integrate refreshed."""
+    the attitude chart it did not integrate refreshed; ``later`` as in :func:`_rk4`."""
     quaternion = model.uses_quaternion(z)
-    end = _rk4(model, z, inputs, dt, quaternion)
+    end = _rk4(model, z, inputs, dt, quaternion, later)
     stroke = model.params.mass_stroke
     arrival = end[MASS_POSITION]
     if model.two_body and abs(arrival) > stroke > abs(z[MASS_POSITION]):
         stop = math.copysign(stroke, arrival)
-        end = _substep_through_stop(model, z, inputs, dt, stop, quaternion)
+        held = inputs if later is None else later[0]
+        end = _substep_through_stop(model, z, held, dt, stop, quaternion)
     else:
         end = model.project(end, collide=True)
     _sync_attitude(end, quaternion, z[EULER])
@@ -205,17 +240,14 @@ def _substep_through_stop(
     Why: projecting an overshot mass back onto the stop at the step's end moves it without
     the time that takes; with the two-body model's mass matrix M(y_v) that shift changes
     the system's momentum and, on the velocity over ground, depends on the frame (a
-    current's). Locating the arrival (Brent's method, :func:`scipy.optimize.brentq`, on the
+    current's). Locating the arrival (Brent's method,
+    :func:`plant_fmu.model.root_finding.brent_root`, on the
     RK4 step length: the mass's motion on its rail depends on nothing but the servo, so
     the arrival time is the same in every frame) leaves the impact alone to change the
     hull's momentum, by exactly the stop's impulse. Up to the arrival the stops are out of
     the way (:attr:`PlantModel.without_stops`): stage states a hair past the stop must not
     be held there.
     """
-    # imported here: scipy.optimize takes ~0.6 s to import, which every process that
-    # steps the plant would pay, while only a two-body run that hits a stop calls it
-    from scipy.optimize import brentq
-
     free = model.without_stops
 
     def gap(length: float) -> float:
@@ -223,7 +255,7 @@ def _substep_through_stop(
 
     if gap(dt) * stop <= 0.0:  # with the stops out of the way it does not get there
         return model.project(_rk4(model, z, inputs, dt, quaternion), collide=True)
-    arrival = brentq(gap, 0.0, dt, xtol=1e-15, rtol=4.0 * np.finfo(float).eps)
+    arrival = brent_root(gap, 0.0, dt, xtol=1e-15, rtol=4.0 * np.finfo(float).eps)
     z = model.project(_rk4(free, z, inputs, arrival, quaternion), collide=True)
     if dt - arrival <= 0.0:
         return z

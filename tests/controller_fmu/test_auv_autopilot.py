@@ -90,10 +90,10 @@ def test_variables_follow_the_contract(autopilot_fmu):
         assert var.description, var.name
     assert by_causality["input"] == set(MEASUREMENT_NAMES)
     assert by_causality["output"] == set(COMMAND_NAMES)
-    assert by_causality["parameter"] == set(AutopilotConfig.model_fields)
+    assert by_causality["parameter"] == set(AutopilotConfig.field_info())
     variables = {v.name: v for v in md.modelVariables}
-    for name, field in AutopilotConfig.model_fields.items():
-        if field.annotation is float:
+    for name, field in AutopilotConfig.field_info().items():
+        if field.kind is float:
             assert variables[name].unit == field_unit(name), name
         tunable = name in TUNABLE_PARAMETERS
         assert variables[name].variability == ("tunable" if tunable else "fixed"), name

@@ -53,9 +53,9 @@ def test_variables_follow_the_guidance_config(guidance_fmu):
         assert var.description, var.name
     assert by_causality["input"] == set(INPUTS)
     assert by_causality["output"] == set(OUTPUTS)
-    assert by_causality["parameter"] == set(GuidanceConfig.model_fields)
-    for name, field in GuidanceConfig.model_fields.items():
-        if field.annotation is float:
+    assert by_causality["parameter"] == set(GuidanceConfig.field_info())
+    for name, field in GuidanceConfig.field_info().items():
+        if field.kind is float:
             assert variables[name].unit == field_unit(name), name
     assert variables["waypoints"].type == "String"
     assert variables["compensate_current"].type == "Boolean"

@@ -56,7 +56,7 @@ def test_model_gains_are_designed_once_per_vehicle_and_speed(remus, monkeypatch)
     monkeypatch.setattr(
         PlantModel, "derivative", lambda *a: evaluations.append(1) or derivative(*a)
     )
-    again = LateralDesignModel(remus.model_copy(), 1.525).static_mass_jacobian()  # equal set
+    again = LateralDesignModel(remus.replace(), 1.525).static_mass_jacobian()  # equal set
     assert evaluations == []  # not computed again
     assert again["r/v"] == BacksteppingHeading(design, BacksteppingGains()).g1 != 0.0
     assert LateralDesignModel(remus, 1.2345).static_mass_jacobian()["r/v"] != again["r/v"]

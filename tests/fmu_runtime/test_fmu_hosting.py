@@ -347,6 +347,73 @@ def test_every_output_read_in_initialisation_mode_is_the_value_the_fmu_starts_fr
     assert calculated and any(after[n] != 0.0 for n in calculated)  # the values moved
 
 
+INITIAL_DEPENDENCIES = """
+import json, sys
+from xml.etree import ElementTree as ET
+from zipfile import ZipFile
+from fmpy import read_model_description
+from fmu_harness import Harness
+
+path, starts = sys.argv[1], json.loads(sys.argv[2])
+root = ET.fromstring(ZipFile(path).read("modelDescription.xml"))
+variables = root.findall("ModelVariables/ScalarVariable")
+declared = {variables[int(u.get("index")) - 1].get("name"):
+            [variables[int(i) - 1].get("name") for i in (u.get("dependencies") or "").split()]
+            for u in root.findall("ModelStructure/InitialUnknowns/Unknown")
+            if u.get("dependencies") is not None}
+model = read_model_description(path)
+inputs = [v for v in model.modelVariables if v.causality == "input" and v.type == "Real"]
+outputs = sorted(declared)
+
+
+def outputs_in_initialisation(nudged=None):
+    fmu = Harness(path, initialize=False)
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    fmu.set(**starts)
+    if nudged is not None:
+        fmu.set(**{nudged.name: float(fmu.get_all([nudged.name])[0]) + 0.125})
+    values = dict(zip(outputs, fmu.get_all(outputs).tolist()))
+    fmu.close()
+    return values
+
+
+base = outputs_in_initialisation()
+moved = {v.name: sorted(n for n, x in outputs_in_initialisation(v).items() if x != base[n])
+         for v in inputs}
+print(json.dumps({"declared": declared, "inputs": [v.name for v in inputs], "moved": moved,
+                  "causality": {v.name: v.causality for v in model.modelVariables}}))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(FMUS))
+def test_outputs_computed_in_initialisation_depend_on_what_the_fmu_declares(
+    name, fmu_paths, run_python
+):
+    """ModelStructure/InitialUnknowns lists what each calculated output depends on: the
+    parameters and the inputs it may depend on: every input that moves it in
+    initialisation mode (each nudged in turn) is declared, and an FMU declares inputs only
+    if some output moves with one. Without the list an importer must assume every input:
+    OMSimulator then reports an algebraic loop between the plant and the autopilot, whose
+    outputs depend on none of their inputs there."""
+    report = _json_result(
+        run_python(INITIAL_DEPENDENCIES, fmu_paths[name], json.dumps(STARTS[name]))
+    )
+    declared, causality = report["declared"], report["causality"]
+    assert declared and report["inputs"]
+    for output, depends_on in declared.items():
+        assert {causality[n] for n in depends_on} <= {"parameter", "input"}
+        declared_inputs = {n for n in depends_on if causality[n] == "input"}
+        moved_by = {i for i, outputs in report["moved"].items() if output in outputs}
+        assert moved_by <= declared_inputs, output
+    declares_inputs = any(causality[n] == "input" for d in declared.values() for n in d)
+    assert declares_inputs == any(report["moved"].values())
+    driven = {"AuvPlant": {"thrust", "roll_torque", "tunnel_force", "fin_angle",
+                           "mass_position_cmd"}, "AuvAutopilot": set(report["inputs"])}  # fmt: skip
+    assert not driven.get(name, set()) & {n for d in declared.values() for n in d}
+
+
 LATE_EXIT = """
 import ctypes, sys
 from fmpy import extract, read_model_description

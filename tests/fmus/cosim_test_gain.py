@@ -13,7 +13,14 @@ class CosimTestGain(Fmi2Slave):
         self.u = 0.0
         self.k = 2.0
         self.register_variable(Real("x", causality=Fmi2Causality.input, description="state"))
-        self.register_variable(Real("u", causality=Fmi2Causality.output, description="command"))
+        self.register_variable(
+            Real(
+                "u",
+                causality=Fmi2Causality.output,
+                variability=Fmi2Variability.discrete,
+                description="command",
+            )
+        )
         self.register_variable(
             Real(
                 "k",

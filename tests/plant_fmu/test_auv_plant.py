@@ -351,7 +351,7 @@ def test_model_description_is_valid_complete_and_matches_the_contract(plant):
     expected = {f"{n}_0" for n in STATE_NAMES} | {
         "variant", "moving_mass_model", "ideal_fluid", "vehicle", "current_shear_dUdy",
         "max_substep",
-    } | {n for n, f in VehicleParameters.model_fields.items() if f.annotation is float}  # fmt: skip
+    } | {n for n, f in VehicleParameters.field_info().items() if f.kind is float}  # fmt: skip
     assert parameters == expected
     assert (variables["I_xx"].unit, variables["K_p"].unit) == ("kg.m2", "N.m.s")
     assert md.coSimulation.needsExecutionTool is False

@@ -16,11 +16,25 @@ TOLERANCE = 0.1
 
 
 def whole_series_settling_time(times: np.ndarray, error: np.ndarray) -> float | None:
-    """The definition, evaluated on the whole series by brute force."""
+    """The definition, evaluated on the whole series by brute force: the first sample
+    after which every one is inside, the entry interpolated from the sample before it."""
     for i in range(len(times)):
         if np.all(np.abs(error[i:]) < TOLERANCE):
-            return float(times[i])
+            if i == 0 or not math.isfinite(error[i - 1]):
+                return float(times[i])
+            outside, inside = abs(float(error[i - 1])), abs(float(error[i]))
+            t0, t1 = float(times[i - 1]), float(times[i])
+            return t0 + (t1 - t0) * (outside - TOLERANCE) / (outside - inside)
     return None
+
+
+def test_the_settling_time_is_where_the_error_crosses_into_the_band():
+    """A linear decay crossing the band between two samples settles at the crossing, not
+    at the next sample: the figure moves continuously with the step."""
+    times = np.array([0.0, 1.0, 2.0, 3.0])
+    error = np.array([0.4, 0.25, 0.05, 0.01])  # 0.25 -> 0.05 crosses 0.1 at t = 1.75
+    assert settling_time(times, error, TOLERANCE) == pytest.approx(1.75)
+    assert settling_time(times, -error, TOLERANCE) == pytest.approx(1.75)
 
 
 errors = st.lists(st.sampled_from([0.0, 0.05, -0.05, 0.2, -0.3, math.nan]), min_size=1, max_size=40)

@@ -19,6 +19,7 @@ from cosim.scenario.spec import (
     builtin_scenarios,
     load_scenario,
     scenario_from_toml,
+    scenario_path,
 )
 
 MODEL_MD_IDS = ["bs-1", "bs-2", "bs-3", "cur-1", "cur-2", "lqr-1", "lqr-2", "lqr-3",
@@ -142,9 +143,16 @@ def test_overrides_are_validated(fmu_dir: Path) -> None:
 
 
 def test_step_override_redesigns_a_controller_tied_to_the_step(fmu_dir: Path) -> None:
-    """lqr-1 designs its discrete LQR for design_step = coupling step; --step 0.05 must not
-    leave it designed for 10 ms. An explicit, different design_step is left alone."""
-    lqr = load_scenario("lqr-1", fmu_dir=fmu_dir)
+    """An LQR designed for design_step = coupling step and sampled at every step: --step
+    0.05 must not leave it designed for 10 ms. A digital autopilot with a sample period of
+    its own (lqr-1 as shipped) keeps both. An explicit, different design_step is left
+    alone."""
+    shipped = load_scenario("lqr-1", fmu_dir=fmu_dir)
+    kept = shipped.with_overrides(step=0.005).instances["controller"].start
+    assert (kept["design_step"], kept["sample_period"]) == (0.01, 0.01)
+    path = scenario_path("lqr-1")
+    text = path.read_text(encoding="utf-8").replace("sample_period = 0.01", "")
+    lqr = scenario_from_toml(text, base_dir=path.parent, fmu_dir=fmu_dir)
     assert lqr.instances["controller"].start["design_step"] == lqr.coupling.step
     moved = lqr.with_overrides(step=0.05)
     assert moved.instances["controller"].start["design_step"] == 0.05

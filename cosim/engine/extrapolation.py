@@ -1,0 +1,96 @@
+"""Input extrapolation across a communication step, through FMI input derivatives.
+
+A connected Real input is set at the start of each step of its instance to the value its
+source has then; without more, the FMU holds it over the step (FMI 2.0's default), and a
+closed loop converges at first order in the step. With ``[coupling] extrapolation`` set
+to ``"linear"`` or ``"quadratic"``, the master also hands an instance that declares
+``canInterpolateInputs="true"`` the first (and second) time derivative of each such
+input with ``fmi2SetRealInputDerivatives`` (FMI 2.0, section 4.2.2): the derivatives at
+t_n of the polynomial through the values the instance took at its last two (three)
+steps, by divided differences (steps of any length: the adaptive algorithm's too).
+The FMU then uses u(t_n + s) = u_n + s u' + s^2 / 2 u'' inside its step, and the loop
+converges at the polynomial's order plus one.
+
+Extrapolation across a jump is wrong for a step or two, so the history starts again at
+every event, override or fault boundary the master applies (``epoch``); a jump inside an
+FMU (a saturation, a switch) costs one step's worth of accuracy. Instances that cannot
+interpolate hold their inputs as before: nothing is sent to them.
+
+Why by hand: fmpy's ``Input`` class interpolates a given table of input signals; no
+library extrapolates the exchanged values of a running co-simulation.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from typing import Any
+
+import numpy as np
+
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+
+
+class InputRates:
+    """The input derivatives of one instance: :meth:`send` after its inputs were set.
+
+    Args:
+        fmu: the instance's fmpy ``FMU2Slave`` (its ``fmi2SetRealInputDerivatives``).
+        input_vrs: value references of its connected Real inputs (the master's order).
+        order: 1 (linear) or 2 (quadratic).
+    """
+
+    def __init__(self, fmu: Any, input_vrs: list[int], order: int) -> None:
+        n = len(input_vrs)
+        self.order = order
+        self.n = n
+        self._set = fmu.fmi2SetRealInputDerivatives
+        self._fmu = fmu
+        # one call per step: every input's first derivative, then (quadratic) its second
+        self._vrs = (ctypes.c_uint * (order * n))(*(list(input_vrs) * order))
+        self._orders = (ctypes.c_int * (order * n))(*([1] * n + [2] * n)[: order * n])
+        self._values = np.zeros(order * n)
+        self._ptr = self._values.ctypes.data_as(_DOUBLE_P)
+        self._past = np.zeros((2, n))  # the values at the previous two steps
+        self._slope = np.zeros(n)
+        self._times = [0.0, 0.0]
+        self.count = 0  # steps in the history (since the last epoch)
+        self.epoch = 0
+
+    def send(self, inputs: np.ndarray, t: float, epoch: int) -> None:
+        """The derivatives at ``t`` (s) for the values ``inputs`` just set, handed to the
+        FMU; the history then moves on by one step. A new ``epoch`` (something jumped)
+        starts the history again: nothing is sent at its first step."""
+        if epoch != self.epoch:
+            self.epoch, self.count = epoch, 0
+        past, times = self._past, self._times
+        if self.count >= 1 and t > times[0]:
+            n, first, second = self.n, self._values[: self.n], self._values[self.n :]
+            slope = self._slope  # [u_n, u_n-1], in place: a step allocates nothing
+            np.subtract(inputs, past[0], out=slope)
+            slope *= 1.0 / (t - times[0])
+            if self.order == 2 and self.count >= 2:
+                np.subtract(past[0], past[1], out=second)  # [u_n-1, u_n-2] ...
+                second *= 1.0 / (times[0] - times[1])
+                np.subtract(slope, second, out=second)  # ... then [u_n, u_n-1, u_n-2]
+                second *= 1.0 / (t - times[1])
+                np.multiply(second, t - times[0], out=first)
+                first += slope
+                second *= 2.0
+            else:
+                first[:] = slope
+                second[:] = 0.0
+            self._set(self._fmu.component, self._vrs, self.order * n, self._orders, self._ptr)
+        if self.count == 0 or t > times[0]:
+            past[1] = past[0]
+            past[0] = inputs
+            times[1], times[0] = times[0], t
+            self.count += 1
+
+    def snapshot(self) -> tuple[np.ndarray, list[float], int, int]:
+        """The history, for :meth:`restore` (a rolled-back step)."""
+        return self._past.copy(), list(self._times), self.count, self.epoch
+
+    def restore(self, saved: tuple[np.ndarray, list[float], int, int]) -> None:
+        past, times, self.count, self.epoch = saved
+        self._past[:] = past
+        self._times[:] = times

@@ -1,0 +1,100 @@
+"""How far a run is from the continuous-time limit: ``auv-cosim run --check-step``.
+
+The scenario runs again at half and at a quarter of its step (no outputs written, rows
+not kept: only the key figures and the final values, :mod:`cosim.metrics.key_figures`),
+and :mod:`cosim.metrics.richardson` turns the three values of each figure into the
+estimated error of the run at the scenario's step, with the order observed on them. A
+digital controller that samples at its own period (the autopilot's ``sample_period``)
+keeps it in the checks: what is checked is the coupling, not the controller's design.
+
+Costs six times the run itself (2 + 4 times its steps), paid after it; a signal during
+the checks stops them and the run keeps its results without an estimate.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from cosim.engine import master
+from cosim.engine.signals import StopRequest
+from cosim.errors import CosimError
+from cosim.metrics.key_figures import KeyFigures
+from cosim.metrics.richardson import estimate
+from cosim.scenario.spec import Scenario
+
+FINAL_PREFIX = "final."  # the estimate of a final value is named "final.<column>"
+
+
+def check_step(
+    scenario: Scenario,
+    figures: dict[str, float | None],
+    final: np.ndarray,
+    stop: StopRequest | None = None,
+) -> dict[str, Any]:
+    """The error estimate of a complete run of ``scenario`` whose key ``figures`` and
+    ``final`` row (``scenario.columns``) are given: the summary's ``check_step`` entry.
+
+    Raises :class:`CosimError` for an adaptive scenario (it controls its error itself),
+    or if a check run does not complete (its reason)."""
+    coupling = scenario.coupling
+    if coupling.algorithm == "adaptive":
+        raise CosimError(
+            "--check-step: an adaptive run controls its error itself (tolerance "
+            f"{coupling.tolerance!r}); check a fixed step (algorithm jacobi or gauss-seidel)"
+        )
+    values = [_named(figures, scenario.columns, final)]
+    steps = [coupling.step / 2, coupling.step / 4]
+    for step in steps:
+        checked = scenario.with_overrides(step=step)
+        sink = KeyFigures(scenario.columns)
+        result = master.run(checked, [sink], keep_rows=False, stop=stop)
+        if not result.complete:
+            raise CosimError(f"--check-step: the run at h = {step!r} s stopped: {result.error}")
+        values.append(_named(sink.figures(), scenario.columns, result.final))
+    nominal = 2.0 if coupling.extrapolation_order else 1.0  # as adaptive.coupling_order
+    estimates, order = estimate(values, nominal)
+    figures_part = {k: e.as_dict() for k, e in estimates.items() if k in figures}
+    finals = {k: e for k, e in estimates.items() if k.startswith(FINAL_PREFIX)}
+    worst = max(finals.items(), key=lambda kv: _scaled(kv[1].error, kv[1].limit), default=None)
+    return {
+        "steps_s": [coupling.step, *steps],
+        "order": order,
+        "key_figures": figures_part,
+        "final_values": {k.removeprefix(FINAL_PREFIX): e.as_dict() for k, e in finals.items()},
+        "largest_final_error": None
+        if worst is None
+        else {"column": worst[0].removeprefix(FINAL_PREFIX), **worst[1].as_dict()},
+    }
+
+
+def _named(
+    figures: dict[str, float | None], columns: tuple[str, ...], final: np.ndarray
+) -> dict[str, float | None]:
+    named = dict(figures)
+    named.update({f"{FINAL_PREFIX}{c}": float(v) for c, v in zip(columns, final, strict=True)})
+    return named
+
+
+def _scaled(error: float, limit: float) -> float:
+    """|error| / (|limit| + 1): the final values' ranking, as the adaptive algorithm
+    weighs an error (a value near 0 is not ranked by its relative error)."""
+    return abs(error) / (abs(limit) + 1.0) if math.isfinite(error) else math.inf
+
+
+def summary_line(check: dict[str, Any]) -> str:
+    """The run report's last line: every key figure's estimated error (and relative)."""
+    parts = []
+    for name, e in check["key_figures"].items():
+        relative = e["relative_error"]
+        share = f" ({relative * 100:+.2g} %)" if relative is not None else ""
+        parts.append(f"{name} {e['error']:+.3g}{share}")
+    worst = check["largest_final_error"]
+    if worst is not None:
+        parts.append(f"largest final-value error {worst['column']} {worst['error']:+.3g}")
+    steps = ", ".join(f"{s:g}" for s in check["steps_s"])
+    return f"  coupling error (Richardson from h = {steps} s, order {check['order']:.2g}): " + (
+        ", ".join(parts) if parts else "no figure to check"
+    )

@@ -1,0 +1,246 @@
+"""Measure the coupling error of the built-in scenarios; regenerate docs/coupling.md's tables.
+
+    python scripts/coupling_study.py shipped [--scenarios bs-3 vert-1 ...] [--write]
+    python scripts/coupling_study.py check-step [--scenarios bs-3 vert-1] [--write]
+    python scripts/coupling_study.py adaptive [--tolerance 1e-3] [--write]
+    python scripts/coupling_study.py readme [--write]
+
+``shipped``: every built-in scenario (or those named) as shipped, and again at 2.5, 1.25
+and 0.625 ms with the same coupling: the continuous-time limit of each key figure by
+Richardson from the runs at 1.25 and 0.625 ms (the order observed on 2.5 / 1.25 / 0.625
+ms, else the coupling's nominal one) and the shipped run's error against it.
+
+``check-step``: what ``auv-cosim run --check-step`` estimates for a scenario as shipped
+and with held inputs (``extrapolation = "none"``), against its true error (the run minus
+the run at 1/32 of its step).
+
+``adaptive``: vert-1 with ``algorithm = "adaptive"`` at a tolerance, against fixed steps
+with the same extrapolation: each run's communication steps and doSteps, and its errors
+against a run at 0.3125 ms: the trajectory's (the largest distance of the plant's outputs,
+|y - y_ref| / (|y_ref| + 1)) and the key figures' (relative).
+
+``readme``: the yaw settling times of README.md's built-in scenario table, each written
+after its marker ``<!-- <scenario id> -->`` (three significant digits, s), from the
+scenarios run as shipped.
+
+``--write`` replaces the table between the markers ``<!-- coupling_study.py <part> -->``
+and ``<!-- end -->`` in docs/coupling.md; without it the table is printed. Runs go through
+the master (no files written); the machine's load is printed beside the times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from cosim.engine import master
+from cosim.engine.step_check import check_step
+from cosim.metrics.key_figures import KeyFigures
+from cosim.metrics.richardson import observed_order
+from cosim.scenario.spec import Scenario, builtin_scenarios, load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = ROOT / "docs" / "coupling.md"
+FINE_STEPS = (0.0025, 0.00125, 0.000625)  # s: the limit's runs
+FIGURES = {  # key figure -> (label, unit scale, unit)
+    "yaw_settling_time_s": ("yaw settling time", 1.0, "s"),
+    "peak_abs_mass_position_m": ("peak mass position", 100.0, "cm"),
+    "peak_abs_tunnel_force_N": ("peak tunnel force", 1.0, "N"),
+}
+ADAPTIVE_FIXED_STEPS = (0.04, 0.02, 0.01, 0.005, 0.0025)  # s
+
+
+def figures_of(scenario: Scenario) -> tuple[dict[str, float | None], master.RunResult]:
+    """The key figures of one run (through the master, nothing written)."""
+    sink = KeyFigures(scenario.columns)
+    result = master.run(scenario, [sink], keep_rows=False)
+    if not result.complete:
+        raise RuntimeError(f"{scenario.id} at h = {scenario.coupling.step} s: {result.error}")
+    return sink.figures(), result
+
+
+def limit(values: Sequence[float], nominal: float) -> tuple[float, float]:
+    """(limit, order) from the figure at 2.5, 1.25, 0.625 ms (Richardson on the last two)."""
+    order = observed_order(*values) or nominal
+    return values[2] + (values[2] - values[1]) / (2.0**order - 1.0), order
+
+
+def shipped(ids: Sequence[str]) -> str:
+    lines = [
+        "| scenario | coupling | key figure | as shipped | limit | error | order |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for sid in ids:
+        base = load_scenario(sid)
+        coupling = base.coupling
+        how = f"{coupling.step * 1e3:g} ms, {coupling.algorithm}, {coupling.extrapolation}"
+        ours, _ = figures_of(base)
+        fine = [figures_of(base.with_overrides(step=h))[0] for h in FINE_STEPS]
+        for key, (label, scale, unit) in FIGURES.items():
+            value, values = ours[key], [run[key] for run in fine]
+            finite = [v for v in values if v is not None]
+            if value is None or len(finite) < len(values):
+                continue
+            f0, order = limit(finite, 2.0 if coupling.extrapolation_order else 1.0)
+            error = (value - f0) / abs(f0) * 100.0 if f0 else 0.0
+            lines.append(
+                f"| {sid} | {how} | {label} | {scale * value:.4g} {unit} | "
+                f"{scale * f0:.4g} {unit} | {error:+.2f} % | {order:.2g} |"
+            )
+        print(f"  {sid}: done ({_load()})", file=sys.stderr)
+    return "\n".join(lines)
+
+
+def check_steps(ids: Sequence[str]) -> str:
+    lines = [
+        "| scenario | inputs | key figure | estimated error | true error (against h/32) | ratio |",
+        "|---|---|---|---|---|---|",
+    ]
+    for sid in ids:
+        shipped_scenario = load_scenario(sid)
+        for base in (shipped_scenario, shipped_scenario.with_overrides(extrapolation="none")):
+            figures, result = figures_of(base)
+            check = check_step(base, figures, result.final)
+            truth, _ = figures_of(base.with_overrides(step=base.coupling.step / 32))
+            for key, (label, scale, unit) in FIGURES.items():
+                estimate, value, fine = check["key_figures"].get(key), figures[key], truth[key]
+                if estimate is None or value is None or fine is None:
+                    continue
+                true_error = value - fine
+                ratio = f"{estimate['error'] / true_error:.2f}" if true_error else "(both 0)"
+                lines.append(
+                    f"| {sid} | {base.coupling.extrapolation} | {label} | "
+                    f"{scale * estimate['error']:+.3g} {unit} | {scale * true_error:+.3g} {unit} "
+                    f"| {ratio} |"
+                )
+            print(f"  {sid} ({base.coupling.extrapolation}): done ({_load()})", file=sys.stderr)
+    return "\n".join(lines)
+
+
+def adaptive(tolerance: float) -> str:
+    base = load_scenario("vert-1")
+    finest = base.with_overrides(step=0.0003125)
+    reference, limits = _rows(finest), figures_of(finest)[0]
+    runs = {"adaptive": base.with_overrides(algorithm="adaptive", tolerance=tolerance)}
+    runs.update(
+        {f"fixed {h * 1e3:g} ms": base.with_overrides(step=h) for h in ADAPTIVE_FIXED_STEPS}
+    )
+    lines = [
+        f"vert-1, {base.coupling.extrapolation} extrapolation, tolerance {tolerance:g}; errors "
+        f"against a run at 0.3125 ms ({_load()}):",
+        "",
+        "| run | communication steps | plant doSteps | trajectory error | settling time error | "
+        "peak mass position error | wall clock (s) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, scenario in runs.items():
+        sink = KeyFigures(scenario.columns)
+        started = time.perf_counter()
+        result = master.run(scenario, [sink])
+        wall = time.perf_counter() - started
+        figures, taken = sink.figures(), result.coupling
+        steps = taken.get("accepted_steps", result.rows - 1)
+        do_steps = taken.get("do_steps", {}).get("plant", result.rows - 1)
+        relative = [_relative(figures[key], limits[key]) for key in list(FIGURES)[:2]]
+        lines.append(
+            f"| {name} | {steps} | {do_steps} | {_error(result, reference):.2e} | "
+            f"{relative[0]} | {relative[1]} | {wall:.1f} |"
+        )
+        print(f"  {name}: done", file=sys.stderr)
+    return "\n".join(lines)
+
+
+def _relative(value: float | None, limit: float | None) -> str:
+    if value is None or not limit:
+        return "n/a"
+    return f"{(value - limit) / abs(limit):+.1e}"
+
+
+README = ROOT / "README.md"
+README_MARKER = re.compile(r"<!-- (?P<id>[\w.-]+) -->(?P<value>[0-9.]+)")
+
+
+def readme(write_it: bool) -> str:
+    """The settling times after README's markers, from the scenarios as shipped."""
+    text = README.read_text(encoding="utf-8")
+    values = {}
+    for sid in dict.fromkeys(m["id"] for m in README_MARKER.finditer(text)):
+        settled = figures_of(load_scenario(sid))[0]["yaw_settling_time_s"]
+        if settled is None:
+            raise RuntimeError(f"{sid}: the yaw does not settle: README's figure cannot be given")
+        values[sid] = f"{settled:.3g}"
+        print(f"  {sid}: {values[sid]} s", file=sys.stderr)
+    new = README_MARKER.sub(lambda m: f"<!-- {m['id']} -->{values[m['id']]}", text)
+    if write_it:
+        README.write_text(new, encoding="utf-8")
+        return f"wrote the settling times of {README}"
+    return "\n".join(f"{sid}: {value} s" for sid, value in values.items())
+
+
+def _rows(scenario: Scenario) -> master.RunResult:
+    result = master.run(scenario)
+    if not result.complete:
+        raise RuntimeError(f"{scenario.id}: {result.error}")
+    return result
+
+
+def _error(result: master.RunResult, reference: master.RunResult) -> float:
+    """max over the plant's outputs and the run's rows of |y - y_ref| / (|y_ref| + 1)."""
+    assert result.times is not None and reference.times is not None
+    worst = 0.0
+    for k, column in enumerate(result.columns):
+        if not column.startswith("plant.") or column not in reference.columns:
+            continue
+        ref = np.interp(result.times, reference.times, reference.column(column))
+        assert result.values is not None
+        worst = max(worst, float(np.max(np.abs(result.values[:, k] - ref) / (np.abs(ref) + 1))))
+    return worst
+
+
+def _load() -> str:
+    return f"load {' '.join(f'{x:.2f}' for x in os.getloadavg())}"
+
+
+def write(part: str, table: str) -> None:
+    text = PAGE.read_text(encoding="utf-8")
+    marker = re.compile(
+        rf"(<!-- coupling_study.py {re.escape(part)} -->\n).*?(\n<!-- end -->)", re.DOTALL
+    )
+    if not marker.search(text):
+        raise SystemExit(f"{PAGE}: no marker <!-- coupling_study.py {part} --> ... <!-- end -->")
+    PAGE.write_text(marker.sub(lambda m: m[1] + table + m[2], text), encoding="utf-8")
+    print(f"wrote the {part} table of {PAGE}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("part", choices=["shipped", "check-step", "adaptive", "readme"])
+    parser.add_argument("--scenarios", nargs="+", help="built-in ids [every one / bs-3 vert-1]")
+    parser.add_argument("--tolerance", type=float, default=1e-3, help="adaptive [1e-3]")
+    parser.add_argument("--write", action="store_true", help="into docs/coupling.md")
+    args = parser.parse_args(argv)
+    if args.part == "readme":
+        print(readme(args.write))
+        return 0
+    if args.part == "shipped":
+        table = shipped(args.scenarios or list(builtin_scenarios()))
+    elif args.part == "check-step":
+        table = check_steps(args.scenarios or ["bs-3", "vert-1"])
+    else:
+        table = adaptive(args.tolerance)
+    if args.write:
+        write(args.part, table)
+    else:
+        print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,125 @@
+"""The adaptive communication step (algorithm = "adaptive"): step doubling with rollback
+on the master tests' loop (an integrator under a sampled gain, x' = -k x in the limit)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scenario_factory import X0, K, loop_toml
+
+from cosim.engine import master
+from cosim.engine.adaptive import MIN_LEVEL, grid_step
+from cosim.engine.pacing import Pacer
+from cosim.errors import CosimError
+from cosim.scenario.spec import scenario_from_toml
+
+
+def adaptive(tolerance: float, extra: str = "", multiple: int = 1) -> str:
+    text = loop_toml(algorithm="adaptive", stop_time=2.0, controller_multiple=multiple)
+    return text.replace("[coupling]", f"{extra}\n[coupling]\ntolerance = {tolerance}")
+
+
+def run(test_fmu_dir: Path, text: str) -> master.RunResult:
+    return master.run(scenario_from_toml(text, base_dir=test_fmu_dir))
+
+
+def limit_error(result: master.RunResult) -> float:
+    """The largest distance of x from the continuous-time loop's x0 exp(-k t)."""
+    return float(np.max(np.abs(result.column("plant.x") - X0 * np.exp(-K * result.times))))
+
+
+def test_every_point_is_on_the_grid_and_the_run_ends_at_its_stop_time(
+    test_fmu_dir: Path,
+) -> None:
+    result = run(test_fmu_dir, adaptive(1e-3))
+    assert result.complete, result.error
+    grid = grid_step(result.scenario.coupling)
+    units = result.times / grid
+    np.testing.assert_allclose(units, np.round(units), rtol=0, atol=1e-6)
+    assert result.times[-1] == 2.0 and np.all(np.diff(result.times) > 0)
+    taken = result.coupling
+    assert taken["accepted_steps"] * 2 == result.rows - 1  # a row at each half and end
+    # each attempt: one step of H and two of H / 2
+    assert taken["do_steps"]["plant"] == 3 * (taken["accepted_steps"] + taken["rejected_steps"])
+
+
+def test_a_tighter_tolerance_takes_smaller_steps_and_comes_closer_to_the_limit(
+    test_fmu_dir: Path,
+) -> None:
+    loose, tight = run(test_fmu_dir, adaptive(1e-2)), run(test_fmu_dir, adaptive(1e-4))
+    assert tight.coupling["accepted_steps"] > loose.coupling["accepted_steps"]
+    assert limit_error(tight) < limit_error(loose) / 4
+    # and closer than a fixed step taking as many steps as the tight run accepted
+    steps = tight.coupling["accepted_steps"]
+    fixed = loop_toml(stop_time=2.0, step=2.0 / steps)
+    assert limit_error(tight) < limit_error(run(test_fmu_dir, fixed))
+
+
+def test_steps_end_on_time_events_fault_boundaries_and_a_slow_instances_points(
+    test_fmu_dir: Path,
+) -> None:
+    """A time event at 0.37 s, a fault from 0.55 to 0.8 s and the gain sampled every
+    0.2 s (step multiple 2) all fall on points of the adaptive run."""
+    extra = """
+[[events]]
+time = 0.37
+set = { "controller.k" = 3.0 }
+
+[[faults]]
+kind = "bias"
+target = "plant.u"
+value = 0.1
+start = 0.55
+stop = 0.8
+"""
+    result = run(test_fmu_dir, adaptive(1e-3, extra, multiple=2))
+    assert result.complete, result.error
+    grid = grid_step(result.scenario.coupling)
+    fired = result.events[0]["time"]
+    assert fired == math.ceil(0.37 / grid) * grid and fired in result.times
+    for t in (0.55, 0.8, *np.arange(0.0, 2.0, 0.2)):
+        assert np.min(np.abs(result.times - t)) < grid
+    u = result.column("controller.u")
+    stepped = result.times[:-1][np.diff(u) != 0.0]  # the gain steps from its points only
+    np.testing.assert_allclose(stepped / 0.2, np.round(stepped / 0.2), atol=1e-9)
+
+
+def test_a_rejected_step_leaves_no_event_behind(test_fmu_dir: Path) -> None:
+    """A when event fires once, at an accepted point, however many attempts crossed it."""
+    extra = '[[events]]\nwhen = "plant.x < 0.5"\nset = { "controller.k" = 0.0 }'
+    result = run(test_fmu_dir, adaptive(1e-4, extra))
+    assert result.coupling["rejected_steps"] >= 1
+    assert len(result.events) == 1 and result.events[0]["time"] in result.times
+    x = result.column("plant.x")
+    assert x[-1] == pytest.approx(x[result.times > result.events[0]["time"]][1], rel=1e-2)
+
+
+def test_a_paced_run_is_refused(test_fmu_dir: Path) -> None:
+    scenario = scenario_from_toml(adaptive(1e-3), base_dir=test_fmu_dir)
+    with pytest.raises(CosimError, match="needs a fixed step"):
+        master.run(scenario, pacer=Pacer(scenario.coupling.step))
+
+
+def test_the_grid_is_a_power_of_two_below_the_step() -> None:
+    scenario_step = 0.01
+    assert grid_step(type("C", (), {"step": scenario_step})()) == scenario_step / 2**MIN_LEVEL  # type: ignore[arg-type]
+
+
+def test_steps_it_never_rejects_give_the_fixed_step_run_of_their_halves(
+    test_fmu_dir: Path,
+) -> None:
+    """Every step rolled back and redone in halves: with a tolerance it always meets and
+    its longest step its first, an adaptive run at 0.2 s is the fixed run at 0.1 s to the
+    bit (the states, the extrapolation's history and an event restored exactly)."""
+    extra = '[[events]]\ntime = 0.6\nset = { "controller.k" = 3.0 }'
+    text = adaptive(0.99, extra).replace("step = 0.1", "step = 0.2\nmax_step = 0.2")
+    halves = run(test_fmu_dir, text)
+    fixed = run(
+        test_fmu_dir, loop_toml(stop_time=2.0).replace("[coupling]", f"{extra}\n[coupling]")
+    )
+    assert halves.coupling["rejected_steps"] == 0
+    np.testing.assert_array_equal(halves.times, fixed.times)
+    np.testing.assert_array_equal(halves.values, fixed.values)

@@ -1,0 +1,84 @@
+"""The input derivatives the master sends an FMU that interpolates its inputs."""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+import pytest
+
+from cosim.engine.extrapolation import InputRates
+
+
+class FakeFmu:
+    """Records every fmi2SetRealInputDerivatives call as {(vr, order): value}."""
+
+    component = None
+
+    def __init__(self) -> None:
+        self.calls: list[dict[tuple[int, int], float]] = []
+
+    def fmi2SetRealInputDerivatives(self, c, vrs, n, orders, values) -> None:
+        doubles = ctypes.cast(values, ctypes.POINTER(ctypes.c_double))
+        self.calls.append({(vrs[i], orders[i]): doubles[i] for i in range(n)})
+
+
+def signal(t: float) -> np.ndarray:
+    """Two inputs: a quadratic and a line."""
+    return np.array([1.0 + 2.0 * t - 3.0 * t * t, 4.0 - t])
+
+
+@pytest.mark.parametrize("times", [[0.0, 0.1, 0.2, 0.3], [0.0, 0.05, 0.2, 0.25, 0.45]])
+def test_quadratic_extrapolation_sends_the_exact_derivatives_of_a_quadratic(times) -> None:
+    """Divided differences over the last three points (any spacing: the adaptive
+    algorithm's) give a quadratic's first and second derivatives exactly."""
+    fmu = FakeFmu()
+    rates = InputRates(fmu, [7, 9], order=2)
+    for t in times:
+        rates.send(signal(t), t, epoch=0)
+    assert len(fmu.calls) == len(times) - 1  # nothing at the first point: no history
+    t = times[-1]
+    last = fmu.calls[-1]
+    assert last[(7, 1)] == pytest.approx(2.0 - 6.0 * t) and last[(7, 2)] == pytest.approx(-6.0)
+    assert last[(9, 1)] == pytest.approx(-1.0) and last[(9, 2)] == pytest.approx(0.0, abs=1e-9)
+    second = fmu.calls[0]  # two points: a line through them, no curvature
+    assert second[(7, 2)] == 0.0
+
+
+def test_linear_extrapolation_sends_the_slope_of_the_last_two_points() -> None:
+    fmu = FakeFmu()
+    rates = InputRates(fmu, [1, 2], order=1)
+    for t in (0.0, 0.1, 0.2):
+        rates.send(signal(t), t, epoch=0)
+    slope = (signal(0.2) - signal(0.1)) / 0.1
+    assert fmu.calls[-1] == {(1, 1): pytest.approx(slope[0]), (2, 1): pytest.approx(slope[1])}
+
+
+def test_the_history_starts_again_after_a_jump() -> None:
+    """A new epoch (an event fired, a fault started) starts the history: no derivative
+    across the jump, then a slope from the points after it only."""
+    fmu = FakeFmu()
+    rates = InputRates(fmu, [1, 2], order=2)
+    for t in (0.0, 0.1, 0.2):
+        rates.send(signal(t), t, epoch=0)
+    sent = len(fmu.calls)
+    rates.send(signal(0.3) + 100.0, 0.3, epoch=1)  # the values jumped at this point
+    assert len(fmu.calls) == sent
+    rates.send(signal(0.4) + 100.0, 0.4, epoch=1)
+    slope = (signal(0.4) - signal(0.3)) / 0.1
+    assert fmu.calls[-1][(1, 1)] == pytest.approx(slope[0])
+    assert fmu.calls[-1][(1, 2)] == 0.0
+
+
+def test_a_restored_history_repeats_the_same_derivatives() -> None:
+    """snapshot/restore (a rolled-back adaptive step) gives the same derivatives again."""
+    fmu = FakeFmu()
+    rates = InputRates(fmu, [1, 2], order=2)
+    for t in (0.0, 0.1):
+        rates.send(signal(t), t, epoch=0)
+    saved = rates.snapshot()
+    rates.send(signal(0.2), 0.2, epoch=0)
+    first = fmu.calls[-1]
+    rates.restore(saved)
+    rates.send(signal(0.2), 0.2, epoch=0)
+    assert fmu.calls[-1] == first

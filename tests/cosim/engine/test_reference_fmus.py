@@ -1,0 +1,174 @@
+"""The Modelica Association's Reference FMUs (FMI 2.0 co-simulation) through the master,
+against their published results ``<Model>_out.csv``, within the references' printed
+precision.
+
+They are not in this repository: build them from github.com/modelica/Reference-FMUs with
+cmake ``-DFMI_VERSION=2`` and put the ``.fmu`` files with the ``<Model>_out.csv`` of each
+model folder in one folder named by ``AUV_REFERENCE_FMUS`` (docs/coupling.md says how).
+Without it every test here is skipped, saying so.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from decimal import Decimal
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.engine import master
+from cosim.scenario.checks import ScenarioError
+from cosim.scenario.spec import scenario_from_toml
+
+FOLDER = Path(os.environ.get("AUV_REFERENCE_FMUS", "/nonexistent"))
+pytestmark = pytest.mark.skipif(
+    not (FOLDER / "VanDerPol.fmu").is_file(),
+    reason="AUV_REFERENCE_FMUS names no folder of built Reference FMUs (docs/coupling.md)",
+)
+# model -> (step s, stop time s, the published columns compared)
+MODELS = {
+    "VanDerPol": (0.01, 20.0, ("x0", "x1")),
+    "Dahlquist": (0.1, 10.0, ("x",)),
+    "BouncingBall": (0.01, 3.0, ("h", "v")),
+    "Stair": (0.2, 10.0, ("counter",)),
+    "Resource": (1.0, 1.0, ("y",)),
+    "Feedthrough": (0.1, 2.0, ("Float64_continuous_output", "Float64_discrete_output",
+                               "Int32_output", "Boolean_output", "Enumeration_output")),
+}  # fmt: skip
+
+
+def published(model: str) -> tuple[list[str], list[list[str]]]:
+    with open(FOLDER / f"{model}_out.csv", newline="") as file:
+        rows = list(csv.reader(file))
+    return rows[0], rows[1:]
+
+
+def printed_tolerance(text: str) -> float:
+    """Half a unit of the last printed digit (and a few ulps of the value)."""
+    if text in ("true", "false"):
+        return 0.0
+    exponent = Decimal(text).as_tuple().exponent
+    assert isinstance(exponent, int)
+    return max(0.5 * 10.0**exponent, 4.0 * math.ulp(abs(float(text))))
+
+
+def assert_published(result: master.RunResult, instance: str, model: str) -> None:
+    """Every published row of ``model`` equals ``instance``'s, time and values."""
+    header, rows = published(model)
+    step = MODELS[model][0]
+    times = np.array([float(row[0]) for row in rows])
+    ours = result.times[: len(rows)] if step == result.scenario.coupling.step else None
+    if ours is None:  # the instance steps k times slower than the scenario: its rows
+        k = round(step / result.scenario.coupling.step)
+        ours = result.times[::k]
+    np.testing.assert_allclose(ours[: len(rows)], times, rtol=0, atol=1e-9)
+    pick = np.searchsorted(result.times, times - 1e-9)
+    for name in MODELS[model][2]:
+        column = result.column(f"{instance}.{name}")[pick]
+        j = header.index(name)
+        for i, row in enumerate(rows):
+            expected = {"true": 1.0, "false": 0.0}.get(row[j], math.nan)
+            expected = float(row[j]) if math.isnan(expected) else expected
+            assert abs(column[i] - expected) <= printed_tolerance(row[j]), (
+                f"{model}.{name} at t = {row[0]} s: {column[i]!r}, published {row[j]}"
+            )
+
+
+def scenario_text(instances: dict[str, str], step: float, stop: float, extra: str = "") -> str:
+    text = f"stop_time = {stop}\n[coupling]\nstep = {step}\n{extra}\n"
+    for name, model in instances.items():
+        fmu = model if model.startswith("Auv") else f"{FOLDER / model}.fmu"
+        text += f'[instances.{name}]\nfmu = "{fmu}"\n'
+    return text
+
+
+def run(text: str, **kwargs: object) -> master.RunResult:
+    result = master.run(scenario_from_toml(text, **kwargs))  # type: ignore[arg-type]
+    assert result.complete, result.error
+    return result
+
+
+@pytest.mark.parametrize("model", list(MODELS))
+def test_each_reference_fmu_alone_gives_its_published_results(model: str) -> None:
+    """Every type of output recorded (Integer, Boolean, Enumeration as numbers), Stair
+    ending the simulation at 9 s with its last row."""
+    step, stop, _ = MODELS[model]
+    result = run(scenario_text({"m": model}, step, stop))
+    assert_published(result, "m", model)
+    if model == "Stair":
+        assert result.ended == "m ended the simulation at t = 9 s"
+        assert result.times[-1] == pytest.approx(9.0)
+
+
+def test_reference_fmus_together_at_their_own_rates_give_their_results() -> None:
+    """VanDerPol every 10 ms beside Dahlquist every 100 ms (step multiple 10)."""
+    text = scenario_text({"v": "VanDerPol", "d": "Dahlquist"}, 0.01, 10.0,
+                         "step_multiples = { d = 10 }")  # fmt: skip
+    result = run(text)
+    assert_published(result, "d", "Dahlquist")
+    _, rows = published("VanDerPol")
+    x0 = result.column("v.x0")
+    for i, row in enumerate(rows[: len(x0)]):
+        assert abs(x0[i] - float(row[1])) <= printed_tolerance(row[1])
+
+
+def test_an_integer_output_drives_an_integer_input_and_a_feedthrough_starts_consistent() -> None:
+    """Stair -> Feedthrough (Int32) and VanDerPol -> Feedthrough (Real): the feedthrough
+    repeats both from row 0 on, in the order the connections imply."""
+    text = scenario_text({"f": "Feedthrough", "s": "Stair", "v": "VanDerPol"}, 0.2, 8.0)
+    text += """[connections]
+same_names = false
+add = [{ from = "s.counter", to = "f.Int32_input" },
+       { from = "v.x0", to = "f.Float64_continuous_input" }]
+"""
+    result = run(text)
+    assert result.scenario.coupling.order.index("f") == 2
+    np.testing.assert_array_equal(result.column("f.Int32_output"), result.column("s.counter"))
+    feed = result.column("f.Float64_continuous_output")
+    assert feed[0] == 2.0
+    np.testing.assert_array_equal(feed, result.column("v.x0"))
+
+
+def test_two_feedthroughs_in_a_ring_are_refused_as_an_algebraic_loop() -> None:
+    text = scenario_text({"a": "Feedthrough", "b": "Feedthrough"}, 0.1, 1.0)
+    text += """[connections]
+same_names = false
+add = [{ from = "a.Float64_continuous_output", to = "b.Float64_continuous_input" },
+       { from = "b.Float64_continuous_output", to = "a.Float64_continuous_input" }]
+[[faults]]
+kind = "bias"
+target = "a.Float64_continuous_input"
+value = 1.0
+"""
+    with pytest.raises(ScenarioError, match=r"algebraic loop .*a\.Float64_continuous_output"):
+        scenario_from_toml(text)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_beside_our_plant_a_feedthrough_is_transparent(
+    fmu_paths: dict[str, Path], algorithm: str
+) -> None:
+    """VanDerPol -> Feedthrough -> AuvPlant's mass command moves the plant exactly as
+    VanDerPol -> AuvPlant does, and VanDerPol still gives its published results."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    text = scenario_text({"plant": "AuvPlant", "f": "Feedthrough", "v": "VanDerPol"}, 0.01,
+                         2.0, f'algorithm = "{algorithm}"')  # fmt: skip
+    wiring = """[instances.plant.start]
+variant = "lateral"
+u_0 = 1.5
+[connections]
+same_names = false
+add = [{{ from = "v.x0", to = "f.Float64_continuous_input" }},
+       {{ from = "{source}", to = "plant.mass_position_cmd" }}]
+"""
+    through = run(text + wiring.format(source="f.Float64_continuous_output"), fmu_dir=fmu_dir)
+    direct = run(text + wiring.format(source="v.x0"), fmu_dir=fmu_dir)
+    np.testing.assert_array_equal(through.column("plant.yaw"), direct.column("plant.yaw"))
+    _, rows = published("VanDerPol")
+    x0 = through.column("v.x0")
+    for i, row in enumerate(rows[: len(x0)]):
+        assert abs(x0[i] - float(row[1])) <= printed_tolerance(row[1])

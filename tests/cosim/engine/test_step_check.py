@@ -1,0 +1,46 @@
+"""--check-step: the estimated coupling error against the loop's known limit."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from scenario_factory import X0, K, loop_toml
+
+from cosim.engine import master
+from cosim.engine.step_check import check_step, summary_line
+from cosim.errors import CosimError
+from cosim.runner import run_scenario
+from cosim.scenario.spec import scenario_from_toml
+
+
+def test_the_estimated_error_is_within_a_factor_two_of_the_true_one(test_fmu_dir: Path) -> None:
+    """The loop x' = -k x (sampled gain) at h = 0.1 s: the error the check estimates for
+    x(2 s) is within a factor 2 of its distance from x0 exp(-2 k)."""
+    scenario = scenario_from_toml(loop_toml(stop_time=2.0), base_dir=test_fmu_dir)
+    result = master.run(scenario)
+    check = check_step(scenario, {}, result.final)
+    x = check["final_values"]["plant.x"]
+    true_error = x["value"] - X0 * math.exp(-K * 2.0)
+    assert 0.5 < x["error"] / true_error < 2.0
+    assert check["steps_s"] == [0.1, 0.05, 0.025]
+    assert 0.8 < x["order"] < 1.2  # held inputs: first order
+    assert "plant.x" in summary_line(check) or "largest final-value error" in summary_line(check)
+
+
+def test_an_adaptive_run_is_not_checked(test_fmu_dir: Path) -> None:
+    scenario = scenario_from_toml(loop_toml(algorithm="adaptive"), base_dir=test_fmu_dir)
+    with pytest.raises(CosimError, match="controls its error itself"):
+        check_step(scenario, {}, master.run(scenario).final)
+
+
+def test_the_run_reports_the_estimate_in_its_summary_and_last_line(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    scenario = scenario_from_toml(loop_toml(), base_dir=test_fmu_dir)
+    outcome = run_scenario(scenario, tmp_path / "run", no_rrd=True, check_step=True)
+    check = outcome.result.coupling["check_step"]
+    assert set(check) >= {"steps_s", "order", "key_figures", "final_values"}
+    summary = (tmp_path / "run" / "summary.json").read_text()
+    assert '"check_step"' in summary
