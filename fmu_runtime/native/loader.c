@@ -820,12 +820,9 @@ FMI2_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component component,
     NEED(vr, "value-reference array", call);
     NEED(order, "order array", call);
     NEED(values, "value array", call);
-    if (!c->record.interpolates_inputs || !c->backend->derivatives) {
-        return refuse(c, "%s refused: %s", call,
-                      c->record.interpolates_inputs
-                          ? "input derivatives need the FMU's own runtime (" RUNTIME_VARIABLE
-                            "=pythonfmu is set)"
-                          : "this FMU takes no input derivatives (canInterpolateInputs=\"false\")");
+    if (!c->record.interpolates_inputs) {
+        return refuse(c, "%s refused: this FMU takes no input derivatives "
+                      "(canInterpolateInputs=\"false\")", call);
     }
     if (c->phase != INITIALIZATION && c->phase != INITIALIZED) {
         return refuse(c, "%s refused: the FMU is %s", call, PHASES[c->phase]);
