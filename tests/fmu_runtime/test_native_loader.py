@@ -344,6 +344,9 @@ fmu.close()
 
 @pytest.mark.slow
 def test_a_build_without_a_compiler_keeps_pythonfmus_binary_and_says_so(run_python, tmp_path):
+    """Without a compiler the FMU keeps pythonfmu's binary alone, says so once and in its
+    documentation, declares that it takes no input derivatives (pythonfmu's binary takes
+    none: a master then holds its inputs), and steps."""
     bin_dir = tmp_path / "bin"  # PATH without cc or gcc: only this Python
     bin_dir.mkdir()
     (bin_dir / "python").symlink_to(sys.executable)
@@ -357,6 +360,8 @@ def test_a_build_without_a_compiler_keeps_pythonfmus_binary_and_says_so(run_pyth
     with zipfile.ZipFile(fmu) as archive:
         names = archive.namelist()
         page = archive.read("documentation/index.html").decode()
+        description = archive.read("modelDescription.xml").decode()
+    assert 'canInterpolateInputs="false"' in description  # pythonfmu's binary takes none
     assert "binaries/linux64/AuvPlant.so" in names
     assert not any(name.endswith("_pythonfmu.so") for name in names)
     assert "built without a C compiler" in page
