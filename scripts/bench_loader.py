@@ -15,6 +15,12 @@ of the CPU time, a profile is sharper than any A/B timing on a busy machine: ``p
 -g python ...`` then ``perf report --sort dso`` shows ``<model>.so`` (the runtime) beside
 ``<model>_pythonfmu.so``.
 
+Then ``fmi2SetRealInputDerivatives`` as a master that extrapolates quadratically calls it
+on the plant once a step (orders 1 and 2 of its 8 inputs in one call): CPU time per call
+with the runtime (answered in C) and with pythonfmu's binary behind it
+(``AUV_FMU_RUNTIME=pythonfmu``: the runtime hands the call to the Python slave), each the
+median of ``--rounds`` blocks of ``--steps`` calls.
+
 Usage: ``python scripts/bench_loader.py [--steps 300] [--rounds 30] [--fmu-dir DIR]``.
 """
 
@@ -127,6 +133,33 @@ class TrivialPair(Pair):
         ]
 
 
+def derivative_calls(plant: Path, runtime: str, calls: int, rounds: int) -> float:
+    """Median CPU seconds of one fmi2SetRealInputDerivatives call on ``plant`` (orders 1
+    and 2 of every Real input) with ``AUV_FMU_RUNTIME=runtime``, over ``rounds`` blocks."""
+    os.environ["AUV_FMU_RUNTIME"] = runtime  # read at instantiation
+    try:
+        pair = Pair(plant, plant, f"derivatives {runtime or 'runtime'}", starts=({}, {}))
+    finally:
+        os.environ.pop("AUV_FMU_RUNTIME")
+    slave = pair.slaves[0]
+    inputs = list(_real_refs(read_model_description(str(plant)), "input").values())
+    vrs, orders, values = (
+        inputs * 2,
+        [1] * len(inputs) + [2] * len(inputs),
+        [1e-3] * (2 * len(inputs)),
+    )
+    blocks = []
+    for _ in range(rounds):
+        start = time.thread_time()
+        for _ in range(calls):
+            slave.setRealInputDerivatives(vrs, orders, values)
+        blocks.append((time.thread_time() - start) / calls)
+    for each in pair.slaves:
+        each.terminate()
+        each.freeInstance()
+    return statistics.median(blocks)
+
+
 def load() -> str:
     """The load average, 1/5/15 minutes."""
     return "/".join(f"{x:.1f}" for x in os.getloadavg())
@@ -164,6 +197,12 @@ def main() -> None:
         ratios = [x / y for x, y in zip(times[a], times[b], strict=True)]
         print(f"{label}: {statistics.median(ratios):.3f} (median of {args.rounds} rounds){target}")
     print(f"load {load()} at the end")
+    plant = fmus["AuvPlant"]
+    calls = {r: derivative_calls(plant, r, args.steps, args.rounds) for r in ("", "pythonfmu")}
+    runtime_step = statistics.median(times["runtime"])
+    print(f"fmi2SetRealInputDerivatives (plant, 16 values): runtime {calls[''] * 1e6:.2f} us "
+          f"CPU per call ({calls[''] / runtime_step:.3f} of a runtime pair step), pythonfmu's "
+          f"binary behind it {calls['pythonfmu'] * 1e6:.1f} us; load {load()}")  # fmt: skip
 
 
 if __name__ == "__main__":
