@@ -1,7 +1,8 @@
 """The compiled sample of the autopilot (controller_fmu.compiled_autopilot, through
 ``Autopilot.step_into``) against the reference ``Autopilot.step``: the same commands,
 heading set-point and backstepping state to the last bit, sample after sample, for the
-heading laws it covers; a sample it refuses leaves the autopilot as it was and raises the
+heading laws it covers, inputs held or varying (input derivatives set: the backstepping
+filters' first-order hold); a sample it refuses leaves the autopilot as it was and raises the
 reference's error."""
 
 from __future__ import annotations
@@ -54,16 +55,18 @@ def _bits(values) -> list[bytes]:
 
 
 @settings(max_examples=60, deadline=None)
-@given(config=configs, rows=samples)
-def test_the_compiled_sample_gives_the_references_commands_to_the_bit(config, rows):
+@given(config=configs, rows=samples, varying=st.booleans())
+def test_the_compiled_sample_gives_the_references_commands_to_the_bit(config, rows, varying):
     fast, reference = _pair(config)
     fast._step_reference = _never  # every sample here is one the kernel takes
+    rates = np.zeros(len(MEASUREMENT_NAMES))
     for k, row in enumerate(rows):
         t = k * H
         out_fast, out_reference = np.empty(4), np.empty(4)
         measurements = np.array(row)
-        fast.step_into(t, measurements, out_fast)
-        reference.step_into(t, measurements, out_reference)
+        rates[MEASUREMENT_NAMES.index("yaw")] = 0.1 * k if varying else 0.0
+        fast.step_into(t, measurements, out_fast, rates)
+        reference.step_into(t, measurements, out_reference, rates)
         assert _bits(out_fast) == _bits(out_reference), (k, out_fast, out_reference)
         assert _bits([fast.heading_setpoint]) == _bits([reference.heading_setpoint])
         assert _bits(fast.commands.values()) == _bits(out_reference)
@@ -81,12 +84,12 @@ def test_the_compiled_sample_gives_the_references_commands_to_the_bit(config, ro
 def test_a_refused_sample_changes_nothing_and_raises_the_references_error(change, message):
     fast, _ = _pair({"heading_mode": 3, "depth_mode": 1, "compensate_current": True})
     measurements = np.full(len(MEASUREMENT_NAMES), 0.01)
-    commands = np.zeros(4)
-    fast.step_into(0.0, measurements, commands)
+    commands, rates = np.zeros(4), np.zeros(len(MEASUREMENT_NAMES))
+    fast.step_into(0.0, measurements, commands, rates)
     before = (fast.backstepping.state.copy(), commands.copy(), fast.heading_setpoint)
     for name, value in change.items():
         measurements[MEASUREMENT_NAMES.index(name)] = value
     with pytest.raises(ValueError, match=message):
-        fast.step_into(H, measurements, commands)
+        fast.step_into(H, measurements, commands, rates)
     assert fast.backstepping.state.tobytes() == before[0].tobytes()
     assert commands.tobytes() == before[1].tobytes() and fast.heading_setpoint == before[2]
