@@ -405,7 +405,7 @@ class SafeSlave(Fmi2Slave):
             )
             return False
         finally:  # they belong to the communication point this step started from
-            if control[DERIVATIVES]:
+            if control[DERIVATIVES] and not self._values.shared:  # (else the runtime does)
                 self._values.clear_derivatives()
 
     def set_real_input_derivatives(
@@ -510,6 +510,7 @@ class SafeSlave(Fmi2Slave):
     def _buffers(self) -> tuple[bytearray, ...]:
         """The value buffers the runtime answers fmi2Get*/fmi2Set* from (lays them out)."""
         self._seal()
+        self._values.shared = True  # the runtime clears the input derivatives after a step
         return self._values.buffers()
 
     def _initial_outputs(self) -> None:

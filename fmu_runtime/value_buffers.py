@@ -62,6 +62,7 @@ class ValueBuffers:
 
     def __init__(self) -> None:
         self.sealed = False
+        self.shared = False  # True once the FMU's runtime holds the buffers
         self._pending: dict[str, list[Any]] = {kind: [] for kind in KINDS}
         self.kinds: list[str] = []  # per value reference: R I B, or "" (a String)
         self.slots: list[int] = []  # per value reference: the slot, -1 for a String

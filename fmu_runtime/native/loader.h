@@ -193,6 +193,8 @@ fmi2Status values_set(Instance *c, char type, const fmi2ValueReference vr[], siz
                       const void *values);
 void values_derivatives(Instance *c, const fmi2ValueReference vr[], size_t n,
                         const fmi2Integer order[], const fmi2Real values[]);
+/* after each doStep: no input derivative set any more */
+void values_clear_derivatives(Instance *c);
 /* the buffers' bytes in an FMU state: their number, a copy out, a copy back */
 size_t values_bytes(const Values *v, size_t flags_n);
 void values_save(const Values *v, size_t flags_n, char *to);

@@ -266,7 +266,8 @@ static fmi2Status exit_initialization(Instance *c)
 
 static fmi2Status terminate(Instance *c) { return call0(c, "terminate", "fmi2Terminate"); }
 
-/* The one call into Python of a step: the slave's do_step, bound once at instantiation. */
+/* The one call into Python of a step: the slave's do_step, bound once at instantiation;
+ * then the input derivatives cleared here (the slave leaves them to the runtime). */
 static fmi2Status step(Instance *c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_state)
 {
     (void)no_set_state;
@@ -283,6 +284,7 @@ static fmi2Status step(Instance *c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_s
     int done = result ? py.IsTrue(result) : -1;
     PyObject *objects[] = {result, at, size};
     for (size_t i = 0; i < 3; i++) slave_release(objects[i]);
+    values_clear_derivatives(c); /* they belonged to this step, done or not */
     slave_leave(c, gil);
     return done < 0 ? fmi2Error : done ? fmi2OK : fmi2Discard;
 }

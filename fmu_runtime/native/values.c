@@ -98,6 +98,17 @@ void values_derivatives(Instance *c, const fmi2ValueReference vr[], size_t n,
     if (n) v->control[CONTROL_DERIVATIVES] = 1;
 }
 
+void values_clear_derivatives(Instance *c)
+{
+    Values *v = &c->values;
+    if (!v->control || !v->control[CONTROL_DERIVATIVES]) return;
+    memset(v->derivatives, 0, 2 * v->reals_n * sizeof(double));
+    for (size_t vr = 0; vr < c->count; vr++) {
+        v->flags[vr] &= (unsigned char)~(FLAG_DERIVATIVE_1 | FLAG_DERIVATIVE_2);
+    }
+    v->control[CONTROL_DERIVATIVES] = 0;
+}
+
 /* ---- FMU state ---------------------------------------------------------------------- */
 
 typedef struct {
