@@ -75,6 +75,19 @@ def _ramp(state: np.ndarray, i: int, new: float, law: np.ndarray, slot: int) -> 
 
 
 @_jit
+def _design_point(law: np.ndarray, scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The design model's plant state (14) and inputs (8) at the straight run, copied
+    into ``scratch`` (views of it, for the sample to fill in its measurements)."""
+    x = scratch[_SCRATCH_X:_SCRATCH_INPUTS]
+    inputs = scratch[_SCRATCH_INPUTS:_SCRATCH_DX]
+    for i in range(14):
+        x[i] = law[DESIGN_STATE + i]
+    for i in range(8):
+        inputs[i] = law[DESIGN_INPUTS + i]
+    return x, inputs
+
+
+@_jit
 def command(
     p: np.ndarray,
     law: np.ndarray,
@@ -114,12 +127,7 @@ def command(
                 state[VALUES + i] = p00 * value + p01 * rate + g0 * held
                 state[RATES + i] = p10 * value + p11 * rate + g1 * held
     step = started and ramp
-    x = scratch[_SCRATCH_X:_SCRATCH_INPUTS]
-    inputs = scratch[_SCRATCH_INPUTS:_SCRATCH_DX]
-    for i in range(14):
-        x[i] = law[DESIGN_STATE + i]
-    for i in range(8):
-        inputs[i] = law[DESIGN_INPUTS + i]
+    x, inputs = _design_point(law, scratch)
     x[_V], x[_R], x[_P], x[_ROLL], x[_YV] = v, r, pp, phi, 0.0
     inputs[_Y_D] = 0.0
     dx = scratch[_SCRATCH_DX:_SCRATCH_R]
