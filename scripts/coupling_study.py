@@ -2,7 +2,7 @@
 
     python scripts/coupling_study.py shipped [--scenarios bs-3 vert-1 ...] [--write]
     python scripts/coupling_study.py check-step [--scenarios bs-3 vert-1] [--write]
-    python scripts/coupling_study.py adaptive [--tolerance 1e-3] [--write]
+    python scripts/coupling_study.py adaptive [--tolerances 1e-3 1e-4 ...] [--write]
     python scripts/coupling_study.py readme [--write]
 
 ``shipped``: every built-in scenario (or those named) as shipped, and again at 2.5, 1.25
@@ -14,10 +14,13 @@ ms, else the coupling's nominal one) and the shipped run's error against it.
 and with held inputs (``extrapolation = "none"``), against its true error (the run minus
 the run at 1/32 of its step).
 
-``adaptive``: vert-1 with ``algorithm = "adaptive"`` at a tolerance, against fixed steps
-with the same extrapolation: each run's communication steps and doSteps, and its errors
-against a run at 0.3125 ms: the trajectory's (the largest distance of the plant's outputs,
-|y - y_ref| / (|y_ref| + 1)) and the key figures' (relative).
+``adaptive``: vert-1 with ``algorithm = "adaptive"`` at each tolerance, against fixed steps
+with the same extrapolation: each run's communication steps (accepted and rejected) and
+plant doSteps (every attempt's three: the doubled step's and the rejected ones counted),
+its errors against a run at 0.3125 ms: the trajectory's (the largest distance of the
+plant's outputs, |y - y_ref| / (|y_ref| + 1)) and the key figures' (relative), and the
+doSteps a fixed step would take for the same trajectory error (log-log interpolation
+between the fixed runs).
 
 ``readme``: the yaw settling times of README.md's built-in scenario table, each written
 after its marker ``<!-- <scenario id> -->`` (three significant digits, s), from the
@@ -55,6 +58,7 @@ FIGURES = {  # key figure -> (label, unit scale, unit)
     "peak_abs_tunnel_force_N": ("peak tunnel force", 1.0, "N"),
 }
 ADAPTIVE_FIXED_STEPS = (0.04, 0.02, 0.01, 0.005, 0.0025)  # s
+ADAPTIVE_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6)
 
 
 def figures_of(scenario: Scenario) -> tuple[dict[str, float | None], master.RunResult]:
@@ -124,37 +128,53 @@ def check_steps(ids: Sequence[str]) -> str:
     return "\n".join(lines)
 
 
-def adaptive(tolerance: float) -> str:
+def adaptive(tolerances: Sequence[float]) -> str:
     base = load_scenario("vert-1")
     finest = base.with_overrides(step=0.0003125)
     reference, limits = _rows(finest), figures_of(finest)[0]
-    runs = {"adaptive": base.with_overrides(algorithm="adaptive", tolerance=tolerance)}
+    runs = {f"fixed {h * 1e3:g} ms": base.with_overrides(step=h) for h in ADAPTIVE_FIXED_STEPS}
     runs.update(
-        {f"fixed {h * 1e3:g} ms": base.with_overrides(step=h) for h in ADAPTIVE_FIXED_STEPS}
-    )
+        {f"adaptive, tol {tol:g}": base.with_overrides(algorithm="adaptive", tolerance=tol)
+         for tol in tolerances}
+    )  # fmt: skip
     lines = [
-        f"vert-1, {base.coupling.extrapolation} extrapolation, tolerance {tolerance:g}; errors "
-        f"against a run at 0.3125 ms ({_load()}):",
+        f"vert-1, {base.coupling.extrapolation} extrapolation; errors against a run at 0.3125 "
+        f"ms ({_load()}):",
         "",
-        "| run | communication steps | plant doSteps | trajectory error | settling time error | "
-        "peak mass position error | wall clock (s) |",
-        "|---|---|---|---|---|---|---|",
+        "| run | steps accepted / rejected | plant doSteps | trajectory error | settling time "
+        "error | peak mass position error | fixed step's doSteps for that error | "
+        "wall clock (s) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
+    fixed: list[tuple[float, float]] = []  # (trajectory error, doSteps) of the fixed runs
     for name, scenario in runs.items():
         sink = KeyFigures(scenario.columns)
         started = time.perf_counter()
         result = master.run(scenario, [sink])
         wall = time.perf_counter() - started
         figures, taken = sink.figures(), result.coupling
-        steps = taken.get("accepted_steps", result.rows - 1)
+        steps = f"{taken.get('accepted_steps', result.rows - 1)} / {taken.get('rejected_steps', 0)}"
         do_steps = taken.get("do_steps", {}).get("plant", result.rows - 1)
+        error = _error(result, reference)
         relative = [_relative(figures[key], limits[key]) for key in list(FIGURES)[:2]]
+        if name.startswith("fixed"):
+            fixed.append((error, do_steps))
         lines.append(
-            f"| {name} | {steps} | {do_steps} | {_error(result, reference):.2e} | "
-            f"{relative[0]} | {relative[1]} | {wall:.1f} |"
+            f"| {name} | {steps} | {do_steps} | {error:.2e} | {relative[0]} | {relative[1]} | "
+            f"{_same_error(fixed, error)} | {wall:.1f} |"
         )
         print(f"  {name}: done", file=sys.stderr)
     return "\n".join(lines)
+
+
+def _same_error(fixed: Sequence[tuple[float, float]], error: float) -> str:
+    """The doSteps a fixed step would take for ``error``: log-log interpolation between the
+    fixed runs (their error falls as a power of their step)."""
+    points = sorted(fixed)
+    if not points or not points[0][0] <= error <= points[-1][0]:
+        return "(outside the fixed runs)"
+    log_e, log_n = np.log([e for e, _ in points]), np.log([n for _, n in points])
+    return f"{np.exp(np.interp(np.log(error), log_e, log_n)):.0f}"
 
 
 def _relative(value: float | None, limit: float | None) -> str:
@@ -223,7 +243,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("part", choices=["shipped", "check-step", "adaptive", "readme"])
     parser.add_argument("--scenarios", nargs="+", help="built-in ids [every one / bs-3 vert-1]")
-    parser.add_argument("--tolerance", type=float, default=1e-3, help="adaptive [1e-3]")
+    parser.add_argument(
+        "--tolerances",
+        type=float,
+        nargs="+",
+        default=list(ADAPTIVE_TOLERANCES),
+        help="adaptive [1e-3 1e-4 1e-5 1e-6]",
+    )
     parser.add_argument("--write", action="store_true", help="into docs/coupling.md")
     args = parser.parse_args(argv)
     if args.part == "readme":
@@ -234,7 +260,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif args.part == "check-step":
         table = check_steps(args.scenarios or ["bs-3", "vert-1"])
     else:
-        table = adaptive(args.tolerance)
+        table = adaptive(args.tolerances)
     if args.write:
         write(args.part, table)
     else:

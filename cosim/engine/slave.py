@@ -14,6 +14,7 @@ import atexit
 import collections
 import ctypes
 import hashlib
+import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -264,12 +265,20 @@ def _library(key: tuple[str, str, str, str]) -> FMU2Slave:
     except (KeyError, IndexError):
         pass
     unzip_dir, model_identifier, guid, instance_name = key
-    return FMU2Slave(
-        guid=guid,
-        unzipDirectory=unzip_dir,
-        modelIdentifier=model_identifier,
-        instanceName=instance_name,
-    )
+    cwd = os.getcwd()
+    try:
+        return FMU2Slave(
+            guid=guid,
+            unzipDirectory=unzip_dir,
+            modelIdentifier=model_identifier,
+            instanceName=instance_name,
+        )
+    except Exception as exc:  # fmpy raises a plain Exception, in the binary's folder
+        os.chdir(cwd)  # fmpy changes the working directory to load it and leaves it there
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise CosimError(
+            f"{instance_name}: cannot load the binary of {model_identifier}: {reason}"
+        ) from None
 
 
 # --- unzipped FMUs, one folder per FMU content per process ---------------------------------

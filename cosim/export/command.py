@@ -34,10 +34,12 @@ def export_scenario(
         print(f"SSP archive: {export_ssp(resolved, ssp, overwrite=force)}")
     elif osp is not None:
         print(f"OSP system structure: {export_osp(resolved, osp)}")
-    if resolved.coupling.algorithm != "jacobi":
+    coupling = resolved.coupling
+    if coupling.algorithm != "jacobi" or coupling.extrapolation != "none":
         print(
-            f"note: libcosim and ecos couple Jacobi-style; {resolved.id} runs "
-            f"{resolved.coupling.algorithm} in auv-cosim, so compare with "
-            f"`auv-cosim run {resolved.id} --algorithm jacobi`"
+            f"note: libcosim and ecos couple Jacobi-style with held inputs; {resolved.id} "
+            f"runs {coupling.algorithm} with {coupling.extrapolation} extrapolation in "
+            f"auv-cosim, so compare with "
+            f"`auv-cosim run {resolved.id} --algorithm jacobi --extrapolation none`"
         )
     return 0

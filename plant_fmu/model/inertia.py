@@ -1,4 +1,4 @@
-"""Inertia of hull and fluid: rigid-body and added-mass matrices (2.3.11, Table 4.1).
+"""Inertia of hull and fluid: rigid-body and added-mass matrices (2.3.11, Tables 5.1, 5.4).
 
 Kept apart from :mod:`plant_fmu.model.dynamics` so that :mod:`plant_fmu.model.parameters`
 can check a parameter set's mass matrix without importing the dynamics (which imports the

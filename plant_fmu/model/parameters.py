@@ -45,7 +45,7 @@ class VehicleParameters(CheckedRecord):
     name: str = checked_field("custom", description="name of the set")
     description: str = checked_field("", description="what the set is")
 
-    # Rigid body (Table 4.1)
+    # Rigid body (Tables 5.1 and 5.4; length and diameter Table 4.1)
     m: float = checked_field(gt=0.0, description="vehicle mass, kg")
     W: float = checked_field(gt=0.0, description="weight, N (m g; a set that differs says why)")
     B: float = checked_field(gt=0.0, description="buoyancy, N")
@@ -58,7 +58,7 @@ class VehicleParameters(CheckedRecord):
     length: float = checked_field(gt=0.0, description="hull length, m")
     diameter: float = checked_field(gt=0.0, description="hull diameter, m")
 
-    # Added mass (Table 4.1 / 5.1)
+    # Added mass (Tables 5.1, 5.4 and 6.1)
     a11: float = checked_field(ge=0.0, description="surge added mass, kg")
     a22: float = checked_field(ge=0.0, description="sway added mass, kg")
     a33: float = checked_field(ge=0.0, description="heave added mass, kg")

@@ -5,6 +5,7 @@ independent instances and a complete, valid modelDescription.xml."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -293,21 +294,24 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
 
 @pytest.mark.slow
 def test_fresh_process_runs_the_code_shipped_in_the_fmu(plant, run_python):
+    """A process that never imported the project runs the plant from the FMU's resources,
+    under the FMU's own package name, never the source tree's ``plant_fmu``."""
     result = run_python(
         """
         import sys
         from fmpy import simulate_fmu
         simulate_fmu(sys.argv[1], stop_time=0.1, output_interval=0.01)
-        import auv_plant, plant_fmu
-        print(auv_plant.__file__)
-        print(plant_fmu.__file__)
+        shipped = [m for m in sys.modules if m.endswith(".plant_fmu.model.dynamics")]
+        print(shipped, sys.modules[shipped[0]].__file__, "plant_fmu" in sys.modules)
         """,
         plant,
     )
     assert result.returncode == 0, result.stderr
-    script, package = result.stdout.split()[-2:]
-    assert script.endswith("resources/auv_plant.py")
-    assert package.endswith("resources/plant_fmu/__init__.py")
+    *_, path, source_tree_imported = result.stdout.split()
+    package = Path(path).parents[2]
+    assert re.fullmatch(r"auvfmu_[0-9a-f]{12}", package.name), path
+    assert package.parent.name == "resources", path
+    assert source_tree_imported == "False"
 
 
 # --- model description -------------------------------------------------------------------------

@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 from scenario_factory import X0, K, loop_toml
 
+from cosim.engine import adaptive as adaptive_module
 from cosim.engine import master
 from cosim.engine.adaptive import MIN_LEVEL, grid_step
 from cosim.engine.pacing import Pacer
 from cosim.errors import CosimError
+from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import scenario_from_toml
 
 
@@ -123,3 +125,53 @@ def test_steps_it_never_rejects_give_the_fixed_step_run_of_their_halves(
     assert halves.coupling["rejected_steps"] == 0
     np.testing.assert_array_equal(halves.times, fixed.times)
     np.testing.assert_array_equal(halves.values, fixed.values)
+
+
+def test_the_error_estimate_is_within_a_factor_of_the_true_local_error(
+    test_fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On the loop, whose continuous-time limit is x0 exp(-k t): for every accepted step
+    from (t, x) the estimate of the halves' local error is within a factor 1.5 of their
+    true one, x(t + H) - x exp(-k H) (the held gain is first order: k^2 H^2 / 4 x)."""
+    estimates: list[float] = []
+    estimate, judge = adaptive_module._Control.estimate, adaptive_module._Control.judge
+
+    def keep_estimate(self, big, halves):  # type: ignore[no-untyped-def]
+        self.last_estimate = estimate(self, big, halves)[self.index["plant.x"]]
+        return estimate(self, big, halves)
+
+    def keep_accepted(self, err, units, wanted):  # type: ignore[no-untyped-def]
+        accepted = judge(self, err, units, wanted)
+        if accepted:
+            estimates.append(self.last_estimate)
+        return accepted
+
+    monkeypatch.setattr(adaptive_module._Control, "estimate", keep_estimate)
+    monkeypatch.setattr(adaptive_module._Control, "judge", keep_accepted)
+    result = run(test_fmu_dir, adaptive(1e-3))
+    assert result.coupling["order"] == 1 and len(estimates) == result.coupling["accepted_steps"]
+    t, x = result.times[::2], result.column("plant.x")[::2]  # the accepted steps' ends
+    true = x[1:] - x[:-1] * np.exp(-K * np.diff(t))
+    ratio = np.asarray(estimates) / np.abs(true)
+    assert len(ratio) >= 10 and np.all((ratio > 1 / 1.5) & (ratio < 1.5)), ratio
+
+
+def test_the_step_follows_the_error_not_powers_of_two(test_fmu_dir: Path) -> None:
+    """The loop's error falls with x: the steps grow smoothly (any length on the grid,
+    by at most FAC_MAX at a time) and the accepted steps use most of the tolerance."""
+    result = run(test_fmu_dir, adaptive(1e-3))
+    steps = np.diff(result.times[::2])[:-1]  # the last one is cut at the stop time
+    growth = steps[1:] / steps[:-1]
+    assert np.all(growth <= adaptive_module.FAC_MAX + 1e-9)
+    levels = np.log2(steps / grid_step(result.scenario.coupling))
+    assert np.any(np.abs(levels - np.round(levels)) > 0.01)  # not only 2^j grid points
+    assert result.coupling["rejected_steps"] <= result.coupling["accepted_steps"] // 10
+
+
+@pytest.mark.parametrize("bad", ["0.0", "-1e-3", "1.0", "2.0", "nan", "inf"])
+def test_a_bad_tolerance_is_refused_in_one_line_naming_it(test_fmu_dir: Path, bad: str) -> None:
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(adaptive(1e-3).replace("tolerance = 0.001", f"tolerance = {bad}"),
+                           base_dir=test_fmu_dir)  # fmt: skip
+    message = str(refused.value)
+    assert "\n" not in message and "coupling.tolerance" in message, message

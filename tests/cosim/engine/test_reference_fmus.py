@@ -2,10 +2,9 @@
 against their published results ``<Model>_out.csv``, within the references' printed
 precision.
 
-They are not in this repository: build them from github.com/modelica/Reference-FMUs with
-cmake ``-DFMI_VERSION=2`` and put the ``.fmu`` files with the ``<Model>_out.csv`` of each
-model folder in one folder named by ``AUV_REFERENCE_FMUS`` (docs/coupling.md says how).
-Without it every test here is skipped, saying so.
+The built FMUs and their published results are in ``tests/data/reference-fmus`` (its
+README says how they were built, with their licence); ``AUV_REFERENCE_FMUS`` names another
+folder of builds to test instead.
 """
 
 from __future__ import annotations
@@ -18,16 +17,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import TESTS
 
 from cosim.engine import master
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import scenario_from_toml
 
-FOLDER = Path(os.environ.get("AUV_REFERENCE_FMUS", "/nonexistent"))
-pytestmark = pytest.mark.skipif(
-    not (FOLDER / "VanDerPol.fmu").is_file(),
-    reason="AUV_REFERENCE_FMUS names no folder of built Reference FMUs (docs/coupling.md)",
-)
+FOLDER = Path(os.environ.get("AUV_REFERENCE_FMUS") or TESTS / "data" / "reference-fmus")
 # model -> (step s, stop time s, the published columns compared)
 MODELS = {
     "VanDerPol": (0.01, 20.0, ("x0", "x1")),

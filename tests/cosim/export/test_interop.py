@@ -4,8 +4,8 @@ Each system is exported with ``cosim.export`` and run in libcosim (``libcosimpy`
 archive and the OSP system structure) and in ecos (``ecospy``: the SSP archive), once per
 session, each run in its own subprocess (``tests/interop_runner.py``: a crashing master
 must not take pytest down, and a pythonfmu FMU cannot be loaded twice in one process).
-The traces are compared step by step with ``auv-cosim run SYSTEM --algorithm jacobi`` at
-the same step:
+The traces are compared step by step with
+``auv-cosim run SYSTEM --algorithm jacobi --extrapolation none`` at the same step:
 
 * ``bs-3`` (backstepping autopilot + plant, docs/model.md#scenarios), 10 s at 10 ms;
 * the plant alone with prescribed (constant) inputs, 10 s at 10 ms;
@@ -97,13 +97,14 @@ def exported(systems: dict, tmp_path_factory: pytest.TempPathFactory) -> dict:
 
 @pytest.fixture(scope="module")
 def master_traces(systems: dict, fmu_paths: dict, tmp_path_factory: pytest.TempPathFactory) -> dict:
-    """{name: (times, {variable: values})} from `auv-cosim run NAME --algorithm jacobi`."""
+    """{name: (times, {variable: values})} from
+    `auv-cosim run NAME --algorithm jacobi --extrapolation none`."""
     folder = tmp_path_factory.mktemp("master")
     traces = {}
     for name, (scenario, variables, source) in systems.items():
         out = folder / name
         command = [sys.executable, "-m", "cosim.cli", "run", str(source), "--algorithm",
-                   "jacobi", "--stop-time", str(STOP_TIME), "--step",
+                   "jacobi", "--extrapolation", "none", "--stop-time", str(STOP_TIME), "--step",
                    repr(scenario.coupling.step), "--no-rrd", "--quiet", "--out", str(out),
                    "--fmu-dir", str(fmu_paths["AuvPlant"].parent)]  # fmt: skip
         done = subprocess.run(command, capture_output=True, text=True, timeout=600, check=False)
@@ -164,7 +165,8 @@ def _assert_same_trace(name: str, tool: str, theirs: tuple, master: tuple) -> No
     for variable, theirs_v in their_values.items():
         deviation = np.max(np.abs(theirs_v - values[variable][1:]))
         assert deviation <= TOLERANCE, (
-            f"{name} in {tool}: {variable} deviates from `auv-cosim run --algorithm jacobi` "
+            f"{name} in {tool}: {variable} deviates from "
+            f"`auv-cosim run --algorithm jacobi --extrapolation none` "
             f"by up to {deviation:.3g} (tolerance {TOLERANCE:g})"
         )
 

@@ -16,10 +16,10 @@ def test_builtin_sets_are_shipped_and_load():
         assert load_vehicle(name).name == name
 
 
-def test_remus100_matches_table_4_1_and_servo_design():
+def test_remus100_matches_tables_5_1_and_5_4_and_servo_design():
     p = load_vehicle("remus100")
     assert (p.m, p.B, p.I_xx, p.I_zz, p.z_g, p.g) == (30.5, 306.0, 0.177, 3.45, 0.0196, 9.8)
-    assert round(p.W) == 299  # Table 4.1 prints m g rounded
+    assert round(p.W) == 299  # Table 5.4 prints m g rounded
     # (6.3.16): omega_n^2 = k_v/m_v = 5.76 and 2 zeta omega_n = d_v/m_v = 4.32, the servo
     # row of (6.3.19): y_vel' = -k_v/m_v y_v - d_v/m_v y_vel + k_v/m_v y_d
     servo_row = dissertation("equation_6_3_19.A")[6]
