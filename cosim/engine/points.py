@@ -104,7 +104,7 @@ def inputs_giver(z: np.ndarray, timeline: Timeline | None) -> Callable[[Slave, i
     def give(slave: Slave, n: int, t: float) -> None:
         take(slave.input_sources, out=slave.inputs)
         deliver(slave, n)
-        slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+        slave.put_inputs()
         if slave.others:
             slave.set_others(z)
         if slave.input_rates is not None:
