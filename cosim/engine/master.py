@@ -318,8 +318,8 @@ def _step(
         error, figures = adaptive.run(
             scenario, order, layout.index, layout.n_read, z, rows, stop, timeline, give
         )
-        result = _result(scenario, order, rows, error, stop, time.perf_counter() - started)
-        result.cpu_clock_s = time.process_time() - cpu_started
+        result = _result(scenario, order, rows, error, stop, time.perf_counter() - started,
+                         time.process_time() - cpu_started)  # fmt: skip
         result.coupling = figures
     else:
         at: Callable[[int], None] = timeline.at if timeline is not None else _no_event
@@ -470,16 +470,16 @@ def _loop(
             for slave in due:
                 if not jacobi:  # the latest values, including those stepped just now
                     give(slave, n, t)
-                # step to t_{n+k} - t_n, as fmpy.simulate_fmu does (bit-identical runs),
-                # and read the outputs
-                slave.advance(t, min(n + slave.k, n_steps) * h - t)
+                # step to t_{n+k} - t_n as fmpy.simulate_fmu does, then read the outputs
+                slave.advance(t, (min(n + slave.k, n_steps) if multi_rate else n + 1) * h - t)
             if through:  # feedthroughs follow their inputs
                 refresh(through, give, n + 1, (n + 1) * h)
             nan_if_bad = check_dot(probe)
             if nan_if_bad != nan_if_bad:
                 check_finite(exchanged, layout.index, (n + 1) * h)
             at(n + 1)
-            take(record, out=slots[filled])
+            if record.size:  # (a run recording nothing gathers nothing)
+                take(record, out=slots[filled])
             filled += 1
             if filled == chunk or clock() >= hand_off_at:
                 rows.hand_off(filled)
@@ -496,9 +496,8 @@ def _loop(
     except CosimError as exc:
         error = str(exc)
     rows.hand_off(filled)
-    result = _result(scenario, order, rows, error, stop, clock() - started)
-    result.cpu_clock_s = time.process_time() - cpu_started
-    return result
+    return _result(scenario, order, rows, error, stop, clock() - started,
+                   time.process_time() - cpu_started)  # fmt: skip
 
 
 def _live_point(
@@ -539,9 +538,11 @@ def _result(
     error: str | None,
     stop: StopRequest,
     wall: float,
+    cpu: float,
 ) -> RunResult:
     """How the loop ended, as a :class:`RunResult` (the sinks' failure or the stop signal
-    named as the reason when nothing else failed)."""
+    named as the reason when nothing else failed); ``wall`` and ``cpu``: the loop's wall
+    clock and process CPU time, s."""
     t_end = rows.time_reached
     if error is None and rows.error is not None:
         error = f"{rows.error} (at t = {t_end:.6g} s)"
@@ -558,6 +559,7 @@ def _result(
         complete=reached and error is None,
         error=error,
         wall_clock_s=wall,
+        cpu_clock_s=cpu,
         stop_signal=stop.signum if stopped else None,
         messages={s.name: list(s.messages) for s in order},
         ended=rows.ended,
