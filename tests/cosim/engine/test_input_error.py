@@ -1,0 +1,109 @@
+"""The adaptive step's extrapolation error estimate (error_estimate = "extrapolation") on
+the master tests' loop (an integrator under a sampled gain, x' = -k x in the limit)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scenario_factory import K, loop_toml
+
+from cosim.engine import adaptive as adaptive_module
+from cosim.engine import master
+from cosim.scenario.checks import ScenarioError
+from cosim.scenario.spec import scenario_from_toml
+
+
+def adaptive(tolerance: float, estimate: str = "extrapolation") -> str:
+    text = loop_toml(algorithm="adaptive", stop_time=2.0)
+    return text.replace(
+        "[coupling]", f'[coupling]\ntolerance = {tolerance}\nerror_estimate = "{estimate}"'
+    )
+
+
+def run(test_fmu_dir: Path, text: str) -> master.RunResult:
+    return master.run(scenario_from_toml(text, base_dir=test_fmu_dir))
+
+
+def test_the_estimate_is_the_true_extrapolation_error_of_the_step(
+    test_fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The gain holds x over each step (the loop's FMUs take no input derivatives): for
+    every accepted step from (t, x) the estimated error of that held input is within a
+    factor 1.5 of the true one, |x - x exp(-k H)| (the continuous-time loop's x at t + H
+    from the same x)."""
+    seen: list[float] = []
+    scaled, judge = adaptive_module._Control.scaled, adaptive_module._Control.judge
+
+    def keep_estimate(self, values, sources, du):  # type: ignore[no-untyped-def]
+        x = self.index["plant.x"]
+        self.last_estimate = float(du[list(sources).index(x)])
+        return scaled(self, values, sources, du)
+
+    def keep_accepted(self, err, units, wanted):  # type: ignore[no-untyped-def]
+        accepted = judge(self, err, units, wanted)
+        if accepted:
+            seen.append(self.last_estimate)
+        return accepted
+
+    monkeypatch.setattr(adaptive_module._Control, "scaled", keep_estimate)
+    monkeypatch.setattr(adaptive_module._Control, "judge", keep_accepted)
+    result = run(test_fmu_dir, adaptive(1e-3))
+    taken = result.coupling
+    assert taken["error_estimate"] == "extrapolation"
+    assert len(seen) == taken["accepted_steps"] == result.rows - 1
+    t, x = result.times, result.column("plant.x")
+    true = np.abs(x[:-1] * (1.0 - np.exp(-K * np.diff(t))))
+    ratio = np.asarray(seen) / true
+    assert len(ratio) >= 10 and np.all((ratio > 1 / 1.5) & (ratio < 1.5)), ratio
+
+
+def test_one_do_step_per_attempt_and_a_tighter_tolerance_comes_closer_to_the_limit(
+    test_fmu_dir: Path,
+) -> None:
+    """Each attempt costs each instance one doStep (rejected ones too), and the run's
+    error against x0 exp(-k t) falls with the tolerance."""
+    loose, tight = run(test_fmu_dir, adaptive(1e-2)), run(test_fmu_dir, adaptive(1e-4))
+    for result in (loose, tight):
+        taken = result.coupling
+        attempts = taken["accepted_steps"] + taken["rejected_steps"]
+        assert taken["do_steps"] == {"plant": attempts, "controller": attempts}
+
+    def error(result: master.RunResult) -> float:
+        return float(np.max(np.abs(result.column("plant.x") - np.exp(-K * result.times))))
+
+    assert tight.coupling["accepted_steps"] > loose.coupling["accepted_steps"]
+    assert error(tight) < error(loose) / 4
+
+
+def test_an_accepted_step_grows_the_next_by_at_most_two(test_fmu_dir: Path) -> None:
+    """The extrapolation's points stay evenly enough spaced: no step is more than twice
+    the step before it."""
+    result = run(test_fmu_dir, adaptive(1e-3))
+    steps = np.diff(result.times)[:-1]  # the last one is cut at the stop time
+    assert np.all(steps[1:] / steps[:-1] <= adaptive_module.FAC_MAX + 1e-9)
+
+
+@pytest.mark.parametrize("bad", ['"halving"', "1", '""'])
+def test_a_bad_error_estimate_is_refused_in_one_line_naming_it(
+    test_fmu_dir: Path, bad: str
+) -> None:
+    text = adaptive(1e-3).replace('error_estimate = "extrapolation"', f"error_estimate = {bad}")
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, base_dir=test_fmu_dir)
+    message = str(refused.value)
+    assert "\n" not in message and "coupling.error_estimate" in message, message
+
+
+def test_an_error_estimate_without_the_adaptive_algorithm_is_refused(test_fmu_dir: Path) -> None:
+    text = loop_toml().replace("[coupling]", '[coupling]\nerror_estimate = "doubling"')
+    with pytest.raises(ScenarioError, match="coupling.error_estimate.*adaptive"):
+        scenario_from_toml(text, base_dir=test_fmu_dir)
+
+
+def test_the_default_estimate_is_the_extrapolation(test_fmu_dir: Path) -> None:
+    text = loop_toml(algorithm="adaptive")
+    assert scenario_from_toml(text, base_dir=test_fmu_dir).coupling.error_estimate == (
+        "extrapolation"
+    )
