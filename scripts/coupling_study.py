@@ -160,6 +160,8 @@ def _adaptive_table(sid: str, tolerances: Sequence[float]) -> str:
         started = time.perf_counter()
         result = master.run(scenario, [sink])
         wall = time.perf_counter() - started
+        if not result.complete:  # a stopped run's error would look small
+            raise RuntimeError(f"{sid} {name}: {result.error}")
         figures, taken = sink.figures(), result.coupling
         steps = f"{taken.get('accepted_steps', result.rows - 1)} / {taken.get('rejected_steps', 0)}"
         do_steps = taken.get("do_steps", {}).get("plant", result.rows - 1)

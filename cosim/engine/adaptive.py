@@ -1,5 +1,18 @@
 """The error-controlled communication step (``[coupling] algorithm = "adaptive"``).
 
+Two estimates of a step's error (``[coupling] error_estimate``):
+
+* ``"extrapolation"`` (the default): the instances take one step of H from t (states
+  saved first) and the error is that of their extrapolated inputs at t + H against what
+  the sources' outputs say they were (:mod:`cosim.engine.input_error`; Schierz, Arnold &
+  Clauss 2012), err = max_i du_i / (tol (Y_i + 1e-3 nominal_i)) over the inputs, Y_i the
+  largest |value| of the input's source so far. One doStep per instance and attempt;
+  err > 1 restores the states and retries. k below is q + 1, q the lowest degree of the
+  inputs' extrapolation (0 held, 2 quadratic); an accepted step's successor is 0.5 to 2
+  times it (never more than twice the step taken last, so the extrapolation's points
+  stay evenly enough spaced), and steps are from one grid point up.
+* ``"doubling"``, the rest of this docstring:
+
 Step doubling with rollback, as MasterSim's error control does it (docs/coupling.md):
 from a communication point t every instance's state is saved (``fmi2GetFMUstate``) with
 the master's own (exchanged values, input-derivative histories, the timeline's events and
@@ -55,7 +68,8 @@ The first step is ``step``.
 Costs: an attempted step takes three doSteps per instance and a state save and restore,
 a rejected one as many: the summary's ``coupling`` counts them. Step doubling pays 1.5
 doSteps per half step; it beats a fixed step where the step the error allows varies
-through the run by more than that (docs/coupling.md measures vert-1).
+through the run by more than that (docs/coupling.md measures vert-1 and bs-3, with both
+estimates).
 """
 
 from __future__ import annotations

@@ -3,7 +3,9 @@ the master tests' loop (an integrator under a sampled gain, x' = -k x in the lim
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -11,6 +13,8 @@ from scenario_factory import K, loop_toml
 
 from cosim.engine import adaptive as adaptive_module
 from cosim.engine import master
+from cosim.engine.extrapolation import InputRates
+from cosim.engine.input_error import InputError
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import scenario_from_toml
 
@@ -98,7 +102,7 @@ def test_a_bad_error_estimate_is_refused_in_one_line_naming_it(
 
 def test_an_error_estimate_without_the_adaptive_algorithm_is_refused(test_fmu_dir: Path) -> None:
     text = loop_toml().replace("[coupling]", '[coupling]\nerror_estimate = "doubling"')
-    with pytest.raises(ScenarioError, match="coupling.error_estimate.*adaptive"):
+    with pytest.raises(ScenarioError, match=r"coupling\.error_estimate.*adaptive"):
         scenario_from_toml(text, base_dir=test_fmu_dir)
 
 
@@ -107,3 +111,60 @@ def test_the_default_estimate_is_the_extrapolation(test_fmu_dir: Path) -> None:
     assert scenario_from_toml(text, base_dir=test_fmu_dir).coupling.error_estimate == (
         "extrapolation"
     )
+
+
+class FakeFmu:
+    """Takes the input derivatives and does nothing with them."""
+
+    component = None
+
+    def fmi2SetRealInputDerivatives(self, *args: object) -> None:
+        pass
+
+
+class FakeSlave:
+    """The parts of a Slave the estimator reads: one Real input from z[0]."""
+
+    def __init__(self, name: str, sources: list[int], rates: InputRates | None) -> None:
+        self.name, self.input_rates = name, rates
+        self.input_sources = np.asarray(sources, dtype=np.intp)
+        self.n_inputs = len(sources)
+        self.inputs = np.zeros(self.n_inputs)
+
+
+def quadratic_estimate(times: list[float], end: float) -> tuple[float, float]:
+    """(estimated, true) error at ``end`` of sin(t) extrapolated quadratically from its
+    values at ``times`` (the last three: the polynomial through them, exactly)."""
+    grid = 1e-4
+    receiver = FakeSlave("receiver", [0], InputRates(FakeFmu(), [1], order=2))
+    source = FakeSlave("source", [], None)
+    order: list[Any] = [receiver, source]  # the source after: its value at the end is known
+    estimator = InputError(order, {"source.y": 0}, jacobi=False, timeline=None, grid=grid)
+    z = np.zeros(1)
+    points = [round(t / grid) for t in [*times, end]]
+    for n, following in itertools.pairwise(points):
+        z[0] = np.sin(n * grid)
+        receiver.inputs[:] = z[0]
+        assert receiver.input_rates is not None
+        receiver.input_rates.send(receiver.inputs, n * grid, epoch=0)
+        estimator.took(receiver, n, following - n)  # type: ignore[arg-type]
+    z[0] = np.sin(end)
+    sources, du = estimator.errors(order, z, points[-1], k=3)
+    assert list(sources) == [0]
+    fit = np.polyfit(times[-3:], np.sin(times[-3:]), 2)
+    return float(du[0]), abs(float(np.polyval(fit, end)) - np.sin(end))
+
+
+@pytest.mark.parametrize("times", [[0.0, 0.1, 0.2, 0.3], [0.0, 0.05, 0.2, 0.25, 0.45]])
+def test_the_estimate_is_the_quadratic_extrapolations_error_at_the_steps_end(
+    times: list[float],
+) -> None:
+    """A known input, sin(t), extrapolated through the last three points (any spacing):
+    the estimate is the polynomial's distance from sin at the step's end, and it falls
+    as the cube of the step (the extrapolation's order) when every spacing halves."""
+    step = 0.1
+    estimated, true = quadratic_estimate(times, times[-1] + step)
+    assert estimated == pytest.approx(true, rel=1e-9)
+    half = [t / 2 for t in times]
+    finer, _ = quadratic_estimate(half, half[-1] + step / 2)
+    assert 6.0 < estimated / finer < 10.0
