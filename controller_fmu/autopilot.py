@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from controller_fmu import compiled_autopilot as fast
 from controller_fmu.backstepping import (
     BacksteppingGains,
     BacksteppingHeading,
@@ -352,13 +353,18 @@ class Autopilot:
     """
 
     def __init__(self, config: AutopilotConfig, vehicles: Path | None = None) -> None:
-        self.config = config
+        # the compiled sample's configuration, published values and scratch
+        # (compiled_autopilot's layout); the published values are this object's commands
+        # and heading set-point
+        self._work = np.zeros(fast.WORK_SIZE)
+        self._set_config(config)
         self.params = load_vehicle(config.vehicle, folder=vehicles)
         self.design = LateralDesignModel(self.params, config.design_speed)
         self.lqr: LqrHeading | None
         self.sliding_mode: SlidingModeHeading | None
         self.backstepping: BacksteppingHeading | None
         self._heading_law: HeadingLaw
+        self._kernel: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._use_heading_mode(config)
         self.depth: DepthPd | None = None
         if DepthMode(config.depth_mode) is DepthMode.PD:
@@ -366,6 +372,11 @@ class Autopilot:
                 config.depth_gamma, config.depth_k_p, config.depth_tau_d, config.fin_angle_limit
             )
         self.reset()
+        if self._kernel is not None:  # compile (or load) the sample now, not in the first step
+            p, law, state = self._kernel
+            inputs, outputs = np.zeros(len(MEASUREMENT_NAMES)), np.zeros(len(COMMAND_NAMES))
+            work = self._work.copy()
+            fast.sample(p, law.copy(), state.copy(), work, inputs, inputs, outputs, 0.0)
 
     def retune(self, **values: Any) -> None:
         """Change tunable parameters (:data:`TUNABLE_PARAMETERS`) between steps: a new
@@ -384,7 +395,7 @@ class Autopilot:
             )
         config = self.config.replace(**values)
         if config.heading_mode == self.config.heading_mode:
-            self.config = config
+            self._set_config(config)
             return
         self._use_heading_mode(config)
 
@@ -393,8 +404,10 @@ class Autopilot:
         (the autopilot is unchanged if the design fails)."""
         mode = HeadingMode(config.heading_mode)
         lqr, sliding_mode, backstepping = _design_heading_controller(mode, config, self.design)
-        self.config, self.heading_mode = config, mode
+        self._set_config(config)
+        self.heading_mode = mode
         self.lqr, self.sliding_mode, self.backstepping = lqr, sliding_mode, backstepping
+        self._kernel = self._compiled_sample(mode, backstepping)
         if lqr is not None:
             self._heading_law = _mass_only(lqr.command)
         elif sliding_mode is not None:
@@ -405,6 +418,54 @@ class Autopilot:
             self._heading_law = _no_heading_control
         # True if the heading law's gains hold only at the sample time design_step.
         self.designed_for_step = mode in (HeadingMode.LQR, HeadingMode.SLIDING_MODE)
+
+    def _set_config(self, config: AutopilotConfig) -> None:
+        """Take ``config``, also into the compiled sample's configuration."""
+        self.config = config
+        work, k = self._work, fast
+        work[k.HEADING] = 1.0 if config.heading_mode == HeadingMode.BACKSTEPPING else 0.0
+        work[k.COMPENSATE] = 1.0 if config.compensate_current else 0.0
+        work[k.DESIGN_SPEED], work[k.LOCK_TIME] = config.design_speed, config.mass_lock_time
+        work[k.DEPTH] = 1.0 if DepthMode(config.depth_mode) is DepthMode.PD else 0.0
+        work[k.GAMMA], work[k.K_P] = config.depth_gamma, config.depth_k_p
+        work[k.TAU_D], work[k.FIN_LIMIT] = config.depth_tau_d, config.fin_angle_limit
+        work[k.MASS_LIMIT] = config.mass_position_cmd_limit
+        work[k.TUNNEL_LIMIT] = config.tunnel_force_limit
+        work[k.THRUST] = config.thrust_command
+
+    def _compiled_sample(
+        self, mode: HeadingMode, backstepping: BacksteppingHeading | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The arrays :func:`compiled_autopilot.sample` takes besides the work (its design
+        plant's parameters, the law, its state), or None where the reference steps: the
+        LQR and the sliding mode, or numba off."""
+        plant = self.design.compiled_plant
+        if plant is None or mode not in (HeadingMode.OFF, HeadingMode.BACKSTEPPING):
+            return None
+        if backstepping is None:
+            return plant.parameters, np.zeros(1), np.zeros(1)
+        if backstepping.law is None:
+            return None
+        return plant.parameters, backstepping.law, backstepping.state
+
+    @property
+    def commands(self) -> Commands:
+        """The commands last computed."""
+        published = self._work[fast.PUBLISHED + 1 : fast.PUBLISHED + 5].tolist()
+        return Commands(*published)
+
+    @commands.setter
+    def commands(self, commands: Commands) -> None:
+        self._work[fast.PUBLISHED + 1 : fast.PUBLISHED + 5] = commands.values()
+
+    @property
+    def heading_setpoint(self) -> float:
+        """psi_d of the last step, rad."""
+        return float(self._work[fast.PUBLISHED])
+
+    @heading_setpoint.setter
+    def heading_setpoint(self, psi_d: float) -> None:
+        self._work[fast.PUBLISHED] = psi_d
 
     def _backstepping_law(
         self, time: float, x: tuple[float, ...], ramp: bool
@@ -435,6 +496,41 @@ class Autopilot:
             if snapshot.backstepping is None:
                 raise ValueError("the snapshot holds no backstepping state: not of this config")
             self.backstepping.restore(snapshot.backstepping)
+
+    def step_into(
+        self, time: float, measurements: np.ndarray, commands: np.ndarray, rates: np.ndarray
+    ) -> None:
+        """:meth:`step` from and into arrays: ``measurements`` in :data:`MEASUREMENT_NAMES`
+        order, the commands into ``commands`` (:data:`COMMAND_NAMES` order), ``rates`` the
+        measurements' first time derivatives the importer set (0.0 where none: the step
+        is ``varying`` when one is not 0). With the heading law off or backstepping, no
+        ``sample_period`` and numba usable, one compiled call that allocates nothing
+        (:func:`controller_fmu.compiled_autopilot.sample`, the same arithmetic); else,
+        and to raise what a refused sample gets, :meth:`step`.
+
+        Raises:
+            ValueError: as :meth:`step`; the autopilot is then as before the call.
+        """
+        kernel = self._kernel
+        if kernel is not None and self.config.sample_period == 0.0:
+            p, law, state = kernel
+            work = self._work
+            done = fast.sample(p, law, state, work, measurements, rates, commands, time)
+            if done == fast.NEEDS_TRANSITION and self.backstepping is not None:
+                self.backstepping.add_transition(time)
+                done = fast.sample(p, law, state, work, measurements, rates, commands, time)
+            if done == fast.OK:
+                return
+        # (a method of its own: its comprehension's cell would be allocated at every call)
+        self._step_reference(time, measurements, commands, rates)
+
+    def _step_reference(
+        self, time: float, measurements: np.ndarray, commands: np.ndarray, rates: np.ndarray
+    ) -> None:
+        """:meth:`step_into` through :meth:`step`."""
+        values = measurements.tolist()
+        named = {name: values[i] for i, name in enumerate(MEASUREMENT_NAMES)}
+        commands[:] = self.step(time, named, bool(rates.any())).values()
 
     def step(
         self, time: float, measurements: Mapping[str, float], varying: bool = False

@@ -143,16 +143,18 @@ class AuvAutopilot(SafeSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._vehicles = vehicle_folder(self.resources)  # this extraction's data
-        self._inputs = dict.fromkeys(MEASUREMENT_NAMES, 0.0)
-        self._outputs = list(Commands(thrust=_DEFAULTS.thrust_command).values())
         self._params: dict[str, Any] = _DEFAULTS.as_dict()
         self._autopilot: Autopilot | None = None
         self._step_warned = False
         self._tuned: set[str] = set()  # tunable parameters written since the autopilot took them
-        # SafeSlave's input_derivative under the native runtime; pythonfmu's own wrapper
-        # never passes derivatives on (and the FMU then declares none)
-        self._input_derivative = getattr(self, "input_derivative", None)
         self._register_variables()
+        # views of the FMU's value buffers (the runtime reads and writes them in C): the
+        # step reads the measurements and writes the commands in place
+        self._inputs = self.values_of(MEASUREMENT_NAMES)
+        self._outputs = self.values_of(COMMAND_NAMES)
+        # the measurements' first derivatives set for the next step (input derivatives)
+        self._rates = self.derivatives_of(MEASUREMENT_NAMES)[0]
+        self._outputs[:] = Commands(thrust=_DEFAULTS.thrust_command).values()
 
     def _register_variables(self) -> None:
         for name, unit in zip(MEASUREMENT_NAMES, MEASUREMENT_UNITS):
@@ -162,12 +164,10 @@ class AuvAutopilot(SafeSlave):
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
                     description=INPUT_DESCRIPTIONS[name],
-                    getter=item_getter(self._inputs, name),
-                    setter=item_setter(self._inputs, name),
                 ),
                 unit=unit,
             )
-        for i, (name, unit) in enumerate(zip(COMMAND_NAMES, COMMAND_UNITS)):
+        for name, unit in zip(COMMAND_NAMES, COMMAND_UNITS):
             self.register(
                 Real(
                     name,
@@ -176,7 +176,6 @@ class AuvAutopilot(SafeSlave):
                     # thrust is the thrust_command parameter: calculated from it
                     initial=Fmi2Initial.calculated if name == "thrust" else Fmi2Initial.exact,
                     description=OUTPUT_DESCRIPTIONS[name],
-                    getter=item_getter(self._outputs, i),
                 ),
                 unit=unit,
             )
@@ -216,15 +215,25 @@ class AuvAutopilot(SafeSlave):
         autopilot = self._autopilot
         assert autopilot is not None, "SafeSlave steps only an initialised instance"
         if self._tuned:  # retuned first: the step-size warning is about the law in use
-            autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
-            self._tuned.clear()  # not if it failed: the step is discarded, the next retries
+            self._retune(autopilot)
+        if autopilot.designed_for_step and not self._step_warned:
+            self._check_step_size(autopilot, step_size)
+        # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
+        # the step with its state unchanged. (No comprehension or closure in this method:
+        # its cell would be allocated at every step.)
+        autopilot.step_into(current_time, self._inputs, self._outputs, self._rates)
+
+    def _retune(self, autopilot: Autopilot) -> None:
+        """The tunable parameters written since the last step to the autopilot."""
+        autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
+        self._tuned.clear()  # not if it failed: the step is discarded, the next retries
+
+    def _check_step_size(self, autopilot: Autopilot, step_size: float) -> None:
+        """Warn (once) when the law's sample time (``sample_period``, else the
+        communication step) is not the step the LQR or the sliding mode is designed for."""
         design_step = autopilot.config.design_step
         sampled = autopilot.config.sample_period or step_size  # the law's sample time
-        if (
-            autopilot.designed_for_step
-            and not self._step_warned
-            and not math.isclose(sampled, design_step, rel_tol=1e-9)
-        ):
+        if not math.isclose(sampled, design_step, rel_tol=1e-9):
             what = "sample_period" if autopilot.config.sample_period else "communication step"
             self.log(
                 f"{what} {sampled!r} s differs from design_step = {design_step!r} s: the "
@@ -232,19 +241,10 @@ class AuvAutopilot(SafeSlave):
                 Fmi2Status.warning,
             )
             self._step_warned = True
-        # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
-        # the step with its state unchanged
-        self._outputs[:] = autopilot.step(current_time, self._inputs, self._inputs_vary())
-
-    def _inputs_vary(self) -> bool:
-        """The importer set input derivatives for this step (it extrapolates the inputs:
-        the laws then take them as going linearly from the last sample to these)."""
-        derivative = self._input_derivative
-        return derivative is not None and any(derivative(n, 1) for n in MEASUREMENT_NAMES)
 
     def _state_snapshot(self) -> dict[str, Any]:
+        # the measurements and the commands are in the value buffers, saved with them
         state: dict[str, Any] = {
-            "outputs": list(self._outputs),
             "warned": self._step_warned,
             "tuned": {name: self._params[name] for name in TUNABLE_PARAMETERS},
         }
@@ -256,7 +256,6 @@ class AuvAutopilot(SafeSlave):
         return state
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
-        self._outputs[:] = snapshot["outputs"]
         self._step_warned = snapshot["warned"]
         self._params.update(snapshot["tuned"])
         saved = snapshot.get("autopilot")

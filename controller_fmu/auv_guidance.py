@@ -92,11 +92,12 @@ class AuvGuidance(SafeSlave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self._inputs = dict.fromkeys(INPUTS, 0.0)
-        self._outputs = dict.fromkeys(OUTPUTS, 0.0)
         self._params: dict[str, Any] = _DEFAULTS.as_dict()
         self._guidance: LosGuidance | None = None
         self._register_variables()
+        # views of the FMU's value buffers (the runtime reads and writes them in C)
+        self._inputs = self.values_of(INPUTS)
+        self._outputs = self.values_of(OUTPUTS)
 
     def _register_variables(self) -> None:
         for name, (unit, description) in INPUTS.items():
@@ -106,8 +107,6 @@ class AuvGuidance(SafeSlave):
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
                     description=description,
-                    getter=item_getter(self._inputs, name),
-                    setter=item_setter(self._inputs, name),
                 ),
                 unit=unit,
             )
@@ -119,7 +118,6 @@ class AuvGuidance(SafeSlave):
                     variability=Fmi2Variability.discrete,
                     initial=Fmi2Initial.calculated,  # from the waypoints and the inputs
                     description=description,
-                    getter=item_getter(self._outputs, name),
                 ),
                 unit=unit,
             )
@@ -146,7 +144,7 @@ class AuvGuidance(SafeSlave):
 
     def _initialize(self) -> None:
         self._guidance = LosGuidance(GuidanceConfig.build(**self._params))
-        self._publish(self._evaluate(self._guidance, 0.0))
+        self._publish_outputs(self._evaluate(self._guidance, 0.0))
 
     def _step(self, current_time: float, step_size: float) -> None:
         guidance = self._guidance
@@ -157,35 +155,37 @@ class AuvGuidance(SafeSlave):
         except Exception:
             guidance.state = before
             raise
-        self._publish(output)
+        self._publish_outputs(output)
 
     def _evaluate(self, guidance: LosGuidance, step_size: float) -> GuidanceOutput:
-        i = self._inputs
+        values = self._inputs.tolist()
+        i = {name: values[k] for k, name in enumerate(INPUTS)}
         return guidance.step(
             i["north"], i["east"], i["current_north"], i["current_east"], step_size, i["yaw"]
         )
 
-    def _publish(self, output: GuidanceOutput) -> None:
-        self._outputs.update(
-            yaw_setpoint=output.yaw_setpoint,
-            depth_setpoint=output.depth_setpoint,
-            course_setpoint=output.course_setpoint,
-            cross_track_error=output.cross_track_error,
-            legs_completed=float(output.legs_completed),
-            waypoint_north=output.target.north,
-            waypoint_east=output.target.east,
-            waypoint_down=output.target.down,
-        )
+    def _publish_outputs(self, output: GuidanceOutput) -> None:
+        published = {
+            "yaw_setpoint": output.yaw_setpoint,
+            "depth_setpoint": output.depth_setpoint,
+            "course_setpoint": output.course_setpoint,
+            "cross_track_error": output.cross_track_error,
+            "legs_completed": float(output.legs_completed),
+            "waypoint_north": output.target.north,
+            "waypoint_east": output.target.east,
+            "waypoint_down": output.target.down,
+        }
+        self._outputs[:] = [published[name] for name in OUTPUTS]
 
     def _state_snapshot(self) -> dict[str, Any]:
-        state: dict[str, Any] = {"outputs": dict(self._outputs)}
+        # the inputs and outputs are in the value buffers, saved with them
+        state: dict[str, Any] = {}
         if self._guidance is not None:
             s = self._guidance.state
             state["guidance"] = [s.leg, s.legs_completed, s.integral]
         return state
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
-        self._outputs.update(snapshot["outputs"])
         saved = snapshot.get("guidance")
         if saved is None:
             return

@@ -117,6 +117,7 @@ class BacksteppingHeading:
             3, gains.filter_frequency, storage=self._state[fast.VALUES : fast.STATE_SIZE]
         )
         self._law = None if design.compiled_plant is None else self._flat_law()
+        self.scratch = np.empty(fast.SCRATCH_SIZE)  # what the compiled law works in
         self._next_slot = 0  # the law's interval slot the next new interval takes
         self.reset()
         compiled = design.compiled_plant
@@ -124,7 +125,8 @@ class BacksteppingHeading:
             params = compiled.parameters  # not in the first doStep
             for ramp in (False, True):
                 law, state = self._law.copy(), self._state.copy()
-                fast.command(params, law, state, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, ramp)
+                fast.command(params, law, state, self.scratch, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                             ramp)  # fmt: skip
 
     def _flat_law(self) -> np.ndarray:
         """The compiled law's constants (:mod:`compiled_backstepping`'s ``law`` layout)."""
@@ -210,21 +212,38 @@ class BacksteppingHeading:
         """The compiled law's 7 values; writes the filter transition it asks for first."""
         plant, law, state = self.design.compiled_plant, self._law, self._state
         assert plant is not None and law is not None, "the compiled law needs numba"
-        params = plant.parameters
-        out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v, ramp)
+        params, scratch = plant.parameters, self.scratch
+        out = fast.command(params, law, state, scratch, time, v, r, p, phi, psi_e, y_v, ramp)
         if out[0]:  # a new interval: its exact transition (expm, cached)
-            interval = time - float(state[fast.LAST_TIME])
-            transition, gamma = self.filters.transition(interval)
-            slot = fast.INTERVALS + fast.SLOT * self._next_slot
-            law[slot : slot + fast.SLOT] = (
-                interval,
-                *transition.ravel().tolist(),
-                *gamma.tolist(),
-                *self.filters.ramp(interval).tolist(),
-            )
-            self._next_slot = (self._next_slot + 1) % fast.N_INTERVALS
-            out = fast.command(params, law, state, time, v, r, p, phi, psi_e, y_v, ramp)
+            self.add_transition(time)
+            out = fast.command(params, law, state, scratch, time, v, r, p, phi, psi_e, y_v, ramp)
         return out
+
+    @property
+    def law(self) -> np.ndarray | None:
+        """The compiled law's constants (None when numba is off)."""
+        return self._law
+
+    @property
+    def state(self) -> np.ndarray:
+        """The flat state the compiled law advances in place."""
+        return self._state
+
+    def add_transition(self, time: float) -> None:
+        """The filters' exact transition over the interval from the last sample to
+        ``time`` into the compiled law's next slot (which asked for it)."""
+        law = self._law
+        assert law is not None, "the compiled law needs numba"
+        interval = time - float(self._state[fast.LAST_TIME])
+        transition, gamma = self.filters.transition(interval)
+        slot = fast.INTERVALS + fast.SLOT * self._next_slot
+        law[slot : slot + fast.SLOT] = (
+            interval,
+            *transition.ravel().tolist(),
+            *gamma.tolist(),
+            *self.filters.ramp(interval).tolist(),
+        )
+        self._next_slot = (self._next_slot + 1) % fast.N_INTERVALS
 
     def command(
         self,

@@ -24,13 +24,19 @@ Layouts (float64, SI):
   of intervals that differ in the last bits (14 in 60 s at 10 ms, 20 in an hour).
 * ``state``: :data:`STATE_SIZE` values: started (1.0 once a sample was taken), the last
   sample's time (s), its alpha1..3, the filters' outputs a_c (3) and rates a_c' (3).
+* ``scratch``: :data:`SCRATCH_SIZE` values the sample works in (the design state and
+  inputs with the measurements in, the derivative, R, work): nothing is allocated.
+
+The plant's kernels are imported absolutely: ``plant_fmu`` is a sibling top-level package
+in the source tree, where no relative import reaches it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from plant_fmu.model.compiled import _jit, derivative_into
+from plant_fmu.model.compiled import _jit as _jit  # (also compiled_autopilot's)
+from plant_fmu.model.compiled import derivative_into
 
 # law
 K0, K1, K2, K3, K4, ETA0, PHI, G1, G2, G3, EPS4, THRUSTER = range(12)
@@ -43,6 +49,9 @@ LAW_SIZE = INTERVALS + SLOT * N_INTERVALS
 # state
 STARTED, LAST_TIME, ALPHAS, VALUES, RATES = 0, 1, 2, 5, 8
 STATE_SIZE = 11
+# scratch
+_SCRATCH_X, _SCRATCH_INPUTS, _SCRATCH_DX, _SCRATCH_R, _SCRATCH_WORK = 0, 14, 22, 36, 45
+SCRATCH_SIZE = _SCRATCH_WORK + 30
 # plant state and input indices the law reads and writes (plant_fmu.model.dynamics order)
 _V, _P, _R, _ROLL, _YV, _Y_D = 7, 9, 11, 3, 12, 4
 
@@ -66,10 +75,24 @@ def _ramp(state: np.ndarray, i: int, new: float, law: np.ndarray, slot: int) -> 
 
 
 @_jit
+def _design_point(law: np.ndarray, scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The design model's plant state (14) and inputs (8) at the straight run, copied
+    into ``scratch`` (views of it, for the sample to fill in its measurements)."""
+    x = scratch[_SCRATCH_X:_SCRATCH_INPUTS]
+    inputs = scratch[_SCRATCH_INPUTS:_SCRATCH_DX]
+    for i in range(14):
+        x[i] = law[DESIGN_STATE + i]
+    for i in range(8):
+        inputs[i] = law[DESIGN_INPUTS + i]
+    return x, inputs
+
+
+@_jit
 def command(
     p: np.ndarray,
     law: np.ndarray,
     state: np.ndarray,
+    scratch: np.ndarray,
     time: float,
     v: float,
     r: float,
@@ -80,11 +103,12 @@ def command(
     ramp: bool,
 ) -> Sample:
     """One sample: (needs_transition, y_v command m, F_t N, z1, z2, z3, z4), the state
-    advanced in place. ``needs_transition`` = 1.0 (nothing changed) when the filters
-    must advance over an interval whose transition ``law`` does not hold yet: the
-    caller writes it into a slot and calls again. ``ramp``: the filters' inputs went
-    linearly from the last sample's alphas to these (a first-order hold, each filter
-    advanced once the alpha it follows is known), else they were held."""
+    advanced in place, ``scratch`` (:data:`SCRATCH_SIZE`) worked in. ``needs_transition``
+    = 1.0 (nothing changed) when the filters must advance over an interval whose
+    transition ``law`` does not hold yet: the caller writes it into a slot and calls
+    again. ``ramp``: the filters' inputs went linearly from the last sample's alphas to
+    these (a first-order hold, each filter advanced once the alpha it follows is known),
+    else they were held."""
     started = state[STARTED] != 0.0
     slot = -1
     if started:
@@ -103,11 +127,13 @@ def command(
                 state[VALUES + i] = p00 * value + p01 * rate + g0 * held
                 state[RATES + i] = p10 * value + p11 * rate + g1 * held
     step = started and ramp
-    x, inputs = law[DESIGN_STATE:DESIGN_INPUTS].copy(), law[DESIGN_INPUTS:INTERVALS].copy()
+    x, inputs = _design_point(law, scratch)
     x[_V], x[_R], x[_P], x[_ROLL], x[_YV] = v, r, pp, phi, 0.0
     inputs[_Y_D] = 0.0
-    dx = np.empty(14)
-    derivative_into(p, x, inputs, np.empty((3, 3)), np.empty((5, 6)), dx)
+    dx = scratch[_SCRATCH_DX:_SCRATCH_R]
+    R = scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3))
+    work = scratch[_SCRATCH_WORK:SCRATCH_SIZE].reshape((5, 6))
+    derivative_into(p, x, inputs, R, work, dx)
     f1 = dx[_R] - law[G1] * v
     f2 = dx[_V] - law[G2] * phi
     f3 = dx[_P]

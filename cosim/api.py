@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import tempfile
 from collections.abc import Mapping
 from contextlib import ExitStack
@@ -40,6 +41,8 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 __all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
 
 STUDY_FILE = "study.toml"  # a study given as a dict is written to this file first
+ALGORITHMS = ("jacobi", "gauss-seidel", "adaptive")  # RunOptions.algorithm
+EXTRAPOLATIONS = ("none", "linear", "quadratic")  # RunOptions.extrapolation
 
 
 class RunError(CosimError):
@@ -131,7 +134,7 @@ def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR
     """
     from cosim.scenario.spec import load_scenario as load
 
-    return load(scenario, fmu_dir=Path(fmu_dir))
+    return load(_path("scenario", scenario), fmu_dir=_folder("fmu_dir", fmu_dir))
 
 
 def run(
@@ -187,21 +190,18 @@ def run(
     RunError
         The run stopped before its stop time (an FMU failed, Ctrl-C): the message says
         why, and ``error.run`` holds the partial results.
+
+    Every argument is checked first: a value of another type (a Decimal, a list for the
+    mapping, a string for a flag), a number out of range or a path with a NUL byte is a
+    :class:`~cosim.errors.CosimError` naming it and what was expected.
     """
-    options = RunOptions(
-        out_dir=None if out is None else Path(out),
-        stop_time=stop_time,
-        step=step,
-        algorithm=algorithm,
-        extrapolation=extrapolation,
-        tolerance=tolerance,
-        check_step=check_step,
-        no_rrd=out is None or not recording,
-        fmu_dir=Path(fmu_dir),
-        overwrite=overwrite,
-        keep_rows=True,
-        tail_guard=out is not None,  # a temporary folder needs no guard: it is removed
-    )
+    settings = {
+        "stop_time": stop_time, "step": step, "algorithm": algorithm,
+        "extrapolation": extrapolation, "tolerance": tolerance, "check_step": check_step,
+    }  # fmt: skip
+    options = _run_options(out, recording, fmu_dir, overwrite, settings)
+    start = _start(start)
+    scenario = scenario if _is_scenario(scenario) else _path("scenario", scenario)
     if start:
         scenario = _loaded(scenario, options.fmu_dir).with_start(start)
     with ExitStack() as stack:
@@ -219,11 +219,12 @@ def run(
 def sweep(
     study: str | Path | Mapping[str, Any],
     *,
-    workers: int = 2,
+    workers: int | None = None,
     out: str | Path | None = None,
     resume: bool = False,
     overlay: int | None = None,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    oversubscribe: bool = False,
 ) -> Study:
     """Run a parameter sweep or Monte Carlo study on a local Dask cluster, like
     ``auv-cosim sweep``.
@@ -234,8 +235,9 @@ def sweep(
         A study ``.toml`` file, or a dict with the same keys (``scenario``, ``[grid]``,
         ``[random]``, ...); a relative scenario path in a dict is relative to the
         working folder.
-    workers : int
-        Local worker processes.
+    workers : int, optional
+        Local worker processes, at most the machine's cores unless ``oversubscribe``.
+        Default: one per core.
     out : str or pathlib.Path, optional
         Write the study folder there (runs.csv, runs.parquet, figures, index.html, and
         overlay.rrd if asked for). Default: no folder, the table only.
@@ -245,6 +247,8 @@ def sweep(
         Draw that many runs, spread over the study, in ``out``/overlay.rrd.
     fmu_dir : str or pathlib.Path
         Where the built-in FMUs are (built there on first use).
+    oversubscribe : bool
+        Allow more ``workers`` than cores (``--oversubscribe``).
 
     Returns
     -------
@@ -254,13 +258,27 @@ def sweep(
     Raises
     ------
     cosim.study.spec.StudyError
-        The study cannot run (a bad key, factor or value); failed runs are rows of the
-        table, not errors.
+        The study cannot run (a bad key, factor or value, an argument of the wrong type
+        or out of range), or it is called at the top level of a script without an
+        ``if __name__ == "__main__":`` guard (each worker process imports the script
+        again); failed runs are rows of the table, not errors.
+
+    Notes
+    -----
+    In a script, call it under ``if __name__ == "__main__":``: the local workers are
+    new processes that import the script again.
     """
     import pandas as pd
 
+    from cosim.study.execution import check_main_guard, local_workers
     from cosim.study.runner import Cluster, run_study
 
+    check_main_guard("cosim.sweep")
+    if not isinstance(study, Mapping):
+        study = _path("study", study)
+    workers = local_workers(workers, _flag("oversubscribe", oversubscribe))
+    out = None if out is None else _folder("out", out)
+    overlay = None if overlay is None else _count("overlay", overlay)
     with ExitStack() as stack:
         temporary = None
         if out is None or isinstance(study, Mapping):
@@ -268,13 +286,9 @@ def sweep(
         study_file = _study_file(study, temporary)
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
         outcome = run_study(
-            study_file,
-            out_dir,
-            cluster=Cluster(workers=workers),
-            resume=resume,
-            fmu_dir=Path(fmu_dir),
-            overlay=overlay,
-        )
+            study_file, out_dir, cluster=Cluster(workers=workers),
+            resume=_flag("resume", resume), fmu_dir=_folder("fmu_dir", fmu_dir), overlay=overlay,
+        )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir)
 
@@ -295,7 +309,7 @@ def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dic
     """
     from cosim.fmus.build import build_fmus as build
 
-    return build(Path(out), force=force)
+    return build(_folder("out", out), force=_flag("force", force))
 
 
 def _loaded(scenario: str | Path | Scenario, fmu_dir: Path) -> Scenario:
@@ -330,3 +344,117 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
     except (TypeError, ValueError) as exc:
         raise CosimError(f"study {dict(study)!r}: cannot be written as TOML: {exc}") from None
     return path
+
+
+# --- the arguments, checked: one line naming the value and what was expected -------------
+
+
+def _run_options(
+    out: object, recording: object, fmu_dir: object, overwrite: object, settings: Mapping[str, Any]
+) -> RunOptions:
+    """:func:`run`'s options, each checked (``settings``: the run's overrides by name)."""
+    recording = _flag("recording", recording)
+    return RunOptions(
+        out_dir=None if out is None else _folder("out", out),
+        stop_time=_seconds("stop_time", settings["stop_time"]),
+        step=_seconds("step", settings["step"]),
+        algorithm=_choice("algorithm", settings["algorithm"], ALGORITHMS),  # type: ignore[arg-type]
+        extrapolation=_choice("extrapolation", settings["extrapolation"], EXTRAPOLATIONS),  # type: ignore[arg-type]
+        tolerance=_number("tolerance", settings["tolerance"]),
+        check_step=_flag("check_step", settings["check_step"]),
+        no_rrd=out is None or not recording,
+        fmu_dir=_folder("fmu_dir", fmu_dir),
+        overwrite=_flag("overwrite", overwrite),
+        keep_rows=True,
+        tail_guard=out is not None,  # a temporary folder needs no guard: it is removed
+    )
+
+
+def _shown(value: object) -> str:
+    """``value`` as a message shows it: its repr, shortened if long (a huge int)."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
+
+
+def _seconds(name: str, value: object) -> float | None:
+    """A time in s: a float or int (the runner checks it is finite and > 0, in the command
+    line's words); an int beyond the floats is refused here."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise CosimError(f"{name}={_shown(value)}: expected a number of seconds (float or int)")
+    if abs(value) > 1e300:
+        raise CosimError(f"{name}={_shown(value)}: expected a finite number of seconds > 0")
+    return float(value)
+
+
+def _flag(name: str, value: object) -> bool:
+    if not isinstance(value, bool):
+        raise CosimError(f"{name}={_shown(value)}: expected True or False")
+    return value
+
+
+def _count(name: str, value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise CosimError(f"{name}={_shown(value)}: expected a whole number >= 1")
+    return value
+
+
+def _choice(name: str, value: object, choices: tuple[str, ...]) -> str | None:
+    """None or one of ``choices``."""
+    if value is None or value in choices:
+        return value
+    raise CosimError(f"{name}={_shown(value)}: expected one of {', '.join(map(repr, choices))}")
+
+
+def _number(name: str, value: object) -> float | None:
+    """None or a float or int within the floats (the runner checks its range)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or abs(value) > 1e300:
+        raise CosimError(f"{name}={_shown(value)}: expected a finite number (float or int)")
+    return float(value)
+
+
+def _path(name: str, value: object) -> Path:
+    """A path argument: a str or os.PathLike without a NUL byte."""
+    if not isinstance(value, str | os.PathLike):
+        raise CosimError(f"{name}={_shown(value)}: expected a str or pathlib.Path")
+    text = os.fspath(value)
+    if not isinstance(text, str) or "\0" in text:
+        raise CosimError(f"{name}={_shown(value)}: expected a path without a NUL byte")
+    return Path(text)
+
+
+def _folder(name: str, value: object) -> Path:
+    """A folder argument: a path (:func:`_path`) that is a folder if it exists."""
+    path = _path(name, value)
+    if path.exists() and not path.is_dir():
+        raise CosimError(f"{name}={_shown(value)}: is a file; expected a folder")
+    return path
+
+
+def _is_scenario(value: object) -> bool:
+    from cosim.scenario.spec import Scenario
+
+    return isinstance(value, Scenario)
+
+
+def _start(value: object) -> dict[str, StartValue] | None:
+    """Start values: a mapping of "<instance>.<variable>" to a bool, int, float or str."""
+    if value is None:
+        return None
+    if not isinstance(value, Mapping):
+        raise CosimError(
+            f"start={_shown(value)}: expected a mapping {{'<instance>.<variable>': value}}"
+        )
+    for key, item in value.items():
+        if not isinstance(key, str) or "\0" in key:
+            raise CosimError(f"start key {_shown(key)}: expected '<instance>.<variable>'")
+        if not isinstance(item, bool | int | float | str):
+            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a bool, int, float or str")
+        if isinstance(item, int) and not isinstance(item, bool) and abs(item) > 1e300:
+            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a number within range")
+        if isinstance(item, str) and "\0" in item:
+            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a string without a NUL byte")
+    return dict(value)

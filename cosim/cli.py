@@ -134,6 +134,11 @@ def _study(args: argparse.Namespace) -> int:
     if none did, 128 + the signal number if a stop signal ended it."""
     from contextlib import nullcontext
 
+    local = args.scheduler is None and not args.resume
+    if local:  # the workers' fork server imports beside this process (cosim.study.fork_server)
+        from cosim.study import fork_server
+
+        fork_server.start()
     from cosim.study.spec import MAX_RUNS, check_size, load_study
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
@@ -146,7 +151,6 @@ def _study(args: argparse.Namespace) -> int:
     # a local cluster starts while the study's modules are imported and the study checked
     # (a remote scheduler is reached, and refused, after the checks); a resumed study may
     # have nothing left to run, and then starts none
-    local = args.scheduler is None and not args.resume
     try:
         with stop_study_on_signals():
             early = early_client(workers, args.dashboard) if local else nullcontext(None)

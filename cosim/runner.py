@@ -10,12 +10,14 @@ figures. The order of a run:
    an earlier run without ``overwrite``, is refused at once, before numpy, fmpy or an FMU
    is loaded (this module imports those only then);
 3. the scenario is loaded and every input checked (:mod:`cosim.scenario.spec`, the
-   overrides, :func:`cosim.engine.master.preflight`); then the earlier run's files are removed
-   and every output opened (:mod:`cosim.outputs.run_outputs`): nothing has stepped yet, and a
-   failure so far leaves nothing behind;
+   overrides, :func:`cosim.engine.master.preflight`); then the earlier run's files are set
+   aside and every output opened (:mod:`cosim.outputs.run_outputs`): nothing has stepped
+   yet, and a failure so far leaves nothing behind;
 4. the master streams the rows to the outputs (:mod:`cosim.engine.master`), paced and
    steered live if asked (:mod:`cosim.live.session`: ``--real-time``, ``--control``,
-   ``--interactive``; docs/live-runs.md);
+   ``--interactive``; docs/live-runs.md); the earlier run's files are removed when the
+   first step's rows arrive, and put back if the run fails or stops before that (it then
+   raises :class:`NotStartedError`: the folder is as it was);
 5. the outputs are closed and summary.json says how the run ended, whatever signal comes;
    a run that took live overrides rewrites scenario.toml with them as ``[[events]]``, so
    running that file replays it.
@@ -41,7 +43,13 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from cosim.engine.signals import REASONS, StopRequest, stop_on_signals
 from cosim.errors import CosimError
-from cosim.outputs.folder import RECORDING_FILE, RunFolder, check_recording_path
+from cosim.outputs.folder import (
+    RECORDING_FILE,
+    RESULTS_FILE,
+    RunFolder,
+    ScenarioRef,
+    check_recording_path,
+)
 from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
 
 if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (step 2)
@@ -94,6 +102,15 @@ class RunOptions:
     interactive: bool = False
 
 
+class NotStartedError(CosimError):
+    """A run that failed or stopped before its first step in a folder holding an earlier
+    run, which was put back as it was. ``exit_code``: 1, or 128 + the signal number."""
+
+    def __init__(self, message: str, exit_code: int) -> None:
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
 @dataclass
 class RunOutcome:
     """A finished (or stopped) run and where its outputs are."""
@@ -137,8 +154,8 @@ def execute(
     for flag, value in (("--stop-time", options.stop_time), ("--step", options.step)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise CosimError(f"{flag} {value!r}: expected a finite number of seconds > 0")
-    default_for = _id_of(scenario) if options.out_dir is None else None
-    out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / str(default_for)
+    default_for = _reference(scenario) if options.out_dir is None else None
+    out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
     if options.rrd is not None and not options.no_rrd:
         check_recording_path(out_dir, options.rrd, options.overwrite)
     handlers: AbstractContextManager[StopRequest | None] = nullcontext(stop)
@@ -156,7 +173,6 @@ def execute(
             prepared = time.perf_counter()
             session = _live_session(loaded, options, progress)
             try:
-                replaced = folder.clear_earlier_run()
                 outputs = _open_outputs(loaded, folder, options, progress)
                 opened = time.perf_counter()
                 result = _step(loaded, outputs, options, stop, session, progress)
@@ -165,17 +181,34 @@ def execute(
                     _check_step(loaded, outputs, result, stop, progress)
             finally:
                 session.close()
+            if folder.replacing and not folder.committed:
+                stepped = False
+                outputs.discard()
+                raise _not_started(result, stop, out_dir)
             result.startup_s = {
                 "prepare": prepared - started, "outputs": opened - prepared, **result.startup_s
             }  # fmt: skip
             _complete(outputs, result, stop, live=session.live is not None)
+        except BaseException:
+            folder.restore()  # an earlier run set aside goes back (if the run never stepped)
+            raise
         finally:
             if progress is not None:
                 progress.close()
             folder.release(unused=not stepped)
     figures = outputs.figures.figures()
     return RunOutcome(
-        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary, replaced
+        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary,
+        folder.replaced,
+    )  # fmt: skip
+
+
+def _not_started(result: RunResult, stop: StopRequest, out_dir: Path) -> NotStartedError:
+    """The error of a run that never took its first step in a folder of an earlier run."""
+    reason = result.error or "the run stopped"
+    return NotStartedError(
+        f"{reason}, before the first step: the earlier run in {out_dir} is kept as it was",
+        128 + stop.signum if stop.signum is not None else 1,
     )
 
 
@@ -249,6 +282,16 @@ def _id_of(scenario: str | Path | Scenario) -> str:
     return scenario.id if isinstance(scenario, Scenario) else scenario_id(scenario)
 
 
+def _reference(scenario: str | Path | Scenario) -> ScenarioRef:
+    """The scenario's id and file (resolved): whose the default folder ``runs/<id>`` is."""
+    from cosim.scenario.spec import Scenario, scenario_path
+
+    if isinstance(scenario, Scenario):
+        source = None if scenario.source is None else str(Path(scenario.source).resolve())
+        return ScenarioRef(scenario.id, source)
+    return ScenarioRef(_id_of(scenario), str(scenario_path(scenario).resolve()))
+
+
 def _progress(label: str, options: RunOptions) -> ProgressSink | None:
     """The progress bar, when asked for (it first says what the run does before stepping)."""
     if not options.progress or options.interactive:  # the keys' status line instead
@@ -307,10 +350,13 @@ def _fmus_to_build(scenario: str | Path | Scenario, fmu_dir: Path) -> list[str]:
 def _open_outputs(
     scenario: Scenario, folder: RunFolder, options: RunOptions, progress: ProgressSink | None
 ) -> RunOutputs:
-    """Lock the recording the run writes, then open every output."""
+    """Set the earlier run's files aside, lock the recording the run writes, then open
+    every output."""
     from cosim.outputs.run_outputs import RunOutputs
 
     rrd = _recording_path(scenario, folder, options)
+    folder.start_guard(folder.path / RESULTS_FILE, rrd)
+    folder.set_aside_earlier_run()
     if rrd is not None:
         folder.lock_recording(rrd)
     recorder = rerun_sink if options.real_time is None else _background_rerun_sink
@@ -387,7 +433,11 @@ def run_from_cli(scenario: str, options: RunOptions) -> int:
     1 on failure. A signal while the report is printed is ignored too."""
     stop = StopRequest()
     with stop_on_signals(stop):
-        outcome = execute(scenario, options, stop)
+        try:
+            outcome = execute(scenario, options, stop)
+        except NotStartedError as exc:
+            print(f"auv-cosim run: {exc}", file=sys.stderr)
+            return exc.exit_code
         _print_outcome(outcome)
     return outcome.exit_code
 

@@ -18,23 +18,40 @@ What a subclass writes (the whole API)::
 
         def __init__(self, **kwargs):
             super().__init__(**kwargs)      # then only assign defaults and register:
+            self.mode = 0                   # kept in an attribute of its own (watched)
             self.register(Real("u", causality=Fmi2Causality.input, start=0.0,
                                variability=Fmi2Variability.continuous,
-                               description="..."), unit="N")
+                               description="..."), unit="N")  # kept in the buffers
             self.register(Integer("mode", ...), minimum=0, maximum=2)
             ...
+            self._u = self.values_of(["u"])  # last: numpy views of the buffers
 
         def _initialize(self) -> None: ...            # exit_initialization_mode
         def _step(self, t: float, h: float) -> None: ...  # do_step
         def _state_snapshot(self) -> dict: ...        # the internal state, JSON-serialisable
         def _restore_snapshot(self, snapshot: dict) -> None: ...
 
+Where values live: every Real, Integer and Boolean variable has a slot in its type's value
+buffer (:mod:`fmu_runtime.value_buffers`), which the FMU's runtime reads and writes in C:
+``fmi2Get*`` and ``fmi2Set*`` never enter Python there, and ``fmi2DoStep`` is the one call
+into Python of a step. A variable registered with no getter, no setter and no attribute
+of its name lives in its slot: the slave reads and writes it through numpy views of the
+buffers (:meth:`SafeSlave.values_of`, contiguous runs of variables registered one after
+the other), in place, in ``_step``. Any other variable keeps its own storage (an
+attribute, a container through its getter and setter: *watched*): a value written to it
+is handed to its setter at the slave's next call, and its getter's value is copied to its
+slot after every call but a step (after a step too for an output). Strings keep their own
+storage; the runtime keeps copies. Parameters and Strings must not change in ``_step``.
+Under pythonfmu's binary (the fallback) nothing else shares the buffers and this class
+answers the calls from them itself: a subclass's code is the same in both runtimes.
+
 ``_initialize`` computes the outputs the FMU starts from, from the parameters and inputs:
 it also runs when an output is read in initialisation mode after a write (so that read
 gives the value the FMU will start from, as FMI 2.0 asks of ``initial="calculated"``
 outputs), and must therefore be repeatable. A class that takes input derivatives sets
 ``interpolates_inputs = True`` (the build then declares ``canInterpolateInputs``) and reads
-them in ``_step`` with :meth:`SafeSlave.input_derivative`.
+them in ``_step`` with :meth:`SafeSlave.input_derivative`, or through a view
+(:meth:`SafeSlave.derivatives_of`); both runtimes hand them over.
 
 ``_initialize`` and ``_step`` report a problem by raising (any exception): the base class
 catches it, logs the message with ``Fmi2Status.error`` and turns it into a failed
@@ -53,22 +70,35 @@ from __future__ import annotations
 import copy
 import json
 import math
-from collections.abc import Callable
+import threading
+import weakref
+from collections.abc import Callable, Iterable
 from enum import IntEnum
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element, SubElement
 
+import numpy as np
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
 
 from fmu_runtime import entry, exit_guard
+from fmu_runtime.value_buffers import (
+    BOOLEAN,
+    CHANGES,
+    DERIVATIVES,
+    INTEGER,
+    REAL,
+    STALE,
+    WRITTEN,
+    ValueBuffers,
+)
 from fmu_runtime.variables import attribute_getter, attribute_setter
 
 _WRITE_ANY_TIME = "any time"
 _WRITE_BEFORE_INIT = "before initialisation"
 _READ_ONLY = "never"
-_STATE_VERSION = 3
+_STATE_VERSION = 4
 # FMI 2.0 co-simulation states this class tracks (the names are used in messages)
 _INSTANTIATED = "instantiated"
 _INITIALIZATION = "in initialisation mode"
@@ -92,6 +122,23 @@ def _readable(var: Any) -> bool:
     return var.getter is not None
 
 
+# the last SafeSlave constructed on each thread (weakly): claim_constructed
+_constructed = threading.local()
+
+
+def claim_constructed() -> SafeSlave | None:
+    """The last SafeSlave constructed on this thread, if it still lives (then forgotten).
+
+    The FMU's runtime calls this right after pythonfmu's binary, its fallback backend,
+    constructed a slave in fmi2Instantiate on this thread, to hand that slave the calls
+    pythonfmu's binary does not pass on (fmi2SetRealInputDerivatives: see
+    fmu_runtime/native/forward.c)."""
+    ref = getattr(_constructed, "slave", None)
+    _constructed.slave = None
+    slave: SafeSlave | None = ref() if ref is not None else None
+    return slave
+
+
 class SafeSlave(Fmi2Slave):
     """``Fmi2Slave`` whose callbacks never raise; see the module docstring for the API."""
 
@@ -104,6 +151,7 @@ class SafeSlave(Fmi2Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        _constructed.slave = weakref.ref(self)  # (claim_constructed)
         exit_guard.install(self.resources)  # pythonfmu 0.7's crash at process exit
         if self.resources is not None:  # pythonfmu's binary put it on sys.path: not needed
             entry.release_search_path(self.resources)
@@ -111,7 +159,12 @@ class SafeSlave(Fmi2Slave):
         self._time = 0.0  # s: the start time, then the end of the last step
         self._initialized = False
         self._problems: dict[str, str] = {}
-        self._written: set[str] = set()
+        # every variable's value (docs: fmu_runtime/value_buffers.py); shared with the
+        # FMU's runtime, which answers fmi2Get*/fmi2Set* from it in C
+        self._values = ValueBuffers()
+        self._values.control[STALE] = 1  # the outputs to start from are not computed yet
+        self._vr_of: dict[str, int] = {}  # variable name -> value reference
+        self._watched_outputs: list[int] = []  # outputs kept in Python storage of their own
         self._access: dict[int, str] = {}
         self._units: dict[str, str] = {}
         self._bounds: dict[int, tuple[float | None, float | None]] = {}
@@ -120,8 +173,6 @@ class SafeSlave(Fmi2Slave):
         self._get_plans: dict[tuple[int, ...], Any] = {}
         self._set_plans: dict[tuple[int, ...], Any] = {}
         self._failure: str | None = None
-        self._outputs_stale = True  # written to since the initial outputs were computed
-        self._derivatives: dict[tuple[str, int], float] = {}  # (input, order) -> value
 
     # --- what subclasses call / override ---------------------------------------------------
 
@@ -158,16 +209,9 @@ class SafeSlave(Fmi2Slave):
                 raise ValueError(f"variable {var.name!r}: only an Integer takes named values")
             self._names[var.name] = names
             minimum, maximum = int(min(names)), int(max(names))
-        # pythonfmu's defaults, bound weakly: its own close over self (a reference cycle)
-        if var.getter is None:
-            var.getter = attribute_getter(self, var.local_name)
-        if (
-            var.setter is None
-            and hasattr(self, var.local_name)
-            and var.variability != Fmi2Variability.constant
-        ):
-            var.setter = attribute_setter(self, var.local_name)
+        self._bind_storage(var)
         self.register_variable(var)
+        self._vr_of[var.name] = var.value_reference
         if unit:
             self._units[var.name] = unit
         if (minimum, maximum) != (None, None):
@@ -182,9 +226,87 @@ class SafeSlave(Fmi2Slave):
             access = _READ_ONLY
         self._access[var.value_reference] = access
 
+    def _bind_storage(self, var: ScalarVariable) -> None:
+        """Give ``var`` its slot in the value buffers and its getter and setter: the slot
+        itself when it comes with no getter, no setter and no attribute of its name (the
+        value lives in the buffers: see :meth:`values_of`), else its own storage (watched:
+        written values are handed to its setter, its getter's values copied to the slot)."""
+        kind = {Real: REAL, Integer: INTEGER, Boolean: BOOLEAN}.get(type(var), "")
+        in_buffers = (
+            kind != ""
+            and var.getter is None
+            and var.setter is None
+            and not hasattr(self, var.local_name)
+        )
+        start = var.start if var.start is not None else 0
+        slot = self._values.add(kind, start if in_buffers else 0, watched=not in_buffers)
+        if in_buffers:
+            var.getter = self._values.getter(kind, slot)
+            if var.variability != Fmi2Variability.constant:
+                var.setter = self._values.setter(kind, slot)
+            return
+        # pythonfmu's defaults, bound weakly: its own close over self (a reference cycle)
+        if var.getter is None:
+            var.getter = attribute_getter(self, var.local_name)
+        if (
+            var.setter is None
+            and hasattr(self, var.local_name)
+            and var.variability != Fmi2Variability.constant
+        ):
+            var.setter = attribute_setter(self, var.local_name)
+
+    def values_of(self, names: Iterable[str]) -> np.ndarray:
+        """A numpy view (float64 for Reals, int32 for Integers and Booleans) of the
+        buffer slots of the variables ``names``, registered one after the other, all of
+        one type and kept in the buffers (registered without getter, setter or attribute).
+        The slave reads its inputs and writes its outputs through such views; the FMU's
+        runtime reads and writes the same memory. The first call lays out the buffers:
+        register every variable before it.
+
+        Raises ValueError (at build time, where pythonfmu constructs the class) when the
+        variables are not such a run."""
+        vrs = [self._vr_of[name] for name in names]
+        values = self._values
+        kinds = {values.kinds[vr] for vr in vrs}
+        slots = [values.slots[vr] for vr in vrs]
+        watched = set(values.watched())
+        if (
+            not vrs
+            or len(kinds) != 1
+            or "" in kinds
+            or slots != list(range(slots[0], slots[0] + len(slots)))
+            or watched.intersection(vrs)
+        ):
+            raise ValueError(
+                f"variables {[self.vars[vr].name for vr in vrs]}: expected a run of variables "
+                "of one type registered one after the other without getter or setter"
+            )
+        self._seal()
+        return values.view(kinds.pop(), slots[0], len(slots))
+
+    def derivatives_of(self, names: Iterable[str]) -> np.ndarray:
+        """A numpy view (2 x len(names), float64) of the input derivatives of orders 1
+        (unit/s) and 2 (unit/s^2) set for the next step of the Real inputs ``names``, a run
+        as :meth:`values_of` takes: 0.0 where none was set. The FMU's runtime writes them
+        in C (``fmi2SetRealInputDerivatives``); with pythonfmu's binary (the fallback) the
+        runtime hands them to :meth:`set_real_input_derivatives`; they are cleared after
+        each step. A step may
+        change the view (it is cleared after it anyway).
+
+        Raises ValueError (at build time) when the variables are not such a run of
+        Real inputs."""
+        names = list(names)
+        view = self.values_of(names)
+        if view.dtype != np.float64 or any(
+            self.vars[self._vr_of[name]].causality != Fmi2Causality.input for name in names
+        ):
+            raise ValueError(f"variables {names}: expected a run of Real inputs")
+        first = self._values.slots[self._vr_of[names[0]]]
+        return self._values.derivatives[:, first : first + len(names)]
+
     def was_written(self, name: str) -> bool:
         """True if the importer wrote variable ``name`` (accepted) since instantiation."""
-        return name in self._written
+        return bool(self._values.flags[self._vr_of[name]] & WRITTEN)
 
     @property
     def initialized(self) -> bool:
@@ -211,6 +333,7 @@ class SafeSlave(Fmi2Slave):
         """Record the start time (the first communication point); only right after
         instantiation, and only a finite time."""
         try:
+            self._enter()
             if self._phase != _INSTANTIATED:
                 self._error(
                     f"setupExperiment refused: the FMU is {self._phase} (FMI 2.0 "
@@ -229,6 +352,7 @@ class SafeSlave(Fmi2Slave):
     def enter_initialization_mode(self) -> None:
         """Enter initialisation mode, once, right after instantiation (parameters are
         applied in exit_initialization_mode)."""
+        self._enter()
         if self._phase != _INSTANTIATED:
             self._error(
                 f"enterInitializationMode refused: the FMU is {self._phase} "
@@ -236,9 +360,10 @@ class SafeSlave(Fmi2Slave):
             )
             return
         self._phase = _INITIALIZATION
-        self._outputs_stale = True
+        self._values.control[STALE] = 1
 
     def exit_initialization_mode(self) -> None:
+        self._enter()
         if self._phase != _INITIALIZATION:
             self._error(
                 f"exitInitializationMode refused: the FMU is {self._phase}, not in "
@@ -251,21 +376,27 @@ class SafeSlave(Fmi2Slave):
                 raise ValueError(self._failure)
             if self._problems:
                 raise ValueError("; ".join(self._problems.values()))
-            if self._outputs_stale:  # else computed when read, nothing written since
+            if self._values.control[STALE]:  # else computed when read, nothing written since
                 self._initialize()
-            self._outputs_stale = False
+            self._values.control[STALE] = 0
             self._initialized = True
         except Exception as exc:
             self._failure = f"initialisation failed: {_reason(exc)}"
             self._error(self._failure)
+        self._publish(self._values.watched())
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        control = self._values.control
         try:
+            if control[CHANGES] or not self._values.sealed:
+                self._enter()
             refusal = self._step_refusal(current_time, step_size)
             if refusal is not None:
                 self._error(f"doStep at t = {current_time!r} s refused: {refusal}")
                 return False
             self._step(current_time, step_size)
+            if self._watched_outputs:
+                self._publish(self._watched_outputs)
             self._time = current_time + step_size
             return True
         except Exception as exc:
@@ -274,16 +405,20 @@ class SafeSlave(Fmi2Slave):
             )
             return False
         finally:  # they belong to the communication point this step started from
-            self._derivatives.clear()
+            if control[DERIVATIVES] and not self._values.shared:  # (else the runtime does)
+                self._values.clear_derivatives()
 
     def set_real_input_derivatives(
         self, vrs: list[int], orders: list[int], values: list[float]
     ) -> None:
         """Take the derivatives of Real inputs (order 1: unit/s, 2: unit/s^2) at the
         current communication point, for the next doStep only (``fmi2SetRealInputDerivatives``;
-        refused, with nothing stored, unless the class sets ``interpolates_inputs``)."""
+        refused, with nothing stored, unless the class sets ``interpolates_inputs``). The
+        FMU's runtime stores them itself, in the same buffer; with pythonfmu's binary (the
+        fallback, which does not pass the call on) the runtime calls this."""
         try:
-            taken = {}
+            self._enter()
+            slots = []
             for i, vr in enumerate(vrs):  # (no zip(strict=): CPython 3.9)
                 var, order, value = self.vars.get(vr), orders[i], values[i]
                 if not self.interpolates_inputs:
@@ -295,22 +430,23 @@ class SafeSlave(Fmi2Slave):
                         f"{var.name}: derivative of order {order!r} = {value!r}: expected "
                         "order 1 or 2 and a finite number"
                     )
-                taken[(var.name, int(order))] = float(value)
-            self._derivatives.update(taken)
+                slots.append(self._values.slots[vr])
+            self._values.set_derivatives(slots, orders, [float(v) for v in values], vrs)
         except Exception as exc:
             self._error(f"fmi2SetRealInputDerivatives refused: {_reason(exc)}")
 
     def input_derivative(self, name: str, order: int) -> float:
         """The derivative of order ``order`` (1: unit/s, 2: unit/s^2) of Real input
         ``name`` set for the current step, 0.0 when none was set."""
-        return self._derivatives.get((name, order), 0.0)
+        slot = self._values.slots[self._vr_of[name]]
+        return float(self._values.derivatives[order - 1, slot])
 
     def terminate(self) -> None:
+        self._enter()
         self._phase = _TERMINATED
 
     def get_real(self, vrs: list[int]) -> list[float]:
-        if self._outputs_stale and self._phase == _INITIALIZATION:
-            self._compute_initial_outputs()
+        self._before_reading()
         try:  # the hot path: one lookup per call, finite values
             plan = self._real_plan(vrs, self._get_plans, _readable)
             if plan is not None:
@@ -322,21 +458,19 @@ class SafeSlave(Fmi2Slave):
         return [self._get(vr, Real, float, 0.0) for vr in vrs]
 
     def get_integer(self, vrs: list[int]) -> list[int]:
-        if self._outputs_stale and self._phase == _INITIALIZATION:
-            self._compute_initial_outputs()
+        self._before_reading()
         return [self._get(vr, Integer, int, 0) for vr in vrs]
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
-        if self._outputs_stale and self._phase == _INITIALIZATION:
-            self._compute_initial_outputs()
+        self._before_reading()
         return [self._get(vr, Boolean, bool, False) for vr in vrs]
 
     def get_string(self, vrs: list[int]) -> list[str]:
-        if self._outputs_stale and self._phase == _INITIALIZATION:
-            self._compute_initial_outputs()
+        self._before_reading()
         return [self._get(vr, String, str, "") for vr in vrs]
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
+        self._enter()
         try:
             if self._set_planned(vrs, values):
                 return
@@ -353,29 +487,62 @@ class SafeSlave(Fmi2Slave):
         variables, names = plan
         for var, value in zip(variables, values):
             var.setter(value)
-        self._written.update(names)
-        self._outputs_stale = True
+            self._values.mark_written(var.value_reference)
         if self._problems:
             for name in names:
                 self._problems.pop(name, None)
         return True
 
     def set_integer(self, vrs: list[int], values: list[int]) -> None:
+        self._enter()
         self._set_all(vrs, values, Integer)
 
     def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        self._enter()
         self._set_all(vrs, values, Boolean)
 
     def set_string(self, vrs: list[int], values: list[str]) -> None:
+        self._enter()
         self._set_all(vrs, values, String)
 
-    def _get_fmu_state(self) -> dict[str, Any]:
+    # --- what the FMU's runtime calls (fmu_runtime/native/slave.c) ---------------------------
+
+    def _buffers(self) -> tuple[bytearray, ...]:
+        """The value buffers the runtime answers fmi2Get*/fmi2Set* from (lays them out)."""
+        self._seal()
+        self._values.shared = True  # the runtime clears the input derivatives after a step
+        return self._values.buffers()
+
+    def _initial_outputs(self) -> None:
+        """Before a read in initialisation mode after a write: the outputs the FMU will
+        start from, computed from the values written so far, in the buffers."""
+        self._before_reading()
+        self._publish(self._values.watched())
+
+    def _string_values(self) -> list[str]:
+        """Every String variable's value, in value-reference order (the runtime's copies)."""
+        return [str(var.getter()) for var in self.vars.values() if isinstance(var, String)]
+
+    def _take_strings(self, values: dict[int, str]) -> None:
+        """String values the runtime took since it last called (checked there)."""
+        self._enter()
+        for vr, value in values.items():
+            self._set(vr, value, String)
+
+    # --- FMU state -----------------------------------------------------------------------------
+
+    def _get_fmu_state(self, with_values: bool = True) -> dict[str, Any]:
+        """The state: the value buffers (as hex text; the runtime, which asks without
+        them, saves the buffers itself), the String values, this class's bookkeeping and
+        the subclass's snapshot."""
         try:
-            return {
+            self._enter()
+            self._publish(self._values.watched())
+            state = {
                 "version": _STATE_VERSION,
                 "class": type(self).__name__,
-                "variables": {
-                    var.name: var.getter() for var in self.vars.values() if var.setter is not None
+                "strings": {
+                    v.name: v.getter() for v in self.vars.values() if isinstance(v, String)
                 },
                 "base": {
                     "phase": self._phase,
@@ -383,18 +550,20 @@ class SafeSlave(Fmi2Slave):
                     "initialized": self._initialized,
                     "failure": self._failure,
                     "problems": dict(self._problems),
-                    "written": sorted(self._written),
-                    "stale": self._outputs_stale,
-                    "derivatives": [[n, o, v] for (n, o), v in self._derivatives.items()],
                 },
                 "internal": copy.deepcopy(self._state_snapshot()),
             }
+            if with_values:
+                state["values"] = self._values.dump()
+            return state
         except Exception as exc:
             message = f"fmi2GetFMUstate failed: {_reason(exc)}"
             self._error(message)
             return {"error": message}
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        """Back to :meth:`_get_fmu_state`'s state (the runtime has put the buffers back
+        before it calls this, with a state saved without them)."""
         try:
             if not isinstance(state, dict) or "error" in state:
                 raise ValueError(
@@ -408,18 +577,19 @@ class SafeSlave(Fmi2Slave):
                     f"{state.get('version')!r}, expected {type(self).__name__!r} version "
                     f"{_STATE_VERSION}"
                 )
-            by_name = {var.name: var for var in self.vars.values()}
-            for name, value in state["variables"].items():
-                by_name[name].setter(value)
+            self._seal()
+            if "values" in state:
+                self._values.load(state["values"])
+            self._values.take_changed()  # every watched variable is set below
+            self._hand_over(self._values.watched())
+            for name, value in state["strings"].items():
+                self.vars[self._vr_of[name]].setter(value)
             base = state["base"]
             self._phase = base["phase"]
             self._time = base["time"]
             self._initialized = base["initialized"]
             self._failure = base["failure"]
             self._problems = dict(base["problems"])
-            self._written = set(base["written"])
-            self._outputs_stale = base["stale"]
-            self._derivatives = {(n, int(o)): float(v) for n, o, v in base["derivatives"]}
             self._restore_snapshot(copy.deepcopy(state["internal"]))
         except Exception as exc:
             message = f"fmi2SetFMUstate failed: {_reason(exc)}"
@@ -440,6 +610,66 @@ class SafeSlave(Fmi2Slave):
             return decoded
         except Exception as exc:
             return {"error": f"cannot deserialise the FMU state: {exc}"}
+
+    # --- the value buffers ---------------------------------------------------------------------
+
+    def _seal(self) -> None:
+        """Lay out the value buffers (once): every variable is registered by now."""
+        if self._values.sealed:
+            return
+        self._values.seal()
+        self._watched_outputs = [
+            vr for vr in self._values.watched() if self.vars[vr].causality == Fmi2Causality.output
+        ]
+        self._publish(self._values.watched())
+
+    def _enter(self) -> None:
+        """At every call: the buffers laid out, watched variables written since the last
+        call handed to their setters."""
+        if not self._values.sealed:
+            self._seal()
+        if self._values.control[CHANGES]:
+            self._hand_over(self._values.take_changed())
+
+    def _before_reading(self) -> None:
+        """A read in initialisation mode after a write computes the outputs first."""
+        self._enter()
+        if self._values.control[STALE] and self._phase == _INITIALIZATION:
+            self._compute_initial_outputs()
+
+    def _hand_over(self, vrs: Iterable[int]) -> None:
+        """The buffers' values of the watched variables ``vrs`` to their setters."""
+        values = self._values
+        for vr in vrs:
+            var, kind = self.vars[vr], values.kinds[vr]
+            if not kind or var.setter is None:
+                continue
+            value = values.values[kind][values.slots[vr]]
+            try:
+                var.setter(bool(value) if kind == BOOLEAN else value)
+                self._problems.pop(var.name, None)
+            except Exception as exc:
+                message = f"set of {var.name} = {value!r} failed: {_reason(exc)}"
+                self._problems[var.name] = message
+                self._error(message)
+
+    def _publish(self, vrs: Iterable[int]) -> None:
+        """The getters' values of the watched variables ``vrs`` into their slots (a Real
+        whose getter fails becomes NaN there, which a read then reports)."""
+        values = self._values
+        for vr in vrs:
+            var, kind = self.vars[vr], values.kinds[vr]
+            if not kind:
+                continue
+            slot = values.slots[vr]
+            try:
+                value = var.getter()
+                values.values[kind][slot] = (
+                    float(value) if kind == REAL else int(bool(value) if kind == BOOLEAN else value)
+                )
+            except Exception:
+                if kind == REAL:
+                    values.values[kind][slot] = math.nan
 
     # --- build time ----------------------------------------------------------------------
 
@@ -604,9 +834,8 @@ class SafeSlave(Fmi2Slave):
             refusal = f"{name} = {value!r} refused: expected {_range(name, self._bounds[vr])}"
         else:
             var.setter(value)
-            self._written.add(name)
+            self._values.mark_written(vr)
             self._problems.pop(name, None)
-            self._outputs_stale = True
             return
         self._problems[name] = refusal  # the step would use the old value: Discard it
         self._error(refusal)
@@ -619,7 +848,7 @@ class SafeSlave(Fmi2Slave):
             return
         try:
             self._initialize()
-            self._outputs_stale = False
+            self._values.control[STALE] = 0
         except Exception as exc:
             self._error(f"the outputs to start from cannot be computed yet: {_reason(exc)}")
 

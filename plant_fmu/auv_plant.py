@@ -57,6 +57,7 @@ instead of first. The currents stay held over a step (see above).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -76,7 +77,6 @@ from plant_fmu.model.state_layout import (
     INPUT_NAMES,
     INPUT_UNITS,
     MASS_POSITION,
-    N_STATES,
     NU,
     QUATERNION_NAMES,
     STATE_NAMES,
@@ -118,7 +118,7 @@ STATE_DESCRIPTIONS: dict[str, str] = {
 }
 RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
 # the inputs whose derivatives the step uses: all but the currents (module docstring)
-_ACTUATOR_INPUTS = tuple(
+_ACTUATOR_INPUTS = list(
     i for i in range(len(INPUT_NAMES)) if i not in range(len(INPUT_NAMES))[CURRENT]
 )
 PHYSICAL_PARAMETERS: tuple[str, ...] = tuple(
@@ -157,12 +157,6 @@ class AuvPlant(SafeSlave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._vehicles = vehicle_folder(self.resources)  # this extraction's data
-        self._inputs = np.array([INPUT_STARTS.get(name, 0.0) for name in INPUT_NAMES])
-        self._initial_state = np.zeros(N_STATES)
-        # the stepping state (state + quaternion), updated in place: the output getters hold it
-        self._x = stepping_state(self._initial_state)
-        self._derived = [0.0, 0.0, 0.0, 0.0]  # u_rel, v_rel, w_rel, kinetic_energy
-        self._last_current = self._inputs[CURRENT].tolist()
         self._model: PlantModel | None = None
         self._compiled: compiled.CompiledPlant | None = None
         self._model_key: tuple[object, ...] | None = None
@@ -173,10 +167,21 @@ class AuvPlant(SafeSlave):
         self.vehicle = "remus100"
         self.current_shear_dUdy = 0.0
         self.max_substep = DEFAULT_MAX_SUBSTEP
-        # SafeSlave's input_derivative under the native runtime; pythonfmu's own wrapper
-        # never passes derivatives on (and the FMU then declares none)
-        self._input_derivative = getattr(self, "input_derivative", None)
         self._register_variables()
+        # The inputs, the outputs and the initial state live in the FMU's value buffers,
+        # which the FMU's runtime reads and writes in C: these are views of them, and the
+        # step reads and writes them in place.
+        self._inputs = self.values_of(INPUT_NAMES)
+        self._inputs[:] = [INPUT_STARTS.get(name, 0.0) for name in INPUT_NAMES]
+        # the stepping state (state + quaternion), then u_rel, v_rel, w_rel, kinetic_energy
+        self._x = self.values_of(STEP_STATE_NAMES)
+        self._derived = self.values_of((*RELATIVE_VELOCITIES, "kinetic_energy"))
+        self._initial_state = self.values_of(f"{name}_0" for name in STATE_NAMES)
+        # the input derivatives set for the next step (2 x inputs, 1/s and 1/s^2)
+        self._rates = self.derivatives_of(INPUT_NAMES)
+        self._x[:] = stepping_state(self._initial_state)
+        self._last_current = self._inputs[CURRENT].copy()  # the currents of the last step
+        self._step_scratch = np.empty(compiled.STEP_SCRATCH)  # the compiled step's arrays
 
     # --- variables ---------------------------------------------------------------------------
 
@@ -185,15 +190,13 @@ class AuvPlant(SafeSlave):
         self._register_parameters()
 
     def _register_inputs_and_outputs(self) -> None:
-        for i, (name, unit) in enumerate(zip(INPUT_NAMES, INPUT_UNITS)):
+        for name, unit in zip(INPUT_NAMES, INPUT_UNITS):
             self.register(
                 Real(
                     name,
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
                     description=INPUT_DESCRIPTIONS[name],
-                    getter=item_getter(self._inputs, i),
-                    setter=item_setter(self._inputs, i),
                 ),
                 unit=unit,
             )
@@ -203,23 +206,14 @@ class AuvPlant(SafeSlave):
             "initial": Fmi2Initial.calculated,  # from the initial state and the currents
         }
         units = STATE_UNITS + ("1",) * len(QUATERNION_NAMES)
-        for i, (name, unit) in enumerate(zip(STEP_STATE_NAMES, units)):
-            self.register(
-                Real(
-                    name,
-                    description=STATE_DESCRIPTIONS[name],
-                    getter=item_getter(self._x, i),
-                    **output,
-                ),
-                unit=unit,
-            )
-        for i, name in enumerate(RELATIVE_VELOCITIES):
+        for name, unit in zip(STEP_STATE_NAMES, units):
+            self.register(Real(name, description=STATE_DESCRIPTIONS[name], **output), unit=unit)
+        for name in RELATIVE_VELOCITIES:
             axis = name[0]
             self.register(
                 Real(
                     name,
                     description=f"{axis} relative to the water, {axis} - current_{axis} (body)",
-                    getter=item_getter(self._derived, i),
                     **output,
                 ),
                 unit="m/s",
@@ -228,7 +222,6 @@ class AuvPlant(SafeSlave):
             Real(
                 "kinetic_energy",
                 description="kinetic energy 1/2 nu_r^T (M_RB + M_A) nu_r (+ the mass's, model 1)",
-                getter=item_getter(self._derived, 3),
                 **output,
             ),
             unit="J",
@@ -236,15 +229,9 @@ class AuvPlant(SafeSlave):
 
     def _register_parameters(self) -> None:
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        for i, (name, unit) in enumerate(zip(STATE_NAMES, STATE_UNITS)):
+        for name, unit in zip(STATE_NAMES, STATE_UNITS):
             self.register(
-                Real(
-                    f"{name}_0",
-                    description=f"initial {STATE_DESCRIPTIONS[name]}",
-                    getter=item_getter(self._initial_state, i),
-                    setter=item_setter(self._initial_state, i),
-                    **fixed,
-                ),
+                Real(f"{name}_0", description=f"initial {STATE_DESCRIPTIONS[name]}", **fixed),
                 unit=unit,
             )
         self.register(
@@ -324,55 +311,62 @@ class AuvPlant(SafeSlave):
                 Fmi2Status.warning,
             )
         self._x[:] = model.project(stepping_state(x))
-        self._last_current = self._inputs[CURRENT].tolist()
+        self._last_current[:] = self._inputs[CURRENT]
         self._refresh_outputs()
         if self._compiled is not None:  # compile now, not in the first doStep
-            self._compiled.warm_up(self._x, self._inputs)
+            self._compiled.warm_up(self._x, self._inputs, self._rates)
 
     def _step(self, current_time: float, step_size: float) -> None:
+        """From the value buffers to the compiled integrator and back, allocating nothing
+        (:func:`plant_fmu.model.compiled.step_into`); the reference path (numpy, the same
+        arithmetic) where the compiled one does not apply: numba off, the two-body moving
+        mass, a change of the currents, or a step it refuses (the reference then says why).
+        Both take the input derivatives the importer set (module docstring)."""
+        fast, max_substep = self._compiled, self.max_substep
+        if fast is not None and math.isfinite(max_substep):
+            n = max(1, math.ceil(step_size / max_substep - 1e-9))  # as stepping.advance
+            p, x, scratch = fast.parameters, self._x, self._step_scratch
+            inputs, derived, last = self._inputs, self._derived, self._last_current
+            code = compiled.step_into(p, inputs, self._rates, x, derived, last, scratch, n,
+                                      step_size / n)  # fmt: skip
+            if code == 0:
+                return
+        self._reference_step(step_size)
+
+    def _reference_step(self, step_size: float) -> None:
+        """:meth:`_step` through :func:`plant_fmu.model.stepping.advance` (raises on a state
+        or input it cannot step, leaving the instance unchanged)."""
         model = self._model
         assert model is not None, "SafeSlave steps only an initialised instance"
         inputs = self._inputs.copy()
         x = self._x
         current = inputs[CURRENT].tolist()
-        if current != self._last_current:
+        if current != self._last_current.tolist():
             x = x.copy()
             change = np.subtract(current, self._last_current)
             x[NU] += model.current_change_velocity_jump(x, change)
         rates = self._input_rates()
         x = advance(model, x, inputs, step_size, self.max_substep, self._compiled, rates)
         self._x[:] = x
-        self._last_current = current
+        self._last_current[:] = current
         self._refresh_outputs(inputs)
 
     def _input_rates(self) -> np.ndarray | None:
         """(2, inputs): the first and second time derivatives the importer set for this
-        step's actuator inputs (1/s, 1/s^2; the currents' stay 0), None if it set none."""
-        derivative = self._input_derivative
-        if derivative is None:
-            return None
-        first = [derivative(INPUT_NAMES[i], 1) for i in _ACTUATOR_INPUTS]
-        if not any(first):  # held (every first derivative exactly 0: the second is not asked)
-            return None
+        step's actuator inputs (1/s, 1/s^2; the currents' taken as 0), None if every
+        actuator input's first derivative is 0 (held, as :func:`compiled.step_into`)."""
         rates = np.zeros((2, len(INPUT_NAMES)))
-        for i, value in zip(_ACTUATOR_INPUTS, first, strict=True):
-            rates[0, i] = value
-            rates[1, i] = derivative(INPUT_NAMES[i], 2)
-        return rates
+        rates[:, _ACTUATOR_INPUTS] = self._rates[:, _ACTUATOR_INPUTS]
+        return rates if rates[0].any() else None
 
     def _state_snapshot(self) -> dict[str, Any]:
-        return {
-            "x": self._x.tolist(),
-            "last_current": list(self._last_current),
-            "derived": list(self._derived),
-        }
+        # the state, the outputs and the inputs are in the value buffers, saved with them
+        return {"last_current": self._last_current.tolist()}
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
         if self.initialized and self._model_key != self._parameter_key():
             self._build_model()
-        self._x[:] = snapshot["x"]
-        self._last_current = [float(c) for c in snapshot["last_current"]]
-        self._derived[:] = snapshot["derived"]
+        self._last_current[:] = snapshot["last_current"]
 
     # --- internals ---------------------------------------------------------------------------
 

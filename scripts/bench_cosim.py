@@ -1,18 +1,23 @@
 """Benchmark the co-simulation. Prints, in one run:
 
 1. Per scenario (bs-3 and vert-2, 60 s at 10 ms, no recording, through ``run_scenario``,
-   what ``auv-cosim run --no-rrd`` does): the real-time factor, the FMI floor and the
-   ratio of the two loop wall clocks (target <= 2.0). The floor is two trivial pythonfmu
-   FMUs with our interface shape (8 inputs / 20 outputs and back, ``scripts/bench_fmus``,
-   built here) stepped by a bare fmpy loop: what any pair of pythonfmu FMUs costs.
+   what ``auv-cosim run --no-rrd`` does), each with its shipped coupling settings (input
+   derivatives, quadratic) and with its inputs held (``extrapolation = "none"``, marked
+   "held"): the real-time factor, the FMI floor and the
+   ratio of the two loop wall clocks (targets: bs-3 <= 0.8, vert-2 <= 1.2). The floor is
+   two trivial pythonfmu FMUs with our interface shape (8 inputs / 20 outputs and back,
+   ``scripts/bench_fmus``, built here) stepped by a bare fmpy loop: what any pair of
+   pythonfmu FMUs costs. Each round measures the floor and both scenarios one after the
+   other and prints them with the load average (1/5/15 min) at its end; the summary is
+   the best of the rounds. ``--loops-only`` stops after this part.
 2. In process: one 10 ms step of the full 6-DOF plant (RK4 + projection), one derivative
    (targets 10 us, 2 us), one autopilot step of vert-2 (backstepping + depth PD, 10 us);
    compiled and reference.
 3. Start-up: ``auv-cosim run bs-3 --no-rrd`` as a whole command, first run (fresh FMU
    folder and numba cache: build plus compilation, target <= 20 s) and second (<= 3 s).
 4. The stepping loop against a bare fmpy loop doing the same FMI calls on our FMUs
-   (target <= 1.25), and the recording overhead (bs-3 with and without recording.rrd,
-   target <= 1.10).
+   (bs-3 with inputs held: the bare loop sends no derivatives; target <= 1.25), and the
+   recording overhead (bs-3 with and without recording.rrd, target <= 1.10).
 
 Each timing is the best of ``--repeat`` runs, interleaved in rounds, to damp other load.
 Usage: ``python scripts/bench_cosim.py [--stop-time 60] [--repeat 3] [--fmu-dir DIR]``.
@@ -114,12 +119,20 @@ def overhead_ratio(scenario: Scenario, repeat: int) -> tuple[float, float, float
     return min(ours), min(bare), min(ours) / min(bare)
 
 
-def floor_per_step(folder: Path, n_steps: int) -> float:
-    """Seconds per 10 ms step of the trivial pythonfmu pair in a bare fmpy loop."""
-    slaves = []
+def floor_fmus(folder: Path) -> list[Path]:
+    """The trivial pythonfmu pair, built into ``folder``."""
+    fmus = []
     for name in ("BenchTrivialController", "BenchTrivialPlant"):
         script = FLOOR_FMUS / f"bench_trivial_{name.removeprefix('BenchTrivial').lower()}.py"
-        fmu = pythonfmu_build(script, folder, name)
+        fmus.append(pythonfmu_build(script, folder, name))
+    return fmus
+
+
+def floor_per_step(fmus: list[Path], n_steps: int) -> float:
+    """Seconds per 10 ms step of the trivial pythonfmu pair in a bare fmpy loop."""
+    slaves = []
+    for fmu in fmus:
+        name = fmu.stem
         md = read_model_description(str(fmu))
         slave = FMU2Slave(guid=md.guid, unzipDirectory=str(unzipped(fmu)),
                           modelIdentifier=name, instanceName=name)  # fmt: skip
@@ -180,23 +193,39 @@ def startup(folder: Path) -> tuple[float, float]:
     return times[0], times[1]
 
 
+TARGETS = {"bs-3": 0.8, "vert-2": 1.2}  # loop / floor, with the shipped coupling settings
+HELD = " held"  # the suffix of a scenario run with its inputs held (extrapolation "none")
+
+
+def load() -> str:
+    """The load average, 1/5/15 minutes."""
+    return "/".join(f"{x:.1f}" for x in os.getloadavg())
+
+
 def rounds(
-    scenarios: dict[str, Scenario], folder: Path, repeat: int
+    scenarios: dict[str, Scenario], folder: Path, repeat: int, recording: bool = True
 ) -> tuple[float, dict[str, float], float]:
     """(floor s per step, loop s of each scenario without recording, loop s of bs-3 with
-    recording.rrd), each the best of ``repeat`` rounds; a round measures all of them in a
-    row, so a burst of other load on this shared machine hits a whole round, not one
-    figure of a ratio."""
+    recording.rrd, or NaN without ``recording``), each the best of ``repeat`` rounds; a
+    round measures all of them in a row, so a burst of other load on this shared machine
+    hits a whole round, not one figure of a ratio. Prints each round with the load."""
     floors, recorded = [], []
     loops: dict[str, list[float]] = {sid: [] for sid in scenarios}
+    fmus = floor_fmus(folder)
     for i in range(repeat):
-        floors.append(floor_per_step(folder, scenarios["bs-3"].n_steps))
+        floors.append(floor_per_step(fmus, scenarios["bs-3"].n_steps))
         for sid, scenario in scenarios.items():
             outcome = run_scenario(scenario, folder / f"{sid}-{i}", no_rrd=True)
             loops[sid].append(outcome.result.wall_clock_s)
-        outcome = run_scenario(scenarios["bs-3"], folder / f"rrd-{i}")
-        recorded.append(outcome.result.wall_clock_s)
-    return min(floors), {sid: min(times) for sid, times in loops.items()}, min(recorded)
+        if recording:
+            outcome = run_scenario(scenarios["bs-3"], folder / f"rrd-{i}")
+            recorded.append(outcome.result.wall_clock_s)
+        per_step = {sid: loops[sid][-1] / scenarios[sid].n_steps for sid in scenarios}
+        shown = ", ".join(f"{sid} {1e6 * t:.1f} us ({t / floors[-1]:.2f}x)"
+                          for sid, t in per_step.items())  # fmt: skip
+        print(f"   round {i + 1}: floor {1e6 * floors[-1]:.1f} us/step, {shown}; load {load()}")
+    best = min(recorded) if recorded else float("nan")
+    return min(floors), {sid: min(times) for sid, times in loops.items()}, best
 
 
 def main() -> None:
@@ -204,23 +233,31 @@ def main() -> None:
     parser.add_argument("--stop-time", type=float, default=60.0, help="scenario stop time, s")
     parser.add_argument("--repeat", type=int, default=3, help="runs per timing [3]")
     parser.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR)
+    parser.add_argument("--loops-only", action="store_true", help="part 1 only")
     args = parser.parse_args()
-    scenarios = {
-        sid: load_scenario(sid, fmu_dir=args.fmu_dir).with_overrides(
-            stop_time=args.stop_time, step=0.01
+    scenarios = {}
+    for sid in ("bs-3", "vert-2"):  # as shipped (input derivatives), then inputs held
+        shipped = load_scenario(sid, fmu_dir=args.fmu_dir)
+        scenarios[sid] = shipped.with_overrides(stop_time=args.stop_time, step=0.01)
+        scenarios[sid + HELD] = shipped.with_overrides(
+            stop_time=args.stop_time, step=0.01, extrapolation="none"
         )
-        for sid in ("bs-3", "vert-2")
-    }
     with tempfile.TemporaryDirectory(prefix="bench_cosim_") as tmp:
         folder = Path(tmp)
-        floor, loops, recorded = rounds(scenarios, folder, args.repeat)
-        print(f"1. FMI floor (trivial pythonfmu pair, bare fmpy loop): {1e6 * floor:.1f} us "
+        print(f"1. loops against the FMI floor, {args.repeat} rounds (load {load()} at start):")
+        floor, loops, recorded = rounds(scenarios, folder, args.repeat, not args.loops_only)
+        print(f"   best: FMI floor (trivial pythonfmu pair, bare fmpy loop) {1e6 * floor:.1f} us "
               f"per 10 ms step, {0.01 / floor:.0f}x real time")  # fmt: skip
         for sid, scenario in scenarios.items():
             ratio = loops[sid] / (floor * scenario.n_steps)
-            print(f"   {sid}: {scenario.stop_time / loops[sid]:.0f}x real time, "
+            coupling = scenario.coupling
+            target = TARGETS.get(sid.removesuffix(HELD))
+            print(f"   {sid} ({coupling.algorithm}, inputs {coupling.extrapolation}): "
+                  f"{scenario.stop_time / loops[sid]:.0f}x real time, "
                   f"{1e6 * loops[sid] / scenario.n_steps:.1f} us/step: {ratio:.2f}x the floor "
-                  "(target <= 2.0)")  # fmt: skip
+                  f"(target <= {target}); load {load()}")  # fmt: skip
+        if args.loops_only:
+            return
         us = in_process(20000)
         print(f"2. in process: 10 ms plant step {us['step']:.1f} us (target <= 10; reference "
               f"{us['step_ref']:.0f}), derivative {us['derivative']:.2f} us (target <= 2; "
@@ -229,8 +266,9 @@ def main() -> None:
         first, second = startup(folder / "startup")
         print(f"3. start-up, auv-cosim run bs-3 --no-rrd: first run {first:.1f} s (target "
               f"<= 20), second {second:.1f} s (target <= 3)")  # fmt: skip
-        ours, bare, ratio = overhead_ratio(scenarios["bs-3"], args.repeat)
-        print(f"4. master vs bare fmpy loop, bs-3: {ours:.3f} s vs {bare:.3f} s: ratio "
+        # the bare loop sends no input derivatives: against the master with inputs held
+        ours, bare, ratio = overhead_ratio(scenarios["bs-3" + HELD], args.repeat)
+        print(f"4. master vs bare fmpy loop, bs-3 held: {ours:.3f} s vs {bare:.3f} s: ratio "
               f"{ratio:.3f} (target <= 1.25)")  # fmt: skip
         print(f"   recording overhead, bs-3: {recorded:.3f} s with recording.rrd, "
               f"{loops['bs-3']:.3f} s without: ratio {recorded / loops['bs-3']:.3f} "

@@ -109,8 +109,10 @@ def test_examples_run_in_order(document: Path, workdir: Path) -> None:
         if match.group("path"):
             _check_excerpt(block, workdir / match.group("path"))
             continue
-        if block.language == "python":
-            command = [sys.executable, "-c", block.code]
+        if block.language == "python":  # a script, as a user runs one (not python -c)
+            script = workdir / f".example_{ran + 1}.py"
+            script.write_text(block.code, encoding="utf-8")
+            command = [sys.executable, str(script)]
         elif block.language in ("bash", "sh", "shell"):
             command = ["bash", "-euo", "pipefail", "-c", block.code]
         else:

@@ -14,12 +14,15 @@ import atexit
 import collections
 import ctypes
 import hashlib
+import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from fmpy import calloc, extract, free
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
     fmi2CallbackAllocateMemoryTYPE,
@@ -89,10 +92,10 @@ class Slave:
         ]
         self.others = bool(self.other_inputs or self.other_outputs)
         self.input_rates = input_rates
-        # fmpy's status-checking wrappers of the C functions, looked up once
-        self.set_real = self.fmu.fmi2SetReal
-        self.do_step = self.fmu.fmi2DoStep
-        self.get_real = self.fmu.fmi2GetReal
+        # the C functions, status checked as fmpy's wrappers do (looked up once)
+        self.set_real = _checked(self.fmu, "fmi2SetReal")
+        self.do_step = _checked(self.fmu, "fmi2DoStep")
+        self.get_real = _checked(self.fmu, "fmi2GetReal")
 
     def set_others(self, z: np.ndarray) -> None:
         """Set the connected Integer, Enumeration and Boolean inputs from z."""
@@ -262,12 +265,20 @@ def _library(key: tuple[str, str, str, str]) -> FMU2Slave:
     except (KeyError, IndexError):
         pass
     unzip_dir, model_identifier, guid, instance_name = key
-    return FMU2Slave(
-        guid=guid,
-        unzipDirectory=unzip_dir,
-        modelIdentifier=model_identifier,
-        instanceName=instance_name,
-    )
+    cwd = os.getcwd()
+    try:
+        return FMU2Slave(
+            guid=guid,
+            unzipDirectory=unzip_dir,
+            modelIdentifier=model_identifier,
+            instanceName=instance_name,
+        )
+    except Exception as exc:  # fmpy raises a plain Exception, in the binary's folder
+        os.chdir(cwd)  # fmpy changes the working directory to load it and leaves it there
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise CosimError(
+            f"{instance_name}: cannot load the binary of {model_identifier}: {reason}"
+        ) from None
 
 
 # --- unzipped FMUs, one folder per FMU content per process ---------------------------------
@@ -295,3 +306,19 @@ def unzipped(fmu_path: Path) -> Path:
 def _remove_unzipped() -> None:
     for folder in _unzipped_dirs.values():
         shutil.rmtree(folder, ignore_errors=True)
+
+
+def _checked(fmu: Any, name: str) -> Callable[..., int]:
+    """The FMU library's C function ``name`` (fmpy set its argument types) behind one
+    status check, as fmpy's wrapper does it: a status worse than fmi2Warning raises
+    FMICallException(name, status). fmpy's wrapper takes two Python frames and a lookup
+    per call (~1.5 us), several times a step; this one frame."""
+    function = getattr(fmu.dll, name)
+
+    def call(*args: Any) -> int:
+        status: int = function(*args)
+        if status > 1:
+            raise FMICallException(function=name, status=status)
+        return status
+
+    return call

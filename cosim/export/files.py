@@ -1,7 +1,17 @@
-"""Writing an export without leaving anything partial: build beside, then rename into place."""
+"""Writing an export without leaving anything partial (build beside, then rename into
+place), and without writing over anything an export did not write.
+
+What an export wrote is known by content: an SSP archive carries, as its zip comment,
+:data:`ARCHIVE_SEAL` and the SHA-256 of its members (names and contents,
+:func:`members_digest`); an OSP folder holds :data:`EXPORT_RECORD`, each file the export
+wrote with its SHA-256. A copy a user changed since -- a parameter edited in the SSD, an
+FMU of their own -- no longer matches, and is refused like any other file.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import secrets
 import shutil
@@ -12,25 +22,46 @@ from pathlib import Path
 
 from cosim.errors import CosimError
 
-SSP_GENERATOR = b'generationTool="auv-cosim export'  # in the SSD of an archive we wrote
+ARCHIVE_SEAL = b"auv-cosim export, members' SHA-256: "  # then the digest, as the zip comment
+EXPORT_RECORD = ".auv-cosim-export.json"  # in an OSP folder: {"files": {name: SHA-256}}
+
+
+def members_digest(archive: zipfile.ZipFile) -> str:
+    """The SHA-256 over every member's name and the SHA-256 of its content, in order."""
+    digest = hashlib.sha256()
+    for info in archive.infolist():
+        content = hashlib.sha256(archive.read(info)).hexdigest()
+        digest.update(f"{info.filename}\0{content}\n".encode())
+    return digest.hexdigest()
 
 
 def written_by_export(path: Path) -> bool:
-    """``path`` is an SSP archive an earlier ``auv-cosim export`` wrote (its SSD says so)."""
+    """``path`` is an SSP archive an ``auv-cosim export`` wrote, unchanged since (its seal
+    matches its members)."""
     try:
         with zipfile.ZipFile(path) as archive:
-            return SSP_GENERATOR in archive.read("SystemStructure.ssd")[:4096]
-    except (OSError, KeyError, zipfile.BadZipFile, ValueError):
+            seal = archive.comment
+            return seal.startswith(ARCHIVE_SEAL) and seal[len(ARCHIVE_SEAL) :].decode() == (
+                members_digest(archive)
+            )
+    except (OSError, UnicodeDecodeError, zipfile.BadZipFile, ValueError):
         return False
+
+
+def _seal(path: Path) -> None:
+    """Put the seal of the complete archive at ``path`` in its zip comment."""
+    with zipfile.ZipFile(path, "a") as archive:
+        archive.comment = ARCHIVE_SEAL + members_digest(archive).encode()
 
 
 @contextmanager
 def replacing_file(path: Path, overwrite: bool = False) -> Iterator[Path]:
-    """Yield a new temporary file beside ``path``; on success it replaces ``path`` atomically.
+    """Yield a new temporary file beside ``path`` for a zip archive; on success it is sealed
+    and replaces ``path`` atomically.
 
-    An existing ``path`` is replaced only if an earlier export wrote it, or ``overwrite``.
-    (Not ``tempfile.mkstemp``: its files are private (0600); this one gets the umask's
-    permissions like any file the user writes.)
+    An existing ``path`` is replaced only if an earlier export wrote it (unchanged), or
+    ``overwrite``. (Not ``tempfile.mkstemp``: its files are private (0600); this one gets
+    the umask's permissions like any file the user writes.)
 
     Raises:
         CosimError: ``path`` is a folder, another file (without ``overwrite``) or cannot be
@@ -40,8 +71,8 @@ def replacing_file(path: Path, overwrite: bool = False) -> Iterator[Path]:
         raise CosimError(f"cannot write {path}: it is a folder")
     if os.path.lexists(path) and not overwrite and not written_by_export(path):
         raise CosimError(
-            f"cannot write {path}: it exists and is not an archive auv-cosim export wrote; "
-            "pass --force to replace it, or choose another file"
+            f"cannot write {path}: it exists and is not an archive auv-cosim export wrote "
+            "(or it was changed since); pass --force to replace it, or choose another file"
         )
     tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
     try:
@@ -51,6 +82,7 @@ def replacing_file(path: Path, overwrite: bool = False) -> Iterator[Path]:
         raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
         yield tmp
+        _seal(tmp)
         os.replace(tmp, path)
     except OSError as exc:
         raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
@@ -58,34 +90,62 @@ def replacing_file(path: Path, overwrite: bool = False) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
 
 
-@contextmanager
-def replacing_folder(folder: Path, marker: str) -> Iterator[Path]:
-    """Yield a new temporary folder beside ``folder``; on success it takes ``folder``'s place.
+def _check_earlier_export(folder: Path) -> None:
+    """Refuse ``folder`` unless it is empty or holds an earlier export, unchanged: every
+    entry a regular file its record lists with that content. Raises CosimError."""
+    entries = sorted(p.name for p in folder.iterdir() if p.name != EXPORT_RECORD)
+    if not entries:
+        return
+    try:
+        record = json.loads((folder / EXPORT_RECORD).read_text(encoding="utf-8"))["files"]
+        if os.path.islink(folder / EXPORT_RECORD) or not isinstance(record, dict):
+            raise ValueError("not a record")
+    except (OSError, ValueError, KeyError, TypeError):
+        raise CosimError(
+            f"cannot write {folder}: it is not empty and holds no record of an earlier export "
+            f"({', '.join(entries[:3])}); choose a new or empty folder"
+        ) from None
+    for name in entries:
+        path = folder / name
+        if path.is_symlink() or not path.is_file() or record.get(name) != _sha256(path):
+            raise CosimError(
+                f"cannot write {folder}: {name} is not a file an export wrote (yours, or "
+                "changed since); move it away or choose a new or empty folder"
+            )
 
-    An earlier export there (a folder holding the file ``marker`` and FMUs, nothing else)
-    is replaced; an empty folder is used; anything else there is an error (an export
-    never removes a file it did not write).
+
+def _sha256(path: Path) -> str:
+    with path.open("rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
+
+
+def _check_again(old: Path, folder: Path) -> None:
+    """The earlier export, just moved from ``folder`` to ``old``, is still only that (no
+    file came in since the first check); else it goes back and CosimError is raised."""
+    try:
+        _check_earlier_export(old)
+    except CosimError as exc:
+        old.rename(folder)
+        raise CosimError(str(exc).replace(str(old), str(folder))) from None
+
+
+@contextmanager
+def replacing_folder(folder: Path) -> Iterator[Path]:
+    """Yield a new temporary folder beside ``folder``; on success it is recorded
+    (:data:`EXPORT_RECORD`) and takes ``folder``'s place.
+
+    An earlier export there (every file one an export wrote, unchanged) is replaced; an
+    empty folder is used; anything else there is an error (an export never removes a file
+    it did not write).
 
     Raises:
         CosimError: ``folder`` holds something else or cannot be written (nothing is left
             behind, an earlier export stays).
     """
+    if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
+        raise CosimError(f"cannot write {folder}: it exists and is not a folder")
     if folder.exists():
-        if not folder.is_dir():
-            raise CosimError(f"cannot write {folder}: it exists and is not a folder")
-        entries = list(folder.iterdir())
-        if entries and not (folder / marker).is_file():
-            raise CosimError(
-                f"cannot write {folder}: it is not empty and holds no {marker} from an "
-                "earlier export; choose a new or empty folder"
-            )
-        other = sorted(p.name for p in entries if p.name != marker and p.suffix != ".fmu")
-        if other or any(p.is_symlink() or not p.is_file() for p in entries):
-            shown = ", ".join(other[:3]) or "a folder or link"
-            raise CosimError(
-                f"cannot write {folder}: it holds files an export does not write ({shown}); "
-                "move them away or choose a new or empty folder"
-            )
+        _check_earlier_export(folder)
     tag = secrets.token_hex(4)
     tmp = folder.parent / f".{folder.name}.{tag}.tmp"
     old = folder.parent / f".{folder.name}.{tag}.old"
@@ -93,8 +153,11 @@ def replacing_folder(folder: Path, marker: str) -> Iterator[Path]:
         folder.parent.mkdir(parents=True, exist_ok=True)
         tmp.mkdir()
         yield tmp
+        files = {p.name: _sha256(p) for p in sorted(tmp.iterdir())}
+        (tmp / EXPORT_RECORD).write_text(json.dumps({"files": files}, indent=1) + "\n")
         if folder.exists():
             folder.rename(old)
+            _check_again(old, folder)
         tmp.rename(folder)
     except OSError as exc:
         if old.exists() and not folder.exists():
@@ -102,4 +165,5 @@ def replacing_folder(folder: Path, marker: str) -> Iterator[Path]:
         raise CosimError(f"cannot write {folder}: {exc.strerror or exc}") from None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-        shutil.rmtree(old, ignore_errors=True)
+        if old.exists() and folder.exists():
+            shutil.rmtree(old, ignore_errors=True)

@@ -27,14 +27,15 @@ def export_osp(
 ) -> Path:
     """Write ``OspSystemStructure.xml`` and the FMUs into ``folder``; returns the XML's path.
 
-    ``folder`` must not exist, be empty, or hold an earlier export (it is then replaced).
+    ``folder`` must not exist, be empty, or hold an earlier export, unchanged (it is then
+    replaced).
     ``fmu_paths`` optionally maps instance names to the FMU files to package.
     """
     folder = Path(folder)
     linear_transformations(scenario, "OSP")  # refuse what OSP cannot carry, before work
     parts = components(scenario, fmu_paths)
     xml = osp_xml(scenario, parts)
-    with replacing_folder(folder, OSP_FILE) as tmp:
+    with replacing_folder(folder) as tmp:
         (tmp / OSP_FILE).write_bytes(xml)
         for resource, fmu_path in {c.resource: c.fmu_path for c in parts}.items():
             shutil.copyfile(fmu_path, tmp / resource)

@@ -157,7 +157,10 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         built = _run_pythonfmu(name, stage, dest)
         complete_fmu(built, guid(name, digest))
         lay_out_resources(built, name, shipped)
-        _say_once(native.install_loader(built, name))  # the FMU's binary: our runtime
+        notes = native.install_loader(built, name)  # the FMU's binary: our runtime
+        if notes:  # pythonfmu's binary alone: it takes no input derivatives
+            _declare_no_input_derivatives(built)
+        _say_once(notes)
         fmu_docs.add_documentation(built)  # documentation/index.html from the description
         problems = _check_built(built)
         if problems:
@@ -316,6 +319,22 @@ def source_hash(files: dict[str, Path]) -> str:
         digest.update(f"{relative}\n{len(path.read_bytes())}\n".encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
+
+
+def _declare_no_input_derivatives(fmu: Path) -> None:
+    """``canInterpolateInputs="false"`` in ``fmu``'s description: an FMU that keeps
+    pythonfmu's binary alone (no runtime built) cannot take input derivatives (pythonfmu
+    answers fmi2SetRealInputDerivatives with "not supported"), so a master holds its
+    inputs instead of failing at its first step."""
+    with zipfile.ZipFile(fmu) as archive:
+        entries = [(info, archive.read(info)) for info in archive.infolist()]
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+        for info, data in entries:
+            if info.filename == "modelDescription.xml":
+                root = ET.fromstring(data)
+                _child(root, "CoSimulation").set("canInterpolateInputs", "false")
+                data = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+            archive.writestr(info, data)
 
 
 def complete_fmu(fmu: Path, guid: str) -> None:

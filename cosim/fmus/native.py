@@ -37,8 +37,17 @@ from xml.etree import ElementTree as ET
 import fmu_runtime
 
 SOURCE_DIR = Path(fmu_runtime.__file__).resolve().parent / "native"  # package data
-SOURCES = ("loader.c", "runtime.c", "probe.c", "python.c", "slave.c", "forward.c")
-HEADERS = ("loader.h", "probe.h", "python.h", "glibc_floor.h")
+SOURCES = (
+    "loader.c",
+    "values.c",
+    "runtime.c",
+    "probe.c",
+    "python.c",
+    "slave.c",
+    "slave_values.c",
+    "forward.c",
+)
+HEADERS = ("loader.h", "probe.h", "python.h", "slave.h", "glibc_floor.h")
 VARIABLES_FILE = "fmu_variables.txt"
 OVERRIDE_VARIABLE = "AUV_FMU_PYTHON"  # the runtime's own name for it is in loader.h
 RUNTIME_VARIABLE = "AUV_FMU_RUNTIME"  # "pythonfmu": the fallback

@@ -4,30 +4,33 @@
 exclusive lock on it (a second run into a locked folder fails at once, naming the process
 that holds it), and refuses a folder holding an earlier run unless ``overwrite`` (or the
 folder is the scenario's default one and holds nothing but an earlier run of the same
-scenario, and a report made from it); once the run is known to be valid,
-:meth:`RunFolder.clear_earlier_run` removes that run's files and says which. A folder
+scenario file, and a report made from it; :mod:`cosim.outputs.earlier_run`). A folder
 holding other files, with no earlier run, is refused: a run never mixes its files with
 someone else's. This module imports nothing heavy, so a refusal comes before numpy, fmpy
 or any FMU is loaded.
 
-What a run wrote is known from its manifest, :data:`MANIFEST_FILE`: each file it created
-(results.csv, scenario.toml, the recording) with its device and inode, written by
-:meth:`RunFolder.wrote`. Replacing the run removes exactly those files that are still
-regular files with the same inode, inside the folder and reached through no link, plus
-its summary.json and manifest: never a folder (a ``report/`` made from the run stays),
-never what summary.json's ``outputs`` merely lists, never a file outside the folder (a
-``--rrd`` elsewhere stays). A summary.json without a manifest is no run of ours to
-replace. The recording file is locked like the folder (:meth:`RunFolder.lock_recording`).
+Nothing of an earlier run is removed before the new run has taken its first step: once
+the run is known to be valid, :meth:`RunFolder.set_aside_earlier_run` renames the earlier
+run's own files out of the way (each checked to be still what that run wrote);
+:meth:`RunFolder.commit` removes them when the first step's rows arrive, and
+:meth:`RunFolder.restore` puts them back if the run fails or stops before that. A
+recording at ``--rrd`` that exists is treated the same way (:meth:`RunFolder.lock_recording`).
+
+What a run wrote is known from its manifest (:mod:`cosim.outputs.run_files`): each file it
+created with what identifies it (inode, size, time, content hash), recorded by
+:meth:`RunFolder.wrote` each time the run finishes writing it.
 
 The lock is ``flock`` on :data:`LOCK_FILE` in the folder (holding the locking process's
 pid and command line, for the message), removed again when the run ends. The kernel
-releases it when the process dies, however it dies.
+releases it when the process dies, however it dies. The recording file is locked the
+same way.
 
 :meth:`RunFolder.start_guard` starts the tail guard (:mod:`cosim.outputs.tail_guard`) for
 results.csv and the recording: a tiny process that outlives a killed run just long enough
 to cut a torn last row off and the recording back to its last flush
-(:meth:`RunFolder.recording_flushed` tells it where). It inherits the lock, so the folder
-stays locked until the files are whole.
+(:meth:`RunFolder.recording_flushed` tells it where), record what the files then hold, or
+put an earlier run back if the killed one never stepped. It inherits the lock, so the
+folder stays locked until the files are whole.
 """
 
 from __future__ import annotations
@@ -35,13 +38,28 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import stat
+import socket
 import subprocess
 import sys
-from dataclasses import dataclass, field
+import time
 from pathlib import Path
 
-from cosim.errors import CosimError
+from cosim.outputs.earlier_run import EarlierRun, ScenarioRef, SetAside, find_earlier_run
+from cosim.outputs.report_folder import mark_stale
+from cosim.outputs.run_files import (
+    LOCK_FILE,
+    MANIFEST_FILE,
+    RECORDING_FILE,
+    REPORT_FOLDER,
+    RESULTS_FILE,
+    SCENARIO_FILE,
+    SUMMARY_FILE,
+    Manifest,
+    RunFolderError,
+    is_our_recording,
+    regular,
+)
+from cosim.outputs.tail_guard import file_identity
 
 try:
     import fcntl
@@ -49,21 +67,13 @@ except ImportError:  # Windows: msvcrt's byte-range lock instead
     fcntl = None  # type: ignore[assignment]
     import msvcrt
 
-RESULTS_FILE = "results.csv"  # formats: cosim.outputs.results
-SCENARIO_FILE = "scenario.toml"  # the resolved scenario
-SUMMARY_FILE = "summary.json"
-RECORDING_FILE = "recording.rrd"  # the Rerun recording (cosim.viz.recording)
-REPORT_FOLDER = "report"  # what `auv-cosim report` adds (cosim.viz.report)
-LOCK_FILE = ".auv-cosim.lock"
-MANIFEST_FILE = ".auv-cosim-run.json"  # the files a run wrote, each with its identity
-OUTPUT_NAMES = (RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RECORDING_FILE)
-RUN_STATUSES = ("running", "complete", "incomplete")  # in a summary.json of ours
+__all__ = [
+    "LOCK_FILE", "MANIFEST_FILE", "RECORDING_FILE", "REPORT_FOLDER", "RESULTS_FILE",
+    "SCENARIO_FILE", "SUMMARY_FILE", "RunFolder", "RunFolderError", "ScenarioRef",
+    "check_recording_path", "lock_folder", "unlock_folder",
+]  # fmt: skip
 GUARD_SCRIPT = Path(__file__).with_name("tail_guard.py")
 GUARD_TIMEOUT_S = 10.0
-
-
-class RunFolderError(CosimError):
-    """A run folder that cannot be used; the message names it and what to do."""
 
 
 class RunFolder:
@@ -74,11 +84,17 @@ class RunFolder:
         self.tail_guard = tail_guard  # start_guard starts one (else it does nothing)
         self.created = created  # the folder did not exist before the claim
         self.earlier: EarlierRun | None = None  # an earlier run to replace
+        self.committed = False  # the run has taken its first step
+        self.replaced: str | None = None  # what replacing the earlier run did (one line)
+        self.manifest = Manifest(path)
+        self.aside = SetAside(self._tell_guard)
         self._lock_fd = lock_fd
-        self._written: list[list] = []  # [path, device, inode] of each file this run wrote
+        self._recorded: set[str] = set()  # the files this run wrote (the manifest's names)
+        self._new: list[Path] = []  # the files this run created (absolute), for the guard
         self._rrd_fd = -1  # the lock on the recording, if one is written
         self._rrd_created: Path | None = None  # the recording file the lock created
         self._guard: subprocess.Popen[bytes] | None = None
+        self._channel: socket.socket | None = None  # to the guard (else its stdin pipe)
 
     @classmethod
     def claim(
@@ -86,13 +102,13 @@ class RunFolder:
         path: Path,
         overwrite: bool = False,
         tail_guard: bool = True,
-        default_for: str | None = None,
+        default_for: ScenarioRef | None = None,
     ) -> RunFolder:
         """Create and lock ``path``; an earlier run there needs ``overwrite``, unless
-        ``path`` is the default folder of scenario ``default_for`` and holds nothing but an
-        earlier run of that scenario (and a report made from it). Without ``tail_guard``,
-        :meth:`start_guard` starts no guard process (for a caller that discards a killed
-        run's folder anyway: a study's task, whose run is run again).
+        ``path`` is the default folder of the scenario ``default_for`` and holds nothing
+        but an earlier run of that scenario file (and a report made from it). Without
+        ``tail_guard``, :meth:`start_guard` starts no guard process (for a caller that
+        discards a killed run's folder anyway: a study's task, whose run is run again).
 
         Raises:
             RunFolderError: not creatable, not a folder, locked by another run, holding an
@@ -120,84 +136,169 @@ class RunFolder:
             raise
         folder = cls(path, lock_fd, created, tail_guard)
         try:
-            folder.earlier = _earlier_run(path, overwrite, default_for)
+            folder.earlier = find_earlier_run(path, overwrite, default_for)
         except BaseException:
             folder.release()
             raise
         return folder
 
-    def clear_earlier_run(self) -> str | None:
-        """Remove the files of the earlier run :meth:`claim` found: only the regular files
-        that run wrote (its manifest names each with its inode), never a folder, never
-        through a link. Returns the one line saying what went and what stays (None if
-        there was no earlier run)."""
+    @property
+    def replacing(self) -> bool:
+        """Files of an earlier run (or an earlier recording) are set aside, not yet gone."""
+        return bool(self.aside.moved)
+
+    def set_aside_earlier_run(self) -> None:
+        """Rename the earlier run's own files out of the way (each checked again to be the
+        file that run wrote). Raises RunFolderError, with everything put back."""
         if self.earlier is None:
-            return None
-        removed = []
-        try:
-            for target in self.earlier.remove:
-                target.unlink(missing_ok=True)
-                removed.append(str(target.relative_to(self.path)))
-        except OSError as exc:
-            raise RunFolderError(
-                f"--out {self.path}: cannot remove the earlier run's files: {exc.strerror or exc}"
-            ) from None
-        shown = sorted(n for n in removed if not n.startswith("."))
-        kept = self.earlier.kept
-        self.earlier = None
-        return f"replaced the earlier run in {self.path}: removed {', '.join(shown)}" + (
+            return
+        for target, identity in self.earlier.files.items():
+            self.aside.move(target, identity, f"--out {self.path}")
+
+    def commit(self) -> None:
+        """The run has taken its first step: remove what was set aside (checked once more)
+        and say so in :attr:`replaced`. Never raises."""
+        if self.committed:
+            return
+        self.committed = True
+        moved = [(target, aside) for target, aside, _ in self.aside.moved]
+        left = self.aside.commit()
+        self._tell_guard("commit\n")
+        if not moved:
+            return
+        kept = [*(self.earlier.kept if self.earlier is not None else []), *left]
+        if f"{REPORT_FOLDER}/" in kept and mark_stale(
+            self.path / REPORT_FOLDER, self._stale_note()
+        ):
+            kept[kept.index(f"{REPORT_FOLDER}/")] = (
+                f"{REPORT_FOLDER}/ (marked stale: made from the earlier run)"
+            )
+        inside = [t for t, _ in moved if t.is_relative_to(self.path)]
+        shown = sorted(str(t.relative_to(self.path)) for t in inside)
+        shown = [n for n in shown if not Path(n).name.startswith(".")]
+        shown += [str(t) for t, _ in moved if not t.is_relative_to(self.path)]
+        self.replaced = f"replaced the earlier run in {self.path}: removed {', '.join(shown)}" + (
             f"; kept {', '.join(kept)}" if kept else ""
         )
 
+    def _stale_note(self) -> str:
+        when = time.strftime("%Y-%m-%d %H:%M:%S %Z")
+        return (
+            f"this report was made from an earlier run in {self.path}, replaced by another "
+            f"run at {when}; run `auv-cosim report {self.path}` to make it again"
+        )
+
+    def restore(self) -> None:
+        """The run never stepped: remove the manifest and recording it created and put
+        the set-aside files back. Never raises."""
+        if self.committed or not self.replacing:
+            return
+        with contextlib.suppress(OSError):
+            if self._recorded:
+                self.manifest.path.unlink()
+            if self._rrd_created is not None and os.path.lexists(self._rrd_created):
+                self._rrd_created.unlink()
+        self._recorded.clear()
+        self._new.clear()
+        self._rrd_created = None
+        self.aside.restore()
+
     def wrote(self, path: Path) -> None:
-        """Record that this run created ``path`` (in the folder's manifest, with its inode:
-        a later run removes it only if it is still that file). Raises RunFolderError."""
-        try:
-            st = os.stat(path)
-            resolved, root = Path(path).resolve(), self.path.resolve()
-            name = resolved.relative_to(root) if resolved.is_relative_to(root) else resolved
-            self._written.append([str(name), st.st_dev, st.st_ino])
-            _write_atomically(self.path / MANIFEST_FILE, json.dumps({"files": self._written}))
-        except OSError as exc:
-            raise RunFolderError(
-                f"cannot write {self.path / MANIFEST_FILE}: {exc.strerror or exc}"
-            ) from None
+        """Record what this run's file ``path`` holds now (in the folder's manifest: a
+        later run removes it only if it is still exactly that). Call again after each
+        change. Raises RunFolderError."""
+        name = self.manifest.name_of(path)
+        if name not in self._recorded:
+            self._recorded.add(name)
+            self._created(Path(path))
+        self.manifest.record(path)
+
+    def _created(self, path: Path) -> None:
+        """This run created ``path`` (the guard removes it if it puts an earlier run back)."""
+        self._new.append(path.absolute())
+        self._tell_guard(f"new {json.dumps(str(path.absolute()))}\n")
 
     def lock_recording(self, rrd: Path) -> None:
         """Lock the recording file as the folder is locked: a second run writing the same
-        file is refused at once. Raises RunFolderError."""
+        file is refused at once. An existing file there (a recording of ours, as
+        :func:`check_recording_path` made sure) is set aside like the earlier run's files.
+        Raises RunFolderError."""
         rrd = Path(rrd)
-        existed = os.path.lexists(rrd)
+        if os.path.lexists(rrd):
+            self._set_aside_recording(rrd)
         try:
             rrd.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(rrd, os.O_RDWR | os.O_CREAT, 0o666)
+            fd = os.open(rrd, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o666)
+        except FileExistsError:
+            raise RunFolderError(f"--rrd {rrd}: another process created it just now") from None
         except OSError as exc:
             raise RunFolderError(f"--rrd {rrd}: cannot create it: {exc.strerror or exc}") from None
+        self._created(rrd)
         if not _try_lock(fd):
             os.close(fd)
-            raise RunFolderError(
-                f"--rrd {rrd}: another run is writing this recording; wait for it to end or "
-                "choose another file"
-            )
+            raise RunFolderError(f"--rrd {rrd}: another run is writing this recording")
         self._rrd_fd = fd
-        self._rrd_created = None if existed else rrd
+        self._rrd_created = rrd
+        self._tell_guard("lock\n", fd)  # held by the guard until the recording is whole
+
+    def _set_aside_recording(self, rrd: Path) -> None:
+        """Set an existing recording at ``rrd`` aside, once sure it is a recording of ours
+        that no run is writing."""
+        if not is_our_recording(rrd):
+            raise RunFolderError(
+                f"--rrd {rrd}: exists and is not a recording auv-cosim wrote; choose a new file"
+            )
+        try:
+            fd = os.open(rrd, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except OSError as exc:
+            raise RunFolderError(f"--rrd {rrd}: cannot open it: {exc.strerror or exc}") from None
+        try:
+            if not _try_lock(fd):
+                raise RunFolderError(
+                    f"--rrd {rrd}: another run is writing this recording; wait for it to end "
+                    "or choose another file"
+                )
+            identity = file_identity(rrd)
+            if identity is None:
+                raise RunFolderError(f"--rrd {rrd}: changed while it was checked; try again")
+            self.aside.move(rrd, identity, f"--rrd {rrd}")
+        finally:
+            os.close(fd)
 
     def start_guard(self, results: Path, recording: Path | None) -> None:
         """Start the tail guard for these files (see the module docstring), if the folder
-        was claimed with one."""
-        if not self.tail_guard:
+        was claimed with one and it is not running yet. Start it before anything is set
+        aside: it puts the files back if the run is killed before its first step."""
+        if not self.tail_guard or self._guard is not None:
             return
-        kwargs: dict = {"start_new_session": True}
-        if fcntl is not None:  # the guard keeps the folder and the recording locked
-            kwargs["pass_fds"] = tuple(fd for fd in (self._lock_fd, self._rrd_fd) if fd >= 0)
-        files = [str(results)] + ([str(recording)] if recording is not None else [])
-        self._guard = subprocess.Popen(
-            [sys.executable, "-I", "-S", str(GUARD_SCRIPT), *files],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            **kwargs,
-        )
+        files = [str(Path(results).absolute())]
+        files += [str(Path(recording).absolute())] if recording is not None else []
+        command = [
+            sys.executable,
+            "-I",
+            "-S",
+            str(GUARD_SCRIPT),
+            str(self.manifest.path.absolute()),
+        ]
+        kwargs: dict = {"start_new_session": True, "stdout": subprocess.DEVNULL,
+                        "stderr": subprocess.DEVNULL}  # fmt: skip
+        if fcntl is None:  # Windows: a pipe, no locks handed over
+            self._guard = subprocess.Popen([*command, *files], stdin=subprocess.PIPE, **kwargs)
+        else:  # a socket: the recording's lock, taken later, is handed over on it
+            self._channel, theirs = socket.socketpair()
+            try:
+                self._guard = subprocess.Popen(
+                    [*command, *files], stdin=theirs.fileno(), pass_fds=(self._lock_fd,), **kwargs
+                )
+            finally:
+                theirs.close()
+        for target, aside, _ in self.aside.moved:  # what happened before it started
+            pair = [str(target.absolute()), str(aside.absolute())]
+            self._tell_guard(f"aside {json.dumps(pair)}\n")
+        for path in self._new:
+            self._tell_guard(f"new {json.dumps(str(path))}\n")
+        if self._rrd_fd >= 0:
+            self._tell_guard("lock\n", self._rrd_fd)
 
     def recording_flushed(self, size: int) -> None:
         """The recording holds whole messages up to ``size`` bytes (tell the guard)."""
@@ -210,6 +311,8 @@ class RunFolder:
         if self._guard is not None:
             self._tell_guard("done\n")
             with contextlib.suppress(OSError, subprocess.TimeoutExpired):
+                if self._channel is not None:
+                    self._channel.close()
                 if self._guard.stdin is not None:
                     self._guard.stdin.close()
                 self._guard.wait(timeout=GUARD_TIMEOUT_S)
@@ -218,9 +321,9 @@ class RunFolder:
             unlock_folder(self.path, self._lock_fd)
             self._lock_fd = -1
         self._release_recording(unused)
-        if unused and self._written:
+        if unused and self._recorded:
             with contextlib.suppress(OSError):
-                (self.path / MANIFEST_FILE).unlink()
+                self.manifest.path.unlink()
         if unused and self.created:
             with contextlib.suppress(OSError):
                 self.path.rmdir()  # only if empty
@@ -236,39 +339,53 @@ class RunFolder:
             os.close(self._rrd_fd)
         self._rrd_fd = -1
 
-    def _tell_guard(self, line: str) -> None:
-        if self._guard is None or self._guard.stdin is None:
-            return
+    def _tell_guard(self, line: str, fd: int = -1) -> None:
+        """Send the guard ``line`` (and the descriptor ``fd`` with it, over the socket)."""
+        data = line.encode("utf-8", "surrogateescape")
         with contextlib.suppress(OSError, ValueError):  # a guard gone is no reason to stop
-            self._guard.stdin.write(line.encode())
-            self._guard.stdin.flush()
+            if self._channel is not None:
+                socket.send_fds(self._channel, [data], [fd] if fd >= 0 else [])
+            elif self._guard is not None and self._guard.stdin is not None:
+                self._guard.stdin.write(data)
+                self._guard.stdin.flush()
 
 
 def check_recording_path(out_dir: Path, rrd: Path, overwrite: bool) -> None:
-    """Refuse a recording path that is another output of the run, a folder, or an
-    existing file (outside the run folder's own recording) without ``overwrite``."""
+    """Refuse a recording path that is another file of the run, a folder, or anything but
+    a new file or a regular file holding a recording this tool wrote; an existing one
+    (outside the run folder's own recording) also needs ``overwrite``."""
     target = Path(rrd).resolve()
-    for name in (RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, LOCK_FILE, REPORT_FOLDER):
+    for name in (
+        RESULTS_FILE,
+        SCENARIO_FILE,
+        SUMMARY_FILE,
+        LOCK_FILE,
+        MANIFEST_FILE,
+        REPORT_FOLDER,
+    ):
         if target == (out_dir / name).resolve():
             raise RunFolderError(
                 f"--rrd {rrd}: that is the run's {name}; choose another file for the recording"
             )
     if target.is_dir():
         raise RunFolderError(f"--rrd {rrd}: is a folder; expected the path of a .rrd file")
+    if not os.path.lexists(rrd):
+        return
+    if os.path.islink(rrd):
+        raise RunFolderError(f"--rrd {rrd}: is a link; give the file itself, or a new path")
+    if not regular(Path(rrd)):
+        raise RunFolderError(
+            f"--rrd {rrd}: is not a regular file (a device, pipe or socket); expected the "
+            "path of a new .rrd file or of an earlier recording"
+        )
+    if not is_our_recording(Path(rrd)):
+        raise RunFolderError(
+            f"--rrd {rrd}: exists and is not a recording auv-cosim wrote (only a new file or "
+            "an earlier recording is written over); choose another file"
+        )
     own = (out_dir / RECORDING_FILE).resolve()
-    if target.exists() and target != own and not overwrite:
+    if target != own and not overwrite:
         raise RunFolderError(f"--rrd {rrd}: exists; pass --overwrite to replace it")
-
-
-def _write_atomically(path: Path, text: str) -> None:
-    """``text`` to ``path`` through a temporary file and a rename (raises OSError)."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    except OSError:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def lock_folder(path: Path, kind: str = "run") -> int:
@@ -338,112 +455,3 @@ def _holder(fd: int) -> str:
     if not pid.isdigit():
         return "another process"
     return f"process {pid}" + (f" ({command})" if command else "")
-
-
-@dataclass
-class EarlierRun:
-    """An earlier run of ours in a run folder: its summary, the files of its own to remove
-    (each checked to be the regular file that run wrote) and what stays (said)."""
-
-    summary: dict
-    remove: list[Path]
-    kept: list[str] = field(default_factory=list)
-
-
-def _earlier_run(path: Path, overwrite: bool, default_for: str | None) -> EarlierRun | None:
-    """The earlier run in ``path`` (None if there is none); refusals as documented."""
-    entries = sorted(e.name for e in path.iterdir() if e.name not in (LOCK_FILE, MANIFEST_FILE))
-    if not entries:
-        return None
-    summary_path = path / SUMMARY_FILE
-    if not _regular(summary_path):
-        shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
-        raise RunFolderError(
-            f"--out {path}: the folder is not empty ({shown}) and holds no earlier run "
-            f"(no {SUMMARY_FILE}); choose a new or empty folder"
-        )
-    summary = _read_summary(summary_path)
-    if summary.get("status") not in RUN_STATUSES or not isinstance(summary.get("scenario"), str):
-        raise RunFolderError(
-            f"--out {path}: its {SUMMARY_FILE} is not the summary of an auv-cosim run; "
-            "choose a new or empty folder"
-        )
-    files = _read_manifest(path)
-    if files is None:
-        raise RunFolderError(
-            f"--out {path}: holds a {SUMMARY_FILE} but no {MANIFEST_FILE} (the list of the "
-            "files its run wrote), so none of its files is known to be a run's; move them "
-            "away or choose another folder"
-        )
-    own = _own_files(path, files)
-    extra = [path / SUMMARY_FILE, path / MANIFEST_FILE, *path.glob(f".{SUMMARY_FILE}.*.tmp")]
-    own += [p for p in extra if _regular(p) and p not in own]
-    tops = {p.relative_to(path).parts[0] for p in own if _inside(p, path)}
-    foreign = [e for e in entries if e not in tops and e != REPORT_FOLDER]
-    same = default_for is not None and summary["scenario"] == default_for and not foreign
-    if not (overwrite or same):
-        what = f"scenario {summary['scenario']!r}, status {summary['status']!r}"
-        raise RunFolderError(
-            f"--out {path}: the folder holds an earlier run ({what}); pass --overwrite to "
-            "replace it, or choose another folder"
-        )
-    for name in OUTPUT_NAMES:  # the new run would write over these: they must be the run's
-        if os.path.lexists(path / name) and path / name not in own:
-            raise RunFolderError(
-                f"--out {path}: {name} is not a file the earlier run wrote (replaced, or a "
-                "link); move it away or choose another folder"
-            )
-    kept = [f"{REPORT_FOLDER}/"] if (path / REPORT_FOLDER).exists() else []
-    kept += [str(p) for p, _, _ in files if p.is_absolute() and os.path.lexists(p)]
-    return EarlierRun(summary, own, kept)
-
-
-def _read_summary(path: Path) -> dict:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {"status": "unreadable"}
-    return data if isinstance(data, dict) else {"status": "unreadable"}
-
-
-def _read_manifest(path: Path) -> list[tuple[Path, int, int]] | None:
-    """The manifest's (path, device, inode) entries; None if missing or not ours."""
-    manifest = path / MANIFEST_FILE
-    if not _regular(manifest):
-        return None
-    try:
-        data = json.loads(manifest.read_text(encoding="utf-8"))
-        return [(Path(str(p)), int(dev), int(ino)) for p, dev, ino in data["files"]]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-
-
-def _own_files(path: Path, files: list[tuple[Path, int, int]]) -> list[Path]:
-    """The manifest's files inside ``path`` that are still the regular files the run
-    wrote (same device and inode), reached through no link below ``path``."""
-    own = []
-    for name, dev, ino in files:
-        if name.is_absolute() or ".." in name.parts or not name.parts:
-            continue  # outside the folder: never removed
-        target = path / name
-        if any(os.path.islink(path.joinpath(*name.parts[:i])) for i in range(1, len(name.parts))):
-            continue
-        try:
-            st = os.lstat(target)
-        except OSError:
-            continue
-        if stat.S_ISREG(st.st_mode) and (st.st_dev, st.st_ino) == (dev, ino):
-            own.append(target)
-    return own
-
-
-def _regular(path: Path) -> bool:
-    """``path`` is a regular file itself (not a link to one)."""
-    try:
-        return stat.S_ISREG(os.lstat(path).st_mode)
-    except OSError:
-        return False
-
-
-def _inside(target: Path, folder: Path) -> bool:
-    return target.is_relative_to(folder)

@@ -12,7 +12,8 @@ without one is a row still being written and readers skip it.
 start of a run with ``"status": "running"`` and is replaced (atomically) at its end by
 the full summary: ``status`` ``"complete"`` or ``"incomplete"``, ``complete``, ``error``
 (the one-line reason, null if complete), ``signal`` (the signal that stopped or
-interrupted the run, null if none), scenario id, stop_time, step, algorithm, pid,
+interrupted the run, null if none), scenario id, ``scenario_file`` (the absolute path of the
+scenario file it was read from, null for one made in memory), stop_time, step, algorithm, pid,
 ``outputs`` (the files the run writes), wall_clock_s (the stepping loop alone),
 real_time_factor (of the loop), ``startup_s`` (s before the loop, by phase: ``prepare``
 the scenario and any FMU build, ``outputs`` opening the files and recording,
@@ -97,6 +98,7 @@ def running_summary(scenario: Scenario, outputs: Mapping[str, Path], out_dir: Pa
     manoeuvre = {} if scenario.manoeuvre is None else {"manoeuvre": scenario.manoeuvre}
     return {
         "scenario": scenario.id,
+        "scenario_file": None if scenario.source is None else str(Path(scenario.source).resolve()),
         **manoeuvre,
         "status": "running",
         "complete": False,

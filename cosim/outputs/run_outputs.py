@@ -7,8 +7,12 @@ figures (:class:`cosim.metrics.key_figures.KeyFigures`), the manoeuvre metrics o
 names one (:class:`cosim.outputs.manoeuvre.ManoeuvreSink`), the recording and the live viewer
 (made by the ``recorder`` the command hands over, one each: this room knows no viewer) and
 the progress bar. Creating them
-probes that every path is writable before the first step. :meth:`RunOutputs.close`
-closes them and :meth:`RunOutputs.finish` replaces summary.json with how the run ended.
+probes that every path is writable before the first step. The first sink,
+:class:`FirstStep`, tells the folder when the first step's rows arrive: only then is an
+earlier run it replaces removed. :meth:`RunOutputs.close`
+closes them and :meth:`RunOutputs.finish` replaces summary.json with how the run ended;
+each file is recorded in the folder's manifest (:meth:`cosim.outputs.folder.RunFolder.wrote`)
+whenever the run has finished writing it.
 A run that fails before its first step calls :meth:`RunOutputs.discard` instead: what it
 created is removed again.
 """
@@ -23,8 +27,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
+import numpy as np
+
 from cosim.engine.master import RunResult
-from cosim.engine.rows import RowSink
+from cosim.engine.rows import NotesIgnored, RowSink
 from cosim.errors import CosimError
 from cosim.metrics.key_figures import KeyFigures
 from cosim.outputs.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
@@ -54,6 +60,19 @@ class Recorder(Protocol):
     ) -> ClosableSink | None: ...
 
 
+class FirstStep(NotesIgnored):
+    """Commits the run folder (:meth:`cosim.outputs.folder.RunFolder.commit`) when the
+    rows of the run's first step arrive (a row after t = 0): the earlier run it replaces
+    is removed then, and not before."""
+
+    def __init__(self, folder: RunFolder) -> None:
+        self.folder = folder
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        if not self.folder.committed and len(times) and times[-1] > 0.0:
+            self.folder.commit()
+
+
 class RunOutputs:
     """The open outputs of one run (use :meth:`open`)."""
 
@@ -67,7 +86,7 @@ class RunOutputs:
             else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario))
         )  # fmt: skip
         self.csv: CsvSink | None = None
-        self.sinks: list[RowSink] = [self.figures]
+        self.sinks: list[RowSink] = [FirstStep(folder), self.figures]
         if self.manoeuvre is not None:
             self.sinks.append(self.manoeuvre)
         self.manoeuvre_summary: dict[str, Any] | None = None  # set by finish
@@ -114,7 +133,7 @@ class RunOutputs:
         self.csv = CsvSink(self.paths["results"], self.scenario.columns)
         self._created.append(self.paths["results"])
         self.folder.wrote(self.paths["results"])
-        self.sinks.insert(0, self.csv)
+        self.sinks.insert(1, self.csv)
         self._closable.append(self.csv)
         self.folder.start_guard(self.paths["results"], rrd)
         if rrd is not None and recorder is not None:
@@ -143,13 +162,21 @@ class RunOutputs:
         self._running = running_summary(self.scenario, self.paths, self.folder.path)
         self._created.append(self.paths["summary"])
         write_json_atomically(self.paths["summary"], self._running)
+        self.folder.wrote(self.paths["summary"])
 
     def _add(self, sink: ClosableSink) -> None:
         self.sinks.append(sink)
         self._closable.append(sink)
 
     def close(self) -> str | None:
-        """Close every sink (the recording's last rows are flushed); the first failure."""
+        """Close every sink (the recording's last rows are flushed) and record the files
+        in the manifest; the first failure."""
+        error = self._close_sinks()
+        for name in ("results", "recording"):
+            error = self._record(name) or error
+        return error
+
+    def _close_sinks(self) -> str | None:
         error = None
         for sink in self._closable:
             try:
@@ -157,6 +184,17 @@ class RunOutputs:
             except (OSError, CosimError) as exc:
                 error = error or str(exc)
         return error
+
+    def _record(self, name: str) -> str | None:
+        """Record the output ``name`` in the folder's manifest; the failure, if any."""
+        path = self.paths.get(name)
+        if path is None or path not in self._created:
+            return None
+        try:
+            self.folder.wrote(path)
+        except CosimError as exc:
+            return str(exc)
+        return None
 
     def finish(self, result: RunResult, error: str | None, signum: int | None) -> str | None:
         """Replace summary.json with the final summary; the failure to write it, if any."""
@@ -172,7 +210,7 @@ class RunOutputs:
             write_json_atomically(self.paths["summary"], data)
         except CosimError as exc:
             return str(exc)
-        return None
+        return self._record("summary")
 
     def write_scenario(self, scenario: Scenario) -> str | None:
         """Replace scenario.toml (a live run's, its overrides as events: a replay); the
@@ -185,13 +223,13 @@ class RunOutputs:
         except OSError as exc:
             tmp.unlink(missing_ok=True)
             return f"cannot write {path}: {exc.strerror or exc}"
-        return None
+        return self._record("scenario")
 
     def discard(self) -> None:
         """Close the sinks and remove every file this run created (it never stepped)."""
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            self.close()
+            self._close_sinks()
         for path in self._created:
             with contextlib.suppress(OSError):
                 os.unlink(path)

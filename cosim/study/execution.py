@@ -29,10 +29,14 @@ checks the study, and each local worker imports the run's modules as it starts
 
 from __future__ import annotations
 
+import ast
+import asyncio
 import hashlib
 import logging
+import os
 import shutil
 import socket
+import sys
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -41,12 +45,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
 
+import dask
 from distributed import Client, LocalCluster, as_completed, get_worker
 from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.diagnostics.plugin import WorkerPlugin
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
 
+from cosim.study import fork_server
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
 from cosim.study.signals import StudyStopped, workers_ignore_sigint
@@ -57,6 +63,8 @@ LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
 CONNECT_TIMEOUT_S = 30
 PROBE_TIMEOUT_S = 5.0  # a scheduler that does not accept a connection by then is refused
+HEARTBEAT_DRAIN_S = 5.0  # at most this long for a worker's last heartbeat to be answered
+MAX_WORKERS_PER_CORE = 16  # local worker processes beyond this are refused, oversubscribed
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
 PRELOAD = "cosim.study.preload"  # imported by each local worker as it starts
 
@@ -68,6 +76,7 @@ class Job:
     base: Base
     factors: Mapping[str, FactorKind]
     keep: str
+    check_step: bool  # each run also at h / 2 and h / 4: its coupling error metrics
     fmu_files: Mapping[str, str]  # instance -> its FMU's path in the uploaded folder
     plugin: str  # name of the StudyPlugin carrying the job and the FMUs
     session: str  # this study session's token (in task keys and the plugin name)
@@ -100,7 +109,76 @@ class StudyPlugin(WorkerPlugin):
             shutil.rmtree(self.folder, ignore_errors=True)
 
 
-def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[Job, StudyPlugin]:
+def local_workers(requested: object, oversubscribe: bool = False) -> int:
+    """The local worker processes of a study asked for ``requested`` (None: one per core):
+    a whole number >= 1, at most the cores unless ``oversubscribe``. Raises StudyError."""
+    cores = os.cpu_count() or 1
+    if requested is None:
+        return cores
+    shown = repr(requested) if len(repr(requested)) <= 40 else f"{repr(requested)[:30]}..."
+    if isinstance(requested, bool) or not isinstance(requested, int) or requested < 1:
+        raise StudyError(f"workers={shown}: expected a whole number of worker processes >= 1")
+    if requested > cores and not oversubscribe:
+        raise StudyError(
+            f"workers={shown}: more than the {cores} cores of this machine; expected at most "
+            f"{cores}, or oversubscribe=True to start them all"
+        )
+    if requested > MAX_WORKERS_PER_CORE * cores:
+        raise StudyError(
+            f"workers={shown}: expected at most {MAX_WORKERS_PER_CORE * cores} worker "
+            f"processes ({MAX_WORKERS_PER_CORE} per core), even oversubscribed"
+        )
+    return requested
+
+
+def check_main_guard(caller: str) -> None:
+    """Refuse, in one line, a call made at the top level of the script Python runs (its
+    ``__main__``) outside an ``if __name__ == "__main__":`` block: each local worker is a
+    new process (Dask starts them with multiprocessing's "spawn") that imports that script
+    again, which would call ``caller`` again and flood the terminal with tracebacks.
+
+    Written by hand: multiprocessing finds the problem only in the child, too late. The
+    call is placed by the stack (the script's module-level frame and its line) and the
+    script's syntax tree (the ``if __name__ == "__main__":`` blocks).
+    """
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if main is None or not path or getattr(main, "__name__", None) != "__main__":
+        return  # an interactive session, python -c, a notebook: nothing is imported again
+    frame = sys._getframe(1)
+    while frame is not None and not (
+        frame.f_code.co_name == "<module>" and frame.f_globals is vars(main)
+    ):
+        frame = frame.f_back  # type: ignore[assignment]
+    if frame is None:
+        return
+    try:
+        tree = ast.parse(Path(path).read_text(encoding="utf-8"))
+    except (OSError, SyntaxError, ValueError):
+        return
+    line = frame.f_lineno
+    guards = [n for n in ast.walk(tree) if isinstance(n, ast.If) and _is_main_test(n.test)]
+    if any(n.lineno <= line <= (n.end_lineno or n.lineno) for n in guards):
+        return
+    raise StudyError(
+        f"{caller} is called at the top level of {path} (line {line}), which each worker "
+        'process imports again: put the call under `if __name__ == "__main__":`'
+    )
+
+
+def _is_main_test(test: ast.expr) -> bool:
+    """``__name__ == "__main__"`` (either way round)."""
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1):
+        return False
+    sides = [test.left, test.comparators[0]]
+    names = [s.id for s in sides if isinstance(s, ast.Name)]
+    values = [s.value for s in sides if isinstance(s, ast.Constant)]
+    return isinstance(test.ops[0], ast.Eq) and names == ["__name__"] and values == ["__main__"]
+
+
+def make_job(
+    base: Base, factors: Mapping[str, FactorKind], keep: str, check_step: bool = False
+) -> tuple[Job, StudyPlugin]:
     """The study's shared task data and the plugin carrying it and its FMUs (read once)."""
     session = uuid.uuid4().hex[:12]  # tasks and plugin of concurrent studies never clash
     files: dict[str, bytes] = {}
@@ -110,7 +188,7 @@ def make_job(base: Base, factors: Mapping[str, FactorKind], keep: str) -> tuple[
         relative = f"{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
         files[relative] = content
         paths[instance] = relative
-    job = Job(base, factors, keep, paths, f"auv-cosim-study-{session}", session)
+    job = Job(base, factors, keep, check_step, paths, f"auv-cosim-study-{session}", session)
     return job, StudyPlugin(job, files)
 
 
@@ -122,7 +200,7 @@ def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
     if folder is None:  # setup runs when the plugin is registered, before any task
         raise StudyError(f"study plugin {plugin_name}: not set up on this worker")
     paths = {instance: folder / relative for instance, relative in job.fmu_files.items()}
-    return run_one(job.base, paths, job.factors, values, job.keep)
+    return run_one(job.base, paths, job.factors, values, job.keep, job.check_step)
 
 
 def lost_run_error(exc: KilledWorker) -> str:
@@ -181,6 +259,39 @@ def check_scheduler(address: str, security: Security | None = None) -> None:
     except OSError as exc:
         reason = exc.strerror or str(exc) or type(exc).__name__
         raise StudyError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
+    _handshake(address, security)
+
+
+def _handshake(address: str, security: Security | None) -> None:
+    """Exchange Dask's handshake with ``address`` within PROBE_TIMEOUT_S: a server that
+    accepts the connection but says nothing, or says something else (an HTTP server's
+    reply read as a frame length asks for exabytes), is refused in one line. Dask's own
+    ``connect`` waits for the handshake without a time limit."""
+    from distributed.comm import connect
+
+    arguments = security.get_connection_args("client") if security is not None else {}
+
+    async def probe() -> None:
+        comm = await connect(address, timeout=PROBE_TIMEOUT_S, **arguments)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(probe(), PROBE_TIMEOUT_S))
+    except TimeoutError:
+        raise StudyError(
+            f"--scheduler {address}: the server accepts connections but sends no Dask "
+            f"handshake within {PROBE_TIMEOUT_S:g} s; is it a Dask scheduler?"
+        ) from None
+    except MemoryError:  # a frame length read from bytes that are no Dask message
+        reason = "bytes that are no Dask message; an HTTP or other server?"
+        raise StudyError(
+            f"--scheduler {address}: not a Dask scheduler (it answered {reason})"
+        ) from None
+    except Exception as exc:  # anything else a non-scheduler makes Dask raise
+        reason = " ".join(f"{type(exc).__name__}: {exc}".split())[:160]
+        raise StudyError(
+            f"--scheduler {address}: not a Dask scheduler (its reply to Dask's handshake: {reason})"
+        ) from None
 
 
 @contextmanager
@@ -210,21 +321,64 @@ def open_client(
     # An address without a host (dask's default ":8787") would listen on every interface;
     # with the dashboard off the scheduler still serves /health on this (random) port.
     port = DASHBOARD_PORT if dashboard else 0
-    with workers_ignore_sigint():  # a Ctrl-C is the client's to handle (cosim.study.signals)
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            host=LOCALHOST,
-            protocol="tcp://",
-            dashboard_address=f"{LOCALHOST}:{port}",
-            scheduler_kwargs={"dashboard": dashboard},
-            worker_dashboard_address=None,
-            silence_logs=logging.ERROR,
-            preload=[PRELOAD],
-        )
-    with cluster, Client(cluster, set_as_default=False) as client:
-        yield client
+    with _forked_workers():  # also for a worker its nanny starts again later
+        with workers_ignore_sigint():  # a Ctrl-C is the client's (cosim.study.signals)
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host=LOCALHOST,
+                protocol="tcp://",
+                dashboard_address=f"{LOCALHOST}:{port}",
+                scheduler_kwargs={"dashboard": dashboard},
+                worker_dashboard_address=None,
+                silence_logs=logging.ERROR,
+                preload=[PRELOAD],
+            )
+        with cluster, Client(cluster, set_as_default=False) as client:
+            try:
+                yield client
+            finally:
+                stop_heartbeats(client)
+
+
+@contextmanager
+def _forked_workers() -> Iterator[None]:
+    """While on, Dask starts local worker processes from the fork server
+    (:mod:`cosim.study.fork_server`, started now if not yet), where the platform has one."""
+    if not fork_server.available():
+        yield
+        return
+    import distributed.utils
+
+    fork_server.start()
+    distributed.utils._forkserver_preload_set = True  # Dask's own preload comes too late
+    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
+        yield
+
+
+def stop_heartbeats(client: Client) -> None:
+    """Before a local cluster closes: stop every worker's heartbeat to the scheduler and
+    let the one in flight finish (:func:`_quiet_heartbeat`). A worker closing closes its
+    connections to the scheduler while a heartbeat may still wait for its answer (Dask
+    stops the heartbeat only late in ``Worker.close``), and that heartbeat then logs
+    "Failed to communicate with scheduler during heartbeat" with a CommClosedError
+    traceback on the study's stderr: 4 of 30 studies here, two at once on 3 workers
+    each. Never raises (a broken cluster is closed all the same)."""
+    with suppress(Exception):
+        client.run(_quiet_heartbeat, on_error="ignore")
+
+
+async def _quiet_heartbeat(dask_worker: Any) -> None:
+    """On a worker: no more heartbeats, and the one in flight (a connection of the
+    worker's pool to the scheduler in use) answered, or HEARTBEAT_DRAIN_S passed."""
+    dask_worker.periodic_callbacks["heartbeat"].stop()
+    scheduler = dask_worker.scheduler.address
+    deadline = asyncio.get_running_loop().time() + HEARTBEAT_DRAIN_S
+    while dask_worker.rpc.occupied.get(scheduler):
+        if asyncio.get_running_loop().time() > deadline:
+            return
+        await asyncio.sleep(0.01)
 
 
 class EarlyClient:

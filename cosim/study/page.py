@@ -2,8 +2,8 @@
 
 Laid out like ``auv-cosim report``'s page: a summary table (scenario, factors, runs
 complete and failed), links to ``runs.csv`` and ``runs.parquet``, each figure linked
-full size, the metrics not plotted (constant, missing or too many), and the failed runs with their
-errors.
+full size, the metrics not plotted in one compact line (constant, missing or too many; the
+final values counted, their names folded away), and the failed runs with their errors.
 """
 
 from __future__ import annotations
@@ -37,14 +37,7 @@ def write_index(
         "</a></p>"
         for title, path in figures.items()
     )
-    quiet = (
-        f"<p>Not plotted (constant or missing in every run, beyond the "
-        f"{PANELS_MAX} that vary most, or not a key figure or manoeuvre metric; choose "
-        f"them with [metrics] collect; all are in runs.csv): "
-        f"{_escape(', '.join(not_plotted))}</p>"
-        if not_plotted
-        else ""
-    )
+    quiet = _not_plotted(not_plotted)
     failed = [row for row in rows if row["status"] != "complete"]
     failures = ""
     if failed:
@@ -79,6 +72,26 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
     path = out_dir / INDEX_PAGE
     path.write_text(page, encoding="utf-8")
     return path
+
+
+def _not_plotted(names: Sequence[str]) -> str:
+    """One line: the metrics not plotted by name, the final values counted (their names
+    in a folded list)."""
+    if not names:
+        return ""
+    finals = [n for n in names if n.startswith("final.")]
+    listed = [f"<code>{_escape(n)}</code>" for n in names if not n.startswith("final.")]
+    if finals:
+        folded = ", ".join(_escape(n) for n in finals)
+        listed.append(
+            f"<details style='display:inline'><summary>{len(finals)} final values "
+            f"(final.&lt;instance&gt;.&lt;variable&gt;)</summary>{folded}</details>"
+        )
+    return (
+        f"<p>Not plotted: {', '.join(listed)}. (Constant or missing in every run, beyond "
+        f"the {PANELS_MAX} that vary most, or not a key figure or manoeuvre metric; "
+        "<code>[metrics] collect</code> chooses; every value is in runs.csv.)</p>"
+    )
 
 
 def _escape(value: Any) -> str:

@@ -9,6 +9,13 @@ backend is left alone), from the sorted table rows.
 * ``scatter_matrix.png`` (Monte Carlo): the random factors and the first metrics against
   each other (histograms on the diagonal), at most :data:`SCATTER_MAX` variables.
 
+Each line of a grid figure has its own marker and dash, and lines that coincide (the
+same value at every point: +-v0 of a symmetric vehicle) are named in a note on the panel,
+so none hides another; a line is not drawn across a gap in the grid (a missing point,
+or a step over 1.5 times the grid's smallest one) nor between the values of a factor
+that is not a number. Titles are readable (:func:`cosim.study.units.title`) and angles
+are drawn in degrees (:func:`cosim.study.units.shown`).
+
 Only metrics with at least two distinct finite values are drawn (a constant or missing
 metric is a line on the index page instead), the one that varies most first (its range
 over the largest magnitude it takes: a final value at noise level comes last), at most
@@ -24,11 +31,14 @@ import itertools
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator, ScalarFormatter
+
+from cosim.study.units import shown, title
+
+if TYPE_CHECKING:  # matplotlib is imported where a figure is drawn (~0.35 s, at the end)
+    from matplotlib.figure import Figure
 
 PANEL_COLUMNS = 4
 PANEL_SIZE_IN = (3.4, 2.6)
@@ -37,6 +47,9 @@ PANELS_MAX = 12  # metrics drawn per figure (matplotlib takes ~0.1-0.3 s per pan
 SCATTER_MAX = 5  # variables in the scatter matrix (5 x 5 panels)
 HISTOGRAM_BINS = 20
 DPI = 100
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")  # one per line of a grid figure
+DASHES = ("-", "--", ":", "-.")
+GAP_FACTOR = 1.5  # a grid step over this many times the smallest one is a gap: no line
 Row = Mapping[str, Any]
 
 
@@ -66,8 +79,8 @@ def variation(values: np.ndarray) -> float:
 
 
 def axis_label(name: str, units: Mapping[str, str]) -> str:
-    """An axis label: the quantity and its unit, "name [unit]"."""
-    return f"{name} [{units.get(name, '1')}]"
+    """An axis label: the quantity's title and the unit it is drawn in, "title [unit]"."""
+    return f"{title(name)} [{shown(name, units)[1]}]"
 
 
 def write_figures(
@@ -114,31 +127,94 @@ def plot_grid_factor(
     others = [name for name in grid if name != factor]
     x_values = list(grid[factor])
     numeric = all(_is_number(v) for v in x_values)
-    x = np.asarray(x_values, dtype=float) if numeric else np.arange(len(x_values))
+    scale = shown(factor, units)[0] if numeric else 1.0
+    x = np.asarray(x_values, dtype=float) * scale if numeric else np.arange(len(x_values))
     by_point: dict[tuple[Any, ...], list[Row]] = {}
     for row in rows:
         by_point.setdefault(tuple(row[name] for name in grid), []).append(row)
     fig, axes = _panels(len(metrics))
-    for combo in itertools.product(*(grid[name] for name in others)):
+    lines: dict[str, list[tuple[str, np.ndarray]]] = {metric: [] for metric in metrics}
+    for k, combo in enumerate(itertools.product(*(grid[name] for name in others))):
         fixed = dict(zip(others, combo, strict=True))
         label = ", ".join(f"{name} = {value}" for name, value in fixed.items())
         points = [
             by_point.get(tuple({**fixed, factor: value}[name] for name in grid), [])
             for value in x_values
         ]
+        style = {"marker": MARKERS[k % len(MARKERS)], "markersize": max(7 - 1.5 * k, 3),
+                 "linestyle": DASHES[k % len(DASHES)] if numeric else "none"}  # fmt: skip
         for ax, metric in zip(axes, metrics, strict=False):
-            ax.plot(x, [_mean(point, metric) for point in points], marker="o", label=label or None)
+            y = np.asarray([_mean(point, metric) for point in points]) * shown(metric, units)[0]
+            ax.plot(*_broken_at_gaps(x, y, numeric), label=label or None, **style)
+            lines[metric].append((label, y))
     for ax, metric in zip(axes, metrics, strict=False):
-        ax.set_title(metric, fontsize=9)
-        ax.set_xlabel(axis_label(factor, units), fontsize=8)
-        ax.set_ylabel(f"[{units.get(metric, '1')}]", fontsize=8)
+        _label_panel(ax, metric, factor, units, lines[metric])
         if not numeric or len(x_values) <= XTICKS_MAX:
-            ax.set_xticks(x, [f"{v:g}" if numeric else str(v) for v in x_values])
+            ax.set_xticks(x, [f"{v * scale:g}" if numeric else str(v) for v in x_values])
         else:
+            from matplotlib.ticker import MaxNLocator
+
             ax.xaxis.set_major_locator(MaxNLocator(nbins=XTICKS_MAX))
     if others:
         axes[0].legend(fontsize=7)
     return _save(fig, path)
+
+
+def _label_panel(
+    ax: Any,
+    metric: str,
+    factor: str,
+    units: Mapping[str, str],
+    lines: Sequence[tuple[str, np.ndarray]],
+) -> None:
+    """Title, axis labels, and a note naming the lines that coincide."""
+    ax.set_title(title(metric), fontsize=9)
+    ax.set_xlabel(axis_label(factor, units), fontsize=8)
+    ax.set_ylabel(f"[{shown(metric, units)[1]}]", fontsize=8)
+    same = coinciding(lines)
+    if same:
+        note = "; ".join(" = ".join(group) for group in same)
+        ax.text(0.02, 0.97, f"same values: {note}", transform=ax.transAxes, fontsize=6,
+                va="top", wrap=True)  # fmt: skip
+
+
+def coinciding(lines: Sequence[tuple[str, np.ndarray]]) -> list[list[str]]:
+    """Groups of line labels whose values are equal at every point (NaN where NaN): on a
+    plot, the later ones hide the first."""
+    groups: list[list[str]] = []
+    firsts: list[np.ndarray] = []
+    for label, y in lines:
+        for group, first in zip(groups, firsts, strict=True):
+            if np.allclose(y, first, rtol=1e-9, atol=0.0, equal_nan=True):
+                group.append(label)
+                break
+        else:
+            groups.append([label])
+            firsts.append(y)
+    return [group for group in groups if len(group) > 1]
+
+
+def _broken_at_gaps(x: np.ndarray, y: np.ndarray, numeric: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``x``, ``y`` with a NaN between neighbours across a gap of the grid, so the line
+    breaks there; unchanged for a factor that is no number (drawn without lines). A gap
+    is a step over GAP_FACTOR times the grid's smallest, on a linear scale and, for a grid
+    of positive values, on a logarithmic one too (0.25, 0.5, 1 has none)."""
+    if not numeric or x.size < 3:
+        return x, y
+    gaps = _wide_steps(x)
+    if np.all(x > 0):
+        gaps &= _wide_steps(np.log(x))
+    at = np.flatnonzero(gaps) + 1
+    return np.insert(x, at, np.nan), np.insert(y, at, np.nan)
+
+
+def _wide_steps(x: np.ndarray) -> np.ndarray:
+    """Which steps of the sorted grid ``x`` exceed GAP_FACTOR times the smallest one."""
+    steps = np.abs(np.diff(x))
+    positive = steps[steps > 0]
+    if positive.size == 0:
+        return np.zeros(steps.shape, dtype=bool)
+    return steps > GAP_FACTOR * np.min(positive)
 
 
 def plot_histograms(
@@ -147,10 +223,11 @@ def plot_histograms(
     """One histogram per metric over every completed run."""
     fig, axes = _panels(len(metrics))
     for ax, metric in zip(axes, metrics, strict=False):
-        values = _floats(rows, metric)
+        scale, unit = shown(metric, units)
+        values = _floats(rows, metric) * scale
         ax.hist(values[np.isfinite(values)], bins=HISTOGRAM_BINS)
-        ax.set_title(metric, fontsize=9)
-        ax.set_xlabel(f"[{units.get(metric, '1')}]", fontsize=8)
+        ax.set_title(title(metric), fontsize=9)
+        ax.set_xlabel(f"[{unit}]", fontsize=8)
         ax.set_ylabel("runs", fontsize=8)
     return _save(fig, path)
 
@@ -160,7 +237,9 @@ def plot_scatter_matrix(
 ) -> Path:
     """Every pair of ``variables`` as a scatter plot, histograms on the diagonal."""
     n = len(variables)
-    data = {name: _floats(rows, name) for name in variables}
+    data = {name: _floats(rows, name) * shown(name, units)[0] for name in variables}
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(2.2 * n, 2.2 * n))
     axes = fig.subplots(n, n, squeeze=False)
     _margins(fig)
@@ -172,9 +251,13 @@ def plot_scatter_matrix(
         else:
             ax.scatter(data[col_name], data[row_name], s=6)
         if i == n - 1:
-            ax.set_xlabel(axis_label(col_name, units), fontsize=7)
+            ax.set_xlabel(
+                axis_label(title(col_name), {title(col_name): units.get(col_name, "1")}), fontsize=7
+            )
         if j == 0:
-            ax.set_ylabel(axis_label(row_name, units), fontsize=7)
+            ax.set_ylabel(
+                axis_label(title(row_name), {title(row_name): units.get(row_name, "1")}), fontsize=7
+            )
         ax.tick_params(labelsize=6)
         _plain_ticks(ax)
     return _save(fig, path)
@@ -183,6 +266,8 @@ def plot_scatter_matrix(
 def _panels(n: int) -> tuple[Figure, list[Any]]:
     cols = min(PANEL_COLUMNS, n)
     nrows = math.ceil(n / cols)
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(PANEL_SIZE_IN[0] * cols, PANEL_SIZE_IN[1] * nrows))
     axes = fig.subplots(nrows, cols, squeeze=False)
     _margins(fig)
@@ -200,6 +285,8 @@ def _plain_ticks(ax: Any) -> None:
     """Tick labels as the numbers themselves: no offset ("+1.5249") and no common factor
     ("1e-5") above the axis, which read as another number."""
     for axis in (ax.xaxis, ax.yaxis):
+        from matplotlib.ticker import ScalarFormatter
+
         formatter = ScalarFormatter(useOffset=False)
         formatter.set_scientific(False)
         axis.set_major_formatter(formatter)

@@ -5,6 +5,8 @@ Format (every key is checked; unknown keys are errors)::
     scenario = "bs-3"          # a built-in id or a scenario file (relative to this file)
     stop_time = 20.0           # s, optional override of the scenario's stop time
     keep = "none"              # per-run folders: "all", "failed" or "none" [none]
+    check_step = false         # also run each at h/2 and h/4: coupling_error.<metric>
+                               # columns, as `auv-cosim run --check-step` [false]
     overlay = ["best:yaw_settling_time_s", "worst:yaw_settling_time_s"]
                                # runs drawn together in overlay.rrd [none]: run ids (16 hex
                                # digits), "best:<metric>" (its lowest value),
@@ -59,6 +61,7 @@ from cosim.errors import CosimError
 KEEP_CHOICES = ("all", "failed", "none")
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
 MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
+MAX_RUNS_CEILING = 10_000_000  # --max-runs at most: the design of every run is built first
 _RUN_ID = re.compile(r"[0-9a-f]{16}")  # cosim.study.design.run_id
 FactorValue = StrictBool | StrictInt | StrictFloat | StrictStr
 
@@ -171,6 +174,7 @@ class StudySpec(_Strict):
     scenario: StrictStr = Field(min_length=1)
     stop_time: Annotated[Number, Field(gt=0.0)] | None = None
     keep: Literal["all", "failed", "none"] = "none"
+    check_step: StrictBool = False  # each run's coupling error (docs/coupling.md)
     grid: dict[str, GridValues] = Field(default_factory=dict)
     random: RandomSpec = Field(default_factory=RandomSpec)
     metrics: MetricsSpec = Field(default_factory=MetricsSpec)
@@ -208,7 +212,14 @@ def run_count(spec: StudySpec) -> int:
 
 def check_size(spec: StudySpec, where: str, max_runs: int = MAX_RUNS) -> None:
     """Refuse a study of more than ``max_runs`` runs, before any is built (the design of
-    a larger one would take the memory and time of building every run first)."""
+    a larger one would take the memory and time of building every run first), and a
+    ``max_runs`` beyond :data:`MAX_RUNS_CEILING` (or below 1)."""
+    if isinstance(max_runs, bool) or not 1 <= max_runs <= MAX_RUNS_CEILING:
+        shown = str(max_runs) if len(str(max_runs)) <= 30 else f"{str(max_runs)[:20]}..."
+        raise StudyError(
+            f"--max-runs {shown}: expected 1 to {MAX_RUNS_CEILING} (the runs of a study are "
+            "planned in memory before the first one starts)"
+        )
     count = run_count(spec)
     if count > max_runs:
         grid = " x ".join(str(len(values)) for values in spec.grid.values()) or "1"

@@ -36,6 +36,9 @@ from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, appl
 from cosim.study.spec import StudyError
 
 KEEP_FILES = ("results", "summary")  # run_scenario outputs a kept run folder receives
+# A metric's estimated coupling error (Richardson from h, h/2, h/4: docs/coupling.md), in
+# the metric's unit, is the column named this prefix + the metric's name
+COUPLING_ERROR = "coupling_error."
 
 
 @dataclass(frozen=True)
@@ -61,13 +64,19 @@ class RunRecord:
 
 
 def prepare(
-    scenario_ref: str | Path, stop_time: float | None, fmu_dir: Path
+    scenario_ref: str | Path, stop_time: float | None, fmu_dir: Path, check_step: bool = False
 ) -> tuple[Base, ScenarioFacts]:
     """Load the scenario (built-in FMUs built into ``fmu_dir`` if needed) and read what
-    the study checks its factors and metrics against. Raises ``CosimError``."""
+    the study checks its factors and metrics against; ``check_step`` adds the coupling
+    error metrics. Raises ``CosimError`` (an adaptive scenario with ``check_step``)."""
     scenario = load_scenario(scenario_ref, fmu_dir=fmu_dir)
     if stop_time is not None:
         scenario = scenario.with_overrides(stop_time=stop_time)
+    if check_step and scenario.coupling.algorithm == "adaptive":
+        raise StudyError(
+            f"check_step = true: {scenario.id} runs the adaptive algorithm, which controls "
+            "its error itself; check a fixed step (algorithm jacobi or gauss-seidel)"
+        )
     driven = {c.target: c.source for c in scenario.connections}
     instances = {
         name: {
@@ -89,7 +98,8 @@ def prepare(
         for section in ("events", "faults")
         for found in [base.data.get(section, [])]
     }
-    facts = ScenarioFacts(instances, _metric_names(scenario), tables["events"], tables["faults"])
+    metrics = _metric_names(scenario, check_step)
+    facts = ScenarioFacts(instances, metrics, tables["events"], tables["faults"])
     return base, facts
 
 
@@ -124,11 +134,13 @@ def run_one(
     factors: Mapping[str, FactorKind],
     values: Mapping[str, Value],
     keep: str = "none",
+    check_step: bool = False,
 ) -> RunRecord:
     """Run the base scenario with these factor values; never raises for a failed run.
 
     ``fmu_paths``: instance -> the FMU file to use in this process. ``keep`` ("all",
-    "failed", "none") says whether the run's results.csv and summary.json come back.
+    "failed", "none") says whether the run's results.csv and summary.json come back;
+    ``check_step`` also runs it at h / 2 and h / 4 for its coupling error metrics.
     """
     started = time.perf_counter()
     metrics: dict[str, float | None] = {}
@@ -137,7 +149,9 @@ def run_one(
     try:
         scenario = _scenario(base, fmu_paths, factors, values)
         with tempfile.TemporaryDirectory(prefix="auv-cosim-run-") as tmp:
-            outcome = run_scenario(scenario, Path(tmp), no_rrd=True, tail_guard=False)
+            outcome = run_scenario(
+                scenario, Path(tmp), no_rrd=True, tail_guard=False, check_step=check_step
+            )
             result = outcome.result
             error = None if result.complete else result.error or "the run stopped early"
             if keep == "all" or (keep == "failed" and error is not None):
@@ -198,11 +212,20 @@ def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
     metrics.update(summary_metrics(run_summary))
     metrics["time_reached"] = run_summary["time_reached"]
     metrics.update({f"final.{k}": v for k, v in run_summary["final_values"].items()})
+    check = run_summary.get("coupling", {}).get("check_step")
+    if check is not None:  # a figure the check could not estimate (or a failed check): None
+        estimated = dict(check.get("key_figures", {}))
+        estimated.update({f"final.{k}": e for k, e in check.get("final_values", {}).items()})
+        finals = [f"final.{k}" for k in run_summary["final_values"]]
+        for name in [*run_summary["key_figures"], *finals]:
+            metrics[f"{COUPLING_ERROR}{name}"] = estimated.get(name, {}).get("error")
     return metrics
 
 
-def _metric_names(scenario: Scenario) -> tuple[str, ...]:
+def _metric_names(scenario: Scenario, check_step: bool = False) -> tuple[str, ...]:
     """The names :func:`_metrics` gives a run of ``scenario``, in the same order."""
     figures = KeyFigures(scenario.record).figures()
     manoeuvre = scenario_metric_names(scenario)
-    return (*figures, *manoeuvre, "time_reached", *(f"final.{c}" for c in scenario.record))
+    finals = tuple(f"final.{c}" for c in scenario.record)
+    errors = tuple(f"{COUPLING_ERROR}{name}" for name in (*figures, *finals)) if check_step else ()
+    return (*figures, *manoeuvre, "time_reached", *finals, *errors)

@@ -41,6 +41,7 @@ from __future__ import annotations
 import html
 import json
 import math
+import time
 import tomllib
 import warnings
 from dataclasses import dataclass
@@ -55,6 +56,7 @@ from cosim.errors import CosimError
 from cosim.fmus.interface import read_interface
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
+from cosim.outputs.report_folder import check_writable, record, remove_earlier, run_stamp
 from cosim.outputs.results import read_csv
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.viz.mission import mission_waypoints
@@ -191,15 +193,21 @@ DEPTH_EVIDENCE = ("controller.fin_angle", "controller.depth_setpoint")
 
 def write_report(run_dir: Path) -> Path:
     """Write the figures and the index page of the run in ``run_dir``; return the page.
+    The page is stamped with the run it describes (:func:`run_stamp`); the files are
+    recorded in the report's manifest (:mod:`cosim.outputs.report_folder`), and a figure
+    an earlier report wrote that this one does not is removed.
 
     Raises:
         CosimError: ``run_dir`` holds no readable ``results.csv`` (or it has no rows), or
-            the report folder cannot be written.
+            the report folder cannot be written, or holds a file of that name that no
+            report wrote (a user's own ``index.html``), which is left as it is.
     """
     run_dir = Path(run_dir)
+    stamp = {**run_stamp(run_dir), "made": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
     table = load_results(run_dir)
     summary, summary_problem = load_summary(run_dir)
     out = run_dir / REPORT_FOLDER
+    check_writable(out, [INDEX_PAGE, *(f"{name}.png" for name in (*FIGURES, *TITLES))])
     limits = actuator_limits(run_dir)
     zoom = _zoom(table, summary)
     try:
@@ -224,7 +232,9 @@ def write_report(run_dir: Path) -> Path:
             if deviation is not None:
                 figures["lateral_deviation"] = deviation
         index = out / INDEX_PAGE
-        index.write_text(index_page(run_dir, summary, summary_problem, figures), "utf-8")
+        index.write_text(index_page(run_dir, summary, summary_problem, figures, stamp), "utf-8")
+        remove_earlier(out, keep=[INDEX_PAGE, *(path.name for path in figures.values())])
+        record(out, [*figures.values(), index], stamp)
     except OSError as exc:
         raise CosimError(f"cannot write the report into {out}: {exc}") from None
     return index
@@ -558,8 +568,10 @@ def index_page(
     summary: dict[str, Any],
     summary_problem: str | None,
     figures: dict[str, Path],
+    stamp: dict[str, Any] | None = None,
 ) -> str:
-    """The HTML index: summary table, key figures, the figures inline (linked)."""
+    """The HTML index: which run it describes (``stamp``: :func:`run_stamp` and when it
+    was made), summary table, key figures, the figures inline (linked)."""
     name = summary.get("scenario") or run_dir.resolve().name
     rows = [
         ("scenario", summary.get("scenario")),
@@ -605,6 +617,7 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 <body>
 <h1>Run {html.escape(str(name))}</h1>
 <p>Run folder: <code>{html.escape(str(run_dir))}</code> (results.csv, summary.json)</p>
+{_stamp_line(stamp)}
 {note}
 <table>
 {table}
@@ -614,6 +627,19 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 </body>
 </html>
 """
+
+
+def _stamp_line(stamp: dict[str, Any] | None) -> str:
+    """Which run the page describes, and when it was made (nothing without a stamp)."""
+    if stamp is None:
+        return ""
+    digest = stamp.get("results_sha256") or "unknown"
+    return (
+        f'<p class="stamp">Made {html.escape(str(stamp.get("made")))} from the run of '
+        f"{html.escape(str(stamp.get('scenario')))} (status {html.escape(str(stamp.get('status')))}"
+        f"), results.csv SHA-256 <code>{html.escape(digest[:16])}</code>. A later run into this "
+        "folder marks this page stale.</p>"
+    )
 
 
 def _manoeuvre_table(summary: dict[str, Any]) -> str:

@@ -15,17 +15,28 @@ that one URL (rerun's own log line names ``localhost``, which a browser may reso
 over ssh.
 
 The server runs in this process's process group, so Ctrl-C in the terminal (and a test
-ending the group) ends it too; :func:`serve` also ends it on SIGTERM/SIGHUP or any error.
+ending the group) ends it too; :func:`serve` also ends it on SIGTERM/SIGHUP or any error,
+and on Linux the kernel ends it when this process dies, however it dies (SIGKILL
+included: the parent-death signal, :func:`_die_with_parent`).
+
+A recording cut short -- its run was killed, or is still writing it -- has no footer, and
+rerun's importer waited for the rest of such a file forever (the viewer never finished
+loading): :func:`whole_recording` serves a copy completed by ``rerun rrd migrate``
+instead, and says so.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
 import http.server
+import os
 import shutil
 import signal
 import socket
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -41,6 +52,9 @@ HOST = "127.0.0.1"
 WEB_PORT = 9090  # rerun's default for the web viewer's page
 FILE_PORT = 9876  # the recording, served over HTTP by this process
 START_TIMEOUT = 60.0  # s for the rerun binary to start listening
+MIGRATE_TIMEOUT = 120.0  # s for `rerun rrd migrate` to complete a copy of a cut recording
+FOOTER = b"FOOT"  # rerun 0.41: a whole .rrd ends with its 4-byte magic, FOOT, a version
+PR_SET_PDEATHSIG = 1  # prctl(2): the signal a Linux process gets when its parent dies
 
 
 def file_url(rrd: Path, file_port: int = FILE_PORT) -> str:
@@ -109,27 +123,129 @@ def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browse
     web_port, file_port = (_free_port(port) for port in (web_port, file_port))
     if web_port == file_port:
         raise CosimError(f"--web-port and --file-port are both {web_port}: give two ports")
-    command = serve_command(executable, rrd, web_port, file_port)
     with (
+        tempfile.TemporaryDirectory(prefix="auv-cosim-view-") as folder,
         tempfile.TemporaryFile() as log,
         _stop_signals_raise(),
-        _file_server(rrd, file_port, web_port),
     ):
-        server = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=log)
-        try:
-            _wait_listening(server, (web_port,), log)
-            url = viewer_url(rrd, web_port, file_port)
-            print(f"serving {rrd} on {HOST} only; open this URL (Ctrl-C stops):\n  {url}")
-            print(_forward_hint(web_port, file_port), flush=True)
-            if open_browser:
-                _open(url)
-            return server.wait()
-        except _StopSignalError as stop:
-            return 128 + stop.signum
-        except KeyboardInterrupt:
-            return 130
-        finally:
-            _end(server)
+        served = whole_recording(executable, rrd, Path(folder))
+        command = serve_command(executable, served, web_port, file_port)
+        with _file_server(served, file_port, web_port):
+            server = subprocess.Popen(
+                command, stdin=subprocess.DEVNULL, stdout=log, stderr=log,
+                preexec_fn=_die_with_parent(),
+            )  # fmt: skip
+            try:
+                _wait_listening(server, (web_port,), log)
+                url = viewer_url(served, web_port, file_port)
+                print(f"serving {rrd} on {HOST} only; open this URL (Ctrl-C stops):\n  {url}")
+                print(_forward_hint(web_port, file_port), flush=True)
+                if open_browser:
+                    _open(url)
+                return server.wait()
+            except _StopSignalError as stop:
+                return 128 + stop.signum
+            except KeyboardInterrupt:
+                return 130
+            finally:
+                _end(server)
+
+
+def whole_recording(executable: str, rrd: Path, folder: Path) -> Path:
+    """What to serve for ``rrd``: the file itself if it ends with rerun's footer; else a
+    copy in ``folder`` completed by ``rerun rrd migrate`` (what the file holds now, with a
+    footer), after saying so (the file is served once, so a run still writing it is shown
+    as far as it got).
+
+    Raises:
+        CosimError: the file holds no recording yet (cut short before any data: the
+            viewer would show its welcome page forever), or the copy cannot be made.
+    """
+    if _ends_with_footer(rrd):
+        return rrd
+    copy = folder / "recording.rrd"
+    try:
+        shutil.copyfile(rrd, copy)
+        done = subprocess.run(
+            [executable, "rrd", "migrate", str(copy)], stdin=subprocess.DEVNULL,
+            capture_output=True, text=True, timeout=MIGRATE_TIMEOUT, check=False,
+        )  # fmt: skip
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise CosimError(f"cannot complete a copy of {rrd}: {exc}") from None
+    if done.returncode != 0 or not _ends_with_footer(copy):
+        lines = (done.stderr or done.stdout).strip().splitlines()
+        raise CosimError(
+            f"{rrd} was cut short and cannot be completed: {lines[-1] if lines else 'no output'}"
+        )
+    from rerun.chunk import RrdReader
+
+    if not list(RrdReader(copy).recordings()):
+        raise CosimError(
+            f"{rrd} holds no recording yet: it was cut short after {rrd.stat().st_size} bytes, "
+            "before any data (its run was killed as it started)"
+        )
+    why = "a run is still writing it" if _being_written(rrd) else "its run was killed"
+    print(
+        f"note: {rrd} was cut short ({why}): serving a completed copy of what it holds", flush=True
+    )
+    return copy
+
+
+def _being_written(rrd: Path) -> bool:
+    """Whether a run holds the lock on ``rrd`` (it is writing it)."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: the runs lock it otherwise; take it as finished
+        return False
+    try:
+        fd = os.open(rrd, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)  # closing releases a lock taken here
+    return False
+
+
+def _ends_with_footer(rrd: Path) -> bool:
+    """Whether ``rrd`` ends with rerun's footer: its first 4 bytes (the magic) then FOOT,
+    12 bytes before the end (what ``rerun rrd verify`` looks for first). Read by hand:
+    verifying the whole file takes seconds for a long run, this takes two reads."""
+    try:
+        with open(rrd, "rb") as f:
+            magic = f.read(4)
+            f.seek(0, os.SEEK_END)
+            if f.tell() < 24:
+                return False
+            f.seek(-12, os.SEEK_END)
+            return f.read(8) == magic + FOOTER
+    except OSError:
+        return False
+
+
+def _die_with_parent() -> Any:
+    """The ``preexec_fn`` that makes the kernel send the server SIGKILL when this process
+    dies, however it dies (Linux ``prctl(PR_SET_PDEATHSIG)``), or None elsewhere. Written
+    with ctypes: the standard library has no binding. The signal follows the thread that
+    started the child: :func:`serve` runs on the main thread, which lives as long as the
+    process does."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        prctl = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    parent = os.getpid()
+
+    def in_child() -> None:  # between fork and exec: no allocation-heavy work
+        prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+        if os.getppid() != parent:  # the parent died before the call: nothing would come
+            os._exit(1)
+
+    return in_child
 
 
 def _binary(executable: str) -> str:

@@ -6,6 +6,16 @@
  * It hands pythonfmu a logger of its own, which passes every message to the host's (a
  * NULL category replaced: some hosts crash on one) and feeds the call's worst status.
  *
+ * Input derivatives: pythonfmu's binary answers fmi2SetRealInputDerivatives with "not
+ * supported", while our slaves take them (canInterpolateInputs="true" in the same
+ * modelDescription.xml for both backends). For a slave that takes them this backend
+ * finds, right after pythonfmu's fmi2Instantiate, the slave it constructed
+ * (``fmu_runtime.safe_slave.claim_constructed``: the last SafeSlave constructed on this
+ * thread, pythonfmu constructing it in the call) and hands each call, once loader.c has
+ * checked it, to its ``set_real_input_derivatives`` with the GIL held; the slave's
+ * ``do_step`` clears them after the step, as in the default backend. So both backends
+ * step with the same inputs and give the same results.
+ *
  * pythonfmu 0.7's wrapper releases its interpreter guard twice at process exit (a static
  * destructor, then its ``finalizePythonInterpreter``): right after loading it, its
  * ``finalizePythonInterpreter`` is registered as an exit handler, which runs first (exit
@@ -133,28 +143,108 @@ static void relay(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status 
     instance_log((Instance *)env, status, category, message ? message : "");
 }
 
+/* The per-instance data: the callbacks pythonfmu keeps a pointer to, and the Python slave
+ * it constructed (a new reference; NULL unless the slave takes input derivatives). */
+typedef struct {
+    fmi2CallbackFunctions callbacks;
+    PyObject *slave;
+} Forwarded;
+
+#define FORWARDED(c) ((Forwarded *)(c)->extra)
+
+/* The slave pythonfmu just constructed, from the slave's package (see the file comment);
+ * NULL (Python's error cleared) if none is found. */
+static PyObject *claim_slave(Instance *c)
+{
+    if (!python_alive()) return NULL;
+    char name[sizeof c->record.package + 32];
+    snprintf(name, sizeof name, "%s.fmu_runtime.safe_slave", c->record.package);
+    int gil = py.GILState_Ensure();
+    PyObject *module = py.Import_ImportModule(name);
+    PyObject *claim = module ? py.GetAttrString(module, "claim_constructed") : NULL;
+    PyObject *slave = claim ? py.CallFunctionObjArgs(claim, NULL) : NULL;
+    if (slave == py.None) {
+        py.DecRef(slave);
+        slave = NULL;
+    }
+    py.Err_Clear();
+    if (claim) py.DecRef(claim);
+    if (module) py.DecRef(module);
+    py.GILState_Release(gil);
+    return slave;
+}
+
 static int start(Instance *c)
 {
     pthread_mutex_lock(&wrapper_lock);
     wrapper_loaded = wrapper_loaded || load_wrapper(c);
     pthread_mutex_unlock(&wrapper_lock);
     if (!wrapper_loaded) return 0;
-    fmi2CallbackFunctions *callbacks = calloc(1, sizeof *callbacks);
-    if (!callbacks) return 0;
-    *callbacks = c->host;
-    callbacks->logger = relay;
-    callbacks->componentEnvironment = c;
-    c->extra = callbacks; /* pythonfmu keeps the pointer */
+    Forwarded *forwarded = calloc(1, sizeof *forwarded);
+    if (!forwarded) return 0;
+    forwarded->callbacks = c->host;
+    forwarded->callbacks.logger = relay;
+    forwarded->callbacks.componentEnvironment = c;
+    c->extra = forwarded; /* pythonfmu keeps the pointer to the callbacks */
     c->slave = wrapper.instantiate(c->name, fmi2CoSimulation, c->record.guid, c->resources_uri,
-                                   callbacks, c->visible, fmi2True);
-    if (!c->slave) free(callbacks);
-    return c->slave != NULL;
+                                   &forwarded->callbacks, c->visible, fmi2True);
+    if (!c->slave) {
+        free(forwarded);
+        c->extra = NULL;
+        return 0;
+    }
+    if (c->record.interpolates_inputs) forwarded->slave = claim_slave(c);
+    return 1;
 }
 
 static void stop(Instance *c)
 {
-    if (!python_gone()) wrapper.freeInstance(c->slave); /* it would enter Python */
-    free(c->extra);
+    Forwarded *forwarded = FORWARDED(c);
+    if (!python_gone()) { /* they would enter Python */
+        if (forwarded && forwarded->slave && python_alive()) {
+            int gil = py.GILState_Ensure();
+            py.DecRef(forwarded->slave);
+            py.GILState_Release(gil);
+        }
+        wrapper.freeInstance(c->slave);
+    }
+    free(forwarded);
+}
+
+/* fmi2SetRealInputDerivatives (checked by loader.c) to the slave's
+ * set_real_input_derivatives, which stores them for the next step. */
+static fmi2Status derivatives(Instance *c, const fmi2ValueReference vr[], size_t n,
+                              const fmi2Integer order[], const fmi2Real values[])
+{
+    const char *call = "fmi2SetRealInputDerivatives";
+    PyObject *slave = FORWARDED(c)->slave;
+    if (!slave) return refuse(c, "%s refused: pythonfmu's binary constructed no slave the "
+                              "runtime can find", call);
+    if (!python_alive()) return refuse(c, "%s refused: Python has shut down", call);
+    int gil = py.GILState_Ensure();
+    PyObject *lists[3] = {py.List_New((Py_ssize_t)n), py.List_New((Py_ssize_t)n),
+                          py.List_New((Py_ssize_t)n)};
+    int ok = lists[0] && lists[1] && lists[2];
+    for (size_t i = 0; ok && i < n; i++) {
+        PyObject *items[3] = {py.Long_FromUnsignedLong(vr[i]), py.Long_FromLong(order[i]),
+                              py.Float_FromDouble(values[i])};
+        for (int k = 0; k < 3; k++) { /* List_SetItem steals the item, even on failure */
+            if (!items[k] || py.List_SetItem(lists[k], (Py_ssize_t)i, items[k]) != 0) ok = 0;
+        }
+    }
+    PyObject *method = ok ? py.GetAttrString(slave, "set_real_input_derivatives") : NULL;
+    PyObject *result =
+        method ? py.CallFunctionObjArgs(method, lists[0], lists[1], lists[2], NULL) : NULL;
+    char error[LINE_SIZE / 2] = "";
+    if (!result) python_error(error, sizeof error);
+    if (result) py.DecRef(result);
+    if (method) py.DecRef(method);
+    for (int k = 0; k < 3; k++) {
+        if (lists[k]) py.DecRef(lists[k]);
+    }
+    py.GILState_Release(gil);
+    return result ? fmi2OK : refuse(c, "%s: the slave's set_real_input_derivatives raised %s",
+                                    call, error);
 }
 
 static fmi2Status setup(Instance *c, fmi2Boolean has_tolerance, fmi2Real tolerance,
@@ -224,5 +314,5 @@ static fmi2Status state_from_bytes(Instance *c, const fmi2Byte *bytes, size_t si
 
 const Backend pythonfmu_backend = {
     start, stop,    setup,   enter,       leave,            step, terminate, reset, get, set,
-    save,  restore, discard, state_bytes, state_from_bytes, NULL,
+    save,  restore, discard, state_bytes, state_from_bytes, derivatives,
 };

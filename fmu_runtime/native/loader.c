@@ -17,8 +17,10 @@
  * of the last step) within a relative 1e-9; a read of an unknown value reference or of
  * the wrong type; a write of a variable that cannot be written then (outputs, locals,
  * constants; a fixed parameter after initialisation, unless it is the value it has), of a
- * non-finite Real, or of a value outside the declared min/max; input derivatives the FMU
- * does not take. The variables' rules come from resources/fmu_variables.txt, the GUID and
+ * non-finite Real, of a value outside the declared min/max, or of a String that is not
+ * UTF-8; input derivatives the FMU does not take. With the default backend the values
+ * themselves are read and written in C (values.c): a Real read back non-finite is refused
+ * there. The variables' rules come from resources/fmu_variables.txt, the GUID and
  * the slave class from resources/fmu_runtime.txt; the build writes both.
  *
  * Refusals made in Python (fmu_runtime/safe_slave.py logs each with status Error): the
@@ -41,7 +43,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum Phase { INSTANTIATED, INITIALIZATION, INITIALIZED, TERMINATED, FAILED };
 static const char *const PHASES[] = {"instantiated", "in initialisation mode", "initialised",
                                      "terminated", "in the error state"};
 #define TIME_TOLERANCE 1e-9 /* relative: masters compute t_n = n h */
@@ -124,7 +125,7 @@ static fmi2Status answer(Instance *c, fmi2Status status)
 }
 
 /* Shortest text that reads back as the same double, like Python's repr. */
-static const char *show(double x, char *out)
+const char *show(double x, char *out)
 {
     if (isnan(x)) return strcpy(out, "nan");
     if (isinf(x)) return strcpy(out, x > 0 ? "inf" : "-inf");
@@ -149,6 +150,25 @@ static int grow(Instance *c, unsigned vr)
     c->vars = grown;
     c->count = vr + 1;
     return 1;
+}
+
+/* Each variable's slot: its index among the variables of its type in value-reference
+ * order (value_buffers.py numbers them the same way); room for the String copies. */
+static int number_slots(Instance *c)
+{
+    Values *v = &c->values;
+    for (size_t vr = 0; vr < c->count; vr++) {
+        Variable *var = &c->vars[vr];
+        if (!var->known) continue;
+        size_t *n = var->type == 'R'   ? &v->reals_n
+                    : var->type == 'I' ? &v->integers_n
+                    : var->type == 'B' ? &v->booleans_n
+                                       : &v->strings_n;
+        var->slot = (int)(*n)++;
+    }
+    v->strings = calloc(v->strings_n + 1, sizeof(char *));
+    v->dirty = calloc(v->strings_n + 1, 1);
+    return v->strings && v->dirty;
 }
 
 /* Lines "vr type causality variability min max start name" ("-" for none). */
@@ -180,7 +200,7 @@ static int read_variables(Instance *c)
         snprintf(v->name, sizeof v->name, "%s", name);
     }
     fclose(in);
-    return 1;
+    return number_slots(c);
 }
 
 /* key=value lines; unknown keys are ignored. */
@@ -268,6 +288,33 @@ static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char 
         snprintf(why, n, "%s = %s refused: %s", v->name, shown, problem);
     }
     return why;
+}
+
+/* 1 if ``text`` is UTF-8 as Python's strict decoder takes it (no overlong form, no
+ * surrogate, nothing above U+10FFFF): the slave is handed every String as a str, by
+ * either backend (pythonfmu's binary does not survive one that is not). */
+static int is_utf8(const unsigned char *text)
+{
+    while (*text) {
+        unsigned char b = *text;
+        int n = b < 0x80             ? 0
+                : (b & 0xE0) == 0xC0 ? 1
+                : (b & 0xF0) == 0xE0 ? 2
+                : (b & 0xF8) == 0xF0 ? 3
+                                     : -1;
+        if (n < 0 || (n == 1 && b < 0xC2)) return 0;
+        unsigned long code = n ? b & (0x3F >> n) : b;
+        for (int k = 1; k <= n; k++) {
+            if ((text[k] & 0xC0) != 0x80) return 0;
+            code = (code << 6) | (text[k] & 0x3F);
+        }
+        if ((n == 2 && (code < 0x800 || (code >= 0xD800 && code <= 0xDFFF))) ||
+            (n == 3 && (code < 0x10000 || code > 0x10FFFF))) {
+            return 0;
+        }
+        text += n + 1;
+    }
+    return 1;
 }
 
 /* NULL arrays (n > 0) are refused: FMI hosts pass them, and reading one would crash. */
@@ -400,6 +447,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     } else if (runtime_python(c) && c->backend->start(c)) {
         return c;
     }
+    values_free_strings(&c->values);
     free(c->vars);
     free(c);
     return NULL;
@@ -410,6 +458,7 @@ FMI2_EXPORT void fmi2FreeInstance(fmi2Component component)
     Instance *c = (Instance *)component;
     if (!c) return;
     c->backend->stop(c);
+    values_free_strings(&c->values);
     free(c->vars);
     free(c);
 }
@@ -629,6 +678,9 @@ FMI2_EXPORT fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueRef
     INSTANCE(component);
     for (size_t i = 0; values && i < n; i++) {
         if (!values[i]) return refuse(c, "fmi2SetString refused: value %zu is NULL", i);
+        if (!is_utf8((const unsigned char *)values[i])) {
+            return refuse(c, "fmi2SetString refused: value %zu is not UTF-8", i);
+        }
     }
     return set(c, 'S', vr, n, values, NULL, "fmi2SetString");
 }
@@ -652,6 +704,7 @@ FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *st
     void *inner = NULL;
     fmi2Status s = answer(c, c->backend->save(c, &inner));
     if (s > fmi2Warning) {
+        if (inner) c->backend->discard(c, inner);
         if (!*state) free(saved);
         return s;
     }
@@ -767,12 +820,9 @@ FMI2_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component component,
     NEED(vr, "value-reference array", call);
     NEED(order, "order array", call);
     NEED(values, "value array", call);
-    if (!c->record.interpolates_inputs || !c->backend->derivatives) {
-        return refuse(c, "%s refused: %s", call,
-                      c->record.interpolates_inputs
-                          ? "input derivatives need the FMU's own runtime (" RUNTIME_VARIABLE
-                            "=pythonfmu is set)"
-                          : "this FMU takes no input derivatives (canInterpolateInputs=\"false\")");
+    if (!c->record.interpolates_inputs) {
+        return refuse(c, "%s refused: this FMU takes no input derivatives "
+                      "(canInterpolateInputs=\"false\")", call);
     }
     if (c->phase != INITIALIZATION && c->phase != INITIALIZED) {
         return refuse(c, "%s refused: the FMU is %s", call, PHASES[c->phase]);

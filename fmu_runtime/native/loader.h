@@ -2,6 +2,8 @@
  *
  * loader.c   the exported FMI 2.0 co-simulation functions: the standard's call sequence,
  *            the variables' rules, the status functions; each call then goes to a backend
+ * values.c   the variables' values in C: fmi2Get/fmi2Set answered from the value buffers
+ *            the slave shares with the runtime, without Python
  * runtime.c  finds a Python for the process (the candidates, in order) and starts it
  * probe.c    asks one candidate Python, in a subprocess, what it is
  * python.c   the CPython C API, every function resolved with dlsym from the libpython in
@@ -83,6 +85,7 @@ typedef struct {
 typedef struct {
     int known;
     char type;            /* R I B S */
+    int slot;             /* its index among the variables of its type, in vr order */
     char causality[24];   /* as in modelDescription.xml */
     char variability[16]; /* as in modelDescription.xml */
     char min[BOUND_SIZE]; /* "" if none */
@@ -92,6 +95,37 @@ typedef struct {
     double start;
     char name[NAME_SIZE];
 } Variable;
+
+/* The FMI 2.0 co-simulation phases an instance goes through (loader.c). */
+enum Phase { INSTANTIATED, INITIALIZATION, INITIALIZED, TERMINATED, FAILED };
+
+/* The value buffers (fmu_runtime/value_buffers.py is the other side): one per type, in
+ * slot order, laid out by the slave; flags per value reference; a control block; the
+ * input derivatives. The memory is the slave's (Python bytearrays the runtime holds
+ * buffer exports of, so it can neither move nor go while the runtime holds it); Strings
+ * are the runtime's own copies. All NULL with the fallback backend. */
+#define FLAG_WATCHED 1 /* the value lives in the slave's own storage: it takes writes */
+#define FLAG_CHANGED 2 /* a watched variable written since the slave took its writes */
+#define FLAG_WRITTEN 4 /* written (accepted) since instantiation */
+#define FLAG_DERIVATIVE_1 8
+#define FLAG_DERIVATIVE_2 16
+#define CONTROL_CHANGES 0     /* some watched variable is CHANGED */
+#define CONTROL_STALE 1       /* written since the outputs to start from were computed */
+#define CONTROL_DERIVATIVES 2 /* some input derivative is set */
+#define CONTROL_SIZE 8
+
+typedef struct {
+    double *reals;
+    int *integers;
+    int *booleans;
+    unsigned char *flags;   /* per value reference */
+    unsigned char *control; /* CONTROL_SIZE bytes */
+    double *derivatives;    /* order 1 then order 2, per Real slot */
+    char **strings;         /* the runtime's copies, per String slot (NULL: not known yet) */
+    unsigned char *dirty;   /* per String slot: written since the slave took it */
+    int strings_dirty;
+    size_t reals_n, integers_n, booleans_n, strings_n;
+} Values;
 
 typedef struct Backend Backend;
 
@@ -109,6 +143,7 @@ typedef struct {
     fmi2Status logged; /* the worst status logged during the current call */
     Variable *vars;    /* indexed by value reference */
     size_t count;
+    Values values;
 } Instance;
 
 /* What the FMI functions need from whatever runs the slave. Each returns the status the
@@ -145,6 +180,28 @@ void instance_log(Instance *c, fmi2Status status, const char *category, const ch
 /* printf-style: one Error line (its % escaped for the host); returns fmi2Error. */
 fmi2Status refuse(Instance *c, const char *format, ...)
     __attribute__((format(printf, 2, 3)));
+
+/* loader.c: the shortest text that reads back as the same double (32 bytes), as repr. */
+const char *show(double x, char *out);
+
+/* values.c: the value buffers' part of a call, once loader.c has checked it (known value
+ * references of the right type, allowed writes); no Python. A Real read that is not
+ * finite is refused with a line naming the variable. */
+fmi2Status values_get(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
+                      void *values);
+fmi2Status values_set(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
+                      const void *values);
+void values_derivatives(Instance *c, const fmi2ValueReference vr[], size_t n,
+                        const fmi2Integer order[], const fmi2Real values[]);
+/* after each doStep: no input derivative set any more */
+void values_clear_derivatives(Instance *c);
+/* the buffers' bytes in an FMU state: their number, a copy out, a copy back */
+size_t values_bytes(const Values *v, size_t flags_n);
+void values_save(const Values *v, size_t flags_n, char *to);
+void values_restore(Values *v, size_t flags_n, const char *from);
+/* the String copies: one replaced (0 when out of memory), all freed */
+int values_keep_string(Values *v, size_t slot, const char *text);
+void values_free_strings(Values *v);
 
 /* runtime.c: an initialised CPython >= 3.9 that imports numpy in this process (started
  * once per process if none runs), or 0 after one Error line per candidate passed over. */

@@ -12,6 +12,23 @@
 typedef struct _object PyObject;
 typedef ptrdiff_t Py_ssize_t;
 
+/* CPython's Py_buffer: the same layout in every CPython 3 (part of the stable ABI since
+ * 3.11), filled by PyObject_GetBuffer. */
+typedef struct {
+    void *buf;
+    PyObject *obj;
+    Py_ssize_t len;
+    Py_ssize_t itemsize;
+    int readonly;
+    int ndim;
+    char *format;
+    Py_ssize_t *shape;
+    Py_ssize_t *strides;
+    Py_ssize_t *suboffsets;
+    void *internal;
+} Py_buffer;
+#define PyBUF_WRITABLE 0x0001
+
 typedef struct {
     /* before initialisation */
     int (*IsInitialized)(void);
@@ -31,6 +48,9 @@ typedef struct {
     PyObject *None;
     PyObject *(*GetAttrString)(PyObject *, const char *);
     PyObject *(*Call)(PyObject *, PyObject *, PyObject *);
+    PyObject *(*CallFunctionObjArgs)(PyObject *, ...); /* arguments end with NULL */
+    int (*GetBuffer)(PyObject *, Py_buffer *, int);
+    void (*Buffer_Release)(Py_buffer *);
     int (*IsTrue)(PyObject *);
     PyObject *(*Str)(PyObject *);
     PyObject *(*Float_FromDouble)(double);
@@ -51,8 +71,11 @@ typedef struct {
     int (*List_SetSlice)(PyObject *, Py_ssize_t, Py_ssize_t, PyObject *);
     PyObject *(*Tuple_New)(Py_ssize_t);
     int (*Tuple_SetItem)(PyObject *, Py_ssize_t, PyObject *);
+    PyObject *(*Tuple_GetItem)(PyObject *, Py_ssize_t);
+    Py_ssize_t (*Tuple_Size)(PyObject *);
     PyObject *(*Dict_New)(void);
     int (*Dict_SetItemString)(PyObject *, const char *, PyObject *);
+    int (*Dict_SetItem)(PyObject *, PyObject *, PyObject *);
     PyObject *(*Module_New)(const char *);
     PyObject *(*Module_GetDict)(PyObject *);
     PyObject *(*Import_ImportModule)(const char *);

@@ -4,9 +4,16 @@
  * Written by hand because pythonfmu's wrapper, the library that does this job in
  * pythonfmu, cannot be rebuilt for old glibc and crashes on NULL arguments, on exceptions
  * and at process exit. What it does with the slave is kept: the same constructor keywords
- * (instance_name, resources, visible), the same methods (setup_experiment, do_step,
- * get_real, ..., _get_fmu_state, _fmu_state_to_bytes), and the slave's log queue passed
- * to the host's logger after each call.
+ * (instance_name, resources, visible), the same methods (setup_experiment, do_step, ...,
+ * _get_fmu_state, _fmu_state_to_bytes), and the slave's log queue passed to the host's
+ * logger after each call.
+ *
+ * Values cross the boundary in C: the runtime holds the slave's value buffers
+ * (slave_values.c) and answers fmi2Get*, fmi2Set* and fmi2SetRealInputDerivatives from
+ * them without taking the GIL (values.c). Python is entered for the life cycle (setup,
+ * initialisation, doStep: the one call of a step, terminate, reset), a read in
+ * initialisation mode after a write (the slave computes the outputs it will start from,
+ * ``_initial_outputs``), and the FMU state.
  *
  * The slave's package is imported from the FMU's own resources folder under the build's
  * unique name (resources/fmu_runtime.txt), without touching sys.path: two builds in one
@@ -15,37 +22,15 @@
  * Python may have shut down under an instance (a Python host that exits without freeing
  * it): every call checks before taking the GIL, and then frees only C memory.
  */
-#define _GNU_SOURCE /* strdup */
-#include "loader.h"
-#include "python.h"
+#include "slave.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct {
-    PyObject *cls;   /* the slave class */
-    PyObject *queue; /* the slave's log queue (a list of pythonfmu LogMsg) */
-    char **strings;  /* what the last fmi2GetString returned, owned here */
-    size_t n_strings;
-} Extra;
-
-#define EXTRA(c) ((Extra *)(c)->extra)
-
 /* ---- calling Python ----------------------------------------------------------------- */
 
-/* Take the GIL, or refuse when Python is gone or going; the returned token ends the call. */
-static int enter(Instance *c, const char *call, int *gil)
-{
-    if (!python_alive() || !c->slave) {
-        refuse(c, "%s refused: Python has shut down in this process", call);
-        return 0;
-    }
-    *gil = py.GILState_Ensure();
-    return 1;
-}
-
-static void release(PyObject *object)
+void slave_release(PyObject *object)
 {
     if (object) py.DecRef(object);
 }
@@ -66,23 +51,36 @@ static void flush_log(Instance *c)
         if (level < fmi2OK || level > fmi2Fatal) level = fmi2Error;
         instance_log(c, (fmi2Status)level, kind, message ? message : "(unreadable message)");
         py.Err_Clear();
-        release(status);
-        release(category);
-        release(text);
+        slave_release(status);
+        slave_release(category);
+        slave_release(text);
     }
     if (n > 0) py.List_SetSlice(queue, 0, n, NULL);
     py.Err_Clear();
 }
 
-static void leave(Instance *c, int gil)
+void slave_leave(Instance *c, int gil)
 {
     flush_log(c);
     py.GILState_Release(gil);
 }
 
-/* ``target.method(*args)`` (args stolen); NULL with an Error line naming the exception. */
-static PyObject *invoke(Instance *c, PyObject *target, const char *method, PyObject *args,
-                        const char *call)
+int slave_enter(Instance *c, const char *call, int *gil)
+{
+    if (!python_alive() || !c->slave) {
+        refuse(c, "%s refused: Python has shut down in this process", call);
+        return 0;
+    }
+    *gil = py.GILState_Ensure();
+    if (c->values.strings_dirty && !slave_push_strings(c, call)) {
+        slave_leave(c, *gil);
+        return 0;
+    }
+    return 1;
+}
+
+PyObject *slave_invoke(Instance *c, PyObject *target, const char *method, PyObject *args,
+                       const char *call)
 {
     PyObject *function = target && args ? py.GetAttrString(target, method) : NULL;
     PyObject *result = function ? py.Call(function, args, NULL) : NULL;
@@ -91,19 +89,18 @@ static PyObject *invoke(Instance *c, PyObject *target, const char *method, PyObj
         python_error(error, sizeof error);
         refuse(c, "%s: the slave's %s raised %s", call, method, error);
     }
-    release(function);
-    release(args);
+    slave_release(function);
+    slave_release(args);
     return result;
 }
 
-/* A tuple of ``n`` new references (stolen); NULL if one is NULL. */
-static PyObject *pack(int n, PyObject *items[])
+PyObject *slave_pack(int n, PyObject *items[])
 {
     PyObject *tuple = py.Tuple_New(n);
     for (int i = 0; i < n; i++) {
         if (!tuple || !items[i]) {
-            for (int j = i; j < n; j++) release(items[j]);
-            release(tuple);
+            for (int j = i; j < n; j++) slave_release(items[j]);
+            slave_release(tuple);
             return NULL;
         }
         py.Tuple_SetItem(tuple, i, items[i]);
@@ -111,15 +108,22 @@ static PyObject *pack(int n, PyObject *items[])
     return tuple;
 }
 
-/* A method without arguments: fmi2OK, or fmi2Error when it raised. */
-static fmi2Status call0(Instance *c, const char *method, const char *call)
+/* A method without arguments, then (``pull``) the Strings' copies refreshed: fmi2OK, or
+ * fmi2Error when it raised. */
+static fmi2Status call(Instance *c, const char *method, const char *name, int pull)
 {
     int gil;
-    if (!enter(c, call, &gil)) return fmi2Error;
-    PyObject *result = invoke(c, (PyObject *)c->slave, method, py.Tuple_New(0), call);
-    release(result);
-    leave(c, gil);
-    return result ? fmi2OK : fmi2Error;
+    if (!slave_enter(c, name, &gil)) return fmi2Error;
+    PyObject *result = slave_invoke(c, (PyObject *)c->slave, method, py.Tuple_New(0), name);
+    int ok = result && (!pull || slave_pull_strings(c, name));
+    slave_release(result);
+    slave_leave(c, gil);
+    return ok ? fmi2OK : fmi2Error;
+}
+
+static fmi2Status call0(Instance *c, const char *method, const char *name)
+{
+    return call(c, method, name, 1);
 }
 
 /* ---- the instance ------------------------------------------------------------------- */
@@ -144,7 +148,7 @@ static PyObject *construct(Instance *c)
         refuse(c, "fmi2Instantiate: %s(...) raised %s", c->record.slave_class, error);
     }
     PyObject *objects[] = {kwargs, name, resources, visible, args};
-    for (size_t i = 0; i < 5; i++) release(objects[i]);
+    for (size_t i = 0; i < 5; i++) slave_release(objects[i]);
     return slave;
 }
 
@@ -156,7 +160,7 @@ static PyObject *slave_class(Instance *c)
                          py.Unicode_DecodeFSDefault(c->resources),
                          py.Unicode_FromString(c->record.module),
                          py.Unicode_FromString(c->record.slave_class)};
-    PyObject *args = pack(4, items);
+    PyObject *args = slave_pack(4, items);
     PyObject *cls = load && args ? py.Call(load, args, NULL) : NULL;
     if (!cls) {
         char error[LINE_SIZE / 2];
@@ -164,30 +168,37 @@ static PyObject *slave_class(Instance *c)
         refuse(c, "fmi2Instantiate: cannot import %s.%s from %s: %s", c->record.module,
                c->record.slave_class, c->resources, error);
     }
-    release(args);
-    release(load);
+    slave_release(args);
+    slave_release(load);
     return cls;
 }
 
-/* The new slave and its log queue in place of the old ones (released); 0 if it failed. */
+/* The new slave, its log queue, its do_step and its value buffers in place of the old
+ * ones (released); 0 if it failed, the old ones kept then. */
 static int renew(Instance *c)
 {
+    Extra *e = EXTRA(c);
     PyObject *slave = construct(c);
     PyObject *queue = slave ? py.GetAttrString(slave, "log_queue") : NULL;
-    if (slave && !queue) {
+    PyObject *do_step = queue ? py.GetAttrString(slave, "do_step") : NULL;
+    Py_buffer views[BUFFERS];
+    if (slave && !do_step) {
         char error[LINE_SIZE / 2];
         python_error(error, sizeof error);
-        refuse(c, "fmi2Instantiate: the slave has no log_queue (%s)", error);
+        refuse(c, "fmi2Instantiate: the slave has no log_queue or do_step (%s)", error);
     }
-    if (!queue) {
-        release(slave);
+    if (!do_step || !slave_hold_buffers(c, slave, views)) {
+        PyObject *objects[] = {do_step, queue, slave};
+        for (size_t i = 0; i < 3; i++) slave_release(objects[i]);
         return 0;
     }
-    release(EXTRA(c)->queue);
-    release((PyObject *)c->slave);
-    EXTRA(c)->queue = queue;
+    slave_use_buffers(c, views);
+    PyObject *old[] = {e->do_step, e->queue, (PyObject *)c->slave};
+    for (size_t i = 0; i < 3; i++) slave_release(old[i]);
+    e->do_step = do_step;
+    e->queue = queue;
     c->slave = slave;
-    return 1;
+    return slave_pull_strings(c, "fmi2Instantiate");
 }
 
 static int start(Instance *c)
@@ -197,8 +208,14 @@ static int start(Instance *c)
     int gil = py.GILState_Ensure();
     EXTRA(c)->cls = slave_class(c);
     int ok = EXTRA(c)->cls && renew(c);
-    if (ok) flush_log(c);
-    if (!ok) release(EXTRA(c)->cls);
+    flush_log(c);
+    if (!ok) {
+        slave_release_buffers(c);
+        PyObject *objects[] = {EXTRA(c)->do_step, EXTRA(c)->queue, (PyObject *)c->slave,
+                               EXTRA(c)->cls};
+        for (size_t i = 0; i < 4; i++) slave_release(objects[i]);
+        c->slave = NULL;
+    }
     py.GILState_Release(gil);
     if (!ok) {
         free(c->extra);
@@ -207,25 +224,16 @@ static int start(Instance *c)
     return ok;
 }
 
-static void forget_strings(Extra *e)
-{
-    for (size_t i = 0; i < e->n_strings; i++) free(e->strings[i]);
-    free(e->strings);
-    e->strings = NULL;
-    e->n_strings = 0;
-}
-
 static void stop(Instance *c)
 {
     Extra *e = EXTRA(c);
     if (python_alive()) { /* else Python's objects are gone with it: C memory only */
         int gil = py.GILState_Ensure();
-        release(e->queue);
-        release((PyObject *)c->slave);
-        release(e->cls);
+        slave_release_buffers(c);
+        PyObject *objects[] = {e->do_step, e->queue, (PyObject *)c->slave, e->cls};
+        for (size_t i = 0; i < 4; i++) slave_release(objects[i]);
         py.GILState_Release(gil);
     }
-    forget_strings(e);
     free(e);
 }
 
@@ -235,14 +243,14 @@ static fmi2Status setup(Instance *c, fmi2Boolean has_tolerance, fmi2Real toleran
                         fmi2Real start_time, fmi2Boolean has_stop, fmi2Real stop_time)
 {
     int gil;
-    if (!enter(c, "fmi2SetupExperiment", &gil)) return fmi2Error;
+    if (!slave_enter(c, "fmi2SetupExperiment", &gil)) return fmi2Error;
     PyObject *items[] = {py.Float_FromDouble(start_time),
                          has_stop ? py.Float_FromDouble(stop_time) : python_none(),
                          has_tolerance ? py.Float_FromDouble(tolerance) : python_none()};
-    PyObject *result = invoke(c, (PyObject *)c->slave, "setup_experiment", pack(3, items),
-                              "fmi2SetupExperiment");
-    release(result);
-    leave(c, gil);
+    PyObject *result = slave_invoke(c, (PyObject *)c->slave, "setup_experiment",
+                                    slave_pack(3, items), "fmi2SetupExperiment");
+    slave_release(result);
+    slave_leave(c, gil);
     return result ? fmi2OK : fmi2Error;
 }
 
@@ -258,231 +266,68 @@ static fmi2Status exit_initialization(Instance *c)
 
 static fmi2Status terminate(Instance *c) { return call0(c, "terminate", "fmi2Terminate"); }
 
+/* The one call into Python of a step: the slave's do_step, bound once at instantiation;
+ * then the input derivatives cleared here (the slave leaves them to the runtime). */
 static fmi2Status step(Instance *c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_state)
 {
     (void)no_set_state;
     int gil;
-    if (!enter(c, "fmi2DoStep", &gil)) return fmi2Error;
-    PyObject *items[] = {py.Float_FromDouble(t), py.Float_FromDouble(h)};
-    PyObject *result = invoke(c, (PyObject *)c->slave, "do_step", pack(2, items), "fmi2DoStep");
+    if (!slave_enter(c, "fmi2DoStep", &gil)) return fmi2Error;
+    PyObject *at = py.Float_FromDouble(t), *size = py.Float_FromDouble(h);
+    PyObject *result = at && size ? py.CallFunctionObjArgs(EXTRA(c)->do_step, at, size, NULL)
+                                  : NULL;
+    if (!result) {
+        char error[LINE_SIZE / 2];
+        python_error(error, sizeof error);
+        refuse(c, "fmi2DoStep: the slave's do_step raised %s", error);
+    }
     int done = result ? py.IsTrue(result) : -1;
-    release(result);
-    leave(c, gil);
+    PyObject *objects[] = {result, at, size};
+    for (size_t i = 0; i < 3; i++) slave_release(objects[i]);
+    values_clear_derivatives(c); /* they belonged to this step, done or not */
+    slave_leave(c, gil);
     return done < 0 ? fmi2Error : done ? fmi2OK : fmi2Discard;
 }
 
 static fmi2Status reset(Instance *c)
 {
     int gil;
-    if (!enter(c, "fmi2Reset", &gil)) return fmi2Error;
+    if (!slave_enter(c, "fmi2Reset", &gil)) return fmi2Error;
     int ok = renew(c); /* as pythonfmu: a new instance of the slave class */
-    leave(c, gil);
+    slave_leave(c, gil);
     return ok ? fmi2OK : fmi2Error;
 }
 
-/* ---- values ------------------------------------------------------------------------- */
-
-static const char *const GETTERS[] = {"get_real", "get_integer", "get_boolean", "get_string"};
-static const char *const SETTERS[] = {"set_real", "set_integer", "set_boolean", "set_string"};
-
-static int kind(char type) { return type == 'R' ? 0 : type == 'I' ? 1 : type == 'B' ? 2 : 3; }
-
-static PyObject *references(const fmi2ValueReference vr[], size_t n)
-{
-    PyObject *list = py.List_New((Py_ssize_t)n);
-    for (size_t i = 0; list && i < n; i++) {
-        py.List_SetItem(list, (Py_ssize_t)i, py.Long_FromUnsignedLong(vr[i]));
-    }
-    return list;
-}
-
-static PyObject *to_python(char type, const void *values, size_t i)
-{
-    if (type == 'R') return py.Float_FromDouble(((const double *)values)[i]);
-    if (type == 'I') return py.Long_FromLong(((const int *)values)[i]);
-    if (type == 'B') return py.Bool_FromLong(((const int *)values)[i]);
-    return py.Unicode_FromString(((const fmi2String *)values)[i]);
-}
-
-/* A list of the ``n`` values (NULL if one cannot be made: invalid UTF-8, no memory). */
-static PyObject *value_list(char type, const void *values, size_t n)
-{
-    PyObject *list = py.List_New((Py_ssize_t)n);
-    for (size_t i = 0; list && i < n; i++) {
-        PyObject *item = to_python(type, values, i);
-        if (!item) {
-            release(list);
-            return NULL;
-        }
-        py.List_SetItem(list, (Py_ssize_t)i, item);
-    }
-    return list;
-}
-
-/* Item ``i`` of a getter's answer into ``values``; 0 if it is not of the type. */
-static int from_python(Instance *c, char type, PyObject *item, void *values, size_t i)
-{
-    if (type == 'R') ((double *)values)[i] = py.Float_AsDouble(item);
-    if (type == 'I') ((int *)values)[i] = (int)py.Long_AsLong(item);
-    if (type == 'B') ((int *)values)[i] = py.IsTrue(item) > 0;
-    if (type == 'S') {
-        const char *text = py.Unicode_AsUTF8(item);
-        char *copy = text ? strdup(text) : NULL;
-        Extra *e = EXTRA(c);
-        if (copy) e->strings[e->n_strings++] = copy;
-        ((fmi2String *)values)[i] = copy;
-        if (!copy) return 0;
-    }
-    return !py.Err_Occurred();
-}
-
-static fmi2Status unpack(Instance *c, char type, PyObject *list, size_t n, void *values,
-                         const char *call)
-{
-    Py_ssize_t size = py.List_Size(list);
-    if (size != (Py_ssize_t)n) {
-        py.Err_Clear();
-        return refuse(c, "%s: the slave's %s answered %zd values for %zu references", call,
-                      GETTERS[kind(type)], size, n);
-    }
-    if (type == 'S') {
-        forget_strings(EXTRA(c)); /* valid until the next fmi2GetString, as FMI 2.0 asks */
-        EXTRA(c)->strings = calloc(n, sizeof(char *));
-        if (!EXTRA(c)->strings) return refuse(c, "%s: out of memory", call);
-    }
-    for (size_t i = 0; i < n; i++) {
-        if (!from_python(c, type, py.List_GetItem(list, (Py_ssize_t)i), values, i)) {
-            char error[LINE_SIZE / 2];
-            python_error(error, sizeof error);
-            return refuse(c, "%s: value %zu of the slave's answer: %s", call, i, error);
-        }
-    }
-    return fmi2OK;
-}
+/* ---- values: answered in C (values.c) ----------------------------------------------- */
 
 static fmi2Status get(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
                       void *values)
 {
-    const char *call = "fmi2Get";
-    int gil;
-    if (!enter(c, call, &gil)) return fmi2Error;
-    PyObject *items[] = {references(vr, n)};
-    PyObject *list = invoke(c, (PyObject *)c->slave, GETTERS[kind(type)], pack(1, items), call);
-    fmi2Status s = list ? unpack(c, type, list, n, values, call) : fmi2Error;
-    release(list);
-    leave(c, gil);
-    return s;
+    if (c->phase == INITIALIZATION && c->values.control[CONTROL_STALE]) {
+        /* a read in initialisation mode after a write: the outputs to start from first
+         * (Strings change only when written, which the runtime knows) */
+        fmi2Status s = call(c, "_initial_outputs", "fmi2Get", 0);
+        if (s != fmi2OK) return s;
+    }
+    return values_get(c, type, vr, n, values);
 }
 
 static fmi2Status set(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
                       const void *values)
 {
-    int gil;
-    if (!enter(c, "fmi2Set", &gil)) return fmi2Error;
-    PyObject *list = value_list(type, values, n);
-    PyObject *result = NULL;
-    if (!list) {
-        char error[LINE_SIZE / 2];
-        python_error(error, sizeof error);
-        refuse(c, "fmi2Set%s refused: a value cannot be passed on (%s)",
-               type == 'S' ? "String" : "", error);
-    } else {
-        PyObject *items[] = {references(vr, n), list};
-        result = invoke(c, (PyObject *)c->slave, SETTERS[kind(type)], pack(2, items), "fmi2Set");
-    }
-    release(result);
-    leave(c, gil);
-    return result ? fmi2OK : fmi2Error;
+    return values_set(c, type, vr, n, values);
 }
 
 static fmi2Status derivatives(Instance *c, const fmi2ValueReference vr[], size_t n,
                               const fmi2Integer order[], const fmi2Real values[])
 {
-    int gil;
-    if (!enter(c, "fmi2SetRealInputDerivatives", &gil)) return fmi2Error;
-    PyObject *items[] = {references(vr, n), value_list('I', order, n), value_list('R', values, n)};
-    PyObject *result = invoke(c, (PyObject *)c->slave, "set_real_input_derivatives",
-                              pack(3, items), "fmi2SetRealInputDerivatives");
-    release(result);
-    leave(c, gil);
-    return result ? fmi2OK : fmi2Error;
-}
-
-/* ---- FMU state: the slave's own (a Python object) ----------------------------------- */
-
-static fmi2Status save(Instance *c, void **state)
-{
-    int gil;
-    if (!enter(c, "fmi2GetFMUstate", &gil)) return fmi2Error;
-    PyObject *saved = invoke(c, (PyObject *)c->slave, "_get_fmu_state", py.Tuple_New(0),
-                             "fmi2GetFMUstate");
-    leave(c, gil);
-    *state = saved;
-    return saved ? fmi2OK : fmi2Error;
-}
-
-static fmi2Status restore(Instance *c, void *state)
-{
-    int gil;
-    if (!enter(c, "fmi2SetFMUstate", &gil)) return fmi2Error;
-    py.IncRef((PyObject *)state); /* pack steals one reference */
-    PyObject *items[] = {(PyObject *)state};
-    PyObject *result = invoke(c, (PyObject *)c->slave, "_set_fmu_state", pack(1, items),
-                              "fmi2SetFMUstate");
-    release(result);
-    leave(c, gil);
-    return result ? fmi2OK : fmi2Error;
-}
-
-static void discard(Instance *c, void *state)
-{
-    (void)c;
-    if (!state || !python_alive()) return;
-    int gil = py.GILState_Ensure();
-    release((PyObject *)state);
-    py.GILState_Release(gil);
-}
-
-static fmi2Status state_bytes(Instance *c, void *state, fmi2Byte *out, size_t capacity,
-                              size_t *size)
-{
-    int gil;
-    if (!enter(c, "fmi2SerializeFMUstate", &gil)) return fmi2Error;
-    py.IncRef((PyObject *)state);
-    PyObject *items[] = {(PyObject *)state};
-    PyObject *bytes = invoke(c, (PyObject *)c->slave, "_fmu_state_to_bytes", pack(1, items),
-                             "fmi2SerializeFMUstate");
-    char *data = NULL;
-    Py_ssize_t length = 0;
-    fmi2Status s = bytes && !py.Bytes_AsStringAndSize(bytes, &data, &length) ? fmi2OK : fmi2Error;
-    if (s == fmi2OK) {
-        *size = (size_t)length;
-        if (out && capacity >= (size_t)length) memcpy(out, data, (size_t)length);
-    } else if (bytes) {
-        char error[LINE_SIZE / 2];
-        python_error(error, sizeof error);
-        refuse(c, "fmi2SerializeFMUstate: the slave's state is not bytes (%s)", error);
-    }
-    release(bytes);
-    leave(c, gil);
-    return s;
-}
-
-static fmi2Status state_from_bytes(Instance *c, const fmi2Byte *bytes, size_t size, void **state)
-{
-    int gil;
-    if (!enter(c, "fmi2DeSerializeFMUstate", &gil)) return fmi2Error;
-    PyObject *items[] = {py.Bytes_FromStringAndSize(bytes, (Py_ssize_t)size)};
-    PyObject *loaded = invoke(c, (PyObject *)c->slave, "_fmu_state_from_bytes", pack(1, items),
-                              "fmi2DeSerializeFMUstate");
-    leave(c, gil);
-    *state = loaded;
-    return loaded ? fmi2OK : fmi2Error;
+    values_derivatives(c, vr, n, order, values);
+    return fmi2OK;
 }
 
 const Backend python_backend = {
-    start,       stop,          setup, enter_initialization, exit_initialization,
-    step,        terminate,     reset, get,                  set,
-    save,        restore,       discard, state_bytes,        state_from_bytes,
+    start,       stop,      setup,      enter_initialization, exit_initialization,
+    step,        terminate, reset,      get,                  set,
+    slave_save,  slave_restore, slave_discard, slave_state_bytes, slave_state_from_bytes,
     derivatives,
 };

@@ -30,9 +30,18 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from plant_fmu.model.dynamics import PlantModel
-from plant_fmu.model.jit import load_numba
-from plant_fmu.model.state_layout import N_STATES, N_STEP_STATES, QUATERNION_CHART_PITCH
+# Relative imports: the build renames the absolute imports of the project's packages
+# (cosim/fmus/staging.py), which would make this file's text differ between the source
+# tree and every build.
+from .dynamics import PlantModel
+from .jit import load_numba
+from .state_layout import (
+    CURRENT,
+    N_INPUTS,
+    N_STATES,
+    N_STEP_STATES,
+    QUATERNION_CHART_PITCH,
+)
 
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
@@ -520,34 +529,13 @@ def _stage(
     step_derivative_into(p, y, inputs, R, work, out, quaternion)
 
 
-@_jit
-def advance_into(
-    p: np.ndarray, x: np.ndarray, z: np.ndarray, inputs: np.ndarray, n: int, dt: float
-) -> int:
-    """z = the stepping state n RK4 steps of dt seconds after x (a state or a stepping
-    state), projected after each stage, each sub-step in the attitude chart its start
-    picks and the other chart refreshed at its end, like ``stepping.advance``. Returns 0,
-    or 1 for a non-finite input, 2 for a non-finite state or a zero quaternion, 3 for a
-    state that became non-finite."""
-    for i in range(inputs.size):
-        if not math.isfinite(inputs[i]):
-            return 1
-    for i in range(x.size):
-        if not math.isfinite(x[i]):
-            return 2
-    if not _start(x, z):
-        return 2
-    R, work, y = np.empty((3, 3)), np.empty((5, 6)), np.empty(18)
-    scratch = (R, work, y)
-    k1, k2, k3, k4 = np.empty(18), np.empty(18), np.empty(18), np.empty(18)
-    project(p, z, False)
-    stages = (k1, k2, k3, k4)
-    for _ in range(n):
-        _substep(p, z, inputs, inputs, inputs, dt, scratch, stages)
-    for i in range(18):
-        if not math.isfinite(z[i]):
-            return 3
-    return 0
+# The scratch array of :func:`advance_into` and :func:`step_into` (float64): R (3x3), work
+# (5x6), the stage state (18), the RK4 slopes k1..k4 (4x18), the new stepping state (18),
+# the inputs at a sub-step's start, middle and end when they vary (3 x inputs).
+_SCRATCH_R, _SCRATCH_WORK, _SCRATCH_Y, _SCRATCH_K, _SCRATCH_Z, _SCRATCH_U = 0, 9, 39, 57, 129, 147
+STEP_SCRATCH = _SCRATCH_U + 3 * N_INPUTS
+CURRENT_CHANGED = 4  # step_into: the currents changed since the last step, nothing done
+_CURRENT_START = CURRENT.start  # the first current input (north, east, down follow)
 
 
 @_jit
@@ -590,40 +578,64 @@ def _inputs_at(inputs: np.ndarray, rates: np.ndarray, tau: float, out: np.ndarra
 
 
 @_jit
-def advance_varying_into(
+def varies(rates: np.ndarray) -> bool:
+    """True if some input has a first time derivative other than 0 in ``rates``
+    (2 x inputs): the step then follows them, else it holds every input."""
+    varying = False  # (a loop, not any(): numba compiles no generator into this)
+    for i in range(rates.shape[1]):
+        if rates[0, i] != 0.0:
+            varying = True
+    return varying
+
+
+@_jit
+def advance_into(
     p: np.ndarray,
     x: np.ndarray,
     z: np.ndarray,
     inputs: np.ndarray,
     rates: np.ndarray,
+    varying: bool,
     n: int,
     dt: float,
+    scratch: np.ndarray,
 ) -> int:
-    """:func:`advance_into` with inputs that vary over the step: ``rates`` (2 x inputs)
-    their first and second time derivatives at its start, each RK4 stage taking the
-    inputs at its own time (``stepping.advance`` with ``rates``). Returns as
-    :func:`advance_into` does; 1 also for a non-finite rate."""
+    """z = the stepping state n RK4 steps of dt seconds after x (a state or a stepping
+    state), projected after each stage, each sub-step in the attitude chart its start
+    picks and the other chart refreshed at its end, like ``stepping.advance``: the inputs
+    held, or (``varying``) following ``rates`` (2 x inputs: their first and second time
+    derivatives at the step's start), each RK4 stage taking the inputs at its own time.
+    Its working arrays are slices of ``scratch`` (:data:`STEP_SCRATCH` values), so it
+    allocates nothing. Returns 0, or 1 for a non-finite input or rate, 2 for a non-finite
+    state or a zero quaternion, 3 for a state that became non-finite."""
     for i in range(inputs.size):
-        if not (math.isfinite(inputs[i]) and math.isfinite(rates[0, i])):
+        if not math.isfinite(inputs[i]):
             return 1
-        if not math.isfinite(rates[1, i]):
+        if varying and not (math.isfinite(rates[0, i]) and math.isfinite(rates[1, i])):
             return 1
     for i in range(x.size):
         if not math.isfinite(x[i]):
             return 2
     if not _start(x, z):
         return 2
-    R, work, y = np.empty((3, 3)), np.empty((5, 6)), np.empty(18)
-    scratch = (R, work, y)
-    k1, k2, k3, k4 = np.empty(18), np.empty(18), np.empty(18), np.empty(18)
-    u0, u1, u2 = np.empty(inputs.size), np.empty(inputs.size), np.empty(inputs.size)
-    stages = (k1, k2, k3, k4)
+    R = scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3))
+    work = scratch[_SCRATCH_WORK:_SCRATCH_Y].reshape((5, 6))
+    y = scratch[_SCRATCH_Y:_SCRATCH_K]
+    slopes = scratch[_SCRATCH_K:_SCRATCH_Z].reshape((4, 18))
+    stages = (slopes[0], slopes[1], slopes[2], slopes[3])
+    m = inputs.size
+    u0 = scratch[_SCRATCH_U : _SCRATCH_U + m]
+    u1 = scratch[_SCRATCH_U + m : _SCRATCH_U + 2 * m]
+    u2 = scratch[_SCRATCH_U + 2 * m : _SCRATCH_U + 3 * m]
     project(p, z, False)
     for j in range(n):
-        _inputs_at(inputs, rates, j * dt, u0)
-        _inputs_at(inputs, rates, j * dt + 0.5 * dt, u1)
-        _inputs_at(inputs, rates, (j + 1) * dt, u2)
-        _substep(p, z, u0, u1, u2, dt, scratch, stages)
+        if varying:
+            _inputs_at(inputs, rates, j * dt, u0)
+            _inputs_at(inputs, rates, j * dt + 0.5 * dt, u1)
+            _inputs_at(inputs, rates, (j + 1) * dt, u2)
+            _substep(p, z, u0, u1, u2, dt, (R, work, y), stages)
+        else:
+            _substep(p, z, inputs, inputs, inputs, dt, (R, work, y), stages)
     for i in range(18):
         if not math.isfinite(z[i]):
             return 3
@@ -659,6 +671,45 @@ def outputs_into(
     out[0], out[1], out[2], out[3] = nu_r[0], nu_r[1], nu_r[2], 0.5 * energy
 
 
+@_jit
+def step_into(
+    p: np.ndarray,
+    inputs: np.ndarray,
+    rates: np.ndarray,
+    x: np.ndarray,
+    derived: np.ndarray,
+    last_current: np.ndarray,
+    scratch: np.ndarray,
+    n: int,
+    dt: float,
+) -> int:
+    """One communication step of the plant FMU, in place: the stepping state x (18) n RK4
+    steps of dt seconds on (:func:`advance_into`), then its derived outputs into
+    ``derived`` (:func:`outputs_into`). ``rates`` (2 x inputs) are the input derivatives
+    the importer set for this step: the currents' are set to 0 here (the currents are held
+    over a step), and the step follows the others when one of their first derivatives is
+    not 0 (:func:`varies`), else holds every input. Nothing is allocated: the FMU passes
+    views of its value buffers and a preallocated ``scratch`` (:data:`STEP_SCRATCH`).
+    Returns 0; or, with nothing changed, :data:`CURRENT_CHANGED` when the current inputs
+    differ from ``last_current`` (the velocity jump of a current change is computed by the
+    reference, ``PlantModel.current_change_velocity_jump``), or :func:`advance_into`'s
+    code of a non-finite input, rate or state."""
+    for i in range(3):
+        if inputs[_CURRENT_START + i] != last_current[i]:
+            return CURRENT_CHANGED
+    for i in range(3):
+        rates[0, _CURRENT_START + i] = 0.0
+        rates[1, _CURRENT_START + i] = 0.0
+    z = scratch[_SCRATCH_Z:_SCRATCH_U]
+    status = advance_into(p, x, z, inputs, rates, varies(rates), n, dt, scratch)
+    if status != 0:
+        return status
+    for i in range(18):
+        x[i] = z[i]
+    outputs_into(p, x, inputs, scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3)), derived)
+    return 0
+
+
 class CompiledPlant:
     """The compiled derivative and step of one :class:`PlantModel` (see :func:`supports`)."""
 
@@ -669,6 +720,8 @@ class CompiledPlant:
         self.model = model
         self.parameters = flat_parameters(model)
         self._R, self._work = np.empty((3, 3)), np.empty((5, 6))
+        self._scratch = np.empty(STEP_SCRATCH)
+        self._no_rates = np.zeros((2, N_INPUTS))  # (not read when the inputs are held)
 
     def derivative(self, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """``PlantModel.derivative`` (a new array)."""
@@ -699,19 +752,32 @@ class CompiledPlant:
         rates: np.ndarray | None = None,
     ) -> int:
         """z (a float64 stepping state) = n RK4 steps of dt s after x (a state or a
-        stepping state); :func:`advance_into`'s code, or :func:`advance_varying_into`'s
-        with ``rates`` (the inputs' derivatives, 2 x inputs)."""
-        if rates is None:
-            return advance_into(self.parameters, x, z, inputs, n, dt)
-        return advance_varying_into(self.parameters, x, z, inputs, rates, n, dt)
+        stepping state); :func:`advance_into`'s code, the inputs held, or following
+        ``rates`` (the inputs' derivatives, 2 x inputs) when given."""
+        varying = rates is not None
+        held = self._no_rates if rates is None else rates
+        return advance_into(self.parameters, x, z, inputs, held, varying, n, dt, self._scratch)
 
-    def warm_up(self, x: np.ndarray, inputs: np.ndarray) -> None:
+    def warm_up(self, x: np.ndarray, inputs: np.ndarray, rates: np.ndarray | None = None) -> None:
         """Compile (or load from numba's cache) every function a step calls, by one RK4
-        step of 1 ms on copies of ``x`` and ``inputs``, held and with input derivatives:
-        numba compiles on a function's first call, which would otherwise be the first
-        doStep (seconds on a first run, ~0.5 s of cache loading later), counted as
-        stepping time."""
+        step of 1 ms on copies of ``x``, ``inputs`` and ``rates`` (the FMU's input
+        derivatives, 2 x inputs, of the array type the FMU steps with), held and with
+        input derivatives: numba compiles on a function's first call, which would
+        otherwise be the first doStep (seconds on a first run, ~0.5 s of cache loading
+        later), counted as stepping time."""
         z = np.empty(N_STEP_STATES)
         x, inputs = np.array(x, dtype=float), np.array(inputs, dtype=float)
         self.advance(x, z, inputs, 1, 1e-3)
         self.advance(x, z, inputs, 1, 1e-3, np.zeros((2, inputs.size)))  # input derivatives
+        if len(x) == N_STEP_STATES and rates is not None:  # and the FMU's step, same types
+            last_current = inputs[CURRENT].copy()
+            scratch = np.empty(STEP_SCRATCH)
+            rates = rates.copy() if rates.flags.c_contiguous else _strided_zeros(rates.shape)
+            step_into(self.parameters, inputs, rates, x, np.empty(4), last_current, scratch, 1,
+                      1e-3)  # fmt: skip
+
+
+def _strided_zeros(shape: tuple[int, ...]) -> np.ndarray:
+    """Zeros of ``shape`` (2, m) in a non-contiguous array, as numba types a view of some
+    of the FMU's derivative buffer's columns."""
+    return np.zeros((shape[0], shape[1] + 1))[:, : shape[1]]

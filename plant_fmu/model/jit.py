@@ -11,9 +11,16 @@ Cache folder: numba's default is ``__pycache__`` next to the source, which for a
 the fresh temporary folder the importer unzips it into, so every run would compile again
 (several seconds). We therefore set ``NUMBA_CACHE_DIR`` to a per-user folder,
 ``$XDG_CACHE_HOME/auv-cosim/numba`` (``~/.cache/auv-cosim/numba``), unless the user has set
-it, before numba is imported; and we key the cache of our own modules by file name and
-content, not by the folder they were loaded from (numba keys it by folder: see
+it, before numba is imported; and we key the cache of our own modules by their package
+and content, not by the folder they were loaded from (numba keys it by folder: see
 :class:`_ContentCacheLocator`), so every unzipped copy of the same FMU shares one cache.
+The content is that of every kernel file (:data:`KERNEL_FILES`: a compiled function holds
+the code of the jitted functions it calls and the constants it reads), so a change to any
+of them recompiles all (:func:`kernel_stamp`). The package is the top-level one (an FMU
+build's ``auvfmu_<hash>``, or ``plant_fmu``/``controller_fmu`` in the source tree), one
+folder each: numba's cached code imports its module by name when it is loaded, so a cache
+written by one build cannot serve another (whose modules have other names), and folders of
+their own keep two builds, or a build and the source tree, from evicting each other's.
 Concurrent processes (sweeps start many at once) can share the folder: numba writes each
 cache file to a unique temporary name and moves it into place with ``os.replace``, which
 is atomic, so a reader sees an old complete file or a new complete one, never a torn one.
@@ -21,6 +28,8 @@ is atomic, so a reader sees an old complete file or a new complete one, never a 
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -28,9 +37,19 @@ from types import ModuleType
 from typing import Any
 
 NO_JIT_VARIABLE = "AUV_COSIM_NO_JIT"
-# file names whose functions use the content-keyed cache (plant_fmu/model/compiled.py,
-# controller_fmu/compiled_backstepping.py)
-_CACHED_MODULES = ("compiled.py", "compiled_backstepping.py")
+# The files the compiled functions' code comes from (paths under the folder that holds
+# plant_fmu and controller_fmu): a compiled function holds the code of every jitted
+# function it calls and the value of every constant it reads, so its cache is stale once
+# any of them changes, not only its own file.
+KERNEL_FILES = (
+    "plant_fmu/model/compiled.py",
+    "plant_fmu/model/state_layout.py",
+    "controller_fmu/compiled_backstepping.py",
+    "controller_fmu/compiled_autopilot.py",
+    "controller_fmu/setpoint_shaping.py",
+)
+# file names whose functions use the content-keyed cache
+_CACHED_MODULES = tuple(os.path.basename(path) for path in KERNEL_FILES)
 
 
 def default_cache_dir() -> Path:
@@ -62,14 +81,19 @@ def _install_locator() -> None:
     from numba.core import caching  # imported by load_numba, after NUMBA_CACHE_DIR is set
 
     class _ContentCacheLocator(caching.UserProvidedCacheLocator):
-        """numba's user-folder locator with the folder named after the source file only:
-        numba's own names it after the file's folder, which differs for every unzipped
-        copy of an FMU. The stamp stays numba's (a SHA-256 of the file's content), so a
-        changed file recompiles."""
+        """numba's user-folder locator with the folder named after the function's
+        top-level package: numba's own names it after the file's folder, which differs
+        for every unzipped copy of an FMU. The stamp is :func:`kernel_stamp` (numba's is
+        a SHA-256 of the function's own file), so a change to any kernel file
+        recompiles."""
 
         def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
             super().__init__(py_func, py_file)
-            self._cache_path = os.path.join(caching.config.CACHE_DIR, "auv_cosim")
+            package = str(py_func.__module__).partition(".")[0]
+            self._cache_path = os.path.join(caching.config.CACHE_DIR, "auv_cosim", package)
+
+        def get_source_stamp(self) -> str:
+            return kernel_stamp(self._py_file)
 
         @classmethod
         def from_function(
@@ -83,3 +107,39 @@ def _install_locator() -> None:
     locators = caching.CacheImpl._locator_classes
     if not any(getattr(c, "__name__", "") == "_ContentCacheLocator" for c in locators):
         locators.insert(0, _ContentCacheLocator)
+
+
+def kernel_root(py_file: str) -> Path | None:
+    """The folder holding ``plant_fmu`` and ``controller_fmu`` above a kernel file (in an
+    FMU, the build's package folder), or None."""
+    for folder in Path(py_file).resolve().parents:
+        if (folder / KERNEL_FILES[0]).is_file():
+            return folder
+    return None
+
+
+def kernel_stamp(py_file: str) -> str:
+    """numba's cache stamp of a kernel file's functions: a SHA-256 of every file of
+    :data:`KERNEL_FILES` beside it."""
+    root = kernel_root(py_file)
+    files = [root / name for name in KERNEL_FILES] if root is not None else [Path(py_file)]
+    return _stamp(tuple((str(f), *_file_key(f)) for f in files))
+
+
+def _file_key(path: Path) -> tuple[int, int]:
+    try:
+        stat = path.stat()
+    except OSError:
+        return (-1, -1)
+    return (stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _stamp(files: tuple[tuple[str, int, int], ...]) -> str:
+    """(cached per files' modification times and sizes, as numba caches its own)."""
+    digest = hashlib.sha256()
+    for name, _, size in files:
+        data = Path(name).read_bytes() if size >= 0 else b"(missing)"
+        digest.update(f"{os.path.basename(name)}\n".encode())
+        digest.update(data)
+    return digest.hexdigest()

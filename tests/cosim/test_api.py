@@ -12,6 +12,7 @@ import sys
 import tempfile
 import tomllib
 from collections.abc import Callable
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -235,3 +236,79 @@ def test_importing_the_plotting_modules_keeps_the_callers_backend(
         str(tmp_path / "matrix.png"),
     )
     assert done.returncode == 0, done.stderr
+
+
+A_FILE = Path(__file__)  # a file where a folder is expected
+HUGE = 10**400
+BAD_ARGUMENTS = [
+    ("run", {"scenario": "bs-3", "stop_time": Decimal("1.0")}, "stop_time=Decimal('1.0')"),
+    ("run", {"scenario": "bs-3", "stop_time": HUGE}, "stop_time=1000"),
+    ("run", {"scenario": "bs-3", "step": HUGE}, "step=1000"),
+    ("run", {"scenario": "bs-3", "stop_time": True}, "stop_time=True"),
+    ("run", {"scenario": "bs-3", "start": [("plant.v_0", 0.1)]}, "start=[('plant.v_0', 0.1)]"),
+    ("run", {"scenario": "bs-3", "start": {"plant.v_0": HUGE}}, "start['plant.v_0']=1000"),
+    ("run", {"scenario": "bs-3", "start": {"plant.v_0": Decimal("0.1")}}, "Decimal('0.1')"),
+    ("run", {"scenario": "bs-3", "start": {"plant.vehicle": "re\0mus"}}, "NUL"),
+    ("run", {"scenario": "bs-3\0x"}, "scenario='bs-3\\x00x'"),
+    ("run", {"scenario": 42}, "scenario=42"),
+    ("run", {"scenario": "bs-3", "out": "a\0b"}, "out='a\\x00b'"),
+    ("run", {"scenario": "bs-3", "fmu_dir": A_FILE}, "fmu_dir="),
+    ("run", {"scenario": "bs-3", "algorithm": "euler"}, "algorithm='euler'"),
+    ("run", {"scenario": "bs-3", "overwrite": "no"}, "overwrite='no'"),
+    ("run", {"scenario": "bs-3", "recording": 3}, "recording=3"),
+    ("load_scenario", {"scenario": "bs\0"}, "scenario='bs\\x00'"),
+    ("load_scenario", {"scenario": "bs-3", "fmu_dir": A_FILE}, "fmu_dir="),
+    ("sweep", {"study": {"scenario": "bs-3"}, "workers": "2"}, "workers='2'"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "workers": 0}, "workers=0"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "workers": 16}, "workers=16: more than the 2 cores"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "workers": HUGE, "oversubscribe": True}, "workers="),
+    ("sweep", {"study": [1, 2]}, "study=[1, 2]"),
+    ("sweep", {"study": "a\0.toml"}, "study='a\\x00.toml'"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "overlay": "2"}, "overlay='2'"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "resume": "yes"}, "resume='yes'"),
+    ("build_fmus", {"out": A_FILE}, "out="),
+    ("build_fmus", {"force": "yes"}, "force='yes'"),
+]
+
+
+@pytest.mark.parametrize(("function", "arguments", "named"), BAD_ARGUMENTS)
+def test_every_bad_argument_is_one_typed_line_naming_it(
+    function: str, arguments: dict, named: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Decimal, huge ints, a list for a mapping, NUL bytes, a file as fmu_dir and a
+    string for workers gave OverflowError, AttributeError, FileExistsError or TypeError
+    tracebacks, or were taken; cosim.sweep(workers=16) started 16 processes on 2 cores."""
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    call = getattr(cosim, function)
+    positional = [arguments.pop(k) for k in ("scenario", "study") if k in arguments]
+    with pytest.raises(CosimError) as raised:
+        call(*positional, **arguments)
+    message = str(raised.value)
+    assert "\n" not in message and named in message and "expected" in message, message
+    assert len(message) < 300, message
+
+
+UNGUARDED = """
+import cosim
+study = cosim.sweep({"scenario": "bs-3", "stop_time": 0.1, "grid": {"plant.v_0": [0.0]}})
+print(study.table)
+"""
+
+
+@pytest.mark.slow
+def test_sweep_at_the_top_level_of_a_script_says_in_one_line_what_is_needed(
+    tmp_path: Path,
+) -> None:
+    """cosim.sweep in a script without `if __name__ == "__main__":` flooded the terminal
+    with Dask's spawn traceback from every worker process."""
+    script = tmp_path / "study_script.py"
+    script.write_text(UNGUARDED, encoding="utf-8")
+    done = subprocess.run(
+        [sys.executable, str(script)], cwd=tmp_path, env=_environment(), capture_output=True,
+        text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert done.returncode != 0
+    last = done.stderr.strip().splitlines()[-1]
+    assert 'put the call under `if __name__ == "__main__":`' in last, done.stderr
+    assert f"top level of {script} (line 3)" in last
+    assert "bootstrapping phase" not in done.stderr and "Nanny" not in done.stderr

@@ -27,7 +27,7 @@ def host(tmp_path_factory) -> Path:
         pytest.skip("no C compiler (cc) to build the test host")
     binary = tmp_path_factory.mktemp("host") / "fmi_host"
     flags = ["-O1", "-g", "-Wall", "-Wextra", "-Werror"]
-    subprocess.run([cc, *flags, "-o", binary, HOST_SOURCE, "-ldl"], check=True)
+    subprocess.run([cc, *flags, "-o", binary, HOST_SOURCE, "-ldl", "-lpthread"], check=True)
     return binary
 
 

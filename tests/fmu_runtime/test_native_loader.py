@@ -237,13 +237,16 @@ def _loader_records(log: str, name: str) -> list[str]:
 
 @pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
-def test_valgrind_finds_nothing_in_the_loader(host, extracted, tmp_path):
-    """Two instantiate/step/free cycles and the process exit of a C host under memcheck.
-    CPython and pythonfmu's own reports (their allocations at start-up) are not ours."""
+@pytest.mark.parametrize("mode", [["cycles", 2, 20], ["state"], ["hostile"]])
+def test_valgrind_finds_nothing_in_the_loader(mode, host, extracted, tmp_path):
+    """A C host under memcheck: two instantiate/step/free cycles and the process exit; an
+    FMU state saved, serialised, deserialised into another instance and set (the value
+    buffers' copies); the hostile arguments (Strings among them). CPython and pythonfmu's
+    own reports (their allocations at start-up) are not ours."""
     log = tmp_path / "memcheck.log"
     command = ["valgrind", "--leak-check=full", f"--log-file={log}", host]
     done = run_clean(
-        [*command, extracted["AuvPlant"], "AuvPlant", "cycles", 2, 20],
+        [*command, extracted["AuvPlant"], "AuvPlant", *mode],
         tmp_path,
         timeout=1800,
         PYTHONMALLOC="malloc",
@@ -341,6 +344,9 @@ fmu.close()
 
 @pytest.mark.slow
 def test_a_build_without_a_compiler_keeps_pythonfmus_binary_and_says_so(run_python, tmp_path):
+    """Without a compiler the FMU keeps pythonfmu's binary alone, says so once and in its
+    documentation, declares that it takes no input derivatives (pythonfmu's binary takes
+    none: a master then holds its inputs), and steps."""
     bin_dir = tmp_path / "bin"  # PATH without cc or gcc: only this Python
     bin_dir.mkdir()
     (bin_dir / "python").symlink_to(sys.executable)
@@ -354,6 +360,8 @@ def test_a_build_without_a_compiler_keeps_pythonfmus_binary_and_says_so(run_pyth
     with zipfile.ZipFile(fmu) as archive:
         names = archive.namelist()
         page = archive.read("documentation/index.html").decode()
+        description = archive.read("modelDescription.xml").decode()
+    assert 'canInterpolateInputs="false"' in description  # pythonfmu's binary takes none
     assert "binaries/linux64/AuvPlant.so" in names
     assert not any(name.endswith("_pythonfmu.so") for name in names)
     assert "built without a C compiler" in page
@@ -389,22 +397,23 @@ SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1"
 
 @pytest.mark.slow
 def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_path, clean_home):
-    """The runtime and the C host built with ASan and UBSan: cycles, the forbidden calls
-    and the hostile arguments run to the end, any finding aborts with a report."""
+    """The runtime and the C host built with ASan and UBSan: cycles, the forbidden calls,
+    the hostile arguments, an FMU state's round trip and values read and written from a
+    second thread run to the end, any finding aborts with a report."""
     chain = native.toolchain()
     if chain is None or chain.zig:
         pytest.skip("no cc")
     runtime, host = tmp_path / "runtime.so", tmp_path / "fmi_host"
     for command in (
         native.compile_command(chain, runtime, *SANITIZERS),
-        [*chain.command, *SANITIZERS, "-o", str(host), str(HOST_SOURCE), "-ldl"],
+        [*chain.command, *SANITIZERS, "-o", str(host), str(HOST_SOURCE), "-ldl", "-lpthread"],
     ):
         done = subprocess.run(command, capture_output=True, text=True)
         assert done.returncode == 0, done.stderr[-3000:]
     folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
     environment = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
                    "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
-    for mode in (["cycles", 2, 20], ["illegal"], ["hostile"]):
+    for mode in (["cycles", 2, 20], ["illegal"], ["hostile"], ["state"], ["gil"]):
         done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **environment)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
         assert "Sanitizer" not in done.stderr and "runtime error" not in done.stderr

@@ -6,21 +6,25 @@ import ctypes
 
 import numpy as np
 import pytest
+from fmpy.fmi1 import FMICallException
 
 from cosim.engine.extrapolation import InputRates
 
 
 class FakeFmu:
-    """Records every fmi2SetRealInputDerivatives call as {(vr, order): value}."""
+    """Records every fmi2SetRealInputDerivatives call as {(vr, order): value} (the master
+    calls the library's C function, ``fmu.dll``, and checks its status)."""
 
     component = None
 
     def __init__(self) -> None:
         self.calls: list[dict[tuple[int, int], float]] = []
+        self.dll = self
 
-    def fmi2SetRealInputDerivatives(self, c, vrs, n, orders, values) -> None:
+    def fmi2SetRealInputDerivatives(self, c, vrs, n, orders, values) -> int:
         doubles = ctypes.cast(values, ctypes.POINTER(ctypes.c_double))
         self.calls.append({(vrs[i], orders[i]): doubles[i] for i in range(n)})
+        return 0
 
 
 def signal(t: float) -> np.ndarray:
@@ -82,3 +86,20 @@ def test_a_restored_history_repeats_the_same_derivatives() -> None:
     rates.restore(saved)
     rates.send(signal(0.2), 0.2, epoch=0)
     assert fmu.calls[-1] == first
+
+
+@pytest.mark.parametrize(("status", "raises"), [(0, False), (1, False), (2, True), (3, True)])
+def test_a_refused_derivative_call_raises_what_fmpy_raises(status, raises) -> None:
+    """The master calls the FMU's C function directly: a status worse than fmi2Warning
+    raises fmpy's FMICallException naming the function, as fmpy's wrapper would."""
+    fmu = FakeFmu()
+    fmu.fmi2SetRealInputDerivatives = lambda *args: status  # type: ignore[method-assign]
+    rates = InputRates(fmu, [7, 9], order=1)
+    rates.send(signal(0.0), 0.0, epoch=0)  # no history yet: nothing sent
+    if not raises:
+        rates.send(signal(0.1), 0.1, epoch=0)
+        return
+    with pytest.raises(FMICallException) as caught:
+        rates.send(signal(0.1), 0.1, epoch=0)
+    assert caught.value.status == status
+    assert caught.value.function == "fmi2SetRealInputDerivatives"

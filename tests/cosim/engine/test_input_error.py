@@ -114,12 +114,16 @@ def test_the_default_estimate_is_the_extrapolation(test_fmu_dir: Path) -> None:
 
 
 class FakeFmu:
-    """Takes the input derivatives and does nothing with them."""
+    """Takes the input derivatives (through ``fmu.dll``, as the master calls the C
+    function) and does nothing with them."""
 
     component = None
 
-    def fmi2SetRealInputDerivatives(self, *args: object) -> None:
-        pass
+    def __init__(self) -> None:
+        self.dll = self
+
+    def fmi2SetRealInputDerivatives(self, *args: object) -> int:
+        return 0  # fmi2OK
 
 
 class FakeSlave:

@@ -17,6 +17,7 @@ from lxml import etree
 from cosim import cli
 from cosim.errors import CosimError
 from cosim.export import OSP_FILE, PARAMETER_SET, export_osp, export_ssp
+from cosim.export.files import EXPORT_RECORD
 from cosim.scenario.spec import Scenario, load_scenario
 
 NS = {
@@ -225,7 +226,7 @@ def test_osp_structure_holds_the_scenario(bs3: Scenario, tmp_path: Path) -> None
     xml = export_osp(bs3, tmp_path / "bs-3-osp")
     assert xml == (tmp_path / "bs-3-osp" / OSP_FILE).resolve()
     assert sorted(p.name for p in xml.parent.iterdir()) == sorted(
-        [OSP_FILE, "AuvAutopilot.fmu", "AuvPlant.fmu"]
+        [OSP_FILE, "AuvAutopilot.fmu", "AuvPlant.fmu", EXPORT_RECORD]
     )
     root = etree.parse(str(xml)).getroot()
     assert root.tag == f"{{{NS['o']}}}OspSystemStructure" and root.get("version") == "0.1"
@@ -265,7 +266,7 @@ def test_export_replaces_an_earlier_export(plant_alone: Scenario, tmp_path: Path
     assert zipfile.is_zipfile(ssp)
     folder = tmp_path / "osp"
     export_osp(plant_alone, folder)
-    (folder / "AuvPlant.fmu").write_bytes(b"stale")
+    (folder / "AuvPlant.fmu").unlink()  # a file of the earlier export gone: still one
     export_osp(plant_alone, folder)
     assert (folder / "AuvPlant.fmu").read_bytes() == plant_alone.instances[
         "plant"
@@ -294,7 +295,7 @@ def test_osp_export_never_removes_a_file_it_did_not_write(
     folder = tmp_path / "osp"
     export_osp(plant_alone, folder)
     (folder / "notes.txt").write_text("mine\n")
-    with pytest.raises(CosimError, match=r"holds files an export does not write \(notes.txt\)"):
+    with pytest.raises(CosimError, match=r"notes.txt is not a file an export wrote"):
         export_osp(plant_alone, folder)
     assert (folder / "notes.txt").read_text() == "mine\n"
 

@@ -248,7 +248,9 @@ def test_a_live_run_replays_byte_identical(fmu_dir: Path, tmp_path: Path, case: 
     assert replayed == (out / "results.csv").read_bytes()
     assert complete == (case != "broken by an override")  # a replay of a failure fails too
     if case == "set then stop before t = 0":
-        assert replayed.count(b"\n") == 3  # header, t = 0 and t = h: one step, then stopped
+        # the stop is read once the set is applied at t = 0 (its reply waits for that), so
+        # the run stops within a few steps, however loaded the machine: far from 5 s
+        assert 3 <= replayed.count(b"\n") < 100
 
 
 @pytest.mark.slow

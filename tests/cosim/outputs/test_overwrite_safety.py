@@ -25,6 +25,9 @@ def loop_file(test_fmu_dir: Path, tmp_path: Path) -> Path:
     return path
 
 
+BEING_WRITTEN = b"RRF2\x00\n\tauv-cosim being written\n"  # how a recording of ours starts
+
+
 def tree(folder: Path) -> dict[str, bytes | None]:
     """Every path below ``folder`` (relative) -> its bytes (None for a folder)."""
     return {
@@ -33,9 +36,12 @@ def tree(folder: Path) -> dict[str, bytes | None]:
     }
 
 
-def test_a_summary_listing_other_paths_removes_none_of_them(loop_file: Path, tmp_path: Path):
+def test_a_summary_listing_other_paths_removes_none_of_them(
+    loop_file: Path, tmp_path: Path, capsys
+):
     """A crafted summary.json's outputs ("Documents/x", "../x", an absolute path) made
-    --overwrite remove the whole Documents/ folder inside the run folder."""
+    --overwrite remove the whole Documents/ folder inside the run folder. A summary.json
+    edited since the run is no longer the run's: the folder is refused, untouched."""
     out = tmp_path / "d"
     assert main(["run", str(loop_file), "--out", str(out), "--no-rrd"]) == 0
     summary = json.loads((out / "summary.json").read_text())
@@ -49,10 +55,13 @@ def test_a_summary_listing_other_paths_removes_none_of_them(loop_file: Path, tmp
     (out / "Documents" / "x").write_text("mine\n")
     (out / "Documents" / "thesis.tex").write_text("mine\n")
     (out / "notes.txt").write_text("mine\n")
-    users = tree(out / "Documents")
+    users = tree(out)
+    capsys.readouterr()
 
-    assert main(["run", str(loop_file), "--out", str(out), "--no-rrd", "--overwrite"]) == 0
-    assert tree(out / "Documents") == users
+    assert main(["run", str(loop_file), "--out", str(out), "--no-rrd", "--overwrite"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "summary.json is not a file the earlier run wrote" in err
+    assert tree(out) == users
     assert (out / "notes.txt").read_text() == "mine\n"
     assert outside.read_text() == "outside\n"
 
@@ -166,7 +175,7 @@ def test_the_default_folder_keeps_its_protection(loop_file: Path, runs_dir: Path
 def test_a_recording_being_written_is_refused(loop_file: Path, tmp_path: Path, capsys):
     """Two runs writing one --rrd at once both ended "complete" with a corrupt file."""
     rrd = tmp_path / "shared.rrd"
-    rrd.write_bytes(b"being written\n")
+    rrd.write_bytes(BEING_WRITTEN)
     fd = os.open(rrd, os.O_RDWR)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # as the run writing it holds it
@@ -174,7 +183,7 @@ def test_a_recording_being_written_is_refused(loop_file: Path, tmp_path: Path, c
         assert main([*command, "--overwrite"]) == 1
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "another run is writing this recording" in err
-        assert rrd.read_bytes() == b"being written\n"
+        assert rrd.read_bytes() == BEING_WRITTEN
         assert not (tmp_path / "d").exists()
     finally:
         os.close(fd)

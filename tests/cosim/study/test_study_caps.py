@@ -1,12 +1,18 @@
 """A study's size is counted before any run is built: one over the cap (--max-runs) is
-refused at once, in little memory, with one line; --workers is capped at the cores."""
+refused at once, in little memory, with one line, and so is an absurd cap; --workers is
+capped at the cores; a --scheduler address that is no Dask scheduler is refused in
+seconds."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
+import socket
 import subprocess
 import sys
+import threading
+from collections.abc import Iterator
 from contextlib import nullcontext
 from pathlib import Path
 
@@ -110,3 +116,82 @@ def test_workers_are_capped_at_the_cores_unless_told(
     assert f"--workers {cores + 98} capped at the {cores} cores" in capsys.readouterr().err
     main(["sweep", str(study), "--workers", str(cores + 98), "--oversubscribe"])
     assert [c.workers for c in clusters] == [cores, cores + 98]
+
+
+@pytest.mark.parametrize("value", ["99999999999999999999", "0", "-5", "10000001"])
+def test_an_absurd_max_runs_is_refused_in_one_line(
+    value: str, tmp_path: Path, capsys: pytest.CaptureFixture, no_early_cluster: None
+) -> None:
+    """`--max-runs 99999999999999999999` was accepted (no cap at all)."""
+    study = write(tmp_path, '[grid]\n"plant.v_0" = [0.0]\n')
+    assert main(["sweep", str(study), "--out", str(tmp_path / "o"), "--max-runs", value]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--max-runs {value[:20]}" in err, err
+    assert "expected 1 to 10000000" in err
+    assert not (tmp_path / "o").exists()
+
+
+def _serve(reply: bytes | None) -> socket.socket:
+    """A TCP server on 127.0.0.1 that accepts connections and says nothing (``reply``
+    None) or answers each with ``reply`` (an HTTP server's), until its socket closes."""
+    server = socket.create_server(("127.0.0.1", 0))
+    held: list[socket.socket] = []
+
+    def serve() -> None:
+        with contextlib.suppress(OSError):
+            while True:
+                connection, _ = server.accept()
+                held.append(connection)  # kept open: a silent server never closes it
+                if reply is not None:
+                    connection.recv(65536)
+                    connection.sendall(reply)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return server
+
+
+@pytest.mark.parametrize(
+    ("reply", "message"),
+    [
+        (None, "sends no Dask handshake within 5 s"),
+        (b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n", "not a Dask scheduler"),
+    ],
+    ids=["a silent server", "an HTTP server"],
+)
+def test_a_scheduler_address_that_is_no_scheduler_is_refused_in_seconds(
+    reply: bytes | None,
+    message: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    no_early_cluster: None,
+) -> None:
+    """--scheduler at a silent TCP server hung for minutes; at an HTTP server it failed
+    with numpy's "Unable to allocate 3.07 EiB" traceback."""
+    study = write(tmp_path, '[grid]\n"plant.v_0" = [0.0]\n')
+    server = _serve(reply)
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    try:
+        with _timeout(60):  # was: minutes
+            code = main(["sweep", str(study), "--scheduler", address, "--out", str(tmp_path / "o")])
+    finally:
+        server.close()
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1 and message in err, err
+    assert f"--scheduler {address}" in err and "EiB" not in err
+    assert not (tmp_path / "o").exists()
+
+
+@contextlib.contextmanager
+def _timeout(seconds: int) -> Iterator[None]:
+    """Fail (rather than hang) if the block takes longer than ``seconds``."""
+
+    def expired(signum: int, frame: object) -> None:
+        raise AssertionError(f"no answer within {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import json
 import math
 import subprocess
 from dataclasses import dataclass
@@ -9,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import tomli_w
 
 from cosim.outputs.folder import GUARD_SCRIPT
 from cosim.runner import run_scenario
@@ -123,3 +126,41 @@ def test_a_study_task_runs_without_a_tail_guard(
     outcome = run_scenario("bs-3", tmp_path / "run", stop_time=0.1, no_rrd=True,
                            fmu_dir=base.fmu_paths["plant"].parent)  # fmt: skip
     assert outcome.result.complete and started == [outcome.paths["results"]]
+
+
+@pytest.mark.slow
+def test_a_study_with_check_step_carries_each_runs_coupling_error(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """``check_step = true``: every key figure and final value gets a coupling_error.<name>
+    column, holding the estimate `auv-cosim run --check-step` writes for the same run."""
+    base, facts = prepare("bs-3", 1.0, fmu_paths["AuvPlant"].parent, check_step=True)
+    errors = [m for m in facts.metrics if m.startswith("coupling_error.")]
+    assert "coupling_error.final.plant.yaw" in errors
+    assert {e.removeprefix("coupling_error.") for e in errors} <= set(facts.metrics)
+    found = {"plant.v_0": resolve_factor("plant.v_0", facts)}
+    record = run_one(base, base.fmu_paths, found, {"plant.v_0": -0.05}, check_step=True)
+    assert record.status == "complete" and set(record.metrics) == set(facts.metrics)
+    data = copy.deepcopy(dict(base.data))
+    data["instances"]["plant"]["start"]["v_0"] = -0.05
+    source = tmp_path / "bs-3-slower.toml"
+    source.write_text(tomli_w.dumps(data))
+    outcome = run_scenario(source, tmp_path / "run", no_rrd=True, check_step=True)
+    check = json.loads(outcome.paths["summary"].read_text())["coupling"]["check_step"]
+    assert (
+        record.metrics["coupling_error.final.plant.yaw"]
+        == (check["final_values"]["plant.yaw"]["error"])
+    )
+    assert math.isfinite(record.metrics["coupling_error.final.plant.yaw"])
+    without = run_one(base, base.fmu_paths, found, {"plant.v_0": -0.05})
+    assert not any(name.startswith("coupling_error.") for name in without.metrics)
+
+
+def test_check_step_on_an_adaptive_scenario_is_refused_in_one_line(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    source = tmp_path / "adaptive.toml"
+    text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    source.write_text(text.replace('algorithm = "gauss-seidel"', 'algorithm = "adaptive"'))
+    with pytest.raises(StudyError, match=r"^check_step = true: .* adaptive .*\Z"):
+        prepare(source, 1.0, fmu_paths["AuvPlant"].parent, check_step=True)

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib.pyplot as plt
+import numpy as np
 import pytest
 
 from cosim.study import plots
@@ -77,3 +78,160 @@ def test_units_come_from_the_model_descriptions_and_metric_names(fmu_paths) -> N
         "overshoot_pct": "%",
         "time_reached": "s",
     }
+
+
+def _drawn(monkeypatch: pytest.MonkeyPatch) -> list[plt.Figure]:
+    """The figures the plotting functions make, kept instead of saved."""
+    kept: list[plt.Figure] = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: kept.append(fig) or path)
+    return kept
+
+
+def _panels_of(figure: plt.Figure) -> list:
+    return [ax for ax in figure.axes if ax.get_visible()]
+
+
+SYMMETRIC = {"plant.v_0": [-0.1, 0.1], "controller.k0": [0.2, 0.5, 1.0]}
+
+
+def _symmetric_rows() -> list[dict]:
+    """A vehicle symmetric in v0: +-v0 give the same metrics."""
+    return [
+        {"plant.v_0": v, "controller.k0": k, "yaw_settling_time_s": 2.0 + 3.0 * k,
+         "peak_abs_tunnel_force_N": 5.0 + k, "status": "complete"}
+        for v in SYMMETRIC["plant.v_0"] for k in SYMMETRIC["controller.k0"]
+    ]  # fmt: skip
+
+
+def test_coinciding_lines_are_drawn_distinguishable_and_named(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """+-v0 gave equal metrics, and the second line hid the first (same marker, same
+    solid line, nothing said)."""
+    kept = _drawn(monkeypatch)
+    metrics = ["yaw_settling_time_s", "peak_abs_tunnel_force_N"]
+    plots.plot_grid_factor(
+        _symmetric_rows(), SYMMETRIC, "controller.k0", metrics, tmp_path / "g.png", {}
+    )
+    for ax in _panels_of(kept[0]):
+        styles = {(line.get_marker(), line.get_linestyle(), line.get_markersize())
+                  for line in ax.get_lines()}  # fmt: skip
+        assert len(styles) == len(ax.get_lines()) == 2, styles
+        notes = " ".join(text.get_text() for text in ax.texts)
+        assert "plant.v_0 = -0.1 = plant.v_0 = 0.1" in notes, notes
+    plt.close(kept[0])
+
+
+@pytest.mark.parametrize(
+    ("values", "failed", "gaps"),
+    [
+        ([-0.10, -0.05, 0.05, 0.10], None, [(-0.05, 0.05)]),  # no run at v0 = 0
+        ([0.0, 0.1, 0.2, 0.3, 1.0], None, [(0.3, 1.0)]),
+        ([0.0, 0.1, 0.2, 0.3], 0.2, [(0.1, 0.3)]),  # the run at 0.2 failed
+        ([0.0, 0.1, 0.2, 0.3], None, []),
+        ([0.25, 0.5, 1.0, 2.0], None, []),  # a geometric grid has no gap
+    ],
+)
+def test_no_line_is_drawn_across_a_gap_in_the_grid(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, values, failed, gaps
+) -> None:
+    """Lines joined grid points across a gap (v0 = -0.05 to 0.05 over v0 = 0, where no
+    run was), as if the metric were known in between."""
+    kept = _drawn(monkeypatch)
+    rows = [{"plant.v_0": v, "yaw_settling_time_s": None if v == failed else 1.0 + v * v,
+             "status": "complete"} for v in values]  # fmt: skip
+    grid = {"plant.v_0": values}
+    plots.plot_grid_factor(rows, grid, "plant.v_0", ["yaw_settling_time_s"], tmp_path / "g.png", {})
+    (line,) = _panels_of(kept[0])[0].get_lines()
+    x, y = np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
+    joined = {(x[i], x[i + 1]) for i in range(len(x) - 1) if np.isfinite(y[i : i + 2]).all()}
+    for low, high in gaps:
+        assert not any(a <= low and b >= high for a, b in joined), (low, high, joined)
+    assert sorted(x[np.isfinite(y)]) == [v for v in values if v != failed]  # every point
+    if not gaps:
+        assert len(joined) == len(values) - 1  # a regular grid is one line
+    plt.close(kept[0])
+
+
+def test_a_factor_that_is_no_number_gets_points_not_lines(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    kept = _drawn(monkeypatch)
+    modes = ["lqr", "sliding-mode", "backstepping"]
+    rows = [{"controller.heading_mode": m, "yaw_settling_time_s": float(i), "status": "complete"}
+            for i, m in enumerate(modes)]  # fmt: skip
+    plots.plot_grid_factor(rows, {"controller.heading_mode": modes}, "controller.heading_mode",
+                           ["yaw_settling_time_s"], tmp_path / "g.png", {})  # fmt: skip
+    (line,) = _panels_of(kept[0])[0].get_lines()
+    assert line.get_linestyle() == "None" and line.get_marker() != "None"
+    plt.close(kept[0])
+
+
+ANGLES = {"events.turn.set.controller.yaw_setpoint": "rad", "final.plant.yaw": "rad",
+          "final.plant.r": "rad/s", "peak_abs_tunnel_force_N": "N"}  # fmt: skip
+
+
+def _turn_rows() -> list[dict]:
+    return [
+        {"events.turn.set.controller.yaw_setpoint": s, "final.plant.yaw": 0.98 * s + 0.01 * i,
+         "final.plant.r": 0.001 * i, "peak_abs_tunnel_force_N": 5 + s, "status": "complete"}
+        for i, s in enumerate([0.25, 0.5, 1.0, 0.25, 0.5, 1.0])
+    ]  # fmt: skip
+
+
+def test_angles_are_drawn_in_degrees_on_every_figure(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The study figures drew yaw in radians; the README promises degrees on plots."""
+    kept = _drawn(monkeypatch)
+    factor = "events.turn.set.controller.yaw_setpoint"
+    metrics = ["final.plant.yaw", "final.plant.r", "peak_abs_tunnel_force_N"]
+    rows = _turn_rows()
+    plots.plot_grid_factor(rows, {factor: [0.25, 0.5, 1.0]}, factor, metrics,
+                           tmp_path / "g.png", ANGLES)  # fmt: skip
+    yaw, rate, force = _panels_of(kept[0])
+    assert yaw.get_xlabel().endswith("[deg]") and yaw.get_ylabel() == "[deg]"
+    assert rate.get_ylabel() == "[deg/s]" and force.get_ylabel() == "[N]"
+    (line,) = yaw.get_lines()
+    assert np.allclose(line.get_xdata(), np.degrees([0.25, 0.5, 1.0]))
+    means = [
+        np.mean([r["final.plant.yaw"] for r in rows if r[factor] == s]) for s in (0.25, 0.5, 1.0)
+    ]
+    assert np.allclose(line.get_ydata(), np.degrees(means))
+    plots.plot_histograms(rows, ["final.plant.yaw"], tmp_path / "h.png", ANGLES)
+    (histogram,) = _panels_of(kept[1])
+    assert histogram.get_xlabel() == "[deg]"
+    assert histogram.patches and max(p.get_x() + p.get_width() for p in histogram.patches) > 50
+    plots.plot_scatter_matrix(rows, [factor, "final.plant.yaw"], tmp_path / "s.png", ANGLES)
+    labels = [ax.get_xlabel() for ax in kept[2].axes] + [ax.get_ylabel() for ax in kept[2].axes]
+    assert all(text.endswith("[deg]") for text in labels if text), labels
+    for figure in kept:
+        plt.close(figure)
+
+
+def test_panel_titles_are_readable_not_metric_ids(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    kept = _drawn(monkeypatch)
+    metrics = ["yaw_settling_time_s", "peak_abs_tunnel_force_N"]
+    plots.plot_grid_factor(
+        _symmetric_rows(), SYMMETRIC, "plant.v_0", metrics, tmp_path / "g.png",
+        {"yaw_settling_time_s": "s", "peak_abs_tunnel_force_N": "N"},
+    )  # fmt: skip
+    titles = [(ax.get_title(), ax.get_ylabel()) for ax in _panels_of(kept[0])]
+    assert titles == [("yaw settling time", "[s]"), ("peak |tunnel force|", "[N]")]
+    plt.close(kept[0])
+
+
+def test_the_metrics_not_plotted_are_one_compact_line(tmp_path: Path) -> None:
+    """The page listed 36 metric ids in a row ("not plotted"): the final values are now
+    counted, their names folded away."""
+    from cosim.study.page import write_index
+
+    finals = [f"final.plant.x{i}" for i in range(30)]
+    others = ["time_reached", "peak_abs_mass_position_m", "yaw_settling_time_s"]
+    page = write_index(tmp_path, {"runs": "4"}, [], {}, [*others, *finals]).read_text()
+    (line,) = [text for text in page.splitlines() if text.startswith("<p>Not plotted")]
+    visible = line.split("<details")[0]
+    assert "30 final values" in line and all(name in visible for name in others)
+    assert not any(name in visible for name in finals)

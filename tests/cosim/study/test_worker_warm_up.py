@@ -1,9 +1,12 @@
 """A study worker's warm-up (the study plugin's set-up) leaves the FMUs' libraries loaded
-and idle for the first task, and their plant code compiled; it never raises."""
+and idle for the first task, and their plant code compiled; it never raises. Local workers
+are forked from a server that imported the run's modules once."""
 
 from __future__ import annotations
 
 import pytest
+
+from cosim.study import fork_server
 
 WARM = """
 import sys
@@ -29,3 +32,33 @@ def test_warm_up_loads_the_libraries_and_compiles_the_plant(fmu_paths, run_pytho
     first, last = done.stdout.strip().splitlines()[-2:]
     assert first == "['AuvAutopilot', 'AuvPlant'] [True]", done.stdout
     assert last == "survived"
+
+
+FORKED = """
+import os, sys
+import psutil
+from cosim.study.execution import open_client
+
+def probe():
+    server = " ".join(psutil.Process().parent().cmdline())
+    return (os.environ.get("OPENBLAS_NUM_THREADS"), "cosim.study.task" in sys.modules,
+            "multiprocessing.forkserver" in server, "plant_fmu" in sys.modules)
+
+if __name__ == "__main__":
+    with open_client(2) as client:
+        print(sorted(client.run(probe).values()))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.cluster
+@pytest.mark.skipif(not fork_server.available(), reason="no fork server on this platform")
+def test_local_workers_are_forked_with_the_runs_modules_imported(run_python, tmp_path) -> None:
+    """A study's local workers start from a fork server that imported Dask and the run's
+    modules once (not each worker again), with Dask's pre-spawn environment (one BLAS
+    thread), and nothing of an FMU (each worker loads its FMUs after the fork)."""
+    script = tmp_path / "forked.py"
+    script.write_text(FORKED, encoding="utf-8")
+    done = run_python(f"import runpy; runpy.run_path({str(script)!r}, run_name='__main__')")
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == str([("1", True, True, False)] * 2)

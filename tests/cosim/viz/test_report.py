@@ -277,3 +277,86 @@ def test_transient_column_settling_time_and_actuator_limits_are_drawn(
     levels = sorted(line.get_ydata()[0] for line in thruster.lines if line.get_linestyle() == ":")
     assert levels == pytest.approx([-8.0, 8.0])
     assert "lateral_deviation.png" in kept
+
+
+def _sparse_run(run: Path, columns: tuple[str, ...] = ("plant.u",)) -> Path:
+    """A run folder whose results.csv holds ``columns`` (1.5 each) for 2 s."""
+    run.mkdir(exist_ok=True)
+    rows = "\n".join(
+        ",".join([repr(t)] + ["1.5"] * len(columns)) for t in np.arange(0, 2, 0.1).tolist()
+    )
+    (run / "results.csv").write_text(",".join(("time", *columns)) + "\n" + rows + "\n")
+    return run
+
+
+def _a_users_page(run: Path) -> Path:
+    (run / "report").mkdir()
+    (run / "report" / "index.html").write_text("<p>my notes</p>\n")
+    return run / "report" / "index.html"
+
+
+def _a_users_figure(run: Path) -> Path:
+    (run / "report").mkdir()
+    (run / "report" / "velocities.png").write_bytes(b"my own figure\n")
+    return run / "report" / "velocities.png"
+
+
+def _a_report_page_edited_since(run: Path) -> Path:
+    page = write_report(run)
+    page.write_text(page.read_text() + "<p>my notes</p>\n")
+    return page
+
+
+def _a_file_named_report(run: Path) -> Path:
+    (run / "report").write_text("my report\n")
+    return run / "report"
+
+
+@pytest.mark.parametrize(
+    "make", [_a_users_page, _a_users_figure, _a_report_page_edited_since, _a_file_named_report]
+)
+def test_a_report_never_writes_over_a_file_no_report_wrote(tmp_path, capsys, make) -> None:
+    """`report` overwrote a user's own report/index.html."""
+    run = _sparse_run(tmp_path / "run")
+    mine = make(run)
+    before = mine.read_bytes()
+    capsys.readouterr()
+    assert main(["report", str(run)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write the report into" in err, err
+    assert mine.read_bytes() == before
+
+
+def test_a_report_replaces_its_own_files_and_drops_figures_it_no_longer_draws(tmp_path):
+    run = _sparse_run(tmp_path / "run", ("plant.u", "plant.roll"))
+    index = write_report(run)
+    assert (index.parent / "attitude_actuators.png").is_file()
+    (index.parent / "notes.txt").write_text("mine\n")
+    _sparse_run(run)  # results.csv of another run: plant.u only
+    assert write_report(run) == index
+    assert sorted(p.name for p in index.parent.glob("*.png")) == ["velocities.png"]
+    assert (index.parent / "notes.txt").read_text() == "mine\n"
+
+
+def test_a_kept_report_names_its_run_and_is_marked_stale_when_it_is_replaced(
+    test_fmu_dir: Path, tmp_path: Path, capsys
+) -> None:
+    """A report/ kept through --overwrite silently described the earlier run."""
+    from scenario_factory import loop_toml
+
+    from cosim.outputs.tail_guard import file_identity
+
+    scenario = tmp_path / "loop.toml"
+    scenario.write_text('id = "loop"\n' + loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim'))
+    out = tmp_path / "d"
+    assert main(["run", str(scenario), "--out", str(out), "--no-rrd"]) == 0
+    page = write_report(out)
+    digest = file_identity(out / "results.csv")["sha256"]  # type: ignore[index]
+    assert f"results.csv SHA-256 <code>{digest[:16]}</code>" in page.read_text()
+    assert "Stale" not in page.read_text()
+    capsys.readouterr()
+    assert main(["run", str(scenario), "--out", str(out), "--no-rrd", "--overwrite"]) == 0
+    assert "kept report/ (marked stale: made from the earlier run)" in capsys.readouterr().err
+    assert "Stale: this report was made from an earlier run" in page.read_text()
+    assert main(["report", str(out)]) == 0  # made again from the run now in the folder
+    assert "Stale" not in page.read_text()

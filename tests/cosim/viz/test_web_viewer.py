@@ -1,17 +1,28 @@
 """``auv-cosim view --web`` without a browser: the URL it prints, the recording a folder
-names, and the refusals (tests/cosim/viz/test_browser.py opens the served page)."""
+names, the refusals, a recording cut short (served completed, or refused when it holds no
+data), and the server's lifetime: it dies with the command, SIGKILL included
+(tests/cosim/viz/test_browser.py opens the served page)."""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
+import psutil
 import pytest
+from rerun.chunk import RrdReader
 
 from cosim.cli import main
 from cosim.errors import CosimError
-from cosim.viz.recording import recording_in
-from cosim.viz.web_viewer import HOST, serve_command, viewer_url
+from cosim.viz.recording import recording_in, rerun_executable
+from cosim.viz.web_viewer import HOST, serve_command, viewer_url, whole_recording
 
 FAKE_RRD = b"RRF2" + bytes(60)  # starts like a recording: enough for the checks before serving
 
@@ -54,6 +65,99 @@ def test_a_taken_port_is_refused_in_one_line(tmp_path: Path, capsys) -> None:
     assert err.count("\n") == 1 and f"port {port} on 127.0.0.1 is taken" in err
     assert main(["view", str(tmp_path), "--web", "--web-port", "0", "--grpc-port", "70000"]) == 1
     assert "port 70000: expected 0 (any free port) to 65535" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def recording(test_fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A whole recording of the test FMUs' loop (a few hundred kB)."""
+    from scenario_factory import loop_toml
+
+    folder = tmp_path_factory.mktemp("recording")
+    scenario = folder / "loop.toml"
+    scenario.write_text('id = "loop"\n' + loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim'))
+    assert main(["run", str(scenario), "--out", str(folder / "run")]) == 0
+    return folder / "run" / "recording.rrd"
+
+
+def _recordings(rrd: Path) -> set[tuple[str, str]]:
+    return {(r.application_id, r.recording_id) for r in RrdReader(rrd).recordings()}
+
+
+@contextlib.contextmanager
+def _at_most(seconds: int) -> Iterator[None]:
+    """Fail, rather than hang, if the block takes longer than ``seconds``."""
+
+    def expired(signum: int, frame: object) -> None:
+        raise AssertionError(f"still serving after {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def test_a_recording_cut_before_any_data_is_refused_in_one_line(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`view --web` of a recording cut short before its data served Rerun's welcome page
+    forever: the viewer never showed anything, and the command never said why."""
+    cut = tmp_path / "cut.rrd"
+    cut.write_bytes(recording.read_bytes()[:1000])
+    with _at_most(60):
+        code = main(["view", str(cut), "--web", "--web-port", "0", "--file-port", "0"])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1, err
+    assert f"{cut} holds no recording yet: it was cut short after 1000 bytes" in err
+
+
+@pytest.mark.parametrize("kept", [0.5, 0.75, 0.95])
+def test_a_recording_cut_short_is_served_as_a_completed_copy(
+    recording: Path, tmp_path: Path, kept: float
+) -> None:
+    """Rerun's importer waits forever for the rest of a file without its footer: what a
+    cut recording holds is served from a copy `rerun rrd migrate` completed."""
+    data = recording.read_bytes()
+    cut = tmp_path / "cut.rrd"
+    cut.write_bytes(data[: int(len(data) * kept)])
+    executable = rerun_executable()
+    assert executable is not None
+    served = whole_recording(executable, cut, tmp_path)
+    assert served != cut and served.read_bytes()[-12:-4] == data[:4] + b"FOOT"
+    assert _recordings(served) == _recordings(recording)
+    assert cut.read_bytes() == data[: int(len(data) * kept)]  # the user's file untouched
+    assert whole_recording(executable, recording, tmp_path) == recording  # whole: as it is
+
+
+@pytest.mark.slow
+@pytest.mark.viewer
+def test_the_rerun_server_dies_with_auv_cosim_when_it_is_killed(recording: Path) -> None:
+    """SIGKILL of `auv-cosim view --web` left its rerun server running (and serving)."""
+    command = [sys.executable, "-m", "cosim.cli", "view", str(recording), "--web"]
+    proc = subprocess.Popen(
+        [*command, "--web-port", "0", "--file-port", "0"], stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT, start_new_session=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        servers: list[psutil.Process] = []
+        while not servers:
+            assert proc.poll() is None and time.monotonic() < deadline, proc.returncode
+            time.sleep(0.2)
+            servers = psutil.Process(proc.pid).children()
+        while not [c for c in servers[0].net_connections() if c.status == psutil.CONN_LISTEN]:
+            assert time.monotonic() < deadline  # serving: the page's port open
+            time.sleep(0.2)
+        os.kill(proc.pid, signal.SIGKILL)  # auv-cosim alone, not its process group
+        proc.wait(timeout=30)
+        _, alive = psutil.wait_procs(servers, timeout=30)
+        assert alive == [], f"the rerun server outlived auv-cosim: {alive}"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
 
 
 @pytest.mark.parametrize("display", [{}, {"DISPLAY": ""}, {"WAYLAND_DISPLAY": ""}])

@@ -13,15 +13,28 @@
  *                                   each, stepped in turn: prints "<case> <status>"
  *   fmi_host DIR ID abandon         instantiate, initialise, step, then exit without
  *                                   terminating or freeing; prints "abandoned"
+ *   fmi_host DIR ID gil             instantiate and initialise (the runtime starts
+ *                                   Python), take Python's GIL in this thread, and have a
+ *                                   second thread get and set every Real, Integer and
+ *                                   String variable meanwhile: prints "values without the
+ *                                   GIL: N calls, worst status S", or "blocked" when the
+ *                                   second thread is still waiting after 60 s
+ *   fmi_host DIR ID state           step 30, save and serialise the FMU state, step 30
+ *                                   more; a second instance deserialises it, is set to
+ *                                   it and steps the same 30: prints "state: identical
+ *                                   over N outputs" or the first value that differs
  *
  * DIR is the FMU's extraction folder, ID its model identifier. It loads
  * DIR/binaries/linux64/ID.so with dlopen and nothing else: no Python, no preload.
  */
 #include <dlfcn.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
+#include <unistd.h>
 
 typedef void *Component;
 typedef unsigned int Vr;
@@ -50,6 +63,9 @@ typedef struct {
     int (*get_string)(Component, const Vr *, size_t, const char **);
     int (*set_string)(Component, const Vr *, size_t, const char *const *);
     int (*get_state)(Component, void **);
+    int (*set_state)(Component, void *);
+    int (*free_state)(Component, void **);
+    int (*state_size)(Component, void *, size_t *);
     int (*serialize)(Component, void *, char *, size_t);
     int (*deserialize)(Component, const char *, size_t, void **);
     char guid[128], resources[4200], dir[4096];
@@ -106,6 +122,9 @@ static void load(Fmu *f, const char *dir, const char *id)
     *(void **)&f->get_string = need(library, "fmi2GetString");
     *(void **)&f->set_string = need(library, "fmi2SetString");
     *(void **)&f->get_state = need(library, "fmi2GetFMUstate");
+    *(void **)&f->set_state = need(library, "fmi2SetFMUstate");
+    *(void **)&f->free_state = need(library, "fmi2FreeFMUstate");
+    *(void **)&f->state_size = need(library, "fmi2SerializedFMUstateSize");
     *(void **)&f->serialize = need(library, "fmi2SerializeFMUstate");
     *(void **)&f->deserialize = need(library, "fmi2DeSerializeFMUstate");
     snprintf(path, sizeof path, "%s/modelDescription.xml", dir);
@@ -275,6 +294,7 @@ static int hostile(const Fmu *f)
     printf("getFMUstate-null-state %d\n", f->get_state(c, NULL));
     if (f->get_state(c, &state) == 0) {
         printf("serialize-null-bytes %d\n", f->serialize(c, state, NULL, 64));
+        f->free_state(c, &state);
     }
     printf("valid-step-after-refusals %d\n", f->do_step(c, 0.0, 0.01, 1));
     stop(f, c);
@@ -313,6 +333,141 @@ static int abandon(const Fmu *f)
     return 0; /* exit() with the instance alive, never terminated */
 }
 
+/* Every variable of ``type`` (and causality, "*" for any) in resources/fmu_variables.txt:
+ * their value references into ``vrs`` (at most ``room``), their number returned. */
+static size_t variables(const Fmu *f, const char *type, const char *causality, Vr *vrs,
+                        size_t room)
+{
+    char path[4300], line[512], t[4], ca[32];
+    snprintf(path, sizeof path, "%s/fmu_variables.txt", f->resources + 7);
+    FILE *in = fopen(path, "r");
+    size_t n = 0;
+    Vr vr;
+    while (in && n < room && fgets(line, sizeof line, in)) {
+        if (sscanf(line, "%u %3s %31s", &vr, t, ca) == 3 && !strcmp(t, type) &&
+            (!strcmp(causality, "*") || !strcmp(ca, causality))) {
+            vrs[n++] = vr;
+        }
+    }
+    if (in) fclose(in);
+    return n;
+}
+
+typedef struct {
+    const Fmu *f;
+    Component c;
+    int calls, worst;
+    volatile int done;
+} Reader;
+
+static int worse(int worst, int status) { return status > worst ? status : worst; }
+
+/* Gets and sets of every Real, Integer and String: the values a host exchanges. */
+static void *read_and_write(void *data)
+{
+    Reader *r = data;
+    Vr reals[512], integers[64], strings[64], inputs[128];
+    double x[512];
+    int n_int[64];
+    const char *text[64];
+    size_t nr = variables(r->f, "R", "*", reals, 512);
+    size_t ni = variables(r->f, "I", "*", integers, 64);
+    size_t ns = variables(r->f, "S", "*", strings, 64);
+    size_t nu = variables(r->f, "R", "input", inputs, 128);
+    for (int k = 0; k < 100; k++) {
+        r->worst = worse(r->worst, r->f->get_real(r->c, reals, nr, x));
+        r->worst = worse(r->worst, r->f->get_integer(r->c, integers, ni, n_int));
+        r->worst = worse(r->worst, r->f->get_string(r->c, strings, ns, text));
+        r->worst = worse(r->worst, r->f->get_real(r->c, inputs, nu, x));
+        r->worst = worse(r->worst, r->f->set_real(r->c, inputs, nu, x));
+        r->calls += 5;
+    }
+    r->done = 1;
+    return NULL;
+}
+
+static int gil(const Fmu *f)
+{
+    Component c = start(f, 1);
+    int (*ensure)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "PyGILState_Ensure");
+    void (*release)(int) = (void (*)(int))dlsym(RTLD_DEFAULT, "PyGILState_Release");
+    if (!ensure || !release) {
+        printf("no Python in the process\n");
+        return 1;
+    }
+    int held = ensure();
+    Reader r = {f, c, 0, 0, 0};
+    pthread_t thread;
+    pthread_create(&thread, NULL, read_and_write, &r);
+    for (int i = 0; i < 6000 && !r.done; i++) {
+        struct timespec pause = {0, 10000000}; /* 10 ms */
+        nanosleep(&pause, NULL);
+    }
+    if (!r.done) { /* the other thread waits for this one's GIL: it never comes back */
+        printf("blocked\n");
+        _exit(1);
+    }
+    pthread_join(thread, NULL);
+    release(held);
+    printf("values without the GIL: %d calls, worst status %d\n", r.calls, r.worst);
+    stop(f, c);
+    return 0;
+}
+
+static int outputs(const Fmu *f, Component c, Vr *vrs, size_t n, double *rows, int steps,
+                   double t0)
+{
+    for (int i = 0; i < steps; i++) {
+        if (f->do_step(c, t0 + i * 0.01, 0.01, 0) || f->get_real(c, vrs, n, rows + i * n)) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static int state(const Fmu *f)
+{
+    enum { STEPS = 30, ROOM = 256 };
+    static double first[STEPS * ROOM], again[STEPS * ROOM];
+    Vr vrs[ROOM];
+    size_t n = variables(f, "R", "output", vrs, ROOM);
+    Component c = start(f, 1);
+    void *saved = NULL;
+    size_t size = 0;
+    if (outputs(f, c, vrs, n, first, STEPS, 0.0) || f->get_state(c, &saved) ||
+        f->state_size(c, saved, &size)) {
+        printf("could not save the state\n");
+        return 1;
+    }
+    char *bytes = malloc(size);
+    int s = f->serialize(c, saved, bytes, size);
+    f->free_state(c, &saved);
+    if (s || outputs(f, c, vrs, n, first, STEPS, STEPS * 0.01)) {
+        printf("could not serialise the state\n");
+        return 1;
+    }
+    Component other = start(f, 0);
+    void *loaded = NULL;
+    if (f->deserialize(other, bytes, size, &loaded) || f->set_state(other, loaded) ||
+        outputs(f, other, vrs, n, again, STEPS, STEPS * 0.01)) {
+        printf("could not restore the state\n");
+        return 1;
+    }
+    for (size_t i = 0; i < STEPS * n; i++) {
+        if (memcmp(&first[i], &again[i], sizeof(double))) {
+            printf("differs: step %zu output vr %u: %.17g then %.17g\n", i / n, vrs[i % n],
+                   first[i], again[i]);
+            return 1;
+        }
+    }
+    printf("state: identical over %zu outputs\n", n);
+    f->free_state(other, &loaded);
+    free(bytes);
+    stop(f, other);
+    stop(f, c);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     setvbuf(stdout, NULL, _IOLBF, 0);
@@ -328,6 +483,8 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "hostile")) return hostile(&f);
     if (!strcmp(mode, "twice") && argc == 5) return twice(&f, argv[4], argv[2]);
     if (!strcmp(mode, "abandon")) return abandon(&f);
+    if (!strcmp(mode, "gil")) return gil(&f);
+    if (!strcmp(mode, "state")) return state(&f);
     fprintf(stderr, "unknown mode %s\n", mode);
     return 2;
 }

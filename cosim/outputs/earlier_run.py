@@ -1,0 +1,222 @@
+"""An earlier run in a run folder: found at the claim, set aside before the new run opens
+its outputs, removed once the new run has taken its first step, or put back if it never
+does.
+
+:func:`find_earlier_run` reads the folder's summary.json and manifest
+(:mod:`cosim.outputs.run_files`) and lists the earlier run's own files: those the manifest
+names that are still regular files with the identity it records, inside the folder and
+reached through no link, plus the manifest itself and the temporary files of that run's
+process (``.summary.json.<pid>.tmp``...). Never a folder (a ``report/`` made from the run
+stays), never what summary.json's ``outputs`` merely lists, never a file outside the
+folder (a ``--rrd`` elsewhere stays). A folder holding other files beside them, with no
+earlier run, is refused: a run never mixes its files with someone else's.
+
+:class:`SetAside` renames such files to ``.<name>.<pid>.auv-cosim-earlier`` beside
+themselves, checking each file's identity again just before and just after the rename (a
+file changed since the claim is left where it is, and everything set aside so far goes
+back); :meth:`SetAside.commit` removes them, checking once more; :meth:`SetAside.restore`
+renames them back. Each move is told to the tail guard (``tell``), which puts them back
+itself if the run is killed before it commits.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cosim.outputs.run_files import (
+    LOCK_FILE,
+    MANIFEST_FILE,
+    OUTPUT_NAMES,
+    REPORT_FOLDER,
+    RUN_STATUSES,
+    SCENARIO_FILE,
+    SUMMARY_FILE,
+    RunFolderError,
+    read_manifest,
+    regular,
+    unchanged,
+)
+from cosim.outputs.tail_guard import file_identity
+
+ASIDE_SUFFIX = ".auv-cosim-earlier"
+_ASIDE = re.compile(r"^\..+\.\d+" + re.escape(ASIDE_SUFFIX) + "$")
+
+
+@dataclass(frozen=True)
+class ScenarioRef:
+    """Which scenario a default run folder belongs to: its id and the file it was read
+    from (absolute; None for a scenario made in memory)."""
+
+    id: str
+    file: str | None
+
+
+@dataclass
+class EarlierRun:
+    """An earlier run of ours in a run folder: its summary, its own files (each with the
+    identity it must still have when it is removed) and what stays (said)."""
+
+    summary: dict
+    files: dict[Path, dict[str, Any]]
+    kept: list[str] = field(default_factory=list)
+
+
+def find_earlier_run(path: Path, overwrite: bool, default: ScenarioRef | None) -> EarlierRun | None:
+    """The earlier run in ``path`` (None if the folder is empty). It may be replaced with
+    ``overwrite``, or when ``path`` is the default folder of scenario ``default``, holds
+    nothing but an earlier run of that same scenario file (and a report made from it).
+
+    Raises RunFolderError: files set aside by a run killed before it stepped, files of no
+    run, a summary or manifest not ours, an earlier run not to be replaced, or an output
+    name that is not the earlier run's own file.
+    """
+    entries = sorted(e.name for e in path.iterdir() if e.name not in (LOCK_FILE, MANIFEST_FILE))
+    left = [e for e in entries if _ASIDE.match(e)]
+    if left:
+        raise RunFolderError(
+            f"--out {path}: holds files a run set aside and could not put back ("
+            f"{', '.join(left[:3])}): rename each back to the name between the leading dot "
+            f"and .<pid>{ASIDE_SUFFIX}, or remove them"
+        )
+    if not entries:
+        return None
+    summary = _summary(path, entries)
+    manifest = read_manifest(path)
+    own = _own_files(path, manifest.entries)
+    own[path / MANIFEST_FILE] = file_identity(path / MANIFEST_FILE) or {}
+    for name in (SUMMARY_FILE, SCENARIO_FILE, MANIFEST_FILE):  # its partial writes, if killed
+        tmp = path / f".{name}.{manifest.pid}.tmp"
+        identity = file_identity(tmp) if regular(tmp) else None
+        if identity is not None:
+            own[tmp] = identity
+    tops = {p.relative_to(path).parts[0] for p in own}
+    foreign = [e for e in entries if e not in tops and e != REPORT_FOLDER]
+    _check_replaceable(path, summary, overwrite, default, foreign)
+    for name in OUTPUT_NAMES:  # the new run would write over these: they must be the run's
+        if os.path.lexists(path / name) and path / name not in own:
+            raise RunFolderError(
+                f"--out {path}: {name} is not a file the earlier run wrote (changed since, "
+                "replaced, or a link); move it away or choose another folder"
+            )
+    kept = [f"{REPORT_FOLDER}/"] if (path / REPORT_FOLDER).exists() else []
+    kept += [n for n in manifest.entries if Path(n).is_absolute() and os.path.lexists(n)]
+    return EarlierRun(summary, own, kept)
+
+
+def _summary(path: Path, entries: list[str]) -> dict:
+    """The folder's summary.json, refused unless it is a run's of ours."""
+    summary_path = path / SUMMARY_FILE
+    if not regular(summary_path):
+        shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+        raise RunFolderError(
+            f"--out {path}: the folder is not empty ({shown}) and holds no earlier run "
+            f"(no {SUMMARY_FILE}); choose a new or empty folder"
+        )
+    try:
+        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        summary = None
+    if (
+        not isinstance(summary, dict)
+        or summary.get("status") not in RUN_STATUSES
+        or not isinstance(summary.get("scenario"), str)
+    ):
+        raise RunFolderError(
+            f"--out {path}: its {SUMMARY_FILE} is not the summary of an auv-cosim run; "
+            "choose a new or empty folder"
+        )
+    return summary
+
+
+def _check_replaceable(
+    path: Path, summary: dict, overwrite: bool, default: ScenarioRef | None, foreign: list[str]
+) -> None:
+    if overwrite:
+        return
+    if default is not None and summary["scenario"] == default.id and not foreign:
+        if summary.get("scenario_file") == default.file:
+            return
+        raise RunFolderError(
+            f"--out {path}: the folder holds an earlier run of another scenario file with "
+            f"the same id {default.id!r} ({summary.get('scenario_file') or 'unknown'}); pass "
+            "--overwrite to replace it, or choose another folder with --out"
+        )
+    what = f"scenario {summary['scenario']!r}, status {summary['status']!r}"
+    raise RunFolderError(
+        f"--out {path}: the folder holds an earlier run ({what}); pass --overwrite to "
+        "replace it, or choose another folder"
+    )
+
+
+def _own_files(path: Path, entries: dict[str, dict[str, Any]]) -> dict[Path, dict[str, Any]]:
+    """The manifest's files inside ``path`` that are still exactly what the run wrote,
+    reached through no link below ``path``."""
+    own = {}
+    for name, identity in entries.items():
+        parts = Path(name).parts
+        if Path(name).is_absolute() or ".." in parts or not parts:
+            continue  # outside the folder: never removed
+        if any(os.path.islink(path.joinpath(*parts[:i])) for i in range(1, len(parts))):
+            continue
+        if unchanged(path / name, identity):
+            own[path / name] = identity
+    return own
+
+
+class SetAside:
+    """Files of an earlier run renamed out of the way (see the module docstring);
+    ``tell`` takes the lines for the tail guard."""
+
+    def __init__(self, tell: Callable[[str], None]) -> None:
+        self._tell = tell
+        self.moved: list[tuple[Path, Path, dict[str, Any]]] = []  # original, aside, identity
+
+    def move(self, target: Path, identity: dict[str, Any], shown: str) -> None:
+        """Rename ``target`` aside if it is still the file ``identity`` describes.
+        Raises RunFolderError (``shown`` names the folder) with everything put back."""
+        aside = target.with_name(f".{target.name}.{os.getpid()}{ASIDE_SUFFIX}")
+        changed = RunFolderError(
+            f"{shown}: {target.name} changed since the run began (it is not the earlier "
+            "run's file any more); it stays, and nothing was replaced"
+        )
+        if not unchanged(target, identity) or os.path.lexists(aside):
+            self.restore()
+            raise changed
+        self._tell(f"aside {json.dumps([str(target.absolute()), str(aside.absolute())])}\n")
+        try:
+            os.rename(target, aside)
+        except OSError as exc:
+            self.restore()
+            raise RunFolderError(f"{shown}: cannot move {target.name}: {exc.strerror}") from None
+        self.moved.append((target, aside, identity))
+        if not unchanged(aside, identity):  # replaced between the check and the rename
+            self.restore()
+            raise changed
+
+    def commit(self) -> list[str]:
+        """Remove the set-aside files that are still what they were; the names of those
+        that were not (they are kept, under their set-aside names)."""
+        left = []
+        for _, aside, identity in self.moved:
+            if unchanged(aside, identity):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(aside)
+            else:
+                left.append(aside.name)
+        self.moved = []
+        return left
+
+    def restore(self) -> None:
+        """Rename every set-aside file back (the new run never stepped); never raises."""
+        for target, aside, _ in reversed(self.moved):
+            if not os.path.lexists(target):
+                with contextlib.suppress(OSError):
+                    os.rename(aside, target)
+        self.moved = []

@@ -1,0 +1,63 @@
+"""Where a local study's worker processes come from: a fork server that imported the run's
+modules once (multiprocessing's "forkserver", where the platform has it).
+
+Dask's default spawns each worker as a new interpreter that imports Dask, pandas, fmpy and
+the run's modules again (~1.5 s of CPU each, beside the client's own imports on a 2-core
+machine) and tears the interpreter down again at the end. A worker forked from the server
+starts with those modules imported and ends without the teardown: on 2 cores two workers
+were ready in 1.2-1.5 s instead of 2.7-2.8 s and closed in 0.05 s instead of 0.9 s
+(``cosim.study.execution.open_client``). :func:`start` starts the server as early as the
+command knows it will run a local study, so its imports run beside the client's.
+
+The server is one clean process (no thread), started with Dask's pre-spawn environment
+(one BLAS thread...) as Dask sets it before it spawns a worker. FMUs and numba are never
+imported there (an FMU imports the packages it ships, and the plant sets numba's cache
+folder before numba is first imported): each worker loads them after the fork. Standard
+library and dask's configuration only (not distributed, ~1 s to import), so that it starts
+before the client has imported what the server imports.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+
+PRELOAD = ["distributed", "fmpy.fmi2", "cosim.study.task"]  # imported once, in the server
+
+
+def available() -> bool:
+    """Whether this platform has the fork server (not Windows: there Dask spawns)."""
+    return "forkserver" in multiprocessing.get_all_start_methods()
+
+
+def start() -> None:
+    """Start the fork server now, if the platform has one and it is not running; never
+    raises (without it Dask starts the workers its own way)."""
+    if not available():
+        return
+    from multiprocessing import forkserver
+
+    try:
+        os.environ.update(pre_spawn_environ())
+        multiprocessing.get_context("forkserver").set_forkserver_preload(PRELOAD)
+        forkserver.ensure_running()
+    except (OSError, ValueError, ImportError, KeyError):
+        return
+
+
+def pre_spawn_environ() -> dict[str, str]:
+    """Dask's ``distributed.nanny.pre-spawn-environ`` (its default and the user's Dask
+    config), read without importing distributed (~1 s): its defaults file is registered
+    with dask's config as ``distributed/config.py`` does when distributed is imported."""
+    import importlib.util
+
+    import dask.config
+
+    spec = importlib.util.find_spec("distributed")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("distributed is not installed")
+    defaults = os.path.join(spec.submodule_search_locations[0], "distributed.yaml")
+    for config in dask.config.collect_yaml([defaults]):
+        dask.config.update_defaults(config)
+    environ = dask.config.get("distributed.nanny.pre-spawn-environ")
+    return {name: str(value) for name, value in environ.items()}

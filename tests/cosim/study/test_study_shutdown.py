@@ -1,0 +1,109 @@
+"""A study that succeeds ends quietly: no Dask traceback reaches its stderr, however its
+local cluster closes. Several studies at once, on more workers than cores, each in its
+own `auv-cosim sweep` process as a user starts them; and, every time, a local cluster
+closed while each worker's heartbeat waits for the scheduler's answer."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.slow, pytest.mark.cluster]
+
+STUDY = """
+scenario = "bs-3"
+stop_time = 1.0
+[grid]
+"plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
+"""
+ROUNDS = 3  # of two studies at once: 6 studies (2 of 11 ended with a traceback before)
+NOISE = ("Traceback", "heartbeat", "CommClosedError", "distributed.")
+
+
+def _sweep(study: Path, fmu_dir: Path, out: Path) -> subprocess.Popen[str]:
+    """`auv-cosim sweep STUDY` on 3 local workers (beyond the cores), in its own session."""
+    command = ["sweep", str(study), "--fmu-dir", str(fmu_dir), "--out", str(out)]
+    command += ["--workers", "3", "--oversubscribe", "--quiet"]
+    return subprocess.Popen(
+        [sys.executable, "-m", "cosim.cli", *command], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+
+
+def test_studies_at_once_on_too_many_workers_end_without_a_traceback(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A successful study sometimes ended with a worker's "Failed to communicate with
+    scheduler during heartbeat" CommClosedError traceback, exit 0: the worker closed its
+    connections to the scheduler while a heartbeat was waiting for the answer."""
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY, encoding="utf-8")
+    for i in range(ROUNDS):
+        sweeps = [_sweep(study, fmu_dir, tmp_path / f"out-{i}-{k}") for k in range(2)]
+        try:
+            done = [proc.communicate(timeout=600) for proc in sweeps]
+        finally:
+            for proc in sweeps:
+                with contextlib.suppress(ProcessLookupError):  # a worker left behind too
+                    os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+        for proc, (out, err) in zip(sweeps, done, strict=True):
+            assert proc.returncode == 0, err
+            assert "4 runs, 4 complete" in out
+            assert not any(word in err for word in NOISE), err
+
+
+SLOW_ANSWER = """
+import asyncio, time
+from cosim.study.execution import open_client
+
+if __name__ == "__main__":
+    with open_client(2) as client:
+        scheduler = client.cluster.scheduler  # in this process, on the cluster's loop
+        answer = scheduler.handlers["heartbeat_worker"]
+
+        async def slowly(**message):
+            await asyncio.sleep(1.0)
+            return answer(**message)
+
+        scheduler.handlers["heartbeat_worker"] = slowly
+        time.sleep(1.5)  # every worker's next heartbeat is now waiting for its answer
+    print("closed")
+"""
+
+
+def test_a_cluster_closed_while_heartbeats_wait_for_their_answer_ends_quietly(
+    tmp_path: Path,
+) -> None:
+    """The cause of the heartbeat traceback, made certain: the scheduler answers each
+    heartbeat a second late, and the cluster closes while every worker waits for that
+    answer. A worker closed its connection to the scheduler under the waiting heartbeat
+    and logged "Failed to communicate with scheduler during heartbeat" (CommClosedError)."""
+    script = tmp_path / "slow_answer.py"
+    script.write_text(SLOW_ANSWER, encoding="utf-8")
+    proc = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True, env={**os.environ, "PYTHONPATH": _packages()},
+    )  # fmt: skip
+    try:
+        out, err = proc.communicate(timeout=300)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert proc.returncode == 0 and out.strip() == "closed", err
+    assert not any(word in err for word in NOISE), err
+
+
+def _packages() -> str:
+    """PYTHONPATH for a script outside the repository: the project's packages first."""
+    import cosim
+
+    root = str(Path(cosim.__file__).resolve().parents[1])
+    return os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
