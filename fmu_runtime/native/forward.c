@@ -22,7 +22,7 @@
  * ``finalizePythonInterpreter`` is registered as an exit handler, which runs first (exit
  * handlers run last-registered first) while the guard is alive and leaves nothing for the
  * two later releases (fmu_runtime/exit_guard.py does the same from Python for a wrapper
- * loaded without this runtime).
+ * loaded without this runtime). On Windows nothing is registered: not checked there.
  */
 #include "loader.h"
 #include "python.h"

@@ -475,10 +475,8 @@ void platform_run(const char *const argv[], int timeout_s, Buffer *text, Buffer 
     CloseHandle(info.hThread);
     int finished = drain(info.hProcess, p.read, text, errors, timeout_s);
     DWORD code = 0;
-    if (!finished) {
-        TerminateProcess(info.hProcess, 1);
-        WaitForSingleObject(info.hProcess, 5000);
-    }
+    if (!finished) TerminateProcess(info.hProcess, 1);
+    WaitForSingleObject(info.hProcess, 5000); /* its pipes may close before it is done */
     int known = GetExitCodeProcess(info.hProcess, &code) && code != STILL_ACTIVE;
     ran->ending = !finished ? RAN_TIMED_OUT : known ? RAN_EXITED : RAN_UNKNOWN;
     ran->code = code;

@@ -163,8 +163,8 @@ static void explain(Answer *a, const Ran *ran, Buffer *err)
         snprintf(a->failure, sizeof a->failure, "gave no answer the runtime understands%s%s",
                  sep, said);
     } else if (ran->ending == RAN_EXITED) {
-        snprintf(a->failure, sizeof a->failure, "exited with status %s%s%s", status,
-                 sep, said);
+        snprintf(a->failure, sizeof a->failure, "exited with status %s before answering%s%s",
+                 status, sep, said);
     } else {
         snprintf(a->failure, sizeof a->failure, "did not answer%s%s", sep, said);
     }

@@ -68,13 +68,42 @@ def test_the_runtime_compiles_with_cc_without_a_warning(tmp_path):
 # co-simulation functions). Nothing else may be exported: a DLL exports what it is told.
 FMI2_COSIMULATION = frozenset(
     "fmi2" + name
-    for name in """GetTypesPlatform GetVersion SetDebugLogging Instantiate FreeInstance
-    SetupExperiment EnterInitializationMode ExitInitializationMode Terminate Reset GetReal
-    GetInteger GetBoolean GetString SetReal SetInteger SetBoolean SetString GetFMUstate
-    SetFMUstate FreeFMUstate SerializedFMUstateSize SerializeFMUstate DeSerializeFMUstate
-    GetDirectionalDerivative SetRealInputDerivatives GetRealOutputDerivatives DoStep
-    CancelStep GetStatus GetRealStatus GetIntegerStatus GetBooleanStatus
-    GetStringStatus""".split()
+    for name in (
+        "GetTypesPlatform",
+        "GetVersion",
+        "SetDebugLogging",
+        "Instantiate",
+        "FreeInstance",
+        "SetupExperiment",
+        "EnterInitializationMode",
+        "ExitInitializationMode",
+        "Terminate",
+        "Reset",
+        "GetReal",
+        "GetInteger",
+        "GetBoolean",
+        "GetString",
+        "SetReal",
+        "SetInteger",
+        "SetBoolean",
+        "SetString",
+        "GetFMUstate",
+        "SetFMUstate",
+        "FreeFMUstate",
+        "SerializedFMUstateSize",
+        "SerializeFMUstate",
+        "DeSerializeFMUstate",
+        "GetDirectionalDerivative",
+        "SetRealInputDerivatives",
+        "GetRealOutputDerivatives",
+        "DoStep",
+        "CancelStep",
+        "GetStatus",
+        "GetRealStatus",
+        "GetIntegerStatus",
+        "GetBooleanStatus",
+        "GetStringStatus",
+    )
 )
 # What every Windows 10/11 has: the kernel and the Universal CRT (its api-ms-win-crt-*
 # forwarders, ucrtbase) or the old msvcrt. Not python3*.dll: the runtime links no
