@@ -258,7 +258,7 @@ static void python_dll(int minor, int threaded, wchar_t name[16])
     char text[16];
     snprintf(text, sizeof text, "python%s%d%s.dll", minor == 27 ? "" : "3", minor,
              threaded ? "t" : "");
-    for (int i = 0; i < 16; i++) name[i] = (wchar_t)(unsigned char)text[i];
+    for (int i = 0; i == 0 || text[i - 1]; i++) name[i] = (wchar_t)(unsigned char)text[i];
 }
 
 int platform_loaded_python(void **library, char *file, size_t size)
