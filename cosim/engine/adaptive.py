@@ -1,5 +1,18 @@
 """The error-controlled communication step (``[coupling] algorithm = "adaptive"``).
 
+Two estimates of a step's error (``[coupling] error_estimate``):
+
+* ``"extrapolation"`` (the default): the instances take one step of H from t (states
+  saved first) and the error is that of their extrapolated inputs at t + H against what
+  the sources' outputs say they were (:mod:`cosim.engine.input_error`; Schierz, Arnold &
+  Clauss 2012), err = max_i du_i / (tol (Y_i + 1e-3 nominal_i)) over the inputs, Y_i the
+  largest |value| of the input's source so far. One doStep per instance and attempt;
+  err > 1 restores the states and retries. k below is q + 1, q the lowest degree of the
+  inputs' extrapolation (0 held, 2 quadratic); an accepted step's successor is 0.5 to 2
+  times it (never more than twice the step taken last, so the extrapolation's points
+  stay evenly enough spaced), and steps are from one grid point up.
+* ``"doubling"``, the rest of this docstring:
+
 Step doubling with rollback, as MasterSim's error control does it (docs/coupling.md):
 from a communication point t every instance's state is saved (``fmi2GetFMUstate``) with
 the master's own (exchanged values, input-derivative histories, the timeline's events and
@@ -55,7 +68,8 @@ The first step is ``step``.
 Costs: an attempted step takes three doSteps per instance and a state save and restore,
 a rejected one as many: the summary's ``coupling`` counts them. Step doubling pays 1.5
 doSteps per half step; it beats a fixed step where the step the error allows varies
-through the run by more than that (docs/coupling.md measures vert-1).
+through the run by more than that (docs/coupling.md measures vert-1 and bs-3, with both
+estimates).
 """
 
 from __future__ import annotations
@@ -68,6 +82,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
+from cosim.engine.input_error import InputError
 from cosim.engine.points import check_finite, end_of_simulation, refresh
 from cosim.engine.signals import StopRequest
 from cosim.engine.slave import Slave, describe
@@ -81,6 +96,7 @@ if TYPE_CHECKING:
 MIN_LEVEL = 10  # the smallest step is coupling.step / 2**MIN_LEVEL
 SAFETY = 0.9  # of the step the error estimate proposes
 FAC_MIN, FAC_MAX = 0.2, 2.0  # the most a step shrinks or grows at once (Hairer I, II.4)
+RATIO_MIN = 0.5  # extrapolation estimate: the most an accepted step's successor shrinks
 PI_GAINS = (0.7, 0.4)  # Gustafsson's exponents, times 1 / k (module docstring)
 FLOOR = 1e-3  # of a value's nominal: the smallest magnitude its error is relative to
 
@@ -108,6 +124,7 @@ class _Stepper:
         self.do_steps = dict.fromkeys(self.period, 0)
         self.current = order[0]  # the instance called last (a failure names it)
         self.through = [s for s in order if s.feeds_through]
+        self.inputs: InputError | None = None  # the extrapolation estimator's bookkeeping
 
     def advance(self, n: int, units: int) -> None:
         """Every instance due at point n steps ``units`` grid points (one with step
@@ -116,25 +133,33 @@ class _Stepper:
         due = [s for s in self.order if s.k == 1 or n % self.period[s.name] == 0]
         if self.jacobi:
             for slave in due:
-                self.give(slave, n, t)
+                self._give(slave, n, units)
         for slave in due:
             self.current = slave
             if not self.jacobi:
-                self.give(slave, n, t)
+                self._give(slave, n, units)
             span = units if slave.k == 1 else self.period[slave.name]
             slave.do_step(slave.c, t, (n + span) * self.grid - t, 1)
             self.do_steps[slave.name] += 1
             slave.read_outputs()
         refresh(self.through, self.give, n + units, (n + units) * self.grid)
 
+    def _give(self, slave: Slave, n: int, units: int) -> None:
+        self.give(slave, n, n * self.grid)
+        if self.inputs is not None:
+            self.inputs.took(slave, n, units if slave.k == 1 else self.period[slave.name])
+
     def save(self) -> tuple[Any, ...]:
         fmu_states = [s.fmu.getFMUstate() for s in self.order]
         rates = [s.input_rates.snapshot() if s.input_rates else None for s in self.order]
         timeline = self.timeline.snapshot() if self.timeline is not None else None
-        return fmu_states, self.z.copy(), rates, timeline
+        inputs = self.inputs.snapshot() if self.inputs is not None else None
+        return fmu_states, self.z.copy(), rates, timeline, inputs
 
     def restore(self, saved: tuple[Any, ...]) -> None:
-        fmu_states, z, rates, timeline = saved
+        fmu_states, z, rates, timeline, inputs = saved
+        if self.inputs is not None:
+            self.inputs.restore(inputs)
         for slave, state, rate in zip(self.order, fmu_states, rates, strict=True):
             slave.fmu.setFMUstate(state)
             if slave.input_rates is not None:
@@ -173,6 +198,11 @@ def run(
     one-line error (None if none) and the figures of the steps taken."""
     stepper = _Stepper(scenario, order, z, give, timeline)
     control = _Control(scenario, order, index, n_read, timeline)
+    one_step = _one_step
+    if not control.doubling:
+        jacobi = scenario.coupling.algorithm == "jacobi"
+        stepper.inputs = InputError(order, index, jacobi, timeline, stepper.grid)
+        one_step = _extrapolated_step
     record = np.asarray([index[c] for c in scenario.columns], dtype=np.intp)
     at = timeline.at if timeline is not None else _no_event
     filled, n, error = 0, 0, None
@@ -181,7 +211,7 @@ def run(
         filled = rows.push(filled, z[record], 0.0)
         check_finite(z[:n_read], index, 0.0)
         while n < control.last and stop.signum is None and rows.error is None:
-            n, filled = _one_step(stepper, control, n, at, rows, filled, record)
+            n, filled = one_step(stepper, control, n, at, rows, filled, record)
     except FMICallException as exc:
         slave = stepper.current
         ended = end_of_simulation(slave, exc, z, record, rows, filled, n * stepper.grid)
@@ -239,6 +269,36 @@ def _one_step(
     return n + units, filled
 
 
+def _extrapolated_step(
+    stepper: _Stepper,
+    control: _Control,
+    n: int,
+    at: Callable[[int], None],
+    rows: RowBuffer,
+    filled: int,
+    record: np.ndarray,
+) -> tuple[int, int]:
+    """:func:`_one_step` judged by the inputs' extrapolation error
+    (:mod:`cosim.engine.input_error`): one step of H, redone only when rejected."""
+    z, inputs = stepper.z, stepper.inputs
+    assert inputs is not None
+    while True:
+        units, wanted = control.units(n)
+        saved = stepper.save()
+        try:
+            stepper.advance(n, units)
+            check_finite(z[: control.n_read], control.index, (n + units) * stepper.grid)
+            sources, du = inputs.errors(stepper.order, z, n + units, control.k)
+            if control.judge(control.scaled(z[: control.n_read], sources, du), units, wanted):
+                break
+            stepper.restore(saved)
+        finally:
+            stepper.free(saved)
+    at(n + units)
+    filled = rows.push(filled, z[record], (n + units) * stepper.grid)
+    return n + units, filled
+
+
 class _Control:
     """The step size (in grid points), the points a step must end on, the error estimate
     and the counts (module docstring)."""
@@ -255,6 +315,14 @@ class _Control:
         self.index, self.n_read = index, n_read
         self.tolerance = float(coupling.tolerance or 0.0)
         self.p = coupling_order(scenario, order)
+        self.doubling = coupling.error_estimate == "doubling"
+        if self.doubling:  # err is O(H^k): the local error's order
+            self.k, self.min_units, self.fac_min = self.p + 1, 2, FAC_MIN
+        else:  # the extrapolation's error, q its lowest degree (held: 0)
+            q = min((s.input_rates.order if s.input_rates else 0 for s in order if s.n_inputs),
+                    default=0)  # fmt: skip
+            self.k, self.min_units, self.fac_min = q + 1, 1, RATIO_MIN
+        self.last_units = 2**MIN_LEVEL  # the last step accepted, grid points
         self.grid = grid_step(coupling)
         self.last = round(scenario.stop_time / self.grid)
         self.next = float(2**MIN_LEVEL)  # the step asked for, grid points: coupling.step
@@ -276,7 +344,9 @@ class _Control:
 
     def units(self, n: int) -> tuple[int, int]:
         """(grid points of the next step from n, those the controller asked for)."""
-        wanted = min(self.top, max(2, int(self.next)))
+        wanted = min(self.top, max(self.min_units, int(self.next)))
+        if not self.doubling:  # the extrapolation's points stay evenly enough spaced
+            wanted = min(wanted, int(FAC_MAX * self.last_units))
         ahead = bisect.bisect_right(self.points, n)
         limit = (self.points[ahead] if ahead < len(self.points) else self.last) - n
         for period in self.periods:
@@ -295,10 +365,19 @@ class _Control:
         scale = self.tolerance * (self.peak + FLOOR * self.nominal)
         return float(np.max((self.estimate(big, halves) / scale)[self.continuous]))
 
+    def scaled(self, values: np.ndarray, sources: np.ndarray, du: np.ndarray) -> float:
+        """The scaled error of the extrapolated inputs ``du`` (each in its source's
+        unit, ``sources`` the sources' indices in ``values``), as :meth:`error` scales."""
+        np.maximum(self.peak, np.abs(values), out=self.peak)
+        if not du.size:
+            return 0.0
+        scale = self.tolerance * (self.peak[sources] + FLOOR * self.nominal[sources])
+        return float(np.max(du / scale))
+
     def judge(self, err: float, units: int, wanted: int) -> bool:
         """Accept the step (and choose the next) or ask for a retry with a shorter one."""
-        k = self.p + 1  # the order of err in H: the local error's
-        if err <= 1.0 or units <= 2:
+        k = self.k
+        if err <= 1.0 or units <= self.min_units:
             self.accepted += 1
             self.forced += err > 1.0
             self.smallest = min(self.smallest, units * self.grid)
@@ -306,10 +385,11 @@ class _Control:
             # a step shortened to reach a point: as if the step asked for had been taken
             err = max(err * (wanted / units) ** k, 1e-4)
             factor = SAFETY * err ** (-PI_GAINS[0] / k) * self.err_prev ** (PI_GAINS[1] / k)
-            factor = min(FAC_MAX, max(FAC_MIN, factor))
+            factor = min(FAC_MAX, max(self.fac_min, factor))
             if self.after_rejection:
                 factor = min(factor, 1.0)
             self.next = wanted * factor
+            self.last_units = units
             self.err_prev, self.after_rejection = err, False
             return True
         self.rejected += 1
@@ -320,6 +400,7 @@ class _Control:
     def summary(self, stepper: _Stepper) -> dict[str, Any]:
         return {
             "algorithm": "adaptive",
+            "error_estimate": "doubling" if self.doubling else "extrapolation",
             "tolerance": self.tolerance,
             "order": self.p,
             "accepted_steps": self.accepted,

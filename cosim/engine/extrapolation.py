@@ -136,6 +136,7 @@ class InputRates:
         self.epoch = 0
         # _extrapolate with every array bound, for the inputs array it was bound to
         self._bound: tuple[np.ndarray | None, Callable[..., int]] = (None, _extrapolate)
+        self.sent_at: float | None = None  # s, the point of the derivatives last sent
 
     def send(self, inputs: np.ndarray, t: float, epoch: int) -> None:
         """The derivatives at ``t`` (s) for the values ``inputs`` just set, handed to the
@@ -151,6 +152,7 @@ class InputRates:
             status = self._set(self._handle, self._vrs, self._size, self._orders, self._ptr)
             if status > 1:  # worse than fmi2Warning: as fmpy's wrapper
                 raise FMICallException(function="fmi2SetRealInputDerivatives", status=status)
+            self.sent_at = t
         if code & 2:
             self.count += 1
 
@@ -162,11 +164,19 @@ class InputRates:
         self._bound = (inputs, extrapolate)
         return extrapolate
 
-    def snapshot(self) -> tuple[np.ndarray, list[float], int, int]:
-        """The history, for :meth:`restore` (a rolled-back step)."""
-        return self._past.copy(), self._times.tolist(), self.count, self.epoch
+    def derivatives(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(first, second) derivatives the FMU was handed at ``t`` (s), if it was: the
+        polynomial it follows over its step is u + s first + s^2 / 2 second."""
+        if self.sent_at != t:
+            return None
+        first, second = self._values[: self.n], self._values[self.n :]
+        return first.copy(), second.copy() if self.order == 2 else np.zeros(self.n)
 
-    def restore(self, saved: tuple[np.ndarray, list[float], int, int]) -> None:
-        past, times, self.count, self.epoch = saved
+    def snapshot(self) -> tuple[Any, ...]:
+        """The history, for :meth:`restore` (a rolled-back step)."""
+        return self._past.copy(), self._times.tolist(), self.count, self.epoch, self.sent_at
+
+    def restore(self, saved: tuple[Any, ...]) -> None:
+        past, times, self.count, self.epoch, self.sent_at = saved
         self._past[:] = past
         self._times[:] = times

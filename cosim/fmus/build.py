@@ -158,7 +158,7 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         complete_fmu(built, guid(name, digest))
         lay_out_resources(built, name, shipped)
         notes = native.install_loader(built, name)  # the FMU's binary: our runtime
-        if notes:  # pythonfmu's binary alone: it takes no input derivatives
+        if not native.loader_in(built):  # pythonfmu's binary alone: no input derivatives
             _declare_no_input_derivatives(built)
         _say_once(notes)
         fmu_docs.add_documentation(built)  # documentation/index.html from the description

@@ -75,7 +75,19 @@ _LOADER = (
     "candidate, with the fix.</li>"
     "<li><b>Fallback.</b> <code>AUV_FMU_RUNTIME=pythonfmu</code> runs pythonfmu's own "
     "library instead (<code>&lt;id&gt;_pythonfmu.so</code>, unchanged; it needs "
-    "glibc&nbsp;2.32); the win64 binary is pythonfmu's (not tested).</li>"
+    "glibc&nbsp;2.32).</li>"
+)
+_WIN64_PYTHONFMU = (
+    "<li><b>Windows.</b> The win64 binary is pythonfmu's (not tested): it runs in the "
+    "CPython whose <code>python3.dll</code> Windows finds (the host's own, or one in a "
+    "folder on PATH), which must import numpy; it looks for no other Python.</li>"
+)
+_WIN64_RUNTIME = (
+    "<li><b>Windows.</b> The win64 binary is the same runtime, cross-compiled "
+    "(<code>&lt;id&gt;_pythonfmu.dll</code> beside it is the fallback): it finds a Python "
+    "as on Linux, with <code>Scripts\\python.exe</code> in a virtual environment's folder "
+    "and <code>python</code> then <code>py -3</code> on PATH. Compiled and checked, but "
+    "not run on Windows.</li>"
 )
 _NO_LOADER = (
     "<li><b>Python.</b> This FMU was built without a C compiler, so its binary is "
@@ -111,12 +123,13 @@ _COMMON = (
 )
 
 
-def hosting(with_loader: bool) -> str:
-    """The "what a host may and may not do" section, for a binary with or without the
-    FMU's runtime."""
+def hosting(with_loader: bool, win64_runtime: bool = False) -> str:
+    """The "what a host may and may not do" section, for a linux64 binary with or without
+    the FMU's runtime, and a win64 binary that is the runtime or pythonfmu's."""
     return (
         "<h2>What a host may and may not do</h2><ul>"
         + (_LOADER if with_loader else _NO_LOADER)
+        + (_WIN64_RUNTIME if win64_runtime else _WIN64_PYTHONFMU)
         + _COMMON
         + "</ul>"
     )
@@ -159,7 +172,7 @@ def documentation_html(fmu: str | os.PathLike[str]) -> str:
             parts.append(f"<h2>{title} ({len(variables)})</h2>")
             parts.append(_table(variables))
     parts += [
-        hosting(_has_loader(fmu)),
+        hosting(_has_loader(fmu), _has_loader(fmu, "win64")),
         "<h2>References</h2><ul>",
         f"<li>{DISSERTATION} Equation and table numbers above refer to it.</li>",
         "<li>Functional Mock-up Interface 2.0 for Model Exchange and Co-Simulation, "
@@ -169,12 +182,14 @@ def documentation_html(fmu: str | os.PathLike[str]) -> str:
     return "\n".join(part for part in parts if part) + "\n"
 
 
-def _has_loader(fmu: str | os.PathLike[str]) -> bool:
-    """True if ``fmu`` is an FMU file whose binary is the FMU's runtime."""
+def _has_loader(fmu: str | os.PathLike[str], platform: str = "linux64") -> bool:
+    """True if ``fmu`` is an FMU file whose ``platform`` binary is the FMU's runtime."""
     if not zipfile.is_zipfile(fmu):
         return False
+    wrapper = f"binaries/{platform}/"
+    suffix = "_pythonfmu.so" if platform == "linux64" else "_pythonfmu.dll"
     with zipfile.ZipFile(fmu) as archive:
-        return any(name.endswith("_pythonfmu.so") for name in archive.namelist())
+        return any(n.startswith(wrapper) and n.endswith(suffix) for n in archive.namelist())
 
 
 def _facts(md: Any) -> str:

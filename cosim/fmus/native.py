@@ -5,8 +5,15 @@ itself and calls the FMU's Python slave directly through the CPython C API, ever
 resolved with ``dlsym`` from the libpython in the process (one binary for every CPython >=
 3.9); it finds and starts a Python when the host has none (``docs/native-loader.md``).
 It becomes ``binaries/linux64/<id>.so``; pythonfmu's library moves beside it, unchanged, as
-``<id>_pythonfmu.so``: the fallback ``AUV_FMU_RUNTIME=pythonfmu`` chooses. The win64
-binary stays pythonfmu's.
+``<id>_pythonfmu.so``: the fallback ``AUV_FMU_RUNTIME=pythonfmu`` chooses.
+
+win64, only when asked (``AUV_FMU_WIN64=1`` at build time) and the ``ziglang`` package is
+installed: the same runtime cross-compiled with ``zig cc -target x86_64-windows-gnu``
+(``platform_win32.c`` in place of ``platform_posix.c``) becomes ``binaries/win64/<id>.dll``,
+pythonfmu's DLL beside it as ``<id>_pythonfmu.dll``. zig's first cross-compile on a machine
+takes about two minutes (it builds its MinGW libraries once), which a first ``auv-cosim
+run`` should not pay; and the DLL was compiled and checked here, never run on Windows.
+Without the flag the win64 binary stays pythonfmu's.
 
 The compiler: the system's ``cc`` when there is one (``-Wall -Wextra``; the runtime pins
 the few glibc symbols newer than 2.17 to their old versions itself, ``glibc_floor.h``),
@@ -25,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import os
 import shutil
 import subprocess
 import sys
@@ -37,7 +45,7 @@ from xml.etree import ElementTree as ET
 import fmu_runtime
 
 SOURCE_DIR = Path(fmu_runtime.__file__).resolve().parent / "native"  # package data
-SOURCES = (
+SOURCES = (  # every platform's
     "loader.c",
     "values.c",
     "runtime.c",
@@ -47,10 +55,13 @@ SOURCES = (
     "slave_values.c",
     "forward.c",
 )
-HEADERS = ("loader.h", "probe.h", "python.h", "slave.h", "glibc_floor.h")
+PLATFORM_SOURCES = {"linux64": "platform_posix.c", "win64": "platform_win32.c"}
+SUFFIXES = {"linux64": ".so", "win64": ".dll"}
+HEADERS = ("loader.h", "probe.h", "python.h", "slave.h", "glibc_floor.h", "platform.h")
 VARIABLES_FILE = "fmu_variables.txt"
 OVERRIDE_VARIABLE = "AUV_FMU_PYTHON"  # the runtime's own name for it is in loader.h
 RUNTIME_VARIABLE = "AUV_FMU_RUNTIME"  # "pythonfmu": the fallback
+WIN64_VARIABLE = "AUV_FMU_WIN64"  # "1": cross-compile the win64 runtime too (zig)
 WRAPPER_SUFFIX = "_pythonfmu"
 GLIBC_FLOOR = "2.17"
 NO_COMPILER = (
@@ -65,6 +76,9 @@ _FLAGS = ("-shared", "-O2", "-std=c11", "-fvisibility=hidden", "-fPIC", *WARNING
 _LIBS = ("-Wl,--no-as-needed", "-l:libdl.so.2", "-l:libpthread.so.0", "-Wl,-z,nodelete")
 _ZIG_LIBS = ("-ldl", "-lpthread", "-Wl,-z,nodelete")
 _ZIG_TARGET = f"x86_64-linux-gnu.{GLIBC_FLOOR}"
+# win64: __declspec(dllexport) decides what the DLL exports; UCRT and KERNEL32 only
+_WIN64_FLAGS = ("-shared", "-O2", "-std=c11", *WARNINGS)
+_WIN64_TARGET = "x86_64-windows-gnu"
 
 
 @dataclass(frozen=True)
@@ -86,32 +100,53 @@ def toolchain() -> Toolchain | None:
     return None
 
 
+def zig() -> Toolchain | None:
+    """ziglang's ``zig cc`` (the win64 cross-compiler), or None."""
+    if importlib.util.find_spec("ziglang") is None:
+        return None
+    return Toolchain("zig", (sys.executable, "-m", "ziglang", "cc"), zig=True)
+
+
+def win64_wanted() -> bool:
+    """Whether the build cross-compiles the win64 runtime too (``AUV_FMU_WIN64=1``)."""
+    return os.environ.get(WIN64_VARIABLE) == "1"
+
+
 def source_digest() -> str:
     """SHA-256 of the runtime's C sources and headers (part of the FMUs' rebuild key),
-    which compiler would build it (an FMU built without one is rebuilt once there is) and
-    the Python the FMUs record as their build's."""
+    which compiler would build it (an FMU built without one is rebuilt once there is),
+    whether a win64 runtime is wanted and can be built, and the Python the FMUs record as
+    their build's."""
     digest = hashlib.sha256()
     chain = toolchain()
     digest.update(f"compiler {chain.name if chain else 'none'}\n".encode())
-    for name in (*SOURCES, *HEADERS):
+    digest.update(f"win64 {win64_wanted() and zig() is not None}\n".encode())
+    for name in (*SOURCES, *PLATFORM_SOURCES.values(), *HEADERS):
         digest.update(f"{name}\n".encode() + (SOURCE_DIR / name).read_bytes())
     digest.update(f"build_python {sys.executable}\n".encode())
     return digest.hexdigest()
 
 
-def compile_command(chain: Toolchain, out: Path, *extra: str) -> list[str]:
-    """The command that compiles the runtime into ``out`` (``extra`` flags appended, as the
-    tests' ``-Werror``)."""
+def compile_command(
+    chain: Toolchain, out: Path, *extra: str, platform: str = "linux64"
+) -> list[str]:
+    """The command that compiles the runtime for ``platform`` (``linux64``, or ``win64``
+    with zig) into ``out`` (``extra`` flags appended, as the tests' ``-Werror``)."""
+    sources = [str(SOURCE_DIR / s) for s in (*SOURCES, PLATFORM_SOURCES[platform])]
+    if platform == "win64":
+        return [*chain.command, "-target", _WIN64_TARGET, *_WIN64_FLAGS, *extra, "-o", str(out),
+                *sources]  # fmt: skip
     command = [*chain.command, *_FLAGS, *extra]
     if chain.zig:
         command += ["-target", _ZIG_TARGET, "-DAUV_GLIBC_TARGET"]
-    sources = (str(SOURCE_DIR / s) for s in SOURCES)
     return [*command, "-o", str(out), *sources, *(_ZIG_LIBS if chain.zig else _LIBS)]
 
 
-def compile_runtime(chain: Toolchain, out: Path) -> str | None:
-    """Compile the runtime into ``out``; None if it worked, else the compiler's last line."""
-    done = subprocess.run(compile_command(chain, out), capture_output=True, text=True, check=False)
+def compile_runtime(chain: Toolchain, out: Path, platform: str = "linux64") -> str | None:
+    """Compile the runtime for ``platform`` into ``out``; None if it worked, else the
+    compiler's last line."""
+    command = compile_command(chain, out, platform=platform)
+    done = subprocess.run(command, capture_output=True, text=True, check=False)
     if done.returncode == 0 and out.is_file():
         return None
     lines = (done.stderr or done.stdout or f"exit code {done.returncode}").strip().splitlines()
@@ -152,45 +187,60 @@ def _number(start: str | None) -> str:
 
 def install_loader(fmu: Path, name: str) -> list[str]:
     """Make the runtime the linux64 binary of the built ``fmu`` (model identifier ``name``),
-    in place, pythonfmu's renamed beside it; return what it could not do, one line each
-    (empty: the runtime is in)."""
+    and the win64 one when asked (:func:`win64_wanted`), in place, pythonfmu's renamed
+    beside each; return what it could not do, one line each (empty: all is in;
+    :func:`loader_in` tells whether the linux64 runtime is)."""
     chain = toolchain()
     if chain is None:
         return [NO_COMPILER]
-    built = _compiled(chain)
+    built = _compiled(chain, "linux64")
     if isinstance(built, str):
         return [f"the FMUs keep pythonfmu's binary: the runtime did not compile ({built})"]
-    _rewrite(fmu, name, built)
-    return []
+    runtimes, notes = {"linux64": built}, []
+    if win64_wanted():
+        cross = zig()
+        win64 = (
+            _compiled(cross, "win64")
+            if cross
+            else 'no ziglang package: pip install "auv-cosim[zig]"'
+        )
+        if isinstance(win64, bytes):
+            runtimes["win64"] = win64
+        else:
+            notes.append(f"{WIN64_VARIABLE}=1, but the win64 binary stays pythonfmu's: {win64}")
+    _rewrite(fmu, name, runtimes)
+    return notes
 
 
-# Process-wide: (compiler, sources digest) -> the library's bytes or the compiler's
-# complaint; the three FMUs of a build share one compilation.
-_COMPILED: dict[tuple[str, str], bytes | str] = {}
+# Process-wide: (compiler, platform, sources digest) -> the library's bytes or the
+# compiler's complaint; the three FMUs of a build share one compilation per platform.
+_COMPILED: dict[tuple[str, str, str], bytes | str] = {}
 
 
-def _compiled(chain: Toolchain) -> bytes | str:
-    key = (chain.name, source_digest())
+def _compiled(chain: Toolchain, platform: str) -> bytes | str:
+    key = (chain.name, platform, source_digest())
     if key not in _COMPILED:
         with tempfile.TemporaryDirectory(prefix="runtime_") as tmp:
-            out = Path(tmp) / "runtime.so"
-            problem = compile_runtime(chain, out)
+            out = Path(tmp) / f"runtime{SUFFIXES[platform]}"
+            problem = compile_runtime(chain, out, platform)
             _COMPILED[key] = out.read_bytes() if problem is None else problem
     return _COMPILED[key]
 
 
-def _rewrite(fmu: Path, name: str, runtime: bytes) -> None:
+def _rewrite(fmu: Path, name: str, runtimes: dict[str, bytes]) -> None:
+    """Each platform's runtime as its binary, pythonfmu's renamed beside it."""
     with zipfile.ZipFile(fmu) as archive:
         entries = [(info, archive.read(info)) for info in archive.infolist()]
-    binary = f"binaries/linux64/{name}.so"
+    binaries = {f"binaries/{p}/{name}{SUFFIXES[p]}": p for p in runtimes}
     partial = fmu.with_name(f".{fmu.name}.runtime.tmp")
     try:
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
             for info, data in entries:
-                if info.filename == binary:
-                    wrapper = f"binaries/linux64/{name}{WRAPPER_SUFFIX}.so"
+                platform = binaries.get(info.filename)
+                if platform is not None:
+                    wrapper = f"binaries/{platform}/{name}{WRAPPER_SUFFIX}{SUFFIXES[platform]}"
                     archive.writestr(_renamed(info, wrapper), data)
-                    archive.writestr(_renamed(info, binary), runtime)
+                    archive.writestr(_renamed(info, info.filename), runtimes[platform])
                 else:
                     archive.writestr(info, data)
         partial.replace(fmu)
@@ -205,7 +255,11 @@ def _renamed(info: zipfile.ZipInfo, name: str) -> zipfile.ZipInfo:
     return copy
 
 
-def loader_in(fmu: Path) -> bool:
-    """True if the FMU's linux64 binary is the runtime (pythonfmu's is beside it)."""
+def loader_in(fmu: Path, platform: str = "linux64") -> bool:
+    """True if the FMU's ``platform`` binary is the runtime (pythonfmu's is beside it)."""
+    wrapper = f"binaries/{platform}/"
     with zipfile.ZipFile(fmu) as archive:
-        return any(n.endswith(f"{WRAPPER_SUFFIX}.so") for n in archive.namelist())
+        return any(
+            n.startswith(wrapper) and n.endswith(f"{WRAPPER_SUFFIX}{SUFFIXES[platform]}")
+            for n in archive.namelist()
+        )

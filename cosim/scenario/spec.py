@@ -60,6 +60,7 @@ FILE_SUFFIXES = (".toml",)  # a String start value ending so names a file (vehic
 StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
 Algorithm = Literal["jacobi", "gauss-seidel", "adaptive"]
 Extrapolation = Literal["none", "linear", "quadratic"]
+ErrorEstimate = Literal["extrapolation", "doubling"]  # adaptive: cosim.engine.adaptive
 # What a scenario's exchanged values do across a step when it says nothing: extrapolated
 # (second order) unless the file names its algorithm as "jacobi" or "gauss-seidel", which
 # keeps the held values of the files written before extrapolation existed.
@@ -67,6 +68,7 @@ DEFAULT_EXTRAPOLATION: Extrapolation = "quadratic"
 EXTRAPOLATION_ORDER: Mapping[str, int] = {"none": 0, "linear": 1, "quadratic": 2}
 DEFAULT_TOLERANCE = 1e-3  # adaptive: the error a step may make, relative (docs/coupling.md)
 DEFAULT_MAX_STEPS = 64  # adaptive: the longest step in communication steps, by default
+DEFAULT_ERROR_ESTIMATE: ErrorEstimate = "extrapolation"  # adaptive (docs/coupling.md)
 _NAME = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
 _PLAIN_NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"  # a scenario id: a safe folder name
 # A stop time within this fraction of a step of a whole number of steps counts as whole.
@@ -90,6 +92,7 @@ class CouplingSpec(Strict):
     max_step: float | None = Field(
         default=None, gt=0.0, allow_inf_nan=False, description="adaptive: longest step, s"
     )
+    error_estimate: ErrorEstimate | None = Field(default=None, description="adaptive")
 
 
 class InstanceSpec(Strict):
@@ -168,6 +171,7 @@ class Coupling:
     extrapolation: Extrapolation = "none"  # exchanged Real values across a step
     tolerance: float | None = None  # adaptive: relative error a step may make
     max_step: float | None = None  # adaptive: the longest step, s
+    error_estimate: ErrorEstimate | None = None  # adaptive: how a step's error is estimated
 
     @property
     def extrapolation_order(self) -> int:
@@ -262,6 +266,7 @@ class Scenario:
         algorithm: str | None = None,
         extrapolation: str | None = None,
         tolerance: float | None = None,
+        error_estimate: str | None = None,
     ) -> Scenario:
         """A re-validated copy with the command line's overrides applied.
 
@@ -273,7 +278,7 @@ class Scenario:
         """
         coupling: dict[str, Any] = {}
         given = {"step": step, "algorithm": algorithm, "extrapolation": extrapolation,
-                 "tolerance": tolerance}  # fmt: skip
+                 "tolerance": tolerance, "error_estimate": error_estimate}  # fmt: skip
         coupling.update({key: value for key, value in given.items() if value is not None})
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
         if "algorithm" not in self.spec.coupling.model_fields_set:
@@ -362,7 +367,8 @@ def _coupling_table(coupling: Coupling) -> dict[str, Any]:
         "extrapolation": coupling.extrapolation,
     }
     if coupling.algorithm == "adaptive":
-        table.update(tolerance=coupling.tolerance, max_step=coupling.max_step)
+        table.update(tolerance=coupling.tolerance, max_step=coupling.max_step,
+                     error_estimate=coupling.error_estimate)  # fmt: skip
     return table
 
 
@@ -678,7 +684,7 @@ def _resolve_coupling(
             raise src.error(f"coupling.step_multiples.{name}", f"no instance {name!r} in {names}")
     multiples = {name: c.step_multiples.get(name, 1) for name in names}
     adaptive = c.algorithm == "adaptive"
-    for key in ("tolerance", "max_step"):
+    for key in ("tolerance", "max_step", "error_estimate"):
         if getattr(c, key) is not None and not adaptive:
             raise src.error(f"coupling.{key}", f"applies to algorithm = 'adaptive' only, "
                             f"not {c.algorithm!r}")  # fmt: skip
@@ -696,6 +702,7 @@ def _resolve_coupling(
         extrapolation=extrapolation,
         tolerance=(c.tolerance or DEFAULT_TOLERANCE) if adaptive else None,
         max_step=(c.max_step or DEFAULT_MAX_STEPS * c.step) if adaptive else None,
+        error_estimate=(c.error_estimate or DEFAULT_ERROR_ESTIMATE) if adaptive else None,
     )
     _check_step_sizes(spec, coupling, instances, src)
     return coupling

@@ -1,7 +1,8 @@
 /* The fallback backend (AUV_FMU_RUNTIME=pythonfmu): pythonfmu's own binary, shipped
- * unchanged beside this library as <model identifier>_pythonfmu.so, with every call
- * forwarded to it once the FMI rules are checked (loader.c) and Python started
- * (runtime.c). pythonfmu's binary needs glibc 2.32.
+ * unchanged beside this library as <model identifier>_pythonfmu.so (.dll on Windows), with
+ * every call forwarded to it once the FMI rules are checked (loader.c) and Python started
+ * (runtime.c). pythonfmu's linux64 binary needs glibc 2.32; its win64 one imports
+ * python3.dll and the MSVC++ runtime (MSVCP140.dll).
  *
  * It hands pythonfmu a logger of its own, which passes every message to the host's (a
  * NULL category replaced: some hosts crash on one) and feeds the call's worst status.
@@ -21,14 +22,11 @@
  * ``finalizePythonInterpreter`` is registered as an exit handler, which runs first (exit
  * handlers run last-registered first) while the guard is alive and leaves nothing for the
  * two later releases (fmu_runtime/exit_guard.py does the same from Python for a wrapper
- * loaded without this runtime).
+ * loaded without this runtime). On Windows nothing is registered: not checked there.
  */
-#define _GNU_SOURCE
 #include "loader.h"
 #include "python.h"
 
-#include <dlfcn.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -70,9 +68,6 @@ typedef struct {
 
 static Wrapper wrapper;
 static int wrapper_loaded;
-static pthread_mutex_t wrapper_lock = PTHREAD_MUTEX_INITIALIZER;
-
-extern int __cxa_atexit(void (*)(void *), void *, void *);
 
 #define ENTRY(field, name) {name, (void **)&wrapper.field}
 
@@ -103,31 +98,33 @@ static int resolve(void *library)
         ENTRY(doStep, "fmi2DoStep"),
     };
     for (size_t i = 0; i < sizeof entries / sizeof entries[0]; i++) {
-        *entries[i].slot = dlsym(library, entries[i].name);
+        *entries[i].slot = platform_library_symbol(library, entries[i].name);
         if (!*entries[i].slot) return 0;
     }
     return 1;
 }
 
-/* pythonfmu's library: this library's own file name with "_pythonfmu" before ".so". */
+/* pythonfmu's library: this library's own file name with "_pythonfmu" before its
+ * suffix (".so", ".dll"). */
 static int load_wrapper(Instance *c)
 {
     char path[PATH_SIZE];
-    if (!own_path(path, sizeof path - 16) || !strstr(path, ".so")) {
+    if (!own_path(path, sizeof path - 16) || !strstr(path, LIBRARY_SUFFIX)) {
         refuse(c, "fmi2Instantiate: the runtime cannot find its own file");
         return 0;
     }
     char *dot = strrchr(path, '.');
-    snprintf(dot, 16, "_pythonfmu.so");
-    void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    snprintf(dot, 16, "_pythonfmu%s", LIBRARY_SUFFIX);
+    void *library = platform_open_wrapper(path);
     if (!library) {
-        const char *error = dlerror();
-        refuse(c, "fmi2Instantiate: cannot load pythonfmu's library %s (%s)", path,
-               error ? error : "");
+        char error[LINE_SIZE / 2];
+        platform_library_error(error, sizeof error);
+        refuse(c, "fmi2Instantiate: cannot load pythonfmu's library %s (%s)", path, error);
         return 0;
     }
-    void (*finalize)(void *) = (void (*)(void *))dlsym(library, "finalizePythonInterpreter");
-    if (finalize) __cxa_atexit(finalize, NULL, NULL);
+    void (*finalize)(void *) =
+        (void (*)(void *))platform_library_symbol(library, "finalizePythonInterpreter");
+    if (finalize) platform_exit_handler(finalize);
     if (!resolve(library)) {
         refuse(c, "fmi2Instantiate: %s is not an FMI 2.0 co-simulation library", path);
         return 0;
@@ -176,9 +173,9 @@ static PyObject *claim_slave(Instance *c)
 
 static int start(Instance *c)
 {
-    pthread_mutex_lock(&wrapper_lock);
+    platform_lock(LOCK_WRAPPER);
     wrapper_loaded = wrapper_loaded || load_wrapper(c);
-    pthread_mutex_unlock(&wrapper_lock);
+    platform_unlock(LOCK_WRAPPER);
     if (!wrapper_loaded) return 0;
     Forwarded *forwarded = calloc(1, sizeof *forwarded);
     if (!forwarded) return 0;

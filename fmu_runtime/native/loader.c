@@ -175,8 +175,8 @@ static int number_slots(Instance *c)
 static int read_variables(Instance *c)
 {
     char path[PATH_SIZE + 32], line[512];
-    snprintf(path, sizeof path, "%s/%s", c->resources, VARIABLES_FILE);
-    FILE *in = fopen(path, "r");
+    snprintf(path, sizeof path, "%s%s%s", c->resources, PATH_SEPARATOR, VARIABLES_FILE);
+    FILE *in = platform_fopen(path, "r");
     if (!in) return 0;
     while (fgets(line, sizeof line, in)) {
         unsigned vr;
@@ -207,8 +207,8 @@ static int read_variables(Instance *c)
 static int read_record(const char *resources, Record *r)
 {
     char path[PATH_SIZE + 32], line[PATH_SIZE + 64];
-    snprintf(path, sizeof path, "%s/%s", resources, RECORD_FILE);
-    FILE *in = fopen(path, "r");
+    snprintf(path, sizeof path, "%s%s%s", resources, PATH_SEPARATOR, RECORD_FILE);
+    FILE *in = platform_fopen(path, "r");
     if (!in) return 0;
     memset(r, 0, sizeof *r);
     while (fgets(line, sizeof line, in)) {
@@ -367,10 +367,12 @@ static void reset_values(Instance *c)
 
 /* ---- instantiate / free ------------------------------------------------------------- */
 
-/* A file:// URI (or a plain path) as a path, %XX decoded. */
+/* A file:// URI (or a plain path) as a path, %XX decoded (a local path on Windows:
+ * platform_local_path). */
 static void uri_to_path(const char *uri, char *out, size_t n)
 {
     const char *p = uri;
+    int authority = !strncmp(p, "file://", 7) && p[7] != '/'; /* file://host/... */
     if (!strncmp(p, "file://", 7)) p += 7;
     else if (!strncmp(p, "file:", 5)) p += 5;
     size_t j = 0;
@@ -385,6 +387,7 @@ static void uri_to_path(const char *uri, char *out, size_t n)
     }
     out[j] = '\0';
     while (j > 1 && out[j - 1] == '/') out[--j] = '\0';
+    platform_local_path(out, n, authority);
 }
 
 /* Why this instantiation cannot go on (into ``why``), or 0; fills the instance's paths,
@@ -392,14 +395,15 @@ static void uri_to_path(const char *uri, char *out, size_t n)
 static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
                                  fmi2String resources, char *why, size_t n)
 {
-    const char *runtime = getenv(RUNTIME_VARIABLE);
+    char value[NAME_SIZE];
+    const char *runtime = platform_getenv(RUNTIME_VARIABLE, value, sizeof value);
     if (type != fmi2CoSimulation) return snprintf(why, n, "the FMU supports co-simulation only");
     if (!resources || !resources[0]) return snprintf(why, n, "fmuResourceLocation is empty");
     snprintf(c->resources_uri, sizeof c->resources_uri, "%s", resources);
     uri_to_path(resources, c->resources, sizeof c->resources);
     if (!read_record(c->resources, &c->record)) {
-        return snprintf(why, n, "%s/%s is missing or incomplete (not this FMU's extraction?)",
-                        c->resources, RECORD_FILE);
+        return snprintf(why, n, "%s%s%s is missing or incomplete (not this FMU's extraction?)",
+                        c->resources, PATH_SEPARATOR, RECORD_FILE);
     }
     if (!guid) return snprintf(why, n, "the GUID is NULL, expected %s", c->record.guid);
     if (strcmp(guid, c->record.guid)) {
@@ -409,7 +413,8 @@ static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
                         guid, c->record.guid);
     }
     if (!read_variables(c)) {
-        return snprintf(why, n, "%s/%s is missing", c->resources, VARIABLES_FILE);
+        return snprintf(why, n, "%s%s%s is missing", c->resources, PATH_SEPARATOR,
+                        VARIABLES_FILE);
     }
     if (!runtime || !runtime[0] || !strcmp(runtime, "native")) {
         c->backend = &python_backend;

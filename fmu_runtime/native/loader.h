@@ -19,10 +19,15 @@
 #define AUV_FMU_LOADER_H
 
 #include "glibc_floor.h"
+#include "platform.h"
 
 #include <stddef.h>
 
+#ifdef _WIN32
+#define FMI2_EXPORT __declspec(dllexport) /* then nothing else is exported */
+#else
 #define FMI2_EXPORT __attribute__((visibility("default")))
+#endif
 
 typedef void *fmi2Component;
 typedef void *fmi2ComponentEnvironment;
@@ -206,9 +211,5 @@ void values_free_strings(Values *v);
 /* runtime.c: an initialised CPython >= 3.9 that imports numpy in this process (started
  * once per process if none runs), or 0 after one Error line per candidate passed over. */
 int runtime_python(Instance *c);
-
-/* runtime.c: the file of this runtime library, and whether ``path`` names something. */
-int own_path(char *out, size_t size);
-int path_exists(const char *path);
 
 #endif

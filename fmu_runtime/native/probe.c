@@ -6,22 +6,11 @@
  * The script is valid Python 2 and 3, so that an old `python` on PATH still says which
  * version it is; paths travel hex-encoded (any byte, any newline).
  */
-#define _GNU_SOURCE
 #include "probe.h"
 
-#include <errno.h>
-#include <fcntl.h>
-#include <poll.h>
-#include <signal.h>
-#include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
-#include <time.h>
-#include <unistd.h>
-
-extern char **environ;
 
 static const char SCRIPT[] =
     "import sys\n"
@@ -42,6 +31,18 @@ static const char SCRIPT[] =
     "    for n in (v('INSTSONAME'), v('LDLIBRARY')):\n"
     "        if not found and d and n and '.so' in n and os.path.isfile(os.path.join(d, n)):\n"
     "            found = os.path.join(d, n)\n"
+    "if os.name == 'nt':\n" /* the DLL this interpreter runs in, else the usual one */
+    "    try:\n"
+    "        import ctypes\n"
+    "        b = ctypes.create_unicode_buffer(32768)\n"
+    "        k = ctypes.windll.kernel32\n"
+    "        if k.GetModuleFileNameW(ctypes.c_void_p(sys.dllhandle), b, 32768):\n"
+    "            found = b.value\n"
+    "    except Exception:\n"
+    "        pass\n"
+    "    n = os.path.join(sys.base_prefix, 'python%d%d.dll' % sys.version_info[:2])\n"
+    "    if not found and os.path.isfile(n):\n"
+    "        found = n\n"
     "w('libpython', h(found))\n"
     "w('base_prefix', h(getattr(sys, 'base_prefix', sys.prefix)))\n"
     "w('stdlib', h(sysconfig.get_path('stdlib')))\n"
@@ -61,65 +62,6 @@ static const char SCRIPT[] =
 
 #define OUT_LIMIT (1 << 20)
 #define ERR_LIMIT (1 << 14)
-
-typedef struct {
-    char *data;
-    size_t size, limit;
-} Buffer;
-
-/* The host's environment without PYTHONHOME (a pointer array; the strings are shared). */
-static char **child_environment(void)
-{
-    size_t n = 0;
-    while (environ && environ[n]) n++;
-    char **copy = calloc(n + 1, sizeof *copy);
-    if (!copy) return NULL;
-    size_t j = 0;
-    for (size_t i = 0; i < n; i++) {
-        if (strncmp(environ[i], "PYTHONHOME=", 11)) copy[j++] = environ[i];
-    }
-    return copy;
-}
-
-static void append(Buffer *b, const char *data, size_t n)
-{
-    if (b->size + n > b->limit) n = b->limit - b->size;
-    memcpy(b->data + b->size, data, n);
-    b->size += n;
-}
-
-static double now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-/* Read both pipes to their end or the deadline; 1 if both ended. */
-static int drain(int out, int err, Buffer *stdout_text, Buffer *stderr_text)
-{
-    struct pollfd fds[2] = {{out, POLLIN, 0}, {err, POLLIN, 0}};
-    Buffer *into[2] = {stdout_text, stderr_text};
-    double deadline = now() + PROBE_TIMEOUT_S;
-    char chunk[4096];
-    while (fds[0].fd >= 0 || fds[1].fd >= 0) {
-        int left = (int)((deadline - now()) * 1000.0);
-        if (left <= 0) return 0;
-        int ready = poll(fds, 2, left);
-        if (ready < 0 && errno == EINTR) continue;
-        if (ready <= 0) return 0;
-        for (int i = 0; i < 2; i++) {
-            if (fds[i].fd < 0 || !fds[i].revents) continue;
-            ssize_t got = read(fds[i].fd, chunk, sizeof chunk);
-            if (got > 0) {
-                append(into[i], chunk, (size_t)got);
-            } else if (got == 0 || errno != EINTR) {
-                fds[i].fd = -1;
-            }
-        }
-    }
-    return 1;
-}
 
 static int hex_value(char c)
 {
@@ -198,67 +140,52 @@ static const char *last_line(Buffer *b)
     return line ? line + 1 : b->data;
 }
 
-/* Why a child that did not answer failed, from its wait status. */
-static void explain(Answer *a, int finished, int waited, int status, Buffer *err)
+/* An exit status as a number (in hex when it is a Windows NTSTATUS such as 0xc0000005). */
+static void exit_status(unsigned long code, char *out, size_t size)
+{
+    if (code > 255) snprintf(out, size, "0x%lx", code);
+    else snprintf(out, size, "%lu", code);
+}
+
+/* Why a child that did not answer failed, from how it ended. */
+static void explain(Answer *a, const Ran *ran, Buffer *err)
 {
     const char *said = last_line(err);
     const char *sep = said[0] ? ": " : "";
-    if (!finished) {
+    char status[32];
+    exit_status(ran->code, status, sizeof status);
+    if (ran->ending == RAN_TIMED_OUT) {
         snprintf(a->failure, sizeof a->failure, "gave no answer within %d s", PROBE_TIMEOUT_S);
-    } else if (waited && WIFSIGNALED(status)) {
-        snprintf(a->failure, sizeof a->failure, "was killed by signal %d%s%s", WTERMSIG(status),
-                 sep, said);
-    } else if (waited && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+    } else if (ran->ending == RAN_KILLED) {
+        snprintf(a->failure, sizeof a->failure, "was killed by signal %lu%s%s", ran->code, sep,
+                 said);
+    } else if (ran->ending == RAN_EXITED && ran->code == 0) {
         snprintf(a->failure, sizeof a->failure, "gave no answer the runtime understands%s%s",
                  sep, said);
-    } else if (waited && WIFEXITED(status)) {
-        snprintf(a->failure, sizeof a->failure, "exited with status %d before answering%s%s",
-                 WEXITSTATUS(status), sep, said);
+    } else if (ran->ending == RAN_EXITED) {
+        snprintf(a->failure, sizeof a->failure, "exited with status %s before answering%s%s",
+                 status, sep, said);
     } else {
         snprintf(a->failure, sizeof a->failure, "did not answer%s%s", sep, said);
     }
 }
 
-static int spawn(const char *executable, int out[2], int err[2], pid_t *pid)
-{
-    char *argv[] = {(char *)executable, (char *)"-c", (char *)SCRIPT, NULL};
-    char **env = child_environment();
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-    posix_spawn_file_actions_adddup2(&actions, out[1], 1);
-    posix_spawn_file_actions_adddup2(&actions, err[1], 2);
-    int failed = env ? posix_spawn(pid, executable, &actions, NULL, argv, env) : ENOMEM;
-    posix_spawn_file_actions_destroy(&actions);
-    free(env);
-    return failed;
-}
-
-void probe(const char *executable, Answer *a)
+void probe(const char *executable, const char *argument, Answer *a)
 {
     memset(a, 0, sizeof *a);
-    int out[2] = {-1, -1}, err[2] = {-1, -1};
+    const char *argv[] = {executable, argument, "-c", SCRIPT, NULL};
+    if (!argument) memmove(&argv[1], &argv[2], 3 * sizeof argv[0]);
     Buffer text = {malloc(OUT_LIMIT + 1), 0, OUT_LIMIT};
     Buffer errors = {malloc(ERR_LIMIT + 1), 0, ERR_LIMIT};
-    pid_t pid = 0;
-    int failed = !text.data || !errors.data ? ENOMEM
-                 : pipe2(out, O_CLOEXEC) || pipe2(err, O_CLOEXEC) ? errno
-                                                                  : spawn(executable, out, err, &pid);
-    if (out[1] >= 0) close(out[1]);
-    if (err[1] >= 0) close(err[1]);
-    if (failed) {
-        snprintf(a->failure, sizeof a->failure, "could not be run (%s)", strerror(failed));
+    Ran ran = {RAN_NOT_STARTED, 0, "out of memory"};
+    if (text.data && errors.data) platform_run(argv, PROBE_TIMEOUT_S, &text, &errors, &ran);
+    if (ran.ending == RAN_NOT_STARTED) {
+        snprintf(a->failure, sizeof a->failure, "could not be run (%s)", ran.error);
     } else {
-        int finished = drain(out[0], err[0], &text, &errors);
-        if (!finished) kill(pid, SIGKILL);
-        int status = 0;
-        int waited = waitpid(pid, &status, 0) == pid; /* not when the host ignores SIGCHLD */
         text.data[text.size] = '\0';
         parse(text.data, a);
-        if (!a->answered) explain(a, finished, waited, status, &errors);
+        if (!a->answered) explain(a, &ran, &errors);
     }
-    if (out[0] >= 0) close(out[0]);
-    if (err[0] >= 0) close(err[0]);
     free(text.data);
     free(errors.data);
 }

@@ -22,9 +22,10 @@ typedef struct {
     int numba;             /* 1 if numba is installed */
 } Answer;
 
-/* Run ``executable -c <probe>`` once (posix_spawn, no shell, stdin from /dev/null, stdout
- * and stderr captured: nothing reaches the host's terminal; PYTHONHOME left out of its
- * environment, since the runtime sets the home itself) and fill ``answer``. */
-void probe(const char *executable, Answer *answer);
+/* Run ``executable [argument] -c <probe>`` once (platform_run: no shell, stdin empty,
+ * stdout and stderr captured: nothing reaches the host's terminal; PYTHONHOME left out of
+ * its environment, since the runtime sets the home itself) and fill ``answer``.
+ * ``argument`` is NULL, or "-3" for Windows' py launcher. */
+void probe(const char *executable, const char *argument, Answer *answer);
 
 #endif

@@ -1,16 +1,16 @@
-/* The CPython C API through dlsym, and the runtime's few Python-side helpers.
+/* The CPython C API through dlsym (GetProcAddress on Windows), and the runtime's few
+ * Python-side helpers.
+ * 
  *
  * Written by hand because no library does it: the runtime must serve whichever CPython
  * the host runs or the runtime finds (3.9 and later), so it cannot link one libpython,
  * and it uses only exported functions (macros and struct layouts differ between
  * versions).
  */
-#define _GNU_SOURCE
 #include "python.h"
 
 #include "loader.h"
 
-#include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -122,15 +122,17 @@ int python_resolve(void *library, const char **missing)
         SYMBOL(Err_Clear, "PyErr_Clear"),
     };
     for (size_t i = 0; i < sizeof symbols / sizeof symbols[0]; i++) {
-        *symbols[i].slot = dlsym(library, symbols[i].name);
+        *symbols[i].slot = platform_library_symbol(library, symbols[i].name);
         if (!*symbols[i].slot) {
             *missing = symbols[i].name;
             return 0;
         }
     }
     /* public from 3.13; the private name before: either tells a shutdown in progress */
-    *(void **)&py.IsFinalizing = dlsym(library, "Py_IsFinalizing");
-    if (!py.IsFinalizing) *(void **)&py.IsFinalizing = dlsym(library, "_Py_IsFinalizing");
+    *(void **)&py.IsFinalizing = platform_library_symbol(library, "Py_IsFinalizing");
+    if (!py.IsFinalizing) {
+        *(void **)&py.IsFinalizing = platform_library_symbol(library, "_Py_IsFinalizing");
+    }
     return 1;
 }
 

@@ -89,8 +89,8 @@ typedef struct {
 
 extern PythonApi py;
 
-/* Resolve every function from ``library`` (a dlopen handle, or RTLD_DEFAULT); 0 and the
- * first missing name in ``missing`` if one is absent. */
+/* Resolve every function from ``library`` (a platform_library_open handle, or one from
+ * platform_loaded_python); 0 and the first missing name in ``missing`` if one is absent. */
 int python_resolve(void *library, const char **missing);
 
 /* 1 when the resolved interpreter is initialised and not shutting down: only then may

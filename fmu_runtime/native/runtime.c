@@ -8,14 +8,15 @@
  *    started libpython itself): used as it is, or refused, never joined by a second
  *    CPython. A libpython loaded but not started admits only a candidate using that file;
  * 2. AUV_FMU_PYTHON: a Python executable, or a virtual environment's folder (its
- *    bin/python3, else bin/python);
+ *    bin/python3, else bin/python; on Windows its Scripts\python.exe);
  * 3. the Python the FMU was built with (resources/fmu_runtime.txt);
- * 4. python3, then python, on PATH.
+ * 4. python3, then python, on PATH (on Windows python, then the launcher's py -3).
  * Each candidate executable is asked once per process, in one subprocess (probe.c): its
  * version, shared libpython, base prefix, standard library, sys.path, numpy and numba. It
  * can run the FMU when it is CPython >= 3.9 with a shared libpython, imports numpy, and
  * its base prefix holds that version's standard library. The runtime then loads its
- * libpython (RTLD_GLOBAL: numpy's extension modules resolve CPython's symbols from it),
+ * libpython (RTLD_GLOBAL: numpy's extension modules resolve CPython's symbols from it;
+ * on Windows python3X.dll, which extension modules import by name),
  * checks that the library is the version the executable said, sets the interpreter's
  * home to the base prefix (Py_SetPythonHome wins over a PYTHONHOME in the host's
  * environment), initialises it without signal handlers, gives it the candidate's
@@ -23,21 +24,15 @@
  * never finalises it: no FMU owns Python.
  * When no candidate can: one Error line per candidate, saying why it was passed over and
  * what would fix it, and fmi2Instantiate returns NULL.
+ * What differs between linux64 and win64 is in platform_posix.c / platform_win32.c.
  */
-#define _GNU_SOURCE /* dladdr, dl_iterate_phdr, RTLD_DEFAULT, RTLD_NOLOAD */
 #include "loader.h"
 #include "probe.h"
 #include "python.h"
 
-#include <dlfcn.h>
-#include <fcntl.h>
-#include <limits.h>
-#include <link.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #define CANDIDATES 5
 #define SHOWN_SIZE (PATH_SIZE + 64)
@@ -45,45 +40,30 @@
 typedef struct {
     char shown[SHOWN_SIZE];      /* how the line names it */
     char executable[PATH_SIZE]; /* "" when there is none; then ``why`` says so */
+    const char *argument;        /* given before the probe's -c (py -3), or NULL */
     char why[LINE_SIZE];         /* why it was passed over */
 } Candidate;
 
 typedef struct Probed {
     char executable[PATH_SIZE];
+    const char *argument;
     Answer answer;
     struct Probed *next;
 } Probed;
 
-static pthread_mutex_t runtime_lock = PTHREAD_MUTEX_INITIALIZER;
 static int ready;       /* Python runs in the process and suits the FMU */
 static Probed *probed;  /* every candidate asked so far (each is asked once) */
 
-int path_exists(const char *path) { return path[0] && access(path, F_OK) == 0; }
-
-static int is_directory(const char *path)
-{
-    int fd = open(path, O_RDONLY | O_DIRECTORY);
-    if (fd < 0) return 0;
-    close(fd);
-    return 1;
-}
-
-int own_path(char *out, size_t size)
-{
-    Dl_info info;
-    if (!dladdr((void *)&runtime_python, &info) || !info.dli_fname) return 0;
-    return snprintf(out, size, "%s", info.dli_fname) < (int)size;
-}
-
-static const Answer *ask(const char *executable)
+static const Answer *ask(const char *executable, const char *argument)
 {
     for (Probed *p = probed; p; p = p->next) {
-        if (!strcmp(p->executable, executable)) return &p->answer;
+        if (!strcmp(p->executable, executable) && p->argument == argument) return &p->answer;
     }
     Probed *p = calloc(1, sizeof *p);
     if (!p) return NULL;
     snprintf(p->executable, sizeof p->executable, "%s", executable);
-    probe(executable, &p->answer);
+    p->argument = argument;
+    probe(executable, argument, &p->answer);
     p->next = probed;
     probed = p;
     return &p->answer;
@@ -91,31 +71,14 @@ static const Answer *ask(const char *executable)
 
 /* ---- a libpython already in the process ---------------------------------------------- */
 
-static int find_libpython(struct dl_phdr_info *info, size_t size, void *data)
-{
-    (void)size;
-    char *found = data;
-    if (info->dlpi_name && strstr(info->dlpi_name, "/libpython")) {
-        snprintf(found, PATH_SIZE, "%s", info->dlpi_name);
-        return 1;
-    }
-    return 0;
-}
-
-/* A CPython in the process: 1 with its file in ``loaded`` and its API resolved, or 0. */
+/* A CPython in the process: 1 with its file in ``loaded`` and its API resolved, or 0
+ * (``loaded`` names a libpython loaded but out of reach, if there is one). */
 static int python_in_process(char *loaded)
 {
-    void *symbol = dlsym(RTLD_DEFAULT, "Py_IsInitialized");
-    Dl_info info;
+    void *library = NULL;
     const char *missing = "";
-    if (symbol && dladdr(symbol, &info) && info.dli_fname) {
-        snprintf(loaded, PATH_SIZE, "%s", info.dli_fname);
-        return python_resolve(RTLD_DEFAULT, &missing);
-    }
-    loaded[0] = '\0';
-    dl_iterate_phdr(find_libpython, loaded); /* loaded with RTLD_LOCAL: not in dlsym's scope */
-    void *library = loaded[0] ? dlopen(loaded, RTLD_NOW | RTLD_NOLOAD) : NULL;
-    return library && python_resolve(library, &missing);
+    return platform_loaded_python(&library, loaded, PATH_SIZE) &&
+           python_resolve(library, &missing);
 }
 
 /* The Python running in this process: "" if it can run the FMU, else why not. */
@@ -149,23 +112,10 @@ static void check_running(const char *loaded, char *why, size_t n)
 
 /* ---- the candidates ------------------------------------------------------------------ */
 
-/* ``name`` on PATH, into ``out``; 0 if not found. */
-static int on_path(const char *name, char *out, size_t size)
-{
-    const char *path = getenv("PATH");
-    while (path && *path) {
-        size_t n = strcspn(path, ":");
-        snprintf(out, size, "%.*s/%s", (int)n, n ? path : ".", name);
-        if (access(out, X_OK) == 0 && !is_directory(out)) return 1;
-        path += n + (path[n] == ':');
-    }
-    out[0] = '\0';
-    return 0;
-}
-
 static void variable_candidate(Candidate *k)
 {
-    const char *named = getenv(PYTHON_VARIABLE);
+    char value[PATH_SIZE];
+    const char *named = platform_getenv(PYTHON_VARIABLE, value, sizeof value);
     if (!named || !named[0]) {
         snprintf(k->shown, sizeof k->shown, "%s", PYTHON_VARIABLE);
         snprintf(k->why, sizeof k->why,
@@ -174,19 +124,23 @@ static void variable_candidate(Candidate *k)
         return;
     }
     snprintf(k->shown, sizeof k->shown, "%s=%s", PYTHON_VARIABLE, named);
-    if (!is_directory(named)) {
+    if (!platform_is_directory(named)) {
         snprintf(k->executable, sizeof k->executable, "%s", named);
         return;
     }
-    const char *names[] = {"bin/python3", "bin/python"};
-    for (int i = 0; i < 2 && !k->executable[0]; i++) {
-        snprintf(k->executable, sizeof k->executable, "%s/%s", named, names[i]);
+    char tried[256] = "";
+    for (int i = 0; VENV_PYTHONS[i] && !k->executable[0]; i++) {
+        snprintf(k->executable, sizeof k->executable, "%s%s%s", named, PATH_SEPARATOR,
+                 VENV_PYTHONS[i]);
         if (!path_exists(k->executable)) k->executable[0] = '\0';
+        size_t used = strlen(tried);
+        snprintf(tried + used, sizeof tried - used, "%s%s", i ? " or " : "", VENV_PYTHONS[i]);
     }
     if (!k->executable[0]) {
         snprintf(k->why, sizeof k->why,
-                 "the folder has no bin/python3 or bin/python (expected a virtual "
-                 "environment's folder or a Python executable)");
+                 "the folder has no %s (expected a virtual environment's folder or a Python "
+                 "executable)",
+                 tried);
     }
 }
 
@@ -202,23 +156,20 @@ static void list_candidates(Instance *c, Candidate k[CANDIDATES])
     if (!c->record.build_python[0]) {
         snprintf(k[2].why, sizeof k[2].why, "not recorded in resources/%s", RECORD_FILE);
     }
-    const char *names[] = {"python3", "python"};
     for (int i = 0; i < 2; i++) {
         Candidate *p = &k[3 + i];
-        snprintf(p->shown, sizeof p->shown, "%s on PATH", names[i]);
-        if (!on_path(names[i], p->executable, sizeof p->executable)) {
+        char name[64];
+        snprintf(name, sizeof name, "%s%s%s", PATH_PYTHONS[i].name,
+                 PATH_PYTHONS[i].argument ? " " : "",
+                 PATH_PYTHONS[i].argument ? PATH_PYTHONS[i].argument : "");
+        p->argument = PATH_PYTHONS[i].argument;
+        snprintf(p->shown, sizeof p->shown, "%s on PATH", name);
+        if (!platform_on_path(PATH_PYTHONS[i].name, p->executable, sizeof p->executable)) {
             snprintf(p->why, sizeof p->why, "not found");
         } else {
-            snprintf(p->shown, sizeof p->shown, "%s on PATH (%s)", names[i], p->executable);
+            snprintf(p->shown, sizeof p->shown, "%s on PATH (%s)", name, p->executable);
         }
     }
-}
-
-/* 1 if two paths name one file. */
-static int same_file(const char *a, const char *b)
-{
-    char ra[PATH_MAX], rb[PATH_MAX];
-    return realpath(a, ra) && realpath(b, rb) && !strcmp(ra, rb);
 }
 
 /* Why the asked candidate cannot run the FMU (into ``why``), or 0 if it can. */
@@ -245,12 +196,12 @@ static int unsuitable(const Answer *a, const char *loaded, char *why, size_t n)
                         a->major, a->minor, a->micro, a->numpy_error, a->executable);
     }
     char os_py[PATH_SIZE + 16];
-    snprintf(os_py, sizeof os_py, "%s/os.py", a->stdlib);
+    snprintf(os_py, sizeof os_py, "%s%sos.py", a->stdlib, PATH_SEPARATOR);
     if (strncmp(a->stdlib, a->base_prefix, strlen(a->base_prefix)) || !path_exists(os_py)) {
         return snprintf(why, n, "its base prefix %s holds no standard library (no %s)",
                         a->base_prefix, os_py);
     }
-    if (loaded[0] && !same_file(a->libpython, loaded)) {
+    if (loaded[0] && !platform_same_file(a->libpython, loaded)) {
         return snprintf(why, n,
                         "uses %s, but %s is already loaded in this process (never two "
                         "CPythons in one process)",
@@ -291,12 +242,13 @@ static int configure(const Answer *a, char *why, size_t n)
 /* Load the candidate's libpython, check it, initialise it; 1, or 0 with ``why``. */
 static int start(const Answer *a, char *why, size_t n)
 {
-    void *library = dlopen(a->libpython, RTLD_NOW | RTLD_LOCAL);
+    void *library = platform_library_open(a->libpython, 0);
     const char *missing = "";
     int major = 0, minor = 0;
     if (!library) {
-        const char *error = dlerror();
-        snprintf(why, n, "cannot load its libpython %s (%s)", a->libpython, error ? error : "");
+        char error[LINE_SIZE / 2];
+        platform_library_error(error, sizeof error);
+        snprintf(why, n, "cannot load its libpython %s (%s)", a->libpython, error);
         return 0;
     }
     if (!python_resolve(library, &missing)) {
@@ -306,7 +258,7 @@ static int start(const Answer *a, char *why, size_t n)
         snprintf(why, n, "its libpython %s is Python %d.%d, not %d.%d", a->libpython, major,
                  minor, a->major, a->minor);
     } else if (!py.IsInitialized()) {
-        dlopen(a->libpython, RTLD_NOW | RTLD_GLOBAL | RTLD_NOLOAD); /* for extensions */
+        platform_library_open(a->libpython, 1); /* loaded already: now for extensions too */
         wchar_t *home = py.DecodeLocale(a->base_prefix, NULL);
         py.SetPythonHome(home); /* copies it (3.8 and later) */
         if (home) py.RawFree(home);
@@ -318,7 +270,7 @@ static int start(const Answer *a, char *why, size_t n)
         return 1; /* started meanwhile by another copy of this runtime, from this library */
     }
     memset(&py, 0, sizeof py);
-    dlclose(library);
+    platform_library_close(library);
     return 0;
 }
 
@@ -367,7 +319,8 @@ static int find_and_start(Instance *c)
     }
     for (int i = 1; i < CANDIDATES; i++) {
         if (k[i].why[0]) continue;
-        const Answer *a = path_exists(k[i].executable) ? ask(k[i].executable) : NULL;
+        const Answer *a =
+            path_exists(k[i].executable) ? ask(k[i].executable, k[i].argument) : NULL;
         if (!path_exists(k[i].executable)) {
             snprintf(k[i].why, sizeof k[i].why, "%s",
                      i == 2 ? "does not exist (the FMU was built in an environment that is not "
@@ -400,9 +353,9 @@ static int find_and_start(Instance *c)
 
 int runtime_python(Instance *c)
 {
-    pthread_mutex_lock(&runtime_lock);
+    platform_lock(LOCK_RUNTIME);
     int ok = (ready && python_alive()) || find_and_start(c);
     ready = ok;
-    pthread_mutex_unlock(&runtime_lock);
+    platform_unlock(LOCK_RUNTIME);
     return ok;
 }

@@ -25,7 +25,7 @@ from repo_paths import ROOT
 
 from cosim.fmus.build import FMUS
 
-# One run of each FMU alone, its start values with one of them varied (the loop
+# One run of each FMU alone, its start values with one of them varied (the reported loop
 # for the plant; for the autopilot an LQR design, which reads the vehicle data too).
 CASES = {
     "AuvPlant": {

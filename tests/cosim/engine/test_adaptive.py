@@ -19,9 +19,14 @@ from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import scenario_from_toml
 
 
-def adaptive(tolerance: float, extra: str = "", multiple: int = 1) -> str:
+def adaptive(
+    tolerance: float, extra: str = "", multiple: int = 1, estimate: str = "doubling"
+) -> str:
     text = loop_toml(algorithm="adaptive", stop_time=2.0, controller_multiple=multiple)
-    return text.replace("[coupling]", f"{extra}\n[coupling]\ntolerance = {tolerance}")
+    return text.replace(
+        "[coupling]",
+        f'{extra}\n[coupling]\ntolerance = {tolerance}\nerror_estimate = "{estimate}"',
+    )
 
 
 def run(test_fmu_dir: Path, text: str) -> master.RunResult:

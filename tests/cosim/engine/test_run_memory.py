@@ -1,7 +1,7 @@
 """A run's memory does not grow with its stop time (a regression: vert-2 --stop-time 3600 took
 250 MB while stepping and 1.21 GB while writing its results.csv).
 
-scripts/bench_memory.py measures the issue's pair (vert-2 at 3600 s against 60 s, with the
+scripts/bench_memory.py measures the reported pair (vert-2 at 3600 s against 60 s, with the
 recording: within 50 MB); here a shorter pair, the recording left out (rerun's file footer
 index grows slowly with every send, see cosim/viz/recording.py), with the same bound in
 proportion: 50 MB per 3540 s of stop time."""

@@ -31,6 +31,7 @@ from cosim.viz.recording import rerun_executable
 from plant_fmu.model import compiled
 
 H = 0.01  # s, bs-3's communication step
+LONG = "6000"  # s of bs-3: a run still stepping when the test signals it (~30 s of wall clock)
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +137,7 @@ def test_sigkill_leaves_whole_rows_of_the_uninterrupted_run(fmu_dir: Path, tmp_p
     for i, moment in enumerate(moments):
         out = tmp_path / f"kill{i}"
         started = time.monotonic()
-        proc = start(fmu_dir, out, "--stop-time", "600")
+        proc = start(fmu_dir, out, "--stop-time", LONG)
         wait_for_rows(proc, out, 1)  # stepping
         time.sleep(moment)
         proc.send_signal(signal.SIGKILL)
@@ -178,7 +179,7 @@ def test_sigterm_and_sighup_end_a_run_like_ctrl_c(
     """Regression: `timeout -s TERM 6 auv-cosim run bs-3 --stop-time 600` left a recording
     without footer (and nothing at all with --no-rrd)."""
     out = tmp_path / "run"
-    proc = start(fmu_dir, out, "--stop-time", "600", *options)
+    proc = start(fmu_dir, out, "--stop-time", LONG, *options)
     wait_for_rows(proc, out, 300)
     proc.send_signal(signum)
     returncode, err = finish(proc)
@@ -198,7 +199,7 @@ def test_sigterm_and_sighup_end_a_run_like_ctrl_c(
 def test_two_ctrl_c_in_quick_succession_still_complete_the_folder(fmu_dir: Path, tmp_path: Path):
     """Regression: two Ctrl-C 0.02-0.3 s apart left an empty run folder."""
     out = tmp_path / "run"
-    proc = start(fmu_dir, out, "--stop-time", "600")
+    proc = start(fmu_dir, out, "--stop-time", LONG)
     wait_for_rows(proc, out, 300)
     proc.send_signal(signal.SIGINT)
     time.sleep(random.uniform(0.02, 0.3))
@@ -257,7 +258,7 @@ def test_a_second_run_into_a_running_folder_fails_at_once(fmu_dir: Path, tmp_pat
     """Regression: `run bs-3 --out same & run bs-1 --out same` both exited 0 and the
     recording failed its CRC."""
     out = tmp_path / "same"
-    first = start(fmu_dir, out, "--stop-time", "30")
+    first = start(fmu_dir, out, "--stop-time", "30", "--real-time", "10")  # running for 3 s
     wait_for_rows(first, out, 1)
     started = time.monotonic()
     second = start(fmu_dir, out, "--stop-time", "5", scenario="bs-1")

@@ -71,7 +71,7 @@ def same_size_and_time(path: Path) -> None:
     only the content tells."""
     status = path.stat()
     data = bytearray(path.read_bytes())
-    digits = [i for i, byte in enumerate(data) if chr(byte).isdigit()]
+    digits = [i for i, byte in enumerate(data) if 0x30 <= byte <= 0x39]  # ASCII digits only
     at = next((i for i in digits if i >= len(data) // 2), digits[0])
     data[at] = ord(str((int(chr(data[at])) + 1) % 10))
     with path.open("r+b") as f:

@@ -1,4 +1,4 @@
-"""``auv-cosim sweep`` on a local cluster: the issue's study equals separate runs, failed
+"""``auv-cosim sweep`` on a local cluster: a bs-3 grid study equals separate runs, failed
 runs are rows, results do not depend on the number of workers, bad studies fail early."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from cosim.metrics.manoeuvres import metric_names
 
 pytestmark = pytest.mark.usefixtures("no_early_cluster")  # refusals wait for no cluster
 
-ISSUE_STUDY = """
+GRID_STUDY = """
 scenario = "bs-3"
 stop_time = 20.0
 [grid]
@@ -44,9 +44,9 @@ def separate_run(tmp_path: Path, fmu_dir: Path, v0: float, k0: float) -> dict:
 
 
 @pytest.mark.slow
-def test_the_issue_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) -> None:
+def test_a_grid_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) -> None:
     study = tmp_path / "study.toml"
-    study.write_text(ISSUE_STUDY, encoding="utf-8")
+    study.write_text(GRID_STUDY, encoding="utf-8")
     sweep(study, tmp_path / "out", fmu_dir, "--workers", "2")
     rows = table(tmp_path / "out")
     assert len(rows) == 8 and {r["status"] for r in rows} == {"complete"}
@@ -149,7 +149,7 @@ def test_bad_cluster_options_fail_before_anything_is_written(
     options: list[str], expected: str, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     study = tmp_path / "study.toml"
-    study.write_text(ISSUE_STUDY, encoding="utf-8")
+    study.write_text(GRID_STUDY, encoding="utf-8")
     assert main(["sweep", str(study), "--out", str(tmp_path / "out"), *options]) == 1
     assert expected in capsys.readouterr().err
     assert not (tmp_path / "out").exists()

@@ -1,0 +1,174 @@
+"""The adaptive step's extrapolation error estimate (error_estimate = "extrapolation") on
+the master tests' loop (an integrator under a sampled gain, x' = -k x in the limit)."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scenario_factory import K, loop_toml
+
+from cosim.engine import adaptive as adaptive_module
+from cosim.engine import master
+from cosim.engine.extrapolation import InputRates
+from cosim.engine.input_error import InputError
+from cosim.scenario.checks import ScenarioError
+from cosim.scenario.spec import scenario_from_toml
+
+
+def adaptive(tolerance: float, estimate: str = "extrapolation") -> str:
+    text = loop_toml(algorithm="adaptive", stop_time=2.0)
+    return text.replace(
+        "[coupling]", f'[coupling]\ntolerance = {tolerance}\nerror_estimate = "{estimate}"'
+    )
+
+
+def run(test_fmu_dir: Path, text: str) -> master.RunResult:
+    return master.run(scenario_from_toml(text, base_dir=test_fmu_dir))
+
+
+def test_the_estimate_is_the_true_extrapolation_error_of_the_step(
+    test_fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The gain holds x over each step (the loop's FMUs take no input derivatives): for
+    every accepted step from (t, x) the estimated error of that held input is within a
+    factor 1.5 of the true one, |x - x exp(-k H)| (the continuous-time loop's x at t + H
+    from the same x)."""
+    seen: list[float] = []
+    scaled, judge = adaptive_module._Control.scaled, adaptive_module._Control.judge
+
+    def keep_estimate(self, values, sources, du):  # type: ignore[no-untyped-def]
+        x = self.index["plant.x"]
+        self.last_estimate = float(du[list(sources).index(x)])
+        return scaled(self, values, sources, du)
+
+    def keep_accepted(self, err, units, wanted):  # type: ignore[no-untyped-def]
+        accepted = judge(self, err, units, wanted)
+        if accepted:
+            seen.append(self.last_estimate)
+        return accepted
+
+    monkeypatch.setattr(adaptive_module._Control, "scaled", keep_estimate)
+    monkeypatch.setattr(adaptive_module._Control, "judge", keep_accepted)
+    result = run(test_fmu_dir, adaptive(1e-3))
+    taken = result.coupling
+    assert taken["error_estimate"] == "extrapolation"
+    assert len(seen) == taken["accepted_steps"] == result.rows - 1
+    t, x = result.times, result.column("plant.x")
+    true = np.abs(x[:-1] * (1.0 - np.exp(-K * np.diff(t))))
+    ratio = np.asarray(seen) / true
+    assert len(ratio) >= 10 and np.all((ratio > 1 / 1.5) & (ratio < 1.5)), ratio
+
+
+def test_one_do_step_per_attempt_and_a_tighter_tolerance_comes_closer_to_the_limit(
+    test_fmu_dir: Path,
+) -> None:
+    """Each attempt costs each instance one doStep (rejected ones too), and the run's
+    error against x0 exp(-k t) falls with the tolerance."""
+    loose, tight = run(test_fmu_dir, adaptive(1e-2)), run(test_fmu_dir, adaptive(1e-4))
+    for result in (loose, tight):
+        taken = result.coupling
+        attempts = taken["accepted_steps"] + taken["rejected_steps"]
+        assert taken["do_steps"] == {"plant": attempts, "controller": attempts}
+
+    def error(result: master.RunResult) -> float:
+        return float(np.max(np.abs(result.column("plant.x") - np.exp(-K * result.times))))
+
+    assert tight.coupling["accepted_steps"] > loose.coupling["accepted_steps"]
+    assert error(tight) < error(loose) / 4
+
+
+def test_an_accepted_step_grows_the_next_by_at_most_two(test_fmu_dir: Path) -> None:
+    """The extrapolation's points stay evenly enough spaced: no step is more than twice
+    the step before it."""
+    result = run(test_fmu_dir, adaptive(1e-3))
+    steps = np.diff(result.times)[:-1]  # the last one is cut at the stop time
+    assert np.all(steps[1:] / steps[:-1] <= adaptive_module.FAC_MAX + 1e-9)
+
+
+@pytest.mark.parametrize("bad", ['"halving"', "1", '""'])
+def test_a_bad_error_estimate_is_refused_in_one_line_naming_it(
+    test_fmu_dir: Path, bad: str
+) -> None:
+    text = adaptive(1e-3).replace('error_estimate = "extrapolation"', f"error_estimate = {bad}")
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, base_dir=test_fmu_dir)
+    message = str(refused.value)
+    assert "\n" not in message and "coupling.error_estimate" in message, message
+
+
+def test_an_error_estimate_without_the_adaptive_algorithm_is_refused(test_fmu_dir: Path) -> None:
+    text = loop_toml().replace("[coupling]", '[coupling]\nerror_estimate = "doubling"')
+    with pytest.raises(ScenarioError, match=r"coupling\.error_estimate.*adaptive"):
+        scenario_from_toml(text, base_dir=test_fmu_dir)
+
+
+def test_the_default_estimate_is_the_extrapolation(test_fmu_dir: Path) -> None:
+    text = loop_toml(algorithm="adaptive")
+    assert scenario_from_toml(text, base_dir=test_fmu_dir).coupling.error_estimate == (
+        "extrapolation"
+    )
+
+
+class FakeFmu:
+    """Takes the input derivatives (through ``fmu.dll``, as the master calls the C
+    function) and does nothing with them."""
+
+    component = None
+
+    def __init__(self) -> None:
+        self.dll = self
+
+    def fmi2SetRealInputDerivatives(self, *args: object) -> int:
+        return 0  # fmi2OK
+
+
+class FakeSlave:
+    """The parts of a Slave the estimator reads: one Real input from z[0]."""
+
+    def __init__(self, name: str, sources: list[int], rates: InputRates | None) -> None:
+        self.name, self.input_rates = name, rates
+        self.input_sources = np.asarray(sources, dtype=np.intp)
+        self.n_inputs = len(sources)
+        self.inputs = np.zeros(self.n_inputs)
+
+
+def quadratic_estimate(times: list[float], end: float) -> tuple[float, float]:
+    """(estimated, true) error at ``end`` of sin(t) extrapolated quadratically from its
+    values at ``times`` (the last three: the polynomial through them, exactly)."""
+    grid = 1e-4
+    receiver = FakeSlave("receiver", [0], InputRates(FakeFmu(), [1], order=2))
+    source = FakeSlave("source", [], None)
+    order: list[Any] = [receiver, source]  # the source after: its value at the end is known
+    estimator = InputError(order, {"source.y": 0}, jacobi=False, timeline=None, grid=grid)
+    z = np.zeros(1)
+    points = [round(t / grid) for t in [*times, end]]
+    for n, following in itertools.pairwise(points):
+        z[0] = np.sin(n * grid)
+        receiver.inputs[:] = z[0]
+        assert receiver.input_rates is not None
+        receiver.input_rates.send(receiver.inputs, n * grid, epoch=0)
+        estimator.took(receiver, n, following - n)  # type: ignore[arg-type]
+    z[0] = np.sin(end)
+    sources, du = estimator.errors(order, z, points[-1], k=3)
+    assert list(sources) == [0]
+    fit = np.polyfit(times[-3:], np.sin(times[-3:]), 2)
+    return float(du[0]), abs(float(np.polyval(fit, end)) - np.sin(end))
+
+
+@pytest.mark.parametrize("times", [[0.0, 0.1, 0.2, 0.3], [0.0, 0.05, 0.2, 0.25, 0.45]])
+def test_the_estimate_is_the_quadratic_extrapolations_error_at_the_steps_end(
+    times: list[float],
+) -> None:
+    """A known input, sin(t), extrapolated through the last three points (any spacing):
+    the estimate is the polynomial's distance from sin at the step's end, and it falls
+    as the cube of the step (the extrapolation's order) when every spacing halves."""
+    step = 0.1
+    estimated, true = quadratic_estimate(times, times[-1] + step)
+    assert estimated == pytest.approx(true, rel=1e-9)
+    half = [t / 2 for t in times]
+    finer, _ = quadratic_estimate(half, half[-1] + step / 2)
+    assert 6.0 < estimated / finer < 10.0
