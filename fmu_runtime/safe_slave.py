@@ -744,12 +744,12 @@ class SafeSlave(Fmi2Slave):
             return "the FMU is not initialised (call exitInitializationMode first)"
         if self._problems:
             return "; ".join(self._problems.values())
-        if not (math.isfinite(step_size) and step_size > 0.0):
+        # (comparisons only, at every step: NaN and infinities fail them)
+        if not 0.0 < step_size < math.inf:
             return f"communication step {step_size!r} s: expected a finite number > 0"
-        if not (
-            math.isfinite(current_time)
-            and abs(current_time - self._time) <= _TIME_TOLERANCE * max(1.0, abs(self._time))
-        ):
+        last = self._time  # finite: the start time or the end of a step
+        scale = last if last > 1.0 else -last if last < -1.0 else 1.0
+        if not abs(current_time - last) <= _TIME_TOLERANCE * scale:
             return (
                 f"currentCommunicationPoint = {current_time!r} s is not the FMU's current "
                 f"time {self._time!r} s (the start time or the end of the last step)"

@@ -57,7 +57,9 @@ instead of first. The currents stay held over a step (see above).
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -70,6 +72,7 @@ from fmu_runtime.safe_slave import SafeSlave
 from fmu_runtime.variables import field_bounds, item_getter, item_setter
 from plant_fmu.model import compiled
 from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model.jit import compiled_entry
 from plant_fmu.model.moving_mass import MovingMassModel
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle, vehicle_folder
 from plant_fmu.model.state_layout import (
@@ -159,6 +162,8 @@ class AuvPlant(SafeSlave):
         self._vehicles = vehicle_folder(self.resources)  # this extraction's data
         self._model: PlantModel | None = None
         self._compiled: compiled.CompiledPlant | None = None
+        # the compiled step with every array bound: stepper(n, dt) -> code (_bind_stepper)
+        self._stepper: Callable[[int, float], int] | None = None
         self._model_key: tuple[object, ...] | None = None
         self._physical = _default_physical_parameters(self._vehicles)
         self.variant = int(Variant.FULL)
@@ -322,14 +327,10 @@ class AuvPlant(SafeSlave):
         arithmetic) where the compiled one does not apply: numba off, the two-body moving
         mass, a change of the currents, or a step it refuses (the reference then says why).
         Both take the input derivatives the importer set (module docstring)."""
-        fast, max_substep = self._compiled, self.max_substep
-        if fast is not None and math.isfinite(max_substep):
+        stepper, max_substep = self._stepper, self.max_substep
+        if stepper is not None and math.isfinite(max_substep):
             n = max(1, math.ceil(step_size / max_substep - 1e-9))  # as stepping.advance
-            p, x, scratch = fast.parameters, self._x, self._step_scratch
-            inputs, derived, last = self._inputs, self._derived, self._last_current
-            code = compiled.step_into(p, inputs, self._rates, x, derived, last, scratch, n,
-                                      step_size / n)  # fmt: skip
-            if code == 0:
+            if stepper(n, step_size / n) == 0:
                 return
         self._reference_step(step_size)
 
@@ -393,9 +394,10 @@ class AuvPlant(SafeSlave):
         self._physical.update({n: float(getattr(params, n)) for n in PHYSICAL_PARAMETERS})
         self._model = model
         self._model_key = self._parameter_key()
-        self._compiled = None
+        self._compiled = self._stepper = None
         if compiled.supports(model) == "":
             self._compiled = compiled.CompiledPlant(model)
+            self._stepper = self._bind_stepper(self._compiled)
         elif not compiled.AVAILABLE:
             self.log(  # the cost measured by scripts/bench_no_numba.py (docs/performance.md)
                 f"the compiled plant is off ({compiled.NO_JIT_REASON}): stepping the numpy "
@@ -404,6 +406,16 @@ class AuvPlant(SafeSlave):
                 Fmi2Status.warning,
             )
         return model
+
+    def _bind_stepper(self, fast: compiled.CompiledPlant) -> Callable[[int, float], int]:
+        """:func:`compiled.step_into` on this instance's buffers (views bound once, never
+        replaced) and ``fast``'s parameters: ``stepper(n, dt)`` steps n RK4 steps of dt s
+        and returns step_into's code, without numba's typing of the seven arrays at every
+        call (:func:`compiled_entry`)."""
+        arrays = (fast.parameters, self._inputs, self._rates, self._x, self._derived,
+                  self._last_current, self._step_scratch)  # fmt: skip
+        entry = compiled_entry(compiled.step_into, (*arrays, 1, 1.0))
+        return functools.partial(entry, *arrays)
 
     def _parameter_key(self) -> tuple[object, ...]:
         """Everything the model is built from (to rebuild it after a state restore)."""

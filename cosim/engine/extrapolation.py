@@ -19,22 +19,24 @@ interpolate hold their inputs as before: nothing is sent to them.
 Why by hand: fmpy's ``Input`` class interpolates a given table of input signals; no
 library extrapolates the exchanged values of a running co-simulation.
 
-Cost: the divided differences are one compiled call (numba, no fastmath: the same IEEE
-operations as numpy's, value for value) and the FMI call goes to the C function directly,
-its status checked here as fmpy's wrapper does; a send costs ~1 us instead of ~8 us of
-numpy calls and fmpy's wrapper (``scripts/bench_loader.py`` times the FMU's side).
+Cost: the divided differences and the history's move are one compiled call (numba, no
+fastmath: the same IEEE operations as numpy's, value for value) and the FMI call goes to
+the C function directly, with arguments made once, its status checked here as fmpy's
+wrapper does; a send costs ~1 us instead of ~8 us of numpy calls and fmpy's wrapper
+(``scripts/bench_loader.py`` times the FMU's side).
 """
 
 from __future__ import annotations
 
 import ctypes
+import functools
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from plant_fmu.model.jit import load_numba
+from plant_fmu.model.jit import compiled_entry, load_numba
 
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -50,35 +52,52 @@ def _jit(func: _F) -> _F:
 
 
 @_jit
-def _divided_differences(
+def _extrapolate(
     inputs: np.ndarray,
     past: np.ndarray,
-    t: float,
-    t0: float,
-    t1: float,
-    quadratic: bool,
+    times: np.ndarray,
     slope: np.ndarray,
     values: np.ndarray,
-) -> None:
-    """values = the first derivatives at t (s) of the polynomial through ``inputs`` at t
-    and ``past[0]`` at t0 (linear), and ``past[1]`` at t1 (quadratic), then (when
-    ``values`` has room) the second derivatives (0 for linear); ``slope`` is scratch."""
+    order: int,
+    t: float,
+    count: int,
+) -> int:
+    """One step of an input history: with ``count`` points in it (``past[0]`` at
+    ``times[0]``, ``past[1]`` at ``times[1]``, s) and ``inputs`` now at ``t``, ``values``
+    = the first derivatives at t of the polynomial through inputs and past[0] (linear),
+    and past[1] too (``order`` 2 and count >= 2), then (when ``values`` has room) the
+    second derivatives (0 for linear); ``slope`` is scratch. Then inputs at t join the
+    history. Returns 1 when ``values`` were computed (count >= 1 and t after times[0]),
+    plus 2 when the history moved on (count 0 or t after times[0])."""
     n = inputs.size
-    scale = 1.0 / (t - t0)
-    for i in range(n):  # [u_n, u_n-1]
-        slope[i] = (inputs[i] - past[0, i]) * scale
-    if quadratic:
-        scale_past, scale_both, span = 1.0 / (t0 - t1), 1.0 / (t - t1), t - t0
+    later = t > times[0]
+    code = 0
+    if count >= 1 and later:
+        scale = 1.0 / (t - times[0])
+        for i in range(n):  # [u_n, u_n-1]
+            slope[i] = (inputs[i] - past[0, i]) * scale
+        if order == 2 and count >= 2:
+            t0, t1 = times[0], times[1]
+            scale_past, scale_both, span = 1.0 / (t0 - t1), 1.0 / (t - t1), t - t0
+            for i in range(n):
+                second = (past[0, i] - past[1, i]) * scale_past  # [u_n-1, u_n-2] ...
+                second = (slope[i] - second) * scale_both  # ... then [u_n, u_n-1, u_n-2]
+                values[i] = second * span + slope[i]
+                values[n + i] = second * 2.0
+        else:
+            for i in range(n):
+                values[i] = slope[i]
+            for i in range(n, values.size):
+                values[i] = 0.0
+        code = 1
+    if count == 0 or later:
         for i in range(n):
-            second = (past[0, i] - past[1, i]) * scale_past  # [u_n-1, u_n-2] ...
-            second = (slope[i] - second) * scale_both  # ... then [u_n, u_n-1, u_n-2]
-            values[i] = second * span + slope[i]
-            values[n + i] = second * 2.0
-    else:
-        for i in range(n):
-            values[i] = slope[i]
-        for i in range(n, values.size):
-            values[i] = 0.0
+            past[1, i] = past[0, i]
+            past[0, i] = inputs[i]
+        times[1] = times[0]
+        times[0] = t
+        code += 2
+    return code
 
 
 class InputRates:
@@ -88,15 +107,23 @@ class InputRates:
         fmu: the instance's fmpy ``FMU2Slave`` (its ``fmi2SetRealInputDerivatives``).
         input_vrs: value references of its connected Real inputs (the master's order).
         order: 1 (linear) or 2 (quadratic).
+        handle: the instance's fmi2Component as a ``ctypes.c_void_p`` whose value may be
+            set later (``Slave.handle``: the loop binds this object before the FMU is
+            instantiated); by default the fmu's ``component`` now.
     """
 
-    def __init__(self, fmu: Any, input_vrs: list[int], order: int) -> None:
+    def __init__(
+        self, fmu: Any, input_vrs: list[int], order: int, handle: ctypes.c_void_p | None = None
+    ) -> None:
         n = len(input_vrs)
         self.order = order
         self.n = n
-        # the C function itself (fmpy set its argument types): no wrapper frames per step
-        self._set = fmu.dll.fmi2SetRealInputDerivatives
-        self._fmu = fmu
+        # a function object of the C function without declared argument types, called
+        # with ctypes objects made once (as cosim.engine.slave's hot calls)
+        self._set = fmu.dll["fmi2SetRealInputDerivatives"]
+        self._set.restype = ctypes.c_int
+        self._handle = ctypes.c_void_p(fmu.component) if handle is None else handle
+        self._size = ctypes.c_size_t(order * n)
         # one call per step: every input's first derivative, then (quadratic) its second
         self._vrs = (ctypes.c_uint * (order * n))(*(list(input_vrs) * order))
         self._orders = (ctypes.c_int * (order * n))(*([1] * n + [2] * n)[: order * n])
@@ -104,9 +131,11 @@ class InputRates:
         self._ptr = self._values.ctypes.data_as(_DOUBLE_P)
         self._past = np.zeros((2, n))  # the values at the previous two steps
         self._slope = np.zeros(n)
-        self._times = [0.0, 0.0]
+        self._times = np.zeros(2)  # s, of past[0] and past[1]
         self.count = 0  # steps in the history (since the last epoch)
         self.epoch = 0
+        # _extrapolate with every array bound, for the inputs array it was bound to
+        self._bound: tuple[np.ndarray | None, Callable[..., int]] = (None, _extrapolate)
         self.sent_at: float | None = None  # s, the point of the derivatives last sent
 
     def send(self, inputs: np.ndarray, t: float, epoch: int) -> None:
@@ -115,21 +144,25 @@ class InputRates:
         starts the history again: nothing is sent at its first step."""
         if epoch != self.epoch:
             self.epoch, self.count = epoch, 0
-        past, times = self._past, self._times
-        if self.count >= 1 and t > times[0]:
-            quadratic = self.order == 2 and self.count >= 2
-            _divided_differences(inputs, past, t, times[0], times[1], quadratic, self._slope,
-                                 self._values)  # fmt: skip
-            status = self._set(self._fmu.component, self._vrs, self.order * self.n,
-                               self._orders, self._ptr)  # fmt: skip
+        bound, extrapolate = self._bound
+        if inputs is not bound:  # (the master passes the same array at every step)
+            extrapolate = self._bind(inputs)
+        code = extrapolate(t, self.count)
+        if code & 1:
+            status = self._set(self._handle, self._vrs, self._size, self._orders, self._ptr)
             if status > 1:  # worse than fmi2Warning: as fmpy's wrapper
                 raise FMICallException(function="fmi2SetRealInputDerivatives", status=status)
             self.sent_at = t
-        if self.count == 0 or t > times[0]:
-            past[1] = past[0]
-            past[0] = inputs
-            times[1], times[0] = times[0], t
+        if code & 2:
             self.count += 1
+
+    def _bind(self, inputs: np.ndarray) -> Callable[..., int]:
+        """:func:`_extrapolate` on ``inputs`` and this history's arrays, called without
+        numba's typing of the five arrays at every step (:func:`compiled_entry`)."""
+        arrays = (inputs, self._past, self._times, self._slope, self._values, self.order)
+        extrapolate = functools.partial(compiled_entry(_extrapolate, (*arrays, 0.0, 0)), *arrays)
+        self._bound = (inputs, extrapolate)
+        return extrapolate
 
     def derivatives(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
         """(first, second) derivatives the FMU was handed at ``t`` (s), if it was: the
@@ -141,7 +174,7 @@ class InputRates:
 
     def snapshot(self) -> tuple[Any, ...]:
         """The history, for :meth:`restore` (a rolled-back step)."""
-        return self._past.copy(), list(self._times), self.count, self.epoch, self.sent_at
+        return self._past.copy(), self._times.tolist(), self.count, self.epoch, self.sent_at
 
     def restore(self, saved: tuple[Any, ...]) -> None:
         past, times, self.count, self.epoch, self.sent_at = saved

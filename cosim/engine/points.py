@@ -99,12 +99,12 @@ def inputs_giver(z: np.ndarray, timeline: Timeline | None) -> Callable[[Slave, i
     """``give(slave, n, t)``: set ``slave``'s connected inputs from z at point n (t = n h,
     s), its faults applied, and their derivatives when it takes them."""
     take = z.take
-    deliver = timeline.deliver if timeline else no_fault
 
     def give(slave: Slave, n: int, t: float) -> None:
         take(slave.input_sources, out=slave.inputs)
-        deliver(slave, n)
-        slave.set_real(slave.c, slave.input_vrs, slave.n_inputs, slave.input_ptr)
+        if timeline is not None:
+            timeline.deliver(slave, n)
+        slave.put_inputs()
         if slave.others:
             slave.set_others(z)
         if slave.input_rates is not None:
@@ -152,10 +152,6 @@ def end_of_simulation(
     z.take(record, out=rows.slots[filled])
     rows.times[filled] = reached
     return line, filled + 1
-
-
-def no_fault(slave: Slave, n: int) -> None:
-    """Deliver the gathered inputs unchanged (no fault)."""
 
 
 def check_finite(exchanged: np.ndarray, index: Mapping[str, int], t: float) -> None:

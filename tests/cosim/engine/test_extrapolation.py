@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import ctypes
+import functools
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,9 +23,12 @@ class FakeFmu:
         self.calls: list[dict[tuple[int, int], float]] = []
         self.dll = self
 
+    def __getitem__(self, name: str) -> Any:  # a ctypes library's function by name
+        return functools.partial(getattr(self, name))
+
     def fmi2SetRealInputDerivatives(self, c, vrs, n, orders, values) -> int:
         doubles = ctypes.cast(values, ctypes.POINTER(ctypes.c_double))
-        self.calls.append({(vrs[i], orders[i]): doubles[i] for i in range(n)})
+        self.calls.append({(vrs[i], orders[i]): doubles[i] for i in range(n.value)})
         return 0
 
 
@@ -103,3 +108,30 @@ def test_a_refused_derivative_call_raises_what_fmpy_raises(status, raises) -> No
         rates.send(signal(0.1), 0.1, epoch=0)
     assert caught.value.status == status
     assert caught.value.function == "fmi2SetRealInputDerivatives"
+
+
+def test_a_second_send_at_the_same_point_changes_nothing() -> None:
+    """A feedthrough is given its inputs at a point twice (once refreshed after the step,
+    once before the next): the second send at the same time sends nothing and leaves the
+    history, so the next derivatives are those of one send per point."""
+    once, twice = FakeFmu(), FakeFmu()
+    single, repeated = InputRates(once, [1, 2], order=2), InputRates(twice, [1, 2], order=2)
+    for t in (0.0, 0.1, 0.2, 0.3):
+        single.send(signal(t), t, epoch=0)
+        repeated.send(signal(t), t, epoch=0)
+        repeated.send(signal(t) + 5.0, t, epoch=0)  # a point's values again: ignored
+    assert once.calls == twice.calls
+    assert single.count == repeated.count == 4
+
+
+def test_the_master_s_input_array_is_bound_once_and_followed() -> None:
+    """The master passes the same input array at every step, refilled in place: the
+    derivatives follow its values."""
+    fmu = FakeFmu()
+    rates = InputRates(fmu, [1, 2], order=1)
+    inputs = np.zeros(2)
+    for t in (0.0, 0.1, 0.2):
+        inputs[:] = signal(t)
+        rates.send(inputs, t, epoch=0)
+    slope = (signal(0.2) - signal(0.1)) / 0.1
+    assert fmu.calls[-1] == {(1, 1): pytest.approx(slope[0]), (2, 1): pytest.approx(slope[1])}

@@ -3,6 +3,7 @@ the master tests' loop (an integrator under a sampled gain, x' = -k x in the lim
 
 from __future__ import annotations
 
+import functools
 import itertools
 from pathlib import Path
 from typing import Any
@@ -121,6 +122,9 @@ class FakeFmu:
 
     def __init__(self) -> None:
         self.dll = self
+
+    def __getitem__(self, name: str) -> Any:  # a ctypes library's function by name
+        return functools.partial(getattr(self, name))
 
     def fmi2SetRealInputDerivatives(self, *args: object) -> int:
         return 0  # fmi2OK
