@@ -12,11 +12,11 @@ import socket
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator
 from contextlib import nullcontext
 from pathlib import Path
 
 import pytest
+from deadline import deadline
 
 from cosim.cli import main
 from cosim.study import execution, runner
@@ -171,7 +171,7 @@ def test_a_scheduler_address_that_is_no_scheduler_is_refused_in_seconds(
     server = _serve(reply)
     address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
     try:
-        with _timeout(60):  # was: minutes
+        with deadline(60):  # was: minutes
             code = main(["sweep", str(study), "--scheduler", address, "--out", str(tmp_path / "o")])
     finally:
         server.close()
@@ -179,19 +179,3 @@ def test_a_scheduler_address_that_is_no_scheduler_is_refused_in_seconds(
     assert code == 1 and err.count("\n") == 1 and message in err, err
     assert f"--scheduler {address}" in err and "EiB" not in err
     assert not (tmp_path / "o").exists()
-
-
-@contextlib.contextmanager
-def _timeout(seconds: int) -> Iterator[None]:
-    """Fail (rather than hang) if the block takes longer than ``seconds``."""
-
-    def expired(signum: int, frame: object) -> None:
-        raise AssertionError(f"no answer within {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, expired)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)

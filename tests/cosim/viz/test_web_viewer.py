@@ -12,11 +12,11 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import psutil
 import pytest
+from deadline import deadline
 from rerun.chunk import RrdReader
 
 from cosim.cli import main
@@ -83,22 +83,6 @@ def _recordings(rrd: Path) -> set[tuple[str, str]]:
     return {(r.application_id, r.recording_id) for r in RrdReader(rrd).recordings()}
 
 
-@contextlib.contextmanager
-def _at_most(seconds: int) -> Iterator[None]:
-    """Fail, rather than hang, if the block takes longer than ``seconds``."""
-
-    def expired(signum: int, frame: object) -> None:
-        raise AssertionError(f"still serving after {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, expired)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
-
-
 def test_a_recording_cut_before_any_data_is_refused_in_one_line(
     recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -106,7 +90,7 @@ def test_a_recording_cut_before_any_data_is_refused_in_one_line(
     forever: the viewer never showed anything, and the command never said why."""
     cut = tmp_path / "cut.rrd"
     cut.write_bytes(recording.read_bytes()[:1000])
-    with _at_most(60):
+    with deadline(60, "still serving"):
         code = main(["view", str(cut), "--web", "--web-port", "0", "--file-port", "0"])
     err = capsys.readouterr().err
     assert code == 1 and err.count("\n") == 1, err
