@@ -22,19 +22,16 @@ import os
 from collections.abc import Callable
 from typing import Any
 
+from bench_plant import INPUTS, START, H, class_step, initialise
 from bench_timing import median_us
 
 from plant_fmu.auv_plant import AuvPlant
 from plant_fmu.model import compiled
 from plant_fmu.model.compiled import CompiledPlant
-from plant_fmu.model.dynamics import INPUT_NAMES, PlantModel, Variant
+from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import advance
-
-H = 0.01
-START = dict(u=1.5, v=0.1, w=0.02, p=0.1, q=0.02, r=0.2, roll=0.1, pitch=0.05)
-INPUTS = dict(thrust=9.0, tunnel_force=1.0, fin_angle=0.05, mass_position_cmd=0.03)
 
 
 def slave_step(with_numba: bool) -> Callable[[], None]:
@@ -45,26 +42,11 @@ def slave_step(with_numba: bool) -> Callable[[], None]:
         compiled.supports = _unsupported  # what AuvPlant asks before using the compiled plant
     try:
         plant = AuvPlant(instance_name="bench")
-        refs = {v.name: vr for vr, v in plant.vars.items()}
-        plant.enter_initialization_mode()
-        plant.set_real([refs[f"{n}_0"] for n in START], list(START.values()))
-        plant.exit_initialization_mode()
+        initialise(plant)
     finally:
         compiled.supports = supports
     assert (plant._compiled is not None) == with_numba, "the path asked for"
-    outputs = [vr for vr, v in plant.vars.items() if v.causality.name == "output"]
-    input_refs = [refs[n] for n in INPUT_NAMES]
-    input_values = [float(v) for v in input_vector(INPUTS)]
-    clock = {"t": 0.0}
-
-    def step() -> None:
-        plant.set_real(input_refs, input_values)
-        if not plant.do_step(clock["t"], H):
-            raise RuntimeError(plant.log_queue[-1].msg)
-        plant.get_real(outputs)
-        clock["t"] += H
-
-    return step
+    return class_step(plant)
 
 
 def _unsupported(model: PlantModel) -> str:
