@@ -1,20 +1,24 @@
 """What ``pip install .`` costs: the time it takes and the size of the environment it makes,
 for this tree and for an earlier commit, side by side.
 
-How it measures, so that the network does not dominate: every wheel either tree needs is
-first collected into a local wheelhouse (``pip wheel``, from the package index or pip's
-cache; not timed). Each install then runs in a fresh virtual environment
-(``python -m venv``) as ``pip install --no-index --find-links WHEELHOUSE PROJECT`` (timed,
-wall clock: resolving, building our own wheel, unpacking, compiling bytecode); the size is
-the bytes of every file in the environment afterwards. The trees are installed in turn,
-``--rounds`` times, so the machine's other load hits both alike; the best time is kept.
+How it measures. Offline (the default), so that the network does not dominate: every
+wheel either tree needs is first collected into a local wheelhouse (``pip wheel``, from the
+package index or pip's cache; not timed), and each install runs as ``pip install
+--no-index --find-links WHEELHOUSE PROJECT``. With ``--from-index``, as a user's first
+install does: ``pip install --no-cache-dir PROJECT``, every wheel downloaded from the
+package index each time (timed with the downloads). Either way each install runs in a
+fresh virtual environment (``python -m venv``; timed, wall clock: resolving, downloading,
+building our own wheel, unpacking, compiling bytecode); the size is the bytes of every file
+in the environment afterwards. The trees are installed in turn, ``--rounds`` times, so the
+machine's other load (and the network's speed) hits both alike; the best time is kept.
 
-Prints per tree: install time (wall clock, and the CPU time of pip's processes, which
-the machine's other load disturbs less), environment size (MB, 1e6 bytes), the largest
-packages, and the differences; then the load average.
+Prints every install as it ends, with the load average when it started; then per tree:
+install time (wall clock, and the CPU time of pip's processes, which the machine's other
+load disturbs less), environment size (MB, 1e6 bytes), the largest packages, and the
+differences; then the load average.
 
 Usage: python scripts/bench_install.py [--baseline REV] [--extras EXTRAS] [--rounds 2]
-       [--wheelhouse DIR]
+       [--wheelhouse DIR | --from-index]
 (REV defaults to where HEAD left ``main``; the tree measured is the working tree holding
 this script, its uncommitted changes included.)
 """
@@ -83,12 +87,13 @@ def _size(folder: Path) -> tuple[int, dict[str, int]]:
 
 class Install(NamedTuple):
     """One install: wall clock and CPU time (its processes' user + system), s; bytes of
-    the environment and per package."""
+    the environment and per package; the 1-minute load average when it started."""
 
     seconds: float
     cpu_seconds: float
     size: int
     packages: dict[str, int]
+    load: float
 
 
 def _cpu_of_children() -> float:
@@ -96,79 +101,112 @@ def _cpu_of_children() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def _install(project: str, wheelhouse: Path, folder: Path) -> Install:
-    """One install into a fresh environment."""
+def _install(project: str, source: list[str], folder: Path) -> Install:
+    """One install into a fresh environment, from the wheels ``source`` names (pip's
+    options: a wheelhouse, or the package index without pip's cache)."""
     venv = folder / "venv"
     shutil.rmtree(venv, ignore_errors=True)
     _run(sys.executable, "-m", "venv", venv)
+    load = os.getloadavg()[0]
     cpu, start = _cpu_of_children(), time.perf_counter()
-    _run(venv / "bin" / "python", "-m", "pip", "install", "--quiet", "--no-index",
-         "--find-links", wheelhouse, project)  # fmt: skip
+    _run(venv / "bin" / "python", "-m", "pip", "install", "--quiet", *source, project)
     seconds, cpu = time.perf_counter() - start, _cpu_of_children() - cpu
     total, packages = _size(venv)
     shutil.rmtree(venv)
-    return Install(seconds, cpu, total, packages)
+    return Install(seconds, cpu, total, packages, load)
 
 
-def _print_dropped(before: dict[str, int], after: dict[str, int], wheelhouse: Path) -> None:
+def _print_dropped(before: dict[str, int], after: dict[str, int], wheelhouse: Path | None) -> None:
     """The packages the baseline installs and this tree does not, with the size of their
-    wheels (what a download over the network no longer fetches)."""
+    wheels if they were collected (what a download over the network no longer fetches)."""
     for name in sorted(set(before) - set(after)):
         if name.endswith((".dist-info", ".pth")) or name.startswith(("_", "(")):
             continue
-        wheels = [w for w in wheelhouse.glob("*.whl") if w.name.lower().startswith(f"{name}-")]
-        size = " + ".join(f"{w.name} {w.stat().st_size / MB:.1f} MB" for w in wheels)
-        print(f"only in the baseline: {name} {before[name] / MB:.0f} MB installed; {size}")
+        wheels = [] if wheelhouse is None else wheelhouse.glob("*.whl")
+        size = " + ".join(
+            f"; {w.name} {w.stat().st_size / MB:.1f} MB"
+            for w in wheels
+            if w.name.lower().startswith(f"{name}-")
+        )
+        print(f"only in the baseline: {name} {before[name] / MB:.0f} MB installed{size}")
 
 
-def main() -> None:
+def _parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--baseline", help="git revision to compare with (default: where HEAD left main)"
     )
     parser.add_argument("--extras", default="", help="extras to install, e.g. 'zig'")
     parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument(
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument(
         "--wheelhouse",
         type=Path,
         default=Path.home() / ".cache" / "auv-cosim" / "bench-install-wheels",
+        help="where the wheels are collected for the offline installs",
+    )
+    source.add_argument(
+        "--from-index",
+        action="store_true",
+        help="install from the package index with --no-cache-dir (downloads timed)",
     )
     args = parser.parse_args()
-    suffix = f"[{args.extras}]" if args.extras else ""
-    baseline = (
-        args.baseline
-        or subprocess.run(
+    if args.from_index:
+        args.wheelhouse = None
+    if not args.baseline:
+        args.baseline = subprocess.run(
             ["git", "merge-base", "HEAD", "main"],
             cwd=ROOT,
             check=True,
             capture_output=True,
             text=True,
         ).stdout.strip()[:10]
-    )
+    return args
+
+
+def _measure(args: argparse.Namespace, suffix: str) -> dict[str, list[Install]]:
+    """``--rounds`` installs of the baseline and of this tree, in turn, each printed."""
     with tempfile.TemporaryDirectory(prefix="auv-cosim-install-") as tmp:
         base = Path(tmp)
         (base / "baseline").mkdir()
         (base / "current").mkdir()
         trees = {
-            f"{baseline} (baseline)": _tree_at(baseline, base / "baseline"),
+            f"{args.baseline} (baseline)": _tree_at(args.baseline, base / "baseline"),
             "this tree": _working_tree(base / "current"),
         }
-        args.wheelhouse.mkdir(parents=True, exist_ok=True)
-        for tree in trees.values():  # collect the wheels (not timed)
-            _run(sys.executable, "-m", "pip", "wheel", "--quiet", "--wheel-dir",
-                 args.wheelhouse, f"{tree}{suffix}", "setuptools>=77")  # fmt: skip
+        source = ["--no-cache-dir"]
+        if args.wheelhouse is not None:
+            args.wheelhouse.mkdir(parents=True, exist_ok=True)
+            for tree in trees.values():  # collect the wheels (not timed)
+                _run(sys.executable, "-m", "pip", "wheel", "--quiet", "--wheel-dir",
+                     args.wheelhouse, f"{tree}{suffix}", "setuptools>=77")  # fmt: skip
+            source = ["--no-index", "--find-links", str(args.wheelhouse)]
         results: dict[str, list[Install]] = {name: [] for name in trees}
-        for _ in range(args.rounds):
+        for round_ in range(1, args.rounds + 1):
             for name, tree in trees.items():
-                results[name].append(_install(f"{tree}{suffix}", args.wheelhouse, base))
+                run = _install(f"{tree}{suffix}", source, base)
+                results[name].append(run)
+                print(
+                    f"round {round_}, {name}: {run.seconds:.1f} s wall clock, "
+                    f"{run.cpu_seconds:.1f} s CPU, {run.size / MB:.0f} MB (load {run.load:.2f})",
+                    flush=True,
+                )
+    return results
+
+
+def main() -> None:
+    args = _parse_args()
+    suffix = f"[{args.extras}]" if args.extras else ""
+    results = _measure(args, suffix)
+    how = "from the index, no cache" if args.from_index else "offline"
     best = {}
     for name, runs in results.items():
         wall, cpu = min(r.seconds for r in runs), min(r.cpu_seconds for r in runs)
         best[name] = (wall, cpu, runs[-1].size)
         largest = sorted(runs[-1].packages.items(), key=lambda item: -item[1])[:8]
         print(
-            f"{name}: pip install .{suffix} {wall:.1f} s wall clock, {cpu:.1f} s CPU (best of "
-            f"{len(runs)}), environment {runs[-1].size / MB:.0f} MB"
+            f"{name}: pip install .{suffix} ({how}) {wall:.1f} s wall clock, {cpu:.1f} s CPU "
+            f"(best of {len(runs)}), environment {runs[-1].size / MB:.0f} MB"
         )
         print("  largest: " + ", ".join(f"{p} {b / MB:.0f} MB" for p, b in largest))
     before, after = (runs[-1].packages for runs in results.values())

@@ -10,6 +10,8 @@ the build wrote (its ``.sha256`` record) a problem. Checks per FMU:
 * ``needsExecutionTool="false"``, a ``DefaultExperiment``;
 * a description on every variable, a unit on every Real input/output/parameter;
 * ``ModelStructure/Outputs``: exactly the outputs, each with a ``dependencies`` list;
+* a ``dependenciesKind`` only with as many entries as its ``dependencies`` (fmpy checks
+  this from 0.3.29 on; we pin fmpy below 0.3.26);
 * a smoke run of all FMUs together in one fresh Python process (pythonfmu FMUs share the
   host's ``sys.modules``, and a broken one can crash its host): instantiate, initialise
   with the start values, one ``doStep`` of the default step, every Real output finite.
@@ -134,6 +136,13 @@ def _description_problems(path: Path) -> list[str]:
         f"output {u.variable.name!r} declares no dependencies"
         for u in md.outputs
         if u.dependencies is None
+    ]
+    problems += [
+        f"{kind} {u.variable.name!r} lists {len(u.dependencies or ())} dependencies and "
+        f"{len(u.dependenciesKind)} dependenciesKind"
+        for kind, unknowns in (("output", md.outputs), ("initial unknown", md.initialUnknowns))
+        for u in unknowns
+        if u.dependenciesKind and len(u.dependenciesKind) != len(u.dependencies or ())
     ]
     return problems
 

@@ -254,6 +254,27 @@ def test_validating_a_corrupt_fmu_is_one_line(fmu_paths, tmp_path):
     assert "\n" not in problem
 
 
+def test_validation_reports_a_dependencies_kind_of_another_length(fmu_paths, tmp_path):
+    """An output whose dependenciesKind lists more entries than its dependencies (here
+    one for none) is a problem, whichever fmpy validates (fmpy checks it from 0.3.29 on)."""
+    from cosim.fmus.validation import validate_fmus
+
+    source = fmu_paths["AuvPlant"]
+    broken = tmp_path / source.name
+    with zipfile.ZipFile(source) as old, zipfile.ZipFile(broken, "w") as new:
+        for item in old.infolist():
+            data = old.read(item)
+            if item.filename == "modelDescription.xml":
+                root = ET.fromstring(data)
+                unknown = root.find("ModelStructure/Outputs/Unknown")
+                assert unknown is not None and unknown.get("dependencies") == ""
+                unknown.set("dependenciesKind", "dependent")
+                data = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+            new.writestr(item, data)
+    problems = validate_fmus({"AuvPlant": broken})
+    assert any("dependenciesKind" in p for p in problems), problems
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("damage", ["truncate", "flip"])
 def test_validate_reports_a_damaged_fmu_and_builds_nothing(fmu_paths, tmp_path, capsys, damage):
