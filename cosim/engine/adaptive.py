@@ -8,9 +8,19 @@ Two estimates of a step's error (``[coupling] error_estimate``):
   Clauss 2012), err = max_i du_i / (tol (Y_i + 1e-3 nominal_i)) over the inputs, Y_i the
   largest |value| of the input's source so far. One doStep per instance and attempt;
   err > 1 restores the states and retries. k below is q + 1, q the lowest degree of the
-  inputs' extrapolation (0 held, 2 quadratic); an accepted step's successor is 0.5 to 2
-  times it (never more than twice the step taken last, so the extrapolation's points
-  stay evenly enough spaced), and steps are from one grid point up.
+  inputs' extrapolation (0 held, 2 quadratic); steps are from one grid point up.
+  Evenly spaced points: an accepted step's successor is RATIO_MIN to RATIO_MAX (0.8 to
+  1.1) times it (never more than twice the step taken last, after a step shortened to
+  reach a point). The extrapolation's derivatives are divided differences of the values
+  the sources computed at the last points, and those carry errors that depend on the
+  steps that led to them; through unevenly spaced points they are amplified, through
+  slowly varying ones they stay smooth (docs/coupling.md, vert-1). Kinks: a step whose
+  err (for the step asked for) is over 1 and over KINK times the last smooth step's is
+  taken to cross a slope discontinuity of an input (a saturation, a boundary layer;
+  Gear & Osterby, ACM TOMS 10 (1984) 23-44: there the error falls only like H, so a
+  shorter step buys little and the steps collapse); it is accepted as it is (counted in
+  ``steps_over_tolerance`` and ``kinks``), the next step is as long and the error level
+  the PI controller sees stays the smooth steps'.
 * ``"doubling"``, the rest of this docstring:
 
 Step doubling with rollback, as MasterSim's error control does it (docs/coupling.md):
@@ -96,7 +106,10 @@ if TYPE_CHECKING:
 MIN_LEVEL = 10  # the smallest step is coupling.step / 2**MIN_LEVEL
 SAFETY = 0.9  # of the step the error estimate proposes
 FAC_MIN, FAC_MAX = 0.2, 2.0  # the most a step shrinks or grows at once (Hairer I, II.4)
-RATIO_MIN = 0.5  # extrapolation estimate: the most an accepted step's successor shrinks
+# extrapolation estimate (module docstring): the most an accepted step's successor shrinks
+# and grows (the extrapolation's points stay evenly spaced), and how far above the error
+# level of the smooth steps before it a step's err marks a kink
+RATIO_MIN, RATIO_MAX, KINK = 0.8, 1.1, 10.0
 PI_GAINS = (0.7, 0.4)  # Gustafsson's exponents, times 1 / k (module docstring)
 FLOOR = 1e-3  # of a value's nominal: the smallest magnitude its error is relative to
 
@@ -322,6 +335,9 @@ class _Control:
             q = min((s.input_rates.order if s.input_rates else 0 for s in order if s.n_inputs),
                     default=0)  # fmt: skip
             self.k, self.min_units, self.fac_min = q + 1, 1, RATIO_MIN
+        self.fac_max = FAC_MAX if self.doubling else RATIO_MAX
+        self.level: float | None = None  # err of the last smooth step (extrapolation)
+        self.kinks = 0
         self.last_units = 2**MIN_LEVEL  # the last step accepted, grid points
         self.grid = grid_step(coupling)
         self.last = round(scenario.stop_time / self.grid)
@@ -377,25 +393,41 @@ class _Control:
     def judge(self, err: float, units: int, wanted: int) -> bool:
         """Accept the step (and choose the next) or ask for a retry with a shorter one."""
         k = self.k
-        if err <= 1.0 or units <= self.min_units:
-            self.accepted += 1
-            self.forced += err > 1.0
-            self.smallest = min(self.smallest, units * self.grid)
-            self.largest = max(self.largest, units * self.grid)
-            # a step shortened to reach a point: as if the step asked for had been taken
-            err = max(err * (wanted / units) ** k, 1e-4)
-            factor = SAFETY * err ** (-PI_GAINS[0] / k) * self.err_prev ** (PI_GAINS[1] / k)
-            factor = min(FAC_MAX, max(self.fac_min, factor))
-            if self.after_rejection:
-                factor = min(factor, 1.0)
-            self.next = wanted * factor
-            self.last_units = units
-            self.err_prev, self.after_rejection = err, False
+        # a step shortened to reach a point: as if the step asked for had been taken
+        asked = err * (wanted / units) ** k
+        if err > 1.0 and units > self.min_units and not self._kink(asked):
+            self.rejected += 1
+            self.next = units * max(FAC_MIN, SAFETY * err ** (-1.0 / k))
+            self.after_rejection = True
+            return False
+        self.accepted += 1
+        self.forced += err > 1.0
+        self.smallest = min(self.smallest, units * self.grid)
+        self.largest = max(self.largest, units * self.grid)
+        self.last_units, after_rejection = units, self.after_rejection
+        self.after_rejection = False
+        if self._kink(asked):  # the step goes on as it was: a shorter one gains little
+            self.kinks += 1
+            self.next = float(wanted)
             return True
-        self.rejected += 1
-        self.next = units * max(FAC_MIN, SAFETY * err ** (-1.0 / k))
-        self.after_rejection = True
-        return False
+        err = max(asked, 1e-4)
+        factor = SAFETY * err ** (-PI_GAINS[0] / k) * self.err_prev ** (PI_GAINS[1] / k)
+        factor = min(self.fac_max, max(self.fac_min, factor))
+        if after_rejection:
+            factor = min(factor, 1.0)
+        # (extrapolation: the fraction of a grid point carried on, so that steps of a few
+        # points grow at RATIO_MAX too)
+        carried = not self.doubling and int(self.next) == wanted
+        self.next = (self.next if carried else wanted) * factor
+        self.err_prev, self.level = err, asked
+        return True
+
+    def _kink(self, asked: float) -> bool:
+        """A step of the extrapolation estimate across a slope discontinuity: its err (for
+        the step asked for) is over 1 and KINK times the last smooth step's."""
+        if self.doubling or self.level is None:
+            return False
+        return asked > 1.0 and asked > KINK * max(self.level, 1e-3)
 
     def summary(self, stepper: _Stepper) -> dict[str, Any]:
         return {
@@ -406,6 +438,7 @@ class _Control:
             "accepted_steps": self.accepted,
             "rejected_steps": self.rejected,
             "steps_over_tolerance": self.forced,
+            "kinks": self.kinks,
             "smallest_step_s": self.smallest if self.accepted else None,
             "largest_step_s": self.largest if self.accepted else None,
             "do_steps": dict(stepper.do_steps),

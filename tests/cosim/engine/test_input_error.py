@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import itertools
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -82,12 +83,14 @@ def test_one_do_step_per_attempt_and_a_tighter_tolerance_comes_closer_to_the_lim
     assert error(tight) < error(loose) / 4
 
 
-def test_an_accepted_step_grows_the_next_by_at_most_two(test_fmu_dir: Path) -> None:
-    """The extrapolation's points stay evenly enough spaced: no step is more than twice
-    the step before it."""
+def test_an_accepted_step_grows_the_next_by_at_most_ratio_max(test_fmu_dir: Path) -> None:
+    """The extrapolation's points stay evenly spaced: no step is more than RATIO_MAX
+    times the step before it plus a grid point."""
     result = run(test_fmu_dir, adaptive(1e-3))
     steps = np.diff(result.times)[:-1]  # the last one is cut at the stop time
-    assert np.all(steps[1:] / steps[:-1] <= adaptive_module.FAC_MAX + 1e-9)
+    grid = adaptive_module.grid_step(result.scenario.coupling)
+    allowed = adaptive_module.RATIO_MAX * (steps[:-1] + grid)
+    assert np.all(steps[1:] <= allowed + 1e-12)
 
 
 @pytest.mark.parametrize("bad", ['"halving"', "1", '""'])
@@ -176,3 +179,60 @@ def test_the_estimate_is_the_quadratic_extrapolations_error_at_the_steps_end(
     half = [t / 2 for t in times]
     finer, _ = quadratic_estimate(half, half[-1] + step / 2)
     assert 6.0 < estimated / finer < 10.0
+
+
+def extrapolation_control() -> adaptive_module._Control:
+    """The step control of an adaptive run with quadratic extrapolation (k = 3), on a
+    60 s run at a 10 ms first step, without instances to read."""
+    coupling = SimpleNamespace(
+        tolerance=1e-3, error_estimate="extrapolation", step=0.01, max_step=None,
+        extrapolation_order=2,
+    )  # fmt: skip
+    scenario = SimpleNamespace(coupling=coupling, stop_time=60.0, instances={})
+    receiver = SimpleNamespace(n_inputs=1, input_rates=SimpleNamespace(order=2), k=1)
+    return adaptive_module._Control(scenario, [receiver], {}, 0, None)  # type: ignore[arg-type]
+
+
+def take(control: adaptive_module._Control, err: float) -> tuple[bool, int]:
+    """(accepted, grid points) of one attempt with error ``err`` from point 0."""
+    units, wanted = control.units(0)
+    return control.judge(err, units, wanted), units
+
+
+def test_a_kink_is_stepped_across_without_collapsing_the_step() -> None:
+    """An input's slope jumps inside a step (a saturation, a boundary layer): the step's
+    error is far above the smooth steps' before it and falls only like H when the step
+    shortens. The step is accepted as it is and its successor is as long: no rejection,
+    no collapse to the grid."""
+    control = extrapolation_control()
+    for _ in range(10):
+        accepted, before = take(control, 0.3)
+        assert accepted
+    accepted, across = take(control, 50.0)
+    assert accepted and across >= before
+    accepted, after = take(control, 0.3)
+    assert accepted and after >= across
+    assert control.rejected == 0 and control.kinks == 1
+
+
+def test_an_error_that_grows_smoothly_past_the_tolerance_is_still_rejected() -> None:
+    """The kink rule does not excuse an error that rose within KINK of the last smooth
+    step's: that step is retried shorter."""
+    control = extrapolation_control()
+    take(control, 0.5)
+    accepted, units = take(control, 0.5 * adaptive_module.KINK / 2)
+    assert not accepted and control.rejected == 1 and control.kinks == 0
+    accepted, retried = take(control, 0.5)
+    assert accepted and retried < units
+
+
+def test_steps_grow_by_at_most_ratio_max_from_the_smallest() -> None:
+    """From the smallest step, with an error far below the tolerance, each step is at most
+    RATIO_MAX times the last plus a grid point (the fraction carried on: the extrapolation's
+    points stay evenly spaced), and the steps still grow, a fraction of a point at a time."""
+    control = extrapolation_control()
+    control.next = 1.0
+    steps = np.asarray([take(control, 1e-6)[1] for _ in range(60)])
+    allowed = adaptive_module.RATIO_MAX * (steps[:-1] + 1)
+    assert np.all(steps[1:] < allowed), steps
+    assert np.all(steps[1:] >= steps[:-1]) and steps[-1] > 100
