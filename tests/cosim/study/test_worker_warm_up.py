@@ -35,14 +35,16 @@ def test_warm_up_loads_the_libraries_and_compiles_the_plant(fmu_paths, run_pytho
 
 
 FORKED = """
-import os, sys
+import gc, os, sys
 import psutil
 from cosim.study.execution import open_client
 
 def probe():
     server = " ".join(psutil.Process().parent().cmdline())
-    return (os.environ.get("OPENBLAS_NUM_THREADS"), "cosim.study.task" in sys.modules,
-            "multiprocessing.forkserver" in server, "plant_fmu" in sys.modules)
+    loaded = ("cosim.study.task", "cosim.engine.master", "pandas", "numba")
+    fmu = [name for name in sys.modules if name.startswith("auvfmu_")]
+    return (os.environ.get("OPENBLAS_NUM_THREADS"), all(n in sys.modules for n in loaded),
+            "multiprocessing.forkserver" in server, fmu, gc.get_freeze_count() > 0)
 
 if __name__ == "__main__":
     with open_client(2) as client:
@@ -55,10 +57,12 @@ if __name__ == "__main__":
 @pytest.mark.skipif(not fork_server.available(), reason="no fork server on this platform")
 def test_local_workers_are_forked_with_the_runs_modules_imported(run_python, tmp_path) -> None:
     """A study's local workers start from a fork server that imported Dask and the run's
-    modules once (not each worker again), with Dask's pre-spawn environment (one BLAS
-    thread), and nothing of an FMU (each worker loads its FMUs after the fork)."""
+    modules once (not each worker again) -- the engine, pandas and numba too, which a
+    worker's warm-up imported before -- and froze them out of the garbage collector's
+    reach, with Dask's pre-spawn environment (one BLAS thread), and nothing of an FMU
+    (each worker loads its FMUs' packages after the fork)."""
     script = tmp_path / "forked.py"
     script.write_text(FORKED, encoding="utf-8")
     done = run_python(f"import runpy; runpy.run_path({str(script)!r}, run_name='__main__')")
     assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stdout.strip().splitlines()[-1] == str([("1", True, True, False)] * 2)
+    assert done.stdout.strip().splitlines()[-1] == str([("1", True, True, [], True)] * 2)
