@@ -10,8 +10,8 @@ every run needs before its FMUs are loaded, ~2-3 s of CPU a worker paid in its w
   (:func:`_numba_target`): what loading a kernel from numba's cache does first in a process.
 
 What is specific to the study's FMUs -- their libraries, their packages (an FMU imports the
-copy it ships, ``auvfmu_<hash>``), their compiled kernels -- is loaded later, by the study
-plugin's set-up (:func:`cosim.study.task.warm_up`).
+copy it ships, ``auvfmu_<hash>``), their compiled kernels -- is loaded later, in each
+worker's first task (:func:`cosim.study.task.warm_up`).
 """
 
 import gc
