@@ -11,7 +11,7 @@ command knows it will run a local study, so its imports run beside the client's.
 
 The server is one clean process (no thread), started with Dask's pre-spawn environment
 (one BLAS thread...) as Dask sets it before it spawns a worker. It imports what every run
-needs (:mod:`cosim.study.preload`: the engine, pandas, numba with its cache folder set
+needs (:mod:`cosim.study.preload`: the engine, numba with its cache folder set
 first and its compiler's target initialised, ~2 s of each worker's warm-up before) and
 freezes it out of the garbage collector's reach. The FMUs are never loaded there (an FMU
 imports the package it ships): each worker loads them after the fork. This module:

@@ -1,10 +1,9 @@
 """Imported once by the fork server every local study worker is forked from
 (:mod:`cosim.study.fork_server`), or by each worker as it starts where there is none
 (Dask's worker ``preload``), while the client still imports and checks the study: what
-every run needs before its FMUs are loaded, ~2-3 s of CPU a worker paid in its warm-up.
+every run needs before its FMUs are loaded, ~2 s of CPU a worker paid in its warm-up.
 
 * the run's modules: runner, engine, outputs, fmpy;
-* pandas, which pyarrow imports at a run's first CSV write;
 * numba, imported by the engine (:func:`plant_fmu.model.jit.load_numba`, which sets
   numba's cache folder first, as the FMUs do), with its compiler's target initialised
   (:func:`_numba_target`): what loading a kernel from numba's cache does first in a process.
@@ -18,7 +17,6 @@ import gc
 from contextlib import suppress
 
 import fmpy.fmi2  # noqa: F401  (loaded once, now)
-import pandas  # noqa: F401  (pyarrow's conversions import it at a run's first CSV write)
 
 import cosim.engine.master  # the engine; numba, its cache folder set first
 import cosim.outputs.run_outputs  # a run's files

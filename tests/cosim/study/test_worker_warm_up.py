@@ -42,7 +42,7 @@ from cosim.study.execution import open_client
 
 def probe():
     server = " ".join(psutil.Process().parent().cmdline())
-    loaded = ("cosim.study.task", "cosim.engine.master", "pandas", "numba")
+    loaded = ("cosim.study.task", "cosim.engine.master", "numba")
     fmu = [name for name in sys.modules if name.startswith("auvfmu_")]
     return (os.environ.get("OPENBLAS_NUM_THREADS"), all(n in sys.modules for n in loaded),
             "multiprocessing.forkserver" in server, fmu, gc.get_freeze_count() > 0)
@@ -58,7 +58,7 @@ if __name__ == "__main__":
 @pytest.mark.skipif(not fork_server.available(), reason="no fork server on this platform")
 def test_local_workers_are_forked_with_the_runs_modules_imported(run_python, tmp_path) -> None:
     """A study's local workers start from a fork server that imported Dask and the run's
-    modules once (not each worker again) -- the engine, pandas and numba too, which a
+    modules once (not each worker again) -- the engine and numba too, which a
     worker's warm-up imported before -- and froze them out of the garbage collector's
     reach, with Dask's pre-spawn environment (one BLAS thread), and nothing of an FMU
     (each worker loads its FMUs' packages after the fork)."""
