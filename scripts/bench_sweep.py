@@ -28,19 +28,25 @@ Every process runs with one BLAS / OpenMP thread, as Dask's nanny starts its wor
 BLAS threads spinning beside a busy cluster. The measurements alternate ``--repeat``
 times and the best of each is reported, to damp other load on the machine; a busy
 machine still lowers the ratios.
+With ``--baseline REV`` the end-to-end sweeps also run with the repository's files at git
+revision REV (extracted into a temporary folder, its FMUs built there by an untimed sweep),
+alternated with this tree's in every round, and both sets of figures are printed.
 Usage: ``python scripts/bench_sweep.py [--runs 8] [--stop-time 20] [--repeat 3]``, or
-``python scripts/bench_sweep.py --end-to-end [--runs 16] [--stop-time 120] [--repeat 3]``.
+``python scripts/bench_sweep.py --end-to-end [--runs 16] [--stop-time 120] [--repeat 3]
+[--baseline REV]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import multiprocessing
 import os
 import shutil
 import statistics
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
@@ -60,6 +66,7 @@ from cosim.study.factors import resolve_factor  # noqa: E402
 from cosim.study.task import RunRecord, prepare, run_one  # noqa: E402
 
 WORKERS = 2
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def planned(n: int) -> list[PlannedRun]:
@@ -130,16 +137,18 @@ def study_file(folder: Path, runs: int, stop_time: float) -> Path:
     return path
 
 
-def sweep_seconds(study: Path, workers: int, fmu_dir: Path) -> float:
+def sweep_seconds(study: Path, workers: int, fmu_dir: Path, tree: Path | None = None) -> float:
     """``auv-cosim sweep STUDY --workers N`` in a fresh process: seconds from the command
-    to its exit (its own process group, ended if the benchmark is interrupted)."""
+    to its exit (its own process group, ended if the benchmark is interrupted); ``tree``:
+    the source tree whose ``cosim`` runs (default: the one this script imports)."""
     out = study.parent / f"out-{workers}"
     shutil.rmtree(out, ignore_errors=True)
     command = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--workers", str(workers)]
     command += ["--out", str(out), "--fmu-dir", str(fmu_dir.resolve()), "--quiet"]
+    env = None if tree is None else {**os.environ, "PYTHONPATH": str(tree)}
     started = time.perf_counter()
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               text=True, start_new_session=True)  # fmt: skip
+                               text=True, start_new_session=True, cwd=tree, env=env)  # fmt: skip
     try:
         _, err = process.communicate(timeout=3600)
     finally:
@@ -151,26 +160,46 @@ def sweep_seconds(study: Path, workers: int, fmu_dir: Path) -> float:
     return time.perf_counter() - started
 
 
+def tree_at(revision: str, folder: Path) -> Path:
+    """The repository's files at git ``revision``, extracted into ``folder``."""
+    archive = subprocess.run(["git", "archive", revision], cwd=ROOT, capture_output=True,
+                             check=True).stdout  # fmt: skip
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(folder, filter="data")
+    return folder
+
+
 def end_to_end(args: argparse.Namespace) -> None:
     """The ``--end-to-end`` figures (see the module docstring)."""
     ensure_fmus(args.fmu_dir)
-    with tempfile.TemporaryDirectory(prefix="auv-cosim-bench-") as folder:
-        study = study_file(Path(folder), args.runs, args.stop_time)
-        sweep_seconds(study, 1, args.fmu_dir)  # warm-up: compiled-code cache, disk cache
-        times: dict[int, list[tuple[float, str]]] = {1: [], 2: []}
-        for _ in range(args.repeat):  # alternating, so both see the same other load
-            for workers in (1, 2):
-                seconds = sweep_seconds(study, workers, args.fmu_dir)
-                load = "/".join(f"{x:.1f}" for x in os.getloadavg())
-                times[workers].append((seconds, load))
-                print(f"  {workers} worker(s): {seconds:6.2f} s  load {load}", flush=True)
-    one, two = min(times[1]), min(times[2])
-    print(
-        f"bs-3, {args.runs} runs of {args.stop_time:g} s, command to prompt, best of {args.repeat}"
-    )
-    print(f"1 worker:  {one[0]:6.2f} s (load {one[1]})")
-    print(f"2 workers: {two[0]:6.2f} s (load {two[1]})")
-    print(f"ratio:     {one[0] / two[0]:.2f} (goal >= 1.6)")
+    with tempfile.TemporaryDirectory(prefix="auv-cosim-bench-") as name:
+        folder = Path(name)
+        study = study_file(folder, args.runs, args.stop_time)
+        trees: dict[str, tuple[Path | None, Path]] = {"": (None, args.fmu_dir)}
+        if args.baseline:  # its own FMUs, built by its warm-up sweep
+            base = tree_at(args.baseline, folder / "baseline")
+            trees = {f"{args.baseline} ": (base, folder / "baseline-fmus"), "this tree ": trees[""]}
+        for tree, fmu_dir in trees.values():
+            sweep_seconds(study, 1, fmu_dir, tree)  # warm-up: compiled-code cache, disk cache
+        times: dict[tuple[str, int], list[tuple[float, str]]] = {}
+        for _ in range(args.repeat):  # alternating, so all see the same other load
+            for label, (tree, fmu_dir) in trees.items():
+                for workers in (1, 2):
+                    seconds = sweep_seconds(study, workers, fmu_dir, tree)
+                    load = "/".join(f"{x:.1f}" for x in os.getloadavg())
+                    times.setdefault((label, workers), []).append((seconds, load))
+                    print(
+                        f"  {label}{workers} worker(s): {seconds:6.2f} s  load {load}", flush=True
+                    )
+    for label in trees:
+        one, two = min(times[(label, 1)]), min(times[(label, 2)])
+        print(
+            f"{label}bs-3, {args.runs} runs of {args.stop_time:g} s, command to prompt, "
+            f"best of {args.repeat}"
+        )
+        print(f"1 worker:  {one[0]:6.2f} s (load {one[1]})")
+        print(f"2 workers: {two[0]:6.2f} s (load {two[1]})")
+        print(f"ratio:     {one[0] / two[0]:.2f} (goal >= 1.6)")
 
 
 def main() -> None:
@@ -180,6 +209,9 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="best of [%(default)s]")
     parser.add_argument("--fmu-dir", type=Path, default=Path("build/fmus"))
     parser.add_argument("--end-to-end", action="store_true", help="whole sweeps, 1 vs 2 workers")
+    parser.add_argument(
+        "--baseline", help="with --end-to-end: also the tree at this git revision, alternated"
+    )
     args = parser.parse_args()
     if args.end_to_end:
         args.runs = args.runs or 16

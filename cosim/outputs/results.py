@@ -59,6 +59,14 @@ if TYPE_CHECKING:  # types only: the readers of results.csv need not import the 
 _CSV_OPTIONS = pa_csv.WriteOptions(include_header=False, quoting_style="none")
 
 
+def _doubles(column: np.ndarray) -> pa.Array:
+    """One column as an Arrow array of doubles, the values as they are (a NaN stays a
+    NaN). Built from the array's buffer, not with ``pa.array``, which imports pandas
+    (~0.9 s) at its first call in a process to ask whether the column is pandas'."""
+    data = np.ascontiguousarray(column, dtype=np.float64)
+    return pa.Array.from_buffers(pa.float64(), len(data), [None, pa.py_buffer(data)])
+
+
 def csv_header(columns: tuple[str, ...] | list[str]) -> str:
     """The first line of results.csv, newline included."""
     return ",".join(["time", *columns]) + "\n"
@@ -69,9 +77,10 @@ def csv_lines(times: np.ndarray, values: np.ndarray) -> bytes:
 
     pyarrow's CSV writer, not ``repr`` per value: it prints the same shortest round-trip
     text in C++ at about a quarter of the cost (the CSV was the largest per-row cost of a
-    run beyond the FMUs' own steps; scripts/bench_cosim.py).
+    run beyond the FMUs' own steps; scripts/bench_cosim.py). ``times`` (s) and ``values``
+    are doubles (the engine's row chunks).
     """
-    columns = [pa.array(times), *(pa.array(values[:, i]) for i in range(values.shape[1]))]
+    columns = [_doubles(times), *(_doubles(values[:, i]) for i in range(values.shape[1]))]
     table = pa.Table.from_arrays(columns, names=[str(i) for i in range(len(columns))])
     sink = pa.BufferOutputStream()
     pa_csv.write_csv(table, sink, _CSV_OPTIONS)

@@ -10,9 +10,11 @@ Workers need the package installed, not a shared disk: the client reads each FMU
 a worker plugin (:class:`StudyPlugin`) carries them and the study's shared data
 (:class:`Job`) to every worker -- the FMUs written into its local directory -- also to
 workers that join later or are restarted by their nanny; the plugin is removed (and the
-files with it) at the end. The plugin's set-up also runs the scenario for one step
-(:func:`cosim.study.task.warm_up`), so each worker loads its FMU libraries and compiled
-code once, all workers at the same time, before its first task. Each run is one task
+files with it) at the end. Each worker's first task first runs the scenario for one step
+(:func:`cosim.study.task.warm_up`, once per worker: :meth:`StudyPlugin.warm`), so the
+worker loads its FMU libraries and compiled code before its first run, which then costs
+what every later one does; a worker that is ready starts its runs without waiting for the
+others to be. Each run is one task
 (:func:`run_on_worker`) that needs nothing but the plugin, so no task depends on data held
 by a worker that may be lost. A run that fails is a result, not an exception. A task whose
 worker died is rescheduled by the scheduler on another worker, up to
@@ -37,6 +39,7 @@ import os
 import shutil
 import socket
 import sys
+import threading
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -93,6 +96,7 @@ class StudyPlugin(WorkerPlugin):
         self.files = dict(files)
         self.name = job.plugin
         self.folder: Path | None = None
+        self._warm: threading.Lock | None = None  # held while warming up; None once warm
 
     def setup(self, worker: Any) -> None:
         folder = Path(worker.local_directory) / FMU_FOLDER / self.name
@@ -101,8 +105,26 @@ class StudyPlugin(WorkerPlugin):
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(content)
         self.folder = folder
-        paths = {instance: folder / relative for instance, relative in self.job.fmu_files.items()}
-        warm_up(self.job.base, paths)
+        self._warm = threading.Lock()
+
+    def fmu_paths(self) -> dict[str, Path]:
+        """Instance -> its FMU file in this worker's local directory (after set-up)."""
+        if self.folder is None:  # setup runs when the plugin is registered, before any task
+            raise StudyError(f"study plugin {self.name}: not set up on this worker")
+        return {instance: self.folder / rel for instance, rel in self.job.fmu_files.items()}
+
+    def warm(self) -> None:
+        """Run the scenario for one step in this worker, once (its first task does, the
+        worker's other threads waiting): its FMUs and their compiled code are loaded.
+        Here and not in :meth:`setup`, which every worker must finish before the client
+        may submit a task: a worker that is ready starts its runs at once."""
+        lock = self._warm
+        if lock is None:
+            return
+        with lock:
+            if self._warm is not None:
+                warm_up(self.job.base, self.fmu_paths())
+                self._warm = None
 
     def teardown(self, worker: Any) -> None:
         if self.folder is not None:
@@ -196,10 +218,8 @@ def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
     """One task: one run, with the job and the FMUs the plugin brought to this worker."""
     # the StudyPlugin registered under this name before the tasks were submitted
     plugin = cast(StudyPlugin, get_worker().plugins[plugin_name])
-    job, folder = plugin.job, plugin.folder
-    if folder is None:  # setup runs when the plugin is registered, before any task
-        raise StudyError(f"study plugin {plugin_name}: not set up on this worker")
-    paths = {instance: folder / relative for instance, relative in job.fmu_files.items()}
+    job, paths = plugin.job, plugin.fmu_paths()
+    plugin.warm()
     return run_one(job.base, paths, job.factors, values, job.keep, job.check_step)
 
 

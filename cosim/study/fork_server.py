@@ -10,11 +10,13 @@ were ready in 1.2-1.5 s instead of 2.7-2.8 s and closed in 0.05 s instead of 0.9
 command knows it will run a local study, so its imports run beside the client's.
 
 The server is one clean process (no thread), started with Dask's pre-spawn environment
-(one BLAS thread...) as Dask sets it before it spawns a worker. FMUs and numba are never
-imported there (an FMU imports the packages it ships, and the plant sets numba's cache
-folder before numba is first imported): each worker loads them after the fork. Standard
-library and dask's configuration only (not distributed, ~1 s to import), so that it starts
-before the client has imported what the server imports.
+(one BLAS thread...) as Dask sets it before it spawns a worker. It imports what every run
+needs (:mod:`cosim.study.preload`: the engine, numba with its cache folder set
+first and its compiler's target initialised, ~2 s of each worker's warm-up before) and
+freezes it out of the garbage collector's reach. The FMUs are never loaded there (an FMU
+imports the package it ships): each worker loads them after the fork. This module:
+standard library and dask's configuration only (not distributed, ~1 s to import), so that
+the server starts before the client has imported what the server imports.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 
-PRELOAD = ["distributed", "fmpy.fmi2", "cosim.study.task"]  # imported once, in the server
+PRELOAD = ["distributed", "cosim.study.preload"]  # imported once, in the server
 
 
 def available() -> bool:

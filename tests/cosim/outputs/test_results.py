@@ -34,3 +34,23 @@ def test_every_double_reads_back_bit_for_bit(values: np.ndarray, tmp_path_factor
     numbers = ~np.isnan(values)  # a nan's sign is not data
     assert np.array_equal(np.signbit(table[:, 1:])[numbers], np.signbit(values)[numbers])
     assert np.array_equal(table[:, 0], times)
+
+
+WRITE_ROWS = """
+import sys
+import numpy as np
+from cosim.outputs.results import csv_lines
+print(csv_lines(np.array([0.0, 0.5]), np.array([[0.1, -2.5e-7], [np.nan, np.inf]])))
+print("pandas" in sys.modules)
+"""
+
+
+def test_rows_are_written_without_importing_pandas(run_python) -> None:
+    """A process writes its rows without importing pandas (pyarrow's conversion of a
+    numpy array imports it, ~0.9 s, at its first call): a run, and each study worker,
+    starts without it; the text is the shortest round-trip one."""
+    done = run_python(WRITE_ROWS)
+    assert done.returncode == 0, done.stderr[-2000:]
+    text, pandas = done.stdout.splitlines()
+    assert text == repr(b"0,0.1,-2.5e-7\n0.5,nan,inf\n")
+    assert pandas == "False"
