@@ -65,6 +65,38 @@ def test_the_estimate_is_the_true_extrapolation_error_of_the_step(
     assert len(ratio) >= 10 and np.all((ratio > 1 / 1.5) & (ratio < 1.5)), ratio
 
 
+def test_a_steps_err_is_its_inputs_error_times_its_length_over_the_step(
+    test_fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every attempt is judged on the error it leaves in the states its inputs drive: the
+    inputs' scaled error times H / step (1 at the scenario's step), not the inputs' error
+    alone, so steps of different lengths are held to the same local error."""
+    judged: list[tuple[float, float, int]] = []
+    scaled, judge = adaptive_module._Control.scaled, adaptive_module._Control.judge
+
+    def keep_scaled(self, values, sources, du):  # type: ignore[no-untyped-def]
+        self.inputs_error = scaled(self, values, sources, du)
+        return self.inputs_error
+
+    def keep_judged(self, err, units, wanted):  # type: ignore[no-untyped-def]
+        judged.append((self.inputs_error, err, units))
+        return judge(self, err, units, wanted)
+
+    monkeypatch.setattr(adaptive_module._Control, "scaled", keep_scaled)
+    monkeypatch.setattr(adaptive_module._Control, "judge", keep_judged)
+    result = run(test_fmu_dir, adaptive(1e-3))
+    inputs_error, err, units = (np.asarray(column) for column in zip(*judged, strict=True))
+    per_step = 2**adaptive_module.MIN_LEVEL  # grid points in the scenario's step
+    assert len(np.unique(units)) > 3 and np.any(units != per_step), units
+    assert np.allclose(err, inputs_error * units / per_step, rtol=1e-12, atol=0.0)
+    assert result.coupling["accepted_steps"] == result.rows - 1
+
+
+def test_err_is_one_order_above_the_extrapolations_error() -> None:
+    """Quadratic extrapolation: the inputs' error is O(H^3), err (times H) O(H^4)."""
+    assert extrapolation_control().k == 4
+
+
 def test_one_do_step_per_attempt_and_a_tighter_tolerance_comes_closer_to_the_limit(
     test_fmu_dir: Path,
 ) -> None:
@@ -203,14 +235,14 @@ def test_a_kink_is_stepped_across_without_collapsing_the_step() -> None:
     """An input's slope jumps inside a step (a saturation, a boundary layer): the step's
     error is far above the smooth steps' before it and falls only like H when the step
     shortens. The step is accepted as it is and its successor is as long: no rejection,
-    no collapse to the grid."""
+    no collapse to the grid (the smooth steps' error, 0.2, is one they grow at)."""
     control = extrapolation_control()
     for _ in range(10):
-        accepted, before = take(control, 0.3)
+        accepted, before = take(control, 0.2)
         assert accepted
     accepted, across = take(control, 50.0)
     assert accepted and across >= before
-    accepted, after = take(control, 0.3)
+    accepted, after = take(control, 0.2)
     assert accepted and after >= across
     assert control.rejected == 0 and control.kinks == 1
 

@@ -1,0 +1,47 @@
+"""scripts/coupling_study.py's comparison of an adaptive run with the fixed steps: the
+doSteps a fixed step takes for a given trajectory error, when the fixed runs' errors
+scatter about their trend (vert-1's error is not monotonic in the step)."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from types import ModuleType
+
+import numpy as np
+import pytest
+from repo_paths import ROOT
+
+
+@pytest.fixture(scope="module")
+def study() -> ModuleType:
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        return importlib.import_module("coupling_study")
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+
+
+def trend(n: float) -> float:
+    """A fixed step's trajectory error falling as the square of its step: 60 s, doSteps n."""
+    return 0.5 * (1000.0 / n) ** 2
+
+
+def test_one_unlucky_fixed_step_does_not_set_the_comparison(study: ModuleType) -> None:
+    """Fixed runs on an error trend, one of them (6000 doSteps) with twice its trend's error:
+    an adaptive run with that error is compared with the trend (about 4243 doSteps, within
+    10 %), not with the unlucky run (interpolating between neighbours would say 6000)."""
+    counts = [1500, 1875, 2000, 2400, 3000, 3750, 4000, 4800, 5000, 6000, 7500, 8000, 12000]
+    fixed = [(trend(n) * (2.0 if n == 6000 else 1.0), float(n)) for n in counts]
+    error = 2.0 * trend(6000)
+    assert study._same_error(fixed, error) == pytest.approx(1000.0 / np.sqrt(error / 0.5), rel=0.1)
+
+
+def test_the_scatter_is_the_largest_factor_off_the_trend(study: ModuleType) -> None:
+    """On the trend exactly the fixed runs scatter by a factor 1; one run with 4 times its
+    trend's error is off by about a factor 2 in doSteps (error as the square of the step)."""
+    counts = [1500, 1875, 2000, 2400, 3000, 3750, 4000, 4800, 5000, 6000, 7500, 8000, 12000]
+    exact = [(trend(n), float(n)) for n in counts]
+    assert study._scatter(exact) == pytest.approx(1.0)
+    unlucky = [(e * (4.0 if n == 4800 else 1.0), n) for e, n in exact]
+    assert study._scatter(unlucky) == pytest.approx(2.0, rel=0.15)
