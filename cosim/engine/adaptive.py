@@ -96,7 +96,6 @@ from __future__ import annotations
 import bisect
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -129,21 +128,6 @@ def grid_step(coupling: Coupling) -> float:
     return coupling.step / 2**MIN_LEVEL
 
 
-@dataclass(frozen=True)
-class _Held:
-    """An accepted step of the extrapolation estimate not yet confirmed by its ``later``
-    inputs' error: the states before it, where it started, its length and the length
-    asked for (grid points), its err, the control before judging it, its row."""
-
-    saved: tuple[Any, ...]
-    n: int
-    units: int
-    wanted: int
-    err: float
-    control: dict[str, Any]
-    row: np.ndarray
-
-
 class _Stepper:
     """The instances of an adaptive run, stepped, saved and restored together."""
 
@@ -163,7 +147,6 @@ class _Stepper:
         self.current = order[0]  # the instance called last (a failure names it)
         self.through = [s for s in order if s.feeds_through]
         self.inputs: InputError | None = None  # the extrapolation estimator's bookkeeping
-        self.held: _Held | None = None  # the step accepted last, until confirmed
 
     def advance(self, n: int, units: int) -> None:
         """Every instance due at point n steps ``units`` grid points (one with step
@@ -251,9 +234,7 @@ def run(
         check_finite(z[:n_read], index, 0.0)
         while n < control.last and stop.signum is None and rows.error is None:
             n, filled = one_step(stepper, control, n, at, rows, filled, record)
-        filled = _flush(stepper, rows, filled)
     except FMICallException as exc:
-        filled = _flush(stepper, rows, filled)
         slave = stepper.current
         ended = end_of_simulation(slave, exc, z, record, rows, filled, n * stepper.grid)
         if ended is None:
@@ -262,7 +243,6 @@ def run(
         else:
             rows.ended, filled = ended
     except CosimError as exc:
-        filled = _flush(stepper, rows, filled)
         error = str(exc)
     rows.hand_off(filled)
     return error, control.summary(stepper)
@@ -321,10 +301,7 @@ def _extrapolated_step(
     record: np.ndarray,
 ) -> tuple[int, int]:
     """:func:`_one_step` judged by the inputs' extrapolation error
-    (:mod:`cosim.engine.input_error`): one step of H, redone only when rejected. The step
-    accepted last is held (its saved states and its row) until its ``later`` inputs'
-    error is known, in the first attempt from n; if that error rejects it, the states go
-    back to before it and the point it started from is returned."""
+    (:mod:`cosim.engine.input_error`): one step of H, redone only when rejected."""
     z, inputs = stepper.z, stepper.inputs
     assert inputs is not None
     while True:
@@ -333,55 +310,16 @@ def _extrapolated_step(
         try:
             stepper.advance(n, units)
             check_finite(z[: control.n_read], control.index, (n + units) * stepper.grid)
-            held = stepper.held
-            if held is not None:
-                stepper.held = None
-                if not _confirm(stepper, control, held, n):
-                    stepper.restore(held.saved)
-                    stepper.free(held.saved)
-                    return held.n, filled
-                filled = rows.push(filled, held.row, n * stepper.grid)
-                stepper.free(held.saved)
             sources, du = inputs.errors(stepper.order, z, n + units, control.k - 1)
             err = control.scaled(z[: control.n_read], sources, du) * units / 2**MIN_LEVEL
-            before = control.state()
             if control.judge(err, units, wanted):
-                stepper.held = _Held(saved, n, units, wanted, err, before, z[record].copy())
-                saved = None
                 break
             stepper.restore(saved)
         finally:
-            if saved is not None:
-                stepper.free(saved)
+            stepper.free(saved)
     at(n + units)
+    filled = rows.push(filled, z[record], (n + units) * stepper.grid)
     return n + units, filled
-
-
-def _confirm(stepper: _Stepper, control: _Control, held: _Held, n: int) -> bool:
-    """Judge the held step (ending at n) again with its ``later`` inputs' error, known
-    now that their sources stepped from n: False (the control told of the rejection) if
-    that error rejects it."""
-    assert stepper.inputs is not None
-    sources, du = stepper.inputs.late(stepper.order, n, held.units)
-    if not du.size:
-        return True
-    late = control.scaled(stepper.z[: control.n_read], sources, du) * held.units / 2**MIN_LEVEL
-    if late <= held.err:
-        return True
-    control.restore(held.control)
-    if control.judge(late, held.units, held.wanted):
-        return True
-    control.recalled += 1
-    return False
-
-
-def _flush(stepper: _Stepper, rows: RowBuffer, filled: int) -> int:
-    """Push the held step's row (the run ends after it) and free its states."""
-    held, stepper.held = stepper.held, None
-    if held is None:
-        return filled
-    stepper.free(held.saved)
-    return rows.push(filled, held.row, (held.n + held.units) * stepper.grid)
 
 
 class _Control:
@@ -429,14 +367,6 @@ class _Control:
         self.peak = np.zeros(n_read)  # the largest |value| of each so far
         self.accepted, self.rejected, self.forced = 0, 0, 0
         self.smallest, self.largest = math.inf, 0.0
-        self.recalled = 0  # accepted steps rejected once their later inputs' error was known
-
-    def state(self) -> dict[str, Any]:
-        """What :meth:`judge` changes (to judge a step again)."""
-        return dict(vars(self))
-
-    def restore(self, state: dict[str, Any]) -> None:
-        vars(self).update(state)
 
     def units(self, n: int) -> tuple[int, int]:
         """(grid points of the next step from n, those the controller asked for)."""
@@ -519,7 +449,6 @@ class _Control:
             "rejected_steps": self.rejected,
             "steps_over_tolerance": self.forced,
             "kinks": self.kinks,
-            "recalled_steps": self.recalled,
             "smallest_step_s": self.smallest if self.accepted else None,
             "largest_step_s": self.largest if self.accepted else None,
             "do_steps": dict(stepper.do_steps),

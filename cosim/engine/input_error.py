@@ -125,19 +125,6 @@ class InputError:
             return np.zeros(0, dtype=np.intp), np.zeros(0)
         return np.concatenate(sources), np.concatenate(errors)
 
-    def late(self, order: list[Slave], n: int, span: int) -> tuple[np.ndarray, np.ndarray]:
-        """(z index of the source, |du|) of the ``later`` inputs of the step of ``span``
-        grid points ending at point n, known once every instance took its inputs at n."""
-        sources, errors = [], []
-        for slave in order:
-            used, lagged = self.used.get(slave.name), self.lagged.get(slave.name)
-            if used is not None and lagged is not None and used.n == n and lagged[1] == span:
-                errors.append(lagged[0])
-                sources.append(slave.input_sources[self.later[slave.name]])
-        if not errors:
-            return np.zeros(0, dtype=np.intp), np.zeros(0)
-        return np.concatenate(sources), np.concatenate(errors)
-
     def snapshot(self) -> tuple[Any, ...]:
         return dict(self.used), dict(self.lagged)
 
