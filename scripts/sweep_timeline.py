@@ -88,7 +88,7 @@ PATCHES = {
         wrap_client(m), wrap(m.StudyPlugin, "warm", "warm-up"), wrap(m, "run_on_worker", "task"),
         wrap(m, "execute", "execute"),
     ),
-    "cosim.study.preload": lambda m: mark("preload end"),
+    "cosim.study.preload": lambda m: (mark("preload end"), wrap(m, "dask_setup", "worker start")),
     "cosim.study.task": lambda m: wrap(m, "prepare", "prepare"),
     "cosim.study.table": lambda m: wrap(m.RunsTable, "finish", "table"),
     "cosim.study.runner": lambda m: wrap(m, "_write_report", "page"),
@@ -114,6 +114,7 @@ class Finder(importlib.abc.MetaPathFinder):
 
 
 sys.meta_path.insert(0, Finder())
+mark("process start")
 """
 
 
@@ -165,8 +166,12 @@ def phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         return max(t for t, _, w, _ in marks if w == what)
 
     rows = [("study checked", first("prepare end"))]
-    if any(w == "preload end" for _, _, w, _ in marks):
+    server = [p for _, p, w, _ in marks if w == "preload end"]
+    if server:
+        start = min(t for t, p, w, _ in marks if p == server[0] and w == "process start")
+        rows.append(("fork server starts", start))
         rows.append(("fork server imported", first("preload end")))
+        rows.append(("first worker starts", first("worker start begin")))
     rows.append(("client ready", first("client ready")))
     for k, pid in enumerate(_workers(marks), 1):
         begin = min(t for t, p, w, _ in marks if p == pid and w == "warm-up begin")
@@ -211,6 +216,7 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         spans = _task_spans(marks, pid)
         cpu = sum(c for _, c in spans)
         wall = sum(t for t, _ in spans)
+        rows.append((f"worker {k} until warm-up", at("warm-up begin", pid)[1]))  # from its fork
         rows += [(f"worker {k} warm-up", warm), (f"worker {k} runs", cpu - warm)]
         rows.append((f"worker {k} runs CPU/wall", (cpu - warm) / max(wall - warm, 1e-9)))
     return rows
