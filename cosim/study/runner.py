@@ -53,9 +53,8 @@ from cosim.study.units import units
 from cosim.viz.rrd_file import OVERLAY_FILE
 
 STUDIES_DIR = Path("studies")
-# imported while the runs run: what the table (pyarrow imports pandas at its first
-# conversion of a list, ~0.9 s) and the figures need at the end
-REPORT_MODULES = ("pandas", "matplotlib.figure", "matplotlib.ticker")
+# imported while the client waits for its cluster and runs: what the figures need at the end
+REPORT_MODULES = ("matplotlib.figure", "matplotlib.ticker")
 FIGURES_FOLDER = "figures"
 
 
@@ -226,9 +225,9 @@ def _execute(
 
 def prefetch(modules: Sequence[str]) -> None:
     """Import ``modules`` on a thread of their own: the client waits for its runs, and the
-    table's pandas (~0.9 s) and the figures' matplotlib (~0.35 s) are then imported by the
-    end, instead of after the last run (or at the start, where they took the interpreter
-    from the local cluster starting on its thread)."""
+    figures' matplotlib (~0.35 s) is then imported by the end, instead of after the last
+    run (or at the start, where it took the interpreter from the local cluster starting on
+    its thread). The table needs no pandas (:mod:`cosim.study.arrow_columns`)."""
 
     def load() -> None:
         for name in modules:
