@@ -44,7 +44,7 @@ import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, suppress
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
 
@@ -61,6 +61,7 @@ from cosim.study.factors import FactorKind, Value
 from cosim.study.signals import StudyStopped, workers_ignore_sigint
 from cosim.study.spec import StudyError
 from cosim.study.task import Base, RunRecord, run_one, warm_up
+from cosim.study.unpacked import use_unpacked
 
 LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
@@ -87,6 +88,9 @@ class Job:
     fmu_files: Mapping[str, str]  # instance -> its FMU's path in the uploaded folder
     plugin: str  # name of the StudyPlugin carrying the job and the FMUs
     session: str  # this study session's token (in task keys and the plugin name)
+    # SHA-256 of an FMU file -> the folder the client extracted it into, for a local
+    # cluster's workers (cosim.study.unpacked); empty for a remote cluster
+    unpacked: Mapping[str, str] = field(default_factory=dict)
 
 
 class StudyPlugin(WorkerPlugin):
@@ -109,6 +113,7 @@ class StudyPlugin(WorkerPlugin):
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(content)
         self.folder = folder
+        use_unpacked(self.job.unpacked)
         self._warm = threading.Lock()
 
     def fmu_paths(self) -> dict[str, Path]:
@@ -203,9 +208,14 @@ def _is_main_test(test: ast.expr) -> bool:
 
 
 def make_job(
-    base: Base, factors: Mapping[str, FactorKind], keep: str, check_step: bool = False
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    keep: str,
+    check_step: bool = False,
+    unpacked: Mapping[str, str] | None = None,
 ) -> tuple[Job, StudyPlugin]:
-    """The study's shared task data and the plugin carrying it and its FMUs (read once)."""
+    """The study's shared task data and the plugin carrying it and its FMUs (read once);
+    ``unpacked``: the FMUs the client extracted for local workers (:func:`unpack`)."""
     session = uuid.uuid4().hex[:12]  # tasks and plugin of concurrent studies never clash
     files: dict[str, bytes] = {}
     paths: dict[str, str] = {}
@@ -214,7 +224,8 @@ def make_job(
         relative = f"{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
         files[relative] = content
         paths[instance] = relative
-    job = Job(base, factors, keep, check_step, paths, f"auv-cosim-study-{session}", session)
+    name = f"auv-cosim-study-{session}"
+    job = Job(base, factors, keep, check_step, paths, name, session, dict(unpacked or {}))
     return job, StudyPlugin(job, files)
 
 

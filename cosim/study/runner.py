@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -50,6 +51,7 @@ from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_s
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
 from cosim.study.units import units
+from cosim.study.unpacked import unpack
 from cosim.viz.rrd_file import OVERLAY_FILE
 
 STUDIES_DIR = Path("studies")
@@ -195,7 +197,8 @@ def _execute(
     """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives."""
     from tqdm import tqdm
 
-    job, plugin = make_job(base, factors, spec.keep, spec.check_step)
+    prefetch(REPORT_MODULES)
+    job, plugin = make_job(base, factors, spec.keep, spec.check_step, session.unpacked(base))
     bar = tqdm(
         total=total,
         initial=total - len(todo),
@@ -216,7 +219,6 @@ def _execute(
         bar.set_postfix(failed=failed, refresh=False)
         bar.update(1)
 
-    prefetch(REPORT_MODULES)
     try:
         session.run(job, plugin, todo, on_record)
     finally:
@@ -246,6 +248,20 @@ class _Session:
         self.cluster = cluster
         self.stack = stack
         self.client: Any = None
+        self.folder: Path | None = None  # the FMUs extracted for a local cluster
+
+    def unpacked(self, base: Base) -> dict[str, str]:
+        """A local cluster's FMUs extracted here, once, for all its workers (in a folder
+        removed with the session; :mod:`cosim.study.unpacked`), while the cluster may
+        still be starting; none for a remote cluster, whose workers extract their own."""
+        if self.cluster.scheduler is not None:
+            return {}
+        if self.folder is None:
+            folder = tempfile.TemporaryDirectory(
+                prefix="auv-cosim-fmus-", ignore_cleanup_errors=True
+            )
+            self.folder = Path(self.stack.enter_context(folder))
+        return unpack(base.fmu_paths, self.folder)
 
     def run(
         self,
@@ -298,7 +314,7 @@ def _overlay(
 
     again = [by_id[run_id] for run_id in chosen if results(run_id) is None]
     if again:
-        job, plugin = make_job(base, factors, "all")
+        job, plugin = make_job(base, factors, "all", unpacked=session.unpacked(base))
 
         def keep(run: PlannedRun, record: RunRecord) -> None:
             text = scenario_text(base, factors, run.values)
