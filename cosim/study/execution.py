@@ -353,29 +353,58 @@ def open_client(
         with client:
             yield client
         return
-    # An address without a host (dask's default ":8787") would listen on every interface;
-    # with the dashboard off the scheduler still serves /health on this (random) port.
-    port = DASHBOARD_PORT if dashboard else 0
-    # settings read as the scheduler, the nannies and (through its nanny) each worker start
-    with _forked_workers(), dask.config.set(cluster_settings(dashboard)):
-        with workers_ignore_sigint():  # a Ctrl-C is the client's (cosim.study.signals)
-            cluster = LocalCluster(
-                n_workers=workers,
-                threads_per_worker=1,
-                processes=True,
-                host=LOCALHOST,
-                protocol="tcp://",
-                dashboard_address=f"{LOCALHOST}:{port}",
-                scheduler_kwargs={"dashboard": dashboard},
-                worker_dashboard_address=None,
-                silence_logs=logging.ERROR,
-                preload=[PRELOAD],
-            )
+    with _quiet_dask_logs():  # until the cluster's event loop has stopped
+        cluster = _local_cluster(workers, dashboard)
         with cluster, Client(cluster, set_as_default=False) as client:
             try:
                 yield client
             finally:
                 stop_heartbeats(client)
+
+
+def _local_cluster(workers: int, dashboard: bool) -> LocalCluster:
+    """A local cluster of ``workers`` single-threaded worker processes on 127.0.0.1."""
+    # An address without a host (dask's default ":8787") would listen on every interface;
+    # with the dashboard off the scheduler still serves /health on this (random) port.
+    port = DASHBOARD_PORT if dashboard else 0
+    # the settings are read as the scheduler, the nannies and (through its nanny) each
+    # worker start; a Ctrl-C is the client's (cosim.study.signals)
+    with (
+        _forked_workers(),
+        dask.config.set(cluster_settings(dashboard)),
+        workers_ignore_sigint(),
+    ):
+        return LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            host=LOCALHOST,
+            protocol="tcp://",
+            dashboard_address=f"{LOCALHOST}:{port}",
+            scheduler_kwargs={"dashboard": dashboard},
+            worker_dashboard_address=None,
+            silence_logs=logging.ERROR,
+            preload=[PRELOAD],
+        )
+
+
+@contextmanager
+def _quiet_dask_logs() -> Iterator[None]:
+    """Dask's messages below ERROR kept off this process's stderr until the local cluster
+    has closed and its event loop stopped. LocalCluster's own ``silence_logs`` ends as soon
+    as its scheduler has closed, while the loop still runs what was pending: a batched
+    stream whose connection closed under it then logged "Batched Comm Closed" with a
+    CommClosedError traceback (INFO) on a successful study's stderr."""
+    handlers = logging.getLogger("distributed").handlers
+    streams = [h for h in handlers if isinstance(h, logging.StreamHandler)]
+    levels = [h.level for h in streams]
+    for handler in streams:
+        handler.setLevel(max(handler.level, logging.ERROR))
+    try:
+        yield
+    finally:
+        for handler, level in zip(streams, levels, strict=True):
+            handler.setLevel(level)
 
 
 def cluster_settings(dashboard: bool) -> dict[str, object]:
