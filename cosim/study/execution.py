@@ -71,6 +71,8 @@ HEARTBEAT_DRAIN_S = 5.0  # at most this long for a worker's last heartbeat to be
 MAX_WORKERS_PER_CORE = 16  # local worker processes beyond this are refused, oversubscribed
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
 PRELOAD = "cosim.study.preload"  # imported by each local worker as it starts
+# the record of a task that starts after its study ended (never shown: nobody waits for it)
+ENDED_BEFORE_RUN = "the study ended before this run started"
 # Dask's event-loop health check, 20 ms by default, in the scheduler, each nanny and each
 # worker: ~6% of a core in an idle local cluster's client process (cluster_settings)
 TICK_INTERVAL = "1s"
@@ -232,7 +234,9 @@ def make_job(
 def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
     """One task: one run, with the job and the FMUs the plugin brought to this worker."""
     # the StudyPlugin registered under this name before the tasks were submitted
-    plugin = cast(StudyPlugin, get_worker().plugins[plugin_name])
+    plugin = cast(StudyPlugin | None, get_worker().plugins.get(plugin_name))
+    if plugin is None:  # removed: the study ended (a stop signal) before this task started
+        return RunRecord("failed", ENDED_BEFORE_RUN, {}, 0.0, 0.0)
     job, paths = plugin.job, plugin.fmu_paths()
     plugin.warm()
     return run_one(job.base, paths, job.factors, values, job.keep, job.check_step)
@@ -524,6 +528,7 @@ def execute(
     end. A lost worker's tasks are retried by the scheduler; a run is recorded as failed
     for that only once its retries are exhausted (:func:`lost_run_error`)."""
     client.register_plugin(plugin, name=job.plugin)
+    pending: dict[Any, PlannedRun] = {}
     try:
         pending = {
             client.submit(
@@ -548,6 +553,9 @@ def execute(
                 record = RunRecord("failed", error, {}, 0.0, 0.0)
             future.release()
             on_record(run, record)
-    finally:
-        with suppress(Exception):  # a broken connection must not hide the first error
+    finally:  # a broken connection must not hide the first error
+        if pending:  # stopped: the scheduler hands the runs left to no worker any more
+            with suppress(Exception):
+                client.cancel(list(pending))
+        with suppress(Exception):
             client.unregister_worker_plugin(job.plugin)
