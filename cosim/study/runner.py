@@ -197,8 +197,9 @@ def _execute(
     """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives."""
     from tqdm import tqdm
 
-    prefetch(REPORT_MODULES)
+    # the FMUs first, alone (the workers wait for them), then the figures' modules
     job, plugin = make_job(base, factors, spec.keep, spec.check_step, session.unpacked(base))
+    prefetch(REPORT_MODULES)
     bar = tqdm(
         total=total,
         initial=total - len(todo),
