@@ -9,8 +9,28 @@ The Python API (:mod:`cosim.api`, docs/api.md)::
     run.summary  # the summary.json dictionary
     study = cosim.sweep("study.toml", workers=2)
     study.table  # one row per run
+
+The API is imported at its first use (``cosim.run``, ``from cosim import sweep``), not with
+the package: every command and module of the package (``cosim.cli``, a study's workers)
+would otherwise import the runner and the outputs first (~0.25 s); ``auv-cosim sweep``
+starts its workers' fork server before that (:mod:`cosim.study.fork_server`).
 """
 
-from cosim.api import Run, RunError, Study, build_fmus, load_scenario, run, sweep
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from cosim.api import Run, RunError, Study, build_fmus, load_scenario, run, sweep
 
 __all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
+
+
+def __getattr__(name: str) -> Any:
+    """The API's names, imported from :mod:`cosim.api` at their first use."""
+    if name in __all__:
+        value = getattr(importlib.import_module("cosim.api"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'cosim' has no attribute {name!r}")

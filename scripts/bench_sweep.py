@@ -157,6 +157,8 @@ def sweep_seconds(study: Path, workers: int, fmu_dir: Path, tree: Path | None = 
             process.wait()
     if process.returncode != 0:
         raise SystemExit(f"sweep with {workers} worker(s) failed: {err.strip()}")
+    if err.strip():  # a study prints nothing on stderr: a traceback at shutdown is a defect
+        print(f"  stderr of the sweep with {workers} worker(s):\n{err.rstrip()}", flush=True)
     return time.perf_counter() - started
 
 

@@ -2,8 +2,10 @@
 study (16 runs of bs-3 over 120 s, ``scripts/bench_sweep.py --end-to-end``) in a fresh
 process, with 1 worker and with 2, as a timeline of seconds from the command:
 
-* client ready: the local cluster's client is connected (its workers started);
 * study checked: the scenario loaded and the factors checked (``prepare`` returned);
+* fork server imported: the workers' fork server has imported what they need
+  (:mod:`cosim.study.preload`);
+* client ready: the local cluster's client is connected (its workers started);
 * worker warm-up: each worker's first task loads its FMUs (``StudyPlugin.warm``);
 * runs: the first run starts (after its worker's warm-up) and the last one ends;
 * table, page: ``runs.parquet`` and ``index.html`` written;
@@ -13,8 +15,14 @@ process, with 1 worker and with 2, as a timeline of seconds from the command:
 The marks come from a tracer put on the sweep's ``PYTHONPATH`` as ``sitecustomize``
 (written into a temporary folder, never into the tree), which wraps a few functions of
 ``cosim.study`` as their modules are imported, in the client and in every worker (forked
-from the fork server, which imports them first). The trace costs ~1 ms a mark. CPU time
-of the client is printed too (``os.wait4``). The load average is printed beside it.
+from the fork server, which imports them first). The trace costs ~1 ms a mark.
+
+Each mark also carries its process's CPU seconds (``time.process_time``), so a second
+table shows what the machine's load does not distort: the client's CPU until its
+cluster is ready, while its runs run (the scheduler, the nannies and the client share its
+process: on 2 cores the workers' rival) and in all (``os.wait4``), the fork server's
+imports, each worker's warm-up and runs, and the runs' CPU over their wall time (below 1:
+the worker waited for a core). The load average is printed beside it.
 Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]``.
 """
 
@@ -43,7 +51,7 @@ LOG = os.environ["AUV_COSIM_SWEEP_TRACE"]
 
 def mark(what):
     with open(LOG, "a", encoding="utf-8") as f:
-        f.write(f"{time.time():.4f} {os.getpid()} {what}\\n")
+        f.write(f"{time.time():.4f} {os.getpid()} {time.process_time():.4f} {what}\\n")
 
 
 def wrap(owner, name, label):
@@ -77,8 +85,10 @@ def wrap_client(module):
 
 PATCHES = {
     "cosim.study.execution": lambda m: (
-        wrap_client(m), wrap(m.StudyPlugin, "warm", "warm-up"), wrap(m, "run_on_worker", "task")
+        wrap_client(m), wrap(m.StudyPlugin, "warm", "warm-up"), wrap(m, "run_on_worker", "task"),
+        wrap(m, "execute", "execute"),
     ),
+    "cosim.study.preload": lambda m: (mark("preload end"), wrap(m, "dask_setup", "worker start")),
     "cosim.study.task": lambda m: wrap(m, "prepare", "prepare"),
     "cosim.study.table": lambda m: wrap(m.RunsTable, "finish", "table"),
     "cosim.study.runner": lambda m: wrap(m, "_write_report", "page"),
@@ -104,6 +114,7 @@ class Finder(importlib.abc.MetaPathFinder):
 
 
 sys.meta_path.insert(0, Finder())
+mark("process start")
 """
 
 
@@ -137,8 +148,8 @@ def traced_sweep(study: Path, workers: int, fmu_dir: Path, folder: Path) -> dict
         raise SystemExit(f"sweep with {workers} worker(s): {err.decode()[-2000:]}")
     marks = []
     for line in log.read_text(encoding="utf-8").splitlines():
-        stamp, pid, what = line.split(" ", 2)
-        marks.append((float(stamp) - started, int(pid), what))
+        stamp, pid, cpu, what = line.split(" ", 3)
+        marks.append((float(stamp) - started, int(pid), what, float(cpu)))
     return {"marks": sorted(marks), "exit": ended["exit"] - started,
             "pipes": pipes - started, "cpu": ended["cpu"]}  # fmt: skip
 
@@ -149,21 +160,83 @@ def phases(trace: dict[str, object]) -> list[tuple[str, float]]:
     assert isinstance(marks, list)
 
     def first(what: str) -> float:
-        return min(t for t, _, w in marks if w == what)
+        return min(t for t, _, w, _ in marks if w == what)
 
     def last(what: str) -> float:
-        return max(t for t, _, w in marks if w == what)
+        return max(t for t, _, w, _ in marks if w == what)
 
-    rows = [("client ready", first("client ready")), ("study checked", first("prepare end"))]
-    for k, pid in enumerate(sorted({p for _, p, w in marks if w == "warm-up begin"}), 1):
-        begin = min(t for t, p, w in marks if p == pid and w == "warm-up begin")
-        end = min(t for t, p, w in marks if p == pid and w == "warm-up end")
+    rows = [("study checked", first("prepare end"))]
+    server = [p for _, p, w, _ in marks if w == "preload end"]
+    if server:
+        start = min(t for t, p, w, _ in marks if p == server[0] and w == "process start")
+        rows.append(("fork server starts", start))
+        rows.append(("fork server imported", first("preload end")))
+        rows.append(("first worker starts", first("worker start begin")))
+    rows.append(("client ready", first("client ready")))
+    for k, pid in enumerate(_workers(marks), 1):
+        begin = min(t for t, p, w, _ in marks if p == pid and w == "warm-up begin")
+        end = min(t for t, p, w, _ in marks if p == pid and w == "warm-up end")
         rows += [(f"worker {k} warm-up begins", begin), (f"worker {k} warm-up ends", end)]
     rows += [("first run starts", first("warm-up end")), ("last run ends", last("task end"))]
     rows += [("table written", first("table end")), ("page written", first("page end"))]
     exit_s, pipes_s = trace["exit"], trace["pipes"]
     assert isinstance(exit_s, float) and isinstance(pipes_s, float)
     return [*rows, ("process exit", exit_s), ("pipes closed", pipes_s)]
+
+
+def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
+    """CPU seconds (user + system, each process's own ``time.process_time``) of the
+    processes and phases that make a study's fixed costs and its parallel efficiency:
+    the client until its cluster is ready and while its runs run (the scheduler, the
+    nannies and the client's threads, all in the command's process: the workers' rival
+    for the cores), the fork server's imports, each worker's warm-up, and the CPU its
+    runs took against their wall time (below 1: the worker waited for a core)."""
+    marks = trace["marks"]
+    assert isinstance(marks, list)
+
+    def at(what: str, pid: int | None = None) -> tuple[float, float]:
+        t, cpu = min((t, c) for t, p, w, c in marks if w == what and pid in (None, p))
+        return t, cpu
+
+    client = next(p for _, p, w, _ in marks if w == "client ready")
+    rows = [("client until ready", at("client ready")[1])]
+    begin, end = (
+        at("execute begin", client),
+        max((t, c) for t, p, w, c in marks if w == "execute end" and p == client),
+    )
+    rows.append(("client during runs", end[1] - begin[1]))
+    total = trace["cpu"]
+    assert isinstance(total, float)
+    rows.append(("client in all", total))
+    servers = [(t, p, c) for t, p, w, c in marks if w == "preload end"]
+    if servers:
+        rows.append(("fork server imports", servers[0][2]))
+    for k, pid in enumerate(_workers(marks), 1):
+        warm = at("warm-up end", pid)[1] - at("warm-up begin", pid)[1]
+        spans = _task_spans(marks, pid)
+        cpu = sum(c for _, c in spans)
+        wall = sum(t for t, _ in spans)
+        rows.append((f"worker {k} until warm-up", at("warm-up begin", pid)[1]))  # from its fork
+        rows += [(f"worker {k} warm-up", warm), (f"worker {k} runs", cpu - warm)]
+        rows.append((f"worker {k} runs CPU/wall", (cpu - warm) / max(wall - warm, 1e-9)))
+    return rows
+
+
+def _workers(marks: list[tuple[float, int, str, float]]) -> list[int]:
+    return sorted({p for _, p, w, _ in marks if w == "warm-up begin"})
+
+
+def _task_spans(marks: list[tuple[float, int, str, float]], pid: int) -> list[tuple[float, float]]:
+    """(wall s, CPU s) of each task of the worker ``pid``, its warm-up included."""
+    own = [(t, w, c) for t, p, w, c in marks if p == pid and w in ("task begin", "task end")]
+    spans, begun = [], None
+    for t, what, cpu in own:
+        if what == "task begin":
+            begun = (t, cpu)
+        elif begun is not None:
+            spans.append((t - begun[0], cpu - begun[1]))
+            begun = None
+    return spans
 
 
 def main() -> None:
@@ -192,7 +265,14 @@ def main() -> None:
     for name in names:
         cells = [f"{rows[w][name]:14.2f}" if name in rows[w] else f"{'':>14}" for w in traces]
         print(f"{name:<26}" + "".join(cells))
-    print(f"{'client CPU (s)':<26}" + "".join(f"{t['cpu']:14.2f}" for t in traces.values()))
+    print("CPU seconds (ratio for CPU/wall)")
+    cpu = {w: dict(cpu_phases(t)) for w, t in traces.items()}
+    names = list(
+        dict.fromkeys(name for r in sorted(cpu.values(), key=len, reverse=True) for name in r)
+    )
+    for name in names:
+        cells = [f"{cpu[w][name]:14.2f}" if name in cpu[w] else f"{'':>14}" for w in traces]
+        print(f"{name:<26}" + "".join(cells))
 
 
 if __name__ == "__main__":

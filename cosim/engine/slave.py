@@ -287,6 +287,15 @@ def _library(key: tuple[str, str, str, str]) -> FMU2Slave:
 
 _digests: dict[tuple[Path, int, int], str] = {}  # (file, mtime ns, size) -> its SHA-256
 _unzipped_dirs: dict[str, Path] = {}  # SHA-256 of an FMU file -> where it was extracted
+_shared_dirs: dict[str, Path] = {}  # SHA-256 -> where another process extracted it
+
+
+def share_unzipped(digest: str, folder: Path) -> None:
+    """Use ``folder``, where another process (a local study's client) extracted the FMU
+    whose file has the SHA-256 ``digest``, instead of extracting it in this one: the
+    extraction, and the compiling of the Python code it ships, are done once for every
+    worker. The folder stays that process's to remove; a folder gone is not used."""
+    _shared_dirs[digest] = folder
 
 
 def unzipped(fmu_path: Path) -> Path:
@@ -299,6 +308,9 @@ def unzipped(fmu_path: Path) -> Path:
     digest = _digests.get(key)
     if digest is None:
         digest = _digests[key] = hashlib.sha256(fmu_path.read_bytes()).hexdigest()
+    shared = _shared_dirs.get(digest)
+    if shared is not None and (shared / "modelDescription.xml").is_file():
+        return shared
     if digest not in _unzipped_dirs:
         _unzipped_dirs[digest] = Path(extract(str(fmu_path)))
     return _unzipped_dirs[digest]

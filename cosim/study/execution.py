@@ -44,7 +44,7 @@ import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, suppress
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
 
@@ -61,6 +61,7 @@ from cosim.study.factors import FactorKind, Value
 from cosim.study.signals import StudyStopped, workers_ignore_sigint
 from cosim.study.spec import StudyError
 from cosim.study.task import Base, RunRecord, run_one, warm_up
+from cosim.study.unpacked import use_unpacked
 
 LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
@@ -70,6 +71,12 @@ HEARTBEAT_DRAIN_S = 5.0  # at most this long for a worker's last heartbeat to be
 MAX_WORKERS_PER_CORE = 16  # local worker processes beyond this are refused, oversubscribed
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
 PRELOAD = "cosim.study.preload"  # imported by each local worker as it starts
+# the record of a task that starts after its study ended (never shown: nobody waits for it)
+ENDED_BEFORE_RUN = "the study ended before this run started"
+# Dask's event-loop health check, 20 ms by default, in the scheduler, each nanny and each
+# worker: ~6% of a core in an idle local cluster's client process (cluster_settings)
+TICK_INTERVAL = "1s"
+SYSTEM_MONITOR_INTERVAL = "5s"  # 500 ms by default; what it samples feeds the dashboard
 
 
 @dataclass(frozen=True)
@@ -83,6 +90,9 @@ class Job:
     fmu_files: Mapping[str, str]  # instance -> its FMU's path in the uploaded folder
     plugin: str  # name of the StudyPlugin carrying the job and the FMUs
     session: str  # this study session's token (in task keys and the plugin name)
+    # SHA-256 of an FMU file -> the folder the client extracted it into, for a local
+    # cluster's workers (cosim.study.unpacked); empty for a remote cluster
+    unpacked: Mapping[str, str] = field(default_factory=dict)
 
 
 class StudyPlugin(WorkerPlugin):
@@ -105,6 +115,7 @@ class StudyPlugin(WorkerPlugin):
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(content)
         self.folder = folder
+        use_unpacked(self.job.unpacked)
         self._warm = threading.Lock()
 
     def fmu_paths(self) -> dict[str, Path]:
@@ -199,9 +210,14 @@ def _is_main_test(test: ast.expr) -> bool:
 
 
 def make_job(
-    base: Base, factors: Mapping[str, FactorKind], keep: str, check_step: bool = False
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    keep: str,
+    check_step: bool = False,
+    unpacked: Mapping[str, str] | None = None,
 ) -> tuple[Job, StudyPlugin]:
-    """The study's shared task data and the plugin carrying it and its FMUs (read once)."""
+    """The study's shared task data and the plugin carrying it and its FMUs (read once);
+    ``unpacked``: the FMUs the client extracted for local workers (:func:`unpack`)."""
     session = uuid.uuid4().hex[:12]  # tasks and plugin of concurrent studies never clash
     files: dict[str, bytes] = {}
     paths: dict[str, str] = {}
@@ -210,14 +226,17 @@ def make_job(
         relative = f"{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
         files[relative] = content
         paths[instance] = relative
-    job = Job(base, factors, keep, check_step, paths, f"auv-cosim-study-{session}", session)
+    name = f"auv-cosim-study-{session}"
+    job = Job(base, factors, keep, check_step, paths, name, session, dict(unpacked or {}))
     return job, StudyPlugin(job, files)
 
 
 def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
     """One task: one run, with the job and the FMUs the plugin brought to this worker."""
     # the StudyPlugin registered under this name before the tasks were submitted
-    plugin = cast(StudyPlugin, get_worker().plugins[plugin_name])
+    plugin = cast(StudyPlugin | None, get_worker().plugins.get(plugin_name))
+    if plugin is None:  # removed: the study ended (a stop signal) before this task started
+        return RunRecord("failed", ENDED_BEFORE_RUN, {}, 0.0, 0.0)
     job, paths = plugin.job, plugin.fmu_paths()
     plugin.warm()
     return run_one(job.base, paths, job.factors, values, job.keep, job.check_step)
@@ -338,28 +357,74 @@ def open_client(
         with client:
             yield client
         return
-    # An address without a host (dask's default ":8787") would listen on every interface;
-    # with the dashboard off the scheduler still serves /health on this (random) port.
-    port = DASHBOARD_PORT if dashboard else 0
-    with _forked_workers():  # also for a worker its nanny starts again later
-        with workers_ignore_sigint():  # a Ctrl-C is the client's (cosim.study.signals)
-            cluster = LocalCluster(
-                n_workers=workers,
-                threads_per_worker=1,
-                processes=True,
-                host=LOCALHOST,
-                protocol="tcp://",
-                dashboard_address=f"{LOCALHOST}:{port}",
-                scheduler_kwargs={"dashboard": dashboard},
-                worker_dashboard_address=None,
-                silence_logs=logging.ERROR,
-                preload=[PRELOAD],
-            )
+    with _quiet_dask_logs():  # until the cluster's event loop has stopped
+        cluster = _local_cluster(workers, dashboard)
         with cluster, Client(cluster, set_as_default=False) as client:
             try:
                 yield client
             finally:
                 stop_heartbeats(client)
+
+
+def _local_cluster(workers: int, dashboard: bool) -> LocalCluster:
+    """A local cluster of ``workers`` single-threaded worker processes on 127.0.0.1."""
+    # An address without a host (dask's default ":8787") would listen on every interface;
+    # with the dashboard off the scheduler still serves /health on this (random) port.
+    port = DASHBOARD_PORT if dashboard else 0
+    # the settings are read as the scheduler, the nannies and (through its nanny) each
+    # worker start; a Ctrl-C is the client's (cosim.study.signals)
+    with (
+        _forked_workers(),
+        dask.config.set(cluster_settings(dashboard)),
+        workers_ignore_sigint(),
+    ):
+        return LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            host=LOCALHOST,
+            protocol="tcp://",
+            dashboard_address=f"{LOCALHOST}:{port}",
+            scheduler_kwargs={"dashboard": dashboard},
+            worker_dashboard_address=None,
+            silence_logs=logging.ERROR,
+            preload=[PRELOAD],
+        )
+
+
+@contextmanager
+def _quiet_dask_logs() -> Iterator[None]:
+    """Dask's messages below ERROR kept off this process's stderr until the local cluster
+    has closed and its event loop stopped. LocalCluster's own ``silence_logs`` ends as soon
+    as its scheduler has closed, while the loop still runs what was pending: a batched
+    stream whose connection closed under it then logged "Batched Comm Closed" with a
+    CommClosedError traceback (INFO) on a successful study's stderr."""
+    handlers = logging.getLogger("distributed").handlers
+    streams = [h for h in handlers if isinstance(h, logging.StreamHandler)]
+    levels = [h.level for h in streams]
+    for handler in streams:
+        handler.setLevel(max(handler.level, logging.ERROR))
+    try:
+        yield
+    finally:
+        for handler, level in zip(streams, levels, strict=True):
+            handler.setLevel(level)
+
+
+def cluster_settings(dashboard: bool) -> dict[str, object]:
+    """Dask settings of a local study cluster that keep its scheduler, nannies and
+    workers nearly idle while the runs run: on a machine of as many cores as workers every
+    CPU second they spend is taken from a run. Without the dashboard, which shows them, no
+    statistical profile of the running task (Dask samples its stack every 10 ms, in the
+    worker's event loop, against the run's thread for the interpreter) and the system
+    monitor's samples (CPU, memory, network) every SYSTEM_MONITOR_INTERVAL; the event
+    loop's health check every TICK_INTERVAL (it warns of a loop blocked beyond
+    ``distributed.admin.tick.limit``, 3 s by default, all the same)."""
+    settings: dict[str, object] = {"distributed.admin.tick.interval": TICK_INTERVAL}
+    if not dashboard:
+        settings["distributed.worker.profile.enabled"] = False
+        settings["distributed.admin.system-monitor.interval"] = SYSTEM_MONITOR_INTERVAL
+    return settings
 
 
 @contextmanager
@@ -463,6 +528,7 @@ def execute(
     end. A lost worker's tasks are retried by the scheduler; a run is recorded as failed
     for that only once its retries are exhausted (:func:`lost_run_error`)."""
     client.register_plugin(plugin, name=job.plugin)
+    pending: dict[Any, PlannedRun] = {}
     try:
         pending = {
             client.submit(
@@ -487,6 +553,9 @@ def execute(
                 record = RunRecord("failed", error, {}, 0.0, 0.0)
             future.release()
             on_record(run, record)
-    finally:
-        with suppress(Exception):  # a broken connection must not hide the first error
+    finally:  # a broken connection must not hide the first error
+        if pending:  # stopped: the scheduler hands the runs left to no worker any more
+            with suppress(Exception):
+                client.cancel(list(pending))
+        with suppress(Exception):
             client.unregister_worker_plugin(job.plugin)

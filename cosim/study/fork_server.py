@@ -9,8 +9,11 @@ were ready in 1.2-1.5 s instead of 2.7-2.8 s and closed in 0.05 s instead of 0.9
 (``cosim.study.execution.open_client``). :func:`start` starts the server as early as the
 command knows it will run a local study, so its imports run beside the client's.
 
-The server is one clean process (no thread), started with Dask's pre-spawn environment
-(one BLAS thread...) as Dask sets it before it spawns a worker. It imports what every run
+The server is one clean process (no thread). The first module it imports
+(:mod:`cosim.study.server_environ`) sets Dask's pre-spawn environment (one BLAS
+thread...) in it, as Dask sets it before it spawns a worker, before numpy is imported;
+not the command before it starts the server: reading Dask's configuration imports dask
+(~0.2 s), which the server's imports would wait for. It then imports what every run
 needs (:mod:`cosim.study.preload`: the engine, numba with its cache folder set
 first and its compiler's target initialised, ~2 s of each worker's warm-up before) and
 freezes it out of the garbage collector's reach. The FMUs are never loaded there (an FMU
@@ -23,8 +26,10 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+from contextlib import suppress
 
-PRELOAD = ["distributed", "cosim.study.preload"]  # imported once, in the server
+# imported once, in the server, in this order
+PRELOAD = ["cosim.study.server_environ", "distributed", "cosim.study.preload"]
 
 
 def available() -> bool:
@@ -39,12 +44,11 @@ def start() -> None:
         return
     from multiprocessing import forkserver
 
-    try:
-        os.environ.update(pre_spawn_environ())
+    with suppress(OSError, ValueError):
         multiprocessing.get_context("forkserver").set_forkserver_preload(PRELOAD)
         forkserver.ensure_running()
-    except (OSError, ValueError, ImportError, KeyError):
-        return
+    with suppress(ImportError, KeyError):  # this process's own BLAS threads, as before
+        os.environ.update(pre_spawn_environ())
 
 
 def pre_spawn_environ() -> dict[str, str]:

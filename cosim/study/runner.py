@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -50,12 +51,12 @@ from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_s
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
 from cosim.study.units import units
+from cosim.study.unpacked import unpack
 from cosim.viz.rrd_file import OVERLAY_FILE
 
 STUDIES_DIR = Path("studies")
-# imported while the runs run: what the table (pyarrow imports pandas at its first
-# conversion of a list, ~0.9 s) and the figures need at the end
-REPORT_MODULES = ("pandas", "matplotlib.figure", "matplotlib.ticker")
+# imported while the client waits for its cluster and runs: what the figures need at the end
+REPORT_MODULES = ("matplotlib.figure", "matplotlib.ticker")
 FIGURES_FOLDER = "figures"
 
 
@@ -196,7 +197,9 @@ def _execute(
     """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives."""
     from tqdm import tqdm
 
-    job, plugin = make_job(base, factors, spec.keep, spec.check_step)
+    # the FMUs first, alone (the workers wait for them), then the figures' modules
+    job, plugin = make_job(base, factors, spec.keep, spec.check_step, session.unpacked(base))
+    prefetch(REPORT_MODULES)
     bar = tqdm(
         total=total,
         initial=total - len(todo),
@@ -217,7 +220,6 @@ def _execute(
         bar.set_postfix(failed=failed, refresh=False)
         bar.update(1)
 
-    prefetch(REPORT_MODULES)
     try:
         session.run(job, plugin, todo, on_record)
     finally:
@@ -226,9 +228,9 @@ def _execute(
 
 def prefetch(modules: Sequence[str]) -> None:
     """Import ``modules`` on a thread of their own: the client waits for its runs, and the
-    table's pandas (~0.9 s) and the figures' matplotlib (~0.35 s) are then imported by the
-    end, instead of after the last run (or at the start, where they took the interpreter
-    from the local cluster starting on its thread)."""
+    figures' matplotlib (~0.35 s) is then imported by the end, instead of after the last
+    run (or at the start, where it took the interpreter from the local cluster starting on
+    its thread). The table needs no pandas (:mod:`cosim.study.arrow_columns`)."""
 
     def load() -> None:
         for name in modules:
@@ -247,6 +249,20 @@ class _Session:
         self.cluster = cluster
         self.stack = stack
         self.client: Any = None
+        self.folder: Path | None = None  # the FMUs extracted for a local cluster
+
+    def unpacked(self, base: Base) -> dict[str, str]:
+        """A local cluster's FMUs extracted here, once, for all its workers (in a folder
+        removed with the session; :mod:`cosim.study.unpacked`), while the cluster may
+        still be starting; none for a remote cluster, whose workers extract their own."""
+        if self.cluster.scheduler is not None:
+            return {}
+        if self.folder is None:
+            folder = tempfile.TemporaryDirectory(
+                prefix="auv-cosim-fmus-", ignore_cleanup_errors=True
+            )
+            self.folder = Path(self.stack.enter_context(folder))
+        return unpack(base.fmu_paths, self.folder)
 
     def run(
         self,
@@ -299,7 +315,7 @@ def _overlay(
 
     again = [by_id[run_id] for run_id in chosen if results(run_id) is None]
     if again:
-        job, plugin = make_job(base, factors, "all")
+        job, plugin = make_job(base, factors, "all", unpacked=session.unpacked(base))
 
         def keep(run: PlannedRun, record: RunRecord) -> None:
             text = scenario_text(base, factors, run.values)

@@ -12,7 +12,8 @@ of completion (only ``wall_clock_s`` differs between identical runs).
 Cells: floats as their shortest round-trip text (``repr``), so the table reads back to the
 same doubles; booleans as ``true``/``false``; a missing metric (a failed run, a figure
 that does not exist, such as a settling time never reached) as an empty cell. The
-Parquet file holds the same rows with types (``pyarrow``).
+Parquet file holds the same rows with types (``pyarrow``; its columns built without
+pandas: :mod:`cosim.study.arrow_columns`).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from cosim.study.arrow_columns import column
 from cosim.study.design import PlannedRun
 from cosim.study.factors import Value
 from cosim.study.spec import StudyError
@@ -105,7 +107,7 @@ class RunsTable:
         _replace(self.path, text.encode("utf-8"))
         columns = {name: [row[name] for row in rows] for name in self.columns}
         types = {name: pa.float64() for name in [*self.metrics, "wall_clock_s"]}
-        arrays = {name: pa.array(values, type=types.get(name)) for name, values in columns.items()}
+        arrays = {name: column(values, types.get(name)) for name, values in columns.items()}
         parquet = self.path.with_name(PARQUET_NAME)
         pq.write_table(pa.table(arrays), parquet.with_suffix(".tmp"))
         os.replace(parquet.with_suffix(".tmp"), parquet)

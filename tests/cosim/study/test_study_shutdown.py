@@ -101,6 +101,85 @@ def test_a_cluster_closed_while_heartbeats_wait_for_their_answer_ends_quietly(
     assert not any(word in err for word in NOISE), err
 
 
+LATE_MESSAGE = """
+import asyncio, logging
+from distributed import Scheduler
+from cosim.study.execution import open_client
+
+close = Scheduler.close
+
+async def close_then_log(self, *args, **kwargs):
+    result = await close(self, *args, **kwargs)
+    # what a batched stream does when its connection closed under it (INFO, with the
+    # CommClosedError's traceback), on the cluster's loop as soon as the closing yields
+    asyncio.get_running_loop().call_soon(
+        logging.getLogger("distributed.batched").info, "Batched Comm Closed"
+    )
+    return result
+
+Scheduler.close = close_then_log
+
+if __name__ == "__main__":
+    with open_client(1) as client:
+        pass
+    print("closed")
+"""
+
+
+def test_a_message_after_the_scheduler_closed_stays_off_stderr(tmp_path: Path) -> None:
+    """Dask's own silencing of a local cluster's messages ended as soon as its scheduler
+    had closed, while the cluster's loop still ran what was pending: a batched stream
+    whose connection had closed then logged "Batched Comm Closed" with a CommClosedError
+    traceback on a successful study's stderr (1 of ~90 studies here, several at once)."""
+    script = tmp_path / "late_message.py"
+    script.write_text(LATE_MESSAGE, encoding="utf-8")
+    proc = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True, env={**os.environ, "PYTHONPATH": _packages()},
+    )  # fmt: skip
+    try:
+        out, err = proc.communicate(timeout=300)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert proc.returncode == 0 and out.strip() == "closed", err
+    assert not any(word in err for word in NOISE), err
+
+
+PLUGIN_GONE = """
+from cosim.study.execution import open_client, run_on_worker
+
+if __name__ == "__main__":
+    with open_client(1) as client:
+        record = client.submit(run_on_worker, "auv-cosim-study-gone", {}, pure=False).result()
+    print(record.status, record.error)
+"""
+
+
+def test_a_run_that_starts_after_its_study_ended_ends_quietly(tmp_path: Path) -> None:
+    """A study stopped by a signal removes its worker plugin while a worker may still hold
+    runs it was handed: each started, found no plugin and failed with a KeyError, which
+    the worker logged ("Compute Failed", one traceback per run) on the study's stderr
+    after its one-line message. The runs left are cancelled first, and a run that starts
+    all the same returns a failed record nobody waits for."""
+    script = tmp_path / "plugin_gone.py"
+    script.write_text(PLUGIN_GONE, encoding="utf-8")
+    proc = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True, env={**os.environ, "PYTHONPATH": _packages()},
+    )  # fmt: skip
+    try:
+        out, err = proc.communicate(timeout=300)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert proc.returncode == 0, err
+    assert out.strip() == "failed the study ended before this run started"
+    assert "Compute Failed" not in err and "Traceback" not in err, err
+
+
 def _packages() -> str:
     """PYTHONPATH for a script outside the repository: the project's packages first."""
     import cosim

@@ -115,3 +115,29 @@ def test_workers_warm_up_in_their_first_task_not_at_registration(
     assert registered == "[False, False]"
     assert ran.startswith("['complete', 'complete', 'complete', 'complete'] ")
     assert "True" in ran.split("] ", 1)[1]
+
+
+SERVER_FIRST = """
+import os, sys
+from multiprocessing import forkserver
+
+def ensure_running():
+    heavy = ("cosim.api", "cosim.runner", "dask", "numpy", "pydantic")
+    print(sorted(name for name in heavy if name in sys.modules), flush=True)
+    os._exit(0)
+
+forkserver.ensure_running = ensure_running
+from cosim.cli import main
+main(["sweep", "no-such-study.toml", "--workers", "1"])
+"""
+
+
+@pytest.mark.skipif(not fork_server.available(), reason="no fork server on this platform")
+def test_the_sweep_command_starts_the_fork_server_before_heavy_imports(run_python) -> None:
+    """`auv-cosim sweep` starts its workers' fork server before it imports the API, the
+    runner, Dask or numpy (each worker's imports, ~2 s, are the longest chain before the
+    first run, and they start with the server); the server itself sets Dask's
+    pre-spawn environment (tested above: one BLAS thread in each worker)."""
+    done = run_python(SERVER_FIRST)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "[]"

@@ -1,0 +1,85 @@
+"""A local study's FMUs are extracted once, by the client, with their Python code compiled,
+and a worker uses that folder instead of extracting its own; a folder gone (or never
+there: a remote worker) is not used."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from cosim.engine import slave
+from cosim.study.unpacked import unpack, use_unpacked
+
+
+@pytest.fixture
+def clean_slave(monkeypatch: pytest.MonkeyPatch) -> None:
+    """This process's record of extracted FMUs, emptied for the test and restored."""
+    monkeypatch.setattr(slave, "_shared_dirs", {})
+    monkeypatch.setattr(slave, "_unzipped_dirs", {})
+
+
+def test_workers_use_the_clients_extraction(fmu_paths, tmp_path: Path, clean_slave) -> None:
+    paths = {"plant": fmu_paths["AuvPlant"], "autopilot": fmu_paths["AuvAutopilot"]}
+    unpacked = unpack(paths, tmp_path)
+    assert len(unpacked) == 2 and all(Path(f).parent == tmp_path for f in unpacked.values())
+    # the code each FMU ships is compiled: a worker importing it compiles nothing
+    assert list(Path(unpacked[next(iter(unpacked))]).glob("resources/*/__pycache__/*.pyc"))
+    stamp = {f: (Path(f) / "modelDescription.xml").stat().st_mtime_ns for f in unpacked.values()}
+    assert unpack(paths, tmp_path) == unpacked  # once per content
+    assert stamp == {f: (Path(f) / "modelDescription.xml").stat().st_mtime_ns for f in stamp}
+    use_unpacked(unpacked)
+    assert {str(slave.unzipped(p)) for p in paths.values()} == set(unpacked.values())
+    assert slave._unzipped_dirs == {}  # nothing extracted in this process
+
+
+def test_a_folder_that_is_gone_is_not_used(fmu_paths, tmp_path: Path, clean_slave) -> None:
+    plant = fmu_paths["AuvPlant"]
+    unpacked = unpack({"plant": plant}, tmp_path / "client")
+    use_unpacked({**unpacked, "0" * 64: str(tmp_path / "elsewhere")})  # not on this disk
+    assert list(slave._shared_dirs) == list(unpacked)
+    shutil.rmtree(tmp_path / "client")
+    own = slave.unzipped(plant)  # extracted here instead
+    assert own.parent != tmp_path / "client" and (own / "modelDescription.xml").is_file()
+    shutil.rmtree(own)
+
+
+LOCAL = """
+import sys, tempfile
+from pathlib import Path
+from cosim.study.design import PlannedRun
+from cosim.study.execution import execute, make_job, open_client
+from cosim.study.task import prepare
+from cosim.study.unpacked import unpack
+
+def extracted():
+    from cosim.engine import slave
+    return len(slave._unzipped_dirs), sorted(map(str, slave._shared_dirs.values()))
+
+if __name__ == "__main__":
+    base, _ = prepare("bs-3", 1.0, Path(sys.argv[1]))
+    with tempfile.TemporaryDirectory() as folder:
+        unpacked = unpack(base.fmu_paths, Path(folder))
+        job, plugin = make_job(base, {}, "none", unpacked=unpacked)
+        with open_client(2) as client:
+            done = []
+            runs = [PlannedRun(f"r{k}", {}) for k in range(4)]
+            execute(client, job, plugin, runs, lambda run, record: done.append(record.status))
+            found = list(client.run(extracted).values())
+    print(done == ["complete"] * 4, found == [(0, sorted(unpacked.values()))] * 2)
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.cluster
+def test_local_workers_run_from_the_clients_extraction(fmu_paths, run_python, tmp_path) -> None:
+    script = tmp_path / "local.py"
+    script.write_text(LOCAL, encoding="utf-8")
+    done = run_python(
+        "import runpy, sys; sys.argv[1:] = [sys.argv[1]]; "
+        f"runpy.run_path({str(script)!r}, run_name='__main__')",
+        fmu_paths["AuvPlant"].parent,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == "True True"
