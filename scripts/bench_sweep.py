@@ -17,7 +17,10 @@ With ``--end-to-end`` it measures instead what a user waits for: ``auv-cosim swe
 prompt in a fresh process, with 1 worker and with 2, alternating ``--repeat`` times, the
 best of each; their ratio (goal >= 1.6) includes everything a study does beside its runs
 (imports, the cluster's start-up, each worker's first run, hand-offs, the table, the page,
-the cluster's close). The load average is printed beside every figure.
+the cluster's close). The load average is printed beside every figure. The ratio of each
+1-worker sweep to the 2-worker one right after it, and their median, are printed too:
+this machine's speed drifts by up to 1.4x within minutes, so the two bests can come from
+different speeds, while a back-to-back pair shares one.
 
 All throughputs (without ``--end-to-end``) are steady state: the serial loop starts
 timing after one warm-up run (imports, FMU loading), the cluster runs one untimed study
@@ -202,6 +205,11 @@ def end_to_end(args: argparse.Namespace) -> None:
         print(f"1 worker:  {one[0]:6.2f} s (load {one[1]})")
         print(f"2 workers: {two[0]:6.2f} s (load {two[1]})")
         print(f"ratio:     {one[0] / two[0]:.2f} (goal >= 1.6)")
+        pairs = [a / b for (a, _), (b, _) in zip(times[(label, 1)], times[(label, 2)], strict=True)]
+        print(
+            f"ratio of each back-to-back pair: {' '.join(f'{r:.2f}' for r in pairs)}, "
+            f"median {statistics.median(pairs):.2f}"
+        )
 
 
 def main() -> None:
