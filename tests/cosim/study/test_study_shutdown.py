@@ -85,19 +85,8 @@ def test_a_cluster_closed_while_heartbeats_wait_for_their_answer_ends_quietly(
     heartbeat a second late, and the cluster closes while every worker waits for that
     answer. A worker closed its connection to the scheduler under the waiting heartbeat
     and logged "Failed to communicate with scheduler during heartbeat" (CommClosedError)."""
-    script = tmp_path / "slow_answer.py"
-    script.write_text(SLOW_ANSWER, encoding="utf-8")
-    proc = subprocess.Popen(
-        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True, env={**os.environ, "PYTHONPATH": _packages()},
-    )  # fmt: skip
-    try:
-        out, err = proc.communicate(timeout=300)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-    assert proc.returncode == 0 and out.strip() == "closed", err
+    returncode, out, err = _run_script(tmp_path / "slow_answer.py", SLOW_ANSWER)
+    assert returncode == 0 and out.strip() == "closed", err
     assert not any(word in err for word in NOISE), err
 
 
@@ -131,19 +120,8 @@ def test_a_message_after_the_scheduler_closed_stays_off_stderr(tmp_path: Path) -
     had closed, while the cluster's loop still ran what was pending: a batched stream
     whose connection had closed then logged "Batched Comm Closed" with a CommClosedError
     traceback on a successful study's stderr (1 of ~90 studies here, several at once)."""
-    script = tmp_path / "late_message.py"
-    script.write_text(LATE_MESSAGE, encoding="utf-8")
-    proc = subprocess.Popen(
-        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True, env={**os.environ, "PYTHONPATH": _packages()},
-    )  # fmt: skip
-    try:
-        out, err = proc.communicate(timeout=300)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-    assert proc.returncode == 0 and out.strip() == "closed", err
+    returncode, out, err = _run_script(tmp_path / "late_message.py", LATE_MESSAGE)
+    assert returncode == 0 and out.strip() == "closed", err
     assert not any(word in err for word in NOISE), err
 
 
@@ -163,8 +141,17 @@ def test_a_run_that_starts_after_its_study_ended_ends_quietly(tmp_path: Path) ->
     the worker logged ("Compute Failed", one traceback per run) on the study's stderr
     after its one-line message. The runs left are cancelled first, and a run that starts
     all the same returns a failed record nobody waits for."""
-    script = tmp_path / "plugin_gone.py"
-    script.write_text(PLUGIN_GONE, encoding="utf-8")
+    returncode, out, err = _run_script(tmp_path / "plugin_gone.py", PLUGIN_GONE)
+    assert returncode == 0, err
+    assert out.strip() == "failed the study ended before this run started"
+    assert "Compute Failed" not in err and "Traceback" not in err, err
+
+
+def _run_script(script: Path, code: str) -> tuple[int, str, str]:
+    """Write ``code`` to ``script`` and run it in a fresh process in its own session (the
+    project's packages on its path): its return code, stdout and stderr. Its process
+    group is killed at the end, whatever happened."""
+    script.write_text(code, encoding="utf-8")
     proc = subprocess.Popen(
         [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True, start_new_session=True, env={**os.environ, "PYTHONPATH": _packages()},
@@ -175,9 +162,7 @@ def test_a_run_that_starts_after_its_study_ended_ends_quietly(tmp_path: Path) ->
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-    assert proc.returncode == 0, err
-    assert out.strip() == "failed the study ended before this run started"
-    assert "Compute Failed" not in err and "Traceback" not in err, err
+    return proc.returncode, out, err
 
 
 def _packages() -> str:
