@@ -73,7 +73,7 @@ def blocks(document: Path) -> list[Block]:
     return result
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def workdir(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("examples")
     fmus = folder / "build" / "fmus"
@@ -97,10 +97,30 @@ def test_every_code_block_is_marked(document: Path) -> None:
     assert not unmarked, f"code blocks without a run/excerpt/not-run marker: {unmarked}"
 
 
+# The documents whose examples a document's examples use, as a reader has them: docs/studies.md
+# sweeps the README's turn.toml. They run first, in the same folder (each document gets a
+# folder of its own, so the tests do not depend on their order or on sharing a process).
+BUILDS_ON = {"studies.md": ("README.md",)}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: p.name)
 def test_examples_run_in_order(document: Path, workdir: Path) -> None:
-    """All of a document's examples, one after another (later ones use earlier files)."""
+    """All of a document's examples, one after another (later ones use earlier files),
+    after those of the documents it builds on (``BUILDS_ON``)."""
+    for name in BUILDS_ON.get(document.name, ()):
+        (before,) = (d for d in DOCUMENTS if d.name == name)
+        _run_examples(before, workdir)
+    ran, missing = _run_examples(document, workdir)
+    if ran == 0 and not missing:
+        pytest.skip(f"{document.name} has no runnable example")
+    if missing:
+        pytest.skip(f"{ran} examples ran; skipped: " + "; ".join(missing))
+
+
+def _run_examples(document: Path, workdir: Path) -> tuple[int, list[str]]:
+    """Run ``document``'s examples in ``workdir``, in order; how many ran and, for those
+    that need a library not installed here, why they did not."""
     ran, missing = 0, []
     for block in blocks(document):
         match = MARKER.match(block.marker or "")
@@ -132,10 +152,7 @@ def test_examples_run_in_order(document: Path, workdir: Path) -> None:
                 f"{block.id}: output does not match {match.group('expect')!r}:\n{done.stdout}"
             )
         ran += 1
-    if ran == 0 and not missing:
-        pytest.skip(f"{document.name} has no runnable example")
-    if missing:
-        pytest.skip(f"{ran} examples ran; skipped: " + "; ".join(missing))
+    return ran, missing
 
 
 def _check_excerpt(block: Block, path: Path) -> None:
