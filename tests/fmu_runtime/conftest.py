@@ -4,7 +4,10 @@
   -Werror`` (skipped without ``cc``);
 * ``extracted`` (module): every built FMU extracted into a folder of its own;
 * ``clean_home`` (session): one HOME for the clean environments, so that the FMUs'
-  numba cache (under ``$HOME/.cache``) is compiled once, not in every test.
+  numba cache (under ``$HOME/.cache``) is compiled once, not in every test;
+* ``windows_python`` (session): the folder of a real Windows CPython's ``python.exe``
+  with numpy (``windows_cpython.py``), cached in pytest's cache; skipped without Wine or
+  when it cannot be downloaded.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from pathlib import Path
 
 import pytest
 from c_hosts import HOST_SOURCE
+from windows_cpython import windows_cpython, wine
 
 from cosim.fmus.build import FMUS
 
@@ -46,3 +50,19 @@ def extracted(fmu_paths, tmp_path_factory) -> dict[str, Path]:
 @pytest.fixture(scope="session")
 def clean_home(tmp_path_factory) -> Path:
     return tmp_path_factory.mktemp("home")
+
+
+@pytest.fixture(scope="session")
+def windows_python(request, tmp_path_factory) -> Path:
+    if wine() is None:
+        pytest.skip("Wine (wine64) not installed")
+    cache = getattr(request.config, "cache", None)
+    folder = (
+        cache.mkdir("windows-cpython")
+        if cache is not None
+        else tmp_path_factory.mktemp("windows-cpython")
+    )
+    home = windows_cpython(Path(folder))
+    if isinstance(home, str):
+        pytest.skip(home)
+    return home
