@@ -7,7 +7,9 @@
   numba cache (under ``$HOME/.cache``) is compiled once, not in every test;
 * ``windows_python`` (session): the folder of a real Windows CPython's ``python.exe``
   with numpy (``windows_cpython.py``), cached in pytest's cache; skipped without Wine or
-  when it cannot be downloaded.
+  when it cannot be downloaded;
+* ``windows_fmpy`` (session): a folder with fmpy (this environment's version) and the
+  packages it imports, for that CPython, cached and skipped the same way.
 """
 
 from __future__ import annotations
@@ -15,11 +17,12 @@ from __future__ import annotations
 import shutil
 import subprocess
 import zipfile
+from importlib import metadata
 from pathlib import Path
 
 import pytest
 from c_hosts import HOST_SOURCE
-from windows_cpython import windows_cpython, wine
+from windows_cpython import FMPY_IMPORTS, windows_cpython, windows_site, wine
 
 from cosim.fmus.build import FMUS
 
@@ -53,16 +56,28 @@ def clean_home(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
-def windows_python(request, tmp_path_factory) -> Path:
+def windows_cache(request, tmp_path_factory) -> Path:
+    """Where the Windows CPython and its packages are kept: pytest's cache, if it is on."""
     if wine() is None:
         pytest.skip("Wine (wine64) not installed")
     cache = getattr(request.config, "cache", None)
-    folder = (
-        cache.mkdir("windows-cpython")
-        if cache is not None
-        else tmp_path_factory.mktemp("windows-cpython")
-    )
-    home = windows_cpython(Path(folder))
+    if cache is None:
+        return tmp_path_factory.mktemp("windows-cpython")
+    return Path(cache.mkdir("windows-cpython"))
+
+
+@pytest.fixture(scope="session")
+def windows_python(windows_cache) -> Path:
+    home = windows_cpython(windows_cache)
     if isinstance(home, str):
         pytest.skip(home)
     return home
+
+
+@pytest.fixture(scope="session")
+def windows_fmpy(windows_cache, windows_python) -> Path:
+    version = metadata.version("fmpy")
+    site = windows_site(windows_cache, f"fmpy-{version}", (f"fmpy=={version}", *FMPY_IMPORTS))
+    if isinstance(site, str):
+        pytest.skip(site)
+    return site

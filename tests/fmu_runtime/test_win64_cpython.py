@@ -6,8 +6,10 @@ in the host's process when ``AUV_FMU_PYTHON`` names its python.exe, a venv-like 
 (its ``Scripts\\python.exe``) or when it is ``python`` on PATH, and steps the plant as the
 linux64 runtime steps it on Linux (to 1e-12 relative; measured: 2.5e-16); the fallback
 (``AUV_FMU_RUNTIME=pythonfmu``) loads pythonfmu's DLL beside it and gives the same values;
-pythonfmu's DLL loaded alone gives them too but refuses input derivatives. Which
-``python313.dll`` and which FMU DLLs were loaded is read from Wine's ``loaddll`` trace.
+pythonfmu's DLL loaded alone gives them too but refuses input derivatives; fmpy itself,
+in that CPython, simulates the built FMU file (the runtime uses the CPython running in the
+process) with the same values. Which ``python313.dll`` and which FMU DLLs were loaded is
+read from Wine's ``loaddll`` trace.
 Wine is not Windows: docs/native-loader.md says what was and was not run."""
 
 from __future__ import annotations
@@ -172,3 +174,48 @@ def test_pythonfmus_dll_alone_refuses_input_derivatives(machine, windows_python,
     assert _python_dlls(loaded) == {windows(windows_python / "python313.dll")}
     assert "derivatives 3" in stdout and "exit 0" in stdout
     assert _steps(stdout) == _steps(on_wine)
+
+
+FMPY_RUN = """
+import sys
+sys.modules["_wmi"] = None  # platform's WMI queries need propsys.VariantToString: not in Wine 8
+sys.path.insert(0, sys.argv[1])
+import fmpy
+result = fmpy.simulate_fmu(sys.argv[2], stop_time=2.0, output_interval=0.1, output=[
+    "north", "down", "pitch", "kinetic_energy"], start_values={"thrust": 9.0,
+    "tunnel_force": 1.5, "fin_angle": 0.05, "mass_position_cmd": 0.01})
+for row in result:
+    print(*["%.17g" % value for value in row])
+"""
+
+
+def test_fmpy_in_the_windows_cpython_simulates_the_fmu(
+    machine, windows_python, windows_fmpy, fmu_paths, on_wine
+):
+    """fmpy as the Windows FMI host: it extracts the FMU, loads its win64 binary with
+    ctypes, and the runtime uses the CPython of the process (no second one: python313.dll
+    is loaded once, by python.exe). Its rows at t = 0.1 ... 2 s equal the stepper's."""
+    fmu = machine["root"] / "AuvPlant.fmu"
+    shutil.copyfile(fmu_paths["AuvPlant"], fmu)
+    script = machine["root"] / "run_fmpy.py"
+    script.write_text(FMPY_RUN)
+    done = run_clean(
+        [wine(), windows_python / "python.exe", windows(script), windows(windows_fmpy),
+         windows(fmu)],
+        machine["root"],
+        timeout=600,
+        WINEPREFIX=str(machine["prefix"]),
+        WINEDEBUG="-all,+loaddll",
+    )  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    loaded = LOADED.findall(done.stderr.replace("\\\\", "\\"))
+    assert [path for path in loaded if path.lower().endswith("python313.dll")] == [
+        windows(windows_python / "python313.dll")
+    ]
+    assert any(path.endswith("\\binaries\\win64\\AuvPlant.dll") for path in loaded)
+    rows = _steps(done.stdout)[1:]  # after t = 0
+    columns = [0, 2, 4, 21]  # north, down, pitch, kinetic_energy in OUTS
+    expected = [[row[0], *(row[1 + k] for k in columns)] for row in _steps(on_wine)]
+    assert len(rows) == len(expected) == STEPS
+    for row, other in zip(rows, expected, strict=True):
+        assert row == pytest.approx(other, rel=1e-12, abs=1e-15)

