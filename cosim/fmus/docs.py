@@ -89,7 +89,8 @@ _WIN64_RUNTIME = (
     "(<code>&lt;id&gt;_pythonfmu.dll</code> beside it is the fallback): it finds a Python "
     "as on Linux, with <code>Scripts\\python.exe</code> in a virtual environment's folder "
     "and <code>python</code> then <code>py -3</code> on PATH; it needs CPython&nbsp;3.9 or "
-    "later with numpy. Compiled and checked, not yet run on Windows.</li>"
+    "later with numpy. Run under Wine with python.org's CPython&nbsp;3.13 for Windows "
+    "(also with fmpy as the host), not on Windows itself.</li>"
 )
 _NO_LOADER = (
     "<li><b>Python.</b> This FMU was built without a C compiler, so its binary is "
