@@ -23,7 +23,9 @@ from repo_paths import ROOT
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 
 MODEL_DOC = ROOT / "docs" / "model.md"
-SKIPPED_FOLDERS = {".git", ".venv", "build", "runs", "auv_cosim.egg-info", "__pycache__"}
+# .pytest_cache: it holds downloaded packages (tests/fmu_runtime/windows_cpython.py)
+SKIPPED_FOLDERS = {".git", ".venv", "build", "runs", "auv_cosim.egg-info", "__pycache__",
+                   ".pytest_cache"}  # fmt: skip
 PACKAGES = ("docs", "plant_fmu", "controller_fmu", "fmu_runtime", "cosim", "scripts", "tests")
 REPO_PATH = re.compile(
     rf"(?<![\w/.-])((?:{'|'.join(PACKAGES)})/[\w./-]*\w\.(?:md|py|toml))(#[\w-]+)?"

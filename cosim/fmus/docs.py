@@ -78,16 +78,19 @@ _LOADER = (
     "glibc&nbsp;2.32).</li>"
 )
 _WIN64_PYTHONFMU = (
-    "<li><b>Windows.</b> The win64 binary is pythonfmu's (not tested): it runs in the "
-    "CPython whose <code>python3.dll</code> Windows finds (the host's own, or one in a "
-    "folder on PATH), which must import numpy; it looks for no other Python.</li>"
+    "<li><b>Windows.</b> The win64 binary is pythonfmu's (this build had no win64 runtime "
+    "made from its C sources; not tested): it runs in the CPython whose "
+    "<code>python3.dll</code> Windows finds (the host's own, or one in a folder on PATH), "
+    "which must import numpy; it looks for no other Python and refuses input derivatives "
+    "(<code>fmi2SetRealInputDerivatives</code>).</li>"
 )
 _WIN64_RUNTIME = (
     "<li><b>Windows.</b> The win64 binary is the same runtime, cross-compiled "
     "(<code>&lt;id&gt;_pythonfmu.dll</code> beside it is the fallback): it finds a Python "
     "as on Linux, with <code>Scripts\\python.exe</code> in a virtual environment's folder "
-    "and <code>python</code> then <code>py -3</code> on PATH. Compiled and checked, but "
-    "not run on Windows.</li>"
+    "and <code>python</code> then <code>py -3</code> on PATH; it needs CPython&nbsp;3.9 or "
+    "later with numpy. Run under Wine with python.org's CPython&nbsp;3.13 for Windows "
+    "(also with fmpy as the host), not on Windows itself.</li>"
 )
 _NO_LOADER = (
     "<li><b>Python.</b> This FMU was built without a C compiler, so its binary is "

@@ -7,13 +7,17 @@ resolved with ``dlsym`` from the libpython in the process (one binary for every 
 It becomes ``binaries/linux64/<id>.so``; pythonfmu's library moves beside it, unchanged, as
 ``<id>_pythonfmu.so``: the fallback ``AUV_FMU_RUNTIME=pythonfmu`` chooses.
 
-win64, only when asked (``AUV_FMU_WIN64=1`` at build time) and the ``ziglang`` package is
-installed: the same runtime cross-compiled with ``zig cc -target x86_64-windows-gnu``
-(``platform_win32.c`` in place of ``platform_posix.c``) becomes ``binaries/win64/<id>.dll``,
-pythonfmu's DLL beside it as ``<id>_pythonfmu.dll``. zig's first cross-compile on a machine
-takes about two minutes (it builds its MinGW libraries once), which a first ``auv-cosim
-run`` should not pay; and the DLL was compiled and checked here, never run on Windows.
-Without the flag the win64 binary stays pythonfmu's.
+win64, in every build: the same runtime cross-compiled with ``zig cc -target
+x86_64-windows-gnu`` (``platform_win32.c`` in place of ``platform_posix.c``) becomes
+``binaries/win64/<id>.dll``, pythonfmu's DLL beside it as ``<id>_pythonfmu.dll``. The DLL
+comes prebuilt with the package (``fmu_runtime/native/prebuilt/win64/``, made by
+``scripts/build_win64_runtime.py``), with a record of the SHA-256 of the C sources, headers
+and flags it was built from (:func:`win64_sources_digest`): the build uses it only while
+that digest is today's, else the win64 binary stays pythonfmu's and :func:`install_loader`
+says so in one line. With ``AUV_FMU_WIN64=1`` and the ``ziglang`` package the build
+compiles it afresh instead (zig's first cross-compile on a machine takes about two minutes
+while it builds its MinGW libraries); ``-s`` (no debug information) makes zig's output
+byte-reproducible. The DLL was run under Wine (docs/native-loader.md), not on Windows.
 
 The compiler: the system's ``cc`` when there is one (``-Wall -Wextra``; the runtime pins
 the few glibc symbols newer than 2.17 to their old versions itself, ``glibc_floor.h``),
@@ -61,11 +65,11 @@ HEADERS = ("loader.h", "probe.h", "python.h", "slave.h", "glibc_floor.h", "platf
 VARIABLES_FILE = "fmu_variables.txt"
 OVERRIDE_VARIABLE = "AUV_FMU_PYTHON"  # the runtime's own name for it is in loader.h
 RUNTIME_VARIABLE = "AUV_FMU_RUNTIME"  # "pythonfmu": the fallback
-WIN64_VARIABLE = "AUV_FMU_WIN64"  # "1": cross-compile the win64 runtime too (zig)
+WIN64_VARIABLE = "AUV_FMU_WIN64"  # "1": compile the win64 runtime afresh (zig), not prebuilt
 WRAPPER_SUFFIX = "_pythonfmu"
 GLIBC_FLOOR = "2.17"
 NO_COMPILER = (
-    "no C compiler (cc) and no ziglang package: the FMUs keep pythonfmu's binary "
+    "no C compiler (cc) and no ziglang package: the FMUs' linux64 binary stays pythonfmu's "
     "(non-Python hosts must preload libpython; see docs/native-loader.md)"
 )
 WARNINGS = ("-Wall", "-Wextra", "-Wno-format-truncation")  # a log line may be cut: intended
@@ -76,9 +80,14 @@ _FLAGS = ("-shared", "-O2", "-std=c11", "-fvisibility=hidden", "-fPIC", *WARNING
 _LIBS = ("-Wl,--no-as-needed", "-l:libdl.so.2", "-l:libpthread.so.0", "-Wl,-z,nodelete")
 _ZIG_LIBS = ("-ldl", "-lpthread", "-Wl,-z,nodelete")
 _ZIG_TARGET = f"x86_64-linux-gnu.{GLIBC_FLOOR}"
-# win64: __declspec(dllexport) decides what the DLL exports; UCRT and KERNEL32 only
-_WIN64_FLAGS = ("-shared", "-O2", "-std=c11", *WARNINGS)
+# win64: __declspec(dllexport) decides what the DLL exports; UCRT and KERNEL32 only; -s:
+# no PDB, whose paths would change the DLL's build hash with the folders it is built in
+_WIN64_FLAGS = ("-shared", "-O2", "-std=c11", "-s", *WARNINGS)
 _WIN64_TARGET = "x86_64-windows-gnu"
+PREBUILT_DIR = SOURCE_DIR / "prebuilt" / "win64"  # package data
+PREBUILT_DLL = PREBUILT_DIR / "runtime.dll"
+PREBUILT_RECORD = PREBUILT_DIR / "built_from.txt"
+PREBUILT_SCRIPT = "scripts/build_win64_runtime.py"
 
 
 @dataclass(frozen=True)
@@ -108,23 +117,64 @@ def zig() -> Toolchain | None:
 
 
 def win64_wanted() -> bool:
-    """Whether the build cross-compiles the win64 runtime too (``AUV_FMU_WIN64=1``)."""
+    """Whether the build compiles the win64 runtime afresh (``AUV_FMU_WIN64=1``)."""
     return os.environ.get(WIN64_VARIABLE) == "1"
 
 
 def source_digest() -> str:
     """SHA-256 of the runtime's C sources and headers (part of the FMUs' rebuild key),
     which compiler would build it (an FMU built without one is rebuilt once there is),
-    whether a win64 runtime is wanted and can be built, and the Python the FMUs record as
-    their build's."""
+    whether the win64 runtime is compiled afresh, the prebuilt one (DLL and record), and
+    the Python the FMUs record as their build's."""
     digest = hashlib.sha256()
     chain = toolchain()
     digest.update(f"compiler {chain.name if chain else 'none'}\n".encode())
     digest.update(f"win64 {win64_wanted() and zig() is not None}\n".encode())
     for name in (*SOURCES, *PLATFORM_SOURCES.values(), *HEADERS):
         digest.update(f"{name}\n".encode() + (SOURCE_DIR / name).read_bytes())
+    for path in (PREBUILT_DLL, PREBUILT_RECORD):
+        data = path.read_bytes() if path.is_file() else b"none"
+        digest.update(f"{path.name}\n".encode() + hashlib.sha256(data).digest())
     digest.update(f"build_python {sys.executable}\n".encode())
     return digest.hexdigest()
+
+
+def win64_sources_digest() -> str:
+    """SHA-256 of what the win64 runtime is compiled from: the target, the flags, and the
+    names and bytes of its C sources and every header."""
+    digest = hashlib.sha256()
+    digest.update(f"{_WIN64_TARGET} {' '.join(_WIN64_FLAGS)}\n".encode())
+    for name in (*SOURCES, PLATFORM_SOURCES["win64"], *HEADERS):
+        digest.update(f"{name}\n".encode() + (SOURCE_DIR / name).read_bytes())
+    return digest.hexdigest()
+
+
+def prebuilt_record() -> dict[str, str]:
+    """The prebuilt win64 runtime's record, ``key=value`` lines (``sources_sha256``,
+    ``dll_sha256``, ``zig``, ``command``); empty if there is none."""
+    if not PREBUILT_RECORD.is_file():
+        return {}
+    lines = PREBUILT_RECORD.read_text(encoding="utf-8").splitlines()
+    return dict(line.split("=", 1) for line in lines if "=" in line and line[0] != "#")
+
+
+def prebuilt_win64() -> bytes | str:
+    """The prebuilt win64 runtime's bytes if it was built from today's sources (its record
+    says so, and the DLL is the one recorded), else why not, in one line."""
+    record = prebuilt_record()
+    dll = PREBUILT_DLL.read_bytes() if PREBUILT_DLL.is_file() else None
+    if dll is None or not record:
+        why = "there is no prebuilt win64 runtime"
+    elif record.get("sources_sha256") != win64_sources_digest():
+        why = "the runtime's C sources changed since the prebuilt win64 runtime was built"
+    elif record.get("dll_sha256") != hashlib.sha256(dll).hexdigest():
+        why = "the prebuilt win64 runtime is not the DLL its record names"
+    else:
+        return dll
+    return (
+        f"the win64 binary stays pythonfmu's: {why} (regenerate it: python "
+        f"{PREBUILT_SCRIPT}, which needs ziglang; or build with {WIN64_VARIABLE}=1 and ziglang)"
+    )
 
 
 def compile_command(
@@ -186,30 +236,38 @@ def _number(start: str | None) -> str:
 
 
 def install_loader(fmu: Path, name: str) -> list[str]:
-    """Make the runtime the linux64 binary of the built ``fmu`` (model identifier ``name``),
-    and the win64 one when asked (:func:`win64_wanted`), in place, pythonfmu's renamed
-    beside each; return what it could not do, one line each (empty: all is in;
-    :func:`loader_in` tells whether the linux64 runtime is)."""
+    """Make the runtime the linux64 and the win64 binary of the built ``fmu`` (model
+    identifier ``name``), in place, pythonfmu's renamed beside each; return what it could
+    not do, one line each (empty: all is in; :func:`loader_in` tells which is)."""
+    runtimes: dict[str, bytes] = {}
+    notes = []
     chain = toolchain()
-    if chain is None:
-        return [NO_COMPILER]
-    built = _compiled(chain, "linux64")
-    if isinstance(built, str):
-        return [f"the FMUs keep pythonfmu's binary: the runtime did not compile ({built})"]
-    runtimes, notes = {"linux64": built}, []
-    if win64_wanted():
-        cross = zig()
-        win64 = (
-            _compiled(cross, "win64")
-            if cross
-            else 'no ziglang package: pip install "auv-cosim[zig]"'
-        )
-        if isinstance(win64, bytes):
-            runtimes["win64"] = win64
-        else:
-            notes.append(f"{WIN64_VARIABLE}=1, but the win64 binary stays pythonfmu's: {win64}")
-    _rewrite(fmu, name, runtimes)
+    built = _compiled(chain, "linux64") if chain else NO_COMPILER
+    if isinstance(built, bytes):
+        runtimes["linux64"] = built
+    elif chain is None:
+        notes.append(built)
+    else:
+        notes.append(f"the FMUs keep pythonfmu's binary: the runtime did not compile ({built})")
+    win64 = _win64()
+    if isinstance(win64, bytes):
+        runtimes["win64"] = win64
+    else:
+        notes.append(win64)
+    if runtimes:
+        _rewrite(fmu, name, runtimes)
     return notes
+
+
+def _win64() -> bytes | str:
+    """The win64 runtime: compiled afresh when asked and zig is there, else prebuilt."""
+    cross = zig() if win64_wanted() else None
+    if cross is None:
+        return prebuilt_win64()
+    built = _compiled(cross, "win64")
+    if isinstance(built, bytes):
+        return built
+    return f"{WIN64_VARIABLE}=1, but the win64 binary stays pythonfmu's: {built}"
 
 
 # Process-wide: (compiler, platform, sources digest) -> the library's bytes or the

@@ -98,9 +98,10 @@ static void unhex_path(const char *text, Answer *a)
     }
 }
 
+/* Lines end in "\n", or "\r\n" from a Windows Python (its stdout is in text mode). */
 static void parse(char *text, Answer *a)
 {
-    for (char *line = strtok(text, "\n"); line; line = strtok(NULL, "\n")) {
+    for (char *line = strtok(text, "\r\n"); line; line = strtok(NULL, "\r\n")) {
         char *value = strchr(line, '=');
         if (!value) continue;
         *value++ = '\0';

@@ -195,11 +195,18 @@ static int unsuitable(const Answer *a, const char *loaded, char *why, size_t n)
                         "Python %d.%d.%d cannot import numpy (%s); fix: %s -m pip install numpy",
                         a->major, a->minor, a->micro, a->numpy_error, a->executable);
     }
-    char os_py[PATH_SIZE + 16];
+    /* The standard library: a folder with os.py, or the zip CPython puts on sys.path from
+     * the libpython's folder (python313.zip: Windows' embeddable distribution) */
+    char os_py[PATH_SIZE + 16], zip[PATH_SIZE + 32];
     snprintf(os_py, sizeof os_py, "%s%sos.py", a->stdlib, PATH_SEPARATOR);
-    if (strncmp(a->stdlib, a->base_prefix, strlen(a->base_prefix)) || !path_exists(os_py)) {
-        return snprintf(why, n, "its base prefix %s holds no standard library (no %s)",
-                        a->base_prefix, os_py);
+    const char *lib = a->libpython;
+    size_t folder = strlen(lib);
+    while (folder && lib[folder - 1] != '/' && lib[folder - 1] != PATH_SEPARATOR[0]) folder--;
+    snprintf(zip, sizeof zip, "%.*spython%d%d.zip", (int)folder, lib, a->major, a->minor);
+    int in_prefix = !strncmp(a->stdlib, a->base_prefix, strlen(a->base_prefix));
+    if (!(in_prefix && path_exists(os_py)) && !path_exists(zip)) {
+        return snprintf(why, n, "its base prefix %s holds no standard library (no %s nor %s)",
+                        a->base_prefix, os_py, zip);
     }
     if (loaded[0] && !platform_same_file(a->libpython, loaded)) {
         return snprintf(why, n,

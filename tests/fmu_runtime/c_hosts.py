@@ -27,12 +27,15 @@ def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
     """``command`` in a clean environment (PATH, HOME and ``extra`` only), in its own
     process group, which is ended whatever happens. ``home`` is its working folder too;
     pass the same one (the ``clean_home`` fixture) to share the FMU's numba cache, which
-    lives under ``$HOME/.cache``, between runs."""
+    lives under ``$HOME/.cache``, between runs. Its stdin is /dev/null, its stdout and
+    stderr pipes (a Windows CPython under Wine 8 cannot start with a regular file as a
+    standard stream: Wine's GetFileInformationByHandle fails on it)."""
     env = {"PATH": CLEAN_PATH, "HOME": str(home), **extra}
     process = subprocess.Popen(
         [str(part) for part in command],
         env=env,
         cwd=home,
+        stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -4,7 +4,12 @@
   -Werror`` (skipped without ``cc``);
 * ``extracted`` (module): every built FMU extracted into a folder of its own;
 * ``clean_home`` (session): one HOME for the clean environments, so that the FMUs'
-  numba cache (under ``$HOME/.cache``) is compiled once, not in every test.
+  numba cache (under ``$HOME/.cache``) is compiled once, not in every test;
+* ``windows_python`` (session): the folder of a real Windows CPython's ``python.exe``
+  with numpy (``windows_cpython.py``), cached in pytest's cache; skipped without Wine or
+  when it cannot be downloaded;
+* ``windows_fmpy`` (session): a folder with fmpy (this environment's version) and the
+  packages it imports, for that CPython, cached and skipped the same way.
 """
 
 from __future__ import annotations
@@ -12,10 +17,12 @@ from __future__ import annotations
 import shutil
 import subprocess
 import zipfile
+from importlib import metadata
 from pathlib import Path
 
 import pytest
 from c_hosts import HOST_SOURCE
+from windows_cpython import FMPY_IMPORTS, windows_cpython, windows_site, wine
 
 from cosim.fmus.build import FMUS
 
@@ -46,3 +53,31 @@ def extracted(fmu_paths, tmp_path_factory) -> dict[str, Path]:
 @pytest.fixture(scope="session")
 def clean_home(tmp_path_factory) -> Path:
     return tmp_path_factory.mktemp("home")
+
+
+@pytest.fixture(scope="session")
+def windows_cache(request, tmp_path_factory) -> Path:
+    """Where the Windows CPython and its packages are kept: pytest's cache, if it is on."""
+    if wine() is None:
+        pytest.skip("Wine (wine64) not installed")
+    cache = getattr(request.config, "cache", None)
+    if cache is None:
+        return tmp_path_factory.mktemp("windows-cpython")
+    return Path(cache.mkdir("windows-cpython"))
+
+
+@pytest.fixture(scope="session")
+def windows_python(windows_cache) -> Path:
+    home = windows_cpython(windows_cache)
+    if isinstance(home, str):
+        pytest.skip(home)
+    return home
+
+
+@pytest.fixture(scope="session")
+def windows_fmpy(windows_cache, windows_python) -> Path:
+    version = metadata.version("fmpy")
+    site = windows_site(windows_cache, f"fmpy-{version}", (f"fmpy=={version}", *FMPY_IMPORTS))
+    if isinstance(site, str):
+        pytest.skip(site)
+    return site

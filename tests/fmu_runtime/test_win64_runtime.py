@@ -1,13 +1,13 @@
 """The runtime's win64 build (platform_win32.c), cross-compiled with zig and run under Wine
 in a small win64 C host: the Windows side of finding Python. There is no Windows machine
-and no Windows CPython here, so a stand-in python.exe (hosts/fake_python.c) answers the
-probe as Python 3.8 would, after checking that its arguments and environment arrived as
-sent. Guarded: a file:///Z:/ resource URI with non-ASCII characters read through UTF-16;
-a GUID checked; the Windows candidate order (AUV_FMU_PYTHON as an executable whose path
-has a space, or a venv folder's Scripts\\python.exe; the build's Python; python, then
-py -3 on PATH) with one line each; the probe's command line quoting, its "-3" for the
-launcher and PYTHONHOME left out. Wine is not Windows: docs/native-loader.md says what was
-and was not run."""
+here; a stand-in python.exe (hosts/fake_python.c) answers the probe as Python 3.8 would,
+after checking that its arguments and environment arrived as sent (a real Windows CPython
+runs the FMU in test_win64_cpython.py). Guarded: a file:///Z:/ resource URI with
+non-ASCII characters read through UTF-16; a GUID checked; the Windows candidate order
+(AUV_FMU_PYTHON as an executable whose path has a space, or a venv folder's
+Scripts\\python.exe; the build's Python; python, then py -3 on PATH) with one line each;
+the probe's command line quoting, its "-3" for the launcher and PYTHONHOME left out.
+Wine is not Windows: docs/native-loader.md says what was and was not run."""
 
 from __future__ import annotations
 
