@@ -28,7 +28,9 @@ Steps for one FMU (:func:`build_fmu`):
    under one package named after their content, ``auvfmu_<hash>``, their imports renamed
    (:mod:`cosim.fmus.staging`); pythonfmu's entry module for its own binary (the fallback);
    ``fmu_runtime.txt`` (the GUID, the package, the slave class, the Python the FMU was built
-   with) and ``fmu_variables.txt`` (each variable's rules) for the FMU's runtime.
+   with) and ``fmu_variables.txt`` (each variable's rules) for the FMU's runtime; and the
+   code compiled by the build's Python (:mod:`cosim.fmus.bytecode`: checked-hash ``.pyc``
+   files, so a host with that Python compiles nothing when it imports the FMU's code).
 5. The FMU's runtime (:mod:`cosim.fmus.native`, ``docs/native-loader.md``) becomes its
    linux64 binary, with pythonfmu's renamed beside it; without a C compiler the FMU keeps
    pythonfmu's binary and the build says so in one line. The documentation page says which
@@ -61,8 +63,8 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from cosim.errors import CosimError
+from cosim.fmus import bytecode, native, staging
 from cosim.fmus import docs as fmu_docs
-from cosim.fmus import native, staging
 from fmu_runtime import entry
 
 HASH_SUFFIX = ".sha256"
@@ -273,6 +275,7 @@ def lay_out_resources(fmu: Path, name: str, shipped: dict[str, bytes]) -> None:
         description = archive.read("modelDescription.xml")
     resources[entry.RECORD_FILE] = runtime_record(description, package, module, name).encode()
     resources[native.VARIABLES_FILE] = native.variables_table(description).encode()
+    resources.update(bytecode.compiled(resources))  # what importing it would compile
     _replace_resources(fmu, resources)
 
 
@@ -305,12 +308,15 @@ def source_hash(files: dict[str, Path]) -> str:
     """SHA-256 over the shipped files (names and bytes), this module, the documentation
     generator (:mod:`cosim.fmus.docs`), the renaming of imports (:mod:`cosim.fmus.staging`),
     the FMU's runtime (its C sources, the compiler that builds it and the Python it
-    records: :func:`cosim.fmus.native.source_digest`) and pythonfmu's version."""
+    records: :func:`cosim.fmus.native.source_digest`), pythonfmu's version, and the
+    compiling of the code (:mod:`cosim.fmus.bytecode`, for this Python's cache tag)."""
     digest = hashlib.sha256()
     digest.update(f"pythonfmu {metadata.version('pythonfmu')}\n".encode())
+    digest.update(f"bytecode {sys.implementation.cache_tag}\n".encode())
     digest.update(f"runtime {native.source_digest()}\n".encode())
     generators = {
         "<cosim/fmus/build.py>": Path(__file__),
+        "<fmu_bytecode>": Path(bytecode.__file__),
         "<fmu_docs>": Path(fmu_docs.__file__),
         "<fmu_native>": Path(native.__file__),
         "<fmu_staging>": Path(staging.__file__),

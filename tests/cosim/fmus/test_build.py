@@ -4,6 +4,8 @@ InitialUnknowns by the FMI 2.0 rule)."""
 
 from __future__ import annotations
 
+import importlib.util
+import json
 import re
 import shutil
 import subprocess
@@ -89,6 +91,8 @@ def test_built_fmu_holds_the_shipped_sources_under_the_build_package(fmu_paths):
     assert record["interpolates_inputs"] == "1"  # the plant takes input derivatives
     assert b" R input continuous " in resources.pop(native.VARIABLES_FILE)
     assert resources.pop(f"{package}/__init__.py").startswith(b'"""The Python code of')
+    for name in [name for name in resources if name.endswith(".pyc")]:  # their own test
+        del resources[name]
     assert sorted(resources) == sorted(f"{package}/{name}" for name in shipped)
     for name, data in shipped.items():
         built = resources[f"{package}/{name}"]
@@ -97,6 +101,52 @@ def test_built_fmu_holds_the_shipped_sources_under_the_build_package(fmu_paths):
             assert built.replace(f"{package}.".encode(), b"") == data, name
         else:
             assert built == data, name
+
+
+def test_every_module_an_fmu_ships_comes_compiled_for_the_build_python(fmu_paths):
+    """A checked-hash .pyc (PEP 552) of this Python beside every .py of resources/, where
+    its import looks, holding the hash of that very source: importing the FMU's code
+    after any extraction compiles nothing, and an edited source is never run stale."""
+    resources = _resources(fmu_paths["AuvPlant"])
+    sources = [name for name in resources if name.endswith(".py")]
+    assert len(sources) > 40
+    compiled = {name for name in resources if name.endswith(".pyc")}
+    expected = {Path(importlib.util.cache_from_source(name)).as_posix() for name in sources}
+    assert compiled == expected
+    for name in sources:
+        pyc = resources[Path(importlib.util.cache_from_source(name)).as_posix()]
+        assert pyc[:4] == importlib.util.MAGIC_NUMBER, name
+        assert int.from_bytes(pyc[4:8], "little") == 0b11, name  # hash-based, checked
+        assert pyc[8:16] == importlib.util.source_hash(resources[name]), name
+
+
+def test_an_extracted_fmus_code_imports_without_compiling(fmu_paths, tmp_path):
+    """In a fresh Python that may not write bytecode, every module of the FMU's package is
+    loaded from the FMU's own .pyc files (the cached file each module names exists and
+    was shipped, not written here)."""
+    with zipfile.ZipFile(fmu_paths["AuvPlant"]) as archive:
+        archive.extractall(tmp_path)
+        shipped = {name for name in archive.namelist() if name.endswith(".pyc")}
+    record = dict(
+        line.split("=", 1)
+        for line in (tmp_path / "resources" / RECORD_FILE).read_text().splitlines()
+    )
+    script = (
+        "import importlib, sys, json; sys.path.insert(0, sys.argv[1]); "
+        f"importlib.import_module({record['module']!r}); "
+        f"print(json.dumps([m.__cached__ for n, m in sys.modules.items() "
+        f"if n.startswith({record['package']!r}) and getattr(m, '__cached__', None)]))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-B", "-c", script, str(tmp_path / "resources")],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    cached = [Path(name) for name in json.loads(done.stdout)]
+    assert len(cached) > 10
+    for path in cached:
+        assert path.is_file(), path  # -B: only a shipped file can be there
+        assert path.relative_to(tmp_path).as_posix() in shipped
 
 
 def test_the_three_fmus_ship_one_package(fmu_paths):

@@ -1,5 +1,5 @@
-"""A local study's FMUs are extracted once, by the client, with their Python code compiled,
-and a worker uses that folder instead of extracting its own; a folder gone (or never
+"""A local study's FMUs are extracted once, by the client (their Python code comes compiled
+in the FMU), and a worker uses that folder instead of extracting its own; a folder gone (or never
 there: a remote worker) is not used."""
 
 from __future__ import annotations
