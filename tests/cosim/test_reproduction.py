@@ -364,11 +364,12 @@ def test_chapter_5_vehicles_carry_the_weight_example_5_3_was_computed_with() -> 
 
 
 @pytest.mark.slow
-def test_the_folds_of_example_5_4_and_sec_5_1_4_use_the_weight_of_example_5_3() -> None:
+def test_the_folds_of_example_5_4_and_sec_5_1_4_use_the_weight_of_example_5_3(
+    ctx: Context,
+) -> None:
     """The roll-torque fold and the mass-position fold equal an independent continuation
     with W = 299 N (4.268 Q_prop, y_g = -0.836 cm), not the W = m g values (4.210 Q_prop,
-    -0.823 cm)."""
-    ctx = Context.create(DISSERTATION)
+    -0.823 cm). On the module's context: its two sweeps are the claims' (memoised)."""
     vehicle = ctx.remus.replace(W=W_TABLE_5_4)
     lateral = OperatingConditions(vehicle, Variant.LATERAL)
     (fold,) = sweep(lateral, "roll_torque", 0.0, 5.5 * Q_PROP).folds
