@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import partial
+from functools import cache, partial
 
 import numpy as np
 
@@ -158,7 +158,14 @@ def momentum_drift(moving_mass_model: MovingMassModel, step: float = TUMBLE_STEP
     fluid (W = B, r_g = 0, no thrust) while the servo drives the mass to +-4 cm and back
     every 3 s, stepped by the shipped RK4 (``stepping.advance``; model 0 on its compiled
     path, as the plant FMU steps it) at ``step``; measured with the two-body momentum
-    whatever model steps."""
+    whatever model steps. Computed once per (model, step) and process: the page and the
+    tests ask for the same tumbles."""
+    return _momentum_drift(MovingMassModel(moving_mass_model), float(step))
+
+
+@cache
+def _momentum_drift(moving_mass_model: MovingMassModel, step: float) -> float:
+    """:func:`momentum_drift`, remembered."""
     vehicle = load_vehicle()
     balanced = vehicle.replace(W=vehicle.B, z_g=0.0, x_g=0.0)
     model = PlantModel(balanced, Variant.FULL, True, moving_mass_model=moving_mass_model)
