@@ -17,7 +17,8 @@ and the attitude quaternion, 18 values), each sub-step in the attitude chart tha
 :func:`derivative_into` is ``PlantModel.derivative`` (Euler angles) for the analysis tools.
 
 Covered: the three variants, ideal fluid, current shear, and the dissertation's moving
-mass (``moving_mass_model = 0``). Not covered: the two-body moving mass (model 1), whose
+mass (``moving_mass_model = 0``), with its servo's reaction on the hull or without
+(``servo_reaction``). Not covered: the two-body moving mass (model 1), whose
 mass matrix depends on y_v; :func:`supports` says so and the plant FMU then steps the
 reference. Equation numbers: B. Li, FAU 2016; units SI.
 """
@@ -72,7 +73,8 @@ _SCALARS = (
 VARIANT = len(_SCALARS)
 IDEAL = VARIANT + 1
 SHEAR = VARIANT + 2
-INV = VARIANT + 3  # (M_RB + M_A)^-1 on the free DOFs, 36 values row by row
+REACTION = VARIANT + 3  # 1: the servo's reaction and the stops' impacts act; 0: left out
+INV = VARIANT + 4  # (M_RB + M_A)^-1 on the free DOFs, 36 values row by row
 RIGID = INV + 36  # M_RB, 36 values row by row
 MASS = RIGID + 36  # M_RB + M_A, 36 values row by row
 N_PARAMETERS = MASS + 36
@@ -95,6 +97,7 @@ def flat_parameters(model: PlantModel) -> np.ndarray:
     p[VARIANT] = int(model.variant)
     p[IDEAL] = 1.0 if model.ideal_fluid else 0.0
     p[SHEAR] = model.current_shear
+    p[REACTION] = 1.0 if model.servo_reaction else 0.0
     p[INV:RIGID] = model._inverse_mass.ravel()
     p[RIGID:MASS] = model._rigid_mass.ravel()
     p[MASS:] = model.mass_matrix.ravel()
@@ -158,8 +161,8 @@ def _base_force(
     p: np.ndarray, x: np.ndarray, inputs: np.ndarray, u_r: float, R: np.ndarray, f: np.ndarray
 ) -> tuple[float, float]:
     """f = actuators (6.3.79, Table 6.1) + moving-mass reaction and offset weight
-    (6.3.11-6.3.13) + restoring (3.5.3), with Gamma = R^T [0, 0, 1] the third row of R;
-    returns (y', y'') of the mass (6.3.12)."""
+    (6.3.11-6.3.13; no reaction without ``servo_reaction``) + restoring (3.5.3), with
+    Gamma = R^T [0, 0, 1] the third row of R; returns (y', y'') of the mass (6.3.12)."""
     y_v, y_vel = x[12], x[13]
     accel = (p[KV] * (inputs[4] - y_v) - p[DV] * y_vel) / p[MV]
     stroke, limit = p[STROKE], p[SPEEDLIM]
@@ -169,7 +172,7 @@ def _base_force(
         y_vel, accel = 0.0, 0.0
     elif limit > 0.0 and abs(y_vel) >= limit and accel * y_vel > 0:
         accel = 0.0
-    f_mm = -p[MV] * accel
+    f_mm = -p[MV] * accel if p[REACTION] != 0.0 else 0.0
     g0, g1, g2 = R[2, 0], R[2, 1], R[2, 2]
     weight = p[MV] * p[G] * y_v
     roll = -p[ZG] * f_mm + weight * g2
@@ -412,8 +415,9 @@ def step_derivative_into(
 @_jit
 def project(p: np.ndarray, x: np.ndarray, collide: bool) -> None:
     """``PlantModel.project`` in place: frozen DOFs at 0, the mass within its stops (an
-    arrival at a stop with ``collide`` hands its momentum m_v y' J to the hull) and under
-    the speed limit. Model 0 only (J = [0, 1, 0, -z_g, 0, x_v])."""
+    arrival at a stop with ``collide`` hands its momentum m_v y' J to the hull, unless
+    ``servo_reaction`` is off) and under the speed limit. Model 0 only
+    (J = [0, 1, 0, -z_g, 0, x_v])."""
     variant = p[VARIANT]
     if variant != 0.0:
         x[8], x[10], x[2], x[4] = 0.0, 0.0, 0.0, 0.0
@@ -423,7 +427,7 @@ def project(p: np.ndarray, x: np.ndarray, collide: bool) -> None:
     if abs(x[12]) >= stroke:
         x[12] = math.copysign(stroke, x[12])
         if x[13] * x[12] > 0.0:
-            if collide:
+            if collide and p[REACTION] != 0.0:
                 k = p[MV] * x[13]
                 j0, j1, j2, j3, j4, j5 = k * 0.0, k * 1.0, k * 0.0, k * -p[ZG], k * 0.0, k * p[XV]
                 for i in range(6):

@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import IntEnum
 from functools import cached_property
 
@@ -144,6 +144,10 @@ class PlantModel:
             at the vehicle is V_c = [current_north + shear * east, current_east, current_down].
         moving_mass_model: the dissertation's equations (0, default) or the full two-body
             dynamics of hull and moving mass (1); see :class:`MovingMassModel`.
+        servo_reaction: the servo's reaction -m_v y'' on the hull (sway, roll, yaw) and a
+            stop's impact act (True, default: 6.3.11-6.3.13); False leaves both out, as the
+            dissertation's 6-DOF simulation (6.3.79: only the offset weight m_v g y_v
+            cos(phi) in roll) does. Analysis only: the plant FMU always keeps them.
     """
 
     params: VehicleParameters
@@ -151,6 +155,7 @@ class PlantModel:
     ideal_fluid: bool = False
     current_shear: float = 0.0
     moving_mass_model: MovingMassModel = MovingMassModel.DISSERTATION
+    servo_reaction: bool = True
     mass_matrix: np.ndarray = field(init=False, repr=False)
     _inverse_mass: np.ndarray = field(init=False, repr=False)
     _rigid_mass: np.ndarray = field(init=False, repr=False)
@@ -331,17 +336,17 @@ class PlantModel:
 
         The servo (:func:`~plant_fmu.model.moving_mass.servo_motion`) sets y'' along the
         rail; the reaction F_mm = -m_v y'' acts in sway at (x_v, ., z_g): sway +F_mm, roll
-        -z_g F_mm, yaw +x_v F_mm; the offset weight adds r x m_v g Gamma with
-        r = [0, y_v, 0]. The two-body model adds :func:`two_body_force` in the form being
-        integrated. ``gamma``: the earth's down axis in body coordinates (default: from the
-        Euler angles of x).
+        -z_g F_mm, yaw +x_v F_mm (F_mm = 0 without ``servo_reaction``); the offset weight
+        adds r x m_v g Gamma with r = [0, y_v, 0]. The two-body model adds
+        :func:`two_body_force` in the form being integrated. ``gamma``: the earth's down
+        axis in body coordinates (default: from the Euler angles of x).
 
         Returns:
             (y' in m/s, y'' in m/s^2, generalised force on the hull [X, Y, Z, K, M, N]).
         """
         params = self.params
         y_vel, accel = servo_motion(params, x[_YV], x[_YVEL], inputs[MASS_COMMAND])
-        f_mm = -params.m_v * accel
+        f_mm = -params.m_v * accel if self.servo_reaction else 0.0
         down = gravity_direction(x[3], x[4]) if gamma is None else gamma
         roll_weight, yaw_weight = weight_moment(params, x[_YV], down)
         roll = -params.z_g * f_mm + roll_weight
@@ -517,7 +522,10 @@ class PlantModel:
         = M_RB + M_A + dM(stop) at the stop (M_RB + M_A with model 0). Relative velocity
         and velocity over ground change alike, so the impact is frame-independent; the
         stepping (:mod:`plant_fmu.model.stepping`) ends the two-body model's step at the
-        moment the mass arrives, so no overshoot enters."""
+        moment the mass arrives, so no overshoot enters. Without ``servo_reaction`` the hull
+        feels no impact: ``nu`` unchanged."""
+        if not self.servo_reaction:
+            return nu
         impulse = self.params.m_v * mass_velocity * rail_direction(self.params)
         if not self.two_body:
             return nu + self._inverse_mass @ impulse
@@ -530,9 +538,7 @@ class PlantModel:
         with it up to the moment the mass arrives at a stop (before that, stage states that
         touch the stop must not be held there)."""
         params = self.params.replace(mass_stroke=1e9)  # m: a rail no mass reaches the end of
-        return PlantModel(
-            params, self.variant, self.ideal_fluid, self.current_shear, self.moving_mass_model
-        )
+        return replace(self, params=params)
 
     def current_change_velocity_jump(self, x: np.ndarray, delta_current: np.ndarray) -> np.ndarray:
         """Velocity change of the hull when the uniform current jumps by delta_current (earth,

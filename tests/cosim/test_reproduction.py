@@ -39,10 +39,12 @@ from cosim.reproduction.record import (
 )
 from cosim.reproduction.roll_torque import mass_sweep, roll_torque_sweep
 from cosim.reproduction.runs import COARSE, FINE, converged, runner
-from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model import compiled
+from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.moving_mass import MovingMassModel, rail_direction
 from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.stepping import advance
 
 CLAIMS = all_claims(DISSERTATION)
 CHOICES = [c for section in catalogue(DISSERTATION) for c in section.choices]
@@ -303,6 +305,31 @@ def test_the_dissertations_plant_without_the_reaction_drops_exactly_the_servo_re
     assert not np.array_equal(ours._velocity_after_impact(nu, 0.06, 0.3), nu)
 
 
+@pytest.mark.skipif(not compiled.AVAILABLE, reason=compiled.NO_JIT_REASON)
+def test_the_plant_without_the_reaction_is_stepped_compiled_and_drops_it_there_too() -> None:
+    """The in-process runs without the reaction step the compiled path (the reference is
+    minutes slower), which must leave out what the reference leaves out: the reaction in
+    the derivative and the impact at a stop."""
+    params = load_vehicle()
+    theirs = WithoutReaction(params, Variant.LATERAL)
+    assert compiled.supports(theirs) == ""
+    fast = compiled.CompiledPlant(theirs)
+    x = state_vector(dict(u=1.5, v=-0.1, r=0.05, p=0.2, roll=0.1, mass_position=0.02))
+    inputs = input_vector(dict(mass_position_cmd=-0.05), thrust=9.0)
+    np.testing.assert_allclose(
+        fast.derivative(x, inputs), theirs.derivative(x, inputs), rtol=1e-13, atol=1e-13
+    )
+    ours = PlantModel(params, Variant.LATERAL).derivative(x, inputs)
+    assert np.max(np.abs(fast.derivative(x, inputs) - ours)) > 1e-3
+    x[STATE_INDEX["mass_position"]], x[STATE_INDEX["mass_velocity"]] = 0.0199, 0.5
+    inputs[INPUT_INDEX["mass_position_cmd"]] = 0.05
+    reference, stepped = x, x
+    for _ in range(20):  # into the stop, fast
+        reference = advance(theirs, reference, inputs, 0.01)
+        stepped = advance(theirs, stepped, inputs, 0.01, compiled=fast)
+    np.testing.assert_allclose(stepped, reference, rtol=0.0, atol=1e-12)
+
+
 @pytest.mark.slow
 def test_the_shipped_rk4_keeps_the_two_body_momentum_to_the_page_s_figure() -> None:
     """The page's figure for model 1 stepped by the shipped RK4 (10 ms): the 60 s tumble's
@@ -337,11 +364,12 @@ def test_chapter_5_vehicles_carry_the_weight_example_5_3_was_computed_with() -> 
 
 
 @pytest.mark.slow
-def test_the_folds_of_example_5_4_and_sec_5_1_4_use_the_weight_of_example_5_3() -> None:
+def test_the_folds_of_example_5_4_and_sec_5_1_4_use_the_weight_of_example_5_3(
+    ctx: Context,
+) -> None:
     """The roll-torque fold and the mass-position fold equal an independent continuation
     with W = 299 N (4.268 Q_prop, y_g = -0.836 cm), not the W = m g values (4.210 Q_prop,
-    -0.823 cm)."""
-    ctx = Context.create(DISSERTATION)
+    -0.823 cm). On the module's context: its two sweeps are the claims' (memoised)."""
     vehicle = ctx.remus.replace(W=W_TABLE_5_4)
     lateral = OperatingConditions(vehicle, Variant.LATERAL)
     (fold,) = sweep(lateral, "roll_torque", 0.0, 5.5 * Q_PROP).folds

@@ -81,6 +81,8 @@ def test_closed_loop_runs_agree_with_the_reference(scenario):
         {"variant": Variant.LATERAL, "current_shear": 0.05},
         {"variant": Variant.HORIZONTAL, "current_shear": -0.05},
         {"variant": Variant.FULL, "ideal_fluid": True},
+        {"variant": Variant.FULL, "servo_reaction": False},
+        {"variant": Variant.LATERAL, "servo_reaction": False},
     ],
 )
 def test_every_option_agrees_from_random_states(options):

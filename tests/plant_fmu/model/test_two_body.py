@@ -91,10 +91,11 @@ class Bodies:
         return force * y_vel
 
 
-def _tumble(moving_mass_model: int):
+def _tumble(moving_mass_model: int, rtol: float = 1e-12):
     """60 s of tumbling in an ideal fluid while the servo drives the mass to +-4 cm and
     back; the state is augmented with the gravity couple's angular impulse and the servo's
-    work, integrated alongside (DOP853, segment by segment since the command jumps)."""
+    work, integrated alongside (DOP853 at ``rtol``, atol a tenth of it, segment by segment
+    since the command jumps)."""
     model = PlantModel(_balanced(), Variant.FULL, True, moving_mass_model=moving_mass_model)
     bodies = Bodies(model)
     x = state_vector(dict(u=1.2, v=0.3, w=-0.2, p=0.8, q=0.5, r=-0.6, roll=0.3, pitch=0.2))
@@ -110,7 +111,7 @@ def _tumble(moving_mass_model: int):
 
         z0 = np.concatenate([states[-1], extras[-1]])
         samples = np.linspace(0.0, SEGMENT, 7)[1:]
-        run = solve_ivp(rhs, (0.0, SEGMENT), z0, "DOP853", samples, rtol=1e-12, atol=1e-13)
+        run = solve_ivp(rhs, (0.0, SEGMENT), z0, "DOP853", samples, rtol=rtol, atol=rtol / 10)
         assert run.success
         states.extend(run.y[:14].T)
         extras.extend(run.y[14:].T)
@@ -156,8 +157,9 @@ def test_two_body_energy_changes_by_the_servo_work(two_body_tumble):
 @pytest.mark.slow
 def test_the_dissertations_model_does_not_conserve_momentum():
     """Why model 1 exists: model 0 leaves out the mass's Coriolis and centripetal terms
-    and its inertia's change, so the same run drifts."""
-    bodies, states, _ = _tumble(MovingMassModel.DISSERTATION)
+    and its inertia's change, so the same run drifts: by 2.29 kg m/s (of 44.8), at rtol
+    1e-9 as at 1e-12 (the two-body tests' rtol) to 0.3 %, far above the bound."""
+    bodies, states, _ = _tumble(MovingMassModel.DISSERTATION, rtol=1e-9)
     linear = np.array([bodies.momentum(x)[0] for x in states])
     assert np.max(np.linalg.norm(linear - linear[0], axis=1)) > 1e-3
 
