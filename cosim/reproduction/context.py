@@ -27,8 +27,10 @@ T = TypeVar("T")
 CHAPTER_5_WEIGHT = "table_5_4.weight"  # the reference value Chapter 5 was computed with
 
 
-Runner = Callable[[str, float, Mapping[str, float]], "RunData"]
-"""Runs a built-in scenario (id, communication step in s, start values) and reads it."""
+Runner = Callable[[str, float, Mapping[str, float], bool], "RunData"]
+"""Runs a built-in scenario (id, communication step in s, start values, whether the
+exchanged values are held over each step instead of the scenario's extrapolation) and
+reads it."""
 
 
 class NotRunError(Exception):
@@ -97,15 +99,21 @@ class Context:
         )
 
     def run(
-        self, scenario_id: str, step: float, start: Mapping[str, float] | None = None
+        self,
+        scenario_id: str,
+        step: float,
+        start: Mapping[str, float] | None = None,
+        held: bool = False,
     ) -> RunData:
         """The results of built-in scenario ``scenario_id`` at the communication step
-        ``step`` (s) with the start values ``start`` added, run once."""
+        ``step`` (s) with the start values ``start`` added, run once; ``held``: the
+        exchanged values held over each step (extrapolation none), not extrapolated as
+        the scenario ships."""
         if self.runner is None:
             raise NotRunError("scenarios skipped")
         runner, values = self.runner, dict(start or {})
-        key = ("run", scenario_id, step, tuple(sorted(values.items())))
-        return self.memo(key, lambda: runner(scenario_id, step, values))
+        key = ("run", scenario_id, step, tuple(sorted(values.items())), held)
+        return self.memo(key, lambda: runner(scenario_id, step, values, held))
 
 
 def uvr(eq: Equilibrium) -> tuple[float, float, float]:

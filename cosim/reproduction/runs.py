@@ -2,15 +2,15 @@
 master (``cosim.runner``) at two communication steps, and every figure of a run taken at
 their Richardson limit with the coupling error measured.
 
-Why two steps: the autopilot samples the plant at each communication step and holds its
-commands over it, so every figure of a closed-loop run depends on the step (the coupling
-error, first order in the step); the dissertation's simulations are continuous-time
-(MATLAB). Each figure f is computed at ``COARSE`` = 1.25 ms and ``FINE`` = 0.625 ms (the
-LQR redesigned for each, as ``auv-cosim run --step`` does); ours is the Richardson limit
-2 f(FINE) - f(COARSE), and the coupling error of the FINE run, |f(FINE) - f(COARSE)|, is
-shown beside it and must stay below the printed precision (else the row cannot be judged,
-:func:`cosim.reproduction.record.evaluate`). At the scenarios' own 10 ms step the errors
-are up to 50 times larger (vert-1's theta: 1.2e-4 rad, a tenth of its printed precision).
+Why two steps: the instances exchange values only at communication steps (held or
+extrapolated over each, as the scenario's ``[coupling]`` says), so every figure of a
+closed-loop run depends on the step (the coupling error); the dissertation's simulations
+are continuous-time (MATLAB). Each figure f is computed at ``COARSE`` = 1.25 ms and
+``FINE`` = 0.625 ms with the scenario's own coupling (the LQR redesigned for each, as
+``auv-cosim run --step`` does); ours is the Richardson limit 2 f(FINE) - f(COARSE), and
+the coupling error of the FINE run, |f(FINE) - f(COARSE)|, is shown beside it and must
+stay below the printed precision (else the row cannot be judged,
+:func:`cosim.reproduction.record.evaluate`).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ def runner(
     results."""
     options = {} if fmu_dir is None else {"fmu_dir": fmu_dir}
 
-    def run(scenario_id: str, step: float, start: Mapping[str, float]) -> RunData:
+    def run(scenario_id: str, step: float, start: Mapping[str, float], held: bool) -> RunData:
         from cosim.outputs.results import read_csv
         from cosim.runner import run_scenario
         from cosim.scenario.spec import load_scenario
@@ -42,9 +42,11 @@ def runner(
             scenario = scenario.with_start(start)
         name = "-".join(
             [scenario_id, f"{1e3 * step:g}ms", *(f"{k}={v:g}" for k, v in start.items())]
+            + (["held"] if held else [])
         )
         started = time.perf_counter()
-        outcome = run_scenario(scenario, work / name, no_rrd=True, step=step, **options)
+        coupling = {"extrapolation": "none"} if held else {}
+        outcome = run_scenario(scenario, work / name, no_rrd=True, step=step, **coupling, **options)
         if log is not None:
             log(f"  {name}: ran in {time.perf_counter() - started:.0f} s")
         if not outcome.result.complete:
