@@ -80,21 +80,31 @@ def _steps(stdout: str) -> list[list[float]]:
     return [[float(value) for value in row] for row in rows]
 
 
-def _on_wine(machine, dll: str = "AuvPlant.dll", **environment: str):
-    """The Windows stepper under Wine: its stdout, and the DLLs Wine loaded (its trace)."""
-    plant = machine["plant"]
-    uri = PureWindowsPath(windows(plant / "resources")).as_uri()
+def _wine_run(machine, command: list, **environment: str) -> tuple[str, list[str]]:
+    """``command`` (a Windows program and its arguments) under Wine in the test's prefix:
+    its stdout, and the DLLs Wine loaded (its trace); a failure shows the output's end."""
     done = run_clean(
-        [wine(), machine["root"] / "stepper.exe", windows(plant / "binaries" / "win64" / dll),
-         uri, machine["guid"], STEPS, H, SETS, OUTS],
+        [wine(), *command],
         machine["root"],
         timeout=600,
         WINEPREFIX=str(machine["prefix"]),
         WINEDEBUG="-all,+loaddll",
         **environment,
-    )  # fmt: skip
+    )
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     return done.stdout, LOADED.findall(done.stderr.replace("\\\\", "\\"))
+
+
+def _on_wine(machine, dll: str = "AuvPlant.dll", **environment: str):
+    """The Windows stepper under Wine: its stdout, and the DLLs Wine loaded (its trace)."""
+    plant = machine["plant"]
+    uri = PureWindowsPath(windows(plant / "resources")).as_uri()
+    return _wine_run(
+        machine,
+        [machine["root"] / "stepper.exe", windows(plant / "binaries" / "win64" / dll),
+         uri, machine["guid"], STEPS, H, SETS, OUTS],
+        **environment,
+    )  # fmt: skip
 
 
 def _python_dlls(loaded: list[str]) -> set[str]:
@@ -200,21 +210,15 @@ def test_fmpy_in_the_windows_cpython_simulates_the_fmu(
     shutil.copyfile(fmu_paths["AuvPlant"], fmu)
     script = machine["root"] / "run_fmpy.py"
     script.write_text(FMPY_RUN)
-    done = run_clean(
-        [wine(), windows_python / "python.exe", windows(script), windows(windows_fmpy),
-         windows(fmu)],
-        machine["root"],
-        timeout=600,
-        WINEPREFIX=str(machine["prefix"]),
-        WINEDEBUG="-all,+loaddll",
-    )  # fmt: skip
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    loaded = LOADED.findall(done.stderr.replace("\\\\", "\\"))
+    stdout, loaded = _wine_run(
+        machine,
+        [windows_python / "python.exe", windows(script), windows(windows_fmpy), windows(fmu)],
+    )
     assert [path for path in loaded if path.lower().endswith("python313.dll")] == [
         windows(windows_python / "python313.dll")
     ]
     assert any(path.endswith("\\binaries\\win64\\AuvPlant.dll") for path in loaded)
-    rows = _steps(done.stdout)[1:]  # after t = 0
+    rows = _steps(stdout)[1:]  # after t = 0
     columns = [0, 2, 4, 21]  # north, down, pitch, kinetic_energy in OUTS
     expected = [[row[0], *(row[1 + k] for k in columns)] for row in _steps(on_wine)]
     assert len(rows) == len(expected) == STEPS

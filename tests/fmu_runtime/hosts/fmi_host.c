@@ -36,16 +36,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "fmi2_callbacks.h"
+
 typedef void *Component;
-typedef unsigned int Vr;
-typedef void (*Logger)(void *, const char *, int, const char *, const char *, ...);
-typedef struct {
-    Logger logger;
-    void *(*allocate)(size_t, size_t);
-    void (*release)(void *);
-    void *step_finished;
-    void *environment;
-} Callbacks;
 
 typedef struct {
     Component (*instantiate)(const char *, int, const char *, const char *, const Callbacks *,

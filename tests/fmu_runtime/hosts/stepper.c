@@ -25,15 +25,7 @@
 #define SYMBOL(lib, name) dlsym(lib, name)
 #endif
 
-typedef unsigned int Vr;
-typedef void (*Logger)(void *, const char *, int, const char *, const char *, ...);
-typedef struct {
-    Logger logger;
-    void *(*allocate)(size_t, size_t);
-    void (*release)(void *);
-    void *step_finished;
-    void *environment;
-} Callbacks;
+#include "fmi2_callbacks.h"
 typedef void *(*Instantiate)(const char *, int, const char *, const char *, const Callbacks *,
                              int, int);
 typedef int (*Setup)(void *, int, double, double, int, double);
