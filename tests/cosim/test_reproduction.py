@@ -277,14 +277,17 @@ def test_a_closed_loop_figure_is_its_richardson_limit_with_the_fine_runs_error()
     coupling error of the finer run is 40 (COARSE - FINE)."""
     runs = []
 
-    def fake(scenario_id: str, step: float, start) -> RunData:
-        runs.append((scenario_id, step, dict(start)))
+    def fake(scenario_id: str, step: float, start, held: bool) -> RunData:
+        runs.append((scenario_id, step, dict(start), held))
         return RunData({"f": np.array([3.0 + 40.0 * step])}, Path("."))
 
     ctx = Context.create(DISSERTATION, fake)
     limit, error = converged(ctx, "bs-3", lambda run: float(run["f"][0]), {"plant.a35": 1.0})
     assert limit == pytest.approx(3.0) and error == pytest.approx(40.0 * (COARSE - FINE))
-    assert runs == [("bs-3", COARSE, {"plant.a35": 1.0}), ("bs-3", FINE, {"plant.a35": 1.0})]
+    assert runs == [  # as the scenario ships (its extrapolation), not held
+        ("bs-3", COARSE, {"plant.a35": 1.0}, False),
+        ("bs-3", FINE, {"plant.a35": 1.0}, False),
+    ]
     assert FINE < COARSE <= 0.00125  # below the scenarios' 10 ms, where the errors are
 
 
