@@ -140,7 +140,9 @@ def test_sigkill_then_resume_gives_the_uninterrupted_table(
             lambda: whole_rows(out / "runs.csv") >= half or proc.poll() is not None,
             "half of the runs",
         )
-        assert proc.poll() is None, "the study finished before it could be killed"
+        if proc.poll() is not None:
+            pytest.fail(f"the study ended (exit {proc.returncode}) before it could be killed: "
+                        f"{proc.stderr.read().decode(errors='replace')[-3000:]}")  # fmt: skip
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
         # its worker process notices and exits: nothing of the study outlives it
