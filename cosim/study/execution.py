@@ -430,13 +430,13 @@ def cluster_settings(dashboard: bool) -> dict[str, object]:
 @contextmanager
 def _forked_workers() -> Iterator[None]:
     """While on, Dask starts local worker processes from the fork server
-    (:mod:`cosim.study.fork_server`, started now if not yet), where the platform has one."""
-    if not fork_server.available():
+    (:mod:`cosim.study.fork_server`, started now if not yet), where the platform has one
+    and it runs; else Dask starts them its own way."""
+    if not fork_server.start():
         yield
         return
     import distributed.utils
 
-    fork_server.start()
     distributed.utils._forkserver_preload_set = True  # Dask's own preload comes too late
     with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
         yield

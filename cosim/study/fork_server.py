@@ -37,18 +37,23 @@ def available() -> bool:
     return "forkserver" in multiprocessing.get_all_start_methods()
 
 
-def start() -> None:
-    """Start the fork server now, if the platform has one and it is not running; never
-    raises (without it Dask starts the workers its own way)."""
+def start() -> bool:
+    """Start the fork server now, if the platform has one and it is not running; whether it
+    runs. Never raises: where it cannot start (its socket's path too long for AF_UNIX
+    under a long TMPDIR, say), Dask starts the workers its own way."""
     if not available():
-        return
+        return False
     from multiprocessing import forkserver
 
-    with suppress(OSError, ValueError):
+    try:
         multiprocessing.get_context("forkserver").set_forkserver_preload(PRELOAD)
         forkserver.ensure_running()
+        running = True
+    except (OSError, ValueError):
+        running = False
     with suppress(ImportError, KeyError):  # this process's own BLAS threads, as before
         os.environ.update(pre_spawn_environ())
+    return running
 
 
 def pre_spawn_environ() -> dict[str, str]:

@@ -160,3 +160,31 @@ def test_sigkill_then_resume_gives_the_uninterrupted_table(
     expected = f"({finished} already in the table, {SMALL_RUNS - finished} run now)"
     assert expected in report
     assert table(out) == small_reference
+
+
+@pytest.mark.slow
+def test_a_study_runs_where_the_fork_servers_socket_path_is_too_long(
+    small_study: Path, small_reference: list[dict[str, str]], fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Under a TMPDIR so long that the fork server's socket path exceeds AF_UNIX's limit
+    (~108 bytes) the fork server cannot start: Dask starts the workers its own way and the
+    study completes (it failed with "Nanny failed to start" when the workers were asked of
+    a fork server that was not running)."""
+    long_tmp = tmp_path / ("t" * 60) / ("m" * 60)
+    long_tmp.mkdir(parents=True)
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "cosim.cli", "sweep", str(small_study), "--out", str(out),
+               "--fmu-dir", str(fmu_dir), "--workers", "1", "--quiet"]  # fmt: skip
+    proc = subprocess.Popen(
+        command,
+        env={**os.environ, "TMPDIR": str(long_tmp)},
+        start_new_session=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        _, err = proc.communicate(timeout=600)
+    finally:
+        end_group(proc, signal.SIGKILL)
+    assert proc.returncode == 0, err.decode(errors="replace")[-3000:]
+    assert table(out) == small_reference
