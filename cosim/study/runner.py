@@ -132,7 +132,7 @@ def run_study(
         skipped = len(table.done)
         todo = [run for run in runs if run.id not in table.done]
         warnings: list[str] = []
-        # the page's matplotlib, loaded as the results arrive, once a core is idle
+        # the page's matplotlib, loaded while the client waits and once a core is idle
         drawing = Prefetch(cluster.workers if cluster.scheduler is None else 0)
         with ExitStack() as stack:
             session = _Session(cluster, stack)
@@ -197,10 +197,13 @@ def _execute(
     drawing: Prefetch,
 ) -> None:
     """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives;
-    ``drawing`` is told how many are left after each."""
+    ``drawing`` begins before the cluster is waited for and is told how many runs are
+    left after each."""
     from tqdm import tqdm
 
+    # the FMUs first, alone (the workers wait for them), then the figures' first modules
     job, plugin = make_job(base, factors, spec.keep, spec.check_step, session.unpacked(base))
+    drawing.begin()
     bar = tqdm(
         total=total,
         initial=total - len(todo),

@@ -1,6 +1,7 @@
-"""The page's matplotlib is loaded on a thread once a core of the machine is idle, not at
-the start (where it took the interpreter from the local cluster starting beside it) nor
-after the last run (where the user waits for it)."""
+"""The page's matplotlib is loaded on threads: a first part while the client waits for its
+cluster, the rest once a core of the machine is idle -- not all at the start (where it
+took the interpreter from the local cluster starting beside it) nor all after the last
+run (where the user waits for it)."""
 
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ def drawn(monkeypatch: pytest.MonkeyPatch) -> list[str]:
 
 def started_after(workers: int, cores: int, left: list[int]) -> int | None:
     """After which of the results (runs left after it) the loading starts, if any."""
-    loading = Prefetch(workers, cores, modules=())
+    loading = Prefetch(workers, cores, early=(), late=())
     for k, runs in enumerate(left):
         loading.unfinished(runs)
         if loading.thread is not None:
@@ -49,15 +50,37 @@ def test_fewer_workers_than_cores_or_a_remote_cluster_start_it_at_the_first_resu
 
 
 def test_it_starts_once_and_wait_joins_it(drawn) -> None:
-    loading = Prefetch(1, 2, modules=("json",))
+    loading = Prefetch(1, 2, early=("json",), late=("csv",))
     loading.wait()  # never started: returns at once
+    loading.begin()
     loading.unfinished(3)
-    first = loading.thread
+    first, rest = loading.first, loading.thread
+    loading.begin()
     loading.unfinished(2)
-    assert loading.thread is first
+    assert (loading.first, loading.thread) == (first, rest)
     loading.wait()
-    assert first is not None and not first.is_alive()
-    assert "json" in sys.modules and drawn == ["auv-cosim-prefetch"]
+    assert first is not None and rest is not None
+    assert not first.is_alive() and not rest.is_alive()
+    assert {"json", "csv"} <= set(sys.modules) and drawn == ["auv-cosim-prefetch"]
+
+
+def test_the_parts_are_imported_one_after_the_other(monkeypatch, drawn) -> None:
+    """The second part waits for the first (one import at a time, in order)."""
+    order: list[str] = []
+    gate = threading.Event()
+
+    def record(modules) -> None:
+        if modules == ("first",):
+            gate.wait(5.0)
+        order.extend(modules)
+
+    monkeypatch.setattr(prefetch, "_import", record)
+    loading = Prefetch(0, 2, early=("first",), late=("second",))
+    loading.begin()
+    loading.unfinished(5)
+    gate.set()
+    loading.wait()
+    assert order == ["first", "second"]
 
 
 def test_the_throw_away_figure_draws_with_matplotlib() -> None:
