@@ -138,7 +138,7 @@ def _study(args: argparse.Namespace) -> int:
     if local:  # the workers' fork server imports beside this process (cosim.study.fork_server)
         from cosim.study import fork_server
 
-        fork_server.start(args.fmu_dir)
+        fork_server.start()
     from cosim.study.spec import MAX_RUNS, check_size, load_study
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS

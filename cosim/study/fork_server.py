@@ -16,10 +16,8 @@ not the command before it starts the server: reading Dask's configuration import
 (~0.2 s), which the server's imports would wait for. It then imports what every run
 needs (:mod:`cosim.study.preload`: the engine, numba with its cache folder set
 first and its compiler's target initialised, ~2 s of each worker's warm-up before) and
-freezes it out of the garbage collector's reach. Last, given the command's FMU folder
-(:func:`start`), it imports the Python package those FMUs ship
-(:mod:`cosim.study.fork_fmus`); their libraries and instances are loaded by each worker
-after the fork. This module:
+freezes it out of the garbage collector's reach. The FMUs are never loaded there (an FMU
+imports the package it ships): each worker loads them after the fork. This module:
 standard library and dask's configuration only (not distributed, ~1 s to import), so that
 the server starts before the client has imported what the server imports.
 """
@@ -29,18 +27,10 @@ from __future__ import annotations
 import multiprocessing
 import os
 from contextlib import suppress
-from pathlib import Path
 
 # imported once, in the server, in this order
-PRELOAD = [
-    "cosim.study.server_environ",
-    "distributed",
-    "cosim.study.preload",
-    "cosim.study.fork_fmus",
-]
+PRELOAD = ["cosim.study.server_environ", "distributed", "cosim.study.preload"]
 _environ_set = False  # whether this process has Dask's pre-spawn environment (start)
-# the FMU folder whose package the server imports (cosim.study.fork_fmus), for it only
-FMU_DIR_VARIABLE = "AUV_COSIM_FORK_FMU_DIR"
 
 
 def available() -> bool:
@@ -48,33 +38,24 @@ def available() -> bool:
     return "forkserver" in multiprocessing.get_all_start_methods()
 
 
-def start(fmu_dir: Path | None = None) -> bool:
+def start() -> bool:
     """Start the fork server now, if the platform has one and it is not running; whether it
-    runs. ``fmu_dir``: the folder of the FMUs the study will load, whose Python package
-    the server imports for its workers (:mod:`cosim.study.fork_fmus`; a server already
-    running keeps what it has). Never raises: where it cannot start (its socket's path
-    too long for AF_UNIX under a long TMPDIR, say), Dask starts the workers its own way.
-    This process takes Dask's pre-spawn environment at the first call only (reading it
-    parses Dask's defaults file, ~0.04 s, and the command calls this twice: early, and as
-    its cluster starts)."""
+    runs. Never raises: where it cannot start (its socket's path too long for AF_UNIX
+    under a long TMPDIR, say), Dask starts the workers its own way. This process takes
+    Dask's pre-spawn environment at the first call only (reading it parses Dask's
+    defaults file, ~0.04 s, and the command calls this twice: early, and as its cluster
+    starts)."""
     global _environ_set
     if not available():
         return False
     from multiprocessing import forkserver
 
-    named = os.environ.get(FMU_DIR_VARIABLE)
-    if fmu_dir is not None:  # for the server only: it inherits this process's environment
-        os.environ[FMU_DIR_VARIABLE] = str(Path(fmu_dir).resolve())
     try:
         multiprocessing.get_context("forkserver").set_forkserver_preload(PRELOAD)
         forkserver.ensure_running()
         running = True
     except (OSError, ValueError):
         running = False
-    finally:
-        os.environ.pop(FMU_DIR_VARIABLE, None)
-        if named is not None:
-            os.environ[FMU_DIR_VARIABLE] = named
     if not _environ_set:
         with suppress(ImportError, KeyError):  # this process's own BLAS threads, as before
             os.environ.update(pre_spawn_environ())
