@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
-from cosim.viz.web_viewer import FILE_PORT, WEB_PORT
+from cosim.viz.ports import FILE_PORT, WEB_PORT
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions

@@ -7,7 +7,8 @@ process, with 1 worker and with 2, as a timeline of seconds from the command:
   (:mod:`cosim.study.preload`);
 * client ready: the local cluster's client is connected (its workers started);
 * worker warm-up: each worker's first task loads its FMUs (``StudyPlugin.warm``);
-* runs: the first run starts (after its worker's warm-up) and the last one ends;
+* runs: the first run starts (after its worker's warm-up), each worker's last run ends
+  (from one worker's last to the other's, a core is idle) and the last one ends;
 * table, page: ``runs.parquet`` and ``index.html`` written;
 * exit: the command's process ended; pipes closed: its stderr reached end of file (the
   fork server and Dask's helpers hold it until they end: what the benchmark waits for).
@@ -21,8 +22,8 @@ Each mark also carries its process's CPU seconds (``time.process_time``), so a s
 table shows what the machine's load does not distort: the client's CPU until its
 cluster is ready, while its runs run (the scheduler, the nannies and the client share its
 process: on 2 cores the workers' rival) and in all (``os.wait4``), the fork server's
-imports, each worker's warm-up and runs, and the runs' CPU over their wall time (below 1:
-the worker waited for a core). The load average is printed beside it.
+imports, each worker's tasks (count), warm-up and runs, and the runs' CPU over their wall
+time (below 1: the worker waited for a core). The load average is printed beside it.
 Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]``.
 """
 
@@ -177,7 +178,10 @@ def phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         begin = min(t for t, p, w, _ in marks if p == pid and w == "warm-up begin")
         end = min(t for t, p, w, _ in marks if p == pid and w == "warm-up end")
         rows += [(f"worker {k} warm-up begins", begin), (f"worker {k} warm-up ends", end)]
-    rows += [("first run starts", first("warm-up end")), ("last run ends", last("task end"))]
+    rows.append(("first run starts", first("warm-up end")))
+    for k, pid in enumerate(_workers(marks), 1):  # the other's end to the last: a core idle
+        rows.append((f"worker {k} last run ends", max(_task_ends(marks, pid))))
+    rows.append(("last run ends", last("task end")))
     rows += [("table written", first("table end")), ("page written", first("page end"))]
     exit_s, pipes_s = trace["exit"], trace["pipes"]
     assert isinstance(exit_s, float) and isinstance(pipes_s, float)
@@ -217,6 +221,7 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         cpu = sum(c for _, c in spans)
         wall = sum(t for t, _ in spans)
         rows.append((f"worker {k} until warm-up", at("warm-up begin", pid)[1]))  # from its fork
+        rows.append((f"worker {k} tasks (count)", float(len(spans))))
         rows += [(f"worker {k} warm-up", warm), (f"worker {k} runs", cpu - warm)]
         rows.append((f"worker {k} runs CPU/wall", (cpu - warm) / max(wall - warm, 1e-9)))
     return rows
@@ -224,6 +229,11 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
 
 def _workers(marks: list[tuple[float, int, str, float]]) -> list[int]:
     return sorted({p for _, p, w, _ in marks if w == "warm-up begin"})
+
+
+def _task_ends(marks: list[tuple[float, int, str, float]], pid: int) -> list[float]:
+    """Seconds from the command at which each task of the worker ``pid`` ended."""
+    return [t for t, p, w, _ in marks if p == pid and w == "task end"]
 
 
 def _task_spans(marks: list[tuple[float, int, str, float]], pid: int) -> list[tuple[float, float]]:

@@ -30,6 +30,7 @@ from contextlib import suppress
 
 # imported once, in the server, in this order
 PRELOAD = ["cosim.study.server_environ", "distributed", "cosim.study.preload"]
+_environ_set = False  # whether this process has Dask's pre-spawn environment (start)
 
 
 def available() -> bool:
@@ -40,7 +41,11 @@ def available() -> bool:
 def start() -> bool:
     """Start the fork server now, if the platform has one and it is not running; whether it
     runs. Never raises: where it cannot start (its socket's path too long for AF_UNIX
-    under a long TMPDIR, say), Dask starts the workers its own way."""
+    under a long TMPDIR, say), Dask starts the workers its own way. This process takes
+    Dask's pre-spawn environment at the first call only (reading it parses Dask's
+    defaults file, ~0.04 s, and the command calls this twice: early, and as its cluster
+    starts)."""
+    global _environ_set
     if not available():
         return False
     from multiprocessing import forkserver
@@ -51,8 +56,10 @@ def start() -> bool:
         running = True
     except (OSError, ValueError):
         running = False
-    with suppress(ImportError, KeyError):  # this process's own BLAS threads, as before
-        os.environ.update(pre_spawn_environ())
+    if not _environ_set:
+        with suppress(ImportError, KeyError):  # this process's own BLAS threads, as before
+            os.environ.update(pre_spawn_environ())
+        _environ_set = True
     return running
 
 

@@ -19,12 +19,10 @@ serves ``--resume`` of a study whose runs were never kept.
 from __future__ import annotations
 
 import hashlib
-import importlib
 import tempfile
-import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
-from contextlib import ExitStack, suppress
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,6 +44,7 @@ from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import default_metrics, plotted_metrics, write_figures
+from cosim.study.prefetch import Prefetch
 from cosim.study.signals import StudyStopped
 from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
@@ -55,8 +54,6 @@ from cosim.study.unpacked import unpack
 from cosim.viz.rrd_file import OVERLAY_FILE
 
 STUDIES_DIR = Path("studies")
-# imported while the client waits for its cluster and runs: what the figures need at the end
-REPORT_MODULES = ("matplotlib.figure", "matplotlib.ticker")
 FIGURES_FOLDER = "figures"
 
 
@@ -135,13 +132,16 @@ def run_study(
         skipped = len(table.done)
         todo = [run for run in runs if run.id not in table.done]
         warnings: list[str] = []
+        # the page's matplotlib, loaded while the client waits and once a core is idle
+        drawing = Prefetch(cluster.workers if cluster.scheduler is None else 0)
         with ExitStack() as stack:
             session = _Session(cluster, stack)
             try:
                 if todo:
                     _execute(
-                        out_dir, spec, base, factors, table, todo, session, progress, len(runs)
-                    )
+                        out_dir, spec, base, factors, table, todo, session, progress, len(runs),
+                        drawing,
+                    )  # fmt: skip
             except BaseException as exc:
                 if not resume and not table.done:  # nothing to resume: leave no study
                     study_folder.discard_new(out_dir, CSV_NAME)
@@ -152,6 +152,7 @@ def run_study(
             if not entries:  # no overlay re-runs: the cluster closes while the page is made
                 session.done()
             paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
+            drawing.wait()
             paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
             if entries:
                 paths["overlay"], warnings = _overlay(
@@ -193,13 +194,16 @@ def _execute(
     session: _Session,
     progress: bool,
     total: int,
+    drawing: Prefetch,
 ) -> None:
-    """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives."""
+    """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives;
+    ``drawing`` begins before the cluster is waited for and is told how many runs are
+    left after each."""
     from tqdm import tqdm
 
-    # the FMUs first, alone (the workers wait for them), then the figures' modules
+    # the FMUs first, alone (the workers wait for them), then the figures' first modules
     job, plugin = make_job(base, factors, spec.keep, spec.check_step, session.unpacked(base))
-    prefetch(REPORT_MODULES)
+    drawing.begin()
     bar = tqdm(
         total=total,
         initial=total - len(todo),
@@ -209,9 +213,12 @@ def _execute(
         dynamic_ncols=True,
     )
     failed = 0
+    left = len(todo)
 
     def on_record(run: PlannedRun, record: RunRecord) -> None:
-        nonlocal failed
+        nonlocal failed, left
+        left -= 1
+        drawing.unfinished(left)
         table.append(run, record)
         failed += record.status != "complete"
         if spec.keep == "all" or (spec.keep == "failed" and record.status != "complete"):
@@ -224,20 +231,6 @@ def _execute(
         session.run(job, plugin, todo, on_record)
     finally:
         bar.close()
-
-
-def prefetch(modules: Sequence[str]) -> None:
-    """Import ``modules`` on a thread of their own: the client waits for its runs, and the
-    figures' matplotlib (~0.35 s) is then imported by the end, instead of after the last
-    run (or at the start, where it took the interpreter from the local cluster starting on
-    its thread). The table needs no pandas (:mod:`cosim.study.arrow_columns`)."""
-
-    def load() -> None:
-        for name in modules:
-            with suppress(ImportError):
-                importlib.import_module(name)
-
-    threading.Thread(target=load, name="auv-cosim-prefetch", daemon=True).start()
 
 
 class _Session:

@@ -48,9 +48,10 @@ from cosim.viz.layout import (
     time_index,
 )
 from cosim.viz.mission import mission_waypoints
+from cosim.viz.ports import FILE_PORT, WEB_PORT
 from cosim.viz.rrd_file import OVERLAY_FILE, RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
-from cosim.viz.web_viewer import FILE_PORT, WEB_PORT, serve
+from cosim.viz.web_viewer import serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
 APPLICATION_ID = "auv-cosim"

@@ -47,10 +47,9 @@ from typing import Any
 from urllib.parse import quote
 
 from cosim.errors import CosimError
+from cosim.viz.ports import FILE_PORT, WEB_PORT
 
 HOST = "127.0.0.1"
-WEB_PORT = 9090  # rerun's default for the web viewer's page
-FILE_PORT = 9876  # the recording, served over HTTP by this process
 START_TIMEOUT = 60.0  # s for the rerun binary to start listening
 MIGRATE_TIMEOUT = 120.0  # s for `rerun rrd migrate` to complete a copy of a cut recording
 FOOTER = b"FOOT"  # rerun 0.41: a whole .rrd ends with its 4-byte magic, FOOT, a version

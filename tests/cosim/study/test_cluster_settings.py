@@ -1,7 +1,8 @@
 """A study's local cluster stays nearly idle while its runs run: on a machine of as many
 cores as workers, the scheduler's, the nannies' and the workers' periodic work is taken
 from the runs (Dask's event-loop health check every 20 ms, the statistical profile of the
-running task every 10 ms, the system monitor every 500 ms by default)."""
+running task every 10 ms, the system monitor every 500 ms, the nannies' and workers'
+memory check every 100 ms by default)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,11 @@ from cosim.study.execution import open_client
 
 def worker(dask_worker):
     return [dask_worker._tick_interval, "profile" in dask_worker.periodic_callbacks,
-            dask_worker.periodic_callbacks["monitor"].callback_time]
+            dask_worker.periodic_callbacks["monitor"].callback_time,
+            dask_worker.periodic_callbacks["memory_monitor"].callback_time]
+
+def nanny(dask_worker):
+    return dask_worker.periodic_callbacks["memory_monitor"].callback_time
 
 def scheduler(dask_scheduler):
     return [dask_scheduler._tick_interval,
@@ -26,6 +31,7 @@ def scheduler(dask_scheduler):
 if __name__ == "__main__":
     with open_client(2) as client:
         found = {"workers": sorted(client.run(worker).values()),
+                 "nannies": sorted(client.run(nanny, nanny=True).values()),
                  "scheduler": client.run_on_scheduler(scheduler)}
     print(json.dumps(found))
 """
@@ -39,12 +45,17 @@ def test_a_local_cluster_ticks_slowly_and_profiles_nothing(run_python, tmp_path)
     done = run_python(f"import runpy; runpy.run_path({str(script)!r}, run_name='__main__')")
     assert done.returncode == 0, done.stderr[-2000:]
     found = json.loads(done.stdout.strip().splitlines()[-1])
-    # seconds between health checks; whether the task is profiled; ms between samples
-    assert found["workers"] == [[1.0, False, 5000.0]] * 2, found
+    # seconds between health checks; whether the task is profiled; ms between samples;
+    # ms between memory checks
+    assert found["workers"] == [[1.0, False, 5000.0, 500.0]] * 2, found
+    assert found["nannies"] == [500.0] * 2, found
     assert found["scheduler"] == [1.0, 5000.0], found
 
 
 def test_with_the_dashboard_the_workers_are_profiled_and_monitored() -> None:
     """The dashboard shows the profile and the monitor's samples: Dask's own settings."""
-    assert cluster_settings(dashboard=True) == {"distributed.admin.tick.interval": "1s"}
+    assert cluster_settings(dashboard=True) == {
+        "distributed.admin.tick.interval": "1s",
+        "distributed.worker.memory.monitor-interval": "500ms",
+    }
     assert cluster_settings(dashboard=False)["distributed.worker.profile.enabled"] is False

@@ -122,7 +122,7 @@ import os, sys
 from multiprocessing import forkserver
 
 def ensure_running():
-    heavy = ("cosim.api", "cosim.runner", "dask", "numpy", "pydantic")
+    heavy = ("cosim.api", "cosim.runner", "dask", "http.server", "numpy", "pydantic")
     print(sorted(name for name in heavy if name in sys.modules), flush=True)
     os._exit(0)
 
@@ -135,9 +135,10 @@ main(["sweep", "no-such-study.toml", "--workers", "1"])
 @pytest.mark.skipif(not fork_server.available(), reason="no fork server on this platform")
 def test_the_sweep_command_starts_the_fork_server_before_heavy_imports(run_python) -> None:
     """`auv-cosim sweep` starts its workers' fork server before it imports the API, the
-    runner, Dask or numpy (each worker's imports, ~2 s, are the longest chain before the
-    first run, and they start with the server); the server itself sets Dask's
-    pre-spawn environment (tested above: one BLAS thread in each worker)."""
+    runner, Dask, numpy or the web viewer's HTTP server (each worker's imports, ~2 s, are
+    the longest chain before the first run, and they start with the server); the server
+    itself sets Dask's pre-spawn environment (tested above: one BLAS thread in each
+    worker)."""
     done = run_python(SERVER_FIRST)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "[]"

@@ -1,0 +1,102 @@
+"""The study page's matplotlib, loaded on threads of their own where the machine has room.
+
+Importing ``matplotlib.figure`` costs ~0.6-0.8 s of CPU (its artists build their
+docstrings as their classes are made) and the first figure drawn ~0.05-0.08 s more (the
+Agg backend, the fonts). All of it at the start, beside the local cluster starting on its
+thread in the same process and the workers' fork server importing on the other core, it
+delayed the first run; all of it once a core is idle near the end, it outlasted that
+idle time (half a run on average, with as many workers as cores) and the page waited for
+it. So :class:`Prefetch` loads it in two parts: the first (:data:`EARLY_MODULES`, about
+half) at :meth:`Prefetch.begin`, which the client calls before it waits for its cluster
+(it has little else to do then); the rest (:data:`LATE_MODULES` and one small figure
+drawn) at the first result after which one of this machine's cores has no run to run: a
+local cluster of as many workers as cores has one once the runs left are fewer than its
+workers (a worker has nothing left to take), a smaller local cluster or a remote one at
+its first result.
+"""
+
+from __future__ import annotations
+
+import importlib
+import io
+import os
+import threading
+from collections.abc import Callable, Sequence
+from contextlib import suppress
+
+# what the figures need (cosim.study.plots), in two parts (~0.35 s and ~0.45 s of CPU)
+EARLY_MODULES = ("matplotlib", "matplotlib.font_manager", "matplotlib.text")
+LATE_MODULES = ("matplotlib.figure", "matplotlib.ticker")
+
+
+class Prefetch:
+    """Loads ``early`` on a thread at :meth:`begin`, and ``late`` (then draws one small
+    figure, thrown away) on another once a core of this machine is idle
+    (:meth:`unfinished`); :meth:`wait` before drawing the page (matplotlib's state is not
+    for two threads at once). ``local_workers``: the worker processes of a local cluster
+    on this machine (0 for a remote one); ``cores``: this machine's (default
+    ``os.cpu_count()``)."""
+
+    def __init__(
+        self,
+        local_workers: int,
+        cores: int | None = None,
+        early: Sequence[str] = EARLY_MODULES,
+        late: Sequence[str] = LATE_MODULES,
+    ) -> None:
+        self.local_workers = local_workers
+        self.cores = cores if cores is not None else os.cpu_count() or 1
+        self.early = tuple(early)
+        self.late = tuple(late)
+        self.first: threading.Thread | None = None
+        self.thread: threading.Thread | None = None  # the second part's
+
+    def begin(self) -> None:
+        """Start loading the first part (once)."""
+        if self.first is None:
+            self.first = _started(lambda: _import(self.early))
+
+    def unfinished(self, runs: int) -> None:
+        """A result arrived and ``runs`` runs are not finished: start loading the rest
+        if a core now has no run (the busy ones: a local worker each, as many as there
+        are runs)."""
+        if self.thread is None and min(self.local_workers, runs) < self.cores:
+            self.thread = _started(self._load)
+
+    def wait(self) -> None:
+        """Until the loading started has finished (nothing if none started)."""
+        for thread in (self.first, self.thread):
+            if thread is not None:
+                thread.join()
+
+    def _load(self) -> None:
+        if self.first is not None:  # one thread imports at a time: its modules first
+            self.first.join()
+        _import(self.late)
+        with suppress(Exception):  # an optimisation: the page draws all the same
+            _draw_once()
+
+
+def _started(target: Callable[[], None]) -> threading.Thread:
+    thread = threading.Thread(target=target, name="auv-cosim-prefetch", daemon=True)
+    thread.start()
+    return thread
+
+
+def _import(modules: Sequence[str]) -> None:
+    for name in modules:
+        with suppress(ImportError):
+            importlib.import_module(name)
+
+
+def _draw_once() -> None:
+    """Draw a small figure into memory with what the page's figures use (a line with
+    markers, a title, labels, a PNG through Agg): the backend and the fonts are loaded."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(2.0, 1.5))
+    ax = fig.add_subplot()
+    ax.plot([0.0, 1.0], [0.0, 1.0], marker="o", linestyle="--")
+    ax.set_title("t")
+    ax.set_xlabel("x (m)")
+    fig.savefig(io.BytesIO(), format="png", dpi=100)

@@ -1,0 +1,88 @@
+"""The page's matplotlib is loaded on threads: a first part while the client waits for its
+cluster, the rest once a core of the machine is idle -- not all at the start (where it
+took the interpreter from the local cluster starting beside it) nor all after the last
+run (where the user waits for it)."""
+
+from __future__ import annotations
+
+import sys
+import threading
+
+import pytest
+
+from cosim.study import prefetch
+from cosim.study.prefetch import Prefetch
+
+
+@pytest.fixture
+def drawn(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The threads that drew the throw-away figure (none drawn for real)."""
+    threads: list[str] = []
+    monkeypatch.setattr(
+        prefetch, "_draw_once", lambda: threads.append(threading.current_thread().name)
+    )
+    return threads
+
+
+def started_after(workers: int, cores: int, left: list[int]) -> int | None:
+    """After which of the results (runs left after it) the loading starts, if any."""
+    loading = Prefetch(workers, cores, early=(), late=())
+    for k, runs in enumerate(left):
+        loading.unfinished(runs)
+        if loading.thread is not None:
+            loading.wait()
+            return k
+    return None
+
+
+def test_as_many_workers_as_cores_start_it_once_a_worker_has_nothing_left(drawn) -> None:
+    """2 workers on 2 cores: both busy while 2 or more runs are left."""
+    assert started_after(2, 2, [15, 14, 3, 2, 1, 0]) == 4
+    assert started_after(4, 4, [9, 4, 3]) == 2
+
+
+def test_fewer_workers_than_cores_or_a_remote_cluster_start_it_at_the_first_result(
+    drawn,
+) -> None:
+    assert started_after(1, 2, [15, 14]) == 0
+    assert started_after(0, 2, [99]) == 0  # a remote cluster's runs use no core here
+    assert drawn == ["auv-cosim-prefetch"] * 2
+
+
+def test_it_starts_once_and_wait_joins_it(drawn) -> None:
+    loading = Prefetch(1, 2, early=("json",), late=("csv",))
+    loading.wait()  # never started: returns at once
+    loading.begin()
+    loading.unfinished(3)
+    first, rest = loading.first, loading.thread
+    loading.begin()
+    loading.unfinished(2)
+    assert (loading.first, loading.thread) == (first, rest)
+    loading.wait()
+    assert first is not None and rest is not None
+    assert not first.is_alive() and not rest.is_alive()
+    assert {"json", "csv"} <= set(sys.modules) and drawn == ["auv-cosim-prefetch"]
+
+
+def test_the_parts_are_imported_one_after_the_other(monkeypatch, drawn) -> None:
+    """The second part waits for the first (one import at a time, in order)."""
+    order: list[str] = []
+    gate = threading.Event()
+
+    def record(modules) -> None:
+        if modules == ("first",):
+            gate.wait(5.0)
+        order.extend(modules)
+
+    monkeypatch.setattr(prefetch, "_import", record)
+    loading = Prefetch(0, 2, early=("first",), late=("second",))
+    loading.begin()
+    loading.unfinished(5)
+    gate.set()
+    loading.wait()
+    assert order == ["first", "second"]
+
+
+def test_the_throw_away_figure_draws_with_matplotlib() -> None:
+    """What the thread draws is a real figure (its failure is swallowed by the thread)."""
+    prefetch._draw_once()
