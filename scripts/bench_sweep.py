@@ -17,7 +17,8 @@ With ``--end-to-end`` it measures instead what a user waits for: ``auv-cosim swe
 prompt in a fresh process, with 1 worker and with 2, alternating ``--repeat`` times, the
 best of each; their ratio (goal >= 1.6) includes everything a study does beside its runs
 (imports, the cluster's start-up, each worker's first run, hand-offs, the table, the page,
-the cluster's close). The load average is printed beside every figure. The ratio of each
+the cluster's close), with our modules imported compiled, as from an installed copy
+(:func:`as_installed`). The load average is printed beside every figure. The ratio of each
 1-worker sweep to the 2-worker one right after it, and their median, are printed too:
 this machine's speed drifts by up to 1.4x within minutes, so the two bests can come from
 different speeds, while a back-to-back pair shares one.
@@ -52,6 +53,7 @@ import sys
 import tarfile
 import tempfile
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 # One BLAS / OpenMP thread, as Dask's nanny starts its workers (checked in main); set
@@ -140,15 +142,31 @@ def study_file(folder: Path, runs: int, stop_time: float) -> Path:
     return path
 
 
+def as_installed(env: Mapping[str, str], folder: Path) -> dict[str, str]:
+    """``env`` for a sweep whose processes import compiled code, as from an installed copy
+    (pip compiles a package's modules as it installs it): a source tree run under
+    ``PYTHONDONTWRITEBYTECODE`` (set on some machines, this one included) compiles every
+    module of ours afresh in every process, ~0.2 s of CPU each in the client and in the
+    workers' fork server, both on the way to the first run. The compiled files go under
+    ``folder`` (``PYTHONPYCACHEPREFIX``), not into the tree; an untimed warm-up sweep
+    writes them."""
+    installed = {k: v for k, v in env.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    installed["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
+    return installed
+
+
 def sweep_seconds(study: Path, workers: int, fmu_dir: Path, tree: Path | None = None) -> float:
-    """``auv-cosim sweep STUDY --workers N`` in a fresh process: seconds from the command
-    to its exit (its own process group, ended if the benchmark is interrupted); ``tree``:
-    the source tree whose ``cosim`` runs (default: the one this script imports)."""
+    """``auv-cosim sweep STUDY --workers N`` in a fresh process, with compiled code
+    (:func:`as_installed`, kept beside ``study``): seconds from the command to its exit (its
+    own process group, ended if the benchmark is interrupted); ``tree``: the source tree
+    whose ``cosim`` runs (default: the one this script imports)."""
     out = study.parent / f"out-{workers}"
     shutil.rmtree(out, ignore_errors=True)
     command = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--workers", str(workers)]
     command += ["--out", str(out), "--fmu-dir", str(fmu_dir.resolve()), "--quiet"]
-    env = None if tree is None else {**os.environ, "PYTHONPATH": str(tree)}
+    env = as_installed(os.environ, study.parent)
+    if tree is not None:
+        env["PYTHONPATH"] = str(tree)
     started = time.perf_counter()
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                text=True, start_new_session=True, cwd=tree, env=env)  # fmt: skip
@@ -185,7 +203,7 @@ def end_to_end(args: argparse.Namespace) -> None:
             base = tree_at(args.baseline, folder / "baseline")
             trees = {f"{args.baseline} ": (base, folder / "baseline-fmus"), "this tree ": trees[""]}
         for tree, fmu_dir in trees.values():
-            sweep_seconds(study, 1, fmu_dir, tree)  # warm-up: compiled-code cache, disk cache
+            sweep_seconds(study, 1, fmu_dir, tree)  # warm-up: bytecode, numba's cache, disk cache
         times: dict[tuple[str, int], list[tuple[float, str]]] = {}
         for _ in range(args.repeat):  # alternating, so all see the same other load
             for label, (tree, fmu_dir) in trees.items():
