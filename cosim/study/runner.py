@@ -125,10 +125,7 @@ def run_study(
     with study_folder.lock(out_dir):
         study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
         csv_path = out_dir / CSV_NAME
-        if resume and csv_path.is_file():
-            table = RunsTable.reopen(csv_path, spec.factors, metrics, runs)
-        else:
-            table = RunsTable.create(csv_path, spec.factors, metrics)
+        table = _open_table(csv_path, spec, metrics, runs, resume)
         skipped = len(table.done)
         todo = [run for run in runs if run.id not in table.done]
         warnings: list[str] = []
@@ -170,6 +167,15 @@ def run_study(
         paths,
         tuple(warnings),
     )
+
+
+def _open_table(
+    csv_path: Path, spec: StudySpec, metrics: Sequence[str], runs: list[PlannedRun], resume: bool
+) -> RunsTable:
+    """The study's table: what a killed study left, to resume it, else a new one."""
+    if resume and csv_path.is_file():
+        return RunsTable.reopen(csv_path, spec.factors, metrics, runs)
+    return RunsTable.create(csv_path, spec.factors, metrics)
 
 
 def report(outcome: StudyOutcome) -> str:
