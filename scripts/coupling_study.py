@@ -3,7 +3,6 @@
     python scripts/coupling_study.py shipped [--scenarios bs-3 vert-1 ...] [--write]
     python scripts/coupling_study.py check-step [--scenarios bs-3 vert-1] [--write]
     python scripts/coupling_study.py adaptive [--scenarios vert-1 bs-3] [--tolerances ...] [--write]
-    python scripts/coupling_study.py readme [--write]
 
 ``shipped``: every built-in scenario (or those named) as shipped, and again at 2.5, 1.25
 and 0.625 ms with the same coupling: the continuous-time limit of each key figure by
@@ -25,10 +24,6 @@ step is not monotonic in it, 12 ms is twice as accurate as 10 ms) and a least-sq
 through the six whose errors are nearest, log doSteps against log error; the header gives
 the scatter of the fixed runs about such lines (the largest factor), the margin below
 which a difference is not a result.
-
-``readme``: the yaw settling times of README.md's built-in scenario table, each written
-after its marker ``<!-- <scenario id> -->`` (three significant digits, s), from the
-scenarios run as shipped.
 
 ``--write`` replaces the table between the markers ``<!-- coupling_study.py <part> -->``
 and ``<!-- end -->`` in docs/coupling.md; without it the table is printed. Runs go through
@@ -238,27 +233,6 @@ def _relative(value: float | None, limit: float | None) -> str:
     return f"{(value - limit) / abs(limit):+.1e}"
 
 
-README = ROOT / "README.md"
-README_MARKER = re.compile(r"<!-- (?P<id>[\w.-]+) -->(?P<value>[0-9.]+)")
-
-
-def readme(write_it: bool) -> str:
-    """The settling times after README's markers, from the scenarios as shipped."""
-    text = README.read_text(encoding="utf-8")
-    values = {}
-    for sid in dict.fromkeys(m["id"] for m in README_MARKER.finditer(text)):
-        settled = figures_of(load_scenario(sid))[0]["yaw_settling_time_s"]
-        if settled is None:
-            raise RuntimeError(f"{sid}: the yaw does not settle: README's figure cannot be given")
-        values[sid] = f"{settled:.3g}"
-        print(f"  {sid}: {values[sid]} s", file=sys.stderr)
-    new = README_MARKER.sub(lambda m: f"<!-- {m['id']} -->{values[m['id']]}", text)
-    if write_it:
-        README.write_text(new, encoding="utf-8")
-        return f"wrote the settling times of {README}"
-    return "\n".join(f"{sid}: {value} s" for sid, value in values.items())
-
-
 def _rows(scenario: Scenario) -> master.RunResult:
     result = master.run(scenario)
     if not result.complete:
@@ -296,7 +270,7 @@ def write(part: str, table: str) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=["shipped", "check-step", "adaptive", "readme"])
+    parser.add_argument("part", choices=["shipped", "check-step", "adaptive"])
     parser.add_argument("--scenarios", nargs="+", help="built-in ids [every one / bs-3 vert-1]")
     parser.add_argument(
         "--tolerances",
@@ -307,9 +281,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--write", action="store_true", help="into docs/coupling.md")
     args = parser.parse_args(argv)
-    if args.part == "readme":
-        print(readme(args.write))
-        return 0
     if args.part == "shipped":
         table = shipped(args.scenarios or list(builtin_scenarios()))
     elif args.part == "check-step":

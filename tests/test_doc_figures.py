@@ -1,0 +1,80 @@
+"""scripts/doc_figures.py, which writes the numbers README.md and docs/ quote from the
+built-in scenarios' runs: how it finds a marked figure, which metric it reads and how it
+writes the number (the check of the pages against the runs themselves is in
+tests/cosim/test_builtin_scenarios.py, which runs every scenario)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+from repo_paths import ROOT, script_module
+
+
+@pytest.fixture(scope="module")
+def figures() -> ModuleType:
+    return script_module("doc_figures")
+
+
+def test_a_marker_names_the_scenario_and_the_metric_the_yaw_settling_time_by_default(
+    figures: ModuleType, tmp_path: Path
+) -> None:
+    page = tmp_path / "page.md"
+    page.write_text(
+        "| bs-3 | settled after <!-- bs-3 -->3.21 s |\n"
+        "overshoots <!-- zigzag-20:overshoot_1_deg -->0.88 / <!-- zigzag-20:overshoot_2_deg -->"
+        "+1.35 deg\n<!-- run: expect 1.5 -->\n<!-- not run: 2.0 -->\n",
+        encoding="utf-8",
+    )
+    found = [(f.scenario, f.metric, f.text) for f in figures.figures_in(page)]
+    assert found == [
+        ("bs-3", "yaw_settling_time_s", "3.21"),
+        ("zigzag-20", "overshoot_1_deg", "0.88"),
+        ("zigzag-20", "overshoot_2_deg", "+1.35"),
+    ]  # the pages' other HTML comments (executed examples) are no figures
+
+
+def test_a_figure_keeps_the_decimals_and_the_sign_the_page_gives_it(figures: ModuleType) -> None:
+    assert figures.shown(0.86634, "0.88") == "0.87"
+    assert figures.shown(96.62, "97") == "97"
+    assert figures.shown(8.7062, "8.70") == "8.71"
+    assert figures.shown(0.0012, "+0.00") == "+0.00"
+    assert figures.shown(-0.0004, "0.00") == "0.00"  # no "-0.00"
+    assert figures.shown(-0.26, "+0.1") == "-0.3"  # a negative value keeps its own sign
+    assert figures.shown(39.47, "40") == "39"
+
+
+def test_rewriting_replaces_the_numbers_and_keeps_the_markers(figures: ModuleType) -> None:
+    text = "a <!-- bs-3 -->3.21 s, b <!-- mass-jam:heading_error_final_deg -->1.9 deg"
+    values = {
+        ("bs-3", "yaw_settling_time_s"): 3.2078,
+        ("mass-jam", "heading_error_final_deg"): 1.86,
+    }
+    new = figures.rewrite(text, values)
+    assert new == "a <!-- bs-3 -->3.21 s, b <!-- mass-jam:heading_error_final_deg -->1.9 deg"
+    values[("mass-jam", "heading_error_final_deg")] = 2.04
+    assert figures.rewrite(text, values).endswith(
+        "<!-- mass-jam:heading_error_final_deg -->2.0 deg"
+    )
+
+
+def test_a_metric_the_run_lacks_or_never_reached_is_named(figures: ModuleType) -> None:
+    key = {"yaw_settling_time_s": None, "peak_mass_position_m": 0.033}
+    manoeuvre = {"manoeuvre": "zigzag", "overshoot_1_deg": 0.87}
+    assert figures.metric_value("zigzag-20", "overshoot_1_deg", key, manoeuvre) == 0.87
+    assert figures.metric_value("bs-3", "peak_mass_position_m", key, manoeuvre) == 0.033
+    with pytest.raises(ValueError, match="bs-3: metric 'yaw_settling_time_s' is None"):
+        figures.metric_value("bs-3", "yaw_settling_time_s", key, manoeuvre)
+    with pytest.raises(
+        ValueError, match=r"'period_s' is None in its run: expected a number, one of .*overshoot_1_deg"
+    ):
+        figures.metric_value("zigzag-20", "period_s", key, manoeuvre)
+
+
+def test_the_pages_read_are_the_readme_and_the_docs(figures: ModuleType) -> None:
+    pages = figures.pages(ROOT)
+    assert pages[0] == ROOT / "README.md"
+    assert ROOT / "docs" / "manoeuvres.md" in pages
+    marked = {f.scenario for page in pages for f in figures.figures_in(page)}
+    assert {"bs-3", "zigzag-20", "depth-steps", "survey"} <= marked
