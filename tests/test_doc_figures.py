@@ -66,9 +66,8 @@ def test_a_metric_the_run_lacks_or_never_reached_is_named(figures: ModuleType) -
     assert figures.metric_value("bs-3", "peak_mass_position_m", key, manoeuvre) == 0.033
     with pytest.raises(ValueError, match="bs-3: metric 'yaw_settling_time_s' is None"):
         figures.metric_value("bs-3", "yaw_settling_time_s", key, manoeuvre)
-    with pytest.raises(
-        ValueError, match=r"'period_s' is None in its run: expected a number, one of .*overshoot_1_deg"
-    ):
+    expected = r"'period_s' is None in its run: expected a number, one of .*overshoot_1_deg"
+    with pytest.raises(ValueError, match=expected):
         figures.metric_value("zigzag-20", "period_s", key, manoeuvre)
 
 

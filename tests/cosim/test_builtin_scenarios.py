@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from reference_values import dissertation
+from repo_paths import ROOT, script_module
 
 from controller_fmu.los_guidance import parse_waypoints
 from cosim.analysis.equilibria import find_equilibrium
@@ -239,6 +240,25 @@ def test_survey_completes_every_leg_in_the_cross_current(runs: dict[str, RunOutc
         assert np.abs(cross_track[on_leg[3 * len(on_leg) // 4 :]]).max() < 0.1  # m
     # and the depth loop holds 2 m (short of it by the PD's steady error, as in vert-2)
     assert np.abs(result.column("plant.down")[result.times > 5.0] - 2.0).max() < 0.2
+
+
+@pytest.mark.slow
+def test_every_figure_the_pages_quote_is_what_the_run_gives(runs: dict[str, RunOutcome]) -> None:
+    """README.md and docs/ quote the built-in scenarios' key figures and manoeuvre metrics
+    after markers (scripts/doc_figures.py writes them): each is its run's, to the decimals
+    the page gives it, so a change that moves a run cannot leave its pages behind."""
+    doc_figures = script_module("doc_figures")
+    stale = []
+    marked = [f for page in doc_figures.pages(ROOT) for f in doc_figures.figures_in(page)]
+    for figure in marked:
+        outcome = runs[figure.scenario]
+        value = doc_figures.metric_value(
+            figure.scenario, figure.metric, outcome.figures, outcome.manoeuvre or {}
+        )
+        if doc_figures.shown(value, figure.text) != figure.text:
+            stale.append(f"{figure.page.name} {figure.scenario} {figure.metric}: {figure.text}")
+    assert len(marked) > 50  # the settling times of README's table and the manoeuvres'
+    assert not stale, "python scripts/doc_figures.py --write: " + "; ".join(stale)
 
 
 @pytest.mark.slow
