@@ -12,7 +12,8 @@ the page gives it (and a leading ``+``).
 
 Each scenario a marker names runs once, as shipped (``auv-cosim run <id> --no-rrd``, into
 a temporary folder). Without ``--write`` the figures that differ from the pages are
-listed (exit 1 if any); with it the pages are rewritten.
+listed (exit 1 if any); with it the pages are rewritten. A marker naming a scenario or a
+metric no run has is refused in one line (exit 2).
 ``tests/cosim/test_builtin_scenarios.py`` checks every marked figure against the same runs.
 """
 
@@ -26,6 +27,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from cosim.errors import CosimError
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_METRIC = "yaw_settling_time_s"
@@ -115,20 +118,25 @@ def run_values(figures: Iterable[Figure], out: Path) -> dict[tuple[str, str], fl
     return values
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, root: Path = ROOT) -> int:
+    """The command; ``root``: the repository whose pages are read."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true", help="rewrite the pages")
     args = parser.parse_args(argv)
-    marked = [figure for page in pages() for figure in figures_in(page)]
-    with tempfile.TemporaryDirectory(prefix="doc-figures-") as out:
-        values = run_values(marked, Path(out))
+    marked = [figure for page in pages(root) for figure in figures_in(page)]
+    try:
+        with tempfile.TemporaryDirectory(prefix="doc-figures-") as out:
+            values = run_values(marked, Path(out))
+    except (CosimError, ValueError, RuntimeError) as exc:  # a marker naming what no run has
+        print(f"doc_figures.py: {exc}", file=sys.stderr)
+        return 2
     stale = [
         (f, shown(values[(f.scenario, f.metric)], f.text))
         for f in marked
         if shown(values[(f.scenario, f.metric)], f.text) != f.text
     ]
     for figure, new in stale:
-        where = figure.page.relative_to(ROOT)
+        where = figure.page.relative_to(root)
         print(f"{where}: {figure.scenario} {figure.metric}: {figure.text} -> {new}")
     if args.write:
         for page in {figure.page for figure in marked}:

@@ -77,3 +77,13 @@ def test_the_pages_read_are_the_readme_and_the_docs(figures: ModuleType) -> None
     assert ROOT / "docs" / "manoeuvres.md" in pages
     marked = {f.scenario for page in pages for f in figures.figures_in(page)}
     assert {"bs-3", "zigzag-20", "depth-steps", "survey"} <= marked
+
+
+def test_a_marker_naming_no_scenario_is_refused_in_one_line(
+    figures: ModuleType, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "README.md").write_text("settles in <!-- bs-9 -->3.21 s\n", encoding="utf-8")
+    assert figures.main([], root=tmp_path) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("doc_figures.py: ") and "'bs-9'" in err and "\n" not in err
