@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.errors import CosimError
+from cosim.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_METRIC = "yaw_settling_time_s"
@@ -100,8 +101,6 @@ def rewrite(text: str, values: Mapping[tuple[str, str], float]) -> str:
 
 def run_values(figures: Iterable[Figure], out: Path) -> dict[tuple[str, str], float]:
     """Each marked (scenario, metric), from one run of each scenario as shipped."""
-    from cosim.runner import run_scenario
-
     wanted: dict[str, set[str]] = {}
     for figure in figures:
         wanted.setdefault(figure.scenario, set()).add(figure.metric)
@@ -130,18 +129,16 @@ def main(argv: Sequence[str] | None = None, root: Path = ROOT) -> int:
     except (CosimError, ValueError, RuntimeError) as exc:  # a marker naming what no run has
         print(f"doc_figures.py: {exc}", file=sys.stderr)
         return 2
-    stale = [
-        (f, shown(values[(f.scenario, f.metric)], f.text))
-        for f in marked
-        if shown(values[(f.scenario, f.metric)], f.text) != f.text
-    ]
+    now = [(f, shown(values[(f.scenario, f.metric)], f.text)) for f in marked]
+    stale = [(figure, new) for figure, new in now if new != figure.text]
     for figure, new in stale:
         where = figure.page.relative_to(root)
         print(f"{where}: {figure.scenario} {figure.metric}: {figure.text} -> {new}")
     if args.write:
-        for page in {figure.page for figure in marked}:
+        written = {figure.page for figure in marked}
+        for page in written:
             page.write_text(rewrite(page.read_text(encoding="utf-8"), values), encoding="utf-8")
-        print(f"{len(marked)} figures in {len({f.page for f in marked})} pages written")
+        print(f"{len(marked)} figures in {len(written)} pages written")
         return 0
     print(f"{len(marked)} figures, {len(stale)} differ from the runs")
     return 1 if stale else 0
