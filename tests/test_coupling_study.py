@@ -4,22 +4,16 @@ scatter about their trend (vert-1's error is not monotonic in the step)."""
 
 from __future__ import annotations
 
-import importlib
-import sys
 from types import ModuleType
 
 import numpy as np
 import pytest
-from repo_paths import ROOT
+from repo_paths import script_module
 
 
 @pytest.fixture(scope="module")
 def study() -> ModuleType:
-    sys.path.insert(0, str(ROOT / "scripts"))
-    try:
-        return importlib.import_module("coupling_study")
-    finally:
-        sys.path.remove(str(ROOT / "scripts"))
+    return script_module("coupling_study")
 
 
 def trend(n: float) -> float:

@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from repo_paths import ROOT
+from repo_paths import ROOT, script_module
 
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 
@@ -166,11 +166,7 @@ def test_interfaces_page_is_current(fmu_paths):
 def test_the_user_benchmark_times_the_example_study_of_the_docs(tmp_path):
     """scripts/bench_user.py reads the study it times out of docs/studies.md, so the figure
     it publishes is for the study the docs show: eight runs of bs-3 on a grid."""
-    sys.path.insert(0, str(ROOT / "scripts"))
-    try:
-        bench_user = importlib.import_module("bench_user")
-    finally:
-        sys.path.remove(str(ROOT / "scripts"))
+    bench_user = script_module("bench_user")
     from cosim.study.spec import load_study
 
     path = tmp_path / "study.toml"
