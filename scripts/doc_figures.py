@@ -99,6 +99,15 @@ def rewrite(text: str, values: Mapping[tuple[str, str], float]) -> str:
     return MARKER.sub(replace, text)
 
 
+def differences(
+    figures: Iterable[Figure], values: Mapping[tuple[str, str], float]
+) -> list[tuple[Figure, str]]:
+    """The figures whose number differs from ``values[(scenario, metric)]`` as the page
+    would write it, each with that number."""
+    now = [(f, shown(values[(f.scenario, f.metric)], f.text)) for f in figures]
+    return [(figure, new) for figure, new in now if new != figure.text]
+
+
 def run_values(figures: Iterable[Figure], out: Path) -> dict[tuple[str, str], float]:
     """Each marked (scenario, metric), from one run of each scenario as shipped."""
     wanted: dict[str, set[str]] = {}
@@ -129,8 +138,7 @@ def main(argv: Sequence[str] | None = None, root: Path = ROOT) -> int:
     except (CosimError, ValueError, RuntimeError) as exc:  # a marker naming what no run has
         print(f"doc_figures.py: {exc}", file=sys.stderr)
         return 2
-    now = [(f, shown(values[(f.scenario, f.metric)], f.text)) for f in marked]
-    stale = [(figure, new) for figure, new in now if new != figure.text]
+    stale = differences(marked, values)
     for figure, new in stale:
         where = figure.page.relative_to(root)
         print(f"{where}: {figure.scenario} {figure.metric}: {figure.text} -> {new}")

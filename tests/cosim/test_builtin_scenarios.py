@@ -248,15 +248,17 @@ def test_every_figure_the_pages_quote_is_what_the_run_gives(runs: dict[str, RunO
     after markers (scripts/doc_figures.py writes them): each is its run's, to the decimals
     the page gives it, so a change that moves a run cannot leave its pages behind."""
     doc_figures = script_module("doc_figures")
-    stale = []
     marked = [f for page in doc_figures.pages(ROOT) for f in doc_figures.figures_in(page)]
-    for figure in marked:
-        outcome = runs[figure.scenario]
-        value = doc_figures.metric_value(
-            figure.scenario, figure.metric, outcome.figures, outcome.manoeuvre or {}
+    values = {
+        (f.scenario, f.metric): doc_figures.metric_value(
+            f.scenario, f.metric, runs[f.scenario].figures, runs[f.scenario].manoeuvre or {}
         )
-        if doc_figures.shown(value, figure.text) != figure.text:
-            stale.append(f"{figure.page.name} {figure.scenario} {figure.metric}: {figure.text}")
+        for f in marked
+    }
+    stale = [
+        f"{f.page.name} {f.scenario} {f.metric}: {f.text} -> {new}"
+        for f, new in doc_figures.differences(marked, values)
+    ]
     assert len(marked) > 50  # the settling times of README's table and the manoeuvres'
     assert not stale, "python scripts/doc_figures.py --write: " + "; ".join(stale)
 
