@@ -47,7 +47,6 @@ from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
 from cosim.scenario.checks import Source, Strict, check_value, split_ref
 
-CONNECTION_FAULTS = ("stuck", "bias", "gain", "noise", "delay", "dropout")
 ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
     "mass-jam": "mass_position_cmd",
     "thruster-off": "tunnel_force",

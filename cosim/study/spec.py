@@ -58,7 +58,6 @@ from pydantic import (
 
 from cosim.errors import CosimError
 
-KEEP_CHOICES = ("all", "failed", "none")
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
 MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
 MAX_RUNS_CEILING = 10_000_000  # --max-runs at most: the design of every run is built first
