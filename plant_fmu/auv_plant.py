@@ -27,7 +27,9 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   dissertation's (6.3.11)-(6.3.13), 1 hull and moving mass as two bodies (6.2.28); a write
   outside 0..1 is refused), ``ideal_fluid``, ``vehicle`` (a built-in set name, read from
   this instance's ``resources/``, or a .toml path), ``current_shear_dUdy`` (1/s),
-  ``max_substep`` (s, longest internal RK4 step), and every field of
+  ``max_substep`` (s, longest internal RK4 step: a doStep needing more than
+  :data:`~plant_fmu.model.stepping.MAX_SUBSTEPS` sub-steps is discarded unstarted), and
+  every field of
   :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``, ``a22``, ``X_uu``,
   ``m_v``, ...), unit, description and range (``min``/``max``) from its declaration.
 
@@ -58,7 +60,6 @@ instead of first. The currents stay held over a step (see above).
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
@@ -86,7 +87,7 @@ from plant_fmu.model.state_layout import (
     STATE_UNITS,
     STEP_STATE_NAMES,
 )
-from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance, stepping_state
+from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance, stepping_state, substeps
 
 INPUT_DESCRIPTIONS: dict[str, str] = {
     "thrust": "propeller surge thrust T",
@@ -327,11 +328,9 @@ class AuvPlant(SafeSlave):
         arithmetic) where the compiled one does not apply: numba off, the two-body moving
         mass, a change of the currents, or a step it refuses (the reference then says why).
         Both take the input derivatives the importer set (module docstring)."""
-        stepper, max_substep = self._stepper, self.max_substep
-        if stepper is not None and math.isfinite(max_substep):
-            n = max(1, math.ceil(step_size / max_substep - 1e-9))  # as stepping.advance
-            if stepper(n, step_size / n) == 0:
-                return
+        n = substeps(step_size, self.max_substep)  # raises on a step it would hang in
+        if self._stepper is not None and self._stepper(n, step_size / n) == 0:
+            return
         self._reference_step(step_size)
 
     def _reference_step(self, step_size: float) -> None:

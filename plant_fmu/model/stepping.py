@@ -56,6 +56,10 @@ if TYPE_CHECKING:
     from plant_fmu.model.compiled import CompiledPlant
 
 DEFAULT_MAX_SUBSTEP = 0.01  # s
+# Sub-steps one step may take: ~3 s of the compiled loop, a minute of the reference one. A
+# host's doStep cannot be interrupted (compiled code ignores signals), so a step of 1e12 s
+# must be refused, not started.
+MAX_SUBSTEPS = 1_000_000
 
 
 def check_finite(values: np.ndarray, names: tuple[str, ...], what: str) -> None:
@@ -144,11 +148,7 @@ def advance(
             f"expected a state of {N_STATES} values (or {N_STEP_STATES} with the attitude "
             f"quaternion) and inputs of {N_INPUTS}, got shapes {x.shape} and {inputs.shape}"
         )
-    if not (h > 0.0 and math.isfinite(h)):
-        raise ValueError(f"step h = {h!r}: expected a finite number of seconds > 0")
-    if not (max_substep > 0.0 and math.isfinite(max_substep)):
-        raise ValueError(f"max_substep = {max_substep!r}: expected a finite number of s > 0")
-    n = max(1, math.ceil(h / max_substep - 1e-9))
+    n = substeps(h, max_substep)
     dt = h / n
     if compiled is not None:
         z = np.empty(N_STEP_STATES)
@@ -174,6 +174,28 @@ def advance(
                 z = _substep(model, z, _inputs_at(inputs, rates, j * dt), dt, later)
     check_finite(z, STEP_STATE_NAMES, "state after the step:")
     return z if len(x) == N_STEP_STATES else z[STATE]
+
+
+def substeps(h: float, max_substep: float) -> int:
+    """The number of equal RK4 sub-steps, each at most ``max_substep`` s, of a step of ``h``
+    s.
+
+    Raises:
+        ValueError: a step or ``max_substep`` that is not a finite number > 0, or a step
+            that would take more than :data:`MAX_SUBSTEPS` sub-steps.
+    """
+    if not (h > 0.0 and math.isfinite(h)):
+        raise ValueError(f"step h = {h!r}: expected a finite number of seconds > 0")
+    if not (max_substep > 0.0 and math.isfinite(max_substep)):
+        raise ValueError(f"max_substep = {max_substep!r}: expected a finite number of s > 0")
+    n = max(1, math.ceil(h / max_substep - 1e-9))
+    if n > MAX_SUBSTEPS:
+        raise ValueError(
+            f"a step of {h!r} s takes {n:.3g} sub-steps of at most max_substep = "
+            f"{max_substep!r} s: expected at most {MAX_SUBSTEPS} (steps of at most "
+            f"{MAX_SUBSTEPS * max_substep:.6g} s, or a longer max_substep)"
+        )
+    return n
 
 
 def _inputs_at(inputs: np.ndarray, rates: np.ndarray, tau: float) -> np.ndarray:

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
-from fmu_harness import STATUS_ERROR, STATUS_OK, Harness, status_of
+from fmu_harness import STATUS_DISCARD, STATUS_ERROR, STATUS_OK, Harness, status_of
 from reference_values import dissertation
 
 from cosim.fmus.validation import validate_fmus
@@ -20,7 +20,7 @@ from plant_fmu.model import compiled
 from plant_fmu.model.dynamics import STATE_NAMES, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import VehicleParameters, builtin_vehicles, load_vehicle
-from plant_fmu.model.stepping import advance, simulate
+from plant_fmu.model.stepping import MAX_SUBSTEPS, advance, simulate
 
 H = 0.01
 OUTPUTS = (*STATE_NAMES, "u_rel", "v_rel", "w_rel", "kinetic_energy")
@@ -290,6 +290,35 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
     assert statuses == (0, STATUS_ERROR, 0, 0)
     assert "thrust = nan refused" in report["errors"]
     assert np.isfinite(report["u"])
+
+
+@pytest.mark.slow
+def test_a_step_too_long_to_take_is_discarded_unstarted_and_the_host_steps_on(plant, run_python):
+    # In its own process: the step of 1e12 s (1e14 RK4 sub-steps) used to be started, a hang
+    # no signal reaches inside the compiled loop; the timeout turns that into a failure.
+    result = run_python(
+        """
+        import json, sys
+        from fmu_harness import Harness
+        fmu = Harness(sys.argv[1], variant=2, u_0=1.5)
+        huge = fmu.step(1e12)
+        time_after, u_after = fmu.time, float(fmu.get("u")[0])
+        next_step = fmu.step(0.01)
+        fmu.close()
+        print(json.dumps(dict(huge=huge, time=time_after, u=u_after, next=next_step,
+                              errors=fmu.messages(3))))
+        """,
+        plant,
+        timeout=60.0,
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert (report["huge"], report["time"], report["u"], report["next"]) == (
+        STATUS_DISCARD, 0.0, 1.5, STATUS_OK)  # fmt: skip
+    assert (
+        f"takes 1e+14 sub-steps of at most max_substep = 0.01 s: expected at most {MAX_SUBSTEPS}"
+        in report["errors"]
+    )
 
 
 @pytest.mark.slow

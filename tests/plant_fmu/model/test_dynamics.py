@@ -1,5 +1,7 @@
 """Physical invariants of the plant's equations of motion."""
 
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -16,7 +18,7 @@ from plant_fmu.model.dynamics import (
 from plant_fmu.model.kinematics import euler_rate_matrix, rotation_matrix
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import load_vehicle
-from plant_fmu.model.stepping import advance, simulate
+from plant_fmu.model.stepping import MAX_SUBSTEPS, advance, simulate, substeps
 
 NU = slice(6, 12)
 
@@ -258,3 +260,20 @@ def test_non_finite_inputs_are_refused_by_name(lateral, name, bad):
 def test_bad_step_is_refused(lateral, h):
     with pytest.raises(ValueError, match="step h ="):
         advance(lateral, state_vector(dict(u=1.5)), input_vector(thrust=9.0), h)
+
+
+@pytest.mark.parametrize(("h", "max_substep", "n"), [(1e12, 0.01, "1e+14"), (0.01, 1e-9, "1e+07")])
+def test_a_step_of_more_sub_steps_than_a_host_can_wait_for_is_refused_unstarted(
+    lateral, h, max_substep, n
+):
+    # Guards the hang: ceil(h / max_substep) sub-steps were started whatever their number.
+    with pytest.raises(
+        ValueError, match=rf"takes {re.escape(n)} sub-steps .* at most {MAX_SUBSTEPS}"
+    ):
+        advance(lateral, state_vector(dict(u=1.5)), input_vector(thrust=9.0), h, max_substep)
+
+
+def test_the_sub_step_limit_admits_its_own_number():
+    assert substeps(MAX_SUBSTEPS * 0.01, 0.01) == MAX_SUBSTEPS
+    with pytest.raises(ValueError, match=f"expected at most {MAX_SUBSTEPS}"):
+        substeps((MAX_SUBSTEPS + 1) * 0.01, 0.01)
