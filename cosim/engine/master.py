@@ -199,7 +199,8 @@ def preflight(scenario: Scenario) -> None:
     platform (:func:`cosim.fmus.interface.check_binary`) or would hang in a step.
 
     An instance with a Real parameter ``max_substep`` (s) integrates a communication step
-    of k h in ceil(k h / max_substep) sub-steps (``plant_fmu.model.stepping.advance``);
+    of k h (an adaptive run's steps up to ``max_step``) in ceil(k h / max_substep)
+    sub-steps (``plant_fmu.model.stepping.advance``);
     more than :data:`MAX_SUBSTEPS` is refused with the reason (one sub-step of the plant
     takes tens of microseconds, so 1e-9 s would take hours per step and ignore Ctrl-C).
     """
@@ -210,7 +211,11 @@ def preflight(scenario: Scenario) -> None:
         if var is None or var.type != "Real":
             continue
         max_substep = scenario.start_value(name, SUBSTEP_PARAMETER)
-        step = scenario.coupling.step * scenario.coupling.step_multiples.get(name, 1)
+        coupling = scenario.coupling
+        step = coupling.step * coupling.step_multiples.get(name, 1)
+        longest = "coupling.step"
+        if coupling.max_step is not None and coupling.max_step > step:  # adaptive
+            step, longest = coupling.max_step, "coupling.max_step"
         if not (isinstance(max_substep, float) and max_substep > 0.0):
             continue  # the FMU refuses it itself, with its own reason
         substeps = math.ceil(step / max_substep - 1e-9)
@@ -219,7 +224,7 @@ def preflight(scenario: Scenario) -> None:
             given = SUBSTEP_PARAMETER in inst.start
             raise ScenarioError(
                 f"scenario file {scenario.source or scenario.id}: key "
-                f"{key if given else 'coupling.step'!r}: {name}.{SUBSTEP_PARAMETER} = "
+                f"{key if given else longest!r}: {name}.{SUBSTEP_PARAMETER} = "
                 f"{max_substep!r} s would take {substeps:.3g} sub-steps per communication "
                 f"step of {step!r} s; at most {MAX_SUBSTEPS} are allowed (max_substep >= "
                 f"{step / MAX_SUBSTEPS:.3g} s)"

@@ -349,6 +349,22 @@ def test_a_substep_that_would_hang_a_step_is_refused_before_loading(
         master.run(scenario)  # the master itself refuses it too, before any FMU
 
 
+def test_an_adaptive_step_that_may_grow_past_the_sub_step_limit_is_refused_before_loading(
+    fmu_dir: Path, no_fmu_loading: None
+) -> None:
+    # Guards the adaptive run: its steps grow to max_step, which the check did not look at.
+    scenario = scenario_from_toml(
+        BS3.replace('algorithm = "gauss-seidel"', 'algorithm = "adaptive"\nmax_step = 1000.0'),
+        "bs-3 adaptive",
+        fmu_dir=fmu_dir,
+    )
+    assert scenario.coupling.max_step == 1000.0
+    with pytest.raises(ScenarioError, match=r"key 'coupling.max_step': plant\.max_substep = "
+                       r"0\.01 s would take 1e\+05 sub-steps per communication step of 1000\.0 "
+                       r"s; at most 10000"):  # fmt: skip
+        master.preflight(scenario)
+
+
 @pytest.mark.parametrize(
     ("plant", "controller", "expected"),
     [
