@@ -84,6 +84,12 @@ points a step ends on (a step shortened to reach one is judged as if it had been
 asked for, its err scaled by (asked / taken)^k, so the next step does not start small).
 The first step is ``step``.
 
+Discard: an instance that answers a doStep with fmi2Discard without ending the simulation
+(FMI 2.0, 4.2.3: "the master should retry the simulation with a shorter communication
+step size") has the attempt rolled back and retried at FAC_MIN of its length (counted in
+``rejected_steps`` and ``discarded_steps``); at the shortest step the Discard fails the
+run, as it does at a fixed step.
+
 Costs: an attempted step takes three doSteps per instance and a state save and restore,
 a rejected one as many: the summary's ``coupling`` counts them. Step doubling pays 1.5
 doSteps per half step; it beats a fixed step where the step the error allows varies
@@ -100,6 +106,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import fmi2Discard
 
 from cosim.engine.input_error import InputError
 from cosim.engine.points import check_finite, end_of_simulation, refresh
@@ -282,6 +289,10 @@ def _one_step(
             if control.judge(err, units, wanted):
                 break
             stepper.restore(saved)
+        except FMICallException as exc:
+            if not _shorter_after_discard(stepper, control, exc, units):
+                raise
+            stepper.restore(saved)
         finally:
             stepper.free(saved)
     if middle is not None:
@@ -315,11 +326,30 @@ def _extrapolated_step(
             if control.judge(err, units, wanted):
                 break
             stepper.restore(saved)
+        except FMICallException as exc:
+            if not _shorter_after_discard(stepper, control, exc, units):
+                raise
+            stepper.restore(saved)
         finally:
             stepper.free(saved)
     at(n + units)
     filled = rows.push(filled, z[record], (n + units) * stepper.grid)
     return n + units, filled
+
+
+def _shorter_after_discard(
+    stepper: _Stepper, control: _Control, exc: FMICallException, units: int
+) -> bool:
+    """True if the step of ``units`` grid points that raised ``exc`` is to be retried
+    shorter: a Discard from an instance that did not end the simulation, and a step longer
+    than the shortest (module docstring)."""
+    slave = stepper.current
+    if exc.status != fmi2Discard or slave.ended_simulation() is not None:
+        return False
+    if not control.discarded(units):
+        return False
+    slave.messages.clear()  # the retry answers them; a later Discard is judged by its own
+    return True
 
 
 class _Control:
@@ -365,7 +395,7 @@ class _Control:
             continuous[i] = var.type == "Real" and var.variability == "continuous"
         self.nominal, self.continuous = nominal, continuous
         self.peak = np.zeros(n_read)  # the largest |value| of each so far
-        self.accepted, self.rejected, self.forced = 0, 0, 0
+        self.accepted, self.rejected, self.forced, self.discards = 0, 0, 0, 0
         self.smallest, self.largest = math.inf, 0.0
 
     def units(self, n: int) -> tuple[int, int]:
@@ -432,6 +462,17 @@ class _Control:
         self.err_prev, self.level = err, asked
         return True
 
+    def discarded(self, units: int) -> bool:
+        """A step an instance discarded: retry at FAC_MIN of it (True), unless it is as
+        short as a step may be (False)."""
+        if units <= self.min_units:
+            return False
+        self.rejected += 1
+        self.discards += 1
+        self.next = max(float(self.min_units), units * FAC_MIN)
+        self.after_rejection = True
+        return True
+
     def _kink(self, asked: float) -> bool:
         """A step of the extrapolation estimate across a slope discontinuity: its err (for
         the step asked for) is over 1 and KINK times the last smooth step's."""
@@ -447,6 +488,7 @@ class _Control:
             "order": self.p,
             "accepted_steps": self.accepted,
             "rejected_steps": self.rejected,
+            "discarded_steps": self.discards,
             "steps_over_tolerance": self.forced,
             "kinks": self.kinks,
             "smallest_step_s": self.smallest if self.accepted else None,

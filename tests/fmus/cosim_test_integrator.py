@@ -1,6 +1,7 @@
 """Test FMU for the master: x' = u, integrated exactly over a step with u held.
 
 Fault injection for the master's tests: at t >= ``fail_at`` doStep logs an error and fails;
+a step longer than ``longest_step`` (s, negative = any) is refused the same way, unstarted;
 at t >= ``nan_at`` the output x becomes NaN (negative = never); a non-empty ``started_file``
 is created at the first step (so a test knows the loop runs). Trivial on purpose: no
 exception can escape a callback (pythonfmu would crash the host).
@@ -23,10 +24,11 @@ class CosimTestIntegrator(Fmi2Slave):
         self.x0 = 1.0
         self.fail_at = -1.0
         self.nan_at = -1.0
+        self.longest_step = -1.0
         self.started_file = ""
         self.register_variable(Real("u", causality=Fmi2Causality.input, description="rate"))
         self.register_variable(Real("x", causality=Fmi2Causality.output, description="state"))
-        for name in ("x0", "fail_at", "nan_at"):
+        for name in ("x0", "fail_at", "nan_at", "longest_step"):
             self.register_variable(
                 Real(
                     name,
@@ -50,6 +52,9 @@ class CosimTestIntegrator(Fmi2Slave):
     def do_step(self, current_time, step_size):
         if 0.0 <= self.fail_at <= current_time:
             self.log(f"injected failure at t = {current_time:.3f}", Fmi2Status.error)
+            return False
+        if 0.0 <= self.longest_step < step_size:
+            self.log(f"step {step_size:.4f} s refused: longer than longest_step", Fmi2Status.error)
             return False
         if self.started_file:
             with contextlib.suppress(OSError):

@@ -180,3 +180,26 @@ def test_a_bad_tolerance_is_refused_in_one_line_naming_it(test_fmu_dir: Path, ba
                            base_dir=test_fmu_dir)  # fmt: skip
     message = str(refused.value)
     assert "\n" not in message and "coupling.tolerance" in message, message
+
+
+@pytest.mark.parametrize("estimate", ["extrapolation", "doubling"])
+def test_a_step_an_instance_discards_is_retried_shorter(test_fmu_dir: Path, estimate: str) -> None:
+    """FMI 2.0, 4.2.3: after a Discard that does not end the simulation "the master should
+    retry with a shorter communication step"; the adaptive run does, and completes."""
+    longest = 0.045  # s: the integrator refuses (Error logged, Discard) a longer step
+    text = adaptive(1e-2, estimate=estimate).replace(
+        f"x0 = {X0}", f"x0 = {X0}\nlongest_step = {longest}"
+    )
+    result = run(test_fmu_dir, text)
+    assert result.complete, result.error
+    assert result.coupling["discarded_steps"] >= 1
+    assert result.coupling["rejected_steps"] >= result.coupling["discarded_steps"]
+    assert np.max(np.diff(result.times)) <= longest
+    assert limit_error(result) < 0.05 * X0
+
+
+def test_a_discard_at_the_shortest_step_still_fails_the_run(test_fmu_dir: Path) -> None:
+    text = adaptive(1e-2).replace(f"x0 = {X0}", f"x0 = {X0}\nlongest_step = 1e-9")
+    result = run(test_fmu_dir, text)
+    assert not result.complete
+    assert "longer than longest_step" in (result.error or "")
