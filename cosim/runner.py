@@ -487,7 +487,8 @@ def report(outcome: RunOutcome) -> str:
                      "scenario.toml replays them)")  # fmt: skip
     lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
     figures = outcome.figures
-    lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in figures.items()))
+    if any(v is not None for v in figures.values()):  # (a run without our plant has none)
+        lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in figures.items()))
     if outcome.manoeuvre:
         metrics = {k: v for k, v in outcome.manoeuvre.items() if k != "manoeuvre"}
         lines.append(f"  {outcome.manoeuvre['manoeuvre']}: " + ", ".join(

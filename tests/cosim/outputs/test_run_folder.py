@@ -136,3 +136,17 @@ def test_a_locked_folder_is_refused_naming_the_process(loop_file: Path, tmp_path
         holder.release()
     assert not (out / LOCK_FILE).exists()
     assert main(["run", str(loop_file), "--out", str(out), "--no-rrd"]) == 0
+
+
+def test_the_vehicles_key_figures_are_printed_only_for_a_run_that_has_them(
+    loop_file: Path,
+    fmu_paths: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+):
+    # Guards the report of FMUs other than ours: a line of three "n/a" said nothing.
+    assert main(["run", str(loop_file), "--out", str(tmp_path / "loop"), "--no-rrd"]) == 0
+    assert "yaw_settling_time_s" not in capsys.readouterr().out
+    bs3 = ["run", "bs-3", "--stop-time", "0.5", "--out", str(tmp_path / "bs-3"), "--no-rrd"]
+    assert main([*bs3, "--fmu-dir", str(fmu_paths["AuvPlant"].parent)]) == 0
+    assert "yaw_settling_time_s = " in capsys.readouterr().out
