@@ -510,10 +510,12 @@ def _steps(result: RunResult) -> str:
     coupling = result.scenario.coupling
     if coupling.algorithm == "adaptive":
         taken = result.coupling
+        discarded = taken.get("discarded_steps")
         return (
             f"{taken.get('accepted_steps')} adaptive steps of {_fmt(taken.get('smallest_step_s'))}"
             f" to {_fmt(taken.get('largest_step_s'))} s ({taken.get('rejected_steps')} "
-            f"rejected, tolerance {coupling.tolerance:g})"
+            f"rejected{f', {discarded} of them discarded by an FMU' if discarded else ''}, "
+            f"tolerance {coupling.tolerance:g})"
         )
     inputs = f", inputs {coupling.extrapolation}" if coupling.extrapolation != "none" else ""
     return f"{result.rows - 1} steps of {coupling.step:g} s ({coupling.algorithm}{inputs})"

@@ -150,3 +150,17 @@ def test_the_vehicles_key_figures_are_printed_only_for_a_run_that_has_them(
     bs3 = ["run", "bs-3", "--stop-time", "0.5", "--out", str(tmp_path / "bs-3"), "--no-rrd"]
     assert main([*bs3, "--fmu-dir", str(fmu_paths["AuvPlant"].parent)]) == 0
     assert "yaw_settling_time_s = " in capsys.readouterr().out
+
+
+def test_an_adaptive_runs_report_counts_the_steps_an_fmu_discarded(
+    test_fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    path = tmp_path / "loop.toml"
+    text = loop_toml(algorithm="adaptive").replace('"Cosim', f'"{test_fmu_dir}/Cosim')
+    path.write_text(
+        text.replace("[instances.plant.start]", "[instances.plant.start]\nlongest_step = 0.045")
+    )
+    assert main(["run", str(path), "--out", str(tmp_path / "d"), "--no-rrd"]) == 0
+    taken = json.loads((tmp_path / "d" / "summary.json").read_text())["coupling"]
+    assert taken["discarded_steps"] >= 1
+    assert f"{taken['discarded_steps']} of them discarded by an FMU" in capsys.readouterr().out
