@@ -32,6 +32,7 @@ the mass reaches a stop ends at its arrival (:func:`_substep_through_stop`).
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import TYPE_CHECKING
 
@@ -176,6 +177,7 @@ def advance(
     return z if len(x) == N_STEP_STATES else z[STATE]
 
 
+@functools.lru_cache(maxsize=256)  # once per step length: a plant's doStep asks every time
 def substeps(h: float, max_substep: float) -> int:
     """The number of equal RK4 sub-steps, each at most ``max_substep`` s, of a step of ``h``
     s.
