@@ -200,6 +200,7 @@ def run_sweep(
     """
     from cosim.analysis.plots import plot_sweep
 
+    _output_folder(out, "the sweep outputs")
     with tqdm(desc=f"sweep {parameter}", unit="step", disable=None, leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
@@ -210,7 +211,6 @@ def run_sweep(
         result = sweep(conditions, parameter, start, stop, steps, seeds=seeds, progress=progress)
     stem = f"sweep_{parameter}"
     try:
-        out.mkdir(parents=True, exist_ok=True)
         branches = write_branches_csv(result, conditions, out / f"{stem}.csv")
         special = write_special_points_csv(result, out / f"{stem}_special_points.csv")
         setting = describe(conditions, swept=parameter)
@@ -314,6 +314,15 @@ def phase_trajectories(
     return histories
 
 
+def _output_folder(out: Path, what: str) -> None:
+    """Make ``out`` (and its parents) before the minutes of work that fill it; raises
+    CosimError naming it when it cannot be made (a file of that name, no permission)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CosimError(f"cannot write {what} to {out}: {exc}") from None
+
+
 def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:
     """``auv-cosim analyze phase-portrait``: write the figure, print the equilibria."""
     from cosim.analysis.plots import plot_phase_portrait
@@ -323,6 +332,7 @@ def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:
             f"--current-east {conditions.current_east:g}: the phase portrait is of the motion "
             "in still water (Figs. 5.4-5.5); drop the current"
         )
+    _output_folder(out, "the phase portrait")
     with tqdm(desc="phase portrait: finding the equilibria", total=None, disable=None,
               leave=False, bar_format="{desc} [{elapsed}]"):  # fmt: skip
         equilibria = find_equilibria(conditions)

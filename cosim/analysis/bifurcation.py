@@ -94,6 +94,12 @@ DEDUPLICATION_TOLERANCE = 1e-6
 
 SWEEP_PARAMETERS = ("roll_torque", "mass_position", "mu", "eta")
 
+# The most continuation steps a sweep takes across its range: a step of 1e-5 of the range
+# (pseudo-arclength, the parameter scaled by the span) is ten times the difference step of
+# the parameter's Jacobian column (_Continuation.jacobians), finer steps resolve nothing
+# more, and 1e5 steps already take ~25 min here (~15 ms each).
+MAX_STEPS = 100_000
+
 Progress = Callable[[int, int], None]
 """Called as progress(done, total), in units of work, while a sweep proceeds."""
 StepDone = Callable[[], None]
@@ -580,7 +586,7 @@ def sweep(
             own (``mu``, ``eta``: factors on ``conditions.params``).
         parameter: one of :data:`SWEEP_PARAMETERS`.
         start, stop: the range (N m for roll_torque, m for mass_position, 1 for mu, eta).
-        steps: continuation steps across the range (>= 2).
+        steps: continuation steps across the range (2 to :data:`MAX_STEPS`).
         seeds: grid for the equilibrium search (:data:`DEFAULT_SEEDS`).
         search_points: parameter values the equilibrium search runs at (>= 2).
         progress: called as progress(done, total) while the work proceeds.
@@ -627,6 +633,11 @@ def _check_sweep(
         raise ValueError(f"sweep range {start!r} .. {stop!r}: expected two different finite values")
     if steps < 2:
         raise ValueError(f"steps = {steps!r}: expected at least 2")
+    if steps > MAX_STEPS:
+        raise ValueError(
+            f"steps = {steps!r}: expected at most {MAX_STEPS} (a finer step resolves nothing "
+            "more; about 15 ms each)"
+        )
     if search_points < 2:
         raise ValueError(f"search_points = {search_points!r}: expected at least 2")
     for value in (start, stop):

@@ -88,6 +88,10 @@ def test_equilibria_table_for_the_long_fins(capsys):
         ),
         (["analyze", "sweep", "mu", "1", "1"], "two different finite values"),
         (["analyze", "sweep", "eta", "1", "2", "--steps", "1"], "steps = 1"),
+        (
+            ["analyze", "sweep", "eta", "1", "2", "--steps", "100000000"],
+            "steps = 100000000: expected at most 100000",
+        ),
         (["analyze", "phase-portrait", "--current-east", "0.2"], "still water"),
     ],
 )
@@ -98,6 +102,29 @@ def test_bad_input_exits_1_with_a_one_line_reason(capsys, tmp_path, argv, messag
     assert code == 1
     assert message in err
     assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("analysis", "what"),
+    [(["sweep", "eta", "1", "2"], "the sweep outputs"), (["phase-portrait"], "the phase portrait")],
+)
+def test_an_output_folder_that_cannot_be_made_is_refused_before_computing(
+    capsys, tmp_path, monkeypatch, analysis, what
+):
+    """A sweep of many steps or a phase portrait takes minutes: a --out that names a file
+    is refused at once, not after the work."""
+    import cosim.analysis.analyze as analyze
+
+    def computed(*args, **kwargs):
+        raise AssertionError("computed before the output folder was checked")
+
+    monkeypatch.setattr(analyze, "sweep", computed)
+    monkeypatch.setattr(analyze, "find_equilibria", computed)
+    taken = tmp_path / "taken"
+    taken.write_text("a file, not a folder", encoding="utf-8")
+    code, _, err = _run(capsys, "analyze", *analysis, "--out", str(taken))
+    assert code == 1
+    assert f"cannot write {what} to {taken}" in err and len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.slow
