@@ -147,7 +147,14 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     digest = source_hash(files)
     if not force and _is_intact(target, hash_file, digest):
         return target
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # before the build's minute, not after it
+        why = "it is not a folder" if out_dir.exists() else exc.strerror or str(exc)
+        raise CosimError(
+            f"cannot build {name}.fmu into {out_dir}: expected a folder that exists or can "
+            f"be made ({why})"
+        ) from None
     with tempfile.TemporaryDirectory(prefix=f"build_{name}_") as tmp:
         stage, dest = Path(tmp) / "stage", Path(tmp) / "out"
         shipped = {relative: source.read_bytes() for relative, source in files.items()}

@@ -238,6 +238,15 @@ def test_missing_script_fails_the_build_with_its_path(monkeypatch, tmp_path):
         build.build_fmu("Nope", tmp_path)
 
 
+def test_an_output_folder_that_is_a_file_is_refused_before_building(tmp_path):
+    taken = tmp_path / "AuvPlant.fmu"
+    taken.write_text("a file, not a folder", encoding="utf-8")
+    expected = f"cannot build AuvPlant.fmu into {taken}: expected a folder that exists or can "
+    with pytest.raises(CosimError, match=re.escape(expected + "be made (it is not a folder)")):
+        build.build_fmu("AuvPlant", taken)
+    assert taken.read_text(encoding="utf-8") == "a file, not a folder"
+
+
 MINIMAL = b"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="M" guid="g">
   <CoSimulation modelIdentifier="M" needsExecutionTool="true"/>
