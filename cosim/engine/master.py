@@ -135,11 +135,6 @@ class RunResult:
     times: np.ndarray | None = None  # (rows,) s, when kept
     values: np.ndarray | None = None  # (rows, len(columns)) SI, when kept
 
-    @property
-    def interrupted(self) -> bool:
-        """Stopped by a signal (Ctrl-C, SIGTERM, SIGHUP) before the stop time."""
-        return self.stop_signal is not None
-
     def column(self, name: str) -> np.ndarray:
         """The recorded time series ``"<instance>.<variable>"`` (the run kept its rows)."""
         if self.values is None:
