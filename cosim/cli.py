@@ -134,6 +134,15 @@ def _study(args: argparse.Namespace) -> int:
     if none did, 128 + the signal number if a stop signal ended it."""
     from contextlib import nullcontext
 
+    if args.dashboard:  # the local cluster's (checked before it starts)
+        if args.scheduler is not None:
+            raise CosimError(
+                "--dashboard: a --scheduler cluster serves its own dashboard (its scheduler's "
+                "--dashboard-address); leave --dashboard out"
+            )
+        from cosim.study.execution import check_dashboard
+
+        check_dashboard()
     local = args.scheduler is None and not args.resume
     if local:  # the workers' fork server imports beside this process (cosim.study.fork_server)
         from cosim.study import fork_server

@@ -258,6 +258,27 @@ def lost_run_error(exc: KilledWorker) -> str:
     )
 
 
+def check_dashboard() -> None:
+    """``--dashboard``: Dask serves its dashboard only with the bokeh it requires
+    (``distributed.versions.BOKEH_REQUIREMENT``), and without it runs the study silently
+    without one; raises StudyError naming what is missing, before a cluster starts."""
+    from importlib import metadata
+
+    from distributed.versions import BOKEH_REQUIREMENT
+
+    try:
+        found: str | None = metadata.version("bokeh")
+    except metadata.PackageNotFoundError:
+        found = None
+    if found is not None and BOKEH_REQUIREMENT.specifier.contains(found, prereleases=True):
+        return
+    why = "it is not installed" if found is None else f"not bokeh {found}"
+    raise StudyError(
+        f"--dashboard: Dask's dashboard needs {BOKEH_REQUIREMENT} ({why}); "
+        f'pip install "{BOKEH_REQUIREMENT}", or leave --dashboard out'
+    )
+
+
 def tls_security(ca_file: Path | None, cert: Path | None, key: Path | None) -> Security | None:
     """Dask ``Security`` for a ``tls://`` scheduler (None if no certificate is given)."""
     given = {"--tls-ca-file": ca_file, "--tls-cert": cert, "--tls-key": key}
@@ -364,6 +385,8 @@ def open_client(
     with _quiet_dask_logs():  # until the cluster's event loop has stopped
         cluster = _local_cluster(workers, dashboard)
         with cluster, Client(cluster, set_as_default=False) as client:
+            if dashboard:
+                print(f"Dask dashboard: {client.dashboard_link}", file=sys.stderr)
             try:
                 yield client
             finally:

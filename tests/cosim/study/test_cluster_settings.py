@@ -7,6 +7,7 @@ memory check every 100 ms by default)."""
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -59,3 +60,30 @@ def test_with_the_dashboard_the_workers_are_profiled_and_monitored() -> None:
         "distributed.worker.memory.monitor-interval": "500ms",
     }
     assert cluster_settings(dashboard=False)["distributed.worker.profile.enabled"] is False
+
+
+LINK = """
+import io, re, sys, urllib.request
+from contextlib import redirect_stderr
+from cosim.study.execution import open_client
+
+if __name__ == "__main__":
+    said = io.StringIO()
+    with redirect_stderr(said), open_client(1, dashboard=True):
+        link = re.search(r"Dask dashboard: (\\S+)", said.getvalue()).group(1)
+        with urllib.request.urlopen(link, timeout=30) as page:
+            print(link, page.status)
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.cluster
+def test_a_local_cluster_with_the_dashboard_says_where_it_is_served(run_python, tmp_path) -> None:
+    """The address printed is the one Dask serves (bokeh's dashboard, or Dask's page that
+    names the bokeh it needs), on 127.0.0.1 only."""
+    script = tmp_path / "link.py"
+    script.write_text(LINK, encoding="utf-8")
+    done = run_python(f"import runpy; runpy.run_path({str(script)!r}, run_name='__main__')")
+    assert done.returncode == 0, done.stderr[-2000:]
+    link, status = done.stdout.strip().splitlines()[-1].split()
+    assert re.fullmatch(r"http://127\.0\.0\.1:\d+/status", link) and status == "200", link

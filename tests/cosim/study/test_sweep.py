@@ -143,6 +143,10 @@ def test_unknown_metric_is_named_with_the_metrics_a_run_reports(
     [
         (["--workers", "0"], "--workers 0: expected at least 1 worker process"),
         (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "not both"),
+        (
+            ["--dashboard", "--scheduler", "tcp://127.0.0.1:1"],
+            "--dashboard: a --scheduler cluster serves its own dashboard",
+        ),
     ],
 )
 def test_bad_cluster_options_fail_before_anything_is_written(
@@ -153,6 +157,39 @@ def test_bad_cluster_options_fail_before_anything_is_written(
     assert main(["sweep", str(study), "--out", str(tmp_path / "out"), *options]) == 1
     assert expected in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("installed", [None, "2.4.3"])
+def test_a_dashboard_without_the_bokeh_dask_needs_is_refused_before_the_cluster_starts(
+    installed: str | None,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """--dashboard on a machine without bokeh (or with one Dask cannot use) used to run
+    the study without a word: no dashboard, no address, no reason."""
+    import importlib.metadata
+
+    from cosim.study import fork_server
+
+    real = importlib.metadata.version
+
+    def version(name: str) -> str:
+        if name != "bokeh":
+            return real(name)
+        if installed is None:
+            raise importlib.metadata.PackageNotFoundError(name)
+        return installed
+
+    monkeypatch.setattr(importlib.metadata, "version", version)
+    monkeypatch.setattr(fork_server, "start", lambda: pytest.fail("a fork server started"))
+    study = tmp_path / "study.toml"
+    study.write_text(GRID_STUDY, encoding="utf-8")
+    assert main(["sweep", str(study), "--out", str(tmp_path / "out"), "--dashboard"]) == 1
+    err = capsys.readouterr().err
+    found = "it is not installed" if installed is None else f"not bokeh {installed}"
+    assert "--dashboard: Dask's dashboard needs bokeh>=" in err and found in err, err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
 
 
 @pytest.mark.slow
