@@ -635,8 +635,7 @@ def _check_sweep(
         raise ValueError(f"steps = {steps!r}: expected at least 2")
     if steps > MAX_STEPS:
         raise ValueError(
-            f"steps = {steps!r}: expected at most {MAX_STEPS} (a finer step resolves nothing "
-            "more; about 15 ms each)"
+            f"steps = {steps!r}: expected at most {MAX_STEPS} (a finer step resolves nothing more)"
         )
     if search_points < 2:
         raise ValueError(f"search_points = {search_points!r}: expected at least 2")
