@@ -320,7 +320,8 @@ def _output_folder(out: Path, what: str) -> None:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise CosimError(f"cannot write {what} to {out}: {exc}") from None
+        why = "it is not a folder" if out.exists() else exc.strerror or str(exc)
+        raise CosimError(f"cannot write {what} to {out}: {why}") from None
 
 
 def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:

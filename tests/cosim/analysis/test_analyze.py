@@ -124,7 +124,8 @@ def test_an_output_folder_that_cannot_be_made_is_refused_before_computing(
     taken.write_text("a file, not a folder", encoding="utf-8")
     code, _, err = _run(capsys, "analyze", *analysis, "--out", str(taken))
     assert code == 1
-    assert f"cannot write {what} to {taken}" in err and len(err.strip().splitlines()) == 1
+    assert f"cannot write {what} to {taken}: it is not a folder" in err
+    assert len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.slow
