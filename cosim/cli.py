@@ -10,11 +10,12 @@ from __future__ import annotations
 import argparse
 import gc
 import os
+import re
 import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
@@ -246,8 +247,24 @@ def _add_coupling_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser taking "-5e-1" for a negative number, as it takes "-5" and "-0.5":
+    before Python 3.13 it read a negative number in exponent form as an unknown option
+    ("--roll-torque -5e-1": "expected one argument"). By hand because argparse has no
+    setting for it; this project's parsers have no option that looks like a number, so
+    the matcher decides nothing else. Sub-parsers are made of this class too."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
+
+# "-inf" and "-nan" too: the checks then name them ("thrust = -inf: expected a finite ...")
+_NEGATIVE_NUMBER = re.compile(r"^-((\d+\.?\d*|\.\d+)(e[+-]?\d+)?|inf|infinity|nan)$", re.IGNORECASE)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="auv-cosim",
         description="Co-simulate the REMUS 100 with internal actuators as two FMI 2.0 FMUs.",
     )

@@ -15,7 +15,7 @@ import pytest
 from reference_values import dissertation
 
 from cosim.analysis.bifurcation import Q_PROP
-from cosim.cli import main
+from cosim.cli import build_parser, main
 from plant_fmu.model.dynamics import STATE_NAMES
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -93,6 +93,7 @@ def test_equilibria_table_for_the_long_fins(capsys):
             "steps = 100000000: expected at most 100000",
         ),
         (["analyze", "phase-portrait", "--current-east", "0.2"], "still water"),
+        (["analyze", "equilibria", "--thrust", "-inf"], "thrust = -inf: expected a finite"),
     ],
 )
 def test_bad_input_exits_1_with_a_one_line_reason(capsys, tmp_path, argv, message):
@@ -102,6 +103,23 @@ def test_bad_input_exits_1_with_a_one_line_reason(capsys, tmp_path, argv, messag
     assert code == 1
     assert message in err
     assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["equilibria", "--variant", "1", "--roll-torque", "-5e-1"], {"roll_torque": -0.5}),
+        (["equilibria", "--current-east", "-1E-2"], {"current_east": -0.01}),
+        (["sweep", "roll_torque", "-5e-1", "2.5e-1"], {"start": -0.5, "stop": 0.25}),
+        (["sweep", "mass_position", "-.01", "-1e-3"], {"start": -0.01, "stop": -0.001}),
+    ],
+)
+def test_negative_numbers_in_exponent_form_are_numbers_not_options(argv, expected):
+    """argparse before Python 3.13 took "-5e-1" for an unknown option: "--roll-torque
+    -5e-1" failed with "expected one argument", a sweep from -5e-1 with "the following
+    arguments are required: TO"."""
+    args = build_parser().parse_args(["analyze", *argv])
+    assert {name: getattr(args, name) for name in expected} == expected
 
 
 @pytest.mark.parametrize(
