@@ -35,7 +35,7 @@ from cosim.analysis.bifurcation import (
     sweep,
 )
 from cosim.analysis.equilibria import Equilibrium
-from cosim.errors import CosimError
+from cosim.errors import CosimError, unmade_folder
 from plant_fmu.model.dynamics import STATE_INDEX, STATE_NAMES, STATE_UNITS, Variant
 from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import simulate
@@ -320,8 +320,7 @@ def _output_folder(out: Path, what: str) -> None:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        why = "it is not a folder" if out.exists() else exc.strerror or str(exc)
-        raise CosimError(f"cannot write {what} to {out}: {why}") from None
+        raise CosimError(f"cannot write {what} to {out}: {unmade_folder(out, exc)}") from None
 
 
 def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:

@@ -62,7 +62,7 @@ from importlib import metadata
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from cosim.errors import CosimError
+from cosim.errors import CosimError, unmade_folder
 from cosim.fmus import bytecode, native, staging
 from cosim.fmus import docs as fmu_docs
 from fmu_runtime import entry
@@ -150,10 +150,9 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:  # before the build's minute, not after it
-        why = "it is not a folder" if out_dir.exists() else exc.strerror or str(exc)
         raise CosimError(
             f"cannot build {name}.fmu into {out_dir}: expected a folder that exists or can "
-            f"be made ({why})"
+            f"be made ({unmade_folder(out_dir, exc)})"
         ) from None
     with tempfile.TemporaryDirectory(prefix=f"build_{name}_") as tmp:
         stage, dest = Path(tmp) / "stage", Path(tmp) / "out"

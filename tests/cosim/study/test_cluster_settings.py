@@ -63,7 +63,7 @@ def test_with_the_dashboard_the_workers_are_profiled_and_monitored() -> None:
 
 
 LINK = """
-import io, re, sys, urllib.request
+import io, re, urllib.request
 from contextlib import redirect_stderr
 from cosim.study.execution import open_client
 
