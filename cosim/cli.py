@@ -259,6 +259,25 @@ class _Parser(argparse.ArgumentParser):
         self._negative_number_matcher = _NEGATIVE_NUMBER
 
 
+class _Version(argparse.Action):
+    """``--version``: the installed package's version, looked up only when asked for
+    (argparse's own action takes the string when the parser is built, which every command
+    would pay for with importlib.metadata's import)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: Any) -> None:
+        import importlib.metadata
+
+        try:
+            version = importlib.metadata.version("auv-cosim")
+        except importlib.metadata.PackageNotFoundError:
+            version = "(not installed: run from a source tree)"
+        print(f"auv-cosim {version}")  # on stdout, as argparse's own version action does
+        parser.exit()
+
+
 # "-inf" and "-nan" too: the checks then name them ("thrust = -inf: expected a finite ...")
 _NEGATIVE_NUMBER = re.compile(r"^-((\d+\.?\d*|\.\d+)(e[+-]?\d+)?|inf|infinity|nan)$", re.IGNORECASE)
 
@@ -268,6 +287,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="auv-cosim",
         description="Co-simulate the REMUS 100 with internal actuators as two FMI 2.0 FMUs.",
     )
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("build", help="build AuvPlant.fmu, AuvAutopilot.fmu and AuvGuidance.fmu")
