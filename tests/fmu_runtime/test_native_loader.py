@@ -166,6 +166,22 @@ def test_one_build_extracted_twice_runs_in_one_process(
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize(
+    ("name", "runtime"),
+    [*((name, "runtime") for name in sorted(FMUS)), ("AuvPlant", "pythonfmu")],
+)
+def test_instances_stepped_at_once_from_threads_give_the_lone_instances_results(
+    name, runtime, host, extracted, clean_home
+):
+    """As a parallel master (libcosim's worker threads) steps them: two instances made in
+    one thread and stepped at once from two others, and one made, stepped and freed in a
+    thread of its own, give every output of an instance stepped alone, bit for bit."""
+    done = run_clean([host, extracted[name], name, "threads"], clean_home, **RUNTIMES[runtime])
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert re.search(r"^threads: identical over [1-9]\d* outputs$", done.stdout, re.M), done.stdout
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("runtime", sorted(RUNTIMES))
 def test_a_c_host_may_exit_without_terminating_or_freeing(runtime, host, extracted, clean_home):
     done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "abandon"], clean_home,
@@ -398,8 +414,9 @@ SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1"
 @pytest.mark.slow
 def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_path, clean_home):
     """The runtime and the C host built with ASan and UBSan: cycles, the forbidden calls,
-    the hostile arguments, an FMU state's round trip and values read and written from a
-    second thread run to the end, any finding aborts with a report."""
+    the hostile arguments, an FMU state's round trip, values read and written from a
+    second thread and instances stepped from several run to the end, any finding aborts
+    with a report."""
     chain = native.toolchain()
     if chain is None or chain.zig:
         pytest.skip("no cc")
@@ -413,7 +430,7 @@ def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_
     folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
     environment = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
                    "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
-    for mode in (["cycles", 2, 20], ["illegal"], ["hostile"], ["state"], ["gil"]):
+    for mode in (["cycles", 2, 20], ["illegal"], ["hostile"], ["state"], ["gil"], ["threads"]):
         done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **environment)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
         assert "Sanitizer" not in done.stderr and "runtime error" not in done.stderr

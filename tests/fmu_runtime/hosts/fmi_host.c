@@ -23,6 +23,12 @@
  *                                   more; a second instance deserialises it, is set to
  *                                   it and steps the same 30: prints "state: identical
  *                                   over N outputs" or the first value that differs
+ *   fmi_host DIR ID threads         as a parallel master (libcosim's worker threads) does:
+ *                                   one instance stepped alone, then two instantiated here
+ *                                   and stepped at once from two threads, and one
+ *                                   instantiated, stepped and freed in a thread of its
+ *                                   own: prints "threads: identical over N outputs" or
+ *                                   the first value that differs from the lone run
  *
  * DIR is the FMU's extraction folder, ID its model identifier. It loads
  * DIR/binaries/linux64/ID.so with dlopen and nothing else: no Python, no preload.
@@ -461,6 +467,90 @@ static int state(const Fmu *f)
     return 0;
 }
 
+enum { THREAD_STEPS = 300, THREAD_ROOM = 256 };
+
+typedef struct {
+    const Fmu *f;
+    Component c; /* NULL: the thread instantiates, initialises and frees its own */
+    Vr outs[THREAD_ROOM];
+    size_t n;
+    double rows[THREAD_STEPS * THREAD_ROOM];
+    int status;
+} Lane;
+
+/* Every Real input moved off its start, so that the outputs change from step to step. */
+static int nudge_inputs(const Fmu *f, Component c)
+{
+    Vr inputs[128];
+    double x[128];
+    size_t n = variables(f, "R", "input", inputs, 128);
+    if (f->get_real(c, inputs, n, x)) return 1;
+    for (size_t i = 0; i < n; i++) x[i] += 0.01;
+    return f->set_real(c, inputs, n, x);
+}
+
+static void *lane(void *data)
+{
+    Lane *l = data;
+    int own = l->c == NULL;
+    Component c = own ? start(l->f, 1) : l->c;
+    l->status = nudge_inputs(l->f, c) || outputs(l->f, c, l->outs, l->n, l->rows, THREAD_STEPS, 0.0);
+    if (own) stop(l->f, c);
+    return NULL;
+}
+
+static int same_rows(const Lane *a, const Lane *b, const char *what)
+{
+    if (b->status) {
+        printf("%s: a call failed\n", what);
+        return 1;
+    }
+    for (size_t i = 0; i < THREAD_STEPS * a->n; i++) {
+        if (memcmp(&a->rows[i], &b->rows[i], sizeof(double))) {
+            printf("%s differs: step %zu output vr %u: %.17g alone, %.17g\n", what, i / a->n,
+                   a->outs[i % a->n], a->rows[i], b->rows[i]);
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static int threads(const Fmu *f)
+{
+    quiet = 1;
+    static Lane alone, first, second, own;
+    Lane *lanes[] = {&alone, &first, &second, &own};
+    for (int i = 0; i < 4; i++) {
+        lanes[i]->f = f;
+        lanes[i]->n = variables(f, "R", "output", lanes[i]->outs, THREAD_ROOM);
+    }
+    alone.c = start(f, 1);
+    lane(&alone);
+    if (alone.status) {
+        printf("the lone instance failed\n");
+        return 1;
+    }
+    first.c = start(f, 1);
+    second.c = start(f, 1);
+    pthread_t a, b, c;
+    pthread_create(&a, NULL, lane, &first);
+    pthread_create(&b, NULL, lane, &second);
+    pthread_join(a, NULL);
+    pthread_join(b, NULL);
+    pthread_create(&c, NULL, lane, &own);
+    pthread_join(c, NULL);
+    if (same_rows(&alone, &first, "first of two threads") ||
+        same_rows(&alone, &second, "second of two threads") ||
+        same_rows(&alone, &own, "instance of its own thread")) {
+        return 1;
+    }
+    stop(f, first.c);
+    stop(f, second.c);
+    stop(f, alone.c);
+    printf("threads: identical over %zu outputs\n", alone.n);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     setvbuf(stdout, NULL, _IOLBF, 0);
@@ -478,6 +568,7 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "abandon")) return abandon(&f);
     if (!strcmp(mode, "gil")) return gil(&f);
     if (!strcmp(mode, "state")) return state(&f);
+    if (!strcmp(mode, "threads")) return threads(&f);
     fprintf(stderr, "unknown mode %s\n", mode);
     return 2;
 }
