@@ -41,6 +41,8 @@ results.csv holds every row up to the last flush.
 
 from __future__ import annotations
 
+import csv
+import io
 import math
 import os
 from collections.abc import Mapping
@@ -68,8 +70,17 @@ def _doubles(column: np.ndarray) -> pa.Array:
 
 
 def csv_header(columns: tuple[str, ...] | list[str]) -> str:
-    """The first line of results.csv, newline included."""
-    return ",".join(["time", *columns]) + "\n"
+    """The first line of results.csv, newline included: a name holding a comma or a quote
+    (FMI 2.0 allows ``der(y, 2)`` and Modelica writes ``A[1,2]``) quoted as RFC 4180 says,
+    so that every CSV reader finds one column per name."""
+    line = io.StringIO()
+    csv.writer(line, lineterminator="\n").writerow(["time", *columns])
+    return line.getvalue()
+
+
+def header_columns(line: str) -> list[str]:
+    """The column names of results.csv's first line (:func:`csv_header`'s inverse)."""
+    return next(csv.reader([line.rstrip("\r\n")]))
 
 
 def csv_lines(times: np.ndarray, values: np.ndarray) -> bytes:
@@ -96,7 +107,7 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
     lines = text.split("\n")[:-1]  # the part after the last newline is incomplete
     if not lines:
         raise ValueError(f"{path} holds no complete header line")
-    columns = lines[0].strip().split(",")
+    columns = header_columns(lines[0])
     if len(lines) == 1:
         return columns, np.empty((0, len(columns)))
     return columns, np.loadtxt(lines[1:], delimiter=",", ndmin=2)

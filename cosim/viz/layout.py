@@ -6,7 +6,8 @@ moving mass, actuators, energy, environment) and puts each setpoint or command b
 value it steers (yaw with the yaw setpoint, depth with the depth setpoint, the moving-mass
 position with its command). Entity names carry the display unit (``attitude/yaw_deg``);
 angles are shown in degrees, the moving mass in centimetres, everything else in SI.
-A column the catalogue does not know still gets its own entity, ``other/<column>``, in SI.
+A column the catalogue does not know still gets its own entity, ``other/<instance>/<variable>``
+(the variable's name one escaped part, whatever it holds), in SI.
 
 Colours follow one rule everywhere, in the plots and in the 3D scene: the first, second and
 third axis of a frame (north/u/p/roll, east/v/q/pitch, down/w/r/yaw) are red, green and
@@ -223,7 +224,7 @@ def plan_panels(columns: list[str]) -> list[PlannedPanel]:
     for i, name in enumerate(columns):
         if i not in shown:
             series = _series(name, name, ENERGY)
-            entity = "other/" + name.replace(".", "/")
+            entity = "other/" + "/".join(map(rr.escape_entity_path_part, name.split(".", 1)))
             planned.append(PlannedPanel(entity, name, (series,), (i,), (1.0,)))
     return planned
 

@@ -53,12 +53,13 @@ def offline_assets() -> str:
 def _layout(rrd: Path) -> Any:
     """The notebook layout for the run beside ``rrd`` (its results.csv names the columns);
     None (rerun's own views) for a recording without one."""
+    from cosim.outputs.results import header_columns
     from cosim.viz.layout import notebook_blueprint, plan_panels
 
     results = rrd.with_name("results.csv")
     try:
         with results.open(encoding="utf-8") as file:
-            columns = file.readline().strip().split(",")[1:]
+            columns = header_columns(file.readline())[1:]
     except OSError:
         return None
     return notebook_blueprint(plan_panels(columns))

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from cosim.outputs.results import csv_header, csv_lines, read_csv
+from cosim.outputs.results import csv_header, csv_lines, header_columns, read_csv
 
 doubles = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
 
@@ -54,3 +54,13 @@ def test_rows_are_written_without_importing_pandas(run_python) -> None:
     text, pandas = done.stdout.splitlines()
     assert text == repr(b"0,0.1,-2.5e-7\n0.5,nan,inf\n")
     assert pandas == "False"
+
+
+@settings(max_examples=300, deadline=None)
+@given(names=st.lists(st.text(st.characters(exclude_characters="\r\n"), min_size=1), min_size=1))
+def test_every_column_name_reads_back_as_itself(names: list[str]) -> None:
+    """Any name an FMU may give a variable, commas and quotes included, is one column (FMI
+    names are XML normalizedStrings: never a line break)."""
+    line = csv_header(names)
+    assert line.endswith("\n") and line.count("\n") == 1
+    assert header_columns(line) == ["time", *names]
