@@ -1,7 +1,8 @@
 """The formats of a run's files: ``results.csv`` and ``summary.json``.
 
 ``results.csv``: a ``time`` column (s), then one column per recorded variable named
-``<instance>.<variable>``, SI units (angles in rad), then a column ``fault.<name>`` per
+``<instance>.<variable>`` (in double quotes where the name holds a comma or a quote, as
+RFC 4180 says), SI units (angles in rad), then a column ``fault.<name>`` per
 fault of the scenario (1.0 while it acts, else 0.0), one row per communication step
 including t = 0; values printed as the shortest text that reads back to the same double
 (Arrow's CSV writer: ``0.1``, ``1``, ``2.5e-7``, ``inf``/``nan`` for a non-finite

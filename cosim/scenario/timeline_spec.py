@@ -54,11 +54,13 @@ ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
 }
 MASS_POSITION = "mass_position"  # the plant output a mass-jam holds the command at
 _PLAIN = r"^[A-Za-z0-9_-]+$"
-# "<instance>.<variable> <op> <number>": one comparison, nothing evaluated
 MAX_DELAY_STEPS = 100_000_000  # a run's most communication steps (cosim.scenario.spec)
 SERIES_MAX_BYTES = 64 << 20  # a series CSV larger than this is refused, not read
+# "<instance>.<variable> <op> <number>": one comparison, nothing evaluated. The variable is
+# whatever stands before the last "<op> <number>" (an FMU's names may hold spaces, commas
+# and brackets: Modelica's "der(y, 2)"); it must then be one of the instance's variables.
 _WHEN = re.compile(
-    r"^\s*(?P<ref>[A-Za-z_]\w*\.[A-Za-z_][\w.\[\]]*)\s*(?P<op><=|>=|<|>)\s*"
+    r"^\s*(?P<ref>[A-Za-z_]\w*\..+?)\s*(?P<op><=|>=|<|>)\s*"
     r"(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*$"
 )
 _OPERATORS: dict[str, Callable[[float, float], bool]] = {
@@ -222,7 +224,9 @@ def _check_event_keys(spec: EventSpec, key: str, src: Source) -> None:
 
 def _condition(text: str, scenario: Any, key: str, src: Source) -> Condition:
     match = _WHEN.fullmatch(text)
-    if match is None:
+    instance, _, variable = match["ref"].partition(".") if match else ("", "", "")
+    known = scenario.instances.get(instance)
+    if match is None or (known is not None and variable not in known.interface.variables):
         raise src.error(
             key,
             f"{text!r} is not one comparison '<instance>.<variable> <op> <number>' with op "

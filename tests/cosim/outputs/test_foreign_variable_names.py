@@ -1,10 +1,12 @@
 """Variable names of FMUs nobody here wrote -- Modelica's ``der(y, 2)``, ``frame_a.r_0[1]``,
-quoted names -- reach results.csv and the recording as themselves: one column and one
-entity each, whatever commas, quotes, slashes, brackets or spaces they hold."""
+quoted names -- work as themselves in a scenario's connections, start values and events,
+and reach results.csv and the recording as one column and one entity each, whatever
+commas, quotes, slashes, brackets or spaces they hold."""
 
 from __future__ import annotations
 
 import csv
+import json
 import subprocess
 import sys
 import zipfile
@@ -59,6 +61,8 @@ def run_folder(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
         '[connections]\nadd = [{ from = "src.x", to = "ft.body.frame_a.r_0[1]" }]\n'
         '[output]\nrecord = ["src.x", "ft.der(y, 2)", '
         f"{rr_key('ft.' + RENAMED['Float64_tunable_parameter'])}]\n"
+        '[[events]]\nname = "raise"\nwhen = "ft.der(y, 2) < 0.7"\n'
+        f"set = {{ {rr_key('ft.' + RENAMED['Float64_tunable_parameter'])} = 3.0 }}\n"
     )
     command = [sys.executable, "-m", "cosim.cli", "run", str(scenario), "--out", "run", "--quiet"]
     done = subprocess.run(command, cwd=folder, capture_output=True, text=True, timeout=300)
@@ -83,7 +87,9 @@ def test_results_csv_has_one_column_per_variable_for_any_csv_reader(run_folder) 
     names, values = read_csv(out / "results.csv")
     assert names == COLUMNS
     np.testing.assert_array_equal(values[:, 1], values[:, 2])  # fed through
-    np.testing.assert_array_equal(values[:, 3], 2.5)
+    fired = json.loads((out / "summary.json").read_text())["events"]
+    assert [(e["name"], e["time"]) for e in fired] == [("raise", pytest.approx(0.4))]
+    np.testing.assert_array_equal(values[:, 3], np.where(values[:, 0] < 0.35, 2.5, 3.0))
 
 
 def test_the_recording_has_one_entity_per_variable_and_no_warning(run_folder) -> None:
