@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 from cosim.errors import CosimError
@@ -40,6 +41,7 @@ def export_scenario(
             f"note: libcosim and ecos couple Jacobi-style with held inputs; {resolved.id} "
             f"runs {coupling.algorithm} with {coupling.extrapolation} extrapolation in "
             f"auv-cosim, so compare with "
-            f"`auv-cosim run {resolved.id} --algorithm jacobi --extrapolation none`"
+            f"`auv-cosim run {shlex.quote(str(scenario))} --algorithm jacobi "
+            "--extrapolation none`"
         )
     return 0

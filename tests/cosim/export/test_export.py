@@ -6,6 +6,8 @@ master runs, are valid against the schemas, and a failed export leaves nothing b
 
 from __future__ import annotations
 
+import re
+import shlex
 import shutil
 import zipfile
 from pathlib import Path
@@ -423,9 +425,15 @@ def test_cli_export_writes_and_reports_the_archive(
     assert cli.main(["export", str(plant_alone.source), "--ssp", str(tmp_path / "p.ssp")]) == 0
     out = capsys.readouterr().out
     assert f"SSP archive: {tmp_path / 'p.ssp'}" in out
-    # the scenario couples Gauss-Seidel (the default), which neither format can express
-    assert "compare with `auv-cosim run plant-alone --algorithm jacobi --extrapolation none`" in out
     assert zipfile.ZipFile(tmp_path / "p.ssp").testzip() is None
+    # the scenario couples Gauss-Seidel (the default), which neither format can express:
+    # the note gives the command that runs it as they do, and that command works here
+    (command,) = re.findall(r"compare with `(auv-cosim run [^`]+)`", out)
+    assert shlex.split(command)[2:] == [
+        str(plant_alone.source), "--algorithm", "jacobi", "--extrapolation", "none"
+    ]  # fmt: skip
+    options = ["--out", str(tmp_path / "run"), "--stop-time", "0.1", "--no-rrd", "--quiet"]
+    assert cli.main([*shlex.split(command)[1:], *options]) == 0
 
 
 def test_ssp_packs_a_custom_vehicle_file(
