@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import math
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -38,23 +39,20 @@ def validate_folder(fmu_dir: Path) -> list[str]:
     from cosim.fmus.build import FMUS, HASH_SUFFIX, file_hash, recorded_hashes
 
     fmu_dir = Path(fmu_dir)
+    build = f"auv-cosim build --out {shlex.quote(str(fmu_dir))}"  # a command to paste
     if not fmu_dir.is_dir():
-        raise CosimError(
-            f"--fmu-dir {fmu_dir}: no such folder; `auv-cosim build --out {fmu_dir}` builds "
-            "the FMUs there"
-        )
+        raise CosimError(f"--fmu-dir {fmu_dir}: no such folder; `{build}` builds the FMUs there")
     paths = {name: fmu_dir / f"{name}.fmu" for name in FMUS}
     problems = []
     for name, path in paths.items():
         if not path.is_file():
-            problems.append(f"{name}: {path} does not exist (`auv-cosim build --out {fmu_dir}`)")
+            problems.append(f"{name}: {path} does not exist (`{build}`)")
             continue
         recorded = recorded_hashes(path.with_name(path.name + HASH_SUFFIX)).get("fmu")
         if recorded is not None and recorded != file_hash(path):
             problems.append(
                 f"{name}: {path} is not the file the build wrote (its SHA-256 differs from "
-                f"{path.name}{HASH_SUFFIX}): damaged or replaced; `auv-cosim build --out "
-                f"{fmu_dir} --force` rebuilds it"
+                f"{path.name}{HASH_SUFFIX}): damaged or replaced; `{build} --force` rebuilds it"
             )
     return problems or validate_fmus(paths)
 

@@ -38,6 +38,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shlex
 import socket
 import subprocess
 import sys
@@ -185,7 +186,7 @@ class RunFolder:
         when = time.strftime("%Y-%m-%d %H:%M:%S %Z")
         return (
             f"this report was made from an earlier run in {self.path}, replaced by another "
-            f"run at {when}; run `auv-cosim report {self.path}` to make it again"
+            f"run at {when}; run `auv-cosim report {shlex.quote(str(self.path))}` to make it again"
         )
 
     def restore(self) -> None:

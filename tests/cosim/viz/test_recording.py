@@ -10,6 +10,7 @@ import contextlib
 import math
 import os
 import re
+import shlex
 import shutil
 import signal
 import socket
@@ -490,15 +491,19 @@ def test_connect_streams_to_a_running_server_as_well_as_the_file(tmp_path: Path,
 def test_view_without_display_fails_saying_how_to_open(
     recorded, tmp_path: Path, monkeypatch, capsys
 ):
-    shutil.copyfile(recorded[0], tmp_path / RECORDING_FILE)
+    """The commands it suggests work when pasted, in a folder whose name has spaces too."""
+    run_dir = tmp_path / "my runs" / "bs 3"
+    run_dir.mkdir(parents=True)
+    shutil.copyfile(recorded[0], run_dir / RECORDING_FILE)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    assert main(["view", str(tmp_path)]) == 1  # a script sees that nothing was shown
+    assert main(["view", str(run_dir)]) == 1  # a script sees that nothing was shown
     err = capsys.readouterr().err
-    rrd = str(tmp_path / RECORDING_FILE)
     assert err.count("\n") == 1
     # the web viewer's command, and the native viewer's on a machine with a display
-    assert f"auv-cosim view {tmp_path} --web" in err and f"rerun {rrd}" in err
+    web, native = re.findall(r"`((?:auv-cosim|rerun) [^`]+)`", err)
+    assert shlex.split(web) == ["auv-cosim", "view", str(run_dir), "--web"]
+    assert shlex.split(native) == ["rerun", str(run_dir / RECORDING_FILE)]
 
 
 def test_view_with_display_runs_the_viewer_on_the_file(recorded, tmp_path: Path, monkeypatch):
