@@ -394,10 +394,10 @@ def view_run(
         if not has_display
         else "the `rerun` viewer is not on PATH (it comes with `pip install rerun-sdk`)"
     )
-    web, rerun = shlex.quote(str(run_dir)), shlex.quote(str(rrd))  # commands to paste
+    folder, file = shlex.quote(str(run_dir)), shlex.quote(str(rrd))  # for commands to paste
     raise CosimError(
-        f"cannot open a viewer here: {reason}; use `auv-cosim view {web} --web` to serve "
-        f"the recording to a browser (or `rerun {rerun}` on a machine with a display)"
+        f"cannot open a viewer here: {reason}; use `auv-cosim view {folder} --web` to serve "
+        f"the recording to a browser (or `rerun {file}` on a machine with a display)"
     )
 
 
