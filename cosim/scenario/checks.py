@@ -9,13 +9,14 @@ way: one line naming the file, the key, the bad value and what was expected.
 from __future__ import annotations
 
 import math
+import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
 
-from cosim.errors import CosimError
+from cosim.errors import CosimError, did_you_mean
 
 FMI_INTEGER_RANGE = (-(2**31), 2**31 - 1)  # fmi2Integer is a C int (32 bits)
 
@@ -29,6 +30,25 @@ class Strict(BaseModel):
 
     # strict: "2.0" is not a number and 2.0 not an integer (an int is a valid float)
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+def field_names(model: type[BaseModel]) -> set[str]:
+    """Every key a file validated by ``model`` may hold, at any depth: the names of its
+    fields and of the fields of the models they hold (in lists, dicts and unions too), for
+    a suggestion to a mistyped one."""
+    names: set[str] = set()
+    pending: list[Any] = [model]
+    seen: set[type[BaseModel]] = set()
+    while pending:
+        kind = pending.pop()
+        if isinstance(kind, type) and issubclass(kind, BaseModel):
+            if kind not in seen:
+                seen.add(kind)
+                names.update(kind.model_fields)
+                pending.extend(field.annotation for field in kind.model_fields.values())
+        else:
+            pending.extend(typing.get_args(kind))
+    return names
 
 
 @dataclass(frozen=True)
@@ -93,7 +113,11 @@ def split_ref(ref: str, instances: Mapping[str, Any], key: str, src: Source) -> 
     var = instances[instance].interface.variables.get(variable)
     if var is None:
         fmu = instances[instance].fmu_path.name
-        raise src.error(key, f"{instance} ({fmu}) has no variable {variable!r}")
+        raise src.error(
+            key,
+            f"{instance} ({fmu}) has no variable {variable!r}"
+            + did_you_mean(variable, instances[instance].interface.variables),
+        )
     return instance, var
 
 

@@ -29,6 +29,7 @@ from pydantic import (
     ValidationError,
 )
 
+from cosim.errors import did_you_mean
 from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
 from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
 from cosim.paths import DEFAULT_FMU_DIR
@@ -37,6 +38,7 @@ from cosim.scenario.checks import (
     Source,
     Strict,
     check_value,
+    field_names,
     split_ref,
     with_article,
 )
@@ -130,6 +132,9 @@ class ScenarioSpec(Strict):
     output: OutputSpec = Field(default_factory=OutputSpec)
     events: list[EventSpec] = Field(default_factory=list)
     faults: list[FaultSpec] = Field(default_factory=list)
+
+
+KEYS = field_names(ScenarioSpec)  # every key a scenario file may hold: mistyped ones' matches
 
 
 # --- the resolved scenario ---------------------------------------------------------------
@@ -393,8 +398,9 @@ def scenario_path(id_or_path: str | Path) -> Path:
     if path.is_file():
         return path
     raise ScenarioError(
-        f"unknown scenario {str(id_or_path)!r}: expected a built-in id "
-        f"({', '.join(builtin_scenarios())}) or the path of a scenario .toml file"
+        f"unknown scenario {str(id_or_path)!r}{did_you_mean(str(id_or_path), builtin_scenarios())}:"
+        f" expected a built-in id ({', '.join(builtin_scenarios())}) or the path of a scenario "
+        ".toml file"
     )
 
 
@@ -469,7 +475,7 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
         for err in exc.errors():
             key = ".".join(str(part) for part in err["loc"] if not _is_union_tag(part))
             if err["type"] == "extra_forbidden":
-                problem = f"unknown key {key!r}"
+                problem = f"unknown key {key!r}{did_you_mean(key.rpartition('.')[2], KEYS)}"
             elif err["type"] == "missing":
                 problem = f"key {key!r} is missing"
             elif any(_is_union_tag(part) for part in err["loc"]):  # a start value
@@ -618,8 +624,8 @@ def _resolve_instance(
         if not fmu_path.is_file():
             raise src.error(
                 f"instances.{name}.fmu",
-                f"{spec.fmu!r} is neither a built-in FMU {list(BUILTIN_FMUS)} nor an existing "
-                f"file (looked for {fmu_path})",
+                f"{spec.fmu!r}{did_you_mean(spec.fmu, BUILTIN_FMUS)} is neither a built-in FMU "
+                f"{list(BUILTIN_FMUS)} nor an existing file (looked for {fmu_path})",
             )
         fmu_ref = str(fmu_path)
     interface = _interface(fmu_path)
@@ -635,7 +641,11 @@ def _resolve_instance(
         key = f"instances.{name}.start.{var_name}"
         var = variables.get(var_name)
         if var is None:
-            raise src.error(key, f"{name} ({fmu_path.name}) has no variable {var_name!r}")
+            raise src.error(
+                key,
+                f"{name} ({fmu_path.name}) has no variable {var_name!r}"
+                + did_you_mean(var_name, variables),
+            )
         if var.causality not in ("parameter", "input") or var.variability == "constant":
             raise src.error(
                 key,

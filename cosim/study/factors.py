@@ -22,6 +22,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, get_args
 
+from cosim.errors import did_you_mean
 from cosim.scenario.timeline_spec import FaultSpec
 from cosim.study.spec import StudyError
 
@@ -237,13 +238,13 @@ def resolve_factor(name: str, facts: ScenarioFacts) -> FactorKind:
     instance, _, variable = name.partition(".")
     if instance not in facts.instances:
         raise StudyError(
-            f"factor {name!r}: the scenario has no instance {instance!r} "
-            f"(instances: {', '.join(facts.instances)})"
+            f"factor {name!r}: the scenario has no instance {instance!r}"
+            f"{did_you_mean(instance, facts.instances)} (instances: {', '.join(facts.instances)})"
         )
     known = [v.name for v in facts.instances[instance].values() if v.takes_start_value]
     raise StudyError(
-        f"factor {name!r}: {instance} has no parameter or input {variable!r}; "
-        f"its start values are: {', '.join(known)}"
+        f"factor {name!r}: {instance} has no parameter or input {variable!r}"
+        f"{did_you_mean(variable, known)}; its start values are: {', '.join(known)}"
     )
 
 

@@ -56,7 +56,8 @@ from pydantic import (
     model_validator,
 )
 
-from cosim.errors import CosimError
+from cosim.errors import CosimError, did_you_mean
+from cosim.scenario.checks import field_names
 
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
 MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
@@ -204,6 +205,9 @@ class StudySpec(_Strict):
         return [*self.grid, *self.random.factors]
 
 
+KEYS = field_names(StudySpec)  # every key a study file may hold: mistyped ones' matches
+
+
 def run_count(spec: StudySpec) -> int:
     """The study's number of runs, counted without building them: grid points x samples."""
     return math.prod(len(values) for values in spec.grid.values()) * max(spec.random.n, 1)
@@ -250,7 +254,7 @@ def study_from_dict(data: dict[str, Any], where: str) -> StudySpec:
             message = err["msg"].removeprefix("Value error, ")
             tags = {part for part in err["loc"] if part in _UNION_TAGS}
             if err["type"] == "extra_forbidden":
-                problem = f"unknown key {key!r}"
+                problem = f"unknown key {key!r}{did_you_mean(key.rpartition('.')[2], KEYS)}"
             elif err["type"] == "missing":
                 problem = f"key {key!r} is missing"
             elif not key:

@@ -46,7 +46,9 @@ def test_unknown_factor_names_it_and_the_known_variables(
     with pytest.raises(StudyError) as info:
         resolve_factor("plant.v0", facts)
     message = str(info.value)
-    assert message.startswith("factor 'plant.v0': plant has no parameter or input 'v0'")
+    assert message.startswith(
+        "factor 'plant.v0': plant has no parameter or input 'v0' (did you mean 'v_0'?)"
+    )
     assert "v_0" in message and "max_substep" in message and "yaw," not in message
     with pytest.raises(StudyError, match=r"no instance 'autopilot' \(instances: plant, contr"):
         resolve_factor("autopilot.k0", facts)

@@ -1,0 +1,72 @@
+"""A mistyped name in a scenario or study file is refused with the name it was probably
+meant to be; a name close to nothing, or as close to two names, gets no guess."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cosim.scenario.checks import ScenarioError
+from cosim.scenario.spec import load_scenario, scenario_from_toml
+from cosim.study.spec import StudyError, study_from_dict
+
+BS3_LIKE = """
+stop_time = 1.0
+[coupling]
+step = 0.01
+[instances.plant]
+fmu = "AuvPlant"
+[instances.controller]
+fmu = "AuvAutopilot"
+"""
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    return fmu_paths["AuvAutopilot"].parent
+
+
+@pytest.mark.parametrize(
+    ("change", "guess"),
+    [
+        (("stop_time = 1.0", "stop_tme = 1.0"),
+         "unknown key 'stop_tme' (did you mean 'stop_time'?)"),
+        (("step = 0.01", "step = 0.01\nalgoritm = 'jacobi'"),
+         "unknown key 'coupling.algoritm' (did you mean 'algorithm'?)"),
+        (('fmu = "AuvPlant"', 'fmu = "AUVPlant"'),
+         "'AUVPlant' (did you mean 'AuvPlant'?) is neither"),
+        (('fmu = "AuvPlant"', 'fmu = "AuvPlant"\nstart = { u0 = 1.5 }'),
+         "has no variable 'u0' (did you mean 'u_0'?)"),
+        (("step = 0.01", "step = 0.01\n[output]\nrecord = ['plant.yawn']"),
+         "has no variable 'yawn' (did you mean 'yaw'?)"),
+    ],
+)  # fmt: skip
+def test_a_mistyped_scenario_name_is_refused_with_its_likely_meaning(
+    change: tuple[str, str], guess: str, fmu_dir: Path
+) -> None:
+    text = BS3_LIKE.replace(*change, 1)
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    assert guess in str(refused.value)
+
+
+def test_a_mistyped_scenario_id_is_refused_with_its_likely_meaning() -> None:
+    with pytest.raises(ScenarioError, match=r"unknown scenario 'bs3' \(did you mean 'bs-3'\?\)"):
+        load_scenario("bs3")
+
+
+def test_a_name_close_to_nothing_or_to_two_gets_no_guess(fmu_dir: Path) -> None:
+    text = BS3_LIKE.replace("stop_time = 1.0", "stop_time = 1.0\nwobble = 3", 1)
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    assert "unknown key 'wobble'" in str(refused.value)
+    assert "did you mean" not in str(refused.value)
+    with pytest.raises(ScenarioError) as refused:
+        load_scenario("bs-9")  # bs-1, bs-2 or bs-3?
+    assert "did you mean" not in str(refused.value)
+
+
+def test_a_mistyped_study_key_is_refused_with_its_likely_meaning() -> None:
+    with pytest.raises(StudyError, match=r"unknown key 'metricz' \(did you mean 'metrics'\?\)"):
+        study_from_dict({"scenario": "bs-3", "grid": {"plant.v_0": [0.1]}, "metricz": {}}, "s")
