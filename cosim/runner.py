@@ -488,7 +488,12 @@ def report(outcome: RunOutcome) -> str:
     lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
     figures = outcome.figures
     if any(v is not None for v in figures.values()):  # (a run without our plant has none)
-        lines.append("  " + ", ".join(f"{k} = {_fmt(v)}" for k, v in figures.items()))
+        from cosim.metrics.key_figures import why_none
+
+        lines.append("  " + ", ".join(
+            f"{k} = {_fmt(v) if v is not None else why_none(k, scenario.columns)}"
+            for k, v in figures.items()
+        ))  # fmt: skip
     if outcome.manoeuvre:
         metrics = {k: v for k, v in outcome.manoeuvre.items() if k != "manoeuvre"}
         lines.append(f"  {outcome.manoeuvre['manoeuvre']}: " + ", ".join(

@@ -79,6 +79,23 @@ class SettlingTime:
         return None if self.pending else self.since
 
 
+_COLUMNS = {  # key figure -> the columns it is computed from (any one of them)
+    "yaw_settling_time_s": ("plant.yaw",),
+    "peak_abs_mass_position_m": ("plant.mass_position",),
+    "peak_abs_tunnel_force_N": _FORCES,
+}
+
+
+def why_none(name: str, columns: tuple[str, ...] | list[str]) -> str:
+    """Why the key figure ``name`` of a run recording ``columns`` is None, in a few words:
+    its columns were not recorded, or the yaw never settled into its band."""
+    if not any(column in columns for column in _COLUMNS.get(name, ())):
+        return "not recorded"
+    if name == "yaw_settling_time_s":
+        return f"not settled (within {math.degrees(YAW_TOLERANCE_RAD):g} deg at the end)"
+    return "not finite"
+
+
 class KeyFigures:
     """A row sink that keeps the key figures of the rows it is given (see the module)."""
 

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cosim.metrics.key_figures import KeyFigures, SettlingTime, settling_time
+from cosim.metrics.key_figures import KeyFigures, SettlingTime, settling_time, why_none
 
 TOLERANCE = 0.1
 
@@ -87,3 +87,16 @@ def test_figures_of_columns_not_recorded_are_none():
         "peak_abs_mass_position_m": None,
         "peak_abs_tunnel_force_N": None,
     }
+
+
+def test_a_figure_that_is_none_says_why() -> None:
+    """What a run's report prints in place of a figure it has none of."""
+    columns = ["plant.yaw", "plant.mass_position"]
+    figures = KeyFigures(columns)
+    figures.add_rows(np.array([0.0, 1.0]), np.array([[0.0, 0.01], [0.5, 0.02]]))
+    absent = {k: why_none(k, columns) for k, v in figures.figures().items() if v is None}
+    assert absent == {
+        "yaw_settling_time_s": "not settled (within 1 deg at the end)",
+        "peak_abs_tunnel_force_N": "not recorded",
+    }
+    assert why_none("yaw_settling_time_s", ["plant.roll"]) == "not recorded"
