@@ -108,7 +108,9 @@ def split_ref(ref: str, instances: Mapping[str, Any], key: str, src: Source) -> 
     instance, _, variable = ref.partition(".")
     if instance not in instances or not variable:
         raise src.error(
-            key, f"{ref!r} is not <instance>.<variable> with an instance in {list(instances)}"
+            key,
+            f"{ref!r} is not <instance>.<variable> with an instance in {list(instances)}"
+            + did_you_mean(instance, instances),
         )
     var = instances[instance].interface.variables.get(variable)
     if var is None:

@@ -318,6 +318,7 @@ class Scenario:
                 raise ScenarioError(
                     f"scenario file {where}: start value {ref!r}: expected '<instance>.<variable>' "
                     f"with an instance of {list(data['instances'])}"
+                    + did_you_mean(instance, data["instances"])
                 )
             start = data["instances"][instance].setdefault("start", {})
             start[variable] = value.item() if hasattr(value, "item") else value  # numpy scalar

@@ -40,6 +40,8 @@ def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
          "has no variable 'u0' (did you mean 'u_0'?)"),
         (("step = 0.01", "step = 0.01\n[output]\nrecord = ['plant.yawn']"),
          "has no variable 'yawn' (did you mean 'yaw'?)"),
+        (("step = 0.01", "step = 0.01\n[output]\nrecord = ['plnt.yaw']"),
+         "with an instance in ['plant', 'controller'] (did you mean 'plant'?)"),
     ],
 )  # fmt: skip
 def test_a_mistyped_scenario_name_is_refused_with_its_likely_meaning(
@@ -49,6 +51,14 @@ def test_a_mistyped_scenario_name_is_refused_with_its_likely_meaning(
     with pytest.raises(ScenarioError) as refused:
         scenario_from_toml(text, fmu_dir=fmu_dir)
     assert guess in str(refused.value)
+
+
+def test_a_mistyped_instance_in_a_start_value_is_refused_with_its_likely_meaning(
+    fmu_dir: Path,
+) -> None:
+    scenario = scenario_from_toml(BS3_LIKE, fmu_dir=fmu_dir)
+    with pytest.raises(ScenarioError, match=r"\(did you mean 'plant'\?\)$"):
+        scenario.with_start({"plnt.v_0": 0.1})
 
 
 def test_a_mistyped_scenario_id_is_refused_with_its_likely_meaning() -> None:
