@@ -11,6 +11,7 @@ names are built on first use, or rebuilt when out of date (``cosim.fmus.build.bu
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import tomllib
 from collections.abc import Mapping
@@ -591,10 +592,12 @@ def _check_step_count(spec: ScenarioSpec, src: Source) -> None:
             "(coupling.step): a run takes at least one step",
         )
     if abs(stop_steps - round(stop_steps)) > _STEP_TOLERANCE * max(1.0, stop_steps):
+        below = math.floor(stop_steps)
         raise src.error(
             "stop_time",
             f"{spec.stop_time} s is not a whole number of communication steps "
-            f"(coupling.step = {step} s)",
+            f"(coupling.step = {step} s): the nearest are {below * step:.12g} s and "
+            f"{(below + 1) * step:.12g} s",
         )
 
 

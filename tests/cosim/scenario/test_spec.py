@@ -135,9 +135,12 @@ def test_overrides_are_validated(fmu_dir: Path) -> None:
         100,
     )
     with pytest.raises(
-        ScenarioError, match=r"stop_time.*not a whole number of communication steps"
+        ScenarioError,
+        match=r"stop_time.*not a whole number of communication steps.*: the nearest are 1 s "
+        r"and 1\.02 s$",
     ):
         s.with_overrides(stop_time=1.005)
+    assert [s.with_overrides(stop_time=t).n_steps for t in (1.0, 1.02)] == [50, 51]
     with pytest.raises(ScenarioError, match=r"coupling\.step.*greater than 0"):
         s.with_overrides(step=-0.01)
 
