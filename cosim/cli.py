@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 from cosim.errors import CosimError
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 from cosim.viz.ports import FILE_PORT, WEB_PORT
+from fmu_runtime.log_text import shortened
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -484,13 +485,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except CosimError as exc:
-        print(f"auv-cosim {args.command}: {exc}", file=sys.stderr)
+        print(f"auv-cosim {args.command}: {shortened(str(exc))}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"auv-cosim {args.command}: interrupted", file=sys.stderr)
         return 130
     except (ValueError, OSError, RuntimeError) as exc:
-        print(f"auv-cosim {args.command}: {type(exc).__name__}: {exc}", file=sys.stderr)
+        reason = shortened(f"{type(exc).__name__}: {exc}")
+        print(f"auv-cosim {args.command}: {reason}", file=sys.stderr)
         return 1
     finally:
         if argv is None:  # the process ends with the command

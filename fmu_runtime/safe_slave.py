@@ -83,6 +83,7 @@ from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real, ScalarVariable, String
 
 from fmu_runtime import entry, exit_guard
+from fmu_runtime.log_text import shortened
 from fmu_runtime.value_buffers import (
     BOOLEAN,
     CHANGES,
@@ -861,8 +862,9 @@ class SafeSlave(Fmi2Slave):
     ) -> None:
         """pythonfmu's log with ``%`` escaped: FMI 2.0 hosts treat the message as a printf
         format string (fmpy's logger proxy does), so a path like ``50%.toml`` would not
-        print as written."""
-        super().log(msg.replace("%", "%%"), status, category)
+        print as written; and shortened (:func:`fmu_runtime.log_text.shortened`): a value
+        the host wrote may be megabytes long."""
+        super().log(shortened(msg).replace("%", "%%"), status, category)
 
     def _error(self, message: str) -> None:
         self.log(message, Fmi2Status.error)

@@ -37,6 +37,7 @@ from cosim.engine.extrapolation import InputRates
 from cosim.errors import CosimError
 from cosim.scenario.spec import Instance
 from fmu_runtime import exit_guard
+from fmu_runtime.log_text import shortened
 
 STATUS_LABELS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 LOG_LINES_KEPT = 20  # logged messages (warning or worse) kept per instance
@@ -226,11 +227,13 @@ _log_sinks: dict[int, collections.deque[str]] = {}  # componentEnvironment -> me
 
 
 def _log(env: int | None, _name: bytes, status: int, _category: bytes, message: bytes) -> None:
-    """The FMUs' logger: keeps warnings and worse per instance. A C callback: never raises."""
+    """The FMUs' logger: keeps warnings and worse per instance, each shortened
+    (:func:`fmu_runtime.log_text.shortened`: an FMU may log megabytes in one message). A C
+    callback: never raises."""
     sink = _log_sinks.get(env or 0)
     if sink is not None and status >= 1:
         label = STATUS_LABELS[status] if status < len(STATUS_LABELS) else str(status)
-        sink.append(f"[{label}] {(message or b'').decode('utf-8', 'replace')}")
+        sink.append(f"[{label}] {shortened((message or b'').decode('utf-8', 'replace'))}")
 
 
 _LOGGER = fmi2CallbackLoggerTYPE(_log)

@@ -266,6 +266,14 @@ def test_log_escapes_percent_for_printf_hosts(slave):
     assert slave.log_queue[-1].msg == "50%% done"
 
 
+def test_a_megabyte_message_reaches_the_host_shortened(slave):
+    """A message naming a value the host wrote (megabytes of it) is cut to a length any
+    host's logger can take, saying how much was left out."""
+    slave.log("unknown vehicle '" + "x" * 1_000_000 + "'")
+    logged = slave.log_queue[-1].msg
+    assert len(logged) < 2300 and "characters left out" in logged and logged.endswith("x'")
+
+
 def test_registration_requires_unit_description_and_variability():
     counter = Counter(instance_name="toy")
     with pytest.raises(ValueError, match="a unit is required"):
