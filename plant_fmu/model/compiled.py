@@ -38,6 +38,8 @@ from .dynamics import PlantModel
 from .jit import load_numba
 from .state_layout import (
     CURRENT,
+    MAX_SPEED,
+    MAX_TURN_RATE,
     N_INPUTS,
     N_STATES,
     N_STEP_STATES,
@@ -611,7 +613,8 @@ def advance_into(
     derivatives at the step's start), each RK4 stage taking the inputs at its own time.
     Its working arrays are slices of ``scratch`` (:data:`STEP_SCRATCH` values), so it
     allocates nothing. Returns 0, or 1 for a non-finite input or rate, 2 for a non-finite
-    state or a zero quaternion, 3 for a state that became non-finite."""
+    state or a zero quaternion, 3 for a state that became non-finite or left the model's
+    range."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
             return 1
@@ -642,6 +645,9 @@ def advance_into(
             _substep(p, z, inputs, inputs, inputs, dt, (R, work, y), stages)
     for i in range(18):
         if not math.isfinite(z[i]):
+            return 3
+    for i in range(3):  # the model's range (state_layout.MAX_SPEED, MAX_TURN_RATE)
+        if abs(z[6 + i]) > MAX_SPEED or abs(z[9 + i]) > MAX_TURN_RATE:
             return 3
     return 0
 

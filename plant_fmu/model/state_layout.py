@@ -58,6 +58,11 @@ LINEAR_VELOCITY = slice(6, 9)  # [u, v, w]
 ANGULAR_VELOCITY = slice(9, 12)  # [p, q, r]
 MASS_POSITION = 12  # y_v
 MASS_VELOCITY = 13  # y_v'
+# A velocity over ground beyond these is no REMUS 100's (top speed ~2.5 m/s): the state has
+# left the model's range, in practice an RK4 sub-step too long for a stiff vehicle file
+# (a servo of 200 rad/s at 10 ms), which a step refuses before its values turn inf or nan.
+MAX_SPEED = 100.0  # m/s, |u|, |v|, |w|
+MAX_TURN_RATE = 100.0  # rad/s, |p|, |q|, |r|
 STATE = slice(0, N_STATES)  # the state within the stepping state
 QUATERNION = slice(N_STATES, N_STEP_STATES)  # [q_w, q_x, q_y, q_z] in the stepping state
 PITCH = 4  # theta, within EULER

@@ -42,14 +42,19 @@ from plant_fmu.model.dynamics import PlantModel
 from plant_fmu.model.kinematics import euler_from_quaternion, quaternion_from_euler
 from plant_fmu.model.root_finding import brent_root
 from plant_fmu.model.state_layout import (
+    ANGULAR_VELOCITY,
     EULER,
     INPUT_NAMES,
+    LINEAR_VELOCITY,
     MASS_POSITION,
+    MAX_SPEED,
+    MAX_TURN_RATE,
     N_INPUTS,
     N_STATES,
     N_STEP_STATES,
     QUATERNION,
     STATE,
+    STATE_UNITS,
     STEP_STATE_NAMES,
 )
 
@@ -163,18 +168,44 @@ def advance(
         check_finite(np.ravel(rates), INPUT_NAMES * 2, "input derivative of")
     z = stepping_state(x)
     # An input far outside the model's range (a fault's gain of 1e308) overflows on the way:
-    # the check below says so in one line, numpy's warnings would reach the host's stderr.
-    with np.errstate(all="ignore"):
-        model.project(z)
-        for j in range(n):
-            if rates is None:
-                z = _substep(model, z, inputs, dt)
-            else:
-                later = (_inputs_at(inputs, rates, (j + 0.5) * dt),
-                         _inputs_at(inputs, rates, (j + 1) * dt))  # fmt: skip
-                z = _substep(model, z, _inputs_at(inputs, rates, j * dt), dt, later)
-    check_finite(z, STEP_STATE_NAMES, "state after the step:")
+    # the checks below say so in one line, numpy's warnings would reach the host's stderr.
+    try:
+        with np.errstate(all="ignore"):
+            model.project(z)
+            for j in range(n):
+                if rates is None:
+                    z = _substep(model, z, inputs, dt)
+                else:
+                    later = (_inputs_at(inputs, rates, (j + 0.5) * dt),
+                             _inputs_at(inputs, rates, (j + 1) * dt))  # fmt: skip
+                    z = _substep(model, z, _inputs_at(inputs, rates, j * dt), dt, later)
+    except OverflowError:
+        raise ValueError(_left_the_range("a value overflowed", h, n)) from None
+    _check_range(z, h, n)
     return z if len(x) == N_STEP_STATES else z[STATE]
+
+
+def _check_range(z: np.ndarray, h: float, n: int) -> None:
+    """Raise ValueError if the stepping state ``z`` after a step of ``h`` s in ``n``
+    sub-steps is not finite or its velocities are beyond :data:`MAX_SPEED` and
+    :data:`MAX_TURN_RATE` (the compiled step's test too)."""
+    bounds = np.full(N_STEP_STATES, np.inf)
+    bounds[LINEAR_VELOCITY], bounds[ANGULAR_VELOCITY] = MAX_SPEED, MAX_TURN_RATE
+    outside = ~(np.abs(z) <= bounds)  # a nan is outside too
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        unit = STATE_UNITS[i] if i < N_STATES else ""  # a quaternion's component: none
+        value = f"{STEP_STATE_NAMES[i]} = {float(z[i]):.6g} {unit}".rstrip()
+        limit = "" if math.isinf(bounds[i]) else f" (|{STEP_STATE_NAMES[i]}| <= {bounds[i]:g})"
+        raise ValueError(_left_the_range(value + limit, h, n))
+
+
+def _left_the_range(what: str, h: float, n: int) -> str:
+    return (
+        f"the vehicle left the model's range in a step of {h!r} s ({n} RK4 sub-step(s) of "
+        f"{h / n:.6g} s): {what}. A vehicle file that makes it stiffer (a faster moving-mass "
+        "servo, larger coefficients) needs a smaller max_substep for RK4 to stay stable"
+    )
 
 
 @functools.lru_cache(maxsize=256)  # once per step length: a plant's doStep asks every time

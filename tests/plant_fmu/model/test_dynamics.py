@@ -277,3 +277,26 @@ def test_the_sub_step_limit_admits_its_own_number():
     assert substeps(MAX_SUBSTEPS * 0.01, 0.01) == MAX_SUBSTEPS
     with pytest.raises(ValueError, match=f"expected at most {MAX_SUBSTEPS}"):
         substeps((MAX_SUBSTEPS + 1) * 0.01, 0.01)
+
+
+@pytest.mark.parametrize("path", ["reference", "compiled"])
+def test_a_sub_step_too_long_for_a_stiff_vehicle_is_refused_saying_so(path):
+    """A moving-mass servo of 1000 rad/s makes RK4 at 10 ms sub-steps unstable: the step is
+    refused naming the state that left the model's range and max_substep (before, an
+    OverflowError, or outputs of nan a step later), and 1 ms sub-steps take it."""
+    from plant_fmu.model import compiled
+
+    if path == "compiled" and not compiled.AVAILABLE:
+        pytest.skip(compiled.NO_JIT_REASON)
+    model = PlantModel(load_vehicle("remus100").replace(mass_natural_frequency=1000.0),
+                       Variant.LATERAL)  # fmt: skip
+    fast = compiled.CompiledPlant(model) if path == "compiled" else None
+    x = state_vector(dict(u=1.5))
+    u = input_vector(dict(mass_position_cmd=0.02), thrust=9.0)
+    with pytest.raises(ValueError, match=r"left the model's range .*needs a smaller max_substep"):
+        for _ in range(50):
+            x = advance(model, x, u, 0.01, 0.01, fast)
+    x = state_vector(dict(u=1.5))
+    for _ in range(50):
+        x = advance(model, x, u, 0.01, 0.001, fast)
+    assert abs(x[STATE_INDEX["r"]]) < 1.0 and abs(x[STATE_INDEX["mass_position"]]) <= 0.06
