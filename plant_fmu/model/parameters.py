@@ -110,8 +110,15 @@ class VehicleParameters(CheckedRecord):
     z_t: float = checked_field(default=0.0, description="tunnel-thruster z in body axes, m")
 
     def _check_record(self) -> None:
-        total = rigid_body_mass_matrix(self) + added_mass_matrix(self)
-        eigenvalues = np.linalg.eigvalsh(0.5 * (total + total.T))
+        with np.errstate(all="ignore"):  # numpy's warnings would reach an FMU host's stderr
+            total = rigid_body_mass_matrix(self) + added_mass_matrix(self)
+            symmetric = 0.5 * (total + total.T)
+        if not np.all(np.isfinite(symmetric)):
+            raise ValueError(
+                "M_RB + M_A overflows: its entries are beyond any double (check m, the "
+                "inertias and the added masses for values like 1e308)"
+            )
+        eigenvalues = np.linalg.eigvalsh(symmetric)
         if eigenvalues.min() <= 0.0:
             raise ValueError(
                 f"M_RB + M_A must be positive definite, but its smallest eigenvalue is "

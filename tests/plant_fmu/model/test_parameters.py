@@ -1,6 +1,7 @@
 """Vehicle parameter sets: the shipped data, and what bad input gets."""
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import pytest
@@ -144,3 +145,13 @@ def test_a_built_in_set_loads_in_a_process_whose_working_directory_is_gone(
     monkeypatch.chdir(gone)
     gone.rmdir()
     assert load_vehicle("remus100").name == "remus100"
+
+
+@pytest.mark.parametrize("name", ["m", "I_zz", "a22"])
+def test_a_mass_beyond_any_double_is_refused_without_a_warning(name: str) -> None:
+    """m = 1e308 overflowed M_RB + M_A: numpy's RuntimeWarning reached an FMU host's stderr
+    and the refusal read "Eigenvalues did not converge"."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(VehicleParameterError, match=r"M_RB \+ M_A overflows"):
+            load_vehicle("remus100").replace(**{name: 1e308})
