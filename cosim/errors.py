@@ -15,15 +15,32 @@ def unmade_folder(folder: Path, exc: OSError) -> str:
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
-    """`` (did you mean 'x'?)`` naming the one choice closest to a mistyped ``word``
-    (difflib's ratio 0.75 or more, letter case aside: a letter or two off, a missing
-    ``_``), or ``""`` when none is close or two are equally close (``bs-9``: bs-1, bs-2
-    or bs-3?)."""
+    """`` (did you mean 'x'?)`` naming the choice :func:`closest` to a mistyped ``word``,
+    or ``""``."""
+    choice = closest(word, choices)
+    return "" if choice is None else f" (did you mean {choice!r}?)"
+
+
+def did_you_mean_path(path: Path) -> str:
+    """:func:`did_you_mean` for a path that does not exist, among the names in its folder
+    (``runs/bs3``: ``runs/bs-3``); ``""`` when that folder cannot be listed."""
+    try:
+        names = [entry.name for entry in path.parent.iterdir()]
+    except OSError:
+        return ""
+    choice = closest(path.name, names)
+    return "" if choice is None else f" (did you mean {str(path.with_name(choice))!r}?)"
+
+
+def closest(word: str, choices: Iterable[str]) -> str | None:
+    """The one choice closest to a mistyped ``word`` (difflib's ratio 0.75 or more, letter
+    case aside: a letter or two off, a missing ``_``); None when none is close or two are
+    equally close (``bs-9``: bs-1, bs-2 or bs-3?)."""
     by_lower = {choice.lower(): choice for choice in choices}
     close = difflib.get_close_matches(word.lower(), list(by_lower), n=2, cutoff=0.75)
     if not close or (len(close) == 2 and _ratio(word, close[0]) == _ratio(word, close[1])):
-        return ""
-    return f" (did you mean {by_lower[close[0]]!r}?)"
+        return None
+    return by_lower[close[0]]
 
 
 def _ratio(word: str, choice: str) -> float:

@@ -30,7 +30,7 @@ from pydantic import (
     ValidationError,
 )
 
-from cosim.errors import did_you_mean
+from cosim.errors import did_you_mean, did_you_mean_path
 from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
 from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
 from cosim.paths import DEFAULT_FMU_DIR
@@ -399,8 +399,9 @@ def scenario_path(id_or_path: str | Path) -> Path:
     path = Path(id_or_path)
     if path.is_file():
         return path
+    guess = did_you_mean(str(id_or_path), builtin_scenarios()) or did_you_mean_path(path)
     raise ScenarioError(
-        f"unknown scenario {str(id_or_path)!r}{did_you_mean(str(id_or_path), builtin_scenarios())}:"
+        f"unknown scenario {str(id_or_path)!r}{guess}:"
         f" expected a built-in id ({', '.join(builtin_scenarios())}) or the path of a scenario "
         ".toml file"
     )

@@ -39,7 +39,7 @@ from urllib.parse import urlsplit
 import numpy as np
 import rerun as rr
 
-from cosim.errors import CosimError
+from cosim.errors import CosimError, did_you_mean_path
 from cosim.outputs.folder import RECORDING_FILE
 from cosim.scenario.spec import Scenario
 from cosim.viz.layout import (
@@ -414,7 +414,8 @@ def recording_in(path: Path) -> Path:
         rrd = found[0] if found else path / RECORDING_FILE
     if not rrd.is_file():
         raise CosimError(
-            f"no recording at {rrd}: expected a run folder holding {RECORDING_FILE} "
+            f"no recording at {rrd}{'' if path.exists() else did_you_mean_path(path)}: "
+            f"expected a run folder holding {RECORDING_FILE} "
             f"(written by `auv-cosim run` unless --no-rrd), a study folder holding "
             f"{OVERLAY_FILE}, or a .rrd file"
         )

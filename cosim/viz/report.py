@@ -52,7 +52,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from cosim.errors import CosimError
+from cosim.errors import CosimError, did_you_mean_path
 from cosim.fmus.interface import read_interface
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
@@ -247,7 +247,10 @@ def load_results(run_dir: Path) -> dict[str, np.ndarray]:
     """``results.csv`` as {column: values}; ``time`` is required."""
     path = run_dir / "results.csv"
     if not run_dir.is_dir():
-        raise CosimError(f"{run_dir} is not a folder: expected the output folder of a run")
+        raise CosimError(
+            f"{run_dir} is not a folder{did_you_mean_path(run_dir)}: expected the output "
+            "folder of a run"
+        )
     if not path.is_file():
         raise CosimError(
             f"no results.csv in {run_dir}: expected the output folder of `auv-cosim run`"

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from cosim.cli import main
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import load_scenario, scenario_from_toml
 from cosim.study.spec import StudyError, study_from_dict
@@ -80,3 +81,19 @@ def test_a_name_close_to_nothing_or_to_two_gets_no_guess(fmu_dir: Path) -> None:
 def test_a_mistyped_study_key_is_refused_with_its_likely_meaning() -> None:
     with pytest.raises(StudyError, match=r"unknown key 'metricz' \(did you mean 'metrics'\?\)"):
         study_from_dict({"scenario": "bs-3", "grid": {"plant.v_0": [0.1]}, "metricz": {}}, "s")
+
+
+def test_a_mistyped_path_is_refused_with_the_likely_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run folder to view or report, or a scenario file, a letter off what exists."""
+    run_dir = tmp_path / "runs" / "bs-3"
+    run_dir.mkdir(parents=True)
+    (tmp_path / "mine.toml").write_text("")
+    for argv, meant in (
+        (["view", str(tmp_path / "runs" / "bs3")], run_dir),
+        (["report", str(tmp_path / "runs" / "bs3")], run_dir),
+        (["run", str(tmp_path / "mine.tom")], tmp_path / "mine.toml"),
+    ):
+        assert main(argv) == 1
+        assert f"(did you mean '{meant}'?)" in capsys.readouterr().err, argv
