@@ -180,7 +180,7 @@ def advance(
                              _inputs_at(inputs, rates, (j + 1) * dt))  # fmt: skip
                     z = _substep(model, z, _inputs_at(inputs, rates, j * dt), dt, later)
     except OverflowError:
-        raise ValueError(_left_the_range("a value overflowed", h, n)) from None
+        raise ValueError(_left_the_range("a value overflowed (OverflowError)", h, n)) from None
     _check_range(z, h, n)
     return z if len(x) == N_STEP_STATES else z[STATE]
 
@@ -194,17 +194,20 @@ def _check_range(z: np.ndarray, h: float, n: int) -> None:
     outside = ~(np.abs(z) <= bounds)  # a nan is outside too
     if outside.any():
         i = int(np.flatnonzero(outside)[0])
-        unit = STATE_UNITS[i] if i < N_STATES else ""  # a quaternion's component: none
-        value = f"{STEP_STATE_NAMES[i]} = {float(z[i]):.6g} {unit}".rstrip()
-        limit = "" if math.isinf(bounds[i]) else f" (|{STEP_STATE_NAMES[i]}| <= {bounds[i]:g})"
-        raise ValueError(_left_the_range(value + limit, h, n))
+        name, value = STEP_STATE_NAMES[i], float(z[i])
+        if math.isfinite(value):  # beyond its bound: a velocity, which has a unit
+            what = f"{name} = {value:.6g} {STATE_UNITS[i]}: expected |{name}| <= {bounds[i]:g}"
+        else:
+            what = f"{name} = {value!r}: expected a finite number"
+        raise ValueError(_left_the_range(what, h, n))
 
 
 def _left_the_range(what: str, h: float, n: int) -> str:
     return (
         f"the vehicle left the model's range in a step of {h!r} s ({n} RK4 sub-step(s) of "
-        f"{h / n:.6g} s): {what}. A vehicle file that makes it stiffer (a faster moving-mass "
-        "servo, larger coefficients) needs a smaller max_substep for RK4 to stay stable"
+        f"{h / n:.6g} s): {what}. An input far beyond its range does this, and so does a "
+        "vehicle file that makes the plant stiffer than its sub-steps allow (a faster "
+        "moving-mass servo: a smaller max_substep keeps RK4 stable)"
     )
 
 
