@@ -275,7 +275,7 @@ def sweep(
 
     check_main_guard("cosim.sweep")
     if not isinstance(study, Mapping):
-        study = _path("study", study)
+        study = _path("study", study, "a study file (str or pathlib.Path) or a mapping of its keys")
     workers = local_workers(workers, _flag("oversubscribe", oversubscribe))
     out = None if out is None else _folder("out", out)
     overlay = None if overlay is None else _count("overlay", overlay)
@@ -416,10 +416,11 @@ def _number(name: str, value: object) -> float | None:
     return float(value)
 
 
-def _path(name: str, value: object) -> Path:
-    """A path argument: a str or os.PathLike without a NUL byte."""
+def _path(name: str, value: object, expected: str = "a str or pathlib.Path") -> Path:
+    """A path argument: a str or os.PathLike without a NUL byte (else ``expected`` is what
+    the refusal says was expected)."""
     if not isinstance(value, str | os.PathLike):
-        raise CosimError(f"{name}={_shown(value)}: expected a str or pathlib.Path")
+        raise CosimError(f"{name}={_shown(value)}: expected {expected}")
     text = os.fspath(value)
     if not isinstance(text, str) or "\0" in text:
         raise CosimError(f"{name}={_shown(value)}: expected a path without a NUL byte")
