@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cosim.errors import CosimError
+from cosim.errors import CosimError, did_you_mean
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
@@ -382,7 +382,8 @@ def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:
         unknown = [name for name in wanted if name not in facts.metrics]
         if unknown:
             raise StudyError(
-                f"[metrics] collect: unknown metric {unknown[0]!r}; a run reports: "
+                f"[metrics] collect: unknown metric {unknown[0]!r}"
+                f"{did_you_mean(unknown[0], facts.metrics)}; a run reports: "
                 f"{', '.join(facts.metrics)}"
             )
         metrics = list(dict.fromkeys(wanted))

@@ -136,6 +136,11 @@ def test_unknown_metric_is_named_with_the_metrics_a_run_reports(
     )
     err = capsys.readouterr().err
     assert "unknown metric 'settling'" in err and "yaw_settling_time_s" in err
+    study.write_text(text.replace('"settling"', '"yaw_setling_time_s"'), encoding="utf-8")
+    assert (
+        main(["sweep", str(study), "--out", str(tmp_path / "out"), "--fmu-dir", str(fmu_dir)]) == 1
+    )
+    assert "(did you mean 'yaw_settling_time_s'?)" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
