@@ -430,7 +430,7 @@ def _path(name: str, value: object, expected: str = "a str or pathlib.Path") -> 
 def _folder(name: str, value: object) -> Path:
     """A folder argument: a path (:func:`_path`) that is a folder if it exists."""
     path = _path(name, value)
-    if path.exists() and not path.is_dir():
+    if os.path.exists(path) and not path.is_dir():  # os.path: False for a name too long
         raise CosimError(f"{name}={_shown(value)}: is a file; expected a folder")
     return path
 

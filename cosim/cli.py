@@ -491,8 +491,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"auv-cosim {args.command}: interrupted", file=sys.stderr)
         return 130
     except (ValueError, OSError, RuntimeError) as exc:
-        reason = shortened(f"{type(exc).__name__}: {exc}")
-        print(f"auv-cosim {args.command}: {reason}", file=sys.stderr)
+        print(f"auv-cosim {args.command}: {shortened(_reason(exc))}", file=sys.stderr)
         return 1
     finally:
         if argv is None:  # the process ends with the command
@@ -500,6 +499,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             # libraries imported (~0.5 s with dask, matplotlib and numba loaded) to find
             # nothing the command still needs: what exists now is moved out of its reach.
             gc.freeze()
+
+
+def _reason(exc: Exception) -> str:
+    """An unexpected failure in one line: a file the system refused as "PATH: why" (``File
+    name too long``, ``Permission denied``), anything else as "Type: message"."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        return f"{exc.filename}: {exc.strerror}"
+    return f"{type(exc).__name__}: {exc}"
 
 
 def _ignore_stop_signals() -> None:

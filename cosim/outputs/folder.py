@@ -117,7 +117,7 @@ class RunFolder:
                 output name that is not the earlier run's own file.
         """
         path = Path(path)
-        created = not path.exists()
+        created = not os.path.exists(path)  # False, not OSError, for a name too long
         try:
             path.mkdir(parents=True, exist_ok=True)
         except FileExistsError:

@@ -33,3 +33,26 @@ def test_a_megabyte_value_in_a_failure_is_named_by_its_start(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and len(err) < 3000, len(err)
     assert "unknown vehicle 'xxx" in err and "characters left out" in err
+
+
+def test_a_name_the_system_refuses_is_one_line_naming_it(
+    fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A path component over 255 bytes (ENAMETOOLONG, which pathlib's exists() raises
+    rather than answering) as --out, --rrd, a run folder or a study's --out: the path and
+    the system's reason, never "OSError: [Errno 36]" or a traceback."""
+    long = tmp_path / ("a" * 300)
+    fmu_dir = str(fmu_paths["AuvPlant"].parent)
+    run = ["run", "bs-3", "--stop-time", "0.1", "--quiet", "--fmu-dir", fmu_dir]
+    study = str(Path(__file__).parents[2] / "docs" / "study-example.toml")
+    for argv in (
+        [*run, "--out", str(long), "--no-rrd"],
+        [*run, "--out", str(tmp_path / "run"), "--rrd", f"{long}.rrd"],
+        ["sweep", study, "--out", str(long), "--fmu-dir", fmu_dir],
+        ["report", str(long)],
+        ["view", str(long)],
+    ):
+        assert main(argv) == 1, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "File name too long" in err and str(long) in err, err
+        assert "OSError" not in err and "Errno" not in err, err
