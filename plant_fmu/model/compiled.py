@@ -37,7 +37,9 @@ import numpy as np
 from .dynamics import PlantModel
 from .jit import load_numba
 from .state_layout import (
+    ANGULAR_VELOCITY,
     CURRENT,
+    LINEAR_VELOCITY,
     MAX_SPEED,
     MAX_TURN_RATE,
     N_INPUTS,
@@ -46,6 +48,7 @@ from .state_layout import (
     QUATERNION_CHART_PITCH,
 )
 
+_U, _P = LINEAR_VELOCITY.start, ANGULAR_VELOCITY.start  # u and p in the stepping state
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -647,7 +650,7 @@ def advance_into(
         if not math.isfinite(z[i]):
             return 3
     for i in range(3):  # the model's range (state_layout.MAX_SPEED, MAX_TURN_RATE)
-        if abs(z[6 + i]) > MAX_SPEED or abs(z[9 + i]) > MAX_TURN_RATE:
+        if abs(z[_U + i]) > MAX_SPEED or abs(z[_P + i]) > MAX_TURN_RATE:
             return 3
     return 0
 
