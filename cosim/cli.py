@@ -289,7 +289,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Co-simulate the REMUS 100 with internal actuators as two FMI 2.0 FMUs.",
     )
     parser.add_argument("--version", action=_Version)
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    # not required: without one, main() prints the whole help (the commands), not argparse's
+    # "the following arguments are required: COMMAND"
+    parser.set_defaults(func=None, usage_help=parser.print_help)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     p = sub.add_parser("build", help="build AuvPlant.fmu, AuvAutopilot.fmu and AuvGuidance.fmu")
     p.add_argument("--out", type=Path, default=DEFAULT_FMU_DIR, help="output folder [%(default)s]")
@@ -335,7 +338,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view_parser(sub)
 
     p = sub.add_parser("analyze", help="equilibria, continuation sweeps, phase portraits")
-    asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")
+    p.set_defaults(func=None, usage_help=p.print_help)  # `analyze` alone: its help (main)
+    asub = p.add_subparsers(dest="analysis", metavar="ANALYSIS")
     a = asub.add_parser("equilibria", help="all equilibria in the search box, with stability")
     _add_model_options(a)
     a.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -480,6 +484,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     (:mod:`cosim.engine.signals`): one arriving after the run, while the interpreter shuts
     down, cannot turn a finished run's exit code into a death by signal."""
     args = build_parser().parse_args(argv)
+    if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as a
+        args.usage_help()  # usage error
+        return 2
     if argv is None and args.command == "run":
         _ignore_stop_signals()
     try:

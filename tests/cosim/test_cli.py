@@ -56,3 +56,17 @@ def test_a_name_the_system_refuses_is_one_line_naming_it(
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "File name too long" in err and str(long) in err, err
         assert "OSError" not in err and "Errno" not in err, err
+
+
+@pytest.mark.parametrize(
+    ("argv", "choices"),
+    [([], ["run", "sweep", "view"]), (["analyze"], ["equilibria", "phase-portrait"])],
+)
+def test_a_command_without_its_subcommand_prints_the_choices(
+    argv: list[str], choices: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`auv-cosim` alone answered only "the following arguments are required: COMMAND":
+    a newcomer gets the list of commands (a usage error all the same, exit 2)."""
+    assert main(argv) == 2
+    out = capsys.readouterr().out
+    assert out.startswith("usage: auv-cosim") and all(f"    {c}" in out for c in choices), out
