@@ -70,6 +70,7 @@ class StudyOutcome:
     elapsed_s: float
     paths: Mapping[str, Path]
     warnings: tuple[str, ...] = ()
+    first_failure: str | None = None  # the first failed row's run, factors and error
 
 
 @dataclass(frozen=True)
@@ -166,7 +167,18 @@ def run_study(
         time.perf_counter() - started,
         paths,
         tuple(warnings),
+        _first_failure(rows, spec.factors),
     )
+
+
+def _first_failure(rows: Sequence[Mapping[str, Any]], factors: Sequence[str]) -> str | None:
+    """ "run <id> (<factor> = <value>, ...): <error>" of the first failed row, or None: what
+    a study's last lines say about its failures (the table has every one)."""
+    row = next((row for row in rows if row["status"] != "complete"), None)
+    if row is None:
+        return None
+    values = ", ".join(f"{name} = {row[name]!r}" for name in factors)
+    return f"run {row['run']} ({values}): {row['error']}"
 
 
 def _open_table(
@@ -186,6 +198,8 @@ def report(outcome: StudyOutcome) -> str:
         f"run now) in {outcome.elapsed_s:.1f} s"
     ]
     lines += [f"  {name:<8} {path}" for name, path in outcome.paths.items()]
+    if outcome.first_failure is not None:
+        lines.append(f"  first failed {outcome.first_failure}")
     lines += [f"  warning: {warning}" for warning in outcome.warnings]
     return "\n".join(lines)
 

@@ -67,7 +67,7 @@ def test_a_grid_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) 
 
 @pytest.mark.slow
 def test_a_refused_start_value_is_a_failed_row_the_others_complete(
-    tmp_path: Path, fmu_dir: Path
+    tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     study = tmp_path / "variants.toml"
     text = 'scenario = "bs-3"\nstop_time = 1.0\nkeep = "failed"\n[grid]\n'
@@ -79,6 +79,9 @@ def test_a_refused_start_value_is_a_failed_row_the_others_complete(
     rows = {float(r["plant.max_substep"]): r for r in table(out)}
     assert [rows[v]["status"] for v in (0.01, 0.005, -1.0)] == ["complete", "complete", "failed"]
     assert "max_substep = -1.0 refused: expected 0.0 <= max_substep" in rows[-1.0]["error"]
+    # the study's last lines say which run failed and why (a study said "1 failed" only)
+    failed = f"  first failed run {rows[-1.0]['run']} (plant.max_substep = -1.0): "
+    assert failed + rows[-1.0]["error"] in capsys.readouterr().out.splitlines()
     assert rows[-1.0]["time_reached"] == "" and rows[0.005]["time_reached"] == "1.0"
     kept = sorted(p.name for p in (out / "runs").iterdir())
     assert kept == [rows[-1.0]["run"]]  # keep = "failed": only the failed run's folder
