@@ -85,11 +85,22 @@ def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | flo
         value = float(value)
         if not math.isfinite(value):
             raise src.error(key, f"{value!r} is not a finite number")
+        low, high = real_range(var)
+        if not low <= value <= high:  # FMI 2.0: the environment keeps to min and max
+            range_ = f"[{low}, {high}], the range {var.name} takes"
+            raise src.error(key, f"{value!r} is outside {range_}")
     if var.type in ("Integer", "Enumeration"):
         low, high = integer_range(var)
         if not low <= value <= high:
             raise src.error(key, f"{value} is outside [{low}, {high}], the range {var.name} takes")
     return value
+
+
+def real_range(var: Any) -> tuple[float, float]:
+    """The variable's declared ``min`` and ``max`` (-inf, inf where it declares none)."""
+    low = -math.inf if var.min is None else float(var.min)
+    high = math.inf if var.max is None else float(var.max)
+    return low, high
 
 
 def integer_range(var: Any) -> tuple[int, int]:

@@ -216,6 +216,12 @@ BAD_EDITS = [
      r"start\.heading_mode': 4294967297 is outside \[0, 3\], the range heading_mode takes"),
     ('variant = "lateral"', "variant = 4294967297",
      r"start\.variant': 4294967297 is outside \[0, 2\], the range variant takes"),
+    # a Real outside its declared range: before, the FMU refused it once loaded (and an
+    # FMU that does not check would have run with it)
+    ('heading_mode = "backstepping"', 'heading_mode = "backstepping"\nk0 = -5.0',
+     r"start\.k0': -5\.0 is outside \[0\.0, inf\], the range k0 takes"),
+    ("v_0 = -0.10", "v_0 = -0.10\nmax_substep = -1.0",
+     r"start\.max_substep': -1\.0 is outside \[0\.0, inf\], the range max_substep takes"),
     (REMOVE, REMOVE + "\n" + 'add = [{ from = "controller.thrust", to = "plant.thrust" }, '
      '{ from = "controller.tunnel_force", to = "plant.thrust" }]',
      r"add\[1\]\.to.*'plant\.thrust' is driven twice: by connections\.add\[0\] "

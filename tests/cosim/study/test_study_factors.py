@@ -84,23 +84,27 @@ def test_values_the_scenario_refuses_are_errors_before_any_run(
     bs3: tuple[Base, ScenarioFacts],
 ) -> None:
     base, facts = bs3
-    found = {n: resolve_factor(n, facts) for n in ("plant.v_0", "plant.variant")}
+    names = ("plant.v_0", "plant.variant", "plant.max_substep")
+    found = {n: resolve_factor(n, facts) for n in names}
     with pytest.raises(StudyError, match=r"v_0.*nan is not a finite number"):
         check_values(base, found, {"plant.v_0": math.nan})
     with pytest.raises(StudyError, match=r"0\.5 is not an integer \(variant is Integer\)"):
         check_values(base, found, {"plant.variant": 0.5})
     with pytest.raises(StudyError, match=r"7 is outside \[0, 2\], the range variant takes"):
         check_values(base, found, {"plant.variant": 7})  # the FMU's declared range
+    with pytest.raises(StudyError, match=r"-1.0 is outside \[0.0, inf\], the range max_sub"):
+        check_values(base, found, {"plant.max_substep": -1.0})  # a Real's declared range too
 
 
 def test_a_run_the_fmu_refuses_is_a_failed_record(bs3: tuple[Base, ScenarioFacts]) -> None:
     base, facts = bs3
-    found = {"plant.max_substep": resolve_factor("plant.max_substep", facts)}
-    record = run_one(base, base.fmu_paths, found, {"plant.max_substep": -1.0}, keep="failed")
+    # a mass beyond its stroke: no declared range says so, the plant refuses it
+    found = {"plant.mass_position_0": resolve_factor("plant.mass_position_0", facts)}
+    record = run_one(base, base.fmu_paths, found, {"plant.mass_position_0": 0.5}, keep="failed")
     assert record.status == "failed" and record.metrics == {}
-    assert "max_substep = -1.0 refused: expected 0.0 <= max_substep" in record.error
+    assert "mass_position_0 = 0.5 m: expected |mass_position_0| <= mass_stroke" in record.error
     assert "\n" not in record.error
-    good = run_one(base, base.fmu_paths, found, {"plant.max_substep": 0.01}, keep="all")
+    good = run_one(base, base.fmu_paths, found, {"plant.mass_position_0": 0.01}, keep="all")
     assert good.status == "complete" and good.error is None
     assert good.metrics["time_reached"] == 1.0 and set(good.metrics) == set(facts.metrics)
     assert set(good.files) == {"results.csv", "summary.json"}

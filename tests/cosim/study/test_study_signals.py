@@ -78,8 +78,9 @@ def test_a_study_in_which_no_run_completed_exits_1(
 ) -> None:
     """A study in which every run failed exited 0."""
     study = tmp_path / "failing.toml"
-    # the plant refuses a negative max_substep (the scenario takes any finite number)
-    study.write_text('scenario = "bs-3"\nstop_time = 1.0\n[grid]\n"plant.max_substep" = [-1.0]\n')
+    # the plant refuses a mass beyond its stroke (no declared range says so)
+    grid = '[grid]\n"plant.mass_position_0" = [0.5]\n'
+    study.write_text('scenario = "bs-3"\nstop_time = 1.0\n' + grid)
     out = tmp_path / "out"
     argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--quiet"]
     assert main([*argv, "--workers", "1"]) == 1

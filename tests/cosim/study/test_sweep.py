@@ -71,22 +71,22 @@ def test_a_refused_start_value_is_a_failed_row_the_others_complete(
 ) -> None:
     study = tmp_path / "variants.toml"
     text = 'scenario = "bs-3"\nstop_time = 1.0\nkeep = "failed"\n[grid]\n'
-    # the plant refuses max_substep = -1 (the scenario takes any finite number)
-    grid = '"plant.max_substep" = [0.01, -1.0, 0.005]\n'
+    # the plant refuses a mass beyond its stroke (no declared range says so)
+    grid = '"plant.mass_position_0" = [0.01, 0.5, 0.02]\n'
     study.write_text(text + grid, encoding="utf-8")
     out = tmp_path / "out"
     sweep(study, out, fmu_dir, "--workers", "2")
-    rows = {float(r["plant.max_substep"]): r for r in table(out)}
-    assert [rows[v]["status"] for v in (0.01, 0.005, -1.0)] == ["complete", "complete", "failed"]
-    assert "max_substep = -1.0 refused: expected 0.0 <= max_substep" in rows[-1.0]["error"]
+    rows = {float(r["plant.mass_position_0"]): r for r in table(out)}
+    assert [rows[v]["status"] for v in (0.01, 0.02, 0.5)] == ["complete", "complete", "failed"]
+    assert "mass_position_0 = 0.5 m: expected |mass_position_0| <=" in rows[0.5]["error"]
     # the study's last lines say which run failed and why (a study said "1 failed" only)
-    failed = f"  first failed run {rows[-1.0]['run']} (plant.max_substep = -1.0): "
-    assert failed + rows[-1.0]["error"] in capsys.readouterr().out.splitlines()
-    assert rows[-1.0]["time_reached"] == "" and rows[0.005]["time_reached"] == "1.0"
+    failed = f"  first failed run {rows[0.5]['run']} (plant.mass_position_0 = 0.5): "
+    assert failed + rows[0.5]["error"] in capsys.readouterr().out.splitlines()
+    assert rows[0.5]["time_reached"] == "" and rows[0.02]["time_reached"] == "1.0"
     kept = sorted(p.name for p in (out / "runs").iterdir())
-    assert kept == [rows[-1.0]["run"]]  # keep = "failed": only the failed run's folder
-    folder = out / "runs" / rows[-1.0]["run"]
-    assert rows[-1.0]["error"] in (folder / "error.txt").read_text(encoding="utf-8")
+    assert kept == [rows[0.5]["run"]]  # keep = "failed": only the failed run's folder
+    folder = out / "runs" / rows[0.5]["run"]
+    assert rows[0.5]["error"] in (folder / "error.txt").read_text(encoding="utf-8")
     # the kept scenario reproduces the failure with `auv-cosim run`
     argv = ["run", str(folder / "scenario.toml"), "--no-rrd", "--out", str(tmp_path / "again")]
     assert main([*argv, "--fmu-dir", str(fmu_dir), "--quiet"]) == 1
