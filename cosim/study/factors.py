@@ -38,6 +38,8 @@ class Variable:
     causality: str
     variability: str
     driven_by: str | None = None  # the connection source, if an input driven by one
+    min: float | None = None  # the declared range, None where it declares none
+    max: float | None = None
 
     @property
     def takes_start_value(self) -> bool:

@@ -29,6 +29,7 @@ from typing import Any
 
 from cosim.errors import CosimError, did_you_mean
 from cosim.paths import DEFAULT_FMU_DIR
+from cosim.scenario.checks import real_range
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
@@ -40,7 +41,7 @@ from cosim.study.execution import (
     make_job,
     open_client,
 )
-from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
+from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, resolve_factor
 from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import default_metrics, plotted_metrics, write_figures
@@ -116,6 +117,7 @@ def run_study(
     metrics = _metrics(spec, facts)
     _check_grid_values(base, factors, spec)
     runs = plan(spec, {name: factor.normalize for name, factor in factors.items()})
+    _check_sample_ranges(spec, factors, facts, runs)
     if spec.random.factors:  # the first sample stands for all: every one is a float
         first = runs[0].values
         check_values(base, factors, {name: first[name] for name in spec.random.factors})
@@ -405,6 +407,30 @@ def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:
     if clash:
         raise StudyError(f"metric {sorted(clash)[0]!r} has the name of another column")
     return metrics
+
+
+def _check_sample_ranges(
+    spec: StudySpec,
+    factors: Mapping[str, FactorKind],
+    facts: ScenarioFacts,
+    runs: Sequence[PlannedRun],
+) -> None:
+    """Every sample of a random start value within its variable's declared range, as the
+    scenario's checks want each grid value (a distribution that reaches beyond it, a
+    normal one on a gain declared >= 0, would otherwise run as failed rows)."""
+    for name in spec.random.factors:
+        factor = factors[name]
+        if not isinstance(factor, StartValue):
+            continue
+        low, high = real_range(facts.instances[factor.instance][factor.variable])
+        values = [float(run.values[name]) for run in runs]
+        outside = [v for v in values if not low <= v <= high]
+        if outside:
+            raise StudyError(
+                f"factor {name!r}: {len(outside)} of its {len(values)} samples are outside "
+                f"[{low}, {high}], the range {factor.variable} takes (from {min(values):.6g} "
+                f"to {max(values):.6g}): expected a distribution within it"
+            )
 
 
 def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: StudySpec) -> None:

@@ -81,12 +81,13 @@ def prepare(
     instances = {
         name: {
             v.name: Variable(
-                v.name, v.type, v.causality, v.variability, driven.get(f"{name}.{v.name}")
+                v.name, v.type, v.causality, v.variability, driven.get(f"{name}.{v.name}"),
+                v.min, v.max,
             )
-            for v in inst.model_description.modelVariables
+            for v in inst.interface.variables.values()
         }
         for name, inst in scenario.instances.items()
-    }
+    }  # fmt: skip
     base = Base(
         scenario_id=scenario.id,
         data=tomllib.loads(scenario.to_toml()),

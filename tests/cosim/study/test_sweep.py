@@ -115,13 +115,18 @@ def test_the_table_does_not_depend_on_the_number_of_workers(
         ('"plant.yaw" = [0.1]', "plant.yaw is a continuous output"),
         ('"plant.v_0" = ["fast"]', "'fast' is not a number (v_0 is Real)"),
         ('"plant.v_0" = [nan]', "nan is not a finite number"),
+        # a Real beyond its declared range, in a grid and in a distribution's samples
+        ('"controller.k0" = [0.5, -1.0]', "-1.0 is outside [0.0, inf], the range k0 takes"),
+        ('[random]\nn = 50\nseed = 1\n"controller.k0" = { normal = [0.5, 0.5] }',
+         "factor 'controller.k0': 7 of its 50 samples are outside [0.0, inf], the range k0"),
     ],
-)
+)  # fmt: skip
 def test_a_bad_factor_fails_before_any_run_naming_it(
     factor: str, expected: str, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
 ) -> None:
     study = tmp_path / "bad.toml"
-    study.write_text(f'scenario = "bs-3"\n[grid]\n{factor}\n', encoding="utf-8")
+    table = "" if factor.startswith("[random]") else "[grid]\n"
+    study.write_text(f'scenario = "bs-3"\n{table}{factor}\n', encoding="utf-8")
     out = tmp_path / "out"
     assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
     assert expected in capsys.readouterr().err
