@@ -115,12 +115,7 @@ def run_study(
     base, facts = prepare(scenario_ref, spec.stop_time, fmu_dir, spec.check_step)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     metrics = _metrics(spec, facts)
-    _check_grid_values(base, factors, spec)
-    runs = plan(spec, {name: factor.normalize for name, factor in factors.items()})
-    _check_sample_ranges(spec, factors, facts, runs)
-    if spec.random.factors:  # the first sample stands for all: every one is a float
-        first = runs[0].values
-        check_values(base, factors, {name: first[name] for name in spec.random.factors})
+    runs = _checked_plan(spec, base, factors, facts)
     entries = spread(runs, overlay) if overlay is not None else spec.overlay
     if entries:
         check_choice(entries, runs, metrics)
@@ -407,6 +402,21 @@ def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:
     if clash:
         raise StudyError(f"metric {sorted(clash)[0]!r} has the name of another column")
     return metrics
+
+
+def _checked_plan(
+    spec: StudySpec, base: Base, factors: Mapping[str, FactorKind], facts: ScenarioFacts
+) -> list[PlannedRun]:
+    """The study's runs, every value through the scenario's own checks before any runs:
+    each grid value, every sample's range, the first sample's type (it stands for all:
+    every one is a float)."""
+    _check_grid_values(base, factors, spec)
+    runs = plan(spec, {name: factor.normalize for name, factor in factors.items()})
+    _check_sample_ranges(spec, factors, facts, runs)
+    if spec.random.factors:
+        first = runs[0].values
+        check_values(base, factors, {name: first[name] for name in spec.random.factors})
+    return runs
 
 
 def _check_sample_ranges(
