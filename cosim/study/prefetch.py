@@ -78,7 +78,11 @@ class Prefetch:
 
 
 def _started(target: Callable[[], None]) -> threading.Thread:
-    thread = threading.Thread(target=target, name="auv-cosim-prefetch", daemon=True)
+    # Not a daemon: the interpreter joins it before it finalises. A daemon thread still
+    # drawing when a stopped study's process exits was cut off inside matplotlib's C++
+    # font code (its file reads call back into Python), which aborted the process
+    # ("terminate called without an active exception", exit -6 instead of 143).
+    thread = threading.Thread(target=target, name="auv-cosim-prefetch")
     thread.start()
     return thread
 

@@ -86,3 +86,23 @@ def test_the_parts_are_imported_one_after_the_other(monkeypatch, drawn) -> None:
 def test_the_throw_away_figure_draws_with_matplotlib() -> None:
     """What the thread draws is a real figure (its failure is swallowed by the thread)."""
     prefetch._draw_once()
+
+
+EXIT_WHILE_DRAWING = """
+import atexit, sys
+from cosim.study.prefetch import Prefetch
+drawing = Prefetch(local_workers=1, cores=2)
+drawing.begin()
+drawing.unfinished(runs=1)  # a core is idle: the rest loads and a figure is drawn
+atexit.register(lambda: print("alive" if drawing.thread.is_alive() else "joined"))
+sys.exit(143)  # a stopped study's process, leaving while the drawing goes on
+"""
+
+
+def test_a_process_leaving_while_the_page_loads_waits_for_it(run_python) -> None:
+    """The loading threads were daemons: a study stopped by SIGTERM while one drew its
+    throw-away figure exited with them inside matplotlib's C++ font code, which aborted
+    the process now and then (exit -6, "terminate called without an active exception").
+    Now they end before the interpreter finalises: joined by the time atexit runs."""
+    done = run_python(EXIT_WHILE_DRAWING)
+    assert (done.returncode, done.stdout.strip()) == (143, "joined"), done.stderr
