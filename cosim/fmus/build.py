@@ -14,9 +14,10 @@ Steps for one FMU (:func:`build_fmu`):
    caller (a rebuilt class would otherwise shadow the FMU's own).
 3. Complete ``modelDescription.xml`` (:func:`complete_model_description`): a GUID that is a
    function of the FMU's content (:func:`guid`: the same sources give the same GUID; no
-   MAC address, no time), capability flags (``needsExecutionTool="false"``, FMU state
-   get/set/serialise), ``UnitDefinitions`` for every unit the Reals use (with SI base-unit
-   exponents), ``InitialUnknowns`` by the FMI 2.0 rule. What only the slave knows it already
+   MAC address, no time), the package's version and licence, capability flags
+   (``needsExecutionTool="false"``, FMU state get/set/serialise), ``UnitDefinitions`` for
+   every unit the Reals use (with SI base-unit exponents), ``InitialUnknowns`` by the FMI
+   2.0 rule. What only the slave knows it already
    wrote through :meth:`fmu_runtime.safe_slave.SafeSlave.to_xml`: the unit of every Real,
    the ``ModelStructure/Outputs`` dependencies, which outputs are ``initial="calculated"``
    (they depend on parameters: read in initialisation mode, they give the value the FMU
@@ -49,6 +50,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import importlib.metadata
 import os
 import re
 import shutil
@@ -360,12 +362,31 @@ def complete_fmu(fmu: Path, guid: str) -> None:
             archive.writestr(info, data)
 
 
+def _provenance(root: ET.Element) -> None:
+    """The model's ``version`` and ``license`` (what an FMI tool shows of an FMU it loads)
+    and a ``generationTool`` naming this package and pythonfmu, from the installed
+    package's metadata; pythonfmu's own attributes where it is not installed (a source
+    tree on ``sys.path``)."""
+    try:
+        metadata = importlib.metadata.metadata("auv-cosim")
+    except importlib.metadata.PackageNotFoundError:
+        return
+    root.set("version", metadata["Version"])
+    tool = root.get("generationTool", "")
+    if not tool.startswith("auv-cosim "):  # completed once already: as it is
+        root.set("generationTool", f"auv-cosim {metadata['Version']} ({tool})")
+    licence = metadata["License-Expression"] or metadata["License"]  # None if absent
+    if licence:
+        root.set("license", licence)
+
+
 def complete_model_description(xml: bytes, guid: str | None = None) -> bytes:
     """The FMI 2.0 description pythonfmu wrote, completed (see the module docstring), with
     ``guid`` in place of pythonfmu's time-and-MAC-address one when given."""
     root = ET.fromstring(xml)
     if guid is not None:
         root.set("guid", guid)
+    _provenance(root)
     cosim = _child(root, "CoSimulation")
     for flag, value in (
         ("needsExecutionTool", "false"),

@@ -4,6 +4,7 @@ InitialUnknowns by the FMI 2.0 rule)."""
 
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.util
 import json
 import re
@@ -379,3 +380,15 @@ def test_validate_refuses_a_missing_folder_and_creates_nothing(tmp_path, capsys)
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"--fmu-dir {missing}: no such folder" in err
     assert not missing.exists()
+
+
+def test_every_fmu_says_which_version_built_it_and_its_licence(fmu_paths):
+    """What an FMI tool shows of an FMU it loads: the model's version and licence, and a
+    generation tool naming this package (pythonfmu's own said only "PythonFMU x.y")."""
+    from fmpy import read_model_description
+
+    version = importlib.metadata.version("auv-cosim")
+    for name, path in fmu_paths.items():
+        md = read_model_description(str(path))
+        assert (md.version, md.license) == (version, "MIT"), name
+        assert md.generationTool.startswith(f"auv-cosim {version} (PythonFMU "), name
