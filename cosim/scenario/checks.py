@@ -87,13 +87,17 @@ def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | flo
             raise src.error(key, f"{value!r} is not a finite number")
         low, high = real_range(var)
         if not low <= value <= high:  # FMI 2.0: the environment keeps to min and max
-            range_ = f"[{low}, {high}], the range {var.name} takes"
-            raise src.error(key, f"{value!r} is outside {range_}")
+            raise src.error(key, f"{value!r} is outside {range_text(low, high, var.name)}")
     if var.type in ("Integer", "Enumeration"):
         low, high = integer_range(var)
         if not low <= value <= high:
-            raise src.error(key, f"{value} is outside [{low}, {high}], the range {var.name} takes")
+            raise src.error(key, f"{value} is outside {range_text(low, high, var.name)}")
     return value
+
+
+def range_text(low: float, high: float, name: str) -> str:
+    """``[low, high], the range <name> takes``: how every refusal of a value names a range."""
+    return f"[{low}, {high}], the range {name} takes"
 
 
 def real_range(var: Any) -> tuple[float, float]:

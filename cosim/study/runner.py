@@ -29,7 +29,7 @@ from typing import Any
 
 from cosim.errors import CosimError, did_you_mean
 from cosim.paths import DEFAULT_FMU_DIR
-from cosim.scenario.checks import real_range
+from cosim.scenario.checks import range_text, real_range
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
@@ -438,7 +438,7 @@ def _check_sample_ranges(
         if outside:
             raise StudyError(
                 f"factor {name!r}: {len(outside)} of its {len(values)} samples are outside "
-                f"[{low}, {high}], the range {factor.variable} takes (from {min(values):.6g} "
+                f"{range_text(low, high, factor.variable)} (from {min(values):.6g} "
                 f"to {max(values):.6g}): expected a distribution within it"
             )
 
