@@ -171,8 +171,33 @@ static PyObject *claim_slave(Instance *c)
     return slave;
 }
 
+/* The resource URI pythonfmu's binary can read, into ``out``, or 0 (refused, with a line):
+ * its fmi2Instantiate replaces "%20" with a space, strips PYTHONFMU_URI and opens what is
+ * left (platform.h), so any other %XX (a non-ASCII or reserved character), a literal "%20"
+ * in a folder's name, and on Windows any non-ASCII character, left it a path that does not
+ * exist, and it then crashed its host (its findClass returns NULL without a Python error).
+ * It gets the path this runtime decoded, unencoded. */
+static int pythonfmu_uri(Instance *c, char *out, size_t n)
+{
+    const char *why = strstr(c->resources, "%20") ? "\"%20\", which it reads as a space" : NULL;
+    for (const char *p = c->resources; !why && PYTHONFMU_ASCII_ONLY && *p; p++) {
+        if ((unsigned char)*p >= 0x80) why = "a non-ASCII character, which it cannot open";
+    }
+    if (why) {
+        refuse(c, "fmi2Instantiate refused: the resources path %s holds %s: pythonfmu's "
+                  "binary (%s=pythonfmu) cannot load this FMU from there; the FMU's own "
+                  "runtime can (%s unset)", c->resources, why, RUNTIME_VARIABLE,
+               RUNTIME_VARIABLE);
+        return 0;
+    }
+    snprintf(out, n, "%s%s", PYTHONFMU_URI, c->resources);
+    return 1;
+}
+
 static int start(Instance *c)
 {
+    char uri[PATH_SIZE + 16];
+    if (!pythonfmu_uri(c, uri, sizeof uri)) return 0;
     platform_lock(LOCK_WRAPPER);
     wrapper_loaded = wrapper_loaded || load_wrapper(c);
     platform_unlock(LOCK_WRAPPER);
@@ -183,7 +208,7 @@ static int start(Instance *c)
     forwarded->callbacks.logger = relay;
     forwarded->callbacks.componentEnvironment = c;
     c->extra = forwarded; /* pythonfmu keeps the pointer to the callbacks */
-    c->slave = wrapper.instantiate(c->name, fmi2CoSimulation, c->record.guid, c->resources_uri,
+    c->slave = wrapper.instantiate(c->name, fmi2CoSimulation, c->record.guid, uri,
                                    &forwarded->callbacks, c->visible, fmi2True);
     if (!c->slave) {
         free(forwarded);

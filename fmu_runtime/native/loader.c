@@ -367,19 +367,39 @@ static void reset_values(Instance *c)
 
 /* ---- instantiate / free ------------------------------------------------------------- */
 
-/* A file:// URI (or a plain path) as a path, %XX decoded (a local path on Windows:
- * platform_local_path). */
+/* The value of a hexadecimal digit, or -1. */
+static int hex_digit(char ch)
+{
+    if (ch >= '0' && ch <= '9') return ch - '0';
+    if (ch >= 'a' && ch <= 'f') return ch - 'a' + 10;
+    if (ch >= 'A' && ch <= 'F') return ch - 'A' + 10;
+    return -1;
+}
+
+/* A file: URI (or a plain path) as a path (RFC 8089): %XX decoded (a % not followed by two
+ * hexadecimal digits kept as it is), the host "localhost" dropped (file://localhost/x is
+ * /x), another host kept as "//host/x" (a UNC path on Windows), then made a local path
+ * (platform_local_path). */
 static void uri_to_path(const char *uri, char *out, size_t n)
 {
     const char *p = uri;
     int authority = !strncmp(p, "file://", 7) && p[7] != '/'; /* file://host/... */
     if (!strncmp(p, "file://", 7)) p += 7;
     else if (!strncmp(p, "file:", 5)) p += 5;
+    if (authority && !strncmp(p, "localhost/", 10)) {
+        p += 9; /* from the slash on */
+        authority = 0;
+    }
     size_t j = 0;
+    if (authority && n > 3) {
+        out[j++] = '/';
+        out[j++] = '/';
+    }
     for (; *p && j + 1 < n; p++) {
-        unsigned code;
-        if (p[0] == '%' && p[1] && p[2] && sscanf(p + 1, "%2x", &code) == 1) {
-            out[j++] = (char)code;
+        int high = p[0] == '%' ? hex_digit(p[1]) : -1;
+        int low = high >= 0 ? hex_digit(p[2]) : -1;
+        if (low >= 0) {
+            out[j++] = (char)(high * 16 + low);
             p += 2;
         } else {
             out[j++] = *p;
@@ -387,7 +407,7 @@ static void uri_to_path(const char *uri, char *out, size_t n)
     }
     out[j] = '\0';
     while (j > 1 && out[j - 1] == '/') out[--j] = '\0';
-    platform_local_path(out, n, authority);
+    platform_local_path(out, n);
 }
 
 /* Why this instantiation cannot go on (into ``why``), or 0; fills the instance's paths,
@@ -399,7 +419,6 @@ static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
     const char *runtime = platform_getenv(RUNTIME_VARIABLE, value, sizeof value);
     if (type != fmi2CoSimulation) return snprintf(why, n, "the FMU supports co-simulation only");
     if (!resources || !resources[0]) return snprintf(why, n, "fmuResourceLocation is empty");
-    snprintf(c->resources_uri, sizeof c->resources_uri, "%s", resources);
     uri_to_path(resources, c->resources, sizeof c->resources);
     if (!read_record(c->resources, &c->record)) {
         return snprintf(why, n, "%s%s%s is missing or incomplete (not this FMU's extraction?)",

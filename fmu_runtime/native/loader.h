@@ -140,8 +140,7 @@ typedef struct {
     void *extra; /* the backend's per-instance data */
     fmi2CallbackFunctions host;
     char name[NAME_SIZE];
-    char resources[PATH_SIZE];     /* a path */
-    char resources_uri[PATH_SIZE]; /* as the host gave it */
+    char resources[PATH_SIZE]; /* a path, decoded from the host's URI */
     Record record;
     int phase, logging, visible;
     double time;       /* s: the start time, then the end of the last step */

@@ -10,12 +10,19 @@
 #include <stddef.h>
 #include <stdio.h>
 
+/* PYTHONFMU_URI: how pythonfmu 0.7's fmi2Instantiate reads a resource URI (forward.c): it
+ * strips these characters and opens the rest as a narrow path, which on Windows is read in
+ * the ANSI code page (PYTHONFMU_ASCII_ONLY). */
 #ifdef _WIN32
 #define PATH_SEPARATOR "\\"
 #define LIBRARY_SUFFIX ".dll"
+#define PYTHONFMU_URI "file:///"
+#define PYTHONFMU_ASCII_ONLY 1
 #else
 #define PATH_SEPARATOR "/"
 #define LIBRARY_SUFFIX ".so"
+#define PYTHONFMU_URI "file://"
+#define PYTHONFMU_ASCII_ONLY 0
 #endif
 
 /* The process-wide locks: runtime.c's search for Python, forward.c's loading of
@@ -48,10 +55,10 @@ extern const PathPython PATH_PYTHONS[2];
 /* ``name`` as a program on PATH (with ".exe" on Windows), into ``out``; 0 if not found. */
 int platform_on_path(const char *name, char *out, size_t size);
 
-/* The decoded path of a file: URI (loader.c strips "file:" and %XX) made a local path in
- * place: on Windows "/C:/x" becomes "C:\x" and a URI's host "//server/x" a UNC path
- * ``authority`` says whether the URI named one); nothing on POSIX. */
-void platform_local_path(char *path, size_t size, int authority);
+/* The decoded path of a file: URI (loader.c strips "file:", a "localhost" host and %XX;
+ * another host is left as "//host/x") made a local path in place: on Windows "/C:/x"
+ * becomes "C:\x" and "//server/x" a UNC path; nothing on POSIX. */
+void platform_local_path(char *path, size_t size);
 
 /* Shared libraries (dlopen / LoadLibraryExW). ``global``: its symbols serve the libraries
  * loaded after it (RTLD_GLOBAL; Windows resolves by module name anyway). */

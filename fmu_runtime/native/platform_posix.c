@@ -83,9 +83,9 @@ int platform_on_path(const char *name, char *out, size_t size)
     return 0;
 }
 
-void platform_local_path(char *path, size_t size, int authority)
+void platform_local_path(char *path, size_t size)
 {
-    (void)path, (void)size, (void)authority;
+    (void)path, (void)size;
 }
 
 /* ---- libraries ----------------------------------------------------------------------- */

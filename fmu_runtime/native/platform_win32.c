@@ -188,19 +188,12 @@ int platform_on_path(const char *name, char *out, size_t size)
 
 /* "/C:/x" -> "C:\x"; "host/share/x" (a URI's host) -> "\\host\share\x"; "localhost/C:/x"
  * -> "C:\x"; then backslashes throughout. */
-void platform_local_path(char *path, size_t size, int authority)
+void platform_local_path(char *path, size_t size)
 {
+    (void)size;
     size_t n = strlen(path);
-    if (authority && !strncmp(path, "localhost/", 10)) {
-        memmove(path, path + 9, n - 8); /* from the slash on, with the NUL */
-        n -= 9;
-        authority = 0;
-    }
-    if (authority && n + 2 < size) {
-        memmove(path + 2, path, n + 1);
-        path[0] = path[1] = '/';
-    } else if (path[0] == '/' && ((path[1] >= 'A' && path[1] <= 'Z') ||
-                                  (path[1] >= 'a' && path[1] <= 'z')) && path[2] == ':') {
+    if (path[0] == '/' && ((path[1] >= 'A' && path[1] <= 'Z') ||
+                           (path[1] >= 'a' && path[1] <= 'z')) && path[2] == ':') {
         memmove(path, path + 1, n);
     }
     for (char *p = path; *p; p++) {

@@ -128,6 +128,7 @@ int python_resolve(void *library, const char **missing)
             return 0;
         }
     }
+    *(void **)&py.UTF8Mode = platform_library_symbol(library, "Py_UTF8Mode");
     /* public from 3.13; the private name before: either tells a shutdown in progress */
     *(void **)&py.IsFinalizing = platform_library_symbol(library, "Py_IsFinalizing");
     if (!py.IsFinalizing) {

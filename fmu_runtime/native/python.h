@@ -38,6 +38,7 @@ typedef struct {
     void (*InitializeEx)(int);
     void (*RawFree)(void *);
     int (*IsFinalizing)(void); /* Py_IsFinalizing (3.13+) or _Py_IsFinalizing */
+    int *UTF8Mode;             /* Py_UTF8Mode, a variable (NULL if a CPython lacks it) */
     /* threads */
     void *(*SaveThread)(void);
     int (*GILState_Ensure)(void);

@@ -269,6 +269,11 @@ static int start(const Answer *a, char *why, size_t n)
         wchar_t *home = py.DecodeLocale(a->base_prefix, NULL);
         py.SetPythonHome(home); /* copies it (3.8 and later) */
         if (home) py.RawFree(home);
+        /* Python's UTF-8 mode (PEP 540; the default from 3.15, PEP 686): file names are
+         * UTF-8 whatever the host's locale. Under the C locale of a host started without
+         * LANG (env -i, a service, a container) Python would take them for ASCII, and an
+         * FMU extracted under a folder with a non-ASCII name could not be imported. */
+        if (py.UTF8Mode) *py.UTF8Mode = 1;
         py.InitializeEx(0); /* 0: no signal handlers, the host keeps its own */
         int ok = configure(a, why, n);
         py.SaveThread(); /* the GIL is taken with PyGILState_Ensure in every call */

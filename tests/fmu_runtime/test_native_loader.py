@@ -28,6 +28,7 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from urllib.parse import quote
 
 import pytest
 from c_hosts import HOST_SOURCE, moved, run_clean
@@ -190,6 +191,56 @@ def test_a_c_host_may_exit_without_terminating_or_freeing(runtime, host, extract
         done.stdout[-2000:] + done.stderr[-2000:]
     )
     assert done.stderr == ""
+
+
+def _uri_outputs(done: subprocess.CompletedProcess) -> str:
+    lines = [line for line in done.stdout.splitlines() if line.startswith("uri:")]
+    assert (done.returncode, len(lines)) == (0, 1), done.stdout[-3000:] + done.stderr[-3000:]
+    return lines[0]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_resource_uris_as_hosts_spell_them_load_the_fmu_from_any_folder(
+    runtime, host, extracted, clean_home, tmp_path
+):
+    """An extraction in a folder named with a space and non-ASCII characters, its resources'
+    URI spelled as hosts spell it (RFC 8089: percent-encoded after file:///, file:/ or
+    file://localhost): the outputs of the extraction in a plain folder, with either runtime.
+    pythonfmu's binary, which decodes only %20, crashed its host on all three."""
+    plain = extracted["AuvPlant"]
+    uri = (plain / "resources").as_uri()
+    expected = _uri_outputs(run_clean([host, plain, "AuvPlant", "uri", uri], clean_home,
+                                      **RUNTIMES[runtime]))  # fmt: skip
+    odd = tmp_path / "FMUs für Tests" / "AuvPlant"
+    shutil.copytree(plain, odd)
+    path = quote(str(odd / "resources"))
+    assert "%20f%C3%BCr%20" in path
+    for uri in (f"file://{path}", f"file:{path}", f"file://localhost{path}"):
+        done = run_clean([host, odd, "AuvPlant", "uri", uri], clean_home, **RUNTIMES[runtime])
+        assert _uri_outputs(done) == expected, uri
+
+
+@pytest.mark.slow
+def test_a_folder_pythonfmus_binary_cannot_read_is_refused_not_crashed_on(
+    host, extracted, clean_home, tmp_path
+):
+    """A literal "%20" in a folder's name, which pythonfmu's binary would read as a space:
+    with it, fmi2Instantiate returns NULL with a line saying why and what loads the FMU
+    (it crashed the host); the FMU's own runtime loads it."""
+    odd = tmp_path / "release%2050" / "AuvPlant"
+    shutil.copytree(extracted["AuvPlant"], odd)
+    uri = (odd / "resources").as_uri()
+    assert "%2520" in uri
+    _uri_outputs(run_clean([host, odd, "AuvPlant", "uri", uri], clean_home))
+    done = run_clean([host, odd, "AuvPlant", "uri", uri], clean_home,
+                     **RUNTIMES["pythonfmu"])  # fmt: skip
+    assert (done.returncode, done.stderr) == (3, ""), done.stdout[-3000:] + done.stderr
+    assert "instantiate returned NULL" in done.stdout
+    [(category, text)] = _log_lines(done.stdout, 3)
+    assert category == "logStatusError"
+    assert f'the resources path {odd / "resources"} holds "%20"' in text
+    assert f"the FMU's own runtime can ({RUNTIME_VARIABLE} unset)" in text
 
 
 @pytest.mark.slow

@@ -29,6 +29,9 @@
  *                                   instantiated, stepped and freed in a thread of its
  *                                   own: prints "threads: identical over N outputs" or
  *                                   the first value that differs from the lone run
+ *   fmi_host DIR ID uri URI         instantiated with URI as its resource location,
+ *                                   initialised, 30 doSteps: prints "uri:" and its Real
+ *                                   outputs (%.17g)
  *
  * DIR is the FMU's extraction folder, ID its model identifier. It loads
  * DIR/binaries/linux64/ID.so with dlopen and nothing else: no Python, no preload.
@@ -478,6 +481,30 @@ typedef struct {
     int status;
 } Lane;
 
+/* Instantiated with ``uri`` as its fmuResourceLocation (not the host's own URI of DIR),
+ * initialised and stepped 30 times: prints "uri:" and the Real outputs after the last step
+ * (%.17g), or why it could not. */
+static int with_uri(const Fmu *f, const char *uri)
+{
+    enum { STEPS = 30, ROOM = 256 };
+    static double rows[STEPS * ROOM];
+    static Fmu g;
+    g = *f;
+    snprintf(g.resources, sizeof g.resources, "%s", uri);
+    Vr vrs[ROOM];
+    size_t n = variables(f, "R", "output", vrs, ROOM);
+    Component c = start(&g, 1);
+    if (outputs(f, c, vrs, n, rows, STEPS, 0.0)) {
+        printf("uri: a step failed\n");
+        return 1;
+    }
+    printf("uri:");
+    for (size_t i = 0; i < n; i++) printf(" %.17g", rows[(STEPS - 1) * n + i]);
+    printf("\n");
+    stop(f, c);
+    return 0;
+}
+
 /* Every Real input moved off its start, so that the outputs change from step to step. */
 static int nudge_inputs(const Fmu *f, Component c)
 {
@@ -569,6 +596,7 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "gil")) return gil(&f);
     if (!strcmp(mode, "state")) return state(&f);
     if (!strcmp(mode, "threads")) return threads(&f);
+    if (!strcmp(mode, "uri") && argc == 5) return with_uri(&f, argv[4]);
     fprintf(stderr, "unknown mode %s\n", mode);
     return 2;
 }
