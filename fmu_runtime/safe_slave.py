@@ -158,6 +158,7 @@ class SafeSlave(Fmi2Slave):
             entry.release_search_path(self.resources)
         self._phase = _INSTANTIATED
         self._time = 0.0  # s: the start time, then the end of the last step
+        self._stop_time = math.inf  # s: setupExperiment's stopTime, when it defines one
         self._initialized = False
         self._problems: dict[str, str] = {}
         # every variable's value (docs: fmu_runtime/value_buffers.py); shared with the
@@ -330,9 +331,12 @@ class SafeSlave(Fmi2Slave):
 
     # --- FMI callbacks -----------------------------------------------------------------------
 
-    def setup_experiment(self, start_time: float = 0.0, *args: Any, **kwargs: Any) -> None:
-        """Record the start time (the first communication point); only right after
-        instantiation, and only a finite time."""
+    def setup_experiment(
+        self, start_time: float = 0.0, stop_time: float | None = None, *args: Any, **kwargs: Any
+    ) -> None:
+        """Record the start time (the first communication point) and the stop time (None:
+        not defined), past which no step may end; only right after instantiation, and only
+        finite times, the stop time not before the start time."""
         try:
             self._enter()
             if self._phase != _INSTANTIATED:
@@ -345,8 +349,14 @@ class SafeSlave(Fmi2Slave):
                     f"setupExperiment refused: startTime = {start_time!r} s, "
                     "expected a finite number"
                 )
+            elif stop_time is not None and not start_time <= stop_time < math.inf:
+                self._error(
+                    f"setupExperiment refused: stopTime = {stop_time!r} s, expected a "
+                    f"finite number >= startTime ({start_time!r} s)"
+                )
             else:
                 self._time = float(start_time)
+                self._stop_time = math.inf if stop_time is None else float(stop_time)
         except Exception as exc:
             self._error(f"setupExperiment failed: {_reason(exc)}")
 
@@ -754,6 +764,12 @@ class SafeSlave(Fmi2Slave):
             return (
                 f"currentCommunicationPoint = {current_time!r} s is not the FMU's current "
                 f"time {self._time!r} s (the start time or the end of the last step)"
+            )
+        stop = self._stop_time
+        if current_time + step_size > stop + _TIME_TOLERANCE * max(abs(stop), 1.0):
+            return (
+                f"the step of {step_size!r} s ends past the stop time {stop!r} s "
+                "given to setupExperiment (FMI 2.0: the FMU has to refuse it)"
             )
         return None
 

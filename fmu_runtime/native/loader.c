@@ -462,6 +462,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     Instance *c = calloc(1, sizeof *c);
     if (!c) return NULL;
     if (functions) c->host = *functions;
+    c->stop = INFINITY;
     c->logging = loggingOn;
     c->visible = visible;
     snprintf(c->name, sizeof c->name, "%s", name);
@@ -522,9 +523,19 @@ FMI2_EXPORT fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean 
         return refuse(c, "setupExperiment refused: startTime = %s s, expected a finite number",
                       show(startTime, shown));
     }
+    if (hasStop && !(isfinite(stopTime) && stopTime >= startTime)) {
+        char start[40];
+        return refuse(c,
+                      "setupExperiment refused: stopTime = %s s, expected a finite number >= "
+                      "startTime (%s s)",
+                      show(stopTime, shown), show(startTime, start));
+    }
     fmi2Status s =
         answer(c, c->backend->setup(c, hasTolerance, tolerance, startTime, hasStop, stopTime));
-    if (s == fmi2OK) c->time = startTime;
+    if (s == fmi2OK) {
+        c->time = startTime;
+        c->stop = hasStop ? stopTime : INFINITY;
+    }
     return s;
 }
 
@@ -580,6 +591,13 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real 
                       "FMU's current time %s s (the start time or the end of the last step)",
                       at, at, show(c->time, now));
     }
+    double stop_scale = c->stop > 1.0 ? c->stop : c->stop < -1.0 ? -c->stop : 1.0;
+    if (t + h > c->stop + TIME_TOLERANCE * stop_scale) {
+        return refuse(c,
+                      "doStep at t = %s s refused: the step of %s s ends past the stop time "
+                      "%s s given to setupExperiment (FMI 2.0: the FMU has to refuse it)",
+                      at, show(h, shown), show(c->stop, now));
+    }
     fmi2Status s = answer(c, c->backend->step(c, t, h, noSetFMUStatePriorToCurrentPoint));
     if (s <= fmi2Warning) c->time = t + h;
     return s;
@@ -606,6 +624,7 @@ FMI2_EXPORT fmi2Status fmi2Reset(fmi2Component component)
     if (s <= fmi2Warning) {
         c->phase = INSTANTIATED;
         c->time = 0.0;
+        c->stop = INFINITY;
         reset_values(c);
     }
     return s;

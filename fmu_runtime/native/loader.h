@@ -144,6 +144,7 @@ typedef struct {
     Record record;
     int phase, logging, visible;
     double time;       /* s: the start time, then the end of the last step */
+    double stop;       /* s: setupExperiment's stopTime, INFINITY when it defines none */
     fmi2Status logged; /* the worst status logged during the current call */
     Variable *vars;    /* indexed by value reference */
     size_t count;

@@ -48,6 +48,8 @@ ILLEGAL = {  # case printed by the host -> what the standard forbids
     "terminate-before-initialisation": "fmi2Terminate before initialisation",
     "terminate-in-initialisation-mode": "fmi2Terminate in initialisation mode",
     "second-terminate": "fmi2Terminate twice",
+    "setupExperiment-stop-before-start": "a stop time before the start time",
+    "doStep-past-stop-time": "a step ending past the stop time given to setupExperiment",
 }
 CANDIDATE_LINE = re.compile(
     r"^log host \[3\] \{logStatusError\} no Python for this FMU: (\d)\. (.+)$"
@@ -103,6 +105,7 @@ def test_calls_the_standard_forbids_return_fmi2error(name, runtime, host, extrac
     assert statuses["valid-step-after-refusals"] == "0"
     assert statuses["valid-terminate-after-refusals"] == "0"
     assert statuses["valid-initialisation-after-refusals"] == "0"
+    assert statuses["valid-setup-after-refusals"] == statuses["valid-steps-to-stop-time"] == "0"
     assert len(errors) == len(ILLEGAL) + len(ranges), errors
     assert all(category == "logStatusError" for category, _ in errors), errors
     assert any("refused: expected" in text for _, text in errors), errors

@@ -364,6 +364,25 @@ def test_initialisation_mode_is_entered_once_and_left_once():
     assert counter.do_step(0.0, 0.1) is True
 
 
+def test_no_step_ends_past_a_stop_time_given_to_setup_experiment():
+    """FMI 2.0 (fmi2SetupExperiment): with a stop time defined, a step computing past it is
+    refused (a step ending on it, within rounding, is taken); a stop time before the start
+    time, or not finite, is refused and leaves none defined."""
+    counter = Counter(instance_name="toy")
+    counter.setup_experiment(1.0, 0.5, None)
+    counter.setup_experiment(0.0, math.nan, None)
+    counter.setup_experiment(0.0, 0.3, None)
+    counter.enter_initialization_mode()
+    counter.exit_initialization_mode()
+    assert [counter.do_step(0.1 * k, 0.1) for k in range(3)] == [True, True, True]
+    assert counter.do_step(0.1 + 0.1 + 0.1, 0.1) is False
+    assert counter.steps == 3
+    errors = _errors(counter)
+    assert "stopTime = 0.5 s, expected a finite number >= startTime (1.0 s)" in errors
+    assert "stopTime = nan s" in errors
+    assert "the step of 0.1 s ends past the stop time 0.3 s given to setupExperiment" in errors
+
+
 def test_values_outside_the_declared_range_are_refused_and_declared():
     moded = Moded(instance_name="toy")
     moded.enter_initialization_mode()

@@ -203,6 +203,8 @@ static int find(const Fmu *f, const char *type, const char *causality, const cha
     return found;
 }
 
+static int worse(int worst, int status) { return status > worst ? status : worst; }
+
 static void illegal_sequence(const Fmu *f)
 {
     Component c = start(f, 0);
@@ -250,6 +252,17 @@ static int illegal(const Fmu *f)
         printf("setReal-outside-range %d\n", f->set_real(c, &vr, 1, &outside));
     }
     printf("valid-initialisation-after-refusals %d\n", f->exit_init(c));
+    stop(f, c);
+
+    c = start(f, 0);
+    printf("setupExperiment-stop-before-start %d\n", f->setup(c, 0, 0.0, 1.0, 1, 0.5));
+    printf("valid-setup-after-refusals %d\n", f->setup(c, 0, 0.0, 0.0, 1, 0.03));
+    f->enter_init(c);
+    f->exit_init(c);
+    int worst = 0;
+    for (int i = 0; i < 3; i++) worst = worse(worst, f->do_step(c, i * 0.01, 0.01, 1));
+    printf("valid-steps-to-stop-time %d\n", worst);
+    printf("doStep-past-stop-time %d\n", f->do_step(c, 0.03, 0.01, 1));
     stop(f, c);
     return 0;
 }
@@ -361,8 +374,6 @@ typedef struct {
     int calls, worst;
     volatile int done;
 } Reader;
-
-static int worse(int worst, int status) { return status > worst ? status : worst; }
 
 /* Gets and sets of every Real, Integer and String: the values a host exchanges. */
 static void *read_and_write(void *data)
