@@ -72,6 +72,7 @@ import json
 import math
 import threading
 import weakref
+import zlib
 from collections.abc import Callable, Iterable
 from enum import IntEnum
 from typing import Any, ClassVar
@@ -106,6 +107,7 @@ _INITIALIZATION = "in initialisation mode"
 _STEPPING = "initialised"
 _TERMINATED = "terminated"
 _TIME_TOLERANCE = 1e-9  # relative; see the module docstring (communication points)
+_CRC_MARK = b"\ncrc32="  # between a serialised state's JSON and its CRC-32
 _MAX_PLANS = 64  # cached get_real / set_real plans per instance
 TOOL = "auv-cosim"  # the <Tool name> of our annotations in modelDescription.xml
 
@@ -609,15 +611,24 @@ class SafeSlave(Fmi2Slave):
 
     @staticmethod
     def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
+        """The state as JSON, then its CRC-32 (``_CRC_MARK`` and 8 hex digits), so that bytes
+        changed, cut or extended in a host's storage are refused, not restored."""
         try:
-            return json.dumps(state, allow_nan=False).encode("utf-8")
+            text = json.dumps(state, allow_nan=False).encode("utf-8")
         except Exception as exc:
-            return json.dumps({"error": f"cannot serialise the FMU state: {exc}"}).encode()
+            text = json.dumps({"error": f"cannot serialise the FMU state: {exc}"}).encode()
+        return text + _CRC_MARK + b"%08x" % zlib.crc32(text)
 
     @staticmethod
     def _fmu_state_from_bytes(state: bytes) -> dict[str, Any]:
         try:
-            decoded: dict[str, Any] = json.loads(state.decode("utf-8"))
+            text, mark, crc = bytes(state).rpartition(_CRC_MARK)
+            if not mark or crc != b"%08x" % zlib.crc32(text):
+                raise ValueError(
+                    f"these {len(state)} bytes are not a state as this FMU serialised it "
+                    "(their CRC-32 differs: changed, cut or extended since)"
+                )
+            decoded: dict[str, Any] = json.loads(text.decode("utf-8"))
             return decoded
         except Exception as exc:
             return {"error": f"cannot deserialise the FMU state: {exc}"}

@@ -39,6 +39,7 @@
 
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -54,7 +55,29 @@ typedef struct {
     void *inner; /* the backend's state */
 } Saved;
 #define SAVED_MAGIC 0x4155564cu /* "AUVL" */
-#define SAVED_HEADER (sizeof(unsigned) + sizeof(int) + sizeof(double))
+/* A serialised state: magic, phase, time, then the CRC-32 of every byte but its own four,
+ * then the backend's bytes. */
+#define SAVED_CRC (sizeof(unsigned) + sizeof(int) + sizeof(double))
+#define SAVED_HEADER (SAVED_CRC + sizeof(uint32_t))
+
+/* CRC-32 (IEEE 802.3, zlib's) of ``n`` bytes, continuing from ``crc`` (0 to start). Written
+ * here because the runtime links nothing but the C library; bitwise, as a state is
+ * serialised now and then, never per step. */
+static uint32_t crc32_of(uint32_t crc, const fmi2Byte *bytes, size_t n)
+{
+    crc = ~crc;
+    for (size_t i = 0; i < n; i++) {
+        crc ^= (unsigned char)bytes[i];
+        for (int k = 0; k < 8; k++) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+    }
+    return ~crc;
+}
+
+/* The CRC-32 of a serialised state of ``size`` bytes, its own field left out. */
+static uint32_t state_crc(const fmi2Byte *bytes, size_t size)
+{
+    return crc32_of(crc32_of(0, bytes, SAVED_CRC), bytes + SAVED_HEADER, size - SAVED_HEADER);
+}
 
 /* ---- logging ------------------------------------------------------------------------ */
 
@@ -818,6 +841,8 @@ FMI2_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUsta
     memcpy(bytes, &saved->magic, sizeof(unsigned));
     memcpy(bytes + sizeof(unsigned), &saved->phase, sizeof(int));
     memcpy(bytes + sizeof(unsigned) + sizeof(int), &saved->time, sizeof(double));
+    uint32_t crc = state_crc(bytes, needed + SAVED_HEADER);
+    memcpy(bytes + SAVED_CRC, &crc, sizeof crc);
     return s;
 }
 
@@ -834,8 +859,16 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
     memcpy(&header.magic, bytes, sizeof(unsigned));
     memcpy(&header.phase, bytes + sizeof(unsigned), sizeof(int));
     memcpy(&header.time, bytes + sizeof(unsigned) + sizeof(int), sizeof(double));
-    if (header.magic != SAVED_MAGIC || header.phase < INSTANTIATED || header.phase > FAILED) {
+    if (header.magic != SAVED_MAGIC) {
         return refuse(c, "fmi2DeSerializeFMUstate refused: not a state of this FMU");
+    }
+    uint32_t crc;
+    memcpy(&crc, bytes + SAVED_CRC, sizeof crc);
+    if (crc != state_crc(bytes, size) || header.phase < INSTANTIATED || header.phase > FAILED ||
+        !isfinite(header.time)) {
+        return refuse(c, "fmi2DeSerializeFMUstate refused: these %zu bytes are not a state as "
+                      "this FMU serialised it (their CRC-32 differs: changed, cut or extended "
+                      "since)", size);
     }
     Saved *saved = calloc(1, sizeof *saved);
     if (!saved) return refuse(c, "fmi2DeSerializeFMUstate refused: out of memory");

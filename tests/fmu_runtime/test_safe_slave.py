@@ -250,6 +250,22 @@ def test_bad_state_is_refused_until_a_good_one_is_restored(slave):
     assert slave.do_step(0.0, 0.1) is True
 
 
+def test_a_serialised_state_changed_cut_or_extended_is_refused(slave):
+    """A host may keep serialised states (on disk, over a network): bytes that changed since
+    are refused, not restored as a state nobody saved. A changed digit leaves valid JSON."""
+    slave.set_real([_vr(slave, "u")], [0.3])
+    slave.do_step(0.0, 0.1)
+    blob = Counter._fmu_state_to_bytes(slave._get_fmu_state())
+    assert Counter._fmu_state_from_bytes(blob)["base"]["time"] == 0.1
+    for bad in (blob.replace(b'"time": 0.1', b'"time": 0.2'), blob[:-1], blob + b" "):
+        decoded = Counter._fmu_state_from_bytes(bad)
+        assert "CRC-32 differs" in decoded["error"], bad[-40:]
+        slave._set_fmu_state(decoded)
+        assert slave.do_step(0.1, 0.1) is False
+    slave._set_fmu_state(Counter._fmu_state_from_bytes(blob))
+    assert slave.do_step(0.1, 0.1) is True
+
+
 def test_unserialisable_state_becomes_an_error_state():
     blob = SafeSlave._fmu_state_to_bytes({"x": math.nan})
     assert "error" in SafeSlave._fmu_state_from_bytes(blob)

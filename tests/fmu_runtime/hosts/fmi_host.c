@@ -29,6 +29,8 @@
  *                                   instantiated, stepped and freed in a thread of its
  *                                   own: prints "threads: identical over N outputs" or
  *                                   the first value that differs from the lone run
+ *   fmi_host DIR ID corrupt         a serialised state changed at 64 places, cut and
+ *                                   extended: prints "corrupt: A of N accepted"
  *   fmi_host DIR ID uri URI         instantiated with URI as its resource location,
  *                                   initialised, 30 doSteps: prints "uri:" and its Real
  *                                   outputs (%.17g)
@@ -492,6 +494,54 @@ typedef struct {
     int status;
 } Lane;
 
+/* A state serialised after 10 steps, then, one at a time, a byte changed at 64 places
+ * spread over it (the runtime's header, the value buffers, the slave's own part), the
+ * last byte cut and a byte added: each deserialised and set; prints "corrupt: A of N
+ * accepted" (A should be 0), then whether the intact bytes still restore. */
+static int corrupt(const Fmu *f)
+{
+    enum { PLACES = 64 };
+    Component c = start(f, 1);
+    for (int i = 0; i < 10; i++) f->do_step(c, i * 0.01, 0.01, 1);
+    void *saved = NULL;
+    size_t size = 0;
+    if (f->get_state(c, &saved) || f->state_size(c, saved, &size)) {
+        printf("could not save the state\n");
+        return 1;
+    }
+    char *bytes = malloc(size + 1), *copy = malloc(size + 1);
+    if (!bytes || !copy || f->serialize(c, saved, bytes, size)) {
+        printf("could not serialise the state\n");
+        return 1;
+    }
+    f->free_state(c, &saved);
+    quiet = 1;
+    int accepted = 0, tried = 0;
+    for (int k = 0; k < PLACES + 2; k++) {
+        memcpy(copy, bytes, size);
+        size_t n = size;
+        if (k < PLACES) copy[(size - 1) * (size_t)k / (PLACES - 1)] ^= 0x10;
+        else if (k == PLACES) n = size - 1;
+        else copy[n++] = ' ';
+        void *loaded = NULL;
+        tried++;
+        if (!f->deserialize(c, copy, n, &loaded)) {
+            if (!f->set_state(c, loaded)) accepted++;
+            f->free_state(c, &loaded);
+        }
+    }
+    quiet = 0;
+    printf("corrupt: %d of %d accepted\n", accepted, tried);
+    void *loaded = NULL;
+    int s = f->deserialize(c, bytes, size, &loaded) || f->set_state(c, loaded);
+    printf("intact-state-restores %d\n", s);
+    f->free_state(c, &loaded);
+    free(bytes);
+    free(copy);
+    stop(f, c);
+    return 0;
+}
+
 /* Instantiated with ``uri`` as its fmuResourceLocation (not the host's own URI of DIR),
  * initialised and stepped 30 times: prints "uri:" and the Real outputs after the last step
  * (%.17g), or why it could not. */
@@ -608,6 +658,7 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "state")) return state(&f);
     if (!strcmp(mode, "threads")) return threads(&f);
     if (!strcmp(mode, "uri") && argc == 5) return with_uri(&f, argv[4]);
+    if (!strcmp(mode, "corrupt")) return corrupt(&f);
     fprintf(stderr, "unknown mode %s\n", mode);
     return 2;
 }
