@@ -524,6 +524,7 @@ def _resolve(
         name: _resolve_instance(name, inst, base_dir, fmu_dir, src)
         for name, inst in spec.instances.items()
     }
+    _check_once_per_process(instances, src)
     connections = _resolve_connections(spec.connections, instances, src)
     coupling = _resolve_coupling(spec, instances, connections, src)
     driven = {c.target: c.source for c in connections}
@@ -616,6 +617,25 @@ def _check_reachable_times(scenario: Scenario, src: Source) -> None:
                 f"{time!r} s is beyond {MAX_STEPS:.0e} communication steps of {step!r} s, "
                 f"the most a run takes: no run reaches it (at most {MAX_STEPS * step:.6g} s "
                 "at this step)",
+            )
+
+
+def _check_once_per_process(instances: Mapping[str, Instance], src: Source) -> None:
+    """Two instances of an FMU that declares ``canBeInstantiatedOnlyOncePerProcess="true"``
+    (its code keeps global state: FMI 2.0 asks for its instances in different processes)
+    are refused: a run steps every instance in one process, with one library per FMU."""
+    first: dict[tuple[str, str], str] = {}  # (GUID, model identifier) -> first instance
+    for name, inst in instances.items():
+        md = inst.model_description
+        if not md.coSimulation.canBeInstantiatedOnlyOncePerProcess:
+            continue
+        other = first.setdefault((md.guid, md.coSimulation.modelIdentifier), name)
+        if other != name:
+            raise src.error(
+                f"instances.{name}.fmu",
+                f"{other} and {name} are both instances of {inst.fmu_path.name}, which "
+                'declares canBeInstantiatedOnlyOncePerProcess="true": FMI 2.0 allows one '
+                "instance of it per process, and a run steps every instance in one; keep one",
             )
 
 

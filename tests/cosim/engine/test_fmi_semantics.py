@@ -1,8 +1,9 @@
 """What FMI 2.0 asks of a master, with FMUs nobody here wrote the master for (tests/fmus:
 a feedthrough, a clock with outputs of every type that can end the simulation, a clock
-with a fixed step): initialisation, Integer and Boolean values, an FMU that ends the
-simulation, algebraic loops, the order the connections imply, fixed steps, String events
-and when events on a slow instance."""
+with a fixed step, one allowed once per process): initialisation, Integer and Boolean
+values, an FMU that ends the simulation, algebraic loops, the order the connections
+imply, fixed steps, String events, when events on a slow instance, and FMUs allowed one
+instance per process."""
 
 from __future__ import annotations
 
@@ -183,6 +184,23 @@ def test_an_fmu_that_cannot_change_its_step_is_never_given_a_shorter_one(
     adaptive = fixed_step(0.9, 1).replace("step = 0.1", 'step = 0.1\nalgorithm = "adaptive"')
     with pytest.raises(ScenarioError, match=r"'adaptive' changes every step"):
         scenario_from_toml(adaptive, base_dir=test_fmu_dir)
+
+
+def test_an_fmu_allowed_once_per_process_gets_one_instance(test_fmu_dir: Path) -> None:
+    """canBeInstantiatedOnlyOncePerProcess="true": a second instance of it is refused,
+    naming both (a run steps every instance in one process, one library per FMU: they
+    would share the global state the flag warns of); one instance runs."""
+    one = 'stop_time = 0.5\n[coupling]\nstep = 0.1\n[instances.a]\nfmu = "CosimTestSingleton.fmu"\n'
+    two = one + '[instances.b]\nfmu = "CosimTestSingleton.fmu"\n'
+    with pytest.raises(
+        ScenarioError,
+        match=r"instances\.b\.fmu.*a and b are both instances of "
+        r"CosimTestSingleton\.fmu, which declares canBeInstantiatedOnlyOnce",
+    ):
+        scenario_from_toml(two, base_dir=test_fmu_dir)
+    result = run(test_fmu_dir, one)
+    assert result.complete, result.error
+    assert result.column("a.x")[-1] == pytest.approx(0.5)
 
 
 def test_an_event_sets_a_string_input(test_fmu_dir: Path) -> None:
