@@ -43,6 +43,7 @@ from cosim.scenario.checks import (
     split_ref,
     with_article,
 )
+from cosim.scenario.connection_units import unit_difference
 from cosim.scenario.coupling_graph import algebraic_loop, connection_order, feedthrough
 from cosim.scenario.timeline_spec import (
     Event,
@@ -816,7 +817,32 @@ def _resolve_connections(
             )
         added[conn.to] = i
         by_target[conn.to] = Connection(conn.from_, conn.to)
+    _check_units(by_target, added, instances, src)
     return sorted(by_target.values(), key=lambda c: (c.target_instance, c.target_variable))
+
+
+def _check_units(
+    by_target: Mapping[str, Connection],
+    added: Mapping[str, int],
+    instances: Mapping[str, Instance],
+    src: Source,
+) -> None:
+    """Every connection joins variables of one unit (:mod:`cosim.scenario.connection_units`);
+    the refusal names the key that made it (``added``: target -> index in connections.add)."""
+    for target, connection in by_target.items():
+        source, into = instances[connection.source_instance], instances[connection.target_instance]
+        difference = unit_difference(
+            (connection.source, source.model_description, connection.source_variable),
+            (target, into.model_description, connection.target_variable),
+        )
+        if difference is None:
+            continue
+        if target in added:
+            raise src.error(f"connections.add[{added[target]}]", difference)
+        raise src.error(
+            "connections.same_names",
+            f"{difference}; add {target!r} to connections.remove to leave it unconnected",
+        )
 
 
 def _same_name_connections(instances: Mapping[str, Instance], src: Source) -> dict[str, Connection]:
