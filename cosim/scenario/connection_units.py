@@ -15,10 +15,10 @@ from typing import Any
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")  # FMI 2.0's BaseUnit exponents
 
 
-def declared_unit(model_description: Any, variable: str) -> tuple[str, Any] | None:
-    """A variable's unit as (name, fmpy ``BaseUnit`` or None), from the variable or its
-    declared type; None when it declares none or is not a Real."""
-    var = next(v for v in model_description.modelVariables if v.name == variable)
+def declared_unit(model_description: Any, var: Any) -> tuple[str, Any] | None:
+    """The unit of ``var`` (an fmpy ``ModelVariable`` of ``model_description``) as (name,
+    fmpy ``BaseUnit`` or None), from the variable or its declared type; None when it
+    declares none or is not a Real."""
     if var.type != "Real":
         return None
     name = var.unit or (var.declaredType.unit if var.declaredType is not None else None)
@@ -31,7 +31,7 @@ def declared_unit(model_description: Any, variable: str) -> tuple[str, Any] | No
 def unit_difference(source: tuple[str, Any, str], target: tuple[str, Any, str]) -> str | None:
     """Why the output ``source`` would drive the input ``target`` with a value in the wrong
     unit, or None. Each is (``"<instance>.<variable>"``, its FMU's fmpy model description,
-    the variable's name)."""
+    the fmpy ``ModelVariable``)."""
     (out_ref, out_md, out_var), (in_ref, in_md, in_var) = source, target
     source_unit, target_unit = declared_unit(out_md, out_var), declared_unit(in_md, in_var)
     if source_unit is None or target_unit is None:

@@ -832,8 +832,12 @@ def _check_units(
     for target, connection in by_target.items():
         source, into = instances[connection.source_instance], instances[connection.target_instance]
         difference = unit_difference(
-            (connection.source, source.model_description, connection.source_variable),
-            (target, into.model_description, connection.target_variable),
+            (
+                connection.source,
+                source.model_description,
+                source.variable(connection.source_variable),
+            ),
+            (target, into.model_description, into.variable(connection.target_variable)),
         )
         if difference is None:
             continue
