@@ -272,11 +272,16 @@ _ANY_VALUE = "expected a number, an integer, true/false or a string"
 
 
 def _key(loc: tuple[Any, ...]) -> str:
-    """pydantic's error location as the study file's key."""
+    """pydantic's error location as the study file's key: without RandomSpec's gathered
+    ``factors`` and the union members tried (tags), which are no keys of the file; a
+    top-level key of those names (``[factors]``) is one."""
     parts: list[str] = []
-    for part in loc:
+    for i, part in enumerate(loc):
         if isinstance(part, int):
             parts[-1:] = [f"{parts[-1] if parts else ''}[{part}]"]
-        elif part not in _UNION_TAGS | {"factors", "uniform", "normal"}:
-            parts.append(part)  # not RandomSpec's gathered factors nor a tag tried
+        elif i == 0 or not (
+            part in _UNION_TAGS | {"uniform", "normal"}
+            or (part == "factors" and loc[i - 1] == "random")
+        ):
+            parts.append(part)
     return ".".join(parts)

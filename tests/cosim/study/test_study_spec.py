@@ -58,6 +58,8 @@ def test_random_factors_sit_beside_n_and_seed() -> None:
     ("change", "expected"),
     [
         ({"gird": {}}, "unknown key 'gird'"),
+        ({"factors": {"plant.v_0": [0.1]}}, "unknown key 'factors'"),
+        ({"uniform": [1, 2]}, "unknown key 'uniform'"),
         ({"scenario": None}, "key 'scenario' is missing"),
         ({"stop_time": "20"}, "key 'stop_time' = '20': expected a number"),
         ({"stop_time": -1.0}, "key 'stop_time' = -1.0"),
