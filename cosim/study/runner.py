@@ -143,7 +143,7 @@ def run_study(
                 elif isinstance(exc, StudyStopped):
                     exc.where = f"{len(table.done)} finished runs kept in {csv_path} (--resume)"
                 raise
-            rows = table.finish()
+            rows = table.finish(runs)
             if not entries:  # no overlay re-runs: the cluster closes while the page is made
                 session.done()
             paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}

@@ -5,9 +5,10 @@ Columns: ``run`` (the stable id), one per factor by its full name, one per metri
 (the whole run task: set-up, stepping loop, outputs). Every row is one line, written and
 flushed as its run finishes, so a killed study keeps every finished row; a line cut short
 by the kill is dropped when the table is opened again (:meth:`RunsTable.reopen`). At the
-end (:meth:`RunsTable.finish`) the rows are sorted by ``run`` and both files are written
-whole: the same study gives the same table whatever the number of workers or the order
-of completion (only ``wall_clock_s`` differs between identical runs).
+end (:meth:`RunsTable.finish`) the rows are put in the study's order (the grid's points as
+the file lists its factors, the first varying slowest, each with its samples in turn) and
+both files are written whole: the same study gives the same table whatever the number of
+workers or the order of completion (only ``wall_clock_s`` differs between identical runs).
 
 Cells: floats as their shortest round-trip text (``repr``), so the table reads back to the
 same doubles; booleans as ``true``/``false``; a missing metric (a failed run, a figure
@@ -100,9 +101,10 @@ class RunsTable:
             f.write(_line(self._cells(row)))
         self.rows[run.id] = row
 
-    def finish(self) -> list[Row]:
-        """Rewrite runs.csv sorted by run, write runs.parquet; returns the sorted rows."""
-        rows = [self.rows[run] for run in sorted(self.rows)]
+    def finish(self, plan: Sequence[PlannedRun]) -> list[Row]:
+        """Rewrite runs.csv with its rows in the order of ``plan`` (the study's runs), write
+        runs.parquet; returns the rows in that order."""
+        rows = [self.rows[run] for run in dict.fromkeys(run.id for run in plan) if run in self.rows]
         text = _line(self.columns) + "".join(_line(self._cells(row)) for row in rows)
         _replace(self.path, text.encode("utf-8"))
         columns = {name: [row[name] for row in rows] for name in self.columns}

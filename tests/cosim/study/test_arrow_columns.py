@@ -78,9 +78,10 @@ from cosim.study.table import RunsTable
 from cosim.study.task import RunRecord
 
 table = RunsTable.create(Path(sys.argv[1]) / "runs.csv", ["plant.v_0"], ["final.plant.yaw"])
-table.append(PlannedRun("a", {"plant.v_0": 0.5}), RunRecord("complete", None, {}, 1.0, 0.9))
-table.append(PlannedRun("b", {"plant.v_0": 0.1}), RunRecord("failed", "bad", {}, 1.0, 0.0))
-table.finish()
+runs = [PlannedRun("a", {"plant.v_0": 0.5}), PlannedRun("b", {"plant.v_0": 0.1})]
+table.append(runs[0], RunRecord("complete", None, {}, 1.0, 0.9))
+table.append(runs[1], RunRecord("failed", "bad", {}, 1.0, 0.0))
+table.finish(runs)
 print("pandas" in sys.modules)
 """
 

@@ -1,5 +1,5 @@
-"""runs.csv: appended row by row, a torn last line dropped on reopening, sorted at the end,
-with runs.parquet holding the same rows."""
+"""runs.csv: appended row by row, a torn last line dropped on reopening, in the study's
+order at the end, with runs.parquet holding the same rows."""
 
 from __future__ import annotations
 
@@ -65,22 +65,28 @@ def test_reopen_drops_a_torn_last_line_and_keeps_every_whole_one(tmp_path: Path)
     assert reopened.rows == table.rows  # the same values, parsed back exactly
     for run in RUNS[4:]:
         reopened.append(run, record(run))
-    resumed = reopened.finish()
+    resumed = reopened.finish(RUNS)
 
     straight = RunsTable.create(tmp_path / "straight.csv", FACTORS, METRICS)
     for run in reversed(RUNS):  # another order of completion
         straight.append(run, record(run))
-    assert straight.finish() == resumed
+    assert straight.finish(RUNS) == resumed
     assert (tmp_path / "straight.csv").read_text() == path.read_text()
 
 
-def test_finish_sorts_by_run_and_writes_the_same_rows_to_parquet(tmp_path: Path) -> None:
+def test_finish_puts_the_rows_in_the_studys_order_and_the_same_in_parquet(
+    tmp_path: Path,
+) -> None:
+    """Whatever the order the runs finished in, the table lists them as the study does
+    (a grid's points in order: v0 = -0.3 to 0.3 here), not by their hashed ids."""
     path = tmp_path / "runs.csv"
     table = RunsTable.create(path, FACTORS, METRICS)
-    for run in RUNS:
+    for run in reversed(RUNS):
         table.append(run, record(run))
-    rows = table.finish()
-    assert [r["run"] for r in rows_of(path)] == sorted(run.id for run in RUNS)
+    rows = table.finish(RUNS)
+    assert [r["run"] for r in rows_of(path)] == [run.id for run in RUNS]
+    assert [r["plant.v_0"] for r in rows_of(path)][:7] == ["-0.3", "-0.2", "-0.1", "0.0",
+                                                            "0.1", "0.2", "0.3"]  # fmt: skip
     failed = next(r for r in rows_of(path) if r["status"] == "failed")
     assert failed["error"] == 'plant: doStep returned Error: "bad", really'
     assert failed["yaw_settling_time_s"] == ""

@@ -50,7 +50,8 @@ def test_a_grid_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) 
     sweep(study, tmp_path / "out", fmu_dir, "--workers", "2")
     rows = table(tmp_path / "out")
     assert len(rows) == 8 and {r["status"] for r in rows} == {"complete"}
-    assert rows == sorted(rows, key=lambda r: r["run"])
+    grid = [(v0, k0) for v0 in ("-0.1", "-0.05", "0.05", "0.1") for k0 in ("0.2", "0.5")]
+    assert [(r["plant.v_0"], r["controller.k0"]) for r in rows] == grid  # the study's order
     for row in rows:
         summary = separate_run(
             tmp_path, fmu_dir, float(row["plant.v_0"]), float(row["controller.k0"])

@@ -99,7 +99,7 @@ def test_a_lost_worker_s_runs_are_retried(
     rows = table(tmp_path / "out")
     assert lost <= {row["run"] for row in rows}
     assert all(row["status"] == "complete" for row in rows), rows
-    assert rows == uninterrupted  # sorted by run: the same values to the last digit
+    assert rows == uninterrupted  # in the study's order: the same values to the last digit
 
 
 @pytest.mark.slow
