@@ -200,7 +200,7 @@ def test_an_fmu_allowed_once_per_process_gets_one_instance(test_fmu_dir: Path) -
         scenario_from_toml(two, base_dir=test_fmu_dir)
     result = run(test_fmu_dir, one)
     assert result.complete, result.error
-    assert result.column("a.x")[-1] == pytest.approx(0.5)
+    assert set(result.column("a.live")) == {1}
 
 
 def test_an_event_sets_a_string_input(test_fmu_dir: Path) -> None:
