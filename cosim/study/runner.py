@@ -21,8 +21,8 @@ from __future__ import annotations
 import hashlib
 import tempfile
 import time
-from collections.abc import Callable, Mapping, Sequence
-from contextlib import ExitStack
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -143,12 +143,13 @@ def run_study(
                 elif isinstance(exc, StudyStopped):
                     exc.where = f"{len(table.done)} finished runs kept in {csv_path} (--resume)"
                 raise
-            rows = table.finish(runs)
-            if not entries:  # no overlay re-runs: the cluster closes while the page is made
-                session.done()
-            paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
-            drawing.wait()
-            paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
+            with _kept_rows(csv_path, len(table.done)):
+                rows = table.finish(runs)
+                if not entries:  # no overlay re-runs: the cluster closes while the page is made
+                    session.done()
+                paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
+                drawing.wait()
+                paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
             if entries:
                 paths["overlay"], warnings = _overlay(
                     out_dir, entries, base, factors, runs, rows, session
@@ -344,6 +345,21 @@ def _overlay(
     warnings = [f"overlay: {entry} chose no run (no complete run has a value)" for entry in empty]
     warnings += [f"overlay: run {run_id} left no results.csv" for run_id in missing]
     return path, warnings
+
+
+@contextmanager
+def _kept_rows(csv_path: Path, count: int) -> Iterator[None]:
+    """A file of the finished study that cannot be written (a full disk) ends the study
+    saying which, and that every run's row is kept in runs.csv, appended as it finished."""
+    try:
+        yield
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        raise StudyError(
+            f"cannot write the study's results: {where}{exc.strerror or exc}; every finished "
+            f"run's row is kept in {csv_path} ({count} in all; --resume writes the rest once it "
+            "can)"
+        ) from exc
 
 
 def _write_report(

@@ -1,14 +1,17 @@
 """A study never writes over what is not its own, never mixes two studies in one table and
 never runs twice at once in one folder: a new study needs a new or empty folder, its
-identity covers every file the scenario reads, its folder is locked while it runs, and a
-study that could not start leaves no folder that refuses the next attempt."""
+identity covers every file the scenario reads, its folder is locked while it runs, a
+study that could not start leaves no folder that refuses the next attempt, and one whose
+disk fills at the end keeps every row and says so."""
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 from pathlib import Path
 
+import pyarrow.parquet as pq
 import pytest
 
 from cosim.cli import main
@@ -108,3 +111,27 @@ def test_an_unreachable_scheduler_leaves_no_study_behind(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and address in err, err
     assert not out.exists()
+
+
+def test_a_full_disk_at_the_end_keeps_every_row_and_says_which_file(
+    study: Path, tmp_path: Path, fmu_paths: dict[str, Path], monkeypatch, capsys
+) -> None:
+    """runs.parquet cannot be written (the disk is full, as pyarrow says it without the
+    file's name): the study ends naming the file and where its rows are, leaves no half
+    file, and --resume writes the rest once it can."""
+
+    def full(table, where, **options):  # what pyarrow does on a full disk
+        Path(where).write_bytes(b"PAR1")
+        raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space")
+
+    monkeypatch.setattr(pq, "write_table", full)
+    fmu_dir, out = fmu_paths["AuvPlant"].parent, tmp_path / "out"
+    assert sweep(study, out, fmu_dir) == 1
+    assert (
+        f"auv-cosim sweep: cannot write the study's results: {out / 'runs.parquet'}: No space "
+        f"left on device; every finished run's row is kept in {out / 'runs.csv'} (1 in all"
+    ) in capsys.readouterr().err
+    assert sorted(path.name for path in out.iterdir()) == ["runs.csv", "study.json"]
+    monkeypatch.undo()
+    assert sweep(study, out, fmu_dir, "--resume") == 0
+    assert (out / "runs.parquet").is_file() and (out / "index.html").is_file()
