@@ -175,11 +175,22 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         problems = _check_built(built)
         if problems:
             raise CosimError(f"{name}.fmu failed validation: " + "; ".join(problems))
-        partial = out_dir / f".{name}.fmu.{os.getpid()}.tmp"
-        shutil.copyfile(built, partial)
-        os.replace(partial, target)
+        _install(built, target)
     hash_file.write_text(f"source {digest}\nfmu {file_hash(target)}\n")
     return target
+
+
+def _install(built: Path, target: Path) -> None:
+    """Put the FMU ``built`` at ``target`` whole or not at all (a copy beside it, then a
+    rename); a copy that fails (a full disk) leaves no half file and names ``target``."""
+    partial = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        shutil.copyfile(built, partial)
+        os.replace(partial, target)
+    except OSError as exc:  # copyfile's error names the file it read, not the one it wrote
+        raise CosimError(f"cannot write {target}: {exc.strerror or exc}") from None
+    finally:
+        partial.unlink(missing_ok=True)
 
 
 _said: set[str] = set()  # process-wide: each build note is printed once per process

@@ -248,6 +248,24 @@ def test_an_output_folder_that_is_a_file_is_refused_before_building(tmp_path):
     assert taken.read_text(encoding="utf-8") == "a file, not a folder"
 
 
+def test_a_full_disk_names_the_fmu_it_could_not_write_and_leaves_no_half_file(
+    monkeypatch, tmp_path
+):
+    """The copy into the output folder fails (a full disk): the message names the FMU's
+    path there (shutil's names the file it read) and no part of the copy is left."""
+
+    def full(source, destination):
+        Path(destination).write_bytes(b"PK\x03\x04 half an FMU")
+        raise OSError(28, "No space left on device", str(source))
+
+    monkeypatch.setattr(build.shutil, "copyfile", full)
+    out = tmp_path / "fmus"
+    target = out / "AuvGuidance.fmu"
+    with pytest.raises(CosimError, match=re.escape(f"cannot write {target}: No space left")):
+        build.build_fmu("AuvGuidance", out)
+    assert list(out.iterdir()) == []
+
+
 MINIMAL = b"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="M" guid="g">
   <CoSimulation modelIdentifier="M" needsExecutionTool="true"/>
