@@ -39,8 +39,11 @@ ABOUT: dict[str, str] = {
         "driven by a servo (Ch. 6). The parameter <code>variant</code> selects the full "
         "6-DOF model, the lateral u-v-r-p-phi-psi model (6.3.13) or the horizontal "
         "u-v-r-psi model (5.1.30). Each communication step is integrated with fixed-step "
-        "RK4 (sub-steps no longer than <code>max_substep</code>) holding the inputs; the "
-        "outputs are the state at the end of the step.</p>"
+        "RK4 (sub-steps no longer than <code>max_substep</code>); the outputs are the state "
+        "at the end of the step. The actuator inputs follow the derivatives a master sets "
+        "with <code>fmi2SetRealInputDerivatives</code> (u + s u' + s<sup>2</sup>/2 u'' at "
+        "each stage's time s into the step), and are held over the step without them; "
+        "the currents are always held.</p>"
     ),
     "AuvAutopilot": (
         "<p>The heading and depth autopilot of the REMUS&nbsp;100 with internal actuators "
