@@ -401,8 +401,8 @@ static int hex_digit(char ch)
 
 /* A file: URI (or a plain path) as a path (RFC 8089): %XX decoded (a % not followed by two
  * hexadecimal digits kept as it is), the host "localhost" dropped (file://localhost/x is
- * /x), another host kept as "//host/x" (a UNC path on Windows), then made a local path
- * (platform_local_path). */
+ * /x), a drive letter where the host goes taken for the drive (file://C:/x), another host
+ * kept as "//host/x" (a UNC path on Windows), then made a local path (platform_local_path). */
 static void uri_to_path(const char *uri, char *out, size_t n)
 {
     const char *p = uri;
@@ -412,6 +412,9 @@ static void uri_to_path(const char *uri, char *out, size_t n)
     if (authority && !strncmp(p, "localhost/", 10)) {
         p += 9; /* from the slash on */
         authority = 0;
+    } else if (authority && (p[0] | 0x20) >= 'a' && (p[0] | 0x20) <= 'z' && p[1] == ':' &&
+               (p[2] == '/' || !p[2])) {
+        authority = 0; /* file://C:/x, as some Windows tools write it: a drive, not a host */
     }
     size_t j = 0;
     if (authority && n > 3) {

@@ -100,10 +100,14 @@ def wine(tmp_path_factory, extracted):
         )
 
 
-def _instantiate(wine, guid: str | None = None, **environment: str) -> list[str]:
-    """The host's output lines: each log line, then whether an instance was made."""
+def _instantiate(
+    wine, guid: str | None = None, spelling: str = "file:///", **environment: str
+) -> list[str]:
+    """The host's output lines: each log line, then whether an instance was made. The
+    resource URI begins with ``spelling`` where ``file:///`` would."""
     fmu = wine["fmu"]
     uri = PureWindowsPath(_windows(fmu / "resources")).as_uri()
+    uri = spelling + uri.removeprefix("file:///")
     dll = _windows(fmu / "binaries" / "win64" / "AuvPlant.dll")
     done = run_clean(
         [WINE, wine["host"], dll, uri, guid or wine["guid"]],
@@ -118,9 +122,13 @@ def _instantiate(wine, guid: str | None = None, **environment: str) -> list[str]
     return done.stdout.splitlines()
 
 
-def test_a_unicode_resource_uri_is_read_and_a_wrong_guid_refused(wine):
+@pytest.mark.parametrize("spelling", ["file:///", "file:/", "file://localhost/", "file://"])
+def test_a_unicode_resource_uri_is_read_and_a_wrong_guid_refused(wine, spelling):
+    """However a Windows tool spells the URI of Z:\\...\\resources (file:///Z:/, file:/Z:/,
+    file://localhost/Z:/, file://Z:/ with the drive where the host goes), the runtime reads
+    the FMU's record there: only then can it tell the GUID is not this FMU's."""
     assert "%F0%9F%93%A6" in PureWindowsPath(_windows(wine["fmu"])).as_uri()
-    lines = _instantiate(wine, guid="{00000000-0000-0000-0000-000000000000}")
+    lines = _instantiate(wine, guid="{00000000-0000-0000-0000-000000000000}", spelling=spelling)
     assert lines == [
         "LOG 3 logStatusError: fmi2Instantiate refused: GUID "
         "{00000000-0000-0000-0000-000000000000} is not this FMU's "
