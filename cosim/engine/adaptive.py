@@ -109,7 +109,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Discard
 
 from cosim.engine.input_error import InputError
-from cosim.engine.points import check_finite, end_of_simulation, refresh
+from cosim.engine.points import check_finite, end_of_simulation, non_finite_note, refresh
 from cosim.engine.signals import StopRequest
 from cosim.engine.slave import Slave, describe
 from cosim.engine.timeline import Timeline
@@ -247,6 +247,7 @@ def run(
         if ended is None:
             slave.failed(exc.status)
             error = describe(slave, exc.function, exc.status, n * stepper.grid)
+            error += non_finite_note(z[:n_read], index)
         else:
             rows.ended, filled = ended
     except CosimError as exc:

@@ -89,6 +89,7 @@ from cosim.engine.points import (
     check_finite,
     end_of_simulation,
     inputs_giver,
+    non_finite_note,
     refresh,
 )
 from cosim.engine.rows import RowSink, RowTable
@@ -491,6 +492,7 @@ def _loop(
         if ended is None:
             slave.failed(exc.status)
             error = describe(slave, exc.function, exc.status, n * h)
+            error += non_finite_note(exchanged, layout.index)
         else:
             rows.ended, filled = ended
     except CosimError as exc:

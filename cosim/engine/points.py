@@ -156,8 +156,20 @@ def end_of_simulation(
 
 def check_finite(exchanged: np.ndarray, index: Mapping[str, int], t: float) -> None:
     """Raise naming the first non-finite exchanged values (at ``t``, s)."""
-    bad = np.flatnonzero(~np.isfinite(exchanged))
-    if bad.size:
-        names = list(index)
-        listed = ", ".join(f"{names[i]} = {exchanged[i]}" for i in bad[:5])
+    listed = _non_finite(exchanged, index)
+    if listed:
         raise CosimError(f"non-finite value at t = {t:.6g} s: {listed}")
+
+
+def non_finite_note(exchanged: np.ndarray, index: Mapping[str, int]) -> str:
+    """For a failed call's message: the non-finite values the instances exchanged, which
+    an instance's refusal of its input (a Gauss-Seidel consumer, before the step's check)
+    does not name the source of; ``""`` when all are finite."""
+    listed = _non_finite(exchanged, index)
+    return f" (non-finite values exchanged: {listed})" if listed else ""
+
+
+def _non_finite(exchanged: np.ndarray, index: Mapping[str, int]) -> str:
+    bad = np.flatnonzero(~np.isfinite(exchanged))
+    names = list(index)
+    return ", ".join(f"{names[i]} = {exchanged[i]}" for i in bad[:5])

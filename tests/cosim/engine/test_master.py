@@ -135,6 +135,37 @@ def test_non_finite_exchanged_value_stops_the_run_naming_it(fmu_dir: Path) -> No
     assert np.isfinite(result.values).all() and result.times[-1] == pytest.approx(0.2)
 
 
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "adaptive"])
+def test_an_input_refused_as_non_finite_names_where_it_came_from(
+    fmu_dir: Path, fmu_paths: dict[str, Path], algorithm: str
+) -> None:
+    """A foreign FMU's output turns NaN and our plant, stepped after it, refuses it as an
+    input before the step's own check: the reason names the source too."""
+    scenario = scenario_from_toml(
+        f"""
+        stop_time = 1.0
+        [coupling]
+        step = 0.1
+        algorithm = "{algorithm}"
+        [instances.src]
+        fmu = "{fmu_dir / "CosimTestIntegrator.fmu"}"
+        [instances.src.start]
+        u = 1.0
+        nan_at = 0.3
+        [instances.plant]
+        fmu = "AuvPlant"
+        [connections]
+        same_names = false
+        add = [{{ from = "src.x", to = "plant.tunnel_force" }}]
+        """,
+        fmu_dir=fmu_paths["AuvPlant"].parent,
+    )
+    result = master.run(scenario)
+    assert not result.complete
+    assert "plant: fmi2SetReal returned Error" in result.error
+    assert result.error.endswith("(non-finite values exchanged: src.x = nan)")
+
+
 @pytest.mark.slow
 def test_cli_failure_exits_non_zero_with_one_line(fmu_dir: Path, tmp_path: Path) -> None:
     scenario = tmp_path / "failing.toml"
