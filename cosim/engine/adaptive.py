@@ -109,9 +109,9 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Discard
 
 from cosim.engine.input_error import InputError
-from cosim.engine.points import check_finite, end_of_simulation, non_finite_note, refresh
+from cosim.engine.points import check_finite, end_of_simulation, failure_reason, refresh
 from cosim.engine.signals import StopRequest
-from cosim.engine.slave import Slave, describe
+from cosim.engine.slave import Slave
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
 from cosim.scenario.spec import Coupling, Scenario
@@ -245,9 +245,7 @@ def run(
         slave = stepper.current
         ended = end_of_simulation(slave, exc, z, record, rows, filled, n * stepper.grid)
         if ended is None:
-            slave.failed(exc.status)
-            error = describe(slave, exc.function, exc.status, n * stepper.grid)
-            error += non_finite_note(z[:n_read], index)
+            error = failure_reason(slave, exc, n * stepper.grid, z[:n_read], index)
         else:
             rows.ended, filled = ended
     except CosimError as exc:

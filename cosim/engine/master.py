@@ -88,8 +88,8 @@ from cosim.engine.points import (
     RowBuffer,
     check_finite,
     end_of_simulation,
+    failure_reason,
     inputs_giver,
-    non_finite_note,
     refresh,
 )
 from cosim.engine.rows import RowSink, RowTable
@@ -490,9 +490,7 @@ def _loop(
     except FMICallException as exc:
         ended = end_of_simulation(slave, exc, z, record, rows, filled, n * h)
         if ended is None:
-            slave.failed(exc.status)
-            error = describe(slave, exc.function, exc.status, n * h)
-            error += non_finite_note(exchanged, layout.index)
+            error = failure_reason(slave, exc, n * h, exchanged, layout.index)
         else:
             rows.ended, filled = ended
     except CosimError as exc:

@@ -11,7 +11,7 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from cosim.engine.rows import RowSink
-from cosim.engine.slave import Slave
+from cosim.engine.slave import Slave, describe
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
 from cosim.scenario.spec import Scenario
@@ -161,12 +161,16 @@ def check_finite(exchanged: np.ndarray, index: Mapping[str, int], t: float) -> N
         raise CosimError(f"non-finite value at t = {t:.6g} s: {listed}")
 
 
-def non_finite_note(exchanged: np.ndarray, index: Mapping[str, int]) -> str:
-    """For a failed call's message: the non-finite values the instances exchanged, which
-    an instance's refusal of its input (a Gauss-Seidel consumer, before the step's check)
-    does not name the source of; ``""`` when all are finite."""
+def failure_reason(
+    slave: Slave, exc: FMICallException, t: float, exchanged: np.ndarray, index: Mapping[str, int]
+) -> str:
+    """``slave``'s call failed at ``t`` (s): mark it failed and say why in one line, ending
+    with the non-finite values the instances exchanged, if any, whose source an instance's
+    refusal of its input (a Gauss-Seidel consumer, before the step's check) does not name."""
+    slave.failed(exc.status)
     listed = _non_finite(exchanged, index)
-    return f" (non-finite values exchanged: {listed})" if listed else ""
+    note = f" (non-finite values exchanged: {listed})" if listed else ""
+    return describe(slave, exc.function, exc.status, t) + note
 
 
 def _non_finite(exchanged: np.ndarray, index: Mapping[str, int]) -> str:
