@@ -39,10 +39,13 @@ def unit_difference(source: tuple[str, Any, str], target: tuple[str, Any, str]) 
     (out, a), (into, b) = source_unit, target_unit
     if a is None or b is None:
         return None
+    # a relative quantity (a temperature difference) converts without the offsets
+    relative = _relative(out_var) or _relative(in_var)
+    offsets = 0.0 if relative else a.offset - b.offset
     if tuple(getattr(a, d) for d in BASE_UNITS) != tuple(getattr(b, d) for d in BASE_UNITS):
         why = "different quantities"
-    elif (a.factor, a.offset) != (b.factor, b.offset):
-        why = f"1 {out} is {(a.factor + a.offset - b.offset) / b.factor:.6g} {into}"
+    elif a.factor != b.factor or offsets != 0.0:
+        why = f"1 {out} is {(a.factor + offsets) / b.factor:.6g} {into}"
     else:
         return None
     return (
@@ -50,3 +53,9 @@ def unit_difference(source: tuple[str, Any, str], target: tuple[str, Any, str]) 
         f"not quantities, so {in_ref} would read a value in {out} as one in {into}; connect "
         "variables of one unit"
     )
+
+
+def _relative(var: Any) -> bool:
+    """FMI 2.0 ``relativeQuantity``, of the variable or its declared type."""
+    declared = var.declaredType
+    return bool(var.relativeQuantity or (declared is not None and declared.relativeQuantity))

@@ -10,11 +10,13 @@ import re
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from repo_paths import TESTS
 
 from cosim.scenario.checks import ScenarioError
+from cosim.scenario.connection_units import BASE_UNITS, unit_difference
 from cosim.scenario.spec import scenario_from_toml
 
 BALL = TESTS / "data" / "reference-fmus" / "BouncingBall.fmu"
@@ -122,3 +124,27 @@ fmu = "{autopilot}"
     assert "connections.same_names" in message
     assert "plant.yaw is in rad and controller.yaw in deg (1 rad is 57.2958 deg)" in message
     assert "add 'controller.yaw' to connections.remove to leave it unconnected" in message
+
+
+def _temperature(unit: str, relative: bool) -> tuple[SimpleNamespace, SimpleNamespace]:
+    """A model description declaring K and degC (FMI 2.0's example), and one Real in
+    ``unit``."""
+    base = {d: 0 for d in BASE_UNITS} | {"K": 1}
+    units = [
+        SimpleNamespace(name="K", baseUnit=SimpleNamespace(**base, factor=1.0, offset=0.0)),
+        SimpleNamespace(name="degC", baseUnit=SimpleNamespace(**base, factor=1.0, offset=273.15)),
+    ]
+    var = SimpleNamespace(type="Real", unit=unit, declaredType=None, relativeQuantity=relative)
+    return SimpleNamespace(unitDefinitions=units), var
+
+
+@pytest.mark.parametrize("relative", [False, True])
+def test_celsius_into_kelvin_differ_by_the_offset_unless_relative(relative: bool) -> None:
+    """degC into K: 1 degC is 274.15 K; a temperature difference (relativeQuantity) in
+    degC is the same number in K."""
+    source, target = _temperature("degC", relative), _temperature("K", False)
+    difference = unit_difference(("a.t", *source), ("b.t", *target))
+    if relative:
+        assert difference is None
+    else:
+        assert difference is not None and "(1 degC is 274.15 K)" in difference
