@@ -486,8 +486,8 @@ SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1"
 def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_path, clean_home):
     """The runtime and the C host built with ASan and UBSan: cycles, the forbidden calls,
     the hostile arguments, an FMU state's round trip, values read and written from a
-    second thread and instances stepped from several run to the end, any finding aborts
-    with a report."""
+    second thread, instances stepped from several, serialised states changed, cut and
+    extended, and a file://localhost URI run to the end; any finding aborts with a report."""
     chain = native.toolchain()
     if chain is None or chain.zig:
         pytest.skip("no cc")
@@ -501,7 +501,10 @@ def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_
     folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
     environment = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
                    "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
-    for mode in (["cycles", 2, 20], ["illegal"], ["hostile"], ["state"], ["gil"], ["threads"]):
+    uri = f"file://localhost{quote(str(folder / 'resources'))}"
+    modes = (["cycles", 2, 20], ["illegal"], ["hostile"], ["state"], ["gil"], ["threads"],
+             ["corrupt"], ["uri", uri])  # fmt: skip
+    for mode in modes:
         done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **environment)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
         assert "Sanitizer" not in done.stderr and "runtime error" not in done.stderr
