@@ -617,6 +617,14 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real 
                       "FMU's current time %s s (the start time or the end of the last step)",
                       at, at, show(c->time, now));
     }
+    if (c->discarded && t == c->discarded_at[0] && h == c->discarded_at[1] &&
+        c->writes == c->discarded_writes) {
+        return refuse(c,
+                      "doStep at t = %s s refused: this step was discarded just before and "
+                      "nothing was set since, so it would be discarded again (the reason was "
+                      "logged then); set other inputs, take a shorter step or stop",
+                      at);
+    }
     double stop_scale = c->stop > 1.0 ? c->stop : c->stop < -1.0 ? -c->stop : 1.0;
     if (t + h > c->stop + TIME_TOLERANCE * stop_scale) {
         return refuse(c,
@@ -626,6 +634,13 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real 
     }
     fmi2Status s = answer(c, c->backend->step(c, t, h, noSetFMUStatePriorToCurrentPoint));
     if (s <= fmi2Warning) c->time = t + h;
+    /* a master may retry a discarded step shorter or with other inputs; the same step
+     * again, nothing changed, is the loop some masters fall into (fmpy's simulate_fmu
+     * retries it for ever when fmi2Terminated is false): refused above */
+    c->discarded = s == fmi2Discard;
+    c->discarded_at[0] = t;
+    c->discarded_at[1] = h;
+    c->discarded_writes = c->writes;
     return s;
 }
 
@@ -651,6 +666,7 @@ FMI2_EXPORT fmi2Status fmi2Reset(fmi2Component component)
         c->phase = INSTANTIATED;
         c->time = 0.0;
         c->stop = INFINITY;
+        c->discarded = 0;
         reset_values(c);
     }
     return s;
@@ -704,6 +720,7 @@ static fmi2Status set(Instance *c, char type, const fmi2ValueReference vr[], siz
     if (check_writes(c, vr, n, type, x) != fmi2OK) return fmi2Error;
     fmi2Status s = n ? answer(c, c->backend->set(c, type, vr, n, values)) : fmi2OK;
     if (s == fmi2OK && x) remember_writes(c, vr, n, x);
+    if (s <= fmi2Warning) c->writes++;
     return s;
 }
 
@@ -789,6 +806,7 @@ FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate sta
     Saved *saved = saved_state(state);
     if (!saved) return refuse(c, "fmi2SetFMUstate refused: not an FMU state of this FMU");
     fmi2Status s = answer(c, c->backend->restore(c, saved->inner));
+    c->writes++; /* a state set, restored or not, is a change the master made */
     if (s <= fmi2Warning) {
         c->phase = saved->phase;
         c->time = saved->time;
@@ -919,7 +937,9 @@ FMI2_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component component,
                           "number", call, v->name, order[i], show(values[i], shown));
         }
     }
-    return n ? answer(c, c->backend->derivatives(c, vr, n, order, values)) : fmi2OK;
+    fmi2Status s = n ? answer(c, c->backend->derivatives(c, vr, n, order, values)) : fmi2OK;
+    if (s <= fmi2Warning) c->writes++;
+    return s;
 }
 
 FMI2_EXPORT fmi2Status fmi2GetRealOutputDerivatives(fmi2Component component,

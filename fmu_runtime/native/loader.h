@@ -145,6 +145,10 @@ typedef struct {
     int phase, logging, visible;
     double time;       /* s: the start time, then the end of the last step */
     double stop;       /* s: setupExperiment's stopTime, INFINITY when it defines none */
+    unsigned long writes;   /* values set (fmi2Set*, derivatives, states): counts changes */
+    int discarded;          /* the last doStep was answered fmi2Discard ... */
+    double discarded_at[2]; /* ... from this t, with this h (s) ... */
+    unsigned long discarded_writes; /* ... when ``writes`` was this */
     fmi2Status logged; /* the worst status logged during the current call */
     Variable *vars;    /* indexed by value reference */
     size_t count;

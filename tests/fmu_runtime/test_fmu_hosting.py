@@ -584,3 +584,37 @@ def test_input_derivatives_reach_a_slave_that_takes_them_and_no_other(
         none = report[f"{runtime} guidance"]
         assert none["statuses"] == {"initialisation mode": 3, "initialised": 3, "step": 0}
         assert "this FMU takes no input derivatives" in none["errors"]
+
+
+DISCARDED_AGAIN = """
+import sys
+from fmpy import simulate_fmu
+from fmpy.fmi1 import FMICallException
+
+messages = []
+try:
+    simulate_fmu(sys.argv[1], stop_time=0.1, output_interval=0.05,
+                 start_values={"heading_mode": 3, "r": 1e300},
+                 logger=lambda *args: messages.append(args[-1].decode()))
+    print("returned")
+except FMICallException as exc:
+    print(exc.function, exc.status)
+print(len(messages))
+print("\\n".join(messages))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", ["", "pythonfmu"])
+def test_a_step_discarded_and_retried_unchanged_ends_fmpy_instead_of_looping(
+    runtime, fmu_paths, run_python, monkeypatch
+):
+    """fmpy's simulate_fmu retries a discarded step for ever while fmi2Terminated is false
+    (millions of identical Error lines until killed): the same step again with nothing set
+    since is refused with fmi2Error, and fmpy stops with it after two tries."""
+    monkeypatch.setenv("AUV_FMU_RUNTIME", runtime)
+    done = run_python(DISCARDED_AGAIN, fmu_paths["AuvAutopilot"], timeout=60)
+    lines = done.stdout.splitlines()
+    assert lines[:2] == ["fmi2DoStep 3", "2"], done.stdout[-3000:] + done.stderr[-3000:]
+    assert "the autopilot computed a non-finite command" in lines[2]
+    assert "this step was discarded just before and nothing was set since" in lines[3]
