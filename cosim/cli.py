@@ -345,10 +345,14 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--json", action="store_true", help="print JSON instead of a table")
     a.set_defaults(func=_equilibria)
     a = asub.add_parser("sweep", help="continuation of equilibrium branches over a parameter")
-    a.add_argument("param", choices=["roll_torque", "mass_position", "mu", "eta"])
-    a.add_argument("start", type=float, metavar="FROM")
-    a.add_argument("stop", type=float, metavar="TO")
-    a.add_argument("--steps", type=int, default=200, help="[%(default)s]")
+    a.add_argument(
+        "param",
+        choices=["roll_torque", "mass_position", "mu", "eta"],
+        help="roll_torque (N.m), mass_position (m), mu or eta (fin arm and area factors, 1)",
+    )
+    a.add_argument("start", type=float, metavar="FROM", help="the first value, in its unit")
+    a.add_argument("stop", type=float, metavar="TO", help="the last value, in its unit")
+    a.add_argument("--steps", type=int, default=200, help="continuation steps [%(default)s]")
     a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
     _add_model_options(a)
     a.set_defaults(func=_sweep)

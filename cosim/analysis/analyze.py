@@ -28,6 +28,7 @@ from tqdm import tqdm
 from cosim.analysis.bifurcation import (
     Q_PROP,
     SEARCH_BOX,
+    AnalysisError,
     OperatingConditions,
     Sweep,
     cg_offset,
@@ -37,7 +38,7 @@ from cosim.analysis.bifurcation import (
 from cosim.analysis.equilibria import Equilibrium
 from cosim.errors import CosimError, unmade_folder
 from plant_fmu.model.dynamics import STATE_INDEX, STATE_NAMES, STATE_UNITS, Variant
-from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
 from plant_fmu.model.stepping import simulate
 
 # Phase portraits: how long each open-loop trajectory runs and its RK4 step. The slowest
@@ -74,8 +75,12 @@ def operating_conditions(
         chosen = Variant.LATERAL
     else:
         chosen = Variant.HORIZONTAL
+    try:
+        params = load_vehicle(vehicle)
+    except VehicleParameterError as exc:
+        raise AnalysisError(str(exc)) from None
     return OperatingConditions(
-        params=load_vehicle(vehicle),
+        params=params,
         variant=chosen,
         thrust=thrust,
         roll_torque=roll_torque,

@@ -64,9 +64,16 @@ import numpy as np
 from scipy.optimize import root
 
 from cosim.analysis.equilibria import Equilibrium, find_equilibrium, free_states
+from cosim.errors import CosimError
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters
+
+
+class AnalysisError(CosimError, ValueError):
+    """A bad argument to an analysis (a sweep range, a step count, a factor): a ValueError
+    to Python callers, and a one-line reason, without a type name, on the command line."""
+
 
 # Search box D of (5.1.50): (low, high) per free state; u's lower bound is open.
 SEARCH_BOX: dict[str, tuple[float, float]] = {
@@ -144,7 +151,7 @@ def mass_position_for_cg_offset(params: VehicleParameters, y_g: float) -> float:
 
 def _check_positive(name: str, value: float) -> None:
     if not (math.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name} = {value!r}: expected a finite factor > 0")
+        raise AnalysisError(f"{name} = {value!r}: expected a finite factor > 0")
 
 
 # --- Operating conditions ----------------------------------------------------------------
@@ -175,17 +182,17 @@ class OperatingConditions:
         for name in ("thrust", "roll_torque", "mass_position", "current_east"):
             value = getattr(self, name)
             if not math.isfinite(value):
-                raise ValueError(f"{name} = {value!r}: expected a finite number")
+                raise AnalysisError(f"{name} = {value!r}: expected a finite number")
         stroke = self.params.mass_stroke
         if abs(self.mass_position) > stroke:
-            raise ValueError(
+            raise AnalysisError(
                 f"mass_position = {self.mass_position!r} m: expected |y_v| <= the stroke "
                 f"{stroke} m of vehicle {self.params.name!r}"
             )
         if self.variant is Variant.HORIZONTAL:
             for name in ("roll_torque", "mass_position"):
                 if getattr(self, name) != 0.0:
-                    raise ValueError(
+                    raise AnalysisError(
                         f"{name} = {getattr(self, name)!r}: it acts through roll, which the "
                         "horizontal variant (2) holds at 0; use the lateral variant (1, "
                         "Sec. 5.1.3-5.1.4) or the full one (0)"
@@ -241,7 +248,7 @@ class OperatingConditions:
             return replace(self, params=with_fin_arm(self.params, value))
         if name == "eta":
             return replace(self, params=with_fin_area(self.params, value))
-        raise ValueError(f"unknown sweep parameter {name!r}: expected one of {SWEEP_PARAMETERS}")
+        raise AnalysisError(f"unknown sweep parameter {name!r}: expected one of {SWEEP_PARAMETERS}")
 
 
 # --- Equilibria --------------------------------------------------------------------------
@@ -626,19 +633,21 @@ def _check_sweep(
 ) -> None:
     """Raise ValueError naming the first bad argument of :func:`sweep`."""
     if parameter not in SWEEP_PARAMETERS:
-        raise ValueError(
+        raise AnalysisError(
             f"unknown sweep parameter {parameter!r}: expected one of {SWEEP_PARAMETERS}"
         )
     if not (math.isfinite(start) and math.isfinite(stop)) or start == stop:
-        raise ValueError(f"sweep range {start!r} .. {stop!r}: expected two different finite values")
+        raise AnalysisError(
+            f"sweep range {start!r} .. {stop!r}: expected two different finite values"
+        )
     if steps < 2:
-        raise ValueError(f"steps = {steps!r}: expected at least 2")
+        raise AnalysisError(f"steps = {steps!r}: expected at least 2")
     if steps > MAX_STEPS:
-        raise ValueError(
+        raise AnalysisError(
             f"steps = {steps!r}: expected at most {MAX_STEPS} (a finer step resolves nothing more)"
         )
     if search_points < 2:
-        raise ValueError(f"search_points = {search_points!r}: expected at least 2")
+        raise AnalysisError(f"search_points = {search_points!r}: expected at least 2")
     for value in (start, stop):
         conditions.with_parameter(parameter, value)  # raises for an impossible value
 

@@ -103,6 +103,7 @@ def test_bad_input_exits_1_with_a_one_line_reason(capsys, tmp_path, argv, messag
     assert code == 1
     assert message in err
     assert len(err.strip().splitlines()) == 1
+    assert "Error:" not in err  # a reason, not an exception's type name
 
 
 @pytest.mark.parametrize(
