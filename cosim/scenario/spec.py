@@ -681,7 +681,21 @@ def _resolve_instance(
         start[var_name] = check_value(value, var, key, src)
         if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
             start[var_name] = str(_existing_file(value, base_dir, key, src))
+    if spec.fmu in ("AuvPlant", "AuvAutopilot") and "vehicle" in start:
+        _check_vehicle(str(start["vehicle"]), f"instances.{name}.start.vehicle", src)
     return Instance(name, fmu_ref, fmu_path, start, interface)
+
+
+def _check_vehicle(value: str, key: str, src: Source) -> None:
+    """The vehicle set of the plant or the autopilot (a built-in name, or a file resolved
+    above), loaded as they load it: they would refuse a bad one only when initialised, as
+    an FMU's error; here the scenario file's key is named before any FMU is loaded."""
+    from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
+
+    try:
+        load_vehicle(value)
+    except VehicleParameterError as exc:
+        raise src.error(key, str(exc)) from None
 
 
 def _existing_file(value: str, base_dir: Path, key: str, src: Source) -> Path:

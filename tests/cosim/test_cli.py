@@ -20,19 +20,19 @@ def test_version_is_the_installed_packages(capsys: pytest.CaptureFixture[str]) -
 def test_a_megabyte_value_in_a_failure_is_named_by_its_start(
     fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A 1 MB vehicle name reaches the plant, which refuses it: the one line that says so
+    """A 1 MB mission reaches the guidance, which refuses it: the one line that says so
     (and the FMU's own log message in it) is kilobytes, not megabytes."""
     scenario = tmp_path / "huge.toml"
     scenario.write_text(
-        'stop_time = 0.1\n[coupling]\nstep = 0.01\n[instances.plant]\nfmu = "AuvPlant"\n'
-        f'[instances.plant.start]\nvehicle = "{"x" * 1_000_000}"\n'
+        'stop_time = 0.1\n[coupling]\nstep = 0.01\n[instances.g]\nfmu = "AuvGuidance"\n'
+        f'[instances.g.start]\nwaypoints = "{"x" * 1_000_000}"\n'
     )
     fmu_dir = str(fmu_paths["AuvPlant"].parent)
     argv = ["run", str(scenario), "--out", str(tmp_path / "run"), "--no-rrd", "--fmu-dir", fmu_dir]
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and len(err) < 3000, len(err)
-    assert "unknown vehicle 'xxx" in err and "characters left out" in err
+    assert "waypoint 1 ('xxx" in err and "characters left out" in err
 
 
 def test_a_name_the_system_refuses_is_one_line_naming_it(

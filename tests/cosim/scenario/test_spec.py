@@ -228,6 +228,11 @@ BAD_EDITS = [
      r"\(controller\.thrust\) and here \(controller\.tunnel_force\)"),
     ("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "nosuch.toml"',
      r"start\.vehicle': 'nosuch\.toml' names no file \(looked for .*/nosuch\.toml\)"),
+    # a vehicle the plant or the autopilot would refuse only once initialised
+    ("v_0 = -0.10", 'v_0 = -0.10\nvehicle = "remus200"',
+     r"plant\.start\.vehicle': unknown vehicle 'remus200': expected one of \['remus100', "),
+    ('heading_mode = "backstepping"', 'heading_mode = "backstepping"\nvehicle = "remus200"',
+     r"controller\.start\.vehicle': unknown vehicle 'remus200'"),
     # a manoeuvre is a known kind whose variables the run records
     ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "zig-zag"',
      r"key 'manoeuvre': 'zig-zag' is not a manoeuvre: expected one of \['turning-circle', "),

@@ -7,6 +7,7 @@ controller's columns held constant, fed to the sink in uneven batches as the mas
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import os
 import re
@@ -380,8 +381,11 @@ def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path, fmu_dir:
     columns = ["plant.yaw", "controller.tunnel_force", "plant.battery_level"]
     times = np.arange(5) * 0.1
     values = np.column_stack([times, 2 * times, 3 * times])
+    scenario = auv_scenario(fmu_dir, "partial", columns, "", None)
+    plant = scenario.instances["plant"]  # its vehicle file gone since the scenario loaded
+    plant = dataclasses.replace(plant, start={**plant.start, "vehicle": "nosuch"})
+    scenario = dataclasses.replace(scenario, instances={**scenario.instances, "plant": plant})
     with pytest.warns(UserWarning, match="vehicle 'nosuch' not loadable"):
-        scenario = auv_scenario(fmu_dir, "partial", columns, 'vehicle = "nosuch"', None)
         sink = RerunSink(scenario, tmp_path / "r.rrd")
     with sink:
         sink.add_rows(times, values)
