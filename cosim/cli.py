@@ -337,6 +337,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_view_parser(sub)
 
+    _add_analyze_parser(sub)
+    _add_reproduce_parser(sub)
+
+    p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
+    p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
+    p.set_defaults(func=_report)
+    return parser
+
+
+def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim analyze`` and its analyses: equilibria, sweep, phase-portrait."""
     p = sub.add_parser("analyze", help="equilibria, continuation sweeps, phase portraits")
     p.set_defaults(func=None, usage_help=p.print_help)  # `analyze` alone: its help (main)
     asub = p.add_subparsers(dest="analysis", metavar="ANALYSIS")
@@ -360,13 +371,6 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
     _add_model_options(a)
     a.set_defaults(func=_phase_portrait)
-
-    _add_reproduce_parser(sub)
-
-    p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
-    p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
-    p.set_defaults(func=_report)
-    return parser
 
 
 def _add_live_options(p: argparse.ArgumentParser) -> None:
