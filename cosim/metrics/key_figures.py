@@ -120,6 +120,13 @@ class KeyFigures:
     def add_notes(self, notes: object) -> None:
         """Events and faults change no key figure: ``notes`` are dropped."""
 
+    def names(self) -> tuple[str, ...]:
+        """The figures the columns can give, in :meth:`figures`' order: the others stay
+        None whatever the rows (a scenario of FMUs without the plant's yaw, mass or
+        thruster force)."""
+        columns = (self._yaw, self._mass, self._force)
+        return tuple(name for name, i in zip(self.figures(), columns, strict=True) if i is not None)
+
     def figures(self) -> dict[str, float | None]:
         """The figures of the rows so far (plain floats or None)."""
         return {

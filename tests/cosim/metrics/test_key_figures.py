@@ -89,6 +89,14 @@ def test_figures_of_columns_not_recorded_are_none():
     }
 
 
+def test_names_are_the_figures_the_columns_can_give():
+    assert KeyFigures(("d.x", "time")).names() == ()
+    assert KeyFigures(("plant.mass_position", "plant.yaw")).names() == (
+        "yaw_settling_time_s",
+        "peak_abs_mass_position_m",
+    )
+
+
 def test_a_figure_that_is_none_says_why() -> None:
     """What a run's report prints in place of a figure it has none of."""
     columns = ["plant.yaw", "plant.mass_position"]

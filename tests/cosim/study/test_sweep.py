@@ -225,3 +225,23 @@ def test_a_study_of_a_manoeuvre_collects_its_metrics(tmp_path: Path, fmu_dir: Pa
     diameters = {float(row["tactical_diameter_m"]) for row in rows.values()}
     assert len(diameters) == 2 and min(diameters) > 5.0
     assert rows[0.06]["steady_turning_diameter_m"] == ""
+
+
+@pytest.mark.slow
+def test_a_study_of_fmus_nobody_here_wrote_has_no_empty_auv_columns(
+    tmp_path: Path, fmu_dir: Path
+) -> None:
+    """A study of the Reference Dahlquist FMU: its table holds the factor, the time reached
+    and the final value, not the AUV's key figures, which no column of it could give
+    (three columns empty in every row before)."""
+    dahlquist = ROOT / "tests" / "data" / "reference-fmus" / "Dahlquist.fmu"
+    scenario = tmp_path / "dahlquist.toml"
+    scenario.write_text(
+        f'stop_time = 2.0\n[coupling]\nstep = 0.1\n[instances.d]\nfmu = "{dahlquist}"\n'
+    )
+    study = tmp_path / "study.toml"
+    study.write_text('scenario = "dahlquist.toml"\n[grid]\n"d.k" = [0.5, 1.0, 2.0]\n')
+    sweep(study, tmp_path / "out", fmu_dir, "--workers", "1")
+    rows = table(tmp_path / "out")
+    assert list(rows[0]) == ["run", "d.k", "time_reached", "final.d.x", "status", "error"]
+    assert [float(row["final.d.x"]) < 1.0 for row in rows] == [True] * 3
