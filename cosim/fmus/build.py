@@ -67,6 +67,7 @@ from xml.etree import ElementTree as ET
 from cosim.errors import CosimError, unmade_folder
 from cosim.fmus import bytecode, native, staging
 from cosim.fmus import docs as fmu_docs
+from cosim.whole_file import write_whole
 from fmu_runtime import entry
 
 HASH_SUFFIX = ".sha256"
@@ -183,14 +184,10 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
 def _install(built: Path, target: Path) -> None:
     """Put the FMU ``built`` at ``target`` whole or not at all (a copy beside it, then a
     rename); a copy that fails (a full disk) leaves no half file and names ``target``."""
-    partial = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     try:
-        shutil.copyfile(built, partial)
-        os.replace(partial, target)
-    except OSError as exc:  # copyfile's error names the file it read, not the one it wrote
+        write_whole(target, lambda tmp: shutil.copyfile(built, tmp))
+    except OSError as exc:  # (copyfile's own error names the file it read)
         raise CosimError(f"cannot write {target}: {exc.strerror or exc}") from None
-    finally:
-        partial.unlink(missing_ok=True)
 
 
 _said: set[str] = set()  # process-wide: each build note is printed once per process

@@ -23,6 +23,7 @@ from typing import Any
 
 from cosim.errors import CosimError
 from cosim.outputs.tail_guard import IDENTITY_KEYS, READ_FLAGS, file_identity
+from cosim.whole_file import write_whole
 
 RESULTS_FILE = "results.csv"  # formats: cosim.outputs.results
 SCENARIO_FILE = "scenario.toml"  # the resolved scenario
@@ -145,14 +146,8 @@ def is_our_recording(path: Path) -> bool:
 
 
 def write_atomically(path: Path, text: str) -> None:
-    """``text`` to ``path`` through a temporary file and a rename (raises OSError)."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    except OSError:
-        tmp.unlink(missing_ok=True)
-        raise
+    """``text`` to ``path``, whole or not at all (raises OSError)."""
+    write_whole(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def _short(exc: BaseException) -> str:

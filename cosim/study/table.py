@@ -21,8 +21,7 @@ from __future__ import annotations
 
 import csv
 import io
-import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +33,7 @@ from cosim.study.design import PlannedRun
 from cosim.study.factors import Value
 from cosim.study.spec import StudyError
 from cosim.study.task import RunRecord
+from cosim.whole_file import write_whole
 
 CSV_NAME = "runs.csv"
 PARQUET_NAME = "runs.parquet"
@@ -106,12 +106,12 @@ class RunsTable:
         runs.parquet; returns the rows in that order."""
         rows = [self.rows[run] for run in dict.fromkeys(run.id for run in plan) if run in self.rows]
         text = _line(self.columns) + "".join(_line(self._cells(row)) for row in rows)
-        _replace(self.path, lambda tmp: tmp.write_bytes(text.encode("utf-8")))
+        write_whole(self.path, lambda tmp: tmp.write_bytes(text.encode("utf-8")))
         columns = {name: [row[name] for row in rows] for name in self.columns}
         types = {name: pa.float64() for name in [*self.metrics, "wall_clock_s"]}
         arrays = {name: column(values, types.get(name)) for name, values in columns.items()}
         table = pa.table(arrays)
-        _replace(self.path.with_name(PARQUET_NAME), lambda tmp: pq.write_table(table, tmp))
+        write_whole(self.path.with_name(PARQUET_NAME), lambda tmp: pq.write_table(table, tmp))
         return rows
 
     def _cells(self, row: Row) -> list[str]:
@@ -138,20 +138,3 @@ def _line(cells: Sequence[str]) -> str:
     buffer = io.StringIO()
     csv.writer(buffer, lineterminator="\n").writerow(cells)
     return buffer.getvalue()
-
-
-def _replace(path: Path, write: Callable[[Path], object]) -> None:
-    """Make ``path`` whole or not at all: ``write`` writes a file beside it, which then
-    replaces it (a kill leaves the old file; a failed write, a full disk, leaves no half
-    file behind and raises :class:`OSError` naming ``path``)."""
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        why = os.strerror(exc.errno) if exc.errno else str(exc)
-        raise OSError(exc.errno, why, str(path)) from exc
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
