@@ -36,15 +36,21 @@ def _build(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     from cosim.fmus.build import FMUS
-    from cosim.fmus.validation import checked, validate_folder
+    from cosim.fmus.validation import checked, checked_files, validate_files, validate_folder
 
-    problems = validate_folder(args.fmu_dir)
-    paths = {name: args.fmu_dir / f"{name}.fmu" for name in FMUS}
+    if args.fmus and args.fmu_dir is not None:
+        raise CosimError("give FMU files or --fmu-dir DIR, not both")
+    if args.fmus:
+        problems = validate_files(args.fmus)
+    else:
+        fmu_dir = args.fmu_dir or DEFAULT_FMU_DIR
+        problems = validate_folder(fmu_dir)
+        paths = {name: fmu_dir / f"{name}.fmu" for name in FMUS}
     for problem in problems:
         print(problem)
     if problems:
         raise CosimError(f"{len(problems)} problem(s) found in the FMUs")
-    for line in checked(paths):
+    for line in checked_files(args.fmus) if args.fmus else checked(paths):
         print(line)
     print("every FMU is valid")
     return 0
@@ -300,9 +306,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_build)
 
     p = sub.add_parser(
-        "validate", help="validate the built FMUs as they are (fmpy + our own checks)"
+        "validate",
+        help="validate the built FMUs as they are (fmpy + our own checks), or any FMU files",
     )
-    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.add_argument(
+        "fmus", nargs="*", type=Path, metavar="FMU",
+        help="FMU files to check for what a run needs of them (any FMI 2.0 co-simulation "
+        "FMU: fmpy's validation, a binary for this platform, one step) [the built FMUs]",
+    )  # fmt: skip
+    p.add_argument(
+        "--fmu-dir", type=Path, help=f"the built FMUs' folder, checked as built [{DEFAULT_FMU_DIR}]"
+    )
     p.set_defaults(func=_validate)
 
     p = sub.add_parser("scenarios", help="list the built-in scenarios")

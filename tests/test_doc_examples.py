@@ -81,6 +81,9 @@ def workdir(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
     for path in fmu_paths.values():
         shutil.copyfile(path, fmus / path.name)
         shutil.copyfile(f"{path}.sha256", fmus / f"{path.name}.sha256")
+    # the FMUs nobody here wrote, where the docs name them in a checkout
+    reference = Path("tests", "data", "reference-fmus")
+    shutil.copytree(Path(__file__).parent / "data" / "reference-fmus", folder / reference)
     return folder
 
 

@@ -34,6 +34,13 @@ SI_BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 _CACHED_FMUS = 32
 
 
+# why an FMU without a co-simulation interface is refused, and what makes it one
+NOT_COSIMULATION = (
+    "not a co-simulation FMU (model exchange only: `fmpy add-cswrapper FILE.fmu` adds a "
+    "co-simulation interface with a solver of fmpy's)"
+)
+
+
 class FmuInterfaceError(CosimError):
     """An FMU that does not exist or whose model description cannot be read."""
 
@@ -125,12 +132,17 @@ def check_binary(path: Path, model_identifier: str | None) -> None:
     member = f"binaries/{platform}/{model_identifier}{sharedLibraryExtension}"
     try:
         with zipfile.ZipFile(path) as archive:
-            found = member in archive.namelist()
+            names = archive.namelist()
     except (OSError, zipfile.BadZipFile):
-        found = False
-    if not found:
+        names = []
+    if member not in names:
+        found = sorted({n.split("/")[1] for n in names if n.count("/") >= 2 and
+                        n.startswith("binaries/") and n.split("/")[2]})  # fmt: skip
+        sources = any(n.startswith("sources/") and n.endswith(".c") for n in names)
         raise FmuInterfaceError(
-            f"{path}: no {member} in the FMU: expected a co-simulation binary for {platform}"
+            f"{path}: no {member} in the FMU: expected a co-simulation binary for {platform} "
+            f"(binaries for: {', '.join(found) or 'none'})"
+            + (f"; it ships its C sources: `fmpy compile {path}` builds one" if sources else "")
         )
 
 

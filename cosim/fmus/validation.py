@@ -4,7 +4,11 @@
 empty list means valid. :func:`validate_folder` checks the built-in FMUs of a folder as
 they are (``auv-cosim validate``): it never builds or repairs one (that is ``auv-cosim
 build``'s job); a missing folder is an error, a missing FMU or one that is not the file
-the build wrote (its ``.sha256`` record) a problem. Checks per FMU:
+the build wrote (its ``.sha256`` record) a problem. :func:`validate_files` checks any FMU
+files, ours or not (``auv-cosim validate FILE.fmu ...``), for what a run needs of them:
+fmpy's validation, what a run refuses an FMU for (no co-simulation interface, no binary
+for this platform) and the smoke run below; our contract's descriptions, units and
+dependencies are not asked of an FMU nobody here wrote. Checks per built FMU:Checks per FMU:
 
 * ``fmpy.validation.validate_fmu`` (schema, names, start values, units, ModelStructure);
 * ``needsExecutionTool="false"``, a ``DefaultExperiment``;
@@ -65,6 +69,72 @@ def validate_fmus(paths: dict[str, Path]) -> list[str]:
     if not problems:
         problems += smoke_run(paths)
     return problems
+
+
+def validate_files(paths: list[Path]) -> list[str]:
+    """Problems found in the FMU files ``paths`` (any FMI 2.0 co-simulation FMU), each
+    prefixed with its path; empty if every one can be run here."""
+    problems: list[str] = []
+    for path in paths:
+        problems += [f"{path}: {p}" for p in _runnable_problems(Path(path))]
+    if not problems:
+        problems += smoke_run({str(path): Path(path) for path in paths})
+    return problems
+
+
+def _runnable_problems(path: Path) -> list[str]:
+    if path.is_dir():
+        return ["is a folder: give its .fmu files, or --fmu-dir for the built FMUs in it"]
+    if not path.is_file():
+        return ["no such file"]
+    try:
+        return _foreign_problems(path)
+    except Exception as exc:  # fmpy raises anything from a damaged archive: one line each
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        return [f"not a readable FMU ({type(exc).__name__}: {reason})"]
+
+
+def _foreign_problems(path: Path) -> list[str]:
+    """fmpy's validation, then what a run refuses an FMU for (the same checks)."""
+    from fmpy.validation import validate_fmu
+
+    from cosim.fmus.interface import (
+        NOT_COSIMULATION,
+        FmuInterfaceError,
+        check_binary,
+        read_interface,
+    )
+
+    problems = list(validate_fmu(str(path)))
+    if problems:
+        return problems
+    try:
+        interface = read_interface(path)
+        if interface.model_identifier is None:
+            return [NOT_COSIMULATION]
+        check_binary(path, interface.model_identifier)
+    except FmuInterfaceError as exc:
+        return [str(exc).removeprefix(f"{path}: ")]
+    return []
+
+
+def checked_files(paths: list[Path]) -> list[str]:
+    """One line per FMU file saying what :func:`validate_files` checked in it."""
+    import fmpy
+    from fmpy import read_model_description
+
+    lines = []
+    for path in paths:
+        md = read_model_description(str(path))
+        step = float((md.defaultExperiment.stepSize if md.defaultExperiment else None) or 0.01)
+        reals = sum(v.causality == "output" and v.type == "Real" for v in md.modelVariables)
+        lines.append(
+            f"{path}: fmpy's validation; FMI 2.0 co-simulation "
+            f"({md.coSimulation.modelIdentifier}); a {fmpy.platform} binary; "
+            f"{len(md.modelVariables)} variables; one step of {step:g} s with "
+            f"{reals} finite Real outputs"
+        )
+    return lines
 
 
 def checked(paths: dict[str, Path]) -> list[str]:

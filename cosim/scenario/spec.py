@@ -31,7 +31,12 @@ from pydantic import (
 )
 
 from cosim.errors import did_you_mean, did_you_mean_path
-from cosim.fmus.interface import FmuInterface, FmuInterfaceError, read_interface
+from cosim.fmus.interface import (
+    NOT_COSIMULATION,
+    FmuInterface,
+    FmuInterfaceError,
+    read_interface,
+)
 from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.scenario.checks import (
@@ -656,7 +661,7 @@ def _resolve_instance(
         fmu_ref = str(fmu_path)
     interface = _interface(fmu_path)
     if interface.model_identifier is None:
-        raise src.error(f"instances.{name}.fmu", f"{fmu_path} is not a co-simulation FMU")
+        raise src.error(f"instances.{name}.fmu", f"{fmu_path}: {NOT_COSIMULATION}")
     if interface.fmi_version != "2.0":
         raise src.error(
             f"instances.{name}.fmu", f"{fmu_path} is FMI {interface.fmi_version}, expected 2.0"
