@@ -41,6 +41,8 @@ from __future__ import annotations
 import html
 import json
 import math
+import os
+import shutil
 import time
 import tomllib
 import warnings
@@ -56,7 +58,13 @@ from cosim.errors import CosimError, did_you_mean_path
 from cosim.fmus.interface import read_interface
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
-from cosim.outputs.report_folder import check_writable, record, remove_earlier, run_stamp
+from cosim.outputs.report_folder import (
+    REPORT_MANIFEST,
+    check_writable,
+    record,
+    remove_earlier,
+    run_stamp,
+)
 from cosim.outputs.results import read_csv
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.viz.mission import mission_waypoints
@@ -195,7 +203,9 @@ def write_report(run_dir: Path) -> Path:
     """Write the figures and the index page of the run in ``run_dir``; return the page.
     The page is stamped with the run it describes (:func:`run_stamp`); the files are
     recorded in the report's manifest (:mod:`cosim.outputs.report_folder`), and a figure
-    an earlier report wrote that this one does not is removed.
+    an earlier report wrote that this one does not is removed. The report is made in a
+    hidden folder inside ``report/`` and moved in whole: one that cannot be written (a
+    full disk) leaves the folder as it was, and can be made again once it can.
 
     Raises:
         CosimError: ``run_dir`` holds no readable ``results.csv`` (or it has no rows), or
@@ -208,36 +218,58 @@ def write_report(run_dir: Path) -> Path:
     summary, summary_problem = load_summary(run_dir)
     out = run_dir / REPORT_FOLDER
     check_writable(out, [INDEX_PAGE, *(f"{name}.png" for name in (*FIGURES, *TITLES))])
-    limits = actuator_limits(run_dir)
-    zoom = _zoom(table, summary)
+    staging = out / f".report.{os.getpid()}.tmp"
+    made_out = not out.exists()
     try:
         out.mkdir(exist_ok=True)
-        figures = {}
-        for name, (title, panels) in FIGURES.items():
-            if name == "depth" and not _has_depth_loop(table):
-                continue
-            path = plot_time_histories(
-                table, panels, title, out / f"{name}.png", markers_of(summary), limits,
-                zoom if name in ZOOMED else None,
-            )  # fmt: skip
-            if path is not None:
-                figures[name] = path
-        waypoints = _planned_path(run_dir)
-        marks = _turning_marks(table, summary)
-        trajectory = plot_trajectory(table, out / "trajectory.png", waypoints, marks)
-        if trajectory is not None:
-            figures["trajectory"] = trajectory
-        if waypoints is None and marks is None:
-            deviation = plot_lateral_deviation(table, out / "lateral_deviation.png")
-            if deviation is not None:
-                figures["lateral_deviation"] = deviation
-        index = out / INDEX_PAGE
+        staging.mkdir()
+        figures = _figures(run_dir, table, summary, staging)
+        index = staging / INDEX_PAGE
         index.write_text(index_page(run_dir, summary, summary_problem, figures, stamp), "utf-8")
+        record(staging, [*figures.values(), index], stamp)
         remove_earlier(out, keep=[INDEX_PAGE, *(path.name for path in figures.values())])
-        record(out, [*figures.values(), index], stamp)
+        for name in [*(path.name for path in figures.values()), INDEX_PAGE, REPORT_MANIFEST]:
+            os.replace(staging / name, out / name)  # the manifest last: it names the rest
     except OSError as exc:
-        raise CosimError(f"cannot write the report into {out}: {exc}") from None
-    return index
+        shutil.rmtree(staging, ignore_errors=True)
+        if made_out:
+            shutil.rmtree(out, ignore_errors=True)
+        why = os.strerror(exc.errno) if exc.errno else str(exc)
+        raise CosimError(
+            f"cannot write the report into {out}: {why}; nothing of it is left "
+            f"({'no report made' if made_out else 'the earlier report is as it was'})"
+        ) from None
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return out / INDEX_PAGE
+
+
+def _figures(
+    run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any], out: Path
+) -> dict[str, Path]:
+    """Draw the run's figures into ``out``: {name: file} of those drawn."""
+    limits = actuator_limits(run_dir)
+    zoom = _zoom(table, summary)
+    figures = {}
+    for name, (title, panels) in FIGURES.items():
+        if name == "depth" and not _has_depth_loop(table):
+            continue
+        path = plot_time_histories(
+            table, panels, title, out / f"{name}.png", markers_of(summary), limits,
+            zoom if name in ZOOMED else None,
+        )  # fmt: skip
+        if path is not None:
+            figures[name] = path
+    waypoints = _planned_path(run_dir)
+    marks = _turning_marks(table, summary)
+    trajectory = plot_trajectory(table, out / "trajectory.png", waypoints, marks)
+    if trajectory is not None:
+        figures["trajectory"] = trajectory
+    if waypoints is None and marks is None:
+        deviation = plot_lateral_deviation(table, out / "lateral_deviation.png")
+        if deviation is not None:
+            figures["lateral_deviation"] = deviation
+    return figures
 
 
 # --- input ---------------------------------------------------------------------------------

@@ -107,6 +107,7 @@ def test_the_report_marks_events_and_faults_on_every_time_panel(
             line.get_xdata()[0] for line in ax.lines if len(set(line.get_xdata())) == 1
         )
         assert vertical == pytest.approx(sorted(m.time for m in markers))
+    monkeypatch.undo()  # the whole report, its figures saved
     assert report.write_report(run_dir).is_file()
 
 

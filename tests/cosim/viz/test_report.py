@@ -262,7 +262,13 @@ def test_transient_column_settling_time_and_actuator_limits_are_drawn(
         "controller.tunnel_force": 8.0,
     }
     kept = {}
-    monkeypatch.setattr(report, "_save", lambda fig, path: kept.setdefault(path.name, fig) and path)
+
+    def keep(fig, path):  # the figure kept to look at, an empty file for the report to move
+        kept[path.name] = fig
+        path.touch()
+        return path
+
+    monkeypatch.setattr(report, "_save", keep)
     write_report(run)
     fig = kept["attitude_actuators.png"]
     panels = [ax for ax in fig.axes if ax.get_ylabel()]
@@ -360,3 +366,54 @@ def test_a_kept_report_names_its_run_and_is_marked_stale_when_it_is_replaced(
     assert "Stale: this report was made from an earlier run" in page.read_text()
     assert main(["report", str(out)]) == 0  # made again from the run now in the folder
     assert "Stale" not in page.read_text()
+
+
+def _full_disk_at_the_second_figure(monkeypatch) -> None:
+    """Figure.savefig writes half a file, then fails as a full disk does, from the
+    second figure on."""
+    import errno
+
+    from matplotlib.figure import Figure
+
+    saved = []
+
+    def savefig(self, path, **kwargs):
+        if saved:
+            Path(path).write_bytes(PNG_SIGNATURE)
+            raise OSError(errno.ENOSPC, "No space left on device")
+        saved.append(path)
+        return real(self, path, **kwargs)
+
+    real = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", savefig)
+
+
+@pytest.mark.parametrize("earlier", [False, True], ids=["first", "remade"])
+def test_a_report_the_disk_had_no_room_for_leaves_nothing_and_can_be_made_later(
+    tmp_path, capsys, monkeypatch, earlier
+) -> None:
+    """A full disk left half a report whose files the next report, with room again,
+    refused as "not a file a report wrote"."""
+    run = _sparse_run(tmp_path / "run", ("plant.u", "plant.roll"))
+    folder = run / "report"
+    if earlier:
+        write_report(run)
+    before = {p.name: p.read_bytes() for p in folder.iterdir()} if earlier else None
+    with monkeypatch.context() as patch:
+        _full_disk_at_the_second_figure(patch)
+        capsys.readouterr()
+        assert main(["report", str(run)]) == 1
+    err = capsys.readouterr().err
+    left = "the earlier report is as it was" if earlier else "no report made"
+    assert err == (
+        f"auv-cosim report: cannot write the report into {folder}: No space left on device; "
+        f"nothing of it is left ({left})\n"
+    )
+    if earlier:
+        assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    else:
+        assert not folder.exists()
+    index = write_report(run)  # room again
+    assert sorted(p.name for p in folder.glob("*.png")) == ["attitude_actuators.png",
+                                                            "velocities.png"]  # fmt: skip
+    assert index == folder / "index.html" and not list(folder.glob(".report*"))
