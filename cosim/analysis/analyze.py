@@ -37,6 +37,7 @@ from cosim.analysis.bifurcation import (
 )
 from cosim.analysis.equilibria import Equilibrium
 from cosim.errors import CosimError, unmade_folder
+from cosim.whole_file import write_whole
 from plant_fmu.model.dynamics import STATE_INDEX, STATE_NAMES, STATE_UNITS, Variant
 from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
 from plant_fmu.model.stepping import simulate
@@ -222,7 +223,7 @@ def run_sweep(
         title = f"{conditions.params.name}: equilibria over {parameter} ({setting})"
         figure = plot_sweep(result, conditions.params, out / f"{stem}.png", title=title)
     except OSError as exc:
-        raise CosimError(f"cannot write the sweep outputs to {out}: {exc}") from None
+        raise CosimError(f"cannot write the sweep outputs to {out}: {_unwritten(exc)}") from None
     return result, {"figure": figure, "branches": branches, "special_points": special}
 
 
@@ -230,6 +231,13 @@ def write_branches_csv(result: Sweep, conditions: OperatingConditions, path: Pat
     """One row per branch point: branch, parameter, (y_g,) free states, stable, the largest
     eigenvalue real part."""
     with_cg = result.parameter == "mass_position"
+    write_whole(path, lambda tmp: _write_branches(result, conditions, with_cg, tmp))
+    return path
+
+
+def _write_branches(
+    result: Sweep, conditions: OperatingConditions, with_cg: bool, path: Path
+) -> None:
     with path.open("w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
         writer.writerow(
@@ -250,10 +258,15 @@ def write_branches_csv(result: Sweep, conditions: OperatingConditions, path: Pat
                     + [repr(float(z)) for z in branch.states[k]]
                     + [int(branch.stable[k]), repr(float(branch.eigenvalues[k].real.max()))]
                 )
-    return path
 
 
 def write_special_points_csv(result: Sweep, path: Path) -> Path:
+    """One row per special point (fold, Hopf, ...): kind, branch, parameter, free states."""
+    write_whole(path, lambda tmp: _write_special_points(result, tmp))
+    return path
+
+
+def _write_special_points(result: Sweep, path: Path) -> None:
     with path.open("w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
         writer.writerow(["kind", "branch", result.parameter, *result.free_states])
@@ -262,7 +275,12 @@ def write_special_points_csv(result: Sweep, path: Path) -> Path:
                 [s.kind, s.branch, repr(s.parameter)]
                 + [repr(s.state[n]) for n in result.free_states]
             )
-    return path
+
+
+def _unwritten(exc: OSError) -> str:
+    """'FILE: why' for an output file that could not be written (a full disk)."""
+    why = exc.strerror or str(exc)
+    return f"{exc.filename}: {why}" if exc.filename else why
 
 
 def special_points_table(result: Sweep, conditions: OperatingConditions) -> str:
@@ -346,7 +364,7 @@ def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:
     try:
         path = plot_phase_portrait(trajectories, equilibria, out / "phase_portrait.png", title)
     except OSError as exc:
-        raise CosimError(f"cannot write the phase portrait to {out}: {exc}") from None
+        raise CosimError(f"cannot write the phase portrait to {out}: {_unwritten(exc)}") from None
     print(describe(conditions))
     print(equilibria_table(conditions, equilibria))
     print(f"  {len(trajectories)} trajectories of {PHASE_DURATION_S:g} s: {path}")

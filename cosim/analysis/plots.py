@@ -19,6 +19,7 @@ from matplotlib.lines import Line2D
 
 from cosim.analysis.bifurcation import Q_PROP, Sweep, cg_offset
 from cosim.analysis.equilibria import Equilibrium
+from cosim.whole_file import write_whole
 from plant_fmu.model.dynamics import STATE_INDEX
 from plant_fmu.model.parameters import VehicleParameters
 
@@ -175,5 +176,5 @@ def plot_phase_portrait(
 
 def _save(fig: Figure, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    write_whole(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     return path

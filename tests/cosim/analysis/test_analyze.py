@@ -226,3 +226,36 @@ def test_console_entry_point_runs_in_a_fresh_process():
     )
     assert result.returncode == 0, result.stderr
     assert len(json.loads(result.stdout)) == 3
+
+
+@pytest.mark.parametrize("failing", ["figure", "special points"])
+def test_a_sweep_output_the_disk_has_no_room_for_is_named_and_not_left_half(
+    capsys, tmp_path, monkeypatch, failing
+):
+    """A full disk left a sweep's figure or CSV written in part (0 bytes) beside the
+    message, which named the folder only."""
+    import errno
+
+    from matplotlib.figure import Figure
+
+    import cosim.analysis.analyze as analyze
+
+    def full(path, first):  # writes the start of the file, then finds the disk full
+        path.write_text(first, encoding="utf-8")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    if failing == "figure":
+        monkeypatch.setattr(Figure, "savefig", lambda fig, path, **kw: full(path, "\x89PNG"))
+        name = "sweep_eta.png"
+    else:
+        monkeypatch.setattr(analyze, "_write_special_points", lambda result, path: full(path, "k"))
+        name = "sweep_eta_special_points.csv"
+    code, _, err = _run(capsys, "analyze", "sweep", "eta", "1", "2", "--steps", "10",
+                        "--out", str(tmp_path))  # fmt: skip
+    assert code == 1
+    assert err == (
+        f"auv-cosim analyze: cannot write the sweep outputs to {tmp_path}: {tmp_path / name}: "
+        "No space left on device\n"
+    )
+    assert not (tmp_path / name).exists() and not list(tmp_path.glob(".*.tmp"))
+    assert (tmp_path / "sweep_eta.csv").stat().st_size > 0  # written before: kept, whole
