@@ -354,10 +354,10 @@ class AuvPlant(SafeSlave):
     def _input_rates(self) -> np.ndarray | None:
         """(2, inputs): the first and second time derivatives the importer set for this
         step's actuator inputs (1/s, 1/s^2; the currents' taken as 0), None if every
-        actuator input's first derivative is 0 (held, as :func:`compiled.step_into`)."""
+        actuator input's derivatives are 0 (held, as :func:`compiled.step_into`)."""
         rates = np.zeros((2, len(INPUT_NAMES)))
         rates[:, _ACTUATOR_INPUTS] = self._rates[:, _ACTUATOR_INPUTS]
-        return rates if rates[0].any() else None
+        return rates if rates.any() else None
 
     def _state_snapshot(self) -> dict[str, Any]:
         # the state, the outputs and the inputs are in the value buffers, saved with them

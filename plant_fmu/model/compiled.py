@@ -588,11 +588,12 @@ def _inputs_at(inputs: np.ndarray, rates: np.ndarray, tau: float, out: np.ndarra
 
 @_jit
 def varies(rates: np.ndarray) -> bool:
-    """True if some input has a first time derivative other than 0 in ``rates``
-    (2 x inputs): the step then follows them, else it holds every input."""
+    """True if some input has a first or second time derivative other than 0 in ``rates``
+    (2 x inputs): the step then follows them, else it holds every input (a second
+    derivative alone, as at the turning point of a quadratic extrapolation, counts)."""
     varying = False  # (a loop, not any(): numba compiles no generator into this)
     for i in range(rates.shape[1]):
-        if rates[0, i] != 0.0:
+        if rates[0, i] != 0.0 or rates[1, i] != 0.0:
             varying = True
     return varying
 
@@ -700,8 +701,8 @@ def step_into(
     steps of dt seconds on (:func:`advance_into`), then its derived outputs into
     ``derived`` (:func:`outputs_into`). ``rates`` (2 x inputs) are the input derivatives
     the importer set for this step: the currents' are set to 0 here (the currents are held
-    over a step), and the step follows the others when one of their first derivatives is
-    not 0 (:func:`varies`), else holds every input. Nothing is allocated: the FMU passes
+    over a step), and the step follows the others when one of their derivatives is not 0
+    (:func:`varies`), else holds every input. Nothing is allocated: the FMU passes
     views of its value buffers and a preallocated ``scratch`` (:data:`STEP_SCRATCH`).
     Returns 0; or, with nothing changed, :data:`CURRENT_CHANGED` when the current inputs
     differ from ``last_current`` (the velocity jump of a current change is computed by the

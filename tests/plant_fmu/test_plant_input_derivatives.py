@@ -71,3 +71,21 @@ def test_the_autopilot_follows_its_inputs_when_they_vary() -> None:
 def test_both_declare_that_they_interpolate_their_inputs() -> None:
     assert AuvPlant.interpolates_inputs and AuvAutopilot.interpolates_inputs
     assert np.all([name in INPUT_NAMES for name, _ in RATES if name != "yaw"])
+
+
+@pytest.mark.slow  # compiles the varying-input step the first time (numba)
+def test_a_second_derivative_alone_is_followed_as_when_a_first_one_is_near_zero() -> None:
+    """With every first derivative 0, a second derivative (a quadratic extrapolation's
+    turning point) was ignored, while with one of 1e-12 beside it it was followed: the
+    step was discontinuous in the derivatives the importer set."""
+
+    def stepped(first: float) -> np.ndarray:
+        plant = started(AuvPlant)
+        mass = plant._vr_of["mass_position_cmd"]
+        plant.set_real_input_derivatives([mass, mass], [1, 2], [first, 0.2])
+        assert plant.do_step(0.0, 0.5)
+        return plant._x.copy()
+
+    alone, beside = stepped(0.0), stepped(1e-12)
+    assert alone[12] > 0.0  # the mass moved: the command rose as 0.1 t^2
+    np.testing.assert_allclose(alone, beside, rtol=1e-9, atol=1e-15)
