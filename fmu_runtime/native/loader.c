@@ -16,9 +16,10 @@
  * currentCommunicationPoint is not the FMU's current time (the start time, then the end
  * of the last step) within a relative 1e-9; a read of an unknown value reference or of
  * the wrong type; a write of a variable that cannot be written then (outputs, locals,
- * constants; a fixed parameter after initialisation, unless it is the value it has), of a
- * non-finite Real, of a value outside the declared min/max, or of a String that is not
- * UTF-8; input derivatives the FMU does not take. With the default backend the values
+ * constants; a fixed parameter after initialisation, unless it is the value it has, or
+ * the one a state set since gave it), of a non-finite Real, of a value outside the
+ * declared min/max, or of a String that is not UTF-8; input derivatives the FMU does not
+ * take; an FMU state another FMU took. With the default backend the values
  * themselves are read and written in C (values.c): a Real read back non-finite is refused
  * there. The variables' rules come from resources/fmu_variables.txt, the GUID and
  * the slave class from resources/fmu_runtime.txt; the build writes both.
@@ -27,7 +28,8 @@
  * backends pass every message the slave logs to the host's logger, with a category
  * (never NULL), and remember the worst status logged during the current call: a call
  * during which an Error was logged returns fmi2Error (a refused doStep keeps its
- * fmi2Discard). OK-status messages reach the host only while it has logging on.
+ * fmi2Discard), even when the host's logger calls the FMU back meanwhile (each call keeps
+ * its own). OK-status messages reach the host only while it has logging on.
  *
  * Once the interpreter has shut down under live instances (a Python host exiting without
  * freeing them, then destructors calling fmi2Terminate or fmi2FreeInstance), every call
@@ -52,7 +54,8 @@ typedef struct {
     unsigned magic;
     int phase;
     double time;
-    void *inner; /* the backend's state */
+    void *inner;  /* the backend's state */
+    uint32_t fmu; /* which FMU saved it: the CRC-32 of its GUID (fmu_of) */
 } Saved;
 #define SAVED_MAGIC 0x4155564cu /* "AUVL" */
 /* A serialised state: magic, phase, time, then the CRC-32 of every byte but its own four,
@@ -102,7 +105,9 @@ static void emit(const fmi2CallbackFunctions *host, const char *instance, fmi2St
 void instance_log(Instance *c, fmi2Status status, const char *category, const char *message)
 {
     if (status > c->logged) c->logged = status;
+    fmi2Status worst = c->logged;
     if (c->logging || status >= fmi2Warning) emit(&c->host, c->name, status, category, message);
+    c->logged = worst; /* a call the host's logger made meanwhile started from fmi2OK */
 }
 
 /* ``text`` with every % doubled: hosts treat the message as a printf format. */
@@ -264,6 +269,11 @@ static const Variable *variable(const Instance *c, fmi2ValueReference vr)
     return vr < c->count && c->vars[vr].known ? &c->vars[vr] : NULL;
 }
 
+static int is_fixed_parameter(const Variable *v)
+{
+    return v->known && !strcmp(v->causality, "parameter") && !strcmp(v->variability, "fixed");
+}
+
 static void show_value(char type, double x, char *out)
 {
     if (type == 'I') snprintf(out, 40, "%d", (int)x);
@@ -272,10 +282,11 @@ static void show_value(char type, double x, char *out)
     else show(x, out);
 }
 
-/* Why writing ``x`` (a String's is NAN) to ``vr`` now is refused, or NULL. The value is
- * formatted only for a refusal: formatting costs more than every check together. */
+/* Why writing ``x`` (a String's is NAN; ``same`` says whether it is the String the
+ * variable has) to ``vr`` now is refused, or NULL. The value is formatted only for a
+ * refusal: formatting costs more than every check together. */
 static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char type, double x,
-                                 char *why, size_t n)
+                                 int same, char *why, size_t n)
 {
     const Variable *v = variable(c, vr);
     if (!v) {
@@ -297,7 +308,7 @@ static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char 
                (!strcmp(v->causality, "parameter") && strcmp(v->variability, "fixed"))) {
         return NULL;
     } else if (!strcmp(v->causality, "parameter")) {
-        if (c->phase <= INITIALIZATION || (type != 'S' && x == v->value)) return NULL;
+        if (c->phase <= INITIALIZATION || (type == 'S' ? same : x == v->value)) return NULL;
         problem = "a fixed parameter can only be set before initialisation";
     }
     char shown[40];
@@ -345,16 +356,29 @@ static int is_utf8(const unsigned char *text)
     if (n > 0 && !(array)) return refuse(c, "%s refused: the %s is NULL (n = %zu)", call, \
                                          what, n)
 
+/* 1 if ``text`` is the value of the String ``vr``, a fixed parameter written after
+ * initialisation (read from the backend only then: a host re-applying its start values). */
+static int same_string(Instance *c, fmi2ValueReference vr, const char *text)
+{
+    const Variable *v = variable(c, vr);
+    fmi2String now = NULL;
+    if (!text || !v || v->type != 'S' || !is_fixed_parameter(v) || c->phase <= INITIALIZATION) {
+        return 0;
+    }
+    return c->backend->get(c, 'S', &vr, 1, &now) <= fmi2Warning && now && !strcmp(now, text);
+}
+
 /* Check every value first: a refused call writes nothing. */
 static fmi2Status check_writes(Instance *c, const fmi2ValueReference vr[], size_t n, char type,
-                               const double *values)
+                               const double *values, const fmi2String *strings)
 {
     char why[512];
     if (c->phase >= TERMINATED) {
         return refuse(c, "fmi2Set%s refused: the FMU is %s", type_name(type), PHASES[c->phase]);
     }
     for (size_t i = 0; i < n; i++) {
-        if (write_refusal(c, vr[i], type, values ? values[i] : NAN, why, sizeof why)) {
+        int same = strings && same_string(c, vr[i], strings[i]);
+        if (write_refusal(c, vr[i], type, values ? values[i] : NAN, same, why, sizeof why)) {
             return refuse(c, "%s", why);
         }
     }
@@ -386,6 +410,35 @@ static void remember_writes(Instance *c, const fmi2ValueReference vr[], size_t n
 static void reset_values(Instance *c)
 {
     for (size_t i = 0; i < c->count; i++) c->vars[i].value = c->vars[i].start;
+}
+
+/* After a state is set: the fixed parameters' values are the state's, read back from the
+ * backend (one call per type), so that a write of the value a parameter has is taken and
+ * any other refused, as before. */
+static fmi2Status remember_state_values(Instance *c)
+{
+    fmi2ValueReference *vr = malloc(c->count * sizeof *vr);
+    double *reals = malloc(c->count * sizeof *reals);
+    int *ints = malloc(c->count * sizeof *ints);
+    fmi2Status s = vr && reals && ints ? fmi2OK : refuse(c, "fmi2SetFMUstate: out of memory");
+    const char types[] = {'R', 'I', 'B'};
+    for (int t = 0; s <= fmi2Warning && t < 3; t++) {
+        size_t n = 0;
+        for (size_t i = 0; i < c->count; i++) {
+            if (is_fixed_parameter(&c->vars[i]) && c->vars[i].type == types[t]) {
+                vr[n++] = (fmi2ValueReference)i;
+            }
+        }
+        if (!n) continue;
+        s = c->backend->get(c, types[t], vr, n, types[t] == 'R' ? (void *)reals : (void *)ints);
+        for (size_t k = 0; s <= fmi2Warning && k < n; k++) {
+            c->vars[vr[k]].value = types[t] == 'R' ? reals[k] : ints[k];
+        }
+    }
+    free(vr);
+    free(reals);
+    free(ints);
+    return s;
 }
 
 /* ---- instantiate / free ------------------------------------------------------------- */
@@ -717,7 +770,8 @@ static fmi2Status set(Instance *c, char type, const fmi2ValueReference vr[], siz
 {
     NEED(vr, "value-reference array", call);
     NEED(values, "value array", call);
-    if (check_writes(c, vr, n, type, x) != fmi2OK) return fmi2Error;
+    const fmi2String *strings = type == 'S' ? (const fmi2String *)values : NULL;
+    if (check_writes(c, vr, n, type, x, strings) != fmi2OK) return fmi2Error;
     fmi2Status s = n ? answer(c, c->backend->set(c, type, vr, n, values)) : fmi2OK;
     if (s == fmi2OK && x) remember_writes(c, vr, n, x);
     if (s <= fmi2Warning) c->writes++;
@@ -773,16 +827,24 @@ FMI2_EXPORT fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueRef
 
 /* ---- FMU state: the backend's, with the runtime's phase and time -------------------- */
 
-static Saved *saved_state(fmi2FMUstate state)
+/* Which FMU an instance is: the CRC-32 of its GUID. The three FMUs share this runtime and
+ * its states' layout, so a state is checked against the FMU that took it too. */
+static uint32_t fmu_of(const Instance *c)
+{
+    return crc32_of(0, c->record.guid, strlen(c->record.guid));
+}
+
+/* ``state`` as a state this FMU took (by any of its instances), or NULL. */
+static Saved *saved_state(const Instance *c, fmi2FMUstate state)
 {
     Saved *saved = (Saved *)state;
-    return saved && saved->magic == SAVED_MAGIC ? saved : NULL;
+    return saved && saved->magic == SAVED_MAGIC && saved->fmu == fmu_of(c) ? saved : NULL;
 }
 
 FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
 {
     INSTANCE(component);
-    if (!state || (*state && !saved_state(*state))) {
+    if (!state || (*state && !saved_state(c, *state))) {
         return refuse(c, "fmi2GetFMUstate refused: not an FMU state of this FMU");
     }
     Saved *saved = *state ? (Saved *)*state : calloc(1, sizeof *saved);
@@ -795,7 +857,7 @@ FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *st
         return s;
     }
     if (saved->inner) c->backend->discard(c, saved->inner);
-    *saved = (Saved){SAVED_MAGIC, c->phase, c->time, inner};
+    *saved = (Saved){SAVED_MAGIC, c->phase, c->time, inner, fmu_of(c)};
     *state = saved;
     return s;
 }
@@ -803,13 +865,14 @@ FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *st
 FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate state)
 {
     INSTANCE(component);
-    Saved *saved = saved_state(state);
+    Saved *saved = saved_state(c, state);
     if (!saved) return refuse(c, "fmi2SetFMUstate refused: not an FMU state of this FMU");
     fmi2Status s = answer(c, c->backend->restore(c, saved->inner));
     c->writes++; /* a state set, restored or not, is a change the master made */
     if (s <= fmi2Warning) {
         c->phase = saved->phase;
         c->time = saved->time;
+        s = answer(c, remember_state_values(c));
     }
     return s;
 }
@@ -818,7 +881,7 @@ FMI2_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *s
 {
     INSTANCE(component);
     if (!state || !*state) return fmi2OK;
-    Saved *saved = saved_state(*state);
+    Saved *saved = saved_state(c, *state);
     if (!saved) return refuse(c, "fmi2FreeFMUstate refused: not an FMU state of this FMU");
     c->backend->discard(c, saved->inner);
     saved->magic = 0;
@@ -831,7 +894,7 @@ FMI2_EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2F
                                                   size_t *size)
 {
     INSTANCE(component);
-    Saved *saved = saved_state(state);
+    Saved *saved = saved_state(c, state);
     if (!saved || !size) {
         return refuse(c, "fmi2SerializedFMUstateSize refused: %s",
                       saved ? "size is NULL" : "not an FMU state of this FMU");
@@ -845,7 +908,7 @@ FMI2_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUsta
                                              fmi2Byte bytes[], size_t size)
 {
     INSTANCE(component);
-    Saved *saved = saved_state(state);
+    Saved *saved = saved_state(c, state);
     if (!saved) return refuse(c, "fmi2SerializeFMUstate refused: not an FMU state of this FMU");
     if (!bytes || size < SAVED_HEADER) {
         return refuse(c, "fmi2SerializeFMUstate refused: %s",
@@ -871,7 +934,7 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
                                                size_t size, fmi2FMUstate *state)
 {
     INSTANCE(component);
-    Saved header = {0, 0, 0.0, NULL};
+    Saved header = {0, 0, 0.0, NULL, 0};
     if (!state) return refuse(c, "fmi2DeSerializeFMUstate refused: the state pointer is NULL");
     if (!bytes || size < SAVED_HEADER) {
         return refuse(c, "fmi2DeSerializeFMUstate refused: %s",
@@ -899,6 +962,7 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
         free(saved);
         return s;
     }
+    header.fmu = fmu_of(c); /* its bytes passed this FMU's checks: its layout, its slave */
     *saved = header;
     *state = saved;
     return s;

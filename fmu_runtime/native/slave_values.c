@@ -208,19 +208,32 @@ fmi2Status slave_save(Instance *c, void **saved)
     return state ? fmi2OK : fmi2Error;
 }
 
+/* The buffers are restored before the slave's part (which reads them); if the slave then
+ * refuses its part, the buffers get their values back: a refused call changes nothing. */
 fmi2Status slave_restore(Instance *c, void *saved)
 {
     State *state = saved;
+    size_t size = values_bytes(&c->values, c->count);
+    if (state->size != size) {
+        return refuse(c, "fmi2SetFMUstate refused: the state holds %zu bytes of values, this "
+                      "FMU's %zu (a state of another FMU)", state->size, size);
+    }
+    State *now = new_state(c, NULL);
+    if (!now) return refuse(c, "fmi2SetFMUstate refused: out of memory");
     int gil;
-    if (!slave_enter(c, "fmi2SetFMUstate", &gil)) return fmi2Error;
-    values_restore(&c->values, c->count, state->bytes);
-    py.IncRef(state->python); /* pack steals one reference */
-    PyObject *items[] = {state->python};
-    PyObject *result = slave_invoke(c, (PyObject *)c->slave, "_set_fmu_state",
-                                    slave_pack(1, items), "fmi2SetFMUstate");
-    int ok = result && slave_pull_strings(c, "fmi2SetFMUstate");
-    slave_release(result);
-    slave_leave(c, gil);
+    int ok = slave_enter(c, "fmi2SetFMUstate", &gil);
+    if (ok) {
+        values_restore(&c->values, c->count, state->bytes);
+        py.IncRef(state->python); /* pack steals one reference */
+        PyObject *items[] = {state->python};
+        PyObject *result = slave_invoke(c, (PyObject *)c->slave, "_set_fmu_state",
+                                        slave_pack(1, items), "fmi2SetFMUstate");
+        ok = result && slave_pull_strings(c, "fmi2SetFMUstate");
+        if (!result) values_restore(&c->values, c->count, now->bytes);
+        slave_release(result);
+        slave_leave(c, gil);
+    }
+    free(now);
     return ok ? fmi2OK : fmi2Error;
 }
 

@@ -1,0 +1,109 @@
+"""FMU states and the variables' rules, from a host's side, in both runtimes: a state set
+gives the fixed parameters their values in it (a write of that value is taken, another
+refused, as FMI 2.0 has for a fixed parameter after initialisation); a state another FMU
+took is refused with nothing changed; a String parameter written again with the value it
+has is taken as the other types are; and a call's status stays its own when the host's
+logger calls the FMU back meanwhile."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+RUNTIMES = {"runtime": "", "pythonfmu": "pythonfmu"}
+
+STATES = """
+import json, os, sys
+os.environ["AUV_FMU_RUNTIME"] = sys.argv[3]
+from fmu_harness import Harness, status_of
+
+report = {}
+heavy = Harness(sys.argv[1], instance="heavy", m=40.0)  # a fixed parameter, then a state
+state = heavy.slave.getFMUState()
+serialised = heavy.slave.serializeFMUState(state)
+m = heavy.variables["m"].valueReference
+for how in ("set", "deserialised"):
+    plant = Harness(sys.argv[1], instance=how)  # m = its start value, 30.5 kg
+    given = state if how == "set" else plant.slave.deserializeFMUState(serialised)
+    plant.slave.setFMUState(given)
+    report[how] = {
+        "m": plant.slave.getReal([m])[0],
+        "write of the state's m": status_of(plant.slave.setReal, [m], [40.0]),
+        "write of the start value": status_of(plant.slave.setReal, [m], [30.5]),
+        "m after": plant.slave.getReal([m])[0],
+    }
+
+autopilot = Harness(sys.argv[2], instance="autopilot")
+plant = Harness(sys.argv[1], instance="plant")  # last: fmpy's logger proxy is one per process
+reals = [v.valueReference for v in plant.variables.values() if v.type == "Real"]
+plant.step(0.01)
+before = plant.slave.getReal(reals)
+foreign = autopilot.slave.getFMUState()
+report["foreign state"] = status_of(plant.slave.setFMUState, foreign)
+report["unchanged"] = plant.slave.getReal(reals) == before
+report["step after"] = plant.step(0.01)
+report["errors"] = plant.messages(3)
+
+vehicle = plant.variables["vehicle"].valueReference
+report["vehicle again"] = status_of(plant.slave.setString, [vehicle], ["remus100"])
+report["another vehicle"] = status_of(plant.slave.setString, [vehicle], ["other"])
+print(json.dumps(report))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_states_set_fixed_parameters_and_a_foreign_state_changes_nothing(
+    runtime, fmu_paths, run_python
+):
+    """After a state with m = 40 kg was set on a plant started with 30.5 kg, writing 30.5
+    was taken (and read back, while the dynamics used 40) and writing 40 refused; a
+    state of the autopilot set on the plant changed its values before being refused."""
+    done = run_python(STATES, fmu_paths["AuvPlant"], fmu_paths["AuvAutopilot"], RUNTIMES[runtime])
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    for how in ("set", "deserialised"):
+        assert report[how] == {
+            "m": 40.0, "write of the state's m": 0, "write of the start value": 3, "m after": 40.0
+        }, how  # fmt: skip
+    assert report["foreign state"] == 3 and report["unchanged"], report
+    assert report["step after"] == 0
+    assert "not an FMU state of this FMU" in report["errors"], report["errors"]
+    assert report["vehicle again"] == 0 and report["another vehicle"] == 3
+
+
+REENTRANT = """
+import json, os, sys
+os.environ["AUV_FMU_RUNTIME"] = sys.argv[2]
+from fmpy.fmi2 import fmi2LastSuccessfulTime
+from fmu_harness import Harness, status_of
+
+
+class CallingBack(Harness):
+    def _on_log(self, component, instance, status, category, message):
+        super()._on_log(component, instance, status, category, message)
+        self.slave.getRealStatus(fmi2LastSuccessfulTime)  # a host asking meanwhile
+
+
+guidance = CallingBack(sys.argv[1], instance="guidance", initialize=False)
+guidance.slave.setupExperiment(startTime=0.0)
+guidance.slave.enterInitializationMode()
+guidance.set(waypoints="garbage")
+exit_status = status_of(guidance.slave.exitInitializationMode)
+print(json.dumps({"exit": exit_status, "errors": guidance.messages(3)}))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_a_failed_call_returns_error_when_the_hosts_logger_calls_the_fmu_back(
+    runtime, fmu_paths, run_python
+):
+    """A logger calling fmi2GetRealStatus while the FMU logged its Error made the failed
+    fmi2ExitInitializationMode return fmi2OK."""
+    done = run_python(REENTRANT, fmu_paths["AuvGuidance"], RUNTIMES[runtime])
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["exit"] == 3, report
+    assert "waypoint" in report["errors"], report
