@@ -40,6 +40,7 @@ class Variable:
     driven_by: str | None = None  # the connection source, if an input driven by one
     min: float | None = None  # the declared range, None where it declares none
     max: float | None = None
+    names: Mapping[str, int] = field(default_factory=dict)  # named values: name -> value
 
     @property
     def takes_start_value(self) -> bool:
@@ -85,6 +86,7 @@ class StartValue:
     instance: str
     variable: str
     real: bool
+    named: tuple[tuple[int, str], ...] = ()  # an Integer's or Enumeration's named values
 
     @classmethod
     def recognise(cls, name: str, facts: ScenarioFacts) -> StartValue | None:
@@ -103,13 +105,21 @@ class StartValue:
                 f"factor {name!r}: {name} is a {var.variability} {var.causality}; only "
                 "parameters and unconnected inputs take start values"
             )
-        return cls(name, instance, variable, var.type == "Real")
+        named = tuple((number, text) for text, number in var.names.items())
+        return cls(name, instance, variable, var.type == "Real", named)
 
     def apply(self, data: dict[str, Any], value: Value) -> None:
         data["instances"][self.instance].setdefault("start", {})[self.variable] = value
 
     def normalize(self, value: Value) -> Value:
-        return _real(value) if self.real else value
+        """A Real's integer as a float; a named value's number as its name (``2`` as
+        ``"horizontal"``, as the scenario file may write it), so that a factor's values
+        are of one type and the same value written both ways is one run."""
+        if self.real:
+            return _real(value)
+        if type(value) is int:
+            return dict(self.named).get(value, value)
+        return value
 
 
 # a fault's numeric keys and which of them are integers, as the scenario's FaultSpec has them

@@ -82,7 +82,7 @@ def prepare(
         name: {
             v.name: Variable(
                 v.name, v.type, v.causality, v.variability, driven.get(f"{name}.{v.name}"),
-                v.min, v.max,
+                v.min, v.max, v.names,
             )
             for v in inst.interface.variables.values()
         }

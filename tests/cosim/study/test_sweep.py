@@ -245,3 +245,27 @@ def test_a_study_of_fmus_nobody_here_wrote_has_no_empty_auv_columns(
     rows = table(tmp_path / "out")
     assert list(rows[0]) == ["run", "d.k", "time_reached", "final.d.x", "status", "error"]
     assert [float(row["final.d.x"]) < 1.0 for row in rows] == [True] * 3
+
+
+@pytest.mark.slow
+def test_a_named_value_and_a_number_in_one_grid_run_and_are_tabled_by_name(
+    tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A grid of an enumeration's name and a number ("lateral", 2) ended in a pyarrow
+    traceback after its runs, and every --resume in the same; ("lateral", 1), one value
+    written two ways, ran twice."""
+    study = tmp_path / "variants.toml"
+    text = 'scenario = "bs-3"\nstop_time = 0.5\n[grid]\n"plant.variant" = ["lateral", {}]\n'
+    study.write_text(text.format(1), encoding="utf-8")
+    argv = ["sweep", str(study), "--out", str(tmp_path / "twice"), "--fmu-dir", str(fmu_dir)]
+    assert main(argv) == 1
+    assert "two runs have the same factor values {'plant.variant': 'lateral'}" in (
+        capsys.readouterr().err
+    )
+    study.write_text(text.format(2), encoding="utf-8")
+    out = tmp_path / "out"
+    sweep(study, out, fmu_dir, "--workers", "1")
+    rows = table(out)
+    assert [r["plant.variant"] for r in rows] == ["lateral", "horizontal"]
+    assert {r["status"] for r in rows} == {"complete"}
+    assert (out / "runs.parquet").is_file() and (out / "index.html").is_file()
