@@ -112,7 +112,7 @@ def run_study(
     spec = load_study(study_file)
     check_size(spec, str(study_file), max_runs)
     scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
-    base, facts = prepare(scenario_ref, spec.stop_time, fmu_dir, spec.check_step)
+    base, facts = prepare(scenario_ref, spec.stop_time, fmu_dir, spec.check_step, study_file.parent)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     metrics = _metrics(spec, facts)
     runs = _checked_plan(spec, base, factors, facts)

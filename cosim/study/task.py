@@ -31,7 +31,7 @@ from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
 from cosim.runner import run_scenario
-from cosim.scenario.spec import Scenario, load_scenario, scenario_from_data
+from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
 
@@ -49,6 +49,7 @@ class Base:
     data: Mapping[str, Any]  # the resolved scenario as TOML data (FMUs as referenced)
     fmu_paths: Mapping[str, Path]  # instance -> its FMU file on the client
     files: Mapping[str, str] = field(default_factory=dict)  # file it reads -> its SHA-256
+    folder: str = ""  # the study file's: a factor's value naming a file is relative to it
 
 
 @dataclass(frozen=True)
@@ -64,11 +65,17 @@ class RunRecord:
 
 
 def prepare(
-    scenario_ref: str | Path, stop_time: float | None, fmu_dir: Path, check_step: bool = False
+    scenario_ref: str | Path,
+    stop_time: float | None,
+    fmu_dir: Path,
+    check_step: bool = False,
+    folder: Path | None = None,
 ) -> tuple[Base, ScenarioFacts]:
     """Load the scenario (built-in FMUs built into ``fmu_dir`` if needed) and read what
     the study checks its factors and metrics against; ``check_step`` adds the coupling
-    error metrics. Raises ``CosimError`` (an adaptive scenario with ``check_step``)."""
+    error metrics; a factor's value naming a file (a vehicle set) is relative to
+    ``folder``, the study file's (the working directory without one). Raises
+    ``CosimError`` (an adaptive scenario with ``check_step``)."""
     scenario = load_scenario(scenario_ref, fmu_dir=fmu_dir)
     if stop_time is not None:
         scenario = scenario.with_overrides(stop_time=stop_time)
@@ -93,6 +100,7 @@ def prepare(
         data=tomllib.loads(scenario.to_toml()),
         fmu_paths={name: inst.fmu_path for name, inst in scenario.instances.items()},
         files=referenced_files(scenario),
+        folder=str(folder.resolve()) if folder is not None else "",
     )
     tables = {
         section: {t.get("name", f"{section[:-1]}-{k}"): t for k, t in enumerate(found, start=1)}
@@ -188,6 +196,7 @@ def scenario_text(
     """The scenario one run ran, as a file ``auv-cosim run`` takes (FMUs as referenced)."""
     data = copy.deepcopy(dict(base.data))
     apply_values(data, factors, values)
+    _files_from(data, base.folder)
     return f"# Scenario {base.scenario_id!r} with {dict(values)}\n" + tomli_w.dumps(data)
 
 
@@ -201,7 +210,22 @@ def _scenario(
     for name, path in fmu_paths.items():
         data["instances"][name]["fmu"] = str(path)
     apply_values(data, factors, values)
+    _files_from(data, base.folder)
     return scenario_from_data(data, where=f"{base.scenario_id} with {dict(values)}")
+
+
+def _files_from(data: dict[str, Any], folder: str) -> None:
+    """Start values naming a file (the base scenario's are absolute already, a factor's
+    as the study file writes it) made absolute, in place: relative to ``folder`` (the
+    study file's) when the file is there, else to the working directory, as the study's
+    ``scenario`` is; a run, and the scenario file kept of it, read the file the study
+    named wherever they run from."""
+    for instance in data["instances"].values():
+        start = instance.get("start", {})
+        for key, value in start.items():
+            if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
+                beside = Path(folder, value)
+                start[key] = str((beside if folder and beside.is_file() else Path(value)).resolve())
 
 
 def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:

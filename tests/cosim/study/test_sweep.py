@@ -269,3 +269,34 @@ def test_a_named_value_and_a_number_in_one_grid_run_and_are_tabled_by_name(
     assert [r["plant.variant"] for r in rows] == ["lateral", "horizontal"]
     assert {r["status"] for r in rows} == {"complete"}
     assert (out / "runs.parquet").is_file() and (out / "index.html").is_file()
+
+
+@pytest.mark.slow
+def test_a_factor_naming_a_file_is_read_beside_the_study_file_from_any_folder(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A vehicle set named by a factor was looked for in the working directory (another
+    one of that name there was used), and the kept scenario.toml named it as written, so
+    `auv-cosim run` of it failed from the run's folder."""
+    studies, elsewhere = tmp_path / "studies", tmp_path / "elsewhere"
+    studies.mkdir(), elsewhere.mkdir()
+    vehicle = 'base = "remus100"\nname = "{}"\n[rigid_body]\nm = {}\n'
+    (studies / "heavy.toml").write_text(vehicle.format("heavy", 31.0), encoding="utf-8")
+    (elsewhere / "heavy.toml").write_text(vehicle.format("decoy", 45.0), encoding="utf-8")
+    study = studies / "vehicles.toml"
+    study.write_text(
+        'scenario = "bs-3"\nstop_time = 0.2\nkeep = "all"\n[grid]\n'
+        '"plant.vehicle" = ["remus100", "heavy.toml"]\n',
+        encoding="utf-8",
+    )
+    monkeypatch.chdir(elsewhere)
+    out = tmp_path / "out"
+    sweep(study, out, fmu_dir, "--workers", "1")
+    rows = {r["plant.vehicle"]: r for r in table(out)}
+    assert {r["status"] for r in rows.values()} == {"complete"}, rows
+    kept = out / "runs" / rows["heavy.toml"]["run"] / "scenario.toml"
+    named = tomllib.loads(kept.read_text(encoding="utf-8"))["instances"]["plant"]["start"]
+    assert named["vehicle"] == str(studies / "heavy.toml")
+    monkeypatch.chdir(kept.parent)
+    argv = ["run", str(kept), "--no-rrd", "--quiet", "--out", str(tmp_path / "again")]
+    assert main([*argv, "--fmu-dir", str(fmu_dir)]) == 0
