@@ -490,8 +490,9 @@ def report(outcome: RunOutcome) -> str:
     if any(v is not None for v in figures.values()):  # (a run without our plant has none)
         from cosim.metrics.key_figures import why_none
 
+        roles = scenario.key_instances
         lines.append("  " + ", ".join(
-            f"{k} = {_fmt(v) if v is not None else why_none(k, scenario.columns)}"
+            f"{k} = {_fmt(v) if v is not None else why_none(k, scenario.columns, roles)}"
             for k, v in figures.items()
         ))  # fmt: skip
     if outcome.manoeuvre:

@@ -71,7 +71,7 @@ MORE_TOLERANCES = {"vert-1": (2e-3, 1.25e-3, 8e-4, 5e-4)}
 
 def figures_of(scenario: Scenario) -> tuple[dict[str, float | None], master.RunResult]:
     """The key figures of one run (through the master, nothing written)."""
-    sink = KeyFigures(scenario.columns)
+    sink = KeyFigures(scenario.columns, scenario.key_instances)
     result = master.run(scenario, [sink], keep_rows=False)
     if not result.complete:
         raise RuntimeError(f"{scenario.id} at h = {scenario.coupling.step} s: {result.error}")
@@ -164,7 +164,7 @@ def _adaptive_table(sid: str, given: Sequence[float] | None) -> str:
     ]
     fixed: list[tuple[float, float]] = []  # (trajectory error, doSteps) of the fixed runs
     for name, scenario in runs.items():
-        sink = KeyFigures(scenario.columns)
+        sink = KeyFigures(scenario.columns, scenario.key_instances)
         started = time.perf_counter()
         result = master.run(scenario, [sink])
         wall = time.perf_counter() - started

@@ -49,7 +49,7 @@ def check_step(
     steps = [coupling.step / 2, coupling.step / 4]
     for step in steps:
         checked = scenario.with_overrides(step=step)
-        sink = KeyFigures(scenario.columns)
+        sink = KeyFigures(scenario.columns, scenario.key_instances)
         result = master.run(checked, [sink], keep_rows=False, stop=stop)
         if not result.complete:
             raise CosimError(f"--check-step: the run at h = {step!r} s stopped: {result.error}")

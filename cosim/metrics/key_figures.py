@@ -9,7 +9,9 @@ the autopilot's ``compensate_current`` on, that set-point is the course; the hea
 settles off it by the crab angle, so the figure is None).
 ``peak_abs_mass_position_m``, ``peak_abs_tunnel_force_N``: the largest magnitudes
 (``controller.tunnel_force``, else ``plant.tunnel_force``). A figure whose columns were not
-recorded is None, and so is one that is not finite.
+recorded is None, and so is one that is not finite. ``plant`` and ``controller`` stand for
+the instances running the plant and the autopilot, whatever a scenario names them
+(``Scenario.key_instances``).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import math
 import numpy as np
 
 YAW_TOLERANCE_RAD = math.radians(1.0)  # "settled" band of the yaw settling time
-_FORCES = ("controller.tunnel_force", "plant.tunnel_force")
+ROLES = {"plant": "plant", "controller": "controller"}  # role -> instance, as the built-ins
 
 
 def settling_time(
@@ -79,17 +81,22 @@ class SettlingTime:
         return None if self.pending else self.since
 
 
-_COLUMNS = {  # key figure -> the columns it is computed from (any one of them)
-    "yaw_settling_time_s": ("plant.yaw",),
-    "peak_abs_mass_position_m": ("plant.mass_position",),
-    "peak_abs_tunnel_force_N": _FORCES,
+_COLUMNS = {  # key figure -> the columns it is computed from (any one of them), by role
+    "yaw_settling_time_s": (("plant", "yaw"),),
+    "peak_abs_mass_position_m": (("plant", "mass_position"),),
+    "peak_abs_tunnel_force_N": (("controller", "tunnel_force"), ("plant", "tunnel_force")),
 }
 
 
-def why_none(name: str, columns: tuple[str, ...] | list[str]) -> str:
+def _columns(name: str, roles: dict[str, str]) -> list[str]:
+    """The columns the key figure ``name`` is computed from, of the instances ``roles``."""
+    return [f"{roles[role]}.{variable}" for role, variable in _COLUMNS.get(name, ())]
+
+
+def why_none(name: str, columns: tuple[str, ...] | list[str], roles: dict[str, str] = ROLES) -> str:
     """Why the key figure ``name`` of a run recording ``columns`` is None, in a few words:
     its columns were not recorded, or the yaw never settled into its band."""
-    if not any(column in columns for column in _COLUMNS.get(name, ())):
+    if not any(column in columns for column in _columns(name, roles)):
         return "not recorded"
     if name == "yaw_settling_time_s":
         return f"not settled (within {math.degrees(YAW_TOLERANCE_RAD):g} deg at the end)"
@@ -99,12 +106,14 @@ def why_none(name: str, columns: tuple[str, ...] | list[str]) -> str:
 class KeyFigures:
     """A row sink that keeps the key figures of the rows it is given (see the module)."""
 
-    def __init__(self, columns: tuple[str, ...] | list[str]) -> None:
+    def __init__(self, columns: tuple[str, ...] | list[str], roles: dict[str, str] = ROLES) -> None:
         index = {name: i for i, name in enumerate(columns)}
-        self._yaw = index.get("plant.yaw")
-        self._setpoint = index.get("controller.yaw_setpoint")
-        self._mass = index.get("plant.mass_position")
-        self._force = next((index[c] for c in _FORCES if c in index), None)
+        plant, controller = roles["plant"], roles["controller"]
+        self._yaw = index.get(f"{plant}.yaw")
+        self._setpoint = index.get(f"{controller}.yaw_setpoint")
+        self._mass = index.get(f"{plant}.mass_position")
+        forces = _columns("peak_abs_tunnel_force_N", roles)
+        self._force = next((index[c] for c in forces if c in index), None)
         self._settling = SettlingTime(YAW_TOLERANCE_RAD, angle=True)
         self._peaks = {"mass": -math.inf, "force": -math.inf}
 

@@ -80,7 +80,7 @@ class RunOutputs:
         self.scenario = scenario
         self.folder = folder
         self.paths = paths  # results, scenario, summary and (if written) recording
-        self.figures = KeyFigures(scenario.record)
+        self.figures = KeyFigures(scenario.record, scenario.key_instances)
         self.manoeuvre = (
             None if scenario.manoeuvre is None
             else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario))

@@ -253,6 +253,19 @@ class Scenario:
         return self.record + tuple(f"{FAULT_COLUMN_PREFIX}{f.name}" for f in self.faults)
 
     @property
+    def key_instances(self) -> dict[str, str]:
+        """The instances the key figures read (:mod:`cosim.metrics.key_figures`), whatever
+        the scenario calls them: ``plant``, the first running the plant FMU, and
+        ``controller``, the first running the autopilot (by model identifier; the names
+        "plant" and "controller" where none does)."""
+        models = {name: inst.interface.model_identifier for name, inst in self.instances.items()}
+        found = {"plant": "AuvPlant", "controller": "AuvAutopilot"}
+        return {
+            role: next((name for name, m in models.items() if m == model), role)
+            for role, model in found.items()
+        }
+
+    @property
     def n_steps(self) -> int:
         """Number of communication steps to the stop time."""
         return round(self.stop_time / self.coupling.step)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -108,3 +110,30 @@ def test_a_figure_that_is_none_says_why() -> None:
         "peak_abs_tunnel_force_N": "not recorded",
     }
     assert why_none("yaw_settling_time_s", ["plant.roll"]) == "not recorded"
+
+
+@pytest.mark.slow
+def test_the_figures_do_not_depend_on_what_the_scenario_calls_its_instances(
+    fmu_paths, tmp_path
+) -> None:
+    """bs-3 with its instances named "auv" and "ap" printed "not settled" for a yaw that
+    settled (the setpoint read as 0 without a controller.yaw_setpoint column), and a
+    renamed plant gave no figure at all."""
+    from cosim.runner import run_scenario
+    from cosim.scenario.spec import load_scenario
+
+    text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    text = text.replace("yaw_setpoint = 0.0", "yaw_setpoint = 0.05")
+    renamed = re.sub(r"\bplant\b", "auv", re.sub(r"\bcontroller\b", "ap", text))
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    figures = {}
+    for name, scenario_text in (("shipped", text), ("renamed", renamed)):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(scenario_text, encoding="utf-8")
+        scenario = load_scenario(path, fmu_dir=fmu_dir).with_overrides(stop_time=8.0)
+        if name == "renamed":
+            assert scenario.key_instances == {"plant": "auv", "controller": "ap"}
+        outcome = run_scenario(scenario, tmp_path / name, no_rrd=True)
+        figures[name] = outcome.figures
+    assert figures["renamed"] == figures["shipped"]
+    assert all(value is not None for value in figures["shipped"].values()), figures
