@@ -37,6 +37,7 @@ class RowBuffer:
         grid: float | None = None,
     ) -> None:
         self.h = scenario.coupling.step if grid is None else grid
+        self.stop_time = scenario.stop_time
         self.timeline = timeline
         self.buffer = np.empty((rows_per_chunk, len(scenario.columns)))
         self.slots = list(self.buffer)  # made once: the loop indexes a list, not the array
@@ -56,8 +57,10 @@ class RowBuffer:
             self._hand_off_notes()
         if not filled:
             return
-        # t_n = n h, never accumulated (no drift), as the loop computes it
-        times = np.arange(self.count, self.count + filled) * self.h
+        # t_n = n h, never accumulated (no drift), as the loop computes it; the last, N h,
+        # can exceed the stop time by a rounding (7 x 0.1 s is 0.7000000000000001 s): the
+        # stop time then, as the FMUs were told it
+        times = np.minimum(np.arange(self.count, self.count + filled) * self.h, self.stop_time)
         given = self.times[:filled]
         if not np.isnan(given).all():
             times = np.where(np.isnan(given), times, given)

@@ -46,6 +46,17 @@ def test_gauss_seidel_is_the_sampled_loop_without_delay(fmu_dir: Path) -> None:
     np.testing.assert_allclose(result.column("controller.u")[1:], -K * X0 * (1 - K * H) ** n[:-1])
 
 
+def test_no_row_is_after_the_stop_time(fmu_dir: Path, tmp_path: Path) -> None:
+    """Seven steps of 0.1 s ended at t = 7 x 0.1 = 0.7000000000000001 s, past the stop
+    time given to the FMUs (a `time <= stop_time` filter lost the last row)."""
+    outcome = run_scenario(loop(fmu_dir, stop_time=0.7, step=0.1), tmp_path / "run", no_rrd=True)
+    assert outcome.result.complete
+    last = (tmp_path / "run" / "results.csv").read_text().splitlines()[-1]
+    assert last.split(",")[0] == "0.7"
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["time_reached"] == summary["stop_time"] == 0.7
+
+
 def test_master_guards_any_pythonfmu_fmu_against_the_exit_crash(fmu_dir: Path) -> None:
     """The test FMUs are plain pythonfmu slaves (no guard of their own): the master
     installs fmu_runtime.exit_guard for every FMU it instantiates."""
