@@ -150,6 +150,12 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     digest = source_hash(files)
     if not force and _is_intact(target, hash_file, digest):
         return target
+    if not force and os.path.lexists(target) and not hash_file.exists():
+        raise CosimError(
+            f"cannot build {name}.fmu into {out_dir}: {target} is not a file a build wrote "
+            f"(no {hash_file.name} beside it), so it is left as it is; move it away, name "
+            f"another FMU folder, or replace it with `auv-cosim build --out {out_dir} --force`"
+        )
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:  # before the build's minute, not after it

@@ -410,3 +410,20 @@ def test_every_fmu_says_which_version_built_it_and_its_licence(fmu_paths):
         md = read_model_description(str(path))
         assert (md.version, md.license) == (version, "MIT"), name
         assert md.generationTool.startswith(f"auv-cosim {version} (PythonFMU "), name
+
+
+def test_a_file_no_build_wrote_is_never_built_over(tmp_path, capsys):
+    """A user's own AuvPlant.fmu in --fmu-dir (no .sha256 record beside it) was replaced
+    by a build without a word."""
+    from cosim.cli import main
+
+    mine = tmp_path / "AuvPlant.fmu"
+    mine.write_bytes(b"my own FMU\n")
+    argv = ["run", "lqr-1", "--stop-time", "0.1", "--no-rrd", "--out", str(tmp_path / "run")]
+    assert main([*argv, "--fmu-dir", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert f"{mine} is not a file a build wrote (no AuvPlant.fmu.sha256 beside it)" in err
+    assert err.count("\n") == 1 and mine.read_bytes() == b"my own FMU\n"
+    assert not (tmp_path / "run").exists()
+    assert main(["validate", "--fmu-dir", str(tmp_path)]) == 1  # validate builds nothing
+    assert mine.read_bytes() == b"my own FMU\n"
