@@ -14,10 +14,10 @@ import dataclasses
 import math
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, NoReturn
 
 import tomli_w
 from pydantic import (
@@ -189,6 +189,66 @@ class Coupling:
     def extrapolation_order(self) -> int:
         """0 (values held over a step), 1 (linear) or 2 (quadratic)."""
         return EXTRAPOLATION_ORDER[self.extrapolation]
+
+
+def _refused(method: str) -> Callable[..., NoReturn]:
+    """A :class:`ReadOnly` method that would change it: refused, naming ``method``."""
+
+    def refuse(self: ReadOnly, *args: Any, **kwargs: Any) -> NoReturn:
+        raise self._refusal(f"{self._name}.{method}(...)")
+
+    return refuse
+
+
+class ReadOnly(Mapping[str, Any]):
+    """A mapping of a resolved :class:`Scenario` (its ``instances``, an instance's
+    ``start``): read-only, since an edit would bypass the scenario's checks and be lost on
+    the next override. ``hint`` says what to call instead; picklable and copyable."""
+
+    __slots__ = ("_hint", "_items", "_name")
+
+    def __init__(self, items: Mapping[str, Any], name: str, hint: str) -> None:
+        self._items = dict(items)
+        self._name = name  # as an edit's refusal names the mapping: "plant.start"
+        self._hint = hint
+
+    def __getitem__(self, key: str) -> Any:
+        return self._items[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return repr(self._items)
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        raise self._refusal(f"{self._name}[{key!r}] = {value!r}")
+
+    def __delitem__(self, key: str) -> None:
+        raise self._refusal(f"del {self._name}[{key!r}]")
+
+    def _refusal(self, edit: str) -> TypeError:
+        return TypeError(f"{edit}: a loaded scenario is read-only; expected {self._hint}")
+
+    update = _refused("update")
+    pop = _refused("pop")
+    popitem = _refused("popitem")
+    setdefault = _refused("setdefault")
+    clear = _refused("clear")
+
+
+INSTANCES_HINT = (
+    "scenario.with_start({'<instance>.<variable>': value}) or scenario.with_overrides(...) "
+    "(a checked copy), or a scenario file"
+)
+
+
+def _start_hint(instance: str) -> str:
+    """What an edit of ``instance``'s start values is told to call instead."""
+    return f"scenario.with_start({{'{instance}.<variable>': value}}) (a checked copy)"
 
 
 @dataclass(frozen=True)
@@ -549,7 +609,7 @@ def _resolve(
         source=source,
         stop_time=spec.stop_time,
         coupling=coupling,
-        instances=instances,
+        instances=ReadOnly(instances, "scenario.instances", INSTANCES_HINT),
         connections=tuple(connections),
         record=(),
         rrd=spec.output.rrd,
@@ -688,7 +748,9 @@ def _resolve_instance(
             start[var_name] = str(_existing_file(value, base_dir, key, src))
     if spec.fmu in ("AuvPlant", "AuvAutopilot") and "vehicle" in start:
         _check_vehicle(str(start["vehicle"]), f"instances.{name}.start.vehicle", src)
-    return Instance(name, fmu_ref, fmu_path, start, interface)
+    return Instance(
+        name, fmu_ref, fmu_path, ReadOnly(start, f"{name}.start", _start_hint(name)), interface
+    )
 
 
 def _check_vehicle(value: str, key: str, src: Source) -> None:

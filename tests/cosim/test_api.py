@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import os
+import pickle
 import pkgutil
 import shutil
 import subprocess
@@ -151,6 +152,22 @@ def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
         with pytest.raises(ScenarioError, match=message) as raised:
             base.with_start({ref: value})
         assert "\n" not in str(raised.value)
+
+
+def test_a_loaded_scenario_refuses_edits_and_points_at_with_start(fmu_dir: Path) -> None:
+    """A loaded scenario's instances and start values are read-only: an edit would bypass
+    the scenario checks and be dropped by the next override; the refusal names
+    with_start, which gives a checked copy."""
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    start = scenario.instances["plant"].start
+    with pytest.raises(TypeError, match=r"plant\.start\['v_0'\] = 'fast': .*with_start"):
+        start["v_0"] = "fast"  # type: ignore[index]
+    with pytest.raises(TypeError, match="with_start"):
+        start.update(v_0=0.1)  # type: ignore[attr-defined]
+    with pytest.raises(TypeError, match="with_start"):
+        del scenario.instances["plant"]  # type: ignore[attr-defined]
+    assert scenario.instances["plant"].start["v_0"] == -0.10
+    assert pickle.loads(pickle.dumps(scenario.instances)).keys() == scenario.instances.keys()
 
 
 def test_connected_input_refuses_a_start_value(fmu_dir: Path) -> None:
