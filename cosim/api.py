@@ -242,9 +242,9 @@ def sweep(
         Write the study folder there (runs.csv, runs.parquet, figures, index.html, and
         overlay.rrd if asked for). Default: no folder, the table only.
     resume : bool
-        Run only what a killed study in ``out`` left (``--resume``).
+        Run only what a killed study in ``out`` left (``--resume``); needs ``out``.
     overlay : int, optional
-        Draw that many runs, spread over the study, in ``out``/overlay.rrd.
+        Draw that many runs, spread over the study, in ``out``/overlay.rrd; needs ``out``.
     fmu_dir : str or pathlib.Path
         Where the built-in FMUs are (built there on first use).
     oversubscribe : bool
@@ -272,6 +272,7 @@ def sweep(
 
     from cosim.study.execution import check_main_guard, local_workers
     from cosim.study.runner import Cluster, run_study
+    from cosim.study.spec import StudyError
 
     check_main_guard("cosim.sweep")
     if not isinstance(study, Mapping):
@@ -279,6 +280,11 @@ def sweep(
     workers = local_workers(workers, _flag("oversubscribe", oversubscribe))
     out = None if out is None else _folder("out", out)
     overlay = None if overlay is None else _count("overlay", overlay)
+    resume = _flag("resume", resume)
+    if out is None and resume:
+        raise StudyError("resume=True needs out= (the study folder to resume)")
+    if out is None and overlay is not None:
+        raise StudyError(f"overlay={overlay} needs out= (the study folder overlay.rrd goes to)")
     with ExitStack() as stack:
         temporary = None
         if out is None or isinstance(study, Mapping):
@@ -287,7 +293,7 @@ def sweep(
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
         outcome = run_study(
             study_file, out_dir, cluster=Cluster(workers=workers),
-            resume=_flag("resume", resume), fmu_dir=_folder("fmu_dir", fmu_dir), overlay=overlay,
+            resume=resume, fmu_dir=_folder("fmu_dir", fmu_dir), overlay=overlay,
         )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir)

@@ -25,6 +25,7 @@ import cosim
 from cosim.errors import CosimError
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import SCENARIO_FOLDER, load_scenario, scenario_from_toml
+from cosim.study.spec import StudyError
 
 ACCEPTANCE = (
     "import cosim; r = cosim.run('bs-3', stop_time=5.0, start={'plant.v_0': -0.05}); "
@@ -303,6 +304,27 @@ def test_every_bad_argument_is_one_typed_line_naming_it(
     message = str(raised.value)
     assert "\n" not in message and named in message and "expected" in message, message
     assert len(message) < 300, message
+
+
+@pytest.mark.parametrize(
+    ("arguments", "named"),
+    [({"resume": True}, "resume=True needs out="), ({"overlay": 2}, "overlay=2 needs out=")],
+)
+def test_sweep_without_out_refuses_resume_and_overlay_before_running(
+    arguments: dict, named: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """resume and overlay act on the study folder: without out= there is none, so the
+    call is refused before any run (not an overlay computed and thrown away, nor a
+    refusal naming a temporary folder and a command-line flag)."""
+    import cosim.study.runner
+
+    def ran(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the study ran")
+
+    monkeypatch.setattr(cosim.study.runner, "run_study", ran)
+    with pytest.raises(StudyError) as raised:
+        cosim.sweep({"scenario": "bs-3"}, workers=1, **arguments)
+    assert str(raised.value).startswith(named) and "--" not in str(raised.value)
 
 
 UNGUARDED = """
