@@ -132,9 +132,11 @@ def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR
     cosim.scenario.checks.ScenarioError
         The file or a key in it is refused (the message names both).
     """
+    from cosim.scenario.checks import ScenarioError
     from cosim.scenario.spec import load_scenario as load
 
-    return load(_path("scenario", scenario), fmu_dir=_folder("fmu_dir", fmu_dir))
+    path = _path("scenario", scenario, error=ScenarioError)
+    return load(path, fmu_dir=_folder("fmu_dir", fmu_dir, ScenarioError))
 
 
 def run(
@@ -276,11 +278,13 @@ def sweep(
 
     check_main_guard("cosim.sweep")
     if not isinstance(study, Mapping):
-        study = _path("study", study, "a study file (str or pathlib.Path) or a mapping of its keys")
-    workers = local_workers(workers, _flag("oversubscribe", oversubscribe))
-    out = None if out is None else _folder("out", out)
-    overlay = None if overlay is None else _count("overlay", overlay)
-    resume = _flag("resume", resume)
+        expected = "a study file (str or pathlib.Path) or a mapping of its keys"
+        study = _path("study", study, expected, StudyError)
+    workers = local_workers(workers, _flag("oversubscribe", oversubscribe, StudyError))
+    out = None if out is None else _folder("out", out, StudyError)
+    overlay = None if overlay is None else _count("overlay", overlay, StudyError)
+    resume = _flag("resume", resume, StudyError)
+    fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
     if out is None and resume:
         raise StudyError("resume=True needs out= (the study folder to resume)")
     if out is None and overlay is not None:
@@ -293,7 +297,7 @@ def sweep(
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
         outcome = run_study(
             study_file, out_dir, cluster=Cluster(workers=workers),
-            resume=resume, fmu_dir=_folder("fmu_dir", fmu_dir), overlay=overlay,
+            resume=resume, fmu_dir=fmu_dir, overlay=overlay,
         )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir)
@@ -343,12 +347,14 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
         return Path(study)
     import tomli_w
 
+    from cosim.study.spec import StudyError
+
     assert folder is not None
     path = folder / STUDY_FILE
     try:
         path.write_text(tomli_w.dumps(dict(study)), encoding="utf-8")
     except (TypeError, ValueError) as exc:
-        raise CosimError(f"study {dict(study)!r}: cannot be written as TOML: {exc}") from None
+        raise StudyError(f"study {dict(study)!r}: cannot be written as TOML: {exc}") from None
     return path
 
 
@@ -394,15 +400,18 @@ def _seconds(name: str, value: object) -> float | None:
     return float(value)
 
 
-def _flag(name: str, value: object) -> bool:
+def _flag(name: str, value: object, error: type[CosimError] = CosimError) -> bool:
+    """True or False (else ``error``, as each check here raises: the type the caller's
+    docstring names)."""
     if not isinstance(value, bool):
-        raise CosimError(f"{name}={_shown(value)}: expected True or False")
+        raise error(f"{name}={_shown(value)}: expected True or False")
     return value
 
 
-def _count(name: str, value: object) -> int:
+def _count(name: str, value: object, error: type[CosimError] = CosimError) -> int:
+    """A whole number >= 1."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise CosimError(f"{name}={_shown(value)}: expected a whole number >= 1")
+        raise error(f"{name}={_shown(value)}: expected a whole number >= 1")
     return value
 
 
@@ -422,22 +431,27 @@ def _number(name: str, value: object) -> float | None:
     return float(value)
 
 
-def _path(name: str, value: object, expected: str = "a str or pathlib.Path") -> Path:
+def _path(
+    name: str,
+    value: object,
+    expected: str = "a str or pathlib.Path",
+    error: type[CosimError] = CosimError,
+) -> Path:
     """A path argument: a str or os.PathLike without a NUL byte (else ``expected`` is what
     the refusal says was expected)."""
     if not isinstance(value, str | os.PathLike):
-        raise CosimError(f"{name}={_shown(value)}: expected {expected}")
+        raise error(f"{name}={_shown(value)}: expected {expected}")
     text = os.fspath(value)
     if not isinstance(text, str) or "\0" in text:
-        raise CosimError(f"{name}={_shown(value)}: expected a path without a NUL byte")
+        raise error(f"{name}={_shown(value)}: expected a path without a NUL byte")
     return Path(text)
 
 
-def _folder(name: str, value: object) -> Path:
+def _folder(name: str, value: object, error: type[CosimError] = CosimError) -> Path:
     """A folder argument: a path (:func:`_path`) that is a folder if it exists."""
-    path = _path(name, value)
+    path = _path(name, value, error=error)
     if os.path.exists(path) and not path.is_dir():  # os.path: False for a name too long
-        raise CosimError(f"{name}={_shown(value)}: is a file; expected a folder")
+        raise error(f"{name}={_shown(value)}: is a file; expected a folder")
     return path
 
 

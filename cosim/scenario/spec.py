@@ -377,6 +377,11 @@ class Scenario:
         scenario file's start value passes (the variable exists, is a parameter or an
         unconnected input, the value has its type). Raises :class:`ScenarioError`.
         """
+        if not isinstance(values, Mapping):
+            shown = repr(values) if len(repr(values)) <= 60 else f"{repr(values)[:40]}..."
+            raise ScenarioError(
+                f"start values {shown}: expected a mapping {{'<instance>.<variable>': value}}"
+            )
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
         where = f"{self.source or self.id} (with the start values {dict(values)})"
         for ref, value in values.items():

@@ -327,6 +327,38 @@ def test_sweep_without_out_refuses_resume_and_overlay_before_running(
     assert str(raised.value).startswith(named) and "--" not in str(raised.value)
 
 
+WRONG_TYPE = [
+    ("sweep", {"study": {"scenario": "bs-3"}, "overlay": 0}, StudyError, "overlay=0"),
+    ("sweep", {"study": 5}, StudyError, "study=5"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "oversubscribe": "yes"}, StudyError, "'yes'"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "out": A_FILE}, StudyError, "out="),
+    ("sweep", {"study": {"scenario": "bs-3"}, "fmu_dir": A_FILE}, StudyError, "fmu_dir="),
+    ("load_scenario", {"scenario": 5}, ScenarioError, "scenario=5"),
+    ("load_scenario", {"scenario": "bs-3", "fmu_dir": A_FILE}, ScenarioError, "fmu_dir="),
+]
+
+
+@pytest.mark.parametrize(("function", "arguments", "error", "named"), WRONG_TYPE)
+def test_bad_arguments_raise_the_type_the_docstring_names(
+    function: str, arguments: dict, error: type[CosimError], named: str
+) -> None:
+    """sweep documents StudyError and load_scenario ScenarioError for a bad argument: a
+    caller catching the documented type catches these too."""
+    call = getattr(cosim, function)
+    positional = [arguments.pop(k) for k in ("scenario", "study") if k in arguments]
+    with pytest.raises(error, match="expected") as raised:
+        call(*positional, **arguments, **({"workers": 1} if function == "sweep" else {}))
+    assert named in str(raised.value)
+
+
+def test_with_start_of_a_non_mapping_is_a_scenario_error(fmu_dir: Path) -> None:
+    """with_start([1]) raised a bare TypeError from dict(); it is the documented
+    ScenarioError naming the value and what was expected."""
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    with pytest.raises(ScenarioError, match=r"start values \[1\]: expected a mapping"):
+        scenario.with_start([1])  # type: ignore[arg-type]
+
+
 UNGUARDED = """
 import cosim
 study = cosim.sweep({"scenario": "bs-3", "stop_time": 0.1, "grid": {"plant.v_0": [0.0]}})
