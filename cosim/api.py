@@ -41,6 +41,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 __all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
 
 STUDY_FILE = "study.toml"  # a study given as a dict is written to this file first
+DICT_LABEL = "study (given as a dict)"  # how a refusal names it (not by that file)
 ALGORITHMS = ("jacobi", "gauss-seidel", "adaptive")  # RunOptions.algorithm
 EXTRAPOLATIONS = ("none", "linear", "quadratic")  # RunOptions.extrapolation
 
@@ -298,6 +299,7 @@ def sweep(
         outcome = run_study(
             study_file, out_dir, cluster=Cluster(workers=workers),
             resume=resume, fmu_dir=fmu_dir, overlay=overlay,
+            label=DICT_LABEL if isinstance(study, Mapping) else None,
         )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir)

@@ -156,10 +156,10 @@ def _study(args: argparse.Namespace) -> int:
         from cosim.study import fork_server
 
         fork_server.start()
-    from cosim.study.spec import MAX_RUNS, check_size, load_study
+    from cosim.study.spec import MAX_RUNS, check_size, load_study, study_label
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
-    check_size(load_study(args.study), str(args.study), max_runs)  # before dask is imported
+    check_size(load_study(args.study), study_label(args.study), max_runs)  # before dask is imported
     from cosim.study.execution import early_client, tls_security
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 

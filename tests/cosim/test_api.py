@@ -359,6 +359,16 @@ def test_with_start_of_a_non_mapping_is_a_scenario_error(fmu_dir: Path) -> None:
         scenario.with_start([1])  # type: ignore[arg-type]
 
 
+def test_a_study_given_as_a_dict_is_named_as_such_not_by_a_temporary_file() -> None:
+    """A refused key of a study dict is named in the dict, not in the temporary
+    study.toml the dict is written to (a file the caller never wrote)."""
+    with pytest.raises(StudyError) as raised:
+        cosim.sweep({"scenario": "bs-3", "grd": {}}, workers=1)
+    message = str(raised.value)
+    assert message.startswith("study (given as a dict): unknown key 'grd'"), message
+    assert "study.toml" not in message and tempfile.gettempdir() not in message
+
+
 UNGUARDED = """
 import cosim
 study = cosim.sweep({"scenario": "bs-3", "stop_time": 0.1, "grid": {"plant.v_0": [0.0]}})
