@@ -4,9 +4,10 @@ The command line and this module share one code path: :func:`run` calls
 :func:`cosim.runner.execute` like ``auv-cosim run`` does, and :func:`sweep` calls
 :func:`cosim.study.runner.run_study` like ``auv-cosim sweep``; the checks, the outputs
 and the typed exceptions (:class:`cosim.errors.CosimError` and its subclasses, with the
-same one-line messages) are theirs. What this module adds is the shape Python users
-expect: results as a :class:`pandas.DataFrame` indexed by time, in memory, with no
-output folder unless one is asked for (``out=``).
+same one-line messages, naming ``stop_time=`` where the command line names
+``--stop-time``) are theirs. What this module adds is the shape Python users expect:
+results as a :class:`pandas.DataFrame` indexed by time, in memory, with no output folder
+unless one is asked for (``out=``).
 
 Example::
 
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from cosim.errors import CosimError
+from cosim.errors import KEYWORDS, CosimError
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.runner import RunOptions, execute
 
@@ -381,6 +382,7 @@ def _run_options(
         overwrite=_flag("overwrite", overwrite),
         keep_rows=True,
         tail_guard=out is not None,  # a temporary folder needs no guard: it is removed
+        names=KEYWORDS,  # refusals name stop_time=, out=, ..., not the command line's flags
     )
 
 
@@ -391,15 +393,18 @@ def _shown(value: object) -> str:
 
 
 def _seconds(name: str, value: object) -> float | None:
-    """A time in s: a float or int (the runner checks it is finite and > 0, in the command
-    line's words); an int beyond the floats is refused here."""
+    """A time in s: a float or int (the runner checks it is finite and > 0, naming it by
+    its keyword); an int beyond the floats is refused here."""
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise CosimError(f"{name}={_shown(value)}: expected a number of seconds (float or int)")
-    if abs(value) > 1e300:
-        raise CosimError(f"{name}={_shown(value)}: expected a finite number of seconds > 0")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:
+        raise CosimError(
+            f"{name}={_shown(value)}: expected a finite number of seconds > 0"
+        ) from None
 
 
 def _flag(name: str, value: object, error: type[CosimError] = CosimError) -> bool:

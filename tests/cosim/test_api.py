@@ -115,16 +115,48 @@ def test_run_with_out_writes_the_command_lines_folder(tmp_path: Path, fmu_dir: P
 
 
 def test_errors_are_the_command_lines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    """The same exception type and one-line message as ``auv-cosim run`` prints."""
+    """The same exception type and one-line message as ``auv-cosim run`` prints, naming
+    the API's keyword where the command line names its flag."""
     from cosim.cli import main
 
     assert main(["run", "bs-3", "--stop-time", "-1", "--out", str(tmp_path / "r")]) == 1
     printed = capsys.readouterr().err.strip()
     with pytest.raises(CosimError) as raised:
         cosim.run("bs-3", stop_time=-1.0, out=tmp_path / "r")
-    assert printed == f"auv-cosim run: {raised.value}"
+    assert printed == "auv-cosim run: --stop-time -1.0: expected a finite number of seconds > 0"
+    assert str(raised.value) == "stop_time=-1.0: expected a finite number of seconds > 0"
     with pytest.raises(ScenarioError, match="expected a built-in id"):
         cosim.run("no-such-scenario")
+
+
+@pytest.mark.parametrize(
+    ("arguments", "named"),
+    [
+        ({"stop_time": -1.0}, "stop_time=-1.0: expected"),
+        ({"stop_time": float("inf")}, "stop_time=inf: expected"),
+        ({"step": 0.0}, "step=0.0: expected"),
+        ({"out": "userdir"}, "out='userdir': the folder is not empty"),
+    ],
+)
+def test_api_refusals_name_its_keywords_not_the_command_lines_flags(
+    arguments: dict, named: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A refused option of cosim.run is named as the caller wrote it (stop_time=, step=,
+    out=), not as the command line's --stop-time, --step, --out."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "userdir").mkdir()
+    (tmp_path / "userdir" / "notes.txt").write_text("mine", encoding="utf-8")
+    with pytest.raises(CosimError) as raised:
+        cosim.run("bs-3", **arguments)
+    assert str(raised.value).startswith(named) and "--" not in str(raised.value)
+
+
+def test_api_refusal_of_an_earlier_run_names_overwrite_true(tmp_path: Path, fmu_dir: Path) -> None:
+    """The folder of an earlier run is refused with the API's way to replace it."""
+    cosim.run("bs-3", stop_time=0.1, out=tmp_path / "r", recording=False, fmu_dir=fmu_dir)
+    with pytest.raises(CosimError, match=r"pass overwrite=True to replace it") as raised:
+        cosim.run("bs-3", stop_time=0.1, out=tmp_path / "r", recording=False, fmu_dir=fmu_dir)
+    assert str(raised.value).startswith(f"out={str(tmp_path / 'r')!r}: ")
 
 
 def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
