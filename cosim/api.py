@@ -279,18 +279,13 @@ def sweep(
     from cosim.study.spec import StudyError
 
     check_main_guard("cosim.sweep")
-    if not isinstance(study, Mapping):
-        expected = "a study file (str or pathlib.Path) or a mapping of its keys"
-        study = _path("study", study, expected, StudyError)
+    study = _study_argument(study)
     workers = local_workers(workers, _flag("oversubscribe", oversubscribe, StudyError))
     out = None if out is None else _folder("out", out, StudyError)
     overlay = None if overlay is None else _count("overlay", overlay, StudyError)
     resume = _flag("resume", resume, StudyError)
     fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
-    if out is None and resume:
-        raise StudyError("resume=True needs out= (the study folder to resume)")
-    if out is None and overlay is not None:
-        raise StudyError(f"overlay={overlay} needs out= (the study folder overlay.rrd goes to)")
+    _check_needs_out(out, resume, overlay)
     with ExitStack() as stack:
         temporary = None
         if out is None or isinstance(study, Mapping):
@@ -323,6 +318,27 @@ def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dic
     from cosim.fmus.build import build_fmus as build
 
     return build(_folder("out", out), force=_flag("force", force))
+
+
+def _study_argument(study: object) -> Path | Mapping[str, Any]:
+    """:func:`sweep`'s ``study``: a mapping as given, else the path of a study file."""
+    from cosim.study.spec import StudyError
+
+    if isinstance(study, Mapping):
+        return study
+    expected = "a study file (str or pathlib.Path) or a mapping of its keys"
+    return _path("study", study, expected, StudyError)
+
+
+def _check_needs_out(out: Path | None, resume: bool, overlay: int | None) -> None:
+    """:func:`sweep`'s ``resume`` and ``overlay`` act on its folder: refused without ``out``
+    (before any run, not found out at the end)."""
+    from cosim.study.spec import StudyError
+
+    if out is None and resume:
+        raise StudyError("resume=True needs out= (the study folder to resume)")
+    if out is None and overlay is not None:
+        raise StudyError(f"overlay={overlay} needs out= (the study folder overlay.rrd goes to)")
 
 
 def _loaded(scenario: str | Path | Scenario, fmu_dir: Path) -> Scenario:

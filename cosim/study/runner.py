@@ -105,14 +105,12 @@ def run_study(
     (default ``studies/<study file name>``). ``overlay``: draw that many runs, spread over
     the study, in overlay.rrd (instead of the study file's ``overlay``); a study of more
     than ``max_runs`` runs is refused before any is built; ``label`` names the study in a
-    refusal (default: the file, :func:`~cosim.study.spec.study_label`). Raises
-    :class:`StudyError` (a CosimError) for a study that cannot run; failed runs are rows
-    of the table, not errors."""
+    refusal (default: :func:`~cosim.study.spec.study_label`). Raises :class:`StudyError`
+    (a CosimError) for a study that cannot run; failed runs are rows of the table."""
     started = time.perf_counter()
     if cluster.scheduler is not None:
         check_scheduler(cluster.scheduler, cluster.security)
-    label = study_label(study_file) if label is None else label
-    spec = load_study(study_file, label)
+    spec = load_study(study_file, label := label or study_label(study_file))
     check_size(spec, label, max_runs)
     scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
     base, facts = prepare(scenario_ref, spec.stop_time, fmu_dir, spec.check_step)
