@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 import tomllib
 from collections.abc import Callable, Iterator, Mapping
@@ -470,12 +471,26 @@ def scenario_path(id_or_path: str | Path) -> Path:
     path = Path(id_or_path)
     if path.is_file():
         return path
+    if _looks_like_a_path(str(id_or_path)) or os.path.lexists(path):
+        exists = os.path.lexists(path)
+        guess = "" if exists else did_you_mean_path(path)
+        raise ScenarioError(
+            f"{'not a file' if exists else 'no such file'}: {id_or_path}{guess} (looked for "
+            f"{path.absolute()}); expected a scenario .toml file"
+        )
     guess = did_you_mean(str(id_or_path), builtin_scenarios()) or did_you_mean_path(path)
     raise ScenarioError(
         f"unknown scenario {str(id_or_path)!r}{guess}:"
         f" expected a built-in id ({', '.join(builtin_scenarios())}) or the path of a scenario "
         ".toml file"
     )
+
+
+def _looks_like_a_path(text: str) -> bool:
+    """Whether a scenario argument is meant as a file (it ends in .toml or holds a path
+    separator), not as a built-in id."""
+    separators = {"/", os.sep, os.altsep or "/"}
+    return text.endswith(".toml") or any(sep in text for sep in separators)
 
 
 def scenario_id(id_or_path: str | Path) -> str:

@@ -159,6 +159,26 @@ def test_api_refusal_of_an_earlier_run_names_overwrite_true(tmp_path: Path, fmu_
     assert str(raised.value).startswith(f"out={str(tmp_path / 'r')!r}: ")
 
 
+@pytest.mark.parametrize("argument", ["nope.toml", "sub/bs-3", "folder"])
+def test_a_scenario_path_that_is_no_file_is_named_so(
+    argument: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """An argument meant as a file (ending in .toml, holding a path separator, or naming
+    a folder) that is no file is refused saying so and where it was looked for, by the
+    API and by ``auv-cosim run`` alike, not as an unknown built-in id."""
+    from cosim.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "folder").mkdir()
+    what = "not a file" if argument == "folder" else "no such file"
+    expected = f"{what}: {argument} (looked for {tmp_path / argument}); expected a scenario"
+    with pytest.raises(ScenarioError) as raised:
+        cosim.run(argument)
+    assert str(raised.value).startswith(expected), raised.value
+    assert main(["run", argument]) == 1
+    assert capsys.readouterr().err.strip().startswith(f"auv-cosim run: {expected}")
+
+
 def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
     base = load_scenario("bs-3", fmu_dir=fmu_dir)
     changed = base.with_start({"plant.v_0": np.float64(-0.05), "controller.k0": 0.3})
