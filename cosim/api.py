@@ -166,8 +166,9 @@ def run(
         The command line's ``--stop-time``, ``--step`` (s) and coupling options
         (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
     start : mapping, optional
-        Start values ``{"<instance>.<variable>": value}`` in SI units, checked like the
-        scenario file's (:meth:`Scenario.with_start`).
+        Start values ``{"<instance>.<variable>": value}`` in SI units (a bool, int, float
+        or str; a numpy scalar counts as its Python value), checked like the scenario
+        file's (:meth:`Scenario.with_start`).
     out : str or pathlib.Path, optional
         Write the run folder there (results.csv, summary.json, scenario.toml and, unless
         ``recording`` is false or the scenario says ``output.rrd = false``,
@@ -484,21 +485,40 @@ def _is_scenario(value: object) -> bool:
     return isinstance(value, Scenario)
 
 
+def _plain(value: object) -> object:
+    """A numpy bool, integer or floating scalar as the Python bool, int or float of the
+    same value (``float(np.float32(-0.1))``); any other value as it is."""
+    if type(value).__module__ != "numpy":  # numpy not imported for plain values
+        return value
+    import numpy as np
+
+    if isinstance(value, np.bool_ | np.integer | np.floating):
+        return value.item()
+    return value
+
+
 def _start(value: object) -> dict[str, StartValue] | None:
-    """Start values: a mapping of "<instance>.<variable>" to a bool, int, float or str."""
+    """Start values: a mapping of "<instance>.<variable>" to a bool, int, float or str (or
+    a numpy scalar of one, taken as its Python value)."""
     if value is None:
         return None
     if not isinstance(value, Mapping):
         raise CosimError(
             f"start={_shown(value)}: expected a mapping {{'<instance>.<variable>': value}}"
         )
-    for key, item in value.items():
+    values: dict[str, StartValue] = {}
+    for key, given in value.items():
+        item = _plain(given)
         if not isinstance(key, str) or "\0" in key:
             raise CosimError(f"start key {_shown(key)}: expected '<instance>.<variable>'")
         if not isinstance(item, bool | int | float | str):
-            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a bool, int, float or str")
+            raise CosimError(
+                f"start[{key!r}]={_shown(item)}: expected a bool, int, float or str (or a "
+                "numpy scalar of one)"
+            )
         if isinstance(item, int) and not isinstance(item, bool) and abs(item) > 1e300:
             raise CosimError(f"start[{key!r}]={_shown(item)}: expected a number within range")
         if isinstance(item, str) and "\0" in item:
             raise CosimError(f"start[{key!r}]={_shown(item)}: expected a string without a NUL byte")
-    return dict(value)
+        values[key] = item
+    return values

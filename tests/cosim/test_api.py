@@ -179,6 +179,23 @@ def test_a_scenario_path_that_is_no_file_is_named_so(
     assert capsys.readouterr().err.strip().startswith(f"auv-cosim run: {expected}")
 
 
+def test_numpy_scalar_start_values_are_taken_as_their_python_values(fmu_dir: Path) -> None:
+    """A numpy float32, int64 or bool_ start value (as a numpy computation gives it) is
+    the Python number of the same value, not refused for its type."""
+    run = cosim.run(
+        "bs-3",
+        stop_time=0.1,
+        fmu_dir=fmu_dir,
+        start={"plant.v_0": np.float32(-0.1), "plant.variant": np.int64(1)},
+    )
+    start = run.scenario.instances["plant"].start
+    assert start["v_0"] == float(np.float32(-0.1)) and type(start["v_0"]) is float
+    assert start["variant"] == 1 and type(start["variant"]) is int
+    assert run.results["plant.v"].iloc[0] == float(np.float32(-0.1))
+    with pytest.raises(CosimError, match=r"start\['plant.v_0'\]=np.complex128"):
+        cosim.run("bs-3", start={"plant.v_0": np.complex128(1)}, fmu_dir=fmu_dir)
+
+
 def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
     base = load_scenario("bs-3", fmu_dir=fmu_dir)
     changed = base.with_start({"plant.v_0": np.float64(-0.05), "controller.k0": 0.3})
