@@ -331,8 +331,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--stop-time", type=float, help="override the stop time, s (finite, > 0)")
     p.add_argument("--step", type=float, help="override the communication step, s (finite, > 0)")
     _add_coupling_options(p)
-    p.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
-    p.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
+    recording = p.add_mutually_exclusive_group()  # a file to write, or none
+    recording.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
+    recording.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
     p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
