@@ -562,7 +562,7 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
     except ValidationError as exc:
         problems: dict[str, str] = {}  # key -> problem, the first one per key
         for err in exc.errors():
-            key = ".".join(str(part) for part in err["loc"] if not _is_union_tag(part))
+            key = _key(err["loc"])
             if err["type"] == "extra_forbidden":
                 problem = f"unknown key {key!r}{did_you_mean(key.rpartition('.')[2], KEYS)}"
             elif err["type"] == "missing":
@@ -574,6 +574,19 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
                 problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
             problems.setdefault(key, problem)
         raise ScenarioError(f"scenario file {where}: " + "; ".join(problems.values())) from None
+
+
+def _key(loc: tuple[Any, ...]) -> str:
+    """pydantic's error location as the file's key, in the notation of every other
+    refusal: ``faults[0].std`` (a list index in brackets), without the union members
+    tried (:func:`_is_union_tag`)."""
+    key = ""
+    for part in loc:
+        if isinstance(part, int):
+            key += f"[{part}]"
+        elif not _is_union_tag(part):
+            key += f".{part}" if key else str(part)
+    return key
 
 
 def _is_union_tag(part: Any) -> bool:
@@ -620,7 +633,7 @@ def _resolve(
                 raise src.error(
                     f"instances.{name}.start.{var_name}",
                     f"input {name}.{var_name} is connected from {driven[f'{name}.{var_name}']}, "
-                    f"so a start value would be overwritten; add {name}.{var_name!r} to "
+                    f'so a start value would be overwritten; add "{name}.{var_name}" to '
                     "connections.remove to hold it instead",
                 )
     scenario = Scenario(
@@ -946,7 +959,7 @@ def _check_units(
             raise src.error(f"connections.add[{added[target]}]", difference)
         raise src.error(
             "connections.same_names",
-            f"{difference}; add {target!r} to connections.remove to leave it unconnected",
+            f'{difference}; add "{target}" to connections.remove to leave it unconnected',
         )
 
 
