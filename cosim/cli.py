@@ -292,7 +292,10 @@ _NEGATIVE_NUMBER = re.compile(r"^-((\d+\.?\d*|\.\d+)(e[+-]?\d+)?|inf|infinity|na
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="auv-cosim",
-        description="Co-simulate the REMUS 100 with internal actuators as two FMI 2.0 FMUs.",
+        description=(
+            "Co-simulate the REMUS 100 with internal actuators as three FMI 2.0 FMUs "
+            "(AuvPlant, AuvAutopilot, AuvGuidance)."
+        ),
     )
     parser.add_argument("--version", action=_Version)
     # not required: without one, main() prints the whole help (the commands), not argparse's
