@@ -306,6 +306,8 @@ class Scenario:
     events: tuple[Event, ...] = ()  # cosim.scenario.timeline_spec
     faults: tuple[Fault, ...] = ()
     unrecorded: tuple[str, ...] = ()  # outputs left out of the default record (String)
+    # how a refusal names it: its file, with the start values and overrides applied since
+    where: str = dataclasses.field(repr=False, compare=False, default="")
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -368,7 +370,7 @@ class Scenario:
             data["stop_time"] = stop_time
         named = {"stop_time": stop_time, **{f"coupling.{k}": v for k, v in given.items()}}
         overrides = ", ".join(f"{k} = {v!r}" for k, v in named.items() if v is not None)
-        return self._revalidated(data, f"{self.source or self.id} (with the override {overrides})")
+        return self._revalidated(data, f"{self.described} (with the override {overrides})")
 
     def with_start(self, values: Mapping[str, StartValue]) -> Scenario:
         """A re-validated copy with these start values added or replaced.
@@ -384,7 +386,7 @@ class Scenario:
                 f"start values {shown}: expected a mapping {{'<instance>.<variable>': value}}"
             )
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
-        where = f"{self.source or self.id} (with the start values {dict(values)})"
+        where = f"{self.described} (with the start values {dict(values)})"
         for ref, value in values.items():
             instance, dot, variable = ref.partition(".") if isinstance(ref, str) else ("", "", "")
             if not dot or instance not in data["instances"] or not variable:
@@ -396,6 +398,12 @@ class Scenario:
             start = data["instances"][instance].setdefault("start", {})
             start[variable] = value.item() if hasattr(value, "item") else value  # numpy scalar
         return self._revalidated(data, where)
+
+    @property
+    def described(self) -> str:
+        """The scenario as a refusal names it (after ``scenario file``): its file or id,
+        with the start values and overrides applied since it was read."""
+        return self.where or str(self.source or self.id)
 
     def _revalidated(self, data: dict[str, Any], where: str) -> Scenario:
         """The scenario of the changed file data ``data``, checked like a file."""
@@ -649,6 +657,7 @@ def _resolve(
         spec=spec,
         fmu_dir=fmu_dir,
         base_dir=base_dir,
+        where=src.where,
     )
     record = _resolve_record(spec.output.record, scenario, src)
     _check_manoeuvre(spec.manoeuvre, record, src)

@@ -196,6 +196,20 @@ def test_numpy_scalar_start_values_are_taken_as_their_python_values(fmu_dir: Pat
         cosim.run("bs-3", start={"plant.v_0": np.complex128(1)}, fmu_dir=fmu_dir)
 
 
+@pytest.mark.parametrize("overrides", [{}, {"stop_time": 1.0}])
+def test_a_start_value_refused_before_the_run_names_where_it_came_from(
+    overrides: dict, fmu_dir: Path
+) -> None:
+    """A start value the run refuses before loading any FMU (a max_substep of hours per
+    step) is named with the start values it came from, like every other start-value
+    refusal, so the shipped file does not read as faulty."""
+    with pytest.raises(ScenarioError) as raised:
+        cosim.run("bs-3", start={"plant.max_substep": 1e-9}, fmu_dir=fmu_dir, **overrides)
+    message = str(raised.value)
+    assert "bs-3.toml (with the start values {'plant.max_substep': 1e-09})" in message
+    assert "key 'instances.plant.start.max_substep': plant.max_substep = 1e-09 s" in message
+
+
 def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
     base = load_scenario("bs-3", fmu_dir=fmu_dir)
     changed = base.with_start({"plant.v_0": np.float64(-0.05), "controller.k0": 0.3})
