@@ -4,9 +4,10 @@ The command line and this module share one code path: :func:`run` calls
 :func:`cosim.runner.execute` like ``auv-cosim run`` does, and :func:`sweep` calls
 :func:`cosim.study.runner.run_study` like ``auv-cosim sweep``; the checks, the outputs
 and the typed exceptions (:class:`cosim.errors.CosimError` and its subclasses, with the
-same one-line messages) are theirs. What this module adds is the shape Python users
-expect: results as a :class:`pandas.DataFrame` indexed by time, in memory, with no
-output folder unless one is asked for (``out=``).
+same one-line messages, naming ``stop_time=`` where the command line names
+``--stop-time``) are theirs. What this module adds is the shape Python users expect:
+results as a :class:`pandas.DataFrame` indexed by time, in memory, with no output folder
+unless one is asked for (``out=``).
 
 Example::
 
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from cosim.errors import CosimError
+from cosim.errors import KEYWORDS, CosimError
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.runner import RunOptions, execute
 
@@ -41,6 +42,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 __all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
 
 STUDY_FILE = "study.toml"  # a study given as a dict is written to this file first
+DICT_LABEL = "study (given as a dict)"  # how a refusal names it (not by that file)
 ALGORITHMS = ("jacobi", "gauss-seidel", "adaptive")  # RunOptions.algorithm
 EXTRAPOLATIONS = ("none", "linear", "quadratic")  # RunOptions.extrapolation
 
@@ -132,9 +134,11 @@ def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR
     cosim.scenario.checks.ScenarioError
         The file or a key in it is refused (the message names both).
     """
+    from cosim.scenario.checks import ScenarioError
     from cosim.scenario.spec import load_scenario as load
 
-    return load(_path("scenario", scenario), fmu_dir=_folder("fmu_dir", fmu_dir))
+    path = _path("scenario", scenario, error=ScenarioError)
+    return load(path, fmu_dir=_folder("fmu_dir", fmu_dir, ScenarioError))
 
 
 def run(
@@ -162,8 +166,9 @@ def run(
         The command line's ``--stop-time``, ``--step`` (s) and coupling options
         (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
     start : mapping, optional
-        Start values ``{"<instance>.<variable>": value}`` in SI units, checked like the
-        scenario file's (:meth:`Scenario.with_start`).
+        Start values ``{"<instance>.<variable>": value}`` in SI units (a bool, int, float
+        or str; a numpy scalar counts as its Python value), checked like the scenario
+        file's (:meth:`Scenario.with_start`).
     out : str or pathlib.Path, optional
         Write the run folder there (results.csv, summary.json, scenario.toml and, unless
         ``recording`` is false or the scenario says ``output.rrd = false``,
@@ -242,9 +247,9 @@ def sweep(
         Write the study folder there (runs.csv, runs.parquet, figures, index.html, and
         overlay.rrd if asked for). Default: no folder, the table only.
     resume : bool
-        Run only what a killed study in ``out`` left (``--resume``).
+        Run only what a killed study in ``out`` left (``--resume``); needs ``out``.
     overlay : int, optional
-        Draw that many runs, spread over the study, in ``out``/overlay.rrd.
+        Draw that many runs, spread over the study, in ``out``/overlay.rrd; needs ``out``.
     fmu_dir : str or pathlib.Path
         Where the built-in FMUs are (built there on first use).
     oversubscribe : bool
@@ -272,13 +277,16 @@ def sweep(
 
     from cosim.study.execution import check_main_guard, local_workers
     from cosim.study.runner import Cluster, run_study
+    from cosim.study.spec import StudyError
 
     check_main_guard("cosim.sweep")
-    if not isinstance(study, Mapping):
-        study = _path("study", study, "a study file (str or pathlib.Path) or a mapping of its keys")
-    workers = local_workers(workers, _flag("oversubscribe", oversubscribe))
-    out = None if out is None else _folder("out", out)
-    overlay = None if overlay is None else _count("overlay", overlay)
+    study = _study_argument(study)
+    workers = local_workers(workers, _flag("oversubscribe", oversubscribe, StudyError))
+    out = None if out is None else _folder("out", out, StudyError)
+    overlay = None if overlay is None else _count("overlay", overlay, StudyError)
+    resume = _flag("resume", resume, StudyError)
+    fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
+    _check_needs_out(out, resume, overlay)
     with ExitStack() as stack:
         temporary = None
         if out is None or isinstance(study, Mapping):
@@ -287,7 +295,8 @@ def sweep(
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
         outcome = run_study(
             study_file, out_dir, cluster=Cluster(workers=workers),
-            resume=_flag("resume", resume), fmu_dir=_folder("fmu_dir", fmu_dir), overlay=overlay,
+            resume=resume, fmu_dir=fmu_dir, overlay=overlay,
+            label=DICT_LABEL if isinstance(study, Mapping) else None,
         )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir)
@@ -310,6 +319,27 @@ def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dic
     from cosim.fmus.build import build_fmus as build
 
     return build(_folder("out", out), force=_flag("force", force))
+
+
+def _study_argument(study: object) -> Path | Mapping[str, Any]:
+    """:func:`sweep`'s ``study``: a mapping as given, else the path of a study file."""
+    from cosim.study.spec import StudyError
+
+    if isinstance(study, Mapping):
+        return study
+    expected = "a study file (str or pathlib.Path) or a mapping of its keys"
+    return _path("study", study, expected, StudyError)
+
+
+def _check_needs_out(out: Path | None, resume: bool, overlay: int | None) -> None:
+    """:func:`sweep`'s ``resume`` and ``overlay`` act on its folder: refused without ``out``
+    (before any run, not found out at the end)."""
+    from cosim.study.spec import StudyError
+
+    if out is None and resume:
+        raise StudyError("resume=True needs out= (the study folder to resume)")
+    if out is None and overlay is not None:
+        raise StudyError(f"overlay={overlay} needs out= (the study folder overlay.rrd goes to)")
 
 
 def _loaded(scenario: str | Path | Scenario, fmu_dir: Path) -> Scenario:
@@ -337,12 +367,14 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
         return Path(study)
     import tomli_w
 
+    from cosim.study.spec import StudyError
+
     assert folder is not None
     path = folder / STUDY_FILE
     try:
         path.write_text(tomli_w.dumps(dict(study)), encoding="utf-8")
     except (TypeError, ValueError) as exc:
-        raise CosimError(f"study {dict(study)!r}: cannot be written as TOML: {exc}") from None
+        raise StudyError(f"study {dict(study)!r}: cannot be written as TOML: {exc}") from None
     return path
 
 
@@ -367,6 +399,7 @@ def _run_options(
         overwrite=_flag("overwrite", overwrite),
         keep_rows=True,
         tail_guard=out is not None,  # a temporary folder needs no guard: it is removed
+        names=KEYWORDS,  # refusals name stop_time=, out=, ..., not the command line's flags
     )
 
 
@@ -377,26 +410,32 @@ def _shown(value: object) -> str:
 
 
 def _seconds(name: str, value: object) -> float | None:
-    """A time in s: a float or int (the runner checks it is finite and > 0, in the command
-    line's words); an int beyond the floats is refused here."""
+    """A time in s: a float or int (the runner checks it is finite and > 0, naming it by
+    its keyword); an int beyond the floats is refused here."""
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise CosimError(f"{name}={_shown(value)}: expected a number of seconds (float or int)")
-    if abs(value) > 1e300:
-        raise CosimError(f"{name}={_shown(value)}: expected a finite number of seconds > 0")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:
+        raise CosimError(
+            f"{name}={_shown(value)}: expected a finite number of seconds > 0"
+        ) from None
 
 
-def _flag(name: str, value: object) -> bool:
+def _flag(name: str, value: object, error: type[CosimError] = CosimError) -> bool:
+    """True or False (else ``error``, as each check here raises: the type the caller's
+    docstring names)."""
     if not isinstance(value, bool):
-        raise CosimError(f"{name}={_shown(value)}: expected True or False")
+        raise error(f"{name}={_shown(value)}: expected True or False")
     return value
 
 
-def _count(name: str, value: object) -> int:
+def _count(name: str, value: object, error: type[CosimError] = CosimError) -> int:
+    """A whole number >= 1."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise CosimError(f"{name}={_shown(value)}: expected a whole number >= 1")
+        raise error(f"{name}={_shown(value)}: expected a whole number >= 1")
     return value
 
 
@@ -416,22 +455,27 @@ def _number(name: str, value: object) -> float | None:
     return float(value)
 
 
-def _path(name: str, value: object, expected: str = "a str or pathlib.Path") -> Path:
+def _path(
+    name: str,
+    value: object,
+    expected: str = "a str or pathlib.Path",
+    error: type[CosimError] = CosimError,
+) -> Path:
     """A path argument: a str or os.PathLike without a NUL byte (else ``expected`` is what
     the refusal says was expected)."""
     if not isinstance(value, str | os.PathLike):
-        raise CosimError(f"{name}={_shown(value)}: expected {expected}")
+        raise error(f"{name}={_shown(value)}: expected {expected}")
     text = os.fspath(value)
     if not isinstance(text, str) or "\0" in text:
-        raise CosimError(f"{name}={_shown(value)}: expected a path without a NUL byte")
+        raise error(f"{name}={_shown(value)}: expected a path without a NUL byte")
     return Path(text)
 
 
-def _folder(name: str, value: object) -> Path:
+def _folder(name: str, value: object, error: type[CosimError] = CosimError) -> Path:
     """A folder argument: a path (:func:`_path`) that is a folder if it exists."""
-    path = _path(name, value)
+    path = _path(name, value, error=error)
     if os.path.exists(path) and not path.is_dir():  # os.path: False for a name too long
-        raise CosimError(f"{name}={_shown(value)}: is a file; expected a folder")
+        raise error(f"{name}={_shown(value)}: is a file; expected a folder")
     return path
 
 
@@ -441,21 +485,40 @@ def _is_scenario(value: object) -> bool:
     return isinstance(value, Scenario)
 
 
+def _plain(value: object) -> object:
+    """A numpy bool, integer or floating scalar as the Python bool, int or float of the
+    same value (``float(np.float32(-0.1))``); any other value as it is."""
+    if type(value).__module__ != "numpy":  # numpy not imported for plain values
+        return value
+    import numpy as np
+
+    if isinstance(value, np.bool_ | np.integer | np.floating):
+        return value.item()
+    return value
+
+
 def _start(value: object) -> dict[str, StartValue] | None:
-    """Start values: a mapping of "<instance>.<variable>" to a bool, int, float or str."""
+    """Start values: a mapping of "<instance>.<variable>" to a bool, int, float or str (or
+    a numpy scalar of one, taken as its Python value)."""
     if value is None:
         return None
     if not isinstance(value, Mapping):
         raise CosimError(
             f"start={_shown(value)}: expected a mapping {{'<instance>.<variable>': value}}"
         )
-    for key, item in value.items():
+    values: dict[str, StartValue] = {}
+    for key, given in value.items():
+        item = _plain(given)
         if not isinstance(key, str) or "\0" in key:
             raise CosimError(f"start key {_shown(key)}: expected '<instance>.<variable>'")
         if not isinstance(item, bool | int | float | str):
-            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a bool, int, float or str")
+            raise CosimError(
+                f"start[{key!r}]={_shown(item)}: expected a bool, int, float or str (or a "
+                "numpy scalar of one)"
+            )
         if isinstance(item, int) and not isinstance(item, bool) and abs(item) > 1e300:
             raise CosimError(f"start[{key!r}]={_shown(item)}: expected a number within range")
         if isinstance(item, str) and "\0" in item:
             raise CosimError(f"start[{key!r}]={_shown(item)}: expected a string without a NUL byte")
-    return dict(value)
+        values[key] = item
+    return values

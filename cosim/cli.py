@@ -156,10 +156,10 @@ def _study(args: argparse.Namespace) -> int:
         from cosim.study import fork_server
 
         fork_server.start()
-    from cosim.study.spec import MAX_RUNS, check_size, load_study
+    from cosim.study.spec import MAX_RUNS, check_size, load_study, study_label
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
-    check_size(load_study(args.study), str(args.study), max_runs)  # before dask is imported
+    check_size(load_study(args.study), study_label(args.study), max_runs)  # before dask is imported
     from cosim.study.execution import early_client, tls_security
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
@@ -292,7 +292,10 @@ _NEGATIVE_NUMBER = re.compile(r"^-((\d+\.?\d*|\.\d+)(e[+-]?\d+)?|inf|infinity|na
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="auv-cosim",
-        description="Co-simulate the REMUS 100 with internal actuators as two FMI 2.0 FMUs.",
+        description=(
+            "Co-simulate the REMUS 100 with internal actuators as three FMI 2.0 FMUs "
+            "(AuvPlant, AuvAutopilot, AuvGuidance)."
+        ),
     )
     parser.add_argument("--version", action=_Version)
     # not required: without one, main() prints the whole help (the commands), not argparse's
@@ -331,8 +334,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--stop-time", type=float, help="override the stop time, s (finite, > 0)")
     p.add_argument("--step", type=float, help="override the communication step, s (finite, > 0)")
     _add_coupling_options(p)
-    p.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
-    p.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
+    recording = p.add_mutually_exclusive_group()  # a file to write, or none
+    recording.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
+    recording.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
     p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
     p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

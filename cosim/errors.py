@@ -1,12 +1,42 @@
 """The one exception type the command line turns into a one-line reason."""
 
 import difflib
+import os
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 
 class CosimError(Exception):
     """A user-facing failure: bad scenario, failed FMU call, unwritable output, ..."""
+
+
+@dataclass(frozen=True)
+class OptionNames:
+    """How a refusal names an option it was given: by the command line's flag
+    (``--stop-time -1.0``, :data:`FLAGS`) or by the Python API's keyword
+    (``stop_time=-1.0``, :data:`KEYWORDS`), so each caller reads its own words."""
+
+    keywords: bool = False
+
+    def given(self, option: str, value: object) -> str:
+        """The option as given: ``--out runs/x`` or ``out='runs/x'``."""
+        if self.keywords:
+            shown = os.fspath(value) if isinstance(value, os.PathLike) else value
+            return f"{option}={shown!r}"
+        return f"--{option.replace('_', '-')} {value}"
+
+    def option(self, option: str) -> str:
+        """The option to give a value to: ``--out`` or ``out=``."""
+        return f"{option}=" if self.keywords else f"--{option.replace('_', '-')}"
+
+    def switch(self, option: str) -> str:
+        """The option that turns something on: ``--overwrite`` or ``overwrite=True``."""
+        return f"{option}=True" if self.keywords else f"--{option.replace('_', '-')}"
+
+
+FLAGS = OptionNames()  # the command line's
+KEYWORDS = OptionNames(keywords=True)  # the Python API's (cosim.api)
 
 
 def unmade_folder(folder: Path, exc: OSError) -> str:

@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from cosim.engine.signals import REASONS, StopRequest, stop_on_signals
-from cosim.errors import CosimError
+from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.outputs.folder import (
     RECORDING_FILE,
     RESULTS_FILE,
@@ -80,6 +80,8 @@ class RunOptions:
     from the terminal (docs/live-runs.md). ``extrapolation`` and ``tolerance`` override
     the scenario's ``[coupling]``; ``check_step`` also runs it at h / 2 and h / 4 and puts
     the estimated coupling error into the summary (:mod:`cosim.engine.step_check`).
+    ``names``: how a refusal names the options (the command line's flags, or the API's
+    keywords: :class:`cosim.errors.OptionNames`).
     """
 
     out_dir: Path | None = None
@@ -100,6 +102,7 @@ class RunOptions:
     real_time: float | None = None
     control: str | None = None
     interactive: bool = False
+    names: OptionNames = FLAGS
 
 
 class NotStartedError(CosimError):
@@ -151,9 +154,10 @@ def execute(
 
     ``stop``: the caller's :class:`StopRequest`, its signal handlers installed (else this
     call installs them for its duration)."""
-    for flag, value in (("--stop-time", options.stop_time), ("--step", options.step)):
+    for name, value in (("stop_time", options.stop_time), ("step", options.step)):
         if value is not None and not (math.isfinite(value) and value > 0):
-            raise CosimError(f"{flag} {value!r}: expected a finite number of seconds > 0")
+            shown = options.names.given(name, value)
+            raise CosimError(f"{shown}: expected a finite number of seconds > 0")
     default_for = _reference(scenario) if options.out_dir is None else None
     out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
     if options.rrd is not None and not options.no_rrd:
@@ -163,7 +167,9 @@ def execute(
         stop = StopRequest()
         handlers = stop_on_signals(stop)
     with handlers:
-        folder = RunFolder.claim(out_dir, options.overwrite, options.tail_guard, default_for)
+        folder = RunFolder.claim(
+            out_dir, options.overwrite, options.tail_guard, default_for, options.names
+        )
         progress: ProgressSink | None = None
         stepped = False
         try:

@@ -174,3 +174,26 @@ def test_the_user_benchmark_times_the_example_study_of_the_docs(tmp_path):
     spec = load_study(path)
     assert spec.scenario == "bs-3" and spec.stop_time == 20.0
     assert spec.grid == {"plant.v_0": [-0.10, -0.05, 0.05, 0.10], "controller.k0": [0.2, 0.5]}
+
+
+NUMBER_WORDS = {2: "two", 3: "three", 4: "four"}
+
+
+def test_the_texts_that_count_the_fmus_count_the_ones_built(capsys):
+    """``auv-cosim --help`` and the quickstart notebook's introduction count the FMUs
+    ``auv-cosim build`` builds (they said two when the guidance made three), name each,
+    and put the first build at seconds, not a minute."""
+    import json
+
+    from cosim.cli import main
+    from cosim.fmus.build import FMUS
+
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    notebook = json.loads((ROOT / "docs" / "notebooks" / "quickstart.ipynb").read_text("utf-8"))
+    introduction = " ".join("".join(notebook["cells"][0]["source"]).split())
+    for text in (help_text, introduction):
+        assert f"{NUMBER_WORDS[len(FMUS)]} FMI 2.0 FMUs" in text, text
+    assert all(name in help_text for name in FMUS), help_text
+    assert "about a minute" not in introduction

@@ -32,6 +32,7 @@ from cosim.analysis.bifurcation import (
     OperatingConditions,
     Sweep,
     cg_offset,
+    check_sweep,
     find_equilibria,
     sweep,
 )
@@ -182,7 +183,7 @@ def sweep_command(
     out: Path,
 ) -> int:
     """``auv-cosim analyze sweep``: write the sweep's files, print its special points."""
-    result, paths = run_sweep(conditions, parameter, start, stop, steps, out)
+    result, paths = run_sweep(conditions, parameter, start, stop, steps, out, names=("FROM", "TO"))
     print(describe(conditions, swept=parameter))
     print(special_points_table(result, conditions))
     for name, path in paths.items():
@@ -198,14 +199,17 @@ def run_sweep(
     steps: int,
     out: Path,
     seeds: dict | None = None,
+    names: tuple[str, str] = ("start", "stop"),
 ) -> tuple[Sweep, dict[str, Path]]:
     """Continue the branches with a progress bar and write the figure and CSV files.
 
-    Returns the :class:`Sweep` and the paths by name (``figure``, ``branches``,
-    ``special_points``).
+    The arguments are checked before ``out`` is made (``names`` name ``start`` and
+    ``stop`` in a refusal). Returns the :class:`Sweep` and the paths by name (``figure``,
+    ``branches``, ``special_points``).
     """
     from cosim.analysis.plots import plot_sweep
 
+    check_sweep(conditions, parameter, start, stop, steps, names=names)
     _output_folder(out, "the sweep outputs")
     with tqdm(desc=f"sweep {parameter}", unit="step", disable=None, leave=False) as bar:
 

@@ -602,7 +602,7 @@ def sweep(
         ValueError: unknown parameter, an empty range, too few steps, or a parameter value
             the vehicle cannot take (e.g. a mass position beyond the stroke).
     """
-    _check_sweep(conditions, parameter, start, stop, steps, search_points)
+    check_sweep(conditions, parameter, start, stop, steps, search_points)
     cont = _Continuation(conditions, parameter, start, stop, ds=1.0 / steps)
     counter = _WorkCounter(search_points, progress)
     starts = _branch_starts(cont, start, stop, search_points, seeds, counter)
@@ -623,15 +623,18 @@ def sweep(
     return Sweep(parameter, start, stop, cont.names, branches, specials)
 
 
-def _check_sweep(
+def check_sweep(
     conditions: OperatingConditions,
     parameter: str,
     start: float,
     stop: float,
     steps: int,
-    search_points: int,
+    search_points: int = 3,
+    names: tuple[str, str] = ("start", "stop"),
 ) -> None:
-    """Raise ValueError naming the first bad argument of :func:`sweep`."""
+    """Raise AnalysisError (a ValueError) naming the first bad argument of :func:`sweep`
+    (in seconds, before any work); ``names`` name ``start`` and ``stop`` in the refusal
+    (the command line's FROM and TO)."""
     if parameter not in SWEEP_PARAMETERS:
         raise AnalysisError(
             f"unknown sweep parameter {parameter!r}: expected one of {SWEEP_PARAMETERS}"
@@ -648,8 +651,11 @@ def _check_sweep(
         )
     if search_points < 2:
         raise AnalysisError(f"search_points = {search_points!r}: expected at least 2")
-    for value in (start, stop):
-        conditions.with_parameter(parameter, value)  # raises for an impossible value
+    for name, value in zip(names, (start, stop), strict=True):
+        try:
+            conditions.with_parameter(parameter, value)  # raises for an impossible value
+        except AnalysisError as exc:
+            raise AnalysisError(f"{name}: {exc}") from None
 
 
 class _WorkCounter:

@@ -219,7 +219,7 @@ def preflight(scenario: Scenario) -> None:
             key = f"instances.{name}.start.{SUBSTEP_PARAMETER}"
             given = SUBSTEP_PARAMETER in inst.start
             raise ScenarioError(
-                f"scenario file {scenario.source or scenario.id}: key "
+                f"scenario file {scenario.described}: key "
                 f"{key if given else longest!r}: {name}.{SUBSTEP_PARAMETER} = "
                 f"{max_substep!r} s would take {substeps:.3g} sub-steps per communication "
                 f"step of {step!r} s; at most {MAX_SUBSTEPS} are allowed (max_substep >= "

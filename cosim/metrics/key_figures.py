@@ -99,7 +99,8 @@ def why_none(name: str, columns: tuple[str, ...] | list[str], roles: dict[str, s
     if not any(column in columns for column in _columns(name, roles)):
         return "not recorded"
     if name == "yaw_settling_time_s":
-        return f"not settled (within {math.degrees(YAW_TOLERANCE_RAD):g} deg at the end)"
+        band = f"{math.degrees(YAW_TOLERANCE_RAD):g} deg"
+        return f"not settled: the yaw is not within {band} of its set-point at the end"
     return "not finite"
 
 

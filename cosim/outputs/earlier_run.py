@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cosim.errors import FLAGS, OptionNames
 from cosim.outputs.run_files import (
     LOCK_FILE,
     MANIFEST_FILE,
@@ -68,10 +69,13 @@ class EarlierRun:
     kept: list[str] = field(default_factory=list)
 
 
-def find_earlier_run(path: Path, overwrite: bool, default: ScenarioRef | None) -> EarlierRun | None:
+def find_earlier_run(
+    path: Path, overwrite: bool, default: ScenarioRef | None, names: OptionNames = FLAGS
+) -> EarlierRun | None:
     """The earlier run in ``path`` (None if the folder is empty). It may be replaced with
     ``overwrite``, or when ``path`` is the default folder of scenario ``default``, holds
     nothing but an earlier run of that same scenario file (and a report made from it).
+    A refusal names the options as ``names`` does (flags or keywords).
 
     Raises RunFolderError: files set aside by a run killed before it stepped, files of no
     run, a summary or manifest not ours, an earlier run not to be replaced, or an output
@@ -81,14 +85,14 @@ def find_earlier_run(path: Path, overwrite: bool, default: ScenarioRef | None) -
     left = [e for e in entries if _ASIDE.match(e)]
     if left:
         raise RunFolderError(
-            f"--out {path}: holds files a run set aside and could not put back ("
+            f"{names.given('out', path)}: holds files a run set aside and could not put back ("
             f"{', '.join(left[:3])}): rename each back to the name between the leading dot "
             f"and .<pid>{ASIDE_SUFFIX}, or remove them"
         )
     if not entries:
         return None
-    summary = _summary(path, entries)
-    manifest = read_manifest(path)
+    summary = _summary(path, entries, names)
+    manifest = read_manifest(path, names)
     own = _own_files(path, manifest.entries)
     own[path / MANIFEST_FILE] = file_identity(path / MANIFEST_FILE) or {}
     for name in (SUMMARY_FILE, SCENARIO_FILE, MANIFEST_FILE):  # its partial writes, if killed
@@ -98,26 +102,26 @@ def find_earlier_run(path: Path, overwrite: bool, default: ScenarioRef | None) -
             own[tmp] = identity
     tops = {p.relative_to(path).parts[0] for p in own}
     foreign = [e for e in entries if e not in tops and e != REPORT_FOLDER]
-    _check_replaceable(path, summary, overwrite, default, foreign)
+    _check_replaceable(path, summary, overwrite, default, foreign, names)
     for name in OUTPUT_NAMES:  # the new run would write over these: they must be the run's
         if os.path.lexists(path / name) and path / name not in own:
             raise RunFolderError(
-                f"--out {path}: {name} is not a file the earlier run wrote (changed since, "
-                "replaced, or a link); move it away or choose another folder"
+                f"{names.given('out', path)}: {name} is not a file the earlier run wrote "
+                "(changed since, replaced, or a link); move it away or choose another folder"
             )
     kept = [f"{REPORT_FOLDER}/"] if (path / REPORT_FOLDER).exists() else []
     kept += [n for n in manifest.entries if Path(n).is_absolute() and os.path.lexists(n)]
     return EarlierRun(summary, own, kept)
 
 
-def _summary(path: Path, entries: list[str]) -> dict:
+def _summary(path: Path, entries: list[str], names: OptionNames) -> dict:
     """The folder's summary.json, refused unless it is a run's of ours."""
     summary_path = path / SUMMARY_FILE
     if not regular(summary_path):
         shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
         raise RunFolderError(
-            f"--out {path}: the folder is not empty ({shown}) and holds no earlier run "
-            f"(no {SUMMARY_FILE}); choose a new or empty folder"
+            f"{names.given('out', path)}: the folder is not empty ({shown}) and holds no "
+            f"earlier run (no {SUMMARY_FILE}); choose a new or empty folder"
         )
     try:
         summary = json.loads(summary_path.read_text(encoding="utf-8"))
@@ -129,29 +133,38 @@ def _summary(path: Path, entries: list[str]) -> dict:
         or not isinstance(summary.get("scenario"), str)
     ):
         raise RunFolderError(
-            f"--out {path}: its {SUMMARY_FILE} is not the summary of an auv-cosim run; "
-            "choose a new or empty folder"
+            f"{names.given('out', path)}: its {SUMMARY_FILE} is not the summary of an "
+            "auv-cosim run; choose a new or empty folder"
         )
     return summary
 
 
 def _check_replaceable(
-    path: Path, summary: dict, overwrite: bool, default: ScenarioRef | None, foreign: list[str]
+    path: Path,
+    summary: dict,
+    overwrite: bool,
+    default: ScenarioRef | None,
+    foreign: list[str],
+    names: OptionNames,
 ) -> None:
+    """Refuse to replace the earlier run in ``path`` unless ``overwrite`` or ``default``
+    allows it (:func:`find_earlier_run`)."""
     if overwrite:
         return
+    out = names.given("out", path)
     if default is not None and summary["scenario"] == default.id and not foreign:
         if summary.get("scenario_file") == default.file:
             return
         raise RunFolderError(
-            f"--out {path}: the folder holds an earlier run of another scenario file with "
+            f"{out}: the folder holds an earlier run of another scenario file with "
             f"the same id {default.id!r} ({summary.get('scenario_file') or 'unknown'}); pass "
-            "--overwrite to replace it, or choose another folder with --out"
+            f"{names.switch('overwrite')} to replace it, or choose another folder with "
+            f"{names.option('out')}"
         )
     what = f"scenario {summary['scenario']!r}, status {summary['status']!r}"
     raise RunFolderError(
-        f"--out {path}: the folder holds an earlier run ({what}); pass --overwrite to "
-        "replace it, or choose another folder"
+        f"{out}: the folder holds an earlier run ({what}); pass "
+        f"{names.switch('overwrite')} to replace it, or choose another folder"
     )
 
 

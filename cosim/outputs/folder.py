@@ -45,6 +45,7 @@ import sys
 import time
 from pathlib import Path
 
+from cosim.errors import FLAGS, OptionNames
 from cosim.outputs.earlier_run import EarlierRun, ScenarioRef, SetAside, find_earlier_run
 from cosim.outputs.report_folder import mark_stale
 from cosim.outputs.run_files import (
@@ -80,8 +81,16 @@ GUARD_TIMEOUT_S = 10.0
 class RunFolder:
     """A claimed run folder: use :meth:`claim`, then :meth:`release` (never raises)."""
 
-    def __init__(self, path: Path, lock_fd: int, created: bool, tail_guard: bool = True) -> None:
+    def __init__(
+        self,
+        path: Path,
+        lock_fd: int,
+        created: bool,
+        tail_guard: bool = True,
+        names: OptionNames = FLAGS,
+    ) -> None:
         self.path = path
+        self.names = names  # how a refusal names the options: flags or the API's keywords
         self.tail_guard = tail_guard  # start_guard starts one (else it does nothing)
         self.created = created  # the folder did not exist before the claim
         self.earlier: EarlierRun | None = None  # an earlier run to replace
@@ -104,12 +113,15 @@ class RunFolder:
         overwrite: bool = False,
         tail_guard: bool = True,
         default_for: ScenarioRef | None = None,
+        names: OptionNames = FLAGS,
     ) -> RunFolder:
         """Create and lock ``path``; an earlier run there needs ``overwrite``, unless
         ``path`` is the default folder of the scenario ``default_for`` and holds nothing
         but an earlier run of that scenario file (and a report made from it). Without
         ``tail_guard``, :meth:`start_guard` starts no guard process (for a caller that
         discards a killed run's folder anyway: a study's task, whose run is run again).
+        A refusal names the options as ``names`` does (the command line's flags, or the
+        API's keywords).
 
         Raises:
             RunFolderError: not creatable, not a folder, locked by another run, holding an
@@ -117,27 +129,28 @@ class RunFolder:
                 output name that is not the earlier run's own file.
         """
         path = Path(path)
+        out = names.given("out", path)
         created = not os.path.exists(path)  # False, not OSError, for a name too long
         try:
             path.mkdir(parents=True, exist_ok=True)
         except FileExistsError:
-            raise RunFolderError(f"--out {path}: exists and is not a folder") from None
+            raise RunFolderError(f"{out}: exists and is not a folder") from None
         except OSError as exc:
             raise RunFolderError(
-                f"--out {path}: cannot create the run folder: {exc.strerror or exc}"
+                f"{out}: cannot create the run folder: {exc.strerror or exc}"
             ) from None
         if not path.is_dir():
-            raise RunFolderError(f"--out {path}: exists and is not a folder")
+            raise RunFolderError(f"{out}: exists and is not a folder")
         try:
-            lock_fd = lock_folder(path)
+            lock_fd = lock_folder(path, names=names)
         except RunFolderError:
             if created:
                 with contextlib.suppress(OSError):
                     path.rmdir()
             raise
-        folder = cls(path, lock_fd, created, tail_guard)
+        folder = cls(path, lock_fd, created, tail_guard, names)
         try:
-            folder.earlier = find_earlier_run(path, overwrite, default_for)
+            folder.earlier = find_earlier_run(path, overwrite, default_for, names)
         except BaseException:
             folder.release()
             raise
@@ -154,7 +167,7 @@ class RunFolder:
         if self.earlier is None:
             return
         for target, identity in self.earlier.files.items():
-            self.aside.move(target, identity, f"--out {self.path}")
+            self.aside.move(target, identity, self.names.given("out", self.path))
 
     def commit(self) -> None:
         """The run has taken its first step: remove what was set aside (checked once more)
@@ -389,24 +402,25 @@ def check_recording_path(out_dir: Path, rrd: Path, overwrite: bool) -> None:
         raise RunFolderError(f"--rrd {rrd}: exists; pass --overwrite to replace it")
 
 
-def lock_folder(path: Path, kind: str = "run") -> int:
+def lock_folder(path: Path, kind: str = "run", names: OptionNames = FLAGS) -> int:
     """Lock the folder ``path`` (a ``kind`` folder: "run" or "study") without waiting;
     return the lock's descriptor (:func:`unlock_folder` releases it). Raises
-    RunFolderError naming the process holding it."""
+    RunFolderError naming the process holding it (and the options as ``names`` does)."""
     lock = path / LOCK_FILE
     for _ in range(5):  # a previous holder may remove the file between open and lock
         try:
             fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
         except OSError as exc:
             raise RunFolderError(
-                f"--out {path}: cannot write in the {kind} folder: {exc.strerror or exc}"
+                f"{names.given('out', path)}: cannot write in the {kind} folder: "
+                f"{exc.strerror or exc}"
             ) from None
         if not _try_lock(fd):
             holder = _holder(fd)
             os.close(fd)
             raise RunFolderError(
                 f"{kind} folder {path} is in use by {holder}: wait for that {kind} to end or "
-                "choose another --out"
+                f"choose another {names.option('out')}"
             )
         try:
             current = os.stat(lock).st_ino == os.fstat(fd).st_ino
@@ -419,7 +433,7 @@ def lock_folder(path: Path, kind: str = "run") -> int:
             except OSError as exc:  # a full disk: no lock file left behind
                 unlock_folder(path, fd)
                 raise RunFolderError(
-                    f"--out {path}: cannot write {lock}: {exc.strerror or exc}"
+                    f"{names.given('out', path)}: cannot write {lock}: {exc.strerror or exc}"
                 ) from None
             return fd
         os.close(fd)

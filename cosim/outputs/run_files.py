@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim.errors import CosimError
+from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.outputs.tail_guard import IDENTITY_KEYS, READ_FLAGS, file_identity
 from cosim.whole_file import write_whole
 
@@ -80,14 +80,15 @@ class Manifest:
             raise RunFolderError(f"cannot write {self.path}: {exc.strerror or exc}") from None
 
 
-def read_manifest(folder: Path) -> Manifest:
+def read_manifest(folder: Path, names: OptionNames = FLAGS) -> Manifest:
     """The manifest in ``folder``. Raises RunFolderError saying whether it is missing,
     unreadable (truncated, not JSON, not ours) or of the older format that named files by
-    inode alone."""
+    inode alone (naming the folder as ``names`` name options)."""
+    out = names.given("out", folder)
     path = folder / MANIFEST_FILE
     if not os.path.lexists(path):
         raise RunFolderError(
-            f"--out {folder}: holds a {SUMMARY_FILE} but no {MANIFEST_FILE} (the list of the "
+            f"{out}: holds a {SUMMARY_FILE} but no {MANIFEST_FILE} (the list of the "
             "files its run wrote), so none of its files is known to be a run's; move them "
             "away or choose another folder"
         )
@@ -97,7 +98,7 @@ def read_manifest(folder: Path) -> Manifest:
         data = json.loads(path.read_text(encoding="utf-8"))
         if isinstance(data, dict) and "format" not in data:
             raise RunFolderError(
-                f"--out {folder}: its {MANIFEST_FILE} was written by an older auv-cosim that "
+                f"{out}: its {MANIFEST_FILE} was written by an older auv-cosim that "
                 "recorded no content of the files, so none is known to be the run's any "
                 "more; move them away or choose another folder"
             )
@@ -107,7 +108,7 @@ def read_manifest(folder: Path) -> Manifest:
         return Manifest(folder, int(data["pid"]), entries)
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise RunFolderError(
-            f"--out {folder}: its {MANIFEST_FILE} is unreadable ({_short(exc)}: truncated "
+            f"{out}: its {MANIFEST_FILE} is unreadable ({_short(exc)}: truncated "
             "or not written by auv-cosim), so none of the files is known to be the run's; "
             "move them away or choose another folder"
         ) from None

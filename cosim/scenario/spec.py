@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, NoReturn
 
 import tomli_w
 from pydantic import (
@@ -191,6 +192,66 @@ class Coupling:
         return EXTRAPOLATION_ORDER[self.extrapolation]
 
 
+def _refused(method: str) -> Callable[..., NoReturn]:
+    """A :class:`ReadOnly` method that would change it: refused, naming ``method``."""
+
+    def refuse(self: ReadOnly, *args: Any, **kwargs: Any) -> NoReturn:
+        raise self._refusal(f"{self._name}.{method}(...)")
+
+    return refuse
+
+
+class ReadOnly(Mapping[str, Any]):
+    """A mapping of a resolved :class:`Scenario` (its ``instances``, an instance's
+    ``start``): read-only, since an edit would bypass the scenario's checks and be lost on
+    the next override. ``hint`` says what to call instead; picklable and copyable."""
+
+    __slots__ = ("_hint", "_items", "_name")
+
+    def __init__(self, items: Mapping[str, Any], name: str, hint: str) -> None:
+        self._items = dict(items)
+        self._name = name  # as an edit's refusal names the mapping: "plant.start"
+        self._hint = hint
+
+    def __getitem__(self, key: str) -> Any:
+        return self._items[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return repr(self._items)
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        raise self._refusal(f"{self._name}[{key!r}] = {value!r}")
+
+    def __delitem__(self, key: str) -> None:
+        raise self._refusal(f"del {self._name}[{key!r}]")
+
+    def _refusal(self, edit: str) -> TypeError:
+        return TypeError(f"{edit}: a loaded scenario is read-only; expected {self._hint}")
+
+    update = _refused("update")
+    pop = _refused("pop")
+    popitem = _refused("popitem")
+    setdefault = _refused("setdefault")
+    clear = _refused("clear")
+
+
+INSTANCES_HINT = (
+    "scenario.with_start({'<instance>.<variable>': value}) or scenario.with_overrides(...) "
+    "(a checked copy), or a scenario file"
+)
+
+
+def _start_hint(instance: str) -> str:
+    """What an edit of ``instance``'s start values is told to call instead."""
+    return f"scenario.with_start({{'{instance}.<variable>': value}}) (a checked copy)"
+
+
 @dataclass(frozen=True)
 class Instance:
     """One FMU instance: its FMU (as referenced and as a file) and explicit start values."""
@@ -245,6 +306,8 @@ class Scenario:
     events: tuple[Event, ...] = ()  # cosim.scenario.timeline_spec
     faults: tuple[Fault, ...] = ()
     unrecorded: tuple[str, ...] = ()  # outputs left out of the default record (String)
+    # how a refusal names it: its file, with the start values and overrides applied since
+    where: str = dataclasses.field(repr=False, compare=False, default="")
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -320,7 +383,7 @@ class Scenario:
             data["stop_time"] = stop_time
         named = {"stop_time": stop_time, **{f"coupling.{k}": v for k, v in given.items()}}
         overrides = ", ".join(f"{k} = {v!r}" for k, v in named.items() if v is not None)
-        return self._revalidated(data, f"{self.source or self.id} (with the override {overrides})")
+        return self._revalidated(data, f"{self.described} (with the override {overrides})")
 
     def with_start(self, values: Mapping[str, StartValue]) -> Scenario:
         """A re-validated copy with these start values added or replaced.
@@ -330,8 +393,13 @@ class Scenario:
         scenario file's start value passes (the variable exists, is a parameter or an
         unconnected input, the value has its type). Raises :class:`ScenarioError`.
         """
+        if not isinstance(values, Mapping):
+            shown = repr(values) if len(repr(values)) <= 60 else f"{repr(values)[:40]}..."
+            raise ScenarioError(
+                f"start values {shown}: expected a mapping {{'<instance>.<variable>': value}}"
+            )
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
-        where = f"{self.source or self.id} (with the start values {dict(values)})"
+        where = f"{self.described} (with the start values {dict(values)})"
         for ref, value in values.items():
             instance, dot, variable = ref.partition(".") if isinstance(ref, str) else ("", "", "")
             if not dot or instance not in data["instances"] or not variable:
@@ -343,6 +411,12 @@ class Scenario:
             start = data["instances"][instance].setdefault("start", {})
             start[variable] = value.item() if hasattr(value, "item") else value  # numpy scalar
         return self._revalidated(data, where)
+
+    @property
+    def described(self) -> str:
+        """The scenario as a refusal names it (after ``scenario file``): its file or id,
+        with the start values and overrides applied since it was read."""
+        return self.where or str(self.source or self.id)
 
     def _revalidated(self, data: dict[str, Any], where: str) -> Scenario:
         """The scenario of the changed file data ``data``, checked like a file."""
@@ -418,12 +492,26 @@ def scenario_path(id_or_path: str | Path) -> Path:
     path = Path(id_or_path)
     if path.is_file():
         return path
+    if _looks_like_a_path(str(id_or_path)) or os.path.lexists(path):
+        exists = os.path.lexists(path)
+        guess = "" if exists else did_you_mean_path(path)
+        raise ScenarioError(
+            f"{'not a file' if exists else 'no such file'}: {id_or_path}{guess} (looked for "
+            f"{path.absolute()}); expected a scenario .toml file"
+        )
     guess = did_you_mean(str(id_or_path), builtin_scenarios()) or did_you_mean_path(path)
     raise ScenarioError(
         f"unknown scenario {str(id_or_path)!r}{guess}:"
         f" expected a built-in id ({', '.join(builtin_scenarios())}) or the path of a scenario "
         ".toml file"
     )
+
+
+def _looks_like_a_path(text: str) -> bool:
+    """Whether a scenario argument is meant as a file (it ends in .toml or holds a path
+    separator), not as a built-in id."""
+    separators = {"/", os.sep, os.altsep or "/"}
+    return text.endswith(".toml") or any(sep in text for sep in separators)
 
 
 def scenario_id(id_or_path: str | Path) -> str:
@@ -495,7 +583,7 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
     except ValidationError as exc:
         problems: dict[str, str] = {}  # key -> problem, the first one per key
         for err in exc.errors():
-            key = ".".join(str(part) for part in err["loc"] if not _is_union_tag(part))
+            key = _key(err["loc"])
             if err["type"] == "extra_forbidden":
                 problem = f"unknown key {key!r}{did_you_mean(key.rpartition('.')[2], KEYS)}"
             elif err["type"] == "missing":
@@ -507,6 +595,19 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
                 problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
             problems.setdefault(key, problem)
         raise ScenarioError(f"scenario file {where}: " + "; ".join(problems.values())) from None
+
+
+def _key(loc: tuple[Any, ...]) -> str:
+    """pydantic's error location as the file's key, in the notation of every other
+    refusal: ``faults[0].std`` (a list index in brackets), without the union members
+    tried (:func:`_is_union_tag`)."""
+    key = ""
+    for part in loc:
+        if isinstance(part, int):
+            key += f"[{part}]"
+        elif not _is_union_tag(part):
+            key += f".{part}" if key else str(part)
+    return key
 
 
 def _is_union_tag(part: Any) -> bool:
@@ -553,7 +654,7 @@ def _resolve(
                 raise src.error(
                     f"instances.{name}.start.{var_name}",
                     f"input {name}.{var_name} is connected from {driven[f'{name}.{var_name}']}, "
-                    f"so a start value would be overwritten; add {name}.{var_name!r} to "
+                    f'so a start value would be overwritten; add "{name}.{var_name}" to '
                     "connections.remove to hold it instead",
                 )
     scenario = Scenario(
@@ -562,13 +663,14 @@ def _resolve(
         source=source,
         stop_time=spec.stop_time,
         coupling=coupling,
-        instances=instances,
+        instances=ReadOnly(instances, "scenario.instances", INSTANCES_HINT),
         connections=tuple(connections),
         record=(),
         rrd=spec.output.rrd,
         spec=spec,
         fmu_dir=fmu_dir,
         base_dir=base_dir,
+        where=src.where,
     )
     record = _resolve_record(spec.output.record, scenario, src)
     _check_manoeuvre(spec.manoeuvre, record, src)
@@ -701,7 +803,9 @@ def _resolve_instance(
             start[var_name] = str(_existing_file(value, base_dir, key, src))
     if spec.fmu in ("AuvPlant", "AuvAutopilot") and "vehicle" in start:
         _check_vehicle(str(start["vehicle"]), f"instances.{name}.start.vehicle", src)
-    return Instance(name, fmu_ref, fmu_path, start, interface)
+    return Instance(
+        name, fmu_ref, fmu_path, ReadOnly(start, f"{name}.start", _start_hint(name)), interface
+    )
 
 
 def _check_vehicle(value: str, key: str, src: Source) -> None:
@@ -877,7 +981,7 @@ def _check_units(
             raise src.error(f"connections.add[{added[target]}]", difference)
         raise src.error(
             "connections.same_names",
-            f"{difference}; add {target!r} to connections.remove to leave it unconnected",
+            f'{difference}; add "{target}" to connections.remove to leave it unconnected',
         )
 
 

@@ -47,7 +47,7 @@ from cosim.study.page import write_index
 from cosim.study.plots import default_metrics, plotted_metrics, write_figures
 from cosim.study.prefetch import Prefetch
 from cosim.study.signals import StudyStopped
-from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study
+from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study, study_label
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
 from cosim.study.units import units
@@ -99,18 +99,19 @@ def run_study(
     progress: bool = False,
     overlay: int | None = None,
     max_runs: int = MAX_RUNS,
+    label: str | None = None,
 ) -> StudyOutcome:
     """Run the study (or what a killed one left, with ``resume``) into ``out_dir``
     (default ``studies/<study file name>``). ``overlay``: draw that many runs, spread over
     the study, in overlay.rrd (instead of the study file's ``overlay``); a study of more
-    than ``max_runs`` runs is refused before any is built. Raises
-    :class:`StudyError` (a CosimError) for a study that cannot run; failed runs are rows
-    of the table, not errors."""
+    than ``max_runs`` runs is refused before any is built; ``label`` names the study in a
+    refusal (default: :func:`~cosim.study.spec.study_label`). Raises :class:`StudyError`
+    (a CosimError) for a study that cannot run; failed runs are rows of the table."""
     started = time.perf_counter()
     if cluster.scheduler is not None:
         check_scheduler(cluster.scheduler, cluster.security)
-    spec = load_study(study_file)
-    check_size(spec, str(study_file), max_runs)
+    spec = load_study(study_file, label := label or study_label(study_file))
+    check_size(spec, label, max_runs)
     scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
     base, facts = prepare(scenario_ref, spec.stop_time, fmu_dir, spec.check_step, study_file.parent)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}

@@ -213,10 +213,11 @@ def run_count(spec: StudySpec) -> int:
     return math.prod(len(values) for values in spec.grid.values()) * max(spec.random.n, 1)
 
 
-def check_size(spec: StudySpec, where: str, max_runs: int = MAX_RUNS) -> None:
+def check_size(spec: StudySpec, label: str, max_runs: int = MAX_RUNS) -> None:
     """Refuse a study of more than ``max_runs`` runs, before any is built (the design of
     a larger one would take the memory and time of building every run first), and a
-    ``max_runs`` beyond :data:`MAX_RUNS_CEILING` (or below 1)."""
+    ``max_runs`` beyond :data:`MAX_RUNS_CEILING` (or below 1). ``label`` names the study
+    (:func:`study_label`)."""
     if isinstance(max_runs, bool) or not 1 <= max_runs <= MAX_RUNS_CEILING:
         shown = str(max_runs) if len(str(max_runs)) <= 30 else f"{str(max_runs)[:20]}..."
         raise StudyError(
@@ -227,24 +228,32 @@ def check_size(spec: StudySpec, where: str, max_runs: int = MAX_RUNS) -> None:
     if count > max_runs:
         grid = " x ".join(str(len(values)) for values in spec.grid.values()) or "1"
         raise StudyError(
-            f"study file {where}: {count:.4g} runs ({grid} grid points x "
+            f"{label}: {count:.4g} runs ({grid} grid points x "
             f"{max(spec.random.n, 1)} samples); at most {max_runs} (--max-runs N raises the cap)"
         )
 
 
-def load_study(path: Path) -> StudySpec:
-    """Read and validate a study file; :class:`StudyError` names the file and the key."""
+def study_label(path: Path | str) -> str:
+    """How a refusal names the study of the file ``path``: ``study file <path>``."""
+    return f"study file {path}"
+
+
+def load_study(path: Path, label: str | None = None) -> StudySpec:
+    """Read and validate a study file; :class:`StudyError` names the key and ``label``
+    (default: the file, :func:`study_label`)."""
+    label = study_label(path) if label is None else label
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
-        raise StudyError(f"study file {path}: not valid TOML: {exc}") from None
+        raise StudyError(f"{label}: not valid TOML: {exc}") from None
     except OSError as exc:
-        raise StudyError(f"study file {path}: cannot read it: {exc}") from None
-    return study_from_dict(data, str(path))
+        raise StudyError(f"{label}: cannot read it: {exc}") from None
+    return study_from_dict(data, label)
 
 
-def study_from_dict(data: dict[str, Any], where: str) -> StudySpec:
-    """Validate study data (as read from TOML); :class:`StudyError` names ``where``."""
+def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
+    """Validate study data (as read from TOML); :class:`StudyError` names the key and
+    ``label`` (the study: :func:`study_label`, or what it was given as)."""
     try:
         return StudySpec.model_validate(data)
     except ValidationError as exc:
@@ -264,7 +273,7 @@ def study_from_dict(data: dict[str, Any], where: str) -> StudySpec:
                     message = "expected a number" if tags <= {"int", "float"} else _ANY_VALUE
                 problem = f"key {key!r} = {err.get('input')!r}: {message}"
             problems.setdefault(key, problem)
-        raise StudyError(f"study file {where}: " + "; ".join(problems.values())) from None
+        raise StudyError(f"{label}: " + "; ".join(problems.values())) from None
 
 
 _UNION_TAGS = {"bool", "int", "float", "str"}  # pydantic puts the member tried in the loc

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import os
+import pickle
 import pkgutil
 import shutil
 import subprocess
@@ -24,6 +25,7 @@ import cosim
 from cosim.errors import CosimError
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import SCENARIO_FOLDER, load_scenario, scenario_from_toml
+from cosim.study.spec import StudyError
 
 ACCEPTANCE = (
     "import cosim; r = cosim.run('bs-3', stop_time=5.0, start={'plant.v_0': -0.05}); "
@@ -113,16 +115,99 @@ def test_run_with_out_writes_the_command_lines_folder(tmp_path: Path, fmu_dir: P
 
 
 def test_errors_are_the_command_lines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    """The same exception type and one-line message as ``auv-cosim run`` prints."""
+    """The same exception type and one-line message as ``auv-cosim run`` prints, naming
+    the API's keyword where the command line names its flag."""
     from cosim.cli import main
 
     assert main(["run", "bs-3", "--stop-time", "-1", "--out", str(tmp_path / "r")]) == 1
     printed = capsys.readouterr().err.strip()
     with pytest.raises(CosimError) as raised:
         cosim.run("bs-3", stop_time=-1.0, out=tmp_path / "r")
-    assert printed == f"auv-cosim run: {raised.value}"
+    assert printed == "auv-cosim run: --stop-time -1.0: expected a finite number of seconds > 0"
+    assert str(raised.value) == "stop_time=-1.0: expected a finite number of seconds > 0"
     with pytest.raises(ScenarioError, match="expected a built-in id"):
         cosim.run("no-such-scenario")
+
+
+@pytest.mark.parametrize(
+    ("arguments", "named"),
+    [
+        ({"stop_time": -1.0}, "stop_time=-1.0: expected"),
+        ({"stop_time": float("inf")}, "stop_time=inf: expected"),
+        ({"step": 0.0}, "step=0.0: expected"),
+        ({"out": "userdir"}, "out='userdir': the folder is not empty"),
+    ],
+)
+def test_api_refusals_name_its_keywords_not_the_command_lines_flags(
+    arguments: dict, named: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A refused option of cosim.run is named as the caller wrote it (stop_time=, step=,
+    out=), not as the command line's --stop-time, --step, --out."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "userdir").mkdir()
+    (tmp_path / "userdir" / "notes.txt").write_text("mine", encoding="utf-8")
+    with pytest.raises(CosimError) as raised:
+        cosim.run("bs-3", **arguments)
+    assert str(raised.value).startswith(named) and "--" not in str(raised.value)
+
+
+def test_api_refusal_of_an_earlier_run_names_overwrite_true(tmp_path: Path, fmu_dir: Path) -> None:
+    """The folder of an earlier run is refused with the API's way to replace it."""
+    cosim.run("bs-3", stop_time=0.1, out=tmp_path / "r", recording=False, fmu_dir=fmu_dir)
+    with pytest.raises(CosimError, match=r"pass overwrite=True to replace it") as raised:
+        cosim.run("bs-3", stop_time=0.1, out=tmp_path / "r", recording=False, fmu_dir=fmu_dir)
+    assert str(raised.value).startswith(f"out={str(tmp_path / 'r')!r}: ")
+
+
+@pytest.mark.parametrize("argument", ["nope.toml", "sub/bs-3", "folder"])
+def test_a_scenario_path_that_is_no_file_is_named_so(
+    argument: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """An argument meant as a file (ending in .toml, holding a path separator, or naming
+    a folder) that is no file is refused saying so and where it was looked for, by the
+    API and by ``auv-cosim run`` alike, not as an unknown built-in id."""
+    from cosim.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "folder").mkdir()
+    what = "not a file" if argument == "folder" else "no such file"
+    expected = f"{what}: {argument} (looked for {tmp_path / argument}); expected a scenario"
+    with pytest.raises(ScenarioError) as raised:
+        cosim.run(argument)
+    assert str(raised.value).startswith(expected), raised.value
+    assert main(["run", argument]) == 1
+    assert capsys.readouterr().err.strip().startswith(f"auv-cosim run: {expected}")
+
+
+def test_numpy_scalar_start_values_are_taken_as_their_python_values(fmu_dir: Path) -> None:
+    """A numpy float32, int64 or bool_ start value (as a numpy computation gives it) is
+    the Python number of the same value, not refused for its type."""
+    run = cosim.run(
+        "bs-3",
+        stop_time=0.1,
+        fmu_dir=fmu_dir,
+        start={"plant.v_0": np.float32(-0.1), "plant.variant": np.int64(1)},
+    )
+    start = run.scenario.instances["plant"].start
+    assert start["v_0"] == float(np.float32(-0.1)) and type(start["v_0"]) is float
+    assert start["variant"] == 1 and type(start["variant"]) is int
+    assert run.results["plant.v"].iloc[0] == float(np.float32(-0.1))
+    with pytest.raises(CosimError, match=r"start\['plant.v_0'\]=np.complex128"):
+        cosim.run("bs-3", start={"plant.v_0": np.complex128(1)}, fmu_dir=fmu_dir)
+
+
+@pytest.mark.parametrize("overrides", [{}, {"stop_time": 1.0}])
+def test_a_start_value_refused_before_the_run_names_where_it_came_from(
+    overrides: dict, fmu_dir: Path
+) -> None:
+    """A start value the run refuses before loading any FMU (a max_substep of hours per
+    step) is named with the start values it came from, like every other start-value
+    refusal, so the shipped file does not read as faulty."""
+    with pytest.raises(ScenarioError) as raised:
+        cosim.run("bs-3", start={"plant.max_substep": 1e-9}, fmu_dir=fmu_dir, **overrides)
+    message = str(raised.value)
+    assert "bs-3.toml (with the start values {'plant.max_substep': 1e-09})" in message
+    assert "key 'instances.plant.start.max_substep': plant.max_substep = 1e-09 s" in message
 
 
 def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
@@ -151,6 +236,22 @@ def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
         with pytest.raises(ScenarioError, match=message) as raised:
             base.with_start({ref: value})
         assert "\n" not in str(raised.value)
+
+
+def test_a_loaded_scenario_refuses_edits_and_points_at_with_start(fmu_dir: Path) -> None:
+    """A loaded scenario's instances and start values are read-only: an edit would bypass
+    the scenario checks and be dropped by the next override; the refusal names
+    with_start, which gives a checked copy."""
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    start = scenario.instances["plant"].start
+    with pytest.raises(TypeError, match=r"plant\.start\['v_0'\] = 'fast': .*with_start"):
+        start["v_0"] = "fast"  # type: ignore[index]
+    with pytest.raises(TypeError, match="with_start"):
+        start.update(v_0=0.1)  # type: ignore[attr-defined]
+    with pytest.raises(TypeError, match="with_start"):
+        del scenario.instances["plant"]  # type: ignore[attr-defined]
+    assert scenario.instances["plant"].start["v_0"] == -0.10
+    assert pickle.loads(pickle.dumps(scenario.instances)).keys() == scenario.instances.keys()
 
 
 def test_connected_input_refuses_a_start_value(fmu_dir: Path) -> None:
@@ -286,6 +387,69 @@ def test_every_bad_argument_is_one_typed_line_naming_it(
     message = str(raised.value)
     assert "\n" not in message and named in message and "expected" in message, message
     assert len(message) < 300, message
+
+
+@pytest.mark.parametrize(
+    ("arguments", "named"),
+    [({"resume": True}, "resume=True needs out="), ({"overlay": 2}, "overlay=2 needs out=")],
+)
+def test_sweep_without_out_refuses_resume_and_overlay_before_running(
+    arguments: dict, named: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """resume and overlay act on the study folder: without out= there is none, so the
+    call is refused before any run (not an overlay computed and thrown away, nor a
+    refusal naming a temporary folder and a command-line flag)."""
+    import cosim.study.runner
+
+    def ran(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the study ran")
+
+    monkeypatch.setattr(cosim.study.runner, "run_study", ran)
+    with pytest.raises(StudyError) as raised:
+        cosim.sweep({"scenario": "bs-3"}, workers=1, **arguments)
+    assert str(raised.value).startswith(named) and "--" not in str(raised.value)
+
+
+WRONG_TYPE = [
+    ("sweep", {"study": {"scenario": "bs-3"}, "overlay": 0}, StudyError, "overlay=0"),
+    ("sweep", {"study": 5}, StudyError, "study=5"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "oversubscribe": "yes"}, StudyError, "'yes'"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "out": A_FILE}, StudyError, "out="),
+    ("sweep", {"study": {"scenario": "bs-3"}, "fmu_dir": A_FILE}, StudyError, "fmu_dir="),
+    ("load_scenario", {"scenario": 5}, ScenarioError, "scenario=5"),
+    ("load_scenario", {"scenario": "bs-3", "fmu_dir": A_FILE}, ScenarioError, "fmu_dir="),
+]
+
+
+@pytest.mark.parametrize(("function", "arguments", "error", "named"), WRONG_TYPE)
+def test_bad_arguments_raise_the_type_the_docstring_names(
+    function: str, arguments: dict, error: type[CosimError], named: str
+) -> None:
+    """sweep documents StudyError and load_scenario ScenarioError for a bad argument: a
+    caller catching the documented type catches these too."""
+    call = getattr(cosim, function)
+    positional = [arguments.pop(k) for k in ("scenario", "study") if k in arguments]
+    with pytest.raises(error, match="expected") as raised:
+        call(*positional, **arguments, **({"workers": 1} if function == "sweep" else {}))
+    assert named in str(raised.value)
+
+
+def test_with_start_of_a_non_mapping_is_a_scenario_error(fmu_dir: Path) -> None:
+    """with_start([1]) raised a bare TypeError from dict(); it is the documented
+    ScenarioError naming the value and what was expected."""
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    with pytest.raises(ScenarioError, match=r"start values \[1\]: expected a mapping"):
+        scenario.with_start([1])  # type: ignore[arg-type]
+
+
+def test_a_study_given_as_a_dict_is_named_as_such_not_by_a_temporary_file() -> None:
+    """A refused key of a study dict is named in the dict, not in the temporary
+    study.toml the dict is written to (a file the caller never wrote)."""
+    with pytest.raises(StudyError) as raised:
+        cosim.sweep({"scenario": "bs-3", "grd": {}}, workers=1)
+    message = str(raised.value)
+    assert message.startswith("study (given as a dict): unknown key 'grd'"), message
+    assert "study.toml" not in message and tempfile.gettempdir() not in message
 
 
 UNGUARDED = """

@@ -70,3 +70,16 @@ def test_a_command_without_its_subcommand_prints_the_choices(
     assert main(argv) == 2
     out = capsys.readouterr().out
     assert out.startswith("usage: auv-cosim") and all(f"    {c}" in out for c in choices), out
+
+
+def test_no_rrd_and_rrd_together_are_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--no-rrd --rrd x.rrd`` asks for a recording and for none: refused as a usage
+    error naming both, before anything runs (it was taken, and x.rrd never written)."""
+    out = tmp_path / "r"
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "bs-3", "--no-rrd", "--rrd", str(tmp_path / "x.rrd"), "--out", str(out)])
+    assert exit_.value.code == 2
+    assert "argument --rrd: not allowed with argument --no-rrd" in capsys.readouterr().err
+    assert not (tmp_path / "x.rrd").exists() and not out.exists()

@@ -107,6 +107,25 @@ def test_bad_input_exits_1_with_a_one_line_reason(capsys, tmp_path, argv, messag
 
 
 @pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["mu", "1", "0"], "TO: mu = 0.0: expected a finite factor > 0"),
+        (["eta", "-1", "1"], "FROM: eta = -1.0: expected a finite factor > 0"),
+        (["mu", "1", "1"], "two different finite values"),
+        (["eta", "1", "2", "--steps", "1"], "steps = 1"),
+    ],
+)
+def test_a_refused_sweep_names_the_argument_and_makes_no_folder(capsys, tmp_path, argv, message):
+    """A sweep refused for its arguments leaves no empty output folder behind, and a
+    refused end of the range is named as the command line names it (FROM, TO)."""
+    out = tmp_path / "analysis"
+    code, _, err = _run(capsys, "analyze", "sweep", *argv, "--out", str(out))
+    assert code == 1
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
     ("argv", "expected"),
     [
         (["equilibria", "--variant", "1", "--roll-torque", "-5e-1"], {"roll_torque": -0.5}),

@@ -100,13 +100,16 @@ def test_names_are_the_figures_the_columns_can_give():
 
 
 def test_a_figure_that_is_none_says_why() -> None:
-    """What a run's report prints in place of a figure it has none of."""
+    """What a run's report prints in place of a figure it has none of: for the settling
+    time, plainly that the yaw ends outside its band (it read "within 1 deg at the
+    end", the opposite)."""
     columns = ["plant.yaw", "plant.mass_position"]
     figures = KeyFigures(columns)
     figures.add_rows(np.array([0.0, 1.0]), np.array([[0.0, 0.01], [0.5, 0.02]]))
     absent = {k: why_none(k, columns) for k, v in figures.figures().items() if v is None}
     assert absent == {
-        "yaw_settling_time_s": "not settled (within 1 deg at the end)",
+        "yaw_settling_time_s": "not settled: the yaw is not within 1 deg of its set-point at "
+        "the end",
         "peak_abs_tunnel_force_N": "not recorded",
     }
     assert why_none("yaw_settling_time_s", ["plant.roll"]) == "not recorded"

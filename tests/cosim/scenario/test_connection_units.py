@@ -123,7 +123,7 @@ fmu = "{autopilot}"
     message = str(refused.value)
     assert "connections.same_names" in message
     assert "plant.yaw is in rad and controller.yaw in deg (1 rad is 57.2958 deg)" in message
-    assert "add 'controller.yaw' to connections.remove to leave it unconnected" in message
+    assert 'add "controller.yaw" to connections.remove to leave it unconnected' in message
 
 
 def _temperature(unit: str, relative: bool) -> tuple[SimpleNamespace, SimpleNamespace]:

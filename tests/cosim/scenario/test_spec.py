@@ -186,6 +186,9 @@ BAD_EDITS = [
     ("v_0 = -0.10", "v_0 = -0.10\nyaw = 1.0", r"plant\.start\.yaw.*continuous output"),
     ("v_0 = -0.10", "v_0 = -0.10\nv_00 = 1.0", r"start\.v_00.*has no variable 'v_00'"),
     ("v_0 = -0.10", "v_0 = -0.10\nthrust = 4.0", r"plant\.thrust is connected from controller"),
+    # the hint names the entry as connections.remove holds it: a TOML string
+    ("v_0 = -0.10", "v_0 = -0.10\nthrust = 4.0",
+     r'add "plant\.thrust" to connections\.remove to hold it instead$'),
     # connections: a missing variable, output -> output, input -> input, bad names
     (REMOVE, ADD.format("controller.tunnel_forse", "plant.tunnel_force"),
      r"add\[0\]\.from.*controller \(AuvAutopilot\.fmu\) has no variable 'tunnel_forse'"),

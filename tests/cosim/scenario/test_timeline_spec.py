@@ -64,15 +64,15 @@ BAD_ROWS = [
      ["events[0].when", "'plant.x0'", "neither a recorded Real variable"]),
     (f"[[events]]\ntime = 0.5\nrepeat = true\n{SET_K}",
      ["events[0].repeat", "only for a `when` event"]),
-    (f"[[events]]\ntime = -1.0\n{SET_K}", ["events.0.time", "-1.0", "greater than or equal"]),
-    (f"[[events]]\ntime = 0.5\n{SET_K}\nramp = 0.0", ["events.0.ramp", "0.0", "greater"]),
+    (f"[[events]]\ntime = -1.0\n{SET_K}", ["events[0].time", "-1.0", "greater than or equal"]),
+    (f"[[events]]\ntime = 0.5\n{SET_K}\nramp = 0.0", ["events[0].ramp", "0.0", "greater"]),
     ("[[events]]\ntime = 0.5", ["events[0].set", "missing"]),
     ('[[events]]\nseries = "missing.csv"', ["events[0].series", "'missing.csv'", "cannot read"]),
     ('[[events]]\nseries = "SERIES"\n' + SET_K, ["events[0].set", "not with series"]),
     (f'[[events]]\nname = "a"\ntime = 0.1\n{SET_K}\n[[events]]\nname = "a"\ntime = 0.2\n{SET_K}',
      ["events[1].name", "'a' is used twice"]),
-    (f'[[events]]\nname = "a b"\ntime = 0.1\n{SET_K}', ["events.0.name", "'a b'", "pattern"]),
-    (f"[[events]]\ntime = 0.1\n{SET_K}\nspeed = 1", ["unknown key 'events.0.speed'"]),
+    (f'[[events]]\nname = "a b"\ntime = 0.1\n{SET_K}', ["events[0].name", "'a b'", "pattern"]),
+    (f"[[events]]\ntime = 0.1\n{SET_K}\nspeed = 1", ["unknown key 'events[0].speed'"]),
     ('[[faults]]\nkind = "gain"\ntarget = "plant.x"\nvalue = 2.0',
      ["faults[0].target", "'plant.x' is not the target of a connection",
       "['controller.x', 'plant.u']"]),
@@ -82,17 +82,17 @@ BAD_ROWS = [
     ('[[faults]]\nkind = "bias"\ntarget = "controller.x"\nvalue = 1.0\nstart = 0.5\nstop = 0.5',
      ["faults[0].stop", "0.5 s is not after start = 0.5 s"]),
     ('[[faults]]\nkind = "noise"\ntarget = "controller.x"\nstd = -0.1',
-     ["faults.0.std", "-0.1", "greater than or equal to 0"]),
+     ["faults[0].std", "-0.1", "greater than or equal to 0"]),
     ('[[faults]]\nkind = "dropout"\ntarget = "controller.x"\nprobability = 1.5',
-     ["faults.0.probability", "1.5", "less than or equal to 1"]),
+     ["faults[0].probability", "1.5", "less than or equal to 1"]),
     ('[[faults]]\nkind = "delay"\ntarget = "controller.x"\nsteps = 0',
-     ["faults.0.steps", "0", "greater than or equal to 1"]),
+     ["faults[0].steps", "0", "greater than or equal to 1"]),
     # 2^63-1 steps ended in an OverflowError traceback
     ('[[faults]]\nkind = "delay"\ntarget = "controller.x"\nsteps = 9223372036854775807',
-     ["faults.0.steps", "9223372036854775807", "less than or equal to 100000000"]),
+     ["faults[0].steps", "9223372036854775807", "less than or equal to 100000000"]),
     ('[[faults]]\nkind = "gain"\ntarget = "controller.x"\nvalue = 2.0\nstd = 0.1',
      ["faults[0].std", "kind 'gain' takes ['value']"]),
-    ('[[faults]]\nkind = "wobble"\ntarget = "controller.x"', ["faults.0.kind", "'wobble'"]),
+    ('[[faults]]\nkind = "wobble"\ntarget = "controller.x"', ["faults[0].kind", "'wobble'"]),
     ('[[faults]]\nkind = "thruster-off"',
      ["faults[0].kind", "tunnel_force", "0 instances", "expected exactly one"]),
     ('[[faults]]\nname = "f"\nkind = "stuck"\ntarget = "controller.x"\n'
@@ -105,6 +105,8 @@ BAD_ROWS = [
 def test_a_bad_event_or_fault_is_refused_in_one_line_naming_the_key(
     test_fmu_dir: Path, extra: str, expected: list[str]
 ) -> None:
+    """Every refusal names the key in one notation, a list index in brackets
+    (``faults[0].std``), whether pydantic or the resolution found the problem."""
     with pytest.raises(ScenarioError) as info:
         resolve(test_fmu_dir, extra)
     message = str(info.value)

@@ -83,7 +83,7 @@ def test_bad_study_names_the_file_and_the_key(change: dict, expected: str) -> No
     data = {**MINIMAL, **change}
     data = {k: v for k, v in data.items() if v is not None}
     with pytest.raises(StudyError) as info:
-        study_from_dict(data, "my-study.toml")
+        study_from_dict(data, "study file my-study.toml")
     assert str(info.value).startswith("study file my-study.toml: ")
     assert expected in str(info.value)
 
