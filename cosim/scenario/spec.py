@@ -192,6 +192,23 @@ class Coupling:
         return EXTRAPOLATION_ORDER[self.extrapolation]
 
 
+def _move_design_steps(data: dict[str, Any], coupling: Coupling, step: float) -> None:
+    """Each instance's ``design_step`` that is its communication step (within a relative
+    1e-9: 3 x 0.1 s is 0.30000000000000004 s) set to its step under the new ``step``, in
+    ``data``; a digital controller's (``sample_period`` > 0) kept."""
+    for name, instance in data.get("instances", {}).items():
+        multiple = coupling.step_multiples.get(name, 1)
+        start = instance.get("start", {})
+        designed = start.get("design_step")
+        digital = start.get("sample_period", 0.0) > 0.0
+        if (
+            isinstance(designed, float | int)
+            and not digital
+            and math.isclose(designed, coupling.step * multiple, rel_tol=1e-9)
+        ):
+            start["design_step"] = step * multiple
+
+
 def _refused(method: str) -> Callable[..., NoReturn]:
     """A :class:`ReadOnly` method that would change it: refused, naming ``method``."""
 
@@ -362,7 +379,9 @@ class Scenario:
         that instance's old communication step (a sampled controller designed for the step
         it runs at, like the autopilot's discrete LQR), so ``--step`` never leaves a
         controller designed for another sample time; an instance with a ``sample_period``
-        of its own (a digital controller) keeps both.
+        of its own (a digital controller) keeps both. An override changes what it names
+        only: another algorithm keeps the extrapolation the scenario resolved to (naming
+        the algorithm it runs changes nothing) and drops the adaptive algorithm's keys.
         """
         coupling: dict[str, Any] = {}
         given = {"step": step, "algorithm": algorithm, "extrapolation": extrapolation,
@@ -371,14 +390,14 @@ class Scenario:
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
         if "algorithm" not in self.spec.coupling.model_fields_set:
             data["coupling"].pop("algorithm")  # unnamed: the extrapolation keeps its default
+        if algorithm is not None:
+            data["coupling"].setdefault("extrapolation", self.coupling.extrapolation)
+            if algorithm != "adaptive":
+                for key in ("tolerance", "max_step", "error_estimate"):
+                    data["coupling"].pop(key, None)
         data["coupling"].update(coupling)
         if step is not None:
-            for name, instance in data.get("instances", {}).items():
-                multiple = self.coupling.step_multiples.get(name, 1)
-                start = instance.get("start", {})
-                digital = start.get("sample_period", 0.0) > 0.0
-                if start.get("design_step") == self.coupling.step * multiple and not digital:
-                    start["design_step"] = step * multiple
+            _move_design_steps(data, self.coupling, step)
         if stop_time is not None:
             data["stop_time"] = stop_time
         named = {"stop_time": stop_time, **{f"coupling.{k}": v for k, v in given.items()}}

@@ -29,9 +29,11 @@ def test_a_file_naming_its_algorithm_keeps_held_values_and_one_without_extrapola
     assert unnamed.coupling.extrapolation == DEFAULT_EXTRAPOLATION == "quadratic"
     chosen = loop_toml().replace("[coupling]", '[coupling]\nextrapolation = "linear"')
     assert loop(test_fmu_dir, chosen).coupling.extrapolation == "linear"
-    # an override of the step keeps an unnamed algorithm unnamed (and its default)
+    # an override changes what it names only: the step, or the algorithm (the resolved
+    # extrapolation kept; --extrapolation changes that)
     assert unnamed.with_overrides(step=0.05).coupling.extrapolation == "quadratic"
-    assert unnamed.with_overrides(algorithm="jacobi").coupling.extrapolation == "none"
+    assert unnamed.with_overrides(algorithm="jacobi").coupling.extrapolation == "quadratic"
+    assert named.with_overrides(algorithm="jacobi").coupling.extrapolation == "none"
 
 
 def test_the_resolved_file_loads_back_to_the_same_coupling(test_fmu_dir: Path) -> None:

@@ -168,6 +168,42 @@ def test_step_override_redesigns_a_controller_tied_to_the_step(fmu_dir: Path) ->
     )
 
 
+def test_a_design_step_is_moved_when_it_is_a_multiple_step_up_to_rounding(fmu_dir: Path) -> None:
+    """A controller stepping every 3 steps of 0.1 s, designed for 0.3 s: 3 x 0.1 is
+    0.30000000000000004, which the exact comparison missed, leaving it designed for 0.3 s
+    at --step 0.2."""
+    path = scenario_path("lqr-1")
+    text = path.read_text(encoding="utf-8").replace("sample_period = 0.01", "")
+    text = text.replace("\nstep = 0.01", "\nstep = 0.1\nstep_multiples = { controller = 3 }")
+    text = text.replace("design_step = 0.01", "design_step = 0.3")
+    lqr = scenario_from_toml(text, base_dir=path.parent, fmu_dir=fmu_dir)
+    moved = lqr.with_overrides(step=0.2).instances["controller"].start["design_step"]
+    assert moved == pytest.approx(0.6, rel=1e-12)
+
+
+@pytest.mark.parametrize("scenario", ["bs-3", "vert-1"])
+def test_naming_the_algorithm_a_scenario_runs_changes_nothing(fmu_dir: Path, scenario) -> None:
+    """A scenario whose algorithm was resolved (gauss-seidel, quadratic inputs) ran held
+    inputs after --algorithm gauss-seidel: the override reset the extrapolation."""
+    shipped = load_scenario(scenario, fmu_dir=fmu_dir)
+    named = shipped.with_overrides(algorithm=shipped.coupling.algorithm)
+    assert named.coupling == shipped.coupling
+
+
+def test_another_algorithm_drops_the_adaptive_keys_it_does_not_take(fmu_dir: Path) -> None:
+    """--algorithm gauss-seidel on a scenario with algorithm = "adaptive" and a tolerance
+    was refused ("applies to algorithm = 'adaptive' only"): only the file could change it."""
+    path = scenario_path("bs-3")
+    text = path.read_text(encoding="utf-8").replace(
+        'algorithm = "gauss-seidel"', 'algorithm = "adaptive"\ntolerance = 1e-4'
+    )
+    adaptive = scenario_from_toml(text, base_dir=path.parent, fmu_dir=fmu_dir)
+    fixed = adaptive.with_overrides(algorithm="gauss-seidel").coupling
+    assert (fixed.algorithm, fixed.tolerance, fixed.extrapolation) == (
+        "gauss-seidel", None, adaptive.coupling.extrapolation,
+    )  # fmt: skip
+
+
 REMOVE = 'remove = ["plant.fin_angle"]'
 ADD = 'add = [{{ from = "{}", to = "{}" }}]'
 BAD_EDITS = [
