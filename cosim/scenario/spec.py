@@ -701,8 +701,24 @@ def _resolve(
         events=resolve_events(spec.events, scenario, base_dir, src),
         faults=resolve_faults(spec.faults, scenario, src),
     )
+    _check_fault_columns(scenario, src)
     _check_reachable_times(scenario, src)
     return scenario
+
+
+def _check_fault_columns(scenario: Scenario, src: Source) -> None:
+    """A fault's column (``fault.<name>``) that is also a recorded variable's (of an
+    instance named ``fault``): two columns of one name in results.csv, refused."""
+    recorded = set(scenario.record)
+    for k, fault in enumerate(scenario.faults):
+        column = f"{FAULT_COLUMN_PREFIX}{fault.name}"
+        if column in recorded:
+            raise src.error(
+                f"faults[{k}].name",
+                f"{fault.name!r}: its results.csv column {column} is also the column of "
+                f"instance fault's recorded variable {fault.name}; rename the fault or the "
+                "instance",
+            )
 
 
 def _check_manoeuvre(kind: str | None, record: tuple[str, ...], src: Source) -> None:

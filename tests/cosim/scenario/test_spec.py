@@ -4,6 +4,7 @@ is loaded with the file and the key named."""
 from __future__ import annotations
 
 import dataclasses
+import re
 import subprocess
 import sys
 import tomllib
@@ -202,6 +203,17 @@ def test_another_algorithm_drops_the_adaptive_keys_it_does_not_take(fmu_dir: Pat
     assert (fixed.algorithm, fixed.tolerance, fixed.extrapolation) == (
         "gauss-seidel", None, adaptive.coupling.extrapolation,
     )  # fmt: skip
+
+
+def test_a_fault_whose_column_an_instance_named_fault_records_is_refused(fmu_dir: Path) -> None:
+    """A fault named "yaw" beside a plant instance named "fault" gave results.csv two
+    fault.yaw columns, and the run died in an index error blamed on the autopilot FMU."""
+    path = scenario_path("bs-3")
+    text = re.sub(r"\bplant\b", "fault", path.read_text(encoding="utf-8"))
+    text += '[[faults]]\nname = "yaw"\nkind = "bias"\ntarget = "fault.mass_position_cmd"\n'
+    with pytest.raises(ScenarioError, match=r"key 'faults\[0\]\.name': 'yaw': its results\.csv "
+                       r"column fault\.yaw is also the column of instance fault's"):  # fmt: skip
+        scenario_from_toml(text + "value = 0.001\n", base_dir=path.parent, fmu_dir=fmu_dir)
 
 
 REMOVE = 'remove = ["plant.fin_angle"]'
