@@ -5,7 +5,10 @@ not kept: only the key figures and the final values, :mod:`cosim.metrics.key_fig
 and :mod:`cosim.metrics.richardson` turns the three values of each figure into the
 estimated error of the run at the scenario's step, with the order observed on them. A
 digital controller that samples at its own period (the autopilot's ``sample_period``)
-keeps it in the checks: what is checked is the coupling, not the controller's design.
+keeps it in the checks: what is checked is the coupling, not the controller's design. So
+does a delay fault (its ``steps`` doubled at h/2: the same delay in seconds); a noise or
+dropout fault, which draws anew at every exchange, makes the finer runs other systems, and
+is refused.
 
 Costs six times the run itself (2 + 4 times its steps), paid after it; a signal during
 the checks stops them and the run keeps its results without an estimate.
@@ -13,6 +16,7 @@ the checks stops them and the run keeps its results without an estimate.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -45,10 +49,17 @@ def check_step(
             "--check-step: an adaptive run controls its error itself (tolerance "
             f"{coupling.tolerance!r}); check a fixed step (algorithm jacobi or gauss-seidel)"
         )
+    drawn = [f for f in scenario.faults if f.kind in ("noise", "dropout")]
+    if drawn:
+        raise CosimError(
+            f"--check-step: fault {drawn[0].name!r} ({drawn[0].kind}) draws anew at every "
+            "exchange, so runs at h/2 and h/4 are other systems, not this one coupled more "
+            "finely; check the scenario without it"
+        )
     values = [_named(figures, scenario.columns, final)]
     steps = [coupling.step / 2, coupling.step / 4]
     for step in steps:
-        checked = scenario.with_overrides(step=step)
+        checked = _same_delays(scenario.with_overrides(step=step), round(coupling.step / step))
         sink = KeyFigures(scenario.columns, scenario.key_instances)
         result = master.run(checked, [sink], keep_rows=False, stop=stop)
         if not result.complete:
@@ -68,6 +79,16 @@ def check_step(
         if worst is None
         else {"column": worst[0].removeprefix(FINAL_PREFIX), **worst[1].as_dict()},
     }
+
+
+def _same_delays(scenario: Scenario, factor: int) -> Scenario:
+    """``scenario`` at a step ``factor`` times shorter with each delay fault's steps
+    ``factor`` times more: the same delay in seconds."""
+    faults = tuple(
+        dataclasses.replace(f, steps=f.steps * factor) if f.kind == "delay" and f.steps else f
+        for f in scenario.faults
+    )
+    return dataclasses.replace(scenario, faults=faults)
 
 
 def _named(

@@ -29,6 +29,30 @@ def test_the_estimated_error_is_within_a_factor_two_of_the_true_one(test_fmu_dir
     assert "plant.x" in summary_line(check) or "largest final-value error" in summary_line(check)
 
 
+DELAY = '[[faults]]\nkind = "delay"\ntarget = "plant.u"\nsteps = 4\n'
+
+
+def test_a_delay_fault_is_checked_as_the_same_delay_in_seconds(test_fmu_dir: Path) -> None:
+    """A delay of 4 steps (0.4 s at h = 0.1 s) was 0.2 s and 0.1 s in the runs at h/2
+    and h/4: the estimate was the change of the delay, +70 % of a figure. Now it is
+    within a factor 2 of the distance from a run at h/32 with the same 0.4 s."""
+    scenario = scenario_from_toml(loop_toml(stop_time=2.0) + DELAY, base_dir=test_fmu_dir)
+    check = check_step(scenario, {}, master.run(scenario).final)
+    x = check["final_values"]["plant.x"]
+    fine_text = loop_toml(stop_time=2.0, step=0.1 / 32) + DELAY.replace("4", str(4 * 32))
+    fine = master.run(scenario_from_toml(fine_text, base_dir=test_fmu_dir))
+    true_error = x["value"] - fine.column("plant.x")[-1]
+    assert 0.5 < x["error"] / true_error < 2.0, (x, true_error)
+
+
+@pytest.mark.parametrize("kind", ['noise"\nstd = 0.1', 'dropout"\nprobability = 0.5'])
+def test_a_fault_drawing_at_every_exchange_is_not_checked(test_fmu_dir: Path, kind) -> None:
+    fault = f'[[faults]]\nname = "drawn"\nkind = "{kind}\ntarget = "plant.u"\n'
+    scenario = scenario_from_toml(loop_toml() + fault, base_dir=test_fmu_dir)
+    with pytest.raises(CosimError, match=r"fault 'drawn' \((noise|dropout)\) draws anew"):
+        check_step(scenario, {}, master.run(scenario).final)
+
+
 def test_an_adaptive_run_is_not_checked(test_fmu_dir: Path) -> None:
     scenario = scenario_from_toml(loop_toml(algorithm="adaptive"), base_dir=test_fmu_dir)
     with pytest.raises(CosimError, match="controls its error itself"):
