@@ -18,12 +18,15 @@ A name no kind recognises is an error naming the factor and what it could name.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, get_args
 
+from pydantic.fields import FieldInfo
+
 from cosim.errors import did_you_mean
-from cosim.scenario.timeline_spec import FaultSpec
+from cosim.scenario.timeline_spec import EventSpec, FaultSpec
 from cosim.study.spec import StudyError
 
 Value = bool | int | float | str
@@ -77,6 +80,10 @@ class FactorKind(Protocol):
     def normalize(self, value: Value) -> Value:
         """The value as the scenario will hold it (a Real's integer becomes a float)."""
 
+    def value_range(self, facts: ScenarioFacts) -> tuple[float, float]:
+        """The range a number for it must be in (what the scenario's checks refuse outside
+        it; -inf, inf where there is none): a study's samples are checked against it."""
+
 
 @dataclass(frozen=True)
 class StartValue:
@@ -120,6 +127,9 @@ class StartValue:
         if type(value) is int:
             return dict(self.named).get(value, value)
         return value
+
+    def value_range(self, facts: ScenarioFacts) -> tuple[float, float]:
+        return _declared_range(facts, f"{self.instance}.{self.variable}")
 
 
 # a fault's numeric keys and which of them are integers, as the scenario's FaultSpec has them
@@ -202,6 +212,11 @@ class EventKey:
     def normalize(self, value: Value) -> Value:
         return _real(value) if self.real else value
 
+    def value_range(self, facts: ScenarioFacts) -> tuple[float, float]:
+        if self.target is not None:
+            return _declared_range(facts, self.target)
+        return _field_range(EventSpec.model_fields[self.key])
+
 
 @dataclass(frozen=True)
 class FaultKey:
@@ -231,6 +246,31 @@ class FaultKey:
 
     def normalize(self, value: Value) -> Value:
         return value if self.key in INTEGER_FAULT_KEYS else _real(value)
+
+    def value_range(self, facts: ScenarioFacts) -> tuple[float, float]:
+        return _field_range(FaultSpec.model_fields[self.key])
+
+
+def _declared_range(facts: ScenarioFacts, ref: str) -> tuple[float, float]:
+    """The declared min and max of the variable ``ref`` ("<instance>.<variable>")."""
+    instance, _, variable = ref.partition(".")
+    var = facts.instances.get(instance, {}).get(variable)
+    low = -math.inf if var is None or var.min is None else float(var.min)
+    high = math.inf if var is None or var.max is None else float(var.max)
+    return low, high
+
+
+def _field_range(field: FieldInfo) -> tuple[float, float]:
+    """The bounds a scenario file's key declares (pydantic's ge/gt, le/lt), as a range."""
+    low, high = -math.inf, math.inf
+    for item in field.metadata:
+        for name in ("ge", "gt"):
+            if getattr(item, name, None) is not None:
+                low = max(low, float(getattr(item, name)))
+        for name in ("le", "lt"):
+            if getattr(item, name, None) is not None:
+                high = min(high, float(getattr(item, name)))
+    return low, high
 
 
 def _real(value: Value) -> Value:

@@ -29,7 +29,7 @@ from typing import Any
 
 from cosim.errors import CosimError, did_you_mean
 from cosim.paths import DEFAULT_FMU_DIR
-from cosim.scenario.checks import range_text, real_range
+from cosim.scenario.checks import range_text
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
@@ -41,7 +41,7 @@ from cosim.study.execution import (
     make_job,
     open_client,
 )
-from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, resolve_factor
+from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
 from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import default_metrics, plotted_metrics, write_figures
@@ -446,16 +446,13 @@ def _check_sample_ranges(
     scenario's checks want each grid value (a distribution that reaches beyond it, a
     normal one on a gain declared >= 0, would otherwise run as failed rows)."""
     for name in spec.random.factors:
-        factor = factors[name]
-        if not isinstance(factor, StartValue):
-            continue
-        low, high = real_range(facts.instances[factor.instance][factor.variable])
+        low, high = factors[name].value_range(facts)
         values = [float(run.values[name]) for run in runs]
         outside = [v for v in values if not low <= v <= high]
         if outside:
             raise StudyError(
                 f"factor {name!r}: {len(outside)} of its {len(values)} samples are outside "
-                f"{range_text(low, high, factor.variable)} (from {min(values):.6g} "
+                f"{range_text(low, high, name.rpartition('.')[2])} (from {min(values):.6g} "
                 f"to {max(values):.6g}): expected a distribution within it"
             )
 

@@ -4,6 +4,7 @@ runs are rows, results do not depend on the number of workers, bad studies fail 
 from __future__ import annotations
 
 import json
+import re
 import tomllib
 from pathlib import Path
 
@@ -131,6 +132,32 @@ def test_a_bad_factor_fails_before_any_run_naming_it(
     out = tmp_path / "out"
     assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
     assert expected in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("scenario", "factor", "expected"),
+    [
+        ("depth-steps", '"events.down-to-3m.time" = { normal = [1.0, 2.0] }',
+         r"factor 'events.down-to-3m.time': \d+ of its 50 samples are outside \[0.0, inf\], "
+         "the range time takes"),
+        ("mass-jam", '"faults.jam.start" = { uniform = [-1.0, 3.0] }',
+         r"factor 'faults.jam.start': \d+ of its 50 samples are outside \[0.0, inf\], the "
+         "range start takes"),
+    ],
+)  # fmt: skip
+def test_samples_of_an_event_or_fault_key_are_checked_before_any_run(
+    scenario: str, factor: str, expected: str, tmp_path: Path, fmu_dir: Path, capsys
+) -> None:
+    """A distribution of an event's time reaching below 0 ran, and its samples there were
+    failed rows ("Input should be greater than or equal to 0"), where a start value's
+    samples are refused before the first run."""
+    study = tmp_path / "bad.toml"
+    text = f'scenario = "{scenario}"\n[random]\nn = 50\nseed = 1\n{factor}\n'
+    study.write_text(text, encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
+    assert re.search(expected, capsys.readouterr().err)
     assert not out.exists()
 
 
