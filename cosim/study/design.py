@@ -68,12 +68,18 @@ def random_samples(random: RandomSpec) -> list[dict[str, Value]]:
     columns = []
     for j, name in enumerate(names):
         dist = random.factors[name]
-        if isinstance(dist, Normal):
-            mean, std = dist.normal
-            columns.append(stats.norm.ppf(unit[:, j], loc=mean, scale=std))
-        else:
-            low, high = dist.uniform
-            columns.append(stats.uniform.ppf(unit[:, j], loc=low, scale=high - low))
+        with np.errstate(all="ignore"):  # a law too wide for a float: refused just below
+            if isinstance(dist, Normal):
+                mean, std = dist.normal
+                columns.append(stats.norm.ppf(unit[:, j], loc=mean, scale=std))
+            else:
+                low, high = dist.uniform
+                columns.append(stats.uniform.ppf(unit[:, j], loc=low, scale=high - low))
+        if not np.isfinite(columns[-1]).all():
+            raise StudyError(
+                f"factor {name!r}: {dist.model_dump()} gives samples beyond the largest float "
+                f"({np.finfo(float).max:.4g}): expected a narrower law"
+            )
     samples = np.column_stack(columns).tolist()  # Python floats
     return [dict(zip(names, row, strict=True)) for row in samples]
 

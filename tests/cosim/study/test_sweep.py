@@ -121,6 +121,9 @@ def test_the_table_does_not_depend_on_the_number_of_workers(
         ('"controller.k0" = [0.5, -1.0]', "-1.0 is outside [0.0, inf], the range k0 takes"),
         ('[random]\nn = 50\nseed = 1\n"controller.k0" = { normal = [0.5, 0.5] }',
          "factor 'controller.k0': 7 of its 50 samples are outside [0.0, inf], the range k0"),
+        # a law wider than a float holds (the width 2e308 overflows): named, no traceback
+        ('[random]\nn = 2\nseed = 1\n"plant.v_0" = { uniform = [-1e308, 1e308] }',
+         "factor 'plant.v_0': {'uniform': (-1e+308, 1e+308)} gives samples beyond the largest"),
     ],
 )  # fmt: skip
 def test_a_bad_factor_fails_before_any_run_naming_it(
