@@ -230,11 +230,14 @@ class AuvAutopilot(SafeSlave):
 
     def _check_step_size(self, autopilot: Autopilot, step_size: float) -> None:
         """Warn (once) when the law's sample time (``sample_period``, else the
-        communication step) is not the step the LQR or the sliding mode is designed for."""
+        communication step; the step when it is the longer: the law samples at doSteps
+        only) is not the step the LQR or the sliding mode is designed for."""
         design_step = autopilot.config.design_step
-        sampled = autopilot.config.sample_period or step_size  # the law's sample time
+        period = autopilot.config.sample_period
+        sampled = max(period, step_size) if period else step_size  # the law's sample time
         if not math.isclose(sampled, design_step, rel_tol=1e-9):
-            what = "sample_period" if autopilot.config.sample_period else "communication step"
+            digital = period and not sampled > period * (1 + 1e-9)
+            what = "sample_period" if digital else "communication step"
             self.log(
                 f"{what} {sampled!r} s differs from design_step = {design_step!r} s: the "
                 f"LQR / sliding-mode gains are designed for design_step (set it to the {what})",
