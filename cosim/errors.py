@@ -54,8 +54,8 @@ def did_you_mean(word: str, choices: Iterable[str]) -> str:
 def did_you_mean_path(path: Path) -> str:
     """:func:`did_you_mean` for a path that does not exist, among the names in its folder
     (``runs/bs3``: ``runs/bs-3``); ``""`` when that folder cannot be listed."""
-    try:
-        names = [entry.name for entry in path.parent.iterdir()]
+    try:  # the path itself is no suggestion (a file given where a folder is expected)
+        names = [entry.name for entry in path.parent.iterdir() if entry.name != path.name]
     except OSError:
         return ""
     choice = closest(path.name, names)
@@ -66,7 +66,7 @@ def closest(word: str, choices: Iterable[str]) -> str | None:
     """The one choice closest to a mistyped ``word`` (difflib's ratio 0.75 or more, letter
     case aside: a letter or two off, a missing ``_``); None when none is close or two are
     equally close (``bs-9``: bs-1, bs-2 or bs-3?)."""
-    by_lower = {choice.lower(): choice for choice in choices}
+    by_lower = {choice.lower(): choice for choice in choices if choice != word}
     close = difflib.get_close_matches(word.lower(), list(by_lower), n=2, cutoff=0.75)
     if not close or (len(close) == 2 and _ratio(word, close[0]) == _ratio(word, close[1])):
         return None

@@ -83,3 +83,14 @@ def test_no_rrd_and_rrd_together_are_a_usage_error(
     assert exit_.value.code == 2
     assert "argument --rrd: not allowed with argument --no-rrd" in capsys.readouterr().err
     assert not (tmp_path / "x.rrd").exists() and not out.exists()
+
+
+def test_a_path_of_the_wrong_kind_is_not_suggested_as_itself(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`report` of a file said "is not a folder (did you mean '<that file>'?)"."""
+    script = tmp_path / "t.sh"
+    script.write_text("echo\n", encoding="utf-8")
+    assert main(["report", str(script)]) == 1
+    err = capsys.readouterr().err
+    assert f"{script} is not a folder" in err and "did you mean" not in err
