@@ -242,11 +242,11 @@ def load_study(path: Path, label: str | None = None) -> StudySpec:
     """Read and validate a study file; :class:`StudyError` names the key and ``label``
     (default: the file, :func:`study_label`)."""
     label = study_label(path) if label is None else label
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
+        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except tomllib.TOMLDecodeError as exc:
         raise StudyError(f"{label}: not valid TOML: {exc}") from None
-    except OSError as exc:
+    except (OSError, UnicodeDecodeError) as exc:
         raise StudyError(f"{label}: cannot read it: {exc}") from None
     return study_from_dict(data, label)
 

@@ -193,6 +193,9 @@ def load_vehicle(
     return params
 
 
+# UTF-8 whatever the host's locale (an FMU's host may run under LANG=C), a byte-order
+# mark (some Windows editors write one) dropped
+VEHICLE_ENCODING = "utf-8-sig"
 _LOADED_KEPT = 64  # sets kept by load_vehicle (per name, folder and, for a relative
 # path, working directory)
 _loaded: dict[tuple[str, str, str], tuple[tuple[tuple[Path, str], ...], VehicleParameters]] = {}
@@ -201,7 +204,7 @@ _loaded: dict[tuple[str, str, str], tuple[tuple[tuple[Path, str], ...], VehicleP
 def _text(path: Path) -> str | None:
     """A file's text, None if it cannot be read."""
     try:
-        return path.read_text()
+        return path.read_text(encoding=VEHICLE_ENCODING)
     except (OSError, UnicodeDecodeError):
         return None
 
@@ -225,7 +228,10 @@ def _read_table(
             f"unknown vehicle {name_or_path!r}: expected one of {builtin} "
             "or the path of an existing .toml file"
         )
-    text = path.read_text()
+    try:
+        text = path.read_text(encoding=VEHICLE_ENCODING)
+    except UnicodeDecodeError as exc:
+        raise VehicleParameterError(f"vehicle file {name_or_path!r}: not UTF-8 ({exc})") from None
     read.append((path.resolve(), text))
     try:
         table = vehicle_toml.loads(text)

@@ -108,3 +108,17 @@ def test_unreadable_and_invalid_files_are_named(tmp_path: Path) -> None:
     bad.write_text("scenario = \n", encoding="utf-8")
     with pytest.raises(StudyError, match=r"bad\.toml: not valid TOML"):
         load_study(bad)
+
+
+def test_a_study_file_with_a_byte_order_mark_reads_as_a_scenario_file_does(
+    tmp_path: Path,
+) -> None:
+    """A study file saved with a byte-order mark (some Windows editors write one) was
+    "not valid TOML (at line 1, column 1)"; a file that is not UTF-8 ended in a traceback."""
+    marked = tmp_path / "marked.toml"
+    marked.write_bytes(b"\xef\xbb\xbf" + b'scenario = "bs-3"\n[grid]\n"plant.v_0" = [0.1]\n')
+    assert load_study(marked).scenario == "bs-3"
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes('scenario = "bs-3" # \u00b0\n'.encode("latin-1"))
+    with pytest.raises(StudyError, match=r"latin\.toml: cannot read it: 'utf-8' codec"):
+        load_study(latin)

@@ -1,6 +1,10 @@
 """Vehicle parameter sets: the shipped data, and what bad input gets."""
 
 import dataclasses
+import os
+import subprocess
+import sys
+import textwrap
 import warnings
 from pathlib import Path
 
@@ -155,3 +159,33 @@ def test_a_mass_beyond_any_double_is_refused_without_a_warning(name: str) -> Non
         warnings.simplefilter("error")
         with pytest.raises(VehicleParameterError, match=r"M_RB \+ M_A overflows"):
             load_vehicle("remus100").replace(**{name: 1e308})
+
+
+def test_a_vehicle_file_is_utf8_whatever_the_locale(tmp_path):
+    """A vehicle set with a comment in UTF-8 (°) and a byte-order mark: read in the
+    host's locale encoding, it failed to load under LANG=C (a host started without a
+    locale) with a UnicodeDecodeError traceback; a file that is not UTF-8 is named."""
+    heavy = tmp_path / "heavy.toml"
+    text = '# 31 kg, trimmed at 0°\nbase = "remus100"\nname = "heavy"\n[rigid_body]\nm = 31.0\n'
+    heavy.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(text.encode("latin-1"))
+    code = """
+        import sys
+        from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
+        print(load_vehicle(sys.argv[1]).m)
+        try:
+            load_vehicle(sys.argv[2])
+        except VehicleParameterError as exc:
+            print(exc)
+    """
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0"}
+    env["PYTHONIOENCODING"] = "utf-8"  # the test reads the child's output as UTF-8
+    done = subprocess.run(
+        [sys.executable, "-X", "utf8=0", "-c", textwrap.dedent(code), str(heavy), str(latin)],
+        env=env, capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    mass, refusal = done.stdout.strip().splitlines()
+    assert float(mass) == 31.0
+    assert refusal.startswith(f"vehicle file {str(latin)!r}: not UTF-8")
