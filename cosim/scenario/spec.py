@@ -751,11 +751,12 @@ def _check_step_count(spec: ScenarioSpec, src: Source) -> None:
         )
     if abs(stop_steps - round(stop_steps)) > _STEP_TOLERANCE * max(1.0, stop_steps):
         below = math.floor(stop_steps)
+        nearest = [f"{k * step:.12g} s" for k in (below, below + 1) if k >= 1]  # 0 s: no run
         raise src.error(
             "stop_time",
             f"{spec.stop_time} s is not a whole number of communication steps "
-            f"(coupling.step = {step} s): the nearest are {below * step:.12g} s and "
-            f"{(below + 1) * step:.12g} s",
+            f"(coupling.step = {step} s): the nearest "
+            + (f"are {nearest[0]} and {nearest[1]}" if len(nearest) == 2 else f"is {nearest[0]}"),
         )
 
 

@@ -142,6 +142,9 @@ def test_overrides_are_validated(fmu_dir: Path) -> None:
     ):
         s.with_overrides(stop_time=1.005)
     assert [s.with_overrides(stop_time=t).n_steps for t in (1.0, 1.02)] == [50, 51]
+    # within a step of 0 the one stop time offered is a step (0 s is no run)
+    with pytest.raises(ScenarioError, match=r"2\.0 s is not a whole .*: the nearest is 3 s$"):
+        s.with_overrides(step=3.0, stop_time=2.0)
     with pytest.raises(ScenarioError, match=r"coupling\.step.*greater than 0"):
         s.with_overrides(step=-0.01)
 
