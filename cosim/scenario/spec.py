@@ -92,7 +92,9 @@ class CouplingSpec(Strict):
     step: float = Field(gt=0.0, allow_inf_nan=False, description="communication step h, s")
     algorithm: Algorithm = "gauss-seidel"
     order: list[_NAME] | None = Field(default=None, description="Gauss-Seidel order")
-    step_multiples: dict[_NAME, Annotated[int, Field(ge=1)]] = Field(default_factory=dict)
+    step_multiples: dict[_NAME, Annotated[int, Field(ge=1, le=MAX_STEPS)]] = Field(
+        default_factory=dict
+    )
     extrapolation: Extrapolation | None = Field(
         default=None, description="inputs across a step; default: see DEFAULT_EXTRAPOLATION"
     )

@@ -262,6 +262,9 @@ BAD_EDITS = [
     ("stop_time = 60.0", "stop_time = nan", r"key 'stop_time' = nan: .* finite number"),
     ("step = 0.01", "step = 0.01\nstep_multiples = { controller = 2.0 }",
      r"'coupling\.step_multiples\.controller' = 2\.0: Input should be a valid integer"),
+    # more steps than a run takes (beyond TOML's 64-bit integers in the resolved file)
+    ("step = 0.01", "step = 0.01\nstep_multiples = { controller = 1000000000000000000000 }",
+     r"'coupling\.step_multiples\.controller' = 1000000000000000000000: Input should be less"),
     ("stop_time = 60.0", "stop_time = 1e12",
      r"key 'stop_time': 1000000000000\.0 s is 1e\+14 communication steps .* at most 1e\+08"),
     ("stop_time = 60.0", 'id = ".."\nstop_time = 60.0', r"key 'id' = '\.\.': String should match"),
