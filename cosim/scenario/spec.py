@@ -669,14 +669,19 @@ def _resolve(
     connections = _resolve_connections(spec.connections, instances, src)
     coupling = _resolve_coupling(spec, instances, connections, src)
     driven = {c.target: c.source for c in connections}
+    added = {conn.to for conn in spec.connections.add}
     for name, inst in instances.items():
         for var_name in inst.start:
-            if f"{name}.{var_name}" in driven:
+            ref = f"{name}.{var_name}"
+            if ref in driven:
+                hold = (
+                    "take its connection out of connections.add" if ref in added
+                    else f'add "{ref}" to connections.remove'
+                )  # fmt: skip
                 raise src.error(
                     f"instances.{name}.start.{var_name}",
-                    f"input {name}.{var_name} is connected from {driven[f'{name}.{var_name}']}, "
-                    f'so a start value would be overwritten; add "{name}.{var_name}" to '
-                    "connections.remove to hold it instead",
+                    f"input {ref} is connected from {driven[ref]}, so a start value would be "
+                    f"overwritten; {hold} to hold it instead",
                 )
     scenario = Scenario(
         id=scenario_id,
@@ -961,6 +966,8 @@ def _resolve_connections(
     by_target = _same_name_connections(instances, src) if spec.same_names else {}
     for i, ref in enumerate(spec.remove):
         key = f"connections.remove[{i}]"
+        if ref in spec.remove[:i]:
+            raise src.error(key, f"{ref!r} is listed twice")
         _, var = split_ref(ref, instances, key, src)
         if var.causality != "input":
             what = with_article(var.causality)

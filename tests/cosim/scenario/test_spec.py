@@ -219,6 +219,21 @@ def test_a_fault_whose_column_an_instance_named_fault_records_is_refused(fmu_dir
         scenario_from_toml(text + "value = 0.001\n", base_dir=path.parent, fmu_dir=fmu_dir)
 
 
+def test_a_start_value_on_an_input_connections_add_drives_names_add(fmu_dir: Path) -> None:
+    """The hint said to add the input to connections.remove, which holds nothing that
+    connections.add drives: following it changed nothing."""
+    path = scenario_path("bs-3")
+    text = path.read_text(encoding="utf-8").replace("v_0 = -0.10", "v_0 = -0.10\nthrust = 4.0")
+    text = text.replace(
+        'remove = ["plant.fin_angle"]',
+        'remove = ["plant.fin_angle", "plant.thrust"]\n'
+        'add = [{ from = "controller.thrust", to = "plant.thrust" }]',
+    )
+    hint = r"; take its connection out of connections\.add to hold it instead$"
+    with pytest.raises(ScenarioError, match=r"plant\.thrust is connected from .*" + hint):
+        scenario_from_toml(text, base_dir=path.parent, fmu_dir=fmu_dir)
+
+
 REMOVE = 'remove = ["plant.fin_angle"]'
 ADD = 'add = [{{ from = "{}", to = "{}" }}]'
 BAD_EDITS = [
@@ -249,6 +264,8 @@ BAD_EDITS = [
      r"add\[0\]\.from.*'controller\.yaw' is an input, not an output"),
     (REMOVE, 'remove = ["plant.yaw"]', r"remove\[0\].*'plant\.yaw' is an output"),
     (REMOVE, 'remove = ["autopilot.fin_angle"]', r"not <instance>\.<variable>"),
+    (REMOVE, 'remove = ["plant.fin_angle", "plant.fin_angle"]',
+     r"remove\[1\]': 'plant\.fin_angle' is listed twice$"),
     # coupling and FMUs
     ('order = ["controller", "plant"]', 'order = ["controller"]', r"coupling\.order.*every"),
     ("step = 0.01", "step = 0.01\nstep_multiples = { ctrl = 5 }",
