@@ -39,9 +39,14 @@ def export_scenario(
     if coupling.algorithm != "jacobi" or coupling.extrapolation != "none":
         print(
             f"note: libcosim and ecos couple Jacobi-style with held inputs; {resolved.id} "
-            f"runs {coupling.algorithm} with {coupling.extrapolation} extrapolation in "
+            f"runs {coupling.algorithm} with {_inputs(coupling.extrapolation)} in "
             f"auv-cosim, so compare with "
             f"`auv-cosim run {shlex.quote(str(scenario))} --algorithm jacobi "
             "--extrapolation none`"
         )
     return 0
+
+
+def _inputs(extrapolation: str) -> str:
+    """The extrapolation in words: ``held inputs``, ``quadratic extrapolation``."""
+    return "held inputs" if extrapolation == "none" else f"{extrapolation} extrapolation"

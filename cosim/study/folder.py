@@ -70,8 +70,8 @@ def claim(out_dir: Path, identity: Mapping[str, Any], resume: bool, table: str) 
         differ = sorted(k for k in {*stored, *identity} if stored.get(k) != identity.get(k))
         if differ:
             raise StudyError(
-                f"--resume: {out_dir} holds another study (its {', '.join(differ)} "
-                f"differ from this one's{_changed_files(stored, identity)}); give another "
+                f"--resume: {out_dir} holds another study (it differs from this one in: "
+                f"{', '.join(differ)}{_changed_files(stored, identity)}); give another "
                 "--out to start this study"
             )
         return

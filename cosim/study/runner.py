@@ -192,7 +192,7 @@ def _open_table(
 def report(outcome: StudyOutcome) -> str:
     """The lines ``auv-cosim sweep`` prints at the end."""
     lines = [
-        f"study {outcome.out_dir}: {outcome.total} runs, {outcome.complete} complete, "
+        f"study {outcome.out_dir}: {_runs(outcome.total)}, {outcome.complete} complete, "
         f"{outcome.failed} failed ({outcome.skipped} already in the table, {outcome.ran} "
         f"run now) in {outcome.elapsed_s:.1f} s"
     ]
@@ -482,3 +482,7 @@ def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
         },
         "files": dict(base.files),
     }
+
+
+def _runs(count: int) -> str:
+    return f"{count} run" if count == 1 else f"{count} runs"

@@ -452,3 +452,15 @@ def test_ssp_packs_a_custom_vehicle_file(
         assert z.read("resources/plant/myveh.toml").decode() == vehicle
     (value,) = _ssd(archive).iterfind(".//ssv:Parameter[@name='vehicle']/ssv:String", NS)
     assert value.get("value") == "resources/plant/myveh.toml"
+
+
+def test_the_note_on_other_masters_says_held_inputs_in_words(
+    fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The note read "runs gauss-seidel with none extrapolation"."""
+    from cosim.cli import main
+
+    argv = ["export", "lqr-1", "--ssp", str(tmp_path / "lqr-1.ssp"), "--fmu-dir", str(fmu_dir)]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "runs gauss-seidel with held inputs in auv-cosim" in out, out

@@ -76,7 +76,7 @@ def test_a_resume_after_a_referenced_file_changed_is_refused(
     capsys.readouterr()
     assert sweep(study, out, fmu_dir, "--resume") == 1
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "holds another study (its files differ" in err
+    assert err.count("\n") == 1 and "holds another study (it differs from this one in: files" in err
     assert f"changed: {(tmp_path / 'myveh.toml').resolve()}" in err
 
 
