@@ -156,14 +156,16 @@ def _study(args: argparse.Namespace) -> int:
         from cosim.study import fork_server
 
         fork_server.start()
-    from cosim.study.spec import MAX_RUNS, check_size, load_study, study_label
+    from cosim.study.spec import MAX_RUNS, check_size, load_study, run_count, study_label
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
-    check_size(load_study(args.study), study_label(args.study), max_runs)  # before dask is imported
+    spec = load_study(args.study)
+    check_size(spec, study_label(args.study), max_runs)  # before dask is imported
     from cosim.study.execution import early_client, tls_security
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
-    workers = _workers(args)
+    # a local cluster of no more workers than runs: each would start for nothing
+    workers = max(1, min(_workers(args), run_count(spec))) if local else _workers(args)
     security = tls_security(args.tls_ca_file, args.tls_cert, args.tls_key)
     # a local cluster starts while the study's modules are imported and the study checked
     # (a remote scheduler is reached, and refused, after the checks); a resumed study may

@@ -287,9 +287,10 @@ class _Session:
             self.client = self.cluster.client()  # started early (execution.early_client)
         elif self.client is None:
             c = self.cluster
+            workers = c.workers if c.scheduler is not None else min(c.workers, len(runs))
             self.client = self.stack.enter_context(
-                open_client(c.workers, c.scheduler, c.security, c.dashboard)
-            )
+                open_client(workers, c.scheduler, c.security, c.dashboard)
+            )  # (a local cluster of no more workers than runs: each would start for nothing)
         execute(self.client, job, plugin, runs, on_record)
 
     def done(self) -> None:

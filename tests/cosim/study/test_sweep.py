@@ -330,3 +330,28 @@ def test_a_factor_naming_a_file_is_read_beside_the_study_file_from_any_folder(
     monkeypatch.chdir(kept.parent)
     argv = ["run", str(kept), "--no-rrd", "--quiet", "--out", str(tmp_path / "again")]
     assert main([*argv, "--fmu-dir", str(fmu_dir)]) == 0
+
+
+@pytest.mark.slow
+def test_a_local_cluster_has_no_more_workers_than_runs(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--workers 8 --oversubscribe on a study of 2 runs started 8 worker processes (100
+    took 42 s on 2 cores before the first run)."""
+    from cosim.study import execution
+
+    started = []
+    early = execution.early_client
+
+    def counted(workers: int, *args, **kwargs):
+        started.append(workers)
+        return early(workers, *args, **kwargs)
+
+    monkeypatch.setattr(execution, "early_client", counted)
+    study = tmp_path / "two.toml"
+    study.write_text(
+        'scenario = "bs-3"\nstop_time = 0.2\n[grid]\n"plant.v_0" = [0.0, 0.1]\n', encoding="utf-8"
+    )
+    sweep(study, tmp_path / "out", fmu_dir, "--workers", "8", "--oversubscribe")
+    assert started == [2]
+    assert len(table(tmp_path / "out")) == 2
