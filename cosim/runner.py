@@ -202,7 +202,7 @@ def execute(
             if progress is not None:
                 progress.close()
             folder.release(unused=not stepped)
-    figures = outputs.figures.figures()
+    figures = outputs.figures.figures(result.complete)
     return RunOutcome(
         result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary,
         folder.replaced,
@@ -496,9 +496,9 @@ def report(outcome: RunOutcome) -> str:
     if any(v is not None for v in figures.values()):  # (a run without our plant has none)
         from cosim.metrics.key_figures import why_none
 
-        roles = scenario.key_instances
+        roles, done = scenario.key_instances, outcome.result.complete
         lines.append("  " + ", ".join(
-            f"{k} = {_fmt(v) if v is not None else why_none(k, scenario.columns, roles)}"
+            f"{k} = {_fmt(v) if v is not None else why_none(k, scenario.columns, roles, done)}"
             for k, v in figures.items()
         ))  # fmt: skip
     if outcome.manoeuvre:

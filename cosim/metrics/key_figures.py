@@ -93,11 +93,19 @@ def _columns(name: str, roles: dict[str, str]) -> list[str]:
     return [f"{roles[role]}.{variable}" for role, variable in _COLUMNS.get(name, ())]
 
 
-def why_none(name: str, columns: tuple[str, ...] | list[str], roles: dict[str, str] = ROLES) -> str:
+def why_none(
+    name: str,
+    columns: tuple[str, ...] | list[str],
+    roles: dict[str, str] = ROLES,
+    complete: bool = True,
+) -> str:
     """Why the key figure ``name`` of a run recording ``columns`` is None, in a few words:
-    its columns were not recorded, or the yaw never settled into its band."""
+    its columns were not recorded, the run did not complete, or the yaw never settled
+    into its band."""
     if not any(column in columns for column in _columns(name, roles)):
         return "not recorded"
+    if name == "yaw_settling_time_s" and not complete:
+        return "none: the run did not complete"
     if name == "yaw_settling_time_s":
         band = f"{math.degrees(YAW_TOLERANCE_RAD):g} deg"
         return f"not settled: the yaw is not within {band} of its set-point at the end"
@@ -137,10 +145,13 @@ class KeyFigures:
         columns = (self._yaw, self._mass, self._force)
         return tuple(name for name, i in zip(self.figures(), columns, strict=True) if i is not None)
 
-    def figures(self) -> dict[str, float | None]:
-        """The figures of the rows so far (plain floats or None)."""
+    def figures(self, complete: bool = True) -> dict[str, float | None]:
+        """The figures of the rows so far (plain floats or None); of a run that did not
+        complete, no settling time (its rows end before the run's end: where the yaw stays
+        is not known), the peaks so far."""
+        settled = self._settling.value if self._yaw is not None and complete else None
         return {
-            "yaw_settling_time_s": self._settling.value if self._yaw is not None else None,
+            "yaw_settling_time_s": settled,
             "peak_abs_mass_position_m": _finite(self._peaks["mass"]),
             "peak_abs_tunnel_force_N": _finite(self._peaks["force"]),
         }

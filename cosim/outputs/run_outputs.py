@@ -202,7 +202,7 @@ class RunOutputs:
         rows = self.csv.rows if self.csv is not None else 0
         if self.manoeuvre is not None:
             self.manoeuvre_summary = self.manoeuvre.summary()
-        figures, manoeuvre = self.figures.figures(), self.manoeuvre_summary
+        figures, manoeuvre = self.figures.figures(result.complete), self.manoeuvre_summary
         short = self.csv is not None and self.csv.rows < result.rows
         last = self.csv.last if short and self.csv is not None else None
         data = final_summary(self._running, result, figures, error, name, rows, manoeuvre, last)

@@ -188,6 +188,9 @@ def test_sigterm_and_sighup_end_a_run_like_ctrl_c(
     done = summary(out)
     assert done["status"] == "incomplete" and done["complete"] is False
     assert done["error"].startswith(reason) and done["signal"] == signal.Signals(signum).name
+    # where the yaw stays after the rows is not known: no settling time, the peaks so far
+    assert done["key_figures"]["yaw_settling_time_s"] is None
+    assert done["key_figures"]["peak_abs_mass_position_m"] > 0.0
     lines = csv_lines(out)
     assert len(lines) - 1 == done["rows"] == round(done["time_reached"] / H) + 1
     assert not (out / LOCK_FILE).exists()

@@ -115,6 +115,19 @@ def test_a_figure_that_is_none_says_why() -> None:
     assert why_none("yaw_settling_time_s", ["plant.roll"]) == "not recorded"
 
 
+def test_a_run_that_did_not_complete_has_no_settling_time() -> None:
+    """A run interrupted at 0.54 s, its yaw inside the band since the start, reported a
+    settling time of 0 s: where the yaw stays after its last row is not known."""
+    columns = ["plant.yaw", "plant.mass_position"]
+    figures = KeyFigures(columns)
+    figures.add_rows(np.array([0.0, 0.54]), np.array([[0.001, 0.01], [0.002, 0.02]]))
+    assert figures.figures()["yaw_settling_time_s"] == 0.0
+    cut = figures.figures(complete=False)
+    assert cut["yaw_settling_time_s"] is None and cut["peak_abs_mass_position_m"] == 0.02
+    reason = why_none("yaw_settling_time_s", columns, complete=False)
+    assert reason == "none: the run did not complete"
+
+
 @pytest.mark.slow
 def test_the_figures_do_not_depend_on_what_the_scenario_calls_its_instances(
     fmu_paths, tmp_path

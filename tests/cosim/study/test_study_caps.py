@@ -111,9 +111,11 @@ def clusters(monkeypatch: pytest.MonkeyPatch) -> list[runner.Cluster]:
 def test_workers_are_capped_at_the_cores_unless_told(
     tmp_path: Path, capsys: pytest.CaptureFixture, clusters: list[runner.Cluster]
 ) -> None:
-    """`--workers 100` on 2 cores started ~100 processes and no run finished in 300 s."""
-    study = write(tmp_path, '[grid]\n"plant.v_0" = [0.0]\n')
+    """`--workers 100` on 2 cores started ~100 processes and no run finished in 300 s.
+    (A study of as many runs: a local cluster has no more workers than runs.)"""
     cores = os.cpu_count() or 1
+    values = ", ".join(str(0.001 * k) for k in range(cores + 98))
+    study = write(tmp_path, f'[grid]\n"plant.v_0" = [{values}]\n')
     main(["sweep", str(study), "--workers", str(cores + 98)])
     assert f"--workers {cores + 98} capped at the {cores} cores" in capsys.readouterr().err
     main(["sweep", str(study), "--workers", str(cores + 98), "--oversubscribe"])
