@@ -4,7 +4,8 @@
 1 deg to the end of the run (angles compared on the circle), where the error crosses into
 the band, interpolated linearly between the two rows around the crossing (so the figure
 moves continuously with the step instead of by whole rows); None if the last sample is
-outside the band. The setpoint is ``controller.yaw_setpoint`` if recorded, else 0 (with
+outside the band, and for a run that did not complete (where the yaw stays after its
+last row is not known). The setpoint is ``controller.yaw_setpoint`` if recorded, else 0 (with
 the autopilot's ``compensate_current`` on, that set-point is the course; the heading then
 settles off it by the crab angle, so the figure is None).
 ``peak_abs_mass_position_m``, ``peak_abs_tunnel_force_N``: the largest magnitudes
