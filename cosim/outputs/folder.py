@@ -130,6 +130,9 @@ class RunFolder:
         """
         path = Path(path)
         out = names.given("out", path)
+        if default_for is not None:  # no --out given: the folder is the scenario's default
+            out = f"{path} (the default run folder, from the scenario's id; "
+            out += f"{names.option('out')} names another)"
         created = not os.path.exists(path)  # False, not OSError, for a name too long
         try:
             path.mkdir(parents=True, exist_ok=True)

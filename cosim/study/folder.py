@@ -39,9 +39,8 @@ def lock(out_dir: Path) -> Iterator[bool]:
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise StudyError(
-            f"--out {out_dir}: cannot create the study folder: {exc.strerror or exc}"
-        ) from None
+        why = "exists and is not a folder" if out_dir.exists() else exc.strerror or str(exc)
+        raise StudyError(f"--out {out_dir}: cannot create the study folder: {why}") from None
     try:
         fd = lock_folder(out_dir, "study")
     except CosimError as exc:

@@ -166,3 +166,20 @@ def test_an_adaptive_runs_report_counts_the_steps_an_fmu_discarded(
     taken = json.loads((tmp_path / "d" / "summary.json").read_text())["coupling"]
     assert taken["discarded_steps"] >= 1
     assert f"{taken['discarded_steps']} of them discarded by an FMU" in capsys.readouterr().out
+
+
+def test_a_default_run_folder_the_system_refuses_is_not_named_as_out(
+    loop_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys, no_stepping
+) -> None:
+    """A scenario id too long for a file name, run without --out, was refused as "--out
+    runs/aaa...: File name too long", naming an option the user never gave."""
+    long_id = "a" * 300
+    scenario = tmp_path / "long.toml"
+    scenario.write_text(loop_file.read_text().replace('id = "loop"', f'id = "{long_id}"'))
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(scenario), "--no-rrd"]) == 1
+    err = one_line(capsys)
+    assert err.startswith(
+        f"auv-cosim run: runs/{long_id} (the default run folder, from the scenario's id; "
+        "--out names another): cannot create the run folder: File name too long"
+    ), err

@@ -135,3 +135,20 @@ def test_a_full_disk_at_the_end_keeps_every_row_and_says_which_file(
     monkeypatch.undo()
     assert sweep(study, out, fmu_dir, "--resume") == 0
     assert (out / "runs.parquet").is_file() and (out / "index.html").is_file()
+
+
+@pytest.mark.slow
+def test_an_out_that_is_a_file_is_named_so(
+    study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`sweep --out FILE` said "cannot create the study folder: File exists" (`run`'s
+    message for the same: "exists and is not a folder")."""
+    taken = tmp_path / "taken"
+    taken.write_text("mine\n", encoding="utf-8")
+    assert sweep(study, taken, fmu_dir) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        f"auv-cosim sweep: --out {taken}: cannot create the study folder: exists and is not "
+        "a folder\n"
+    )
+    assert taken.read_text(encoding="utf-8") == "mine\n"
