@@ -202,7 +202,7 @@ def resolve_events(
         }
         event = Event(name, spec.time, when, bool(spec.repeat), values, spec.ramp, series)
         events.append(event)
-    _unique([e.name for e in events], "events", src)
+    _unique([e.name for e in events], [s.name for s in specs], "events", src)
     return tuple(events)
 
 
@@ -368,7 +368,7 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
             values["seed"] = 0
         faults.append(Fault(spec.name or f"fault-{i + 1}", spec.kind, target, **values,
                             hold_source=hold))  # fmt: skip
-    _unique([f.name for f in faults], "faults", src)
+    _unique([f.name for f in faults], [s.name for s in specs], "faults", src)
     return tuple(faults)
 
 
@@ -413,12 +413,21 @@ def _actuator(kind: str, scenario: Any, key: str, src: Source) -> tuple[str, str
     return f"{plant}.{wanted}", f"{plant}.{MASS_POSITION}"
 
 
-def _unique(names: list[str], key: str, src: Source) -> None:
-    seen: set[str] = set()
+def _unique(names: list[str], written: list[str | None], key: str, src: Source) -> None:
+    """Each of ``names`` once; ``written`` are the names as the tables give them (None:
+    a default by position, ``event-<k>``), so a clash is named where a name is written."""
+    first: dict[str, int] = {}
     for i, name in enumerate(names):
-        if name in seen:
-            raise src.error(f"{key}[{i}].name", f"{name!r} is used twice: names are unique")
-        seen.add(name)
+        if name not in first:
+            first[name] = i
+            continue
+        j = first[name]
+        at = i if written[i] is not None else j  # the table that writes the name
+        other = j if at == i else i
+        default = (
+            "" if written[other] is not None else f" (by position: {key}[{other}] has no name)"
+        )
+        raise src.error(f"{key}[{at}].name", f"{name!r} is used twice: names are unique{default}")
 
 
 def event_table(event: Event) -> dict[str, Any]:

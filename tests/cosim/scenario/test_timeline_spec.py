@@ -71,6 +71,10 @@ BAD_ROWS = [
     ('[[events]]\nseries = "SERIES"\n' + SET_K, ["events[0].set", "not with series"]),
     (f'[[events]]\nname = "a"\ntime = 0.1\n{SET_K}\n[[events]]\nname = "a"\ntime = 0.2\n{SET_K}',
      ["events[1].name", "'a' is used twice"]),
+    # a default name by position clashing with a written one: the written one is named
+    (f'[[events]]\nname = "event-2"\ntime = 0.1\n{SET_K}\n[[events]]\ntime = 0.2\n{SET_K}',
+     ["key 'events[0].name': 'event-2' is used twice: names are unique (by position: "
+      "events[1] has no name)"]),
     (f'[[events]]\nname = "a b"\ntime = 0.1\n{SET_K}', ["events[0].name", "'a b'", "pattern"]),
     (f"[[events]]\ntime = 0.1\n{SET_K}\nspeed = 1", ["unknown key 'events[0].speed'"]),
     ('[[faults]]\nkind = "gain"\ntarget = "plant.x"\nvalue = 2.0',
