@@ -28,6 +28,7 @@ import math
 import shlex
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 SMOKE_TIMEOUT_S = 120.0
@@ -87,11 +88,7 @@ def _runnable_problems(path: Path) -> list[str]:
         return ["is a folder: give its .fmu files, or --fmu-dir for the built FMUs in it"]
     if not path.is_file():
         return ["no such file"]
-    try:
-        return _foreign_problems(path)
-    except Exception as exc:  # fmpy raises anything from a damaged archive: one line each
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        return [f"not a readable FMU ({type(exc).__name__}: {reason})"]
+    return _readable(path, _foreign_problems)
 
 
 def _foreign_problems(path: Path) -> list[str]:
@@ -168,11 +165,17 @@ def checked(paths: dict[str, Path]) -> list[str]:
 def _static_problems(path: Path) -> list[str]:
     if not path.is_file():
         return [f"{path} does not exist"]
+    return _readable(path, _description_problems, f"{path} is ")
+
+
+def _readable(path: Path, check: Callable[[Path], list[str]], prefix: str = "") -> list[str]:
+    """``check(path)``'s problems; what fmpy raises reading a damaged archive (anything),
+    one line: ``<prefix>not a readable FMU (<type>: <reason>)``."""
     try:
-        return _description_problems(path)
+        return check(path)
     except Exception as exc:  # fmpy raises anything from a damaged archive: one line each
         reason = " ".join(str(exc).split()) or type(exc).__name__
-        return [f"{path} is not a readable FMU ({type(exc).__name__}: {reason})"]
+        return [f"{prefix}not a readable FMU ({type(exc).__name__}: {reason})"]
 
 
 def _description_problems(path: Path) -> list[str]:
