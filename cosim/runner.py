@@ -429,7 +429,7 @@ def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest, live: b
     problem = outputs.write_scenario(replay) if replay is not None else None
     if problem is not None and result.error is None:
         result.complete, result.error = False, problem
-    problem = outputs.finish(result, result.error, stop.signum)
+    problem = outputs.finish(result, result.error, stop.signal)
     if problem is not None and result.error is None:
         result.complete, result.error = False, problem
 

@@ -92,7 +92,7 @@ class LiveControl:
         self._queue: collections.deque[Ticket] = collections.deque()
         self._inflight: list[Ticket] = []  # taken by the master, not yet applied
         self._holders: set[str] = set()  # the sources holding the run paused
-        self._stop_wanted = False
+        self._stop_wanted: str | bool = False  # who asked for a stop (False: none)
         self._closed: str | None = None  # why requests are refused now: the run ended
         self._applied: dict[str, bool | int | float] = {}  # ref -> the last value applied
         self._notes: list[str] = []  # what the recording should say at the next point
@@ -169,12 +169,13 @@ class LiveControl:
     def paused(self) -> bool:
         return bool(self._holders)
 
-    def stop(self) -> None:
+    def stop(self, source: str) -> None:
         """End the run at the next communication point after t = 0, like Ctrl-C (exit
-        code 130); :class:`OverrideError` if it has already ended."""
+        code 130), the reason naming ``source`` ("control 127.0.0.1:5000", "the q key");
+        :class:`OverrideError` if it has already ended."""
         with self._cond:
             self._refuse_if_closed("stop")
-            self._stop_wanted = True
+            self._stop_wanted = self._stop_wanted or source
             self._cond.notify_all()
 
     @property
@@ -182,7 +183,7 @@ class LiveControl:
         """A stop was asked for (here, or by a signal): waits end at once."""
         stop = self.stop_request
         signalled = stop is not None and stop.requested
-        return self._stop_wanted or self._closed is not None or signalled
+        return bool(self._stop_wanted) or self._closed is not None or signalled
 
     def current(self, ref: str) -> bool | int | float | None:
         """The value ``ref`` has now, as far as this run knows: the last one queued for it,
@@ -249,7 +250,7 @@ class LiveControl:
                 self._queue.clear()
                 self._inflight.extend(batch)
                 if n >= 1 and self._stop_wanted and self.stop_request is not None:
-                    self.stop_request.record(signal.SIGINT)
+                    self.stop_request.record(signal.SIGINT, by=str(self._stop_wanted))
             yield from batch
             if not self._holders or self.stopping:
                 return

@@ -31,9 +31,12 @@ REASONS = {"SIGINT": "interrupted (Ctrl-C)", "SIGTERM": "terminated (SIGTERM)",
 
 @dataclass
 class StopRequest:
-    """The first stop signal received (None: keep going); later ones are ignored."""
+    """The first stop signal received (None: keep going); later ones are ignored. A stop
+    asked for by other means than a signal (a live run's control endpoint or keys) is
+    recorded as SIGINT, for its exit code (130), with ``by`` naming who asked."""
 
     signum: int | None = None
+    by: str | None = None  # who asked for the stop when no signal came
 
     @property
     def requested(self) -> bool:
@@ -44,6 +47,8 @@ class StopRequest:
         """One line: what stopped the run (``"interrupted (Ctrl-C)"``)."""
         if self.signum is None:
             return "not stopped"
+        if self.by is not None:
+            return f"stopped by {self.by}"
         name = signal.Signals(self.signum).name
         return REASONS.get(name, f"stopped by {name}")
 
@@ -52,9 +57,14 @@ class StopRequest:
         """128 + the signal number (0 if no signal came)."""
         return 0 if self.signum is None else 128 + self.signum
 
-    def record(self, signum: int) -> None:
+    @property
+    def signal(self) -> int | None:
+        """The signal that stopped the run (None: none, or a stop asked for otherwise)."""
+        return None if self.by is not None else self.signum
+
+    def record(self, signum: int, by: str | None = None) -> None:
         if self.signum is None:
-            self.signum = signum
+            self.signum, self.by = signum, by
 
 
 @contextmanager

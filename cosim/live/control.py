@@ -167,7 +167,7 @@ def _do(live: LiveControl, request: tuple[str, Any], source: str) -> dict[str, A
         live.pause(source) if arg else live.resume()
         return {"ok": True, "paused": arg}
     if verb == "stop" and arg is True:
-        live.stop()
+        live.stop(source)
         return {"ok": True}
     shown = repr(arg) if len(repr(arg)) <= 80 else f"{repr(arg)[:77]}..."
     raise OverrideError(f"{verb[:40]!r} with {shown}: expected set {{name: value}}, get "

@@ -192,7 +192,7 @@ class KeyPad:
         """What ``key`` does (see the module docstring)."""
         try:
             if key == "q":
-                self.live.stop()
+                self.live.stop("the q key")
                 self._last, self.message = None, "stopping"
             elif key == "p":
                 self.live.resume() if self.live.paused else self.live.pause("keys")

@@ -337,7 +337,7 @@ def test_a_set_the_run_ends_before_applying_is_answered_not_applied(scenario: Sc
 def test_a_stop_before_t_0_ends_the_run_after_its_first_step(scenario: Scenario) -> None:
     """So a stopped live run always has a step to replay."""
     live = LiveControl(scenario)
-    live.stop()  # while the FMUs are set up
+    live.stop("a test")  # while the FMUs are set up
     master = Master(live)
     assert live.stopping  # a wait for a deadline ends at once
     master.point(0)

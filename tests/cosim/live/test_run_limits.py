@@ -7,6 +7,7 @@ factor where one step lasts a day (with the old sleep, hours)."""
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import pty
 import re
@@ -157,8 +158,16 @@ def _endpoint_then(fmu_dir: Path, out: Path, how: str) -> int:
 def test_ctrl_c_sigterm_stop_and_q_end_a_day_long_step_at_once(
     fmu_dir: Path, tmp_path: Path, how: str
 ) -> None:
-    """The run waits 23 hours for its next point; it must end within the test's timeout."""
+    """The run waits 23 hours for its next point; it must end within the test's timeout.
+    A stop asked for on the endpoint or with q is said to be one: it was recorded as a
+    Ctrl-C ("interrupted (Ctrl-C)", signal SIGINT) though no signal came."""
     out = tmp_path / "r"
     code = _keys_then_q(fmu_dir, out) if how == "q" else _endpoint_then(fmu_dir, out, how)
     assert code == {"SIGTERM": 143}.get(how, 130)
     assert (out / "results.csv").read_text().count("\n") == 3  # header, t = 0 and t = h
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    by = {"stop": "stopped by control 127.0.0.1:", "q": "stopped by the q key at t = "}
+    if how in by:
+        assert summary["signal"] is None and summary["error"].startswith(by[how]), summary
+    else:
+        assert summary["signal"] == how
