@@ -81,6 +81,8 @@ from plant_fmu.model.state_layout import (
     INPUT_NAMES,
     INPUT_UNITS,
     MASS_POSITION,
+    MAX_SPEED,
+    MAX_TURN_RATE,
     NU,
     QUATERNION_NAMES,
     STATE_NAMES,
@@ -121,6 +123,9 @@ STATE_DESCRIPTIONS: dict[str, str] = {
     "quat_z": "attitude quaternion (body to earth), z part",
 }
 RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
+# |initial velocity| the model takes (a step beyond it is refused): declared as a range
+_INITIAL_BOUNDS = {**dict.fromkeys(("u", "v", "w"), MAX_SPEED),
+                   **dict.fromkeys(("p", "q", "r"), MAX_TURN_RATE)}  # fmt: skip
 # the inputs whose derivatives the step uses: all but the currents (module docstring)
 _ACTUATOR_INPUTS = list(
     i for i in range(len(INPUT_NAMES)) if i not in range(len(INPUT_NAMES))[CURRENT]
@@ -236,9 +241,12 @@ class AuvPlant(SafeSlave):
     def _register_parameters(self) -> None:
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         for name, unit in zip(STATE_NAMES, STATE_UNITS):
+            bound = _INITIAL_BOUNDS.get(name)  # the model's range of a velocity
             self.register(
                 Real(f"{name}_0", description=f"initial {STATE_DESCRIPTIONS[name]}", **fixed),
                 unit=unit,
+                minimum=None if bound is None else -bound,
+                maximum=bound,
             )
         self.register(
             Integer(

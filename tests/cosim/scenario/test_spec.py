@@ -294,6 +294,9 @@ BAD_EDITS = [
     # FMU that does not check would have run with it)
     ('heading_mode = "backstepping"', 'heading_mode = "backstepping"\nk0 = -5.0',
      r"start\.k0': -5\.0 is outside \[0\.0, inf\], the range k0 takes"),
+    # an initial speed beyond the model's range, refused at the load, not at the first step
+    ("v_0 = -0.10", "v_0 = -0.10\nw_0 = 1e5",
+     r"start\.w_0': 100000\.0 is outside \[-100\.0, 100\.0\], the range w_0 takes"),
     ("v_0 = -0.10", "v_0 = -0.10\nmax_substep = -1.0",
      r"start\.max_substep': -1\.0 is outside \[0\.0, inf\], the range max_substep takes"),
     (REMOVE, REMOVE + "\n" + 'add = [{ from = "controller.thrust", to = "plant.thrust" }, '
