@@ -525,6 +525,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"auv-cosim {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # a reader that stopped (`| head`): nothing more to say to it
+        _quiet_stdout()
+        return 128 + 13  # as a command ended by SIGPIPE
     except (ValueError, OSError, RuntimeError) as exc:
         print(f"auv-cosim {args.command}: {shortened(_reason(exc))}", file=sys.stderr)
         return 1
@@ -542,6 +545,14 @@ def _reason(exc: Exception) -> str:
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
     return f"{type(exc).__name__}: {exc}"
+
+
+def _quiet_stdout() -> None:
+    """stdout to the null device: the interpreter's flush of what is still buffered for a
+    reader that is gone would print a second BrokenPipeError at exit (Python's docs,
+    "Note on SIGPIPE")."""
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, sys.stdout.fileno())
 
 
 def _ignore_stop_signals() -> None:

@@ -94,3 +94,24 @@ def test_a_path_of_the_wrong_kind_is_not_suggested_as_itself(
     assert main(["report", str(script)]) == 1
     err = capsys.readouterr().err
     assert f"{script} is not a folder" in err and "did you mean" not in err
+
+
+def test_a_reader_that_stops_reading_gets_no_traceback(tmp_path: Path) -> None:
+    """`auv-cosim scenarios | head -0`: the command wrote into a closed pipe and printed
+    "BrokenPipeError: [Errno 32] Broken pipe" on stderr (and more at exit)."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cosim.cli", "scenarios"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path,
+    )  # fmt: skip
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the reader is gone before the first line
+    try:
+        err = proc.stderr.read().decode()
+        code = proc.wait(timeout=60)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert err == "" and code == 141, (code, err)
