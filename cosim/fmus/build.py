@@ -306,9 +306,11 @@ def runtime_record(description: bytes, package: str, module: str, cls: str) -> s
     root = ET.fromstring(description)
     cosimulation = _child(root, "CoSimulation")
     interpolates = cosimulation.get("canInterpolateInputs") == "true"
+    categories = ",".join(c.get("name", "") for c in root.iterfind("LogCategories/Category"))
     return (
         f"guid={root.attrib['guid']}\npackage={package}\nmodule={module}\nclass={cls}\n"
         f"build_python={sys.executable}\ninterpolates_inputs={int(interpolates)}\n"
+        f"log_categories={categories}\n"
     )
 
 

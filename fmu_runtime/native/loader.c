@@ -252,6 +252,9 @@ static int read_record(const char *resources, Record *r)
             snprintf(r->build_python, sizeof r->build_python, "%s", value);
         }
         if (!strcmp(line, "interpolates_inputs")) r->interpolates_inputs = !strcmp(value, "1");
+        if (!strcmp(line, "log_categories")) {
+            snprintf(r->log_categories, sizeof r->log_categories, "%s", value);
+        }
     }
     fclose(in);
     return r->guid[0] && r->package[0] && r->module[0] && r->slave_class[0];
@@ -570,12 +573,41 @@ FMI2_EXPORT void fmi2FreeInstance(fmi2Component component)
 FMI2_EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 FMI2_EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
+/* 1 if ``name`` is one of the FMU's LogCategories (modelDescription.xml, from the record). */
+static int known_category(const Instance *c, const char *name)
+{
+    size_t length = strlen(name);
+    for (const char *at = c->record.log_categories; *at;) {
+        size_t n = strcspn(at, ",");
+        if (n == length && !strncmp(at, name, n)) return 1;
+        at += n + (at[n] == ',');
+    }
+    return 0;
+}
+
+/* FMI 2.0 (2.1.5): with categories, debug logging is on for those only. The runtime's
+ * debug messages (fmi2OK ones) are of "logAll"; Warnings and worse reach the host whatever
+ * is asked (the host needs to know why a call failed). A category the FMU does not
+ * declare, or a NULL one, is refused with nothing changed, as the Reference FMUs do. */
 FMI2_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean loggingOn,
                                            size_t n, const fmi2String categories[])
 {
-    (void)n, (void)categories; /* the slave always logs: the runtime needs its Errors */
     if (!component) return fmi2Error;
-    ((Instance *)component)->logging = loggingOn;
+    Instance *c = (Instance *)component;
+    c->logged = fmi2OK;
+    NEED(categories, "category array", "fmi2SetDebugLogging");
+    int all = n == 0;
+    for (size_t i = 0; i < n; i++) {
+        if (!categories[i]) {
+            return refuse(c, "fmi2SetDebugLogging refused: category %zu is NULL", i);
+        }
+        if (!known_category(c, categories[i])) {
+            return refuse(c, "fmi2SetDebugLogging refused: %.64s is not a log category of this "
+                          "FMU (expected one of %s)", categories[i], c->record.log_categories);
+        }
+        all = all || !strcmp(categories[i], "logAll");
+    }
+    c->logging = loggingOn && all;
     return fmi2OK;
 }
 

@@ -85,6 +85,7 @@ typedef struct {
     char slave_class[128]; /* the slave class's name */
     char build_python[PATH_SIZE]; /* the Python the FMU was built with */
     int interpolates_inputs;      /* canInterpolateInputs: the slave takes input derivatives */
+    char log_categories[512];     /* LogCategories, comma-separated */
 } Record;
 
 typedef struct {
