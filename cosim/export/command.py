@@ -44,6 +44,14 @@ def export_scenario(
             f"`auv-cosim run {shlex.quote(str(scenario))} --algorithm jacobi "
             "--extrapolation none`"
         )
+    sources = {c.source_instance for c in resolved.connections}
+    slow = {n: k for n, k in coupling.step_multiples.items() if k > 1 and n in sources}
+    if slow:
+        print(
+            f"note: {', '.join(f'{n} steps every {k} h' for n, k in slow.items())}: libcosim "
+            "hands a slow instance's outputs on when its step ends, auv-cosim and ecos from "
+            "the next base step: results differ (docs/hosts.md)"
+        )
     return 0
 
 

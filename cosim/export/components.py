@@ -14,6 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import tomli_w
+
 from cosim.errors import CosimError
 from cosim.fmus.interface import FmuInterface, FmuInterfaceError, Variable, read_interface
 from cosim.scenario.spec import Instance, Scenario
@@ -92,9 +94,9 @@ def components(scenario: Scenario, fmu_paths: Mapping[str, Path] | None) -> list
     for name, instance in scenario.instances.items():
         interface = _packaged(scenario, instance, Path(overrides.get(name, instance.fmu_path)))
         fmu_path = interface.path
-        resource = fmu_path.name
+        resource = _plain(fmu_path.name)
         if resources.get(resource, fmu_path) != fmu_path:  # two different FMUs, same name
-            resource = f"{fmu_path.stem}-{name}{fmu_path.suffix}"
+            resource = f"{_plain(fmu_path.stem)}-{name}{fmu_path.suffix}"
         resources[resource] = fmu_path
         result.append(
             Component(
@@ -102,7 +104,7 @@ def components(scenario: Scenario, fmu_paths: Mapping[str, Path] | None) -> list
                 fmu_path=fmu_path,
                 resource=resource,
                 interface=interface,
-                start=dict(instance.start),
+                start=_portable_start(instance),
                 step_multiple=scenario.coupling.step_multiples.get(name, 1),
             )
         )
@@ -152,6 +154,28 @@ def _uses(scenario: Scenario, instance: str) -> list[tuple[str, str]]:
     for name in scenario.instances[instance].start:
         uses.append((f"start value {instance}.{name}", name))
     return uses
+
+
+def _plain(file_name: str) -> str:
+    """A file name as a URI reference takes it unescaped (``source`` in SSP and OSP): every
+    character but letters, digits, ``.``, ``-`` and ``_`` as ``_`` (libcosim took the ``#``
+    of ``Plant#1.fmu`` for a fragment; ecos split ``%20`` and non-ASCII names)."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", file_name)
+
+
+def _portable_start(instance: Instance) -> dict[str, StartValue]:
+    """The start values, a vehicle set file of the plant or the autopilot given inline: the
+    set's TOML text (its ``base`` chain resolved), which they take in place of a path, so
+    that it travels with the system structure (a path, relative or absolute, names a
+    file no host finds once the export is moved; a host runs from any folder)."""
+    from plant_fmu.model.parameters import load_vehicle
+
+    start = dict(instance.start)
+    if instance.interface.model_identifier in ("AuvPlant", "AuvAutopilot"):
+        vehicle = instance.files().get("vehicle")
+        if vehicle is not None:
+            start["vehicle"] = tomli_w.dumps(load_vehicle(vehicle).as_dict())
+    return start
 
 
 def value_type(fmi_type: str) -> str:

@@ -51,7 +51,7 @@ def _sub(parent: Any, tag: str, text: str | None = None, **attrib: str) -> Any:
 def osp_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
     """``OspSystemStructure.xml`` (format version 0.1, the schema libcosim validates)."""
     root = etree.Element(f"{{{_OSP_NS}}}OspSystemStructure", nsmap={None: _OSP_NS}, version="0.1")
-    root.append(etree.Comment(f" scenario {scenario.id}: {scenario.summary} "))
+    root.append(_comment(f"scenario {scenario.id}: {scenario.summary}"))
     h = scenario.coupling.step
     _sub(root, "StartTime", "0.0")
     _sub(root, "EndTime", repr(scenario.stop_time))
@@ -93,6 +93,14 @@ def _initial_values(simulator: Any, comp: Component) -> None:
         var = comp.variable(name)
         unit = f" [{var.unit}]" if var.type == "Real" and var.unit else ""
         about = f": {var.description}" if var.description else ""
-        values.append(etree.Comment(f" {name}{unit}{about} "))
+        values.append(_comment(f"{name}{unit}{about}"))
         initial = _sub(values, "InitialValue", variable=name)
         _sub(initial, value_type(var.type), value=xml_literal(value))
+
+
+def _comment(text: str) -> Any:
+    """An XML comment of ``text``, which XML forbids to hold ``--`` ("a -- b" in a summary
+    or a foreign FMU's description): each written ``- -``."""
+    while "--" in text:
+        text = text.replace("--", "- -")
+    return etree.Comment(f" {text} ")

@@ -79,16 +79,22 @@ def export_ssp(
     An existing file at ``path`` is replaced only if an earlier export wrote it, or with
     ``overwrite``.
 
-    ``fmu_paths`` optionally maps instance names to the FMU files to package. Files that
-    start values name (a custom ``vehicle`` set) are packed as ``resources/<instance>/<name>``
-    and the start value becomes that path, relative to the archive's root.
+    ``fmu_paths`` optionally maps instance names to the FMU files to package. A custom
+    ``vehicle`` set of the plant or the autopilot is written inline (its TOML text, which
+    they take in place of a path: :func:`cosim.export.components.components`); other files
+    that start values name are packed as ``resources/<instance>/<name>`` and the start
+    value becomes that path, relative to the archive's root.
     """
     path = Path(path)
     linear_transformations(scenario, "SSP")  # refuse what SSP cannot carry, before work
     parts = components(scenario, fmu_paths)
     packed: dict[str, Path] = {}
     for i, part in enumerate(parts):
-        files = scenario.instances[part.name].files()
+        files = {
+            var: file
+            for var, file in scenario.instances[part.name].files().items()
+            if part.start.get(var) == str(file)  # (not written inline)
+        }
         moved = {var: f"resources/{part.name}/{file.name}" for var, file in files.items()}
         packed.update({moved[var]: file for var, file in files.items()})
         parts[i] = dataclasses.replace(part, start={**part.start, **moved})

@@ -169,7 +169,9 @@ def load_vehicle(
     name_or_path: str | Path = "remus100", folder: Path | None = None
 ) -> VehicleParameters:
     """Load a built-in set by name (``remus100``, from ``folder``, default
-    :func:`vehicle_folder`) or a TOML file by path.
+    :func:`vehicle_folder`), a TOML file by path, or a set given inline: a value holding a
+    line break is the TOML text itself (what an SSP or OSP export writes, so that the
+    set travels with the system structure instead of a path no host resolves).
 
     A set is immutable, so a process parses and validates it once and hands out the same
     object for as long as the files it was read from hold the same text: an FMU instance
@@ -178,7 +180,7 @@ def load_vehicle(
     reading the files again to compare takes microseconds).
     """
     folder = vehicle_folder() if folder is None else folder
-    path = Path(name_or_path)
+    path = Path(name_or_path if not is_inline(str(name_or_path)) else "")
     relative = path.suffix == ".toml" and not path.is_absolute()  # a built-in name is not
     key = (str(name_or_path), str(folder), os.getcwd() if relative else "")
     cached = _loaded.get(key)
@@ -186,7 +188,7 @@ def load_vehicle(
         return cached[1]
     read: list[tuple[Path, str]] = []
     table = _read_table(str(name_or_path), seen=(), folder=folder, read=read)
-    params = _validate(table, source=str(name_or_path))
+    params = _validate(table, source=_source(str(name_or_path)))
     if len(_loaded) >= _LOADED_KEPT:
         del _loaded[next(iter(_loaded))]  # the oldest
     _loaded[key] = (tuple(read), params)
@@ -209,6 +211,17 @@ def _text(path: Path) -> str | None:
         return None
 
 
+def is_inline(name_or_path: str) -> bool:
+    """A vehicle value that is the set's TOML text, not a name or a path: it has a line
+    break (a TOML table of more than one key does; a file or set name never does)."""
+    return "\n" in name_or_path
+
+
+def _source(name_or_path: str) -> str:
+    """How a refusal names the set: its name or path, or "(given inline)"."""
+    return "(given inline)" if is_inline(name_or_path) else name_or_path
+
+
 def _read_table(
     name_or_path: str,
     seen: tuple[str, ...],
@@ -219,6 +232,8 @@ def _read_table(
     appended to ``read`` with its text."""
     if name_or_path in seen:
         raise VehicleParameterError(f"vehicle 'base' chain loops: {' -> '.join(seen)}")
+    if is_inline(name_or_path):
+        return _table_of(name_or_path, _source(name_or_path), seen, folder, read)
     path = Path(name_or_path)
     builtin = builtin_vehicles(folder)
     if name_or_path in builtin:
@@ -233,15 +248,23 @@ def _read_table(
     except UnicodeDecodeError as exc:
         raise VehicleParameterError(f"vehicle file {name_or_path!r}: not UTF-8 ({exc})") from None
     read.append((path.resolve(), text))
+    return _table_of(text, name_or_path, seen, folder, read)
+
+
+def _table_of(
+    text: str, source: str, seen: tuple[str, ...], folder: Path, read: list[tuple[Path, str]]
+) -> dict[str, Any]:
+    """The flat table of the set whose TOML ``text`` came from ``source`` (a file, or
+    "(given inline)"), its ``base`` chain read too."""
     try:
         table = vehicle_toml.loads(text)
     except vehicle_toml.VehicleTomlError as exc:
-        raise VehicleParameterError(f"vehicle file {name_or_path!r}: {exc}") from None
-    flat = _flatten(table, source=name_or_path)
+        raise VehicleParameterError(f"vehicle file {source!r}: {exc}") from None
+    flat = _flatten(table, source=source)
     base = flat.pop("base", None)
     if base is None:
         return flat
-    return {**_read_table(str(base), seen=(*seen, name_or_path), folder=folder, read=read), **flat}
+    return {**_read_table(str(base), seen=(*seen, source), folder=folder, read=read), **flat}
 
 
 def _flatten(table: dict[str, Any], source: str) -> dict[str, Any]:

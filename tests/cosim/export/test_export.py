@@ -436,22 +436,32 @@ def test_cli_export_writes_and_reports_the_archive(
     assert cli.main([*shlex.split(command)[1:], *options]) == 0
 
 
-def test_ssp_packs_a_custom_vehicle_file(
-    fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+def test_a_custom_vehicle_set_travels_inline_in_both_formats(
+    fmu_paths: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Regression: `vehicle = "myveh.toml"` in a scenario was not packed by `export`."""
+    """`vehicle = "myveh.toml"` was packed into the SSP as resources/plant/myveh.toml and
+    named by that relative path, which the plant looked for in the host's working
+    directory (libcosim died, ecos ran on zeros), and the OSP named the absolute path of
+    this machine. Both now carry the set's TOML text, which the plant loads from anywhere."""
+    from plant_fmu.model.parameters import load_vehicle
+
     folder = tmp_path / "mission"
     folder.mkdir()
-    vehicle = 'base = "remus100"\nm = 31.0\n'
-    (folder / "myveh.toml").write_text(vehicle)
+    (folder / "myveh.toml").write_text('base = "remus100"\nm = 31.0\n')
     text = PLANT_ALONE.format(fmu=fmu_paths["AuvPlant"]).replace("remus100", "myveh.toml")
     (folder / "custom.toml").write_text(text)
     archive = tmp_path / "custom.ssp"
     assert cli.main(["export", str(folder / "custom.toml"), "--ssp", str(archive)]) == 0
+    assert cli.main(["export", str(folder / "custom.toml"), "--osp", str(tmp_path / "osp")]) == 0
     with zipfile.ZipFile(archive) as z:
-        assert z.read("resources/plant/myveh.toml").decode() == vehicle
-    (value,) = _ssd(archive).iterfind(".//ssv:Parameter[@name='vehicle']/ssv:String", NS)
-    assert value.get("value") == "resources/plant/myveh.toml"
+        assert not [n for n in z.namelist() if n.endswith("myveh.toml")]
+    (ssp,) = _ssd(archive).iterfind(".//ssv:Parameter[@name='vehicle']/ssv:String", NS)
+    osp = etree.parse(str(tmp_path / "osp" / OSP_FILE)).getroot()
+    (initial,) = osp.iterfind(".//o:InitialValue[@variable='vehicle']/o:String", NS)
+    (folder / "myveh.toml").unlink()  # the exports need the file no more
+    monkeypatch.chdir(tmp_path)
+    for value in (ssp.get("value"), initial.get("value")):
+        assert "\n" in value and load_vehicle(value).m == 31.0
 
 
 def test_the_note_on_other_masters_says_held_inputs_in_words(
@@ -464,3 +474,52 @@ def test_the_note_on_other_masters_says_held_inputs_in_words(
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "runs gauss-seidel with held inputs in auv-cosim" in out, out
+
+
+def test_a_summary_with_a_double_dash_is_a_valid_osp_comment(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """A summary with "--" ended the OSP export in lxml's "Comment may not contain '--'"."""
+    text = PLANT_ALONE.format(fmu=fmu_paths["AuvPlant"])
+    path = tmp_path / "dashes.toml"
+    path.write_text('summary = "heavier -- and slower---"\n' + text)
+    xml = export_osp(load_scenario(path), tmp_path / "osp")
+    root = etree.parse(str(xml)).getroot()
+    (comment,) = [c for c in root.iter(etree.Comment) if "heavier" in c.text]
+    assert "--" not in comment.text and "heavier - - and slower- - -" in comment.text
+
+
+def test_an_fmu_file_name_a_uri_would_misread_is_packaged_plainly(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """`Plant#1.fmu` was written as source="resources/Plant#1.fmu": libcosim took "#1.fmu"
+    for a URI fragment (and ecos split a %20); the file is packaged as Plant_1.fmu."""
+    odd = tmp_path / "Plant#1 ü%20.fmu"
+    shutil.copy2(fmu_paths["AuvPlant"], odd)
+    path = tmp_path / "odd.toml"
+    path.write_text(PLANT_ALONE.format(fmu=odd))
+    scenario = load_scenario(path)
+    archive = export_ssp(scenario, tmp_path / "odd.ssp")
+    (component,) = _ssd(archive).iterfind(".//ssd:Component", NS)
+    assert component.get("source") == "resources/Plant_1___20.fmu"
+    with zipfile.ZipFile(archive) as z:
+        assert z.read("resources/Plant_1___20.fmu") == odd.read_bytes()
+    xml = export_osp(scenario, tmp_path / "osp")
+    (simulator,) = etree.parse(str(xml)).getroot().iterfind(".//o:Simulator", NS)
+    assert simulator.get("source") == "Plant_1___20.fmu"
+    assert (xml.parent / "Plant_1___20.fmu").read_bytes() == odd.read_bytes()
+
+
+def test_the_note_says_a_step_multiple_reads_differently_in_libcosim(
+    fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """With step multiples libcosim and auv-cosim differ by 30 % of bs-3's yaw at 10 s,
+    and the export said nothing (an instance whose outputs nothing reads gets no note)."""
+    text = (Path(cli.__file__).parent / "scenarios" / "bs-3.toml").read_text(encoding="utf-8")
+    text = text.replace("\nstep = 0.01", "\nstep = 0.01\nstep_multiples = { controller = 5 }")
+    path = tmp_path / "slow.toml"
+    path.write_text(text)
+    argv = ["export", str(path), "--osp", str(tmp_path / "osp"), "--fmu-dir", str(fmu_dir)]
+    assert cli.main(argv) == 0
+    out = capsys.readouterr().out
+    assert "note: controller steps every 5 h: libcosim hands a slow instance's outputs" in out

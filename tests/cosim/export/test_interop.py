@@ -73,10 +73,19 @@ def systems(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
     fmu_dir = fmu_paths["AuvPlant"].parent
     plant_file = folder / "plant-alone.toml"
     plant_file.write_text(PLANT_ALONE.format(stop_time=STOP_TIME, fmu=fmu_paths["AuvPlant"]))
+    # a vehicle set of its own beside the scenario: the exports carry it (a packed file
+    # named by a relative path was looked for in the host's working directory)
+    heavy_file = folder / "plant-heavy.toml"
+    (folder / "heavy.toml").write_text('base = "remus100"\nname = "heavy"\nm = 31.0\nz_g = 0.03\n')
+    heavy_file.write_text(
+        PLANT_ALONE.format(stop_time=STOP_TIME, fmu=fmu_paths["AuvPlant"])
+        + 'vehicle = "heavy.toml"\n'
+    )
     bs3 = load_scenario("bs-3", fmu_dir).with_overrides(stop_time=STOP_TIME)
     survey = load_scenario("survey", fmu_dir).with_overrides(stop_time=STOP_TIME)
     return {
         "plant-alone": (load_scenario(plant_file, fmu_dir), PLANT_VARIABLES, plant_file),
+        "plant-heavy": (load_scenario(heavy_file, fmu_dir), PLANT_VARIABLES, heavy_file),
         "bs-3": (bs3, LOOP_VARIABLES, "bs-3"),
         "survey": (survey, MISSION_VARIABLES, "survey"),
     }
@@ -171,7 +180,7 @@ def _assert_same_trace(name: str, tool: str, theirs: tuple, master: tuple) -> No
         )
 
 
-SYSTEMS = ["plant-alone", "bs-3", "survey"]
+SYSTEMS = ["plant-alone", "plant-heavy", "bs-3", "survey"]
 
 
 @pytest.mark.slow
