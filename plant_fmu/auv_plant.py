@@ -270,7 +270,11 @@ class AuvPlant(SafeSlave):
             Boolean("ideal_fluid", description="drop the viscous terms (Thm 5.1)", **fixed)
         )
         self.register(
-            String("vehicle", description="built-in parameter set name or .toml file path", **fixed)
+            String(
+                "vehicle",
+                description="built-in parameter set name, .toml file path or the set's TOML text",
+                **fixed,
+            )
         )
         self.register(
             Real(
