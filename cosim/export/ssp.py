@@ -164,12 +164,14 @@ class _UnitTable:
         self.units: dict[str, Unit] = {}
         self._defined: dict[str, tuple[Mapping[str, float], str]] = {}  # -> (exponents, FMU)
 
-    def name_of(self, comp: Component, var: Variable) -> str:
-        """The variable's unit name, declared in the SSD with the FMU's own definition.
+    def name_of(self, comp: Component, var: Variable) -> str | None:
+        """The variable's unit name, declared in the SSD with the FMU's own definition;
+        None for a unit the FMU gives no SI base units for (a unit is optional on an SSP
+        connector and parameter: one the SSD cannot define is left off, as the FMU's own
+        description still names it).
 
         Raises:
-            CosimError: the FMU gives no SI base units for it, or two FMUs define the same
-                unit name differently.
+            CosimError: two FMUs define the same unit name differently.
         """
         fmu = comp.fmu_path.name
         exponents: Mapping[str, float] | None
@@ -178,10 +180,7 @@ class _UnitTable:
         else:
             name, exponents = var.unit, comp.interface.units.get(var.unit)
             if exponents is None:
-                raise CosimError(
-                    f"{fmu} declares no SI base units for unit {name!r} "
-                    f"(variable {var.name}); an SSP unit needs them"
-                )
+                return None
         if name not in self.units:
             self.units[name] = Unit(name, base_unit=BaseUnit(dict(exponents)))
             self._defined[name] = (exponents, fmu)
@@ -215,8 +214,9 @@ def _parameter_set(comp: Component, units: _UnitTable) -> SSVElem:
     for name, value in comp.start.items():
         var = comp.variable(name)
         attributes = {"value": xml_literal(value)}
-        if var.type == "Real":
-            attributes["unit"] = units.name_of(comp, var)
+        unit = units.name_of(comp, var) if var.type == "Real" else None
+        if unit is not None:
+            attributes["unit"] = unit
         kind = value_type(var.type)
         parameters.append(
             {"name": name, "type_name": kind, "type_value": ParameterType(kind, attributes)}

@@ -523,3 +523,28 @@ def test_the_note_says_a_step_multiple_reads_differently_in_libcosim(
     assert cli.main(argv) == 0
     out = capsys.readouterr().out
     assert "note: controller steps every 5 h: libcosim hands a slow instance's outputs" in out
+
+
+def test_a_unit_an_fmu_gives_no_base_units_is_left_off_the_connector(tmp_path: Path) -> None:
+    """BouncingBall with `<Unit name="m"></Unit>` runs and validates, yet its SSP export
+    was refused ("declares no SI base units for unit 'm' ...; an SSP unit needs them"),
+    though a unit is optional on an SSP connector."""
+    ball = Path(__file__).parents[2] / "data" / "reference-fmus" / "BouncingBall.fmu"
+    bare = tmp_path / "BouncingBall.fmu"
+    with zipfile.ZipFile(ball) as old, zipfile.ZipFile(bare, "w") as new:
+        for item in old.infolist():
+            data = old.read(item)
+            if item.filename == "modelDescription.xml":
+                data, count = re.subn(rb'(<Unit name="m">)\s*<BaseUnit m="1"/>\s*', rb"\1", data)
+                assert count == 1
+            new.writestr(item, data)
+    scenario = tmp_path / "ball.toml"
+    scenario.write_text(
+        'stop_time = 1.0\n[coupling]\nstep = 0.01\n[instances.ball]\nfmu = "BouncingBall.fmu"\n'
+    )
+    archive = export_ssp(load_scenario(scenario), tmp_path / "ball.ssp")
+    connectors = {c.get("name"): c for c in _ssd(archive).iterfind(".//ssd:Connector", NS)}
+    (height,) = connectors["h"]
+    assert height.get("unit") is None
+    (speed,) = connectors["v"]
+    assert speed.get("unit") == "m/s"
