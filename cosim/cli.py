@@ -232,6 +232,12 @@ def _reproduce(args: argparse.Namespace) -> int:
 
     from cosim.reproduction import reproduce
 
+    if not args.values.is_file():
+        raise CosimError(
+            f"--values {args.values}: no such file (reproduce regenerates docs/reproduction.md "
+            "of a checkout of the repository: run it from the checkout's root, or give "
+            "--values FILE and --out DIR)"
+        )
     started = time.perf_counter()
     page = reproduce(args.out, args.values, scenarios=not args.skip_scenarios)
     print(f"wrote {page} in {time.perf_counter() - started:.0f} s")

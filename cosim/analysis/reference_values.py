@@ -35,6 +35,21 @@ class ReferenceValueError(ValueError):
 TOLERANCE_KINDS = ("absolute", "relative", "slightly_above", "at_most")
 
 
+class References(dict[str, "Reference"]):
+    """The entries of one reference-value file by dotted key; a key the file lacks is a
+    :class:`ReferenceValueError` naming the key and the file (not a ``KeyError``)."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self.path = path
+
+    def __missing__(self, key: str) -> Reference:
+        raise ReferenceValueError(
+            f"reference values {str(self.path)!r}: no entry {key!r}, which a claim of "
+            "docs/reproduction.md checks"
+        )
+
+
 class _Entry(BaseModel):
     model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True)
 
@@ -98,7 +113,7 @@ class Reference:
         return np.array(_map(self.printed, _unit_of_last_digit), dtype=float)
 
 
-def load_reference_values(path: Path) -> dict[str, Reference]:
+def load_reference_values(path: Path) -> References:
     """Every entry of the TOML file at ``path``, by dotted key.
 
     Raises:
@@ -110,7 +125,7 @@ def load_reference_values(path: Path) -> dict[str, Reference]:
         table = tomllib.loads(Path(path).read_text(encoding="utf-8"), parse_float=Decimal)
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise ReferenceValueError(f"reference values {str(path)!r}: {exc}") from exc
-    references: dict[str, Reference] = {}
+    references = References(Path(path))
     _collect(table, prefix="", out=references)
     return references
 

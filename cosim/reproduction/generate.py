@@ -29,8 +29,8 @@ def reproduce(
     out: Path, values: Path, scenarios: bool = True, log: Callable[[str], None] = _stderr
 ) -> Path:
     """Write ``out/reproduction.md`` and its figures in ``out/figures`` (the figures the
-    earlier page showed are removed first; other pages' figures there are left alone);
-    return the page.
+    earlier page showed and this one does not are removed once it is written; other
+    pages' figures there are left alone); return the page.
 
     Args:
         out: the docs folder.
@@ -40,13 +40,14 @@ def reproduce(
         log: receives one progress line per section.
     """
     refs = load_reference_values(values)
+    sections = catalogue(refs)  # a printed value the file lacks: named before any work
     figures = out / FIGURES
+    earlier = figures_of(out / PAGE)
     figures.mkdir(parents=True, exist_ok=True)
-    remove_figures_of(out / PAGE)
     evaluated = []
     with tempfile.TemporaryDirectory() as work:
         ctx = Context.create(refs, runner(Path(work), log) if scenarios else None)
-        for section in catalogue(refs):
+        for section in sections:
             started = time.perf_counter()
             rows = tuple(evaluate(claim, ctx) for claim in section.claims)
             effects = tuple(effect_of(choice, ctx) for choice in section.choices)
@@ -55,16 +56,19 @@ def reproduce(
             log(f"{section.title}: {time.perf_counter() - started:.1f} s")
     page = out / PAGE
     page.write_text(render(evaluated, ctx), encoding="utf-8")
+    for name in earlier - figures_of(page):  # the earlier page's figures this one drops
+        (figures / name).unlink(missing_ok=True)
     return page
 
 
-def remove_figures_of(page: Path) -> None:
-    """Remove the figures ``page`` shows (``![..](figures/NAME.png)``), if it exists: the
-    folder is shared with other pages' figures, which stay."""
+def figures_of(page: Path) -> set[str]:
+    """The figures ``page`` shows (``![..](figures/NAME.png)``), none if it does not exist:
+    the folder is shared with other pages' figures, which stay. An earlier page's figures
+    are removed once the new page is written, so a reproduction that fails leaves the
+    earlier page whole."""
     if not page.is_file():
-        return
-    for name in re.findall(rf"\]\({FIGURES}/([\w.-]+\.png)\)", page.read_text(encoding="utf-8")):
-        (page.parent / FIGURES / name).unlink(missing_ok=True)
+        return set()
+    return set(re.findall(rf"\]\({FIGURES}/([\w.-]+\.png)\)", page.read_text(encoding="utf-8")))
 
 
 def _draw(figure: Figure, ctx: Context, folder: Path, log: Callable[[str], None]) -> bool:

@@ -22,7 +22,7 @@ from cosim.cli import main
 from cosim.reproduction import Claim, Context, Cost, Finding, all_claims, evaluate
 from cosim.reproduction.catalogue import catalogue
 from cosim.reproduction.context import NotRunError, RunData
-from cosim.reproduction.generate import remove_figures_of
+from cosim.reproduction.generate import figures_of
 from cosim.reproduction.lateral import jacobian, printed_jacobian
 from cosim.reproduction.model_choices import WithoutReaction, momentum_drift
 from cosim.reproduction.page import Evaluated, render
@@ -388,26 +388,40 @@ def test_the_folds_of_example_5_4_and_sec_5_1_4_use_the_weight_of_example_5_3(
 # --- the command ----------------------------------------------------------------------------
 
 
-def test_reproduce_removes_only_the_figures_its_earlier_page_showed(tmp_path: Path) -> None:
+def test_the_figures_a_page_shows_are_the_ones_a_rerun_may_remove(tmp_path: Path) -> None:
     """docs/figures holds other pages' figures too (the README's screenshots): a rerun
-    of reproduce replaces its own and leaves those."""
-    figures = tmp_path / "figures"
-    figures.mkdir()
-    for name in ("fig5_4_phase_portrait.png", "gone-since.png", "user-study-grid.png"):
-        (figures / name).write_bytes(b"png")
+    of reproduce removes only what its earlier page showed and the new one does not."""
     page = tmp_path / "reproduction.md"
     page.write_text(
         "![a](figures/fig5_4_phase_portrait.png)\n\n![b](figures/gone-since.png)\n",
         encoding="utf-8",
     )
-    remove_figures_of(page)
-    assert sorted(p.name for p in figures.iterdir()) == ["user-study-grid.png"]
-    remove_figures_of(tmp_path / "no-page-yet.md")  # a first run has nothing to remove
+    assert figures_of(page) == {"fig5_4_phase_portrait.png", "gone-since.png"}
+    assert figures_of(tmp_path / "no-page-yet.md") == set()  # a first run removes nothing
+
+
+def test_a_values_file_lacking_an_entry_is_named_and_changes_nothing(
+    tmp_path: Path, capsys
+) -> None:
+    """A values file without an entry a claim reads ended in a KeyError traceback, after
+    the earlier page's figures had been removed and an empty figures/ made."""
+    lacking = tmp_path / "lacking.toml"
+    lacking.write_text("[nothing]\n", encoding="utf-8")
+    out = tmp_path / "docs"
+    out.mkdir()
+    (out / "reproduction.md").write_text("![a](figures/kept.png)\n", encoding="utf-8")
+    (out / "figures").mkdir()
+    (out / "figures" / "kept.png").write_bytes(b"png")
+    assert main(["reproduce", "--out", str(out), "--values", str(lacking)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "lacking.toml" in err and "no entry '" in err, err
+    assert sorted(p.name for p in (out / "figures").iterdir()) == ["kept.png"]
 
 
 def test_reproduce_refuses_a_missing_values_file(tmp_path: Path, capsys) -> None:
     missing = tmp_path / "nothing.toml"
     assert main(["reproduce", "--out", str(tmp_path), "--values", str(missing)]) == 1
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "nothing.toml" in err
+    assert len(err.splitlines()) == 1 and "nothing.toml: no such file" in err
+    assert "run it from the checkout's root" in err  # the default is relative to it
     assert VALUES_FILE.is_file()
