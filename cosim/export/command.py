@@ -8,7 +8,7 @@ from pathlib import Path
 from cosim.errors import CosimError
 from cosim.export.osp import export_osp
 from cosim.export.ssp import export_ssp
-from cosim.scenario.spec import load_scenario
+from cosim.scenario.spec import Scenario, load_scenario
 
 
 def export_scenario(
@@ -35,10 +35,18 @@ def export_scenario(
         print(f"SSP archive: {export_ssp(resolved, ssp, overwrite=force)}")
     elif osp is not None:
         print(f"OSP system structure: {export_osp(resolved, osp)}")
+    for note in _notes(resolved, scenario):
+        print(f"note: {note}")
+    return 0
+
+
+def _notes(resolved: Scenario, scenario: str | Path) -> list[str]:
+    """What another tool running the export does otherwise than ``auv-cosim run``."""
+    notes = []
     coupling = resolved.coupling
     if coupling.algorithm != "jacobi" or coupling.extrapolation != "none":
-        print(
-            f"note: libcosim and ecos couple Jacobi-style with held inputs; {resolved.id} "
+        notes.append(
+            f"libcosim and ecos couple Jacobi-style with held inputs; {resolved.id} "
             f"runs {coupling.algorithm} with {_inputs(coupling.extrapolation)} in "
             f"auv-cosim, so compare with "
             f"`auv-cosim run {shlex.quote(str(scenario))} --algorithm jacobi "
@@ -47,12 +55,26 @@ def export_scenario(
     sources = {c.source_instance for c in resolved.connections}
     slow = {n: k for n, k in coupling.step_multiples.items() if k > 1 and n in sources}
     if slow:
-        print(
-            f"note: {', '.join(f'{n} steps every {k} h' for n, k in slow.items())}: libcosim "
+        notes.append(
+            f"{', '.join(f'{n} steps every {k} h' for n, k in slow.items())}: libcosim "
             "hands a slow instance's outputs on when its step ends, auv-cosim and ecos from "
             "the next base step: results differ (docs/hosts.md)"
         )
-    return 0
+    used = [c.source for c in resolved.connections] + [c.target for c in resolved.connections]
+    used += [f"{n}.{v}" for n, inst in resolved.instances.items() for v in inst.start]
+    enums = sorted({ref for ref in used if _type_of(resolved, ref) == "Enumeration"})
+    if enums:
+        notes.append(
+            f"{', '.join(enums)}: Enumeration, written as Integer (libcosim reads no "
+            "Enumeration variable and refuses the file)"
+        )
+    return notes
+
+
+def _type_of(scenario: Scenario, ref: str) -> str | None:
+    instance, _, variable = ref.partition(".")
+    var = scenario.instances[instance].interface.variables.get(variable)
+    return None if var is None else var.type
 
 
 def _inputs(extrapolation: str) -> str:

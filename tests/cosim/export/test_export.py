@@ -548,3 +548,23 @@ def test_a_unit_an_fmu_gives_no_base_units_is_left_off_the_connector(tmp_path: P
     assert height.get("unit") is None
     (speed,) = connectors["v"]
     assert speed.get("unit") == "m/s"
+
+
+def test_the_note_names_enumerations_written_as_integers(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Enumeration connectors and start values are written as Integer; libcosim then
+    refused the file ("No such variable: b:Enumeration_input") and the export said
+    nothing."""
+    feedthrough = Path(__file__).parents[2] / "data" / "reference-fmus" / "Feedthrough.fmu"
+    shutil.copy2(feedthrough, tmp_path)
+    path = tmp_path / "enums.toml"
+    path.write_text(
+        'stop_time = 1.0\n[coupling]\nstep = 0.01\nalgorithm = "jacobi"\n'
+        '[instances.a]\nfmu = "Feedthrough.fmu"\n[instances.b]\nfmu = "Feedthrough.fmu"\n'
+        "[connections]\nsame_names = false\n"
+        'add = [{ from = "a.Enumeration_output", to = "b.Enumeration_input" }]\n'
+    )
+    assert cli.main(["export", str(path), "--ssp", str(tmp_path / "enums.ssp")]) == 0
+    out = capsys.readouterr().out
+    assert "note: a.Enumeration_output, b.Enumeration_input: Enumeration, written as" in out
