@@ -301,13 +301,46 @@ def _viewer_sink(url: str) -> rr.GrpcSink:
     parts = urlsplit(url)
     if parts.hostname and parts.port:
         try:
-            socket.create_connection((parts.hostname, parts.port), timeout=2.0).close()
+            answers = _answers_http2(parts.hostname, parts.port)
         except OSError as exc:
             raise ValueError(
                 f"no Rerun viewer listens at {url} ({exc.strerror or exc}): start one with "
                 f"`rerun` (it listens on rerun+http://127.0.0.1:9876/proxy) or drop --connect"
             ) from None
+        if not answers:
+            raise ValueError(
+                f"something listens at {url} but does not answer as a Rerun viewer (gRPC) "
+                f"within {VIEWER_ANSWER_S:g} s: rerun-sdk would wait for it for ever, deaf "
+                "to Ctrl-C; check the port, or drop --connect"
+            )
     return sink
+
+
+VIEWER_ANSWER_S = 2.0  # s a viewer has to answer the connection's first bytes
+# the magic line, then an empty SETTINGS frame: length 0 (3 bytes), type 4, flags 0,
+# stream 0 (4 bytes)
+_HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + b"\x00\x00\x00" + b"\x04\x00" + bytes(4)
+
+
+def _answers_http2(host: str, port: int) -> bool:
+    """Whether the server at ``host:port`` speaks HTTP/2, as a Rerun viewer's gRPC server
+    does: to the client's connection preface (RFC 9113, section 3.4: the magic line and
+    an empty SETTINGS frame) it answers with a SETTINGS frame (type 4) of its own. Written
+    by hand: a TCP connect alone passes any listener, and rerun-sdk's sink then blocks
+    the run, signals included, on one that never answers. Raises OSError if nothing
+    listens."""
+    with socket.create_connection((host, port), timeout=VIEWER_ANSWER_S) as connection:
+        connection.sendall(_HTTP2_PREFACE)
+        header = b""
+        try:
+            while len(header) < 4:
+                chunk = connection.recv(9 - len(header))
+                if not chunk:
+                    return False
+                header += chunk
+        except TimeoutError:
+            return False
+    return header[3] == 4
 
 
 def _scenario_facts(scenario: Scenario) -> tuple[VehicleParameters, int | None]:

@@ -411,6 +411,12 @@ def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path, fmu_dir: Pa
         url = f"rerun+http://127.0.0.1:{s.getsockname()[1]}/proxy"
     with pytest.raises(ValueError, match=re.escape(f"no Rerun viewer listens at {url}")):
         sink_for(fmu_dir, tmp_path / "v.rrd", "x", ["plant.yaw"], url=url)
+    # a listener that never answers: rerun-sdk's sink blocked the run for ever, deaf to
+    # Ctrl-C and SIGTERM (only SIGKILL ended it)
+    with socket.create_server(("127.0.0.1", 0), backlog=4) as silent:
+        url = f"rerun+http://127.0.0.1:{silent.getsockname()[1]}/proxy"
+        with pytest.raises(ValueError, match=re.escape(f"something listens at {url} but does")):
+            sink_for(fmu_dir, tmp_path / "w.rrd", "x", ["plant.yaw"], url=url)
     with pytest.raises(OSError, match=re.escape(f"cannot write the recording {tmp_path}")):
         sink_for(fmu_dir, tmp_path, "x", ["plant.yaw"])  # a folder, not a file
     sink = sink_for(fmu_dir, tmp_path / "s.rrd", "x", ["plant.yaw", "plant.north"])
