@@ -184,7 +184,7 @@ def execute(
                 result = _step(loaded, outputs, options, stop, session, progress)
                 stepped = True
                 if options.check_step and result.complete:
-                    _check_step(loaded, outputs, result, stop, progress)
+                    _check_step(loaded, outputs, result, stop, progress, session.live is not None)
             finally:
                 session.close()
             if folder.replacing and not folder.committed:
@@ -268,16 +268,21 @@ def _check_step(
     result: RunResult,
     stop: StopRequest,
     progress: ProgressSink | None,
+    live: bool = False,
 ) -> None:
     """``--check-step``: the coupling error of the complete run, into ``result.coupling``
-    (summary.json); a check that cannot be made leaves its reason there instead."""
+    (summary.json); a check that cannot be made leaves its reason there instead. The
+    checks run what the run ran: a live run's overrides as events at the times they were
+    applied (its replay; without them the finer runs were another system's)."""
     from cosim.engine.step_check import check_step
+    from cosim.live.session import replay_scenario
 
     if progress is not None:
         progress.phase("checking the step (h / 2, h / 4)")
+    checked = replay_scenario(scenario, result, live) or scenario
     try:
         figures = outputs.figures.figures()
-        result.coupling["check_step"] = check_step(scenario, figures, result.final, stop)
+        result.coupling["check_step"] = check_step(checked, figures, result.final, stop)
     except CosimError as exc:
         result.coupling["check_step"] = {"error": str(exc)}
 

@@ -19,7 +19,7 @@ from cosim.engine.pacing import MAX_STEP_WALL_S, Pacer
 from cosim.errors import CosimError
 from cosim.live.control import ControlServer
 from cosim.live.keys import KeyPad
-from cosim.scenario.spec import Scenario
+from cosim.scenario.spec import Scenario, scenario_from_toml
 
 PACED_HAND_OFF_S = 0.1  # a paced run hands rows to the sinks (the viewer) this often
 
@@ -118,4 +118,10 @@ def replay_scenario(scenario: Scenario, result: RunResult, live: bool) -> Scenar
         return None
     events = scenario.events + replay_events(result.overrides)
     stop_time = result.time_reached if stopped else scenario.stop_time
-    return dataclasses.replace(scenario, events=events, stop_time=stop_time)
+    replay = dataclasses.replace(scenario, events=events, stop_time=stop_time)
+    # resolved again from its text, as a file of it would be: a copy made from it (the
+    # step checks' runs at h/2, Scenario.with_overrides) starts from its checked spec,
+    # which the replace above leaves without the events
+    return scenario_from_toml(
+        replay.to_toml(), f"{scenario.described} (replayed)", scenario.base_dir, scenario.fmu_dir
+    )
