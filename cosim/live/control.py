@@ -261,11 +261,14 @@ class ControlServer:
 
     @property
     def reachable_from_network(self) -> bool:
-        """Bound to an address other than the loopback (no authentication: warn)."""
+        """Bound to an address other than the loopback (no authentication: warn); an
+        IPv4 loopback written as IPv6 (``::ffff:127.0.0.1``) is the loopback too."""
         try:
-            return not ipaddress.ip_address(self.host.split("%")[0]).is_loopback
+            address = ipaddress.ip_address(self.host.split("%")[0])
         except ValueError:
             return True
+        mapped = getattr(address, "ipv4_mapped", None)
+        return not (address.is_loopback or (mapped is not None and mapped.is_loopback))
 
     def close(self) -> None:
         """Stop serving and drop every client (after the replies being written); safe to

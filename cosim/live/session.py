@@ -41,7 +41,16 @@ class LiveSession:
         control: str | None,
         interactive: bool,
     ) -> LiveSession:
-        """Everything the options ask for; :class:`CosimError` (one line) if refused."""
+        """Everything the options ask for; :class:`CosimError` (one line) if refused,
+        before anything is opened (an adaptive run: its steps are its own)."""
+        given = {"--real-time": real_time is not None, "--control": control is not None,
+                 "--interactive": interactive}  # fmt: skip
+        wanted = [flag for flag, on in given.items() if on]
+        if wanted and scenario.coupling.algorithm == "adaptive":
+            raise CosimError(
+                f"{' and '.join(wanted)}: a paced or live run needs a fixed step; algorithm "
+                "'adaptive' chooses its own (--algorithm gauss-seidel or jacobi)"
+            )
         if real_time is not None:
             _check_factor(real_time, scenario.coupling.step)
         if interactive and real_time is None:

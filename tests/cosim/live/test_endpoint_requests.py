@@ -286,6 +286,32 @@ def test_an_endpoint_reachable_from_the_network_says_so(
     assert warned == (host == "0.0.0.0"), err
 
 
+def test_an_ipv4_loopback_written_as_ipv6_is_not_warned_about(
+    scenario: Scenario, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """--control [::ffff:127.0.0.1]:0 was warned about as reachable from the network."""
+    try:
+        with socket.socket(socket.AF_INET6) as probe:
+            probe.bind(("::ffff:127.0.0.1", 0))
+    except OSError:
+        pytest.skip("no IPv4-mapped IPv6 addresses on this machine")
+    session = LiveSession.open(scenario, None, "[::ffff:127.0.0.1]:0", False)
+    session.close()
+    err = capfd.readouterr().err
+    assert "control endpoint: [::ffff:127.0.0.1]:" in err and "WARNING" not in err, err
+
+
+def test_an_adaptive_run_is_refused_before_the_endpoint_opens(
+    scenario: Scenario, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """--control with algorithm = "adaptive" announced its endpoint and loaded the FMUs
+    before the master refused the run."""
+    adaptive = scenario.with_overrides(algorithm="adaptive")
+    with pytest.raises(CosimError, match=r"^--control: a paced or live run needs a fixed"):
+        LiveSession.open(adaptive, None, "127.0.0.1:0", False)
+    assert "control endpoint" not in capfd.readouterr().err
+
+
 class Master:
     """The master's side of a run, by hand: communication points on the test's word."""
 
