@@ -441,7 +441,9 @@ def _draw_panel(
         label = series.label + (" (beyond the axis)" if clipped else "")
         ax.plot(time[inside], values[inside], "--" if series.dashed else "-",
                 color="tab:gray" if series.dashed else "tab:blue",
-                linewidth=1.0 if series.dashed else 1.3, label=label or None)  # fmt: skip
+                linewidth=1.0 if series.dashed else 1.3, label=label or None,
+                marker="o" if np.count_nonzero(inside) == 1 else None)  # fmt: skip
+        # (one row, a run that failed at its first step: a line of one point shows nothing)
     drawn, named = len(curves), set()
     for marker in markers:  # each name once in the legend (a repeated event)
         new = first and marker.label not in named

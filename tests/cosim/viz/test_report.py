@@ -417,3 +417,29 @@ def test_a_report_the_disk_had_no_room_for_leaves_nothing_and_can_be_made_later(
     assert sorted(p.name for p in folder.glob("*.png")) == ["attitude_actuators.png",
                                                             "velocities.png"]  # fmt: skip
     assert index == folder / "index.html" and not list(folder.glob(".report*"))
+
+
+def test_a_run_of_one_row_is_drawn_as_points(tmp_path, monkeypatch) -> None:
+    """A run that failed at its first step has the t = 0 row only: its report's panels
+    were blank (a line through one point draws nothing)."""
+    from cosim.viz import report
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "results.csv").write_text("time,plant.u,plant.v\n0.0,1.5,-0.1\n")
+    kept = {}
+
+    def keep(fig, path):
+        kept[path.name] = fig
+        path.touch()
+        return path
+
+    monkeypatch.setattr(report, "_save", keep)
+    write_report(run)
+    lines = [
+        line
+        for ax in kept["velocities.png"].axes
+        for line in ax.lines
+        if len(line.get_xdata()) == 1
+    ]
+    assert lines and all(line.get_marker() == "o" for line in lines)
