@@ -276,7 +276,8 @@ class RerunSink:
         self._pending_rows = 0
         index = time_index(times)
         for panel in self._panels:
-            shown = values[:, panel.indices] * np.asarray(panel.scales)
+            with np.errstate(over="ignore"):  # 1e308 rad set live, in deg: shown as inf
+                shown = values[:, panel.indices] * np.asarray(panel.scales)
             self._rec.send_columns(
                 panel.entity, indexes=index, columns=rr.Scalars.columns(scalars=shown)
             )

@@ -434,7 +434,8 @@ def _draw_panel(
     markers are named in the legend of the ``first`` panel only."""
     time = table["time"]
     inside = (time >= span[0]) & (time <= span[1])
-    curves = [(s, table[s.column] * s.scale) for s in panel.series if s.column in table]
+    with np.errstate(over="ignore"):  # beyond a float in the panel's unit: inf, off the axis
+        curves = [(s, table[s.column] * s.scale) for s in panel.series if s.column in table]
     shown = _main_range([(s, v[inside]) for s, v in curves])
     for series, values in curves:
         clipped = shown is not None and np.any((values < shown[0]) | (values > shown[1]))

@@ -443,3 +443,14 @@ def test_a_run_of_one_row_is_drawn_as_points(tmp_path, monkeypatch) -> None:
         if len(line.get_xdata()) == 1
     ]
     assert lines and all(line.get_marker() == "o" for line in lines)
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_a_value_beyond_a_float_in_degrees_is_drawn_without_a_warning(tmp_path) -> None:
+    """A set-point of 1e308 rad (set live: it declares no range) printed numpy's
+    "RuntimeWarning: overflow encountered in multiply" with a source line on stderr."""
+    run = tmp_path / "run"
+    run.mkdir()
+    rows = "".join(f"{t},0.1,1e308\n" for t in (0.0, 0.1, 0.2))
+    (run / "results.csv").write_text("time,plant.yaw,controller.yaw_setpoint\n" + rows)
+    assert write_report(run).is_file()
