@@ -13,6 +13,7 @@ import os
 import re
 import signal
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -523,6 +524,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if argv is None and args.command == "run":
         _ignore_stop_signals()
+    if argv is None:
+        warnings.showwarning = _one_line_warning
     try:
         return int(args.func(args) or 0)
     except CosimError as exc:
@@ -551,6 +554,13 @@ def _reason(exc: Exception) -> str:
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
     return f"{type(exc).__name__}: {exc}"
+
+
+def _one_line_warning(message: Warning | str, category: type[Warning], *_: object) -> None:
+    """A warning as one line naming the command (Python's shows the file, the line number
+    and the source line of the code that warned: noise to a user)."""
+    text = " ".join(str(message).split())
+    print(f"auv-cosim: warning: {shortened(text)}", file=sys.stderr)
 
 
 def _quiet_stdout() -> None:

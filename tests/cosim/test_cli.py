@@ -115,3 +115,26 @@ def test_a_reader_that_stops_reading_gets_no_traceback(tmp_path: Path) -> None:
         proc.kill()
         proc.wait()
     assert err == "" and code == 141, (code, err)
+
+
+def test_a_warning_is_one_line_naming_the_command(tmp_path: Path) -> None:
+    """A warning of ours ("Rerun viewer: gRPC connection severed ...") reached the user as
+    Python shows it: the file and line that warned, then that source line."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, warnings\n"
+        "from cosim import cli\n"
+        "def scenarios(args):\n"
+        "    warnings.warn('Rerun viewer: the stream\\n  ended', stacklevel=2)\n"
+        "    return 0\n"
+        "cli._scenarios = scenarios\n"
+        "sys.argv = ['auv-cosim', 'scenarios']\n"
+        "sys.exit(cli.main())\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == "auv-cosim: warning: Rerun viewer: the stream ended\n"
