@@ -84,6 +84,12 @@ def _file_server(rrd: Path, port: int, web_port: int) -> Iterator[None]:
 
     class Recording(http.server.BaseHTTPRequestHandler):
         def do_GET(self) -> None:
+            self._answer(body=True)
+
+        def do_HEAD(self) -> None:  # what a browser or curl -I asks first (was 501)
+            self._answer(body=False)
+
+        def _answer(self, body: bool) -> None:
             if self.path != name:
                 self.send_error(404)
                 return
@@ -93,7 +99,8 @@ def _file_server(rrd: Path, port: int, web_port: int) -> Iterator[None]:
                 self.send_header("Content-Length", str(rrd.stat().st_size))
                 self.send_header("Access-Control-Allow-Origin", origin)
                 self.end_headers()
-                shutil.copyfileobj(file, self.wfile)
+                if body:
+                    shutil.copyfileobj(file, self.wfile)
 
         def log_message(self, *args: Any) -> None:
             """Quiet: the terminal shows the URL, not each request."""

@@ -162,3 +162,27 @@ def test_view_without_a_display_fails_in_one_line_saying_to_use_web(
     captured = capsys.readouterr()
     assert captured.err.count("\n") == 1 and captured.out == "", captured
     assert "no display" in captured.err and f"auv-cosim view {tmp_path} --web" in captured.err
+
+
+def test_the_file_server_answers_head_as_get_without_the_body(tmp_path: Path) -> None:
+    """`curl -I` (a HEAD) of the served recording got "501 Unsupported method"."""
+    import http.client
+
+    from cosim.viz.web_viewer import _file_server
+
+    rrd = tmp_path / "recording.rrd"
+    rrd.write_bytes(FAKE_RRD)
+    with socket.socket() as probe:
+        probe.bind((HOST, 0))
+        port = probe.getsockname()[1]
+    with _file_server(rrd, port, 9090):
+        connection = http.client.HTTPConnection(HOST, port, timeout=10)
+        connection.request("HEAD", "/recording.rrd")
+        head = connection.getresponse()
+        assert head.status == 200 and head.read() == b""
+        assert head.getheader("Content-Length") == str(len(FAKE_RRD))
+        connection.request("GET", "/recording.rrd")
+        assert connection.getresponse().read() == FAKE_RRD
+        connection.request("HEAD", "/other")
+        assert connection.getresponse().status == 404
+        connection.close()
