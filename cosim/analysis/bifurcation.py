@@ -183,6 +183,12 @@ class OperatingConditions:
             value = getattr(self, name)
             if not math.isfinite(value):
                 raise AnalysisError(f"{name} = {value!r}: expected a finite number")
+        if self.thrust <= 0.0:
+            raise AnalysisError(
+                f"thrust = {self.thrust!r} N: expected a thrust > 0 (the analyses look for "
+                "equilibria at 0 < u < 2 m/s; without thrust the vehicle rests at u = 0, where "
+                "the damping vanishes and the linearisation decides no stability)"
+            )
         stroke = self.params.mass_stroke
         if abs(self.mass_position) > stroke:
             raise AnalysisError(

@@ -278,3 +278,13 @@ def test_a_sweep_output_the_disk_has_no_room_for_is_named_and_not_left_half(
     )
     assert not (tmp_path / name).exists() and not list(tmp_path.glob(".*.tmp"))
     assert (tmp_path / "sweep_eta.csv").stat().st_size > 0  # written before: kept, whole
+
+
+@pytest.mark.parametrize("thrust", ["0", "-2"])
+def test_an_analysis_without_thrust_is_refused(capsys, thrust):
+    """`analyze equilibria --thrust 0` listed u = 3.6e-163 as a stable equilibrium in the
+    box 0 < u < 2: eigenvalues of -1e-5 the finite-difference step made, of a Jacobian
+    that is zero at rest."""
+    code, out, err = _run(capsys, "analyze", "equilibria", "--thrust", thrust)
+    assert code == 1 and out == ""
+    assert f"thrust = {float(thrust)!r} N: expected a thrust > 0" in err
