@@ -118,12 +118,14 @@ class KeyFigures:
 
     def __init__(self, columns: tuple[str, ...] | list[str], roles: dict[str, str] = ROLES) -> None:
         index = {name: i for i, name in enumerate(columns)}
-        plant, controller = roles["plant"], roles["controller"]
-        self._yaw = index.get(f"{plant}.yaw")
-        self._setpoint = index.get(f"{controller}.yaw_setpoint")
-        self._mass = index.get(f"{plant}.mass_position")
-        forces = _columns("peak_abs_tunnel_force_N", roles)
-        self._force = next((index[c] for c in forces if c in index), None)
+
+        def first(figure: str) -> int | None:  # the first of the figure's columns recorded
+            return next((index[c] for c in _columns(figure, roles) if c in index), None)
+
+        self._yaw = first("yaw_settling_time_s")
+        self._setpoint = index.get(f"{roles['controller']}.yaw_setpoint")
+        self._mass = first("peak_abs_mass_position_m")
+        self._force = first("peak_abs_tunnel_force_N")
         self._settling = SettlingTime(YAW_TOLERANCE_RAD, angle=True)
         self._peaks = {"mass": -math.inf, "force": -math.inf}
 
