@@ -27,9 +27,9 @@ from controller_fmu.lateral_model import LateralDesignModel
 class BacksteppingGains:
     """Gains of (6.3.55)-(6.3.64) and of the thruster (6.3.72)-(6.3.73).
 
-    Defaults: Sec. 6.3.3 (k0 = 0.5, k1..k4 = 1); for currents and low speed the
-    dissertation uses k0 = 0.3, k1 = 0.8. eta0, Phi and the filter frequency: module
-    docstring.
+    Defaults: Sec. 6.3.3 (k0 = 0.5, k1..k4 = 1); for heading into a current
+    (psi_d = -beta) and at low speed the dissertation uses k0 = 0.3, k1 = 0.8. eta0, Phi
+    and the filter frequency: module docstring.
     """
 
     k0: float = 0.5

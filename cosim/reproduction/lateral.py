@@ -105,10 +105,14 @@ def _turn(which: int, ctx: Context) -> Finding:
     return Finding(values=tuple(eq.value(n) for n in TURN_STATES))
 
 
-def _turn_stability(ctx: Context) -> Finding:
+def _turn_stability(printed_bank: str, ctx: Context) -> Finding:
+    """The turns stable, x0 not, and the steady bank |phi| (deg) compared with the printed
+    'about 2 degrees' (to its printed precision, one degree)."""
     low, axis, high = turns(ctx)
     bank = math.degrees(abs(high.value("roll")))
     return Finding(
+        values=(bank,),
+        against=(printed_bank,),
         shown=f"{stability(high)}, {stability(low)}, x0 {stability(axis)}; |phi| = {bank:.2f} deg",
         holds=high.stable and low.stable and not axis.stable,
     )
@@ -172,8 +176,9 @@ def example_5_3(refs: Mapping[str, Reference]) -> Section:
             f"x0', x0'' stable, x0 unstable; steady bank about {bank.text} deg",
             bank.source,
             f"stable; |phi| ~ {bank.text} deg",
-            "-",
-            _turn_stability,
+            unit_text(bank),
+            partial(_turn_stability, printed(bank)[0]),
+            reference=bank.key,
         )
     )
     return Section("Example 5.3: lateral-directional motion", tuple(claims))

@@ -14,16 +14,26 @@ from functools import partial
 from cosim.analysis.bifurcation import OperatingConditions
 from cosim.analysis.equilibria import Equilibrium, find_equilibrium
 from cosim.analysis.reference_values import Reference
-from cosim.reproduction.context import Context, stability, uvr
-from cosim.reproduction.record import Claim, Finding, Section, printed, tolerance_of, unit_text
+from cosim.reproduction.context import Context, stability
+from cosim.reproduction.record import (
+    Claim,
+    Finding,
+    Section,
+    decimals,
+    printed,
+    tolerance_of,
+    unit_text,
+)
 from plant_fmu.model.dynamics import PlantModel, Variant
 
 NORMAL_THRUST, LOW_THRUST = 9.0, 4.0  # N
 LOW_SPEED_TURNS = (
     "No variant of the model matches to the printed digits: the lateral "
-    "model with W = m g (ours) or the printed W = 299 N is off by 0.14-0.23 %, a bank-free "
-    "one (horizontal variant, or W = B) by 0.9-2.5 %, 5-10 times further. Why is not known."
+    "model with W = m g (ours) or the printed W = 299 N is off in u, v, r by 0.14-0.23 % and "
+    "banks by 0.77 deg where the text prints phi = 0; a bank-free one (horizontal variant, "
+    "or W = B) is off by 0.9-2.5 %, 5-10 times further. Why is not known."
 )
+STATES = ("u", "v", "r", "p", "roll")  # the printed x0 = [u, v, r, p, phi]
 HEADING_9_NEWTON = (
     "the dissertation's arithmetic: -arcsin(U_c / U0) with U0 = 1.525 m/s is -7.536 deg; "
     "the printed -7.55 deg would need U0 = 1.522 m/s. cur-2 uses the printed -7.55 deg as "
@@ -50,8 +60,14 @@ def design_speed(ctx: Context, thrust: float) -> float:
     return ctx.memo(("design speed", thrust), solve)
 
 
-def _low_speed(which: int, ctx: Context) -> Finding:
-    return Finding(values=uvr(equilibria(ctx, LOW_THRUST)[which]))
+def _low_speed(which: int, texts: tuple[str, ...], ctx: Context) -> Finding:
+    """[u, v, r, p, phi] of an equilibrium at T = 4 N, shown to one more digit than
+    printed, the bank to 0.1 mrad (printed as a bare 0)."""
+    eq = equilibria(ctx, LOW_THRUST)[which]
+    values = tuple(eq.value(name) for name in STATES)
+    digits = [decimals(text) + 1 for text in texts[:-1]] + [4]
+    shown = ", ".join(f"{x:.{max(d, 2)}f}" for x, d in zip(values, digits, strict=True))
+    return Finding(values=values, shown=f"[{shown}]")
 
 
 def _low_speed_stability(ctx: Context) -> Finding:
@@ -111,7 +127,10 @@ def low_speed(refs: Mapping[str, Reference]) -> Section:
         turn = {"unexplained": LOW_SPEED_TURNS} if which != 1 else {}
         claims.append(
             _claim(
-                ref, f"T = 4 N: {name} = [u, v, r]", partial(_low_speed, which), range(3), **turn
+                ref,
+                f"T = 4 N: {name} = [u, v, r, p, phi]",
+                partial(_low_speed, which, printed(ref)),
+                **turn,
             )
         )
     claims.append(

@@ -23,6 +23,7 @@ from cosim.analysis.closed_loop import simulate_closed_loop
 from cosim.analysis.reference_values import Reference
 from cosim.metrics.key_figures import settling_time
 from cosim.reproduction.context import Context, RunData
+from cosim.reproduction.depth_plane import U0
 from cosim.reproduction.record import Choice, Cost, LastDigit, Section
 from cosim.reproduction.runs import COARSE, FINE, converged
 from cosim.scenario.spec import load_scenario
@@ -37,6 +38,7 @@ from plant_fmu.model.stepping import advance, stepping_state
 BAND = math.radians(1.0)  # bs-3 settled: |psi| < 1 deg for good
 TUMBLE_STEP = 0.01  # s: the plant's default RK4 step
 SEGMENT, SEGMENTS, COMMAND = 3.0, 20, 0.04  # s, count, m: the servo drives +-4 cm every 3 s
+TABLE_6_3_M_UQ = 6.40  # kg m: M_uq as Table 6.3 prints it (remus100-printed)
 
 
 @dataclass(frozen=True)
@@ -96,11 +98,10 @@ def _reaction(ctx: Context) -> str:
     )
 
 
-def _depth(ctx: Context, a35: float) -> tuple[float, float, float, float]:
+def _depth(ctx: Context, start: Mapping[str, float] | None) -> tuple[float, float, float, float]:
     """vert-1's w (m/s), theta (rad), mean delta_s (deg) over the last 10 s and its roll
-    swing over the last 20 s (deg), converged, with the heave-pitch added mass ``a35``
-    (remus100's own: the scenario's runs)."""
-    start = None if a35 == ctx.remus.a35 else {"plant.a35": a35}
+    swing over the last 20 s (deg), converged, with the plant start values ``start`` added
+    to the scenario's (None: the scenario's runs)."""
 
     def mean(column: str, scale: float, run: RunData) -> float:
         t = run["time"]
@@ -119,10 +120,11 @@ def _depth(ctx: Context, a35: float) -> tuple[float, float, float, float]:
     return figures[0], figures[1], figures[2], figures[3]
 
 
-def _heave_pitch(ctx: Context) -> str:
+def _vert_1_with(label: str, start: Mapping[str, float], ctx: Context) -> str:
+    """vert-1's depth-plane figures with ours and with ``start`` (the choice undone)."""
     steady = ctx.ref("scenarios.depth_steady_state")
     printed = [str(text) for text in steady.text]
-    figures = {"ours": _depth(ctx, ctx.remus.a35), "(6.3.77)'s sign": _depth(ctx, -ctx.remus.a35)}
+    figures = {"ours": _depth(ctx, None), label: _depth(ctx, start)}
     texts = []
     for label, (w, theta, fin, roll) in figures.items():
         agree = [
@@ -142,6 +144,14 @@ def _heave_pitch(ctx: Context) -> str:
         + "; ".join(texts)
         + "."
     )
+
+
+def _heave_pitch(ctx: Context) -> str:
+    return _vert_1_with("(6.3.77)'s sign", {"plant.a35": -ctx.remus.a35}, ctx)
+
+
+def _pitch_damping(printed_m_uq: float, ctx: Context) -> str:
+    return _vert_1_with("Table 6.3's sign", {"plant.M_uq": printed_m_uq}, ctx)
 
 
 def _momentum(model: PlantModel, x: np.ndarray) -> np.ndarray:
@@ -199,6 +209,8 @@ def _two_body(ctx: Context) -> str:
 def model_choices(refs: Mapping[str, Reference]) -> Section:
     """The choices the verdicts rest on, each with what it changes."""
     a35 = refs["table_6_1.heave_pitch_added_mass"]
+    printed_a35 = float(a35.value)
+    ours_m_uq = load_vehicle().M_uq
     choices = (
         Choice(
             "the moving mass's servo reaction -m_v y'' acts on the hull (sway, roll -z_g, "
@@ -208,6 +220,21 @@ def model_choices(refs: Mapping[str, Reference]) -> Section:
             "the servo force that accelerates the mass along the rail pushes the hull back "
             "(Newton's third law); every verdict above uses it",
             _reaction,
+            Cost.SCENARIO,
+        ),
+        Choice(
+            f"M_uq = {ours_m_uq:.2f} kg m, N_ur's value, where Table 6.3 prints "
+            f"+{TABLE_6_3_M_UQ:.2f}",
+            f"Table 6.3: M_uq = +{TABLE_6_3_M_UQ:.2f} (the set remus100-printed keeps it)",
+            "a body of revolution has M_uq = N_ur (Table 5.1: N_ur = -6.40): turning the body "
+            "frame 90 deg about x maps (v, r) to (w, -q), which takes Table 5.1's Y_uv, Y_ur, "
+            "N_uv, Y_r|r|, N_v|v| to Table 6.3's Z_uw, Z_uq, M_uw, Z_q|q|, M_w|w| (each with the "
+            "sign the map gives) and N_ur to M_uq = N_ur; with the printed sign Table 6.1's "
+            "M_q = -6.87 does not come out of "
+            f"Table 6.3 ((M_uq + a35) U0 = {(TABLE_6_3_M_UQ + printed_a35) * U0:+.1f}, "
+            "not -6.82) and the viscous forces can add kinetic energy (docs/model.md, "
+            "corrections, item 1)",
+            partial(_pitch_damping, TABLE_6_3_M_UQ),
             Cost.SCENARIO,
         ),
         Choice(

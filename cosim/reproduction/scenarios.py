@@ -266,6 +266,9 @@ def _lqr_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
             "Sec. 6.3.1, Figs. 6.15-6.16 (lqr-3)",
             "returns (tested: |psi| < 1 deg for good within the run)",
             partial(_back_to_zero, "lqr-3", math.inf),
+            note="psi0 = 30 deg and v0 are ours: the text gives this case no initial state; "
+            "the first design's Case 3 (Figs. 6.8-6.9) starts from [1.50, -0.01, 0, 0, pi/6, "
+            "0, 0], pi/6 in the roll slot though the text calls it the initial heading",
         ),
     )
 
@@ -284,6 +287,8 @@ def _backstepping_claims(refs: Mapping[str, Reference]) -> tuple[Claim, ...]:
             "Sec. 6.3.3, Figs. 6.20-6.22 (bs-2)",
             "short (tested: |psi| < 1 deg for good by 20 s)",
             partial(_back_to_zero, "bs-2", 20.0),
+            note="psi0 = 30 deg is ours, as in lqr-3: the text says only 'nonzero initial yaw "
+            "angle' and prints no initial state for this case",
         ),
         _numeric(
             bs_3,

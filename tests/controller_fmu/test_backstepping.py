@@ -21,7 +21,8 @@ from plant_fmu.model.linearization import state_vector
 from plant_fmu.model.parameters import load_vehicle
 
 H = 0.01
-CURRENT_GAINS = {"k0": 0.3, "k1": 0.8}  # Sec. 6.3.3: currents and low speed
+GAINS = ("k0", "k1", "k2", "k3", "k4")
+CURRENT_GAINS = {"k0": 0.3, "k1": 0.8}  # Sec. 6.3.3: heading into the current, low speed
 SLOW = {"thrust_command": 4.0, "design_speed": 1.017}
 
 
@@ -86,6 +87,17 @@ def test_command_filter_rate_tracks_a_ramp():
     for k in range(1, 301):
         bank.advance(np.array([slope * k * H]), H)
     assert bank.rate[0] == pytest.approx(slope, rel=2e-3)
+
+
+def test_gains_are_the_printed_ones():
+    """Sec. 6.3.3: 'k0 = 0.5, k1 = k2 = k3 = k4 = 1.0' are the controller's and the autopilot
+    FMU's defaults; the gains for heading into the current and for the low speed are
+    'k0 = 0.3, k1 = 0.8, k2 = k3 = k4 = 1.0'."""
+    printed = list(dissertation("section_6_3_3.backstepping_gains"))
+    assert [getattr(BacksteppingGains(), k) for k in GAINS] == printed
+    assert [getattr(AutopilotConfig.build(), k) for k in GAINS] == printed
+    current = dict(zip(GAINS, printed, strict=True)) | CURRENT_GAINS
+    assert list(current.values()) == list(dissertation("section_6_3_3.backstepping_gains_current"))
 
 
 @pytest.mark.parametrize(

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from reference_values import dissertation
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from controller_fmu.lateral_model import LateralDesignModel
@@ -36,6 +37,18 @@ def remus():
 @pytest.fixture(scope="module")
 def linear(remus):
     return LateralDesignModel(remus, U0).linearize()
+
+
+def test_weights_are_the_printed_ones_and_the_autopilot_uses_them():
+    """Sec. 6.3.1 (the design with the servo): Q_y = diag(1, 5e3, 1e2, 1e3, 1e3, 1e6) on
+    y = [r, p, phi, psi, y_v, y_vel], R_u = 1; they are the autopilot FMU's defaults."""
+    q_y = dissertation("section_6_3_1.lqr_output_weights")
+    r_u = dissertation("section_6_3_1.lqr_input_weight")
+    assert list(DISSERTATION_Q_Y) == list(q_y) and r_u == DISSERTATION_R_U
+    config = AutopilotConfig.build()
+    weights = ("r", "p", "roll", "yaw", "mass_position", "mass_velocity")
+    assert [getattr(config, f"lqr_q_{name}") for name in weights] == list(q_y)
+    assert config.lqr_r == r_u
 
 
 def test_continuous_design_puts_a_servo_pole_no_sampled_loop_can_realise(linear):

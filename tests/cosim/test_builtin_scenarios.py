@@ -12,6 +12,7 @@ import math
 import re
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ import pytest
 from reference_values import dissertation
 from repo_paths import ROOT, script_module
 
+from controller_fmu.autopilot import AutopilotConfig
 from controller_fmu.los_guidance import parse_waypoints
 from cosim.analysis.equilibria import find_equilibrium
 from cosim.engine import master
@@ -28,7 +30,7 @@ from cosim.metrics.manoeuvres import manoeuvre_metrics, metric_names, summary_me
 from cosim.outputs.manoeuvre import fault_start
 from cosim.outputs.results import read_csv
 from cosim.runner import RunOutcome, run_scenario
-from cosim.scenario.spec import builtin_scenarios, load_scenario, scenario_from_toml
+from cosim.scenario.spec import builtin_scenarios, load_scenario, scenario_from_toml, scenario_path
 from plant_fmu.model.dynamics import INPUT_NAMES, STATE_INDEX, STATE_NAMES, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector
 from plant_fmu.model.parameters import load_vehicle
@@ -67,6 +69,45 @@ def window(result: RunResult, name: str, t0: float, t1: float) -> np.ndarray:
     return result.column(name)[(result.times >= t0 - 1e-9) & (result.times < t1 - 1e-9)]
 
 
+CUR_1_GAINS = (
+    "cur-1 runs with the gains for heading into the current (k0 = 0.3, k1 = 0.8); Sec. 6.3.3 "
+    "ran its psi_d = 0 case (Figs. 6.26-6.28) with 'the same control parameters ... as in "
+    "the previous ones' and changed them only for psi_d = -beta. Kept, since changing them "
+    "moves a built-in scenario's run (cur-1's settling time; not its east drift)"
+)
+
+
+@pytest.mark.parametrize(
+    ("scenario_id", "printed"),
+    [
+        ("bs-1", "backstepping_gains"),
+        ("bs-2", "backstepping_gains"),
+        ("bs-3", "backstepping_gains"),
+        pytest.param(
+            "cur-1",
+            "backstepping_gains",
+            marks=pytest.mark.xfail(strict=True, reason=CUR_1_GAINS),
+        ),
+        ("cur-2", "backstepping_gains_current"),
+        ("slow-1", "backstepping_gains_current"),
+        ("slow-2", "backstepping_gains_current"),
+    ],
+)
+def test_backstepping_scenarios_run_the_gains_the_dissertation_ran(
+    scenario_id: str, printed: str
+) -> None:
+    """Sec. 6.3.3 prints two gain sets, k0..k4 = 0.5, 1, 1, 1, 1 and, for heading into the
+    current (and again at low speed), 0.3, 0.8, 1, 1, 1: each backstepping case of Ch. 6
+    runs the set the text ran it with (a gain the file does not set is the autopilot's
+    default). Sec. 6.3.4 gives no gains for vert-1 and vert-2."""
+    spec = tomllib.loads(scenario_path(scenario_id).read_text(encoding="utf-8"))
+    start = spec["instances"]["controller"]["start"]
+    assert start["heading_mode"] == "backstepping"
+    defaults = AutopilotConfig.build()
+    gains = [float(start.get(k, getattr(defaults, k))) for k in ("k0", "k1", "k2", "k3", "k4")]
+    assert gains == list(dissertation(f"section_6_3_3.{printed}"))
+
+
 @pytest.mark.slow
 def test_every_builtin_scenario_runs_to_its_stop_time(results: dict[str, RunResult]) -> None:
     for scenario_id, result in results.items():
@@ -89,10 +130,11 @@ def test_lqr_1_converges(results: dict[str, RunResult]) -> None:
 
 @pytest.mark.slow
 def test_lqr_2_saturates_the_mass_and_comes_back(results: dict[str, RunResult]) -> None:
-    """The dissertation's text asks for |yaw| < 1 deg after 45 s; with the unsaturated command the
-    dissertation used (Sec. 6.3.1) we match an independent reproduction of this case
-    (continuous LQR gains, RK4 at 0.2 ms: 28-34 s, not the text's 20 s) and the fast mass
-    of Fig. 6.14 (rail speeds of tens of cm/s)."""
+    """The dissertation's text has the heading back to zero within 20 s (Sec. 6.3.1); with
+    the unsaturated command the dissertation used we match an independent reproduction of
+    this case instead (continuous LQR gains, RK4 at 0.2 ms: |yaw| < 1 deg for good after
+    28-34 s, so we ask it by 34 s) and the fast mass of Fig. 6.14 (rail speeds of tens of
+    cm/s); docs/reproduction.md lists the difference."""
     result = results["lqr-2"]
     stop = dissertation("scenarios.lqr_2_mass_stop") / 100  # cm -> m
     assert result.column("plant.mass_position").min() == pytest.approx(stop, abs=1e-6)

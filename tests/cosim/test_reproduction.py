@@ -9,6 +9,7 @@ Claims that need a continuation, a phase portrait or a closed-loop run are slow.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -267,6 +268,33 @@ def test_a_scenario_claim_without_runner_is_not_run() -> None:
     claim = next(c for c in CLAIMS if c.cost is Cost.SCENARIO)
     row = evaluate(claim, ctx)
     assert (row.verdict, row.note) == ("not run", "scenarios skipped")
+
+
+def test_example_5_3s_bank_angle_is_judged_against_the_printed_2_degrees(ctx: Context) -> None:
+    """'The absolute value of the steady-state roll angle is about 2 degrees': the row
+    compares our bank with the printed 2 deg (it used to show ours and judge only the
+    stability), so a bank outside 1-3 deg makes it differ."""
+    bank = DISSERTATION["example_5_3.bank_angle"]
+    (claim,) = [c for c in CLAIMS if c.reference == bank.key]
+    finding = claim.ours(ctx)
+    assert finding.against == (bank.text,) and len(finding.values) == 1
+    assert evaluate(claim, ctx).verdict == "agrees"
+    for off in (0.9, 3.1):  # deg: beyond one unit of the printed digit
+        wrong = dataclasses.replace(
+            claim, ours=lambda c, b=off: dataclasses.replace(finding, values=(b,))
+        )
+        assert evaluate(wrong, ctx).verdict == "differs"
+
+
+def test_the_low_speed_equilibria_are_compared_in_every_printed_entry(ctx: Context) -> None:
+    """Sec. 6.3.3 prints the T = 4 N equilibria as [u, v, r, p, phi], the turns with phi = 0:
+    the rows compare all five (they compared u, v, r only, hiding that ours banks by
+    0.77 deg there)."""
+    for key in ("straight_line", "turn_positive_v", "turn_negative_v"):
+        ref = DISSERTATION[f"low_speed.{key}"]
+        (claim,) = [c for c in CLAIMS if c.reference == ref.key]
+        assert claim.printed == tuple(ref.text)
+        assert len(claim.ours(ctx).values) == len(ref.text) == 5
 
 
 # --- the converged step and the model choices -------------------------------------------------

@@ -53,6 +53,11 @@ def _assert_mirrored_pair(equilibria, expected, names, rel=None, abs_=None):
     return axis
 
 
+def test_the_roll_torque_unit_is_the_printed_propeller_torque():
+    """Example 5.4: Q_prop = -5.43e-1 N m, the unit of every roll-torque sweep."""
+    assert dissertation("example_5_4.propeller_roll_torque") == Q_PROP
+
+
 def test_example_5_1_three_equilibria_two_stable(remus):
     """(5.1.50): x0 = [1.525, 0, 0] unstable, [1.282, +-0.1678, -+0.2291] stable."""
     equilibria = find_equilibria(OperatingConditions(remus, Variant.HORIZONTAL, thrust=9.0))
