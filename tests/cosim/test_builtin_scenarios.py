@@ -69,25 +69,13 @@ def window(result: RunResult, name: str, t0: float, t1: float) -> np.ndarray:
     return result.column(name)[(result.times >= t0 - 1e-9) & (result.times < t1 - 1e-9)]
 
 
-CUR_1_GAINS = (
-    "cur-1 runs with the gains for heading into the current (k0 = 0.3, k1 = 0.8); Sec. 6.3.3 "
-    "ran its psi_d = 0 case (Figs. 6.26-6.28) with 'the same control parameters ... as in "
-    "the previous ones' and changed them only for psi_d = -beta. Kept, since changing them "
-    "moves a built-in scenario's run (cur-1's settling time; not its east drift)"
-)
-
-
 @pytest.mark.parametrize(
     ("scenario_id", "printed"),
     [
         ("bs-1", "backstepping_gains"),
         ("bs-2", "backstepping_gains"),
         ("bs-3", "backstepping_gains"),
-        pytest.param(
-            "cur-1",
-            "backstepping_gains",
-            marks=pytest.mark.xfail(strict=True, reason=CUR_1_GAINS),
-        ),
+        ("cur-1", "backstepping_gains"),
         ("cur-2", "backstepping_gains_current"),
         ("slow-1", "backstepping_gains_current"),
         ("slow-2", "backstepping_gains_current"),
