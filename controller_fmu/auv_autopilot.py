@@ -262,9 +262,11 @@ class AuvAutopilot(SafeSlave):
         self._step_warned = snapshot["warned"]
         self._params.update(snapshot["tuned"])
         saved = snapshot.get("autopilot")
-        if saved is None:
+        self._tuned.clear()
+        if saved is None or not self.initialized:  # built again by _initialize
+            self._autopilot = None
             return
-        self._tuned.clear()  # those written but not yet applied when the state was saved:
+        # those written but not yet applied when the state was saved:
         self._tuned.update(n for n, v in snapshot["tuned"].items() if snapshot["applied"][n] != v)
         config = AutopilotConfig.build(**{**self._params, **snapshot["applied"]})
         if self._autopilot is None or self._autopilot.config != config:

@@ -187,7 +187,8 @@ class AuvGuidance(SafeSlave):
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
         saved = snapshot.get("guidance")
-        if saved is None:
+        if saved is None or not self.initialized:  # built again by _initialize
+            self._guidance = None
             return
         config = GuidanceConfig.build(**self._params)
         if self._guidance is None or self._guidance.config != config:

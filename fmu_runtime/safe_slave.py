@@ -329,7 +329,11 @@ class SafeSlave(Fmi2Slave):
         return {}
 
     def _restore_snapshot(self, snapshot: dict[str, Any]) -> None:
-        """Restore what ``_state_snapshot`` returned (receives a private copy)."""
+        """Restore what ``_state_snapshot`` returned (receives a private copy). Of a state
+        taken before initialisation (``self.initialized`` is False here) what ``_initialize``
+        builds need not be restored, and must not be kept from before: its parameters may
+        be unusable yet, and ``_initialize`` runs again at the next read in initialisation
+        mode or at ``exit_initialization_mode``."""
 
     # --- FMI callbacks -----------------------------------------------------------------------
 
@@ -603,6 +607,8 @@ class SafeSlave(Fmi2Slave):
             self._initialized = base["initialized"]
             self._failure = base["failure"]
             self._problems = dict(base["problems"])
+            if not self._initialized:  # what _initialize built is this instance's, not the
+                self._values.control[STALE] = 1  # state's: computed again when needed
             self._restore_snapshot(copy.deepcopy(state["internal"]))
         except Exception as exc:
             message = f"fmi2SetFMUstate failed: {_reason(exc)}"
@@ -776,8 +782,14 @@ class SafeSlave(Fmi2Slave):
                 f"currentCommunicationPoint = {current_time!r} s is not the FMU's current "
                 f"time {self._time!r} s (the start time or the end of the last step)"
             )
+        end = current_time + step_size
+        if not current_time < end < math.inf:  # the time would become inf, or not move
+            return (
+                f"communication step {step_size!r} s: the step would end at t + h = "
+                f"{end!r} s, not a finite time after t"
+            )
         stop = self._stop_time
-        if current_time + step_size > stop + _TIME_TOLERANCE * max(abs(stop), 1.0):
+        if end > stop + _TIME_TOLERANCE * max(abs(stop), 1.0):
             return (
                 f"the step of {step_size!r} s ends past the stop time {stop!r} s "
                 "given to setupExperiment (FMI 2.0: the FMU has to refuse it)"

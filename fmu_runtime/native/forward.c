@@ -10,7 +10,8 @@
  * Input derivatives: pythonfmu's binary answers fmi2SetRealInputDerivatives with "not
  * supported", while our slaves take them (canInterpolateInputs="true" in the same
  * modelDescription.xml for both backends). For a slave that takes them this backend
- * finds, right after pythonfmu's fmi2Instantiate, the slave it constructed
+ * finds, right after pythonfmu's fmi2Instantiate (and again after its fmi2Reset, which
+ * constructs another), the slave it constructed
  * (``fmu_runtime.safe_slave.claim_constructed``: the last SafeSlave constructed on this
  * thread, pythonfmu constructing it in the call) and hands each call, once loader.c has
  * checked it, to its ``set_real_input_derivatives`` with the GIL held; the slave's
@@ -279,7 +280,21 @@ static fmi2Status setup(Instance *c, fmi2Boolean has_tolerance, fmi2Real toleran
 static fmi2Status enter(Instance *c) { return wrapper.enterInitializationMode(c->slave); }
 static fmi2Status leave(Instance *c) { return wrapper.exitInitializationMode(c->slave); }
 static fmi2Status terminate(Instance *c) { return wrapper.terminate(c->slave); }
-static fmi2Status reset(Instance *c) { return wrapper.reset(c->slave); }
+/* pythonfmu's fmi2Reset constructs a new slave (on this thread): the input derivatives go
+ * to that one from now on, not to the one it replaced. */
+static fmi2Status reset(Instance *c)
+{
+    fmi2Status s = wrapper.reset(c->slave);
+    Forwarded *forwarded = FORWARDED(c);
+    if (s <= fmi2Warning && c->record.interpolates_inputs && python_alive()) {
+        PyObject *renewed = claim_slave(c);
+        int gil = py.GILState_Ensure();
+        if (forwarded->slave) py.DecRef(forwarded->slave);
+        py.GILState_Release(gil);
+        forwarded->slave = renewed;
+    }
+    return s;
+}
 
 static fmi2Status step(Instance *c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_state)
 {

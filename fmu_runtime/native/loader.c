@@ -12,17 +12,19 @@
  * that is not this build's; a NULL value-reference, value or byte array (n > 0); a call
  * out of the FMI 2.0 co-simulation sequence (instantiated -> initialisation mode ->
  * initialised -> terminated; the error state after a failed initialisation or a fatal
- * error); a doStep whose step is not a finite number > 0 or whose
+ * error); a doStep whose step is not a finite number > 0, whose end t + h is not a finite
+ * time after t (a step of 1e308 s from 1.7e308 s, or of 1e-3 s from 1e17 s), or whose
  * currentCommunicationPoint is not the FMU's current time (the start time, then the end
  * of the last step) within a relative 1e-9; a read of an unknown value reference or of
  * the wrong type; a write of a variable that cannot be written then (outputs, locals,
  * constants; a fixed parameter after initialisation, unless it is the value it has, or
  * the one a state set since gave it), of a non-finite Real, of a value outside the
  * declared min/max, or of a String that is not UTF-8; input derivatives the FMU does not
- * take; an FMU state another FMU took. With the default backend the values
- * themselves are read and written in C (values.c): a Real read back non-finite is refused
- * there. The variables' rules come from resources/fmu_variables.txt, the GUID and
- * the slave class from resources/fmu_runtime.txt; the build writes both.
+ * take; an FMU state another FMU took, or a pointer that is no FMU state alive in the
+ * process (freed already, the host's own memory, garbage: never read). With the default
+ * backend the values themselves are read and written in C (values.c): a Real read back
+ * non-finite is refused there. The variables' rules come from resources/fmu_variables.txt,
+ * the GUID and the slave class from resources/fmu_runtime.txt; the build writes both.
  *
  * Refusals made in Python (fmu_runtime/safe_slave.py logs each with status Error): the
  * backends pass every message the slave logs to the host's logger, with a category
@@ -415,11 +417,23 @@ static void reset_values(Instance *c)
     for (size_t i = 0; i < c->count; i++) c->vars[i].value = c->vars[i].start;
 }
 
-/* After a state is set: the fixed parameters' values are the state's, read back from the
- * backend (one call per type), so that a write of the value a parameter has is taken and
- * any other refused, as before. */
+/* After a state is set: the fixed parameters' values are the state's, so that a write of
+ * the value a parameter has is taken and any other refused, as before. With the value
+ * buffers they are read from their slots: a read through fmi2Get* in initialisation mode
+ * would first compute the outputs to start from (the slave's _initialize), and a state
+ * taken before they could be (a parameter still unusable) would make the state's setting,
+ * done by then, answer fmi2Error. pythonfmu's binary is asked (one call per type); its
+ * status is the read's own, not raised by what the slave logs meanwhile. */
 static fmi2Status remember_state_values(Instance *c)
 {
+    if (c->values.flags) {
+        for (size_t i = 0; i < c->count; i++) {
+            if (is_fixed_parameter(&c->vars[i]) && c->vars[i].type != 'S') {
+                c->vars[i].value = values_slot(c, (fmi2ValueReference)i);
+            }
+        }
+        return fmi2OK;
+    }
     fmi2ValueReference *vr = malloc(c->count * sizeof *vr);
     double *reals = malloc(c->count * sizeof *reals);
     int *ints = malloc(c->count * sizeof *ints);
@@ -702,6 +716,14 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real 
                       "FMU's current time %s s (the start time or the end of the last step)",
                       at, at, show(c->time, now));
     }
+    double end = t + h;
+    if (!(isfinite(end) && end > t)) { /* the time would become inf, or not move */
+        char ends[40];
+        return refuse(c,
+                      "doStep at t = %s s refused: communication step %s s: the step would end "
+                      "at t + h = %s s, not a finite time after t",
+                      at, show(h, shown), show(end, ends));
+    }
     if (c->discarded && t == c->discarded_at[0] && h == c->discarded_at[1] &&
         c->writes == c->discarded_writes) {
         return refuse(c,
@@ -844,6 +866,10 @@ FMI2_EXPORT fmi2Status fmi2SetBoolean(fmi2Component component, const fmi2ValueRe
     return set_ints(c, 'B', vr, n, values, "fmi2SetBoolean");
 }
 
+/* The host's Strings are copied before anything else reads them: a value may be a pointer
+ * fmi2GetString returned (valid until this call), which the call itself would free before
+ * reading it (the same variable written earlier in the call; pythonfmu's binary asked for
+ * a fixed parameter's value to compare it with). */
 FMI2_EXPORT fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueReference vr[],
                                      size_t n, const fmi2String values[])
 {
@@ -854,7 +880,20 @@ FMI2_EXPORT fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueRef
             return refuse(c, "fmi2SetString refused: value %zu is not UTF-8", i);
         }
     }
-    return set(c, 'S', vr, n, values, NULL, "fmi2SetString");
+    char **copies = values && n ? calloc(n, sizeof *copies) : NULL;
+    size_t made = 0;
+    for (; copies && made < n; made++) {
+        size_t size = strlen(values[made]) + 1;
+        if (!(copies[made] = malloc(size))) break;
+        memcpy(copies[made], values[made], size);
+    }
+    fmi2Status s = values && n && made < n
+                       ? refuse(c, "fmi2SetString refused: out of memory for %zu values", n)
+                       : set(c, 'S', vr, n, copies ? (const void *)copies : values, NULL,
+                             "fmi2SetString");
+    for (size_t i = 0; i < made; i++) free(copies[i]);
+    free(copies);
+    return s;
 }
 
 /* ---- FMU state: the backend's, with the runtime's phase and time -------------------- */
@@ -866,11 +905,16 @@ static uint32_t fmu_of(const Instance *c)
     return crc32_of(0, c->record.guid, strlen(c->record.guid));
 }
 
-/* ``state`` as a state this FMU took (by any of its instances), or NULL. */
+/* ``state`` as a state this FMU took (by any of its instances, through any copy of this
+ * library), or NULL. A host's pointer is looked up among the states alive
+ * (python_states) before it is read: one that is no state alive (freed already, another
+ * FMU's, the host's own memory, garbage) is refused without being touched, where reading
+ * it would read freed or foreign memory, or crash. */
 static Saved *saved_state(const Instance *c, fmi2FMUstate state)
 {
+    if (!state || !python_states(STATE_ALIVE, state)) return NULL;
     Saved *saved = (Saved *)state;
-    return saved && saved->magic == SAVED_MAGIC && saved->fmu == fmu_of(c) ? saved : NULL;
+    return saved->magic == SAVED_MAGIC && saved->fmu == fmu_of(c) ? saved : NULL;
 }
 
 FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
@@ -889,6 +933,11 @@ FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *st
         return s;
     }
     if (saved->inner) c->backend->discard(c, saved->inner);
+    if (!*state && !python_states(STATE_KEEP, saved)) {
+        c->backend->discard(c, inner);
+        free(saved);
+        return refuse(c, "fmi2GetFMUstate refused: out of memory");
+    }
     *saved = (Saved){SAVED_MAGIC, c->phase, c->time, inner, fmu_of(c)};
     *state = saved;
     return s;
@@ -904,7 +953,9 @@ FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate sta
     if (s <= fmi2Warning) {
         c->phase = saved->phase;
         c->time = saved->time;
-        s = answer(c, remember_state_values(c));
+        fmi2Status read = remember_state_values(c); /* the state is set: not undone */
+        if (read == fmi2Fatal) c->phase = FAILED;
+        if (read > s) s = read;
     }
     return s;
 }
@@ -914,7 +965,9 @@ FMI2_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *s
     INSTANCE(component);
     if (!state || !*state) return fmi2OK;
     Saved *saved = saved_state(c, *state);
-    if (!saved) return refuse(c, "fmi2FreeFMUstate refused: not an FMU state of this FMU");
+    if (!saved || !python_states(STATE_FORGET, saved)) {
+        return refuse(c, "fmi2FreeFMUstate refused: not an FMU state of this FMU");
+    }
     c->backend->discard(c, saved->inner);
     saved->magic = 0;
     free(saved);
@@ -995,6 +1048,11 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
         return s;
     }
     header.fmu = fmu_of(c); /* its bytes passed this FMU's checks: its layout, its slave */
+    if (!python_states(STATE_KEEP, saved)) {
+        c->backend->discard(c, header.inner);
+        free(saved);
+        return refuse(c, "fmi2DeSerializeFMUstate refused: out of memory");
+    }
     *saved = header;
     *state = saved;
     return s;

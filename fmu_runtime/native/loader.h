@@ -199,6 +199,9 @@ const char *show(double x, char *out);
  * finite is refused with a line naming the variable. */
 fmi2Status values_get(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
                       void *values);
+/* A known Real, Integer or Boolean's value as its slot holds it (a Boolean 0 or 1), as is:
+ * no check, no Python. */
+double values_slot(const Instance *c, fmi2ValueReference vr);
 fmi2Status values_set(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
                       const void *values);
 void values_derivatives(Instance *c, const fmi2ValueReference vr[], size_t n,

@@ -115,6 +115,13 @@ int python_resolve(void *library, const char **missing)
         SYMBOL(Module_New, "PyModule_New"),
         SYMBOL(Module_GetDict, "PyModule_GetDict"),
         SYMBOL(Import_ImportModule, "PyImport_ImportModule"),
+        SYMBOL(Import_AddModule, "PyImport_AddModule"),
+        SYMBOL(SetAttrString, "PyObject_SetAttrString"),
+        SYMBOL(Long_FromVoidPtr, "PyLong_FromVoidPtr"),
+        SYMBOL(Set_New, "PySet_New"),
+        SYMBOL(Set_Add, "PySet_Add"),
+        SYMBOL(Set_Contains, "PySet_Contains"),
+        SYMBOL(Set_Discard, "PySet_Discard"),
         SYMBOL(CompileString, "Py_CompileString"),
         SYMBOL(Eval_EvalCode, "PyEval_EvalCode"),
         SYMBOL(Err_Occurred, "PyErr_Occurred"),
@@ -181,6 +188,34 @@ PyObject *python_helper(const char *name)
         if (!helpers) return NULL;
     }
     return py.GetAttrString(helpers, name);
+}
+
+int python_states(int what, void *state)
+{
+    if (!python_alive()) return 0;
+    int gil = py.GILState_Ensure();
+    PyObject *module = py.Import_AddModule("auv_fmu_runtime_states"); /* borrowed */
+    PyObject *alive = module ? py.GetAttrString(module, "alive") : NULL;
+    if (module && !alive) { /* the first state in the process */
+        py.Err_Clear();
+        alive = py.Set_New(NULL);
+        if (alive && py.SetAttrString(module, "alive", alive) != 0) {
+            py.DecRef(alive);
+            alive = NULL;
+        }
+    }
+    PyObject *key = alive ? py.Long_FromVoidPtr(state) : NULL;
+    int done = 0;
+    if (key) {
+        done = what == STATE_KEEP     ? py.Set_Add(alive, key) == 0
+               : what == STATE_FORGET ? py.Set_Discard(alive, key) == 1
+                                      : py.Set_Contains(alive, key) == 1;
+    }
+    py.Err_Clear();
+    if (key) py.DecRef(key);
+    if (alive) py.DecRef(alive);
+    py.GILState_Release(gil);
+    return done;
 }
 
 void python_error(char *out, size_t size)

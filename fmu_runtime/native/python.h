@@ -80,6 +80,13 @@ typedef struct {
     PyObject *(*Module_New)(const char *);
     PyObject *(*Module_GetDict)(PyObject *);
     PyObject *(*Import_ImportModule)(const char *);
+    PyObject *(*Import_AddModule)(const char *); /* borrowed */
+    int (*SetAttrString)(PyObject *, const char *, PyObject *);
+    PyObject *(*Long_FromVoidPtr)(void *);
+    PyObject *(*Set_New)(PyObject *);
+    int (*Set_Add)(PyObject *, PyObject *);
+    int (*Set_Contains)(PyObject *, PyObject *);
+    int (*Set_Discard)(PyObject *, PyObject *);
     PyObject *(*CompileString)(const char *, const char *, int);
     PyObject *(*Eval_EvalCode)(PyObject *, PyObject *, PyObject *);
     /* errors */
@@ -110,6 +117,14 @@ void python_version(int *major, int *minor);
  * this library in the process; a new reference to the function ``name``, or NULL with the
  * Python error set. Call with the GIL held. */
 PyObject *python_helper(const char *name);
+
+/* The FMU states alive in the process, by address, in a set every copy of this library
+ * shares (in the interpreter: module auv_fmu_runtime_states, attribute ``alive``): each
+ * extraction of each FMU loads a copy of its own, and a state one took may be set, and
+ * freed, through another's instance. ``what``: STATE_KEEP, STATE_FORGET (1 if it was
+ * there), STATE_ALIVE (1 if it is). Takes the GIL; 0 when Python fails. */
+enum { STATE_KEEP, STATE_FORGET, STATE_ALIVE };
+int python_states(int what, void *state);
 
 /* The pending Python exception as "Type: message" in ``out`` (cleared). */
 void python_error(char *out, size_t size);

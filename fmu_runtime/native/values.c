@@ -61,6 +61,15 @@ fmi2Status values_get(Instance *c, char type, const fmi2ValueReference vr[], siz
     return fmi2OK;
 }
 
+double values_slot(const Instance *c, fmi2ValueReference vr)
+{
+    const Variable *var = &c->vars[vr];
+    const Values *v = &c->values;
+    return var->type == 'R'   ? v->reals[var->slot]
+           : var->type == 'I' ? (double)v->integers[var->slot]
+                              : (double)(v->booleans[var->slot] != 0);
+}
+
 fmi2Status values_set(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
                       const void *values)
 {

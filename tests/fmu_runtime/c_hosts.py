@@ -4,7 +4,9 @@ use them are in this folder's conftest.py):
 * :func:`run_clean`: a command in a clean environment (``env -i`` with PATH, HOME and what
   the test adds), in its own process group, ended whatever happens;
 * :func:`moved`: a copy of an extraction whose record names a build environment that does
-  not exist, as on a machine the FMU was copied to.
+  not exist, as on a machine the FMU was copied to;
+* :func:`with_runtime`: a copy of an extraction whose linux64 binary is another build of
+  the runtime (``SANITIZERS``: the flags of one built with ASan and UBSan).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from fmu_runtime.entry import RECORD_FILE
 
 HOST_SOURCE = Path(__file__).parent / "hosts" / "fmi_host.c"
 CLEAN_PATH = "/usr/bin:/bin"
+SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1", "-g")
 
 
 def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
@@ -62,4 +65,12 @@ def moved(extraction: Path, folder: Path) -> Path:
         "\n".join(f"build_python={gone}" if line.startswith("build_python=") else line
                   for line in lines) + "\n"
     )  # fmt: skip
+    return copy
+
+
+def with_runtime(extraction: Path, runtime: Path, folder: Path) -> Path:
+    """A copy of ``extraction`` in ``folder`` whose linux64 binary is ``runtime``."""
+    copy = folder / extraction.name
+    shutil.copytree(extraction, copy)
+    shutil.copyfile(runtime, copy / "binaries" / "linux64" / f"{copy.name.rstrip('0123456789')}.so")
     return copy

@@ -31,7 +31,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 import pytest
-from c_hosts import HOST_SOURCE, moved, run_clean
+from c_hosts import HOST_SOURCE, SANITIZERS, moved, run_clean, with_runtime
 from elf_symbols import glibc_versions, unresolvable
 from repo_paths import ROOT
 
@@ -457,14 +457,6 @@ def test_a_build_without_a_compiler_keeps_pythonfmus_binary_and_says_so(run_pyth
     assert "steps [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]" in ran.stdout
 
 
-def _with_runtime(extraction: Path, runtime: Path, folder: Path) -> Path:
-    """A copy of ``extraction`` whose linux64 binary is ``runtime``."""
-    copy = folder / extraction.name
-    shutil.copytree(extraction, copy)
-    shutil.copyfile(runtime, copy / "binaries" / "linux64" / f"{copy.name.rstrip('0123456789')}.so")
-    return copy
-
-
 @pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("ziglang") is None, reason="ziglang not installed")
 def test_a_runtime_built_by_zig_for_glibc_2_17_runs(host, extracted, tmp_path, clean_home):
@@ -474,12 +466,9 @@ def test_a_runtime_built_by_zig_for_glibc_2_17_runs(host, extracted, tmp_path, c
     done = subprocess.run(native.compile_command(zig, runtime), capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-3000:]
     assert glibc_versions(runtime)[-1] <= (2, 17) and unresolvable(runtime) == []
-    folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
+    folder = with_runtime(extracted["AuvPlant"], runtime, tmp_path)
     done = run_clean([host, folder, "AuvPlant", "cycles", 2, 50], clean_home)
     assert "cycles: 2 x 50 ok" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]
-
-
-SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1", "-g")
 
 
 @pytest.mark.slow
@@ -487,7 +476,9 @@ def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_
     """The runtime and the C host built with ASan and UBSan: cycles, the forbidden calls,
     the hostile arguments, an FMU state's round trip, values read and written from a
     second thread, instances stepped from several, serialised states changed, cut and
-    extended, and a file://localhost URI run to the end; any finding aborts with a report."""
+    extended, pointers that are no FMU state (a freed one among them), Strings written
+    back with the pointers fmi2GetString gave, and a file://localhost URI run to the end;
+    any finding aborts with a report."""
     chain = native.toolchain()
     if chain is None or chain.zig:
         pytest.skip("no cc")
@@ -498,12 +489,12 @@ def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_
     ):
         done = subprocess.run(command, capture_output=True, text=True)
         assert done.returncode == 0, done.stderr[-3000:]
-    folder = _with_runtime(extracted["AuvPlant"], runtime, tmp_path)
+    folder = with_runtime(extracted["AuvPlant"], runtime, tmp_path)
     environment = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
                    "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
     uri = f"file://localhost{quote(str(folder / 'resources'))}"
     modes = (["cycles", 2, 20], ["illegal"], ["hostile"], ["state"], ["gil"], ["threads"],
-             ["corrupt"], ["uri", uri])  # fmt: skip
+             ["corrupt"], ["strays"], ["strings-back"], ["uri", uri])  # fmt: skip
     for mode in modes:
         done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **environment)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]

@@ -531,3 +531,55 @@ def test_outputs_that_cannot_be_computed_yet_say_why_and_initialisation_fails():
     ramp.exit_initialization_mode()
     assert not ramp.initialized
     assert "initialisation failed: k = -1.0: expected >= 0" in _errors(ramp)
+
+
+def test_a_step_whose_end_is_not_a_finite_time_after_its_start_is_refused():
+    """From 1.7e308 s a step of 1e308 s would end at inf (and every later communication
+    point would pass the check against an infinite time); from 1e17 s a step of 1 ms ends
+    where it starts (a double cannot hold the difference). Both are refused, nothing
+    changed; a step the time can hold is taken."""
+    huge = _initialise(Counter(instance_name="toy"), start_time=1.7e308)
+    assert huge.do_step(1.7e308, 1e308) is False
+    assert huge.do_step(1.7e308, 1e300) is True  # ends at a finite time after it
+    late = _initialise(Counter(instance_name="toy"), start_time=1e17)
+    assert late.do_step(1e17, 1e-3) is False
+    assert (late.steps, late._time) == (0, 1e17)
+    assert late.do_step(1e17, 100.0) is True
+    errors = _errors(huge) + _errors(late)
+    assert "the step would end at t + h = inf s, not a finite time after t" in errors
+    assert "the step would end at t + h = 1e+17 s, not a finite time after t" in errors
+
+
+class Built(Counter):
+    """A Counter whose ``_initialize`` builds what its steps use from a parameter and is
+    not part of its snapshot (as the plant builds its model from its parameters)."""
+
+    def _initialize(self):
+        super()._initialize()
+        self.rate = 10.0 * self.k
+
+    def _step(self, current_time, step_size):
+        super()._step(current_time, step_size)
+        self.y += self.rate
+
+
+def test_a_state_taken_in_initialisation_mode_starts_from_its_own_parameters():
+    """A state taken in initialisation mode after a read (the outputs to start from
+    computed with k = 3), set on an instance that had computed them with k = 5: the steps
+    after exitInitializationMode use k = 3, as the instance that took it does, not what
+    the other built from its own k before."""
+    instances = []
+    for k in (3.0, 5.0):
+        built = Built(instance_name=f"k{k}")
+        built.setup_experiment(0.0, None, None)
+        built.enter_initialization_mode()
+        built.set_real([_vr(built, "k")], [k])
+        built.get_real([_vr(built, "y")])  # computes the outputs to start from
+        instances.append(built)
+    took, other = instances
+    other._set_fmu_state(took._get_fmu_state())
+    for built in instances:
+        built.exit_initialization_mode()
+        assert built.do_step(0.0, 0.1) is True
+    assert other.y == took.y == pytest.approx(3.0 * 0.1 + 30.0)  # k u h + 10 k
+    assert _errors(took) + _errors(other) == ""

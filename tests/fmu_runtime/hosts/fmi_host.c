@@ -31,6 +31,16 @@
  *                                   the first value that differs from the lone run
  *   fmi_host DIR ID corrupt         a serialised state changed at 64 places, cut and
  *                                   extended: prints "corrupt: A of N accepted"
+ *   fmi_host DIR ID strays          pointers that are no FMU state (one freed before, a
+ *                                   block of the host's own, a String literal, an odd
+ *                                   address) given to each FMU state function: prints
+ *                                   "<case> <status>", then whether a state still
+ *                                   round-trips
+ *   fmi_host DIR ID strings-back    a String read and written straight back (the
+ *                                   pointer fmi2GetString returned, valid until the next
+ *                                   call): after another value in the same call, then
+ *                                   once initialised (a fixed parameter given the value it
+ *                                   has); prints "<case> <status>" and "<case>-value TEXT"
  *   fmi_host DIR ID uri URI         instantiated with URI as its resource location,
  *                                   initialised, 30 doSteps: prints "uri:" and its Real
  *                                   outputs (%.17g)
@@ -542,6 +552,80 @@ static int corrupt(const Fmu *f)
     return 0;
 }
 
+/* Pointers that are no FMU state of this FMU, given to every function taking one: each
+ * must be refused without being read (a freed block, the host's memory, an address). */
+static int strays(const Fmu *f)
+{
+    static char small[3];
+    Component c = start(f, 1);
+    void *freed = NULL;
+    if (f->get_state(c, &freed) || f->free_state(c, &freed)) {
+        printf("could not take and free a state\n");
+        return 1;
+    }
+    f->get_state(c, &freed); /* its block may be reused: taken and freed again below */
+    void *again = freed;
+    f->free_state(c, &again);
+    void *pointers[] = {freed, small, (void *)"not a state", (void *)(size_t)16};
+    const char *names[] = {"freed", "host-block", "literal", "address"};
+    quiet = 1;
+    for (int i = 0; i < 4; i++) {
+        void *p = pointers[i], *q = pointers[i];
+        size_t size = 0;
+        char bytes[64];
+        printf("setFMUstate-%s %d\n", names[i], f->set_state(c, p));
+        printf("serializedFMUstateSize-%s %d\n", names[i], f->state_size(c, p, &size));
+        printf("serializeFMUstate-%s %d\n", names[i], f->serialize(c, p, bytes, sizeof bytes));
+        printf("getFMUstate-into-%s %d\n", names[i], f->get_state(c, &q));
+        q = p;
+        printf("freeFMUstate-%s %d\n", names[i], f->free_state(c, &q));
+    }
+    quiet = 0;
+    void *state = NULL;
+    int s = f->get_state(c, &state) || f->do_step(c, 0.0, 0.01, 0) || f->set_state(c, state) ||
+            f->free_state(c, &state);
+    printf("valid-state-after-refusals %d\n", s);
+    stop(f, c);
+    return 0;
+}
+
+/* The first String variable read, then written back with the pointer fmi2GetString gave:
+ * after another value of it in the same call (the last value written wins), and after
+ * initialisation alone (the value it has: taken). */
+static int strings_back(const Fmu *f)
+{
+    Vr vr[2];
+    if (variables(f, "S", "parameter", vr, 1) != 1) {
+        printf("no String parameter\n");
+        return 1;
+    }
+    vr[1] = vr[0];
+    Component c = start(f, 0);
+    const char *text = NULL, *after = NULL;
+    char was[256];
+    if (f->get_string(c, vr, 1, &text) || !text) {
+        printf("could not read the String\n");
+        return 1;
+    }
+    snprintf(was, sizeof was, "%s", text);
+    const char *values[2] = {"another value", text};
+    printf("setString-other-then-back %d\n", f->set_string(c, vr, 2, values));
+    f->get_string(c, vr, 1, &after);
+    printf("setString-other-then-back-value %s\n",
+           after && !strcmp(after, was) ? "same" : "changed");
+    if (f->setup(c, 0, 0.0, 0.0, 0, 0.0) || f->enter_init(c) || f->exit_init(c)) {
+        printf("initialisation failed\n");
+        return 1;
+    }
+    f->get_string(c, vr, 1, &text);
+    printf("setString-back-after-initialisation %d\n", f->set_string(c, vr, 1, &text));
+    f->get_string(c, vr, 1, &after);
+    printf("setString-back-after-initialisation-value %s\n",
+           after && !strcmp(after, was) ? "same" : "changed");
+    stop(f, c);
+    return 0;
+}
+
 /* Instantiated with ``uri`` as its fmuResourceLocation (not the host's own URI of DIR),
  * initialised and stepped 30 times: prints "uri:" and the Real outputs after the last step
  * (%.17g), or why it could not. */
@@ -659,6 +743,8 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "threads")) return threads(&f);
     if (!strcmp(mode, "uri") && argc == 5) return with_uri(&f, argv[4]);
     if (!strcmp(mode, "corrupt")) return corrupt(&f);
+    if (!strcmp(mode, "strays")) return strays(&f);
+    if (!strcmp(mode, "strings-back")) return strings_back(&f);
     fprintf(stderr, "unknown mode %s\n", mode);
     return 2;
 }
