@@ -335,6 +335,12 @@ def _checked_scenario(
             extrapolation=options.extrapolation,
             tolerance=options.tolerance,
         )
+    if options.check_step:
+        from cosim.engine.step_check import not_checkable
+
+        reason = not_checkable(scenario)
+        if reason is not None:
+            raise CosimError(f"{options.names.switch('check_step')}: {reason}")
     master.preflight(scenario)
     return scenario
 

@@ -32,6 +32,28 @@ from cosim.scenario.spec import Scenario
 FINAL_PREFIX = "final."  # the estimate of a final value is named "final.<column>"
 
 
+def not_checkable(scenario: Scenario) -> str | None:
+    """Why ``scenario`` cannot have its coupling error estimated, or None: an adaptive
+    run controls its error itself, and a noise or dropout fault draws anew at every
+    exchange. The command, the API and a study ask it before the first step, so a run is
+    refused at once rather than checked in vain after it."""
+    coupling = scenario.coupling
+    if coupling.algorithm == "adaptive":
+        return (
+            f"{scenario.id} runs the adaptive algorithm, which controls its error itself "
+            f"(tolerance {coupling.tolerance!r}); check a fixed step (algorithm jacobi or "
+            "gauss-seidel)"
+        )
+    drawn = [f for f in scenario.faults if f.kind in ("noise", "dropout")]
+    if drawn:
+        return (
+            f"fault {drawn[0].name!r} ({drawn[0].kind}) draws anew at every exchange, so runs "
+            "at h/2 and h/4 are other systems, not this one coupled more finely; check the "
+            "scenario without it"
+        )
+    return None
+
+
 def check_step(
     scenario: Scenario,
     figures: dict[str, float | None],
@@ -44,18 +66,9 @@ def check_step(
     Raises :class:`CosimError` for an adaptive scenario (it controls its error itself),
     or if a check run does not complete (its reason)."""
     coupling = scenario.coupling
-    if coupling.algorithm == "adaptive":
-        raise CosimError(
-            "--check-step: an adaptive run controls its error itself (tolerance "
-            f"{coupling.tolerance!r}); check a fixed step (algorithm jacobi or gauss-seidel)"
-        )
-    drawn = [f for f in scenario.faults if f.kind in ("noise", "dropout")]
-    if drawn:
-        raise CosimError(
-            f"--check-step: fault {drawn[0].name!r} ({drawn[0].kind}) draws anew at every "
-            "exchange, so runs at h/2 and h/4 are other systems, not this one coupled more "
-            "finely; check the scenario without it"
-        )
+    reason = not_checkable(scenario)
+    if reason is not None:
+        raise CosimError(f"--check-step: {reason}")
     values = [_named(figures, scenario.columns, final)]
     steps = [coupling.step / 2, coupling.step / 4]
     for step in steps:

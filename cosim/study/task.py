@@ -26,6 +26,7 @@ from typing import Any
 
 import tomli_w
 
+from cosim.engine.step_check import not_checkable
 from cosim.errors import CosimError
 from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.manoeuvres import summary_metrics
@@ -75,15 +76,14 @@ def prepare(
     the study checks its factors and metrics against; ``check_step`` adds the coupling
     error metrics; a factor's value naming a file (a vehicle set) is relative to
     ``folder``, the study file's (the working directory without one). Raises
-    ``CosimError`` (an adaptive scenario with ``check_step``)."""
+    ``CosimError`` (with ``check_step``, a scenario whose error cannot be
+    estimated: adaptive, or with a noise or dropout fault)."""
     scenario = load_scenario(scenario_ref, fmu_dir=fmu_dir)
     if stop_time is not None:
         scenario = scenario.with_overrides(stop_time=stop_time)
-    if check_step and scenario.coupling.algorithm == "adaptive":
-        raise StudyError(
-            f"check_step = true: {scenario.id} runs the adaptive algorithm, which controls "
-            "its error itself; check a fixed step (algorithm jacobi or gauss-seidel)"
-        )
+    reason = not_checkable(scenario) if check_step else None
+    if reason is not None:
+        raise StudyError(f"check_step = true: {reason}")
     driven = {c.target: c.source for c in scenario.connections}
     instances = {
         name: {

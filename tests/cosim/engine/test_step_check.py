@@ -59,6 +59,31 @@ def test_an_adaptive_run_is_not_checked(test_fmu_dir: Path) -> None:
         check_step(scenario, {}, master.run(scenario).final)
 
 
+@pytest.mark.parametrize(
+    ("text", "reason"),
+    [
+        (loop_toml(algorithm="adaptive"), "controls its error itself"),
+        (loop_toml() + '[[faults]]\nname = "drawn"\nkind = "noise"\nstd = 0.1\n'
+         'target = "plant.u"\n', r"fault 'drawn' \(noise\) draws anew"),
+    ],
+)  # fmt: skip
+def test_a_run_that_cannot_be_checked_is_refused_before_its_first_step(
+    test_fmu_dir: Path, tmp_path: Path, text: str, reason: str
+) -> None:
+    """docs/coupling.md says an adaptive run or a noise fault is refused by --check-step,
+    but the run went through to its stop time and only then said "coupling error not
+    estimated", exit code 0: now it is refused at once, naming the option, and leaves no
+    run folder."""
+    from cosim.api import run
+
+    scenario = scenario_from_toml(text, base_dir=test_fmu_dir)
+    with pytest.raises(CosimError, match=rf"^--check-step: .*{reason}"):
+        run_scenario(scenario, tmp_path / "run", no_rrd=True, check_step=True)
+    assert not (tmp_path / "run").exists()
+    with pytest.raises(CosimError, match=rf"^check_step=True: .*{reason}"):
+        run(scenario, check_step=True)
+
+
 def test_the_run_reports_the_estimate_in_its_summary_and_last_line(
     test_fmu_dir: Path, tmp_path: Path
 ) -> None:

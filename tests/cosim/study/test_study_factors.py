@@ -171,3 +171,17 @@ def test_check_step_on_an_adaptive_scenario_is_refused_in_one_line(
     source.write_text(text.replace('algorithm = "gauss-seidel"', 'algorithm = "adaptive"'))
     with pytest.raises(StudyError, match=r"^check_step = true: .* adaptive .*\Z"):
         prepare(source, 1.0, fmu_paths["AuvPlant"].parent, check_step=True)
+
+
+def test_check_step_with_a_noise_fault_is_refused_in_one_line(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """A noise fault makes the runs at h/2 and h/4 other systems: a study with
+    ``check_step = true`` ran every run, each checked in vain, and its coupling_error
+    columns were empty without a word. Now the study is refused before its first run."""
+    source = tmp_path / "noisy.toml"
+    text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    fault = '\n[[faults]]\nname = "sensor"\nkind = "noise"\ntarget = "controller.yaw"\nstd = 0.01\n'
+    source.write_text(text + fault)
+    with pytest.raises(StudyError, match=r"^check_step = true: fault 'sensor' \(noise\) draws"):
+        prepare(source, 1.0, fmu_paths["AuvPlant"].parent, check_step=True)
