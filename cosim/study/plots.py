@@ -9,12 +9,14 @@ backend is left alone), from the sorted table rows.
 * ``scatter_matrix.png`` (Monte Carlo): the random factors and the first metrics against
   each other (histograms on the diagonal), at most :data:`SCATTER_MAX` variables.
 
-Each line of a grid figure has its own marker and dash, and lines that coincide (the
-same value at every point: +-v0 of a symmetric vehicle) are named in a note on the panel,
-so none hides another; a line is not drawn across a gap in the grid (a missing point,
-or a step over 1.5 times the grid's smallest one) nor between the values of a factor
-that is not a number. Titles are readable (:func:`cosim.study.units.title`) and angles
-are drawn in degrees (:func:`cosim.study.units.shown`).
+Each line of a grid figure has its own marker and dash and is labelled with the other
+factors' values in the units the axes use (angles in degrees), and lines that coincide
+(the same value at every point: +-v0 of a symmetric vehicle) are named in a note wrapped
+to the panel's width, so none hides another; a line is not drawn across a gap in the
+grid (a missing point, or a step over 1.5 times the grid's smallest one) nor between the
+values of a factor that is not a number. Titles are readable
+(:func:`cosim.study.units.title`) and angles are drawn in degrees
+(:func:`cosim.study.units.shown`).
 
 Only metrics with at least two distinct finite values are drawn (a constant or missing
 metric is a line on the index page instead), the one that varies most first (its range
@@ -29,13 +31,14 @@ from __future__ import annotations
 
 import itertools
 import math
+import textwrap
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cosim.study.units import shown, title
+from cosim.study.units import DIMENSIONLESS, shown, title
 
 if TYPE_CHECKING:  # matplotlib is imported where a figure is drawn (~0.35 s, at the end)
     from matplotlib.figure import Figure
@@ -50,6 +53,8 @@ DPI = 100
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")  # one per line of a grid figure
 DASHES = ("-", "--", ":", "-.")
 GAP_FACTOR = 1.5  # a grid step over this many times the smallest one is a gap: no line
+NOTE_FONT_PT = 6  # the note naming lines that coincide
+NOTE_CHAR_EM = 0.6  # a character's mean width in DejaVu Sans, in em (wide, to fit)
 Row = Mapping[str, Any]
 
 
@@ -81,6 +86,17 @@ def variation(values: np.ndarray) -> float:
 def axis_label(name: str, units: Mapping[str, str]) -> str:
     """An axis label: the quantity's title and the unit it is drawn in, "title [unit]"."""
     return f"{title(name)} [{shown(name, units)[1]}]"
+
+
+def value_label(name: str, value: Any, units: Mapping[str, str]) -> str:
+    """A factor's value as a legend shows it: its title, and the value in the unit its
+    axis is drawn in, with that unit ("plant.v_0 = -0.1 m/s", a yaw set-point in deg like
+    the axes beside it); a value that is no number as it is, a dimensionless one bare."""
+    if not _is_number(value):
+        return f"{title(name)} = {value}"
+    scale, unit = shown(name, units)
+    suffix = "" if unit == DIMENSIONLESS else f" {unit}"
+    return f"{title(name)} = {value * scale:.6g}{suffix}"
 
 
 def write_figures(
@@ -136,7 +152,7 @@ def plot_grid_factor(
     lines: dict[str, list[tuple[str, np.ndarray]]] = {metric: [] for metric in metrics}
     for k, combo in enumerate(itertools.product(*(grid[name] for name in others))):
         fixed = dict(zip(others, combo, strict=True))
-        label = ", ".join(f"{name} = {value}" for name, value in fixed.items())
+        label = ", ".join(value_label(name, value, units) for name, value in fixed.items())
         points = [
             by_point.get(tuple({**fixed, factor: value}[name] for name in grid), [])
             for value in x_values
@@ -173,9 +189,17 @@ def _label_panel(
     ax.set_ylabel(f"[{shown(metric, units)[1]}]", fontsize=8)
     same = coinciding(lines)
     if same:
-        note = "; ".join(" = ".join(group) for group in same)
-        ax.text(0.02, 0.97, f"same values: {note}", transform=ax.transAxes, fontsize=6,
-                va="top", wrap=True)  # fmt: skip
+        note = "; ".join(" and ".join(group) for group in same)
+        ax.text(0.02, 0.97, _wrapped(f"same values: {note}", ax, NOTE_FONT_PT),
+                transform=ax.transAxes, fontsize=NOTE_FONT_PT, va="top")  # fmt: skip
+
+
+def _wrapped(text: str, ax: Any, font_pt: float) -> str:
+    """``text`` broken into lines that fit the width of panel ``ax`` (matplotlib's own
+    ``wrap=True`` wraps at the figure's edge: a note ran on across the next panels)."""
+    width_in = ax.get_position().width * ax.figure.get_figwidth()
+    chars = max(20, int(width_in * 72 / (NOTE_CHAR_EM * font_pt)))
+    return textwrap.fill(text, width=chars, break_on_hyphens=False)
 
 
 def coinciding(lines: Sequence[tuple[str, np.ndarray]]) -> list[list[str]]:

@@ -117,9 +117,61 @@ def test_coinciding_lines_are_drawn_distinguishable_and_named(
         styles = {(line.get_marker(), line.get_linestyle(), line.get_markersize())
                   for line in ax.get_lines()}  # fmt: skip
         assert len(styles) == len(ax.get_lines()) == 2, styles
-        notes = " ".join(text.get_text() for text in ax.texts)
-        assert "plant.v_0 = -0.1 = plant.v_0 = 0.1" in notes, notes
+        notes = " ".join(text.get_text().replace("\n", " ") for text in ax.texts)
+        assert "plant.v_0 = -0.1 and plant.v_0 = 0.1" in notes, notes
     plt.close(kept[0])
+
+
+def test_legend_values_carry_the_unit_the_axes_are_drawn_in(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The legend read "events.turn.set.controller.yaw_setpoint = 0.25" (radians, no unit)
+    beside axes in degrees, and "plant.v_0 = -0.1" without its m/s."""
+    kept = _drawn(monkeypatch)
+    setpoint = "events.turn.set.controller.yaw_setpoint"
+    grid = {"events.turn.time": [10.0, 20.0], setpoint: [0.25, 0.5], "controller.k0": [0.2, 0.5]}
+    rows = [{"events.turn.time": t, setpoint: s, "controller.k0": k, "final.plant.yaw": 2 * s + k,
+             "status": "complete"} for t in grid["events.turn.time"] for s in grid[setpoint]
+            for k in grid["controller.k0"]]  # fmt: skip
+    quantities = {**ANGLES, "events.turn.time": "s", "controller.k0": "1"}
+    plots.plot_grid_factor(rows, grid, "events.turn.time", ["final.plant.yaw"],
+                           tmp_path / "g.png", quantities)  # fmt: skip
+    labels = [text.get_text() for text in _panels_of(kept[0])[0].get_legend().get_texts()]
+    assert (
+        labels[0] == "controller.yaw_setpoint set by event turn = 14.3239 deg, controller.k0 = 0.2"
+    )
+    plots.plot_grid_factor(_symmetric_rows(), SYMMETRIC, "controller.k0", ["yaw_settling_time_s"],
+                           tmp_path / "g.png", {"plant.v_0": "m/s"})  # fmt: skip
+    labels = [text.get_text() for text in _panels_of(kept[1])[0].get_legend().get_texts()]
+    assert labels == ["plant.v_0 = -0.1 m/s", "plant.v_0 = 0.1 m/s"]
+    for figure in kept:
+        plt.close(figure)
+
+
+def test_the_note_on_coinciding_lines_stays_within_its_panel(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The note ran on in one line across the neighbouring panels (matplotlib's wrap=True
+    wraps at the figure's edge), over their titles and lines."""
+    kept = _drawn(monkeypatch)
+    values = [-0.1, -0.05, 0.05, 0.1]
+    grid = {"plant.v_0": values, "controller.k0": [0.2, 0.5]}
+    rows = [{"plant.v_0": v, "controller.k0": k, "yaw_settling_time_s": 2.0 + abs(v) + k,
+             "peak_abs_tunnel_force_N": 5.0 + abs(v) * k, "peak_abs_mass_position_m": abs(v) + k,
+             "status": "complete"} for v in values for k in grid["controller.k0"]]  # fmt: skip
+    metrics = ["yaw_settling_time_s", "peak_abs_tunnel_force_N", "peak_abs_mass_position_m"]
+    plots.plot_grid_factor(rows, grid, "controller.k0", metrics, tmp_path / "g.png",
+                           {"plant.v_0": "m/s"})  # fmt: skip
+    figure = kept[0]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(figure).get_renderer()
+    for ax in _panels_of(figure):
+        (note,) = ax.texts
+        assert "same values" in note.get_text()
+        box, panel = note.get_window_extent(renderer), ax.get_window_extent(renderer)
+        assert panel.x0 <= box.x0 and box.x1 <= panel.x1, (note.get_text(), box, panel)
+    plt.close(figure)
 
 
 @pytest.mark.parametrize(
