@@ -498,14 +498,29 @@ def _add_reproduce_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_reproduce)
 
 
+VARIANTS = {"full": 0, "lateral": 1, "horizontal": 2}  # the plant's variant codes
+
+
+def _variant(text: str) -> int:
+    """``--variant``: a name, as a scenario file gives it, or its code (the help's
+    default says "lateral", which the flag refused when it took codes only)."""
+    code = VARIANTS.get(text.strip().lower())
+    if code is None and text.strip() in {str(c) for c in VARIANTS.values()}:
+        code = int(text)
+    if code is None:
+        names = ", ".join(f"{name} ({c})" for name, c in VARIANTS.items())
+        raise argparse.ArgumentTypeError(f"{text!r}: expected one of {names}")
+    return code
+
+
 def _add_model_options(a: argparse.ArgumentParser) -> None:
     a.add_argument("--vehicle", default="remus100", help="parameter set name or file")
     a.add_argument(
         "--variant",
-        type=int,
-        choices=[0, 1, 2],
-        help="0 full, 1 lateral, 2 horizontal [lateral for roll_torque/mass_position sweeps, "
-        "else horizontal]",
+        type=_variant,
+        metavar="VARIANT",
+        help="full (0), lateral (1) or horizontal (2), as a scenario's plant.variant "
+        "[lateral for roll_torque/mass_position sweeps, else horizontal]",
     )
     a.add_argument("--thrust", type=float, default=9.0, help="N [%(default)s]")
     a.add_argument("--roll-torque", type=float, default=0.0, help="N.m [%(default)s]")

@@ -143,6 +143,24 @@ def test_negative_numbers_in_exponent_form_are_numbers_not_options(argv, expecte
 
 
 @pytest.mark.parametrize(
+    ("given", "code"),
+    [("full", 0), ("lateral", 1), ("Horizontal", 2), ("0", 0), ("1", 1), ("2", 2)],
+)
+def test_the_variant_is_taken_by_name_as_in_a_scenario_file(given: str, code: int) -> None:
+    """The help's default reads "lateral" and a scenario file writes variant = "lateral",
+    but --variant lateral failed with "invalid int value: 'lateral'"."""
+    args = build_parser().parse_args(["analyze", "equilibria", "--variant", given])
+    assert args.variant == code
+
+
+def test_an_unknown_variant_names_the_value_and_the_choices(capsys) -> None:
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["analyze", "equilibria", "--variant", "6dof"])
+    err = capsys.readouterr().err
+    assert "'6dof': expected one of full (0), lateral (1), horizontal (2)" in err
+
+
+@pytest.mark.parametrize(
     ("analysis", "what"),
     [(["sweep", "eta", "1", "2"], "the sweep outputs"), (["phase-portrait"], "the phase portrait")],
 )
