@@ -26,6 +26,8 @@ from fmu_runtime.log_text import shortened
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
 
+FMU_DIR_HELP = "the built-in FMUs' folder, built there when missing or out of date [%(default)s]"
+
 
 def _build(args: argparse.Namespace) -> int:
     from cosim.fmus.build import build_fmus
@@ -347,7 +349,7 @@ def build_parser() -> argparse.ArgumentParser:
     recording.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
     recording.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
     p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
-    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_live_options(p)
     p.set_defaults(func=_run)
@@ -358,8 +360,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", help="scenario id or .toml path")
     p.add_argument("--ssp", type=Path, help="write an SSP 1.0 archive to this file")
     p.add_argument("--osp", type=Path, help="write OspSystemStructure.xml + FMUs to this folder")
-    p.add_argument("--force", action="store_true", help="replace an --ssp file no export wrote")
-    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an --ssp file no export wrote, or one changed since",
+    )
+    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.set_defaults(func=_export)
 
     _add_view_parser(sub)
@@ -449,7 +455,7 @@ def _add_view_parser(sub: argparse._SubParsersAction) -> None:
 def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     """``auv-cosim sweep``: a study on a local or remote Dask cluster."""
     p = sub.add_parser("sweep", help="a parameter sweep or Monte Carlo study on Dask")
-    p.add_argument("study", type=Path, help="study .toml file (see README, Studies)")
+    p.add_argument("study", type=Path, help="study .toml file (docs/studies.md)")
     p.add_argument("--workers", type=int, help="local worker processes [one per core]")
     p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
     p.add_argument("--out", type=Path, help="study folder [studies/<study file name>]")
@@ -465,7 +471,7 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="start every --workers process even beyond the cores [capped at the cores]",
     )
-    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help="[%(default)s]")
+    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.add_argument(
         "--dashboard",
         action="store_true",

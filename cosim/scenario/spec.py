@@ -516,6 +516,8 @@ def scenario_path(id_or_path: str | Path) -> Path:
     if _looks_like_a_path(str(id_or_path)) or os.path.lexists(path):
         exists = os.path.lexists(path)
         guess = "" if exists else did_you_mean_path(path)
+        if not (exists or guess) and _is_builtin_file_name(path):
+            guess = f" (the built-in scenario is the id {path.stem!r}, without .toml)"
         raise ScenarioError(
             f"{'not a file' if exists else 'no such file'}: {id_or_path}{guess} (looked for "
             f"{path.absolute()}); expected a scenario .toml file"
@@ -526,6 +528,11 @@ def scenario_path(id_or_path: str | Path) -> Path:
         f" expected a built-in id ({', '.join(builtin_scenarios())}) or the path of a scenario "
         ".toml file"
     )
+
+
+def _is_builtin_file_name(path: Path) -> bool:
+    """``bs-3.toml`` alone: a built-in id given as a file name (no such file here)."""
+    return path.parent == Path(".") and path.suffix == ".toml" and path.stem in builtin_scenarios()
 
 
 def _looks_like_a_path(text: str) -> bool:

@@ -36,6 +36,7 @@ point).
 from __future__ import annotations
 
 import math
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -56,7 +57,7 @@ from pydantic import (
     model_validator,
 )
 
-from cosim.errors import CosimError, did_you_mean
+from cosim.errors import CosimError, did_you_mean, did_you_mean_path
 from cosim.scenario.checks import field_names
 
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
@@ -242,6 +243,11 @@ def load_study(path: Path, label: str | None = None) -> StudySpec:
     """Read and validate a study file; :class:`StudyError` names the key and ``label``
     (default: the file, :func:`study_label`)."""
     label = study_label(path) if label is None else label
+    if not os.path.lexists(path):
+        raise StudyError(
+            f"{label}: no such file{did_you_mean_path(Path(path))} (looked for "
+            f"{Path(path).absolute()}); expected a study .toml file (docs/studies.md)"
+        )
     try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
         data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except tomllib.TOMLDecodeError as exc:

@@ -126,7 +126,7 @@ def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browse
         CosimError: a port is taken or the server did not start (its last log line).
     """
     executable = _binary(executable)
-    web_port, file_port = (_free_port(port) for port in (web_port, file_port))
+    web_port, file_port = _free_port(web_port, "--web-port"), _free_port(file_port, "--file-port")
     if web_port == file_port:
         raise CosimError(f"--web-port and --file-port are both {web_port}: give two ports")
     with (
@@ -266,17 +266,18 @@ def _binary(executable: str) -> str:
     return str(binary) if binary.is_file() else executable
 
 
-def _free_port(port: int) -> int:
-    """``port`` if nothing listens on it on :data:`HOST`, a free one for 0."""
+def _free_port(port: int, flag: str) -> int:
+    """``port`` if nothing listens on it on :data:`HOST`, a free one for 0; a refusal
+    names the ``flag`` that gave it (the default's, when none was given)."""
     if not 0 <= port <= 65535:
-        raise CosimError(f"port {port}: expected 0 (any free port) to 65535")
+        raise CosimError(f"{flag} {port}: expected a port from 0 (any free port) to 65535")
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         try:
             probe.bind((HOST, port))
         except OSError as exc:
             raise CosimError(
-                f"port {port} on {HOST} is taken ({exc.strerror}): another viewer is "
-                "running; stop it or give --web-port/--file-port (0 picks a free port)"
+                f"{flag} {port}: port {port} on {HOST} is taken ({exc.strerror}): another "
+                f"viewer is running; stop it or give another {flag} (0 picks a free port)"
             ) from None
         return probe.getsockname()[1]
 

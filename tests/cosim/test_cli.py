@@ -1,6 +1,7 @@
 """The command line's own options, apart from any command."""
 
 import importlib.metadata
+import re
 from pathlib import Path
 
 import pytest
@@ -138,3 +139,48 @@ def test_a_warning_is_one_line_naming_the_command(tmp_path: Path) -> None:
     )
     assert done.returncode == 0, done.stderr
     assert done.stderr == "auv-cosim: warning: Rerun viewer: the stream ended\n"
+
+
+def test_every_help_pointer_names_a_page_that_exists(capsys: pytest.CaptureFixture[str]) -> None:
+    """``sweep --help`` sent the reader to "README, Studies", a section the README does not
+    have; every ``docs/<page>.md`` a help text names is a page of the repository, and
+    every --fmu-dir says what the folder is, not only its default."""
+    from cosim.cli import build_parser
+
+    parser = build_parser()
+    commands = ["run", "sweep", "export", "view", "report", "build", "validate", "reproduce"]
+    pages = set()
+    for command in commands:
+        with pytest.raises(SystemExit):
+            parser.parse_args([command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert "README" not in text, (command, text)
+        pages |= set(re.findall(r"docs/[\w-]+\.md", text))
+        if "--fmu-dir FMU_DIR [build/fmus]" in text:
+            pytest.fail(f"{command} --help: --fmu-dir says only its default")
+    root = Path(__file__).parents[2]
+    assert "docs/studies.md" in pages
+    assert all((root / page).is_file() for page in pages), pages
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["run", "bs-3.toml"], "no such file: bs-3.toml (the built-in scenario is the id 'bs-3'"),
+        (["sweep", "studdy.toml"], "study file studdy.toml: no such file (did you mean "),
+    ],
+)
+def test_a_missing_file_is_named_with_what_was_probably_meant(
+    argv: list[str],
+    expected: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``run bs-3.toml`` (the built-in id typed as a file name) gave no hint, and a
+    mistyped study file "cannot read it: [Errno 2] No such file or directory"."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "study.toml").write_text('scenario = "bs-3"\n[grid]\n"plant.v_0" = [0.1]\n')
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and expected in err and "Errno" not in err, err

@@ -62,9 +62,12 @@ def test_a_taken_port_is_refused_in_one_line(tmp_path: Path, capsys) -> None:
         port = taken.getsockname()[1]
         assert main(["view", str(tmp_path), "--web", "--web-port", str(port)]) == 1
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and f"port {port} on 127.0.0.1 is taken" in err
+    assert err.count("\n") == 1 and f"--web-port {port}: port {port} on 127.0.0.1 is taken" in err
     assert main(["view", str(tmp_path), "--web", "--web-port", "0", "--grpc-port", "70000"]) == 1
-    assert "port 70000: expected 0 (any free port) to 65535" in capsys.readouterr().err
+    # the flag that gave the port is named: "port 70000" did not say which of the two
+    assert "--file-port 70000: expected a port from 0 (any free port) to 65535" in (
+        capsys.readouterr().err
+    )
 
 
 @pytest.fixture(scope="module")
