@@ -102,8 +102,10 @@ def test_a_study_file_is_data_never_code(tmp_path: Path) -> None:
 
 
 def test_unreadable_and_invalid_files_are_named(tmp_path: Path) -> None:
-    with pytest.raises(StudyError, match="cannot read it"):
+    with pytest.raises(StudyError, match=r"missing\.toml: no such file \(looked for "):
         load_study(tmp_path / "missing.toml")
+    with pytest.raises(StudyError, match="cannot read it"):
+        load_study(tmp_path)  # a folder
     bad = tmp_path / "bad.toml"
     bad.write_text("scenario = \n", encoding="utf-8")
     with pytest.raises(StudyError, match=r"bad\.toml: not valid TOML"):
