@@ -81,7 +81,9 @@ class RunOptions:
     the scenario's ``[coupling]``; ``check_step`` also runs it at h / 2 and h / 4 and puts
     the estimated coupling error into the summary (:mod:`cosim.engine.step_check`).
     ``names``: how a refusal names the options (the command line's flags, or the API's
-    keywords: :class:`cosim.errors.OptionNames`).
+    keywords: :class:`cosim.errors.OptionNames`). ``unit_doubts`` warns of an angle of
+    more than a full turn given in rad (:mod:`cosim.scenario.unit_doubts`; a study's task
+    goes without: the study warns once).
     """
 
     out_dir: Path | None = None
@@ -103,6 +105,7 @@ class RunOptions:
     control: str | None = None
     interactive: bool = False
     names: OptionNames = FLAGS
+    unit_doubts: bool = True
 
 
 class NotStartedError(CosimError):
@@ -342,6 +345,11 @@ def _checked_scenario(
         if reason is not None:
             raise CosimError(f"{options.names.switch('check_step')}: {reason}")
     master.preflight(scenario)
+    if options.unit_doubts:
+        from cosim.scenario.unit_doubts import UnitWarning, angle_doubts
+
+        for line in angle_doubts(scenario):
+            warnings.warn(line, UnitWarning, stacklevel=2)
     return scenario
 
 

@@ -19,6 +19,7 @@ serves ``--resume`` of a study whose runs were never kept.
 from __future__ import annotations
 
 import hashlib
+import math
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -26,10 +27,12 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+from warnings import warn
 
 from cosim.errors import CosimError, did_you_mean
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.scenario.checks import range_text
+from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD, UnitWarning
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
@@ -428,13 +431,33 @@ def _checked_plan(
     """The study's runs, every value through the scenario's own checks before any runs:
     each grid value, every sample's range, the first sample's type (it stands for all:
     every one is a float)."""
-    _check_grid_values(base, factors, spec)
+    doubts = _check_grid_values(base, factors, spec)
     runs = plan(spec, {name: factor.normalize for name, factor in factors.items()})
     _check_sample_ranges(spec, factors, facts, runs)
     if spec.random.factors:
         first = runs[0].values
-        check_values(base, factors, {name: first[name] for name in spec.random.factors})
+        doubts += check_values(base, factors, {name: first[name] for name in spec.random.factors})
+        doubts += _sample_doubts(spec, base, runs)
+    for line in dict.fromkeys(doubts):  # once each, in the main process (runs go without)
+        warn(line, UnitWarning, stacklevel=3)
     return runs
+
+
+def _sample_doubts(spec: StudySpec, base: Base, runs: Sequence[PlannedRun]) -> list[str]:
+    """A line for each random factor in rad with samples of more than a full turn (a
+    distribution written in degrees), as a run warns of a start value."""
+    unit_of = units(spec.random.factors, base.fmu_paths)
+    found = []
+    for name in spec.random.factors:
+        values = [abs(float(run.values[name])) for run in runs]
+        beyond = [v for v in values if v > FULL_TURN_RAD]
+        if unit_of[name] == ANGLE_UNIT and beyond:
+            found.append(
+                f"factor {name!r}: {len(beyond)} of its {len(values)} samples are more than a "
+                f"full turn (up to {max(beyond):g} rad, {math.degrees(max(beyond)):.0f} deg): "
+                "angles are in radians"
+            )
+    return found
 
 
 def _check_sample_ranges(
@@ -458,11 +481,15 @@ def _check_sample_ranges(
             )
 
 
-def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: StudySpec) -> None:
-    """Every grid value through the scenario's own checks (type, finite)."""
+def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: StudySpec) -> list[str]:
+    """Every grid value through the scenario's own checks (type, finite); what looks like
+    a slip of units in the scenario with each."""
+    doubts = []
     for name, values in spec.grid.items():
         for value in values:
-            check_values(base, {name: factors[name]}, {name: factors[name].normalize(value)})
+            normal = factors[name].normalize(value)
+            doubts += check_values(base, {name: factors[name]}, {name: normal})
+    return doubts
 
 
 # Settings a study's rows do not depend on; check_step, left out while false, keeps the

@@ -33,6 +33,7 @@ from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
 from cosim.runner import run_scenario
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
+from cosim.scenario.unit_doubts import angle_doubts
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
 
@@ -128,13 +129,15 @@ def referenced_files(scenario: Scenario) -> dict[str, str]:
 
 def check_values(
     base: Base, factors: Mapping[str, FactorKind], values: Mapping[str, Value]
-) -> None:
+) -> list[str]:
     """Resolve the scenario with these values (no run): :class:`StudyError` if the
-    scenario's own checks refuse one (a wrong type, a non-finite number)."""
+    scenario's own checks refuse one (a wrong type, a non-finite number). Returns what
+    looks like a slip of units in it (:func:`cosim.scenario.unit_doubts.angle_doubts`)."""
     try:
-        _scenario(base, base.fmu_paths, factors, values)
+        scenario = _scenario(base, base.fmu_paths, factors, values)
     except CosimError as exc:
         raise StudyError(f"factor values {dict(values)}: {exc}") from None
+    return angle_doubts(scenario)
 
 
 def run_one(
@@ -159,7 +162,12 @@ def run_one(
         scenario = _scenario(base, fmu_paths, factors, values)
         with tempfile.TemporaryDirectory(prefix="auv-cosim-run-") as tmp:
             outcome = run_scenario(
-                scenario, Path(tmp), no_rrd=True, tail_guard=False, check_step=check_step
+                scenario,
+                Path(tmp),
+                no_rrd=True,
+                tail_guard=False,
+                check_step=check_step,
+                unit_doubts=False,
             )
             result = outcome.result
             error = None if result.complete else result.error or "the run stopped early"

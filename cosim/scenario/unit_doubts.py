@@ -1,0 +1,66 @@
+"""Values a scenario may take that look like a slip of units: an angle in degrees where
+the FMU declares radians (``yaw_0 = 30``, ``when = "plant.yaw > 20"``).
+
+Such a value is valid (the plant counts whole turns, a heading of 30 rad is a heading),
+so it is not refused; a run that takes it says so in one warning line each, naming the
+key, the value, and what it would be in radians. An angle of more than a full turn in a
+variable declared in rad is the sign: degrees typed by habit are mostly beyond 2 pi
+(10 to 90 deg), radians meant as such hardly ever are.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from cosim.scenario.spec import Scenario
+
+FULL_TURN_RAD = 2.0 * math.pi
+ANGLE_UNIT = "rad"
+
+
+class UnitWarning(UserWarning):
+    """A value that is valid but looks like another unit than the variable's."""
+
+
+def angle_doubts(scenario: Scenario) -> list[str]:
+    """One line for each value of ``scenario`` given to (or compared with) a variable
+    in rad that is more than a full turn: start values, events' ``set`` values and
+    ``when`` thresholds, bias and noise faults' ``value`` and ``std``."""
+    found: list[str] = []
+
+    def unit(ref: str) -> str | None:
+        instance, _, variable = ref.partition(".")
+        inst = scenario.instances.get(instance)
+        var = None if inst is None else inst.interface.variables.get(variable)
+        return None if var is None else var.unit
+
+    def check(key: str, ref: str, value: Any) -> None:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            return
+        if unit(ref) == ANGLE_UNIT and abs(value) > FULL_TURN_RAD:
+            found.append(doubt_line(key, value))
+
+    for name, inst in scenario.instances.items():
+        for variable, value in inst.start.items():
+            check(f"instances.{name}.start.{variable}", f"{name}.{variable}", value)
+    for event in scenario.events:
+        for ref, value in event.set.items():
+            check(f"events.{event.name}.set.{ref}", ref, value)
+        if event.when is not None:
+            check(f"events.{event.name}.when", event.when.ref, event.when.threshold)
+    for fault in scenario.faults:
+        if fault.kind == "bias":
+            check(f"faults.{fault.name}.value", fault.target, fault.value)
+        if fault.kind == "noise":
+            check(f"faults.{fault.name}.std", fault.target, fault.std)
+    return found
+
+
+def doubt_line(key: str, value: float) -> str:
+    """The warning for ``key`` = ``value`` (rad) beyond a full turn."""
+    return (
+        f"{key} = {value:g} rad is more than a full turn ({math.degrees(value):.0f} deg): "
+        f"angles are in radians; if {value:g} deg was meant, give {math.radians(value):.6g}"
+    )

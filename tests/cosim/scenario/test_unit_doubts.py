@@ -1,0 +1,107 @@
+"""An angle typed in degrees where the FMU takes radians is valid, so it runs: a run and a
+study say so in one warning line per value, naming the key and the value in radians."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import pytest
+
+import cosim
+from cosim.scenario.unit_doubts import UnitWarning, angle_doubts
+
+TURN = """
+[[events]]
+name = "turn"
+time = 1.0
+set = {{ "controller.yaw_setpoint" = {setpoint} }}
+
+[[events]]
+name = "past"
+when = "plant.yaw > {threshold}"
+set = {{ "controller.yaw_setpoint" = 0.0 }}
+"""
+
+
+def _scenario(tmp_path: Path, setpoint: float, threshold: float) -> Path:
+    text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "bs-2.toml").read_text()
+    path = tmp_path / "turn.toml"
+    path.write_text(text + TURN.format(setpoint=setpoint, threshold=threshold))
+    return path
+
+
+def test_degrees_in_radian_variables_are_named_with_their_value_in_radians(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """yaw_0 = 30, a set-point of 45 and a `when` at 20 ran without a word: the vehicle
+    started 30 rad (4.8 turns) round and the event never fired."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    scenario = cosim.load_scenario(_scenario(tmp_path, 45, 20), fmu_dir=fmu_dir)
+    doubts = angle_doubts(scenario.with_start({"plant.yaw_0": 30}))
+    assert doubts == [
+        "instances.plant.start.yaw_0 = 30 rad is more than a full turn (1719 deg): angles are "
+        "in radians; if 30 deg was meant, give 0.523599",
+        "events.turn.set.controller.yaw_setpoint = 45 rad is more than a full turn (2578 deg): "
+        "angles are in radians; if 45 deg was meant, give 0.785398",
+        "events.past.when = 20 rad is more than a full turn (1146 deg): angles are in "
+        "radians; if 20 deg was meant, give 0.349066",
+    ]
+
+
+@pytest.mark.parametrize("value", [0.5, -math.pi, 2 * math.pi])
+def test_angles_within_a_turn_and_other_units_are_not_doubted(
+    fmu_paths: dict[str, Path], tmp_path: Path, value: float
+) -> None:
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    scenario = cosim.load_scenario(_scenario(tmp_path, value, value), fmu_dir=fmu_dir)
+    assert angle_doubts(scenario.with_start({"plant.u_0": 30.0, "plant.yaw_0": value})) == []
+
+
+def test_a_run_warns_once_per_value_and_still_runs(
+    fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from cosim.cli import main
+
+    path = _scenario(tmp_path, 30, 0.2)
+    fmu_dir = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", str(path), "--stop-time", "0.5", "--no-rrd", "--quiet", "--fmu-dir", fmu_dir,
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(argv) == 0
+    lines = [str(w.message) for w in caught if issubclass(w.category, UnitWarning)]
+    assert lines == [
+        "events.turn.set.controller.yaw_setpoint = 30 rad is more than a full turn (1719 deg): "
+        "angles are in radians; if 30 deg was meant, give 0.523599"
+    ]
+
+
+def test_a_study_warns_of_grid_values_and_samples_once_before_any_run(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """A sweep over yaw_0 = [10, 20] (degrees meant) or a normal distribution of std 10
+    on the set-point ran every run without a word."""
+    from cosim.study.factors import resolve_factor
+    from cosim.study.runner import _checked_plan
+    from cosim.study.spec import study_from_dict
+    from cosim.study.task import prepare
+
+    spec = study_from_dict(
+        {"scenario": "bs-2", "grid": {"plant.yaw_0": [10, 20, 0.3]},
+         "random": {"n": 4, "seed": 1, "controller.yaw_setpoint": {"normal": [0.0, 10.0]}}},
+        "study",
+    )  # fmt: skip
+    base, facts = prepare("bs-2", 1.0, fmu_paths["AuvPlant"].parent)
+    factors = {name: resolve_factor(name, facts) for name in spec.factors}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        runs = _checked_plan(spec, base, factors, facts)
+    lines = [str(w.message) for w in caught if issubclass(w.category, UnitWarning)]
+    assert len(runs) == 12
+    assert [line.split(" rad ")[0] for line in lines[:2]] == [
+        "instances.plant.start.yaw_0 = 10",
+        "instances.plant.start.yaw_0 = 20",
+    ]
+    assert len(lines) == 3 and lines[2].startswith("factor 'controller.yaw_setpoint': "), lines
