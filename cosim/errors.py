@@ -64,13 +64,25 @@ def did_you_mean_path(path: Path) -> str:
 
 def closest(word: str, choices: Iterable[str]) -> str | None:
     """The one choice closest to a mistyped ``word`` (difflib's ratio 0.75 or more, letter
-    case aside: a letter or two off, a missing ``_``); None when none is close or two are
-    equally close (``bs-9``: bs-1, bs-2 or bs-3?)."""
+    case aside: a letter or two off, a missing ``_``; or the one that reads the same with
+    O for 0 and I or l for 1); None when none is close or two are equally close
+    (``bs-9``: bs-1, bs-2 or bs-3?)."""
     by_lower = {choice.lower(): choice for choice in choices if choice != word}
+    alike = [c for c in by_lower.values() if _lookalike(c) == _lookalike(word)]
+    if len(alike) == 1:  # v_O for v_0: letters that look like digits (too short for difflib)
+        return alike[0]
     close = difflib.get_close_matches(word.lower(), list(by_lower), n=2, cutoff=0.75)
     if not close or (len(close) == 2 and _ratio(word, close[0]) == _ratio(word, close[1])):
         return None
     return by_lower[close[0]]
+
+
+_LOOKALIKES = str.maketrans("oil", "011")  # O for 0, I or l for 1
+
+
+def _lookalike(word: str) -> str:
+    """``word`` with the letters that look like digits read as those digits."""
+    return word.lower().translate(_LOOKALIKES)
 
 
 def _ratio(word: str, choice: str) -> float:

@@ -43,6 +43,11 @@ def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
          "has no variable 'yawn' (did you mean 'yaw'?)"),
         (("step = 0.01", "step = 0.01\n[output]\nrecord = ['plnt.yaw']"),
          "with an instance in ['plant', 'controller'] (did you mean 'plant'?)"),
+        # a letter for a digit: too short for difflib, and docs/api.md's own example
+        (('fmu = "AuvPlant"', 'fmu = "AuvPlant"\nstart = { v_O = -0.05 }'),
+         "has no variable 'v_O' (did you mean 'v_0'?)"),
+        (('fmu = "AuvPlant"', 'fmu = "AuvPlant"\nstart = { yaw_o = 0.1 }'),
+         "has no variable 'yaw_o' (did you mean 'yaw_0'?)"),
     ],
 )  # fmt: skip
 def test_a_mistyped_scenario_name_is_refused_with_its_likely_meaning(
