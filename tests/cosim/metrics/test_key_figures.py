@@ -103,9 +103,10 @@ def test_a_figure_that_is_none_says_why() -> None:
     """What a run's report prints in place of a figure it has none of: for the settling
     time, plainly that the yaw ends outside its band (it read "within 1 deg at the
     end", the opposite)."""
-    columns = ["plant.yaw", "plant.mass_position"]
+    columns = ["plant.yaw", "plant.mass_position", "controller.yaw_setpoint"]
     figures = KeyFigures(columns)
-    figures.add_rows(np.array([0.0, 1.0]), np.array([[0.0, 0.01], [0.5, 0.02]]))
+    rows = np.array([[0.0, 0.01, 0.0], [0.5, 0.02, 0.0]])
+    figures.add_rows(np.array([0.0, 1.0]), rows)
     absent = {k: why_none(k, columns) for k, v in figures.figures().items() if v is None}
     assert absent == {
         "yaw_settling_time_s": "not settled: the yaw is not within 1 deg of its set-point at "
@@ -113,6 +114,10 @@ def test_a_figure_that_is_none_says_why() -> None:
         "peak_abs_tunnel_force_N": "not recorded",
     }
     assert why_none("yaw_settling_time_s", ["plant.roll"]) == "not recorded"
+    # the turning circle has no autopilot: "its set-point" named one it does not have
+    assert why_none("yaw_settling_time_s", ["plant.yaw"]) == (
+        "not settled: the yaw is not within 1 deg of 0 at the end (no set-point)"
+    )
 
 
 def test_a_run_that_did_not_complete_has_no_settling_time() -> None:
