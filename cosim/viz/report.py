@@ -601,6 +601,22 @@ def _save(fig: Figure, path: Path) -> Path:
 # --- index page ----------------------------------------------------------------------------
 
 
+FIGURE_UNITS = {"s": "s", "m": "m", "N": "N", "deg": "deg", "pct": "%", "rad": "rad"}
+
+
+def figure_label(name: str) -> str:
+    """A key figure's row label, its unit in brackets as the other rows have it:
+    ``peak_abs_mass_position_m`` is "peak |mass position| (m)" (it read "peak abs mass
+    position m", the unit a word of the name)."""
+    words = name.split("_")
+    unit = FIGURE_UNITS.get(words[-1]) if len(words) > 1 else None
+    words = words[:-1] if unit else words
+    if "abs" in words:
+        at = words.index("abs")
+        words = [*words[:at], "|" + " ".join(words[at + 1 :]) + "|"]
+    return " ".join(words) + (f" ({unit})" if unit else "")
+
+
 def index_page(
     run_dir: Path,
     summary: dict[str, Any],
@@ -624,7 +640,7 @@ def index_page(
         ("real-time factor", summary.get("real_time_factor")),
     ]
     key = summary.get("key_figures") or {}
-    rows += [(k.replace("_", " "), v) for k, v in key.items()]
+    rows += [(figure_label(k), v) for k, v in key.items()]
     table = "\n".join(
         f"<tr><th>{html.escape(label)}</th><td>{html.escape(_text(value))}</td></tr>"
         for label, value in rows

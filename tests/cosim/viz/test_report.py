@@ -92,7 +92,7 @@ def test_lateral_run_gets_velocity_attitude_and_trajectory_figures(lateral_run):
     page = index.read_text()
     for name in figures:
         assert f'src="{name}"' in page
-    assert "open-loop" in page and "peak abs mass position m" in page
+    assert "open-loop" in page and "peak |mass position| (m)" in page
 
 
 @pytest.mark.slow
@@ -454,3 +454,16 @@ def test_a_value_beyond_a_float_in_degrees_is_drawn_without_a_warning(tmp_path) 
     rows = "".join(f"{t},0.1,1e308\n" for t in (0.0, 0.1, 0.2))
     (run / "results.csv").write_text("time,plant.yaw,controller.yaw_setpoint\n" + rows)
     assert write_report(run).is_file()
+
+
+def test_key_figures_are_labelled_with_their_unit_in_brackets() -> None:
+    """The page's table read "peak abs tunnel force N 9.14" beside "stop time (s) 60": the
+    unit a word of the name."""
+    from cosim.viz.report import figure_label, index_page
+
+    assert figure_label("peak_abs_tunnel_force_N") == "peak |tunnel force| (N)"
+    assert figure_label("yaw_settling_time_s") == "yaw settling time (s)"
+    assert figure_label("legs") == "legs"
+    summary = {"scenario": "bs-3", "key_figures": {"peak_abs_mass_position_m": 0.033}}
+    page = index_page(Path("runs/bs-3"), summary, None, {})
+    assert "<th>peak |mass position| (m)</th><td>0.033</td>" in page
