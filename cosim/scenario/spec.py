@@ -52,6 +52,7 @@ from cosim.scenario.checks import (
 from cosim.scenario.connection_units import unit_difference
 from cosim.scenario.coupling_graph import algebraic_loop, connection_order, feedthrough
 from cosim.scenario.timeline_spec import (
+    PLAIN_EVENT_NAME,
     Event,
     EventSpec,
     Fault,
@@ -79,8 +80,14 @@ EXTRAPOLATION_ORDER: Mapping[str, int] = {"none": 0, "linear": 1, "quadratic": 2
 DEFAULT_TOLERANCE = 1e-3  # adaptive: the error a step may make, relative (docs/coupling.md)
 DEFAULT_MAX_STEPS = 64  # adaptive: the longest step in communication steps, by default
 DEFAULT_ERROR_ESTIMATE: ErrorEstimate = "extrapolation"  # adaptive (docs/coupling.md)
-_NAME = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
+_NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*$"  # an instance name
+_NAME = Annotated[str, Field(pattern=_NAME_PATTERN)]
 _PLAIN_NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"  # a scenario id: a safe folder name
+PATTERN_WORDS = {  # each name pattern of a scenario file, as a refusal says it
+    _NAME_PATTERN: "a name of letters, digits and _, not starting with a digit",
+    _PLAIN_NAME: "a name of letters, digits, _, . and -, not starting with . or -",
+    PLAIN_EVENT_NAME: "a name of letters, digits, - and _",
+}
 # A stop time within this fraction of a step of a whole number of steps counts as whole.
 _STEP_TOLERANCE = 1e-9
 
@@ -616,6 +623,11 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
                 problem = f"unknown key {key!r}{did_you_mean(key.rpartition('.')[2], KEYS)}"
             elif err["type"] == "missing":
                 problem = f"key {key!r} is missing"
+            elif err["type"] == "string_pattern_mismatch":  # a name: in words, not a regex
+                wanted = PATTERN_WORDS.get(str((err.get("ctx") or {}).get("pattern")))
+                problem = f"key {key!r} = {err.get('input')!r}: expected {wanted}"
+                if wanted is None:
+                    problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
             elif any(_is_union_tag(part) for part in err["loc"]):  # a start value
                 problem = f"key {key!r} = {err.get('input')!r}: expected a number, an integer, "
                 problem += "true/false or a string"
@@ -633,7 +645,7 @@ def _key(loc: tuple[Any, ...]) -> str:
     for part in loc:
         if isinstance(part, int):
             key += f"[{part}]"
-        elif not _is_union_tag(part):
+        elif not _is_union_tag(part) and part != "[key]":  # pydantic's mark of a dict key
             key += f".{part}" if key else str(part)
     return key
 

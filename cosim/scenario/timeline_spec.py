@@ -54,6 +54,7 @@ ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
 }
 MASS_POSITION = "mass_position"  # the plant output a mass-jam holds the command at
 _PLAIN = r"^[A-Za-z0-9_-]+$"
+PLAIN_EVENT_NAME = _PLAIN  # an event's or fault's name (spec.PATTERN_WORDS says it)
 MAX_DELAY_STEPS = 100_000_000  # a run's most communication steps (cosim.scenario.spec)
 SERIES_MAX_BYTES = 64 << 20  # a series CSV larger than this is refused, not read
 # "<instance>.<variable> <op> <number>": one comparison, nothing evaluated. The variable is

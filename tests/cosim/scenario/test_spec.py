@@ -284,7 +284,7 @@ BAD_EDITS = [
      r"'coupling\.step_multiples\.controller' = 1000000000000000000000: Input should be less"),
     ("stop_time = 60.0", "stop_time = 1e12",
      r"key 'stop_time': 1000000000000\.0 s is 1e\+14 communication steps .* at most 1e\+08"),
-    ("stop_time = 60.0", 'id = ".."\nstop_time = 60.0', r"key 'id' = '\.\.': String should match"),
+    ("stop_time = 60.0", 'id = ".."\nstop_time = 60.0', r"key 'id' = '\.\.': expected a name of"),
     ("stop_time = 60.0", 'id = "../x"\nstop_time = 60.0', r"key 'id' = '\.\./x'"),
     ('heading_mode = "backstepping"', "heading_mode = 4294967297",
      r"start\.heading_mode': 4294967297 is outside \[0, 3\], the range heading_mode takes"),

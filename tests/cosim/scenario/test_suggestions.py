@@ -102,3 +102,26 @@ def test_a_mistyped_path_is_refused_with_the_likely_one(
     ):
         assert main(argv) == 1
         assert f"(did you mean '{meant}'?)" in capsys.readouterr().err, argv
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (("[instances.controller]", '[instances."my.controller"]'),
+         "key 'instances.my.controller' = 'my.controller': expected a name of letters, digits "
+         "and _, not starting with a digit"),
+        (("stop_time = 1.0", 'stop_time = 1.0\nid = "-x"'),
+         "key 'id' = '-x': expected a name of letters, digits, _, . and -, not starting with"),
+        (("stop_time = 1.0", 'stop_time = 1.0\n[[events]]\nname = "a turn"\ntime = 1.0'),
+         "key 'events[0].name' = 'a turn': expected a name of letters, digits, - and _"),
+    ],
+)  # fmt: skip
+def test_a_name_that_is_not_plain_is_refused_in_words_not_a_pattern(
+    change: tuple[str, str], expected: str, fmu_dir: Path
+) -> None:
+    """A dotted instance name was refused with pydantic's "String should match pattern
+    '^[A-Za-z_][A-Za-z0-9_]*$'" under the key 'instances.my.controller.[key]'."""
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(BS3_LIKE.replace(*change, 1), fmu_dir=fmu_dir)
+    assert expected in str(refused.value) and "[key]" not in str(refused.value)
+    assert "pattern" not in str(refused.value)

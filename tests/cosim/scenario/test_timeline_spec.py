@@ -75,7 +75,7 @@ BAD_ROWS = [
     (f'[[events]]\nname = "event-2"\ntime = 0.1\n{SET_K}\n[[events]]\ntime = 0.2\n{SET_K}',
      ["key 'events[0].name': 'event-2' is used twice: names are unique (by position: "
       "events[1] has no name)"]),
-    (f'[[events]]\nname = "a b"\ntime = 0.1\n{SET_K}', ["events[0].name", "'a b'", "pattern"]),
+    (f'[[events]]\nname = "a b"\ntime = 0.1\n{SET_K}', ["events[0].name", "'a b'", "- and _"]),
     (f"[[events]]\ntime = 0.1\n{SET_K}\nspeed = 1", ["unknown key 'events[0].speed'"]),
     ('[[faults]]\nkind = "gain"\ntarget = "plant.x"\nvalue = 2.0',
      ["faults[0].target", "'plant.x' is not the target of a connection",
