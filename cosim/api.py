@@ -296,7 +296,7 @@ def sweep(
         outcome = run_study(
             study_file, out_dir, cluster=Cluster(workers=workers),
             resume=resume, fmu_dir=fmu_dir, overlay=overlay,
-            label=DICT_LABEL if isinstance(study, Mapping) else None,
+            label=DICT_LABEL if isinstance(study, Mapping) else None, names=KEYWORDS,
         )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir)

@@ -23,7 +23,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from cosim.errors import CosimError
+from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.outputs.folder import LOCK_FILE, lock_folder, unlock_folder
 from cosim.study.spec import StudyError
 
@@ -32,15 +32,18 @@ RUNS_FOLDER = "runs"
 
 
 @contextlib.contextmanager
-def lock(out_dir: Path) -> Iterator[bool]:
+def lock(out_dir: Path, names: OptionNames = FLAGS) -> Iterator[bool]:
     """Create (if needed) and lock ``out_dir`` while the study runs; yields whether it was
-    created. A folder this made is removed again if the study left nothing in it."""
+    created. A folder this made is removed again if the study left nothing in it.
+    ``names``: how a refusal names the options (the command's flags or the API's
+    keywords)."""
     created = not out_dir.exists()
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         why = "exists and is not a folder" if out_dir.exists() else exc.strerror or str(exc)
-        raise StudyError(f"--out {out_dir}: cannot create the study folder: {why}") from None
+        shown = names.given("out", out_dir)
+        raise StudyError(f"{shown}: cannot create the study folder: {why}") from None
     try:
         fd = lock_folder(out_dir, "study")
     except CosimError as exc:
@@ -57,33 +60,41 @@ def lock(out_dir: Path) -> Iterator[bool]:
                 out_dir.rmdir()  # only if empty
 
 
-def claim(out_dir: Path, identity: Mapping[str, Any], resume: bool, table: str) -> None:
+def claim(
+    out_dir: Path,
+    identity: Mapping[str, Any],
+    resume: bool,
+    table: str,
+    names: OptionNames = FLAGS,
+) -> None:
     """Make the locked ``out_dir`` this study's folder, or check it already is
-    (``resume``). ``table``: the table's file name (a folder holding one holds a study)."""
+    (``resume``). ``table``: the table's file name (a folder holding one holds a study);
+    ``names``: how a refusal names the options (``--resume``, or ``resume=True``)."""
     marker = out_dir / STUDY_JSON
     identity = json.loads(json.dumps(identity))  # as it reads back from the file
+    resuming, out = names.switch("resume"), names.option("out")
     if resume:
         if not marker.is_file():
-            raise StudyError(f"--resume: {out_dir} holds no study ({STUDY_JSON} is missing)")
+            raise StudyError(f"{resuming}: {out_dir} holds no study ({STUDY_JSON} is missing)")
         stored = json.loads(marker.read_text(encoding="utf-8"))
         differ = sorted(k for k in {*stored, *identity} if stored.get(k) != identity.get(k))
         if differ:
             raise StudyError(
-                f"--resume: {out_dir} holds another study (it differs from this one in: "
+                f"{resuming}: {out_dir} holds another study (it differs from this one in: "
                 f"{', '.join(differ)}{_changed_files(stored, identity)}); give another "
-                "--out to start this study"
+                f"{out} to start this study"
             )
         return
     if marker.exists() or (out_dir / table).exists():
         raise StudyError(
-            f"{out_dir} already holds a study: add --resume to continue it, or give another --out"
+            f"{out_dir} already holds a study: add {resuming} to continue it, or give another {out}"
         )
     entries = sorted(p.name for p in out_dir.iterdir() if p.name != LOCK_FILE)
     if entries:
         shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
         raise StudyError(
-            f"--out {out_dir}: the folder is not empty ({shown}) and holds no study; "
-            "choose a new or empty folder"
+            f"{names.given('out', out_dir)}: the folder is not empty ({shown}) and holds no "
+            "study; choose a new or empty folder"
         )
     marker.write_text(json.dumps(identity, indent=2) + "\n", encoding="utf-8")
 

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 from warnings import warn
 
-from cosim.errors import CosimError, did_you_mean
+from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.scenario.checks import range_text
 from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD, UnitWarning
@@ -103,12 +103,14 @@ def run_study(
     overlay: int | None = None,
     max_runs: int = MAX_RUNS,
     label: str | None = None,
+    names: OptionNames = FLAGS,
 ) -> StudyOutcome:
     """Run the study (or what a killed one left, with ``resume``) into ``out_dir``
     (default ``studies/<study file name>``). ``overlay``: draw that many runs, spread over
     the study, in overlay.rrd (instead of the study file's ``overlay``); a study of more
     than ``max_runs`` runs is refused before any is built; ``label`` names the study in a
-    refusal (default: :func:`~cosim.study.spec.study_label`). Raises :class:`StudyError`
+    refusal (default: :func:`~cosim.study.spec.study_label`) and ``names`` its options
+    (the command's flags, or the API's keywords). Raises :class:`StudyError`
     (a CosimError) for a study that cannot run; failed runs are rows of the table."""
     started = time.perf_counter()
     if cluster.scheduler is not None:
@@ -124,8 +126,8 @@ def run_study(
     if entries:
         check_choice(entries, runs, metrics)
     out_dir = out_dir if out_dir is not None else STUDIES_DIR / study_file.stem
-    with study_folder.lock(out_dir):
-        study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME)
+    with study_folder.lock(out_dir, names):
+        study_folder.claim(out_dir, _identity(spec, base), resume, CSV_NAME, names)
         csv_path = out_dir / CSV_NAME
         table = _open_table(csv_path, spec, metrics, runs, resume)
         skipped = len(table.done)
@@ -145,9 +147,10 @@ def run_study(
                 if not resume and not table.done:  # nothing to resume: leave no study
                     study_folder.discard_new(out_dir, CSV_NAME)
                 elif isinstance(exc, StudyStopped):
-                    exc.where = f"{len(table.done)} finished runs kept in {csv_path} (--resume)"
+                    kept = f"{len(table.done)} finished runs kept in {csv_path}"
+                    exc.where = f"{kept} ({names.switch('resume')})"
                 raise
-            with _kept_rows(csv_path, len(table.done)):
+            with _kept_rows(csv_path, len(table.done), names):
                 rows = table.finish(runs)
                 if not entries:  # no overlay re-runs: the cluster closes while the page is made
                     session.done()
@@ -353,7 +356,7 @@ def _overlay(
 
 
 @contextmanager
-def _kept_rows(csv_path: Path, count: int) -> Iterator[None]:
+def _kept_rows(csv_path: Path, count: int, names: OptionNames = FLAGS) -> Iterator[None]:
     """A file of the finished study that cannot be written (a full disk) ends the study
     saying which, and that every run's row is kept in runs.csv, appended as it finished."""
     try:
@@ -362,8 +365,8 @@ def _kept_rows(csv_path: Path, count: int) -> Iterator[None]:
         where = f"{exc.filename}: " if exc.filename else ""
         raise StudyError(
             f"cannot write the study's results: {where}{exc.strerror or exc}; every finished "
-            f"run's row is kept in {csv_path} ({count} in all; --resume writes the rest once it "
-            "can)"
+            f"run's row is kept in {csv_path} ({count} in all; {names.switch('resume')} writes "
+            "the rest once it can)"
         ) from exc
 
 

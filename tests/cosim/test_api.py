@@ -410,6 +410,30 @@ def test_sweep_without_out_refuses_resume_and_overlay_before_running(
     assert str(raised.value).startswith(named) and "--" not in str(raised.value)
 
 
+@pytest.mark.parametrize(
+    ("resume", "held", "named"),
+    [
+        (False, "study.json", "already holds a study: add resume=True to continue it, or give "
+         "another out="),
+        (True, None, "resume=True: "),
+        (False, "notes.txt", "out='"),
+    ],
+)  # fmt: skip
+def test_a_refused_study_folder_names_the_keywords_not_the_flags(
+    resume: bool, held: str | None, named: str, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """cosim.sweep(out=...) into a folder holding a study said "add --resume to continue
+    it, or give another --out": the command line's flags, which a script does not have."""
+    out = tmp_path / "study"
+    out.mkdir()
+    if held is not None:
+        (out / held).write_text("{}\n")
+    study = {"scenario": "bs-3", "stop_time": 0.1, "grid": {"plant.v_0": [0.1]}}
+    with pytest.raises(StudyError) as raised:
+        cosim.sweep(study, workers=1, out=out, resume=resume, fmu_dir=fmu_dir)
+    assert named in str(raised.value) and "--" not in str(raised.value), raised.value
+
+
 WRONG_TYPE = [
     ("sweep", {"study": {"scenario": "bs-3"}, "overlay": 0}, StudyError, "overlay=0"),
     ("sweep", {"study": 5}, StudyError, "study=5"),
