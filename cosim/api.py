@@ -230,6 +230,7 @@ def sweep(
     overlay: int | None = None,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
     oversubscribe: bool = False,
+    max_runs: int = 100_000,
 ) -> Study:
     """Run a parameter sweep or Monte Carlo study on a local Dask cluster, like
     ``auv-cosim sweep``.
@@ -254,6 +255,9 @@ def sweep(
         Where the built-in FMUs are (built there on first use).
     oversubscribe : bool
         Allow more ``workers`` than cores (``--oversubscribe``).
+    max_runs : int
+        Refuse a study of more runs than this, before any is built (``--max-runs``; up to
+        10,000,000). Default 100,000.
 
     Returns
     -------
@@ -285,6 +289,7 @@ def sweep(
     out = None if out is None else _folder("out", out, StudyError)
     overlay = None if overlay is None else _count("overlay", overlay, StudyError)
     resume = _flag("resume", resume, StudyError)
+    max_runs = _count("max_runs", max_runs, StudyError)
     fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
     _check_needs_out(out, resume, overlay)
     with ExitStack() as stack:
@@ -295,7 +300,7 @@ def sweep(
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
         outcome = run_study(
             study_file, out_dir, cluster=Cluster(workers=workers),
-            resume=resume, fmu_dir=fmu_dir, overlay=overlay,
+            resume=resume, fmu_dir=fmu_dir, overlay=overlay, max_runs=max_runs,
             label=DICT_LABEL if isinstance(study, Mapping) else None, names=KEYWORDS,
         )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from cosim.errors import FLAGS, OptionNames
 from cosim.study.design import PlannedRun
 from cosim.study.spec import OVERLAY_CAP, StudyError
 
@@ -41,11 +42,14 @@ def check_choice(
         )
 
 
-def spread(runs: Sequence[PlannedRun], n: int) -> list[str]:
+def spread(runs: Sequence[PlannedRun], n: int, names: OptionNames = FLAGS) -> list[str]:
     """``--overlay N``: n run ids evenly spread over the study's order (first and last
-    included); :class:`StudyError` unless 1 <= n <= OVERLAY_CAP."""
+    included); :class:`StudyError` unless 1 <= n <= OVERLAY_CAP, naming the option as
+    ``names`` do (``--overlay 50`` or ``overlay=50``)."""
     if not 1 <= n <= OVERLAY_CAP:
-        raise StudyError(f"--overlay {n}: expected a number of runs from 1 to {OVERLAY_CAP}")
+        raise StudyError(
+            f"{names.given('overlay', n)}: expected a number of runs from 1 to {OVERLAY_CAP}"
+        )
     if n >= len(runs):
         return [run.id for run in runs]
     last = len(runs) - 1

@@ -116,13 +116,13 @@ def run_study(
     if cluster.scheduler is not None:
         check_scheduler(cluster.scheduler, cluster.security)
     spec = load_study(study_file, label := label or study_label(study_file))
-    check_size(spec, label, max_runs)
+    check_size(spec, label, max_runs, names)
     scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
     base, facts = prepare(scenario_ref, spec.stop_time, fmu_dir, spec.check_step, study_file.parent)
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     metrics = _metrics(spec, facts)
     runs = _checked_plan(spec, base, factors, facts)
-    entries = spread(runs, overlay) if overlay is not None else spec.overlay
+    entries = spread(runs, overlay, names) if overlay is not None else spec.overlay
     if entries:
         check_choice(entries, runs, metrics)
     out_dir = out_dir if out_dir is not None else STUDIES_DIR / study_file.stem

@@ -57,7 +57,7 @@ from pydantic import (
     model_validator,
 )
 
-from cosim.errors import CosimError, did_you_mean, did_you_mean_path
+from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean, did_you_mean_path
 from cosim.scenario.checks import field_names
 
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
@@ -214,23 +214,27 @@ def run_count(spec: StudySpec) -> int:
     return math.prod(len(values) for values in spec.grid.values()) * max(spec.random.n, 1)
 
 
-def check_size(spec: StudySpec, label: str, max_runs: int = MAX_RUNS) -> None:
+def check_size(
+    spec: StudySpec, label: str, max_runs: int = MAX_RUNS, names: OptionNames = FLAGS
+) -> None:
     """Refuse a study of more than ``max_runs`` runs, before any is built (the design of
     a larger one would take the memory and time of building every run first), and a
     ``max_runs`` beyond :data:`MAX_RUNS_CEILING` (or below 1). ``label`` names the study
-    (:func:`study_label`)."""
+    (:func:`study_label`), ``names`` the option (``--max-runs N`` or ``max_runs=N``)."""
     if isinstance(max_runs, bool) or not 1 <= max_runs <= MAX_RUNS_CEILING:
         shown = str(max_runs) if len(str(max_runs)) <= 30 else f"{str(max_runs)[:20]}..."
         raise StudyError(
-            f"--max-runs {shown}: expected 1 to {MAX_RUNS_CEILING} (the runs of a study are "
-            "planned in memory before the first one starts)"
+            f"{names.option('max_runs')}{'' if names.keywords else ' '}{shown}: expected 1 to "
+            f"{MAX_RUNS_CEILING} (the runs of "
+            "a study are planned in memory before the first one starts)"
         )
     count = run_count(spec)
     if count > max_runs:
         grid = " x ".join(str(len(values)) for values in spec.grid.values()) or "1"
+        raising = "max_runs=N" if names.keywords else "--max-runs N"
         raise StudyError(
             f"{label}: {count:.4g} runs ({grid} grid points x "
-            f"{max(spec.random.n, 1)} samples); at most {max_runs} (--max-runs N raises the cap)"
+            f"{max(spec.random.n, 1)} samples); at most {max_runs} ({raising} raises the cap)"
         )
 
 

@@ -434,6 +434,27 @@ def test_a_refused_study_folder_names_the_keywords_not_the_flags(
     assert named in str(raised.value) and "--" not in str(raised.value), raised.value
 
 
+@pytest.mark.parametrize(
+    ("arguments", "named"),
+    [
+        ({"max_runs": 2}, "(max_runs=N raises the cap)"),
+        ({"max_runs": 20_000_000}, "max_runs=20000000: expected 1 to 10000000"),
+        ({"overlay": 50, "out": "study"}, "overlay=50: expected a number of runs from 1 to 20"),
+    ],
+)
+def test_a_study_too_large_names_the_keyword_that_raises_the_cap(
+    arguments: dict, named: str, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """cosim.sweep of a study over its cap said "(--max-runs N raises the cap)", a flag
+    the API did not have; overlay=50 was "--overlay 50"."""
+    if "out" in arguments:
+        arguments = {**arguments, "out": tmp_path / arguments["out"]}
+    study = {"scenario": "bs-3", "stop_time": 0.1, "grid": {"plant.v_0": [0.1, 0.2, 0.3]}}
+    with pytest.raises(StudyError) as raised:
+        cosim.sweep(study, workers=1, fmu_dir=fmu_dir, **arguments)
+    assert named in str(raised.value) and "--" not in str(raised.value), raised.value
+
+
 WRONG_TYPE = [
     ("sweep", {"study": {"scenario": "bs-3"}, "overlay": 0}, StudyError, "overlay=0"),
     ("sweep", {"study": 5}, StudyError, "study=5"),
