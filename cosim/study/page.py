@@ -74,19 +74,27 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
     return path
 
 
+FOLDED = (  # name prefix, what the folded list is called
+    ("final.", "final values (final.&lt;instance&gt;.&lt;variable&gt;)"),
+    ("coupling_error.final.", "coupling errors of final values (coupling_error.final.&lt;...&gt;)"),
+)
+
+
 def _not_plotted(names: Sequence[str]) -> str:
-    """One line: the metrics not plotted by name, the final values counted (their names
-    in a folded list)."""
+    """One line: the metrics not plotted by name, the final values and their coupling
+    errors (``check_step``) counted, their names in folded lists."""
     if not names:
         return ""
-    finals = [n for n in names if n.startswith("final.")]
-    listed = [f"<code>{_escape(n)}</code>" for n in names if not n.startswith("final.")]
-    if finals:
-        folded = ", ".join(_escape(n) for n in finals)
-        listed.append(
-            f"<details style='display:inline'><summary>{len(finals)} final values "
-            f"(final.&lt;instance&gt;.&lt;variable&gt;)</summary>{folded}</details>"
-        )
+    folded = {prefix: [n for n in names if n.startswith(prefix)] for prefix, _ in FOLDED}
+    hidden = {n for group in folded.values() for n in group}
+    listed = [f"<code>{_escape(n)}</code>" for n in names if n not in hidden]
+    for prefix, what in FOLDED:
+        if folded[prefix]:
+            shown = ", ".join(_escape(n) for n in folded[prefix])
+            listed.append(
+                f"<details style='display:inline'><summary>{len(folded[prefix])} {what}"
+                f"</summary>{shown}</details>"
+            )
     return (
         f"<p>Not plotted: {', '.join(listed)}. (Constant or missing in every run, beyond "
         f"the {PANELS_MAX} that vary most, or not a key figure or manoeuvre metric; "

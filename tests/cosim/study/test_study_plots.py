@@ -287,3 +287,19 @@ def test_the_metrics_not_plotted_are_one_compact_line(tmp_path: Path) -> None:
     visible = line.split("<details")[0]
     assert "30 final values" in line and all(name in visible for name in others)
     assert not any(name in visible for name in finals)
+
+
+def test_the_coupling_errors_of_final_values_are_folded_too(tmp_path: Path) -> None:
+    """With check_step = true the page listed 35 coupling_error.final.<...> ids one by one
+    after the folded final values."""
+    from cosim.study.page import write_index
+
+    finals = [f"final.plant.x{i}" for i in range(30)]
+    errors = [f"coupling_error.{name}" for name in finals]
+    others = ["time_reached", "coupling_error.yaw_settling_time_s"]
+    page = write_index(tmp_path, {"runs": "4"}, [], {}, [*others, *finals, *errors]).read_text()
+    (line,) = [text for text in page.splitlines() if text.startswith("<p>Not plotted")]
+    visible = line.split("<details")[0]
+    assert "30 final values" in line and "30 coupling errors of final values" in line
+    assert all(name in visible for name in others)
+    assert not any(name in visible for name in [*finals, *errors])
