@@ -90,8 +90,20 @@ def check_step(
         "final_values": {k.removeprefix(FINAL_PREFIX): e.as_dict() for k, e in finals.items()},
         "largest_final_error": None
         if worst is None
-        else {"column": worst[0].removeprefix(FINAL_PREFIX), **worst[1].as_dict()},
+        else {
+            "column": (column := worst[0].removeprefix(FINAL_PREFIX)),
+            "unit": _unit(scenario, column),
+            **worst[1].as_dict(),
+        },
     }
+
+
+def _unit(scenario: Scenario, column: str) -> str:
+    """The unit ``column`` (``<instance>.<variable>``) is declared in, "" without one."""
+    instance, _, variable = column.partition(".")
+    inst = scenario.instances.get(instance)
+    var = None if inst is None else inst.interface.variables.get(variable)
+    return (var.unit or "") if var is not None else ""
 
 
 def _same_delays(scenario: Scenario, factor: int) -> Scenario:
@@ -127,7 +139,8 @@ def summary_line(check: dict[str, Any]) -> str:
         parts.append(f"{name} {e['error']:+.3g}{share}")
     worst = check["largest_final_error"]
     if worst is not None:
-        parts.append(f"largest final-value error {worst['column']} {worst['error']:+.3g}")
+        unit = f" {worst['unit']}" if worst.get("unit") else ""
+        parts.append(f"largest final-value error {worst['column']} {worst['error']:+.3g}{unit}")
     steps = ", ".join(f"{s:g}" for s in check["steps_s"])
     return f"  coupling error (Richardson from h = {steps} s, order {check['order']:.2g}): " + (
         ", ".join(parts) if parts else "no figure to check"

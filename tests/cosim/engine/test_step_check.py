@@ -93,3 +93,29 @@ def test_the_run_reports_the_estimate_in_its_summary_and_last_line(
     assert set(check) >= {"steps_s", "order", "key_figures", "final_values"}
     summary = (tmp_path / "run" / "summary.json").read_text()
     assert '"check_step"' in summary
+
+
+def test_the_largest_final_value_error_is_printed_with_its_unit() -> None:
+    """The report's last line read "largest final-value error controller.tunnel_force
+    +0.0058", the one figure of the line without a unit (the key figures carry theirs in
+    their names)."""
+    entry = {"value": 1.0, "half_step": 1.0, "quarter_step": 1.0, "order": 2.0,
+             "order_observed": True, "limit": 0.99, "error": 0.0058,
+             "relative_error": 0.006}  # fmt: skip
+    worst = {"column": "controller.tunnel_force", "unit": "N", **entry}
+    check = {"steps_s": [0.01, 0.005, 0.0025], "order": 2.0, "key_figures": {},
+             "largest_final_error": worst}  # fmt: skip
+    assert summary_line(check).endswith(
+        "largest final-value error controller.tunnel_force +0.0058 N"
+    )
+
+
+def test_the_largest_final_value_error_names_its_unit_in_the_summary(
+    test_fmu_dir: Path,
+) -> None:
+    scenario = scenario_from_toml(loop_toml(stop_time=2.0), base_dir=test_fmu_dir)
+    check = check_step(scenario, {}, master.run(scenario).final)
+    worst = check["largest_final_error"]
+    variable = worst["column"].partition(".")[2]
+    instance = scenario.instances[worst["column"].partition(".")[0]]
+    assert worst["unit"] == (instance.interface.variables[variable].unit or "")
