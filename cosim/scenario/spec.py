@@ -752,7 +752,11 @@ def _check_manoeuvre(kind: str | None, record: tuple[str, ...], src: Source) -> 
     if kind is None:
         return
     if kind not in KINDS:
-        raise src.error("manoeuvre", f"{kind!r} is not a manoeuvre: expected one of {list(KINDS)}")
+        raise src.error(
+            "manoeuvre",
+            f"{kind!r} is not a manoeuvre{did_you_mean(kind, KINDS)}: expected one of "
+            f"{list(KINDS)}",
+        )
     try:
         manoeuvre_columns(kind, record)
     except ValueError as exc:

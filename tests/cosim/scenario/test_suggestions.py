@@ -48,6 +48,8 @@ def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
          "has no variable 'v_O' (did you mean 'v_0'?)"),
         (('fmu = "AuvPlant"', 'fmu = "AuvPlant"\nstart = { yaw_o = 0.1 }'),
          "has no variable 'yaw_o' (did you mean 'yaw_0'?)"),
+        (("stop_time = 1.0", 'stop_time = 1.0\nmanoeuvre = "zig-zag"'),
+         "'zig-zag' is not a manoeuvre (did you mean 'zigzag'?)"),
     ],
 )  # fmt: skip
 def test_a_mistyped_scenario_name_is_refused_with_its_likely_meaning(
