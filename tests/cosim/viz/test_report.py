@@ -222,7 +222,7 @@ def test_report_of_a_bs3_run_through_the_master(fmu_paths, run_python, tmp_path)
     for name in figures:
         _assert_png(index.parent / name)
     page = index.read_text()
-    assert "Run bs-3" in page and "yaw settling time s" in page
+    assert "Run bs-3" in page and "yaw settling time (s)" in page
 
 
 def test_a_far_reference_curve_does_not_flatten_the_main_one() -> None:
