@@ -26,8 +26,9 @@ from typing import Any
 from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.outputs.folder import LOCK_FILE, lock_folder, unlock_folder
 from cosim.study.spec import StudyError
+from cosim.viz.rrd_file import STUDY_FILE
 
-STUDY_JSON = "study.json"
+STUDY_JSON = STUDY_FILE
 RUNS_FOLDER = "runs"
 
 

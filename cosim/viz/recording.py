@@ -50,7 +50,7 @@ from cosim.viz.layout import (
 )
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.ports import FILE_PORT, WEB_PORT
-from cosim.viz.rrd_file import OVERLAY_FILE, RrdFile, file_sink, pumped
+from cosim.viz.rrd_file import OVERLAY_FILE, STUDY_FILE, RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
 from cosim.viz.web_viewer import serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
@@ -446,6 +446,11 @@ def recording_in(path: Path) -> Path:
     if not path.is_file():
         found = [path / name for name in (RECORDING_FILE, OVERLAY_FILE) if (path / name).is_file()]
         rrd = found[0] if found else path / RECORDING_FILE
+    if not rrd.is_file() and (path / STUDY_FILE).is_file():  # a study drawn without one
+        raise CosimError(
+            f"{path} is a study folder without {OVERLAY_FILE}: `auv-cosim sweep STUDY --out "
+            f"{path} --resume --overlay N` draws N of its runs into one"
+        )
     if not rrd.is_file():
         raise CosimError(
             f"no recording at {rrd}{'' if path.exists() else did_you_mean_path(path)}: "

@@ -35,6 +35,7 @@ except ImportError:  # Windows
     fcntl = termios = None  # type: ignore[assignment]
 
 OVERLAY_FILE = "overlay.rrd"  # a study folder's recording of several runs (cosim.viz.overlay)
+STUDY_FILE = "study.json"  # what marks a study folder (cosim.study.folder)
 PIPE_FOLDER = Path("/dev/fd")
 READ_SIZE = 1 << 20
 

@@ -54,6 +54,17 @@ def test_a_study_folder_views_its_overlay(tmp_path: Path) -> None:
         recording_in(tmp_path / "empty")
 
 
+def test_a_study_folder_without_its_overlay_says_how_to_draw_one(tmp_path: Path) -> None:
+    """`view` of a study folder run without an overlay said "no recording at
+    <study>/recording.rrd", a file no study writes."""
+    (tmp_path / "study.json").write_text("{}\n")
+    with pytest.raises(CosimError) as refused:
+        recording_in(tmp_path)
+    message = str(refused.value)
+    assert message.startswith(f"{tmp_path} is a study folder without overlay.rrd")
+    assert "--resume --overlay N" in message and "recording.rrd" not in message
+
+
 def test_a_taken_port_is_refused_in_one_line(tmp_path: Path, capsys) -> None:
     (tmp_path / "recording.rrd").write_bytes(FAKE_RRD)
     with socket.socket() as taken:
