@@ -26,8 +26,9 @@ class UnitWarning(UserWarning):
 
 def angle_doubts(scenario: Scenario) -> list[str]:
     """One line for each value of ``scenario`` given to (or compared with) a variable
-    in rad that is more than a full turn: start values, events' ``set`` values and
-    ``when`` thresholds, bias and noise faults' ``value`` and ``std``."""
+    in rad that is more than a full turn: start values, events' ``set`` values, ``when``
+    thresholds and series columns (their largest value), bias and noise faults' ``value``
+    and ``std``."""
     found: list[str] = []
 
     def unit(ref: str) -> str | None:
@@ -50,6 +51,10 @@ def angle_doubts(scenario: Scenario) -> list[str]:
             check(f"events.{event.name}.set.{ref}", ref, value)
         if event.when is not None:
             check(f"events.{event.name}.when", event.when.ref, event.when.threshold)
+        if event.series is not None:  # a profile's largest value, column by column
+            for ref, column in event.series.columns.items():
+                largest = max(column, key=abs, default=0.0)
+                check(f"events.{event.name}.series column {ref}", ref, largest)
     for fault in scenario.faults:
         if fault.kind == "bias":
             check(f"faults.{fault.name}.value", fault.target, fault.value)

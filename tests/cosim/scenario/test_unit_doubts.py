@@ -105,3 +105,17 @@ def test_a_study_warns_of_grid_values_and_samples_once_before_any_run(
         "instances.plant.start.yaw_0 = 20",
     ]
     assert len(lines) == 3 and lines[2].startswith("factor 'controller.yaw_setpoint': "), lines
+
+
+def test_a_series_column_in_degrees_is_named_by_its_largest_value(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    (tmp_path / "profile.csv").write_text("time,controller.yaw_setpoint\n0,0\n5,-20\n10,10\n")
+    text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "bs-2.toml").read_text()
+    path = tmp_path / "profile.toml"
+    path.write_text(text + '\n[[events]]\nname = "steps"\nseries = "profile.csv"\n')
+    scenario = cosim.load_scenario(path, fmu_dir=fmu_paths["AuvPlant"].parent)
+    assert angle_doubts(scenario) == [
+        "events.steps.series column controller.yaw_setpoint = -20 rad is more than a full "
+        "turn (-1146 deg): angles are in radians; if -20 deg was meant, give -0.349066"
+    ]
