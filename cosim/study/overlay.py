@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from cosim.errors import FLAGS, OptionNames
+from cosim.errors import FLAGS, OptionNames, did_you_mean
 from cosim.study.design import PlannedRun
 from cosim.study.spec import OVERLAY_CAP, StudyError
 
@@ -29,8 +29,8 @@ def check_choice(
         kind, _, metric = entry.partition(":")
         if kind in ("best", "worst") and metric not in metrics:
             raise StudyError(
-                f"overlay entry {entry!r}: {metric!r} is not a collected metric "
-                f"(collected: {', '.join(metrics)})"
+                f"overlay entry {entry!r}: {metric!r} is not a collected metric"
+                f"{did_you_mean(metric, metrics)} (collected: {', '.join(metrics)})"
             )
         if kind not in ("best", "worst", "all") and entry not in ids:
             raise StudyError(f"overlay entry {entry!r}: no run of this study has that id")

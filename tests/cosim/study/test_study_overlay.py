@@ -164,3 +164,14 @@ def test_best_and_worst_skip_failed_runs_and_runs_without_a_value() -> None:
     assert empty == []
     nothing = {run.id: {"status": "failed", "m": None} for run in runs}
     assert choose(["best:m"], runs, nothing) == ({}, ["best:m"])
+
+
+def test_a_mistyped_overlay_metric_gets_a_guess() -> None:
+    """'best:yaw_setling_time_s' was refused with the list of 39 collected metrics and no
+    word of the one meant."""
+    from cosim.study.overlay import check_choice
+    from cosim.study.spec import StudyError
+
+    runs = [PlannedRun(run_id({"plant.v_0": 0.1}), {"plant.v_0": 0.1})]
+    with pytest.raises(StudyError, match=r"\(did you mean 'yaw_settling_time_s'\?\)"):
+        check_choice(["best:yaw_setling_time_s"], runs, ["yaw_settling_time_s", "time_reached"])
