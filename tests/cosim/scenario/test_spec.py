@@ -312,7 +312,8 @@ BAD_EDITS = [
      r"controller\.start\.vehicle': unknown vehicle 'remus200'"),
     # a manoeuvre is a known kind whose variables the run records
     ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "zig-zag"',
-     r"key 'manoeuvre': 'zig-zag' is not a manoeuvre: expected one of \['turning-circle', "),
+     r"key 'manoeuvre': 'zig-zag' is not a manoeuvre \(did you mean 'zigzag'\?\): expected "
+     r"one of \['turning-circle', "),
     ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "survey"',
      r"key 'manoeuvre': manoeuvre 'survey' needs the variable 'cross_track_error', but the "
      r"run has no column for it \(columns: .*\); record it in output\.record"),
