@@ -271,11 +271,6 @@ def sweep(
         or out of range), or it is called at the top level of a script without an
         ``if __name__ == "__main__":`` guard (each worker process imports the script
         again); failed runs are rows of the table, not errors.
-
-    Notes
-    -----
-    In a script, call it under ``if __name__ == "__main__":``: the local workers are
-    new processes that import the script again.
     """
     import pandas as pd
 

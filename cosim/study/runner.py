@@ -163,17 +163,9 @@ def run_study(
                 )
     complete = sum(row["status"] == "complete" for row in rows)
     return StudyOutcome(
-        out_dir,
-        len(runs),
-        complete,
-        len(rows) - complete,
-        skipped,
-        len(todo),
-        time.perf_counter() - started,
-        paths,
-        tuple(warnings),
-        _first_failure(rows, spec.factors),
-    )
+        out_dir, len(runs), complete, len(rows) - complete, skipped, len(todo),
+        time.perf_counter() - started, paths, tuple(warnings), _first_failure(rows, spec.factors),
+    )  # fmt: skip
 
 
 def _first_failure(rows: Sequence[Mapping[str, Any]], factors: Sequence[str]) -> str | None:
