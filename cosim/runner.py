@@ -346,10 +346,9 @@ def _checked_scenario(
             raise CosimError(f"{options.names.switch('check_step')}: {reason}")
     master.preflight(scenario)
     if options.unit_doubts:
-        from cosim.scenario.unit_doubts import UnitWarning, angle_doubts
+        from cosim.scenario import unit_doubts
 
-        for line in angle_doubts(scenario):
-            warnings.warn(line, UnitWarning, stacklevel=2)
+        unit_doubts.warn(unit_doubts.angle_doubts(scenario))
     return scenario
 
 

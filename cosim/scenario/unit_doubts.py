@@ -11,6 +11,9 @@ variable declared in rad is the sign: degrees typed by habit are mostly beyond 2
 from __future__ import annotations
 
 import math
+import sys
+import warnings
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -69,3 +72,13 @@ def doubt_line(key: str, value: float) -> str:
         f"{key} = {value:g} rad is more than a full turn ({math.degrees(value):.0f} deg): "
         f"angles are in radians; if {value:g} deg was meant, give {math.radians(value):.6g}"
     )
+
+
+def warn(lines: Iterable[str]) -> None:
+    """Each line once, as a :class:`UnitWarning` pointing at the caller's own code (the
+    first frame outside this package: a script's ``cosim.run(...)`` line, not ours)."""
+    level, frame = 2, sys._getframe(1)  # 2: the frame that called this one
+    while frame is not None and frame.f_globals.get("__name__", "").startswith("cosim"):
+        level, frame = level + 1, frame.f_back  # type: ignore[assignment]
+    for line in dict.fromkeys(lines):
+        warnings.warn(line, UnitWarning, stacklevel=level)

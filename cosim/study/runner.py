@@ -27,12 +27,12 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from warnings import warn
 
 from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
 from cosim.paths import DEFAULT_FMU_DIR
+from cosim.scenario import unit_doubts
 from cosim.scenario.checks import range_text
-from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD, UnitWarning
+from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
@@ -433,8 +433,7 @@ def _checked_plan(
         first = runs[0].values
         doubts += check_values(base, factors, {name: first[name] for name in spec.random.factors})
         doubts += _sample_doubts(spec, base, runs)
-    for line in dict.fromkeys(doubts):  # once each, in the main process (runs go without)
-        warn(line, UnitWarning, stacklevel=3)
+    unit_doubts.warn(doubts)  # once each, in the main process (its runs go without)
     return runs
 
 

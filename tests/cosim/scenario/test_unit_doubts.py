@@ -119,3 +119,14 @@ def test_a_series_column_in_degrees_is_named_by_its_largest_value(
         "events.steps.series column controller.yaw_setpoint = -20 rad is more than a full "
         "turn (-1146 deg): angles are in radians; if -20 deg was meant, give -0.349066"
     ]
+
+
+def test_the_api_warning_points_at_the_callers_line(fmu_paths: dict[str, Path]) -> None:
+    """From a script the warning named cosim/runner.py and one of its lines; it names the
+    script's own cosim.run(...) line, as a warning of a library should."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        cosim.run("bs-2", stop_time=0.1, start={"plant.yaw_0": 30}, fmu_dir=fmu_dir)
+    (warning,) = [w for w in caught if issubclass(w.category, UnitWarning)]
+    assert warning.filename == __file__, warning.filename
