@@ -152,6 +152,8 @@ def _check_replaceable(
     if overwrite:
         return
     out = names.given("out", path)
+    if default is not None:  # no --out was given: the folder is the scenario's default
+        out = f"{path} (the default run folder of {default.id!r})"
     if default is not None and summary["scenario"] == default.id and not foreign:
         if summary.get("scenario_file") == default.file:
             return

@@ -197,6 +197,8 @@ def test_the_default_folder_is_replaced_silently_only_for_the_same_scenario_file
     assert main(["run", str(files[1]), "--no-rrd"]) == 1
     err = one_line(capsys)
     assert "another scenario file with the same id 'turn'" in err and "--overwrite" in err
+    # no --out was given: the folder is named as the default one, not as "--out ..."
+    assert "(the default run folder of 'turn')" in err and "--out runs" not in err, err
     assert tree(tmp_path / "runs" / "turn") == before
     assert main(["run", str(files[0]), "--no-rrd"]) == 0  # the same file: replaced silently
 
