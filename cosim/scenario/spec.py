@@ -867,7 +867,7 @@ def _resolve_instance(
         start[var_name] = check_value(value, var, key, src)
         if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
             start[var_name] = str(_existing_file(value, base_dir, key, src))
-    if spec.fmu in ("AuvPlant", "AuvAutopilot") and "vehicle" in start:
+    if interface.model_identifier in ("AuvPlant", "AuvAutopilot") and "vehicle" in start:
         _check_vehicle(str(start["vehicle"]), f"instances.{name}.start.vehicle", src)
     return Instance(
         name, fmu_ref, fmu_path, ReadOnly(start, f"{name}.start", _start_hint(name)), interface

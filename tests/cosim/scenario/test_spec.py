@@ -476,3 +476,16 @@ def test_a_mode_is_given_by_its_name_or_its_number(
     starts = scenario.instances["plant"].start, scenario.instances["controller"].start
     assert (starts[0]["variant"], starts[1]["heading_mode"]) == expected
     assert scenario_from_toml(scenario.to_toml(), "named", fmu_dir=fmu_dir) == scenario
+
+
+def test_an_unknown_vehicle_is_refused_when_the_fmu_is_named_by_its_path(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """The vehicle set was checked only for `fmu = "AuvPlant"`: named by its file (as a
+    study's tasks and the scenarios of other folders name it), `vehicle = "remus-100"`
+    passed every check, and a study ran it into a failed row with the FMU's error."""
+    text = (ROOT / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    text = text.replace('fmu = "AuvPlant"', f'fmu = "{fmu_paths["AuvPlant"]}"')
+    text = text.replace('variant = "lateral"', 'variant = "lateral"\nvehicle = "remus-100"')
+    with pytest.raises(ScenarioError, match=r"start\.vehicle': unknown vehicle 'remus-100'"):
+        scenario_from_toml(text, base_dir=tmp_path)
