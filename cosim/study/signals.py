@@ -62,6 +62,24 @@ def stop_study_on_signals() -> Iterator[None]:
 
 
 @contextmanager
+def stop_signals_deferred() -> Iterator[None]:
+    """The stop signals held back while the block runs and delivered after it (a
+    :class:`StudyStopped` then raises after the block, never inside it): for what must
+    happen whole, like a row written to runs.csv and counted as kept. Where signals
+    cannot be blocked (not the main thread, no ``pthread_sigmask``), nothing changes."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(
+        signal, "pthread_sigmask"
+    ):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+@contextmanager
 def workers_ignore_sigint() -> Iterator[None]:
     """Processes started inside this block inherit SIGINT ignored (main thread only)."""
     if threading.current_thread() is not threading.main_thread():

@@ -31,6 +31,7 @@ import pyarrow.parquet as pq
 from cosim.study.arrow_columns import column
 from cosim.study.design import PlannedRun
 from cosim.study.factors import Value
+from cosim.study.signals import stop_signals_deferred
 from cosim.study.spec import StudyError
 from cosim.study.task import RunRecord
 from cosim.whole_file import write_whole
@@ -93,13 +94,16 @@ class RunsTable:
         return set(self.rows)
 
     def append(self, run: PlannedRun, record: RunRecord) -> None:
-        """Add a finished run's row and flush it to the file."""
+        """Add a finished run's row and flush it to the file, the two as one: a stop
+        signal between them left a row in the file that the study did not count, and
+        a study stopped after its first row then discarded the folder holding it."""
         row: Row = {"run": run.id, **run.values}
         row.update({name: record.metrics.get(name) for name in self.metrics})
         row.update(status=record.status, error=record.error, wall_clock_s=record.wall_clock_s)
-        with self.path.open("a", encoding="utf-8", newline="") as f:
-            f.write(_line(self._cells(row)))
-        self.rows[run.id] = row
+        with stop_signals_deferred():
+            with self.path.open("a", encoding="utf-8", newline="") as f:
+                f.write(_line(self._cells(row)))
+            self.rows[run.id] = row
 
     def finish(self, plan: Sequence[PlannedRun]) -> list[Row]:
         """Rewrite runs.csv with its rows in the order of ``plan`` (the study's runs), write

@@ -104,3 +104,38 @@ def test_reopen_refuses_another_studys_table(tmp_path: Path) -> None:
         RunsTable.reopen(path, FACTORS, ["final.plant.yaw"], RUNS)
     with pytest.raises(StudyError, match="line 2: not a row of this study's runs"):
         RunsTable.reopen(path, FACTORS, METRICS, RUNS[1:])
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "pthread_sigmask"), reason="POSIX signals")
+def test_a_stop_signal_right_after_a_row_is_written_counts_the_row(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C arriving just after a row reached runs.csv, before the table counted it:
+    the study said it kept nothing and discarded the folder holding that row (a flaky
+    "interrupted (Ctrl-C)" without "1 finished runs kept" under load). The row and its
+    count are now one step, the signal delivered after it."""
+    import os
+    import signal
+
+    from cosim.study.signals import StudyStopped, stop_study_on_signals
+
+    path = tmp_path / "runs.csv"
+    table = RunsTable.create(path, FACTORS, METRICS)
+    opened = Path.open
+
+    def open_then_signal(self: Path, *args: object, **kwargs: object):  # type: ignore[no-untyped-def]
+        file = opened(self, *args, **kwargs)
+        close = file.close
+
+        def close_and_signal() -> None:
+            close()
+            os.kill(os.getpid(), signal.SIGINT)  # the row is on disk, not yet counted
+
+        file.close = close_and_signal  # type: ignore[method-assign]
+        return file
+
+    monkeypatch.setattr(Path, "open", open_then_signal)
+    with pytest.raises(StudyStopped), stop_study_on_signals():
+        table.append(RUNS[0], record(RUNS[0]))
+    monkeypatch.setattr(Path, "open", opened)
+    assert table.done == {RUNS[0].id} and len(rows_of(path)) == 1
