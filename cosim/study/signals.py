@@ -49,9 +49,13 @@ def stop_study_on_signals() -> Iterator[None]:
 
     def handler(signum: int, _frame: Any) -> None:
         nonlocal stopped
-        if not stopped:
-            stopped = True
-            raise StudyStopped(signum)
+        if stopped:
+            return
+        if _deferral.depth:  # inside stop_signals_deferred: delivered as it ends
+            _deferral.pending = signum
+            return
+        stopped = True
+        raise StudyStopped(signum)
 
     previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
     try:
@@ -61,22 +65,33 @@ def stop_study_on_signals() -> Iterator[None]:
             signal.signal(s, old)
 
 
+class _Deferral:
+    """How deep in :func:`stop_signals_deferred` the process is, and the stop signal that
+    arrived there (delivered as the outermost block ends)."""
+
+    depth = 0
+    pending: int | None = None
+
+
+_deferral = _Deferral()
+
+
 @contextmanager
 def stop_signals_deferred() -> Iterator[None]:
-    """The stop signals held back while the block runs and delivered after it (a
+    """A stop signal arriving while the block runs is delivered after it (a
     :class:`StudyStopped` then raises after the block, never inside it): for what must
-    happen whole, like a row written to runs.csv and counted as kept. Where signals
-    cannot be blocked (not the main thread, no ``pthread_sigmask``), nothing changes."""
-    if threading.current_thread() is not threading.main_thread() or not hasattr(
-        signal, "pthread_sigmask"
-    ):
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    happen whole, like a row written to runs.csv and counted as kept. Held back by the
+    handler of :func:`stop_study_on_signals`, not by a signal mask: the kernel hands a
+    process's signal to any thread not masking it (Dask's event loop, say), and Python
+    then runs the handler in the main thread at once."""
+    _deferral.depth += 1
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        _deferral.depth -= 1
+    if _deferral.depth == 0 and _deferral.pending is not None:
+        signum, _deferral.pending = _deferral.pending, None
+        signal.raise_signal(signum)  # to the handler, which raises now
 
 
 @contextmanager

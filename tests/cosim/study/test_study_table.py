@@ -113,9 +113,12 @@ def test_a_stop_signal_right_after_a_row_is_written_counts_the_row(
     """Ctrl-C arriving just after a row reached runs.csv, before the table counted it:
     the study said it kept nothing and discarded the folder holding that row (a flaky
     "interrupted (Ctrl-C)" without "1 finished runs kept" under load). The row and its
-    count are now one step, the signal delivered after it."""
-    import os
+    count are now one step, the signal delivered after it, also with another thread
+    beside the main one (the client's Dask event loop), which the kernel may hand the
+    signal to."""
     import signal
+    import threading
+    import time
 
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
@@ -128,14 +131,22 @@ def test_a_stop_signal_right_after_a_row_is_written_counts_the_row(
         close = file.close
 
         def close_and_signal() -> None:
-            close()
-            os.kill(os.getpid(), signal.SIGINT)  # the row is on disk, not yet counted
+            close()  # the row is on disk, not yet counted: the signal comes now, to the
+            signal.pthread_kill(beside.ident, signal.SIGINT)  # thread the kernel chose,
+            time.sleep(0.05)  # and the main thread runs its handler in the meantime
 
         file.close = close_and_signal  # type: ignore[method-assign]
         return file
 
+    done = threading.Event()
+    beside = threading.Thread(target=done.wait, daemon=True)
+    beside.start()
     monkeypatch.setattr(Path, "open", open_then_signal)
-    with pytest.raises(StudyStopped), stop_study_on_signals():
-        table.append(RUNS[0], record(RUNS[0]))
+    try:
+        with pytest.raises(StudyStopped), stop_study_on_signals():
+            table.append(RUNS[0], record(RUNS[0]))
+    finally:
+        done.set()
+        beside.join()
     monkeypatch.setattr(Path, "open", opened)
     assert table.done == {RUNS[0].id} and len(rows_of(path)) == 1
