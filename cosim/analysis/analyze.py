@@ -183,7 +183,9 @@ def sweep_command(
     out: Path,
 ) -> int:
     """``auv-cosim analyze sweep``: write the sweep's files, print its special points."""
-    result, paths = run_sweep(conditions, parameter, start, stop, steps, out, names=("FROM", "TO"))
+    result, paths = run_sweep(
+        conditions, parameter, start, stop, steps, out, names=("FROM", "TO", "--steps")
+    )
     print(describe(conditions, swept=parameter))
     print(special_points_table(result, conditions))
     for name, path in paths.items():
@@ -199,12 +201,12 @@ def run_sweep(
     steps: int,
     out: Path,
     seeds: dict | None = None,
-    names: tuple[str, str] = ("start", "stop"),
+    names: tuple[str, str, str] = ("start", "stop", "steps ="),
 ) -> tuple[Sweep, dict[str, Path]]:
     """Continue the branches with a progress bar and write the figure and CSV files.
 
-    The arguments are checked before ``out`` is made (``names`` name ``start`` and
-    ``stop`` in a refusal). Returns the :class:`Sweep` and the paths by name (``figure``,
+    The arguments are checked before ``out`` is made (``names`` name ``start``, ``stop``
+    and ``steps`` in a refusal). Returns the :class:`Sweep` and the paths by name (``figure``,
     ``branches``, ``special_points``).
     """
     from cosim.analysis.plots import plot_sweep

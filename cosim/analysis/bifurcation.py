@@ -636,11 +636,11 @@ def check_sweep(
     stop: float,
     steps: int,
     search_points: int = 3,
-    names: tuple[str, str] = ("start", "stop"),
+    names: tuple[str, str, str] = ("start", "stop", "steps ="),
 ) -> None:
     """Raise AnalysisError (a ValueError) naming the first bad argument of :func:`sweep`
-    (in seconds, before any work); ``names`` name ``start`` and ``stop`` in the refusal
-    (the command line's FROM and TO)."""
+    (in seconds, before any work); ``names`` name ``start``, ``stop`` and ``steps`` in
+    the refusal (the command line's FROM, TO and ``--steps``)."""
     if parameter not in SWEEP_PARAMETERS:
         raise AnalysisError(
             f"unknown sweep parameter {parameter!r}: expected one of {SWEEP_PARAMETERS}"
@@ -650,14 +650,15 @@ def check_sweep(
             f"sweep range {start!r} .. {stop!r}: expected two different finite values"
         )
     if steps < 2:
-        raise AnalysisError(f"steps = {steps!r}: expected at least 2")
+        raise AnalysisError(f"{names[2]} {steps!r}: expected at least 2")
     if steps > MAX_STEPS:
         raise AnalysisError(
-            f"steps = {steps!r}: expected at most {MAX_STEPS} (a finer step resolves nothing more)"
+            f"{names[2]} {steps!r}: expected at most {MAX_STEPS} (a finer step resolves "
+            "nothing more)"
         )
     if search_points < 2:
         raise AnalysisError(f"search_points = {search_points!r}: expected at least 2")
-    for name, value in zip(names, (start, stop), strict=True):
+    for name, value in zip(names[:2], (start, stop), strict=True):
         try:
             conditions.with_parameter(parameter, value)  # raises for an impossible value
         except AnalysisError as exc:

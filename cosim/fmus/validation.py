@@ -129,7 +129,7 @@ def checked_files(paths: list[Path]) -> list[str]:
             f"{path}: fmpy's validation; FMI 2.0 co-simulation "
             f"({md.coSimulation.modelIdentifier}); a {fmpy.platform} binary; "
             f"{len(md.modelVariables)} variables; one step of {step:g} s with "
-            f"{reals} finite Real outputs"
+            f"{_outputs(reals)}"
         )
     return lines
 
@@ -157,9 +157,14 @@ def checked(paths: dict[str, Path]) -> list[str]:
             f"described ({count['input']} inputs, {count['output']} outputs, "
             f"{count['parameter']} parameters); {with_units} Reals with a unit; "
             f"{len(md.outputs)} outputs with dependencies; one step of {step:g} s with "
-            f"{finite} finite Real outputs"
+            f"{_outputs(finite)}"
         )
     return lines
+
+
+def _outputs(count: int) -> str:
+    """``count`` finite Real output(s), in words."""
+    return f"{count} finite Real output" + ("" if count == 1 else "s")
 
 
 def _static_problems(path: Path) -> list[str]:

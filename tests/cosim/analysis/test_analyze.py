@@ -112,12 +112,12 @@ def test_bad_input_exits_1_with_a_one_line_reason(capsys, tmp_path, argv, messag
         (["mu", "1", "0"], "TO: mu = 0.0: expected a finite factor > 0"),
         (["eta", "-1", "1"], "FROM: eta = -1.0: expected a finite factor > 0"),
         (["mu", "1", "1"], "two different finite values"),
-        (["eta", "1", "2", "--steps", "1"], "steps = 1"),
+        (["eta", "1", "2", "--steps", "1"], "--steps 1: expected at least 2"),
     ],
 )
 def test_a_refused_sweep_names_the_argument_and_makes_no_folder(capsys, tmp_path, argv, message):
     """A sweep refused for its arguments leaves no empty output folder behind, and a
-    refused end of the range is named as the command line names it (FROM, TO)."""
+    refused argument is named as the command line names it (FROM, TO, --steps)."""
     out = tmp_path / "analysis"
     code, _, err = _run(capsys, "analyze", "sweep", *argv, "--out", str(out))
     assert code == 1
