@@ -30,10 +30,18 @@ def _relative(X: np.ndarray, reference: np.ndarray) -> float:
     return float(np.linalg.norm(X - reference) / np.linalg.norm(reference))
 
 
-def _discrete_residual(A, B, Q, X) -> float:
-    gain = np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
+def _discrete_residual(A, B, Q, X, weight=R) -> float:
+    gain = np.linalg.solve(weight + B.T @ X @ B, B.T @ X @ A)
     residual = A.T @ X @ A - X - A.T @ X @ B @ gain + Q
     return float(np.linalg.norm(residual) / np.linalg.norm(Q))
+
+
+def _continuous_residual(A, B, Q, weight, X) -> float:
+    """The continuous equation's residual relative to its largest term."""
+    quadratic = X @ B @ np.linalg.solve(weight, B.T) @ X
+    residual = A.T @ X + X @ A - quadratic + Q
+    terms = max(np.linalg.norm(A.T @ X), np.linalg.norm(quadratic), np.linalg.norm(Q))
+    return float(np.linalg.norm(residual) / terms)
 
 
 def test_continuous_solution_agrees_with_scipy(design):
@@ -81,6 +89,11 @@ SYSTEMS = st.integers(1, 5).flatmap(
 @settings(max_examples=30, deadline=None)  # the fast tier's minute
 @given(system=SYSTEMS, weight=st.sampled_from([1e-2, 1.0, 1e2]))
 def test_solutions_of_random_controllable_systems_agree_with_scipy(system, weight):
+    """Each solution satisfies its equation at least as well as scipy's (relative residual
+    within twice scipy's, or 1e-12) and equals scipy's to what the problem's conditioning
+    allows: a nearly uncontrollable system (smallest controllability singular value 0.03,
+    R = 0.01) moves scipy's own solution by 9e-9 under one Newton step, so agreement is
+    asked to 1e-6, far below what a wrong (non-stabilising) solution differs by."""
     A, B, C = system
     n = A.shape[0]
     controllability = np.hstack([np.linalg.matrix_power(A, k) @ B for k in range(n)])
@@ -89,10 +102,16 @@ def test_solutions_of_random_controllable_systems_agree_with_scipy(system, weigh
     Q = C.T @ C + 1e-2 * np.eye(n)
     Rw = weight * np.eye(2)
     continuous = scipy.linalg.solve_continuous_are(A, B, Q, Rw)
-    assert _relative(riccati.solve_continuous_are(A, B, Q, Rw), continuous) <= 1e-9
+    ours = riccati.solve_continuous_are(A, B, Q, Rw)
+    residual = _continuous_residual(A, B, Q, Rw, ours)
+    assert residual <= max(2.0 * _continuous_residual(A, B, Q, Rw, continuous), 1e-12)
+    assert _relative(ours, continuous) <= 1e-6
     Ad = A / max(1.0, float(np.abs(np.linalg.eigvals(A)).max()))
     discrete = scipy.linalg.solve_discrete_are(Ad, B, Q, Rw)
-    assert _relative(riccati.solve_discrete_are(Ad, B, Q, Rw), discrete) <= 1e-9
+    ours = riccati.solve_discrete_are(Ad, B, Q, Rw)
+    residual = _discrete_residual(Ad, B, Q, ours, Rw)
+    assert residual <= max(2.0 * _discrete_residual(Ad, B, Q, discrete, Rw), 1e-12)
+    assert _relative(ours, discrete) <= 1e-6
 
 
 def test_an_unstabilisable_system_is_refused():

@@ -87,10 +87,10 @@ def test_equilibria_table_for_the_long_fins(capsys):
             "mass_position = -0.1 m",
         ),
         (["analyze", "sweep", "mu", "1", "1"], "two different finite values"),
-        (["analyze", "sweep", "eta", "1", "2", "--steps", "1"], "steps = 1"),
+        (["analyze", "sweep", "eta", "1", "2", "--steps", "1"], "--steps 1"),
         (
             ["analyze", "sweep", "eta", "1", "2", "--steps", "100000000"],
-            "steps = 100000000: expected at most 100000",
+            "--steps 100000000: expected at most 100000",
         ),
         (["analyze", "phase-portrait", "--current-east", "0.2"], "still water"),
         (["analyze", "equilibria", "--thrust", "-inf"], "thrust = -inf: expected a finite"),
