@@ -320,23 +320,30 @@ VARIABLES: dict[str, tuple[str, ...]] = {
 
 
 def manoeuvre_metrics(
-    kind: str, columns: Mapping[str, np.ndarray], fault_start: float = 0.0
+    kind: str, columns: Mapping[str, np.ndarray], fault_start: float | None = None
 ) -> Metrics:
     """The metrics of manoeuvre ``kind`` from a run's columns (``results.csv`` names).
 
     Kinds: ``turning-circle``, ``zigzag``, ``depth-steps``, ``survey``,
-    ``fault-recovery`` (:data:`KINDS`; ``fault_start``, s, is when the fault starts, for
-    the last). The columns are found by :func:`manoeuvre_columns`; depth steps come out
-    numbered, ``step_1_rise_time_s``, ...
+    ``fault-recovery`` (:data:`KINDS`; ``fault_start``, s, is when the fault starts, needed
+    by the last and not read by the others: :func:`cosim.outputs.manoeuvre.fault_start`
+    reads it from a scenario). The columns are found by :func:`manoeuvre_columns`; depth
+    steps come out numbered, ``step_1_rise_time_s``, ...
 
     Raises:
-        ValueError: an unknown kind, or a column it needs is missing or ambiguous (the
-            message names it and the columns there are).
+        ValueError: an unknown kind, a column it needs missing or ambiguous (the message
+            names it and the columns there are), or a fault-recovery without a finite
+            ``fault_start``.
     """
     names = manoeuvre_columns(kind, [name for name in columns if name != "time"])
+    if kind == "fault-recovery" and (fault_start is None or not math.isfinite(fault_start)):
+        raise ValueError(
+            f"'fault-recovery' needs fault_start=, the time the fault starts (s), not "
+            f"{fault_start!r}: cosim.outputs.manoeuvre.fault_start(scenario) reads it"
+        )
     values = {name: np.asarray(columns[column], dtype=float) for name, column in names.items()}
     values["time"] = np.asarray(columns["time"], dtype=float)
-    return KINDS[kind](values, fault_start)
+    return KINDS[kind](values, 0.0 if fault_start is None else fault_start)
 
 
 def manoeuvre_columns(kind: str, columns: Sequence[str]) -> dict[str, str]:

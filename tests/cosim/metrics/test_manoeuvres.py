@@ -264,9 +264,24 @@ def test_a_run_stopped_early_gets_its_metric_names_with_none(kind, rows):
     never an exception (the summary of a partial run is still written)."""
     columns = {"time": np.arange(rows) * H}
     columns.update({f"plant.{name}": np.full(rows, 0.1) for name in VARIABLES[kind]})
-    metrics = manoeuvre_metrics(kind, columns)
+    metrics = manoeuvre_metrics(kind, columns, fault_start=0.0)
     assert tuple(metrics) == metric_names(kind, steps=0)
     assert all(v is None or math.isfinite(v) for v in metrics.values())
+
+
+@pytest.mark.parametrize("fault_start", [None, math.nan, math.inf])
+def test_a_fault_recovery_without_its_fault_start_is_refused_naming_it(fault_start):
+    """Without fault_start a fault recovery was measured from t = 0, whatever the fault's
+    time: a heading error 'at the fault' and a settling time from the run's start, with no
+    word. The call now names what it needs."""
+    t = np.arange(0.0, 20.0, H)
+    columns = {"time": t, "plant.yaw": 0.1 * np.exp(-t), "controller.yaw_setpoint": 0 * t}
+    kwargs = {} if fault_start is None else {"fault_start": fault_start}
+    with pytest.raises(ValueError, match=r"'fault-recovery' needs fault_start=.*\(s\)"):
+        manoeuvre_metrics("fault-recovery", columns, **kwargs)
+    assert manoeuvre_metrics("fault-recovery", columns, fault_start=5.0)[
+        "heading_error_at_fault_deg"
+    ] == pytest.approx(np.degrees(0.1 * np.exp(-5.0)), rel=1e-2)
 
 
 def test_metric_names_number_the_depth_steps():
