@@ -45,6 +45,7 @@ from cosim.errors import CosimError
 from cosim.scenario.checks import ScenarioError, Source
 from cosim.scenario.spec import Scenario
 from cosim.scenario.timeline_spec import Event, settable
+from cosim.scenario.unit_doubts import value_doubt
 
 PAUSE_POLL_S = 0.1  # s: a paused run checks for a signal this often
 
@@ -65,6 +66,7 @@ class Ticket:
 
     values: dict[str, bool | int | float]
     source: str
+    doubts: list[str] = field(default_factory=list)  # values that look like another unit
     name: str | None = None
     time: float | None = None
     refused: str | None = None
@@ -130,13 +132,25 @@ class LiveControl:
         if not values:
             raise OverrideError("override: no value given")
         checked = {ref: self.check(ref, value) for ref, value in values.items()}
-        ticket = Ticket(checked, source)
+        ticket = Ticket(checked, source, self._doubts(checked))
         with self._cond:
             if self._closed is not None:
                 raise OverrideError(f"set not applied: {self._closed}")
             self._queue.append(ticket)
             self._cond.notify_all()
         return ticket
+
+    def _doubts(self, values: Mapping[str, bool | int | float]) -> list[str]:
+        """A warning line for each value that looks like degrees given to an angle in rad
+        (:func:`cosim.scenario.unit_doubts.value_doubt`): taken all the same."""
+        found = []
+        for ref, value in values.items():
+            instance, variable = ref.split(".", 1)
+            unit = self.scenario.instances[instance].interface.variables[variable].unit
+            line = value_doubt(ref, unit, value)
+            if line is not None:
+                found.append(line)
+        return found
 
     def pause(self, source: str) -> None:
         """Hold the run at its next communication point until :meth:`resume` (or until

@@ -13,9 +13,10 @@ Requests, exactly one reply line each::
 
 A ``set`` is checked whole (:meth:`cosim.engine.live.LiveControl.request`) and its reply
 waits until the master has applied it at a communication point: ``ok`` means applied and
-logged. A refused request, or a ``set`` the run ended before applying, gets
-``{"error": "<one line: the value and the reason>"}``. ``get`` answers with the values of the
-last communication point.
+logged; an angle in rad of more than a full turn (degrees typed by habit) is applied all
+the same, and the reply says so in ``"warnings": ["<one line>"]``. A refused request, or a
+``set`` the run ended before applying, gets ``{"error": "<one line: the value and the
+reason>"}``. ``get`` answers with the values of the last communication point.
 
 What the reader refuses, with one reply each and the connection kept: a line over
 :data:`MAX_LINE` bytes (discarded whole, up to its end: its tail is never read as a
@@ -159,7 +160,8 @@ def _do(live: LiveControl, request: tuple[str, Any], source: str) -> dict[str, A
         ticket.wait()
         if ticket.refused is not None:
             raise OverrideError(f"set {ticket.values}: {ticket.refused}")
-        return {"ok": True, "set": ticket.values, "name": ticket.name, "t": ticket.time}
+        reply = {"ok": True, "set": ticket.values, "name": ticket.name, "t": ticket.time}
+        return reply | ({"warnings": ticket.doubts} if ticket.doubts else {})
     if verb == "get" and isinstance(arg, list) and all(isinstance(r, str) for r in arg):
         t, values = live.latest(arg)
         return {"t": t, "values": values}

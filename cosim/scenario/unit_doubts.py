@@ -41,10 +41,9 @@ def angle_doubts(scenario: Scenario) -> list[str]:
         return None if var is None else var.unit
 
     def check(key: str, ref: str, value: Any) -> None:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            return
-        if unit(ref) == ANGLE_UNIT and abs(value) > FULL_TURN_RAD:
-            found.append(doubt_line(key, value))
+        line = value_doubt(key, unit(ref), value)
+        if line is not None:
+            found.append(line)
 
     for name, inst in scenario.instances.items():
         for variable, value in inst.start.items():
@@ -64,6 +63,16 @@ def angle_doubts(scenario: Scenario) -> list[str]:
         if fault.kind == "noise":
             check(f"faults.{fault.name}.std", fault.target, fault.std)
     return found
+
+
+def value_doubt(key: str, unit: str | None, value: Any) -> str | None:
+    """The warning for ``key`` = ``value`` given to a variable of ``unit``, if it is an
+    angle in rad of more than a full turn; else None."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    if unit == ANGLE_UNIT and abs(value) > FULL_TURN_RAD:
+        return doubt_line(key, value)
+    return None
 
 
 def doubt_line(key: str, value: float) -> str:

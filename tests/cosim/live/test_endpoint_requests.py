@@ -31,6 +31,7 @@ from cosim.live.control import (
     MAX_LINE,
     TOO_LONG,
     ControlServer,
+    answer,
     lines,
     parse_address,
 )
@@ -336,6 +337,36 @@ def test_a_set_is_answered_ok_only_once_applied(scenario: Scenario) -> None:
     master.point(3)
     assert ticket.wait(0) and (ticket.name, ticket.time, ticket.refused) == ("live-1", 0.03, None)
     assert master.applied == [(3, {"controller.yaw_setpoint": 0.2})]
+
+
+def test_a_set_of_degrees_to_an_angle_in_rad_is_applied_with_a_warning(scenario: Scenario) -> None:
+    """A yaw set-point of 30 (degrees typed by habit: 4.8 turns in rad) was applied with a
+    plain "ok", as a scenario file's warns; it is still applied, and the reply says what
+    it is in degrees and what 30 deg would be. A set-point within a turn has no warning."""
+    live = LiveControl(scenario)
+    master = Master(live)
+
+    def reply_to(value: float) -> dict:
+        line = json.dumps({"set": {"controller.yaw_setpoint": value}}).encode()
+        replies: list[dict] = []
+        waiting = threading.Thread(target=lambda: replies.append(answer(live, line, "test")))
+        waiting.start()
+        for n in range(1, 1000):  # communication points until it is applied
+            master.point(n)
+            waiting.join(0.01)
+            if not waiting.is_alive():
+                break
+        return replies[0]
+
+    degrees, radians = reply_to(30), reply_to(0.5)
+    assert degrees["ok"] and radians["ok"] and "warnings" not in radians
+    (warning,) = degrees["warnings"]
+    assert "controller.yaw_setpoint = 30 rad is more than a full turn (1719 deg)" in warning
+    assert "give 0.523599" in warning
+    assert [values for _, values in master.applied] == [
+        {"controller.yaw_setpoint": 30},
+        {"controller.yaw_setpoint": 0.5},
+    ]
 
 
 def test_a_set_the_run_ends_before_applying_is_answered_not_applied(scenario: Scenario) -> None:
