@@ -6,7 +6,9 @@ use them are in this folder's conftest.py):
 * :func:`moved`: a copy of an extraction whose record names a build environment that does
   not exist, as on a machine the FMU was copied to;
 * :func:`with_runtime`: a copy of an extraction whose linux64 binary is another build of
-  the runtime (``SANITIZERS``: the flags of one built with ASan and UBSan).
+  the runtime (``SANITIZERS``: the flags of one built with ASan and UBSan);
+* :func:`sanitized_build`: the runtime and a C host built with those flags
+  (``SANITIZED_ENVIRONMENT``: what their runs need).
 """
 
 from __future__ import annotations
@@ -17,13 +19,21 @@ import shutil
 import signal
 import subprocess
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
+import pytest
+
+from cosim.fmus import native
 from fmu_runtime.entry import RECORD_FILE
 
 HOST_SOURCE = Path(__file__).parent / "hosts" / "fmi_host.c"
 CLEAN_PATH = "/usr/bin:/bin"
 SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1", "-g")
+# a sanitized run: leaks are not our finding (CPython's own at exit), malloc seen by ASan,
+# no numba (its JIT's memory confuses ASan)
+SANITIZED_ENVIRONMENT = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
+                         "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
 
 
 def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
@@ -74,3 +84,21 @@ def with_runtime(extraction: Path, runtime: Path, folder: Path) -> Path:
     shutil.copytree(extraction, copy)
     shutil.copyfile(runtime, copy / "binaries" / "linux64" / f"{copy.name.rstrip('0123456789')}.so")
     return copy
+
+
+def sanitized_build(folder: Path, host: Path, flags: Sequence[str] = ()) -> tuple[Path, Path]:
+    """(runtime.so, host executable) in ``folder``: the runtime and the C host ``host``
+    (with ``flags`` besides) built with ASan and UBSan; skips the test without a system
+    C compiler (zig's has no sanitizer runtimes here)."""
+    chain = native.toolchain()
+    if chain is None or chain.zig:
+        pytest.skip("no cc")
+    runtime, executable = folder / "runtime.so", folder / host.stem
+    for command in (
+        native.compile_command(chain, runtime, *SANITIZERS),
+        [*chain.command, *SANITIZERS, *flags, "-o", str(executable), str(host), "-ldl", "-lm",
+         "-lpthread"],
+    ):  # fmt: skip
+        done = subprocess.run(command, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-3000:]
+    return runtime, executable

@@ -20,13 +20,10 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
 from pathlib import Path
 
 import pytest
-from c_hosts import SANITIZERS, run_clean, with_runtime
-
-from cosim.fmus import native
+from c_hosts import SANITIZED_ENVIRONMENT, run_clean, sanitized_build, with_runtime
 
 FUZZ_SOURCE = Path(__file__).parent / "hosts" / "fuzz_host.c"
 RUNTIMES = {"runtime": "", "pythonfmu": "pythonfmu"}
@@ -244,19 +241,8 @@ def test_random_fmi_call_sequences_break_no_rule_and_trip_no_sanitizer(
     pointers among them) against the runtime built with ASan and UBSan: no status out of
     range, no forbidden call answered fmi2OK, no non-finite Real or time answered fmi2OK,
     no state this FMU took refused, and no sanitizer report."""
-    chain = native.toolchain()
-    if chain is None or chain.zig:
-        pytest.skip("no cc")
-    runtime_so, fuzz = tmp_path / "runtime.so", tmp_path / "fuzz_host"
-    for command in (
-        native.compile_command(chain, runtime_so, *SANITIZERS),
-        [*chain.command, *SANITIZERS, "-Wall", "-Wextra", "-Werror", "-o", str(fuzz),
-         str(FUZZ_SOURCE), "-ldl", "-lm"],
-    ):  # fmt: skip
-        done = subprocess.run(command, capture_output=True, text=True)
-        assert done.returncode == 0, done.stderr[-3000:]
-    environment = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
-                   "AUV_COSIM_NO_JIT": "1", "AUV_FMU_RUNTIME": RUNTIMES[runtime]}  # fmt: skip
+    runtime_so, fuzz = sanitized_build(tmp_path, FUZZ_SOURCE, ("-Wall", "-Wextra", "-Werror"))
+    environment = {**SANITIZED_ENVIRONMENT, "AUV_FMU_RUNTIME": RUNTIMES[runtime]}
     for name, seeds in SEEDS.items():
         folder = with_runtime(extracted[name], runtime_so, tmp_path / name)
         for seed in seeds if runtime == "runtime" else seeds[:2]:

@@ -31,7 +31,14 @@ from pathlib import Path
 from urllib.parse import quote
 
 import pytest
-from c_hosts import HOST_SOURCE, SANITIZERS, moved, run_clean, with_runtime
+from c_hosts import (
+    HOST_SOURCE,
+    SANITIZED_ENVIRONMENT,
+    moved,
+    run_clean,
+    sanitized_build,
+    with_runtime,
+)
 from elf_symbols import glibc_versions, unresolvable
 from repo_paths import ROOT
 
@@ -479,23 +486,12 @@ def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_
     extended, pointers that are no FMU state (a freed one among them), Strings written
     back with the pointers fmi2GetString gave, and a file://localhost URI run to the end;
     any finding aborts with a report."""
-    chain = native.toolchain()
-    if chain is None or chain.zig:
-        pytest.skip("no cc")
-    runtime, host = tmp_path / "runtime.so", tmp_path / "fmi_host"
-    for command in (
-        native.compile_command(chain, runtime, *SANITIZERS),
-        [*chain.command, *SANITIZERS, "-o", str(host), str(HOST_SOURCE), "-ldl", "-lpthread"],
-    ):
-        done = subprocess.run(command, capture_output=True, text=True)
-        assert done.returncode == 0, done.stderr[-3000:]
+    runtime, host = sanitized_build(tmp_path, HOST_SOURCE)
     folder = with_runtime(extracted["AuvPlant"], runtime, tmp_path)
-    environment = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
-                   "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
     uri = f"file://localhost{quote(str(folder / 'resources'))}"
     modes = (["cycles", 2, 20], ["illegal"], ["hostile"], ["state"], ["gil"], ["threads"],
              ["corrupt"], ["strays"], ["strings-back"], ["uri", uri])  # fmt: skip
     for mode in modes:
-        done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **environment)
+        done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **SANITIZED_ENVIRONMENT)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
         assert "Sanitizer" not in done.stderr and "runtime error" not in done.stderr
