@@ -17,10 +17,10 @@ With ``--end-to-end`` it measures instead what a user waits for: ``auv-cosim swe
 prompt in a fresh process, with 1 worker and with 2, alternating ``--repeat`` times, the
 best of each; their ratio (goal >= 1.6) includes everything a study does beside its runs
 (imports, the cluster's start-up, each worker's first run, hand-offs, the table, the page,
-the cluster's close), with our modules imported compiled, as from an installed copy
-(:func:`as_installed`). The load average is printed beside every figure. The ratio of each
-1-worker sweep to the 2-worker one right after it, and their median, are printed too:
-this machine's speed drifts by up to 1.4x within minutes, so the two bests can come from
+the cluster's close), with our modules imported compiled from a copy of them, as from an
+installed copy (:func:`installed`). The load average is printed beside every figure. The
+ratio of each 1-worker sweep to the 2-worker one right after it, and their median, are
+printed too: this machine's speed drifts by up to 1.4x within minutes, so the two bests can come from
 different speeds, while a back-to-back pair shares one.
 
 All throughputs (without ``--end-to-end``) are steady state: the serial loop starts
@@ -43,6 +43,7 @@ Usage: ``python scripts/bench_sweep.py [--runs 8] [--stop-time 20] [--repeat 3]`
 from __future__ import annotations
 
 import argparse
+import compileall
 import io
 import multiprocessing
 import os
@@ -53,6 +54,7 @@ import sys
 import tarfile
 import tempfile
 import time
+import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -142,34 +144,45 @@ def study_file(folder: Path, runs: int, stop_time: float) -> Path:
     return path
 
 
-def as_installed(env: Mapping[str, str], folder: Path) -> dict[str, str]:
-    """``env`` for a sweep whose processes import compiled code, as from an installed copy
-    (pip compiles a package's modules as it installs it): a source tree run under
-    ``PYTHONDONTWRITEBYTECODE`` (set on some machines, this one included) compiles every
-    module of ours afresh in every process, ~0.2 s of CPU each in the client and in the
-    workers' fork server, both on the way to the first run. The compiled files go under
-    ``folder`` (``PYTHONPYCACHEPREFIX``), not into the tree; an untimed warm-up sweep
-    writes them."""
-    installed = {k: v for k, v in env.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    installed["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
-    return installed
+def installed(tree: Path, folder: Path) -> Path:
+    """Our packages of the source ``tree`` as ``pip install .`` leaves them in
+    site-packages: copied into ``folder`` (never into the tree) and compiled there, as pip
+    compiles a package's modules as it installs it; returns ``folder``. A source tree run
+    under ``PYTHONDONTWRITEBYTECODE`` (set on some machines, this one included) compiles
+    every module of ours afresh in every process, ~0.2 s of CPU each in the client and in
+    the workers' fork server, both on the way to the first run."""
+    found = tomllib.loads((tree / "pyproject.toml").read_text(encoding="utf-8"))
+    for pattern in found["tool"]["setuptools"]["packages"]["find"]["include"]:
+        package = pattern.rstrip("*")
+        no_bytecode = shutil.ignore_patterns("__pycache__")
+        shutil.copytree(tree / package, folder / package, ignore=no_bytecode, dirs_exist_ok=True)
+        compileall.compile_dir(folder / package, quiet=1)
+    return folder
 
 
-def sweep_seconds(study: Path, workers: int, fmu_dir: Path, tree: Path | None = None) -> float:
-    """``auv-cosim sweep STUDY --workers N`` in a fresh process, with compiled code
-    (:func:`as_installed`, kept beside ``study``): seconds from the command to its exit (its
-    own process group, ended if the benchmark is interrupted); ``tree``: the source tree
-    whose ``cosim`` runs (default: the one this script imports)."""
+def installed_env(env: Mapping[str, str], site: Path) -> dict[str, str]:
+    """``env`` for a process that imports our packages from ``site`` (:func:`installed`),
+    first on its path. Without ``PYTHONPYCACHEPREFIX``: under it Python reads no
+    ``__pycache__`` beside a module, so each worker compiled the FMU's Python again
+    (~0.05 s of CPU) instead of reading the bytecode the FMU ships
+    (:mod:`cosim.fmus.bytecode`), which a user's installed copy reads."""
+    env = {k: v for k, v in env.items() if k != "PYTHONPYCACHEPREFIX"}
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(site), env.get("PYTHONPATH")]))
+    return env
+
+
+def sweep_seconds(study: Path, workers: int, fmu_dir: Path, site: Path) -> float:
+    """``auv-cosim sweep STUDY --workers N`` in a fresh process, with our packages from the
+    installed copy ``site`` (:func:`installed`, its working folder too): seconds from the
+    command to its exit (its own process group, ended if the benchmark is interrupted)."""
     out = study.parent / f"out-{workers}"
     shutil.rmtree(out, ignore_errors=True)
     command = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--workers", str(workers)]
     command += ["--out", str(out), "--fmu-dir", str(fmu_dir.resolve()), "--quiet"]
-    env = as_installed(os.environ, study.parent)
-    if tree is not None:
-        env["PYTHONPATH"] = str(tree)
     started = time.perf_counter()
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               text=True, start_new_session=True, cwd=tree, env=env)  # fmt: skip
+                               text=True, start_new_session=True, cwd=site,
+                               env=installed_env(os.environ, site))  # fmt: skip
     try:
         _, err = process.communicate(timeout=3600)
     finally:
@@ -198,17 +211,21 @@ def end_to_end(args: argparse.Namespace) -> None:
     with tempfile.TemporaryDirectory(prefix="auv-cosim-bench-") as name:
         folder = Path(name)
         study = study_file(folder, args.runs, args.stop_time)
-        trees: dict[str, tuple[Path | None, Path]] = {"": (None, args.fmu_dir)}
+        trees = {"": (installed(ROOT, folder / "site"), args.fmu_dir)}
         if args.baseline:  # its own FMUs, built by its warm-up sweep
             base = tree_at(args.baseline, folder / "baseline")
-            trees = {f"{args.baseline} ": (base, folder / "baseline-fmus"), "this tree ": trees[""]}
-        for tree, fmu_dir in trees.values():
-            sweep_seconds(study, 1, fmu_dir, tree)  # warm-up: bytecode, numba's cache, disk cache
+            base_site = installed(base, folder / "baseline-site")
+            trees = {
+                f"{args.baseline} ": (base_site, folder / "baseline-fmus"),
+                "this tree ": trees[""],
+            }
+        for site, fmu_dir in trees.values():
+            sweep_seconds(study, 1, fmu_dir, site)  # warm-up: numba's cache, the disk cache
         times: dict[tuple[str, int], list[tuple[float, str]]] = {}
         for _ in range(args.repeat):  # alternating, so all see the same other load
-            for label, (tree, fmu_dir) in trees.items():
+            for label, (site, fmu_dir) in trees.items():
                 for workers in (1, 2):
-                    seconds = sweep_seconds(study, workers, fmu_dir, tree)
+                    seconds = sweep_seconds(study, workers, fmu_dir, site)
                     load = "/".join(f"{x:.1f}" for x in os.getloadavg())
                     times.setdefault((label, workers), []).append((seconds, load))
                     print(

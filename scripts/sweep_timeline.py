@@ -13,8 +13,8 @@ process, with 1 worker and with 2, as a timeline of seconds from the command:
 * exit: the command's process ended; pipes closed: its stderr reached end of file (the
   fork server and Dask's helpers hold it until they end: what the benchmark waits for).
 
-Every sweep imports compiled code, as an installed copy does (``bench_sweep.as_installed``;
-an untimed sweep first writes it).
+Every sweep imports our packages compiled, from a copy of them made as ``pip install``
+makes one (``bench_sweep.installed``).
 
 The marks come from a tracer put on the sweep's ``PYTHONPATH`` as ``sitecustomize``
 (written into a temporary folder, never into the tree), which wraps a few functions of
@@ -43,7 +43,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sweep import as_installed, study_file
+from bench_sweep import ROOT, installed, installed_env, study_file
 
 from cosim.fmus.build import ensure_fmus
 
@@ -128,13 +128,14 @@ def traced_sweep(study: Path, workers: int, fmu_dir: Path, folder: Path) -> dict
     log = folder / f"trace-{workers}.log"
     log.unlink(missing_ok=True)
     shutil.rmtree(folder / f"out-{workers}", ignore_errors=True)
-    env = dict(as_installed(os.environ, folder), AUV_COSIM_SWEEP_TRACE=str(log))
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(folder), env.get("PYTHONPATH")]))
+    site = folder / "site"  # our packages, installed (an untimed sweep found them first)
+    env = dict(installed_env(os.environ, site), AUV_COSIM_SWEEP_TRACE=str(log))
+    env["PYTHONPATH"] = os.pathsep.join([str(folder), env["PYTHONPATH"]])  # the tracer
     command = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--workers", str(workers)]
     command += ["--out", str(folder / f"out-{workers}"), "--fmu-dir", str(fmu_dir.resolve())]
     command += ["--quiet"]
     started = time.time()
-    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL,
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, cwd=site,
                                stderr=subprocess.PIPE, start_new_session=True)  # fmt: skip
     ended: dict[str, float] = {}
 
@@ -264,6 +265,7 @@ def main() -> None:
         folder = Path(name)
         (folder / "sitecustomize.py").write_text(TRACER, encoding="utf-8")
         study = study_file(folder, args.runs, args.stop_time)
+        installed(ROOT, folder / "site")
         traced_sweep(study, 1, args.fmu_dir, folder)  # warm-up: bytecode, numba's cache, disk
         traces = {}
         for workers in args.workers:

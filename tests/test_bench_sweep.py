@@ -1,9 +1,11 @@
 """scripts/bench_sweep.py's end-to-end sweeps (and scripts/sweep_timeline.py's) run as a
 user's installed copy does: our modules imported compiled, not compiled afresh in every
-process where the machine sets PYTHONDONTWRITEBYTECODE."""
+process where the machine sets PYTHONDONTWRITEBYTECODE, and an FMU's Python read from
+the bytecode it ships (which PYTHONPYCACHEPREFIX would make Python ignore)."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -15,16 +17,25 @@ from repo_paths import ROOT
 SWEEP_LIKE = """
 import os, subprocess, sys
 from pathlib import Path
-from bench_sweep import as_installed
-env = as_installed({**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}, Path(sys.argv[1]))
-subprocess.run([sys.executable, "-c", "import cosim.study.spec"], env=env, check=True)
+from bench_sweep import ROOT, installed, installed_env
+site = installed(ROOT, Path(sys.argv[1]))
+env = installed_env({**os.environ, "PYTHONPYCACHEPREFIX": sys.argv[1] + "/prefix"}, site)
+probe = "import json, sys, cosim.study.spec as m; "
+probe += "print(json.dumps([m.__file__, sys.pycache_prefix]))"
+subprocess.run([sys.executable, "-c", probe], env=env, cwd=site, check=True)
 """
 
 
-def test_a_benchmark_sweep_imports_our_modules_compiled(tmp_path: Path) -> None:
+def test_a_benchmark_sweep_imports_our_modules_compiled_from_an_installed_copy(
+    tmp_path: Path,
+) -> None:
     path = os.pathsep.join([str(ROOT / "scripts"), str(ROOT)])
-    env = {**os.environ, "PYTHONPATH": path}
-    subprocess.run([sys.executable, "-c", SWEEP_LIKE, str(tmp_path)], env=env, check=True,
-                   timeout=300)  # fmt: skip
-    spec = ROOT / "cosim" / "study" / f"spec.{sys.implementation.cache_tag}.pyc"
-    assert (tmp_path / "pycache" / spec.relative_to(spec.anchor)).is_file()
+    env = {**os.environ, "PYTHONPATH": path, "PYTHONDONTWRITEBYTECODE": "1"}
+    done = subprocess.run([sys.executable, "-c", SWEEP_LIKE, str(tmp_path)], env=env,
+                          check=True, timeout=300, capture_output=True, text=True)  # fmt: skip
+    module, prefix = json.loads(done.stdout)
+    assert Path(module) == tmp_path / "cosim" / "study" / "spec.py"  # the copy, not the tree
+    compiled = tmp_path / "cosim" / "study" / "__pycache__"
+    assert (compiled / f"spec.{sys.implementation.cache_tag}.pyc").is_file()
+    assert prefix is None  # the FMUs' shipped __pycache__ is read
+    assert not (tmp_path / "prefix").exists()
