@@ -16,7 +16,8 @@ not the command before it starts the server: reading Dask's configuration import
 (~0.2 s), which the server's imports would wait for. It then imports what every run
 needs (:mod:`cosim.study.preload`: the engine, numba with its cache folder set
 first and its compiler's target initialised, ~2 s of each worker's warm-up before) and
-freezes it out of the garbage collector's reach. The FMUs are never loaded there (an FMU
+freezes it out of the garbage collector's reach; last :mod:`cosim.study.server_exit`, so
+that it ends without its interpreter's teardown. The FMUs are never loaded there (an FMU
 imports the package it ships): each worker loads them after the fork. This module:
 standard library and dask's configuration only (not distributed, ~1 s to import), so that
 the server starts before the client has imported what the server imports.
@@ -29,7 +30,12 @@ import os
 from contextlib import suppress
 
 # imported once, in the server, in this order
-PRELOAD = ["cosim.study.server_environ", "distributed", "cosim.study.preload"]
+PRELOAD = [
+    "cosim.study.server_environ",
+    "distributed",
+    "cosim.study.preload",
+    "cosim.study.server_exit",
+]
 _environ_set = False  # whether this process has Dask's pre-spawn environment (start)
 
 
