@@ -31,7 +31,7 @@ from __future__ import annotations
 import ctypes
 import functools
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -39,19 +39,22 @@ from fmpy.fmi1 import FMICallException
 from plant_fmu.model.jit import compiled_entry, load_numba
 
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
-_F = TypeVar("_F", bound=Callable[..., Any])
-_numba, _ = load_numba()
 
 
-def _jit(func: _F) -> _F:
-    """numba.njit(cache=True) when numba is usable, else the Python function unchanged."""
-    if _numba is None:
-        return func
-    compiled: _F = _numba.njit(cache=True)(func)
+@functools.cache
+def _compiled_extrapolate() -> Callable[..., int]:
+    """numba.njit(cache=True) of :func:`_extrapolate` when numba is usable, else the Python
+    function unchanged; made at the first extrapolation in a process, not as the engine is
+    imported: a local study's client imports the engine's modules but steps no FMU, and
+    numba's import (~0.15 s of CPU) delayed its first run (on a 2-core machine the client's
+    start-up is the last thing the workers wait for)."""
+    numba, _ = load_numba()
+    if numba is None:
+        return _extrapolate
+    compiled: Callable[..., int] = numba.njit(cache=True)(_extrapolate)
     return compiled
 
 
-@_jit
 def _extrapolate(
     inputs: np.ndarray,
     past: np.ndarray,
@@ -160,7 +163,8 @@ class InputRates:
         """:func:`_extrapolate` on ``inputs`` and this history's arrays, called without
         numba's typing of the five arrays at every step (:func:`compiled_entry`)."""
         arrays = (inputs, self._past, self._times, self._slope, self._values, self.order)
-        extrapolate = functools.partial(compiled_entry(_extrapolate, (*arrays, 0.0, 0)), *arrays)
+        entry = compiled_entry(_compiled_extrapolate(), (*arrays, 0.0, 0))
+        extrapolate = functools.partial(entry, *arrays)
         self._bound = (inputs, extrapolate)
         return extrapolate
 

@@ -142,3 +142,24 @@ def test_the_sweep_command_starts_the_fork_server_before_heavy_imports(run_pytho
     done = run_python(SERVER_FIRST)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "[]"
+
+
+CLIENT = """
+import sys
+from pathlib import Path
+import cosim
+fmus = Path(sys.argv[1])
+study = {"scenario": "bs-3", "stop_time": 0.05, "grid": {"plant.v_0": [0.0, 0.05]}}
+table = cosim.sweep(study, workers=1, fmu_dir=fmus).table
+print(list(table["status"]), sorted(n for n in ("numba", "llvmlite") if n in sys.modules))
+"""
+
+
+@pytest.mark.slow
+def test_a_study_client_never_imports_the_compiler(run_python, fmu_paths) -> None:
+    """A local study's client steps no FMU: numba (~0.15 s of CPU to import) is the
+    workers' (their fork server imports it), not on the client's way to its cluster, the
+    last thing the first run waits for on a machine of as many cores as workers."""
+    done = run_python(CLIENT, str(fmu_paths["AuvPlant"].parent))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == "['complete', 'complete'] []"
