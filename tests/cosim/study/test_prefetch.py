@@ -35,13 +35,13 @@ def started_after(workers: int, cores: int, left: list[int]) -> int | None:
     return None
 
 
-def test_as_many_workers_as_cores_start_it_with_the_last_wave_of_runs(drawn) -> None:
-    """2 workers on 2 cores: every worker on its last run once 2 runs are left. The
-    loading shares the cores with those runs then, instead of running alone after the
-    last one while the user waits (the runs end nearly together when the workers share
-    them evenly)."""
-    assert started_after(2, 2, [15, 14, 3, 2, 1, 0]) == 3
-    assert started_after(4, 4, [9, 5, 4, 3]) == 2
+def test_as_many_workers_as_cores_start_it_with_the_last_two_waves_of_runs(drawn) -> None:
+    """2 workers on 2 cores: two runs each left at most once 4 runs are left. The loading
+    shares the cores with those runs then, and is done when the last result comes,
+    instead of running alone after the last one while the user waits (the runs end
+    nearly together when the workers share them evenly)."""
+    assert started_after(2, 2, [15, 14, 5, 4, 3, 2, 1, 0]) == 3
+    assert started_after(4, 4, [11, 9, 8, 7]) == 2
 
 
 def test_fewer_workers_than_cores_or_a_remote_cluster_start_it_at_the_first_result(
