@@ -14,7 +14,7 @@ import re
 import signal
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -546,7 +546,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None and args.command == "run":
         _ignore_stop_signals()
     if argv is None:
-        warnings.showwarning = _one_line_warning
+        warnings.showwarning = _one_line_warnings(args.command)
     try:
         return int(args.func(args) or 0)
     except CosimError as exc:
@@ -577,18 +577,23 @@ def _reason(exc: Exception) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def _one_line_warning(
-    message: Warning | str,
-    category: type[Warning],
-    filename: str,
-    lineno: int,
-    file: TextIO | None = None,
-    line: str | None = None,
-) -> None:
-    """A warning as one line naming the command (Python's shows the file, the line number
-    and the source line of the code that warned: noise to a user)."""
-    text = " ".join(str(message).split())
-    print(f"auv-cosim: warning: {shortened(text)}", file=sys.stderr)
+def _one_line_warnings(command: str) -> Callable[..., None]:
+    """``warnings.showwarning`` for ``command``: a warning as one line naming the command,
+    as its errors do (Python's shows the file, the line number and the source line of the
+    code that warned: noise to a user)."""
+
+    def show(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        text = " ".join(str(message).split())
+        print(f"auv-cosim {command}: warning: {shortened(text)}", file=sys.stderr)
+
+    return show
 
 
 def _quiet_stdout() -> None:

@@ -120,7 +120,9 @@ def test_a_reader_that_stops_reading_gets_no_traceback(tmp_path: Path) -> None:
 
 def test_a_warning_is_one_line_naming_the_command(tmp_path: Path) -> None:
     """A warning of ours ("Rerun viewer: gRPC connection severed ...") reached the user as
-    Python shows it: the file and line that warned, then that source line."""
+    Python shows it: the file and line that warned, then that source line. It names the
+    subcommand, as an error does ("auv-cosim: warning:" left a user of several commands
+    in a script guessing which one warned)."""
     import subprocess
     import sys
 
@@ -138,7 +140,7 @@ def test_a_warning_is_one_line_naming_the_command(tmp_path: Path) -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path
     )
     assert done.returncode == 0, done.stderr
-    assert done.stderr == "auv-cosim: warning: Rerun viewer: the stream ended\n"
+    assert done.stderr == "auv-cosim scenarios: warning: Rerun viewer: the stream ended\n"
 
 
 def test_every_help_pointer_names_a_page_that_exists(capsys: pytest.CaptureFixture[str]) -> None:
