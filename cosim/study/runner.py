@@ -133,7 +133,7 @@ def run_study(
         skipped = len(table.done)
         todo = [run for run in runs if run.id not in table.done]
         warnings: list[str] = []
-        # the page's matplotlib, loaded while the client waits and once a core is idle
+        # the page's matplotlib, loaded while the client waits and beside the last runs
         drawing = Prefetch(cluster.workers if cluster.scheduler is None else 0)
         with ExitStack() as stack:
             session = _Session(cluster, stack)
