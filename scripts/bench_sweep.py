@@ -20,8 +20,8 @@ best of each; their ratio (goal >= 1.6) includes everything a study does beside 
 the cluster's close), with our modules imported compiled from a copy of them, as from an
 installed copy (:func:`installed`). The load average is printed beside every figure. The
 ratio of each 1-worker sweep to the 2-worker one right after it, and their median, are
-printed too: this machine's speed drifts by up to 1.4x within minutes, so the two bests can come from
-different speeds, while a back-to-back pair shares one.
+printed too: this machine's speed drifts by up to 1.4x within minutes, so the two bests
+can come from different speeds, while a back-to-back pair shares one.
 
 All throughputs (without ``--end-to-end``) are steady state: the serial loop starts
 timing after one warm-up run (imports, FMU loading), the cluster runs one untimed study
