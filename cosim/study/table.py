@@ -14,7 +14,10 @@ Cells: floats as their shortest round-trip text (``repr``), so the table reads b
 same doubles; booleans as ``true``/``false``; a missing metric (a failed run, a figure
 that does not exist, such as a settling time never reached) as an empty cell. The
 Parquet file holds the same rows with types (``pyarrow``; its columns built without
-pandas: :mod:`cosim.study.arrow_columns`).
+pandas: :mod:`cosim.study.arrow_columns`): every metric and ``wall_clock_s`` double,
+``run``, ``status`` and ``error`` strings whatever the rows hold (an ``error`` column of
+nulls alone, in a study without a failed run, would be typed ``null`` and not concatenate
+with another study's table).
 """
 
 from __future__ import annotations
@@ -113,6 +116,7 @@ class RunsTable:
         write_whole(self.path, lambda tmp: tmp.write_bytes(text.encode("utf-8")))
         columns = {name: [row[name] for row in rows] for name in self.columns}
         types = {name: pa.float64() for name in [*self.metrics, "wall_clock_s"]}
+        types.update(dict.fromkeys(["run", "status", "error"], pa.string()))
         arrays = {name: column(values, types.get(name)) for name, values in columns.items()}
         table = pa.table(arrays)
         write_whole(self.path.with_name(PARQUET_NAME), lambda tmp: pq.write_table(table, tmp))

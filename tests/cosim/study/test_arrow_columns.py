@@ -70,6 +70,19 @@ def test_a_column_of_doubles_is_the_array_pyarrow_converts(values) -> None:
     found.validate(full=True)
 
 
+@pytest.mark.parametrize("values", [["a", None, "é"], [None, None], [], ["x", 1], [b"x"]])
+def test_a_column_of_strings_is_the_array_pyarrow_converts(values) -> None:
+    try:
+        expected = pa.array(values, type=pa.string())
+    except (pa.ArrowException, TypeError, ValueError) as exc:
+        with pytest.raises(type(exc)):
+            column(values, pa.string())
+        return
+    found = column(values, pa.string())
+    assert same(found, expected), (found, expected)
+    found.validate(full=True)
+
+
 FINISH = """
 import sys
 from pathlib import Path
@@ -101,7 +114,7 @@ import sys
 from cosim.study.arrow_columns import column
 import pyarrow as pa
 arrays = [column([0.5, None]), column(["a", None]), column([True]), column([None]),
-          column([1, 2]), column([1.0, None], pa.float64())]
+          column([1, 2]), column([1.0, None], pa.float64()), column([None], pa.string())]
 print("pandas" in sys.modules, [str(a.type) for a in arrays])
 """
 
@@ -109,4 +122,6 @@ print("pandas" in sys.modules, [str(a.type) for a in arrays])
 def test_columns_are_built_without_importing_pandas(run_python) -> None:
     done = run_python(BUILD)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stdout.strip() == ("False ['double', 'string', 'bool', 'null', 'int64', 'double']")
+    assert done.stdout.strip() == (
+        "False ['double', 'string', 'bool', 'null', 'int64', 'double', 'string']"
+    )

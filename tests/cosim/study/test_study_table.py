@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -94,6 +95,27 @@ def test_finish_puts_the_rows_in_the_studys_order_and_the_same_in_parquet(
     assert parquet.to_pylist() == rows
     assert str(parquet.schema.field("plant.ideal_fluid").type) == "bool"
     assert str(parquet.schema.field("yaw_settling_time_s").type) == "double"
+
+
+def test_parquet_column_types_do_not_depend_on_whether_a_run_failed(tmp_path: Path) -> None:
+    """A study whose runs all completed typed its ``error`` column ``null`` (every value
+    None), one with a failed run ``string``: the two tables did not concatenate
+    (``pa.concat_tables``: "Schema ... was different"). Every study's table now has the
+    same types: strings for run, status and error, doubles for the metrics."""
+    complete, failed = tmp_path / "complete", tmp_path / "failed"
+    for folder, runs in ((complete, RUNS[:3]), (failed, RUNS[-2:])):
+        folder.mkdir()
+        table = RunsTable.create(folder / "runs.csv", FACTORS, METRICS)
+        for run in runs:
+            table.append(run, record(run))
+        table.finish(runs)
+    tables = [pq.read_table(folder / "runs.parquet") for folder in (complete, failed)]
+    assert tables[0].schema == tables[1].schema
+    assert str(tables[0].schema.field("error").type) == "string"
+    assert pa.concat_tables(tables).column("status").to_pylist() == [
+        *["complete"] * 4,
+        "failed",
+    ]
 
 
 def test_reopen_refuses_another_studys_table(tmp_path: Path) -> None:
