@@ -101,7 +101,7 @@ class RunsTable:
         signal between them left a row in the file that the study did not count, and
         a study stopped after its first row then discarded the folder holding it."""
         row: Row = {"run": run.id, **run.values}
-        row.update({name: record.metrics.get(name) for name in self.metrics})
+        row.update({name: _float(record.metrics.get(name)) for name in self.metrics})
         row.update(status=record.status, error=record.error, wall_clock_s=record.wall_clock_s)
         with stop_signals_deferred():
             with self.path.open("a", encoding="utf-8", newline="") as f:
@@ -132,6 +132,12 @@ class RunsTable:
         row["status"] = cells["status"]
         row["error"] = cells["error"] or None
         return row
+
+
+def _float(value: float | None) -> float | None:
+    """A metric as the table holds it: a float (a whole number from JSON, a survey's
+    ``legs_completed`` of 7, is 7.0, as its row reads back from runs.csv), or None."""
+    return None if value is None else float(value)
 
 
 def _cell(value: Value | None) -> str:

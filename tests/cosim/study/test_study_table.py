@@ -118,6 +118,32 @@ def test_parquet_column_types_do_not_depend_on_whether_a_run_failed(tmp_path: Pa
     ]
 
 
+def test_a_whole_number_metric_reads_the_same_in_a_resumed_table(tmp_path: Path) -> None:
+    """A metric that comes as a whole number (a survey's ``legs_completed``) was written
+    ``0`` by a study that ran straight through, but ``0.0`` for the rows a resumed study
+    read back from runs.csv: the same study gave two different tables. It is a float in
+    every row, so both tables are the same text."""
+    runs = RUNS[:3]
+
+    def whole(run: PlannedRun) -> RunRecord:
+        metrics = {"yaw_settling_time_s": 2, "final.plant.yaw": 0}  # ints, as JSON gives them
+        return RunRecord("complete", None, metrics, 1.0, 1.0)
+
+    straight = RunsTable.create(tmp_path / "straight.csv", FACTORS, METRICS)
+    for run in runs:
+        straight.append(run, whole(run))
+    straight.finish(runs)
+    path = tmp_path / "runs.csv"
+    killed = RunsTable.create(path, FACTORS, METRICS)
+    killed.append(runs[0], whole(runs[0]))
+    resumed = RunsTable.reopen(path, FACTORS, METRICS, runs)
+    for run in runs[1:]:
+        resumed.append(run, whole(run))
+    resumed.finish(runs)
+    assert path.read_text() == (tmp_path / "straight.csv").read_text()
+    assert [row["final.plant.yaw"] for row in rows_of(path)] == ["0.0"] * 3
+
+
 def test_reopen_refuses_another_studys_table(tmp_path: Path) -> None:
     path = tmp_path / "runs.csv"
     table = RunsTable.create(path, FACTORS, METRICS)
