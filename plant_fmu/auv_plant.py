@@ -328,7 +328,7 @@ class AuvPlant(SafeSlave):
                 f"{', '.join(frozen)} at 0: their initial values are ignored",
                 Fmi2Status.warning,
             )
-        self._x[:] = model.project(stepping_state(x))
+        self._x[:] = stepping_state(model.project(x))  # the quaternion of the kept angles
         self._last_current[:] = self._inputs[CURRENT]
         self._refresh_outputs()
         if self._compiled is not None:  # compile now, not in the first doStep

@@ -18,6 +18,7 @@ from reference_values import dissertation
 from cosim.fmus.validation import validate_fmus
 from plant_fmu.model import compiled
 from plant_fmu.model.dynamics import STATE_NAMES, PlantModel, Variant
+from plant_fmu.model.kinematics import quaternion_from_euler
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import VehicleParameters, builtin_vehicles, load_vehicle
 from plant_fmu.model.stepping import MAX_SUBSTEPS, advance, simulate
@@ -210,6 +211,26 @@ def test_reset_returns_to_a_fresh_instance(plant, unzip_dir):
     again = fmu.run(1.0, H, STATE_NAMES)
     fmu.close()
     np.testing.assert_array_equal(first, again)
+
+
+@pytest.mark.parametrize(
+    ("variant", "frozen"), [(1, {"pitch_0": 0.3}), (2, {"roll_0": 0.3, "pitch_0": -0.2})]
+)
+def test_initial_quaternion_is_the_attitude_of_the_angles_a_reduced_variant_keeps(
+    plant, unzip_dir, variant, frozen
+):
+    """A reduced variant holds its frozen angles at 0 (and warns that their start values
+    are ignored): the quaternion it outputs at t = 0, which the recording draws the
+    vehicle with, is then that of the roll, pitch and yaw it outputs, not of the start
+    values it ignored."""
+    fmu = _harness(plant, unzip_dir, variant=variant, u_0=1.5, yaw_0=0.4, **frozen)
+    euler = fmu.get("roll", "pitch", "yaw")
+    quaternion = fmu.get("quat_w", "quat_x", "quat_y", "quat_z")
+    warnings = fmu.messages(1)
+    fmu.close()
+    assert "their initial values are ignored" in warnings
+    assert euler[1] == 0.0 and euler[2] == 0.4
+    np.testing.assert_allclose(quaternion, quaternion_from_euler(*euler), atol=1e-15)
 
 
 # --- bad input ---------------------------------------------------------------------------------
