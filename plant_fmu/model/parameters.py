@@ -110,6 +110,11 @@ class VehicleParameters(CheckedRecord):
     z_t: float = checked_field(default=0.0, description="tunnel-thruster z in body axes, m")
 
     def _check_record(self) -> None:
+        if not self.m_v < self.m:
+            raise ValueError(
+                f"m_v = {self.m_v!r} kg: expected less than m = {self.m!r} kg (the moving "
+                "mass is part of the vehicle's mass m, which counts it at the rail's middle)"
+            )
         with np.errstate(all="ignore"):  # numpy's warnings would reach an FMU host's stderr
             total = rigid_body_mass_matrix(self) + added_mass_matrix(self)
             symmetric = 0.5 * (total + total.T)

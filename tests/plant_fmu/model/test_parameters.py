@@ -143,6 +143,8 @@ def test_parameters_are_immutable():
         ({"mass_stroke": 0.0}, r"mass_stroke = 0\.0"),
         ({"B": float("nan")}, r"B = nan"),
         ({"a26": 50.0}, r"M_RB \+ M_A must be positive definite.*smallest eigenvalue is -"),
+        ({"m_v": 30.5}, r"m_v = 30\.5 kg: expected less than m = 30\.5 kg"),
+        ({"m_v": 100.0, "m": 40.0}, r"m_v = 100\.0 kg: expected less than m = 40\.0 kg"),
         ({"W": "heavy"}, r"W = 'heavy'"),
     ],
 )
