@@ -549,11 +549,18 @@ class Autopilot:
                 commands from one sample to the next and its filters' inputs too.
 
         Raises:
-            ValueError: a measurement is missing or not finite, or (with
+            ValueError: a measurement is missing or not finite, or (with the depth
+                loop on) the depth set-point is above the surface (< 0 m), or (with
                 ``compensate_current``) the cross-current reaches the design speed, or a
                 command came out non-finite; the autopilot is then as before the call.
         """
         m = _checked(time, measurements)
+        if self.depth is not None and m["depth_setpoint"] < 0.0:
+            raise ValueError(
+                f"depth_setpoint = {m['depth_setpoint']!r} m is above the surface: expected a "
+                "depth >= 0 m (down positive); the plant has no free surface, so a vehicle "
+                "sent above it keeps its buoyancy and drag and flies"
+            )
         c = self.config
         next_sample = self.next_sample
         if c.sample_period > 0.0:

@@ -114,8 +114,9 @@ def sample(
     filters follow them so (``Autopilot.step``'s ``varying``). Returns :data:`OK`; or,
     with nothing changed, :data:`NEEDS_TRANSITION` (the backstepping filters need the
     transition of a new interval: the caller adds it to ``law`` and calls again) or
-    :data:`REFUSED` (a non-finite time or measurement, a cross-current the compensation
-    cannot hold, a non-finite command: the reference says which). ``p``, ``law`` and
+    :data:`REFUSED` (a non-finite time or measurement, a depth set-point above the
+    surface with the depth loop on, a cross-current the compensation cannot hold, a
+    non-finite command: the reference says which). ``p``, ``law`` and
     ``state`` are the backstepping law's (its design plant's parameters, constants and
     state; unused with the heading law off)."""
     if not math.isfinite(time):
@@ -123,6 +124,8 @@ def sample(
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
             return REFUSED
+    if work[DEPTH] != 0.0 and inputs[_DEPTH_SETPOINT] < 0.0:
+        return REFUSED
     psi_d = _heading_setpoint(work, inputs)
     if math.isnan(psi_d):
         return REFUSED

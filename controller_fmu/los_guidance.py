@@ -80,8 +80,9 @@ def parse_waypoints(text: str) -> tuple[Waypoint, ...]:
 
     Raises:
         GuidanceConfigError: naming the first bad entry (its number and text): not three
-            finite numbers, fewer than two waypoints, or a waypoint at the same north and
-            east as the one before it (a leg needs a horizontal direction).
+            finite numbers, a depth above the surface (down < 0), fewer than two
+            waypoints, or a waypoint at the same north and east as the one before it (a
+            leg needs a horizontal direction).
     """
     entries = [entry.strip() for entry in str(text).split(";")]
     if entries and not entries[-1]:
@@ -123,6 +124,11 @@ def _parse_entry(number: int, entry: str) -> Waypoint:
                 f"of metres; expected {WAYPOINT_FORMAT}"
             )
         values.append(value)
+    if values[2] < 0.0:
+        raise GuidanceConfigError(
+            f"waypoint {number} ({entry!r}): down = {values[2]!r} m is above the surface; "
+            "expected a depth >= 0 m (NED, down positive: the plant has no free surface)"
+        )
     return Waypoint(*values)
 
 

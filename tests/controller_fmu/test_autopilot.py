@@ -239,6 +239,18 @@ def test_depth_mode_off_leaves_the_fins_at_zero_and_pd_moves_them(remus):
     assert on.step(0.0, deep).fin_angle == DepthPd().fin_angle(1.0, 0.2, 0.0, 0.0) != 0.0
 
 
+def test_a_depth_setpoint_above_the_surface_is_refused_while_the_depth_loop_is_on(remus):
+    """z_d < 0 m would fly the vehicle above the water (the plant has no free surface);
+    the surface itself (0 m) is a depth, and with the depth loop off z_d is not used."""
+    above = {**_measured(remus, u=1.5, down=0.2), "depth_setpoint": -1.0}
+    on = Autopilot(AutopilotConfig.build(depth_mode=int(DepthMode.PD)))
+    with pytest.raises(ValueError, match=r"depth_setpoint = -1\.0 m is above the surface"):
+        on.step(0.0, above)
+    assert on.step(0.0, {**above, "depth_setpoint": 0.0}).fin_angle < 0.0  # up: nose up
+    off = Autopilot(AutopilotConfig.build(depth_mode=int(DepthMode.OFF)))
+    assert off.step(0.0, above).fin_angle == 0.0
+
+
 def test_a_non_finite_or_missing_measurement_is_refused_by_name(remus):
     autopilot = Autopilot(AutopilotConfig.build(heading_mode=1))
     good = _measured(remus, u=1.5)

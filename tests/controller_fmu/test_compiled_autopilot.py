@@ -31,8 +31,14 @@ configs = st.fixed_dictionaries(
     }
 )
 measurement = st.floats(-0.5, 0.5, allow_nan=False, allow_subnormal=True)
+depth = st.floats(0.0, 0.5, allow_subnormal=True)  # m: a set-point above the surface is refused
 samples = st.lists(
-    st.lists(measurement, min_size=len(MEASUREMENT_NAMES), max_size=len(MEASUREMENT_NAMES)),
+    st.tuples(
+        st.lists(
+            measurement, min_size=len(MEASUREMENT_NAMES) - 1, max_size=len(MEASUREMENT_NAMES) - 1
+        ),
+        depth,
+    ).map(lambda row: [*row[0], row[1]]),
     min_size=1,
     max_size=8,
 )
@@ -79,6 +85,7 @@ def test_the_compiled_sample_gives_the_references_commands_to_the_bit(config, ro
     [
         ({"v_rel": math.nan}, "measurement v_rel = nan"),
         ({"current_east": 2.0}, "cross-current 2 m/s is not slower than the design speed"),
+        ({"depth_setpoint": -3.0}, r"depth_setpoint = -3\.0 m is above the surface"),
     ],
 )
 def test_a_refused_sample_changes_nothing_and_raises_the_references_error(change, message):

@@ -62,6 +62,7 @@ def test_waypoints_parse_with_spaces_newlines_and_a_trailing_semicolon():
         ("0, 0, 2", r"expected at least two entries .* got 1"),
         ("", r"expected at least two entries .* got 0"),
         ("0,0,2; 0,0,5", r"waypoint 2 \('0,0,5'\) is at the same north and east as waypoint 1"),
+        ("0,0,2; 50,0,-5", r"waypoint 2 \('50,0,-5'\): down = -5\.0 m is above the surface"),
     ],
 )
 def test_a_bad_waypoint_is_named_with_what_was_expected(text, message):
