@@ -4,7 +4,7 @@
 key        what it does (each change is an override, checked and logged)
 =========  =====================================================================
 <- / ->    yaw set-point -/+ :data:`YAW_STEP` (``<instance>.yaw_setpoint``)
-up / down  depth set-point -/+ :data:`DEPTH_STEP` (up: shallower; ``.depth_setpoint``)
+up / down  depth set-point -/+ :data:`DEPTH_STEP` (up: shallower, to 0 m; ``.depth_setpoint``)
 0 .. 3     heading mode (``.heading_mode``: 0 off, 1 LQR, 2 sliding mode, 3 backstepping)
 m          lock the moving mass at the centre (``.mass_lock_time`` = now); again: release (-1)
 p          pause / resume
@@ -203,7 +203,8 @@ class KeyPad:
                 self._set("yaw_setpoint", self.value("yaw_setpoint") + sign * YAW_STEP)
             elif key in ("up", "down"):
                 sign = -1.0 if key == "up" else 1.0
-                self._set("depth_setpoint", self.value("depth_setpoint") + sign * DEPTH_STEP)
+                depth = self.value("depth_setpoint") + sign * DEPTH_STEP
+                self._set("depth_setpoint", max(depth, 0.0))  # m: not above the surface
             elif key in "0123" and len(key) == 1:
                 self._set("heading_mode", int(key))
             elif key == "m":

@@ -264,3 +264,17 @@ def test_keys_change_the_set_points_and_q_ends_the_run(fmu_dir: Path, tmp_path: 
     held = results[results["time"] >= applied_at + 0.011]
     assert len(held) > 0 and (held["controller.mass_position_cmd"] == 0.0).all()
     assert math.isclose(2 * YAW_STEP, math.radians(10.0))
+
+
+def test_the_up_key_stops_the_depth_set_point_at_the_surface(bs3: Scenario, terminal: int) -> None:
+    """Up from 0.5 m asks for 0 m, not -0.5 m, and up again keeps 0 m: a depth set-point
+    above the surface is one the autopilot's depth loop refuses, which would end the run."""
+    live = LiveControl(bs3)
+    live.bind({}, StopRequest())
+    pad = KeyPad(live, bs3, fd=terminal, out=io.StringIO())
+    asked = []
+    for start in (0.5, 0.0):
+        live.request({"controller.depth_setpoint": start}, "control 127.0.0.1:1")
+        pad.press("up")
+        asked.append(live.current("controller.depth_setpoint"))
+    assert asked == [0.0, 0.0]
