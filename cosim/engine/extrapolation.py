@@ -36,23 +36,23 @@ from typing import Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from plant_fmu.model.jit import compiled_entry, load_numba
+from plant_fmu.model.jit import compiled_entry, load_numba, njit
 
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 
 
 @functools.cache
 def _compiled_extrapolate() -> Callable[..., int]:
-    """numba.njit(cache=True) of :func:`_extrapolate` when numba is usable, else the Python
-    function unchanged; made at the first extrapolation in a process, not as the engine is
-    imported: a local study's client imports the engine's modules but steps no FMU, and
-    numba's import (~0.15 s of CPU) delayed its first run (on a 2-core machine the client's
-    start-up is the last thing the workers wait for)."""
+    """numba's compiled :func:`_extrapolate` (:func:`njit`: cached where it can be) when
+    numba is usable, else the Python function unchanged; made at the first extrapolation
+    in a process, not as the engine is imported: a local study's client imports the
+    engine's modules but steps no FMU, and numba's import (~0.15 s of CPU) delayed its
+    first run (on a 2-core machine the client's start-up is the last thing the workers
+    wait for)."""
     numba, _ = load_numba()
     if numba is None:
         return _extrapolate
-    compiled: Callable[..., int] = numba.njit(cache=True)(_extrapolate)
-    return compiled
+    return njit(numba, _extrapolate)
 
 
 def _extrapolate(

@@ -35,7 +35,7 @@ import numpy as np
 # (cosim/fmus/staging.py), which would make this file's text differ between the source
 # tree and every build.
 from .dynamics import PlantModel
-from .jit import load_numba
+from .jit import load_numba, njit
 from .state_layout import (
     ANGULAR_VELOCITY,
     CURRENT,
@@ -55,11 +55,11 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 
 
 def _jit(func: _F) -> _F:
-    """numba.njit(cache=True) when numba is usable, else the Python function unchanged."""
+    """numba's compiled ``func`` (:func:`njit`: cached where it can be) when numba is usable,
+    else the Python function unchanged."""
     if numba is None:
         return func
-    compiled: _F = numba.njit(cache=True)(func)
-    return compiled
+    return njit(numba, func)
 
 
 # Layout of the flat parameter array (indices are compile-time constants in numba).

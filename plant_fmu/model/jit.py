@@ -24,6 +24,11 @@ their own keep two builds, or a build and the source tree, from evicting each ot
 Concurrent processes (sweeps start many at once) can share the folder: numba writes each
 cache file to a unique temporary name and moves it into place with ``os.replace``, which
 is atomic, so a reader sees an old complete file or a new complete one, never a torn one.
+
+A cache folder that cannot be written (a home folder that is missing or not the user's, a
+service account's ``HOME=/``, an unwritable ``NUMBA_CACHE_DIR``) turns the cache off, with
+a warning naming the folder (:func:`njit`): numba would otherwise fall back to
+``__pycache__`` beside the source and, in a read-only ``site-packages``, refuse to compile.
 """
 
 from __future__ import annotations
@@ -31,10 +36,12 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import tempfile
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, TypeVar
 
 NO_JIT_VARIABLE = "AUV_COSIM_NO_JIT"
 # The files the compiled functions' code comes from (paths under the folder that holds
@@ -50,6 +57,7 @@ KERNEL_FILES = (
 )
 # file names whose functions use the content-keyed cache
 _CACHED_MODULES = tuple(os.path.basename(path) for path in KERNEL_FILES)
+_F = TypeVar("_F", bound=Callable[..., Any])
 
 
 def default_cache_dir() -> Path:
@@ -70,6 +78,37 @@ def load_numba() -> tuple[ModuleType | None, str]:
         return None, f"numba cannot be imported ({exc})"
     _install_locator()
     return numba, ""
+
+
+def njit(numba: ModuleType, function: _F) -> _F:
+    """``numba.njit(cache=True)(function)``; ``numba.njit(function)`` when numba's cache
+    folder cannot be written (:func:`cache_problem`): compiled again in every process
+    (seconds for the plant and the autopilot), where numba would otherwise raise."""
+    compiled: _F = numba.njit(cache=cache_problem() == "")(function)
+    return compiled
+
+
+def cache_problem() -> str:
+    """ "" when numba's cache folder (``NUMBA_CACHE_DIR``, which :func:`load_numba` sets)
+    can be made and written, else why not; the first time in a process, also a warning."""
+    return _folder_problem(os.environ.get("NUMBA_CACHE_DIR", ""))
+
+
+@functools.cache
+def _folder_problem(folder: str) -> str:
+    """:func:`cache_problem` of ``folder`` (asked once per folder and process)."""
+    try:
+        os.makedirs(folder, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as exc:
+        problem = (
+            f"numba's cache folder {folder!r} (NUMBA_CACHE_DIR) cannot be written "
+            f"({exc.strerror}): compiling without a cache, again in every process; "
+            "set XDG_CACHE_HOME or NUMBA_CACHE_DIR to a writable folder"
+        )
+        warnings.warn(problem, RuntimeWarning, stacklevel=2)
+        return problem
+    return ""
 
 
 def compiled_entry(function: Callable[..., Any], args: tuple[Any, ...]) -> Callable[..., Any]:

@@ -111,3 +111,42 @@ def test_a_change_to_any_kernel_file_changes_every_kernels_stamp(tmp_path):
     assert len(stamps) == 1  # one stamp for all of them
     (tmp_path / KERNEL_FILES[-1]).write_text("x = 2\n")
     assert kernel_stamp(str(tmp_path / KERNEL_FILES[0])) not in stamps
+
+
+MASTER_KERNEL_IN_READ_ONLY_FOLDER = """
+import importlib.util, os, sys, warnings
+import numpy as np
+os.environ["NUMBA_CACHE_DIR"], os.environ["HOME"], copy = sys.argv[1:4]
+spec = importlib.util.spec_from_file_location("extrapolation_copy", copy)
+module = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(module)
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    extrapolate = module._compiled_extrapolate()
+inputs, past, times = np.array([2.0]), np.array([[1.0], [0.0]]), np.array([1.0, 0.0])
+values = np.zeros(2)
+code = extrapolate(inputs, past, times, np.zeros(1), values, 2, 2.0, 2)
+print(code, values[0], "|", *(str(w.message) for w in caught))
+"""
+
+
+def test_a_cache_folder_nobody_can_write_compiles_without_a_cache(run_python, tmp_path):
+    """A user whose home folder cannot be written (HOME=/ of a service account, a missing
+    home) running the master from a read-only site-packages: numba's cache folder and
+    ``__pycache__`` beside the source are both unwritable, and numba refused to compile
+    the master's extrapolation kernel ("cannot cache function ... no locator available"),
+    failing every run with extrapolation. The kernel is compiled without a cache, and one
+    warning names the folder and what to set."""
+    blocker = tmp_path / "a-file"  # no folder can be made under a file, not even by root
+    blocker.write_text("")
+    read_only = tmp_path / "site-packages"
+    read_only.mkdir()
+    (read_only / "__pycache__").write_text("")  # numba's in-tree cache cannot be made
+    copy = read_only / "extrapolation_copy.py"
+    copy.write_text((ROOT / "cosim/engine/extrapolation.py").read_text())
+    cache = blocker / "numba"
+    done = run_python(MASTER_KERNEL_IN_READ_ONLY_FOLDER, cache, blocker / "home", copy)
+    assert done.returncode == 0, done.stderr[-3000:]
+    result, _, warning = done.stdout.strip().splitlines()[-1].partition(" | ")
+    assert result == "3 1.0"  # values computed, history moved on; slope (2 - 1) / 1 s
+    assert str(cache) in warning and "NUMBA_CACHE_DIR" in warning, warning
