@@ -25,9 +25,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shlex
 import subprocess
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -224,17 +226,19 @@ def _description_problems(path: Path) -> list[str]:
 
 
 def smoke_run(paths: dict[str, Path]) -> list[str]:
-    """Instantiate, initialise and step every FMU once, all in one fresh process."""
+    """Instantiate, initialise and step every FMU once, all in one fresh process, which
+    extracts them into a temporary folder removed here once it has ended (however)."""
     arguments = json.dumps({name: str(path) for name, path in paths.items()})
-    code = "import sys; from cosim.fmus.validation import _smoke_main; _smoke_main(sys.argv[1])"
+    code = "import sys; from cosim.fmus.validation import _smoke_main; _smoke_main(*sys.argv[1:])"
     try:
-        result = subprocess.run(
-            [sys.executable, "-c", code, arguments],
-            capture_output=True,
-            text=True,
-            timeout=SMOKE_TIMEOUT_S,
-            check=False,
-        )
+        with tempfile.TemporaryDirectory(prefix="auv-cosim-validate-") as folder:
+            result = subprocess.run(
+                [sys.executable, "-c", code, arguments, folder],
+                capture_output=True,
+                text=True,
+                timeout=SMOKE_TIMEOUT_S,
+                check=False,
+            )
     except subprocess.TimeoutExpired:
         return [f"smoke run: no answer within {SMOKE_TIMEOUT_S:g} s"]
     lines = result.stdout.strip().splitlines()
@@ -245,19 +249,20 @@ def smoke_run(paths: dict[str, Path]) -> list[str]:
     return json.loads(lines[-1])
 
 
-def _smoke_main(arguments: str) -> None:
-    """Subprocess side of :func:`smoke_run`: prints a JSON list of problems last."""
+def _smoke_main(arguments: str, folder: str) -> None:
+    """Subprocess side of :func:`smoke_run`: extracts each FMU into ``folder``, prints a
+    JSON list of problems last."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
     problems: list[str] = []
-    for name, path in json.loads(arguments).items():
+    for index, (name, path) in enumerate(json.loads(arguments).items()):
         try:
             md = read_model_description(path)
             step = float((md.defaultExperiment.stepSize if md.defaultExperiment else None) or 0.01)
             slave = FMU2Slave(
                 guid=md.guid,
-                unzipDirectory=extract(path),
+                unzipDirectory=extract(path, unzipdir=os.path.join(folder, str(index))),
                 modelIdentifier=md.coSimulation.modelIdentifier,
                 instanceName=f"smoke_{name}",
             )

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 import shutil
+import tempfile
 import zipfile
 from pathlib import Path
 
@@ -45,6 +46,20 @@ def test_fmus_nobody_here_wrote_are_validated_one_line_each(capsys):
         "1 finite Real output",
         "2 finite Real outputs",
     ]
+
+
+def test_validate_leaves_no_extracted_fmu_behind(tmp_path, capsys, monkeypatch):
+    """The smoke run's process extracted each FMU into a temporary folder of its own and
+    exited without removing it: every ``auv-cosim validate`` left one folder per FMU
+    (2.2 MB each of ours) in the temporary folder."""
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    monkeypatch.setenv("TMPDIR", str(temporary))  # the smoke run's process
+    monkeypatch.setattr(tempfile, "tempdir", str(temporary))  # this one
+    fmus = [REFERENCE / f"{name}.fmu" for name in ("BouncingBall", "Dahlquist")]
+    assert main(["validate", *map(str, fmus)]) == 0
+    assert capsys.readouterr().out.strip().endswith("every FMU is valid")
+    assert sorted(p.name for p in temporary.iterdir()) == []
 
 
 def test_an_fmu_a_run_would_refuse_is_named_with_the_command_that_mends_it(tmp_path, capsys):
