@@ -14,11 +14,11 @@ import re
 import signal
 import sys
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any
 
-from cosim.errors import CosimError
+from cosim.errors import CosimError, one_line_warnings
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from fmu_runtime.log_text import shortened
@@ -546,7 +546,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None and args.command == "run":
         _ignore_stop_signals()
     if argv is None:
-        warnings.showwarning = _one_line_warnings(args.command)
+        warnings.showwarning = one_line_warnings(f"auv-cosim {args.command}")
     try:
         return int(args.func(args) or 0)
     except CosimError as exc:
@@ -575,25 +575,6 @@ def _reason(exc: Exception) -> str:
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
     return f"{type(exc).__name__}: {exc}"
-
-
-def _one_line_warnings(command: str) -> Callable[..., None]:
-    """``warnings.showwarning`` for ``command``: a warning as one line naming the command,
-    as its errors do (Python's shows the file, the line number and the source line of the
-    code that warned: noise to a user)."""
-
-    def show(
-        message: Warning | str,
-        category: type[Warning],
-        filename: str,
-        lineno: int,
-        file: TextIO | None = None,
-        line: str | None = None,
-    ) -> None:
-        text = " ".join(str(message).split())
-        print(f"auv-cosim {command}: warning: {shortened(text)}", file=sys.stderr)
-
-    return show
 
 
 def _quiet_stdout() -> None:

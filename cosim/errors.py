@@ -1,10 +1,15 @@
-"""The one exception type the command line turns into a one-line reason."""
+"""The one exception type the command line turns into a one-line reason, and the one-line
+form its warnings take."""
 
 import difflib
 import os
-from collections.abc import Iterable
+import sys
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
+
+from fmu_runtime.log_text import shortened
 
 
 class CosimError(Exception):
@@ -87,3 +92,23 @@ def _lookalike(word: str) -> str:
 
 def _ratio(word: str, choice: str) -> float:
     return difflib.SequenceMatcher(None, word.lower(), choice).ratio()
+
+
+def one_line_warnings(who: str) -> Callable[..., None]:
+    """``warnings.showwarning`` of a process ``who`` names ("auv-cosim run", a study's
+    worker): a warning as one line on stderr, "<who>: warning: <message>", as the command's
+    errors are (Python's shows the file, the line number and the source line of the code
+    that warned: noise to a user)."""
+
+    def show(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        text = " ".join(str(message).split())
+        print(f"{who}: warning: {shortened(text)}", file=sys.stderr)
+
+    return show

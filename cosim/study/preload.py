@@ -48,9 +48,15 @@ gc.freeze()
 def dask_setup(worker: object) -> None:
     """A local worker ignores SIGINT: a Ctrl-C is the client's to handle, which ends the
     study and its cluster (:mod:`cosim.study.signals`); the workers of a cluster started
-    on a thread (early, while the study is checked) do not inherit the client's ignoring."""
+    on a thread (early, while the study is checked) do not inherit the client's ignoring.
+    A worker shows a warning as one line naming itself, as the command shows its own
+    (:func:`cosim.errors.one_line_warnings`)."""
     import signal
     import threading
+    import warnings
 
+    from cosim.errors import one_line_warnings
+
+    warnings.showwarning = one_line_warnings("auv-cosim study worker")
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
