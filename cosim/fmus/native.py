@@ -125,7 +125,7 @@ def source_digest() -> str:
     """SHA-256 of the runtime's C sources and headers (part of the FMUs' rebuild key),
     which compiler would build it (an FMU built without one is rebuilt once there is),
     whether the win64 runtime is compiled afresh, the prebuilt one (DLL and record), and
-    the Python the FMUs record as their build's."""
+    the Python the FMUs record as their build's (:func:`_build_python_identity`)."""
     digest = hashlib.sha256()
     chain = toolchain()
     digest.update(f"compiler {chain.name if chain else 'none'}\n".encode())
@@ -135,8 +135,19 @@ def source_digest() -> str:
     for path in (PREBUILT_DLL, PREBUILT_RECORD):
         data = path.read_bytes() if path.is_file() else b"none"
         digest.update(f"{path.name}\n".encode() + hashlib.sha256(data).digest())
-    digest.update(f"build_python {sys.executable}\n".encode())
+    digest.update(f"build_python {_build_python_identity()}\n".encode())
     return digest.hexdigest()
+
+
+def _build_python_identity() -> str:
+    """The Python a build records (``sys.executable``) as the rebuild key sees it: the
+    folder it runs from (the environment whose packages it imports) and the interpreter
+    its name resolves to. The names of one interpreter in one folder (a virtual
+    environment's ``python`` and ``python3``: the console script ``auv-cosim`` runs the
+    second, ``python -m cosim.cli`` the first) are one Python; by name, a command run the
+    other way rebuilt every FMU."""
+    executable = Path(sys.executable)
+    return f"{executable.parent} {executable.resolve()}"
 
 
 def win64_sources_digest() -> str:

@@ -13,6 +13,7 @@ import hashlib
 import importlib.util
 import shutil
 import subprocess
+import sys
 import tomllib
 import zipfile
 from pathlib import Path
@@ -310,3 +311,24 @@ def test_the_package_data_carries_the_prebuilt_dll():
     for path in (native.PREBUILT_DLL, native.PREBUILT_RECORD):
         relative = path.relative_to(package).as_posix()
         assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), relative
+
+
+def test_the_names_of_one_python_give_one_rebuild_key(monkeypatch, tmp_path):
+    """`auv-cosim` runs the environment's python3, `python -m cosim.cli` its python: one
+    interpreter in one environment, which recorded a different build Python, so every
+    command run the other way rebuilt every FMU (~3 s; ~10 s more where numba cannot
+    cache). A Python of another environment still changes the key."""
+    folder = Path(sys.executable).parent
+    names = [folder / n for n in ("python", "python3") if (folder / n).exists()]
+    if len(names) < 2 or names[0].resolve() != names[1].resolve():
+        pytest.skip(f"{folder} has not python and python3 as one interpreter")
+    keys = set()
+    for name in names:
+        monkeypatch.setattr(sys, "executable", str(name))
+        keys.add(native.source_digest())
+    assert len(keys) == 1
+    elsewhere = tmp_path / "env" / "bin" / "python"
+    elsewhere.parent.mkdir(parents=True)
+    elsewhere.symlink_to(names[0].resolve())
+    monkeypatch.setattr(sys, "executable", str(elsewhere))
+    assert native.source_digest() not in keys
