@@ -12,7 +12,7 @@ or its declared type's, and ``units`` holds the FMU's ``UnitDefinitions`` as SI 
 exponents (plus ``factor`` / ``offset`` where they are not 1 and 0). An Integer that
 chooses among named values (``heading_mode``: ``"backstepping"`` is 3) has them in
 ``names``, read from our annotation on the variable (``<Tool name="auv-cosim">``, which
-fmpy does not read).
+fmpy does not read); an Enumeration has its declared type's items there.
 """
 
 from __future__ import annotations
@@ -197,8 +197,16 @@ def _variable(v: Any, names: Mapping[str, int]) -> Variable:
         min=_bound(v.type, v.min),
         max=_bound(v.type, v.max),
         description=v.description or "",
-        names=names,
+        names=names or _items(declared),
     )
+
+
+def _items(declared: Any) -> dict[str, int]:
+    """``{name: value}`` of an Enumeration type's items (FMI 2.0 ``<Item>``); empty for
+    another declared type or none."""
+    if declared is None or declared.type != "Enumeration":
+        return {}
+    return {item.name: int(item.value) for item in declared.items}
 
 
 def _typed(fmi_type: str, text: str | None) -> Value | None:

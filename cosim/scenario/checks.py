@@ -64,11 +64,13 @@ class Source:
 
 def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | float | str:
     """``value`` as a value of ``var`` (an FMU interface variable): its FMI type, finite,
-    within its range; the name of one of its named values stands for that value."""
+    within its range, an Enumeration one of its items; the name of one of its named values
+    (an Enumeration's items) stands for that value."""
     if isinstance(value, str) and var.names:
         if value not in var.names:
-            named = ", ".join(f"{name!r} ({number})" for name, number in var.names.items())
-            raise src.error(key, f"{value!r} is not a {var.name}: expected one of {named}")
+            raise src.error(
+                key, f"{value!r} is not a {var.name}: expected one of {named_values(var)}"
+            )
         value = var.names[value]
     expected = {"Real": "a number", "Integer": "an integer", "Enumeration": "an integer",
                 "Boolean": "true or false", "String": "a string"}[var.type]  # fmt: skip
@@ -88,11 +90,20 @@ def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | flo
         low, high = real_range(var)
         if not low <= value <= high:  # FMI 2.0: the environment keeps to min and max
             raise src.error(key, f"{value!r} is outside {range_text(low, high, var.name)}")
+    if var.type == "Enumeration" and var.names and value not in var.names.values():
+        raise src.error(
+            key, f"{value} is not an item of {var.name}: expected one of {named_values(var)}"
+        )
     if var.type in ("Integer", "Enumeration"):
         low, high = integer_range(var)
         if not low <= value <= high:
             raise src.error(key, f"{value} is outside {range_text(low, high, var.name)}")
     return value
+
+
+def named_values(var: Any) -> str:
+    """``'name' (number), ...``: the named values of ``var``, for a refusal."""
+    return ", ".join(f"{name!r} ({number})" for name, number in var.names.items())
 
 
 def range_text(low: float, high: float, name: str) -> str:

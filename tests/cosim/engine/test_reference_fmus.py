@@ -143,6 +143,21 @@ value = 1.0
         scenario_from_toml(text)
 
 
+@pytest.mark.parametrize("table", ["[instances.f.start]\n", "[[events]]\ntime = 0.5\nset = "])
+def test_an_enumeration_value_is_checked_against_its_declared_items(table: str) -> None:
+    """A start value or an event's value for an Enumeration is one of its type's items,
+    refused at load naming them (the FMU refused 3 only at its first set, ending the run
+    incomplete), and an item's name stands for its value."""
+    text = scenario_text({"f": "Feedthrough"}, 0.1, 1.0)
+    value = "{{ 'f.Enumeration_input' = {} }}" if "events" in table else "Enumeration_input = {}"
+    with pytest.raises(ScenarioError, match=r"3 is not an item of Enumeration_input: expected "
+                       r"one of 'Option 1' \(1\), 'Option 2' \(2\)$"):  # fmt: skip
+        scenario_from_toml(f"{text}{table}{value.format(3)}\n")
+    result = run(f"{text}{table}{value.format(repr('Option 2'))}\n")
+    assert result.column("f.Enumeration_input")[-1] == 2
+    assert result.column("f.Enumeration_output")[-1] == 2
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_beside_our_plant_a_feedthrough_is_transparent(
