@@ -364,6 +364,13 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
                     f"{sorted(targets)}",
                 )
             target, hold = spec.target, None
+            _, var = split_ref(target, scenario.instances, f"{key}.target", src)
+            if var.type != "Real":
+                raise src.error(
+                    f"{key}.target",
+                    f"{target!r} is {var.type}: a connection fault acts on Real connections "
+                    f"only, expected one of {sorted(_real_targets(scenario))}",
+                )
         values = spec.model_dump(exclude={"name", "kind", "target"})
         if spec.kind in ("noise", "dropout") and values["seed"] is None:
             values["seed"] = 0
@@ -371,6 +378,16 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
                             hold_source=hold))  # fmt: skip
     _unique([f.name for f in faults], [s.name for s in specs], "faults", src)
     return tuple(faults)
+
+
+def _real_targets(scenario: Any) -> list[str]:
+    """The targets of the scenario's connections between Real variables."""
+    return [
+        c.target
+        for c in scenario.connections
+        if scenario.instances[c.target_instance].interface.variables[c.target_variable].type
+        == "Real"
+    ]
 
 
 def _check_fault_keys(spec: FaultSpec, key: str, src: Source) -> None:

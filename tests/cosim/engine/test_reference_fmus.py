@@ -158,6 +158,34 @@ def test_an_enumeration_value_is_checked_against_its_declared_items(table: str) 
     assert result.column("f.Enumeration_output")[-1] == 2
 
 
+@pytest.mark.parametrize(
+    ("kind", "variable", "fmi_type"),
+    [("bias", "Int32", "Integer"), ("delay", "Enumeration", "Enumeration"),
+     ("stuck", "Boolean", "Boolean")],
+)  # fmt: skip
+def test_a_fault_on_a_connection_that_is_not_real_is_refused_at_load(
+    kind: str, variable: str, fmi_type: str
+) -> None:
+    """Faults act on Real connections only: one on another type was accepted and the run
+    ended at its start in ``ValueError: 'b.Int32_input' is not in list``."""
+    text = scenario_text({"a": "Feedthrough", "b": "Feedthrough"}, 0.1, 1.0)
+    keys = {"bias": "value = 2", "delay": "steps = 2", "stuck": ""}[kind]
+    text += f"""[connections]
+same_names = false
+add = [{{ from = "a.{variable}_output", to = "b.{variable}_input" }},
+       {{ from = "a.Float64_continuous_output", to = "b.Float64_continuous_input" }}]
+[[faults]]
+kind = "{kind}"
+target = "b.{variable}_input"
+{keys}
+"""
+    with pytest.raises(ScenarioError, match=(
+        rf"key 'faults\[0\]\.target': 'b\.{variable}_input' is {fmi_type}: a connection fault "
+        r"acts on Real connections only, expected one of \['b\.Float64_continuous_input'\]$"
+    )):  # fmt: skip
+        run(text)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_beside_our_plant_a_feedthrough_is_transparent(
