@@ -94,16 +94,23 @@ def _runnable_problems(path: Path) -> list[str]:
 
 
 def _foreign_problems(path: Path) -> list[str]:
-    """fmpy's validation, then what a run refuses an FMU for (the same checks)."""
+    """What a run refuses an FMU for, with the same checks: an archive that is not an FMI
+    2.0 FMU (in one line, before fmpy's schema report of it), fmpy's validation, no
+    co-simulation interface, no binary for this platform."""
     from fmpy.validation import validate_fmu
 
     from cosim.fmus.interface import (
         NOT_COSIMULATION,
         FmuInterfaceError,
+        check_archive,
         check_binary,
         read_interface,
     )
 
+    try:
+        check_archive(path)
+    except FmuInterfaceError as exc:
+        return [str(exc).removeprefix(f"{path}: ")]
     problems = list(validate_fmu(str(path)))
     if problems:
         return problems

@@ -88,10 +88,37 @@ def test_what_is_not_an_fmu_file_is_named(tmp_path, capsys):
     assert main(["validate", str(text), str(missing), str(tmp_path)]) == 1
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines == [
-        f"{text}: not a readable FMU (BadZipFile: File is not a zip file)",
+        f"{text}: not a valid FMU: File is not a zip file",
         f"{missing}: no such file",
         f"{tmp_path}: is a folder: give its .fmu files, or --fmu-dir for the built FMUs in it",
     ]
+
+
+@pytest.mark.parametrize("version", ["1.0", "3.0"])
+def test_an_fmu_of_another_fmi_version_is_named_in_one_line_as_a_run_names_it(
+    tmp_path, capsys, version
+):
+    """An FMU whose description says FMI 1.0 or 3.0 gets the run's one line naming the
+    version and what was expected, not fmpy's schema report (three and seven lines of
+    schema errors, none naming the version)."""
+    fmu = tmp_path / "Oscillator.fmu"
+    with zipfile.ZipFile(REFERENCE / "VanDerPol.fmu") as old, zipfile.ZipFile(fmu, "w") as new:
+        for item in old.infolist():
+            data = old.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'fmiVersion="2.0"', f'fmiVersion="{version}"'.encode())
+            new.writestr(item, data)
+    assert main(["validate", str(fmu)]) == 1
+    captured = capsys.readouterr()
+    line = f"{fmu}: fmiVersion '{version}': expected an FMI 2.0 FMU"
+    assert captured.out.strip().splitlines() == [line]
+    scenario = tmp_path / "oscillator.toml"
+    scenario.write_text(
+        'stop_time = 1.0\n[coupling]\nstep = 0.01\n[instances.v]\nfmu = "Oscillator.fmu"\n',
+        encoding="utf-8",
+    )
+    assert main(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-rrd"]) == 1
+    assert capsys.readouterr().err == f"auv-cosim run: {line}\n"
 
 
 def test_files_and_a_folder_of_built_fmus_are_not_asked_for_together(tmp_path, capsys):
