@@ -1122,8 +1122,10 @@ def _resolve_record(record: list[str] | None, scenario: Scenario, src: Source) -
                 f"{ref!r} is {var.type}: results.csv holds numbers, so "
                 f"{', '.join(RECORDABLE)} variables are recorded, not {var.type} ones",
             )
-    if len(set(record)) != len(record):
-        raise src.error("output.record", "lists a variable twice")
+        if ref in record[:i]:
+            raise src.error(
+                f"output.record[{i}]", f"{ref!r} is listed twice: at [{record.index(ref)}] and here"
+            )
     return tuple(record)
 
 

@@ -186,6 +186,17 @@ target = "b.{variable}_input"
         run(text)
 
 
+def test_a_variable_recorded_twice_is_named_with_both_places() -> None:
+    """The refusal said only "lists a variable twice", leaving the user to search a long
+    record list for which."""
+    text = scenario_text({"v": "VanDerPol"}, 0.01, 1.0)
+    text += '[output]\nrecord = ["v.x0", "v.x1", "v.mu", "v.x1"]\n'
+    with pytest.raises(ScenarioError, match=(
+        r"key 'output.record\[3\]': 'v.x1' is listed twice: at \[1\] and here$"
+    )):  # fmt: skip
+        scenario_from_toml(text)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_beside_our_plant_a_feedthrough_is_transparent(
