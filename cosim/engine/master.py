@@ -72,7 +72,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any
@@ -451,7 +451,7 @@ def _loop(
     check_dot = exchanged.dot
     slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
     error: str | None = None
-    filled, slave, n = 0, order[0], 0
+    filled, slave, n, due = 0, order[0], 0, order
     started = hand_off_at = clock()
     cpu_started = time.process_time()
     hand_off_at += interval
@@ -488,16 +488,69 @@ def _loop(
                 if rows.error is not None:
                     break
     except FMICallException as exc:
-        ended = end_of_simulation(slave, exc, z, record, rows, filled, n * h)
-        if ended is None:
-            error = failure_reason(slave, exc, n * h, exchanged, layout.index)
-        else:
-            rows.ended, filled = ended
+        ends = [min(n + s.k, n_steps) if multi_rate else n + 1 for s in due]
+        finish = _Finish(slave, due, ends, give, jacobi, through, n, h)
+        error, filled = _end_or_fail(exc, finish, filled, z, record, rows, exchanged, layout.index)
     except CosimError as exc:
         error = str(exc)
     rows.hand_off(filled)
     return _result(scenario, order, rows, error, stop, clock() - started,
                    time.process_time() - cpu_started)  # fmt: skip
+
+
+@dataclass
+class _Finish:
+    """The rest of the step from point ``n`` after ``stepped`` ended the simulation in it,
+    when it ended where its step ends: the ``due`` instances after it in the order step to
+    their ``ends`` (points) as they would have (Gauss-Seidel: with the latest values), and
+    the feedthroughs follow (``through``), so the last row holds every instance at the
+    point it reached. An FMU that ends inside its step leaves the others where they are."""
+
+    stepped: Slave
+    due: Sequence[Slave]
+    ends: Sequence[int]
+    give: Callable[[Slave, int, float], None]
+    jacobi: bool
+    through: Sequence[Slave]
+    n: int
+    h: float  # s
+    current: Slave | None = None  # the instance stepping now
+
+    def __call__(self, reached: float) -> None:
+        t, i = self.n * self.h, list(self.due).index(self.stepped)
+        if not math.isclose(reached, self.ends[i] * self.h, rel_tol=1e-9, abs_tol=1e-12):
+            return
+        for later, end in zip(self.due[i + 1 :], self.ends[i + 1 :], strict=True):
+            self.current = later
+            if not self.jacobi:
+                self.give(later, self.n, t)
+            later.advance(t, end * self.h - t)
+        refresh(list(self.through), self.give, self.n + 1, (self.n + 1) * self.h)
+
+
+def _end_or_fail(
+    exc: FMICallException,
+    finish: _Finish,
+    filled: int,
+    z: np.ndarray,
+    record: np.ndarray,
+    rows: RowBuffer,
+    exchanged: np.ndarray,
+    index: Mapping[str, int],
+) -> tuple[str | None, int]:
+    """After ``finish.stepped``'s call failed in the step from point ``finish.n``: None and
+    the rows filled when it ended the simulation (``rows.ended`` says so), else the reason
+    it failed -- or the reason an instance finishing the step failed."""
+    slave, t = finish.stepped, finish.n * finish.h
+    try:
+        ended = end_of_simulation(slave, exc, z, record, rows, filled, t, finish)
+    except FMICallException as later:
+        failed = finish.current if finish.current is not None else slave
+        return failure_reason(failed, later, t, exchanged, index), filled
+    if ended is None:
+        return failure_reason(slave, exc, t, exchanged, index), filled
+    rows.ended, filled = ended
+    return None, filled
 
 
 def _live_point(

@@ -135,11 +135,13 @@ def end_of_simulation(
     rows: RowBuffer,
     filled: int,
     t: float,
+    finish: Callable[[float], None] | None = None,
 ) -> tuple[str, int] | None:
     """After a call failed in the step from ``t`` (s): if ``slave`` ended the simulation
     (a doStep's Discard with ``fmi2Terminated``), its outputs at the time it reached become
-    the last row if that time is past ``t``, and the line saying so and the rows now filled
-    are returned; else None."""
+    the last row if that time is past ``t`` (``finish``, given that time, first steps the
+    instances that had not stepped yet in that step), and the line saying so and the rows
+    now filled are returned; else None."""
     if exc.function != "fmi2DoStep" or exc.status != 2:
         return None
     reached = slave.ended_simulation()
@@ -148,6 +150,8 @@ def end_of_simulation(
     line = f"{slave.name} ended the simulation at t = {reached:.6g} s"
     if reached <= t + 1e-9 * max(1.0, abs(t)):  # nothing after the last row
         return line, filled
+    if finish is not None:
+        finish(reached)
     if filled == len(rows.slots):  # the chunk is full: hand it off first
         rows.hand_off(filled)
         filled = 0

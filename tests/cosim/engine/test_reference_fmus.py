@@ -99,6 +99,23 @@ def test_each_reference_fmu_alone_gives_its_published_results(model: str) -> Non
         assert result.times[-1] == pytest.approx(9.0)
 
 
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_the_row_where_an_fmu_ends_the_simulation_holds_every_instance_there(
+    algorithm: str,
+) -> None:
+    """Stair ends the simulation at 9 s, stepped before VanDerPol: the row of 9 s held
+    VanDerPol's values of 8.8 s (it had not stepped yet). VanDerPol now finishes that step
+    first, and its last row is the one it has at 9 s alone."""
+    coupling = f'algorithm = "{algorithm}"\norder = ["s", "v"]'
+    both = run(scenario_text({"s": "Stair", "v": "VanDerPol"}, 0.2, 10.0, coupling))
+    alone = run(scenario_text({"v": "VanDerPol"}, 0.2, 10.0))
+    assert both.ended == "s ended the simulation at t = 9 s"
+    assert both.times[-1] == pytest.approx(9.0)
+    at_9 = int(np.searchsorted(alone.times, 9.0 - 1e-9))
+    for name in ("v.x0", "v.x1"):
+        assert both.column(name)[-1] == alone.column(name)[at_9], name
+
+
 def test_reference_fmus_together_at_their_own_rates_give_their_results() -> None:
     """VanDerPol every 10 ms beside Dahlquist every 100 ms (step multiple 10)."""
     text = scenario_text({"v": "VanDerPol", "d": "Dahlquist"}, 0.01, 10.0,
