@@ -39,6 +39,7 @@ import math
 import os
 import re
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -124,6 +125,25 @@ Distribution = Annotated[
 ]
 
 
+def dotted(table: dict[str, Any], is_leaf: Callable[[dict[str, Any]], bool]) -> dict[str, Any]:
+    """``table`` with its nested tables flattened into dotted names: TOML reads the
+    unquoted dotted key ``plant.v_0 = ...`` (or a ``[grid.plant]`` table) as a table
+    ``plant`` holding ``v_0``, which is the factor ``"plant.v_0"``. A table for which
+    ``is_leaf`` holds is a value, not flattened (a law ``{ uniform = [...] }``). A name
+    written both quoted and dotted is refused."""
+    flat: dict[str, Any] = {}
+    for key, value in table.items():
+        if isinstance(value, dict) and value and not is_leaf(value):
+            items = {f"{key}.{k}": v for k, v in dotted(value, is_leaf).items()}.items()
+        else:
+            items = {key: value}.items()
+        for name, item in items:
+            if name in flat:
+                raise ValueError(f"factor {name!r} is given twice (as a quoted and a dotted key)")
+            flat[name] = item
+    return flat
+
+
 class RandomSpec(_Strict):
     """``[random]``: the Monte Carlo part; factor keys sit beside n, seed and sampling."""
 
@@ -138,6 +158,7 @@ class RandomSpec(_Strict):
         """Keys with a dot are factors (``"plant.current_east" = {...}``)."""
         if not isinstance(data, dict):
             return data
+        data = dotted(data, lambda value: any(not isinstance(v, dict) for v in value.values()))
         plain = {k: v for k, v in data.items() if "." not in k}
         if "factors" in plain:
             raise ValueError("write each factor as its own key, not under 'factors'")
@@ -182,6 +203,14 @@ class StudySpec(_Strict):
     overlay: Annotated[list[OverlayEntry], Field(min_length=1, max_length=OVERLAY_CAP)] | None = (
         None
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _dotted_grid(cls, data: Any) -> Any:
+        """Grid factors written as TOML dotted keys (``plant.v_0 = [...]``) or tables."""
+        if isinstance(data, dict) and isinstance(data.get("grid"), dict):
+            return {**data, "grid": dotted(data["grid"], lambda value: False)}
+        return data
 
     @model_validator(mode="after")
     def _consistent(self) -> StudySpec:

@@ -124,3 +124,26 @@ def test_a_study_file_with_a_byte_order_mark_reads_as_a_scenario_file_does(
     latin.write_bytes('scenario = "bs-3" # \u00b0\n'.encode("latin-1"))
     with pytest.raises(StudyError, match=r"latin\.toml: cannot read it: 'utf-8' codec"):
         load_study(latin)
+
+
+def test_factors_written_as_toml_dotted_keys_are_the_quoted_factors(tmp_path: Path) -> None:
+    """TOML reads an unquoted ``plant.v_0 = [...]`` (or a ``[grid.plant]`` table) as a
+    table ``plant`` holding ``v_0``: the study refused it ("key 'grid.plant' = {'v_0':
+    [...]}: Input should be a valid list", "unknown key 'random.plant'") though it is the
+    same file as the quoted keys; a name written both ways is refused, not one dropped."""
+    path = tmp_path / "study.toml"
+    path.write_text(
+        'scenario = "bs-3"\n[grid]\nplant.v_0 = [-0.1, 0.1]\n[grid.controller]\nk0 = [0.2]\n'
+        "[random]\nn = 2\nplant.yaw_0 = { normal = [0.0, 0.1] }\n"
+        "events.turn.time.uniform = [5.0, 10.0]\n",
+        encoding="utf-8",
+    )
+    spec = load_study(path)
+    assert spec.grid == {"plant.v_0": [-0.1, 0.1], "controller.k0": [0.2]}
+    assert spec.random.factors == {
+        "plant.yaw_0": Normal(normal=(0.0, 0.1)),
+        "events.turn.time": Uniform(uniform=(5.0, 10.0)),
+    }
+    path.write_text('scenario = "bs-3"\n[grid]\n"plant.v_0" = [0.1]\nplant.v_0 = [0.2]\n')
+    with pytest.raises(StudyError, match=r"factor 'plant.v_0' is given twice \(as a quoted"):
+        load_study(path)
