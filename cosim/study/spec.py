@@ -110,9 +110,11 @@ class Normal(_Strict):
 
 
 def _distribution_kind(value: Any) -> str | None:
-    """The law's name: a key of the TOML table read, the field of the model dumped."""
+    """The law's name: a key of the TOML table read, the field of the model dumped; None
+    (refused, showing the table) for none or more than one law."""
     keys = value if isinstance(value, dict) else getattr(type(value), "model_fields", {})
-    return next((kind for kind in ("uniform", "normal") if kind in keys), None)
+    kinds = [kind for kind in ("uniform", "normal") if kind in keys]
+    return kinds[0] if len(kinds) == 1 else None
 
 
 Distribution = Annotated[

@@ -147,3 +147,15 @@ def test_factors_written_as_toml_dotted_keys_are_the_quoted_factors(tmp_path: Pa
     path.write_text('scenario = "bs-3"\n[grid]\n"plant.v_0" = [0.1]\nplant.v_0 = [0.2]\n')
     with pytest.raises(StudyError, match=r"factor 'plant.v_0' is given twice \(as a quoted"):
         load_study(path)
+
+
+def test_a_factor_with_two_laws_is_refused_showing_its_table() -> None:
+    """``{ uniform = [0, 1], normal = [0, 1] }`` was refused as "unknown key
+    'random.plant.u_0'", as if the factor's name were wrong, not its two laws."""
+    law = {"uniform": [0, 1], "normal": [0, 1]}
+    with pytest.raises(StudyError) as info:
+        study_from_dict({"scenario": "bs-3", "random": {"n": 2, "plant.u_0": law}}, "s.toml")
+    assert str(info.value) == (
+        f"s.toml: key 'random.plant.u_0' = {law!r}: "
+        "expected { uniform = [low, high] } or { normal = [mean, std] }"
+    )
