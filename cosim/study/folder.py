@@ -80,9 +80,10 @@ def claim(
         stored = json.loads(marker.read_text(encoding="utf-8"))
         differ = sorted(k for k in {*stored, *identity} if stored.get(k) != identity.get(k))
         if differ:
+            changes = [_with_keys(k, stored.get(k), identity.get(k)) for k in differ]
             raise StudyError(
                 f"{resuming}: {out_dir} holds another study (it differs from this one in: "
-                f"{', '.join(differ)}{_changed_files(stored, identity)}); give another "
+                f"{', '.join(changes)}{_changed_files(stored, identity)}); give another "
                 f"{out} to start this study"
             )
         return
@@ -98,6 +99,39 @@ def claim(
             "study; choose a new or empty folder"
         )
     marker.write_text(json.dumps(identity, indent=2) + "\n", encoding="utf-8")
+
+
+SHOWN_KEYS = 3  # differing keys a --resume refusal names
+SHOWN_VALUE_CHARS = 40  # a value longer than that is cut in the refusal
+
+
+def _with_keys(section: str, old: Any, new: Any) -> str:
+    """A differing section of study.json as the refusal names it: the study file's and
+    the resolved scenario's differing keys with both values (``study (random.seed: 11
+    in the folder, 12 now)``); the FMUs and files by name alone."""
+    if section not in ("study", "scenario"):
+        return section
+    keys = _differing_keys(old, new)
+    shown = "; ".join(
+        f"{key}: {_value(a)} in the folder, {_value(b)} now" for key, a, b in keys[:SHOWN_KEYS]
+    )
+    return f"{section} ({shown}{'; ...' if len(keys) > SHOWN_KEYS else ''})" if keys else section
+
+
+def _differing_keys(old: Any, new: Any, prefix: str = "") -> list[tuple[str, Any, Any]]:
+    """(dotted key, old value, new value) for each leaf that differs (absent: None)."""
+    if not (isinstance(old, dict) and isinstance(new, dict)):
+        return [] if old == new else [(prefix.rstrip("."), old, new)]
+    return [
+        difference
+        for key in sorted({*old, *new})
+        for difference in _differing_keys(old.get(key), new.get(key), f"{prefix}{key}.")
+    ]
+
+
+def _value(value: Any) -> str:
+    text = "absent" if value is None else json.dumps(value, ensure_ascii=False)
+    return text if len(text) <= SHOWN_VALUE_CHARS else f"{text[: SHOWN_VALUE_CHARS - 3]}..."
 
 
 def _changed_files(stored: Mapping[str, Any], identity: Mapping[str, Any]) -> str:

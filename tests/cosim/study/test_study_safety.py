@@ -15,6 +15,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from cosim.cli import main
+from cosim.study.folder import claim
+from cosim.study.spec import StudyError
+from cosim.study.table import CSV_NAME
 
 PLANT = """\
 id = "plant-alone"
@@ -152,3 +155,17 @@ def test_an_out_that_is_a_file_is_named_so(
         "a folder\n"
     )
     assert taken.read_text(encoding="utf-8") == "mine\n"
+
+
+def test_a_resume_of_a_changed_study_file_names_the_keys_that_changed(tmp_path: Path) -> None:
+    """``--resume`` after the study file's seed changed said only "it differs from this
+    one in: study", leaving the user to guess which of its keys."""
+    identity = {"study": {"random": {"n": 3, "seed": 11}, "stop_time": 2.0}, "fmus": {}}
+    claim(tmp_path, identity, False, CSV_NAME)
+    changed = {**identity, "study": {"random": {"n": 3, "seed": 12}, "stop_time": 2.0}}
+    with pytest.raises(StudyError) as info:
+        claim(tmp_path, changed, True, CSV_NAME)
+    assert "differs from this one in: study (random.seed: 11 in the folder, 12 now))" in str(
+        info.value
+    )
+    claim(tmp_path, identity, True, CSV_NAME)  # the same study resumes
