@@ -52,7 +52,14 @@ from cosim.study.prefetch import Prefetch
 from cosim.study.signals import StudyStopped
 from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study, study_label
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
-from cosim.study.task import Base, RunRecord, check_values, prepare, scenario_text
+from cosim.study.task import (
+    COUPLING_ERROR,
+    Base,
+    RunRecord,
+    check_values,
+    prepare,
+    scenario_text,
+)
 from cosim.study.units import units
 from cosim.study.unpacked import unpack
 from cosim.viz.rrd_file import OVERLAY_FILE
@@ -401,7 +408,8 @@ def _scenario_ref(ref: str, study_dir: Path) -> str | Path:
 
 
 def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:
-    """The metric columns: those the study file lists (checked), else all of them."""
+    """The metric columns: those the study file lists (checked) and, with check_step,
+    the coupling error of each (what check_step is for), else all of them."""
     wanted = spec.metrics.collect
     if wanted is None:
         metrics = list(facts.metrics)
@@ -413,7 +421,8 @@ def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:
                 f"{did_you_mean(unknown[0], facts.metrics)}; a run reports: "
                 f"{', '.join(facts.metrics)}"
             )
-        metrics = list(dict.fromkeys(wanted))
+        errors = [f"{COUPLING_ERROR}{name}" for name in wanted] if spec.check_step else []
+        metrics = list(dict.fromkeys([*wanted, *(e for e in errors if e in facts.metrics)]))
     clash = set(metrics) & {"run", *spec.factors, "status", "error", "wall_clock_s"}
     if clash:
         raise StudyError(f"metric {sorted(clash)[0]!r} has the name of another column")

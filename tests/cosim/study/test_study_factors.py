@@ -17,7 +17,8 @@ from cosim.outputs.folder import GUARD_SCRIPT
 from cosim.runner import run_scenario
 from cosim.study import factors as factors_module
 from cosim.study.factors import ScenarioFacts, StartValue, resolve_factor
-from cosim.study.spec import StudyError
+from cosim.study.runner import _metrics
+from cosim.study.spec import StudyError, study_from_dict
 from cosim.study.task import Base, check_values, prepare, run_one
 
 
@@ -185,3 +186,16 @@ def test_check_step_with_a_noise_fault_is_refused_in_one_line(
     source.write_text(text + fault)
     with pytest.raises(StudyError, match=r"^check_step = true: fault 'sensor' \(noise\) draws"):
         prepare(source, 1.0, fmu_paths["AuvPlant"].parent, check_step=True)
+
+
+def test_check_step_with_collected_metrics_adds_their_coupling_errors() -> None:
+    """``check_step = true`` beside ``[metrics] collect`` (as docs/studies.md shows them)
+    ran every run three times and wrote no coupling_error column: none was collected."""
+    errors = ("coupling_error.final.plant.yaw", "coupling_error.time_reached")
+    facts = ScenarioFacts(instances={}, metrics=("final.plant.yaw", "time_reached", *errors))
+    study = {"scenario": "bs-3", "grid": {"plant.v_0": [0.1]}, "check_step": True}
+    spec = study_from_dict({**study, "metrics": {"collect": ["final.plant.yaw"]}}, "s.toml")
+    assert _metrics(spec, facts) == ["final.plant.yaw", "coupling_error.final.plant.yaw"]
+    listed = ["coupling_error.time_reached", "final.plant.yaw"]
+    spec = study_from_dict({**study, "metrics": {"collect": listed}}, "s.toml")
+    assert _metrics(spec, facts) == [*listed, "coupling_error.final.plant.yaw"]
