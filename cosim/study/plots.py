@@ -4,7 +4,7 @@ backend is left alone), from the sorted table rows.
 * ``grid_<factor>.png`` for each grid factor: every metric against that factor (one
   panel per metric), one line per combination of the other grid factors; with random
   factors as well, each point is the mean over the samples at that grid point that have
-  the metric (a settling time never reached has none).
+  the metric (a settling time never reached has none), and the axis says so.
 * ``histograms.png`` (Monte Carlo): the distribution of every metric over the samples.
 * ``scatter_matrix.png`` (Monte Carlo): the random factors and the first metrics against
   each other (histograms on the diagonal), at most :data:`SCATTER_MAX` variables.
@@ -163,8 +163,9 @@ def plot_grid_factor(
             y = np.asarray([_mean(point, metric) for point in points]) * shown(metric, units)[0]
             ax.plot(*_broken_at_gaps(x, y, numeric), label=label or None, **style)
             lines[metric].append((label, y))
+    samples = max(len(point_rows) for point_rows in by_point.values())
     for ax, metric in zip(axes, metrics, strict=False):
-        _label_panel(ax, metric, factor, units, lines[metric])
+        _label_panel(ax, metric, factor, units, lines[metric], samples)
         if not numeric or len(x_values) <= XTICKS_MAX:
             ax.set_xticks(x, [f"{v * scale:g}" if numeric else str(v) for v in x_values])
         else:
@@ -182,11 +183,14 @@ def _label_panel(
     factor: str,
     units: Mapping[str, str],
     lines: Sequence[tuple[str, np.ndarray]],
+    samples: int,
 ) -> None:
-    """Title, axis labels, and a note naming the lines that coincide."""
+    """Title, axis labels (``samples`` > 1: the points are means over that many Monte
+    Carlo samples, and the axis says so), and a note naming the lines that coincide."""
     ax.set_title(title(metric), fontsize=9)
     ax.set_xlabel(axis_label(factor, units), fontsize=8)
-    ax.set_ylabel(f"[{shown(metric, units)[1]}]", fontsize=8)
+    mean = f"mean of {samples} samples " if samples > 1 else ""
+    ax.set_ylabel(f"{mean}[{shown(metric, units)[1]}]", fontsize=8)
     same = coinciding(lines)
     if same:
         note = "; ".join(" and ".join(group) for group in same)

@@ -242,8 +242,8 @@ def test_angles_are_drawn_in_degrees_on_every_figure(
     plots.plot_grid_factor(rows, {factor: [0.25, 0.5, 1.0]}, factor, metrics,
                            tmp_path / "g.png", ANGLES)  # fmt: skip
     yaw, rate, force = _panels_of(kept[0])
-    assert yaw.get_xlabel().endswith("[deg]") and yaw.get_ylabel() == "[deg]"
-    assert rate.get_ylabel() == "[deg/s]" and force.get_ylabel() == "[N]"
+    assert yaw.get_xlabel().endswith("[deg]") and yaw.get_ylabel() == "mean of 2 samples [deg]"
+    assert rate.get_ylabel().endswith("[deg/s]") and force.get_ylabel().endswith("[N]")
     (line,) = yaw.get_lines()
     assert np.allclose(line.get_xdata(), np.degrees([0.25, 0.5, 1.0]))
     means = [
@@ -303,3 +303,26 @@ def test_the_coupling_errors_of_final_values_are_folded_too(tmp_path: Path) -> N
     assert "30 final values" in line and "30 coupling errors of final values" in line
     assert all(name in visible for name in others)
     assert not any(name in visible for name in [*finals, *errors])
+
+
+UNITS_N = {"plant.v_0": "m/s", "peak_abs_tunnel_force_N": "N"}
+
+
+def test_a_grid_figure_of_means_over_samples_says_so_on_its_axis(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With random factors beside the grid, each point is the mean over the samples, but
+    the axis read "[N]" as for one run: the figure's numbers matched no row of runs.csv."""
+    kept = _drawn(monkeypatch)
+    grid = {"plant.v_0": [-0.1, 0.1]}
+    rows = [{"plant.v_0": v, "peak_abs_tunnel_force_N": f, "status": "complete"}
+            for v in grid["plant.v_0"] for f in (8.0, 9.0, 10.0)]  # fmt: skip
+    metric = ["peak_abs_tunnel_force_N"]
+    plots.plot_grid_factor(rows, grid, "plant.v_0", metric, tmp_path / "g.png", UNITS_N)
+    (panel,) = _panels_of(kept[0])
+    assert panel.get_ylabel() == "mean of 3 samples [N]"
+    assert list(panel.get_lines()[0].get_ydata()) == [9.0, 9.0]
+    plots.plot_grid_factor(rows[::3], grid, "plant.v_0", metric, tmp_path / "g.png", UNITS_N)
+    assert _panels_of(kept[1])[0].get_ylabel() == "[N]"  # one run per point: no mean
+    for figure in kept:
+        plt.close(figure)
