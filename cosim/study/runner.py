@@ -50,7 +50,15 @@ from cosim.study.page import write_index
 from cosim.study.plots import default_metrics, plotted_metrics, write_figures
 from cosim.study.prefetch import Prefetch
 from cosim.study.signals import StudyStopped
-from cosim.study.spec import MAX_RUNS, StudyError, StudySpec, check_size, load_study, study_label
+from cosim.study.spec import (
+    MAX_RUNS,
+    Normal,
+    StudyError,
+    StudySpec,
+    check_size,
+    load_study,
+    study_label,
+)
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import (
     COUPLING_ERROR,
@@ -369,6 +377,27 @@ def _kept_rows(csv_path: Path, count: int, names: OptionNames = FLAGS) -> Iterat
         ) from exc
 
 
+def _unit(name: str, quantities: Mapping[str, str]) -> str:
+    """`` <unit>`` of a factor as its study file gives it (angles in rad), "" if none."""
+    unit = quantities.get(name, "")
+    return "" if unit in ("", "1") else f" {unit}"
+
+
+def _random_text(spec: StudySpec, quantities: Mapping[str, str]) -> str:
+    """The page's line on the random factors: each law with its parameters and unit."""
+    if not spec.random.factors:
+        return "none"
+    laws = []
+    for name, law in spec.random.factors.items():
+        if isinstance(law, Normal):
+            text = f"normal, mean {law.normal[0]}, std {law.normal[1]}"
+        else:
+            text = f"uniform on [{law.uniform[0]}, {law.uniform[1]})"
+        laws.append(f"{name} ~ {text}{_unit(name, quantities)}")
+    random = spec.random
+    return f"{'; '.join(laws)}; n = {random.n}, seed = {random.seed}, {random.sampling}"
+
+
 def _write_report(
     out_dir: Path,
     spec: StudySpec,
@@ -387,14 +416,10 @@ def _write_report(
     )
     shown = set(plotted_metrics(rows, candidates))
     complete = sum(row["status"] == "complete" for row in rows)
-    random = "none"
-    if spec.random.factors:
-        laws = ", ".join(f"{k} ~ {d.model_dump()}" for k, d in spec.random.factors.items())
-        random = f"{laws}; n = {spec.random.n}, seed = {spec.random.seed}, {spec.random.sampling}"
     facts = {
         "scenario": f"{spec.scenario} ({base.scenario_id}), stop time {base.data['stop_time']} s",
-        "grid": ", ".join(f"{k} = {v}" for k, v in grid.items()) or "none",
-        "random": random,
+        "grid": ", ".join(f"{k} = {v}{_unit(k, quantities)}" for k, v in grid.items()) or "none",
+        "random": _random_text(spec, quantities),
         "runs": f"{len(rows)}: {complete} complete, {len(rows) - complete} failed",
     }
     return write_index(out_dir, facts, rows, figures, [m for m in metrics if m not in shown])

@@ -17,7 +17,7 @@ from cosim.outputs.folder import GUARD_SCRIPT
 from cosim.runner import run_scenario
 from cosim.study import factors as factors_module
 from cosim.study.factors import ScenarioFacts, StartValue, resolve_factor
-from cosim.study.runner import _metrics
+from cosim.study.runner import _metrics, _random_text
 from cosim.study.spec import StudyError, study_from_dict
 from cosim.study.task import Base, check_values, prepare, run_one
 
@@ -199,3 +199,16 @@ def test_check_step_with_collected_metrics_adds_their_coupling_errors() -> None:
     listed = ["coupling_error.time_reached", "final.plant.yaw"]
     spec = study_from_dict({**study, "metrics": {"collect": listed}}, "s.toml")
     assert _metrics(spec, facts) == [*listed, "coupling_error.final.plant.yaw"]
+
+
+def test_the_page_names_each_random_law_with_its_parameters_and_unit() -> None:
+    """index.html showed a random factor as a Python dict, ``controller.k0 ~ {'uniform':
+    (0.2, 0.5)}``, without its unit (a normal yaw's std: rad or deg?)."""
+    random = {"n": 3, "seed": 11, "controller.k0": {"uniform": [0.2, 0.5]},
+              "plant.yaw_0": {"normal": [0.0, 0.1]}, "plant.m": {"normal": [30, 1.25]}}  # fmt: skip
+    spec = study_from_dict({"scenario": "bs-3", "random": random}, "s.toml")
+    quantities = {"controller.k0": "1/s", "plant.yaw_0": "rad", "plant.m": "1"}
+    assert _random_text(spec, quantities) == (
+        "controller.k0 ~ uniform on [0.2, 0.5) 1/s; plant.yaw_0 ~ normal, mean 0.0, std 0.1 "
+        "rad; plant.m ~ normal, mean 30.0, std 1.25; n = 3, seed = 11, random"
+    )
