@@ -168,15 +168,17 @@ class RandomSpec(_Strict):
         return {**plain, "factors": factors} if factors else plain
 
 
-class MetricsSpec(_Strict):
-    collect: list[StrictStr] | None = Field(default=None, min_length=1)
-
-
 def _unique(values: list[Any]) -> list[Any]:
     seen = [(type(v), v) for v in values]
     if len(set(seen)) != len(seen):
         raise ValueError(f"{values!r} lists a value twice")
     return values
+
+
+class MetricsSpec(_Strict):
+    collect: Annotated[list[StrictStr], AfterValidator(_unique)] | None = Field(
+        default=None, min_length=1
+    )
 
 
 def _overlay_entry(entry: str) -> str:

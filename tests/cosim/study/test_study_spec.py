@@ -77,6 +77,8 @@ def test_random_factors_sit_beside_n_and_seed() -> None:
         ({"random": {"n": 2, "sampling": "sobol", "plant.u_0": {"uniform": [1, 2]}}}, "sobol"),
         ({"random": {"n": 2, "plant.v_0": {"uniform": [1, 2]}}}, "both in [grid] and in [random]"),
         ({"metrics": {"collect": []}}, "key 'metrics.collect' = []"),
+        # a metric listed twice was merged without a word, a grid value twice refused
+        ({"metrics": {"collect": ["final.plant.yaw", "final.plant.yaw"]}}, "lists a value twice"),
     ],
 )
 def test_bad_study_names_the_file_and_the_key(change: dict, expected: str) -> None:
