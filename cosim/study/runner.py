@@ -44,7 +44,7 @@ from cosim.study.execution import (
     make_job,
     open_client,
 )
-from cosim.study.factors import FactorKind, ScenarioFacts, resolve_factor
+from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, resolve_factor
 from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import default_metrics, plotted_metrics, write_figures
@@ -461,6 +461,7 @@ def _checked_plan(
     each grid value, every sample's range, the first sample's type (it stands for all:
     every one is a float)."""
     doubts = _check_grid_values(base, factors, spec)
+    _check_random_kinds(spec, factors, facts)
     runs = plan(spec, {name: factor.normalize for name, factor in factors.items()})
     _check_sample_ranges(spec, factors, facts, runs)
     if spec.random.factors:
@@ -469,6 +470,21 @@ def _checked_plan(
         doubts += _sample_doubts(spec, base, runs)
     unit_doubts.warn(doubts)  # once each, in the main process (its runs go without)
     return runs
+
+
+def _check_random_kinds(
+    spec: StudySpec, factors: Mapping[str, FactorKind], facts: ScenarioFacts
+) -> None:
+    """A random factor's variable is Real: its samples are real numbers (an Integer one
+    was refused through its first sample's type, "2.02 is not an integer")."""
+    for name in spec.random.factors:
+        factor = factors[name]
+        if isinstance(factor, StartValue) and not factor.real:
+            kind = facts.instances[factor.instance][factor.variable].type
+            raise StudyError(
+                f"factor {name!r}: {factor.variable} is {kind}; a random factor draws real "
+                "numbers, so it varies a Real variable (vary this one in [grid])"
+            )
 
 
 def _sample_doubts(spec: StudySpec, base: Base, runs: Sequence[PlannedRun]) -> list[str]:

@@ -124,6 +124,10 @@ def test_the_table_does_not_depend_on_the_number_of_workers(
         # a law wider than a float holds (the width 2e308 overflows): named, no traceback
         ('[random]\nn = 2\nseed = 1\n"plant.v_0" = { uniform = [-1e308, 1e308] }',
          "factor 'plant.v_0': {'uniform': (-1e+308, 1e+308)} gives samples beyond the largest"),
+        # an Integer drawn at random: refused for its first sample's type, not its own
+        ('[random]\nn = 2\nseed = 1\n"controller.heading_mode" = { uniform = [1, 3] }',
+         "factor 'controller.heading_mode': heading_mode is Integer; a random factor draws "
+         "real numbers, so it varies a Real variable (vary this one in [grid])"),
     ],
 )  # fmt: skip
 def test_a_bad_factor_fails_before_any_run_naming_it(
