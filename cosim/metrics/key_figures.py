@@ -109,8 +109,12 @@ def why_none(
         return "none: the run did not complete"
     if name == "yaw_settling_time_s":
         band = f"{math.degrees(YAW_TOLERANCE_RAD):g} deg"
-        if f"{roles['controller']}.yaw_setpoint" not in columns:  # no autopilot: held at 0
-            return f"not settled: the yaw is not within {band} of 0 at the end (no set-point)"
+        setpoint = f"{roles['controller']}.yaw_setpoint"
+        if setpoint not in columns:  # no autopilot, or its set-point left out: held at 0
+            return (
+                f"not settled: the yaw is not within {band} of 0 at the end (0: {setpoint} "
+                "is not recorded)"
+            )
         return f"not settled: the yaw is not within {band} of its set-point at the end"
     return "not finite"
 

@@ -114,9 +114,11 @@ def test_a_figure_that_is_none_says_why() -> None:
         "peak_abs_tunnel_force_N": "not recorded",
     }
     assert why_none("yaw_settling_time_s", ["plant.roll"]) == "not recorded"
-    # the turning circle has no autopilot: "its set-point" named one it does not have
+    # the turning circle has no autopilot: "its set-point" named one it does not have; a
+    # set-point driven by a connection but not recorded is not "no set-point" either
     assert why_none("yaw_settling_time_s", ["plant.yaw"]) == (
-        "not settled: the yaw is not within 1 deg of 0 at the end (no set-point)"
+        "not settled: the yaw is not within 1 deg of 0 at the end (0: controller.yaw_setpoint "
+        "is not recorded)"
     )
 
 
