@@ -236,7 +236,13 @@ def _condition(text: str, scenario: Any, key: str, src: Source) -> Condition:
     ref = match["ref"]
     _, var = split_ref(ref, scenario.instances, key, src)
     sources = {c.source for c in scenario.connections}
-    if var.type != "Real" or (ref not in scenario.record and ref not in sources):
+    if var.type != "Real":
+        raise src.error(
+            key,
+            f"{ref!r} is {var.type}: a `when` compares a Real variable (recorded, or a "
+            "connection's source)",
+        )
+    if ref not in scenario.record and ref not in sources:
         raise src.error(
             key, f"{ref!r} is neither a recorded Real variable nor a connection's source"
         )

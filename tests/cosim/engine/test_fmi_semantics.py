@@ -235,3 +235,12 @@ def test_under_jacobi_a_feedthrough_passes_on_the_value_of_the_same_point(
                                           '{ from = "src.x", to = "plant.u" }')  # fmt: skip
     direct = run(test_fmu_dir, direct_text)
     np.testing.assert_array_equal(through.column("plant.x"), direct.column("plant.x"))
+
+
+def test_a_when_on_an_integer_output_is_refused_naming_its_type(test_fmu_dir: Path) -> None:
+    """`when = "src.count > 3"` on the clock's Integer count, recorded, was refused as
+    "neither a recorded Real variable nor a connection's source": it is recorded; its
+    type is what a `when` does not take."""
+    event = '[[events]]\nwhen = "src.count > 3"\nset = { "plant.x0" = 1.0 }\n'
+    with pytest.raises(ScenarioError, match=r"'src.count' is Integer: a `when` compares a Real"):
+        scenario_from_toml(chain() + event, base_dir=test_fmu_dir)
