@@ -121,15 +121,34 @@ Q_PROP = -0.543
 
 def with_fin_arm(params: VehicleParameters, mu: float) -> VehicleParameters:
     """The vehicle with its vertical fins' moment arm scaled by mu (5.1.62):
-    Y_ur -> mu Y_ur, N_uv -> mu N_uv, N_ur -> mu^2 N_ur (see the module docstring)."""
+    Y_ur -> mu Y_ur, N_uv -> mu N_uv, N_ur -> mu^2 N_ur (see the module docstring).
+
+    Raises:
+        AnalysisError: mu is not a finite factor > 0.
+    """
     _check_positive("mu", mu)
+    return _fin_arm(params, mu)
+
+
+def _fin_arm(params: VehicleParameters, mu: float) -> VehicleParameters:
+    """:func:`with_fin_arm` for any finite mu: the map is a polynomial in mu, so the
+    continuation may evaluate it past a range's end (even at mu <= 0) on its way back."""
     return params.replace(Y_ur=mu * params.Y_ur, N_uv=mu * params.N_uv, N_ur=mu**2 * params.N_ur)
 
 
 def with_fin_area(params: VehicleParameters, eta: float) -> VehicleParameters:
     """The vehicle with its vertical fins' planform area scaled by eta (5.1.63):
-    Y_uv, Y_ur, N_uv, N_ur -> eta times (see the module docstring)."""
+    Y_uv, Y_ur, N_uv, N_ur -> eta times (see the module docstring).
+
+    Raises:
+        AnalysisError: eta is not a finite factor > 0.
+    """
     _check_positive("eta", eta)
+    return _fin_area(params, eta)
+
+
+def _fin_area(params: VehicleParameters, eta: float) -> VehicleParameters:
+    """:func:`with_fin_area` for any finite eta (linear in eta: see :func:`_fin_arm`)."""
     return params.replace(
         Y_uv=eta * params.Y_uv,
         Y_ur=eta * params.Y_ur,
@@ -243,17 +262,23 @@ class OperatingConditions:
                 state[STATE_INDEX[name]] += current_body[k]
         return state
 
-    def with_parameter(self, name: str, value: float) -> OperatingConditions:
+    def with_parameter(
+        self, name: str, value: float, beyond_range: bool = False
+    ) -> OperatingConditions:
         """These conditions with one sweep parameter (``SWEEP_PARAMETERS``) set; ``mu`` and
-        ``eta`` are factors on the parameters of ``self`` (1 = unchanged)."""
+        ``eta`` are factors on the parameters of ``self`` (1 = unchanged), refused unless
+        > 0 except ``beyond_range`` (a continuation's probe past the end of a range that
+        is itself > 0: the factor maps hold for any real factor)."""
         if name == "roll_torque":
             return replace(self, roll_torque=value)
         if name == "mass_position":
             return replace(self, mass_position=value)
         if name == "mu":
-            return replace(self, params=with_fin_arm(self.params, value))
+            arm = _fin_arm if beyond_range else with_fin_arm
+            return replace(self, params=arm(self.params, value))
         if name == "eta":
-            return replace(self, params=with_fin_area(self.params, value))
+            area = _fin_area if beyond_range else with_fin_area
+            return replace(self, params=area(self.params, value))
         raise AnalysisError(f"unknown sweep parameter {name!r}: expected one of {SWEEP_PARAMETERS}")
 
 
@@ -413,8 +438,10 @@ class _Continuation:
         self.ds_max = ds
         self.names = base.free_states
         self.index = [STATE_INDEX[n] for n in self.names]
+        # the corrector and the difference steps probe past the range's ends; the range
+        # itself was checked (check_sweep), and no point beyond it is kept (trace)
         self.conditions_at = lru_cache(maxsize=64)(
-            lambda value: base.with_parameter(parameter, value)
+            lambda value: base.with_parameter(parameter, value, beyond_range=True)
         )
 
     def _parts(self, y: np.ndarray) -> tuple[OperatingConditions, np.ndarray, np.ndarray]:

@@ -274,3 +274,20 @@ def test_bad_input_is_refused_with_the_value_named(remus):
     with pytest.raises(ValueError, match=r"mass_position = -0\.1 m"):
         sweep(conditions, "mass_position", 0.0, -0.1)
     assert set(SWEEP_PARAMETERS) == {"roll_torque", "mass_position", "mu", "eta"}
+
+
+@pytest.mark.parametrize(("parameter", "start", "stop"), [("mu", 1e-3, 1.0), ("eta", 1.0, 1e3)])
+def test_a_fin_factor_sweep_near_zero_or_wide_stays_in_its_range(remus, parameter, start, stop):
+    """A sweep of a fin factor from just above 0, or over a wide range, runs: the
+    continuation's predictor and difference steps reach factors <= 0 beyond the range's
+    end, where the factor maps are still defined (only the range itself must be > 0);
+    every point it keeps lies within [start, stop]."""
+    result = sweep(
+        OperatingConditions(remus), parameter, start, stop, steps=8, seeds=COARSE_SEEDS,
+        search_points=2,
+    )  # fmt: skip
+    assert result.branches
+    slack = 1e-9 * (stop - start)  # the points' parameters are scaled back by the span
+    for branch in result.branches:
+        assert branch.parameters.min() >= start - slack
+        assert branch.parameters.max() <= stop + slack
