@@ -83,7 +83,9 @@ class RunOptions:
     ``names``: how a refusal names the options (the command line's flags, or the API's
     keywords: :class:`cosim.errors.OptionNames`). ``unit_doubts`` warns of an angle of
     more than a full turn given in rad (:mod:`cosim.scenario.unit_doubts`; a study's task
-    goes without: the study warns once).
+    goes without: the study warns once), and of an autopilot designed for another vehicle
+    than the plant's or given a gain no law it runs reads
+    (:mod:`cosim.scenario.design_doubts`).
     """
 
     out_dir: Path | None = None
@@ -346,9 +348,10 @@ def _checked_scenario(
             raise CosimError(f"{options.names.switch('check_step')}: {reason}")
     master.preflight(scenario)
     if options.unit_doubts:
-        from cosim.scenario import unit_doubts
+        from cosim.scenario import design_doubts, unit_doubts
 
         unit_doubts.warn(unit_doubts.angle_doubts(scenario))
+        unit_doubts.warn(design_doubts.design_doubts(scenario), design_doubts.DesignWarning)
     return scenario
 
 

@@ -83,11 +83,11 @@ def doubt_line(key: str, value: float) -> str:
     )
 
 
-def warn(lines: Iterable[str]) -> None:
-    """Each line once, as a :class:`UnitWarning` pointing at the caller's own code (the
+def warn(lines: Iterable[str], category: type[UserWarning] = UnitWarning) -> None:
+    """Each line once, as a ``category`` warning pointing at the caller's own code (the
     first frame outside this package: a script's ``cosim.run(...)`` line, not ours)."""
     level, frame = 2, sys._getframe(1)  # 2: the frame that called this one
     while frame is not None and frame.f_globals.get("__name__", "").startswith("cosim"):
         level, frame = level + 1, frame.f_back  # type: ignore[assignment]
     for line in dict.fromkeys(lines):
-        warnings.warn(line, UnitWarning, stacklevel=level)
+        warnings.warn(line, category, stacklevel=level)

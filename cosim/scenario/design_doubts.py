@@ -1,0 +1,113 @@
+"""Scenario values that are valid but leave the autopilot's design other than the user
+meant: its laws designed for another vehicle than the plant's, or a gain given to a law
+the scenario never runs.
+
+The autopilot designs its heading laws on its own ``vehicle`` parameter set
+(:class:`controller_fmu.lateral_model.LateralDesignModel`), not on the plant's: a scenario
+that gives the plant another set and not the autopilot runs gains designed for a vehicle
+it does not steer. A robustness study may mean exactly that, so it is not refused; a run
+says so in one warning line each, as it does for an angle that looks like degrees
+(:mod:`cosim.scenario.unit_doubts`, whose ``warn`` shows them, as :class:`DesignWarning`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+from controller_fmu.autopilot import unused_parameters
+from controller_fmu.modes import DepthMode, HeadingMode
+
+if TYPE_CHECKING:
+    from cosim.scenario.spec import Instance, Scenario
+
+PLANT, AUTOPILOT = "AuvPlant", "AuvAutopilot"
+_SHOWN_DIFFERENCES = 3  # parameters named when two vehicle sets differ
+_LABELS = ("name", "description")  # fields of a vehicle set that are no physics
+
+
+class DesignWarning(UserWarning):
+    """A valid scenario whose autopilot design is likely not the one meant."""
+
+
+def design_doubts(scenario: Scenario) -> list[str]:
+    """One line for each autopilot designed for another vehicle set than a plant's, and
+    for each law-specific autopilot parameter given (a start value or an event's ``set``)
+    that no law the scenario selects reads."""
+    plants = _instances(scenario, PLANT)
+    found: list[str] = []
+    for name, autopilot in _instances(scenario, AUTOPILOT).items():
+        found += [_vehicle_doubt(name, autopilot, p, plant) for p, plant in plants.items()]
+        found += _unused_gains(scenario, name, autopilot)
+    return [line for line in found if line]
+
+
+def _instances(scenario: Scenario, model: str) -> dict[str, Instance]:
+    return {
+        name: inst
+        for name, inst in scenario.instances.items()
+        if inst.interface.model_identifier == model
+    }
+
+
+def _start(inst: Instance, variable: str) -> Any:
+    """The instance's start value of ``variable``, its FMU's default where not given."""
+    if variable in inst.start:
+        return inst.start[variable]
+    return inst.interface.variables[variable].start
+
+
+def _vehicle_doubt(name: str, autopilot: Instance, plant_name: str, plant: Instance) -> str:
+    """The warning if the autopilot's vehicle set differs from the plant's ('' if not)."""
+    from plant_fmu.model.parameters import load_vehicle
+
+    ours, theirs = str(_start(autopilot, "vehicle")), str(_start(plant, "vehicle"))
+    mine, plants = load_vehicle(ours).as_dict(), load_vehicle(theirs).as_dict()
+    differ = [key for key in mine if key not in _LABELS and mine[key] != plants[key]]
+    if not differ:
+        return ""
+    shown = ", ".join(
+        f"{key} {plants[key]!r} vs {mine[key]!r}" for key in differ[:_SHOWN_DIFFERENCES]
+    )
+    more = len(differ) - _SHOWN_DIFFERENCES
+    more_text = f" and {more} more" if more > 0 else ""
+    return (
+        f"instances.{plant_name}.start.vehicle = {_short(theirs)!r} but {name} designs its "
+        f"laws for vehicle {_short(ours)!r} (instances.{name}.start.vehicle): the sets "
+        f"differ in {shown}{more_text}; give {name} the plant's vehicle too, unless the mismatch "
+        "is meant"
+    )
+
+
+def _short(vehicle: str) -> str:
+    """A vehicle value as a message shows it: a set given inline by its first line."""
+    first, _, rest = vehicle.partition("\n")
+    return f"{first} ..." if rest else vehicle
+
+
+def _unused_gains(scenario: Scenario, name: str, autopilot: Instance) -> list[str]:
+    """Warnings for the law-specific parameters given to ``name`` that no law it runs
+    reads (its heading modes: the start value and every event's)."""
+    names = autopilot.interface.variables["heading_mode"].names
+    modes = {_mode(HeadingMode, _start(autopilot, "heading_mode"), names)}
+    given = {f: f"instances.{name}.start.{f} = {v!r}" for f, v in autopilot.start.items()}
+    for event in scenario.events:
+        for ref, value in event.set.items():
+            instance, _, variable = ref.partition(".")
+            if instance != name:
+                continue
+            given.setdefault(variable, f"events.{event.name}.set.{ref} = {value!r}")
+            if variable == "heading_mode":
+                modes.add(_mode(HeadingMode, value, names))
+    depth = _mode(DepthMode, _start(autopilot, "depth_mode"), {})
+    running = ", ".join(m.name.lower() for m in sorted(modes))
+    return [
+        f"{given[variable]} is read only by {readers}, and {name} runs heading_mode "
+        f"{running} with depth_mode {depth.name.lower()}: the value is not used"
+        for variable, readers in unused_parameters(given, modes, depth).items()
+    ]
+
+
+def _mode(kind: type[HeadingMode] | type[DepthMode], value: Any, names: Mapping[str, int]) -> Any:
+    """A mode from a start or event value (its number, or its name)."""
+    return kind(names[value] if isinstance(value, str) else int(value))

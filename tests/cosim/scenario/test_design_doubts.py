@@ -1,0 +1,95 @@
+"""An autopilot designed for another vehicle than the plant's, or given a gain that no law
+it runs reads, is valid (a robustness study means the first), so it runs: a run says so
+in one warning line each, naming the key and the value."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+import cosim
+from cosim.scenario.design_doubts import DesignWarning, design_doubts
+
+SWITCH = """
+[[events]]
+name = "switch"
+time = 1.0
+set = { "controller.heading_mode" = "sliding_mode" }
+"""
+
+
+def _load(fmu_paths: dict[str, Path], scenario: str | Path) -> cosim.Scenario:
+    return cosim.load_scenario(scenario, fmu_dir=fmu_paths["AuvPlant"].parent)
+
+
+def test_a_plant_of_another_vehicle_than_the_design_is_named(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """lqr-1 with plant.vehicle = remus100-long-fins ran without a word, its LQR designed
+    on remus100's fins (Y_uv -17.9 where the plant has -25.2)."""
+    scenario = _load(fmu_paths, "lqr-1").with_start({"plant.vehicle": "remus100-long-fins"})
+    (line,) = design_doubts(scenario)
+    assert line.startswith(
+        "instances.plant.start.vehicle = 'remus100-long-fins' but controller designs its laws "
+        "for vehicle 'remus100' (instances.controller.start.vehicle): the sets differ in "
+        "Y_uv -25.2 vs -17.9"
+    ), line
+    both = scenario.with_start({"controller.vehicle": "remus100-long-fins"})
+    assert design_doubts(both) == []
+
+
+def test_a_gain_no_selected_law_reads_is_named_with_its_value(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """smc_eta on backstepping, and lqr_q_yaw on the sliding mode (its reduced LQR drops
+    the psi weight, (6.3.46)-(6.3.47)), were silently ignored."""
+    scenario = _load(fmu_paths, "bs-3").with_start({"controller.smc_eta": 5.0})
+    assert design_doubts(scenario) == [
+        "instances.controller.start.smc_eta = 5.0 is read only by heading_mode sliding_mode, "
+        "and controller runs heading_mode backstepping with depth_mode off: the value is not "
+        "used"
+    ]
+    sliding = _load(fmu_paths, "lqr-1").with_start(
+        {"controller.heading_mode": 2, "controller.lqr_q_yaw": 10.0, "controller.depth_k_p": 5}
+    )
+    assert [
+        line.split(" is read only by ")[1].split(",")[0] for line in design_doubts(sliding)
+    ] == [
+        "heading_mode lqr",
+        "depth_mode pd",
+    ]
+
+
+def test_a_gain_of_a_law_an_event_switches_to_is_used(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    path = tmp_path / "switch.toml"
+    path.write_text(text + SWITCH)
+    scenario = _load(fmu_paths, path).with_start({"controller.smc_eta": 5.0})
+    assert design_doubts(scenario) == []
+
+
+BUILT_IN = sorted(
+    p.stem for p in (Path(__file__).parents[3] / "cosim" / "scenarios").glob("*.toml")
+)
+
+
+@pytest.mark.parametrize("scenario", BUILT_IN)
+def test_the_built_in_scenarios_raise_no_doubt(fmu_paths: dict[str, Path], scenario: str) -> None:
+    assert design_doubts(_load(fmu_paths, scenario)) == []
+
+
+@pytest.mark.slow
+def test_a_run_warns_and_still_runs(fmu_paths: dict[str, Path]) -> None:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = cosim.run(
+            "bs-3", stop_time=0.1, start={"controller.k0": 0.3, "controller.smc_eta": 2.0},
+            fmu_dir=fmu_paths["AuvPlant"].parent,
+        )  # fmt: skip
+    lines = [str(w.message) for w in caught if issubclass(w.category, DesignWarning)]
+    assert result.complete
+    assert len(lines) == 1 and lines[0].startswith("instances.controller.start.smc_eta = 2.0")
