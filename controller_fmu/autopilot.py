@@ -37,6 +37,7 @@ from controller_fmu.depth_pd import (
     TABLE_6_2_K_P,
     TABLE_6_2_TAU_D,
     DepthPd,
+    check_depth_loop,
 )
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, LqrHeading
@@ -410,6 +411,7 @@ class Autopilot:
             self.depth = DepthPd(
                 config.depth_gamma, config.depth_k_p, config.depth_tau_d, config.fin_angle_limit
             )
+            check_depth_loop(self.depth, self.params, config.design_speed)
         self.reset()
         if self._kernel is not None:  # compile (or load) the sample now, not in the first step
             p, law, state = self._kernel

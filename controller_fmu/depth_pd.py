@@ -19,11 +19,26 @@ dissertation reports: w = -0.075 m/s, theta = -0.050 rad, mean delta_s = -5.2 de
 Table 6.2's design work as published; the linear fin model (Table 6.1) is optimistic that
 far beyond the 15 deg where the hull's lift curve stalls (Fig. 4.20), so a user lowering
 the limit should lower |gamma| too.
+
+Gains that cannot hold a depth are refused when the autopilot is designed
+(:func:`check_depth_loop`): the loop closed on the plant's own depth plane, linearised at
+the straight run at the design speed (as :mod:`controller_fmu.lateral_model` does for the
+heading), must have every pole in the left half-plane. A sign slip (gamma > 0 or K_p < 0
+is positive feedback: vert-2 with gamma = +0.772 rad/m ran to 38 m above the surface),
+gamma = 0 or K_p = 0 (no depth control: a pole at 0) and tau_d = 0 (Table 6.2's gains
+without the pitch damping: poles 0.52 +- 5.9i 1/s at 1.525 m/s) are. Table 6.2's gains are
+stable from about 0.5 m/s up; at 0.1 m/s the fins are too weak for them.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+import numpy as np
+
+from plant_fmu.model.dynamics import PlantModel, Variant
+from plant_fmu.model.linearization import input_vector, linearize, state_vector
+from plant_fmu.model.parameters import VehicleParameters
 
 TABLE_6_2_GAMMA = -0.7720  # rad/m
 TABLE_6_2_K_P = 10.345  # 1
@@ -65,3 +80,41 @@ class DepthPd:
         theta_d = self.pitch_setpoint(depth_setpoint, depth)
         delta = -self.k_p * ((theta_d - pitch) - self.tau_d * q)
         return min(max(delta, -self.fin_limit), self.fin_limit)
+
+
+DEPTH_PLANE_STATES: tuple[str, ...] = ("w", "q", "down", "pitch")
+"""The states of the depth plane (6.3.77) the loop is closed on."""
+
+
+def loop_poles(law: DepthPd, params: VehicleParameters, speed: float) -> np.ndarray:
+    """The poles (1/s) of ``law`` closed on the plant's depth plane (w, q, z, theta of the
+    full variant), linearised at the straight run at u = ``speed`` m/s with the fins
+    inside their limit: delta_s = K_p (tau_d q + gamma z + theta) at z_d = 0."""
+    model = PlantModel(params, Variant.FULL)
+    A, B = linearize(
+        model, state_vector({"u": speed}), input_vector(), DEPTH_PLANE_STATES, ["fin_angle"]
+    )
+    gain = law.k_p * np.array([0.0, law.tau_d, law.gamma, 1.0])
+    poles: np.ndarray = np.linalg.eigvals(A + B @ gain[None, :])
+    return poles
+
+
+def check_depth_loop(law: DepthPd, params: VehicleParameters, speed: float) -> None:
+    """Refuse gains whose depth loop is not asymptotically stable at ``speed`` (m/s) on
+    vehicle ``params`` (module docstring).
+
+    Raises:
+        ValueError: a pole with real part >= 0, naming the gains and that pole.
+    """
+    poles = loop_poles(law, params, speed)
+    worst = complex(poles[np.argmax(poles.real)])
+    if worst.real < -1e-9:
+        return
+    pole = f"{worst.real:.3g}" + (f" +- {abs(worst.imag):.3g}i" if abs(worst.imag) > 1e-9 else "")
+    raise ValueError(
+        f"depth_gamma = {law.gamma!r} rad/m, depth_k_p = {law.k_p!r}, depth_tau_d = "
+        f"{law.tau_d!r} s: the depth loop closed on the depth plane of vehicle {params.name!r} at "
+        f"design_speed {speed!r} m/s has the pole {pole} 1/s, so it holds no depth; expected "
+        f"gains with every pole in the left half-plane (Table 6.2's gamma = "
+        f"{TABLE_6_2_GAMMA} rad/m < 0, K_p = {TABLE_6_2_K_P} > 0, tau_d = {TABLE_6_2_TAU_D} s)"
+    )

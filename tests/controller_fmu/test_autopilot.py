@@ -19,7 +19,7 @@ from controller_fmu.autopilot import (
     AutopilotConfigError,
     AutopilotSnapshot,
 )
-from controller_fmu.depth_pd import DepthPd
+from controller_fmu.depth_pd import DepthPd, check_depth_loop, loop_poles
 from controller_fmu.modes import DepthMode, HeadingMode
 from controller_fmu.setpoint_shaping import crab_angle, desired_heading, mass_locked
 from cosim.analysis.closed_loop import measurements, simulate_closed_loop
@@ -80,6 +80,39 @@ def test_depth_pd_signs_and_limit():
     assert pd.fin_angle(5.0, 0.0, 0.0, 0.0) == pd.fin_limit
     with pytest.raises(ValueError, match=r"fin_limit = 0\.0"):
         DepthPd(fin_limit=0.0)
+
+
+@pytest.mark.parametrize(
+    ("gains", "why"),
+    [
+        ({"depth_gamma": 0.772}, "gamma's sign slipped: vert-2 ran to 38 m above the surface"),
+        ({"depth_k_p": -10.345}, "K_p's sign slipped: the pitch loop feeds back positively"),
+        ({"depth_k_p": 0.0}, "no fin command at all"),
+        ({"depth_gamma": 0.0}, "no depth feedback: the depth drifts"),
+        ({"depth_tau_d": 0.0}, "no pitch damping: Table 6.2's loop oscillates, growing"),
+    ],
+)
+def test_depth_gains_that_hold_no_depth_are_refused_naming_them(gains, why):
+    """Each ran silently before; the depth loop closed on the plant's depth plane at the
+    design speed has a pole with real part >= 0, so the autopilot is not built."""
+    config = AutopilotConfig.build(depth_mode=DepthMode.PD, **gains)
+    with pytest.raises(ValueError, match=r"depth_gamma = .* rad/m, depth_k_p = .*holds no depth"):
+        Autopilot(config)
+    name, value = next(iter(gains.items()))
+    with pytest.raises(ValueError, match=rf"{name} = {value!r}"):
+        Autopilot(config)
+
+
+def test_table_6_2_depth_loop_poles_are_the_plants_and_stable(remus):
+    """The poles the check judges are those docs/model.md quotes for Table 6.2's gains on
+    the plant at 1.525 m/s (-1.42 +- 0.94i, -3.70 +- 3.14i 1/s); the same gains without the
+    depth loop (depth_mode off) are not checked."""
+    poles = loop_poles(DepthPd(), remus, 1.525)
+    assert sorted(np.round(poles, 2), key=lambda z: (z.real, z.imag)) == [
+        -3.7 - 3.14j, -3.7 + 3.14j, -1.42 - 0.94j, -1.42 + 0.94j,
+    ]  # fmt: skip
+    check_depth_loop(DepthPd(), remus, 1.017)  # the slow scenarios' design speed
+    Autopilot(AutopilotConfig.build(depth_mode=DepthMode.OFF, depth_k_p=-1.0))
 
 
 @pytest.fixture(scope="module")
