@@ -30,7 +30,9 @@ initial state already has s = 0.8 rad: eta = 1 rad/s reaches the layer within a 
 and inside it s decays at eta/Phi = 2 1/s, near the bandwidth of the roll/servo loop, so
 the reaching law asks no more than the 6 cm stroke gives (lqr-1 then settles in about
 19 s; eta/Phi = 1 1/s takes 25 s, 5 1/s gains little and doubles the command's activity);
-h eta/Phi = 0.02 keeps the sampled reaching law far from its stability limit 2. The
+h eta/Phi = 0.02 keeps the sampled reaching law far from its stability limit 2 (an eta or
+Phi that reaches it is refused: inside the layer s[k+1] = (1 - h eta/Phi) s[k] would grow,
+and s would chatter across the layer the boundary layer is there to remove). The
 dissertation notes the design is only locally stable (the remainder f* can dominate); it
 stabilises lqr-1's initial state (tests/controller_fmu/test_sliding_mode.py).
 """
@@ -47,6 +49,7 @@ from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
 from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, discretize
 
 _PSI = CONTROL_STATES.index("yaw")
+_REACHING_LIMIT = 2.0  # h eta / Phi: the sampled reaching law's stability limit inside Phi
 _REDUCED = [i for i in range(len(CONTROL_STATES)) if i != _PSI]
 
 
@@ -62,7 +65,8 @@ class SlidingModeHeading:
             weight is dropped for the reduced design (6.3.47).
 
     Raises:
-        ValueError: bad eta/Phi, or the reduced design leaves w^T Bd = 0.
+        ValueError: bad eta/Phi (h eta / Phi >= 2 included: the sampled reaching law is
+            unstable inside the boundary layer), or the reduced design leaves w^T Bd = 0.
     """
 
     def __init__(
@@ -78,6 +82,14 @@ class SlidingModeHeading:
             raise ValueError(f"sliding-mode eta = {eta!r}: expected a rate > 0 rad/s")
         if not (math.isfinite(boundary_layer) and boundary_layer > 0.0):
             raise ValueError(f"sliding-mode boundary layer = {boundary_layer!r}: expected > 0 rad")
+        if not sample_time * eta / boundary_layer < _REACHING_LIMIT:
+            raise ValueError(
+                f"sliding-mode eta = {eta!r} rad/s with boundary layer {boundary_layer!r} rad "
+                f"at sample time {sample_time!r} s: h eta / Phi = "
+                f"{sample_time * eta / boundary_layer:.6g}, so inside the layer "
+                "s[k+1] = (1 - h eta / Phi) s[k] grows and s chatters across it; expected "
+                f"eta / Phi < {_REACHING_LIMIT:g} / h = {_REACHING_LIMIT / sample_time:.6g} 1/s"
+            )
         self.design = design
         self.sample_time = float(sample_time)
         self.eta = float(eta)

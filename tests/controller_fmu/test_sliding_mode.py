@@ -83,3 +83,16 @@ def test_sliding_mode_stabilises_the_lqr1_initial_state(remus):
 def test_bad_reaching_parameters_are_refused(design, kwargs, message):
     with pytest.raises(ValueError, match=message):
         SlidingModeHeading(design, H, **kwargs)
+
+
+@pytest.mark.parametrize(("eta", "layer"), [(100.0, 0.5), (300.0, 0.5), (1.0, 0.005)])
+def test_a_reaching_law_unstable_inside_its_boundary_layer_is_refused(design, eta, layer):
+    """smc_eta = 300 rad/s (or Phi = 5 mm rad) ran: h eta / Phi >= 2, so inside the layer
+    s[k+1] = (1 - h eta / Phi) s[k] grew and the mass command banged between its limits
+    (lqr-1's initial state: 5.9 m of command travel in 30 s where the default takes 0.17 m)."""
+    with pytest.raises(ValueError, match=rf"eta = {eta!r} rad/s .* h eta / Phi = .*< 2 / h"):
+        SlidingModeHeading(design, 0.01, eta=eta, boundary_layer=layer)
+    config = AutopilotConfig.build(heading_mode=2, smc_eta=eta, smc_boundary_layer=layer)
+    with pytest.raises(ValueError, match=r"expected eta / Phi < 2 / h = 200 1/s"):
+        Autopilot(config)
+    SlidingModeHeading(design, 0.01, eta=0.99 * 2 * layer / 0.01, boundary_layer=layer)
