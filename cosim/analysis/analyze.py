@@ -141,7 +141,7 @@ def equilibria_table(conditions: OperatingConditions, equilibria: Sequence[Equil
     box = search_box_text(names)
     lines = [f"{len(equilibria)} equilibri{'um' if len(equilibria) == 1 else 'a'} in {box}:"]
     header = [f"{n} [{STATE_UNITS[STATE_INDEX[n]]}]" for n in names]
-    lines.append("  ".join(f"{h:>14}" for h in header) + "  stable    eigenvalues")
+    lines.append("  ".join(f"{h:>14}" for h in header) + "  stable    eigenvalues [1/s]")
     for eq in equilibria:
         values = "  ".join(f"{eq.value(n):>14.6g}" for n in names)
         eigen = ", ".join(_complex(z) for z in _ordered(eq.eigenvalues))
@@ -155,16 +155,23 @@ def equilibria_table(conditions: OperatingConditions, equilibria: Sequence[Equil
 
 
 def search_box_text(names: Sequence[str]) -> str:
-    """The search box over these free states, e.g. '0 < u < 2 m/s, |v|, |r| <= 0.4'."""
+    """The search box over these free states, with units, e.g.
+    '0 < u < 2 m/s, |v| <= 0.4 m/s, |p|, |r| <= 0.4 rad/s, |roll| < 90 deg'."""
     low, high = SEARCH_BOX["u"]
     parts = [f"{low:g} < u < {high:g} m/s"]
     rates = [n for n in names if n != "u" and n in SEARCH_BOX and n not in ("roll", "pitch")]
-    if rates:
-        parts.append(", ".join(f"|{n}|" for n in rates) + f" <= {SEARCH_BOX[rates[0]][1]:g}")
+    for unit in dict.fromkeys(_unit(n) for n in rates):
+        same = [n for n in rates if _unit(n) == unit]
+        bound = SEARCH_BOX[same[0]][1]
+        parts.append(", ".join(f"|{n}|" for n in same) + f" <= {bound:g} {unit}")
     angles = [n for n in names if n in ("roll", "pitch")]
     if angles:
         parts.append(", ".join(f"|{n}|" for n in angles) + " < 90 deg")
     return ", ".join(parts)
+
+
+def _unit(name: str) -> str:
+    return STATE_UNITS[STATE_INDEX[name]]
 
 
 def _complex(z: complex) -> str:
@@ -172,6 +179,9 @@ def _complex(z: complex) -> str:
 
 
 # --- sweep ---------------------------------------------------------------------------------
+
+SWEEP_UNITS = {"roll_torque": " N.m", "mass_position": " m", "mu": "", "eta": ""}
+"""The unit of each sweep parameter as printed after a value (the factors have none)."""
 
 
 def sweep_command(
@@ -291,18 +301,21 @@ def _unwritten(exc: OSError) -> str:
 
 def special_points_table(result: Sweep, conditions: OperatingConditions) -> str:
     """Human-readable list of the special points, in the dissertation's units."""
+    unit = SWEEP_UNITS[result.parameter]
     lines = [
-        f"{len(result.branches)} branch(es) over {result.parameter} from {result.start:g} "
-        f"to {result.stop:g}; {len(result.special_points)} special point(s):"
+        f"{len(result.branches)} branch(es) over {result.parameter} from {result.start:g}{unit} "
+        f"to {result.stop:g}{unit}; {len(result.special_points)} special point(s):"
     ]
     for s in result.special_points:
-        where = f"{result.parameter} = {s.parameter:.6g}"
+        where = f"{result.parameter} = {s.parameter:.6g}{unit}"
         if result.parameter == "roll_torque":
             where += f" ({s.parameter / Q_PROP:.4g} Q_prop)"
         elif result.parameter == "mass_position":
-            where += f" m (y_g = {100 * cg_offset(conditions.params, s.parameter):.4g} cm)"
+            where += f" (y_g = {100 * cg_offset(conditions.params, s.parameter):.4g} cm)"
         state = ", ".join(
-            f"{n} = {math.degrees(v):.4g} deg" if n == "roll" else f"{n} = {v:.4g}"
+            f"{n} = {math.degrees(v):.4g} deg"
+            if n in ("roll", "pitch")
+            else f"{n} = {v:.4g} {_unit(n)}"
             for n, v in s.state.items()
         )
         lines.append(f"  {s.kind:<12} at {where}: {state}")

@@ -11,12 +11,14 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from reference_values import dissertation
 
 from cosim.analysis.bifurcation import Q_PROP
 from cosim.cli import build_parser, main
-from plant_fmu.model.dynamics import STATE_NAMES
+from plant_fmu.model.dynamics import STATE_NAMES, Variant
+from plant_fmu.model.parameters import load_vehicle
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -306,3 +308,26 @@ def test_an_analysis_without_thrust_is_refused(capsys, thrust):
     code, out, err = _run(capsys, "analyze", "equilibria", "--thrust", thrust)
     assert code == 1 and out == ""
     assert f"thrust = {float(thrust)!r} N: expected a thrust > 0" in err
+
+
+def test_printed_tables_give_every_quantity_its_unit() -> None:
+    """The search box said '|v|, |p|, |r| <= 0.4' (m/s and rad/s alike), the eigenvalues
+    and the special points' states had no unit, and a roll-torque fold read
+    'roll_torque = -2.28613 (4.21 Q_prop)'."""
+    from cosim.analysis.analyze import equilibria_table, special_points_table
+    from cosim.analysis.bifurcation import OperatingConditions, SpecialPoint, Sweep
+
+    conditions = OperatingConditions(load_vehicle("remus100"), Variant.LATERAL)
+    table = equilibria_table(conditions, [])
+    assert table.startswith(
+        "0 equilibria in 0 < u < 2 m/s, |v| <= 0.4 m/s, |p|, |r| <= 0.4 rad/s, |roll| < 90 deg:"
+    ), table
+    assert "eigenvalues [1/s]" in table
+    state = {"roll": -0.3777, "u": 1.468, "v": -0.0657, "p": 0.0, "r": 0.143}
+    fold = SpecialPoint("fold", -2.28613, state, np.zeros(5), branch=1)
+    result = Sweep("roll_torque", 0.0, -3.0, tuple(state), [], [fold])
+    assert special_points_table(result, conditions).splitlines() == [
+        "0 branch(es) over roll_torque from 0 N.m to -3 N.m; 1 special point(s):",
+        "  fold         at roll_torque = -2.28613 N.m (4.21 Q_prop): roll = -21.64 deg, "
+        "u = 1.468 m/s, v = -0.0657 m/s, p = 0 rad/s, r = 0.143 rad/s",
+    ]
