@@ -1,6 +1,6 @@
 """Scenario values that are valid but leave the autopilot's design other than the user
-meant: its laws designed for another vehicle than the plant's, or a gain given to a law
-the scenario never runs.
+meant: its laws designed for another vehicle than the plant's, or for another speed than
+the thrust it sends drives the plant at, or a gain given to a law the scenario never runs.
 
 The autopilot designs its heading laws on its own ``vehicle`` parameter set
 (:class:`controller_fmu.lateral_model.LateralDesignModel`), not on the plant's: a scenario
@@ -38,6 +38,7 @@ def design_doubts(scenario: Scenario) -> list[str]:
     found: list[str] = []
     for name, autopilot in _instances(scenario, AUTOPILOT).items():
         found += [_vehicle_doubt(name, autopilot, p, plant) for p, plant in plants.items()]
+        found += [_speed_doubt(scenario, name, autopilot, p, plant) for p, plant in plants.items()]
         found += _unused_gains(scenario, name, autopilot)
     return [line for line in found if line]
 
@@ -77,6 +78,58 @@ def _vehicle_doubt(name: str, autopilot: Instance, plant_name: str, plant: Insta
         f"differ in {shown}{more_text}; give {name} the plant's vehicle too, unless the mismatch "
         "is meant"
     )
+
+
+def _speed_doubt(
+    scenario: Scenario, name: str, autopilot: Instance, plant_name: str, plant: Instance
+) -> str:
+    """The warning if the autopilot's thrust, connected to the plant, drives the plant's
+    vehicle on a straight run at a speed more than :data:`SPEED_TOLERANCE` from the
+    ``design_speed`` its laws are designed for ('' if not, or if no law runs)."""
+    pairs = {(c.source, c.target) for c in scenario.connections}
+    if (f"{name}.thrust", f"{plant_name}.thrust") not in pairs:
+        return ""
+    modes = {_start(autopilot, "heading_mode"), _start(autopilot, "depth_mode")}
+    if modes <= {0, "off"}:
+        return ""
+    thrust, design = (
+        float(_start(autopilot, "thrust_command")),
+        float(_start(autopilot, "design_speed")),
+    )
+    speed = straight_run_speed(str(_start(plant, "vehicle")), thrust)
+    if speed is None or abs(speed - design) <= SPEED_TOLERANCE * design:
+        return ""
+    return (
+        f"{name}.design_speed = {design!r} m/s but its thrust_command = {thrust!r} N drives "
+        f"{plant_name} straight at {speed:.4g} m/s: its laws are designed for another speed "
+        f"than they steer at; set design_speed = {speed:.4g}, unless the mismatch is meant"
+    )
+
+
+SPEED_TOLERANCE = 0.05
+"""How far (relative) the straight-run speed may be from the design speed unremarked."""
+
+
+def straight_run_speed(vehicle: str, thrust: float) -> float | None:
+    """The surge speed (m/s, through the water) of ``vehicle`` running straight on
+    ``thrust`` N: the root of the plant's own u' (horizontal variant, v = r = 0) in
+    (0, 20] m/s; None without one (no forward thrust)."""
+    from scipy.optimize import brentq
+
+    from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
+    from plant_fmu.model.linearization import input_vector, state_vector
+    from plant_fmu.model.parameters import load_vehicle
+
+    model = PlantModel(load_vehicle(vehicle), Variant.HORIZONTAL)
+    inputs = input_vector({"thrust": thrust})
+
+    def surge_rate(u: float) -> float:
+        return float(model.derivative(state_vector({"u": u}), inputs)[STATE_INDEX["u"]])
+
+    low, high = 1e-6, 20.0
+    if not surge_rate(low) > 0.0 > surge_rate(high):
+        return None
+    return float(brentq(surge_rate, low, high, xtol=1e-9))
 
 
 def _short(vehicle: str) -> str:

@@ -40,6 +40,22 @@ def test_a_plant_of_another_vehicle_than_the_design_is_named(
     assert design_doubts(both) == []
 
 
+def test_a_thrust_that_drives_another_speed_than_the_design_is_named(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """lqr-1 with thrust_command = 4 N ran at 1.017 m/s on an LQR designed for 1.525 m/s
+    without a word (slow-1 sets both)."""
+    slow = _load(fmu_paths, "lqr-1").with_start({"controller.thrust_command": 4.0})
+    assert design_doubts(slow) == [
+        "controller.design_speed = 1.525 m/s but its thrust_command = 4.0 N drives plant "
+        "straight at 1.017 m/s: its laws are designed for another speed than they steer at; "
+        "set design_speed = 1.017, unless the mismatch is meant"
+    ]
+    assert design_doubts(slow.with_start({"controller.design_speed": 1.017})) == []
+    off = slow.with_start({"controller.heading_mode": 0})  # no law: no design speed
+    assert not [line for line in design_doubts(off) if "design_speed" in line]
+
+
 def test_a_gain_no_selected_law_reads_is_named_with_its_value(
     fmu_paths: dict[str, Path],
 ) -> None:
