@@ -20,6 +20,7 @@ from controller_fmu.modes import DepthMode, HeadingMode
 
 if TYPE_CHECKING:
     from cosim.scenario.spec import Instance, Scenario
+    from plant_fmu.model.parameters import VehicleParameters
 
 PLANT, AUTOPILOT = "AuvPlant", "AuvAutopilot"
 _SHOWN_DIFFERENCES = 3  # parameters named when two vehicle sets differ
@@ -58,12 +59,23 @@ def _start(inst: Instance, variable: str) -> Any:
     return inst.interface.variables[variable].start
 
 
+def plant_parameters(plant: Instance) -> VehicleParameters:
+    """The parameter set the plant runs: its ``vehicle`` with the physical parameters the
+    scenario gives it written over (as :class:`plant_fmu.auv_plant.AuvPlant` builds it)."""
+    from plant_fmu.model.parameters import load_vehicle
+
+    base = load_vehicle(str(_start(plant, "vehicle")))
+    fields = set(base.as_dict()) - set(_LABELS)
+    overrides = {key: value for key, value in plant.start.items() if key in fields}
+    return base.replace(**overrides) if overrides else base
+
+
 def _vehicle_doubt(name: str, autopilot: Instance, plant_name: str, plant: Instance) -> str:
     """The warning if the autopilot's vehicle set differs from the plant's ('' if not)."""
     from plant_fmu.model.parameters import load_vehicle
 
-    ours, theirs = str(_start(autopilot, "vehicle")), str(_start(plant, "vehicle"))
-    mine, plants = load_vehicle(ours).as_dict(), load_vehicle(theirs).as_dict()
+    ours = str(_start(autopilot, "vehicle"))
+    mine, plants = load_vehicle(ours).as_dict(), plant_parameters(plant).as_dict()
     differ = [key for key in mine if key not in _LABELS and mine[key] != plants[key]]
     if not differ:
         return ""
@@ -72,11 +84,14 @@ def _vehicle_doubt(name: str, autopilot: Instance, plant_name: str, plant: Insta
     )
     more = len(differ) - _SHOWN_DIFFERENCES
     more_text = f" and {more} more" if more > 0 else ""
+    theirs = _short(str(_start(plant, "vehicle")))
+    written = [key for key in differ if key in plant.start]
+    given = f" with {', '.join(written)} written over" if written else ""
     return (
-        f"instances.{plant_name}.start.vehicle = {_short(theirs)!r} but {name} designs its "
-        f"laws for vehicle {_short(ours)!r} (instances.{name}.start.vehicle): the sets "
-        f"differ in {shown}{more_text}; give {name} the plant's vehicle too, unless the mismatch "
-        "is meant"
+        f"{plant_name} runs vehicle {theirs!r}{given} but {name} designs its laws for vehicle "
+        f"{_short(ours)!r} (instances.{name}.start.vehicle): the sets differ in {shown}"
+        f"{more_text}; give {name} the plant's vehicle too (a set with the same values), "
+        "unless the mismatch is meant"
     )
 
 
@@ -96,7 +111,7 @@ def _speed_doubt(
         float(_start(autopilot, "thrust_command")),
         float(_start(autopilot, "design_speed")),
     )
-    speed = straight_run_speed(str(_start(plant, "vehicle")), thrust)
+    speed = straight_run_speed(plant_parameters(plant), thrust)
     if speed is None or abs(speed - design) <= SPEED_TOLERANCE * design:
         return ""
     return (
@@ -110,7 +125,7 @@ SPEED_TOLERANCE = 0.05
 """How far (relative) the straight-run speed may be from the design speed unremarked."""
 
 
-def straight_run_speed(vehicle: str, thrust: float) -> float | None:
+def straight_run_speed(vehicle: VehicleParameters, thrust: float) -> float | None:
     """The surge speed (m/s, through the water) of ``vehicle`` running straight on
     ``thrust`` N: the root of the plant's own u' (horizontal variant, v = r = 0) in
     (0, 20] m/s; None without one (no forward thrust)."""
@@ -118,9 +133,8 @@ def straight_run_speed(vehicle: str, thrust: float) -> float | None:
 
     from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
     from plant_fmu.model.linearization import input_vector, state_vector
-    from plant_fmu.model.parameters import load_vehicle
 
-    model = PlantModel(load_vehicle(vehicle), Variant.HORIZONTAL)
+    model = PlantModel(vehicle, Variant.HORIZONTAL)
     inputs = input_vector({"thrust": thrust})
 
     def surge_rate(u: float) -> float:

@@ -32,12 +32,19 @@ def test_a_plant_of_another_vehicle_than_the_design_is_named(
     scenario = _load(fmu_paths, "lqr-1").with_start({"plant.vehicle": "remus100-long-fins"})
     (line,) = design_doubts(scenario)
     assert line.startswith(
-        "instances.plant.start.vehicle = 'remus100-long-fins' but controller designs its laws "
-        "for vehicle 'remus100' (instances.controller.start.vehicle): the sets differ in "
-        "Y_uv -25.2 vs -17.9"
+        "plant runs vehicle 'remus100-long-fins' but controller designs its laws for vehicle "
+        "'remus100' (instances.controller.start.vehicle): the sets differ in Y_uv -25.2 vs "
+        "-17.9"
     ), line
     both = scenario.with_start({"controller.vehicle": "remus100-long-fins"})
     assert design_doubts(both) == []
+    written = _load(fmu_paths, "lqr-1").with_start({"plant.N_uv": -20.0})
+    assert design_doubts(written) == [
+        "plant runs vehicle 'remus100' with N_uv written over but controller designs its laws "
+        "for vehicle 'remus100' (instances.controller.start.vehicle): the sets differ in "
+        "N_uv -20.0 vs 4.57; give controller the plant's vehicle too (a set with the same "
+        "values), unless the mismatch is meant"
+    ]
 
 
 def test_a_thrust_that_drives_another_speed_than_the_design_is_named(
