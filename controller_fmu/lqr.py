@@ -92,8 +92,43 @@ def discrete_gain(
     (|z| < 1 when stable)."""
     _check_r(r_u)
     Ad, Bd = discretize(A, B, dt)
-    K, _, poles = riccati.dlqr(Ad, Bd, state_weight(q_y), r_u)
+    Q = state_weight(q_y)
+    try:
+        K, _, poles = riccati.dlqr(Ad, Bd, Q, r_u)
+    except ValueError:
+        raise ValueError(no_gain_reason(Ad, Q, CONTROL_STATES, q_y, r_u)) from None
     return np.asarray(K).ravel(), np.asarray(poles)
+
+
+def no_gain_reason(
+    Ad: np.ndarray, Q: np.ndarray, states: Sequence[str], q_y: Sequence[float], r_u: float
+) -> str:
+    """Why the discrete LQR on Ad with weights Q found no stabilising gain, in words: an
+    open-loop mode on the unit circle that Q does not see (no stabilising solution exists;
+    e.g. psi, the free heading, with lqr_q_yaw = 0), named by the weighable
+    output it lies most along (``states`` names Ad's states); else the other causes (a
+    mode y_d hardly moves, weights too far apart)."""
+    eigenvalues, vectors = np.linalg.eig(Ad)
+    weights = f"Q_y = {list(map(float, q_y))!r} on {list(OUTPUT_STATES)}, R_u = {r_u!r}"
+    positive = [q for q in (*q_y, r_u) if q > 0.0]
+    for k, z in enumerate(eigenvalues):
+        v = vectors[:, k]
+        seen = float(np.real(v.conj() @ Q @ v)) / float(np.real(v.conj() @ v))
+        if abs(abs(z) - 1.0) <= 1e-9 and seen <= 1e-12 * min(positive):
+            weighable = [i for i, name in enumerate(states) if name in OUTPUT_STATES]
+            state = states[weighable[int(np.argmax(np.abs(v[weighable])))]]
+            return (
+                f"no stabilising LQR gain for {weights}: the open-loop mode z = "
+                f"{complex(z):.6g} (on the unit circle, along {state}) has no weight, so the "
+                f"cost does not grow while it drifts and no gain stabilises it; expected a "
+                f"weight > 0 on {state}"
+            )
+    return (
+        f"no stabilising LQR gain found for {weights} (the positive weights span "
+        f"{np.log10(max(positive) / min(positive)):.0f} orders of magnitude): an open-loop "
+        "mode with |z| >= 1 that the mass command hardly moves at this design speed, or "
+        "weights too far apart (more than about 1e12) for the Riccati equation to resolve"
+    )
 
 
 class LqrHeading:
@@ -114,7 +149,13 @@ class LqrHeading:
     ) -> None:
         self.A, self.B = design.linearize()
         self.sample_time = float(sample_time)
-        self.gain, self.poles = discrete_gain(self.A, self.B, q_y, r_u, self.sample_time)
+        try:
+            self.gain, self.poles = discrete_gain(self.A, self.B, q_y, r_u, self.sample_time)
+        except ValueError as exc:
+            raise ValueError(
+                f"LQR at design_speed {design.design_speed!r} m/s, sample time "
+                f"{sample_time!r} s: {exc}"
+            ) from None
         if not np.all(np.abs(self.poles) < 1.0):
             raise ValueError(
                 f"the discrete LQR at sample time {sample_time} s is not stable "

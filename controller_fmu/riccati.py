@@ -23,8 +23,11 @@ Equations (G = B R^-1 B^T):
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 
+_UNIT_CIRCLE_MARGIN = 1e-10  # |z| closer to 1 than this is on the unit circle
 _MAX_DOUBLINGS = 100  # each squares the convergence factor; 20 reach 1e-16 from 0.99998
 
 
@@ -68,10 +71,42 @@ def solve_discrete_are(
         ValueError: bad shapes, or no stabilising solution.
     """
     A, B, Q, R = _checked(A, B, Q, R)
-    X = _doubling(A, B @ np.linalg.solve(R, B.T), Q)
-    X = _hewer_step(A, B, Q, R, X)
-    if not np.all(np.abs(np.linalg.eigvals(A - B @ _discrete_gain(A, B, R, X))) < 1.0):
+    G = B @ np.linalg.solve(R, B.T)
+    X = _hewer_step(A, B, Q, R, _doubling(A, G, Q))
+    if not _stabilises(A, B, R, X):
+        # The doubling needs (Q, A) detectable: with an unstable mode Q does not see (Q = 0
+        # on an unstable system) it stops at a solution that leaves the mode unstable (from
+        # H = Q = 0 it never moves). Hewer's iteration converges to the stabilising
+        # solution from any stabilising gain: take one from the equation with Q + eps I.
+        eps = 1e-6 * max(1.0, float(np.linalg.norm(Q, 1)))
+        with contextlib.suppress(ValueError, np.linalg.LinAlgError):
+            X = _hewer_iterations(A, B, Q, R, _doubling(A, G, Q + eps * np.eye(A.shape[0])))
+    if not _stabilises(A, B, R, X):
         raise ValueError("the discrete Riccati equation has no stabilising solution")
+    return X
+
+
+def _stabilises(A: np.ndarray, B: np.ndarray, R: np.ndarray, X: np.ndarray) -> bool:
+    """The gain of X puts every closed-loop eigenvalue inside the unit circle, by more
+    than rounding (a mode on the circle that Q does not see, as the free heading psi with
+    no weight, has no stabilising solution: the iterations leave it at |z| = 1 - 1e-16)."""
+    closed = A - B @ _discrete_gain(A, B, R, X)
+    return bool(np.all(np.abs(np.linalg.eigvals(closed)) < 1.0 - _UNIT_CIRCLE_MARGIN))
+
+
+def _hewer_iterations(
+    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, X: np.ndarray
+) -> np.ndarray:
+    """Hewer's steps from X (whose gain stabilises) until they stop improving: each keeps
+    the gain stabilising and converges quadratically (G. Hewer, IEEE TAC 16(4), 1971)."""
+    change = np.inf
+    for _ in range(_MAX_DOUBLINGS):
+        X_next = _hewer_step(A, B, Q, R, X)
+        step = float(np.linalg.norm(X_next - X, 1)) / max(float(np.linalg.norm(X_next, 1)), 1e-300)
+        X = X_next
+        if step <= 1e-15 or step >= change:  # converged, or at the rounding floor
+            break
+        change = step
     return X
 
 

@@ -46,7 +46,7 @@ import numpy as np
 
 from controller_fmu import riccati
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
-from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, discretize
+from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, discretize, no_gain_reason
 
 _PSI = CONTROL_STATES.index("yaw")
 _REACHING_LIMIT = 2.0  # h eta / Phi: the sampled reaching law's stability limit inside Phi
@@ -101,7 +101,16 @@ class SlidingModeHeading:
         q_reduced = [q for i, q in enumerate(q_y) if i != _PSI - 1]
         C = np.eye(len(_REDUCED))[1:]
         Q = C.T @ np.diag(q_reduced) @ C
-        k_reduced, _, _ = riccati.dlqr(Ad[np.ix_(_REDUCED, _REDUCED)], Bd[_REDUCED], Q, r_u)
+        reduced = Ad[np.ix_(_REDUCED, _REDUCED)]
+        try:
+            k_reduced, _, _ = riccati.dlqr(reduced, Bd[_REDUCED], Q, r_u)
+        except ValueError:
+            names = [CONTROL_STATES[i] for i in _REDUCED]
+            raise ValueError(
+                f"sliding mode at design_speed {design.design_speed!r} m/s, sample time "
+                f"{sample_time!r} s: its LQR without psi (the psi weight is not used): "
+                + no_gain_reason(reduced, Q, names, q_y, r_u)
+            ) from None
         self.k = np.zeros(len(CONTROL_STATES))
         self.k[_REDUCED] = np.asarray(k_reduced).ravel()
 

@@ -135,3 +135,25 @@ def test_lqr2_mass_reaches_its_stop_and_heading_returns_within_45_s(remus):
     assert np.abs(run.command("mass_position_cmd")).max() <= 0.06
     assert _after(run, 45.0).max() < 1.0
     assert math.isfinite(run.states[-1].sum())
+
+
+@pytest.mark.parametrize(
+    ("weights", "state"), [({"lqr_q_yaw": 0.0}, "yaw"), ({"lqr_q_yaw": 0.0, "lqr_q_r": 0.0}, "yaw")]
+)
+def test_a_design_without_a_weight_on_the_free_heading_names_it(weights, state):
+    """lqr_q_yaw = 0 was refused as "the discrete Riccati equation has no stabilising
+    solution", naming no weight: psi is the plant's free integrator (z = 1), and a cost
+    that does not see it has no stabilising gain."""
+    config = AutopilotConfig.build(heading_mode=1, **weights)
+    with pytest.raises(ValueError, match=rf"along {state}\) has no weight.*weight > 0 on {state}"):
+        Autopilot(config)
+    with pytest.raises(ValueError, match=r"LQR at design_speed 1\.525 m/s.*Q_y = \[.*0\.0"):
+        Autopilot(config)
+
+
+def test_a_sliding_mode_with_no_weight_on_the_unstable_sway_yaw_mode_is_designed():
+    """Its reduced LQR without psi, weights all 0 but psi's: refused before (the Riccati
+    solver stopped at X = 0); control.dlqr gives the stabilising gain, and so do we."""
+    zero = {f"lqr_q_{n}": 0.0 for n in ("r", "p", "roll", "mass_position", "mass_velocity")}
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=2, **zero))
+    assert autopilot.sliding_mode is not None and np.any(autopilot.sliding_mode.k != 0.0)

@@ -127,3 +127,32 @@ def test_matrices_that_do_not_fit_are_refused():
         riccati.dlqr(np.eye(2), np.ones((2, 1)), np.eye(3), 1.0)
     with pytest.raises(ValueError, match="must be finite"):
         riccati.lqr(np.eye(2), np.ones((2, 1)), np.eye(2) * np.nan, 1.0)
+
+
+@pytest.mark.parametrize("weights", [(0.0,) * 6, (0.0, 1.0, 0.0, 0.0, 0.0, 0.0)])
+def test_an_unstable_mode_the_weights_do_not_see_is_still_stabilised_as_scipy_does(design, weights):
+    """The sliding mode's reduced design (no psi) with zero weights, or a weight on p
+    alone: the open-loop sway-yaw mode (z = 1.0104 at 10 ms) is unstable and Q does not
+    see it. A stabilising solution exists (scipy's and control.dlqr's, which move that
+    pole to its mirror image); the doubling alone, started from H = Q = 0, stayed at
+    X = 0 and the design was refused as having none."""
+    A, B, _ = design
+    Ad, Bd = zero_order_hold(A, B, 0.01)
+    keep = [0, 1, 2, 3, 5, 6]  # every state but psi
+    Ar, Br = Ad[np.ix_(keep, keep)], Bd[keep]
+    Q = np.diag([0.0, *weights[:3], *weights[4:]])
+    reference = scipy.linalg.solve_discrete_are(Ar, Br, Q, R)
+    K, X, poles = riccati.dlqr(Ar, Br, Q, R)
+    assert _relative(X, reference) < 1e-9
+    assert np.abs(poles).max() < 1.0
+    K_control, _, _ = control.dlqr(Ar, Br, Q, R)
+    np.testing.assert_allclose(K, K_control, rtol=1e-8)
+
+
+def test_a_mode_on_the_unit_circle_the_weights_do_not_see_is_refused(design):
+    """psi (z = 1) with no weight: no stabilising solution exists (control.dlqr refuses
+    too); the iterations must not return a gain that leaves |z| = 1 - 1e-16."""
+    A, B, _ = design
+    Ad, Bd = zero_order_hold(A, B, 0.01)
+    with pytest.raises(ValueError, match="no stabilising solution"):
+        riccati.solve_discrete_are(Ad, Bd, state_weight((1.0, 5e3, 1e2, 0.0, 1e3, 1e6)), R)
