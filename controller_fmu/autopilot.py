@@ -17,7 +17,7 @@ becomes an FMU parameter of the same name, unit and description.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 from pathlib import Path
@@ -240,45 +240,6 @@ class AutopilotConfig(CheckedRecord):
     def build(cls, **values: Any) -> AutopilotConfig:
         """Validate ``values``; raise :class:`AutopilotConfigError` naming every bad one."""
         return cls.from_mapping(values)
-
-
-_LQR_WEIGHTS = ("lqr_q_r", "lqr_q_p", "lqr_q_roll", "lqr_q_mass_position",
-                "lqr_q_mass_velocity", "lqr_r")  # fmt: skip
-_BACKSTEPPING = ("k0", "k1", "k2", "k3", "k4", "eta0", "thruster_boundary_layer",
-                 "command_filter_frequency", "tunnel_force_limit")  # fmt: skip
-HEADING_LAW_PARAMETERS: Mapping[str, frozenset[HeadingMode]] = {
-    **{name: frozenset({HeadingMode.LQR, HeadingMode.SLIDING_MODE}) for name in _LQR_WEIGHTS},
-    # the sliding mode's gain k comes from the LQR without psi (6.3.46)-(6.3.47)
-    "lqr_q_yaw": frozenset({HeadingMode.LQR}),
-    "design_step": frozenset({HeadingMode.LQR, HeadingMode.SLIDING_MODE}),
-    "smc_eta": frozenset({HeadingMode.SLIDING_MODE}),
-    "smc_boundary_layer": frozenset({HeadingMode.SLIDING_MODE}),
-    **{name: frozenset({HeadingMode.BACKSTEPPING}) for name in _BACKSTEPPING},
-}
-"""The heading laws that read each heading-law parameter of :class:`AutopilotConfig`."""
-DEPTH_LAW_PARAMETERS: tuple[str, ...] = ("depth_gamma", "depth_k_p", "depth_tau_d",
-                                         "fin_angle_limit")  # fmt: skip
-"""The parameters only the depth law (``depth_mode`` pd) reads. A parameter in neither
-(the modes, the design speed, the vehicle, the mass command limit, ...) is read whatever
-the laws."""
-
-
-def unused_parameters(
-    names: Iterable[str], heading_modes: Iterable[HeadingMode], depth_mode: DepthMode
-) -> dict[str, str]:
-    """Those of ``names`` that none of the laws selected (any of ``heading_modes``, which a
-    run may switch between, and ``depth_mode``) reads: name -> the laws that would, in
-    words (e.g. ``"heading_mode lqr or sliding_mode"``)."""
-    running = set(heading_modes)
-    unused = {}
-    for name in names:
-        readers = HEADING_LAW_PARAMETERS.get(name)
-        if readers is not None and not readers & running:
-            modes = " or ".join(mode.name.lower() for mode in sorted(readers))
-            unused[name] = f"heading_mode {modes}"
-        elif name in DEPTH_LAW_PARAMETERS and depth_mode is not DepthMode.PD:
-            unused[name] = "depth_mode pd"
-    return unused
 
 
 def field_unit(name: str) -> str:

@@ -15,8 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from controller_fmu.autopilot import unused_parameters
-from controller_fmu.modes import DepthMode, HeadingMode
+from controller_fmu.modes import DepthMode, HeadingMode, unused_parameters
 
 if TYPE_CHECKING:
     from cosim.scenario.spec import Instance, Scenario
@@ -129,10 +128,9 @@ def straight_run_speed(vehicle: VehicleParameters, thrust: float) -> float | Non
     """The surge speed (m/s, through the water) of ``vehicle`` running straight on
     ``thrust`` N: the root of the plant's own u' (horizontal variant, v = r = 0) in
     (0, 20] m/s; None without one (no forward thrust)."""
-    from scipy.optimize import brentq
-
     from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
     from plant_fmu.model.linearization import input_vector, state_vector
+    from plant_fmu.model.root_finding import brent_root
 
     model = PlantModel(vehicle, Variant.HORIZONTAL)
     inputs = input_vector({"thrust": thrust})
@@ -143,7 +141,7 @@ def straight_run_speed(vehicle: VehicleParameters, thrust: float) -> float | Non
     low, high = 1e-6, 20.0
     if not surge_rate(low) > 0.0 > surge_rate(high):
         return None
-    return float(brentq(surge_rate, low, high, xtol=1e-9))
+    return brent_root(surge_rate, low, high, xtol=1e-9)
 
 
 def _short(vehicle: str) -> str:

@@ -95,6 +95,14 @@ def test_a_gain_of_a_law_an_event_switches_to_is_used(
     assert design_doubts(scenario) == []
 
 
+def test_every_law_parameter_listed_is_an_autopilot_parameter() -> None:
+    from controller_fmu.autopilot import AutopilotConfig
+    from controller_fmu.modes import DEPTH_LAW_PARAMETERS, HEADING_LAW_PARAMETERS
+
+    fields = set(AutopilotConfig.field_info())
+    assert set(HEADING_LAW_PARAMETERS) | set(DEPTH_LAW_PARAMETERS) <= fields
+
+
 BUILT_IN = sorted(
     p.stem for p in (Path(__file__).parents[3] / "cosim" / "scenarios").glob("*.toml")
 )
