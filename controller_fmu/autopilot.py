@@ -372,7 +372,7 @@ class Autopilot:
             self.depth = DepthPd(
                 config.depth_gamma, config.depth_k_p, config.depth_tau_d, config.fin_angle_limit
             )
-            check_depth_loop(self.depth, self.params, config.design_speed)
+            check_depth_loop(self.depth, self.params, config.design_speed, config.design_step)
         self.reset()
         if self._kernel is not None:  # compile (or load) the sample now, not in the first step
             p, law, state = self._kernel

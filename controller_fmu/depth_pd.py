@@ -23,11 +23,14 @@ the limit should lower |gamma| too.
 Gains that cannot hold a depth are refused when the autopilot is designed
 (:func:`check_depth_loop`): the loop closed on the plant's own depth plane, linearised at
 the straight run at the design speed (as :mod:`controller_fmu.lateral_model` does for the
-heading), must have every pole in the left half-plane. A sign slip (gamma > 0 or K_p < 0
-is positive feedback: vert-2 with gamma = +0.772 rad/m ran to 38 m above the surface),
-gamma = 0 or K_p = 0 (no depth control: a pole at 0) and tau_d = 0 (Table 6.2's gains
-without the pitch damping: poles 0.52 +- 5.9i 1/s at 1.525 m/s) are. Table 6.2's gains are
-stable from about 0.5 m/s up; at 0.1 m/s the fins are too weak for them.
+heading) and sampled every design_step as the autopilot runs it, must have every pole
+inside the unit circle. A sign slip (gamma > 0 or K_p < 0 is positive feedback: vert-2 with
+gamma = +0.772 rad/m ran to 38 m above the surface), gamma = 0 or K_p = 0 (no depth
+control: a pole at z = 1) and tau_d = 0 (Table 6.2's gains without the pitch damping:
+poles 0.52 +- 5.9i 1/s at 1.525 m/s) are; so are gains the 10 ms sampling cannot realise
+(K_p = 1e4 or tau_d = 100 s: the fins bang between their limits, and with tau_d = 100 s
+vert-2 ended 5.8 m deep for a 1 m set-point). Table 6.2's gains are stable at every step
+up to 0.2 s, and from about 0.5 m/s up; at 0.1 m/s the fins are too weak for them.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller_fmu.matrix_exponential import zero_order_hold
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters
@@ -99,22 +103,39 @@ def loop_poles(law: DepthPd, params: VehicleParameters, speed: float) -> np.ndar
     return poles
 
 
-def check_depth_loop(law: DepthPd, params: VehicleParameters, speed: float) -> None:
-    """Refuse gains whose depth loop is not asymptotically stable at ``speed`` (m/s) on
-    vehicle ``params`` (module docstring).
+def sampled_loop_poles(
+    law: DepthPd, params: VehicleParameters, speed: float, sample_time: float
+) -> np.ndarray:
+    """The poles z of :func:`loop_poles`'s loop as the autopilot runs it: the fin command
+    computed every ``sample_time`` s and held between (zero-order hold of the plane)."""
+    model = PlantModel(params, Variant.FULL)
+    A, B = linearize(
+        model, state_vector({"u": speed}), input_vector(), DEPTH_PLANE_STATES, ["fin_angle"]
+    )
+    Ad, Bd = zero_order_hold(A, B, sample_time)
+    gain = law.k_p * np.array([0.0, law.tau_d, law.gamma, 1.0])
+    poles: np.ndarray = np.linalg.eigvals(Ad + Bd @ gain[None, :])
+    return poles
+
+
+def check_depth_loop(
+    law: DepthPd, params: VehicleParameters, speed: float, sample_time: float
+) -> None:
+    """Refuse gains whose depth loop, sampled every ``sample_time`` s, is not
+    asymptotically stable at ``speed`` (m/s) on vehicle ``params`` (module docstring).
 
     Raises:
-        ValueError: a pole with real part >= 0, naming the gains and that pole.
+        ValueError: a pole with |z| >= 1, naming the gains and that pole.
     """
-    poles = loop_poles(law, params, speed)
-    worst = complex(poles[np.argmax(poles.real)])
-    if worst.real < -1e-9:
+    poles = sampled_loop_poles(law, params, speed, sample_time)
+    worst = complex(poles[np.argmax(np.abs(poles))])
+    if abs(worst) < 1.0 - 1e-9:
         return
-    pole = f"{worst.real:.3g}" + (f" +- {abs(worst.imag):.3g}i" if abs(worst.imag) > 1e-9 else "")
     raise ValueError(
         f"depth_gamma = {law.gamma!r} rad/m, depth_k_p = {law.k_p!r}, depth_tau_d = "
-        f"{law.tau_d!r} s: the depth loop closed on the depth plane of vehicle {params.name!r} at "
-        f"design_speed {speed!r} m/s has the pole {pole} 1/s, so it holds no depth; expected "
-        f"gains with every pole in the left half-plane (Table 6.2's gamma = "
+        f"{law.tau_d!r} s: the depth loop closed on the depth plane of vehicle "
+        f"{params.name!r} at design_speed {speed!r} m/s, sampled every {sample_time!r} s "
+        f"(design_step), has the pole z = {worst:.4g} (|z| = {abs(worst):.4g} >= 1), so it "
+        f"holds no depth; expected gains with every |z| < 1 (Table 6.2's gamma = "
         f"{TABLE_6_2_GAMMA} rad/m < 0, K_p = {TABLE_6_2_K_P} > 0, tau_d = {TABLE_6_2_TAU_D} s)"
     )

@@ -51,10 +51,10 @@ HEADING_LAW_PARAMETERS: Mapping[str, frozenset[HeadingMode]] = {
 """The heading laws that read each heading-law parameter of the autopilot's
 configuration (:class:`controller_fmu.autopilot.AutopilotConfig`)."""
 DEPTH_LAW_PARAMETERS: tuple[str, ...] = ("depth_gamma", "depth_k_p", "depth_tau_d",
-                                         "fin_angle_limit")  # fmt: skip
-"""The parameters only the depth law (``depth_mode`` pd) reads. A parameter in neither
-(the modes, the design speed, the vehicle, the mass command limit, ...) is read whatever
-the laws."""
+                                         "fin_angle_limit", "design_step")  # fmt: skip
+"""The parameters the depth law (``depth_mode`` pd) reads (design_step: its gains are
+checked on the loop sampled so). A parameter in neither table (the modes, the design
+speed, the vehicle, the mass command limit, ...) is read whatever the laws."""
 
 
 def unused_parameters(
@@ -64,12 +64,17 @@ def unused_parameters(
     run may switch between, and ``depth_mode``) reads: name -> the laws that would, in
     words (e.g. ``"heading_mode lqr or sliding_mode"``)."""
     running = set(heading_modes)
+    depth = depth_mode is DepthMode.PD
     unused = {}
     for name in names:
-        readers = HEADING_LAW_PARAMETERS.get(name)
-        if readers is not None and not readers & running:
-            modes = " or ".join(mode.name.lower() for mode in sorted(readers))
-            unused[name] = f"heading_mode {modes}"
-        elif name in DEPTH_LAW_PARAMETERS and depth_mode is not DepthMode.PD:
-            unused[name] = "depth_mode pd"
+        heading = HEADING_LAW_PARAMETERS.get(name, frozenset())
+        in_depth = name in DEPTH_LAW_PARAMETERS
+        if not (heading or in_depth) or heading & running or (in_depth and depth):
+            continue
+        laws = []
+        if heading:
+            laws.append("heading_mode " + " or ".join(m.name.lower() for m in sorted(heading)))
+        if in_depth:
+            laws.append("depth_mode pd")
+        unused[name] = " or ".join(laws)
     return unused

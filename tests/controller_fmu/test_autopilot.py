@@ -90,13 +90,17 @@ def test_depth_pd_signs_and_limit():
         ({"depth_k_p": 0.0}, "no fin command at all"),
         ({"depth_gamma": 0.0}, "no depth feedback: the depth drifts"),
         ({"depth_tau_d": 0.0}, "no pitch damping: Table 6.2's loop oscillates, growing"),
+        ({"depth_k_p": 1e4}, "stable in continuous time, the 10 ms sampling is not"),
+        ({"depth_tau_d": 100.0}, "the fins banged; vert-2 ended 5.8 m deep for 1 m"),
     ],
 )
 def test_depth_gains_that_hold_no_depth_are_refused_naming_them(gains, why):
     """Each ran silently before; the depth loop closed on the plant's depth plane at the
     design speed has a pole with real part >= 0, so the autopilot is not built."""
     config = AutopilotConfig.build(depth_mode=DepthMode.PD, **gains)
-    with pytest.raises(ValueError, match=r"depth_gamma = .* rad/m, depth_k_p = .*holds no depth"):
+    with pytest.raises(
+        ValueError, match=r"depth_gamma = .* rad/m, depth_k_p = .*every 0\.01 s.*holds no depth"
+    ):
         Autopilot(config)
     name, value = next(iter(gains.items()))
     with pytest.raises(ValueError, match=rf"{name} = {value!r}"):
@@ -111,7 +115,9 @@ def test_table_6_2_depth_loop_poles_are_the_plants_and_stable(remus):
     assert sorted(np.round(poles, 2), key=lambda z: (z.real, z.imag)) == [
         -3.7 - 3.14j, -3.7 + 3.14j, -1.42 - 0.94j, -1.42 + 0.94j,
     ]  # fmt: skip
-    check_depth_loop(DepthPd(), remus, 1.017)  # the slow scenarios' design speed
+    check_depth_loop(DepthPd(), remus, 1.017, 0.01)  # the slow scenarios' design speed
+    for step in (0.001, 0.05, 0.2):  # the steps users pick
+        check_depth_loop(DepthPd(), remus, 1.525, step)
     Autopilot(AutopilotConfig.build(depth_mode=DepthMode.OFF, depth_k_p=-1.0))
 
 

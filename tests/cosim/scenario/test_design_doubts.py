@@ -83,6 +83,12 @@ def test_a_gain_no_selected_law_reads_is_named_with_its_value(
         "heading_mode lqr",
         "depth_mode pd",
     ]
+    (step,) = design_doubts(_load(fmu_paths, "bs-3").with_start({"controller.design_step": 0.02}))
+    assert "read only by heading_mode lqr or sliding_mode or depth_mode pd," in step
+    # the depth loop's gains are checked sampled at design_step: vert-2 reads it
+    assert (
+        design_doubts(_load(fmu_paths, "vert-2").with_start({"controller.design_step": 0.02})) == []
+    )
 
 
 def test_a_gain_of_a_law_an_event_switches_to_is_used(
