@@ -351,7 +351,9 @@ def _checked_scenario(
         from cosim.scenario import design_doubts, unit_doubts
 
         unit_doubts.warn(unit_doubts.angle_doubts(scenario))
-        unit_doubts.warn(design_doubts.design_doubts(scenario), design_doubts.DesignWarning)
+        live = options.interactive or options.control is not None
+        doubts = design_doubts.design_doubts(scenario, live)
+        unit_doubts.warn(doubts, design_doubts.DesignWarning)
     return scenario
 
 

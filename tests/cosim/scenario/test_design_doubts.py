@@ -91,7 +91,7 @@ def test_a_gain_no_selected_law_reads_is_named_with_its_value(
     )
 
 
-def test_a_gain_of_a_law_an_event_switches_to_is_used(
+def test_a_gain_of_a_law_an_event_or_a_live_key_switches_to_is_used(
     fmu_paths: dict[str, Path], tmp_path: Path
 ) -> None:
     text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "bs-3.toml").read_text()
@@ -99,6 +99,9 @@ def test_a_gain_of_a_law_an_event_switches_to_is_used(
     path.write_text(text + SWITCH)
     scenario = _load(fmu_paths, path).with_start({"controller.smc_eta": 5.0})
     assert design_doubts(scenario) == []
+    # a live run's keys may switch to any law
+    bs3 = _load(fmu_paths, "bs-3").with_start({"controller.smc_eta": 5.0})
+    assert design_doubts(bs3, live=True) == [] != design_doubts(bs3)
 
 
 def test_every_law_parameter_listed_is_an_autopilot_parameter() -> None:
