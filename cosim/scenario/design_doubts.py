@@ -113,6 +113,12 @@ def _speed_doubt(
         float(_start(autopilot, "design_speed")),
     )
     speed = straight_run_speed(plant_parameters(plant), thrust)
+    if speed is None and thrust <= 0.0:
+        return (
+            f"{name}.design_speed = {design!r} m/s but its thrust_command = {thrust!r} N "
+            f"drives {plant_name} forward at no speed (a thrust <= 0 stops it or backs it): "
+            "its laws are designed for a forward run at design_speed"
+        )
     if speed is None or abs(speed - design) <= SPEED_TOLERANCE * design:
         return ""
     return (
@@ -122,6 +128,7 @@ def _speed_doubt(
     )
 
 
+_FASTEST = 1e4  # m/s: the bracket widens (doubling) until past this
 SPEED_TOLERANCE = 0.05
 """How far (relative) the straight-run speed may be from the design speed unremarked."""
 
@@ -129,7 +136,7 @@ SPEED_TOLERANCE = 0.05
 def straight_run_speed(vehicle: VehicleParameters, thrust: float) -> float | None:
     """The surge speed (m/s, through the water) of ``vehicle`` running straight on
     ``thrust`` N: the root of the plant's own u' (horizontal variant, v = r = 0) in
-    (0, 20] m/s; None without one (no forward thrust)."""
+    (0, 2e4] m/s; None without one (no forward thrust, or a thrust beyond any vehicle's)."""
     from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
     from plant_fmu.model.linearization import input_vector, state_vector
     from plant_fmu.model.root_finding import brent_root
@@ -141,7 +148,11 @@ def straight_run_speed(vehicle: VehicleParameters, thrust: float) -> float | Non
         return float(model.derivative(state_vector({"u": u}), inputs)[STATE_INDEX["u"]])
 
     low, high = 1e-6, 20.0
-    if not surge_rate(low) > 0.0 > surge_rate(high):
+    if not surge_rate(low) > 0.0:
+        return None  # no forward thrust: the vehicle stops or backs
+    while surge_rate(high) > 0.0 and high < _FASTEST:
+        high *= 2.0  # a strong thrust: widen the bracket
+    if not surge_rate(high) < 0.0:
         return None
     return brent_root(surge_rate, low, high, xtol=1e-9)
 

@@ -59,6 +59,11 @@ def test_a_thrust_that_drives_another_speed_than_the_design_is_named(
         "set design_speed = 1.017, unless the mismatch is meant"
     ]
     assert design_doubts(slow.with_start({"controller.design_speed": 1.017})) == []
+    (astern,) = design_doubts(slow.with_start({"controller.thrust_command": -9.0}))
+    assert astern.startswith("controller.design_speed = 1.525 m/s but its thrust_command = -9.0")
+    assert "forward at no speed" in astern
+    (fast,) = design_doubts(slow.with_start({"controller.thrust_command": 1e4}))
+    assert "drives plant straight at 50.83 m/s" in fast
     off = slow.with_start({"controller.heading_mode": 0})  # no law: no design speed
     assert not [line for line in design_doubts(off) if "design_speed" in line]
 
