@@ -305,7 +305,8 @@ class Timeline:
         for ref, value in event.set.items():
             if event.ramp is not None:
                 self._ramps[ref] = (self._writer.get(ref), float(value), t, event.ramp)
-            else:
+            else:  # a value set ends a ramp on it: the ramp would write over it
+                self._ramps.pop(ref, None)
                 self._writer.set(ref, value, why)
         self.fired.append({"name": event.name, "time": t, "set": dict(event.set)})
         self.epoch += 1

@@ -143,3 +143,16 @@ def test_a_ramp_writes_every_point_and_linear_series_interpolate(
     ramp = '[[events]]\ntime = 0.2\nset = { "plant.u" = 3.0 }\nramp = 0.4\n'
     u = master.run(open_loop(test_fmu_dir, ramp)).column("plant.u")
     np.testing.assert_allclose(u, [1, 1, 1, 1.5, 2, 2.5, 3, 3, 3, 3, 3], rtol=0, atol=1e-15)
+
+
+def test_an_event_on_a_ramping_variable_ends_the_ramp(test_fmu_dir: Path) -> None:
+    """A later event setting a variable a ramp is moving takes over: its value holds from
+    its point on (the ramp used to write over it at once and go on to its own target), and
+    a later ramp starts from the value written last (the first ramp's at the point before)."""
+    ramp = '[[events]]\ntime = 0.2\nset = { "plant.u" = 3.0 }\nramp = 0.4\n'
+    stop = '[[events]]\nname = "abort"\ntime = 0.4\nset = { "plant.u" = 0.0 }\n'
+    u = master.run(open_loop(test_fmu_dir, ramp + stop)).column("plant.u")
+    np.testing.assert_allclose(u, [1, 1, 1, 1.5, 0, 0, 0, 0, 0, 0, 0], rtol=0, atol=1e-15)
+    back = '[[events]]\nname = "back"\ntime = 0.4\nset = { "plant.u" = 0.0 }\nramp = 0.2\n'
+    u = master.run(open_loop(test_fmu_dir, ramp + back)).column("plant.u")
+    np.testing.assert_allclose(u, [1, 1, 1, 1.5, 1.5, 0.75, 0, 0, 0, 0, 0], rtol=0, atol=1e-15)
