@@ -253,14 +253,20 @@ def _read_table(
     except UnicodeDecodeError as exc:
         raise VehicleParameterError(f"vehicle file {name_or_path!r}: not UTF-8 ({exc})") from None
     read.append((path.resolve(), text))
-    return _table_of(text, name_or_path, seen, folder, read)
+    return _table_of(text, name_or_path, seen, folder, read, beside=path.parent)
 
 
 def _table_of(
-    text: str, source: str, seen: tuple[str, ...], folder: Path, read: list[tuple[Path, str]]
+    text: str,
+    source: str,
+    seen: tuple[str, ...],
+    folder: Path,
+    read: list[tuple[Path, str]],
+    beside: Path | None = None,
 ) -> dict[str, Any]:
     """The flat table of the set whose TOML ``text`` came from ``source`` (a file, or
-    "(given inline)"), its ``base`` chain read too."""
+    "(given inline)"), its ``base`` chain read too: a relative path there names a file
+    ``beside`` the one read (its folder; the working directory for a set given inline)."""
     try:
         table = vehicle_toml.loads(text)
     except vehicle_toml.VehicleTomlError as exc:
@@ -269,7 +275,10 @@ def _table_of(
     base = flat.pop("base", None)
     if base is None:
         return flat
-    return {**_read_table(str(base), seen=(*seen, source), folder=folder, read=read), **flat}
+    base = str(base)
+    if beside is not None and base.endswith(".toml") and not Path(base).is_absolute():
+        base = os.path.normpath(beside / base)  # normalised: a loop names each file once
+    return {**_read_table(base, seen=(*seen, source), folder=folder, read=read), **flat}
 
 
 def _flatten(table: dict[str, Any], source: str) -> dict[str, Any]:

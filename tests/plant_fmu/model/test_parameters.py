@@ -186,6 +186,26 @@ def test_base_loop_is_refused(tmp_path: Path):
         load_vehicle(a)
 
 
+def test_a_relative_base_is_read_beside_the_file_that_names_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """``base = "heavy.toml"`` names the file beside the set, wherever the process runs
+    (a scenario names the set by a path relative to itself; the base was looked for in
+    the working directory)."""
+    sets, elsewhere = tmp_path / "vehicles", tmp_path / "elsewhere"
+    (sets / "more").mkdir(parents=True)
+    elsewhere.mkdir()
+    (sets / "heavy.toml").write_text('base = "remus100"\nname = "heavy"\n[rigid_body]\nW = 306.0\n')
+    (sets / "more" / "heavier.toml").write_text('base = "../heavy.toml"\nname = "heavier"\n')
+    monkeypatch.chdir(elsewhere)
+    p = load_vehicle(sets / "more" / "heavier.toml")
+    assert (p.name, p.W) == ("heavier", 306.0)
+    (sets / "a.toml").write_text('base = "b.toml"\n')
+    (sets / "b.toml").write_text('base = "a.toml"\n')
+    with pytest.raises(VehicleParameterError, match="loops"):
+        load_vehicle(sets / "a.toml")
+
+
 def test_a_set_is_parsed_once_while_its_files_hold_the_same_text(tmp_path: Path):
     base, custom = tmp_path / "base.toml", tmp_path / "custom.toml"
     base.write_text('base = "remus100"\nname = "base"\n[rigid_body]\nW = 306.0\n')
