@@ -317,6 +317,12 @@ VARIABLES: dict[str, tuple[str, ...]] = {
     "survey": ("cross_track_error", "legs_completed"),
     "fault-recovery": ("yaw", "yaw_setpoint"),
 }
+# What a run without a column for a variable may give in its place, in order: a zig-zag
+# switches the heading set-point of an autopilot or, without one, the moving-mass command
+# (the open-loop test of IMO MSC.137(76), the vehicle's own means of turning).
+STAND_INS: dict[str, dict[str, tuple[str, ...]]] = {
+    "zigzag": {"yaw_setpoint": ("mass_position_cmd",)},
+}
 
 
 def manoeuvre_metrics(
@@ -350,28 +356,38 @@ def manoeuvre_columns(kind: str, columns: Sequence[str]) -> dict[str, str]:
     """Which of ``columns`` (``<instance>.<variable>``) manoeuvre ``kind`` reads: variable
     -> column. A variable is the column of its own name if there is one, else
     ``plant.<name>`` when the plant records it (what acts on the vehicle), else the one
-    column ``<instance>.<name>`` of any instance.
+    column ``<instance>.<name>`` of any instance; a run with no column for it may give
+    one of its :data:`STAND_INS` instead (a zig-zag's moving-mass command).
 
     Raises:
-        ValueError: an unknown kind, or a variable with no column or several.
+        ValueError: an unknown kind, or a variable with no column (nor a stand-in) or
+            several.
     """
     if kind not in KINDS:
         raise ValueError(f"unknown manoeuvre {kind!r}: expected one of {sorted(KINDS)}")
     found = {}
     for name in VARIABLES[kind]:
-        exact = [c for c in (name, f"plant.{name}") if c in columns]
-        if exact:
-            found[name] = exact[0]
-            continue
-        matches = [c for c in columns if c.endswith(f".{name}")]
+        stand_ins = STAND_INS.get(kind, {}).get(name, ())
+        for candidate in (name, *stand_ins):
+            matches = _columns_of(candidate, columns)
+            if matches:
+                break
         if len(matches) != 1:
             problem = f"several columns {matches}" if matches else "no column"
+            instead = "" if matches else "".join(f" (or {other!r})" for other in stand_ins)
             raise ValueError(
-                f"manoeuvre {kind!r} needs the variable {name!r}, but the run has "
+                f"manoeuvre {kind!r} needs the variable {name!r}{instead}, but the run has "
                 f"{problem} for it (columns: {', '.join(columns)})"
             )
         found[name] = matches[0]
     return found
+
+
+def _columns_of(name: str, columns: Sequence[str]) -> list[str]:
+    """The columns variable ``name`` may be read from (:func:`manoeuvre_columns`): itself
+    or the plant's alone if there is one, else every ``<instance>.<name>``."""
+    exact = [c for c in (name, f"plant.{name}") if c in columns]
+    return exact[:1] or [c for c in columns if c.endswith(f".{name}")]
 
 
 def metric_names(kind: str, steps: int = 0) -> tuple[str, ...]:

@@ -255,6 +255,11 @@ def test_manoeuvre_columns_are_what_a_run_must_record():
     ambiguous += r"\['controller\.yaw_setpoint', 'guidance"
     with pytest.raises(ValueError, match=ambiguous):
         manoeuvre_columns("zigzag", recorded)
+    # a zig-zag's command: the heading set-point, else the moving-mass command
+    mass = ["plant.yaw", "plant.mass_position_cmd", "controller.mass_position_cmd"]
+    assert manoeuvre_columns("zigzag", mass)["yaw_setpoint"] == "plant.mass_position_cmd"
+    both = [*mass, "controller.yaw_setpoint"]
+    assert manoeuvre_columns("zigzag", both)["yaw_setpoint"] == "controller.yaw_setpoint"
 
 
 @pytest.mark.parametrize("kind", sorted(KINDS))

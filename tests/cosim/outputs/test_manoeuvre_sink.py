@@ -10,9 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from cosim.metrics.manoeuvres import manoeuvre_metrics, metric_names
+import cosim
+from cosim.metrics.manoeuvres import manoeuvre_metrics, metric_names, zigzag
 from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, scenario_metric_names
-from cosim.scenario.spec import load_scenario
+from cosim.scenario.spec import load_scenario, scenario_from_toml
 
 H = 0.01
 RECORD = ["plant.roll", "plant.north", "plant.east", "plant.yaw", "plant.mass_position_cmd",
@@ -59,8 +60,47 @@ def test_a_run_ending_on_nan_or_without_rows_gets_none():
 
 
 def test_a_column_the_kind_needs_must_be_recorded():
-    with pytest.raises(ValueError, match=r"'zigzag' needs the variable 'yaw_setpoint'"):
-        ManoeuvreSink("zigzag", RECORD)
+    without_command = [c for c in RECORD if c != "plant.mass_position_cmd"]
+    needs = r"'zigzag' needs the variable 'yaw_setpoint' \(or 'mass_position_cmd'\)"
+    with pytest.raises(ValueError, match=needs):
+        ManoeuvreSink("zigzag", without_command)
+
+
+MASS_ZIGZAG = """
+summary = "10/10 zig-zag on the moving mass alone"
+stop_time = 60.0
+manoeuvre = "zigzag"
+[coupling]
+step = 0.01
+[instances.plant]
+fmu = "AuvPlant"
+[instances.plant.start]
+variant = "lateral"
+u_0 = 1.525
+mass_position_cmd = 0.06
+[[events]]
+when = "plant.yaw > 0.17453292519943295"
+repeat = true
+set = { "plant.mass_position_cmd" = -0.06 }
+[[events]]
+when = "plant.yaw < -0.17453292519943295"
+repeat = true
+set = { "plant.mass_position_cmd" = 0.06 }
+"""
+
+
+def test_a_zigzag_of_the_moving_mass_without_an_autopilot_is_measured(fmu_paths) -> None:
+    """The open-loop zig-zag of the standard (the command switched at the test angle, no
+    heading autopilot): its executes are the moving-mass command's switches. Such a
+    scenario was refused for want of a yaw_setpoint, which only an autopilot has."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    scenario = scenario_from_toml(MASS_ZIGZAG, "mass-zigzag", fmu_dir=fmu_dir)
+    run = cosim.run(scenario, fmu_dir=fmu_dir)
+    results = run.results
+    yaw, command = results["plant.yaw"].to_numpy(), results["plant.mass_position_cmd"]
+    expected = zigzag(results.index.to_numpy(), yaw, command.to_numpy())
+    assert {name: run.summary[name] for name in expected} == pytest.approx(expected)
+    assert expected["period_s"] is not None and expected["overshoot_2_deg"] > 0.0
 
 
 def test_a_scenarios_metric_names_and_fault_start(fmu_paths) -> None:
