@@ -45,6 +45,7 @@ from typing import Any, Literal
 
 from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
+from cosim.errors import did_you_mean
 from cosim.scenario.checks import Source, Strict, check_value, split_ref
 
 ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
@@ -105,7 +106,7 @@ class FaultSpec(Strict):
     std: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
     seed: int | None = Field(default=None, ge=0)
     steps: int | None = Field(default=None, ge=1, le=MAX_DELAY_STEPS)
-    probability: float | None = Field(default=None, ge=0.0, le=1.0)
+    probability: float | None = Field(default=None, ge=0.0, le=1.0, allow_inf_nan=False)
 
 
 @dataclass(frozen=True)
@@ -227,7 +228,10 @@ def _condition(text: str, scenario: Any, key: str, src: Source) -> Condition:
     match = _WHEN.fullmatch(text)
     instance, _, variable = match["ref"].partition(".") if match else ("", "", "")
     known = scenario.instances.get(instance)
-    if match is None or (known is not None and variable not in known.interface.variables):
+    unknown = known is not None and variable not in known.interface.variables
+    # an unknown "variable" holding a comparison is a second one ("x > 1 < 2"); any other
+    # is a mistyped name, which split_ref names with the nearest one
+    if match is None or (unknown and re.search(r"[<>]", variable)):
         raise src.error(
             key,
             f"{text!r} is not one comparison '<instance>.<variable> <op> <number>' with op "
@@ -366,7 +370,8 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
             if spec.target is None or spec.target not in targets:
                 raise src.error(
                     f"{key}.target",
-                    f"{spec.target!r} is not the target of a connection: expected one of "
+                    f"{spec.target!r} is not the target of a connection"
+                    f"{did_you_mean(str(spec.target), targets)}: expected one of "
                     f"{sorted(targets)}",
                 )
             target, hold = spec.target, None

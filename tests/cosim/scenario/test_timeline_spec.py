@@ -55,6 +55,11 @@ BAD_ROWS = [
     (f'[[events]]\nwhen = "plant.x >> 1"\n{SET_K}',
      ["events[0].when", "'plant.x >> 1'", "one comparison"]),
     (f'[[events]]\nwhen = "plant.x > 1 + 2"\n{SET_K}', ["events[0].when", "one comparison"]),
+    # a mistyped variable in a well-formed comparison: named, with the nearest one (it
+    # was called "not one comparison")
+    (f'[[events]]\nwhen = "plant.fail_ta > 1"\n{SET_K}',
+     ["events[0].when", "plant (CosimTestIntegrator.fmu) has no variable 'fail_ta' (did you "
+      "mean 'fail_at'?)"]),
     # 1e999999 reads as inf: a crossing that could never come, refused like `< inf`
     (f'[[events]]\nwhen = "plant.x > 1e999999"\n{SET_K}',
      ["events[0].when", "1e999999 is not a finite number"]),
@@ -80,6 +85,12 @@ BAD_ROWS = [
     ('[[faults]]\nkind = "gain"\ntarget = "plant.x"\nvalue = 2.0',
      ["faults[0].target", "'plant.x' is not the target of a connection",
       "['controller.x', 'plant.u']"]),
+    ('[[faults]]\nkind = "stuck"\ntarget = "controller.xx"',
+     ["faults[0].target", "'controller.xx' is not the target of a connection (did you mean "
+      "'controller.x'?)"]),
+    # NaN is no probability (it was refused as "less than or equal to 1")
+    ('[[faults]]\nkind = "dropout"\ntarget = "controller.x"\nprobability = nan',
+     ["faults[0].probability", "nan", "finite number"]),
     ('[[faults]]\nkind = "gain"\ntarget = "controller.x"',
      ["faults[0].value", "missing: kind 'gain' needs it"]),
     ('[[faults]]\nkind = "stuck"', ["faults[0].target", "missing"]),
