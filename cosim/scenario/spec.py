@@ -869,6 +869,8 @@ def _resolve_instance(
             start[var_name] = str(_existing_file(value, base_dir, key, src))
     if interface.model_identifier in ("AuvPlant", "AuvAutopilot") and "vehicle" in start:
         _check_vehicle(str(start["vehicle"]), f"instances.{name}.start.vehicle", src)
+    if interface.model_identifier == "AuvGuidance":
+        _check_guidance(start, f"instances.{name}.start", src)
     return Instance(
         name, fmu_ref, fmu_path, ReadOnly(start, f"{name}.start", _start_hint(name)), interface
     )
@@ -884,6 +886,24 @@ def _check_vehicle(value: str, key: str, src: Source) -> None:
         load_vehicle(value)
     except VehicleParameterError as exc:
         raise src.error(key, str(exc)) from None
+
+
+def _check_guidance(start: Mapping[str, Any], key: str, src: Source) -> None:
+    """The waypoints and parameters of a guidance, checked as the guidance checks them
+    when initialised (:class:`controller_fmu.los_guidance.GuidanceConfig`): here the key
+    is named before any FMU is loaded, each value on its own first, then together."""
+    from controller_fmu.los_guidance import GuidanceConfig, GuidanceConfigError
+
+    def check(values: Mapping[str, Any], where: str) -> None:
+        try:
+            GuidanceConfig.build(**values)
+        except GuidanceConfigError as exc:
+            raise src.error(where, str(exc)) from None
+
+    given = {name: value for name, value in start.items() if name in GuidanceConfig.field_info()}
+    for name, value in given.items():
+        check({name: value}, f"{key}.{name}")
+    check(given, key)
 
 
 def _existing_file(value: str, base_dir: Path, key: str, src: Source) -> Path:

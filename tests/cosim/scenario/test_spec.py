@@ -333,6 +333,34 @@ def test_bad_scenario_fails_before_loading_naming_the_key(
     assert str(info.value).startswith(f"scenario file {path}: ")
 
 
+SURVEY = (SCENARIO_FOLDER / "survey.toml").read_text()
+WAYPOINTS = re.search(r"^waypoints = .*$", SURVEY, re.MULTILINE)[0]  # type: ignore[index]
+BAD_MISSIONS = [
+    (WAYPOINTS, 'waypoints = "0, 0, 2"',
+     r"start\.waypoints': waypoints '0, 0, 2': expected at least two entries"),
+    (WAYPOINTS, 'waypoints = "0, 0, 2; 0, 0, 2; 50, 0, 2"',
+     r"start\.waypoints': waypoint 2 \('0, 0, 2'\) is at the same north and east as waypoint 1"),
+    (WAYPOINTS, 'waypoints = "0, 0, 2; 50, x, 2"',
+     r"start\.waypoints': waypoint 2 \('50, x, 2'\): east = 'x' is not a finite number"),
+    ("lookahead = 8.0", "lookahead = 0.0",
+     r"start\.lookahead': lookahead = 0\.0: expected a number greater than 0"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("old", "new", "message"), BAD_MISSIONS)
+def test_a_mission_the_guidance_would_refuse_fails_before_loading_naming_the_key(
+    fmu_dir: Path, tmp_path: Path, no_fmu_loading: None, old: str, new: str, message: str
+) -> None:
+    """A waypoint list or guidance parameter AuvGuidance refuses: named with its key at
+    the load, like a bad vehicle set (it failed the run once the FMUs were loaded, and
+    `auv-cosim export` wrote a system no host could initialise)."""
+    assert old in SURVEY
+    path = tmp_path / "mission.toml"
+    path.write_text(SURVEY.replace(old, new, 1))
+    with pytest.raises(ScenarioError, match=f"key 'instances\\.guidance\\.{message}"):
+        load_scenario(path, fmu_dir=fmu_dir)
+
+
 def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
     path = tmp_path / "broken.toml"
     path.write_text("stop_time = = 3\n")
