@@ -82,10 +82,10 @@ class RunOptions:
     the estimated coupling error into the summary (:mod:`cosim.engine.step_check`).
     ``names``: how a refusal names the options (the command line's flags, or the API's
     keywords: :class:`cosim.errors.OptionNames`). ``unit_doubts`` warns of an angle of
-    more than a full turn given in rad (:mod:`cosim.scenario.unit_doubts`; a study's task
-    goes without: the study warns once), and of an autopilot designed for another vehicle
-    than the plant's or given a gain no law it runs reads
-    (:mod:`cosim.scenario.design_doubts`).
+    more than a full turn given in rad and of an acceptance radius as long as a leg
+    (:mod:`cosim.scenario.unit_doubts`; a study's task goes without: the study warns once),
+    and of an autopilot designed for another vehicle than the plant's or given a gain no
+    law it runs reads (:mod:`cosim.scenario.design_doubts`).
     """
 
     out_dir: Path | None = None
@@ -350,7 +350,7 @@ def _checked_scenario(
     if options.unit_doubts:
         from cosim.scenario import design_doubts, unit_doubts
 
-        unit_doubts.warn(unit_doubts.angle_doubts(scenario))
+        unit_doubts.warn(unit_doubts.doubts(scenario))
         live = options.interactive or options.control is not None
         doubts = design_doubts.design_doubts(scenario, live)
         unit_doubts.warn(doubts, design_doubts.DesignWarning)

@@ -1,5 +1,8 @@
 """Values a scenario may take that look like a slip of units: an angle in degrees where
-the FMU declares radians (``yaw_0 = 30``, ``when = "plant.yaw > 20"``).
+the FMU declares radians (``yaw_0 = 30``, ``when = "plant.yaw > 20"``), and a guidance's
+acceptance radius as long as a leg of its mission (500 for 5 m; the leg's start lies in
+its end's acceptance circle, so the leg counts as completed as soon as it begins: the
+whole survey "completed" at t = 0).
 
 Such a value is valid (the plant counts whole turns, a heading of 30 rad is a heading),
 so it is not refused; a run that takes it says so in one warning line each, naming the
@@ -10,6 +13,7 @@ variable declared in rad is the sign: degrees typed by habit are mostly beyond 2
 
 from __future__ import annotations
 
+import itertools
 import math
 import sys
 import warnings
@@ -62,6 +66,36 @@ def angle_doubts(scenario: Scenario) -> list[str]:
             check(f"faults.{fault.name}.value", fault.target, fault.value)
         if fault.kind == "noise":
             check(f"faults.{fault.name}.std", fault.target, fault.std)
+    return found
+
+
+def doubts(scenario: Scenario) -> list[str]:
+    """Every doubt of ``scenario``: :func:`angle_doubts` and :func:`radius_doubts`."""
+    return angle_doubts(scenario) + radius_doubts(scenario)
+
+
+def radius_doubts(scenario: Scenario) -> list[str]:
+    """One line for each guidance (``AuvGuidance``) whose acceptance radius is not shorter
+    than every leg of its mission: such a leg is completed as soon as it begins."""
+    from controller_fmu.los_guidance import parse_waypoints
+
+    found = []
+    for name, inst in scenario.instances.items():
+        if inst.interface.model_identifier != "AuvGuidance":
+            continue
+        radius = float(scenario.start_value(name, "acceptance_radius"))  # type: ignore[arg-type]
+        waypoints = parse_waypoints(str(scenario.start_value(name, "waypoints")))
+        lengths = [math.dist((a.north, a.east), (b.north, b.east))
+                   for a, b in itertools.pairwise(waypoints)]  # fmt: skip
+        short = [k for k, length in enumerate(lengths, 1) if length <= radius]
+        if short:
+            found.append(
+                f"instances.{name}.start.acceptance_radius = {radius:g} m is not shorter "
+                f"than leg {short[0]} ({lengths[short[0] - 1]:.4g} m, waypoint {short[0]} -> "
+                f"{short[0] + 1}){f' and {len(short) - 1} more' if len(short) > 1 else ''}: "
+                "a leg whose start lies in its end's acceptance circle is completed as soon "
+                f"as it begins; the shortest leg is {min(lengths):.4g} m"
+            )
     return found
 
 

@@ -33,7 +33,7 @@ from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
 from cosim.runner import run_scenario
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
-from cosim.scenario.unit_doubts import angle_doubts
+from cosim.scenario.unit_doubts import doubts
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
 
@@ -132,12 +132,12 @@ def check_values(
 ) -> list[str]:
     """Resolve the scenario with these values (no run): :class:`StudyError` if the
     scenario's own checks refuse one (a wrong type, a non-finite number). Returns what
-    looks like a slip of units in it (:func:`cosim.scenario.unit_doubts.angle_doubts`)."""
+    looks like a slip of units in it (:func:`cosim.scenario.unit_doubts.doubts`)."""
     try:
         scenario = _scenario(base, base.fmu_paths, factors, values)
     except CosimError as exc:
         raise StudyError(f"factor values {dict(values)}: {exc}") from None
-    return angle_doubts(scenario)
+    return doubts(scenario)
 
 
 def run_one(

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import cosim
-from cosim.scenario.unit_doubts import UnitWarning, angle_doubts
+from cosim.scenario.unit_doubts import UnitWarning, angle_doubts, radius_doubts
 
 TURN = """
 [[events]]
@@ -130,3 +130,28 @@ def test_the_api_warning_points_at_the_callers_line(fmu_paths: dict[str, Path]) 
         cosim.run("bs-2", stop_time=0.1, start={"plant.yaw_0": 30}, fmu_dir=fmu_dir)
     (warning,) = [w for w in caught if issubclass(w.category, UnitWarning)]
     assert warning.filename == __file__, warning.filename
+
+
+def test_an_acceptance_radius_as_long_as_a_leg_is_named_and_the_run_warns(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """acceptance_radius = 60 m (a slip for 6) on the survey's 50 m and 20 m legs ran
+    without a word: four legs counted at t = 0, none flown, and "legs_completed = 7" of 7
+    within 20 s (a leg whose start lies within its end's acceptance circle is done at once).
+    """
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    survey = cosim.load_scenario("survey", fmu_dir=fmu_dir)
+    assert radius_doubts(survey) == []
+    wide = survey.with_start({"guidance.acceptance_radius": 20.0})
+    assert radius_doubts(wide) == [
+        "instances.guidance.start.acceptance_radius = 20 m is not shorter than leg 2 (20 m, "
+        "waypoint 2 -> 3) and 2 more: a leg whose start lies in its end's acceptance circle "
+        "is completed as soon as it begins; the shortest leg is 20 m"
+    ]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run = cosim.run("survey", stop_time=0.1, start={"guidance.acceptance_radius": 60.0},
+                        fmu_dir=fmu_dir)  # fmt: skip
+    assert run.summary["legs_completed"] == 4  # at t = 0.1 s: what the warning is about
+    lines = [str(w.message) for w in caught if issubclass(w.category, UnitWarning)]
+    assert len(lines) == 1 and "leg 1 (50 m, waypoint 1 -> 2) and 6 more" in lines[0]
