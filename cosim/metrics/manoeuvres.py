@@ -180,8 +180,9 @@ def zigzag(times: np.ndarray, yaw: np.ndarray, command: np.ndarray) -> Metrics:
     Args:
         times, yaw: s, rad.
         command: what is switched at each execute (the heading set-point, a rudder or
-            moving-mass command): the executes are the samples at which it changes value,
-            and the first sample too when it is non-zero there.
+            moving-mass command): the executes are the samples at which it starts to
+            change value (:func:`switch_indices`: a ramp is one execute), and the first
+            sample too when it is non-zero there.
 
     With executes e1, e2, e3, ... (e2 the first counter-command): the first overshoot is
     how far the heading goes on beyond its value at e2 before e3 (in the direction of the
@@ -211,9 +212,18 @@ def zigzag(times: np.ndarray, yaw: np.ndarray, command: np.ndarray) -> Metrics:
 
 
 def switch_indices(command: np.ndarray) -> list[int]:
-    """Samples at which ``command`` changes value, with 0 first if it starts non-zero."""
-    changes = (np.flatnonzero(np.diff(command) != 0.0) + 1).tolist()
+    """Samples at which ``command`` starts to change value (a ramp, changing at every
+    sample, is one change: from its first sample), with 0 first if it starts non-zero."""
+    changes = change_starts(command)
     return [0, *changes] if command.size and command[0] != 0.0 else changes
+
+
+def change_starts(values: np.ndarray) -> list[int]:
+    """Samples k at which ``values`` changes (from sample k - 1) where it did not change
+    at the sample before: the first sample of each jump or ramp."""
+    changed = np.diff(values) != 0.0
+    starts = changed & ~np.concatenate([[False], changed[:-1]])
+    return (np.flatnonzero(starts) + 1).tolist()
 
 
 # --- depth steps ---------------------------------------------------------------------------
@@ -224,10 +234,11 @@ def depth_steps(
 ) -> list[Metrics]:
     """Rise time, overshoot, settling time and steady error of each depth set-point step.
 
-    A step starts at a sample where the set-point changes and ends at the next change (or
-    the end of the run). Its final value is the depth at its end, so a loop with a steady
-    error (the depth PD of Fig. 6.40 has no integral term) still gets a rise and a
-    settling time, and ``steady_error_m`` = set-point - final depth says how far off it
+    A step starts at a sample where the set-point starts to change (a ramp is one step)
+    and ends at the next change (or the end of the run). Its final value is the depth at
+    its end, so a loop with a steady error (the depth PD of Fig. 6.40 has no integral
+    term) still gets a rise and a settling time, and ``steady_error_m`` = set-point (at
+    the step's end) - final depth says how far off it
     stayed. ``rise_time_s``: from 10 % to 90 % of the change from the depth at the step to
     the final value; ``overshoot_pct``: the largest excursion beyond the final value, in %
     of that change; ``settling_time_s``: from the step to the last entry into the band of
@@ -235,13 +246,13 @@ def depth_steps(
     """
     times, depth = np.asarray(times, dtype=float), np.asarray(depth, dtype=float)
     setpoint = np.asarray(setpoint, dtype=float)
-    starts = (np.flatnonzero(np.diff(setpoint) != 0.0) + 1).tolist()
+    starts = change_starts(setpoint)  # a ramped set-point: from the ramp's start
     result: list[Metrics] = []
     for start, end in zip(starts, [*starts[1:], len(times)][: len(starts)], strict=True):
         t, z = times[start:end] - times[start], depth[start:end]
         final, change = z[-1], z[-1] - z[0]
         metrics: Metrics = dict.fromkeys(DEPTH_STEP_METRICS)
-        metrics["steady_error_m"] = float(setpoint[start] - final)
+        metrics["steady_error_m"] = float(setpoint[end - 1] - final)
         if change != 0.0:
             progress = (z - z[0]) / change
             t10, t90 = _crossing_time(t, progress, 0.1), _crossing_time(t, progress, 0.9)

@@ -78,8 +78,7 @@ def scenario_metric_names(scenario: Scenario) -> tuple[str, ...]:
     """The manoeuvre metrics a run of ``scenario`` reports (none without a manoeuvre).
 
     A ``depth-steps`` run has one set per step: each distinct time at which a time event
-    sets a ``depth_setpoint`` (a ramped set-point changes at every step, so it is not a
-    depth-steps manoeuvre)."""
+    sets a ``depth_setpoint`` (with a ramp too: a step starts where its ramp starts)."""
     if scenario.manoeuvre is None:
         return ()
     times = {

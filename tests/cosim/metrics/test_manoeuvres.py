@@ -162,6 +162,30 @@ def test_zigzag_metrics_need_the_executes_after_them():
     assert metrics["overshoot_1_deg"] is not None and metrics["overshoot_2_deg"] is None
 
 
+def ramped(command: np.ndarray, samples: int) -> np.ndarray:
+    """``command`` with every jump spread over ``samples`` samples (a ramp event)."""
+    out = command.copy()
+    for k in np.flatnonzero(np.diff(command) != 0.0) + 1:
+        end = min(k + samples, len(out))
+        out[k:end] = (
+            command[k - 1] + (command[k] - command[k - 1]) * np.arange(1, end - k + 1) / samples
+        )
+    return out
+
+
+def test_a_ramped_command_executes_where_its_ramp_starts():
+    """A set-point switched with a ramp changes at every sample of the ramp; each sample
+    was an execute, so a ramped 20/20 zig-zag gave overshoots of 0 deg and a period of
+    0.08 s. An execute is where a change starts."""
+    t, yaw, setpoint = zigzag_run(100.0)
+    stepped = zigzag(t, yaw, setpoint)
+    assert zigzag(t, yaw, ramped(setpoint, 100)) == stepped  # 1 s ramps, the same executes
+    t, depth, setpoint = depth_run()
+    steps = depth_steps(t, depth, ramped(setpoint, 200))  # 2 s ramps of the set-point
+    assert len(steps) == 2
+    assert [step["steady_error_m"] for step in steps] == pytest.approx([0.05, 0.0], abs=1e-9)
+
+
 # --- depth steps ----------------------------------------------------------------------------
 
 
