@@ -1,7 +1,8 @@
 """What of a scenario's events and faults an export can carry: linear connection faults.
 
-A ``gain`` or ``bias`` fault active over the whole run (start 0, no stop) on a connection
-is a fixed linear transformation of the value delivered, ``factor * value + offset``:
+A ``gain`` or ``bias`` fault active over the whole run (start 0, no stop before the stop
+time) on a connection is a fixed linear transformation of the value delivered,
+``factor * value + offset``:
 SSP 1.0 writes it as the connection's ``ssc:LinearTransformation`` and the OSP system
 structure as a ``LinearTransformation`` function between the two variables (libcosim reads
 both). Several on one connection compose in the scenario's order. Nothing else of the
@@ -24,8 +25,9 @@ def linear_transformations(scenario: Scenario, fmt: str) -> dict[str, tuple[floa
     refused = [f"event {e.name!r}" for e in scenario.events]
     transformations: dict[str, tuple[float, float]] = {}
     for fault in scenario.faults:
-        if fault.kind not in ("gain", "bias") or not fault.whole_run:
-            limited = "" if fault.whole_run else ", not over the whole run"
+        whole_run = fault.whole_run(scenario.stop_time)
+        if fault.kind not in ("gain", "bias") or not whole_run:
+            limited = "" if whole_run else ", not over the whole run"
             refused.append(f"fault {fault.name!r} ({fault.kind} on {fault.target}{limited})")
             continue
         factor, offset = transformations.get(fault.target, (1.0, 0.0))
@@ -38,6 +40,7 @@ def linear_transformations(scenario: Scenario, fmt: str) -> dict[str, tuple[floa
         raise CosimError(
             f"cannot export scenario {scenario.id!r} as {fmt}: it has no counterpart for "
             f"{', '.join(refused)}; only gain and bias faults active over the whole run "
-            "(start = 0, no stop) are exported, as linear transformations of their connection"
+            "(start = 0, no stop before the stop time) are exported, as linear transformations "
+            "of their connection"
         )
     return transformations

@@ -172,10 +172,10 @@ class Fault:
         """An actuator fault: acts on the plant's input whether connected or not."""
         return self.kind in ACTUATOR_FAULTS
 
-    @property
-    def whole_run(self) -> bool:
-        """Active from t = 0 to the end of the run."""
-        return self.start == 0.0 and self.stop is None
+    def whole_run(self, stop_time: float) -> bool:
+        """Active at every step of a run to ``stop_time`` (s): from t = 0, and stopping
+        never or not before the stop time (at the stop time no step is taken)."""
+        return self.start == 0.0 and (self.stop is None or self.stop >= stop_time)
 
 
 def resolve_events(

@@ -172,3 +172,17 @@ start = 1.0
             assert part in message, message
         assert "weak-thruster" not in message  # that one can be exported
         assert not target.exists()
+
+
+@pytest.mark.parametrize("stop", [STOP_TIME, 1e6])
+def test_a_linear_fault_stopping_at_or_after_the_stop_time_acts_over_the_whole_run(
+    fmu_dir: Path, tmp_path: Path, stop: float
+) -> None:
+    """A gain with ``stop`` at the stop time or beyond acts on every step of the run, as
+    one without a stop does: it is the connection's transformation (it was refused as
+    'not over the whole run')."""
+    timed = LINEAR.replace("value = 0.5\n", f"value = 0.5\nstop = {stop!r}\n")
+    scenario = load_scenario(bs3_file(tmp_path, timed), fmu_dir)
+    osp = etree.parse(str(export_osp(scenario, tmp_path / "f-osp"))).getroot()
+    (function,) = osp.iterfind("o:Functions/o:LinearTransformation", NS)
+    assert (float(function.get("factor")), float(function.get("offset"))) == (0.5, 0.25)
