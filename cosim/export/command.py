@@ -44,6 +44,11 @@ def _notes(resolved: Scenario, scenario: str | Path) -> list[str]:
     """What another tool running the export does otherwise than ``auv-cosim run``."""
     notes = []
     coupling = resolved.coupling
+    if coupling.algorithm == "adaptive":
+        notes.append(
+            f"SSP and OSP have no error-controlled step: {resolved.id} exported at the "
+            f"fixed step coupling.step = {coupling.step!r} s (its first step)"
+        )
     if coupling.algorithm != "jacobi" or coupling.extrapolation != "none":
         notes.append(
             f"libcosim and ecos couple Jacobi-style with held inputs; {resolved.id} "

@@ -525,6 +525,24 @@ def test_the_note_says_a_step_multiple_reads_differently_in_libcosim(
     assert "note: controller steps every 5 h: libcosim hands a slow instance's outputs" in out
 
 
+def test_the_note_says_an_adaptive_scenario_is_exported_at_its_first_step(
+    fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An adaptive scenario was exported at a fixed step of its first step, coupling.step,
+    and the note spoke only of the coupling: nothing said its step no longer follows
+    the error."""
+    text = (Path(cli.__file__).parent / "scenarios" / "bs-3.toml").read_text(encoding="utf-8")
+    path = tmp_path / "adaptive.toml"
+    path.write_text(text.replace('algorithm = "gauss-seidel"', 'algorithm = "adaptive"'))
+    argv = ["export", str(path), "--osp", str(tmp_path / "osp"), "--fmu-dir", str(fmu_dir)]
+    assert cli.main(argv) == 0
+    out = capsys.readouterr().out
+    assert (
+        "note: SSP and OSP have no error-controlled step: adaptive exported at the fixed "
+        "step coupling.step = 0.01 s (its first step)" in out
+    ), out
+
+
 def test_a_unit_an_fmu_gives_no_base_units_is_left_off_the_connector(tmp_path: Path) -> None:
     """BouncingBall with `<Unit name="m"></Unit>` runs and validates, yet its SSP export
     was refused ("declares no SI base units for unit 'm' ...; an SSP unit needs them"),
