@@ -936,10 +936,19 @@ def _resolve_coupling(
         )
     order = tuple(c.order) if c.order is not None else connection_order(names, passes, pairs)
     if sorted(order) != sorted(names):
-        raise src.error("coupling.order", f"{list(order)} must name every instance {names} once")
+        unknown = next((name for name in order if name not in names), None)
+        stray = "" if unknown is None else f": no instance {unknown!r}"
+        raise src.error(
+            "coupling.order",
+            f"{list(order)} must name every instance {names} once{stray}"
+            + ("" if unknown is None else did_you_mean(unknown, names)),
+        )
     for name in c.step_multiples:
         if name not in names:
-            raise src.error(f"coupling.step_multiples.{name}", f"no instance {name!r} in {names}")
+            raise src.error(
+                f"coupling.step_multiples.{name}",
+                f"no instance {name!r}{did_you_mean(name, names)} in {names}",
+            )
     multiples = {name: c.step_multiples.get(name, 1) for name in names}
     adaptive = c.algorithm == "adaptive"
     for key in ("tolerance", "max_step", "error_estimate"):

@@ -318,6 +318,12 @@ BAD_EDITS = [
      r"key 'manoeuvre': manoeuvre 'survey' needs the variable 'cross_track_error', but the "
      r"run has no column for it \(columns: .*\); record it in output\.record"),
     ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = 2', r"key 'manoeuvre' = 2: .*string"),
+    # a mistyped instance in the order or the step multiples: the nearest one named
+    ('order = ["controller", "plant"]', 'order = ["controler", "plant"]',
+     r"key 'coupling\.order': \['controler', 'plant'\] must name every instance \['plant', "
+     r"'controller'\] once: no instance 'controler' \(did you mean 'controller'\?\)"),
+    ("step = 0.01", "step = 0.01\nstep_multiples = { controler = 5 }",
+     r"step_multiples\.controler': no instance 'controler' \(did you mean 'controller'\?\) in"),
 ]  # fmt: skip
 
 
