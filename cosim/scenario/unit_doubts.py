@@ -1,5 +1,6 @@
 """Values a scenario may take that look like a slip of units: an angle in degrees where
-the FMU declares radians (``yaw_0 = 30``, ``when = "plant.yaw > 20"``), and a guidance's
+the FMU declares radians (``yaw_0 = 30``, ``when = "plant.yaw > 20"``), a moving-mass
+command in cm where the plant takes m (``mass_position_cmd = 6``), and a guidance's
 acceptance radius as long as a leg of its mission (500 for 5 m; the leg's start lies in
 its end's acceptance circle, so the leg counts as completed as soon as it begins: the
 whole survey "completed" at t = 0).
@@ -17,7 +18,7 @@ import itertools
 import math
 import sys
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -36,7 +37,6 @@ def angle_doubts(scenario: Scenario) -> list[str]:
     in rad that is more than a full turn: start values, events' ``set`` values, ``when``
     thresholds and series columns (their largest value), bias and noise faults' ``value``
     and ``std``."""
-    found: list[str] = []
 
     def unit(ref: str) -> str | None:
         instance, _, variable = ref.partition(".")
@@ -44,34 +44,64 @@ def angle_doubts(scenario: Scenario) -> list[str]:
         var = None if inst is None else inst.interface.variables.get(variable)
         return None if var is None else var.unit
 
-    def check(key: str, ref: str, value: Any) -> None:
-        line = value_doubt(key, unit(ref), value)
-        if line is not None:
-            found.append(line)
+    found = [value_doubt(key, unit(ref), value) for key, ref, value in given_values(scenario)]
+    return [line for line in found if line is not None]
 
+
+def given_values(scenario: Scenario) -> Iterator[tuple[str, str, Any]]:
+    """(key, ``<instance>.<variable>``, value) of every value ``scenario`` gives a variable
+    or compares it with: start values, events' ``set`` values, ``when`` thresholds and
+    series columns (their largest value), bias and noise faults' ``value`` and ``std``."""
     for name, inst in scenario.instances.items():
         for variable, value in inst.start.items():
-            check(f"instances.{name}.start.{variable}", f"{name}.{variable}", value)
+            yield f"instances.{name}.start.{variable}", f"{name}.{variable}", value
     for event in scenario.events:
         for ref, value in event.set.items():
-            check(f"events.{event.name}.set.{ref}", ref, value)
+            yield f"events.{event.name}.set.{ref}", ref, value
         if event.when is not None:
-            check(f"events.{event.name}.when", event.when.ref, event.when.threshold)
+            yield f"events.{event.name}.when", event.when.ref, event.when.threshold
         if event.series is not None:  # a profile's largest value, column by column
             for ref, column in event.series.columns.items():
                 largest = max(column, key=abs, default=0.0)
-                check(f"events.{event.name}.series column {ref}", ref, largest)
+                yield f"events.{event.name}.series column {ref}", ref, largest
     for fault in scenario.faults:
         if fault.kind == "bias":
-            check(f"faults.{fault.name}.value", fault.target, fault.value)
+            yield f"faults.{fault.name}.value", fault.target, fault.value
         if fault.kind == "noise":
-            check(f"faults.{fault.name}.std", fault.target, fault.std)
+            yield f"faults.{fault.name}.std", fault.target, fault.std
+
+
+def stroke_doubts(scenario: Scenario) -> list[str]:
+    """One line for each moving-mass command or start position of a plant (``AuvPlant``)
+    beyond the mass's stroke (its vehicle set's ``mass_stroke``): the rail stops hold the
+    mass there, so 6 for 6 cm runs as the 0.06 m stop, reached faster."""
+    from plant_fmu.model.parameters import load_vehicle
+
+    strokes = {
+        name: load_vehicle(str(scenario.start_value(name, "vehicle"))).mass_stroke
+        for name, inst in scenario.instances.items()
+        if inst.interface.model_identifier == "AuvPlant"
+    }
+    found = []
+    for key, ref, value in given_values(scenario):
+        instance, _, variable = ref.partition(".")
+        stroke = strokes.get(instance)
+        if stroke is None or variable != "mass_position_cmd" or not isinstance(value, float):
+            continue
+        if abs(value) > stroke:
+            in_cm = abs(value) <= 100 * stroke  # then it reads as cm within the stroke
+            meant = f"; if {value:g} cm was meant, give {value / 100:g}" if in_cm else ""
+            found.append(
+                f"{key} = {value:g} m is beyond the moving mass's stroke of {stroke:g} m: the "
+                f"rail stops hold the mass there (lengths are in metres{meant})"
+            )
     return found
 
 
 def doubts(scenario: Scenario) -> list[str]:
-    """Every doubt of ``scenario``: :func:`angle_doubts` and :func:`radius_doubts`."""
-    return angle_doubts(scenario) + radius_doubts(scenario)
+    """Every doubt of ``scenario``: :func:`angle_doubts`, :func:`stroke_doubts` and
+    :func:`radius_doubts`."""
+    return angle_doubts(scenario) + stroke_doubts(scenario) + radius_doubts(scenario)
 
 
 def radius_doubts(scenario: Scenario) -> list[str]:

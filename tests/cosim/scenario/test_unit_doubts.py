@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import cosim
-from cosim.scenario.unit_doubts import UnitWarning, angle_doubts, radius_doubts
+from cosim.scenario.unit_doubts import UnitWarning, angle_doubts, radius_doubts, stroke_doubts
 
 TURN = """
 [[events]]
@@ -155,3 +155,26 @@ def test_an_acceptance_radius_as_long_as_a_leg_is_named_and_the_run_warns(
     assert run.summary["legs_completed"] == 4  # at t = 0.1 s: what the warning is about
     lines = [str(w.message) for w in caught if issubclass(w.category, UnitWarning)]
     assert len(lines) == 1 and "leg 1 (50 m, waypoint 1 -> 2) and 6 more" in lines[0]
+
+
+def test_a_moving_mass_command_in_centimetres_is_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """mass_position_cmd = 6 (cm meant) ran without a word as the 0.06 m stop, reached
+    faster: the turning circle's advance came out 8.92 m instead of 10.27 m."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    turn = cosim.load_scenario("turning-circle", fmu_dir=fmu_dir)
+    assert stroke_doubts(turn) == []
+    assert stroke_doubts(turn.with_start({"plant.mass_position_cmd": 6.0})) == [
+        "instances.plant.start.mass_position_cmd = 6 m is beyond the moving mass's stroke of "
+        "0.06 m: the rail stops hold the mass there (lengths are in metres; if 6 cm was meant, "
+        "give 0.06)"
+    ]
+    path = tmp_path / "port.toml"
+    path.write_text(
+        (Path(__file__).parents[3] / "cosim" / "scenarios" / "turning-circle.toml").read_text()
+        + '\n[[events]]\nname = "helm"\ntime = 1.0\nset = { "plant.mass_position_cmd" = -60.0 }\n'
+    )
+    (line,) = stroke_doubts(cosim.load_scenario(path, fmu_dir=fmu_dir))
+    assert line.startswith("events.helm.set.plant.mass_position_cmd = -60 m is beyond")
+    assert line.endswith("(lengths are in metres)")  # -60 cm is no value within the stroke
