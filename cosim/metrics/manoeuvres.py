@@ -174,7 +174,9 @@ def fit_circle(x: np.ndarray, y: np.ndarray) -> tuple[tuple[float, float], float
 # --- zig-zag -------------------------------------------------------------------------------
 
 
-def zigzag(times: np.ndarray, yaw: np.ndarray, command: np.ndarray) -> Metrics:
+def zigzag(
+    times: np.ndarray, yaw: np.ndarray, command: np.ndarray, heading_command: bool = False
+) -> Metrics:
     """First and second overshoot angles (deg) and the period (s) of a zig-zag.
 
     Args:
@@ -182,7 +184,10 @@ def zigzag(times: np.ndarray, yaw: np.ndarray, command: np.ndarray) -> Metrics:
         command: what is switched at each execute (the heading set-point, a rudder or
             moving-mass command): the executes are the samples at which it starts to
             change value (:func:`switch_indices`: a ramp is one execute), and the first
-            sample too when it is non-zero there.
+            sample too when it asks for a turn there: a rudder or moving-mass command
+            that is non-zero, or with ``heading_command`` a heading set-point (rad) more
+            than :data:`HEADING_BAND_DEG` off the heading (one that holds the course
+            until the first execute is none).
 
     With executes e1, e2, e3, ... (e2 the first counter-command): the first overshoot is
     how far the heading goes on beyond its value at e2 before e3 (in the direction of the
@@ -192,7 +197,10 @@ def zigzag(times: np.ndarray, yaw: np.ndarray, command: np.ndarray) -> Metrics:
     """
     times = np.asarray(times, dtype=float)
     heading = np.unwrap(np.asarray(yaw, dtype=float))
-    executes = switch_indices(np.asarray(command, dtype=float))
+    command = np.asarray(command, dtype=float)
+    neutral = heading[0] if heading_command and heading.size else 0.0
+    tolerance = math.radians(HEADING_BAND_DEG) if heading_command else 0.0
+    executes = switch_indices(command, neutral, tolerance)
     metrics: Metrics = {"overshoot_1_deg": None, "overshoot_2_deg": None, "period_s": None}
     if len(executes) < 3:
         return metrics
@@ -211,11 +219,13 @@ def zigzag(times: np.ndarray, yaw: np.ndarray, command: np.ndarray) -> Metrics:
     return metrics
 
 
-def switch_indices(command: np.ndarray) -> list[int]:
+def switch_indices(command: np.ndarray, neutral: float = 0.0, tolerance: float = 0.0) -> list[int]:
     """Samples at which ``command`` starts to change value (a ramp, changing at every
-    sample, is one change: from its first sample), with 0 first if it starts non-zero."""
+    sample, is one change: from its first sample), with 0 first if it starts more than
+    ``tolerance`` off ``neutral`` (the command that asks for no turn)."""
     changes = change_starts(command)
-    return [0, *changes] if command.size and command[0] != 0.0 else changes
+    turning = command.size and abs(command[0] - neutral) > tolerance
+    return [0, *changes] if turning else changes
 
 
 def change_starts(values: np.ndarray) -> list[int]:
@@ -368,7 +378,8 @@ def manoeuvre_columns(kind: str, columns: Sequence[str]) -> dict[str, str]:
     -> column. A variable is the column of its own name if there is one, else
     ``plant.<name>`` when the plant records it (what acts on the vehicle), else the one
     column ``<instance>.<name>`` of any instance; a run with no column for it may give
-    one of its :data:`STAND_INS` instead (a zig-zag's moving-mass command).
+    one of its :data:`STAND_INS` instead (a zig-zag's moving-mass command), under the
+    stand-in's own name.
 
     Raises:
         ValueError: an unknown kind, or a variable with no column (nor a stand-in) or
@@ -390,7 +401,7 @@ def manoeuvre_columns(kind: str, columns: Sequence[str]) -> dict[str, str]:
                 f"manoeuvre {kind!r} needs the variable {name!r}{instead}, but the run has "
                 f"{problem} for it (columns: {', '.join(columns)})"
             )
-        found[name] = matches[0]
+        found[candidate] = matches[0]
     return found
 
 
@@ -445,6 +456,14 @@ def _execute(column: Columns) -> int:
     return int(active[0]) if active.size else 0
 
 
+def _zigzag_metrics(column: Columns) -> Metrics:
+    """A zig-zag of the heading set-point, or of the moving-mass command it stands in
+    for (:data:`STAND_INS`)."""
+    heading = "yaw_setpoint" in column
+    command = column["yaw_setpoint" if heading else "mass_position_cmd"]
+    return zigzag(column["time"], column["yaw"], command, heading_command=heading)
+
+
 def _depth_steps_metrics(column: Columns, _: float) -> Metrics:
     steps = depth_steps(column["time"], column["down"], column["depth_setpoint"])
     return {f"step_{k}_{name}": v for k, step in enumerate(steps, 1) for name, v in step.items()}
@@ -452,7 +471,7 @@ def _depth_steps_metrics(column: Columns, _: float) -> Metrics:
 
 KINDS: dict[str, Callable[[Columns, float], Metrics]] = {
     "turning-circle": _turning_circle_metrics,
-    "zigzag": lambda column, _: zigzag(column["time"], column["yaw"], column["yaw_setpoint"]),
+    "zigzag": lambda column, _: _zigzag_metrics(column),
     "depth-steps": _depth_steps_metrics,
     "survey": lambda column, _: survey(column["cross_track_error"], column["legs_completed"]),
     "fault-recovery": lambda column, start: fault_recovery(

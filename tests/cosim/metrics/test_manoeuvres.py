@@ -150,6 +150,26 @@ def test_zigzag_overshoots_and_period_of_a_known_heading():
     assert mirrored["overshoot_1_deg"] == pytest.approx(metrics["overshoot_1_deg"])
 
 
+def test_a_zigzag_from_another_course_executes_where_its_set_point_first_moves():
+    """A zig-zag about a course of 30 deg: the set-point holds the course until the first
+    execute at 5 s. The held set-point, non-zero from the start, was taken for an
+    execute at t = 0, and the overshoots came out as the test angles (19.99 and 40 deg
+    of a run whose heading overshot by about 1 deg)."""
+    t, yaw, setpoint = zigzag_run(100.0)
+    course = math.radians(30.0)
+    held = t < 5.0  # straight on the course, then the same zig-zag, 5 s later
+    later = np.searchsorted(t, t - 5.0)
+    shifted_yaw = np.where(held, course, yaw[later] + course)
+    shifted_setpoint = np.where(held, course, setpoint[later] + course)
+    expected = zigzag(t[: len(t) - 500], yaw[: len(t) - 500], setpoint[: len(t) - 500])
+    columns = {"time": t, "plant.yaw": shifted_yaw, "controller.yaw_setpoint": shifted_setpoint}
+    got = manoeuvre_metrics("zigzag", columns)
+    assert got == pytest.approx(expected, abs=1e-9)
+    # a moving-mass command, neutral at 0, is an execute from the start when non-zero
+    mass = {"time": t, "plant.yaw": yaw, "plant.mass_position_cmd": 0.06 * np.sign(setpoint)}
+    assert manoeuvre_metrics("zigzag", mass) == zigzag(t, yaw, setpoint)
+
+
 def test_zigzag_metrics_need_the_executes_after_them():
     t, yaw, setpoint = zigzag_run(20.0)  # executes at 0 s and 3.9 s only
     assert zigzag(t, yaw, setpoint) == {
@@ -281,7 +301,10 @@ def test_manoeuvre_columns_are_what_a_run_must_record():
         manoeuvre_columns("zigzag", recorded)
     # a zig-zag's command: the heading set-point, else the moving-mass command
     mass = ["plant.yaw", "plant.mass_position_cmd", "controller.mass_position_cmd"]
-    assert manoeuvre_columns("zigzag", mass)["yaw_setpoint"] == "plant.mass_position_cmd"
+    assert manoeuvre_columns("zigzag", mass) == {
+        "yaw": "plant.yaw",
+        "mass_position_cmd": "plant.mass_position_cmd",
+    }
     both = [*mass, "controller.yaw_setpoint"]
     assert manoeuvre_columns("zigzag", both)["yaw_setpoint"] == "controller.yaw_setpoint"
 
