@@ -48,10 +48,11 @@ def angle_doubts(scenario: Scenario) -> list[str]:
     return [line for line in found if line is not None]
 
 
-def given_values(scenario: Scenario) -> Iterator[tuple[str, str, Any]]:
+def given_values(scenario: Scenario, faults: bool = True) -> Iterator[tuple[str, str, Any]]:
     """(key, ``<instance>.<variable>``, value) of every value ``scenario`` gives a variable
     or compares it with: start values, events' ``set`` values, ``when`` thresholds and
-    series columns (their largest value), bias and noise faults' ``value`` and ``std``."""
+    series columns (their largest value), and with ``faults`` bias and noise faults'
+    ``value`` and ``std``."""
     for name, inst in scenario.instances.items():
         for variable, value in inst.start.items():
             yield f"instances.{name}.start.{variable}", f"{name}.{variable}", value
@@ -64,7 +65,7 @@ def given_values(scenario: Scenario) -> Iterator[tuple[str, str, Any]]:
             for ref, column in event.series.columns.items():
                 largest = max(column, key=abs, default=0.0)
                 yield f"events.{event.name}.series column {ref}", ref, largest
-    for fault in scenario.faults:
+    for fault in scenario.faults if faults else ():
         if fault.kind == "bias":
             yield f"faults.{fault.name}.value", fault.target, fault.value
         if fault.kind == "noise":
@@ -83,7 +84,7 @@ def stroke_doubts(scenario: Scenario) -> list[str]:
         if inst.interface.model_identifier == "AuvPlant"
     }
     found = []
-    for key, ref, value in given_values(scenario):
+    for key, ref, value in given_values(scenario, faults=False):  # commands, not offsets
         instance, _, variable = ref.partition(".")
         stroke = strokes.get(instance)
         if stroke is None or variable != "mass_position_cmd" or not isinstance(value, float):
