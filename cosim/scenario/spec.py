@@ -679,6 +679,9 @@ def _resolve(
     fmu_dir: Path,
     src: Source,
 ) -> Scenario:
+    # absolute: a scenario outlives the working folder it was read in (os.chdir, %cd), and
+    # its copies (with_start, with_overrides) resolve its files from these again
+    base_dir, fmu_dir = base_dir.absolute(), fmu_dir.absolute()
     _check_step_count(spec, src)
     instances = {
         name: _resolve_instance(name, inst, base_dir, fmu_dir, src)

@@ -521,3 +521,31 @@ def test_sweep_at_the_top_level_of_a_script_says_in_one_line_what_is_needed(
     assert 'put the call under `if __name__ == "__main__":`' in last, done.stderr
     assert f"top level of {script} (line 3)" in last
     assert "bootstrapping phase" not in done.stderr and "Nanny" not in done.stderr
+
+
+def test_a_scenario_loaded_by_a_relative_path_keeps_its_files_after_chdir(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A scenario read as ``case.toml`` with ``fmu_dir="build/fmus"`` (both relative, as
+    a notebook gives them) kept those paths relative: after ``os.chdir`` (``%cd`` in
+    Jupyter) ``with_start`` looked for its vehicle file in the new folder ("names no
+    file"), and its built-in FMUs were looked up, and built, there. Its files stay the
+    ones it was read with."""
+    folder = _user_folder(tmp_path / "user", fmu_dir)
+    data = tomllib.loads((SCENARIO_FOLDER / "bs-3.toml").read_text(encoding="utf-8"))
+    data["instances"]["plant"]["start"]["vehicle"] = "my-vehicle.toml"
+    (folder / "case.toml").write_text(tomli_w.dumps(data), encoding="utf-8")
+    shutil.copyfile(
+        SCENARIO_FOLDER.parents[1] / "plant_fmu/model/vehicles/remus100-long-fins.toml",
+        folder / "my-vehicle.toml",
+    )
+    monkeypatch.chdir(folder)
+    scenario = cosim.load_scenario("case.toml", fmu_dir="build/fmus")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    changed = scenario.with_start({"plant.v_0": -0.05}).with_overrides(stop_time=1.0)
+    assert changed.instances["plant"].start["vehicle"] == str(folder / "my-vehicle.toml")
+    for name, instance in changed.instances.items():
+        assert instance.fmu_path == folder / "build" / "fmus" / f"{instance.fmu}.fmu", name
+    assert list(elsewhere.iterdir()) == [], "nothing is built or written in the new folder"
