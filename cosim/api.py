@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
     import pandas as pd
 
     from cosim.runner import RunOutcome
-    from cosim.scenario.spec import Scenario, StartValue
+    from cosim.scenario.spec import Scenario, StartInput, StartValue
 
 __all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
 
@@ -150,7 +150,7 @@ def run(
     extrapolation: Literal["none", "linear", "quadratic"] | None = None,
     tolerance: float | None = None,
     check_step: bool = False,
-    start: Mapping[str, StartValue] | None = None,
+    start: Mapping[str, StartInput] | None = None,
     out: str | Path | None = None,
     overwrite: bool = False,
     recording: bool = True,

@@ -18,7 +18,7 @@ import tomllib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any, Literal, NoReturn, TypeAlias
 
 import tomli_w
 from pydantic import (
@@ -63,12 +63,18 @@ from cosim.scenario.timeline_spec import (
     resolve_faults,
 )
 
+if TYPE_CHECKING:  # numpy is not imported to read a scenario
+    import numpy as np
+
 SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
 BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
 FAULT_COLUMN_PREFIX = "fault."  # results.csv column of a fault: "fault.<name>"
 MAX_STEPS = 100_000_000  # communication steps per run: more is refused (days of wall clock)
 FILE_SUFFIXES = (".toml",)  # a String start value ending so names a file (vehicle sets)
 StartValue = StrictBool | StrictInt | StrictFloat | StrictStr
+# A start value as Scenario.with_start and cosim.run take it: a numpy scalar of a bool,
+# integer or float (what a numpy computation gives) counts as its Python value
+StartInput: TypeAlias = "StartValue | np.bool_ | np.integer[Any] | np.floating[Any]"
 Algorithm = Literal["jacobi", "gauss-seidel", "adaptive"]
 Extrapolation = Literal["none", "linear", "quadratic"]
 ErrorEstimate = Literal["extrapolation", "doubling"]  # adaptive: cosim.engine.adaptive
@@ -413,11 +419,12 @@ class Scenario:
         overrides = ", ".join(f"{k} = {v!r}" for k, v in named.items() if v is not None)
         return self._revalidated(data, f"{self.described} (with the override {overrides})")
 
-    def with_start(self, values: Mapping[str, StartValue]) -> Scenario:
+    def with_start(self, values: Mapping[str, StartInput]) -> Scenario:
         """A re-validated copy with these start values added or replaced.
 
         ``values`` maps ``"<instance>.<variable>"`` to a value in SI units (a bool, int,
-        float or string, as in ``[instances.<instance>.start]``); each passes the checks a
+        float or string, as in ``[instances.<instance>.start]``, or a numpy scalar of one,
+        taken as its Python value); each passes the checks a
         scenario file's start value passes (the variable exists, is a parameter or an
         unconnected input, the value has its type). Raises :class:`ScenarioError`.
         """

@@ -549,3 +549,34 @@ def test_a_scenario_loaded_by_a_relative_path_keeps_its_files_after_chdir(
     for name, instance in changed.instances.items():
         assert instance.fmu_path == folder / "build" / "fmus" / f"{instance.fmu}.fmu", name
     assert list(elsewhere.iterdir()) == [], "nothing is built or written in the new folder"
+
+
+USER_SCRIPT = """\
+import numpy as np
+
+import cosim
+
+
+def main() -> None:
+    run = cosim.run("bs-3", start={"plant.v_0": np.float32(-0.05), "plant.variant": np.int64(1)})
+    scenario = cosim.load_scenario("bs-3").with_start({"controller.k0": np.float32(0.3)})
+    print(run.results, cosim.run(scenario, start={"plant.v_0": -0.05}).summary)
+"""
+
+
+@pytest.mark.slow
+def test_a_users_mypy_strict_takes_the_numpy_start_values_the_docs_show(tmp_path: Path) -> None:
+    """docs/api.md: a numpy scalar start value (``np.float32(-0.05)``) counts as its Python
+    value, and cosim.run takes it; the annotations said bool, int, float or str only, so a
+    user's ``mypy --strict`` refused the documented call ("Dict entry 0 has incompatible
+    type"). The package is read as installed (its own errors are not the user's)."""
+    api = pytest.importorskip("mypy.api")
+    script = tmp_path / "user.py"
+    script.write_text(USER_SCRIPT, encoding="utf-8")
+    config = tmp_path / "mypy.ini"  # the user's, not this repository's pyproject.toml
+    package_root = Path(cosim.__file__).resolve().parents[1]
+    config.write_text(f"[mypy]\nmypy_path = {package_root}\n", encoding="utf-8")
+    arguments = ["--strict", "--follow-imports", "silent", "--config-file", str(config)]
+    arguments += ["--cache-dir", str(tmp_path / "cache"), str(script)]
+    out, err, status = api.run(arguments)
+    assert status == 0, out + err
