@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import math
 import typing
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NoReturn
 
 from pydantic import BaseModel, ConfigDict
 
@@ -30,6 +30,56 @@ class Strict(BaseModel):
 
     # strict: "2.0" is not a number and 2.0 not an integer (an int is a valid float)
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+def _refused(method: str) -> Callable[..., NoReturn]:
+    """A :class:`ReadOnly` method that would change it: refused, naming ``method``."""
+
+    def refuse(self: ReadOnly, *args: Any, **kwargs: Any) -> NoReturn:
+        raise self._refusal(f"{self._name}.{method}(...)")
+
+    return refuse
+
+
+class ReadOnly(Mapping[str, Any]):
+    """A mapping of a resolved scenario (its ``instances``, an instance's ``start``, its
+    coupling's ``step_multiples``, an event's ``set``): read-only, since an edit would
+    bypass the scenario's checks and be lost on the next override. ``hint`` says what to
+    call instead; picklable and copyable."""
+
+    __slots__ = ("_hint", "_items", "_name")
+
+    def __init__(self, items: Mapping[str, Any], name: str, hint: str) -> None:
+        self._items = dict(items)
+        self._name = name  # as an edit's refusal names the mapping: "plant.start"
+        self._hint = hint
+
+    def __getitem__(self, key: str) -> Any:
+        return self._items[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return repr(self._items)
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        raise self._refusal(f"{self._name}[{key!r}] = {value!r}")
+
+    def __delitem__(self, key: str) -> None:
+        raise self._refusal(f"del {self._name}[{key!r}]")
+
+    def _refusal(self, edit: str) -> TypeError:
+        return TypeError(f"{edit}: a loaded scenario is read-only; expected {self._hint}")
+
+    update = _refused("update")
+    pop = _refused("pop")
+    popitem = _refused("popitem")
+    setdefault = _refused("setdefault")
+    clear = _refused("clear")
 
 
 def field_names(model: type[BaseModel]) -> set[str]:

@@ -15,10 +15,10 @@ import math
 import os
 import re
 import tomllib
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal, NoReturn, TypeAlias
+from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeAlias
 
 import tomli_w
 from pydantic import (
@@ -41,6 +41,7 @@ from cosim.fmus.interface import (
 from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.scenario.checks import (
+    ReadOnly,
     ScenarioError,
     Source,
     Strict,
@@ -222,55 +223,6 @@ def _move_design_steps(data: dict[str, Any], coupling: Coupling, step: float) ->
             and math.isclose(designed, coupling.step * multiple, rel_tol=1e-9)
         ):
             start["design_step"] = step * multiple
-
-
-def _refused(method: str) -> Callable[..., NoReturn]:
-    """A :class:`ReadOnly` method that would change it: refused, naming ``method``."""
-
-    def refuse(self: ReadOnly, *args: Any, **kwargs: Any) -> NoReturn:
-        raise self._refusal(f"{self._name}.{method}(...)")
-
-    return refuse
-
-
-class ReadOnly(Mapping[str, Any]):
-    """A mapping of a resolved :class:`Scenario` (its ``instances``, an instance's
-    ``start``): read-only, since an edit would bypass the scenario's checks and be lost on
-    the next override. ``hint`` says what to call instead; picklable and copyable."""
-
-    __slots__ = ("_hint", "_items", "_name")
-
-    def __init__(self, items: Mapping[str, Any], name: str, hint: str) -> None:
-        self._items = dict(items)
-        self._name = name  # as an edit's refusal names the mapping: "plant.start"
-        self._hint = hint
-
-    def __getitem__(self, key: str) -> Any:
-        return self._items[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._items)
-
-    def __len__(self) -> int:
-        return len(self._items)
-
-    def __repr__(self) -> str:
-        return repr(self._items)
-
-    def __setitem__(self, key: str, value: Any) -> None:
-        raise self._refusal(f"{self._name}[{key!r}] = {value!r}")
-
-    def __delitem__(self, key: str) -> None:
-        raise self._refusal(f"del {self._name}[{key!r}]")
-
-    def _refusal(self, edit: str) -> TypeError:
-        return TypeError(f"{edit}: a loaded scenario is read-only; expected {self._hint}")
-
-    update = _refused("update")
-    pop = _refused("pop")
-    popitem = _refused("popitem")
-    setdefault = _refused("setdefault")
-    clear = _refused("clear")
 
 
 INSTANCES_HINT = (
@@ -960,6 +912,7 @@ def _resolve_coupling(
                 f"no instance {name!r}{did_you_mean(name, names)} in {names}",
             )
     multiples = {name: c.step_multiples.get(name, 1) for name in names}
+    hint = "a scenario file's [coupling.step_multiples] (then cosim.load_scenario it)"
     adaptive = c.algorithm == "adaptive"
     for key in ("tolerance", "max_step", "error_estimate"):
         if getattr(c, key) is not None and not adaptive:
@@ -975,7 +928,7 @@ def _resolve_coupling(
         step=c.step,
         algorithm=c.algorithm,
         order=order,
-        step_multiples=multiples,
+        step_multiples=ReadOnly(multiples, "scenario.coupling.step_multiples", hint),
         extrapolation=extrapolation,
         tolerance=(c.tolerance or DEFAULT_TOLERANCE) if adaptive else None,
         max_step=(c.max_step or DEFAULT_MAX_STEPS * c.step) if adaptive else None,

@@ -46,7 +46,7 @@ from typing import Any, Literal
 from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
 from cosim.errors import did_you_mean
-from cosim.scenario.checks import Source, Strict, check_value, split_ref
+from cosim.scenario.checks import ReadOnly, Source, Strict, check_value, split_ref
 
 ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
     "mass-jam": "mass_position_cmd",
@@ -178,6 +178,9 @@ class Fault:
         return self.start == 0.0 and (self.stop is None or self.stop >= stop_time)
 
 
+EVENTS_HINT = "a scenario file's [[events]] (then cosim.load_scenario it)"
+
+
 def resolve_events(
     specs: Sequence[EventSpec],
     scenario: Any,
@@ -202,7 +205,8 @@ def resolve_events(
             ref: event_value(ref, value, scenario, f"{key}.set.{ref}", spec.ramp is not None, src)
             for ref, value in (spec.set or {}).items()
         }
-        event = Event(name, spec.time, when, bool(spec.repeat), values, spec.ramp, series)
+        shown = ReadOnly(values, f"{key}.set", EVENTS_HINT)
+        event = Event(name, spec.time, when, bool(spec.repeat), shown, spec.ramp, series)
         events.append(event)
     _unique([e.name for e in events], [s.name for s in specs], "events", src)
     return tuple(events)
@@ -312,7 +316,8 @@ def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Sourc
                 key, f"{spec.series!r} row {line - 1}: time {after!r} s is not after {before!r} s"
             )
     columns = {ref: tuple(row[j + 1] for row in table) for j, ref in enumerate(header[1:])}
-    return Series(path, spec.interpolation or "hold", tuple(times), columns)
+    shown = ReadOnly(columns, f"{key}.columns", EVENTS_HINT)
+    return Series(path, spec.interpolation or "hold", tuple(times), shown)
 
 
 def _series_rows(path: Path, key: str, name: Any, src: Source) -> list[list[str]]:

@@ -254,6 +254,24 @@ def test_a_loaded_scenario_refuses_edits_and_points_at_with_start(fmu_dir: Path)
     assert pickle.loads(pickle.dumps(scenario.instances)).keys() == scenario.instances.keys()
 
 
+def test_a_loaded_scenarios_step_multiples_and_event_values_refuse_edits(fmu_dir: Path) -> None:
+    """``scenario.coupling.step_multiples`` and an event's ``set`` were plain dicts: an edit
+    went through unchecked and took effect in ``cosim.run(scenario)``, then vanished in
+    ``cosim.run(scenario, stop_time=...)`` (an override re-reads the file's data). Read-only
+    like the start values, naming what to change instead."""
+    scenario = load_scenario("zigzag-20", fmu_dir=fmu_dir)
+    multiples = scenario.coupling.step_multiples
+    with pytest.raises(TypeError, match=r"step_multiples\['controller'\] = 5: .*read-only"):
+        multiples["controller"] = 5  # type: ignore[index]
+    event_values = scenario.events[0].set
+    with pytest.raises(TypeError, match=r"set\['controller.yaw_setpoint'\] = 1.0: .*read-only"):
+        event_values["controller.yaw_setpoint"] = 1.0  # type: ignore[index]
+    with pytest.raises(TypeError, match="read-only"):
+        event_values.clear()  # type: ignore[attr-defined]
+    assert scenario == load_scenario("zigzag-20", fmu_dir=fmu_dir)
+    assert pickle.loads(pickle.dumps(scenario.coupling)) == scenario.coupling
+
+
 def test_connected_input_refuses_a_start_value(fmu_dir: Path) -> None:
     base = load_scenario("bs-3", fmu_dir=fmu_dir)
     with pytest.raises(ScenarioError, match=r"connections\.remove"):
