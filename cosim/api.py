@@ -206,7 +206,7 @@ def run(
     }  # fmt: skip
     options = _run_options(out, recording, fmu_dir, overwrite, settings)
     start = _start(start)
-    scenario = scenario if _is_scenario(scenario) else _path("scenario", scenario)
+    scenario = _scenario_argument(scenario)
     if start:
         scenario = _loaded(scenario, options.fmu_dir).with_start(start)
     with ExitStack() as stack:
@@ -479,10 +479,15 @@ def _folder(name: str, value: object, error: type[CosimError] = CosimError) -> P
     return path
 
 
-def _is_scenario(value: object) -> bool:
+def _scenario_argument(value: object) -> Path | Scenario:
+    """:func:`run`'s ``scenario``: a path (:func:`_path`), or a Scenario the loader made
+    (:meth:`Scenario.check_loaded`)."""
     from cosim.scenario.spec import Scenario
 
-    return isinstance(value, Scenario)
+    if not isinstance(value, Scenario):
+        return _path("scenario", value)
+    value.check_loaded()
+    return value
 
 
 def _plain(value: object) -> object:

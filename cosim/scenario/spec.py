@@ -292,6 +292,21 @@ class Scenario:
     unrecorded: tuple[str, ...] = ()  # outputs left out of the default record (String)
     # how a refusal names it: its file, with the start values and overrides applied since
     where: str = dataclasses.field(repr=False, compare=False, default="")
+    # True once the loader has checked it (_resolve); a copy by dataclasses.replace gets
+    # False, since replace copies no init=False field (pickle and copy.deepcopy keep it)
+    loaded: bool = dataclasses.field(default=False, init=False, repr=False, compare=False)
+
+    def check_loaded(self) -> None:
+        """Raise :class:`ScenarioError` unless the loader made this scenario: a copy by
+        ``dataclasses.replace`` (or a Scenario made by hand) skipped the checks, and the
+        next ``with_start`` or override would start again from the checked file data,
+        silently dropping what the copy changed."""
+        if not self.loaded:
+            raise ScenarioError(
+                f"scenario {self.described}: changed by dataclasses.replace (or made by hand), "
+                "so not checked; expected scenario.with_start({'<instance>.<variable>': "
+                "value}) or scenario.with_overrides(stop_time=..., step=...), or a file"
+            )
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -407,6 +422,7 @@ class Scenario:
 
     def _revalidated(self, data: dict[str, Any], where: str) -> Scenario:
         """The scenario of the changed file data ``data``, checked like a file."""
+        self.check_loaded()
         spec = _validate_spec(data, where)
         base_dir = self.base_dir or (self.source.parent if self.source else Path.cwd())
         return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, Source(where))
@@ -691,6 +707,7 @@ def _resolve(
     )
     _check_fault_columns(scenario, src)
     _check_reachable_times(scenario, src)
+    object.__setattr__(scenario, "loaded", True)  # frozen: set once, here
     return scenario
 
 

@@ -4,6 +4,7 @@ errors as the command line, results as DataFrames, no folder unless asked for.""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import os
 import pickle
 import pkgutil
@@ -13,6 +14,7 @@ import sys
 import tempfile
 import tomllib
 from collections.abc import Callable
+from copy import deepcopy
 from decimal import Decimal
 from pathlib import Path
 
@@ -270,6 +272,30 @@ def test_a_loaded_scenarios_step_multiples_and_event_values_refuse_edits(fmu_dir
         event_values.clear()  # type: ignore[attr-defined]
     assert scenario == load_scenario("zigzag-20", fmu_dir=fmu_dir)
     assert pickle.loads(pickle.dumps(scenario.coupling)) == scenario.coupling
+
+
+def test_a_scenario_copied_by_dataclasses_replace_is_refused_not_run_unchecked(
+    fmu_dir: Path,
+) -> None:
+    """``dataclasses.replace(scenario, stop_time=1.0)`` (what a frozen dataclass's "cannot
+    assign to field" sends a user to) skipped every check: a record naming no variable
+    ended in a bare KeyError, and ``cosim.run(copy, start=...)`` silently ran the file's
+    60 s again (with_start starts from the checked file data). Refused in one line naming
+    the checked way; a copy by pickle or copy.deepcopy stays checked."""
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    replaced = dataclasses.replace(scenario, stop_time=1.0)
+    calls: list[Callable[[], object]] = [
+        lambda: cosim.run(replaced, fmu_dir=fmu_dir),
+        lambda: cosim.run(replaced, start={"plant.v_0": -0.05}, fmu_dir=fmu_dir),
+        lambda: replaced.with_start({"plant.v_0": -0.05}),
+        lambda: replaced.with_overrides(step=0.02),
+    ]
+    for call in calls:
+        with pytest.raises(ScenarioError, match=r"dataclasses\.replace.*with_overrides") as raised:
+            call()
+        assert "\n" not in str(raised.value)
+    for copy in (pickle.loads(pickle.dumps(scenario)), deepcopy(scenario)):
+        assert copy.with_start({"plant.v_0": -0.05}).stop_time == scenario.stop_time
 
 
 def test_connected_input_refuses_a_start_value(fmu_dir: Path) -> None:
