@@ -74,7 +74,7 @@ class Run:
     summary : dict
         The run's ``summary.json``: how it ended, settings, key figures, final values.
     out_dir : pathlib.Path or None
-        The run folder, if ``out`` was given; None for a run kept in memory only.
+        The run folder, absolute, if ``out`` was given; None for a run kept in memory only.
     """
 
     scenario: Scenario
@@ -105,8 +105,8 @@ class Study:
         One row per run: ``run``, the factor values, ``status`` ("complete" or
         "failed"), ``error``, the metrics and ``wall_clock_s`` (``runs.parquet``).
     out_dir : pathlib.Path or None
-        The study folder (table, figures, index.html, overlay.rrd), if ``out`` was
-        given; None for a study kept in memory only.
+        The study folder (table, figures, index.html, overlay.rrd), absolute, if ``out``
+        was given; None for a study kept in memory only.
     """
 
     table: pd.DataFrame
@@ -214,7 +214,7 @@ def run(
             temporary = stack.enter_context(tempfile.TemporaryDirectory(prefix="auv-cosim-"))
             options = dataclasses.replace(options, out_dir=Path(temporary) / "run")
         outcome = execute(scenario, options)
-        finished = _run_of(outcome, None if out is None else outcome.out_dir)
+        finished = _run_of(outcome, None if out is None else outcome.out_dir.absolute())
     if not finished.complete:
         where = "the error's run.results" if out is None else str(outcome.out_dir)
         raise RunError(f"{outcome.result.error} (partial results in {where})", finished)
@@ -299,7 +299,7 @@ def sweep(
             label=DICT_LABEL if isinstance(study, Mapping) else None, names=KEYWORDS,
         )  # fmt: skip
         table = pd.read_parquet(outcome.paths["parquet"])
-    return Study(table, None if out is None else out_dir)
+    return Study(table, None if out is None else out_dir.absolute())
 
 
 def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dict[str, Path]:

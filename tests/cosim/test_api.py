@@ -116,6 +116,22 @@ def test_run_with_out_writes_the_command_lines_folder(tmp_path: Path, fmu_dir: P
         cosim.run("bs-3", stop_time=0.3, out=tmp_path / "run", fmu_dir=fmu_dir)
 
 
+@pytest.mark.slow
+def test_a_run_folder_given_relative_is_still_found_after_chdir(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``cosim.run(..., out="runs/x").out_dir`` was ``runs/x`` as given: after ``os.chdir``
+    (``%cd`` in a notebook) ``run.out_dir`` named a folder that is not there, and the
+    notebook's ``inline_viewer(run.out_dir)`` found no recording. It is absolute."""
+    monkeypatch.chdir(tmp_path)
+    run = cosim.run("bs-3", stop_time=0.1, out="runs/x", recording=False, fmu_dir=fmu_dir)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert run.out_dir == tmp_path / "runs" / "x"
+    assert (run.out_dir / "results.csv").is_file()
+
+
 def test_errors_are_the_command_lines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """The same exception type and one-line message as ``auv-cosim run`` prints, naming
     the API's keyword where the command line names its flag."""
