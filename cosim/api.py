@@ -72,7 +72,8 @@ class Run:
         ``results.csv``. ``results.to_numpy()`` and ``results.index.to_numpy()`` give
         plain numpy arrays.
     summary : dict
-        The run's ``summary.json``: how it ended, settings, key figures, final values.
+        The run's ``summary.json``: how it ended, settings, key figures, final values
+        (``outputs``, the files written, is empty for a run kept in memory only).
     out_dir : pathlib.Path or None
         The run folder, absolute, if ``out`` was given; None for a run kept in memory only.
     """
@@ -358,6 +359,8 @@ def _run_of(outcome: RunOutcome, out_dir: Path | None) -> Run:
     index = pd.Index(times, name="time")
     results = pd.DataFrame(values, index=index, columns=list(result.columns), copy=False)
     summary = json.loads(outcome.paths["summary"].read_text(encoding="utf-8"))
+    if out_dir is None:  # the files were in a temporary folder, removed on return
+        summary["outputs"] = {}
     return Run(result.scenario, results, summary, out_dir)
 
 

@@ -132,6 +132,19 @@ def test_a_run_folder_given_relative_is_still_found_after_chdir(
     assert (run.out_dir / "results.csv").is_file()
 
 
+@pytest.mark.slow
+def test_a_run_kept_in_memory_names_no_output_file(tmp_path: Path, fmu_dir: Path) -> None:
+    """Without ``out=`` nothing is written, yet ``run.summary["outputs"]`` named
+    results.csv, scenario.toml and summary.json (in a temporary folder already removed):
+    a user opening them found nothing. It names none."""
+    run = cosim.run("bs-3", stop_time=0.1, fmu_dir=fmu_dir)
+    assert run.summary["outputs"] == {}
+    kept = cosim.run("bs-3", stop_time=0.1, fmu_dir=fmu_dir, out=tmp_path / "kept")
+    assert kept.out_dir is not None
+    assert all((kept.out_dir / name).is_file() for name in kept.summary["outputs"].values())
+    assert "results" in kept.summary["outputs"]
+
+
 def test_errors_are_the_command_lines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """The same exception type and one-line message as ``auv-cosim run`` prints, naming
     the API's keyword where the command line names its flag."""
