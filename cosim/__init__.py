@@ -34,3 +34,9 @@ def __getattr__(name: str) -> Any:
         globals()[name] = value
         return value
     raise AttributeError(f"module 'cosim' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    """The module's names and the API's, not yet imported: ``cosim.<Tab>`` in IPython and
+    Jupyter offers ``run``, ``load_scenario``, ... before their first use."""
+    return sorted({*globals(), *__all__})

@@ -3,6 +3,7 @@ errors as the command line, results as DataFrames, no folder unless asked for.""
 
 from __future__ import annotations
 
+import ast
 import csv
 import dataclasses
 import os
@@ -331,6 +332,26 @@ def test_connected_input_refuses_a_start_value(fmu_dir: Path) -> None:
     base = load_scenario("bs-3", fmu_dir=fmu_dir)
     with pytest.raises(ScenarioError, match=r"connections\.remove"):
         base.with_start({"plant.thrust": 5.0})
+
+
+def test_the_api_names_complete_in_ipython_before_their_first_use(
+    run_python: Callable[..., subprocess.CompletedProcess],
+) -> None:
+    """The API is imported on first use (``cosim.__getattr__``), but ``dir(cosim)`` lacked
+    it: ``cosim.<Tab>`` in Jupyter offered Any, TYPE_CHECKING, annotations and importlib,
+    and ``cosim.r<Tab>`` nothing. dir() lists every public name, without importing them."""
+    done = run_python(
+        """
+        import sys
+        import cosim
+        print(sorted(dir(cosim)))
+        print("cosim.api" in sys.modules)
+        """
+    )
+    assert done.returncode == 0, done.stderr
+    listed, imported = done.stdout.splitlines()[-2:]
+    assert set(cosim.__all__) <= set(ast.literal_eval(listed)), listed
+    assert imported == "False"  # listing them imports nothing
 
 
 def test_public_names_have_numpy_docstrings() -> None:
