@@ -56,6 +56,10 @@ class RunError(CosimError):
         super().__init__(message)
         self.run = run
 
+    def __reduce__(self) -> tuple[type[RunError], tuple[str, Run]]:
+        """Pickled with its run (a process pool's worker sends it to the caller)."""
+        return type(self), (str(self), self.run)
+
 
 @dataclass(frozen=True)
 class Run:

@@ -118,6 +118,10 @@ class NotStartedError(CosimError):
         super().__init__(message)
         self.exit_code = exit_code
 
+    def __reduce__(self) -> tuple[type[NotStartedError], tuple[str, int]]:
+        """Pickled with its exit code (a process pool's worker sends it to the caller)."""
+        return type(self), (str(self), self.exit_code)
+
 
 @dataclass
 class RunOutcome:

@@ -26,6 +26,7 @@ import tomli_w
 
 import cosim
 from cosim.errors import CosimError
+from cosim.runner import NotStartedError
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import SCENARIO_FOLDER, load_scenario, scenario_from_toml
 from cosim.study.spec import StudyError
@@ -144,6 +145,21 @@ def test_a_run_kept_in_memory_names_no_output_file(tmp_path: Path, fmu_dir: Path
     assert kept.out_dir is not None
     assert all((kept.out_dir / name).is_file() for name in kept.summary["outputs"].values())
     assert "results" in kept.summary["outputs"]
+
+
+def test_a_run_error_crosses_a_process_pool(fmu_dir: Path) -> None:
+    """A RunError raised in a ProcessPoolExecutor worker did not unpickle in the parent
+    (``__init__() missing 1 required positional argument: 'run'``): the pool broke
+    (BrokenProcessPool) instead of the caller catching the RunError. It pickles with its
+    message and partial run, as does the runner's NotStartedError with its exit code."""
+    start = {"plant.u_0": 100.0, "plant.v_0": 100.0, "plant.r_0": 50.0}  # leaves the range
+    with pytest.raises(cosim.RunError) as raised:
+        cosim.run("bs-3", stop_time=1.0, start=start, fmu_dir=fmu_dir)
+    copy = pickle.loads(pickle.dumps(raised.value))
+    assert type(copy) is cosim.RunError and str(copy) == str(raised.value)
+    assert copy.run.results.equals(raised.value.run.results) and not copy.run.complete
+    stopped = pickle.loads(pickle.dumps(NotStartedError("interrupted (Ctrl-C)", 130)))
+    assert (str(stopped), stopped.exit_code) == ("interrupted (Ctrl-C)", 130)
 
 
 def test_errors_are_the_command_lines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
