@@ -185,6 +185,7 @@ def run(
         Write recording.rrd into ``out`` (ignored without ``out``).
     fmu_dir : str or pathlib.Path
         Where the built-in FMUs are (built there on first use). Default ``build/fmus``.
+        A loaded ``scenario`` runs the FMUs it was loaded with: another folder is refused.
 
     Returns
     -------
@@ -211,7 +212,8 @@ def run(
     }  # fmt: skip
     options = _run_options(out, recording, fmu_dir, overwrite, settings)
     start = _start(start)
-    scenario = _scenario_argument(scenario)
+    given_fmu_dir = None if fmu_dir is DEFAULT_FMU_DIR else options.fmu_dir
+    scenario = _scenario_argument(scenario, given_fmu_dir)
     if start:
         scenario = _loaded(scenario, options.fmu_dir).with_start(start)
     with ExitStack() as stack:
@@ -486,14 +488,21 @@ def _folder(name: str, value: object, error: type[CosimError] = CosimError) -> P
     return path
 
 
-def _scenario_argument(value: object) -> Path | Scenario:
+def _scenario_argument(value: object, fmu_dir: Path | None) -> Path | Scenario:
     """:func:`run`'s ``scenario``: a path (:func:`_path`), or a Scenario the loader made
-    (:meth:`Scenario.check_loaded`)."""
+    (:meth:`Scenario.check_loaded`) with its FMUs in ``fmu_dir`` if one was given (its FMUs
+    are those it was loaded with: another folder would be ignored)."""
     from cosim.scenario.spec import Scenario
 
     if not isinstance(value, Scenario):
         return _path("scenario", value)
     value.check_loaded()
+    if fmu_dir is not None and fmu_dir.resolve() != value.fmu_dir.resolve():
+        raise CosimError(
+            f"fmu_dir={str(fmu_dir)!r}: the scenario was loaded with the FMUs in "
+            f"{str(value.fmu_dir)!r}; expected no fmu_dir, or cosim.load_scenario(..., "
+            "fmu_dir=...) to load it with others"
+        )
     return value
 
 

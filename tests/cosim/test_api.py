@@ -344,6 +344,22 @@ def test_a_scenario_copied_by_dataclasses_replace_is_refused_not_run_unchecked(
         assert copy.with_start({"plant.v_0": -0.05}).stop_time == scenario.stop_time
 
 
+def test_fmu_dir_with_a_loaded_scenario_is_refused_not_ignored(
+    tmp_path: Path, fmu_dir: Path
+) -> None:
+    """A loaded scenario's FMUs are the ones it was loaded with: ``cosim.run(scenario,
+    fmu_dir=other)`` ran those, silently ignoring ``other``. Refused, naming both; the
+    same folder (as given or absolute) and no fmu_dir at all are fine."""
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    other = tmp_path / "other-fmus"
+    for start in (None, {"plant.v_0": -0.05}):
+        with pytest.raises(CosimError, match=r"fmu_dir=.*other-fmus.*loaded with") as raised:
+            cosim.run(scenario, stop_time=0.1, start=start, fmu_dir=other)
+        assert str(fmu_dir) in str(raised.value) and "\n" not in str(raised.value)
+    assert not other.exists()
+    assert cosim.run(scenario, stop_time=0.1, fmu_dir=str(fmu_dir)).complete
+
+
 def test_connected_input_refuses_a_start_value(fmu_dir: Path) -> None:
     base = load_scenario("bs-3", fmu_dir=fmu_dir)
     with pytest.raises(ScenarioError, match=r"connections\.remove"):
