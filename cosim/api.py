@@ -246,8 +246,9 @@ def sweep(
     ----------
     study : str, pathlib.Path or mapping
         A study ``.toml`` file, or a dict with the same keys (``scenario``, ``[grid]``,
-        ``[random]``, ...); a relative scenario path in a dict is relative to the
-        working folder.
+        ``[random]``, ...; a numpy array or scalar, a tuple or a path counts as its list,
+        number or text); a relative scenario path in a dict is relative to the working
+        folder.
     workers : int, optional
         Local worker processes, at most the machine's cores unless ``oversubscribe``.
         Default: one per core.
@@ -380,11 +381,34 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
 
     assert folder is not None
     path = folder / STUDY_FILE
+    data = {key: _toml_value(value, str(key)) for key, value in study.items()}
     try:
-        path.write_text(tomli_w.dumps(dict(study)), encoding="utf-8")
+        path.write_text(tomli_w.dumps(data), encoding="utf-8")
     except (TypeError, ValueError) as exc:
         raise StudyError(f"study {dict(study)!r}: cannot be written as TOML: {exc}") from None
     return path
+
+
+def _toml_value(value: object, key: str) -> object:
+    """A value of a study dict as its TOML file holds it: a numpy array or scalar as its
+    list or Python number (``np.linspace(-0.1, 0.1, 5)``), a tuple as a list, a path as its
+    text, in mappings and lists too; None, which TOML cannot hold, refused naming ``key``."""
+    from cosim.study.spec import StudyError
+
+    if type(value).__module__ == "numpy" and hasattr(value, "tolist"):
+        value = value.tolist()  # an array: nested lists of Python numbers; a scalar: one
+    if isinstance(value, Mapping):
+        return {name: _toml_value(item, f"{key}.{name}") for name, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_toml_value(item, f"{key}[{i}]") for i, item in enumerate(value)]
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if value is None:
+        raise StudyError(
+            f"{DICT_LABEL}: key {key!r} = None: expected a value (leave the key out for its "
+            "default)"
+        )
+    return value
 
 
 # --- the arguments, checked: one line naming the value and what was expected -------------

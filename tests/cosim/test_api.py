@@ -435,6 +435,37 @@ def test_sweep_of_a_dict_returns_its_table(
     assert table["final.plant.v"].iloc[0] != table["final.plant.v"].iloc[1]
 
 
+@pytest.mark.slow
+def test_a_study_dict_takes_numpy_arrays_and_paths(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A grid as numpy gives it (``np.linspace``, float32 values) and the scenario as a
+    pathlib.Path were refused ("cannot be written as TOML: Object of type 'ndarray' is not
+    TOML serializable"), though cosim.run takes both kinds; they count as their lists,
+    numbers and paths."""
+    monkeypatch.chdir(tmp_path)
+    shutil.copyfile(SCENARIO_FOLDER / "bs-3.toml", tmp_path / "case.toml")
+    study = {
+        "scenario": Path("case.toml"),
+        "stop_time": np.float32(0.5),
+        "grid": {"plant.v_0": np.linspace(-0.1, 0.1, 2), "controller.k0": (np.float32(0.5),)},
+    }
+    table = cosim.sweep(study, workers=1, fmu_dir=fmu_dir).table
+    assert sorted(table["plant.v_0"]) == [-0.1, 0.1]
+    assert table["controller.k0"].tolist() == [0.5, 0.5]
+    assert (table["status"] == "complete").all()
+
+
+def test_a_none_in_a_study_dict_is_named_by_its_key() -> None:
+    """``{"stop_time": None}`` was refused as "cannot be written as TOML: Object of type
+    'NoneType' is not TOML serializable", naming no key; the key is named, and what to do."""
+    with pytest.raises(StudyError) as raised:
+        cosim.sweep({"scenario": "bs-3", "stop_time": None, "grid": {"plant.v_0": [0.1]}})
+    message = str(raised.value)
+    assert message.startswith("study (given as a dict): key 'stop_time' = None:"), message
+    assert "leave the key out" in message and "\n" not in message
+
+
 def test_build_fmus_is_the_build_command(tmp_path: Path, fmu_dir: Path) -> None:
     folder = _user_folder(tmp_path, fmu_dir)
     built = cosim.build_fmus(folder / "build" / "fmus")  # up to date: nothing rebuilt
