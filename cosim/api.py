@@ -87,6 +87,15 @@ class Run:
     summary: dict[str, Any]
     out_dir: Path | None
 
+    def __repr__(self) -> str:
+        """One line (a notebook shows it for a cell ending in ``cosim.run(...)``), not the
+        scenario, table and summary in full."""
+        rows, columns = self.results.shape
+        return (
+            f"Run(scenario={self.scenario.id!r}, complete={self.complete}, "
+            f"results=<{rows} rows x {columns} columns>, out_dir={self.out_dir!r})"
+        )
+
     @property
     def complete(self) -> bool:
         """Whether the run reached its stop time."""
@@ -116,6 +125,11 @@ class Study:
 
     table: pd.DataFrame
     out_dir: Path | None
+
+    def __repr__(self) -> str:
+        """One line, not the table in full."""
+        rows, columns = self.table.shape
+        return f"Study(table=<{rows} rows x {columns} columns>, out_dir={self.out_dir!r})"
 
 
 def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR) -> Scenario:

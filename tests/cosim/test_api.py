@@ -162,6 +162,18 @@ def test_a_run_error_crosses_a_process_pool(fmu_dir: Path) -> None:
     assert (str(stopped), stopped.exit_code) == ("interrupted (Ctrl-C)", 130)
 
 
+@pytest.mark.slow
+def test_a_run_shows_in_one_line_not_its_whole_table(fmu_dir: Path) -> None:
+    """A notebook cell ending in ``cosim.run(...)`` printed the dataclass repr: the scenario
+    with every instance, the DataFrame and the whole summary, 5,000 characters over many
+    lines. It is one line naming the scenario, whether it completed, the table's shape
+    and the folder."""
+    run = cosim.run("bs-3", stop_time=0.1, fmu_dir=fmu_dir)
+    columns = len(run.scenario.columns)
+    expected = f"Run(scenario='bs-3', complete=True, results=<11 rows x {columns} columns>, "
+    assert repr(run) == expected + "out_dir=None)"
+
+
 def test_errors_are_the_command_lines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """The same exception type and one-line message as ``auv-cosim run`` prints, naming
     the API's keyword where the command line names its flag."""
@@ -433,6 +445,7 @@ def test_sweep_of_a_dict_returns_its_table(
     assert sorted(table["plant.v_0"]) == [-0.1, 0.1]
     assert (table["status"] == "complete").all()
     assert table["final.plant.v"].iloc[0] != table["final.plant.v"].iloc[1]
+    assert repr(result) == f"Study(table=<2 rows x {table.shape[1]} columns>, out_dir=None)"
 
 
 @pytest.mark.slow
