@@ -217,8 +217,8 @@ def run(
         why, and ``error.run`` holds the partial results.
 
     Every argument is checked first: a value of another type (a Decimal, a list for the
-    mapping, a string for a flag), a number out of range or a path with a NUL byte is a
-    :class:`~cosim.errors.CosimError` naming it and what was expected.
+    mapping, a string for a flag), a number out of range, or an empty path or one with a NUL
+    byte is a :class:`~cosim.errors.CosimError` naming it and what was expected.
     """
     settings = {
         "stop_time": stop_time, "step": step, "algorithm": algorithm,
@@ -508,13 +508,15 @@ def _path(
     expected: str = "a str or pathlib.Path",
     error: type[CosimError] = CosimError,
 ) -> Path:
-    """A path argument: a str or os.PathLike without a NUL byte (else ``expected`` is what
-    the refusal says was expected)."""
+    """A path argument: a non-empty str or os.PathLike without a NUL byte (else
+    ``expected`` is what the refusal says was expected)."""
     if not isinstance(value, str | os.PathLike):
         raise error(f"{name}={_shown(value)}: expected {expected}")
     text = os.fspath(value)
     if not isinstance(text, str) or "\0" in text:
         raise error(f"{name}={_shown(value)}: expected a path without a NUL byte")
+    if not text:  # Path("") is "."; an unset setting's "" is no choice of the working folder
+        raise error(f"{name}='': expected a non-empty path ('.' names the working folder)")
     return Path(text)
 
 

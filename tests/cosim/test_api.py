@@ -636,6 +636,42 @@ WRONG_TYPE = [
 ]
 
 
+EMPTY_PATHS = [
+    ("run", {"scenario": ""}, CosimError, "scenario=''"),
+    ("run", {"scenario": "bs-3", "out": ""}, CosimError, "out=''"),
+    ("run", {"scenario": "bs-3", "fmu_dir": ""}, CosimError, "fmu_dir=''"),
+    ("load_scenario", {"scenario": ""}, ScenarioError, "scenario=''"),
+    ("load_scenario", {"scenario": "bs-3", "fmu_dir": ""}, ScenarioError, "fmu_dir=''"),
+    ("sweep", {"study": ""}, StudyError, "study=''"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "out": ""}, StudyError, "out=''"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "fmu_dir": ""}, StudyError, "fmu_dir=''"),
+    ("build_fmus", {"out": ""}, CosimError, "out=''"),
+]
+
+
+@pytest.mark.parametrize(("function", "arguments", "error", "named"), EMPTY_PATHS)
+def test_an_empty_path_is_refused_not_read_as_the_working_folder(
+    function: str,
+    arguments: dict,
+    error: type[CosimError],
+    named: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """An empty string (an unset environment variable's default) was read as ".":
+    ``fmu_dir=""`` and ``build_fmus("")`` built the FMUs into the working folder, and
+    ``cosim.run("")`` said "not a file: .", naming no argument. Refused, naming it, with
+    nothing written."""
+    monkeypatch.chdir(tmp_path)
+    call = getattr(cosim, function)
+    positional = [arguments.pop(k) for k in ("scenario", "study") if k in arguments]
+    with pytest.raises(error) as raised:
+        call(*positional, **arguments)
+    message = str(raised.value)
+    assert message.startswith(f"{named}: expected a non-empty path"), message
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize(("function", "arguments", "error", "named"), WRONG_TYPE)
 def test_bad_arguments_raise_the_type_the_docstring_names(
     function: str, arguments: dict, error: type[CosimError], named: str
