@@ -331,7 +331,7 @@ def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dic
     Returns
     -------
     dict
-        FMU name (``"AuvPlant"``, ...) -> its ``.fmu`` file.
+        FMU name (``"AuvPlant"``, ...) -> its ``.fmu`` file (an absolute path).
 
     Raises
     ------
@@ -340,7 +340,8 @@ def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dic
     """
     from cosim.fmus.build import build_fmus as build
 
-    return build(_folder("out", out), force=_flag("force", force))
+    built = build(_folder("out", out), force=_flag("force", force))
+    return {name: path.absolute() for name, path in built.items()}  # right after os.chdir
 
 
 def _study_argument(study: object) -> Path | Mapping[str, Any]:

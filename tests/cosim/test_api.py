@@ -479,6 +479,20 @@ def test_a_none_in_a_study_dict_is_named_by_its_key() -> None:
     assert "leave the key out" in message and "\n" not in message
 
 
+def test_built_fmus_given_a_relative_folder_are_found_after_chdir(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``cosim.build_fmus("build/fmus")`` returned ``build/fmus/AuvPlant.fmu`` as given:
+    after ``os.chdir`` the paths named files that are not there. They are absolute, like
+    ``Run.out_dir``."""
+    folder = _user_folder(tmp_path, fmu_dir)
+    monkeypatch.chdir(folder)
+    built = cosim.build_fmus("build/fmus")
+    monkeypatch.chdir(tmp_path.parent)
+    assert built["AuvPlant"] == folder / "build" / "fmus" / "AuvPlant.fmu"
+    assert all(path.is_file() for path in built.values())
+
+
 def test_build_fmus_is_the_build_command(tmp_path: Path, fmu_dir: Path) -> None:
     folder = _user_folder(tmp_path, fmu_dir)
     built = cosim.build_fmus(folder / "build" / "fmus")  # up to date: nothing rebuilt
