@@ -187,7 +187,8 @@ def run(
     start : mapping, optional
         Start values ``{"<instance>.<variable>": value}`` in SI units (a bool, int, float
         or str; a numpy scalar counts as its Python value), checked like the scenario
-        file's (:meth:`Scenario.with_start`).
+        file's (:meth:`Scenario.with_start`; a file named, a vehicle set ``.toml``, is
+        relative to the working folder).
     out : str or pathlib.Path, optional
         Write the run folder there (results.csv, summary.json, scenario.toml and, unless
         ``recording`` is false or the scenario says ``output.rrd = false``,

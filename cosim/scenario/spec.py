@@ -391,7 +391,8 @@ class Scenario:
 
         ``values`` maps ``"<instance>.<variable>"`` to a value in SI units (a bool, int,
         float or string, as in ``[instances.<instance>.start]``, or a numpy scalar of one,
-        taken as its Python value); each passes the checks a
+        taken as its Python value; a file, ``"my-vehicle.toml"``, is relative to the working
+        folder, not to the scenario's file); each passes the checks a
         scenario file's start value passes (the variable exists, is a parameter or an
         unconnected input, the value has its type). Raises :class:`ScenarioError`.
         """
@@ -411,7 +412,10 @@ class Scenario:
                     + did_you_mean(instance, data["instances"])
                 )
             start = data["instances"][instance].setdefault("start", {})
-            start[variable] = value.item() if hasattr(value, "item") else value  # numpy scalar
+            value = value.item() if hasattr(value, "item") else value  # numpy scalar
+            if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
+                value = os.path.abspath(value)  # given in Python: from the working folder
+            start[variable] = value
         return self._revalidated(data, where)
 
     @property

@@ -372,6 +372,27 @@ def test_fmu_dir_with_a_loaded_scenario_is_refused_not_ignored(
     assert cosim.run(scenario, stop_time=0.1, fmu_dir=str(fmu_dir)).complete
 
 
+def test_a_file_named_in_a_start_value_given_in_python_is_relative_to_the_working_folder(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``cosim.run("bs-3", start={"plant.vehicle": "my-vehicle.toml"})`` looked for the file
+    in the installed package's scenarios folder (the built-in scenario's), not in the
+    caller's working folder, as every other path the API takes is: "names no file (looked
+    for .../cosim/scenarios/my-vehicle.toml)". A file's own start values stay relative to
+    the file."""
+    shutil.copyfile(
+        SCENARIO_FOLDER.parents[1] / "plant_fmu/model/vehicles/remus100-long-fins.toml",
+        tmp_path / "my-vehicle.toml",
+    )
+    monkeypatch.chdir(tmp_path)
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    changed = scenario.with_start({"plant.vehicle": "my-vehicle.toml"})
+    assert changed.instances["plant"].start["vehicle"] == str(tmp_path / "my-vehicle.toml")
+    assert changed.with_start({"plant.v_0": -0.05}).instances["plant"].start["vehicle"] == str(
+        tmp_path / "my-vehicle.toml"
+    )
+
+
 def test_connected_input_refuses_a_start_value(fmu_dir: Path) -> None:
     base = load_scenario("bs-3", fmu_dir=fmu_dir)
     with pytest.raises(ScenarioError, match=r"connections\.remove"):
