@@ -231,14 +231,20 @@ def run(
     scenario = _scenario_argument(scenario, given_fmu_dir)
     if start:
         scenario = _loaded(scenario, options.fmu_dir).with_start(start)
+    return _executed(scenario, options, in_memory=out is None)
+
+
+def _executed(scenario: str | Path | Scenario, options: RunOptions, in_memory: bool) -> Run:
+    """:func:`run`'s run of ``scenario``, in a temporary folder removed after it when
+    ``in_memory``; a run that stopped early raises :class:`RunError`."""
     with ExitStack() as stack:
-        if out is None:
+        if in_memory:
             temporary = stack.enter_context(tempfile.TemporaryDirectory(prefix="auv-cosim-"))
             options = dataclasses.replace(options, out_dir=Path(temporary) / "run")
         outcome = execute(scenario, options)
-        finished = _run_of(outcome, None if out is None else outcome.out_dir.absolute())
+        finished = _run_of(outcome, None if in_memory else outcome.out_dir.absolute())
     if not finished.complete:
-        where = "the error's run.results" if out is None else str(outcome.out_dir)
+        where = "the error's run.results" if in_memory else str(outcome.out_dir)
         raise RunError(f"{outcome.result.error} (partial results in {where})", finished)
     return finished
 
