@@ -29,6 +29,14 @@ if TYPE_CHECKING:
 FMU_DIR_HELP = "the built-in FMUs' folder, built there when missing or out of date [%(default)s]"
 
 
+def _path_arg(text: str) -> Path:
+    """A path option's value: refused when empty (an unset shell variable, ``--fmu-dir
+    "$FMUS"``), which ``Path`` would read as the working folder, as the API refuses it."""
+    if not text:
+        raise argparse.ArgumentTypeError("expected a non-empty path ('.' names the working folder)")
+    return Path(text)
+
+
 def _build(args: argparse.Namespace) -> int:
     from cosim.fmus.build import build_fmus
 
@@ -315,7 +323,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     p = sub.add_parser("build", help="build AuvPlant.fmu, AuvAutopilot.fmu and AuvGuidance.fmu")
-    p.add_argument("--out", type=Path, default=DEFAULT_FMU_DIR, help="output folder [%(default)s]")
+    p.add_argument(
+        "--out", type=_path_arg, default=DEFAULT_FMU_DIR, help="output folder [%(default)s]"
+    )
     p.add_argument("--force", action="store_true", help="rebuild even if up to date")
     p.set_defaults(func=_build)
 
@@ -324,48 +334,36 @@ def build_parser() -> argparse.ArgumentParser:
         help="validate the built FMUs as they are (fmpy + our own checks), or any FMU files",
     )
     p.add_argument(
-        "fmus", nargs="*", type=Path, metavar="FMU",
+        "fmus", nargs="*", type=_path_arg, metavar="FMU",
         help="FMU files to check for what a run needs of them (any FMI 2.0 co-simulation "
         "FMU: fmpy's validation, a binary for this platform, one step) [the built FMUs]",
     )  # fmt: skip
     p.add_argument(
-        "--fmu-dir", type=Path, help=f"the built FMUs' folder, checked as built [{DEFAULT_FMU_DIR}]"
+        "--fmu-dir",
+        type=_path_arg,
+        help=f"the built FMUs' folder, checked as built [{DEFAULT_FMU_DIR}]",
     )
     p.set_defaults(func=_validate)
 
     p = sub.add_parser("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=_scenarios)
 
-    p = sub.add_parser("run", help="run a built-in scenario id or a scenario TOML file")
-    p.add_argument("scenario", help="scenario id (see `auv-cosim scenarios`) or .toml path")
-    p.add_argument("--out", type=Path, help="run folder [runs/<scenario-id>]")
-    p.add_argument(
-        "--overwrite", action="store_true", help="replace an earlier run in the run folder"
-    )
-    p.add_argument("--stop-time", type=float, help="override the stop time, s (finite, > 0)")
-    p.add_argument("--step", type=float, help="override the communication step, s (finite, > 0)")
-    _add_coupling_options(p)
-    recording = p.add_mutually_exclusive_group()  # a file to write, or none
-    recording.add_argument("--rrd", type=Path, help="recording file [<run folder>/recording.rrd]")
-    recording.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
-    p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
-    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    _add_live_options(p)
-    p.set_defaults(func=_run)
+    _add_run_parser(sub)
 
     _add_sweep_parser(sub)
 
     p = sub.add_parser("export", help="export a scenario as SSP or OSP system structure")
     p.add_argument("scenario", help="scenario id or .toml path")
-    p.add_argument("--ssp", type=Path, help="write an SSP 1.0 archive to this file")
-    p.add_argument("--osp", type=Path, help="write OspSystemStructure.xml + FMUs to this folder")
+    p.add_argument("--ssp", type=_path_arg, help="write an SSP 1.0 archive to this file")
+    p.add_argument(
+        "--osp", type=_path_arg, help="write OspSystemStructure.xml + FMUs to this folder"
+    )
     p.add_argument(
         "--force",
         action="store_true",
         help="replace an --ssp file no export wrote, or one changed since",
     )
-    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
+    p.add_argument("--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.set_defaults(func=_export)
 
     _add_view_parser(sub)
@@ -374,9 +372,31 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reproduce_parser(sub)
 
     p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
-    p.add_argument("run_dir", type=Path, help="a run folder holding results.csv")
+    p.add_argument("run_dir", type=_path_arg, help="a run folder holding results.csv")
     p.set_defaults(func=_report)
     return parser
+
+
+def _add_run_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("run", help="run a built-in scenario id or a scenario TOML file")
+    p.add_argument("scenario", help="scenario id (see `auv-cosim scenarios`) or .toml path")
+    p.add_argument("--out", type=_path_arg, help="run folder [runs/<scenario-id>]")
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace an earlier run in the run folder"
+    )
+    p.add_argument("--stop-time", type=float, help="override the stop time, s (finite, > 0)")
+    p.add_argument("--step", type=float, help="override the communication step, s (finite, > 0)")
+    _add_coupling_options(p)
+    recording = p.add_mutually_exclusive_group()  # a file to write, or none
+    recording.add_argument(
+        "--rrd", type=_path_arg, help="recording file [<run folder>/recording.rrd]"
+    )
+    recording.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
+    p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
+    p.add_argument("--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_live_options(p)
+    p.set_defaults(func=_run)
 
 
 def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
@@ -397,11 +417,11 @@ def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
     a.add_argument("start", type=float, metavar="FROM", help="the first value, in its unit")
     a.add_argument("stop", type=float, metavar="TO", help="the last value, in its unit")
     a.add_argument("--steps", type=int, default=200, help="continuation steps [%(default)s]")
-    a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
+    a.add_argument("--out", type=_path_arg, default=Path("analysis"), help="[%(default)s]")
     _add_model_options(a)
     a.set_defaults(func=_sweep)
     a = asub.add_parser("phase-portrait", help="open-loop horizontal trajectories (Fig. 5.4)")
-    a.add_argument("--out", type=Path, default=Path("analysis"), help="[%(default)s]")
+    a.add_argument("--out", type=_path_arg, default=Path("analysis"), help="[%(default)s]")
     _add_model_options(a)
     a.set_defaults(func=_phase_portrait)
 
@@ -429,7 +449,7 @@ def _add_view_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("view", help="open a run's or a study's recording in the Rerun viewer")
     p.add_argument(
         "run_dir",
-        type=Path,
+        type=_path_arg,
         help="a run folder (recording.rrd), a study folder (overlay.rrd) or a .rrd file",
     )
     p.add_argument(
@@ -455,10 +475,10 @@ def _add_view_parser(sub: argparse._SubParsersAction) -> None:
 def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     """``auv-cosim sweep``: a study on a local or remote Dask cluster."""
     p = sub.add_parser("sweep", help="a parameter sweep or Monte Carlo study on Dask")
-    p.add_argument("study", type=Path, help="study .toml file (docs/studies.md)")
+    p.add_argument("study", type=_path_arg, help="study .toml file (docs/studies.md)")
     p.add_argument("--workers", type=int, help="local worker processes [one per core]")
     p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
-    p.add_argument("--out", type=Path, help="study folder [studies/<study file name>]")
+    p.add_argument("--out", type=_path_arg, help="study folder [studies/<study file name>]")
     p.add_argument("--resume", action="store_true", help="skip the runs already in runs.csv")
     p.add_argument(
         "--max-runs",
@@ -471,15 +491,15 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="start every --workers process even beyond the cores [capped at the cores]",
     )
-    p.add_argument("--fmu-dir", type=Path, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
+    p.add_argument("--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.add_argument(
         "--dashboard",
         action="store_true",
         help="local Dask dashboard on 127.0.0.1:8787 (needs bokeh)",
     )
-    p.add_argument("--tls-ca-file", type=Path, help="CA certificate for a tls:// scheduler")
-    p.add_argument("--tls-cert", type=Path, help="client certificate for a tls:// scheduler")
-    p.add_argument("--tls-key", type=Path, help="client private key for a tls:// scheduler")
+    p.add_argument("--tls-ca-file", type=_path_arg, help="CA certificate for a tls:// scheduler")
+    p.add_argument("--tls-cert", type=_path_arg, help="client certificate for a tls:// scheduler")
+    p.add_argument("--tls-key", type=_path_arg, help="client private key for a tls:// scheduler")
     p.add_argument(
         "--overlay",
         type=int,
@@ -493,10 +513,10 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
 def _add_reproduce_parser(sub: argparse._SubParsersAction) -> None:
     """``auv-cosim reproduce``: regenerate docs/reproduction.md."""
     p = sub.add_parser("reproduce", help="check the dissertation's numbers: docs/reproduction.md")
-    p.add_argument("--out", type=Path, default=DOCS_DIR, help="docs folder [%(default)s]")
+    p.add_argument("--out", type=_path_arg, default=DOCS_DIR, help="docs folder [%(default)s]")
     p.add_argument(
         "--values",
-        type=Path,
+        type=_path_arg,
         default=DOCS_DIR / "dissertation-values.toml",
         help="the dissertation's printed values [%(default)s]",
     )

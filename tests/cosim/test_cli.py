@@ -186,3 +186,31 @@ def test_a_missing_file_is_named_with_what_was_probably_meant(
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and expected in err and "Errno" not in err, err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "bs-3", "--fmu-dir", ""],
+        ["run", "bs-3", "--out", ""],
+        ["build", "--out", ""],
+        ["sweep", "study.toml", "--fmu-dir", ""],
+        ["report", ""],
+    ],
+)
+def test_an_empty_path_is_a_usage_error_not_the_working_folder(
+    argv: list[str],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """An empty path (an unset shell variable: ``--fmu-dir "$FMUS"``) is refused naming
+    the option, as the API refuses it, before anything is built or written: it was read
+    as the working folder, and ``--fmu-dir ""`` built the FMUs into it."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "expected a non-empty path ('.' names the working folder)" in err, err
+    assert not list(tmp_path.iterdir())
