@@ -60,6 +60,7 @@ TRAJECTORY: Rgb = NEUTRAL
 PLOT_COLUMNS = 2  # time-series plots side by side in a loop's grid
 TIMELINE = "sim_time"
 VEHICLE_ENTITY = "/world/vehicle"  # the body frame in the 3D scene (cosim.viz.scene)
+NOTES_ENTITY = "events"  # TextLog: events fired, faults started and stopped, live overrides
 CHASE_EYE = (-1.6, -0.9, -0.6)  # m in the chase frame: behind, to port, above the vehicle
 DEG = math.degrees(1.0)
 
@@ -253,8 +254,10 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
     against a level grid. Middle: the heading loop (yaw and its setpoint, roll and
     yaw rates, roll, sway, the moving mass and its command, the tunnel thruster). Right,
     in tabs: the depth loop (depth and setpoint, pitch, pitch rate, heave, fins, surge),
-    the rest of the vehicle state, any unknown columns, and the scenario text. The depth
-    tab is the active one when depth control is on, the vehicle tab otherwise.
+    the rest of the vehicle state, any unknown columns, the log of what happened at a time
+    (:data:`NOTES_ENTITY`: events, faults, live overrides; with auto views off, nothing
+    would show it otherwise) and the scenario text. The depth tab is the active one when
+    depth control is on, the vehicle tab otherwise.
 
     The plots of a loop sit in a grid of :data:`PLOT_COLUMNS` columns, not one stack: six
     stacked plots of ~130 px each leave the viewer room for a single y tick ("0") on most
@@ -307,6 +310,7 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
             tabs.append(rrb.Grid(*views, grid_columns=PLOT_COLUMNS, name=title))
     if any(p.entity.startswith("other/") for p in panels):
         tabs.append(rrb.TimeSeriesView(origin="/other", name="Other signals"))
+    tabs.append(rrb.TextLogView(origin=f"/{NOTES_ENTITY}", name="Events and faults"))
     tabs.append(rrb.TextDocumentView(origin="/scenario", name="Scenario"))
     names = [tab.name for tab in tabs]
     first = "Depth loop" if depth_control else "Vehicle"

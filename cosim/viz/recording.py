@@ -43,6 +43,7 @@ from cosim.errors import CosimError, did_you_mean_path
 from cosim.outputs.folder import RECORDING_FILE
 from cosim.scenario.spec import Scenario
 from cosim.viz.layout import (
+    NOTES_ENTITY,
     build_blueprint,
     plan_panels,
     series_style,
@@ -70,7 +71,6 @@ FILE_SEND_INTERVAL = 5.0  # s of wall-clock time
 SEND_INTERVAL_GROWTH = 0.02
 FLUSH_TIMEOUT = 10.0  # s to wait for a viewer to take the last rows on close
 SEND_INTERVAL = 1.0  # s of wall-clock time, the shortest send interval
-NOTES_ENTITY = "events"  # TextLog: events fired, faults started and stopped
 
 
 class RerunSink:

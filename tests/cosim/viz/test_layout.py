@@ -119,3 +119,24 @@ def test_the_world_view_follows_the_vehicle() -> None:
             layout.VEHICLE_ENTITY
         ]
     assert layout.VEHICLE_ENTITY.lstrip("/") in (ROOT / "cosim/viz/scene.py").read_text()
+
+
+def _views(container) -> list:
+    """Every view under ``container``, depth first."""
+    found = []
+    for item in container.contents or []:
+        found += _views(item) if isinstance(item, rrb.Container) else [item]
+    return found
+
+
+@pytest.mark.parametrize("depth_control", [True, False])
+def test_the_events_and_faults_log_has_a_view(depth_control: bool) -> None:
+    """The notes a run logs -- events fired, faults started and stopped, live overrides,
+    pauses -- show in the default layout: with auto views off, an entity no view names is
+    in the recording but nowhere on screen."""
+    from cosim.viz.recording import NOTES_ENTITY
+
+    columns = [s.column for panel in PANELS for s in panel.series]
+    blueprint = build_blueprint(plan_panels(columns), depth_control=depth_control)
+    logs = [v for v in _views(blueprint.root_container) if isinstance(v, rrb.TextLogView)]
+    assert [view.origin for view in logs] == [f"/{NOTES_ENTITY}"]
