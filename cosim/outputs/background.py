@@ -5,7 +5,10 @@ ms whatever its length (some 25 ``send_columns`` calls: :mod:`cosim.viz.recordin
 paced at 10x real time has 1 ms per step, so a send on the stepping thread makes the next
 steps late by as much. :class:`BackgroundSink` queues the rows and notes (copies: the
 master's arrays are views valid during the call only) and hands them to the wrapped sink,
-in order, from a worker thread; the stepping thread only copies and queues.
+in order, from a worker thread; the stepping thread only copies and queues. When nothing
+has come for :data:`IDLE_S` (the run is paused, or paced slowly), the worker calls the
+wrapped sink's ``send_due`` if it has one, so what it holds back reaches a viewer at its
+usual pace instead of waiting for the next rows.
 
 A failure of the wrapped sink (disk full) is raised at the next ``add_rows`` or
 ``add_notes`` (the master then ends the run, as it would have one hand-off earlier) or at
@@ -24,6 +27,8 @@ import numpy as np
 
 from cosim.engine.rows import Note, RowSink
 from cosim.errors import CosimError
+
+IDLE_S = 0.2  # s without rows or notes after which the worker asks the sink to send what is due
 
 
 class _Closable(RowSink, Protocol):
@@ -57,12 +62,21 @@ class BackgroundSink:
         self._raise()
 
     def _work(self) -> None:
-        while (item := self._queue.get()) is not None:
+        while True:
+            try:
+                item = self._queue.get(timeout=IDLE_S)
+            except queue.Empty:
+                item = ("send_due", ())
+            if item is None:
+                return
             if self._error is not None:
                 continue  # the sink failed: what follows is dropped
             method, args = item
+            call = getattr(self._sink, method, None)
+            if call is None:  # a sink without send_due
+                continue
             try:
-                getattr(self._sink, method)(*args)
+                call(*args)
             except (OSError, CosimError) as exc:
                 self._error = exc
             except Exception as exc:  # a worker must not die silently

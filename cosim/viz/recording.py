@@ -9,8 +9,8 @@ file that cannot be written (disk full) raises ``OSError`` at the next send, whi
 the run. One ``rr.log`` per signal per step would cost 30-60x more
 (``scripts/bench_recording.py``), so there are none. What the recording shows is laid out
 in :mod:`cosim.viz.layout` (plots, colours, blueprint) and :mod:`cosim.viz.scene` (the 3D
-scene). Each sink owns its own ``rr.RecordingStream``, so several runs in one process
-never mix.
+scene). Each sink owns its own ``rr.RecordingStream`` (two with a file and a viewer: see
+``VIEWER_SEND_INTERVAL``), so several runs in one process never mix.
 
 The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``), the
 scenario id as the recording name and a property, and the resolved scenario TOML as a
@@ -32,6 +32,7 @@ import sys
 import time
 import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -58,19 +59,23 @@ from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters,
 
 APPLICATION_ID = "auv-cosim"
 RRD_MAGIC = b"RRF"  # the first bytes of an .rrd file (RRF2 in rerun 0.41)
-# Each send costs ~25 send_columns calls of ~70 us whatever their length, and each leaves
-# ~100 kB in memory until the file is closed (measured on vert-2: the chunk index of
-# rerun-sdk 0.41's file footer), so rows are buffered: sent once BATCH_ROWS have gathered,
-# or once the send interval has passed since the last send: SEND_INTERVAL at first with a
-# live viewer (it sees the run advance about once a second), FILE_SEND_INTERVAL for a file
-# alone, and SEND_INTERVAL_GROWTH of the time the sink has been open once that is longer,
-# so the sends of a long run grow with the logarithm of its duration, and the memory with
-# them, not in proportion (scripts/bench_memory.py).
+# Each send costs ~25 send_columns calls of ~70 us whatever their length, and each send to
+# a file leaves ~100 kB in memory until the file is closed (measured on vert-2: the chunk
+# index of rerun-sdk 0.41's file footer), so rows are buffered: sent once BATCH_ROWS have
+# gathered, or once the send interval has passed since the last send. For the file that is
+# FILE_SEND_INTERVAL, and SEND_INTERVAL_GROWTH of the time the sink has been open once that
+# is longer, so the sends of a long run grow with the logarithm of its duration, and the
+# memory with them, not in proportion (scripts/bench_memory.py). A viewer (``--connect``)
+# is fed by a stream of its own every VIEWER_SEND_INTERVAL however long the run has gone on
+# (a gRPC sink keeps no index): it sees the run advance about once a second (in one stream
+# with the file it lagged 12 s behind a live run after 10 minutes, 50 s after 45). A sink
+# fed from a thread (cosim.outputs.background) also sends what is due when no rows come
+# (:meth:`RerunSink.send_due`), so a paused run shows where it paused.
 BATCH_ROWS = 5000
+VIEWER_SEND_INTERVAL = 1.0  # s of wall-clock time
 FILE_SEND_INTERVAL = 5.0  # s of wall-clock time
 SEND_INTERVAL_GROWTH = 0.02
 FLUSH_TIMEOUT = 10.0  # s to wait for a viewer to take the last rows on close
-SEND_INTERVAL = 1.0  # s of wall-clock time, the shortest send interval
 
 
 class RerunSink:
@@ -109,39 +114,48 @@ class RerunSink:
         self._columns = list(columns)
         self._index = {name: i for i, name in enumerate(columns)}
         self._panels = plan_panels(self._columns)
-        self._pending_times: list[np.ndarray] = []
-        self._pending_values: list[np.ndarray] = []
-        self._pending_rows = 0
         self._closed = False
-        self._opened = self._last_send = time.monotonic()
-        self._send_interval = SEND_INTERVAL if connect_url is not None else FILE_SEND_INTERVAL
+        self._opened = time.monotonic()
         self._rrd_path = None if rrd_path is None else Path(rrd_path)
         self._on_flushed = on_flushed
         self._file: RrdFile | None = None
         self._viewer_warned = False
+        self._channels: list[_Channel] = []
 
         vehicle, depth_mode = _scenario_facts(scenario)
         has_depth = "controller.depth_setpoint" in self._index and "plant.down" in self._index
         depth_control = has_depth if depth_mode is None else depth_mode != 0 and has_depth
+        blueprint = build_blueprint(self._panels, depth_control=depth_control)
 
-        sinks: list[Any] = []
-        if connect_url is not None:
-            sinks.append(_viewer_sink(connect_url))
-        self._rec = rr.RecordingStream(APPLICATION_ID)
+        viewer = None if connect_url is None else _viewer_sink(connect_url)
         try:
+            if viewer is not None:
+                self._add_channel(viewer, blueprint, VIEWER_SEND_INTERVAL, None)
             if self._rrd_path is not None:
-                sinks.append(self._open_file(self._rrd_path))
-            blueprint = build_blueprint(self._panels, depth_control=depth_control)
-            try:
-                self._rec.set_sinks(*sinks, default_blueprint=blueprint)
-            except RuntimeError as exc:  # rerun-sdk's error for a file it cannot create
-                raise OSError(f"cannot write the recording {rrd_path}: {exc}") from None
-            self._log_static(scenario, vehicle, depth_control)
-            self._flush()  # the static part is on disk before the first step
+                file = self._open_file(self._rrd_path)
+                growth = SEND_INTERVAL_GROWTH
+                self._add_channel(file, blueprint, FILE_SEND_INTERVAL, growth)
+            for channel in self._channels:
+                self._log_static(channel, scenario, vehicle, depth_control)
+            self._flush(self._channels)  # the static part is on disk before the first step
         except BaseException:
             with contextlib.suppress(OSError):  # the first failure is the one to report
                 self._disconnect()
             raise
+
+    def _add_channel(
+        self, sink: Any, blueprint: Any, interval: float, growth: float | None
+    ) -> None:
+        """A stream of its own to ``sink``, sending every ``interval`` s (and ``growth`` of
+        the sink's age, if given); every stream of the sink has the first one's recording id
+        (the file and the viewer show one recording)."""
+        same = self._channels[0].rec.get_recording_id() if self._channels else None
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=same)
+        self._channels.append(_Channel(rec, interval, growth, self._opened))
+        try:
+            rec.set_sinks(sink, default_blueprint=blueprint)
+        except RuntimeError as exc:  # rerun-sdk's error for a file it cannot create
+            raise OSError(f"cannot write the recording {self._rrd_path}: {exc}") from None
 
     def _open_file(self, path: Path) -> Any:
         """The sink writing ``path`` (through :class:`RrdFile` where possible)."""
@@ -154,14 +168,17 @@ class RerunSink:
             raise OSError(f"cannot write the recording {path}: {exc.strerror or exc}") from None
         return self._file.sink()
 
-    def _log_static(self, scenario: Scenario, vehicle: VehicleParameters, depth: bool) -> None:
+    def _log_static(
+        self, channel: _Channel, scenario: Scenario, vehicle: VehicleParameters, depth: bool
+    ) -> None:
         """The recording's name and properties, the scenario text, styles and the scene."""
         scenario_id, columns, toml = scenario.id, self._columns, scenario.to_toml()
-        self._rec.send_recording_name(scenario_id)
-        self._rec.send_property(
+        rec = channel.rec
+        rec.send_recording_name(scenario_id)
+        rec.send_property(
             "scenario", rr.AnyValues(id=scenario_id, vehicle=vehicle.name, columns=len(columns))
         )
-        self._rec.log(
+        rec.log(
             "scenario",
             rr.TextDocument(
                 f"# Scenario `{scenario_id}`\n\n{scene_legend()}\n"
@@ -171,12 +188,12 @@ class RerunSink:
             static=True,
         )
         for panel in self._panels:
-            self._rec.log(panel.entity, series_style(panel), static=True)
+            rec.log(panel.entity, series_style(panel), static=True)
         log_static_scene(
-            self._rec, vehicle, columns, show_depth_setpoint=depth,
+            rec, vehicle, columns, show_depth_setpoint=depth,
             waypoints=mission_waypoints(toml),  # None without a waypoint guidance
         )  # fmt: skip
-        self._scene = SceneWriter(self._rec, vehicle, show_depth_setpoint=depth)
+        channel.scene = SceneWriter(rec, vehicle, show_depth_setpoint=depth)
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         """Queue k rows: ``times`` (k,) in s, ``values`` (k, len(columns)) in SI units.
@@ -195,15 +212,25 @@ class RerunSink:
             )
         if len(times) == 0:
             return
-        self._pending_times.append(times.copy())
-        self._pending_values.append(values.copy())
-        self._pending_rows += len(times)
+        times, values = times.copy(), values.copy()
+        for channel in self._channels:
+            channel.times.append(times)
+            channel.values.append(values)
+            channel.rows += len(times)
+        self.send_due()
+
+    def send_due(self) -> None:
+        """Send the rows of every stream whose send is due (see ``BATCH_ROWS``); what a
+        sink fed from a thread calls when no rows have come for a while."""
+        if self._closed:
+            return
         now = time.monotonic()
-        interval = max(self._send_interval, SEND_INTERVAL_GROWTH * (now - self._opened))
-        if self._pending_rows >= BATCH_ROWS or now - self._last_send >= interval:
-            self._send_pending()
-            self._flush()
-            self._last_send = now
+        due = [channel for channel in self._channels if channel.due(now)]
+        for channel in due:
+            self._send_pending(channel)
+            channel.last_send = now
+        if due:
+            self._flush(due)
 
     def add_notes(self, notes: Sequence[tuple[float, str]]) -> None:
         """Log what happened at a time -- an event fired, a fault started or stopped
@@ -215,9 +242,10 @@ class RerunSink:
             return
         times = np.asarray([t for t, _ in notes], dtype=float)
         texts = [text for _, text in notes]
-        self._rec.send_columns(
-            NOTES_ENTITY, indexes=time_index(times), columns=rr.TextLog.columns(text=texts)
-        )
+        for channel in self._channels:
+            channel.rec.send_columns(
+                NOTES_ENTITY, indexes=time_index(times), columns=rr.TextLog.columns(text=texts)
+            )
 
     def close(self) -> None:
         """Send what is queued, flush and close the file; safe to call twice.
@@ -229,30 +257,34 @@ class RerunSink:
             return
         self._closed = True
         try:
-            self._send_pending()
-            self._flush()
+            for channel in self._channels:
+                self._send_pending(channel)
+            self._flush(self._channels)
         finally:
             self._disconnect()
 
     def _disconnect(self) -> None:
         """Let go of the sinks (rerun writes the file's footer), then close the file;
         raises OSError if the file failed."""
-        self._rec.disconnect()
+        for channel in self._channels:
+            channel.rec.disconnect()
         if self._file is not None:
             file, self._file = self._file, None
             file.close(timeout=FLUSH_TIMEOUT)
 
-    def _flush(self) -> None:
-        """Wait until what was sent is written; a file that failed raises OSError."""
-        try:
-            self._rec.flush(timeout_sec=FLUSH_TIMEOUT)
-        except RuntimeError as exc:  # the bindings' error for a sink that failed
-            if self._file is None and self._rrd_path is not None:  # rerun's own file writer
-                raise OSError(_write_failure(self._rrd_path, exc)) from None
-            if not self._viewer_warned:
-                self._viewer_warned = True
-                warnings.warn(f"Rerun viewer: {exc}", stacklevel=3)
-        if self._file is not None:
+    def _flush(self, channels: Sequence[_Channel]) -> None:
+        """Wait until what was sent to ``channels`` is written; a file that failed raises
+        OSError."""
+        for channel in channels:
+            try:
+                channel.rec.flush(timeout_sec=FLUSH_TIMEOUT)
+            except RuntimeError as exc:  # the bindings' error for a sink that failed
+                if channel.is_file and self._rrd_path is not None and self._file is None:
+                    raise OSError(_write_failure(self._rrd_path, exc)) from None  # rerun's writer
+                if not self._viewer_warned:
+                    self._viewer_warned = True
+                    warnings.warn(f"Rerun viewer: {exc}", stacklevel=4)
+        if self._file is not None and any(channel.is_file for channel in channels):
             try:
                 size = self._file.sync(FLUSH_TIMEOUT)
             except OSError as exc:
@@ -266,19 +298,19 @@ class RerunSink:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _send_pending(self) -> None:
-        if not self._pending_rows:
+    def _send_pending(self, channel: _Channel) -> None:
+        if not channel.rows:
             return
-        times = np.concatenate(self._pending_times)
-        values = np.concatenate(self._pending_values)
-        self._pending_times.clear()
-        self._pending_values.clear()
-        self._pending_rows = 0
+        times = np.concatenate(channel.times)
+        values = np.concatenate(channel.values)
+        channel.times.clear()
+        channel.values.clear()
+        channel.rows = 0
         index = time_index(times)
         for panel in self._panels:
             with np.errstate(over="ignore"):  # 1e308 rad set live, in deg: shown as inf
                 shown = values[:, panel.indices] * np.asarray(panel.scales)
-            self._rec.send_columns(
+            channel.rec.send_columns(
                 panel.entity, indexes=index, columns=rr.Scalars.columns(scalars=shown)
             )
 
@@ -286,7 +318,39 @@ class RerunSink:
             i = self._index.get(name)
             return None if i is None else values[:, i]
 
-        self._scene.send(index, len(times), column)
+        assert channel.scene is not None
+        channel.scene.send(index, len(times), column)
+
+
+@dataclass
+class _Channel:
+    """One recording stream of a sink (to the file, or to a viewer) and its unsent rows."""
+
+    rec: rr.RecordingStream
+    interval: float  # s of wall-clock time between sends
+    growth: float | None  # the fraction of the sink's age the interval grows to (a file)
+    opened: float  # time.monotonic() when the sink opened
+    last_send: float = field(init=False)
+    scene: SceneWriter | None = None
+    times: list[np.ndarray] = field(default_factory=list)
+    values: list[np.ndarray] = field(default_factory=list)
+    rows: int = 0
+
+    def __post_init__(self) -> None:
+        self.last_send = self.opened
+
+    @property
+    def is_file(self) -> bool:
+        return self.growth is not None
+
+    def due(self, now: float) -> bool:
+        """Whether the rows gathered are to be sent at ``now``."""
+        if not self.rows:
+            return False
+        interval = self.interval
+        if self.growth is not None:
+            interval = max(interval, self.growth * (now - self.opened))
+        return self.rows >= BATCH_ROWS or now - self.last_send >= interval
 
 
 def _viewer_sink(url: str) -> rr.GrpcSink:

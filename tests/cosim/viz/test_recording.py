@@ -20,6 +20,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pyarrow as pa
@@ -29,6 +30,7 @@ from scenario_factory import auv_scenario
 
 from cosim.cli import main
 from cosim.errors import CosimError
+from cosim.viz import recording
 from cosim.viz.recording import RECORDING_FILE, RerunSink, rerun_executable, view_run
 from cosim.viz.scene import CURRENT_SCALE, FORCE_SCALE, MASS_RADIUS
 from plant_fmu.model.dynamics import (
@@ -635,3 +637,71 @@ def test_plant_alone_recording_shows_its_held_inputs(real_runs: Path):
     np.testing.assert_array_equal(
         current[:, 0, 1], (CURRENT_SCALE * csv["plant.current_east"]).astype(np.float32)
     )
+
+
+def _viewer_as_file(monkeypatch, shown: Path) -> str:
+    """Make ``--connect`` stream to the file ``shown`` instead (what a viewer would get);
+    returns a URL to give the sink."""
+    import rerun as rr
+
+    monkeypatch.setattr(recording, "_viewer_sink", lambda url: rr.FileSink(str(shown)))
+    return "rerun+http://127.0.0.1:9/proxy"
+
+
+def _times_shown(shown: Path) -> np.ndarray:
+    """The sim_time (ns) of every yaw the viewer got so far (empty before any)."""
+    try:
+        return read_temporal(shown, "/attitude/yaw_deg", "Scalars:scalars", 1)[0]
+    except (AssertionError, OSError, ValueError, RuntimeError):  # none yet, or a torn tail
+        return np.zeros(0, dtype=np.int64)
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # read while being written
+def test_a_viewer_sees_new_rows_each_second_however_long_the_run(
+    tmp_path: Path, fmu_dir: Path, monkeypatch
+):
+    """A run streamed to a viewer (``--connect``) sends it what is new about once a second
+    all along. The file's sends grow further apart with the run's age (memory); a viewer
+    fed in the same sends lagged 12 s behind a live run after 10 minutes."""
+    now = [0.0]
+    monkeypatch.setattr(recording, "time", SimpleNamespace(monotonic=lambda: now[0]))
+    shown = tmp_path / "viewer.rrd"
+    url = _viewer_as_file(monkeypatch, shown)
+    columns = ["plant.yaw", "plant.north", "plant.east", "plant.down"]
+    sink = sink_for(fmu_dir, tmp_path / "file.rrd", "live", columns, url=url)
+    try:
+        for k in range(601):  # ten minutes of a live run at 1x: a row each second
+            now[0] = float(k)
+            sink.add_rows(np.array([float(k)]), np.full((1, len(columns)), 0.01 * k))
+        now[0] += 1.0  # a second later
+        sink.add_rows(np.array([601.0]), np.full((1, len(columns)), 6.01))
+        assert step_nanos(np.array([601.0]))[0] in _times_shown(shown)
+    finally:
+        sink.close()
+    assert len(read_temporal(tmp_path / "file.rrd", "/attitude/yaw_deg", "Scalars:scalars", 1)[0])
+    ids = {entry.recording_id for p in (shown, tmp_path / "file.rrd") for entry in
+           RrdReader(p).recordings()}  # fmt: skip
+    assert len(ids) == 1  # one recording, in the viewer and in the file
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # read while being written
+def test_a_paused_live_run_shows_the_viewer_where_it_paused(
+    tmp_path: Path, fmu_dir: Path, monkeypatch
+):
+    """A paced run's sink (fed from a thread) sends a viewer the rows it holds back once
+    their time has come, although no new rows come while the run is paused: the viewer
+    showed the vehicle where it was up to a send interval before the pause, for as long as
+    the pause lasted."""
+    from cosim.outputs.background import BackgroundSink
+
+    shown = tmp_path / "viewer.rrd"
+    url = _viewer_as_file(monkeypatch, shown)
+    sink = BackgroundSink(sink_for(fmu_dir, None, "paused", ["plant.yaw"], url=url))
+    try:
+        sink.add_rows(np.array([0.0, 0.01]), np.array([[0.0], [0.1]]))  # then it pauses
+        deadline = time.monotonic() + 10.0
+        while len(_times_shown(shown)) < 2:
+            assert time.monotonic() < deadline, "the viewer never got the rows before the pause"
+            time.sleep(0.1)
+    finally:
+        sink.close()
