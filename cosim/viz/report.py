@@ -671,7 +671,7 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 <body>
 <h1>Run {html.escape(str(name))}</h1>
 <p>Run folder: <code>{html.escape(str(run_dir))}</code> (results.csv, summary.json)</p>
-{_stamp_line(stamp)}
+{_stamp_line(stamp, run_dir, summary_problem)}
 {note}
 <table>
 {table}
@@ -683,16 +683,21 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 """
 
 
-def _stamp_line(stamp: dict[str, Any] | None) -> str:
-    """Which run the page describes, and when it was made (nothing without a stamp)."""
+def _stamp_line(stamp: dict[str, Any] | None, run_dir: Path, summary_problem: str | None) -> str:
+    """Which run the page describes, and when it was made (nothing without a stamp). A run
+    without a (readable) summary.json is named by its folder, its status as unknown."""
     if stamp is None:
         return ""
     digest = stamp.get("results_sha256") or "unknown"
+    scenario, status = stamp.get("scenario"), stamp.get("status")
+    run = f"the run of {scenario}" if scenario else f"the run in {run_dir.resolve().name}"
+    if not status:
+        status = "unknown" + (f": {summary_problem}" if summary_problem else "")
     return (
-        f'<p class="stamp">Made {html.escape(str(stamp.get("made")))} from the run of '
-        f"{html.escape(str(stamp.get('scenario')))} (status {html.escape(str(stamp.get('status')))}"
-        f"), results.csv SHA-256 <code>{html.escape(digest[:16])}</code>. A later run into this "
-        "folder marks this page stale.</p>"
+        f'<p class="stamp">Made {html.escape(str(stamp.get("made")))} from '
+        f"{html.escape(run)} (status {html.escape(str(status))}), results.csv SHA-256 "
+        f"<code>{html.escape(digest[:16])}</code>. A later run into this folder marks this "
+        "page stale.</p>"
     )
 
 

@@ -7,6 +7,7 @@ documented results.csv / summary.json format, so each figure's data is known.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -111,6 +112,9 @@ def test_depth_loop_gets_its_figure_and_a_3d_trajectory(tmp_path):
     page = index.read_text()
     assert 'src="depth.png"' in page
     assert "no summary.json" in page  # the report goes on without it, and says so
+    stamp = re.search(r'<p class="stamp">(.*?)</p>', page).group(1)
+    assert "None" not in stamp  # what it does not know it says so, not as Python's None
+    assert "the run in dive (status unknown: no summary.json" in stamp
 
 
 def test_missing_columns_leave_their_panels_and_figures_out(tmp_path):
