@@ -310,7 +310,7 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
             tabs.append(rrb.Grid(*views, grid_columns=PLOT_COLUMNS, name=title))
     if any(p.entity.startswith("other/") for p in panels):
         tabs.append(rrb.TimeSeriesView(origin="/other", name="Other signals"))
-    tabs.append(rrb.TextLogView(origin=f"/{NOTES_ENTITY}", name="Events and faults"))
+    tabs.append(rrb.TextLogView(origin=f"/{NOTES_ENTITY}", name="Events"))
     tabs.append(rrb.TextDocumentView(origin="/scenario", name="Scenario"))
     names = [tab.name for tab in tabs]
     first = "Depth loop" if depth_control else "Vehicle"
