@@ -70,6 +70,18 @@ class _Writer:
         slave, var = self._resolve(ref)
         return float(slave.fmu.getReal([var.valueReference])[0])
 
+    def shown(self, ref: str, value: bool | int | float | str) -> str:
+        """``value`` of ``ref`` as a note says it: with the variable's unit, and an angle
+        in rad also in degrees (the recording's plots show angles in degrees)."""
+        _, var = self._resolve(ref)
+        unit = var.unit or (var.declaredType.unit if var.declaredType is not None else None)
+        if var.type != "Real" or not unit or not isinstance(value, int | float):
+            return repr(value)
+        if unit in ("rad", "rad/s"):
+            degrees = unit.replace("rad", "deg")
+            return f"{value!r} {unit} ({math.degrees(value):.6g} {degrees})"
+        return f"{value!r} {unit}"
+
     def set(self, ref: str, value: bool | int | float | str, why: str, assign: bool = True) -> None:
         """Write ``value``; ``assign``: an event's value (restored when a fault ends)."""
         slave, var = self._resolve(ref)
@@ -310,7 +322,9 @@ class Timeline:
                 self._writer.set(ref, value, why)
         self.fired.append({"name": event.name, "time": t, "set": dict(event.set)})
         self.epoch += 1
-        told = ", ".join(f"{ref} = {value!r}" for ref, value in event.set.items())
+        told = ", ".join(
+            f"{ref} = {self._writer.shown(ref, value)}" for ref, value in event.set.items()
+        )
         ramp = f" (ramp over {event.ramp!r} s)" if event.ramp is not None else ""
         self.notes.append((t, f"{what} {event.name}{origin}: {told}{ramp}"))
 

@@ -146,8 +146,8 @@ def test_a_paced_run_steered_over_the_endpoint_replays_byte_identical(
             notes += list(zip(nanos, texts, strict=True))
     assert sorted(notes) == [
         (round(o["time"] * 1e9), f"override {o['name']} from {o['source']}: "
-                                 f"controller.yaw_setpoint = {value}")
-        for o, value in zip(overrides, (0.3, 0.6), strict=True)
+                                 f"controller.yaw_setpoint = {value} rad ({degrees} deg)")
+        for o, value, degrees in zip(overrides, (0.3, 0.6), ("17.1887", "34.3775"), strict=True)
     ]  # fmt: skip
 
     replay = run_scenario(out / "scenario.toml", tmp_path / "replay", fmu_dir=fmu_dir,

@@ -575,6 +575,10 @@ tunnel_force = 6.0
 mass_position_cmd = 0.05
 fin_angle = 0.08
 current_east = 0.2
+[[events]]
+name = "planes-down"
+time = 1.0
+set = { "plant.fin_angle" = 0.1, "plant.tunnel_force" = 3.0 }
 """
 
 
@@ -705,3 +709,21 @@ def test_a_paused_live_run_shows_the_viewer_where_it_paused(
             time.sleep(0.1)
     finally:
         sink.close()
+
+
+@pytest.mark.slow
+def test_an_events_note_gives_each_value_with_its_unit_and_an_angle_in_degrees(
+    real_runs: Path,
+):
+    """The plots show angles in degrees: a note saying an angle in rad without its unit
+    (``plant.fin_angle = 0.1`` beside a fin plot at 5.7) read as the wrong number."""
+    notes = [
+        text
+        for chunk in RrdReader(real_runs / "open-loop" / RECORDING_FILE).stream()
+        if chunk.entity_path == "/events"
+        for row in chunk.to_record_batch().column("TextLog:text").to_pylist()
+        for text in row
+    ]
+    assert notes == [
+        "event planes-down: plant.fin_angle = 0.1 rad (5.72958 deg), plant.tunnel_force = 3.0 N"
+    ]
