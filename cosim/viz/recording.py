@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shlex
 import shutil
 import socket
@@ -470,8 +471,11 @@ def view_run(
 
     With ``web``, serves it to Rerun's web viewer on 127.0.0.1 and prints the one URL
     that opens it (:func:`cosim.viz.web_viewer.serve`; ``open_browser`` opens it), until
-    Ctrl-C. Else, with a display (``DISPLAY`` or ``WAYLAND_DISPLAY`` set) and the
-    ``rerun`` binary found, runs the viewer on the file and returns its exit code.
+    Ctrl-C. Else, with a display (:func:`display_problem`: on Linux a display server
+    answering at ``WAYLAND_DISPLAY`` or ``DISPLAY``; Windows and macOS have their own) and
+    the ``rerun`` binary found, runs the viewer on the file (its gRPC server on 127.0.0.1
+    only, as ``--web``'s) and returns its exit code, with a line saying to use ``--web``
+    when it failed.
 
     Raises:
         CosimError: the folder holds no recording, the file is not a Rerun recording, or
@@ -483,20 +487,88 @@ def view_run(
         if executable is None:
             raise CosimError("the `rerun` binary is not on PATH (it comes with rerun-sdk)")
         return serve(executable, rrd, web_port, file_port, open_browser)
-    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-    if has_display and executable is not None:
-        print(f"opening {rrd} in the Rerun viewer")
-        return subprocess.call([executable, str(rrd)])
-    reason = (
-        "no display (DISPLAY / WAYLAND_DISPLAY unset)"
-        if not has_display
-        else "the `rerun` viewer is not on PATH (it comes with `pip install rerun-sdk`)"
-    )
     folder, file = shlex.quote(str(run_dir)), shlex.quote(str(rrd))  # for commands to paste
+    web_hint = f"use `auv-cosim view {folder} --web` to serve the recording to a browser"
+    reason = display_problem()
+    if reason is None and executable is not None:
+        print(f"opening {rrd} in the Rerun viewer", flush=True)
+        code = subprocess.call([executable, "--bind", "127.0.0.1", str(rrd)])
+        if code != 0:
+            print(
+                f"auv-cosim view: the Rerun viewer exited with status {code}; if it could not "
+                f"open a window, {web_hint}",
+                file=sys.stderr,
+            )
+        return code
+    if reason is None:
+        reason = "the `rerun` viewer is not on PATH (it comes with `pip install rerun-sdk`)"
     raise CosimError(
-        f"cannot open a viewer here: {reason}; use `auv-cosim view {folder} --web` to serve "
-        f"the recording to a browser (or `rerun {file}` on a machine with a display)"
+        f"cannot open a viewer here: {reason}; {web_hint} (or `rerun {file}` on a machine "
+        "with a display)"
     )
+
+
+X11_SOCKETS = Path("/tmp/.X11-unix")  # a local X server's sockets: X<display number>
+X11_TCP_BASE = 6000  # an X server on a host listens on this port + its display number
+_X11_DISPLAY = re.compile(r"(?P<host>[^:]*):(?P<number>\d+)(?:\.\d+)?")
+
+
+def display_problem() -> str | None:
+    """Why the native viewer cannot open a window here, or None if it can (as far as can
+    be told: a display named in a form not understood here is left to the viewer).
+
+    On Linux, a display is a server answering at ``WAYLAND_DISPLAY`` (a socket in
+    ``XDG_RUNTIME_DIR``) or ``DISPLAY`` (``:N`` a local X server's socket, ``HOST:N`` TCP
+    port 6000 + N, as ssh's X forwarding gives): a ``DISPLAY`` left over from another
+    session made the viewer fail after a screen of its own log. Windows and macOS always
+    have their own."""
+    if sys.platform in ("win32", "darwin"):
+        return None
+    wayland, x11 = os.environ.get("WAYLAND_DISPLAY"), os.environ.get("DISPLAY")
+    if not wayland and not x11:
+        return "no display (DISPLAY / WAYLAND_DISPLAY unset)"
+    if (wayland and _wayland_answers(wayland)) or (x11 and _x11_answers(x11)):
+        return None
+    given = (("WAYLAND_DISPLAY", wayland), ("DISPLAY", x11))
+    named = " or ".join(f"{name}={value}" for name, value in given if value)
+    return f"no display (no display server answers at {named})"
+
+
+def _wayland_answers(name: str) -> bool:
+    runtime = os.environ.get("XDG_RUNTIME_DIR")
+    path = Path(name) if Path(name).is_absolute() else None
+    if path is None and runtime:
+        path = Path(runtime) / name
+    return path is not None and _unix_answers(str(path))
+
+
+def _x11_answers(display: str) -> bool:
+    match = _X11_DISPLAY.fullmatch(display)
+    if match is None:
+        return True  # a form not understood here: the viewer will say
+    host, number = match["host"], int(match["number"])
+    if host in ("", "unix"):
+        socket_path = str(X11_SOCKETS / f"X{number}")
+        return _unix_answers(socket_path) or (
+            sys.platform.startswith("linux") and _unix_answers("\0" + socket_path)
+        )
+    try:
+        with socket.create_connection((host, X11_TCP_BASE + number), timeout=2.0):
+            return True
+    except OSError:
+        return False
+
+
+def _unix_answers(path: str) -> bool:
+    """Whether something listens on the Unix socket ``path`` (a leading NUL: Linux's
+    abstract namespace, where X servers listen too)."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as probe:
+        probe.settimeout(2.0)
+        try:
+            probe.connect(path)
+        except OSError:
+            return False
+    return True
 
 
 def recording_in(path: Path) -> Path:

@@ -518,14 +518,81 @@ def test_view_without_display_fails_saying_how_to_open(
     assert shlex.split(native) == ["rerun", str(run_dir / RECORDING_FILE)]
 
 
+@contextmanager
+def _x_server(folder: Path, number: int) -> Iterator[None]:
+    """A socket listening where a local X server of that display number would."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as server:
+        server.bind(str(folder / f"X{number}"))
+        server.listen(1)
+        yield
+
+
+def _viewer_calls(monkeypatch, code: int = 0) -> list[list[str]]:
+    """The command lines the native viewer is started with (it exits with ``code``)."""
+    calls: list[list[str]] = []
+    monkeypatch.setattr("cosim.viz.recording.rerun_executable", lambda: "/opt/rerun")
+    monkeypatch.setattr(
+        "cosim.viz.recording.subprocess.call", lambda argv: calls.append(argv) or code
+    )
+    return calls
+
+
 def test_view_with_display_runs_the_viewer_on_the_file(recorded, tmp_path: Path, monkeypatch):
     shutil.copyfile(recorded[0], tmp_path / RECORDING_FILE)
     monkeypatch.setenv("DISPLAY", ":99")
-    monkeypatch.setattr("cosim.viz.recording.rerun_executable", lambda: "/opt/rerun")
-    calls = []
-    monkeypatch.setattr("cosim.viz.recording.subprocess.call", lambda argv: calls.append(argv) or 0)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("cosim.viz.recording.X11_SOCKETS", tmp_path)
+    calls = _viewer_calls(monkeypatch)
+    with _x_server(tmp_path, 99):
+        assert view_run(tmp_path) == 0
+    # its gRPC server on 127.0.0.1 only, as --web's (rerun binds every interface by default)
+    assert calls == [["/opt/rerun", "--bind", "127.0.0.1", str(tmp_path / RECORDING_FILE)]]
+
+
+@pytest.mark.parametrize("display", [":77", "localhost:77.0"])
+def test_view_where_no_display_server_answers_fails_in_one_line_saying_to_use_web(
+    recorded, tmp_path: Path, monkeypatch, capsys, display: str
+):
+    """A DISPLAY left over from another session (ssh without X forwarding, a container):
+    the viewer was started and failed after a screen of its own log."""
+    shutil.copyfile(recorded[0], tmp_path / RECORDING_FILE)
+    monkeypatch.setenv("DISPLAY", display)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("cosim.viz.recording.X11_SOCKETS", tmp_path)  # no X77 there
+    calls = _viewer_calls(monkeypatch)
+    assert main(["view", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert calls == [] and err.count("\n") == 1, err
+    assert f"no display server answers at DISPLAY={display}" in err
+    assert f"`auv-cosim view {tmp_path} --web`" in err
+
+
+def test_view_on_windows_opens_the_viewer_without_display_variables(
+    recorded, tmp_path: Path, monkeypatch
+):
+    """Windows (and macOS) have no DISPLAY: the viewer opens all the same."""
+    shutil.copyfile(recorded[0], tmp_path / RECORDING_FILE)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("cosim.viz.recording.sys.platform", "win32")
+    calls = _viewer_calls(monkeypatch)
     assert view_run(tmp_path) == 0
-    assert calls == [["/opt/rerun", str(tmp_path / RECORDING_FILE)]]
+    assert calls == [["/opt/rerun", "--bind", "127.0.0.1", str(tmp_path / RECORDING_FILE)]]
+
+
+def test_a_viewer_that_fails_is_followed_by_a_line_saying_to_use_web(
+    recorded, tmp_path: Path, monkeypatch, capsys
+):
+    shutil.copyfile(recorded[0], tmp_path / RECORDING_FILE)
+    monkeypatch.setenv("DISPLAY", ":99")
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("cosim.viz.recording.X11_SOCKETS", tmp_path)
+    _viewer_calls(monkeypatch, code=1)
+    with _x_server(tmp_path, 99):
+        assert main(["view", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "exited with status 1" in err
+    assert f"`auv-cosim view {tmp_path} --web`" in err
 
 
 def test_view_of_something_that_is_not_a_recording_exits_non_zero(tmp_path: Path, capsys):
