@@ -68,6 +68,7 @@ from cosim.outputs.report_folder import (
 from cosim.outputs.results import read_csv
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.viz.mission import mission_waypoints
+from cosim.viz.rrd_file import STUDY_FILE
 
 INDEX_PAGE = "index.html"
 ZOOM_SETTLING_TIMES = 3.0  # the transient column shows this many settling times
@@ -282,6 +283,17 @@ def load_results(run_dir: Path) -> dict[str, np.ndarray]:
         raise CosimError(
             f"{run_dir} is not a folder{did_you_mean_path(run_dir)}: expected the output "
             "folder of a run"
+        )
+    if not path.is_file() and (run_dir / STUDY_FILE).is_file():
+        kept = run_dir / "runs"  # the runs a study keeps (its overlay's)
+        raise CosimError(
+            f"{run_dir} is a study folder: its page is {run_dir / 'index.html'} (the sweep "
+            "writes it)"
+            + (
+                f"; `auv-cosim report {kept / 'RUN_ID'}` reports a run it kept"
+                if kept.is_dir()
+                else ""
+            )
         )
     if not path.is_file():
         raise CosimError(

@@ -179,6 +179,22 @@ def test_folder_without_results_is_a_clear_error(tmp_path, capsys):
     assert "is not a folder" in err and len(err.strip().splitlines()) == 1
 
 
+def test_a_study_folder_is_refused_saying_where_its_page_and_runs_are(tmp_path, capsys):
+    """``report STUDY`` said "no results.csv ... expected the output folder of `auv-cosim
+    run`", as of any folder."""
+    study = tmp_path / "study"
+    study.mkdir()
+    (study / "study.json").write_text("{}")
+    for kept in (False, True):  # its runs' folders are kept for an overlay
+        if kept:
+            (study / "runs").mkdir()
+        assert main(["report", str(study)]) == 1
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "is a study folder" in err, err
+        assert str(study / "index.html") in err
+        assert (str(study / "runs" / "RUN_ID") in err) is kept
+
+
 def test_results_without_rows_or_time_are_refused(tmp_path):
     header_only = tmp_path / "header"
     header_only.mkdir()
