@@ -104,6 +104,17 @@ def _number(value: object, default: float) -> float:
     return float(value) if isinstance(value, int | float) else default
 
 
+def _told(name: str, value: float) -> str:
+    """A value the keys set, in the unit the status line shows it in (the yaw in deg)."""
+    if name == "yaw_setpoint":
+        return f"{math.degrees(value):+.1f} deg"
+    if name == "depth_setpoint":
+        return f"{value:.1f} m"
+    if name == "mass_lock_time":
+        return "-1 (released)" if value < 0.0 else f"{value:.2f} s"
+    return f"{value:.4g}"
+
+
 def _terminal_fd() -> int:
     """Standard input's file descriptor, a terminal; :class:`CosimError` if it is not."""
     try:
@@ -227,11 +238,11 @@ class KeyPad:
         if ticket.refused is not None:
             return f"{name}: {ticket.refused}"
         if not ticket.done:
-            return f"{name} = {value:.4g} queued"
+            return f"{name} = {_told(name, value)} queued"
         t = self.live.time
         if name == "heading_mode" and value in DESIGNED_MODES and t == ticket.time:
             return f"mode {value}: designing the heading law (the run waits)"
-        return f"{name} = {value:.4g} applied at t = {ticket.time:.2f} s"
+        return f"{name} = {_told(name, value)} applied at t = {ticket.time:.2f} s"
 
     def status_line(self, width: int) -> str:
         """The status line, at most ``width - 1`` characters (no wrap at the last column)."""

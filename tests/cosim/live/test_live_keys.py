@@ -175,6 +175,22 @@ def test_switching_to_lqr_says_designing_until_the_run_goes_on(
     assert "heading_mode = 1 applied at t = 0.07 s" in pad.status_line(200)
 
 
+def test_a_set_point_change_is_told_in_the_unit_the_status_line_shows(
+    bs3: Scenario, terminal: int
+) -> None:
+    """The line read "yaw_sp +5.0 deg ... | yaw_setpoint = 0.08727 queued": the same
+    set-point in degrees and, unnamed, in radians."""
+    live = LiveControl(bs3)
+    live.bind({}, StopRequest())
+    pad = KeyPad(live, bs3, fd=terminal, out=io.StringIO())
+    yaw = math.degrees(pad.value("yaw_setpoint") + YAW_STEP)
+    pad.press("right")
+    assert f"yaw_setpoint = {yaw:+.1f} deg queued" in pad.status_line(200)
+    depth = pad.value("depth_setpoint") + DEPTH_STEP
+    pad.press("down")
+    assert f"depth_setpoint = {depth:.1f} m queued" in pad.status_line(200)
+
+
 class Terminal:
     """The parent's side of the pty: what the run wrote so far, and keys to type."""
 
