@@ -60,6 +60,10 @@ TRAJECTORY: Rgb = NEUTRAL
 PLOT_COLUMNS = 2  # time-series plots side by side in a loop's grid
 TIMELINE = "sim_time"
 VEHICLE_ENTITY = "/world/vehicle"  # the body frame in the 3D scene (cosim.viz.scene)
+# What the world view's eye tracks: the hull, a shape in the body frame. The viewer tracks
+# an entity by its shapes: the frame itself, a transform alone, left the eye where it was.
+TRACKED_ENTITY = f"{VEHICLE_ENTITY}/hull"
+WORLD_EYE = (-10.0, -6.0, -5.0)  # m from the vehicle: behind, to port, above (13 m away)
 NOTES_ENTITY = "events"  # TextLog: events fired, faults started and stopped, live overrides
 CHASE_EYE = (-1.6, -0.9, -0.6)  # m in the chase frame: behind, to port, above the vehicle
 DEG = math.degrees(1.0)
@@ -240,9 +244,16 @@ def series_style(panel: PlannedPanel) -> rr.SeriesLines:
 
 
 def world_eye() -> rrb.EyeControls3D:
-    """The world view's eye: it follows the vehicle (``world/vehicle``) as it moves, so a
-    run that goes far does not leave the view (the eye stayed where the first frames put it)."""
-    return rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, tracking_entity=VEHICLE_ENTITY)
+    """The world view's eye: it follows the vehicle (its hull, :data:`TRACKED_ENTITY`) as
+    it moves, from :data:`WORLD_EYE` (the vehicle at the start: the origin), so a run that
+    goes far does not leave the view, nor shrink the vehicle to a dot."""
+    return rrb.EyeControls3D(
+        kind=rrb.Eye3DKind.Orbital,
+        position=WORLD_EYE,
+        look_target=(0.0, 0.0, 0.0),
+        eye_up=(0.0, 0.0, -1.0),  # NED: up is -z
+        tracking_entity=TRACKED_ENTITY,
+    )
 
 
 def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blueprint:

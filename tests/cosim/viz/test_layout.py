@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rerun.blueprint as rrb
-from repo_paths import ROOT
 
 from cosim.viz import layout
 from cosim.viz.layout import PANELS, build_blueprint, notebook_blueprint, plan_panels
@@ -107,18 +106,41 @@ def _world_views(container) -> list:
     return found
 
 
-def test_the_world_view_follows_the_vehicle() -> None:
-    """In the recording's layout and the notebook's, the world view's eye tracks the
-    vehicle's frame (the entity the scene moves every step), so the vehicle stays in view."""
+def _eye_value(eye, name: str) -> list:
+    return eye.__getattribute__(name).as_arrow_array().to_pylist()
+
+
+def test_the_world_view_follows_the_vehicle(tmp_path: Path) -> None:
+    """In the recording's layout and the notebook's, the world view's eye tracks a shape
+    that moves with the vehicle, from a fixed distance, so the vehicle stays in view and
+    in size. Tracking the body frame itself (a transform, no shape of its own) left the eye
+    where the first frames put it: 30 s into bs-3 the vehicle was a dot 45 m away."""
+    import rerun as rr
+    from rerun.chunk import RrdReader
+
+    from cosim.viz.scene import log_static_scene
+    from plant_fmu.model.parameters import load_vehicle
+
     columns = [s.column for panel in PANELS for s in panel.series]
+    rec = rr.RecordingStream("test")
+    rec.set_sinks(rr.FileSink(str(tmp_path / "scene.rrd")))
+    log_static_scene(rec, load_vehicle("remus100"), columns, show_depth_setpoint=False)
+    rec.disconnect()
+    shapes = {
+        chunk.entity_path
+        for chunk in RrdReader(tmp_path / "scene.rrd").stream()
+        if any(":" in name and not name.startswith("Transform3D:")
+               for name in chunk.to_record_batch().schema.names)
+    }  # fmt: skip
     panels = plan_panels(columns)
     for blueprint in (build_blueprint(panels, depth_control=True), notebook_blueprint(panels)):
         (world,) = _world_views(blueprint.root_container)
         eye = world.properties["EyeControls3D"]
-        assert [str(e) for e in eye.tracking_entity.as_arrow_array().to_pylist()] == [
-            layout.VEHICLE_ENTITY
-        ]
-    assert layout.VEHICLE_ENTITY.lstrip("/") in (ROOT / "cosim/viz/scene.py").read_text()
+        (tracked,) = [str(e) for e in _eye_value(eye, "tracking_entity")]
+        assert tracked.startswith(layout.VEHICLE_ENTITY + "/") and tracked in shapes, tracked
+        (position,), (target,) = _eye_value(eye, "position"), _eye_value(eye, "look_target")
+        assert 5.0 <= math.dist(position, target) <= 30.0  # m: the vehicle (1.6 m) readable
+        assert position[2] < target[2]  # above it (z down)
 
 
 def _views(container) -> list:
