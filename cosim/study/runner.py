@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import shlex
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -171,7 +172,9 @@ def run_study(
                     session.done()
                 paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
                 drawing.wait()
-                paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows)
+                paths["index"] = _write_report(
+                    out_dir, spec, base, factors, metrics, rows, overlay=bool(entries)
+                )
             if entries:
                 paths["overlay"], warnings = _overlay(
                     out_dir, entries, base, factors, runs, rows, session
@@ -405,7 +408,10 @@ def _write_report(
     factors: Mapping[str, FactorKind],
     metrics: Sequence[str],
     rows: Sequence[Mapping[str, Any]],
+    overlay: bool = False,
 ) -> Path:
+    """The study's page; with ``overlay``, it says where the recording of the chosen runs
+    is and how to open it (the page was the only place a study's reader looked)."""
     grid = {
         name: [factors[name].normalize(v) for v in values] for name, values in spec.grid.items()
     }
@@ -422,6 +428,11 @@ def _write_report(
         "random": _random_text(spec, quantities),
         "runs": f"{len(rows)}: {complete} complete, {len(rows) - complete} failed",
     }
+    if overlay:
+        facts["overlay"] = (
+            f"{OVERLAY_FILE}: the chosen runs in one Rerun recording; "
+            f"auv-cosim view {shlex.quote(str(out_dir))} opens it"
+        )
     return write_index(out_dir, facts, rows, figures, [m for m in metrics if m not in shown])
 
 

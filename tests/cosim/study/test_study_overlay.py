@@ -92,6 +92,8 @@ def test_the_overlay_holds_the_chosen_runs(fmu_dir: Path, tmp_path: Path) -> Non
     notes = rrd["/study"]["TextDocument:text"][0][0]
     assert f"| `{best}` | best:final.plant.north" in notes
     assert f"| `{named}` | {named} | plant.v_0 = 0, plant.current_east = 0.2 | complete |" in notes
+    page = (out / "index.html").read_text()  # the page says where the overlay is
+    assert f"overlay.rrd: the chosen runs in one Rerun recording; auv-cosim view {out}" in page
 
     # --overlay N on the finished study: N runs spread over its order, first and last
     argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--quiet"]
