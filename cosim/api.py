@@ -27,7 +27,7 @@ from collections.abc import Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 from cosim.errors import KEYWORDS, CosimError
 from cosim.paths import DEFAULT_FMU_DIR
@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
     import pandas as pd
 
     from cosim.runner import RunOutcome
-    from cosim.scenario.spec import Scenario, StartInput, StartValue
+    from cosim.scenario.spec import Algorithm, Extrapolation, Scenario, StartInput, StartValue
 
 __all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
 
@@ -165,8 +165,8 @@ def run(
     *,
     stop_time: float | None = None,
     step: float | None = None,
-    algorithm: Literal["jacobi", "gauss-seidel", "adaptive"] | None = None,
-    extrapolation: Literal["none", "linear", "quadratic"] | None = None,
+    algorithm: Algorithm | None = None,
+    extrapolation: Extrapolation | None = None,
     tolerance: float | None = None,
     check_step: bool = False,
     start: Mapping[str, StartInput] | None = None,

@@ -39,7 +39,7 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS, StopRequest, stop_on_signals
 from cosim.errors import FLAGS, CosimError, OptionNames
@@ -58,7 +58,7 @@ if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (s
     from cosim.outputs.background import BackgroundSink
     from cosim.outputs.run_outputs import RunOutputs
     from cosim.outputs.sinks import ProgressSink
-    from cosim.scenario.spec import Scenario
+    from cosim.scenario.spec import Algorithm, Extrapolation, Scenario
     from cosim.viz.recording import RerunSink
 
 MESSAGES_SHOWN = 3  # FMU log lines (warnings and worse) printed per instance
@@ -91,8 +91,8 @@ class RunOptions:
     out_dir: Path | None = None
     stop_time: float | None = None
     step: float | None = None
-    algorithm: Literal["jacobi", "gauss-seidel", "adaptive"] | None = None
-    extrapolation: Literal["none", "linear", "quadratic"] | None = None
+    algorithm: Algorithm | None = None
+    extrapolation: Extrapolation | None = None
     tolerance: float | None = None
     check_step: bool = False
     rrd: Path | None = None

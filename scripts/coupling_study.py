@@ -46,7 +46,7 @@ from cosim.engine import master
 from cosim.engine.step_check import check_step
 from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.richardson import observed_order
-from cosim.scenario.spec import Scenario, builtin_scenarios, load_scenario
+from cosim.scenario.spec import ErrorEstimate, Scenario, builtin_scenarios, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "coupling.md"
@@ -63,7 +63,7 @@ ADAPTIVE_FIXED_STEPS = tuple(
 )
 NEAREST = 6  # fixed runs in the line that gives a fixed step's doSteps for an error
 ADAPTIVE_TOLERANCES = (1e-2, 1e-3, 1e-4, 1e-5)
-ADAPTIVE_ESTIMATES = ("extrapolation", "doubling")
+ADAPTIVE_ESTIMATES: tuple[ErrorEstimate, ...] = ("extrapolation", "doubling")
 # and, without --tolerances, the extrapolation estimate on vert-1 at the tolerances around
 # 1e-3 too: whether it beats the fixed step there depends on the tolerance
 MORE_TOLERANCES = {"vert-1": (2e-3, 1.25e-3, 8e-4, 5e-4)}

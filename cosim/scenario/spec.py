@@ -350,10 +350,10 @@ class Scenario:
         self,
         stop_time: float | None = None,
         step: float | None = None,
-        algorithm: str | None = None,
-        extrapolation: str | None = None,
+        algorithm: Algorithm | None = None,
+        extrapolation: Extrapolation | None = None,
         tolerance: float | None = None,
-        error_estimate: str | None = None,
+        error_estimate: ErrorEstimate | None = None,
     ) -> Scenario:
         """A re-validated copy with the command line's overrides applied.
 

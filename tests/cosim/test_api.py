@@ -805,19 +805,39 @@ def main() -> None:
 """
 
 
-@pytest.mark.slow
-def test_a_users_mypy_strict_takes_the_numpy_start_values_the_docs_show(tmp_path: Path) -> None:
-    """docs/api.md: a numpy scalar start value (``np.float32(-0.05)``) counts as its Python
-    value, and cosim.run takes it; the annotations said bool, int, float or str only, so a
-    user's ``mypy --strict`` refused the documented call ("Dict entry 0 has incompatible
-    type"). The package is read as installed (its own errors are not the user's)."""
+def _users_mypy(script_text: str, tmp_path: Path) -> tuple[str, int]:
+    """``mypy --strict`` of a user's script calling the package, read as installed (its own
+    errors are not the user's): mypy's report and exit status."""
     api = pytest.importorskip("mypy.api")
     script = tmp_path / "user.py"
-    script.write_text(USER_SCRIPT, encoding="utf-8")
+    script.write_text(script_text, encoding="utf-8")
     config = tmp_path / "mypy.ini"  # the user's, not this repository's pyproject.toml
     package_root = Path(cosim.__file__).resolve().parents[1]
     config.write_text(f"[mypy]\nmypy_path = {package_root}\n", encoding="utf-8")
     arguments = ["--strict", "--follow-imports", "silent", "--config-file", str(config)]
     arguments += ["--cache-dir", str(tmp_path / "cache"), str(script)]
     out, err, status = api.run(arguments)
-    assert status == 0, out + err
+    return out + err, status
+
+
+@pytest.mark.slow
+def test_a_users_mypy_strict_takes_the_numpy_start_values_the_docs_show(tmp_path: Path) -> None:
+    """docs/api.md: a numpy scalar start value (``np.float32(-0.05)``) counts as its Python
+    value, and cosim.run takes it; the annotations said bool, int, float or str only, so a
+    user's ``mypy --strict`` refused the documented call ("Dict entry 0 has incompatible
+    type")."""
+    report, status = _users_mypy(USER_SCRIPT, tmp_path)
+    assert status == 0, report
+
+
+@pytest.mark.slow
+def test_a_users_mypy_catches_a_mistyped_algorithm_in_with_overrides(tmp_path: Path) -> None:
+    """``Scenario.with_overrides`` takes the algorithm, extrapolation and error estimate
+    ``cosim.run`` takes, typed as their names: a typo is the user's mypy error before it
+    is the run's refusal (they were typed ``str``, so mypy passed ``"jacobbi"``)."""
+    script = (
+        "import cosim\n\n\ndef main() -> None:\n"
+        '    cosim.load_scenario("bs-3").with_overrides(algorithm="jacobbi")\n'
+    )
+    report, status = _users_mypy(script, tmp_path)
+    assert status == 1 and 'Argument "algorithm" to "with_overrides"' in report, report
