@@ -60,6 +60,16 @@ class Variable:
     max: float | int | None
     description: str
     names: Mapping[str, int] = dataclasses.field(default_factory=dict)  # name -> value
+    initial: str | None = None  # exact, approx, calculated; None where the file gives none
+
+    @property
+    def takes_start_value(self) -> bool:
+        """Whether a host may set it before initialisation (FMI 2.0, 2.2.7: a variable not
+        constant that is a parameter or an input or has ``initial`` "exact" or "approx",
+        as an output may: BouncingBall's height)."""
+        if self.variability == "constant":
+            return False
+        return self.causality in ("parameter", "input") or self.initial in ("exact", "approx")
 
 
 @dataclass(frozen=True)
@@ -198,6 +208,7 @@ def _variable(v: Any, names: Mapping[str, int]) -> Variable:
         max=_bound(v.type, v.max),
         description=v.description or "",
         names=names or _items(declared),
+        initial=v.initial,
     )
 
 

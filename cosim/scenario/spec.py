@@ -841,11 +841,13 @@ def _resolve_instance(
                 f"{name} ({fmu_path.name}) has no variable {var_name!r}"
                 + did_you_mean(var_name, variables),
             )
-        if var.causality not in ("parameter", "input") or var.variability == "constant":
+        if not var.takes_start_value:
+            initial = f" (initial {var.initial!r})" if var.initial is not None else ""
             raise src.error(
                 key,
-                f"{name}.{var_name} is a {var.variability} {var.causality}; only parameters "
-                "and inputs take start values",
+                f"{name}.{var_name} is a {var.variability} {var.causality}{initial}; only "
+                "parameters, inputs and variables with initial 'exact' or 'approx' (not "
+                "constant) take start values",
             )
         start[var_name] = check_value(value, var, key, src)
         if isinstance(value, str) and value.endswith(FILE_SUFFIXES):

@@ -239,3 +239,17 @@ add = [{{ from = "v.x0", to = "f.Float64_continuous_input" }},
     x0 = through.column("v.x0")
     for i, row in enumerate(rows[: len(x0)]):
         assert abs(x0[i] - float(row[1])) <= printed_tolerance(row[1])
+
+
+def test_an_output_with_an_exact_initial_value_takes_a_start_value() -> None:
+    """FMI 2.0 lets a start value be set on any variable whose ``initial`` is "exact" or
+    "approx", outputs included (BouncingBall's height h, 1 m in the file): the ball dropped
+    from 2 m falls as from 2 m (it was refused, "only parameters and inputs take start
+    values"). An output the FMU calculates (``initial="calculated"``) still refuses one."""
+    text = scenario_text({"b": "BouncingBall"}, 0.01, 0.4)  # before the 1 m ball bounces
+    from_1m = run(text).column("b.h")
+    from_2m = run(text + "[instances.b.start]\nh = 2.0\n").column("b.h")
+    assert from_1m[0] == 1.0 and from_2m[0] == 2.0
+    np.testing.assert_allclose(from_2m - from_1m, 1.0, rtol=0, atol=1e-12)  # the same fall
+    with pytest.raises(ScenarioError, match=r"b.der\(h\) is a continuous local .*calculated"):
+        scenario_from_toml(text + '[instances.b.start]\n"der(h)" = 1.0\n')
