@@ -41,8 +41,11 @@ def _numba_target() -> None:
 _numba_target()
 # What is loaded now lives as long as the process: out of the garbage collector's reach, so
 # a forked worker's collections do not walk (and copy) it, and the fork server's final
-# collection at exit does not either (its exit took 0.9 s, measured with pandas loaded too)
+# collection at exit does not either (its exit took 0.9 s, measured with pandas loaded too).
+# The collector, off while the fork server imported (cosim.study.server_environ), is on
+# again for what the server and its workers do next.
 gc.freeze()
+gc.enable()
 
 
 def dask_setup(worker: object) -> None:
