@@ -327,20 +327,12 @@ BAD_EDITS = [
 ]  # fmt: skip
 
 
-@pytest.mark.parametrize(("old", "new", "message"), BAD_EDITS)
-def test_bad_scenario_fails_before_loading_naming_the_key(
-    fmu_dir: Path, tmp_path: Path, no_fmu_loading: None, old: str, new: str, message: str
-) -> None:
-    assert old in BS3
-    path = tmp_path / "bad.toml"
-    path.write_text(BS3.replace(old, new, 1))
-    with pytest.raises(ScenarioError, match=message) as info:
-        load_scenario(path, fmu_dir=fmu_dir)
-    assert str(info.value).startswith(f"scenario file {path}: ")
-
-
 SURVEY = (SCENARIO_FOLDER / "survey.toml").read_text()
 WAYPOINTS = re.search(r"^waypoints = .*$", SURVEY, re.MULTILINE)[0]  # type: ignore[index]
+# A waypoint list or guidance parameter AuvGuidance refuses: named with its key at the load,
+# like a bad vehicle set (it failed the run once the FMUs were loaded, and `auv-cosim
+# export` wrote a system no host could initialise).
+GUIDANCE = r"key 'instances\.guidance\."  # the survey's guidance instance
 BAD_MISSIONS = [
     (WAYPOINTS, 'waypoints = "0, 0, 2"',
      r"start\.waypoints': waypoints '0, 0, 2': expected at least two entries"),
@@ -353,18 +345,26 @@ BAD_MISSIONS = [
 ]  # fmt: skip
 
 
-@pytest.mark.parametrize(("old", "new", "message"), BAD_MISSIONS)
-def test_a_mission_the_guidance_would_refuse_fails_before_loading_naming_the_key(
-    fmu_dir: Path, tmp_path: Path, no_fmu_loading: None, old: str, new: str, message: str
+@pytest.mark.parametrize(
+    ("base", "old", "new", "message"),
+    [(BS3, *edit) for edit in BAD_EDITS]
+    + [(SURVEY, old, new, GUIDANCE + message) for old, new, message in BAD_MISSIONS],
+)
+def test_bad_scenario_fails_before_loading_naming_the_key(
+    fmu_dir: Path,
+    tmp_path: Path,
+    no_fmu_loading: None,
+    base: str,
+    old: str,
+    new: str,
+    message: str,
 ) -> None:
-    """A waypoint list or guidance parameter AuvGuidance refuses: named with its key at
-    the load, like a bad vehicle set (it failed the run once the FMUs were loaded, and
-    `auv-cosim export` wrote a system no host could initialise)."""
-    assert old in SURVEY
-    path = tmp_path / "mission.toml"
-    path.write_text(SURVEY.replace(old, new, 1))
-    with pytest.raises(ScenarioError, match=f"key 'instances\\.guidance\\.{message}"):
+    assert old in base
+    path = tmp_path / "bad.toml"
+    path.write_text(base.replace(old, new, 1))
+    with pytest.raises(ScenarioError, match=message) as info:
         load_scenario(path, fmu_dir=fmu_dir)
+    assert str(info.value).startswith(f"scenario file {path}: ")
 
 
 def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
