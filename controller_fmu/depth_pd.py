@@ -90,15 +90,24 @@ DEPTH_PLANE_STATES: tuple[str, ...] = ("w", "q", "down", "pitch")
 """The states of the depth plane (6.3.77) the loop is closed on."""
 
 
-def loop_poles(law: DepthPd, params: VehicleParameters, speed: float) -> np.ndarray:
-    """The poles (1/s) of ``law`` closed on the plant's depth plane (w, q, z, theta of the
-    full variant), linearised at the straight run at u = ``speed`` m/s with the fins
-    inside their limit: delta_s = K_p (tau_d q + gamma z + theta) at z_d = 0."""
+def _closed_plane(
+    law: DepthPd, params: VehicleParameters, speed: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, B) of the plant's depth plane (w, q, z, theta of the full variant), linearised
+    at the straight run at u = ``speed`` m/s, and ``law``'s gain over those states with the
+    fins inside their limit: delta_s = K_p (tau_d q + gamma z + theta) at z_d = 0."""
     model = PlantModel(params, Variant.FULL)
     A, B = linearize(
         model, state_vector({"u": speed}), input_vector(), DEPTH_PLANE_STATES, ["fin_angle"]
     )
     gain = law.k_p * np.array([0.0, law.tau_d, law.gamma, 1.0])
+    return A, B, gain
+
+
+def loop_poles(law: DepthPd, params: VehicleParameters, speed: float) -> np.ndarray:
+    """The poles (1/s) of ``law`` closed on the plant's depth plane at ``speed`` m/s
+    (:func:`_closed_plane`)."""
+    A, B, gain = _closed_plane(law, params, speed)
     poles: np.ndarray = np.linalg.eigvals(A + B @ gain[None, :])
     return poles
 
@@ -108,12 +117,8 @@ def sampled_loop_poles(
 ) -> np.ndarray:
     """The poles z of :func:`loop_poles`'s loop as the autopilot runs it: the fin command
     computed every ``sample_time`` s and held between (zero-order hold of the plane)."""
-    model = PlantModel(params, Variant.FULL)
-    A, B = linearize(
-        model, state_vector({"u": speed}), input_vector(), DEPTH_PLANE_STATES, ["fin_angle"]
-    )
+    A, B, gain = _closed_plane(law, params, speed)
     Ad, Bd = zero_order_hold(A, B, sample_time)
-    gain = law.k_p * np.array([0.0, law.tau_d, law.gamma, 1.0])
     poles: np.ndarray = np.linalg.eigvals(Ad + Bd @ gain[None, :])
     return poles
 
