@@ -14,7 +14,7 @@ import re
 import signal
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,6 +27,9 @@ if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
 
 FMU_DIR_HELP = "the built-in FMUs' folder, built there when missing or out of date [%(default)s]"
+# cosim.scenario.spec.DEFAULT_TOLERANCE, not imported: every command would pay for the
+# scenario model's import (tests/cosim/test_cli.py checks the two agree)
+_DEFAULT_TOLERANCE = "0.001"
 
 
 def _path_arg(text: str) -> Path:
@@ -35,6 +38,38 @@ def _path_arg(text: str) -> Path:
     if not text:
         raise argparse.ArgumentTypeError("expected a non-empty path ('.' names the working folder)")
     return Path(text)
+
+
+# a time typed with its unit ("60s", "10 ms", "2min"): refused, naming the plain number
+_TIME_WITH_UNIT = re.compile(
+    r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?)\s*"
+    r"(ms|s|sec|secs|seconds?|min|mins|minutes?|h|hr|hours?)\s*$",
+    re.IGNORECASE,
+)
+_SECONDS_PER_UNIT = {"ms": 1e-3, "s": 1.0, "m": 60.0, "h": 3600.0}  # by the unit's start
+
+
+def _seconds(option: str) -> Callable[[str], float]:
+    """A time option's value, in seconds as a plain number: ``--stop-time 60s`` is refused
+    naming the number to type (``--stop-time 60``), where argparse's own float said only
+    "invalid float value". The range is checked with the scenario (finite, > 0)."""
+
+    def seconds(text: str) -> float:
+        try:
+            return float(text)
+        except ValueError:
+            pass
+        match = _TIME_WITH_UNIT.match(text)
+        hint = ""
+        if match is not None:
+            unit = match[2].lower()
+            factor = _SECONDS_PER_UNIT["ms" if unit == "ms" else unit[0]]
+            hint = f" ({option} {float(match[1]) * factor:.12g})"
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected a number of seconds, without a unit{hint}"
+        )
+
+    return seconds
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -258,18 +293,29 @@ def _reproduce(args: argparse.Namespace) -> int:
 def _add_coupling_options(p: argparse.ArgumentParser) -> None:
     """``auv-cosim run``'s coupling options (docs/coupling.md)."""
     p.add_argument(
-        "--algorithm", choices=["jacobi", "gauss-seidel", "adaptive"], help="master algorithm"
+        "--algorithm",
+        choices=["jacobi", "gauss-seidel", "adaptive"],
+        help="how the FMUs take turns: jacobi (all step from the values exchanged at the "
+        "step's start), gauss-seidel (one after another, each taking the values just "
+        "computed), adaptive (gauss-seidel with an error-controlled step) [the scenario's]",
     )
     p.add_argument(
         "--extrapolation",
         choices=["none", "linear", "quadratic"],
-        help="exchanged values across a step (docs/coupling.md)",
+        help="what an exchanged value does across a step: held (none) or extrapolated from "
+        "its last values (docs/coupling.md) [the scenario's]",
     )
-    p.add_argument("--tolerance", type=float, help="adaptive: relative error per step")
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        help="adaptive only: the relative error a step may make "
+        f"[the scenario's, {_DEFAULT_TOLERANCE} unless it sets one]",
+    )
     p.add_argument(
         "--check-step",
         action="store_true",
-        help="also run at h/2 and h/4: the estimated coupling error (summary.json)",
+        help="also run at half and a quarter of the step: the estimated coupling error "
+        "(summary.json, docs/coupling.md)",
     )
 
 
@@ -371,10 +417,27 @@ def build_parser() -> argparse.ArgumentParser:
     _add_analyze_parser(sub)
     _add_reproduce_parser(sub)
 
-    p = sub.add_parser("report", help="plot a run's time histories (PNG + index page)")
-    p.add_argument("run_dir", type=_path_arg, help="a run folder holding results.csv")
+    p = sub.add_parser(
+        "report", help="plot a run's time histories into RUN_DIR/report/ (PNGs + index.html)"
+    )
+    p.add_argument(
+        "run_dir",
+        type=_path_arg,
+        metavar="RUN_DIR",
+        help="a run folder holding results.csv (runs/<scenario-id> by default)",
+    )
     p.set_defaults(func=_report)
+    _describe(sub)
     return parser
+
+
+def _describe(sub: argparse._SubParsersAction) -> None:
+    """Each command's one line in its parent's help (``auv-cosim --help``) also opens its
+    own ``--help``, which began with the usage line and the options."""
+    for action in sub._choices_actions:
+        parser = sub.choices[action.dest]
+        if parser.description is None:
+            parser.description = action.help
 
 
 def _add_run_parser(sub: argparse._SubParsersAction) -> None:
@@ -384,15 +447,30 @@ def _add_run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--overwrite", action="store_true", help="replace an earlier run in the run folder"
     )
-    p.add_argument("--stop-time", type=float, help="override the stop time, s (finite, > 0)")
-    p.add_argument("--step", type=float, help="override the communication step, s (finite, > 0)")
+    p.add_argument(
+        "--stop-time",
+        type=_seconds("--stop-time"),
+        metavar="SECONDS",
+        help="simulated time to run, s (a number, > 0) [the scenario's]",
+    )
+    p.add_argument(
+        "--step",
+        type=_seconds("--step"),
+        metavar="SECONDS",
+        help="the communication step: how often the FMUs exchange values, s (> 0) [the scenario's]",
+    )
     _add_coupling_options(p)
     recording = p.add_mutually_exclusive_group()  # a file to write, or none
     recording.add_argument(
         "--rrd", type=_path_arg, help="recording file [<run folder>/recording.rrd]"
     )
     recording.add_argument("--no-rrd", action="store_true", help="do not write a Rerun recording")
-    p.add_argument("--connect", metavar="URL", help="also stream to a running Rerun viewer")
+    p.add_argument(
+        "--connect",
+        metavar="URL",
+        help="also stream to a running Rerun viewer: `rerun` listens on "
+        "rerun+http://127.0.0.1:9876/proxy (docs/live-runs.md)",
+    )
     p.add_argument("--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_live_options(p)
@@ -417,13 +495,18 @@ def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
     a.add_argument("start", type=float, metavar="FROM", help="the first value, in its unit")
     a.add_argument("stop", type=float, metavar="TO", help="the last value, in its unit")
     a.add_argument("--steps", type=int, default=200, help="continuation steps [%(default)s]")
-    a.add_argument("--out", type=_path_arg, default=Path("analysis"), help="[%(default)s]")
+    a.add_argument(
+        "--out", type=_path_arg, default=Path("analysis"), help="output folder [%(default)s]"
+    )
     _add_model_options(a)
     a.set_defaults(func=_sweep)
     a = asub.add_parser("phase-portrait", help="open-loop horizontal trajectories (Fig. 5.4)")
-    a.add_argument("--out", type=_path_arg, default=Path("analysis"), help="[%(default)s]")
+    a.add_argument(
+        "--out", type=_path_arg, default=Path("analysis"), help="output folder [%(default)s]"
+    )
     _add_model_options(a)
     a.set_defaults(func=_phase_portrait)
+    _describe(asub)
 
 
 def _add_live_options(p: argparse.ArgumentParser) -> None:
@@ -540,7 +623,9 @@ def _variant(text: str) -> int:
 
 
 def _add_model_options(a: argparse.ArgumentParser) -> None:
-    a.add_argument("--vehicle", default="remus100", help="parameter set name or file")
+    a.add_argument(
+        "--vehicle", default="remus100", help="parameter set name or .toml file [%(default)s]"
+    )
     a.add_argument(
         "--variant",
         type=_variant,

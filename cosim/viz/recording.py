@@ -41,8 +41,9 @@ from urllib.parse import urlsplit
 import numpy as np
 import rerun as rr
 
-from cosim.errors import CosimError, did_you_mean_path
+from cosim.errors import CosimError
 from cosim.outputs.folder import RECORDING_FILE
+from cosim.outputs.missing_run import missing_run_hint
 from cosim.scenario.spec import Scenario
 from cosim.viz.layout import (
     NOTES_ENTITY,
@@ -589,7 +590,7 @@ def recording_in(path: Path) -> Path:
         )
     if not rrd.is_file():
         raise CosimError(
-            f"no recording at {rrd}{'' if path.exists() else did_you_mean_path(path)}: "
+            f"no recording at {rrd}{missing_run_hint(path)}: "
             f"expected a run folder holding {RECORDING_FILE} "
             f"(written by `auv-cosim run` unless --no-rrd), a study folder holding "
             f"{OVERLAY_FILE}, or a .rrd file"

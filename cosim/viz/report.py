@@ -54,10 +54,11 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from cosim.errors import CosimError, did_you_mean_path
+from cosim.errors import CosimError
 from cosim.fmus.interface import read_interface
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
+from cosim.outputs.missing_run import missing_run_hint
 from cosim.outputs.report_folder import (
     REPORT_MANIFEST,
     check_writable,
@@ -281,8 +282,8 @@ def load_results(run_dir: Path) -> dict[str, np.ndarray]:
     path = run_dir / "results.csv"
     if not run_dir.is_dir():
         raise CosimError(
-            f"{run_dir} is not a folder{did_you_mean_path(run_dir)}: expected the output "
-            "folder of a run"
+            f"{run_dir} {'is not a folder' if run_dir.exists() else 'does not exist'}"
+            f"{missing_run_hint(run_dir)}: expected the output folder of a run"
         )
     if not path.is_file() and (run_dir / STUDY_FILE).is_file():
         kept = run_dir / "runs"  # the runs a study keeps (its overlay's)

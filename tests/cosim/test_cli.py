@@ -214,3 +214,99 @@ def test_an_empty_path_is_a_usage_error_not_the_working_folder(
     err = capsys.readouterr().err
     assert "expected a non-empty path ('.' names the working folder)" in err, err
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["--stop-time", "60s"], "argument --stop-time: '60s': expected a number of seconds, "
+         "without a unit (--stop-time 60)"),
+        (["--step", "10ms"], "argument --step: '10ms': expected a number of seconds, "
+         "without a unit (--step 0.01)"),
+        (["--stop-time", "2 min"], "(--stop-time 120)"),
+        (["--stop-time", "sixty"], "argument --stop-time: 'sixty': expected a number of seconds"),
+    ],
+)  # fmt: skip
+def test_a_time_typed_with_its_unit_is_refused_with_the_number_to_type(
+    argv: list[str], expected: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    """``--stop-time 60s``, a newcomer's first try, got argparse's "invalid float value:
+    '60s'": the message now says the option takes seconds as a plain number and gives it,
+    before anything runs."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "bs-3", *argv])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert expected in err and "invalid float value" not in err, err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("command", ["view", "report"])
+def test_a_scenario_id_given_for_its_run_folder_names_the_folder(
+    command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    """``auv-cosim view bs-3`` (the id, not the folder ``runs/bs-3`` the run wrote) said
+    only that there was no ``bs-3/recording.rrd``; ``report bs-3`` that bs-3 "is not a
+    folder". Both now name the run's folder."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "runs" / "bs-3").mkdir(parents=True)
+    assert main([command, "bs-3"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "(did you mean 'runs/bs-3'?)" in err, err
+
+
+@pytest.mark.parametrize("command", ["view", "report"])
+@pytest.mark.parametrize("given", ["lqr-1", "runs/lqr-1"])
+def test_a_scenario_not_run_yet_is_named_with_the_command_that_runs_it(
+    command: str, given: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    """``view``/``report`` before ``run`` (a newcomer's order of the README's commands)
+    said there was no recording, or no folder, without saying what makes one."""
+    monkeypatch.chdir(tmp_path)
+    assert main([command, given]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no run of lqr-1 yet: `auv-cosim run lqr-1` writes " in err
+    assert "runs/lqr-1" in err and "is not a folder" not in err, err
+
+
+def test_run_help_gives_every_coupling_options_default(capsys: pytest.CaptureFixture[str]) -> None:
+    """``run --help`` said "master algorithm" and nothing of what the run uses without the
+    option (the scenario's own choice), nor the default tolerance; a newcomer meets
+    "jacobi" and "gauss-seidel" there first."""
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for option in ("--stop-time", "--step", "--algorithm", "--extrapolation", "--tolerance"):
+        help_text = text.split(f" {option} ", 1)[1].split(" --", 1)[0]
+        assert "[the scenario's" in help_text, (option, help_text)
+    from cosim.scenario.spec import DEFAULT_TOLERANCE
+
+    assert "one after another" in text and f"[the scenario's, {DEFAULT_TOLERANCE:g}" in text
+    assert "rerun+http://127.0.0.1:9876/proxy" in text  # what --connect takes
+
+
+@pytest.mark.parametrize(
+    "command",
+    ["build", "validate", "scenarios", "run", "sweep", "export", "view", "analyze", "reproduce",
+     "report"],
+)  # fmt: skip
+def test_a_commands_help_says_what_the_command_does(
+    command: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``auv-cosim report --help`` (and every other command's) began with the usage line
+    and the options: the one line ``auv-cosim --help`` gives the command is its first
+    paragraph too."""
+    from cosim.cli import build_parser
+
+    parser = build_parser()
+    listed = parser.format_help()
+    with pytest.raises(SystemExit):
+        parser.parse_args([command, "--help"])
+    paragraphs = capsys.readouterr().out.split("\n\n")
+    first = " ".join(paragraphs[1].split())
+    assert not first.startswith(("positional arguments", "options")), paragraphs
+    assert first.split(" (")[0].split(":")[0][:30] in " ".join(listed.split()), (first, listed)

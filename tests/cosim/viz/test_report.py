@@ -176,7 +176,7 @@ def test_folder_without_results_is_a_clear_error(tmp_path, capsys):
         write_report(tmp_path / "empty")
     assert main(["report", str(tmp_path / "missing")]) == 1
     err = capsys.readouterr().err
-    assert "is not a folder" in err and len(err.strip().splitlines()) == 1
+    assert "missing does not exist" in err and len(err.strip().splitlines()) == 1
 
 
 def test_a_study_folder_is_refused_saying_where_its_page_and_runs_are(tmp_path, capsys):
