@@ -101,6 +101,20 @@ def field_names(model: type[BaseModel]) -> set[str]:
     return names
 
 
+def misplaced_top_level(key: str, model: type[BaseModel]) -> str:
+    """A hint, in parentheses with a leading space, for a key of a table (``key`` as a
+    refusal names it: ``faults[0].stop_time``) that is a top-level key of ``model``'s file:
+    TOML reads a key written below a ``[table]`` or ``[[table]]`` header into that table,
+    so ``stop_time = 60.0`` appended to a file ends up in its last one. ``""`` otherwise."""
+    table, _, name = key.rpartition(".")
+    if not table or name not in model.model_fields:
+        return ""
+    return (
+        " (a top-level key: TOML puts every key below a [table] or [[table]] header into it; "
+        f"write {name} before the first header)"
+    )
+
+
 @dataclass(frozen=True)
 class Source:
     """Where a scenario comes from: every problem found resolving it names it."""

@@ -47,6 +47,7 @@ from cosim.scenario.checks import (
     Strict,
     check_value,
     field_names,
+    misplaced_top_level,
     split_ref,
     with_article,
 )
@@ -599,7 +600,9 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
         for err in exc.errors():
             key = _key(err["loc"])
             if err["type"] == "extra_forbidden":
-                problem = f"unknown key {key!r}{did_you_mean(key.rpartition('.')[2], KEYS)}"
+                hint = misplaced_top_level(key, ScenarioSpec)
+                hint = hint or did_you_mean(key.rpartition(".")[2], KEYS)
+                problem = f"unknown key {key!r}{hint}"
             elif err["type"] == "missing":
                 problem = f"key {key!r} is missing"
             elif err["type"] == "string_pattern_mismatch":  # a name: in words, not a regex

@@ -59,7 +59,7 @@ from pydantic import (
 )
 
 from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean, did_you_mean_path
-from cosim.scenario.checks import field_names
+from cosim.scenario.checks import field_names, misplaced_top_level
 
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
 MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
@@ -305,7 +305,10 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
             key = _key(err["loc"])
             message = err["msg"].removeprefix("Value error, ")
             tags = {part for part in err["loc"] if part in _UNION_TAGS}
-            if err["type"] == "extra_forbidden":
+            misplaced = misplaced_top_level(key, StudySpec)
+            if misplaced and key.count(".") == 1:  # [grid] takes it for a factor's values
+                problem = f"key {key!r}{misplaced}"
+            elif err["type"] == "extra_forbidden":
                 problem = f"unknown key {key!r}{did_you_mean(key.rpartition('.')[2], KEYS)}"
             elif err["type"] == "missing":
                 problem = f"key {key!r} is missing"
@@ -314,6 +317,8 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
             else:
                 if tags:  # one failure per union member tried: say what would do
                     message = "expected a number" if tags <= {"int", "float"} else _ANY_VALUE
+                elif err["type"] == "list_type":  # a grid factor's one value, say
+                    message = f"expected a list of values, [{err.get('input')!r}]"
                 problem = f"key {key!r} = {err.get('input')!r}: {message}"
             problems.setdefault(key, problem)
         raise StudyError(f"{label}: " + "; ".join(problems.values())) from None

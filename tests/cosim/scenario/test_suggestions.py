@@ -127,3 +127,50 @@ def test_a_name_that_is_not_plain_is_refused_in_words_not_a_pattern(
         scenario_from_toml(BS3_LIKE.replace(*change, 1), fmu_dir=fmu_dir)
     assert expected in str(refused.value) and "[key]" not in str(refused.value)
     assert "pattern" not in str(refused.value)
+
+
+MISPLACED = "a top-level key: TOML puts every key below a [table] or [[table]] header into it"
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        (BS3_LIKE.replace("stop_time = 1.0\n", "") + "stop_time = 1.0\n",
+         "instances.controller.stop_time"),
+        (BS3_LIKE + '[[faults]]\nkind = "mass-jam"\nstart = 0.5\nstop_time = 1.0\n',
+         "faults[0].stop_time"),
+    ],
+)  # fmt: skip
+def test_a_top_level_key_written_below_a_table_is_named_as_such(
+    text: str, key: str, fmu_dir: Path
+) -> None:
+    """``stop_time = 60.0`` appended to the README's turn.toml, after its ``[[faults]]``,
+    was refused as "unknown key 'faults[0].stop_time'" (and "key 'stop_time' is missing"
+    when moved there): TOML reads it into the table above, which the message now says."""
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    message = str(refused.value)
+    assert f"unknown key {key!r} ({MISPLACED}; write stop_time before the first header)" in (
+        message
+    ), message
+
+
+@pytest.mark.parametrize(
+    ("study", "key"),
+    [
+        ({"grid": {"plant.v_0": [0.1], "stop_time": 2.0}}, "grid.stop_time"),
+        ({"grid": {"plant.v_0": [0.1]}, "random": {"n": 0, "keep": "all"}}, "random.keep"),
+    ],
+)
+def test_a_top_level_study_key_written_below_a_table_is_named_as_such(
+    study: dict[str, object], key: str
+) -> None:
+    """``stop_time = 2.0`` below ``[grid]`` was "key 'grid.stop_time' = 2.0: Input should
+    be a valid list": a factor, to pydantic; to the user a top-level key in the wrong
+    place."""
+    with pytest.raises(StudyError) as refused:
+        study_from_dict({"scenario": "bs-3", **study}, "s")
+    name = key.rpartition(".")[2]
+    assert f"key {key!r} ({MISPLACED}; write {name} before the first header)" in str(
+        refused.value
+    ), refused.value

@@ -66,6 +66,11 @@ def test_random_factors_sit_beside_n_and_seed() -> None:
         ({"keep": "some"}, "key 'keep' = 'some'"),
         ({"grid": {"plant.v_0": [0.1, 0.1]}}, "lists a value twice"),
         ({"grid": {"plant.v_0": []}}, "key 'grid.plant.v_0' = []"),
+        # one value where the grid takes a list: pydantic's "Input should be a valid list"
+        (
+            {"grid": {"plant.v_0": -0.1}},
+            "key 'grid.plant.v_0' = -0.1: expected a list of values, [-0.1]",
+        ),
         ({"grid": {"plant.v_0": [[1]]}}, "expected a number, an integer, true/false or a string"),
         ({"grid": {"v_0": [1.0]}}, "factor 'v_0': expected <instance>.<variable>"),
         ({"grid": {}}, "the study varies nothing"),
