@@ -364,7 +364,10 @@ def _viewer_sink(url: str) -> rr.GrpcSink:
     try:
         sink = rr.GrpcSink(url)
     except RuntimeError as exc:  # rerun-sdk's error for a malformed URL
-        raise ValueError(f"--connect URL {url!r}: {exc}") from None
+        raise ValueError(
+            f"--connect URL {url!r}: {exc}; expected rerun+http://HOST:PORT/proxy (`rerun` "
+            "listens on rerun+http://127.0.0.1:9876/proxy)"
+        ) from None
     parts = urlsplit(url)
     if parts.hostname and parts.port:
         try:

@@ -408,6 +408,9 @@ def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path, fmu_dir: Pa
         sink_for(fmu_dir, tmp_path / "d.rrd", "x", ["plant.yaw", "plant.yaw"])
     with pytest.raises(ValueError, match=re.escape("--connect URL 'http://127.0.0.1:9876'")):
         sink_for(fmu_dir, None, "x", ["plant.yaw"], url="http://127.0.0.1:9876")
+    # a bare HOST:PORT got rerun-sdk's "Unexpected URI" alone: the form it takes is named
+    with pytest.raises(ValueError, match=re.escape("expected rerun+http://HOST:PORT/proxy")):
+        sink_for(fmu_dir, None, "x", ["plant.yaw"], url="127.0.0.1:9876")
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         url = f"rerun+http://127.0.0.1:{s.getsockname()[1]}/proxy"
