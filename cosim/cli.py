@@ -561,7 +561,9 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("study", type=_path_arg, help="study .toml file (docs/studies.md)")
     p.add_argument("--workers", type=int, help="local worker processes [one per core]")
     p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
-    p.add_argument("--out", type=_path_arg, help="study folder [studies/<study file name>]")
+    p.add_argument(
+        "--out", type=_path_arg, help="study folder [studies/<study file name without .toml>]"
+    )
     p.add_argument("--resume", action="store_true", help="skip the runs already in runs.csv")
     p.add_argument(
         "--max-runs",
