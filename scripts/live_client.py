@@ -8,13 +8,26 @@ endpoint after it has loaded the scenario (a few seconds the first time, while i
 FMUs): the client tries to connect until then, for at most ``WAIT_S`` seconds.
 """
 
+import argparse
 import json
 import socket
 import sys
 import time
 
 WAIT_S = 120.0  # s to wait for the run's endpoint to open
-port = int(sys.argv[1]) if len(sys.argv) > 1 else 5555
+
+
+def tcp_port(text: str) -> int:
+    """``text`` as a TCP port, 1 to 65535."""
+    if not (text.isdigit() and 0 < int(text) < 65536):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a TCP port, 1 to 65535")
+    return int(text)
+
+
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("port", nargs="?", type=tcp_port, default=5555,
+                    help="the run's --control port on 127.0.0.1, 1 to 65535 [5555]")  # fmt: skip
+port = parser.parse_args().port
 deadline = time.monotonic() + WAIT_S
 while True:
     try:

@@ -43,3 +43,16 @@ def test_the_live_client_waits_for_the_runs_endpoint() -> None:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(client.pid, signal.SIGKILL)
         client.wait()
+
+
+@pytest.mark.parametrize("argument", ["--help-me", "five", "70000"])
+def test_a_bad_port_is_refused_in_one_line_naming_it(argument: str) -> None:
+    """``python scripts/live_client.py five`` (or an option it lacks, or a port past 65535)
+    says what it expected instead of a Python traceback, and connects nowhere."""
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "live_client.py"), argument],
+        capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
+    )  # fmt: skip
+    assert done.returncode == 2, done
+    assert "Traceback" not in done.stderr
+    assert argument in done.stderr.splitlines()[-1], done.stderr
