@@ -55,3 +55,13 @@ def test_the_import_contracts_hold() -> None:
     """What ``lint-imports`` checks in CI, here too (a broken layer fails the fast tier)."""
     cli = pytest.importorskip("importlinter.cli")
     assert cli.lint_imports(config_filename=str(ROOT / "pyproject.toml")) == 0
+
+
+def test_the_architecture_page_states_the_layers_as_the_contract_does() -> None:
+    """The page's block of layers, top to bottom, is the layers contract line by line (it
+    lost ``cosim.whole_file`` while saying "as pyproject.toml states them")."""
+    block = ARCHITECTURE.split("as pyproject.toml states them -->", 1)[1]
+    block = block.split("```text\n", 1)[1].split("```", 1)[0]
+    page = [line.split("(", 1)[0].strip() for line in block.splitlines()]
+    (layers,) = [c["layers"] for c in CONTRACTS if c["type"] == "layers"]
+    assert page == layers
