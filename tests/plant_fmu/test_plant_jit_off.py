@@ -1,12 +1,18 @@
 """The plant FMU with its compiled path on and off (AUV_COSIM_NO_JIT=1): both run, agree
-to 1e-12, and the FMU says when it fell back to the reference."""
+to 1e-12 in every output (a new output computed on one path only is caught here), and the
+FMU says when it fell back to the reference."""
 
 from __future__ import annotations
 
 import ast
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
+
+from plant_fmu.auv_plant import AuvPlant
+from plant_fmu.model import compiled
 
 RUN = """
 import os, sys
@@ -80,3 +86,52 @@ def test_a_host_without_numba_is_told_once_what_the_reference_path_costs(run_pyt
         "the compiled plant is off (numba cannot be imported (No module named 'numba'))" in message
     )
     assert "each step about 16 times as long" in message and "install numba" in message
+
+
+STEPPED = """
+import json, os, sys
+os.environ["AUV_COSIM_NO_JIT"] = "1"
+sys.path.insert(0, sys.argv[1])
+from test_plant_jit_off import stepped_outputs
+from plant_fmu.auv_plant import AuvPlant
+
+print(json.dumps(stepped_outputs(AuvPlant(instance_name="off"))))
+"""
+
+
+def stepped_outputs(plant: AuvPlant) -> dict[str, float]:
+    """Every output ``plant`` declares, after half a second of turning and diving with
+    every actuator input set."""
+    vrs = {var.name: vr for vr, var in plant.vars.items()}
+    outputs = [var.name for var in plant.vars.values() if var.causality.name == "output"]
+    plant.enter_initialization_mode()
+    plant.set_real([vrs["u_0"], vrs["v_0"], vrs["down_0"]], [1.5, -0.05, 2.0])
+    plant.exit_initialization_mode()
+    actuators = ("fin_angle", "tunnel_force", "mass_position_cmd", "roll_torque")
+    plant.set_real([vrs[n] for n in actuators], [0.1, 5.0, 0.03, 0.5])
+    for k in range(50):
+        assert plant.do_step(0.01 * k, 0.01), plant.log_queue
+    return dict(zip(outputs, plant.get_real([vrs[n] for n in outputs]), strict=True))
+
+
+@pytest.mark.skipif(not compiled.AVAILABLE, reason=compiled.NO_JIT_REASON)
+def test_every_plant_output_steps_alike_with_the_compiled_path_on_and_off(run_python):
+    """Every output the plant declares (not a list of them here) has the same value after
+    half a second of manoeuvring on the compiled path (this process) as on the numpy
+    reference (AUV_COSIM_NO_JIT=1): an output refreshed only by the reference step
+    (``AuvPlant._refresh_outputs``, which the compiled step bypasses) keeps its start value
+    when numba is on. The fast twin of
+    :func:`test_plant_fmu_agrees_with_the_compiled_path_off`."""
+    on = stepped_outputs(AuvPlant(instance_name="on"))
+    done = run_python(STEPPED, Path(__file__).parent)
+    assert done.returncode == 0, done.stderr[-3000:]
+    off = json.loads(done.stdout.strip().splitlines()[-1])
+    assert on.keys() == off.keys()
+    assert {"yaw", "u_rel", "kinetic_energy", "quat_w"} <= on.keys()
+    assert on["yaw"] != 0.0  # it did turn
+    apart = {
+        name: (on[name], off[name])
+        for name in on
+        if not np.isclose(on[name], off[name], rtol=1e-12, atol=1e-12)
+    }
+    assert not apart, f"outputs (on, off) the compiled step leaves behind: {apart}"
