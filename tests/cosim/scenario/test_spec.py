@@ -59,6 +59,32 @@ def test_builtin_scenarios_are_model_md_section_5() -> None:
     assert all(summary and "\n" not in summary for summary in scenarios.values())
 
 
+def _first_column(page: str, heading: str) -> set[str]:
+    """The first cells (backticks dropped) of the table rows under ``heading`` in ``page``,
+    up to the next heading of any level."""
+    text = (ROOT / page).read_text(encoding="utf-8")
+    section = re.split(r"\n#+ ", text.split(f"\n{heading}\n", 1)[1], maxsplit=1)[0]
+    cells = re.findall(r"^\| ([^|]+?) \|", section, re.MULTILINE)
+    return {cell.strip("`") for cell in cells if cell not in ("id", "---")}
+
+
+def test_every_builtin_scenario_has_its_row_in_the_docs() -> None:
+    """A scenario file added to cosim/scenarios/ (``auv-cosim scenarios`` lists it at once)
+    has its row in the README's tables, and its row in model.md's (a case of the
+    dissertation) or its section in manoeuvres.md; no row names a scenario that is not
+    built in."""
+    readme = set()
+    for cell in _first_column("README.md", "### Built-in scenarios"):
+        readme |= {part.strip(" `") for part in cell.split(" / ")}  # `bs-1` / `bs-2`
+    manoeuvres = set()  # the sections "## `mass-jam` and `thruster-failure`", ...
+    for line in (ROOT / "docs" / "manoeuvres.md").read_text(encoding="utf-8").splitlines():
+        if line.startswith("## `"):
+            manoeuvres |= set(re.findall(r"`([\w-]+)`", line))
+    assert readme == set(builtin_scenarios())
+    assert _first_column("docs/model.md", "## Scenarios") == set(MODEL_MD_IDS)
+    assert manoeuvres == set(MANOEUVRE_IDS)
+
+
 def test_builtin_files_resolve_as_model_md_says(fmu_dir: Path, no_fmu_loading: None) -> None:
     for scenario_id in MODEL_MD_IDS:
         s = load_scenario(scenario_id, fmu_dir=fmu_dir)
