@@ -176,7 +176,7 @@ def test_the_user_benchmark_times_the_example_study_of_the_docs(tmp_path):
     assert spec.grid == {"plant.v_0": [-0.10, -0.05, 0.05, 0.10], "controller.k0": [0.2, 0.5]}
 
 
-NUMBER_WORDS = {2: "two", 3: "three", 4: "four"}
+NUMBER_WORDS = {2: "two", 3: "three", 4: "four", 10: "ten"}
 
 
 def test_the_texts_that_count_the_fmus_count_the_ones_built(capsys):
@@ -197,3 +197,20 @@ def test_the_texts_that_count_the_fmus_count_the_ones_built(capsys):
         assert f"{NUMBER_WORDS[len(FMUS)]} FMI 2.0 FMUs" in text, text
     assert all(name in help_text for name in FMUS), help_text
     assert "about a minute" not in introduction
+
+
+def test_contributing_states_the_test_settings_pyproject_makes():
+    """CONTRIBUTING.md's time limit per test, its count of the slowest tests listed and its
+    markers are pyproject.toml's (it said 600 s while pyproject set 900)."""
+    import tomllib
+
+    pytest_ini = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"][
+        "pytest"
+    ]["ini_options"]
+    text = (ROOT / "CONTRIBUTING.md").read_text(encoding="utf-8")
+    limit = re.search(r"\(`pytest-timeout`, (\d+) s by default\)", text)
+    assert limit and int(limit[1]) == pytest_ini["timeout"], limit
+    durations = re.search(r"--durations=(\d+)", pytest_ini["addopts"])
+    assert durations and f"the slowest {NUMBER_WORDS.get(int(durations[1]), durations[1])}" in text
+    registered = {marker.split(":")[0] for marker in pytest_ini["markers"]}
+    assert set(re.findall(r"^- `(\w+)`: ", text, re.MULTILINE)) == registered
