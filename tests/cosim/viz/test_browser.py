@@ -48,6 +48,7 @@ playwright = pytest.importorskip("playwright.sync_api", reason="needs playwright
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 pytestmark = [
     pytest.mark.slow,
+    pytest.mark.viewer,  # starts a browser
     pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt, .ci/run)"),
 ]
 START_TIMEOUT_S = 180.0  # the machine may be busy: generous, never a measurement
