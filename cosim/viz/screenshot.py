@@ -64,10 +64,12 @@ def render_screenshots(
     loaded and the start-up notices faded).
 
     Raises:
-        ScreenshotError: no ``rerun`` binary, the viewer exited or did not answer in time
-            (e.g. "No graphics adapter was found" without Vulkan), or its picture kept
-            changing.
+        ScreenshotError: no file ``rrd``, no ``rerun`` binary, the viewer exited or did
+            not answer in time (e.g. "No graphics adapter was found" without Vulkan), or
+            its picture kept changing.
     """
+    if not Path(rrd).is_file():  # the viewer would open nothing, then fail obscurely
+        raise ScreenshotError(f"{rrd}: no recording: no such file")
     executable = rerun_executable()
     if executable is None:
         raise ScreenshotError("the `rerun` viewer binary was not found (pip install rerun-sdk)")
