@@ -453,6 +453,7 @@ def test_run_survives_importing_every_module(
     assert done.stdout.startswith("ok")
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_sweep_of_a_dict_returns_its_table(
     tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
@@ -469,6 +470,7 @@ def test_sweep_of_a_dict_returns_its_table(
     assert repr(result) == f"Study(table=<2 rows x {table.shape[1]} columns>, out_dir=None)"
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_study_dict_takes_numpy_arrays_and_paths(
     tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch

@@ -36,6 +36,7 @@ def test_a_megabyte_value_in_a_failure_is_named_by_its_start(
     assert "waypoint 1 ('xxx" in err and "characters left out" in err
 
 
+@pytest.mark.cluster
 def test_a_name_the_system_refuses_is_one_line_naming_it(
     fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -66,6 +66,7 @@ def separate_run(scenario: Path, fmu_dir: Path, time: float, gain: float) -> dic
     return json.loads((out / "summary.json").read_text(encoding="utf-8"))
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_event_time_and_fault_gain_factors_equal_separate_runs(
     scenario: Path, fmu_dir: Path, tmp_path: Path
@@ -136,6 +137,7 @@ def _heredoc(text: str, name: str, end: str) -> str:
     return text[start : text.index(f"\n{end}\n", start) + 1]
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_the_documented_turn_study_answers_with_a_metric_of_the_turn(
     fmu_dir: Path, tmp_path: Path

@@ -19,6 +19,7 @@ collect = ["steady_turning_diameter_m", "tactical_diameter_m"]
 """
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_turning_circle_study_collects_the_steady_turning_diameter(
     tmp_path: Path, fmu_dir: Path

@@ -54,6 +54,7 @@ def runs_in(rrd: dict[str, dict[str, list]]) -> set[str]:
     return {entity.rsplit("/", 1)[1] for entity in rrd if entity.startswith("/world/paths/")}
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_the_overlay_holds_the_chosen_runs(fmu_dir: Path, tmp_path: Path) -> None:
     named = run_id(NAMED)

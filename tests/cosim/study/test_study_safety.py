@@ -47,6 +47,7 @@ def sweep(study: Path, out: Path, fmu_dir: Path, *args: str) -> int:
     return main([*argv, "--workers", "1", *args])
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_new_study_refuses_a_folder_holding_other_files(
     study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
@@ -68,6 +69,7 @@ def test_a_new_study_refuses_a_folder_holding_other_files(
     assert (out / "index.html").read_text() == "<p>my page</p>\n"
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_resume_after_a_referenced_file_changed_is_refused(
     study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
@@ -83,6 +85,7 @@ def test_a_resume_after_a_referenced_file_changed_is_refused(
     assert f"changed: {(tmp_path / 'myveh.toml').resolve()}" in err
 
 
+@pytest.mark.cluster
 def test_a_study_folder_in_use_is_refused(
     study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
 ) -> None:
@@ -116,6 +119,7 @@ def test_an_unreachable_scheduler_leaves_no_study_behind(
     assert not out.exists()
 
 
+@pytest.mark.cluster
 def test_a_full_disk_at_the_end_keeps_every_row_and_says_which_file(
     study: Path, tmp_path: Path, fmu_paths: dict[str, Path], monkeypatch, capsys
 ) -> None:
@@ -140,6 +144,7 @@ def test_a_full_disk_at_the_end_keeps_every_row_and_says_which_file(
     assert (out / "runs.parquet").is_file() and (out / "index.html").is_file()
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_an_out_that_is_a_file_is_named_so(
     study: Path, tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture

@@ -16,6 +16,8 @@ import pytest
 
 from cosim.cli import main
 
+pytestmark = pytest.mark.cluster  # every test starts Dask workers
+
 LONG_STUDY = 'scenario = "bs-3"\nstop_time = 2.0\n[grid]\n"plant.v_0" = {values}\n'
 
 

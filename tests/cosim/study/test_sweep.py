@@ -45,6 +45,7 @@ def separate_run(tmp_path: Path, fmu_dir: Path, v0: float, k0: float) -> dict:
     return json.loads((out / "summary.json").read_text(encoding="utf-8"))
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_grid_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) -> None:
     study = tmp_path / "study.toml"
@@ -68,6 +69,7 @@ def test_a_grid_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) 
     assert any(r["yaw_settling_time_s"] for r in rows)  # 20 s: the settling time is there
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_refused_start_value_is_a_failed_row_the_others_complete(
     tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture[str]
@@ -102,6 +104,7 @@ def test_a_refused_start_value_is_a_failed_row_the_others_complete(
     assert main(argv) == 1
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_the_table_does_not_depend_on_the_number_of_workers(
     small_study: Path, small_reference: list[dict[str, str]], fmu_dir: Path, tmp_path: Path
@@ -241,6 +244,7 @@ def test_a_dashboard_without_the_bokeh_dask_needs_is_refused_before_the_cluster_
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_study_of_a_manoeuvre_collects_its_metrics(tmp_path: Path, fmu_dir: Path) -> None:
     """Regression: a study over turning-circle has the manoeuvre's metrics as columns, each
@@ -262,6 +266,7 @@ def test_a_study_of_a_manoeuvre_collects_its_metrics(tmp_path: Path, fmu_dir: Pa
     assert rows[0.06]["steady_turning_diameter_m"] == ""
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_study_of_fmus_nobody_here_wrote_has_no_empty_auv_columns(
     tmp_path: Path, fmu_dir: Path
@@ -282,6 +287,7 @@ def test_a_study_of_fmus_nobody_here_wrote_has_no_empty_auv_columns(
     assert [float(row["final.d.x"]) < 1.0 for row in rows] == [True] * 3
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_named_value_and_a_number_in_one_grid_run_and_are_tabled_by_name(
     tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture[str]
@@ -306,6 +312,7 @@ def test_a_named_value_and_a_number_in_one_grid_run_and_are_tabled_by_name(
     assert (out / "runs.parquet").is_file() and (out / "index.html").is_file()
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_factor_naming_a_file_is_read_beside_the_study_file_from_any_folder(
     tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
@@ -339,6 +346,7 @@ def test_a_factor_naming_a_file_is_read_beside_the_study_file_from_any_folder(
         assert main([*argv, "--fmu-dir", str(fmu_dir)]) == 0
 
 
+@pytest.mark.cluster
 @pytest.mark.slow
 def test_a_local_cluster_has_no_more_workers_than_runs(
     tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch

@@ -28,6 +28,8 @@ from sweep_helpers import (
 
 from cosim.cli import main
 
+pytestmark = pytest.mark.cluster  # every test starts Dask workers
+
 LISTENING = """
 import json, os, psutil
 from cosim.study.execution import open_client

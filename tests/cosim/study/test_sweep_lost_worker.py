@@ -16,6 +16,8 @@ import pytest
 from distributed import Client
 from sweep_helpers import complete_table, dask_processes, end_group, table, wait_for
 
+pytestmark = pytest.mark.cluster  # every test starts Dask workers
+
 LONG_RUNS = """
 scenario = "bs-3"
 stop_time = 8.0

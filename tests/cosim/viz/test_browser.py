@@ -49,6 +49,7 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.viewer,  # starts a browser
+    pytest.mark.cluster,  # the study its pages show is swept on Dask
     pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt, .ci/run)"),
 ]
 START_TIMEOUT_S = 180.0  # the machine may be busy: generous, never a measurement
