@@ -26,7 +26,8 @@ the scatter of the fixed runs about such lines (the largest factor), the margin 
 which a difference is not a result.
 
 ``--write`` replaces the table between the markers ``<!-- coupling_study.py <part> -->``
-and ``<!-- end -->`` in docs/coupling.md; without it the table is printed. Runs go through
+and ``<!-- end -->`` in docs/coupling.md (``shipped --scenarios``: only those scenarios'
+rows, the others' kept); without it the table is printed. Runs go through
 the master (no files written); the machine's load is printed beside the times.
 """
 
@@ -257,15 +258,34 @@ def _load() -> str:
     return f"load {' '.join(f'{x:.2f}' for x in os.getloadavg())}"
 
 
-def write(part: str, table: str) -> None:
+def write(part: str, table: str, only: Sequence[str] | None = None) -> None:
+    """``table`` between the part's markers in :data:`PAGE`; with ``only`` (the scenarios
+    ``table`` measured) the page's rows of every other built-in scenario are kept, in the
+    built-in order."""
     text = PAGE.read_text(encoding="utf-8")
     marker = re.compile(
-        rf"(<!-- coupling_study.py {re.escape(part)} -->\n).*?(\n<!-- end -->)", re.DOTALL
+        rf"(<!-- coupling_study.py {re.escape(part)} -->\n)(.*?)(\n<!-- end -->)", re.DOTALL
     )
-    if not marker.search(text):
+    found = marker.search(text)
+    if found is None:
         raise SystemExit(f"{PAGE}: no marker <!-- coupling_study.py {part} --> ... <!-- end -->")
-    PAGE.write_text(marker.sub(lambda m: m[1] + table + m[2], text), encoding="utf-8")
+    if only is not None:
+        table = _merged(found[2], table, only)
+    PAGE.write_text(marker.sub(lambda m: m[1] + table + m[3], text), encoding="utf-8")
     print(f"wrote the {part} table of {PAGE}")
+
+
+def _merged(page_table: str, table: str, only: Sequence[str]) -> str:
+    """``table``'s header, then the rows of each built-in scenario: from ``table`` for
+    those in ``only``, else from ``page_table`` (a scenario no longer built in loses its)."""
+    ids = list(builtin_scenarios())
+    rows: dict[str, list[str]] = {sid: [] for sid in ids}
+    for source, measured in ((page_table, False), (table, True)):
+        for line in source.splitlines()[2:]:
+            sid = line.split("|")[1].strip()
+            if sid in rows and (sid in only) == measured:
+                rows[sid].append(line)
+    return "\n".join(table.splitlines()[:2] + [line for sid in ids for line in rows[sid]])
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -287,8 +307,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         table = check_steps(args.scenarios or ["bs-3", "vert-1"])
     else:
         table = adaptive(args.tolerances, args.scenarios or ["vert-1", "bs-3"])
-    if args.write:
-        write(args.part, table)
+    if args.write:  # the shipped table of a few scenarios keeps the others' rows
+        write(args.part, table, args.scenarios if args.part == "shipped" else None)
     else:
         print(table)
     return 0

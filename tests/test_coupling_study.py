@@ -39,3 +39,39 @@ def test_the_scatter_is_the_largest_factor_off_the_trend(study: ModuleType) -> N
     assert study._scatter(exact) == pytest.approx(1.0)
     unlucky = [(e * (4.0 if n == 4800 else 1.0), n) for e, n in exact]
     assert study._scatter(unlucky) == pytest.approx(2.0, rel=0.15)
+
+
+PAGE = """# Coupling
+
+<!-- coupling_study.py shipped -->
+| scenario | coupling | key figure | as shipped | limit | error | order |
+|---|---|---|---|---|---|---|
+| bs-1 | old | yaw settling time | 1 s | 1 s | +0.00 % | 2 |
+| bs-2 | old | yaw settling time | 2 s | 2 s | +0.00 % | 2 |
+| bs-3 | old | yaw settling time | 3 s | 3 s | +0.00 % | 2 |
+<!-- end -->
+after
+"""
+
+
+def test_writing_the_shipped_table_of_some_scenarios_keeps_the_others_rows(
+    study: ModuleType, tmp_path, monkeypatch
+) -> None:
+    """``shipped --scenarios zigzag-20 bs-2 --write`` (a contributor measuring the scenario
+    they added) replaced the whole table with those scenarios' rows: the other sixteen
+    were gone. Now only their rows are replaced, in the order of the built-in ids."""
+    page = tmp_path / "coupling.md"
+    page.write_text(PAGE, encoding="utf-8")
+    monkeypatch.setattr(study, "PAGE", page)
+
+    def measured(ids):  # the table shipped() makes, without the runs
+        rows = [f"| {sid} | new | yaw settling time | 9 s | 9 s | +0.00 % | 2 |" for sid in ids]
+        return "\n".join(PAGE.splitlines()[3:5] + rows)
+
+    monkeypatch.setattr(study, "shipped", measured)
+    assert study.main(["shipped", "--scenarios", "zigzag-20", "bs-2", "--write"]) == 0
+    table = page.read_text(encoding="utf-8").split("-->\n", 1)[1].split("\n<!-- end -->")[0]
+    assert [line.split(" | ")[:2] for line in table.splitlines()[2:]] == [
+        ["| bs-1", "old"], ["| bs-2", "new"], ["| bs-3", "old"], ["| zigzag-20", "new"]
+    ]  # fmt: skip
+    assert page.read_text(encoding="utf-8").endswith("<!-- end -->\nafter\n")
