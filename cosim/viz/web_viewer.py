@@ -43,7 +43,7 @@ import time
 import webbrowser
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 from urllib.parse import quote
 
 from cosim.errors import CosimError
@@ -53,6 +53,7 @@ HOST = "127.0.0.1"
 START_TIMEOUT = 60.0  # s for the rerun binary to start listening
 MIGRATE_TIMEOUT = 120.0  # s for `rerun rrd migrate` to complete a copy of a cut recording
 FOOTER = b"FOOT"  # rerun 0.41: a whole .rrd ends with its 4-byte magic, FOOT, a version
+SCRATCH_PREFIX = "auv-cosim-view-"  # the temporary folder of a completed copy
 PR_SET_PDEATHSIG = 1  # prctl(2): the signal a Linux process gets when its parent dies
 
 
@@ -129,32 +130,49 @@ def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browse
     web_port, file_port = _free_port(web_port, "--web-port"), _free_port(file_port, "--file-port")
     if web_port == file_port:
         raise CosimError(f"--web-port and --file-port are both {web_port}: give two ports")
-    with (
-        tempfile.TemporaryDirectory(prefix="auv-cosim-view-") as folder,
-        tempfile.TemporaryFile() as log,
-        _stop_signals_raise(),
-    ):
-        served = whole_recording(executable, rrd, Path(folder))
-        command = serve_command(executable, served, web_port, file_port)
-        with _file_server(served, file_port, web_port):
-            server = subprocess.Popen(
-                command, stdin=subprocess.DEVNULL, stdout=log, stderr=log,
-                preexec_fn=_die_with_parent(),
-            )  # fmt: skip
-            try:
-                _wait_listening(server, (web_port,), log)
-                url = viewer_url(served, web_port, file_port)
-                print(f"serving {rrd} on {HOST} only; open this URL (Ctrl-C stops):\n  {url}")
-                print(_forward_hint(web_port, file_port), flush=True)
-                if open_browser:
-                    _open(url)
-                return server.wait()
-            except _StopSignalError as stop:
-                return 128 + stop.signum
-            except KeyboardInterrupt:
-                return 130
-            finally:
-                _end(server)
+    with _stop_signals_raise(), tempfile.TemporaryFile() as log, contextlib.ExitStack() as scratch:
+        try:
+            served = rrd
+            if not _ends_with_footer(rrd):  # a folder only then: a SIGKILL'd view leaves none
+                folder = scratch.enter_context(tempfile.TemporaryDirectory(prefix=SCRATCH_PREFIX))
+                served = whole_recording(executable, rrd, Path(folder))
+            return _serve_until_stopped(
+                executable, rrd, served, (web_port, file_port), log, open_browser
+            )
+        except _StopSignalError as stop:
+            return 128 + stop.signum
+        except KeyboardInterrupt:
+            return 130
+
+
+def _serve_until_stopped(
+    executable: str,
+    rrd: Path,
+    served: Path,
+    ports: tuple[int, int],
+    log: IO[bytes],
+    open_browser: bool,
+) -> int:
+    """Serve ``served`` (``rrd`` or its completed copy) on ``ports`` (the page's, the
+    file's), its log to ``log``, until the server ends; the server is ended on the way
+    out, whatever stops it."""
+    web_port, file_port = ports
+    command = serve_command(executable, served, web_port, file_port)
+    with _file_server(served, file_port, web_port):
+        server = subprocess.Popen(
+            command, stdin=subprocess.DEVNULL, stdout=log, stderr=log,
+            preexec_fn=_die_with_parent(),
+        )  # fmt: skip
+        try:
+            _wait_listening(server, (web_port,), log)
+            url = viewer_url(served, web_port, file_port)
+            print(f"serving {rrd} on {HOST} only; open this URL (Ctrl-C stops):\n  {url}")
+            print(_forward_hint(web_port, file_port), flush=True)
+            if open_browser:
+                _open(url)
+            return server.wait()
+        finally:
+            _end(server)
 
 
 def whole_recording(executable: str, rrd: Path, folder: Path) -> Path:

@@ -22,7 +22,13 @@ from rerun.chunk import RrdReader
 from cosim.cli import main
 from cosim.errors import CosimError
 from cosim.viz.recording import recording_in, rerun_executable
-from cosim.viz.web_viewer import HOST, serve_command, viewer_url, whole_recording
+from cosim.viz.web_viewer import (
+    HOST,
+    SCRATCH_PREFIX,
+    serve_command,
+    viewer_url,
+    whole_recording,
+)
 
 FAKE_RRD = b"RRF2" + bytes(60)  # starts like a recording: enough for the checks before serving
 
@@ -131,12 +137,18 @@ def test_a_recording_cut_short_is_served_as_a_completed_copy(
 
 @pytest.mark.slow
 @pytest.mark.viewer
-def test_the_rerun_server_dies_with_auv_cosim_when_it_is_killed(recording: Path) -> None:
-    """SIGKILL of `auv-cosim view --web` left its rerun server running (and serving)."""
+def test_the_rerun_server_dies_with_auv_cosim_when_it_is_killed(
+    recording: Path, tmp_path: Path
+) -> None:
+    """SIGKILL of `auv-cosim view --web` left its rerun server running (and serving), and
+    its temporary folder behind (made for every recording, needed only for one cut short)."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
     command = [sys.executable, "-m", "cosim.cli", "view", str(recording), "--web"]
     proc = subprocess.Popen(
         [*command, "--web-port", "0", "--file-port", "0"], stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT, start_new_session=True,
+        env={**os.environ, "TMPDIR": str(scratch)},
     )  # fmt: skip
     try:
         servers = _children_once_one_listens(proc, time.monotonic() + 120)
@@ -144,6 +156,7 @@ def test_the_rerun_server_dies_with_auv_cosim_when_it_is_killed(recording: Path)
         proc.wait(timeout=30)
         _, alive = psutil.wait_procs(servers, timeout=30)
         assert alive == [], f"the rerun server outlived auv-cosim: {alive}"
+        assert list(scratch.glob(f"{SCRATCH_PREFIX}*")) == []
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
