@@ -646,6 +646,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ignores stop signals outside the run itself, which records them
     (:mod:`cosim.engine.signals`): one arriving after the run, while the interpreter shuts
     down, cannot turn a finished run's exit code into a death by signal."""
+    _null_for_closed_streams()
     args = build_parser().parse_args(argv)
     if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as a
         args.usage_help()  # usage error
@@ -682,6 +683,28 @@ def _reason(exc: Exception) -> str:
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
     return f"{type(exc).__name__}: {exc}"
+
+
+def _null_for_closed_streams() -> None:
+    """A standard descriptor closed when the process started (``2>&-``, a supervisor that
+    closes them) is the null device instead, and so are ``sys.stdout`` and ``sys.stderr``,
+    which Python then sets to None (``sys.stdin`` stays None: a closed stdin is said to be
+    one, ``--interactive``). Else ``sys.stderr.isatty()`` fails before a run or a study
+    begins (exit 1, not a word), ``print(..., file=sys.stderr)`` writes errors and warnings
+    on stdout, and the free descriptor goes to the next file opened (a run folder's lock
+    file), where a child's or a library's messages for stderr would end up."""
+    for fd, name in enumerate(("stdin", "stdout", "stderr")):
+        if getattr(sys, name) is not None:
+            continue
+        try:
+            os.fstat(fd)
+        except OSError:  # free: the null device takes it (the lowest free descriptor)
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+        if fd:
+            setattr(sys, name, open(os.devnull, "w", encoding="utf-8"))  # noqa: SIM115
 
 
 def _quiet_stdout() -> None:

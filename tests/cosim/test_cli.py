@@ -311,3 +311,49 @@ def test_a_commands_help_says_what_the_command_does(
     first = " ".join(paragraphs[1].split())
     assert not first.startswith(("positional arguments", "options")), paragraphs
     assert first.split(" (")[0].split(":")[0][:30] in " ".join(listed.split()), (first, listed)
+
+
+def _with_stderr_closed(cwd: Path, *argv: str) -> tuple[int, str]:
+    """``auv-cosim ARGV 2>&-`` in a fresh interpreter (a session of its own, ended as a
+    group whatever happens): its exit code and stdout."""
+    import contextlib
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    command = ["sh", "-c", 'exec "$@" 2>&-', "sh", sys.executable, "-m", "cosim.cli", *argv]
+    proc = subprocess.Popen(
+        command, stdout=subprocess.PIPE, text=True, cwd=cwd, start_new_session=True
+    )
+    try:
+        out, _ = proc.communicate(timeout=300)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    return proc.returncode, out
+
+
+def test_with_stderr_closed_an_error_is_not_written_on_stdout(tmp_path: Path) -> None:
+    """``auv-cosim run nosuch --quiet 2>&-``: Python sets ``sys.stderr`` to None for a
+    closed descriptor 2, and ``print(..., file=None)`` writes on stdout: the error landed
+    in what a script reads as the command's output."""
+    code, out = _with_stderr_closed(tmp_path, "run", "no-such-scenario", "--quiet")
+    assert (code, out) == (1, "")
+
+
+@pytest.mark.slow
+def test_a_run_with_stderr_closed_runs(fmu_paths: dict[str, Path], tmp_path: Path) -> None:
+    """``auv-cosim run bs-3 2>&-`` (a supervisor that closes stderr) exited 1 before its
+    first step, saying nothing anywhere: the progress bar's ``sys.stderr.isatty()`` on a
+    stderr that Python had set to None."""
+    import json
+
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    argv = ["run", "bs-3", "--fmu-dir", str(fmu_dir), "--out", "out", "--stop-time", "0.05"]
+    code, out = _with_stderr_closed(tmp_path, *argv, "--no-rrd")
+    assert code == 0, out
+    assert out.startswith("scenario bs-3: complete"), out
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "complete"
