@@ -16,6 +16,7 @@ import ctypes
 import hashlib
 import os
 import shutil
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -315,8 +316,26 @@ def unzipped(fmu_path: Path) -> Path:
     if shared is not None and (shared / "modelDescription.xml").is_file():
         return shared
     if digest not in _unzipped_dirs:
-        _unzipped_dirs[digest] = Path(extract(str(fmu_path)))
+        _unzipped_dirs[digest] = _extracted(fmu_path)
     return _unzipped_dirs[digest]
+
+
+def _extracted(fmu_path: Path) -> Path:
+    """``fmu_path`` extracted into a new temporary folder (``TMPDIR``). An extraction the
+    system refuses (a full disk, a file size limit: ``ulimit -f``) is a :class:`CosimError`
+    naming the FMU, the temporary folder and why, and the partly extracted folder goes."""
+    folder: Path | None = None
+    try:
+        folder = Path(tempfile.mkdtemp())
+        extract(str(fmu_path), unzipdir=str(folder))
+    except OSError as exc:
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise CosimError(
+            f"cannot extract {fmu_path} into the temporary folder {tempfile.gettempdir()} "
+            f"(TMPDIR): {exc.strerror or exc}"
+        ) from None
+    return folder
 
 
 @atexit.register

@@ -4,7 +4,11 @@ again -- and a reused library runs exactly like a fresh one."""
 
 from __future__ import annotations
 
+import os
 import shutil
+import subprocess
+import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -49,3 +53,34 @@ def test_a_copy_of_an_fmu_file_reuses_its_extraction(test_fmu_dir: Path, tmp_pat
     assert slave.unzipped(copy) == slave.unzipped(original)
     shutil.copyfile(other, copy)  # the same path, another content: extracted on its own
     assert slave.unzipped(copy) == slave.unzipped(other) != slave.unzipped(original)
+
+
+def test_an_fmu_the_temporary_folder_cannot_hold_is_named_and_leaves_nothing(
+    run_python: Callable[..., subprocess.CompletedProcess], tmp_path: Path
+) -> None:
+    """Under ``ulimit -f`` (or on a full disk) the extraction into TMPDIR failed as
+    "OSError: [Errno 27] File too large", naming neither the FMU nor the folder, and left
+    the partly extracted folder in TMPDIR."""
+    fmu = tmp_path / "Big.fmu"  # fmpy extracts any zip: 1 MiB that does not compress
+    with zipfile.ZipFile(fmu, "w") as archive:
+        archive.writestr("modelDescription.xml", "<fmiModelDescription/>")
+        archive.writestr("binaries/linux64/Big.so", os.urandom(1 << 20))
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    code = """
+        import resource, sys, tempfile
+        from pathlib import Path
+        from cosim.engine.slave import unzipped
+        from cosim.errors import CosimError
+        tempfile.tempdir = sys.argv[2]
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 16, 1 << 16))  # 64 KiB a file
+        try:
+            unzipped(Path(sys.argv[1]))
+        except CosimError as exc:
+            print(exc)
+    """
+    done = run_python(code, fmu, temp)
+    assert done.returncode == 0, done.stderr
+    expected = f"cannot extract {fmu} into the temporary folder {temp} (TMPDIR): File too large"
+    assert done.stdout == expected + "\n"
+    assert not list(temp.iterdir())
