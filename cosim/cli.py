@@ -647,6 +647,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     (:mod:`cosim.engine.signals`): one arriving after the run, while the interpreter shuts
     down, cannot turn a finished run's exit code into a death by signal."""
     _null_for_closed_streams()
+    _printable_anything()
     args = build_parser().parse_args(argv)
     if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as a
         args.usage_help()  # usage error
@@ -705,6 +706,16 @@ def _null_for_closed_streams() -> None:
                 os.close(null)
         if fd:
             setattr(sys, name, open(os.devnull, "w", encoding="utf-8"))  # noqa: SIM115
+
+
+def _printable_anything() -> None:
+    """stdout and stderr write what their encoding cannot (a path given in bytes that are
+    no UTF-8, which Python reads as surrogates: ``--out $'run\\xff'``) as a backslash
+    escape: a strict stdout (a UTF-8 locale's) refused the report of a run that had
+    completed, and the command said "UnicodeEncodeError" and exited 1."""
+    for stream in (sys.stdout, sys.stderr):
+        if getattr(stream, "errors", None) == "strict" and hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
 
 
 def _quiet_stdout() -> None:

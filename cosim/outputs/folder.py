@@ -432,7 +432,9 @@ def lock_folder(path: Path, kind: str = "run", names: OptionNames = FLAGS) -> in
         if current:
             try:
                 os.ftruncate(fd, 0)
-                os.write(fd, f"{os.getpid()} {' '.join(sys.argv)}\n".encode())
+                os.write(
+                    fd, f"{os.getpid()} {' '.join(sys.argv)}\n".encode(errors="surrogateescape")
+                )
             except OSError as exc:  # a full disk: no lock file left behind
                 unlock_folder(path, fd)
                 raise RunFolderError(

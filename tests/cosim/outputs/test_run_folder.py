@@ -138,6 +138,32 @@ def test_a_locked_folder_is_refused_naming_the_process(loop_file: Path, tmp_path
     assert main(["run", str(loop_file), "--out", str(out), "--no-rrd"]) == 0
 
 
+def test_a_command_line_holding_bytes_not_utf8_runs(
+    loop_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+):
+    """An argument that is no UTF-8 (a folder named in Latin-1: Python reads the byte
+    0xff as the surrogate U+DCFF) failed every run at the lock file, which holds the
+    command line: "UnicodeEncodeError: 'utf-8' codec can't encode character '\\udcff'",
+    exit 1, and an empty lock file left in the folder; past it, a strict stdout (a UTF-8
+    locale's) refused the report of the completed run naming that folder, exit 1 again."""
+    import os
+    import sys
+
+    out = tmp_path / os.fsdecode(b"run-\xff")
+    argv = ["run", str(loop_file), "--out", str(out), "--no-rrd"]
+    monkeypatch.setattr(sys, "argv", ["auv-cosim", *argv])  # what the lock file records
+    holder = RunFolder.claim(out)
+    named = r"in use by process \d+ \(auv-cosim run .* --out \S*run-\ufffd "  # as given
+    try:
+        with pytest.raises(RunFolderError, match=named):
+            RunFolder.claim(out)
+    finally:
+        holder.release()
+    assert main(argv) == 0, capsys.readouterr().err
+    assert json.loads((out / "summary.json").read_text())["status"] == "complete"
+    assert not (out / LOCK_FILE).exists()
+
+
 def test_the_vehicles_key_figures_are_printed_only_for_a_run_that_has_them(
     loop_file: Path,
     fmu_paths: dict[str, Path],
