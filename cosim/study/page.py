@@ -69,8 +69,8 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 </body>
 </html>
 """
-    path = out_dir / INDEX_PAGE
-    path.write_text(page, encoding="utf-8")
+    path = out_dir / INDEX_PAGE  # a name that is no UTF-8 (surrogates) escaped
+    path.write_text(page, encoding="utf-8", errors="backslashreplace")
     return path
 
 

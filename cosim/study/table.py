@@ -119,7 +119,7 @@ class RunsTable:
         types.update(dict.fromkeys(["run", "status", "error"], pa.string()))
         arrays = {name: column(values, types.get(name)) for name, values in columns.items()}
         table = pa.table(arrays)
-        write_whole(self.path.with_name(PARQUET_NAME), lambda tmp: pq.write_table(table, tmp))
+        write_whole(self.path.with_name(PARQUET_NAME), lambda tmp: _write_parquet(table, tmp))
         return rows
 
     def _cells(self, row: Row) -> list[str]:
@@ -152,3 +152,11 @@ def _line(cells: Sequence[str]) -> str:
     buffer = io.StringIO()
     csv.writer(buffer, lineterminator="\n").writerow(cells)
     return buffer.getvalue()
+
+
+def _write_parquet(table: pa.Table, path: Path) -> None:
+    """``table`` as Parquet into ``path``, through a file Python opened: pyarrow encodes a
+    path it is given as strict UTF-8, and a folder named in bytes that are no UTF-8 (read
+    as surrogates) failed the study at its end ("UnicodeEncodeError")."""
+    with open(path, "wb") as file:
+        pq.write_table(table, file)

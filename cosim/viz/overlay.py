@@ -66,6 +66,8 @@ def write_overlay(path: Path, runs: Sequence[OverlayRun], title: str, notes: str
     Raises OSError if the file cannot be written.
     """
     tmp = path.with_name(path.name + ".tmp")
+    # Rerun takes UTF-8 text: a folder's name in bytes that are no UTF-8 (surrogates) escaped
+    title, notes = (text.encode(errors="backslashreplace").decode() for text in (title, notes))
     try:
         _write(tmp, runs, title, notes)
     except BaseException:

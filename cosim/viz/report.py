@@ -227,7 +227,8 @@ def write_report(run_dir: Path) -> Path:
         staging.mkdir()
         figures = _figures(run_dir, table, summary, staging)
         index = staging / INDEX_PAGE
-        index.write_text(index_page(run_dir, summary, summary_problem, figures, stamp), "utf-8")
+        page = index_page(run_dir, summary, summary_problem, figures, stamp)
+        index.write_text(page, "utf-8", "backslashreplace")  # a name that is no UTF-8
         record(staging, [*figures.values(), index], stamp)
         remove_earlier(out, keep=[INDEX_PAGE, *(path.name for path in figures.values())])
         for name in [*(path.name for path in figures.values()), INDEX_PAGE, REPORT_MANIFEST]:

@@ -326,3 +326,16 @@ def test_a_grid_figure_of_means_over_samples_says_so_on_its_axis(
     assert _panels_of(kept[1])[0].get_ylabel() == "[N]"  # one run per point: no mean
     for figure in kept:
         plt.close(figure)
+
+
+def test_a_study_folder_named_in_bytes_not_utf8_gets_its_page(tmp_path: Path) -> None:
+    """The page's title names the study folder; one named in Latin-1 (the byte 0xff,
+    read as the surrogate U+DCFF) failed the study at its end, "UnicodeEncodeError"."""
+    import os
+
+    from cosim.study.page import write_index
+
+    folder = tmp_path / os.fsdecode(b"study-\xff")
+    folder.mkdir()
+    page = write_index(folder, {"runs": "4"}, [], {}, ["time_reached"])
+    assert "<h1>Study study-\\udcff</h1>" in page.read_text(encoding="utf-8")

@@ -127,8 +127,8 @@ def test_a_full_disk_at_the_end_keeps_every_row_and_says_which_file(
     file's name): the study ends naming the file and where its rows are, leaves no half
     file, and --resume writes the rest once it can."""
 
-    def full(table, where, **options):  # what pyarrow does on a full disk
-        Path(where).write_bytes(b"PAR1")
+    def full(table, where, **options):  # what pyarrow does on a full disk (into a file)
+        where.write(b"PAR1")
         raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space")
 
     monkeypatch.setattr(pq, "write_table", full)

@@ -198,3 +198,19 @@ def test_a_stop_signal_right_after_a_row_is_written_counts_the_row(
         beside.join()
     monkeypatch.setattr(Path, "open", opened)
     assert table.done == {RUNS[0].id} and len(rows_of(path)) == 1
+
+
+def test_a_study_folder_named_in_bytes_not_utf8_gets_its_parquet(tmp_path: Path) -> None:
+    """A study folder named in Latin-1 (Python reads the byte 0xff as the surrogate
+    U+DCFF): pyarrow encodes a path it is given as strict UTF-8, and the study failed at
+    its end, "UnicodeEncodeError", with no runs.parquet."""
+    import os
+
+    folder = tmp_path / os.fsdecode(b"study-\xff")
+    folder.mkdir()
+    table = RunsTable.create(folder / "runs.csv", FACTORS, METRICS)
+    for run in RUNS:
+        table.append(run, record(run))
+    rows = table.finish(RUNS)
+    with (folder / "runs.parquet").open("rb") as file:  # (so is a name to read)
+        assert pq.read_table(file).to_pylist() == rows

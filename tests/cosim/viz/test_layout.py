@@ -71,6 +71,22 @@ def test_overlay_paths_do_not_print_their_labels(tmp_path: Path) -> None:
     assert shown, "the paths say nothing about their labels"
 
 
+def test_an_overlay_titled_with_bytes_not_utf8_is_written(tmp_path: Path) -> None:
+    """A study's overlay is titled with its folder's name; one named in Latin-1 (the byte
+    0xff, read as the surrogate U+DCFF) failed the study at its end: Rerun takes only
+    UTF-8 ("UnicodeEncodeError")."""
+    import os
+
+    from cosim.viz.overlay import OverlayRun, write_overlay
+
+    t = np.linspace(0.0, 1.0, 11)
+    names = ("plant.north", "plant.east", "plant.down", "plant.yaw", "plant.roll")
+    run = OverlayRun("run0", "run0", {"time": t, **{name: 0 * t for name in names}})
+    title = "study " + os.fsdecode(b"st-\xff")
+    path = write_overlay(tmp_path / "overlay.rrd", [run], title, f"# {title}")
+    assert path.stat().st_size > 0
+
+
 def _contrast(a: tuple[int, int, int], b: tuple[int, int, int]) -> float:
     """The WCAG 2 contrast ratio of two sRGB colours (1: none, 21: black on white)."""
 

@@ -487,3 +487,14 @@ def test_key_figures_are_labelled_with_their_unit_in_brackets() -> None:
     summary = {"scenario": "bs-3", "key_figures": {"peak_abs_mass_position_m": 0.033}}
     page = index_page(Path("runs/bs-3"), summary, None, {})
     assert "<th>peak |mass position| (m)</th><td>0.033</td>" in page
+
+
+def test_a_run_folder_named_in_bytes_not_utf8_gets_its_report(tmp_path) -> None:
+    """A run folder named in Latin-1 (Python reads the byte 0xff as the surrogate U+DCFF):
+    the page names the folder, and writing it failed, "UnicodeEncodeError: 'utf-8' codec
+    can't encode character '\\udcff'" (exit 1, no report)."""
+    import os
+
+    run = _sparse_run(tmp_path / os.fsdecode(b"run-\xff"))
+    index = write_report(run)
+    assert "run-\\udcff" in index.read_text(encoding="utf-8")  # escaped, valid UTF-8
