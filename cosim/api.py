@@ -20,6 +20,7 @@ Example::
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import os
 import tempfile
@@ -301,8 +302,6 @@ def sweep(
         ``if __name__ == "__main__":`` guard (each worker process imports the script
         again); failed runs are rows of the table, not errors.
     """
-    import pandas as pd
-
     from cosim.study.execution import check_main_guard, local_workers
     from cosim.study.runner import Cluster, run_study
     from cosim.study.spec import StudyError
@@ -327,8 +326,16 @@ def sweep(
             resume=resume, fmu_dir=fmu_dir, overlay=overlay, max_runs=max_runs,
             label=DICT_LABEL if isinstance(study, Mapping) else None, names=KEYWORDS,
         )  # fmt: skip
-        table = pd.read_parquet(outcome.paths["parquet"])
+        table = _read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir.absolute())
+
+
+def _read_parquet(path: Path) -> pd.DataFrame:
+    """The table of ``path``, read from its bytes: pyarrow encodes a file name it is given
+    as strict UTF-8, and a folder named in bytes that are no UTF-8 failed there."""
+    import pandas as pd
+
+    return pd.read_parquet(io.BytesIO(path.read_bytes()))
 
 
 def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dict[str, Path]:

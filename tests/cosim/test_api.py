@@ -472,6 +472,20 @@ def test_sweep_of_a_dict_returns_its_table(
 
 @pytest.mark.cluster
 @pytest.mark.slow
+def test_a_sweep_into_a_folder_named_in_bytes_not_utf8_returns_its_table(
+    tmp_path: Path, fmu_dir: Path
+) -> None:
+    """``out`` named in Latin-1 (the byte 0xff, read as the surrogate U+DCFF): the study
+    ran, then reading its runs.parquet back failed, "UnicodeEncodeError" (pyarrow encodes
+    a name it is given as strict UTF-8)."""
+    out = tmp_path / os.fsdecode(b"study-\xff")
+    study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [-0.1, 0.1]}}
+    table = cosim.sweep(study, workers=1, fmu_dir=fmu_dir, out=out).table
+    assert sorted(table["plant.v_0"]) == [-0.1, 0.1]
+    assert (table["status"] == "complete").all()
+
+
+@pytest.mark.slow
 def test_a_study_dict_takes_numpy_arrays_and_paths(
     tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
