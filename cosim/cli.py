@@ -8,6 +8,7 @@ Every command exits 0 on success and non-zero with a one-line reason on stderr o
 from __future__ import annotations
 
 import argparse
+import errno
 import gc
 import os
 import re
@@ -680,10 +681,25 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _reason(exc: Exception) -> str:
     """An unexpected failure in one line: a file the system refused as "PATH: why" (``File
-    name too long``, ``Permission denied``), anything else as "Type: message"."""
+    name too long``, ``Permission denied``), anything else as "Type: message". Out of file
+    descriptors, the file is any the process opened next (a library's module: it named
+    ``email/_header_value_parser.py``), and the limit is what to name."""
+    if isinstance(exc, OSError) and exc.errno == errno.EMFILE:
+        return f"{exc.strerror or 'too many open files'}{_open_files_limit()}"
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
     return f"{type(exc).__name__}: {exc}"
+
+
+def _open_files_limit() -> str:
+    """`` (this process may have N files open: raise the limit with `ulimit -n`)``, or
+    ``""`` where the system does not say (Windows)."""
+    try:
+        import resource
+    except ImportError:
+        return ""
+    soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
+    return f" (this process may have {soft} files open: raise the limit with `ulimit -n`)"
 
 
 def _null_for_closed_streams() -> None:

@@ -357,3 +357,28 @@ def test_a_run_with_stderr_closed_runs(fmu_paths: dict[str, Path], tmp_path: Pat
     assert out.startswith("scenario bs-3: complete"), out
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "complete"
+
+
+def test_out_of_file_descriptors_names_the_limit_not_a_file(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``ulimit -n 32; auv-cosim sweep ...`` said "auv-cosim sweep: /usr/lib/python3.11/
+    email/_header_value_parser.py: Too many open files": the module being imported when
+    the descriptors ran out, which is not the problem; the limit is."""
+    import errno
+    import resource
+
+    from cosim import cli
+
+    module = "/usr/lib/python3.11/email/_header_value_parser.py"
+
+    def scenarios(args: object) -> int:
+        raise OSError(errno.EMFILE, "Too many open files", module)
+
+    monkeypatch.setattr(cli, "_scenarios", scenarios)
+    assert main(["scenarios"]) == 1
+    soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
+    assert capsys.readouterr().err == (
+        f"auv-cosim scenarios: Too many open files (this process may have {soft} files open: "
+        "raise the limit with `ulimit -n`)\n"
+    )
