@@ -285,6 +285,11 @@ def load_study(path: Path, label: str | None = None) -> StudySpec:
             f"{label}: no such file{did_you_mean_path(Path(path))} (looked for "
             f"{Path(path).absolute()}); expected a study .toml file (docs/studies.md)"
         )
+    if not (path.is_file() or path.is_dir()):  # a folder: its read names it below
+        raise StudyError(
+            f"{label}: cannot read it: a pipe or a device, not a file (a study file is read "
+            "more than once: `<(...)` gives it once, and a FIFO with no writer never)"
+        )
     try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
         data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except tomllib.TOMLDecodeError as exc:

@@ -119,6 +119,22 @@ def test_unreadable_and_invalid_files_are_named(tmp_path: Path) -> None:
         load_study(bad)
 
 
+def test_a_study_given_through_a_pipe_is_refused_saying_why(tmp_path: Path) -> None:
+    """``auv-cosim sweep <(make-study)``: the study file is read twice (its size is
+    checked before the cluster starts), and the second read of the pipe found it empty:
+    "key 'scenario' is missing"; a FIFO with no writer hung the command for ever."""
+    import os
+
+    read, write = os.pipe()
+    try:
+        os.write(write, b'scenario = "bs-3"\n[grid]\n"plant.v_0" = [0.1]\n')
+        os.close(write)
+        with pytest.raises(StudyError, match="cannot read it: a pipe or a device, not a file"):
+            load_study(Path(f"/dev/fd/{read}"))
+    finally:
+        os.close(read)
+
+
 def test_a_study_file_with_a_byte_order_mark_reads_as_a_scenario_file_does(
     tmp_path: Path,
 ) -> None:
