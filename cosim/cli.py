@@ -743,6 +743,9 @@ def _quiet_stdout() -> None:
 
 
 def _ignore_stop_signals() -> None:
+    from cosim.engine.signals import started_under_nohup
+
+    started_under_nohup()  # asked before SIGHUP is ignored here: whether nohup ignored it
     for name in ("SIGINT", "SIGTERM", "SIGHUP"):
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), signal.SIG_IGN)

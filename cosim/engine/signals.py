@@ -13,6 +13,7 @@ Exit codes follow the shell's convention, 128 + the signal number: 130 for Ctrl-
 
 from __future__ import annotations
 
+import functools
 import signal
 import threading
 from collections.abc import Iterator
@@ -27,6 +28,22 @@ STOP_SIGNALS = tuple(
 )
 REASONS = {"SIGINT": "interrupted (Ctrl-C)", "SIGTERM": "terminated (SIGTERM)",
            "SIGHUP": "hung up (SIGHUP)"}  # fmt: skip
+
+
+@functools.cache
+def started_under_nohup() -> bool:
+    """Whether SIGHUP was ignored when this process first asked (the command asks as it
+    starts): ``nohup auv-cosim run ...``, whose hangup must not end the run."""
+    hangup = getattr(signal, "SIGHUP", None)
+    return hangup is not None and signal.getsignal(hangup) == signal.SIG_IGN
+
+
+def stop_signals() -> tuple[int, ...]:
+    """The stop signals a run or a study catches: all of :data:`STOP_SIGNALS` but SIGHUP
+    under nohup, which stays ignored (it ended a run or study started with nohup once its
+    terminal hung up: exit 129, partial results)."""
+    hangup = getattr(signal, "SIGHUP", None)
+    return tuple(s for s in STOP_SIGNALS if not (s == hangup and started_under_nohup()))
 
 
 @dataclass
@@ -80,7 +97,7 @@ def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
     def handler(signum: int, _frame: Any) -> None:
         stop.record(signum)
 
-    previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+    previous = {s: signal.signal(s, handler) for s in stop_signals()}
     try:
         yield stop
     finally:

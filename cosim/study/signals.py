@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from cosim.engine.signals import REASONS, STOP_SIGNALS
+from cosim.engine.signals import REASONS, stop_signals
 
 
 class StudyStopped(BaseException):  # like KeyboardInterrupt: not an error
@@ -57,7 +57,7 @@ def stop_study_on_signals() -> Iterator[None]:
         stopped = True
         raise StudyStopped(signum)
 
-    previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+    previous = {s: signal.signal(s, handler) for s in stop_signals()}
     try:
         yield
     finally:

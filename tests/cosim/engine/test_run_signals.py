@@ -356,3 +356,32 @@ def test_a_stopped_manoeuvre_gets_the_metrics_of_what_it_ran(fmu_dir: Path, tmp_
     assert {name: done[name] for name in expected} == expected
     if done["time_reached"] < 5.0:  # the heading turns 90 deg after about 8 s
         assert done["advance_m"] is None
+
+
+@pytest.mark.slow
+def test_a_run_under_nohup_is_not_ended_by_a_hangup(fmu_dir: Path, tmp_path: Path) -> None:
+    """``nohup auv-cosim run ...`` (SIGHUP ignored from the start), then the terminal hangs
+    up: the run caught SIGHUP anyway and ended, "hung up (SIGHUP)", exit 129. It goes on;
+    the SIGTERM sent after the SIGHUP is the signal that ends it (the first one counts)."""
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--fmu-dir", str(fmu_dir),
+               "--out", str(out), "--quiet", "--no-rrd", "--stop-time", LONG]  # fmt: skip
+    proc = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN),  # as nohup does
+    )
+    try:
+        wait_for_rows(proc, out, 300)
+        proc.send_signal(signal.SIGHUP)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert proc.returncode == 143, err
+    assert summary(out)["signal"] == "SIGTERM"

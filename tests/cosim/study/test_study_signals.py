@@ -89,3 +89,23 @@ def test_a_study_in_which_no_run_completed_exits_1(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no run completed (1 failed: see the error column" in err
     assert [row["status"] for row in rows(out / "runs.csv")] == ["failed"]
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP on this system")
+def test_a_study_under_nohup_leaves_the_hangup_ignored(run_python) -> None:
+    """``nohup auv-cosim sweep ...``: the study caught SIGHUP anyway (nohup ignores it for
+    the command), so its terminal hanging up ended it, exit 129. SIGHUP stays ignored
+    while the study runs; SIGINT and SIGTERM are still caught. In a fresh process that
+    starts as nohup starts it."""
+    code = """
+        import signal
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as nohup does, before anything
+        from cosim.study.signals import stop_study_on_signals
+        with stop_study_on_signals():
+            caught = [signal.getsignal(s) not in (signal.SIG_IGN, signal.SIG_DFL)
+                      for s in (signal.SIGHUP, signal.SIGINT, signal.SIGTERM)]
+        print(caught)
+    """
+    done = run_python(code)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "[False, True, True]\n"
