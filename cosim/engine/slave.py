@@ -10,10 +10,10 @@ freed and library loaded, for the next run of this process (:func:`_library`).
 
 from __future__ import annotations
 
-import atexit
 import collections
 import ctypes
 import hashlib
+import multiprocessing.util
 import os
 import shutil
 import tempfile
@@ -316,7 +316,14 @@ def unzipped(fmu_path: Path) -> Path:
     if shared is not None and (shared / "modelDescription.xml").is_file():
         return shared
     if digest not in _unzipped_dirs:
-        _unzipped_dirs[digest] = _extracted(fmu_path)
+        folder = _unzipped_dirs[digest] = _extracted(fmu_path)
+        # Removed as this process ends, by multiprocessing's finalizers: they run at exit
+        # (atexit) and where a multiprocessing child (each Dask worker process) ends by
+        # os._exit, past atexit, which left every worker's extractions behind; and only in
+        # the process that registered them, not in one forked from it.
+        multiprocessing.util.Finalize(
+            None, shutil.rmtree, args=(folder,), kwargs={"ignore_errors": True}, exitpriority=0
+        )
     return _unzipped_dirs[digest]
 
 
@@ -336,12 +343,6 @@ def _extracted(fmu_path: Path) -> Path:
             f"(TMPDIR): {exc.strerror or exc}"
         ) from None
     return folder
-
-
-@atexit.register
-def _remove_unzipped() -> None:
-    for folder in _unzipped_dirs.values():
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _checked(fmu: Any, name: str) -> Callable[..., int]:

@@ -83,3 +83,39 @@ def test_local_workers_run_from_the_clients_extraction(fmu_paths, run_python, tm
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip().splitlines()[-1] == "True True"
+
+
+WORKER_EXTRACTS = """
+import sys
+from pathlib import Path
+from cosim.study.execution import open_client
+
+def extract(path):
+    from cosim.engine import slave
+    return str(slave.unzipped(Path(path)))
+
+if __name__ == "__main__":
+    with open_client(1) as client:
+        folder = client.submit(extract, sys.argv[1], pure=False).result()
+        print(folder, Path(folder).is_dir())
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.cluster
+def test_a_worker_removes_the_fmus_it_extracted_when_it_ends(fmu_paths, run_python, tmp_path):
+    """A worker extracts its FMUs where it has no client's folder to use (a remote worker);
+    Dask's worker processes end by ``os._exit``, past ``atexit``, and each left its
+    extraction of every FMU in the temporary folder, for every worker started."""
+    script = tmp_path / "worker_extracts.py"
+    script.write_text(WORKER_EXTRACTS, encoding="utf-8")
+    done = run_python(
+        "import os, runpy, sys; os.environ['TMPDIR'] = sys.argv[2]; sys.argv[1:] = sys.argv[1:2]; "
+        f"runpy.run_path({str(script)!r}, run_name='__main__')",
+        str(fmu_paths["AuvPlant"]),
+        str(tmp_path),
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    folder, was_there = done.stdout.split()[-2:]
+    assert Path(folder).parent == tmp_path and was_there == "True"
+    assert not Path(folder).exists(), f"the worker left {folder}"
