@@ -1,5 +1,12 @@
-"""Shared fixtures: the built FMUs and a fresh-process Python runner.
+"""Shared fixtures: the session's temporary folder, the built FMUs and a fresh-process
+Python runner.
 
+* ``session_tmpdir`` (session, autouse): ``TMPDIR`` (and :mod:`tempfile`'s default) for
+  the session and every process its tests start: a folder of pytest's own, removed at the
+  session's end with whatever is in it. What a test or its processes put in the system's
+  temporary folder without a folder of their own (fmpy's extractions, a browser's profile,
+  Dask's scratch space, ecos's SSP copies, what a process killed on purpose could not
+  clean up) is not left behind.
 * ``fmu_paths`` (session): ``{"AuvPlant": Path, "AuvAutopilot": Path}`` built once per test
   session into a temporary folder with :mod:`cosim.fmus.build`. An FMU whose build fails
   is absent, and looking it up raises that build's error (so a broken FMU fails only the
@@ -9,7 +16,8 @@
 * Every test using ``fmu_paths`` or ``test_fmu_dir`` is marked ``fmu``.
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
-  ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured). This folder is on
+  ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured), in a process group
+  of its own that is killed when it returns or times out. This folder is on
   the child's ``PYTHONPATH`` after the project's packages (``from fmu_harness import
   Harness`` works, and ``tests/cosim`` does not shadow ``cosim``). Use it where
   pythonfmu's module caching or a possible crash of the host calls for a new process.
@@ -17,11 +25,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import shutil
+import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -43,6 +55,23 @@ class BuiltFmus(dict):
         if name in self.failures:
             raise self.failures[name]
         raise KeyError(name)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def session_tmpdir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """The session's temporary folder (see the module's docstring)."""
+    folder = tmp_path_factory.mktemp("tmp")
+    before = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"] = tempfile.tempdir = str(folder)
+    try:
+        yield folder
+    finally:
+        if before[0] is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = before[0]
+        tempfile.tempdir = before[1]
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")
@@ -91,15 +120,18 @@ def run_python(
     env = {**os.environ, "PYTHONPATH": path}
 
     def run(code: str, *args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
-        return subprocess.run(
-            [sys.executable, "-c", textwrap.dedent(code), *map(str, args)],
-            cwd=cwd,
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=timeout,
-            check=False,
-        )
+        command = [sys.executable, "-c", textwrap.dedent(code), *map(str, args)]
+        proc = subprocess.Popen(
+            command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True, start_new_session=True,
+        )  # fmt: skip
+        try:
+            out, err = proc.communicate(timeout=timeout)
+        finally:  # what it started ends with it (a Dask cluster's processes, on a timeout)
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+        return subprocess.CompletedProcess(command, proc.returncode, out, err)
 
     return run
 
