@@ -49,9 +49,14 @@ gc.enable()
 
 
 def dask_setup(worker: object) -> None:
-    """A local worker ignores SIGINT: a Ctrl-C is the client's to handle, which ends the
-    study and its cluster (:mod:`cosim.study.signals`); the workers of a cluster started
-    on a thread (early, while the study is checked) do not inherit the client's ignoring.
+    """A local worker ignores SIGINT, SIGTERM and SIGHUP: a stop signal sent to the whole
+    process group (Ctrl-C in a terminal, a CI job cancelled, ``kill -- -PGID``, a hangup)
+    is the client's to handle, which ends the study and its cluster in order
+    (:mod:`cosim.study.signals`; Dask's nanny still ends a worker that does not stop, by
+    SIGKILL). A worker ended by the signal before the client could end it made the
+    scheduler print its failed broadcasts, tracebacks included. The workers of a cluster
+    started on a thread (early, while the study is checked) do not inherit the client's
+    ignoring.
     A worker shows a warning as one line naming itself, as the command shows its own
     (:func:`cosim.errors.one_line_warnings`)."""
     import signal
@@ -62,4 +67,6 @@ def dask_setup(worker: object) -> None:
 
     warnings.showwarning = one_line_warnings("auv-cosim study worker")
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+            if hasattr(signal, name):  # not SIGHUP on Windows
+                signal.signal(getattr(signal, name), signal.SIG_IGN)

@@ -3,6 +3,7 @@ a real Dask cluster of processes (``dask scheduler`` + ``dask worker``) and endi
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -70,13 +71,16 @@ def wait_for(condition: Callable[[], bool], what: str, timeout: float = START_TI
 
 
 def end_group(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
-    """Stop the process group this test started (its leader is ``proc``) and reap it."""
+    """Stop the process group this test started (its leader is ``proc``) and reap it; what
+    is left of the group once the leader is gone (a study's workers ignore SIGTERM: the
+    client ends them) is killed."""
     if proc.poll() is None:
         os.killpg(proc.pid, sig)
     try:
         proc.wait(timeout=30)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
 
 

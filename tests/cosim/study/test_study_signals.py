@@ -18,7 +18,7 @@ from cosim.cli import main
 
 pytestmark = pytest.mark.cluster  # every test starts Dask workers
 
-LONG_STUDY = 'scenario = "bs-3"\nstop_time = 2.0\n[grid]\n"plant.v_0" = {values}\n'
+LONG_STUDY = 'scenario = "bs-3"\nstop_time = {stop_time}\n[grid]\n"plant.v_0" = {values}\n'
 
 
 def rows(table: Path) -> list[dict[str, str]]:
@@ -29,19 +29,28 @@ def rows(table: Path) -> list[dict[str, str]]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("signum", "group"), [(signal.SIGINT, True), (signal.SIGTERM, False)])
+@pytest.mark.parametrize(
+    ("signum", "group", "workers", "stop_time"),
+    [
+        (signal.SIGINT, True, 1, 2.0),
+        (signal.SIGTERM, False, 1, 2.0),
+        (signal.SIGTERM, True, 2, 300.0),  # runs of ~1 s: the signal comes in the middle of one
+    ],
+)
 def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
-    signum: int, group: bool, tmp_path: Path, fmu_dir: Path
+    signum: int, group: bool, workers: int, stop_time: float, tmp_path: Path, fmu_dir: Path
 ) -> None:
     """Ctrl-C flooded stderr with worker tracebacks; SIGTERM killed the study without a
     reason and with leaked-semaphore warnings. Ctrl-C goes to the whole process group,
-    as a terminal sends it."""
+    as a terminal sends it; so does SIGTERM from a CI job cancelled or `kill -- -PGID`,
+    which ended the workers before the study could, and the scheduler's broadcasts to
+    them printed 36 lines of CommClosedError tracebacks."""
     study = tmp_path / "long.toml"
     values = [round(-0.2 + 0.01 * i, 2) for i in range(40)]
-    study.write_text(LONG_STUDY.format(values=values), encoding="utf-8")
+    study.write_text(LONG_STUDY.format(stop_time=stop_time, values=values), encoding="utf-8")
     out = tmp_path / "out"
     command = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--out", str(out)]
-    command += ["--fmu-dir", str(fmu_dir), "--workers", "1", "--quiet"]
+    command += ["--fmu-dir", str(fmu_dir), "--workers", str(workers), "--quiet"]
     process = subprocess.Popen(
         command,
         stdout=subprocess.PIPE,
@@ -66,6 +75,7 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
         process.wait()
     assert process.returncode == 128 + signum, err
     assert "Traceback" not in err and "leaked semaphore" not in err, err
+    assert "CommClosedError" not in err and " - ERROR - " not in err, err
     name = "interrupted (Ctrl-C)" if signum == signal.SIGINT else "terminated (SIGTERM)"
     (line,) = [line for line in err.splitlines() if line.startswith("auv-cosim sweep:")]
     assert line.startswith(f"auv-cosim sweep: {name}; ") and "finished runs kept" in line
