@@ -401,8 +401,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("export", help="export a scenario as SSP or OSP system structure")
     p.add_argument("scenario", help="scenario id or .toml path")
-    p.add_argument("--ssp", type=_path_arg, help="write an SSP 1.0 archive to this file")
-    p.add_argument(
+    target = p.add_mutually_exclusive_group(required=True)  # neither or both: usage, exit 2
+    target.add_argument("--ssp", type=_path_arg, help="write an SSP 1.0 archive to this file")
+    target.add_argument(
         "--osp", type=_path_arg, help="write OspSystemStructure.xml + FMUs to this folder"
     )
     p.add_argument(

@@ -19,6 +19,7 @@ from lxml import etree
 from cosim import cli
 from cosim.errors import CosimError
 from cosim.export import OSP_FILE, PARAMETER_SET, export_osp, export_ssp
+from cosim.export.command import export_scenario
 from cosim.export.files import EXPORT_RECORD
 from cosim.scenario.spec import Scenario, load_scenario
 
@@ -410,13 +411,19 @@ def test_a_scenario_file_naming_a_missing_variable_fails(
 def test_export_needs_exactly_one_target(
     plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    code, err = _export(capsys, plant_alone.source)
-    assert code == 1 and "exactly one of --ssp FILE or --osp DIR" in err
-    code, _ = _export(
-        capsys, plant_alone.source, "--ssp", tmp_path / "a.ssp", "--osp", tmp_path / "b"
-    )
-    assert code == 1
+    """Neither or both of --ssp and --osp is a command line that cannot be parsed: exit 2
+    with the usage, as every such command line (it was exit 1, as a failed export)."""
+    for targets, why in [
+        ([], "one of the arguments --ssp --osp is required"),
+        (["--ssp", tmp_path / "a.ssp", "--osp", tmp_path / "b"], "not allowed with argument"),
+    ]:
+        with pytest.raises(SystemExit) as exit_:
+            _export(capsys, plant_alone.source, *targets)
+        assert exit_.value.code == 2
+        assert why in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+    with pytest.raises(CosimError, match="exactly one of --ssp FILE or --osp DIR"):
+        export_scenario(plant_alone.source, ssp=None, osp=None, fmu_dir=tmp_path)  # as the API
 
 
 def test_cli_export_writes_and_reports_the_archive(
