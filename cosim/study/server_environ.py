@@ -8,15 +8,28 @@ workers' BLAS starts a thread per core).
 It also turns the garbage collector off for the server's imports: they make ~10^6 objects
 and hardly any garbage, and the collections they set off walked all of them again (3 full
 collections, ~0.12 s of the server's ~0.9 s, before the first worker could be forked).
-:mod:`cosim.study.preload` turns it on again once what was imported is frozen."""
+:mod:`cosim.study.preload` turns it on again once what was imported is frozen.
+
+And the server ignores SIGTERM and SIGHUP, as multiprocessing's fork server ignores SIGINT
+itself: a stop signal sent to the whole process group (a CI job cancelled, ``kill --
+-PGID``, a hangup) is the study's to handle, which closes its cluster, and the server ends
+when the study does. Ended by the signal, the server no longer reported its workers' exits
+to their nannies: each worker still running a run was killed after Dask's timeout, and left
+its run's temporary folder behind. The workers forked from it ignore them too
+(:mod:`cosim.study.preload`)."""
 
 import gc
 import os
+import signal
 from contextlib import suppress
 
 from cosim.study.fork_server import pre_spawn_environ
 
 gc.disable()
+
+for _name in ("SIGTERM", "SIGHUP"):
+    if hasattr(signal, _name):  # no SIGHUP on Windows (where there is no fork server)
+        signal.signal(getattr(signal, _name), signal.SIG_IGN)
 
 with suppress(Exception):
     os.environ.update(pre_spawn_environ())

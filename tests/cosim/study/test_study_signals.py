@@ -44,7 +44,10 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
     reason and with leaked-semaphore warnings. Ctrl-C goes to the whole process group,
     as a terminal sends it; so does SIGTERM from a CI job cancelled or `kill -- -PGID`,
     which ended the workers before the study could, and the scheduler's broadcasts to
-    them printed 36 lines of CommClosedError tracebacks."""
+    them printed 36 lines of CommClosedError tracebacks; and the workers' fork server,
+    ended by it too, left each run in flight's temporary folder behind."""
+    scratch = tmp_path / "tmp"  # the study's TMPDIR
+    scratch.mkdir()
     study = tmp_path / "long.toml"
     values = [round(-0.2 + 0.01 * i, 2) for i in range(40)]
     study.write_text(LONG_STUDY.format(stop_time=stop_time, values=values), encoding="utf-8")
@@ -57,7 +60,7 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
-        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "TMPDIR": str(scratch)},
     )
     try:
         deadline = time.monotonic() + 240
@@ -76,6 +79,7 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
     assert process.returncode == 128 + signum, err
     assert "Traceback" not in err and "leaked semaphore" not in err, err
     assert "CommClosedError" not in err and " - ERROR - " not in err, err
+    assert [p.name for p in scratch.iterdir() if p.name != "dask-scratch-space"] == []
     name = "interrupted (Ctrl-C)" if signum == signal.SIGINT else "terminated (SIGTERM)"
     (line,) = [line for line in err.splitlines() if line.startswith("auv-cosim sweep:")]
     assert line.startswith(f"auv-cosim sweep: {name}; ") and "finished runs kept" in line
