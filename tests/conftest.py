@@ -26,6 +26,7 @@ Python runner.
 from __future__ import annotations
 
 import contextlib
+import multiprocessing.util
 import os
 import shutil
 import signal
@@ -66,12 +67,21 @@ def session_tmpdir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     try:
         yield folder
     finally:
+        # multiprocessing's own folder of this process it removes as the process ends
+        # (removed here, its finalizer printed a FileNotFoundError traceback at exit)
+        kept = Path(multiprocessing.util.get_temp_dir())
         if before[0] is None:
             os.environ.pop("TMPDIR", None)
         else:
             os.environ["TMPDIR"] = before[0]
         tempfile.tempdir = before[1]
-        shutil.rmtree(folder, ignore_errors=True)
+        for entry in folder.iterdir():
+            if entry == kept:
+                continue
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
 
 
 @pytest.fixture(scope="session")
