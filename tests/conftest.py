@@ -61,23 +61,21 @@ class BuiltFmus(dict):
 @pytest.fixture(scope="session", autouse=True)
 def session_tmpdir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     """The session's temporary folder (see the module's docstring)."""
+    # multiprocessing's own folder of this process stays where it was: its finalizer
+    # removes it as the process ends, after the session's folder went (a traceback then)
+    multiprocessing.util.get_temp_dir()
     folder = tmp_path_factory.mktemp("tmp")
     before = os.environ.get("TMPDIR"), tempfile.tempdir
     os.environ["TMPDIR"] = tempfile.tempdir = str(folder)
     try:
         yield folder
     finally:
-        # multiprocessing's own folder of this process it removes as the process ends
-        # (removed here, its finalizer printed a FileNotFoundError traceback at exit)
-        kept = Path(multiprocessing.util.get_temp_dir())
         if before[0] is None:
             os.environ.pop("TMPDIR", None)
         else:
             os.environ["TMPDIR"] = before[0]
         tempfile.tempdir = before[1]
         for entry in folder.iterdir():
-            if entry == kept:
-                continue
             if entry.is_dir() and not entry.is_symlink():
                 shutil.rmtree(entry, ignore_errors=True)
             else:
