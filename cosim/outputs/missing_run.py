@@ -1,12 +1,14 @@
 """What to tell a user who names a run folder that is not there (``auv-cosim view`` and
-``report``): the scenario id typed for its folder (``bs-3`` for ``runs/bs-3``), or a
-built-in scenario not run yet, with the command that runs it."""
+``report``): the scenario id typed for its folder (``bs-3`` for ``runs/bs-3``), a
+built-in scenario not run yet, with the command that runs it, or the run's own report
+folder (``runs/bs-3/report``) for the run's."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from cosim.errors import did_you_mean_path
+from cosim.outputs.run_files import REPORT_FOLDER, RESULTS_FILE
 from cosim.paths import RUNS_DIR
 
 
@@ -16,8 +18,12 @@ def missing_run_hint(path: Path) -> str:
 
     ``bs-3`` when ``runs/bs-3`` is a folder: `` (did you mean 'runs/bs-3'?)``; ``lqr-1`` or
     ``runs/lqr-1`` for a built-in scenario without a run there: the command that writes
-    it; anything else: :func:`cosim.errors.did_you_mean_path`'s guess among its neighbours.
+    it; a run's report folder (``runs/bs-3/report``, what ``report`` writes): the run's
+    folder; anything else: :func:`cosim.errors.did_you_mean_path`'s guess among its
+    neighbours.
     """
+    if path.name == REPORT_FOLDER and (path.parent / RESULTS_FILE).is_file():
+        return f" (the report folder of a run: did you mean {str(path.parent)!r}?)"
     if path.exists():
         return ""
     name, default = path.name, RUNS_DIR / path.name

@@ -299,7 +299,8 @@ def load_results(run_dir: Path) -> dict[str, np.ndarray]:
         )
     if not path.is_file():
         raise CosimError(
-            f"no results.csv in {run_dir}: expected the output folder of `auv-cosim run`"
+            f"no results.csv in {run_dir}{missing_run_hint(run_dir)}: expected the output "
+            "folder of `auv-cosim run`"
         )
     try:
         with warnings.catch_warnings():

@@ -260,6 +260,22 @@ def test_a_scenario_id_given_for_its_run_folder_names_the_folder(
 
 
 @pytest.mark.parametrize("command", ["view", "report"])
+def test_a_runs_report_folder_given_for_the_run_names_the_run(
+    command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    """``report runs/bs-3/report`` (the folder ``report`` wrote, beside the run's files)
+    said only that it held no results.csv, or no recording."""
+    monkeypatch.chdir(tmp_path)
+    run = tmp_path / "runs" / "bs-3"
+    (run / "report").mkdir(parents=True)
+    (run / "results.csv").write_text("time\n0.0\n", encoding="utf-8")
+    assert main([command, "runs/bs-3/report"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "did you mean 'runs/bs-3'?" in err, err
+
+
+@pytest.mark.parametrize("command", ["view", "report"])
 @pytest.mark.parametrize("given", ["lqr-1", "runs/lqr-1"])
 def test_a_scenario_not_run_yet_is_named_with_the_command_that_runs_it(
     command: str, given: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
