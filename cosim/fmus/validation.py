@@ -88,8 +88,8 @@ def validate_files(paths: list[Path]) -> list[str]:
 def _runnable_problems(path: Path) -> list[str]:
     if path.is_dir():
         return ["is a folder: give its .fmu files, or --fmu-dir for the built FMUs in it"]
-    if not path.is_file():
-        return ["no such file"]
+    if not path.is_file():  # a pipe or a device is no FMU either (an FMU is a zip file)
+        return ["not a file: a pipe or a device" if path.exists() else "no such file"]
     return _readable(path, _foreign_problems)
 
 

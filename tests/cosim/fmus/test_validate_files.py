@@ -4,6 +4,7 @@ fmpy can mend it, the command that does."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import tempfile
@@ -85,12 +86,15 @@ def test_what_is_not_an_fmu_file_is_named(tmp_path, capsys):
     text = tmp_path / "notes.fmu"
     text.write_text("not a zip", encoding="utf-8")
     missing = tmp_path / "missing.fmu"
-    assert main(["validate", str(text), str(missing), str(tmp_path)]) == 1
+    pipe = tmp_path / "pipe.fmu"  # it was "no such file"
+    os.mkfifo(pipe)
+    assert main(["validate", str(text), str(missing), str(tmp_path), str(pipe)]) == 1
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines == [
         f"{text}: not a valid FMU: File is not a zip file",
         f"{missing}: no such file",
         f"{tmp_path}: is a folder: give its .fmu files, or --fmu-dir for the built FMUs in it",
+        f"{pipe}: not a file: a pipe or a device",
     ]
 
 
