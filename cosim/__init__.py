@@ -22,9 +22,18 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from cosim.api import Run, RunError, Study, build_fmus, load_scenario, run, sweep
+    from cosim.api import (
+        Run,
+        RunError,
+        Study,
+        SweepError,
+        build_fmus,
+        load_scenario,
+        run,
+        sweep,
+    )
 
-__all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
+__all__ = ["Run", "RunError", "Study", "SweepError", "build_fmus", "load_scenario", "run", "sweep"]
 
 
 def __getattr__(name: str) -> Any:

@@ -23,6 +23,7 @@ import dataclasses
 import io
 import json
 import os
+import signal
 import tempfile
 from collections.abc import Mapping
 from contextlib import ExitStack
@@ -30,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from cosim.engine.signals import REASONS
 from cosim.errors import KEYWORDS, CosimError
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.runner import RunOptions, execute
@@ -40,7 +42,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
     from cosim.runner import RunOutcome
     from cosim.scenario.spec import Algorithm, Extrapolation, Scenario, StartInput, StartValue
 
-__all__ = ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
+__all__ = ["Run", "RunError", "Study", "SweepError", "build_fmus", "load_scenario", "run", "sweep"]
 
 STUDY_FILE = "study.toml"  # a study given as a dict is written to this file first
 DICT_LABEL = "study (given as a dict)"  # how a refusal names it (not by that file)
@@ -60,6 +62,21 @@ class RunError(CosimError):
     def __reduce__(self) -> tuple[type[RunError], tuple[str, Run]]:
         """Pickled with its run (a process pool's worker sends it to the caller)."""
         return type(self), (str(self), self.run)
+
+
+class SweepError(CosimError):
+    """A study that a stop signal (Ctrl-C, a notebook's interrupt) ended before all its runs
+    finished; ``study`` holds the rows of those that did.
+
+    The message says why it stopped and where the finished rows are."""
+
+    def __init__(self, message: str, study: Study) -> None:
+        super().__init__(message)
+        self.study = study
+
+    def __reduce__(self) -> tuple[type[SweepError], tuple[str, Study]]:
+        """Pickled with its study, as :class:`RunError` is with its run."""
+        return type(self), (str(self), self.study)
 
 
 @dataclass(frozen=True)
@@ -301,9 +318,14 @@ def sweep(
         or out of range), or it is called at the top level of a script without an
         ``if __name__ == "__main__":`` guard (each worker process imports the script
         again); failed runs are rows of the table, not errors.
+    SweepError
+        Ctrl-C (a notebook's interrupt) stopped the study: the workers are stopped, the
+        message says how many runs finished, and ``error.study.table`` holds their rows
+        (with ``out``, runs.csv keeps them too, for ``resume=True``).
     """
     from cosim.study.execution import check_main_guard, local_workers
     from cosim.study.runner import Cluster, run_study
+    from cosim.study.signals import StudyStopped, stop_study_on_signals
     from cosim.study.spec import StudyError
 
     check_main_guard("cosim.sweep")
@@ -321,13 +343,35 @@ def sweep(
             temporary = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="auv-cosim-")))
         study_file = _study_file(study, temporary)
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
-        outcome = run_study(
-            study_file, out_dir, cluster=Cluster(workers=workers),
-            resume=resume, fmu_dir=fmu_dir, overlay=overlay, max_runs=max_runs,
-            label=DICT_LABEL if isinstance(study, Mapping) else None, names=KEYWORDS,
-        )  # fmt: skip
+        try:
+            with stop_study_on_signals():  # Ctrl-C, a notebook's interrupt: StudyStopped
+                outcome = run_study(
+                    study_file, out_dir, cluster=Cluster(workers=workers),
+                    resume=resume, fmu_dir=fmu_dir, overlay=overlay, max_runs=max_runs,
+                    label=DICT_LABEL if isinstance(study, Mapping) else None, names=KEYWORDS,
+                )  # fmt: skip
+        except StudyStopped as stop:
+            raise _stopped(stop.signum, out_dir, kept=out is not None) from None
         table = _read_parquet(outcome.paths["parquet"])
     return Study(table, None if out is None else out_dir.absolute())
+
+
+def _stopped(signum: int, out_dir: Path, kept: bool) -> SweepError:
+    """The :class:`SweepError` of a study the signal ``signum`` ended: the rows its
+    ``out_dir``/runs.csv holds (the folder ``kept`` for ``resume=True``, else about to be
+    removed), in one line."""
+    import pandas as pd
+
+    from cosim.study.table import CSV_NAME
+
+    csv_path = out_dir / CSV_NAME
+    table = pd.read_csv(csv_path) if csv_path.is_file() else pd.DataFrame()
+    reason = REASONS.get(signal.Signals(signum).name, "stopped")
+    where = "the error's study.table"
+    if kept and len(table):
+        where += f" and {csv_path.absolute()} (resume=True runs the others)"
+    study = Study(table, out_dir.absolute() if kept and len(table) else None)
+    return SweepError(f"{reason}: {len(table)} finished runs kept in {where}", study)
 
 
 def _read_parquet(path: Path) -> pd.DataFrame:

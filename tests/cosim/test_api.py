@@ -4,12 +4,15 @@ errors as the command line, results as DataFrames, no folder unless asked for.""
 from __future__ import annotations
 
 import ast
+import contextlib
 import csv
 import dataclasses
+import json
 import os
 import pickle
 import pkgutil
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -421,7 +424,7 @@ def test_the_api_names_complete_in_ipython_before_their_first_use(
 
 def test_public_names_have_numpy_docstrings() -> None:
     assert sorted(cosim.__all__) == sorted(
-        ["Run", "RunError", "Study", "build_fmus", "load_scenario", "run", "sweep"]
+        ["Run", "RunError", "Study", "SweepError", "build_fmus", "load_scenario", "run", "sweep"]
     )
     for name in ("run", "load_scenario", "sweep", "build_fmus"):
         doc = getattr(cosim, name).__doc__
@@ -857,3 +860,64 @@ def test_a_users_mypy_catches_a_mistyped_algorithm_in_with_overrides(tmp_path: P
     )
     report, status = _users_mypy(script, tmp_path)
     assert status == 1 and 'Argument "algorithm" to "with_overrides"' in report, report
+
+
+INTERRUPTED_SWEEP = """
+import glob, json, os, signal, sys, tempfile, threading, time
+import cosim
+
+def interrupt_after_the_first_row(pattern):
+    while not any(len(open(p).readlines()) > 1 for p in glob.glob(pattern)):
+        time.sleep(0.05)
+    os.kill(os.getpid(), signal.SIGINT)  # what a notebook's stop button sends its kernel
+
+if __name__ == "__main__":
+    out, fmu_dir = sys.argv[1] or None, sys.argv[2]
+    tempfile.tempdir = os.getcwd()  # an in-memory study's folder: auv-cosim-*/study
+    pattern = os.path.join(out or "auv-cosim-*/study", "runs.csv")
+    threading.Thread(target=interrupt_after_the_first_row, args=(pattern,), daemon=True).start()
+    grid = {"plant.v_0": [round(-0.1 + 0.02 * i, 2) for i in range(10)]}
+    try:
+        cosim.sweep({"scenario": "bs-3", "stop_time": 30.0, "grid": grid}, workers=1,
+                    out=out, fmu_dir=fmu_dir)
+    except cosim.SweepError as error:
+        table = error.study.table
+        print(json.dumps({"message": str(error), "rows": len(table),
+                          "complete": bool((table["status"] == "complete").all()),
+                          "out_dir": None if error.study.out_dir is None
+                          else str(error.study.out_dir)}))
+"""
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+@pytest.mark.parametrize("out", [None, "study"], ids=["in-memory", "out"])
+def test_an_interrupted_sweep_raises_one_line_with_the_finished_rows(
+    tmp_path: Path, fmu_dir: Path, out: str | None
+) -> None:
+    """Ctrl-C (a notebook's stop button) during cosim.sweep raised a bare KeyboardInterrupt
+    from inside Dask, and the rows of the runs already finished were lost with it."""
+    script = tmp_path / "interrupted_sweep.py"
+    script.write_text(INTERRUPTED_SWEEP, encoding="utf-8")
+    command = [sys.executable, str(script), out or "", str(fmu_dir)]
+    process = subprocess.Popen(command, cwd=tmp_path, env=_environment(), text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               start_new_session=True)  # fmt: skip
+    try:
+        stdout, stderr = process.communicate(timeout=600)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    assert process.returncode == 0 and "Traceback" not in stderr, stderr
+    caught = json.loads(stdout.strip().splitlines()[-1])
+    assert 1 <= caught["rows"] < 10 and caught["complete"]
+    kept = f"{caught['rows']} finished runs kept in the error's study.table"
+    assert caught["message"].startswith(f"interrupted (Ctrl-C): {kept}")
+    if out is None:
+        assert caught["out_dir"] is None and not list(tmp_path.glob("auv-cosim-*"))
+    else:
+        assert caught["out_dir"] == str(tmp_path / out)
+        assert f"{tmp_path / out / 'runs.csv'} (resume=True" in caught["message"]
+        with (tmp_path / out / "runs.csv").open(encoding="utf-8") as file:
+            assert len(file.readlines()) == 1 + caught["rows"]
