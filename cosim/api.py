@@ -41,6 +41,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 
     from cosim.runner import RunOutcome
     from cosim.scenario.spec import Algorithm, Extrapolation, Scenario, StartInput, StartValue
+    from cosim.study.runner import StudyOutcome
 
 __all__ = ["Run", "RunError", "Study", "SweepError", "build_fmus", "load_scenario", "run", "sweep"]
 
@@ -317,7 +318,8 @@ def sweep(
         The study cannot run (a bad key, factor or value, an argument of the wrong type
         or out of range), or it is called at the top level of a script without an
         ``if __name__ == "__main__":`` guard (each worker process imports the script
-        again); failed runs are rows of the table, not errors.
+        again); failed runs are rows of the table, not errors (one warning line says
+        how many, naming the first and why it failed).
     SweepError
         Ctrl-C (a notebook's interrupt) stopped the study: the workers are stopped, the
         message says how many runs finished, and ``error.study.table`` holds their rows
@@ -353,7 +355,24 @@ def sweep(
         except StudyStopped as stop:
             raise _stopped(stop.signum, out_dir, kept=out is not None) from None
         table = _read_parquet(outcome.paths["parquet"])
+    _warn_of(outcome)
     return Study(table, None if out is None else out_dir.absolute())
+
+
+def _warn_of(outcome: StudyOutcome) -> None:
+    """One warning line for the failed runs (naming the first, as ``auv-cosim sweep``'s
+    report does) and one for each of the study's warnings: a notebook cell showing a
+    table of NaN metrics would otherwise not say why."""
+    import warnings
+
+    if outcome.failed:
+        warnings.warn(
+            f"cosim.sweep: {outcome.failed} of {outcome.total} runs failed, the first "
+            f"{outcome.first_failure} (the table's error column has each)",
+            stacklevel=3,
+        )
+    for warning in outcome.warnings:
+        warnings.warn(f"cosim.sweep: {warning}", stacklevel=3)
 
 
 def _stopped(signum: int, out_dir: Path, kept: bool) -> SweepError:

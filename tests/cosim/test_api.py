@@ -921,3 +921,23 @@ def test_an_interrupted_sweep_raises_one_line_with_the_finished_rows(
         assert f"{tmp_path / out / 'runs.csv'} (resume=True" in caught["message"]
         with (tmp_path / out / "runs.csv").open(encoding="utf-8") as file:
             assert len(file.readlines()) == 1 + caught["rows"]
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_a_sweep_with_failed_runs_says_so_in_one_warning(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A study whose runs failed returned its table silently: a notebook showed NaN metrics
+    (or plotted fewer points) with no word of the failures the command line reports."""
+    monkeypatch.chdir(tmp_path)
+    study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [-0.1, 99.0]}}
+    with pytest.warns(UserWarning) as caught:
+        result = cosim.sweep(study, workers=1, fmu_dir=fmu_dir)
+    failed = result.table.loc[result.table["status"] == "failed"]
+    assert list(failed["plant.v_0"]) == [99.0]
+    messages = [str(w.message) for w in caught if str(w.message).startswith("cosim.sweep:")]
+    assert len(messages) == 1 and "\n" not in messages[0]
+    first = f"the first run {failed['run'].iloc[0]} (plant.v_0 = 99.0): plant: fmi2DoStep"
+    assert messages[0].startswith(f"cosim.sweep: 1 of 2 runs failed, {first}")
+    assert caught[0].filename == __file__  # the warning points at the caller's line
