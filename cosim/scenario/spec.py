@@ -14,6 +14,7 @@ import dataclasses
 import math
 import os
 import re
+import reprlib
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -296,6 +297,24 @@ class Scenario:
     # True once the loader has checked it (_resolve); a copy by dataclasses.replace gets
     # False, since replace copies no init=False field (pickle and copy.deepcopy keep it)
     loaded: bool = dataclasses.field(default=False, init=False, repr=False, compare=False)
+
+    def __repr__(self) -> str:
+        """One line (a notebook shows it for a cell ending in a scenario): what it runs and
+        its start values, each shortened; not its connections and recorded columns in full
+        (the dataclass's repr: some 5,000 characters for bs-3)."""
+        shown = reprlib.Repr()
+        shown.maxstring = shown.maxother = 40  # a vehicle set given as TOML text
+        shown.maxdict = 40
+        start = {f"{i.name}.{k}": v for i in self.instances.values() for k, v in i.start.items()}
+        source = None if self.source is None else str(self.source)
+        return (
+            f"Scenario(id={self.id!r}, source={source!r}, stop_time={self.stop_time!r}, "
+            f"step={self.coupling.step!r}, "
+            f"instances={ {i.name: i.fmu for i in self.instances.values()}!r}, "
+            f"start={shown.repr(start)}, connections=<{len(self.connections)}>, "
+            f"record=<{len(self.columns)} columns>, events=<{len(self.events)}>, "
+            f"faults=<{len(self.faults)}>)"
+        )
 
     def check_loaded(self) -> None:
         """Raise :class:`ScenarioError` unless the loader made this scenario: a copy by

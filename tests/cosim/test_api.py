@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import tomli_w
+from repo_paths import ROOT
 
 import cosim
 from cosim.errors import CosimError
@@ -941,3 +942,17 @@ def test_a_sweep_with_failed_runs_says_so_in_one_warning(
     first = f"the first run {failed['run'].iloc[0]} (plant.v_0 = 99.0): plant: fmi2DoStep"
     assert messages[0].startswith(f"cosim.sweep: 1 of 2 runs failed, {first}")
     assert caught[0].filename == __file__  # the warning points at the caller's line
+
+
+def test_a_scenario_shows_in_one_line_with_its_start_values(fmu_dir: Path) -> None:
+    """A notebook cell ending in a loaded scenario printed the dataclass's repr: every
+    connection, recorded column and coupling setting, thousands of characters."""
+    vehicle = (ROOT / "plant_fmu/model/vehicles/remus100.toml").read_text(encoding="utf-8")
+    scenario = cosim.load_scenario("bs-3", fmu_dir=fmu_dir).with_start(
+        {"plant.u_0": 1.2, "plant.vehicle": vehicle}
+    )
+    shown = repr(scenario)
+    assert "\n" not in shown and "Connection(" not in shown and len(shown) < 3 * 160, shown
+    assert shown.startswith("Scenario(id='bs-3', source=") and "stop_time=60.0" in shown
+    assert "'plant.u_0': 1.2" in shown and "'controller.heading_mode': 3" in shown
+    assert f"connections=<{len(scenario.connections)}>" in shown
