@@ -41,7 +41,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 
     from cosim.runner import RunOutcome
     from cosim.scenario.spec import Algorithm, Extrapolation, Scenario, StartInput, StartValue
-    from cosim.study.runner import StudyOutcome
+    from cosim.study.runner import Cluster, StudyOutcome
 
 __all__ = ["Run", "RunError", "Study", "SweepError", "build_fmus", "load_scenario", "run", "sweep"]
 
@@ -326,8 +326,7 @@ def sweep(
         (with ``out``, runs.csv keeps them too, for ``resume=True``).
     """
     from cosim.study.execution import check_main_guard, local_workers
-    from cosim.study.runner import Cluster, run_study
-    from cosim.study.signals import StudyStopped, stop_study_on_signals
+    from cosim.study.runner import Cluster
     from cosim.study.spec import StudyError
 
     check_main_guard("cosim.sweep")
@@ -339,19 +338,31 @@ def sweep(
     max_runs = _count("max_runs", max_runs, StudyError)
     fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
     _check_needs_out(out, resume, overlay)
+    options = {"resume": resume, "fmu_dir": fmu_dir, "overlay": overlay, "max_runs": max_runs}
+    return _swept(study, out, Cluster(workers=workers), options)
+
+
+def _swept(
+    study: Path | Mapping[str, Any], out: Path | None, cluster: Cluster, options: dict[str, Any]
+) -> Study:
+    """:func:`sweep` of its checked arguments (``options``: run_study's ``resume``,
+    ``fmu_dir``, ``overlay`` and ``max_runs``); a stop signal (Ctrl-C, a notebook's
+    interrupt) raises :class:`SweepError` with the finished rows."""
+    from cosim.study.runner import run_study
+    from cosim.study.signals import StudyStopped, stop_study_on_signals
+
     with ExitStack() as stack:
         temporary = None
         if out is None or isinstance(study, Mapping):
             temporary = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="auv-cosim-")))
         study_file = _study_file(study, temporary)
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
+        label = DICT_LABEL if isinstance(study, Mapping) else None
         try:
-            with stop_study_on_signals():  # Ctrl-C, a notebook's interrupt: StudyStopped
+            with stop_study_on_signals():  # the first stop signal raises StudyStopped
                 outcome = run_study(
-                    study_file, out_dir, cluster=Cluster(workers=workers),
-                    resume=resume, fmu_dir=fmu_dir, overlay=overlay, max_runs=max_runs,
-                    label=DICT_LABEL if isinstance(study, Mapping) else None, names=KEYWORDS,
-                )  # fmt: skip
+                    study_file, out_dir, cluster=cluster, label=label, names=KEYWORDS, **options
+                )
         except StudyStopped as stop:
             raise _stopped(stop.signum, out_dir, kept=out is not None) from None
         table = _read_parquet(outcome.paths["parquet"])
@@ -369,10 +380,10 @@ def _warn_of(outcome: StudyOutcome) -> None:
         warnings.warn(
             f"cosim.sweep: {outcome.failed} of {outcome.total} runs failed, the first "
             f"{outcome.first_failure} (the table's error column has each)",
-            stacklevel=3,
+            stacklevel=4,  # the line of sweep's caller (here <- _swept <- sweep <- caller)
         )
     for warning in outcome.warnings:
-        warnings.warn(f"cosim.sweep: {warning}", stacklevel=3)
+        warnings.warn(f"cosim.sweep: {warning}", stacklevel=4)
 
 
 def _stopped(signum: int, out_dir: Path, kept: bool) -> SweepError:
