@@ -25,11 +25,9 @@ Python runner.
 
 from __future__ import annotations
 
-import contextlib
 import multiprocessing.util
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -38,6 +36,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from process_group import run_in_group
 
 import cosim
 from cosim.errors import CosimError
@@ -129,17 +128,7 @@ def run_python(
 
     def run(code: str, *args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
         command = [sys.executable, "-c", textwrap.dedent(code), *map(str, args)]
-        proc = subprocess.Popen(
-            command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-            text=True, start_new_session=True,
-        )  # fmt: skip
-        try:
-            out, err = proc.communicate(timeout=timeout)
-        finally:  # what it started ends with it (a Dask cluster's processes, on a timeout)
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
-        return subprocess.CompletedProcess(command, proc.returncode, out, err)
+        return run_in_group(command, timeout=timeout, cwd=cwd, env=env)
 
     return run
 

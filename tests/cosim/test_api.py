@@ -4,7 +4,6 @@ errors as the command line, results as DataFrames, no folder unless asked for.""
 from __future__ import annotations
 
 import ast
-import contextlib
 import csv
 import dataclasses
 import json
@@ -12,7 +11,6 @@ import os
 import pickle
 import pkgutil
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -26,6 +24,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import tomli_w
+from process_group import run_in_group
 from repo_paths import ROOT
 
 import cosim
@@ -901,17 +900,9 @@ def test_an_interrupted_sweep_raises_one_line_with_the_finished_rows(
     script = tmp_path / "interrupted_sweep.py"
     script.write_text(INTERRUPTED_SWEEP, encoding="utf-8")
     command = [sys.executable, str(script), out or "", str(fmu_dir)]
-    process = subprocess.Popen(command, cwd=tmp_path, env=_environment(), text=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               start_new_session=True)  # fmt: skip
-    try:
-        stdout, stderr = process.communicate(timeout=600)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signal.SIGKILL)
-        process.wait()
-    assert process.returncode == 0 and "Traceback" not in stderr, stderr
-    caught = json.loads(stdout.strip().splitlines()[-1])
+    done = run_in_group(command, timeout=600, cwd=tmp_path, env=_environment())
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+    caught = json.loads(done.stdout.strip().splitlines()[-1])
     assert 1 <= caught["rows"] < 10 and caught["complete"]
     kept = f"{caught['rows']} finished runs kept in the error's study.table"
     assert caught["message"].startswith(f"interrupted (Ctrl-C): {kept}")

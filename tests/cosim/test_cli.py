@@ -5,6 +5,7 @@ import re
 from pathlib import Path
 
 import pytest
+from process_group import run_in_group
 
 from cosim.cli import main
 
@@ -332,23 +333,11 @@ def test_a_commands_help_says_what_the_command_does(
 def _with_stderr_closed(cwd: Path, *argv: str) -> tuple[int, str]:
     """``auv-cosim ARGV 2>&-`` in a fresh interpreter (a session of its own, ended as a
     group whatever happens): its exit code and stdout."""
-    import contextlib
-    import os
-    import signal
-    import subprocess
     import sys
 
     command = ["sh", "-c", 'exec "$@" 2>&-', "sh", sys.executable, "-m", "cosim.cli", *argv]
-    proc = subprocess.Popen(
-        command, stdout=subprocess.PIPE, text=True, cwd=cwd, start_new_session=True
-    )
-    try:
-        out, _ = proc.communicate(timeout=300)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-    return proc.returncode, out
+    done = run_in_group(command, timeout=300, stderr=None, cwd=cwd)
+    return done.returncode, done.stdout
 
 
 def test_with_stderr_closed_an_error_is_not_written_on_stdout(tmp_path: Path) -> None:

@@ -13,16 +13,14 @@ use them are in this folder's conftest.py):
 
 from __future__ import annotations
 
-import contextlib
-import os
 import shutil
-import signal
 import subprocess
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
+from process_group import run_in_group
 
 from cosim.fmus import native
 from fmu_runtime.entry import RECORD_FILE
@@ -44,23 +42,8 @@ def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
     stderr pipes (a Windows CPython under Wine 8 cannot start with a regular file as a
     standard stream: Wine's GetFileInformationByHandle fails on it)."""
     env = {"PATH": CLEAN_PATH, "HOME": str(home), **extra}
-    process = subprocess.Popen(
-        [str(part) for part in command],
-        env=env,
-        cwd=home,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        out, err = process.communicate(timeout=timeout)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signal.SIGKILL)
-        process.wait()
-    return subprocess.CompletedProcess(process.args, process.returncode, out, err)
+    command = [str(part) for part in command]
+    return run_in_group(command, timeout=timeout, env=env, cwd=home, stdin=subprocess.DEVNULL)
 
 
 def moved(extraction: Path, folder: Path) -> Path:

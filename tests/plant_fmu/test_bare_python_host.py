@@ -12,12 +12,10 @@ three FMUs' slave classes (with pythonfmu beside them) initialise and step there
 from __future__ import annotations
 
 import ast
-import contextlib
 import glob
 import json
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import textwrap
@@ -26,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import pythonfmu
+from process_group import run_in_group
 from repo_paths import ROOT
 
 SHIPPED = ("plant_fmu", "controller_fmu", "fmu_runtime")  # the packages an FMU carries
@@ -128,21 +127,8 @@ print(json.dumps(logged))
 def _run(command: list[str], timeout: float, env: dict[str, str] | None = None) -> tuple[int, str]:
     """(exit code, stdout + stderr) of ``command`` in a process group of its own, which is
     ended whatever happens."""
-    proc = subprocess.Popen(
-        command,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        start_new_session=True,
-        env=env,
-    )
-    try:
-        out, _ = proc.communicate(timeout=timeout)
-        return proc.returncode, out
-    finally:
-        with contextlib.suppress(ProcessLookupError):  # the group has ended on its own
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
+    done = run_in_group(command, timeout=timeout, stderr=subprocess.STDOUT, env=env)
+    return done.returncode, done.stdout
 
 
 def _packages(folder: Path) -> Path:

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from process_group import run_in_group
 
 pytestmark = [pytest.mark.slow, pytest.mark.cluster]
 
@@ -152,17 +153,9 @@ def _run_script(script: Path, code: str) -> tuple[int, str, str]:
     project's packages on its path): its return code, stdout and stderr. Its process
     group is killed at the end, whatever happened."""
     script.write_text(code, encoding="utf-8")
-    proc = subprocess.Popen(
-        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True, env={**os.environ, "PYTHONPATH": _packages()},
-    )  # fmt: skip
-    try:
-        out, err = proc.communicate(timeout=300)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-    return proc.returncode, out, err
+    env = {**os.environ, "PYTHONPATH": _packages()}
+    done = run_in_group([sys.executable, str(script)], timeout=300, env=env)
+    return done.returncode, done.stdout, done.stderr
 
 
 def _packages() -> str:
