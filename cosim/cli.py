@@ -744,12 +744,11 @@ def _quiet_stdout() -> None:
 
 
 def _ignore_stop_signals() -> None:
-    from cosim.engine.signals import started_under_nohup
+    from cosim.engine.signals import STOP_SIGNALS, started_under_nohup
 
     started_under_nohup()  # asked before SIGHUP is ignored here: whether nohup ignored it
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        if hasattr(signal, name):
-            signal.signal(getattr(signal, name), signal.SIG_IGN)
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
 
 
 if __name__ == "__main__":

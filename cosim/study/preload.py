@@ -63,10 +63,10 @@ def dask_setup(worker: object) -> None:
     import threading
     import warnings
 
+    from cosim.engine.signals import STOP_SIGNALS
     from cosim.errors import one_line_warnings
 
     warnings.showwarning = one_line_warnings("auv-cosim study worker")
     if threading.current_thread() is threading.main_thread():
-        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-            if hasattr(signal, name):  # not SIGHUP on Windows
-                signal.signal(getattr(signal, name), signal.SIG_IGN)
+        for signum in STOP_SIGNALS:
+            signal.signal(signum, signal.SIG_IGN)
