@@ -193,6 +193,7 @@ def run(
     overwrite: bool = False,
     recording: bool = True,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    progress: bool = False,
 ) -> Run:
     """Run a scenario and return its results, like ``auv-cosim run``.
 
@@ -220,6 +221,10 @@ def run(
     fmu_dir : str or pathlib.Path
         Where the built-in FMUs are (built there on first use). Default ``build/fmus``.
         A loaded ``scenario`` runs the FMUs it was loaded with: another folder is refused.
+    progress : bool
+        Show the command line's progress bar on stderr (what the run does before it steps,
+        then the steps; a notebook shows it under the cell, removed when the run ends).
+        Default: nothing shown.
 
     Returns
     -------
@@ -243,6 +248,7 @@ def run(
     settings = {
         "stop_time": stop_time, "step": step, "algorithm": algorithm,
         "extrapolation": extrapolation, "tolerance": tolerance, "check_step": check_step,
+        "progress": progress,
     }  # fmt: skip
     options = _run_options(out, recording, fmu_dir, overwrite, settings)
     start = _start(start)
@@ -278,6 +284,7 @@ def sweep(
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
     oversubscribe: bool = False,
     max_runs: int = 100_000,
+    progress: bool = False,
 ) -> Study:
     """Run a parameter sweep or Monte Carlo study on a local Dask cluster, like
     ``auv-cosim sweep``.
@@ -306,6 +313,9 @@ def sweep(
     max_runs : int
         Refuse a study of more runs than this, before any is built (``--max-runs``; up to
         10,000,000). Default 100,000.
+    progress : bool
+        Show the command line's progress bar of the runs on stderr. Default: nothing
+        shown.
 
     Returns
     -------
@@ -338,7 +348,8 @@ def sweep(
     max_runs = _count("max_runs", max_runs, StudyError)
     fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
     _check_needs_out(out, resume, overlay)
-    options = {"resume": resume, "fmu_dir": fmu_dir, "overlay": overlay, "max_runs": max_runs}
+    options = {"resume": resume, "fmu_dir": fmu_dir, "overlay": overlay, "max_runs": max_runs,
+               "progress": _flag("progress", progress, StudyError)}  # fmt: skip
     return _swept(study, out, Cluster(workers=workers), options)
 
 
@@ -346,7 +357,7 @@ def _swept(
     study: Path | Mapping[str, Any], out: Path | None, cluster: Cluster, options: dict[str, Any]
 ) -> Study:
     """:func:`sweep` of its checked arguments (``options``: run_study's ``resume``,
-    ``fmu_dir``, ``overlay`` and ``max_runs``); a stop signal (Ctrl-C, a notebook's
+    ``fmu_dir``, ``overlay``, ``max_runs`` and ``progress``); a stop signal (Ctrl-C, a notebook's
     interrupt) raises :class:`SweepError` with the finished rows."""
     from cosim.study.runner import run_study
     from cosim.study.signals import StudyStopped, stop_study_on_signals
@@ -530,6 +541,7 @@ def _run_options(
         extrapolation=_choice("extrapolation", settings["extrapolation"], EXTRAPOLATIONS),  # type: ignore[arg-type]
         tolerance=_number("tolerance", settings["tolerance"]),
         check_step=_flag("check_step", settings["check_step"]),
+        progress=_flag("progress", settings["progress"]),
         no_rrd=out is None or not recording,
         fmu_dir=_folder("fmu_dir", fmu_dir),
         overwrite=_flag("overwrite", overwrite),

@@ -109,6 +109,19 @@ def test_run_keeps_results_in_memory_and_leaves_no_folder(
 
 
 @pytest.mark.slow
+def test_a_run_shows_the_command_lines_progress_only_when_asked(
+    fmu_dir: Path, capfd: pytest.CaptureFixture
+) -> None:
+    """A long run in a notebook showed nothing until it ended (the progress bar was the
+    command line's only); ``progress=True`` shows it, and without it nothing is printed."""
+    cosim.run("bs-3", stop_time=0.5, fmu_dir=fmu_dir)
+    assert capfd.readouterr().err == ""
+    cosim.run("bs-3", stop_time=0.5, fmu_dir=fmu_dir, progress=True)
+    shown = capfd.readouterr().err
+    assert "bs-3: loading FMUs" in shown and "/51 [" in shown, shown
+
+
+@pytest.mark.slow
 def test_run_with_out_writes_the_command_lines_folder(tmp_path: Path, fmu_dir: Path) -> None:
     run = cosim.run("bs-3", stop_time=0.3, out=tmp_path / "run", fmu_dir=fmu_dir)
     assert run.out_dir == tmp_path / "run"
@@ -459,11 +472,13 @@ def test_run_survives_importing_every_module(
 @pytest.mark.cluster
 @pytest.mark.slow
 def test_sweep_of_a_dict_returns_its_table(
-    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture
 ) -> None:
+    """... and shows the command line's progress bar of the runs when asked."""
     monkeypatch.chdir(tmp_path)
     study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [-0.1, 0.1]}}
-    result = cosim.sweep(study, workers=1, fmu_dir=fmu_dir)
+    result = cosim.sweep(study, workers=1, fmu_dir=fmu_dir, progress=True)
+    assert "runs: 100%" in capfd.readouterr().err
     assert result.out_dir is None and list(tmp_path.iterdir()) == []
     table = result.table
     assert isinstance(table, pd.DataFrame) and len(table) == 2
@@ -581,6 +596,7 @@ BAD_ARGUMENTS = [
     ("run", {"scenario": "bs-3", "algorithm": "euler"}, "algorithm='euler'"),
     ("run", {"scenario": "bs-3", "overwrite": "no"}, "overwrite='no'"),
     ("run", {"scenario": "bs-3", "recording": 3}, "recording=3"),
+    ("run", {"scenario": "bs-3", "progress": "yes"}, "progress='yes'"),
     ("load_scenario", {"scenario": "bs\0"}, "scenario='bs\\x00'"),
     ("load_scenario", {"scenario": "bs-3", "fmu_dir": A_FILE}, "fmu_dir="),
     ("sweep", {"study": {"scenario": "bs-3"}, "workers": "2"}, "workers='2'"),
@@ -591,6 +607,7 @@ BAD_ARGUMENTS = [
     ("sweep", {"study": "a\0.toml"}, "study='a\\x00.toml'"),
     ("sweep", {"study": {"scenario": "bs-3"}, "overlay": "2"}, "overlay='2'"),
     ("sweep", {"study": {"scenario": "bs-3"}, "resume": "yes"}, "resume='yes'"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "progress": 1}, "progress=1"),
     ("build_fmus", {"out": A_FILE}, "out="),
     ("build_fmus", {"force": "yes"}, "force='yes'"),
 ]
