@@ -15,9 +15,10 @@ import re
 import signal
 import sys
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TextIO
 
 from cosim.errors import CosimError, one_line_warnings
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
@@ -650,7 +651,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     down, cannot turn a finished run's exit code into a death by signal."""
     _null_for_closed_streams()
     _printable_anything()
-    args = build_parser().parse_args(argv)
+    if argv is None:
+        sys.stdout = _StandardOutput(sys.stdout)
+    try:
+        args = build_parser().parse_args(argv)
+    except OSError as exc:  # --version to a standard output that refuses it
+        print(f"auv-cosim: {shortened(_reason(exc))}", file=sys.stderr)
+        return 1
     if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as a
         args.usage_help()  # usage error
         return 2
@@ -733,6 +740,37 @@ def _printable_anything() -> None:
     for stream in (sys.stdout, sys.stderr):
         if getattr(stream, "errors", None) == "strict" and hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
+
+
+class _StandardOutput:
+    """``sys.stdout`` whose failures name it: a write refused (a full disk, ``> /dev/full``)
+    raised an OSError naming no file, which said "OSError: [Errno 28] No space left on
+    device" after a run whose folder had been written (as if that disk were full).
+    BrokenPipeError (a reader gone, ``| head``) passes as it is."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        with _named_standard_output():
+            return self._stream.write(text)
+
+    def flush(self) -> None:
+        with _named_standard_output():
+            self._stream.flush()
+
+    def __getattr__(self, name: str) -> Any:  # everything else is the stream's
+        return getattr(self._stream, name)
+
+
+@contextmanager
+def _named_standard_output() -> Iterator[None]:
+    try:
+        yield
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, "standard output") from None
 
 
 def _quiet_stdout() -> None:

@@ -364,6 +364,22 @@ def test_a_run_with_stderr_closed_runs(fmu_paths: dict[str, Path], tmp_path: Pat
     assert summary["status"] == "complete"
 
 
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs Linux's /dev/full")
+@pytest.mark.parametrize("argv", [["--version"], ["scenarios"], ["validate", "bs-3"]])
+def test_a_full_standard_output_is_named_as_such(argv: list[str], tmp_path: Path) -> None:
+    """``auv-cosim validate bs-3 > out.txt`` on a full disk said "OSError: [Errno 28] No
+    space left on device", naming no file (a run's report: as if its folder's disk were
+    full), and ``--version`` printed a traceback."""
+    import sys
+
+    with open("/dev/full", "w") as full:
+        command = [sys.executable, "-m", "cosim.cli", *argv]
+        done = run_in_group(command, timeout=120, stdout=full, cwd=tmp_path)
+    command = "auv-cosim" if argv[0] == "--version" else f"auv-cosim {argv[0]}"
+    assert done.returncode == 1, done.stderr
+    assert done.stderr == f"{command}: standard output: No space left on device\n"
+
+
 def test_out_of_file_descriptors_names_the_limit_not_a_file(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
