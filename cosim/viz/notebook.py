@@ -66,16 +66,16 @@ def _layout(rrd: Path) -> Any:
 
 
 def inline_viewer(rrd: str | Path, height: int = HEIGHT) -> Any:
-    """The notebook widget showing the recording ``rrd`` (a ``.rrd`` file or a run folder
-    holding ``recording.rrd``); display it by ending a cell with it.
+    """The notebook widget showing the recording ``rrd`` (a ``.rrd`` file, a run folder
+    holding ``recording.rrd`` or a study folder holding ``overlay.rrd``, as ``auv-cosim
+    view`` takes); display it by ending a cell with it.
 
     Raises:
         CosimError: no such recording, or rerun's notebook viewer is not installed.
     """
-    path = Path(rrd)
-    path = path / "recording.rrd" if path.is_dir() else path
-    if not path.is_file():
-        raise CosimError(f"{path}: no recording there (a run writes recording.rrd)")
+    from cosim.viz.recording import recording_in
+
+    path = recording_in(Path(rrd))
     offline_assets()
     try:
         import rerun as rr
