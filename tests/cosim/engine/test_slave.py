@@ -55,6 +55,28 @@ def test_a_copy_of_an_fmu_file_reuses_its_extraction(test_fmu_dir: Path, tmp_pat
     assert slave.unzipped(copy) == slave.unzipped(other) != slave.unzipped(original)
 
 
+def test_an_extraction_removed_under_the_process_is_extracted_again(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A long-lived process (a notebook's kernel) kept using its extraction after the
+    temporary folder lost it (a cleaner of old files in /tmp, a TMPDIR removed): every
+    later run failed with "fmi2Instantiate refused: .../resources/fmu_runtime.txt is
+    missing or incomplete". A folder missing any of the FMU's files is extracted again."""
+    fmu = tmp_path / "CosimTestIntegrator.fmu"
+    shutil.copyfile(test_fmu_dir / fmu.name, fmu)
+    first = slave.unzipped(fmu)
+    (first / "modelDescription.xml").unlink()  # one file aged out
+    again = slave.unzipped(fmu)
+    assert again != first and (again / "modelDescription.xml").is_file()
+    shutil.rmtree(again)  # the whole folder
+    third = slave.unzipped(fmu)
+    assert third not in (first, again)
+    assert sorted(zipfile.ZipFile(fmu).namelist()) == sorted(
+        p.relative_to(third).as_posix() for p in third.rglob("*") if p.is_file()
+    )
+    assert slave.unzipped(fmu) == third  # kept while whole
+
+
 def test_an_fmu_the_temporary_folder_cannot_hold_is_named_and_leaves_nothing(
     run_python: Callable[..., subprocess.CompletedProcess], tmp_path: Path
 ) -> None:
