@@ -25,15 +25,19 @@ if TYPE_CHECKING:
     from cosim.api import (
         Run,
         RunError,
+        RunInterrupted,
         Study,
-        SweepError,
+        SweepInterrupted,
         build_fmus,
         load_scenario,
         run,
         sweep,
     )
 
-__all__ = ["Run", "RunError", "Study", "SweepError", "build_fmus", "load_scenario", "run", "sweep"]
+__all__ = [
+    "Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus",
+    "load_scenario", "run", "sweep",
+]  # fmt: skip
 
 
 def __getattr__(name: str) -> Any:

@@ -43,7 +43,10 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
     from cosim.scenario.spec import Algorithm, Extrapolation, Scenario, StartInput, StartValue
     from cosim.study.runner import Cluster, StudyOutcome
 
-__all__ = ["Run", "RunError", "Study", "SweepError", "build_fmus", "load_scenario", "run", "sweep"]
+__all__ = [
+    "Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus",
+    "load_scenario", "run", "sweep",
+]  # fmt: skip
 
 STUDY_FILE = "study.toml"  # a study given as a dict is written to this file first
 DICT_LABEL = "study (given as a dict)"  # how a refusal names it (not by that file)
@@ -52,7 +55,8 @@ EXTRAPOLATIONS = ("none", "linear", "quadratic")  # RunOptions.extrapolation
 
 
 class RunError(CosimError):
-    """A run that stopped before its stop time; ``run`` holds its partial results.
+    """A run that failed before its stop time (an FMU failed); ``run`` holds its partial
+    results.
 
     The message is the reason ``auv-cosim run`` prints for the same run."""
 
@@ -65,17 +69,35 @@ class RunError(CosimError):
         return type(self), (str(self), self.run)
 
 
-class SweepError(CosimError):
-    """A study that a stop signal (Ctrl-C, a notebook's interrupt) ended before all its runs
-    finished; ``study`` holds the rows of those that did.
+class RunInterrupted(KeyboardInterrupt):
+    """A run that a stop signal (Ctrl-C, a notebook's stop button, SIGTERM) ended; ``run``
+    holds its partial results.
 
-    The message says why it stopped and where the finished rows are."""
+    A KeyboardInterrupt, as Ctrl-C is anywhere in Python, not a CosimError: ``except
+    CosimError`` (or ``except Exception``) around runs in a loop lets it through, so the
+    stop ends the loop, not only the run it came in."""
+
+    def __init__(self, message: str, run: Run) -> None:
+        super().__init__(message)
+        self.run = run
+
+    def __reduce__(self) -> tuple[type[RunInterrupted], tuple[str, Run]]:
+        """Pickled with its run, as :class:`RunError` is."""
+        return type(self), (str(self), self.run)
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """A study that a stop signal (Ctrl-C, a notebook's stop button, SIGTERM) ended before
+    all its runs finished; ``study`` holds the rows of those that did.
+
+    The message says why it stopped and where the finished rows are. A KeyboardInterrupt,
+    not a CosimError, for the reason :class:`RunInterrupted` is."""
 
     def __init__(self, message: str, study: Study) -> None:
         super().__init__(message)
         self.study = study
 
-    def __reduce__(self) -> tuple[type[SweepError], tuple[str, Study]]:
+    def __reduce__(self) -> tuple[type[SweepInterrupted], tuple[str, Study]]:
         """Pickled with its study, as :class:`RunError` is with its run."""
         return type(self), (str(self), self.study)
 
@@ -238,8 +260,12 @@ def run(
         set up; nothing has run (a :class:`~cosim.scenario.checks.ScenarioError` for
         the scenario).
     RunError
-        The run stopped before its stop time (an FMU failed, Ctrl-C): the message says
-        why, and ``error.run`` holds the partial results.
+        The run failed before its stop time (an FMU failed): the message says why, and
+        ``error.run`` holds the partial results.
+    RunInterrupted
+        A stop signal (Ctrl-C, a notebook's stop button) ended the run: a
+        KeyboardInterrupt (``except CosimError`` lets it through), whose ``run`` holds the
+        partial results.
 
     Every argument is checked first: a value of another type (a Decimal, a list for the
     mapping, a string for a flag), a number out of range, or an empty path or one with a NUL
@@ -261,15 +287,21 @@ def run(
 
 def _executed(scenario: str | Path | Scenario, options: RunOptions, in_memory: bool) -> Run:
     """:func:`run`'s run of ``scenario``, in a temporary folder removed after it when
-    ``in_memory``; a run that stopped early raises :class:`RunError`."""
+    ``in_memory``; a run that failed raises :class:`RunError`, one a stop signal ended
+    :class:`RunInterrupted`."""
     with ExitStack() as stack:
         if in_memory:
             temporary = stack.enter_context(tempfile.TemporaryDirectory(prefix="auv-cosim-"))
             options = dataclasses.replace(options, out_dir=Path(temporary) / "run")
         outcome = execute(scenario, options)
         finished = _run_of(outcome, None if in_memory else outcome.out_dir.absolute())
+    where = "the error's run.results" if in_memory else str(outcome.out_dir)
+    if outcome.signal is not None:  # the user's stop, even if the run had just completed
+        reason = REASONS.get(signal.Signals(outcome.signal).name, "stopped")
+        raise RunInterrupted(
+            f"{outcome.result.error or reason} (partial results in {where})", finished
+        )
     if not finished.complete:
-        where = "the error's run.results" if in_memory else str(outcome.out_dir)
         raise RunError(f"{outcome.result.error} (partial results in {where})", finished)
     return finished
 
@@ -330,10 +362,11 @@ def sweep(
         ``if __name__ == "__main__":`` guard (each worker process imports the script
         again); failed runs are rows of the table, not errors (one warning line says
         how many, naming the first and why it failed).
-    SweepError
-        Ctrl-C (a notebook's interrupt) stopped the study: the workers are stopped, the
+    SweepInterrupted
+        Ctrl-C (a notebook's stop button) stopped the study: the workers are stopped, the
         message says how many runs finished, and ``error.study.table`` holds their rows
-        (with ``out``, runs.csv keeps them too, for ``resume=True``).
+        (with ``out``, runs.csv keeps them too, for ``resume=True``). A KeyboardInterrupt
+        (``except CosimError`` lets it through).
     """
     from cosim.study.execution import check_main_guard, local_workers
     from cosim.study.runner import Cluster
@@ -358,7 +391,7 @@ def _swept(
 ) -> Study:
     """:func:`sweep` of its checked arguments (``options``: run_study's ``resume``,
     ``fmu_dir``, ``overlay``, ``max_runs`` and ``progress``); a stop signal (Ctrl-C, a notebook's
-    interrupt) raises :class:`SweepError` with the finished rows."""
+    interrupt) raises :class:`SweepInterrupted` with the finished rows."""
     from cosim.study.runner import run_study
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
@@ -397,8 +430,8 @@ def _warn_of(outcome: StudyOutcome) -> None:
         warnings.warn(f"cosim.sweep: {warning}", stacklevel=4)
 
 
-def _stopped(signum: int, out_dir: Path, kept: bool) -> SweepError:
-    """The :class:`SweepError` of a study the signal ``signum`` ended: the rows its
+def _stopped(signum: int, out_dir: Path, kept: bool) -> SweepInterrupted:
+    """The :class:`SweepInterrupted` of a study the signal ``signum`` ended: the rows its
     ``out_dir``/runs.csv holds (the folder ``kept`` for ``resume=True``, else about to be
     removed), in one line."""
     import pandas as pd
@@ -412,7 +445,7 @@ def _stopped(signum: int, out_dir: Path, kept: bool) -> SweepError:
     if kept and len(table):
         where += f" and {csv_path.absolute()} (resume=True runs the others)"
     study = Study(table, out_dir.absolute() if kept and len(table) else None)
-    return SweepError(f"{reason}: {len(table)} finished runs kept in {where}", study)
+    return SweepInterrupted(f"{reason}: {len(table)} finished runs kept in {where}", study)
 
 
 def _read_parquet(path: Path) -> pd.DataFrame:

@@ -436,9 +436,8 @@ def test_the_api_names_complete_in_ipython_before_their_first_use(
 
 
 def test_public_names_have_numpy_docstrings() -> None:
-    assert sorted(cosim.__all__) == sorted(
-        ["Run", "RunError", "Study", "SweepError", "build_fmus", "load_scenario", "run", "sweep"]
-    )
+    public = ["Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus"]
+    assert sorted(cosim.__all__) == sorted([*public, "load_scenario", "run", "sweep"])
     for name in ("run", "load_scenario", "sweep", "build_fmus"):
         doc = getattr(cosim, name).__doc__
         assert "Returns\n    -------" in doc and "Raises\n    ------" in doc, name
@@ -879,6 +878,49 @@ def test_a_users_mypy_catches_a_mistyped_algorithm_in_with_overrides(tmp_path: P
     assert status == 1 and 'Argument "algorithm" to "with_overrides"' in report, report
 
 
+INTERRUPTED_LOOP = """
+import glob, json, os, signal, sys, tempfile, threading, time
+import cosim
+from cosim.errors import CosimError
+
+def interrupt_after_the_first_rows():
+    while not any(len(open(p).readlines()) > 2 for p in glob.glob("auv-cosim-*/run/results.csv")):
+        time.sleep(0.05)
+    os.kill(os.getpid(), signal.SIGINT)  # what a notebook's stop button sends its kernel
+
+if __name__ == "__main__":
+    tempfile.tempdir = os.getcwd()  # an in-memory run's folder: auv-cosim-*/run
+    threading.Thread(target=interrupt_after_the_first_rows, daemon=True).start()
+    started = 0
+    try:
+        for stop_time in (3000.0, 1.0, 1.0):
+            started += 1
+            try:
+                cosim.run("bs-3", stop_time=stop_time, fmu_dir=sys.argv[1])
+            except CosimError:  # a failed run: go on with the next
+                continue
+    except cosim.RunInterrupted as stop:
+        print(json.dumps({"started": started, "message": str(stop),
+                          "signal": stop.run.summary["signal"], "rows": len(stop.run.results)}))
+"""
+
+
+@pytest.mark.slow
+def test_ctrl_c_ends_a_loop_that_goes_on_after_a_failed_run(tmp_path: Path, fmu_dir: Path) -> None:
+    """Ctrl-C during cosim.run raised a RunError, a CosimError: a loop over runs that goes
+    on after a failed one (``except CosimError: continue``) swallowed the stop and started
+    the next run. It is a KeyboardInterrupt now, with the partial results."""
+    script = tmp_path / "interrupted_loop.py"
+    script.write_text(INTERRUPTED_LOOP, encoding="utf-8")
+    command = [sys.executable, str(script), str(fmu_dir)]
+    done = run_in_group(command, timeout=600, cwd=tmp_path, env=_environment())
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+    assert done.stdout.strip(), "the loop ran to its end: the stop was swallowed"
+    caught = json.loads(done.stdout.strip().splitlines()[-1])
+    assert caught["started"] == 1 and caught["signal"] == "SIGINT" and caught["rows"] > 1
+    assert caught["message"].endswith("(partial results in the error's run.results)")
+
+
 INTERRUPTED_SWEEP = """
 import glob, json, os, signal, sys, tempfile, threading, time
 import cosim
@@ -897,7 +939,7 @@ if __name__ == "__main__":
     try:
         cosim.sweep({"scenario": "bs-3", "stop_time": 30.0, "grid": grid}, workers=1,
                     out=out, fmu_dir=fmu_dir)
-    except cosim.SweepError as error:
+    except cosim.SweepInterrupted as error:
         table = error.study.table
         print(json.dumps({"message": str(error), "rows": len(table),
                           "complete": bool((table["status"] == "complete").all()),

@@ -93,7 +93,7 @@ def test_a_notebooks_stop_button_ends_a_sweep_keeping_its_rows_and_no_worker(
     messages = _outputs(client, cell, interrupt_after_the_first_row)
     errors = [m["content"] for m in messages if m["msg_type"] == "error"]
     assert interrupted and len(errors) == 1, messages
-    assert errors[0]["ename"] == "SweepError", errors[0]
+    assert errors[0]["ename"] == "SweepInterrupted", errors[0]
     kept = len(runs_csv.read_bytes().splitlines()) - 1
     assert errors[0]["evalue"].startswith(f"interrupted (Ctrl-C): {kept} finished runs kept")
     assert 1 <= kept < 10
