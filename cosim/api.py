@@ -244,9 +244,8 @@ def run(
         Where the built-in FMUs are (built there on first use). Default ``build/fmus``.
         A loaded ``scenario`` runs the FMUs it was loaded with: another folder is refused.
     progress : bool
-        Show the command line's progress bar on stderr (what the run does before it steps,
-        then the steps; a notebook shows it under the cell, removed when the run ends).
-        Default: nothing shown.
+        Show the command line's progress bar on stderr (under the cell in a notebook,
+        removed when the run ends). Default: nothing shown.
 
     Returns
     -------
@@ -263,9 +262,8 @@ def run(
         The run failed before its stop time (an FMU failed): the message says why, and
         ``error.run`` holds the partial results.
     RunInterrupted
-        A stop signal (Ctrl-C, a notebook's stop button) ended the run: a
-        KeyboardInterrupt (``except CosimError`` lets it through), whose ``run`` holds the
-        partial results.
+        Ctrl-C (a notebook's stop button) ended the run: a KeyboardInterrupt, whose
+        ``run`` holds the partial results.
 
     Every argument is checked first: a value of another type (a Decimal, a list for the
     mapping, a string for a flag), a number out of range, or an empty path or one with a NUL
