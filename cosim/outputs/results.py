@@ -15,9 +15,11 @@ the full summary: ``status`` ``"complete"`` or ``"incomplete"``, ``complete``, `
 (the one-line reason, null if complete), ``signal`` (the signal that stopped or
 interrupted the run, null if none), scenario id, ``scenario_file`` (the absolute path of the
 scenario file it was read from, null for one made in memory), stop_time, step, algorithm, pid,
-``outputs`` (the files the run writes), wall_clock_s (the stepping loop alone),
-real_time_factor (of the loop), ``startup_s`` (s before the loop, by phase: ``prepare``
-the scenario and any FMU build, ``outputs`` opening the files and recording,
+``outputs`` (the files the run writes), ``units`` (:func:`column_units`: ``time`` and
+every results.csv column, in its order, to its unit), ``versions`` (:func:`versions`),
+``fmus`` (each instance's FMU: ``model`` identifier and ``guid``), wall_clock_s (the
+stepping loop alone), real_time_factor (of the loop), ``startup_s`` (s before the loop,
+by phase: ``prepare`` the scenario and any FMU build, ``outputs`` opening the files and recording,
 ``load_fmus`` loading and instantiating the FMUs, ``initialise`` their initialisation,
 where the plant compiles or loads its numba code) and ``startup_total_s``,
 time_reached (the last row computed), rows (the rows in results.csv: fewer than computed
@@ -43,9 +45,12 @@ results.csv holds every row up to the last flush.
 from __future__ import annotations
 
 import csv
+import functools
+import importlib.metadata
 import io
 import math
 import os
+import platform
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -60,6 +65,7 @@ if TYPE_CHECKING:  # types only: the readers of results.csv need not import the 
 
 
 _CSV_OPTIONS = pa_csv.WriteOptions(include_header=False, quoting_style="none")
+DIMENSIONLESS = "1"  # the unit of a fault's column, and of a variable its FMU gives none
 
 
 def _doubles(column: np.ndarray) -> pa.Array:
@@ -130,6 +136,40 @@ def running_summary(scenario: Scenario, outputs: Mapping[str, Path], out_dir: Pa
         "algorithm": scenario.coupling.algorithm,
         "pid": os.getpid(),
         "outputs": {name: _relative(path, out_dir) for name, path in outputs.items()},
+        "units": column_units(scenario),
+        "versions": versions(),
+        "fmus": {
+            name: {"model": inst.interface.model_identifier, "guid": inst.interface.guid}
+            for name, inst in scenario.instances.items()
+        },
+    }
+
+
+def column_units(scenario: Scenario) -> dict[str, str]:
+    """``time`` and each results.csv column of ``scenario`` -> its unit: ``s`` for time,
+    the unit the variable's FMU declares (``"1"`` where it declares none), ``"1"`` for a
+    fault's column (a flag). The header of results.csv names no unit; this says them."""
+    units = {"time": "s"}
+    for column in scenario.record:
+        instance, _, variable = column.partition(".")
+        unit = scenario.instances[instance].interface.variables[variable].unit
+        units[column] = unit or DIMENSIONLESS
+    units.update(dict.fromkeys(scenario.columns[len(scenario.record) :], DIMENSIONLESS))
+    return units
+
+
+@functools.cache
+def versions() -> dict[str, str | None]:
+    """The versions of what ran a run: this tool (None when run from a source tree that is
+    not installed), fmpy (which loads and steps the FMUs) and Python."""
+    try:
+        tool: str | None = importlib.metadata.version("auv-cosim")
+    except importlib.metadata.PackageNotFoundError:
+        tool = None
+    return {
+        "auv-cosim": tool,
+        "fmpy": importlib.metadata.version("fmpy"),
+        "python": platform.python_version(),
     }
 
 

@@ -65,6 +65,15 @@ def test_summary_lists_the_events_fired_and_the_faults(run_dir: Path) -> None:
     assert np.array_equal(flag, ((table[:, 0] > 0.15) & (table[:, 0] < 0.55)).astype(float))
 
 
+def test_summary_gives_a_faults_column_its_unit_a_flag(run_dir: Path) -> None:
+    """A fault's results.csv column (1.0 while it acts) is dimensionless in summary.json's
+    units, as is a variable its FMU declares no unit for (the test FMUs' x)."""
+    units = json.loads((run_dir / "summary.json").read_text())["units"]
+    columns, _ = read_csv(run_dir / "results.csv")
+    assert list(units) == columns
+    assert (units["time"], units["fault.jam"], units["plant.x"]) == ("s", "1", "1")
+
+
 def test_the_recording_logs_each_event_and_fault_at_its_time(run_dir: Path) -> None:
     notes = []
     for chunk in RrdReader(run_dir / "recording.rrd").stream():
