@@ -167,7 +167,7 @@ def run_study(
                     exc.where = f"{kept} ({names.switch('resume')})"
                 raise
             with _kept_rows(csv_path, len(table.done), names):
-                rows = table.finish(runs)
+                rows = table.finish(runs, units([*spec.factors, *metrics], base.fmu_paths))
                 if not entries:  # no overlay re-runs: the cluster closes while the page is made
                     session.done()
                 paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}

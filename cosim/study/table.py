@@ -17,13 +17,16 @@ Parquet file holds the same rows with types (``pyarrow``; its columns built with
 pandas: :mod:`cosim.study.arrow_columns`): every metric and ``wall_clock_s`` double,
 ``run``, ``status`` and ``error`` strings whatever the rows hold (an ``error`` column of
 nulls alone, in a study without a failed run, would be typed ``null`` and not concatenate
-with another study's table).
+with another study's table); each factor's and metric's unit as its field's ``unit``
+metadata, and all of them as ``units`` in the ``attrs`` of the frame pandas reads (the
+CSV's header names none: its names are what ``--resume`` and ``collect`` match).
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -108,9 +111,12 @@ class RunsTable:
                 f.write(_line(self._cells(row)))
             self.rows[run.id] = row
 
-    def finish(self, plan: Sequence[PlannedRun]) -> list[Row]:
+    def finish(
+        self, plan: Sequence[PlannedRun], units: Mapping[str, str] | None = None
+    ) -> list[Row]:
         """Rewrite runs.csv with its rows in the order of ``plan`` (the study's runs), write
-        runs.parquet; returns the rows in that order."""
+        runs.parquet (``units``: factor or metric -> unit, :func:`cosim.study.units.units`,
+        its fields' metadata); returns the rows in that order."""
         rows = [self.rows[run] for run in dict.fromkeys(run.id for run in plan) if run in self.rows]
         text = _line(self.columns) + "".join(_line(self._cells(row)) for row in rows)
         write_whole(self.path, lambda tmp: tmp.write_bytes(text.encode("utf-8")))
@@ -118,7 +124,7 @@ class RunsTable:
         types = {name: pa.float64() for name in [*self.metrics, "wall_clock_s"]}
         types.update(dict.fromkeys(["run", "status", "error"], pa.string()))
         arrays = {name: column(values, types.get(name)) for name, values in columns.items()}
-        table = pa.table(arrays)
+        table = _with_units(pa.table(arrays), {**(units or {}), "wall_clock_s": "s"})
         write_whole(self.path.with_name(PARQUET_NAME), lambda tmp: _write_parquet(table, tmp))
         return rows
 
@@ -152,6 +158,19 @@ def _line(cells: Sequence[str]) -> str:
     buffer = io.StringIO()
     csv.writer(buffer, lineterminator="\n").writerow(cells)
     return buffer.getvalue()
+
+
+def _with_units(table: pa.Table, units: Mapping[str, str]) -> pa.Table:
+    """``table`` with each column's unit in ``units`` as its field's ``unit`` metadata, and
+    all of them as the ``units`` attribute of the frame ``pandas.read_parquet`` makes
+    (pandas keeps a frame's ``attrs`` in the schema's ``PANDAS_ATTRS`` metadata)."""
+    units = {name: units[name] for name in table.column_names if name in units}
+    fields = [
+        field.with_metadata({"unit": units[field.name]}) if field.name in units else field
+        for field in table.schema
+    ]
+    attrs = json.dumps({"units": units})
+    return table.cast(pa.schema(fields, metadata={"PANDAS_ATTRS": attrs}))
 
 
 def _write_parquet(table: pa.Table, path: Path) -> None:

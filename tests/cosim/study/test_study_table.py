@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
@@ -95,6 +96,25 @@ def test_finish_puts_the_rows_in_the_studys_order_and_the_same_in_parquet(
     assert parquet.to_pylist() == rows
     assert str(parquet.schema.field("plant.ideal_fluid").type) == "bool"
     assert str(parquet.schema.field("yaw_settling_time_s").type) == "double"
+
+
+def test_parquet_columns_carry_their_units_for_pyarrow_and_pandas(tmp_path: Path) -> None:
+    """runs.csv's header names no unit (its names are what --resume, ``collect`` and
+    ``overlay`` match), so runs.parquet carries them: each factor's and metric's unit as
+    its field's ``unit`` metadata (``wall_clock_s`` in s; ``run``, ``status`` and
+    ``error`` none), and all of them as ``units`` in the frame ``pd.read_parquet`` gives."""
+    table = RunsTable.create(tmp_path / "runs.csv", FACTORS, METRICS)
+    for run in RUNS:
+        table.append(run, record(run))
+    units = {"plant.v_0": "m/s", "plant.ideal_fluid": "1", "yaw_settling_time_s": "s",
+             "final.plant.yaw": "rad"}  # fmt: skip
+    table.finish(RUNS, units)
+    schema = pq.read_schema(tmp_path / "runs.parquet")
+    found = {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+    assert found == {**units, "wall_clock_s": "s", "run": "", "status": "", "error": ""}
+    frame = pd.read_parquet(tmp_path / "runs.parquet")
+    assert frame.attrs["units"] == {**units, "wall_clock_s": "s"}
+    assert list(frame.columns) == table.columns
 
 
 def test_parquet_column_types_do_not_depend_on_whether_a_run_failed(tmp_path: Path) -> None:

@@ -8,6 +8,7 @@ import re
 import tomllib
 from pathlib import Path
 
+import pyarrow.parquet as pq
 import pytest
 import tomli_w
 from repo_paths import ROOT
@@ -67,6 +68,32 @@ def test_a_grid_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) 
         for name, value in expected.items():  # exactly: the text reads back to the double
             assert metrics[name] == ("" if value is None else repr(value)), name
     assert any(r["yaw_settling_time_s"] for r in rows)  # 20 s: the settling time is there
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_runs_parquet_gives_the_units_a_kept_runs_summary_gives(
+    tmp_path: Path, fmu_dir: Path
+) -> None:
+    """runs.csv's header names no unit; runs.parquet does, field by field, and agrees with
+    summary.json: ``final.<column>`` has the unit the kept run's summary gives ``<column>``,
+    a factor its variable's (``plant.v_0`` in m/s), a key figure the one its name ends in."""
+    study = tmp_path / "study.toml"
+    study.write_text(
+        'scenario = "bs-3"\nstop_time = 0.2\nkeep = "all"\n[grid]\n"plant.v_0" = [-0.1, 0.1]\n',
+        encoding="utf-8",
+    )
+    sweep(study, tmp_path / "out", fmu_dir, "--workers", "2")
+    schema = pq.read_schema(tmp_path / "out" / "runs.parquet")
+    unit = {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+    run = table(tmp_path / "out")[0]["run"]
+    summary = json.loads((tmp_path / "out" / "runs" / run / "summary.json").read_text())
+    finals = {name: unit[f"final.{name}"] for name in summary["final_values"]}
+    assert finals == {name: summary["units"][name] for name in summary["final_values"]}
+    assert (unit["plant.v_0"], unit["peak_abs_tunnel_force_N"], unit["time_reached"]) == (
+        "m/s", "N", "s"
+    )  # fmt: skip
+    assert unit["wall_clock_s"] == "s" and unit["status"] == ""
 
 
 @pytest.mark.cluster
