@@ -152,8 +152,9 @@ def column_units(scenario: Scenario) -> dict[str, str]:
     units = {"time": "s"}
     for column in scenario.record:
         instance, _, variable = column.partition(".")
-        unit = scenario.instances[instance].interface.variables[variable].unit
-        units[column] = unit or DIMENSIONLESS
+        owner = scenario.instances.get(instance)  # a loaded scenario records only its own
+        declared = owner.interface.variables.get(variable) if owner is not None else None
+        units[column] = (declared.unit if declared is not None else None) or DIMENSIONLESS
     units.update(dict.fromkeys(scenario.columns[len(scenario.record) :], DIMENSIONLESS))
     return units
 

@@ -7,7 +7,9 @@ value it steers (yaw with the yaw setpoint, depth with the depth setpoint, the m
 position with its command). Entity names carry the display unit (``attitude/yaw_deg``);
 angles are shown in degrees, the moving mass in centimetres, everything else in SI.
 A column the catalogue does not know still gets its own entity, ``other/<instance>/<variable>``
-(the variable's name one escaped part, whatever it holds), in SI.
+(the variable's name one escaped part, whatever it holds), in the unit its FMU declares,
+named in its line's label. Every plot's entity also says, for a reader of the recording,
+which results.csv column each of its lines shows and in what unit (:func:`series_sources`).
 
 Colours follow one rule everywhere, in the plots and in the 3D scene: the first, second and
 third axis of a frame (north/u/p/roll, east/v/q/pitch, down/w/r/yaw) are red, green and
@@ -22,6 +24,7 @@ plant's (the water that moves the vehicle) and, paler, the autopilot's knowledge
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,6 +70,7 @@ WORLD_EYE = (-10.0, -6.0, -5.0)  # m from the vehicle: behind, to port, above (1
 NOTES_ENTITY = "events"  # TextLog: events fired, faults started and stopped, live overrides
 CHASE_EYE = (-1.6, -0.9, -0.6)  # m in the chase frame: behind, to port, above the vehicle
 DEG = math.degrees(1.0)
+DIMENSIONLESS = "1"  # a quantity without a unit, as SI (and summary.json's units) write it
 
 
 def time_index(times: np.ndarray) -> list[rr.TimeColumn]:
@@ -95,6 +99,7 @@ class Panel:
 
     entity: str  # entity path, display unit in the last segment
     title: str  # view name
+    unit: str  # the display unit of every line, as FMUs write units (N.m)
     series: tuple[Series, ...]
 
 
@@ -103,68 +108,70 @@ def _series(column: str, label: str, color: Rgb, scale: float = 1.0) -> Series:
 
 
 PANELS: tuple[Panel, ...] = (
-    Panel("attitude/yaw_deg", "Yaw ψ (deg)", (
+    Panel("attitude/yaw_deg", "Yaw ψ (deg)", "deg", (
         _series("plant.yaw", "yaw ψ (deg)", BLUE, DEG),
         _series("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG),
     )),
-    Panel("attitude/roll_deg", "Roll φ (deg)", (_series("plant.roll", "roll φ (deg)", RED, DEG),)),
-    Panel("attitude/pitch_deg", "Pitch θ (deg)", (
+    Panel("attitude/roll_deg", "Roll φ (deg)", "deg", (
+        _series("plant.roll", "roll φ (deg)", RED, DEG),
+    )),
+    Panel("attitude/pitch_deg", "Pitch θ (deg)", "deg", (
         _series("plant.pitch", "pitch θ (deg)", GREEN, DEG),
     )),
-    Panel("rates/roll_yaw_deg_s", "Roll and yaw rates (deg/s)", (
+    Panel("rates/roll_yaw_deg_s", "Roll and yaw rates (deg/s)", "deg/s", (
         _series("plant.p", "roll rate p (deg/s)", RED, DEG),
         _series("plant.r", "yaw rate r (deg/s)", BLUE, DEG),
     )),
-    Panel("rates/pitch_deg_s", "Pitch rate (deg/s)", (
+    Panel("rates/pitch_deg_s", "Pitch rate (deg/s)", "deg/s", (
         _series("plant.q", "pitch rate q (deg/s)", GREEN, DEG),
     )),
-    Panel("velocity/surge_m_s", "Surge (m/s)", (
+    Panel("velocity/surge_m_s", "Surge (m/s)", "m/s", (
         _series("plant.u", "u over ground (m/s)", RED),
         _series("plant.u_rel", "u through water (m/s)", PALE_RED),
     )),
-    Panel("velocity/sway_m_s", "Sway (m/s)", (
+    Panel("velocity/sway_m_s", "Sway (m/s)", "m/s", (
         _series("plant.v", "v over ground (m/s)", GREEN),
         _series("plant.v_rel", "v through water (m/s)", PALE_GREEN),
     )),
-    Panel("velocity/heave_m_s", "Heave (m/s)", (
+    Panel("velocity/heave_m_s", "Heave (m/s)", "m/s", (
         _series("plant.w", "w over ground (m/s)", BLUE),
         _series("plant.w_rel", "w through water (m/s)", PALE_BLUE),
     )),
-    Panel("position/horizontal_m", "Position (m)", (
+    Panel("position/horizontal_m", "Position (m)", "m", (
         _series("plant.north", "north (m)", RED),
         _series("plant.east", "east (m)", GREEN),
     )),
-    Panel("position/depth_m", "Depth (m)", (
+    Panel("position/depth_m", "Depth (m)", "m", (
         _series("plant.down", "depth (m)", BLUE),
         _series("controller.depth_setpoint", "depth setpoint (m)", SETPOINT),
     )),
-    Panel("moving_mass/position_cm", "Moving mass y_v (cm)", (
+    Panel("moving_mass/position_cm", "Moving mass y_v (cm)", "cm", (
         _series("plant.mass_position", "mass position y_v (cm)", MASS, 100.0),
         _series("controller.mass_position_cmd", "mass command y_d (cm)", SETPOINT, 100.0),
         _series("plant.mass_position_cmd", "mass command at the plant (cm)", PALE_SETPOINT, 100.0),
     )),
-    Panel("moving_mass/velocity_cm_s", "Moving-mass rail speed (cm/s)", (
+    Panel("moving_mass/velocity_cm_s", "Moving-mass rail speed (cm/s)", "cm/s", (
         _series("plant.mass_velocity", "rail speed (cm/s)", MASS, 100.0),
     )),
-    Panel("actuators/tunnel_force_N", "Tunnel thruster (N)", (
+    Panel("actuators/tunnel_force_N", "Tunnel thruster (N)", "N", (
         _series("controller.tunnel_force", "tunnel force F_t (N)", THRUSTER),
         _series("plant.tunnel_force", "F_t at the plant (N)", pale(THRUSTER)),
     )),
-    Panel("actuators/fin_angle_deg", "Stern planes (deg)", (
+    Panel("actuators/fin_angle_deg", "Stern planes (deg)", "deg", (
         _series("controller.fin_angle", "fin angle δs (deg)", FIN, DEG),
         _series("plant.fin_angle", "δs at the plant (deg)", pale(FIN), DEG),
     )),
-    Panel("actuators/thrust_N", "Propeller thrust (N)", (
+    Panel("actuators/thrust_N", "Propeller thrust (N)", "N", (
         _series("controller.thrust", "thrust T (N)", THRUST),
         _series("plant.thrust", "T at the plant (N)", pale(THRUST)),
     )),
-    Panel("actuators/roll_torque_Nm", "Propeller roll torque (N m)", (
+    Panel("actuators/roll_torque_Nm", "Propeller roll torque (N m)", "N.m", (
         _series("plant.roll_torque", "roll torque Q (N m)", THRUST),
     )),
-    Panel("energy/kinetic_J", "Kinetic energy (J)", (
+    Panel("energy/kinetic_J", "Kinetic energy (J)", "J", (
         _series("plant.kinetic_energy", "kinetic energy (J)", ENERGY),
     )),
-    Panel("environment/current_m_s", "Current, earth axes (m/s)", (
+    Panel("environment/current_m_s", "Current, earth axes (m/s)", "m/s", (
         _series("plant.current_north", "current north (m/s)", RED),
         _series("plant.current_east", "current east (m/s)", GREEN),
         _series("plant.current_down", "current down (m/s)", BLUE),
@@ -208,10 +215,18 @@ class PlannedPanel:
     series: tuple[Series, ...]
     indices: tuple[int, ...]
     scales: tuple[float, ...]
+    units: tuple[str, ...]  # the display unit of each line
 
 
-def plan_panels(columns: list[str]) -> list[PlannedPanel]:
-    """The panels a run with these columns shows; unknown columns go to ``other/...``.
+def _labelled(label: str, unit: str | None) -> str:
+    """A line's legend text: ``label`` with its unit, if it has one that says something."""
+    return label if unit in (None, "", DIMENSIONLESS) else f"{label} ({unit})"
+
+
+def plan_panels(columns: list[str], units: Mapping[str, str] | None = None) -> list[PlannedPanel]:
+    """The panels a run with these columns shows; unknown columns go to ``other/...``,
+    drawn in the unit ``units`` gives them (column -> the unit its FMU declares, as
+    summary.json's ``units``; ``"1"`` for a column it lacks).
 
     A panel none of whose columns is recorded is dropped; one with some of them keeps
     those (a run without a controller still shows yaw, without the setpoint).
@@ -225,12 +240,16 @@ def plan_panels(columns: list[str]) -> list[PlannedPanel]:
             indices = tuple(index[s.column] for s in present)
             shown.update(indices)
             scales = tuple(s.scale for s in present)
-            planned.append(PlannedPanel(panel.entity, panel.title, present, indices, scales))
+            panel_units = (panel.unit,) * len(present)
+            planned.append(
+                PlannedPanel(panel.entity, panel.title, present, indices, scales, panel_units)
+            )
     for i, name in enumerate(columns):
         if i not in shown:
-            series = _series(name, name, ENERGY)
+            unit = (units or {}).get(name) or DIMENSIONLESS
+            series = _series(name, _labelled(name, unit), ENERGY)
             entity = "other/" + "/".join(map(rr.escape_entity_path_part, name.split(".", 1)))
-            planned.append(PlannedPanel(entity, name, (series,), (i,), (1.0,)))
+            planned.append(PlannedPanel(entity, name, (series,), (i,), (1.0,), (unit,)))
     return planned
 
 
@@ -241,6 +260,13 @@ def series_style(panel: PlannedPanel) -> rr.SeriesLines:
         colors=[s.color for s in panel.series],
         widths=[1.5] * len(panel.series),
     )
+
+
+def series_sources(panel: PlannedPanel) -> rr.AnyValues:
+    """What a panel's lines are, for a reader of the recording: ``results_columns``, the
+    results.csv column of each line in the lines' order, and ``units``, the unit each is
+    drawn in (a column's value in SI times the line's scale)."""
+    return rr.AnyValues(results_columns=[s.column for s in panel.series], units=list(panel.units))
 
 
 def world_eye() -> rrb.EyeControls3D:

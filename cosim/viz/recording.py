@@ -44,11 +44,13 @@ import rerun as rr
 from cosim.errors import CosimError
 from cosim.outputs.folder import RECORDING_FILE
 from cosim.outputs.missing_run import missing_run_hint
+from cosim.outputs.results import column_units
 from cosim.scenario.spec import Scenario
 from cosim.viz.layout import (
     NOTES_ENTITY,
     build_blueprint,
     plan_panels,
+    series_sources,
     series_style,
     time_index,
 )
@@ -115,7 +117,7 @@ class RerunSink:
             raise ValueError(f"recorded columns must be unique, got duplicates {duplicates}")
         self._columns = list(columns)
         self._index = {name: i for i, name in enumerate(columns)}
-        self._panels = plan_panels(self._columns)
+        self._panels = plan_panels(self._columns, column_units(scenario))
         self._closed = False
         self._opened = time.monotonic()
         self._rrd_path = None if rrd_path is None else Path(rrd_path)
@@ -190,7 +192,7 @@ class RerunSink:
             static=True,
         )
         for panel in self._panels:
-            rec.log(panel.entity, series_style(panel), static=True)
+            rec.log(panel.entity, series_style(panel), series_sources(panel), static=True)
         log_static_scene(
             rec, vehicle, columns, show_depth_setpoint=depth,
             waypoints=mission_waypoints(toml),  # None without a waypoint guidance

@@ -234,6 +234,38 @@ def test_every_column_is_one_series_in_its_display_unit(recorded):
     assert seen == set(columns)
 
 
+def scalar_entities(path: Path) -> set[str]:
+    """Every entity of the recording holding scalar series."""
+    return {
+        chunk.entity_path
+        for chunk in RrdReader(path).stream()
+        if "Scalars:scalars" in chunk.to_record_batch().schema.names
+    }
+
+
+def test_each_plot_names_the_results_columns_it_shows_and_their_units(recorded):
+    """The recording alone maps every line back to results.csv: each plot's entity names
+    the column of each of its lines (``results_columns``, in the lines' order) and the
+    unit it is drawn in (``units``); the values are the column's in that unit."""
+    path, _, columns, values = recorded
+    in_si = {"deg": math.degrees(1), "deg/s": math.degrees(1), "cm": 100.0, "cm/s": 100.0}
+    found = {}
+    for entity in scalar_entities(path):
+        [names] = read_static(path, entity, "results_columns")
+        [units] = read_static(path, entity, "units")
+        _, scalars = read_temporal(path, entity, "Scalars:scalars", 1)
+        assert scalars.shape[1] == len(names) == len(units), entity
+        for i, (name, unit) in enumerate(zip(names, units, strict=True)):
+            expected = col(columns, values, name) * in_si.get(unit, 1.0)
+            np.testing.assert_array_equal(scalars[:, i, 0], expected, err_msg=name)
+            found[name] = unit
+    assert set(found) == set(columns)
+    assert [found[c] for c in ("plant.yaw", "plant.r", "plant.u", "plant.mass_position")] == [
+        "deg", "deg/s", "m/s", "cm"
+    ]  # fmt: skip
+    assert (found["controller.tunnel_force"], found["plant.kinetic_energy"]) == ("N", "J")
+
+
 def test_pose_has_one_transform_per_step_matching_position_and_euler_angles(recorded):
     path, times, columns, values = recorded
     t, translation = read_temporal(path, "/world/vehicle", "Transform3D:translation", 3)
@@ -399,6 +431,22 @@ def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path, fmu_dir:
     np.testing.assert_array_equal(other[:, 0, 0], 3 * times)
     _, pose = read_temporal(tmp_path / "r.rrd", "/world/vehicle", "Transform3D:translation", 3)
     np.testing.assert_array_equal(pose, 0.0)  # no position recorded: the vehicle stays put
+
+
+def test_a_column_outside_the_catalogue_is_drawn_with_its_fmus_unit(tmp_path: Path, fmu_dir: Path):
+    """A column no plot of the catalogue shows gets a plot of its own under ``other/``,
+    in the unit its FMU declares, and says it: in its line's name and its ``units``."""
+    columns = ["plant.yaw", "controller.r", "plant.quat_w"]
+    with sink_for(fmu_dir, tmp_path / "r.rrd", "other", columns) as sink:
+        sink.add_rows(np.arange(3) * 0.1, np.ones((3, 3)))
+    path = tmp_path / "r.rrd"
+    assert read_static(path, "/other/controller/r", "SeriesLines:names") == [
+        ["controller.r (rad/s)"]
+    ]
+    assert read_static(path, "/other/controller/r", "units") == [["rad/s"]]
+    assert read_static(path, "/other/controller/r", "results_columns") == [["controller.r"]]
+    assert read_static(path, "/other/plant/quat_w", "SeriesLines:names") == [["plant.quat_w"]]
+    assert read_static(path, "/other/plant/quat_w", "units") == [["1"]]
 
 
 def test_bad_input_is_refused_with_what_was_expected(tmp_path: Path, fmu_dir: Path):
