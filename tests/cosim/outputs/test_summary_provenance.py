@@ -1,16 +1,19 @@
 """summary.json says what produced its run's files: the unit of every results.csv column
 (results.csv's own header has none, and its bytes stay as they are) and the versions of
-the tool, fmpy, Python and each FMU (by its GUID) that ran it, from the start of the run."""
+the tool, fmpy, Python and each FMU (by its GUID) that ran it, from the start of the run;
+and docs/runs.md names every key it holds."""
 
 from __future__ import annotations
 
 import importlib.metadata
 import json
 import platform
+import re
 from pathlib import Path
 
 import fmpy
 import pytest
+from repo_paths import ROOT
 
 import cosim
 from cosim.fmus.interface import read_interface
@@ -78,3 +81,22 @@ def test_a_killed_runs_summary_already_has_the_units_and_versions(
     assert list(running["units"]) == ["time", *scenario.columns]
     assert set(running["fmus"]) == set(scenario.instances)
     assert set(running["versions"]) == {"auv-cosim", "fmpy", "python"}
+
+
+def _named(doc: str) -> set[str]:
+    """The names a page gives in backticks (``key``, ``key.sub``: both parts)."""
+    text = (ROOT / "docs" / doc).read_text(encoding="utf-8")
+    return {part for name in re.findall(r"`([^`\s]+)`", text) for part in name.split(".")}
+
+
+def test_every_key_of_a_runs_summary_is_named_in_the_docs(run_dir: Path, fmu_dir: Path) -> None:
+    """An analyst who meets a key in summary.json finds it by name in docs/runs.md: every
+    top-level key, key figure and start-up phase, and every ``coupling`` key of a fixed-step
+    and of an adaptive run (or in docs/coupling.md, which explains the adaptive step)."""
+    summary = _summary(run_dir)
+    adaptive = cosim.run("bs-3", stop_time=0.05, algorithm="adaptive", fmu_dir=fmu_dir).summary
+    runs = _named("runs.md")
+    keys = {*summary, *summary["key_figures"], *summary["startup_s"]}
+    assert sorted(keys - runs) == []
+    coupling = {*summary["coupling"], *adaptive["coupling"]}
+    assert sorted(coupling - runs - _named("coupling.md")) == []
