@@ -114,8 +114,9 @@ class Run:
         One row per communication step, indexed by ``time`` (s); one column per recorded
         variable, ``"<instance>.<variable>"``, in SI units (rad, m, m/s, N), and
         ``"fault.<name>"`` per fault (1.0 while it acts). The same numbers as the run's
-        ``results.csv``. ``results.to_numpy()`` and ``results.index.to_numpy()`` give
-        plain numpy arrays.
+        ``results.csv``. ``results.attrs["units"]``: the unit of ``time`` and of each
+        column (summary.json's ``units``). ``results.to_numpy()`` and
+        ``results.index.to_numpy()`` give plain numpy arrays.
     summary : dict
         The run's ``summary.json``: how it ended, settings, key figures, final values
         (``outputs``, the files written, is empty for a run kept in memory only).
@@ -513,6 +514,7 @@ def _run_of(outcome: RunOutcome, out_dir: Path | None) -> Run:
     summary = json.loads(outcome.paths["summary"].read_text(encoding="utf-8"))
     if out_dir is None:  # the files were in a temporary folder, removed on return
         summary["outputs"] = {}
+    results.attrs["units"] = dict(summary["units"])  # time and every column: summary.json's
     return Run(result.scenario, results, summary, out_dir)
 
 

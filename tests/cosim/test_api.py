@@ -108,6 +108,17 @@ def test_run_keeps_results_in_memory_and_leaves_no_folder(
     assert times.dtype == values.dtype == np.float64
 
 
+def test_a_runs_results_frame_carries_each_columns_unit(fmu_dir: Path) -> None:
+    """``run.results.attrs["units"]`` gives the unit of the time index and of every column,
+    as summary.json's ``units`` does, so a frame passed on keeps its units with it (as the
+    table of ``cosim.sweep`` does from runs.parquet)."""
+    run = cosim.run("bs-3", stop_time=0.05, fmu_dir=fmu_dir)
+    units = run.results.attrs["units"]
+    assert units == run.summary["units"]
+    assert list(units) == [run.results.index.name, *run.results.columns]
+    assert (units["time"], units["plant.yaw"], units["controller.thrust"]) == ("s", "rad", "N")
+
+
 @pytest.mark.slow
 def test_a_run_shows_the_command_lines_progress_only_when_asked(
     fmu_dir: Path, capfd: pytest.CaptureFixture
