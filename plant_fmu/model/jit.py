@@ -58,6 +58,7 @@ KERNEL_FILES = (
 # file names whose functions use the content-keyed cache
 _CACHED_MODULES = tuple(os.path.basename(path) for path in KERNEL_FILES)
 _F = TypeVar("_F", bound=Callable[..., Any])
+WARNED_VARIABLE = "AUV_COSIM_NUMBA_CACHE_WARNED"  # the cache folder already warned of
 
 
 def default_cache_dir() -> Path:
@@ -106,7 +107,13 @@ def _folder_problem(folder: str) -> str:
             f"({exc.strerror}): compiling without a cache, again in every process; "
             "set XDG_CACHE_HOME or NUMBA_CACHE_DIR to a writable folder"
         )
-        warnings.warn(problem, RuntimeWarning, stacklevel=2)
+        # Once a process, not once a copy of this module: the master and every FMU import
+        # their own copy (an FMU's under its own package name), each with its own cache
+        # of this function, and a run printed the warning once per copy. The environment
+        # is what the copies share (a process started from this one is not told again).
+        if os.environ.get(WARNED_VARIABLE) != folder:
+            os.environ[WARNED_VARIABLE] = folder
+            warnings.warn(problem, RuntimeWarning, stacklevel=2)
         return problem
     return ""
 

@@ -150,3 +150,28 @@ def test_a_cache_folder_nobody_can_write_compiles_without_a_cache(run_python, tm
     result, _, warning = done.stdout.strip().splitlines()[-1].partition(" | ")
     assert result == "3 1.0"  # values computed, history moved on; slope (2 - 1) / 1 s
     assert str(cache) in warning and "NUMBA_CACHE_DIR" in warning, warning
+
+
+def test_an_unwritable_cache_folder_is_warned_of_once_a_process(monkeypatch, tmp_path):
+    """``auv-cosim run`` printed the same warning twice (and once more per FMU that
+    compiles): the master and each FMU import their own copy of the jit module (an FMU's
+    under its own package name), each with its own memory of having warned."""
+    import importlib.util
+    import warnings
+
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(blocker / "numba"))
+    source = ROOT / "plant_fmu" / "model" / "jit.py"
+    copies = []
+    for name in ("auvfmu_first_jit", "auvfmu_second_jit"):  # as two FMUs import it
+        spec = importlib.util.spec_from_file_location(name, source)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        copies.append(module)
+    monkeypatch.delenv("AUV_COSIM_NUMBA_CACHE_WARNED", raising=False)  # restored after it
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        problems = [copy.cache_problem() for copy in copies]
+    assert problems[0] == problems[1] and "NUMBA_CACHE_DIR" in problems[0]
+    assert [str(w.message) for w in caught] == [problems[0]]
