@@ -185,7 +185,8 @@ def _base_force(
     m0, m1, m2 = _cross(p[XG], 0.0, p[ZG], g0, g1, g2)
     wb = p[W] - p[B]
     thrust, f_t, delta_s = inputs[0], inputs[2], inputs[3]
-    scale = (u_r / p[FINREF]) ** 2 * delta_s
+    relative = u_r / p[FINREF]
+    scale = relative * abs(relative) * delta_s  # lift reverses astern (PlantModel.actuators)
     f[0] = thrust + 0.0 + wb * g0
     f[1] = f_t + f_mm + wb * g1
     f[2] = p[ZDS] * scale + 0.0 + wb * g2

@@ -318,10 +318,12 @@ class PlantModel:
 
     def actuators(self, inputs: Sequence[float], u_r: float) -> np.ndarray:
         """Propeller thrust T and torque Q, tunnel thruster F_t at (0, 0, z_t) (6.3.79) and
-        stern planes Z_ds (u_r/U0)^2 delta_s, M_ds (u_r/U0)^2 delta_s (Table 6.1)."""
+        stern planes Z_ds s, M_ds s with s = (u_r |u_r| / U_fin^2) delta_s (Table 6.1): the
+        fins' lift follows the flow across them, so it reverses when moving astern."""
         params = self.params
         thrust, torque, f_t, delta_s = inputs[0], inputs[1], inputs[2], inputs[3]
-        scale = (u_r / params.fin_reference_speed) ** 2 * delta_s
+        relative = u_r / params.fin_reference_speed
+        scale = relative * abs(relative) * delta_s
         return np.array(
             [thrust, f_t, params.Z_ds * scale, torque - f_t * params.z_t, params.M_ds * scale, 0.0]
         )

@@ -89,7 +89,7 @@ class VehicleParameters(CheckedRecord):
     M_uw: float = checked_field(description="M_uw, kg")
     M_uq: float = checked_field(description="M_uq, kg m")
 
-    # Stern planes (Table 6.1), scaled with (u_r / fin_reference_speed)^2
+    # Stern planes (Table 6.1), scaled with u_r |u_r| / fin_reference_speed^2
     Z_ds: float = checked_field(
         description="fin heave force per fin angle at the reference speed, N/rad"
     )

@@ -94,6 +94,37 @@ def test_printed_M_uq_would_let_the_fluid_add_energy():
         assert np.sign(heave_pitch_power) == sign
 
 
+def _fin_acceleration(derivative, model: PlantModel, u_r: float) -> np.ndarray:
+    """What a 0.1 rad stern-plane angle adds to [w', q'] at the straight run u_r m/s
+    (relative to still water; every other term cancels in the difference)."""
+    x = state_vector({"u": u_r})
+    with_fin = derivative(x, input_vector({"fin_angle": 0.1}))
+    without = derivative(x, input_vector())
+    return (with_fin - without)[[STATE_INDEX["w"], STATE_INDEX["q"]]]
+
+
+@pytest.mark.parametrize("path", ["reference", "compiled"])
+def test_stern_planes_push_the_other_way_when_the_flow_comes_from_astern(path):
+    """A fin is a thin plate: its lift is the normal force of the flow's component across
+    it, -u_r sin(delta_s), so the flow meeting the plate from astern (u_r < 0) pushes it
+    the other way, with the same magnitude (u_r |u_r|, not u_r^2). Ahead, a positive angle
+    lifts the tail (Z < 0) and pitches the nose down (M_ds < 0); astern the same angle must
+    push the tail down and the nose up."""
+    from plant_fmu.model import compiled
+
+    model = PlantModel(load_vehicle("remus100"), Variant.FULL)
+    if path == "compiled":
+        if not compiled.AVAILABLE:
+            pytest.skip(compiled.NO_JIT_REASON)
+        derivative = compiled.CompiledPlant(model).derivative
+    else:
+        derivative = model.derivative
+    ahead = _fin_acceleration(derivative, model, 1.2)
+    astern = _fin_acceleration(derivative, model, -1.2)
+    assert ahead[1] < 0.0  # nose down ahead (M_ds < 0)
+    np.testing.assert_allclose(astern, -ahead, rtol=1e-12, atol=0.0)
+
+
 def _relative_form_derivative(model: PlantModel, x_rel: np.ndarray, inputs: np.ndarray):
     """(3.6.10), written independently of PlantModel.derivative from the same force terms:
     (M_RB + M_A) nur_dot + C_RB(nu_r) nu_r + C_A(nu_r) nu_r + D(nu_r) nu_r + g = tau,
