@@ -38,6 +38,7 @@ from controller_fmu.depth_pd import (
     TABLE_6_2_TAU_D,
     DepthPd,
     check_depth_loop,
+    check_pitch_limit,
 )
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, LqrHeading
@@ -68,6 +69,11 @@ TUNABLE_PARAMETERS: tuple[str, ...] = ("heading_mode", "mass_lock_time")
 
 class AutopilotConfigError(ValueError):
     """An autopilot parameter is out of range (the message names it and what is allowed)."""
+
+
+def _pitch_limit(value: float) -> None:
+    """``depth_pitch_limit``'s check (:func:`controller_fmu.depth_pd.check_pitch_limit`)."""
+    check_pitch_limit(value, "depth_pitch_limit")
 
 
 def _known_mode(mode: type[IntEnum]) -> Callable[[int], None]:
@@ -227,6 +233,10 @@ class AutopilotConfig(CheckedRecord):
         default=DEFAULT_FIN_LIMIT, gt=0.0, description="stern-plane limit |delta_s| (25 deg)",
         unit="rad",
     )  # fmt: skip
+    depth_pitch_limit: float = checked_field(
+        default=0.0, description="depth loop's pitch set-point limit |theta_d| "
+        "(0: none; at most pi/2)", unit="rad", check=_pitch_limit, standalone=True,
+    )  # fmt: skip
     mass_position_cmd_limit: float = checked_field(
         default=0.06, gt=0.0, description="moving-mass command limit |y_d| (the 6 cm stroke)",
         unit="m",
@@ -370,7 +380,11 @@ class Autopilot:
         self.depth: DepthPd | None = None
         if DepthMode(config.depth_mode) is DepthMode.PD:
             self.depth = DepthPd(
-                config.depth_gamma, config.depth_k_p, config.depth_tau_d, config.fin_angle_limit
+                config.depth_gamma,
+                config.depth_k_p,
+                config.depth_tau_d,
+                config.fin_angle_limit,
+                config.depth_pitch_limit,
             )
             check_depth_loop(self.depth, self.params, config.design_speed, config.design_step)
         self.reset()
@@ -431,6 +445,7 @@ class Autopilot:
         work[k.DEPTH] = 1.0 if DepthMode(config.depth_mode) is DepthMode.PD else 0.0
         work[k.GAMMA], work[k.K_P] = config.depth_gamma, config.depth_k_p
         work[k.TAU_D], work[k.FIN_LIMIT] = config.depth_tau_d, config.fin_angle_limit
+        work[k.PITCH_LIMIT] = config.depth_pitch_limit
         work[k.MASS_LIMIT] = config.mass_position_cmd_limit
         work[k.TUNNEL_LIMIT] = config.tunnel_force_limit
         work[k.THRUST] = config.thrust_command

@@ -26,7 +26,7 @@ doStep, see :data:`controller_fmu.autopilot.TUNABLE_PARAMETERS`):
     backstepping:  k0 (0.5), k1 (1.0), k2, k3, k4 (1.0) (1/s), eta0 (m/s2, 0.08),
                    thruster_boundary_layer (m/s, 0.01), command_filter_frequency (rad/s, 10)
     depth:         depth_gamma (rad/m, -0.772), depth_k_p (10.345), depth_tau_d (s, 0.21),
-                   fin_angle_limit (rad, 25 deg)
+                   fin_angle_limit (rad, 25 deg), depth_pitch_limit (rad, 0: none)
     limits:        mass_position_cmd_limit (m, 0.06), tunnel_force_limit (N, 10)
 
 Timing (a sampled controller). ``doStep(t, h)`` computes the commands from the inputs as set

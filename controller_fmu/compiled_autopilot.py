@@ -20,7 +20,7 @@ argument unless the second is strictly smaller/larger), so a signed zero or a Na
 out as in Python whatever numba's builtins do.
 
 Layout of ``work`` (float64, :data:`WORK_SIZE`): the configuration (:data:`CONFIG_SIZE`
-values from :data:`HEADING` to :data:`THRUST`, written by the autopilot when it takes a
+values from :data:`HEADING` to :data:`PITCH_LIMIT`, written by the autopilot when it takes a
 configuration), the published values (:data:`PUBLISHED`: psi_d, rad, then the four
 commands), the backstepping state saved for a rollback, and the backstepping law's
 scratch. ``inputs`` is the FMU's 16 measurements in ``MEASUREMENT_NAMES`` order,
@@ -39,7 +39,8 @@ from .setpoint_shaping import mass_locked, wrap_angle
 # configuration
 HEADING, COMPENSATE, DESIGN_SPEED, LOCK_TIME, DEPTH = 0, 1, 2, 3, 4
 GAMMA, K_P, TAU_D, FIN_LIMIT, MASS_LIMIT, TUNNEL_LIMIT, THRUST = 5, 6, 7, 8, 9, 10, 11
-CONFIG_SIZE = 12
+PITCH_LIMIT = 12
+CONFIG_SIZE = 13
 PUBLISHED = CONFIG_SIZE  # psi_d, mass_position_cmd, tunnel_force, fin_angle, thrust
 _SAVED = PUBLISHED + 5
 _SCRATCH = _SAVED + STATE_SIZE
@@ -89,10 +90,13 @@ def _heading_setpoint(work: np.ndarray, inputs: np.ndarray) -> float:
 @_jit
 def _fin_angle(work: np.ndarray, inputs: np.ndarray) -> float:
     """delta_s, rad (``DepthPd.fin_angle``, Fig. 6.40): theta_d = gamma (z_d - z),
-    delta_s = -K_p [(theta_d - theta) - tau_d q], saturated; 0 with the depth PD off."""
+    within +-PITCH_LIMIT unless 0, delta_s = -K_p [(theta_d - theta) - tau_d q],
+    saturated; 0 with the depth PD off."""
     if work[DEPTH] == 0.0:
         return 0.0
     theta_d = work[GAMMA] * (inputs[_DEPTH_SETPOINT] - inputs[_DOWN])
+    if work[PITCH_LIMIT] != 0.0:
+        theta_d = _clip(theta_d, work[PITCH_LIMIT])
     delta = -work[K_P] * ((theta_d - inputs[_PITCH]) - work[TAU_D] * inputs[_Q])
     return _python_min(_python_max(delta, -work[FIN_LIMIT]), work[FIN_LIMIT])
 

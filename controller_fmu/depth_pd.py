@@ -1,6 +1,6 @@
 """Depth autopilot: outer proportional depth loop, inner PD pitch loop (Fig. 6.40, Table 6.2).
 
-    theta_d = gamma (z_d - z)
+    theta_d = gamma (z_d - z),                      |theta_d| <= theta_max if set
     delta_s = -K_p [(theta_d - theta) - tau_d q],   |delta_s| <= delta_max
 
 Table 6.2 (designed by Prestero for U0 = 1.525 m/s): gamma = -0.7720 rad/m, K_p = 10.345,
@@ -20,6 +20,16 @@ Table 6.2's design work as published; the linear fin model (Table 6.1) is optimi
 far beyond the 15 deg where the hull's lift curve stalls (Fig. 4.20), so a user lowering
 the limit should lower |gamma| too.
 
+Pitch limit (ours, off by default): the outer loop is linear, so a depth error of
+2.03 m already asks for a pitch of 90 deg and a 50 m step for -38.6 rad (-2211 deg), no
+attitude at all. The inner loop then holds the fins on their stop until the vehicle
+pitches over the vertical: from 1.5 m/s at 1 m, told to go to 51 m, it passed -89 deg
+and looped (roll and yaw swung by 170 and 200 deg) within 30 s. ``pitch_limit``
+theta_max (rad, at most pi/2: no Euler pitch is larger) holds theta_d within +-theta_max,
+so a large step becomes a dive at theta_max: with 0.5 rad the same step dives at about
+29 deg, upright, and arrives. The default, 0, keeps the linear law the dissertation
+runs; its depth-steps scenario asks for up to 91.5 deg right after its 2 m step.
+
 Gains that cannot hold a depth are refused when the autopilot is designed
 (:func:`check_depth_loop`): the loop closed on the plant's own depth plane, linearised at
 the straight run at the design speed (as :mod:`controller_fmu.lateral_model` does for the
@@ -35,6 +45,7 @@ up to 0.2 s, and from about 0.5 m/s up; at 0.1 m/s the fins are too weak for the
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,6 +59,22 @@ TABLE_6_2_GAMMA = -0.7720  # rad/m
 TABLE_6_2_K_P = 10.345  # 1
 TABLE_6_2_TAU_D = 0.21  # s
 DEFAULT_FIN_LIMIT = 0.4363323129985824  # rad, 25 deg (module docstring)
+# rad: the largest pitch limit, 90 deg, the largest Euler pitch (module docstring)
+MAX_PITCH_LIMIT = math.pi / 2
+
+
+def check_pitch_limit(limit: float, name: str = "pitch_limit") -> None:
+    """Refuse a pitch limit (rad) other than 0 (off) or an angle in (0, pi/2].
+
+    Raises:
+        ValueError: naming ``name`` (as the caller calls it), ``limit`` and the range.
+    """
+    if not 0.0 <= limit <= MAX_PITCH_LIMIT:
+        raise ValueError(
+            f"{name} = {limit!r} rad: expected 0 (no limit) or an angle in (0, "
+            f"{MAX_PITCH_LIMIT:.4g}] rad (90 deg: a pitch beyond the vertical is no Euler "
+            "pitch)"
+        )
 
 
 @dataclass(frozen=True)
@@ -59,20 +86,26 @@ class DepthPd:
         k_p: inner-loop proportional gain, rad of fin per rad of pitch error.
         tau_d: inner-loop derivative time, s.
         fin_limit: |delta_s| limit, rad (> 0).
+        pitch_limit: |theta_d| limit, rad, in (0, pi/2]; 0 (the default): no limit.
     """
 
     gamma: float = TABLE_6_2_GAMMA
     k_p: float = TABLE_6_2_K_P
     tau_d: float = TABLE_6_2_TAU_D
     fin_limit: float = DEFAULT_FIN_LIMIT
+    pitch_limit: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.fin_limit > 0.0:
             raise ValueError(f"fin_limit = {self.fin_limit!r}: expected an angle > 0 rad")
+        check_pitch_limit(self.pitch_limit)
 
     def pitch_setpoint(self, depth_setpoint: float, depth: float) -> float:
-        """theta_d = gamma (z_d - z), rad."""
-        return self.gamma * (depth_setpoint - depth)
+        """theta_d = gamma (z_d - z), rad, within +-pitch_limit when one is set."""
+        theta_d = self.gamma * (depth_setpoint - depth)
+        if self.pitch_limit == 0.0:
+            return theta_d
+        return min(max(theta_d, -self.pitch_limit), self.pitch_limit)
 
     def fin_angle(self, depth_setpoint: float, depth: float, pitch: float, q: float) -> float:
         """delta_s, rad, saturated at +-fin_limit.

@@ -51,7 +51,8 @@ HEADING_LAW_PARAMETERS: Mapping[str, frozenset[HeadingMode]] = {
 """The heading laws that read each heading-law parameter of the autopilot's
 configuration (:class:`controller_fmu.autopilot.AutopilotConfig`)."""
 DEPTH_LAW_PARAMETERS: tuple[str, ...] = ("depth_gamma", "depth_k_p", "depth_tau_d",
-                                         "fin_angle_limit", "design_step")  # fmt: skip
+                                         "fin_angle_limit", "depth_pitch_limit",
+                                         "design_step")  # fmt: skip
 """The parameters the depth law (``depth_mode`` pd) reads (design_step: its gains are
 checked on the loop sampled so). A parameter in neither table (the modes, the design
 speed, the vehicle, the mass command limit, ...) is read whatever the laws."""

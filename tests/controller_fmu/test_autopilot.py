@@ -82,6 +82,45 @@ def test_depth_pd_signs_and_limit():
         DepthPd(fin_limit=0.0)
 
 
+def test_the_pitch_setpoint_is_held_within_depth_pitch_limit_when_set():
+    """Table 6.2's outer gain asks 44 deg of pitch per metre of depth error: 50 m below the
+    set-point it asked -38.6 rad (-2211 deg), no attitude at all. With a pitch limit the
+    set-point stops there; without one (0, the default) it is the linear law, as before."""
+    gamma = DepthPd().gamma
+    assert DepthPd().pitch_setpoint(51.0, 1.0) == gamma * 50.0  # off by default
+    limited = DepthPd(pitch_limit=0.5)
+    assert limited.pitch_setpoint(51.0, 1.0) == -0.5  # too shallow: nose down, at most 0.5
+    assert limited.pitch_setpoint(1.0, 51.0) == 0.5  # too deep: nose up, at most 0.5
+    assert limited.pitch_setpoint(1.0, 0.9) == pytest.approx(0.1 * gamma)  # inside: unchanged
+
+
+def test_a_pitch_limit_beyond_the_vertical_is_refused():
+    """A pitch of more than 90 deg is no Euler pitch (the plant's pitch stays in +-90 deg)."""
+    expected = (
+        r"depth_pitch_limit = 2\.0 rad: expected 0 \(no limit\) or an angle in \(0, 1\.571\] rad"
+    )
+    with pytest.raises(AutopilotConfigError, match=expected):
+        AutopilotConfig.build(depth_pitch_limit=2.0)
+
+
+@pytest.mark.slow
+def test_a_50_m_depth_step_dives_at_the_pitch_limit_without_going_over_the_top(remus):
+    """The 6-DOF plant at 1.5 m/s told to go from 1 m to 51 m: without a pitch limit the
+    fins stayed on their stop, the vehicle pitched through -89 deg and over the vertical
+    (roll and yaw swung by 170 and 200 deg within 30 s). With depth_pitch_limit = 0.5 rad it
+    dives at about that pitch, upright, and arrives."""
+    model = PlantModel(remus, variant=Variant.FULL)
+    x0 = state_vector({"u": 1.50, "down": 1.0})
+    config = AutopilotConfig.build(
+        heading_mode=3, depth_mode=1, mass_lock_time=0.0, depth_pitch_limit=0.5
+    )
+    run = simulate_closed_loop(Autopilot(config), model, x0, 120.0, H, depth_setpoint=51.0)
+    assert np.abs(run.state("pitch")).max() < 0.6  # rad: the limit and a small overshoot
+    assert np.abs(np.degrees(run.state("roll"))).max() < 5.0
+    assert np.abs(np.degrees(run.state("yaw"))).max() < 5.0
+    assert abs(run.state("down")[-1] - 51.0) < 1.0  # m: there (a P loop's steady error)
+
+
 @pytest.mark.parametrize(
     ("gains", "why"),
     [

@@ -28,6 +28,7 @@ configs = st.fixed_dictionaries(
         "compensate_current": st.booleans(),
         "mass_lock_time": st.sampled_from([-1.0, 0.0, 0.05]),
         "tunnel_force_limit": st.sampled_from([10.0, 0.0]),
+        "depth_pitch_limit": st.sampled_from([0.0, 0.05, 1.5]),
     }
 )
 measurement = st.floats(-0.5, 0.5, allow_nan=False, allow_subnormal=True)
