@@ -24,6 +24,7 @@ from cosim.errors import CosimError, one_line_warnings
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from fmu_runtime.log_text import shortened
+from plant_fmu.model.state_layout import MAX_SPEED  # a module of constants, imports nothing
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -641,7 +642,12 @@ def _add_model_options(a: argparse.ArgumentParser) -> None:
     a.add_argument("--thrust", type=float, default=9.0, help="N [%(default)s]")
     a.add_argument("--roll-torque", type=float, default=0.0, help="N.m [%(default)s]")
     a.add_argument("--mass-position", type=float, default=0.0, help="m [%(default)s]")
-    a.add_argument("--current-east", type=float, default=0.0, help="m/s [%(default)s]")
+    a.add_argument(
+        "--current-east",
+        type=float,
+        default=0.0,
+        help=f"m/s, at most {MAX_SPEED:g} either way [%(default)s]",
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -68,6 +68,7 @@ from cosim.errors import CosimError
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters
+from plant_fmu.model.state_layout import MAX_SPEED
 
 
 class AnalysisError(CosimError, ValueError):
@@ -186,7 +187,8 @@ class OperatingConditions:
         thrust: propeller thrust T, N.
         roll_torque: propeller roll torque Q, N m (acts only where roll is free).
         mass_position: moving-mass position y_v held at rest, m (|y_v| <= stroke).
-        current_east: uniform current towards east, m/s (see the module docstring).
+        current_east: uniform current towards east, m/s (see the module docstring);
+            |current_east| <= MAX_SPEED, the fastest velocity over ground the plant takes.
     """
 
     params: VehicleParameters
@@ -202,6 +204,12 @@ class OperatingConditions:
             value = getattr(self, name)
             if not math.isfinite(value):
                 raise AnalysisError(f"{name} = {value!r}: expected a finite number")
+        if not abs(self.current_east) <= MAX_SPEED:
+            raise AnalysisError(
+                f"current_east = {self.current_east!r} m/s: expected |current_east| <= "
+                f"{MAX_SPEED:g} m/s (a steady current carries the vehicle at its speed, and the "
+                "plant integrates no velocity over ground beyond that)"
+            )
         if self.thrust <= 0.0:
             raise AnalysisError(
                 f"thrust = {self.thrust!r} N: expected a thrust > 0 (the analyses look for "

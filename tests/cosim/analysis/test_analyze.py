@@ -310,6 +310,23 @@ def test_an_analysis_without_thrust_is_refused(capsys, thrust):
     assert f"thrust = {float(thrust)!r} N: expected a thrust > 0" in err
 
 
+@pytest.mark.parametrize("current", ["1e10", "-100.5"])
+def test_a_current_faster_than_the_plant_integrates_is_refused(capsys, current):
+    """`analyze equilibria --current-east 1e10` printed three equilibria moving east at
+    1e+10 m/s over ground: the equilibria are of the motion relative to the water, and a
+    steady current carries the vehicle at its own speed, beyond the velocities over ground
+    the plant integrates (MAX_SPEED, 100 m/s)."""
+    code, out, err = _run(capsys, "analyze", "equilibria", "--current-east", current)
+    assert code == 1 and out == ""
+    assert f"current_east = {float(current)!r} m/s: expected |current_east| <= 100 m/s" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_the_fastest_current_the_plant_integrates_is_taken(capsys):
+    code, out, _ = _run(capsys, "analyze", "equilibria", "--current-east", "-100")
+    assert code == 0 and "current east -100 m/s" in out
+
+
 def test_printed_tables_give_every_quantity_its_unit() -> None:
     """The search box said '|v|, |p|, |r| <= 0.4' (m/s and rad/s alike), the eigenvalues
     and the special points' states had no unit, and a roll-torque fold read
