@@ -471,8 +471,11 @@ def _quaternion_from_euler(phi: float, theta: float, psi: float, z: np.ndarray) 
 
 @_jit
 def _nearest_turn(angle: float, previous: float) -> float:
-    """angle + 2 pi k nearest ``previous`` (``kinematics._nearest_turn``)."""
-    return angle + 2.0 * math.pi * math.floor((previous - angle) / (2.0 * math.pi) + 0.5)
+    """angle + 2 pi k nearest ``previous`` (``kinematics._nearest_turn``; a nan stays nan)."""
+    turns = (previous - angle) / (2.0 * math.pi) + 0.5
+    if not math.isfinite(turns):
+        return angle + turns
+    return angle + 2.0 * math.pi * math.floor(turns)
 
 
 @_jit

@@ -153,5 +153,9 @@ def euler_from_quaternion(
 
 
 def _nearest_turn(angle: float, previous: float) -> float:
-    """angle + 2 pi k, with k the whole number of turns that brings it nearest ``previous``."""
-    return angle + 2.0 * math.pi * math.floor((previous - angle) / (2.0 * math.pi) + 0.5)
+    """angle + 2 pi k, with k the whole number of turns that brings it nearest ``previous``;
+    a nan stays nan (a sub-step gone unstable: the step's range check names it)."""
+    turns = (previous - angle) / (2.0 * math.pi) + 0.5
+    if not math.isfinite(turns):
+        return angle + turns
+    return angle + 2.0 * math.pi * math.floor(turns)
