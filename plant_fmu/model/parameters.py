@@ -110,6 +110,7 @@ class VehicleParameters(CheckedRecord):
     z_t: float = checked_field(default=0.0, description="tunnel-thruster z in body axes, m")
 
     def _check_record(self) -> None:
+        self._check_inside_hull()
         if not self.m_v < self.m:
             raise ValueError(
                 f"m_v = {self.m_v!r} kg: expected less than m = {self.m!r} kg (the moving "
@@ -129,6 +130,24 @@ class VehicleParameters(CheckedRecord):
                 f"M_RB + M_A must be positive definite, but its smallest eigenvalue is "
                 f"{eigenvalues.min():.6g} (check a26, a35, x_g, z_g against the inertias)"
             )
+
+    def _check_inside_hull(self) -> None:
+        """Refuse a part placed outside the hull: the moving-mass rail (x_v), the tunnel
+        thruster (z_t) and the centre of gravity (x_g, z_g; an average of the vehicle's own
+        material) are inside it, and so is the body origin, the centre of buoyancy. The hull
+        is a cylinder of this diameter and length, so a point inside it is within
+        diameter / 2 of the axis and, wherever along the hull the origin lies, within one
+        length of the origin along x."""
+        bounds = (("x_v", "length", self.length), ("x_g", "length", self.length),
+                  ("z_t", "diameter / 2", self.diameter / 2),
+                  ("z_g", "diameter / 2", self.diameter / 2))  # fmt: skip
+        for name, what, bound in bounds:
+            value = getattr(self, name)
+            if not abs(value) <= bound:
+                raise ValueError(
+                    f"{name} = {value!r} m: expected |{name}| <= {what} = {bound:.4g} m (it "
+                    "is inside the hull, as the body origin, the centre of buoyancy, is)"
+                )
 
     # Derived quantities (one place, so nothing re-types them)
     @property

@@ -153,6 +153,31 @@ def test_bad_values_name_field_value_and_range(change, expected):
         load_vehicle().replace(**change)
 
 
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ({"x_v": 5.0}, r"x_v = 5\.0 m: expected \|x_v\| <= length = 1\.33 m"),
+        ({"x_v": -1.4}, r"x_v = -1\.4 m: expected \|x_v\| <= length = 1\.33 m"),
+        ({"x_g": 2.0, "I_yy": 300.0, "I_zz": 300.0}, r"x_g = 2\.0 m: expected \|x_g\| <= length"),
+        ({"z_t": 3.0}, r"z_t = 3\.0 m: expected \|z_t\| <= diameter / 2 = 0\.0955 m"),
+        ({"z_g": -0.1}, r"z_g = -0\.1 m: expected \|z_g\| <= diameter / 2 = 0\.0955 m"),
+    ],
+)
+def test_a_part_placed_outside_the_hull_is_refused(change, expected):
+    """The moving-mass rail, the tunnel thruster and the centre of gravity are inside the
+    hull (the centre of gravity is an average of the vehicle's own material); the body
+    origin, the centre of buoyancy, is too. A rail 5 m ahead of a 1.33 m vehicle's centre,
+    or a thruster 3 m below a 19 cm hull, was accepted and gave moments from lever arms
+    the vehicle does not have."""
+    with pytest.raises(VehicleParameterError, match=expected):
+        load_vehicle().replace(**change)
+
+
+def test_parts_at_the_hull_are_taken():
+    p = load_vehicle()
+    p.replace(x_v=-p.length, z_t=p.diameter / 2)
+
+
 def test_unknown_and_missing_keys_are_named(tmp_path: Path):
     bad = tmp_path / "bad.toml"
     bad.write_text('base = "remus100"\n[viscous]\nX_uuu = 1.0\n')
