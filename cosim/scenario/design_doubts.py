@@ -1,6 +1,8 @@
 """Scenario values that are valid but leave the autopilot's design other than the user
 meant: its laws designed for another vehicle than the plant's, or for another speed than
-the thrust it sends drives the plant at, or a gain given to a law the scenario never runs.
+the thrust it sends drives the plant at, a gain given to a law the scenario never runs, or
+a law designed for its command held over each step (the LQR, the sampled sliding mode)
+whose command the coupling extrapolates.
 
 The autopilot designs its heading laws on its own ``vehicle`` parameter set
 (:class:`controller_fmu.lateral_model.LateralDesignModel`), not on the plant's: a scenario
@@ -40,6 +42,7 @@ def design_doubts(scenario: Scenario, live: bool = False) -> list[str]:
     for name, autopilot in _instances(scenario, AUTOPILOT).items():
         found += [_vehicle_doubt(name, autopilot, p, plant) for p, plant in plants.items()]
         found += [_speed_doubt(scenario, name, autopilot, p, plant) for p, plant in plants.items()]
+        found.append(_extrapolated_command_doubt(scenario, name, autopilot))
         if not live:
             found += _unused_gains(scenario, name, autopilot)
     return [line for line in found if line]
@@ -163,20 +166,52 @@ def _short(vehicle: str) -> str:
     return f"{first} ..." if rest else vehicle
 
 
+_DISCRETE_LAWS = (HeadingMode.LQR, HeadingMode.SLIDING_MODE)
+"""The heading laws designed on the plant discretised with their command held over a
+step (docs/model.md: the LQR, the sampled sliding mode)."""
+
+
+def _extrapolated_command_doubt(scenario: Scenario, name: str, autopilot: Instance) -> str:
+    """The warning if ``name`` runs a heading law designed for its command held over each
+    step (:data:`_DISCRETE_LAWS`, at its start or after an event) while the coupling
+    extrapolates that command across the step ('' if not)."""
+    extrapolation = scenario.coupling.extrapolation
+    command = f"{name}.mass_position_cmd"
+    if extrapolation == "none" or not any(c.source == command for c in scenario.connections):
+        return ""
+    discrete = sorted(_heading_modes(scenario, name, autopilot) & set(_DISCRETE_LAWS))
+    if not discrete:
+        return ""
+    laws = " and ".join(mode.name.lower() for mode in discrete)
+    return (
+        f"{name} runs heading_mode {laws}, a design for its command held over each step, but "
+        f"coupling.extrapolation = {extrapolation!r} extrapolates {command} across the step: "
+        "the loop run is not the one designed (lqr-1 so banged its mass command between -100 "
+        'and +100 m every step); set extrapolation = "none", as lqr-1 to lqr-3 do'
+    )
+
+
+def _heading_modes(scenario: Scenario, name: str, autopilot: Instance) -> set[HeadingMode]:
+    """The heading modes ``name`` runs: its start value and every event's."""
+    names = autopilot.interface.variables["heading_mode"].names
+    modes = {_mode(HeadingMode, _start(autopilot, "heading_mode"), names)}
+    for event in scenario.events:
+        for ref, value in event.set.items():
+            if ref == f"{name}.heading_mode":
+                modes.add(_mode(HeadingMode, value, names))
+    return modes
+
+
 def _unused_gains(scenario: Scenario, name: str, autopilot: Instance) -> list[str]:
     """Warnings for the law-specific parameters given to ``name`` that no law it runs
     reads (its heading modes: the start value and every event's)."""
-    names = autopilot.interface.variables["heading_mode"].names
-    modes = {_mode(HeadingMode, _start(autopilot, "heading_mode"), names)}
+    modes = _heading_modes(scenario, name, autopilot)
     given = {f: f"instances.{name}.start.{f} = {v!r}" for f, v in autopilot.start.items()}
     for event in scenario.events:
         for ref, value in event.set.items():
             instance, _, variable = ref.partition(".")
-            if instance != name:
-                continue
-            given.setdefault(variable, f"events.{event.name}.set.{ref} = {value!r}")
-            if variable == "heading_mode":
-                modes.add(_mode(HeadingMode, value, names))
+            if instance == name:
+                given.setdefault(variable, f"events.{event.name}.set.{ref} = {value!r}")
     depth = _mode(DepthMode, _start(autopilot, "depth_mode"), {})
     running = ", ".join(m.name.lower() for m in sorted(modes))
     return [

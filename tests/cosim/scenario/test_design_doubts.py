@@ -103,10 +103,34 @@ def test_a_gain_of_a_law_an_event_or_a_live_key_switches_to_is_used(
     path = tmp_path / "switch.toml"
     path.write_text(text + SWITCH)
     scenario = _load(fmu_paths, path).with_start({"controller.smc_eta": 5.0})
-    assert design_doubts(scenario) == []
+    (held,) = design_doubts(scenario)  # the sliding mode switched to under "quadratic"
+    assert held.startswith("controller runs heading_mode sliding_mode, a design for its"), held
+    assert design_doubts(scenario.with_overrides(extrapolation="none")) == []
     # a live run's keys may switch to any law
     bs3 = _load(fmu_paths, "bs-3").with_start({"controller.smc_eta": 5.0})
     assert design_doubts(bs3, live=True) == [] != design_doubts(bs3)
+
+
+@pytest.mark.parametrize("extrapolation", ["linear", "quadratic"])
+def test_a_discrete_heading_law_whose_command_is_extrapolated_is_named(
+    fmu_paths: dict[str, Path], extrapolation: str
+) -> None:
+    """The LQR and the sliding mode are designed on the plant discretised with its command
+    held over each step. `auv-cosim run lqr-1 --extrapolation linear` extrapolated that
+    command across the step instead: the mass command banged between -100 and +100 m every
+    step (quadratic: the same, its yaw settling time reported as 0 s), without a word."""
+    lqr = _load(fmu_paths, "lqr-1").with_overrides(extrapolation=extrapolation)
+    assert design_doubts(lqr) == [
+        "controller runs heading_mode lqr, a design for its command held over each step, but "
+        f"coupling.extrapolation = {extrapolation!r} extrapolates controller.mass_position_cmd "
+        "across the step: the loop run is not the one designed (lqr-1 so banged its mass "
+        'command between -100 and +100 m every step); set extrapolation = "none", as '
+        "lqr-1 to lqr-3 do"
+    ]
+    sliding = lqr.with_start({"controller.heading_mode": "sliding_mode"})
+    (line,) = design_doubts(sliding)
+    assert line.startswith("controller runs heading_mode sliding_mode, a design for its")
+    assert design_doubts(_load(fmu_paths, "bs-3")) == []  # quadratic: a continuous design
 
 
 def test_every_law_parameter_listed_is_an_autopilot_parameter() -> None:
