@@ -45,7 +45,8 @@ be used (not installed: numba is optional, or ``AUV_COSIM_NO_JIT=1``) it steps t
 reference and logs a Warning, once per instance, saying why and what it costs. Both do
 the same arithmetic (agreement to 1e-12 is tested).
 
-Currents: the uniform current inputs at initialisation set the start. When they change
+Currents: the uniform current inputs at initialisation set the start; a step with one
+beyond ``MAX_SPEED`` (100 m/s) is refused naming it (``stepping.check_current``). When they change
 between steps, the hull's velocity over ground jumps by
 ``PlantModel.current_change_velocity_jump`` (the impulse of the (Mbar + M_A) nuc_dot term),
 applied at the start of the next step; inputs are held over each step.

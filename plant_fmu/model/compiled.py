@@ -49,6 +49,7 @@ from .state_layout import (
 )
 
 _U, _P = LINEAR_VELOCITY.start, ANGULAR_VELOCITY.start  # u and p in the stepping state
+_CURRENT_START, _CURRENT_STOP = CURRENT.start, CURRENT.stop  # the currents in the inputs
 numba, NO_JIT_REASON = load_numba()
 AVAILABLE = numba is not None
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -548,7 +549,6 @@ def _stage(
 _SCRATCH_R, _SCRATCH_WORK, _SCRATCH_Y, _SCRATCH_K, _SCRATCH_Z, _SCRATCH_U = 0, 9, 39, 57, 129, 147
 STEP_SCRATCH = _SCRATCH_U + 3 * N_INPUTS
 CURRENT_CHANGED = 4  # step_into: the currents changed since the last step, nothing done
-_CURRENT_START = CURRENT.start  # the first current input (north, east, down follow)
 
 
 @_jit
@@ -622,9 +622,11 @@ def advance_into(
     Its working arrays are slices of ``scratch`` (:data:`STEP_SCRATCH` values), so it
     allocates nothing. Returns 0, or 1 for a non-finite input or rate, 2 for a non-finite
     state or a zero quaternion, 3 for a state that became non-finite or left the model's
-    range."""
+    range (a current beyond MAX_SPEED too: ``stepping.check_current``)."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
+            return 1
+        if _CURRENT_START <= i < _CURRENT_STOP and not abs(inputs[i]) <= MAX_SPEED:
             return 1
         if varying and not (math.isfinite(rates[0, i]) and math.isfinite(rates[1, i])):
             return 1

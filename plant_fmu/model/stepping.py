@@ -43,6 +43,7 @@ from plant_fmu.model.kinematics import euler_from_quaternion, quaternion_from_eu
 from plant_fmu.model.root_finding import brent_root
 from plant_fmu.model.state_layout import (
     ANGULAR_VELOCITY,
+    CURRENT,
     EULER,
     INPUT_NAMES,
     LINEAR_VELOCITY,
@@ -73,6 +74,20 @@ def check_finite(values: np.ndarray, names: tuple[str, ...], what: str) -> None:
     if not np.all(np.isfinite(values)):
         bad = int(np.flatnonzero(~np.isfinite(values))[0])
         raise ValueError(f"{what} {names[bad]} = {float(values[bad])!r}: expected a finite number")
+
+
+def check_current(inputs: np.ndarray) -> None:
+    """Raise ValueError naming the first current component (m/s) beyond :data:`MAX_SPEED`:
+    a steady current carries the vehicle at its own speed, so no state in the model's
+    range follows it."""
+    for i in range(N_INPUTS)[CURRENT]:
+        if not abs(inputs[i]) <= MAX_SPEED:
+            name = INPUT_NAMES[i]
+            raise ValueError(
+                f"input {name} = {float(inputs[i]):g} m/s: expected |{name}| <= {MAX_SPEED:g} "
+                "m/s (a steady current carries the vehicle at its speed, and the model takes "
+                "no velocity over ground beyond that)"
+            )
 
 
 def stepping_state(x: np.ndarray) -> np.ndarray:
@@ -164,6 +179,7 @@ def advance(
         # start and reports what went wrong in its own words (an OverflowError, a name).
     check_finite(x, STEP_STATE_NAMES, "state")
     check_finite(inputs, INPUT_NAMES, "input")
+    check_current(inputs)
     if rates is not None:
         check_finite(np.ravel(rates), INPUT_NAMES * 2, "input derivative of")
     z = stepping_state(x)

@@ -350,3 +350,31 @@ def test_a_full_variant_step_gone_non_finite_is_refused_saying_so(path, moving_m
     u = input_vector(dict(current_east=99.0), thrust=9.0)
     with pytest.raises(ValueError, match=r"left the model.s range in a step of 0\.1 s .*: \w+ = "):
         advance(model, x, u, 0.1, 0.01, fast)  # 10 sub-steps: nan before the step ends
+
+
+@pytest.mark.parametrize("path", ["reference", "compiled"])
+def test_a_current_faster_than_any_velocity_the_model_takes_is_refused_by_name(path):
+    """A steady current carries the vehicle at its own speed, so a current beyond MAX_SPEED
+    (100 m/s) leaves the model's range whatever the vehicle does. A scenario's
+    current_east = 1e10 was refused only after RK4 had thrown the vehicle to u = -2.4e130
+    m/s, naming u and blaming the sub-step; the step is now refused naming the current,
+    and a vehicle drifting with a current the model takes steps with it."""
+    from plant_fmu.model import compiled
+
+    if path == "compiled" and not compiled.AVAILABLE:
+        pytest.skip(compiled.NO_JIT_REASON)
+    model = PlantModel(load_vehicle("remus100"), Variant.FULL)
+    fast = compiled.CompiledPlant(model) if path == "compiled" else None
+    x = state_vector(dict(u=1.5))
+    too_fast = input_vector(dict(current_east=1e10), thrust=9.0)
+    with pytest.raises(
+        ValueError, match=r"input current_east = 1e\+10 m/s: expected \|current_east\| <= 100 m/s"
+    ):
+        advance(model, x, too_fast, 0.01, 0.01, fast)
+    balanced = PlantModel(_balanced(), Variant.FULL)  # no force on a body at rest in water
+    fast = compiled.CompiledPlant(balanced) if path == "compiled" else None
+    drifting = state_vector(dict(u=-90.0))
+    with_it = input_vector(dict(current_north=-90.0))
+    after = advance(balanced, drifting, with_it, 0.01, 0.01, fast)
+    assert after[STATE_INDEX["north"]] == pytest.approx(-0.9, rel=1e-12)
+    np.testing.assert_allclose(after[NU], drifting[NU], rtol=1e-12, atol=1e-12)
