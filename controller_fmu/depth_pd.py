@@ -21,7 +21,7 @@ far beyond the 15 deg where the hull's lift curve stalls (Fig. 4.20), so a user 
 the limit should lower |gamma| too.
 
 Pitch limit (ours, off by default): the outer loop is linear, so a depth error of
-2.03 m already asks for a pitch of 90 deg and a 50 m step for -38.6 rad (-2211 deg), no
+2.03 m already asks for a pitch of 90 deg and a 50 m step for -38.6 rad (-2212 deg), no
 attitude at all. The inner loop then holds the fins on their stop until the vehicle
 pitches over the vertical: from 1.5 m/s at 1 m, told to go to 51 m, it passed -89 deg
 and looped (roll and yaw swung by 170 and 200 deg) within 30 s. ``pitch_limit``

@@ -14,6 +14,7 @@ says so in one warning line each, as it does for an angle that looks like degree
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -43,6 +44,7 @@ def design_doubts(scenario: Scenario, live: bool = False) -> list[str]:
         found += [_vehicle_doubt(name, autopilot, p, plant) for p, plant in plants.items()]
         found += [_speed_doubt(scenario, name, autopilot, p, plant) for p, plant in plants.items()]
         found.append(_extrapolated_command_doubt(scenario, name, autopilot))
+        found.append(_pitch_doubt(scenario, name, autopilot, plants))
         if not live:
             found += _unused_gains(scenario, name, autopilot)
     return [line for line in found if line]
@@ -188,6 +190,35 @@ def _extrapolated_command_doubt(scenario: Scenario, name: str, autopilot: Instan
         f"coupling.extrapolation = {extrapolation!r} extrapolates {command} across the step: "
         "the loop run is not the one designed (lqr-1 so banged its mass command between -100 "
         'and +100 m every step); set extrapolation = "none", as lqr-1 to lqr-3 do'
+    )
+
+
+def _pitch_doubt(
+    scenario: Scenario, name: str, autopilot: Instance, plants: Mapping[str, Instance]
+) -> str:
+    """The warning if ``name``'s depth loop, with no ``depth_pitch_limit``, asks for more
+    than 90 deg of pitch between the depths the scenario gives: the plants' start depths,
+    its depth set-point (unless connected) and every event's ('' if not)."""
+    names = autopilot.interface.variables["depth_mode"].names
+    modes = {_mode(DepthMode, _start(autopilot, "depth_mode"), names)}
+    if DepthMode.PD not in modes or float(_start(autopilot, "depth_pitch_limit")) != 0.0:
+        return ""
+    setpoint = f"{name}.depth_setpoint"
+    depths = [float(_start(plant, "down_0")) for plant in plants.values()]
+    if not any(c.target == setpoint for c in scenario.connections):
+        depths.append(float(_start(autopilot, "depth_setpoint")))
+    depths += [float(e.set[setpoint]) for e in scenario.events if setpoint in e.set]
+    gamma = float(_start(autopilot, "depth_gamma"))
+    pitch = abs(gamma) * (max(depths) - min(depths))
+    if pitch <= math.pi / 2:
+        return ""
+    return (
+        f"{name}'s depth loop (depth_gamma = {gamma!r} rad/m) asks for a pitch of up to "
+        f"{pitch:.3g} rad ({math.degrees(pitch):.0f} deg) between the depths {min(depths):g} m "
+        f"and {max(depths):g} m of this scenario (plant.down_0, its depth_setpoint and "
+        "events), beyond the 90 deg any pitch can be: its fins stay on their stop until the "
+        f"vehicle pitches over; set depth_pitch_limit (rad, at most {math.pi / 2:.4g}), unless "
+        "that is meant"
     )
 
 

@@ -84,7 +84,7 @@ def test_depth_pd_signs_and_limit():
 
 def test_the_pitch_setpoint_is_held_within_depth_pitch_limit_when_set():
     """Table 6.2's outer gain asks 44 deg of pitch per metre of depth error: 50 m below the
-    set-point it asked -38.6 rad (-2211 deg), no attitude at all. With a pitch limit the
+    set-point it asked -38.6 rad (-2212 deg), no attitude at all. With a pitch limit the
     set-point stops there; without one (0, the default) it is the linear law, as before."""
     gamma = DepthPd().gamma
     assert DepthPd().pitch_setpoint(51.0, 1.0) == gamma * 50.0  # off by default

@@ -133,6 +133,32 @@ def test_a_discrete_heading_law_whose_command_is_extrapolated_is_named(
     assert design_doubts(_load(fmu_paths, "bs-3")) == []  # quadratic: a continuous design
 
 
+def test_depth_set_points_further_apart_than_any_pitch_can_follow_are_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """depth-steps with its 2 m step made 50 m ran without a word: Table 6.2's gamma asks
+    0.772 rad of pitch per metre, -38.6 rad for 50 m, and with no depth_pitch_limit the
+    vehicle pitched over the vertical and looped. Its own 2 m step asks 88 deg: no doubt."""
+    text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "depth-steps.toml").read_text()
+    path = tmp_path / "deep.toml"
+    path.write_text(
+        text.replace('"controller.depth_setpoint" = 3.0', '"controller.depth_setpoint" = 51.0')
+    )
+    deep = _load(fmu_paths, path)
+    assert design_doubts(deep) == [
+        "controller's depth loop (depth_gamma = -0.772 rad/m) asks for a pitch of up to "
+        "38.6 rad (2212 deg) between the depths 1 m and 51 m of this scenario (plant.down_0, "
+        "its depth_setpoint and events), beyond the 90 deg any pitch can be: its fins stay on "
+        "their stop until the vehicle pitches over; set depth_pitch_limit (rad, at most "
+        "1.571), unless that is meant"
+    ]
+    assert design_doubts(deep.with_start({"controller.depth_pitch_limit": 0.5})) == []
+    assert design_doubts(deep.with_start({"controller.depth_mode": "off"})) == []
+    start = _load(fmu_paths, "depth-steps").with_start({"plant.down_0": 30.0})
+    (line,) = design_doubts(start)
+    assert "between the depths 1 m and 30 m" in line
+
+
 def test_every_law_parameter_listed_is_an_autopilot_parameter() -> None:
     from controller_fmu.autopilot import AutopilotConfig
     from controller_fmu.modes import DEPTH_LAW_PARAMETERS, HEADING_LAW_PARAMETERS
