@@ -68,12 +68,9 @@ def _start(inst: Instance, variable: str) -> Any:
 def plant_parameters(plant: Instance) -> VehicleParameters:
     """The parameter set the plant runs: its ``vehicle`` with the physical parameters the
     scenario gives it written over (as :class:`plant_fmu.auv_plant.AuvPlant` builds it)."""
-    from plant_fmu.model.parameters import load_vehicle
+    from cosim.scenario.spec import plant_vehicle
 
-    base = load_vehicle(str(_start(plant, "vehicle")))
-    fields = set(base.as_dict()) - set(_LABELS)
-    overrides = {key: value for key, value in plant.start.items() if key in fields}
-    return base.replace(**overrides) if overrides else base
+    return plant_vehicle(str(_start(plant, "vehicle")), plant.start)
 
 
 def _vehicle_doubt(name: str, autopilot: Instance, plant_name: str, plant: Instance) -> str:

@@ -69,6 +69,8 @@ from cosim.scenario.timeline_spec import (
 if TYPE_CHECKING:  # numpy is not imported to read a scenario
     import numpy as np
 
+    from plant_fmu.model.parameters import VehicleParameters
+
 SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
 BUILTIN_FMUS = ("AuvPlant", "AuvAutopilot", "AuvGuidance")
 FAULT_COLUMN_PREFIX = "fault."  # results.csv column of a fault: "fault.<name>"
@@ -876,6 +878,9 @@ def _resolve_instance(
             start[var_name] = str(_existing_file(value, base_dir, key, src))
     if interface.model_identifier in ("AuvPlant", "AuvAutopilot") and "vehicle" in start:
         _check_vehicle(str(start["vehicle"]), f"instances.{name}.start.vehicle", src)
+    if interface.model_identifier == "AuvPlant":
+        vehicle = start.get("vehicle", variables["vehicle"].start)
+        _check_written_over(str(vehicle), start, f"instances.{name}.start", src)
     if interface.model_identifier == "AuvGuidance":
         _check_guidance(start, f"instances.{name}.start", src)
     return Instance(
@@ -893,6 +898,44 @@ def _check_vehicle(value: str, key: str, src: Source) -> None:
         load_vehicle(value)
     except VehicleParameterError as exc:
         raise src.error(key, str(exc)) from None
+
+
+def plant_vehicle(vehicle: str, start: Mapping[str, Any]) -> VehicleParameters:
+    """The parameter set a plant (``AuvPlant``) runs: its ``vehicle`` set with the
+    physical parameters among the ``start`` values written over, validated as a whole as
+    the plant validates it (:meth:`VehicleParameters.replace`). Raises
+    :class:`~plant_fmu.model.parameters.VehicleParameterError`."""
+    from plant_fmu.model.parameters import load_vehicle
+
+    base = load_vehicle(vehicle)
+    overrides = {key: start[key] for key in _written_over(base, start)}
+    return base.replace(**overrides) if overrides else base
+
+
+def _written_over(base: VehicleParameters, start: Mapping[str, Any]) -> list[str]:
+    """The physical parameters of ``base`` that ``start`` gives (not its name and
+    description, which are no physics and no start values)."""
+    fields = set(base.as_dict()) - {"name", "description"}
+    return [key for key in start if key in fields]
+
+
+def _check_written_over(vehicle: str, start: Mapping[str, Any], key: str, src: Source) -> None:
+    """The plant's physical parameters written over its vehicle set, valid each on its
+    own (its range) but maybe not together (a mass ``m`` below the moving mass's ``m_v``):
+    checked with the set here, naming the key, where the plant refused them only once
+    initialised (the run's first step)."""
+    from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
+
+    try:
+        plant_vehicle(vehicle, start)
+    except VehicleParameterError as exc:
+        base = load_vehicle(vehicle)  # loaded above: only the written-over values failed
+        written = _written_over(base, start)
+        reason = str(exc).removeprefix(f"vehicle {f'{base.name} (modified)'!r}: ")
+        where = f"{key}.{written[0]}" if len(written) == 1 else key
+        raise src.error(
+            where, f"vehicle {base.name!r} with {', '.join(written)} written over: {reason}"
+        ) from None
 
 
 def _check_guidance(start: Mapping[str, Any], key: str, src: Source) -> None:

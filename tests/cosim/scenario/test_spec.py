@@ -336,6 +336,15 @@ BAD_EDITS = [
      r"plant\.start\.vehicle': unknown vehicle 'remus200': expected one of \['remus100', "),
     ('heading_mode = "backstepping"', 'heading_mode = "backstepping"\nvehicle = "remus200"',
      r"controller\.start\.vehicle': unknown vehicle 'remus200'"),
+    # the plant's physical parameters written over its set, valid one by one but not
+    # together: refused by the plant only once initialised, or by the design check's
+    # warning as a bare VehicleParameterError naming no file and no key
+    ("v_0 = -0.10", "v_0 = -0.10\nm = 1e-300",
+     r"key 'instances\.plant\.start\.m': vehicle 'remus100' with m written over: m_v = "
+     r"5\.08\d* kg: expected less than m = 1e-300 kg"),
+    ("v_0 = -0.10", "v_0 = -0.10\nm = -0.0",  # in the FMU's declared range (>= 0)
+     r"key 'instances\.plant\.start\.m': vehicle 'remus100' with m written over: m = -0\.0: "
+     r"expected a number greater than 0"),
     # a manoeuvre is a known kind whose variables the run records
     ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "zig-zag"',
      r"key 'manoeuvre': 'zig-zag' is not a manoeuvre \(did you mean 'zigzag'\?\): expected "
