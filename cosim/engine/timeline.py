@@ -35,14 +35,14 @@ from fmpy.fmi1 import FMICallException
 from cosim.engine.slave import STATUS_LABELS, Slave
 from cosim.errors import CosimError
 from cosim.scenario.spec import FAULT_COLUMN_PREFIX, Scenario
-from cosim.scenario.timeline_spec import Event, Fault
+from cosim.scenario.timeline_spec import POINT_TOLERANCE, Event, Fault
 
 if TYPE_CHECKING:
     from cosim.engine.live import LiveControl
 
 OVERRIDE_PREFIX = "live-"  # the names of applied overrides as events: live-1, live-2, ...
 
-_TOLERANCE = 1e-9  # of a step: a time within it of t_n counts as t_n
+_TOLERANCE = POINT_TOLERANCE  # of a step: a time within it of t_n counts as t_n
 
 
 def step_index(time: float, h: float) -> int:

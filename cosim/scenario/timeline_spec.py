@@ -76,6 +76,11 @@ _FAULT_KEYS = {  # the optional keys each kind takes
 _REQUIRED = {"bias": "value", "gain": "value", "noise": "std", "delay": "steps",
              "dropout": "probability"}  # fmt: skip
 SetValue = StrictBool | StrictInt | StrictFloat | StrictStr
+POINT_TOLERANCE = 1e-9  # of a step: a time within it of a communication point counts as it
+
+
+class TimelineWarning(UserWarning):
+    """A valid event or fault that a run never reaches: due after its stop time."""
 
 
 class EventSpec(Strict):
@@ -179,6 +184,32 @@ class Fault:
 
 
 EVENTS_HINT = "a scenario file's [[events]] (then cosim.load_scenario it)"
+
+
+def unreached(
+    events: Sequence[Event], faults: Sequence[Fault], stop_time: float, step: float
+) -> list[str]:
+    """One line for each time event due after the last communication point of a run to
+    ``stop_time`` (s, communication step ``step``, s), and each fault starting after it:
+    valid, but the run ends before them (a run shortened by ``--stop-time``, or a time
+    typed in the wrong unit), so they are never applied."""
+
+    def late(time: float) -> bool:
+        return time / step > round(stop_time / step) + POINT_TOLERANCE
+
+    stop = f"the stop time ({stop_time:g} s)"
+    lines = [
+        f"events.{event.name}.time = {event.time:g} s is after {stop}: the run ends before "
+        "the event, which is never applied"
+        for event in events
+        if event.time is not None and late(event.time)
+    ]
+    return lines + [
+        f"faults.{fault.name}.start = {fault.start:g} s is after {stop}: the run ends "
+        "before the fault, which never acts"
+        for fault in faults
+        if late(fault.start)
+    ]
 
 
 def resolve_events(

@@ -33,6 +33,7 @@ from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
 from cosim.runner import run_scenario
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
+from cosim.scenario.timeline_spec import unreached
 from cosim.scenario.unit_doubts import doubts
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
@@ -132,12 +133,14 @@ def check_values(
 ) -> list[str]:
     """Resolve the scenario with these values (no run): :class:`StudyError` if the
     scenario's own checks refuse one (a wrong type, a non-finite number). Returns what
-    looks like a slip of units in it (:func:`cosim.scenario.unit_doubts.doubts`)."""
+    looks like a slip of units in it (:func:`cosim.scenario.unit_doubts.doubts`) and the
+    events and faults the run ends before (:func:`cosim.scenario.timeline_spec.unreached`)."""
     try:
         scenario = _scenario(base, base.fmu_paths, factors, values)
     except CosimError as exc:
         raise StudyError(f"factor values {dict(values)}: {exc}") from None
-    return doubts(scenario)
+    late = unreached(scenario.events, scenario.faults, scenario.stop_time, scenario.coupling.step)
+    return doubts(scenario) + late
 
 
 def run_one(

@@ -403,3 +403,33 @@ def test_out_of_file_descriptors_names_the_limit_not_a_file(
         f"auv-cosim scenarios: Too many open files (this process may have {soft} files open: "
         "raise the limit with `ulimit -n`)\n"
     )
+
+
+def test_an_event_or_fault_after_the_stop_time_is_warned_of_naming_both_times(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """An event at t = 90 s and a fault starting at 70 s in a run that stops at 0.05 s
+    (``--stop-time``, or the file's own) ran complete without a word and neither was ever
+    applied; an event at the stop time itself fires at the last point, and is no doubt."""
+    import warnings
+
+    bs3 = (Path(__file__).parents[2] / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    path = tmp_path / "late.toml"
+    path.write_text(
+        bs3 + '\n[[events]]\nname = "turn"\ntime = 90.0\nset = { "controller.yaw_setpoint" = 0.3 }'
+        '\n[[events]]\ntime = 0.05\nset = { "controller.yaw_setpoint" = 0.2 }'
+        '\n[[faults]]\nname = "jam"\nkind = "mass-jam"\nstart = 70.0\n'
+    )
+    fmu_dir = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", str(path), "--stop-time", "0.05", "--no-rrd", "--quiet", "--fmu-dir", fmu_dir,
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(argv) == 0
+    lines = [str(w.message) for w in caught if "stop time" in str(w.message)]
+    assert lines == [
+        "events.turn.time = 90 s is after the stop time (0.05 s): the run ends before the "
+        "event, which is never applied",
+        "faults.jam.start = 70 s is after the stop time (0.05 s): the run ends before the "
+        "fault, which never acts",
+    ]

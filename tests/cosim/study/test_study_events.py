@@ -162,3 +162,29 @@ def test_the_documented_turn_study_answers_with_a_metric_of_the_turn(
     for at_time in peaks.values():
         ordered = [at_time[s] for s in sorted(at_time)]
         assert all(a < b for a, b in itertools.pairwise(ordered)), peaks
+
+
+def test_a_grid_value_putting_an_event_after_the_stop_time_is_warned_of(
+    scenario: Path, fmu_dir: Path
+) -> None:
+    """A study of 20 s over the turn's time [10, 30]: the runs with the turn at 30 s end
+    before it, and the study planned them without a word; the value is named once, before
+    any run, and the fault at 5 s, within every run, is not."""
+    import warnings
+
+    from cosim.study.factors import resolve_factor
+    from cosim.study.runner import _checked_plan
+    from cosim.study.spec import study_from_dict
+    from cosim.study.task import prepare
+
+    spec = study_from_dict({"scenario": str(scenario), "grid": {"events.turn.time": [10.0, 30.0]},
+                            "stop_time": 20.0}, "study")  # fmt: skip
+    base, facts = prepare(str(scenario), spec.stop_time, fmu_dir)
+    factors = {name: resolve_factor(name, facts) for name in spec.factors}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert len(_checked_plan(spec, base, factors, facts)) == 2
+    assert [str(w.message) for w in caught if "stop time" in str(w.message)] == [
+        "events.turn.time = 30 s is after the stop time (20 s): the run ends before the "
+        "event, which is never applied"
+    ]
