@@ -379,7 +379,7 @@ def _fmus_to_build(scenario: str | Path | Scenario, fmu_dir: Path) -> list[str]:
     try:
         instances = tomllib.loads(scenario_path(scenario).read_text("utf-8"))["instances"]
         named = {str(instance.get("fmu")) for instance in instances.values()}
-    except (OSError, KeyError, AttributeError, tomllib.TOMLDecodeError, ScenarioError):
+    except (OSError, ValueError, KeyError, AttributeError, RecursionError, ScenarioError):
         return []
     return [name for name in out_of_date(fmu_dir) if name in named]
 

@@ -9,6 +9,7 @@ way: one line naming the file, the key, the bad value and what was expected.
 from __future__ import annotations
 
 import math
+import tomllib
 import typing
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
@@ -23,6 +24,23 @@ FMI_INTEGER_RANGE = (-(2**31), 2**31 - 1)  # fmi2Integer is a C int (32 bits)
 
 class ScenarioError(CosimError):
     """A scenario that cannot run: the message names the file and the key."""
+
+
+class NotTomlError(ValueError):
+    """A text that is not TOML this reader reads; the message says where and why."""
+
+
+def loads_toml(text: str) -> dict[str, Any]:
+    """The table of a TOML text, as ``tomllib.loads`` reads it. Raises :class:`NotTomlError`
+    for invalid TOML, and for arrays or inline tables nested thousands deep (valid TOML,
+    but beyond Python's recursion limit: tomllib raised RecursionError, which named
+    neither the file nor what was wrong)."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise NotTomlError(str(exc)) from None
+    except RecursionError:
+        raise NotTomlError("arrays or inline tables nested too deeply to read") from None
 
 
 class Strict(BaseModel):

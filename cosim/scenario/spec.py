@@ -15,7 +15,6 @@ import math
 import os
 import re
 import reprlib
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,12 +41,14 @@ from cosim.fmus.interface import (
 from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.scenario.checks import (
+    NotTomlError,
     ReadOnly,
     ScenarioError,
     Source,
     Strict,
     check_value,
     field_names,
+    loads_toml,
     misplaced_top_level,
     split_ref,
     with_article,
@@ -579,8 +580,8 @@ def scenario_from_toml(
 ) -> Scenario:
     """Like :func:`load_scenario` for scenario text (relative paths from ``base_dir``)."""
     try:
-        data = tomllib.loads(text.removeprefix("\ufeff"))
-    except tomllib.TOMLDecodeError as exc:
+        data = loads_toml(text.removeprefix("\ufeff"))
+    except NotTomlError as exc:
         raise ScenarioError(f"scenario {where}: not valid TOML: {exc}") from None
     return scenario_from_data(data, where, base_dir, fmu_dir)
 
@@ -606,8 +607,8 @@ def _natural_key(path: Path) -> tuple[str, int]:
 
 def _read_toml(path: Path) -> dict[str, Any]:
     try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
-        return tomllib.loads(path.read_text(encoding="utf-8-sig"))
-    except tomllib.TOMLDecodeError as exc:
+        return loads_toml(path.read_text(encoding="utf-8-sig"))
+    except NotTomlError as exc:
         raise ScenarioError(f"scenario file {path}: not valid TOML: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"scenario file {path}: cannot read it: {exc}") from None

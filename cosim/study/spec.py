@@ -38,7 +38,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import tomllib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -59,7 +58,7 @@ from pydantic import (
 )
 
 from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean, did_you_mean_path
-from cosim.scenario.checks import field_names, misplaced_top_level
+from cosim.scenario.checks import NotTomlError, field_names, loads_toml, misplaced_top_level
 
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
 MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
@@ -291,8 +290,8 @@ def load_study(path: Path, label: str | None = None) -> StudySpec:
             "more than once: `<(...)` gives it once, and a FIFO with no writer never)"
         )
     try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
-        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
-    except tomllib.TOMLDecodeError as exc:
+        data = loads_toml(path.read_text(encoding="utf-8-sig"))
+    except NotTomlError as exc:
         raise StudyError(f"{label}: not valid TOML: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise StudyError(f"{label}: cannot read it: {exc}") from None

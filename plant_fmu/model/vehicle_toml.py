@@ -28,8 +28,8 @@ def loads(text: str) -> dict[str, Any]:
     :func:`loads_subset`.
 
     Raises:
-        VehicleTomlError: the text is not valid TOML (or, below Python 3.11, not in the
-            subset).
+        VehicleTomlError: the text is not valid TOML, or nested too deeply for Python's
+            recursion limit (or, below Python 3.11, not in the subset).
     """
     if sys.version_info >= (3, 11):
         import tomllib  # standard library from 3.11 on (not in an FMU's 3.9 host)
@@ -38,6 +38,10 @@ def loads(text: str) -> dict[str, Any]:
             return tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise VehicleTomlError(f"not valid TOML: {exc}") from None
+        except RecursionError:  # valid TOML, thousands of arrays deep
+            raise VehicleTomlError(
+                "not valid TOML: arrays or inline tables nested too deeply to read"
+            ) from None
     return loads_subset(text)
 
 

@@ -558,3 +558,19 @@ def test_an_unknown_vehicle_is_refused_when_the_fmu_is_named_by_its_path(
     text = text.replace('variant = "lateral"', 'variant = "lateral"\nvehicle = "remus-100"')
     with pytest.raises(ScenarioError, match=r"start\.vehicle': unknown vehicle 'remus-100'"):
         scenario_from_toml(text, base_dir=tmp_path)
+
+
+@pytest.mark.parametrize("nested", ["[" * 5000 + "]" * 5000, "{a=" * 5000 + "1" + "}" * 5000])
+def test_toml_nested_too_deeply_to_read_is_refused_as_not_valid_toml(
+    tmp_path: Path, nested: str
+) -> None:
+    """Arrays or inline tables thousands deep: tomllib ran out of Python's recursion and
+    the command said only "RecursionError: maximum recursion depth exceeded", naming
+    neither the file nor what was wrong."""
+    path = tmp_path / "deep.toml"
+    path.write_text(f"{BS3}\nx = {nested}\n")
+    expected = r": not valid TOML: arrays or inline tables nested too deeply to read"
+    with pytest.raises(ScenarioError, match=f"^scenario file {re.escape(str(path))}{expected}"):
+        load_scenario(path)
+    with pytest.raises(ScenarioError, match=f"^scenario <string>{expected}"):
+        scenario_from_toml(f"{BS3}\nx = {nested}\n")

@@ -182,3 +182,12 @@ def test_a_factor_with_two_laws_is_refused_showing_its_table() -> None:
         f"s.toml: key 'random.plant.u_0' = {law!r}: "
         "expected { uniform = [low, high] } or { normal = [mean, std] }"
     )
+
+
+def test_a_study_nested_too_deeply_to_read_is_refused_as_not_valid_toml(tmp_path: Path) -> None:
+    """Arrays thousands deep in a study file: "RecursionError: maximum recursion depth
+    exceeded", naming neither the file nor what was wrong."""
+    deep = tmp_path / "deep.toml"
+    deep.write_text('scenario = "bs-3"\nx = ' + "[" * 5000 + "]" * 5000 + "\n", encoding="utf-8")
+    with pytest.raises(StudyError, match=r"deep\.toml: not valid TOML: arrays or inline tables "):
+        load_study(deep)

@@ -105,3 +105,12 @@ def test_a_user_file_outside_the_subset_gets_one_line_naming_file_and_line(
         r"\(Python >= 3\.11 reads any TOML\)$",
     ):
         load_vehicle(path)
+
+
+def test_a_vehicle_file_nested_too_deeply_to_read_is_refused_naming_it(tmp_path: Path) -> None:
+    """Arrays thousands deep in a vehicle file: tomllib ran out of Python's recursion and
+    a run said only "RecursionError: maximum recursion depth exceeded"."""
+    path = tmp_path / "deep.toml"
+    path.write_text("x = " + "[" * 5000 + "]" * 5000 + "\n", encoding="utf-8")
+    with pytest.raises(VehicleParameterError, match=r"deep\.toml.*not valid TOML: arrays or "):
+        load_vehicle(str(path))
