@@ -133,6 +133,10 @@ class AuvAutopilot(SafeSlave):
     """Heading (LQR / sliding mode / backstepping + thruster) and depth (PD) autopilot."""
 
     interpolates_inputs: ClassVar[bool] = True  # input derivatives: the module docstring
+    tolerance_note: ClassVar[str] = (
+        "the autopilot has no error-controlled integrator; it samples its laws at the "
+        "communication points (or every sample_period), designed for design_step"
+    )
 
     description = (
         "Autopilot of the REMUS 100 with internal actuators: moving-mass heading control "

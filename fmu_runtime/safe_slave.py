@@ -151,6 +151,12 @@ class SafeSlave(Fmi2Slave):
     # the inputs an output ``_initialize`` computes depends on (besides the parameters, on
     # which every such output may depend); declared in ModelStructure/InitialUnknowns
     initial_dependencies: ClassVar[dict[str, tuple[str, ...]]] = {}
+    # why a tolerance given to setupExperiment changes nothing, and what sets the accuracy
+    # instead (logged as a Warning when a host gives one)
+    tolerance_note: ClassVar[str] = (
+        "this FMU has no error-controlled integrator; its results depend on the "
+        "communication step only"
+    )
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -338,11 +344,17 @@ class SafeSlave(Fmi2Slave):
     # --- FMI callbacks -----------------------------------------------------------------------
 
     def setup_experiment(
-        self, start_time: float = 0.0, stop_time: float | None = None, *args: Any, **kwargs: Any
+        self,
+        start_time: float = 0.0,
+        stop_time: float | None = None,
+        tolerance: float | None = None,
+        *args: Any,
+        **kwargs: Any,
     ) -> None:
         """Record the start time (the first communication point) and the stop time (None:
         not defined), past which no step may end; only right after instantiation, and only
-        finite times, the stop time not before the start time."""
+        finite times, the stop time not before the start time. A ``tolerance`` (None: not
+        defined) is ignored with a Warning saying so (``tolerance_note``)."""
         try:
             self._enter()
             if self._phase != _INSTANTIATED:
@@ -363,6 +375,12 @@ class SafeSlave(Fmi2Slave):
             else:
                 self._time = float(start_time)
                 self._stop_time = math.inf if stop_time is None else float(stop_time)
+                if tolerance is not None:
+                    self.log(
+                        f"setupExperiment: tolerance = {tolerance!r} ignored: "
+                        f"{self.tolerance_note}",
+                        Fmi2Status.warning,
+                    )
         except Exception as exc:
             self._error(f"setupExperiment failed: {_reason(exc)}")
 

@@ -152,6 +152,10 @@ class AuvPlant(SafeSlave):
     """REMUS 100 AUV plant with moving mass, tunnel thruster and stern planes."""
 
     interpolates_inputs: ClassVar[bool] = True  # uses input derivatives (module docstring)
+    tolerance_note: ClassVar[str] = (
+        "the plant integrates with fixed-step RK4 in sub-steps of at most max_substep; "
+        "a smaller max_substep (s) makes it more accurate"
+    )
 
     description = (
         "REMUS 100 AUV with internal actuators (moving mass, tunnel thruster, stern planes): "

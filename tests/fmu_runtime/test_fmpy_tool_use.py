@@ -1,0 +1,38 @@
+"""Our FMUs as another FMI tool runs them: fmpy's ``simulate_fmu`` with the options a tool
+user sets (a relative tolerance, ...), each FMU alone. What the FMU ignores or refuses is
+said in its log, with what to do instead."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from fmpy import simulate_fmu
+
+from cosim.fmus.build import FMUS
+
+STATUS_WARNING = 1
+
+
+def _simulate(path: Path, **options) -> list[tuple[int, str]]:
+    """Run ``path`` for 0.1 s with fmpy's ``simulate_fmu``: the (status, message) pairs the
+    FMU logged."""
+    messages: list[tuple[int, str]] = []
+
+    def logger(_component, _instance, status, _category, message):
+        messages.append((status, message.decode()))
+
+    simulate_fmu(str(path), stop_time=0.1, logger=logger, **options)
+    return messages
+
+
+@pytest.mark.parametrize("name", sorted(FMUS))
+def test_a_relative_tolerance_the_fmu_ignores_is_warned_of(name, fmu_paths):
+    """fmpy passes ``relative_tolerance`` on to fmi2SetupExperiment; none of our FMUs has an
+    error-controlled integrator, so it must say it ignores the tolerance, and how to
+    control the accuracy instead, rather than take it silently with fmi2OK."""
+    assert _simulate(fmu_paths[name]) == []  # no tolerance given: nothing to say
+    warnings = [text for status, text in _simulate(fmu_paths[name], relative_tolerance=1e-8)
+                if status == STATUS_WARNING]  # fmt: skip
+    assert len(warnings) == 1, warnings
+    assert "tolerance = 1e-08 ignored" in warnings[0], warnings[0]
