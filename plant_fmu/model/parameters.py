@@ -69,25 +69,35 @@ class VehicleParameters(CheckedRecord):
     a35: float = checked_field(description="heave-pitch added mass coupling, kg m")
 
     # Viscous terms (4.2.6)-(4.2.9), Tables 5.1, 5.4, 6.3
-    X_uu: float = checked_field(description="X_u|u|, kg/m")
-    Y_vv: float = checked_field(description="Y_v|v|, kg/m")
-    Y_rr: float = checked_field(description="Y_r|r|, kg m")
-    Y_uv: float = checked_field(description="Y_uv, kg/m")
-    Y_ur: float = checked_field(description="Y_ur, kg")
-    N_vv: float = checked_field(description="N_v|v|, kg")
-    N_rr: float = checked_field(description="N_r|r|, kg m^2")
-    N_uv: float = checked_field(description="N_uv, kg")
-    N_ur: float = checked_field(description="N_ur, kg m")
+    X_uu: float = checked_field(description="surge drag X_u|u| (times u_r|u_r|), kg/m")
+    Y_vv: float = checked_field(description="sway cross-flow drag Y_v|v| (times v_r|v_r|), kg/m")
+    Y_rr: float = checked_field(description="sway force from yaw rate Y_r|r| (times r|r|), kg m")
+    Y_uv: float = checked_field(description="body and fin lift in sway Y_uv (times u_r v_r), kg/m")
+    Y_ur: float = checked_field(description="fin lift in sway from yaw rate Y_ur (times u_r r), kg")
+    N_vv: float = checked_field(description="yaw moment from sway N_v|v| (times v_r|v_r|), kg")
+    N_rr: float = checked_field(description="yaw cross-flow damping N_r|r| (times r|r|), kg m^2")
+    N_uv: float = checked_field(
+        description="yaw moment N_uv of body and fin lift with the Munk moment (times u_r v_r), kg"
+    )
+    N_ur: float = checked_field(
+        description="fin lift moment in yaw from yaw rate N_ur (times u_r r), kg m"
+    )
     K_p: float = checked_field(description="linear roll damping K_p, N m s")
-    K_pp: float = checked_field(description="K_p|p|, kg m^2")
-    Z_ww: float = checked_field(description="Z_w|w|, kg/m")
-    Z_qq: float = checked_field(description="Z_q|q|, kg m")
-    Z_uw: float = checked_field(description="Z_uw, kg/m")
-    Z_uq: float = checked_field(description="Z_uq, kg")
-    M_ww: float = checked_field(description="M_w|w|, kg")
-    M_qq: float = checked_field(description="M_q|q|, kg m^2")
-    M_uw: float = checked_field(description="M_uw, kg")
-    M_uq: float = checked_field(description="M_uq, kg m")
+    K_pp: float = checked_field(description="quadratic roll damping K_p|p| (times p|p|), kg m^2")
+    Z_ww: float = checked_field(description="heave cross-flow drag Z_w|w| (times w_r|w_r|), kg/m")
+    Z_qq: float = checked_field(description="heave force from pitch rate Z_q|q| (times q|q|), kg m")
+    Z_uw: float = checked_field(description="body and fin lift in heave Z_uw (times u_r w_r), kg/m")
+    Z_uq: float = checked_field(
+        description="fin lift in heave from pitch rate Z_uq (times u_r q), kg"
+    )
+    M_ww: float = checked_field(description="pitch moment from heave M_w|w| (times w_r|w_r|), kg")
+    M_qq: float = checked_field(description="pitch cross-flow damping M_q|q| (times q|q|), kg m^2")
+    M_uw: float = checked_field(
+        description="body and fin lift moment in pitch M_uw (times u_r w_r), kg"
+    )
+    M_uq: float = checked_field(
+        description="fin lift moment in pitch from pitch rate M_uq (times u_r q), kg m"
+    )
 
     # Stern planes (Table 6.1), scaled with u_r |u_r| / fin_reference_speed^2
     Z_ds: float = checked_field(

@@ -4,14 +4,17 @@ said in its log, with what to do instead."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
-from fmpy import simulate_fmu
+from fmpy import read_model_description, simulate_fmu
 
 from cosim.fmus.build import FMUS
 
 STATUS_WARNING = 1
+# a word of the description beyond the variable's own symbol (``X_u|u|`` has none)
+WORD = re.compile(r"[a-z]{3,}")
 
 
 def _simulate(path: Path, **options) -> list[tuple[int, str]]:
@@ -36,3 +39,12 @@ def test_a_relative_tolerance_the_fmu_ignores_is_warned_of(name, fmu_paths):
                 if status == STATUS_WARNING]  # fmt: skip
     assert len(warnings) == 1, warnings
     assert "tolerance = 1e-08 ignored" in warnings[0], warnings[0]
+
+
+@pytest.mark.parametrize("name", sorted(FMUS))
+def test_every_variable_has_a_description_beyond_its_symbol(name, fmu_paths):
+    """A tool lists each variable with its description beside the name: a description that
+    only spells the symbol again (``Y_uv``: "Y_uv") tells its user nothing."""
+    variables = read_model_description(str(fmu_paths[name])).modelVariables
+    bare = {v.name: v.description for v in variables if not WORD.search(v.description or "")}
+    assert bare == {}
