@@ -42,7 +42,8 @@ def crab_angle(course: float, current_north: float, current_east: float, speed: 
     if abs(cross) >= speed:
         raise ValueError(
             f"cross-current {cross:.4g} m/s is not slower than the design speed {speed:.4g} "
-            "m/s: no heading can hold the course (6.3.74 needs |U_perp| < U0)"
+            "m/s: no heading can hold the course (6.3.74 needs |U_perp| < U0); turn "
+            "compensate_current off or raise design_speed (if the vehicle is faster)"
         )
     return math.asin(cross / speed)
 

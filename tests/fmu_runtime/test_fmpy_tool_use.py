@@ -4,11 +4,13 @@ said in its log, with what to do instead."""
 
 from __future__ import annotations
 
+import contextlib
 import re
 from pathlib import Path
 
 import pytest
 from fmpy import read_model_description, simulate_fmu
+from fmpy.fmi1 import FMICallException
 
 from cosim.fmus.build import FMUS
 
@@ -19,13 +21,14 @@ WORD = re.compile(r"[a-z]{3,}")
 
 def _simulate(path: Path, **options) -> list[tuple[int, str]]:
     """Run ``path`` for 0.1 s with fmpy's ``simulate_fmu``: the (status, message) pairs the
-    FMU logged."""
+    FMU logged, until the end or the call fmpy raised on."""
     messages: list[tuple[int, str]] = []
 
     def logger(_component, _instance, status, _category, message):
         messages.append((status, message.decode()))
 
-    simulate_fmu(str(path), stop_time=0.1, logger=logger, **options)
+    with contextlib.suppress(FMICallException):
+        simulate_fmu(str(path), stop_time=0.1, logger=logger, **options)
     return messages
 
 
@@ -48,3 +51,17 @@ def test_every_variable_has_a_description_beyond_its_symbol(name, fmu_paths):
     variables = read_model_description(str(fmu_paths[name])).modelVariables
     bare = {v.name: v.description for v in variables if not WORD.search(v.description or "")}
     assert bare == {}
+
+
+@pytest.mark.parametrize("name", ["AuvAutopilot", "AuvGuidance"])
+def test_a_cross_current_the_compensation_cannot_hold_says_what_to_change(name, fmu_paths):
+    """With compensate_current on, a cross-current as fast as the design speed stops the FMU
+    (at initialisation or at the first step); its message named the condition only, and
+    must say which parameters to change."""
+    start = {"compensate_current": True, "current_east": 2.0, "heading_mode": 1}
+    if name == "AuvGuidance":
+        del start["heading_mode"]
+    errors = [text for status, text in _simulate(fmu_paths[name], start_values=start)
+              if "cross-current 2 m/s" in text]  # fmt: skip
+    assert errors, "no message names the cross-current"
+    assert "turn compensate_current off or raise design_speed" in errors[0], errors[0]
