@@ -103,6 +103,23 @@ INPUT_DESCRIPTIONS: dict[str, str] = {
     "current_down": "uniform current, down component, earth frame",
 }
 INPUT_STARTS: dict[str, float] = {"thrust": 9.0}
+# the inputs a reduced variant has no degree of freedom for (fin_angle acts in heave and
+# pitch, roll_torque in roll, current_down along the body's down axis): taken, not used
+IGNORED_INPUTS: dict[Variant, tuple[str, ...]] = {
+    Variant.FULL: (),
+    Variant.LATERAL: ("fin_angle", "current_down"),
+    Variant.HORIZONTAL: ("roll_torque", "fin_angle", "current_down"),
+}
+
+
+def input_description(name: str) -> str:
+    """The description of input ``name``, naming the variants that ignore it."""
+    ignoring = [v.name.lower() for v in Variant if name in IGNORED_INPUTS[v]]
+    if not ignoring:
+        return INPUT_DESCRIPTIONS[name]
+    return f"{INPUT_DESCRIPTIONS[name]}; the {' and '.join(ignoring)} variants ignore it"
+
+
 STATE_DESCRIPTIONS: dict[str, str] = {
     "north": "position north (NED)",
     "east": "position east (NED)",
@@ -212,7 +229,7 @@ class AuvPlant(SafeSlave):
                     name,
                     causality=Fmi2Causality.input,
                     variability=Fmi2Variability.continuous,
-                    description=INPUT_DESCRIPTIONS[name],
+                    description=input_description(name),
                 ),
                 unit=unit,
             )
@@ -333,11 +350,24 @@ class AuvPlant(SafeSlave):
                 f"{', '.join(frozen)} at 0: their initial values are ignored",
                 Fmi2Status.warning,
             )
+        self._warn_ignored_inputs(model.variant)
         self._x[:] = stepping_state(model.project(x))  # the quaternion of the kept angles
         self._last_current[:] = self._inputs[CURRENT]
         self._refresh_outputs()
         if self._compiled is not None:  # compile now, not in the first doStep
             self._compiled.warm_up(self._x, self._inputs, self._rates)
+
+    def _warn_ignored_inputs(self, variant: Variant) -> None:
+        """A Warning naming the inputs written non-zero that ``variant`` ignores (checked as
+        the plant initialises: a step does not look, each input's description says it)."""
+        given = [n for n in IGNORED_INPUTS[variant] if self._inputs[INPUT_NAMES.index(n)]]
+        if given:
+            self.log(
+                f"variant {int(variant)} ({variant.name.lower()}) ignores the input(s) "
+                f"{', '.join(given)}: it has no degree of freedom they act on (variant 0, "
+                "full, uses them)",
+                Fmi2Status.warning,
+            )
 
     def _step(self, current_time: float, step_size: float) -> None:
         """From the value buffers to the compiled integrator and back, allocating nothing

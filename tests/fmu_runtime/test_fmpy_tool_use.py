@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 from fmpy import read_model_description, simulate_fmu
@@ -19,17 +20,24 @@ STATUS_WARNING = 1
 WORD = re.compile(r"[a-z]{3,}")
 
 
-def _simulate(path: Path, **options) -> list[tuple[int, str]]:
-    """Run ``path`` for 0.1 s with fmpy's ``simulate_fmu``: the (status, message) pairs the
-    FMU logged, until the end or the call fmpy raised on."""
+def _run(path: Path | str, **options) -> tuple[Any, list[tuple[int, str]]]:
+    """fmpy's ``simulate_fmu`` on ``path``: its result (None if fmpy raised on a call) and
+    the (status, message) pairs the FMU logged meanwhile."""
     messages: list[tuple[int, str]] = []
 
     def logger(_component, _instance, status, _category, message):
         messages.append((status, message.decode()))
 
+    result = None
     with contextlib.suppress(FMICallException):
-        simulate_fmu(str(path), stop_time=0.1, logger=logger, **options)
-    return messages
+        result = simulate_fmu(str(path), logger=logger, **options)
+    return result, messages
+
+
+def _simulate(path: Path, **options) -> list[tuple[int, str]]:
+    """Run ``path`` for 0.1 s: the (status, message) pairs the FMU logged, until the end or
+    the call fmpy raised on."""
+    return _run(path, stop_time=0.1, **options)[1]
 
 
 @pytest.mark.parametrize("name", sorted(FMUS))
@@ -65,3 +73,28 @@ def test_a_cross_current_the_compensation_cannot_hold_says_what_to_change(name, 
               if "cross-current 2 m/s" in text]  # fmt: skip
     assert errors, "no message names the cross-current"
     assert "turn compensate_current off or raise design_speed" in errors[0], errors[0]
+
+
+# the inputs a reduced variant of the plant has no degree of freedom for
+IGNORED_INPUTS = {1: ("fin_angle", "current_down"), 2: ("roll_torque", "fin_angle", "current_down")}
+STATES = ["north", "east", "down", "roll", "pitch", "yaw", "u", "v", "w", "p", "q", "r"]
+
+
+@pytest.mark.parametrize("variant", sorted(IGNORED_INPUTS))
+def test_an_input_the_plants_variant_ignores_is_warned_of_and_described(variant, fmu_paths):
+    """A tool user writing fin_angle to the lateral plant got fmi2OK and no effect at all:
+    the variant has no heave or pitch. The plant must warn that it ignores the value, and
+    each input's description must name the variants that ignore it."""
+    plant = str(fmu_paths["AuvPlant"])
+    start = {"variant": variant, "u_0": 1.5, "v_0": 0.05, "roll_0": 0.1 * (variant == 1)}
+    reference = simulate_fmu(plant, stop_time=1.0, start_values=start, output=STATES)
+    described = {v.name: v.description for v in read_model_description(plant).modelVariables}
+    variant_name = {1: "lateral", 2: "horizontal"}[variant]
+    for name in IGNORED_INPUTS[variant]:
+        result, messages = _run(
+            plant, stop_time=1.0, start_values={**start, name: 0.2}, output=STATES
+        )
+        assert all((result[s] == reference[s]).all() for s in STATES), name  # truly ignored
+        warned = [text for status, text in messages if status == STATUS_WARNING]
+        assert any(name in text and "ignore" in text for text in warned), (name, messages)
+        assert variant_name in described[name], (name, described[name])
