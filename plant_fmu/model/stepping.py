@@ -221,9 +221,10 @@ def _check_range(z: np.ndarray, h: float, n: int) -> None:
 def _left_the_range(what: str, h: float, n: int) -> str:
     return (
         f"the vehicle left the model's range in a step of {h!r} s ({n} RK4 sub-step(s) of "
-        f"{h / n:.6g} s): {what}. An input far beyond its range does this, and so does a "
-        "vehicle file that makes the plant stiffer than its sub-steps allow (a faster "
-        "moving-mass servo: a smaller max_substep keeps RK4 stable)"
+        f"{h / n:.6g} s): {what}. Fast motion or forces make the plant stiffer than its "
+        "sub-steps allow: an input or an initial velocity far beyond the vehicle's range, "
+        "or a vehicle file with a faster moving-mass servo; a smaller max_substep keeps RK4 "
+        "stable"
     )
 
 

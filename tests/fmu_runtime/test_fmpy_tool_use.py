@@ -98,3 +98,17 @@ def test_an_input_the_plants_variant_ignores_is_warned_of_and_described(variant,
         warned = [text for status, text in messages if status == STATUS_WARNING]
         assert any(name in text and "ignore" in text for text in warned), (name, messages)
         assert variant_name in described[name], (name, described[name])
+
+
+def test_a_step_a_fast_initial_rotation_breaks_names_the_cause_and_the_remedy(fmu_paths):
+    """r_0 = 30 rad/s (within its declared range) made the first step blow up, and the
+    message blamed an input or a vehicle file, neither of which the user had touched; it
+    must name the initial velocity and the remedy, which works: a smaller max_substep."""
+    plant = fmu_paths["AuvPlant"]
+    result, messages = _run(plant, stop_time=0.5, start_values={"r_0": 30.0})
+    assert result is None  # fmpy raised on the step the plant refused
+    left = [text for _, text in messages if "left the model's range" in text]
+    assert left, messages
+    assert "an initial velocity" in left[0] and "a smaller max_substep" in left[0], left[0]
+    result, messages = _run(plant, stop_time=0.5, start_values={"r_0": 30.0, "max_substep": 1e-4})
+    assert result is not None and messages == [], messages
