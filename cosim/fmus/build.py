@@ -16,7 +16,8 @@ Steps for one FMU (:func:`build_fmu`):
    function of the FMU's content (:func:`guid`: the same sources give the same GUID; no
    MAC address, no time), the package's version and licence, capability flags
    (``needsExecutionTool="false"``, FMU state get/set/serialise), ``UnitDefinitions`` for
-   every unit the Reals use (with SI base-unit exponents), ``InitialUnknowns`` by the FMI
+   every unit the Reals use (with SI base-unit exponents, and degrees as the display unit
+   of angles and turn rates: :data:`DISPLAY_UNITS`), ``InitialUnknowns`` by the FMI
    2.0 rule. What only the slave knows it already
    wrote through :meth:`fmu_runtime.safe_slave.SafeSlave.to_xml`: the unit of every Real,
    the ``ModelStructure/Outputs`` dependencies, which outputs are ``initial="calculated"``
@@ -51,6 +52,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import importlib.metadata
+import math
 import os
 import re
 import shutil
@@ -107,6 +109,12 @@ _BASE_UNITS: dict[str, dict[str, int]] = {
     "W": {"kg": 1, "m": 2, "s": -3},
 }
 _UNIT_FACTOR = re.compile(r"^([A-Za-z]+|1)(-?\d+)?$")
+# unit -> (display unit, factor): a tool shows and takes angles and turn rates in degrees
+# (FMI 2.0 DisplayUnit: value in the display unit = factor * value in the unit)
+DISPLAY_UNITS: dict[str, tuple[str, float]] = {
+    "rad": ("deg", 180.0 / math.pi),
+    "rad/s": ("deg/s", 180.0 / math.pi),
+}
 
 
 def build_fmus(out_dir: Path, force: bool = False) -> dict[str, Path]:
@@ -422,7 +430,13 @@ def complete_model_description(xml: bytes, guid: str | None = None) -> bytes:
             exponents = base_units(unit)
             if exponents is not None:
                 ET.SubElement(node, "BaseUnit", {k: str(v) for k, v in exponents.items()})
+            if unit in DISPLAY_UNITS:
+                display, factor = DISPLAY_UNITS[unit]
+                ET.SubElement(node, "DisplayUnit", name=display, factor=repr(factor))
         root.insert(list(root).index(cosim) + 1, definitions)
+        for real in root.iter("Real"):
+            if real.get("unit") in DISPLAY_UNITS:
+                real.set("displayUnit", DISPLAY_UNITS[real.get("unit", "")][0])
 
     structure = _child(root, "ModelStructure")
     declared = {  # what the slave declared its initial unknowns depend on (SafeSlave.to_xml)

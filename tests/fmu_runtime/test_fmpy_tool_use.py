@@ -5,6 +5,7 @@ said in its log, with what to do instead."""
 from __future__ import annotations
 
 import contextlib
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -112,3 +113,22 @@ def test_a_step_a_fast_initial_rotation_breaks_names_the_cause_and_the_remedy(fm
     assert "an initial velocity" in left[0] and "a smaller max_substep" in left[0], left[0]
     result, messages = _run(plant, stop_time=0.5, start_values={"r_0": 30.0, "max_substep": 1e-4})
     assert result is not None and messages == [], messages
+
+
+@pytest.mark.parametrize("name", sorted(FMUS))
+def test_angles_offer_degrees_as_their_display_unit(name, fmu_paths):
+    """A tool shows and takes a variable in its displayUnit: every angle (rad) and turn rate
+    (rad/s) offers degrees (deg, deg/s; FMI 2.0 DisplayUnit, value_deg = factor * value_rad),
+    so a user types 30 deg where the FMU takes 0.5236 rad."""
+    md = read_model_description(str(fmu_paths[name]))
+    factors = {
+        (unit.name, display.name): display.factor
+        for unit in md.unitDefinitions
+        for display in unit.displayUnits
+    }
+    angles = [v for v in md.modelVariables if v.unit in ("rad", "rad/s")]
+    assert angles
+    for variable in angles:
+        expected = {"rad": "deg", "rad/s": "deg/s"}[variable.unit]
+        assert variable.displayUnit == expected, variable.name
+        assert factors[(variable.unit, expected)] == pytest.approx(180.0 / math.pi, rel=1e-15)

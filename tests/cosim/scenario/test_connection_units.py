@@ -105,7 +105,8 @@ def test_a_same_named_pair_in_other_units_is_refused_naming_the_way_out(
             '<Unit name="deg">\n      <BaseUnit rad="1" '
             'factor="0.017453292519943295" />\n    </Unit>\n    <Unit name="rad">',
         )
-        yaw = r'(name="yaw" [^>]*>\s*<Real start="0" unit=")rad"'
+        # (its display unit, degrees of rad, goes too: "deg" is a unit of its own here)
+        yaw = r'(name="yaw" [^>]*>\s*<Real start="0" unit=")rad"(?: displayUnit="deg")?'
         return re.sub(yaw, r'\1deg"', text)
 
     autopilot = with_description(fmu_paths["AuvAutopilot"], tmp_path / "Degrees.fmu", edit)
