@@ -127,7 +127,8 @@ class AutopilotConfig(CheckedRecord):
         default="remus100",
         min_length=1,
         description="vehicle parameter set the controllers' model terms come from "
-        "(built-in name, .toml path or the set's TOML text)",
+        "(built-in name, .toml path, a relative one from the host's working directory, "
+        "or the set's TOML text)",
     )
     design_step: float = checked_field(
         default=0.01,

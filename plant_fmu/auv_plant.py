@@ -294,7 +294,10 @@ class AuvPlant(SafeSlave):
         self.register(
             String(
                 "vehicle",
-                description="built-in parameter set name, .toml file path or the set's TOML text",
+                description=(
+                    "built-in parameter set name, .toml file path (a relative one from the "
+                    "host's working directory) or the set's TOML text"
+                ),
                 **fixed,
             )
         )

@@ -273,9 +273,15 @@ def _read_table(
     if name_or_path in builtin:
         path = folder.joinpath(f"{name_or_path}.toml")
     elif not (path.suffix == ".toml" and path.is_file()):
+        where = (
+            ""
+            if path.is_absolute() or path.suffix != ".toml"
+            else f" (a relative path is taken from the working directory, {os.getcwd()}: "
+            "give an absolute path)"
+        )
         raise VehicleParameterError(
             f"unknown vehicle {name_or_path!r}: expected one of {builtin} "
-            "or the path of an existing .toml file"
+            f"or the path of an existing .toml file{where}"
         )
     try:
         text = path.read_text(encoding=VEHICLE_ENCODING)

@@ -132,3 +132,18 @@ def test_angles_offer_degrees_as_their_display_unit(name, fmu_paths):
         expected = {"rad": "deg", "rad/s": "deg/s"}[variable.unit]
         assert variable.displayUnit == expected, variable.name
         assert factors[(variable.unit, expected)] == pytest.approx(180.0 / math.pi, rel=1e-15)
+
+
+@pytest.mark.parametrize("name", ["AuvPlant", "AuvAutopilot"])
+def test_a_vehicle_file_not_found_says_where_a_relative_path_was_looked_for(
+    name, fmu_paths, tmp_path, monkeypatch
+):
+    """A tool runs from a working directory of its own, which its user may not know: a
+    relative vehicle path that names no file must say which folder it was taken from, and
+    that an absolute path avoids the question."""
+    monkeypatch.chdir(tmp_path)
+    _, messages = _run(fmu_paths[name], stop_time=0.1, start_values={"vehicle": "mine.toml"})
+    refused = [text for _, text in messages if "unknown vehicle 'mine.toml'" in text]
+    assert refused, messages
+    assert f"the working directory, {tmp_path}" in refused[0], refused[0]
+    assert "an absolute path" in refused[0], refused[0]
