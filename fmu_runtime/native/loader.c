@@ -818,6 +818,19 @@ FMI2_EXPORT fmi2Status fmi2GetString(fmi2Component component, const fmi2ValueRef
     return get(c, 'S', vr, n, values, "fmi2GetString");
 }
 
+/* Whether writing ``x`` (NULL: strings, taken as a change) changes a value: a master
+ * that writes the values a variable has changes nothing. fmpy's simulate_fmu writes its
+ * inputs from a table before every try of a step, the same values before a retry. */
+static int changes_values(const Instance *c, const fmi2ValueReference vr[], size_t n,
+                          const double *x)
+{
+    if (!x) return 1;
+    for (size_t i = 0; i < n; i++) {
+        if (c->vars[vr[i]].value != x[i]) return 1;
+    }
+    return 0;
+}
+
 /* Check the values (as doubles: an Integer or Boolean fits), write them, remember them. */
 static fmi2Status set(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
                       const void *values, const double *x, const char *call)
@@ -826,9 +839,10 @@ static fmi2Status set(Instance *c, char type, const fmi2ValueReference vr[], siz
     NEED(values, "value array", call);
     const fmi2String *strings = type == 'S' ? (const fmi2String *)values : NULL;
     if (check_writes(c, vr, n, type, x, strings) != fmi2OK) return fmi2Error;
+    int changing = changes_values(c, vr, n, x);
     fmi2Status s = n ? answer(c, c->backend->set(c, type, vr, n, values)) : fmi2OK;
     if (s == fmi2OK && x) remember_writes(c, vr, n, x);
-    if (s <= fmi2Warning) c->writes++;
+    if (s <= fmi2Warning && changing) c->writes++;
     return s;
 }
 

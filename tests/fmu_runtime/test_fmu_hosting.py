@@ -618,3 +618,40 @@ def test_a_step_discarded_and_retried_unchanged_ends_fmpy_instead_of_looping(
     assert lines[:2] == ["fmi2DoStep 3", "2"], done.stdout[-3000:] + done.stderr[-3000:]
     assert "the autopilot computed a non-finite command" in lines[2]
     assert "this step was discarded just before and nothing was set since" in lines[3]
+
+
+DISCARDED_AGAIN_WITH_INPUTS = """
+import os, sys
+import numpy as np
+from fmpy import simulate_fmu
+from fmpy.fmi1 import FMICallException
+
+messages = []
+table = np.array([(0.0, 0.0), (1.0, 0.0)], dtype=[("time", float), ("yaw", float)])
+try:
+    simulate_fmu(sys.argv[1], stop_time=0.1, output_interval=0.05, input=table,
+                 start_values={"heading_mode": 3, "r": 1e300},
+                 logger=lambda *args: messages.append(args[-1].decode()) if len(messages) < 9
+                 else os._exit(3))  # retried for ever
+    print("returned")
+except FMICallException as exc:
+    print(exc.function, exc.status)
+print("\\n".join(messages))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", ["", "pythonfmu"])
+def test_a_discarded_step_retried_with_the_same_inputs_written_again_ends_fmpy(
+    runtime, fmu_paths, run_python, monkeypatch
+):
+    """With an input table, fmpy's simulate_fmu writes the inputs again before each try
+    of a step: the same values, which counted as something set since the discarded step,
+    so the retry went on for ever (1.5 GB of log in seconds). A write that changes no value
+    is no change: fmpy stops after two tries, as without inputs."""
+    monkeypatch.setenv("AUV_FMU_RUNTIME", runtime)
+    done = run_python(DISCARDED_AGAIN_WITH_INPUTS, fmu_paths["AuvAutopilot"], timeout=120)
+    lines = [line for line in done.stdout.splitlines() if not line.startswith("Warning: missing")]
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert lines[0] == "fmi2DoStep 3", done.stdout[-3000:]
+    assert "this step was discarded just before and nothing was set since" in lines[2]
