@@ -847,7 +847,8 @@ class SafeSlave(Fmi2Slave):
         try:
             var = self.vars[vr]
             if not isinstance(var, kind):
-                raise TypeError(f"{var.name!r} is a {type(var).__name__}, not a {kind.__name__}")
+                kinds = f"{_a(type(var).__name__)}, not {_a(kind.__name__)}"
+                raise TypeError(f"{var.name!r} is {kinds}")
             value = convert(var.getter())
             if kind is Real and not math.isfinite(value):
                 self._error(f"{var.name} = {value!r} is not finite")
@@ -872,7 +873,7 @@ class SafeSlave(Fmi2Slave):
             return  # refused, changes nothing: no later step is discarded for it
         name = var.name
         if not isinstance(var, kind):
-            self._error(f"{name} is a {type(var).__name__}, not a {kind.__name__}")
+            self._error(f"{name} is {_a(type(var).__name__)}, not {_a(kind.__name__)}")
             return
         access = self._access[vr]
         if access != _WRITE_ANY_TIME and (access != _WRITE_BEFORE_INIT or self._initialized):
@@ -883,7 +884,7 @@ class SafeSlave(Fmi2Slave):
                 f"{name} = {value!r} refused: a fixed parameter can only be set before "
                 "initialisation"
                 if access == _WRITE_BEFORE_INIT
-                else f"{name} = {value!r} refused: a {var.causality.name} cannot be set"
+                else f"{name} = {value!r} refused: {_a(var.causality.name)} cannot be set"
             )
             return
         if kind is Real and not math.isfinite(value):
@@ -937,6 +938,11 @@ def _range(name: str, bounds: tuple[float | None, float | None]) -> str:
     parts = [f"{minimum!r} <=" if minimum is not None else "", name]
     parts.append(f"<= {maximum!r}" if maximum is not None else "")
     return " ".join(part for part in parts if part)
+
+
+def _a(word: str) -> str:
+    """``word`` with its indefinite article: "an Integer", "an output", "a Real"."""
+    return f"{'an' if word[:1].lower() in 'aeiou' else 'a'} {word}"
 
 
 def _reason(exc: BaseException) -> str:

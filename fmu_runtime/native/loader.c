@@ -287,6 +287,12 @@ static void show_value(char type, double x, char *out)
     else show(x, out);
 }
 
+/* "an" before a word that starts with a vowel ("an Integer", "an output"), else "a". */
+static const char *article(const char *word)
+{
+    return word[0] && strchr("aeiouAEIOU", word[0]) ? "an" : "a";
+}
+
 /* Why writing ``x`` (a String's is NAN; ``same`` says whether it is the String the
  * variable has) to ``vr`` now is refused, or NULL. The value is formatted only for a
  * refusal: formatting costs more than every check together. */
@@ -301,7 +307,8 @@ static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char 
     }
     const char *problem = NULL;
     if (v->type != type) {
-        snprintf(why, n, "%s is a %s, not a %s", v->name, type_name(v->type), type_name(type));
+        snprintf(why, n, "%s is %s %s, not %s %s", v->name, article(type_name(v->type)),
+                 type_name(v->type), article(type_name(type)), type_name(type));
         return why;
     } else if (type == 'R' && !isfinite(x)) {
         problem = "expected a finite number";
@@ -319,7 +326,8 @@ static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char 
     char shown[40];
     show_value(type, x, shown);
     if (!problem) {
-        snprintf(why, n, "%s = %s refused: a %s cannot be set", v->name, shown, v->causality);
+        snprintf(why, n, "%s = %s refused: %s %s cannot be set", v->name, shown,
+                 article(v->causality), v->causality);
     } else if (!strcmp(problem, "range")) {
         snprintf(why, n, "%s = %s refused: expected %s%s%s%s%s", v->name, shown, v->min,
                  v->min[0] ? " <= " : "", v->name, v->max[0] ? " <= " : "", v->max);
@@ -399,8 +407,9 @@ static fmi2Status check_reads(Instance *c, const fmi2ValueReference vr[], size_t
                           type_name(type), vr[i]);
         }
         if (v->type != type) {
-            return refuse(c, "get%s refused: %s is a %s, not a %s", type_name(type), v->name,
-                          type_name(v->type), type_name(type));
+            return refuse(c, "get%s refused: %s is %s %s, not %s %s", type_name(type), v->name,
+                          article(type_name(v->type)), type_name(v->type),
+                          article(type_name(type)), type_name(type));
         }
     }
     return fmi2OK;

@@ -147,3 +147,32 @@ def test_a_vehicle_file_not_found_says_where_a_relative_path_was_looked_for(
     assert refused, messages
     assert f"the working directory, {tmp_path}" in refused[0], refused[0]
     assert "an absolute path" in refused[0], refused[0]
+
+
+WRONG_WRITES = """
+import sys
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+path = sys.argv[1]
+md = read_model_description(path)
+vr = {v.name: v.valueReference for v in md.modelVariables}
+fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(path), instanceName="plant",
+                modelIdentifier=md.coSimulation.modelIdentifier)
+fmu.instantiate()  # fmpy's own logger: the FMU's messages on stdout
+for name in ("yaw", "variant"):  # an output, an Integer
+    try:
+        fmu.setReal([vr[name]], [1.0])
+    except Exception:
+        pass
+fmu.freeInstance()
+"""
+
+
+def test_a_refused_write_names_the_kind_of_variable_in_words(fmu_paths, run_python):
+    """A Real written to an output or an Integer (as a host's script can) said "yaw = 1.0
+    refused: a output cannot be set" and "variant is a Integer, not a Real"."""
+    done = run_python(WRONG_WRITES, fmu_paths["AuvPlant"])
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "yaw = 1.0 refused: an output cannot be set" in done.stdout, done.stdout
+    assert "variant is an Integer, not a Real" in done.stdout, done.stdout

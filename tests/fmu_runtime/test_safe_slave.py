@@ -183,8 +183,8 @@ def test_outputs_unknown_references_and_wrong_types_are_refused(slave):
     slave.set_real([999], [1.0])
     assert slave.y == 0.0 and slave.u == 1.0
     errors = _errors(slave)
-    assert "y = 7.0 refused: a output cannot be set" in errors
-    assert "u is a Real, not a Integer" in errors
+    assert "y = 7.0 refused: an output cannot be set" in errors
+    assert "u is a Real, not an Integer" in errors
     assert "no variable has valueReference 999" in errors
     assert slave.do_step(0.0, 0.1) is True  # refused calls changed nothing
 
@@ -200,7 +200,7 @@ def test_getters_never_raise(slave):
     errors = _errors(slave)
     assert "valueReference 999" in errors and "ZeroDivisionError" in errors
     assert "y = nan is not finite" in errors
-    assert "steps' is a Integer, not a Real" in errors
+    assert "steps' is an Integer, not a Real" in errors
 
 
 def test_failing_step_is_discarded_and_leaves_the_state(slave):
