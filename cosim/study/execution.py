@@ -67,6 +67,7 @@ LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
 CONNECT_TIMEOUT_S = 30
 PROBE_TIMEOUT_S = 5.0  # a scheduler that does not accept a connection by then is refused
+WORKER_WAIT_S = 30.0  # a scheduler no worker joins within this is refused
 HEARTBEAT_DRAIN_S = 5.0  # at most this long for a worker's last heartbeat to be answered
 MAX_WORKERS_PER_CORE = 16  # local worker processes beyond this are refused, oversubscribed
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
@@ -358,6 +359,71 @@ def _handshake(address: str, security: Security | None) -> None:
         ) from None
 
 
+def check_workers(client: Client, address: str) -> None:
+    """Refuse, in one line, a cluster of one's own whose workers cannot run the study: a
+    scheduler no worker joins within WORKER_WAIT_S (its tasks would wait forever), a
+    worker that cannot import auv-cosim (the study's plugin would fail on it with a
+    traceback) or one of another auv-cosim than this process's (its runs would give its
+    code's rows: the table would depend on which worker ran a run)."""
+    try:
+        client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+    except TimeoutError:
+        raise StudyError(
+            f"the Dask scheduler at {address} has no workers (none joined within "
+            f"{WORKER_WAIT_S:g} s): start one with `dask worker {address} --nthreads 1` "
+            "where auv-cosim is installed"
+        ) from None
+    mine = _source_probe()()
+    assert isinstance(mine, tuple)  # this process imports cosim
+    found = client.run(_source_probe(), on_error="return")
+    lacking = {w: f for w, f in found.items() if not isinstance(f, tuple)}
+    other = {w: f[1] for w, f in found.items() if isinstance(f, tuple) and f[0] != mine[0]}
+    where = f"of the Dask scheduler at {address}"
+    if lacking:
+        worker, reason = next(iter(lacking.items()))
+        raise StudyError(
+            f"worker {worker}{_more(lacking)} {where} cannot import auv-cosim ({reason}): "
+            "install auv-cosim where the workers run, or start them from its environment"
+        )
+    if other:
+        worker, folder = next(iter(other.items()))
+        raise StudyError(
+            f"worker {worker}{_more(other)} {where} runs another auv-cosim than this one "
+            f"(its cosim at {folder}, this one's at {mine[1]}): start the workers from the "
+            "same auv-cosim as the study"
+        )
+
+
+def _more(workers: Mapping[str, object]) -> str:
+    """ " (and N more)" of a set of workers of which the first is named."""
+    return f" (and {len(workers) - 1} more)" if len(workers) > 1 else ""
+
+
+def _source_probe() -> Callable[[], tuple[str, str] | str]:
+    """A function for ``client.run`` that a worker without auv-cosim, or with an older
+    one, can load too (defined here, cloudpickle sends it by value, and it imports
+    nothing of the project but ``cosim`` itself). It returns the SHA-256 of the ``cosim``
+    package's source (every ``.py`` file, by its path in the package) and its folder,
+    or why ``cosim`` cannot be imported."""
+
+    def probe() -> tuple[str, str] | str:
+        import hashlib
+        import importlib
+        from pathlib import Path
+
+        try:
+            folder = Path(importlib.import_module("cosim").__file__ or "").resolve().parent
+        except Exception as exc:
+            return " ".join(f"{type(exc).__name__}: {exc}".split())
+        digest = hashlib.sha256()
+        for path in sorted(folder.rglob("*.py")):
+            digest.update(f"{path.relative_to(folder).as_posix()}\n".encode())
+            digest.update(path.read_bytes())
+        return digest.hexdigest(), str(folder)
+
+    return probe
+
+
 @contextmanager
 def open_client(
     workers: int,
@@ -380,6 +446,7 @@ def open_client(
         except (OSError, TimeoutError) as exc:
             raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
         with client:
+            check_workers(client, scheduler)
             yield client
         return
     with _quiet_dask_logs():  # until the cluster's event loop has stopped

@@ -11,7 +11,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -115,13 +115,17 @@ class DaskProcesses:
 
 @contextmanager
 def dask_processes(
-    folder: Path, protocol: str = "tcp", scheduler_env: Mapping[str, str] | None = None
+    folder: Path,
+    protocol: str = "tcp",
+    scheduler_env: Mapping[str, str] | None = None,
+    worker_envs: Sequence[Mapping[str, str]] = ({}, {}),
 ) -> Iterator[DaskProcesses]:
-    """``dask scheduler`` and two ``dask worker --nthreads 1`` on 127.0.0.1 (``protocol``
-    tcp, or tls with a test certificate), working in ``folder`` (created; no FMUs there,
-    they must travel). ``scheduler_env``: extra environment of the scheduler (Dask config).
-    Every process is ended afterwards; the surviving workers must have removed the
-    study's FMU files (the plugin's tear-down)."""
+    """``dask scheduler`` and a ``dask worker --nthreads 1`` for each of ``worker_envs``
+    (two by default, each its extra environment: a PYTHONPATH that hides or replaces
+    auv-cosim) on 127.0.0.1 (``protocol`` tcp, or tls with a test certificate), working in
+    ``folder`` (created; no FMUs there, they must travel). ``scheduler_env``: extra
+    environment of the scheduler (Dask config). Every process is ended afterwards; the
+    surviving workers must have removed the study's FMU files (the plugin's tear-down)."""
     folder.mkdir(parents=True)
     tls = certificates(folder) if protocol == "tls" else []
     env = {**os.environ, "TMPDIR": str(folder)}
@@ -138,14 +142,16 @@ def dask_processes(
             subprocess.Popen([*scheduler, *tls], env={**env, **(scheduler_env or {})}, **options)
         )
         wait_for(address_file.is_file, "the scheduler")
-        for i in range(2):
+        for i, extra in enumerate(worker_envs):
             local = ["--local-directory", str(folder / f"w{i}")]
-            started.append(subprocess.Popen([*worker, *local, *tls], env=env, **options))
+            command = [*worker, *local, *tls]
+            started.append(subprocess.Popen(command, env={**env, **extra}, **options))
         address = json.loads(address_file.read_text())["address"]
         assert address.startswith(f"{protocol}://127.0.0.1:")
         security = tls_security(*(Path(p) for p in tls[1::2])) if tls else None
-        with Client(address, security=security, timeout=START_TIMEOUT_S) as client:
-            client.wait_for_workers(2, timeout=START_TIMEOUT_S)
+        if worker_envs:
+            with Client(address, security=security, timeout=START_TIMEOUT_S) as client:
+                client.wait_for_workers(len(worker_envs), timeout=START_TIMEOUT_S)
         yield DaskProcesses(address, ["--scheduler", address, *tls], security, started[1:])
     finally:
         alive = [proc.poll() is None for proc in started[1:]]

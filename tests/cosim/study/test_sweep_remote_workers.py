@@ -1,0 +1,76 @@
+"""A study on a cluster of one's own whose workers cannot run it: a scheduler with no
+worker, a worker whose Python lacks auv-cosim, a worker of another auv-cosim (an older
+checkout on its PYTHONPATH). Each is refused in one line naming the scheduler or the
+worker and what to do, before any run, leaving no study folder behind."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+from sweep_helpers import dask_processes
+
+import cosim
+from cosim.cli import main
+from cosim.study import execution
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow]  # each starts a Dask scheduler
+
+NO_COSIM = 'raise ModuleNotFoundError("No module named \'cosim\'", name="cosim")\n'
+
+
+def refused(study: Path, out: Path, fmu_dir: Path, options: list[str], capsys) -> str:
+    """The one line ``auv-cosim sweep`` refuses the study with (exit 1, no traceback, no
+    study folder left)."""
+    argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--quiet"]
+    assert main([*argv, *options]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert not out.exists()
+    return err
+
+
+@pytest.mark.timeout(120)
+def test_a_scheduler_without_workers_is_refused_naming_it(
+    small_study: Path, fmu_dir: Path, tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """A study sent to a scheduler no worker had joined waited forever, saying nothing."""
+    monkeypatch.setattr(execution, "WORKER_WAIT_S", 2.0, raising=False)
+    with dask_processes(tmp_path / "elsewhere", worker_envs=()) as cluster:
+        err = refused(small_study, tmp_path / "out", fmu_dir, cluster.options, capsys)
+    assert f"the Dask scheduler at {cluster.address} has no workers" in err, err
+    assert f"dask worker {cluster.address} --nthreads 1" in err, err
+
+
+def test_a_worker_without_auv_cosim_is_refused_naming_it(
+    small_study: Path, fmu_dir: Path, tmp_path: Path, capsys
+) -> None:
+    """A worker started from a Python without auv-cosim ended the study in a traceback
+    ending "Exception: ModuleNotFoundError("No module named 'cosim'")"."""
+    hidden = tmp_path / "hidden" / "cosim"
+    hidden.mkdir(parents=True)
+    (hidden / "__init__.py").write_text(NO_COSIM)
+    envs = [{"PYTHONPATH": str(hidden.parent)}]
+    with dask_processes(tmp_path / "elsewhere", worker_envs=envs) as cluster:
+        err = refused(small_study, tmp_path / "out", fmu_dir, cluster.options, capsys)
+    assert "cannot import auv-cosim" in err and "No module named 'cosim'" in err, err
+    assert "tcp://127.0.0.1:" in err and "install" in err, err
+
+
+def test_a_worker_of_another_auv_cosim_is_refused_naming_it(
+    small_study: Path, fmu_dir: Path, tmp_path: Path, capsys
+) -> None:
+    """A worker running another auv-cosim (an older checkout on its PYTHONPATH) ran the
+    study's runs with its own code, silently: the table then depended on which worker
+    ran a run."""
+    other = tmp_path / "other"
+    source = Path(cosim.__file__).parent
+    shutil.copytree(source, other / "cosim", ignore=shutil.ignore_patterns("__pycache__"))
+    with (other / "cosim" / "study" / "task.py").open("a", encoding="utf-8") as f:
+        f.write("# another version\n")
+    envs = [{}, {"PYTHONPATH": str(other)}]
+    with dask_processes(tmp_path / "elsewhere", worker_envs=envs) as cluster:
+        err = refused(small_study, tmp_path / "out", fmu_dir, cluster.options, capsys)
+    assert "runs another auv-cosim" in err and str(other / "cosim") in err, err
+    assert err.count("tcp://127.0.0.1:") == 2, err  # the scheduler, and the one odd worker
