@@ -114,11 +114,21 @@ class StudyPlugin(WorkerPlugin):
         self._warm: threading.Lock | None = None  # held while warming up; None once warm
 
     def setup(self, worker: Any) -> None:
+        """Write the FMUs; StudyError naming the worker and the folder if it cannot (a
+        full or read-only disk)."""
         folder = Path(worker.local_directory) / FMU_FOLDER / self.name
-        for relative, content in self.files.items():
-            path = folder / relative
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(content)
+        try:
+            for relative, content in self.files.items():
+                path = folder / relative
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_bytes(content)
+        except OSError as exc:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise StudyError(
+                f"worker {worker.address} cannot write the study's FMUs into {folder}: "
+                f"{exc.strerror or exc}; free its disk, or start it with a writable "
+                "`dask worker --local-directory`"
+            ) from None
         self.folder = folder
         use_unpacked(self.job.unpacked)
         self._warm = threading.Lock()
@@ -615,6 +625,18 @@ def early_client(workers: int, dashboard: bool = False) -> Iterator[EarlyClient]
         early.close()
 
 
+def _register(client: Client, plugin: StudyPlugin, name: str) -> None:
+    """Register the study's plugin on every worker; StudyError in one line if a worker
+    cannot set it up (its own reason, or Dask's as one line)."""
+    try:
+        client.register_plugin(plugin, name=name)
+    except StudyError:
+        raise
+    except Exception as exc:
+        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
+        raise StudyError(f"a worker cannot set up the study: {reason}") from None
+
+
 def execute(
     client: Client,
     job: Job,
@@ -626,9 +648,9 @@ def execute(
     (in order of completion). The study's plugin is registered first and removed at the
     end. A lost worker's tasks are retried by the scheduler; a run is recorded as failed
     for that only once its retries are exhausted (:func:`lost_run_error`)."""
-    client.register_plugin(plugin, name=job.plugin)
     pending: dict[Any, PlannedRun] = {}
-    try:
+    try:  # a plugin a worker refused is removed too: later workers would be handed it
+        _register(client, plugin, job.plugin)
         pending = {
             client.submit(
                 run_on_worker,

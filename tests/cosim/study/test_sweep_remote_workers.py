@@ -9,11 +9,13 @@ import shutil
 from pathlib import Path
 
 import pytest
+from distributed import Client
 from sweep_helpers import dask_processes
 
 import cosim
 from cosim.cli import main
 from cosim.study import execution
+from cosim.study.execution import FMU_FOLDER
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]  # each starts a Dask scheduler
 
@@ -74,3 +76,27 @@ def test_a_worker_of_another_auv_cosim_is_refused_naming_it(
         err = refused(small_study, tmp_path / "out", fmu_dir, cluster.options, capsys)
     assert "runs another auv-cosim" in err and str(other / "cosim") in err, err
     assert err.count("tcp://127.0.0.1:") == 2, err  # the scheduler, and the one odd worker
+
+
+def studies_on(address: str) -> list[str]:
+    """The study plugins the scheduler at ``address`` still hands to a worker that joins."""
+    with Client(address, timeout=60) as client:
+        names = client.run_on_scheduler(lambda dask_scheduler: list(dask_scheduler.worker_plugins))
+    return [name for name in names if name.startswith("auv-cosim-study-")]
+
+
+def test_a_worker_that_cannot_write_the_fmus_is_named_and_leaves_the_cluster_clean(
+    small_study: Path, fmu_dir: Path, tmp_path: Path, capsys
+) -> None:
+    """A worker that cannot write the study's FMUs into its local directory (a full or
+    read-only disk; here a file where their folder goes) ended the study in a traceback,
+    and left the study's plugin on the scheduler: every worker joining later was handed
+    it, and one without auv-cosim then failed to start."""
+    with dask_processes(tmp_path / "elsewhere", worker_envs=[{}]) as cluster:
+        with Client(cluster.address, timeout=60) as client:
+            (folder,) = client.run(lambda dask_worker: dask_worker.local_directory).values()
+        (Path(folder) / FMU_FOLDER).write_text("in the way")
+        err = refused(small_study, tmp_path / "out", fmu_dir, cluster.options, capsys)
+        assert studies_on(cluster.address) == []
+    assert "cannot write the study's FMUs" in err and str(Path(folder) / FMU_FOLDER) in err, err
+    assert "tcp://127.0.0.1:" in err, err
