@@ -8,7 +8,8 @@ needs certificates (:func:`tls_security`, Dask's ``Security``).
 
 Workers need the package installed, not a shared disk: the client reads each FMU once and
 a worker plugin (:class:`StudyPlugin`) carries them and the study's shared data
-(:class:`Job`) to every worker -- the FMUs written into its local directory -- also to
+(:class:`Job`) to every worker -- the FMUs, and for a remote cluster the other files
+the runs read (vehicle sets, series CSVs), written into its local directory -- also to
 workers that join later or are restarted by their nanny; the plugin is removed (and the
 files with it) at the end. Each worker's first task first runs the scenario for one step
 (:func:`cosim.study.task.warm_up`, once per worker: :meth:`StudyPlugin.warm`), so the
@@ -98,6 +99,9 @@ class Job:
     # SHA-256 of an FMU file -> the folder the client extracted it into, for a local
     # cluster's workers (cosim.study.unpacked); empty for a remote cluster
     unpacked: Mapping[str, str] = field(default_factory=dict)
+    # a file the runs read (a vehicle set, a series CSV) as the client names it -> its
+    # path in the uploaded folder; empty for a local cluster, whose workers read the file
+    data_files: Mapping[str, str] = field(default_factory=dict)
 
 
 class StudyPlugin(WorkerPlugin):
@@ -139,6 +143,11 @@ class StudyPlugin(WorkerPlugin):
             raise StudyError(f"study plugin {self.name}: not set up on this worker")
         return {instance: self.folder / rel for instance, rel in self.job.fmu_files.items()}
 
+    def data_paths(self) -> dict[str, Path]:
+        """A file the runs read, as the client names it -> its copy on this worker."""
+        folder = self.folder or Path()
+        return {client: folder / rel for client, rel in self.job.data_files.items()}
+
     def warm(self) -> None:
         """Run the scenario for one step in this worker, once (its first task does, the
         worker's other threads waiting): its FMUs and their compiled code are loaded.
@@ -149,7 +158,7 @@ class StudyPlugin(WorkerPlugin):
             return
         with lock:
             if self._warm is not None:
-                warm_up(self.job.base, self.fmu_paths())
+                warm_up(self.job.base, self.fmu_paths(), self.data_paths())
                 self._warm = None
 
     def teardown(self, worker: Any) -> None:
@@ -230,20 +239,30 @@ def make_job(
     keep: str,
     check_step: bool = False,
     unpacked: Mapping[str, str] | None = None,
+    data_files: Sequence[Path] = (),
 ) -> tuple[Job, StudyPlugin]:
     """The study's shared task data and the plugin carrying it and its FMUs (read once);
-    ``unpacked``: the FMUs the client extracted for local workers (:func:`unpack`)."""
+    ``unpacked``: the FMUs the client extracted for local workers (:func:`unpack`);
+    ``data_files``: the other files the runs read, for remote workers
+    (:func:`cosim.study.task.study_files`)."""
     session = uuid.uuid4().hex[:12]  # tasks and plugin of concurrent studies never clash
     files: dict[str, bytes] = {}
     paths: dict[str, str] = {}
     for instance, path in base.fmu_paths.items():
-        content = path.read_bytes()
-        relative = f"{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
-        files[relative] = content
-        paths[instance] = relative
+        paths[instance] = _carried(path, files)
+    data = {str(path): _carried(path, files, "files/") for path in data_files}
     name = f"auv-cosim-study-{session}"
-    job = Job(base, factors, keep, check_step, paths, name, session, dict(unpacked or {}))
+    job = Job(base, factors, keep, check_step, paths, name, session, dict(unpacked or {}), data)
     return job, StudyPlugin(job, files)
+
+
+def _carried(path: Path, files: dict[str, bytes], prefix: str = "") -> str:
+    """Add ``path``'s content to ``files`` under ``<prefix><sha256[:16]>/<name>``; that
+    relative path."""
+    content = path.read_bytes()
+    relative = f"{prefix}{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
+    files[relative] = content
+    return relative
 
 
 def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
@@ -254,7 +273,8 @@ def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
         return RunRecord("failed", ENDED_BEFORE_RUN, {}, 0.0, 0.0)
     job, paths = plugin.job, plugin.fmu_paths()
     plugin.warm()
-    return run_one(job.base, paths, job.factors, values, job.keep, job.check_step)
+    data = plugin.data_paths()
+    return run_one(job.base, paths, job.factors, values, job.keep, job.check_step, data)
 
 
 def lost_run_error(exc: KilledWorker) -> str:

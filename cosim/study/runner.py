@@ -68,6 +68,7 @@ from cosim.study.task import (
     check_values,
     prepare,
     scenario_text,
+    study_files,
 )
 from cosim.study.units import units
 from cosim.study.unpacked import unpack
@@ -237,7 +238,10 @@ def _execute(
     from tqdm import tqdm
 
     # the FMUs first, alone (the workers wait for them), then the figures' first modules
-    job, plugin = make_job(base, factors, spec.keep, spec.check_step, session.unpacked(base))
+    carried = session.carried(base, todo)
+    job, plugin = make_job(
+        base, factors, spec.keep, spec.check_step, session.unpacked(base), carried
+    )
     drawing.begin()
     bar = tqdm(
         total=total,
@@ -292,6 +296,13 @@ class _Session:
             self.folder = Path(self.stack.enter_context(folder))
         return unpack(base.fmu_paths, self.folder)
 
+    def carried(self, base: Base, runs: Sequence[PlannedRun]) -> list[Path]:
+        """The files these runs read (vehicle sets, series CSVs), for a remote cluster's
+        workers, which may not see this machine's disk; none for a local cluster."""
+        if self.cluster.scheduler is None:
+            return []
+        return study_files(base, [run.values for run in runs])
+
     def run(
         self,
         job: Job,
@@ -344,7 +355,8 @@ def _overlay(
 
     again = [by_id[run_id] for run_id in chosen if results(run_id) is None]
     if again:
-        job, plugin = make_job(base, factors, "all", unpacked=session.unpacked(base))
+        unpacked, carried = session.unpacked(base), session.carried(base, again)
+        job, plugin = make_job(base, factors, "all", unpacked=unpacked, data_files=carried)
 
         def keep(run: PlannedRun, record: RunRecord) -> None:
             text = scenario_text(base, factors, run.values)

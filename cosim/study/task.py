@@ -19,7 +19,7 @@ import json
 import tempfile
 import time
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -150,19 +150,22 @@ def run_one(
     values: Mapping[str, Value],
     keep: str = "none",
     check_step: bool = False,
+    carried: Mapping[str, Path] | None = None,
 ) -> RunRecord:
     """Run the base scenario with these factor values; never raises for a failed run.
 
     ``fmu_paths``: instance -> the FMU file to use in this process. ``keep`` ("all",
     "failed", "none") says whether the run's results.csv and summary.json come back;
-    ``check_step`` also runs it at h / 2 and h / 4 for its coupling error metrics.
+    ``check_step`` also runs it at h / 2 and h / 4 for its coupling error metrics;
+    ``carried``: a file the run reads as the client named it -> its copy in this process
+    (a remote worker's, :func:`study_files`).
     """
     started = time.perf_counter()
     metrics: dict[str, float | None] = {}
     files: dict[str, bytes] = {}
     loop_s = 0.0
     try:
-        scenario = _scenario(base, fmu_paths, factors, values)
+        scenario = _scenario(base, fmu_paths, factors, values, carried)
         with tempfile.TemporaryDirectory(prefix="auv-cosim-run-") as tmp:
             outcome = run_scenario(
                 scenario,
@@ -188,7 +191,9 @@ def run_one(
     return RunRecord(status, error, metrics, time.perf_counter() - started, loop_s, files)
 
 
-def warm_up(base: Base, fmu_paths: Mapping[str, Path]) -> None:
+def warm_up(
+    base: Base, fmu_paths: Mapping[str, Path], carried: Mapping[str, Path] | None = None
+) -> None:
     """Run the base scenario for one communication step and throw the result away: this
     process then has the FMUs extracted and their libraries loaded, their Python modules
     imported and their compiled code loaded (what a process's first run pays for, ~1-3 s),
@@ -198,7 +203,7 @@ def warm_up(base: Base, fmu_paths: Mapping[str, Path]) -> None:
     data["stop_time"] = data["coupling"]["step"]
     for timed in ("events", "faults"):  # they may be refused beyond the short stop time
         data.pop(timed, None)
-    run_one(Base(base.scenario_id, data, base.fmu_paths), fmu_paths, {}, {})
+    run_one(Base(base.scenario_id, data, base.fmu_paths), fmu_paths, {}, {}, carried=carried)
 
 
 def scenario_text(
@@ -207,7 +212,7 @@ def scenario_text(
     """The scenario one run ran, as a file ``auv-cosim run`` takes (FMUs as referenced)."""
     data = copy.deepcopy(dict(base.data))
     apply_values(data, factors, values)
-    _files_from(data, base.folder)
+    _files_from(data, base.folder, {})
     return f"# Scenario {base.scenario_id!r} with {dict(values)}\n" + tomli_w.dumps(data)
 
 
@@ -216,16 +221,53 @@ def _scenario(
     fmu_paths: Mapping[str, Path],
     factors: Mapping[str, FactorKind],
     values: Mapping[str, Value],
+    files: Mapping[str, Path] | None = None,
 ) -> Scenario:
     data = copy.deepcopy(dict(base.data))
     for name, path in fmu_paths.items():
         data["instances"][name]["fmu"] = str(path)
     apply_values(data, factors, values)
-    _files_from(data, base.folder)
+    _files_from(data, base.folder, files or {})
+    if files:
+        data = _relocated(data, files)
     return scenario_from_data(data, where=f"{base.scenario_id} with {dict(values)}")
 
 
-def _files_from(data: dict[str, Any], folder: str) -> None:
+def study_files(base: Base, values: Iterable[Mapping[str, Value]]) -> list[Path]:
+    """Every file the runs of these factor values read, as this process finds them: the
+    base scenario's (vehicle sets, series CSVs) and each factor value naming one. A
+    remote worker gets a copy of each, wherever it runs (no shared disk needed)."""
+    found = {Path(path) for path in base.files}
+    for run_values in values:
+        for value in run_values.values():
+            if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
+                path = _named_file(value, base.folder)
+                if path.is_file():
+                    found.add(path)
+    return sorted(found)
+
+
+def _relocated(data: Any, files: Mapping[str, Path]) -> Any:
+    """``data`` with every text that is a key of ``files`` (a file as the client named
+    it) replaced by its copy here."""
+    if isinstance(data, dict):
+        return {key: _relocated(value, files) for key, value in data.items()}
+    if isinstance(data, list):
+        return [_relocated(value, files) for value in data]
+    if isinstance(data, str) and data in files:
+        return str(files[data])
+    return data
+
+
+def _named_file(value: str, folder: str, shipped: Mapping[str, Path] | None = None) -> Path:
+    """The file a factor value names: beside the study file (``folder``) when it is there
+    or was copied from there (``shipped``), else relative to the working directory."""
+    beside = Path(folder, value)
+    found = folder and (beside.is_file() or str(beside.resolve()) in (shipped or {}))
+    return (beside if found else Path(value)).resolve()
+
+
+def _files_from(data: dict[str, Any], folder: str, shipped: Mapping[str, Path]) -> None:
     """Start values naming a file (the base scenario's are absolute already, a factor's
     as the study file writes it) made absolute, in place: relative to ``folder`` (the
     study file's) when the file is there, else to the working directory, as the study's
@@ -235,8 +277,7 @@ def _files_from(data: dict[str, Any], folder: str) -> None:
         start = instance.get("start", {})
         for key, value in start.items():
             if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
-                beside = Path(folder, value)
-                start[key] = str((beside if folder and beside.is_file() else Path(value)).resolve())
+                start[key] = str(_named_file(value, folder, shipped))
 
 
 def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:

@@ -1,7 +1,9 @@
 """A study on a cluster of one's own whose workers cannot run it: a scheduler with no
 worker, a worker whose Python lacks auv-cosim, a worker of another auv-cosim (an older
-checkout on its PYTHONPATH). Each is refused in one line naming the scheduler or the
-worker and what to do, before any run, leaving no study folder behind."""
+checkout on its PYTHONPATH), a worker that cannot write the study's FMUs. Each is refused
+in one line naming the scheduler or the worker and what to do, before any run, leaving no
+study folder behind and nothing of the study on the cluster. And a vehicle file that only
+the client has reaches the workers."""
 
 from __future__ import annotations
 
@@ -10,11 +12,11 @@ from pathlib import Path
 
 import pytest
 from distributed import Client
-from sweep_helpers import dask_processes
+from sweep_helpers import dask_processes, sweep, table
 
 import cosim
 from cosim.cli import main
-from cosim.study import execution
+from cosim.study import execution, runner
 from cosim.study.execution import FMU_FOLDER
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]  # each starts a Dask scheduler
@@ -100,3 +102,54 @@ def test_a_worker_that_cannot_write_the_fmus_is_named_and_leaves_the_cluster_cle
         assert studies_on(cluster.address) == []
     assert "cannot write the study's FMUs" in err and str(Path(folder) / FMU_FOLDER) in err, err
     assert "tcp://127.0.0.1:" in err, err
+
+
+VEHICLE = 'base = "remus100"\nm = 31.0\n'
+PLANT = """\
+id = "plant-alone"
+stop_time = 0.2
+[coupling]
+step = 0.1
+[instances.plant]
+fmu = "{fmu}"
+[instances.plant.start]
+vehicle = "myveh.toml"
+"""
+BY_FACTOR = (
+    'scenario = "bs-3"\nstop_time = 0.5\n[grid]\n"plant.vehicle" = ["remus100", "myveh.toml"]\n'
+)
+BY_SCENARIO = 'scenario = "plant.toml"\n[grid]\n"plant.v_0" = [0.0, 0.05]\n'
+
+
+@pytest.mark.parametrize("study_text", [BY_FACTOR, BY_SCENARIO], ids=["factor", "scenario"])
+def test_a_vehicle_file_only_the_client_has_reaches_the_workers(
+    study_text: str,
+    fmu_dir: Path,
+    fmu_paths: dict[str, Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys,
+) -> None:
+    """A vehicle set named by a factor or by the scenario, on the client's disk only (here
+    removed once the study has sent its runs' data), failed every run that read it, with
+    "names no file (looked for <the worker's working folder>/myveh.toml)"."""
+    vehicle = tmp_path / "client" / "myveh.toml"
+    vehicle.parent.mkdir()
+    vehicle.write_text(VEHICLE)
+    (vehicle.parent / "plant.toml").write_text(PLANT.format(fmu=fmu_paths["AuvPlant"]))
+    study = vehicle.parent / "study.toml"
+    study.write_text(study_text)
+    make_job = runner.make_job
+
+    def then_gone(*args, **kwargs):  # the workers cannot read the client's disk
+        made = make_job(*args, **kwargs)
+        vehicle.unlink(missing_ok=True)
+        return made
+
+    monkeypatch.setattr(runner, "make_job", then_gone)
+    with dask_processes(tmp_path / "elsewhere", worker_envs=[{}]) as cluster:
+        sweep(study, tmp_path / "out", fmu_dir, *cluster.options)
+    rows = table(tmp_path / "out")
+    assert not vehicle.exists() and len(rows) == 2
+    assert [row["error"] for row in rows] == ["", ""]
+    assert all(row["status"] == "complete" for row in rows)
