@@ -41,8 +41,9 @@ import shutil
 import socket
 import sys
 import threading
+import time
 import uuid
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass, field
@@ -68,7 +69,9 @@ LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
 CONNECT_TIMEOUT_S = 30
 PROBE_TIMEOUT_S = 5.0  # a scheduler that does not accept a connection by then is refused
-WORKER_WAIT_S = 30.0  # a scheduler no worker joins within this is refused
+WORKER_WAIT_S = 30.0  # a scheduler without a worker for this long ends the study
+WORKER_CHECK_S = 1.0  # s between two looks at the cluster's workers while no run ends
+POLL_S = 0.05  # s between two looks for finished runs
 HEARTBEAT_DRAIN_S = 5.0  # at most this long for a worker's last heartbeat to be answered
 MAX_WORKERS_PER_CORE = 16  # local worker processes beyond this are refused, oversubscribed
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
@@ -645,6 +648,45 @@ def early_client(workers: int, dashboard: bool = False) -> Iterator[EarlyClient]
         early.close()
 
 
+class ClusterLostError(StudyError):
+    """The cluster has had no worker for WORKER_WAIT_S while runs were left; ``where``
+    says what was kept (set by the runner)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        self.message = message
+        self.where = ""
+
+    def __str__(self) -> str:
+        return self.message + (f"; {self.where}" if self.where else "")
+
+
+def _completed(client: Client, futures: Iterable[Any]) -> Iterator[Any]:
+    """``futures`` as they finish (``as_completed``); :class:`ClusterLostError` once the
+    cluster has had no worker for WORKER_WAIT_S (its tasks would wait forever)."""
+    found = as_completed(futures, loop=client.loop)
+    seen = checked = time.monotonic()
+    while not found.is_empty():
+        batch = found.next_batch(block=False)
+        yield from batch
+        now = time.monotonic()
+        if batch:
+            continue
+        if now - checked < WORKER_CHECK_S:
+            time.sleep(POLL_S)
+            continue
+        checked = now
+        if client.nthreads():
+            seen = now
+        elif now - seen >= WORKER_WAIT_S:
+            address = client.scheduler.address
+            raise ClusterLostError(
+                f"the Dask scheduler at {address} has no workers (none for "
+                f"{WORKER_WAIT_S:g} s, with runs left): start workers with "
+                f"`dask worker {address} --nthreads 1`"
+            )
+
+
 def _register(client: Client, plugin: StudyPlugin, name: str) -> None:
     """Register the study's plugin on every worker; StudyError in one line if a worker
     cannot set it up (its own reason, or Dask's as one line)."""
@@ -667,7 +709,8 @@ def execute(
     """Run every run as one task and hand each record to ``on_record`` as it arrives
     (in order of completion). The study's plugin is registered first and removed at the
     end. A lost worker's tasks are retried by the scheduler; a run is recorded as failed
-    for that only once its retries are exhausted (:func:`lost_run_error`)."""
+    for that only once its retries are exhausted (:func:`lost_run_error`). A cluster left
+    without a worker ends the study (:class:`ClusterLostError`)."""
     pending: dict[Any, PlannedRun] = {}
     try:  # a plugin a worker refused is removed too: later workers would be handed it
         _register(client, plugin, job.plugin)
@@ -681,7 +724,7 @@ def execute(
             ): run
             for run in runs
         }
-        for future in as_completed(pending, loop=client.loop):
+        for future in _completed(client, pending):
             run = pending.pop(future)
             try:
                 record = future.result()  # run_one itself never raises

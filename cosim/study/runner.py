@@ -37,6 +37,7 @@ from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
+    ClusterLostError,
     EarlyClient,
     Job,
     StudyPlugin,
@@ -163,7 +164,7 @@ def run_study(
             except BaseException as exc:
                 if not resume and not table.done:  # nothing to resume: leave no study
                     study_folder.discard_new(out_dir, CSV_NAME)
-                elif isinstance(exc, StudyStopped):
+                elif isinstance(exc, StudyStopped | ClusterLostError):
                     kept = f"{len(table.done)} finished runs kept in {csv_path}"
                     exc.where = f"{kept} ({names.switch('resume')})"
                 raise

@@ -7,12 +7,17 @@ the client has reaches the workers."""
 
 from __future__ import annotations
 
+import os
 import shutil
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 from distributed import Client
-from sweep_helpers import dask_processes, sweep, table
+from sweep_helpers import dask_processes, end_group, sweep, table, wait_for
+from test_sweep_lost_worker import rows_written
 
 import cosim
 from cosim.cli import main
@@ -153,3 +158,39 @@ def test_a_vehicle_file_only_the_client_has_reaches_the_workers(
     assert not vehicle.exists() and len(rows) == 2
     assert [row["error"] for row in rows] == ["", ""]
     assert all(row["status"] == "complete" for row in rows)
+
+
+LONG = 'scenario = "bs-3"\nstop_time = 1500.0\n[grid]\n"plant.v_0" = [-0.1, -0.05, 0.05, 0.1]\n'
+SWEEP_WAITING = """
+import sys
+from cosim.study import execution
+execution.WORKER_WAIT_S = 2.0
+from cosim.cli import main
+sys.exit(main(["sweep", *sys.argv[1:]]))
+"""
+
+
+def test_a_cluster_that_loses_every_worker_ends_the_study_keeping_its_rows(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A study whose cluster lost its last worker (killed with SIGKILL after the first
+    row) waited forever without a word; it ends in one line naming the scheduler and how
+    to go on, the finished rows kept for --resume."""
+    study, out = tmp_path / "long.toml", tmp_path / "out"
+    study.write_text(LONG)
+    with dask_processes(tmp_path / "elsewhere", worker_envs=[{}]) as cluster:
+        argv = [sys.executable, "-c", SWEEP_WAITING, str(study), "--out", str(out)]
+        argv += ["--fmu-dir", str(fmu_dir), "--quiet", *cluster.options]
+        proc = subprocess.Popen(argv, start_new_session=True, stderr=subprocess.PIPE, text=True)
+        try:
+            wait_for(lambda: rows_written(out / "runs.csv") >= 1 or proc.poll() is not None,
+                     "the first row")  # fmt: skip
+            (worker,) = cluster.workers
+            os.killpg(worker.pid, signal.SIGKILL)
+            _, err = proc.communicate(timeout=120)
+        finally:
+            end_group(proc, signal.SIGKILL)
+    assert proc.returncode == 1 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert f"the Dask scheduler at {cluster.address} has no workers" in err, err
+    kept = rows_written(out / "runs.csv")
+    assert 1 <= kept < 4 and f"{kept} finished runs kept" in err and "--resume" in err, err
