@@ -86,6 +86,7 @@ SYSTEM_MONITOR_INTERVAL = "5s"  # 500 ms by default; what it samples feeds the d
 # half the CPU an idle local cluster takes in the client's process, its nannies', and in
 # each worker, which reads it in its event loop beside the run)
 MEMORY_MONITOR_INTERVAL = "500ms"
+OWNERS = "auv-cosim-study-owners"  # scheduler metadata: study plugin -> its client's id
 
 
 @dataclass(frozen=True)
@@ -687,10 +688,41 @@ def _completed(client: Client, futures: Iterable[Any]) -> Iterator[Any]:
             )
 
 
+def _owners_probe() -> Callable[..., list[str]]:
+    """A function for ``client.run_on_scheduler`` (sent by value: the scheduler needs no
+    auv-cosim): the study plugins still registered whose owner is no longer connected
+    (their metadata entry removed); ``forget``: a plugin's entry to remove first."""
+
+    def orphans(dask_scheduler: Any, forget: str = "") -> list[str]:
+        owners = dask_scheduler.task_metadata.setdefault(OWNERS, {})
+        owners.pop(forget, None)
+        gone = [
+            name
+            for name, owner in owners.items()
+            if owner not in dask_scheduler.clients and name in dask_scheduler.worker_plugins
+        ]
+        for name in gone:
+            owners.pop(name, None)
+        return gone
+
+    return orphans
+
+
+def _remove_orphans(client: Client) -> None:
+    """Remove the plugins of studies whose client is gone without removing its own (killed
+    with SIGKILL, its machine down): the scheduler would hand each, with its FMUs, to
+    every worker that joins, for good."""
+    with suppress(Exception):
+        for name in client.run_on_scheduler(_owners_probe()):
+            client.unregister_worker_plugin(name)
+
+
 def _register(client: Client, plugin: StudyPlugin, name: str) -> None:
-    """Register the study's plugin on every worker; StudyError in one line if a worker
-    cannot set it up (its own reason, or Dask's as one line)."""
+    """Register the study's plugin on every worker, its owner (this client) noted on the
+    scheduler (:func:`_remove_orphans`); StudyError in one line if a worker cannot set it
+    up (its own reason, or Dask's as one line)."""
     try:
+        client.set_metadata([OWNERS, name], client.id)
         client.register_plugin(plugin, name=name)
     except StudyError:
         raise
@@ -712,6 +744,7 @@ def execute(
     for that only once its retries are exhausted (:func:`lost_run_error`). A cluster left
     without a worker ends the study (:class:`ClusterLostError`)."""
     pending: dict[Any, PlannedRun] = {}
+    _remove_orphans(client)
     try:  # a plugin a worker refused is removed too: later workers would be handed it
         _register(client, plugin, job.plugin)
         pending = {
@@ -743,3 +776,4 @@ def execute(
                 client.cancel(list(pending))
         with suppress(Exception):
             client.unregister_worker_plugin(job.plugin)
+            client.run_on_scheduler(_owners_probe(), forget=job.plugin)

@@ -194,3 +194,25 @@ def test_a_cluster_that_loses_every_worker_ends_the_study_keeping_its_rows(
     assert f"the Dask scheduler at {cluster.address} has no workers" in err, err
     kept = rows_written(out / "runs.csv")
     assert 1 <= kept < 4 and f"{kept} finished runs kept" in err and "--resume" in err, err
+
+
+def test_a_killed_study_s_plugin_is_removed_by_the_next_study(
+    small_study: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A study killed with SIGKILL (or whose machine went down) left its plugin, with
+    every FMU it carried, on the scheduler and every worker for good: each later worker
+    was handed it, one more for each killed study. The next study removes it."""
+    study, out = tmp_path / "long.toml", tmp_path / "out"
+    study.write_text(LONG)
+    with dask_processes(tmp_path / "elsewhere") as cluster:
+        argv = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--out", str(out)]
+        argv += ["--fmu-dir", str(fmu_dir), "--quiet", *cluster.options]
+        proc = subprocess.Popen(argv, start_new_session=True, stderr=subprocess.DEVNULL)
+        try:
+            wait_for(lambda: rows_written(out / "runs.csv") >= 1 or proc.poll() is not None,
+                     "the first row")  # fmt: skip
+        finally:
+            end_group(proc, signal.SIGKILL)
+        wait_for(lambda: len(studies_on(cluster.address)) == 1, "the killed study's plugin")
+        sweep(small_study, tmp_path / "next", fmu_dir, *cluster.options)
+        assert studies_on(cluster.address) == []
