@@ -717,12 +717,13 @@ def _remove_orphans(client: Client) -> None:
             client.unregister_worker_plugin(name)
 
 
-def _register(client: Client, plugin: StudyPlugin, name: str) -> None:
+def _register(client: Client, plugin: StudyPlugin, name: str, owned: bool) -> None:
     """Register the study's plugin on every worker, its owner (this client) noted on the
-    scheduler (:func:`_remove_orphans`); StudyError in one line if a worker cannot set it
-    up (its own reason, or Dask's as one line)."""
+    scheduler if ``owned`` (:func:`_remove_orphans`); StudyError in one line if a worker
+    cannot set it up (its own reason, or Dask's as one line)."""
     try:
-        client.set_metadata([OWNERS, name], client.id)
+        if owned:
+            client.set_metadata([OWNERS, name], client.id)
         client.register_plugin(plugin, name=name)
     except StudyError:
         raise
@@ -737,16 +738,21 @@ def execute(
     plugin: StudyPlugin,
     runs: Sequence[PlannedRun],
     on_record: Callable[[PlannedRun, RunRecord], None],
+    remote: bool = False,
 ) -> None:
     """Run every run as one task and hand each record to ``on_record`` as it arrives
     (in order of completion). The study's plugin is registered first and removed at the
     end. A lost worker's tasks are retried by the scheduler; a run is recorded as failed
-    for that only once its retries are exhausted (:func:`lost_run_error`). A cluster left
-    without a worker ends the study (:class:`ClusterLostError`)."""
+    for that only once its retries are exhausted (:func:`lost_run_error`). On a
+    ``remote`` cluster (one of the user's, which outlives the study) a cluster left
+    without a worker ends the study (:class:`ClusterLostError`) and the plugins of
+    studies killed before are removed; a local one restarts its workers and ends with
+    the study, and its results are waited for without polling."""
     pending: dict[Any, PlannedRun] = {}
-    _remove_orphans(client)
+    if remote:
+        _remove_orphans(client)
     try:  # a plugin a worker refused is removed too: later workers would be handed it
-        _register(client, plugin, job.plugin)
+        _register(client, plugin, job.plugin, owned=remote)
         pending = {
             client.submit(
                 run_on_worker,
@@ -757,7 +763,10 @@ def execute(
             ): run
             for run in runs
         }
-        for future in _completed(client, pending):
+        finished = (
+            _completed(client, pending) if remote else as_completed(pending, loop=client.loop)
+        )
+        for future in finished:
             run = pending.pop(future)
             try:
                 record = future.result()  # run_one itself never raises
@@ -776,4 +785,5 @@ def execute(
                 client.cancel(list(pending))
         with suppress(Exception):
             client.unregister_worker_plugin(job.plugin)
-            client.run_on_scheduler(_owners_probe(), forget=job.plugin)
+            if remote:
+                client.run_on_scheduler(_owners_probe(), forget=job.plugin)

@@ -319,7 +319,7 @@ class _Session:
             self.client = self.stack.enter_context(
                 open_client(workers, c.scheduler, c.security, c.dashboard)
             )  # (a local cluster of no more workers than runs: each would start for nothing)
-        execute(self.client, job, plugin, runs, on_record)
+        execute(self.client, job, plugin, runs, on_record, self.cluster.scheduler is not None)
 
     def done(self) -> None:
         """No more tasks: a cluster started early starts closing now, on its own thread
