@@ -22,6 +22,18 @@ from cosim.cli import main
 from cosim.study.execution import tls_security
 
 DASK = str(Path(sys.executable).parent / "dask")
+# a scenario of the plant alone whose vehicle set is a file beside it (myveh.toml)
+PLANT_WITH_VEHICLE_FILE = """\
+id = "plant-alone"
+stop_time = 0.2
+[coupling]
+step = 0.1
+[instances.plant]
+fmu = "{fmu}"
+[instances.plant.start]
+vehicle = "myveh.toml"
+"""
+VEHICLE_FILE = 'base = "remus100"\nm = 31.0\n'  # myveh.toml: REMUS 100 with m = 31 kg
 START_TIMEOUT_S = 120.0
 
 SMALL_STUDY = """

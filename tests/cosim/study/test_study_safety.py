@@ -13,30 +13,21 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+from sweep_helpers import PLANT_WITH_VEHICLE_FILE, VEHICLE_FILE
 
 from cosim.cli import main
 from cosim.study.folder import claim
 from cosim.study.spec import StudyError
 from cosim.study.table import CSV_NAME
 
-PLANT = """\
-id = "plant-alone"
-stop_time = 0.2
-[coupling]
-step = 0.1
-[instances.plant]
-fmu = "{fmu}"
-[instances.plant.start]
-vehicle = "myveh.toml"
-"""
 STUDY = 'scenario = "plant.toml"\n[grid]\n"plant.v_0" = [0.0]\n'
 
 
 @pytest.fixture
 def study(tmp_path: Path, fmu_paths: dict[str, Path]) -> Path:
     """A one-run study of the plant alone with a vehicle file beside its scenario."""
-    (tmp_path / "myveh.toml").write_text('base = "remus100"\nm = 31.0\n')
-    (tmp_path / "plant.toml").write_text(PLANT.format(fmu=fmu_paths["AuvPlant"]))
+    (tmp_path / "myveh.toml").write_text(VEHICLE_FILE)
+    (tmp_path / "plant.toml").write_text(PLANT_WITH_VEHICLE_FILE.format(fmu=fmu_paths["AuvPlant"]))
     path = tmp_path / "study.toml"
     path.write_text(STUDY)
     return path

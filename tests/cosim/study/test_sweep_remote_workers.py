@@ -16,7 +16,15 @@ from pathlib import Path
 
 import pytest
 from distributed import Client
-from sweep_helpers import dask_processes, end_group, sweep, table, wait_for
+from sweep_helpers import (
+    PLANT_WITH_VEHICLE_FILE,
+    VEHICLE_FILE,
+    dask_processes,
+    end_group,
+    sweep,
+    table,
+    wait_for,
+)
 from test_sweep_lost_worker import rows_written
 
 import cosim
@@ -109,17 +117,6 @@ def test_a_worker_that_cannot_write_the_fmus_is_named_and_leaves_the_cluster_cle
     assert "tcp://127.0.0.1:" in err, err
 
 
-VEHICLE = 'base = "remus100"\nm = 31.0\n'
-PLANT = """\
-id = "plant-alone"
-stop_time = 0.2
-[coupling]
-step = 0.1
-[instances.plant]
-fmu = "{fmu}"
-[instances.plant.start]
-vehicle = "myveh.toml"
-"""
 BY_FACTOR = (
     'scenario = "bs-3"\nstop_time = 0.5\n[grid]\n"plant.vehicle" = ["remus100", "myveh.toml"]\n'
 )
@@ -140,8 +137,10 @@ def test_a_vehicle_file_only_the_client_has_reaches_the_workers(
     "names no file (looked for <the worker's working folder>/myveh.toml)"."""
     vehicle = tmp_path / "client" / "myveh.toml"
     vehicle.parent.mkdir()
-    vehicle.write_text(VEHICLE)
-    (vehicle.parent / "plant.toml").write_text(PLANT.format(fmu=fmu_paths["AuvPlant"]))
+    vehicle.write_text(VEHICLE_FILE)
+    (vehicle.parent / "plant.toml").write_text(
+        PLANT_WITH_VEHICLE_FILE.format(fmu=fmu_paths["AuvPlant"])
+    )
     study = vehicle.parent / "study.toml"
     study.write_text(study_text)
     make_job = runner.make_job
