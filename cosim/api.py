@@ -316,6 +316,8 @@ def sweep(
     oversubscribe: bool = False,
     max_runs: int = 100_000,
     progress: bool = False,
+    scheduler: str | None = None,
+    security: Any = None,
 ) -> Study:
     """Run a parameter sweep or Monte Carlo study on a local Dask cluster, like
     ``auv-cosim sweep``.
@@ -330,6 +332,9 @@ def sweep(
     workers : int, optional
         Local worker processes, at most the machine's cores unless ``oversubscribe``.
         Default: one per core.
+    scheduler : str, optional
+        A Dask cluster of one's own (``--scheduler``), ``tcp://HOST:PORT`` or
+        ``tls://HOST:PORT`` (``security``: a ``distributed.Security``); not with ``workers``.
     out : str or pathlib.Path, optional
         Write the study folder there (runs.csv, runs.parquet, figures, index.html, and
         overlay.rrd if asked for). Default: no folder, the table only.
@@ -367,13 +372,10 @@ def sweep(
         (with ``out``, runs.csv keeps them too, for ``resume=True``). A KeyboardInterrupt
         (``except CosimError`` lets it through).
     """
-    from cosim.study.execution import check_main_guard, local_workers
-    from cosim.study.runner import Cluster
     from cosim.study.spec import StudyError
 
-    check_main_guard("cosim.sweep")
+    cluster = _cluster(workers, oversubscribe, scheduler, security)
     study = _study_argument(study)
-    workers = local_workers(workers, _flag("oversubscribe", oversubscribe, StudyError))
     out = None if out is None else _folder("out", out, StudyError)
     overlay = None if overlay is None else _count("overlay", overlay, StudyError)
     resume = _flag("resume", resume, StudyError)
@@ -382,7 +384,28 @@ def sweep(
     _check_needs_out(out, resume, overlay)
     options = {"resume": resume, "fmu_dir": fmu_dir, "overlay": overlay, "max_runs": max_runs,
                "progress": _flag("progress", progress, StudyError)}  # fmt: skip
-    return _swept(study, out, Cluster(workers=workers), options)
+    return _swept(study, out, cluster, options)
+
+
+def _cluster(workers: object, oversubscribe: object, scheduler: object, security: Any) -> Cluster:
+    """:func:`sweep`'s cluster: local (its workers checked, and the caller's script guarded:
+    each worker imports it) or the one at ``scheduler``. Raises StudyError."""
+    from cosim.study.execution import check_main_guard, local_workers
+    from cosim.study.runner import Cluster
+    from cosim.study.spec import StudyError
+
+    if scheduler is None:
+        check_main_guard("cosim.sweep")
+        oversubscribe = _flag("oversubscribe", oversubscribe, StudyError)
+        return Cluster(workers=local_workers(workers, oversubscribe))
+    if not isinstance(scheduler, str):
+        raise StudyError(
+            f"scheduler={_shown(scheduler)}: expected the address of a Dask scheduler, "
+            "tcp://HOST:PORT or tls://HOST:PORT"
+        )
+    if workers is not None:
+        raise StudyError("give workers= (a local cluster) or scheduler=, not both")
+    return Cluster(workers=0, scheduler=scheduler, security=security)
 
 
 def _swept(

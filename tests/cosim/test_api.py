@@ -618,6 +618,7 @@ BAD_ARGUMENTS = [
     ("sweep", {"study": {"scenario": "bs-3"}, "overlay": "2"}, "overlay='2'"),
     ("sweep", {"study": {"scenario": "bs-3"}, "resume": "yes"}, "resume='yes'"),
     ("sweep", {"study": {"scenario": "bs-3"}, "progress": 1}, "progress=1"),
+    ("sweep", {"study": {"scenario": "bs-3"}, "scheduler": 8786}, "scheduler=8786"),
     ("build_fmus", {"out": A_FILE}, "out="),
     ("build_fmus", {"force": "yes"}, "force='yes'"),
 ]

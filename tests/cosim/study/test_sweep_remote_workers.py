@@ -29,6 +29,7 @@ from test_sweep_lost_worker import rows_written
 
 import cosim
 from cosim.cli import main
+from cosim.errors import CosimError
 from cosim.study import execution, runner
 from cosim.study.execution import FMU_FOLDER
 
@@ -165,6 +166,7 @@ import sys
 from cosim.study import execution
 execution.WORKER_WAIT_S = 2.0
 from cosim.cli import main
+from cosim.errors import CosimError
 sys.exit(main(["sweep", *sys.argv[1:]]))
 """
 
@@ -215,3 +217,18 @@ def test_a_killed_study_s_plugin_is_removed_by_the_next_study(
         wait_for(lambda: len(studies_on(cluster.address)) == 1, "the killed study's plugin")
         sweep(small_study, tmp_path / "next", fmu_dir, *cluster.options)
         assert studies_on(cluster.address) == []
+
+
+def test_the_python_api_sweeps_on_a_cluster_of_ones_own(
+    fmu_dir: Path, tmp_path: Path, monkeypatch
+) -> None:
+    """``cosim.sweep`` ran on a local cluster only: a lab's notebook could not use its own
+    Dask cluster, as ``auv-cosim sweep --scheduler`` does."""
+    monkeypatch.chdir(tmp_path)
+    study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [-0.1, 0.1]}}
+    with dask_processes(tmp_path / "elsewhere", worker_envs=({},)) as cluster:
+        with pytest.raises(CosimError, match=r"workers= .* or scheduler=, not both"):
+            cosim.sweep(study, workers=1, scheduler=cluster.address, fmu_dir=fmu_dir)
+        result = cosim.sweep(study, scheduler=cluster.address, fmu_dir=fmu_dir)
+    assert sorted(result.table["plant.v_0"]) == [-0.1, 0.1]
+    assert (result.table["status"] == "complete").all()
