@@ -776,9 +776,11 @@ def _check_step_count(spec: ScenarioSpec, src: Source) -> None:
     step = spec.coupling.step
     stop_steps = spec.stop_time / step
     if stop_steps > MAX_STEPS:
+        # a count beyond the largest float (~1.8e308) is inf: say what it is over
+        count = f"{stop_steps:.3g}" if math.isfinite(stop_steps) else "over 1e+308"
         raise src.error(
             "stop_time",
-            f"{spec.stop_time!r} s is {stop_steps:.3g} communication steps of "
+            f"{spec.stop_time!r} s is {count} communication steps of "
             f"{step!r} s (coupling.step); at most {MAX_STEPS:.0e} are run",
         )
     if round(stop_steps) < 1:

@@ -112,6 +112,8 @@ def test_unusable_outputs_are_refused_before_the_first_step(
         ("--stop-time", "nan", "--stop-time nan: expected a finite number of seconds > 0"),
         ("--step", "-0.1", "--step -0.1: expected a finite number of seconds > 0"),
         ("--stop-time", "1e12", "is 1e+13 communication steps of 0.1 s (coupling.step); at most"),
+        # the count overflows a float: it was printed as "inf communication steps"
+        ("--stop-time", "1e308", "is over 1e+308 communication steps of 0.1 s (coupling.step)"),
     ],
 )
 def test_bad_times_on_the_command_line_are_one_line(
