@@ -313,7 +313,7 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
             if misplaced and key.count(".") == 1:  # [grid] takes it for a factor's values
                 problem = f"key {key!r}{misplaced}"
             elif err["type"] == "extra_forbidden":
-                problem = f"unknown key {key!r}{did_you_mean(key.rpartition('.')[2], KEYS)}"
+                problem = _unknown_key(key)
             elif err["type"] == "missing":
                 problem = f"key {key!r} is missing"
             elif not key:
@@ -326,6 +326,29 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
                 problem = f"key {key!r} = {err.get('input')!r}: {message}"
             problems.setdefault(key, problem)
         raise StudyError(f"{label}: " + "; ".join(problems.values())) from None
+
+
+_TABLES: dict[str, type[BaseModel]] = {"": StudySpec, "random": RandomSpec, "metrics": MetricsSpec}
+
+
+def _unknown_key(key: str) -> str:
+    """The problem of a key no table takes: the table's key it is closest to, or what that
+    table takes (``[random] samples = 4``: the sample count is ``n``). Suggestions come
+    from the key's own table, not every table ("did you mean 'metrics'" for a key in
+    ``[metrics]``); a key deeper down, from every key of the file."""
+    table, _, name = key.rpartition(".")
+    model = _TABLES.get(table)
+    if model is None:
+        return f"unknown key {key!r}{did_you_mean(name, KEYS)}"
+    names = sorted(set(model.model_fields) - {"factors"})
+    hint = did_you_mean(name, names)
+    if hint:
+        return f"unknown key {key!r}{hint}"
+    where = f"[{table}]" if table else "a study file"
+    if "factors" in model.model_fields:  # [random]'s factors are its dotted keys
+        names.append("factors as 'instance.variable' keys")
+    listed = ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else names[0]
+    return f"unknown key {key!r}: {where} takes {listed}"
 
 
 _UNION_TAGS = {"bool", "int", "float", "str"}  # pydantic puts the member tried in the loc

@@ -81,6 +81,14 @@ def test_random_factors_sit_beside_n_and_seed() -> None:
         ({"random": {"n": 2, "plant.u_0": {"beta": [1, 2]}}}, "expected { uniform"),
         ({"random": {"n": 2, "sampling": "sobol", "plant.u_0": {"uniform": [1, 2]}}}, "sobol"),
         ({"random": {"n": 2, "plant.v_0": {"uniform": [1, 2]}}}, "both in [grid] and in [random]"),
+        # a key no name is close to: the table's keys are named (the sample count is n)
+        (
+            {"random": {"samples": 4, "plant.u_0": {"uniform": [1, 2]}}},
+            "unknown key 'random.samples': [random] takes n, sampling, seed and factors "
+            "as 'instance.variable' keys",
+        ),
+        ({"metrics": {"colect": ["final.plant.yaw"]}}, "(did you mean 'collect'?)"),
+        ({"metrics": {"metric": ["final.plant.yaw"]}}, "[metrics] takes collect"),
         ({"metrics": {"collect": []}}, "key 'metrics.collect' = []"),
         # a metric listed twice was merged without a word, a grid value twice refused
         ({"metrics": {"collect": ["final.plant.yaw", "final.plant.yaw"]}}, "lists a value twice"),
