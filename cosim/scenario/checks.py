@@ -9,9 +9,11 @@ way: one line naming the file, the key, the bad value and what was expected.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
+import types
 import typing
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, NoReturn
 
@@ -131,6 +133,65 @@ def misplaced_top_level(key: str, model: type[BaseModel]) -> str:
         " (a top-level key: TOML puts every key below a [table] or [[table]] header into it; "
         f"write {name} before the first header)"
     )
+
+
+def unknown_key(
+    key: str,
+    root: type[BaseModel],
+    everywhere: Iterable[str],
+    takes: Mapping[type[BaseModel], list[str]] | None = None,
+) -> str:
+    """The problem of ``key`` (``coupling.method``, ``faults[0].kind``), which no table of
+    ``root``'s file takes: the key of its own table it is closest to (among every key of
+    the file, ``everywhere``, "did you mean 'step'" for ``stop`` came from another table),
+    else what that table takes. ``takes``: a table's keys in words, where they are not its
+    field names (a study's ``[random]`` takes factors as dotted keys)."""
+    table, _, name = key.rpartition(".")
+    model = table_model(root, table)
+    if model is None:  # a key below a value that is no table of fields
+        return f"unknown key {key!r}{did_you_mean(name, everywhere)}"
+    names = (takes or {}).get(model) or sorted(model.model_fields)
+    hint = did_you_mean(name, [n for n in names if " " not in n])
+    if hint:
+        return f"unknown key {key!r}{hint}"
+    listed = ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else names[0]
+    where = "the file's top level" if not table else table if table.endswith("]") else f"[{table}]"
+    return f"unknown key {key!r}: {where} takes {listed}"
+
+
+def table_model(root: type[BaseModel], table: str) -> type[BaseModel] | None:
+    """The model of the table at the dotted path ``table`` of ``root``'s file (``""``: the
+    top level; ``instances.plant``: an entry of a dict of models; ``faults[0]``: an item of
+    a list), or None when the path leads elsewhere or to a union of several models."""
+    kind: Any = root
+    parts = [p for p in re.split(r"\.|(?=\[)", table) if p] if table else []
+    while parts:
+        model = _one_model(kind)
+        part = parts.pop(0)
+        if model is None or part.startswith("[") or part not in model.model_fields:
+            return None
+        kind = model.model_fields[part].annotation
+        origin = typing.get_origin(_unwrapped(kind))
+        if origin in (dict, list) and parts:  # the next part names an entry or an item
+            parts.pop(0)
+            kind = typing.get_args(_unwrapped(kind))[-1]
+    return _one_model(kind)
+
+
+def _unwrapped(kind: Any) -> Any:
+    """``kind`` without ``Annotated[...]`` and ``| None``."""
+    while typing.get_origin(kind) is typing.Annotated:
+        kind = typing.get_args(kind)[0]
+    members = [m for m in typing.get_args(kind) if m is not type(None)]
+    if typing.get_origin(kind) in (typing.Union, types.UnionType) and len(members) == 1:
+        return _unwrapped(members[0])
+    return kind
+
+
+def _one_model(kind: Any) -> type[BaseModel] | None:
+    """The model ``kind`` is (unwrapped), or None."""
+    kind = _unwrapped(kind)
+    return kind if isinstance(kind, type) and issubclass(kind, BaseModel) else None
 
 
 @dataclass(frozen=True)

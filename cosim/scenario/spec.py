@@ -51,6 +51,7 @@ from cosim.scenario.checks import (
     loads_toml,
     misplaced_top_level,
     split_ref,
+    unknown_key,
     with_article,
 )
 from cosim.scenario.connection_units import unit_difference
@@ -623,8 +624,9 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
             key = _key(err["loc"])
             if err["type"] == "extra_forbidden":
                 hint = misplaced_top_level(key, ScenarioSpec)
-                hint = hint or did_you_mean(key.rpartition(".")[2], KEYS)
-                problem = f"unknown key {key!r}{hint}"
+                problem = (
+                    f"unknown key {key!r}{hint}" if hint else unknown_key(key, ScenarioSpec, KEYS)
+                )
             elif err["type"] == "missing":
                 problem = f"key {key!r} is missing"
             elif err["type"] == "string_pattern_mismatch":  # a name: in words, not a regex

@@ -57,8 +57,14 @@ from pydantic import (
     model_validator,
 )
 
-from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean, did_you_mean_path
-from cosim.scenario.checks import NotTomlError, field_names, loads_toml, misplaced_top_level
+from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean_path
+from cosim.scenario.checks import (
+    NotTomlError,
+    field_names,
+    loads_toml,
+    misplaced_top_level,
+    unknown_key,
+)
 
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
 MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
@@ -313,7 +319,7 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
             if misplaced and key.count(".") == 1:  # [grid] takes it for a factor's values
                 problem = f"key {key!r}{misplaced}"
             elif err["type"] == "extra_forbidden":
-                problem = _unknown_key(key)
+                problem = unknown_key(key, StudySpec, KEYS, {RandomSpec: _RANDOM_TAKES})
             elif err["type"] == "missing":
                 problem = f"key {key!r} is missing"
             elif not key:
@@ -328,27 +334,11 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
         raise StudyError(f"{label}: " + "; ".join(problems.values())) from None
 
 
-_TABLES: dict[str, type[BaseModel]] = {"": StudySpec, "random": RandomSpec, "metrics": MetricsSpec}
-
-
-def _unknown_key(key: str) -> str:
-    """The problem of a key no table takes: the table's key it is closest to, or what that
-    table takes (``[random] samples = 4``: the sample count is ``n``). Suggestions come
-    from the key's own table, not every table ("did you mean 'metrics'" for a key in
-    ``[metrics]``); a key deeper down, from every key of the file."""
-    table, _, name = key.rpartition(".")
-    model = _TABLES.get(table)
-    if model is None:
-        return f"unknown key {key!r}{did_you_mean(name, KEYS)}"
-    names = sorted(set(model.model_fields) - {"factors"})
-    hint = did_you_mean(name, names)
-    if hint:
-        return f"unknown key {key!r}{hint}"
-    where = f"[{table}]" if table else "a study file"
-    if "factors" in model.model_fields:  # [random]'s factors are its dotted keys
-        names.append("factors as 'instance.variable' keys")
-    listed = ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else names[0]
-    return f"unknown key {key!r}: {where} takes {listed}"
+# [random]'s keys in words: its factors are dotted keys beside n, sampling and seed
+_RANDOM_TAKES = [
+    *sorted(set(RandomSpec.model_fields) - {"factors"}),
+    "factors as 'instance.variable' keys",
+]
 
 
 _UNION_TAGS = {"bool", "int", "float", "str"}  # pydantic puts the member tried in the loc

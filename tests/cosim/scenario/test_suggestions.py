@@ -78,11 +78,34 @@ def test_a_name_close_to_nothing_or_to_two_gets_no_guess(fmu_dir: Path) -> None:
     text = BS3_LIKE.replace("stop_time = 1.0", "stop_time = 1.0\nwobble = 3", 1)
     with pytest.raises(ScenarioError) as refused:
         scenario_from_toml(text, fmu_dir=fmu_dir)
-    assert "unknown key 'wobble'" in str(refused.value)
+    assert "unknown key 'wobble': the file's top level takes " in str(refused.value)
     assert "did you mean" not in str(refused.value)
     with pytest.raises(ScenarioError) as refused:
         load_scenario("bs-9")  # bs-1, bs-2 or bs-3?
     assert "did you mean" not in str(refused.value)
+
+
+@pytest.mark.parametrize(
+    ("change", "refusal"),
+    [
+        # "stop" was met with "did you mean 'step'?", a key of [coupling], not of the top level
+        (("stop_time = 1.0", "stop = 1.0"),
+         "unknown key 'stop': the file's top level takes connections, coupling, events, "),
+        # as close to 'step' as to the top level's 'stop': no guess was made
+        (("step = 0.01", "stp = 0.01"), "unknown key 'coupling.stp' (did you mean 'step'?)"),
+        (("step = 0.01", "step = 0.01\nmethod = 'jacobi'"),
+         "unknown key 'coupling.method': [coupling] takes algorithm, error_estimate, "),
+        (('fmu = "AuvPlant"', 'model = "AuvPlant"'),
+         "unknown key 'instances.plant.model': [instances.plant] takes fmu and start"),
+    ],
+)  # fmt: skip
+def test_an_unknown_key_is_matched_against_its_own_table_or_gets_its_keys(
+    change: tuple[str, str], refusal: str, fmu_dir: Path
+) -> None:
+    text = BS3_LIKE.replace(*change, 1)
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    assert refusal in str(refused.value)
 
 
 def test_a_mistyped_study_key_is_refused_with_its_likely_meaning() -> None:
