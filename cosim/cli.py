@@ -87,6 +87,9 @@ def _validate(args: argparse.Namespace) -> int:
     from cosim.fmus.build import FMUS
     from cosim.fmus.validation import checked, checked_files, validate_files, validate_folder
 
+    scenarios = [arg for arg in args.fmus if _is_scenario(arg)]
+    if scenarios:
+        return _validate_scenarios(args, scenarios)
     if args.fmus and args.fmu_dir is not None:
         raise CosimError("give FMU files or --fmu-dir DIR, not both")
     if args.fmus:
@@ -102,6 +105,33 @@ def _validate(args: argparse.Namespace) -> int:
     for line in checked_files(args.fmus) if args.fmus else checked(paths):
         print(line)
     print("every FMU is valid")
+    return 0
+
+
+def _is_scenario(arg: Path) -> bool:
+    """A scenario file (``.toml``) or a scenario id (no such file, and not named .fmu)
+    given to validate."""
+    suffix = arg.suffix.lower()
+    return suffix == ".toml" or (suffix != ".fmu" and not arg.exists())
+
+
+def _validate_scenarios(args: argparse.Namespace, scenarios: list[Path]) -> int:
+    """``auv-cosim validate SCENARIO...``: each checked as a run checks it (its keys, its
+    FMUs and their variables, its coupling), nothing stepped or written."""
+    from cosim.runner import check_scenario
+
+    others = [str(arg) for arg in args.fmus if arg not in scenarios]
+    if others:
+        raise CosimError(f"give scenarios or FMU files, not both (FMUs: {', '.join(others)})")
+    refused = 0
+    for scenario in scenarios:
+        try:
+            print(f"{scenario}: {check_scenario(str(scenario), args.fmu_dir or DEFAULT_FMU_DIR)}")
+        except CosimError as exc:
+            refused += 1
+            print(exc)  # it names the file (or the id) itself
+    if refused:
+        raise CosimError(f"{refused} of {len(scenarios)} scenario(s) refused")
     return 0
 
 
@@ -380,12 +410,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "validate",
-        help="validate the built FMUs as they are (fmpy + our own checks), or any FMU files",
+        help="validate the built FMUs as they are (fmpy + our own checks), any FMU files, "
+        "or scenarios without running them",
     )
     p.add_argument(
-        "fmus", nargs="*", type=_path_arg, metavar="FMU",
+        "fmus", nargs="*", type=_path_arg, metavar="FMU|SCENARIO",
         help="FMU files to check for what a run needs of them (any FMI 2.0 co-simulation "
-        "FMU: fmpy's validation, a binary for this platform, one step) [the built FMUs]",
+        "FMU: fmpy's validation, a binary for this platform, one step), or scenario files "
+        "(.toml) or ids to check as a run would, against the FMUs of --fmu-dir, stepping "
+        "nothing [the built FMUs]",
     )  # fmt: skip
     p.add_argument(
         "--fmu-dir",

@@ -365,6 +365,27 @@ def _checked_scenario(
     return scenario
 
 
+def check_scenario(scenario: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> str:
+    """Check a scenario (id or file) as a run would before its first step, against the
+    FMUs in ``fmu_dir`` (built there when out of date), stepping nothing and writing
+    nothing; warnings as a run gives them. Raises :class:`CosimError` (one line) where a
+    run would refuse it; returns what it would run, in one line."""
+    checked = _checked_scenario(scenario, RunOptions(fmu_dir=fmu_dir))
+    coupling = checked.coupling
+    instances = ", ".join(
+        f"{name} ({inst.fmu_path.stem})" for name, inst in checked.instances.items()
+    )
+    if coupling.algorithm == "adaptive":
+        steps = (
+            f"adaptive steps of up to {coupling.max_step:g} s (tolerance {coupling.tolerance:g})"
+        )
+    else:
+        inputs = f", inputs {coupling.extrapolation}" if coupling.extrapolation != "none" else ""
+        count = round(checked.stop_time / coupling.step)
+        steps = f"{count} steps of {coupling.step:g} s ({coupling.algorithm}{inputs})"
+    return f"a valid scenario: {instances}; {checked.stop_time:g} s in {steps}"
+
+
 def _fmus_to_build(scenario: str | Path | Scenario, fmu_dir: Path) -> list[str]:
     """The built-in FMUs the scenario file names (``fmu = "AuvPlant"``) that are missing
     or out of date in ``fmu_dir``: loading it builds them. None for a loaded Scenario, or
