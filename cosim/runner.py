@@ -58,7 +58,7 @@ if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (s
     from cosim.outputs.background import BackgroundSink
     from cosim.outputs.run_outputs import RunOutputs
     from cosim.outputs.sinks import ProgressSink
-    from cosim.scenario.spec import Algorithm, Extrapolation, Scenario
+    from cosim.scenario.spec import Algorithm, Coupling, Extrapolation, Scenario
     from cosim.viz.recording import RerunSink
 
 MESSAGES_SHOWN = 3  # FMU log lines (warnings and worse) printed per instance
@@ -380,9 +380,7 @@ def check_scenario(scenario: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> str
             f"adaptive steps of up to {coupling.max_step:g} s (tolerance {coupling.tolerance:g})"
         )
     else:
-        inputs = f", inputs {coupling.extrapolation}" if coupling.extrapolation != "none" else ""
-        count = round(checked.stop_time / coupling.step)
-        steps = f"{count} steps of {coupling.step:g} s ({coupling.algorithm}{inputs})"
+        steps = _fixed_steps(round(checked.stop_time / coupling.step), coupling)
     return f"a valid scenario: {instances}; {checked.stop_time:g} s in {steps}"
 
 
@@ -581,8 +579,13 @@ def _steps(result: RunResult) -> str:
             f"rejected{f', {discarded} of them discarded by an FMU' if discarded else ''}, "
             f"tolerance {coupling.tolerance:g})"
         )
+    return _fixed_steps(result.rows - 1, coupling)
+
+
+def _fixed_steps(count: int, coupling: Coupling) -> str:
+    """``count`` steps of the fixed communication step, with the coupling."""
     inputs = f", inputs {coupling.extrapolation}" if coupling.extrapolation != "none" else ""
-    return f"{result.rows - 1} steps of {coupling.step:g} s ({coupling.algorithm}{inputs})"
+    return f"{count} steps of {coupling.step:g} s ({coupling.algorithm}{inputs})"
 
 
 def _check_line(check: dict[str, Any]) -> str:
