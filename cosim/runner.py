@@ -470,9 +470,10 @@ def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest, live: b
     (a summary that cannot be written keeps saying "running", and the reason is printed).
     A ``live`` run's scenario.toml is rewritten to replay it (its overrides, where it
     stopped)."""
+    from cosim.engine.master import ending_note
     from cosim.live.session import replay_scenario
 
-    problem = outputs.close()
+    problem = outputs.close(ending_note(result))
     if problem is not None and result.error is None:
         result.complete, result.error = False, problem
     replay = replay_scenario(result.scenario, result, live)

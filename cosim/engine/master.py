@@ -92,7 +92,7 @@ from cosim.engine.points import (
     inputs_giver,
     refresh,
 )
-from cosim.engine.rows import RowSink, RowTable
+from cosim.engine.rows import RUN_COMPLETE, RUN_INCOMPLETE, Note, RowSink, RowTable
 from cosim.engine.signals import StopRequest, stop_on_signals
 from cosim.engine.slave import Slave, describe, reasons, unzipped
 from cosim.engine.timeline import Timeline
@@ -144,6 +144,18 @@ class RunResult:
                 "keep_rows=True or read its results.csv"
             )
         return self.values[:, self.columns.index(name)]
+
+
+def ending_note(result: RunResult) -> Note:
+    """How ``result``'s run ended, as a note at the time of its last row (s): complete at
+    its stop time or where an FMU ended it, or incomplete and why (the run's one-line
+    error)."""
+    t = result.time_reached
+    if not result.complete:
+        return t, f"{RUN_INCOMPLETE}{result.error or f'stopped at t = {t:.6g} s'}"
+    if result.ended is not None:
+        return t, f"{RUN_COMPLETE}: {result.ended}"
+    return t, f"{RUN_COMPLETE} at t = {t:.6g} s (its stop time)"
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,9 @@ reason; the master then ends the run (``complete`` false, that reason) and hands
 remaining rows to the other sinks. Between chunks of a run with events or faults the
 master hands each sink the timeline's notes so far, ``add_notes(notes)`` with ``notes``
 [(t in s, text)]; a sink with no use for them inherits :class:`NotesIgnored`. Who creates
-a sink closes it.
+a sink closes it; a run's outputs hand their sinks one last note before closing them, how
+the run ended (:func:`cosim.engine.master.ending_note`: :data:`RUN_COMPLETE` or
+:data:`RUN_INCOMPLETE` and the reason), at the time of its last row.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from typing import Protocol
 import numpy as np
 
 Note = tuple[float, str]  # (t in s, what happened): an event fired, a fault started or ended
+RUN_COMPLETE = "run complete"  # how the last note of a run that completed starts
+RUN_INCOMPLETE = "run incomplete: "  # ... and of one that failed or was stopped, the reason
 
 
 class RowSink(Protocol):

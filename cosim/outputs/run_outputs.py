@@ -30,7 +30,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from cosim.engine.master import RunResult
-from cosim.engine.rows import NotesIgnored, RowSink
+from cosim.engine.rows import Note, NotesIgnored, RowSink
 from cosim.errors import CosimError
 from cosim.metrics.key_figures import KeyFigures
 from cosim.outputs.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
@@ -168,19 +168,25 @@ class RunOutputs:
         self.sinks.append(sink)
         self._closable.append(sink)
 
-    def close(self) -> str | None:
+    def close(self, ending: Note | None = None) -> str | None:
         """Close every sink (the recording's last rows are flushed) and record the files
-        in the manifest; the first failure."""
-        error = self._close_sinks()
+        in the manifest; the first failure. ``ending``, how the run ended
+        (:func:`cosim.engine.master.ending_note`), is each sink's last note (the recording's
+        last events entry)."""
+        error = self._close_sinks(ending)
         for name in ("results", "recording"):
             error = self._record(name) or error
         return error
 
-    def _close_sinks(self) -> str | None:
+    def _close_sinks(self, ending: Note | None) -> str | None:
         error = None
         for sink in self._closable:
             try:
-                sink.close()
+                try:
+                    if ending is not None:
+                        sink.add_notes([ending])
+                finally:
+                    sink.close()
             except (OSError, CosimError) as exc:
                 error = error or str(exc)
         return error
@@ -229,7 +235,7 @@ class RunOutputs:
         """Close the sinks and remove every file this run created (it never stepped)."""
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            self._close_sinks()
+            self._close_sinks(None)
         for path in self._created:
             with contextlib.suppress(OSError):
                 os.unlink(path)

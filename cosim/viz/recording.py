@@ -41,6 +41,7 @@ from urllib.parse import urlsplit
 import numpy as np
 import rerun as rr
 
+from cosim.engine.rows import RUN_INCOMPLETE
 from cosim.errors import CosimError
 from cosim.outputs.folder import RECORDING_FILE
 from cosim.outputs.missing_run import missing_run_hint
@@ -80,6 +81,12 @@ VIEWER_SEND_INTERVAL = 1.0  # s of wall-clock time
 FILE_SEND_INTERVAL = 5.0  # s of wall-clock time
 SEND_INTERVAL_GROWTH = 0.02
 FLUSH_TIMEOUT = 10.0  # s to wait for a viewer to take the last rows on close
+
+
+def note_level(text: str) -> rr.TextLogLevel:
+    """The log level a note is shown with: ERROR for the end of a run that did not
+    complete (:data:`cosim.engine.rows.RUN_INCOMPLETE`), INFO for anything else."""
+    return rr.TextLogLevel.ERROR if text.startswith(RUN_INCOMPLETE) else rr.TextLogLevel.INFO
 
 
 class RerunSink:
@@ -238,18 +245,19 @@ class RerunSink:
 
     def add_notes(self, notes: Sequence[tuple[float, str]]) -> None:
         """Log what happened at a time -- an event fired, a fault started or stopped
-        (:mod:`cosim.engine.timeline`) -- as ``rr.TextLog`` entries under :data:`NOTES_ENTITY`
-        at their ``sim_time`` (s); the master hands them over before the rows they precede."""
+        (:mod:`cosim.engine.timeline`), how the run ended -- as ``rr.TextLog`` entries under
+        :data:`NOTES_ENTITY` at their ``sim_time`` (s), at the level :func:`note_level`
+        gives; the master hands them over before the rows they precede."""
         if self._closed:
             raise ValueError("add_notes on a closed RerunSink")
         if not notes:
             return
         times = np.asarray([t for t, _ in notes], dtype=float)
         texts = [text for _, text in notes]
+        levels = [note_level(text) for text in texts]
+        columns = rr.TextLog.columns(text=texts, level=levels)
         for channel in self._channels:
-            channel.rec.send_columns(
-                NOTES_ENTITY, indexes=time_index(times), columns=rr.TextLog.columns(text=texts)
-            )
+            channel.rec.send_columns(NOTES_ENTITY, indexes=time_index(times), columns=columns)
 
     def close(self) -> None:
         """Send what is queued, flush and close the file; safe to call twice.

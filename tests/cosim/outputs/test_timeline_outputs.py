@@ -90,6 +90,8 @@ def test_the_recording_logs_each_event_and_fault_at_its_time(run_dir: Path) -> N
         (300_000_000, "event gain-up: controller.k = 4.0"),
         (600_000_000, "fault jam stops: stuck on controller.x"),
         (crossing, "event slow-down: plant.u = 0.5"),
+        (round(summary["time_reached"] * 1e9),
+         f"run complete at t = {summary['time_reached']:g} s (its stop time)"),
     ])  # fmt: skip
 
 

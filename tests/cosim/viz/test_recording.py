@@ -842,6 +842,6 @@ def test_an_events_note_gives_each_value_with_its_unit_and_an_angle_in_degrees(
         for row in chunk.to_record_batch().column("TextLog:text").to_pylist()
         for text in row
     ]
-    assert notes == [
+    assert notes[:-1] == [  # the last says how the run ended
         "event planes-down: plant.fin_angle = 0.1 rad (5.72958 deg), plant.tunnel_force = 3.0 N"
     ]
