@@ -59,6 +59,7 @@ from cosim.viz.mission import mission_waypoints
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from cosim.viz.rrd_file import OVERLAY_FILE, STUDY_FILE, RrdFile, file_sink, pumped
 from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
+from cosim.viz.viewer_version import version_problem
 from cosim.viz.web_viewer import serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
@@ -465,12 +466,12 @@ def _with_free_space(reason: str, path: Path) -> str:
 
 
 def rerun_executable() -> str | None:
-    """The ``rerun`` viewer binary: on PATH, or beside this Python (a venv's bin/)."""
-    found = shutil.which("rerun")
-    if found:
-        return found
+    """The ``rerun`` viewer binary: beside this Python (a venv's bin/, where it comes with
+    the rerun-sdk that writes the recordings), else on PATH."""
     beside = Path(sys.executable).with_name("rerun")
-    return str(beside) if beside.is_file() and os.access(beside, os.X_OK) else None
+    if beside.is_file() and os.access(beside, os.X_OK):
+        return str(beside)
+    return shutil.which("rerun")
 
 
 def view_run(
@@ -489,7 +490,9 @@ def view_run(
     answering at ``WAYLAND_DISPLAY`` or ``DISPLAY``; Windows and macOS have their own) and
     the ``rerun`` binary found, runs the viewer on the file (its gRPC server on 127.0.0.1
     only, as ``--web``'s) and returns its exit code, with a line saying to use ``--web``
-    when it failed.
+    when it failed. A viewer of a version that may not read the file (older than the Rerun
+    that wrote it, or newer by more than one version) is named first, with both versions,
+    on one line (:func:`cosim.viz.viewer_version.version_problem`).
 
     Raises:
         CosimError: the folder holds no recording, the file is not a Rerun recording, or
@@ -500,11 +503,13 @@ def view_run(
     if web:
         if executable is None:
             raise CosimError("the `rerun` binary is not on PATH (it comes with rerun-sdk)")
+        _warn_of_version(executable, rrd)
         return serve(executable, rrd, web_port, file_port, open_browser)
     folder, file = shlex.quote(str(run_dir)), shlex.quote(str(rrd))  # for commands to paste
     web_hint = f"use `auv-cosim view {folder} --web` to serve the recording to a browser"
     reason = display_problem()
     if reason is None and executable is not None:
+        _warn_of_version(executable, rrd)
         print(f"opening {rrd} in the Rerun viewer", flush=True)
         code = subprocess.call([executable, "--bind", "127.0.0.1", str(rrd)])
         if code != 0:
@@ -520,6 +525,13 @@ def view_run(
         f"cannot open a viewer here: {reason}; {web_hint} (or `rerun {file}` on a machine "
         "with a display)"
     )
+
+
+def _warn_of_version(executable: str, rrd: Path) -> None:
+    """One line on stderr if the viewer ``executable`` may not read ``rrd`` (its version)."""
+    problem = version_problem(executable, rrd)
+    if problem is not None:
+        print(f"auv-cosim view: {problem}", file=sys.stderr, flush=True)
 
 
 X11_SOCKETS = Path("/tmp/.X11-unix")  # a local X server's sockets: X<display number>
