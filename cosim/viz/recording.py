@@ -13,7 +13,8 @@ scene). Each sink owns its own ``rr.RecordingStream`` (two with a file and a vie
 ``VIEWER_SEND_INTERVAL``), so several runs in one process never mix.
 
 The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``), the
-scenario id as the recording name and a property, and the resolved scenario TOML as a
+scenario id as a property and, with where the file is (:func:`recording_name`), as the
+recording's name, and the resolved scenario TOML as a
 static text document at ``/scenario``; a scenario with a waypoint guidance gets its
 planned path and waypoints in the 3D scene (:func:`cosim.viz.mission.mission_waypoints`).
 What the 3D scene needs to know about the run -- the vehicle parameter set, whether depth
@@ -82,6 +83,18 @@ VIEWER_SEND_INTERVAL = 1.0  # s of wall-clock time
 FILE_SEND_INTERVAL = 5.0  # s of wall-clock time
 SEND_INTERVAL_GROWTH = 0.02
 FLUSH_TIMEOUT = 10.0  # s to wait for a viewer to take the last rows on close
+
+
+def recording_name(scenario_id: str, rrd_path: Path | None) -> str:
+    """The name the viewer lists a recording by: the scenario's id, and where the file is
+    when that is not the scenario's own run folder (``runs/<id>/recording.rrd``): its
+    folder's name (``bs-3 (bs-3-coarse)``, a run with ``--out``) or, for a file not named
+    ``recording.rrd`` (``--rrd``), its own name; so two runs of one scenario opened side
+    by side are told apart."""
+    if rrd_path is None:
+        return scenario_id
+    where = rrd_path.parent.name if rrd_path.name == RECORDING_FILE else rrd_path.name
+    return scenario_id if where in ("", scenario_id) else f"{scenario_id} ({where})"
 
 
 def note_level(text: str) -> rr.TextLogLevel:
@@ -186,7 +199,7 @@ class RerunSink:
         """The recording's name and properties, the scenario text, styles and the scene."""
         scenario_id, columns, toml = scenario.id, self._columns, scenario.to_toml()
         rec = channel.rec
-        rec.send_recording_name(scenario_id)
+        rec.send_recording_name(recording_name(scenario_id, self._rrd_path))
         rec.send_property(
             "scenario", rr.AnyValues(id=scenario_id, vehicle=vehicle.name, columns=len(columns))
         )

@@ -391,7 +391,29 @@ def test_metadata_holds_scenario_id_and_resolved_toml(recorded, fmu_dir: Path):
     text = read_static(path, "/scenario", "TextDocument:text")[0][0]
     assert scenario.to_toml().strip() in text
     assert read_static(path, "/__properties/scenario", "id")[0] == ["rec-test"]
-    assert read_static(path, "/__properties", "RecordingInfo:name")[0] == ["rec-test"]
+    assert read_static(path, "/__properties", "RecordingInfo:name")[0] == [
+        f"rec-test ({path.parent.name})"  # written outside a folder named for the scenario
+    ]
+
+
+@pytest.mark.parametrize(
+    ("written_to", "name"),
+    [
+        ("rec-test/recording.rrd", "rec-test"),  # the default run folder, runs/<id>
+        ("coarse/recording.rrd", "rec-test (coarse)"),  # --out coarse
+        ("fine/recording.rrd", "rec-test (fine)"),
+        ("kept/step-20ms.rrd", "rec-test (step-20ms.rrd)"),  # --rrd kept/step-20ms.rrd
+    ],
+)
+def test_recordings_of_one_scenario_in_two_places_are_named_apart(
+    tmp_path: Path, fmu_dir: Path, written_to: str, name: str
+):
+    """Two runs of one scenario (another --step, another algorithm) opened side by side in
+    the viewer were both listed as the scenario's id: the recording's name says where it
+    was written when that is not the scenario's own run folder."""
+    path = tmp_path / written_to
+    sink_for(fmu_dir, path, "rec-test", ["plant.yaw"]).close()
+    assert read_static(path, "/__properties", "RecordingInfo:name")[0] == [name]
 
 
 def test_two_sinks_in_one_process_do_not_mix(tmp_path: Path, fmu_dir: Path):
