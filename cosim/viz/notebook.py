@@ -11,8 +11,8 @@ the side panels (blueprint, selection, time) collapsed.
 
 The file is loaded into a recording stream with the file's own application and recording
 ids, so the viewer shows one recording; its layout is the notebook's
-(:func:`cosim.viz.layout.notebook_blueprint`: the world view beside the heading loop), as
-rerun forwards a file's data but not the layout stored with it.
+(:func:`cosim.viz.layout.notebook_blueprint`: the world view beside the heading loop), or
+a study overlay's own, as rerun forwards a file's data but not the layout stored with it.
 """
 
 from __future__ import annotations
@@ -51,17 +51,23 @@ def offline_assets() -> str:
 
 
 def _layout(rrd: Path) -> Any:
-    """The notebook layout for the run beside ``rrd`` (its results.csv names the columns);
-    None (rerun's own views) for a recording without one."""
+    """The notebook layout for the run beside ``rrd`` (its results.csv names the columns),
+    a study's overlay's own (:func:`cosim.viz.overlay.overlay_blueprint`); None (rerun's
+    own views) for any other recording."""
     from cosim.outputs.results import header_columns
     from cosim.viz.layout import notebook_blueprint, plan_panels
+    from cosim.viz.rrd_file import OVERLAY_FILE
 
     results = rrd.with_name("results.csv")
     try:
         with results.open(encoding="utf-8") as file:
             columns = header_columns(file.readline())[1:]
     except OSError:
-        return None
+        if rrd.name != OVERLAY_FILE:
+            return None
+        from cosim.viz.overlay import overlay_blueprint  # matplotlib: for an overlay only
+
+        return overlay_blueprint()
     return notebook_blueprint(plan_panels(columns))
 
 

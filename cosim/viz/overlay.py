@@ -83,7 +83,7 @@ def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> No
     file = RrdFile(path) if pumped() else None  # see cosim.viz.rrd_file: why not FileSink
     try:
         sink = file.sink() if file is not None else file_sink(path)
-        rec.set_sinks(sink, default_blueprint=_blueprint())
+        rec.set_sinks(sink, default_blueprint=overlay_blueprint())
         rec.send_recording_name(title)
         rec.log("world", rr.ViewCoordinates.FRD, static=True)
         rec.log("study", rr.TextDocument(notes, media_type=rr.MediaType.MARKDOWN), static=True)
@@ -123,8 +123,9 @@ def _log_run(rec: rr.RecordingStream, run: OverlayRun, color: tuple[int, ...]) -
         rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values))
 
 
-def _blueprint() -> rrb.Blueprint:
-    """The 3D view of every path beside the three time-series panels and the notes."""
+def overlay_blueprint() -> rrb.Blueprint:
+    """The 3D view of every path beside the three time-series panels and the notes (the
+    file's default layout, and the notebook viewer's, which reads none from the file)."""
     legend = rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True)
     plots = [
         rrb.TimeSeriesView(origin=f"/{root}", name=name, plot_legend=legend)

@@ -40,3 +40,42 @@ def test_a_folder_without_a_recording_says_what_would_hold_one(tmp_path: Path) -
     with pytest.raises(CosimError) as refused:
         notebook.inline_viewer(tmp_path)
     assert "recording.rrd" in str(refused.value) and "overlay.rrd" in str(refused.value)
+
+
+def _origins(node) -> list[str]:
+    """The origin of every view in a blueprint, container or view, depth first."""
+    if hasattr(node, "root_container"):
+        return _origins(node.root_container)
+    if hasattr(node, "origin"):
+        return [str(node.origin)]
+    return [origin for child in node.contents for origin in _origins(child)]
+
+
+def test_a_study_s_overlay_keeps_its_layout_inline(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The notebook viewer takes no layout from the file: an overlay.rrd was shown in
+    rerun's own views instead of its paths beside its yaw, roll and depth plots."""
+    if importlib.util.find_spec("rerun_notebook") is None:
+        pytest.skip("needs rerun-notebook")
+    import numpy as np
+    import rerun.notebook
+
+    from cosim.viz.overlay import POSITION, SERIES, OverlayRun, write_overlay
+
+    monkeypatch.setenv(notebook.ASSET_VARIABLE, notebook.OFFLINE_ASSETS)  # undone after
+    t = np.linspace(0.0, 1.0, 11)
+    results = {"time": t, **{name: t for name in (*POSITION, *(c for c, _ in SERIES.values()))}}
+    write_overlay(tmp_path / "overlay.rrd", [OverlayRun("r1", "r1: k = 1", results)], "s", "")
+    layouts: list = []
+
+    class Viewer:  # what inline_viewer hands its layout to
+        def __init__(self, **options) -> None:
+            layouts.append(options["blueprint"])
+            self._viewer = type("Widget", (), {"update_panel_states": lambda *_: None})()
+
+    monkeypatch.setattr(rerun.notebook, "Viewer", Viewer)
+    monkeypatch.setattr(rr.RecordingStream, "log_file_from_path", lambda *_, **__: None)
+    notebook.inline_viewer(tmp_path)
+    assert layouts[0] is not None, "no layout: rerun's own views"
+    assert {"/world", *(f"/{root}" for root in SERIES)} <= set(_origins(layouts[0]))
