@@ -14,8 +14,10 @@ print over the others)::
     depth_m/<run id>         Scalars per step: plant.down, m
     study                    TextDocument (static): the runs shown and why
 
-Each run gets its own colour (matplotlib's ``tab20`` cycle). The data comes from each
-run's ``results.csv`` (time in s, angles in rad, positions in m).
+The recording's application id is :data:`OVERLAY_APPLICATION_ID`, not a run recording's, so
+the viewer keeps the two layouts apart. Each run gets its own colour (matplotlib's
+``tab20`` cycle). The data comes from each run's ``results.csv`` (time in s, angles in
+rad, positions in m).
 """
 
 from __future__ import annotations
@@ -43,6 +45,10 @@ SERIES = {  # entity root -> (results column, display scale)
 }
 REQUIRED = ("time", *POSITION, *(column for column, _ in SERIES.values()))
 POINT_RADIUS = 0.3  # m, drawn radius of a run's vehicle in the 3D view
+# The viewer gives recordings of one application id one layout: an overlay shares a run
+# recording's, its panels show nothing of the other's entities (each drawn, empty, in the
+# other's layout when both are open, or in a viewer that keeps the layout it last showed).
+OVERLAY_APPLICATION_ID = f"{APPLICATION_ID}-overlay"
 
 
 @dataclass(frozen=True)
@@ -79,7 +85,7 @@ def write_overlay(path: Path, runs: Sequence[OverlayRun], title: str, notes: str
 
 
 def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> None:
-    rec = rr.RecordingStream(APPLICATION_ID)
+    rec = rr.RecordingStream(OVERLAY_APPLICATION_ID)
     file = RrdFile(path) if pumped() else None  # see cosim.viz.rrd_file: why not FileSink
     try:
         sink = file.sink() if file is not None else file_sink(path)

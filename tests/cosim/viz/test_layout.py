@@ -87,6 +87,34 @@ def test_an_overlay_titled_with_bytes_not_utf8_is_written(tmp_path: Path) -> Non
     assert path.stat().st_size > 0
 
 
+def test_an_overlay_and_a_run_s_recording_keep_their_own_layouts(tmp_path: Path) -> None:
+    """The viewer gives recordings of one application id one layout (blueprint): a run's
+    recording and a study's overlay opened together, or one after the other in a viewer
+    that keeps the layout it last showed, drew one in the other's panels, empty (the
+    overlay's /yaw_deg plots have no data in a run, a run's /attitude plots none in an
+    overlay). Every run's recording shares one id; the overlays have another."""
+    from rerun.chunk import RrdReader
+    from scenario_factory import auv_scenario
+
+    from cosim.viz.overlay import OverlayRun, write_overlay
+    from cosim.viz.recording import RerunSink
+
+    t = np.linspace(0.0, 1.0, 11)
+    names = ("plant.north", "plant.east", "plant.down", "plant.yaw", "plant.roll")
+    run = OverlayRun("run0", "run0", {"time": t, **{name: 0 * t for name in names}})
+    overlays = [write_overlay(tmp_path / f"{k}.rrd", [run], "s", "") for k in "ab"]
+    runs = [tmp_path / f"{k}.rrd" for k in "cd"]
+    for path in runs:
+        RerunSink(auv_scenario(tmp_path, path.stem, list(names)), path).close()
+
+    def application(path: Path) -> str:
+        return RrdReader(path).recordings()[0].application_id
+
+    assert application(runs[0]) == application(runs[1])
+    assert application(overlays[0]) == application(overlays[1])
+    assert application(overlays[0]) != application(runs[0])
+
+
 def _contrast(a: tuple[int, int, int], b: tuple[int, int, int]) -> float:
     """The WCAG 2 contrast ratio of two sRGB colours (1: none, 21: black on white)."""
 
