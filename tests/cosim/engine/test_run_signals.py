@@ -125,6 +125,18 @@ def recorded_yaw(rrd: Path) -> np.ndarray:
     return np.concatenate(values)[order]
 
 
+def last_note(rrd: Path) -> tuple[int, str] | None:
+    """(sim_time in ns, text) of the last entry of the recording's events log, if any."""
+    notes = []
+    for chunk in RrdReader(rrd).stream():
+        if chunk.entity_path == "/events":
+            batch = chunk.to_record_batch()
+            texts = [row[0] for row in batch.column("TextLog:text").to_pylist()]
+            nanos = batch.column("sim_time").cast(pa.int64()).to_pylist()
+            notes += list(zip(nanos, texts, strict=True))
+    return max(notes) if notes else None
+
+
 def entities(rrd: Path) -> set[str]:
     return {chunk.entity_path for chunk in RrdReader(rrd).stream()}
 
@@ -213,6 +225,11 @@ def test_two_ctrl_c_in_quick_succession_still_complete_the_folder(fmu_dir: Path,
     assert done["status"] == "incomplete" and done["signal"] == "SIGINT"
     assert len(csv_lines(out)) - 1 == done["rows"]
     verify(out / "recording.rrd")
+    # the recording ends saying why, where the run ended
+    assert last_note(out / "recording.rrd") == (
+        round(done["time_reached"] * 1e9),
+        f"run incomplete: {done['error']}",
+    )
 
 
 CTRL_C_WHILE_WRITING = """
