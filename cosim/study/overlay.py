@@ -11,12 +11,14 @@ for a grid means its corners and points between.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 from cosim.errors import FLAGS, OptionNames, did_you_mean
 from cosim.study.design import PlannedRun
 from cosim.study.spec import OVERLAY_CAP, StudyError
+from cosim.study.units import DIMENSIONLESS, IN_DEGREES
 
 
 def check_choice(
@@ -85,10 +87,25 @@ def choose(
     return chosen, empty
 
 
-def label(run: PlannedRun) -> str:
-    """A run's name in the overlay: its id and its factor values."""
-    values = ", ".join(f"{name} = {_short(value)}" for name, value in run.values.items())
+def label(run: PlannedRun, unit_of: Mapping[str, str]) -> str:
+    """A run's name in the overlay: its id and its factor values, each with its unit
+    (``unit_of``: factor -> unit, :func:`cosim.study.units.units`) and an angle in rad also
+    in degrees, as the overlay's plots show angles (``plant.yaw_0 = 0.523599 rad (30 deg)``)."""
+    values = ", ".join(
+        f"{name} = {_with_unit(value, unit_of.get(name, DIMENSIONLESS))}"
+        for name, value in run.values.items()
+    )
     return f"{run.id}: {values}"
+
+
+def _with_unit(value: Any, unit: str) -> str:
+    """``value`` as a label shows it: with ``unit`` (none for "1"), an angle in degrees too."""
+    if not isinstance(value, int | float) or isinstance(value, bool) or unit == DIMENSIONLESS:
+        return _short(value)
+    if unit in IN_DEGREES:
+        degrees = _short(float(value) * math.degrees(1.0))
+        return f"{_short(value)} {unit} ({degrees} {IN_DEGREES[unit]})"
+    return f"{_short(value)} {unit}"
 
 
 def notes(
@@ -97,8 +114,10 @@ def notes(
     rows: Mapping[str, Mapping[str, Any]],
     missing: Sequence[str],
     empty: Sequence[str],
+    unit_of: Mapping[str, str],
 ) -> str:
-    """The overlay's text document (Markdown): each run shown, why, its status."""
+    """The overlay's text document (Markdown): each run shown, why, its factor values (with
+    their units, ``unit_of``: see :func:`label`), its status."""
     lines = [
         "# Runs in this overlay",
         "",
@@ -106,7 +125,7 @@ def notes(
         "|---|---|---|---|",
     ]
     for run_id, why in chosen.items():
-        factors = label(runs[run_id]).partition(": ")[2]
+        factors = label(runs[run_id], unit_of).partition(": ")[2]
         status = rows[run_id]["status"] + (" (no results)" if run_id in missing else "")
         lines.append(f"| `{run_id}` | {', '.join(why)} | {factors} | {status} |")
     if empty:

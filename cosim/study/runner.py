@@ -366,12 +366,13 @@ def _overlay(
         session.run(job, plugin, again, keep)
     found = {run_id: results(run_id) for run_id in chosen}
     missing = [run_id for run_id, found_results in found.items() if found_results is None]
+    unit_of = units(factors, base.fmu_paths)
     shown = [
-        OverlayRun(run_id, label(by_id[run_id]), run_results)
+        OverlayRun(run_id, label(by_id[run_id], unit_of), run_results)
         for run_id in chosen
         if (run_results := found[run_id]) is not None
     ]
-    text = notes(chosen, by_id, by_row, missing, empty)
+    text = notes(chosen, by_id, by_row, missing, empty, unit_of)
     path = write_overlay(out_dir / OVERLAY_FILE, shown, f"study {out_dir.name}", text)
     warnings = [f"overlay: {entry} chose no run (no complete run has a value)" for entry in empty]
     warnings += [f"overlay: run {run_id} left no results.csv" for run_id in missing]

@@ -70,7 +70,7 @@ def test_the_overlay_holds_the_chosen_runs(fmu_dir: Path, tmp_path: Path) -> Non
     by_run = {row["run"]: row for row in rows}
     for run in chosen:
         label = rrd[f"/world/paths/{run}"]["LineStrips3D:labels"][0][0]
-        factors = ", ".join(f"{name} = {float(by_run[run][name]):.6g}" for name in NAMED)
+        factors = ", ".join(f"{name} = {float(by_run[run][name]):.6g} m/s" for name in NAMED)
         assert label == f"{run}: {factors}"
         # the chosen runs were kept (run again: the table's runs kept nothing) ...
         results = load_results(out / "runs" / run)
@@ -92,7 +92,10 @@ def test_the_overlay_holds_the_chosen_runs(fmu_dir: Path, tmp_path: Path) -> Non
     assert sorted(p.name for p in (out / "runs").iterdir()) == sorted(chosen)
     notes = rrd["/study"]["TextDocument:text"][0][0]
     assert f"| `{best}` | best:final.plant.north" in notes
-    assert f"| `{named}` | {named} | plant.v_0 = 0, plant.current_east = 0.2 | complete |" in notes
+    assert (
+        f"| `{named}` | {named} | plant.v_0 = 0 m/s, plant.current_east = 0.2 m/s | complete |"
+        in notes
+    )
     page = (out / "index.html").read_text()  # the page says where the overlay is
     assert f"overlay.rrd: the chosen runs in one Rerun recording; auv-cosim view {out}" in page
 
@@ -178,3 +181,16 @@ def test_a_mistyped_overlay_metric_gets_a_guess() -> None:
     runs = [PlannedRun(run_id({"plant.v_0": 0.1}), {"plant.v_0": 0.1})]
     with pytest.raises(StudyError, match=r"\(did you mean 'yaw_settling_time_s'\?\)"):
         check_choice(["best:yaw_setling_time_s"], runs, ["yaw_settling_time_s", "time_reached"])
+
+
+def test_a_run_s_label_gives_each_factor_value_with_its_unit_an_angle_in_degrees_too() -> None:
+    """The overlay's plots show yaw and roll in degrees: a legend saying ``plant.yaw_0 =
+    0.523599`` (rad, no unit) beside a yaw plot starting at 30 read as the wrong number."""
+    from cosim.study.overlay import label
+
+    run = PlannedRun("r1", {"plant.yaw_0": 0.5235987755982988, "plant.v_0": -0.1, "x.k": 2})
+    unit_of = {"plant.yaw_0": "rad", "plant.v_0": "m/s", "x.k": "1"}
+    assert (
+        label(run, unit_of)
+        == "r1: plant.yaw_0 = 0.523599 rad (30 deg), plant.v_0 = -0.1 m/s, x.k = 2"
+    )
