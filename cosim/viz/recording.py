@@ -16,7 +16,8 @@ The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``),
 scenario id as a property and, with where the file is (:func:`recording_name`), as the
 recording's name, and the resolved scenario TOML as a
 static text document at ``/scenario``; a scenario with a waypoint guidance gets its
-planned path and waypoints in the 3D scene (:func:`cosim.viz.mission.mission_waypoints`).
+planned path and waypoints in the 3D scene (:func:`cosim.viz.mission.mission_waypoints`),
+and an events entry whenever the recorded waypoint it steers for changes.
 What the 3D scene needs to know about the run -- the vehicle parameter set, whether depth
 control is on -- is read from the :class:`~cosim.scenario.spec.Scenario` itself.
 """
@@ -59,7 +60,7 @@ from cosim.viz.layout import (
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from cosim.viz.rrd_file import OVERLAY_FILE, STUDY_FILE, RrdFile, file_sink, pumped
-from cosim.viz.scene import SceneWriter, log_static_scene, scene_legend
+from cosim.viz.scene import TARGET_COLUMNS, SceneWriter, log_static_scene, scene_legend
 from cosim.viz.viewer_version import version_problem
 from cosim.viz.web_viewer import serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
@@ -346,6 +347,34 @@ class RerunSink:
 
         assert channel.scene is not None
         channel.scene.send(index, len(times), column)
+        self._mark_targets(channel, times, column)
+
+    def _mark_targets(
+        self, channel: _Channel, times: np.ndarray, column: Callable[[str], np.ndarray | None]
+    ) -> None:
+        """An events entry at each row (times in s) where the waypoint a guidance steers for
+        (:data:`cosim.viz.scene.TARGET_COLUMNS`, m) changes, the run's first row included:
+        the guidance switches the set-points inside its FMU, where no event marks it."""
+        parts = [part for name in TARGET_COLUMNS if (part := column(name)) is not None]
+        if len(parts) < len(TARGET_COLUMNS):
+            return
+        points = np.column_stack(parts)
+        before = np.vstack([points[:1] if channel.target is None else channel.target, points[:-1]])
+        changed = np.any(points != before, axis=1)
+        changed[0] |= channel.target is None
+        channel.target = points[-1:].copy()
+        rows = np.flatnonzero(changed)
+        if len(rows) == 0:
+            return
+        texts = [
+            f"guidance steers for the waypoint north {n:g} m, east {e:g} m, down {d:g} m"
+            for n, e, d in points[rows]
+        ]
+        channel.rec.send_columns(
+            NOTES_ENTITY,
+            indexes=time_index(times[rows]),
+            columns=rr.TextLog.columns(text=texts, level=[rr.TextLogLevel.INFO] * len(texts)),
+        )
 
 
 @dataclass
@@ -358,6 +387,7 @@ class _Channel:
     opened: float  # time.monotonic() when the sink opened
     last_send: float = field(init=False)
     scene: SceneWriter | None = None
+    target: np.ndarray | None = None  # (1, 3) the last row's guidance waypoint, m
     times: list[np.ndarray] = field(default_factory=list)
     values: list[np.ndarray] = field(default_factory=list)
     rows: int = 0

@@ -141,3 +141,30 @@ def test_the_survey_runs_recording_shows_its_planned_path(fmu_paths, tmp_path: P
     np.testing.assert_array_equal(np.array(marks["Points3D:positions"][0]), expected)
     assert marks["Points3D:labels"][0] == [str(k) for k in range(1, len(expected) + 1)]
     assert "/world/mission/target" in entities(rrd)
+
+
+def test_each_waypoint_the_guidance_turns_to_is_marked_when_it_does(
+    fmu_paths, tmp_path: Path
+) -> None:
+    """The guidance switches the heading set-point at each waypoint, inside the FMU: no
+    event marked it, and a survey's recording said nothing of where a leg began. Each
+    target it steers for is now an events entry at the step it starts, across the
+    sink's batches too (a switch on a batch's first row)."""
+    columns = ["plant.north", "plant.east", "plant.down", *TARGET]
+    times = np.arange(6) * 0.01
+    targets = [[50, 0, 2]] * 3 + [[50, 20, 3]] * 3  # waypoint 3 from the fourth step
+    values = np.column_stack([np.zeros((6, 3)), np.array(targets, dtype=float)])
+    scenario = auv_scenario(fmu_paths["AuvPlant"].parent, "survey", columns, controller=None)
+    with RerunSink(scenario, tmp_path / "run.rrd") as sink:
+        sink.add_rows(times[:3], values[:3])
+        sink.add_rows(times[3:], values[3:])
+    logged = components(tmp_path / "run.rrd", "/events")
+    notes = [
+        (t, text[0])
+        for t, text in zip(logged["sim_time"], logged["TextLog:text"], strict=True)
+        if text[0].startswith("guidance")
+    ]
+    assert [(t.total_seconds(), text) for t, text in notes] == [
+        (0.0, "guidance steers for the waypoint north 50 m, east 0 m, down 2 m"),
+        (0.03, "guidance steers for the waypoint north 50 m, east 20 m, down 3 m"),
+    ]
