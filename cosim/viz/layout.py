@@ -363,7 +363,9 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
 
 def notebook_blueprint(panels: list[PlannedPanel]) -> rrb.Blueprint:
     """The layout for a notebook cell (``cosim.viz.notebook``): the world view beside the
-    heading loop's plots, two columns in the cell's width, every side panel collapsed."""
+    heading loop's plots, two columns in the cell's width, every side panel collapsed; the
+    events log (:data:`NOTES_ENTITY`: events, faults, how the run ended) a tab behind the
+    plots."""
     present = {p.entity: p for p in panels}
     heading = [
         rrb.TimeSeriesView(origin="/" + entity, name=present[entity].title)
@@ -376,9 +378,11 @@ def notebook_blueprint(panels: list[PlannedPanel]) -> rrb.Blueprint:
         line_grid=rrb.LineGrid3D(visible=True, spacing=10.0),
         eye_controls=world_eye(),
     )
-    views: list[rrb.Container | rrb.View] = [world]
+    tabs: list[rrb.Container | rrb.View] = []
     if heading:
-        views.append(rrb.Grid(*heading, grid_columns=PLOT_COLUMNS, name="Heading loop"))
+        tabs.append(rrb.Grid(*heading, grid_columns=PLOT_COLUMNS, name="Heading loop"))
+    tabs.append(rrb.TextLogView(origin=f"/{NOTES_ENTITY}", name="Events"))
+    views: list[rrb.Container | rrb.View] = [world, rrb.Tabs(*tabs, active_tab=0)]
     return rrb.Blueprint(
         rrb.Horizontal(*views, column_shares=[2, 3][: len(views)]),
         rrb.BlueprintPanel(state="collapsed"),

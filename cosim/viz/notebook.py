@@ -11,7 +11,8 @@ the side panels (blueprint, selection, time) collapsed.
 
 The file is loaded into a recording stream with the file's own application and recording
 ids, so the viewer shows one recording; its layout is the notebook's
-(:func:`cosim.viz.layout.notebook_blueprint`: the world view beside the heading loop), or
+(:func:`cosim.viz.layout.notebook_blueprint`: the world view beside the heading loop, the
+events log a tab behind it), or
 a study overlay's own, as rerun forwards a file's data but not the layout stored with it.
 """
 

@@ -206,3 +206,17 @@ def test_the_events_and_faults_log_has_a_view(depth_control: bool) -> None:
     blueprint = build_blueprint(plan_panels(columns), depth_control=depth_control)
     logs = [v for v in _views(blueprint.root_container) if isinstance(v, rrb.TextLogView)]
     assert [view.origin for view in logs] == [f"/{NOTES_ENTITY}"]
+
+
+def test_the_notebook_layout_shows_the_events_log_behind_the_heading_loop() -> None:
+    """Inline in a notebook, a run that failed or was stopped showed plots that simply
+    stopped: its events log (events, faults, how the run ended) was in no view. It is a
+    tab behind the heading loop, which stays the one shown."""
+    from cosim.viz.recording import NOTES_ENTITY
+
+    columns = [s.column for panel in PANELS for s in panel.series]
+    root = notebook_blueprint(plan_panels(columns)).root_container
+    logs = [v for v in _views(root) if isinstance(v, rrb.TextLogView)]
+    assert [view.origin for view in logs] == [f"/{NOTES_ENTITY}"]
+    (tabs,) = [item for item in root.contents if isinstance(item, rrb.Tabs)]
+    assert tabs.contents[tabs.active_tab or 0].name == "Heading loop"
