@@ -186,6 +186,16 @@ class Timeline:
         self.notes: list[tuple[float, str]] = []  # (t, text) not yet handed to the sinks
         self._writer = _Writer(slaves, index, z)
         self._events = [_EventRun(e, self.h) for e in scenario.events]
+        # a point looks only at what can act then: the time events due at it (by point),
+        # the series and the `when` conditions; a time event's state never changes
+        self._due: dict[int, list[_EventRun]] = {}
+        for timed in self._events:
+            if timed.n_fire is not None:
+                self._due.setdefault(timed.n_fire, []).append(timed)
+        self._series = [e for e in self._events if e.event.series is not None]
+        self._stateful = [
+            e for e in self._events if e.event.series is not None or e.event.when is not None
+        ]
         self._ramps: dict[str, tuple[float, float, float, float]] = {}  # ref -> v0, v1, t0, T
         self._faults = [_FaultRun(f, self.h, index) for f in scenario.faults]
         self._flags = [index[f"{FAULT_COLUMN_PREFIX}{f.name}"] for f in scenario.faults]
@@ -213,11 +223,11 @@ class Timeline:
         # instance's own points only: in between, z holds its value from the end of the
         # step it is in, which lies ahead of t_n
         points = round(scenario.coupling.step / self.h)  # points per communication step
-        self._every = {
-            i: k * points if (k := multiples.get(e.when.ref.split(".", 1)[0], 1)) > 1 else 1
-            for i, e in enumerate(scenario.events)
-            if e.when is not None
-        }
+        self._conditions = [
+            (e, when, k * points if (k := multiples.get(when.ref.split(".", 1)[0], 1)) > 1 else 1)
+            for e in self._events
+            if (when := e.event.when) is not None
+        ]
 
     def points(self) -> list[int]:
         """The points n at which something is due to happen whatever the values: time
@@ -240,7 +250,7 @@ class Timeline:
         ]
         return (
             len(self.fired), len(self.overrides), len(self.notes), self.epoch,
-            [(r.was_true, r.fired) for r in self._events], dict(self._ramps), faults,
+            [(r.was_true, r.fired) for r in self._stateful], dict(self._ramps), faults,
             dict(self._saved), dict(self._writer.assigned),
         )  # fmt: skip
 
@@ -248,7 +258,7 @@ class Timeline:
         """Back to :meth:`snapshot`'s state (the FMUs' own values are restored apart)."""
         fired, overrides, notes, self.epoch, events, ramps, faults, kept, assigned = saved
         del self.fired[fired:], self.overrides[overrides:], self.notes[notes:]
-        for event, (was_true, done) in zip(self._events, events, strict=True):
+        for event, (was_true, done) in zip(self._stateful, events, strict=True):
             event.was_true, event.fired = was_true, done
         self._ramps = dict(ramps)
         for fault, (history, last, held, rng) in zip(self._faults, faults, strict=True):
@@ -269,18 +279,15 @@ class Timeline:
     def at(self, n: int) -> None:
         """Everything that happens at communication point n (see the module docstring)."""
         t = n * self.h
-        for run in self._events:
-            if run.n_fire == n:
-                self._fire(run.event, t)
+        for run in self._due.get(n, ()):
+            self._fire(run.event, t)
         if self.live is not None:
             self._apply_overrides(n, t)
         self._advance_ramps(t)
-        for run in self._events:
-            if run.event.series is not None:
-                self._apply_series(run, t)
-        for i, run in enumerate(self._events):
-            condition = run.event.when
-            if condition is None or n % self._every[i]:
+        for run in self._series:
+            self._apply_series(run, t)
+        for run, condition, every in self._conditions:
+            if n % every:
                 continue
             now = condition.holds(self._writer.get(condition.ref))
             crossed = run.was_true is False and now

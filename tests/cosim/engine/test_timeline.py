@@ -9,13 +9,16 @@ controller steps first at t_n, from the plant.x of row n; its output is in row n
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Callable
 from pathlib import Path
+from types import FrameType
 
 import numpy as np
 import pytest
 from scenario_factory import K, loop_toml
 
-from cosim.engine import master
+from cosim.engine import master, timeline
 from cosim.scenario.spec import Scenario, scenario_from_toml
 
 
@@ -156,3 +159,45 @@ def test_an_event_on_a_ramping_variable_ends_the_ramp(test_fmu_dir: Path) -> Non
     back = '[[events]]\nname = "back"\ntime = 0.4\nset = { "plant.u" = 0.0 }\nramp = 0.2\n'
     u = master.run(open_loop(test_fmu_dir, ramp + back)).column("plant.u")
     np.testing.assert_allclose(u, [1, 1, 1, 1.5, 1.5, 0.75, 0, 0, 0, 0, 0], rtol=0, atol=1e-15)
+
+
+def _timeline_lines(fmu_dir: Path, events: int, stop_time: float, algorithm: str) -> int:
+    """Lines of cosim/engine/timeline.py executed by a run of the open loop with ``events``
+    time events (all at t = 0.4 s, so each fires once whatever the stop time)."""
+    extra = "".join(
+        f'[[events]]\nname = "e{i}"\ntime = 0.4\nset = {{ "controller.k" = 4.0 }}\n'
+        for i in range(events)
+    )
+    scenario = open_loop(fmu_dir, extra, stop_time=stop_time, algorithm=algorithm)
+    counted = [0]
+
+    def local(frame: FrameType, event: str, arg: object) -> Callable[..., object]:
+        counted[0] += event == "line"
+        return local
+
+    def tracer(frame: FrameType, event: str, arg: object) -> Callable[..., object] | None:
+        return local if frame.f_code.co_filename == timeline.__file__ else None
+
+    sys.settrace(tracer)
+    try:
+        result = master.run(scenario)
+    finally:
+        sys.settrace(None)
+    assert result.complete, result.error
+    assert len(result.events) == events
+    return counted[0]
+
+
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "adaptive"])
+def test_many_time_events_cost_nothing_per_step_beyond_their_own_firing(
+    test_fmu_dir: Path, algorithm: str
+) -> None:
+    """A scenario of hundreds of time events: what each step spends on them must not grow
+    with their number (every step used to look at every event). Counted in lines the
+    timeline executes: the cost of 60 more events is the same over 5 s as over 10 s."""
+    extra = {
+        stop: _timeline_lines(test_fmu_dir, 61, stop, algorithm)
+        - _timeline_lines(test_fmu_dir, 1, stop, algorithm)
+        for stop in (5.0, 10.0)
+    }
+    assert extra[10.0] - extra[5.0] <= 60, f"60 more events cost {extra} lines (stop 5, 10 s)"
