@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from cosim.outputs import results
 from cosim.outputs.results import csv_header, csv_lines, header_columns, read_csv
 
 doubles = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
@@ -64,3 +66,34 @@ def test_every_column_name_reads_back_as_itself(names: list[str]) -> None:
     line = csv_header(names)
     assert line.endswith("\n") and line.count("\n") == 1
     assert header_columns(line) == ["time", *names]
+
+
+def _read_peak(path: Path) -> tuple[int, np.ndarray]:
+    """tracemalloc's peak (bytes) while :func:`read_csv` reads ``path``, and the table."""
+    tracemalloc.start()
+    try:
+        _, table = read_csv(path)
+        return tracemalloc.get_traced_memory()[1], table
+    finally:
+        tracemalloc.stop()
+
+
+def test_reading_a_long_run_holds_little_beyond_its_table(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A report of a long run (36000 s at 10 ms: a 2 GB results.csv) read the whole text,
+    then a list of its lines, then the numbers: about five times the table at its peak.
+    What it holds beyond the table must not grow with the file; and a torn last row is
+    still skipped."""
+    monkeypatch.setattr(results, "READ_CHUNK_ROWS", 5000)  # both files span several chunks
+    rng = np.random.default_rng(1)
+    overhead = {}
+    for rows in (20_000, 80_000):
+        values = rng.normal(size=(rows, 12))
+        path = tmp_path / f"results{rows}.csv"
+        header = csv_header([f"c{i}" for i in range(12)]).encode()
+        path.write_bytes(header + csv_lines(np.arange(rows) * 0.01, values) + b"1.5,2")
+        peak, table = _read_peak(path)
+        assert np.array_equal(table[:, 1:], values) and table.shape == (rows, 13)
+        overhead[rows] = peak - table.nbytes
+    assert overhead[80_000] < 1.5 * overhead[20_000], f"bytes held beyond the table: {overhead}"
