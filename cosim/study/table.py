@@ -27,7 +27,7 @@ from __future__ import annotations
 import csv
 import io
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import KeysView, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -95,9 +95,11 @@ class RunsTable:
         return table
 
     @property
-    def done(self) -> set[str]:
-        """Ids of the runs in the table (complete or failed)."""
-        return set(self.rows)
+    def done(self) -> KeysView[str]:
+        """Ids of the runs in the table (complete or failed): a view of the rows, so that
+        asking it about each of a study's runs copies nothing (``--resume`` of a table of
+        n rows asks n times)."""
+        return self.rows.keys()
 
     def append(self, run: PlannedRun, record: RunRecord) -> None:
         """Add a finished run's row and flush it to the file, the two as one: a stop

@@ -234,3 +234,29 @@ def test_a_study_folder_named_in_bytes_not_utf8_gets_its_parquet(tmp_path: Path)
     rows = table.finish(RUNS)
     with (folder / "runs.parquet").open("rb") as file:  # (so is a name to read)
         assert pq.read_table(file).to_pylist() == rows
+
+
+class CountingRows(dict):
+    """A table's rows that count the rows handed out by iterating over them."""
+
+    handed_out = 0
+
+    def __iter__(self):
+        for key in super().__iter__():
+            CountingRows.handed_out += 1
+            yield key
+
+
+def test_asking_whether_each_run_is_done_reads_no_other_row(tmp_path: Path) -> None:
+    """``--resume`` of a big table asks, for every run of the study, whether it is done:
+    each question copied every row's id (a study of n runs read n * n ids: 10^10 for the
+    100 000 runs a study may have). Each answer now costs one look-up."""
+    runs = [planned(v / 1000) for v in range(300)]
+    table = RunsTable.create(tmp_path / "runs.csv", FACTORS, METRICS)
+    for run in runs[:200]:
+        table.append(run, record(run))
+    table.rows = CountingRows(table.rows)
+    CountingRows.handed_out = 0
+    todo = [run for run in runs if run.id not in table.done]
+    assert todo == runs[200:] and len(table.done) == 200
+    assert CountingRows.handed_out == 0, f"{CountingRows.handed_out} ids read for 300 questions"
