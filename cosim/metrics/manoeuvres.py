@@ -281,14 +281,58 @@ def depth_steps(
 def survey(cross_track_error: np.ndarray, legs_completed: np.ndarray) -> Metrics:
     """RMS and largest |cross-track error| over the whole run (m), and the legs completed
     at its end (the guidance's own outputs, sampled every communication step)."""
-    error = np.asarray(cross_track_error, dtype=float)
-    if error.size == 0:  # a run stopped before its first row
-        return dict.fromkeys(("cross_track_rms_m", "cross_track_max_m", "legs_completed"))
-    return {
-        "cross_track_rms_m": float(np.sqrt(np.mean(error**2))),
-        "cross_track_max_m": float(np.max(np.abs(error))),
-        "legs_completed": round(float(np.asarray(legs_completed)[-1])),
-    }
+    tracker = SurveyTracker()
+    tracker.add(np.asarray(cross_track_error, dtype=float), np.asarray(legs_completed))
+    return tracker.metrics()
+
+
+SURVEY_BLOCK_ROWS = 1 << 16  # rows of cross-track error squared and summed as one block
+
+
+class SurveyTracker:
+    """:func:`survey` over a run's rows given in consecutive pieces, holding one block of
+    :data:`SURVEY_BLOCK_ROWS` errors and one sum per block before it (a long mission's
+    figures need no row kept). The squares are summed a whole block at a time, so the
+    figures do not depend on how the rows were cut into pieces; a run of one block or less
+    gets the sum over its whole column (numpy's ``mean``)."""
+
+    def __init__(self) -> None:
+        self._block = np.empty(SURVEY_BLOCK_ROWS)
+        self._filled = 0  # errors in the block
+        self._sums: list[float] = []  # of the squares of each full block, m^2
+        self._count = 0
+        self._largest = -math.inf  # |cross-track error| (m); NaN once one was NaN
+        self._legs = math.nan  # the last row's legs completed
+
+    def add(self, cross_track_error: np.ndarray, legs_completed: np.ndarray) -> None:
+        """The next rows' cross-track errors (m) and legs completed (same length)."""
+        if cross_track_error.size == 0:
+            return
+        self._count += cross_track_error.size
+        self._largest = float(np.maximum(self._largest, np.max(np.abs(cross_track_error))))
+        self._legs = float(legs_completed[-1])
+        taken = 0
+        while taken < cross_track_error.size:
+            k = min(SURVEY_BLOCK_ROWS - self._filled, cross_track_error.size - taken)
+            self._block[self._filled : self._filled + k] = cross_track_error[taken : taken + k]
+            self._filled += k
+            taken += k
+            if self._filled == SURVEY_BLOCK_ROWS:
+                self._sums.append(float(np.add.reduce(self._block**2)))
+                self._filled = 0
+
+    def metrics(self) -> Metrics:
+        """The survey's figures over the rows so far (None each without a row)."""
+        if self._count == 0:  # a run stopped before its first row
+            return dict.fromkeys(("cross_track_rms_m", "cross_track_max_m", "legs_completed"))
+        total = np.add.reduce(self._block[: self._filled] ** 2)
+        if self._sums:
+            total = np.add.reduce(np.asarray([*self._sums, total]))
+        return {
+            "cross_track_rms_m": float(np.sqrt(total / self._count)),
+            "cross_track_max_m": self._largest,
+            "legs_completed": round(self._legs),
+        }
 
 
 # --- fault recovery ------------------------------------------------------------------------

@@ -5,7 +5,9 @@ circle's last full turn, a zig-zag's executes), so :class:`ManoeuvreSink` keeps,
 rows stream by, only the time and the few columns its kind reads (a turning circle: five;
 8 bytes a value, about 50 MB over a million rows) and measures them when asked, over the
 rows it has: a run stopped early gets the metrics of what it ran, None where they cannot
-be measured, never an exception.
+be measured, never an exception. A survey's figures need no whole series (a sum, a
+largest value, the last row): :class:`cosim.metrics.manoeuvres.SurveyTracker` takes its
+rows as they come and keeps none, so a survey of any length holds the same memory.
 """
 
 from __future__ import annotations
@@ -17,12 +19,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cosim.engine.rows import NotesIgnored
-from cosim.metrics.manoeuvres import manoeuvre_columns, manoeuvre_metrics, metric_names
+from cosim.metrics.manoeuvres import (
+    VARIABLES,
+    SurveyTracker,
+    manoeuvre_columns,
+    manoeuvre_metrics,
+    metric_names,
+)
 
 if TYPE_CHECKING:
     from cosim.scenario.spec import Scenario
 
 DEPTH_SETPOINT = "depth_setpoint"  # what a depth-steps scenario's time events set
+SURVEY = VARIABLES["survey"]  # cross_track_error, legs_completed: what SurveyTracker reads
 
 
 class ManoeuvreSink(NotesIgnored):
@@ -45,8 +54,14 @@ class ManoeuvreSink(NotesIgnored):
         self._index = [list(record).index(column) for column in used.values()]
         self._times: list[np.ndarray] = []
         self._values: list[np.ndarray] = []
+        # a survey's figures stream: none of its rows is kept
+        self._survey = SurveyTracker() if kind == "survey" else None
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        if self._survey is not None:
+            error, legs = (values[:, self._index[self._names.index(name)]] for name in SURVEY)
+            self._survey.add(np.asarray(error, dtype=float), legs)
+            return
         self._times.append(np.array(times, dtype=float))
         self._values.append(np.asarray(values, dtype=float)[:, self._index])  # a copy
 
@@ -54,19 +69,25 @@ class ManoeuvreSink(NotesIgnored):
         """``{"manoeuvre": kind, <metric>: value, ...}`` over the rows so far; a value that
         is not finite is None. A failure to measure (a run that ended on NaN) leaves every
         metric None and says why in ``manoeuvre_error``."""
-        times = np.concatenate(self._times) if self._times else np.empty(0)
-        values = np.concatenate(self._values) if self._values else np.empty((0, len(self._index)))
-        columns = {"time": times, **dict(zip(self._names, values.T, strict=True))}
         result: dict[str, str | float | int | None] = {"manoeuvre": self.kind}
         try:
             with np.errstate(all="ignore"):  # NaN in, None out
-                metrics = manoeuvre_metrics(self.kind, columns, self.fault_start)
+                metrics = self._measure()
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             result.update(dict.fromkeys(metric_names(self.kind)))
             result["manoeuvre_error"] = f"cannot measure the {self.kind} metrics: {exc}"
             return result
         result.update({name: _finite(value) for name, value in metrics.items()})
         return result
+
+    def _measure(self) -> dict[str, float | int | None]:
+        """The metrics over the rows so far (may raise what the metrics raise)."""
+        if self._survey is not None:
+            return self._survey.metrics()
+        times = np.concatenate(self._times) if self._times else np.empty(0)
+        values = np.concatenate(self._values) if self._values else np.empty((0, len(self._index)))
+        columns = {"time": times, **dict(zip(self._names, values.T, strict=True))}
+        return manoeuvre_metrics(self.kind, columns, self.fault_start)
 
 
 def fault_start(scenario: Scenario) -> float:
