@@ -31,6 +31,11 @@ metrics in a table of their own on the page; a turning circle also gets them mar
 its trajectory: the execute and the original course, advance and transfer at the 90 deg
 point, the tactical diameter at the 180 deg point.
 
+A run of more than :data:`DRAWN_POINTS_MAX` rows (1000 s at 10 ms) is drawn through a
+subset of its points, each line through the extremes of every bucket of consecutive
+points (:func:`drawn_points`): a spike and the line's ends stay, and a 36000 s run's
+report takes what one of 1000 s does to draw.
+
 Every series is optional: a panel whose columns the run did not record is left out, a
 figure with no panel is not written. The page ``report/index.html`` in the run folder
 shows the run's summary (``summary.json``) and links the figures.
@@ -400,6 +405,32 @@ def _has_depth_loop(table: dict[str, np.ndarray]) -> bool:
 # --- figures -------------------------------------------------------------------------------
 
 
+# A line of more points than this is drawn through a subset of them (drawn_points): a
+# figure is ~1000 pixels wide, so 100 000 points (1000 s at 10 ms) draw every run that fits
+# as it is, and a 36000 s run's 3.6 million rows no longer cost minutes and gigabytes
+DRAWN_POINTS_MAX = 100_000
+
+
+def drawn_points(*series: np.ndarray) -> np.ndarray | slice:
+    """Which points of a line through ``series`` (equal lengths, the line's coordinates)
+    to draw: all of them up to :data:`DRAWN_POINTS_MAX`, else, in buckets of consecutive
+    points, the first and last of each and each series' smallest and largest in it (its
+    extremes: a spike stays, and so do the line's ends), in order; at most about
+    :data:`DRAWN_POINTS_MAX` points."""
+    n = len(series[0])
+    if n <= DRAWN_POINTS_MAX:
+        return slice(None)
+    per_bucket = 2 + 2 * len(series)
+    size = -(-n * per_bucket // DRAWN_POINTS_MAX)  # points per bucket, rounded up
+    whole = n // size * size
+    starts = np.arange(0, whole, size)
+    picked = [starts, starts + size - 1, np.arange(whole, n)]
+    for values in series:
+        buckets = values[:whole].reshape(-1, size)  # a NaN is the extreme of its bucket
+        picked += [starts + np.argmin(buckets, axis=1), starts + np.argmax(buckets, axis=1)]
+    return np.unique(np.concatenate(picked))
+
+
 def plot_time_histories(
     table: dict[str, np.ndarray],
     panels: tuple[Panel, ...],
@@ -455,7 +486,9 @@ def _draw_panel(
     for series, values in curves:
         clipped = shown is not None and np.any((values < shown[0]) | (values > shown[1]))
         label = series.label + (" (beyond the axis)" if clipped else "")
-        ax.plot(time[inside], values[inside], "--" if series.dashed else "-",
+        t, v = time[inside], values[inside]
+        some = drawn_points(v)
+        ax.plot(t[some], v[some], "--" if series.dashed else "-",
                 color="tab:gray" if series.dashed else "tab:blue",
                 linewidth=1.0 if series.dashed else 1.3, label=label or None,
                 marker="o" if np.count_nonzero(inside) == 1 else None)  # fmt: skip
@@ -519,7 +552,9 @@ def plot_trajectory(
     ax = fig.add_subplot(1, 2 if three_d else 1, 1)
     if waypoints is not None:
         _plot_waypoints(ax, waypoints)
-    ax.plot(east, north, color="tab:blue", label="track" if waypoints is not None else None)
+    some = drawn_points(east, north, *([] if down is None else [down]))
+    ax.plot(east[some], north[some], color="tab:blue",
+            label="track" if waypoints is not None else None)  # fmt: skip
     ax.plot(east[0], north[0], "o", color="tab:green", label="start")
     ax.plot(east[-1], north[-1], "s", color="tab:red", label="end")
     if marks is not None:
@@ -530,9 +565,9 @@ def plot_trajectory(
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
     ax.set_title("path over ground")
-    if three_d:
+    if three_d and down is not None:
         ax3 = fig.add_subplot(1, 2, 2, projection="3d")
-        ax3.plot(east, north, down, color="tab:blue")
+        ax3.plot(east[some], north[some], down[some], color="tab:blue")
         ax3.set_xlabel("y, east (m)")
         ax3.set_ylabel("x, north (m)")
         ax3.set_zlabel("z, down (m)")
@@ -556,7 +591,8 @@ def plot_lateral_deviation(table: dict[str, np.ndarray], path: Path) -> Path | N
     across = -d_north * math.sin(course) + d_east * math.cos(course)
     fig = Figure(figsize=(9, 3.2))
     ax = fig.subplots()
-    ax.plot(along, across, color="tab:blue")
+    some = drawn_points(along, across)
+    ax.plot(along[some], across[some], color="tab:blue")
     ax.axhline(0.0, color="tab:gray", linestyle="--", linewidth=1.0, label="initial course")
     ax.set_xlabel("distance along the initial course (m)")
     ax.set_ylabel("lateral deviation (m)")

@@ -498,3 +498,51 @@ def test_a_run_folder_named_in_bytes_not_utf8_gets_its_report(tmp_path) -> None:
     run = _sparse_run(tmp_path / os.fsdecode(b"run-\xff"))
     index = write_report(run)
     assert "run-\\udcff" in index.read_text(encoding="utf-8")  # escaped, valid UTF-8
+
+
+def _long_run(run: Path, rows: int) -> float:
+    """A run folder of ``rows`` rows (a circle at 1.5 m/s, sway noise and one spike);
+    returns the spike's sway (m/s)."""
+    from cosim.outputs.results import csv_header, csv_lines
+
+    t = np.arange(rows) * 0.01
+    v = np.random.default_rng(rows).normal(0.0, 0.01, rows)
+    v[rows // 3] = 0.5  # one row out of the noise: a report must still show it
+    heading = t / 100.0
+    values = np.column_stack([np.full(rows, 1.5), v, 150.0 * np.sin(heading),
+                              150.0 * (1.0 - np.cos(heading)), heading])  # fmt: skip
+    run.mkdir()
+    header = csv_header(["plant.u", "plant.v", "plant.north", "plant.east", "plant.yaw"])
+    (run / "results.csv").write_bytes(header.encode() + csv_lines(t, values))
+    return 0.5
+
+
+def test_a_long_run_draws_a_bounded_number_of_points_keeping_every_extreme(
+    tmp_path, monkeypatch
+) -> None:
+    """The report of a 36000 s run drew every one of its 3.6 million rows into each line
+    (3.8 GB and minutes for the figures' paths): the points drawn must not grow with the
+    run, and what a reader looks for -- a spike, the ends of the track -- must stay."""
+    from cosim.viz import report
+
+    monkeypatch.setattr(report, "DRAWN_POINTS_MAX", 2000, raising=False)
+    kept: dict[str, object] = {}
+
+    def keep(fig, path):
+        kept[path.name] = fig
+        path.touch()
+        return path
+
+    monkeypatch.setattr(report, "_save", keep)
+    drawn = {}
+    for rows in (40_000, 160_000):
+        spike = _long_run(tmp_path / f"run{rows}", rows)
+        kept.clear()
+        write_report(tmp_path / f"run{rows}")
+        lines = [line for fig in kept.values() for ax in fig.axes for line in ax.lines]
+        drawn[rows] = max(len(line.get_xdata()) for line in lines)
+        sway = [line for line in kept["velocities.png"].axes[1].lines if line.get_label() != ""]
+        assert max(float(np.max(line.get_ydata())) for line in sway) == spike
+        track = kept["trajectory.png"].axes[0].lines[0]
+        assert track.get_xdata()[-1] == 150.0 * (1.0 - np.cos((rows - 1) * 0.01 / 100.0))
+    assert drawn[160_000] <= 2000 and drawn[40_000] <= 2000, f"points in a line: {drawn}"
