@@ -4,6 +4,8 @@ ratios (best of ``--repeat`` interleaved runs):
 
 * an event at the stop time (the event loop runs, nothing fires until the end);
 * a gain fault of 1.0 over the whole run on plant.tunnel_force (delivered every step);
+* 500 events at the stop time (a point looks only at the events due at it: about the
+  ratio of one event);
 
 and the plain loop's own figure, so a change to it shows. A scenario without events or
 faults runs the same loop (``cosim.engine.master._loop``) with no-op calls: its cost is the
@@ -27,6 +29,11 @@ VARIANTS = {
     ),
     "gain fault every step": (
         '\n[[faults]]\nkind = "gain"\ntarget = "plant.tunnel_force"\nvalue = 1.0\n'
+    ),
+    "500 events at the stop time": "".join(
+        f'\n[[events]]\nname = "e{i}"\ntime = {{stop_time}}\n'
+        f'set = {{{{ "controller.yaw_setpoint" = 0.1 }}}}\n'
+        for i in range(500)
     ),
 }
 
