@@ -25,11 +25,21 @@
 #define PYTHONFMU_ASCII_ONLY 0
 #endif
 
-/* The process-wide locks: runtime.c's search for Python, forward.c's loading of
- * pythonfmu's library. */
+/* The locks of this copy of the runtime: runtime.c's search for Python, forward.c's
+ * loading of pythonfmu's library. */
 enum { LOCK_RUNTIME, LOCK_WRAPPER, LOCKS };
 void platform_lock(int which);
 void platform_unlock(int which);
+
+/* Held while a copy of this runtime checks whether CPython is initialised and initialises
+ * it: each FMU, and each extraction of one, loads a copy of its own with its own locks
+ * above, and two copies initialising CPython at once from two threads abort the process.
+ * POSIX: flock on the libpython file (two descriptors of one file exclude each other, in
+ * one process too; another process starting the same libpython waits for this one's
+ * initialisation); Windows: a mutex named after the process. NULL when it cannot be taken:
+ * then unheld, as before. */
+void *platform_hold_python(const char *libpython);
+void platform_release_python(void *held);
 
 /* The environment variable ``name`` in ``out`` (truncated to size), or NULL when unset. */
 const char *platform_getenv(const char *name, char *out, size_t size);

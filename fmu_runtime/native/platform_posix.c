@@ -17,8 +17,10 @@
 #include <pthread.h>
 #include <signal.h>
 #include <spawn.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -36,6 +38,27 @@ static pthread_mutex_t locks[LOCKS] = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_MUTEX_
 
 void platform_lock(int which) { pthread_mutex_lock(&locks[which]); }
 void platform_unlock(int which) { pthread_mutex_unlock(&locks[which]); }
+
+void *platform_hold_python(const char *libpython)
+{
+    int fd = open(libpython, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return NULL;
+    while (flock(fd, LOCK_EX) != 0) {
+        if (errno != EINTR) {
+            close(fd);
+            return NULL;
+        }
+    }
+    return (void *)(intptr_t)(fd + 1); /* never NULL */
+}
+
+void platform_release_python(void *held)
+{
+    if (!held) return;
+    int fd = (int)((intptr_t)held - 1);
+    flock(fd, LOCK_UN);
+    close(fd);
+}
 
 const char *platform_getenv(const char *name, char *out, size_t size)
 {

@@ -74,6 +74,31 @@ static SRWLOCK locks[LOCKS] = {SRWLOCK_INIT, SRWLOCK_INIT};
 void platform_lock(int which) { AcquireSRWLockExclusive(&locks[which]); }
 void platform_unlock(int which) { ReleaseSRWLockExclusive(&locks[which]); }
 
+void *platform_hold_python(const char *libpython)
+{
+    (void)libpython; /* one mutex per process, whichever CPython */
+    char name[64];
+    snprintf(name, sizeof name, "Local\\auv-fmu-runtime-python-%lu",
+             (unsigned long)GetCurrentProcessId());
+    wchar_t *w = wide(name);
+    HANDLE mutex = w ? CreateMutexW(NULL, FALSE, w) : NULL;
+    free(w);
+    if (!mutex) return NULL;
+    DWORD waited = WaitForSingleObject(mutex, INFINITE);
+    if (waited != WAIT_OBJECT_0 && waited != WAIT_ABANDONED) {
+        CloseHandle(mutex);
+        return NULL;
+    }
+    return mutex;
+}
+
+void platform_release_python(void *held)
+{
+    if (!held) return;
+    ReleaseMutex(held);
+    CloseHandle(held);
+}
+
 /* The variable's UTF-16 value (malloc'd), or NULL when unset or empty. */
 static wchar_t *wide_variable(const char *name)
 {

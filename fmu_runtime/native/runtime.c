@@ -246,6 +246,24 @@ static int configure(const Answer *a, char *why, size_t n)
     return result != NULL;
 }
 
+/* Initialise the candidate's libpython, loaded and checked: 1, or 0 with ``why``. */
+static int initialise(const Answer *a, char *why, size_t n)
+{
+    platform_library_open(a->libpython, 1); /* loaded already: now for extensions too */
+    wchar_t *home = py.DecodeLocale(a->base_prefix, NULL);
+    py.SetPythonHome(home); /* copies it (3.8 and later) */
+    if (home) py.RawFree(home);
+    /* Python's UTF-8 mode (PEP 540; the default from 3.15, PEP 686): file names are UTF-8
+     * whatever the host's locale. Under the C locale of a host started without LANG (env
+     * -i, a service, a container) Python would take them for ASCII, and an FMU extracted
+     * under a folder with a non-ASCII name could not be imported. */
+    if (py.UTF8Mode) *py.UTF8Mode = 1;
+    py.InitializeEx(0); /* 0: no signal handlers, the host keeps its own */
+    int ok = configure(a, why, n);
+    py.SaveThread(); /* the GIL is taken with PyGILState_Ensure in every call */
+    return ok;
+}
+
 /* Load the candidate's libpython, check it, initialise it; 1, or 0 with ``why``. */
 static int start(const Answer *a, char *why, size_t n)
 {
@@ -264,22 +282,13 @@ static int start(const Answer *a, char *why, size_t n)
     } else if (python_version(&major, &minor), major != a->major || minor != a->minor) {
         snprintf(why, n, "its libpython %s is Python %d.%d, not %d.%d", a->libpython, major,
                  minor, a->major, a->minor);
-    } else if (!py.IsInitialized()) {
-        platform_library_open(a->libpython, 1); /* loaded already: now for extensions too */
-        wchar_t *home = py.DecodeLocale(a->base_prefix, NULL);
-        py.SetPythonHome(home); /* copies it (3.8 and later) */
-        if (home) py.RawFree(home);
-        /* Python's UTF-8 mode (PEP 540; the default from 3.15, PEP 686): file names are
-         * UTF-8 whatever the host's locale. Under the C locale of a host started without
-         * LANG (env -i, a service, a container) Python would take them for ASCII, and an
-         * FMU extracted under a folder with a non-ASCII name could not be imported. */
-        if (py.UTF8Mode) *py.UTF8Mode = 1;
-        py.InitializeEx(0); /* 0: no signal handlers, the host keeps its own */
-        int ok = configure(a, why, n);
-        py.SaveThread(); /* the GIL is taken with PyGILState_Ensure in every call */
-        return ok;
     } else {
-        return 1; /* started meanwhile by another copy of this runtime, from this library */
+        /* another copy of this runtime (another FMU, another extraction) may be starting
+         * it in another thread right now: checked and started under one lock */
+        void *held = platform_hold_python(a->libpython);
+        int ok = py.IsInitialized() || initialise(a, why, n); /* or started meanwhile */
+        platform_release_python(held);
+        return ok;
     }
     memset(&py, 0, sizeof py);
     platform_library_close(library);

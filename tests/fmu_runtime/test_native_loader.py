@@ -177,6 +177,24 @@ def test_one_build_extracted_twice_runs_in_one_process(
 
 
 @pytest.mark.slow
+def test_two_extractions_instantiated_first_at_once_from_threads_start_python_once(
+    host, extracted, clean_home, tmp_path
+):
+    """A parallel master that instantiates each FMU in its own worker thread, in a process
+    without Python: each extraction loads its own copy of the runtime, and both copies
+    started CPython at once (about one run in two aborted: "Fatal Python error:
+    pyinit_core_reconfigure", or a double free). Ten fresh processes, each with both
+    first instances initialised and stepped."""
+    second = tmp_path / "second"
+    shutil.copytree(extracted["AuvPlant"], second)
+    for run in range(10):
+        done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "race", second], clean_home)
+        assert done.returncode == 0 and "race: 0 0" in done.stdout, (
+            run, done.stdout[-2000:] + done.stderr[-2000:]
+        )  # fmt: skip
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "runtime"),
     [*((name, "runtime") for name in sorted(FMUS)), ("AuvPlant", "pythonfmu")],

@@ -11,6 +11,11 @@
  *                                   fmi2Instantiate), then a valid step after them
  *   fmi_host DIR ID twice DIR2      one build extracted twice (DIR, DIR2), an instance of
  *                                   each, stepped in turn: prints "<case> <status>"
+ *   fmi_host DIR ID race DIR2       the first instances in the process of two extractions
+ *                                   (two copies of the runtime), instantiated at once from
+ *                                   two threads, then initialised and stepped there:
+ *                                   prints "race: S1 S2" (the worst status of each, 9 for
+ *                                   NULL from fmi2Instantiate)
  *   fmi_host DIR ID abandon         instantiate, initialise, step, then exit without
  *                                   terminating or freeing; prints "abandoned"
  *   fmi_host DIR ID gil             instantiate and initialise (the runtime starts
@@ -349,6 +354,41 @@ static int twice(const Fmu *first, const char *dir, const char *id)
     }
     printf("steps %d\n", worst);
     for (int k = 0; k < 2; k++) stop(fmus[k], c[k]);
+    return 0;
+}
+
+typedef struct {
+    Fmu f;
+    int status;
+} Racer;
+
+/* The first instance of its extraction: instantiated, initialised, stepped and freed. */
+static void *race_one(void *data)
+{
+    Racer *r = data;
+    Component c = r->f.instantiate("host", 1, r->f.guid, r->f.resources, &callbacks, 0, 0);
+    if (!c) {
+        r->status = 9;
+        return NULL;
+    }
+    r->status = r->f.setup(c, 0, 0.0, 0.0, 0, 0.0); /* in this order: one call a line */
+    r->status = worse(r->status, r->f.enter_init(c));
+    r->status = worse(r->status, r->f.exit_init(c));
+    r->status = worse(r->status, r->f.do_step(c, 0.0, 0.01, 1));
+    stop(&r->f, c);
+    return NULL;
+}
+
+static int race(const Fmu *first, const char *dir, const char *id)
+{
+    static Racer racers[2];
+    racers[0].f = *first;
+    load(&racers[1].f, dir, id);
+    quiet = 1;
+    pthread_t threads[2];
+    for (int k = 0; k < 2; k++) pthread_create(&threads[k], NULL, race_one, &racers[k]);
+    for (int k = 0; k < 2; k++) pthread_join(threads[k], NULL);
+    printf("race: %d %d\n", racers[0].status, racers[1].status);
     return 0;
 }
 
@@ -737,6 +777,7 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "illegal")) return illegal(&f);
     if (!strcmp(mode, "hostile")) return hostile(&f);
     if (!strcmp(mode, "twice") && argc == 5) return twice(&f, argv[4], argv[2]);
+    if (!strcmp(mode, "race") && argc == 5) return race(&f, argv[4], argv[2]);
     if (!strcmp(mode, "abandon")) return abandon(&f);
     if (!strcmp(mode, "gil")) return gil(&f);
     if (!strcmp(mode, "state")) return state(&f);
