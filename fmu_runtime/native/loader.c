@@ -863,14 +863,20 @@ FMI2_EXPORT fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueRefer
 }
 
 /* An Integer's or Boolean's values as doubles for the checks (on the stack for the usual
- * few values). */
+ * few values). NULL arrays are refused first, then a count whose doubles would not fit in
+ * size_t: malloc(n * 8) took it for a few bytes, and the copy wrote past them. */
 static fmi2Status set_ints(Instance *c, char type, const fmi2ValueReference vr[], size_t n,
                            const int values[], const char *call)
 {
+    NEED(vr, "value-reference array", call);
+    NEED(values, "value array", call);
+    if (n > SIZE_MAX / sizeof(double)) {
+        return refuse(c, "%s refused: n = %zu values, more than memory can hold", call, n);
+    }
     double buffer[16], *x = n <= 16 ? buffer : malloc(n * sizeof(double));
     if (!x) return refuse(c, "%s refused: out of memory for %zu values", call, n);
-    for (size_t i = 0; values && i < n; i++) x[i] = type == 'B' ? values[i] != 0 : values[i];
-    fmi2Status s = set(c, type, vr, n, values, values ? x : NULL, call);
+    for (size_t i = 0; i < n; i++) x[i] = type == 'B' ? values[i] != 0 : values[i];
+    fmi2Status s = set(c, type, vr, n, values, n ? x : NULL, call); /* as before for n = 0 */
     if (x != buffer) free(x);
     return s;
 }

@@ -125,6 +125,7 @@ HOSTILE = [  # what FMI hosts pass: each refused, with one Error line
     "setInteger-null-references", "setInteger-null-values", "getString-null-values",
     "setString-null-values", "setString-null-string", "deSerialize-null-bytes",
     "deSerialize-null-state", "getFMUstate-null-state", "serialize-null-bytes",
+    "setInteger-count-overflow", "setBoolean-count-overflow",
 ]  # fmt: skip
 REFUSED_INSTANTIATIONS = [
     "instantiate-null-name", "instantiate-null-guid", "instantiate-wrong-guid",

@@ -6,9 +6,10 @@
  *   fmi_host DIR ID illegal         each call FMI 2.0 forbids, on a fresh instance;
  *                                   prints "<case> <status>" per case, then whether a
  *                                   valid call still works after the refusals
- *   fmi_host DIR ID hostile         NULL arguments FMI hosts pass, and wrong GUIDs: prints
- *                                   "<case> <status>" (or NULL / instance for
- *                                   fmi2Instantiate), then a valid step after them
+ *   fmi_host DIR ID hostile         NULL arguments FMI hosts pass, wrong GUIDs, and value
+ *                                   counts too large for any array: prints "<case>
+ *                                   <status>" (or NULL / instance for fmi2Instantiate),
+ *                                   then a valid step after them
  *   fmi_host DIR ID twice DIR2      one build extracted twice (DIR, DIR2), an instance of
  *                                   each, stepped in turn: prints "<case> <status>"
  *   fmi_host DIR ID race DIR2       the first instances in the process of two extractions
@@ -79,6 +80,7 @@ typedef struct {
     int (*set_real)(Component, const Vr *, size_t, const double *);
     int (*get_integer)(Component, const Vr *, size_t, int *);
     int (*set_integer)(Component, const Vr *, size_t, const int *);
+    int (*set_boolean)(Component, const Vr *, size_t, const int *);
     int (*get_string)(Component, const Vr *, size_t, const char **);
     int (*set_string)(Component, const Vr *, size_t, const char *const *);
     int (*get_state)(Component, void **);
@@ -138,6 +140,7 @@ static void load(Fmu *f, const char *dir, const char *id)
     *(void **)&f->set_real = need(library, "fmi2SetReal");
     *(void **)&f->get_integer = need(library, "fmi2GetInteger");
     *(void **)&f->set_integer = need(library, "fmi2SetInteger");
+    *(void **)&f->set_boolean = need(library, "fmi2SetBoolean");
     *(void **)&f->get_string = need(library, "fmi2GetString");
     *(void **)&f->set_string = need(library, "fmi2SetString");
     *(void **)&f->get_state = need(library, "fmi2GetFMUstate");
@@ -194,6 +197,9 @@ static int cycles(const Fmu *f, int n, int steps)
     printf("cycles: %d x %d ok\n", n, steps);
     return 0;
 }
+
+static size_t variables(const Fmu *f, const char *type, const char *causality, Vr *vrs,
+                        size_t room);
 
 /* The first variable in resources/fmu_variables.txt matching a type, causality and
  * variability ("*" for any) that declares a min or max if ``bounded``: its vr, start and a
@@ -324,6 +330,19 @@ static int hostile(const Fmu *f)
     printf("deSerialize-null-bytes %d\n", f->deserialize(c, NULL, 64, &state));
     printf("deSerialize-null-state %d\n", f->deserialize(c, "0123456789abcdef", 16, NULL));
     printf("getFMUstate-null-state %d\n", f->get_state(c, NULL));
+    /* a count whose doubles overflow size_t (8 bytes each): two values given, the count
+     * a host computed wrongly; refused before any value past the two is read */
+    Vr two[2];
+    int values[2] = {0, 0};
+    size_t wrapping = (size_t)-1 / sizeof(double) + 2;
+    if (variables(f, "I", "parameter", two, 1) == 1) {
+        two[1] = two[0];
+        printf("setInteger-count-overflow %d\n", f->set_integer(c, two, wrapping, values));
+    }
+    if (variables(f, "B", "parameter", two, 1) == 1) {
+        two[1] = two[0];
+        printf("setBoolean-count-overflow %d\n", f->set_boolean(c, two, wrapping, values));
+    }
     if (f->get_state(c, &state) == 0) {
         printf("serialize-null-bytes %d\n", f->serialize(c, state, NULL, 64));
         f->free_state(c, &state);
