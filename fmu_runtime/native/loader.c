@@ -398,8 +398,16 @@ static fmi2Status check_writes(Instance *c, const fmi2ValueReference vr[], size_
     return fmi2OK;
 }
 
+/* Reads of unknown value references or of the wrong type are refused; so are, before
+ * initialisation mode, reads of a variable without a start value (the outputs declared
+ * initial="calculated"): it has no value until the FMU computes it there, and its slot
+ * would answer 0.0 as if it were one. FMI 2.0's state table allows no fmi2Get* before
+ * initialisation mode (the Reference FMUs refuse them all); the parameters and inputs are
+ * still answered there (their start, or the value written), as hosts read them to show or
+ * check them. */
 static fmi2Status check_reads(Instance *c, const fmi2ValueReference vr[], size_t n, char type)
 {
+    int early = c->phase == INSTANTIATED;
     for (size_t i = 0; i < n; i++) {
         const Variable *v = variable(c, vr[i]);
         if (!v) {
@@ -410,6 +418,11 @@ static fmi2Status check_reads(Instance *c, const fmi2ValueReference vr[], size_t
             return refuse(c, "get%s refused: %s is %s %s, not %s %s", type_name(type), v->name,
                           article(type_name(v->type)), type_name(v->type),
                           article(type_name(type)), type_name(type));
+        }
+        if (early && type != 'S' && isnan(v->start)) {
+            return refuse(c, "get%s refused: %s has no value before initialisation mode (it "
+                          "is computed there: call enterInitializationMode, then read it)",
+                          type_name(type), v->name);
         }
     }
     return fmi2OK;

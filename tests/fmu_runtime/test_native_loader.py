@@ -57,6 +57,7 @@ ILLEGAL = {  # case printed by the host -> what the standard forbids
     "second-terminate": "fmi2Terminate twice",
     "setupExperiment-stop-before-start": "a stop time before the start time",
     "doStep-past-stop-time": "a step ending past the stop time given to setupExperiment",
+    "getReal-output-before-initialisation": "an output read before it has a value",
 }
 CANDIDATE_LINE = re.compile(
     r"^log host \[3\] \{logStatusError\} no Python for this FMU: (\d)\. (.+)$"
@@ -110,6 +111,7 @@ def test_calls_the_standard_forbids_return_fmi2error(name, runtime, host, extrac
         [*ILLEGAL, *ranges], "3"
     )
     assert statuses["valid-step-after-refusals"] == "0"
+    assert statuses["getReal-parameter-before-initialisation"] == "0"
     assert statuses["valid-terminate-after-refusals"] == "0"
     assert statuses["valid-initialisation-after-refusals"] == "0"
     assert statuses["valid-setup-after-refusals"] == statuses["valid-steps-to-stop-time"] == "0"

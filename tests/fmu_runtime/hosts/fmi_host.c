@@ -5,7 +5,8 @@
  *                                   10 ms, terminate, free; prints "cycles: N x STEPS ok"
  *   fmi_host DIR ID illegal         each call FMI 2.0 forbids, on a fresh instance;
  *                                   prints "<case> <status>" per case, then whether a
- *                                   valid call still works after the refusals
+ *                                   valid call still works after the refusals (and
+ *                                   whether a parameter is read before initialisation)
  *   fmi_host DIR ID hostile         NULL arguments FMI hosts pass, wrong GUIDs, and value
  *                                   counts too large for any array: prints "<case>
  *                                   <status>" (or NULL / instance for fmi2Instantiate),
@@ -226,6 +227,21 @@ static int find(const Fmu *f, const char *type, const char *causality, const cha
     return found;
 }
 
+/* The first Real output without a start value (initial="calculated"): 1 with its vr. */
+static int unstarted_output(const Fmu *f, Vr *vr)
+{
+    char path[4300], line[512], t[4], ca[32], va[32], lo[40], hi[40], st[40];
+    snprintf(path, sizeof path, "%s/fmu_variables.txt", f->resources + 7);
+    FILE *in = fopen(path, "r");
+    int found = 0;
+    while (in && !found && fgets(line, sizeof line, in)) {
+        found = sscanf(line, "%u %3s %31s %31s %39s %39s %39s", vr, t, ca, va, lo, hi, st) == 7 &&
+                !strcmp(t, "R") && !strcmp(ca, "output") && !strcmp(st, "-");
+    }
+    if (in) fclose(in);
+    return found;
+}
+
 static int worse(int worst, int status) { return status > worst ? status : worst; }
 
 static void illegal_sequence(const Fmu *f)
@@ -240,6 +256,15 @@ static void illegal_sequence(const Fmu *f)
 
     c = start(f, 0);
     printf("doStep-before-initialisation %d\n", f->do_step(c, 0.0, 0.01, 1));
+    Vr out, parameter;
+    double x = 0.0;
+    if (unstarted_output(f, &out)) { /* it has no value before initialisation mode */
+        printf("getReal-output-before-initialisation %d\n", f->get_real(c, &out, 1, &x));
+    }
+    if (variables(f, "R", "parameter", &parameter, 1) == 1) { /* its start value */
+        printf("getReal-parameter-before-initialisation %d\n",
+               f->get_real(c, &parameter, 1, &x));
+    }
     f->free_instance(c);
 
     c = start(f, 1);
