@@ -14,6 +14,9 @@ Python runner.
 * ``test_fmu_dir`` (session): the folder holding the master tests' FMUs built from
   tests/fmus (``CosimTestIntegrator.fmu``, ``CosimTestGain.fmu``).
 * Every test using ``fmu_paths`` or ``test_fmu_dir`` is marked ``fmu``.
+* Hypothesis runs without its deadline (an example over 200 ms failed as
+  DeadlineExceeded): on a loaded machine that is a timed assertion, which the suite
+  makes nowhere; the examples' count bounds a property test's time.
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
   ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured), in a process group
@@ -36,11 +39,15 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 from process_group import run_in_group
 
 import cosim
 from cosim.errors import CosimError
 from cosim.fmus.build import FMUS, build_fmu, pythonfmu_build
+
+settings.register_profile("untimed", deadline=None)
+settings.load_profile("untimed")
 
 
 class BuiltFmus(dict):
