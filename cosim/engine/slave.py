@@ -13,7 +13,6 @@ from __future__ import annotations
 import collections
 import ctypes
 import hashlib
-import multiprocessing.util
 import os
 import shutil
 import tempfile
@@ -38,6 +37,7 @@ from fmpy.fmi2 import (
 from cosim.engine.extrapolation import InputRates
 from cosim.errors import CosimError
 from cosim.scenario.spec import Instance
+from cosim.scratch import process_folder
 from fmu_runtime import exit_guard
 from fmu_runtime.log_text import shortened
 
@@ -319,14 +319,9 @@ def unzipped(fmu_path: Path) -> Path:
         return shared
     own = _unzipped_dirs.get(digest)
     if own is None or not _whole(own, fmu_path):
-        folder = _unzipped_dirs[digest] = _extracted(fmu_path)
-        # Removed as this process ends, by multiprocessing's finalizers: they run at exit
-        # (atexit) and where a multiprocessing child (each Dask worker process) ends by
-        # os._exit, past atexit, which left every worker's extractions behind; and only in
-        # the process that registered them, not in one forked from it.
-        multiprocessing.util.Finalize(
-            None, shutil.rmtree, args=(folder,), kwargs={"ignore_errors": True}, exitpriority=0
-        )
+        # in this process's scratch folder: removed as the process ends, or by the next
+        # process if this one is killed outright (cosim.scratch)
+        _unzipped_dirs[digest] = _extracted(fmu_path)
     return _unzipped_dirs[digest]
 
 
@@ -344,12 +339,13 @@ def _whole(folder: Path, fmu_path: Path) -> bool:
 
 
 def _extracted(fmu_path: Path) -> Path:
-    """``fmu_path`` extracted into a new temporary folder (``TMPDIR``). An extraction the
+    """``fmu_path`` extracted into a new folder in this process's scratch folder
+    (:func:`cosim.scratch.process_folder`, in ``TMPDIR``). An extraction the
     system refuses (a full disk, a file size limit: ``ulimit -f``) is a :class:`CosimError`
     naming the FMU, the temporary folder and why, and the partly extracted folder goes."""
     folder: Path | None = None
     try:
-        folder = Path(tempfile.mkdtemp())
+        folder = Path(tempfile.mkdtemp(dir=process_folder()))
         extract(str(fmu_path), unzipdir=str(folder))
     except OSError as exc:
         if folder is not None:

@@ -36,6 +36,7 @@ import ast
 import asyncio
 import hashlib
 import logging
+import multiprocessing.util
 import os
 import shutil
 import socket
@@ -57,6 +58,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
 
+from cosim.scratch import claim
 from cosim.study import fork_server
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
@@ -571,6 +573,9 @@ def _forked_workers() -> Iterator[None]:
     import distributed.utils
 
     distributed.utils._forkserver_preload_set = True  # Dask's own preload comes too late
+    # the fork server's socket is in multiprocessing's pymp-* folder, which a study killed
+    # outright leaves: the next process removes it with this one's scratch folder
+    claim(Path(multiprocessing.util.get_temp_dir()))
     with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
         yield
 

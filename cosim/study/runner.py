@@ -34,6 +34,7 @@ from cosim.paths import DEFAULT_FMU_DIR
 from cosim.scenario import unit_doubts
 from cosim.scenario.checks import range_text
 from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
+from cosim.scratch import process_folder
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
@@ -286,13 +287,14 @@ class _Session:
 
     def unpacked(self, base: Base) -> dict[str, str]:
         """A local cluster's FMUs extracted here, once, for all its workers (in a folder
-        removed with the session; :mod:`cosim.study.unpacked`), while the cluster may
+        removed with the session, or by the next process if this one is killed:
+        :mod:`cosim.scratch`; :mod:`cosim.study.unpacked`), while the cluster may
         still be starting; none for a remote cluster, whose workers extract their own."""
         if self.cluster.scheduler is not None:
             return {}
         if self.folder is None:
             folder = tempfile.TemporaryDirectory(
-                prefix="auv-cosim-fmus-", ignore_cleanup_errors=True
+                prefix="auv-cosim-fmus-", dir=process_folder(), ignore_cleanup_errors=True
             )
             self.folder = Path(self.stack.enter_context(folder))
         return unpack(base.fmu_paths, self.folder)

@@ -35,6 +35,7 @@ from cosim.runner import run_scenario
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
 from cosim.scenario.timeline_spec import unreached
 from cosim.scenario.unit_doubts import doubts
+from cosim.scratch import process_folder
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
 
@@ -166,7 +167,9 @@ def run_one(
     loop_s = 0.0
     try:
         scenario = _scenario(base, fmu_paths, factors, values, carried)
-        with tempfile.TemporaryDirectory(prefix="auv-cosim-run-") as tmp:
+        # in the process's scratch folder, which the next process removes if this one is
+        # killed mid-run (cosim.scratch)
+        with tempfile.TemporaryDirectory(prefix="auv-cosim-run-", dir=process_folder()) as tmp:
             outcome = run_scenario(
                 scenario,
                 Path(tmp),

@@ -117,5 +117,6 @@ def test_a_worker_removes_the_fmus_it_extracted_when_it_ends(fmu_paths, run_pyth
     )
     assert done.returncode == 0, done.stderr[-2000:]
     folder, was_there = done.stdout.split()[-2:]
-    assert Path(folder).parent == tmp_path and was_there == "True"
+    assert Path(folder).is_relative_to(tmp_path) and was_there == "True"
     assert not Path(folder).exists(), f"the worker left {folder}"
+    assert not Path(folder).parent.exists(), "the worker left its scratch folder"

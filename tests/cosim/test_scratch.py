@@ -1,0 +1,68 @@
+"""Each process's scratch folder: removed as the process ends, and by a later process's
+purge once the process is gone however it ended (SIGKILL included), with the paths it
+claimed; never while its process lives."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+from cosim import scratch
+
+# a process that makes its scratch folder and a claimed folder beside it, says where, then
+# either waits for its standard input to close or kills itself
+MAKER = """
+import os, signal, sys, tempfile
+from pathlib import Path
+from cosim import scratch
+folder = scratch.process_folder()
+claimed = Path(tempfile.mkdtemp(prefix="claimed-"))
+scratch.claim(claimed)
+print(folder, claimed, flush=True)
+if sys.argv[1] == "kill":
+    os.kill(os.getpid(), signal.SIGKILL)
+sys.stdin.read()
+"""
+
+
+@contextlib.contextmanager
+def maker(tmpdir: Path, how: str) -> Iterator[subprocess.Popen]:
+    """MAKER run with ``how`` in a process group of its own, killed on the way out."""
+    env = {**os.environ, "TMPDIR": str(tmpdir), "PYTHONPATH": os.pathsep.join(sys.path)}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", MAKER, how], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+        text=True, env=env, start_new_session=True,
+    )  # fmt: skip
+    try:
+        yield proc
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+
+
+def test_a_killed_process_folder_and_claims_go_at_the_next_purge(tmp_path: Path) -> None:
+    with maker(tmp_path, "kill") as proc:
+        out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL
+    folder, claimed = map(Path, out.split())
+    assert folder.is_dir() and claimed.is_dir()
+    assert scratch.purge(tmp_path / scratch.SCRATCH_DIR) == [folder]
+    assert not folder.exists() and not claimed.exists()
+    assert not Path(f"{folder}{scratch.LOCK_SUFFIX}").exists()
+
+
+def test_a_live_process_folder_stays_and_goes_as_it_ends(tmp_path: Path) -> None:
+    with maker(tmp_path, "wait") as proc:
+        assert proc.stdout is not None
+        folder, claimed = map(Path, proc.stdout.readline().split())
+        assert scratch.purge(tmp_path / scratch.SCRATCH_DIR) == []
+        assert folder.is_dir() and claimed.is_dir()
+        proc.communicate(timeout=60)  # its standard input closes: it ends normally
+    assert proc.returncode == 0
+    assert not folder.exists() and not Path(f"{folder}{scratch.LOCK_SUFFIX}").exists()
