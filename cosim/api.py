@@ -35,6 +35,7 @@ from cosim.engine.signals import REASONS
 from cosim.errors import KEYWORDS, CosimError
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.runner import RunOptions, execute
+from cosim.scratch import process_folder
 
 if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on import
     import pandas as pd
@@ -284,13 +285,19 @@ def run(
     return _executed(scenario, options, in_memory=out is None)
 
 
+def _temporary_folder() -> tempfile.TemporaryDirectory[str]:
+    """A folder for a run or study kept in memory, in this process's scratch folder: a
+    kernel killed meanwhile (the OOM killer) leaves it to the next run (cosim.scratch)."""
+    return tempfile.TemporaryDirectory(prefix="auv-cosim-", dir=process_folder())
+
+
 def _executed(scenario: str | Path | Scenario, options: RunOptions, in_memory: bool) -> Run:
     """:func:`run`'s run of ``scenario``, in a temporary folder removed after it when
     ``in_memory``; a run that failed raises :class:`RunError`, one a stop signal ended
     :class:`RunInterrupted`."""
     with ExitStack() as stack:
         if in_memory:
-            temporary = stack.enter_context(tempfile.TemporaryDirectory(prefix="auv-cosim-"))
+            temporary = stack.enter_context(_temporary_folder())
             options = dataclasses.replace(options, out_dir=Path(temporary) / "run")
         outcome = execute(scenario, options)
         finished = _run_of(outcome, None if in_memory else outcome.out_dir.absolute())
@@ -420,7 +427,7 @@ def _swept(
     with ExitStack() as stack:
         temporary = None
         if out is None or isinstance(study, Mapping):
-            temporary = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="auv-cosim-")))
+            temporary = Path(stack.enter_context(_temporary_folder()))
         study_file = _study_file(study, temporary)
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
         label = DICT_LABEL if isinstance(study, Mapping) else None

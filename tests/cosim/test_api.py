@@ -32,6 +32,7 @@ from cosim.errors import CosimError
 from cosim.runner import NotStartedError
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import SCENARIO_FOLDER, load_scenario, scenario_from_toml
+from cosim.scratch import SCRATCH_DIR
 from cosim.study.spec import StudyError
 
 ACCEPTANCE = (
@@ -96,7 +97,7 @@ def test_run_keeps_results_in_memory_and_leaves_no_folder(
     monkeypatch.chdir(tmp_path)
     run = cosim.run("bs-3", stop_time=0.5, fmu_dir=fmu_dir)
     assert run.out_dir is None and run.complete
-    left = [p.name for p in scratch.iterdir() if p.name.startswith("auv-cosim-")]
+    left = [p.name for p in scratch.rglob("auv-cosim-*") if p.name != SCRATCH_DIR]
     assert left == [] and not (tmp_path / "runs").exists()  # (fmpy's unzipped FMUs stay)
     results = run.results
     assert results.index.name == "time" and results.shape == (51, len(run.scenario.columns))
@@ -900,12 +901,13 @@ import cosim
 from cosim.errors import CosimError
 
 def interrupt_after_the_first_rows():
-    while not any(len(open(p).readlines()) > 2 for p in glob.glob("auv-cosim-*/run/results.csv")):
+    pattern = "auv-cosim-scratch/*/auv-cosim-*/run/results.csv"
+    while not any(len(open(p).readlines()) > 2 for p in glob.glob(pattern)):
         time.sleep(0.05)
     os.kill(os.getpid(), signal.SIGINT)  # what a notebook's stop button sends its kernel
 
 if __name__ == "__main__":
-    tempfile.tempdir = os.getcwd()  # an in-memory run's folder: auv-cosim-*/run
+    tempfile.tempdir = os.getcwd()  # an in-memory run's: auv-cosim-scratch/*/auv-cosim-*/run
     threading.Thread(target=interrupt_after_the_first_rows, daemon=True).start()
     started = 0
     try:
@@ -948,8 +950,8 @@ def interrupt_after_the_first_row(pattern):
 
 if __name__ == "__main__":
     out, fmu_dir = sys.argv[1] or None, sys.argv[2]
-    tempfile.tempdir = os.getcwd()  # an in-memory study's folder: auv-cosim-*/study
-    pattern = os.path.join(out or "auv-cosim-*/study", "runs.csv")
+    tempfile.tempdir = os.getcwd()  # an in-memory study's folder (cosim.scratch)
+    pattern = os.path.join(out or "auv-cosim-scratch/*/auv-cosim-*/study", "runs.csv")
     threading.Thread(target=interrupt_after_the_first_row, args=(pattern,), daemon=True).start()
     grid = {"plant.v_0": [round(-0.1 + 0.02 * i, 2) for i in range(10)]}
     try:
@@ -982,7 +984,8 @@ def test_an_interrupted_sweep_raises_one_line_with_the_finished_rows(
     kept = f"{caught['rows']} finished runs kept in the error's study.table"
     assert caught["message"].startswith(f"interrupted (Ctrl-C): {kept}")
     if out is None:
-        assert caught["out_dir"] is None and not list(tmp_path.glob("auv-cosim-*"))
+        left = [p for p in tmp_path.rglob("auv-cosim-*") if p.name != SCRATCH_DIR]
+        assert caught["out_dir"] is None and not left
     else:
         assert caught["out_dir"] == str(tmp_path / out)
         assert f"{tmp_path / out / 'runs.csv'} (resume=True" in caught["message"]

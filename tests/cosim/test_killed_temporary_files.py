@@ -177,3 +177,34 @@ def test_a_resumed_study_removes_what_a_killed_one_left(fmu_dir: Path, tmp_path:
     parquet = pd.read_parquet(tmp_path / "out" / "runs.parquet")
     assert sorted(parquet["run"]) == sorted(line.split(",")[0] for line in lines[1:])
     assert [p for p in left_in(tmpdir) if not p.startswith("dask-scratch-space")] == []
+
+
+KILLED_IN_MEMORY = """
+import os, signal, sys, threading, time
+from pathlib import Path
+import cosim
+
+def kill_when_stepping():
+    while not any(Path(os.environ["TMPDIR"]).rglob("results.csv")):
+        time.sleep(0.05)
+    time.sleep(1)
+    os.kill(os.getpid(), signal.SIGKILL)
+
+threading.Thread(target=kill_when_stepping, daemon=True).start()
+cosim.run("bs-3", stop_time=6000, recording=False, fmu_dir=sys.argv[1])
+"""
+
+
+@pytest.mark.slow
+def test_the_next_run_removes_what_a_killed_kernel_s_run_left(fmu_dir: Path, tmp_path: Path):
+    """``cosim.run`` without ``out`` runs in a temporary folder: a notebook kernel killed
+    during it (the OOM killer) left that folder, its results.csv growing to the kill, in
+    TMPDIR forever; the next run removes it."""
+    env = environ(tmp_path / "tmp")
+    killed = [sys.executable, "-c", KILLED_IN_MEMORY, str(fmu_dir)]
+    done = run_in_group(killed, timeout=180, env=env)
+    assert done.returncode == -signal.SIGKILL, done.stderr
+    assert list((tmp_path / "tmp").rglob("results.csv")), "nothing left: no test"
+    done = run_in_group(run_command(fmu_dir, tmp_path / "next", "1"), timeout=120, env=env)
+    assert done.returncode == 0, done.stderr
+    assert left_in(tmp_path / "tmp") == []
