@@ -654,9 +654,9 @@ def early_client(workers: int, dashboard: bool = False) -> Iterator[EarlyClient]
         early.close()
 
 
-class ClusterLostError(StudyError):
-    """The cluster has had no worker for WORKER_WAIT_S while runs were left; ``where``
-    says what was kept (set by the runner)."""
+class StudyEndedError(StudyError):
+    """A study ended before its last run, by no fault of its runs; ``where`` says what was
+    kept (set by the runner)."""
 
     def __init__(self, message: str) -> None:
         super().__init__(message)
@@ -665,6 +665,16 @@ class ClusterLostError(StudyError):
 
     def __str__(self) -> str:
         return self.message + (f"; {self.where}" if self.where else "")
+
+
+class ClusterLostError(StudyEndedError):
+    """The cluster has had no worker for WORKER_WAIT_S while runs were left."""
+
+
+class NoRoomError(StudyEndedError):
+    """A run could not write its files for want of room (a full disk, a quota, a file size
+    limit): every run after it would fail the same way, so the study ends, its row left
+    out for ``--resume`` to run again once there is room."""
 
 
 def _completed(client: Client, futures: Iterable[Any]) -> Iterator[Any]:

@@ -38,9 +38,10 @@ from cosim.scratch import process_folder
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
-    ClusterLostError,
     EarlyClient,
     Job,
+    NoRoomError,
+    StudyEndedError,
     StudyPlugin,
     check_scheduler,
     execute,
@@ -165,7 +166,7 @@ def run_study(
             except BaseException as exc:
                 if not resume and not table.done:  # nothing to resume: leave no study
                     study_folder.discard_new(out_dir, CSV_NAME)
-                elif isinstance(exc, StudyStopped | ClusterLostError):
+                elif isinstance(exc, StudyStopped | StudyEndedError):
                     kept = f"{len(table.done)} finished runs kept in {csv_path}"
                     exc.where = f"{kept} ({names.switch('resume')})"
                 raise
@@ -258,6 +259,8 @@ def _execute(
 
     def on_record(run: PlannedRun, record: RunRecord) -> None:
         nonlocal failed, left
+        if record.no_room:
+            raise NoRoomError(f"run {run.id} found no room for its files: {record.error}")
         left -= 1
         drawing.unfinished(left)
         table.append(run, record)

@@ -14,8 +14,10 @@ again, so its folder needs no guard); the metrics are the numeric values of the 
 from __future__ import annotations
 
 import copy
+import errno
 import hashlib
 import json
+import os
 import tempfile
 import time
 import tomllib
@@ -66,6 +68,18 @@ class RunRecord:
     wall_clock_s: float  # the whole task: set-up, stepping loop, outputs
     loop_s: float  # the stepping loop alone (0 if it never started)
     files: Mapping[str, bytes] = field(default_factory=dict)  # file name -> content
+    no_room: bool = False  # it failed because a disk had no room for its files (no_room)
+
+
+# why the system refuses a write for want of room: a full disk, a quota, a file size limit
+# (``ulimit -f``), as the run's error gives it (``OSError.strerror``)
+NO_ROOM = tuple(os.strerror(code) for code in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG))
+
+
+def no_room(error: str | None) -> bool:
+    """Whether a run's ``error`` says that a disk had no room for its files: not the run's
+    failure, but every later run's on the same disk."""
+    return error is not None and any(why in error for why in NO_ROOM)
 
 
 def prepare(
@@ -191,7 +205,8 @@ def run_one(
         error = f"{type(exc).__name__}: {exc}"
     status = "complete" if error is None else "failed"
     error = None if error is None else " ".join(error.split())  # one line in the table
-    return RunRecord(status, error, metrics, time.perf_counter() - started, loop_s, files)
+    took = time.perf_counter() - started
+    return RunRecord(status, error, metrics, took, loop_s, files, no_room(error))
 
 
 def warm_up(

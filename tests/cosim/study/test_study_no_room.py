@@ -1,0 +1,85 @@
+"""A study whose disk fills (or whose runs meet a quota or a file size limit) ends with
+one line saying so and keeps every finished row; ``--resume`` runs the rest once there
+is room. The study runs as ``auv-cosim sweep`` in a process group of its own, under
+``ulimit -f`` (RLIMIT_FSIZE, which its workers inherit: a run's results.csv outgrows it),
+with the test's own folder as TMPDIR."""
+
+from __future__ import annotations
+
+import csv
+import errno
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from process_group import run_in_group
+
+# 4 runs of bs-3, each writing ~9 MB of results.csv
+STUDY = """scenario = "bs-3"
+stop_time = 200.0
+[grid]
+"plant.v_0" = [-0.05, 0.05]
+"controller.k0" = [0.2, 0.5]
+"""
+LIMIT = 2 << 20  # bytes a file: a run's results.csv outgrows it at about t = 45 s
+
+
+def limited() -> None:
+    """In the child before it runs the command: no file of it may grow past LIMIT."""
+    resource.setrlimit(resource.RLIMIT_FSIZE, (LIMIT, LIMIT))
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    return fmu_paths["AuvAutopilot"].parent
+
+
+def stopped_after_a_row(command: list[str], table: Path, env: dict[str, str]) -> None:
+    """Run ``command`` (a study) until its table holds a row, then stop it with SIGINT."""
+    proc = subprocess.Popen(command, env=env, text=True, start_new_session=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 240
+        while not (table.is_file() and table.read_text().count("\n") > 1):
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "no run finished"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=120) == 130, proc.communicate()
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+
+
+@pytest.mark.slow
+@pytest.mark.cluster
+def test_a_study_out_of_room_ends_keeping_its_rows_for_resume(fmu_dir: Path, tmp_path: Path):
+    """Every run past the point where the disk filled was a `failed` row ("No space left
+    on device" in its error) and the study ran on through all of them; --resume skips a
+    row of the table, so those runs were never run again, even with room."""
+    (tmp_path / "tmp").mkdir()
+    env = {**os.environ, "TMPDIR": str(tmp_path / "tmp")}
+    (tmp_path / "study.toml").write_text(STUDY)
+    table = tmp_path / "out" / "runs.csv"
+    command = [sys.executable, "-m", "cosim.cli", "sweep", str(tmp_path / "study.toml"),
+               "--out", str(tmp_path / "out"), "--workers", "2", "--oversubscribe",
+               "--fmu-dir", str(fmu_dir), "--quiet"]  # fmt: skip
+    stopped_after_a_row(command, table, env)
+    finished = table.read_text()
+    full = run_in_group([*command, "--resume"], timeout=300, env=env, preexec_fn=limited)
+    assert full.returncode == 1, full.stderr
+    last = full.stderr.strip().splitlines()[-1]
+    assert "found no room for its files" in last and os.strerror(errno.EFBIG) in last, full.stderr
+    assert f"finished runs kept in {table} (--resume)" in last
+    assert table.read_text().startswith(finished) and "failed" not in table.read_text()
+    done = run_in_group([*command, "--resume"], timeout=300, env=env)
+    assert done.returncode == 0, done.stderr
+    with table.open(encoding="utf-8") as file:
+        rows = list(csv.DictReader(file))
+    assert [row["status"] for row in rows] == ["complete"] * 4
+    assert set(finished.splitlines()) <= set(table.read_text().splitlines())
