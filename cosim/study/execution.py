@@ -63,7 +63,7 @@ from cosim.study import fork_server
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
 from cosim.study.signals import StudyStopped, workers_ignore_sigint
-from cosim.study.spec import StudyError
+from cosim.study.spec import StudyEndedError, StudyError
 from cosim.study.task import Base, RunRecord, run_one, warm_up
 from cosim.study.unpacked import use_unpacked
 
@@ -654,27 +654,8 @@ def early_client(workers: int, dashboard: bool = False) -> Iterator[EarlyClient]
         early.close()
 
 
-class StudyEndedError(StudyError):
-    """A study ended before its last run, by no fault of its runs; ``where`` says what was
-    kept (set by the runner)."""
-
-    def __init__(self, message: str) -> None:
-        super().__init__(message)
-        self.message = message
-        self.where = ""
-
-    def __str__(self) -> str:
-        return self.message + (f"; {self.where}" if self.where else "")
-
-
 class ClusterLostError(StudyEndedError):
     """The cluster has had no worker for WORKER_WAIT_S while runs were left."""
-
-
-class NoRoomError(StudyEndedError):
-    """A run could not write its files for want of room (a full disk, a quota, a file size
-    limit): every run after it would fail the same way, so the study ends, its row left
-    out for ``--resume`` to run again once there is room."""
 
 
 def _completed(client: Client, futures: Iterable[Any]) -> Iterator[Any]:

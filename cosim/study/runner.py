@@ -40,8 +40,6 @@ from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
     EarlyClient,
     Job,
-    NoRoomError,
-    StudyEndedError,
     StudyPlugin,
     check_scheduler,
     execute,
@@ -57,6 +55,8 @@ from cosim.study.signals import StudyStopped
 from cosim.study.spec import (
     MAX_RUNS,
     Normal,
+    NoRoomError,
+    StudyEndedError,
     StudyError,
     StudySpec,
     check_size,

@@ -77,6 +77,25 @@ class StudyError(CosimError):
     """A study that cannot run: the message names the file (or folder) and the key."""
 
 
+class StudyEndedError(StudyError):
+    """A study ended before its last run, by no fault of its runs (a file of the study it
+    cannot write, say); ``where`` says what was kept (set by the runner)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        self.message = message
+        self.where = ""
+
+    def __str__(self) -> str:
+        return self.message + (f"; {self.where}" if self.where else "")
+
+
+class NoRoomError(StudyEndedError):
+    """A run could not write its files for want of room (a full disk, a quota, a file size
+    limit): every run after it would fail the same way, so the study ends, its row left
+    out for ``--resume`` to run again once there is room."""
+
+
 def _finite(value: float) -> float:
     if not math.isfinite(value):
         raise ValueError(f"{value!r} is not a finite number")

@@ -38,7 +38,7 @@ from cosim.study.arrow_columns import column
 from cosim.study.design import PlannedRun
 from cosim.study.factors import Value
 from cosim.study.signals import stop_signals_deferred
-from cosim.study.spec import StudyError
+from cosim.study.spec import StudyEndedError, StudyError
 from cosim.study.task import RunRecord
 from cosim.whole_file import write_whole
 
@@ -109,8 +109,11 @@ class RunsTable:
         row.update({name: _float(record.metrics.get(name)) for name in self.metrics})
         row.update(status=record.status, error=record.error, wall_clock_s=record.wall_clock_s)
         with stop_signals_deferred():
-            with self.path.open("a", encoding="utf-8", newline="") as f:
-                f.write(_line(self._cells(row)))
+            try:
+                with self.path.open("a", encoding="utf-8", newline="") as f:
+                    f.write(_line(self._cells(row)))
+            except OSError as exc:  # a full disk: the line cut short goes at reopen
+                raise StudyEndedError(f"cannot write {self.path}: {exc.strerror or exc}") from None
             self.rows[run.id] = row
 
     def finish(

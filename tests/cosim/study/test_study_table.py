@@ -4,6 +4,8 @@ order at the end, with runs.parquet holding the same rows."""
 from __future__ import annotations
 
 import csv
+import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import pandas as pd
@@ -260,3 +262,40 @@ def test_asking_whether_each_run_is_done_reads_no_other_row(tmp_path: Path) -> N
     todo = [run for run in runs if run.id not in table.done]
     assert todo == runs[200:] and len(table.done) == 200
     assert CountingRows.handed_out == 0, f"{CountingRows.handed_out} ids read for 300 questions"
+
+
+APPEND_UNDER_LIMIT = """
+import resource, sys
+from pathlib import Path
+from test_study_table import FACTORS, METRICS, RUNS, record
+from cosim.study.spec import StudyError
+from cosim.study.table import RunsTable
+
+table = RunsTable.create(Path(sys.argv[1]), FACTORS, METRICS)
+resource.setrlimit(resource.RLIMIT_FSIZE, (600, 600))  # bytes: what a full disk does
+for run in RUNS:
+    try:
+        table.append(run, record(run))
+    except StudyError as exc:
+        print(type(exc).__name__, len(table.done), exc, sep="|")
+        break
+"""
+
+
+def test_a_row_the_disk_refuses_ends_the_study_naming_runs_csv(
+    run_python: Callable[..., subprocess.CompletedProcess], tmp_path: Path
+) -> None:
+    """A full disk under runs.csv ended the study with "OSError: [Errno 28] No space left
+    on device", naming no file and not saying that the finished rows were kept; a typed
+    StudyError names the file now, the runner adds what was kept, and the table reads
+    back with every row written whole."""
+    path = tmp_path / "runs.csv"
+    test_dir = Path(__file__).parent
+    done = run_python(
+        f"import sys; sys.path.insert(0, {str(test_dir)!r})\n" + APPEND_UNDER_LIMIT, path
+    )
+    assert done.returncode == 0, done.stderr
+    kind, kept, message = done.stdout.strip().split("|")
+    assert kind == "StudyEndedError" and message == f"cannot write {path}: File too large"
+    again = RunsTable.reopen(path, FACTORS, METRICS, RUNS)
+    assert len(again.done) == len(rows_of(path)) == int(kept) > 0
