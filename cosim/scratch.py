@@ -23,6 +23,7 @@ import multiprocessing.util
 import os
 import shutil
 import tempfile
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -30,8 +31,10 @@ import locket
 
 SCRATCH_DIR = "auv-cosim-scratch"  # in the temporary folder (TMPDIR)
 LOCK_SUFFIX = ".dirlock"  # beside each process's folder: held while its process lives
+LISTING_WAIT_S = 10.0  # s a purge waits for the global lock before it gives up
 CLAIMS_FILE = "claimed-paths"  # in a process's folder: other paths it made, one a line
 
+_making = threading.Lock()  # held while a thread makes this process's folder
 _own: dict[int, Path] = {}  # process id -> its folder (a forked child makes its own)
 _locks: dict[Path, Any] = {}  # this process's folder -> the lock it holds on it
 _claimed: dict[Path, set[Path]] = {}  # this process's folder -> the paths it claimed
@@ -46,21 +49,30 @@ def process_folder() -> Path:
     """This process's scratch folder, made (after purging what dead processes left) at the
     first call and removed as the process ends; later calls cost a dictionary look-up."""
     folder = _own.get(os.getpid())
-    if folder is None or not folder.is_dir():
-        base = base_folder()
-        base.mkdir(parents=True, exist_ok=True)
-        purge(base)
-        folder = _own[os.getpid()] = _locked_folder(base)
-        # multiprocessing's finalizers run at exit (atexit) and also where a
-        # multiprocessing child (a Dask worker) ends by os._exit, past atexit
-        multiprocessing.util.Finalize(None, remove, args=(folder,), exitpriority=0)
+    if folder is not None and folder.is_dir():
+        return folder
+    with _making:  # one folder for all threads (a study's cluster starts on its own)
+        folder = _own.get(os.getpid())
+        if folder is None or not folder.is_dir():
+            base = base_folder()
+            base.mkdir(parents=True, exist_ok=True)
+            purge(base)
+            folder = _own[os.getpid()] = _locked_folder(base)
+            # multiprocessing's finalizers run at exit (atexit) and also where a
+            # multiprocessing child (a Dask worker) ends by os._exit, past atexit
+            multiprocessing.util.Finalize(None, remove, args=(folder,), exitpriority=0)
     return folder
 
 
 def _locked_folder(base: Path) -> Path:
     """A new folder in ``base`` whose lock this process holds; a file system refusing
     locks gives a folder without a lock file, which no purge takes (as before)."""
-    with locket.lock_file(str(base / "global.lock")):
+    guard = locket.lock_file(str(base / "global.lock"))
+    try:
+        guard.acquire()
+    except OSError:
+        guard = None
+    try:
         folder = Path(tempfile.mkdtemp(prefix=f"{os.getpid()}-", dir=base))
         lock_path = str(folder) + LOCK_SUFFIX
         try:
@@ -70,6 +82,9 @@ def _locked_folder(base: Path) -> Path:
             Path(lock_path).unlink(missing_ok=True)
         else:
             _locks[folder] = lock
+    finally:
+        if guard is not None:
+            guard.release()
     return folder
 
 
@@ -97,9 +112,11 @@ def remove(folder: Path) -> None:
 
 def purge(base: Path) -> list[Path]:
     """Remove every folder in ``base`` whose process is gone (its lock free), with the
-    paths it claimed; the folders removed. Never waits: another process listing or
-    purging now does it instead."""
-    listing = locket.lock_file(str(base / "global.lock"), timeout=0)
+    paths it claimed; the folders removed. The listing waits for the global lock (held
+    for a folder's creation or a listing, milliseconds; a process that gave up instead
+    while a study's workers made their folders left the dead one's folders, as every
+    process purges once); a folder another process is purging is left to it."""
+    listing = locket.lock_file(str(base / "global.lock"), timeout=LISTING_WAIT_S)
     try:
         with listing:
             candidates = [p for p in base.glob(f"*{LOCK_SUFFIX}") if p.is_file()]

@@ -567,15 +567,16 @@ def _forked_workers() -> Iterator[None]:
     """While on, Dask starts local worker processes from the fork server
     (:mod:`cosim.study.fork_server`, started now if not yet), where the platform has one
     and it runs; else Dask starts them its own way."""
-    if not fork_server.start():
+    running = fork_server.start()
+    # multiprocessing's pymp-* folder (the fork server's socket), which a study killed
+    # outright leaves: the next process removes it with this one's scratch folder
+    claim(Path(multiprocessing.util.get_temp_dir()))
+    if not running:
         yield
         return
     import distributed.utils
 
     distributed.utils._forkserver_preload_set = True  # Dask's own preload comes too late
-    # the fork server's socket is in multiprocessing's pymp-* folder, which a study killed
-    # outright leaves: the next process removes it with this one's scratch folder
-    claim(Path(multiprocessing.util.get_temp_dir()))
     with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
         yield
 

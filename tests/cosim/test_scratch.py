@@ -9,8 +9,11 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
+
+import locket
 
 from cosim import scratch
 
@@ -19,6 +22,8 @@ from cosim import scratch
 MAKER = """
 import os, signal, sys, tempfile
 from pathlib import Path
+import locket
+
 from cosim import scratch
 folder = scratch.process_folder()
 claimed = Path(tempfile.mkdtemp(prefix="claimed-"))
@@ -66,3 +71,17 @@ def test_a_live_process_folder_stays_and_goes_as_it_ends(tmp_path: Path) -> None
         proc.communicate(timeout=60)  # its standard input closes: it ends normally
     assert proc.returncode == 0
     assert not folder.exists() and not Path(f"{folder}{scratch.LOCK_SUFFIX}").exists()
+
+
+def test_a_purge_waits_for_a_folder_being_made(tmp_path: Path) -> None:
+    """A purge that found the global lock taken (another process making its folder: a
+    study's workers start together) gave up, and as each process purges once, a killed
+    study's folders stayed after the next study; it waits for the lock now."""
+    with maker(tmp_path, "kill") as proc:
+        out, _ = proc.communicate(timeout=60)
+    folder = Path(out.split()[0])
+    base = tmp_path / scratch.SCRATCH_DIR
+    making = locket.lock_file(str(base / "global.lock"))
+    making.acquire()
+    threading.Timer(0.3, making.release).start()  # the folder made
+    assert scratch.purge(base) == [folder]
