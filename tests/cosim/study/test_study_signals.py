@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from cosim.cli import main
+from cosim.scratch import SCRATCH_DIR
 
 pytestmark = pytest.mark.cluster  # every test starts Dask workers
 
@@ -83,7 +84,9 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
     assert "Traceback" not in err and "leaked semaphore" not in err, err
     assert "died unexpectedly" not in err, err
     assert "CommClosedError" not in err and " - ERROR - " not in err, err
-    assert [p.name for p in scratch.iterdir() if p.name != "dask-scratch-space"] == []
+    own = scratch / SCRATCH_DIR  # every process's scratch folder gone, their base kept
+    assert [p.name for p in scratch.iterdir() if p.name != "dask-scratch-space"] == [own.name]
+    assert [p.name for p in own.iterdir()] == ["global.lock"]
     name = {signal.SIGINT: "interrupted (Ctrl-C)", signal.SIGTERM: "terminated (SIGTERM)"}.get(
         signal.Signals(signum), "hung up (SIGHUP)"
     )
