@@ -47,6 +47,7 @@ from typing import IO, Any
 from urllib.parse import quote
 
 from cosim.errors import CosimError
+from cosim.scratch import process_folder
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 
 HOST = "127.0.0.1"
@@ -134,7 +135,9 @@ def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browse
         try:
             served = rrd
             if not _ends_with_footer(rrd):  # a folder only then: a SIGKILL'd view leaves none
-                folder = scratch.enter_context(tempfile.TemporaryDirectory(prefix=SCRATCH_PREFIX))
+                # in this process's scratch folder: a killed view's goes at the next run
+                copy = tempfile.TemporaryDirectory(prefix=SCRATCH_PREFIX, dir=process_folder())
+                folder = scratch.enter_context(copy)
                 served = whole_recording(executable, rrd, Path(folder))
             return _serve_until_stopped(
                 executable, rrd, served, (web_port, file_port), log, open_browser

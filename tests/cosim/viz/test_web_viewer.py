@@ -17,6 +17,7 @@ from pathlib import Path
 import psutil
 import pytest
 from deadline import deadline
+from process_group import run_in_group
 from rerun.chunk import RrdReader
 
 from cosim.cli import main
@@ -213,3 +214,37 @@ def test_the_file_server_answers_head_as_get_without_the_body(tmp_path: Path) ->
         connection.request("HEAD", "/other")
         assert connection.getresponse().status == 404
         connection.close()
+
+
+@pytest.mark.slow
+@pytest.mark.viewer
+def test_the_next_run_removes_the_copy_a_killed_view_served(recording: Path, tmp_path: Path):
+    """SIGKILL of `auv-cosim view --web` of a recording cut short (a killed run's) left the
+    completed copy it served, as large as the recording, in TMPDIR forever; the next run
+    removes it."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = {**os.environ, "TMPDIR": str(scratch)}
+    data = recording.read_bytes()
+    cut = tmp_path / "cut.rrd"
+    cut.write_bytes(data[: len(data) * 3 // 4])
+    command = [sys.executable, "-m", "cosim.cli", "view", str(cut), "--web"]
+    proc = subprocess.Popen(
+        [*command, "--web-port", "0", "--file-port", "0"], stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT, start_new_session=True, env=env,
+    )  # fmt: skip
+    try:
+        _children_once_one_listens(proc, time.monotonic() + 120)
+        assert list(scratch.rglob(f"{SCRATCH_PREFIX}*")), "no copy served: no test"
+        os.kill(proc.pid, signal.SIGKILL)  # auv-cosim alone, not its process group
+        proc.wait(timeout=30)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    scenario = recording.parent.parent / "loop.toml"
+    command = [sys.executable, "-m", "cosim.cli", "run", str(scenario), "--quiet", "--no-rrd",
+               "--out", str(tmp_path / "next")]  # fmt: skip
+    done = run_in_group(command, timeout=120, env=env)
+    assert done.returncode == 0, done.stderr
+    assert list(scratch.rglob(f"{SCRATCH_PREFIX}*")) == []
