@@ -1,7 +1,8 @@
 """Temporary folders that a process killed outright does not leave behind.
 
 A process's temporary files (its FMUs extracted, a study's run folders) go into one
-folder of its own, ``$TMPDIR/auv-cosim-scratch/<pid>-XXXXXXXX``, made at the first
+folder of its own, ``$TMPDIR/auv-cosim-scratch-<uid>/<pid>-XXXXXXXX`` (the user's own,
+mode 0700), made at the first
 :func:`process_folder` and removed as the process ends, however Python ends it. A
 process ended by SIGKILL (``kill -9``, the OOM killer), a reboot or a power cut runs
 nothing at its end; so each folder has a lock file beside it (``<folder>.dirlock``) that
@@ -22,6 +23,7 @@ from __future__ import annotations
 import multiprocessing.util
 import os
 import shutil
+import stat
 import tempfile
 import threading
 from pathlib import Path
@@ -29,7 +31,9 @@ from typing import Any
 
 import locket
 
-SCRATCH_DIR = "auv-cosim-scratch"  # in the temporary folder (TMPDIR)
+# in the temporary folder (TMPDIR): one a user, where the system has users (not Windows,
+# whose temporary folder is the user's own)
+SCRATCH_DIR = "auv-cosim-scratch" + (f"-{os.getuid()}" if hasattr(os, "getuid") else "")
 LOCK_SUFFIX = ".dirlock"  # beside each process's folder: held while its process lives
 LISTING_WAIT_S = 10.0  # s a purge waits for the global lock before it gives up
 CLAIMS_FILE = "claimed-paths"  # in a process's folder: other paths it made, one a line
@@ -45,6 +49,26 @@ def base_folder() -> Path:
     return Path(tempfile.gettempdir()) / SCRATCH_DIR
 
 
+def _own_base(base: Path) -> None:
+    """Make ``base`` private to this user (mode 0700), or refuse it: where the temporary
+    folder is shared (/tmp), a folder of this name that another user made, or a symbolic
+    link, would let them see this user's runs, or name paths in it for this user's next
+    purge to remove (pytest checks its pytest-of-<user> folder the same way). Raises
+    PermissionError naming the folder and what to do."""
+    base.mkdir(mode=0o700, parents=True, exist_ok=True)
+    if not hasattr(os, "getuid"):
+        return
+    info = os.lstat(base)
+    if stat.S_ISLNK(info.st_mode) or info.st_uid != os.getuid():
+        owner = "a symbolic link" if stat.S_ISLNK(info.st_mode) else f"user {info.st_uid}'s"
+        raise PermissionError(
+            f"temporary folder {base} is {owner}, not this user's (uid {os.getuid()}): "
+            "remove it, or set TMPDIR to a folder of your own"
+        )
+    if stat.S_IMODE(info.st_mode) & 0o077:
+        os.chmod(base, 0o700)
+
+
 def process_folder() -> Path:
     """This process's scratch folder, made (after purging what dead processes left) at the
     first call and removed as the process ends; later calls cost a dictionary look-up."""
@@ -55,7 +79,7 @@ def process_folder() -> Path:
         folder = _own.get(os.getpid())
         if folder is None or not folder.is_dir():
             base = base_folder()
-            base.mkdir(parents=True, exist_ok=True)
+            _own_base(base)
             purge(base)
             folder = _own[os.getpid()] = _locked_folder(base)
             # multiprocessing's finalizers run at exit (atexit) and also where a

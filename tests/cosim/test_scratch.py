@@ -7,13 +7,16 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import stat
 import subprocess
 import sys
+import tempfile
 import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 import locket
+import pytest
 
 from cosim import scratch
 
@@ -85,3 +88,44 @@ def test_a_purge_waits_for_a_folder_being_made(tmp_path: Path) -> None:
     making.acquire()
     threading.Timer(0.3, making.release).start()  # the folder made
     assert scratch.purge(base) == [folder]
+
+
+POSIX_USERS = pytest.mark.skipif(not hasattr(os, "getuid"), reason="no users' ids here")
+
+
+@POSIX_USERS
+def test_the_scratch_folders_base_is_the_users_own_and_private(tmp_path: Path, monkeypatch):
+    """One base for every user of a shared /tmp: another user's runs listed this user's
+    folders and lock files, and their purge could be handed paths to remove."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(scratch, "_own", {})  # this process's own folder is elsewhere
+    base = tmp_path / f"auv-cosim-scratch-{os.getuid()}"
+    base.mkdir(mode=0o755)  # as an older version, or a umask of 022, made it
+    base.chmod(0o755)
+    folder = scratch.process_folder()
+    try:
+        assert folder.parent == base
+        assert stat.S_IMODE(base.stat().st_mode) == 0o700
+    finally:
+        scratch.remove(folder)
+
+
+@POSIX_USERS
+@pytest.mark.parametrize("squatted", ["symlink", "other user"])
+def test_a_base_that_is_not_the_users_own_is_refused_naming_it(
+    tmp_path: Path, monkeypatch, squatted: str
+) -> None:
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(scratch, "_own", {})
+    base = tmp_path / f"auv-cosim-scratch-{os.getuid()}"
+    if squatted == "symlink":
+        (tmp_path / "elsewhere").mkdir()
+        base.symlink_to(tmp_path / "elsewhere")
+    else:
+        if os.getuid() != 0:
+            pytest.skip("making a folder another user's takes root")
+        base.mkdir()
+        os.chown(base, 65534, 65534)  # nobody's
+    with pytest.raises(PermissionError, match=rf"temporary folder {base} is .*not this user"):
+        scratch.process_folder()
+    assert scratch._own == {}
