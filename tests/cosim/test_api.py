@@ -901,13 +901,13 @@ import cosim
 from cosim.errors import CosimError
 
 def interrupt_after_the_first_rows():
-    pattern = "auv-cosim-scratch/*/auv-cosim-*/run/results.csv"
+    pattern = "auv-cosim-scratch*/*/auv-cosim-*/run/results.csv"
     while not any(len(open(p).readlines()) > 2 for p in glob.glob(pattern)):
         time.sleep(0.05)
     os.kill(os.getpid(), signal.SIGINT)  # what a notebook's stop button sends its kernel
 
 if __name__ == "__main__":
-    tempfile.tempdir = os.getcwd()  # an in-memory run's: auv-cosim-scratch/*/auv-cosim-*/run
+    tempfile.tempdir = os.getcwd()  # an in-memory run's: auv-cosim-scratch-<uid>/*/auv-cosim-*/run
     threading.Thread(target=interrupt_after_the_first_rows, daemon=True).start()
     started = 0
     try:
@@ -951,7 +951,7 @@ def interrupt_after_the_first_row(pattern):
 if __name__ == "__main__":
     out, fmu_dir = sys.argv[1] or None, sys.argv[2]
     tempfile.tempdir = os.getcwd()  # an in-memory study's folder (cosim.scratch)
-    pattern = os.path.join(out or "auv-cosim-scratch/*/auv-cosim-*/study", "runs.csv")
+    pattern = os.path.join(out or "auv-cosim-scratch*/*/auv-cosim-*/study", "runs.csv")
     threading.Thread(target=interrupt_after_the_first_row, args=(pattern,), daemon=True).start()
     grid = {"plant.v_0": [round(-0.1 + 0.02 * i, 2) for i in range(10)]}
     try:
