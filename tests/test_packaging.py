@@ -2,10 +2,17 @@
 file of the packages that is not Python source, py.typed markers included."""
 
 import fnmatch
+import shutil
+import subprocess
+import sys
+import tarfile
 import tomllib
 from pathlib import Path
 
+import pytest
+from process_group import run_in_group
 from repo_paths import ROOT
+from venvs import make_venv
 
 PYPROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())
 PACKAGES = ("cosim", "plant_fmu", "controller_fmu", "fmu_runtime")
@@ -43,3 +50,41 @@ def test_every_data_file_of_the_packages_is_in_package_data():
             if any(part in _IGNORED for part in path.relative_to(ROOT).parts):
                 continue
             assert _installed(path), f"{path.relative_to(ROOT)} is not in package-data"
+
+
+def _tracked(folder: str) -> set[str]:
+    """The files git tracks under ``folder`` of the repository, relative to its root."""
+    listed = subprocess.run(
+        ["git", "ls-files", "-z", "--", folder], cwd=ROOT, capture_output=True, check=True
+    )
+    return {name for name in listed.stdout.decode().split("\0") if name}
+
+
+@pytest.fixture(scope="module")
+def sdist_members(tmp_path_factory: pytest.TempPathFactory) -> set[str]:
+    """The files of the sdist setuptools builds from a copy of the repository's tracked
+    files (its ``build-system.requires`` installed in a venv of its own), relative to the
+    sdist's top folder; a skip when pip cannot install them."""
+    work = tmp_path_factory.mktemp("sdist")
+    tree, dist = work / "tree", work / "dist"
+    for name in _tracked("."):
+        if (ROOT / name).is_file():
+            (tree / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / name, tree / name)
+    venv = make_venv(work / "venv", sys.executable, *PYPROJECT["build-system"]["requires"])
+    python = venv / "bin" / "python"
+    code = "import sys; from setuptools import build_meta; build_meta.build_sdist(sys.argv[1])"
+    built = run_in_group([python, "-c", code, dist], timeout=300, cwd=tree)
+    assert built.returncode == 0, built.stderr[-2000:]
+    (archive,) = dist.glob("*.tar.gz")
+    with tarfile.open(archive) as sdist:
+        return {name.split("/", 1)[1] for name in sdist.getnames() if "/" in name}
+
+
+@pytest.mark.slow
+def test_the_sdist_holds_the_docs_the_readme_and_the_messages_point_to(sdist_members):
+    """A packager building from the sdist, or a user unpacking it, found no docs/: the
+    README's links, the example scenario and study files (``auv-cosim sweep
+    docs/study-example.toml``), and the docs/*.md every error message names."""
+    missing = sorted(_tracked("docs") - sdist_members)
+    assert not missing, f"{len(missing)} tracked files of docs/ not in the sdist: {missing[:5]}"

@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import re
 import shutil
-import subprocess
 import sys
 import zipfile
 from pathlib import Path
@@ -21,6 +20,7 @@ import numpy as np
 import pytest
 from c_hosts import run_clean
 from repo_paths import TESTS
+from venvs import make_venv
 
 from cosim.fmus.build import FMUS
 from cosim.fmus.native import OVERRIDE_VARIABLE
@@ -45,24 +45,12 @@ print(json.dumps(rows.tolist()))
 """
 
 
-def _venv(folder: Path, python: str | Path, *packages: str) -> Path:
-    """A virtual environment of ``python`` holding ``packages`` only, or a skip."""
-    subprocess.run([str(python), "-m", "venv", str(folder)], check=True)
-    done = subprocess.run(
-        [str(folder / "bin" / "python"), "-m", "pip", "install", "-q", *packages],
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    if done.returncode != 0:
-        pytest.skip(f"pip could not install {packages}: {done.stderr.strip()[-300:]}")
-    return folder
-
-
 @pytest.fixture(scope="session")
 def fresh_venv(tmp_path_factory) -> Path:
     """fmpy and numpy (and what they depend on), nothing of auv-cosim."""
-    return _venv(tmp_path_factory.mktemp("fresh") / "venv", sys._base_executable, "fmpy", "numpy")
+    return make_venv(
+        tmp_path_factory.mktemp("fresh") / "venv", sys._base_executable, "fmpy", "numpy"
+    )
 
 
 @pytest.fixture(scope="session")
@@ -71,7 +59,7 @@ def python39_venv(tmp_path_factory) -> Path:
     found = sorted(Path("/root/.pyenv/versions").glob("3.9.*/bin/python3.9"))
     if not found or not list(found[-1].parents[1].glob("lib/libpython3.9.so*")):
         pytest.skip("no CPython 3.9 with a shared libpython in /root/.pyenv/versions")
-    return _venv(tmp_path_factory.mktemp("py39") / "venv", found[-1], "numpy")
+    return make_venv(tmp_path_factory.mktemp("py39") / "venv", found[-1], "numpy")
 
 
 @pytest.fixture(scope="module")
