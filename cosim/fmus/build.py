@@ -25,8 +25,9 @@ Steps for one FMU (:func:`build_fmu`):
    starts from), ``canInterpolateInputs`` for a slave that takes input derivatives. Our
    FMUs hold their outputs over a communication step, so no output depends directly on an
    input and every dependency list is empty: no false algebraic loop for importers.
-4. Replace ``resources/`` (:func:`lay_out_resources`): the staged packages and pythonfmu's
-   pure-Python package (copied from this environment, as pythonfmu's builder embeds it)
+4. Replace ``resources/`` (:func:`lay_out_resources`): the staged packages with the
+   project's ``LICENSE``, and pythonfmu's pure-Python package with its licence (copied
+   from this environment, as pythonfmu's builder embeds it)
    under one package named after their content, ``auvfmu_<hash>``, their imports renamed
    (:mod:`cosim.fmus.staging`); pythonfmu's entry module for its own binary (the fallback);
    ``fmu_runtime.txt`` (the GUID, the package, the slave class, the Python the FMU was built
@@ -78,6 +79,7 @@ SHIPPED_SUFFIXES = (".py", ".toml")
 # then share one copy of the code (and numba's cache of it).
 PACKAGES = ("plant_fmu", "controller_fmu", "fmu_runtime")
 VENDORED = "pythonfmu"  # pythonfmu's pure-Python package, from this environment
+DISTRIBUTION = "auv-cosim"  # this project, whose code (and so whose licence) every FMU ships
 # The namespace of the FMUs' name-based (version 5) GUIDs; any fixed UUID would do.
 _GUID_NAMESPACE = uuid.UUID("3f6c1e52-9d4b-4c1e-8a51-5b2f8f0c7a11")
 
@@ -238,8 +240,9 @@ def _is_intact(target: Path, hash_file: Path, digest: str) -> bool:
 
 def shipped_files() -> dict[str, Path]:
     """``{path inside the build package: source file}``: the ``*.py``/``*.toml`` files of
-    every package of :data:`PACKAGES`, whole, and the ``*.py`` files of pythonfmu's
-    package (what pythonfmu's builder embeds) with its licence. The same for every FMU."""
+    every package of :data:`PACKAGES`, whole, with the project's licence (``LICENSE``), and
+    the ``*.py`` files of pythonfmu's package (what pythonfmu's builder embeds) with its
+    licence. The same for every FMU."""
     files = {}
     for package in PACKAGES:
         root = _package_dir(package)
@@ -251,6 +254,9 @@ def shipped_files() -> dict[str, Path]:
                 and "__pycache__" not in relative.parts
             ):
                 files[f"{package}/{relative.as_posix()}"] = path
+    own = _own_licence()
+    if own is not None:
+        files["LICENSE"] = own
     vendored = _package_dir(VENDORED)
     for path in sorted(vendored.glob("*.py")):
         files[f"{VENDORED}/{path.name}"] = path
@@ -266,6 +272,16 @@ def _licence(distribution: str) -> Path | None:
         if Path(str(file)).name.upper().startswith(("LICENSE", "LICENCE", "COPYING")):
             return Path(str(file.locate()))
     return None
+
+
+def _own_licence() -> Path | None:
+    """This project's licence file: the installed distribution's, or the source tree's
+    beside the packages where it is not installed (a checkout on ``sys.path``)."""
+    try:
+        return _licence(DISTRIBUTION)
+    except metadata.PackageNotFoundError:
+        checkout = _package_dir(PACKAGES[0]).parent / "LICENSE"
+        return checkout if checkout.is_file() else None
 
 
 def _builder_entry(name: str) -> str:
@@ -392,7 +408,7 @@ def _provenance(root: ET.Element) -> None:
     package's metadata; pythonfmu's own attributes where it is not installed (a source
     tree on ``sys.path``)."""
     try:
-        metadata = importlib.metadata.metadata("auv-cosim")
+        metadata = importlib.metadata.metadata(DISTRIBUTION)
     except importlib.metadata.PackageNotFoundError:
         return
     root.set("version", metadata["Version"])

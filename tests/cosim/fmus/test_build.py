@@ -16,6 +16,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import pytest
+from repo_paths import ROOT
 
 from cosim.errors import CosimError
 from cosim.fmus import build, native, staging
@@ -57,6 +58,7 @@ def test_every_fmu_ships_the_packages_whole_with_pythonfmu_and_data_but_no_cache
         "plant_fmu/model/vehicles/remus100.toml",
         "pythonfmu/fmi2slave.py",
         "pythonfmu/LICENSE",
+        "LICENSE",
     ):
         assert expected in files
     assert not any("__pycache__" in name or name.endswith(".pyc") for name in files)
@@ -410,6 +412,16 @@ def test_every_fmu_says_which_version_built_it_and_its_licence(fmu_paths):
         md = read_model_description(str(path))
         assert (md.version, md.license) == (version, "MIT"), name
         assert md.generationTool.startswith(f"auv-cosim {version} (PythonFMU "), name
+
+
+def test_every_fmu_carries_the_licence_text_of_the_code_it_ships(fmu_paths):
+    """An FMU ships this project's MIT-licensed code, whose licence asks that its text go
+    with every copy: an FMU carried pythonfmu's licence text but not the project's own."""
+    licence = (ROOT / "LICENSE").read_bytes()
+    record = _resources(fmu_paths["AuvPlant"])[RECORD_FILE].decode()
+    package = dict(line.split("=", 1) for line in record.splitlines())["package"]
+    for name, path in fmu_paths.items():
+        assert _resources(path).get(f"{package}/LICENSE") == licence, name
 
 
 def test_a_file_no_build_wrote_is_never_built_over(tmp_path, capsys):
