@@ -19,16 +19,20 @@ first and its compiler's target initialised, ~2 s of each worker's warm-up befor
 freezes it out of the garbage collector's reach; last :mod:`cosim.study.server_exit`, so
 that it ends without its interpreter's teardown. The FMUs are never loaded there (an FMU
 imports the package it ships): each worker loads them after the fork. This module:
-standard library and dask's configuration only (not distributed, ~1 s to import), so that
-the server starts before the client has imported what the server imports.
+standard library, dask's configuration and numba's cache folder only (not distributed,
+~1 s to import, nor numba), so that the server starts before the client has imported what
+the server imports.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import multiprocessing
 import os
 import signal
 from contextlib import suppress
+
+from plant_fmu.model import jit  # standard library only until numba is loaded
 
 # imported once, in the server, in this order
 PRELOAD = [
@@ -57,6 +61,7 @@ def start() -> bool:
         return False
     from multiprocessing import forkserver
 
+    _say_cache_problem()
     try:
         multiprocessing.get_context("forkserver").set_forkserver_preload(PRELOAD)
         _start_resource_tracker()
@@ -91,6 +96,21 @@ def _start_resource_tracker() -> None:
         resource_tracker.ensure_running()
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {hangup})
+
+
+def _say_cache_problem() -> None:
+    """Warn here, before the server starts, when numba's cache folder cannot be written (a
+    ``HOME`` that is missing or not the user's): the warning is then marked as said in the
+    environment the server and every worker forked from it inherit
+    (:data:`plant_fmu.model.jit.WARNED_VARIABLE`), so it is said once, not once by each
+    worker as it compiles its FMUs' kernels. Nothing when numba is off or not installed;
+    numba itself is not imported (the server's imports would wait for it)."""
+    if os.environ.get(jit.NO_JIT_VARIABLE, "").strip() not in ("", "0"):
+        return
+    if importlib.util.find_spec("numba") is None:
+        return
+    os.environ.setdefault("NUMBA_CACHE_DIR", str(jit.default_cache_dir()))  # as numba's
+    jit.cache_problem()
 
 
 def pre_spawn_environ() -> dict[str, str]:
