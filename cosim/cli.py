@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from cosim.errors import CosimError, one_line_warnings
+from cosim.errors import CosimError, matplotlib_folder_in_one_line, one_line_warnings
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from fmu_runtime.log_text import shortened
@@ -704,6 +704,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         _ignore_stop_signals()
     if argv is None:
         warnings.showwarning = one_line_warnings(f"auv-cosim {args.command}")
+        matplotlib_folder_in_one_line()
     try:
         return int(args.func(args) or 0)
     except CosimError as exc:

@@ -2,8 +2,10 @@
 form its warnings take."""
 
 import difflib
+import logging
 import os
 import sys
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -112,3 +114,36 @@ def one_line_warnings(who: str) -> Callable[..., None]:
         print(f"{who}: warning: {shortened(text)}", file=sys.stderr)
 
     return show
+
+
+class _MatplotlibFolderInOneLine(logging.Filter):
+    """matplotlib's two warnings where its folder cannot be written (a ``HOME`` that is
+    missing or not the user's: "mkdir -p failed for path ..." and "Matplotlib created a
+    temporary cache directory ..."), said as one of the command's warnings naming the
+    folder and what to set. Matched by matplotlib's wording; another wording passes as
+    matplotlib writes it."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        text = str(record.msg)
+        if text.startswith("mkdir -p failed for path") or text.endswith(
+            "is not a writable directory"
+        ):
+            return False
+        args = record.args if isinstance(record.args, tuple) else ()
+        if text.startswith("Matplotlib created a temporary cache directory") and len(args) == 2:
+            temporary, issue = args  # issue: "the default path (<folder>)", say
+            warnings.warn(
+                f"matplotlib's folder cannot be written ({issue}): using a temporary one "
+                f"({temporary}, removed at exit), its font cache made again in every "
+                "process; set MPLCONFIGDIR (or HOME) to a writable folder",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            return False
+        return True
+
+
+def matplotlib_folder_in_one_line() -> None:
+    """Have matplotlib's warnings of a folder it cannot write said in one line (with
+    :func:`one_line_warnings`), before matplotlib is imported; matplotlib itself is not."""
+    logging.getLogger("matplotlib").addFilter(_MatplotlibFolderInOneLine())

@@ -433,3 +433,42 @@ def test_an_event_or_fault_after_the_stop_time_is_warned_of_naming_both_times(
         "faults.jam.start = 70 s is after the stop time (0.05 s): the run ends before the "
         "fault, which never acts",
     ]
+
+
+UNWRITABLE_HOME = """
+import os, sys
+for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME", "MPLCONFIGDIR"):
+    os.environ.pop(name, None)
+os.environ["HOME"], os.environ["TMPDIR"] = sys.argv[1], sys.argv[2]
+sys.argv = ["auv-cosim", *sys.argv[3:]]
+from cosim.cli import main
+
+sys.exit(main())
+"""
+
+
+@pytest.mark.slow
+def test_a_home_that_cannot_be_written_costs_matplotlib_one_line(run_python, tmp_path):
+    """With a HOME that cannot be written (a service account's, ``HOME=/nonexistent``),
+    a command that draws printed matplotlib's two lines ("mkdir -p failed for path ...",
+    "Matplotlib created a temporary cache directory ...") beside its own one-line
+    warnings. It says one line, naming the folder and what to set, and leaves no
+    temporary folder behind."""
+    blocker = tmp_path / "a-file"  # a home below a file: no user, root included, writes it
+    blocker.write_text("")
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    out = tmp_path / "portrait"
+    done = run_python(
+        UNWRITABLE_HOME, blocker / "home", scratch, "analyze", "phase-portrait", "--out", out
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    said = [line for line in done.stderr.splitlines() if "matplotlib" in line.lower()]
+    assert len(said) == 1, done.stderr
+    assert said[0].startswith(
+        "auv-cosim analyze: warning: matplotlib's folder cannot be written (the default "
+        f"path ({blocker}/home/.config/matplotlib)): using a temporary one ("
+    )
+    assert said[0].endswith("set MPLCONFIGDIR (or HOME) to a writable folder")
+    assert (out / "phase_portrait.png").is_file()
+    assert [p.name for p in scratch.iterdir() if not p.name.startswith("auv-cosim-scratch")] == []
