@@ -521,7 +521,9 @@ def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
     asub = p.add_subparsers(dest="analysis", metavar="ANALYSIS")
     a = asub.add_parser("equilibria", help="all equilibria in the search box, with stability")
     _add_model_options(a)
-    a.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    a.add_argument(
+        "--json", action="store_true", help="print JSON (SI, with its units) instead of a table"
+    )
     a.set_defaults(func=_equilibria)
     a = asub.add_parser("sweep", help="continuation of equilibrium branches over a parameter")
     a.add_argument(

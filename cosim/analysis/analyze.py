@@ -6,10 +6,11 @@ from the options, prints tables or JSON, writes CSV files and the figures of
 
 * ``equilibria``: every equilibrium in the search box with its Jacobian eigenvalues and
   stability (``--json``: a list of ``{"state": {name: value}, "eigenvalues": [[re, im],
-  ...], "stable": bool}``).
+  ...], "stable": bool, "units": {"state": {name: unit}, "eigenvalues": "1/s"}}``, SI).
 * ``sweep PARAM FROM TO``: ``<out>/sweep_<PARAM>.png`` (bifurcation diagram),
   ``<out>/sweep_<PARAM>.csv`` (the branches) and ``<out>/sweep_<PARAM>_special_points.csv``
-  (folds, branch points, Hopf points), with a progress bar.
+  (folds, branch points, Hopf points), with a progress bar. Every CSV column but ``branch``,
+  ``kind`` and ``stable`` (0/1) names its SI unit in its header: ``u [m/s]``, ``mu [1]``.
 * ``phase-portrait``: ``<out>/phase_portrait.png``, open-loop trajectories from a grid of
   initial states in the search box (Figs. 5.4-5.5).
 """
@@ -111,11 +112,13 @@ def describe(conditions: OperatingConditions, swept: str | None = None) -> str:
 
 
 def equilibrium_record(eq: Equilibrium) -> dict:
-    """The JSON object of one equilibrium: full state by name, eigenvalues, stability."""
+    """The JSON object of one equilibrium: full state by name, eigenvalues, stability, and
+    the SI unit of each (``units``: the state's by name, the eigenvalues' 1/s)."""
     return {
         "state": {name: float(value) for name, value in zip(STATE_NAMES, eq.state, strict=True)},
         "eigenvalues": [[float(z.real), float(z.imag)] for z in _ordered(eq.eigenvalues)],
         "stable": eq.stable,
+        "units": {"state": dict(zip(STATE_NAMES, STATE_UNITS, strict=True)), "eigenvalues": "1/s"},
     }
 
 
@@ -182,6 +185,8 @@ def _complex(z: complex) -> str:
 
 SWEEP_UNITS = {"roll_torque": " N.m", "mass_position": " m", "mu": "", "eta": ""}
 """The unit of each sweep parameter as printed after a value (the factors have none)."""
+PARAMETER_UNITS = {"roll_torque": "N.m", "mass_position": "m", "mu": "1", "eta": "1"}
+"""The SI unit of each sweep parameter in a CSV header ("1": the factors' dimensionless)."""
 
 
 def sweep_command(
@@ -259,11 +264,11 @@ def _write_branches(
         writer.writerow(
             [
                 "branch",
-                result.parameter,
-                *(["cg_offset_y_g"] if with_cg else []),
-                *result.free_states,
+                _parameter_header(result.parameter),
+                *(["cg_offset_y_g [m]"] if with_cg else []),
+                *_state_headers(result.free_states),
                 "stable",
-                "max_real_eigenvalue",
+                "max_real_eigenvalue [1/s]",
             ]
         )
         for b, branch in enumerate(result.branches):
@@ -285,12 +290,23 @@ def write_special_points_csv(result: Sweep, path: Path) -> Path:
 def _write_special_points(result: Sweep, path: Path) -> None:
     with path.open("w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
-        writer.writerow(["kind", "branch", result.parameter, *result.free_states])
+        header = [_parameter_header(result.parameter), *_state_headers(result.free_states)]
+        writer.writerow(["kind", "branch", *header])
         for s in result.special_points:
             writer.writerow(
                 [s.kind, s.branch, repr(s.parameter)]
                 + [repr(s.state[n]) for n in result.free_states]
             )
+
+
+def _parameter_header(parameter: str) -> str:
+    """A CSV column of the swept parameter with its unit, e.g. 'roll_torque [N.m]'."""
+    return f"{parameter} [{PARAMETER_UNITS[parameter]}]"
+
+
+def _state_headers(names: Sequence[str]) -> list[str]:
+    """CSV columns of these states with their SI units, e.g. 'roll [rad]', 'u [m/s]'."""
+    return [f"{n} [{_unit(n)}]" for n in names]
 
 
 def _unwritten(exc: OSError) -> str:

@@ -30,14 +30,14 @@ def _run(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 def test_equilibria_json_is_the_documented_list(capsys):
-    """A list of {state: {name: value}, eigenvalues: [[re, im]], stable}, as
+    """A list of {state: {name: value}, eigenvalues: [[re, im]], stable, units}, as
     cosim/analysis/analyze.py documents it."""
     code, out, _ = _run(capsys, "analyze", "equilibria", "--json")
     assert code == 0
     records = json.loads(out)
     assert len(records) == 3
     for record in records:
-        assert set(record) == {"state", "eigenvalues", "stable"}
+        assert set(record) == {"state", "eigenvalues", "stable", "units"}
         assert list(record["state"]) == list(STATE_NAMES)
         assert len(record["eigenvalues"]) == 3  # u, v, r of the horizontal variant
         assert all(len(pair) == 2 for pair in record["eigenvalues"])
@@ -199,15 +199,16 @@ def test_roll_torque_sweep_writes_figure_and_csv_with_one_fold(capsys, tmp_path)
     assert figure.read_bytes()[:8] == PNG_SIGNATURE and figure.stat().st_size > 20_000
     with (tmp_path / "sweep_roll_torque.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert {"branch", "roll_torque", "u", "v", "r", "p", "roll", "stable"} <= set(rows[0])
+    assert {"branch", "roll_torque [N.m]", "u [m/s]", "v [m/s]", "r [rad/s]", "p [rad/s]",
+            "roll [rad]", "stable"} <= set(rows[0])  # fmt: skip
     assert {r["stable"] for r in rows} == {"0", "1"}
-    torques = [float(r["roll_torque"]) for r in rows]
+    torques = [float(r["roll_torque [N.m]"]) for r in rows]
     assert min(torques) == pytest.approx(5.5 * Q_PROP) and max(torques) == 0.0
     with (tmp_path / "sweep_roll_torque_special_points.csv").open() as f:
         special = list(csv.DictReader(f))
     folds = [s for s in special if s["kind"] == "fold"]
     assert len(folds) == 1
-    assert 4.0 < float(folds[0]["roll_torque"]) / Q_PROP < 5.0
+    assert 4.0 < float(folds[0]["roll_torque [N.m]"]) / Q_PROP < 5.0
     assert "fold" in out and "Q_prop" in out
 
 
@@ -223,8 +224,8 @@ def test_mass_position_sweep_reports_the_cg_offset(capsys, tmp_path):
         rows = list(csv.DictReader(f))
     # y_g = m_v g y_v / W: one sixth of y_v for m_v = m/6 and W ~ m g.
     for row in rows[::25]:
-        assert float(row["cg_offset_y_g"]) == pytest.approx(
-            float(row["mass_position"]) / 6, rel=3e-3
+        assert float(row["cg_offset_y_g [m]"]) == pytest.approx(
+            float(row["mass_position [m]"]) / 6, rel=3e-3
         )
     assert "y_g = -0.8" in out  # the fold, Sec. 5.1.4: "slightly larger than 0.8 cm"
     # the conditions printed (and the figure's title) name the swept parameter as swept,
@@ -348,3 +349,54 @@ def test_printed_tables_give_every_quantity_its_unit() -> None:
         "  fold         at roll_torque = -2.28613 N.m (4.21 Q_prop): roll = -21.64 deg, "
         "u = 1.468 m/s, v = -0.0657 m/s, p = 0 rad/s, r = 0.143 rad/s",
     ]
+
+
+def _a_sweep(parameter: str) -> tuple:
+    """A two-point lateral sweep with one fold, made by hand (no continuation)."""
+    from cosim.analysis.bifurcation import Branch, OperatingConditions, SpecialPoint, Sweep
+
+    conditions = OperatingConditions(load_vehicle("remus100"), Variant.LATERAL)
+    names = conditions.free_states
+    states = np.array([[0.1, 1.4, -0.05, 0.0, 0.1], [0.2, 1.3, -0.1, 0.0, 0.2]])
+    branch = Branch(names, np.array([0.0, -0.01]), states, np.full((2, 5), -1.0 + 0j))
+    fold = SpecialPoint("fold", -0.005, dict(zip(names, states[0], strict=True)), states[0], 0)
+    return conditions, Sweep(parameter, 0.0, -0.01, names, [branch], [fold])
+
+
+@pytest.mark.parametrize("parameter", ["roll_torque", "mass_position", "mu"])
+def test_sweep_csv_headers_name_every_column_unit(tmp_path, parameter: str) -> None:
+    """The sweep CSVs' headers read 'roll_torque,roll,u,v,p,r,...': a reader of the file
+    alone could not tell N.m from Q_prop, rad from deg, nor m/s from knots."""
+    from cosim.analysis.analyze import write_branches_csv, write_special_points_csv
+    from plant_fmu.model.dynamics import STATE_INDEX, STATE_UNITS
+
+    conditions, result = _a_sweep(parameter)
+    unit = {"roll_torque": "N.m", "mass_position": "m", "mu": "1"}[parameter]
+    states = [f"{n} [{STATE_UNITS[STATE_INDEX[n]]}]" for n in result.free_states]
+    with write_branches_csv(result, conditions, tmp_path / "b.csv").open() as f:
+        header = next(csv.reader(f))
+    cg = ["cg_offset_y_g [m]"] if parameter == "mass_position" else []
+    assert header == [
+        "branch",
+        f"{parameter} [{unit}]",
+        *cg,
+        *states,
+        "stable",
+        "max_real_eigenvalue [1/s]",
+    ]
+    with write_special_points_csv(result, tmp_path / "s.csv").open() as f:
+        assert next(csv.reader(f)) == ["kind", "branch", f"{parameter} [{unit}]", *states]
+
+
+def test_equilibria_json_names_the_unit_of_every_number(capsys) -> None:
+    """`analyze equilibria --json` gave states and eigenvalues with no unit anywhere: the
+    JSON alone did not say whether roll was in rad or deg, nor r in rad/s or deg/s."""
+    from plant_fmu.model.dynamics import STATE_UNITS
+
+    code, out, _ = _run(capsys, "analyze", "equilibria", "--json")
+    assert code == 0
+    for record in json.loads(out):
+        assert record["units"] == {
+            "state": dict(zip(STATE_NAMES, STATE_UNITS, strict=True)),
+            "eigenvalues": "1/s",
+        }
