@@ -644,7 +644,11 @@ def _add_reproduce_parser(sub: argparse._SubParsersAction) -> None:
         default=DOCS_DIR / "dissertation-values.toml",
         help="the dissertation's printed values [%(default)s]",
     )
-    p.add_argument("--skip-scenarios", action="store_true", help="no closed-loop runs (Ch. 6)")
+    p.add_argument(
+        "--skip-scenarios",
+        action="store_true",
+        help="no closed-loop runs (Ch. 6): their rows and figures stay as the page has them",
+    )
     p.set_defaults(func=_reproduce)
 
 

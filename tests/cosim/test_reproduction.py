@@ -453,3 +453,61 @@ def test_reproduce_refuses_a_missing_values_file(tmp_path: Path, capsys) -> None
     assert len(err.splitlines()) == 1 and "nothing.toml: no such file" in err
     assert "run it from the checkout's root" in err  # the default is relative to it
     assert VALUES_FILE.is_file()
+
+
+def _scenario_sections(full_run: bool) -> list:
+    """The catalogue's closed-loop claims and model choices, and one figure, as a full run
+    finds them (``full_run``: findings of every verdict, '|' in their text, a figure
+    drawn) or as ``--skip-scenarios`` does (each raises NotRunError)."""
+    from cosim.reproduction.record import Figure, Section
+
+    def ours(i: int):
+        def found(c: Context) -> Finding:
+            if not full_run:
+                raise NotRunError("scenarios skipped")
+            return Finding(shown=f"peak |psi| {i}", holds=i % 2 == 1, note=f"note {i} |x|")
+
+        return found
+
+    def effect(c: Context) -> str:
+        if not full_run:
+            raise NotRunError("scenarios skipped")
+        return "bs-3 settles | after 3 s"
+
+    def draw(c: Context, path: Path) -> None:
+        if not full_run:
+            raise NotRunError("scenarios skipped")
+        path.write_bytes(b"\x89PNG")
+
+    claims = [c for c in CLAIMS if c.cost is Cost.SCENARIO]
+    choices = [c for c in CHOICES if c.cost is Cost.SCENARIO]
+    return [
+        Section(
+            "Closed loop",
+            tuple(dataclasses.replace(c, ours=ours(i)) for i, c in enumerate(claims)),
+            (Figure("bs-3_velocities.png", draw, Cost.SCENARIO),),
+            tuple(dataclasses.replace(c, effect=effect) for c in choices),
+        )
+    ]
+
+
+def test_skip_scenarios_keeps_the_closed_loop_rows_figures_and_effects(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`auv-cosim reproduce --skip-scenarios` rewrote docs/reproduction.md with every
+    closed-loop row, model-choice effect and difference reading 'not run' and deleted the
+    closed-loop figures the page showed: regenerating the page after a change to Chapter 5
+    alone wiped Chapter 6's results. Unchanged, the page must come back byte-identical."""
+    import cosim.reproduction.generate as generate
+
+    monkeypatch.setattr(generate, "catalogue", lambda refs: _scenario_sections(True))
+    generate.reproduce(tmp_path, VALUES_FILE, scenarios=False, log=lambda m: None)
+    earlier = (tmp_path / "reproduction.md").read_bytes()
+    assert b"not run" not in earlier and b"](figures/bs-3_velocities.png)" in earlier
+    assert b"| differs (explained) |" in earlier and b"bs-3 settles \\| after 3 s" in earlier
+    monkeypatch.setattr(generate, "catalogue", lambda refs: _scenario_sections(False))
+    logged: list[str] = []
+    generate.reproduce(tmp_path, VALUES_FILE, scenarios=False, log=logged.append)
+    assert (tmp_path / "reproduction.md").read_bytes() == earlier
+    assert (tmp_path / "figures" / "bs-3_velocities.png").is_file()
+    assert any("kept from the earlier page" in m for m in logged), logged
