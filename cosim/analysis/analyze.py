@@ -11,6 +11,7 @@ from the options, prints tables or JSON, writes CSV files and the figures of
   ``<out>/sweep_<PARAM>.csv`` (the branches) and ``<out>/sweep_<PARAM>_special_points.csv``
   (folds, branch points, Hopf points), with a progress bar. Every CSV column but ``branch``,
   ``kind`` and ``stable`` (0/1) names its SI unit in its header: ``u [m/s]``, ``mu [1]``.
+  A sweep replaces an earlier sweep of the same parameter in ``<out>``, and says so.
 * ``phase-portrait``: ``<out>/phase_portrait.png``, open-loop trajectories from a grid of
   initial states in the search box (Figs. 5.4-5.5).
 """
@@ -55,6 +56,7 @@ PHASE_STEP_S = 0.05
 PHASE_U0 = (0.3, 1.0, 1.9)
 PHASE_VR0 = tuple((v, r) for v in (-0.4, 0.0, 0.4) for r in (-0.4, 0.0, 0.4))
 MANIFOLD_OFFSET = 0.01
+PHASE_PORTRAIT = "phase_portrait.png"
 
 
 def operating_conditions(
@@ -197,15 +199,32 @@ def sweep_command(
     steps: int,
     out: Path,
 ) -> int:
-    """``auv-cosim analyze sweep``: write the sweep's files, print its special points."""
+    """``auv-cosim analyze sweep``: write the sweep's files, print its special points and
+    the files, saying which replaced an earlier analysis's."""
+    earlier = {path for path in sweep_paths(out, parameter).values() if path.exists()}
     result, paths = run_sweep(
         conditions, parameter, start, stop, steps, out, names=("FROM", "TO", "--steps")
     )
     print(describe(conditions, swept=parameter))
     print(special_points_table(result, conditions))
     for name, path in paths.items():
-        print(f"  {name:<15} {path}")
+        print(f"  {name:<15} {_written(path, earlier)}")
     return 0
+
+
+def sweep_paths(out: Path, parameter: str) -> dict[str, Path]:
+    """The files a sweep of ``parameter`` writes into ``out``, by name."""
+    stem = f"sweep_{parameter}"
+    return {
+        "figure": out / f"{stem}.png",
+        "branches": out / f"{stem}.csv",
+        "special_points": out / f"{stem}_special_points.csv",
+    }
+
+
+def _written(path: Path, earlier: set[Path]) -> str:
+    """``path`` as the command lists it, saying so when it replaced an earlier file."""
+    return f"{path} (replaced the earlier one)" if path in earlier else str(path)
 
 
 def run_sweep(
@@ -236,16 +255,16 @@ def run_sweep(
             bar.refresh()
 
         result = sweep(conditions, parameter, start, stop, steps, seeds=seeds, progress=progress)
-    stem = f"sweep_{parameter}"
+    paths = sweep_paths(out, parameter)
     try:
-        branches = write_branches_csv(result, conditions, out / f"{stem}.csv")
-        special = write_special_points_csv(result, out / f"{stem}_special_points.csv")
+        write_branches_csv(result, conditions, paths["branches"])
+        write_special_points_csv(result, paths["special_points"])
         setting = describe(conditions, swept=parameter)
         title = f"{conditions.params.name}: equilibria over {parameter} ({setting})"
-        figure = plot_sweep(result, conditions.params, out / f"{stem}.png", title=title)
+        plot_sweep(result, conditions.params, paths["figure"], title=title)
     except OSError as exc:
         raise CosimError(f"cannot write the sweep outputs to {out}: {_unwritten(exc)}") from None
-    return result, {"figure": figure, "branches": branches, "special_points": special}
+    return result, paths
 
 
 def write_branches_csv(result: Sweep, conditions: OperatingConditions, path: Path) -> Path:
@@ -391,16 +410,19 @@ def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:
             "in still water (Figs. 5.4-5.5); drop the current"
         )
     _output_folder(out, "the phase portrait")
+    earlier = {out / PHASE_PORTRAIT} if (out / PHASE_PORTRAIT).exists() else set()
     with tqdm(desc="phase portrait: finding the equilibria", total=None, disable=None,
               leave=False, bar_format="{desc} [{elapsed}]"):  # fmt: skip
         equilibria = find_equilibria(conditions)
     trajectories = phase_trajectories(conditions, equilibria)
     title = f"open-loop phase portrait: {describe(conditions)}"
     try:
-        path = plot_phase_portrait(trajectories, equilibria, out / "phase_portrait.png", title)
+        path = plot_phase_portrait(trajectories, equilibria, out / PHASE_PORTRAIT, title)
     except OSError as exc:
         raise CosimError(f"cannot write the phase portrait to {out}: {_unwritten(exc)}") from None
     print(describe(conditions))
     print(equilibria_table(conditions, equilibria))
-    print(f"  {len(trajectories)} trajectories of {PHASE_DURATION_S:g} s: {path}")
+    print(
+        f"  {len(trajectories)} trajectories of {PHASE_DURATION_S:g} s: {_written(path, earlier)}"
+    )
     return 0

@@ -400,3 +400,24 @@ def test_equilibria_json_names_the_unit_of_every_number(capsys) -> None:
             "state": dict(zip(STATE_NAMES, STATE_UNITS, strict=True)),
             "eigenvalues": "1/s",
         }
+
+
+def test_a_sweep_says_which_earlier_outputs_it_replaced(capsys, tmp_path) -> None:
+    """A second `analyze sweep eta ...` (at another thrust) into the same folder wrote
+    over the first one's figure and CSV files without a word."""
+    argv = ["analyze", "sweep", "eta", "1", "1.5", "--steps", "10", "--out", str(tmp_path)]
+    code, out, _ = _run(capsys, *argv)
+    assert code == 0 and "replaced" not in out
+    code, out, _ = _run(capsys, *argv, "--thrust", "8")
+    assert code == 0
+    for name in ("sweep_eta.png", "sweep_eta.csv", "sweep_eta_special_points.csv"):
+        assert f"{tmp_path / name} (replaced the earlier one)" in out, out
+
+
+@pytest.mark.slow
+def test_a_phase_portrait_says_it_replaced_an_earlier_one(capsys, tmp_path) -> None:
+    """`analyze phase-portrait` wrote over an earlier phase_portrait.png without a word."""
+    (tmp_path / "phase_portrait.png").write_bytes(PNG_SIGNATURE)
+    code, out, _ = _run(capsys, "analyze", "phase-portrait", "--out", str(tmp_path))
+    assert code == 0
+    assert f"{tmp_path / 'phase_portrait.png'} (replaced the earlier one)" in out, out
