@@ -708,6 +708,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if argv is None and args.command == "run":
         _ignore_stop_signals()
+        if args.connect is not None:
+            _quiet_viewer_transport_log()
     if argv is None:
         warnings.showwarning = one_line_warnings(f"auv-cosim {args.command}")
         matplotlib_folder_in_one_line()
@@ -825,6 +827,18 @@ def _quiet_stdout() -> None:
     "Note on SIGPIPE")."""
     null = os.open(os.devnull, os.O_WRONLY)
     os.dup2(null, sys.stdout.fileno())
+
+
+# rerun-sdk's own log lines about a viewer that went away ("ERROR re_grpc_client::write:
+# Write messages call failed", "Failed to flush previous sink"): the run says so itself, in
+# one warning line (cosim.viz.recording.RerunSink); the rest of the SDK logs as it would.
+VIEWER_TRANSPORT_LOG = "warn,re_grpc_client=off,re_sdk::recording_stream=off"
+
+
+def _quiet_viewer_transport_log() -> None:
+    """Give rerun-sdk :data:`VIEWER_TRANSPORT_LOG` as its log filter (``RUST_LOG``, read
+    once as rerun is first imported, after this) unless the user set one."""
+    os.environ.setdefault("RUST_LOG", VIEWER_TRANSPORT_LOG)
 
 
 def _ignore_stop_signals() -> None:

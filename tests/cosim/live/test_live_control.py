@@ -29,6 +29,7 @@ from cosim.engine.live import LiveControl, OverrideError
 from cosim.outputs.results import read_csv
 from cosim.runner import run_scenario
 from cosim.scenario.spec import load_scenario
+from cosim.viz.recording import rerun_executable
 
 TIMEOUT_S = 120.0  # generous: the machine may be busy; nothing here is timed
 
@@ -39,12 +40,15 @@ def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
 
 
 @contextlib.contextmanager
-def cli_run(fmu_dir: Path, out: Path, *options: str) -> Iterator[subprocess.Popen]:
-    """`auv-cosim run bs-3 ...` in its own process group, killed on the way out."""
+def cli_run(
+    fmu_dir: Path, out: Path, *options: str, env: dict[str, str] | None = None
+) -> Iterator[subprocess.Popen]:
+    """`auv-cosim run bs-3 ...` (in ``env``: this process's unless given) in its own process
+    group, killed on the way out."""
     command = [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--fmu-dir", str(fmu_dir),
                "--out", str(out), "--quiet", *options]  # fmt: skip
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)  # fmt: skip
+                            start_new_session=True, env=env)  # fmt: skip
     try:
         yield proc
     finally:
@@ -300,3 +304,61 @@ def test_check_step_of_a_steered_run_checks_what_it_ran(fmu_dir: Path, tmp_path:
     replay = run_scenario(out / "scenario.toml", tmp_path / "replay", fmu_dir=fmu_dir,
                           no_rrd=True, tail_guard=False, check_step=True)  # fmt: skip
     assert replay.result.coupling["check_step"] == live
+
+
+@contextlib.contextmanager
+def viewer_server(port: int) -> Iterator[subprocess.Popen]:
+    """``rerun --serve-grpc`` on 127.0.0.1:``port`` in its own process group (the launcher
+    starts the viewer binary as its child), listening when this yields; killed on the way
+    out if the test has not stopped it."""
+    command = [str(rerun_executable()), "--serve-grpc", "--bind", "127.0.0.1",
+               "--port", str(port)]  # fmt: skip
+    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + TIMEOUT_S
+        while not _listening(port):
+            assert server.poll() is None and time.monotonic() < deadline, "no viewer server"
+            time.sleep(0.1)
+        yield server
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(server.pid, signal.SIGKILL)
+        server.wait()
+
+
+def _listening(port: int) -> bool:
+    with socket.socket() as s:
+        return s.connect_ex(("127.0.0.1", port)) == 0
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(rerun_executable() is None, reason="the rerun CLI is not installed")
+def test_a_viewer_that_goes_away_mid_run_costs_one_warning_line(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A viewer closed during a streamed run (``--connect``) is told in one line of ours; the
+    SDK's own log lines ("ERROR re_grpc_client::write: Write messages call failed", "Failed
+    to flush previous sink", in terminal colours) came out beside it. The run goes on."""
+    port = _free_port()
+    url = f"rerun+http://127.0.0.1:{port}/proxy"
+    env = {key: value for key, value in os.environ.items() if key != "RUST_LOG"}
+    with viewer_server(port) as server, cli_run(
+        fmu_dir, tmp_path / "run", "--stop-time", "600", "--real-time", "5", "--no-rrd",
+        "--connect", url, "--control", "127.0.0.1:0", env=env,
+    ) as proc:  # fmt: skip
+        client = Client(endpoint(proc))
+        t_closed = client.time_at_least(1.0)
+        os.killpg(server.pid, signal.SIGKILL)
+        client.time_at_least(t_closed + 5.0)  # the run sends a few times to no one
+        assert client.ask({"stop": True}) == {"ok": True}
+        _, err = proc.communicate(timeout=TIMEOUT_S)
+    assert proc.returncode == 130, err
+    lines = [line for line in err.splitlines() if "stopped by control" not in line]
+    assert len(lines) == 1 and "warning: Rerun viewer: " in lines[0], err
