@@ -18,6 +18,11 @@ the same, and the reply says so in ``"warnings": ["<one line>"]``. A refused req
 ``set`` the run ended before applying, gets ``{"error": "<one line: the value and the
 reason>"}``. ``get`` answers with the values of the last communication point.
 
+A client need not wait for a reply before its next request: a ``set`` is queued as it is
+read, so sets sent faster than the run's points (a joystick at 1000 a second) all come into
+force at the next point after they arrive, in order; any other request waits until the sets
+before it on its connection are applied. The replies come back in the order of the requests.
+
 What the reader refuses, with one reply each and the connection kept: a line over
 :data:`MAX_LINE` bytes (discarded whole, up to its end: its tail is never read as a
 request), bytes that are not UTF-8 JSON, JSON nested deeper than the decoder takes, an
@@ -40,6 +45,7 @@ from __future__ import annotations
 import contextlib
 import ipaddress
 import json
+import queue
 import re
 import socket
 import socketserver
@@ -49,13 +55,14 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from cosim.engine.live import LiveControl, OverrideError
+from cosim.engine.live import LiveControl, OverrideError, Ticket
 from cosim.errors import CosimError
 
 DEFAULT_HOST = "127.0.0.1"
 MAX_LINE = 65536  # bytes: a longer request line is refused whole
 MAX_DIGITS = 20  # digits of a JSON integer: a longer one is refused
 MAX_CLIENTS = 16  # connections served at once: one more is refused with a line
+MAX_PENDING = 1024  # requests of a connection waiting for their replies: reading pauses
 _CHUNK = 65536  # bytes read from a socket at a time
 _END_OF_LINE = re.compile(rb"[\r\n]")
 _USAGE = 'expected one of {"set": {...}}, {"get": [...]}, {"pause": true|false}, {"stop": true}'
@@ -121,10 +128,36 @@ def lines(recv: Callable[[int], bytes]) -> Iterator[bytes | None]:
 
 def answer(live: LiveControl, line: bytes | None, source: str) -> dict[str, Any]:
     """The reply to one request line (never raises); a ``set`` waits until applied."""
+    return submit(live, line, source)()
+
+
+def submit(
+    live: LiveControl,
+    line: bytes | None,
+    source: str,
+    settle: Callable[[], None] = lambda: None,
+) -> Callable[[], dict[str, Any]]:
+    """Act on one request line, a ``set`` by queueing it for the next point, anything else
+    after ``settle()`` (a connection's: until the sets before it are applied); returns
+    what gives the reply (never raises), waiting until a ``set`` is applied."""
     try:
-        return _do(live, _request(line), source)
+        verb, arg = _request(line)
+        if verb == "set" and isinstance(arg, dict):
+            ticket = live.request(arg, source)
+            return lambda: _set_reply(ticket)
+        settle()
+        reply = _do(live, (verb, arg), source)
     except OverrideError as exc:
-        return {"error": str(exc)}
+        reply = {"error": str(exc)}
+    return lambda: reply
+
+
+def _set_reply(ticket: Ticket) -> dict[str, Any]:
+    ticket.wait()
+    if ticket.refused is not None:
+        return {"error": f"set {ticket.values}: {ticket.refused}"}
+    reply = {"ok": True, "set": ticket.values, "name": ticket.name, "t": ticket.time}
+    return reply | ({"warnings": ticket.doubts} if ticket.doubts else {})
 
 
 def _request(line: bytes | None) -> tuple[str, Any]:
@@ -155,13 +188,6 @@ def _integer(text: str) -> int:
 
 def _do(live: LiveControl, request: tuple[str, Any], source: str) -> dict[str, Any]:
     verb, arg = request
-    if verb == "set" and isinstance(arg, dict):
-        ticket = live.request(arg, source)
-        ticket.wait()
-        if ticket.refused is not None:
-            raise OverrideError(f"set {ticket.values}: {ticket.refused}")
-        reply = {"ok": True, "set": ticket.values, "name": ticket.name, "t": ticket.time}
-        return reply | ({"warnings": ticket.doubts} if ticket.doubts else {})
     if verb == "get" and isinstance(arg, list) and all(isinstance(r, str) for r in arg):
         t, values = live.latest(arg)
         return {"t": t, "values": values}
@@ -200,29 +226,49 @@ class _Server(socketserver.ThreadingTCPServer):
 
 
 class _Client(socketserver.BaseRequestHandler):
+    """One connection: this thread reads and acts on the requests as they arrive (a run of
+    ``set`` lines is queued at once, for the next point), a writer thread of its own sends
+    the replies in the order of the requests, each once it is known."""
+
     server: _Server
 
     def handle(self) -> None:
         host, port = self.client_address[:2]
         source = f"control {_shown(host, port)}"
         live = self.server.live
+        replies: queue.Queue[Callable[[], dict[str, Any]] | None] = queue.Queue(MAX_PENDING)
+        writer = threading.Thread(target=self._write, args=(replies,), daemon=True)
+        writer.start()
         try:
             for line in lines(self.request.recv):
-                me = threading.current_thread()
-                self.server.busy.add(me)
-                try:
-                    reply = answer(live, line, source)
-                    self.request.sendall((json.dumps(reply) + "\n").encode())
-                finally:
-                    self.server.busy.discard(me)
+                replies.put(submit(live, line, source, settle=replies.join))
         except OSError:
-            return  # the client went away, or the endpoint is closing
+            pass  # the client went away, or the endpoint is closing
         finally:
-            with self.server.guard:
-                self.server.clients.discard(self.request)
             if live.release(source):
                 print(f"{source} disconnected while holding the run paused: resumed",
                       file=sys.stderr, flush=True)  # fmt: skip
+            replies.put(None)
+            writer.join()  # the sets sent are answered (applied, or the run ended) first
+            with self.server.guard:
+                self.server.clients.discard(self.request)
+
+    def _write(self, replies: queue.Queue[Callable[[], dict[str, Any]] | None]) -> None:
+        """Send each reply as it is known, in order, until the None after the last; a
+        client gone keeps the rest from being sent, not from being waited for."""
+        gone, me = False, threading.current_thread()
+        while (reply := replies.get()) is not None:
+            self.server.busy.add(me)
+            try:
+                text = json.dumps(reply()) + "\n"
+                if not gone:
+                    self.request.sendall(text.encode())
+            except OSError:
+                gone = True  # the client went away, or the endpoint is closing
+            finally:
+                self.server.busy.discard(me)
+                replies.task_done()
+        replies.task_done()
 
 
 def _shown(host: str, port: int) -> str:

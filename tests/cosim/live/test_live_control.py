@@ -362,3 +362,32 @@ def test_a_viewer_that_goes_away_mid_run_costs_one_warning_line(
     assert proc.returncode == 130, err
     lines = [line for line in err.splitlines() if "stopped by control" not in line]
     assert len(lines) == 1 and "warning: Rerun viewer: " in lines[0], err
+
+
+@pytest.mark.slow
+def test_sets_sent_in_a_burst_are_applied_at_the_next_points_not_one_per_point(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A client sending set-points faster than the run's points (1000 a second, without
+    waiting for each reply) saw them applied one per communication point, each waiting for
+    the one before: 3 s of them (3,000) took 30 s of simulated time to come into force at
+    1x. Each now goes into force at the next point after it arrived, in order, and the
+    replies come back in the order sent; a ``get`` after them reads the last value."""
+    count = 300
+    with cli_run(fmu_dir, tmp_path / "run", "--stop-time", "600", "--real-time", "1",
+                 "--no-rrd", "--control", "127.0.0.1:0") as proc:  # fmt: skip
+        client = Client(endpoint(proc))
+        client.time_at_least(0.1)
+        values = [round(0.001 * i, 3) for i in range(1, count + 1)]
+        burst = "".join(json.dumps({"set": {"controller.yaw_setpoint": v}}) + "\n" for v in values)
+        client.file.write(burst + json.dumps({"get": ["controller.yaw_setpoint"]}) + "\n")
+        client.file.flush()
+        replies = [json.loads(client.file.readline()) for _ in range(count + 1)]
+        assert client.ask({"stop": True}) == {"ok": True}
+        proc.communicate(timeout=TIMEOUT_S)
+    sets, read = replies[:-1], replies[-1]
+    assert [r.get("set") for r in sets] == [{"controller.yaw_setpoint": v} for v in values]
+    assert [r["name"] for r in sets] == [f"live-{i}" for i in range(1, count + 1)]
+    times = [r["t"] for r in sets]
+    assert times == sorted(times) and len(set(times)) < count // 2, times
+    assert read["values"] == {"controller.yaw_setpoint": values[-1]} and read["t"] >= times[-1]
