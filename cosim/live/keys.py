@@ -124,7 +124,22 @@ def _terminal_fd() -> int:
         raise CosimError("--interactive: standard input is closed (keys need a terminal)") from None
     if not terminal:
         raise CosimError("--interactive: standard input is not a terminal")
+    if _in_background(fd):
+        raise CosimError(
+            "--interactive: this run is in the background of its terminal: keys need it in "
+            "the foreground (start it without &, or fg)"
+        )
     return fd
+
+
+def _in_background(fd: int) -> bool:
+    """Whether the terminal ``fd`` is this process's controlling terminal with another
+    process group in front (a job started with ``&``): setting its mode, or reading it,
+    would have the terminal stop this run until it is brought to the foreground."""
+    try:
+        return os.tcgetpgrp(fd) != os.getpgrp()
+    except OSError:  # not the controlling terminal: it stops no one
+        return False
 
 
 class KeyPad:

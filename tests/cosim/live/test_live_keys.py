@@ -294,3 +294,52 @@ def test_the_up_key_stops_the_depth_set_point_at_the_surface(bs3: Scenario, term
         pad.press("up")
         asked.append(live.current("controller.depth_setpoint"))
     assert asked == [0.0, 0.0]
+
+
+BACKGROUND_JOB = """
+import fcntl, os, sys, termios
+fcntl.ioctl(0, termios.TIOCSCTTY, 0)  # the pty: this session's terminal, this group in front
+job = os.fork()
+if job == 0:
+    os.setpgid(0, 0)  # a group of its own: a job in the background, as `... &` starts it
+    os.execv(sys.executable, [sys.executable, "-m", "cosim.cli", *sys.argv[1:]])
+print(f"job {job}", flush=True)
+_, status = os.waitpid(job, os.WUNTRACED)
+if os.WIFSTOPPED(status):
+    print("job stopped by the terminal", flush=True)
+    os.killpg(job, 9)
+    _, status = os.waitpid(job, 0)
+print(f"job exit {os.waitstatus_to_exitcode(status)}", flush=True)
+"""
+
+
+def test_interactive_in_the_background_is_refused_in_one_line(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """``auv-cosim run ... --interactive &``: the run put its terminal in cbreak mode from
+    the background, and the terminal stopped it ("Stopped (tty output)") for good; it now
+    says in one line that keys need it in the foreground, and ends."""
+    parent, child = pty.openpty()
+    command = [sys.executable, "-c", BACKGROUND_JOB, "run", "bs-3", "--fmu-dir", str(fmu_dir),
+               "--out", str(tmp_path / "run"), "--no-rrd", "--quiet", "--stop-time", "1",
+               "--real-time", "5", "--interactive"]  # fmt: skip
+    proc = subprocess.Popen(command, stdin=child, stdout=child, stderr=child,
+                            start_new_session=True, cwd=tmp_path)  # fmt: skip
+    terminal, job = Terminal(parent), None
+    try:
+        job = int(terminal.read_until(r"job (\d+)").group(1))
+        ended = terminal.read_until(r"job (stopped by the terminal|exit -?\d+)").group(1)
+        assert proc.wait(timeout=TIMEOUT_S) == 0, terminal.text
+    finally:
+        for group in (proc.pid, job):
+            with contextlib.suppress(ProcessLookupError, TypeError):
+                os.killpg(group, signal.SIGKILL)  # type: ignore[arg-type]
+        proc.wait()
+        os.close(parent)
+        os.close(child)
+    assert ended == "exit 1", terminal.text
+    refusals = [line for line in terminal.text.splitlines() if "--interactive" in line]
+    assert refusals == [
+        "auv-cosim run: --interactive: this run is in the background of its "
+        "terminal: keys need it in the foreground (start it without &, or fg)"
+    ]
