@@ -2,6 +2,7 @@
 
 import importlib.metadata
 import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -472,3 +473,11 @@ def test_a_home_that_cannot_be_written_costs_matplotlib_one_line(run_python, tmp
     assert said[0].endswith("set MPLCONFIGDIR (or HOME) to a writable folder")
     assert (out / "phase_portrait.png").is_file()
     assert [p.name for p in scratch.iterdir() if not p.name.startswith("auv-cosim-scratch")] == []
+
+
+def test_python_dash_m_cosim_is_the_command() -> None:
+    """``python -m cosim`` said "No module named cosim.__main__" (only ``python -m
+    cosim.cli`` worked), where the command's scripts folder is not on PATH."""
+    done = run_in_group([sys.executable, "-m", "cosim", "--version"], timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == f"auv-cosim {importlib.metadata.version('auv-cosim')}\n"
