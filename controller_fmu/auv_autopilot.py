@@ -170,6 +170,8 @@ class AuvAutopilot(SafeSlave):
                     description=INPUT_DESCRIPTIONS[name],
                 ),
                 unit=unit,
+                # a depth set-point above the surface (z_d < 0, down positive) is refused
+                minimum=0.0 if name == "depth_setpoint" else None,
             )
         for name, unit in zip(COMMAND_NAMES, COMMAND_UNITS):
             self.register(
