@@ -222,6 +222,7 @@ def write_report(run_dir: Path) -> Path:
     run_dir = Path(run_dir)
     stamp = {**run_stamp(run_dir), "made": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
     table = load_results(run_dir)
+    _check_drawable(run_dir, table)
     summary, summary_problem = load_summary(run_dir)
     out = run_dir / REPORT_FOLDER
     check_writable(out, [INDEX_PAGE, *(f"{name}.png" for name in (*FIGURES, *TITLES))])
@@ -250,6 +251,28 @@ def write_report(run_dir: Path) -> Path:
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return out / INDEX_PAGE
+
+
+# every column some figure draws: the panels' and the trajectory's (north against east)
+DRAWN_COLUMNS = frozenset(
+    {s.column for _, panels in FIGURES.values() for panel in panels for s in panel.series}
+    | {"plant.north", "plant.east"}
+)
+
+
+def _check_drawable(run_dir: Path, table: dict[str, np.ndarray]) -> None:
+    """Warn of a results.csv holding none of :data:`DRAWN_COLUMNS` (a run of other FMUs,
+    or recording other columns): its page has the run's summary and no figure, which it
+    got without a word of why."""
+    if DRAWN_COLUMNS.isdisjoint(table):
+        shown = ", ".join(sorted(DRAWN_COLUMNS, key=lambda c: (c[:6] != "plant.", c))[:4])
+        warnings.warn(
+            f"{run_dir / 'results.csv'} holds none of the columns the report draws "
+            f"({shown}, ...): the page shows the run's summary and no figure (a "
+            "scenario's [output] record chooses the columns)",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
 
 def _figures(

@@ -208,6 +208,15 @@ def test_results_without_rows_or_time_are_refused(tmp_path):
         write_report(no_time)
 
 
+def test_results_with_nothing_the_report_draws_are_warned_of(tmp_path):
+    """A results.csv recording only columns no figure draws got a report page with no
+    figure and no word of why."""
+    (tmp_path / "results.csv").write_text("time,other.foo\n0,1\n1,2\n")
+    with pytest.warns(RuntimeWarning, match=r"results\.csv holds none of the columns the rep"):
+        page = write_report(tmp_path)
+    assert "<img" not in page.read_text()
+
+
 @pytest.mark.slow
 def test_cli_prints_the_index_path(lateral_run, capsys):
     assert main(["report", str(lateral_run)]) == 0
@@ -364,6 +373,7 @@ def test_a_report_replaces_its_own_files_and_drops_figures_it_no_longer_draws(tm
     assert (index.parent / "notes.txt").read_text() == "mine\n"
 
 
+@pytest.mark.filterwarnings("ignore:.*holds none of the columns the report draws")
 def test_a_kept_report_names_its_run_and_is_marked_stale_when_it_is_replaced(
     test_fmu_dir: Path, tmp_path: Path, capsys
 ) -> None:
