@@ -5,4 +5,5 @@ import sys
 
 from cosim.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # imported (a test importing every module), it runs nothing
+    sys.exit(main())
