@@ -1,6 +1,7 @@
-"""A command run to its end in a process group of its own, the group killed as it returns
-or times out: whatever the command started (a Dask cluster, a viewer, a forked worker)
-ends with it, whatever happens in the test."""
+"""A command in a process group of its own, run to its end (:func:`run_in_group`) or while
+a test talks to it (:func:`started_in_group`), the group killed as it returns, times out
+or the test ends: whatever the command started (a Dask cluster, a viewer, a forked
+worker) ends with it, whatever happens in the test."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import contextlib
 import os
 import signal
 import subprocess
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 
@@ -27,3 +28,18 @@ def run_in_group(
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+@contextlib.contextmanager
+def started_in_group(command: Sequence[Any], **popen: Any) -> Iterator[subprocess.Popen]:
+    """``command`` started with ``popen`` (subprocess.Popen's keywords; stdout and stderr
+    piped as text unless given) for the ``with`` block; its group killed at the block's
+    end, and its output read to the end."""
+    options = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, "text": True, **popen}
+    proc = subprocess.Popen(command, start_new_session=True, **options)
+    try:
+        yield proc
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()

@@ -6,7 +6,6 @@ in a subprocess, in a process group the test kills, with its own ``tmp_path`` as
 
 from __future__ import annotations
 
-import contextlib
 import os
 import signal
 import subprocess
@@ -16,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from process_group import run_in_group
+from process_group import run_in_group, started_in_group
 
 from cosim.scratch import SCRATCH_DIR
 
@@ -67,27 +66,12 @@ def kill_when(proc: subprocess.Popen, ready: Path) -> None:
     proc.communicate(timeout=60)
 
 
-@contextlib.contextmanager
-def started(command: list[str], env: dict[str, str]):
-    """``command`` in a process group of its own, the group killed on the way out."""
-    proc = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-        start_new_session=True,
-    )  # fmt: skip
-    try:
-        yield proc
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
-
-
 @pytest.mark.slow
 def test_the_next_run_removes_what_a_killed_run_left_in_tmpdir(fmu_dir: Path, tmp_path: Path):
     """`auv-cosim run` killed by SIGKILL while stepping left its FMUs extracted in TMPDIR
     (a ``tmpXXXXXXXX`` folder per FMU), forever; the next run removes them."""
     env = environ(tmp_path / "tmp")
-    with started(run_command(fmu_dir, tmp_path / "killed", LONG), env) as proc:
+    with started_in_group(run_command(fmu_dir, tmp_path / "killed", LONG), env=env) as proc:
         kill_when(proc, tmp_path / "killed" / "results.csv")
     assert left_in(tmp_path / "tmp"), "the killed run had nothing in TMPDIR: no test"
     done = run_in_group(run_command(fmu_dir, tmp_path / "next", "1"), timeout=120, env=env)
@@ -102,7 +86,7 @@ def test_a_run_keeps_its_files_while_another_starts_and_ends(fmu_dir: Path, tmp_
     when it ends (SIGTERM)."""
     env = environ(tmp_path / "tmp")
     results = tmp_path / "live" / "results.csv"
-    with started(run_command(fmu_dir, tmp_path / "live", LONG), env) as live:
+    with started_in_group(run_command(fmu_dir, tmp_path / "live", LONG), env=env) as live:
         wait_for(live, results)
         before = left_in(tmp_path / "tmp")
         done = run_in_group(run_command(fmu_dir, tmp_path / "next", "1"), timeout=120, env=env)
@@ -159,7 +143,7 @@ def test_a_resumed_study_removes_what_a_killed_one_left(fmu_dir: Path, tmp_path:
     (tmp_path / "study.toml").write_text(STUDY)
     table = tmp_path / "out" / "runs.csv"
     command = sweep_command(fmu_dir, tmp_path / "study.toml", "--out", str(tmp_path / "out"))
-    with started(command, env) as proc:
+    with started_in_group(command, env=env) as proc:
         deadline = time.monotonic() + 240
         while not (table.is_file() and table.read_text().count("\n") > 1 and run_folders(tmpdir)):
             assert proc.poll() is None, proc.communicate()

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import locket
 import pytest
+from process_group import started_in_group
 
 from cosim import scratch
 
@@ -42,16 +43,9 @@ sys.stdin.read()
 def maker(tmpdir: Path, how: str) -> Iterator[subprocess.Popen]:
     """MAKER run with ``how`` in a process group of its own, killed on the way out."""
     env = {**os.environ, "TMPDIR": str(tmpdir), "PYTHONPATH": os.pathsep.join(sys.path)}
-    proc = subprocess.Popen(
-        [sys.executable, "-c", MAKER, how], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-        text=True, env=env, start_new_session=True,
-    )  # fmt: skip
-    try:
+    command = [sys.executable, "-c", MAKER, how]
+    with started_in_group(command, stdin=subprocess.PIPE, stderr=None, env=env) as proc:
         yield proc
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
 
 
 def test_a_killed_process_folder_and_claims_go_at_the_next_purge(tmp_path: Path) -> None:

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from process_group import started_in_group
 from rerun.chunk import RrdReader
 
 from cosim.engine.live import LiveControl, OverrideError
@@ -47,14 +48,8 @@ def cli_run(
     group, killed on the way out."""
     command = [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--fmu-dir", str(fmu_dir),
                "--out", str(out), "--quiet", *options]  # fmt: skip
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, env=env)  # fmt: skip
-    try:
+    with started_in_group(command, env=env) as proc:
         yield proc
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
 
 
 def endpoint(proc: subprocess.Popen) -> tuple[str, int]:
