@@ -37,14 +37,19 @@ def _summary(run_dir: Path) -> dict:
     return json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
 
 
-def test_summary_gives_the_unit_of_every_results_column_in_its_order(run_dir: Path) -> None:
+def test_summary_gives_the_unit_of_every_results_column_in_its_order(
+    run_dir: Path, fmu_dir: Path
+) -> None:
     """An analyst reading results.csv finds each column's unit in summary.json: the same
-    names in the same order, ``time`` in s, each variable in the unit its FMU declares."""
+    names in the same order, ``time`` in s, each variable in the unit its FMU declares.
+    The scenario is read with the session's FMUs: the default folder (build/fmus under the
+    working directory) had the FMUs built into the repository's clone, and failed where
+    that folder could not be made."""
     header = (run_dir / "results.csv").read_text(encoding="utf-8").split("\n", 1)[0]
     units = _summary(run_dir)["units"]
     assert list(units) == header_columns(header)
     assert units["time"] == "s"
-    scenario = load_scenario(run_dir / "scenario.toml")
+    scenario = load_scenario(run_dir / "scenario.toml", fmu_dir=fmu_dir)
     for column in header_columns(header)[1:]:
         instance, _, variable = column.partition(".")
         declared = scenario.instances[instance].interface.variables[variable].unit
