@@ -14,24 +14,27 @@ def deadline(seconds: int, what: str = "no answer") -> Iterator[None]:
     the main thread only; pytest-timeout would end the whole test, not name the block).
 
     The process has one real-time timer, which pytest-timeout arms for each test: one due
-    within the block fires there (its own handler runs), and one due later is armed again
+    within the block fires there (its own handler runs, once), and one due later is armed again
     after the block for the time it had left (disarmed, a hang after the block hung the
     whole run)."""
     started = time.monotonic()
     outer, _ = signal.getitimer(signal.ITIMER_REAL)
     previous = signal.getsignal(signal.SIGALRM)
+    outer_first = bool(outer) and outer <= seconds and callable(previous)
+    fired = []
 
     def expired(signum: int, frame: object) -> None:
-        if outer and time.monotonic() - started >= outer and callable(previous):
-            previous(signum, frame)  # the earlier timer's time came first
+        fired.append(signum)
+        if outer_first and callable(previous):  # the earlier timer's time came first
+            previous(signum, frame)
         raise AssertionError(f"{what} after {seconds} s")
 
     signal.signal(signal.SIGALRM, expired)
-    signal.setitimer(signal.ITIMER_REAL, min(seconds, outer) if outer else seconds)
+    signal.setitimer(signal.ITIMER_REAL, outer if outer_first else seconds)
     try:
         yield
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
-        if outer:  # due already: at once
+        if outer and not (fired and outer_first):  # the earlier timer has yet to fire
             signal.setitimer(signal.ITIMER_REAL, max(outer - (time.monotonic() - started), 1e-3))

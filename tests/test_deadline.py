@@ -50,6 +50,7 @@ def test_a_timer_due_within_the_block_still_fires() -> None:
     signal.setitimer(signal.ITIMER_REAL, 0.2)
     with pytest.raises(OuterTimerError), deadline(60):
         time.sleep(120)  # ended by the outer timer, long before the block's deadline
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)  # fired once, not re-armed
 
 
 def test_a_block_over_its_deadline_fails_naming_it() -> None:
