@@ -377,10 +377,15 @@ class Timeline:
         for run in self._held:
             target, why = run.fault.target, f"fault {run.fault.name!r} at t = {t:.6g} s"
             if n == run.n_start:  # what the input goes back to if no event sets it meanwhile
-                self._saved[target] = self._writer.get(target)
+                self._saved.setdefault(target, self._writer.get(target))  # (before any fault)
             if run.active(n):
                 held = run.deliver(self._writer.get(target), n, self.z)
                 self._writer.set(target, held, why, assign=False)
-            elif n == run.n_stop:
-                restored = self._writer.assigned.get(target, self._saved[target])
+            elif n == run.n_stop and target in self._saved and not self._holding(target, n):
+                saved = self._saved.pop(target)  # the last fault on it let go
+                restored = self._writer.assigned.get(target, saved)
                 self._writer.set(target, restored, why, assign=False)
+
+    def _holding(self, target: str, n: int) -> bool:
+        """Whether an actuator fault on the unconnected input ``target`` acts at point n."""
+        return any(run.active(n) for run in self._held if run.fault.target == target)

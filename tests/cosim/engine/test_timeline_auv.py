@@ -110,6 +110,29 @@ def test_an_actuator_fault_on_an_unconnected_input_holds_it_then_lets_go(fmu_dir
     assert np.all(force[off] == 0.0) and np.all(force[~off] == 5.0)
 
 
+@pytest.mark.parametrize("first, second", [((0.3, 0.6), (0.5, 0.8)), ((0.3, 0.8), (0.5, 0.6))])
+def test_overlapping_actuator_faults_on_an_unconnected_input_let_go_once_both_stop(
+    fmu_dir: Path, first: tuple[float, float], second: tuple[float, float]
+) -> None:
+    # two thruster-off faults on the plant's unconnected tunnel_force (5 N), overlapping:
+    # the thruster is off while either acts and back at 5 N once both have stopped
+    faults = "".join(
+        f'[[faults]]\nkind = "thruster-off"\nstart = {start}\nstop = {stop}\n'
+        for start, stop in (first, second)
+    )
+    text = (
+        'id = "plant-alone"\nstop_time = 1.0\n[coupling]\nstep = 0.01\n'
+        '[instances.plant]\nfmu = "AuvPlant"\n[instances.plant.start]\n'
+        "variant = 1\nu_0 = 1.5\ntunnel_force = 5.0\n" + faults
+    )
+    result = master.run(scenario_from_toml(text, "plant-alone", fmu_dir=fmu_dir))
+    t, force = result.times, result.column("plant.tunnel_force")
+    end = max(first[1], second[1])
+    off = (t >= 0.3 - 1e-9) & (t < end - 1e-9)
+    assert np.all(force[off] == 0.0), force[off]
+    assert np.all(force[~off] == 5.0), f"after both faults stopped: {force[t >= end - 1e-9]}"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("fault", ['kind = "gain"\nvalue = 1e308', 'kind = "noise"\nstd = 1e300'])
 def test_a_fault_driving_the_plant_out_of_range_is_one_line_without_warnings(
