@@ -109,7 +109,13 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Discard
 
 from cosim.engine.input_error import InputError
-from cosim.engine.points import check_finite, end_of_simulation, failure_reason, refresh
+from cosim.engine.points import (
+    Give,
+    check_finite,
+    end_of_simulation,
+    failure_reason,
+    refresh,
+)
 from cosim.engine.signals import StopRequest
 from cosim.engine.slave import Slave
 from cosim.engine.timeline import Timeline
@@ -143,7 +149,7 @@ class _Stepper:
         scenario: Scenario,
         order: list[Slave],
         z: np.ndarray,
-        give: Callable[[Slave, int, float], None],
+        give: Give,
         timeline: Timeline | None,
     ) -> None:
         self.order, self.z, self.give, self.timeline = order, z, give, timeline
@@ -221,7 +227,7 @@ def run(
     rows: RowBuffer,
     stop: StopRequest,
     timeline: Timeline | None,
-    give: Callable[[Slave, int, float], None],
+    give: Give,
 ) -> tuple[str | None, dict[str, Any]]:
     """Step an initialised run to its stop time (see the module docstring); returns the
     one-line error (None if none) and the figures of the steps taken."""

@@ -85,6 +85,7 @@ from cosim.engine.extrapolation import InputRates
 from cosim.engine.live import LiveControl
 from cosim.engine.pacing import Pacer
 from cosim.engine.points import (
+    Give,
     RowBuffer,
     check_finite,
     end_of_simulation,
@@ -521,7 +522,7 @@ class _Finish:
     stepped: Slave
     due: Sequence[Slave]
     ends: Sequence[int]
-    give: Callable[[Slave, int, float], None]
+    give: Give
     jacobi: bool
     through: Sequence[Slave]
     n: int

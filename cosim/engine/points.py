@@ -6,6 +6,7 @@ values."""
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from typing import Protocol
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -98,15 +99,22 @@ class RowBuffer:
                 self.error = self.error or str(exc)
 
 
-def inputs_giver(z: np.ndarray, timeline: Timeline | None) -> Callable[[Slave, int, float], None]:
-    """``give(slave, n, t)``: set ``slave``'s connected inputs from z at point n (t = n h,
-    s), its faults applied, and their derivatives when it takes them."""
+class Give(Protocol):
+    """What :func:`inputs_giver` returns."""
+
+    def __call__(self, slave: Slave, n: int, t: float, again: bool = False) -> None: ...
+
+
+def inputs_giver(z: np.ndarray, timeline: Timeline | None) -> Give:
+    """``give(slave, n, t, again)``: set ``slave``'s connected inputs from z at point n
+    (t = n h, s), its faults applied, and their derivatives when it takes them; ``again``:
+    a feedthrough given its inputs again after a step (:func:`refresh`)."""
     take = z.take
 
-    def give(slave: Slave, n: int, t: float) -> None:
+    def give(slave: Slave, n: int, t: float, again: bool = False) -> None:
         take(slave.input_sources, out=slave.inputs)
         if timeline is not None:
-            timeline.deliver(slave, n)
+            timeline.deliver(slave, n, again)
         slave.put_inputs()
         if slave.others:
             slave.set_others(z)
@@ -116,14 +124,12 @@ def inputs_giver(z: np.ndarray, timeline: Timeline | None) -> Callable[[Slave, i
     return give
 
 
-def refresh(
-    slaves: list[Slave], give: Callable[[Slave, int, float], None], n: int, t: float
-) -> None:
+def refresh(slaves: list[Slave], give: Give, n: int, t: float) -> None:
     """Give each of ``slaves`` (instances with an output that feeds a connected input
     through) its inputs at point n (t, s) again and read its outputs: under Jacobi too a
     feedthrough then passes on the value of the same point."""
     for slave in slaves:
-        give(slave, n, t)
+        give(slave, n, t, True)
         slave.read_outputs()
 
 

@@ -14,7 +14,9 @@ faults, calls
   point fire right after the time events, each as a time event at t_n would;
 * :meth:`Timeline.deliver` for an instance right after the master gathered its connected
   inputs (``z.take(input_sources, out=inputs)``) and before ``fmi2SetReal``: each active
-  fault on one of those connections replaces the gathered value in its slot.
+  fault on one of those connections replaces the gathered value in its slot. A feedthrough
+  given its inputs again at a point is delivered the same again (one draw, one step of a
+  delay's history per step of the instance).
 
 Values are written with fmpy's ``setReal``/``setInteger``/``setBoolean`` on the instance; a
 recorded unconnected input's column follows the value written. An instance that is not
@@ -116,7 +118,11 @@ class _EventRun:
 
 
 class _FaultRun:
-    """One fault's state; :meth:`deliver` turns the gathered value into the delivered one."""
+    """One fault's state; :meth:`deliver` turns the gathered value into the delivered one.
+
+    A feedthrough is given its inputs twice at a point (after its sources stepped, then
+    as it steps): the second delivery at one point is the same delivery again, with the
+    point's draw and without another step of the delay's history."""
 
     def __init__(self, fault: Fault, h: float, index: Mapping[str, int]) -> None:
         self.fault = fault
@@ -126,19 +132,49 @@ class _FaultRun:
         steps = fault.steps or 0
         self.history: collections.deque[float] = collections.deque(maxlen=steps + 1)
         self.hold_index = index[fault.hold_source] if fault.hold_source else None
-        self.last: float | None = None  # the value delivered last
+        self.n_last: int | None = None  # the point of the latest delivery
+        self.last: float | None = None  # the value delivered then
+        self.before: float | None = None  # the value delivered at the point before it
+        self.draw = 0.0  # noise, dropout: the random number of point n_last
         self.held: float | None = None  # stuck, plane-stuck, mass-jam: the value held
 
     def active(self, n: int) -> bool:
         return self.n_start <= n and (self.n_stop is None or n < self.n_stop)
 
+    def state(self) -> tuple[Any, ...]:
+        """What :meth:`deliver` changes (for an adaptive step's rollback)."""
+        rng = None if self.rng is None else self.rng.bit_generator.state
+        return list(self.history), self.n_last, self.last, self.before, self.draw, self.held, rng
+
+    def set_state(self, saved: tuple[Any, ...]) -> None:
+        history, self.n_last, self.last, self.before, self.draw, self.held, rng = saved
+        self.history.clear()
+        self.history.extend(history)
+        if self.rng is not None:
+            self.rng.bit_generator.state = rng
+
     def deliver(self, gathered: float, n: int, z: np.ndarray) -> float:
         """The value delivered at point n for ``gathered`` (the connection's own value)."""
-        if self.fault.kind == "delay":
-            self.history.append(gathered)
-        value = self._faulty(gathered, z) if self.active(n) else gathered
+        active = self.active(n)
+        if n != self.n_last:  # the point's first delivery
+            self.n_last, self.before = n, self.last
+            if self.fault.kind == "delay":
+                self.history.append(gathered)
+            if active and self.rng is not None:
+                self.draw = self._random()
+        elif self.fault.kind == "delay":  # the same delivery again, gathered anew
+            self.history[-1] = gathered
+        value = self._faulty(gathered, z) if active else gathered
         self.last = value
         return value
+
+    def _random(self) -> float:
+        """noise: a draw of N(0, std); dropout: one of U[0, 1)."""
+        rng = self.rng
+        assert rng is not None
+        if self.fault.kind == "noise":
+            return float(rng.normal(0.0, self.fault.std))  # type: ignore[arg-type]
+        return float(rng.random())
 
     def _faulty(self, gathered: float, z: np.ndarray) -> float:
         fault = self.fault
@@ -148,7 +184,7 @@ class _FaultRun:
                 if self.hold_index is not None:
                     self.held = float(z[self.hold_index])
                 else:
-                    self.held = self.last if self.last is not None else gathered
+                    self.held = self.before if self.before is not None else gathered
             return self.held
         if kind == "thruster-off":
             return 0.0
@@ -157,11 +193,11 @@ class _FaultRun:
         if kind == "bias":
             return gathered + fault.value  # type: ignore[operator]
         if kind == "noise":
-            return gathered + float(self.rng.normal(0.0, fault.std))  # type: ignore[union-attr,arg-type]
+            return gathered + self.draw
         if kind == "delay":
             return self.history[0]  # `steps` deliveries ago (the first one before that)
-        lost = float(self.rng.random()) < fault.probability  # type: ignore[union-attr,operator]
-        return self.last if lost and self.last is not None else gathered  # dropout
+        lost = self.draw < fault.probability  # type: ignore[operator]
+        return self.before if lost and self.before is not None else gathered  # dropout
 
 
 class Timeline:
@@ -198,6 +234,7 @@ class Timeline:
         ]
         self._ramps: dict[str, tuple[float, float, float, float]] = {}  # ref -> v0, v1, t0, T
         self._faults = [_FaultRun(f, self.h, index) for f in scenario.faults]
+        self._sequential = scenario.coupling.algorithm != "jacobi"  # Gauss-Seidel, adaptive
         self._flags = [index[f"{FAULT_COLUMN_PREFIX}{f.name}"] for f in scenario.faults]
         # faults on connections, by target instance: (slot in its input buffer, fault)
         self.on_inputs: dict[str, list[tuple[int, _FaultRun]]] = {}
@@ -244,10 +281,7 @@ class Timeline:
     def snapshot(self) -> tuple[Any, ...]:
         """Everything :meth:`at` and :meth:`deliver` change, for :meth:`restore` (the
         adaptive algorithm rolls a rejected step back)."""
-        faults = [
-            (list(r.history), r.last, r.held, None if r.rng is None else r.rng.bit_generator.state)
-            for r in self._faults
-        ]
+        faults = [r.state() for r in self._faults]
         return (
             len(self.fired), len(self.overrides), len(self.notes), self.epoch,
             [(r.was_true, r.fired) for r in self._stateful], dict(self._ramps), faults,
@@ -261,20 +295,21 @@ class Timeline:
         for event, (was_true, done) in zip(self._stateful, events, strict=True):
             event.was_true, event.fired = was_true, done
         self._ramps = dict(ramps)
-        for fault, (history, last, held, rng) in zip(self._faults, faults, strict=True):
-            fault.history.clear()
-            fault.history.extend(history)
-            fault.last, fault.held = last, held
-            if fault.rng is not None:
-                fault.rng.bit_generator.state = rng
+        for fault, state in zip(self._faults, faults, strict=True):
+            fault.set_state(state)
         self._saved = dict(kept)
         self._writer.assigned = dict(assigned)
 
-    def deliver(self, slave: Slave, n: int) -> None:
-        """Replace the gathered inputs of ``slave`` at point n by what its faults deliver."""
+    def deliver(self, slave: Slave, n: int, again: bool = False) -> None:
+        """Replace the gathered inputs of ``slave`` at point n by what its faults deliver.
+
+        ``again``: a feedthrough given its inputs again after the instances stepped to
+        point n. Under Jacobi that is point n's delivery ahead of its step (which then
+        repeats it); under Gauss-Seidel the one it just stepped with, gathered anew."""
         inputs = slave.inputs
         for slot, run in self.on_inputs.get(slave.name, ()):
-            inputs[slot] = run.deliver(float(inputs[slot]), n, self.z)
+            point = run.n_last if again and self._sequential and run.n_last is not None else n
+            inputs[slot] = run.deliver(float(inputs[slot]), point, self.z)
 
     def at(self, n: int) -> None:
         """Everything that happens at communication point n (see the module docstring)."""

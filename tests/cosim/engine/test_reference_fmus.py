@@ -253,3 +253,53 @@ def test_an_output_with_an_exact_initial_value_takes_a_start_value() -> None:
     np.testing.assert_allclose(from_2m - from_1m, 1.0, rtol=0, atol=1e-12)  # the same fall
     with pytest.raises(ScenarioError, match=r"b.der\(h\) is a continuous local .*calculated"):
         scenario_from_toml(text + '[instances.b.start]\n"der(h)" = 1.0\n')
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_a_delay_fault_on_a_feedthrough_delays_by_its_steps(algorithm: str) -> None:
+    """VanDerPol -> Feedthrough with a delay of 2 steps on the feedthrough's input: the
+    feedthrough (given its inputs again after each step, to pass on the value of that
+    point) repeats x0 of two points earlier, from the first value delivered on (x0 at 0 s
+    under Jacobi; under Gauss-Seidel, VanDerPol steps first, x0 at the first step). Each
+    re-giving counted as a delivery, so the delay was one point, not two."""
+    coupling = f'algorithm = "{algorithm}"'
+    text = scenario_text({"f": "Feedthrough", "v": "VanDerPol"}, 0.1, 2.0, coupling)
+    text += """[connections]
+same_names = false
+add = [{ from = "v.x0", to = "f.Float64_continuous_input" }]
+[[faults]]
+kind = "delay"
+target = "f.Float64_continuous_input"
+steps = 2
+"""
+    result = run(text)
+    x0, feed = result.column("v.x0"), result.column("f.Float64_continuous_output")
+    first = 0 if algorithm == "jacobi" else 1  # the point of the first value delivered
+    rows = np.arange(1, len(feed))
+    np.testing.assert_array_equal(feed[1:], x0[np.maximum(rows - 2, first)])
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_a_noise_fault_on_a_feedthrough_draws_once_per_step(algorithm: str) -> None:
+    """VanDerPol -> Feedthrough with noise (seed 7) on the feedthrough's input: the n-th
+    row after row 0 carries the n-th draw of default_rng(7) under Gauss-Seidel, where the
+    feedthrough passes on what it stepped with (drawn at its step from the point before),
+    and the (n+1)-th under Jacobi (drawn at point n, before its step from it). Each
+    re-giving drew anew: two draws per step."""
+    coupling = f'algorithm = "{algorithm}"'
+    text = scenario_text({"f": "Feedthrough", "v": "VanDerPol"}, 0.1, 2.0, coupling)
+    text += """[connections]
+same_names = false
+add = [{ from = "v.x0", to = "f.Float64_continuous_input" }]
+[[faults]]
+kind = "noise"
+target = "f.Float64_continuous_input"
+std = 0.5
+seed = 7
+"""
+    result = run(text)
+    x0, feed = result.column("v.x0"), result.column("f.Float64_continuous_output")
+    draws = np.random.default_rng(7).normal(0.0, 0.5, len(feed))
+    first = 1 if algorithm == "jacobi" else 0  # the draw of row 1
+    expected = draws[first : first + len(feed) - 1]
+    np.testing.assert_allclose(feed[1:] - x0[1:], expected, rtol=0.0, atol=1e-12)
