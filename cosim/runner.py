@@ -352,12 +352,14 @@ def _checked_scenario(
             raise CosimError(f"{options.names.switch('check_step')}: {reason}")
     master.preflight(scenario)
     if options.unit_doubts:
+        from cosim.engine.adaptive import points_step
         from cosim.scenario import design_doubts, timeline_spec, unit_doubts
 
         unit_doubts.warn(unit_doubts.doubts(scenario))
         late = timeline_spec.unreached(
-            scenario.events, scenario.faults, scenario.stop_time, scenario.coupling.step
-        )
+            scenario.events, scenario.faults, scenario.stop_time, scenario.coupling.step,
+            grid=points_step(scenario.coupling),
+        )  # fmt: skip
         unit_doubts.warn(late, timeline_spec.TimelineWarning)
         live = options.interactive or options.control is not None
         doubts = design_doubts.design_doubts(scenario, live)

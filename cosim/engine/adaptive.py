@@ -141,6 +141,12 @@ def grid_step(coupling: Coupling) -> float:
     return coupling.step / 2**MIN_LEVEL
 
 
+def points_step(coupling: Coupling) -> float:
+    """How far apart (s) the points are at which a run applies events and faults: an
+    adaptive run's :func:`grid_step`, else the communication step."""
+    return grid_step(coupling) if coupling.algorithm == "adaptive" else coupling.step
+
+
 class _Stepper:
     """The instances of an adaptive run, stepped, saved and restored together."""
 

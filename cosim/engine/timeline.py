@@ -37,7 +37,7 @@ from fmpy.fmi1 import FMICallException
 from cosim.engine.slave import STATUS_LABELS, Slave
 from cosim.errors import CosimError
 from cosim.scenario.spec import FAULT_COLUMN_PREFIX, Scenario
-from cosim.scenario.timeline_spec import POINT_TOLERANCE, Event, Fault
+from cosim.scenario.timeline_spec import POINT_TOLERANCE, Event, Fault, first_point
 
 if TYPE_CHECKING:
     from cosim.engine.live import LiveControl
@@ -49,7 +49,7 @@ _TOLERANCE = POINT_TOLERANCE  # of a step: a time within it of t_n counts as t_n
 
 def step_index(time: float, h: float) -> int:
     """The first communication point n with n h >= ``time`` (s), within 1e-9 of a step."""
-    return max(0, math.ceil(time / h - _TOLERANCE))
+    return first_point(time, h)
 
 
 class _Writer:
@@ -403,6 +403,8 @@ class Timeline:
         for run, flag in zip(self._faults, self._flags, strict=True):
             self.z[flag] = 1.0 if run.active(n) else 0.0
             fault = run.fault
+            if run.n_start == run.n_stop:  # between two points: never acts (a warning said)
+                continue
             if n in (run.n_start, run.n_stop):
                 self.epoch += 1
             if n == run.n_start:

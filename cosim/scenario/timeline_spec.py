@@ -186,13 +186,25 @@ class Fault:
 EVENTS_HINT = "a scenario file's [[events]] (then cosim.load_scenario it)"
 
 
+def first_point(time: float, h: float) -> int:
+    """The first communication point n with n h >= ``time`` (s), within
+    :data:`POINT_TOLERANCE` of a step ``h`` (s)."""
+    return max(0, math.ceil(time / h - POINT_TOLERANCE))
+
+
 def unreached(
-    events: Sequence[Event], faults: Sequence[Fault], stop_time: float, step: float
+    events: Sequence[Event],
+    faults: Sequence[Fault],
+    stop_time: float,
+    step: float,
+    grid: float | None = None,
 ) -> list[str]:
     """One line for each time event due after the last communication point of a run to
     ``stop_time`` (s, communication step ``step``, s), and each fault starting after it:
     valid, but the run ends before them (a run shortened by ``--stop-time``, or a time
-    typed in the wrong unit), so they are never applied."""
+    typed in the wrong unit), so they are never applied. And one for each fault whose
+    start and stop lie between two points (``grid`` s apart, an adaptive run's; else
+    ``step``): active at none (start <= t_n < stop), it never acts."""
 
     def late(time: float) -> bool:
         return time / step > round(stop_time / step) + POINT_TOLERANCE
@@ -204,11 +216,17 @@ def unreached(
         for event in events
         if event.time is not None and late(event.time)
     ]
+    h = grid or step
     return lines + [
         f"faults.{fault.name}.start = {fault.start:g} s is after {stop}: the run ends "
         "before the fault, which never acts"
+        if late(fault.start)
+        else f"faults.{fault.name}: start = {fault.start:g} s and stop = {fault.stop:g} s lie "
+        f"between two communication points ({h:g} s apart): the fault is active at none, "
+        "and never acts"
         for fault in faults
         if late(fault.start)
+        or (fault.stop is not None and first_point(fault.start, h) == first_point(fault.stop, h))
     ]
 
 

@@ -28,6 +28,7 @@ from typing import Any
 
 import tomli_w
 
+from cosim.engine.adaptive import points_step
 from cosim.engine.step_check import not_checkable
 from cosim.errors import CosimError
 from cosim.metrics.key_figures import KeyFigures
@@ -154,7 +155,10 @@ def check_values(
         scenario = _scenario(base, base.fmu_paths, factors, values)
     except CosimError as exc:
         raise StudyError(f"factor values {dict(values)}: {exc}") from None
-    late = unreached(scenario.events, scenario.faults, scenario.stop_time, scenario.coupling.step)
+    coupling = scenario.coupling
+    late = unreached(
+        scenario.events, scenario.faults, scenario.stop_time, coupling.step, points_step(coupling)
+    )
     return doubts(scenario) + late
 
 

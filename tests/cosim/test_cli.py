@@ -436,6 +436,42 @@ def test_an_event_or_fault_after_the_stop_time_is_warned_of_naming_both_times(
     ]
 
 
+@pytest.mark.parametrize(("algorithm", "warned"), [("gauss-seidel", True), ("adaptive", False)])
+def test_a_fault_between_two_communication_points_is_warned_of(
+    fmu_paths: dict[str, Path], tmp_path: Path, algorithm: str, warned: bool
+) -> None:
+    """A fault from 0.021 s to 0.025 s with a step of 0.01 s (a sweep of its stop that
+    comes close to its start) is active at no communication point (start <= t_n < stop):
+    it never acted, without a word, while the recording logged that it started and never
+    that it stopped. An adaptive run, whose points are step / 1024 apart, applies it."""
+    import json
+    import warnings
+
+    bs3 = (Path(__file__).parents[2] / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    path = tmp_path / "blip.toml"
+    path.write_text(
+        bs3.replace('algorithm = "gauss-seidel"', f'algorithm = "{algorithm}"')
+        + '\n[[faults]]\nname = "blip"\nkind = "thruster-off"\nstart = 0.021\nstop = 0.025\n'
+    )
+    fmu_dir = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", str(path), "--stop-time", "0.05", "--no-rrd", "--quiet", "--fmu-dir", fmu_dir,
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(argv) == 0
+    lines = [str(w.message) for w in caught if "faults.blip" in str(w.message)]
+    expected = [
+        "faults.blip: start = 0.021 s and stop = 0.025 s lie between two communication "
+        "points (0.01 s apart): the fault is active at none, and never acts"
+    ]
+    assert lines == (expected if warned else [])
+    flags = (tmp_path / "run" / "results.csv").read_text().splitlines()
+    column = flags[0].split(",").index("fault.blip")
+    assert any(row.split(",")[column] != "0" for row in flags[1:]) is not warned
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert [f["name"] for f in summary["faults"]] == ["blip"]
+
+
 UNWRITABLE_HOME = """
 import os, sys
 for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME", "MPLCONFIGDIR"):
