@@ -3,6 +3,7 @@
 import importlib.metadata
 import re
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -412,7 +413,6 @@ def test_an_event_or_fault_after_the_stop_time_is_warned_of_naming_both_times(
     """An event at t = 90 s and a fault starting at 70 s in a run that stops at 0.05 s
     (``--stop-time``, or the file's own) ran complete without a word and neither was ever
     applied; an event at the stop time itself fires at the last point, and is no doubt."""
-    import warnings
 
     bs3 = (Path(__file__).parents[2] / "cosim" / "scenarios" / "bs-3.toml").read_text()
     path = tmp_path / "late.toml"
@@ -421,19 +421,25 @@ def test_an_event_or_fault_after_the_stop_time_is_warned_of_naming_both_times(
         '\n[[events]]\ntime = 0.05\nset = { "controller.yaw_setpoint" = 0.2 }'
         '\n[[faults]]\nname = "jam"\nkind = "mass-jam"\nstart = 70.0\n'
     )
-    fmu_dir = str(fmu_paths["AuvPlant"].parent)
-    argv = ["run", str(path), "--stop-time", "0.05", "--no-rrd", "--quiet", "--fmu-dir", fmu_dir,
-            "--out", str(tmp_path / "run")]  # fmt: skip
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        assert main(argv) == 0
-    lines = [str(w.message) for w in caught if "stop time" in str(w.message)]
+    lines = [m for m in _warned_over_50_ms(path, fmu_paths, tmp_path) if "stop time" in m]
     assert lines == [
         "events.turn.time = 90 s is after the stop time (0.05 s): the run ends before the "
         "event, which is never applied",
         "faults.jam.start = 70 s is after the stop time (0.05 s): the run ends before the "
         "fault, which never acts",
     ]
+
+
+def _warned_over_50_ms(path: Path, fmu_paths: dict[str, Path], tmp_path: Path) -> list[str]:
+    """The warnings' messages of the scenario file ``path`` run for 0.05 s into
+    ``tmp_path / "run"`` (it must complete)."""
+    fmu_dir = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", str(path), "--stop-time", "0.05", "--no-rrd", "--quiet", "--fmu-dir", fmu_dir,
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(argv) == 0
+    return [str(w.message) for w in caught]
 
 
 @pytest.mark.parametrize(("algorithm", "warned"), [("gauss-seidel", True), ("adaptive", False)])
@@ -445,7 +451,6 @@ def test_a_fault_between_two_communication_points_is_warned_of(
     it never acted, without a word, while the recording logged that it started and never
     that it stopped. An adaptive run, whose points are step / 1024 apart, applies it."""
     import json
-    import warnings
 
     bs3 = (Path(__file__).parents[2] / "cosim" / "scenarios" / "bs-3.toml").read_text()
     path = tmp_path / "blip.toml"
@@ -453,13 +458,7 @@ def test_a_fault_between_two_communication_points_is_warned_of(
         bs3.replace('algorithm = "gauss-seidel"', f'algorithm = "{algorithm}"')
         + '\n[[faults]]\nname = "blip"\nkind = "thruster-off"\nstart = 0.021\nstop = 0.025\n'
     )
-    fmu_dir = str(fmu_paths["AuvPlant"].parent)
-    argv = ["run", str(path), "--stop-time", "0.05", "--no-rrd", "--quiet", "--fmu-dir", fmu_dir,
-            "--out", str(tmp_path / "run")]  # fmt: skip
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        assert main(argv) == 0
-    lines = [str(w.message) for w in caught if "faults.blip" in str(w.message)]
+    lines = [m for m in _warned_over_50_ms(path, fmu_paths, tmp_path) if "faults.blip" in m]
     expected = [
         "faults.blip: start = 0.021 s and stop = 0.025 s lie between two communication "
         "points (0.01 s apart): the fault is active at none, and never acts"

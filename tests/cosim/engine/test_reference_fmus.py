@@ -255,6 +255,20 @@ def test_an_output_with_an_exact_initial_value_takes_a_start_value() -> None:
         scenario_from_toml(text + '[instances.b.start]\n"der(h)" = 1.0\n')
 
 
+def _faulty_feedthrough(algorithm: str, fault: str) -> master.RunResult:
+    """VanDerPol's x0 -> Feedthrough over 2 s at 0.1 s under ``algorithm``, with the fault
+    whose keys (besides its target, the feedthrough's input) ``fault`` gives as TOML."""
+    coupling = f'algorithm = "{algorithm}"'
+    text = scenario_text({"f": "Feedthrough", "v": "VanDerPol"}, 0.1, 2.0, coupling)
+    text += """[connections]
+same_names = false
+add = [{ from = "v.x0", to = "f.Float64_continuous_input" }]
+[[faults]]
+target = "f.Float64_continuous_input"
+"""
+    return run(text + fault)
+
+
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_a_delay_fault_on_a_feedthrough_delays_by_its_steps(algorithm: str) -> None:
     """VanDerPol -> Feedthrough with a delay of 2 steps on the feedthrough's input: the
@@ -262,17 +276,7 @@ def test_a_delay_fault_on_a_feedthrough_delays_by_its_steps(algorithm: str) -> N
     point) repeats x0 of two points earlier, from the first value delivered on (x0 at 0 s
     under Jacobi; under Gauss-Seidel, VanDerPol steps first, x0 at the first step). Each
     re-giving counted as a delivery, so the delay was one point, not two."""
-    coupling = f'algorithm = "{algorithm}"'
-    text = scenario_text({"f": "Feedthrough", "v": "VanDerPol"}, 0.1, 2.0, coupling)
-    text += """[connections]
-same_names = false
-add = [{ from = "v.x0", to = "f.Float64_continuous_input" }]
-[[faults]]
-kind = "delay"
-target = "f.Float64_continuous_input"
-steps = 2
-"""
-    result = run(text)
+    result = _faulty_feedthrough(algorithm, 'kind = "delay"\nsteps = 2\n')
     x0, feed = result.column("v.x0"), result.column("f.Float64_continuous_output")
     first = 0 if algorithm == "jacobi" else 1  # the point of the first value delivered
     rows = np.arange(1, len(feed))
@@ -286,18 +290,7 @@ def test_a_noise_fault_on_a_feedthrough_draws_once_per_step(algorithm: str) -> N
     feedthrough passes on what it stepped with (drawn at its step from the point before),
     and the (n+1)-th under Jacobi (drawn at point n, before its step from it). Each
     re-giving drew anew: two draws per step."""
-    coupling = f'algorithm = "{algorithm}"'
-    text = scenario_text({"f": "Feedthrough", "v": "VanDerPol"}, 0.1, 2.0, coupling)
-    text += """[connections]
-same_names = false
-add = [{ from = "v.x0", to = "f.Float64_continuous_input" }]
-[[faults]]
-kind = "noise"
-target = "f.Float64_continuous_input"
-std = 0.5
-seed = 7
-"""
-    result = run(text)
+    result = _faulty_feedthrough(algorithm, 'kind = "noise"\nstd = 0.5\nseed = 7\n')
     x0, feed = result.column("v.x0"), result.column("f.Float64_continuous_output")
     draws = np.random.default_rng(7).normal(0.0, 0.5, len(feed))
     first = 1 if algorithm == "jacobi" else 0  # the draw of row 1
