@@ -405,13 +405,17 @@ def test_the_ecos_command_line_runs_the_ssp_in_a_clean_environment(fmu_paths, tm
     ecos.chmod(0o755)  # pip installs it without the executable bit
     scenario = load_scenario("bs-3", fmu_dir).with_overrides(stop_time=10.0)
     export_ssp(scenario, tmp_path / "bs-3.ssp")
+    scratch = tmp_path / "tmp"  # ecos unpacks the SSP there and leaves it: not in /tmp
+    scratch.mkdir()
     done = run_clean(
         [ecos, "simulate", "--path", "bs-3.ssp", "--stepSize", "0.01", "--stopTime", "10",
          "--parameterSet", "initial", "--logLevel", "warn"],
         tmp_path,
+        TMPDIR=str(scratch),
         **tbb,
     )  # fmt: skip
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert [p.name[:9] for p in scratch.iterdir()] == ["ecos_ssp_"]  # its copy went there
     out = tmp_path / "master"
     master = subprocess.run(
         [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--algorithm", "jacobi",
