@@ -21,6 +21,7 @@ import pytest
 from scenario_factory import X0, H, K, loop_toml
 
 from cosim.engine import master
+from cosim.engine.rows import NotesIgnored
 from cosim.runner import run_scenario
 from cosim.scenario.spec import Scenario, scenario_from_toml
 
@@ -65,6 +66,36 @@ def test_master_guards_any_pythonfmu_fmu_against_the_exit_crash(fmu_dir: Path) -
     assert master.run(loop(fmu_dir)).complete
     guarded = {path.name for path in exit_guard._guarded}
     assert {"CosimTestIntegrator.so", "CosimTestGain.so"} <= guarded
+
+
+class _HandOffs(NotesIgnored):
+    """A sink that records how many rows each hand-off carried."""
+
+    def __init__(self) -> None:
+        self.sizes: list[int] = []
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        self.sizes.append(len(times))
+
+
+@pytest.mark.parametrize(
+    ("chunk", "interval_s", "sizes"),
+    [
+        (200, 1e9, [11]),  # the 11 rows of the run fill no chunk: one hand-off at the end
+        (4, 1e9, [4, 4, 3]),  # full chunks, then the rest
+        (200, 0.0, [2] + [1] * 9),  # the interval passed at every point: each row at once
+    ],
+)
+def test_rows_are_handed_off_when_a_chunk_fills_or_the_interval_passes(
+    fmu_dir: Path, chunk: int, interval_s: float, sizes: list[int]
+) -> None:
+    """What lets a slow run's rows reach results.csv within about a second: the master
+    hands its rows to the sinks when ``rows_per_chunk`` are buffered or once
+    ``hand_off_interval`` of wall clock has passed, whichever comes first."""
+    sink = _HandOffs()
+    result = master.run(loop(fmu_dir), [sink], rows_per_chunk=chunk, hand_off_interval=interval_s)
+    assert result.complete
+    assert sink.sizes == sizes
 
 
 def test_jacobi_uses_the_outputs_of_the_previous_step(fmu_dir: Path) -> None:

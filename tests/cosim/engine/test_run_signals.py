@@ -276,52 +276,51 @@ def test_ctrl_c_while_the_outputs_are_written_does_not_abort_them(
 @pytest.mark.slow
 def test_a_second_run_into_a_running_folder_fails_at_once(fmu_dir: Path, tmp_path: Path):
     """Regression: `run bs-3 --out same & run bs-1 --out same` both exited 0 and the
-    recording failed its CRC."""
+    recording failed its CRC. The second fails while the first still runs (it does not
+    wait for the folder), and the first's files stay whole."""
     out = tmp_path / "same"
-    first = start(fmu_dir, out, "--stop-time", "30", "--real-time", "10")  # running for 3 s
-    wait_for_rows(first, out, 1)
-    started = time.monotonic()
-    second = start(fmu_dir, out, "--stop-time", "5", scenario="bs-1")
-    code, err = finish(second, timeout=30)
-    assert time.monotonic() - started < 2.0
+    first = start(fmu_dir, out, "--stop-time", "300", "--real-time", "10")  # 30 s, stopped below
+    try:
+        wait_for_rows(first, out, 1)
+        second = start(fmu_dir, out, "--stop-time", "5", scenario="bs-1")
+        code, err = finish(second, timeout=30)
+        assert first.poll() is None, "the first run ended before the second was refused"
+    finally:
+        first.send_signal(signal.SIGTERM)
+        first_code, _ = finish(first)
     assert code == 1
     assert f"run folder {out} is in use by process {first.pid} (" in err
-    assert finish(first)[0] == 0
+    assert first_code == 143
     done = summary(out)
-    assert done["scenario"] == "bs-3" and done["complete"] is True
-    assert len(csv_lines(out)) == 1 + 3001
+    assert done["scenario"] == "bs-3" and done["signal"] == "SIGTERM"
+    assert len(csv_lines(out)) == 1 + done["rows"]
     verify(out / "recording.rrd")
 
 
 @pytest.mark.slow
-def test_rows_reach_results_csv_at_least_every_second(fmu_dir: Path, tmp_path: Path):
+def test_a_slow_runs_rows_reach_results_csv_before_a_chunk_fills(fmu_dir: Path, tmp_path: Path):
     """A slow run (the full 6-DOF plant sub-steps every 1.2 us, or 0.1 ms on the 50x slower
-    reference path: fewer than ROWS_PER_CHUNK rows a second, so a full chunk alone would
-    take longer than a second) still has its rows on disk within about a second of
-    computing them."""
+    reference path: fewer than ROWS_PER_CHUNK rows a second) has its rows on disk as the
+    wall-clock interval passes, not only in full chunks of ROWS_PER_CHUNK rows: results.csv
+    is seen holding a number of rows that no whole number of chunks makes. (When the
+    hand-offs happen is checked without a clock in test_master.py.)"""
     scenario = tmp_path / "slow.toml"
     text = scenario_path("bs-3").read_text().replace('variant = "lateral"', 'variant = "full"')
     substep = "1.2e-6" if compiled.AVAILABLE else "1e-4"
     scenario.write_text(text.replace("v_0 = -0.10", f"v_0 = -0.10\nmax_substep = {substep}"))
     out = tmp_path / "run"
     proc = start(fmu_dir, out, "--no-rrd", scenario=str(scenario))
+    seen: set[int] = set()
     try:
         wait_for_rows(proc, out, 2)
-        first = seen = rows_in(out / "results.csv")
-        watched = last_change = time.monotonic()
-        longest, end = 0.0, watched + 5.0
-        while time.monotonic() < end:
+        deadline = time.monotonic() + 60.0  # a timeout, not a measure: seen at once as a rule
+        while time.monotonic() < deadline and all(n % ROWS_PER_CHUNK == 0 for n in seen):
+            seen.add(rows_in(out / "results.csv"))
             time.sleep(0.05)
-            now, rows = time.monotonic(), rows_in(out / "results.csv")
-            if rows != seen:
-                longest, seen, last_change = max(longest, now - last_change), rows, now
-        longest = max(longest, time.monotonic() - last_change)
-        rate = (seen - first) / (time.monotonic() - watched)  # rows/s
     finally:
         proc.send_signal(signal.SIGTERM)
         finish(proc)
-    assert rate < ROWS_PER_CHUNK, f"{rate:.0f} rows/s: chunks fill within a second, no test"
-    assert longest < 1.6, f"{longest:.2f} s without new rows in results.csv"
+    assert any(n % ROWS_PER_CHUNK for n in seen), f"only whole chunks of rows seen: {sorted(seen)}"
 
 
 @pytest.mark.slow

@@ -21,9 +21,12 @@ TIMEOUT_S = 60.0  # generous: the machine may be busy; nothing here is timed
 
 @pytest.mark.slow
 def test_the_live_client_waits_for_the_runs_endpoint() -> None:
-    with socket.socket() as probe:  # a port nothing listens on yet
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    # a port nothing listens on yet, kept bound (not listening: a connection is refused)
+    # until the endpoint opens on it, so no other process is given it in between
+    reserved = socket.socket()
+    reserved.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
+    reserved.bind(("127.0.0.1", 0))
+    port = reserved.getsockname()[1]
     client = subprocess.Popen(
         [sys.executable, str(ROOT / "scripts" / "live_client.py"), str(port)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
@@ -31,7 +34,9 @@ def test_the_live_client_waits_for_the_runs_endpoint() -> None:
     try:
         time.sleep(1.0)  # the client starts first and finds no endpoint (not a measurement)
         assert client.poll() is None, client.communicate()
-        with socket.create_server(("127.0.0.1", port)) as endpoint:  # the run opens it now
+        endpoint = socket.create_server(("127.0.0.1", port), reuse_port=True)  # the run's
+        reserved.close()
+        with endpoint:
             endpoint.settimeout(TIMEOUT_S)
             connection, _ = endpoint.accept()
             with connection, connection.makefile("rw") as channel:
@@ -40,6 +45,7 @@ def test_the_live_client_waits_for_the_runs_endpoint() -> None:
         _, err = client.communicate(timeout=TIMEOUT_S)
         assert "the run has ended" in err and "Traceback" not in err  # closed without reply
     finally:
+        reserved.close()
         with contextlib.suppress(ProcessLookupError):
             os.killpg(client.pid, signal.SIGKILL)
         client.wait()
