@@ -14,7 +14,6 @@ Wine is not Windows: docs/native-loader.md says what was and was not run."""
 
 from __future__ import annotations
 
-import contextlib
 import re
 import shutil
 import subprocess
@@ -23,7 +22,7 @@ from pathlib import Path, PureWindowsPath
 
 import pytest
 from c_hosts import moved, run_clean
-from windows_cpython import windows, wine
+from windows_cpython import end_wineserver, windows, wine, wine_environ
 
 from cosim.fmus import native
 
@@ -67,12 +66,7 @@ def machine(tmp_path_factory, extracted, windows_python):
     assert guid is not None
     prefix = root / "prefix"
     yield {"root": root, "plant": plant, "guid": guid.group(1), "prefix": prefix}
-    with contextlib.suppress(OSError, subprocess.SubprocessError):
-        subprocess.run(
-            [str(Path(str(wine())).with_name("wineserver")), "-k"],
-            timeout=60,
-            env={"WINEPREFIX": str(prefix), "PATH": "/usr/bin:/bin"},
-        )
+    end_wineserver(prefix)
 
 
 def _steps(stdout: str) -> list[list[float]]:
@@ -87,7 +81,7 @@ def _wine_run(machine, command: list, **environment: str) -> tuple[str, list[str
         [wine(), *command],
         machine["root"],
         timeout=600,
-        WINEPREFIX=str(machine["prefix"]),
+        **wine_environ(machine["prefix"]),
         WINEDEBUG="-all,+loaddll",
         **environment,
     )

