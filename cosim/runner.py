@@ -559,15 +559,31 @@ def report(outcome: RunOutcome) -> str:
         lines.append(f"  {outcome.manoeuvre['manoeuvre']}: " + ", ".join(
             f"{k} = {v if isinstance(v, str) else _fmt(v)}" for k, v in metrics.items()
         ))  # fmt: skip
-    for name, messages in result.messages.items():
-        lines += [f"  {name} logged: {message}" for message in messages[:MESSAGES_SHOWN]]
-        if len(messages) > MESSAGES_SHOWN:
-            lines.append(f"  {name} logged {len(messages) - MESSAGES_SHOWN} more (summary.json)")
+    lines += logged_lines(result)
     lines.append(timing(result))
     check = result.coupling.get("check_step")
     if check is not None:
         lines.append(_check_line(check))
     return "\n".join(lines)
+
+
+def logged_lines(result: RunResult) -> list[str]:
+    """The report's lines of what the FMUs logged (warnings and worse): the first
+    :data:`MESSAGES_SHOWN` kept per instance, then how many more it logged and how many
+    of them summary.json keeps (the last ones: a run keeps
+    :data:`cosim.engine.slave.LOG_LINES_KEPT` an instance)."""
+    lines = []
+    for name, messages in result.messages.items():
+        lines += [f"  {name} logged: {message}" for message in messages[:MESSAGES_SHOWN]]
+        logged = result.messages_logged.get(name, len(messages))
+        if logged > MESSAGES_SHOWN:
+            kept = (
+                "summary.json"
+                if logged == len(messages)
+                else f"summary.json keeps the last {len(messages)} of {logged}"
+            )
+            lines.append(f"  {name} logged {logged - MESSAGES_SHOWN} more ({kept})")
+    return lines
 
 
 def _steps(result: RunResult) -> str:

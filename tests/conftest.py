@@ -105,8 +105,8 @@ def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def test_fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The master tests' own FMUs (tests/fmus: an integrator, a sampled gain, a direct
     feedthrough, a clock with outputs of every type that can end the simulation, a clock
-    with a fixed step, one allowed once per process), built once per session, in a fresh
-    process (pythonfmu caches modules)."""
+    with a fixed step, one allowed once per process, one with other tools' habits), built
+    once per session, in a fresh process (pythonfmu caches modules)."""
     out = tmp_path_factory.mktemp("test_fmus")
     for script, model, *options in (
         ("cosim_test_integrator.py", "CosimTestIntegrator"),
@@ -115,6 +115,7 @@ def test_fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
         ("cosim_test_source.py", "CosimTestSource"),
         ("cosim_test_fixed_step.py", "CosimTestFixedStep", "--no-variable-step"),
         ("cosim_test_singleton.py", "CosimTestSingleton", "--only-one-per-process"),
+        ("cosim_test_foreign.py", "CosimTestForeign"),
     ):
         script_path = Path(__file__).parent / "fmus" / script
         pythonfmu_build(script_path, out, model, "--handle-state", *options)

@@ -129,6 +129,8 @@ class RunResult:
     startup_s: dict[str, float] = field(default_factory=dict)
     stop_signal: int | None = None  # the signal that stopped the stepping, if any
     messages: dict[str, list[str]] = field(default_factory=dict)  # instance -> FMU log lines
+    # instance -> FMU log lines logged, those beyond the last LOG_LINES_KEPT kept too
+    messages_logged: dict[str, int] = field(default_factory=dict)
     events: list[dict[str, Any]] = field(default_factory=list)  # fired: name, time, set
     overrides: list[dict[str, Any]] = field(default_factory=list)  # + source (live runs)
     real_time: dict[str, Any] | None = None  # a paced run's figures (Pacer.summary)
@@ -461,7 +463,9 @@ def _loop(
     take = z.take  # z.take(indices, out=buffer): a gather without allocation
     give = inputs_giver(z, timeline)
     probe = np.zeros(layout.n_read)  # x . 0 is NaN iff some x is NaN or infinite
-    check_dot = exchanged.dot
+    # np.vdot, not ndarray.dot: the latter warns "invalid value encountered in dot" of
+    # the inf . 0 it is there to find, and the warning reached the run's user
+    check_dot = functools.partial(np.vdot, exchanged)
     slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
     error: str | None = None
     filled, slave, n, due = 0, order[0], 0, order
@@ -628,5 +632,6 @@ def _result(
         cpu_clock_s=cpu,
         stop_signal=stop.signum if stopped else None,
         messages={s.name: list(s.messages) for s in order},
+        messages_logged={s.name: max(s.logged, len(s.messages)) for s in order if s.messages},
         ended=rows.ended,
     )

@@ -66,6 +66,7 @@ class Slave:
         self.feeds_through = False
         self.state = "new"
         self.messages: collections.deque[str] = collections.deque(maxlen=LOG_LINES_KEPT)
+        self.logged = 0  # messages logged (warning or worse), those left out of messages too
         self._key = (str(unzip_dir), md.coSimulation.modelIdentifier, md.guid, instance.name)
         self.fmu = _library(self._key)
         # the instance's fmi2Component for the hot path's C calls (set once instantiated)
@@ -141,7 +142,7 @@ class Slave:
         # function per process, so every instance shares _LOGGER, which dispatches on the
         # componentEnvironment the FMU passes back.
         addLoggerProxy(ctypes.byref(self.callbacks))
-        _log_sinks[id(self)] = self.messages
+        _log_sinks[id(self)] = self
         self.fmu.instantiate(callbacks=self.callbacks, loggingOn=True)
         self.state = "instantiated"
         # any pythonfmu FMU, ours or not, can abort this process at exit: see exit_guard
@@ -225,17 +226,26 @@ class Slave:
                 _log_sinks.pop(id(self), None)
 
 
-_log_sinks: dict[int, collections.deque[str]] = {}  # componentEnvironment -> messages
+_log_sinks: dict[int, Slave] = {}  # componentEnvironment -> the instance that logs
 
 
 def _log(env: int | None, _name: bytes, status: int, _category: bytes, message: bytes) -> None:
-    """The FMUs' logger: keeps warnings and worse per instance, each shortened
+    """The FMUs' logger: keeps warnings and worse per instance, each on one line and shortened
     (:func:`fmu_runtime.log_text.shortened`: an FMU may log megabytes in one message). A C
     callback: never raises."""
-    sink = _log_sinks.get(env or 0)
-    if sink is not None and status >= 1:
+    slave = _log_sinks.get(env or 0)
+    if slave is not None and status >= 1:
         label = STATUS_LABELS[status] if status < len(STATUS_LABELS) else str(status)
-        sink.append(f"[{label}] {shortened((message or b'').decode('utf-8', 'replace'))}")
+        text = shortened((message or b"").decode("utf-8", "replace"))
+        slave.messages.append(f"[{label}] {one_line(text)}")
+        slave.logged += 1
+
+
+def one_line(message: str) -> str:
+    """An FMU's logged ``message`` as one line: its lines joined by " | " (pythonfmu logs
+    an exception in the FMU as the failed call, then the exception, on a line of its own;
+    every error of a run is one line)."""
+    return " | ".join(line.strip() for line in message.splitlines() if line.strip())
 
 
 _LOGGER = fmi2CallbackLoggerTYPE(_log)

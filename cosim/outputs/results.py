@@ -237,6 +237,8 @@ def final_summary(
         "final_values": {name: _finite(value) for name, value in final.items()},
         "key_figures": figures,
         "fmu_messages": {name: lines for name, lines in result.messages.items() if lines},
+        # how many each logged, the lines left out of fmu_messages (its last ones) too
+        "fmu_messages_logged": result.messages_logged,
         "events": result.events,
         "faults": [
             {"name": f.name, "kind": f.kind, "target": f.target, "start": f.start, "stop": f.stop}
