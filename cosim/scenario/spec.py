@@ -881,6 +881,7 @@ def _resolve_instance(
         start[var_name] = check_value(value, var, key, src)
         if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
             start[var_name] = str(_existing_file(value, base_dir, key, src))
+    _check_aliases(name, start, variables, src)
     if interface.model_identifier in ("AuvPlant", "AuvAutopilot") and "vehicle" in start:
         _check_vehicle(str(start["vehicle"]), f"instances.{name}.start.vehicle", src)
     if interface.model_identifier == "AuvPlant":
@@ -891,6 +892,25 @@ def _resolve_instance(
     return Instance(
         name, fmu_ref, fmu_path, ReadOnly(start, f"{name}.start", _start_hint(name)), interface
     )
+
+
+def _check_aliases(
+    name: str, start: Mapping[str, object], variables: Mapping[str, Any], src: Source
+) -> None:
+    """Refuse start values for two names of one variable (aliases: one value reference of
+    one type, FMI 2.0 section 2.2.7; an Enumeration shares the Integers' references): they
+    would be set one after the other, the last silently winning."""
+    first: dict[tuple[str, int], str] = {}
+    for var_name in start:
+        var = variables[var_name]
+        kind = "Integer" if var.type == "Enumeration" else var.type
+        other = first.setdefault((kind, var.value_reference), var_name)
+        if other != var_name:
+            raise src.error(
+                f"instances.{name}.start.{var_name}",
+                f"{name}.{var_name} and {name}.{other} are one variable (the same value "
+                "reference): give one of them a start value",
+            )
 
 
 def _check_vehicle(value: str, key: str, src: Source) -> None:

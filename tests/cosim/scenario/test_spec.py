@@ -8,6 +8,7 @@ import re
 import subprocess
 import sys
 import tomllib
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -575,3 +576,47 @@ def test_toml_nested_too_deeply_to_read_is_refused_as_not_valid_toml(
         load_scenario(path)
     with pytest.raises(ScenarioError, match=f"^scenario <string>{expected}"):
         scenario_from_toml(f"{BS3}\nx = {nested}\n")
+
+
+def aliased(test_fmu_dir: Path, folder: Path) -> Path:
+    """CosimTestForeign.fmu with ``k alias``, a second name of its parameter ``k`` (one
+    value reference: an alias, as Modelica tools export them)."""
+
+    path = folder / "Aliased.fmu"
+    alias = (
+        '<ScalarVariable name="k alias" valueReference="{vr}" causality="parameter" '
+        'variability="tunable"><Real start="1"/></ScalarVariable></ModelVariables>'
+    )
+    foreign = test_fmu_dir / "CosimTestForeign.fmu"
+    with zipfile.ZipFile(foreign) as src, zipfile.ZipFile(path, "w") as out:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                vr = re.search(r'name="k" valueReference="(\d+)"', text)
+                assert vr is not None
+                data = text.replace("</ModelVariables>", alias.format(vr=vr[1])).encode()
+            out.writestr(item, data)
+    return path
+
+
+def test_two_start_values_for_one_variable_under_two_names_are_refused(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Aliases are one variable: start values for two of its names would be set one after
+    the other, the last silently winning; the second is refused naming both. One of
+    them alone sets the value, which both names then read."""
+    aliased(test_fmu_dir, tmp_path)
+    text = (
+        'stop_time = 0.2\n[coupling]\nstep = 0.1\n[instances.f]\nfmu = "Aliased.fmu"\n'
+        '[instances.f.start]\nk = 2.0\n"k alias" = 3.0\n'
+        '[output]\nrecord = ["f.k", "f.k alias"]\n'
+    )
+    with pytest.raises(
+        ScenarioError,
+        match=r"key 'instances\.f\.start\.k alias': f\.k alias and f\.k are one variable "
+        r"\(the same value reference\): give one of them a start value",
+    ):
+        scenario_from_toml(text, base_dir=tmp_path)
+    result = master.run(scenario_from_toml(text.replace("k = 2.0\n", ""), base_dir=tmp_path))
+    assert list(result.column("f.k")) == list(result.column("f.k alias")) == [3.0] * 3
