@@ -42,6 +42,7 @@ from fmu_runtime import exit_guard
 from fmu_runtime.log_text import shortened
 
 STATUS_LABELS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
+WARNING, DISCARD, PENDING = 1, 2, 5  # fmi2Status values
 LOG_LINES_KEPT = 20  # logged messages (warning or worse) kept per instance
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 
@@ -98,7 +99,8 @@ class Slave:
         ]
         self.others = bool(self.other_inputs or self.other_outputs)
         self.input_rates = input_rates
-        self.do_step = _checked(self.fmu, "fmi2DoStep")  # (c, t, h, flag): the adaptive loop's
+        # (c, t, h, flag): the adaptive loop's
+        self.do_step = _checked(self.fmu, "fmi2DoStep", self.note_warning)
         # the stepping loop's calls, every argument bound (:func:`_hot_calls`)
         self.put_inputs, self.read_reals, self.advance = _hot_calls(self)
 
@@ -196,10 +198,32 @@ class Slave:
             return None
         return None
 
+    def note_warning(self, function: str, t: float) -> None:
+        """``function`` returned fmi2Warning in the step from ``t`` (s): kept among the
+        logged messages, as the FMU may log no reason for it."""
+        self.messages.append(f"[Warning] {function} returned Warning at t = {t:.6g} s")
+        self.logged += 1
+
+    def partial_step(self) -> float | None:
+        """After a doStep's Discard that did not end the simulation: the time (s) the
+        instance reached in the step (``fmi2LastSuccessfulTime``), None if it cannot say."""
+        try:
+            return float(self.fmu.getRealStatus(fmi2LastSuccessfulTime))
+        except Exception:  # a status it cannot give
+            return None
+
     def failed(self, status: int) -> None:
         """Record a non-OK status: after Discard the instance may still be terminated,
-        after Error only freed, after Fatal not touched at all (FMI 2.0, 4.2.4)."""
-        if status >= 3:
+        after Error only freed, after Fatal not touched at all (FMI 2.0, 4.2.4). Pending
+        (a step run asynchronously, which this master does not wait for) is cancelled
+        (fmi2CancelStep), after which the instance is only freed."""
+        if status == PENDING:
+            try:
+                self.fmu.cancelStep()
+                self.state = "error"
+            except Exception:  # it cannot be cancelled: not touched again
+                self.state = "fatal"
+        elif status >= 3:
             self.state = "fatal" if status >= 4 else "error"
 
     def finish(self) -> None:
@@ -252,9 +276,19 @@ _LOGGER = fmi2CallbackLoggerTYPE(_log)
 
 
 def describe(slave: Slave, function: str, status: int, t: float) -> str:
-    """One line: which call of which instance failed, when, and the FMU's logged reason."""
+    """One line: which call of which instance failed, when, what a doStep's Discard or
+    Pending means (called after :meth:`Slave.failed`), and the FMU's logged reason."""
     label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
-    return f"{slave.name}: {function} returned {label} at t = {t:.6g} s{reasons(slave)}"
+    meaning = ""
+    if function == "fmi2DoStep" and status == PENDING:
+        done = "the step was cancelled" if slave.state == "error" else "it could not be cancelled"
+        meaning = (": the FMU runs its step asynchronously, which this master does not wait "
+                   f"for; {done}")  # fmt: skip
+    elif function == "fmi2DoStep" and status == DISCARD:
+        reached = slave.partial_step()
+        if reached is not None:
+            meaning = f": a partial step, to t = {reached:.6g} s, which the master does not retry"
+    return f"{slave.name}: {function} returned {label} at t = {t:.6g} s{meaning}{reasons(slave)}"
 
 
 def reasons(slave: Slave) -> str:
@@ -367,17 +401,20 @@ def _extracted(fmu_path: Path) -> Path:
     return folder
 
 
-def _checked(fmu: Any, name: str) -> Callable[..., int]:
+def _checked(fmu: Any, name: str, warned: Callable[[str, float], None]) -> Callable[..., int]:
     """The FMU library's C function ``name`` (fmpy set its argument types) behind one
     status check, as fmpy's wrapper does it: a status worse than fmi2Warning raises
-    FMICallException(name, status). fmpy's wrapper takes two Python frames and a lookup
-    per call (~1.5 us), several times a step; this one frame."""
+    FMICallException(name, status); fmi2Warning is told to ``warned(name, t)``, t (s) the
+    call's second argument. fmpy's wrapper takes two Python frames and a lookup per call
+    (~1.5 us), several times a step; this one frame."""
     function = getattr(fmu.dll, name)
 
     def call(*args: Any) -> int:
         status: int = function(*args)
-        if status > 1:
-            raise FMICallException(function=name, status=status)
+        if status:
+            if status > WARNING:
+                raise FMICallException(function=name, status=status)
+            warned(name, float(args[1]))
         return status
 
     return call
@@ -397,7 +434,8 @@ def _hot_calls(slave: Slave) -> tuple[Callable[[], None], Callable[[], None], Ca
     ``put_inputs()`` (fmi2SetReal of the input buffer), ``read_reals()`` (fmi2GetReal into
     the output view) and ``advance(t, h)`` (fmi2DoStep from ``t`` over ``h`` s, then the
     outputs read, the Integer and Boolean ones too). A status worse than fmi2Warning raises
-    FMICallException naming the function, as fmpy's wrappers do.
+    FMICallException naming the function, as fmpy's wrappers do; a doStep's fmi2Warning
+    is kept among the messages (:meth:`Slave.note_warning`).
 
     Written by hand: fmpy's wrappers take two Python frames a call and convert every
     argument through its declared type (~1 us a call, eight calls a step of two
@@ -410,6 +448,7 @@ def _hot_calls(slave: Slave) -> tuple[Callable[[], None], Callable[[], None], Ca
     out_vrs, n_out, out_ptr = slave.output_vrs, ctypes.c_size_t(slave.n_outputs), slave.output_ptr
     double, prior = ctypes.c_double, ctypes.c_int(1)  # noSetFMUStatePriorToCurrentPoint
     others = slave.get_others if slave.others else None
+    warned = slave.note_warning
 
     def put_inputs() -> None:
         status = set_real(handle, in_vrs, n_in, in_ptr)
@@ -423,8 +462,10 @@ def _hot_calls(slave: Slave) -> tuple[Callable[[], None], Callable[[], None], Ca
 
     def advance(t: float, h: float) -> None:
         status = do_step(handle, double(t), double(h), prior)
-        if status > 1:
-            raise FMICallException(function="fmi2DoStep", status=status)
+        if status:
+            if status > WARNING:
+                raise FMICallException(function="fmi2DoStep", status=status)
+            warned("fmi2DoStep", t)
         status = get_real(handle, out_vrs, n_out, out_ptr)
         if status > 1:
             raise FMICallException(function="fmi2GetReal", status=status)

@@ -1,14 +1,17 @@
 """FMUs of other groups' making beside ours (tests/fmus/cosim_test_foreign.py): a reason an
-FMU logs over several lines, an output that turns infinite, and an FMU that logs more
-warnings than a run keeps."""
+FMU logs over several lines, an output that turns infinite, an FMU that logs more
+warnings than a run keeps; and doStep statuses pythonfmu cannot answer (Warning, a partial
+step's Discard, Pending) from a Reference FMU rebuilt (tests/status_fmu.py)."""
 
 from __future__ import annotations
 
 import warnings
 from pathlib import Path
 
+from status_fmu import status_fmu
+
 from cosim.engine import master
-from cosim.engine.slave import LOG_LINES_KEPT
+from cosim.engine.slave import LOG_LINES_KEPT, _idle_libraries, unzipped
 from cosim.scenario.spec import scenario_from_toml
 
 
@@ -73,3 +76,46 @@ def test_warnings_beyond_those_kept_are_counted_and_the_report_says_so(
     assert lines[-1] == (
         f"  f logged {300 - 3} more (summary.json keeps the last {LOG_LINES_KEPT} of 300)"
     )
+
+
+def status_run(folder: Path, status: str, terminated: bool = False) -> master.RunResult:
+    """1 s in steps of 0.1 s of one instance ``d`` of Dahlquist whose doStep answers
+    fmi2``status`` from t = 0.4 s on (tests/fmus/cosim_test_status.c)."""
+    fmu = status_fmu(folder, status, 0.35, terminated)
+    text = 'stop_time = 1.0\n[coupling]\nstep = 0.1\n[instances.d]\nfmu = "Status.fmu"\n'
+    return master.run(scenario_from_toml(text, base_dir=fmu.parent))
+
+
+def test_a_step_that_returns_warning_is_noted_with_its_time(tmp_path: Path) -> None:
+    """A doStep's fmi2Warning with no message logged left no trace of the run: it is kept
+    among the instance's messages (the report and summary.json show them), and the run
+    goes on."""
+    result = status_run(tmp_path, "Warning")
+    assert result.complete, result.error
+    assert result.messages["d"] == ["[Warning] fmi2DoStep returned Warning at t = 0.4 s"]
+
+
+def test_a_partial_step_is_reported_with_the_time_the_fmu_reached(tmp_path: Path) -> None:
+    """A doStep's Discard without fmi2Terminated is a step the FMU did only part of
+    (FMI 2.0, 4.2.3): the error says how far it got (fmi2LastSuccessfulTime) and that the
+    master does not retry it, not only that the FMU logged no reason."""
+    result = status_run(tmp_path, "Discard")
+    assert not result.complete
+    assert result.error == (
+        "d: fmi2DoStep returned Discard at t = 0.4 s: a partial step, to t = 0.45 s, "
+        "which the master does not retry (the FMU logged no reason)"
+    )
+
+
+def test_a_pending_step_is_cancelled_and_its_instance_freed(tmp_path: Path) -> None:
+    """fmi2Pending (a step run asynchronously, which this master never waits for) was
+    taken for a Fatal: the instance was left instantiated. The error names what Pending
+    means, the step is cancelled (fmi2CancelStep) and the instance freed."""
+    result = status_run(tmp_path, "Pending")
+    assert result.error == (
+        "d: fmi2DoStep returned Pending at t = 0.4 s: the FMU runs its step "
+        "asynchronously, which this master does not wait for; the step was cancelled "
+        "(the FMU logged no reason)"
+    )
+    folder = str(unzipped(tmp_path / "Status.fmu"))
+    assert any(key[0] == folder and key[3] == "d" for key in _idle_libraries)

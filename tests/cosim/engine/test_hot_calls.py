@@ -54,6 +54,8 @@ def _slave(status: int, others: bool = False) -> SimpleNamespace:
         read_others=[],
     )
     fake.get_others = lambda: fake.read_others.append(True)
+    fake.warnings = []  # (function, t) of each fmi2Warning
+    fake.note_warning = lambda function, t: fake.warnings.append((function, t))
     return fake
 
 
@@ -76,6 +78,8 @@ def test_every_argument_of_every_call_is_a_ctypes_object(status: int) -> None:
     for name, args in calls:
         assert all(isinstance(arg, _CTYPES) for arg in args), (name, args)
         assert args[0].value == 0x1234
+    # a doStep's Warning is noted with the step's start time (its message kept)
+    assert fake.warnings == ([("fmi2DoStep", 0.25)] if status else [])
     _, (_, t, h, flag) = calls[2]
     assert (type(t), t.value, type(h), h.value) == (ctypes.c_double, 0.25, ctypes.c_double, 0.01)
     assert (type(flag), flag.value) == (ctypes.c_int, 1)
