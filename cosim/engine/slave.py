@@ -276,19 +276,29 @@ _LOGGER = fmi2CallbackLoggerTYPE(_log)
 
 
 def describe(slave: Slave, function: str, status: int, t: float) -> str:
-    """One line: which call of which instance failed, when, what a doStep's Discard or
-    Pending means (called after :meth:`Slave.failed`), and the FMU's logged reason."""
+    """One line: which call of which instance failed, when, what it means
+    (:func:`_meaning`) and the FMU's logged reason."""
     label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
-    meaning = ""
+    meaning = _meaning(slave, function, status)
+    return f"{slave.name}: {function} returned {label} at t = {t:.6g} s{meaning}{reasons(slave)}"
+
+
+def _meaning(slave: Slave, function: str, status: int) -> str:
+    """What a failed call means beyond its status ("" if nothing): a doStep's Discard
+    that did not end the simulation (a partial step, and the time reached), a doStep's
+    Pending (called after :meth:`Slave.failed` cancelled it), an FMU state the adaptive
+    algorithm could not save or restore."""
     if function == "fmi2DoStep" and status == PENDING:
         done = "the step was cancelled" if slave.state == "error" else "it could not be cancelled"
-        meaning = (": the FMU runs its step asynchronously, which this master does not wait "
-                   f"for; {done}")  # fmt: skip
-    elif function == "fmi2DoStep" and status == DISCARD:
+        return (": the FMU runs its step asynchronously, which this master does not wait "
+                f"for; {done}")  # fmt: skip
+    if function == "fmi2DoStep" and status == DISCARD:
         reached = slave.partial_step()
-        if reached is not None:
-            meaning = f": a partial step, to t = {reached:.6g} s, which the master does not retry"
-    return f"{slave.name}: {function} returned {label} at t = {t:.6g} s{meaning}{reasons(slave)}"
+        return "" if reached is None else f": a partial step, to t = {reached:.6g} s"
+    if function in ("fmi2GetFMUstate", "fmi2SetFMUstate"):
+        return (": algorithm 'adaptive' saves every instance's state to roll rejected steps "
+                "back; use 'gauss-seidel' or 'jacobi' with a fixed step")  # fmt: skip
+    return ""
 
 
 def reasons(slave: Slave) -> str:

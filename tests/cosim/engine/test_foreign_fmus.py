@@ -47,6 +47,21 @@ def test_a_reason_logged_over_several_lines_is_one_line_of_the_error(
     assert all("\n" not in line for line in result.messages["f"])
 
 
+def test_an_fmu_that_cannot_save_its_state_is_told_why_adaptive_needs_it(
+    test_fmu_dir: Path,
+) -> None:
+    """An FMU that declares canGetAndSetFMUstate but fails fmi2GetFMUstate stops an
+    adaptive run at its first step; the error says why the algorithm asked and what runs
+    it instead (a declared "false" is refused at load, test_fmi_semantics)."""
+    result = foreign(test_fmu_dir, "state_fails = true", "adaptive")
+    assert result.time_reached == 0.0
+    assert (
+        "f: fmi2GetFMUstate returned Fatal at t = 0 s: algorithm 'adaptive' saves every "
+        "instance's state to roll rejected steps back; use 'gauss-seidel' or 'jacobi' "
+        "with a fixed step"
+    ) in (result.error or "")
+
+
 def test_an_infinite_output_stops_the_run_naming_it_without_a_numpy_warning(
     test_fmu_dir: Path,
 ) -> None:
@@ -97,13 +112,13 @@ def test_a_step_that_returns_warning_is_noted_with_its_time(tmp_path: Path) -> N
 
 def test_a_partial_step_is_reported_with_the_time_the_fmu_reached(tmp_path: Path) -> None:
     """A doStep's Discard without fmi2Terminated is a step the FMU did only part of
-    (FMI 2.0, 4.2.3): the error says how far it got (fmi2LastSuccessfulTime) and that the
-    master does not retry it, not only that the FMU logged no reason."""
+    (FMI 2.0, 4.2.3): the error says how far it got (fmi2LastSuccessfulTime), not only
+    that the FMU logged no reason (a fixed-step run retries no step)."""
     result = status_run(tmp_path, "Discard")
     assert not result.complete
     assert result.error == (
-        "d: fmi2DoStep returned Discard at t = 0.4 s: a partial step, to t = 0.45 s, "
-        "which the master does not retry (the FMU logged no reason)"
+        "d: fmi2DoStep returned Discard at t = 0.4 s: a partial step, to t = 0.45 s "
+        "(the FMU logged no reason)"
     )
 
 
