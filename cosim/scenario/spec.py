@@ -696,21 +696,7 @@ def _resolve(
     _check_once_per_process(instances, src)
     connections = _resolve_connections(spec.connections, instances, src)
     coupling = _resolve_coupling(spec, instances, connections, src)
-    driven = {c.target: c.source for c in connections}
-    added = {conn.to for conn in spec.connections.add}
-    for name, inst in instances.items():
-        for var_name in inst.start:
-            ref = f"{name}.{var_name}"
-            if ref in driven:
-                hold = (
-                    "take its connection out of connections.add" if ref in added
-                    else f'add "{ref}" to connections.remove'
-                )  # fmt: skip
-                raise src.error(
-                    f"instances.{name}.start.{var_name}",
-                    f"input {ref} is connected from {driven[ref]}, so a start value would be "
-                    f"overwritten; {hold} to hold it instead",
-                )
+    _check_start_not_driven(instances, connections, {c.to for c in spec.connections.add}, src)
     scenario = Scenario(
         id=scenario_id,
         summary=spec.summary,
@@ -740,6 +726,42 @@ def _resolve(
     _check_reachable_times(scenario, src)
     object.__setattr__(scenario, "loaded", True)  # frozen: set once, here
     return scenario
+
+
+def _check_start_not_driven(
+    instances: Mapping[str, Instance], connections: list[Connection], added: set[str], src: Source
+) -> None:
+    """Refuse a start value for an input a connection drives (under its name or an
+    alias's): the connection would overwrite it; ``added``: the targets of
+    connections.add."""
+
+    def key(instance: str, variable: str) -> tuple[str, str, int]:
+        return (instance, *_alias_key(instances[instance].interface.variables[variable]))
+
+    driven = {key(c.target_instance, c.target_variable): c for c in connections}
+    for name, inst in instances.items():
+        for var_name in inst.start:
+            ref = f"{name}.{var_name}"
+            connection = driven.get(key(name, var_name))
+            if connection is None:
+                continue
+            target = connection.target
+            hold = (
+                "take its connection out of connections.add" if target in added
+                else f'add "{target}" to connections.remove'
+            )  # fmt: skip
+            alias = "" if target == ref else f" (as {target}, one variable)"
+            raise src.error(
+                f"instances.{name}.start.{var_name}",
+                f"input {ref} is connected from {connection.source}{alias}, so a start value "
+                f"would be overwritten; {hold} to hold it instead",
+            )
+
+
+def _alias_key(var: Any) -> tuple[str, int]:
+    """(FMI type, value reference) of ``var`` (an interface variable), the same for each
+    of its aliases (FMI 2.0, 2.2.7; an Enumeration takes the Integers' references)."""
+    return ("Integer" if var.type == "Enumeration" else var.type, var.value_reference)
 
 
 def _check_fault_columns(scenario: Scenario, src: Source) -> None:
@@ -902,9 +924,7 @@ def _check_aliases(
     would be set one after the other, the last silently winning."""
     first: dict[tuple[str, int], str] = {}
     for var_name in start:
-        var = variables[var_name]
-        kind = "Integer" if var.type == "Enumeration" else var.type
-        other = first.setdefault((kind, var.value_reference), var_name)
+        other = first.setdefault(_alias_key(variables[var_name]), var_name)
         if other != var_name:
             raise src.error(
                 f"instances.{name}.start.{var_name}",
@@ -1126,8 +1146,34 @@ def _resolve_connections(
             )
         added[conn.to] = i
         by_target[conn.to] = Connection(conn.from_, conn.to)
+    _check_aliased_targets(by_target, added, instances, src)
     _check_units(by_target, added, instances, src)
     return sorted(by_target.values(), key=lambda c: (c.target_instance, c.target_variable))
+
+
+def _check_aliased_targets(
+    by_target: Mapping[str, Connection],
+    added: Mapping[str, int],
+    instances: Mapping[str, Instance],
+    src: Source,
+) -> None:
+    """Refuse two connections into two names of one input (aliases): both would set it,
+    the last silently winning; the refusal names the key that made the second."""
+    first: dict[tuple[str, str, int], str] = {}
+    for target, connection in by_target.items():
+        inst = instances[connection.target_instance]
+        var = inst.interface.variables[connection.target_variable]
+        other = first.setdefault((inst.name, *_alias_key(var)), target)
+        if other == target:
+            continue
+        key = (
+            f"connections.add[{added[target]}].to" if target in added else "connections.same_names"
+        )
+        raise src.error(
+            key,
+            f"{target!r} and {other!r} are one variable (the same value reference), driven by "
+            f"{by_target[other].source} and {connection.source}; an input has one source",
+        )
 
 
 def _check_units(

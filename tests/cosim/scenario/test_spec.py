@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -620,3 +621,48 @@ def test_two_start_values_for_one_variable_under_two_names_are_refused(
         scenario_from_toml(text, base_dir=tmp_path)
     result = master.run(scenario_from_toml(text.replace("k = 2.0\n", ""), base_dir=tmp_path))
     assert list(result.column("f.k")) == list(result.column("f.k alias")) == [3.0] * 3
+
+
+def test_an_input_driven_under_two_names_is_refused(test_fmu_dir: Path, tmp_path: Path) -> None:
+    """Two connections into two names of one input (aliases) drove it twice, the last set
+    silently winning; and a start value for one name of a connected input was silently
+    overwritten. Both are refused naming the aliases."""
+    folder = tmp_path
+    for name in ("CosimTestSource.fmu", "CosimTestIntegrator.fmu"):
+        shutil.copy(test_fmu_dir / name, folder / name)
+    foreign = test_fmu_dir / "CosimTestFeedthrough.fmu"
+    alias = '<ScalarVariable name="u alias" valueReference="{vr}" causality="input" '
+    alias += 'variability="continuous"><Real start="0"/></ScalarVariable></ModelVariables>'
+    with zipfile.ZipFile(foreign) as src, zipfile.ZipFile(folder / "Ft.fmu", "w") as out:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                vr = re.search(r'name="u" valueReference="(\d+)"', text)
+                assert vr is not None
+                data = text.replace("</ModelVariables>", alias.format(vr=vr[1])).encode()
+            out.writestr(item, data)
+    head = (
+        'stop_time = 0.2\n[coupling]\nstep = 0.1\n[instances.src]\nfmu = "CosimTestSource.fmu"\n'
+        '[instances.plant]\nfmu = "CosimTestIntegrator.fmu"\n[instances.ft]\nfmu = "Ft.fmu"\n'
+    )
+    twice = head + (
+        '[connections]\nsame_names = false\nadd = [{ from = "src.x", to = "ft.u" }, '
+        '{ from = "plant.x", to = "ft.u alias" }]\n'
+    )
+    with pytest.raises(
+        ScenarioError,
+        match=r"key 'connections\.add\[1\]\.to': 'ft\.u alias' and 'ft\.u' are one variable "
+        r"\(the same value reference\), driven by src\.x and plant\.x; an input has one source",
+    ):
+        scenario_from_toml(twice, base_dir=folder)
+    held = head.replace(
+        'fmu = "Ft.fmu"\n', 'fmu = "Ft.fmu"\n[instances.ft.start]\n"u alias" = 1.0\n'
+    )
+    held += '[connections]\nsame_names = false\nadd = [{ from = "src.x", to = "ft.u" }]\n'
+    with pytest.raises(
+        ScenarioError,
+        match=r"key 'instances\.ft\.start\.u alias': input ft\.u alias is connected from src\.x "
+        r"\(as ft\.u, one variable\), so a start value would be overwritten",
+    ):
+        scenario_from_toml(held, base_dir=folder)
