@@ -383,8 +383,16 @@ def _set_up(slave: Slave, call: Callable[[], None]) -> None:
     except CosimError:
         raise
     except Exception as exc:  # fmpy raises a plain Exception when instantiation fails
-        raise CosimError(f"{slave.name}: cannot set up {slave.instance.fmu_path.name}: {exc}"
-                         f"{reasons(slave)}") from None  # fmt: skip
+        file = slave.instance.fmu_path.name
+        tool = (
+            f' ({file} declares needsExecutionTool="true": is the tool it needs installed '
+            "and running?)"
+            if slave.instance.model_description.coSimulation.needsExecutionTool
+            else ""
+        )
+        raise CosimError(
+            f"{slave.name}: cannot set up {file}: {exc}{reasons(slave)}{tool}"
+        ) from None
 
 
 def _initialise(order: list[Slave], layout: _Layout, z: np.ndarray) -> None:

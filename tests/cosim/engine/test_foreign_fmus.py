@@ -6,12 +6,15 @@ step's Discard, Pending) from a Reference FMU rebuilt (tests/status_fmu.py)."""
 from __future__ import annotations
 
 import warnings
+import zipfile
 from pathlib import Path
 
-from status_fmu import status_fmu
+import pytest
+from status_fmu import DAHLQUIST, status_fmu
 
 from cosim.engine import master
 from cosim.engine.slave import LOG_LINES_KEPT, _idle_libraries, unzipped
+from cosim.errors import CosimError
 from cosim.scenario.spec import scenario_from_toml
 
 
@@ -134,3 +137,29 @@ def test_a_pending_step_is_cancelled_and_its_instance_freed(tmp_path: Path) -> N
     )
     folder = str(unzipped(tmp_path / "Status.fmu"))
     assert any(key[0] == folder and key[3] == "d" for key in _idle_libraries)
+
+
+def test_an_fmu_needing_a_tool_that_fails_to_instantiate_says_it_needs_one(
+    tmp_path: Path,
+) -> None:
+    """needsExecutionTool="true" (an FMU that couples to a tool it does not ship) runs
+    like any other (pythonfmu's FMUs declare it too); when such an FMU fails to
+    instantiate, the error says it needs its tool beside the FMU's own reason (here a
+    Reference FMU whose GUID no longer matches its binary's)."""
+    path = tmp_path / "Tool.fmu"
+    with zipfile.ZipFile(DAHLQUIST) as src, zipfile.ZipFile(path, "w") as out:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                text = data.decode().replace('guid="{221063D2', 'guid="{00000000')
+                data = text.replace("<CoSimulation", '<CoSimulation needsExecutionTool="true"')
+                data = data.encode()
+            out.writestr(item, data)
+    text = 'stop_time = 0.2\n[coupling]\nstep = 0.1\n[instances.t]\nfmu = "Tool.fmu"\n'
+    with pytest.raises(CosimError) as refused:
+        master.run(scenario_from_toml(text, base_dir=tmp_path))
+    assert str(refused.value) == (
+        "t: cannot set up Tool.fmu: Failed to instantiate model: [Error] Wrong GUID. "
+        '(Tool.fmu declares needsExecutionTool="true": is the tool it needs installed and '
+        "running?)"
+    )
