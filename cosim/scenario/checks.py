@@ -292,6 +292,25 @@ def split_ref(ref: str, instances: Mapping[str, Any], key: str, src: Source) -> 
     return instance, var
 
 
+def alias_key(var: Any) -> tuple[str, int]:
+    """(FMI type, value reference) of ``var`` (an interface variable), the same for each
+    of its aliases (FMI 2.0, 2.2.7; an Enumeration takes the Integers' references)."""
+    return ("Integer" if var.type == "Enumeration" else var.type, var.value_reference)
+
+
+def aliased_target(ref: str, scenario: Any) -> Any:
+    """The connection of ``scenario`` that drives ``ref`` (``"<instance>.<variable>"``)
+    under its name or an alias's, None if none does."""
+    instance, _, variable = ref.partition(".")
+    key = alias_key(scenario.instances[instance].interface.variables[variable])
+    for c in scenario.connections:
+        if c.target_instance == instance:
+            target = scenario.instances[instance].interface.variables[c.target_variable]
+            if alias_key(target) == key:
+                return c
+    return None
+
+
 def with_article(word: str) -> str:
     """``word`` with its indefinite article ("an input", "a parameter")."""
     return ("an " if word[0] in "aeiou" else "a ") + word

@@ -46,6 +46,7 @@ from cosim.scenario.checks import (
     ScenarioError,
     Source,
     Strict,
+    alias_key,
     check_value,
     field_names,
     loads_toml,
@@ -736,7 +737,7 @@ def _check_start_not_driven(
     connections.add."""
 
     def key(instance: str, variable: str) -> tuple[str, str, int]:
-        return (instance, *_alias_key(instances[instance].interface.variables[variable]))
+        return (instance, *alias_key(instances[instance].interface.variables[variable]))
 
     driven = {key(c.target_instance, c.target_variable): c for c in connections}
     for name, inst in instances.items():
@@ -756,12 +757,6 @@ def _check_start_not_driven(
                 f"input {ref} is connected from {connection.source}{alias}, so a start value "
                 f"would be overwritten; {hold} to hold it instead",
             )
-
-
-def _alias_key(var: Any) -> tuple[str, int]:
-    """(FMI type, value reference) of ``var`` (an interface variable), the same for each
-    of its aliases (FMI 2.0, 2.2.7; an Enumeration takes the Integers' references)."""
-    return ("Integer" if var.type == "Enumeration" else var.type, var.value_reference)
 
 
 def _check_fault_columns(scenario: Scenario, src: Source) -> None:
@@ -924,7 +919,7 @@ def _check_aliases(
     would be set one after the other, the last silently winning."""
     first: dict[tuple[str, int], str] = {}
     for var_name in start:
-        other = first.setdefault(_alias_key(variables[var_name]), var_name)
+        other = first.setdefault(alias_key(variables[var_name]), var_name)
         if other != var_name:
             raise src.error(
                 f"instances.{name}.start.{var_name}",
@@ -1163,7 +1158,7 @@ def _check_aliased_targets(
     for target, connection in by_target.items():
         inst = instances[connection.target_instance]
         var = inst.interface.variables[connection.target_variable]
-        other = first.setdefault((inst.name, *_alias_key(var)), target)
+        other = first.setdefault((inst.name, *alias_key(var)), target)
         if other == target:
             continue
         key = (

@@ -46,7 +46,15 @@ from typing import Any, Literal
 from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
 from cosim.errors import did_you_mean
-from cosim.scenario.checks import ReadOnly, Source, Strict, check_value, split_ref
+from cosim.scenario.checks import (
+    ReadOnly,
+    Source,
+    Strict,
+    alias_key,
+    aliased_target,
+    check_value,
+    split_ref,
+)
 
 ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
     "mass-jam": "mass_position_cmd",
@@ -254,11 +262,27 @@ def resolve_events(
             ref: event_value(ref, value, scenario, f"{key}.set.{ref}", spec.ramp is not None, src)
             for ref, value in (spec.set or {}).items()
         }
+        _check_set_once(values, scenario, f"{key}.set", src)
         shown = ReadOnly(values, f"{key}.set", EVENTS_HINT)
         event = Event(name, spec.time, when, bool(spec.repeat), shown, spec.ramp, series)
         events.append(event)
     _unique([e.name for e in events], [s.name for s in specs], "events", src)
     return tuple(events)
+
+
+def _check_set_once(values: Mapping[str, Any], scenario: Any, key: str, src: Source) -> None:
+    """Refuse an event that sets two names of one variable (aliases): it would set it
+    twice, the last silently winning."""
+    first: dict[tuple[str, str, int], str] = {}
+    for ref in values:
+        instance, _, variable = ref.partition(".")
+        var = scenario.instances[instance].interface.variables[variable]
+        other = first.setdefault((instance, *alias_key(var)), ref)
+        if other != ref:
+            raise src.error(
+                f"{key}.{ref}",
+                f"{ref} and {other} are one variable (the same value reference): set one of them",
+            )
 
 
 def _check_event_keys(spec: EventSpec, key: str, src: Source) -> None:
@@ -325,10 +349,13 @@ def event_value(
 ) -> bool | int | float | str:
     """The value an event writes to ``ref``: an unconnected input or a tunable parameter."""
     _, var = split_ref(ref, scenario.instances, key, src)
-    driven = {c.target: c.source for c in scenario.connections}
-    if ref in driven:
+    connection = aliased_target(ref, scenario)
+    if connection is not None:
+        alias = "" if connection.target == ref else f" (as {connection.target}, one variable)"
         raise src.error(
-            key, f"{ref} is connected from {driven[ref]}: an event sets unconnected inputs only"
+            key,
+            f"{ref} is connected from {connection.source}{alias}: an event sets unconnected "
+            "inputs only",
         )
     tunable = var.causality == "parameter" and var.variability == "tunable"
     if var.causality != "input" and not tunable:

@@ -9,10 +9,10 @@ import shutil
 import subprocess
 import sys
 import tomllib
-import zipfile
 from pathlib import Path
 
 import pytest
+from aliased_fmu import with_alias
 from repo_paths import ROOT
 
 from cosim.engine import master, slave
@@ -579,35 +579,13 @@ def test_toml_nested_too_deeply_to_read_is_refused_as_not_valid_toml(
         scenario_from_toml(f"{BS3}\nx = {nested}\n")
 
 
-def aliased(test_fmu_dir: Path, folder: Path) -> Path:
-    """CosimTestForeign.fmu with ``k alias``, a second name of its parameter ``k`` (one
-    value reference: an alias, as Modelica tools export them)."""
-
-    path = folder / "Aliased.fmu"
-    alias = (
-        '<ScalarVariable name="k alias" valueReference="{vr}" causality="parameter" '
-        'variability="tunable"><Real start="1"/></ScalarVariable></ModelVariables>'
-    )
-    foreign = test_fmu_dir / "CosimTestForeign.fmu"
-    with zipfile.ZipFile(foreign) as src, zipfile.ZipFile(path, "w") as out:
-        for item in src.infolist():
-            data = src.read(item)
-            if item.filename == "modelDescription.xml":
-                text = data.decode()
-                vr = re.search(r'name="k" valueReference="(\d+)"', text)
-                assert vr is not None
-                data = text.replace("</ModelVariables>", alias.format(vr=vr[1])).encode()
-            out.writestr(item, data)
-    return path
-
-
 def test_two_start_values_for_one_variable_under_two_names_are_refused(
     test_fmu_dir: Path, tmp_path: Path
 ) -> None:
     """Aliases are one variable: start values for two of its names would be set one after
     the other, the last silently winning; the second is refused naming both. One of
     them alone sets the value, which both names then read."""
-    aliased(test_fmu_dir, tmp_path)
+    with_alias(test_fmu_dir / "CosimTestForeign.fmu", tmp_path / "Aliased.fmu", "k", "k alias")
     text = (
         'stop_time = 0.2\n[coupling]\nstep = 0.1\n[instances.f]\nfmu = "Aliased.fmu"\n'
         '[instances.f.start]\nk = 2.0\n"k alias" = 3.0\n'
@@ -630,18 +608,7 @@ def test_an_input_driven_under_two_names_is_refused(test_fmu_dir: Path, tmp_path
     folder = tmp_path
     for name in ("CosimTestSource.fmu", "CosimTestIntegrator.fmu"):
         shutil.copy(test_fmu_dir / name, folder / name)
-    foreign = test_fmu_dir / "CosimTestFeedthrough.fmu"
-    alias = '<ScalarVariable name="u alias" valueReference="{vr}" causality="input" '
-    alias += 'variability="continuous"><Real start="0"/></ScalarVariable></ModelVariables>'
-    with zipfile.ZipFile(foreign) as src, zipfile.ZipFile(folder / "Ft.fmu", "w") as out:
-        for item in src.infolist():
-            data = src.read(item)
-            if item.filename == "modelDescription.xml":
-                text = data.decode()
-                vr = re.search(r'name="u" valueReference="(\d+)"', text)
-                assert vr is not None
-                data = text.replace("</ModelVariables>", alias.format(vr=vr[1])).encode()
-            out.writestr(item, data)
+    with_alias(test_fmu_dir / "CosimTestFeedthrough.fmu", folder / "Ft.fmu", "u", "u alias")
     head = (
         'stop_time = 0.2\n[coupling]\nstep = 0.1\n[instances.src]\nfmu = "CosimTestSource.fmu"\n'
         '[instances.plant]\nfmu = "CosimTestIntegrator.fmu"\n[instances.ft]\nfmu = "Ft.fmu"\n'

@@ -4,9 +4,11 @@ scenario with events and faults written back by to_toml loads to an equal one.""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
+from aliased_fmu import with_alias
 from scenario_factory import loop_toml
 
 from cosim.engine import slave
@@ -196,3 +198,34 @@ stop = 0.8
     again = scenario_from_toml(scenario.to_toml(), "again", base_dir=Path("/"), fmu_dir=tmp_path)
     assert again == scenario
     assert "fault.fault-1" not in scenario.to_toml()  # the columns are not record entries
+
+
+def test_an_event_into_one_variable_under_two_names_is_refused(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Aliases (names of one value reference) are one variable: an event setting two of
+    them set it twice, the last silently winning, and an event setting an alias of a
+    connected input was overwritten by the connection at the next exchange. Both are
+    refused naming the aliases."""
+    shutil.copy(test_fmu_dir / "CosimTestSource.fmu", tmp_path)
+    with_alias(test_fmu_dir / "CosimTestFeedthrough.fmu", tmp_path / "Ft.fmu", "u", "u alias")
+    with_alias(test_fmu_dir / "CosimTestForeign.fmu", tmp_path / "F.fmu", "k", "k alias")
+    head = (
+        'stop_time = 1.0\n[coupling]\nstep = 0.1\n[instances.src]\nfmu = "CosimTestSource.fmu"\n'
+        '[instances.ft]\nfmu = "Ft.fmu"\n[instances.f]\nfmu = "F.fmu"\n[connections]\n'
+        'same_names = false\nadd = [{ from = "src.x", to = "ft.u" }]\n[[events]]\ntime = 0.5\n'
+    )
+    connected = head + 'set = { "ft.u alias" = 1.0 }\n'
+    with pytest.raises(
+        ScenarioError,
+        match=r"key 'events\[0\]\.set\.ft\.u alias': ft\.u alias is connected from src\.x "
+        r"\(as ft\.u, one variable\): an event sets unconnected inputs only",
+    ):
+        scenario_from_toml(connected, base_dir=tmp_path)
+    twice = head + 'set = { "f.k" = 2.0, "f.k alias" = 3.0 }\n'
+    with pytest.raises(
+        ScenarioError,
+        match=r"key 'events\[0\]\.set\.f\.k alias': f\.k alias and f\.k are one variable "
+        r"\(the same value reference\): set one of them",
+    ):
+        scenario_from_toml(twice, base_dir=tmp_path)
