@@ -555,10 +555,7 @@ def report(outcome: RunOutcome) -> str:
             for k, v in figures.items()
         ))  # fmt: skip
     if outcome.manoeuvre:
-        metrics = {k: v for k, v in outcome.manoeuvre.items() if k != "manoeuvre"}
-        lines.append(f"  {outcome.manoeuvre['manoeuvre']}: " + ", ".join(
-            f"{k} = {v if isinstance(v, str) else _fmt(v)}" for k, v in metrics.items()
-        ))  # fmt: skip
+        lines.append(_manoeuvre_line(outcome.manoeuvre))
     lines += logged_lines(result)
     lines.append(timing(result))
     check = result.coupling.get("check_step")
@@ -584,6 +581,22 @@ def logged_lines(result: RunResult) -> list[str]:
             )
             lines.append(f"  {name} logged {logged - MESSAGES_SHOWN} more ({kept})")
     return lines
+
+
+def _manoeuvre_line(manoeuvre: dict[str, Any]) -> str:
+    """The manoeuvre and its metrics in one line; a survey's legs as "2 of 7", with the
+    waypoints it did not reach (summary.json's legs_total, first_waypoint_not_reached)."""
+    metrics = {k: v for k, v in manoeuvre.items() if k != "manoeuvre"}
+    total = metrics.pop("legs_total", None)
+    first = metrics.pop("first_waypoint_not_reached", None)
+    shown = {k: v if isinstance(v, str) else _fmt(v) for k, v in metrics.items()}
+    if total is not None and metrics.get("legs_completed") is not None:
+        shown["legs_completed"] += f" of {total}"
+        if first is not None:
+            last = total + 1  # the waypoints, numbered from 1
+            which = f"waypoints {first} to {last}" if first < last else f"waypoint {last}"
+            shown["legs_completed"] += f": {which} not reached"
+    return f"  {manoeuvre['manoeuvre']}: " + ", ".join(f"{k} = {v}" for k, v in shown.items())
 
 
 def _steps(result: RunResult) -> str:

@@ -278,10 +278,26 @@ def depth_steps(
 # --- survey --------------------------------------------------------------------------------
 
 
-def survey(cross_track_error: np.ndarray, legs_completed: np.ndarray) -> Metrics:
+SURVEY_METRICS = (
+    "cross_track_rms_m",
+    "cross_track_max_m",
+    "legs_completed",
+    "legs_total",
+    "first_waypoint_not_reached",
+)
+
+
+def survey(
+    cross_track_error: np.ndarray, legs_completed: np.ndarray, legs_total: int | None = None
+) -> Metrics:
     """RMS and largest |cross-track error| over the whole run (m), and the legs completed
-    at its end (the guidance's own outputs, sampled every communication step)."""
-    tracker = SurveyTracker()
+    at its end (the guidance's own outputs, sampled every communication step).
+
+    ``legs_total``: the mission's legs (waypoints - 1), which the columns do not hold;
+    given, the metrics also name the first waypoint not reached (numbered from 1, the
+    first being the start: ``legs_completed + 2``), None once every leg is completed.
+    """
+    tracker = SurveyTracker(legs_total)
     tracker.add(np.asarray(cross_track_error, dtype=float), np.asarray(legs_completed))
     return tracker.metrics()
 
@@ -296,7 +312,8 @@ class SurveyTracker:
     figures do not depend on how the rows were cut into pieces; a run of one block or less
     gets the sum over its whole column (numpy's ``mean``)."""
 
-    def __init__(self) -> None:
+    def __init__(self, legs_total: int | None = None) -> None:
+        self.legs_total = legs_total  # the mission's legs, if known
         self._block = np.empty(SURVEY_BLOCK_ROWS)
         self._filled = 0  # errors in the block
         self._sums: list[float] = []  # of the squares of each full block, m^2
@@ -324,15 +341,27 @@ class SurveyTracker:
     def metrics(self) -> Metrics:
         """The survey's figures over the rows so far (None each without a row)."""
         if self._count == 0:  # a run stopped before its first row
-            return dict.fromkeys(("cross_track_rms_m", "cross_track_max_m", "legs_completed"))
+            return {**dict.fromkeys(SURVEY_METRICS), "legs_total": self.legs_total}
         total = np.add.reduce(self._block[: self._filled] ** 2)
         if self._sums:
             total = np.add.reduce(np.asarray([*self._sums, total]))
+        legs = round(self._legs)
         return {
             "cross_track_rms_m": float(np.sqrt(total / self._count)),
             "cross_track_max_m": self._largest,
-            "legs_completed": round(self._legs),
+            "legs_completed": legs,
+            "legs_total": self.legs_total,
+            "first_waypoint_not_reached": first_waypoint_not_reached(legs, self.legs_total),
         }
+
+
+def first_waypoint_not_reached(legs_completed: int, legs_total: int | None) -> int | None:
+    """The first waypoint (numbered from 1, the start being 1) a mission of ``legs_total``
+    legs has not reached after ``legs_completed``; None if every one was, or the mission's
+    legs are unknown."""
+    if legs_total is None or legs_completed >= legs_total:
+        return None
+    return legs_completed + 2
 
 
 # --- fault recovery ------------------------------------------------------------------------

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from controller_fmu.los_guidance import parse_waypoints
 from cosim.engine.rows import NotesIgnored
 from cosim.metrics.manoeuvres import (
     VARIABLES,
@@ -31,6 +32,7 @@ if TYPE_CHECKING:
     from cosim.scenario.spec import Scenario
 
 DEPTH_SETPOINT = "depth_setpoint"  # what a depth-steps scenario's time events set
+GUIDANCE_FMU = "AuvGuidance"  # the waypoint guidance: a survey's mission is its waypoints
 SURVEY = VARIABLES["survey"]  # cross_track_error, legs_completed: what SurveyTracker reads
 
 
@@ -41,12 +43,19 @@ class ManoeuvreSink(NotesIgnored):
         kind: a :data:`cosim.metrics.manoeuvres.KINDS` name.
         record: the run's columns (``<instance>.<variable>``, the rows' order).
         fault_start: s, when the fault of a ``fault-recovery`` run starts.
+        legs_total: a ``survey``'s mission legs (:func:`mission_legs`), None if unknown.
 
     Raises:
         ValueError: the run does not record a column ``kind`` needs.
     """
 
-    def __init__(self, kind: str, record: Sequence[str], fault_start: float = 0.0) -> None:
+    def __init__(
+        self,
+        kind: str,
+        record: Sequence[str],
+        fault_start: float = 0.0,
+        legs_total: int | None = None,
+    ) -> None:
         self.kind = kind
         self.fault_start = fault_start
         used = manoeuvre_columns(kind, list(record))
@@ -55,7 +64,7 @@ class ManoeuvreSink(NotesIgnored):
         self._times: list[np.ndarray] = []
         self._values: list[np.ndarray] = []
         # a survey's figures stream: none of its rows is kept
-        self._survey = SurveyTracker() if kind == "survey" else None
+        self._survey = SurveyTracker(legs_total) if kind == "survey" else None
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         if self._survey is not None:
@@ -93,6 +102,20 @@ class ManoeuvreSink(NotesIgnored):
 def fault_start(scenario: Scenario) -> float:
     """When the first of the scenario's faults starts (s); 0 without any."""
     return min((fault.start for fault in scenario.faults), default=0.0)
+
+
+def mission_legs(scenario: Scenario) -> int | None:
+    """The legs of the mission a ``survey`` run measures: the waypoints, less one, of the
+    waypoint guidance (``AuvGuidance``) whose ``legs_completed`` it reads; None for another
+    manoeuvre, or a ``legs_completed`` of another FMU (its mission is not known here)."""
+    if scenario.manoeuvre != "survey":
+        return None
+    column = manoeuvre_columns("survey", list(scenario.record))["legs_completed"]
+    name = column.partition(".")[0]
+    instance = scenario.instances.get(name)
+    if instance is None or instance.interface.model_identifier != GUIDANCE_FMU:
+        return None
+    return len(parse_waypoints(str(scenario.start_value(name, "waypoints")))) - 1
 
 
 def scenario_metric_names(scenario: Scenario) -> tuple[str, ...]:

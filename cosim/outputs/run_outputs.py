@@ -34,7 +34,7 @@ from cosim.engine.rows import Note, NotesIgnored, RowSink
 from cosim.errors import CosimError
 from cosim.metrics.key_figures import KeyFigures
 from cosim.outputs.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
-from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start
+from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, mission_legs
 from cosim.outputs.results import final_summary, running_summary
 from cosim.outputs.sinks import CsvSink, ProgressSink, write_json_atomically
 from cosim.scenario.spec import Scenario
@@ -83,7 +83,8 @@ class RunOutputs:
         self.figures = KeyFigures(scenario.record, scenario.key_instances)
         self.manoeuvre = (
             None if scenario.manoeuvre is None
-            else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario))
+            else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario),
+                               mission_legs(scenario))
         )  # fmt: skip
         self.csv: CsvSink | None = None
         self.sinks: list[RowSink] = [FirstStep(folder), self.figures]

@@ -246,7 +246,19 @@ def test_survey_metrics():
         "cross_track_rms_m": pytest.approx(math.sqrt(12.5)),
         "cross_track_max_m": 4.0,
         "legs_completed": 2,
+        "legs_total": None,  # the columns alone do not say how long the mission is
+        "first_waypoint_not_reached": None,
     }
+
+
+def test_survey_names_the_first_waypoint_not_reached_from_the_mission_legs():
+    """Two legs done of five: waypoints 1 (the start) to 3 reached, 4 is the first not;
+    every leg done: none left."""
+    errors, legs = np.array([3.0, -4.0, 3.0, -4.0]), np.array([0.0, 1.0, 1.0, 2.0])
+    short = survey(errors, legs, legs_total=5)
+    assert (short["legs_total"], short["first_waypoint_not_reached"]) == (5, 4)
+    done = survey(errors, legs, legs_total=2)
+    assert (done["legs_total"], done["first_waypoint_not_reached"]) == (2, None)
 
 
 # --- the one call ---------------------------------------------------------------------------

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ import pytest
 import cosim
 from cosim.metrics.manoeuvres import manoeuvre_metrics, metric_names, zigzag
 from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, scenario_metric_names
+from cosim.runner import report, run_scenario
 from cosim.scenario.spec import load_scenario, scenario_from_toml
 
 H = 0.01
@@ -158,3 +160,20 @@ def test_a_short_survey_streamed_equals_the_whole_table_bit_for_bit():
     expected = manoeuvre_metrics("survey", {"time": t, SURVEY[0]: values[:, 0],
                                             SURVEY[1]: values[:, 1]})  # fmt: skip
     assert streamed == {"manoeuvre": "survey", **expected}
+
+
+def test_a_survey_stopped_short_names_the_first_waypoint_it_did_not_reach(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """The survey run for 60 s of its 186 s printed "legs_completed = 2" and summary.json
+    had no word of the mission's 7 legs: a planner could not tell a third of a mission from
+    a finished one. Now both give the legs of the mission and the first waypoint not
+    reached (waypoint 1 is the start, so 2 legs done leave waypoint 4 next)."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    outcome = run_scenario("survey", tmp_path / "run", stop_time=60.0, no_rrd=True,
+                           fmu_dir=fmu_dir)  # fmt: skip
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    done = summary["legs_completed"]
+    assert 0 < done < 7  # the run ends mid-mission
+    assert (summary["legs_total"], summary["first_waypoint_not_reached"]) == (7, done + 2)
+    assert f"legs_completed = {done} of 7: waypoints {done + 2} to 8 not reached" in report(outcome)
