@@ -85,7 +85,9 @@ class RunOptions:
     more than a full turn given in rad and of an acceptance radius as long as a leg
     (:mod:`cosim.scenario.unit_doubts`; a study's task goes without: the study warns once),
     and of an autopilot designed for another vehicle than the plant's or given a gain no
-    law it runs reads (:mod:`cosim.scenario.design_doubts`).
+    law it runs reads (:mod:`cosim.scenario.design_doubts`), and of a mission leg the
+    vehicle cannot fly in the current or a waypoint past the stop time
+    (:mod:`cosim.scenario.mission_doubts`).
     """
 
     out_dir: Path | None = None
@@ -353,7 +355,7 @@ def _checked_scenario(
     master.preflight(scenario)
     if options.unit_doubts:
         from cosim.engine.adaptive import points_step
-        from cosim.scenario import design_doubts, timeline_spec, unit_doubts
+        from cosim.scenario import design_doubts, mission_doubts, timeline_spec, unit_doubts
 
         unit_doubts.warn(unit_doubts.doubts(scenario))
         late = timeline_spec.unreached(
@@ -364,6 +366,7 @@ def _checked_scenario(
         live = options.interactive or options.control is not None
         doubts = design_doubts.design_doubts(scenario, live)
         unit_doubts.warn(doubts, design_doubts.DesignWarning)
+        unit_doubts.warn(mission_doubts.mission_doubts(scenario), mission_doubts.MissionWarning)
     return scenario
 
 

@@ -35,6 +35,7 @@ from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
 from cosim.runner import run_scenario
+from cosim.scenario.mission_doubts import mission_doubts
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
 from cosim.scenario.timeline_spec import unreached
 from cosim.scenario.unit_doubts import doubts
@@ -149,7 +150,8 @@ def check_values(
 ) -> list[str]:
     """Resolve the scenario with these values (no run): :class:`StudyError` if the
     scenario's own checks refuse one (a wrong type, a non-finite number). Returns what
-    looks like a slip of units in it (:func:`cosim.scenario.unit_doubts.doubts`) and the
+    looks like a slip of units in it (:func:`cosim.scenario.unit_doubts.doubts`), the
+    mission it cannot fly (:func:`cosim.scenario.mission_doubts.mission_doubts`) and the
     events and faults the run ends before (:func:`cosim.scenario.timeline_spec.unreached`)."""
     try:
         scenario = _scenario(base, base.fmu_paths, factors, values)
@@ -159,7 +161,7 @@ def check_values(
     late = unreached(
         scenario.events, scenario.faults, scenario.stop_time, coupling.step, points_step(coupling)
     )
-    return doubts(scenario) + late
+    return doubts(scenario) + mission_doubts(scenario) + late
 
 
 def run_one(

@@ -1,0 +1,185 @@
+"""Missions a waypoint guidance (``AuvGuidance``) cannot fly as planned, seen before a run:
+a leg against a current the vehicle is not faster than (no heading holds the leg's course,
+or the vehicle drifts back along it: the run would go on to its stop time without
+reaching the leg's end), and waypoints the stop time ends before the vehicle could reach.
+
+The vehicle's speed through the water is the straight-run speed of the plant the
+guidance reads its position from, on the thrust of the autopilot connected to that plant
+(:func:`cosim.scenario.design_doubts.straight_run_speed`), else the guidance's
+``design_speed``; the current is the plant's start value (an event may change it later).
+Along a leg of course chi the vehicle holds the course by crabbing into the current's
+part across it, ``c_across``, and the part along it, ``c_along``, adds::
+
+    speed over ground = sqrt(U^2 - c_across^2) + c_along     (none if |c_across| >= U)
+
+The time to a waypoint is the legs' lengths over those speeds, the turns not counted: a
+lower bound. Such a mission is valid all the same (a planner may mean to see it fail), so
+a run says so in one warning line each (:class:`MissionWarning`), naming the waypoint.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from controller_fmu.los_guidance import Waypoint, parse_waypoints
+
+if TYPE_CHECKING:
+    from cosim.scenario.spec import Instance, Scenario
+
+GUIDANCE, PLANT, AUTOPILOT = "AuvGuidance", "AuvPlant", "AuvAutopilot"
+
+
+class MissionWarning(UserWarning):
+    """A valid mission the vehicle cannot fly as planned."""
+
+
+@dataclass(frozen=True)
+class Leg:
+    """Leg ``number`` (from waypoint ``number`` to ``number + 1``, numbered from 1): its
+    horizontal length (m), course (rad, from north) and the vehicle's speed over ground
+    along it holding that course (m/s; None if no heading holds it)."""
+
+    number: int
+    length: float
+    course: float
+    ground_speed: float | None
+
+
+def ground_speed(
+    course: float, speed: float, current_north: float, current_east: float
+) -> float | None:
+    """The speed over ground (m/s) along ``course`` (rad) of a vehicle making ``speed``
+    (m/s) through the water in the current (m/s, earth frame), crabbing to hold the
+    course; negative if the current carries it back, None if the current across the
+    course is not slower than the vehicle (no heading holds it)."""
+    along = current_north * math.cos(course) + current_east * math.sin(course)
+    across = -current_north * math.sin(course) + current_east * math.cos(course)
+    if abs(across) >= speed:
+        return None
+    return math.sqrt(speed**2 - across**2) + along
+
+
+def mission_legs(
+    waypoints: Sequence[Waypoint], speed: float, current_north: float, current_east: float
+) -> list[Leg]:
+    """The legs of a mission flown at ``speed`` (m/s through the water) in the current."""
+    legs = []
+    for number, (a, b) in enumerate(itertools.pairwise(waypoints), start=1):
+        course = math.atan2(b.east - a.east, b.north - a.north)
+        length = math.hypot(b.north - a.north, b.east - a.east)
+        legs.append(Leg(number, length, course, ground_speed(course, speed, current_north,
+                                                             current_east)))  # fmt: skip
+    return legs
+
+
+def mission_doubts(scenario: Scenario) -> list[str]:
+    """One line for each guidance with a leg the vehicle cannot fly in the plant's
+    current, and one for each whose waypoints the stop time ends before (module)."""
+    found = []
+    for name, guidance in _instances(scenario, GUIDANCE).items():
+        plant = _plant_of(scenario, name)
+        if plant is None:  # no plant feeds its position: no current, no speed known
+            continue
+        speed, source = _speed(scenario, name, guidance, plant)
+        current = (
+            _float(scenario, plant, "current_north"),
+            _float(scenario, plant, "current_east"),
+        )
+        waypoints = parse_waypoints(str(scenario.start_value(name, "waypoints")))
+        legs = mission_legs(waypoints, speed, *current)
+        key = f"instances.{name}.start.waypoints"
+        found.append(_current_doubt(key, legs, speed, source, plant, current))
+        found.append(_time_doubt(key, legs, speed, source, scenario.stop_time))
+    return [line for line in found if line]
+
+
+def _current_doubt(
+    key: str,
+    legs: Sequence[Leg],
+    speed: float,
+    source: str,
+    plant: str,
+    current: tuple[float, float],
+) -> str:
+    """The warning for the first leg no heading flies in the current ('' if none)."""
+    for leg in legs:
+        if leg.ground_speed is not None and leg.ground_speed > 0.0:
+            continue
+        north, east = current
+        along = north * math.cos(leg.course) + east * math.sin(leg.course)
+        across = -north * math.sin(leg.course) + east * math.cos(leg.course)
+        why = (
+            f"it sets {abs(across):.3g} m/s across the leg, not slower than the vehicle"
+            if leg.ground_speed is None
+            else f"it sets {-along:.3g} m/s against the leg, leaving no speed over ground"
+        )
+        return (
+            f"{key}: leg {leg.number} (waypoint {leg.number} -> {leg.number + 1}, course "
+            f"{math.degrees(leg.course) % 360:.0f} deg) cannot be flown in {plant}'s current "
+            f"of {north:g} m/s north, {east:g} m/s east at {speed:.4g} m/s through the water "
+            f"({source}): {why}; waypoint {leg.number + 1} onwards will not be reached"
+        )
+    return ""
+
+
+def _time_doubt(key: str, legs: Sequence[Leg], speed: float, source: str, stop_time: float) -> str:
+    """The warning for the first waypoint the vehicle cannot reach by ``stop_time`` (s)
+    even at its speed over ground on every leg ('' if it can reach them all)."""
+    distance = time = 0.0
+    for leg in legs:
+        if leg.ground_speed is None or leg.ground_speed <= 0.0:
+            return ""  # the current's warning says it
+        distance += leg.length
+        time += leg.length / leg.ground_speed
+        if time > stop_time:
+            return (
+                f"{key}: waypoint {leg.number + 1} is {distance:.4g} m along the path, at "
+                f"least {time:.4g} s at {speed:.4g} m/s through the water ({source}) in the "
+                f"current, turns not counted, past the stop time of {stop_time:g} s: "
+                f"waypoint {leg.number + 1} onwards will not be reached"
+            )
+    return ""
+
+
+def _instances(scenario: Scenario, model: str) -> dict[str, Instance]:
+    return {
+        name: inst
+        for name, inst in scenario.instances.items()
+        if inst.interface.model_identifier == model
+    }
+
+
+def _plant_of(scenario: Scenario, guidance: str) -> str | None:
+    """The plant whose ``north`` the guidance reads, if one does."""
+    plants = _instances(scenario, PLANT)
+    for connection in scenario.connections:
+        if connection.target == f"{guidance}.north" and connection.source_instance in plants:
+            return connection.source_instance
+    return None
+
+
+def _speed(scenario: Scenario, name: str, guidance: Instance, plant: str) -> tuple[float, str]:
+    """The vehicle's speed through the water (m/s) and where it comes from: the plant's
+    straight run on the thrust of an autopilot connected to it, else the guidance's
+    ``design_speed``."""
+    from cosim.scenario.design_doubts import plant_parameters, straight_run_speed
+
+    for autopilot in _instances(scenario, AUTOPILOT):
+        pairs = {(c.source, c.target) for c in scenario.connections}
+        if (f"{autopilot}.thrust", f"{plant}.thrust") in pairs:
+            thrust = _float(scenario, autopilot, "thrust_command")
+            speed = straight_run_speed(plant_parameters(scenario.instances[plant]), thrust)
+            if speed is not None:
+                return speed, f"{plant} on {autopilot}.thrust_command = {thrust:g} N"
+    design = float(guidance.start.get("design_speed", _float(scenario, name, "design_speed")))
+    return design, f"instances.{name}.start.design_speed"
+
+
+def _float(scenario: Scenario, instance: str, variable: str) -> float:
+    """The start value of ``instance.variable`` as a number (0 without one)."""
+    value = scenario.start_value(instance, variable)
+    return float(value) if isinstance(value, int | float) else 0.0

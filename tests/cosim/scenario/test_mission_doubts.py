@@ -1,0 +1,63 @@
+"""Missions a waypoint guidance cannot fly as planned are named before the run: a leg
+against a current the vehicle is not faster than, and waypoints the stop time ends before
+the vehicle could reach them (cosim.scenario.mission_doubts)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import pytest
+
+import cosim
+from cosim.scenario.mission_doubts import MissionWarning, ground_speed, mission_doubts
+
+WEST_CURRENT = {  # 2 m/s to the west: faster than the vehicle's 1.5 m/s through the water
+    "plant.current_east": -2.0,
+    "controller.current_east": -2.0,
+    "guidance.current_east": -2.0,
+    "guidance.compensate_current": False,  # (its crab angle would refuse the cross-current)
+}
+
+
+def test_ground_speed_along_a_leg_in_a_current() -> None:
+    """Holding the course of the leg through a current: the speed across the leg is spent
+    on the crab angle, the speed along it adds; None when no heading holds the course."""
+    north = 0.0  # course (rad)
+    assert ground_speed(north, 1.5, 0.0, 0.0) == pytest.approx(1.5)
+    assert ground_speed(north, 1.5, -0.5, 0.0) == pytest.approx(1.0)  # head current
+    assert ground_speed(north, 1.5, 0.0, 0.9) == pytest.approx(1.2)  # 0.9 across: 1.2 along
+    assert ground_speed(north, 1.5, 0.0, 1.5) is None  # as fast across as the vehicle
+    assert ground_speed(math.pi / 2, 1.5, 0.0, -2.0) == pytest.approx(-0.5)  # drifts back
+
+
+def test_a_leg_against_a_current_faster_than_the_vehicle_is_named_and_the_run_warns(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """A survey in a 2 m/s current ran to its stop time without a word: the vehicle, at
+    1.5 m/s through the water, drifted west, "legs_completed = 0", nothing said why."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    survey = cosim.load_scenario("survey", fmu_dir=fmu_dir)
+    assert mission_doubts(survey) == []  # the built-in survey flies every leg in time
+    (line,) = [d for d in mission_doubts(survey.with_start(WEST_CURRENT)) if "current" in d]
+    assert line.startswith("instances.guidance.start.waypoints: leg 1 (waypoint 1 -> 2, "
+                           "course 0 deg) cannot be flown")  # fmt: skip
+    assert "2 m/s across the leg" in line and "waypoint 2 onwards will not be reached" in line
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        cosim.run("survey", stop_time=0.1, start=WEST_CURRENT, fmu_dir=fmu_dir)
+    lines = [str(w.message) for w in caught if issubclass(w.category, MissionWarning)]
+    assert any("leg 1 (waypoint 1 -> 2, course 0 deg) cannot be flown" in x for x in lines)
+
+
+def test_waypoints_beyond_the_stop_time_are_named(fmu_paths: dict[str, Path]) -> None:
+    """The survey stopped at 60 s of its 186 s ran without a word of the waypoints it
+    could not reach: its first two legs (70 m) take at least 45 s at 1.525 m/s in the
+    current, the third (50 m more) 78 s, so waypoint 4 is the first it cannot reach."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    survey = cosim.load_scenario("survey", fmu_dir=fmu_dir).with_overrides(stop_time=60.0)
+    (line,) = mission_doubts(survey)
+    assert line.startswith("instances.guidance.start.waypoints: waypoint 4 is 120 m along "
+                           "the path")  # fmt: skip
+    assert line.endswith("past the stop time of 60 s: waypoint 4 onwards will not be reached")
