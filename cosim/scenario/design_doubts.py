@@ -14,6 +14,7 @@ says so in one warning line each, as it does for an angle that looks like degree
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
@@ -24,7 +25,7 @@ if TYPE_CHECKING:
     from cosim.scenario.spec import Instance, Scenario
     from plant_fmu.model.parameters import VehicleParameters
 
-PLANT, AUTOPILOT = "AuvPlant", "AuvAutopilot"
+PLANT, AUTOPILOT, GUIDANCE = "AuvPlant", "AuvAutopilot", "AuvGuidance"
 _SHOWN_DIFFERENCES = 3  # parameters named when two vehicle sets differ
 _LABELS = ("name", "description")  # fields of a vehicle set that are no physics
 
@@ -195,11 +196,22 @@ def _pitch_doubt(
 ) -> str:
     """The warning if ``name``'s depth loop, with no ``depth_pitch_limit``, asks for more
     than 90 deg of pitch between the depths the scenario gives: the plants' start depths,
-    its depth set-point (unless connected) and every event's ('' if not)."""
+    its depth set-point (unless connected) and every event's, or along the legs of a
+    waypoint guidance feeding its depth set-point (:func:`_guided_pitch_doubt`; '' if
+    not)."""
     names = autopilot.interface.variables["depth_mode"].names
     modes = {_mode(DepthMode, _start(autopilot, "depth_mode"), names)}
     if DepthMode.PD not in modes or float(_start(autopilot, "depth_pitch_limit")) != 0.0:
         return ""
+    return _set_point_pitch_doubt(scenario, name, autopilot, plants) or _guided_pitch_doubt(
+        scenario, name, autopilot, plants
+    )
+
+
+def _set_point_pitch_doubt(
+    scenario: Scenario, name: str, autopilot: Instance, plants: Mapping[str, Instance]
+) -> str:
+    """:func:`_pitch_doubt` between the start depths and the depth set-points given."""
     setpoint = f"{name}.depth_setpoint"
     depths = [float(_start(plant, "down_0")) for plant in plants.values()]
     if not any(c.target == setpoint for c in scenario.connections):
@@ -217,6 +229,49 @@ def _pitch_doubt(
         f"vehicle pitches over; set depth_pitch_limit (rad, at most {math.pi / 2:.4g}), unless "
         "that is meant"
     )
+
+
+def _guided_pitch_doubt(
+    scenario: Scenario, name: str, autopilot: Instance, plants: Mapping[str, Instance]
+) -> str:
+    """:func:`_pitch_doubt` along the legs of a waypoint guidance (``AuvGuidance``) whose
+    ``depth_setpoint`` feeds ``name``'s: its set-point is the path's depth one lookahead
+    ahead, so on leg k it lies ``|z_k+1 - z_k| min(Delta / L, 1)`` from a vehicle at the
+    leg's start depth (leg 1: from each plant's start depth)."""
+    from controller_fmu.los_guidance import parse_waypoints
+
+    gamma = float(_start(autopilot, "depth_gamma"))
+    starts = [float(_start(plant, "down_0")) for plant in plants.values()]
+    for guidance in _guidances_feeding(scenario, f"{name}.depth_setpoint"):
+        waypoints = parse_waypoints(str(scenario.start_value(guidance, "waypoints")))
+        lookahead = float(scenario.start_value(guidance, "lookahead"))  # type: ignore[arg-type]
+        for k, (a, b) in enumerate(itertools.pairwise(waypoints), start=1):
+            length = math.hypot(b.north - a.north, b.east - a.east)
+            ahead = a.down + (b.down - a.down) * min(lookahead / length, 1.0)
+            lead = max(abs(ahead - z) for z in (starts or [a.down] if k == 1 else [a.down]))
+            pitch = abs(gamma) * lead
+            if pitch > math.pi / 2:
+                return (
+                    f"{name}'s depth loop (depth_gamma = {gamma!r} rad/m) asks for a pitch of "
+                    f"up to {pitch:.3g} rad ({math.degrees(pitch):.0f} deg) on leg {k} of "
+                    f"{guidance}'s waypoints (waypoint {k} -> {k + 1}, from {a.down:g} m to "
+                    f"{b.down:g} m depth over {length:.4g} m): its depth set-point, "
+                    f"{lookahead:g} m ahead along the leg, is {lead:.3g} m from the vehicle, "
+                    "beyond the 90 deg any pitch can be: its fins stay on their stop until the "
+                    f"vehicle pitches over; set depth_pitch_limit (rad, at most "
+                    f"{math.pi / 2:.4g}) or lengthen the leg, unless that is meant"
+                )
+    return ""
+
+
+def _guidances_feeding(scenario: Scenario, target: str) -> list[str]:
+    """The waypoint guidances (``AuvGuidance``) whose output is connected to ``target``."""
+    return [
+        c.source_instance
+        for c in scenario.connections
+        if c.target == target
+        and scenario.instances[c.source_instance].interface.model_identifier == GUIDANCE
+    ]
 
 
 def _heading_modes(scenario: Scenario, name: str, autopilot: Instance) -> set[HeadingMode]:

@@ -188,3 +188,25 @@ def test_a_run_warns_and_still_runs(fmu_paths: dict[str, Path]) -> None:
     lines = [str(w.message) for w in caught if issubclass(w.category, DesignWarning)]
     assert result.complete
     assert len(lines) == 1 and lines[0].startswith("instances.controller.start.smc_eta = 2.0")
+
+
+def test_a_waypoint_dive_steeper_than_any_pitch_can_follow_is_named(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """The survey with its second waypoint at 150 m depth, 50 m on, ran without a word: the
+    guidance's depth set-point, one 8 m lookahead along a leg falling 148 m in 50 m, is
+    23.7 m below the vehicle, Table 6.2's gamma asks 18.3 rad of pitch for it, and with no
+    depth_pitch_limit the vehicle pitched to -80 deg and sank 40 m in 80 s, 19 m on. The
+    same depths given by events were named; given by waypoints they were not."""
+    survey = _load(fmu_paths, "survey")
+    assert design_doubts(survey) == []  # a level mission
+    deep = survey.with_start({"guidance.waypoints": "0, 0, 2; 50, 0, 150; 100, 0, 2"})
+    (line,) = design_doubts(deep)
+    assert line.startswith(
+        "controller's depth loop (depth_gamma = -0.772 rad/m) asks for a pitch of up to "
+        "18.3 rad (1047 deg) on leg 1 of guidance's waypoints (waypoint 1 -> 2, from 2 m to "
+        "150 m depth over 50 m)"
+    ), line
+    assert design_doubts(deep.with_start({"controller.depth_pitch_limit": 0.5})) == []
+    gentle = survey.with_start({"guidance.waypoints": "0, 0, 2; 200, 0, 10"})
+    assert design_doubts(gentle) == []  # 8 m over 200 m: the set-point leads by 0.32 m
