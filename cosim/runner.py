@@ -553,10 +553,12 @@ def report(outcome: RunOutcome) -> str:
         from cosim.metrics.key_figures import why_none
 
         roles, done = scenario.key_instances, outcome.result.complete
-        lines.append("  " + ", ".join(
-            f"{k} = {_fmt(v) if v is not None else why_none(k, scenario.columns, roles, done)}"
-            for k, v in figures.items()
-        ))  # fmt: skip
+        driver = scenario.key_setpoint_source
+
+        def shown(k: str, v: float | None) -> str:
+            return _fmt(v) if v is not None else why_none(k, scenario.columns, roles, done, driver)
+
+        lines.append("  " + ", ".join(f"{k} = {shown(k, v)}" for k, v in figures.items()))
     if outcome.manoeuvre:
         lines.append(_manoeuvre_line(outcome.manoeuvre))
     lines += logged_lines(result)

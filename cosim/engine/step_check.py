@@ -73,7 +73,7 @@ def check_step(
     steps = [coupling.step / 2, coupling.step / 4]
     for step in steps:
         checked = _same_delays(scenario.with_overrides(step=step), round(coupling.step / step))
-        sink = KeyFigures(scenario.columns, scenario.key_instances)
+        sink = KeyFigures(scenario.columns, scenario.key_instances, scenario.key_setpoint_source)
         result = master.run(checked, [sink], keep_rows=False, stop=stop)
         if not result.complete:
             raise CosimError(f"--check-step: the run at h = {step!r} s stopped: {result.error}")

@@ -7,7 +7,9 @@ moves continuously with the step instead of by whole rows); None if the last sam
 outside the band, and for a run that did not complete (where the yaw stays after its
 last row is not known). The setpoint is ``controller.yaw_setpoint`` if recorded, else 0 (with
 the autopilot's ``compensate_current`` on, that set-point is the course; the heading then
-settles off it by the crab angle, so the figure is None).
+settles off it by the crab angle, so the figure is None); a set-point a connection drives
+and that is not recorded (a waypoint guidance's, which moves with the mission) gives no
+settling time at all (``setpoint_driver``).
 ``peak_abs_mass_position_m``, ``peak_abs_tunnel_force_N``: the largest magnitudes
 (``controller.tunnel_force``, else ``plant.tunnel_force``). A figure whose columns were not
 recorded is None, and so is one that is not finite. ``plant`` and ``controller`` stand for
@@ -18,6 +20,7 @@ the instances running the plant and the autopilot, whatever a scenario names the
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -99,17 +102,24 @@ def why_none(
     columns: tuple[str, ...] | list[str],
     roles: dict[str, str] = ROLES,
     complete: bool = True,
+    setpoint_driver: str | None = None,
 ) -> str:
     """Why the key figure ``name`` of a run recording ``columns`` is None, in a few words:
-    its columns were not recorded, the run did not complete, or the yaw never settled
-    into its band."""
+    its columns were not recorded, its yaw set-point moves (``setpoint_driver``, as for
+    :class:`KeyFigures`), the run did not complete, or the yaw never settled into its
+    band."""
     if not any(column in columns for column in _columns(name, roles)):
         return "not recorded"
+    setpoint = f"{roles['controller']}.yaw_setpoint"
+    if name == "yaw_settling_time_s" and _moving(setpoint, columns, setpoint_driver):
+        return (
+            f"not measured: {setpoint} follows {setpoint_driver}, a set-point that moves (a "
+            "mission's tracking: its survey metrics)"
+        )
     if name == "yaw_settling_time_s" and not complete:
         return "none: the run did not complete"
     if name == "yaw_settling_time_s":
         band = f"{math.degrees(YAW_TOLERANCE_RAD):g} deg"
-        setpoint = f"{roles['controller']}.yaw_setpoint"
         if setpoint not in columns:  # no autopilot, or its set-point left out: held at 0
             return (
                 f"not settled: the yaw is not within {band} of 0 at the end (0: {setpoint} "
@@ -119,17 +129,34 @@ def why_none(
     return "not finite"
 
 
-class KeyFigures:
-    """A row sink that keeps the key figures of the rows it is given (see the module)."""
+def _moving(setpoint: str, columns: Sequence[str], driver: str | None) -> bool:
+    """Whether the yaw ``setpoint`` is driven by a connection from ``driver`` and not
+    recorded: its value, which moves, is not known (it is not 0)."""
+    return driver is not None and setpoint not in columns
 
-    def __init__(self, columns: tuple[str, ...] | list[str], roles: dict[str, str] = ROLES) -> None:
+
+class KeyFigures:
+    """A row sink that keeps the key figures of the rows it is given (see the module).
+
+    ``setpoint_driver``: the output a connection drives the controller's yaw set-point
+    from, if one does (``Scenario.key_setpoint_source``); unrecorded, the set-point is
+    then not known, and the yaw settling time is not measured."""
+
+    def __init__(
+        self,
+        columns: tuple[str, ...] | list[str],
+        roles: dict[str, str] = ROLES,
+        setpoint_driver: str | None = None,
+    ) -> None:
         index = {name: i for i, name in enumerate(columns)}
 
         def first(figure: str) -> int | None:  # the first of the figure's columns recorded
             return next((index[c] for c in _columns(figure, roles) if c in index), None)
 
-        self._yaw = first("yaw_settling_time_s")
-        self._setpoint = index.get(f"{roles['controller']}.yaw_setpoint")
+        setpoint = f"{roles['controller']}.yaw_setpoint"
+        moving = _moving(setpoint, columns, setpoint_driver)
+        self._yaw = None if moving else first("yaw_settling_time_s")
+        self._setpoint = index.get(setpoint)
         self._mass = first("peak_abs_mass_position_m")
         self._force = first("peak_abs_tunnel_force_N")
         self._settling = SettlingTime(YAW_TOLERANCE_RAD, angle=True)

@@ -80,7 +80,9 @@ class RunOutputs:
         self.scenario = scenario
         self.folder = folder
         self.paths = paths  # results, scenario, summary and (if written) recording
-        self.figures = KeyFigures(scenario.record, scenario.key_instances)
+        self.figures = KeyFigures(
+            scenario.record, scenario.key_instances, scenario.key_setpoint_source
+        )
         self.manoeuvre = (
             None if scenario.manoeuvre is None
             else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario),

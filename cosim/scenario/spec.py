@@ -353,6 +353,14 @@ class Scenario:
         }
 
     @property
+    def key_setpoint_source(self) -> str | None:
+        """The output a connection drives the key figures' yaw set-point from (the
+        ``yaw_setpoint`` of :attr:`key_instances`' controller: a waypoint guidance's
+        ``<guidance>.yaw_setpoint``), None if none does (a start value or events set it)."""
+        target = f"{self.key_instances['controller']}.yaw_setpoint"
+        return next((c.source for c in self.connections if c.target == target), None)
+
+    @property
     def n_steps(self) -> int:
         """Number of communication steps to the stop time."""
         return round(self.stop_time / self.coupling.step)

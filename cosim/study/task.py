@@ -325,7 +325,9 @@ def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
 
 def _metric_names(scenario: Scenario, check_step: bool = False) -> tuple[str, ...]:
     """The names :func:`_metrics` gives a run of ``scenario``, in the same order."""
-    figures = KeyFigures(scenario.record, scenario.key_instances).names()  # no column: none
+    figures = KeyFigures(
+        scenario.record, scenario.key_instances, scenario.key_setpoint_source
+    ).names()  # no column: none
     manoeuvre = scenario_metric_names(scenario)
     finals = tuple(f"final.{c}" for c in scenario.record)
     errors = tuple(f"{COUPLING_ERROR}{name}" for name in (*figures, *finals)) if check_step else ()

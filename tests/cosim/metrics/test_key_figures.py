@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import cosim
 from cosim.metrics.key_figures import KeyFigures, SettlingTime, settling_time, why_none
 
 TOLERANCE = 0.1
@@ -160,3 +161,29 @@ def test_the_figures_do_not_depend_on_what_the_scenario_calls_its_instances(
         figures[name] = outcome.figures
     assert figures["renamed"] == figures["shipped"]
     assert all(value is not None for value in figures["shipped"].values()), figures
+
+
+def test_a_yaw_set_point_a_guidance_moves_is_not_taken_as_zero(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """A waypoint mission (the guidance drives the autopilot's yaw_setpoint, which is not
+    recorded: its source is) got a yaw settling time measured against 0 deg: north in
+    still water a "settling time" of a heading the guidance never asked to hold, and on
+    any other course "not within 1 deg of 0", printed on every mission run. A moving
+    set-point has no settling time; the run now says why it has none."""
+    from cosim.runner import report, run_scenario
+
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    still = {f"{name}.current_east": 0.0 for name in ("plant", "controller", "guidance")}
+    north = cosim.load_scenario("survey", fmu_dir=fmu_dir).with_start(
+        {**still, "guidance.waypoints": "0, 0, 2; 100, 0, 2"}
+    )
+    outcome = run_scenario(north, tmp_path / "run", stop_time=10.0, no_rrd=True, fmu_dir=fmu_dir)
+    assert outcome.figures["yaw_settling_time_s"] is None
+    assert (
+        "yaw_settling_time_s = not measured: controller.yaw_setpoint follows "
+        "guidance.yaw_setpoint, a set-point that moves (a mission's tracking: its survey "
+        "metrics)"
+    ) in report(outcome)
+    figures = KeyFigures(["plant.yaw"], setpoint_driver="guidance.yaw_setpoint")
+    assert figures.names() == ()  # no settling time to give, whatever the rows
