@@ -591,7 +591,7 @@ def logged_lines(result: RunResult) -> list[str]:
 def _manoeuvre_line(manoeuvre: dict[str, Any]) -> str:
     """The manoeuvre and its metrics in one line; a survey's legs as "2 of 7", with the
     waypoints it did not reach (summary.json's legs_total, first_waypoint_not_reached)."""
-    metrics = {k: v for k, v in manoeuvre.items() if k != "manoeuvre"}
+    metrics = {k: v for k, v in manoeuvre.items() if k not in ("manoeuvre", "legs")}
     total = metrics.pop("legs_total", None)
     first = metrics.pop("first_waypoint_not_reached", None)
     shown = {k: v if isinstance(v, str) else _fmt(v) for k, v in metrics.items()}

@@ -355,6 +355,62 @@ class SurveyTracker:
         }
 
 
+LegFigures = dict[str, float | int | None]
+
+
+class LegTracker:
+    """Each leg of a survey as its rows stream by (no row kept): when it was completed
+    (the time of the first row counting it in ``legs_completed``; several legs completed
+    by one row share its time), how long it took (from the previous leg's completion, or
+    the first row for leg 1) and the largest |cross-track error| while it was the active
+    leg. Leg k runs to waypoint k + 1; the rows after the last leg's completion (the
+    guidance then follows the last leg, extended) are no leg's."""
+
+    def __init__(self, legs_total: int | None = None) -> None:
+        self.legs_total = legs_total  # the mission's legs, if known
+        self._first: float | None = None  # the first row's time, s
+        self._previous = 0.0  # the legs completed before the next row
+        self._completed: list[float] = []  # s, leg k's completion at k - 1
+        self._largest: dict[int, float] = {}  # legs completed (k - 1) -> |error|, m
+
+    def add(self, times: np.ndarray, cross_track_error: np.ndarray, legs: np.ndarray) -> None:
+        """The next rows' times (s), cross-track errors (m) and legs completed."""
+        if times.size == 0:
+            return
+        if self._first is None:
+            self._first = float(times[0])
+        done = np.asarray(legs, dtype=float)
+        before = np.concatenate(([self._previous], done[:-1]))
+        for i in np.flatnonzero(done > before):  # NaN compares false: no leg
+            self._completed += [float(times[i])] * (round(done[i]) - round(before[i]))
+        self._previous = float(done[-1]) if math.isfinite(done[-1]) else self._previous
+        for value in np.unique(done[np.isfinite(done)]):
+            largest = float(np.max(np.abs(cross_track_error[done == value])))
+            key = round(value)
+            self._largest[key] = float(np.fmax(self._largest.get(key, -math.inf), largest))
+
+    def legs(self) -> list[LegFigures]:
+        """One entry per leg of the mission (per leg begun if its length is unknown):
+        ``leg``, ``to_waypoint``, ``completed_at_s``, ``duration_s`` (None while not
+        completed) and ``cross_track_max_m`` (None if it was never the active leg)."""
+        begun = max([*self._largest, len(self._completed) - 1], default=-1) + 1
+        total = self.legs_total if self.legs_total is not None else begun
+        entries = []
+        for k in range(1, total + 1):
+            end = self._completed[k - 1] if k <= len(self._completed) else None
+            start = self._first if k == 1 else self._completed[k - 2] if end is not None else None
+            largest = self._largest.get(k - 1)
+            entries.append({
+                "leg": k,
+                "to_waypoint": k + 1,
+                "completed_at_s": end,
+                "duration_s": None if end is None or start is None else end - start,
+                "cross_track_max_m": largest if largest is not None and math.isfinite(largest)
+                else None,
+            })  # fmt: skip
+        return entries
+
+
 def first_waypoint_not_reached(legs_completed: int, legs_total: int | None) -> int | None:
     """The first waypoint (numbered from 1, the start being 1) a mission of ``legs_total``
     legs has not reached after ``legs_completed``; None if every one was, or the mission's

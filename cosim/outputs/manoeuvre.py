@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -22,6 +22,7 @@ from controller_fmu.los_guidance import parse_waypoints
 from cosim.engine.rows import NotesIgnored
 from cosim.metrics.manoeuvres import (
     VARIABLES,
+    LegTracker,
     SurveyTracker,
     manoeuvre_columns,
     manoeuvre_metrics,
@@ -65,28 +66,34 @@ class ManoeuvreSink(NotesIgnored):
         self._values: list[np.ndarray] = []
         # a survey's figures stream: none of its rows is kept
         self._survey = SurveyTracker(legs_total) if kind == "survey" else None
+        self._legs = LegTracker(legs_total) if kind == "survey" else None
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         if self._survey is not None:
             error, legs = (values[:, self._index[self._names.index(name)]] for name in SURVEY)
             self._survey.add(np.asarray(error, dtype=float), legs)
+            if self._legs is not None:
+                self._legs.add(np.asarray(times, dtype=float), np.asarray(error, float), legs)
             return
         self._times.append(np.array(times, dtype=float))
         self._values.append(np.asarray(values, dtype=float)[:, self._index])  # a copy
 
-    def summary(self) -> dict[str, str | float | int | None]:
+    def summary(self) -> dict[str, Any]:
         """``{"manoeuvre": kind, <metric>: value, ...}`` over the rows so far; a value that
         is not finite is None. A failure to measure (a run that ended on NaN) leaves every
-        metric None and says why in ``manoeuvre_error``."""
-        result: dict[str, str | float | int | None] = {"manoeuvre": self.kind}
+        metric None and says why in ``manoeuvre_error``. A survey's also has ``legs``, one
+        entry per leg (:meth:`cosim.metrics.manoeuvres.LegTracker.legs`)."""
+        result: dict[str, Any] = {"manoeuvre": self.kind}
         try:
             with np.errstate(all="ignore"):  # NaN in, None out
                 metrics = self._measure()
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             result.update(dict.fromkeys(metric_names(self.kind)))
             result["manoeuvre_error"] = f"cannot measure the {self.kind} metrics: {exc}"
-            return result
-        result.update({name: _finite(value) for name, value in metrics.items()})
+        else:
+            result.update({name: _finite(value) for name, value in metrics.items()})
+        if self._legs is not None:
+            result["legs"] = self._legs.legs()
         return result
 
     def _measure(self) -> dict[str, float | int | None]:

@@ -59,7 +59,8 @@ def test_a_run_ending_on_nan_or_without_rows_gets_none():
     )
     json.dumps(summary, allow_nan=False)  # what summary.json accepts
     empty = ManoeuvreSink("survey", ["guidance.cross_track_error", "guidance.legs_completed"])
-    assert empty.summary() == {"manoeuvre": "survey", **dict.fromkeys(metric_names("survey"))}
+    assert empty.summary() == {"manoeuvre": "survey", **dict.fromkeys(metric_names("survey")),
+                               "legs": []}  # fmt: skip
 
 
 def test_a_column_the_kind_needs_must_be_recorded():
@@ -159,6 +160,7 @@ def test_a_short_survey_streamed_equals_the_whole_table_bit_for_bit():
     _, streamed = _held_after(20_000, 137)
     expected = manoeuvre_metrics("survey", {"time": t, SURVEY[0]: values[:, 0],
                                             SURVEY[1]: values[:, 1]})  # fmt: skip
+    assert streamed.pop("legs")[-1]["completed_at_s"] is None  # the last leg goes on
     assert streamed == {"manoeuvre": "survey", **expected}
 
 
@@ -177,3 +179,24 @@ def test_a_survey_stopped_short_names_the_first_waypoint_it_did_not_reach(
     assert 0 < done < 7  # the run ends mid-mission
     assert (summary["legs_total"], summary["first_waypoint_not_reached"]) == (7, done + 2)
     assert f"legs_completed = {done} of 7: waypoints {done + 2} to 8 not reached" in report(outcome)
+
+
+def test_a_survey_summary_gives_each_leg_its_time_and_largest_cross_track_error():
+    """summary.json had whole-run figures only: how long each leg took, which leg the
+    vehicle strayed on, and which it never finished were left to be read off the
+    legs_completed column of results.csv. Two legs done of three, at 3 s and 7 s."""
+    t = np.arange(21) * 0.5
+    legs = np.select([t < 3.0, t < 7.0], [0.0, 1.0], 2.0)
+    error = np.select([t < 3.0, t < 7.0], [2.0 * np.sin(t), -4.0 * (t == 5.0)], 1.0)
+    sink = ManoeuvreSink("survey", SURVEY, legs_total=3)
+    for start in range(0, len(t), 4):
+        sink.add_rows(t[start : start + 4], np.column_stack([error, legs])[start : start + 4])
+    leg_1_max = float(np.max(np.abs(error[t < 3.0])))
+    assert sink.summary()["legs"] == [
+        {"leg": 1, "to_waypoint": 2, "completed_at_s": 3.0, "duration_s": 3.0,
+         "cross_track_max_m": leg_1_max},
+        {"leg": 2, "to_waypoint": 3, "completed_at_s": 7.0, "duration_s": 4.0,
+         "cross_track_max_m": 4.0},
+        {"leg": 3, "to_waypoint": 4, "completed_at_s": None, "duration_s": None,
+         "cross_track_max_m": 1.0},
+    ]  # fmt: skip
