@@ -590,7 +590,8 @@ def logged_lines(result: RunResult) -> list[str]:
 
 def _manoeuvre_line(manoeuvre: dict[str, Any]) -> str:
     """The manoeuvre and its metrics in one line; a survey's legs as "2 of 7", with the
-    waypoints it did not reach (summary.json's legs_total, first_waypoint_not_reached)."""
+    waypoints it did not reach (summary.json's legs_total, first_waypoint_not_reached)
+    and the first it passed outside the acceptance radius (its ``legs``)."""
     metrics = {k: v for k, v in manoeuvre.items() if k not in ("manoeuvre", "legs")}
     total = metrics.pop("legs_total", None)
     first = metrics.pop("first_waypoint_not_reached", None)
@@ -601,6 +602,17 @@ def _manoeuvre_line(manoeuvre: dict[str, Any]) -> str:
             last = total + 1  # the waypoints, numbered from 1
             which = f"waypoints {first} to {last}" if first < last else f"waypoint {last}"
             shown["legs_completed"] += f": {which} not reached"
+    outside = [
+        leg
+        for leg in manoeuvre.get("legs", ())
+        if leg["completed_at_s"] is not None and leg["within_acceptance_radius"] is False
+    ]
+    if outside:
+        more = f" ({len(outside) - 1} more: summary.json legs)" if len(outside) > 1 else ""
+        shown["legs_completed"] += (
+            f"; waypoint {outside[0]['to_waypoint']} passed {outside[0]['closest_m']:.3g} m "
+            f"off, outside the acceptance radius{more}"
+        )
     return f"  {manoeuvre['manoeuvre']}: " + ", ".join(f"{k} = {v}" for k, v in shown.items())
 
 

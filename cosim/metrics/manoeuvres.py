@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -355,7 +356,16 @@ class SurveyTracker:
         }
 
 
-LegFigures = dict[str, float | int | None]
+LegFigures = dict[str, float | int | bool | None]
+
+
+@dataclass(frozen=True)
+class Mission:
+    """A survey's mission as :class:`LegTracker` needs it: the waypoints' north and east
+    (m, one row each, in the order flown) and the guidance's acceptance radius (m)."""
+
+    waypoints: np.ndarray
+    acceptance_radius: float
 
 
 class LegTracker:
@@ -364,17 +374,30 @@ class LegTracker:
     by one row share its time), how long it took (from the previous leg's completion, or
     the first row for leg 1) and the largest |cross-track error| while it was the active
     leg. Leg k runs to waypoint k + 1; the rows after the last leg's completion (the
-    guidance then follows the last leg, extended) are no leg's."""
+    guidance then follows the last leg, extended) are no leg's. Given the ``mission`` and
+    the vehicle's position, also the closest the vehicle came to the leg's end waypoint
+    (horizontally, over the rows the leg was active and the row completing it) and whether
+    that was within the acceptance radius: the guidance also completes a leg whose end
+    the vehicle passes along the track, however far off."""
 
-    def __init__(self, legs_total: int | None = None) -> None:
+    def __init__(self, legs_total: int | None = None, mission: Mission | None = None) -> None:
         self.legs_total = legs_total  # the mission's legs, if known
+        self.mission = mission
+        self._closest: dict[int, float] = {}  # leg -> m
         self._first: float | None = None  # the first row's time, s
         self._previous = 0.0  # the legs completed before the next row
         self._completed: list[float] = []  # s, leg k's completion at k - 1
         self._largest: dict[int, float] = {}  # legs completed (k - 1) -> |error|, m
 
-    def add(self, times: np.ndarray, cross_track_error: np.ndarray, legs: np.ndarray) -> None:
-        """The next rows' times (s), cross-track errors (m) and legs completed."""
+    def add(
+        self,
+        times: np.ndarray,
+        cross_track_error: np.ndarray,
+        legs: np.ndarray,
+        position: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
+        """The next rows' times (s), cross-track errors (m), legs completed and, if
+        known, the vehicle's north and east (m)."""
         if times.size == 0:
             return
         if self._first is None:
@@ -383,32 +406,64 @@ class LegTracker:
         before = np.concatenate(([self._previous], done[:-1]))
         for i in np.flatnonzero(done > before):  # NaN compares false: no leg
             self._completed += [float(times[i])] * (round(done[i]) - round(before[i]))
+        if self.mission is not None and position is not None:
+            self._approach(done, before, *position)
         self._previous = float(done[-1]) if math.isfinite(done[-1]) else self._previous
         for value in np.unique(done[np.isfinite(done)]):
             largest = float(np.max(np.abs(cross_track_error[done == value])))
             key = round(value)
             self._largest[key] = float(np.fmax(self._largest.get(key, -math.inf), largest))
 
+    def _approach(
+        self, done: np.ndarray, before: np.ndarray, north: np.ndarray, east: np.ndarray
+    ) -> None:
+        """Each leg's closest approach to its end waypoint over these rows: those on the
+        leg (``done`` legs completed before it) and the row completing it."""
+        assert self.mission is not None
+        ends = self.mission.waypoints
+        for value in np.unique(done[np.isfinite(done)]):
+            leg = round(value) + 1  # the active leg, ending at waypoint index leg
+            if leg < len(ends):
+                rows = done == value
+                self._nearer(leg, np.hypot(north[rows] - ends[leg, 0], east[rows] - ends[leg, 1]))
+        for i in np.flatnonzero(done > before):
+            for leg in range(round(before[i]) + 1, min(round(done[i]), len(ends) - 1) + 1):
+                self._nearer(leg, np.hypot(north[i : i + 1] - ends[leg, 0],
+                                           east[i : i + 1] - ends[leg, 1]))  # fmt: skip
+
+    def _nearer(self, leg: int, distances: np.ndarray) -> None:
+        closest = float(np.nanmin(distances, initial=math.inf))
+        self._closest[leg] = min(self._closest.get(leg, math.inf), closest)
+
     def legs(self) -> list[LegFigures]:
         """One entry per leg of the mission (per leg begun if its length is unknown):
         ``leg``, ``to_waypoint``, ``completed_at_s``, ``duration_s`` (None while not
-        completed) and ``cross_track_max_m`` (None if it was never the active leg)."""
+        completed), ``cross_track_max_m`` (None if it was never the active leg),
+        ``closest_m`` and ``within_acceptance_radius`` (None without the mission and the
+        position, or a leg never active)."""
         begun = max([*self._largest, len(self._completed) - 1], default=-1) + 1
         total = self.legs_total if self.legs_total is not None else begun
         entries = []
         for k in range(1, total + 1):
             end = self._completed[k - 1] if k <= len(self._completed) else None
             start = self._first if k == 1 else self._completed[k - 2] if end is not None else None
-            largest = self._largest.get(k - 1)
+            closest = _finite_or_none(self._closest.get(k))
+            radius = None if self.mission is None else self.mission.acceptance_radius
             entries.append({
                 "leg": k,
                 "to_waypoint": k + 1,
                 "completed_at_s": end,
                 "duration_s": None if end is None or start is None else end - start,
-                "cross_track_max_m": largest if largest is not None and math.isfinite(largest)
-                else None,
+                "cross_track_max_m": _finite_or_none(self._largest.get(k - 1)),
+                "closest_m": closest,
+                "within_acceptance_radius": None if closest is None or radius is None
+                else closest <= radius,
             })  # fmt: skip
         return entries
+
+
+def _finite_or_none(value: float | None) -> float | None:
+    return value if value is not None and math.isfinite(value) else None
 
 
 def first_waypoint_not_reached(legs_completed: int, legs_total: int | None) -> int | None:

@@ -23,6 +23,7 @@ from cosim.engine.rows import NotesIgnored
 from cosim.metrics.manoeuvres import (
     VARIABLES,
     LegTracker,
+    Mission,
     SurveyTracker,
     manoeuvre_columns,
     manoeuvre_metrics,
@@ -45,6 +46,9 @@ class ManoeuvreSink(NotesIgnored):
         record: the run's columns (``<instance>.<variable>``, the rows' order).
         fault_start: s, when the fault of a ``fault-recovery`` run starts.
         legs_total: a ``survey``'s mission legs (:func:`mission_legs`), None if unknown.
+        mission: a ``survey``'s waypoints and acceptance radius, and ``position``: the
+            columns of the vehicle's north and east (:func:`survey_mission`), for each
+            leg's closest approach to its end (None: not measured).
 
     Raises:
         ValueError: the run does not record a column ``kind`` needs.
@@ -56,6 +60,8 @@ class ManoeuvreSink(NotesIgnored):
         record: Sequence[str],
         fault_start: float = 0.0,
         legs_total: int | None = None,
+        mission: Mission | None = None,
+        position: tuple[str, str] | None = None,
     ) -> None:
         self.kind = kind
         self.fault_start = fault_start
@@ -66,14 +72,20 @@ class ManoeuvreSink(NotesIgnored):
         self._values: list[np.ndarray] = []
         # a survey's figures stream: none of its rows is kept
         self._survey = SurveyTracker(legs_total) if kind == "survey" else None
-        self._legs = LegTracker(legs_total) if kind == "survey" else None
+        self._legs = LegTracker(legs_total, mission) if kind == "survey" else None
+        where = None if position is None else [list(record).index(c) for c in position]
+        self._position = where if mission is not None else None
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         if self._survey is not None:
             error, legs = (values[:, self._index[self._names.index(name)]] for name in SURVEY)
             self._survey.add(np.asarray(error, dtype=float), legs)
             if self._legs is not None:
-                self._legs.add(np.asarray(times, dtype=float), np.asarray(error, float), legs)
+                at = None
+                if self._position is not None:
+                    at = (np.asarray(values[:, self._position[0]], float),
+                          np.asarray(values[:, self._position[1]], float))  # fmt: skip
+                self._legs.add(np.asarray(times, dtype=float), np.asarray(error, float), legs, at)
             return
         self._times.append(np.array(times, dtype=float))
         self._values.append(np.asarray(values, dtype=float)[:, self._index])  # a copy
@@ -123,6 +135,24 @@ def mission_legs(scenario: Scenario) -> int | None:
     if instance is None or instance.interface.model_identifier != GUIDANCE_FMU:
         return None
     return len(parse_waypoints(str(scenario.start_value(name, "waypoints")))) - 1
+
+
+def survey_mission(scenario: Scenario) -> tuple[Mission, tuple[str, str] | None] | None:
+    """The mission of a ``survey`` run's guidance (:func:`mission_legs`' instance): its
+    waypoints and acceptance radius, and the recorded columns of the north and east of the
+    plant that feeds its position (None if not recorded); None where
+    :func:`mission_legs` is."""
+    if mission_legs(scenario) is None:
+        return None
+    column = manoeuvre_columns("survey", list(scenario.record))["legs_completed"]
+    name = column.partition(".")[0]
+    points = parse_waypoints(str(scenario.start_value(name, "waypoints")))
+    radius = float(scenario.start_value(name, "acceptance_radius"))  # type: ignore[arg-type]
+    mission = Mission(np.array([[w.north, w.east] for w in points]), radius)
+    sources = {c.target: c.source for c in scenario.connections}
+    position = (sources.get(f"{name}.north"), sources.get(f"{name}.east"))
+    recorded = all(c is not None and c in scenario.record for c in position)
+    return mission, (position if recorded else None)  # type: ignore[return-value]
 
 
 def scenario_metric_names(scenario: Scenario) -> tuple[str, ...]:

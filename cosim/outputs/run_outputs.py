@@ -34,7 +34,7 @@ from cosim.engine.rows import Note, NotesIgnored, RowSink
 from cosim.errors import CosimError
 from cosim.metrics.key_figures import KeyFigures
 from cosim.outputs.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
-from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, mission_legs
+from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, mission_legs, survey_mission
 from cosim.outputs.results import final_summary, running_summary
 from cosim.outputs.sinks import CsvSink, ProgressSink, write_json_atomically
 from cosim.scenario.spec import Scenario
@@ -86,7 +86,7 @@ class RunOutputs:
         self.manoeuvre = (
             None if scenario.manoeuvre is None
             else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario),
-                               mission_legs(scenario))
+                               mission_legs(scenario), *(survey_mission(scenario) or ()))
         )  # fmt: skip
         self.csv: CsvSink | None = None
         self.sinks: list[RowSink] = [FirstStep(folder), self.figures]

@@ -192,11 +192,42 @@ def test_a_survey_summary_gives_each_leg_its_time_and_largest_cross_track_error(
     for start in range(0, len(t), 4):
         sink.add_rows(t[start : start + 4], np.column_stack([error, legs])[start : start + 4])
     leg_1_max = float(np.max(np.abs(error[t < 3.0])))
+    unknown = {"closest_m": None, "within_acceptance_radius": None}  # no mission given
     assert sink.summary()["legs"] == [
         {"leg": 1, "to_waypoint": 2, "completed_at_s": 3.0, "duration_s": 3.0,
-         "cross_track_max_m": leg_1_max},
+         "cross_track_max_m": leg_1_max, **unknown},
         {"leg": 2, "to_waypoint": 3, "completed_at_s": 7.0, "duration_s": 4.0,
-         "cross_track_max_m": 4.0},
+         "cross_track_max_m": 4.0, **unknown},
         {"leg": 3, "to_waypoint": 4, "completed_at_s": None, "duration_s": None,
-         "cross_track_max_m": 1.0},
+         "cross_track_max_m": 1.0, **unknown},
     ]  # fmt: skip
+
+
+def test_a_waypoint_passed_outside_its_acceptance_radius_is_not_called_reached(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """Legs 3 m apart (the vehicle turns on a 10 m circle) with a 1 m acceptance radius:
+    the guidance counts the 3 m leg done once the vehicle is past its end along the track,
+    and the run said "legs_completed = 3 of 3" though the vehicle never came within 1 m
+    of waypoint 3. Each leg now gives its closest approach to its end waypoint (over the
+    rows it was active, and the row completing it), and the run names the waypoint."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    tight = cosim.load_scenario("survey", fmu_dir=fmu_dir).with_start(
+        {"guidance.waypoints": "0, 0, 2; 30, 0, 2; 30, 3, 2; 0, 3, 2",
+         "guidance.acceptance_radius": 1.0}
+    )  # fmt: skip
+    outcome = run_scenario(tight, tmp_path / "run", stop_time=40.0, no_rrd=True,
+                           fmu_dir=fmu_dir, keep_rows=True)  # fmt: skip
+    legs = json.loads((tmp_path / "run" / "summary.json").read_text())["legs"]
+    result = outcome.result
+    done = result.column("guidance.legs_completed")
+    north, east = result.column("plant.north"), result.column("plant.east")
+    for leg, (n, e) in zip(legs[:2], [(30.0, 0.0), (30.0, 3.0)], strict=True):
+        k = leg["leg"]
+        active = (done == k - 1) | (np.arange(done.size) == np.argmax(done >= k))
+        closest = float(np.min(np.hypot(north[active] - n, east[active] - e)))
+        assert leg["closest_m"] == pytest.approx(closest, rel=1e-12)
+    assert [leg["within_acceptance_radius"] for leg in legs[:2]] == [True, False]
+    assert (
+        f"waypoint 3 passed {legs[1]['closest_m']:.3g} m off, outside the acceptance radius"
+    ) in report(outcome)
