@@ -432,6 +432,7 @@ def _has_depth_loop(table: dict[str, np.ndarray]) -> bool:
 # figure is ~1000 pixels wide, so 100 000 points (1000 s at 10 ms) draw every run that fits
 # as it is, and a 36000 s run's 3.6 million rows no longer cost minutes and gigabytes
 DRAWN_POINTS_MAX = 100_000
+WAYPOINT_LABELS = 20  # waypoints numbered on a trajectory at most (and the last)
 
 
 def drawn_points(*series: np.ndarray) -> np.ndarray | slice:
@@ -627,12 +628,17 @@ def plot_lateral_deviation(table: dict[str, np.ndarray], path: Path) -> Path | N
 
 
 def _plot_waypoints(ax: Axes, waypoints: np.ndarray) -> None:
-    """The planned path (dashed) and its waypoints, numbered from 1, on a north-east plot."""
+    """The planned path (dashed) and its waypoints, numbered from 1, on a north-east plot:
+    every one up to :data:`WAYPOINT_LABELS`, else every k-th (evenly, from the first) and
+    the last, so that hundreds of them do not overprint into one band."""
     north, east = waypoints[:, 0], waypoints[:, 1]
     ax.plot(east, north, "--", color="tab:orange", linewidth=1.0, label="planned path")
     ax.plot(east, north, "o", color="tab:orange", markersize=4)
-    for k, (n, e) in enumerate(zip(north, east, strict=True), start=1):
-        ax.annotate(str(k), (e, n), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    every = math.ceil(len(waypoints) / WAYPOINT_LABELS)
+    numbered = sorted({*range(0, len(waypoints), every), len(waypoints) - 1})
+    for k in numbered:
+        ax.annotate(str(k + 1), (east[k], north[k]), textcoords="offset points", xytext=(4, 4),
+                    fontsize=8)  # fmt: skip
 
 
 def _plot_turning_marks(ax: Axes, marks: TurnMarks) -> None:

@@ -68,3 +68,27 @@ def test_a_run_without_guidance_has_no_planned_path(tmp_path, monkeypatch):
     assert drawn["trajectory.png"] == []
     drawn = _planned_paths(_write_run(tmp_path / "other", 'id = "x"\n'), monkeypatch)
     assert drawn["trajectory.png"] == []
+
+
+def test_a_mission_of_hundreds_of_waypoints_numbers_a_readable_few(tmp_path, monkeypatch):
+    """300 waypoints of a 6 km lawnmower were each numbered on the trajectory figure: 300
+    labels overprinted into one black band along the path. A few are numbered now, evenly
+    spaced, with the first and the last; a short mission keeps every number."""
+    t = np.arange(0.0, 10.0, 0.1)
+    table = {"plant.north": 1.5 * t, "plant.east": np.zeros_like(t)}
+    labels: dict[int, list[str]] = {}
+
+    def capture(fig, path):
+        labels[len(waypoints)] = [text.get_text() for text in fig.axes[0].texts]
+        return path
+
+    monkeypatch.setattr(report, "_save", capture)
+    for count in (8, 300):
+        waypoints = np.column_stack([50.0 * (np.arange(count) % 2), 20.0 * np.arange(count),
+                                     np.full(count, 2.0)])  # fmt: skip
+        report.plot_trajectory(table, tmp_path / "trajectory.png", waypoints)
+    assert labels[8] == [str(k) for k in range(1, 9)]
+    assert len(labels[300]) <= 30  # a few, not one a waypoint
+    assert labels[300][0] == "1" and labels[300][-1] == "300"
+    steps = np.diff([int(label) for label in labels[300][:-1]])
+    assert len(set(steps.tolist())) == 1  # evenly spaced
