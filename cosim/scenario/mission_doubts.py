@@ -1,7 +1,8 @@
 """Missions a waypoint guidance (``AuvGuidance``) cannot fly as planned, seen before a run:
 a leg against a current the vehicle is not faster than (no heading holds the leg's course,
 or the vehicle drifts back along it: the run would go on to its stop time without
-reaching the leg's end), and waypoints the stop time ends before the vehicle could reach.
+reaching the leg's end), waypoints the stop time ends before the vehicle could reach, and
+waypoints that look like latitude and longitude in degrees (the guidance takes metres).
 
 The vehicle's speed through the water is the straight-run speed of the plant the
 guidance reads its position from, on the thrust of the autopilot connected to that plant
@@ -92,9 +93,32 @@ def mission_doubts(scenario: Scenario) -> list[str]:
         waypoints = parse_waypoints(str(scenario.start_value(name, "waypoints")))
         legs = mission_legs(waypoints, speed, *current)
         key = f"instances.{name}.start.waypoints"
+        found.append(_degrees_doubt(key, waypoints))
         found.append(_current_doubt(key, legs, speed, source, plant, current))
         found.append(_time_doubt(key, legs, speed, source, scenario.stop_time))
     return [line for line in found if line]
+
+
+DEGREES_SPAN = 1.0  # m: a mission within this, far from the origin, reads as degrees
+
+
+def _degrees_doubt(key: str, waypoints: Sequence[Waypoint]) -> str:
+    """The warning if the waypoints look like latitude and longitude in degrees: within
+    +-90 and +-180, all within :data:`DEGREES_SPAN` of each other and more than ten spans
+    (and 1 m) from the origin, where the vehicle starts ('' if not)."""
+    north = [w.north for w in waypoints]
+    east = [w.east for w in waypoints]
+    span = math.hypot(max(north) - min(north), max(east) - min(east))
+    away = min(math.hypot(w.north, w.east) for w in waypoints)
+    looks = all(abs(n) <= 90.0 for n in north) and all(abs(e) <= 180.0 for e in east)
+    if not (looks and span < DEGREES_SPAN and away > max(10.0 * span, 1.0)):
+        return ""
+    return (
+        f"{key}: the mission spans {span:.4g} m, {away:.4g} m from the origin: waypoints are "
+        "north, east, down in metres (NED) from the origin the plant's north_0 and east_0 "
+        "count from; if these are latitude and longitude in degrees, convert them to metres "
+        "north and east of a reference point first (1e-5 deg of latitude is 1.11 m)"
+    )
 
 
 def _current_doubt(

@@ -61,3 +61,23 @@ def test_waypoints_beyond_the_stop_time_are_named(fmu_paths: dict[str, Path]) ->
     assert line.startswith("instances.guidance.start.waypoints: waypoint 4 is 120 m along "
                            "the path")  # fmt: skip
     assert line.endswith("past the stop time of 60 s: waypoint 4 onwards will not be reached")
+
+
+def test_waypoints_that_look_like_latitude_and_longitude_are_named(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """Halifax harbour given as latitude, longitude (44.6488 N, 63.5752 W to 44.6500 N,
+    63.5700 W, about 440 m) ran as a mission of 5 mm, 78 m from the vehicle: the guidance
+    takes metres, north, east, down. Only the acceptance radius's doubt spoke, of a leg of
+    0.005 m, and not of the units."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    survey = cosim.load_scenario("survey", fmu_dir=fmu_dir)
+    harbour = survey.with_start({"guidance.waypoints": "44.6488, -63.5752, 2; 44.65, -63.57, 2"})
+    lines = [line for line in mission_doubts(harbour) if "latitude" in line]
+    away = min(math.hypot(44.6488, 63.5752), math.hypot(44.65, 63.57))  # m, the nearest
+    assert len(lines) == 1 and lines[0].startswith(
+        f"instances.guidance.start.waypoints: the mission spans 0.005337 m, {away:.4g} m from "
+        "the origin: waypoints are north, east, down in metres (NED)"
+    ), lines
+    small = survey.with_start({"guidance.waypoints": "0, 0, 2; 0.5, 0, 2"})  # near the origin
+    assert not [line for line in mission_doubts(small) if "latitude" in line]
