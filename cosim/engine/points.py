@@ -5,6 +5,7 @@ values."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Protocol
 
@@ -16,6 +17,7 @@ from cosim.engine.slave import Slave, describe
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
 from cosim.scenario.spec import Scenario
+from cosim.scenario.timeline_spec import POINT_TOLERANCE
 
 
 class RowBuffer:
@@ -58,14 +60,18 @@ class RowBuffer:
             self._hand_off_notes()
         if not filled:
             return
-        # t_n = n h, never accumulated (no drift), as the loop computes it; the last, N h,
-        # can exceed the stop time by a rounding (7 x 0.1 s is 0.7000000000000001 s): the
-        # stop time then, as the FMUs were told it
-        times = np.minimum(np.arange(self.count, self.count + filled) * self.h, self.stop_time)
+        # t_n = n h, never accumulated (no drift), as the loop computes it
+        times = np.arange(self.count, self.count + filled) * self.h
         given = self.times[:filled]
         if not np.isnan(given).all():
             times = np.where(np.isnan(given), times, given)
             self.times[:] = np.nan
+        # the last point, N h, can miss the stop time by a rounding either way (7 x 0.1 s
+        # is 0.7000000000000001 s, 3 x 0.3 s 0.8999999999999999 s): the stop time then,
+        # as the FMUs were told it
+        stop = self.stop_time
+        if math.isclose(times[-1], stop, rel_tol=1e-13, abs_tol=POINT_TOLERANCE * self.h):
+            times[-1] = stop
         values = self.buffer[:filled]
         for sink in list(self.sinks):
             try:

@@ -47,15 +47,28 @@ def test_gauss_seidel_is_the_sampled_loop_without_delay(fmu_dir: Path) -> None:
     np.testing.assert_allclose(result.column("controller.u")[1:], -K * X0 * (1 - K * H) ** n[:-1])
 
 
-def test_no_row_is_after_the_stop_time(fmu_dir: Path, tmp_path: Path) -> None:
-    """Seven steps of 0.1 s ended at t = 7 x 0.1 = 0.7000000000000001 s, past the stop
-    time given to the FMUs (a `time <= stop_time` filter lost the last row)."""
-    outcome = run_scenario(loop(fmu_dir, stop_time=0.7, step=0.1), tmp_path / "run", no_rrd=True)
+@pytest.mark.parametrize(
+    ("stop_time", "step", "algorithm"),
+    [
+        (0.7, 0.1, "gauss-seidel"),  # 7 x 0.1 s is 0.7000000000000001 s: past it
+        (0.9, 0.3, "jacobi"),  # 3 x 0.3 s is 0.8999999999999999 s: short of it
+        (0.7, 0.1, "adaptive"),  # the adaptive steps' points, the same products
+        (0.9, 0.3, "adaptive"),
+    ],
+)
+def test_the_last_row_is_at_the_stop_time(
+    fmu_dir: Path, tmp_path: Path, stop_time: float, step: float, algorithm: str
+) -> None:
+    """The last row's time is the stop time itself, not N h a rounding away from it on
+    either side (a `time <= stop_time` filter once lost the row past it; a row short of
+    it printed 0.8999999999999999 for a stop time of 0.9 s), whatever the algorithm."""
+    scenario = loop(fmu_dir, stop_time=stop_time, step=step, algorithm=algorithm)
+    outcome = run_scenario(scenario, tmp_path / "run", no_rrd=True)
     assert outcome.result.complete
     last = (tmp_path / "run" / "results.csv").read_text().splitlines()[-1]
-    assert last.split(",")[0] == "0.7"
+    assert last.split(",")[0] == repr(stop_time)
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    assert summary["time_reached"] == summary["stop_time"] == 0.7
+    assert summary["time_reached"] == summary["stop_time"] == stop_time
 
 
 def test_master_guards_any_pythonfmu_fmu_against_the_exit_crash(fmu_dir: Path) -> None:
