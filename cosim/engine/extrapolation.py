@@ -12,8 +12,10 @@ The FMU then uses u(t_n + s) = u_n + s u' + s^2 / 2 u'' inside its step, and the
 converges at the polynomial's order plus one.
 
 Extrapolation across a jump is wrong for a step or two, so the history starts again at
-every event, override or fault boundary the master applies (``epoch``); a jump inside an
-FMU (a saturation, a switch) costs one step's worth of accuracy. Instances that cannot
+every event, override or fault boundary the master applies (``epoch``), and where the
+jump an event causes in a source's outputs reaches an instance that takes them a point
+later (``Timeline.epoch_of``); a jump inside an FMU (a saturation, a switch) costs one
+step's worth of accuracy. Instances that cannot
 interpolate hold their inputs as before: nothing is sent to them.
 
 Why by hand: fmpy's ``Input`` class interpolates a given table of input signals; no

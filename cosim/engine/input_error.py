@@ -89,7 +89,7 @@ class InputError:
         error of its last step's ``later`` inputs is known now; its polynomial is kept."""
         if slave.name not in self.now:
             return
-        epoch = self.timeline.epoch if self.timeline is not None else 0
+        epoch = self.timeline.epoch_of(slave.name, n) if self.timeline is not None else 0
         last, later = self.used.get(slave.name), self.later[slave.name]
         self.lagged.pop(slave.name, None)
         if last is not None and last.n + last.span == n and last.epoch == epoch and later.any():

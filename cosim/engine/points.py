@@ -125,7 +125,8 @@ def inputs_giver(z: np.ndarray, timeline: Timeline | None) -> Give:
         if slave.others:
             slave.set_others(z)
         if slave.input_rates is not None:
-            slave.input_rates.send(slave.inputs, t, timeline.epoch if timeline else 0)
+            epoch = timeline.epoch_of(slave.name, n) if timeline is not None else 0
+            slave.input_rates.send(slave.inputs, t, epoch)
 
     return give
 

@@ -256,6 +256,13 @@ class Timeline:
                 self.on_inputs.setdefault(instance, []).append((mine.index(target), run))
             else:
                 self._held.append(run)
+        self._step = scenario.coupling.step  # s
+        self._receivers = _receivers(scenario)
+        self._multiples = multiples
+        # per instance: the points at which its input history starts again, because a
+        # source an event wrote to reaches it there (:meth:`epoch_of`), and how often it did
+        self._restart_at: dict[str, set[int]] = {}
+        self._restarts: dict[str, int] = {}
         # a `when` on a slow instance's output (step multiple k) is evaluated at that
         # instance's own points only: in between, z holds its value from the end of the
         # step it is in, which lies ahead of t_n
@@ -265,6 +272,33 @@ class Timeline:
             for e in self._events
             if (when := e.event.when) is not None
         ]
+
+    def epoch_of(self, instance: str, n: int) -> int:
+        """The epoch of ``instance``'s input history as it takes its inputs at point n: it
+        changes at every point where something jumped (:attr:`epoch`), and again at the
+        first point at or after n where a jump an event caused in a source instance's
+        outputs reaches it (:meth:`_source_jumps`), so that no input is extrapolated
+        across that jump."""
+        pending = self._restart_at.get(instance)
+        if pending:
+            passed = {point for point in pending if point <= n}
+            if passed:
+                pending -= passed
+                self._restarts[instance] = self._restarts.get(instance, 0) + 1
+        return self.epoch + self._restarts.get(instance, 0)
+
+    def _source_jumps(self, source: str, n: int) -> None:
+        """Something was written to ``source`` at point n: its outputs may jump when it
+        next steps. An instance that takes them from a later point than that step's start
+        (Jacobi, or it steps before ``source`` in the Gauss-Seidel order) restarts its
+        input history where they reach it: the point after that step's start."""
+        k = self._multiples.get(source, 1)
+        period = k * round(self._step / self.h) if k > 1 else 1  # points between its steps
+        steps_at = -(-n // period) * period  # its first step from n on
+        for receiver, late in self._receivers.get(source, {}).items():
+            point = steps_at + 1 if late else steps_at
+            if point > n:
+                self._restart_at.setdefault(receiver, set()).add(point)
 
     def points(self) -> list[int]:
         """The points n at which something is due to happen whatever the values: time
@@ -286,11 +320,16 @@ class Timeline:
             len(self.fired), len(self.overrides), len(self.notes), self.epoch,
             [(r.was_true, r.fired) for r in self._stateful], dict(self._ramps), faults,
             dict(self._saved), dict(self._writer.assigned),
+            {name: set(points) for name, points in self._restart_at.items()},
+            dict(self._restarts),
         )  # fmt: skip
 
     def restore(self, saved: tuple[Any, ...]) -> None:
         """Back to :meth:`snapshot`'s state (the FMUs' own values are restored apart)."""
-        fired, overrides, notes, self.epoch, events, ramps, faults, kept, assigned = saved
+        fired, overrides, notes, self.epoch, events, ramps, faults, kept, assigned, *rest = saved
+        restart_at, restarts = rest
+        self._restart_at = {name: set(points) for name, points in restart_at.items()}
+        self._restarts = dict(restarts)
         del self.fired[fired:], self.overrides[overrides:], self.notes[notes:]
         for event, (was_true, done) in zip(self._stateful, events, strict=True):
             event.was_true, event.fired = was_true, done
@@ -364,6 +403,8 @@ class Timeline:
                 self._writer.set(ref, value, why)
         self.fired.append({"name": event.name, "time": t, "set": dict(event.set)})
         self.epoch += 1
+        for instance in {ref.split(".", 1)[0] for ref in event.set}:
+            self._source_jumps(instance, round(t / self.h))
         told = ", ".join(
             f"{ref} = {self._writer.shown(ref, value)}" for ref, value in event.set.items()
         )
@@ -415,6 +456,8 @@ class Timeline:
             target, why = run.fault.target, f"fault {run.fault.name!r} at t = {t:.6g} s"
             if n == run.n_start:  # what the input goes back to if no event sets it meanwhile
                 self._saved.setdefault(target, self._writer.get(target))  # (before any fault)
+            if n in (run.n_start, run.n_stop):
+                self._source_jumps(target.split(".", 1)[0], n)
             if run.active(n):
                 held = run.deliver(self._writer.get(target), n, self.z)
                 self._writer.set(target, held, why, assign=False)
@@ -426,3 +469,20 @@ class Timeline:
     def _holding(self, target: str, n: int) -> bool:
         """Whether an actuator fault on the unconnected input ``target`` acts at point n."""
         return any(run.active(n) for run in self._held if run.fault.target == target)
+
+
+def _receivers(scenario: Scenario) -> dict[str, dict[str, bool]]:
+    """source instance -> {instance it drives a Real input of: whether that instance takes
+    the source's values from a later point than the source steps from (Jacobi, or it is
+    before the source in the Gauss-Seidel order)}."""
+    coupling = scenario.coupling
+    position = {name: i for i, name in enumerate(coupling.order)}
+    jacobi = coupling.algorithm == "jacobi"
+    receivers: dict[str, dict[str, bool]] = {}
+    for c in scenario.connections:
+        source, target = c.source_instance, c.target_instance
+        variable = scenario.instances[target].interface.variables[c.target_variable]
+        if source != target and variable.type == "Real":
+            late = jacobi or position[target] < position[source]
+            receivers.setdefault(source, {})[target] = late
+    return receivers

@@ -151,3 +151,67 @@ def test_a_fault_driving_the_plant_out_of_range_is_one_line_without_warnings(
     assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
     assert "Warning" not in done.stderr
     assert "= nan: expected a finite number" in done.stderr
+
+
+def _followed_inputs(
+    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch, algorithm: str, order: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """depth-steps to 10.1 s (its set-point steps from 1 m to 3 m at 10 s, and the
+    stern-plane command jumps to its 25 deg limit) under ``algorithm`` and ``order``,
+    quadratic inputs: the plant's points t (s), its fin_angle given there (rad), and the
+    fin angle the polynomial it follows over the step reaches at the step's end (rad)."""
+    from cosim.engine import points
+
+    seen: list[tuple[float, float, float]] = []
+    giver = points.inputs_giver
+
+    def spying_giver(z: np.ndarray, timeline: object) -> points.Give:
+        give = giver(z, timeline)  # type: ignore[arg-type]
+
+        def spied(slave, n: int, t: float, again: bool = False) -> None:
+            give(slave, n, t, again)
+            if slave.name == "plant" and not again:
+                fin = slave.instance.variable("fin_angle").valueReference
+                i = list(slave.input_vrs).index(fin)
+                sent = slave.input_rates.derivatives(t)
+                first, second = (0.0, 0.0) if sent is None else (sent[0][i], sent[1][i])
+                h = 0.01
+                seen.append((t, slave.inputs[i], slave.inputs[i] + h * first + h * h / 2 * second))
+
+        return spied
+
+    monkeypatch.setattr(master, "inputs_giver", spying_giver)
+    text = (SCENARIO_FOLDER / "depth-steps.toml").read_text(encoding="utf-8")
+    text = text.replace("stop_time = 110.0", "stop_time = 10.1")
+    text = text.replace('algorithm = "gauss-seidel"', f'algorithm = "{algorithm}"')
+    text = text.replace('order = ["controller", "plant"]', f"order = {order}")
+    result = master.run(scenario_from_toml(text, "ds", SCENARIO_FOLDER, fmu_dir))
+    assert result.complete, result.error
+    t, given, reached = (np.array(column) for column in zip(*seen, strict=True))
+    return t, given, reached
+
+
+@pytest.mark.parametrize(
+    ("algorithm", "order"),
+    [
+        ("jacobi", '["controller", "plant"]'),
+        ("gauss-seidel", '["plant", "controller"]'),
+        ("gauss-seidel", '["controller", "plant"]'),
+    ],
+)
+def test_no_input_is_extrapolated_across_a_jump_its_source_makes_after_an_event(
+    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch, algorithm: str, order: str
+) -> None:
+    """An event sets the autopilot's depth set-point at 10 s; its fin command jumps from
+    -5.3 to +25 deg (its limit). Under Jacobi, or with the plant before the autopilot,
+    the plant gets the jump one point later than the event, where its input history
+    had already started again: extrapolated through the jump, the plant followed the fin
+    to 55 deg over the next step and back to -5.3 deg over the one after. Now the polynomial
+    the plant follows never leaves the range of the commands it was given."""
+    t, given, reached = _followed_inputs(fmu_dir, monkeypatch, algorithm, order)
+    window = (t > 9.9) & (t < 10.1)
+    low, high = given[window].min(), given[window].max()
+    slack = 1e-6 * (high - low)
+    outside = window & ((reached < low - slack) | (reached > high + slack))
+    shown = [f"{a:.2f} s: {math.degrees(b):.1f} deg" for a, b in zip(t, reached, strict=True)]
+    assert not outside.any(), [line for line, out in zip(shown, outside, strict=True) if out]
