@@ -428,13 +428,21 @@ class Timeline:
         if t < times[0] - _TOLERANCE * self.h:
             return
         values = {}
+        linear = series.interpolation == "linear"  # type: ignore[union-attr]
+        jumped: set[str] = set()  # instances a held value (or the first) stepped on
         for ref, column in series.columns.items():  # type: ignore[union-attr]
-            if series.interpolation == "linear":  # type: ignore[union-attr]
+            if linear:
                 value = float(np.interp(t, times, column))
             else:
                 value = column[bisect.bisect_right(times, t + _TOLERANCE * self.h) - 1]
             values[ref] = value
+            if (not linear or not run.fired) and value != self._writer.get(ref):
+                jumped.add(ref.split(".", 1)[0])
             self._writer.set(ref, value, f"series {run.event.name!r} at t = {t:.6g} s")
+        if jumped:  # as an event's value: no input is extrapolated across the step
+            self.epoch += 1
+            for instance in jumped:
+                self._source_jumps(instance, round(t / self.h))
         if not run.fired:
             run.fired = True
             self.fired.append({"name": run.event.name, "time": t, "set": values})

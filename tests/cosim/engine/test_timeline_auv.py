@@ -154,12 +154,17 @@ def test_a_fault_driving_the_plant_out_of_range_is_one_line_without_warnings(
 
 
 def _followed_inputs(
-    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch, algorithm: str, order: str
+    fmu_dir: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    algorithm: str,
+    order: str,
+    series: Path | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """depth-steps to 10.1 s (its set-point steps from 1 m to 3 m at 10 s, and the
     stern-plane command jumps to its 25 deg limit) under ``algorithm`` and ``order``,
-    quadratic inputs: the plant's points t (s), its fin_angle given there (rad), and the
-    fin angle the polynomial it follows over the step reaches at the step's end (rad)."""
+    quadratic inputs, its events replaced by a ``series`` file if given: the plant's
+    points t (s), its fin_angle given there (rad), and the fin angle the polynomial it
+    follows over the step reaches at the step's end (rad)."""
     from cosim.engine import points
 
     seen: list[tuple[float, float, float]] = []
@@ -185,6 +190,9 @@ def _followed_inputs(
     text = text.replace("stop_time = 110.0", "stop_time = 10.1")
     text = text.replace('algorithm = "gauss-seidel"', f'algorithm = "{algorithm}"')
     text = text.replace('order = ["controller", "plant"]', f"order = {order}")
+    if series is not None:
+        text = text[: text.index("[[events]]")]
+        text += f'[[events]]\nname = "profile"\nseries = "{series.as_posix()}"\n'
     result = master.run(scenario_from_toml(text, "ds", SCENARIO_FOLDER, fmu_dir))
     assert result.complete, result.error
     t, given, reached = (np.array(column) for column in zip(*seen, strict=True))
@@ -211,6 +219,29 @@ def test_no_input_is_extrapolated_across_a_jump_its_source_makes_after_an_event(
     t, given, reached = _followed_inputs(fmu_dir, monkeypatch, algorithm, order)
     window = (t > 9.9) & (t < 10.1)
     low, high = given[window].min(), given[window].max()
+    slack = 1e-6 * (high - low)
+    outside = window & ((reached < low - slack) | (reached > high + slack))
+    shown = [f"{a:.2f} s: {math.degrees(b):.1f} deg" for a, b in zip(t, reached, strict=True)]
+    assert not outside.any(), [line for line, out in zip(shown, outside, strict=True) if out]
+
+
+@pytest.mark.parametrize(
+    ("algorithm", "order"),
+    [("gauss-seidel", '["controller", "plant"]'), ("jacobi", '["controller", "plant"]')],
+)
+def test_no_input_is_extrapolated_across_a_step_of_a_held_series(
+    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, algorithm: str, order: str
+) -> None:
+    """A series (held between its times) steps the depth set-point from 1 m to 3 m at
+    10 s: it wrote the new value without starting any input history again, so even
+    with the autopilot first the plant followed its stern plane through the command's
+    jump to 55 deg. Now a series' step is a jump as an event's is."""
+    series = tmp_path / "profile.csv"
+    series.write_text("time,controller.depth_setpoint\n0,1.0\n10,3.0\n", encoding="utf-8")
+    t, given, reached = _followed_inputs(fmu_dir, monkeypatch, algorithm, order, series)
+    window = (t > 9.9) & (t < 10.1)
+    low, high = given[window].min(), given[window].max()
+    assert high - low > 0.5  # the command jumped
     slack = 1e-6 * (high - low)
     outside = window & ((reached < low - slack) | (reached > high + slack))
     shown = [f"{a:.2f} s: {math.degrees(b):.1f} deg" for a, b in zip(t, reached, strict=True)]
