@@ -10,6 +10,12 @@ does a delay fault (its ``steps`` doubled at h/2: the same delay in seconds); a 
 dropout fault, which draws anew at every exchange, makes the finer runs other systems, and
 is refused.
 
+An event, series time or fault boundary between the points of the three runs applies at
+another time in each (the first point at or after it), and an event on a condition fires
+at the first point it holds: the runs then differ by where the jump lands, an error of
+O(h) with no order Richardson extrapolation can find. The estimate is still made, but
+the check says it cannot be trusted, naming the cause (:func:`doubts`).
+
 Costs six times the run itself (2 + 4 times its steps), paid after it; a signal during
 the checks stops them and the run keeps its results without an estimate.
 """
@@ -28,6 +34,7 @@ from cosim.errors import CosimError
 from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.richardson import estimate
 from cosim.scenario.spec import Scenario
+from cosim.scenario.timeline_spec import POINT_TOLERANCE, first_point
 
 FINAL_PREFIX = "final."  # the estimate of a final value is named "final.<column>"
 
@@ -52,6 +59,40 @@ def not_checkable(scenario: Scenario) -> str | None:
             "scenario without it"
         )
     return None
+
+
+def doubts(scenario: Scenario) -> list[str]:
+    """Why the estimate of ``scenario``'s coupling error cannot be trusted (module
+    docstring): each time of an event, a series or a fault boundary that the runs at h,
+    h/2 and h/4 apply at different points, and each event on a condition."""
+    h = scenario.coupling.step
+    steps = (h, h / 2, h / 4)
+    times: list[tuple[str, float]] = []
+    found = []
+    for event in scenario.events:
+        if event.time is not None:
+            times.append((f"events.{event.name}.time", event.time))
+        if event.series is not None:
+            times += [(f"events.{event.name}.series time", t) for t in event.series.times]
+        if event.when is not None:
+            found.append(
+                f"events.{event.name} fires when {event.when}, at the first point it holds: "
+                "its time moves with the step, an error Richardson extrapolation does not model"
+            )
+    for fault in scenario.faults:
+        times.append((f"faults.{fault.name}.start", fault.start))
+        if fault.stop is not None:
+            times.append((f"faults.{fault.name}.stop", fault.stop))
+    for key, time in times:
+        applied = [first_point(time, step) * step for step in steps]
+        if max(applied) - min(applied) > POINT_TOLERANCE * h and time < scenario.stop_time:
+            shown = ", ".join(f"{t:.6g}" for t in applied[:2]) + f" and {applied[2]:.6g}"
+            found.append(
+                f"{key} = {time:.6g} s applies at {shown} s in the runs at h, h/2 and h/4: its "
+                "time moves with the step, an error Richardson extrapolation does not model "
+                "(put it on a point of h)"
+            )
+    return found
 
 
 def check_step(
@@ -85,6 +126,7 @@ def check_step(
     worst = max(finals.items(), key=lambda kv: _scaled(kv[1].error, kv[1].limit), default=None)
     return {
         "steps_s": [coupling.step, *steps],
+        "doubts": doubts(scenario),
         "order": order,
         "key_figures": figures_part,
         "final_values": {k.removeprefix(FINAL_PREFIX): e.as_dict() for k, e in finals.items()},
@@ -142,6 +184,12 @@ def summary_line(check: dict[str, Any]) -> str:
         unit = f" {worst['unit']}" if worst.get("unit") else ""
         parts.append(f"largest final-value error {worst['column']} {worst['error']:+.3g}{unit}")
     steps = ", ".join(f"{s:g}" for s in check["steps_s"])
-    return f"  coupling error (Richardson from h = {steps} s, order {check['order']:.2g}): " + (
-        ", ".join(parts) if parts else "no figure to check"
+    found = check.get("doubts") or []
+    doubt = ""
+    if found:
+        more = f"; {len(found) - 1} more in summary.json" if len(found) > 1 else ""
+        doubt = f" NOT TO BE TRUSTED ({found[0]}{more})"
+    return (
+        f"  coupling error{doubt} (Richardson from h = {steps} s, order {check['order']:.2g}): "
+        + (", ".join(parts) if parts else "no figure to check")
     )

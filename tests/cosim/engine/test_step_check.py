@@ -119,3 +119,45 @@ def test_the_largest_final_value_error_names_its_unit_in_the_summary(
     variable = worst["column"].partition(".")[2]
     instance = scenario.instances[worst["column"].partition(".")[0]]
     assert worst["unit"] == (instance.interface.variables[variable].unit or "")
+
+
+def _gain_event(time: float) -> str:
+    return f'[[events]]\nname = "gain"\ntime = {time}\nset = {{ "controller.k" = 0.5 }}\n'
+
+
+def test_an_event_between_the_checked_runs_points_makes_the_estimate_untrusted(
+    test_fmu_dir: Path,
+) -> None:
+    """An event at 0.33 s applies at 0.4 s at h = 0.1 s but at 0.35 s at h/2 and h/4:
+    the runs differ by where the event lands, an error of O(h) with no order of its own.
+    The check printed its estimate as any other, with an order of 2.4 observed on a
+    coupling of order 1 (held inputs) and 22 % short of the distance from a run at h/32
+    (event at 0.33125 s). Now it says the estimate is not to be trusted, naming the
+    event and the times it applies at."""
+    text = loop_toml(stop_time=2.0) + _gain_event(0.33)
+    scenario = scenario_from_toml(text, base_dir=test_fmu_dir)
+    check = check_step(scenario, {}, master.run(scenario).final)
+    assert check["doubts"] == [
+        "events.gain.time = 0.33 s applies at 0.4, 0.35 and 0.35 s in the runs at h, h/2 "
+        "and h/4: its time moves with the step, an error Richardson extrapolation does "
+        "not model (put it on a point of h)"
+    ]
+    assert summary_line(check).startswith(
+        "  coupling error NOT TO BE TRUSTED (events.gain.time = 0.33 s applies at 0.4, "
+    )
+
+
+def test_only_what_lies_on_a_point_of_h_leaves_the_estimate_trusted(test_fmu_dir: Path) -> None:
+    """An event at 0.3 s and a fault from 0.5 s to 1.2 s lie on points of all three runs:
+    no doubt. A fault from 0.325 s, a point of h/4 but not of h, starts at 0.4, 0.35 and
+    0.325 s: a doubt naming it; and an event on a condition always."""
+    fault = '[[faults]]\nname = "off"\nkind = "bias"\nvalue = 0.1\ntarget = "plant.u"\n'
+    on_points = loop_toml(stop_time=2.0) + _gain_event(0.3) + fault + "start = 0.5\nstop = 1.2\n"
+    scenario = scenario_from_toml(on_points, base_dir=test_fmu_dir)
+    assert check_step(scenario, {}, master.run(scenario).final)["doubts"] == []
+    between = loop_toml(stop_time=2.0) + fault + "start = 0.325\n"
+    between += '[[events]]\nname = "low"\nwhen = "plant.x < 0.5"\nset = { "controller.k" = 1.0 }\n'
+    scenario = scenario_from_toml(between, base_dir=test_fmu_dir)
+    found = check_step(scenario, {}, master.run(scenario).final)["doubts"]
+    assert [line.split(" ", 1)[0] for line in found] == ["events.low", "faults.off.start"]
+    assert "applies at 0.4, 0.35 and 0.325 s" in found[1]
