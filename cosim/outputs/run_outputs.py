@@ -154,7 +154,10 @@ class RunOutputs:
             if sink is not None:
                 self._add(sink)
         if progress is not None:
-            progress.total_rows = self.scenario.n_steps + 1
+            if self.scenario.coupling.algorithm == "adaptive":  # steps not known ahead
+                progress.total_time = self.scenario.stop_time
+            else:
+                progress.total_rows = self.scenario.n_steps + 1
             self._add(progress)
         try:
             self.paths["scenario"].write_text(self.scenario.to_toml(), encoding="utf-8")

@@ -106,13 +106,16 @@ def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
 class ProgressSink(NotesIgnored):
     """A tqdm progress bar on stderr: what the run is doing before it steps (:meth:`phase`:
     "building FMUs", "loading FMUs", "initialising"...), then the steps as rows arrive.
-    ``total_rows`` may be set once the scenario is known; ``status`` (a paced run's
-    real-time factors) is shown after the bar, refreshed with every chunk."""
+    ``total_rows`` may be set once the scenario is known, or ``total_time`` (s): then the
+    bar counts simulated seconds to it instead of rows (an adaptive run, whose number of
+    steps is not known ahead); ``status`` (a paced run's real-time factors) is shown after
+    the bar, refreshed with every chunk."""
 
     def __init__(
         self, total_rows: int | None, label: str, status: Callable[[], str] | None = None
     ) -> None:
         self.total_rows = total_rows
+        self.total_time: float | None = None
         self._label = label
         self.status = status  # a paced run's real-time factors, settable once known
         self._bar: Any = None
@@ -131,10 +134,16 @@ class ProgressSink(NotesIgnored):
             from tqdm import tqdm
 
             self._close_phase()
-            self._bar = tqdm(total=self.total_rows, unit="step", desc=self._label, leave=False)
+            by_time = self.total_time is not None
+            total = self.total_time if by_time else self.total_rows
+            unit = "s" if by_time else "step"
+            self._bar = tqdm(total=total, unit=unit, desc=self._label, leave=False)
         if self.status is not None:
             self._bar.set_postfix_str(self.status(), refresh=False)
-        self._bar.update(len(times))
+        if self.total_time is None:
+            self._bar.update(len(times))
+        elif len(times):
+            self._bar.update(float(times[-1]) - self._bar.n)
 
     def close(self) -> None:
         self._close_phase()

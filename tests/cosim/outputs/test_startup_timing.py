@@ -52,3 +52,24 @@ def test_the_bar_names_only_the_fmus_the_scenario_builds(tmp_path: Path) -> None
     assert sorted(_fmus_to_build("bs-3", tmp_path)) == ["AuvAutopilot", "AuvPlant"]
     assert "AuvGuidance" in _fmus_to_build("survey", tmp_path)
     assert _fmus_to_build(tmp_path / "missing.toml", tmp_path) == []
+
+
+def test_an_adaptive_run_s_bar_counts_simulated_time_to_its_stop_time(
+    test_fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """The bar's total was the fixed step's count of rows (11 for 1 s at 0.1 s) while an
+    adaptive run counted its own steps against it, thousands at a tolerance of 1e-6: past
+    its total the bar became a bare count of steps, with no share done and no time left,
+    for the rest of the run. Now an adaptive run's bar counts simulated seconds (s) up to
+    its stop time."""
+    import re
+
+    text = loop_toml(algorithm="adaptive").replace("[coupling]", "[coupling]\ntolerance = 1e-6")
+    scenario = scenario_from_toml(text, base_dir=test_fmu_dir)
+    outcome = run_scenario(scenario, tmp_path / "run", no_rrd=True, progress=True)
+    assert outcome.result.rows > 2 * scenario.n_steps  # more steps than the fixed step's
+    err = capsys.readouterr().err
+    counts = [(float(a), float(b)) for a, b in re.findall(r"\| *([0-9.]+)/([0-9.]+) \[", err)]
+    assert counts, f"no progress shown: {err!r}"
+    assert all(total == scenario.stop_time and done <= total for done, total in counts), counts
+    assert "step/s" not in err  # no bare count of steps
