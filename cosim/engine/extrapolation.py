@@ -115,12 +115,23 @@ class InputRates:
         handle: the instance's fmi2Component as a ``ctypes.c_void_p`` whose value may be
             set later (``Slave.handle``: the loop binds this object before the FMU is
             instantiated); by default the fmu's ``component`` now.
+        held: the positions (in ``input_vrs``) of inputs sent derivatives of 0: held over
+            the step. An input whose source steps less often than its instance (a larger
+            step multiple) is one: its values at the instance's points are stairs, which
+            a polynomial through them turns into a zigzag of twice their height.
     """
 
     def __init__(
-        self, fmu: Any, input_vrs: list[int], order: int, handle: ctypes.c_void_p | None = None
+        self,
+        fmu: Any,
+        input_vrs: list[int],
+        order: int,
+        handle: ctypes.c_void_p | None = None,
+        held: list[int] | tuple[int, ...] = (),
     ) -> None:
         n = len(input_vrs)
+        # the slots of self._values of the held inputs: first and (quadratic) second
+        self._held = np.asarray([i + j * n for j in range(order) for i in held], dtype=np.intp)
         self.order = order
         self.n = n
         # a function object of the C function without declared argument types, called
@@ -154,6 +165,8 @@ class InputRates:
             extrapolate = self._bind(inputs)
         code = extrapolate(t, self.count)
         if code & 1:
+            if self._held.size:
+                self._values[self._held] = 0.0
             status = self._set(self._handle, self._vrs, self._size, self._orders, self._ptr)
             if status > 1:  # worse than fmi2Warning: as fmpy's wrapper
                 raise FMICallException(function="fmi2SetRealInputDerivatives", status=status)

@@ -372,8 +372,14 @@ def _bind(slave: Slave, scenario: Scenario, layout: _Layout, z: np.ndarray) -> N
     inputs = [(inst.variable(c.target_variable), layout.index[c.source]) for c in targets]
     order = scenario.coupling.extrapolation_order
     real = [v.valueReference for v, _ in inputs if v.type == "Real"]
-    wanted = order and slave.interpolates and real
-    rates = InputRates(slave.fmu, real, order, slave.handle) if wanted else None
+    multiples = scenario.coupling.step_multiples
+    sources = [
+        c.source_instance for c in targets if inst.variable(c.target_variable).type == "Real"
+    ]
+    # a source whose steps do not end at each of this instance's points: stairs, held
+    held = [i for i, source in enumerate(sources) if slave.k % multiples[source]]
+    wanted = order and slave.interpolates and len(held) < len(real)
+    rates = InputRates(slave.fmu, real, order, slave.handle, held) if wanted else None
     slave.bind(inputs, [inst.variable(v) for v in read], z[start : start + len(read)], rates)
     driven = {c.target_variable for c in targets}
     slave.feeds_through = any(

@@ -1,5 +1,6 @@
 """Events and faults on the AUV: bs-3 turned to a new heading by an
-event under Jacobi, Gauss-Seidel and step multiples; the actuator faults."""
+event under Jacobi, Gauss-Seidel and step multiples; the actuator faults; what the
+plant's extrapolated inputs follow across a jump and from a slower instance."""
 
 from __future__ import annotations
 
@@ -153,18 +154,12 @@ def test_a_fault_driving_the_plant_out_of_range_is_one_line_without_warnings(
     assert "= nan: expected a finite number" in done.stderr
 
 
-def _followed_inputs(
-    fmu_dir: Path,
-    monkeypatch: pytest.MonkeyPatch,
-    algorithm: str,
-    order: str,
-    series: Path | None = None,
+def _followed(
+    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch, text: str, variable: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """depth-steps to 10.1 s (its set-point steps from 1 m to 3 m at 10 s, and the
-    stern-plane command jumps to its 25 deg limit) under ``algorithm`` and ``order``,
-    quadratic inputs, its events replaced by a ``series`` file if given: the plant's
-    points t (s), its fin_angle given there (rad), and the fin angle the polynomial it
-    follows over the step reaches at the step's end (rad)."""
+    """The scenario ``text`` run with the plant's input ``variable`` spied on: the
+    plant's points t (s), the value given there, and the value the polynomial it follows
+    over its step of 0.01 s reaches at the step's end (held: the value given)."""
     from cosim.engine import points
 
     seen: list[tuple[float, float, float]] = []
@@ -176,9 +171,10 @@ def _followed_inputs(
         def spied(slave, n: int, t: float, again: bool = False) -> None:
             give(slave, n, t, again)
             if slave.name == "plant" and not again:
-                fin = slave.instance.variable("fin_angle").valueReference
-                i = list(slave.input_vrs).index(fin)
-                sent = slave.input_rates.derivatives(t)
+                vr = slave.instance.variable(variable).valueReference
+                i = list(slave.input_vrs).index(vr)
+                rates = slave.input_rates
+                sent = rates.derivatives(t) if rates is not None else None
                 first, second = (0.0, 0.0) if sent is None else (sent[0][i], sent[1][i])
                 h = 0.01
                 seen.append((t, slave.inputs[i], slave.inputs[i] + h * first + h * h / 2 * second))
@@ -186,6 +182,23 @@ def _followed_inputs(
         return spied
 
     monkeypatch.setattr(master, "inputs_giver", spying_giver)
+    result = master.run(scenario_from_toml(text, "spied", SCENARIO_FOLDER, fmu_dir))
+    assert result.complete, result.error
+    t, given, reached = (np.array(column) for column in zip(*seen, strict=True))
+    return t, given, reached
+
+
+def _followed_inputs(
+    fmu_dir: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    algorithm: str,
+    order: str,
+    series: Path | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """depth-steps to 10.1 s (its set-point steps from 1 m to 3 m at 10 s, and the
+    stern-plane command jumps to its 25 deg limit) under ``algorithm`` and ``order``,
+    quadratic inputs, its events replaced by a ``series`` file if given: :func:`_followed`
+    of the plant's fin_angle (rad)."""
     text = (SCENARIO_FOLDER / "depth-steps.toml").read_text(encoding="utf-8")
     text = text.replace("stop_time = 110.0", "stop_time = 10.1")
     text = text.replace('algorithm = "gauss-seidel"', f'algorithm = "{algorithm}"')
@@ -193,10 +206,7 @@ def _followed_inputs(
     if series is not None:
         text = text[: text.index("[[events]]")]
         text += f'[[events]]\nname = "profile"\nseries = "{series.as_posix()}"\n'
-    result = master.run(scenario_from_toml(text, "ds", SCENARIO_FOLDER, fmu_dir))
-    assert result.complete, result.error
-    t, given, reached = (np.array(column) for column in zip(*seen, strict=True))
-    return t, given, reached
+    return _followed(fmu_dir, monkeypatch, text, "fin_angle")
 
 
 @pytest.mark.parametrize(
@@ -246,3 +256,25 @@ def test_no_input_is_extrapolated_across_a_step_of_a_held_series(
     outside = window & ((reached < low - slack) | (reached > high + slack))
     shown = [f"{a:.2f} s: {math.degrees(b):.1f} deg" for a, b in zip(t, reached, strict=True)]
     assert not outside.any(), [line for line, out in zip(shown, outside, strict=True) if out]
+
+
+def test_an_input_from_a_slower_instance_is_not_extrapolated_through_its_stairs(
+    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """bs-3 with the autopilot stepping every 2 steps (step_multiples) and quadratic
+    inputs: the plant took the held command (the same value at two points in a row, then
+    a new one) as points of a smooth signal, and the polynomial through those stairs
+    zigzagged, missing the next command by 2.99 N where holding it misses by at most the
+    largest change between two points (1.49 N). Now an input whose source steps less
+    often than its instance is held."""
+    text = (SCENARIO_FOLDER / "bs-3.toml").read_text(encoding="utf-8")
+    text = text.replace("stop_time = 60.0", "stop_time = 3.0")
+    text = text.replace(
+        'order = ["controller", "plant"]',
+        'order = ["controller", "plant"]\nstep_multiples = { controller = 2 }',
+    )
+    t, given, reached = _followed(fmu_dir, monkeypatch, text, "tunnel_force")
+    missed = np.abs(reached[:-1] - given[1:])
+    assert missed.max() <= np.abs(np.diff(given)).max() * (1 + 1e-12), (
+        f"{missed.max():.3g} N at {t[np.argmax(missed)]:.2f} s"
+    )
