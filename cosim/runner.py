@@ -626,9 +626,25 @@ def _steps(result: RunResult) -> str:
             f"{taken.get('accepted_steps')} adaptive steps of {_fmt(taken.get('smallest_step_s'))}"
             f" to {_fmt(taken.get('largest_step_s'))} s ({taken.get('rejected_steps')} "
             f"rejected{f', {discarded} of them discarded by an FMU' if discarded else ''}, "
-            f"tolerance {coupling.tolerance:g})"
+            f"{_over_tolerance(taken)}tolerance {coupling.tolerance:g})"
         )
     return _fixed_steps(result.rows - 1, coupling)
+
+
+def _over_tolerance(taken: dict[str, Any]) -> str:
+    """The accepted steps that missed an adaptive run's tolerance, as the report says
+    them ("" if none): the kinks stepped across as they are, and those at the shortest
+    step (a tolerance below what the coupling reaches there)."""
+    over, kinks = taken.get("steps_over_tolerance") or 0, taken.get("kinks") or 0
+    if not over:
+        return ""
+    shortest = over - kinks
+    parts = [f"{kinks} kinks"] if kinks else []
+    if shortest:
+        parts.append(
+            "all at the shortest step" if not kinks else f"{shortest} at the shortest step"
+        )
+    return f"{over} over the tolerance ({', '.join(parts)}), "
 
 
 def _fixed_steps(count: int, coupling: Coupling) -> str:

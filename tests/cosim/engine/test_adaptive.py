@@ -203,3 +203,21 @@ def test_a_discard_at_the_shortest_step_still_fails_the_run(test_fmu_dir: Path) 
     result = run(test_fmu_dir, text)
     assert not result.complete
     assert "longer than longest_step" in (result.error or "")
+
+
+def test_the_report_says_how_many_steps_missed_the_tolerance(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    """At a tolerance of 1e-9 the loop's held input misses it even at the shortest step:
+    every step was taken over the tolerance, and the report said "2048 adaptive steps of
+    9.766e-05 to 9.766e-05 s (4 rejected, tolerance 1e-09)" as if it had been met. Now
+    it counts the steps over the tolerance, and the kinks and shortest steps among them."""
+    from cosim.runner import report, run_scenario
+
+    text = adaptive(1e-9, estimate="extrapolation").replace("stop_time = 2.0", "stop_time = 0.2")
+    scenario = scenario_from_toml(text, base_dir=test_fmu_dir)
+    outcome = run_scenario(scenario, tmp_path / "run", no_rrd=True)
+    taken = outcome.result.coupling
+    over = taken["steps_over_tolerance"]
+    assert over == taken["accepted_steps"] > 0 and taken["kinks"] == 0
+    assert f"{over} over the tolerance (all at the shortest step" in report(outcome)
