@@ -32,11 +32,12 @@ from cosim.engine import master
 from cosim.engine.signals import StopRequest
 from cosim.errors import CosimError
 from cosim.metrics.key_figures import KeyFigures
-from cosim.metrics.richardson import estimate
+from cosim.metrics.richardson import estimate, run_order
 from cosim.scenario.spec import Scenario
 from cosim.scenario.timeline_spec import POINT_TOLERANCE, first_point
 
 FINAL_PREFIX = "final."  # the estimate of a final value is named "final.<column>"
+ROUNDING = 1e-13  # relative: values of the three runs closer than this agree to rounding
 
 
 def not_checkable(scenario: Scenario) -> str | None:
@@ -121,6 +122,7 @@ def check_step(
         values.append(_named(sink.figures(), scenario.columns, result.final))
     nominal = 2.0 if coupling.extrapolation_order else 1.0  # as adaptive.coupling_order
     estimates, order = estimate(values, nominal)
+    runs = [[getattr(e, part) for e in estimates.values()] for part in ("value", "half", "quarter")]
     figures_part = {k: e.as_dict() for k, e in estimates.items() if k in figures}
     finals = {k: e for k, e in estimates.items() if k.startswith(FINAL_PREFIX)}
     worst = max(finals.items(), key=lambda kv: _scaled(kv[1].error, kv[1].limit), default=None)
@@ -128,6 +130,10 @@ def check_step(
         "steps_s": [coupling.step, *steps],
         "doubts": doubts(scenario),
         "order": order,
+        # the order seen on the runs' values together (else the coupling's nominal one),
+        # and whether they differ beyond the rounding of doubles at all
+        "order_observed": run_order(runs) is not None,
+        "within_rounding": _within_rounding(runs),
         "key_figures": figures_part,
         "final_values": {k.removeprefix(FINAL_PREFIX): e.as_dict() for k, e in finals.items()},
         "largest_final_error": None
@@ -138,6 +144,16 @@ def check_step(
             **worst[1].as_dict(),
         },
     }
+
+
+def _within_rounding(runs: list[list[float]]) -> bool:
+    """Whether the values at h, h/2 and h/4 (``runs``) agree to the rounding of doubles
+    (:data:`ROUNDING` of their size): then no error and no order can be seen in them."""
+    return all(
+        abs(a - b) <= ROUNDING * max(abs(a), abs(b))
+        for ours, theirs in ((runs[0], runs[1]), (runs[1], runs[2]))
+        for a, b in zip(ours, theirs, strict=True)
+    )
 
 
 def _unit(scenario: Scenario, column: str) -> str:
@@ -189,7 +205,12 @@ def summary_line(check: dict[str, Any]) -> str:
     if found:
         more = f"; {len(found) - 1} more in summary.json" if len(found) > 1 else ""
         doubt = f" NOT TO BE TRUSTED ({found[0]}{more})"
-    return (
-        f"  coupling error{doubt} (Richardson from h = {steps} s, order {check['order']:.2g}): "
-        + (", ".join(parts) if parts else "no figure to check")
+    if check.get("within_rounding"):
+        order = "the three runs agree to rounding: no error to see"
+    elif check.get("order_observed", True):
+        order = f"order {check['order']:.2g}"
+    else:
+        order = f"order {check['order']:.2g} assumed, none observed"
+    return f"  coupling error{doubt} (Richardson from h = {steps} s, {order}): " + (
+        ", ".join(parts) if parts else "no figure to check"
     )

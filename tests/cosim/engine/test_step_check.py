@@ -161,3 +161,27 @@ def test_only_what_lies_on_a_point_of_h_leaves_the_estimate_trusted(test_fmu_dir
     found = check_step(scenario, {}, master.run(scenario).final)["doubts"]
     assert [line.split(" ", 1)[0] for line in found] == ["events.low", "faults.off.start"]
     assert "applies at 0.4, 0.35 and 0.325 s" in found[1]
+
+
+def test_the_line_says_when_the_order_was_assumed_or_the_runs_agree_to_rounding(
+    test_fmu_dir: Path,
+) -> None:
+    """The line printed "order 1" as if observed where it was the coupling's nominal
+    order, no value converging monotonically (an event at 0.37 s applying at 0.4, 0.4
+    and 0.375 s), and where the three runs gave the same values (a gain of 0: x holds
+    x0), leaving no error and no order to see. Now it says which."""
+    text = loop_toml(stop_time=2.0) + _gain_event(0.37)
+    scenario = scenario_from_toml(text, base_dir=test_fmu_dir)
+    check = check_step(scenario, {}, master.run(scenario).final)
+    assert not check["order_observed"] and not check["within_rounding"]
+    assert "(Richardson from h = 0.1, 0.05, 0.025 s, order 1 assumed, none observed)" in (
+        summary_line(check)
+    )
+    text = loop_toml(stop_time=2.0).replace("k = 2.0", "k = 0.0")
+    scenario = scenario_from_toml(text, base_dir=test_fmu_dir)
+    check = check_step(scenario, {}, master.run(scenario).final)
+    assert check["within_rounding"]
+    assert "the three runs agree to rounding: no error to see" in summary_line(check)
+    observed = scenario_from_toml(loop_toml(stop_time=2.0), base_dir=test_fmu_dir)
+    line = summary_line(check_step(observed, {}, master.run(observed).final))
+    assert "s, order 1" in line and "assumed" not in line and "rounding" not in line
