@@ -100,7 +100,7 @@ from cosim.engine.signals import StopRequest, stop_on_signals
 from cosim.engine.slave import Slave, describe, reasons, unzipped
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
-from cosim.fmus.interface import check_binary
+from cosim.fmus.interface import check_binary, check_own_packages
 from cosim.scenario.coupling_graph import feedthrough
 from cosim.scenario.spec import Scenario, ScenarioError
 
@@ -216,7 +216,9 @@ def _not_real(instance: Any, variable: str) -> bool:
 
 def preflight(scenario: Scenario) -> None:
     """Refuse, before any FMU is loaded, a scenario whose FMUs lack a binary for this
-    platform (:func:`cosim.fmus.interface.check_binary`) or would hang in a step.
+    platform (:func:`cosim.fmus.interface.check_binary`), were built by an older auv-cosim
+    into packages this process runs itself (:func:`~cosim.fmus.interface.check_own_packages`)
+    or would hang in a step.
 
     An instance with a Real parameter ``max_substep`` (s) integrates a communication step
     of k h (an adaptive run's steps up to ``max_step``) in ceil(k h / max_substep)
@@ -225,6 +227,7 @@ def preflight(scenario: Scenario) -> None:
     takes tens of microseconds, so 1e-9 s would take hours per step and ignore Ctrl-C).
     """
     for inst in scenario.instances.values():
+        check_own_packages(inst.fmu_path)
         check_binary(inst.fmu_path, inst.interface.model_identifier)
     for name, inst in scenario.instances.items():
         var = {v.name: v for v in inst.variables("parameter")}.get(SUBSTEP_PARAMETER)

@@ -70,6 +70,7 @@ from xml.etree import ElementTree as ET
 from cosim.errors import CosimError, unmade_folder
 from cosim.fmus import bytecode, native, staging
 from cosim.fmus import docs as fmu_docs
+from cosim.fmus.interface import OWN_PACKAGES
 from cosim.whole_file import write_whole
 from fmu_runtime import entry
 
@@ -77,7 +78,7 @@ HASH_SUFFIX = ".sha256"
 SHIPPED_SUFFIXES = (".py", ".toml")
 # Every FMU ships these whole, the same files in each: one build's FMUs in one process
 # then share one copy of the code (and numba's cache of it).
-PACKAGES = ("plant_fmu", "controller_fmu", "fmu_runtime")
+PACKAGES = OWN_PACKAGES
 VENDORED = "pythonfmu"  # pythonfmu's pure-Python package, from this environment
 DISTRIBUTION = "auv-cosim"  # this project, whose code (and so whose licence) every FMU ships
 # The namespace of the FMUs' name-based (version 5) GUIDs; any fixed UUID would do.

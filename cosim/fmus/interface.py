@@ -41,6 +41,12 @@ NOT_COSIMULATION = (
 )
 
 
+# The Python packages of this project that an FMU build ships (cosim.fmus.build) and that
+# this process imports itself. A build puts them under a package of its own
+# (``auvfmu_<hash>``); an FMU built before that ships them at the top of ``resources/``.
+OWN_PACKAGES = ("plant_fmu", "controller_fmu", "fmu_runtime")
+
+
 class FmuInterfaceError(CosimError):
     """An FMU that does not exist or whose model description cannot be read."""
 
@@ -153,6 +159,27 @@ def check_binary(path: Path, model_identifier: str | None) -> None:
             f"{path}: no {member} in the FMU: expected a co-simulation binary for {platform} "
             f"(binaries for: {', '.join(found) or 'none'})"
             + (f"; it ships its C sources: `fmpy compile {path}` builds one" if sources else "")
+        )
+
+
+def check_own_packages(path: Path) -> None:
+    """Refuse, in one line naming ``path``, an FMU built by an older auv-cosim whose Python
+    code sits in top-level packages of :data:`OWN_PACKAGES`: in a process that runs this
+    auv-cosim (its master, a study's worker) it would import this version's modules of
+    those names instead of its own (failing inside its instantiation, or running this
+    version's code as the old FMU's). Another host, or the auv-cosim that built it, runs it."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = set(archive.namelist())
+    except (OSError, zipfile.BadZipFile):
+        return  # check_archive names what is wrong with it
+    shipped = [p for p in OWN_PACKAGES if f"resources/{p}/__init__.py" in names]
+    if shipped:
+        raise FmuInterfaceError(
+            f"{path}: built by an older auv-cosim: its code is in the top-level packages "
+            f"{', '.join(sorted(shipped))}, whose newer versions this auv-cosim runs in the "
+            "same process; rebuild it with `auv-cosim build`, or run it with the auv-cosim "
+            "that built it or another FMI host"
         )
 
 

@@ -95,7 +95,8 @@ def _runnable_problems(path: Path) -> list[str]:
 
 def _foreign_problems(path: Path) -> list[str]:
     """What a run refuses an FMU for, with the same checks: an archive that is not an FMI
-    2.0 FMU (in one line, before fmpy's schema report of it), fmpy's validation, no
+    2.0 FMU (in one line, before fmpy's schema report of it), one an older auv-cosim
+    built into packages this process runs itself, fmpy's validation, no
     co-simulation interface, no binary for this platform."""
     from fmpy.validation import validate_fmu
 
@@ -104,11 +105,13 @@ def _foreign_problems(path: Path) -> list[str]:
         FmuInterfaceError,
         check_archive,
         check_binary,
+        check_own_packages,
         read_interface,
     )
 
     try:
         check_archive(path)
+        check_own_packages(path)
     except FmuInterfaceError as exc:
         return [str(exc).removeprefix(f"{path}: ")]
     problems = list(validate_fmu(str(path)))

@@ -31,6 +31,7 @@ import tomli_w
 from cosim.engine.adaptive import points_step
 from cosim.engine.step_check import not_checkable
 from cosim.errors import CosimError
+from cosim.fmus.interface import check_own_packages
 from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
@@ -96,10 +97,13 @@ def prepare(
     error metrics; a factor's value naming a file (a vehicle set) is relative to
     ``folder``, the study file's (the working directory without one). Raises
     ``CosimError`` (with ``check_step``, a scenario whose error cannot be
-    estimated: adaptive, or with a noise or dropout fault)."""
+    estimated: adaptive, or with a noise or dropout fault; an FMU built by an older
+    auv-cosim that no run could load: :func:`cosim.fmus.interface.check_own_packages`)."""
     scenario = load_scenario(scenario_ref, fmu_dir=fmu_dir)
     if stop_time is not None:
         scenario = scenario.with_overrides(stop_time=stop_time)
+    for inst in scenario.instances.values():
+        check_own_packages(inst.fmu_path)  # every run would fail on it: refused at once
     reason = not_checkable(scenario) if check_step else None
     if reason is not None:
         raise StudyError(f"check_step = true: {reason}")
