@@ -6,9 +6,10 @@ reads (a vehicle set, a series CSV). A new study needs a new or empty folder (a 
 holding anything else is refused: a study never writes over a user's ``index.html`` or
 into their ``figures/``) and refuses one that already holds a study; ``--resume`` refuses
 a folder whose study differs (another scenario, other factors or metrics, rebuilt FMUs, a
-changed vehicle file), so a table never mixes two studies. A study locks its folder for
-as long as it runs (:func:`lock`, the run folder's lock): a second study into it, resumed
-or not, is refused at once.
+changed vehicle file), so a table never mixes two studies; a ``study.json`` an older
+auv-cosim wrote is read as this version writes it (:func:`_as_written_now`). A study
+locks its folder for as long as it runs (:func:`lock`, the run folder's lock): a second
+study into it, resumed or not, is refused at once.
 
 Per-run folders ``runs/<run id>/`` (only with ``keep = "all"`` or ``"failed"``) hold the
 scenario the run ran (``scenario.toml``, for ``auv-cosim run``), its ``results.csv`` and
@@ -77,7 +78,7 @@ def claim(
     if resume:
         if not marker.is_file():
             raise StudyError(f"{resuming}: {out_dir} holds no study ({STUDY_JSON} is missing)")
-        stored = json.loads(marker.read_text(encoding="utf-8"))
+        stored = _as_written_now(json.loads(marker.read_text(encoding="utf-8")), identity)
         differ = sorted(k for k in {*stored, *identity} if stored.get(k) != identity.get(k))
         if differ:
             changes = [_with_keys(k, stored.get(k), identity.get(k)) for k in differ]
@@ -99,6 +100,26 @@ def claim(
             "study; choose a new or empty folder"
         )
     marker.write_text(json.dumps(identity, indent=2) + "\n", encoding="utf-8")
+
+
+def _as_written_now(stored: dict[str, Any], identity: Mapping[str, Any]) -> dict[str, Any]:
+    """A ``study.json`` an older auv-cosim wrote, with what it left out as this version
+    writes it, so that only what changed the rows differs: before the scenario's files were
+    recorded (``files``), a study whose scenario reads none besides its FMUs recorded no
+    key; before ``[coupling] extrapolation`` existed, the master held every exchanged value
+    across a step (``"none"``)."""
+    upgraded = dict(stored)
+    if "files" not in upgraded and identity.get("files", None) == {}:
+        upgraded["files"] = {}
+    scenario = upgraded.get("scenario")
+    coupling = scenario.get("coupling") if isinstance(scenario, dict) else None
+    if (
+        isinstance(scenario, dict)
+        and isinstance(coupling, dict)
+        and "extrapolation" not in coupling
+    ):
+        upgraded["scenario"] = {**scenario, "coupling": {**coupling, "extrapolation": "none"}}
+    return upgraded
 
 
 SHOWN_KEYS = 3  # differing keys a --resume refusal names
