@@ -78,8 +78,9 @@ def find_earlier_run(
     A refusal names the options as ``names`` does (flags or keywords).
 
     Raises RunFolderError: files set aside by a run killed before it stepped, files of no
-    run, a summary or manifest not ours, an earlier run not to be replaced, or an output
-    name that is not the earlier run's own file.
+    run, a summary or manifest not ours, a run an older auv-cosim wrote without a
+    manifest, an earlier run not to be replaced, or an output name that is not the earlier
+    run's own file.
     """
     entries = sorted(e.name for e in path.iterdir() if e.name not in (LOCK_FILE, MANIFEST_FILE))
     left = [e for e in entries if _ASIDE.match(e)]
@@ -92,6 +93,7 @@ def find_earlier_run(
     if not entries:
         return None
     summary = _summary(path, entries, names)
+    _refuse_older_run(path, summary, names)
     manifest = read_manifest(path, names)
     own = _own_files(path, manifest.entries)
     own[path / MANIFEST_FILE] = file_identity(path / MANIFEST_FILE) or {}
@@ -112,6 +114,26 @@ def find_earlier_run(
     kept = [f"{REPORT_FOLDER}/"] if (path / REPORT_FOLDER).exists() else []
     kept += [n for n in manifest.entries if Path(n).is_absolute() and os.path.lexists(n)]
     return EarlierRun(summary, own, kept)
+
+
+# what every summary.json an auv-cosim run wrote holds, from the first version on
+_OLDEST_SUMMARY_KEYS = ("stop_time", "wall_clock_s", "final_values")
+
+
+def _refuse_older_run(path: Path, summary: dict, names: OptionNames) -> None:
+    """Refuse, naming it as such, a run folder an auv-cosim wrote before runs listed their
+    files (:data:`MANIFEST_FILE`): its summary is a run's, and no manifest is there."""
+    if os.path.lexists(path / MANIFEST_FILE) or not all(
+        key in summary for key in _OLDEST_SUMMARY_KEYS
+    ):
+        return
+    raise RunFolderError(
+        f"{names.given('out', path)}: holds an earlier run (scenario "
+        f"{summary.get('scenario')!r}, status {summary.get('status')!r}) that an older "
+        f"auv-cosim wrote, before runs listed their files in {MANIFEST_FILE}: none of its "
+        "files is known to be the run's to replace; move the folder away or choose another "
+        "folder"
+    )
 
 
 def _summary(path: Path, entries: list[str], names: OptionNames) -> dict:

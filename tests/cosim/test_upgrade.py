@@ -4,10 +4,11 @@ made them: tests/data/upgrade/README.md)."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
-from upgrade_files import old_plant_fmu, plant_scenario
+from upgrade_files import OLD_RUN, old_plant_fmu, old_study, plant_scenario
 
 from cosim.cli import main
 
@@ -37,3 +38,22 @@ def test_validate_names_an_fmu_built_before_build_packages(
     assert main(["validate", str(fmu)]) == 1
     out = capsys.readouterr().out
     assert f"{fmu}: built by an older auv-cosim" in out, out
+
+
+def test_a_run_folder_an_older_version_wrote_is_refused_naming_the_version(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run folder from before runs listed their files cannot be replaced (nothing in it
+    is known to be the run's); the refusal named a missing file, not that an older
+    auv-cosim wrote the folder, and left the user to guess how it got that way."""
+    old_study(tmp_path)  # for its scenario of a reference FMU: no FMU is built
+    out = tmp_path / "runs" / "bs-2"
+    shutil.copytree(OLD_RUN, out)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    argv = ["run", str(tmp_path / "oscillator.toml"), "--out", str(out), "--overwrite"]
+    assert main([*argv, "--no-rrd"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert "an earlier run (scenario 'bs-2', status 'complete') that an older auv-cosim" in err
+    assert "move the folder away" in err, err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
