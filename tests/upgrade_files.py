@@ -15,6 +15,7 @@ from repo_paths import TESTS
 UPGRADE = TESTS / "data" / "upgrade"
 OLD_STUDY = UPGRADE / "study-5ca3066"
 OLD_RUN = UPGRADE / "run-5ca3066"
+OLD_BUILTIN_STUDY = UPGRADE / "study-a4f9b94"  # of bs-2, with the FMUs that version built
 # where the study's FMU was when the old version ran it (study.json records the path)
 OLD_STUDY_FMU = "/tmp/upg/fx/VanDerPol.fmu"
 PYTHONFMU_BINARY = (

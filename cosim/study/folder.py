@@ -129,7 +129,10 @@ SHOWN_VALUE_CHARS = 40  # a value longer than that is cut in the refusal
 def _with_keys(section: str, old: Any, new: Any) -> str:
     """A differing section of study.json as the refusal names it: the study file's and
     the resolved scenario's differing keys with both values (``study (random.seed: 11
-    in the folder, 12 now)``); the FMUs and files by name alone."""
+    in the folder, 12 now)``); the FMUs by instance, and why they differ; the files by name
+    alone."""
+    if section == "fmus":
+        return _changed_fmus(old, new)
     if section not in ("study", "scenario"):
         return section
     keys = _differing_keys(old, new)
@@ -137,6 +140,17 @@ def _with_keys(section: str, old: Any, new: Any) -> str:
         f"{key}: {_value(a)} in the folder, {_value(b)} now" for key, a, b in keys[:SHOWN_KEYS]
     )
     return f"{section} ({shown}{'; ...' if len(keys) > SHOWN_KEYS else ''})" if keys else section
+
+
+def _changed_fmus(old: Any, new: Any) -> str:
+    """The instances whose FMU is not the build the folder's runs used, and why that is
+    likely: ``fmus (controller, plant: ...)``."""
+    old, new = (value if isinstance(value, dict) else {} for value in (old, new))
+    changed = sorted(k for k in {*old, *new} if old.get(k) != new.get(k))
+    return (
+        f"fmus ({', '.join(changed)}: not the builds its runs used, as after an upgrade of "
+        "auv-cosim, which rebuilds its FMUs)"
+    )
 
 
 def _differing_keys(old: Any, new: Any, prefix: str = "") -> list[tuple[str, Any, Any]]:

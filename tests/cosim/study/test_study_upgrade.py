@@ -5,11 +5,18 @@ naming what differs otherwise (the fixtures: tests/data/upgrade/README.md)."""
 from __future__ import annotations
 
 import csv
+import shutil
 from pathlib import Path
 
 import pytest
 from sweep_helpers import table
-from upgrade_files import OLD_STUDY, old_plant_fmu, old_study, plant_scenario
+from upgrade_files import (
+    OLD_BUILTIN_STUDY,
+    OLD_STUDY,
+    old_plant_fmu,
+    old_study,
+    plant_scenario,
+)
 
 from cosim.cli import main
 
@@ -78,3 +85,18 @@ def test_a_study_of_an_fmu_built_before_build_packages_is_refused_at_once(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{fmu}: built by an older auv-cosim" in err, err
     assert not out.exists()
+
+
+def test_resuming_a_study_of_the_fmus_an_older_version_built_says_they_were_rebuilt(
+    fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A study of the built-in FMUs, killed before an upgrade: the upgrade rebuilds them,
+    so its rows are not this version's to continue. The refusal said only that the
+    folder "holds another study" differing in "fmus", though the study file was the same."""
+    shutil.copytree(OLD_BUILTIN_STUDY, tmp_path, dirs_exist_ok=True)
+    study, out = tmp_path / "bs-2-study.toml", tmp_path / "study"
+    argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--resume"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert "fmus (controller, plant: not the builds its runs used, as after an upgrade" in err
