@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from fmpy import calloc, extract, free
+from fmpy import calloc, free
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
@@ -36,6 +36,7 @@ from fmpy.fmi2 import (
 
 from cosim.engine.extrapolation import InputRates
 from cosim.errors import CosimError
+from cosim.fmus.interface import FmuInterfaceError, extract_fmu
 from cosim.scenario.spec import Instance
 from cosim.scratch import process_folder
 from fmu_runtime import exit_guard
@@ -396,19 +397,29 @@ def _extracted(fmu_path: Path) -> Path:
     """``fmu_path`` extracted into a new folder in this process's scratch folder
     (:func:`cosim.scratch.process_folder`, in ``TMPDIR``). An extraction the
     system refuses (a full disk, a file size limit: ``ulimit -f``) is a :class:`CosimError`
-    naming the FMU, the temporary folder and why, and the partly extracted folder goes."""
-    folder: Path | None = None
+    naming the FMU, the temporary folder and why, and the partly extracted folder goes; an
+    FMU that declares more bytes than the limit or the free space is refused before a byte
+    is written (:func:`cosim.fmus.interface.extract_fmu`)."""
     try:
         folder = Path(tempfile.mkdtemp(dir=process_folder()))
-        extract(str(fmu_path), unzipdir=str(folder))
     except OSError as exc:
-        if folder is not None:
-            shutil.rmtree(folder, ignore_errors=True)
-        raise CosimError(
-            f"cannot extract {fmu_path} into the temporary folder {tempfile.gettempdir()} "
-            f"(TMPDIR): {exc.strerror or exc}"
-        ) from None
+        raise _cannot_extract(fmu_path, exc) from None
+    try:
+        extract_fmu(fmu_path, folder)
+    except (OSError, FmuInterfaceError) as exc:
+        shutil.rmtree(folder, ignore_errors=True)
+        if isinstance(exc, FmuInterfaceError):
+            raise
+        raise _cannot_extract(fmu_path, exc) from None
     return folder
+
+
+def _cannot_extract(fmu_path: Path, exc: OSError) -> CosimError:
+    """Why the system refused to extract ``fmu_path`` into the temporary folder."""
+    return CosimError(
+        f"cannot extract {fmu_path} into the temporary folder {tempfile.gettempdir()} "
+        f"(TMPDIR): {exc.strerror or exc}"
+    )
 
 
 def _checked(fmu: Any, name: str, warned: Callable[[str, float], None]) -> Callable[..., int]:

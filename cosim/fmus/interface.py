@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 import re
+import shutil
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -32,6 +34,11 @@ from cosim.errors import CosimError
 Value = bool | int | float | str
 SI_BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 _CACHED_FMUS = 32
+# What an FMU may unpack to, as its archive declares it (zipfile never gives more bytes
+# than an entry declares): a larger one is refused before anything is read or written, as
+# a zip bomb would be. Ours unpack to ~2 MB, large FMUs of other tools to some 100 MB.
+MAX_UNPACKED_BYTES = 4 << 30  # bytes, all of its files together
+MAX_DESCRIPTION_BYTES = 256 << 20  # bytes of its modelDescription.xml, read whole
 
 
 # why an FMU without a co-simulation interface is refused, and what makes it one
@@ -121,6 +128,7 @@ def check_archive(path: Path) -> None:
     try:
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
+            unpacked_size(path, archive)
             description = archive.read("modelDescription.xml")
             root = ElementTree.fromstring(description)
     except KeyError:
@@ -138,6 +146,54 @@ def check_archive(path: Path) -> None:
     version = root.get("fmiVersion")
     if version != "2.0":
         raise FmuInterfaceError(f"{path}: fmiVersion {version!r}: expected an FMI 2.0 FMU")
+
+
+def unpacked_size(path: Path, archive: zipfile.ZipFile) -> int:
+    """The bytes the FMU ``archive`` (read from ``path``) unpacks to, as it declares them.
+
+    Raises:
+        FmuInterfaceError: over :data:`MAX_UNPACKED_BYTES`, or a modelDescription.xml over
+            :data:`MAX_DESCRIPTION_BYTES` (a zip bomb), in one line naming ``path``.
+    """
+    infos = archive.infolist()
+    size = sum(info.file_size for info in infos)
+    if size > MAX_UNPACKED_BYTES:
+        raise FmuInterfaceError(
+            f"{path}: unpacks to {size} bytes; at most {MAX_UNPACKED_BYTES} (a zip bomb?)"
+        )
+    description = sum(i.file_size for i in infos if i.filename == "modelDescription.xml")
+    if description > MAX_DESCRIPTION_BYTES:
+        raise FmuInterfaceError(
+            f"{path}: modelDescription.xml is {description} bytes; at most "
+            f"{MAX_DESCRIPTION_BYTES} (a zip bomb?)"
+        )
+    return size
+
+
+def extract_fmu(path: Path, folder: Path) -> None:
+    """Extract the FMU at ``path`` into ``folder`` with fmpy (which refuses a name with a
+    drive or a leading slash; zipfile drops ``..`` and makes no symbolic link), after
+    :func:`unpacked_size` and a check that ``folder``'s disk has room: a refusal comes
+    before a byte is written.
+
+    Raises:
+        FmuInterfaceError: too large (:func:`unpacked_size`), or larger than the free
+            space of ``folder``'s disk, in one line naming ``path``.
+        OSError, zipfile.BadZipFile: the file cannot be read or extracted.
+    """
+    from fmpy import extract
+
+    with zipfile.ZipFile(path) as archive:
+        size = unpacked_size(path, archive)
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent  # a folder not made yet: the disk it will be on
+    free = shutil.disk_usage(existing).free
+    if size > free:
+        raise FmuInterfaceError(
+            f"{path}: unpacks to {size} bytes; the disk of {folder} has {free} bytes free"
+        )
+    extract(os.fspath(path), unzipdir=os.fspath(folder))
 
 
 def check_binary(path: Path, model_identifier: str | None) -> None:

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import shlex
 import subprocess
 import sys
@@ -259,10 +258,18 @@ def smoke_run(paths: dict[str, Path]) -> list[str]:
     return json.loads(lines[-1])
 
 
+def _extracted(path: Path, folder: Path) -> str:
+    """``path`` extracted into ``folder`` (:func:`cosim.fmus.interface.extract_fmu`)."""
+    from cosim.fmus.interface import extract_fmu
+
+    extract_fmu(path, folder)
+    return str(folder)
+
+
 def _smoke_main(arguments: str, folder: str) -> None:
     """Subprocess side of :func:`smoke_run`: extracts each FMU into ``folder``, prints a
     JSON list of problems last."""
-    from fmpy import extract, read_model_description
+    from fmpy import read_model_description
     from fmpy.fmi2 import FMU2Slave
 
     problems: list[str] = []
@@ -272,7 +279,7 @@ def _smoke_main(arguments: str, folder: str) -> None:
             step = float((md.defaultExperiment.stepSize if md.defaultExperiment else None) or 0.01)
             slave = FMU2Slave(
                 guid=md.guid,
-                unzipDirectory=extract(path, unzipdir=os.path.join(folder, str(index))),
+                unzipDirectory=_extracted(Path(path), Path(folder, str(index))),
                 modelIdentifier=md.coSimulation.modelIdentifier,
                 instanceName=f"smoke_{name}",
             )

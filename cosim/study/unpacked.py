@@ -20,15 +20,18 @@ MODEL_DESCRIPTION = "modelDescription.xml"
 
 def unpack(fmu_paths: Mapping[str, Path], folder: Path) -> dict[str, str]:
     """Extract each FMU into ``folder``/<SHA-256 of its file>/ (once per content);
-    returns SHA-256 -> that folder (absolute)."""
-    from fmpy import extract
+    returns SHA-256 -> that folder (absolute). An FMU larger than the limit or the free
+    space there is refused before a byte is written
+    (:class:`cosim.fmus.interface.FmuInterfaceError`, from
+    :func:`cosim.fmus.interface.extract_fmu`)."""
+    from cosim.fmus.interface import extract_fmu
 
     found: dict[str, str] = {}
     for path in fmu_paths.values():
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
         target = (folder / digest).resolve()
         if not (target / MODEL_DESCRIPTION).is_file():
-            extract(str(path), unzipdir=str(target))
+            extract_fmu(path, target)
         found[digest] = str(target)
     return found
 

@@ -12,9 +12,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pytest
 from scenario_factory import loop_toml
+from zip_bombs import declaring_archive
 
 from cosim.engine import master, slave
+from cosim.errors import CosimError
 from cosim.scenario.spec import scenario_from_toml
 from cosim.scratch import SCRATCH_DIR
 
@@ -108,3 +111,37 @@ def test_an_fmu_the_temporary_folder_cannot_hold_is_named_and_leaves_nothing(
     assert done.stdout == expected + "\n"
     scratch = temp / SCRATCH_DIR  # the scratch folders' base and its lock stay
     assert sorted(temp.rglob("*")) == [scratch, scratch / "global.lock"]
+
+
+def test_an_fmu_larger_than_the_free_space_is_refused_before_extracting(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """An FMU declaring more bytes than the temporary folder's disk has free (a zip bomb,
+    or a large FMU on a small /tmp) was extracted until the shared disk was full; it is
+    refused, naming the FMU, the bytes and the free space, before a byte is written."""
+    fmu, description = tmp_path / "Big.fmu", "<fmiModelDescription/>"
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("modelDescription.xml", description)
+        archive.writestr("resources/zeros.bin", bytes(1 << 20))  # 1 MiB in ~1 kB
+    size = (1 << 20) + len(description)
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=1 << 19))
+    monkeypatch.setattr(slave, "_unzipped_dirs", {})
+    before = set(slave.process_folder().iterdir())
+    with pytest.raises(CosimError, match=rf"unpacks to {size} bytes.* 524288 bytes free") as e:
+        slave.unzipped(fmu)
+    assert str(e.value).startswith(f"{fmu}: ") and "\n" not in str(e.value)
+    assert set(slave.process_folder().iterdir()) == before  # nothing left behind
+
+
+def test_an_fmu_declaring_a_tebibyte_is_refused_before_extracting(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """The extraction itself refuses an archive over the size limit (a zip bomb), whoever
+    calls it: no FMU of ours or of the FMI world unpacks to a TiB."""
+    bomb = declaring_archive(tmp_path / "Bomb.fmu", {"resources/table.bin": 1 << 40})
+    monkeypatch.setattr(slave, "_unzipped_dirs", {})
+    before = set(slave.process_folder().iterdir())
+    with pytest.raises(CosimError, match=r"unpacks to 1099511[0-9]+ bytes; at most"):
+        slave.unzipped(bomb)
+    assert set(slave.process_folder().iterdir()) == before

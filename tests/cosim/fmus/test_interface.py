@@ -9,6 +9,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from zip_bombs import declaring_archive
 
 from cosim.export.components import components
 from cosim.fmus.interface import FmuInterfaceError, read_interface
@@ -119,3 +120,26 @@ def test_a_broken_fmu_is_one_line_naming_it(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(broken) in err and expected in err, err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("sizes", "expected"),
+    [
+        ({"resources/table.bin": 1 << 40}, "unpacks to 1099511[0-9]+ bytes"),
+        ({"modelDescription.xml": 1 << 30}, "modelDescription.xml is 1073741824 bytes"),
+    ],
+)
+def test_a_zip_bomb_is_refused_before_anything_is_unpacked(
+    sizes: dict[str, int], expected: str, fmu_paths, tmp_path: Path
+) -> None:
+    """An FMU of a few kB declaring a TiB of files (a zip bomb) passed the archive check,
+    and a run then filled the temporary folder's disk extracting it; one declaring a GiB
+    modelDescription.xml was read into memory whole, three times. Both are refused by what
+    the archive declares, naming the FMU and the limit."""
+    with zipfile.ZipFile(fmu_paths["AuvPlant"]) as plant:  # a description fmpy accepts
+        description = plant.read("modelDescription.xml")
+    bomb = declaring_archive(tmp_path / "Bomb.fmu", sizes, description)
+    with pytest.raises(FmuInterfaceError, match=expected) as refused:
+        read_interface(bomb)
+    message = str(refused.value)
+    assert message.startswith(f"{bomb}: ") and "at most" in message and "\n" not in message

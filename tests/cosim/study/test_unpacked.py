@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from cosim.engine import slave
+from cosim.errors import CosimError
 from cosim.study.unpacked import unpack, use_unpacked
 
 
@@ -120,3 +121,16 @@ def test_a_worker_removes_the_fmus_it_extracted_when_it_ends(fmu_paths, run_pyth
     assert Path(folder).is_relative_to(tmp_path) and was_there == "True"
     assert not Path(folder).exists(), f"the worker left {folder}"
     assert not Path(folder).parent.exists(), "the worker left its scratch folder"
+
+
+def test_the_clients_extraction_refuses_an_fmu_over_the_free_space(
+    fmu_paths, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The client extracted a study's FMUs into the study folder whatever their declared
+    size (a zip bomb filled that disk); one larger than the free space there is refused,
+    naming it, before anything is written."""
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=1024))
+    with pytest.raises(CosimError, match=r"bytes; .* has 1024 bytes free"):
+        unpack({"plant": fmu_paths["AuvPlant"]}, tmp_path / "unpacked")
+    assert not any((tmp_path / "unpacked").rglob("*"))
