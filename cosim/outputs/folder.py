@@ -21,7 +21,8 @@ created with what identifies it (inode, size, time, content hash), recorded by
 :meth:`RunFolder.wrote` each time the run finishes writing it.
 
 The lock is ``flock`` on :data:`LOCK_FILE` in the folder (holding the locking process's
-pid and command line, for the message), removed again when the run ends. The kernel
+pid and command line, for the message), removed again when the run ends; a lock file that
+is a link (a folder from elsewhere) is refused, never written through. The kernel
 releases it when the process dies, however it dies. The recording file is locked the
 same way.
 
@@ -36,10 +37,12 @@ folder stays locked until the files are whole.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import shlex
 import socket
+import stat
 import subprocess
 import sys
 import time
@@ -411,13 +414,7 @@ def lock_folder(path: Path, kind: str = "run", names: OptionNames = FLAGS) -> in
     RunFolderError naming the process holding it (and the options as ``names`` does)."""
     lock = path / LOCK_FILE
     for _ in range(5):  # a previous holder may remove the file between open and lock
-        try:
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
-        except OSError as exc:
-            raise RunFolderError(
-                f"{names.given('out', path)}: cannot write in the {kind} folder: "
-                f"{exc.strerror or exc}"
-            ) from None
+        fd = _open_lock(path, kind, names)
         if not _try_lock(fd):
             holder = _holder(fd)
             os.close(fd)
@@ -443,6 +440,37 @@ def lock_folder(path: Path, kind: str = "run", names: OptionNames = FLAGS) -> in
             return fd
         os.close(fd)
     raise RunFolderError(f"{kind} folder {path}: cannot take its lock (it keeps changing)")
+
+
+_NO_FOLLOW = getattr(os, "O_NOFOLLOW", 0)  # not on Windows
+
+
+def _open_lock(path: Path, kind: str, names: OptionNames) -> int:
+    """Open (or create) the lock file of the folder ``path``: a regular file of one name,
+    never through a link. A folder from elsewhere (a tarball, a shared /tmp folder) may
+    hold the lock file as a symbolic or hard link to one of the user's files, which the
+    lock would truncate and write into: refused, naming it. Raises RunFolderError."""
+    lock, refusal = path / LOCK_FILE, ""
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT | _NO_FOLLOW, 0o666)
+    except OSError as exc:
+        if exc.errno != errno.ELOOP:
+            raise RunFolderError(
+                f"{names.given('out', path)}: cannot write in the {kind} folder: "
+                f"{exc.strerror or exc}"
+            ) from None
+        refusal = "a symbolic link"
+    else:
+        status = os.fstat(fd)
+        if not stat.S_ISREG(status.st_mode) or status.st_nlink != 1:
+            os.close(fd)
+            refusal = "a hard link" if stat.S_ISREG(status.st_mode) else "not a regular file"
+    if refusal:
+        raise RunFolderError(
+            f"{kind} folder {path}: {LOCK_FILE}: {refusal}, not a lock file of ours (from "
+            f"wherever the folder came); remove it, or choose another {names.option('out')}"
+        )
+    return fd
 
 
 def unlock_folder(path: Path, fd: int) -> None:

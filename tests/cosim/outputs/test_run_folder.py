@@ -140,6 +140,31 @@ def test_a_locked_folder_is_refused_naming_the_process(loop_file: Path, tmp_path
     assert main(["run", str(loop_file), "--out", str(out), "--no-rrd"]) == 0
 
 
+@pytest.mark.parametrize("plant", ["symlink", "dangling symlink", "hard link"])
+def test_a_lock_file_planted_as_a_link_is_refused_and_its_target_left(
+    plant: str, tmp_path: Path
+) -> None:
+    """A run folder received from someone else (a tarball, a shared /tmp folder) holding
+    its lock file as a link to one of the user's files: claiming it truncated that file
+    and wrote the run's pid and command line into it (a dangling link made a new file
+    where it pointed). The link is refused, naming it; the file it names is untouched."""
+    out, victim = tmp_path / "downloaded", tmp_path / "victim.txt"
+    out.mkdir()
+    if plant != "dangling symlink":
+        victim.write_text("precious line\n")
+    if plant == "hard link":
+        (out / LOCK_FILE).hardlink_to(victim)
+    else:
+        (out / LOCK_FILE).symlink_to(Path("..") / victim.name)
+    with pytest.raises(RunFolderError, match=f"{LOCK_FILE}: .*link") as refused:
+        RunFolder.claim(out)
+    assert str(out) in str(refused.value) and "\n" not in str(refused.value)
+    if plant == "dangling symlink":
+        assert not victim.exists()
+    else:
+        assert victim.read_text() == "precious line\n"
+
+
 def test_a_command_line_holding_bytes_not_utf8_runs(
     loop_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
 ):

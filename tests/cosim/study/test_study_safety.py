@@ -165,3 +165,18 @@ def test_a_resume_of_a_changed_study_file_names_the_keys_that_changed(tmp_path: 
         info.value
     )
     claim(tmp_path, identity, True, CSV_NAME)  # the same study resumes
+
+
+def test_a_study_folder_whose_lock_file_is_a_link_is_refused(tmp_path: Path) -> None:
+    """A study folder from elsewhere holding its lock file as a link to one of the user's
+    files: locking it wrote the study's pid and command line over that file."""
+    from cosim.outputs.folder import LOCK_FILE
+    from cosim.study.folder import lock
+
+    out, victim = tmp_path / "study", tmp_path / "victim.txt"
+    out.mkdir()
+    victim.write_text("precious line\n")
+    (out / LOCK_FILE).symlink_to(victim)
+    with pytest.raises(StudyError, match="a symbolic link, not a lock file"), lock(out):
+        pass
+    assert victim.read_text() == "precious line\n"
