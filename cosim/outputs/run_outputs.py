@@ -38,6 +38,7 @@ from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, mission_legs, su
 from cosim.outputs.results import final_summary, running_summary
 from cosim.outputs.sinks import CsvSink, ProgressSink, write_json_atomically
 from cosim.scenario.spec import Scenario
+from cosim.whole_file import write_whole
 
 
 class ClosableSink(RowSink, Protocol):
@@ -227,13 +228,10 @@ class RunOutputs:
     def write_scenario(self, scenario: Scenario) -> str | None:
         """Replace scenario.toml (a live run's, its overrides as events: a replay); the
         failure to write it, if any."""
-        path = self.paths["scenario"]
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        path, text = self.paths["scenario"], scenario.to_toml()
         try:
-            tmp.write_text(scenario.to_toml(), encoding="utf-8")
-            os.replace(tmp, path)
+            write_whole(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         except OSError as exc:
-            tmp.unlink(missing_ok=True)
             return f"cannot write {path}: {exc.strerror or exc}"
         return self._record("scenario")
 

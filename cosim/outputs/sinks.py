@@ -24,6 +24,7 @@ import numpy as np
 from cosim.engine.rows import NotesIgnored
 from cosim.errors import CosimError
 from cosim.outputs.results import csv_header, csv_lines
+from cosim.whole_file import write_whole
 
 
 class CsvSink(NotesIgnored):
@@ -94,12 +95,10 @@ def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
     """Write ``data`` as JSON to ``path`` so that a reader sees the old file or the new
     one, never a part: a temporary file beside it, then a rename. Non-finite numbers are
     refused (they are not JSON). Raises :class:`CosimError` naming the file."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
     try:
-        tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-        os.replace(tmp, path)
+        write_whole(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 

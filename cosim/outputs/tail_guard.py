@@ -135,7 +135,10 @@ def record_identities(manifest: str, paths: list[str]) -> None:
                 entry.update(identity)
     tmp = f"{manifest}.guard.tmp"
     try:
-        Path(tmp).write_text(json.dumps(data), encoding="utf-8")
+        with contextlib.suppress(FileNotFoundError):  # a link planted at the name goes:
+            os.unlink(tmp)  # never written through (cosim.whole_file, not imported here)
+        with open(tmp, "x", encoding="utf-8") as file:
+            file.write(json.dumps(data))
         os.replace(tmp, manifest)
     except OSError:  # nothing better to do: the run is gone
         Path(tmp).unlink(missing_ok=True)

@@ -36,6 +36,7 @@ from matplotlib import colormaps
 from cosim.viz.layout import time_index
 from cosim.viz.recording import APPLICATION_ID, FLUSH_TIMEOUT
 from cosim.viz.rrd_file import RrdFile, file_sink, pumped
+from cosim.whole_file import fresh_file
 
 POSITION = ("plant.north", "plant.east", "plant.down")
 SERIES = {  # entity root -> (results column, display scale)
@@ -75,6 +76,7 @@ def write_overlay(path: Path, runs: Sequence[OverlayRun], title: str, notes: str
     # Rerun takes UTF-8 text: a folder's name in bytes that are no UTF-8 (surrogates) escaped
     title, notes = (text.encode(errors="backslashreplace").decode() for text in (title, notes))
     try:
+        fresh_file(tmp)  # never written through a link planted at the name
         _write(tmp, runs, title, notes)
     except BaseException:
         with contextlib.suppress(OSError):

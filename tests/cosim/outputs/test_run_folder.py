@@ -5,6 +5,7 @@ recording may not point at another output. On the test FMUs of tests/fmus, in pr
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -163,6 +164,25 @@ def test_a_lock_file_planted_as_a_link_is_refused_and_its_target_left(
         assert not victim.exists()
     else:
         assert victim.read_text() == "precious line\n"
+
+
+def test_links_planted_at_the_temporary_names_are_not_written_through(
+    loop_file: Path, tmp_path: Path
+) -> None:
+    """A run folder someone else can write (or a tarball of one) holding links named like
+    the run's temporary files (``.summary.json.<pid>.tmp``: the pid is in the lock file
+    while the run goes): ``--overwrite`` wrote the summary over the file a link named, and
+    then failed ("summary.json: it is not a regular file any more"). A link at a name the
+    run writes goes; the files they name are untouched and the run completes."""
+    out, victim = tmp_path / "shared", tmp_path / "victim.txt"
+    assert main(["run", str(loop_file), "--out", str(out), "--no-rrd"]) == 0
+    victim.write_text("precious line\n")
+    for name in ("summary.json", "scenario.toml", MANIFEST):
+        (out / f".{name}.{os.getpid()}.tmp").symlink_to(victim)
+    assert main(["run", str(loop_file), "--out", str(out), "--no-rrd", "--overwrite"]) == 0
+    assert victim.read_text() == "precious line\n"
+    assert not any((out / name).is_symlink() for name in ("summary.json", MANIFEST))
+    assert json.loads((out / "summary.json").read_text())["status"] == "complete"
 
 
 def test_a_command_line_holding_bytes_not_utf8_runs(
