@@ -33,7 +33,8 @@ says so on stderr and in the recording).
 
 The socket is bound to 127.0.0.1 unless the address names another interface (``HOST:PORT``,
 ``[IPv6]:PORT``): there is no authentication, so an address other than the loopback prints a
-warning: anyone who can reach the port can steer the run.
+warning: anyone who can reach the port can steer the run. On Linux a connection from a
+process of another user of this machine is refused with one line (:func:`peer_owner`).
 
 Built on the standard library's ``socketserver`` (a thread per client) with a line reader of
 our own (``socket.makefile().readline(limit)`` returns the first ``limit`` bytes of a long line
@@ -45,6 +46,7 @@ from __future__ import annotations
 import contextlib
 import ipaddress
 import json
+import os
 import queue
 import re
 import socket
@@ -67,6 +69,7 @@ _CHUNK = 65536  # bytes read from a socket at a time
 _END_OF_LINE = re.compile(rb"[\r\n]")
 _USAGE = 'expected one of {"set": {...}}, {"get": [...]}, {"pause": true|false}, {"stop": true}'
 TOO_LONG = None  # what :func:`lines` yields for a line over MAX_LINE bytes
+PROC_NET_TCP = ("/proc/net/tcp", "/proc/net/tcp6")  # Linux: every TCP socket, with its uid
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -211,18 +214,67 @@ class _Server(socketserver.ThreadingTCPServer):
     guard: threading.Lock
 
     def process_request(self, request: Any, client_address: Any) -> None:
-        """Serve the client in a thread of its own, unless :data:`MAX_CLIENTS` are served."""
+        """Serve the client in a thread of its own, unless it is a process of another user
+        of this machine (:func:`peer_owner`) or :data:`MAX_CLIENTS` are served."""
+        try:
+            owner = peer_owner(request.getpeername(), request.getsockname())
+        except OSError:
+            owner = None  # the client is gone already: its reads end at once
+        if owner is not None and owner != os.geteuid():
+            mine = os.geteuid()
+            self._refuse(request, f"connection from a process of uid {owner} refused: the "
+                         f"endpoint serves the programs of its own user (uid {mine})")  # fmt: skip
+            return
         with self.guard:
             full = len(self.clients) >= MAX_CLIENTS
             if not full:
                 self.clients.add(request)
         if full:
-            refusal = f"too many connections: at most {MAX_CLIENTS} at once; closing this one"
-            with contextlib.suppress(OSError):
-                request.sendall((json.dumps({"error": refusal}) + "\n").encode())
-            self.shutdown_request(request)
+            self._refuse(request, f"too many connections: at most {MAX_CLIENTS} at once; "
+                         "closing this one")  # fmt: skip
             return
         super().process_request(request, client_address)
+
+    def _refuse(self, request: Any, refusal: str) -> None:
+        """Send ``refusal`` as the one error line, and close the connection."""
+        with contextlib.suppress(OSError):
+            request.sendall((json.dumps({"error": refusal}) + "\n").encode())
+        self.shutdown_request(request)
+
+
+def peer_owner(peer: tuple[Any, ...], own: tuple[Any, ...]) -> int | None:
+    """The uid owning the TCP socket of this machine at ``peer`` that is connected to
+    ``own`` (an accepted connection's two addresses, ``(host, port, ...)``), as Linux lists
+    it in /proc/net/tcp and tcp6; None for a client on another machine, or without /proc
+    (not Linux: no check there)."""
+    pairs = {(a, b) for a in _proc_forms(peer) for b in _proc_forms(own)}
+    for table in PROC_NET_TCP:
+        try:
+            with open(table, encoding="ascii") as file:
+                rows = [line.split() for line in file.readlines()[1:]]
+        except OSError:
+            continue
+        for row in rows:
+            if len(row) > 7 and (row[1], row[2]) in pairs:
+                return int(row[7])
+        # a socket listed in neither table: not of this machine, or closed since
+    return None
+
+
+def _proc_forms(address: tuple[Any, ...]) -> list[str]:
+    """``address`` as /proc/net/tcp* write it (``0100007F:1F90``: the address in 32-bit
+    words of the host's byte order, the port in hex), IPv4 and IPv4-mapped IPv6 both."""
+    ip = ipaddress.ip_address(str(address[0]).split("%")[0])
+    forms = [ip.packed]
+    if isinstance(ip, ipaddress.IPv4Address):
+        forms.append(ipaddress.IPv6Address(f"::ffff:{ip}").packed)
+    elif ip.ipv4_mapped is not None:
+        forms.append(ip.ipv4_mapped.packed)
+    words = [
+        "".join(f"{int.from_bytes(b[i : i + 4], sys.byteorder):08X}" for i in range(0, len(b), 4))
+        for b in forms
+    ]
+    return [f"{word}:{int(address[1]):04X}" for word in words]
 
 
 class _Client(socketserver.BaseRequestHandler):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import socket
 import threading
 from collections.abc import Iterator
@@ -22,6 +23,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from process_group import run_in_group
 
 from cosim.engine.live import LiveControl, OverrideError
 from cosim.engine.signals import StopRequest
@@ -34,6 +36,7 @@ from cosim.live.control import (
     answer,
     lines,
     parse_address,
+    peer_owner,
 )
 from cosim.live.session import LiveSession
 from cosim.scenario.spec import Scenario, load_scenario
@@ -427,3 +430,50 @@ def test_a_set_refused_by_the_run_ending_raises_for_keys(scenario: Scenario) -> 
     live.close("the run ended at t = 2 s")
     with pytest.raises(OverrideError, match="set not applied: the run ended at t = 2 s"):
         live.request({"controller.yaw_setpoint": 0.1}, "keys")
+
+
+NOBODY = 65534  # the uid of another user: nobody
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "geteuid") or os.geteuid() != 0 or not Path("/proc/net/tcp").exists(),
+    reason="needs root (to be another user) and Linux's /proc/net/tcp",
+)
+def test_a_connection_from_another_users_process_is_refused(scenario: Scenario) -> None:
+    """On a shared machine every user's programs reach 127.0.0.1: another student's
+    process could pause, steer or stop the run ({"ok": true} to its requests). A
+    connection from a process of another user is now refused with one line and closed."""
+    live = LiveControl(scenario)
+    with endpoint(live) as server:
+        host, _, port = server.address.rpartition(":")
+        client = (f"exec 3<>/dev/tcp/{host}/{port}; printf '%s\\n' '{GOOD.decode().strip()}' >&3;"
+                  " head -n 1 <&3")  # fmt: skip
+        command = ["setpriv", f"--reuid={NOBODY}", f"--regid={NOBODY}", "--clear-groups",
+                   "bash", "-c", client]  # fmt: skip
+        done = run_in_group(command, timeout=TIMEOUT_S)
+        assert done.returncode == 0, done.stderr
+        reply = json.loads(done.stdout)
+        assert str(reply.get("error")).startswith(f"connection from a process of uid {NOBODY}"), (
+            reply
+        )
+        mine = Client(server)  # this user's own client is served
+        mine.send(GOOD)
+        assert mine.reply() == {"ok": True, "paused": False}
+        mine.close()
+
+
+@pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="Linux's /proc/net/tcp")
+@pytest.mark.parametrize("address", ["127.0.0.1:0", "[::1]:0"])
+def test_the_owner_of_a_local_connection_is_found(scenario: Scenario, address: str) -> None:
+    """The check behind the refusal finds the uid of the process at the other end of a
+    connection from this machine (IPv4 and IPv6): this process's own."""
+    if address.startswith("[") and not socket.has_ipv6:
+        pytest.skip("no IPv6")
+    live = LiveControl(scenario)
+    with endpoint(live, address) as server:
+        mine = Client(server)
+        mine.send(GOOD)
+        assert mine.reply() == {"ok": True, "paused": False}
+        # as the server sees it: the client's address is its peer's, its own the server's
+        assert peer_owner(mine.sock.getsockname(), mine.sock.getpeername()) == os.getuid()
+        mine.close()
