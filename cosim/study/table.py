@@ -25,8 +25,11 @@ CSV's header names none: its names are what ``--resume`` and ``collect`` match).
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
+import os
+import stat
 from collections.abc import KeysView, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -74,17 +77,18 @@ class RunsTable:
         removed from the file, every complete line is kept. ``runs`` are the study's
         runs: a row of any other run, or another header, is an error."""
         table = cls(path, factors, metrics)
-        content = path.read_bytes()
-        whole = content[: content.rfind(b"\n") + 1]
-        if len(whole) != len(content):
-            with path.open("r+b") as f:
-                f.truncate(len(whole))
-        lines = list(csv.reader(io.StringIO(whole.decode("utf-8"))))
-        if not lines:
-            path.write_text(_line(table.columns), encoding="utf-8")
-            return table
-        if lines[0] != table.columns:
-            raise StudyError(f"{path}: its columns {lines[0]} are not this study's {table.columns}")
+        with os.fdopen(_open_own(path), "r+b") as f:
+            content = f.read()
+            whole = content[: content.rfind(b"\n") + 1]
+            lines = list(csv.reader(io.StringIO(whole.decode("utf-8", "replace"))))
+            if lines and lines[0] != table.columns:
+                raise StudyError(
+                    f"{path}: its columns {lines[0]} are not this study's {table.columns}"
+                )
+            f.truncate(len(whole))  # a last line cut short goes
+            if not lines:
+                f.write(_line(table.columns).encode("utf-8"))
+                return table
         by_id = {run.id: run for run in runs}
         for number, cells in enumerate(lines[1:], start=2):
             row = dict(zip(table.columns, cells, strict=False))
@@ -157,6 +161,32 @@ def _cell(value: Value | None) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     return repr(value) if isinstance(value, float) else str(value)
+
+
+_NO_FOLLOW = getattr(os, "O_NOFOLLOW", 0)  # not on Windows
+
+
+def _open_own(path: Path) -> int:
+    """``path`` (runs.csv) opened to read and write: a regular file of one name, never
+    through a link. A study folder from elsewhere may hold runs.csv as a symbolic or hard
+    link to one of the user's files, which resuming would cut or write over: refused.
+    Raises StudyError naming it, OSError."""
+    try:
+        fd = os.open(path, os.O_RDWR | _NO_FOLLOW)
+    except OSError as exc:
+        if exc.errno != errno.ELOOP:
+            raise
+        kind = "a symbolic link"
+    else:
+        status = os.fstat(fd)
+        if stat.S_ISREG(status.st_mode) and status.st_nlink == 1:
+            return fd
+        os.close(fd)
+        kind = "a hard link" if stat.S_ISREG(status.st_mode) else "not a regular file"
+    raise StudyError(
+        f"{path}: {kind}, not a runs table a study wrote (from wherever the folder came); "
+        "move it away, or choose another folder"
+    )
 
 
 def _line(cells: Sequence[str]) -> str:

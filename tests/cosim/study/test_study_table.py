@@ -177,6 +177,33 @@ def test_reopen_refuses_another_studys_table(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not hasattr(__import__("signal"), "pthread_sigmask"), reason="POSIX signals")
+@pytest.mark.parametrize(
+    ("plant", "victim_text"),
+    [
+        ("symbolic link", "line one\nsecret without a line end"),  # its last line was cut off
+        ("symbolic link", "no line end at all"),  # it was replaced by the table's header
+        ("hard link", "line one\nsecret without a line end"),
+    ],
+)
+def test_resuming_a_table_that_is_a_link_leaves_the_file_it_names(
+    plant: str, victim_text: str, tmp_path: Path
+) -> None:
+    """``--resume`` of a study folder from elsewhere (or one others can write) whose
+    runs.csv is a link to one of the user's files: the reopening cut that file after its
+    last line end, or wrote the header over a file with none, before it found the
+    columns were not a study's. The link is refused, naming it; the file is untouched."""
+    path, victim = tmp_path / "runs.csv", tmp_path / "victim.txt"
+    victim.write_text(victim_text)
+    if plant == "hard link":
+        path.hardlink_to(victim)
+    else:
+        path.symlink_to(victim)
+    with pytest.raises(StudyError, match=f"{path}: a {plant}, not a runs table") as refused:
+        RunsTable.reopen(path, FACTORS, METRICS, RUNS)
+    assert "\n" not in str(refused.value)
+    assert victim.read_text() == victim_text
+
+
 def test_a_stop_signal_right_after_a_row_is_written_counts_the_row(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
