@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
+import stat
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -78,6 +80,13 @@ def claim(
     if resume:
         if not marker.is_file():
             raise StudyError(f"{resuming}: {out_dir} holds no study ({STUDY_JSON} is missing)")
+        link = _first_link(out_dir)
+        if link is not None:
+            raise StudyError(
+                f"{resuming}: {out_dir} holds {link[0]}, a {link[1]} (from wherever the folder "
+                "came): the study would write over what it names; remove it, or give another "
+                f"{out} to start this study"
+            )
         stored = _as_written_now(json.loads(marker.read_text(encoding="utf-8")), identity)
         differ = sorted(k for k in {*stored, *identity} if stored.get(k) != identity.get(k))
         if differ:
@@ -120,6 +129,23 @@ def _as_written_now(stored: dict[str, Any], identity: Mapping[str, Any]) -> dict
     ):
         upgraded["scenario"] = {**scenario, "coupling": {**coupling, "extrapolation": "none"}}
     return upgraded
+
+
+def _first_link(out_dir: Path) -> tuple[str, str] | None:
+    """The first entry below ``out_dir`` (its relative path, and "symbolic link" or "hard
+    link") that a resumed study would write through: a symbolic link, or a file of more
+    than one name; None if there is none. Links are not followed."""
+    for folder, dirs, files in os.walk(out_dir):
+        dirs.sort()
+        for name in sorted(dirs + files):
+            path = Path(folder, name)
+            info = path.lstat()
+            kind = "symbolic link" if stat.S_ISLNK(info.st_mode) else None
+            if kind is None and stat.S_ISREG(info.st_mode) and info.st_nlink > 1:
+                kind = "hard link"
+            if kind is not None:
+                return path.relative_to(out_dir).as_posix(), kind
+    return None
 
 
 SHOWN_KEYS = 3  # differing keys a --resume refusal names

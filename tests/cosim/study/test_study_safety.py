@@ -180,3 +180,36 @@ def test_a_study_folder_whose_lock_file_is_a_link_is_refused(tmp_path: Path) -> 
     with pytest.raises(StudyError, match="a symbolic link, not a lock file"), lock(out):
         pass
     assert victim.read_text() == "precious line\n"
+
+
+@pytest.mark.parametrize(
+    ("entry", "plant"),
+    [
+        ("index.html", "symbolic link"),
+        ("figures/yaw_settling_time_s.png", "hard link"),
+        ("runs", "symbolic link"),  # a folder: each kept run's files would go there
+    ],
+)
+def test_resuming_a_study_folder_holding_links_is_refused(
+    entry: str, plant: str, tmp_path: Path
+) -> None:
+    """``--resume`` of a study folder from elsewhere holding links where the study writes
+    (its page, a figure, the kept runs' folder): the resumed study wrote its page, figures
+    and runs over the files (or into the folder) they named. Refused, naming the entry,
+    before anything is written."""
+    out, victim = tmp_path / "study", tmp_path / "victim"
+    out.mkdir()
+    identity = {"study": {"stop_time": 2.0}, "fmus": {}}
+    claim(out, identity, False, CSV_NAME)
+    (out / entry).parent.mkdir(parents=True, exist_ok=True)
+    if entry == "runs":
+        victim.mkdir()
+    else:
+        victim.write_text("precious line\n")
+    if plant == "hard link":
+        (out / entry).hardlink_to(victim)
+    else:
+        (out / entry).symlink_to(victim)
+    with pytest.raises(StudyError, match=f"holds {entry}, a {plant}") as refused:
+        claim(out, identity, True, CSV_NAME)
+    assert "\n" not in str(refused.value)
