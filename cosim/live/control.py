@@ -34,7 +34,8 @@ says so on stderr and in the recording).
 The socket is bound to 127.0.0.1 unless the address names another interface (``HOST:PORT``,
 ``[IPv6]:PORT``): there is no authentication, so an address other than the loopback prints a
 warning: anyone who can reach the port can steer the run. On Linux a connection from a
-process of another user of this machine is refused with one line (:func:`peer_owner`).
+process of another user of this machine is refused with one line
+(:func:`cosim.local_peers.another_user`).
 
 Built on the standard library's ``socketserver`` (a thread per client) with a line reader of
 our own (``socket.makefile().readline(limit)`` returns the first ``limit`` bytes of a long line
@@ -59,6 +60,7 @@ from typing import Any
 
 from cosim.engine.live import LiveControl, OverrideError, Ticket
 from cosim.errors import CosimError
+from cosim.local_peers import another_user
 
 DEFAULT_HOST = "127.0.0.1"
 MAX_LINE = 65536  # bytes: a longer request line is refused whole
@@ -69,7 +71,6 @@ _CHUNK = 65536  # bytes read from a socket at a time
 _END_OF_LINE = re.compile(rb"[\r\n]")
 _USAGE = 'expected one of {"set": {...}}, {"get": [...]}, {"pause": true|false}, {"stop": true}'
 TOO_LONG = None  # what :func:`lines` yields for a line over MAX_LINE bytes
-PROC_NET_TCP = ("/proc/net/tcp", "/proc/net/tcp6")  # Linux: every TCP socket, with its uid
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -215,12 +216,10 @@ class _Server(socketserver.ThreadingTCPServer):
 
     def process_request(self, request: Any, client_address: Any) -> None:
         """Serve the client in a thread of its own, unless it is a process of another user
-        of this machine (:func:`peer_owner`) or :data:`MAX_CLIENTS` are served."""
-        try:
-            owner = peer_owner(request.getpeername(), request.getsockname())
-        except OSError:
-            owner = None  # the client is gone already: its reads end at once
-        if owner is not None and owner != os.geteuid():
+        of this machine (:func:`cosim.local_peers.another_user`) or :data:`MAX_CLIENTS` are
+        served."""
+        owner = another_user(request)
+        if owner is not None:
             mine = os.geteuid()
             self._refuse(request, f"connection from a process of uid {owner} refused: the "
                          f"endpoint serves the programs of its own user (uid {mine})")  # fmt: skip
@@ -240,41 +239,6 @@ class _Server(socketserver.ThreadingTCPServer):
         with contextlib.suppress(OSError):
             request.sendall((json.dumps({"error": refusal}) + "\n").encode())
         self.shutdown_request(request)
-
-
-def peer_owner(peer: tuple[Any, ...], own: tuple[Any, ...]) -> int | None:
-    """The uid owning the TCP socket of this machine at ``peer`` that is connected to
-    ``own`` (an accepted connection's two addresses, ``(host, port, ...)``), as Linux lists
-    it in /proc/net/tcp and tcp6; None for a client on another machine, or without /proc
-    (not Linux: no check there)."""
-    pairs = {(a, b) for a in _proc_forms(peer) for b in _proc_forms(own)}
-    for table in PROC_NET_TCP:
-        try:
-            with open(table, encoding="ascii") as file:
-                rows = [line.split() for line in file.readlines()[1:]]
-        except OSError:
-            continue
-        for row in rows:
-            if len(row) > 7 and (row[1], row[2]) in pairs:
-                return int(row[7])
-        # a socket listed in neither table: not of this machine, or closed since
-    return None
-
-
-def _proc_forms(address: tuple[Any, ...]) -> list[str]:
-    """``address`` as /proc/net/tcp* write it (``0100007F:1F90``: the address in 32-bit
-    words of the host's byte order, the port in hex), IPv4 and IPv4-mapped IPv6 both."""
-    ip = ipaddress.ip_address(str(address[0]).split("%")[0])
-    forms = [ip.packed]
-    if isinstance(ip, ipaddress.IPv4Address):
-        forms.append(ipaddress.IPv6Address(f"::ffff:{ip}").packed)
-    elif ip.ipv4_mapped is not None:
-        forms.append(ip.ipv4_mapped.packed)
-    words = [
-        "".join(f"{int.from_bytes(b[i : i + 4], sys.byteorder):08X}" for i in range(0, len(b), 4))
-        for b in forms
-    ]
-    return [f"{word}:{int(address[1]):04X}" for word in words]
 
 
 class _Client(socketserver.BaseRequestHandler):

@@ -47,6 +47,7 @@ from typing import IO, Any
 from urllib.parse import quote
 
 from cosim.errors import CosimError
+from cosim.local_peers import another_user
 from cosim.scratch import process_folder
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 
@@ -78,7 +79,8 @@ def serve_command(executable: str, rrd: Path, web_port: int, file_port: int) -> 
 @contextlib.contextmanager
 def _file_server(rrd: Path, port: int, web_port: int) -> Iterator[None]:
     """``rrd`` served over HTTP on :data:`HOST` at :func:`file_url` while inside: that one
-    path only, readable by the web viewer's page (CORS: its origin only).
+    path only, readable by the web viewer's page (CORS: its origin only), and on Linux by
+    this user's programs only (another user's process of this machine gets 403).
 
     Written with the standard library's ``http.server``: rerun's binary serves a file only
     through its gRPC proxy (the live stream above)."""
@@ -92,6 +94,10 @@ def _file_server(rrd: Path, port: int, web_port: int) -> Iterator[None]:
             self._answer(body=False)
 
         def _answer(self, body: bool) -> None:
+            owner = another_user(self.connection)
+            if owner is not None:  # on a shared machine: another user's process
+                self.send_error(403, f"served to the programs of its own user, not uid {owner}")
+                return
             if self.path != name:
                 self.send_error(404)
                 return

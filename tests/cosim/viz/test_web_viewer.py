@@ -248,3 +248,35 @@ def test_the_next_run_removes_the_copy_a_killed_view_served(recording: Path, tmp
     done = run_in_group(command, timeout=120, env=env)
     assert done.returncode == 0, done.stderr
     assert list(scratch.rglob(f"{SCRATCH_PREFIX}*")) == []
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "geteuid") or os.geteuid() != 0 or not Path("/proc/net/tcp").exists(),
+    reason="needs root (to be another user) and Linux's /proc/net/tcp",
+)
+def test_the_file_server_refuses_another_users_process(tmp_path: Path) -> None:
+    """On a shared machine every user's programs reach 127.0.0.1: while a recording was
+    served, another user's process could fetch it (200 and the file). It gets 403; the
+    user's own requests (the browser's) are served."""
+    import http.client
+
+    from process_group import run_in_group
+
+    from cosim.viz.web_viewer import _file_server
+
+    rrd = tmp_path / "recording.rrd"
+    rrd.write_bytes(FAKE_RRD)
+    with socket.socket() as probe:
+        probe.bind((HOST, 0))
+        port = probe.getsockname()[1]
+    request = "GET /recording.rrd HTTP/1.0\\r\\n\\r\\n"
+    fetch = f"exec 3<>/dev/tcp/{HOST}/{port}; printf '{request}' >&3; head -n 1 <&3"
+    with _file_server(rrd, port, 9090):
+        done = run_in_group(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups",
+                             "bash", "-c", fetch], timeout=60)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+        assert done.stdout.split()[1:2] == ["403"], done.stdout
+        connection = http.client.HTTPConnection(HOST, port, timeout=10)
+        connection.request("GET", "/recording.rrd")
+        assert connection.getresponse().read() == FAKE_RRD
+        connection.close()
