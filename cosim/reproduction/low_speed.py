@@ -30,8 +30,9 @@ NORMAL_THRUST, LOW_THRUST = 9.0, 4.0  # N
 LOW_SPEED_TURNS = (
     "No variant of the model matches to the printed digits: the lateral "
     "model with W = m g (ours) or the printed W = 299 N is off in u, v, r by 0.14-0.23 % and "
-    "banks by 0.77 deg where the text prints phi = 0; a bank-free one (horizontal variant, "
-    "or W = B) is off by 0.9-2.5 %, 5-10 times further. Why is not known."
+    "banks by 0.77 deg where the text prints phi = 0; the horizontal variant (phi held at 0) "
+    "is off by 0.9-2.5 %, 4-11 times further, and so is the lateral model with W = B (the "
+    "horizontal variant's u, v, r, though it still banks, by 0.75 deg). Why is not known."
 )
 STATES = ("u", "v", "r", "p", "roll")  # the printed x0 = [u, v, r, p, phi]
 HEADING_9_NEWTON = (

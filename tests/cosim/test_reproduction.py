@@ -10,6 +10,7 @@ Claims that need a continuation, a phase portrait or a closed-loop run are slow.
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from pathlib import Path
 
@@ -18,6 +19,7 @@ import pytest
 from reference_values import DISSERTATION, VALUES_FILE
 
 from cosim.analysis.bifurcation import Q_PROP, OperatingConditions, cg_offset, sweep
+from cosim.analysis.equilibria import find_equilibrium
 from cosim.analysis.reference_values import load_reference_values
 from cosim.cli import main
 from cosim.reproduction import Claim, Context, Cost, Finding, all_claims, evaluate
@@ -25,6 +27,7 @@ from cosim.reproduction.catalogue import catalogue
 from cosim.reproduction.context import NotRunError, RunData
 from cosim.reproduction.generate import figures_of
 from cosim.reproduction.lateral import jacobian, printed_jacobian
+from cosim.reproduction.low_speed import LOW_SPEED_TURNS, LOW_THRUST
 from cosim.reproduction.model_choices import WithoutReaction, momentum_drift
 from cosim.reproduction.page import Evaluated, render
 from cosim.reproduction.record import (
@@ -44,7 +47,7 @@ from plant_fmu.model import compiled
 from plant_fmu.model.dynamics import INPUT_INDEX, STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.moving_mass import MovingMassModel, rail_direction
-from plant_fmu.model.parameters import load_vehicle
+from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 from plant_fmu.model.stepping import advance
 
 CLAIMS = all_claims(DISSERTATION)
@@ -295,6 +298,46 @@ def test_the_low_speed_equilibria_are_compared_in_every_printed_entry(ctx: Conte
         (claim,) = [c for c in CLAIMS if c.reference == ref.key]
         assert claim.printed == tuple(ref.text)
         assert len(claim.ours(ctx).values) == len(ref.text) == 5
+
+
+def _low_speed_turn(
+    params: VehicleParameters, variant: Variant, printed: dict[str, float]
+) -> tuple[list[float], float]:
+    """The T = 4 N turn x0' of ``params`` in ``variant``, found from the printed one: the
+    relative distance (%) of its u, v, r from the printed ones, and its bank |phi| (deg)."""
+    model = PlantModel(params, variant)
+    eq = find_equilibrium(model, printed, {"thrust": LOW_THRUST})
+    off = [100 * abs(eq.value(name) / value - 1) for name, value in printed.items()]
+    return off, float(np.degrees(abs(eq.value("roll"))))
+
+
+def test_the_low_speed_explanation_states_what_each_variant_of_the_model_gives() -> None:
+    """Why ours differs from the printed T = 4 N turns is argued from four variants of the
+    model: every figure the argument states is the one the model gives (it called the
+    W = B vehicle bank-free, which banks by 0.75 deg), so it cannot go stale unnoticed."""
+    remus = load_vehicle("remus100")
+    ref = DISSERTATION["low_speed.turn_positive_v"]
+    printed = dict(zip(("u", "v", "r"), (float(t) for t in ref.text[:3]), strict=True))
+    near = [
+        _low_speed_turn(remus, Variant.LATERAL, printed),
+        _low_speed_turn(remus.replace(W=W_TABLE_5_4), Variant.LATERAL, printed),
+    ]
+    horizontal = _low_speed_turn(remus, Variant.HORIZONTAL, printed)
+    neutral = _low_speed_turn(remus.replace(W=remus.B), Variant.LATERAL, printed)
+    near_off = [x for off, _ in near for x in off]
+    far_off = horizontal[0] + neutral[0]
+    ratios = [far / close for far, close in zip(horizontal[0], near[0][0], strict=True)]
+    assert neutral[0] == pytest.approx(horizontal[0], abs=1e-6)  # W = B: the same u, v, r
+    assert horizontal[1] == 0.0
+    stated = [
+        f"by {min(near_off):.2f}-{max(near_off):.2f} %",
+        *(f"banks by {bank:.2f} deg" for _, bank in near),
+        f"by {min(far_off):.1f}-{max(far_off):.1f} %",
+        f"{math.floor(min(ratios))}-{math.ceil(max(ratios))} times further",
+        f"banks, by {neutral[1]:.2f} deg",
+    ]
+    missing = [text for text in stated if text not in LOW_SPEED_TURNS]
+    assert not missing, f"{missing} are not in the explanation: {LOW_SPEED_TURNS}"
 
 
 # --- the converged step and the model choices -------------------------------------------------
