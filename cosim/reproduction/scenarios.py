@@ -47,7 +47,7 @@ LQR_2 = (
     "case (continuous LQR gains, RK4 at 0.2 ms) also needs 28-34 s to stay within 1 deg, so "
     "the 20 s claim does not hold for this model. Like the dissertation (Sec. 6.3.1 bounds "
     "y_v and y_vel only), the scenario leaves the servo command unsaturated; saturating it "
-    "at the 6 cm stroke slows the mass to ~6 cm/s and the settling to 43 s."
+    "at the 6 cm stroke slows the mass to ~6 cm/s and the settling to 42 s."
 )
 FIRST_LQR = (
     "said of the first design (on (6.2.33), without the servo's dynamics), which we do not "
