@@ -107,6 +107,32 @@ def test_parameter_table_is_remus100():
         assert unit == described.rsplit(", ", 1)[1].split(" (")[0], name
 
 
+def test_the_lift_moments_leave_the_munk_moment_to_the_added_mass():
+    """N_uv (Table 5.1) and M_uw (Table 6.3) are lift moments without the Munk moment: the
+    plant takes that from the added mass ((5.1.30)'s (a22 - a11) u v, and its mirror in
+    pitch), so its moment from sway at U0 is (N_uv - (a22 - a11)) U0 and from heave
+    (M_uw + a33 - a11) U0. N_uv's description and the parameter table said it included
+    the Munk moment, which the plant would then count twice."""
+    from plant_fmu.model.dynamics import PlantModel, Variant
+    from plant_fmu.model.linearization import input_vector, linearize, state_vector
+
+    params, u0 = load_vehicle("remus100"), 1.525
+    model = PlantModel(params, Variant.FULL)
+    velocities = ["u", "v", "w", "p", "q", "r"]
+    A, _ = linearize(
+        model, state_vector({"u": u0}), input_vector({"thrust": 9.0}), velocities, ["fin_angle"]
+    )
+    forces = model.mass_matrix @ A  # [X, Y, Z, K, M, N] over the velocities
+    yaw, pitch = forces[5, 1], forces[4, 2]
+    assert yaw == pytest.approx((params.N_uv - (params.a22 - params.a11)) * u0, rel=1e-6)
+    assert pitch == pytest.approx((params.M_uw + (params.a33 - params.a11)) * u0, rel=1e-6)
+    rows = {row[0].strip("`"): row for row in _table("`remus100`, field by field")}
+    for name in ("N_uv", "M_uw"):
+        described = (VehicleParameters.field_info()[name].description, rows[name][2])
+        wrong = [text for text in described if re.search(r"with the Munk|Munk moment incl", text)]
+        assert not wrong, f"{name}: {wrong} counts the Munk moment in the coefficient"
+
+
 def _index_targets() -> list[tuple[str, str]]:
     targets = []
     for row in _table("## Equation index"):

@@ -77,7 +77,8 @@ class VehicleParameters(CheckedRecord):
     N_vv: float = checked_field(description="yaw moment from sway N_v|v| (times v_r|v_r|), kg")
     N_rr: float = checked_field(description="yaw cross-flow damping N_r|r| (times r|r|), kg m^2")
     N_uv: float = checked_field(
-        description="yaw moment N_uv of body and fin lift with the Munk moment (times u_r v_r), kg"
+        description="yaw moment N_uv of body and fin lift without the Munk moment, which the "
+        "added mass gives (times u_r v_r), kg"
     )
     N_ur: float = checked_field(
         description="fin lift moment in yaw from yaw rate N_ur (times u_r r), kg m"
