@@ -31,8 +31,10 @@ HEAVE, PITCH_ROW = 2, 4  # rows of the generalised force [X, Y, Z, K, M, N]
 TABLES_DISAGREE = (
     "Table 6.1 and Table 6.3 disagree, and the plant is built from Table 6.3: Z_w = Z_uw U0 "
     "(-66.6 would need Z_uw = -43.7, not -17.9); M_w = (M_uw + a33 - a11) U0, the Munk "
-    "moment included; Z_q = (Z_uq + a11) U0; M_theta = -z_g W. The fin coefficients are "
-    "Table 6.1's own, and M_q agrees to 1 %."
+    "moment included; Z_q = (Z_uq + a11) U0. M_theta = -z_g W = -5.86 N m owes nothing to "
+    "Table 6.3 (Table 5.4's z_g, either weight): the printed -5.77 would need z_g = 1.93 cm "
+    "or W = 294 N, why is not known. The fin coefficients are Table 6.1's own, and M_q "
+    "agrees to 1 %."
 )
 
 

@@ -26,6 +26,7 @@ from cosim.metrics.key_figures import settling_time
 from cosim.reproduction import Claim, Context, Cost, Finding, all_claims, evaluate
 from cosim.reproduction.catalogue import catalogue
 from cosim.reproduction.context import NotRunError, RunData
+from cosim.reproduction.depth_plane import TABLES_DISAGREE
 from cosim.reproduction.generate import figures_of
 from cosim.reproduction.lateral import jacobian, printed_jacobian
 from cosim.reproduction.low_speed import LOW_SPEED_TURNS, LOW_THRUST
@@ -340,6 +341,24 @@ def test_the_low_speed_explanation_states_what_each_variant_of_the_model_gives()
     ]
     missing = [text for text in stated if text not in LOW_SPEED_TURNS]
     assert not missing, f"{missing} are not in the explanation: {LOW_SPEED_TURNS}"
+
+
+def test_the_depth_plane_explanation_accounts_for_m_theta() -> None:
+    """Table 6.1's M_theta is not Table 6.3's business: it is -z_g W, -5.86 N m with Table
+    5.4's z_g and either weight, where the table prints -5.77. The explanation of the depth
+    row (the two tables disagree) said only "M_theta = -z_g W"; it must give ours and what
+    the printed value would need."""
+    remus = load_vehicle("remus100")
+    printed = float(DISSERTATION["table_6_1.depth_coefficients"].text[4])
+    ours = {round(-remus.z_g * w, 2) for w in (remus.W, W_TABLE_5_4)}
+    assert len(ours) == 1, ours  # the same to the printed digits with either weight
+    stated = [
+        f"M_theta = -z_g W = {ours.pop():.2f} N m",
+        f"would need z_g = {100 * printed / -W_TABLE_5_4:.2f} cm",
+        f"or W = {printed / -remus.z_g:.0f} N",
+    ]
+    missing = [text for text in stated if text not in TABLES_DISAGREE]
+    assert not missing, f"{missing} are not in the explanation: {TABLES_DISAGREE}"
 
 
 # --- the converged step and the model choices -------------------------------------------------
