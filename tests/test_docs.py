@@ -133,6 +133,55 @@ def test_the_lift_moments_leave_the_munk_moment_to_the_added_mass():
         assert not wrong, f"{name}: {wrong} counts the Munk moment in the coefficient"
 
 
+# A body of revolution's vertical coefficients are its horizontal ones under the turn of the
+# body frame by 90 deg about x, (v, r) -> (w, -q), Y -> Z, N -> -M: (horizontal, vertical,
+# sign, how the docs write them)
+REVOLUTION_MAP = (
+    ("Y_vv", "Z_ww", 1, "Y_v|v|", "Z_w|w|"),
+    ("Y_uv", "Z_uw", 1, "Y_uv", "Z_uw"),
+    ("Y_ur", "Z_uq", -1, "Y_ur", "Z_uq"),
+    ("Y_rr", "Z_qq", -1, "Y_r|r|", "Z_q|q|"),
+    ("N_vv", "M_ww", -1, "N_v|v|", "M_w|w|"),
+    ("N_uv", "M_uw", -1, "N_uv", "M_uw"),
+    ("N_ur", "M_uq", 1, "N_ur", "M_uq"),
+    ("N_rr", "M_qq", 1, "N_r|r|", "M_q|q|"),
+    ("a22", "a33", 1, "a22", "a33"),
+    ("a26", "a35", -1, "a26", "a35"),
+    ("a66", "a55", 1, "a66", "a55"),
+    ("I_zz", "I_yy", 1, "I_zz", "I_yy"),
+)
+
+
+def test_every_departure_from_the_body_of_revolution_is_named_where_the_map_is_argued():
+    """M_uq's sign is corrected with the argument that the vertical coefficients are the
+    horizontal ones turned 90 deg about x; the same map does not give Table 6.3's
+    M_q|q| = -188 (N_r|r| = -94), which remus100 keeps. Every coefficient of remus100 the
+    map does not give is named, with both values, in the corrections and in the model
+    choice that argues the map (the choice listed only the coefficients that fit it)."""
+    from reference_values import DISSERTATION
+
+    from cosim.reproduction.catalogue import catalogue
+
+    params = load_vehicle("remus100")
+    corrections = MODEL_DOC.read_text(encoding="utf-8").split("## Corrections and choices")[1]
+    choice = next(
+        c.why
+        for section in catalogue(DISSERTATION)
+        for c in section.choices
+        if c.choice.startswith("M_uq")
+    )
+    departures = [
+        (f"{h_label} = {getattr(params, h):g}", f"{v_label} = {getattr(params, v):g}")
+        for h, v, sign, h_label, v_label in REVOLUTION_MAP
+        if getattr(params, v) != sign * getattr(params, h)
+    ]
+    assert len(departures) == 1  # the test sees one, and the texts must name it
+    texts = {"docs/model.md's corrections": corrections.replace("`", ""), "the choice": choice}
+    for where, text in texts.items():
+        missing = [value for pair in departures for value in pair if value not in text]
+        assert not missing, f"{missing} not named in {where}"
+
+
 def _index_targets() -> list[tuple[str, str]]:
     targets = []
     for row in _table("## Equation index"):

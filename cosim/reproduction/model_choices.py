@@ -233,7 +233,9 @@ def model_choices(refs: Mapping[str, Reference]) -> Section:
             "M_q = -6.87 does not come out of "
             f"Table 6.3 ((M_uq + a35) U0 = {(TABLE_6_3_M_UQ + printed_a35) * U0:+.1f}, "
             "not -6.82) and the viscous forces can add kinetic energy (docs/model.md, "
-            "corrections, item 1)",
+            "corrections, item 1); the map would also take N_r|r| = -94 to M_q|q| = -94, "
+            "where Table 6.3 prints M_q|q| = -188, which remus100 keeps (Table 6.1's linear "
+            "M_q does not depend on it)",
             partial(_pitch_damping, TABLE_6_3_M_UQ),
             Cost.SCENARIO,
         ),
