@@ -183,6 +183,29 @@ def test_every_departure_from_the_body_of_revolution_is_named_where_the_map_is_a
         assert not missing, f"{missing} not named in {where}"
 
 
+def test_the_scenario_table_gives_each_scenario_the_gains_it_runs():
+    """docs/model.md's table of the built-in scenarios names the backstepping gains k0, k1
+    where they differ from the defaults, and "same" repeats the row above; each row's gains
+    must be those its scenario file runs (cur-2, slow-1 and slow-2 read "same" as cur-1's
+    k0 = 0.5, k1 = 1, and run Sec. 6.3.3's 0.3 and 0.8)."""
+    import tomllib
+
+    from controller_fmu.autopilot import AutopilotConfig
+
+    defaults = AutopilotConfig.build()
+    wrong, controller = [], ""
+    for scenario, cell, *_ in _table("## Scenarios"):
+        controller = controller if cell.startswith("same") else cell
+        stated = dict(re.findall(r"\b(k[01]) = ([\d.]+)", controller))
+        path = ROOT / "cosim" / "scenarios" / f"{scenario}.toml"
+        start = tomllib.loads(path.read_text(encoding="utf-8"))["instances"]["controller"]
+        for gain in ("k0", "k1"):
+            runs = start["start"].get(gain, getattr(defaults, gain))
+            if float(stated.get(gain, getattr(defaults, gain))) != runs:
+                wrong.append(f"{scenario}: {gain} = {runs}, the table says {controller!r}")
+    assert not wrong, wrong
+
+
 def _index_targets() -> list[tuple[str, str]]:
     targets = []
     for row in _table("## Equation index"):
