@@ -24,11 +24,12 @@ NOT_RUN_EFFECT = "not run ("
 @dataclass
 class EarlierPage:
     """The rows (claim, source, printed, unit -> table cells), the model choices' effects
-    (choice, dissertation, why -> effect) and the reasons of the differences list (row
-    number -> text) of an earlier page, unescaped as the page's cells were written."""
+    (choice, dissertation -> effect: a choice's 'why ours' is prose, and rewording it
+    changes no run) and the reasons of the differences list (row number -> text) of an
+    earlier page, unescaped as the page's cells were written."""
 
     rows: dict[tuple[str, str, str], list[list[str]]] = field(default_factory=dict)
-    effects: dict[tuple[str, str, str], str] = field(default_factory=dict)
+    effects: dict[tuple[str, str], str] = field(default_factory=dict)
     reasons: dict[str, str] = field(default_factory=dict)
 
     def row(self, claim: Claim) -> Row | None:
@@ -77,7 +78,7 @@ def read_earlier(page: Path) -> EarlierPage:
             if len(cells) == len(COLUMNS) and cells[0].isdigit():
                 earlier.rows.setdefault((cells[2], cells[3], cells[4]), []).append(cells)
             elif len(cells) == 4:
-                earlier.effects[(cells[0], cells[1], cells[2])] = cells[3]
+                earlier.effects[(cells[0], cells[1])] = cells[3]
     return earlier
 
 
@@ -93,7 +94,7 @@ def keep_earlier(part: Evaluated, earlier: EarlierPage) -> tuple[Evaluated, int]
     for choice, effect in zip(part.section.choices, part.effects, strict=True):
         found_effect = None
         if effect.startswith(NOT_RUN_EFFECT):
-            key = (choice.choice, choice.dissertation, choice.why)
+            key = (choice.choice, choice.dissertation)
             found_effect = earlier.effects.get(key)
             if found_effect is not None and found_effect.startswith(NOT_RUN_EFFECT):
                 found_effect = None

@@ -591,3 +591,31 @@ def test_skip_scenarios_keeps_the_closed_loop_rows_figures_and_effects(
     assert (tmp_path / "reproduction.md").read_bytes() == earlier
     assert (tmp_path / "figures" / "bs-3_velocities.png").is_file()
     assert any("kept from the earlier page" in m for m in logged), logged
+
+
+def test_skip_scenarios_keeps_a_choice_s_effect_when_only_its_reasoning_changed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A model choice's effect is a run's; its 'why ours' is prose. Rewording the why of
+    M_uq's choice and regenerating with `--skip-scenarios` turned its effect into 'not run
+    (scenarios skipped)': the earlier page's effects were looked up by the why as well.
+    The effect must be kept, and the page must show the new why."""
+    import cosim.reproduction.generate as generate
+
+    monkeypatch.setattr(generate, "catalogue", lambda refs: _scenario_sections(True))
+    generate.reproduce(tmp_path, VALUES_FILE, scenarios=False, log=lambda m: None)
+
+    def reworded(full_run: bool) -> list:
+        sections = _scenario_sections(full_run)
+        choices = tuple(
+            dataclasses.replace(c, why=f"{c.why}; reworded") for c in sections[0].choices
+        )
+        return [dataclasses.replace(sections[0], choices=choices)]
+
+    monkeypatch.setattr(generate, "catalogue", lambda refs: reworded(False))
+    generate.reproduce(tmp_path, VALUES_FILE, scenarios=False, log=lambda m: None)
+    page = (tmp_path / "reproduction.md").read_text(encoding="utf-8")
+    assert "not run" not in page
+    assert page.count("; reworded | bs-3 settles \\| after 3 s |") == len(
+        reworded(False)[0].choices
+    )
