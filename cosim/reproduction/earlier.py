@@ -82,14 +82,28 @@ def read_earlier(page: Path) -> EarlierPage:
     return earlier
 
 
-def keep_earlier(part: Evaluated, earlier: EarlierPage) -> tuple[Evaluated, int]:
+def explanation_changed(row: Row) -> bool:
+    """Whether a kept row's text no longer begins with what its claim now says of it (the
+    explanation of a known difference, or the note of a row that agrees): the claim's
+    prose changed after the run the earlier page shows."""
+    claim = row.claim
+    prose = claim.note
+    if row.verdict != "agrees" and claim.known_difference:
+        prose = claim.known_difference
+    return bool(prose) and not row.note.startswith(prose)
+
+
+def keep_earlier(part: Evaluated, earlier: EarlierPage) -> tuple[Evaluated, int, list[str]]:
     """``part`` with each row that was not run, and each effect, taken from the earlier
-    page where it has them; and how many rows and effects were kept."""
-    rows, kept = [], 0
+    page where it has them; how many rows and effects were kept; and the claims of the
+    kept rows whose explanation has changed since (the page keeps the earlier one)."""
+    rows, kept, changed = [], 0, []
     for row in part.rows:
         found = earlier.row(row.claim) if row.verdict == "not run" else None
         rows.append(found or row)
         kept += found is not None
+        if found is not None and explanation_changed(found):
+            changed.append(row.claim.claim)
     effects = []
     for choice, effect in zip(part.section.choices, part.effects, strict=True):
         found_effect = None
@@ -100,4 +114,4 @@ def keep_earlier(part: Evaluated, earlier: EarlierPage) -> tuple[Evaluated, int]
                 found_effect = None
         effects.append(found_effect or effect)
         kept += found_effect is not None
-    return replace(part, rows=tuple(rows), effects=tuple(effects)), kept
+    return replace(part, rows=tuple(rows), effects=tuple(effects)), kept, changed

@@ -56,9 +56,16 @@ def reproduce(
             rows = tuple(evaluate(claim, ctx) for claim in section.claims)
             effects = tuple(effect_of(choice, ctx) for choice in section.choices)
             drawn = _figures(section, ctx, figures, earlier, log)
-            part, kept_here = keep_earlier(Evaluated(section, rows, drawn, effects), kept_from)
+            part, kept_here, changed = keep_earlier(
+                Evaluated(section, rows, drawn, effects), kept_from
+            )
             evaluated.append(part)
             kept += kept_here
+            for claim in changed:
+                log(
+                    f"kept {claim!r} with the earlier page's explanation, which its claim has "
+                    "changed since: `auv-cosim reproduce` without --skip-scenarios updates it"
+                )
             log(f"{section.title}: {time.perf_counter() - started:.1f} s")
     if kept:
         log(f"{kept} closed-loop rows and effects kept from the earlier page (not run)")

@@ -593,6 +593,36 @@ def test_skip_scenarios_keeps_the_closed_loop_rows_figures_and_effects(
     assert any("kept from the earlier page" in m for m in logged), logged
 
 
+def test_skip_scenarios_names_a_kept_row_whose_explanation_has_changed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A closed-loop row kept by `--skip-scenarios` keeps the earlier page's text, its
+    explanation included: lqr-2's was corrected (43 s -> 42 s) and the regenerated page
+    still said 43 s, silently. The rows whose explanation changed since the full run must
+    be named, so the page is not taken for current."""
+    import cosim.reproduction.generate as generate
+
+    monkeypatch.setattr(generate, "catalogue", lambda refs: _scenario_sections(True))
+    generate.reproduce(tmp_path, VALUES_FILE, scenarios=False, log=lambda m: None)
+    sections = _scenario_sections(False)
+    claims = tuple(
+        dataclasses.replace(c, explained=f"{c.explained} (corrected)") if c.explained else c
+        for c in sections[0].claims
+    )
+    monkeypatch.setattr(
+        generate, "catalogue", lambda refs: [dataclasses.replace(sections[0], claims=claims)]
+    )
+    logged: list[str] = []
+    generate.reproduce(tmp_path, VALUES_FILE, scenarios=False, log=logged.append)
+    page = (tmp_path / "reproduction.md").read_text(encoding="utf-8")
+    explained = [c for c in claims if c.explained]
+    differing = [c for c in explained if f"**#{claims.index(c) + 1} {c.claim}** (differs" in page]
+    assert differing, "the check must see a kept row that differs with an explanation"
+    for claim in differing:
+        assert any(claim.claim in m and "explanation" in m for m in logged), (claim, logged)
+    assert not any(c.claim in m for c in claims if not c.explained for m in logged)
+
+
 def test_skip_scenarios_keeps_a_choice_s_effect_when_only_its_reasoning_changed(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
