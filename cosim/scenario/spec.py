@@ -39,7 +39,7 @@ from cosim.fmus.interface import (
     read_interface,
 )
 from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
-from cosim.paths import DEFAULT_FMU_DIR
+from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.scenario.checks import (
     NotTomlError,
     ReadOnly,
@@ -488,7 +488,7 @@ class Scenario:
             data["events"] = [event_table(event) for event in self.events]
         if self.faults:
             data["faults"] = [fault_table(fault) for fault in self.faults]
-        origin = f" (from {self.source})" if self.source else ""
+        origin = f" (from {path_text(self.source)})" if self.source else ""
         header = (
             f"# Resolved scenario {self.id!r}{origin}.\n"
             "# Every connection, start value, step multiple and recorded variable is spelled\n"

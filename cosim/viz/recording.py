@@ -48,6 +48,7 @@ from cosim.errors import CosimError
 from cosim.outputs.folder import RECORDING_FILE
 from cosim.outputs.missing_run import missing_run_hint
 from cosim.outputs.results import column_units
+from cosim.paths import path_text
 from cosim.scenario.spec import Scenario
 from cosim.viz.layout import (
     NOTES_ENTITY,
@@ -95,7 +96,7 @@ def recording_name(scenario_id: str, rrd_path: Path | None) -> str:
     if rrd_path is None:
         return scenario_id
     where = rrd_path.parent.name if rrd_path.name == RECORDING_FILE else rrd_path.name
-    return scenario_id if where in ("", scenario_id) else f"{scenario_id} ({where})"
+    return scenario_id if where in ("", scenario_id) else f"{scenario_id} ({path_text(where)})"
 
 
 def note_level(text: str) -> rr.TextLogLevel:

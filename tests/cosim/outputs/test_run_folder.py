@@ -256,3 +256,27 @@ def test_a_default_run_folder_the_system_refuses_is_not_named_as_out(
         f"auv-cosim run: runs/{long_id} (the default run folder, from the scenario's id; "
         "--out names another): cannot create the run folder: File name too long"
     ), err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("named", ["folder", "scenario file"])
+def test_a_recorded_run_with_a_path_not_utf8_completes(
+    named: str, loop_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run folder or a scenario file named in Latin-1 (the byte 0xf6, Python reads it as
+    the surrogate U+DCF6), the recording on: the run failed before its first step,
+    "cannot start the Rerun recording: 'utf-8' codec can't encode character '\\udcf6'"
+    (the recording's name, from the folder) or "UnicodeEncodeError" (scenario.toml's
+    first line names the file). The files written name it with the byte escaped."""
+    import os
+
+    odd = os.fsdecode(b"gr\xf6\xdfe")
+    out = tmp_path / (odd if named == "folder" else "out")
+    scenario = loop_file
+    if named == "scenario file":
+        scenario = loop_file.rename(loop_file.with_name(f"{odd}.toml"))
+    assert main(["run", str(scenario), "--out", str(out)]) == 0, capsys.readouterr().err
+    assert json.loads((out / "summary.json").read_text("utf-8"))["status"] == "complete"
+    first_line = (out / "scenario.toml").read_text("utf-8").splitlines()[0]
+    assert (r"gr\xf6\xdfe" in first_line) == (named == "scenario file"), first_line
+    assert (out / "recording.rrd").stat().st_size > 0
