@@ -8,6 +8,7 @@ way: one line naming the file, the key, the bad value and what was expected.
 
 from __future__ import annotations
 
+import codecs
 import math
 import re
 import tomllib
@@ -43,6 +44,24 @@ def loads_toml(text: str) -> dict[str, Any]:
         raise NotTomlError(str(exc)) from None
     except RecursionError:
         raise NotTomlError("arrays or inline tables nested too deeply to read") from None
+
+
+def not_utf8(exc: UnicodeDecodeError) -> str:
+    """What is wrong with a file whose bytes UTF-8 refused (``exc``, raised decoding the
+    whole file, a byte-order mark dropped), in words a user acts on: ``not UTF-8 text:
+    byte 0xf6 at line 2, column 5; save it as UTF-8`` (Latin-1, Windows-1252: an editor's
+    "Western European"), or ``not UTF-8 text but UTF-16 (...)`` (Windows' "Unicode")."""
+    data = bytes(exc.object)
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        return (
+            "not UTF-8 text but UTF-16 (it starts with a UTF-16 byte-order mark); save it as UTF-8"
+        )
+    line = data.count(b"\n", 0, exc.start) + 1
+    before = data[data.rfind(b"\n", 0, exc.start) + 1 : exc.start].decode("utf-8", "replace")
+    return (
+        f"not UTF-8 text: byte 0x{data[exc.start]:02x} at line {line}, column "
+        f"{len(before) + 1}; save it as UTF-8"
+    )
 
 
 class Strict(BaseModel):

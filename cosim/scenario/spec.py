@@ -51,6 +51,7 @@ from cosim.scenario.checks import (
     field_names,
     loads_toml,
     misplaced_top_level,
+    not_utf8,
     split_ref,
     unknown_key,
     with_article,
@@ -620,7 +621,9 @@ def _read_toml(path: Path) -> dict[str, Any]:
         return loads_toml(path.read_text(encoding="utf-8-sig"))
     except NotTomlError as exc:
         raise ScenarioError(f"scenario file {path}: not valid TOML: {exc}") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"scenario file {path}: {not_utf8(exc)}") from None
+    except OSError as exc:
         raise ScenarioError(f"scenario file {path}: cannot read it: {exc}") from None
 
 

@@ -53,6 +53,7 @@ from cosim.scenario.checks import (
     alias_key,
     aliased_target,
     check_value,
+    not_utf8,
     split_ref,
 )
 
@@ -375,7 +376,9 @@ def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Sourc
     header = [cell.strip() for cell in rows[0]] if rows else []
     if len(header) < 2 or header[0] != "time":
         raise src.error(
-            key, f"{spec.series!r}: header {header} is not 'time,<instance.variable>,...'"
+            key,
+            f"{spec.series!r}: header {header} is not 'time,<instance.variable>,...'"
+            + _separated_otherwise(header),
         )
     twice = sorted({ref for ref in header if header.count(ref) > 1})
     if twice:
@@ -396,6 +399,20 @@ def _series(spec: EventSpec, scenario: Any, base_dir: Path, key: str, src: Sourc
     return Series(path, spec.interpolation or "hold", tuple(times), shown)
 
 
+_OTHER_SEPARATORS = {";": "';'", "\t": "a tab"}  # a spreadsheet's CSV in some locales
+
+
+def _separated_otherwise(header: list[str]) -> str:
+    """``: its columns are separated by ';', expected ','...`` for a one-cell header
+    split by another separator (a spreadsheet's CSV where the decimal mark is a comma),
+    else ``""``."""
+    for separator, said in _OTHER_SEPARATORS.items():
+        if len(header) == 1 and separator in header[0]:
+            decimal = " (and a decimal point: 0.5, not 0,5)" if separator == ";" else ""
+            return f": its columns are separated by {said}, expected ','{decimal}"
+    return ""
+
+
 def _series_rows(path: Path, key: str, name: Any, src: Source) -> list[list[str]]:
     """The CSV rows of a series file: a regular file of at most SERIES_MAX_BYTES (a device
     like /dev/zero, a FIFO or a huge file is refused, never read)."""
@@ -412,7 +429,9 @@ def _series_rows(path: Path, key: str, name: Any, src: Source) -> list[list[str]
         if len(data) > SERIES_MAX_BYTES:
             raise src.error(key, f"{name!r}: {path} is over {SERIES_MAX_BYTES} bytes")
         text = data.decode("utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
+        raise src.error(key, f"{name!r}: {path} is {not_utf8(exc)}") from None
+    except OSError as exc:
         raise src.error(key, f"{name!r}: cannot read {path}: {exc}") from None
     return list(csv.reader(io.StringIO(text, newline="")))
 
@@ -422,7 +441,7 @@ def _numbers(
 ) -> list[list[float]]:
     table = []
     for line, row in enumerate(rows, start=2):
-        if not row:
+        if not any(cell.strip() for cell in row):  # a blank line, or one of spaces
             continue
         try:
             values = [float(cell) for cell in row]

@@ -63,6 +63,7 @@ from cosim.scenario.checks import (
     field_names,
     loads_toml,
     misplaced_top_level,
+    not_utf8,
     unknown_key,
 )
 
@@ -318,7 +319,9 @@ def load_study(path: Path, label: str | None = None) -> StudySpec:
         data = loads_toml(path.read_text(encoding="utf-8-sig"))
     except NotTomlError as exc:
         raise StudyError(f"{label}: not valid TOML: {exc}") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
+        raise StudyError(f"{label}: {not_utf8(exc)}") from None
+    except OSError as exc:
         raise StudyError(f"{label}: cannot read it: {exc}") from None
     return study_from_dict(data, label)
 

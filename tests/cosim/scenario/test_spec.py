@@ -457,6 +457,30 @@ def test_a_utf8_byte_order_mark_is_accepted(fmu_dir: Path, tmp_path: Path) -> No
     assert load_scenario(path, fmu_dir=fmu_dir) == load_scenario("bs-3", fmu_dir=fmu_dir)
 
 
+@pytest.mark.parametrize(
+    ("data", "expected"),
+    [
+        # Latin-1 (an editor's "Western European"): the byte and where it is
+        (("id = 'x'\n# Gr\u00f6\u00dfe\n" + BS3).encode("latin-1"),
+         "not UTF-8 text: byte 0xf6 at line 2, column 5; save it as UTF-8"),
+        # UTF-16 (Windows' "Unicode"): said as such, not as its first byte
+        (BS3.encode("utf-16"), "not UTF-8 text but UTF-16 (it starts with a UTF-16 "
+         "byte-order mark); save it as UTF-8"),
+    ],
+)  # fmt: skip
+def test_a_scenario_file_not_utf8_is_refused_saying_so(
+    fmu_dir: Path, tmp_path: Path, data: bytes, expected: str
+) -> None:
+    """A scenario file in another encoding was refused as "cannot read it: 'utf-8' codec
+    can't decode byte 0xf6 in position 13: invalid start byte": a byte offset and the
+    codec's words, not what is wrong with the file or where."""
+    path = tmp_path / "kodiert.toml"
+    path.write_bytes(data)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, fmu_dir=fmu_dir)
+    assert str(info.value) == f"scenario file {path}: {expected}"
+
+
 def test_files_named_in_a_scenario_are_relative_to_it(fmu_dir: Path, tmp_path: Path) -> None:
     """Regression: `vehicle = "myveh.toml"` was resolved against the current folder."""
     folder = tmp_path / "mission"

@@ -155,6 +155,51 @@ def test_a_bad_series_file_is_refused_naming_it(
     assert expected in str(info.value) and "'profile.csv'" in str(info.value)
 
 
+@pytest.mark.parametrize(
+    ("data", "expected"),
+    [
+        # a spreadsheet's export in a German or Brazilian locale: ; and decimal commas
+        (b"time;plant.u\n0;1\n0,5;2\n",
+         "header ['time;plant.u'] is not 'time,<instance.variable>,...': its columns are "
+         "separated by ';', expected ',' (and a decimal point: 0.5, not 0,5)"),
+        (b"time\tplant.u\n0\t1\n", "its columns are separated by a tab, expected ','"),
+        (b"time,plant.u # Gr\xf6\xdfe\n0,1\n",
+         "is not UTF-8 text: byte 0xf6 at line 1, column 18; save it as UTF-8"),
+        ("time,plant.u\n0,1\n".encode("utf-16"),
+         "is not UTF-8 text but UTF-16 (it starts with a UTF-16 byte-order mark)"),
+    ],
+)  # fmt: skip
+def test_a_series_file_from_a_spreadsheet_is_refused_saying_what_to_change(
+    test_fmu_dir: Path, tmp_path: Path, data: bytes, expected: str
+) -> None:
+    """A series file separated by ; (a spreadsheet's CSV where the decimal mark is a
+    comma) or by tabs was refused as "header ['time;plant.u'] is not
+    'time,<instance.variable>,...'", and one in Latin-1 or UTF-16 as "'utf-8' codec can't
+    decode byte 0xf6 in position 17": neither said what to change."""
+    for fmu in test_fmu_dir.glob("*.fmu"):
+        (tmp_path / fmu.name).symlink_to(fmu)
+    (tmp_path / "profile.csv").write_bytes(data)
+    with pytest.raises(ScenarioError, match=r"events\[0\]\.series") as info:
+        resolve(tmp_path, '[[events]]\nseries = "profile.csv"', remove_u=True)
+    assert expected in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_series_file_with_blank_lines_or_a_byte_order_mark_reads_as_its_rows(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Lines of spaces at the end (an editor's), CRLF line ends and a byte-order mark
+    (a Windows editor's) are no rows: a line of spaces was refused as "row 3: ['  '] is
+    not 2 finite numbers", while an empty line passed."""
+    for fmu in test_fmu_dir.glob("*.fmu"):
+        (tmp_path / fmu.name).symlink_to(fmu)
+    data = b"\xef\xbb\xbftime,plant.u\r\n0,1\r\n0.5,2\r\n\r\n  \r\n\t\n"
+    (tmp_path / "profile.csv").write_bytes(data)
+    scenario = resolve(tmp_path, '[[events]]\nseries = "profile.csv"', remove_u=True)
+    series = scenario.events[0].series
+    assert series is not None and series.times == (0.0, 0.5)
+    assert series.columns == {"plant.u": (1.0, 2.0)}
+
+
 def test_events_and_faults_resolve_with_default_names_and_write_back(
     test_fmu_dir: Path, tmp_path: Path
 ) -> None:
