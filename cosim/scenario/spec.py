@@ -99,9 +99,9 @@ _NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*$"  # an instance name
 _NAME = Annotated[str, Field(pattern=_NAME_PATTERN)]
 _PLAIN_NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"  # a scenario id: a safe folder name
 PATTERN_WORDS = {  # each name pattern of a scenario file, as a refusal says it
-    _NAME_PATTERN: "a name of letters, digits and _, not starting with a digit",
-    _PLAIN_NAME: "a name of letters, digits, _, . and -, not starting with . or -",
-    PLAIN_EVENT_NAME: "a name of letters, digits, - and _",
+    _NAME_PATTERN: "a name of ASCII letters (A-Z, a-z), digits and _, not starting with a digit",
+    _PLAIN_NAME: "a name of ASCII letters (A-Z, a-z), digits, _, . and -, not starting with . or -",
+    PLAIN_EVENT_NAME: "a name of ASCII letters (A-Z, a-z), digits, - and _",
 }
 # A stop time within this fraction of a step of a whole number of steps counts as whole.
 _STEP_TOLERANCE = 1e-9
@@ -683,8 +683,8 @@ def _scenario_id(spec: ScenarioSpec, default: str, src: Source) -> str:
     if re.fullmatch(_PLAIN_NAME, default) is None:
         raise src.error(
             "id",
-            f"missing, and the file name {default!r} is not a plain name (letters, digits, "
-            "_ . -, not starting with . or -): set id",
+            f"missing, and the file name {default!r} is not a plain name (ASCII letters "
+            "(A-Z, a-z), digits, _ . -, not starting with . or -): set id",
         )
     return default
 

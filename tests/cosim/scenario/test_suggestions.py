@@ -133,12 +133,14 @@ def test_a_mistyped_path_is_refused_with_the_likely_one(
     ("change", "expected"),
     [
         (("[instances.controller]", '[instances."my.controller"]'),
-         "key 'instances.my.controller' = 'my.controller': expected a name of letters, digits "
-         "and _, not starting with a digit"),
+         "key 'instances.my.controller' = 'my.controller': expected a name of ASCII letters "
+         "(A-Z, a-z), digits and _, not starting with a digit"),
         (("stop_time = 1.0", 'stop_time = 1.0\nid = "-x"'),
-         "key 'id' = '-x': expected a name of letters, digits, _, . and -, not starting with"),
+         "key 'id' = '-x': expected a name of ASCII letters (A-Z, a-z), digits, _, . and -, "
+         "not starting with"),
         (("stop_time = 1.0", 'stop_time = 1.0\n[[events]]\nname = "a turn"\ntime = 1.0'),
-         "key 'events[0].name' = 'a turn': expected a name of letters, digits, - and _"),
+         "key 'events[0].name' = 'a turn': expected a name of ASCII letters (A-Z, a-z), "
+         "digits, - and _"),
     ],
 )  # fmt: skip
 def test_a_name_that_is_not_plain_is_refused_in_words_not_a_pattern(
@@ -150,6 +152,42 @@ def test_a_name_that_is_not_plain_is_refused_in_words_not_a_pattern(
         scenario_from_toml(BS3_LIKE.replace(*change, 1), fmu_dir=fmu_dir)
     assert expected in str(refused.value) and "[key]" not in str(refused.value)
     assert "pattern" not in str(refused.value)
+
+
+@pytest.mark.parametrize(
+    ("change", "name"),
+    [
+        (("[instances.controller]", '[instances."regler_ü"]'), "'instances.regler_ü'"),
+        (("stop_time = 1.0", 'stop_time = 1.0\nid = "größe"'), "'id'"),
+        (("stop_time = 1.0", 'stop_time = 1.0\n[[events]]\nname = "wende-ç"\ntime = 1.0'),
+         "'events[0].name'"),
+    ],
+)  # fmt: skip
+def test_a_name_with_a_letter_beyond_ascii_is_refused_saying_ascii(
+    change: tuple[str, str], name: str, fmu_dir: Path
+) -> None:
+    """An instance, id or event named with an umlaut or a cedilla was refused as
+    "expected a name of letters, digits and _": ü is a letter, so the user read the rule
+    as kept. Names stay ASCII (a column of results.csv, a folder, an SSP identifier); the
+    refusal says so."""
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(BS3_LIKE.replace(*change, 1), fmu_dir=fmu_dir)
+    assert f"key {name}" in str(refused.value), refused.value
+    assert "expected a name of ASCII letters (A-Z, a-z), digits" in str(refused.value)
+
+
+def test_a_file_name_with_a_letter_beyond_ascii_asks_for_an_id(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A scenario file named ``fahrt-ü.toml`` without an ``id`` was refused as "the file
+    name 'fahrt-ü' is not a plain name (letters, digits, _ . -, ...)"."""
+    path = tmp_path / "fahrt-ü.toml"
+    path.write_text(BS3_LIKE, encoding="utf-8")
+    with pytest.raises(ScenarioError) as refused:
+        load_scenario(path, fmu_dir=fmu_dir)
+    assert "the file name 'fahrt-ü' is not a plain name (ASCII letters (A-Z, a-z), digits," in (
+        str(refused.value)
+    )
 
 
 MISPLACED = "a top-level key: TOML puts every key below a [table] or [[table]] header into it"
