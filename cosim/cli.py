@@ -8,6 +8,7 @@ Every command exits 0 on success and non-zero with a one-line reason on stderr o
 from __future__ import annotations
 
 import argparse
+import codecs
 import errno
 import gc
 import os
@@ -20,7 +21,12 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from cosim.errors import CosimError, matplotlib_folder_in_one_line, one_line_warnings
+from cosim.errors import (
+    CosimError,
+    matplotlib_folder_in_one_line,
+    one_line_warnings,
+    unencodable,
+)
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from fmu_runtime.log_text import shortened
@@ -744,6 +750,8 @@ def _reason(exc: Exception) -> str:
         return f"{exc.strerror or 'too many open files'}{_open_files_limit()}"
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
+    if isinstance(exc, UnicodeEncodeError) and (said := unencodable(exc)) is not None:
+        return said
     return f"{type(exc).__name__}: {exc}"
 
 
@@ -780,14 +788,33 @@ def _null_for_closed_streams() -> None:
             setattr(sys, name, open(os.devnull, "w", encoding="utf-8"))  # noqa: SIM115
 
 
+_BYTES_OR_ESCAPE = "auv-cosim-bytes-or-escape"  # the error handler of _bytes_or_escape
+
+
 def _printable_anything() -> None:
     """stdout and stderr write what their encoding cannot (a path given in bytes that are
     no UTF-8, which Python reads as surrogates: ``--out $'run\\xff'``) as a backslash
     escape: a strict stdout (a UTF-8 locale's) refused the report of a run that had
-    completed, and the command said "UnicodeEncodeError" and exited 1."""
+    completed, and the command said "UnicodeEncodeError" and exited 1. A stdout that
+    passes such bytes through (a C locale's, Python's UTF-8 mode off) still does, and
+    escapes what else its encoding has not (ö in ASCII, quoted from a scenario file):
+    that too said "UnicodeEncodeError"."""
+    codecs.register_error(_BYTES_OR_ESCAPE, _bytes_or_escape)
+    printable = {"strict": "backslashreplace", "surrogateescape": _BYTES_OR_ESCAPE}
     for stream in (sys.stdout, sys.stderr):
-        if getattr(stream, "errors", None) == "strict" and hasattr(stream, "reconfigure"):
-            stream.reconfigure(errors="backslashreplace")
+        errors = getattr(stream, "errors", None)
+        if errors in printable and hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors=printable[errors])
+
+
+def _bytes_or_escape(exc: UnicodeError) -> tuple[str | bytes, int]:
+    """``surrogateescape`` for the surrogates Python read a name's bytes as (those bytes),
+    ``backslashreplace`` for any other character the encoding has not."""
+    if isinstance(exc, UnicodeEncodeError):
+        bad = exc.object[exc.start : exc.end]
+        if all("\udc80" <= c <= "\udcff" for c in bad):
+            return bytes(ord(c) - 0xDC00 for c in bad), exc.end
+    return codecs.backslashreplace_errors(exc)
 
 
 class _StandardOutput:

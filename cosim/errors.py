@@ -51,6 +51,20 @@ def unmade_folder(folder: Path, exc: OSError) -> str:
     return "it is not a folder" if folder.exists() else exc.strerror or str(exc)
 
 
+def unencodable(exc: UnicodeEncodeError) -> str | None:
+    """What a locale's legacy encoding could not encode (``exc``: a path given to the
+    system where Python reads file names as ASCII, ``LC_ALL=C`` with its UTF-8 mode off),
+    and the setting that lets it: ``'Größe' holds 'ö', which this locale's encoding
+    (ascii) has not: set PYTHONUTF8=1 ...``; None for a UTF codec's refusal (a surrogate:
+    bytes of a name that are no UTF-8)."""
+    if exc.encoding.lower().replace("_", "-").startswith("utf"):
+        return None
+    return (
+        f"{exc.object!r} holds {exc.object[exc.start]!r}, which this locale's encoding "
+        f"({exc.encoding}) has not: set PYTHONUTF8=1 (or a UTF-8 locale, LC_ALL=C.UTF-8)"
+    )
+
+
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """`` (did you mean 'x'?)`` naming the choice :func:`closest` to a mistyped ``word``,
     or ``""``."""

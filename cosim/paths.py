@@ -10,15 +10,16 @@ DOCS_DIR = Path("docs")  # the documentation: reproduction.md, dissertation-valu
 
 
 def path_text(path: str | os.PathLike[str]) -> str:
-    """``path`` as UTF-8 text: its name's bytes read as UTF-8, a byte that is no UTF-8 as
-    a backslash escape (a folder named in Latin-1, ``gr\\xf6sse``).
+    """``path`` as UTF-8 text: the bytes the file system holds its name in, read as UTF-8,
+    a byte that is no UTF-8 as a backslash escape (a folder named in Latin-1, ``gr\\xf6sse``).
 
     Python reads such a byte as a lone surrogate (U+DCF6), which a UTF-8 file or library
-    refuses ("surrogates not allowed"); under an ASCII locale (``LANG=C`` with Python's
-    UTF-8 mode off) every byte of ``Größe`` is one, and this gives ``Größe`` back."""
+    refuses ("surrogates not allowed"); where Python reads file names as ASCII (``LC_ALL=C``
+    with its UTF-8 mode off) every byte of ``Größe`` is one, and where it reads them as
+    Latin-1 (``de_DE.ISO-8859-1``) they are ``GrÃ¶Ãe``: both give ``Größe`` back."""
     text = os.fspath(path)
     try:
-        raw = text.encode("utf-8", "surrogateescape")
-    except UnicodeEncodeError:  # a surrogate no byte of a name gives (U+D800)
+        raw = os.fsencode(text)
+    except UnicodeEncodeError:  # a character the locale names no file with (ü in ASCII)
         return text.encode("utf-8", "backslashreplace").decode("utf-8")
     return raw.decode("utf-8", "backslashreplace")

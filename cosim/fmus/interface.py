@@ -22,6 +22,7 @@ import functools
 import os
 import re
 import shutil
+import sys
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ from typing import Any
 from xml.etree import ElementTree
 
 from cosim.errors import CosimError
+from cosim.paths import path_text
 
 Value = bool | int | float | str
 SI_BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
@@ -247,6 +249,8 @@ def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
     check_archive(path)
     try:
         md = read_model_description(str(path))
+    except UnicodeEncodeError as exc:  # lxml names the XML by the working folder, in UTF-8
+        raise FmuInterfaceError(_unnamed_working_folder(path) or f"{path}: {exc}") from None
     except Exception as exc:  # fmpy raises plain Exception for an invalid model description
         reason = " ".join(str(exc).split())  # its schema report spans lines: one line here
         raise FmuInterfaceError(f"{path}: not a valid FMU: {reason}") from None
@@ -260,6 +264,25 @@ def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
         units={unit.name: _base_unit(unit.baseUnit) for unit in md.unitDefinitions},
         model_description=md,
         model_variables={v.name: v for v in md.modelVariables},
+    )
+
+
+def _unnamed_working_folder(path: Path) -> str | None:
+    """Why the model description of ``path`` cannot be read from this working folder, if
+    its name holds bytes Python read as surrogates (named in Latin-1, or anything beyond
+    ASCII where Python reads file names as ASCII: ``LC_ALL=C`` with its UTF-8 mode off):
+    lxml, fmpy's XML reader, names the XML by the working folder, in UTF-8. None for a
+    folder whose name is UTF-8."""
+    folder = os.getcwd()
+    if not any("\ud800" <= c <= "\udfff" for c in folder):
+        return None
+    cure = "run from another folder"
+    if sys.getfilesystemencoding().lower() not in ("utf-8", "utf8"):
+        cure += f" or set PYTHONUTF8=1 (file names are read as {sys.getfilesystemencoding()})"
+    return (
+        f"{path}: cannot read its model description from the working folder "
+        f"{path_text(folder)}, whose name lxml cannot take (bytes that are no UTF-8 here): "
+        f"{cure}"
     )
 
 

@@ -516,3 +516,45 @@ def test_python_dash_m_cosim_is_the_command() -> None:
     done = run_in_group([sys.executable, "-m", "cosim", "--version"], timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout == f"auv-cosim {importlib.metadata.version('auv-cosim')}\n"
+
+
+ASCII_LOCALE = {"LC_ALL": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}  # names: ASCII
+
+
+def _in_ascii_locale(argv: list[str], cwd: Path) -> tuple[int, str, str]:
+    """``python -m cosim *argv`` where Python reads file names and writes text as ASCII
+    (``LC_ALL=C`` with its UTF-8 mode off): exit code, stdout, stderr."""
+    import os
+
+    env = {key: value for key, value in os.environ.items() if key not in ("LANG", "LC_CTYPE")}
+    done = run_in_group(
+        [sys.executable, "-m", "cosim", *argv], timeout=120, cwd=cwd, env={**env, **ASCII_LOCALE}
+    )
+    return done.returncode, done.stdout, done.stderr
+
+
+@pytest.mark.parametrize(
+    ("text", "stream", "said"),
+    [
+        # a value beyond ASCII in a refusal printed on stdout
+        ('id = "s"\nstop_time = "zwölf"\n', "out", r"key 'stop_time' = 'zw\xf6lf': "),
+        # a path beyond ASCII that the system must be given
+        ('id = "s"\nstop_time = 1.0\n[coupling]\nstep = 0.1\n[instances.plant]\n'
+         'fmu = "Größe/AuvPlant.fmu"\n', "err",
+         r"Gr\xf6\xdfe' holds '\xf6', which this locale's encoding (ascii) has not: set "
+         "PYTHONUTF8=1 (or a UTF-8 locale, LC_ALL=C.UTF-8)"),
+    ],
+)  # fmt: skip
+def test_text_beyond_ascii_in_an_ascii_locale_is_said_in_one_line(
+    tmp_path: Path, text: str, stream: str, said: str
+) -> None:
+    """Where Python reads and writes text as ASCII, a scenario file whose text goes beyond
+    it ended in "UnicodeEncodeError: 'ascii' codec can't encode characters in position
+    12-13: ordinal not in range(128)": printing a refusal that quotes it, or giving a path
+    from it to the system. The refusal is printed, the letter escaped, and a path the
+    system cannot be given is named with the setting that lets Python give it."""
+    (tmp_path / "s.toml").write_text(text, encoding="utf-8")
+    code, out, err = _in_ascii_locale(["validate", "s.toml"], tmp_path)
+    assert code == 1 and "UnicodeEncodeError" not in out + err, out + err
+    shown = {"out": out, "err": err}[stream]
+    assert said in shown and shown.count("\n") == 1, shown

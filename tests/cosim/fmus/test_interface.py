@@ -5,14 +5,17 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 import zipfile
 from pathlib import Path
 
 import pytest
+from process_group import run_in_group
 from zip_bombs import declaring_archive
 
 from cosim.export.components import components
 from cosim.fmus.interface import FmuInterfaceError, read_interface
+from cosim.paths import path_text
 from cosim.scenario.spec import load_scenario
 from plant_fmu.model.dynamics import INPUT_NAMES, Variant
 
@@ -143,3 +146,54 @@ def test_a_zip_bomb_is_refused_before_anything_is_unpacked(
         read_interface(bomb)
     message = str(refused.value)
     assert message.startswith(f"{bomb}: ") and "at most" in message and "\n" not in message
+
+
+def test_a_working_folder_named_in_latin1_is_named_not_the_fmu(
+    fmu_paths, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """From a working folder named in Latin-1 (the byte 0xf6, which Python reads as the
+    surrogate U+DCF6), every FMU was refused as "not a valid FMU: 'utf-8' codec can't
+    encode characters in position 12-13: surrogates not allowed": lxml, fmpy's XML
+    reader, names the model description by the working folder, as UTF-8. The FMU is
+    valid; the refusal names the folder and what to do."""
+    copy = tmp_path / "AuvPlant.fmu"  # a path not read yet in this process (no cache)
+    shutil.copyfile(fmu_paths["AuvPlant"], copy)
+    folder = tmp_path / os.fsdecode(b"gr\xf6sse")
+    folder.mkdir()
+    monkeypatch.chdir(folder)
+    with pytest.raises(FmuInterfaceError) as refused:
+        read_interface(copy)
+    message = str(refused.value)
+    assert "not a valid FMU" not in message, message
+    assert f"{copy}: cannot read its model description from the working folder " in message
+    assert r"gr\xf6sse" in message and "run from another folder" in message
+    message.encode("utf-8")  # printable on a strict UTF-8 stream
+
+
+@pytest.mark.slow
+def test_a_working_folder_beyond_ascii_in_an_ascii_locale_says_what_to_set(
+    fmu_paths, tmp_path: Path
+) -> None:
+    """``LC_ALL=C`` with Python's UTF-8 mode off (file names read as ASCII) and a working
+    folder named Prüfung: `auv-cosim validate` said the FMU was "not a valid FMU"; it
+    names the folder and the setting that lets Python read it."""
+    folder = tmp_path / "Prüfung"
+    folder.mkdir()
+    scenario = folder / "s.toml"
+    plant = fmu_paths["AuvPlant"]
+    scenario.write_text(
+        f'id = "s"\nstop_time = 0.1\n[coupling]\nstep = 0.1\n[instances.plant]\nfmu = "{plant}"\n',
+        encoding="utf-8",
+    )
+    ascii_locale = {"LC_ALL": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    env = {key: value for key, value in os.environ.items() if key != "LANG"}
+    done = run_in_group(
+        [sys.executable, "-m", "cosim", "validate", "s.toml"],
+        timeout=120,
+        cwd=folder,
+        env={**env, **ascii_locale},
+    )
+    assert done.returncode == 1 and done.stdout.count("\n") == 1, done.stdout + done.stderr
+    assert "not a valid FMU" not in done.stdout
+    assert "the working folder" in done.stdout and "set PYTHONUTF8=1" in done.stdout
+    assert path_text(folder).encode("ascii", "backslashreplace").decode() in done.stdout
