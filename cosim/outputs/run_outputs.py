@@ -141,9 +141,9 @@ class RunOutputs:
         self._closable.append(self.csv)
         self.folder.start_guard(self.paths["results"], rrd)
         if rrd is not None and recorder is not None:
+            self._created.append(rrd)  # the folder's lock made it: removed if the sink fails
             sink = recorder(self.scenario, rrd, None, self.folder.recording_flushed)
             if sink is not None:
-                self._created.append(rrd)
                 self.folder.wrote(rrd)
                 self._add(sink)
             else:

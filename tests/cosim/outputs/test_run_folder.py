@@ -280,3 +280,29 @@ def test_a_recorded_run_with_a_path_not_utf8_completes(
     first_line = (out / "scenario.toml").read_text("utf-8").splitlines()[0]
     assert (r"gr\xf6\xdfe" in first_line) == (named == "scenario file"), first_line
     assert (out / "recording.rrd").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_a_recording_that_fails_to_start_leaves_the_folder_free_for_the_next_run(
+    loop_file: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A recording that failed as it started (its name, from a folder named in Latin-1,
+    was refused by rerun) left its first part, recording.rrd, in a folder the run had
+    made; the same command again was refused, "the folder is not empty (recording.rrd)
+    and holds no earlier run". A run that never stepped removes what it made."""
+    from cosim.viz.recording import RerunSink
+
+    def refused(*args: object, **kwargs: object) -> None:
+        raise ValueError("the recording's name is refused")
+
+    out = tmp_path / "out"
+    argv = ["run", str(loop_file), "--out", str(out)]
+    with monkeypatch.context() as patched:
+        patched.setattr(RerunSink, "_log_static", refused)
+        assert main(argv) == 1
+    assert "cannot start the Rerun recording" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(argv) == 0, capsys.readouterr().err
