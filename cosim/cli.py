@@ -19,7 +19,7 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 from cosim.errors import (
     CosimError,
@@ -368,6 +368,23 @@ class _Parser(argparse.ArgumentParser):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = _NEGATIVE_NUMBER
+        self._given: list[str] = []  # the arguments this parser was given, for error()
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        self._given = [str(arg) for arg in (sys.argv[1:] if args is None else args)]
+        return super().parse_known_args(args, namespace)
+
+    def error(self, message: str) -> NoReturn:
+        """argparse's usage error, and how to give a file whose name starts with - (read
+        as an option: "the following arguments are required: scenario")."""
+        dashed = [arg for arg in self._given if arg.startswith("-") and
+                  arg not in self._option_string_actions and os.path.lexists(arg)]  # fmt: skip
+        if dashed:
+            message += (
+                f" ({dashed[0]!r} is a file, read as an option: give it as ./{dashed[0]} "
+                "or after --)"
+            )
+        super().error(message)
 
 
 class _Version(argparse.Action):

@@ -558,3 +558,22 @@ def test_text_beyond_ascii_in_an_ascii_locale_is_said_in_one_line(
     assert code == 1 and "UnicodeEncodeError" not in out + err, out + err
     shown = {"out": out, "err": err}[stream]
     assert said in shown and shown.count("\n") == 1, shown
+
+
+@pytest.mark.parametrize("command", ["run", "validate", "export"])
+def test_a_file_named_with_a_leading_dash_is_named_with_how_to_give_it(
+    command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """A scenario file named ``-fahrt.toml`` given as it is was read as an option:
+    "the following arguments are required: scenario" (run) or "unrecognized arguments:
+    -fahrt.toml" (validate), neither naming the file. The usage error says how to give it."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "-fahrt.toml").write_text('id = "fahrt"\n', encoding="utf-8")
+    with pytest.raises(SystemExit) as ended:
+        main([command, "-fahrt.toml", *(["--ssp", "x.ssp"] if command == "export" else [])])
+    assert ended.value.code == 2
+    err = capsys.readouterr().err
+    assert (
+        "'-fahrt.toml' is a file, read as an option: give it as ./-fahrt.toml or after --"
+        in err.splitlines()[-1]
+    ), err
