@@ -45,12 +45,11 @@ import socket
 import stat
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 from cosim.errors import FLAGS, OptionNames
 from cosim.outputs.earlier_run import EarlierRun, ScenarioRef, SetAside, find_earlier_run
-from cosim.outputs.report_folder import mark_stale
+from cosim.outputs.report_folder import local_time, mark_stale
 from cosim.outputs.run_files import (
     LOCK_FILE,
     MANIFEST_FILE,
@@ -202,7 +201,7 @@ class RunFolder:
         )
 
     def _stale_note(self) -> str:
-        when = time.strftime("%Y-%m-%d %H:%M:%S %Z")
+        when = local_time()
         return (
             f"this report was made from an earlier run in {self.path}, replaced by another "
             f"run at {when}; run `auv-cosim report {shlex.quote(str(self.path))}` to make it again"

@@ -17,6 +17,7 @@ from __future__ import annotations
 import html
 import json
 import os
+import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,14 @@ from cosim.outputs.tail_guard import IDENTITY_KEYS, file_identity
 
 REPORT_MANIFEST = ".auv-cosim-report.json"
 STALE_MARK = '<p class="stale">'  # the banner's opening tag on a stale page
+
+
+def local_time() -> str:
+    """The local time now, as a report's page and its stale banner say it:
+    ``2026-12-06 16:53:23 +0900``, its offset from UTC in digits. A zone's name comes from
+    TZ and the locale: a misspelt ``TZ=Europe/Berln``, which the C library reads as UTC,
+    named it "Europe"."""
+    return time.strftime("%Y-%m-%d %H:%M:%S %z")
 
 
 def run_stamp(run_dir: Path) -> dict[str, Any]:

@@ -48,7 +48,6 @@ import json
 import math
 import os
 import shutil
-import time
 import tomllib
 import warnings
 from dataclasses import dataclass
@@ -67,6 +66,7 @@ from cosim.outputs.missing_run import missing_run_hint
 from cosim.outputs.report_folder import (
     REPORT_MANIFEST,
     check_writable,
+    local_time,
     record,
     remove_earlier,
     run_stamp,
@@ -220,7 +220,7 @@ def write_report(run_dir: Path) -> Path:
             report wrote (a user's own ``index.html``), which is left as it is.
     """
     run_dir = Path(run_dir)
-    stamp = {**run_stamp(run_dir), "made": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
+    stamp = {**run_stamp(run_dir), "made": local_time()}
     table = load_results(run_dir)
     _check_drawable(run_dir, table)
     summary, summary_problem = load_summary(run_dir)

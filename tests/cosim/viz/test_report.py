@@ -556,3 +556,26 @@ def test_a_long_run_draws_a_bounded_number_of_points_keeping_every_extreme(
         track = kept["trajectory.png"].axes[0].lines[0]
         assert track.get_xdata()[-1] == 150.0 * (1.0 - np.cos((rows - 1) * 0.01 / 100.0))
     assert drawn[160_000] <= 2000 and drawn[40_000] <= 2000, f"points in a line: {drawn}"
+
+
+@pytest.mark.parametrize(("tz", "offset"), [("Europe/Berln", "+0000"), ("JST-9", "+0900")])
+def test_a_reports_time_says_its_offset_from_utc_whatever_tz_names(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, tz: str, offset: str
+) -> None:
+    """The page's "Made <time> <zone>" took the zone's name from TZ: a misspelt
+    ``TZ=Europe/Berln`` (which the C library reads as UTC named "Europe") said "Made
+    2026-12-06 07:53:12 Europe", an hour off Berlin's time and not saying so. The time
+    carries its offset from UTC in digits."""
+    import time
+
+    monkeypatch.setenv("TZ", tz)
+    time.tzset()
+    try:
+        page = write_report(_sparse_run(tmp_path / "run")).read_text(encoding="utf-8")
+    finally:
+        monkeypatch.undo()
+        time.tzset()
+    made = re.search(r'<p class="stamp">Made (.*?) from ', page)
+    assert made is not None, page
+    assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d [+-]\d{4}", made.group(1)), made.group(1)
+    assert made.group(1).endswith(offset)
