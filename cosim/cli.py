@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 from cosim.errors import (
     CosimError,
     matplotlib_folder_in_one_line,
+    one_line,
     one_line_warnings,
     unencodable,
 )
@@ -135,7 +136,7 @@ def _validate_scenarios(args: argparse.Namespace, scenarios: list[Path]) -> int:
             print(f"{scenario}: {check_scenario(str(scenario), args.fmu_dir or DEFAULT_FMU_DIR)}")
         except CosimError as exc:
             refused += 1
-            print(exc)  # it names the file (or the id) itself
+            print(one_line(str(exc)))  # it names the file (or the id) itself
     if refused:
         raise CosimError(f"{refused} of {len(scenarios)} scenario(s) refused")
     return 0
@@ -724,7 +725,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
     except OSError as exc:  # --version to a standard output that refuses it
-        print(f"auv-cosim: {shortened(_reason(exc))}", file=sys.stderr)
+        print(f"auv-cosim: {shortened(one_line(_reason(exc)))}", file=sys.stderr)
         return 1
     if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as a
         args.usage_help()  # usage error
@@ -739,7 +740,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except CosimError as exc:
-        print(f"auv-cosim {args.command}: {shortened(str(exc))}", file=sys.stderr)
+        print(f"auv-cosim {args.command}: {shortened(one_line(str(exc)))}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"auv-cosim {args.command}: interrupted", file=sys.stderr)
@@ -748,7 +749,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         _quiet_stdout()
         return 128 + 13  # as a command ended by SIGPIPE
     except (ValueError, OSError, RuntimeError) as exc:
-        print(f"auv-cosim {args.command}: {shortened(_reason(exc))}", file=sys.stderr)
+        print(f"auv-cosim {args.command}: {shortened(one_line(_reason(exc)))}", file=sys.stderr)
         return 1
     finally:
         if argv is None:  # the process ends with the command

@@ -51,6 +51,17 @@ def unmade_folder(folder: Path, exc: OSError) -> str:
     return "it is not a folder" if folder.exists() else exc.strerror or str(exc)
 
 
+# the C0 and C1 control characters, as Python writes them in a string: \n, \t, \x1b
+_CONTROL = {code: ascii(chr(code))[1:-1] for code in (*range(0x20), *range(0x7F, 0xA0))}
+
+
+def one_line(text: str) -> str:
+    """``text`` with its control characters escaped as Python writes them (a line break in
+    a file's name as ``\\n``): a refusal naming that file stays one line, and no escape
+    sequence of a name reaches the terminal."""
+    return text.translate(_CONTROL)
+
+
 def unencodable(exc: UnicodeEncodeError) -> str | None:
     """What a locale's legacy encoding could not encode (``exc``: a path given to the
     system where Python reads file names as ASCII, ``LC_ALL=C`` with its UTF-8 mode off),

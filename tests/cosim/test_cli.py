@@ -577,3 +577,20 @@ def test_a_file_named_with_a_leading_dash_is_named_with_how_to_give_it(
         "'-fahrt.toml' is a file, read as an option: give it as ./-fahrt.toml or after --"
         in err.splitlines()[-1]
     ), err
+
+
+@pytest.mark.parametrize("command", ["run", "validate"])
+def test_a_path_holding_a_line_break_is_refused_in_one_line(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A scenario file named with a line break (``neu\\nzeile.toml``, a name a script
+    made) was refused on two lines, "scenario file .../neu" and "zeile.toml: key 'id':
+    ...": a reader of the first line saw no reason. Control characters in a refusal are
+    escaped, as Python writes them."""
+    path = tmp_path / "neu\nzeile.toml"
+    path.write_text('stop_time = "zwölf"\n', encoding="utf-8")
+    assert main([command, str(path)]) == 1
+    said = capsys.readouterr()
+    refusal = said.out if command == "validate" else said.err
+    assert refusal.count("\n") == 1, refusal
+    assert "neu\\nzeile.toml" in refusal and "zwölf" in refusal
