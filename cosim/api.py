@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS
 from cosim.errors import KEYWORDS, CosimError
-from cosim.paths import DEFAULT_FMU_DIR
+from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import RunOptions, execute
 from cosim.scratch import process_folder
 
@@ -569,7 +569,8 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
 def _toml_value(value: object, key: str) -> object:
     """A value of a study dict as its TOML file holds it: a numpy array or scalar as its
     list or Python number (``np.linspace(-0.1, 0.1, 5)``), a tuple as a list, a path as its
-    text, in mappings and lists too; None, which TOML cannot hold, refused naming ``key``."""
+    text, in mappings and lists too; None, and a name holding bytes that are no UTF-8 (read
+    as surrogates), which TOML cannot hold, refused naming ``key``."""
     from cosim.study.spec import StudyError
 
     if type(value).__module__ == "numpy" and hasattr(value, "tolist"):
@@ -579,7 +580,12 @@ def _toml_value(value: object, key: str) -> object:
     if isinstance(value, list | tuple):
         return [_toml_value(item, f"{key}[{i}]") for i, item in enumerate(value)]
     if isinstance(value, os.PathLike):
-        return os.fspath(value)
+        value = os.fspath(value)
+    if isinstance(value, str) and undecoded(value):
+        raise StudyError(
+            f"{DICT_LABEL}: key {key!r} = {value!r}: a name in bytes that are no UTF-8 "
+            f"({path_text(value)}), which a study's TOML cannot hold: rename the file"
+        )
     if value is None:
         raise StudyError(
             f"{DICT_LABEL}: key {key!r} = None: expected a value (leave the key out for its "

@@ -23,3 +23,10 @@ def path_text(path: str | os.PathLike[str]) -> str:
     except UnicodeEncodeError:  # a character the locale names no file with (ü in ASCII)
         return text.encode("utf-8", "backslashreplace").decode("utf-8")
     return raw.decode("utf-8", "backslashreplace")
+
+
+def undecoded(text: str) -> bool:
+    """Whether ``text`` holds bytes Python could not decode (a name's bytes that are no
+    UTF-8, read as surrogates; :func:`path_text` shows them), which no UTF-8 file or
+    library takes as they are."""
+    return any("\ud800" <= c <= "\udfff" for c in text)

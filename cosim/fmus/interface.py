@@ -31,7 +31,7 @@ from typing import Any
 from xml.etree import ElementTree
 
 from cosim.errors import CosimError
-from cosim.paths import path_text
+from cosim.paths import path_text, undecoded
 
 Value = bool | int | float | str
 SI_BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
@@ -274,7 +274,7 @@ def _unnamed_working_folder(path: Path) -> str | None:
     lxml, fmpy's XML reader, names the XML by the working folder, in UTF-8. None for a
     folder whose name is UTF-8."""
     folder = os.getcwd()
-    if not any("\ud800" <= c <= "\udfff" for c in folder):
+    if not undecoded(folder):
         return None
     cure = "run from another folder"
     if sys.getfilesystemencoding().lower() not in ("utf-8", "utf8"):

@@ -1025,3 +1025,22 @@ def test_a_scenario_shows_in_one_line_with_its_start_values(fmu_dir: Path) -> No
     assert shown.startswith("Scenario(id='bs-3', source=") and "stop_time=60.0" in shown
     assert "'plant.u_0': 1.2" in shown and "'controller.heading_mode': 3" in shown
     assert f"connections=<{len(scenario.connections)}>" in shown
+
+
+def test_a_study_dict_naming_a_file_in_bytes_not_utf8_is_refused_saying_so(
+    tmp_path: Path,
+) -> None:
+    """``cosim.sweep({"scenario": <a file named in Latin-1>})`` was refused as "cannot be
+    written as TOML: 'utf-8' codec can't encode character '\\udcf6' in position 14:
+    surrogates not allowed": the key and the name as the user knows it (``gr\\xf6sse``)
+    went unsaid, and so did what to do."""
+    scenario = tmp_path / os.fsdecode(b"gr\xf6sse.toml")
+    shutil.copyfile(SCENARIO_FOLDER / "bs-3.toml", scenario)
+    study = {"scenario": scenario, "stop_time": 0.5, "grid": {"plant.v_0": [0.1]}}
+    with pytest.raises(StudyError) as refused:
+        cosim.sweep(study, workers=1, out=tmp_path / "study")
+    assert str(refused.value) == (
+        f"study (given as a dict): key 'scenario' = {str(scenario)!r}: a name in bytes that "
+        f"are no UTF-8 ({tmp_path}/gr\\xf6sse.toml), which a study's TOML cannot hold: "
+        "rename the file"
+    )
