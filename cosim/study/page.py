@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from cosim.paths import path_text
 from cosim.study.plots import PANELS_MAX
 
 INDEX_PAGE = "index.html"
@@ -51,13 +52,14 @@ def write_index(
             else ""
         )
         failures = f"<h2>Failed runs</h2>\n<ul>\n{items}\n</ul>\n{more}"
+    name = path_text(out_dir.resolve().name)  # a name's bytes that are no UTF-8 escaped
     page = f"""<!DOCTYPE html>
 <html lang="en">
-<head><meta charset="utf-8"><title>auv-cosim study {_escape(out_dir.resolve().name)}</title>
+<head><meta charset="utf-8"><title>auv-cosim study {_escape(name)}</title>
 <style>body {{ font-family: sans-serif; max-width: 1400px; margin: 2em auto; }}
 th {{ text-align: left; padding-right: 2em; }}</style></head>
 <body>
-<h1>Study {_escape(out_dir.resolve().name)}</h1>
+<h1>Study {_escape(name)}</h1>
 <p>Results: <a href="runs.csv">runs.csv</a>, <a href="runs.parquet">runs.parquet</a>
 (one row per run)</p>
 <table>
@@ -69,7 +71,7 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 </body>
 </html>
 """
-    path = out_dir / INDEX_PAGE  # a name that is no UTF-8 (surrogates) escaped
+    path = out_dir / INDEX_PAGE  # undecoded text elsewhere (a run's error) escaped
     path.write_text(page, encoding="utf-8", errors="backslashreplace")
     return path
 

@@ -72,7 +72,7 @@ from cosim.outputs.report_folder import (
     run_stamp,
 )
 from cosim.outputs.results import read_csv
-from cosim.paths import DEFAULT_FMU_DIR
+from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import STUDY_FILE
 
@@ -234,7 +234,7 @@ def write_report(run_dir: Path) -> Path:
         figures = _figures(run_dir, table, summary, staging)
         index = staging / INDEX_PAGE
         page = index_page(run_dir, summary, summary_problem, figures, stamp)
-        index.write_text(page, "utf-8", "backslashreplace")  # a name that is no UTF-8
+        index.write_text(page, "utf-8", "backslashreplace")  # undecoded text elsewhere
         record(staging, [*figures.values(), index], stamp)
         remove_earlier(out, keep=[INDEX_PAGE, *(path.name for path in figures.values())])
         for name in [*(path.name for path in figures.values()), INDEX_PAGE, REPORT_MANIFEST]:
@@ -706,7 +706,7 @@ def index_page(
 ) -> str:
     """The HTML index: which run it describes (``stamp``: :func:`run_stamp` and when it
     was made), summary table, key figures, the figures inline (linked)."""
-    name = summary.get("scenario") or run_dir.resolve().name
+    name = summary.get("scenario") or path_text(run_dir.resolve().name)
     rows = [
         ("scenario", summary.get("scenario")),
         ("status", summary.get("status")),
@@ -750,7 +750,7 @@ def index_page(
 th {{ text-align: left; padding-right: 2em; }}</style></head>
 <body>
 <h1>Run {html.escape(str(name))}</h1>
-<p>Run folder: <code>{html.escape(str(run_dir))}</code> (results.csv, summary.json)</p>
+<p>Run folder: <code>{html.escape(path_text(run_dir))}</code> (results.csv, summary.json)</p>
 {_stamp_line(stamp, run_dir, summary_problem)}
 {note}
 <table>
@@ -770,7 +770,9 @@ def _stamp_line(stamp: dict[str, Any] | None, run_dir: Path, summary_problem: st
         return ""
     digest = stamp.get("results_sha256") or "unknown"
     scenario, status = stamp.get("scenario"), stamp.get("status")
-    run = f"the run of {scenario}" if scenario else f"the run in {run_dir.resolve().name}"
+    run = (
+        f"the run of {scenario}" if scenario else f"the run in {path_text(run_dir.resolve().name)}"
+    )
     if not status:
         status = "unknown" + (f": {summary_problem}" if summary_problem else "")
     return (

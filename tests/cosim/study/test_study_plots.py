@@ -328,14 +328,24 @@ def test_a_grid_figure_of_means_over_samples_says_so_on_its_axis(
         plt.close(figure)
 
 
-def test_a_study_folder_named_in_bytes_not_utf8_gets_its_page(tmp_path: Path) -> None:
-    """The page's title names the study folder; one named in Latin-1 (the byte 0xff,
-    read as the surrogate U+DCFF) failed the study at its end, "UnicodeEncodeError"."""
-    import os
-
+@pytest.mark.parametrize(
+    ("name", "shown"),
+    [
+        # Latin-1: the byte 0xff, read as the surrogate U+DCFF
+        ("study-\udcff", "study-\\xff"),
+        # Stüdie's UTF-8 bytes as Python holds them where it reads names as ASCII
+        # (LC_ALL=C, PYTHONUTF8=0): the page said "Study St\\udcc3\\udcbcdie"
+        ("St\udcc3\udcbcdie", "Stüdie"),
+    ],
+)
+def test_a_study_folder_named_in_bytes_not_utf8_gets_its_page(
+    tmp_path: Path, name: str, shown: str
+) -> None:
+    """The page's title names the study folder; one named in Latin-1 failed the study at
+    its end, "UnicodeEncodeError". The name is written as its bytes read as UTF-8."""
     from cosim.study.page import write_index
 
-    folder = tmp_path / os.fsdecode(b"study-\xff")
+    folder = tmp_path / name
     folder.mkdir()
     page = write_index(folder, {"runs": "4"}, [], {}, ["time_reached"])
-    assert "<h1>Study study-\\udcff</h1>" in page.read_text(encoding="utf-8")
+    assert f"<h1>Study {shown}</h1>" in page.read_text(encoding="utf-8")

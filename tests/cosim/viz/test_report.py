@@ -499,15 +499,23 @@ def test_key_figures_are_labelled_with_their_unit_in_brackets() -> None:
     assert "<th>peak |mass position| (m)</th><td>0.033</td>" in page
 
 
-def test_a_run_folder_named_in_bytes_not_utf8_gets_its_report(tmp_path) -> None:
-    """A run folder named in Latin-1 (Python reads the byte 0xff as the surrogate U+DCFF):
-    the page names the folder, and writing it failed, "UnicodeEncodeError: 'utf-8' codec
-    can't encode character '\\udcff'" (exit 1, no report)."""
-    import os
-
-    run = _sparse_run(tmp_path / os.fsdecode(b"run-\xff"))
-    index = write_report(run)
-    assert "run-\\udcff" in index.read_text(encoding="utf-8")  # escaped, valid UTF-8
+@pytest.mark.parametrize(
+    ("name", "shown"),
+    [
+        ("run-\udcff", "run-\\xff"),  # Latin-1: the byte 0xff, read as the surrogate U+DCFF
+        # Läufe's UTF-8 bytes as Python holds them where it reads names as ASCII
+        # (LC_ALL=C, PYTHONUTF8=0): the page said "L\\udcc3\\udca4ufe"
+        ("L\udcc3\udca4ufe", "Läufe"),
+    ],
+)
+def test_a_run_folder_named_in_bytes_not_utf8_gets_its_report(
+    tmp_path: Path, name: str, shown: str
+) -> None:
+    """A run folder named in bytes Python did not decode: the page names the folder, and
+    writing it failed, "UnicodeEncodeError: 'utf-8' codec can't encode character
+    '\\udcff'" (exit 1, no report). The name is written as its bytes read as UTF-8."""
+    index = write_report(_sparse_run(tmp_path / name))
+    assert f"<code>{tmp_path}/{shown}</code>" in index.read_text(encoding="utf-8")
 
 
 def _long_run(run: Path, rows: int) -> float:
