@@ -16,6 +16,7 @@ import cosim
 from cosim.metrics.manoeuvres import manoeuvre_metrics, metric_names, zigzag
 from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, scenario_metric_names
 from cosim.runner import report, run_scenario
+from cosim.scenario.mission_doubts import MissionWarning
 from cosim.scenario.spec import load_scenario, scenario_from_toml
 
 H = 0.01
@@ -172,8 +173,9 @@ def test_a_survey_stopped_short_names_the_first_waypoint_it_did_not_reach(
     a finished one. Now both give the legs of the mission and the first waypoint not
     reached (waypoint 1 is the start, so 2 legs done leave waypoint 4 next)."""
     fmu_dir = fmu_paths["AuvPlant"].parent
-    outcome = run_scenario("survey", tmp_path / "run", stop_time=60.0, no_rrd=True,
-                           fmu_dir=fmu_dir)  # fmt: skip
+    with pytest.warns(MissionWarning, match="waypoint 4 onwards will not be reached"):
+        outcome = run_scenario("survey", tmp_path / "run", stop_time=60.0, no_rrd=True,
+                               fmu_dir=fmu_dir)  # fmt: skip
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     done = summary["legs_completed"]
     assert 0 < done < 7  # the run ends mid-mission
@@ -216,8 +218,9 @@ def test_a_waypoint_passed_outside_its_acceptance_radius_is_not_called_reached(
         {"guidance.waypoints": "0, 0, 2; 30, 0, 2; 30, 3, 2; 0, 3, 2",
          "guidance.acceptance_radius": 1.0}
     )  # fmt: skip
-    outcome = run_scenario(tight, tmp_path / "run", stop_time=40.0, no_rrd=True,
-                           fmu_dir=fmu_dir, keep_rows=True)  # fmt: skip
+    with pytest.warns(MissionWarning, match="waypoint 4 onwards will not be reached"):
+        outcome = run_scenario(tight, tmp_path / "run", stop_time=40.0, no_rrd=True,
+                               fmu_dir=fmu_dir, keep_rows=True)  # fmt: skip
     legs = json.loads((tmp_path / "run" / "summary.json").read_text())["legs"]
     result = outcome.result
     done = result.column("guidance.legs_completed")
