@@ -179,8 +179,10 @@ class AuvAutopilot(SafeSlave):
                     name,
                     causality=Fmi2Causality.output,
                     variability=Fmi2Variability.discrete,
-                    # thrust is the thrust_command parameter: calculated from it
-                    initial=Fmi2Initial.calculated if name == "thrust" else Fmi2Initial.exact,
+                    # computed by _initialize (thrust from thrust_command, the others 0):
+                    # the FMU's own, so no host may set them (FMI 2.0 lets a host set an
+                    # initial="exact" output before initialisation, which the runtime refuses)
+                    initial=Fmi2Initial.calculated,
                     description=OUTPUT_DESCRIPTIONS[name],
                 ),
                 unit=unit,

@@ -50,9 +50,9 @@ tools and our own checks may rely on:
 - **Model structure**: `needsExecutionTool="false"`; every output is listed with its
   dependencies (none of ours depends directly on an input: each is computed at
   initialisation or at the end of a step), so importers see no algebraic loop between
-  plant and controller; an output that depends on parameters is `initial="calculated"`
-  (no start in the tables below: read in initialisation mode, it gives the value the FMU
-  starts from), any other `initial="exact"` with its start value; a default experiment.
+  plant and controller; every output is `initial="calculated"` (no start in the tables
+  below: the FMU computes it, so no host sets it; read in initialisation mode, it gives
+  the value the FMU starts from); a default experiment.
 - **Behaviour**: the same inputs give bit-identical outputs; `fmi2GetFMUstate` /
   `fmi2SetFMUstate` save and restore the whole state, and a restored run continues
   exactly as the original; bad input (NaN, a value out of range, a fixed parameter
