@@ -64,6 +64,9 @@ _ROOT_ORDER = ("System", "Enumerations", "Units", "DefaultExperiment", "Annotati
 _SSC_TYPES = {"Real": TypeReal, "Integer": TypeInteger, "Enumeration": TypeInteger,
               "Boolean": TypeBoolean, "String": TypeString}  # fmt: skip
 _DIMENSIONLESS = "1"
+# pyssp-standard writes a Real value's unit even when it is None (and fails): a value in a
+# unit the SSD cannot declare carries this name through it, taken off afterwards
+_NO_UNIT = "auv-cosim: no unit"
 # Fixed zip timestamps make the same scenario export to the same bytes.
 _ZIP_DATE = (2000, 1, 1, 0, 0, 0)
 
@@ -125,7 +128,8 @@ def ssd_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
     Workarounds for pyssp-standard 0.9.1 (each measured):
     * a ``ssv:Real`` without a unit makes it write ``unit=None`` and fail, so every Real
       start value gets a unit, dimensionless ones ``"1"`` (declared with an empty
-      ``BaseUnit``, as OMSimulator writes it);
+      ``BaseUnit``, as OMSimulator writes it), and one in a unit its FMU gives no base
+      units for (which the SSD cannot declare) :data:`_NO_UNIT`, removed afterwards;
     * it declares ``ssv`` on each inline parameter set and nothing for annotations, so the
       namespaces are all moved onto the root element afterwards (some importers resolve
       prefixes only there);
@@ -150,6 +154,8 @@ def ssd_xml(scenario: Scenario, parts: Sequence[Component]) -> bytes:
     root = _written(scenario, system, units)
     for element in (root, root.find("ssd:System", NAMESPACES)):  # pyssp-standard writes none
         element.set("description", description(scenario))
+    for value in root.iterfind(f".//ssv:Real[@unit='{_NO_UNIT}']", NAMESPACES):
+        del value.attrib["unit"]  # as on its connector: a unit is optional in SSP
     _add_step_size_hints(root, scenario, parts)
     _add_linear_transformations(root, scenario)
     root[:] = sorted(root, key=lambda child: _ROOT_ORDER.index(etree.QName(child).localname))
@@ -214,9 +220,8 @@ def _parameter_set(comp: Component, units: _UnitTable) -> SSVElem:
     for name, value in comp.start.items():
         var = comp.variable(name)
         attributes = {"value": xml_literal(value)}
-        unit = units.name_of(comp, var) if var.type == "Real" else None
-        if unit is not None:
-            attributes["unit"] = unit
+        if var.type == "Real":
+            attributes["unit"] = units.name_of(comp, var) or _NO_UNIT
         kind = value_type(var.type)
         parameters.append(
             {"name": name, "type_name": kind, "type_value": ParameterType(kind, attributes)}

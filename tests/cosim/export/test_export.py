@@ -12,6 +12,7 @@ import shutil
 import zipfile
 from pathlib import Path
 
+import fmpy
 import pytest
 from fmpy import read_model_description
 from lxml import etree
@@ -550,12 +551,11 @@ def test_the_note_says_an_adaptive_scenario_is_exported_at_its_first_step(
     ), out
 
 
-def test_a_unit_an_fmu_gives_no_base_units_is_left_off_the_connector(tmp_path: Path) -> None:
-    """BouncingBall with `<Unit name="m"></Unit>` runs and validates, yet its SSP export
-    was refused ("declares no SI base units for unit 'm' ...; an SSP unit needs them"),
-    though a unit is optional on an SSP connector."""
+def _ball_without_base_units(folder: Path, start: str = "") -> Path:
+    """BouncingBall.fmu in ``folder`` with `<Unit name="m"></Unit>` (no base units), and a
+    scenario of it with the ``start`` table text; returns the scenario's path."""
     ball = Path(__file__).parents[2] / "data" / "reference-fmus" / "BouncingBall.fmu"
-    bare = tmp_path / "BouncingBall.fmu"
+    bare = folder / "BouncingBall.fmu"
     with zipfile.ZipFile(ball) as old, zipfile.ZipFile(bare, "w") as new:
         for item in old.infolist():
             data = old.read(item)
@@ -563,16 +563,42 @@ def test_a_unit_an_fmu_gives_no_base_units_is_left_off_the_connector(tmp_path: P
                 data, count = re.subn(rb'(<Unit name="m">)\s*<BaseUnit m="1"/>\s*', rb"\1", data)
                 assert count == 1
             new.writestr(item, data)
-    scenario = tmp_path / "ball.toml"
+    scenario = folder / "ball.toml"
     scenario.write_text(
         'stop_time = 1.0\n[coupling]\nstep = 0.01\n[instances.ball]\nfmu = "BouncingBall.fmu"\n'
+        + (f"[instances.ball.start]\n{start}" if start else "")
     )
+    return scenario
+
+
+def test_a_unit_an_fmu_gives_no_base_units_is_left_off_the_connector(tmp_path: Path) -> None:
+    """BouncingBall with `<Unit name="m"></Unit>` runs and validates, yet its SSP export
+    was refused ("declares no SI base units for unit 'm' ...; an SSP unit needs them"),
+    though a unit is optional on an SSP connector."""
+    scenario = _ball_without_base_units(tmp_path)
     archive = export_ssp(load_scenario(scenario), tmp_path / "ball.ssp")
     connectors = {c.get("name"): c for c in _ssd(archive).iterfind(".//ssd:Connector", NS)}
     (height,) = connectors["h"]
     assert height.get("unit") is None
     (speed,) = connectors["v"]
     assert speed.get("unit") == "m/s"
+
+
+def test_a_start_value_in_a_unit_without_base_units_is_written_without_it(
+    tmp_path: Path,
+) -> None:
+    """The ball dropped from 2 m (``h``, in a unit "m" its FMU gives no base units): the
+    parameter value is written without a unit, as its connector is, and the SSD is valid
+    (the export failed with a traceback, "TypeError: Argument must be bytes or unicode,
+    got 'NoneType'")."""
+    scenario = _ball_without_base_units(tmp_path, "h = 2.0\n")
+    archive = export_ssp(load_scenario(scenario), tmp_path / "ball.ssp")
+    root = _ssd(archive)
+    (value,) = root.iterfind(".//ssv:Parameter[@name='h']/ssv:Real", NS)
+    assert (value.get("value"), value.get("unit")) == ("2.0", None)
+    assert {u.get("name") for u in root.iterfind("ssd:Units/ssc:Unit", NS)} == {"m/s"}
+    schema = Path(fmpy.__file__).parent / "ssp" / "schema" / "SystemStructureDescription.xsd"
+    assert etree.XMLSchema(etree.parse(str(schema))).validate(etree.ElementTree(root))
 
 
 def test_the_note_names_enumerations_written_as_integers(
