@@ -36,8 +36,10 @@ def test_variables_are_typed_as_the_model_description_declares(fmu_paths) -> Non
     yaw = plant.variables["yaw"]
     assert (yaw.type, yaw.causality, yaw.unit) == ("Real", "output", "rad")
     assert yaw.start is None and yaw.description  # initial="calculated": from yaw_0
-    fin = read_interface(fmu_paths["AuvAutopilot"]).variables["fin_angle"]
-    assert fin.causality == "output" and fin.start == 0.0 and type(fin.start) is float
+    autopilot = read_interface(fmu_paths["AuvAutopilot"]).variables
+    fin, setpoint = autopilot["fin_angle"], autopilot["yaw_setpoint"]
+    assert (fin.causality, fin.initial, fin.start) == ("output", "calculated", None)
+    assert setpoint.start == 0.0 and type(setpoint.start) is float  # start="0": a Real
     assert [v.name for v in plant.with_causality("input")] == list(INPUT_NAMES)
     # The unit definitions as SI base-unit exponents; N is kg m / s^2.
     assert plant.units["N"] == {"kg": 1, "m": 1, "s": -2}
