@@ -38,7 +38,9 @@ report takes what one of 1000 s does to draw.
 
 Every series is optional: a panel whose columns the run did not record is left out, a
 figure with no panel is not written. The page ``report/index.html`` in the run folder
-shows the run's summary (``summary.json``) and links the figures.
+shows the run's summary (``summary.json``) and links the figures, each with an alt text
+saying what it plots against what, in which units (:func:`figure_alt`); its tables have
+captions and row headers (``scope="row"``) for a screen reader.
 """
 
 from __future__ import annotations
@@ -232,8 +234,9 @@ def write_report(run_dir: Path) -> Path:
         out.mkdir(exist_ok=True)
         staging.mkdir()
         figures = _figures(run_dir, table, summary, staging)
+        alts = {name: figure_alt(name, table, summary) for name in figures}
         index = staging / INDEX_PAGE
-        page = index_page(run_dir, summary, summary_problem, figures, stamp)
+        page = index_page(run_dir, summary, summary_problem, figures, stamp, alts)
         index.write_text(page, "utf-8", "backslashreplace")  # undecoded text elsewhere
         record(staging, [*figures.values(), index], stamp)
         remove_earlier(out, keep=[INDEX_PAGE, *(path.name for path in figures.values())])
@@ -571,7 +574,7 @@ def plot_trajectory(
         return None
     north, east = table["plant.north"], table["plant.east"]
     down = table.get("plant.down")
-    three_d = down is not None and np.ptp(down) > 1e-3
+    three_d = _depth_changes(table)
     fig = Figure(figsize=(12 if three_d else 6.5, 6))
     ax = fig.add_subplot(1, 2 if three_d else 1, 1)
     if waypoints is not None:
@@ -599,6 +602,13 @@ def plot_trajectory(
         ax3.set_title("earth frame (NED)")
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _depth_changes(table: dict[str, np.ndarray]) -> bool:
+    """Whether the run's depth changes by more than a millimetre (its trajectory then gets
+    a 3-D view)."""
+    down = table.get("plant.down")
+    return down is not None and bool(np.ptp(down) > 1e-3)
 
 
 def plot_lateral_deviation(table: dict[str, np.ndarray], path: Path) -> Path | None:
@@ -681,6 +691,38 @@ def _save(fig: Figure, path: Path) -> Path:
 # --- index page ----------------------------------------------------------------------------
 
 
+def plain(label: str) -> str:
+    """An axis label as text a screen reader reads: its mathtext undone, ``$y_{vel}$ (cm/s)``
+    is "y_vel (cm/s)", ``$\\phi$ (deg)`` is "phi (deg)"."""
+    return label.translate(str.maketrans("", "", "$\\{}"))
+
+
+def figure_alt(name: str, table: dict[str, np.ndarray], summary: dict[str, Any]) -> str:
+    """The alt text of the figure ``name`` of a run (``table``: its results, ``summary``:
+    its summary.json): what is plotted against what, with units, as drawn."""
+    if name == "trajectory":
+        return (
+            "Path over ground: x, north (m) against y, east (m), start and end marked"
+            + (
+                ", turning-circle metrics marked"
+                if summary.get("manoeuvre") == "turning-circle"
+                else ""
+            )
+            + ("; beside it a 3-D view with z, down (m)" if _depth_changes(table) else "")
+        )
+    if name == "lateral_deviation":
+        return "Lateral deviation (m) from the initial course against the distance along it (m)"
+    title, panels = FIGURES[name]
+    shown = []
+    for panel in panels:
+        if panel.series[0].column in table:
+            others = [s.label for s in panel.series[1:] if s.column in table]
+            shown.append(plain(panel.ylabel) + (f" with {', '.join(others)}" if others else ""))
+    zoom = _zoom(table, summary) if name in ZOOMED else None
+    enlarged = f"; beside them the first {zoom:g} s enlarged" if zoom is not None else ""
+    return f"{title} against time (s), one panel each: {'; '.join(shown)}{enlarged}"
+
+
 FIGURE_UNITS = {"s": "s", "m": "m", "N": "N", "deg": "deg", "pct": "%", "rad": "rad"}
 
 
@@ -703,9 +745,11 @@ def index_page(
     summary_problem: str | None,
     figures: dict[str, Path],
     stamp: dict[str, Any] | None = None,
+    alts: dict[str, str] | None = None,
 ) -> str:
     """The HTML index: which run it describes (``stamp``: :func:`run_stamp` and when it
-    was made), summary table, key figures, the figures inline (linked)."""
+    was made), summary table, key figures, the figures inline (linked), each with its
+    ``alts`` text (:func:`figure_alt`; the figure's title without one)."""
     name = summary.get("scenario") or path_text(run_dir.resolve().name)
     rows = [
         ("scenario", summary.get("scenario")),
@@ -722,7 +766,7 @@ def index_page(
     key = summary.get("key_figures") or {}
     rows += [(figure_label(k), v) for k, v in key.items()]
     table = "\n".join(
-        f"<tr><th>{html.escape(label)}</th><td>{html.escape(_text(value))}</td></tr>"
+        f'<tr><th scope="row">{html.escape(label)}</th><td>{html.escape(_text(value))}</td></tr>'
         for label, value in rows
         if value is not None
     )
@@ -737,9 +781,11 @@ def index_page(
             "<p><strong>The run did not complete: the figures show its partial "
             "results.</strong></p>"
         )
+    titles = {key: FIGURES[key][0] if key in FIGURES else TITLES[key] for key in figures}
+    alt = {key: (alts or {}).get(key) or titles[key] for key in figures}
     images = "\n".join(
-        f"<h2>{html.escape(FIGURES[key][0] if key in FIGURES else TITLES[key])}</h2>\n"
-        f'<p><a href="{path.name}"><img src="{path.name}" alt="{key}" '
+        f"<h2>{html.escape(titles[key])}</h2>\n"
+        f'<p><a href="{path.name}"><img src="{path.name}" alt="{html.escape(alt[key])}" '
         'style="max-width:100%"></a></p>'
         for key, path in figures.items()
     )
@@ -754,6 +800,7 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 {_stamp_line(stamp, run_dir, summary_problem)}
 {note}
 <table>
+<caption>Run summary</caption>
 {table}
 </table>
 {_manoeuvre_table(summary)}
@@ -789,13 +836,15 @@ def _manoeuvre_table(summary: dict[str, Any]) -> str:
     if not metrics:
         return ""
     rows = "\n".join(
-        f"<tr><th>{html.escape(name)}</th>"
+        f'<tr><th scope="row">{html.escape(figure_label(name))}</th>'
         f"<td>{html.escape('n/a' if value is None else _text(value))}</td></tr>"
         for name, value in metrics.items()
     )
     kind = html.escape(str(summary["manoeuvre"]))
     return (
-        f'<h2>Manoeuvre metrics: {kind}</h2>\n<table class="manoeuvre">\n{rows}\n</table>\n'
+        f"<h2>Manoeuvre metrics: {kind}</h2>\n"
+        f'<table class="manoeuvre">\n<caption>Metrics of the {kind} manoeuvre</caption>\n'
+        f"{rows}\n</table>\n"
         "<p>Definitions: docs/manoeuvres.md of auv-cosim.</p>\n"
     )
 

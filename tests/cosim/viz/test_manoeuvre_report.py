@@ -12,6 +12,7 @@ import pytest
 
 from cosim.metrics.manoeuvres import manoeuvre_metrics, metric_names
 from cosim.viz import report
+from cosim.viz.report import figure_label
 
 H = 0.05
 
@@ -69,7 +70,8 @@ def test_a_turning_circle_gets_its_metrics_on_the_page_and_the_track(tmp_path, m
     assert "<h2>Manoeuvre metrics: turning-circle</h2>" in page
     for name in metric_names("turning-circle"):
         value = summary[name]
-        assert f"<tr><th>{name}</th><td>{'n/a' if value is None else f'{value:.6g}'}</td>" in page
+        shown = "n/a" if value is None else f"{value:.6g}"
+        assert f'<tr><th scope="row">{figure_label(name)}</th><td>{shown}</td>' in page
 
 
 @pytest.mark.slow
@@ -91,5 +93,5 @@ def test_a_survey_page_lists_its_metrics(tmp_path, monkeypatch):
     assert "execute" not in drawn
     page = (run_dir / "report" / "index.html").read_text()
     assert "<h2>Manoeuvre metrics: survey</h2>" in page
-    assert "<tr><th>legs_completed</th><td>7</td></tr>" in page
-    assert "<tr><th>cross_track_rms_m</th><td>1.6</td></tr>" in page
+    assert '<tr><th scope="row">legs completed</th><td>7</td></tr>' in page
+    assert '<tr><th scope="row">cross track rms (m)</th><td>1.6</td></tr>' in page

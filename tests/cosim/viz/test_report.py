@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from page_structure import problems, read_page
 
 from cosim.cli import main
 from cosim.errors import CosimError
-from cosim.viz.report import write_report
+from cosim.viz.report import index_page, write_report
 from plant_fmu.model.dynamics import STATE_NAMES, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import load_vehicle
@@ -496,7 +497,7 @@ def test_key_figures_are_labelled_with_their_unit_in_brackets() -> None:
     assert figure_label("legs") == "legs"
     summary = {"scenario": "bs-3", "key_figures": {"peak_abs_mass_position_m": 0.033}}
     page = index_page(Path("runs/bs-3"), summary, None, {})
-    assert "<th>peak |mass position| (m)</th><td>0.033</td>" in page
+    assert '<th scope="row">peak |mass position| (m)</th><td>0.033</td>' in page
 
 
 @pytest.mark.parametrize(
@@ -587,3 +588,37 @@ def test_a_reports_time_says_its_offset_from_utc_whatever_tz_names(
     assert made is not None, page
     assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d [+-]\d{4}", made.group(1)), made.group(1)
     assert made.group(1).endswith(offset)
+
+
+def test_the_summary_and_manoeuvre_tables_read_to_a_screen_reader() -> None:
+    """A screen reader announced the tables' rows without a caption or a header's scope,
+    and the manoeuvre metrics as "advance_m 10.27": the unit a word of the name where
+    the key figures beside them say "(m)"."""
+    summary = {
+        "scenario": "turning-circle",
+        "status": "complete",
+        "stop_time": 60.0,
+        "manoeuvre": "turning-circle",
+        "advance_m": 10.27,
+        "steady_roll_deg": None,
+        "speed_loss_pct": 3.5,
+        "key_figures": {"peak_abs_mass_position_m": 0.06},
+    }
+    page = index_page(Path("runs/turning-circle"), summary, None, {})
+    assert problems(page) == []
+    assert [bool(t.caption) for t in read_page(page).tables] == [True, True]
+    assert '<th scope="row">advance (m)</th><td>10.27</td>' in page
+    assert '<th scope="row">speed loss (%)</th><td>3.5</td>' in page
+    assert '<th scope="row">steady roll (deg)</th><td>n/a</td>' in page
+
+
+@pytest.mark.slow
+def test_each_figure_of_a_report_has_an_alt_text_saying_what_it_shows(lateral_run) -> None:
+    """The figures' alt texts were their file names ("attitude_actuators"): a screen
+    reader said that and nothing of what the figure plots."""
+    page = write_report(lateral_run).read_text()
+    assert problems(page) == []
+    alts = dict(read_page(page).images)
+    assert "u (m/s)" in alts["velocities.png"] and "time (s)" in alts["velocities.png"]
+    assert "phi (deg)" in alts["attitude_actuators.png"]
+    assert "north (m)" in alts["trajectory.png"] and "east (m)" in alts["trajectory.png"]
