@@ -3,7 +3,9 @@
 Laid out like ``auv-cosim report``'s page: a summary table (scenario, factors, runs
 complete and failed), links to ``runs.csv`` and ``runs.parquet``, each figure linked
 full size, the metrics not plotted in one compact line (constant, missing or too many; the
-final values counted, their names folded away), and the failed runs with their errors.
+final values counted, their names folded away), and the failed runs with their errors, a
+list under a heading of its own (no colour says it). The summary table has a caption and
+row headers (``scope="row"``) for a screen reader.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ def write_index(
 ) -> Path:
     """Write ``out_dir/index.html``; ``facts`` are label -> value lines of the summary."""
     summary = "\n".join(
-        f"<tr><th>{_escape(label)}</th><td>{_escape(value)}</td></tr>"
+        f'<tr><th scope="row">{_escape(label)}</th><td>{_escape(value)}</td></tr>'
         for label, value in facts.items()
     )
     images = "\n".join(
@@ -63,6 +65,7 @@ th {{ text-align: left; padding-right: 2em; }}</style></head>
 <p>Results: <a href="runs.csv">runs.csv</a>, <a href="runs.parquet">runs.parquet</a>
 (one row per run)</p>
 <table>
+<caption>Study summary</caption>
 {summary}
 </table>
 {quiet}

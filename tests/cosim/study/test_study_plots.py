@@ -9,6 +9,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+from page_structure import problems, read_page
 
 from cosim.study import plots
 from cosim.study.units import units
@@ -349,3 +350,20 @@ def test_a_study_folder_named_in_bytes_not_utf8_gets_its_page(
     folder.mkdir()
     page = write_index(folder, {"runs": "4"}, [], {}, ["time_reached"])
     assert f"<h1>Study {shown}</h1>" in page.read_text(encoding="utf-8")
+
+
+def test_the_study_page_reads_to_a_screen_reader(tmp_path: Path) -> None:
+    """The summary table had no caption and its header cells no scope; the failed runs
+    are a list under their own heading, not a colour."""
+    from cosim.study.page import write_index
+
+    (tmp_path / "figures").mkdir()
+    figure = tmp_path / "figures" / "grid_plant.v_0.png"
+    failed = {"run": "0003", "status": "failed", "error": "step failed at t = 1.2 s"}
+    facts = {"scenario": "bs-3", "runs": "2: 1 complete, 1 failed"}
+    rows = [{"run": "0002", "status": "complete", "error": ""}, failed]
+    page = write_index(tmp_path, facts, rows, {"Metrics against plant.v_0": figure}, []).read_text()
+    assert problems(page) == []
+    (table,) = read_page(page).tables
+    assert table.scopes == ["row", "row"] and table.caption
+    assert "<h2>Failed runs</h2>" in page and "0003</code>: step failed at t = 1.2 s" in page
