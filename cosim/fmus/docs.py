@@ -3,9 +3,10 @@
 The page is generated from the FMU's own ``modelDescription.xml`` (read with fmpy), so it
 can never disagree with the variables the FMU declares: what the model is, its default
 experiment, one table per causality (inputs, outputs, parameters) with type, unit, start
-value, declared range and description, what a host may and may not do with the FMU
-(:func:`hosting`: the same for every FMU, and says whether its binary is the
-FMU's runtime or pythonfmu's alone), and the references. Only the short "what it
+value, declared range and description (each table captioned, its header cells scoped, in
+a box that scrolls sideways on a phone; on paper it wraps to the page), what a host may
+and may not do with the FMU (:func:`hosting`: the same for every FMU, and says whether its
+binary is the FMU's runtime or pythonfmu's alone), and the references. Only the short "what it
 models" paragraph per model identifier is written here by hand (:data:`ABOUT`).
 
 ``add_documentation(fmu)`` adds or replaces the page in a built FMU;
@@ -152,7 +153,9 @@ _STYLE = (
     "body{font-family:sans-serif;max-width:60em;margin:2em auto;line-height:1.4}"
     "table{border-collapse:collapse;width:100%}"
     "th,td{border:1px solid #bbb;padding:.2em .5em;text-align:left;vertical-align:top}"
-    "th{background:#eee}code{font-size:95%}"
+    "th{background:#eee}code{font-size:95%}caption{text-align:left;font-weight:bold}"
+    ".wide{overflow-x:auto}"  # a table wider than a phone scrolls in its box, not the page
+    "@media print{.wide{overflow:visible}th,td{overflow-wrap:anywhere}}"  # wraps on paper
 )
 
 
@@ -176,7 +179,7 @@ def documentation_html(fmu: str | os.PathLike[str]) -> str:
         variables = [v for v in md.modelVariables if v.causality in causalities]
         if variables:
             parts.append(f"<h2>{title} ({len(variables)})</h2>")
-            parts.append(_table(variables))
+            parts.append(_table(variables, f"{title} of {name}"))
     parts += [
         hosting(_has_loader(fmu), _has_loader(fmu, "win64")),
         "<h2>References</h2><ul>",
@@ -214,17 +217,26 @@ def _facts(md: Any) -> str:
                 f"communication step {experiment.stepSize} s",
             )
         )
+    facts = "".join(f'<tr><th scope="row">{e(k)}</th><td>{e(v)}</td></tr>' for k, v in rows)
+    return _boxed("The FMU", facts)
+
+
+def _boxed(caption: str, rows: str) -> str:
+    """A table of ``rows`` with its ``caption``, in a box that scrolls sideways when the
+    table is wider than the window (a phone's), reached by the keyboard and named for a
+    screen reader; in print the table wraps to the page instead (:data:`_STYLE`)."""
+    e = html.escape
     return (
-        "<table>"
-        + "".join(f"<tr><th>{e(k)}</th><td>{e(v)}</td></tr>" for k, v in rows)
-        + "</table>"
+        f'<div class="wide" role="region" aria-label="{e(caption)}" tabindex="0">'
+        f"<table><caption>{e(caption)}</caption>{rows}</table></div>"
     )
 
 
-def _table(variables: list[Any]) -> str:
+def _table(variables: list[Any], caption: str) -> str:
+    """The variables' table, a row each, under ``caption``."""
     e = html.escape
     columns = ("name", "type", "unit", "start", "range", "variability", "description")
-    head = "<tr>" + "".join(f"<th>{c}</th>" for c in columns) + "</tr>"
+    head = "<tr>" + "".join(f'<th scope="col">{c}</th>' for c in columns) + "</tr>"
     rows = []
     for v in variables:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or ""
@@ -234,7 +246,7 @@ def _table(variables: list[Any]) -> str:
             f"<td>{e(start)}</td><td>{e(value_range(v))}</td><td>{e(v.variability or '')}</td>"
             f"<td>{e(v.description or '')}</td></tr>"
         )
-    return f"<table>{head}{''.join(rows)}</table>"
+    return _boxed(caption, head + "".join(rows))
 
 
 def value_range(variable: Any) -> str:

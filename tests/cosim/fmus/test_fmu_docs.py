@@ -8,8 +8,10 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
+from chromium import CHROMIUM, headless_chromium
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
+from page_structure import problems, read_page
 
 from cosim.fmus.docs import DOC_ENTRY, add_documentation, documentation_html, value_range
 
@@ -111,3 +113,55 @@ def test_built_fmus_carry_their_documentation(fmu_paths: dict[str, Path]) -> Non
     for fmu in fmu_paths.values():
         with zipfile.ZipFile(fmu) as archive:
             assert archive.read(DOC_ENTRY).decode("utf-8") == documentation_html(fmu)
+
+
+def test_the_page_reads_to_a_screen_reader(documented: Path) -> None:
+    """The tables had no caption and their header cells no scope: a screen reader read a
+    parameter's unit without saying it is the unit column."""
+    page = documentation_html(documented)
+    assert problems(page) == []
+    tables = read_page(page).tables
+    assert all(set(t.scopes) == {"col"} for t in tables[1:])  # the variables' columns
+    assert set(tables[0].scopes) == {"row"}  # the facts: a header per row
+
+
+# The page's width and what sticks out of it; each table's width and its box's: whether the
+# box scrolls, can be reached by the keyboard (tabindex) and is named for a screen reader.
+WIDTHS = """() => ({
+    page: [document.documentElement.scrollWidth, document.documentElement.clientWidth],
+    tables: [...document.querySelectorAll('table')].map(t => {
+        const box = t.parentElement, style = getComputedStyle(box);
+        return {table: t.getBoundingClientRect().width, box: box.clientWidth,
+                scrolls: ['auto', 'scroll'].includes(style.overflowX),
+                reachable: box.tabIndex >= 0 && !!box.getAttribute('aria-label')};
+    })})"""
+PHONE_PX = 375  # a phone's width in CSS pixels
+PAPER_PX = 718  # A4's width less 1 cm margins, at 96 CSS pixels per inch
+
+
+@pytest.mark.slow
+@pytest.mark.viewer  # starts a browser
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt, .ci/run)")
+def test_the_page_fits_a_phone_and_paper(fmu_paths: dict[str, Path], tmp_path: Path) -> None:
+    """At 375 px the whole AuvPlant page scrolled sideways (the parameters' table is 840
+    px wide), and on paper that table ran past the page's edge. Now a wide table scrolls
+    in a box of its own, which the keyboard reaches, and in print it wraps to the page."""
+    pytest.importorskip("playwright.sync_api", reason="needs playwright (test extra)")
+    page_file = tmp_path / "index.html"
+    page_file.write_text(documentation_html(fmu_paths["AuvPlant"]), "utf-8")
+    (tmp_path / "profile").mkdir()
+    with headless_chromium(tmp_path / "profile") as browser:
+        seen = {}
+        for media, width in (("screen", PHONE_PX), ("print", PAPER_PX)):
+            page = browser.new_page(viewport={"width": width, "height": 800})
+            page.emulate_media(media=media)
+            page.goto(page_file.as_uri(), wait_until="load")
+            seen[media] = page.evaluate(WIDTHS)
+            page.close()
+    phone, paper = seen["screen"], seen["print"]
+    assert phone["page"][0] <= phone["page"][1], phone
+    wide = [t for t in phone["tables"] if t["table"] > t["box"] + 1]
+    assert wide, f"no table wider than {PHONE_PX} px: the test shows nothing"
+    assert all(t["scrolls"] and t["reachable"] for t in wide), wide
+    assert paper["page"][0] <= paper["page"][1], paper
+    assert all(t["table"] <= t["box"] + 1 for t in paper["tables"]), paper

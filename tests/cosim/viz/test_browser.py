@@ -24,7 +24,6 @@ import json
 import os
 import re
 import select
-import shutil
 import signal
 import subprocess
 import sys
@@ -36,6 +35,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from chromium import CHROMIUM, START_TIMEOUT_S, end_group, headless_chromium
 from PIL import Image
 from repo_paths import ROOT
 from rerun.chunk import RrdReader
@@ -45,14 +45,12 @@ from cosim.viz.recording import recording_in
 from cosim.viz.report import write_report
 
 playwright = pytest.importorskip("playwright.sync_api", reason="needs playwright (test extra)")
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.viewer,  # starts a browser
     pytest.mark.cluster,  # the study its pages show is swept on Dask
     pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt, .ci/run)"),
 ]
-START_TIMEOUT_S = 180.0  # the machine may be busy: generous, never a measurement
 LOAD_TIMEOUT_S = 240.0
 URL_LINE = re.compile(r"^\s+(http://127\.0\.0\.1:\d+/\?url=\S+)$", re.MULTILINE)
 VIEWER_STATE = """() => {
@@ -82,18 +80,6 @@ def folders(fmu_paths: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
     assert (done.out_dir / "overlay.rrd").is_file()
     pages = {"run": report, "study": done.out_dir / "index.html"}
     return {"run": run.out_dir, "study": done.out_dir, "pages": pages}
-
-
-def _end_group(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
-    """End the process group the test started (its leader is ``proc``) and reap it."""
-    with contextlib.suppress(ProcessLookupError):
-        os.killpg(proc.pid, sig)
-    try:
-        proc.wait(timeout=30)
-    except subprocess.TimeoutExpired:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
 
 
 def _read_until(proc: subprocess.Popen, pattern: re.Pattern[str], timeout: float) -> str:
@@ -128,34 +114,14 @@ def _served(path: Path) -> Iterator[tuple[subprocess.Popen, str]]:
         assert len(urls) == 1, printed
         yield proc, urls[0]
     finally:
-        _end_group(proc)
+        end_group(proc)
 
 
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory: pytest.TempPathFactory) -> Iterator:
     """Chromium, headless, in its own process group, driven through its DevTools port."""
-    profile = tmp_path_factory.mktemp("chromium-profile")
-    command = [CHROMIUM, "--headless", "--no-sandbox", "--remote-debugging-port=0"]
-    command += [f"--user-data-dir={profile}", "--no-first-run", "--disable-gpu-sandbox"]
-    command += ["--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
-    command += ["about:blank"]
-    proc = subprocess.Popen(
-        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
-    )
-    try:  # chromium writes its DevTools port (0: it chose one) into the profile
-        active = profile / "DevToolsActivePort"
-        deadline = time.monotonic() + START_TIMEOUT_S
-        while not (active.is_file() and active.read_text().count("\n") >= 1):
-            assert proc.poll() is None, f"chromium exited {proc.returncode}"
-            assert time.monotonic() < deadline, "chromium wrote no DevToolsActivePort"
-            time.sleep(0.2)
-        endpoint = f"http://127.0.0.1:{active.read_text().split()[0]}"
-        with playwright.sync_playwright() as driver:
-            connected = driver.chromium.connect_over_cdp(endpoint)
-            yield connected
-            connected.close()
-    finally:
-        _end_group(proc)
+    with headless_chromium(tmp_path_factory.mktemp("chromium-profile")) as connected:
+        yield connected
 
 
 def _group(proc: subprocess.Popen) -> list[psutil.Process]:
@@ -333,7 +299,7 @@ def _kernel_side(run_dir: Path) -> Iterator[dict]:
         assert line, f"the notebook's viewer cell failed (exit {proc.poll()})"
         yield json.loads(line)
     finally:
-        _end_group(proc)
+        end_group(proc)
 
 
 def test_the_notebooks_inline_viewer_shows_the_run_offline(
