@@ -11,8 +11,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
 import numpy as np
+from matplotlib import style as mpl_style
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -36,6 +36,12 @@ SPECIAL_MARKERS: dict[str, dict[str, Any]] = {
     "branch point": dict(marker="D", color="black", s=50),
     "hopf": dict(marker="*", color="tab:green", s=120),
 }
+# The colours of branches and trajectories, in order: matplotlib's petroff10 cycle, chosen
+# to stay apart for colour-blind readers (tab10's orange and green are one colour to a
+# reader with protanopia, its green and red to one with deuteranopia).
+LINE_COLOURS: tuple[str, ...] = tuple(
+    mpl_style.library["petroff10"]["axes.prop_cycle"].by_key()["color"]
+)
 STATE_LABELS = {
     "u": "u (m/s)",
     "v": "v (m/s)",
@@ -65,9 +71,8 @@ def plot_sweep(result: Sweep, params: VehicleParameters, path: Path, title: str 
     grid = fig.add_gridspec(2, 4)
     ax3d = fig.add_subplot(grid[:, 0:2], projection="3d")
     axes = [fig.add_subplot(grid[k // 2, 2 + k % 2]) for k in range(len(against))]
-    colors = matplotlib.colormaps["tab10"]
     for b, branch in enumerate(result.branches):
-        color = colors(b % 10)
+        color = LINE_COLOURS[b % len(LINE_COLOURS)]
         stable = branch.stable
         for run in _runs(stable):
             style = "-" if stable[run.start] else "--"
@@ -117,6 +122,24 @@ def plot_sweep(result: Sweep, params: VehicleParameters, path: Path, title: str 
     return _save(fig, path)
 
 
+def sweep_alt(parameter: str) -> str:
+    """The alt text of :func:`plot_sweep`'s figure over ``parameter`` (a key of
+    :data:`PARAMETER_LABELS`)."""
+    label = PARAMETER_LABELS[parameter].translate(str.maketrans("", "", "$\\{}"))
+    return (
+        f"Equilibrium branches over the {label}: in (v, u, r) with v, u in (m/s) and r in "
+        "(rad/s), and beside it roll (deg), v, r and u against the parameter; solid stable, "
+        "dashed unstable, folds, branch points and Hopf points marked"
+    )
+
+
+PHASE_ALT = (
+    "Open-loop trajectories in (v, u, r), v and u in (m/s), r in (rad/s), and projected on "
+    "(v, r), each coloured by the equilibrium it ends at; stable equilibria filled, "
+    "unstable ones hollow"
+)  # the alt text of plot_phase_portrait's figure
+
+
 def _secondary_axis(ax: Axes, parameter: str, params: VehicleParameters) -> None:
     """A top axis in the dissertation's unit: Q / Q_prop (Fig. 5.9), y_g in cm (Fig. 5.12)."""
     if parameter == "roll_torque":
@@ -145,18 +168,17 @@ def plot_phase_portrait(
     fig = Figure(figsize=(13, 6), constrained_layout=True)
     ax3d = fig.add_subplot(1, 2, 1, projection="3d")
     ax2d = fig.add_subplot(1, 2, 2)
-    colors = matplotlib.colormaps["tab10"]
     targets = np.array([[e.state[iu], e.state[iv], e.state[ir]] for e in equilibria])
     for x in trajectories:
         end = x[-1, [iu, iv, ir]]
         k = int(np.argmin(np.linalg.norm(targets - end, axis=1))) if len(targets) else 0
-        color = colors(k % 10)
+        color = LINE_COLOURS[k % len(LINE_COLOURS)]
         ax3d.plot(x[:, iv], x[:, iu], x[:, ir], color=color, linewidth=0.8)
         ax3d.scatter(x[0, iv], x[0, iu], x[0, ir], color=color, s=6)
         ax2d.plot(x[:, iv], x[:, ir], color=color, linewidth=0.8)
         ax2d.scatter(x[0, iv], x[0, ir], color=color, s=6)
     for k, eq in enumerate(equilibria):
-        face = colors(k % 10) if eq.stable else "white"
+        face = LINE_COLOURS[k % len(LINE_COLOURS)] if eq.stable else "white"
         style: dict[str, Any] = dict(
             s=80, edgecolors="black", facecolors=face, zorder=5, depthshade=False
         )
