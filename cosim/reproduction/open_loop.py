@@ -17,7 +17,7 @@ import numpy as np
 from cosim.analysis.analyze import phase_trajectories
 from cosim.analysis.bifurcation import OperatingConditions, Sweep, sweep
 from cosim.analysis.equilibria import Equilibrium
-from cosim.analysis.plots import plot_phase_portrait, plot_sweep
+from cosim.analysis.plots import PHASE_ALT, plot_phase_portrait, plot_sweep, sweep_alt
 from cosim.analysis.reference_values import Reference
 from cosim.reproduction.context import Context, stability, uvr
 from cosim.reproduction.record import (
@@ -359,7 +359,9 @@ def phase_portraits(refs: Mapping[str, Reference]) -> Section:
                 note="" if long else "the 3 starts on the u axis lie on W_s of x0 and stay there",
             )
         )
-        figures.append(Figure(name, partial(_draw_phase, long, caption)))
+        fins = ", the long fins" if long else ""
+        alt = f"{caption}{fins}: {PHASE_ALT}"
+        figures.append(Figure(name, partial(_draw_phase, long, caption), alt=alt))
     return Section("Phase portraits (Figs. 5.4, 5.5)", tuple(claims), tuple(figures))
 
 
@@ -383,5 +385,7 @@ def fin_factors(refs: Mapping[str, Reference]) -> Section:
                 note="a symmetric pitchfork: the fold-free branch point where x0 changes stability",
             )
         )
-        figures.append(Figure(file, partial(_draw_fin_factor, name, source.split(",")[0])))
+        source = source.split(",")[0]
+        alt = f"{source}: {sweep_alt(name)}"
+        figures.append(Figure(file, partial(_draw_fin_factor, name, source), alt=alt))
     return Section("Fin factors mu and eta (Figs. 5.6, 5.7)", tuple(claims), tuple(figures))

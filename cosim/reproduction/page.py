@@ -96,7 +96,12 @@ def render(evaluated: list[Evaluated], ctx: Context) -> str:
             for choice, effect in zip(part.section.choices, part.effects, strict=True):
                 lines.append(_row([choice.choice, choice.dissertation, choice.why, effect]))
             lines.append("")
-        lines += [line for name in part.figures for line in (f"![{name[:-4]}](figures/{name})", "")]
+        alts = {figure.name: figure.alt for figure in part.section.figures}
+        lines += [
+            line
+            for name in part.figures
+            for line in (f"![{_alt(alts.get(name) or name[:-4])}](figures/{name})", "")
+        ]
     return "\n".join(lines + _differences(rows)) + "\n"
 
 
@@ -131,6 +136,11 @@ def _differences(rows: list[Row]) -> list[str]:
             size = f", {row.size}" if row.size else ""
             lines.append(f"- **#{number} {row.claim.claim}** ({row.verdict}{size}): {reason}")
     return lines if len(lines) > 2 else [*lines, "- Nowhere."]
+
+
+def _alt(text: str) -> str:
+    """``text`` as a Markdown image's alt text (its brackets escaped)."""
+    return text.replace("[", "\\[").replace("]", "\\]")
 
 
 def _row(cells: list[str] | tuple[str, ...]) -> str:

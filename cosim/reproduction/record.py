@@ -9,7 +9,7 @@ of the report with its verdict. See ``docs/reproduction.md``.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from decimal import Decimal
 from enum import Enum
 from pathlib import Path
@@ -325,11 +325,13 @@ def _shown(printed: Sequence[str] | str, values: Sequence[float]) -> str:
 
 @dataclass(frozen=True)
 class Figure:
-    """A figure of the report: its file name under ``figures/`` and what draws it."""
+    """A figure of the report: its file name under ``figures/``, what draws it, and its
+    ``alt`` text: what it plots against what, with units (the page's image text)."""
 
     name: str
     draw: Callable[[Context, Path], None]
     cost: Cost = Cost.SWEEP
+    alt: str = field(default="", kw_only=True)
 
 
 @dataclass(frozen=True)

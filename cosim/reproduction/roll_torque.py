@@ -24,7 +24,7 @@ from cosim.analysis.bifurcation import (
     mass_position_for_cg_offset,
     sweep,
 )
-from cosim.analysis.plots import plot_sweep
+from cosim.analysis.plots import plot_sweep, sweep_alt
 from cosim.analysis.reference_values import Reference
 from cosim.reproduction.context import Context, stability
 from cosim.reproduction.record import (
@@ -217,10 +217,12 @@ def roll_torque(refs: Mapping[str, Reference]) -> Section:
         Figure(
             "fig5_9_roll_torque.png",
             partial(_draw_sweep, "remus", "Figs. 5.9-5.10: equilibria of the REMUS 100 over Q"),
+            alt=f"Figs. 5.9-5.10, the REMUS 100: {sweep_alt('roll_torque')}",
         ),
         Figure(
             "fig5_11_roll_torque_long_fins.png",
             partial(_draw_sweep, "long fins", "Fig. 5.11: the straight-line stable vehicle over Q"),
+            alt=f"Fig. 5.11, the long fins: {sweep_alt('roll_torque')}",
         ),
     )
     return Section("Roll torque (Sec. 5.1.3, Examples 5.4-5.6)", claims, figures)
@@ -258,5 +260,6 @@ def moving_mass(refs: Mapping[str, Reference]) -> Section:
     figure = Figure(
         "fig5_12_mass_position.png",
         partial(_draw_sweep, "mass", "Figs. 5.12-5.13: equilibria over the moving-mass position"),
+        alt=f"Figs. 5.12-5.13: {sweep_alt('mass_position')}",
     )
     return Section("Moving mass (Sec. 5.1.4)", claims, (figure,))

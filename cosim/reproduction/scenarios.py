@@ -212,10 +212,24 @@ def _report_figure(scenario_id: str, name: str, ctx: Context, path: Path) -> Non
 
 def _figures() -> tuple[Figure, ...]:
     return tuple(
-        Figure(f"{sid}_{name}.png", partial(_report_figure, sid, name), Cost.SCENARIO)
+        Figure(
+            f"{sid}_{name}.png",
+            partial(_report_figure, sid, name),
+            Cost.SCENARIO,
+            alt=f"{sid}, the run at a {1e3 * FINE:g} ms step: {_report_alt(name)}",
+        )
         for sid in FIGURE_SCENARIOS
         for name in REPORT_FIGURES
     )
+
+
+def _report_alt(name: str) -> str:
+    """The alt text of the report figure ``name`` of a closed-loop run (no guidance)."""
+    from cosim.viz.report import time_history_alt, trajectory_alt
+
+    if name == "trajectory":
+        return trajectory_alt()
+    return time_history_alt(name, lambda column: not column.startswith("guidance."))
 
 
 def _numeric(ref: Reference, claim: str, ours: Callable[[Context], Finding], **more) -> Claim:

@@ -52,6 +52,7 @@ import os
 import shutil
 import tomllib
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -697,28 +698,47 @@ def plain(label: str) -> str:
     return label.translate(str.maketrans("", "", "$\\{}"))
 
 
+LATERAL_ALT = "Lateral deviation (m) from the initial course against the distance along it (m)"
+
+
 def figure_alt(name: str, table: dict[str, np.ndarray], summary: dict[str, Any]) -> str:
     """The alt text of the figure ``name`` of a run (``table``: its results, ``summary``:
     its summary.json): what is plotted against what, with units, as drawn."""
     if name == "trajectory":
-        return (
-            "Path over ground: x, north (m) against y, east (m), start and end marked"
-            + (
-                ", turning-circle metrics marked"
-                if summary.get("manoeuvre") == "turning-circle"
-                else ""
-            )
-            + ("; beside it a 3-D view with z, down (m)" if _depth_changes(table) else "")
-        )
+        turning = summary.get("manoeuvre") == "turning-circle"
+        return trajectory_alt(turning, "yes" if _depth_changes(table) else "no")
     if name == "lateral_deviation":
-        return "Lateral deviation (m) from the initial course against the distance along it (m)"
+        return LATERAL_ALT
+    zoom = _zoom(table, summary) if name in ZOOMED else None
+    return time_history_alt(name, table.__contains__, zoom)
+
+
+def trajectory_alt(turning: bool = False, three_d: str = "when the depth changes") -> str:
+    """The trajectory figure's alt text; ``three_d``: whether it has a 3-D view ("yes",
+    "no", or the condition on which it has one)."""
+    text = "Path over ground: x, north (m) against y, east (m), start and end marked"
+    text += ", turning-circle metrics marked" if turning else ""
+    if three_d == "no":
+        return text
+    return (
+        text
+        + "; beside it a 3-D view with z, down (m)"
+        + ("" if three_d == "yes" else f", {three_d}")
+    )
+
+
+def time_history_alt(
+    name: str, recorded: Callable[[str], bool] = lambda column: True, zoom: float | None = None
+) -> str:
+    """The alt text of the time-history figure ``name`` (a key of :data:`FIGURES`): its
+    panels of the ``recorded`` columns, each with its unit and reference curves; with
+    ``zoom`` (s), the transient column beside them."""
     title, panels = FIGURES[name]
     shown = []
     for panel in panels:
-        if panel.series[0].column in table:
-            others = [s.label for s in panel.series[1:] if s.column in table]
+        if recorded(panel.series[0].column):
+            others = [s.label for s in panel.series[1:] if recorded(s.column)]
             shown.append(plain(panel.ylabel) + (f" with {', '.join(others)}" if others else ""))
-    zoom = _zoom(table, summary) if name in ZOOMED else None
     enlarged = f"; beside them the first {zoom:g} s enlarged" if zoom is not None else ""
     return f"{title} against time (s), one panel each: {'; '.join(shown)}{enlarged}"
 

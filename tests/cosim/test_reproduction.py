@@ -649,3 +649,20 @@ def test_skip_scenarios_keeps_a_choice_s_effect_when_only_its_reasoning_changed(
     assert page.count("; reworded | bs-3 settles \\| after 3 s |") == len(
         reworded(False)[0].choices
     )
+
+
+def test_every_figure_on_the_page_has_an_alt_text_saying_what_it_shows() -> None:
+    """docs/reproduction.md showed each figure as ``![fig5_4_phase_portrait](...)``: a
+    screen reader (and a page whose image did not load) gave the file's name, nothing of
+    what the figure plots."""
+    sections = catalogue(DISSERTATION)
+    evaluated = [
+        Evaluated(s, (), tuple(f.name for f in s.figures), tuple("-" for _ in s.choices))
+        for s in sections
+    ]
+    page = render(evaluated, Context.create(DISSERTATION))
+    shown = re.findall(r"!\[([^\]]*)\]\(figures/([\w.-]+)\.png\)", page)
+    assert len(shown) == sum(len(s.figures) for s in sections) > 0
+    named = [(alt, name) for alt, name in shown if alt.strip().lower() in ("", name.lower())]
+    assert named == []
+    assert all(re.search(r"\((m/s|rad/s|deg|s|m|N m|cm)\)", alt) for alt, _ in shown), shown
