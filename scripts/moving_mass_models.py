@@ -99,12 +99,27 @@ def run_both(sid: str, work: Path) -> dict[int, Run]:
     return runs
 
 
-def plot(sid: str, runs: dict[int, Run], path: Path) -> None:
-    """Yaw, roll, y_v (and depth) of both models against time."""
+def panels_of(runs: dict[int, Run]) -> list[tuple[str, float, str]]:
+    """The panels of a scenario's figure: (column, display scale, y label) of yaw, roll,
+    y_v, and depth when it changes."""
     panels = [("plant.yaw", DEG, "yaw (deg)"), ("plant.roll", DEG, "roll (deg)"),
               ("plant.mass_position", 100.0, "y_v (cm)")]  # fmt: skip
     if np.ptp(runs[0]["plant.down"]) > 0.0:
         panels.append(("plant.down", 1.0, "depth (m)"))
+    return panels
+
+
+def alt_text(sid: str, runs: dict[int, Run]) -> str:
+    """What the figure of ``sid`` shows, as the page's image text."""
+    shown = ", ".join(label for _, _, label in panels_of(runs))
+    return (
+        f"{sid}: {shown} against time (s), one panel each, {MODELS[0]} solid and {MODELS[1]} dashed"
+    )
+
+
+def plot(sid: str, runs: dict[int, Run], path: Path) -> None:
+    """Yaw, roll, y_v (and depth) of both models against time."""
+    panels = panels_of(runs)
     fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(7.0, 1.9 * len(panels)))
     for ax, (column, scale, label) in zip(axes, panels, strict=True):
         for model, style in ((0, "-"), (1, "--")):
@@ -145,7 +160,7 @@ def markdown(results: dict[str, dict[int, Run]]) -> str:
             *(f"| {name} | {figures[0][name]} | {figures[1][name]} |" for name in figures[0]),
             f"| largest yaw difference between the models | {yaw_gap:.3f} deg | |",
             "",
-            f"![{sid}]({FIGURE_FOLDER}/{sid}.png)",
+            f"![{alt_text(sid, runs)}]({FIGURE_FOLDER}/{sid}.png)",
             "",
         ]
     return "\n".join(lines)
