@@ -28,15 +28,19 @@ def write_index(
     rows: Sequence[Mapping[str, Any]],
     figures: Mapping[str, Path],
     not_plotted: Sequence[str],
+    alts: Mapping[str, str] | None = None,
 ) -> Path:
-    """Write ``out_dir/index.html``; ``facts`` are label -> value lines of the summary."""
+    """Write ``out_dir/index.html``; ``facts`` are label -> value lines of the summary,
+    ``alts`` each figure's alt text by its title (:func:`cosim.study.plots.figure_alts`;
+    the title without one)."""
     summary = "\n".join(
         f'<tr><th scope="row">{_escape(label)}</th><td>{_escape(value)}</td></tr>'
         for label, value in facts.items()
     )
     images = "\n".join(
         f'<h2>{_escape(title)}</h2>\n<p><a href="{_escape(_rel(path, out_dir))}">'
-        f'<img src="{_escape(_rel(path, out_dir))}" alt="{_escape(title)}" style="max-width:100%">'
+        f'<img src="{_escape(_rel(path, out_dir))}" alt="{_escape((alts or {}).get(title, title))}"'
+        ' style="max-width:100%">'
         "</a></p>"
         for title, path in figures.items()
     )

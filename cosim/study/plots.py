@@ -99,6 +99,42 @@ def value_label(name: str, value: Any, units: Mapping[str, str]) -> str:
     return f"{title(name)} = {value * scale:.6g}{suffix}"
 
 
+GRID_TITLE = "Metrics against {}"  # each grid factor's figure
+HISTOGRAMS_TITLE = "Distributions over the samples"
+SCATTER_TITLE = "Scatter matrix"
+
+
+def figure_alts(
+    rows: Sequence[Row],
+    grid: Mapping[str, Sequence[Any]],
+    random_factors: Sequence[str],
+    metrics: Sequence[str],
+    units: Mapping[str, str],
+) -> dict[str, str]:
+    """The alt text of each figure :func:`write_figures` draws from the same arguments
+    (title -> text): which metrics its panels plot against what, each with its unit."""
+    shown = plotted_metrics(rows, metrics)
+    if not shown:
+        return {}
+    panels = "; ".join(axis_label(metric, units) for metric in shown)
+    means = ", each point the mean over the samples at that grid point" if random_factors else ""
+    alts = {}
+    for factor in grid:
+        others = [name for name in grid if name != factor]
+        lines = f", a line per value of {' and '.join(others)}" if others else ""
+        alts[GRID_TITLE.format(factor)] = (
+            f"One panel per metric ({panels}) against {axis_label(factor, units)}{lines}{means}"
+        )
+    if random_factors:
+        alts[HISTOGRAMS_TITLE] = f"Histograms of the runs over each metric: {panels}"
+        variables = [*random_factors, *shown][:SCATTER_MAX]
+        alts[SCATTER_TITLE] = (
+            f"Each pair of {'; '.join(axis_label(v, units) for v in variables)} plotted "
+            "against each other, their histograms on the diagonal"
+        )
+    return alts
+
+
 def write_figures(
     rows: Sequence[Row],
     grid: Mapping[str, Sequence[Any]],
@@ -116,15 +152,13 @@ def write_figures(
         return figures
     for factor in grid:
         path = folder / f"grid_{_file_safe(factor)}.png"
-        figures[f"Metrics against {factor}"] = plot_grid_factor(
+        figures[GRID_TITLE.format(factor)] = plot_grid_factor(
             rows, grid, factor, shown, path, units
         )
     if random_factors:
-        figures["Distributions over the samples"] = plot_histograms(
-            rows, shown, folder / "histograms.png", units
-        )
+        figures[HISTOGRAMS_TITLE] = plot_histograms(rows, shown, folder / "histograms.png", units)
         variables = [*random_factors, *shown][:SCATTER_MAX]
-        figures["Scatter matrix"] = plot_scatter_matrix(
+        figures[SCATTER_TITLE] = plot_scatter_matrix(
             rows, variables, folder / "scatter_matrix.png", units
         )
     return figures

@@ -49,7 +49,7 @@ from cosim.study.execution import (
 from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, resolve_factor
 from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
-from cosim.study.plots import default_metrics, plotted_metrics, write_figures
+from cosim.study.plots import default_metrics, figure_alts, plotted_metrics, write_figures
 from cosim.study.prefetch import Prefetch
 from cosim.study.signals import StudyStopped
 from cosim.study.spec import (
@@ -436,9 +436,9 @@ def _write_report(
     }
     candidates = metrics if spec.metrics.collect is not None else default_metrics(metrics)
     quantities = units([*spec.factors, *candidates], base.fmu_paths)
-    figures = write_figures(
-        rows, grid, list(spec.random.factors), candidates, out_dir / FIGURES_FOLDER, quantities
-    )
+    randoms = list(spec.random.factors)
+    figures = write_figures(rows, grid, randoms, candidates, out_dir / FIGURES_FOLDER, quantities)
+    alts = figure_alts(rows, grid, randoms, candidates, quantities)
     shown = set(plotted_metrics(rows, candidates))
     complete = sum(row["status"] == "complete" for row in rows)
     facts = {
@@ -452,7 +452,8 @@ def _write_report(
             f"{OVERLAY_FILE}: the chosen runs in one Rerun recording; "
             f"auv-cosim view {shlex.quote(str(out_dir))} opens it"
         )
-    return write_index(out_dir, facts, rows, figures, [m for m in metrics if m not in shown])
+    not_plotted = [m for m in metrics if m not in shown]
+    return write_index(out_dir, facts, rows, figures, not_plotted, alts)
 
 
 def _scenario_ref(ref: str, study_dir: Path) -> str | Path:

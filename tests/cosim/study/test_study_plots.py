@@ -367,3 +367,24 @@ def test_the_study_page_reads_to_a_screen_reader(tmp_path: Path) -> None:
     (table,) = read_page(page).tables
     assert table.scopes == ["row", "row"] and table.caption
     assert "<h2>Failed runs</h2>" in page and "0003</code>: step failed at t = 1.2 s" in page
+
+
+def test_each_study_figure_has_an_alt_text_naming_its_metrics_and_units(tmp_path: Path) -> None:
+    """A study figure's alt text was its title, "Metrics against plant.v_0": a screen
+    reader never heard which metrics the panels plot, nor in what units."""
+    from cosim.study.page import write_index
+
+    quantities = {"plant.v_0": "m/s", "controller.k0": "1/s", "yaw_settling_time_s": "s",
+                  "peak_abs_tunnel_force_N": "N"}  # fmt: skip
+    grid = {"plant.v_0": V0, "controller.k0": [0.2]}
+    table = [{**row, "controller.k0": 0.2} for row in rows()]
+    candidates = plots.default_metrics(METRICS)
+    figures = plots.write_figures(table, grid, [], candidates, tmp_path / "figures", quantities)
+    alts = plots.figure_alts(table, grid, [], candidates, quantities)
+    page = write_index(tmp_path, {"runs": "4"}, table, figures, [], alts).read_text()
+    assert problems(page) == []
+    shown = dict(read_page(page).images)
+    alt = shown["figures/grid_plant.v_0.png"]
+    for said in ("peak |tunnel force| [N]", "yaw settling time [s]", "plant.v_0 [m/s]"):
+        assert said in alt, alt
+    assert "a line per value of controller.k0" in alt, alt
