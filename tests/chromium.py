@@ -61,3 +61,26 @@ def headless_chromium(profile: Path) -> Iterator[Any]:
             connected.close()
     finally:
         end_group(proc)
+
+
+def overflow(page_file: Path, profile: Path, width: int = 375) -> list[str]:
+    """What of the page ``page_file`` sticks out past a window ``width`` CSS pixels wide
+    (a phone's, by default), outside a box that scrolls on its own: "TAG: right edge"
+    each, none when nothing makes the window scroll sideways."""
+    script = """() => {
+        const edge = document.documentElement.clientWidth;
+        const boxed = (e) => { for (let p = e.parentElement; p; p = p.parentElement) {
+            if (['auto', 'scroll'].includes(getComputedStyle(p).overflowX)) return true; }
+            return false; };
+        const wide = (e) => Math.max(e.getBoundingClientRect().right,
+            e.getBoundingClientRect().left + e.scrollWidth);  // text past its own box too
+        return [...document.body.querySelectorAll('*')]
+            .filter((e) => wide(e) > edge + 1 && !boxed(e))
+            .map((e) => `${e.tagName}: ${Math.round(wide(e))}`);
+    }"""
+    with headless_chromium(profile) as browser:
+        page = browser.new_page(viewport={"width": width, "height": 800})
+        page.goto(page_file.as_uri(), wait_until="load")
+        found = page.evaluate(script)
+        page.close()
+    return found

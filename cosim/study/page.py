@@ -63,7 +63,8 @@ def write_index(
 <html lang="en">
 <head><meta charset="utf-8"><title>auv-cosim study {_escape(name)}</title>
 <style>body {{ font-family: sans-serif; max-width: 1400px; margin: 2em auto; }}
-th {{ text-align: left; padding-right: 2em; }}</style></head>
+th {{ text-align: left; padding-right: 2em; }}
+h1, code {{ overflow-wrap: anywhere; }}</style></head>
 <body>
 <h1>Study {_escape(name)}</h1>
 <p>Results: <a href="runs.csv">runs.csv</a>, <a href="runs.parquet">runs.parquet</a>

@@ -813,7 +813,8 @@ def index_page(
 <html lang="en">
 <head><meta charset="utf-8"><title>auv-cosim run {html.escape(str(name))}</title>
 <style>body {{ font-family: sans-serif; max-width: 1100px; margin: 2em auto; }}
-th {{ text-align: left; padding-right: 2em; }}</style></head>
+th {{ text-align: left; padding-right: 2em; }}
+h1, code {{ overflow-wrap: anywhere; }}</style></head>
 <body>
 <h1>Run {html.escape(str(name))}</h1>
 <p>Run folder: <code>{html.escape(path_text(run_dir))}</code> (results.csv, summary.json)</p>

@@ -9,6 +9,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+from chromium import CHROMIUM, overflow
 from page_structure import problems, read_page
 
 from cosim.study import plots
@@ -388,3 +389,19 @@ def test_each_study_figure_has_an_alt_text_naming_its_metrics_and_units(tmp_path
     for said in ("peak |tunnel force| [N]", "yaw settling time [s]", "plant.v_0 [m/s]"):
         assert said in alt, alt
     assert "a line per value of controller.k0" in alt, alt
+
+
+@pytest.mark.slow
+@pytest.mark.viewer  # starts a browser
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt, .ci/run)")
+def test_a_long_study_folder_name_does_not_make_a_phone_scroll_sideways(tmp_path: Path) -> None:
+    """The page's heading names the study folder: one long word such as
+    survey_current_sweep_over_the_cross_current_speed ran past a 375 px window."""
+    from cosim.study.page import write_index
+
+    pytest.importorskip("playwright.sync_api", reason="needs playwright (test extra)")
+    folder = tmp_path / "survey_current_sweep_over_the_cross_current_speed"
+    folder.mkdir()
+    page = write_index(folder, {"runs": "4"}, [], {}, ["time_reached"])
+    (tmp_path / "profile").mkdir()
+    assert overflow(page, tmp_path / "profile") == []

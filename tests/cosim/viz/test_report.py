@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from chromium import CHROMIUM, overflow
 from page_structure import problems, read_page
 
 from cosim.cli import main
@@ -622,3 +623,18 @@ def test_each_figure_of_a_report_has_an_alt_text_saying_what_it_shows(lateral_ru
     assert "u (m/s)" in alts["velocities.png"] and "time (s)" in alts["velocities.png"]
     assert "phi (deg)" in alts["attitude_actuators.png"]
     assert "north (m)" in alts["trajectory.png"] and "east (m)" in alts["trajectory.png"]
+
+
+@pytest.mark.slow
+@pytest.mark.viewer  # starts a browser
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt, .ci/run)")
+def test_a_long_run_folder_name_does_not_make_a_phone_scroll_sideways(tmp_path: Path) -> None:
+    """The page names its run folder in one <code> word: a folder such as
+    runs_of_the_survey/survey_at_two_metres_in_a_cross_current made the whole page 501 px
+    wide in a 375 px window."""
+    pytest.importorskip("playwright.sync_api", reason="needs playwright (test extra)")
+    run_dir = Path("runs_of_the_survey/survey_at_two_metres_in_a_cross_current_of_0.2_m_s")
+    page = tmp_path / "index.html"
+    page.write_text(index_page(run_dir, {"scenario": "survey"}, None, {}), "utf-8")
+    (tmp_path / "profile").mkdir()
+    assert overflow(page, tmp_path / "profile") == []
