@@ -103,9 +103,13 @@ class SweepInterrupted(KeyboardInterrupt):
         return type(self), (str(self), self.study)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Run:
     """A finished run of :func:`run`.
+
+    Compared and hashed by identity, as objects are (``run in runs``, ``{run}``); two
+    runs' tables compare with ``a.results.equals(b.results)``. Picklable (a process pool
+    returns it), with its scenario and its table's units.
 
     Attributes
     ----------
@@ -152,9 +156,11 @@ class Run:
         return check
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Study:
     """A finished study of :func:`sweep`.
+
+    Compared and hashed by identity, and picklable, as :class:`Run` is.
 
     Attributes
     ----------

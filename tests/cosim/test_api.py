@@ -202,6 +202,23 @@ def test_a_run_shows_in_one_line_not_its_whole_table(fmu_dir: Path) -> None:
     assert repr(run) == expected + "out_dir=None)"
 
 
+def test_runs_and_studies_go_into_lists_and_sets_by_identity(fmu_dir: Path) -> None:
+    """Run and Study compared their fields: ``run in runs``, ``runs.index(run)`` and
+    ``a == b`` raised pandas' "The truth value of a DataFrame is ambiguous", and
+    ``{run}`` or a cache keyed by a run "unhashable type". They compare and hash as
+    objects do, by identity (their tables compare with ``.results.equals``)."""
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    table = pd.DataFrame({"plant.yaw": [0.0, 0.1]}, index=pd.Index([0.0, 0.01], name="time"))
+    first = cosim.Run(scenario, table, {"complete": True}, None)
+    second = cosim.Run(scenario, table.copy(), {"complete": True}, None)
+    assert first == first and first != second and [first, second].index(second) == 1
+    assert len({first, second, first}) == 2
+    study = cosim.Study(table, None)
+    assert study in [cosim.Study(table.copy(), None), study] and len({study, study}) == 1
+    copy = pickle.loads(pickle.dumps(study))  # a process pool's result: the same table
+    assert copy.table.equals(study.table) and copy != study
+
+
 def test_errors_are_the_command_lines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """The same exception type and one-line message as ``auv-cosim run`` prints, naming
     the API's keyword where the command line names its flag."""
