@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS
-from cosim.errors import KEYWORDS, CosimError
+from cosim.errors import KEYWORDS, CosimError, shown
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import RunOptions, execute
 from cosim.scratch import process_folder
@@ -413,7 +413,7 @@ def _cluster(workers: object, oversubscribe: object, scheduler: object, security
         return Cluster(workers=local_workers(workers, oversubscribe))
     if not isinstance(scheduler, str):
         raise StudyError(
-            f"scheduler={_shown(scheduler)}: expected the address of a Dask scheduler, "
+            f"scheduler={shown(scheduler)}: expected the address of a Dask scheduler, "
             "tcp://HOST:PORT or tls://HOST:PORT"
         )
     if workers is not None:
@@ -626,24 +626,18 @@ def _run_options(
     )
 
 
-def _shown(value: object) -> str:
-    """``value`` as a message shows it: its repr, shortened if long (a huge int)."""
-    text = repr(value)
-    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
-
-
 def _seconds(name: str, value: object) -> float | None:
     """A time in s: a float or int (the runner checks it is finite and > 0, naming it by
     its keyword); an int beyond the floats is refused here."""
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise CosimError(f"{name}={_shown(value)}: expected a number of seconds (float or int)")
+        raise CosimError(f"{name}={shown(value)}: expected a number of seconds (float or int)")
     try:
         return float(value)
     except OverflowError:
         raise CosimError(
-            f"{name}={_shown(value)}: expected a finite number of seconds > 0"
+            f"{name}={shown(value)}: expected a finite number of seconds > 0"
         ) from None
 
 
@@ -651,14 +645,14 @@ def _flag(name: str, value: object, error: type[CosimError] = CosimError) -> boo
     """True or False (else ``error``, as each check here raises: the type the caller's
     docstring names)."""
     if not isinstance(value, bool):
-        raise error(f"{name}={_shown(value)}: expected True or False")
+        raise error(f"{name}={shown(value)}: expected True or False")
     return value
 
 
 def _count(name: str, value: object, error: type[CosimError] = CosimError) -> int:
     """A whole number >= 1."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise error(f"{name}={_shown(value)}: expected a whole number >= 1")
+        raise error(f"{name}={shown(value)}: expected a whole number >= 1")
     return value
 
 
@@ -666,7 +660,7 @@ def _choice(name: str, value: object, choices: tuple[str, ...]) -> str | None:
     """None or one of ``choices``."""
     if value is None or value in choices:
         return value
-    raise CosimError(f"{name}={_shown(value)}: expected one of {', '.join(map(repr, choices))}")
+    raise CosimError(f"{name}={shown(value)}: expected one of {', '.join(map(repr, choices))}")
 
 
 def _number(name: str, value: object) -> float | None:
@@ -674,7 +668,7 @@ def _number(name: str, value: object) -> float | None:
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float) or abs(value) > 1e300:
-        raise CosimError(f"{name}={_shown(value)}: expected a finite number (float or int)")
+        raise CosimError(f"{name}={shown(value)}: expected a finite number (float or int)")
     return float(value)
 
 
@@ -687,10 +681,10 @@ def _path(
     """A path argument: a non-empty str or os.PathLike without a NUL byte (else
     ``expected`` is what the refusal says was expected)."""
     if not isinstance(value, str | os.PathLike):
-        raise error(f"{name}={_shown(value)}: expected {expected}")
+        raise error(f"{name}={shown(value)}: expected {expected}")
     text = os.fspath(value)
     if not isinstance(text, str) or "\0" in text:
-        raise error(f"{name}={_shown(value)}: expected a path without a NUL byte")
+        raise error(f"{name}={shown(value)}: expected a path without a NUL byte")
     if not text:  # Path("") is "."; an unset setting's "" is no choice of the working folder
         raise error(f"{name}='': expected a non-empty path ('.' names the working folder)")
     return Path(text)
@@ -700,7 +694,7 @@ def _folder(name: str, value: object, error: type[CosimError] = CosimError) -> P
     """A folder argument: a path (:func:`_path`) that is a folder if it exists."""
     path = _path(name, value, error=error)
     if os.path.exists(path) and not path.is_dir():  # os.path: False for a name too long
-        raise error(f"{name}={_shown(value)}: is a file; expected a folder")
+        raise error(f"{name}={shown(value)}: is a file; expected a folder")
     return path
 
 
@@ -741,21 +735,21 @@ def _start(value: object) -> dict[str, StartValue] | None:
         return None
     if not isinstance(value, Mapping):
         raise CosimError(
-            f"start={_shown(value)}: expected a mapping {{'<instance>.<variable>': value}}"
+            f"start={shown(value)}: expected a mapping {{'<instance>.<variable>': value}}"
         )
     values: dict[str, StartValue] = {}
     for key, given in value.items():
         item = _plain(given)
         if not isinstance(key, str) or "\0" in key:
-            raise CosimError(f"start key {_shown(key)}: expected '<instance>.<variable>'")
+            raise CosimError(f"start key {shown(key)}: expected '<instance>.<variable>'")
         if not isinstance(item, bool | int | float | str):
             raise CosimError(
-                f"start[{key!r}]={_shown(item)}: expected a bool, int, float or str (or a "
+                f"start[{key!r}]={shown(item)}: expected a bool, int, float or str (or a "
                 "numpy scalar of one)"
             )
         if isinstance(item, int) and not isinstance(item, bool) and abs(item) > 1e300:
-            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a number within range")
+            raise CosimError(f"start[{key!r}]={shown(item)}: expected a number within range")
         if isinstance(item, str) and "\0" in item:
-            raise CosimError(f"start[{key!r}]={_shown(item)}: expected a string without a NUL byte")
+            raise CosimError(f"start[{key!r}]={shown(item)}: expected a string without a NUL byte")
         values[key] = item
     return values

@@ -46,6 +46,13 @@ FLAGS = OptionNames()  # the command line's
 KEYWORDS = OptionNames(keywords=True)  # the Python API's (cosim.api)
 
 
+def shown(value: object) -> str:
+    """``value`` as a refusal shows it: its repr, shortened if long (an int of 400 digits
+    as its first 40 characters and how many it has)."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
+
+
 def unmade_folder(folder: Path, exc: OSError) -> str:
     """Why ``folder`` could not be made (``mkdir`` raised ``exc``), in a few words."""
     return "it is not a folder" if folder.exists() else exc.strerror or str(exc)

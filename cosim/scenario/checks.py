@@ -11,6 +11,7 @@ from __future__ import annotations
 import codecs
 import math
 import re
+import sys
 import tomllib
 import types
 import typing
@@ -20,7 +21,7 @@ from typing import Any, NoReturn
 
 from pydantic import BaseModel, ConfigDict
 
-from cosim.errors import CosimError, did_you_mean
+from cosim.errors import CosimError, did_you_mean, shown
 
 FMI_INTEGER_RANGE = (-(2**31), 2**31 - 1)  # fmi2Integer is a C int (32 bits)
 
@@ -244,8 +245,10 @@ def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | flo
         "String": isinstance(value, str),
     }[var.type]
     if not ok:
-        raise src.error(key, f"{value!r} is not {expected} ({var.name} is {var.type})")
+        raise src.error(key, f"{shown(value)} is not {expected} ({var.name} is {var.type})")
     if var.type == "Real":
+        if isinstance(value, int) and abs(value) > sys.float_info.max:  # float() would raise
+            raise src.error(key, f"{shown(value)} is not a finite number")
         value = float(value)
         if not math.isfinite(value):
             raise src.error(key, f"{value!r} is not a finite number")
@@ -259,7 +262,7 @@ def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | flo
     if var.type in ("Integer", "Enumeration"):
         low, high = integer_range(var)
         if not low <= value <= high:
-            raise src.error(key, f"{value} is outside {range_text(low, high, var.name)}")
+            raise src.error(key, f"{shown(value)} is outside {range_text(low, high, var.name)}")
     return value
 
 

@@ -31,7 +31,7 @@ from pydantic import (
     ValidationError,
 )
 
-from cosim.errors import did_you_mean, did_you_mean_path
+from cosim.errors import did_you_mean, did_you_mean_path, shown
 from cosim.fmus.interface import (
     NOT_COSIMULATION,
     FmuInterface,
@@ -308,16 +308,16 @@ class Scenario:
         """One line (a notebook shows it for a cell ending in a scenario): what it runs and
         its start values, each shortened; not its connections and recorded columns in full
         (the dataclass's repr: some 5,000 characters for bs-3)."""
-        shown = reprlib.Repr()
-        shown.maxstring = shown.maxother = 40  # a vehicle set given as TOML text
-        shown.maxdict = 40
+        short = reprlib.Repr()
+        short.maxstring = short.maxother = 40  # a vehicle set given as TOML text
+        short.maxdict = 40
         start = {f"{i.name}.{k}": v for i in self.instances.values() for k, v in i.start.items()}
         source = None if self.source is None else str(self.source)
         return (
             f"Scenario(id={self.id!r}, source={source!r}, stop_time={self.stop_time!r}, "
             f"step={self.coupling.step!r}, "
             f"instances={ {i.name: i.fmu for i in self.instances.values()}!r}, "
-            f"start={shown.repr(start)}, connections=<{len(self.connections)}>, "
+            f"start={short.repr(start)}, connections=<{len(self.connections)}>, "
             f"record=<{len(self.columns)} columns>, events=<{len(self.events)}>, "
             f"faults=<{len(self.faults)}>)"
         )
@@ -431,12 +431,13 @@ class Scenario:
         unconnected input, the value has its type). Raises :class:`ScenarioError`.
         """
         if not isinstance(values, Mapping):
-            shown = repr(values) if len(repr(values)) <= 60 else f"{repr(values)[:40]}..."
             raise ScenarioError(
-                f"start values {shown}: expected a mapping {{'<instance>.<variable>': value}}"
+                f"start values {shown(values)}: expected a mapping "
+                "{'<instance>.<variable>': value}"
             )
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
-        where = f"{self.described} (with the start values {dict(values)})"
+        given = ", ".join(f"{shown(ref)}: {shown(value)}" for ref, value in values.items())
+        where = f"{self.described} (with the start values {{{given}}})"
         for ref, value in values.items():
             instance, dot, variable = ref.partition(".") if isinstance(ref, str) else ("", "", "")
             if not dot or instance not in data["instances"] or not variable:

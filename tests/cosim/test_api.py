@@ -315,6 +315,28 @@ def test_a_start_value_refused_before_the_run_names_where_it_came_from(
     assert "key 'instances.plant.start.max_substep': plant.max_substep = 1e-09 s" in message
 
 
+@pytest.mark.parametrize("variable", ["v_0", "variant"])  # a Real, an Integer
+def test_a_huge_start_value_is_refused_in_one_short_line_naming_it(
+    variable: str, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """``with_start({"plant.v_0": 10**400})`` raised OverflowError ("int too large to
+    convert to float"), past ``except CosimError``, and a scenario file holding that
+    number ended ``auv-cosim run`` in the same traceback; an Integer's refusal printed
+    all 401 digits, twice. A ScenarioError naming the key, the number shortened."""
+    huge = 10**400
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario("bs-3", fmu_dir=fmu_dir).with_start({f"plant.{variable}": huge})
+    data = tomllib.loads((SCENARIO_FOLDER / "bs-3.toml").read_text(encoding="utf-8"))
+    data["instances"]["plant"]["start"][variable] = huge
+    path = tmp_path / "huge.toml"
+    path.write_text(tomli_w.dumps(data), encoding="utf-8")
+    with pytest.raises(ScenarioError) as from_file:
+        load_scenario(path, fmu_dir=fmu_dir)
+    for message in (str(raised.value), str(from_file.value)):
+        assert f"key 'instances.plant.start.{variable}': 1000" in message, message
+        assert "\n" not in message and len(message) < 400, message
+
+
 def test_with_start_is_checked_like_the_scenario_file(fmu_dir: Path) -> None:
     base = load_scenario("bs-3", fmu_dir=fmu_dir)
     changed = base.with_start({"plant.v_0": np.float64(-0.05), "controller.k0": 0.3})
