@@ -10,6 +10,11 @@ The Python API (:mod:`cosim.api`, docs/api.md)::
     study = cosim.sweep("study.toml", workers=2)
     study.table  # one row per run
 
+``cosim.__all__``: those functions, the types they return (``Run``, ``Study``,
+``Scenario``) and the errors they raise (``CosimError`` and its kinds ``ScenarioError``,
+``StudyError``, ``RunError``; ``RunInterrupted`` and ``SweepInterrupted``, which are
+KeyboardInterrupts).
+
 The API is imported at its first use (``cosim.run``, ``from cosim import sweep``), not with
 the package: every command and module of the package (``cosim.cli``, a study's workers)
 would otherwise import the runner and the outputs first (~0.25 s); ``auv-cosim sweep``
@@ -33,17 +38,30 @@ if TYPE_CHECKING:
         run,
         sweep,
     )
+    from cosim.errors import CosimError
+    from cosim.scenario.checks import ScenarioError
+    from cosim.scenario.spec import Scenario
+    from cosim.study.spec import StudyError
 
 __all__ = [
-    "Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus",
-    "load_scenario", "run", "sweep",
+    "CosimError", "Run", "RunError", "RunInterrupted", "Scenario", "ScenarioError", "Study",
+    "StudyError", "SweepInterrupted", "build_fmus", "load_scenario", "run", "sweep",
 ]  # fmt: skip
+# where each name is defined, if not in cosim.api: the errors a caller catches and the
+# Scenario load_scenario returns, exported here so that no caller names a module inside
+_HOMES = {
+    "CosimError": "cosim.errors",
+    "Scenario": "cosim.scenario.spec",
+    "ScenarioError": "cosim.scenario.checks",
+    "StudyError": "cosim.study.spec",
+}
 
 
 def __getattr__(name: str) -> Any:
-    """The API's names, imported from :mod:`cosim.api` at their first use."""
+    """The API's names, imported from :mod:`cosim.api` (or their own module, ``_HOMES``)
+    at their first use."""
     if name in __all__:
-        value = getattr(importlib.import_module("cosim.api"), name)
+        value = getattr(importlib.import_module(_HOMES.get(name, "cosim.api")), name)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'cosim' has no attribute {name!r}")

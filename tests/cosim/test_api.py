@@ -6,10 +6,12 @@ from __future__ import annotations
 import ast
 import csv
 import dataclasses
+import inspect
 import json
 import os
 import pickle
 import pkgutil
+import re
 import shutil
 import subprocess
 import sys
@@ -31,7 +33,7 @@ import cosim
 from cosim.errors import CosimError
 from cosim.runner import NotStartedError
 from cosim.scenario.checks import ScenarioError
-from cosim.scenario.spec import SCENARIO_FOLDER, load_scenario, scenario_from_toml
+from cosim.scenario.spec import SCENARIO_FOLDER, Scenario, load_scenario, scenario_from_toml
 from cosim.scratch import SCRATCH_DIR
 from cosim.study.spec import StudyError
 
@@ -488,12 +490,56 @@ def test_the_api_names_complete_in_ipython_before_their_first_use(
 
 def test_public_names_have_numpy_docstrings() -> None:
     public = ["Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus"]
-    assert sorted(cosim.__all__) == sorted([*public, "load_scenario", "run", "sweep"])
+    errors = ["CosimError", "Scenario", "ScenarioError", "StudyError"]
+    assert sorted(cosim.__all__) == sorted([*public, *errors, "load_scenario", "run", "sweep"])
     for name in ("run", "load_scenario", "sweep", "build_fmus"):
         doc = getattr(cosim, name).__doc__
         assert "Returns\n    -------" in doc and "Raises\n    ------" in doc, name
     for name in ("Run", "Study"):
         assert "Attributes\n    ----------" in getattr(cosim, name).__doc__
+
+
+API_DOC = ROOT / "docs" / "api.md"
+
+
+def _documented_calls(text: str) -> list[ast.Call]:
+    """The calls ``cosim.<name>(...)`` in the Python examples of ``text``."""
+    blocks = re.findall(r"```python\n(.*?)```", text, re.DOTALL)
+    calls = [node for block in blocks for node in ast.walk(ast.parse(block))]
+    return [
+        call
+        for call in calls
+        if isinstance(call, ast.Call)
+        and isinstance(call.func, ast.Attribute)
+        and isinstance(call.func.value, ast.Name)
+        and call.func.value.id == "cosim"
+    ]
+
+
+def test_the_names_docs_api_documents_are_the_packages_and_its_calls_bind() -> None:
+    """docs/api.md had a caller catch ``cosim.errors.CosimError``,
+    ``cosim.scenario.checks.ScenarioError`` and ``cosim.study.spec.StudyError``: the
+    package exported none of them, nor the Scenario ``load_scenario`` returns, so
+    ``except cosim.CosimError`` raised AttributeError and a user's annotations named
+    modules inside the package. Every ``cosim.<name>`` the page names is exported (and
+    every exported name documented there), every dotted name resolves, every call its
+    examples make binds to the signature, and every ``keyword=`` it names is a keyword."""
+    text = API_DOC.read_text(encoding="utf-8")
+    top_level = set(re.findall(r"\bcosim\.([A-Za-z]\w*)\b(?![./])", text))
+    assert top_level == set(cosim.__all__), sorted(top_level ^ set(cosim.__all__))
+    for dotted in re.findall(r"\bcosim(?:\.[A-Za-z_]\w*)+", text):
+        assert pkgutil.resolve_name(dotted) is not None, dotted
+    for call in _documented_calls(text):
+        signature = inspect.signature(getattr(cosim, call.func.attr))  # type: ignore[attr-defined]
+        signature.bind(*call.args, **{k.arg: k.value for k in call.keywords if k.arg})
+    keywords = {
+        name
+        for function in (cosim.run, cosim.sweep, cosim.load_scenario, cosim.build_fmus)
+        for name in inspect.signature(function).parameters
+    }
+    assert set(re.findall(r"`([a-z_]+)=", text)) <= keywords
+    exported = (cosim.CosimError, cosim.Scenario, cosim.ScenarioError, cosim.StudyError)
+    assert exported == (CosimError, Scenario, ScenarioError, StudyError)
 
 
 @pytest.mark.slow
@@ -510,7 +556,8 @@ def test_run_survives_importing_every_module(
         "for name in sys.argv[1:]:\n"
         "    importlib.import_module(name)\n"
         "import cosim.api\n"
-        "assert all(getattr(cosim, n) is getattr(cosim.api, n) for n in cosim.__all__)\n"
+        "def home(n): return importlib.import_module(cosim._HOMES.get(n, 'cosim.api'))\n"
+        "assert all(getattr(cosim, n) is getattr(home(n), n) for n in cosim.__all__)\n"
         "assert callable(cosim.run) and cosim.run.__module__ == 'cosim.api'\n"
         "print('ok', len(sys.argv) - 1)\n",
         *names,
@@ -887,8 +934,12 @@ import cosim
 
 def main() -> None:
     run = cosim.run("bs-3", start={"plant.v_0": np.float32(-0.05), "plant.variant": np.int64(1)})
-    scenario = cosim.load_scenario("bs-3").with_start({"controller.k0": np.float32(0.3)})
-    print(run.results, cosim.run(scenario, start={"plant.v_0": -0.05}).summary)
+    loaded: cosim.Scenario = cosim.load_scenario("bs-3")
+    scenario = loaded.with_start({"controller.k0": np.float32(0.3)})
+    try:
+        print(run.results, cosim.run(scenario, start={"plant.v_0": -0.05}).summary)
+    except (cosim.ScenarioError, cosim.StudyError, cosim.CosimError) as error:
+        print(error)
 """
 
 
