@@ -38,11 +38,17 @@ from cosim.runner import RunOptions, execute
 from cosim.scratch import process_folder
 
 if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on import
+    from typing import TypeAlias
+
+    import numpy as np
     import pandas as pd
 
     from cosim.runner import RunOutcome
     from cosim.scenario.spec import Algorithm, Extrapolation, Scenario, StartInput, StartValue
     from cosim.study.runner import Cluster, StudyOutcome
+
+    Number: TypeAlias = float | np.integer[Any] | np.floating[Any]  # a numpy one as its value
+    Count: TypeAlias = int | np.integer[Any]
 
 __all__ = [
     "Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus",
@@ -212,11 +218,11 @@ def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR
 def run(
     scenario: str | Path | Scenario,
     *,
-    stop_time: float | None = None,
-    step: float | None = None,
+    stop_time: Number | None = None,
+    step: Number | None = None,
     algorithm: Algorithm | None = None,
     extrapolation: Extrapolation | None = None,
-    tolerance: float | None = None,
+    tolerance: Number | None = None,
     check_step: bool = False,
     start: Mapping[str, StartInput] | None = None,
     out: str | Path | None = None,
@@ -233,7 +239,8 @@ def run(
         A built-in id, a scenario ``.toml`` file, or a loaded :class:`Scenario`.
     stop_time, step, algorithm, extrapolation, tolerance, check_step : optional
         The command line's ``--stop-time``, ``--step`` (s) and coupling options
-        (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
+        (docs/coupling.md; a numpy number counts as its Python value);
+        ``check_step`` fills ``Run.coupling_error``.
     start : mapping, optional
         Start values ``{"<instance>.<variable>": value}`` in SI units (a bool, int, float
         or str; a numpy scalar counts as its Python value), checked like the scenario
@@ -321,13 +328,13 @@ def _executed(scenario: str | Path | Scenario, options: RunOptions, in_memory: b
 def sweep(
     study: str | Path | Mapping[str, Any],
     *,
-    workers: int | None = None,
+    workers: Count | None = None,
     out: str | Path | None = None,
     resume: bool = False,
-    overlay: int | None = None,
+    overlay: Count | None = None,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
     oversubscribe: bool = False,
-    max_runs: int = 100_000,
+    max_runs: Count = 100_000,
     progress: bool = False,
     scheduler: str | None = None,
     security: Any = None,
@@ -344,7 +351,8 @@ def sweep(
         folder.
     workers : int, optional
         Local worker processes, at most the machine's cores unless ``oversubscribe``.
-        Default: one per core.
+        Default: one per core. (This count, ``overlay`` and ``max_runs`` may be numpy
+        integers, taken as their ints.)
     scheduler : str, optional
         A Dask cluster of one's own (``--scheduler``), ``tcp://HOST:PORT`` or
         ``tls://HOST:PORT`` (``security``: a ``distributed.Security``); not with ``workers``.
@@ -410,7 +418,7 @@ def _cluster(workers: object, oversubscribe: object, scheduler: object, security
     if scheduler is None:
         check_main_guard("cosim.sweep")
         oversubscribe = _flag("oversubscribe", oversubscribe, StudyError)
-        return Cluster(workers=local_workers(workers, oversubscribe))
+        return Cluster(workers=local_workers(_plain(workers), oversubscribe))
     if not isinstance(scheduler, str):
         raise StudyError(
             f"scheduler={shown(scheduler)}: expected the address of a Dask scheduler, "
@@ -628,7 +636,8 @@ def _run_options(
 
 def _seconds(name: str, value: object) -> float | None:
     """A time in s: a float or int (the runner checks it is finite and > 0, naming it by
-    its keyword); an int beyond the floats is refused here."""
+    its keyword), or a numpy number of one; an int beyond the floats is refused here."""
+    value = _plain(value)
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -650,7 +659,8 @@ def _flag(name: str, value: object, error: type[CosimError] = CosimError) -> boo
 
 
 def _count(name: str, value: object, error: type[CosimError] = CosimError) -> int:
-    """A whole number >= 1."""
+    """A whole number >= 1 (an int, or a numpy integer taken as its int)."""
+    value = _plain(value)
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise error(f"{name}={shown(value)}: expected a whole number >= 1")
     return value
@@ -664,7 +674,9 @@ def _choice(name: str, value: object, choices: tuple[str, ...]) -> str | None:
 
 
 def _number(name: str, value: object) -> float | None:
-    """None or a float or int within the floats (the runner checks its range)."""
+    """None or a float or int within the floats (the runner checks its range), or a numpy
+    number of one."""
+    value = _plain(value)
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float) or abs(value) > 1e300:

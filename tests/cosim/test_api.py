@@ -286,6 +286,31 @@ def test_a_scenario_path_that_is_no_file_is_named_so(
     assert capsys.readouterr().err.strip().startswith(f"auv-cosim run: {expected}")
 
 
+def test_numpy_numbers_are_taken_for_times_and_counts(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A numpy number for a time or a count (``stop_time=np.int64(1)`` from ``np.arange``,
+    ``workers=np.int64(1)``) was refused as "stop_time=np.int64(1): expected a number of
+    seconds (float or int)", though a start value takes one as its Python value; so
+    are these now."""
+    import cosim.study.runner
+
+    run = cosim.run("bs-3", stop_time=np.int64(1), step=np.float32(0.015625), fmu_dir=fmu_dir)
+    assert (run.summary["stop_time"], run.summary["step"]) == (1.0, 0.015625)
+    given: dict[str, object] = {}
+
+    def ran(*args: object, cluster: object, **options: object) -> None:
+        given.update(options, workers=cluster.workers)  # type: ignore[attr-defined]
+        raise StudyError("not run")
+
+    monkeypatch.setattr(cosim.study.runner, "run_study", ran)
+    counts = {"workers": np.int64(1), "max_runs": np.int32(5), "overlay": np.uint8(2)}
+    with pytest.raises(StudyError, match="not run"):
+        cosim.sweep({"scenario": "bs-3"}, out=tmp_path / "study", **counts)
+    assert {name: given[name] for name in counts} == {"workers": 1, "max_runs": 5, "overlay": 2}
+    assert all(type(given[name]) is int for name in counts)
+
+
 def test_numpy_scalar_start_values_are_taken_as_their_python_values(fmu_dir: Path) -> None:
     """A numpy float32, int64 or bool_ start value (as a numpy computation gives it) is
     the Python number of the same value, not refused for its type."""
