@@ -238,9 +238,8 @@ def run(
     scenario : str, pathlib.Path or Scenario
         A built-in id, a scenario ``.toml`` file, or a loaded :class:`Scenario`.
     stop_time, step, algorithm, extrapolation, tolerance, check_step : optional
-        The command line's ``--stop-time``, ``--step`` (s) and coupling options
-        (docs/coupling.md; a numpy number counts as its Python value);
-        ``check_step`` fills ``Run.coupling_error``.
+        The command line's ``--stop-time``, ``--step`` (s; a numpy number as its value) and
+        coupling options (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
     start : mapping, optional
         Start values ``{"<instance>.<variable>": value}`` in SI units (a bool, int, float
         or str; a numpy scalar counts as its Python value), checked like the scenario
@@ -351,8 +350,7 @@ def sweep(
         folder.
     workers : int, optional
         Local worker processes, at most the machine's cores unless ``oversubscribe``.
-        Default: one per core. (This count, ``overlay`` and ``max_runs`` may be numpy
-        integers, taken as their ints.)
+        Default: one per core (a numpy integer, here or below, counts as its int).
     scheduler : str, optional
         A Dask cluster of one's own (``--scheduler``), ``tcp://HOST:PORT`` or
         ``tls://HOST:PORT`` (``security``: a ``distributed.Security``); not with ``workers``.
