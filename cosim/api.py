@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS
-from cosim.errors import KEYWORDS, CosimError, shown
+from cosim.errors import KEYWORDS, CosimError, plain, shown
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import RunOptions, execute
 from cosim.scratch import process_folder
@@ -416,7 +416,7 @@ def _cluster(workers: object, oversubscribe: object, scheduler: object, security
     if scheduler is None:
         check_main_guard("cosim.sweep")
         oversubscribe = _flag("oversubscribe", oversubscribe, StudyError)
-        return Cluster(workers=local_workers(_plain(workers), oversubscribe))
+        return Cluster(workers=local_workers(plain(workers), oversubscribe))
     if not isinstance(scheduler, str):
         raise StudyError(
             f"scheduler={shown(scheduler)}: expected the address of a Dask scheduler, "
@@ -635,7 +635,7 @@ def _run_options(
 def _seconds(name: str, value: object) -> float | None:
     """A time in s: a float or int (the runner checks it is finite and > 0, naming it by
     its keyword), or a numpy number of one; an int beyond the floats is refused here."""
-    value = _plain(value)
+    value = plain(value)
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -658,7 +658,7 @@ def _flag(name: str, value: object, error: type[CosimError] = CosimError) -> boo
 
 def _count(name: str, value: object, error: type[CosimError] = CosimError) -> int:
     """A whole number >= 1 (an int, or a numpy integer taken as its int)."""
-    value = _plain(value)
+    value = plain(value)
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise error(f"{name}={shown(value)}: expected a whole number >= 1")
     return value
@@ -674,7 +674,7 @@ def _choice(name: str, value: object, choices: tuple[str, ...]) -> str | None:
 def _number(name: str, value: object) -> float | None:
     """None or a float or int within the floats (the runner checks its range), or a numpy
     number of one."""
-    value = _plain(value)
+    value = plain(value)
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | float) or abs(value) > 1e300:
@@ -726,18 +726,6 @@ def _scenario_argument(value: object, fmu_dir: Path | None) -> Path | Scenario:
     return value
 
 
-def _plain(value: object) -> object:
-    """A numpy bool, integer or floating scalar as the Python bool, int or float of the
-    same value (``float(np.float32(-0.1))``); any other value as it is."""
-    if type(value).__module__ != "numpy":  # numpy not imported for plain values
-        return value
-    import numpy as np
-
-    if isinstance(value, np.bool_ | np.integer | np.floating):
-        return value.item()
-    return value
-
-
 def _start(value: object) -> dict[str, StartValue] | None:
     """Start values: a mapping of "<instance>.<variable>" to a bool, int, float or str (or
     a numpy scalar of one, taken as its Python value)."""
@@ -749,7 +737,7 @@ def _start(value: object) -> dict[str, StartValue] | None:
         )
     values: dict[str, StartValue] = {}
     for key, given in value.items():
-        item = _plain(given)
+        item = plain(given)
         if not isinstance(key, str) or "\0" in key:
             raise CosimError(f"start key {shown(key)}: expected '<instance>.<variable>'")
         if not isinstance(item, bool | int | float | str):

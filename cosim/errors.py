@@ -53,6 +53,19 @@ def shown(value: object) -> str:
     return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
 
 
+def plain(value: object) -> object:
+    """A numpy bool, integer or floating scalar as the Python bool, int or float of the
+    same value (``float(np.float32(-0.1))``), as a given value is checked; any other value
+    (an array, a Decimal) as it is."""
+    if type(value).__module__ != "numpy":  # numpy not imported for plain values
+        return value
+    import numpy as np
+
+    if isinstance(value, np.bool_ | np.integer | np.floating):
+        return value.item()
+    return value
+
+
 def unmade_folder(folder: Path, exc: OSError) -> str:
     """Why ``folder`` could not be made (``mkdir`` raised ``exc``), in a few words."""
     return "it is not a folder" if folder.exists() else exc.strerror or str(exc)

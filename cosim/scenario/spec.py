@@ -31,7 +31,7 @@ from pydantic import (
     ValidationError,
 )
 
-from cosim.errors import did_you_mean, did_you_mean_path, shown
+from cosim.errors import did_you_mean, did_you_mean_path, plain, shown
 from cosim.fmus.interface import (
     NOT_COSIMULATION,
     FmuInterface,
@@ -214,6 +214,19 @@ class Coupling:
     def extrapolation_order(self) -> int:
         """0 (values held over a step), 1 (linear) or 2 (quadratic)."""
         return EXTRAPOLATION_ORDER[self.extrapolation]
+
+
+def _python_start_value(value: object, ref: str, where: str) -> StartValue:
+    """A start value given in Python (:meth:`Scenario.with_start`): a bool, int, float or
+    str, or a numpy scalar of one as its Python value; anything else (an array, a Decimal,
+    a list) refused, as ``cosim.run(start=...)`` refuses it."""
+    value = plain(value)
+    if not isinstance(value, bool | int | float | str):
+        raise ScenarioError(
+            f"scenario file {where}: start value {ref!r} = {shown(value)}: expected a bool, "
+            "int, float or str (or a numpy scalar of one)"
+        )
+    return value
 
 
 def _move_design_steps(data: dict[str, Any], coupling: Coupling, step: float) -> None:
@@ -447,7 +460,7 @@ class Scenario:
                     + did_you_mean(instance, data["instances"])
                 )
             start = data["instances"][instance].setdefault("start", {})
-            value = value.item() if hasattr(value, "item") else value  # numpy scalar
+            value = _python_start_value(value, ref, where)
             if isinstance(value, str) and value.endswith(FILE_SUFFIXES):
                 value = os.path.abspath(value)  # given in Python: from the working folder
             start[variable] = value

@@ -879,6 +879,25 @@ def test_bad_arguments_raise_the_type_the_docstring_names(
     assert named in str(raised.value)
 
 
+@pytest.mark.parametrize(
+    "value", [np.array([0.1, 0.2]), np.array([0.1]), Decimal("0.1")], ids=["array", "one", "dec"]
+)
+def test_with_start_takes_the_values_cosim_run_takes_and_refuses_the_others(
+    value: object, fmu_dir: Path
+) -> None:
+    """``with_start`` raised ValueError ("can only convert an array of size 1 to a Python
+    scalar") for an array, past ``except CosimError``, and took an array of one element or
+    a Decimal as a float, which ``cosim.run(start=...)`` refuses: one rule for both, a
+    bool, int, float or str or a numpy scalar of one, else a ScenarioError naming it."""
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir)
+    with pytest.raises(ScenarioError) as raised:
+        scenario.with_start({"plant.v_0": value})  # type: ignore[dict-item]
+    message = str(raised.value)
+    assert "start value 'plant.v_0'" in message and "expected a bool, int, float" in message
+    with pytest.raises(CosimError, match="expected a bool, int, float or str"):
+        cosim.run(scenario, start={"plant.v_0": value})  # type: ignore[dict-item]
+
+
 def test_with_start_of_a_non_mapping_is_a_scenario_error(fmu_dir: Path) -> None:
     """with_start([1]) raised a bare TypeError from dict(); it is the documented
     ScenarioError naming the value and what was expected."""
