@@ -288,16 +288,20 @@ def _study(args: argparse.Namespace) -> int:
 
 
 def _workers(args: argparse.Namespace) -> int:
-    """The local workers the options ask for, capped at the cores (said so)."""
+    """The local workers the options ask for, capped at the cores this process may use
+    (said so)."""
     if args.scheduler is not None and args.workers is not None:
         raise CosimError("give --workers (a local cluster) or --scheduler, not both")
-    cores = os.cpu_count() or 1
+    from cosim.study.execution import usable_cores
+
+    cores = usable_cores()
     workers = args.workers if args.workers is not None else cores
     if workers < 1 and args.scheduler is None:
         raise CosimError(f"--workers {workers}: expected at least 1 worker process")
     if workers > cores and not args.oversubscribe and args.scheduler is None:
         print(
-            f"auv-cosim sweep: --workers {workers} capped at the {cores} cores "
+            f"auv-cosim sweep: --workers {workers} capped at the {cores} "
+            f"core{'s' if cores > 1 else ''} this process may use "
             f"(--oversubscribe starts {workers})",
             file=sys.stderr,
         )

@@ -37,7 +37,6 @@ import asyncio
 import hashlib
 import logging
 import multiprocessing.util
-import os
 import shutil
 import socket
 import sys
@@ -52,6 +51,7 @@ from pathlib import Path
 from typing import Any, cast
 
 import dask
+import dask.system
 from distributed import Client, LocalCluster, as_completed, get_worker
 from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.diagnostics.plugin import WorkerPlugin
@@ -172,10 +172,18 @@ class StudyPlugin(WorkerPlugin):
             shutil.rmtree(self.folder, ignore_errors=True)
 
 
+def usable_cores() -> int:
+    """The cores this process may use, as Dask counts them: the machine's, fewer under a
+    CPU affinity (``taskset -c 0``) or a cgroup's CPU quota (a container's ``--cpus 1``),
+    which a count of the machine's cores (``os.cpu_count()``) ignores."""
+    return int(dask.system.cpu_count())
+
+
 def local_workers(requested: object, oversubscribe: bool = False) -> int:
-    """The local worker processes of a study asked for ``requested`` (None: one per core):
-    a whole number >= 1, at most the cores unless ``oversubscribe``. Raises StudyError."""
-    cores = os.cpu_count() or 1
+    """The local worker processes of a study asked for ``requested`` (None: one per core
+    this process may use, :func:`usable_cores`): a whole number >= 1, at most those cores
+    unless ``oversubscribe``. Raises StudyError."""
+    cores = usable_cores()
     if requested is None:
         return cores
     shown = repr(requested) if len(repr(requested)) <= 40 else f"{repr(requested)[:30]}..."
@@ -183,7 +191,7 @@ def local_workers(requested: object, oversubscribe: bool = False) -> int:
         raise StudyError(f"workers={shown}: expected a whole number of worker processes >= 1")
     if requested > cores and not oversubscribe:
         raise StudyError(
-            f"workers={shown}: more than the {cores} cores of this machine; expected at most "
+            f"workers={shown}: more than the {cores} cores this process may use; expected at most "
             f"{cores}, or oversubscribe=True to start them all"
         )
     if requested > MAX_WORKERS_PER_CORE * cores:

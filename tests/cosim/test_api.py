@@ -743,7 +743,7 @@ def test_every_bad_argument_is_one_typed_line_naming_it(
     """Decimal, huge ints, a list for a mapping, NUL bytes, a file as fmu_dir and a
     string for workers gave OverflowError, AttributeError, FileExistsError or TypeError
     tracebacks, or were taken; cosim.sweep(workers=16) started 16 processes on 2 cores."""
-    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr("cosim.study.execution.usable_cores", lambda: 2)
     call = getattr(cosim, function)
     positional = [arguments.pop(k) for k in ("scenario", "study") if k in arguments]
     with pytest.raises(CosimError) as raised:

@@ -12,6 +12,7 @@ import socket
 import subprocess
 import sys
 import threading
+from collections.abc import Iterator
 from contextlib import nullcontext
 from pathlib import Path
 
@@ -113,13 +114,42 @@ def test_workers_are_capped_at_the_cores_unless_told(
 ) -> None:
     """`--workers 100` on 2 cores started ~100 processes and no run finished in 300 s.
     (A study of as many runs: a local cluster has no more workers than runs.)"""
-    cores = os.cpu_count() or 1
+    cores = execution.usable_cores()
     values = ", ".join(str(0.001 * k) for k in range(cores + 98))
     study = write(tmp_path, f'[grid]\n"plant.v_0" = [{values}]\n')
     main(["sweep", str(study), "--workers", str(cores + 98)])
     assert f"--workers {cores + 98} capped at the {cores} cores" in capsys.readouterr().err
     main(["sweep", str(study), "--workers", str(cores + 98), "--oversubscribe"])
     assert [c.workers for c in clusters] == [cores, cores + 98]
+
+
+@pytest.fixture
+def one_core() -> Iterator[int]:
+    """This process (its calling thread, as `taskset -c` sets it) on one of its cores for the
+    test, the cores it had put back after; the core kept."""
+    if not hasattr(os, "sched_setaffinity"):
+        pytest.skip("no CPU affinity on this system")
+    cores = os.sched_getaffinity(0)
+    if len(cores) < 2:
+        pytest.skip("this process may use one core already")
+    core = min(cores)
+    os.sched_setaffinity(0, {core})
+    try:
+        yield core
+    finally:
+        os.sched_setaffinity(0, cores)
+
+
+def test_workers_follow_the_cores_this_process_may_use(
+    tmp_path: Path, capsys: pytest.CaptureFixture, clusters: list[runner.Cluster], one_core: int
+) -> None:
+    """Under `taskset -c 0` on a machine of 2 cores a study started 2 workers on the one
+    core it may use (the machine's count), and `--workers 2` was not capped."""
+    study = write(tmp_path, '[grid]\n"plant.v_0" = [0.01, 0.02, 0.03]\n')
+    main(["sweep", str(study)])
+    main(["sweep", str(study), "--workers", "2"])
+    assert "--workers 2 capped at the 1 core" in capsys.readouterr().err
+    assert [c.workers for c in clusters] == [1, 1]
 
 
 @pytest.mark.parametrize("value", ["99999999999999999999", "0", "-5", "10000001"])
