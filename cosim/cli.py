@@ -28,6 +28,7 @@ from cosim.errors import (
     one_line_warnings,
     unencodable,
 )
+from cosim.limits import out_of_memory
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from fmu_runtime.log_text import shortened
@@ -752,6 +753,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # a reader that stopped (`| head`): nothing more to say to it
         _quiet_stdout()
         return 128 + 13  # as a command ended by SIGPIPE
+    except MemoryError as exc:
+        reason = f"MemoryError{f': {exc}' if str(exc) else ''}"
+        print(f"auv-cosim {args.command}: {shortened(out_of_memory(reason))}", file=sys.stderr)
+        return 1
     except (ValueError, OSError, RuntimeError) as exc:
         print(f"auv-cosim {args.command}: {shortened(one_line(_reason(exc)))}", file=sys.stderr)
         return 1

@@ -43,6 +43,11 @@ from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS, StopRequest, stop_on_signals
 from cosim.errors import FLAGS, CosimError, OptionNames
+from cosim.limits import (
+    RUN_ADDRESS_SPACE,
+    RUN_NO_RECORDING_ADDRESS_SPACE,
+    check_address_space,
+)
 from cosim.outputs.folder import (
     RECORDING_FILE,
     RESULTS_FILE,
@@ -492,7 +497,12 @@ def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest, live: b
 
 def run_from_cli(scenario: str, options: RunOptions) -> int:
     """``auv-cosim run``: 0 if the run completed, 128 + signal number if a signal came,
-    1 on failure. A signal while the report is printed is ignored too."""
+    1 on failure. A signal while the report is printed is ignored too. Refused at once
+    under an address-space limit too small for the run (:mod:`cosim.limits`)."""
+    if options.no_rrd and options.connect is None:
+        check_address_space("a run", RUN_NO_RECORDING_ADDRESS_SPACE)
+    else:
+        check_address_space("a run with its recording", RUN_ADDRESS_SPACE)
     stop = StopRequest()
     with stop_on_signals(stop):
         try:

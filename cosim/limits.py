@@ -1,0 +1,57 @@
+"""The address space a run maps, checked against the process's limit on it (``ulimit -v``,
+``prlimit --as``) before a run or a study starts, and named in a failure for want of
+memory.
+
+Under a limit below what a run maps, nothing said so: numba's LLVM library "could not be
+found" as the plant FMU loaded, the recording's libraries "failed to map segment", a
+thread "could not be started", and OpenBLAS (loaded with the recording's libraries)
+retried its start-up allocation for minutes, the run hung. Most of the address space is
+reserved, never touched (numba's LLVM, the libraries' thread pools and the threads' malloc
+arenas): a run's resident memory stays near 300 MB ([runs.md](../docs/runs.md#resources),
+measured by ``scripts/resource_floor.py``)."""
+
+from __future__ import annotations
+
+from cosim.errors import CosimError
+
+MB = 1 << 20  # bytes
+# The least address space `auv-cosim run bs-3` completed in on x86-64 Linux with two cores,
+# with its recording and without (--no-rrd), and `auv-cosim sweep` with local workers (each
+# failed 100 to 250 MB below): scripts/resource_floor.py measures them.
+RUN_ADDRESS_SPACE = 3750 * MB
+RUN_NO_RECORDING_ADDRESS_SPACE = 1750 * MB
+STUDY_ADDRESS_SPACE = 1000 * MB
+
+
+def address_space_limit() -> int | None:
+    """This process's soft limit on its address space in bytes (``ulimit -v`` times 1024),
+    or None: unlimited, or a system that has no such limit (Windows)."""
+    try:
+        import resource
+    except ImportError:
+        return None
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    return None if soft == resource.RLIM_INFINITY else soft
+
+
+def check_address_space(what: str, needed: int) -> None:
+    """Refuse, in one line, to start ``what`` ("a run with its recording", "a study")
+    under an address-space limit below the ``needed`` bytes it maps, where it would fail
+    naming anything but the limit, or hang. Raises CosimError."""
+    limit = address_space_limit()
+    if limit is not None and limit < needed:
+        raise CosimError(
+            f"the address-space limit of this process, {limit // MB} MB (ulimit -v), is "
+            f"below the {needed // MB} MB {what} maps (most of it reserved, not used): "
+            f"raise it (ulimit -v {needed // 1024}) or lift it (ulimit -v unlimited)"
+        )
+
+
+def out_of_memory(reason: str) -> str:
+    """``reason`` (a failure for want of memory: a MemoryError, a thread not started) with
+    the address-space limit named, if one is set: ``out of memory (address-space limit
+    800 MB, ulimit -v: raise it)``."""
+    limit = address_space_limit()
+    if limit is None:
+        return f"out of memory ({reason})"
+    return f"out of memory ({reason}; address-space limit {limit // MB} MB, ulimit -v: raise it)"

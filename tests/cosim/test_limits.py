@@ -1,0 +1,91 @@
+"""A run or a study under an address-space limit (``ulimit -v``) too small for it is refused
+at once, in one line naming the limit and what to do, leaving nothing behind; a failure for
+want of memory is one line naming the limit, never a traceback."""
+
+from __future__ import annotations
+
+import resource
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from process_group import run_in_group
+
+from cosim import limits
+from cosim.cli import main
+
+TOO_SMALL = 900 * limits.MB  # where a run failed naming no limit, with tracebacks
+
+
+def _limited(limit: int) -> Callable[[], None]:
+    """A preexec function: the child's address space limited to ``limit`` bytes."""
+
+    def apply() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+    return apply
+
+
+def _cosim(args: list[str], cwd: Path, limit: int) -> tuple[int, str]:
+    """``python -m cosim ARGS`` in ``cwd`` under the address-space ``limit``: its exit code
+    and stderr. 90 s at most: a run that hangs in a library's start-up fails the test."""
+    done = run_in_group(
+        [sys.executable, "-m", "cosim", *args], timeout=90, cwd=cwd, preexec_fn=_limited(limit)
+    )
+    return done.returncode, done.stderr
+
+
+def _refused(code: int, err: str, command: str) -> None:
+    assert code == 1, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"auv-cosim {command}: the address-space limit"), err
+    assert f"{TOO_SMALL // limits.MB} MB (ulimit -v)" in lines[0] and "raise it" in lines[0]
+
+
+@pytest.mark.slow
+def test_a_run_under_too_small_an_address_space_is_refused_naming_the_limit(
+    tmp_path: Path, fmu_paths: dict[str, Path]
+) -> None:
+    """At 900 MB `auv-cosim run bs-3` printed rerun's tracebacks and "RuntimeError: Failed
+    to spawn background thread"; at 1700 MB it hung in OpenBLAS's start-up; between, the
+    plant FMU said numba's "libllvmlite.so" could not be found."""
+    fmu_dir = next(iter(fmu_paths.values())).parent
+    args = ["run", "bs-3", "--stop-time", "1", "--fmu-dir", str(fmu_dir), "--out", "x"]
+    code, err = _cosim(args, tmp_path, TOO_SMALL)
+    _refused(code, err, "run")
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow
+def test_a_study_under_too_small_an_address_space_is_refused_naming_the_limit(
+    tmp_path: Path, fmu_paths: dict[str, Path]
+) -> None:
+    """At 900 MB `auv-cosim sweep` printed a bare "MemoryError" and then "RuntimeError:
+    can't start new thread"."""
+    fmu_dir = next(iter(fmu_paths.values())).parent
+    study = tmp_path / "s.toml"
+    study.write_text('scenario = "bs-3"\nstop_time = 1.0\n[grid]\n"plant.v_0" = [0.1]\n')
+    args = ["sweep", "s.toml", "--quiet", "--fmu-dir", str(fmu_dir), "--out", "s"]
+    code, err = _cosim(args, tmp_path, TOO_SMALL)
+    _refused(code, err, "sweep")
+    assert not (tmp_path / "s").exists()
+
+
+def test_out_of_memory_is_one_line_naming_the_limit(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """A MemoryError escaped the command as a traceback (the last line a bare
+    "MemoryError")."""
+
+    def starved(*args: object) -> int:
+        raise MemoryError
+
+    monkeypatch.setattr("cosim.runner.run_from_cli", starved)
+    monkeypatch.setattr(limits, "address_space_limit", lambda: 800 * limits.MB)
+    assert main(["run", "bs-3"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert err.startswith("auv-cosim run: out of memory (MemoryError"), err
+    assert "address-space limit 800 MB, ulimit -v: raise it" in err
