@@ -28,7 +28,7 @@ from cosim.errors import (
     one_line_warnings,
     unencodable,
 )
-from cosim.limits import out_of_memory
+from cosim.limits import check_local_study, out_of_memory
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from fmu_runtime.log_text import shortened
@@ -238,6 +238,8 @@ def _study(args: argparse.Namespace) -> int:
         from cosim.study.execution import check_dashboard
 
         check_dashboard()
+    if args.scheduler is None:  # before a worker or the fork server starts
+        check_local_study()
     local = args.scheduler is None and not args.resume
     if local:  # the workers' fork server imports beside this process (cosim.study.fork_server)
         from cosim.study import fork_server

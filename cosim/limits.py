@@ -21,6 +21,9 @@ MB = 1 << 20  # bytes
 RUN_ADDRESS_SPACE = 3750 * MB
 RUN_NO_RECORDING_ADDRESS_SPACE = 1750 * MB
 STUDY_ADDRESS_SPACE = 1000 * MB
+# The least open files (ulimit -n) `auv-cosim sweep` with two local workers completed with
+# (it failed at 40, printing Dask's tracebacks); a run needs 24.
+STUDY_OPEN_FILES = 48
 
 
 def address_space_limit() -> int | None:
@@ -55,3 +58,31 @@ def out_of_memory(reason: str) -> str:
     if limit is None:
         return f"out of memory ({reason})"
     return f"out of memory ({reason}; address-space limit {limit // MB} MB, ulimit -v: raise it)"
+
+
+def check_open_files(what: str, needed: int) -> None:
+    """Raise this process's soft limit on open files to ``needed`` if its hard limit allows
+    (children inherit it), else refuse, in one line, to start ``what`` ("a study"), whose
+    libraries would fail with tracebacks of their own. Raises CosimError."""
+    try:
+        import resource
+    except ImportError:
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft == resource.RLIM_INFINITY or soft >= needed:
+        return
+    if hard == resource.RLIM_INFINITY or hard >= needed:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (needed, hard))
+        return
+    raise CosimError(
+        f"the open-files limit of this process, {soft} (ulimit -n), is below the {needed} "
+        f"{what} needs: raise it (ulimit -n {needed})"
+    )
+
+
+def check_local_study() -> None:
+    """Refuse (or, for open files, raise the soft limit for) a study whose local workers,
+    sharing this process's limits, could not run: :func:`check_address_space` and
+    :func:`check_open_files` with a study's needs. Raises CosimError."""
+    check_address_space("a study", STUDY_ADDRESS_SPACE)
+    check_open_files("a study", STUDY_OPEN_FILES)

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
-from cosim.limits import STUDY_ADDRESS_SPACE, check_address_space
+from cosim.limits import check_local_study
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.scenario import unit_doubts
 from cosim.scenario.checks import range_text
@@ -137,7 +137,7 @@ def run_study(
     if cluster.scheduler is not None:
         check_scheduler(cluster.scheduler, cluster.security)
     else:  # the local workers share this process's limits
-        check_address_space("a study", STUDY_ADDRESS_SPACE)
+        check_local_study()
     spec = load_study(study_file, label := label or study_label(study_file))
     check_size(spec, label, max_runs, names)
     scenario_ref = _scenario_ref(spec.scenario, study_file.parent)

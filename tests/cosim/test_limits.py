@@ -73,6 +73,50 @@ def test_a_study_under_too_small_an_address_space_is_refused_naming_the_limit(
     assert not (tmp_path / "s").exists()
 
 
+def _few_files(count: int) -> Callable[[], None]:
+    """A preexec function: the child may have ``count`` files open (soft and hard)."""
+
+    def apply() -> None:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (count, count))
+
+    return apply
+
+
+@pytest.mark.slow
+def test_a_study_with_too_few_open_files_is_refused_naming_the_limit(
+    tmp_path: Path, fmu_paths: dict[str, Path]
+) -> None:
+    """Under `ulimit -n 32` `auv-cosim sweep` printed Dask's tracebacks ("Nanny failed to
+    start process", "AttributeError: 'NoneType' object has no attribute 'terminate'")
+    before its one line."""
+    fmu_dir = next(iter(fmu_paths.values())).parent
+    study = tmp_path / "s.toml"
+    study.write_text('scenario = "bs-3"\nstop_time = 1.0\n[grid]\n"plant.v_0" = [0.1]\n')
+    args = ["sweep", "s.toml", "--quiet", "--fmu-dir", str(fmu_dir), "--out", "s"]
+    command = [sys.executable, "-m", "cosim", *args]
+    done = run_in_group(command, timeout=90, cwd=tmp_path, preexec_fn=_few_files(32))
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith("auv-cosim sweep: the open-files limit of this process, 32"), lines
+    assert "(ulimit -n)" in lines[0] and "raise it" in lines[0], lines
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_soft_open_files_limit_is_raised_to_what_a_study_needs() -> None:
+    """A soft limit below the need and a hard one above it: the soft one is raised (as
+    `ulimit -Sn` may), nothing refused."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if hard != resource.RLIM_INFINITY and hard < limits.STUDY_OPEN_FILES:
+        pytest.skip("the hard limit of this process is below what a study needs")
+    resource.setrlimit(resource.RLIMIT_NOFILE, (limits.STUDY_OPEN_FILES - 8, hard))
+    try:
+        limits.check_open_files("a study", limits.STUDY_OPEN_FILES)
+        assert resource.getrlimit(resource.RLIMIT_NOFILE)[0] >= limits.STUDY_OPEN_FILES
+    finally:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+
+
 def test_out_of_memory_is_one_line_naming_the_limit(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
 ) -> None:
