@@ -1,6 +1,7 @@
-"""The address space a run maps, checked against the process's limit on it (``ulimit -v``,
-``prlimit --as``) before a run or a study starts, and named in a failure for want of
-memory.
+"""The process limits a run and a study need: the address space a run maps, checked
+against the limit on it (``ulimit -v``, ``prlimit --as``) before a run or a study starts
+and named in a failure for want of memory; the open files a study needs (``ulimit -n``);
+the file-size limit (``ulimit -f``) named where it stops a file.
 
 Under a limit below what a run maps, nothing said so: numba's LLVM library "could not be
 found" as the plant FMU loaded, the recording's libraries "failed to map segment", a
@@ -11,6 +12,8 @@ arenas): a run's resident memory stays near 300 MB ([runs.md](../docs/runs.md#re
 measured by ``scripts/resource_floor.py``)."""
 
 from __future__ import annotations
+
+import errno
 
 from cosim.errors import CosimError
 
@@ -86,3 +89,27 @@ def check_local_study() -> None:
     :func:`check_open_files` with a study's needs. Raises CosimError."""
     check_address_space("a study", STUDY_ADDRESS_SPACE)
     check_open_files("a study", STUDY_OPEN_FILES)
+
+
+FILE_SIZE_LIMIT = "(ulimit -f)"  # how :func:`unwritten` names the limit
+
+
+def unwritten(exc: OSError) -> str:
+    """Why a file could not be written (``exc``), in a few words: its ``strerror``, and for
+    a file past this process's file-size limit (``ulimit -f``) that limit, which no free
+    space on the disk tells: ``File too large: the file-size limit of this process, 65536
+    bytes (ulimit -f), stopped it: raise it``."""
+    reason = exc.strerror or str(exc)
+    if exc.errno != errno.EFBIG:
+        return reason
+    try:
+        import resource
+    except ImportError:
+        return reason
+    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    if soft == resource.RLIM_INFINITY:
+        return reason
+    return (
+        f"{reason}: the file-size limit of this process, {soft} bytes {FILE_SIZE_LIMIT}, "
+        "stopped it: raise it (ulimit -f unlimited)"
+    )

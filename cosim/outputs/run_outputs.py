@@ -32,6 +32,7 @@ import numpy as np
 from cosim.engine.master import RunResult
 from cosim.engine.rows import Note, NotesIgnored, RowSink
 from cosim.errors import CosimError
+from cosim.limits import unwritten
 from cosim.metrics.key_figures import KeyFigures
 from cosim.outputs.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
 from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, mission_legs, survey_mission
@@ -232,7 +233,7 @@ class RunOutputs:
         try:
             write_whole(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         except OSError as exc:
-            return f"cannot write {path}: {exc.strerror or exc}"
+            return f"cannot write {path}: {unwritten(exc)}"
         return self._record("scenario")
 
     def discard(self) -> None:

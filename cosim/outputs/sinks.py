@@ -23,6 +23,7 @@ import numpy as np
 
 from cosim.engine.rows import NotesIgnored
 from cosim.errors import CosimError
+from cosim.limits import unwritten
 from cosim.outputs.results import csv_header, csv_lines
 from cosim.whole_file import write_whole
 
@@ -46,9 +47,9 @@ class CsvSink(NotesIgnored):
             try:
                 self._fd = os.open(path, os.O_WRONLY | os.O_TRUNC)
             except OSError as exc:
-                raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
+                raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
         except OSError as exc:
-            raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
+            raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
         try:
             self._write(csv_header(columns).encode())
         except CosimError:  # a full disk: no empty results.csv left behind
@@ -87,7 +88,7 @@ class CsvSink(NotesIgnored):
         except OSError as exc:
             with contextlib.suppress(OSError):  # leave whole rows; the reason is below
                 os.ftruncate(self._fd, self._written)
-            raise CosimError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+            raise CosimError(f"cannot write {self.path}: {unwritten(exc)}") from None
         self._written += len(data)
 
 
@@ -99,7 +100,7 @@ def write_json_atomically(path: Path, data: dict[str, Any]) -> None:
     try:
         write_whole(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
     except OSError as exc:
-        raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
 
 
 class ProgressSink(NotesIgnored):

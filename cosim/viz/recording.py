@@ -25,6 +25,7 @@ control is on -- is read from the :class:`~cosim.scenario.spec.Scenario` itself.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import re
 import shlex
@@ -45,6 +46,7 @@ import rerun as rr
 
 from cosim.engine.rows import RUN_INCOMPLETE
 from cosim.errors import CosimError
+from cosim.limits import FILE_SIZE_LIMIT, unwritten
 from cosim.outputs.folder import RECORDING_FILE
 from cosim.outputs.missing_run import missing_run_hint
 from cosim.outputs.results import column_units
@@ -497,11 +499,16 @@ def _first_value(scenario: Scenario, variable: str, prefer: str) -> Any:
 
 
 def _write_failure(path: Path, exc: Exception) -> str:
-    """The reason rerun's own file writer failed, with the free space of its disk."""
+    """The reason rerun's own file writer failed, with the free space of its disk, or
+    the file-size limit that stopped it (:func:`cosim.limits.unwritten`)."""
+    if isinstance(exc, OSError) and exc.errno == errno.EFBIG:
+        return f"cannot write the recording {path}: {unwritten(exc)}"
     return _with_free_space(f"cannot write the recording {path}: {exc}", path)
 
 
 def _with_free_space(reason: str, path: Path) -> str:
+    if FILE_SIZE_LIMIT in reason:  # the limit stopped it, not the disk (unwritten)
+        return reason
     try:
         stat = os.statvfs(path.parent)
         return f"{reason} ({stat.f_bavail * stat.f_frsize} bytes free on its disk)"

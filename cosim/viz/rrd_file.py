@@ -25,6 +25,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cosim.limits import unwritten
+
 if TYPE_CHECKING:  # rerun itself is imported where a sink is made: it takes ~0.3 s
     import rerun as rr
 
@@ -135,4 +137,4 @@ def _waiting(fd: int) -> int:
 
 
 def _reason(exc: OSError) -> str:
-    return exc.strerror or str(exc)
+    return unwritten(exc)

@@ -117,6 +117,38 @@ def test_a_soft_open_files_limit_is_raised_to_what_a_study_needs() -> None:
         resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
 
 
+def _small_files(size: int) -> Callable[[], None]:
+    """A preexec function: the child may write files of ``size`` bytes at most."""
+
+    def apply() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (size, size))
+
+    return apply
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("size", "options"), [(64 * 1024, []), (1 << 20, ["--no-rrd"])], ids=["recording", "csv"]
+)
+def test_a_run_past_the_file_size_limit_names_the_limit(
+    tmp_path: Path, fmu_paths: dict[str, Path], size: int, options: list[str]
+) -> None:
+    """Under `ulimit -f 64` a run said its recording was "File too large (74746695680 bytes
+    free on its disk)", as if the disk were full; under `ulimit -f 1024` results.csv was
+    "File too large (at t = 25.99 s)", naming no limit. The partial results stay marked
+    incomplete."""
+    fmu_dir = next(iter(fmu_paths.values())).parent
+    args = ["run", "bs-3", "--fmu-dir", str(fmu_dir), "--out", "x", *options]
+    command = [sys.executable, "-m", "cosim", *args]
+    done = run_in_group(command, timeout=120, cwd=tmp_path, preexec_fn=_small_files(size))
+    assert done.returncode == 1, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert "File too large" in last and "bytes free on its disk" not in last, last
+    assert f"file-size limit of this process, {size} bytes (ulimit -f)" in last, last
+    summary = tmp_path / "x" / "summary.json"
+    assert not summary.exists() or '"status": "incomplete"' in summary.read_text()
+
+
 def test_out_of_memory_is_one_line_naming_the_limit(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
 ) -> None:
