@@ -14,6 +14,7 @@ measured by ``scripts/resource_floor.py``)."""
 from __future__ import annotations
 
 import errno
+import socket
 
 from cosim.errors import CosimError
 
@@ -91,6 +92,25 @@ def check_local_study() -> None:
     :func:`check_open_files` with a study's needs. Raises CosimError."""
     check_address_space("a study", STUDY_ADDRESS_SPACE)
     check_open_files("a study", STUDY_OPEN_FILES)
+    check_loopback()
+
+
+def check_loopback() -> None:
+    """Refuse, in one line, a study whose local workers could not reach each other: a
+    connection to a socket of this process on 127.0.0.1 fails at once where the loopback
+    interface is down (``unshare -n``), where Dask waited 30 s for its cluster and said
+    only that it timed out. Raises CosimError."""
+    try:
+        with socket.socket() as server:
+            server.bind(("127.0.0.1", 0))
+            server.listen(1)
+            socket.create_connection(server.getsockname(), timeout=5).close()
+    except OSError as exc:
+        raise CosimError(
+            "a study's local workers talk over 127.0.0.1, which this process cannot reach "
+            f"({exc.strerror or exc}): bring the loopback interface up (ip link set lo up) "
+            "or give --scheduler a cluster's address"
+        ) from None
 
 
 FILE_SIZE_LIMIT = "(ulimit -f)"  # how :func:`unwritten` names the limit

@@ -5,6 +5,7 @@ want of memory is one line naming the limit, never a traceback."""
 from __future__ import annotations
 
 import resource
+import shutil
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -147,6 +148,37 @@ def test_a_run_past_the_file_size_limit_names_the_limit(
     assert f"file-size limit of this process, {size} bytes (ulimit -f)" in last, last
     summary = tmp_path / "x" / "summary.json"
     assert not summary.exists() or '"status": "incomplete"' in summary.read_text()
+
+
+def _no_network() -> bool:
+    """Whether this process may start a command in a network namespace of its own."""
+    if shutil.which("unshare") is None:
+        return False
+    done = run_in_group(["unshare", "-n", "true"], timeout=30)
+    return done.returncode == 0
+
+
+@pytest.mark.slow
+def test_a_study_without_loopback_is_refused_naming_it(
+    tmp_path: Path, fmu_paths: dict[str, Path]
+) -> None:
+    """Under `unshare -n` (no loopback up) `auv-cosim sweep` waited 30 s for its local
+    cluster, then said "RuntimeError: Cluster failed to start: Timed out trying to connect
+    to tcp://127.0.0.1:45563 after 30 s"."""
+    if not _no_network():
+        pytest.skip("unshare -n is not allowed here")
+    fmu_dir = next(iter(fmu_paths.values())).parent
+    study = tmp_path / "s.toml"
+    study.write_text('scenario = "bs-3"\nstop_time = 1.0\n[grid]\n"plant.v_0" = [0.1]\n')
+    args = ["sweep", "s.toml", "--quiet", "--fmu-dir", str(fmu_dir), "--out", "s"]
+    command = ["unshare", "-n", sys.executable, "-m", "cosim", *args]
+    done = run_in_group(command, timeout=90, cwd=tmp_path)
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith("auv-cosim sweep: a study's local workers talk over 127.0.0.1")
+    assert "ip link set lo up" in lines[0], lines[0]
+    assert not (tmp_path / "s").exists()
 
 
 def test_out_of_memory_is_one_line_naming_the_limit(
