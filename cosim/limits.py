@@ -93,6 +93,24 @@ def check_local_study() -> None:
     check_address_space("a study", STUDY_ADDRESS_SPACE)
     check_open_files("a study", STUDY_OPEN_FILES)
     check_loopback()
+    check_semaphores()
+
+
+def check_semaphores() -> None:
+    """Refuse, in one line, a study whose local workers could not be started: each is
+    started with a semaphore of multiprocessing's, which POSIX keeps in ``/dev/shm``; where
+    that is missing or read-only (a container's), Dask printed tracebacks and said "Nanny
+    failed to start". Raises CosimError."""
+    import multiprocessing
+
+    try:
+        multiprocessing.get_context("spawn").Lock()
+    except OSError as exc:
+        raise CosimError(
+            "a study's workers need a semaphore of multiprocessing's, which this process "
+            f"cannot make ({exc.strerror or exc}; POSIX keeps them in /dev/shm): give it a "
+            "writable /dev/shm (docker run --shm-size), or give --scheduler a cluster's address"
+        ) from None
 
 
 def check_loopback() -> None:

@@ -181,6 +181,33 @@ def test_a_study_without_loopback_is_refused_naming_it(
     assert not (tmp_path / "s").exists()
 
 
+@pytest.mark.slow
+def test_a_study_without_a_writable_dev_shm_is_refused_naming_it(
+    tmp_path: Path, fmu_paths: dict[str, Path]
+) -> None:
+    """With /dev/shm read-only (a container's) `auv-cosim sweep` printed Dask's tracebacks
+    ("Nanny failed to start process", "OSError: [Errno 30] Read-only file system") and
+    then "RuntimeError: Nanny failed to start.", naming no folder."""
+    mount = "mount -t tmpfs -o size=4k,ro tmpfs /dev/shm"
+    if (
+        shutil.which("unshare") is None
+        or run_in_group(["unshare", "-m", "sh", "-c", mount], timeout=30).returncode
+    ):
+        pytest.skip("cannot mount a read-only /dev/shm of its own here")
+    fmu_dir = next(iter(fmu_paths.values())).parent
+    study = tmp_path / "s.toml"
+    study.write_text('scenario = "bs-3"\nstop_time = 1.0\n[grid]\n"plant.v_0" = [0.1]\n')
+    sweep = f"{sys.executable} -m cosim sweep s.toml --quiet --fmu-dir {fmu_dir} --out s"
+    command = ["unshare", "-m", "sh", "-c", f"{mount} && exec {sweep}"]
+    done = run_in_group(command, timeout=90, cwd=tmp_path)
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith("auv-cosim sweep: a study's workers need a semaphore"), lines
+    assert "/dev/shm" in lines[0] and "Read-only file system" in lines[0], lines
+    assert not (tmp_path / "s").exists()
+
+
 def test_out_of_memory_is_one_line_naming_the_limit(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
 ) -> None:
