@@ -100,11 +100,18 @@ def check_semaphores() -> None:
     """Refuse, in one line, a study whose local workers could not be started: each is
     started with a semaphore of multiprocessing's, which POSIX keeps in ``/dev/shm``; where
     that is missing or read-only (a container's), Dask printed tracebacks and said "Nanny
-    failed to start". Raises CosimError."""
+    failed to start". Raises CosimError. The probe is made as "fork" makes its locks,
+    unlinked at once: not registered with multiprocessing's resource tracker, which a
+    "spawn" lock would start here, before a study starts it immune to SIGHUP
+    (:mod:`cosim.study.fork_server`)."""
     import multiprocessing
 
     try:
-        multiprocessing.get_context("spawn").Lock()
+        fork = multiprocessing.get_context("fork")
+    except ValueError:  # no fork (Windows): no /dev/shm either
+        return
+    try:
+        fork.Lock()
     except OSError as exc:
         raise CosimError(
             "a study's workers need a semaphore of multiprocessing's, which this process "
