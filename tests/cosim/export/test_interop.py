@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -136,7 +137,11 @@ def _third_party(tool: str, systems: dict, exported: dict, folder: Path) -> dict
             spec.write_text(json.dumps(job))
             # -P: not tests/ on sys.path, whose folders named like our packages shadow them
             command = [sys.executable, "-P", str(RUNNER), str(spec)]
-            done = subprocess.run(command, capture_output=True, text=True, timeout=600, check=False)
+            # TMPDIR: the test's folder, where ecos unpacks each SSP (ecos_ssp_<uuid>) and
+            # leaves it: in /tmp, one stayed behind per run of these tests
+            env = {**os.environ, "TMPDIR": str(folder)}
+            done = subprocess.run(command, capture_output=True, text=True, timeout=600,
+                                  check=False, env=env)  # fmt: skip
             if done.returncode == 77:
                 pytest.skip(done.stderr.strip())
             assert done.returncode == 0, (
@@ -152,8 +157,20 @@ def libcosim_traces(systems: dict, exported: dict, tmp_path_factory) -> dict:
 
 
 @pytest.fixture(scope="module")
-def ecos_traces(systems: dict, exported: dict, tmp_path_factory) -> dict:
-    return _third_party("ecos", systems, exported, tmp_path_factory.mktemp("ecos"))
+def ecos_folder(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("ecos")
+
+
+@pytest.fixture(scope="module")
+def ecos_traces(systems: dict, exported: dict, ecos_folder: Path) -> dict:
+    return _third_party("ecos", systems, exported, ecos_folder)
+
+
+def test_ecos_unpacks_its_ssps_in_the_tests_folder(ecos_traces: dict, ecos_folder: Path) -> None:
+    """Tests leave nothing behind: ecos unpacks each SSP into TMPDIR and leaves it there;
+    its runs get the test's folder as TMPDIR, so none stays in /tmp."""
+    assert ecos_traces
+    assert list(ecos_folder.glob("ecos_ssp_*"))
 
 
 def _read_csv(path: Path, variables: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
