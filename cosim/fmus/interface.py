@@ -204,11 +204,7 @@ def check_binary(path: Path, model_identifier: str | None) -> None:
     from fmpy import platform, sharedLibraryExtension
 
     member = f"binaries/{platform}/{model_identifier}{sharedLibraryExtension}"
-    try:
-        with zipfile.ZipFile(path) as archive:
-            names = archive.namelist()
-    except (OSError, zipfile.BadZipFile):
-        names = []
+    names = _members_now(path)
     if member not in names:
         found = sorted({n.split("/")[1] for n in names if n.count("/") >= 2 and
                         n.startswith("binaries/") and n.split("/")[2]})  # fmt: skip
@@ -226,11 +222,7 @@ def check_own_packages(path: Path) -> None:
     auv-cosim (its master, a study's worker) it would import this version's modules of
     those names instead of its own (failing inside its instantiation, or running this
     version's code as the old FMU's). Another host, or the auv-cosim that built it, runs it."""
-    try:
-        with zipfile.ZipFile(path) as archive:
-            names = set(archive.namelist())
-    except (OSError, zipfile.BadZipFile):
-        return  # check_archive names what is wrong with it
+    names = _members_now(path)  # none if unreadable: check_archive names what is wrong
     shipped = [p for p in OWN_PACKAGES if f"resources/{p}/__init__.py" in names]
     if shipped:
         raise FmuInterfaceError(
@@ -239,6 +231,27 @@ def check_own_packages(path: Path) -> None:
             "same process; rebuild it with `auv-cosim build`, or run it with the auv-cosim "
             "that built it or another FMI host"
         )
+
+
+def _members_now(path: Path) -> frozenset[str]:
+    """The names in the FMU archive ``path`` (none if it cannot be read), read once per
+    version of the file: every run's checks (:func:`check_binary`,
+    :func:`check_own_packages`) ask, a study's runs in each worker alike."""
+    try:
+        info = path.stat()
+    except OSError:
+        return frozenset()
+    return _members(path, info.st_mtime_ns, info.st_size)
+
+
+@functools.lru_cache(maxsize=_CACHED_FMUS)
+def _members(path: Path, mtime_ns: int, size: int) -> frozenset[str]:
+    """:func:`_members_now`; ``mtime_ns`` and ``size`` are only the cache key's freshness."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return frozenset(archive.namelist())
+    except (OSError, zipfile.BadZipFile):
+        return frozenset()
 
 
 @functools.lru_cache(maxsize=_CACHED_FMUS)
