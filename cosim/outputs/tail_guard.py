@@ -1,6 +1,6 @@
 """Leave a killed run's files whole: cut a torn last row off results.csv and a recording
-back to its last flush, once the run writing them is gone, however it ended; and put an
-earlier run the killed one was replacing back in place if it had not stepped yet.
+back to its last flush, once the run writing them is gone, however it ended; and, if it
+had not stepped yet, remove what it created and put back an earlier run it was replacing.
 
 Run as ``python -I -S tail_guard.py MANIFEST CSV [RRD]`` by the run folder
 (:mod:`cosim.outputs.folder`), in a session of its own (so a signal for the run's process
@@ -16,10 +16,12 @@ until the guard ends. The run writes lines on it:
 * ``done`` when its files are complete.
 
 When the pipe closes -- the run closed it at its end, or the kernel did when the run was
-killed (SIGKILL included) -- without ``done``: a run that set files aside and never
-committed is undone (the files it created removed, the set-aside ones renamed back, so
-the folder is as it was); otherwise CSV is truncated after its last newline and RRD to the
-last SIZE, and the run's MANIFEST records what the files now hold
+killed (SIGKILL included) -- without ``done``: a run that never committed is undone (the
+files it created removed, any set-aside ones renamed back, so the folder is as it was and
+the same command runs again without ``--overwrite``: before its first step it computed
+nothing, and files it left while opening its outputs, before its summary.json, would
+hold no run ``--overwrite`` could recognise); otherwise CSV is truncated after its last
+newline and RRD to the last SIZE, and the run's MANIFEST records what the files now hold
 (:func:`file_identity`), so a later ``--overwrite`` knows them as the run's. The writers
 leave whole rows and messages, but the kernel may stop a write at a page boundary when
 the process is killed, and rerun writes its stream in pieces: this is the one place that
@@ -200,7 +202,7 @@ def main(argv: list[str]) -> int:
                 aside.append((original, moved))
     if done:
         return 0
-    if aside and not committed:
+    if not committed:  # it never stepped: nothing computed, the folder as it was
         undo([*created, manifest], aside)
         return 0
     cut_torn_tail(files[0])

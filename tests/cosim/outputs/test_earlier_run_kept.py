@@ -252,6 +252,35 @@ def test_a_run_killed_before_its_first_step_leaves_the_earlier_run_as_it_was(
 
 
 @pytest.mark.slow
+def test_a_run_killed_before_its_first_step_leaves_its_folder_empty(
+    test_fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """SIGKILL (the OOM killer, ``kill -9``) before a new folder's first run has stepped:
+    nothing was computed, so its tail guard removes what the run created, and the same
+    command runs again without --overwrite. (A run killed while it opened its outputs,
+    before its summary.json, left a results.csv header and an empty recording that even
+    --overwrite refused: "holds no earlier run".)"""
+    out = tmp_path / "d"
+    scenario = loop_file(tmp_path, test_fmu_dir)
+    proc = run_command(scenario, out, "--real-time", "0.001", "--quiet")
+    try:
+        wait_until(lambda: manifest_pid(out) == proc.pid, proc, "the run's manifest")
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        wait_until(lambda: tree(out) == {}, proc, "the guard")
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+    deadline = time.monotonic() + 30.0
+    while main(["run", str(scenario), "--out", str(out), "--no-rrd"]) != 0:
+        error = capsys.readouterr().err
+        assert "wait for that run to end" in error, error  # the guard, ending, holds the lock
+        assert time.monotonic() < deadline, error
+        time.sleep(0.2)
+
+
+@pytest.mark.slow
 def test_a_run_killed_while_stepping_is_replaced_with_overwrite(
     test_fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
