@@ -85,6 +85,8 @@ class RunOptions:
     from the terminal (docs/live-runs.md). ``extrapolation`` and ``tolerance`` override
     the scenario's ``[coupling]``; ``check_step`` also runs it at h / 2 and h / 4 and puts
     the estimated coupling error into the summary (:mod:`cosim.engine.step_check`).
+    ``results_csv`` false writes no results.csv (a study's task that keeps no files: its
+    rows' formatting is a quarter of a run's CPU, and its summary has every metric).
     ``names``: how a refusal names the options (the command line's flags, or the API's
     keywords: :class:`cosim.errors.OptionNames`). ``unit_doubts`` warns of an angle of
     more than a full turn given in rad and of an acceptance radius as long as a leg
@@ -115,6 +117,7 @@ class RunOptions:
     interactive: bool = False
     names: OptionNames = FLAGS
     unit_doubts: bool = True
+    results_csv: bool = True
 
 
 class NotStartedError(CosimError):
@@ -426,7 +429,9 @@ def _open_outputs(
     if rrd is not None:
         folder.lock_recording(rrd)
     recorder = rerun_sink if options.real_time is None else _background_rerun_sink
-    outputs = RunOutputs.open(scenario, folder, rrd, options.connect, progress, recorder=recorder)
+    outputs = RunOutputs.open(
+        scenario, folder, rrd, options.connect, progress, recorder, options.results_csv
+    )
     if outputs.csv is not None:
         outputs.csv.warm_up()
     return outputs

@@ -81,7 +81,7 @@ class RunOutputs:
     def __init__(self, scenario: Scenario, folder: RunFolder, paths: dict[str, Path]) -> None:
         self.scenario = scenario
         self.folder = folder
-        self.paths = paths  # results, scenario, summary and (if written) recording
+        self.paths = paths  # (if written) results, scenario, summary and recording
         self.figures = KeyFigures(
             scenario.record, scenario.key_instances, scenario.key_setpoint_source
         )
@@ -108,9 +108,11 @@ class RunOutputs:
         connect: str | None,
         progress: ProgressSink | None,
         recorder: Recorder | None = None,
+        results_csv: bool = True,
     ) -> RunOutputs:
         """Write scenario.toml and the running summary, open every sink (``progress``:
-        the bar, if one is shown, its total set here).
+        the bar, if one is shown, its total set here; no results.csv without
+        ``results_csv``).
 
         Raises :class:`CosimError` naming the path that cannot be written; what was
         created by then is removed again.
@@ -118,6 +120,8 @@ class RunOutputs:
         paths = {name: folder.path / file for name, file in
                  (("results", RESULTS_FILE), ("scenario", SCENARIO_FILE),
                   ("summary", SUMMARY_FILE))}  # fmt: skip
+        if not results_csv:
+            del paths["results"]
         if rrd is not None:
             paths["recording"] = rrd
         outputs = cls(scenario, folder, paths)
@@ -135,12 +139,13 @@ class RunOutputs:
         progress: ProgressSink | None,
         recorder: Recorder | None,
     ) -> None:
-        self.csv = CsvSink(self.paths["results"], self.scenario.columns)
-        self._created.append(self.paths["results"])
-        self.folder.wrote(self.paths["results"])
-        self.sinks.insert(1, self.csv)
-        self._closable.append(self.csv)
-        self.folder.start_guard(self.paths["results"], rrd)
+        if "results" in self.paths:
+            self.csv = CsvSink(self.paths["results"], self.scenario.columns)
+            self._created.append(self.paths["results"])
+            self.folder.wrote(self.paths["results"])
+            self.sinks.insert(1, self.csv)
+            self._closable.append(self.csv)
+        self.folder.start_guard(self.folder.path / RESULTS_FILE, rrd)  # none there: no cut
         if rrd is not None and recorder is not None:
             self._created.append(rrd)  # the folder's lock made it: removed if the sink fails
             sink = recorder(self.scenario, rrd, None, self.folder.recording_flushed)
@@ -213,7 +218,7 @@ class RunOutputs:
     def finish(self, result: RunResult, error: str | None, signum: int | None) -> str | None:
         """Replace summary.json with the final summary; the failure to write it, if any."""
         name = signal.Signals(signum).name if signum is not None else None
-        rows = self.csv.rows if self.csv is not None else 0
+        rows = self.csv.rows if self.csv is not None else result.rows
         if self.manoeuvre is not None:
             self.manoeuvre_summary = self.manoeuvre.summary()
         figures, manoeuvre = self.figures.figures(result.complete), self.manoeuvre_summary

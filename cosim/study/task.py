@@ -201,6 +201,7 @@ def run_one(
                 tail_guard=False,
                 check_step=check_step,
                 unit_doubts=False,
+                results_csv=keep != "none",
             )
             result = outcome.result
             error = None if result.complete else result.error or "the run stopped early"
