@@ -437,6 +437,7 @@ def _swept(
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
     with ExitStack() as stack:
+        stack.callback(_restore_environ, dict(os.environ))
         temporary = None
         if out is None or isinstance(study, Mapping):
             temporary = Path(stack.enter_context(_temporary_folder()))
@@ -453,6 +454,17 @@ def _swept(
         table = _read_parquet(outcome.paths["parquet"])
     _warn_of(outcome)
     return Study(table, None if out is None else out_dir.absolute())
+
+
+def _restore_environ(before: Mapping[str, str]) -> None:
+    """Put the caller's environment back as it was before a local study set the workers'
+    (Dask's pre-spawn variables: one BLAS and OpenMP thread..., numba's cache folder) in it:
+    every process the caller starts later would inherit them."""
+    for name in [name for name in os.environ if name not in before]:
+        del os.environ[name]
+    for name, value in before.items():
+        if os.environ.get(name) != value:
+            os.environ[name] = value
 
 
 def _warn_of(outcome: StudyOutcome) -> None:

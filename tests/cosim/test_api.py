@@ -612,6 +612,34 @@ def test_sweep_of_a_dict_returns_its_table(
 
 @pytest.mark.cluster
 @pytest.mark.slow
+def test_a_sweep_leaves_its_callers_environment_as_it_was(
+    run_python: Callable[..., subprocess.CompletedProcess], fmu_dir: Path
+) -> None:
+    """The workers' environment (Dask's pre-spawn one: one BLAS and OpenMP thread...) is
+    theirs: after cosim.sweep a notebook's own environment, which every process it starts
+    inherits, had OMP_NUM_THREADS=1, MKL_NUM_THREADS=1 and OPENBLAS_NUM_THREADS=1 left in it."""
+    done = run_python(
+        """
+        import json, os, sys
+        import cosim
+
+        if __name__ == "__main__":
+            before = dict(os.environ)
+            study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [-0.1, 0.1]}}
+            cosim.sweep(study, workers=1, fmu_dir=sys.argv[1])
+            after = dict(os.environ)
+            changed = {k: (before.get(k), after.get(k)) for k in {*before, *after}
+                       if before.get(k) != after.get(k)}
+            print(json.dumps(changed))
+        """,
+        fmu_dir,
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == {}
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
 def test_a_sweep_into_a_folder_named_in_bytes_not_utf8_returns_its_table(
     tmp_path: Path, fmu_dir: Path
 ) -> None:
