@@ -52,12 +52,14 @@ static const char *const PHASES[] = {"instantiated", "in initialisation mode", "
                                      "terminated", "in the error state"};
 #define TIME_TOLERANCE 1e-9 /* relative: masters compute t_n = n h */
 
-typedef struct {
+typedef struct Saved {
     unsigned magic;
     int phase;
     double time;
     void *inner;  /* the backend's state */
     uint32_t fmu; /* which FMU saved it: the CRC-32 of its GUID (fmu_of) */
+    Instance *owner;           /* the instance that took it, which frees it if the host */
+    struct Saved *prev, *next; /* does not: its states alive (Instance.states) */
 } Saved;
 #define SAVED_MAGIC 0x4155564cu /* "AUVL" */
 /* A serialised state: magic, phase, time, then the CRC-32 of every byte but its own four,
@@ -596,10 +598,13 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     return NULL;
 }
 
+static void free_states(Instance *c);
+
 FMI2_EXPORT void fmi2FreeInstance(fmi2Component component)
 {
     Instance *c = (Instance *)component;
     if (!c) return;
+    free_states(c);
     c->backend->stop(c);
     values_free_strings(&c->values);
     free(c->vars);
@@ -959,6 +964,39 @@ static Saved *saved_state(const Instance *c, fmi2FMUstate state)
     return saved->magic == SAVED_MAGIC && saved->fmu == fmu_of(c) ? saved : NULL;
 }
 
+/* ``saved`` among the states alive of ``owner``, which frees it with itself. */
+static void own_state(Instance *owner, Saved *saved)
+{
+    saved->owner = owner;
+    saved->prev = NULL;
+    saved->next = owner->states;
+    if (saved->next) saved->next->prev = saved;
+    owner->states = saved;
+}
+
+/* ``saved``, which python_states knows no more, off its owner's list, discarded by ``c``
+ * and freed. */
+static void free_saved(Instance *c, Saved *saved)
+{
+    if (saved->prev) saved->prev->next = saved->next;
+    if (saved->next) saved->next->prev = saved->prev;
+    if (saved->owner->states == saved) saved->owner->states = saved->next;
+    if (!python_gone()) c->backend->discard(c, saved->inner); /* else gone with Python */
+    saved->magic = 0;
+    free(saved);
+}
+
+/* The states ``c`` took that the host did not free (FMI 2.0: fmi2FreeInstance frees all
+ * the instance allocated): a host that saves states and never frees them keeps nothing. */
+static void free_states(Instance *c)
+{
+    while (c->states) {
+        Saved *saved = c->states;
+        python_states(STATE_FORGET, saved);
+        free_saved(c, saved);
+    }
+}
+
 FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
 {
     INSTANCE(component);
@@ -980,7 +1018,12 @@ FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *st
         free(saved);
         return refuse(c, "fmi2GetFMUstate refused: out of memory");
     }
-    *saved = (Saved){SAVED_MAGIC, c->phase, c->time, inner, fmu_of(c)};
+    saved->magic = SAVED_MAGIC;
+    saved->phase = c->phase;
+    saved->time = c->time;
+    saved->inner = inner;
+    saved->fmu = fmu_of(c);
+    if (!*state) own_state(c, saved);
     *state = saved;
     return s;
 }
@@ -1010,9 +1053,7 @@ FMI2_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *s
     if (!saved || !python_states(STATE_FORGET, saved)) {
         return refuse(c, "fmi2FreeFMUstate refused: not an FMU state of this FMU");
     }
-    c->backend->discard(c, saved->inner);
-    saved->magic = 0;
-    free(saved);
+    free_saved(c, saved);
     *state = NULL;
     return fmi2OK;
 }
@@ -1061,7 +1102,7 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
                                                size_t size, fmi2FMUstate *state)
 {
     INSTANCE(component);
-    Saved header = {0, 0, 0.0, NULL, 0};
+    Saved header = {.magic = 0};
     if (!state) return refuse(c, "fmi2DeSerializeFMUstate refused: the state pointer is NULL");
     if (!bytes || size < SAVED_HEADER) {
         return refuse(c, "fmi2DeSerializeFMUstate refused: %s",
@@ -1096,6 +1137,7 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
         return refuse(c, "fmi2DeSerializeFMUstate refused: out of memory");
     }
     *saved = header;
+    own_state(c, saved);
     *state = saved;
     return s;
 }

@@ -154,6 +154,7 @@ typedef struct {
     Variable *vars;    /* indexed by value reference */
     size_t count;
     Values values;
+    void *states; /* the FMU states it took that are alive: freed with it (loader.c) */
 } Instance;
 
 /* What the FMI functions need from whatever runs the slave. Each returns the status the

@@ -240,6 +240,19 @@ def test_a_serialised_state_changed_cut_or_extended_is_refused(
     assert _statuses(done.stdout)["intact-state-restores"] == "0"
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_fmi2_free_instance_frees_the_states_it_took(runtime, host, extracted, clean_home):
+    """A host that never frees its FMU states: fmi2FreeInstance frees those its instance
+    took (FMI 2.0: all it allocated), so a state of a freed instance is refused
+    (fmi2Error) rather than set; one freed through another instance before is freed once.
+    Before, the states outlived their instance, each holding its slave's part."""
+    done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "unfreed"], clean_home,
+                     **RUNTIMES[runtime])  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "unfreed: free-through-other 0 set-after-free 3" in done.stdout, done.stdout[-3000:]
+
+
 def _uri_outputs(done: subprocess.CompletedProcess) -> str:
     lines = [line for line in done.stdout.splitlines() if line.startswith("uri:")]
     assert (done.returncode, len(lines)) == (0, 1), done.stdout[-3000:] + done.stderr[-3000:]
@@ -351,13 +364,16 @@ def _loader_records(log: str, name: str) -> list[str]:
 
 @pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
-@pytest.mark.parametrize("mode", [["cycles", 2, 20], ["state"], ["hostile"], ["corrupt"]])
+@pytest.mark.parametrize(
+    "mode", [["cycles", 2, 20], ["state"], ["hostile"], ["corrupt"], ["unfreed"]]
+)
 def test_valgrind_finds_nothing_in_the_loader(mode, host, extracted, tmp_path):
     """A C host under memcheck: two instantiate/step/free cycles and the process exit; an
     FMU state saved, serialised, deserialised into another instance and set (the value
     buffers' copies); the hostile arguments (Strings among them). CPython and pythonfmu's
     own reports (their allocations at start-up) are not ours. Serialised states changed,
-    cut and extended (the CRC-32 read over each)."""
+    cut and extended (the CRC-32 read over each). States a host never freed, freed with
+    their instance."""
     log = tmp_path / "memcheck.log"
     command = ["valgrind", "--leak-check=full", f"--log-file={log}", host]
     done = run_clean(
@@ -509,13 +525,14 @@ def test_address_and_undefined_behaviour_sanitizers_find_nothing(extracted, tmp_
     the hostile arguments, an FMU state's round trip, values read and written from a
     second thread, instances stepped from several, serialised states changed, cut and
     extended, pointers that are no FMU state (a freed one among them), Strings written
-    back with the pointers fmi2GetString gave, and a file://localhost URI run to the end;
+    back with the pointers fmi2GetString gave, states freed with their instance, and a
+    file://localhost URI run to the end;
     any finding aborts with a report."""
     runtime, host = sanitized_build(tmp_path, HOST_SOURCE)
     folder = with_runtime(extracted["AuvPlant"], runtime, tmp_path)
     uri = f"file://localhost{quote(str(folder / 'resources'))}"
     modes = (["cycles", 2, 20], ["illegal"], ["hostile"], ["state"], ["gil"], ["threads"],
-             ["corrupt"], ["strays"], ["strings-back"], ["uri", uri])  # fmt: skip
+             ["corrupt"], ["strays"], ["strings-back"], ["unfreed"], ["uri", uri])  # fmt: skip
     for mode in modes:
         done = run_clean([host, folder, "AuvPlant", *mode], clean_home, **SANITIZED_ENVIRONMENT)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]

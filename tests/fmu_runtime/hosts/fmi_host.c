@@ -48,6 +48,11 @@
  *                                   call): after another value in the same call, then
  *                                   once initialised (a fixed parameter given the value it
  *                                   has); prints "<case> <status>" and "<case>-value TEXT"
+ *   fmi_host DIR ID unfreed         FMU states a host never frees: an instance takes
+ *                                   three (one deserialised), a second instance frees one
+ *                                   of them, the first is freed with the other two alive,
+ *                                   then the second sets one of those: prints "unfreed:
+ *                                   free-through-other S set-after-free S"
  *   fmi_host DIR ID uri URI         instantiated with URI as its resource location,
  *                                   initialised, 30 doSteps: prints "uri:" and its Real
  *                                   outputs (%.17g)
@@ -807,6 +812,31 @@ static int threads(const Fmu *f)
     return 0;
 }
 
+static int unfreed(const Fmu *f)
+{
+    Component taker = start(f, 1), other = start(f, 1);
+    void *states[3] = {NULL, NULL, NULL};
+    size_t size = 0;
+    if (f->get_state(taker, &states[0]) || f->get_state(taker, &states[1]) ||
+        f->state_size(taker, states[0], &size)) {
+        printf("could not save the states\n");
+        return 1;
+    }
+    char *bytes = malloc(size);
+    if (!bytes || f->serialize(taker, states[0], bytes, size) ||
+        f->deserialize(taker, bytes, size, &states[2])) {
+        printf("could not deserialise the state\n");
+        return 1;
+    }
+    free(bytes);
+    int through_other = f->free_state(other, &states[1]);
+    stop(f, taker); /* states[0] and states[2] alive */
+    int after_free = f->set_state(other, states[0]);
+    stop(f, other);
+    printf("unfreed: free-through-other %d set-after-free %d\n", through_other, after_free);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     setvbuf(stdout, NULL, _IOLBF, 0);
@@ -830,6 +860,7 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "corrupt")) return corrupt(&f);
     if (!strcmp(mode, "strays")) return strays(&f);
     if (!strcmp(mode, "strings-back")) return strings_back(&f);
+    if (!strcmp(mode, "unfreed")) return unfreed(&f);
     fprintf(stderr, "unknown mode %s\n", mode);
     return 2;
 }
