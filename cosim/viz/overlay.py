@@ -35,7 +35,7 @@ from matplotlib import colormaps
 
 from cosim.viz.layout import time_index
 from cosim.viz.recording import APPLICATION_ID, FLUSH_TIMEOUT
-from cosim.viz.rrd_file import RrdFile, file_sink, pumped
+from cosim.viz.rrd_file import RrdFile, drop_closed_streams, file_sink, pumped, set_sinks
 from cosim.whole_file import fresh_file
 
 POSITION = ("plant.north", "plant.east", "plant.down")
@@ -91,7 +91,7 @@ def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> No
     file = RrdFile(path) if pumped() else None  # see cosim.viz.rrd_file: why not FileSink
     try:
         sink = file.sink() if file is not None else file_sink(path)
-        rec.set_sinks(sink, default_blueprint=overlay_blueprint())
+        set_sinks(rec, OVERLAY_APPLICATION_ID, sink, overlay_blueprint())
         rec.send_recording_name(title)
         rec.log("world", rr.ViewCoordinates.FRD, static=True)
         rec.log("study", rr.TextDocument(notes, media_type=rr.MediaType.MARKDOWN), static=True)
@@ -101,6 +101,8 @@ def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> No
         rec.flush(timeout_sec=FLUSH_TIMEOUT)
     finally:
         rec.disconnect()
+        del rec
+        drop_closed_streams()
         if file is not None:
             file.close(timeout=FLUSH_TIMEOUT)  # OSError if a write failed
 

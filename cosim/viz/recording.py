@@ -62,7 +62,15 @@ from cosim.viz.layout import (
 )
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.ports import FILE_PORT, WEB_PORT
-from cosim.viz.rrd_file import OVERLAY_FILE, STUDY_FILE, RrdFile, file_sink, pumped
+from cosim.viz.rrd_file import (
+    OVERLAY_FILE,
+    STUDY_FILE,
+    RrdFile,
+    drop_closed_streams,
+    file_sink,
+    pumped,
+    set_sinks,
+)
 from cosim.viz.scene import TARGET_COLUMNS, SceneWriter, log_static_scene, scene_legend
 from cosim.viz.viewer_version import version_problem
 from cosim.viz.web_viewer import serve
@@ -99,6 +107,12 @@ def recording_name(scenario_id: str, rrd_path: Path | None) -> str:
         return scenario_id
     where = rrd_path.parent.name if rrd_path.name == RECORDING_FILE else rrd_path.name
     return scenario_id if where in ("", scenario_id) else f"{scenario_id} ({path_text(where)})"
+
+
+def _disconnect_all(channels: list[_Channel]) -> None:
+    """Disconnect each channel's stream from its sinks."""
+    for channel in channels:
+        channel.rec.disconnect()
 
 
 def note_level(text: str) -> rr.TextLogLevel:
@@ -182,7 +196,7 @@ class RerunSink:
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=same)
         self._channels.append(_Channel(rec, interval, growth, self._opened))
         try:
-            rec.set_sinks(sink, default_blueprint=blueprint)
+            set_sinks(rec, APPLICATION_ID, sink, blueprint)
         except RuntimeError as exc:  # rerun-sdk's error for a file it cannot create
             raise OSError(f"cannot write the recording {self._rrd_path}: {exc}") from None
 
@@ -287,17 +301,24 @@ class RerunSink:
             return
         self._closed = True
         try:
-            for channel in self._channels:
-                self._send_pending(channel)
+            self._send_all_pending()
             self._flush(self._channels)
         finally:
             self._disconnect()
 
-    def _disconnect(self) -> None:
-        """Let go of the sinks (rerun writes the file's footer), then close the file;
-        raises OSError if the file failed."""
+    def _send_all_pending(self) -> None:
+        """Send what every channel has queued (a helper, so that no loop variable of
+        :meth:`close` holds a stream past :meth:`_disconnect`)."""
         for channel in self._channels:
-            channel.rec.disconnect()
+            self._send_pending(channel)
+
+    def _disconnect(self) -> None:
+        """Let go of the sinks (rerun writes the file's footer) and of the streams (their
+        threads end), then close the file; raises OSError if the file failed."""
+        channels, self._channels = self._channels, []
+        _disconnect_all(channels)
+        del channels
+        drop_closed_streams()
         if self._file is not None:
             file, self._file = self._file, None
             file.close(timeout=FLUSH_TIMEOUT)

@@ -23,7 +23,7 @@ import struct
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from cosim.limits import unwritten
 
@@ -130,6 +130,43 @@ def file_sink(path: Path) -> rr.FileSink:
     import rerun as rr
 
     return rr.FileSink(str(path))
+
+
+def set_sinks(rec: rr.RecordingStream, application_id: str, sink: Any, blueprint: Any) -> None:
+    """``rec.set_sinks(sink, default_blueprint=blueprint)`` (``rec`` made with
+    ``application_id``) without keeping a stream behind: rerun-sdk makes a stream for the
+    blueprint at each call, which its own memory sink holds, with two threads, for the
+    life of the process; this one is disconnected once its bytes are handed over, so that
+    :func:`drop_closed_streams` ends it. (Private rerun-sdk calls: the pin keeps 0.41.)"""
+    import rerun_bindings
+    from rerun.recording_stream import RecordingStream
+
+    stream = RecordingStream._from_native(
+        rerun_bindings.new_blueprint(
+            application_id=application_id,
+            make_default=False,
+            make_thread_default=False,
+            default_enabled=True,
+        )
+    )
+    try:
+        stream.set_time("blueprint", sequence=0)
+        blueprint.to_blueprint()._log_to_stream(stream)
+        storage = stream.memory_recording().storage
+        rerun_bindings.set_sinks([sink], default_blueprint=storage, recording=rec.to_native())
+    finally:
+        stream.disconnect()
+
+
+def drop_closed_streams() -> None:
+    """End the Rerun streams nothing in Python holds any more (those of a recording
+    closed and let go of, and the blueprint stream each ``set_sinks`` makes), with their
+    threads. rerun-sdk keeps every stream a Python process made, disconnected, with its
+    batcher and forwarding threads running, until asked: a process that writes a
+    recording per run (a notebook re-running a cell) kept 4 threads and about 3 MB a run."""
+    import rerun_bindings
+
+    rerun_bindings.flush_and_cleanup_orphaned_recordings()
 
 
 def _waiting(fd: int) -> int:
