@@ -317,3 +317,61 @@ def test_contributing_states_the_test_settings_pyproject_makes():
     assert durations and f"the slowest {NUMBER_WORDS.get(int(durations[1]), durations[1])}" in text
     registered = {marker.split(":")[0] for marker in pytest_ini["markers"]}
     assert set(re.findall(r"^- `(\w+)`: ", text, re.MULTILINE)) == registered
+
+
+def _models_in(annotation: object) -> list[type]:
+    """The pydantic models an annotation holds (``X | None``, ``list[X]``, ``dict[str, X]``)."""
+    import typing
+
+    from pydantic import BaseModel
+
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
+
+
+def _schema_keys(model: type, prefix: str = "") -> set[str]:
+    """Every key path (``coupling.step``, ``events.when``) a file ``model`` validates takes;
+    an entry of a list or a dict of tables is its table's keys, a free dict (``start``) a leaf."""
+    keys = set()
+    for name, field in model.model_fields.items():
+        key = prefix + (field.alias or name)
+        keys.add(key)
+        for inner in _models_in(field.annotation):
+            keys |= _schema_keys(inner, key + ".")
+    return keys
+
+
+def _written_keys(data: dict, model: type, prefix: str = "") -> set[str]:
+    """The key paths of parsed TOML ``data`` as :func:`_schema_keys` names them."""
+    import typing
+
+    fields = {field.alias or name: field for name, field in model.model_fields.items()}
+    keys = set()
+    for key, value in data.items():
+        keys.add(prefix + key)
+        inner = _models_in(fields[key].annotation) if key in fields else []
+        if not inner:
+            continue
+        tables = value if isinstance(value, list) else [value]
+        if typing.get_origin(fields[key].annotation) is dict:  # [instances.<name>]
+            tables = list(value.values())
+        for table in tables:
+            keys |= _written_keys(table, inner[0], f"{prefix}{key}.")
+    return keys
+
+
+def test_the_example_scenario_writes_every_key_the_schema_takes():
+    """docs/scenario-example.toml is "the one statement of the format", using every key (the
+    README says so): each key a scenario file may hold is written in it, commented out or
+    not, and it writes no key the schema refuses (``[coupling] error_estimate`` was missing)."""
+    import tomllib
+
+    from cosim.scenario.spec import ScenarioSpec
+
+    text = (ROOT / "docs" / "scenario-example.toml").read_text(encoding="utf-8")
+    uncommented = re.sub(r"^# (\w+ = )", r"\1", text, flags=re.MULTILINE)
+    written = _written_keys(tomllib.loads(uncommented), ScenarioSpec)
+    schema = _schema_keys(ScenarioSpec)
+    assert not schema - written, f"keys the example does not show: {sorted(schema - written)}"
+    assert not written - schema, f"keys no scenario takes: {sorted(written - schema)}"
