@@ -285,7 +285,8 @@ NUMBER_WORDS = {2: "two", 3: "three", 4: "four", 10: "ten"}
 def test_the_texts_that_count_the_fmus_count_the_ones_built(capsys):
     """``auv-cosim --help`` and the quickstart notebook's introduction count the FMUs
     ``auv-cosim build`` builds (they said two when the guidance made three), name each,
-    and put the first build at seconds, not a minute."""
+    and put the first build at seconds, not a minute; docs/hosts.md, which hands them to
+    other FMI tools, names each in its opening (it named the plant and the autopilot only)."""
     import json
 
     from cosim.cli import main
@@ -299,6 +300,9 @@ def test_the_texts_that_count_the_fmus_count_the_ones_built(capsys):
     for text in (help_text, introduction):
         assert f"{NUMBER_WORDS[len(FMUS)]} FMI 2.0 FMUs" in text, text
     assert all(name in help_text for name in FMUS), help_text
+    hosts = (ROOT / "docs" / "hosts.md").read_text(encoding="utf-8").split("\n\n")[1]
+    unnamed = [f"{name}.fmu" for name in FMUS if f"`{name}.fmu`" not in hosts]
+    assert not unnamed, f"docs/hosts.md's opening does not name {unnamed}"
     assert "about a minute" not in introduction
 
 
