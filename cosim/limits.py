@@ -1,7 +1,7 @@
 """The process limits a run and a study need: the address space a run maps, checked
 against the limit on it (``ulimit -v``, ``prlimit --as``) before a run or a study starts
-and named in a failure for want of memory; the open files a study needs (``ulimit -n``);
-the file-size limit (``ulimit -f``) named where it stops a file.
+and named in a failure for want of memory; the open files a study or a recorded run needs
+(``ulimit -n``); the file-size limit (``ulimit -f``) named where it stops a file.
 
 Under a limit below what a run maps, nothing said so: numba's LLVM library "could not be
 found" as the plant FMU loaded, the recording's libraries "failed to map segment", a
@@ -28,8 +28,10 @@ RUN_ADDRESS_SPACE = 3500 * MB
 RUN_NO_RECORDING_ADDRESS_SPACE = 1700 * MB
 STUDY_ADDRESS_SPACE = 1000 * MB
 # The least open files (ulimit -n) `auv-cosim sweep` with two local workers completed with
-# (it failed at 40, printing Dask's tracebacks); a run needs 24.
+# (it failed at 40, printing Dask's tracebacks), and `auv-cosim run bs-3` with its
+# recording (at 16 it failed naming no limit, at 12 rerun-sdk panicked; --no-rrd ran at 10).
 STUDY_OPEN_FILES = 48
+RUN_OPEN_FILES = 24
 
 
 def address_space_limit() -> int | None:

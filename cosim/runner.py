@@ -46,7 +46,9 @@ from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.limits import (
     RUN_ADDRESS_SPACE,
     RUN_NO_RECORDING_ADDRESS_SPACE,
+    RUN_OPEN_FILES,
     check_address_space,
+    check_open_files,
 )
 from cosim.outputs.folder import (
     RECORDING_FILE,
@@ -503,11 +505,13 @@ def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest, live: b
 def run_from_cli(scenario: str, options: RunOptions) -> int:
     """``auv-cosim run``: 0 if the run completed, 128 + signal number if a signal came,
     1 on failure. A signal while the report is printed is ignored too. Refused at once
-    under an address-space limit too small for the run (:mod:`cosim.limits`)."""
+    under an address-space or (recorded) open-files limit too small for the run
+    (:mod:`cosim.limits`)."""
     if options.no_rrd and options.connect is None:
         check_address_space("a run", RUN_NO_RECORDING_ADDRESS_SPACE)
     else:
         check_address_space("a run with its recording", RUN_ADDRESS_SPACE)
+        check_open_files("a run with its recording", RUN_OPEN_FILES)
     stop = StopRequest()
     with stop_on_signals(stop):
         try:

@@ -104,6 +104,27 @@ def test_a_study_with_too_few_open_files_is_refused_naming_the_limit(
     assert not (tmp_path / "s").exists()
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("count", [12, 16])
+def test_a_recorded_run_with_too_few_open_files_is_refused_naming_the_limit(
+    tmp_path: Path, fmu_paths: dict[str, Path], count: int
+) -> None:
+    """docs/runs.md's `(ulimit -n 16; auv-cosim run bs-3)` failed naming no limit ("cannot
+    start the Rerun recording: ...: Too many open files", on two lines), and at 12 rerun-sdk
+    panicked with a Rust backtrace (exit -6)."""
+    fmu_dir = next(iter(fmu_paths.values())).parent
+    args = ["run", "bs-3", "--stop-time", "1", "--fmu-dir", str(fmu_dir), "--out", "x"]
+    command = [sys.executable, "-m", "cosim", *args]
+    done = run_in_group(command, timeout=90, cwd=tmp_path, preexec_fn=_few_files(count))
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    expected = f"auv-cosim run: the open-files limit of this process, {count} (ulimit -n)"
+    assert lines[0].startswith(expected), lines
+    assert f"ulimit -n {limits.RUN_OPEN_FILES}" in lines[0], lines
+    assert not (tmp_path / "x").exists()
+
+
 def test_a_soft_open_files_limit_is_raised_to_what_a_study_needs() -> None:
     """A soft limit below the need and a hard one above it: the soft one is raised (as
     `ulimit -Sn` may), nothing refused."""
