@@ -41,11 +41,13 @@ Steps for one FMU (:func:`build_fmu`):
    ``initial="exact"`` with a start value or ``initial="calculated"``, a
    ``DefaultExperiment``) and validated with ``fmpy.validation.validate_fmu``; any problem
    fails the build.
-6. Write ``<Name>.fmu`` atomically and ``<Name>.fmu.sha256`` beside it: a ``source`` line,
-   the content hash of every shipped file, this module and pythonfmu's version, and an
-   ``fmu`` line, the hash of the built file itself. :func:`ensure_fmus` rebuilds when the
-   sources changed, and when the FMU fails that integrity check (a truncated or edited
-   file is never used).
+6. Date every zip entry and the description as :mod:`cosim.fmus.reproducible` says (no
+   time of the build's: the same sources give the same bytes), then write ``<Name>.fmu``
+   atomically and ``<Name>.fmu.sha256`` beside it: a ``source`` line, the content hash of
+   every shipped file, this module and pythonfmu's version, an ``fmu`` line, the hash of
+   the built file itself, and a ``date`` line, ``SOURCE_DATE_EPOCH`` or ``none``.
+   :func:`ensure_fmus` rebuilds when the sources or that date changed, and when the FMU
+   fails that integrity check (a truncated or edited file is never used).
 """
 
 from __future__ import annotations
@@ -68,7 +70,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from cosim.errors import CosimError, unmade_folder
-from cosim.fmus import bytecode, native, staging
+from cosim.fmus import bytecode, native, reproducible, staging
 from cosim.fmus import docs as fmu_docs
 from cosim.fmus.interface import OWN_PACKAGES
 from cosim.whole_file import write_whole
@@ -190,11 +192,12 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
             _declare_no_input_derivatives(built)
         _say_once(notes)
         fmu_docs.add_documentation(built)  # documentation/index.html from the description
+        reproducible.normalize(built)  # no date of the build's, no permission of the umask's
         problems = _check_built(built)
         if problems:
             raise CosimError(f"{name}.fmu failed validation: " + "; ".join(problems))
         _install(built, target)
-    hash_file.write_text(f"source {digest}\nfmu {file_hash(target)}\n")
+    hash_file.write_text(f"source {digest}\nfmu {file_hash(target)}\ndate {reproducible.stamp()}\n")
     return target
 
 
@@ -230,11 +233,13 @@ def file_hash(path: Path) -> str:
 
 
 def _is_intact(target: Path, hash_file: Path, digest: str) -> bool:
-    """The FMU exists, was built from these sources and is the file that build wrote."""
+    """The FMU exists, was built from these sources, dated as this build would date it
+    (``SOURCE_DATE_EPOCH``), and is the file that build wrote."""
     recorded = recorded_hashes(hash_file)
     return (
         target.is_file()
         and recorded.get("source") == digest
+        and recorded.get("date") == reproducible.stamp()
         and recorded.get("fmu") == file_hash(target)
     )
 
@@ -356,6 +361,7 @@ def _replace_resources(fmu: Path, resources: dict[str, bytes]) -> None:
 def source_hash(files: dict[str, Path]) -> str:
     """SHA-256 over the shipped files (names and bytes), this module, the documentation
     generator (:mod:`cosim.fmus.docs`), the renaming of imports (:mod:`cosim.fmus.staging`),
+    the dating of the archive (:mod:`cosim.fmus.reproducible`),
     the FMU's runtime (its C sources, the compiler that builds it and the Python it
     records: :func:`cosim.fmus.native.source_digest`), pythonfmu's version, and the
     compiling of the code (:mod:`cosim.fmus.bytecode`, for this Python's cache tag)."""
@@ -368,6 +374,7 @@ def source_hash(files: dict[str, Path]) -> str:
         "<fmu_bytecode>": Path(bytecode.__file__),
         "<fmu_docs>": Path(fmu_docs.__file__),
         "<fmu_native>": Path(native.__file__),
+        "<fmu_reproducible>": Path(reproducible.__file__),
         "<fmu_staging>": Path(staging.__file__),
     }
     for relative, path in sorted({**files, **generators}.items()):
@@ -428,6 +435,10 @@ def complete_model_description(xml: bytes, guid: str | None = None) -> bytes:
     if guid is not None:
         root.set("guid", guid)
     _provenance(root)
+    root.attrib.pop("generationDateAndTime", None)  # pythonfmu's: the time of the build
+    generated = reproducible.generation_date()
+    if generated is not None:
+        root.set("generationDateAndTime", generated)
     cosim = _child(root, "CoSimulation")
     for flag, value in (
         ("needsExecutionTool", "false"),
