@@ -201,7 +201,7 @@ class RunFolder:
         )
 
     def _stale_note(self) -> str:
-        when = local_time()
+        when = local_time(strict=False)  # never fails the run replacing a reported one
         return (
             f"this report was made from an earlier run in {self.path}, replaced by another "
             f"run at {when}; run `auv-cosim report {shlex.quote(str(self.path))}` to make it again"

@@ -9,7 +9,8 @@ report wrote, or that changed since (a user's own ``index.html``); :func:`mark_s
 called when a run replaces the one a kept report was made from: the page gets a banner
 saying so (only a page the report wrote, unchanged).
 
-Standard library only (the run folder uses it before any heavy import).
+Standard library only (the run folder uses it before any heavy import), and the reading
+of ``SOURCE_DATE_EPOCH`` (:mod:`cosim.fmus.reproducible`, itself standard library only).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.errors import CosimError
+from cosim.fmus.reproducible import source_date
 from cosim.outputs.run_files import RESULTS_FILE, SUMMARY_FILE, regular, unchanged, write_atomically
 from cosim.outputs.tail_guard import IDENTITY_KEYS, file_identity
 
@@ -30,12 +32,23 @@ REPORT_MANIFEST = ".auv-cosim-report.json"
 STALE_MARK = '<p class="stale">'  # the banner's opening tag on a stale page
 
 
-def local_time() -> str:
+def local_time(strict: bool = True) -> str:
     """The local time now, as a report's page and its stale banner say it:
     ``2026-12-06 16:53:23 +0900``, its offset from UTC in digits. A zone's name comes from
     TZ and the locale: a misspelt ``TZ=Europe/Berln``, which the C library reads as UTC,
-    named it "Europe"."""
-    return time.strftime("%Y-%m-%d %H:%M:%S %z")
+    named it "Europe". Where ``SOURCE_DATE_EPOCH`` is set (a reproducible build of pages
+    that show reports), that time in UTC instead, so the same run makes the same page.
+    Raises CosimError for a SOURCE_DATE_EPOCH that is no time, unless not ``strict`` (a
+    run's stale banner: the run goes on, the banner dated by the clock)."""
+    try:
+        date = source_date()
+    except CosimError:
+        if strict:
+            raise
+        date = None
+    return (
+        time.strftime("%Y-%m-%d %H:%M:%S %z") if date is None else f"{date:%Y-%m-%d %H:%M:%S} +0000"
+    )
 
 
 def run_stamp(run_dir: Path) -> dict[str, Any]:

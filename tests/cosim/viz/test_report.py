@@ -591,6 +591,42 @@ def test_a_reports_time_says_its_offset_from_utc_whatever_tz_names(
     assert made.group(1).endswith(offset)
 
 
+def test_a_report_made_twice_under_source_date_epoch_is_the_same_bytes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A report regenerated for a published page (a documentation build setting
+    SOURCE_DATE_EPOCH, as packagers do) changed its page each time: "Made <now>". Under
+    SOURCE_DATE_EPOCH the page says that time, in UTC, and two reports are the same."""
+    import time
+
+    run = _sparse_run(tmp_path / "run")
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    monkeypatch.setenv("TZ", "JST-9")
+    time.tzset()
+    try:
+        first = write_report(run).read_text(encoding="utf-8")
+        time.sleep(1.1)  # another second of the clock
+        second = write_report(run).read_text(encoding="utf-8")
+    finally:
+        monkeypatch.undo()
+        time.tzset()
+    assert '<p class="stamp">Made 2023-11-14 22:13:20 +0000 from ' in first
+    assert first == second
+
+
+def test_a_source_date_epoch_that_is_no_time_refuses_a_report_not_a_run(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from cosim.errors import CosimError
+    from cosim.outputs.report_folder import local_time
+
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "tomorrow")
+    with pytest.raises(CosimError, match=r"^SOURCE_DATE_EPOCH='tomorrow': expected a whole"):
+        local_time()
+    stamp = local_time(strict=False)  # a run's stale banner: the clock's time
+    assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d [+-]\d{4}", stamp), stamp
+
+
 def test_the_summary_and_manoeuvre_tables_read_to_a_screen_reader() -> None:
     """A screen reader announced the tables' rows without a caption or a header's scope,
     and the manoeuvre metrics as "advance_m 10.27": the unit a word of the name where
