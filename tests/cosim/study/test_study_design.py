@@ -96,3 +96,15 @@ def test_grid_and_samples_cross_with_the_same_samples_at_every_point() -> None:
     first = [r.values["plant.current_east"] for r in runs[:3]]
     assert first == [r.values["plant.current_east"] for r in runs[3:]]
     assert [r.values["plant.v_0"] for r in runs] == [-0.1] * 3 + [0.1] * 3
+
+
+@pytest.mark.parametrize("sampling", ["random", "latin-hypercube"])
+def test_a_study_naming_no_seed_draws_seed_0s_samples_every_time(sampling: str) -> None:
+    """docs/studies.md: no seed is seed 0, never a fresh one, so the same file draws the
+    same samples in every process."""
+    factors = {"plant.current_east": {"uniform": [0.0, 0.3]}}
+
+    def draw(**seed: int) -> list[dict]:
+        return random_samples(spec(random={"n": 5, "sampling": sampling, **seed, **factors}).random)
+
+    assert draw() == draw() == draw(seed=0) != draw(seed=1)
