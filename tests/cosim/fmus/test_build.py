@@ -19,7 +19,7 @@ import pytest
 from repo_paths import ROOT
 
 from cosim.errors import CosimError
-from cosim.fmus import build, native, staging
+from cosim.fmus import build, native, reproducible, staging
 from fmu_runtime.entry import RECORD_FILE
 from plant_fmu.auv_plant import AuvPlant
 
@@ -195,7 +195,7 @@ def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
     shutil.copy2(source, fmu)
     shutil.copy2(source.with_name(hash_file.name), hash_file)
     digest = build.source_hash(build.shipped_files())
-    recorded = {"source": digest, "fmu": build.file_hash(fmu), "date": "none"}
+    recorded = {"source": digest, "fmu": build.file_hash(fmu), "date": reproducible.stamp()}
     assert build.recorded_hashes(hash_file) == recorded
     before = fmu.stat().st_ino
     assert build.build_fmu("AuvPlant", tmp_path) == fmu
