@@ -11,10 +11,12 @@ not depend on the run's position, the number of workers or their order of comple
 from __future__ import annotations
 
 import hashlib
+import inspect
 import itertools
 import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -61,7 +63,7 @@ def random_samples(random: RandomSpec) -> list[dict[str, Value]]:
     from scipy.stats import qmc
 
     if random.sampling == "latin-hypercube":
-        unit = qmc.LatinHypercube(d=len(names), rng=random.seed).random(random.n)
+        unit = _latin_hypercube(qmc, len(names), random.n, random.seed)
     else:
         unit = np.random.default_rng(random.seed).random((random.n, len(names)))
     unit = np.clip(unit, _UNIT_MARGIN, 1.0 - _UNIT_MARGIN)
@@ -82,6 +84,16 @@ def random_samples(random: RandomSpec) -> list[dict[str, Value]]:
             )
     samples = np.column_stack(columns).tolist()  # Python floats
     return [dict(zip(names, row, strict=True)) for row in samples]
+
+
+def _latin_hypercube(qmc: Any, d: int, n: int, seed: int) -> np.ndarray:
+    """n points of scipy's scrambled Latin hypercube in [0, 1)^d, drawn from
+    ``numpy.random.default_rng(seed)``. scipy takes the generator as ``rng`` from 1.15
+    (SPEC 7) and as ``seed`` before (pyproject allows 1.11): the same points under both."""
+    generator = np.random.default_rng(seed)
+    keyword = "rng" if "rng" in inspect.signature(qmc.LatinHypercube).parameters else "seed"
+    points: np.ndarray = qmc.LatinHypercube(d=d, **{keyword: generator}).random(n)
+    return points
 
 
 def plan(spec: StudySpec, normalize: Mapping[str, Callable[[Value], Value]]) -> list[PlannedRun]:

@@ -108,3 +108,22 @@ def test_a_study_naming_no_seed_draws_seed_0s_samples_every_time(sampling: str) 
         return random_samples(spec(random={"n": 5, "sampling": sampling, **seed, **factors}).random)
 
     assert draw() == draw() == draw(seed=0) != draw(seed=1)
+
+
+def test_latin_hypercube_draws_the_same_points_under_a_scipy_before_rng(monkeypatch) -> None:
+    """pyproject allows scipy >= 1.11, whose qmc engines take their generator as ``seed``
+    (``rng`` came with scipy 1.15): a Latin hypercube study failed there with a TypeError.
+    Under either keyword the points are those of ``default_rng(seed)``."""
+    from scipy.stats import qmc
+
+    factors = {"plant.current_east": {"uniform": [0.0, 0.3]}, "plant.v_0": {"normal": [0, 1]}}
+    study = spec(random={"n": 6, "seed": 5, "sampling": "latin-hypercube", **factors})
+    today = random_samples(study.random)
+    modern = qmc.LatinHypercube
+
+    class BeforeRng(modern):  # the signature of scipy 1.11 to 1.14
+        def __init__(self, d: int, *, scramble: bool = True, seed=None) -> None:
+            super().__init__(d, scramble=scramble, rng=seed)
+
+    monkeypatch.setattr(qmc, "LatinHypercube", BeforeRng)
+    assert random_samples(study.random) == today
