@@ -171,12 +171,62 @@ def unknown_key(
     if model is None:  # a key below a value that is no table of fields
         return f"unknown key {key!r}{did_you_mean(name, everywhere)}"
     names = (takes or {}).get(model) or sorted(model.model_fields)
-    hint = did_you_mean(name, [n for n in names if " " not in n])
+    hint = did_you_mean(name, [n for n in names if " " not in n]) or home_table(name, root)
     if hint:
         return f"unknown key {key!r}{hint}"
     listed = ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else names[0]
     where = "the file's top level" if not table else table if table.endswith("]") else f"[{table}]"
-    return f"unknown key {key!r}: {where} takes {listed}"
+    return f"unknown key {key!r}: {where} takes {listed}{_free_table_hint(model, table)}"
+
+
+def home_table(name: str, root: type[BaseModel]) -> str:
+    """A hint, in parentheses with a leading space, naming the one table of ``root``'s file
+    whose key ``name`` is (``step``: ``[coupling]``), for a key written in another table;
+    ``""`` when no table or several take it. The items of a list of tables (``[[faults]]``)
+    are left out: their keys are common words (``stop``, ``name``, ``value``) more often
+    meant as something else than as a fault's."""
+    homes = [
+        table
+        for table, model in tables(root)
+        if name in model.model_fields and not table.startswith("[[")
+    ]
+    if len(homes) != 1:
+        return ""
+    return f" (a key of {homes[0]}: write it below the {homes[0]} header)"
+
+
+def tables(root: type[BaseModel], path: str = "") -> Iterator[tuple[str, type[BaseModel]]]:
+    """(header, model) of every table below ``root``'s top level, as a file writes its
+    header: ``[coupling]``, ``[instances.<name>]`` (an entry of a dict), ``[[faults]]`` (an
+    item of a list)."""
+    for field_name, field in root.model_fields.items():
+        kind = _unwrapped(field.annotation)
+        origin, dotted = typing.get_origin(kind), f"{path}.{field_name}" if path else field_name
+        inner = _one_model(typing.get_args(kind)[-1]) if origin in (dict, list) else None
+        model = _one_model(kind)
+        if model is not None:
+            yield f"[{dotted}]", model
+            yield from tables(model, dotted)
+        elif inner is not None and origin is dict:
+            yield f"[{dotted}.<name>]", inner
+            yield from tables(inner, f"{dotted}.<name>")
+        elif inner is not None:
+            yield f"[[{dotted}]]", inner
+            yield from tables(inner, dotted)
+
+
+def _free_table_hint(model: type[BaseModel], table: str) -> str:
+    """A hint naming the subtable of ``model`` whose keys are free names (an instance's
+    ``start``: its FMU's variables), where an unknown key may have been meant to go."""
+    free = [
+        name
+        for name, field in model.model_fields.items()
+        if typing.get_origin(_unwrapped(field.annotation)) is dict
+        and _one_model(typing.get_args(_unwrapped(field.annotation))[-1]) is None
+    ]
+    if len(free) != 1 or not table or table.endswith("]"):
+        return ""
+    return f" (a {free[0]} value goes below [{table}.{free[0]}])"
 
 
 def table_model(root: type[BaseModel], table: str) -> type[BaseModel] | None:
@@ -231,8 +281,9 @@ def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | flo
     (an Enumeration's items) stands for that value."""
     if isinstance(value, str) and var.names:
         if value not in var.names:
+            guess = did_you_mean(value, var.names)
             raise src.error(
-                key, f"{value!r} is not a {var.name}: expected one of {named_values(var)}"
+                key, f"{value!r} is not a {var.name}{guess}: expected one of {named_values(var)}"
             )
         value = var.names[value]
     expected = {"Real": "a number", "Integer": "an integer", "Enumeration": "an integer",

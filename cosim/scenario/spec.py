@@ -49,6 +49,7 @@ from cosim.scenario.checks import (
     alias_key,
     check_value,
     field_names,
+    home_table,
     loads_toml,
     misplaced_top_level,
     not_utf8,
@@ -910,7 +911,7 @@ def _resolve_instance(
             raise src.error(
                 key,
                 f"{name} ({fmu_path.name}) has no variable {var_name!r}"
-                + did_you_mean(var_name, variables),
+                + (did_you_mean(var_name, variables) or home_table(var_name, ScenarioSpec)),
             )
         if not var.takes_start_value:
             initial = f" (initial {var.initial!r})" if var.initial is not None else ""

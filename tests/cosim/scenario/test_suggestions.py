@@ -235,3 +235,52 @@ def test_a_top_level_study_key_written_below_a_table_is_named_as_such(
     assert f"key {key!r} ({MISPLACED}; write {name} before the first header)" in str(
         refused.value
     ), refused.value
+
+
+@pytest.mark.parametrize(
+    ("change", "refusal"),
+    [
+        # a coupling key written at the top of the file, above [coupling]
+        (("stop_time = 1.0", "stop_time = 1.0\nstep = 0.02"),
+         "unknown key 'step' (a key of [coupling]: write it below the [coupling] header)"),
+        (("stop_time = 1.0", "stop_time = 1.0\nalgorithm = 'jacobi'"),
+         "unknown key 'algorithm' (a key of [coupling]: write it below the [coupling] "),
+        # a start value written in the instance's own table, not in its [.start] table
+        (('fmu = "AuvAutopilot"', 'fmu = "AuvAutopilot"\nyaw_setpoint = 0.5'),
+         "unknown key 'instances.controller.yaw_setpoint': [instances.controller] takes fmu "
+         "and start (a start value goes below [instances.controller.start])"),
+        # a coupling key written among an instance's start values
+        (('fmu = "AuvAutopilot"', 'fmu = "AuvAutopilot"\nstart = { step = 0.02 }'),
+         "has no variable 'step' (a key of [coupling]: write it below the [coupling] header)"),
+    ],
+)  # fmt: skip
+def test_a_key_written_in_the_wrong_table_names_the_table_it_belongs_to(
+    change: tuple[str, str], refusal: str, fmu_dir: Path
+) -> None:
+    """A student who put ``step = 0.02`` at the top of a copied scenario was told only what
+    the top level takes; one who put ``yaw_setpoint`` below ``[instances.controller]``
+    only that the table takes fmu and start: neither said where the key goes."""
+    text = BS3_LIKE.replace(*change, 1)
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    assert refusal in str(refused.value), refused.value
+
+
+@pytest.mark.parametrize(
+    ("written", "meant"),
+    [("LQR", "lqr"), ("backsteping", "backstepping"), ("sliding mode", "sliding_mode"),
+     ("Backstepping", "backstepping")],
+)  # fmt: skip
+def test_a_mistyped_controller_name_is_refused_with_its_likely_meaning(
+    written: str, meant: str, fmu_dir: Path
+) -> None:
+    """``heading_mode = "LQR"`` was refused listing every mode, without saying that the
+    lower-case 'lqr' is the one meant."""
+    text = BS3_LIKE.replace(
+        'fmu = "AuvAutopilot"', f'fmu = "AuvAutopilot"\nstart = {{ heading_mode = "{written}" }}'
+    )
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    assert f"{written!r} is not a heading_mode (did you mean {meant!r}?): expected one of " in (
+        str(refused.value)
+    ), refused.value
