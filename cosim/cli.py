@@ -146,10 +146,20 @@ def _validate_scenarios(args: argparse.Namespace, scenarios: list[Path]) -> int:
 def _scenarios(args: argparse.Namespace) -> int:
     from cosim.scenario.spec import builtin_scenarios
 
+    if args.copy is not None:
+        return _copy_scenario(*args.copy)
     scenarios = builtin_scenarios()
     width = max(map(len, scenarios), default=0)
     for scenario_id, summary in scenarios.items():
         print(f"{scenario_id:<{width}} {summary}")
+    return 0
+
+
+def _copy_scenario(scenario_id: str, file: str) -> int:
+    from cosim.scenario.builtin_copy import copy_builtin
+
+    dest = copy_builtin(scenario_id, Path(file))
+    print(f"copied {scenario_id} to {dest}: edit it, then `auv-cosim run {dest}`")
     return 0
 
 
@@ -458,7 +468,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_validate)
 
-    p = sub.add_parser("scenarios", help="list the built-in scenarios")
+    p = sub.add_parser("scenarios", help="list the built-in scenarios, or copy one to edit")
+    p.add_argument(
+        "--copy",
+        nargs=2,
+        metavar=("ID", "FILE"),
+        help="copy the built-in scenario ID (its file, with comments) to FILE, a new .toml "
+        "file to edit and run with `auv-cosim run FILE`; never writes over a file",
+    )
     p.set_defaults(func=_scenarios)
 
     _add_run_parser(sub)
