@@ -557,12 +557,25 @@ def scenario_path(id_or_path: str | Path) -> Path:
             f"{'not a file' if exists else 'no such file'}: {id_or_path}{guess} (looked for "
             f"{path.absolute()}); expected a scenario .toml file"
         )
-    guess = did_you_mean(str(id_or_path), builtin_scenarios()) or did_you_mean_path(path)
+    guess = (
+        did_you_mean(str(id_or_path), builtin_scenarios())
+        or _with_toml(path)
+        or did_you_mean_path(path)
+    )
     raise ScenarioError(
         f"unknown scenario {str(id_or_path)!r}{guess}:"
         f" expected a built-in id ({', '.join(builtin_scenarios())}) or the path of a scenario "
         ".toml file"
     )
+
+
+def _with_toml(path: Path) -> str:
+    """`` (did you mean 'lab1.toml'?)`` for ``lab1`` beside a file ``lab1.toml`` (a name
+    without .toml is read as a built-in id), else ``""``."""
+    if not path.name:  # "" or ".": no name to add .toml to
+        return ""
+    named = path.with_name(f"{path.name}.toml")
+    return f" (did you mean {str(named)!r}?)" if named.is_file() else ""
 
 
 def _is_builtin_file_name(path: Path) -> bool:

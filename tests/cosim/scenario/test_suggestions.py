@@ -284,3 +284,16 @@ def test_a_mistyped_controller_name_is_refused_with_its_likely_meaning(
     assert f"{written!r} is not a heading_mode (did you mean {meant!r}?): expected one of " in (
         str(refused.value)
     ), refused.value
+
+
+def test_a_scenario_file_named_without_its_toml_gets_the_file_as_its_likely_meaning(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``auv-cosim run lab1`` beside the student's own ``lab1.toml`` was refused as an
+    unknown built-in id, listing the built-in ids and not the file."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "lab1.toml").write_text("stop_time = 1.0\n")
+    with pytest.raises(
+        ScenarioError, match=r"unknown scenario 'lab1' \(did you mean 'lab1\.toml'\?\)"
+    ):
+        load_scenario("lab1")
