@@ -468,16 +468,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_validate)
 
-    p = sub.add_parser("scenarios", help="list the built-in scenarios, or copy one to edit")
-    p.add_argument(
-        "--copy",
-        nargs=2,
-        metavar=("ID", "FILE"),
-        help="copy the built-in scenario ID (its file, with comments) to FILE, a new .toml "
-        "file to edit and run with `auv-cosim run FILE`; never writes over a file",
-    )
-    p.set_defaults(func=_scenarios)
-
+    _add_scenarios_parser(sub)
     _add_run_parser(sub)
 
     _add_sweep_parser(sub)
@@ -523,6 +514,18 @@ def _describe(sub: argparse._SubParsersAction) -> None:
         parser = sub.choices[action.dest]
         if parser.description is None:
             parser.description = action.help
+
+
+def _add_scenarios_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("scenarios", help="list the built-in scenarios, or copy one to edit")
+    p.add_argument(
+        "--copy",
+        nargs=2,
+        metavar=("ID", "FILE"),
+        help="copy the built-in scenario ID (its file, with comments) to FILE, a new .toml "
+        "file to edit and run with `auv-cosim run FILE`; never writes over a file",
+    )
+    p.set_defaults(func=_scenarios)
 
 
 def _add_run_parser(sub: argparse._SubParsersAction) -> None:
