@@ -42,9 +42,39 @@ def loads_toml(text: str) -> dict[str, Any]:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise NotTomlError(str(exc)) from None
+        raise NotTomlError(f"{exc}{toml_hint(text, str(exc))}") from None
     except RecursionError:
         raise NotTomlError("arrays or inline tables nested too deeply to read") from None
+
+
+_AT_LINE = re.compile(r"\(at line (\d+), column \d+\)$")
+_KEY_VALUE = re.compile(r"^\s*(?P<key>[A-Za-z0-9_.\"'-]+)\s*=\s*(?P<value>[^#]*?)\s*(#.*)?$")
+_BARE_WORDS = {"true", "false", "inf", "nan", "+inf", "-inf", "+nan", "-nan"}
+
+
+def toml_hint(text: str, message: str) -> str:
+    """What to write instead, after tomllib's ``message`` on the line of ``text`` it names
+    (``: write a decimal point, not a comma: 0.26``), for the slips a first scenario file
+    has: a decimal comma, a name not quoted, a unit after a number, a key given twice;
+    ``""`` for any other."""
+    at = _AT_LINE.search(message)
+    lines = text.splitlines()
+    if at is None or not 0 < int(at.group(1)) <= len(lines):
+        return ""
+    line = _KEY_VALUE.match(lines[int(at.group(1)) - 1])
+    if line is None:
+        return ""
+    key, value = line.group("key"), line.group("value")
+    if message.startswith("Cannot overwrite a value"):
+        return f": {key!r} is given twice in its table; keep one"
+    if re.fullmatch(r"[-+]?\d+,\d+", value):
+        return f": write a decimal point, not a comma: {value.replace(',', '.')}"
+    number_and_unit = re.fullmatch(r"([-+]?[\d.]+(?:[eE][-+]?\d+)?)\s+[A-Za-z/%]+", value)
+    if number_and_unit:
+        return f": a number stands alone, in SI units (here {number_and_unit.group(1)})"
+    if re.fullmatch(r"[A-Za-z_][\w-]*", value) and value.lower() not in _BARE_WORDS:
+        return f': a string is quoted: "{value}"'
+    return ""
 
 
 def not_utf8(exc: UnicodeDecodeError) -> str:
@@ -227,6 +257,15 @@ def _free_table_hint(model: type[BaseModel], table: str) -> str:
     if len(free) != 1 or not table or table.endswith("]"):
         return ""
     return f" (a {free[0]} value goes below [{table}.{free[0]}])"
+
+
+def literal_guess(err: Mapping[str, Any]) -> str:
+    """`` (did you mean 'gauss-seidel'?)`` for a pydantic error ``err`` refusing a string
+    that is not one of a key's choices (``algorithm = "gauss_seidel"``), else ``""``."""
+    value = err.get("input")
+    if err.get("type") != "literal_error" or not isinstance(value, str):
+        return ""
+    return did_you_mean(value, re.findall(r"'([^']*)'", str(err["ctx"]["expected"])))
 
 
 def table_model(root: type[BaseModel], table: str) -> type[BaseModel] | None:

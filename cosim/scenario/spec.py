@@ -50,6 +50,7 @@ from cosim.scenario.checks import (
     check_value,
     field_names,
     home_table,
+    literal_guess,
     loads_toml,
     misplaced_top_level,
     not_utf8,
@@ -678,7 +679,8 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
                 problem = f"key {key!r} = {err.get('input')!r}: expected a number, an integer, "
                 problem += "true/false or a string"
             else:
-                problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
+                guess = literal_guess(err)
+                problem = f"key {key!r} = {err.get('input')!r}{guess}: {err['msg']}"
             problems.setdefault(key, problem)
         raise ScenarioError(f"scenario file {where}: " + "; ".join(problems.values())) from None
 

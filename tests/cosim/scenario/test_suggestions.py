@@ -297,3 +297,53 @@ def test_a_scenario_file_named_without_its_toml_gets_the_file_as_its_likely_mean
         ScenarioError, match=r"unknown scenario 'lab1' \(did you mean 'lab1\.toml'\?\)"
     ):
         load_scenario("lab1")
+
+
+@pytest.mark.parametrize(
+    ("change", "refusal"),
+    [
+        # a decimal comma, as a spreadsheet in many languages writes a number
+        (("step = 0.01", "step = 0,01"),
+         "(at line 4, column 9): write a decimal point, not a comma: 0.01"),
+        # a name left unquoted
+        (('fmu = "AuvPlant"', "fmu = AuvPlant"),
+         '(at line 6, column 7): a string is quoted: "AuvPlant"'),
+        # a unit typed after the number
+        (("stop_time = 1.0", "stop_time = 60 s"),
+         "(at line 2, column 16): a number stands alone, in SI units (here 60)"),
+        # a key given twice: a gain added below one the copied file already sets
+        (("step = 0.01", "step = 0.01\nstep = 0.02"),
+         "(at line 5, column 12): 'step' is given twice in its table; keep one"),
+    ],
+)  # fmt: skip
+def test_a_toml_slip_is_named_with_the_fix(
+    change: tuple[str, str], refusal: str, fmu_dir: Path
+) -> None:
+    """``u_0 = 1,5``, ``heading_mode = backstepping``, ``stop_time = 60 s`` and a key given
+    twice were refused with tomllib's words alone ("Expected newline or end of document
+    after a statement", "Invalid value", "Cannot overwrite a value"), which do not say what
+    to write instead."""
+    text = BS3_LIKE.replace(*change, 1)
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    assert str(refused.value).endswith(refusal), refused.value
+
+
+@pytest.mark.parametrize(
+    ("change", "guess"),
+    [
+        (("step = 0.01", "step = 0.01\nalgorithm = 'gauss_seidel'"), "'gauss-seidel'"),
+        (("step = 0.01", "step = 0.01\nalgorithm = 'Jacobi'"), "'jacobi'"),
+        (("stop_time = 1.0", "stop_time = 1.0\n[[faults]]\nkind = 'thruster_off'"),
+         "'thruster-off'"),
+    ],
+)  # fmt: skip
+def test_a_mistyped_choice_of_the_file_is_refused_with_its_likely_meaning(
+    change: tuple[str, str], guess: str, fmu_dir: Path
+) -> None:
+    """``kind = "thruster_off"`` was refused with pydantic's "Input should be 'stuck', ...
+    or 'plane-stuck'", not saying which one was meant."""
+    text = BS3_LIKE.replace(*change, 1)
+    with pytest.raises(ScenarioError) as refused:
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    assert f"(did you mean {guess}?)" in str(refused.value), refused.value
