@@ -48,7 +48,42 @@ def design_doubts(scenario: Scenario, live: bool = False) -> list[str]:
         found.append(_pitch_doubt(scenario, name, autopilot, plants))
         if not live:
             found += _unused_gains(scenario, name, autopilot)
+        found += _fast_gains(scenario, name, autopilot)
     return [line for line in found if line]
+
+
+GAIN_UNIT = "1/s"  # a rate of convergence: the autopilot's backstepping gains k0 ... k4
+FASTEST_GAIN_STEPS = 2.0
+"""The largest gain (1/s) times the autopilot's sampling interval (s) left unremarked: a
+command held over a step h that corrects an error at k per second gives the error
+e(n+1) = (1 - k h) e(n), which over-corrects past k h = 1 and grows past k h = 2."""
+
+
+def _fast_gains(scenario: Scenario, name: str, autopilot: Instance) -> list[str]:
+    """Warnings for the gains in 1/s given to ``name`` (start values and events' ``set``)
+    whose product with its sampling interval (its ``sample_period``, at least its step
+    multiple of the communication step) is past :data:`FASTEST_GAIN_STEPS`: a gain typed
+    orders of magnitude too large, which runs with the actuators on their stops."""
+    multiple = scenario.coupling.step_multiples.get(name, 1)
+    interval = max(float(_start(autopilot, "sample_period")), scenario.coupling.step * multiple)
+    given = [(f"instances.{name}.start.{v}", v, x) for v, x in autopilot.start.items()]
+    for event in scenario.events:
+        given += [
+            (f"events.{event.name}.set.{ref}", ref.partition(".")[2], value)
+            for ref, value in event.set.items()
+            if ref.partition(".")[0] == name
+        ]
+    variables = autopilot.interface.variables
+    return [
+        f"{key} = {value:g} {GAIN_UNIT} with the {name} acting every {interval:g} s: "
+        f"{variable} * {interval:g} s = {value * interval:.2g}, past {FASTEST_GAIN_STEPS:g}, "
+        "where a loop whose command is held over a step over-corrects its error within the "
+        f"step; the default is {variable} = {variables[variable].start:g}"
+        for key, variable, value in given
+        if variables[variable].unit == GAIN_UNIT
+        and isinstance(value, float)
+        and value * interval > FASTEST_GAIN_STEPS
+    ]
 
 
 def _instances(scenario: Scenario, model: str) -> dict[str, Instance]:

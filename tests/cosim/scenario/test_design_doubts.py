@@ -210,3 +210,20 @@ def test_a_waypoint_dive_steeper_than_any_pitch_can_follow_is_named(
     assert design_doubts(deep.with_start({"controller.depth_pitch_limit": 0.5})) == []
     gentle = survey.with_start({"guidance.waypoints": "0, 0, 2; 200, 0, 10"})
     assert design_doubts(gentle) == []  # 8 m over 200 m: the set-point leads by 0.32 m
+
+
+def test_a_gain_faster_than_the_autopilot_samples_is_named(fmu_paths: dict[str, Path]) -> None:
+    """bs-3 with k1 = 1e6 (a gain typed a million times too large) ran without a word, its
+    moving mass banging on the rail's stops: a loop that corrects its error at k per
+    second but acts only every h seconds over-corrects within one step once k h > 2."""
+    bs3 = _load(fmu_paths, "bs-3")
+    (line,) = design_doubts(bs3.with_start({"controller.k1": 1e6}))
+    assert line == (
+        "instances.controller.start.k1 = 1e+06 1/s with the controller acting every 0.01 s: "
+        "k1 * 0.01 s = 1e+04, past 2, where a loop whose command is held over a step "
+        "over-corrects its error within the step; the default is k1 = 1"
+    ), line
+    assert design_doubts(bs3.with_start({"controller.k1": 150.0})) == []  # k h = 1.5
+    sampled = bs3.with_start({"controller.k1": 150.0, "controller.sample_period": 0.05})
+    (line,) = design_doubts(sampled)
+    assert "acting every 0.05 s: k1 * 0.05 s = 7.5, past 2" in line, line
