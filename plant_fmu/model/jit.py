@@ -10,17 +10,19 @@ decides once per process whether numba is usable:
 Cache folder: numba's default is ``__pycache__`` next to the source, which for an FMU is
 the fresh temporary folder the importer unzips it into, so every run would compile again
 (several seconds). We therefore set ``NUMBA_CACHE_DIR`` to a per-user folder,
-``$XDG_CACHE_HOME/auv-cosim/numba`` (``~/.cache/auv-cosim/numba``), unless the user has set
-it, before numba is imported; and we key the cache of our own modules by their package
-and content, not by the folder they were loaded from (numba keys it by folder: see
-:class:`_ContentCacheLocator`), so every unzipped copy of the same FMU shares one cache.
-The content is that of every kernel file (:data:`KERNEL_FILES`: a compiled function holds
-the code of the jitted functions it calls and the constants it reads), so a change to any
-of them recompiles all (:func:`kernel_stamp`). The package is the top-level one (an FMU
-build's ``auvfmu_<hash>``, or ``plant_fmu``/``controller_fmu`` in the source tree), one
-folder each: numba's cached code imports its module by name when it is loaded, so a cache
-written by one build cannot serve another (whose modules have other names), and folders of
-their own keep two builds, or a build and the source tree, from evicting each other's.
+``$XDG_CACHE_HOME/auv-cosim/numba`` (``~/.cache/auv-cosim/numba``; with no home folder at
+all, a uid without a passwd entry and HOME unset, ``$TMPDIR/auv-cosim-cache-<uid>/numba``,
+private to the user), unless the user has set it, before numba is imported; and we key the
+cache of our own modules by their package and content, not by the folder they were loaded
+from (numba keys it by folder: see :class:`_ContentCacheLocator`), so every unzipped copy
+of the same FMU shares one cache. The content is that of every kernel file
+(:data:`KERNEL_FILES`: a compiled function holds the code of the jitted functions it calls
+and the constants it reads), so a change to any of them recompiles all
+(:func:`kernel_stamp`). The package is the top-level one (an FMU build's
+``auvfmu_<hash>``, or ``plant_fmu``/``controller_fmu`` in the source tree), one folder
+each: numba's cached code imports its module by name when it is loaded, so a cache written
+by one build cannot serve another (whose modules have other names), and folders of their
+own keep two builds, or a build and the source tree, from evicting each other's.
 Concurrent processes (sweeps start many at once) can share the folder: numba writes each
 cache file to a unique temporary name and moves it into place with ``os.replace``, which
 is atomic, so a reader sees an old complete file or a new complete one, never a torn one.
@@ -36,6 +38,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import stat
 import tempfile
 import warnings
 from collections.abc import Callable
@@ -59,12 +62,22 @@ KERNEL_FILES = (
 _CACHED_MODULES = tuple(os.path.basename(path) for path in KERNEL_FILES)
 _F = TypeVar("_F", bound=Callable[..., Any])
 WARNED_VARIABLE = "AUV_COSIM_NUMBA_CACHE_WARNED"  # the cache folder already warned of
+# in the temporary folder, with the uid: numba's cache where there is no home folder
+TEMPORARY_CACHE_PREFIX = "auv-cosim-cache-"
 
 
 def default_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/auv-cosim/numba``, or ``~/.cache/auv-cosim/numba``."""
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "auv-cosim" / "numba"
+    """``$XDG_CACHE_HOME/auv-cosim/numba``, or ``~/.cache/auv-cosim/numba``; where there is
+    no home folder (HOME unset and a uid /etc/passwd does not list, as ``docker run -u
+    12345`` gives), ``$TMPDIR/auv-cosim-cache-<uid>/numba`` (:func:`_foreign_folder`)."""
+    base = os.environ.get("XDG_CACHE_HOME")
+    if base:
+        return Path(base) / "auv-cosim" / "numba"
+    home = os.path.expanduser("~")  # "~" itself where there is none (Path.home() raises)
+    if home.startswith("~"):
+        uid = os.getuid() if hasattr(os, "getuid") else ""
+        return Path(tempfile.gettempdir()) / f"{TEMPORARY_CACHE_PREFIX}{uid}" / "numba"
+    return Path(home) / ".cache" / "auv-cosim" / "numba"
 
 
 def load_numba() -> tuple[ModuleType | None, str]:
@@ -99,13 +112,17 @@ def cache_problem() -> str:
 def _folder_problem(folder: str) -> str:
     """:func:`cache_problem` of ``folder`` (asked once per folder and process)."""
     try:
-        os.makedirs(folder, exist_ok=True)
-        tempfile.TemporaryFile(dir=folder).close()
+        why = _foreign_folder(Path(folder).parent)
+        if not why:
+            os.makedirs(folder, exist_ok=True)
+            tempfile.TemporaryFile(dir=folder).close()
     except OSError as exc:
+        why = f"cannot be written ({exc.strerror})"
+    if why:
         problem = (
-            f"numba's cache folder {folder!r} (NUMBA_CACHE_DIR) cannot be written "
-            f"({exc.strerror}): compiling without a cache, again in every process; "
-            "set XDG_CACHE_HOME or NUMBA_CACHE_DIR to a writable folder"
+            f"numba's cache folder {folder!r} (NUMBA_CACHE_DIR) {why}: compiling without "
+            "a cache, again in every process; set XDG_CACHE_HOME or NUMBA_CACHE_DIR to a "
+            "writable folder"
         )
         # Once a process, not once a copy of this module: the master and every FMU import
         # their own copy (an FMU's under its own package name), each with its own cache
@@ -115,6 +132,26 @@ def _folder_problem(folder: str) -> str:
             os.environ[WARNED_VARIABLE] = folder
             warnings.warn(problem, RuntimeWarning, stacklevel=2)
         return problem
+    return ""
+
+
+def _foreign_folder(parent: Path) -> str:
+    """ "" unless ``parent`` is the temporary fallback of :func:`default_cache_dir` and not
+    this user's: made now (mode 0700) if missing, it must be no symbolic link and belong to
+    this uid, since in a shared temporary folder (/tmp) another user could have made it
+    and put compiled code there for this user's processes to load (pytest checks its
+    pytest-of-<user> folder the same way); else what it is instead."""
+    if not parent.name.startswith(TEMPORARY_CACHE_PREFIX) or not hasattr(os, "getuid"):
+        return ""
+    if parent.parent != Path(tempfile.gettempdir()):
+        return ""
+    parent.mkdir(mode=0o700, exist_ok=True)
+    info = os.lstat(parent)
+    if stat.S_ISLNK(info.st_mode) or info.st_uid != os.getuid():
+        owner = "a symbolic link" if stat.S_ISLNK(info.st_mode) else f"user {info.st_uid}'s"
+        return f"is in {parent}, which is {owner}, not this user's (uid {os.getuid()})"
+    if stat.S_IMODE(info.st_mode) & 0o077:
+        os.chmod(parent, 0o700)
     return ""
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import ast
 import importlib
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -175,3 +176,63 @@ def test_an_unwritable_cache_folder_is_warned_of_once_a_process(monkeypatch, tmp
         problems = [copy.cache_problem() for copy in copies]
     assert problems[0] == problems[1] and "NUMBA_CACHE_DIR" in problems[0]
     assert [str(w.message) for w in caught] == [problems[0]]
+
+
+CACHE_FOLDER_OF_A_UID_WITHOUT_HOME = """
+import json, os, pwd, sys, warnings
+for name in ("HOME", "XDG_CACHE_HOME", "NUMBA_CACHE_DIR", "AUV_COSIM_NUMBA_CACHE_WARNED"):
+    os.environ.pop(name, None)
+os.environ["TMPDIR"] = sys.argv[1]
+uid = int(sys.argv[2]) if len(sys.argv) > 2 else os.getuid()
+os.getuid = lambda: uid  # the uid the folder is named after and must belong to
+
+
+def no_entry(number):  # as for `docker run -u 12345`: a uid /etc/passwd does not list
+    raise KeyError(f"getpwuid(): uid not found: {number}")
+
+
+pwd.getpwuid = no_entry
+from plant_fmu.model import jit
+
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    numba, why = jit.load_numba()
+    problem = jit.cache_problem()
+print(json.dumps({"cache": os.environ["NUMBA_CACHE_DIR"], "problem": problem,
+                  "warnings": [str(w.message) for w in caught]}))
+"""
+
+
+def _cache_folder_without_home(run_python, tmp_path: Path, *uid: int) -> dict:
+    """What the jit module chose as numba's cache folder, and the problem it saw, in a
+    process with no HOME, no XDG_CACHE_HOME, no passwd entry and TMPDIR = ``tmp_path``."""
+    done = run_python(CACHE_FOLDER_OF_A_UID_WITHOUT_HOME, tmp_path, *map(str, uid))
+    assert done.returncode == 0, done.stderr[-3000:]
+    result: dict = json.loads(done.stdout.strip().splitlines()[-1])
+    return result
+
+
+def test_a_uid_without_home_or_passwd_entry_caches_in_a_private_temporary_folder(
+    run_python, tmp_path
+):
+    """A container started as a uid /etc/passwd does not list (``docker run -u 12345``)
+    with HOME unset: ``Path.home()`` raised "Could not determine home directory." as the
+    plant's kernels were imported, and every run failed with that line. The cache goes to
+    a folder of the user's own in the temporary folder, made private (mode 0700)."""
+    result = _cache_folder_without_home(run_python, tmp_path)
+    cache = Path(result["cache"])
+    assert cache.is_relative_to(tmp_path) and result["problem"] == "", result
+    assert (cache.parent.stat().st_mode & 0o777) == 0o700
+
+
+def test_a_temporary_cache_folder_another_user_made_is_not_used(run_python, tmp_path):
+    """Where the temporary folder is shared (/tmp), the fallback cache folder named for
+    this uid may have been made by another user, who could then put compiled code there
+    for this user's processes to load: it is refused (compiled without a cache, with a
+    warning naming the folder and what to set), never used."""
+    other_uid = os.getuid() + 4321  # the folder below is this process's, not that uid's
+    (tmp_path / f"auv-cosim-cache-{other_uid}" / "numba").mkdir(parents=True)
+    result = _cache_folder_without_home(run_python, tmp_path, other_uid)
+    assert "NUMBA_CACHE_DIR" in result["problem"], result
+    assert f"auv-cosim-cache-{other_uid}" in result["problem"]
+    assert result["warnings"] == [result["problem"]]
