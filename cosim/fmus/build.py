@@ -149,6 +149,31 @@ def out_of_date(out_dir: Path) -> list[str]:
     ]
 
 
+# how a refusal of an FMU folder ends: where a command takes another
+OTHER_FMU_FOLDER = "name a folder you can write with --fmu-dir (fmu_dir= in Python)"
+
+
+def _check_out_dir(name: str, out_dir: Path) -> None:
+    """Make ``out_dir`` if missing and check that this user can write it, before the
+    build's seconds rather than after them: a shared FMU folder installed read-only and
+    out of date for this auv-cosim (an upgrade since its build), or build/fmus in a
+    working folder the user cannot write. Raises CosimError naming the folder."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CosimError(
+            f"cannot build {name}.fmu into {out_dir}: expected a folder that exists or can "
+            f"be made ({unmade_folder(out_dir, exc)}); {OTHER_FMU_FOLDER}"
+        ) from None
+    if not os.access(out_dir, os.W_OK | os.X_OK):
+        raise CosimError(
+            f"cannot build {name}.fmu into {out_dir}: the folder cannot be written "
+            f"(Permission denied) and its {name}.fmu is missing or out of date for this "
+            f"auv-cosim; have its owner run `auv-cosim build --out {out_dir}`, or "
+            f"{OTHER_FMU_FOLDER}"
+        )
+
+
 def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     """Build the FMU ``name`` (a key of :data:`FMUS`) into ``out_dir`` if it is missing, out
     of date or ``force``; return its path."""
@@ -169,13 +194,7 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
             f"(no {hash_file.name} beside it), so it is left as it is; move it away, name "
             f"another FMU folder, or replace it with `auv-cosim build --out {out_dir} --force`"
         )
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:  # before the build's minute, not after it
-        raise CosimError(
-            f"cannot build {name}.fmu into {out_dir}: expected a folder that exists or can "
-            f"be made ({unmade_folder(out_dir, exc)})"
-        ) from None
+    _check_out_dir(name, out_dir)
     with tempfile.TemporaryDirectory(prefix=f"build_{name}_") as tmp:
         stage, dest = Path(tmp) / "stage", Path(tmp) / "out"
         shipped = {relative: source.read_bytes() for relative, source in files.items()}

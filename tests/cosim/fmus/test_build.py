@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.metadata
 import importlib.util
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -249,6 +250,44 @@ def test_an_output_folder_that_is_a_file_is_refused_before_building(tmp_path):
     with pytest.raises(CosimError, match=re.escape(expected + "be made (it is not a folder)")):
         build.build_fmu("AuvPlant", taken)
     assert taken.read_text(encoding="utf-8") == "a file, not a folder"
+
+
+def _no_build(*args: object) -> None:
+    raise AssertionError("built an FMU into a folder it cannot be installed in")
+
+
+def test_an_fmu_folder_that_cannot_be_written_is_refused_before_building(monkeypatch, tmp_path):
+    """A shared FMU folder installed read-only (built by the administrator), out of date
+    for the auv-cosim now installed: every user's run built each FMU (15 s and more)
+    and only then failed with "cannot write .../AuvPlant.fmu: Permission denied". It is
+    refused before the build, naming the folder and the option that names another."""
+    shared = tmp_path / "fmus"
+    shared.mkdir()
+    access = os.access  # as another user sees it: root may write any folder
+
+    def denied(path: object, mode: int, **kwargs: object) -> bool:
+        return False if Path(str(path)) == shared else access(path, mode, **kwargs)
+
+    monkeypatch.setattr(build.os, "access", denied)
+    monkeypatch.setattr(build, "_run_pythonfmu", _no_build)
+    with pytest.raises(CosimError) as refused:
+        build.build_fmu("AuvPlant", shared)
+    said = str(refused.value)
+    assert f"cannot build AuvPlant.fmu into {shared}: " in said and "--fmu-dir" in said, said
+    assert list(shared.iterdir()) == []
+
+
+def test_an_fmu_folder_that_cannot_be_made_names_the_option_that_moves_it(monkeypatch, tmp_path):
+    """``auv-cosim run bs-3`` in a working folder the user cannot write (the default FMU
+    folder is build/fmus there): the refusal names the folder, and now the option that
+    names another, which it did not."""
+    blocker = tmp_path / "a-file"  # no folder can be made under a file, not even by root
+    blocker.write_text("")
+    monkeypatch.setattr(build, "_run_pythonfmu", _no_build)
+    with pytest.raises(CosimError) as refused:
+        build.build_fmu("AuvPlant", blocker / "build" / "fmus")
+    said = str(refused.value)
+    assert str(blocker / "build" / "fmus") in said and "--fmu-dir" in said, said
 
 
 def test_a_full_disk_names_the_fmu_it_could_not_write_and_leaves_no_half_file(
