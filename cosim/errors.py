@@ -177,8 +177,12 @@ class _MatplotlibFolderInOneLine(logging.Filter):
         args = record.args if isinstance(record.args, tuple) else ()
         if text.startswith("Matplotlib created a temporary cache directory") and len(args) == 2:
             temporary, issue = args  # issue: "the default path (<folder>)", say
+            problem = f"matplotlib's folder cannot be written ({issue})"
+            if issue == "resolving the home directory":  # Path.home() raised
+                problem = "matplotlib has no folder: there is no home folder (HOME unset, "
+                problem += "and no passwd entry for this uid)"
             warnings.warn(
-                f"matplotlib's folder cannot be written ({issue}): using a temporary one "
+                f"{problem}: using a temporary one "
                 f"({temporary}, removed at exit), its font cache made again in every "
                 "process; set MPLCONFIGDIR (or HOME) to a writable folder",
                 RuntimeWarning,

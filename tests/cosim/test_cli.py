@@ -510,6 +510,41 @@ def test_a_home_that_cannot_be_written_costs_matplotlib_one_line(run_python, tmp
     assert [p.name for p in scratch.iterdir() if not p.name.startswith("auv-cosim-scratch")] == []
 
 
+MATPLOTLIB_WITHOUT_HOME = """
+import os, pwd, sys, warnings
+for name in ("HOME", "XDG_CONFIG_HOME", "XDG_CACHE_HOME", "MPLCONFIGDIR"):
+    os.environ.pop(name, None)
+os.environ["TMPDIR"] = sys.argv[1]
+
+
+def no_entry(number):  # as for `docker run -u 12345`: a uid /etc/passwd does not list
+    raise KeyError(f"getpwuid(): uid not found: {number}")
+
+
+pwd.getpwuid = no_entry
+from cosim.errors import matplotlib_folder_in_one_line, one_line_warnings
+
+warnings.showwarning = one_line_warnings("auv-cosim analyze")
+matplotlib_folder_in_one_line()
+import matplotlib
+
+matplotlib.get_cachedir()
+"""
+
+
+def test_matplotlib_without_a_home_folder_says_there_is_none(run_python, tmp_path):
+    """A uid with no passwd entry and HOME unset (``docker run -u 12345``): the command's
+    line about matplotlib's folder read "matplotlib's folder cannot be written (resolving
+    the home directory)", matplotlib's words for what went wrong, not which folder. It
+    says there is no home folder, and what to set."""
+    done = run_python(MATPLOTLIB_WITHOUT_HOME, tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    said = [line for line in done.stderr.splitlines() if "matplotlib" in line.lower()]
+    assert len(said) == 1, done.stderr
+    assert "no home folder" in said[0] and "resolving" not in said[0], said[0]
+    assert said[0].endswith("set MPLCONFIGDIR (or HOME) to a writable folder")
+
+
 def test_python_dash_m_cosim_is_the_command() -> None:
     """``python -m cosim`` said "No module named cosim.__main__" (only ``python -m
     cosim.cli`` worked), where the command's scripts folder is not on PATH."""
