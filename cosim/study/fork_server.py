@@ -100,8 +100,8 @@ def _start_resource_tracker() -> None:
 
 def _say_cache_problem() -> None:
     """Warn here, before the server starts, when numba's cache folder cannot be written (a
-    ``HOME`` that is missing or not the user's): the warning is then marked as said in the
-    environment the server and every worker forked from it inherit
+    ``NUMBA_CACHE_DIR`` or ``XDG_CACHE_HOME`` that cannot): the warning is then marked as
+    said in the environment the server and every worker forked from it inherit
     (:data:`plant_fmu.model.jit.WARNED_VARIABLE`), so it is said once, not once by each
     worker as it compiles its FMUs' kernels. Nothing when numba is off or not installed;
     numba itself is not imported (the server's imports would wait for it)."""

@@ -27,8 +27,10 @@ Concurrent processes (sweeps start many at once) can share the folder: numba wri
 cache file to a unique temporary name and moves it into place with ``os.replace``, which
 is atomic, so a reader sees an old complete file or a new complete one, never a torn one.
 
-A cache folder that cannot be written (a home folder that is missing or not the user's, a
-service account's ``HOME=/``, an unwritable ``NUMBA_CACHE_DIR``) turns the cache off, with
+A home folder that cannot be written (a service account's ``HOME=/nonexistent``, the
+``HOME=/`` Docker gives a uid without a passwd entry) moves the default to the temporary
+folder as well. A cache folder the user named that cannot be written (``NUMBA_CACHE_DIR``,
+``XDG_CACHE_HOME``), or a temporary one that is not the user's, turns the cache off, with
 a warning naming the folder (:func:`njit`): numba would otherwise fall back to
 ``__pycache__`` beside the source and, in a read-only ``site-packages``, refuse to compile.
 """
@@ -69,15 +71,23 @@ TEMPORARY_CACHE_PREFIX = "auv-cosim-cache-"
 def default_cache_dir() -> Path:
     """``$XDG_CACHE_HOME/auv-cosim/numba``, or ``~/.cache/auv-cosim/numba``; where there is
     no home folder (HOME unset and a uid /etc/passwd does not list, as ``docker run -u
-    12345`` gives), ``$TMPDIR/auv-cosim-cache-<uid>/numba`` (:func:`_foreign_folder`)."""
+    12345`` gives) or the latter cannot be made and written (HOME=/, a service account's
+    HOME=/nonexistent), ``$TMPDIR/auv-cosim-cache-<uid>/numba`` (:func:`_foreign_folder`)."""
     base = os.environ.get("XDG_CACHE_HOME")
     if base:
         return Path(base) / "auv-cosim" / "numba"
     home = os.path.expanduser("~")  # "~" itself where there is none (Path.home() raises)
-    if home.startswith("~"):
-        uid = os.getuid() if hasattr(os, "getuid") else ""
-        return Path(tempfile.gettempdir()) / f"{TEMPORARY_CACHE_PREFIX}{uid}" / "numba"
-    return Path(home) / ".cache" / "auv-cosim" / "numba"
+    if not home.startswith("~"):
+        folder = Path(home) / ".cache" / "auv-cosim" / "numba"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            pass
+        else:
+            if os.access(folder, os.W_OK | os.X_OK):
+                return folder
+    uid = os.getuid() if hasattr(os, "getuid") else ""
+    return Path(tempfile.gettempdir()) / f"{TEMPORARY_CACHE_PREFIX}{uid}" / "numba"
 
 
 def load_numba() -> tuple[ModuleType | None, str]:

@@ -236,3 +236,36 @@ def test_a_temporary_cache_folder_another_user_made_is_not_used(run_python, tmp_
     assert "NUMBA_CACHE_DIR" in result["problem"], result
     assert f"auv-cosim-cache-{other_uid}" in result["problem"]
     assert result["warnings"] == [result["problem"]]
+
+
+CACHE_FOLDER_OF_AN_UNWRITABLE_HOME = """
+import json, os, sys, warnings
+for name in ("XDG_CACHE_HOME", "NUMBA_CACHE_DIR", "AUV_COSIM_NUMBA_CACHE_WARNED"):
+    os.environ.pop(name, None)
+os.environ["HOME"], os.environ["TMPDIR"] = sys.argv[1:3]
+from plant_fmu.model import jit
+
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    numba, why = jit.load_numba()
+    problem = jit.cache_problem()
+print(json.dumps({"cache": os.environ["NUMBA_CACHE_DIR"], "problem": problem,
+                  "warnings": [str(w.message) for w in caught]}))
+"""
+
+
+def test_a_home_that_cannot_be_written_caches_in_a_private_temporary_folder(run_python, tmp_path):
+    """A home folder the user cannot write (``docker run -u 12345`` sets HOME=/, a
+    service account's HOME=/nonexistent) and neither XDG_CACHE_HOME nor NUMBA_CACHE_DIR
+    set: every process compiled the kernels again (30 s of a bs-3 run's start-up on a
+    busy machine) and every command warned of it. The cache goes to the user's private
+    temporary folder instead, as where there is no home at all, without a warning."""
+    blocker = tmp_path / "a-file"  # no folder can be made under a file, not even by root
+    blocker.write_text("")
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    done = run_python(CACHE_FOLDER_OF_AN_UNWRITABLE_HOME, blocker / "home", scratch)
+    assert done.returncode == 0, done.stderr[-3000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert Path(result["cache"]).is_relative_to(scratch), result
+    assert result["problem"] == "" and result["warnings"] == [], result
