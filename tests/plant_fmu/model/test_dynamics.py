@@ -352,6 +352,35 @@ def test_a_full_variant_step_gone_non_finite_is_refused_saying_so(path, moving_m
         advance(model, x, u, 0.1, 0.01, fast)  # 10 sub-steps: nan before the step ends
 
 
+@pytest.mark.parametrize(
+    ("variant", "moving_mass_model", "name"),
+    [
+        (Variant.FULL, 0, "roll_torque"),
+        (Variant.LATERAL, 0, "roll_torque"),
+        (Variant.FULL, 1, "roll_torque"),
+        (Variant.HORIZONTAL, 1, "mass_position_cmd"),
+    ],
+)
+@pytest.mark.parametrize("path", ["reference", "compiled"])
+def test_an_input_that_throws_an_angle_to_infinity_is_refused_saying_so(
+    path, variant, moving_mass_model, name
+):
+    """A roll torque of 1e308 N m (a fault's gain gone wild) spins the roll angle to inf
+    within a step, and so does a mass command of 1e308 m the horizontal two-body yaw:
+    math.cos(inf) raised "math domain error", which the plant FMU logged as the reason, a
+    message naming neither the step nor what left the range. The step is refused as any
+    step that leaves the model's range is."""
+    from plant_fmu.model import compiled
+
+    if path == "compiled" and (moving_mass_model == 1 or not compiled.AVAILABLE):
+        pytest.skip("the two-body model, or numba off, has no compiled path")
+    model = PlantModel(load_vehicle(), variant, moving_mass_model=moving_mass_model)
+    fast = compiled.CompiledPlant(model) if path == "compiled" else None
+    inputs = input_vector({name: 1e308}, thrust=9.0)
+    with pytest.raises(ValueError, match=r"left the model.s range in a step of 0\.05 s .*math"):
+        advance(model, state_vector(dict(u=1.5, v=0.1, r=0.05, roll=0.1)), inputs, 0.05, 0.01, fast)
+
+
 @pytest.mark.parametrize("path", ["reference", "compiled"])
 def test_a_current_faster_than_any_velocity_the_model_takes_is_refused_by_name(path):
     """A steady current carries the vehicle at its own speed, so a current beyond MAX_SPEED
