@@ -12,7 +12,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from plant_fmu.model.dynamics import N_INPUTS, N_STATES, PlantModel, Variant
+from plant_fmu.model.dynamics import N_INPUTS, N_STATES, STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.kinematics import gravity_direction
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.moving_mass import rail_direction, two_body_force
@@ -78,16 +78,32 @@ def _energy_drift(model: PlantModel, x0: np.ndarray, inputs: np.ndarray, max_sub
 _TUMBLE = dict(u=0.4, v=0.1, w=-0.1, p=0.8, q=0.3, r=-0.3, roll=0.4, pitch=0.3)
 
 
-def test_without_damping_or_actuators_energy_is_conserved_to_rk4s_order():
+@pytest.mark.parametrize(
+    ("variant", "moving_mass_model"),
+    [
+        (Variant.FULL, 0),
+        pytest.param(Variant.FULL, 1, marks=pytest.mark.slow),
+        pytest.param(Variant.LATERAL, 1, marks=pytest.mark.slow),
+        pytest.param(Variant.HORIZONTAL, 0, marks=pytest.mark.slow),
+    ],
+)
+def test_without_damping_or_actuators_energy_is_conserved_to_rk4s_order(
+    variant: Variant, moving_mass_model: int
+):
     """remus100 as shipped (7 N buoyant, centre of gravity 2 cm below the CB) with the mass
     held 3 cm off centre, without damping, thrust or current: kinetic plus potential energy
     is a constant of the motion, so what drifts is RK4's error, falling as h^4 (16 times
-    for half the sub-step; above 10 here), not a term that does work of its own."""
-    model = PlantModel(REMUS, Variant.FULL, ideal_fluid=True)
-    x0 = state_vector(dict(_TUMBLE, mass_position=0.03))
+    for half the sub-step; above 10 here), not a term that does work of its own. The
+    planar variants hold the depth, so there W = B: their net buoyancy's sway component
+    (W - B) sin(phi), which (6.3.13) keeps, would do work on a depth they never change."""
+    params = REMUS if variant is Variant.FULL else REMUS.replace(W=REMUS.B)
+    model = PlantModel(params, variant, ideal_fluid=True, moving_mass_model=moving_mass_model)
+    x0 = model.project(state_vector(dict(_TUMBLE, mass_position=0.03)))
     held = input_vector(dict(mass_position_cmd=0.03))  # the servo at rest: it does no work
     coarse, fine = (_energy_drift(model, x0, held, h) for h in (0.01, 0.005))
-    assert np.ptp(simulate(model, x0, held, 4.0, 0.04)[1][:, 3]) > 0.3  # it really rolls
+    moved = "yaw" if variant is Variant.HORIZONTAL else "roll"
+    path = simulate(model, x0, held, 4.0, 0.04)[1][:, STATE_INDEX[moved]]
+    assert np.ptp(path) > 0.3  # it really turns
     assert coarse < 1e-6 * model.kinetic_energy(x0, held)
     assert coarse > 10.0 * fine
 
