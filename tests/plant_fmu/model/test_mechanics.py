@@ -204,3 +204,57 @@ def test_mirrored_starts_give_mirrored_motion(variant: Variant, moving_mass_mode
             _STATE_MIRROR * advance(model, x, inputs, 0.1),
             rtol=1e-13, atol=1e-13,
         )  # fmt: skip
+
+
+@settings(max_examples=40)
+@given(
+    command=st.floats(-10.0, 10.0),
+    start=_rail,
+    speed=st.floats(-2.0, 2.0),
+    variant=st.sampled_from(list(Variant)),
+    moving_mass_model=st.sampled_from([0, 1]),
+)
+def test_the_mass_stays_on_its_rail_for_any_command(
+    command: float, start: float, speed: float, variant: Variant, moving_mass_model: int
+):
+    """Whatever the servo is told (up to 10 m, 170 times the 6 cm stroke) and however fast
+    the mass already slides, it ends every step within its stops, and resting against a
+    stop it does not move outwards. (The servo follows its command unsaturated, so a
+    command of a kilometre accelerates the mass at 5000 m/s^2 and its recoil throws the
+    hull out of the model's range: that step is refused, naming the velocity.)"""
+    model = PlantModel(REMUS, variant, moving_mass_model=moving_mass_model)
+    x = state_vector(dict(u=1.5, mass_position=start, mass_velocity=speed))
+    after = advance(model, x, input_vector(dict(mass_position_cmd=command), thrust=9.0), 0.05)
+    y_v, y_vel = after[STATE_INDEX["mass_position"]], after[STATE_INDEX["mass_velocity"]]
+    assert abs(y_v) <= REMUS.mass_stroke
+    if abs(y_v) == REMUS.mass_stroke:
+        assert y_vel * y_v <= 0.0
+
+
+_current = st.floats(-1.0, 1.0)
+
+
+@settings(max_examples=15)
+@given(
+    current=st.tuples(_current, _current, _current).map(np.array),
+    attitude=st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-3.2, 3.2)),
+    variant=st.sampled_from(list(Variant)),
+)
+def test_a_body_drifting_with_the_current_moves_at_its_speed(
+    current: np.ndarray, attitude: tuple[float, float, float], variant: Variant
+):
+    """Neutrally buoyant and balanced (W = B, r_g = 0; a what-if), at rest in the water
+    (nu = [U; 0], U the current in body axes) and unactuated: no force acts, so over a
+    step of 1 s it keeps its velocity and its position moves by V_c t (the planar
+    variants hold the depth, so only the horizontal current carries them)."""
+    params = REMUS.replace(W=REMUS.B, z_g=0.0)
+    model = PlantModel(params, variant)
+    inputs = input_vector(
+        dict(zip(("current_north", "current_east", "current_down"), current, strict=True))
+    )
+    x = model.project(state_vector(dict(zip(("roll", "pitch", "yaw"), attitude, strict=True))))
+    x[NU][:3] = model.current_in_body(x, inputs)
+    after = advance(model, x, inputs, 1.0)
+    np.testing.assert_allclose(after[NU], x[NU], rtol=0.0, atol=1e-13)
+    carried = current if variant is Variant.FULL else np.array([*current[:2], 0.0])
+    np.testing.assert_allclose(after[:3], carried, rtol=0.0, atol=1e-12)
