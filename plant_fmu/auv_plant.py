@@ -379,8 +379,12 @@ class AuvPlant(SafeSlave):
         mass, a change of the currents, or a step it refuses (the reference then says why).
         Both take the input derivatives the importer set (module docstring)."""
         n = substeps(step_size, self.max_substep)  # raises on a step it would hang in
-        if self._stepper is not None and self._stepper(n, step_size / n) == 0:
-            return
+        if self._stepper is not None:
+            try:
+                if self._stepper(n, step_size / n) == 0:
+                    return
+            except ArithmeticError:  # numba's division by zero, the state left unchanged
+                pass  # the reference repeats the step and names what left the range
         self._reference_step(step_size)
 
     def _reference_step(self, step_size: float) -> None:

@@ -549,6 +549,7 @@ def _stage(
 _SCRATCH_R, _SCRATCH_WORK, _SCRATCH_Y, _SCRATCH_K, _SCRATCH_Z, _SCRATCH_U = 0, 9, 39, 57, 129, 147
 STEP_SCRATCH = _SCRATCH_U + 3 * N_INPUTS
 CURRENT_CHANGED = 4  # step_into: the currents changed since the last step, nothing done
+LEFT_THE_RANGE = 3  # advance_into: the state became non-finite or left the model's range
 
 
 @_jit
@@ -655,10 +656,10 @@ def advance_into(
             _substep(p, z, inputs, inputs, inputs, dt, (R, work, y), stages)
     for i in range(18):
         if not math.isfinite(z[i]):
-            return 3
+            return LEFT_THE_RANGE
     for i in range(3):  # the model's range (state_layout.MAX_SPEED, MAX_TURN_RATE)
         if abs(z[_U + i]) > MAX_SPEED or abs(z[_P + i]) > MAX_TURN_RATE:
-            return 3
+            return LEFT_THE_RANGE
     return 0
 
 
@@ -776,7 +777,10 @@ class CompiledPlant:
         ``rates`` (the inputs' derivatives, 2 x inputs) when given."""
         varying = rates is not None
         held = self._no_rates if rates is None else rates
-        return advance_into(self.parameters, x, z, inputs, held, varying, n, dt, self._scratch)
+        try:
+            return advance_into(self.parameters, x, z, inputs, held, varying, n, dt, self._scratch)
+        except ArithmeticError:  # numba's division by zero: a state thrown out of the range
+            return LEFT_THE_RANGE
 
     def warm_up(self, x: np.ndarray, inputs: np.ndarray, rates: np.ndarray | None = None) -> None:
         """Compile (or load from numba's cache) every function a step calls, by one RK4

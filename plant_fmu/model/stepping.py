@@ -197,7 +197,8 @@ def advance(
                     z = _substep(model, z, _inputs_at(inputs, rates, j * dt), dt, later)
     except OverflowError:
         raise ValueError(_left_the_range("a value overflowed (OverflowError)", h, n)) from None
-    except ValueError as error:  # math.cos(inf): an angle a stage state threw to infinity
+    except (ValueError, ZeroDivisionError) as error:  # math.cos(inf), or a quaternion
+        # whose norm overflowed normalised to zero: a stage state thrown to infinity
         what = f"a value left the floating-point range ({error})"
         raise ValueError(_left_the_range(what, h, n)) from None
     _check_range(z, h, n)

@@ -314,6 +314,32 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
 
 
 @pytest.mark.slow
+def test_a_step_thrown_out_of_range_by_a_huge_thrust_is_discarded_saying_so(plant, run_python):
+    # 1e8 N of thrust (a fault's gain gone wild) spins the 6-DOF vehicle so fast that the
+    # compiled step divided by a zero quaternion norm: the FMU logged "division by zero".
+    result = run_python(
+        """
+        import json, sys
+        from fmu_harness import Harness
+        fmu = Harness(sys.argv[1], variant=0, u_0=1.5)
+        fmu.set(thrust=1e8)
+        thrown = fmu.step(0.1)
+        u_after = float(fmu.get("u")[0])
+        fmu.set(thrust=9.0)
+        next_step = fmu.step(0.01)
+        fmu.close()
+        print(json.dumps(dict(thrown=thrown, u=u_after, next=next_step,
+                              errors=fmu.messages(3))))
+        """,
+        plant,
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert (report["thrown"], report["u"], report["next"]) == (STATUS_DISCARD, 1.5, STATUS_OK)
+    assert "left the model's range in a step of 0.1 s" in report["errors"]
+
+
+@pytest.mark.slow
 def test_a_step_too_long_to_take_is_discarded_unstarted_and_the_host_steps_on(plant, run_python):
     # In its own process: the step of 1e12 s (1e14 RK4 sub-steps) used to be started, a hang
     # no signal reaches inside the compiled loop; the timeout turns that into a failure.

@@ -381,6 +381,25 @@ def test_an_input_that_throws_an_angle_to_infinity_is_refused_saying_so(
         advance(model, state_vector(dict(u=1.5, v=0.1, r=0.05, roll=0.1)), inputs, 0.05, 0.01, fast)
 
 
+@pytest.mark.parametrize("name", ["thrust", "tunnel_force"])
+@pytest.mark.parametrize("path", ["reference", "compiled"])
+def test_an_input_that_overflows_the_attitude_is_refused_saying_so(path, name):
+    """A thrust or tunnel force of 1e8 N spins the 6-DOF vehicle so fast within a 0.1 s
+    step that the attitude quaternion's norm overflows and normalising it leaves zero:
+    both paths raised "division by zero" (ZeroDivisionError, not even a ValueError), which
+    the plant FMU logged as the reason. The step is refused as any step that leaves the
+    model's range is."""
+    from plant_fmu.model import compiled
+
+    if path == "compiled" and not compiled.AVAILABLE:
+        pytest.skip(compiled.NO_JIT_REASON)
+    model = PlantModel(load_vehicle(), Variant.FULL)
+    fast = compiled.CompiledPlant(model) if path == "compiled" else None
+    inputs = input_vector({name: 1e8}, thrust=9.0)
+    with pytest.raises(ValueError, match=r"left the model.s range in a step of 0\.1 s .*division"):
+        advance(model, state_vector(dict(u=1.5)), inputs, 0.1, 0.01, fast)
+
+
 @pytest.mark.parametrize("path", ["reference", "compiled"])
 def test_a_current_faster_than_any_velocity_the_model_takes_is_refused_by_name(path):
     """A steady current carries the vehicle at its own speed, so a current beyond MAX_SPEED
