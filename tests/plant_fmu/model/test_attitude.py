@@ -227,3 +227,24 @@ def test_below_the_chart_pitch_a_step_is_the_euler_angle_step_bit_for_bit(fast):
         raise AssertionError("the run must pitch past the chart pitch")
     assert not np.array_equal(x, expected)  # the quaternion's step: the same to RK4's error
     np.testing.assert_allclose(x, expected, atol=1e-6)
+
+
+@pytest.mark.parametrize("fast", [False, True], ids=["reference", "compiled"])
+@pytest.mark.parametrize(
+    ("variant", "pitch"),
+    [(Variant.FULL, 0.1), (Variant.FULL, 1.3), (Variant.LATERAL, 0.0), (Variant.HORIZONTAL, 0.0)],
+)
+def test_yaw_runs_on_past_180_deg_without_a_jump(variant, pitch, fast):
+    """Turning to starboard from 179 deg, in either attitude chart (pitch 0.1 rad: the Euler
+    angles; 1.3 rad, beyond 70 deg: the quaternion) and every variant: the yaw output
+    passes 180 deg and goes on, continuous, as docs/model.md#kinematics says, never
+    jumping to -180 deg (the autopilot wraps its heading error itself)."""
+    model = PlantModel(load_vehicle(), variant)
+    if fast and not compiled.AVAILABLE:
+        pytest.skip(compiled.NO_JIT_REASON)
+    path = compiled.CompiledPlant(model) if fast else None
+    x0 = state_vector(dict(u=1.5, yaw=np.radians(179.0), pitch=pitch, r=0.3))
+    _, states = simulate(model, x0, input_vector(thrust=9.0), 0.5, 0.01, compiled=path)
+    yaw = states[:, YAW]
+    assert yaw[-1] > np.pi  # past 180 deg
+    assert np.max(np.abs(np.diff(yaw))) < 0.1  # rad per 10 ms: no turn of 2 pi
