@@ -248,3 +248,20 @@ def test_yaw_runs_on_past_180_deg_without_a_jump(variant, pitch, fast):
     yaw = states[:, YAW]
     assert yaw[-1] > np.pi  # past 180 deg
     assert np.max(np.abs(np.diff(yaw))) < 0.1  # rad per 10 ms: no turn of 2 pi
+
+
+@pytest.mark.parametrize("fast", [False, True], ids=["reference", "compiled"])
+@pytest.mark.parametrize("pitch", [np.pi / 2, -np.pi / 2])
+def test_a_start_pointing_straight_up_or_down_steps_to_finite_outputs(pitch, fast):
+    """At pitch +-90 deg exactly the Euler-rate matrix T (2.2.15) is singular and roll and
+    yaw alone are undefined (only roll - yaw, or roll + yaw, is): a start there steps on
+    the quaternion to finite outputs describing the same attitude, not to nan."""
+    model = PlantModel(load_vehicle(), Variant.FULL)
+    if fast and not compiled.AVAILABLE:
+        pytest.skip(compiled.NO_JIT_REASON)
+    path = compiled.CompiledPlant(model) if fast else None
+    x0 = state_vector(dict(u=1.0, roll=0.3, pitch=pitch, yaw=0.2))
+    _, states = simulate(model, x0, input_vector(thrust=9.0), 0.01, 0.01, compiled=path)
+    assert np.all(np.isfinite(states))
+    after, before = rotation_matrix(*states[-1, 3:6]), rotation_matrix(*x0[3:6])
+    np.testing.assert_allclose(after, before, atol=1e-4)  # 10 ms from rest: hardly turned

@@ -12,6 +12,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from plant_fmu.model import compiled
+from plant_fmu.model.compiled import CompiledPlant
 from plant_fmu.model.dynamics import N_INPUTS, N_STATES, STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.kinematics import gravity_direction
 from plant_fmu.model.linearization import input_vector, state_vector
@@ -187,7 +189,7 @@ _INPUT_MIRROR = np.array([1, -1, -1, 1, -1, 1, -1, 1], dtype=float)
 def test_mirrored_starts_give_mirrored_motion(variant: Variant, moving_mass_model: int):
     """The hull is symmetric about its x-z plane: a start and inputs mirrored port to
     starboard (the moving mass and tunnel thruster mirrored too) give the mirrored
-    derivative and the mirrored state after a step of 0.1 s."""
+    derivative and the mirrored state after a step of 0.1 s, on the compiled path too."""
     model = PlantModel(REMUS, variant, moving_mass_model=moving_mass_model)
     rng = np.random.default_rng(2)
     for _ in range(10):
@@ -199,11 +201,19 @@ def test_mirrored_starts_give_mirrored_motion(variant: Variant, moving_mass_mode
             _STATE_MIRROR * model.derivative(x, inputs),
             rtol=1e-13, atol=1e-13,
         )  # fmt: skip
-        np.testing.assert_allclose(
-            advance(model, mirrored_x, mirrored_u, 0.1),
-            _STATE_MIRROR * advance(model, x, inputs, 0.1),
-            rtol=1e-13, atol=1e-13,
-        )  # fmt: skip
+        for path in _paths(model):
+            np.testing.assert_allclose(
+                advance(model, mirrored_x, mirrored_u, 0.1, compiled=path),
+                _STATE_MIRROR * advance(model, x, inputs, 0.1, compiled=path),
+                rtol=1e-13, atol=1e-13,
+            )  # fmt: skip
+
+
+def _paths(model: PlantModel) -> list[CompiledPlant | None]:
+    """The reference step (None) and, where it applies, the compiled one the FMU takes."""
+    if compiled.supports(model) == "":
+        return [None, compiled.CompiledPlant(model)]
+    return [None]
 
 
 @settings(max_examples=40)
