@@ -392,6 +392,22 @@ class _Parser(argparse.ArgumentParser):
         self._given = [str(arg) for arg in (sys.argv[1:] if args is None else args)]
         return super().parse_known_args(args, namespace)
 
+    def _print_message(self, message: str, file: Any = None) -> None:
+        """argparse's, but a help or a version that standard output refuses (``--help >
+        /dev/full``, ``--help | head -0``) raises, as a command's own output does: argparse
+        drops a failed write, and the command exited 0 having printed nothing. What goes to
+        stderr (a usage error) is dropped as argparse drops it: nowhere is left to say so."""
+        if file is None or file is sys.stderr:
+            super()._print_message(message, file)
+            return
+        try:
+            file.write(message)
+            file.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise _OutputRefusedError(f"{self.prog}: {one_line(_reason(exc))}") from exc
+
     def error(self, message: str) -> NoReturn:
         """argparse's usage error, and how to give a file whose name starts with - (read
         as an option: "the following arguments are required: scenario")."""
@@ -403,6 +419,11 @@ class _Parser(argparse.ArgumentParser):
                 "or after --)"
             )
         super().error(message)
+
+
+class _OutputRefusedError(Exception):
+    """A help or a version that standard output refused, as the line that says so
+    ("auv-cosim run: standard output: No space left on device")."""
 
 
 class _Version(argparse.Action):
@@ -420,7 +441,8 @@ class _Version(argparse.Action):
             version = importlib.metadata.version("auv-cosim")
         except importlib.metadata.PackageNotFoundError:
             version = "(not installed: run from a source tree)"
-        print(f"auv-cosim {version}")  # on stdout, as argparse's own version action does
+        # on stdout, as argparse's own version action does
+        parser._print_message(f"auv-cosim {version}\n", sys.stdout)
         parser.exit()
 
 
@@ -751,12 +773,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stdout = _StandardOutput(sys.stdout)
     try:
         args = build_parser().parse_args(argv)
-    except OSError as exc:  # --version to a standard output that refuses it
-        print(f"auv-cosim: {shortened(one_line(_reason(exc)))}", file=sys.stderr)
+        if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as
+            args.usage_help()  # a usage error
+            return 2
+    except BrokenPipeError:  # --help or --version to a reader that stopped (`| head`)
+        return _reader_gone()
+    except _OutputRefusedError as exc:  # --help or --version to a standard output refusing it
+        print(shortened(str(exc)), file=sys.stderr)
         return 1
-    if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as a
-        args.usage_help()  # usage error
-        return 2
     if argv is None and args.command == "run":
         _ignore_stop_signals()
         if args.connect is not None:
@@ -773,8 +797,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"auv-cosim {args.command}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # a reader that stopped (`| head`): nothing more to say to it
-        _quiet_stdout()
-        return 128 + 13  # as a command ended by SIGPIPE
+        return _reader_gone()
     except MemoryError as exc:
         reason = f"MemoryError{f': {exc}' if str(exc) else ''}"
         print(f"auv-cosim {args.command}: {shortened(out_of_memory(reason))}", file=sys.stderr)
@@ -895,6 +918,13 @@ def _named_standard_output() -> Iterator[None]:
         raise
     except OSError as exc:
         raise OSError(exc.errno, exc.strerror, "standard output") from None
+
+
+def _reader_gone() -> int:
+    """The exit code of a command whose reader stopped reading (``| head``): 141, as a
+    command ended by SIGPIPE, with nothing more written to that reader."""
+    _quiet_stdout()
+    return 128 + 13  # SIGPIPE's number, which Windows' signal module does not define
 
 
 def _quiet_stdout() -> None:

@@ -101,14 +101,17 @@ def test_a_path_of_the_wrong_kind_is_not_suggested_as_itself(
     assert f"{script} is not a folder" in err and "did you mean" not in err
 
 
-def test_a_reader_that_stops_reading_gets_no_traceback(tmp_path: Path) -> None:
+@pytest.mark.parametrize("argv", [["scenarios"], ["--version"], ["--help"], ["run", "--help"]])
+def test_a_reader_that_stops_reading_gets_no_traceback(argv: list[str], tmp_path: Path) -> None:
     """`auv-cosim scenarios | head -0`: the command wrote into a closed pipe and printed
-    "BrokenPipeError: [Errno 32] Broken pipe" on stderr (and more at exit)."""
+    "BrokenPipeError: [Errno 32] Broken pipe" on stderr (and more at exit). ``--version``
+    said "auv-cosim: BrokenPipeError: [Errno 32] Broken pipe" and exited 1, and a help
+    exited 0 as if the reader had had it all: each ends as a command ended by SIGPIPE."""
     import subprocess
     import sys
 
     proc = subprocess.Popen(
-        [sys.executable, "-m", "cosim.cli", "scenarios"],
+        [sys.executable, "-m", "cosim.cli", *argv],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path,
     )  # fmt: skip
     assert proc.stdout is not None and proc.stderr is not None
@@ -367,17 +370,21 @@ def test_a_run_with_stderr_closed_runs(fmu_paths: dict[str, Path], tmp_path: Pat
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs Linux's /dev/full")
-@pytest.mark.parametrize("argv", [["--version"], ["scenarios"], ["validate", "bs-3"]])
+@pytest.mark.parametrize(
+    "argv",
+    [["--version"], ["scenarios"], ["validate", "bs-3"], ["--help"], ["run", "--help"]],
+)
 def test_a_full_standard_output_is_named_as_such(argv: list[str], tmp_path: Path) -> None:
     """``auv-cosim validate bs-3 > out.txt`` on a full disk said "OSError: [Errno 28] No
     space left on device", naming no file (a run's report: as if its folder's disk were
-    full), and ``--version`` printed a traceback."""
+    full), and ``--version`` printed a traceback. ``--help > FILE`` on a full disk exited
+    0 and said nothing (argparse drops a failed write), leaving the file empty."""
     import sys
 
     with open("/dev/full", "w") as full:
         command = [sys.executable, "-m", "cosim.cli", *argv]
         done = run_in_group(command, timeout=120, stdout=full, cwd=tmp_path)
-    command = "auv-cosim" if argv[0] == "--version" else f"auv-cosim {argv[0]}"
+    command = "auv-cosim" if argv[0].startswith("-") else f"auv-cosim {argv[0]}"
     assert done.returncode == 1, done.stderr
     assert done.stderr == f"{command}: standard output: No space left on device\n"
 
