@@ -43,12 +43,28 @@ FMU_DIR_HELP = "the built-in FMUs' folder, built there when missing or out of da
 _DEFAULT_TOLERANCE = "0.001"
 
 
+# what "-" is refused with: no option of the command reads or writes a stream
+_NO_STREAM = "(standard input and output are not read or written here; ./- names a file '-')"
+
+
 def _path_arg(text: str) -> Path:
     """A path option's value: refused when empty (an unset shell variable, ``--fmu-dir
-    "$FMUS"``), which ``Path`` would read as the working folder, as the API refuses it."""
+    "$FMUS"``), which ``Path`` would read as the working folder, as the API refuses it,
+    and when ``-``, which a pipeline means as standard input or output (``--ssp -`` wrote
+    an archive into a file named ``-``)."""
     if not text:
         raise argparse.ArgumentTypeError("expected a non-empty path ('.' names the working folder)")
+    if text == "-":
+        raise argparse.ArgumentTypeError(f"'-': expected a file or folder name {_NO_STREAM}")
     return Path(text)
+
+
+def _scenario_arg(text: str) -> str:
+    """A scenario id or file: ``-`` refused (a scenario is read from a file, more than
+    once), where it said "unknown scenario '-'"."""
+    if text == "-":
+        raise argparse.ArgumentTypeError(f"'-': expected a scenario id or file {_NO_STREAM}")
+    return text
 
 
 # a time typed with its unit ("60s", "10 ms", "2min"): refused, naming the plain number
@@ -496,7 +512,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep_parser(sub)
 
     p = sub.add_parser("export", help="export a scenario as SSP or OSP system structure")
-    p.add_argument("scenario", help="scenario id or .toml path")
+    p.add_argument("scenario", type=_scenario_arg, help="scenario id or .toml path")
     target = p.add_mutually_exclusive_group(required=True)  # neither or both: usage, exit 2
     target.add_argument("--ssp", type=_path_arg, help="write an SSP 1.0 archive to this file")
     target.add_argument(
@@ -552,7 +568,11 @@ def _add_scenarios_parser(sub: argparse._SubParsersAction) -> None:
 
 def _add_run_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run a built-in scenario id or a scenario TOML file")
-    p.add_argument("scenario", help="scenario id (see `auv-cosim scenarios`) or .toml path")
+    p.add_argument(
+        "scenario",
+        type=_scenario_arg,
+        help="scenario id (see `auv-cosim scenarios`) or .toml path",
+    )
     p.add_argument("--out", type=_path_arg, help="run folder [runs/<scenario-id>]")
     p.add_argument(
         "--overwrite", action="store_true", help="replace an earlier run in the run folder"

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from process_group import run_in_group
 
-from cosim.cli import main
+from cosim.cli import build_parser, main
 
 
 def test_version_is_the_installed_packages(capsys: pytest.CaptureFixture[str]) -> None:
@@ -193,6 +193,38 @@ def test_a_missing_file_is_named_with_what_was_probably_meant(
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and expected in err and "Errno" not in err, err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["export", "bs-3", "--ssp", "-"],
+        ["export", "bs-3", "--osp", "-"],
+        ["run", "bs-3", "--rrd", "-"],
+        ["run", "bs-3", "--out", "-"],
+        ["analyze", "phase-portrait", "--out", "-"],
+        ["build", "--out", "-"],
+        ["sweep", "-"],
+        ["report", "-"],
+        ["view", "-"],
+        ["validate", "-"],
+        ["run", "-"],
+        ["export", "-", "--ssp", "out.ssp"],
+    ],
+)
+def test_a_dash_for_standard_input_or_output_is_a_usage_error(
+    argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``export bs-3 --ssp -`` (a pipeline's "to standard output") wrote a 3 MB archive
+    into a file named ``-`` in the working folder and said "SSP archive: ./-", and ``run
+    bs-3 --rrd -`` a recording there; ``run -`` (a scenario piped in) said "unknown
+    scenario '-'". No file or folder option reads or writes a stream: ``-`` is refused
+    before anything runs, saying so and how to name a file called ``-``."""
+    with pytest.raises(SystemExit) as exit_:
+        build_parser().parse_args(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "'-': expected a" in err and "standard input" in err and "./-" in err, err
 
 
 @pytest.mark.parametrize(
