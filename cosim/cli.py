@@ -1,8 +1,9 @@
 """The ``auv-cosim`` command: parse, call one function, report. No logic lives here.
 
 Every command exits 0 on success and non-zero with a one-line reason on stderr on failure
-(2 for a usage error, 1 for a failed command, 130 for Ctrl-C). ``run`` also ends on SIGTERM
-(143) and SIGHUP (129) like on Ctrl-C, with its partial results written.
+(2 for a usage error, 1 for a failed command, 130 for Ctrl-C, 141 for a reader that stopped
+reading: :data:`EXIT_CODES`, which every ``--help`` ends with). ``run`` and ``sweep`` also
+end on SIGTERM (143) and SIGHUP (129) like on Ctrl-C, with their partial results written.
 """
 
 from __future__ import annotations
@@ -392,6 +393,14 @@ def _add_coupling_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+# what every command's exit code says, at the end of its --help (README.md, docs/runs.md)
+EXIT_CODES = (
+    "exit codes: 0 done; 1 failed or refused (one line on stderr says why); 2 a command "
+    "line it cannot parse; 130, 143, 129 stopped by Ctrl-C, SIGTERM, SIGHUP (a run or a "
+    "study keeps its partial results); 141 the reader of its output stopped (| head)"
+)
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse's parser taking "-5e-1" for a negative number, as it takes "-5" and "-0.5":
     before Python 3.13 it read a negative number in exponent form as an unknown option
@@ -400,6 +409,7 @@ class _Parser(argparse.ArgumentParser):
     the matcher decides nothing else. Sub-parsers are made of this class too."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("epilog", EXIT_CODES)  # the end of every command's --help
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = _NEGATIVE_NUMBER
         self._given: list[str] = []  # the arguments this parser was given, for error()

@@ -1,9 +1,11 @@
 """The command line's own options, apart from any command."""
 
+import argparse
 import importlib.metadata
 import re
 import sys
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -668,3 +670,37 @@ def test_a_path_holding_a_line_break_is_refused_in_one_line(
     refusal = said.out if command == "validate" else said.err
     assert refusal.count("\n") == 1, refusal
     assert "neu\\nzeile.toml" in refusal and "zwölf" in refusal
+
+
+# the exit codes a command can end with, each shown by a test of this file or of
+# tests/cosim/engine/test_run_signals.py: a script tells them apart
+EXIT_CODES = ("0", "1", "2", "130", "141", "143", "129")
+
+
+def _every_parser(parser: argparse.ArgumentParser) -> Iterator[argparse.ArgumentParser]:
+    """``parser`` and every command's and analysis's parser under it."""
+    yield parser
+    for action in parser._subparsers._group_actions if parser._subparsers else ():
+        for sub in dict.fromkeys(action.choices.values()):
+            yield from _every_parser(sub)
+
+
+def test_every_help_and_the_readme_list_the_exit_codes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A script telling a failed run from a bad command line or an interrupted one read
+    the codes in the README only, without 141 (a reader that stopped, ``| head``), which
+    every command ends with as a command ended by SIGPIPE; no ``--help`` said any. Every
+    command's help ends with them, and the README and docs/runs.md name each."""
+    monkeypatch.setenv("COLUMNS", "80")  # argparse's width, as in an 80-column terminal
+    helps = {parser.prog: parser.format_help() for parser in _every_parser(build_parser())}
+    assert len(helps) > 10, list(helps)
+    for prog, text in helps.items():
+        last = " ".join(text.strip().split("\n\n")[-1].split())
+        assert last.startswith("exit codes:"), (prog, last)
+        assert all(re.search(rf"\b{code}\b", last) for code in EXIT_CODES), (prog, last)
+        assert max(map(len, text.splitlines())) <= 80, prog
+    root = Path(__file__).parents[2]
+    for page in ("README.md", "docs/runs.md"):
+        text = " ".join((root / page).read_text(encoding="utf-8").split())
+        said = re.search(r"Exit codes[^:]*:(.{0,600})", text)
+        assert said is not None, page
+        assert all(re.search(rf"\b{code}\b", said[1]) for code in EXIT_CODES), (page, said[1])
