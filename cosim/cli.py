@@ -804,7 +804,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as
-            args.usage_help()  # a usage error
+            args.usage_help(sys.stderr)  # a usage error, on stderr as argparse's own are
             return 2
     except BrokenPipeError:  # --help or --version to a reader that stopped (`| head`)
         return _reader_gone()

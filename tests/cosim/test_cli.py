@@ -73,10 +73,13 @@ def test_a_command_without_its_subcommand_prints_the_choices(
     argv: list[str], choices: list[str], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """`auv-cosim` alone answered only "the following arguments are required: COMMAND":
-    a newcomer gets the list of commands (a usage error all the same, exit 2)."""
+    a newcomer gets the list of commands (a usage error all the same, exit 2), on stderr
+    as every usage error: on stdout it was what ``out=$(auv-cosim $COMMAND)`` read as the
+    output of a command whose variable was empty."""
     assert main(argv) == 2
-    out = capsys.readouterr().out
-    assert out.startswith("usage: auv-cosim") and all(f"    {c}" in out for c in choices), out
+    out, err = capsys.readouterr()
+    assert out == "", out
+    assert err.startswith("usage: auv-cosim") and all(f"    {c}" in err for c in choices), err
 
 
 def test_no_rrd_and_rrd_together_are_a_usage_error(
