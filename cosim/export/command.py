@@ -1,8 +1,10 @@
-"""``auv-cosim export``: load a scenario, write it in one format, say where and what to mind."""
+"""``auv-cosim export``: load a scenario, write it in one format, say where (stdout) and
+what to mind (stderr)."""
 
 from __future__ import annotations
 
 import shlex
+import sys
 from pathlib import Path
 
 from cosim.errors import CosimError
@@ -35,8 +37,8 @@ def export_scenario(
         print(f"SSP archive: {export_ssp(resolved, ssp, overwrite=force)}")
     elif osp is not None:
         print(f"OSP system structure: {export_osp(resolved, osp)}")
-    for note in _notes(resolved, scenario):
-        print(f"note: {note}")
+    for note in _notes(resolved, scenario):  # messages, not what was written: stderr
+        print(f"auv-cosim export: note: {note}", file=sys.stderr)
     return 0
 
 

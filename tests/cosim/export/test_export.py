@@ -431,17 +431,30 @@ def test_cli_export_writes_and_reports_the_archive(
     plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     assert cli.main(["export", str(plant_alone.source), "--ssp", str(tmp_path / "p.ssp")]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert f"SSP archive: {tmp_path / 'p.ssp'}" in out
     assert zipfile.ZipFile(tmp_path / "p.ssp").testzip() is None
     # the scenario couples Gauss-Seidel (the default), which neither format can express:
     # the note gives the command that runs it as they do, and that command works here
-    (command,) = re.findall(r"compare with `(auv-cosim run [^`]+)`", out)
+    (command,) = re.findall(r"compare with `(auv-cosim run [^`]+)`", err)
     assert shlex.split(command)[2:] == [
         str(plant_alone.source), "--algorithm", "jacobi", "--extrapolation", "none"
     ]  # fmt: skip
     options = ["--out", str(tmp_path / "run"), "--stop-time", "0.1", "--no-rrd", "--quiet"]
     assert cli.main([*shlex.split(command)[1:], *options]) == 0
+
+
+def test_export_prints_what_it_wrote_on_stdout_and_its_notes_on_stderr(
+    plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """``path=$(auv-cosim export S --ssp x.ssp)`` read the notes with the archive's line:
+    they went to stdout, where a script reads what the command wrote. stdout names the
+    file, one line; each note is a message on stderr naming the command, as build's are."""
+    archive = tmp_path / "p.ssp"
+    assert cli.main(["export", str(plant_alone.source), "--ssp", str(archive)]) == 0
+    out, err = capsys.readouterr()
+    assert out == f"SSP archive: {archive}\n", out
+    assert err.startswith("auv-cosim export: note: ") and "compare with `" in err, err
 
 
 def test_a_custom_vehicle_set_travels_inline_in_both_formats(
@@ -480,8 +493,8 @@ def test_the_note_on_other_masters_says_held_inputs_in_words(
 
     argv = ["export", "lqr-1", "--ssp", str(tmp_path / "lqr-1.ssp"), "--fmu-dir", str(fmu_dir)]
     assert main(argv) == 0
-    out = capsys.readouterr().out
-    assert "runs gauss-seidel with held inputs in auv-cosim" in out, out
+    err = capsys.readouterr().err
+    assert "runs gauss-seidel with held inputs in auv-cosim" in err, err
 
 
 def test_a_summary_with_a_double_dash_is_a_valid_osp_comment(
@@ -529,8 +542,8 @@ def test_the_note_says_a_step_multiple_reads_differently_in_libcosim(
     path.write_text(text)
     argv = ["export", str(path), "--osp", str(tmp_path / "osp"), "--fmu-dir", str(fmu_dir)]
     assert cli.main(argv) == 0
-    out = capsys.readouterr().out
-    assert "note: controller steps every 5 h: libcosim hands a slow instance's outputs" in out
+    err = capsys.readouterr().err
+    assert "note: controller steps every 5 h: libcosim hands a slow instance's outputs" in err
 
 
 def test_the_note_says_an_adaptive_scenario_is_exported_at_its_first_step(
@@ -544,11 +557,11 @@ def test_the_note_says_an_adaptive_scenario_is_exported_at_its_first_step(
     path.write_text(text.replace('algorithm = "gauss-seidel"', 'algorithm = "adaptive"'))
     argv = ["export", str(path), "--osp", str(tmp_path / "osp"), "--fmu-dir", str(fmu_dir)]
     assert cli.main(argv) == 0
-    out = capsys.readouterr().out
+    err = capsys.readouterr().err
     assert (
         "note: SSP and OSP have no error-controlled step: adaptive exported at the fixed "
-        "step coupling.step = 0.01 s (its first step)" in out
-    ), out
+        "step coupling.step = 0.01 s (its first step)" in err
+    ), err
 
 
 def _ball_without_base_units(folder: Path, start: str = "") -> Path:
@@ -617,5 +630,5 @@ def test_the_note_names_enumerations_written_as_integers(
         'add = [{ from = "a.Enumeration_output", to = "b.Enumeration_input" }]\n'
     )
     assert cli.main(["export", str(path), "--ssp", str(tmp_path / "enums.ssp")]) == 0
-    out = capsys.readouterr().out
-    assert "note: a.Enumeration_output, b.Enumeration_input: Enumeration, written as" in out
+    err = capsys.readouterr().err
+    assert "note: a.Enumeration_output, b.Enumeration_input: Enumeration, written as" in err
