@@ -219,8 +219,11 @@ def whole_recording(executable: str, rrd: Path, folder: Path) -> Path:
         )
     why = "a run is still writing it" if _being_written(rrd) else "its run was killed"
     print(
-        f"note: {rrd} was cut short ({why}): serving a completed copy of what it holds", flush=True
-    )
+        f"auv-cosim view: note: {rrd} was cut short ({why}): serving a completed copy of what "
+        "it holds",
+        file=sys.stderr,
+        flush=True,
+    )  # a message: stdout holds the URL a script reads
     return copy
 
 
@@ -342,7 +345,11 @@ def _open(url: str) -> None:
     except webbrowser.Error:
         opened = False
     if not opened:
-        print("no browser found here: open the URL above yourself", flush=True)
+        print(
+            "auv-cosim view: no browser found here: open the URL above yourself",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def _end(server: subprocess.Popen) -> None:

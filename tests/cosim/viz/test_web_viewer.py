@@ -120,10 +120,11 @@ def test_a_recording_cut_before_any_data_is_refused_in_one_line(
 
 @pytest.mark.parametrize("kept", [0.5, 0.75, 0.95])
 def test_a_recording_cut_short_is_served_as_a_completed_copy(
-    recording: Path, tmp_path: Path, kept: float
+    recording: Path, tmp_path: Path, kept: float, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Rerun's importer waits forever for the rest of a file without its footer: what a
-    cut recording holds is served from a copy `rerun rrd migrate` completed."""
+    cut recording holds is served from a copy `rerun rrd migrate` completed, said in a
+    note on stderr (on stdout it came before the URL a script reads there)."""
     data = recording.read_bytes()
     cut = tmp_path / "cut.rrd"
     cut.write_bytes(data[: int(len(data) * kept)])
@@ -133,6 +134,8 @@ def test_a_recording_cut_short_is_served_as_a_completed_copy(
     assert served != cut and served.read_bytes()[-12:-4] == data[:4] + b"FOOT"
     assert _recordings(served) == _recordings(recording)
     assert cut.read_bytes() == data[: int(len(data) * kept)]  # the user's file untouched
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith(f"auv-cosim view: note: {cut} was cut short"), (out, err)
     assert whole_recording(executable, recording, tmp_path) == recording  # whole: as it is
 
 
