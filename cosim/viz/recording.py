@@ -30,6 +30,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -561,10 +562,10 @@ def view_run(
     Ctrl-C. Else, with a display (:func:`display_problem`: on Linux a display server
     answering at ``WAYLAND_DISPLAY`` or ``DISPLAY``; Windows and macOS have their own) and
     the ``rerun`` binary found, runs the viewer on the file (its gRPC server on 127.0.0.1
-    only, as ``--web``'s) and returns its exit code, with a line saying to use ``--web``
-    when it failed. A viewer of a version that may not read the file (older than the Rerun
-    that wrote it, or newer by more than one version) is named first, with both versions,
-    on one line (:func:`cosim.viz.viewer_version.version_problem`).
+    only, as ``--web``'s) and returns 0, or 1 with a line naming its status or signal and
+    saying to use ``--web`` when it failed. A viewer of a version that may not read the
+    file (older than the Rerun that wrote it, or newer by more than one version) is named
+    first, with both versions, on one line (:func:`cosim.viz.viewer_version.version_problem`).
 
     Raises:
         CosimError: the folder holds no recording, the file is not a Rerun recording, or
@@ -584,19 +585,31 @@ def view_run(
         _warn_of_version(executable, rrd)
         print(f"opening {rrd} in the Rerun viewer", flush=True)
         code = subprocess.call([executable, "--bind", "127.0.0.1", str(rrd)])
-        if code != 0:
+        if code != 0:  # a failed command (1): the viewer's own status means other things
             print(
-                f"auv-cosim view: the Rerun viewer exited with status {code}; if it could not "
-                f"open a window, {web_hint}",
+                f"auv-cosim view: the Rerun viewer {_ended(code)}; if it could not open a "
+                f"window, {web_hint}",
                 file=sys.stderr,
             )
-        return code
+            return 1
+        return 0
     if reason is None:
         reason = "the `rerun` viewer is not on PATH (it comes with `pip install rerun-sdk`)"
     raise CosimError(
         f"cannot open a viewer here: {reason}; {web_hint} (or `rerun {file}` on a machine "
         "with a display)"
     )
+
+
+def _ended(code: int) -> str:
+    """How a process that returned ``code`` (``subprocess``'s: minus the signal number for
+    one killed by a signal) ended: "exited with status 2", "was killed by SIGSEGV"."""
+    if code >= 0:
+        return f"exited with status {code}"
+    try:
+        return f"was killed by {signal.Signals(-code).name}"
+    except ValueError:
+        return f"was killed by signal {-code}"
 
 
 def _warn_of_version(executable: str, rrd: Path) -> None:

@@ -90,3 +90,32 @@ def test_the_viewer_beside_this_python_wins_over_another_on_path(tmp_path: Path,
     monkeypatch.setenv("PATH", f"{other.parent}{os.pathsep}{os.environ['PATH']}")
     monkeypatch.setattr(recording.sys, "executable", str(beside.parent / "python"))
     assert rerun_executable() == str(beside)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="the fake viewer is a shell script")
+@pytest.mark.parametrize(
+    ("ending", "said"),
+    [("exit 2", "exited with status 2"), ("kill -s SEGV $$", "was killed by SIGSEGV")],
+)
+def test_a_viewer_that_fails_is_a_failed_command_not_its_exit_status(
+    run_dir: Path, tmp_path: Path, monkeypatch, capsys, ending: str, said: str
+):
+    """``auv-cosim view`` exited with the viewer's own status: 2 (its usage error) read as
+    a command line auv-cosim cannot parse, and a viewer killed by a signal gave -11, which
+    the shell saw as 245. A viewer that fails is a failed command: exit 1, one line on
+    stderr naming its status or its signal."""
+    from cosim.cli import main
+
+    viewer = tmp_path / "bin" / "rerun"
+    viewer.parent.mkdir()
+    version = ".".join(map(str, SDK))
+    viewer.write_text(
+        f'#!/bin/sh\nif [ "$1" = "--version" ]; then echo "rerun-cli {version} '
+        f'(native_viewer) [rustc]"; exit 0; fi\n{ending}\n'
+    )
+    viewer.chmod(viewer.stat().st_mode | stat.S_IXUSR)
+    monkeypatch.setattr(recording, "rerun_executable", lambda: str(viewer))
+    monkeypatch.setattr(recording, "display_problem", lambda: None)
+    assert main(["view", str(run_dir)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"auv-cosim view: the Rerun viewer {said}" in err, err
