@@ -30,7 +30,6 @@ import os
 import re
 import shlex
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -74,7 +73,7 @@ from cosim.viz.rrd_file import (
 )
 from cosim.viz.scene import TARGET_COLUMNS, SceneWriter, log_static_scene, scene_legend
 from cosim.viz.viewer_version import version_problem
-from cosim.viz.web_viewer import serve
+from cosim.viz.web_viewer import ended, serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
 APPLICATION_ID = "auv-cosim"
@@ -587,7 +586,7 @@ def view_run(
         code = subprocess.call([executable, "--bind", "127.0.0.1", str(rrd)])
         if code != 0:  # a failed command (1): the viewer's own status means other things
             print(
-                f"auv-cosim view: the Rerun viewer {_ended(code)}; if it could not open a "
+                f"auv-cosim view: the Rerun viewer {ended(code)}; if it could not open a "
                 f"window, {web_hint}",
                 file=sys.stderr,
             )
@@ -599,17 +598,6 @@ def view_run(
         f"cannot open a viewer here: {reason}; {web_hint} (or `rerun {file}` on a machine "
         "with a display)"
     )
-
-
-def _ended(code: int) -> str:
-    """How a process that returned ``code`` (``subprocess``'s: minus the signal number for
-    one killed by a signal) ended: "exited with status 2", "was killed by SIGSEGV"."""
-    if code >= 0:
-        return f"exited with status {code}"
-    try:
-        return f"was killed by {signal.Signals(-code).name}"
-    except ValueError:
-        return f"was killed by signal {-code}"
 
 
 def _warn_of_version(executable: str, rrd: Path) -> None:

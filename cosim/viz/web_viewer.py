@@ -128,10 +128,11 @@ def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browse
     """Serve ``rrd`` until Ctrl-C (or SIGTERM/SIGHUP); print the one URL that opens it.
 
     A port of 0 picks a free one. Returns 130 after Ctrl-C, 128 + the signal number
-    after SIGTERM/SIGHUP, else the server's exit code.
+    after SIGTERM/SIGHUP, else 0 (the server ended by itself, with status 0).
 
     Raises:
-        CosimError: a port is taken or the server did not start (its last log line).
+        CosimError: a port is taken, or the server did not start or failed while serving
+            (its status or signal and its last log line).
     """
     executable = _binary(executable)
     web_port, file_port = _free_port(web_port, "--web-port"), _free_port(file_port, "--file-port")
@@ -179,9 +180,30 @@ def _serve_until_stopped(
             print(_forward_hint(web_port, file_port), flush=True)
             if open_browser:
                 _open(url)
-            return server.wait()
+            code = server.wait()
+            if code != 0:  # a failed command (1): the server's own status means other things
+                raise CosimError(f"the rerun server {ended(code)} while serving: {_last(log)}")
+            return 0
         finally:
             _end(server)
+
+
+def ended(code: int) -> str:
+    """How a process that returned ``code`` (``subprocess``'s: minus the signal number for
+    one killed by a signal) ended: "exited with status 2", "was killed by SIGSEGV"."""
+    if code >= 0:
+        return f"exited with status {code}"
+    try:
+        return f"was killed by {signal.Signals(-code).name}"
+    except ValueError:
+        return f"was killed by signal {-code}"
+
+
+def _last(log: IO[bytes]) -> str:
+    """The last line the server wrote to ``log``, or "no output"."""
+    log.seek(0)
+    lines = log.read().decode("utf-8", "replace").strip().splitlines()
+    return lines[-1] if lines else "no output"
 
 
 def whole_recording(executable: str, rrd: Path, folder: Path) -> Path:
@@ -318,10 +340,7 @@ def _wait_listening(server: subprocess.Popen, ports: tuple[int, ...], log: Any) 
     waiting = list(ports)
     while waiting:
         if server.poll() is not None:
-            log.seek(0)
-            lines = log.read().decode("utf-8", "replace").strip().splitlines()
-            last = lines[-1] if lines else "no output"
-            raise CosimError(f"the rerun server exited ({server.returncode}): {last}")
+            raise CosimError(f"the rerun server exited ({server.returncode}): {_last(log)}")
         if time.monotonic() > deadline:
             raise CosimError(f"the rerun server did not listen on {waiting} within "
                              f"{START_TIMEOUT:g} s")  # fmt: skip

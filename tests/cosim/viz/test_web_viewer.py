@@ -283,3 +283,46 @@ def test_the_file_server_refuses_another_users_process(tmp_path: Path) -> None:
         connection.request("GET", "/recording.rrd")
         assert connection.getresponse().read() == FAKE_RRD
         connection.close()
+
+
+FAKE_SERVER = """#!{python}
+import os, signal, socket, sys
+if sys.argv[1:] == ["--version"]:
+    print("rerun-cli {version} (native_viewer) [rustc]")
+    sys.exit(0)
+port = int(sys.argv[sys.argv.index("--web-viewer-port") + 1])
+with socket.create_server(("127.0.0.1", port)) as listening:
+    listening.accept()  # the command's check that the page is served
+{ending}
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="the fake server is a script")
+@pytest.mark.parametrize(
+    ("ending", "said"),
+    [("sys.exit(2)", "exited with status 2"),
+     ("os.kill(os.getpid(), signal.SIGSEGV)", "was killed by SIGSEGV")],
+)  # fmt: skip
+def test_a_server_that_fails_while_serving_is_a_failed_command(
+    recording: Path, tmp_path: Path, monkeypatch, capsys, ending: str, said: str
+) -> None:
+    """``view --web`` exited with the rerun server's own status when it ended by itself:
+    2 read as a command line auv-cosim cannot parse, and a server killed by a signal gave
+    -11, which the shell saw as 245. It is a failed command: exit 1, one line naming the
+    server's status or signal."""
+    import rerun as rr
+
+    from cosim.viz import recording as viz_recording
+    from cosim.viz import web_viewer
+
+    fake = tmp_path / "rerun"
+    version = rr.__version__.split("+")[0]
+    fake.write_text(FAKE_SERVER.format(python=sys.executable, version=version, ending=ending))
+    fake.chmod(0o755)
+    monkeypatch.setattr(viz_recording, "rerun_executable", lambda: str(fake))
+    monkeypatch.setattr(web_viewer, "_binary", lambda executable: executable)
+    with deadline(60, "still serving"):
+        code = main(["view", str(recording), "--web", "--web-port", "0", "--file-port", "0"])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1, (code, err)
+    assert f"auv-cosim view: the rerun server {said} while serving" in err, err
