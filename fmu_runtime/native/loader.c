@@ -62,9 +62,10 @@ typedef struct Saved {
     struct Saved *prev, *next; /* does not: its states alive (Instance.states) */
 } Saved;
 #define SAVED_MAGIC 0x4155564cu /* "AUVL" */
-/* A serialised state: magic, phase, time, then the CRC-32 of every byte but its own four,
- * then the backend's bytes. */
-#define SAVED_CRC (sizeof(unsigned) + sizeof(int) + sizeof(double))
+/* A serialised state: magic, phase, time, the FMU that took it (Saved's fmu), then the
+ * CRC-32 of every byte but its own four, then the backend's bytes. */
+#define SAVED_FMU (sizeof(unsigned) + sizeof(int) + sizeof(double))
+#define SAVED_CRC (SAVED_FMU + sizeof(uint32_t))
 #define SAVED_HEADER (SAVED_CRC + sizeof(uint32_t))
 
 /* CRC-32 (IEEE 802.3, zlib's) of ``n`` bytes, continuing from ``crc`` (0 to start). Written
@@ -1093,6 +1094,7 @@ FMI2_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUsta
     memcpy(bytes, &saved->magic, sizeof(unsigned));
     memcpy(bytes + sizeof(unsigned), &saved->phase, sizeof(int));
     memcpy(bytes + sizeof(unsigned) + sizeof(int), &saved->time, sizeof(double));
+    memcpy(bytes + SAVED_FMU, &saved->fmu, sizeof(uint32_t));
     uint32_t crc = state_crc(bytes, needed + SAVED_HEADER);
     memcpy(bytes + SAVED_CRC, &crc, sizeof crc);
     return s;
@@ -1111,6 +1113,7 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
     memcpy(&header.magic, bytes, sizeof(unsigned));
     memcpy(&header.phase, bytes + sizeof(unsigned), sizeof(int));
     memcpy(&header.time, bytes + sizeof(unsigned) + sizeof(int), sizeof(double));
+    memcpy(&header.fmu, bytes + SAVED_FMU, sizeof(uint32_t));
     if (header.magic != SAVED_MAGIC) {
         return refuse(c, "fmi2DeSerializeFMUstate refused: not a state of this FMU");
     }
@@ -1122,6 +1125,10 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
                       "this FMU serialised it (their CRC-32 differs: changed, cut or extended "
                       "since)", size);
     }
+    if (header.fmu != fmu_of(c)) { /* the backend alone may not tell the FMUs apart */
+        return refuse(c, "fmi2DeSerializeFMUstate refused: a state of another FMU (its GUID "
+                      "differs from this FMU's %s)", c->record.guid);
+    }
     Saved *saved = calloc(1, sizeof *saved);
     if (!saved) return refuse(c, "fmi2DeSerializeFMUstate refused: out of memory");
     fmi2Status s = answer(c, c->backend->state_from_bytes(c, bytes + SAVED_HEADER,
@@ -1130,7 +1137,6 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
         free(saved);
         return s;
     }
-    header.fmu = fmu_of(c); /* its bytes passed this FMU's checks: its layout, its slave */
     if (!python_states(STATE_KEEP, saved)) {
         c->backend->discard(c, header.inner);
         free(saved);

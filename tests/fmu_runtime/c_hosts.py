@@ -8,7 +8,8 @@ use them are in this folder's conftest.py):
 * :func:`with_runtime`: a copy of an extraction whose linux64 binary is another build of
   the runtime (``SANITIZERS``: the flags of one built with ASan and UBSan);
 * :func:`sanitized_build`: the runtime and a C host built with those flags
-  (``SANITIZED_ENVIRONMENT``: what their runs need).
+  (``SANITIZED_ENVIRONMENT``: what their runs need); :func:`sanitized_runtime` the runtime
+  alone, and :func:`asan_preload` the ASan library a Python host preloads to load it.
 """
 
 from __future__ import annotations
@@ -73,15 +74,35 @@ def sanitized_build(folder: Path, host: Path, flags: Sequence[str] = ()) -> tupl
     """(runtime.so, host executable) in ``folder``: the runtime and the C host ``host``
     (with ``flags`` besides) built with ASan and UBSan; skips the test without a system
     C compiler (zig's has no sanitizer runtimes here)."""
+    runtime = sanitized_runtime(folder)
+    executable = folder / host.stem
+    command = [*sanitizing_toolchain().command, *SANITIZERS, *flags, "-o", str(executable),
+               str(host), "-ldl", "-lm", "-lpthread"]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return runtime, executable
+
+
+def sanitizing_toolchain() -> native.Toolchain:
+    """The system C compiler; skips the test without one (zig's has no sanitizer runtimes
+    here)."""
     chain = native.toolchain()
     if chain is None or chain.zig:
         pytest.skip("no cc")
-    runtime, executable = folder / "runtime.so", folder / host.stem
-    for command in (
-        native.compile_command(chain, runtime, *SANITIZERS),
-        [*chain.command, *SANITIZERS, *flags, "-o", str(executable), str(host), "-ldl", "-lm",
-         "-lpthread"],
-    ):  # fmt: skip
-        done = subprocess.run(command, capture_output=True, text=True)
-        assert done.returncode == 0, done.stderr[-3000:]
-    return runtime, executable
+    return chain
+
+
+def sanitized_runtime(folder: Path) -> Path:
+    """``folder``/runtime.so: the runtime built with ASan and UBSan."""
+    runtime = folder / "runtime.so"
+    command = native.compile_command(sanitizing_toolchain(), runtime, *SANITIZERS)
+    done = subprocess.run(command, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return runtime
+
+
+def asan_preload() -> str:
+    """The path of the compiler's ASan runtime, for ``LD_PRELOAD`` in a host that was not
+    built with it (a Python interpreter loading the sanitized runtime)."""
+    command = [*sanitizing_toolchain().command, "-print-file-name=libasan.so"]
+    return subprocess.run(command, capture_output=True, text=True, check=True).stdout.strip()

@@ -107,3 +107,37 @@ def test_a_failed_call_returns_error_when_the_hosts_logger_calls_the_fmu_back(
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert report["exit"] == 3, report
     assert "waypoint" in report["errors"], report
+
+
+FOREIGN_BYTES = """
+import json, os, sys
+os.environ["AUV_FMU_RUNTIME"] = sys.argv[3]
+from fmu_harness import Harness, status_of
+
+autopilot = Harness(sys.argv[2], instance="autopilot")
+serialised = autopilot.slave.serializeFMUState(autopilot.slave.getFMUState())
+plant = Harness(sys.argv[1], instance="plant")  # last: fmpy's logger proxy is one per process
+status = status_of(plant.slave.deserializeFMUState, serialised)
+own = plant.slave.serializeFMUState(plant.slave.getFMUState())
+report = {"foreign": status, "own": status_of(plant.slave.deserializeFMUState, own),
+          "errors": plant.messages(3)}
+print(json.dumps(report))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_another_fmus_serialised_state_is_refused_at_deserialisation(
+    runtime, fmu_paths, run_python
+):
+    """The autopilot's serialised state, intact, deserialised by the plant with pythonfmu's
+    binary answered fmi2OK (only its layout, checked by the runtime's own slave, told the
+    FMUs apart): refused now in both runtimes, naming why, while the plant's own bytes
+    still deserialise."""
+    done = run_python(
+        FOREIGN_BYTES, fmu_paths["AuvPlant"], fmu_paths["AuvAutopilot"], RUNTIMES[runtime]
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert (report["foreign"], report["own"]) == (3, 0), report
+    assert "fmi2DeSerializeFMUstate refused" in report["errors"], report["errors"]
