@@ -205,7 +205,7 @@ class FmiMachine(RuleBasedStateMachine):
             assert len(LOG) > start, f"{function} answered {status} with no log line"
         return status
 
-    @rule(target=instances, which=st.integers(0, 1), good_guid=st.booleans(),
+    @rule(target=instances, which=st.integers(0, 2), good_guid=st.booleans(),
           ready=st.sampled_from([True, True, False]))  # fmt: skip
     def instantiate(self, which: int, good_guid: bool, ready: bool):
         """A new instance (at most three alive), initialised at once if ``ready``."""
@@ -266,18 +266,36 @@ class FmiMachine(RuleBasedStateMachine):
         if status == OK:
             instance.phase = after
 
-    @rule(instance=instances, t=TIMES, h=STEPS, contiguous=st.sampled_from([True, True, False]))
-    def do_step(self, instance, t: float, h: float, contiguous: bool):
+    @rule(instance=instances, t=TIMES, h=STEPS, contiguous=st.sampled_from([True, True, False]),
+          final=st.sampled_from([0, 1, 2]))  # fmt: skip
+    def do_step(self, instance, t: float, h: float, contiguous: bool, final: int):
+        """A step from the FMU's time (``contiguous``) or ``t``; ``final`` is
+        noSetFMUStatePriorToCurrentPoint (2: neither fmi2False nor fmi2True)."""
         if not self.live(instance):
             return
         if contiguous:
             time = c_double()
             instance.fmu.dll.fmi2GetRealStatus(instance.pointer, 2, byref(time))
             t = time.value
-        status = self.call(instance.fmu, "fmi2DoStep", instance.pointer, t, h, 0)
+        before = self.reals(instance)
+        status = self.call(instance.fmu, "fmi2DoStep", instance.pointer, t, h, final)
         if status == OK:
             assert instance.phase == "stepping", f"doStep in {instance.phase} answered OK"
             assert math.isfinite(t + h) and h > 0, f"doStep({t}, {h}) answered OK"
+            time = c_double()
+            instance.fmu.dll.fmi2GetRealStatus(instance.pointer, 2, byref(time))
+            assert time.value == t + h, f"doStep({t}, {h}) answered OK, time {time.value}"
+        if status == ERROR and before is not None:
+            after = self.reals(instance)
+            assert after == before, f"doStep({t}, {h}) refused, values {before} -> {after}"
+
+    def reals(self, instance: Instance) -> list[float] | None:
+        """Every Real of ``instance``, or None if they cannot be read (no status checks:
+        the host's own look)."""
+        refs = instance.fmu.refs["Real"]
+        out = (c_double * len(refs))()
+        status = instance.fmu.dll.fmi2GetReal(instance.pointer, array(c_uint, refs), len(refs), out)
+        return list(out) if status == OK else None
 
     @rule(instance=instances, kind=st.sampled_from(sorted(TYPES)), data=st.data())
     def get_values(self, instance, kind: str, data):
