@@ -245,14 +245,15 @@ def substeps(h: float, max_substep: float) -> int:
         raise ValueError(f"step h = {h!r}: expected a finite number of seconds > 0")
     if not (max_substep > 0.0 and math.isfinite(max_substep)):
         raise ValueError(f"max_substep = {max_substep!r}: expected a finite number of s > 0")
-    n = max(1, math.ceil(h / max_substep - 1e-9))
+    ratio = h / max_substep - 1e-9  # inf for a subnormal max_substep or a step near 1e308
+    n: float = max(1, math.ceil(ratio)) if math.isfinite(ratio) else math.inf
     if n > MAX_SUBSTEPS:
         raise ValueError(
             f"a step of {h!r} s takes {n:.3g} sub-steps of at most max_substep = "
             f"{max_substep!r} s: expected at most {MAX_SUBSTEPS} (steps of at most "
             f"{MAX_SUBSTEPS * max_substep:.6g} s, or a longer max_substep)"
         )
-    return n
+    return int(n)
 
 
 def _inputs_at(inputs: np.ndarray, rates: np.ndarray, tau: float) -> np.ndarray:

@@ -304,6 +304,15 @@ def test_a_step_of_more_sub_steps_than_a_host_can_wait_for_is_refused_unstarted(
         advance(lateral, state_vector(dict(u=1.5)), input_vector(thrust=9.0), h, max_substep)
 
 
+@pytest.mark.parametrize(("h", "max_substep"), [(0.1, 5e-324), (1e300, 1e-10)])
+def test_a_step_whose_sub_step_count_overflows_is_refused_saying_why(h, max_substep):
+    """A subnormal max_substep (5e-324 s), or a step so long that h / max_substep is inf,
+    failed the plant's step with "OverflowError: cannot convert float infinity to integer"
+    (found by random FMI call sequences); now the sub-step limit's own reason."""
+    with pytest.raises(ValueError, match=rf"takes inf sub-steps .* at most {MAX_SUBSTEPS}"):
+        substeps(h, max_substep)
+
+
 def test_the_sub_step_limit_admits_its_own_number():
     assert substeps(MAX_SUBSTEPS * 0.01, 0.01) == MAX_SUBSTEPS
     with pytest.raises(ValueError, match=f"expected at most {MAX_SUBSTEPS}"):
