@@ -498,13 +498,13 @@ def replay_found() -> None:
 def main(plant: str, autopilot: str, examples: int, steps: int) -> None:
     """Replay the sequences that found defects, then run the machine ``examples`` times
     of up to ``steps`` calls, derandomised."""
-    folder = Path(tempfile.mkdtemp(prefix="fmi-machine-"))
-    FMUS.extend(load(path, folder) for path in (plant, autopilot))
-    replay_found()
     profile = settings(max_examples=examples, stateful_step_count=steps, deadline=None,
                        database=None, derandomize=True, print_blob=True,
                        suppress_health_check=list(HealthCheck))  # fmt: skip
-    run_state_machine_as_test(FmiMachine, settings=profile)
+    with tempfile.TemporaryDirectory(prefix="fmi-machine-") as folder:
+        FMUS.extend(load(path, Path(folder)) for path in (plant, autopilot))
+        replay_found()
+        run_state_machine_as_test(FmiMachine, settings=profile)
     for (function, status), count in sorted(ANSWERS.items()):
         print(f"{function} {status} {count}")
     print("fuzz: ok", flush=True)
