@@ -135,11 +135,37 @@ class VehicleParameters(CheckedRecord):
                 "M_RB + M_A overflows: its entries are beyond any double (check m, the "
                 "inertias and the added masses for values like 1e308)"
             )
+        self._check_parallel_axis()
         eigenvalues = np.linalg.eigvalsh(symmetric)
         if eigenvalues.min() <= 0.0:
             raise ValueError(
                 f"M_RB + M_A must be positive definite, but its smallest eigenvalue is "
                 f"{eigenvalues.min():.6g} (check a26, a35, x_g, z_g against the inertias)"
+            )
+
+    def _check_parallel_axis(self) -> None:
+        """Refuse a rigid body no material makes: its inertia about the body origin (the
+        CB) is its inertia about the CG, positive definite, plus the parallel-axis share of
+        the CG's offset r_g = (x_g, 0, z_g), m (|r_g|^2 - r_g r_g^T) in kg m^2; so M_RB is
+        positive definite (the added mass must not be what makes M_RB + M_A so)."""
+        x_g, z_g = self.x_g, self.z_g  # products, not powers: no OverflowError past 1e154
+        shares = (("I_xx", "m z_g^2", self.m * z_g * z_g),
+                  ("I_yy", "m (x_g^2 + z_g^2)", self.m * (x_g * x_g + z_g * z_g)),
+                  ("I_zz", "m x_g^2", self.m * x_g * x_g))  # fmt: skip
+        for name, what, share in shares:
+            value = getattr(self, name)
+            if not value > share:
+                raise ValueError(
+                    f"{name} = {value!r} kg m^2: expected more than {what} = {share:.4g} "
+                    "kg m^2 (the inertia about the CB is the inertia about the CG plus "
+                    "this, by the parallel-axis theorem)"
+                )
+        roll, yaw = self.I_xx - shares[0][2], self.I_zz - shares[2][2]
+        if not roll * yaw > (self.m * x_g * z_g) * (self.m * x_g * z_g):
+            raise ValueError(
+                f"I_xx = {self.I_xx!r}, I_zz = {self.I_zz!r} kg m^2 with x_g = {self.x_g!r}, "
+                f"z_g = {self.z_g!r} m: expected an inertia about the CG that is positive "
+                "definite ((I_xx - m z_g^2)(I_zz - m x_g^2) > (m x_g z_g)^2)"
             )
 
     def _check_inside_hull(self) -> None:

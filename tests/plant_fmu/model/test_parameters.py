@@ -173,6 +173,28 @@ def test_a_part_placed_outside_the_hull_is_refused(change, expected):
         load_vehicle().replace(**change)
 
 
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        # m z_g^2 = 30.5 * 0.0196^2 = 0.0117 kg m^2; a44 = 0.0704 made M_RB + M_A definite
+        ({"I_xx": 0.005}, r"I_xx = 0\.005 kg m\^2: expected more than m z_g\^2 = 0\.01172"),
+        ({"x_g": 0.5, "I_yy": 9.0}, r"I_zz = 3\.45 kg m\^2: expected more than m x_g\^2 = 7\.625"),
+        (
+            {"x_g": 0.34, "I_zz": 5.0},
+            r"I_yy = 3\.45 kg m\^2: expected more than m \(x_g\^2 \+ z_g\^2\) = 3\.538",
+        ),
+    ],
+)
+def test_a_rigid_body_inertia_below_the_parallel_axis_share_is_refused(change, expected):
+    """The inertias about the body origin (the CB) of a body whose CG lies r_g from it are
+    at least m times the CG's squared distance from the axis (the parallel-axis theorem):
+    M_RB is positive definite. A set below that was taken whenever the added mass made
+    M_RB + M_A positive definite, so a mistyped roll inertia ran as a body no material
+    makes."""
+    with pytest.raises(VehicleParameterError, match=expected):
+        load_vehicle().replace(**change)
+
+
 def test_parts_at_the_hull_are_taken():
     p = load_vehicle()
     p.replace(x_v=-p.length, z_t=p.diameter / 2)
