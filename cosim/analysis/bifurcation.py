@@ -438,7 +438,7 @@ class _Continuation:
             # The stroke is a stop the mass at rest never touches inside the range; widen
             # it so the predictor may overshoot the range's ends (checked by the caller).
             stroke = 2.0 * max(abs(low), abs(high), base.params.mass_stroke)
-            base = replace(base, params=base.params.replace(mass_stroke=stroke))
+            base = replace(base, params=base.params.with_stroke(stroke))
         self.scale = high - low
         self.low, self.high = low / self.scale, high / self.scale
         if self.low > self.high:

@@ -146,7 +146,7 @@ def _single_equilibrium(y_g_cm: float, ctx: Context) -> Finding:
     stop = ""
     if abs(y_v) > vehicle.mass_stroke:  # Sec. 5.1.4's offset has no stop: lift ours to reach it
         stop = f"; y_v = {100 * y_v:.3f} cm, our stop moved out to it"
-        vehicle = vehicle.replace(mass_stroke=abs(y_v))
+        vehicle = vehicle.with_stroke(abs(y_v))
     eqs = find_equilibria(OperatingConditions(vehicle, Variant.LATERAL, mass_position=y_v))
     estimate = math.degrees(math.atan(y_g_cm / 100 / vehicle.z_g))
     shown = ", ".join(f"phi = {math.degrees(e.value('roll')):.1f} deg, {stability(e)}" for e in eqs)

@@ -539,7 +539,7 @@ class PlantModel:
         """This plant with the rail's stops out of reach: the two-body stepping integrates
         with it up to the moment the mass arrives at a stop (before that, stage states that
         touch the stop must not be held there)."""
-        params = self.params.replace(mass_stroke=1e9)  # m: a rail no mass reaches the end of
+        params = self.params.with_stroke(1e9)  # m: a rail no mass reaches the end of
         return replace(self, params=params)
 
     def current_change_velocity_jump(self, x: np.ndarray, delta_current: np.ndarray) -> np.ndarray:

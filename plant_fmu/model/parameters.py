@@ -206,6 +206,33 @@ class VehicleParameters(CheckedRecord):
         """A validated copy with some fields changed (``p.replace(W=306.0, z_g=0.0)``)."""
         return _validate({**self.as_dict(), **changes}, source=f"{self.name} (modified)")
 
+    def with_stroke(self, stroke: float) -> VehicleParameters:
+        """A copy whose rail stops are at ``stroke`` (m), checked as any field but allowed
+        beyond the hull: the model's own what-if of a stop out of the mass's reach (the
+        two-body stepping before a stop, a continuation past the stroke), which no
+        vehicle file or written-over value may give (:func:`check_rail_in_hull`)."""
+        values = {**self.as_dict(), "mass_stroke": stroke}
+        try:
+            return VehicleParameters.from_mapping(values)
+        except VehicleParameterError as exc:
+            raise VehicleParameterError(f"vehicle {self.name + ' (modified)'!r}: {exc}") from None
+
+
+def check_rail_in_hull(params: VehicleParameters) -> None:
+    """Refuse a set whose moving mass's stops are outside the hull: the rail runs along
+    body y across a hull of ``diameter``, so ``mass_stroke`` (m) is at most its radius.
+
+    Raises:
+        VehicleParameterError: naming ``mass_stroke``, its value and the bound.
+    """
+    radius = params.diameter / 2
+    if not params.mass_stroke <= radius:
+        raise VehicleParameterError(
+            f"mass_stroke = {params.mass_stroke!r} m: expected mass_stroke <= diameter / 2 "
+            f"= {radius:.4g} m (the moving mass slides across the hull on a rail along body "
+            "y, and its stops are inside the hull)"
+        )
+
 
 def vehicle_folder(package_root: str | Path | None = None) -> Path:
     """The folder of the built-in parameter sets (``plant_fmu/model/vehicles``).
@@ -356,7 +383,11 @@ def _flatten(table: dict[str, Any], source: str) -> dict[str, Any]:
 
 
 def _validate(values: dict[str, Any], source: str) -> VehicleParameters:
+    """The set of ``values`` as given (a file, a name, text or written-over values),
+    checked as a whole, its rail inside its hull; errors name ``source``."""
     try:
-        return VehicleParameters.from_mapping(values)
+        params = VehicleParameters.from_mapping(values)
+        check_rail_in_hull(params)
+        return params
     except VehicleParameterError as exc:
         raise VehicleParameterError(f"vehicle {source!r}: {exc}") from None

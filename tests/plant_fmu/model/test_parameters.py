@@ -195,6 +195,30 @@ def test_a_rigid_body_inertia_below_the_parallel_axis_share_is_refused(change, e
         load_vehicle().replace(**change)
 
 
+def test_a_moving_mass_stroke_beyond_the_hull_is_refused(tmp_path: Path):
+    """The moving mass slides across the hull on a rail along body y, so its stops are
+    inside the hull: |y_v| <= mass_stroke <= diameter / 2. A vehicle file with a 5 m stroke
+    across a 19 cm hull was taken, and the autopilot could swing the mass 5 m out to roll
+    the vehicle with a lever arm it does not have."""
+    wide = tmp_path / "wide.toml"
+    wide.write_text('base = "remus100"\nname = "wide"\n[moving_mass]\nmass_stroke = 5.0\n')
+    expected = r"mass_stroke = 5\.0 m: expected mass_stroke <= diameter / 2 = 0\.0955 m"
+    with pytest.raises(VehicleParameterError, match=rf"vehicle '.*wide\.toml': {expected}"):
+        load_vehicle(wide)
+    with pytest.raises(VehicleParameterError, match=expected):
+        load_vehicle().replace(mass_stroke=5.0)
+    assert load_vehicle().replace(mass_stroke=0.0955).mass_stroke == 0.0955
+
+
+def test_the_model_may_still_move_the_stops_out_of_reach():
+    """The model's own what-ifs (the two-body stepping before a stop, a continuation past
+    the stroke) put the stops beyond the hull: a set no vehicle file may give."""
+    p = load_vehicle()
+    assert p.with_stroke(1e9).mass_stroke == 1e9
+    with pytest.raises(VehicleParameterError, match=r"mass_stroke = -1\.0"):
+        p.with_stroke(-1.0)
+
+
 def test_parts_at_the_hull_are_taken():
     p = load_vehicle()
     p.replace(x_v=-p.length, z_t=p.diameter / 2)
