@@ -2,7 +2,8 @@
 meant: its laws designed for another vehicle than the plant's, or for another speed than
 the thrust it sends drives the plant at, a gain given to a law the scenario never runs, or
 a law designed for its command held over each step (the LQR, the sampled sliding mode)
-whose command the coupling extrapolates.
+whose command the coupling extrapolates, or a moving-mass command limit short of the
+plant's rail.
 
 The autopilot designs its heading laws on its own ``vehicle`` parameter set
 (:class:`controller_fmu.lateral_model.LateralDesignModel`), not on the plant's: a scenario
@@ -44,6 +45,9 @@ def design_doubts(scenario: Scenario, live: bool = False) -> list[str]:
     for name, autopilot in _instances(scenario, AUTOPILOT).items():
         found += [_vehicle_doubt(name, autopilot, p, plant) for p, plant in plants.items()]
         found += [_speed_doubt(scenario, name, autopilot, p, plant) for p, plant in plants.items()]
+        found += [
+            _command_limit_doubt(scenario, name, autopilot, p, plant) for p, plant in plants.items()
+        ]
         found.append(_extrapolated_command_doubt(scenario, name, autopilot))
         found.append(_pitch_doubt(scenario, name, autopilot, plants))
         if not live:
@@ -163,6 +167,28 @@ def _speed_doubt(
         f"{name}.design_speed = {design!r} m/s but its thrust_command = {thrust!r} N drives "
         f"{plant_name} straight at {speed:.4g} m/s: its laws are designed for another speed "
         f"than they steer at; set design_speed = {speed:.4g}, unless the mismatch is meant"
+    )
+
+
+def _command_limit_doubt(
+    scenario: Scenario, name: str, autopilot: Instance, plant_name: str, plant: Instance
+) -> str:
+    """The warning if a heading law of ``name`` runs with a moving-mass command limit (m)
+    short of the stroke of ``plant_name``'s vehicle ('' if not): the autopilot never uses
+    the rail's ends, and its default limit is REMUS 100's stroke, whatever the vehicle."""
+    if not _heading_modes(scenario, name, autopilot) - {HeadingMode.OFF}:
+        return ""
+    limit = float(_start(autopilot, "mass_position_cmd_limit"))
+    stroke = plant_parameters(plant).mass_stroke
+    if limit >= stroke:
+        return ""
+    default = (
+        "" if "mass_position_cmd_limit" in autopilot.start else " (its default, REMUS 100's stroke)"
+    )
+    return (
+        f"{name}.mass_position_cmd_limit = {limit:g} m{default} is short of {plant_name}'s "
+        f"mass_stroke = {stroke:g} m: the autopilot never moves the mass past {limit:g} m of "
+        f"its {stroke:g} m rail; set mass_position_cmd_limit = {stroke:g}, unless that is meant"
     )
 
 

@@ -227,3 +227,25 @@ def test_a_gain_faster_than_the_autopilot_samples_is_named(fmu_paths: dict[str, 
     sampled = bs3.with_start({"controller.k1": 150.0, "controller.sample_period": 0.05})
     (line,) = design_doubts(sampled)
     assert "acting every 0.05 s: k1 * 0.05 s = 7.5, past 2" in line, line
+
+
+def test_a_mass_command_limit_short_of_the_vehicles_stroke_is_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """bs-3 on a vehicle of a 9 cm stroke ran without a word with the autopilot's default
+    mass_position_cmd_limit, REMUS 100's 6 cm: the autopilot never moved the mass past
+    6 cm, a third of its rail unused, whatever vehicle it was given."""
+    wide = tmp_path / "wide-rail.toml"
+    wide.write_text('base = "remus100"\nname = "wide-rail"\n[moving_mass]\nmass_stroke = 0.09\n')
+    vehicle = {"plant.vehicle": str(wide), "controller.vehicle": str(wide)}
+    bs3 = _load(fmu_paths, "bs-3").with_start(vehicle)
+    assert design_doubts(bs3) == [
+        "controller.mass_position_cmd_limit = 0.06 m (its default, REMUS 100's stroke) is "
+        "short of plant's mass_stroke = 0.09 m: the autopilot never moves the mass past "
+        "0.06 m of its 0.09 m rail; set mass_position_cmd_limit = 0.09, unless that is meant"
+    ]
+    assert design_doubts(bs3.with_start({"controller.mass_position_cmd_limit": 0.09})) == []
+    assert design_doubts(bs3.with_start({"controller.heading_mode": "off"})) == []
+    given = bs3.with_start({"controller.mass_position_cmd_limit": 0.05})
+    (line,) = design_doubts(given)
+    assert line.startswith("controller.mass_position_cmd_limit = 0.05 m is short of"), line
