@@ -74,12 +74,13 @@ def given_values(scenario: Scenario, faults: bool = True) -> Iterator[tuple[str,
 
 def stroke_doubts(scenario: Scenario) -> list[str]:
     """One line for each moving-mass command or start position of a plant (``AuvPlant``)
-    beyond the mass's stroke (its vehicle set's ``mass_stroke``): the rail stops hold the
-    mass there, so 6 for 6 cm runs as the 0.06 m stop, reached faster."""
-    from plant_fmu.model.parameters import load_vehicle
+    beyond the mass's stroke (the ``mass_stroke`` of the set it runs: its vehicle set's, or
+    the value written over it): the rail stops hold the mass there, so 6 for 6 cm runs as
+    the 0.06 m stop, reached faster."""
+    from cosim.scenario.spec import plant_vehicle
 
     strokes = {
-        name: load_vehicle(str(scenario.start_value(name, "vehicle"))).mass_stroke
+        name: plant_vehicle(str(scenario.start_value(name, "vehicle")), inst.start).mass_stroke
         for name, inst in scenario.instances.items()
         if inst.interface.model_identifier == "AuvPlant"
     }

@@ -157,6 +157,19 @@ def test_an_acceptance_radius_as_long_as_a_leg_is_named_and_the_run_warns(
     assert len(lines) == 1 and "leg 1 (50 m, waypoint 1 -> 2) and 6 more" in lines[0]
 
 
+def test_a_command_beyond_a_written_over_stroke_is_named(fmu_paths: dict[str, Path]) -> None:
+    """The turning circle's 6 cm command on a plant whose mass_stroke is written over to
+    3 cm ran without a word: the stroke was read from the vehicle set, not from the set
+    the plant runs, so the command held at the 3 cm stop went unremarked."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    turn = cosim.load_scenario("turning-circle", fmu_dir=fmu_dir)
+    (line,) = stroke_doubts(turn.with_start({"plant.mass_stroke": 0.03}))
+    assert line.startswith(
+        "instances.plant.start.mass_position_cmd = 0.06 m is beyond the moving mass's stroke "
+        "of 0.03 m"
+    ), line
+
+
 def test_a_moving_mass_command_in_centimetres_is_named(
     fmu_paths: dict[str, Path], tmp_path: Path
 ) -> None:
