@@ -68,6 +68,7 @@ from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import (
     COUPLING_ERROR,
     Base,
+    Doubts,
     RunRecord,
     check_values,
     prepare,
@@ -500,10 +501,18 @@ def _checked_plan(
     _check_sample_ranges(spec, factors, facts, runs)
     if spec.random.factors:
         first = runs[0].values
-        doubts += check_values(base, factors, {name: first[name] for name in spec.random.factors})
-        doubts += _sample_doubts(spec, base, runs)
-    unit_doubts.warn(doubts)  # once each, in the main process (its runs go without)
+        found = check_values(base, factors, {name: first[name] for name in spec.random.factors})
+        _add_doubts(doubts, found)
+        _add_doubts(doubts, {unit_doubts.UnitWarning: _sample_doubts(spec, base, runs)})
+    for category, lines in doubts.items():  # once each, in the main process (its runs
+        unit_doubts.warn(lines, category)  # go without)
     return runs
+
+
+def _add_doubts(doubts: Doubts, more: Doubts) -> None:
+    """Append ``more``'s lines to ``doubts``, category by category."""
+    for category, lines in more.items():
+        doubts.setdefault(category, []).extend(lines)
 
 
 def _check_random_kinds(
@@ -559,14 +568,15 @@ def _check_sample_ranges(
             )
 
 
-def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: StudySpec) -> list[str]:
+def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: StudySpec) -> Doubts:
     """Every grid value through the scenario's own checks (type, finite); what looks like
-    a slip of units in the scenario with each."""
-    doubts = []
+    a slip of units in the scenario with each, or a design not fit for it
+    (:func:`cosim.study.task.check_values`)."""
+    doubts: Doubts = {}
     for name, values in spec.grid.items():
         for value in values:
             normal = factors[name].normalize(value)
-            doubts += check_values(base, {name: factors[name]}, {name: normal})
+            _add_doubts(doubts, check_values(base, {name: factors[name]}, {name: normal}))
     return doubts
 
 

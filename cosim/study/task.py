@@ -36,10 +36,11 @@ from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
 from cosim.runner import run_scenario
+from cosim.scenario.design_doubts import DesignWarning, design_doubts
 from cosim.scenario.mission_doubts import mission_doubts
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
 from cosim.scenario.timeline_spec import unreached
-from cosim.scenario.unit_doubts import doubts
+from cosim.scenario.unit_doubts import UnitWarning, doubts
 from cosim.scratch import process_folder
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
@@ -149,14 +150,22 @@ def referenced_files(scenario: Scenario) -> dict[str, str]:
     return found
 
 
+Doubts = dict[type[UserWarning], list[str]]
+"""Warning lines by the category a study warns them as (once each, before its runs)."""
+
+
 def check_values(
     base: Base, factors: Mapping[str, FactorKind], values: Mapping[str, Value]
-) -> list[str]:
+) -> Doubts:
     """Resolve the scenario with these values (no run): :class:`StudyError` if the
-    scenario's own checks refuse one (a wrong type, a non-finite number). Returns what
-    looks like a slip of units in it (:func:`cosim.scenario.unit_doubts.doubts`), the
-    mission it cannot fly (:func:`cosim.scenario.mission_doubts.mission_doubts`) and the
-    events and faults the run ends before (:func:`cosim.scenario.timeline_spec.unreached`)."""
+    scenario's own checks refuse one (a wrong type, a non-finite number). Returns, as
+    :class:`~cosim.scenario.unit_doubts.UnitWarning` lines, what looks like a slip of units
+    in it (:func:`cosim.scenario.unit_doubts.doubts`), the mission it cannot fly
+    (:func:`cosim.scenario.mission_doubts.mission_doubts`) and the events and faults the
+    run ends before (:func:`cosim.scenario.timeline_spec.unreached`); and as
+    :class:`~cosim.scenario.design_doubts.DesignWarning` lines an autopilot design that
+    does not fit the plant (:func:`cosim.scenario.design_doubts.design_doubts`: an
+    autopilot designed for another vehicle than a plant parameter varied, say)."""
     try:
         scenario = _scenario(base, base.fmu_paths, factors, values)
     except CosimError as exc:
@@ -165,7 +174,10 @@ def check_values(
     late = unreached(
         scenario.events, scenario.faults, scenario.stop_time, coupling.step, points_step(coupling)
     )
-    return doubts(scenario) + mission_doubts(scenario) + late
+    return {
+        UnitWarning: doubts(scenario) + mission_doubts(scenario) + late,
+        DesignWarning: design_doubts(scenario),
+    }
 
 
 def run_one(

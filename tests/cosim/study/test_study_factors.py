@@ -238,3 +238,29 @@ def test_the_page_names_each_random_law_with_its_parameters_and_unit() -> None:
         "controller.k0 ~ uniform on [0.2, 0.5) 1/s; plant.yaw_0 ~ normal, mean 0.0, std 0.1 "
         "rad; plant.m ~ normal, mean 30.0, std 1.25; n = 3, seed = 11, random"
     )
+
+
+def test_a_study_of_a_plant_parameter_warns_the_autopilot_designs_for_another(
+    bs3: tuple[Base, ScenarioFacts],
+) -> None:
+    """A sweep of plant.m_v over bs-3 ran every run without a word, the autopilot's laws
+    designed for remus100's 5.08 kg moving mass whatever the plant's (a run of the same
+    scenario warns of it): the study now warns once before its first run, as a run does."""
+    import warnings
+
+    from cosim.scenario.design_doubts import DesignWarning
+    from cosim.study.runner import _checked_plan
+
+    base, facts = bs3
+    spec = study_from_dict({"scenario": "bs-3", "grid": {"plant.m_v": [3.0, 8.0]}}, "m_v")
+    factors = {"plant.m_v": resolve_factor("plant.m_v", facts)}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        runs = _checked_plan(spec, base, factors, facts)
+    assert len(runs) == 2
+    lines = [str(w.message) for w in caught if issubclass(w.category, DesignWarning)]
+    assert [line.split(": the sets differ in ")[1].split(";")[0] for line in lines] == [
+        "m_v 3.0 vs 5.083333333333333",
+        "m_v 8.0 vs 5.083333333333333",
+    ], lines
+    assert lines[0].startswith("plant runs vehicle 'remus100' with m_v written over"), lines
