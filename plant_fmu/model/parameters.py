@@ -386,8 +386,28 @@ def _validate(values: dict[str, Any], source: str) -> VehicleParameters:
     """The set of ``values`` as given (a file, a name, text or written-over values),
     checked as a whole, its rail inside its hull; errors name ``source``."""
     try:
+        _check_some_parameter(values)
         params = VehicleParameters.from_mapping(values)
         check_rail_in_hull(params)
         return params
     except VehicleParameterError as exc:
         raise VehicleParameterError(f"vehicle {source!r}: {exc}") from None
+
+
+_KEYS_SHOWN = 5  # keys a refusal of a file that is no vehicle set names
+
+
+def _check_some_parameter(values: dict[str, Any]) -> None:
+    """Refuse a table none of whose keys is a vehicle parameter (a scenario or study file
+    given as a vehicle) in a short line, not as each of its keys unknown and each
+    parameter missing."""
+    physical = set(VehicleParameters.field_info()) - {"name", "description"}
+    if physical & set(values):
+        return
+    keys = list(values)
+    shown = ", ".join(keys[:_KEYS_SHOWN]) + (", ..." if len(keys) > _KEYS_SHOWN else "")
+    raise VehicleParameterError(
+        f"no vehicle parameter set: none of its keys ({shown or 'none'}) is a vehicle "
+        "parameter: expected keys m, W, B, ... as in plant_fmu/model/vehicles/remus100.toml "
+        "(docs/model.md#parameters)"
+    )

@@ -235,6 +235,23 @@ def test_unknown_and_missing_keys_are_named(tmp_path: Path):
         load_vehicle(partial)
 
 
+def test_a_file_that_is_no_vehicle_set_is_named_so_in_a_short_line(tmp_path: Path):
+    """A scenario file given as a vehicle (its path typed in the wrong place) was refused in
+    a line of some 3000 characters: every key of the scenario as unknown, with its whole
+    value, then each of the 48 parameters as missing."""
+    scenario = (ROOT / "cosim" / "scenarios" / "lqr-1.toml").read_text(encoding="utf-8")
+    wrong = tmp_path / "lqr-1.toml"
+    wrong.write_text(scenario, encoding="utf-8")
+    with pytest.raises(VehicleParameterError) as info:
+        load_vehicle(wrong)
+    message = str(info.value)
+    assert message.startswith(
+        f"vehicle {str(wrong)!r}: no vehicle parameter set: none of its keys (summary, "
+        "stop_time, step, "
+    ), message
+    assert "is missing" not in message and len(message) < 400, message
+
+
 def test_unknown_vehicle_lists_the_known_sets():
     with pytest.raises(
         VehicleParameterError, match=r"unknown vehicle 'remus600'.*remus100-printed"
