@@ -910,7 +910,7 @@ def _resolve_instance(
                 f"{list(BUILTIN_FMUS)} nor an existing file (looked for {fmu_path})",
             )
         fmu_ref = str(fmu_path)
-    interface = _interface(fmu_path)
+    interface = _interface(fmu_path, f"instances.{name}.fmu", src)
     if interface.model_identifier is None:
         raise src.error(f"instances.{name}.fmu", f"{fmu_path}: {NOT_COSIMULATION}")
     if interface.fmi_version != "2.0":
@@ -1338,9 +1338,10 @@ def _builtin_fmu(name: str, fmu_dir: Path) -> Path:
     return build_fmu(name, fmu_dir)
 
 
-def _interface(path: Path) -> FmuInterface:
-    """The FMU's interface (:func:`cosim.fmus.interface.read_interface`, cached)."""
+def _interface(path: Path, key: str, src: Source) -> FmuInterface:
+    """The FMU's interface (:func:`cosim.fmus.interface.read_interface`, cached); a file
+    that is no FMU (a vehicle set given as one, say) refused naming ``key``."""
     try:
         return read_interface(path)
     except FmuInterfaceError as exc:
-        raise ScenarioError(str(exc)) from None
+        raise src.error(key, str(exc)) from None

@@ -122,7 +122,8 @@ def test_an_fmu_of_another_fmi_version_is_named_in_one_line_as_a_run_names_it(
         encoding="utf-8",
     )
     assert main(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-rrd"]) == 1
-    assert capsys.readouterr().err == f"auv-cosim run: {line}\n"
+    where = f"scenario file {scenario}: key 'instances.v.fmu'"  # as a missing FMU is named
+    assert capsys.readouterr().err == f"auv-cosim run: {where}: {line}\n"
 
 
 def test_files_and_a_folder_of_built_fmus_are_not_asked_for_together(tmp_path, capsys):

@@ -404,6 +404,24 @@ def test_bad_scenario_fails_before_loading_naming_the_key(
     assert str(info.value).startswith(f"scenario file {path}: ")
 
 
+def test_a_file_that_is_no_fmu_given_as_an_instance_s_fmu_names_the_key(
+    fmu_dir: Path, tmp_path: Path, no_fmu_loading: None
+) -> None:
+    """A vehicle file typed as the autopilot's fmu (meant for its start.vehicle) was refused
+    as "my-auv.toml: not a valid FMU: File is not a zip file", naming neither the scenario
+    file nor its key, where a missing file names both."""
+    vehicle = tmp_path / "my-auv.toml"
+    vehicle.write_text('base = "remus100"\n')
+    path = tmp_path / "wrong.toml"
+    path.write_text(BS3.replace('fmu = "AuvAutopilot"', 'fmu = "my-auv.toml"', 1))
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, fmu_dir=fmu_dir)
+    assert str(info.value) == (
+        f"scenario file {path}: key 'instances.controller.fmu': {vehicle}: not a valid FMU: "
+        "File is not a zip file"
+    )
+
+
 def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
     path = tmp_path / "broken.toml"
     path.write_text("stop_time = = 3\n")
