@@ -47,11 +47,15 @@ Steps for one FMU (:func:`build_fmu`):
    every shipped file, this module and pythonfmu's version, an ``fmu`` line, the hash of
    the built file itself, and a ``date`` line, ``SOURCE_DATE_EPOCH`` or ``none``.
    :func:`ensure_fmus` rebuilds when the sources or that date changed, and when the FMU
-   fails that integrity check (a truncated or edited file is never used).
+   fails that integrity check (a truncated or edited file is never used). Both files are
+   written under the FMU's lock (:func:`fmu_lock`, ``.<Name>.fmu.lock`` beside it): a
+   process that finds the FMU out of date waits for another one building it, then uses
+   what that one built.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import importlib.metadata
@@ -64,10 +68,13 @@ import sys
 import tempfile
 import uuid
 import zipfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 from xml.etree import ElementTree as ET
+
+import locket
 
 from cosim.errors import CosimError, unmade_folder
 from cosim.fmus import bytecode, native, reproducible, staging
@@ -176,7 +183,8 @@ def _check_out_dir(name: str, out_dir: Path) -> None:
 
 def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     """Build the FMU ``name`` (a key of :data:`FMUS`) into ``out_dir`` if it is missing, out
-    of date or ``force``; return its path."""
+    of date or ``force``; return its path. Another process building it into the same
+    folder is waited for (:func:`fmu_lock`), and what it built used."""
     if name not in FMUS:
         raise CosimError(f"unknown FMU {name!r}: expected one of {sorted(FMUS)}")
     out_dir = Path(out_dir)
@@ -188,13 +196,55 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     digest = source_hash(files)
     if not force and _is_intact(target, hash_file, digest):
         return target
-    if not force and os.path.lexists(target) and not hash_file.exists():
-        raise CosimError(
-            f"cannot build {name}.fmu into {out_dir}: {target} is not a file a build wrote "
-            f"(no {hash_file.name} beside it), so it is left as it is; move it away, name "
-            f"another FMU folder, or replace it with `auv-cosim build --out {out_dir} --force`"
-        )
     _check_out_dir(name, out_dir)
+    with fmu_lock(name, out_dir):
+        if not force and _is_intact(target, hash_file, digest):
+            return target  # another process built it while this one waited
+        if not force and os.path.lexists(target) and not hash_file.exists():
+            raise CosimError(
+                f"cannot build {name}.fmu into {out_dir}: {target} is not a file a build "
+                f"wrote (no {hash_file.name} beside it), so it is left as it is; move it "
+                f"away, name another FMU folder, or replace it with "
+                f"`auv-cosim build --out {out_dir} --force`"
+            )
+        _build(name, files, digest, target)
+        record = f"source {digest}\nfmu {file_hash(target)}\ndate {reproducible.stamp()}\n"
+        write_whole(hash_file, lambda tmp: tmp.write_text(record))
+    return target
+
+
+@contextlib.contextmanager
+def fmu_lock(name: str, out_dir: Path) -> Iterator[None]:
+    """Hold the lock of ``out_dir``'s ``<name>.fmu`` (the file ``.<name>.fmu.lock`` beside
+    it, ``flock``: released by the system if the process dies) while a build writes the
+    FMU and its hash file or a check reads both; waits, saying so once, while another
+    process holds it. Raises OSError if the lock file cannot be made (a read-only
+    folder)."""
+    path = str(out_dir / f".{name}.fmu.lock")
+    lock = locket.lock_file(path, timeout=0)
+    try:
+        lock.acquire()
+    except locket.LockError:
+        _waiting(name, out_dir)
+        lock = locket.lock_file(path)  # blocks until the other process is done
+        lock.acquire()
+    try:
+        yield
+    finally:
+        lock.release()
+
+
+def _waiting(name: str, out_dir: Path) -> None:
+    """Say that another process is building ``name`` into ``out_dir`` and this one waits."""
+    print(
+        f"auv-cosim build: waiting for another process building {name}.fmu in {out_dir}",
+        file=sys.stderr,
+    )
+
+
+def _build(name: str, files: dict[str, Path], digest: str, target: Path) -> None:
+    """Build ``name`` from the shipped ``files`` (their hash ``digest``) in a temporary
+    folder, check it and install it at ``target``."""
     with tempfile.TemporaryDirectory(prefix=f"build_{name}_") as tmp:
         stage, dest = Path(tmp) / "stage", Path(tmp) / "out"
         shipped = {relative: source.read_bytes() for relative, source in files.items()}
@@ -216,8 +266,6 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
         if problems:
             raise CosimError(f"{name}.fmu failed validation: " + "; ".join(problems))
         _install(built, target)
-    hash_file.write_text(f"source {digest}\nfmu {file_hash(target)}\ndate {reproducible.stamp()}\n")
-    return target
 
 
 def _install(built: Path, target: Path) -> None:

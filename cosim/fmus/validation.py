@@ -23,6 +23,7 @@ dependencies are not asked of an FMU nobody here wrote. Checks per built FMU:Che
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import shlex
@@ -42,7 +43,7 @@ def validate_folder(fmu_dir: Path) -> list[str]:
         CosimError: ``fmu_dir`` is not a folder.
     """
     from cosim.errors import CosimError
-    from cosim.fmus.build import FMUS, HASH_SUFFIX, file_hash, recorded_hashes
+    from cosim.fmus.build import FMUS, HASH_SUFFIX
 
     fmu_dir = Path(fmu_dir)
     build = f"auv-cosim build --out {shlex.quote(str(fmu_dir))}"  # a command to paste
@@ -54,13 +55,25 @@ def validate_folder(fmu_dir: Path) -> list[str]:
         if not path.is_file():
             problems.append(f"{name}: {path} does not exist (`{build}`)")
             continue
-        recorded = recorded_hashes(path.with_name(path.name + HASH_SUFFIX)).get("fmu")
-        if recorded is not None and recorded != file_hash(path):
+        if not _as_built(name, path):
             problems.append(
                 f"{name}: {path} is not the file the build wrote (its SHA-256 differs from "
                 f"{path.name}{HASH_SUFFIX}): damaged or replaced; `{build} --force` rebuilds it"
             )
     return problems or validate_fmus(paths)
+
+
+def _as_built(name: str, path: Path) -> bool:
+    """``path`` (the FMU ``name``) is the file its hash file names, or has no hash file;
+    read under the folder's build lock, so a build installing a new FMU and then its hash
+    file is waited for (a folder where no lock can be made is read as it is)."""
+    from cosim.fmus.build import HASH_SUFFIX, file_hash, fmu_lock, recorded_hashes
+
+    with contextlib.ExitStack() as held:
+        with contextlib.suppress(OSError):  # a read-only folder: nothing builds there
+            held.enter_context(fmu_lock(name, path.parent))
+        recorded = recorded_hashes(path.with_name(path.name + HASH_SUFFIX)).get("fmu")
+        return recorded is None or recorded == file_hash(path)
 
 
 def validate_fmus(paths: dict[str, Path]) -> list[str]:
