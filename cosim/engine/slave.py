@@ -20,6 +20,7 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+from xml.etree import ElementTree
 
 import numpy as np
 from fmpy import calloc, free
@@ -69,6 +70,7 @@ class Slave:
         self.state = "new"
         self.messages: collections.deque[str] = collections.deque(maxlen=LOG_LINES_KEPT)
         self.logged = 0  # messages logged (warning or worse), those left out of messages too
+        _check_same_fmu(instance, unzip_dir)
         self._key = (str(unzip_dir), md.coSimulation.modelIdentifier, md.guid, instance.name)
         self.fmu = _library(self._key)
         # the instance's fmi2Component for the hot path's C calls (set once instantiated)
@@ -349,6 +351,7 @@ _digests: dict[tuple[Path, int, int], str] = {}  # (file, mtime ns, size) -> its
 _unzipped_dirs: dict[str, Path] = {}  # SHA-256 of an FMU file -> where it was extracted
 _shared_dirs: dict[str, Path] = {}  # SHA-256 -> where another process extracted it
 _file_lists: dict[Path, tuple[str, ...]] = {}  # an extraction -> the paths of its files
+_guids: dict[Path, str] = {}  # an extraction -> the GUID of its modelDescription.xml
 
 
 def share_unzipped(digest: str, folder: Path) -> None:
@@ -378,6 +381,30 @@ def unzipped(fmu_path: Path) -> Path:
         # process if this one is killed outright (cosim.scratch)
         _unzipped_dirs[digest] = _extracted(fmu_path)
     return _unzipped_dirs[digest]
+
+
+def _check_same_fmu(instance: Instance, unzip_dir: Path) -> None:
+    """Refuse an extraction whose GUID is not that of the description ``instance`` was
+    loaded with: the file was replaced in between (another process built it again from
+    changed sources), and its code would be driven through the old description's value
+    references. Raises CosimError naming the file."""
+    found, loaded = extracted_guid(unzip_dir), instance.model_description.guid
+    if found != loaded:
+        raise CosimError(
+            f"{instance.name}: {instance.fmu_path} changed after the scenario was loaded "
+            f"(its GUID is {found!r}, the scenario loaded {loaded!r}; another process built "
+            "it again): load the scenario again (run the command again)"
+        )
+
+
+def extracted_guid(folder: Path) -> str:
+    """The ``guid`` of the modelDescription.xml extracted into ``folder`` ("" if none),
+    read once per extraction (its files do not change)."""
+    guid = _guids.get(folder)
+    if guid is None:
+        root = ElementTree.parse(folder / "modelDescription.xml").getroot()
+        guid = _guids[folder] = root.get("guid", "")
+    return guid
 
 
 def _whole(folder: Path, fmu_path: Path) -> bool:

@@ -5,6 +5,7 @@ again -- and a reused library runs exactly like a fresh one."""
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import zipfile
@@ -145,3 +146,33 @@ def test_an_fmu_declaring_a_tebibyte_is_refused_before_extracting(
     with pytest.raises(CosimError, match=r"unpacks to 1099511[0-9]+ bytes; at most"):
         slave.unzipped(bomb)
     assert set(slave.process_folder().iterdir()) == before
+
+
+def _rebuilt(fmu: Path, guid: str) -> None:
+    """Replace ``fmu`` as a build from other sources does: a new file, renamed over it,
+    whose modelDescription.xml has another GUID."""
+    new = fmu.with_name(".rebuilt.fmu")
+    with zipfile.ZipFile(fmu) as old, zipfile.ZipFile(new, "w") as out:
+        for info in old.infolist():
+            data = old.read(info)
+            if info.filename == "modelDescription.xml":
+                data = re.sub(rb'guid="[^"]*"', f'guid="{guid}"'.encode(), data)
+            out.writestr(info, data)
+    os.replace(new, fmu)
+
+
+def test_an_fmu_replaced_after_the_scenario_was_loaded_is_refused(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A scenario loaded (a notebook's, or a run starting) while another process builds
+    its FMU again from changed sources ran the new FMU's code through the old FMU's
+    description (value references and all) without a word. The run refuses it, naming
+    the file and what to do."""
+    for name in ("CosimTestIntegrator.fmu", "CosimTestGain.fmu"):
+        shutil.copyfile(test_fmu_dir / name, tmp_path / name)
+    scenario = scenario_from_toml(loop_toml(), base_dir=tmp_path)
+    _rebuilt(tmp_path / "CosimTestIntegrator.fmu", "{00000000-0000-0000-0000-000000000001}")
+    with pytest.raises(CosimError, match=r"CosimTestIntegrator\.fmu changed after .* loaded"):
+        master.run(scenario)
+    again = master.run(scenario_from_toml(loop_toml(), base_dir=tmp_path))  # loaded again
+    assert again.complete
