@@ -22,10 +22,15 @@ and the constants it reads), so a change to any of them recompiles all
 ``auvfmu_<hash>``, or ``plant_fmu``/``controller_fmu`` in the source tree), one folder
 each: numba's cached code imports its module by name when it is loaded, so a cache written
 by one build cannot serve another (whose modules have other names), and folders of their
-own keep two builds, or a build and the source tree, from evicting each other's.
-Concurrent processes (sweeps start many at once) can share the folder: numba writes each
-cache file to a unique temporary name and moves it into place with ``os.replace``, which
-is atomic, so a reader sees an old complete file or a new complete one, never a torn one.
+own keep two builds, or a build and the source tree, from evicting each other's. Under
+the package, each version of the kernel files (their stamp) has a folder of its own:
+numba names a function's data files by their order in its index (``.1.nbc``) and checks
+only the index against the stamp, so a process compiling the kernels as they were before
+an edit and one compiling the edited kernels, at once in one folder, could leave one's
+index naming the other's code. Concurrent processes of one version (sweeps start many at
+once) share the folder: numba writes each cache file to a unique temporary name and moves
+it into place with ``os.replace``, which is atomic, so a reader sees an old complete file
+or a new complete one, never a torn one; they compile the same code under the same names.
 
 A home folder that cannot be written (a service account's ``HOME=/nonexistent``, the
 ``HOME=/`` Docker gives a uid without a passwd entry) moves the default to the temporary
@@ -190,15 +195,20 @@ def _install_locator() -> None:
 
     class _ContentCacheLocator(caching.UserProvidedCacheLocator):
         """numba's user-folder locator with the folder named after the function's
-        top-level package: numba's own names it after the file's folder, which differs
-        for every unzipped copy of an FMU. The stamp is :func:`kernel_stamp` (numba's is
-        a SHA-256 of the function's own file), so a change to any kernel file
-        recompiles."""
+        top-level package and the kernels' stamp (``<package>/<stamp[:16]>``): numba's
+        own names it after the file's folder, which differs for every unzipped copy of an
+        FMU. The stamp is :func:`kernel_stamp` (numba's is a SHA-256 of the function's
+        own file), so a change to any kernel file recompiles, into a folder of its own."""
 
         def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
             super().__init__(py_func, py_file)
             package = str(py_func.__module__).partition(".")[0]
-            self._cache_path = os.path.join(caching.config.CACHE_DIR, "auv_cosim", package)
+            # one folder per version of the kernels: numba names data files by their
+            # order in the index and checks only the index against the stamp, so two
+            # versions compiled at once into one folder could pair one's index with the
+            # other's code
+            version = kernel_stamp(py_file)[:16]
+            self._cache_path = os.path.join(caching.config.CACHE_DIR, "auv_cosim", package, version)
 
         def get_source_stamp(self) -> str:
             return kernel_stamp(self._py_file)

@@ -269,3 +269,41 @@ def test_a_home_that_cannot_be_written_caches_in_a_private_temporary_folder(run_
     result = json.loads(done.stdout.strip().splitlines()[-1])
     assert Path(result["cache"]).is_relative_to(scratch), result
     assert result["problem"] == "" and result["warnings"] == [], result
+
+
+def _kernel_tree(root: Path, version: str) -> Path:
+    """The kernel files under ``root``, one of them of ``version``; its compiled.py."""
+    for relative in KERNEL_FILES:
+        (root / relative).parent.mkdir(parents=True, exist_ok=True)
+        (root / relative).write_text("x = 1\n")
+    (root / KERNEL_FILES[-1]).write_text(f"x = {version}\n")
+    return root / KERNEL_FILES[0]
+
+
+def test_processes_with_other_kernel_sources_never_share_cache_files(tmp_path, monkeypatch):
+    """numba names a function's data files by their order in the index (``.1.nbc``) and
+    checks only the index against the source stamp: a process still compiling the
+    kernels as they were before an edit and one compiling the edited kernels, writing the
+    same folder at once, could leave one's index naming the other's compiled code, which
+    every later process then ran. Each version of the kernels caches in a folder of its
+    own; the same version in one folder, from any copy of the files."""
+    from plant_fmu.model import jit
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    numba, why = jit.load_numba()
+    if numba is None:
+        pytest.skip(why)
+    from numba.core import caching
+
+    locator = next(c for c in caching.CacheImpl._locator_classes if "Content" in c.__name__)
+
+    def kernel() -> None:
+        """A kernel of plant_fmu, as numba sees it."""
+
+    kernel.__module__ = "plant_fmu.model.compiled"
+    before, edited, copy = (
+        locator(kernel, str(_kernel_tree(tmp_path / name, version))).get_cache_path()
+        for name, version in (("before", "1"), ("edited", "2"), ("copy", "1"))
+    )
+    assert before != edited
+    assert before == copy
