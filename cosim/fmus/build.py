@@ -219,8 +219,17 @@ def fmu_lock(name: str, out_dir: Path) -> Iterator[None]:
     it, ``flock``: released by the system if the process dies) while a build writes the
     FMU and its hash file or a check reads both; waits, saying so once, while another
     process holds it. Raises OSError if the lock file cannot be made (a read-only
-    folder)."""
+    folder), CosimError if it is a symbolic link (never opened through it)."""
     path = str(out_dir / f".{name}.fmu.lock")
+    try:  # made here, not through a link: locket opens it for writing, which truncates
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o666))
+    except OSError as exc:
+        if not os.path.islink(path):
+            raise
+        raise CosimError(
+            f"{path} is a symbolic link, expected the lock file of the builds of "
+            f"{name}.fmu in {out_dir}, a file of its own; remove the link"
+        ) from exc
     lock = locket.lock_file(path, timeout=0)
     try:
         lock.acquire()

@@ -18,6 +18,7 @@ import pytest
 from process_group import started_in_group
 
 import cosim
+from cosim.errors import CosimError
 from cosim.fmus import build, reproducible, validation
 
 NAME = "AuvGuidance"  # the FMU the builder process builds
@@ -135,3 +136,17 @@ def test_validate_during_a_build_waits_for_it_and_finds_nothing_wrong(
     assert outcome.get("error") is None, outcome["error"]
     assert outcome["value"] == []
     assert outcome["waited"]
+
+
+def test_a_lock_file_planted_as_a_link_is_refused_and_its_target_left_alone(tmp_path):
+    """The build's lock file sits in the FMU folder under a name anyone can predict: a
+    symbolic link planted there is refused, naming it, and the file it names is not
+    truncated by the build opening it."""
+    out = tmp_path / "fmus"
+    out.mkdir()
+    victim = tmp_path / "notes.txt"
+    victim.write_text("keep me\n")
+    (out / f".{NAME}.fmu.lock").symlink_to(victim)
+    with pytest.raises(CosimError, match=rf"\.{NAME}\.fmu\.lock is a symbolic link"):
+        build.build_fmu(NAME, out)
+    assert victim.read_text() == "keep me\n"
