@@ -36,6 +36,11 @@ subset of its points, each line through the extremes of every bucket of consecut
 points (:func:`drawn_points`): a spike and the line's ends stay, and a 36000 s run's
 report takes what one of 1000 s does to draw.
 
+Each figure's title names the run (its scenario id, :func:`run_caption`), so that one
+lifted out of the page still says what was run; a run that did not complete (or is still
+running) says so there, with the time it reached and its stop time, and its time axes run
+to the stop time, so the missing part shows as such.
+
 Every series is optional: a panel whose columns the run did not record is left out, a
 figure with no panel is not written. The page ``report/index.html`` in the run folder
 shows the run's summary (``summary.json``) and links the figures, each with an alt text
@@ -285,26 +290,58 @@ def _figures(
     """Draw the run's figures into ``out``: {name: file} of those drawn."""
     limits = actuator_limits(run_dir)
     zoom = _zoom(table, summary)
+    caption = run_caption(run_dir, table, summary)
+    stop_time = _seconds(summary, "stop_time")
     figures = {}
     for name, (title, panels) in FIGURES.items():
         if name == "depth" and not _has_depth_loop(table):
             continue
         path = plot_time_histories(
-            table, panels, title, out / f"{name}.png", markers_of(summary), limits,
-            zoom if name in ZOOMED else None,
+            table, panels, caption.format(title), out / f"{name}.png", markers_of(summary),
+            limits, zoom if name in ZOOMED else None, stop_time,
         )  # fmt: skip
         if path is not None:
             figures[name] = path
     waypoints = _planned_path(run_dir)
     marks = _turning_marks(table, summary)
-    trajectory = plot_trajectory(table, out / "trajectory.png", waypoints, marks)
+    trajectory = plot_trajectory(
+        table, out / "trajectory.png", waypoints, marks, caption.format(TITLES["trajectory"])
+    )
     if trajectory is not None:
         figures["trajectory"] = trajectory
     if waypoints is None and marks is None:
-        deviation = plot_lateral_deviation(table, out / "lateral_deviation.png")
+        deviation = plot_lateral_deviation(
+            table, out / "lateral_deviation.png", caption.format(TITLES["lateral_deviation"])
+        )
         if deviation is not None:
             figures["lateral_deviation"] = deviation
     return figures
+
+
+def run_caption(run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any]) -> str:
+    """A figure title naming the run, ``{}`` where the figure's own title goes: "bs-3: {}",
+    and for a run that did not complete a second line saying where it stopped (the time
+    reached and the stop time, s), so a figure lifted out of the page still says what was
+    run and that it is partial. The run is named by its scenario id, else its folder."""
+    name = summary.get("scenario") or path_text(run_dir.resolve().name)
+    caption = str(name).replace("{", "{{").replace("}", "}}") + ": {}"
+    reached = _seconds(summary, "time_reached")
+    reached = float(table["time"][-1]) if reached is None else reached
+    stop = _seconds(summary, "stop_time")
+    of_stop = f" of {stop:g} s" if stop is not None else " s"
+    if summary.get("status") == "running":
+        return caption + f"\nstill running or killed: rows to t = {reached:g}{of_stop}"
+    if summary.get("complete") is False:
+        return caption + f"\nthe run did not complete: t = {reached:g}{of_stop}"
+    return caption
+
+
+def _seconds(summary: dict[str, Any], key: str) -> float | None:
+    """``summary[key]`` (s) when it is a finite number, else None."""
+    value = summary.get(key)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return float(value) if math.isfinite(value) else None
 
 
 # --- input ---------------------------------------------------------------------------------
@@ -467,16 +504,19 @@ def plot_time_histories(
     markers: list[Marker] | None = None,
     limits: dict[str, float] | None = None,
     zoom: float | None = None,
+    stop_time: float | None = None,
 ) -> Path | None:
     """Stacked panels sharing the time axis, ``markers`` drawn across each, ``limits``
     (column -> limit, SI) as +-limit lines on the panel of that column; with ``zoom`` (s)
-    a second column shows the first ``zoom`` seconds. None if the run recorded none of
-    the panels."""
+    a second column shows the first ``zoom`` seconds. The time axis runs to the run's
+    ``stop_time`` (s), beyond its last row when the run stopped early. None if the run
+    recorded none of the panels."""
     present = [p for p in panels if p.series[0].column in table]
     if not present:
         return None
     time = table["time"]
-    end = time[-1] if time[-1] > time[0] else time[0] + 1.0
+    end = max(time[-1], stop_time or time[-1])
+    end = end if end > time[0] else time[0] + 1.0
     spans = [(time[0], end)] if zoom is None else [(time[0], end), (time[0], zoom)]
     fig = Figure(figsize=(9 if zoom is None else 13, 1.9 * len(present) + 0.8))
     axes = fig.subplots(
@@ -566,11 +606,12 @@ def plot_trajectory(
     path: Path,
     waypoints: np.ndarray | None = None,
     marks: TurnMarks | None = None,
+    title: str = "",
 ) -> Path | None:
     """North against east (x up, y right, equal scale), and a 3-D view when the depth
     changes; with ``waypoints`` (m, NED, one row each) the planned path through them,
-    numbered; with ``marks`` a turning circle's metrics. None without ``plant.north`` and
-    ``plant.east``."""
+    numbered; with ``marks`` a turning circle's metrics; ``title`` above it all (the run,
+    :func:`run_caption`). None without ``plant.north`` and ``plant.east``."""
     if "plant.north" not in table or "plant.east" not in table:
         return None
     north, east = table["plant.north"], table["plant.east"]
@@ -601,6 +642,8 @@ def plot_trajectory(
         ax3.set_zlabel("z, down (m)")
         ax3.invert_zaxis()
         ax3.set_title("earth frame (NED)")
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
 
@@ -612,11 +655,13 @@ def _depth_changes(table: dict[str, np.ndarray]) -> bool:
     return down is not None and bool(np.ptp(down) > 1e-3)
 
 
-def plot_lateral_deviation(table: dict[str, np.ndarray], path: Path) -> Path | None:
+def plot_lateral_deviation(
+    table: dict[str, np.ndarray], path: Path, title: str = ""
+) -> Path | None:
     """The sideways deviation from the initial course (m, positive to starboard) against
     the distance along it (m), on axes of their own scales: the initial course is the
-    yaw at t = 0, the origin the start. None without ``plant.north``, ``plant.east`` and
-    ``plant.yaw``."""
+    yaw at t = 0, the origin the start; ``title`` above it (the run, :func:`run_caption`).
+    None without ``plant.north``, ``plant.east`` and ``plant.yaw``."""
     if not all(c in table for c in ("plant.north", "plant.east", "plant.yaw")):
         return None
     course = float(table["plant.yaw"][0])
@@ -634,6 +679,8 @@ def plot_lateral_deviation(table: dict[str, np.ndarray], path: Path) -> Path | N
     ax.set_title(f"deviation from the initial course ({math.degrees(course):.3g} deg)")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
 

@@ -674,3 +674,48 @@ def test_a_long_run_folder_name_does_not_make_a_phone_scroll_sideways(tmp_path: 
     page.write_text(index_page(run_dir, {"scenario": "survey"}, None, {}), "utf-8")
     (tmp_path / "profile").mkdir()
     assert overflow(page, tmp_path / "profile") == []
+
+
+def _kept_figures(run: Path, monkeypatch) -> dict:
+    """The report's figures of ``run`` as matplotlib objects, by file name (each saved as
+    an empty file for the report to move)."""
+    from cosim.viz import report
+
+    kept = {}
+
+    def keep(fig, path):
+        kept[path.name] = fig
+        path.touch()
+        return path
+
+    monkeypatch.setattr(report, "_save", keep)
+    write_report(run)
+    return kept
+
+
+def test_each_figure_names_its_scenario_in_its_title(lateral_run, monkeypatch) -> None:
+    """A figure lifted into a paper says what was run: its title names the scenario id."""
+    kept = _kept_figures(lateral_run, monkeypatch)
+    assert set(kept) >= {"velocities.png", "attitude_actuators.png", "trajectory.png"}
+    for name, fig in kept.items():
+        assert "open-loop" in fig.get_suptitle(), f"{name}: {fig.get_suptitle()!r}"
+        assert "did not complete" not in fig.get_suptitle()
+
+
+def test_a_figure_of_an_incomplete_run_says_so_and_spans_the_stop_time(
+    tmp_path, monkeypatch
+) -> None:
+    """A run that stopped at 2 s of 10: each figure's title says it did not complete and
+    where it stopped, and the time axes run from 0 to the 10 s stop time (they ended at
+    2 s, drawing a partial run as though it were all of it)."""
+    summary = {"scenario": "broken", "status": "incomplete", "complete": False,
+               "stop_time": 10.0, "time_reached": 2.0}  # fmt: skip
+    run = _write_run(tmp_path / "broken", Variant.LATERAL, {"u": 1.5}, {}, 2.0, summary)
+    kept = _kept_figures(run, monkeypatch)
+    for name, fig in kept.items():
+        title = fig.get_suptitle()
+        assert "broken" in title and "did not complete" in title, f"{name}: {title!r}"
+        assert "t = 2 of 10 s" in title, f"{name}: {title!r}"
+    for name in ("velocities.png", "attitude_actuators.png"):
+        times = [ax for ax in kept[name].axes if ax.get_ylabel()]
+        assert all(ax.get_xlim() == pytest.approx((0.0, 10.0)) for ax in times), name
