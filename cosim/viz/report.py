@@ -622,8 +622,7 @@ def plot_trajectory(
     if waypoints is not None:
         _plot_waypoints(ax, waypoints)
     some = drawn_points(east, north, *([] if down is None else [down]))
-    ax.plot(east[some], north[some], color="tab:blue",
-            label="track" if waypoints is not None else None)  # fmt: skip
+    ax.plot(east[some], north[some], color="tab:blue", label="track")
     ax.plot(east[0], north[0], "o", color="tab:green", label="start")
     ax.plot(east[-1], north[-1], "s", color="tab:red", label="end")
     if marks is not None:
@@ -672,7 +671,7 @@ def plot_lateral_deviation(
     fig = Figure(figsize=(9, 3.2))
     ax = fig.subplots()
     some = drawn_points(along, across)
-    ax.plot(along[some], across[some], color="tab:blue")
+    ax.plot(along[some], across[some], color="tab:blue", label="track")
     ax.axhline(0.0, color="tab:gray", linestyle="--", linewidth=1.0, label="initial course")
     ax.set_xlabel("distance along the initial course (m)")
     ax.set_ylabel("lateral deviation (m)")

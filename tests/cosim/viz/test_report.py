@@ -719,3 +719,16 @@ def test_a_figure_of_an_incomplete_run_says_so_and_spans_the_stop_time(
     for name in ("velocities.png", "attitude_actuators.png"):
         times = [ax for ax in kept[name].axes if ax.get_ylabel()]
         assert all(ax.get_xlim() == pytest.approx((0.0, 10.0)) for ax in times), name
+
+
+def test_the_track_is_named_in_the_legend_of_the_trajectory_and_deviation(
+    lateral_run, monkeypatch
+) -> None:
+    """The vehicle's path is the main line of the trajectory and the lateral deviation
+    figures: their legends named the start, the end and the initial course but not it."""
+    kept = _kept_figures(lateral_run, monkeypatch)
+    for name in ("trajectory.png", "lateral_deviation.png"):
+        ax = kept[name].axes[0]
+        longest = max(ax.lines, key=lambda line: len(line.get_xdata()))
+        legend = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert longest.get_label() in legend, f"{name}: {longest.get_label()!r} not in {legend}"
