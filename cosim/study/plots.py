@@ -54,6 +54,7 @@ MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")  # one per line of a grid fig
 DASHES = ("-", "--", ":", "-.")
 GAP_FACTOR = 1.5  # a grid step over this many times the smallest one is a gap: no line
 NOTE_FONT_PT = 6  # the note naming lines that coincide
+TITLE_IN = 0.35  # the height a figure's title takes above its panels, inches
 NOTE_CHAR_EM = 0.6  # a character's mean width in DejaVu Sans, in em (wide, to fit)
 Row = Mapping[str, Any]
 
@@ -142,9 +143,12 @@ def write_figures(
     metrics: Sequence[str],
     folder: Path,
     units: Mapping[str, str],
+    caption: str = "",
 ) -> dict[str, Path]:
     """Every figure of the study into ``folder``; returns title -> path. ``units``: the
-    unit of each factor and metric (:mod:`cosim.study.units`)."""
+    unit of each factor and metric (:mod:`cosim.study.units`); ``caption``: what was run
+    (the study and its scenario), put before each figure's title above its panels, so that
+    a figure lifted out of the page still says what it plots."""
     folder.mkdir(parents=True, exist_ok=True)
     shown = plotted_metrics(rows, metrics)
     figures: dict[str, Path] = {}
@@ -153,15 +157,22 @@ def write_figures(
     for factor in grid:
         path = folder / f"grid_{_file_safe(factor)}.png"
         figures[GRID_TITLE.format(factor)] = plot_grid_factor(
-            rows, grid, factor, shown, path, units
+            rows, grid, factor, shown, path, units, _titled(caption, GRID_TITLE.format(factor))
         )
     if random_factors:
-        figures[HISTOGRAMS_TITLE] = plot_histograms(rows, shown, folder / "histograms.png", units)
+        figures[HISTOGRAMS_TITLE] = plot_histograms(
+            rows, shown, folder / "histograms.png", units, _titled(caption, HISTOGRAMS_TITLE)
+        )
         variables = [*random_factors, *shown][:SCATTER_MAX]
         figures[SCATTER_TITLE] = plot_scatter_matrix(
-            rows, variables, folder / "scatter_matrix.png", units
+            rows, variables, folder / "scatter_matrix.png", units, _titled(caption, SCATTER_TITLE)
         )
     return figures
+
+
+def _titled(caption: str, name: str) -> str:
+    """A figure's title: what was run, then what the figure shows ("" without a caption)."""
+    return f"{caption}: {name}" if caption else ""
 
 
 def plot_grid_factor(
@@ -171,9 +182,11 @@ def plot_grid_factor(
     metrics: Sequence[str],
     path: Path,
     units: Mapping[str, str],
+    figure_title: str = "",
 ) -> Path:
     """Each metric against ``factor``: a line per combination of the other grid factors,
-    the mean over the runs sharing a grid point (the Monte Carlo samples, if any)."""
+    the mean over the runs sharing a grid point (the Monte Carlo samples, if any); with
+    ``figure_title`` above the panels."""
     others = [name for name in grid if name != factor]
     x_values = list(grid[factor])
     numeric = all(_is_number(v) for v in x_values)
@@ -182,7 +195,7 @@ def plot_grid_factor(
     by_point: dict[tuple[Any, ...], list[Row]] = {}
     for row in rows:
         by_point.setdefault(tuple(row[name] for name in grid), []).append(row)
-    fig, axes = _panels(len(metrics))
+    fig, axes = _panels(len(metrics), figure_title)
     lines: dict[str, list[tuple[str, np.ndarray]]] = {metric: [] for metric in metrics}
     for k, combo in enumerate(itertools.product(*(grid[name] for name in others))):
         fixed = dict(zip(others, combo, strict=True))
@@ -280,10 +293,14 @@ def _wide_steps(x: np.ndarray) -> np.ndarray:
 
 
 def plot_histograms(
-    rows: Sequence[Row], metrics: Sequence[str], path: Path, units: Mapping[str, str]
+    rows: Sequence[Row],
+    metrics: Sequence[str],
+    path: Path,
+    units: Mapping[str, str],
+    figure_title: str = "",
 ) -> Path:
-    """One histogram per metric over every completed run."""
-    fig, axes = _panels(len(metrics))
+    """One histogram per metric over every completed run; ``figure_title`` above them."""
+    fig, axes = _panels(len(metrics), figure_title)
     for ax, metric in zip(axes, metrics, strict=False):
         scale, unit = shown(metric, units)
         values = _floats(rows, metric) * scale
@@ -295,16 +312,21 @@ def plot_histograms(
 
 
 def plot_scatter_matrix(
-    rows: Sequence[Row], variables: Sequence[str], path: Path, units: Mapping[str, str]
+    rows: Sequence[Row],
+    variables: Sequence[str],
+    path: Path,
+    units: Mapping[str, str],
+    figure_title: str = "",
 ) -> Path:
-    """Every pair of ``variables`` as a scatter plot, histograms on the diagonal."""
+    """Every pair of ``variables`` as a scatter plot, histograms on the diagonal;
+    ``figure_title`` above them."""
     n = len(variables)
     data = {name: _floats(rows, name) * shown(name, units)[0] for name in variables}
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(2.2 * n, 2.2 * n))
+    fig = Figure(figsize=(2.2 * n, 2.2 * n + (TITLE_IN if figure_title else 0.0)))
     axes = fig.subplots(n, n, squeeze=False)
-    _margins(fig)
+    _margins(fig, figure_title)
     for (i, row_name), (j, col_name) in itertools.product(enumerate(variables), repeat=2):
         ax = axes[i][j]
         if i == j:
@@ -325,14 +347,16 @@ def plot_scatter_matrix(
     return _save(fig, path)
 
 
-def _panels(n: int) -> tuple[Figure, list[Any]]:
+def _panels(n: int, figure_title: str = "") -> tuple[Figure, list[Any]]:
+    """A figure of ``n`` panels in rows of :data:`PANEL_COLUMNS`, ``figure_title`` above."""
     cols = min(PANEL_COLUMNS, n)
     nrows = math.ceil(n / cols)
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(PANEL_SIZE_IN[0] * cols, PANEL_SIZE_IN[1] * nrows))
+    height = PANEL_SIZE_IN[1] * nrows + (TITLE_IN if figure_title else 0.0)
+    fig = Figure(figsize=(PANEL_SIZE_IN[0] * cols, height))
     axes = fig.subplots(nrows, cols, squeeze=False)
-    _margins(fig)
+    _margins(fig, figure_title)
     flat = [ax for row in axes for ax in row]
     for ax in flat[n:]:
         ax.set_visible(False)
@@ -354,17 +378,21 @@ def _plain_ticks(ax: Any) -> None:
         axis.set_major_formatter(formatter)
 
 
-def _margins(fig: Figure) -> None:
-    """Fixed margins in inches (tight_layout would double the time to save a figure)."""
+def _margins(fig: Figure, figure_title: str = "") -> None:
+    """Fixed margins in inches (tight_layout would double the time to save a figure), and
+    :data:`TITLE_IN` more at the top for ``figure_title``, drawn there."""
     width, height = fig.get_size_inches()
+    top = 0.35 + (TITLE_IN if figure_title else 0.0)
     fig.subplots_adjust(
         left=0.7 / width,
         right=1 - 0.2 / width,
         bottom=0.55 / height,
-        top=1 - 0.35 / height,
+        top=1 - top / height,
         wspace=0.4,
         hspace=0.6,
     )
+    if figure_title:
+        fig.suptitle(figure_title, y=1 - 0.08 / height, va="top", fontsize=10)
 
 
 def _floats(rows: Sequence[Row], name: str) -> np.ndarray:

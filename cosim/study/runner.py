@@ -31,7 +31,7 @@ from typing import Any
 
 from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
 from cosim.limits import check_local_study
-from cosim.paths import DEFAULT_FMU_DIR
+from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.scenario import unit_doubts
 from cosim.scenario.checks import range_text
 from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
@@ -441,7 +441,10 @@ def _write_report(
     candidates = metrics if spec.metrics.collect is not None else default_metrics(metrics)
     quantities = units([*spec.factors, *candidates], base.fmu_paths)
     randoms = list(spec.random.factors)
-    figures = write_figures(rows, grid, randoms, candidates, out_dir / FIGURES_FOLDER, quantities)
+    caption = f"study {path_text(out_dir.resolve().name)} ({base.scenario_id})"
+    figures = write_figures(
+        rows, grid, randoms, candidates, out_dir / FIGURES_FOLDER, quantities, caption
+    )
     alts = figure_alts(rows, grid, randoms, candidates, quantities)
     shown = set(plotted_metrics(rows, candidates))
     complete = sum(row["status"] == "complete" for row in rows)

@@ -405,3 +405,27 @@ def test_a_long_study_folder_name_does_not_make_a_phone_scroll_sideways(tmp_path
     page = write_index(folder, {"runs": "4"}, [], {}, ["time_reached"])
     (tmp_path / "profile").mkdir()
     assert overflow(page, tmp_path / "profile") == []
+
+
+def test_each_study_figure_names_its_study_in_a_title_clear_of_the_panels(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A study figure lifted out of its page said neither which study nor which scenario
+    it plots: each now has a title naming them, above its panels' titles, not on them."""
+    kept = _drawn(monkeypatch)
+    quantities = {"plant.v_0": "m/s", "yaw_settling_time_s": "s", "final.plant.u": "m/s",
+                  "peak_abs_tunnel_force_N": "N"}  # fmt: skip
+    candidates = plots.default_metrics(METRICS)
+    plots.write_figures(rows(), {"plant.v_0": V0}, ["final.plant.u"], candidates,
+                        tmp_path, quantities, caption="study demo (bs-3)")  # fmt: skip
+    assert len(kept) == 3  # the grid figure, the histograms, the scatter matrix
+    for figure in kept:
+        text = figure.get_suptitle()
+        assert "study demo (bs-3)" in text, text
+        figure.draw_without_rendering()
+        box = figure._suptitle.get_window_extent()
+        assert box.y1 <= figure.bbox.y1, text  # inside the figure
+        for ax in _panels_of(figure):
+            assert box.y0 >= ax.title.get_window_extent().y1 - 0.5, text
+            assert box.y0 >= ax.get_tightbbox().y1 - 0.5, text
+        plt.close(figure)
