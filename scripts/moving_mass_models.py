@@ -129,6 +129,8 @@ def plot(sid: str, runs: dict[int, Run], path: Path) -> None:
     axes[0].legend(loc="upper right", fontsize="small")
     axes[0].set_title(f"{sid}: the moving mass as in the dissertation and as a second body")
     axes[-1].set_xlabel("time (s)")
+    ends = [float(runs[model]["time"][-1]) for model in runs]
+    axes[-1].set_xlim(float(runs[0]["time"][0]), max(ends))  # the run's start to its stop
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -31,3 +31,17 @@ def test_each_figure_on_the_page_has_an_alt_text_saying_what_it_shows(
     for said in ("yaw (deg)", "roll (deg)", "y_v (cm)", "time (s)", "solid", "dashed"):
         assert said in alt, alt
     assert ("depth (m)" in alt) == depth_changes, alt
+
+
+def test_a_figures_time_axis_runs_from_0_to_the_stop_time(tmp_path, monkeypatch) -> None:
+    """The figures' time axes had matplotlib's margins, from -1.5 s to 31.5 s for a run
+    of 30 s: a reader saw time before the start and after the stop."""
+    closed = []
+    monkeypatch.setattr(models.plt, "close", closed.append)  # the figure kept to look at
+    models.plot("bs-3", {0: _run(True), 1: _run(True)}, tmp_path / "bs-3.png")
+    (figure,) = closed
+    for ax in figure.axes:
+        assert ax.get_xlim() == pytest.approx((0.0, 30.0)), ax.get_ylabel()
+    assert figure.axes[-1].get_xlabel() == "time (s)"
+    monkeypatch.undo()
+    models.plt.close(figure)
