@@ -19,8 +19,9 @@ The figures are laid out like the dissertation's Ch. 6 plots:
 Each event the run fired and each fault's start and stop (``summary.json``'s ``events``
 and ``faults``, docs/events.md), and the yaw settling time (its key figure), is a
 vertical marker on every time-history panel, named in the first panel's legend. The
-actuator limits -- the moving mass's rail stops (the plant's ``mass_stroke``) and the
-tunnel thruster's force limit (the autopilot's ``tunnel_force_limit``), read from the
+actuator limits -- the moving mass's rail stops (the plant's ``mass_stroke``), the
+tunnel thruster's force limit (the autopilot's ``tunnel_force_limit``) and the stern
+planes' stops (its ``fin_angle_limit``), read from the
 run's start values, else from the FMU's model description -- are horizontal lines on
 their panels. When the yaw settles within the first third of the run, the velocity and
 attitude figures get a second column: the transient, the first
@@ -91,7 +92,13 @@ SETTLING_FIGURE = "yaw_settling_time_s"
 LIMITS = {
     ("AuvPlant", "mass_stroke"): "mass_position",
     ("AuvAutopilot", "tunnel_force_limit"): "tunnel_force",
+    ("AuvAutopilot", "fin_angle_limit"): "fin_angle",
 }
+# The looks of the events' markers, one per event name in the order they first fired:
+# colours clear of the curves' blue and gray, the settling time's green and the faults'
+# red, solid then dashed when there are more names than colours
+EVENT_COLOURS = ("tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
+EVENT_STYLES = ("-", "--")
 
 
 @dataclass(frozen=True)
@@ -125,13 +132,18 @@ class Marker:
 
 def markers_of(summary: dict[str, Any]) -> list[Marker]:
     """The events fired, the faults' starts and stops listed in ``summary.json`` and the
-    yaw settling time (its key figure)."""
+    yaw settling time (its key figure); each event name has a look of its own
+    (:data:`EVENT_COLOURS`), its every firing the same."""
     markers = []
     settled = (summary.get("key_figures") or {}).get(SETTLING_FIGURE)
     if settled is not None:
         markers.append(Marker(float(settled), f"yaw settled ({settled:g} s)", "tab:green", "-."))
+    names: dict[str, int] = {}  # event name -> its look's index
     for event in summary.get("events") or []:
-        markers.append(Marker(float(event["time"]), f"event {event['name']}", "tab:orange", "-"))
+        k = names.setdefault(event["name"], len(names))
+        colour = EVENT_COLOURS[k % len(EVENT_COLOURS)]
+        style = EVENT_STYLES[k // len(EVENT_COLOURS) % len(EVENT_STYLES)]
+        markers.append(Marker(float(event["time"]), f"event {event['name']}", colour, style))
     for fault in summary.get("faults") or []:
         name = f"fault {fault['name']} ({fault['kind']})"
         markers.append(Marker(float(fault["start"]), f"{name} starts", "tab:red", "--"))

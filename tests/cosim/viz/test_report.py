@@ -286,11 +286,12 @@ def test_transient_column_settling_time_and_actuator_limits_are_drawn(
     (run / "scenario.toml").write_text(
         '[instances.plant]\nfmu = "AuvPlant"\n[instances.plant.start]\nmass_stroke = 0.05\n'
         '[instances.controller]\nfmu = "AuvAutopilot"\n'
-        "[instances.controller.start]\ntunnel_force_limit = 8.0\n"
+        "[instances.controller.start]\ntunnel_force_limit = 8.0\nfin_angle_limit = 0.4\n"
     )
     assert report.actuator_limits(run) == {
         "plant.mass_position": 0.05,
         "controller.tunnel_force": 8.0,
+        "controller.fin_angle": 0.4,
     }
     kept = {}
 
@@ -732,3 +733,34 @@ def test_the_track_is_named_in_the_legend_of_the_trajectory_and_deviation(
         longest = max(ax.lines, key=lambda line: len(line.get_xdata()))
         legend = [t.get_text() for t in ax.get_legend().get_texts()]
         assert longest.get_label() in legend, f"{name}: {longest.get_label()!r} not in {legend}"
+
+
+def test_markers_of_different_events_are_told_apart_and_a_repeated_one_is_not() -> None:
+    """A zigzag's "to-port" and "to-starboard" events were both solid orange lines: the
+    legend named two lines a reader could not tell apart on the plot."""
+    from cosim.viz.report import markers_of
+
+    events = [{"name": name, "time": t} for t, name in
+              enumerate(["to-port", "to-starboard", "to-port", "third", "fourth"])]  # fmt: skip
+    markers = markers_of({"events": events})
+    look = {m.label: (m.color, m.style) for m in markers}
+    assert len(set(look.values())) == len(look) == 4, look
+    again = [(m.color, m.style) for m in markers if m.label == "event to-port"]
+    assert again[0] == again[1]
+    settled = markers_of({"key_figures": {"yaw_settling_time_s": 2.0}, "events": events})[0]
+    assert (settled.color, settled.style) not in look.values()
+
+
+def test_the_stern_plane_limit_is_drawn_on_its_panel(tmp_path, monkeypatch) -> None:
+    """The stern planes of a depth run sat on their 25 deg stops with no line marking
+    them, while the mass stops and the thruster limit had theirs."""
+    run = _write_run(tmp_path / "run", Variant.FULL, {"u": 1.5}, {"fin_angle": 0.2},
+                     summary={"scenario": "dive"})  # fmt: skip
+    (run / "scenario.toml").write_text(
+        '[instances.controller]\nfmu = "AuvAutopilot"\n'
+        "[instances.controller.start]\nfin_angle_limit = 0.3\n"
+    )
+    kept = _kept_figures(run, monkeypatch)
+    fins = next(ax for ax in kept["depth.png"].axes if ax.get_ylabel() == r"$\delta_s$ (deg)")
+    levels = sorted(line.get_ydata()[0] for line in fins.lines if line.get_linestyle() == ":")
+    assert levels == pytest.approx([-np.degrees(0.3), np.degrees(0.3)])
