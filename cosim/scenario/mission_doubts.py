@@ -7,7 +7,10 @@ waypoints that look like latitude and longitude in degrees (the guidance takes m
 The vehicle's speed through the water is the straight-run speed of the plant the
 guidance reads its position from, on the thrust of the autopilot connected to that plant
 (:func:`cosim.scenario.design_doubts.straight_run_speed`), else the guidance's
-``design_speed``; the current is the plant's start value (an event may change it later).
+``design_speed``; the current is the plant's start value, then each value an event sets
+on the plant's ``current_north`` or ``current_east`` (a time event's from its time, ramp
+included, in time order; each row of a series from its time; a ``when`` event's on the
+start value), and the first current some leg cannot be flown in is named with the event.
 Along a leg of course chi the vehicle holds the course by crabbing into the current's
 part across it, ``c_across``, and the part along it, ``c_along``, adds::
 
@@ -30,6 +33,7 @@ from controller_fmu.los_guidance import Waypoint, parse_waypoints
 
 if TYPE_CHECKING:
     from cosim.scenario.spec import Instance, Scenario
+    from cosim.scenario.timeline_spec import Event
 
 GUIDANCE, PLANT, AUTOPILOT = "AuvGuidance", "AuvPlant", "AuvAutopilot"
 
@@ -79,24 +83,74 @@ def mission_legs(
 
 def mission_doubts(scenario: Scenario) -> list[str]:
     """One line for each guidance with a leg the vehicle cannot fly in the plant's
-    current, and one for each whose waypoints the stop time ends before (module)."""
+    current (the start value or one an event sets), and one for each whose waypoints the
+    stop time ends before (module)."""
     found = []
     for name, guidance in _instances(scenario, GUIDANCE).items():
         plant = _plant_of(scenario, name)
         if plant is None:  # no plant feeds its position: no current, no speed known
             continue
         speed, source = _speed(scenario, name, guidance, plant)
-        current = (
-            _float(scenario, plant, "current_north"),
-            _float(scenario, plant, "current_east"),
-        )
         waypoints = parse_waypoints(str(scenario.start_value(name, "waypoints")))
-        legs = mission_legs(waypoints, speed, *current)
         key = f"instances.{name}.start.waypoints"
         found.append(_degrees_doubt(key, waypoints))
-        found.append(_current_doubt(key, legs, speed, source, plant, current))
-        found.append(_time_doubt(key, legs, speed, source, scenario.stop_time))
+        for when, current in plant_currents(scenario, plant):
+            legs = mission_legs(waypoints, speed, *current)
+            line = _current_doubt(key, legs, speed, source, plant, current, when)
+            if line:
+                found.append(line)
+                break
+        start = mission_legs(waypoints, speed, *plant_currents(scenario, plant)[0][1])
+        found.append(_time_doubt(key, start, speed, source, scenario.stop_time))
     return [line for line in found if line]
+
+
+CURRENT_NAMES = ("current_north", "current_east")
+
+
+def plant_currents(scenario: Scenario, plant: str) -> list[tuple[str, tuple[float, float]]]:
+    """The horizontal currents (m/s, north and east) the plant meets, each with when it
+    holds ('' for the start value, else " from t = ... s (event ...)" or " when ...
+    (event ...)"): the start value first, then the values events set (module)."""
+    start = {n: _float(scenario, plant, n) for n in CURRENT_NAMES}
+    timed: list[tuple[float, str, dict[str, float]]] = []
+    triggered: list[tuple[str, dict[str, float]]] = []
+    for event in scenario.events:
+        for time, values in _event_currents(event, plant):
+            if time is None:
+                triggered.append((f" when {event.when} (event {event.name})", values))
+            else:
+                timed.append((time, f" from t = {time:g} s (event {event.name})", values))
+    held = dict(start)
+    found = [("", _pair(held))]
+    for _, when, values in sorted(timed, key=lambda item: item[0]):
+        held.update(values)
+        found.append((when, _pair(held)))
+    return found + [(when, _pair({**start, **values})) for when, values in triggered]
+
+
+def _pair(current: dict[str, float]) -> tuple[float, float]:
+    """The (north, east) of a current given by variable name, m/s."""
+    return current["current_north"], current["current_east"]
+
+
+def _event_currents(event: Event, plant: str) -> list[tuple[float | None, dict[str, float]]]:
+    """The plant's current components ``event`` sets, by name, each with the time (s) it
+    holds from (None for a ``when`` event; a series gives one per row)."""
+    refs = {f"{plant}.{n}": n for n in CURRENT_NAMES}
+    if event.series is not None:
+        columns = {refs[r]: c for r, c in event.series.columns.items() if r in refs}
+        if not columns:
+            return []
+        return [
+            (t, {n: c[i] for n, c in columns.items()}) for i, t in enumerate(event.series.times)
+        ]
+    values = {refs[r]: float(v) for r, v in event.set.items() if r in refs}
+    if not values:
+        return []
+    if event.time is None:
+        return [(None, values)]
+    return [(event.time + (event.ramp or 0.0), values)]
 
 
 DEGREES_SPAN = 1.0  # m: a mission within this, far from the origin, reads as degrees
@@ -128,8 +182,10 @@ def _current_doubt(
     source: str,
     plant: str,
     current: tuple[float, float],
+    when: str = "",
 ) -> str:
-    """The warning for the first leg no heading flies in the current ('' if none)."""
+    """The warning for the first leg no heading flies in the current, which holds
+    ``when`` ('' from the start; the warning is '' if every leg flies)."""
     for leg in legs:
         if leg.ground_speed is not None and leg.ground_speed > 0.0:
             continue
@@ -144,8 +200,9 @@ def _current_doubt(
         return (
             f"{key}: leg {leg.number} (waypoint {leg.number} -> {leg.number + 1}, course "
             f"{math.degrees(leg.course) % 360:.0f} deg) cannot be flown in {plant}'s current "
-            f"of {north:g} m/s north, {east:g} m/s east at {speed:.4g} m/s through the water "
+            f"of {north:g} m/s north, {east:g} m/s east{when} at {speed:.4g} m/s through the water "
             f"({source}): {why}; waypoint {leg.number + 1} onwards will not be reached"
+            + (" if the vehicle is not past it by then" if when else "")
         )
     return ""
 

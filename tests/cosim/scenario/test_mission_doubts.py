@@ -81,3 +81,44 @@ def test_waypoints_that_look_like_latitude_and_longitude_are_named(
     ), lines
     small = survey.with_start({"guidance.waypoints": "0, 0, 2; 0.5, 0, 2"})  # near the origin
     assert not [line for line in mission_doubts(small) if "latitude" in line]
+
+
+def _survey_with_events(tmp_path: Path, fmu_dir: Path, events: str) -> cosim.Scenario:
+    """The built-in survey with ``events`` (TOML ``[[events]]`` tables) appended."""
+    from cosim.scenario.spec import SCENARIO_FOLDER
+
+    text = (SCENARIO_FOLDER / "survey.toml").read_text(encoding="utf-8") + events
+    path = tmp_path / "tide.toml"
+    path.write_text(text, encoding="utf-8")
+    return cosim.load_scenario(path, fmu_dir=fmu_dir)
+
+
+def test_a_current_an_event_sets_too_strong_for_a_leg_is_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """A tide turning at 60 s to 2 m/s west (an event on the plant's current_east) ran
+    without a word: the doubts read only the start value, 0.2 m/s east, which every leg
+    beats. The line names the event and its time; one the vehicle beats says nothing."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    tide = '\n[[events]]\nname = "tide"\ntime = 60.0\nset = { "plant.current_east" = -2.0 }\n'
+    lines = [d for d in mission_doubts(_survey_with_events(tmp_path, fmu_dir, tide))
+             if "current" in d]  # fmt: skip
+    assert len(lines) == 1, lines
+    assert "leg 1 (waypoint 1 -> 2, course 0 deg) cannot be flown" in lines[0]
+    assert "from t = 60 s (event tide)" in lines[0] and "-2 m/s east" in lines[0]
+    slack = tide.replace("-2.0", "-0.5")
+    assert mission_doubts(_survey_with_events(tmp_path, fmu_dir, slack)) == []
+
+
+def test_a_current_a_series_sets_too_strong_for_a_leg_is_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """A tide profile (an events series on the plant's current_north) that reaches 2 m/s
+    south at 90 s is named from that row's time, on the survey's first leg north."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    (tmp_path / "tide.csv").write_text("time,plant.current_north\n0,0\n45,-1\n90,-2\n")
+    series = '\n[[events]]\nname = "ebb"\nseries = "tide.csv"\n'
+    lines = [d for d in mission_doubts(_survey_with_events(tmp_path, fmu_dir, series))
+             if "current" in d]  # fmt: skip
+    assert len(lines) == 1, lines
+    assert "from t = 90 s (event ebb)" in lines[0] and "-2 m/s north" in lines[0]
