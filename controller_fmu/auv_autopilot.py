@@ -100,8 +100,12 @@ INPUT_DESCRIPTIONS: dict[str, str] = {
     "w_rel": "measured heave velocity relative to the water (not used by the laws)",
     "mass_position": "measured moving-mass position y_v",
     "mass_velocity": "measured moving-mass rail speed y_v'",
-    "current_north": "measured current, north component, earth frame",
-    "current_east": "measured current, east component, earth frame",
+    "current_north": (
+        "measured current, north component, earth frame: > 0 the water moves towards north"
+    ),
+    "current_east": (
+        "measured current, east component, earth frame: > 0 the water moves towards east"
+    ),
     "yaw_setpoint": "desired heading, or desired course with compensate_current (6.3.74)",
     "depth_setpoint": "desired depth z_d (down positive)",
 }

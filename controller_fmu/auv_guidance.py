@@ -60,8 +60,16 @@ INPUTS: dict[str, tuple[str, str]] = {  # name -> (unit, description)
     "north": ("m", "vehicle position north (NED)"),
     "east": ("m", "vehicle position east (NED)"),
     "yaw": ("rad", "measured yaw psi: the set-points are given within pi of it"),
-    "current_north": ("m/s", "measured current, north component (with compensate_current)"),
-    "current_east": ("m/s", "measured current, east component (with compensate_current)"),
+    "current_north": (
+        "m/s",
+        "measured current, north component (with compensate_current): > 0 the water "
+        "moves towards north",
+    ),
+    "current_east": (
+        "m/s",
+        "measured current, east component (with compensate_current): > 0 the water "
+        "moves towards east",
+    ),
 }
 OUTPUTS: dict[str, tuple[str, str]] = {
     "yaw_setpoint": ("rad", "desired heading psi_d: chi_d, or chi_d - beta (6.3.74)"),

@@ -98,9 +98,15 @@ INPUT_DESCRIPTIONS: dict[str, str] = {
     "tunnel_force": "tunnel-thruster sway force F_t (6.3.79)",
     "fin_angle": "stern-plane angle delta_s (Table 6.1)",
     "mass_position_cmd": "moving-mass servo command y_d (6.3.12); the stops bound the mass",
-    "current_north": "uniform current, north component, earth frame",
-    "current_east": "uniform current, east component, earth frame",
-    "current_down": "uniform current, down component, earth frame",
+    "current_north": (
+        "uniform current, north component, earth frame: > 0 the water moves towards north"
+    ),
+    "current_east": (
+        "uniform current, east component, earth frame: > 0 the water moves towards east"
+    ),
+    "current_down": (
+        "uniform current, down component, earth frame: > 0 the water moves towards down"
+    ),
 }
 INPUT_STARTS: dict[str, float] = {"thrust": 9.0}
 # the inputs a reduced variant has no degree of freedom for (fin_angle acts in heave and

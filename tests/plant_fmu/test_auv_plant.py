@@ -121,6 +121,30 @@ def test_restored_state_continues_bit_identically(plant, unzip_dir):
     assert np.ptp(original[:, OUTPUTS.index("yaw")]) > 0.01  # the state did evolve
 
 
+def test_the_current_is_the_velocity_the_water_moves_towards_as_documented(
+    plant, unzip_dir, fmu_paths
+):
+    """The current's inputs read "uniform current, north component, earth frame": a tidal
+    planner cannot tell from that whether +current_east is water moving towards the east
+    (oceanographic) or coming from it (meteorological). The descriptions say "towards",
+    and a hull without thrust, left in the current, drifts that way."""
+    for fmu_name in ("AuvPlant", "AuvAutopilot", "AuvGuidance"):
+        md = read_model_description(str(fmu_paths[fmu_name]))
+        for v in md.modelVariables:
+            if v.name in ("current_north", "current_east", "current_down"):
+                assert "moves towards" in v.description, (fmu_name, v.name, v.description)
+    fmu = _harness(plant, unzip_dir, variant=0, u_0=0.0, thrust=0.0, down_0=2.0,
+                   current_north=0.3, current_east=-0.4)  # fmt: skip
+    fmu.run(30.0, H, ())
+    north, east = fmu.get("north", "east")
+    fmu.close()
+    # the water moves 15 m in 30 s, bearing 307 deg; the hull, from rest, drifts that way
+    # (within 10 deg: the buoyant hull rises, and glides a little through the water)
+    assert np.hypot(north, east) > 0.5 * 15.0
+    bearing = np.degrees(np.arctan2(east, north)) % 360.0
+    assert bearing == pytest.approx(np.degrees(np.arctan2(-0.4, 0.3)) % 360.0, abs=10.0)
+
+
 def test_current_step_applies_the_velocity_jump_at_the_next_step(plant, unzip_dir, remus):
     fmu = _harness(plant, unzip_dir, variant=1, u_0=1.5)
     fmu.run(1.0, H, ())
