@@ -19,6 +19,7 @@ serves ``--resume`` of a study whose runs were never kept.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 import shlex
 import tempfile
@@ -70,6 +71,7 @@ from cosim.study.task import (
     Base,
     Doubts,
     RunRecord,
+    base_mission_doubts,
     check_values,
     prepare,
     scenario_text,
@@ -572,15 +574,22 @@ def _check_sample_ranges(
 
 
 def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: StudySpec) -> Doubts:
-    """Every grid value through the scenario's own checks (type, finite); what looks like
-    a slip of units in the scenario with each, or a design not fit for it
-    (:func:`cosim.study.task.check_values`)."""
+    """Every grid point (each combination of the grid's values) through the scenario's own
+    checks (type, finite); what looks like a slip of units in the scenario with each, the
+    mission it cannot fly (naming the point where the base scenario flies it), or a design
+    not fit for it (:func:`cosim.study.task.check_values`), once each: a current's north
+    and east parts can be beaten apart but not together."""
     doubts: Doubts = {}
-    for name, values in spec.grid.items():
-        for value in values:
-            normal = factors[name].normalize(value)
-            _add_doubts(doubts, check_values(base, {name: factors[name]}, {name: normal}))
-    return doubts
+    if not spec.grid:
+        return doubts
+    grid = {
+        name: [factors[name].normalize(v) for v in values] for name, values in spec.grid.items()
+    }
+    used = {name: factors[name] for name in grid}
+    known = base_mission_doubts(base)
+    for point in itertools.product(*grid.values()):
+        _add_doubts(doubts, check_values(base, used, dict(zip(grid, point, strict=True)), known))
+    return {category: list(dict.fromkeys(lines)) for category, lines in doubts.items()}
 
 
 # Settings a study's rows do not depend on; check_step, left out while false, keeps the

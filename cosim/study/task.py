@@ -21,7 +21,7 @@ import os
 import tempfile
 import time
 import tomllib
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -155,14 +155,18 @@ Doubts = dict[type[UserWarning], list[str]]
 
 
 def check_values(
-    base: Base, factors: Mapping[str, FactorKind], values: Mapping[str, Value]
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    values: Mapping[str, Value],
+    known: Collection[str] = (),
 ) -> Doubts:
     """Resolve the scenario with these values (no run): :class:`StudyError` if the
     scenario's own checks refuse one (a wrong type, a non-finite number). Returns, as
     :class:`~cosim.scenario.unit_doubts.UnitWarning` lines, what looks like a slip of units
     in it (:func:`cosim.scenario.unit_doubts.doubts`), the mission it cannot fly
-    (:func:`cosim.scenario.mission_doubts.mission_doubts`) and the events and faults the
-    run ends before (:func:`cosim.scenario.timeline_spec.unreached`); and as
+    (:func:`cosim.scenario.mission_doubts.mission_doubts`; a line not in ``known``, the
+    base scenario's, names these values) and the events and faults the run ends before
+    (:func:`cosim.scenario.timeline_spec.unreached`); and as
     :class:`~cosim.scenario.design_doubts.DesignWarning` lines an autopilot design that
     does not fit the plant (:func:`cosim.scenario.design_doubts.design_doubts`: an
     autopilot designed for another vehicle than a plant parameter varied, say)."""
@@ -174,10 +178,21 @@ def check_values(
     late = unreached(
         scenario.events, scenario.faults, scenario.stop_time, coupling.step, points_step(coupling)
     )
+    point = ", ".join(f"{name} = {value!r}" for name, value in values.items())
+    mission = [
+        line if line in known or not point else f"{line} (with {point})"
+        for line in mission_doubts(scenario)
+    ]
     return {
-        UnitWarning: doubts(scenario) + mission_doubts(scenario) + late,
+        UnitWarning: doubts(scenario) + mission + late,
         DesignWarning: design_doubts(scenario),
     }
+
+
+def base_mission_doubts(base: Base) -> list[str]:
+    """The lines of the mission the base scenario, no factor set, cannot fly
+    (:func:`cosim.scenario.mission_doubts.mission_doubts`)."""
+    return mission_doubts(_scenario(base, base.fmu_paths, {}, {}))
 
 
 def run_one(

@@ -188,3 +188,29 @@ def test_a_grid_value_putting_an_event_after_the_stop_time_is_warned_of(
         "events.turn.time = 30 s is after the stop time (20 s): the run ends before the "
         "event, which is never applied"
     ]
+
+
+def test_a_grid_point_whose_current_a_leg_cannot_beat_is_warned_of(fmu_dir: Path) -> None:
+    """A survey study over the current's north and east parts, each up to 1.2 m/s: either
+    alone the vehicle (1.525 m/s through the water) beats on every leg, both together
+    (1.7 m/s towards north-east) it cannot fly the legs south. The study checked each
+    factor's values alone, on the other's start value, and planned it without a word; the
+    line now names the grid point."""
+    import warnings
+
+    from cosim.study.factors import resolve_factor
+    from cosim.study.runner import _checked_plan
+    from cosim.study.spec import study_from_dict
+    from cosim.study.task import prepare
+
+    grid = {"plant.current_north": [0.0, 1.2], "plant.current_east": [0.0, 1.2]}
+    spec = study_from_dict({"scenario": "survey", "grid": grid, "stop_time": 300.0}, "study")
+    base, facts = prepare("survey", spec.stop_time, fmu_dir)
+    factors = {name: resolve_factor(name, facts) for name in spec.factors}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert len(_checked_plan(spec, base, factors, facts)) == 4
+    lines = [str(w.message) for w in caught if "cannot be flown" in str(w.message)]
+    assert len(lines) == 1, lines
+    assert "leg 3 (waypoint 3 -> 4, course 180 deg) cannot be flown" in lines[0]
+    assert "plant.current_north = 1.2, plant.current_east = 1.2" in lines[0]
