@@ -220,6 +220,7 @@ class AuvPlant(SafeSlave):
         self._rates = self.derivatives_of(INPUT_NAMES)
         self._x[:] = stepping_state(self._initial_state)
         self._last_current = self._inputs[CURRENT].copy()  # the currents of the last step
+        self._warned: set[str] = set()  # the initialisation warnings logged (once each)
         self._step_scratch = np.empty(compiled.STEP_SCRATCH)  # the compiled step's arrays
 
     # --- variables ---------------------------------------------------------------------------
@@ -354,10 +355,9 @@ class AuvPlant(SafeSlave):
             if n not in model.variant.states and x[i]
         ]
         if frozen:
-            self.log(
+            self._warn_once(
                 f"variant {int(model.variant)} ({model.variant.name.lower()}) keeps "
-                f"{', '.join(frozen)} at 0: their initial values are ignored",
-                Fmi2Status.warning,
+                f"{', '.join(frozen)} at 0: their initial values are ignored"
             )
         self._warn_ignored_inputs(model.variant)
         self._x[:] = stepping_state(model.project(x))  # the quaternion of the kept angles
@@ -371,12 +371,18 @@ class AuvPlant(SafeSlave):
         the plant initialises: a step does not look, each input's description says it)."""
         given = [n for n in IGNORED_INPUTS[variant] if self._inputs[INPUT_NAMES.index(n)]]
         if given:
-            self.log(
+            self._warn_once(
                 f"variant {int(variant)} ({variant.name.lower()}) ignores the input(s) "
                 f"{', '.join(given)}: it has no degree of freedom they act on (variant 0, "
-                "full, uses them)",
-                Fmi2Status.warning,
+                "full, uses them)"
             )
+
+    def _warn_once(self, message: str) -> None:
+        """Log ``message`` as a Warning unless logged before: the plant initialises again
+        when a value is written after a read in initialisation mode."""
+        if message not in self._warned:
+            self._warned.add(message)
+            self.log(message, Fmi2Status.warning)
 
     def _step(self, current_time: float, step_size: float) -> None:
         """From the value buffers to the compiled integrator and back, allocating nothing

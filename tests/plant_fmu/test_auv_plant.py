@@ -145,6 +145,24 @@ def test_the_current_is_the_velocity_the_water_moves_towards_as_documented(
     assert bearing == pytest.approx(np.degrees(np.arctan2(-0.4, 0.3)) % 360.0, abs=10.0)
 
 
+def test_an_ignored_current_is_warned_of_once_however_often_the_plant_initialises(plant, unzip_dir):
+    """A lateral plant given current_down = 0.3 m/s: the run printed "plant logged:
+    [Warning] variant 1 (lateral) ignores the input(s) current_down" twice, as a master
+    that reads an output in initialisation mode and then writes a start value makes the
+    plant initialise twice. One warning, naming the input, whatever the order."""
+    fmu = _harness(plant, unzip_dir, initialize=False)
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    fmu.set(variant=1, current_down=0.3)
+    fmu.get("u_rel")  # a read in initialisation mode initialises the plant
+    fmu.set(thrust=9.0)  # a write after it: initialised again as it leaves the mode
+    fmu.slave.exitInitializationMode()
+    fmu.initialised = True
+    fmu.close()
+    warned = [text for _, text in fmu.log if "ignores the input(s) current_down" in text]
+    assert len(warned) == 1, fmu.log
+
+
 def test_current_step_applies_the_velocity_jump_at_the_next_step(plant, unzip_dir, remus):
     fmu = _harness(plant, unzip_dir, variant=1, u_0=1.5)
     fmu.run(1.0, H, ())
