@@ -18,8 +18,9 @@
  *     nor a read of an output before initialisation mode, which has no value there yet;
  *   - fmi2GetReal answered fmi2OK gives finite values, fmi2GetRealStatus a finite time;
  *   - the time after an fmi2OK step is the step's end (fmi2LastSuccessfulTime);
- *   - a state this FMU took is set with fmi2OK, intact serialised bytes deserialise and
- *     changed ones do not.
+ *   - a state this FMU took is set with fmi2OK while the instance that took (or
+ *     deserialised) it lives (fmi2FreeInstance frees the states its instance still
+ *     holds), intact serialised bytes deserialise and changed ones do not.
  *
  * Each violation is printed as "VIOLATION op N: ..."; the last line is "fuzz: N ops, V
  * violations". Crashes and memory errors are left to the process (and ASan / valgrind).
@@ -291,12 +292,22 @@ static int slot_of_live(void)
     return n ? live[pick((unsigned)n)] : -1;
 }
 
+/* The states instance slot ``k`` took or deserialised: gone with it (its fmi2FreeInstance
+ * frees them), so neither set nor freed again. */
+static void forget_states_of(int k)
+{
+    for (int j = 0; j < STATES; j++) {
+        if (states[j].state && states[j].owner == k) states[j].state = NULL;
+    }
+}
+
 static void do_instantiate(int k)
 {
     if (inst[k].c) {
         TRACE("free %d", k);
         F.free_instance(inst[k].c);
         memset(&inst[k], 0, sizeof inst[k]);
+        forget_states_of(k);
         return;
     }
     const char *name = "fuzz", *g = guid, *r = resources;
@@ -581,7 +592,7 @@ static void do_get_state(Inst *in, int k)
     void *before = st->state;
     int s = status_ok(F.get_state(in->c, &st->state), "getFMUstate");
     if (s <= 1) {
-        st->owner = k;
+        if (!reuse) st->owner = k; /* a state taken again stays its first instance's */
         st->phase = in->phase;
         st->time = in->time;
     } else if (st->state != before) {
@@ -683,6 +694,7 @@ static void do_deserialize(Inst *in)
         violation("fmi2DeSerializeFMUstate refused intact bytes (%d)", s);
     }
     if (s <= 1 && st->state) {
+        st->owner = current;
         st->phase = blob_phase;
         st->time = blob_time;
     }
