@@ -19,9 +19,11 @@ from pathlib import Path
 import pytest
 from process_group import run_in_group
 
-# 4 runs of bs-3, each writing ~9 MB of results.csv
+# 4 runs of bs-3, each writing ~9 MB of results.csv (kept if it fails: written by every
+# run; with keep = "none" a run writes none)
 STUDY = """scenario = "bs-3"
 stop_time = 200.0
+keep = "failed"
 [grid]
 "plant.v_0" = [-0.05, 0.05]
 "controller.k0" = [0.2, 0.5]
