@@ -360,7 +360,8 @@ def test_a_factor_naming_a_file_is_read_beside_the_study_file_from_any_folder(
     )
     monkeypatch.chdir(elsewhere)
     out = tmp_path / "out"
-    sweep(study, out, fmu_dir, "--workers", "1")
+    with pytest.warns(DesignWarning, match="heavy.toml"):  # the study says so once, too
+        sweep(study, out, fmu_dir, "--workers", "1")
     rows = {r["plant.vehicle"]: r for r in table(out)}
     assert {r["status"] for r in rows.values()} == {"complete"}, rows
     kept = out / "runs" / rows["heavy.toml"]["run"] / "scenario.toml"
