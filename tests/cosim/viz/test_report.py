@@ -455,20 +455,10 @@ def test_a_report_the_disk_had_no_room_for_leaves_nothing_and_can_be_made_later(
 def test_a_run_of_one_row_is_drawn_as_points(tmp_path, monkeypatch) -> None:
     """A run that failed at its first step has the t = 0 row only: its report's panels
     were blank (a line through one point draws nothing)."""
-    from cosim.viz import report
-
     run = tmp_path / "run"
     run.mkdir()
     (run / "results.csv").write_text("time,plant.u,plant.v\n0.0,1.5,-0.1\n")
-    kept = {}
-
-    def keep(fig, path):
-        kept[path.name] = fig
-        path.touch()
-        return path
-
-    monkeypatch.setattr(report, "_save", keep)
-    write_report(run)
+    kept = _kept_figures(run, monkeypatch)
     lines = [
         line
         for ax in kept["velocities.png"].axes

@@ -178,7 +178,21 @@ def test_an_unwritable_cache_folder_is_warned_of_once_a_process(monkeypatch, tmp
     assert [str(w.message) for w in caught] == [problems[0]]
 
 
-CACHE_FOLDER_OF_A_UID_WITHOUT_HOME = """
+# what each script below ends with: the cache folder the jit module chose and its problem
+CHOSEN_CACHE_FOLDER = """
+from plant_fmu.model import jit
+
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    numba, why = jit.load_numba()
+    problem = jit.cache_problem()
+print(json.dumps({"cache": os.environ["NUMBA_CACHE_DIR"], "problem": problem,
+                  "warnings": [str(w.message) for w in caught]}))
+"""
+
+
+CACHE_FOLDER_OF_A_UID_WITHOUT_HOME = (
+    """
 import json, os, pwd, sys, warnings
 for name in ("HOME", "XDG_CACHE_HOME", "NUMBA_CACHE_DIR", "AUV_COSIM_NUMBA_CACHE_WARNED"):
     os.environ.pop(name, None)
@@ -192,15 +206,9 @@ def no_entry(number):  # as for `docker run -u 12345`: a uid /etc/passwd does no
 
 
 pwd.getpwuid = no_entry
-from plant_fmu.model import jit
-
-with warnings.catch_warnings(record=True) as caught:
-    warnings.simplefilter("always")
-    numba, why = jit.load_numba()
-    problem = jit.cache_problem()
-print(json.dumps({"cache": os.environ["NUMBA_CACHE_DIR"], "problem": problem,
-                  "warnings": [str(w.message) for w in caught]}))
 """
+    + CHOSEN_CACHE_FOLDER
+)
 
 
 def _cache_folder_without_home(run_python, tmp_path: Path, *uid: int) -> dict:
@@ -238,20 +246,15 @@ def test_a_temporary_cache_folder_another_user_made_is_not_used(run_python, tmp_
     assert result["warnings"] == [result["problem"]]
 
 
-CACHE_FOLDER_OF_AN_UNWRITABLE_HOME = """
+CACHE_FOLDER_OF_AN_UNWRITABLE_HOME = (
+    """
 import json, os, sys, warnings
 for name in ("XDG_CACHE_HOME", "NUMBA_CACHE_DIR", "AUV_COSIM_NUMBA_CACHE_WARNED"):
     os.environ.pop(name, None)
 os.environ["HOME"], os.environ["TMPDIR"] = sys.argv[1:3]
-from plant_fmu.model import jit
-
-with warnings.catch_warnings(record=True) as caught:
-    warnings.simplefilter("always")
-    numba, why = jit.load_numba()
-    problem = jit.cache_problem()
-print(json.dumps({"cache": os.environ["NUMBA_CACHE_DIR"], "problem": problem,
-                  "warnings": [str(w.message) for w in caught]}))
 """
+    + CHOSEN_CACHE_FOLDER
+)
 
 
 def test_a_home_that_cannot_be_written_caches_in_a_private_temporary_folder(run_python, tmp_path):
