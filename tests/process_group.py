@@ -43,3 +43,16 @@ def started_in_group(command: Sequence[Any], **popen: Any) -> Iterator[subproces
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
         proc.communicate()
+
+
+def as_in_a_terminal() -> None:
+    """In a child before it runs its command: SIGHUP, SIGINT and SIGTERM at their default
+    and unblocked, as a command started from a terminal has them, whatever the test
+    process inherited or was left with (an ignored or blocked signal is inherited by every
+    process it starts, and a command started under an ignored SIGHUP is ``nohup``'s)."""
+    import signal
+
+    stops = {signal.SIGHUP, signal.SIGINT, signal.SIGTERM}
+    for signum in stops:
+        signal.signal(signum, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, stops)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pytest
+from process_group import as_in_a_terminal
 from rerun.chunk import RrdReader
 
 from cosim.engine.master import ROWS_PER_CHUNK
@@ -43,7 +44,8 @@ def start(fmu_dir: Path, out: Path, *options: str, scenario: str = "bs-3") -> su
     """`auv-cosim run SCENARIO --out OUT ...` in a fresh interpreter."""
     command = [sys.executable, "-m", "cosim.cli", "run", scenario, "--fmu-dir", str(fmu_dir)]
     command += ["--out", str(out), "--quiet", *options]
-    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=as_in_a_terminal)  # fmt: skip
 
 
 def rows_in(path: Path) -> int:

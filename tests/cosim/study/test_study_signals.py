@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+from process_group import as_in_a_terminal
 
 from cosim.cli import main
 from cosim.scratch import SCRATCH_DIR
@@ -65,6 +66,7 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
         text=True,
         start_new_session=True,
         env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "TMPDIR": str(scratch)},
+        preexec_fn=as_in_a_terminal,
     )
     try:
         deadline = time.monotonic() + 240
