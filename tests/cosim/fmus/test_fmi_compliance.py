@@ -299,12 +299,14 @@ md = read_model_description(path)
 index = {v.name: i for i, v in enumerate(md.modelVariables, start=1)}
 unknowns = [u.variable for u in md.initialUnknowns]
 declared = {u.variable.name: {index[d.name] for d in u.dependencies} for u in md.initialUnknowns}
-def nudged(v):
+def nudged(v, down=False):
     start = {"Real": float, "Integer": int}[v.type](v.start)
     if v.type == "Integer":
-        return start + 1 if v.max is None or start + 1 <= int(v.max) else start - 1
+        up = not down and (v.max is None or start + 1 <= int(v.max))
+        return start + 1 if up else start - 1
     step = max(abs(start) * 0.1, 0.05)
-    return start + step if v.max is None or start + step <= float(v.max) else start - step
+    up = not down and (v.max is None or start + step <= float(v.max))
+    return start + step if up else start - step
 def initial_values(**values):
     fmu = Harness(path, initialize=False)
     fmu.slave.setupExperiment(startTime=0.0)
@@ -318,7 +320,10 @@ undeclared = []
 for known in md.modelVariables:
     if known.causality not in ("input", "parameter") or known.type not in ("Real", "Integer"):
         continue
-    now = initial_values(**{known.name: nudged(known)})
+    try:  # up, unless a bound no declared max states refuses it (a stroke past the hull)
+        now = initial_values(**{known.name: nudged(known)})
+    except Exception:
+        now = initial_values(**{known.name: nudged(known, down=True)})
     undeclared += [f"{u.name} on {known.name}" for u, a, b in zip(unknowns, base, now)
                    if a != b and index[known.name] not in declared[u.name]]
 fmu = Harness(path)
