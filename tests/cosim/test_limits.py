@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import resource
 import shutil
+import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -17,6 +18,15 @@ from cosim import limits
 from cosim.cli import main
 
 TOO_SMALL = 900 * limits.MB  # where a run failed naming no limit, with tracebacks
+
+
+def one_line_refusal(done: subprocess.CompletedProcess, start: str) -> str:
+    """The one stderr line a command refused with (exit 1), checked to begin with ``start``."""
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith(start), lines
+    return lines[0]
 
 
 def _limited(limit: int) -> Callable[[], None]:
@@ -96,11 +106,8 @@ def test_a_study_with_too_few_open_files_is_refused_naming_the_limit(
     args = ["sweep", "s.toml", "--quiet", "--fmu-dir", str(fmu_dir), "--out", "s"]
     command = [sys.executable, "-m", "cosim", *args]
     done = run_in_group(command, timeout=90, cwd=tmp_path, preexec_fn=_few_files(32))
-    assert done.returncode == 1, done.stderr
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1, done.stderr
-    assert lines[0].startswith("auv-cosim sweep: the open-files limit of this process, 32"), lines
-    assert "(ulimit -n)" in lines[0] and "raise it" in lines[0], lines
+    line = one_line_refusal(done, "auv-cosim sweep: the open-files limit of this process, 32")
+    assert "(ulimit -n)" in line and "raise it" in line, line
     assert not (tmp_path / "s").exists()
 
 
@@ -221,11 +228,8 @@ def test_a_study_without_a_writable_dev_shm_is_refused_naming_it(
     sweep = f"{sys.executable} -m cosim sweep s.toml --quiet --fmu-dir {fmu_dir} --out s"
     command = ["unshare", "-m", "sh", "-c", f"{mount} && exec {sweep}"]
     done = run_in_group(command, timeout=90, cwd=tmp_path)
-    assert done.returncode == 1, done.stderr
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1, done.stderr
-    assert lines[0].startswith("auv-cosim sweep: a study's workers need a semaphore"), lines
-    assert "/dev/shm" in lines[0] and "Read-only file system" in lines[0], lines
+    line = one_line_refusal(done, "auv-cosim sweep: a study's workers need a semaphore")
+    assert "/dev/shm" in line and "Read-only file system" in line, line
     assert not (tmp_path / "s").exists()
 
 
