@@ -97,12 +97,14 @@ def load() -> str:
     return "/".join(f"{x:.1f}" for x in os.getloadavg())
 
 
-def timed(code: str, *args: str, core: int | None = None) -> tuple[float, float]:
+def timed(code: str, *args: str, core: int | None, scratch: str) -> tuple[float, float]:
     """(wall s, CPU s) a child process running ``code`` prints last; on CPU ``core`` only
-    when given."""
+    when given; its TMPDIR is ``scratch`` (ecos unpacks each SSP there, ecos_ssp_<uuid>,
+    and leaves it: so it goes with the benchmark's folder, not into /tmp)."""
     pin = None if core is None else functools.partial(os.sched_setaffinity, 0, {core})
+    env = {**os.environ, "TMPDIR": scratch}
     done = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
-                          check=False, timeout=600, preexec_fn=pin)  # fmt: skip
+                          check=False, timeout=600, preexec_fn=pin, env=env)  # fmt: skip
     if done.returncode != 0:
         raise SystemExit(f"failed: {done.stderr.strip().splitlines()[-1:]}")
     wall, cpu = done.stdout.split()[-2:]
@@ -137,7 +139,9 @@ def main() -> None:
                     "ours": (OURS, fmu_dir, repr(args.stop_time), record, out + "-ours.csv"),
                 }  # fmt: skip
                 for tool in sorted(runs, reverse=i % 2 == 1):  # alternate who goes first
-                    times.setdefault((record, tool), []).append(timed(*runs[tool], core=core))
+                    times.setdefault((record, tool), []).append(
+                        timed(*runs[tool], core=core, scratch=tmp)
+                    )
                 (ew, ec), (ow, oc) = times[record, "ecos"][-1], times[record, "ours"][-1]
                 print(f"round {i + 1}, recording {record}: ecos {ew:.3f} s (CPU {ec:.3f}), "
                       f"ours {ow:.3f} s (CPU {oc:.3f}): {ow / ew:.2f} ({oc / ec:.2f} CPU); "
