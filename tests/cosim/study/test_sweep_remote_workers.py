@@ -12,6 +12,7 @@ import shutil
 import signal
 import subprocess
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
 import pytest
@@ -30,6 +31,7 @@ from test_sweep_lost_worker import rows_written
 import cosim
 from cosim.cli import main
 from cosim.errors import CosimError
+from cosim.scenario.design_doubts import DesignWarning
 from cosim.study import execution, runner
 from cosim.study.execution import FMU_FOLDER
 
@@ -135,7 +137,8 @@ def test_a_vehicle_file_only_the_client_has_reaches_the_workers(
 ) -> None:
     """A vehicle set named by a factor or by the scenario, on the client's disk only (here
     removed once the study has sent its runs' data), failed every run that read it, with
-    "names no file (looked for <the worker's working folder>/myveh.toml)"."""
+    "names no file (looked for <the worker's working folder>/myveh.toml)". (The factor
+    gives the plant a vehicle its autopilot was not designed for: the study says so.)"""
     vehicle = tmp_path / "client" / "myveh.toml"
     vehicle.parent.mkdir()
     vehicle.write_text(VEHICLE_FILE)
@@ -152,7 +155,9 @@ def test_a_vehicle_file_only_the_client_has_reaches_the_workers(
         return made
 
     monkeypatch.setattr(runner, "make_job", then_gone)
-    with dask_processes(tmp_path / "elsewhere", worker_envs=[{}]) as cluster:
+    mismatch = study_text == BY_FACTOR
+    said = pytest.warns(DesignWarning, match="myveh.toml") if mismatch else nullcontext()
+    with dask_processes(tmp_path / "elsewhere", worker_envs=[{}]) as cluster, said:
         sweep(study, tmp_path / "out", fmu_dir, *cluster.options)
     rows = table(tmp_path / "out")
     assert not vehicle.exists() and len(rows) == 2
