@@ -551,6 +551,12 @@ def scenario_path(id_or_path: str | Path) -> Path:
         return path
     if _looks_like_a_path(str(id_or_path)) or os.path.lexists(path):
         exists = os.path.lexists(path)
+        if path.exists() and not path.is_dir():  # a link to nothing: "not a file" below
+            raise ScenarioError(
+                f"scenario file {id_or_path}: cannot read it: a pipe or a device, not a file "
+                "(a scenario file is read more than once: `<(...)` gives it once, and a FIFO "
+                "with no writer never); write it to a file first"
+            )
         guess = "" if exists else did_you_mean_path(path)
         if not (exists or guess) and _is_builtin_file_name(path):
             guess = f" (the built-in scenario is the id {path.stem!r}, without .toml)"

@@ -4,6 +4,7 @@ is loaded with the file and the key named."""
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
 import shutil
 import subprocess
@@ -431,6 +432,23 @@ def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
         ScenarioError, match=r"unknown scenario 'bs-9': expected a built-in id \(bs-1, "
     ):
         load_scenario("bs-9")
+
+
+def test_a_scenario_given_through_a_pipe_is_refused_saying_why(tmp_path: Path) -> None:
+    """`auv-cosim run <(sed ... bs3.toml)` said "not a file: /dev/fd/63", as if the shell's
+    pipe were a folder: a scenario file is read more than once (its id names the run
+    folder before it loads), which a pipe cannot give, so the refusal says that."""
+    fifo = tmp_path / "scenario.toml"
+    os.mkfifo(fifo)  # nothing writes to it: opening it would wait for ever
+    with pytest.raises(ScenarioError) as refused:
+        scenario_path(fifo)
+    assert str(refused.value) == (
+        f"scenario file {fifo}: cannot read it: a pipe or a device, not a file (a scenario "
+        "file is read more than once: `<(...)` gives it once, and a FIFO with no writer "
+        "never); write it to a file first"
+    )
+    with pytest.raises(ScenarioError, match=r"^not a file: .*; expected a scenario \.toml"):
+        scenario_path(tmp_path)  # a folder is still "not a file"
 
 
 @pytest.mark.slow
