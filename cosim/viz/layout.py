@@ -8,8 +8,10 @@ position with its command). Entity names carry the display unit (``attitude/yaw_
 angles are shown in degrees, the moving mass in centimetres, everything else in SI.
 A column the catalogue does not know still gets its own entity, ``other/<instance>/<variable>``
 (the variable's name one escaped part, whatever it holds), in the unit its FMU declares,
-named in its line's label. Every plot's entity also says, for a reader of the recording,
-which results.csv column each of its lines shows and in what unit (:func:`series_sources`).
+named in its line's label; so does a catalogue column whose FMU declares another unit than
+its plot converts from (an FMU's ``yaw_setpoint`` in deg is not scaled from rad again).
+Every plot's entity also says, for a reader of the recording, which results.csv column
+each of its lines shows and in what unit (:func:`series_sources`).
 
 Colours follow one rule everywhere, in the plots and in the 3D scene: the first, second and
 third axis of a frame (north/u/p/roll, east/v/q/pitch, down/w/r/yaw) are red, green and
@@ -71,6 +73,9 @@ NOTES_ENTITY = "events"  # TextLog: events fired, faults started and stopped, li
 CHASE_EYE = (-1.6, -0.9, -0.6)  # m in the chase frame: behind, to port, above the vehicle
 DEG = math.degrees(1.0)
 DIMENSIONLESS = "1"  # a quantity without a unit, as SI (and summary.json's units) write it
+# display unit of a panel -> the unit its columns must be declared in for their scale to
+# hold (deg: a column in rad times DEG); a display unit not listed is the columns' own
+DRAWN_FROM = {"deg": "rad", "deg/s": "rad/s", "cm": "m", "cm/s": "m/s"}
 
 
 def time_index(times: np.ndarray) -> list[rr.TimeColumn]:
@@ -235,7 +240,9 @@ def plan_panels(columns: list[str], units: Mapping[str, str] | None = None) -> l
     planned: list[PlannedPanel] = []
     shown: set[int] = set()
     for panel in PANELS:
-        present = tuple(s for s in panel.series if s.column in index)
+        present = tuple(
+            s for s in panel.series if s.column in index and _fits(s.column, panel, units)
+        )
         if present:
             indices = tuple(index[s.column] for s in present)
             shown.update(indices)
@@ -251,6 +258,13 @@ def plan_panels(columns: list[str], units: Mapping[str, str] | None = None) -> l
             entity = "other/" + "/".join(map(rr.escape_entity_path_part, name.split(".", 1)))
             planned.append(PlannedPanel(entity, name, (series,), (i,), (1.0,), (unit,)))
     return planned
+
+
+def _fits(column: str, panel: Panel, units: Mapping[str, str] | None) -> bool:
+    """Whether ``column`` is declared in the unit ``panel``'s scale converts from (or its
+    unit is not known): a column in deg is not scaled by DEG again, it is drawn apart."""
+    declared = (units or {}).get(column)
+    return declared is None or declared == DRAWN_FROM.get(panel.unit, panel.unit)
 
 
 def series_style(panel: PlannedPanel) -> rr.SeriesLines:
