@@ -25,13 +25,14 @@ plant's (the water that moves the vehicle) and, paler, the autopilot's knowledge
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+
+from cosim.viz.display_units import DEG, source_unit
 
 Rgb = tuple[int, int, int]
 
@@ -71,11 +72,7 @@ TRACKED_ENTITY = f"{VEHICLE_ENTITY}/hull"
 WORLD_EYE = (-10.0, -6.0, -5.0)  # m from the vehicle: behind, to port, above (13 m away)
 NOTES_ENTITY = "events"  # TextLog: events fired, faults started and stopped, live overrides
 CHASE_EYE = (-1.6, -0.9, -0.6)  # m in the chase frame: behind, to port, above the vehicle
-DEG = math.degrees(1.0)
 DIMENSIONLESS = "1"  # a quantity without a unit, as SI (and summary.json's units) write it
-# display unit of a panel -> the unit its columns must be declared in for their scale to
-# hold (deg: a column in rad times DEG); a display unit not listed is the columns' own
-DRAWN_FROM = {"deg": "rad", "deg/s": "rad/s", "cm": "m", "cm/s": "m/s"}
 
 
 def time_index(times: np.ndarray) -> list[rr.TimeColumn]:
@@ -261,10 +258,11 @@ def plan_panels(columns: list[str], units: Mapping[str, str] | None = None) -> l
 
 
 def _fits(column: str, panel: Panel, units: Mapping[str, str] | None) -> bool:
-    """Whether ``column`` is declared in the unit ``panel``'s scale converts from (or its
-    unit is not known): a column in deg is not scaled by DEG again, it is drawn apart."""
+    """Whether ``column`` is declared in the unit ``panel``'s scale converts from (or no
+    unit of it is known, "1" included): a column in deg is not scaled by DEG again, it is
+    drawn apart."""
     declared = (units or {}).get(column)
-    return declared is None or declared == DRAWN_FROM.get(panel.unit, panel.unit)
+    return declared in (None, DIMENSIONLESS) or declared == source_unit(panel.unit)
 
 
 def series_style(panel: PlannedPanel) -> rr.SeriesLines:

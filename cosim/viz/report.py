@@ -59,7 +59,7 @@ import shutil
 import tomllib
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -82,6 +82,7 @@ from cosim.outputs.report_folder import (
 )
 from cosim.outputs.results import read_csv
 from cosim.paths import DEFAULT_FMU_DIR, path_text
+from cosim.viz.display_units import DEG, NO_UNIT, scale_to
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import STUDY_FILE
 
@@ -160,7 +161,6 @@ class Panel:
     series: tuple[Series, ...]
 
 
-DEG = math.degrees(1.0)
 FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
     "velocities": (
         "Linear and angular velocities",
@@ -304,10 +304,12 @@ def _figures(
     zoom = _zoom(table, summary)
     caption = run_caption(run_dir, table, summary)
     stop_time = _seconds(summary, "stop_time")
+    units = summary.get("units")
     figures = {}
     for name, (title, panels) in FIGURES.items():
         if name == "depth" and not _has_depth_loop(table):
             continue
+        panels = as_declared(panels, units if isinstance(units, dict) else {})
         path = plot_time_histories(
             table, panels, caption.format(title), out / f"{name}.png", markers_of(summary),
             limits, zoom if name in ZOOMED else None, stop_time,
@@ -328,6 +330,33 @@ def _figures(
         if deviation is not None:
             figures["lateral_deviation"] = deviation
     return figures
+
+
+def as_declared(panels: tuple[Panel, ...], units: dict[str, Any]) -> tuple[Panel, ...]:
+    """``panels`` with each line scaled from the unit its column's FMU declares (``units``,
+    summary.json's) to the unit its panel's label names: a set-point another tool declares
+    in deg is drawn as it is, not times 180/pi. A line whose declared unit does not convert
+    to its label's is left out, and a panel left without lines with it; a column without
+    a declared unit (none in ``units``, or "1": its FMU declares none) keeps its scale."""
+    kept = []
+    for panel in panels:
+        shown = _label_unit(panel.ylabel)
+        series = []
+        for s in panel.series:
+            declared = units.get(s.column)
+            known = isinstance(declared, str) and declared != NO_UNIT
+            scale = scale_to(str(declared), shown) if known else s.scale
+            if scale is not None:
+                series.append(replace(s, scale=scale))
+        if series:
+            kept.append(replace(panel, series=tuple(series)))
+    return tuple(kept)
+
+
+def _label_unit(ylabel: str) -> str:
+    """The unit an axis label names in its closing brackets ("z (m)": m); "1" for none."""
+    _, bracket, unit = ylabel.rstrip(")").rpartition(" (")
+    return unit if bracket and ylabel.endswith(")") else "1"
 
 
 def run_caption(run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any]) -> str:

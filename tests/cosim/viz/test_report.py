@@ -7,6 +7,7 @@ documented results.csv / summary.json format, so each figure's data is known.
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
@@ -754,3 +755,19 @@ def test_the_stern_plane_limit_is_drawn_on_its_panel(tmp_path, monkeypatch) -> N
     fins = next(ax for ax in kept["depth.png"].axes if ax.get_ylabel() == r"$\delta_s$ (deg)")
     levels = sorted(line.get_ydata()[0] for line in fins.lines if line.get_linestyle() == ":")
     assert levels == pytest.approx([-np.degrees(0.3), np.degrees(0.3)])
+
+
+def test_a_set_point_its_fmu_declares_in_degrees_is_drawn_unscaled(tmp_path, monkeypatch) -> None:
+    """Another tool's autopilot whose yaw_setpoint is in deg (summary.json's units say so):
+    its 20 deg set-point was drawn as 1146 deg on the yaw panel, scaled as if in rad."""
+    run = tmp_path / "run"
+    run.mkdir()
+    rows = "".join(f"{t},0.1,20.0\n" for t in (0.0, 0.1, 0.2))
+    (run / "results.csv").write_text("time,plant.yaw,controller.yaw_setpoint\n" + rows)
+    units = {"time": "s", "plant.yaw": "rad", "controller.yaw_setpoint": "deg"}
+    (run / "summary.json").write_text(json.dumps({"units": units}))
+    kept = _kept_figures(run, monkeypatch)
+    yaw = next(ax for ax in kept["attitude_actuators.png"].axes if "psi" in ax.get_ylabel())
+    drawn = {line.get_label().split(" (")[0]: line.get_ydata() for line in yaw.lines}
+    assert list(drawn["setpoint"]) == pytest.approx([20.0] * 3)  # deg, as declared
+    assert list(drawn["yaw"]) == pytest.approx([math.degrees(0.1)] * 3)  # rad, drawn in deg
