@@ -124,8 +124,8 @@ _UNIT_FACTOR = re.compile(r"^([A-Za-z]+|1)(-?\d+)?$")
 # unit -> (display unit, factor): a tool shows and takes angles and turn rates in degrees
 # (FMI 2.0 DisplayUnit: value in the display unit = factor * value in the unit)
 DISPLAY_UNITS: dict[str, tuple[str, float]] = {
-    "rad": ("deg", 180.0 / math.pi),
-    "rad/s": ("deg/s", 180.0 / math.pi),
+    "rad": ("deg", math.degrees(1.0)),
+    "rad/s": ("deg/s", math.degrees(1.0)),
 }
 
 

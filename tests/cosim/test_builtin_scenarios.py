@@ -35,7 +35,7 @@ from plant_fmu.model.dynamics import INPUT_NAMES, STATE_INDEX, STATE_NAMES, Plan
 from plant_fmu.model.linearization import input_vector
 from plant_fmu.model.parameters import load_vehicle
 
-DEG = math.pi / 180.0
+DEG = math.radians(1.0)
 
 
 @pytest.fixture(scope="module")

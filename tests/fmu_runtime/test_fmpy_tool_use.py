@@ -131,7 +131,7 @@ def test_angles_offer_degrees_as_their_display_unit(name, fmu_paths):
     for variable in angles:
         expected = {"rad": "deg", "rad/s": "deg/s"}[variable.unit]
         assert variable.displayUnit == expected, variable.name
-        assert factors[(variable.unit, expected)] == pytest.approx(180.0 / math.pi, rel=1e-15)
+        assert factors[(variable.unit, expected)] == pytest.approx(math.degrees(1.0), rel=1e-15)
 
 
 @pytest.mark.parametrize("name", ["AuvPlant", "AuvAutopilot"])

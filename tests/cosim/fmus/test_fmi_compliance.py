@@ -73,7 +73,7 @@ SI_SYMBOLS: dict[str, dict[str, int]] = {
     "J": {"kg": 1, "m": 2, "s": -2},
     "W": {"kg": 1, "m": 2, "s": -3},
 }
-DEGREE = math.pi / 180.0  # rad: 1 deg; a display value in deg is the value in rad / DEGREE
+DEGREE = math.radians(1.0)  # rad: 1 deg; a display value in deg is the value in rad / DEGREE
 # FMI 2.0, section 2.2.9: a structured name is identifiers (or quoted names) joined by
 # dots, each with an optional array index; ours are plain identifiers
 STRUCTURED_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\[\d+(,\d+)*\])?(\.[A-Za-z_]\w*(\[\d+\])?)*")
