@@ -351,7 +351,7 @@ def _overlay(
     """overlay.rrd of the chosen runs (those not kept run again, and kept now), and
     warnings for entries that chose nothing and runs without results."""
     # imported here, for a study with an overlay only: rerun and scipy.spatial take ~0.6 s
-    from cosim.viz.overlay import OverlayRun, write_overlay
+    from cosim.viz.overlay import POSITION, SERIES, OverlayRun, write_overlay
     from cosim.viz.report import load_results
 
     by_id = {run.id: run for run in runs}
@@ -384,7 +384,8 @@ def _overlay(
         if (run_results := found[run_id]) is not None
     ]
     text = notes(chosen, by_id, by_row, missing, empty, unit_of)
-    path = write_overlay(out_dir / OVERLAY_FILE, shown, f"study {out_dir.name}", text)
+    drawn_from = units([*POSITION, *(column for column, _ in SERIES.values())], base.fmu_paths)
+    path = write_overlay(out_dir / OVERLAY_FILE, shown, f"study {out_dir.name}", text, drawn_from)
     warnings = [f"overlay: {entry} chose no run (no complete run has a value)" for entry in empty]
     warnings += [f"overlay: run {run_id} left no results.csv" for run_id in missing]
     return path, warnings

@@ -33,16 +33,17 @@ import rerun as rr
 import rerun.blueprint as rrb
 from matplotlib import colormaps
 
+from cosim.viz.display_units import NO_UNIT, scale_to, source_unit
 from cosim.viz.layout import time_index
 from cosim.viz.recording import APPLICATION_ID, FLUSH_TIMEOUT
 from cosim.viz.rrd_file import RrdFile, drop_closed_streams, file_sink, pumped, set_sinks
 from cosim.whole_file import fresh_file
 
 POSITION = ("plant.north", "plant.east", "plant.down")
-SERIES = {  # entity root -> (results column, display scale)
-    "yaw_deg": ("plant.yaw", float(np.degrees(1.0))),
-    "roll_deg": ("plant.roll", float(np.degrees(1.0))),
-    "depth_m": ("plant.down", 1.0),
+SERIES = {  # entity root -> (results column, the unit it is drawn in)
+    "yaw_deg": ("plant.yaw", "deg"),
+    "roll_deg": ("plant.roll", "deg"),
+    "depth_m": ("plant.down", "m"),
 }
 REQUIRED = ("time", *POSITION, *(column for column, _ in SERIES.values()))
 POINT_RADIUS = 0.3  # m, drawn radius of a run's vehicle in the 3D view
@@ -66,10 +67,18 @@ class OverlayRun:
             raise ValueError(f"run {self.id}: its results lack {', '.join(missing)}")
 
 
-def write_overlay(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> Path:
+def write_overlay(
+    path: Path,
+    runs: Sequence[OverlayRun],
+    title: str,
+    notes: str,
+    units: Mapping[str, str] | None = None,
+) -> Path:
     """Write ``path`` (replaced whole: written beside it, then renamed) overlaying ``runs``.
 
-    ``title`` names the recording; ``notes`` (Markdown) is the ``study`` text document.
+    ``title`` names the recording; ``notes`` (Markdown) is the ``study`` text document;
+    ``units`` (column -> the unit its FMU declares) the unit each signal is drawn from (a
+    yaw declared in deg is not scaled from rad; one not given: as our plant's, rad).
     Raises OSError if the file cannot be written.
     """
     tmp = path.with_name(path.name + ".tmp")
@@ -77,7 +86,7 @@ def write_overlay(path: Path, runs: Sequence[OverlayRun], title: str, notes: str
     title, notes = (text.encode(errors="backslashreplace").decode() for text in (title, notes))
     try:
         fresh_file(tmp)  # never written through a link planted at the name
-        _write(tmp, runs, title, notes)
+        _write(tmp, runs, title, notes, units or {})
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
@@ -86,7 +95,9 @@ def write_overlay(path: Path, runs: Sequence[OverlayRun], title: str, notes: str
     return path
 
 
-def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> None:
+def _write(
+    path: Path, runs: Sequence[OverlayRun], title: str, notes: str, units: Mapping[str, str]
+) -> None:
     rec = rr.RecordingStream(OVERLAY_APPLICATION_ID)
     file = RrdFile(path) if pumped() else None  # see cosim.viz.rrd_file: why not FileSink
     try:
@@ -97,7 +108,7 @@ def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> No
         rec.log("study", rr.TextDocument(notes, media_type=rr.MediaType.MARKDOWN), static=True)
         colors = colormaps["tab20"]  # 20 qualitative colours
         for k, run in enumerate(runs):
-            _log_run(rec, run, tuple(int(255 * c) for c in colors(k % colors.N)[:3]))
+            _log_run(rec, run, tuple(int(255 * c) for c in colors(k % colors.N)[:3]), units)
         rec.flush(timeout_sec=FLUSH_TIMEOUT)
     finally:
         rec.disconnect()
@@ -107,8 +118,11 @@ def _write(path: Path, runs: Sequence[OverlayRun], title: str, notes: str) -> No
             file.close(timeout=FLUSH_TIMEOUT)  # OSError if a write failed
 
 
-def _log_run(rec: rr.RecordingStream, run: OverlayRun, color: tuple[int, ...]) -> None:
-    """A run's static path and label, and its per-step position and signals."""
+def _log_run(
+    rec: rr.RecordingStream, run: OverlayRun, color: tuple[int, ...], units: Mapping[str, str]
+) -> None:
+    """A run's static path and label, and its per-step position and signals (each scaled
+    from the unit ``units`` declares it in; one that does not convert is left out)."""
     position = np.column_stack([run.results[name] for name in POSITION])
     index = time_index(run.results["time"])
     rec.log(
@@ -126,7 +140,11 @@ def _log_run(rec: rr.RecordingStream, run: OverlayRun, color: tuple[int, ...]) -
     rec.send_columns(
         f"world/vehicles/{run.id}", indexes=index, columns=rr.Points3D.columns(positions=position)
     )
-    for root, (column, scale) in SERIES.items():
+    for root, (column, shown) in SERIES.items():
+        declared = units.get(column, NO_UNIT)
+        scale = scale_to(source_unit(shown) if declared == NO_UNIT else declared, shown)
+        if scale is None:
+            continue
         entity = f"{root}/{run.id}"
         rec.log(entity, rr.SeriesLines(names=[run.label], colors=[color]), static=True)
         values = np.asarray(run.results[column], dtype=float) * scale
