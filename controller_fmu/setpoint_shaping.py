@@ -7,7 +7,7 @@
   relative to the water. With chi = 0, a 0.2 m/s eastward current and U0 = 1.525 m/s this
   gives psi_d = -7.54 deg (the dissertation prints -7.55), and with U0 = 1.017 m/s (4 N)
   -11.3 deg (6.3.75).
-* Moving-mass lock (Sec. 6.3.4, vert-2): after ``mass_lock_time`` the mass command is 0
+* Moving-mass lock (Sec. 6.3.4, vert-2): from ``mass_lock_time`` the mass command is 0
   and stays there, so the servo brings the mass to the centre and holds it; a negative lock
   time never locks.
 """
@@ -64,6 +64,12 @@ def desired_heading(
     )
 
 
+LOCK_SLACK = 1e-9  # of the lock time (at least of 1 s): a time this close before it is it
+
+
 def mass_locked(time: float, mass_lock_time: float) -> bool:
-    """True once the moving mass is locked: mass_lock_time >= 0 and time >= mass_lock_time."""
-    return mass_lock_time >= 0.0 and time >= mass_lock_time
+    """True once the moving mass is locked: mass_lock_time >= 0 and time (s) at or after
+    mass_lock_time (s), a time within :data:`LOCK_SLACK` before it counting as it (a host's
+    points n h miss it by a rounding: 3 x 0.3 s is 0.8999999999999999 s)."""
+    slack = LOCK_SLACK * max(1.0, mass_lock_time)
+    return mass_lock_time >= 0.0 and time >= mass_lock_time - slack

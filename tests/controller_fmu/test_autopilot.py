@@ -62,6 +62,18 @@ def test_mass_lock_starts_at_the_lock_time_and_never_when_negative():
     assert not mass_locked(1e6, -1.0)
 
 
+def test_mass_lock_starts_at_a_point_that_rounds_just_below_the_lock_time():
+    """A host computing its points as n h reaches 0.9 s as 3 x 0.3 s = 0.8999999999999999 s
+    (and 10.8 s as 36 x 0.3 s = 10.799999999999999 s): that point is the lock
+    time, so the mass locks there and not one step late; a point clearly before it is not."""
+    for n, h, lock in ((3, 0.3, 0.9), (36, 0.3, 10.8)):
+        point = n * h
+        assert point < lock, "the arithmetic this test guards changed"
+        assert mass_locked(point, lock), f"not locked at t = {point!r} s, lock at {lock} s"
+        assert not mass_locked((n - 1) * h, lock)
+        assert not mass_locked(lock - 1e-6, lock)
+
+
 # --- depth PD ---------------------------------------------------------------------------------
 
 
