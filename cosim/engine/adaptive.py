@@ -395,7 +395,10 @@ class _Control:
         self.next = float(2**MIN_LEVEL)  # the step asked for, grid points: coupling.step
         self.top = max(2, round((coupling.max_step or coupling.step) / self.grid))
         self.err_prev, self.after_rejection = 1.0, False
-        self.points = [*(timeline.points() if timeline is not None else []), self.last]
+        # the points a step ends on, sorted: those of events and faults after the stop time
+        # (valid: a shorter --stop-time keeps the file) left out, the stop time's last
+        due = timeline.points() if timeline is not None else []
+        self.points = [*(point for point in due if point < self.last), self.last]
         self.periods = sorted({s.k * 2**MIN_LEVEL for s in order if s.k > 1})
         nominal = np.ones(n_read)
         continuous = np.zeros(n_read, dtype=bool)  # the values the error is measured on

@@ -94,6 +94,25 @@ stop = 0.8
     np.testing.assert_allclose(stepped / 0.2, np.round(stepped / 0.2), atol=1e-9)
 
 
+@pytest.mark.parametrize(
+    "extra",
+    [
+        '[[events]]\ntime = 5.0\nset = { "controller.k" = 3.0 }',
+        '[[faults]]\nkind = "bias"\ntarget = "plant.u"\nvalue = 0.1\nstart = 3.0',
+    ],
+    ids=["event", "fault"],
+)
+def test_an_event_or_fault_after_the_stop_time_leaves_the_last_step_at_the_stop_time(
+    test_fmu_dir: Path, extra: str
+) -> None:
+    """An event or fault timed after the stop time (valid: a shorter --stop-time keeps the
+    file) does not stretch the last adaptive step past the stop time, where the FMUs refuse
+    it: the run completes at its stop time."""
+    result = run(test_fmu_dir, adaptive(1e-3, extra))
+    assert result.complete, result.error
+    assert result.times[-1] == 2.0 and np.all(result.times <= 2.0)
+
+
 def test_a_rejected_step_leaves_no_event_behind(test_fmu_dir: Path) -> None:
     """A when event fires once, at an accepted point, however many attempts crossed it."""
     extra = '[[events]]\nwhen = "plant.x < 0.5"\nset = { "controller.k" = 0.0 }'
