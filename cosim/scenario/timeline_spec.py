@@ -209,7 +209,8 @@ def unreached(
     grid: float | None = None,
 ) -> list[str]:
     """One line for each time event due after the last communication point of a run to
-    ``stop_time`` (s, communication step ``step``, s), and each fault starting after it:
+    ``stop_time`` (s, communication step ``step``, s), each series starting after it
+    and each fault starting after it:
     valid, but the run ends before them (a run shortened by ``--stop-time``, or a time
     typed in the wrong unit), so they are never applied. And one for each fault whose
     start and stop lie between two points (``grid`` s apart, an adaptive run's; else
@@ -224,6 +225,12 @@ def unreached(
         "the event, which is never applied"
         for event in events
         if event.time is not None and late(event.time)
+    ] + [
+        f"events.{event.name}: series {event.series.path.name} starts at "
+        f"{event.series.times[0]:g} s, after {stop}: the run ends before the series, "
+        "which is never applied"
+        for event in events
+        if event.series is not None and late(event.series.times[0])
     ]
     h = grid or step
     return lines + [

@@ -274,3 +274,21 @@ def test_an_event_into_one_variable_under_two_names_is_refused(
         r"\(the same value reference\): set one of them",
     ):
         scenario_from_toml(twice, base_dir=tmp_path)
+
+
+def test_a_series_starting_after_the_stop_time_is_named_as_never_applied() -> None:
+    """A series whose first row is after the stop time never writes a value, as an event
+    timed after it never fires: one warning line says so, naming its first time and the
+    stop time; a series that starts before the stop time, with later rows, says nothing."""
+    from cosim.scenario.timeline_spec import Event, Series, unreached
+
+    def series(*times: float) -> Event:
+        columns = {"controller.k": tuple(1.0 for _ in times)}
+        return Event("profile", series=Series(Path("/p/profile.csv"), "hold", times, columns))
+
+    lines = unreached([series(30.0, 40.0)], [], stop_time=20.0, step=0.01)
+    assert lines == [
+        "events.profile: series profile.csv starts at 30 s, after the stop time (20 s): the run "
+        "ends before the series, which is never applied"
+    ]
+    assert unreached([series(10.0, 40.0)], [], stop_time=20.0, step=0.01) == []
