@@ -79,9 +79,11 @@ FMU's state cannot be set to them.
 Steps are whole numbers of the smallest step (``grid_step``: ``step`` / 2^:data:`MIN_LEVEL`),
 from two of them (taken without a check when even that misses the tolerance: counted in
 the summary) to ``max_step``; the events and faults (``Timeline`` at that grid), the sample
-points of the instances with a step multiple k (every k ``step``) and the stop time are
-points a step ends on (a step shortened to reach one is judged as if it had been the step
-asked for, its err scaled by (asked / taken)^k, so the next step does not start small).
+points of the instances with a step multiple k (every k ``step``), the sample times of an
+instance with a ``sample_period`` (a digital autopilot: the first grid point at or after
+each multiple of it) and the stop time are points a step ends on (a step shortened to
+reach one is judged as if it had been the step asked for, its err scaled by
+(asked / taken)^k, so the next step does not start small).
 The first step is ``step``.
 
 Discard: an instance that answers a doStep with fmi2Discard without ending the simulation
@@ -121,6 +123,7 @@ from cosim.engine.slave import Slave
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
 from cosim.scenario.spec import Coupling, Scenario
+from cosim.scenario.timeline_spec import first_point
 
 if TYPE_CHECKING:
     from cosim.engine.points import RowBuffer
@@ -139,6 +142,25 @@ FLOOR = 1e-3  # of a value's nominal: the smallest magnitude its error is relati
 def grid_step(coupling: Coupling) -> float:
     """The smallest step (s): every point of an adaptive run is a multiple of it."""
     return coupling.step / 2**MIN_LEVEL
+
+
+SAMPLE_SLACK = 1e-9  # of a sample period: a time this close before a multiple is at it
+
+
+def sample_periods(scenario: Scenario) -> list[float]:
+    """The periods (s) of the instances that sample at times of their own: a start value
+    ``sample_period`` > 0 (the autopilot's digital laws) samples at the first doStep at or
+    after each multiple of it."""
+    periods = (inst.start.get("sample_period") for inst in scenario.instances.values())
+    return sorted({float(p) for p in periods if isinstance(p, float | int) and p > 0.0})
+
+
+def next_sample_point(n: int, period: float, grid: float) -> int:
+    """The first grid point (``grid`` s apart) after point n at or after a multiple of
+    ``period`` (s) that point n is before: where a step must end for the sample due
+    after t_n to be taken at its time."""
+    multiple = math.floor(n * grid / period + SAMPLE_SLACK) + 1
+    return max(n + 1, first_point(multiple * period, grid))
 
 
 def points_step(coupling: Coupling) -> float:
@@ -400,6 +422,7 @@ class _Control:
         due = timeline.points() if timeline is not None else []
         self.points = [*(point for point in due if point < self.last), self.last]
         self.periods = sorted({s.k * 2**MIN_LEVEL for s in order if s.k > 1})
+        self.samples = sample_periods(scenario)  # s: a digital autopilot's
         nominal = np.ones(n_read)
         continuous = np.zeros(n_read, dtype=bool)  # the values the error is measured on
         for i, ref in enumerate(list(index)[:n_read]):
@@ -421,6 +444,8 @@ class _Control:
         limit = (self.points[ahead] if ahead < len(self.points) else self.last) - n
         for period in self.periods:
             limit = min(limit, (n // period + 1) * period - n)
+        for sample in self.samples:
+            limit = min(limit, next_sample_point(n, sample, self.grid) - n)
         return min(wanted, limit), wanted
 
     def estimate(self, big: np.ndarray, halves: np.ndarray) -> np.ndarray:

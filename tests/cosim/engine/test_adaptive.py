@@ -16,7 +16,7 @@ from cosim.engine.adaptive import MIN_LEVEL, grid_step
 from cosim.engine.pacing import Pacer
 from cosim.errors import CosimError
 from cosim.scenario.checks import ScenarioError
-from cosim.scenario.spec import scenario_from_toml
+from cosim.scenario.spec import load_scenario, scenario_from_toml
 
 
 def adaptive(
@@ -240,3 +240,22 @@ def test_the_report_says_how_many_steps_missed_the_tolerance(
     over = taken["steps_over_tolerance"]
     assert over == taken["accepted_steps"] > 0 and taken["kinks"] == 0
     assert f"{over} over the tolerance (all at the shortest step" in report(outcome)
+
+
+def test_a_digital_autopilot_samples_on_its_period_in_an_adaptive_run(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """lqr-1's autopilot samples every sample_period = 0.01 s (its LQR is designed for
+    that), at the first doStep at or after each multiple: an adaptive step ends on each
+    multiple, so every sample is taken there (within one grid point), not up to a step late."""
+    scenario = load_scenario("lqr-1", fmu_dir=fmu_paths["AuvPlant"].parent).with_overrides(
+        stop_time=0.5, algorithm="adaptive"
+    )
+    result = master.run(scenario, keep_rows=True)
+    assert result.complete, result.error
+    period, grid = 0.01, grid_step(scenario.coupling)
+    command = result.column("controller.mass_position_cmd")
+    sampled = result.times[:-1][np.diff(command) != 0.0]  # the points a sample was taken at
+    late = sampled - np.floor(sampled / period + 1e-9) * period
+    assert late.max() < grid, f"a sample {late.max():.2e} s after its time {sampled[late.argmax()]}"
+    assert len(sampled) >= 45  # (a sample that leaves the command as it was is not seen)
