@@ -582,9 +582,10 @@ class Autopilot:
         c = self.config
         next_sample = self.next_sample
         if c.sample_period > 0.0:
-            if next_sample is not None and time < next_sample - _SAMPLE_SLACK * c.sample_period:
+            slack = sample_slack(time, c.sample_period)
+            if next_sample is not None and time < next_sample - slack:
                 return self.commands
-            next_sample = (math.floor(time / c.sample_period + _SAMPLE_SLACK) + 1) * c.sample_period
+            next_sample = (math.floor((time + slack) / c.sample_period) + 1) * c.sample_period
             varying = False
         psi_d = desired_heading(
             m["yaw_setpoint"], m["current_north"], m["current_east"], c.design_speed,
@@ -613,7 +614,15 @@ class Autopilot:
         return commands
 
 
-_SAMPLE_SLACK = 1e-9  # of a sample period: a call this close before a sample time is at it
+_SAMPLE_SLACK = 1e-9  # of the time (at least of 1 s), as the FMU's check of a host's time
+_MOST_SLACK = 1e-3  # of a sample period: the slack never reaches the next sample
+
+
+def sample_slack(time: float, period: float) -> float:
+    """How far (s) before a sample time a call at ``time`` (s) may be and be at it: a host's
+    time off by a rounding, its sum t += h too (1e-9 of the time, at least 1 ns, as the
+    FMU's own check of the host's time allows), at most a thousandth of ``period`` (s)."""
+    return min(_SAMPLE_SLACK * max(1.0, abs(time)), _MOST_SLACK * period)
 
 
 def _checked(time: float, measurements: Mapping[str, float]) -> dict[str, float]:

@@ -46,7 +46,9 @@ the last sample's alphas. The laws themselves are evaluated at the sample.
 
 Digital autopilot: ``sample_period`` > 0 makes it sample at the first doStep at or after
 each multiple of the period and hold its commands in between, whatever the communication
-step (input derivatives are then ignored); 0 (the default) samples at every doStep.
+step (input derivatives are then ignored); 0 (the default) samples at every doStep. A
+doStep a host's rounding puts before a multiple (within 1e-9 of its time, at least 1 ns,
+at most a thousandth of the period) is at it.
 
 Sample time. The discrete LQR and the sampled sliding mode are designed at initialisation
 for the parameter ``design_step`` (default 0.01 s), not for the first doStep's step size,

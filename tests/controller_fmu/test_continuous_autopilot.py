@@ -100,3 +100,22 @@ def test_a_digital_autopilot_samples_at_its_own_period() -> None:
     assert changes == [0, 5, 10, 15, 20, 25]
     autopilot.restore(saved)
     assert autopilot.next_sample == pytest.approx(0.15)
+
+
+def test_a_digital_autopilot_samples_at_every_point_of_a_host_that_adds_its_step() -> None:
+    """sample_period = step = 0.1 s, the host's time t += 0.1 s (as many hosts count it):
+    at about 1300 s the sum falls more than 1e-11 s (the old slack, 1e-9 of a period) below
+    the multiple it stands for, as the FMU's own time check allows (1e-9 of the time).
+    Every call is still a sample: none is skipped, holding the commands two steps."""
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=3, sample_period=0.1))
+    meas = dict.fromkeys(("yaw", "r", "p", "roll", "v_rel", "u_rel", "down", "pitch", "q",
+                          "w_rel", "mass_position", "mass_velocity", "current_north",
+                          "current_east", "yaw_setpoint", "depth_setpoint"), 0.0)  # fmt: skip
+    t, skipped = 0.0, []
+    for n in range(15_000):
+        before = autopilot.next_sample
+        autopilot.step(t, meas)
+        if autopilot.next_sample == before:
+            skipped.append((n, t))
+        t += 0.1
+    assert not skipped, f"no sample at the calls (n, t) {skipped[:3]}"
