@@ -4,7 +4,8 @@ backend is left alone), from the sorted table rows.
 * ``grid_<factor>.png`` for each grid factor: every metric against that factor (one
   panel per metric), one line per combination of the other grid factors; with random
   factors as well, each point is the mean over the samples at that grid point that have
-  the metric (a settling time never reached has none), and the axis says so.
+  the metric (a settling time never reached has none, nor has a failed run), and the
+  axis says over how many ("mean of 3 to 4 samples" where some had none).
 * ``histograms.png`` (Monte Carlo): the distribution of every metric over the samples.
 * ``scatter_matrix.png`` (Monte Carlo): the random factors and the first metrics against
   each other (histograms on the diagonal), at most :data:`SCATTER_MAX` variables.
@@ -118,7 +119,11 @@ def figure_alts(
     if not shown:
         return {}
     panels = "; ".join(axis_label(metric, units) for metric in shown)
-    means = ", each point the mean over the samples at that grid point" if random_factors else ""
+    means = (
+        ", each point the mean over the samples at that grid point that gave it"
+        if random_factors
+        else ""
+    )
     alts = {}
     for factor in grid:
         others = [name for name in grid if name != factor]
@@ -197,6 +202,7 @@ def plot_grid_factor(
         by_point.setdefault(tuple(row[name] for name in grid), []).append(row)
     fig, axes = _panels(len(metrics), figure_title)
     lines: dict[str, list[tuple[str, np.ndarray]]] = {metric: [] for metric in metrics}
+    counts: dict[str, list[int]] = {metric: [] for metric in metrics}
     for k, combo in enumerate(itertools.product(*(grid[name] for name in others))):
         fixed = dict(zip(others, combo, strict=True))
         label = ", ".join(value_label(name, value, units) for name, value in fixed.items())
@@ -210,9 +216,11 @@ def plot_grid_factor(
             y = np.asarray([_mean(point, metric) for point in points]) * shown(metric, units)[0]
             ax.plot(*_broken_at_gaps(x, y, numeric), label=label or None, **style)
             lines[metric].append((label, y))
+            counts[metric] += [_count(point, metric) for point in points]
     samples = max(len(point_rows) for point_rows in by_point.values())
     for ax, metric in zip(axes, metrics, strict=False):
-        _label_panel(ax, metric, factor, units, lines[metric], samples)
+        averaged = counts[metric] if samples > 1 else []
+        _label_panel(ax, metric, factor, units, lines[metric], averaged)
         if not numeric or len(x_values) <= XTICKS_MAX:
             ax.set_xticks(x, [f"{v * scale:g}" if numeric else str(v) for v in x_values])
         else:
@@ -230,19 +238,32 @@ def _label_panel(
     factor: str,
     units: Mapping[str, str],
     lines: Sequence[tuple[str, np.ndarray]],
-    samples: int,
+    averaged: Sequence[int],
 ) -> None:
-    """Title, axis labels (``samples`` > 1: the points are means over that many Monte
-    Carlo samples, and the axis says so), and a note naming the lines that coincide."""
+    """Title, axis labels (``averaged``: how many Monte Carlo samples gave the metric at
+    each point, empty for one run per point: the points are means over those, and the
+    axis says how many), and a note naming the lines that coincide."""
     ax.set_title(title(metric), fontsize=9)
     ax.set_xlabel(axis_label(factor, units), fontsize=8)
-    mean = f"mean of {samples} samples " if samples > 1 else ""
-    ax.set_ylabel(f"{mean}[{shown(metric, units)[1]}]", fontsize=8)
+    ax.set_ylabel(f"{_mean_of(averaged)}[{shown(metric, units)[1]}]", fontsize=8)
     same = coinciding(lines)
     if same:
         note = "; ".join(" and ".join(group) for group in same)
         ax.text(0.02, 0.97, _wrapped(f"same values: {note}", ax, NOTE_FONT_PT),
                 transform=ax.transAxes, fontsize=NOTE_FONT_PT, va="top")  # fmt: skip
+
+
+def _mean_of(averaged: Sequence[int]) -> str:
+    """ "mean of n samples " (or "mean of n1 to n2 samples " where failed runs and
+    missing figures left fewer at some points) for the points of a panel, each the mean
+    of ``averaged[i]`` values; "" for no mean (one run per point)."""
+    counted = [count for count in averaged if count > 0]
+    if not counted:
+        return ""
+    low, high = min(counted), max(counted)
+    if low == high:
+        return f"mean of {low} sample{'s' if low > 1 else ''} "
+    return f"mean of {low} to {high} samples "
 
 
 def _wrapped(text: str, ax: Any, font_pt: float) -> str:
@@ -397,6 +418,11 @@ def _margins(fig: Figure, figure_title: str = "") -> None:
 
 def _floats(rows: Sequence[Row], name: str) -> np.ndarray:
     return np.asarray([np.nan if r[name] is None else float(r[name]) for r in rows], dtype=float)
+
+
+def _count(rows: Sequence[Row], metric: str) -> int:
+    """How many of ``rows`` have ``metric`` (what :func:`_mean` averages)."""
+    return sum(r[metric] is not None for r in rows)
 
 
 def _mean(rows: Sequence[Row], metric: str) -> float:

@@ -330,6 +330,29 @@ def test_a_grid_figure_of_means_over_samples_says_so_on_its_axis(
         plt.close(figure)
 
 
+def test_a_mean_over_samples_counts_only_the_samples_that_gave_the_metric(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A failed sample (no metrics) or one whose figure does not exist drops out of its
+    point's mean, but the axis still read "mean of 4 samples" for a point averaged over
+    two: a reader took a mean of fewer runs for one of the full Monte Carlo size."""
+    kept = _drawn(monkeypatch)
+    grid = {"plant.v_0": [-0.1, 0.1]}
+    forces = {-0.1: [8.0, 9.0, 10.0, 11.0], 0.1: [8.0, None, 10.0, None]}
+    rows = [{"plant.v_0": v, "peak_abs_tunnel_force_N": f,
+             "status": "failed" if f is None else "complete"}
+            for v in grid["plant.v_0"] for f in forces[v]]  # fmt: skip
+    metric = ["peak_abs_tunnel_force_N"]
+    plots.plot_grid_factor(rows, grid, "plant.v_0", metric, tmp_path / "g.png", UNITS_N)
+    (panel,) = _panels_of(kept[0])
+    assert list(panel.get_lines()[0].get_ydata()) == [9.5, 9.0]
+    assert panel.get_ylabel() == "mean of 2 to 4 samples [N]"
+    alts = plots.figure_alts(rows, grid, ["plant.current_east"], metric, UNITS_N)
+    assert "the mean over the samples at that grid point that gave it" in str(alts)
+    for figure in kept:
+        plt.close(figure)
+
+
 @pytest.mark.parametrize(
     ("name", "shown"),
     [
