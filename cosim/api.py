@@ -355,8 +355,8 @@ def sweep(
         A Dask cluster of one's own (``--scheduler``), ``tcp://HOST:PORT`` or
         ``tls://HOST:PORT`` (``security``: a ``distributed.Security``); not with ``workers``.
     out : str or pathlib.Path, optional
-        Write the study folder there (runs.csv, runs.parquet, figures, index.html, and
-        overlay.rrd if asked for). Default: no folder, the table only.
+        Write the study folder there (runs.csv, runs.parquet, statistics.csv..., figures,
+        index.html, overlay.rrd if asked for). Default: no folder, the table only.
     resume : bool
         Run only what a killed study in ``out`` left (``--resume``); needs ``out``.
     overlay : int, optional

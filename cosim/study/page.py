@@ -17,6 +17,7 @@ from typing import Any
 
 from cosim.paths import path_text
 from cosim.study.plots import PANELS_MAX
+from cosim.study.statistics import SENSITIVITY_NAME, STATISTICS_NAME
 
 INDEX_PAGE = "index.html"
 FAILED_SHOWN = 50  # failed runs listed on the page (all are in runs.csv)
@@ -29,10 +30,12 @@ def write_index(
     figures: Mapping[str, Path],
     not_plotted: Sequence[str],
     alts: Mapping[str, str] | None = None,
+    monte_carlo: bool = False,
 ) -> Path:
     """Write ``out_dir/index.html``; ``facts`` are label -> value lines of the summary,
     ``alts`` each figure's alt text by its title (:func:`cosim.study.plots.figure_alts`;
-    the title without one)."""
+    the title without one); ``monte_carlo``: link the statistics and sensitivity tables
+    (:mod:`cosim.study.statistics`) too."""
     summary = "\n".join(
         f'<tr><th scope="row">{_escape(label)}</th><td>{_escape(value)}</td></tr>'
         for label, value in facts.items()
@@ -68,7 +71,7 @@ h1, code {{ overflow-wrap: anywhere; }}</style></head>
 <body>
 <h1>Study {_escape(name)}</h1>
 <p>Results: <a href="runs.csv">runs.csv</a>, <a href="runs.parquet">runs.parquet</a>
-(one row per run)</p>
+(one row per run){MONTE_CARLO_LINKS if monte_carlo else ""}</p>
 <table>
 <caption>Study summary</caption>
 {summary}
@@ -82,6 +85,14 @@ h1, code {{ overflow-wrap: anywhere; }}</style></head>
     path = out_dir / INDEX_PAGE  # undecoded text elsewhere (a run's error) escaped
     path.write_text(page, encoding="utf-8", errors="backslashreplace")
     return path
+
+
+MONTE_CARLO_LINKS = (
+    f';\n<a href="{STATISTICS_NAME}">{STATISTICS_NAME}</a> (each metric\'s mean, standard '
+    f'deviation and percentiles over the runs) and <a href="{SENSITIVITY_NAME}">'
+    f"{SENSITIVITY_NAME}</a> (Spearman's rank correlation of each factor with each metric, "
+    "the strongest first)"
+)
 
 
 FOLDED = (  # name prefix, what the folded list is called

@@ -4,7 +4,8 @@
 factor against the scenario and its FMUs, each grid value (and the first sample) through
 the scenario's own checks, the metric names, the output folder -- then runs what is not
 yet in the table on Dask, appending each row as it arrives, and finally sorts the table and
-writes ``runs.parquet``, the figures (``figures/``) and ``index.html``, and, if the study
+writes ``runs.parquet``, a Monte Carlo study's statistics (:mod:`cosim.study.statistics`),
+the figures (``figures/``) and ``index.html``, and, if the study
 asks for one, ``overlay.rrd`` (:mod:`cosim.study.overlay`, :mod:`cosim.viz.overlay`).
 
 The overlay is drawn from the chosen runs' ``results.csv``. A run kept in ``runs/<id>/``
@@ -65,6 +66,7 @@ from cosim.study.spec import (
     load_study,
     study_label,
 )
+from cosim.study.statistics import write_statistics
 from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
 from cosim.study.task import (
     COUPLING_ERROR,
@@ -177,10 +179,11 @@ def run_study(
                     exc.where = f"{kept} ({names.switch('resume')})"
                 raise
             with _kept_rows(csv_path, len(table.done), names):
-                rows = table.finish(runs, units([*spec.factors, *metrics], base.fmu_paths))
+                unit_of = units([*spec.factors, *metrics], base.fmu_paths)
+                rows = table.finish(runs, unit_of)
                 if not entries:  # no overlay re-runs: the cluster closes while the page is made
                     session.done()
-                paths = {"table": csv_path, "parquet": out_dir / PARQUET_NAME}
+                paths = _tables(out_dir, spec, metrics, rows, unit_of)
                 drawing.wait()
                 paths["index"] = _write_report(
                     out_dir, spec, base, factors, metrics, rows, overlay=bool(entries)
@@ -194,6 +197,21 @@ def run_study(
         out_dir, len(runs), complete, len(rows) - complete, skipped, len(todo),
         time.perf_counter() - started, paths, tuple(warnings), _first_failure(rows, spec.factors),
     )  # fmt: skip
+
+
+def _tables(
+    out_dir: Path,
+    spec: StudySpec,
+    metrics: Sequence[str],
+    rows: Sequence[Mapping[str, Any]],
+    unit_of: Mapping[str, str],
+) -> dict[str, Path]:
+    """The study's tables: runs.csv and runs.parquet (written), and for a Monte Carlo
+    study its statistics and sensitivity tables, written here from ``rows``."""
+    paths = {"table": out_dir / CSV_NAME, "parquet": out_dir / PARQUET_NAME}
+    if spec.random.factors:
+        paths.update(write_statistics(out_dir, rows, spec.factors, metrics, unit_of))
+    return paths
 
 
 def _first_failure(rows: Sequence[Mapping[str, Any]], factors: Sequence[str]) -> str | None:
@@ -222,7 +240,8 @@ def report(outcome: StudyOutcome) -> str:
         f"{outcome.failed} failed ({outcome.skipped} already in the table, {outcome.ran} "
         f"run now) in {outcome.elapsed_s:.1f} s"
     ]
-    lines += [f"  {name:<8} {path}" for name, path in outcome.paths.items()]
+    width = max([8, *map(len, outcome.paths)])
+    lines += [f"  {name:<{width}} {path}" for name, path in outcome.paths.items()]
     if outcome.first_failure is not None:
         lines.append(f"  first failed {outcome.first_failure}")
     lines += [f"  warning: {warning}" for warning in outcome.warnings]
@@ -463,7 +482,7 @@ def _write_report(
             f"auv-cosim view {shlex.quote(str(out_dir))} opens it"
         )
     not_plotted = [m for m in metrics if m not in shown]
-    return write_index(out_dir, facts, rows, figures, not_plotted, alts)
+    return write_index(out_dir, facts, rows, figures, not_plotted, alts, bool(randoms))
 
 
 def _scenario_ref(ref: str, study_dir: Path) -> str | Path:
