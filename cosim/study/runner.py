@@ -561,7 +561,7 @@ def _sample_doubts(spec: StudySpec, base: Base, runs: Sequence[PlannedRun]) -> l
     unit_of = units(spec.random.factors, base.fmu_paths)
     found = []
     for name in spec.random.factors:
-        values = [abs(float(run.values[name])) for run in runs]
+        values = [abs(float(run.values[name])) for run in _samples(spec, runs)]
         beyond = [v for v in values if v > FULL_TURN_RAD]
         if unit_of[name] == ANGLE_UNIT and beyond:
             found.append(
@@ -570,6 +570,12 @@ def _sample_doubts(spec: StudySpec, base: Base, runs: Sequence[PlannedRun]) -> l
                 "angles are in radians"
             )
     return found
+
+
+def _samples(spec: StudySpec, runs: Sequence[PlannedRun]) -> Sequence[PlannedRun]:
+    """The runs of the first grid point: one run per Monte Carlo sample (every grid point
+    runs the same n samples, the samples varying fastest), so samples are counted once."""
+    return runs[: spec.random.n]
 
 
 def _check_sample_ranges(
@@ -583,7 +589,7 @@ def _check_sample_ranges(
     normal one on a gain declared >= 0, would otherwise run as failed rows)."""
     for name in spec.random.factors:
         low, high = factors[name].value_range(facts)
-        values = [float(run.values[name]) for run in runs]
+        values = [float(run.values[name]) for run in _samples(spec, runs)]
         outside = [v for v in values if not low <= v <= high]
         if outside:
             raise StudyError(

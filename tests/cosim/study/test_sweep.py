@@ -4,6 +4,7 @@ runs are rows, results do not depend on the number of workers, bad studies fail 
 from __future__ import annotations
 
 import json
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -17,6 +18,9 @@ from sweep_helpers import sweep, table
 from cosim.cli import main
 from cosim.metrics.manoeuvres import metric_names
 from cosim.scenario.design_doubts import DesignWarning
+from cosim.scenario.unit_doubts import UnitWarning
+from cosim.study.design import random_samples
+from cosim.study.spec import load_study
 
 pytestmark = pytest.mark.usefixtures("no_early_cluster")  # refusals wait for no cluster
 
@@ -171,6 +175,31 @@ def test_a_bad_factor_fails_before_any_run_naming_it(
     assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
     assert expected in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_samples_beside_a_grid_are_counted_once_not_once_per_grid_point(
+    tmp_path: Path, fmu_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Every grid point runs the same n samples, but a refusal of samples outside a range
+    (and the warning of angles beyond a full turn) counted them at every grid point: "14
+    of its 100 samples" for a study that draws 50."""
+    draws = '[random]\nn = 50\nseed = 1\n"controller.k0" = { normal = [0.5, 0.5] }\n'
+    grid = '[grid]\n"plant.v_0" = [-0.1, 0.1]\n'
+    study = tmp_path / "bad.toml"
+    study.write_text(f'scenario = "bs-3"\n{grid}{draws}', encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
+    alone = [s["controller.k0"] for s in random_samples(load_study(study).random)]
+    below = sum(k < 0.0 for k in alone)
+    assert f"{below} of its 50 samples are outside [0.0, inf]" in capsys.readouterr().err
+    turns = draws.replace("controller.k0", "plant.yaw_0").replace("0.5, 0.5", "0.0, 5.0")
+    study.write_text(f'scenario = "bs-3"\nstop_time = 0.1\n{grid}{turns}', encoding="utf-8")
+    yaws = [abs(s["plant.yaw_0"]) for s in random_samples(load_study(study).random)]
+    beyond = sum(y > 2 * math.pi for y in yaws)
+    out.mkdir()
+    (out / "mine.txt").write_text("not a study\n")  # refused after the samples are checked
+    with pytest.warns(UnitWarning, match=f"{beyond} of its 50 samples are more than a full"):
+        assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
 
 
 @pytest.mark.parametrize(
