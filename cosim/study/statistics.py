@@ -6,7 +6,13 @@ gives no metric, nor a figure never reached, such as a settling time), ``missing
 study's other runs), ``mean``, ``std`` (the sample standard deviation, ddof = 1), ``min``,
 ``p05``, ``p50``, ``p95`` and ``max`` over those runs. The percentiles are
 ``numpy.percentile``'s default ``"linear"`` method (Hyndman and Fan's type 7, as pandas'
-``quantile`` and R's default): p95 of 1, 2, 3, 4, 5 is 4.8.
+``quantile`` and R's default): p95 of 1, 2, 3, 4, 5 is 4.8. Two 95 % confidence intervals
+treat the runs as independent draws (``sampling = "random"``; a Latin hypercube's runs are
+not: for a metric monotonic in each factor its mean's interval is wider than it need be,
+McKay, Beckman and Conover 1979): the mean's (``mean_ci_low``, ``mean_ci_high``: Student's
+t) and the 95th percentile's (``p95_ci_low``, ``p95_ci_high``: order statistics, whatever
+the distribution), whose upper bound needs 72 runs or more (fewer cannot bound p95 from
+above, 0.95**71 > 0.025: an empty cell).
 
 ``sensitivity.csv``, one row per metric and numeric factor that varies: Spearman's rank
 correlation ``rho`` of the factor with the metric (``scipy.stats.spearmanr``, over the
@@ -39,6 +45,7 @@ STATISTICS_NAME = "statistics.csv"
 SENSITIVITY_NAME = "sensitivity.csv"
 PERCENTILES = (5, 50, 95)  # %, the p05, p50 and p95 columns
 PERCENTILE_METHOD: Final = "linear"  # numpy's default, Hyndman and Fan's type 7
+CONFIDENCE = 0.95  # of the intervals of the mean and of p95, two-sided
 MIN_RUNS_FOR_RANKS = 3  # a rank correlation of two runs is +-1 whatever the factor does
 Row = Mapping[str, Any]
 Cell = float | int | str | None
@@ -48,23 +55,41 @@ def metric_statistics(
     rows: Sequence[Row], metrics: Sequence[str], units: Mapping[str, str]
 ) -> list[dict[str, Cell]]:
     """One record per metric: its unit, the runs that gave it and those that did not,
-    and mean, std, min, the :data:`PERCENTILES` and max over the first (None where there
-    is no value)."""
+    and :func:`summary` over the first."""
     records: list[dict[str, Cell]] = []
     for metric in metrics:
         values = np.asarray([row[metric] for row in rows if row[metric] is not None], float)
         record: dict[str, Cell] = {"metric": metric, "unit": units.get(metric, "1")}
         record.update(runs=int(values.size), missing=len(rows) - int(values.size))
-        have = values.size > 0
-        record["mean"] = float(np.mean(values)) if have else None
-        record["std"] = float(np.std(values, ddof=1)) if values.size > 1 else None
-        record["min"] = float(np.min(values)) if have else None
-        for q in PERCENTILES:
-            at = np.percentile(values, q, method=PERCENTILE_METHOD) if have else None
-            record[f"p{q:02d}"] = None if at is None else float(at)
-        record["max"] = float(np.max(values)) if have else None
+        record.update(summary(values))
         records.append(record)
     return records
+
+
+def summary(values: np.ndarray) -> dict[str, float | None]:
+    """mean with its :data:`CONFIDENCE` interval (Student's t), std, min, the
+    :data:`PERCENTILES`, the interval of the 95th percentile (distribution-free: order
+    statistics, ``scipy.stats.quantile_test``) and max of ``values``; None where a value
+    does not exist (no values; a std or an interval of one; an upper bound of p95 from
+    fewer than 72 values, where even the largest may lie below the true p95)."""
+    from scipy import stats  # ~0.5 s to import: only a study that writes this pays it
+
+    n = values.size
+    if n == 0:
+        return dict.fromkeys(_columns("statistics")[4:])
+    mean, std = float(np.mean(values)), float(np.std(values, ddof=1)) if n > 1 else None
+    found: dict[str, float | None] = {"mean": mean, "mean_ci_low": None, "mean_ci_high": None}
+    if std is not None:
+        half = float(stats.t.ppf(0.5 + CONFIDENCE / 2, n - 1)) * std / math.sqrt(n)
+        found.update(mean_ci_low=mean - half, mean_ci_high=mean + half)
+    found.update(std=std, min=float(np.min(values)))
+    for q in PERCENTILES:
+        found[f"p{q:02d}"] = float(np.percentile(values, q, method=PERCENTILE_METHOD))
+    test = stats.quantile_test(values, q=0.0, p=0.95)
+    interval: Any = test.confidence_interval(CONFIDENCE)  # low, high (the stubs say float)
+    found.update(p95_ci_low=_finite(float(interval.low)), p95_ci_high=_finite(float(interval.high)))
+    found["max"] = float(np.max(values))
+    return found
 
 
 def sensitivity(
@@ -128,7 +153,8 @@ def _columns(name: str) -> list[str]:
     if name == "sensitivity":
         return ["metric", "factor", "rho", "p_value", "runs"]
     middle = [f"p{q:02d}" for q in PERCENTILES]
-    return ["metric", "unit", "runs", "missing", "mean", "std", "min", *middle, "max"]
+    return ["metric", "unit", "runs", "missing", "mean", "mean_ci_low", "mean_ci_high", "std",
+            "min", *middle, "p95_ci_low", "p95_ci_high", "max"]  # fmt: skip
 
 
 def _csv_text(records: Sequence[Mapping[str, Cell]], columns: Sequence[str]) -> str:

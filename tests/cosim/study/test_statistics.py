@@ -41,6 +41,27 @@ def test_percentiles_are_numpys_linear_method_over_the_runs_that_gave_the_metric
     assert record["std"] == pytest.approx(2.5**0.5)  # sum of squares 10 over n - 1 = 4
 
 
+def test_the_means_interval_is_students_t() -> None:
+    """1, 2, 3, 4, 5: mean 3, s = sqrt(2.5), t(0.975, 4) = 2.7764 from a printed table:
+    half-width 2.7764 * sqrt(2.5) / sqrt(5) = 1.9632."""
+    (record,) = metric_statistics([{"m": float(v)} for v in range(1, 6)], ["m"], {})
+    assert record["mean_ci_low"] == pytest.approx(3.0 - 1.9632, abs=1e-4)
+    assert record["mean_ci_high"] == pytest.approx(3.0 + 1.9632, abs=1e-4)
+
+
+@pytest.mark.parametrize(("n", "bounded"), [(16, False), (71, False), (72, True)])
+def test_the_95th_percentile_is_bounded_from_above_from_72_runs_on(n: int, bounded: bool) -> None:
+    """All n runs fall below the true p95 with probability 0.95**n: 0.0262 for 71 runs,
+    more than the 0.025 a two-sided 95 % interval allows, so no run bounds p95 from above
+    (an empty cell, not a number that reads as a bound); 0.0249 for 72, the largest run
+    bounds it. The lower bound is one of the runs' values, below the estimate."""
+    rows = [{"m": float(v)} for v in range(1, n + 1)]
+    (record,) = metric_statistics(rows, ["m"], {})
+    assert record["p95_ci_high"] == (float(n) if bounded else None)
+    low = record["p95_ci_low"]
+    assert isinstance(low, float) and low.is_integer() and low <= record["p95"]  # type: ignore[operator]
+
+
 def test_one_run_and_no_run_give_empty_cells_not_numbers() -> None:
     """A study of one run has no standard deviation; a metric no run gave has no value."""
     one, none = metric_statistics(
@@ -48,7 +69,9 @@ def test_one_run_and_no_run_give_empty_cells_not_numbers() -> None:
     )
     assert one["runs"] == 1 and one["p95"] == 2.0 and one["std"] is None
     assert none["runs"] == 0 and none["missing"] == 1 and none["unit"] == "1"
+    assert one["mean_ci_low"] is None and one["p95_ci_low"] is None
     assert all(none[k] is None for k in ("mean", "std", "min", "p05", "p50", "p95", "max"))
+    assert none["mean_ci_high"] is None and none["p95_ci_high"] is None
 
 
 def test_spearman_ranks_the_factor_that_moves_the_metric_first() -> None:
@@ -118,6 +141,7 @@ def test_a_monte_carlo_study_writes_its_statistics_over_its_complete_runs(
         assert table.loc[metric, "runs"] == 4 and table.loc[metric, "missing"] == 4
         assert table.loc[metric, "p95"] == pytest.approx(complete[metric].quantile(0.95))
         assert table.loc[metric, "std"] == pytest.approx(complete[metric].std())
+        assert pd.isna(table.loc[metric, "p95_ci_high"])  # 4 runs bound no p95 from above
         mine = ranks[ranks["metric"] == metric]
         assert set(mine["factor"]) == {"plant.current_east", "plant.yaw_0"}  # grid: 1 value
         expected = complete[["plant.current_east", "plant.yaw_0", metric]].corr("spearman")
