@@ -176,10 +176,16 @@ class Study:
     out_dir : pathlib.Path or None
         The study folder (table, figures, index.html, overlay.rrd), absolute, if ``out``
         was given; None for a study kept in memory only.
+    statistics, sensitivity : pandas.DataFrame or None
+        A Monte Carlo study's ``statistics.csv`` (each metric's mean, percentiles and
+        their confidence intervals) and ``sensitivity.csv`` (Spearman's rank correlation
+        of each factor with each metric), docs/studies.md; None for a grid study.
     """
 
     table: pd.DataFrame
     out_dir: Path | None
+    statistics: pd.DataFrame | None = None
+    sensitivity: pd.DataFrame | None = None
 
     def __repr__(self) -> str:
         """One line, not the table in full."""
@@ -452,8 +458,20 @@ def _swept(
         except StudyStopped as stop:
             raise _stopped(stop.signum, out_dir, kept=out is not None) from None
         table = _read_parquet(outcome.paths["parquet"])
+        statistics, sensitivity = (_read_csv(outcome.paths.get(name)) for name in _MONTE_CARLO)
     _warn_of(outcome)
-    return Study(table, None if out is None else out_dir.absolute())
+    return Study(table, None if out is None else out_dir.absolute(), statistics, sensitivity)
+
+
+_MONTE_CARLO = ("statistics", "sensitivity")  # the tables only a Monte Carlo study writes
+
+
+def _read_csv(path: Path | None) -> pd.DataFrame | None:
+    """The table of the CSV file ``path`` (read from its bytes, as :func:`_read_parquet`
+    reads), None for none."""
+    import pandas as pd
+
+    return None if path is None else pd.read_csv(io.BytesIO(path.read_bytes()))
 
 
 def _restore_environ(before: Mapping[str, str]) -> None:

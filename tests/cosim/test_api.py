@@ -608,6 +608,27 @@ def test_sweep_of_a_dict_returns_its_table(
     assert (table["status"] == "complete").all()
     assert table["final.plant.v"].iloc[0] != table["final.plant.v"].iloc[1]
     assert repr(result) == f"Study(table=<2 rows x {table.shape[1]} columns>, out_dir=None)"
+    assert result.statistics is None and result.sensitivity is None  # no Monte Carlo
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_a_monte_carlo_sweep_returns_its_statistics_without_a_folder(
+    tmp_path: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without ``out`` the study folder is removed, and with it the statistics and
+    sensitivity tables a Monte Carlo study writes there: a notebook had the runs only."""
+    monkeypatch.chdir(tmp_path)
+    draws = {"n": 3, "seed": 2, "plant.current_east": {"uniform": [0.0, 0.3]}}
+    study = {"scenario": "bs-3", "stop_time": 0.5, "random": draws,
+             "metrics": {"collect": ["final.plant.east", "final.plant.yaw"]}}  # fmt: skip
+    result = cosim.sweep(study, workers=1, fmu_dir=fmu_dir)
+    assert result.out_dir is None and list(tmp_path.iterdir()) == []
+    assert result.statistics is not None and result.sensitivity is not None
+    east = result.statistics.set_index("metric").loc["final.plant.east"]
+    assert east["runs"] == 3
+    assert east["p95"] == pytest.approx(result.table["final.plant.east"].quantile(0.95))
+    assert set(result.sensitivity["factor"]) == {"plant.current_east"}
 
 
 @pytest.mark.cluster
