@@ -16,7 +16,13 @@ itself: a stop signal sent to the whole process group (a CI job cancelled, ``kil
 when the study does. Ended by the signal, the server no longer reported its workers' exits
 to their nannies: each worker still running a run was killed after Dask's timeout, and left
 its run's temporary folder behind. The workers forked from it ignore them too
-(:mod:`cosim.study.preload`)."""
+(:mod:`cosim.study.preload`).
+
+SIGINT is ignored too while the server imports (:mod:`cosim.study.server_exit`, imported
+last, gives it back its default handler, which multiprocessing then sets aside for the
+workers it forks as it starts ignoring SIGINT itself): a Ctrl-C while a sweep started
+reached the server still importing, which printed a KeyboardInterrupt traceback of dozens
+of lines under the command's one-line "interrupted"."""
 
 import gc
 import os
@@ -27,6 +33,7 @@ from cosim.study.fork_server import pre_spawn_environ
 
 gc.disable()
 
+signal.signal(signal.SIGINT, signal.SIG_IGN)
 for _name in ("SIGTERM", "SIGHUP"):
     if hasattr(signal, _name):  # no SIGHUP on Windows (where there is no fork server)
         signal.signal(getattr(signal, _name), signal.SIG_IGN)

@@ -1,5 +1,8 @@
 """Imported last by the workers' fork server (:mod:`cosim.study.fork_server`): the server
-ends without its interpreter's teardown.
+ends without its interpreter's teardown, and SIGINT, ignored while it imported
+(:mod:`cosim.study.server_environ`), has its default handler back: multiprocessing's server
+saves the handler it finds as it starts ignoring SIGINT, and gives it to each worker it
+forks, which takes a Ctrl-C as Python does.
 
 The server ends when the command that started it ends (its pipe from the command closes).
 An interpreter that imported numba, distributed and the engine then spends ~0.05 s
@@ -16,5 +19,7 @@ the reverse order of their registration) and ends the process before the others.
 
 import atexit
 import os
+import signal
 
+signal.signal(signal.SIGINT, signal.default_int_handler)
 atexit.register(os._exit, 0)

@@ -18,3 +18,46 @@ def test_the_pre_spawn_environment_is_read_once_per_process(monkeypatch) -> None
     monkeypatch.setattr(fork_server, "pre_spawn_environ", lambda: reads.append(1) or {})
     assert fork_server.start() and fork_server.start()
     assert reads == [1]
+
+
+# the command: a fork server importing server_environ, a probe that waits for a "go" file,
+# then server_exit; SIGINT sent to the server while it waits (a Ctrl-C to the terminal's
+# process group while the study starts), then the SIGINT handler of a worker it forks
+INTERRUPTED_WHILE_IMPORTING = """
+import os, pathlib, signal, tempfile, time
+from multiprocessing import forkserver, get_context
+os.chdir(tempfile.mkdtemp(dir="."))  # the server imports from here: a folder of this run
+pathlib.Path("waiting_probe.py").write_text(
+    "import pathlib, time\\n"
+    "pathlib.Path('ready').touch()\\n"
+    "while not pathlib.Path('go').exists():\\n"
+    "    time.sleep(0.01)\\n"
+)
+context = get_context("forkserver")
+context.set_forkserver_preload(
+    ["cosim.study.server_environ", "waiting_probe", "cosim.study.server_exit"]
+)
+forkserver.ensure_running()
+while not pathlib.Path("ready").exists():
+    time.sleep(0.01)
+os.kill(forkserver._forkserver._forkserver_pid, signal.SIGINT)
+time.sleep(0.5)  # the signal is handled (or raises) while the probe still waits
+pathlib.Path("go").touch()
+with context.Pool(1) as pool:
+    handler = pool.apply(signal.getsignal, (signal.SIGINT,))
+print(handler is signal.default_int_handler, flush=True)
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not fork_server.available(), reason="no fork server on this platform")
+def test_ctrl_c_while_the_fork_server_imports_prints_no_traceback(run_python) -> None:
+    """A Ctrl-C while a sweep starts reaches the fork server still importing its preloads
+    (multiprocessing ignores SIGINT there only once they are imported): it printed a
+    KeyboardInterrupt traceback of dozens of lines under "interrupted". The server ignores
+    it while it imports, and the workers it forks still take SIGINT as Python does."""
+    assert fork_server.PRELOAD[0] == "cosim.study.server_environ"
+    assert fork_server.PRELOAD[-1] == "cosim.study.server_exit"
+    done = run_python(INTERRUPTED_WHILE_IMPORTING, timeout=120)
+    assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr, done.stderr
+    assert done.returncode == 0 and done.stdout.split() == ["True"], done.stdout
