@@ -19,7 +19,8 @@ endpoint, or an event, counts). A value the FMU does not take while running is r
 any override; the status line shows the reason. The status line (stderr) shows the
 set-points, the heading mode, the mass (free or locked), the simulated time, the real-time
 factor and the last message (queued, applied at t, not applied and why; "designing" while a
-new heading law is designed, which holds the run for a moment), cut to the terminal's width.
+new heading law is designed, which holds the run for a moment), cut to the terminal's width;
+to a file or a pipe, the message alone, one line each time it changes.
 
 A terminal sends a key that is not a character as an escape sequence: ESC [ parameters
 final byte (CSI: F5-F12, Insert, Page Up, modified arrows such as Shift+Up ``ESC [ 1 ; 2
@@ -156,6 +157,9 @@ class KeyPad:
         self.live, self.status = live, status
         self.fd = _terminal_fd() if fd is None else fd
         self.out = sys.stderr if out is None else out
+        self._on_terminal = _is_terminal(self.out)
+        self._drawn = False  # whether a status line is on the terminal, to be ended
+        self._logged: str | None = None  # the last message written to a file or a pipe
         if not os.isatty(self.fd):
             raise CosimError("--interactive: standard input is not a terminal")
         controller = _owner(scenario, "yaw_setpoint")
@@ -191,9 +195,12 @@ class KeyPad:
     def _restore(self) -> None:
         with contextlib.suppress(termios.error, OSError):
             termios.tcsetattr(self.fd, termios.TCSADRAIN, self._saved)
+        if not self._drawn:
+            return
         with contextlib.suppress(OSError, ValueError):
             self.out.write("\n")
             self.out.flush()
+        self._drawn = False
 
     def _read(self) -> None:
         pending = ""
@@ -274,9 +281,35 @@ class KeyPad:
         return line if len(line) <= limit else line[: limit - 3] + "..."
 
     def draw(self) -> None:
-        """Redraw the status line, cut to the terminal's width."""
-        width = shutil.get_terminal_size((STATUS_WIDTH, 24)).columns
-        with contextlib.suppress(OSError):
-            width = os.get_terminal_size(self.fd).columns or width
-        self.out.write(f"\r\x1b[K{self.status_line(width)}")
+        """Redraw the status line on a terminal, cut to its width and padded with spaces
+        over the line before (no escape sequence, which a ``TERM=dumb`` terminal or a
+        ``script`` log shows as text). To a file or a pipe (stderr redirected: ``2> log``),
+        the message alone, a line each time it changes: carriage returns there piled every
+        redraw into one endless line."""
+        if not self._on_terminal:
+            message = self._feedback()
+            if message != self._logged:
+                self._logged = message
+                self.out.write(f"{message}\n")
+                self.out.flush()
+            return
+        limit = max(self._width() - 1, 1)  # no character in the last column: no wrap
+        self.out.write(f"\r{self.status_line(limit + 1).ljust(limit)}")
         self.out.flush()
+        self._drawn = True
+
+    def _width(self) -> int:
+        """The columns of the terminal the status line is drawn on (:data:`STATUS_WIDTH`
+        when neither it nor ``COLUMNS`` says)."""
+        width = shutil.get_terminal_size((STATUS_WIDTH, 24)).columns
+        with contextlib.suppress(AttributeError, OSError, ValueError):
+            width = os.get_terminal_size(self.out.fileno()).columns or width
+        return width
+
+
+def _is_terminal(out: IO[str]) -> bool:
+    """Whether ``out`` is a terminal (not a file, a pipe, a closed stream or a StringIO)."""
+    try:
+        return out.isatty()
+    except (AttributeError, OSError, ValueError):
+        return False

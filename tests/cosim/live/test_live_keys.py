@@ -8,6 +8,7 @@ the autopilot refuses while running, and ``q``, and reads the status line and su
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import io
 import json
 import math
@@ -16,6 +17,7 @@ import pty
 import re
 import select
 import signal
+import struct
 import subprocess
 import sys
 import termios
@@ -189,6 +191,58 @@ def test_a_set_point_change_is_told_in_the_unit_the_status_line_shows(
     depth = pad.value("depth_setpoint") + DEPTH_STEP
     pad.press("down")
     assert f"depth_setpoint = {depth:.1f} m queued" in pad.status_line(200)
+
+
+def test_the_status_line_to_a_file_is_a_line_per_message_without_escapes(
+    bs3: Scenario, terminal: int, tmp_path: Path
+) -> None:
+    """stderr redirected to a log (``2> log``) while the keys come from the terminal: the
+    status line was redrawn there every half second as a carriage return and an erase
+    escape, one endless line of ``\\r\\x1b[K...`` in the log. It is the message alone, one line
+    each time it changes."""
+    live = LiveControl(bs3)
+    live.bind({}, StopRequest())
+    log = tmp_path / "stderr.log"
+    with log.open("w", encoding="utf-8") as out:
+        pad = KeyPad(live, bs3, fd=terminal, out=out)
+        for _ in range(3):
+            pad.draw()  # nothing new: the message once
+        yaw = math.degrees(pad.value("yaw_setpoint") + YAW_STEP)
+        pad.press("right")
+        pad.draw()
+        pad.close()
+    written = log.read_bytes()
+    assert b"\x1b" not in written and b"\r" not in written, written
+    assert written.decode().splitlines() == [pad.message, f"yaw_setpoint = {yaw:+.1f} deg queued"]
+
+
+def test_the_status_line_on_a_terminal_is_redrawn_without_escape_sequences(
+    bs3: Scenario, terminal: int
+) -> None:
+    """A terminal that takes no escape sequences (``TERM=dumb``, a ``script`` log) showed the
+    erase-to-end-of-line escape before every redraw; a shorter line is padded with spaces
+    over the longer one instead, within the terminal's width (100 columns here)."""
+    parent, child = pty.openpty()
+    fcntl.ioctl(child, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
+    live = LiveControl(bs3)
+    live.bind({}, StopRequest())
+    try:
+        with os.fdopen(os.dup(child), "w", encoding="utf-8") as out:
+            pad = KeyPad(live, bs3, fd=terminal, out=out)
+            pad.message = "a message long enough to reach the last column of a terminal 100 wide"
+            pad.draw()
+            pad.message = "short"
+            pad.draw()
+        shown = b""
+        while select.select([parent], [], [], 0.5)[0]:
+            shown += os.read(parent, 4096)
+    finally:
+        os.close(parent)
+        os.close(child)
+    assert b"\x1b" not in shown, shown
+    lines = shown.decode().split("\r")[1:]
+    assert len(lines) == 2 and all(len(line) == 99 for line in lines), lines
+    assert lines[1].rstrip().endswith("| short"), lines
 
 
 class Terminal:
