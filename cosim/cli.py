@@ -14,8 +14,10 @@ import errno
 import gc
 import os
 import re
+import shutil
 import signal
 import sys
+import textwrap
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -165,11 +167,38 @@ def _scenarios(args: argparse.Namespace) -> int:
 
     if args.copy is not None:
         return _copy_scenario(*args.copy)
-    scenarios = builtin_scenarios()
-    width = max(map(len, scenarios), default=0)
-    for scenario_id, summary in scenarios.items():
-        print(f"{scenario_id:<{width}} {summary}")
+    for line in listing(builtin_scenarios(), shutil.get_terminal_size((0, 0)).columns):
+        print(line)
     return 0
+
+
+MIN_SUMMARY_COLUMNS = 30  # narrower, a summary goes on lines of its own below its id
+_GLUE = "\xa0"  # a space textwrap does not break at (it breaks at ASCII whitespace only)
+
+
+def listing(entries: dict[str, str], columns: int) -> list[str]:
+    """``entries`` (id -> summary) as lines: each id, then its summary in a column beside
+    the ids. ``columns``: the terminal's width in characters (``COLUMNS``, else the
+    terminal's; 0 for a pipe or a file: one line each, for grep). Within a width, a summary
+    is wrapped short of the last column; where beside the ids fewer than
+    :data:`MIN_SUMMARY_COLUMNS` are left, it goes below its id, indented by 4."""
+    width = max(map(len, entries), default=0)
+    if columns <= 0:
+        return [f"{entry:<{width}} {summary}" for entry, summary in entries.items()]
+    beside = columns - 1 - (width + 1) >= MIN_SUMMARY_COLUMNS
+    indent = " " * (width + 1 if beside else 4)
+    lines = []
+    for entry, summary in entries.items():
+        glued = summary.replace(" = ", f"{_GLUE}={_GLUE}")  # "v0 = -0.05" on one line
+        wrapped = textwrap.wrap(
+            glued, columns - 1, initial_indent=indent, subsequent_indent=indent,
+            break_long_words=False, break_on_hyphens=False,
+        )  # fmt: skip
+        wrapped = [line.replace(_GLUE, " ") for line in wrapped]
+        if beside:
+            wrapped[0] = f"{entry:<{width}} {wrapped[0].lstrip()}"
+        lines += wrapped if beside else [entry, *wrapped]
+    return lines
 
 
 def _copy_scenario(scenario_id: str, file: str) -> int:

@@ -1,15 +1,21 @@
 """The command line's own options, apart from any command."""
 
 import argparse
+import fcntl
 import importlib.metadata
+import os
+import pty
 import re
+import select
+import struct
 import sys
+import termios
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from process_group import run_in_group
+from process_group import run_in_group, started_in_group
 
 from cosim.cli import build_parser, main
 
@@ -707,3 +713,58 @@ def test_every_help_and_the_readme_list_the_exit_codes(monkeypatch: pytest.Monke
         said = re.search(r"Exit codes[^:]*:(.{0,600})", text)
         assert said is not None, page
         assert all(re.search(rf"\b{code}\b", said[1]) for code in EXIT_CODES), (page, said[1])
+
+
+def _scenarios_listed(tmp_path: Path, terminal_columns: int | None, columns: str | None) -> str:
+    """What ``auv-cosim scenarios`` prints to a terminal of ``terminal_columns`` (a pty), or
+    to a pipe (None), with ``COLUMNS`` set to ``columns`` (None: unset)."""
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    if columns is not None:
+        env["COLUMNS"] = columns
+    command = [sys.executable, "-m", "cosim.cli", "scenarios"]
+    if terminal_columns is None:
+        done = run_in_group(command, timeout=120, cwd=tmp_path, env=env)
+        assert done.returncode == 0, done.stderr
+        return done.stdout
+    parent, child = pty.openpty()
+    fcntl.ioctl(child, termios.TIOCSWINSZ, struct.pack("HHHH", 24, terminal_columns, 0, 0))
+    shown = b""
+    try:
+        with started_in_group(command, stdout=child, cwd=tmp_path, env=env) as proc:
+            while proc.poll() is None or select.select([parent], [], [], 0.2)[0]:
+                if select.select([parent], [], [], 0.2)[0]:
+                    shown += os.read(parent, 4096)
+            assert proc.returncode == 0
+    finally:
+        os.close(parent)
+        os.close(child)
+    return shown.decode().replace("\r\n", "\n")
+
+
+@pytest.mark.parametrize(("terminal_columns", "columns"), [(40, None), (None, "40"), (120, "40")])
+def test_the_scenario_list_fits_a_narrow_terminal(
+    terminal_columns: int | None, columns: str | None, tmp_path: Path
+) -> None:
+    """``auv-cosim scenarios`` in a terminal 40 columns wide (or with ``COLUMNS=40``, which
+    takes precedence, as for the help) printed lines of up to 113 characters, which the
+    terminal wrapped into the next scenario's id column. Each summary is wrapped within the
+    width, under its own column or, when that is too narrow, on lines below its id."""
+    from cosim.scenario.spec import builtin_scenarios
+
+    listed = _scenarios_listed(tmp_path, terminal_columns, columns)
+    lines = listed.splitlines()
+    assert all(len(line) < 40 for line in lines), [line for line in lines if len(line) >= 40]
+    ids = [line.split()[0] for line in lines if not line.startswith(" ")]
+    scenarios = builtin_scenarios()
+    assert ids == list(scenarios)
+    assert listed.split() == [word for i, s in scenarios.items() for word in [i, *s.split()]]
+
+
+def test_the_scenario_list_to_a_pipe_is_a_line_per_scenario(tmp_path: Path) -> None:
+    """``auv-cosim scenarios | grep bs-`` (no ``COLUMNS``): one line per scenario, its id
+    and its whole summary, whatever the width of the terminal the command runs in."""
+    from cosim.scenario.spec import builtin_scenarios
+
+    lines = _scenarios_listed(tmp_path, None, None).splitlines()
+    scenarios = builtin_scenarios()
+    assert [line.split(maxsplit=1) for line in lines] == [[i, s] for i, s in scenarios.items()]
