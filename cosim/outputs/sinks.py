@@ -122,11 +122,16 @@ class ProgressSink(NotesIgnored):
         self._phase: Any = None
 
     def phase(self, text: str) -> None:
-        """Show ``text`` (and the time it has taken so far) until the next phase or row."""
+        """Show ``text`` (and the time it has taken so far) until the next phase or row; a
+        phase after the steps (``--check-step``) ends the step bar first: a second bar
+        below it was drawn with cursor-up escapes."""
         from tqdm import tqdm
 
+        self._close_bar()
         if self._phase is None:
-            self._phase = tqdm(total=None, bar_format="{desc} [{elapsed}]", leave=False)
+            self._phase = tqdm(
+                total=None, bar_format="{desc} [{elapsed}]", leave=False, dynamic_ncols=True
+            )
         self._phase.set_description_str(f"{self._label}: {text}")
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
@@ -137,7 +142,11 @@ class ProgressSink(NotesIgnored):
             by_time = self.total_time is not None
             total = self.total_time if by_time else self.total_rows
             unit = "s" if by_time else "step"
-            self._bar = tqdm(total=total, unit=unit, desc=self._label, leave=False)
+            # the terminal's width at each redraw, not as the bar began: a terminal
+            # narrowed mid-run wrapped every redraw onto a line of its own
+            self._bar = tqdm(
+                total=total, unit=unit, desc=self._label, leave=False, dynamic_ncols=True
+            )
         if self.status is not None:
             self._bar.set_postfix_str(self.status(), refresh=False)
         if self.total_time is None:
@@ -147,6 +156,9 @@ class ProgressSink(NotesIgnored):
 
     def close(self) -> None:
         self._close_phase()
+        self._close_bar()
+
+    def _close_bar(self) -> None:
         if self._bar is not None:
             self._bar.close()
             self._bar = None

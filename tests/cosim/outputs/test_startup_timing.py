@@ -73,3 +73,77 @@ def test_an_adaptive_run_s_bar_counts_simulated_time_to_its_stop_time(
     assert counts, f"no progress shown: {err!r}"
     assert all(total == scenario.stop_time and done <= total for done, total in counts), counts
     assert "step/s" not in err  # no bare count of steps
+
+
+def test_the_bar_fits_a_terminal_narrowed_while_it_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The bars took the terminal's width once, as each began: a terminal narrowed from
+    100 to 40 columns mid-run (a window resized, a tmux pane split) had each redraw wrap
+    onto a new line, a bar printed again and again down the screen. Each redraw now fits
+    the width the terminal has then (the first pads over the wider line before it)."""
+    import fcntl
+    import os
+    import pty
+    import select
+    import struct
+    import sys
+    import termios
+    import time
+
+    parent, child = pty.openpty()
+
+    def resize(columns: int) -> None:
+        fcntl.ioctl(child, termios.TIOCSWINSZ, struct.pack("HHHH", 24, columns, 0, 0))
+
+    def drawn() -> list[str]:
+        """What the bar drew since the last call, redraw by redraw."""
+        shown = b""
+        while select.select([parent], [], [], 0.5)[0]:
+            shown += os.read(parent, 65536)
+        return shown.decode().split("\r")
+
+    resize(100)
+    monkeypatch.delenv("COLUMNS", raising=False)
+    try:
+        with os.fdopen(os.dup(child), "w", encoding="utf-8") as terminal:
+            monkeypatch.setattr(sys, "stderr", terminal)
+            bar = ProgressSink(None, "a-scenario-with-a-long-name")
+            bar.phase("loading FMUs")
+            bar.total_rows = 1000
+            for _ in range(2):
+                time.sleep(0.15)  # past tqdm's least interval between redraws (0.1 s)
+                bar.add_rows(np.zeros(10), np.zeros((10, 1)))
+            terminal.flush()
+            wide = drawn()
+            resize(40)
+            for _ in range(3):
+                time.sleep(0.15)
+                bar.add_rows(np.zeros(100), np.zeros((100, 1)))
+            bar.close()
+            terminal.flush()
+            narrowed = drawn()
+    finally:
+        os.close(parent)
+        os.close(child)
+    assert any(len(r) > 40 and "/1000" in r for r in wide), wide
+    bars = [r for r in narrowed if "%|" in r]
+    assert len(bars) >= 2, narrowed
+    # the first redraw after the change pads with spaces over the wider line before it
+    assert all(len(r.rstrip()) <= 40 for r in bars), bars
+    assert all(len(r) <= 40 for r in bars[1:]), bars
+
+
+def test_a_phase_after_the_steps_replaces_the_bar_without_escapes(
+    capsys: pytest.CaptureFixture,
+) -> None:
+    """``run --check-step``: "checking the step" after the steps opened a second bar below
+    the step bar, left at 0%, with cursor-up escapes (``ESC [ A``) that a ``TERM=dumb``
+    terminal or a CI log shows as text. The step bar ends as the phase begins."""
+    bar = ProgressSink(None, "bs-3")
+    bar.phase("initialising")
+    bar.total_rows = 3
+    bar.add_rows(np.zeros(3), np.zeros((3, 1)))
+    bar.phase("checking the step (h / 2, h / 4)")
+    bar.close()
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\n" not in err, repr(err)
+    assert err.index("/3 ") < err.index("bs-3: checking the step"), repr(err)
