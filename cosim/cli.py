@@ -929,9 +929,14 @@ def _printable_anything() -> None:
     completed, and the command said "UnicodeEncodeError" and exited 1. A stdout that
     passes such bytes through (a C locale's, Python's UTF-8 mode off) still does, and
     escapes what else its encoding has not (ö in ASCII, quoted from a scenario file):
-    that too said "UnicodeEncodeError"."""
+    that too said "UnicodeEncodeError". stderr, which Python has escape everything
+    (``backslashreplace``), passes a name's bytes through as well where stdout does: a
+    refusal on stderr named ``fahrt-über.toml`` "fahrt-\\udcc3\\udcbcber.toml" in a C
+    locale."""
     codecs.register_error(_BYTES_OR_ESCAPE, _bytes_or_escape)
     printable = {"strict": "backslashreplace", "surrogateescape": _BYTES_OR_ESCAPE}
+    if getattr(sys.stdout, "errors", None) == "surrogateescape":  # names' bytes pass
+        printable["backslashreplace"] = _BYTES_OR_ESCAPE
     for stream in (sys.stdout, sys.stderr):
         errors = getattr(stream, "errors", None)
         if errors in printable and hasattr(stream, "reconfigure"):

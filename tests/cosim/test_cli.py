@@ -645,6 +645,29 @@ def test_text_beyond_ascii_in_an_ascii_locale_is_said_in_one_line(
     assert said in shown and shown.count("\n") == 1, shown
 
 
+@pytest.mark.parametrize("command", ["run", "validate"])
+def test_a_file_name_beyond_ascii_is_named_by_its_bytes_in_an_ascii_locale(
+    command: str, tmp_path: Path
+) -> None:
+    """Where Python reads names as ASCII (``LC_ALL=C``, its UTF-8 mode off) a refusal of
+    ``fahrt-über.toml`` on stderr (``run``) named "fahrt-\\udcc3\\udcbcber.toml": the
+    stand-ins Python read the name's bytes as, escaped, where stdout (``validate``) gives
+    the bytes back, which a UTF-8 terminal shows as the name typed."""
+    import os
+
+    name = "fahrt-über.toml"
+    (tmp_path / name).write_text('stop_time = "zwölf"\n', encoding="utf-8")
+    env = {key: value for key, value in os.environ.items() if key not in ("LANG", "LC_CTYPE")}
+    done = run_in_group(
+        [sys.executable, "-m", "cosim", command, name], timeout=120, cwd=tmp_path,
+        env={**env, **ASCII_LOCALE}, text=False,
+    )  # fmt: skip
+    refusal = done.stderr if command == "run" else done.stdout
+    assert done.returncode == 1, done.stderr
+    assert name.encode() in refusal and b"\\udc" not in refusal, refusal
+    assert refusal.count(b"\n") == 1 and rb"'zw\xf6lf'" in refusal, refusal
+
+
 @pytest.mark.parametrize("command", ["run", "validate", "export"])
 def test_a_file_named_with_a_leading_dash_is_named_with_how_to_give_it(
     command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
