@@ -225,12 +225,19 @@ def _run(args: argparse.Namespace) -> int:
         connect=args.connect,
         fmu_dir=args.fmu_dir,
         overwrite=args.overwrite,
-        progress=not args.quiet and sys.stderr.isatty(),
+        progress=_progress_bar(args),
         real_time=args.real_time,
         control=args.control,
         interactive=args.interactive,
     )
     return run_from_cli(args.scenario, options)
+
+
+def _progress_bar(args: argparse.Namespace) -> bool:
+    """Whether to draw a progress bar on stderr: not ``--quiet``, and stderr a terminal
+    that goes back with a carriage return. ``TERM=dumb`` (Emacs's shell and compilation
+    buffers) shows each redraw's carriage return as ``^M`` on one growing line."""
+    return not args.quiet and sys.stderr.isatty() and os.environ.get("TERM") != "dumb"
 
 
 def _export(args: argparse.Namespace) -> int:
@@ -328,7 +335,7 @@ def _study(args: argparse.Namespace) -> int:
                     cluster=cluster,
                     resume=args.resume,
                     fmu_dir=args.fmu_dir,
-                    progress=not args.quiet and sys.stderr.isatty(),
+                    progress=_progress_bar(args),
                     overlay=args.overlay,
                     max_runs=max_runs,
                 )

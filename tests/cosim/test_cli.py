@@ -791,3 +791,39 @@ def test_the_scenario_list_to_a_pipe_is_a_line_per_scenario(tmp_path: Path) -> N
     lines = _scenarios_listed(tmp_path, None, None).splitlines()
     scenarios = builtin_scenarios()
     assert [line.split(maxsplit=1) for line in lines] == [[i, s] for i, s in scenarios.items()]
+
+
+def _run_in_a_terminal(argv: list[str], term: str, tmp_path: Path) -> bytes:
+    """What ``auv-cosim *argv`` writes to a terminal (a pty, 80 columns) whose ``TERM`` is
+    ``term``, its stdout and stderr both."""
+    parent, child = pty.openpty()
+    fcntl.ioctl(child, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
+    env = {**os.environ, "TERM": term}
+    command = [sys.executable, "-m", "cosim.cli", *argv]
+    shown = b""
+    try:
+        with started_in_group(command, stdout=child, stderr=child, cwd=tmp_path, env=env) as proc:
+            while proc.poll() is None or select.select([parent], [], [], 0.2)[0]:
+                if select.select([parent], [], [], 0.2)[0]:
+                    shown += os.read(parent, 65536)
+            assert proc.returncode == 0, shown
+    finally:
+        os.close(parent)
+        os.close(child)
+    return shown
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("term", "bar"), [("dumb", False), ("xterm-256color", True)])
+def test_a_dumb_terminal_gets_no_progress_bar(
+    term: str, bar: bool, fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """Emacs's shell and compilation buffers say ``TERM=dumb``: a terminal that shows a
+    carriage return rather than going back with it, where each of the bar's redraws
+    stood on the line as ``^M``, dozens in one run. There, as with ``--quiet``, no bar:
+    only the lines of the report."""
+    fmu_dir = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", "bs-3", "--stop-time", "2", "--no-rrd", "--fmu-dir", fmu_dir, "--out", "run"]
+    shown = _run_in_a_terminal(argv, term, tmp_path)
+    assert shown.startswith(b"scenario bs-3: complete") != bar, shown
+    assert (b"\r" in shown.replace(b"\r\n", b"\n")) == bar, shown
