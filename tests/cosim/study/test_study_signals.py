@@ -16,7 +16,7 @@ import pytest
 from process_group import as_in_a_terminal
 
 from cosim.cli import main
-from cosim.scratch import SCRATCH_DIR
+from cosim.scratch import LOCK_SUFFIX, SCRATCH_DIR, purge
 
 pytestmark = pytest.mark.cluster  # every test starts Dask workers
 
@@ -28,6 +28,19 @@ def rows(table: Path) -> list[dict[str, str]]:
         return []
     with table.open(encoding="utf-8", newline="") as f:
         return list(csv.DictReader(f))
+
+
+def assert_no_scratch_folder_left(own: Path) -> None:
+    """No process's scratch folder is left in ``own``: only the global lock, and lock
+    files no process holds, which the next process's purge removes. (A process ended while
+    it removed its folder, between the folder and its lock file, or while it purged
+    another's, leaves such a lone lock file; under load a worker the study's end kills
+    can: seen once in a loaded suite. The order is on purpose: the lock file goes last,
+    so a folder is never left without one.)"""
+    left = [p.name for p in own.iterdir() if p.name != "global.lock"]
+    assert [name for name in left if not name.endswith(LOCK_SUFFIX)] == [], left
+    purge(own)
+    assert [p.name for p in own.iterdir()] == ["global.lock"]
 
 
 @pytest.mark.slow
@@ -88,7 +101,7 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
     assert "CommClosedError" not in err and " - ERROR - " not in err, err
     own = scratch / SCRATCH_DIR  # every process's scratch folder gone, their base kept
     assert [p.name for p in scratch.iterdir() if p.name != "dask-scratch-space"] == [own.name]
-    assert [p.name for p in own.iterdir()] == ["global.lock"]
+    assert_no_scratch_folder_left(own)
     name = {signal.SIGINT: "interrupted (Ctrl-C)", signal.SIGTERM: "terminated (SIGTERM)"}.get(
         signal.Signals(signum), "hung up (SIGHUP)"
     )
