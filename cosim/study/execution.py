@@ -43,7 +43,7 @@ import sys
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Coroutine, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass, field
@@ -385,7 +385,7 @@ def _handshake(address: str, security: Security | None) -> None:
         await comm.close()
 
     try:
-        asyncio.run(asyncio.wait_for(probe(), PROBE_TIMEOUT_S))
+        _run_apart(lambda: asyncio.wait_for(probe(), PROBE_TIMEOUT_S))
     except TimeoutError:
         raise StudyError(
             f"--scheduler {address}: the server accepts connections but sends no Dask "
@@ -401,6 +401,20 @@ def _handshake(address: str, security: Security | None) -> None:
         raise StudyError(
             f"--scheduler {address}: not a Dask scheduler (its reply to Dask's handshake: {reason})"
         ) from None
+
+
+def _run_apart(coroutine: Callable[[], Coroutine[Any, Any, None]]) -> None:
+    """``asyncio.run`` of the coroutine ``coroutine()`` makes; in a thread of its own where
+    this thread already runs an event loop (a Jupyter kernel's, an asyncio application's),
+    in which ``asyncio.run`` refuses: a real scheduler was refused there as "not a Dask
+    scheduler" for that RuntimeError."""
+    try:
+        asyncio.get_running_loop()
+    except RuntimeError:  # no loop running here: the command line's case
+        asyncio.run(coroutine())
+        return
+    with ThreadPoolExecutor(1, thread_name_prefix="auv-cosim-probe") as pool:
+        pool.submit(lambda: asyncio.run(coroutine())).result()
 
 
 def check_workers(client: Client, address: str) -> None:

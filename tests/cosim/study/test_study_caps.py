@@ -5,6 +5,7 @@ seconds."""
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import os
 import signal
@@ -217,3 +218,22 @@ def test_a_scheduler_address_that_is_no_scheduler_is_refused_in_seconds(
     assert code == 1 and err.count("\n") == 1 and message in err, err
     assert f"--scheduler {address}" in err and "EiB" not in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.cluster
+def test_a_real_scheduler_is_accepted_from_inside_a_running_event_loop() -> None:
+    """A Jupyter kernel and an asyncio application call ``cosim.sweep(scheduler=...)`` with
+    an event loop running in their thread, where ``asyncio.run`` refuses: the handshake
+    probe failed there, and a real Dask scheduler was refused as "not a Dask scheduler"."""
+    from distributed import LocalCluster
+
+    with LocalCluster(
+        n_workers=0, processes=False, protocol="tcp", host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+
+        async def from_a_running_loop() -> None:
+            execution.check_scheduler(cluster.scheduler_address)  # refuses by raising
+
+        with deadline(60):
+            asyncio.run(from_a_running_loop())
+        execution.check_scheduler(cluster.scheduler_address)  # and with no loop running
