@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS
 from cosim.errors import KEYWORDS, CosimError, plain, shown
+from cosim.limits import open_files_limit_kept
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import RunOptions, execute
 from cosim.scratch import process_folder
@@ -444,6 +445,7 @@ def _swept(
 
     with ExitStack() as stack:
         stack.callback(_restore_environ, dict(os.environ))
+        stack.enter_context(open_files_limit_kept())  # a local study raises it for its workers
         temporary = None
         if out is None or isinstance(study, Mapping):
             temporary = Path(stack.enter_context(_temporary_folder()))

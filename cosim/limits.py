@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import errno
 import socket
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from cosim.errors import CosimError
 
@@ -86,6 +88,26 @@ def check_open_files(what: str, needed: int) -> None:
         f"the open-files limit of this process, {soft} (ulimit -n), is below the {needed} "
         f"{what} needs: raise it (ulimit -n {needed})"
     )
+
+
+@contextmanager
+def open_files_limit_kept() -> Iterator[None]:
+    """Put this process's soft limit on open files back after the block as it was before
+    it: what :func:`check_open_files` raised in the block for a study or a run called from
+    Python (``cosim.sweep``) would otherwise stay raised in the caller's process, and in
+    every process it starts later (the command's process ends instead)."""
+    try:
+        import resource
+    except ImportError:
+        yield
+        return
+    soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
+    try:
+        yield
+    finally:
+        now, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+        if now != soft:
+            resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
 
 
 def check_local_study() -> None:

@@ -659,6 +659,36 @@ def test_a_sweep_leaves_its_callers_environment_as_it_was(
     assert json.loads(done.stdout.strip().splitlines()[-1]) == {}
 
 
+@pytest.mark.skipif(not hasattr(os, "getuid"), reason="needs POSIX resource limits")
+def test_a_sweep_leaves_its_callers_open_files_limit_as_it_was(
+    run_python: Callable[..., subprocess.CompletedProcess],
+) -> None:
+    """A local study raises the soft limit on open files to what its workers need (``ulimit
+    -n``; the command's process ends with it): a service or notebook calling cosim.sweep
+    kept the raised limit after the call, refused or not, and so did every process it
+    started later."""
+    done = run_python(
+        """
+        import resource
+        import cosim
+
+        if __name__ == "__main__":
+            _, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+            resource.setrlimit(resource.RLIMIT_NOFILE, (32, hard))
+            try:
+                cosim.sweep({"scenario": "no-such-scenario", "grid": {"plant.v_0": [0.1]}},
+                            workers=1)
+            except cosim.CosimError as error:
+                print("refused:", error)
+            print(resource.getrlimit(resource.RLIMIT_NOFILE)[0])
+        """
+    )
+    assert done.returncode == 0, done.stderr
+    refused, soft = done.stdout.strip().splitlines()[-2:]
+    assert refused.startswith("refused:") and "no-such-scenario" in refused, done.stdout
+    assert soft == "32", f"the soft limit on open files was left at {soft}, not 32"
+
+
 @pytest.mark.cluster
 @pytest.mark.slow
 def test_a_sweep_into_a_folder_named_in_bytes_not_utf8_returns_its_table(
