@@ -43,6 +43,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 
     import numpy as np
     import pandas as pd
+    from distributed.security import Security
 
     from cosim.runner import RunOutcome
     from cosim.scenario.spec import Algorithm, Extrapolation, Scenario, StartInput, StartValue
@@ -343,7 +344,7 @@ def sweep(
     max_runs: Count = 100_000,
     progress: bool = False,
     scheduler: str | None = None,
-    security: Any = None,
+    security: Security | None = None,
 ) -> Study:
     """Run a parameter sweep or Monte Carlo study on a local Dask cluster, like
     ``auv-cosim sweep``.
@@ -413,7 +414,9 @@ def sweep(
     return _swept(study, out, cluster, options)
 
 
-def _cluster(workers: object, oversubscribe: object, scheduler: object, security: Any) -> Cluster:
+def _cluster(
+    workers: object, oversubscribe: object, scheduler: object, security: object
+) -> Cluster:
     """:func:`sweep`'s cluster: local (its workers checked, and the caller's script guarded:
     each worker imports it) or the one at ``scheduler``. Raises StudyError."""
     from cosim.study.execution import check_main_guard, local_workers
@@ -431,7 +434,22 @@ def _cluster(workers: object, oversubscribe: object, scheduler: object, security
         )
     if workers is not None:
         raise StudyError("give workers= (a local cluster) or scheduler=, not both")
-    return Cluster(workers=0, scheduler=scheduler, security=security)
+    return Cluster(workers=0, scheduler=scheduler, security=_security(security))
+
+
+def _security(value: object) -> Security | None:
+    """:func:`sweep`'s ``security``: None or a ``distributed.Security`` (the TLS files of a
+    ``tls://`` scheduler). Raises StudyError."""
+    from distributed.security import Security
+
+    from cosim.study.spec import StudyError
+
+    if value is None or isinstance(value, Security):
+        return value
+    raise StudyError(
+        f"security={shown(value)}: expected a distributed.Security (the TLS files: "
+        "Security(tls_ca_file=..., tls_client_cert=..., tls_client_key=...)) or None"
+    )
 
 
 def _swept(

@@ -13,6 +13,7 @@ import pickle
 import pkgutil
 import re
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
@@ -1106,6 +1107,34 @@ def test_a_users_mypy_catches_a_mistyped_algorithm_in_with_overrides(tmp_path: P
     )
     report, status = _users_mypy(script, tmp_path)
     assert status == 1 and 'Argument "algorithm" to "with_overrides"' in report, report
+
+
+@pytest.mark.slow
+def test_a_users_mypy_catches_a_string_given_for_sweeps_security(tmp_path: Path) -> None:
+    """``cosim.sweep``'s ``security`` is a ``distributed.Security``: typed ``Any``, a user's
+    ``mypy --strict`` passed the folder of the certificates given in its place."""
+    script = (
+        "import cosim\n\n\ndef main() -> None:\n"
+        '    cosim.sweep("study.toml", scheduler="tls://10.0.0.5:8786", security="certs/")\n'
+    )
+    report, status = _users_mypy(script, tmp_path)
+    assert status == 1 and 'Argument "security" to "sweep"' in report, report
+
+
+@pytest.mark.parametrize("security", ["certs/", {"tls_ca_file": "ca.pem"}])
+def test_a_security_that_is_no_dask_security_is_one_typed_line_naming_it(
+    security: object,
+) -> None:
+    """A study on a ``tls://`` scheduler that accepts connections, given the certificates'
+    folder or a dict of Security's keywords for ``security``: an AttributeError from
+    inside ("'str' object has no attribute 'get_connection_args'"), not a StudyError."""
+    with socket.create_server(("127.0.0.1", 0)) as server:  # accepts: the probe gets further
+        address = f"tls://127.0.0.1:{server.getsockname()[1]}"
+        with pytest.raises(cosim.StudyError) as refused:
+            cosim.sweep({"scenario": "bs-3"}, scheduler=address, security=security)
+    message = str(refused.value)
+    assert message.startswith(f"security={security!r}: expected a distributed.Security"), message
+    assert "\n" not in message
 
 
 INTERRUPTED_LOOP = """
