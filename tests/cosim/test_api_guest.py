@@ -1,0 +1,171 @@
+"""The Python API as a guest in someone else's process (a web service, a GUI, a notebook
+kernel, a test suite): every public call leaves the process-wide state it found (logging,
+warnings, signal handlers, hooks, environment, working folder, ``sys.path``, numpy's error
+state, matplotlib's backend, umask, resource limits, threads, standard streams) as it was.
+
+The libraries the calls import are imported first, in the caller's process: what their
+imports change (scipy's warnings filters, their ``atexit`` handlers) is theirs, not
+auv-cosim's."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+SNAPSHOT = """
+import json, logging, os, resource, signal, sys, threading, warnings
+import matplotlib
+matplotlib.use("svg")  # the user's own backend (a GUI's QtAgg, a notebook's inline)
+import fmpy, matplotlib.pyplot, numba, numpy as np, pandas, PIL.Image, rerun
+import scipy.sparse, scipy.special
+
+LIMITS = ("RLIMIT_NOFILE", "RLIMIT_AS", "RLIMIT_FSIZE", "RLIMIT_STACK", "RLIMIT_CORE")
+SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP", "SIGPIPE", "SIGCHLD", "SIGUSR1")
+
+
+def state():
+    root, umask = logging.getLogger(), os.umask(0)
+    os.umask(umask)
+    loggers = logging.root.manager.loggerDict.items()
+    return {
+        "root logger": repr((root.handlers, root.level)),
+        "loggers": {name: repr((logger.level, logger.handlers, logger.propagate,
+                                logger.disabled))
+                    for name, logger in loggers if isinstance(logger, logging.Logger)},
+        "logging.disable": logging.root.manager.disable,
+        "warnings.filters": [repr(f) for f in warnings.filters],
+        "warnings.showwarning": repr(warnings.showwarning),
+        "signal handlers": {s: repr(signal.getsignal(getattr(signal, s))) for s in SIGNALS},
+        "signal mask": repr(signal.pthread_sigmask(signal.SIG_BLOCK, [])),
+        "hooks": repr((sys.excepthook, threading.excepthook, sys.unraisablehook,
+                       sys.displayhook, sys.gettrace(), sys.getprofile())),
+        "os.environ": dict(os.environ),
+        "cwd": os.getcwd(),
+        "sys.path": list(sys.path),
+        "numpy errstate": np.geterr(),
+        "matplotlib backend": matplotlib.get_backend(),
+        "umask": umask,
+        "limits": {name: resource.getrlimit(getattr(resource, name)) for name in LIMITS},
+        "threads": sorted(t.name for t in threading.enumerate()),
+        "streams": repr((sys.stdin, sys.stdout, sys.stderr)),
+        "interpreter": [sys.getrecursionlimit(), sys.getswitchinterval()],
+    }
+
+
+def changes(before, after):
+    # loggers made by the call are new names, not a change of the caller's
+    after["loggers"] = {n: v for n, v in after["loggers"].items() if n in before["loggers"]}
+    return {k: [before[k], after[k]] for k in before if before[k] != after[k]}
+
+
+def call(label, function):
+    before = state()
+    try:
+        function()
+    except Exception as error:  # a refusal is a call too: it must leave no more behind
+        print(f"{label}: refused: {error}", file=sys.stderr)
+    report[label] = changes(before, state())
+
+
+if __name__ == "__main__":
+    fmu_dir, out = sys.argv[1], sys.argv[2]
+    os.environ.pop("NUMBA_CACHE_DIR", None)  # the user's own environment, as it comes
+    logging.basicConfig(level=logging.INFO, format="user: %(message)s")
+    warnings.simplefilter("default")
+    _, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    resource.setrlimit(resource.RLIMIT_NOFILE, (min(32, hard), hard))
+    report = {}
+    call("import cosim", lambda: __import__("cosim").run)
+    import cosim
+    scenario = cosim.load_scenario("bs-3", fmu_dir=fmu_dir)
+    call("cosim.load_scenario", lambda: cosim.load_scenario("bs-3", fmu_dir=fmu_dir))
+    call("cosim.run", lambda: cosim.run(scenario, stop_time=0.5))
+    call("cosim.run(out=)", lambda: cosim.run(scenario, stop_time=0.5, out=out))
+    call("a refused cosim.run", lambda: cosim.run(scenario, stop_time=-1.0))
+    call("cosim.build_fmus", lambda: cosim.build_fmus(fmu_dir))
+    study = {"scenario": "no-such-scenario", "grid": {"plant.v_0": [0.1]}}
+    call("a refused cosim.sweep", lambda: cosim.sweep(study, workers=1))
+    print(json.dumps(report, default=repr))
+"""
+# What a run leaves by design, each scoped to auv-cosim's own code (docs/api.md):
+# numba's cache folder, which the plant FMU names before numba is imported and numba reads
+# again at every compilation, and the filter of the stepping loop's own numpy warning.
+LEFT_BY_DESIGN_ENVIRON = {"NUMBA_CACHE_DIR"}
+OWN_FILTER = "re.compile('cosim\\\\.engine\\\\.master$')"
+
+
+def _beyond_design(changes: dict[str, list[object]]) -> dict[str, object]:
+    """``changes`` without what :data:`LEFT_BY_DESIGN_ENVIRON` and :data:`OWN_FILTER` allow."""
+    left = dict(changes)
+    if "os.environ" in left:
+        before, after = left.pop("os.environ")
+        assert isinstance(before, dict) and isinstance(after, dict)
+        names = {n for n in {*before, *after} if before.get(n) != after.get(n)}
+        if names - LEFT_BY_DESIGN_ENVIRON:
+            left["os.environ"] = {n: [before.get(n), after.get(n)] for n in names}
+    if "warnings.filters" in left:
+        before, after = left.pop("warnings.filters")
+        assert isinstance(before, list) and isinstance(after, list)
+        if [f for f in after if not f.endswith(f"{OWN_FILTER}, 0)")] != before:
+            left["warnings.filters"] = [before, after]
+    return left
+
+
+@pytest.mark.slow
+def test_every_public_call_leaves_the_callers_process_as_it_found_it(
+    run_python: Callable[..., subprocess.CompletedProcess],
+    fmu_paths: dict[str, Path],
+    tmp_path: Path,
+) -> None:
+    """A web service, a GUI or a notebook kernel calls cosim.run, load_scenario,
+    build_fmus and sweep in its own process: none may leave a logging handler or level, a
+    warnings filter, a signal handler, a hook, an environment variable, a working folder,
+    a ``sys.path`` entry, numpy's error state, matplotlib's backend, the umask, a resource
+    limit (a refused sweep left the open-files limit raised to its workers' 48), a thread
+    or a replaced standard stream behind."""
+    fmu_dir = tmp_path / "fmus"
+    fmu_dir.mkdir()
+    for path in fmu_paths["AuvPlant"].parent.glob("*.fmu*"):
+        shutil.copyfile(path, fmu_dir / path.name)
+    done = run_python(SNAPSHOT, str(fmu_dir), str(tmp_path / "run"), timeout=600)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert len(report) == 7, report
+    left = {call: _beyond_design(changes) for call, changes in report.items()}
+    assert all(not changes for changes in left.values()), json.dumps(left, indent=1)
+    assert "no-such-scenario" in done.stderr  # the refusals were refusals, not crashes
+
+
+@pytest.mark.slow
+def test_two_runs_on_threads_of_an_event_loop_match_a_run_in_the_main_thread(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """An asyncio service runs cosim.run on worker threads (``asyncio.to_thread``), two at
+    once: no signal handler can be installed there (``signal.signal`` raises ValueError
+    outside the main thread), and the runs share no folder or module state: each
+    completes with the numbers of the same run in the main thread, whose SIGINT handler
+    stays the caller's."""
+    import asyncio
+    import signal
+
+    import cosim
+
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    handler = signal.getsignal(signal.SIGINT)
+    reference = cosim.run("bs-3", stop_time=1.0, fmu_dir=fmu_dir)
+
+    async def two_at_once() -> list[cosim.Run]:
+        runs = [
+            asyncio.to_thread(cosim.run, "bs-3", stop_time=1.0, fmu_dir=fmu_dir) for _ in range(2)
+        ]
+        return list(await asyncio.gather(*runs))
+
+    for run in asyncio.run(two_at_once()):
+        assert run.complete and run.out_dir is None
+        assert run.results.equals(reference.results)
+    assert signal.getsignal(signal.SIGINT) is handler
