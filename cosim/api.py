@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
+import multiprocessing
 import os
 import signal
 import tempfile
@@ -464,6 +465,7 @@ def _swept(
     with ExitStack() as stack:
         stack.callback(_restore_environ, dict(os.environ))
         stack.enter_context(open_files_limit_kept())  # a local study raises it for its workers
+        stack.callback(_restore_start_method, multiprocessing.get_start_method(allow_none=True))
         temporary = None
         if out is None or isinstance(study, Mapping):
             temporary = Path(stack.enter_context(_temporary_folder()))
@@ -503,6 +505,15 @@ def _restore_environ(before: Mapping[str, str]) -> None:
     for name, value in before.items():
         if os.environ.get(name) != value:
             os.environ[name] = value
+
+
+def _restore_start_method(before: str | None) -> None:
+    """Leave multiprocessing's default start method unchosen if it was (``before`` None):
+    each worker the fork server starts fixes it, as a side effect of the standard library's,
+    and the caller's own ``multiprocessing.set_start_method("spawn")`` then raised "context
+    has already been set"."""
+    if before is None:
+        multiprocessing.set_start_method(None, force=True)
 
 
 def _warn_of(outcome: StudyOutcome) -> None:

@@ -271,13 +271,12 @@ def _execute(
         base, factors, spec.keep, spec.check_step, session.unpacked(base), carried
     )
     drawing.begin()
-    bar = tqdm(
-        total=total,
-        initial=total - len(todo),
-        unit="run",
-        disable=not progress,
-        desc="runs",
-        dynamic_ncols=True,
+    # no bar at all without progress: even a disabled tqdm starts its monitor thread, left
+    # running in the caller's process, and fixes multiprocessing's default start method
+    bar = (
+        tqdm(total=total, initial=total - len(todo), unit="run", desc="runs", dynamic_ncols=True)
+        if progress
+        else None
     )
     failed = 0
     left = len(todo)
@@ -293,13 +292,15 @@ def _execute(
         if spec.keep == "all" or (spec.keep == "failed" and record.status != "complete"):
             text = scenario_text(base, factors, run.values)
             study_folder.keep_run(out_dir, run.id, text, record.files, record.error)
-        bar.set_postfix(failed=failed, refresh=False)
-        bar.update(1)
+        if bar is not None:
+            bar.set_postfix(failed=failed, refresh=False)
+            bar.update(1)
 
     try:
         session.run(job, plugin, todo, on_record)
     finally:
-        bar.close()
+        if bar is not None:
+            bar.close()
 
 
 class _Session:

@@ -169,3 +169,36 @@ def test_two_runs_on_threads_of_an_event_loop_match_a_run_in_the_main_thread(
         assert run.complete and run.out_dir is None
         assert run.results.equals(reference.results)
     assert signal.getsignal(signal.SIGINT) is handler
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_a_sweep_without_progress_leaves_no_thread_and_no_start_method(
+    run_python: Callable[..., subprocess.CompletedProcess], fmu_paths: dict[str, Path]
+) -> None:
+    """``cosim.sweep(..., progress=False)`` made its progress bar anyway, disabled: tqdm
+    then still started its monitor thread, left running in the caller's process, and
+    fixed multiprocessing's default start method, so that the caller's own
+    ``multiprocessing.set_start_method("spawn")`` afterwards raised "context has already
+    been set"."""
+    done = run_python(
+        """
+        import multiprocessing, sys, threading
+        import cosim
+
+        if __name__ == "__main__":
+            before = {t.name for t in threading.enumerate()}
+            study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [0.1]}}
+            table = cosim.sweep(study, workers=1, fmu_dir=sys.argv[1]).table
+            print(list(table["status"]))
+            print(sorted(t.name for t in threading.enumerate() if t.name not in before))
+            print(multiprocessing.get_start_method(allow_none=True))
+            multiprocessing.set_start_method("spawn")  # the caller's own choice, still open
+        """,
+        fmu_paths["AuvPlant"].parent,
+    )
+    assert done.returncode == 0, done.stderr
+    status, threads, start_method = done.stdout.strip().splitlines()[-3:]
+    assert status == "['complete']", done.stdout
+    assert "tqdm" not in threads, threads
+    assert start_method == "None", start_method
