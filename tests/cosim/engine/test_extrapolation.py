@@ -37,10 +37,13 @@ def signal(t: float) -> np.ndarray:
     return np.array([1.0 + 2.0 * t - 3.0 * t * t, 4.0 - t])
 
 
-@pytest.mark.parametrize("times", [[0.0, 0.1, 0.2, 0.3], [0.0, 0.05, 0.2, 0.25, 0.45]])
+@pytest.mark.parametrize(
+    "times", [[0.0, 0.1, 0.2], [0.0, 0.1, 0.2, 0.3], [0.0, 0.05, 0.2, 0.25, 0.45]]
+)
 def test_quadratic_extrapolation_sends_the_exact_derivatives_of_a_quadratic(times) -> None:
     """Divided differences over the last three points (any spacing: the adaptive
-    algorithm's) give a quadratic's first and second derivatives exactly."""
+    algorithm's) give a quadratic's first and second derivatives exactly, from the third
+    point on (the first with two points behind it)."""
     fmu = FakeFmu()
     rates = InputRates(fmu, [7, 9], order=2)
     for t in times:
@@ -135,3 +138,19 @@ def test_the_master_s_input_array_is_bound_once_and_followed() -> None:
         rates.send(inputs, t, epoch=0)
     slope = (signal(0.2) - signal(0.1)) / 0.1
     assert fmu.calls[-1] == {(1, 1): pytest.approx(slope[0]), (2, 1): pytest.approx(slope[1])}
+
+
+def test_a_held_input_gets_no_slope_and_no_curvature() -> None:
+    """An input whose source steps less often is held over the step (``held``): with
+    quadratic extrapolation both its first and its second derivative are sent as 0 (a
+    parabola through its stairs would zigzag), while the other input still gets the
+    exact derivatives of its quadratic."""
+    fmu = FakeFmu()
+    rates = InputRates(fmu, [7, 9], order=2, held=[1])
+    for t in (0.0, 0.1, 0.2, 0.3):
+        stairs = signal(t)
+        stairs[1] = float(np.floor(t / 0.2))  # a source stepping every 0.2 s
+        rates.send(stairs, t, epoch=0)
+    last = fmu.calls[-1]
+    assert last[(9, 1)] == 0.0 and last[(9, 2)] == 0.0
+    assert last[(7, 1)] == pytest.approx(2.0 - 6.0 * 0.3) and last[(7, 2)] == pytest.approx(-6.0)
