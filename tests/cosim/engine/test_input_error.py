@@ -175,9 +175,9 @@ class FakeSlave:
         self.inputs = np.zeros(self.n_inputs)
 
 
-def quadratic_estimate(times: list[float], end: float) -> tuple[float, float]:
-    """(estimated, true) error at ``end`` of sin(t) extrapolated quadratically from its
-    values at ``times`` (the last three: the polynomial through them, exactly)."""
+def quadratic_estimate(times: list[float], end: float, sign: float = 1.0) -> tuple[float, float]:
+    """(estimated, true) error at ``end`` of ``sign`` sin(t) extrapolated quadratically
+    from its values at ``times`` (the last three: the polynomial through them, exactly)."""
     grid = 1e-4
     receiver = FakeSlave("receiver", [0], InputRates(FakeFmu(), [1], order=2))
     source = FakeSlave("source", [], None)
@@ -186,16 +186,16 @@ def quadratic_estimate(times: list[float], end: float) -> tuple[float, float]:
     z = np.zeros(1)
     points = [round(t / grid) for t in [*times, end]]
     for n, following in itertools.pairwise(points):
-        z[0] = np.sin(n * grid)
+        z[0] = sign * np.sin(n * grid)
         receiver.inputs[:] = z[0]
         assert receiver.input_rates is not None
         receiver.input_rates.send(receiver.inputs, n * grid, epoch=0)
         estimator.took(receiver, n, following - n)  # type: ignore[arg-type]
-    z[0] = np.sin(end)
+    z[0] = sign * np.sin(end)
     sources, du = estimator.errors(order, z, points[-1], k=3)
     assert list(sources) == [0]
-    fit = np.polyfit(times[-3:], np.sin(times[-3:]), 2)
-    return float(du[0]), abs(float(np.polyval(fit, end)) - np.sin(end))
+    fit = np.polyfit(times[-3:], sign * np.sin(times[-3:]), 2)
+    return float(du[0]), abs(float(np.polyval(fit, end)) - sign * np.sin(end))
 
 
 @pytest.mark.parametrize("times", [[0.0, 0.1, 0.2, 0.3], [0.0, 0.05, 0.2, 0.25, 0.45]])
@@ -211,6 +211,53 @@ def test_the_estimate_is_the_quadratic_extrapolations_error_at_the_steps_end(
     half = [t / 2 for t in times]
     finer, _ = quadratic_estimate(half, half[-1] + step / 2)
     assert 6.0 < estimated / finer < 10.0
+
+
+def test_an_extrapolation_below_the_input_counts_as_much_as_one_above() -> None:
+    """The estimate is the distance |u_extrapolated - u|: mirroring the input (-sin for
+    sin) mirrors the polynomial too, so the estimate is the same, never negative (a
+    signed error below the input would pass any tolerance through the step control's
+    max)."""
+    times = [0.0, 0.1, 0.2, 0.3]
+    above, true = quadratic_estimate(times, 0.4)
+    below, _ = quadratic_estimate(times, 0.4, sign=-1.0)
+    assert below == pytest.approx(above, rel=1e-9) and below == pytest.approx(true, rel=1e-9)
+
+
+def lagged_estimate(times: list[float], next_step: float) -> tuple[float, float]:
+    """(estimated, true) error of sin(t) extrapolated quadratically over the step from
+    times[-2] to times[-1], for an input whose source steps before its instance: known
+    only when the instance takes its inputs at times[-1], and judged at the end of the
+    next step (``next_step`` s long)."""
+    grid = 1e-4
+    receiver = FakeSlave("receiver", [0], InputRates(FakeFmu(), [1], order=2))
+    source = FakeSlave("source", [], None)
+    order: list[Any] = [source, receiver]  # the source first: its end value comes later
+    estimator = InputError(order, {"source.y": 0}, jacobi=False, timeline=None, grid=grid)
+    z = np.zeros(1)
+    points = [round(t / grid) for t in times]
+    points.append(points[-1] + round(next_step / grid))
+    for n, following in itertools.pairwise(points):
+        z[0] = np.sin(n * grid)
+        receiver.inputs[:] = z[0]
+        assert receiver.input_rates is not None
+        receiver.input_rates.send(receiver.inputs, n * grid, epoch=0)
+        estimator.took(receiver, n, following - n)  # type: ignore[arg-type]
+    sources, du = estimator.errors(order, z, points[-1], k=3)
+    assert list(sources) == [0], "the lagged input's error is not judged"
+    fit = np.polyfit(times[-4:-1], np.sin(times[-4:-1]), 2)
+    return float(du[0]), abs(float(np.polyval(fit, times[-1])) - np.sin(times[-1]))
+
+
+def test_an_input_known_a_step_late_is_judged_in_the_next_step_scaled_to_it() -> None:
+    """Under Gauss-Seidel an input whose source steps first is known only after the step:
+    its extrapolation error counts in the next step's judgement, as it is for a step of
+    the same length and scaled by (H_next / H)^k for a shorter one (k = 3: quadratic)."""
+    times = [0.0, 0.1, 0.2, 0.3]
+    estimated, true = lagged_estimate(times, 0.1)
+    assert true > 0.0 and estimated == pytest.approx(true, rel=1e-9)
+    halved, _ = lagged_estimate(times, 0.05)
+    assert halved == pytest.approx(true / 8.0, rel=1e-9)
 
 
 def extrapolation_control() -> adaptive_module._Control:
