@@ -41,6 +41,22 @@ def test_the_settling_time_is_where_the_error_crosses_into_the_band():
     assert settling_time(times, -error, TOLERANCE) == pytest.approx(1.75)
 
 
+@pytest.mark.parametrize("cut", range(1, 9))
+def test_settling_time_streamed_in_two_pieces_is_the_whole_series_one(cut: int) -> None:
+    """The fast twin of the streamed property below: the error leaves the band, enters
+    it for good between 2.5 s and 3 s; split anywhere (in particular just before the
+    entry, so the piece after is all inside and the entry is interpolated from the last
+    sample of the piece before), the tracker gives the definition's crossing time."""
+    error = np.array([0.4, 0.25, 0.05, 0.01, 0.3, 0.2, 0.05, 0.02, 0.0])
+    times = np.arange(len(error)) * 0.5
+    tracker = SettlingTime(TOLERANCE)
+    tracker.add(times[:cut], error[:cut])
+    tracker.add(times[cut:], error[cut:])
+    expected = whole_series_settling_time(times, error)
+    assert expected == pytest.approx(2.5 + 0.5 * (0.2 - TOLERANCE) / (0.2 - 0.05))
+    assert tracker.value == pytest.approx(expected)
+
+
 errors = st.lists(st.sampled_from([0.0, 0.05, -0.05, 0.2, -0.3, math.nan]), min_size=1, max_size=40)
 cuts = st.lists(st.integers(min_value=0, max_value=40), max_size=6)
 

@@ -237,6 +237,21 @@ def test_depth_steps_of_known_responses():
     assert 0.0 < second["rise_time_s"] < second["settling_time_s"] < 10.0
 
 
+def test_a_coarsely_sampled_rise_is_timed_on_the_segments_that_cross_the_levels() -> None:
+    """Samples 1 s apart, depth 0 -> 0.2 -> 0.6 -> 0.95 -> 1 m after a 1 m step, linear
+    between samples: 10 % is reached on the first segment (half way, 0.5 s), 90 % on the
+    third (2 + 0.3 / 0.35 s); the segments' slopes differ, so a crossing read off the
+    wrong segment would move the rise time. The 2 % band around the final 1 m is last
+    left at 3 s (0.95 m is 5 % off), so the step settles at the next sample, 4 s."""
+    t = np.arange(8.0)
+    setpoint = np.array([0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0])
+    depth = np.array([0.0, 0.0, 0.2, 0.6, 0.95, 1.0, 1.0, 1.0])
+    (step,) = depth_steps(t, depth, setpoint)
+    assert step["rise_time_s"] == pytest.approx((2.0 + 0.3 / 0.35) - 0.5)
+    assert step["settling_time_s"] == 4.0
+    assert step["overshoot_pct"] == 0.0 and step["steady_error_m"] == 0.0
+
+
 # --- survey ---------------------------------------------------------------------------------
 
 

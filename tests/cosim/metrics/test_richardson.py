@@ -43,3 +43,21 @@ def test_figures_missing_from_a_run_are_left_out():
     values = [{"a": 1.0, "b": None}, {"a": 0.5, "b": 2.0}, {"a": 0.25, "b": 2.0}]
     estimates, _ = estimate(values, fallback=1.0)
     assert set(estimates) == {"a"}
+
+
+def test_the_runs_order_is_observed_from_the_largest_differences_of_all_figures() -> None:
+    """Two figures converging at order 2 (f = f0 + C h^2, different C) and one wobbling
+    by less: the largest differences between the runs fall by 2^2 per halving, so the
+    run's order is 2 and not the fallback, and the figure without an order of its own
+    takes it."""
+    h = (1.0, 0.5, 0.25)
+    values = [
+        {"a": 1.0 + 3.0 * step**2, "b": -2.0 + 0.5 * step**2, "c": wobble}
+        for step, wobble in zip(h, (5.0, 5.01, 5.0), strict=True)
+    ]
+    estimates, order = estimate(values, fallback=1.0)
+    assert order == pytest.approx(2.0, rel=1e-12)
+    assert not estimates["c"].observed and estimates["c"].order == order
+    assert estimates["a"].limit == pytest.approx(1.0) and estimates["b"].limit == pytest.approx(
+        -2.0
+    )
