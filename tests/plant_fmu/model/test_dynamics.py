@@ -17,6 +17,7 @@ from plant_fmu.model.dynamics import (
 )
 from plant_fmu.model.kinematics import euler_rate_matrix, rotation_matrix
 from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.moving_mass import servo_motion
 from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import MAX_SUBSTEPS, advance, simulate, substeps
 
@@ -253,6 +254,23 @@ def test_rail_speed_limit_when_set():
     speed = states[:, STATE_INDEX["mass_velocity"]]
     assert np.max(np.abs(speed)) <= 0.03
     assert np.max(speed) == pytest.approx(0.03)  # the limit is reached, so it acts
+
+
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_at_the_rail_speed_limit_the_servo_pushes_the_mass_no_faster(direction: float) -> None:
+    """The fast twin of the speed limit's run: a mass at the limit (either way along the
+    rail) is not accelerated outwards however gently the servo pushes (here 0.01 m/s^2,
+    from the servo law (6.3.12) solved for the command), and may still be slowed."""
+    params = load_vehicle().replace(mass_speed_limit=0.03)
+    y_vel = direction * 0.03
+
+    def command_for(accel: float) -> float:
+        """y_cmd giving the servo's y'' = accel at y_v = 0 (6.3.12), m."""
+        return (params.m_v * accel + params.d_v * y_vel) / params.k_v
+
+    assert servo_motion(params, 0.0, y_vel, command_for(direction * 0.01)) == (y_vel, 0.0)
+    vel, accel = servo_motion(params, 0.0, y_vel, command_for(-direction * 0.01))
+    assert vel == y_vel and accel == pytest.approx(-direction * 0.01)
 
 
 @pytest.mark.parametrize("variant", list(Variant))
