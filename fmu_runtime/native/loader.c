@@ -575,7 +575,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
                                           fmi2Boolean visible, fmi2Boolean loggingOn)
 {
     char why[LINE_SIZE], line[LINE_SIZE + 64];
-    if (python_gone()) return NULL; /* the process is shutting down: no message either */
+    if (runtime_gone()) return NULL; /* the process is shutting down: no message either */
     if (!name) {
         refuse_instantiation(functions, NULL, "fmi2Instantiate refused: instanceName is NULL");
         return NULL;
@@ -965,35 +965,71 @@ static Saved *saved_state(const Instance *c, fmi2FMUstate state)
     return saved->magic == SAVED_MAGIC && saved->fmu == fmu_of(c) ? saved : NULL;
 }
 
+/* Every instance's list of its states alive changes under Python's GIL: a state one
+ * instance took may be freed through another instance of its FMU, in another thread or
+ * through another copy of this library, and the GIL is the one lock every copy shares.
+ * Once Python is gone no lock is taken (nothing but the exit frees instances then). */
+static int hold_states(void) { return python_alive() ? py.GILState_Ensure() : -1; }
+
+static void release_states(int gil)
+{
+    if (gil != -1) py.GILState_Release(gil);
+}
+
 /* ``saved`` among the states alive of ``owner``, which frees it with itself. */
 static void own_state(Instance *owner, Saved *saved)
 {
+    int gil = hold_states();
     saved->owner = owner;
     saved->prev = NULL;
     saved->next = owner->states;
     if (saved->next) saved->next->prev = saved;
     owner->states = saved;
+    release_states(gil);
 }
 
-/* ``saved``, which python_states knows no more, off its owner's list, discarded by ``c``
- * and freed. */
-static void free_saved(Instance *c, Saved *saved)
+/* ``saved`` off its owner's list (the caller holds the states' lock). */
+static void unlink_state(Saved *saved)
 {
     if (saved->prev) saved->prev->next = saved->next;
     if (saved->next) saved->next->prev = saved->prev;
     if (saved->owner->states == saved) saved->owner->states = saved->next;
+}
+
+/* ``saved`` forgotten by python_states and taken off its owner's list at once: 1 if it
+ * was alive, and is now the caller's alone to free. */
+static int forget_state(Saved *saved)
+{
+    int gil = hold_states();
+    int forgotten = python_states(STATE_FORGET, saved);
+    if (forgotten) unlink_state(saved);
+    release_states(gil);
+    return forgotten;
+}
+
+/* ``saved``, off every list, discarded by ``c`` and freed. */
+static void free_saved(Instance *c, Saved *saved)
+{
     if (!python_gone()) c->backend->discard(c, saved->inner); /* else gone with Python */
     saved->magic = 0;
     free(saved);
 }
 
 /* The states ``c`` took that the host did not free (FMI 2.0: fmi2FreeInstance frees all
- * the instance allocated): a host that saves states and never frees them keeps nothing. */
+ * the instance allocated): a host that saves states and never frees them keeps nothing.
+ * Each is taken off the list under the states' lock, so that one freed meanwhile through
+ * another instance is freed once. */
 static void free_states(Instance *c)
 {
-    while (c->states) {
+    for (;;) {
+        int gil = hold_states();
         Saved *saved = c->states;
-        python_states(STATE_FORGET, saved);
+        if (saved) {
+            python_states(STATE_FORGET, saved);
+            unlink_state(saved);
+        }
+        release_states(gil);
+        if (!saved) return;
         free_saved(c, saved);
     }
 }
@@ -1051,7 +1087,7 @@ FMI2_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *s
     INSTANCE(component);
     if (!state || !*state) return fmi2OK;
     Saved *saved = saved_state(c, *state);
-    if (!saved || !python_states(STATE_FORGET, saved)) {
+    if (!saved || !forget_state(saved)) {
         return refuse(c, "fmi2FreeFMUstate refused: not an FMU state of this FMU");
     }
     free_saved(c, saved);

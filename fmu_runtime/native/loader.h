@@ -220,5 +220,9 @@ void values_free_strings(Values *v);
 /* runtime.c: an initialised CPython >= 3.9 that imports numpy in this process (started
  * once per process if none runs), or 0 after one Error line per candidate passed over. */
 int runtime_python(Instance *c);
+/* runtime.c: 1 once the Python this copy of the runtime used has shut down (python_gone),
+ * read under the lock runtime_python resolves and starts it under: another thread may be
+ * doing so, between which CPython is loaded but not yet initialised. */
+int runtime_gone(void);
 
 #endif

@@ -77,15 +77,26 @@ static int python_in_process(char *loaded)
 {
     void *library = NULL;
     const char *missing = "";
+    /* resolved once: another thread may be reading the API while this one asks again */
     return platform_loaded_python(&library, loaded, PATH_SIZE) &&
-           python_resolve(library, &missing);
+           (py.IsInitialized || python_resolve(library, &missing));
+}
+
+/* The version of the libpython resolved (file ``libpython``), read under the lock every
+ * copy of this runtime takes: Py_GetVersion writes the text into one static buffer at
+ * each call, so two copies asking at once from two threads race on it. */
+static void version_of(const char *libpython, int *major, int *minor)
+{
+    void *held = platform_hold_python(libpython);
+    python_version(major, minor);
+    platform_release_python(held);
 }
 
 /* The Python running in this process: "" if it can run the FMU, else why not. */
 static void check_running(const char *loaded, char *why, size_t n)
 {
     int major, minor;
-    python_version(&major, &minor);
+    version_of(loaded, &major, &minor);
     if (major < 3 || (major == 3 && minor < 9)) {
         snprintf(why, n, "Python %d.%d (%s) is too old: the FMU needs CPython >= 3.9", major,
                  minor, loaded);
@@ -279,16 +290,18 @@ static int start(const Answer *a, char *why, size_t n)
     if (!python_resolve(library, &missing)) {
         snprintf(why, n, "its libpython %s lacks %s (the runtime needs CPython 3.9 or later)",
                  a->libpython, missing);
-    } else if (python_version(&major, &minor), major != a->major || minor != a->minor) {
-        snprintf(why, n, "its libpython %s is Python %d.%d, not %d.%d", a->libpython, major,
-                 minor, a->major, a->minor);
     } else {
         /* another copy of this runtime (another FMU, another extraction) may be starting
-         * it in another thread right now: checked and started under one lock */
+         * it, or reading its version, in another thread right now: checked and started
+         * under one lock */
         void *held = platform_hold_python(a->libpython);
-        int ok = py.IsInitialized() || initialise(a, why, n); /* or started meanwhile */
+        python_version(&major, &minor); /* under the lock, as version_of */
+        int same = major == a->major && minor == a->minor;
+        int ok = same && (py.IsInitialized() || initialise(a, why, n)); /* or started meanwhile */
         platform_release_python(held);
-        return ok;
+        if (same) return ok;
+        snprintf(why, n, "its libpython %s is Python %d.%d, not %d.%d", a->libpython, major,
+                 minor, a->major, a->minor);
     }
     memset(&py, 0, sizeof py);
     platform_library_close(library);
@@ -372,11 +385,31 @@ static int find_and_start(Instance *c)
     return 0;
 }
 
+/* A thread may call in holding the GIL (a Python host that keeps it across its FMI calls,
+ * in one thread, while a parallel master's worker makes another instance): when Python
+ * runs already, the GIL is taken before this lock, never this lock held while waiting for
+ * the GIL, which that thread would wait for in turn. */
 int runtime_python(Instance *c)
 {
+    char loaded[PATH_SIZE] = "";
     platform_lock(LOCK_RUNTIME);
-    int ok = (ready && python_alive()) || find_and_start(c);
-    ready = ok;
+    int ok = ready && python_alive();
+    int running = !ok && python_in_process(loaded) && python_alive();
+    if (!ok && !running) ok = ready = find_and_start(c); /* none runs: no GIL to wait for */
     platform_unlock(LOCK_RUNTIME);
+    if (ok || !running) return ok;
+    int gil = py.GILState_Ensure();
+    platform_lock(LOCK_RUNTIME);
+    ok = ready = (ready && python_alive()) || find_and_start(c);
+    platform_unlock(LOCK_RUNTIME);
+    py.GILState_Release(gil);
     return ok;
+}
+
+int runtime_gone(void)
+{
+    platform_lock(LOCK_RUNTIME); /* another thread may be resolving the API, or starting it */
+    int gone = python_gone();
+    platform_unlock(LOCK_RUNTIME);
+    return gone;
 }

@@ -9,7 +9,9 @@ use them are in this folder's conftest.py):
   the runtime (``SANITIZERS``: the flags of one built with ASan and UBSan);
 * :func:`sanitized_build`: the runtime and a C host built with those flags
   (``SANITIZED_ENVIRONMENT``: what their runs need); :func:`sanitized_runtime` the runtime
-  alone, and :func:`asan_preload` the ASan library a Python host preloads to load it.
+  alone, and :func:`asan_preload` the ASan library a Python host preloads to load it;
+* ``THREAD_SANITIZER`` (and ``THREAD_SANITIZED_ENVIRONMENT``): the flags of a
+  ThreadSanitizer build for :func:`sanitized_build`, and what its runs need.
 """
 
 from __future__ import annotations
@@ -33,6 +35,10 @@ SANITIZERS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-O1"
 # no numba (its JIT's memory confuses ASan)
 SANITIZED_ENVIRONMENT = {"ASAN_OPTIONS": "detect_leaks=0", "PYTHONMALLOC": "malloc",
                          "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
+THREAD_SANITIZER = ("-fsanitize=thread", "-O1", "-g")
+# a ThreadSanitizer run: every report printed, the exit code 66 if there was one
+THREAD_SANITIZED_ENVIRONMENT = {"TSAN_OPTIONS": "halt_on_error=0 exitcode=66",
+                                "PYTHONMALLOC": "malloc", "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
 
 
 def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
@@ -70,13 +76,16 @@ def with_runtime(extraction: Path, runtime: Path, folder: Path) -> Path:
     return copy
 
 
-def sanitized_build(folder: Path, host: Path, flags: Sequence[str] = ()) -> tuple[Path, Path]:
+def sanitized_build(
+    folder: Path, host: Path, flags: Sequence[str] = (), sanitizers: Sequence[str] = SANITIZERS
+) -> tuple[Path, Path]:
     """(runtime.so, host executable) in ``folder``: the runtime and the C host ``host``
-    (with ``flags`` besides) built with ASan and UBSan; skips the test without a system
-    C compiler (zig's has no sanitizer runtimes here)."""
-    runtime = sanitized_runtime(folder)
+    (with ``flags`` besides) built with ``sanitizers`` (ASan and UBSan unless told, or
+    ``THREAD_SANITIZER``); skips the test without a system C compiler (zig's has no
+    sanitizer runtimes here)."""
+    runtime = sanitized_runtime(folder, sanitizers)
     executable = folder / host.stem
-    command = [*sanitizing_toolchain().command, *SANITIZERS, *flags, "-o", str(executable),
+    command = [*sanitizing_toolchain().command, *sanitizers, *flags, "-o", str(executable),
                str(host), "-ldl", "-lm", "-lpthread"]  # fmt: skip
     done = subprocess.run(command, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-3000:]
@@ -92,10 +101,11 @@ def sanitizing_toolchain() -> native.Toolchain:
     return chain
 
 
-def sanitized_runtime(folder: Path) -> Path:
-    """``folder``/runtime.so: the runtime built with ASan and UBSan."""
+def sanitized_runtime(folder: Path, sanitizers: Sequence[str] = SANITIZERS) -> Path:
+    """``folder``/runtime.so: the runtime built with ``sanitizers`` (ASan and UBSan unless
+    told)."""
     runtime = folder / "runtime.so"
-    command = native.compile_command(sanitizing_toolchain(), runtime, *SANITIZERS)
+    command = native.compile_command(sanitizing_toolchain(), runtime, *sanitizers)
     done = subprocess.run(command, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-3000:]
     return runtime
