@@ -82,21 +82,11 @@ static int python_in_process(char *loaded)
            (py.IsInitialized || python_resolve(library, &missing));
 }
 
-/* The version of the libpython resolved (file ``libpython``), read under the lock every
- * copy of this runtime takes: Py_GetVersion writes the text into one static buffer at
- * each call, so two copies asking at once from two threads race on it. */
-static void version_of(const char *libpython, int *major, int *minor)
-{
-    void *held = platform_hold_python(libpython);
-    python_version(major, minor);
-    platform_release_python(held);
-}
-
 /* The Python running in this process: "" if it can run the FMU, else why not. */
 static void check_running(const char *loaded, char *why, size_t n)
 {
     int major, minor;
-    version_of(loaded, &major, &minor);
+    python_version(&major, &minor); /* the GIL held: no copy starts it meanwhile */
     if (major < 3 || (major == 3 && minor < 9)) {
         snprintf(why, n, "Python %d.%d (%s) is too old: the FMU needs CPython >= 3.9", major,
                  minor, loaded);
@@ -295,9 +285,10 @@ static int start(const Answer *a, char *why, size_t n)
          * it, or reading its version, in another thread right now: checked and started
          * under one lock */
         void *held = platform_hold_python(a->libpython);
-        python_version(&major, &minor); /* under the lock, as version_of */
-        int same = major == a->major && minor == a->minor;
-        int ok = same && (py.IsInitialized() || initialise(a, why, n)); /* or started meanwhile */
+        int started = py.IsInitialized(); /* meanwhile, by a copy that checked it */
+        if (!started) python_version(&major, &minor); /* Py_GetVersion: one static buffer */
+        int same = started || (major == a->major && minor == a->minor);
+        int ok = same && (started || initialise(a, why, n));
         platform_release_python(held);
         if (same) return ok;
         snprintf(why, n, "its libpython %s is Python %d.%d, not %d.%d", a->libpython, major,
@@ -387,8 +378,8 @@ static int find_and_start(Instance *c)
 
 /* A thread may call in holding the GIL (a Python host that keeps it across its FMI calls,
  * in one thread, while a parallel master's worker makes another instance): when Python
- * runs already, the GIL is taken before this lock, never this lock held while waiting for
- * the GIL, which that thread would wait for in turn. */
+ * runs already, this lock is never held while waiting for the GIL, nor while Python code
+ * runs (the GIL may pass to another thread then, which may want this lock). */
 int runtime_python(Instance *c)
 {
     char loaded[PATH_SIZE] = "";
@@ -398,9 +389,11 @@ int runtime_python(Instance *c)
     if (!ok && !running) ok = ready = find_and_start(c); /* none runs: no GIL to wait for */
     platform_unlock(LOCK_RUNTIME);
     if (ok || !running) return ok;
-    int gil = py.GILState_Ensure();
+    int gil = py.GILState_Ensure(); /* then Python code, never under our lock: while it
+                                      * runs, another thread may take the GIL */
+    ok = use_running(c, loaded);
     platform_lock(LOCK_RUNTIME);
-    ok = ready = (ready && python_alive()) || find_and_start(c);
+    ready = ready || ok;
     platform_unlock(LOCK_RUNTIME);
     py.GILState_Release(gil);
     return ok;
