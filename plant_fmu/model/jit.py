@@ -193,7 +193,13 @@ def _install_locator() -> None:
     """
     from numba.core import caching  # imported by load_numba, after NUMBA_CACHE_DIR is set
 
-    class _ContentCacheLocator(caching.UserProvidedCacheLocator):
+    # public from numba 0.62; numba 0.60 and 0.61 (pyproject's floor, an FMU host's) have the
+    # same class under a private name
+    user_folder: Any = getattr(caching, "UserProvidedCacheLocator", None)
+    if user_folder is None:
+        user_folder = caching._UserProvidedCacheLocator
+
+    class _ContentCacheLocator(user_folder):
         """numba's user-folder locator with the folder named after the function's
         top-level package and the kernels' stamp (``<package>/<stamp[:16]>``): numba's
         own names it after the file's folder, which differs for every unzipped copy of an

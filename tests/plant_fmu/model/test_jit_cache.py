@@ -310,3 +310,41 @@ def test_processes_with_other_kernel_sources_never_share_cache_files(tmp_path, m
     )
     assert before != edited
     assert before == copy
+
+
+def test_numba_0_60_whose_user_folder_locator_is_private_gets_the_content_locator(
+    tmp_path, monkeypatch
+):
+    """numba 0.60 and 0.61 (pyproject's floor, and what an FMU's host may hold) name the
+    locator the content-keyed one extends ``_UserProvidedCacheLocator``, without the
+    public name numba 0.62 gave it: importing the compiled kernels failed there with an
+    AttributeError, in the master and in every FMU. With numba's caching module as 0.60
+    has it, the content locator is installed first and keys a kernel's folder by its
+    package."""
+    from plant_fmu.model import jit
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    numba, why = jit.load_numba()
+    if numba is None:
+        pytest.skip(why)
+    from numba.core import caching
+
+    public = getattr(caching, "UserProvidedCacheLocator", None)
+    if public is None:
+        pytest.skip("this numba has no public UserProvidedCacheLocator to hide")
+    monkeypatch.delattr(caching, "UserProvidedCacheLocator")
+    monkeypatch.setattr(caching, "_UserProvidedCacheLocator", public, raising=False)
+    others = [c for c in caching.CacheImpl._locator_classes if "Content" not in c.__name__]
+    monkeypatch.setattr(caching.CacheImpl, "_locator_classes", others)
+
+    jit._install_locator()
+
+    locator = caching.CacheImpl._locator_classes[0]
+    assert locator.__name__ == "_ContentCacheLocator" and issubclass(locator, public)
+
+    def kernel() -> None:
+        """A kernel of plant_fmu, as numba sees it."""
+
+    kernel.__module__ = "plant_fmu.model.compiled"
+    folder = Path(locator(kernel, str(_kernel_tree(tmp_path / "tree", "1"))).get_cache_path())
+    assert folder.parent == tmp_path / "cache" / "auv_cosim" / "plant_fmu"
