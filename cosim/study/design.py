@@ -89,7 +89,7 @@ def random_samples(random: RandomSpec) -> list[dict[str, Value]]:
 def _latin_hypercube(qmc: Any, d: int, n: int, seed: int) -> np.ndarray:
     """n points of scipy's scrambled Latin hypercube in [0, 1)^d, drawn from
     ``numpy.random.default_rng(seed)``. scipy takes the generator as ``rng`` from 1.15
-    (SPEC 7) and as ``seed`` before (pyproject allows 1.11): the same points under both."""
+    (SPEC 7) and as ``seed`` before (pyproject allows 1.13): the same points under both."""
     generator = np.random.default_rng(seed)
     keyword = "rng" if "rng" in inspect.signature(qmc.LatinHypercube).parameters else "seed"
     points: np.ndarray = qmc.LatinHypercube(d=d, **{keyword: generator}).random(n)

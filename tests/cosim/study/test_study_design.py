@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -111,7 +113,7 @@ def test_a_study_naming_no_seed_draws_seed_0s_samples_every_time(sampling: str) 
 
 
 def test_latin_hypercube_draws_the_same_points_under_a_scipy_before_rng(monkeypatch) -> None:
-    """pyproject allows scipy >= 1.11, whose qmc engines take their generator as ``seed``
+    """pyproject allows scipy >= 1.13, whose qmc engines take their generator as ``seed``
     (``rng`` came with scipy 1.15): a Latin hypercube study failed there with a TypeError.
     Under either keyword the points are those of ``default_rng(seed)``."""
     from scipy.stats import qmc
@@ -119,11 +121,13 @@ def test_latin_hypercube_draws_the_same_points_under_a_scipy_before_rng(monkeypa
     factors = {"plant.current_east": {"uniform": [0.0, 0.3]}, "plant.v_0": {"normal": [0, 1]}}
     study = spec(random={"n": 6, "seed": 5, "sampling": "latin-hypercube", **factors})
     today = random_samples(study.random)
-    modern = qmc.LatinHypercube
+    installed = qmc.LatinHypercube
+    # the keyword the installed scipy takes (seed where the suite runs at pyproject's floors)
+    takes = "rng" if "rng" in inspect.signature(installed).parameters else "seed"
 
-    class BeforeRng(modern):  # the signature of scipy 1.11 to 1.14
+    class BeforeRng(installed):  # the signature of scipy 1.13 and 1.14
         def __init__(self, d: int, *, scramble: bool = True, seed=None) -> None:
-            super().__init__(d, scramble=scramble, rng=seed)
+            super().__init__(d, scramble=scramble, **{takes: seed})
 
     monkeypatch.setattr(qmc, "LatinHypercube", BeforeRng)
     assert random_samples(study.random) == today
