@@ -336,6 +336,8 @@ def test_numba_0_60_whose_user_folder_locator_is_private_gets_the_content_locato
     monkeypatch.setattr(caching, "_UserProvidedCacheLocator", public, raising=False)
     others = [c for c in caching.CacheImpl._locator_classes if "Content" not in c.__name__]
     monkeypatch.setattr(caching.CacheImpl, "_locator_classes", others)
+    # numba read NUMBA_CACHE_DIR when first imported, maybe before this test
+    monkeypatch.setattr(caching.config, "CACHE_DIR", str(tmp_path / "cache"))
 
     jit._install_locator()
 
