@@ -116,16 +116,6 @@ static void logger(void *env, const char *name, int status, const char *category
 
 static const Callbacks callbacks = {logger, calloc, free, NULL, NULL};
 
-static void *need(void *library, const char *name)
-{
-    void *f = dlsym(library, name);
-    if (!f) {
-        printf("missing %s\n", name);
-        exit(2);
-    }
-    return f;
-}
-
 static void load(Fmu *f, const char *dir, const char *id)
 {
     char path[4200], text[65536];

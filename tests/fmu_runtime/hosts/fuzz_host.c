@@ -792,16 +792,6 @@ static void do_misc(Inst *in)
     }
 }
 
-static void *need(void *library, const char *name)
-{
-    void *f = dlsym(library, name);
-    if (!f) {
-        printf("missing %s\n", name);
-        exit(2);
-    }
-    return f;
-}
-
 #define LOAD(field, name) *(void **)&F.field = need(library, name)
 
 static void load(const char *dir, const char *id)

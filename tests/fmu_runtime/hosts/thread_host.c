@@ -86,16 +86,6 @@ static void logger(void *env, const char *name, int status, const char *category
 
 static const Callbacks callbacks = {logger, calloc, free, NULL, NULL};
 
-static void *need(void *library, const char *name)
-{
-    void *f = dlsym(library, name);
-    if (!f) {
-        printf("missing %s\n", name);
-        exit(2);
-    }
-    return f;
-}
-
 /* The Real inputs (with their starts) and Real outputs of resources/fmu_variables.txt. */
 static void read_variables(Fmu *f, const char *dir)
 {
