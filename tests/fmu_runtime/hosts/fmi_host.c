@@ -145,13 +145,7 @@ static void load(Fmu *f, const char *dir, const char *id)
     *(void **)&f->state_size = need(library, "fmi2SerializedFMUstateSize");
     *(void **)&f->serialize = need(library, "fmi2SerializeFMUstate");
     *(void **)&f->deserialize = need(library, "fmi2DeSerializeFMUstate");
-    snprintf(path, sizeof path, "%s/modelDescription.xml", dir);
-    FILE *md = fopen(path, "r");
-    size_t n = md ? fread(text, 1, sizeof text - 1, md) : 0;
-    if (md) fclose(md);
-    text[n] = '\0';
-    char *g = strstr(text, "guid=\"");
-    if (g) sscanf(g + 6, "%127[^\"]", f->guid);
+    read_description(dir, text, sizeof text, f->guid);
     snprintf(f->resources, sizeof f->resources, "file://%s/resources", dir);
     snprintf(f->dir, sizeof f->dir, "%s", dir);
 }

@@ -835,13 +835,7 @@ static void load(const char *dir, const char *id)
     LOAD(get_boolean_status, "fmi2GetBooleanStatus");
     LOAD(get_string_status, "fmi2GetStringStatus");
     LOAD(debug_logging, "fmi2SetDebugLogging");
-    snprintf(path, sizeof path, "%s/modelDescription.xml", dir);
-    FILE *md = fopen(path, "r");
-    size_t n = md ? fread(text, 1, sizeof text - 1, md) : 0;
-    if (md) fclose(md);
-    text[n] = '\0';
-    char *g = strstr(text, "guid=\"");
-    if (g) sscanf(g + 6, "%127[^\"]", guid);
+    read_description(dir, text, sizeof text, guid);
     interpolates = strstr(text, "canInterpolateInputs=\"true\"") != NULL;
     snprintf(resources, sizeof resources, "file://%s/resources", dir);
 }

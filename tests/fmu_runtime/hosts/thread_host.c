@@ -128,13 +128,7 @@ static void load(Fmu *f, const char *dir, const char *id)
     *(void **)&f->set_real = need(library, "fmi2SetReal");
     *(void **)&f->get_state = need(library, "fmi2GetFMUstate");
     *(void **)&f->free_state = need(library, "fmi2FreeFMUstate");
-    snprintf(path, sizeof path, "%s/modelDescription.xml", dir);
-    FILE *md = fopen(path, "r");
-    size_t n = md ? fread(text, 1, sizeof text - 1, md) : 0;
-    if (md) fclose(md);
-    text[n] = '\0';
-    char *g = strstr(text, "guid=\"");
-    if (g) sscanf(g + 6, "%127[^\"]", f->guid);
+    read_description(dir, text, sizeof text, f->guid);
     snprintf(f->resources, sizeof f->resources, "file://%s/resources", dir);
     read_variables(f, dir);
 }
