@@ -379,3 +379,17 @@ def test_the_example_scenario_writes_every_key_the_schema_takes():
     schema = _schema_keys(ScenarioSpec)
     assert not schema - written, f"keys the example does not show: {sorted(schema - written)}"
     assert not written - schema, f"keys no scenario takes: {sorted(written - schema)}"
+
+
+def test_a_documented_command_in_an_empty_environment_keeps_its_temporary_folder():
+    """docs/hosts.md ran ecos under `env -i`, which dropped TMPDIR: ecos unpacked the SSP
+    into /tmp and left it there (ecos_ssp_<uuid>), on every machine that ran the page's
+    example (the test suite's too, whose TMPDIR is its own folder). A command line a doc
+    starts with `env -i` passes TMPDIR on."""
+    bare = [
+        f"{path.relative_to(ROOT)}:{number}"
+        for path in _files(".md")
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if line.lstrip().startswith("env -i ") and "TMPDIR=" not in line
+    ]
+    assert bare == []
