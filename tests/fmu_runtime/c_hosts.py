@@ -41,6 +41,18 @@ THREAD_SANITIZED_ENVIRONMENT = {"TSAN_OPTIONS": "halt_on_error=0 exitcode=66",
                                 "PYTHONMALLOC": "malloc", "AUV_COSIM_NO_JIT": "1"}  # fmt: skip
 
 
+def compiled_host(source: Path, folder: Path) -> Path:
+    """The C test host ``source`` compiled into ``folder`` (named after it) with
+    ``-Wall -Wextra -Werror``; the test is skipped without ``cc``."""
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler (cc) to build the test host")
+    binary = folder / source.stem
+    flags = ["-O1", "-g", "-Wall", "-Wextra", "-Werror"]
+    subprocess.run([cc, *flags, "-o", binary, source, "-ldl", "-lpthread"], check=True)
+    return binary
+
+
 def run_clean(command: list, home: Path, timeout: float = 900, **extra: str):
     """``command`` in a clean environment (PATH, HOME and ``extra`` only), in its own
     process group, which is ended whatever happens. ``home`` is its working folder too;

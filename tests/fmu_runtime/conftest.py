@@ -14,14 +14,12 @@
 
 from __future__ import annotations
 
-import shutil
-import subprocess
 import zipfile
 from importlib import metadata
 from pathlib import Path
 
 import pytest
-from c_hosts import HOST_SOURCE
+from c_hosts import HOST_SOURCE, compiled_host
 from windows_cpython import FMPY_IMPORTS, windows_cpython, windows_site, wine
 
 from cosim.fmus.build import FMUS
@@ -29,13 +27,7 @@ from cosim.fmus.build import FMUS
 
 @pytest.fixture(scope="module")
 def host(tmp_path_factory) -> Path:
-    cc = shutil.which("cc")
-    if cc is None:
-        pytest.skip("no C compiler (cc) to build the test host")
-    binary = tmp_path_factory.mktemp("host") / "fmi_host"
-    flags = ["-O1", "-g", "-Wall", "-Wextra", "-Werror"]
-    subprocess.run([cc, *flags, "-o", binary, HOST_SOURCE, "-ldl", "-lpthread"], check=True)
-    return binary
+    return compiled_host(HOST_SOURCE, tmp_path_factory.mktemp("host"))
 
 
 @pytest.fixture(scope="module")

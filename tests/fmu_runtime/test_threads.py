@@ -13,7 +13,6 @@ Every process runs in its own process group, ended by the test even on failure.
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -21,6 +20,7 @@ import pytest
 from c_hosts import (
     THREAD_SANITIZED_ENVIRONMENT,
     THREAD_SANITIZER,
+    compiled_host,
     run_clean,
     sanitized_build,
     with_runtime,
@@ -36,13 +36,7 @@ FLAGS = ("-Wall", "-Wextra", "-Werror")
 @pytest.fixture(scope="module")
 def thread_host(tmp_path_factory) -> Path:
     """hosts/thread_host.c compiled with warnings as errors (skipped without ``cc``)."""
-    cc = shutil.which("cc")
-    if cc is None:
-        pytest.skip("no C compiler (cc) to build the test host")
-    binary = tmp_path_factory.mktemp("thread-host") / "thread_host"
-    subprocess.run([cc, "-O1", "-g", *FLAGS, "-o", binary, THREAD_HOST, "-ldl", "-lpthread"],
-                   check=True)  # fmt: skip
-    return binary
+    return compiled_host(THREAD_HOST, tmp_path_factory.mktemp("thread-host"))
 
 
 def _output(done: subprocess.CompletedProcess) -> str:
