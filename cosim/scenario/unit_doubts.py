@@ -9,7 +9,9 @@ Such a value is valid (the plant counts whole turns, a heading of 30 rad is a he
 so it is not refused; a run that takes it says so in one warning line each, naming the
 key, the value, and what it would be in radians. An angle of more than a full turn in a
 variable declared in rad is the sign: degrees typed by habit are mostly beyond 2 pi
-(10 to 90 deg), radians meant as such hardly ever are.
+(10 to 90 deg), radians meant as such hardly ever are. The same holds for a rate in rad/s
+(``r_0 = 10``, 10 deg/s typed by habit): beyond a full turn a second (2 pi rad/s) no
+REMUS 100 turns, rolls or pitches.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ if TYPE_CHECKING:
 
 FULL_TURN_RAD = 2.0 * math.pi
 ANGLE_UNIT = "rad"
+RATE_UNIT = "rad/s"
 
 
 class UnitWarning(UserWarning):
@@ -34,9 +37,9 @@ class UnitWarning(UserWarning):
 
 def angle_doubts(scenario: Scenario) -> list[str]:
     """One line for each value of ``scenario`` given to (or compared with) a variable
-    in rad that is more than a full turn: start values, events' ``set`` values, ``when``
-    thresholds and series columns (their largest value), bias and noise faults' ``value``
-    and ``std``."""
+    in rad that is more than a full turn, or in rad/s more than a full turn a second:
+    start values, events' ``set`` values, ``when`` thresholds and series columns (their
+    largest value), bias and noise faults' ``value`` and ``std``."""
 
     def unit(ref: str) -> str | None:
         instance, _, variable = ref.partition(".")
@@ -133,11 +136,14 @@ def radius_doubts(scenario: Scenario) -> list[str]:
 
 def value_doubt(key: str, unit: str | None, value: Any) -> str | None:
     """The warning for ``key`` = ``value`` given to a variable of ``unit``, if it is an
-    angle in rad of more than a full turn; else None."""
+    angle in rad of more than a full turn or a rate in rad/s of more than a full turn a
+    second; else None."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         return None
     if unit == ANGLE_UNIT and abs(value) > FULL_TURN_RAD:
         return doubt_line(key, value)
+    if unit == RATE_UNIT and abs(value) > FULL_TURN_RAD:
+        return rate_doubt_line(key, value)
     return None
 
 
@@ -146,6 +152,15 @@ def doubt_line(key: str, value: float) -> str:
     return (
         f"{key} = {value:g} rad is more than a full turn ({math.degrees(value):.0f} deg): "
         f"angles are in radians; if {value:g} deg was meant, give {math.radians(value):.6g}"
+    )
+
+
+def rate_doubt_line(key: str, value: float) -> str:
+    """The warning for ``key`` = ``value`` (rad/s) beyond a full turn a second."""
+    return (
+        f"{key} = {value:g} rad/s is more than a full turn a second "
+        f"({math.degrees(value):.0f} deg/s): rates are in radians per second; if {value:g} "
+        f"deg/s was meant, give {math.radians(value):.6g}"
     )
 
 

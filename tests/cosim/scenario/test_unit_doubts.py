@@ -191,3 +191,18 @@ def test_a_moving_mass_command_in_centimetres_is_named(
     (line,) = stroke_doubts(cosim.load_scenario(path, fmu_dir=fmu_dir))
     assert line.startswith("events.helm.set.plant.mass_position_cmd = -60 m is beyond")
     assert line.endswith("(lengths are in metres)")  # -60 cm is no value within the stroke
+
+
+def test_a_rate_typed_in_degrees_per_second_is_named_with_its_value_in_radians(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """r_0 = 10 (10 deg/s by habit) ran without a word as 10 rad/s, 573 deg/s: the vehicle
+    started spinning nearly two turns a second. A rate beyond a full turn a second is
+    named as an angle beyond a full turn is; one within it, or in another unit, is not."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    scenario = cosim.load_scenario(_scenario(tmp_path, 0.0, 0.2), fmu_dir=fmu_dir)
+    doubts = angle_doubts(scenario.with_start({"plant.r_0": 10.0, "plant.p_0": -0.5}))
+    assert doubts == [
+        "instances.plant.start.r_0 = 10 rad/s is more than a full turn a second (573 deg/s): "
+        "rates are in radians per second; if 10 deg/s was meant, give 0.174533"
+    ]
