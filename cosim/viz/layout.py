@@ -73,6 +73,8 @@ WORLD_EYE = (-10.0, -6.0, -5.0)  # m from the vehicle: behind, to port, above (1
 NOTES_ENTITY = "events"  # TextLog: events fired, faults started and stopped, live overrides
 CHASE_EYE = (-1.6, -0.9, -0.6)  # m in the chase frame: behind, to port, above the vehicle
 DIMENSIONLESS = "1"  # a quantity without a unit, as SI (and summary.json's units) write it
+# a column no panel knows, declared in rad or rad/s: drawn in (unit, per declared unit)
+IN_DEGREES: dict[str, tuple[str, float]] = {"rad": ("deg", DEG), "rad/s": ("deg/s", DEG)}
 
 
 def time_index(times: np.ndarray) -> list[rr.TimeColumn]:
@@ -113,6 +115,9 @@ PANELS: tuple[Panel, ...] = (
     Panel("attitude/yaw_deg", "Yaw ψ (deg)", "deg", (
         _series("plant.yaw", "yaw ψ (deg)", BLUE, DEG),
         _series("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG),
+        _series("guidance.yaw_setpoint", "guidance yaw setpoint ψ_d (deg)", SETPOINT, DEG),
+        _series("guidance.course_setpoint", "guidance course setpoint χ_d (deg)",
+                PALE_SETPOINT, DEG),
     )),
     Panel("attitude/roll_deg", "Roll φ (deg)", "deg", (
         _series("plant.roll", "roll φ (deg)", RED, DEG),
@@ -146,6 +151,7 @@ PANELS: tuple[Panel, ...] = (
     Panel("position/depth_m", "Depth (m)", "m", (
         _series("plant.down", "depth (m)", BLUE),
         _series("controller.depth_setpoint", "depth setpoint (m)", SETPOINT),
+        _series("guidance.depth_setpoint", "guidance depth setpoint z_d (m)", SETPOINT),
     )),
     Panel("moving_mass/position_cm", "Moving mass y_v (cm)", "cm", (
         _series("plant.mass_position", "mass position y_v (cm)", MASS, 100.0),
@@ -250,10 +256,11 @@ def plan_panels(columns: list[str], units: Mapping[str, str] | None = None) -> l
             )
     for i, name in enumerate(columns):
         if i not in shown:
-            unit = (units or {}).get(name) or DIMENSIONLESS
-            series = _series(name, _labelled(name, unit), ENERGY)
+            declared = (units or {}).get(name) or DIMENSIONLESS
+            unit, scale = IN_DEGREES.get(declared, (declared, 1.0))  # angles as every plot
+            series = _series(name, _labelled(name, unit), ENERGY, scale)
             entity = "other/" + "/".join(map(rr.escape_entity_path_part, name.split(".", 1)))
-            planned.append(PlannedPanel(entity, name, (series,), (i,), (1.0,), (unit,)))
+            planned.append(PlannedPanel(entity, name, (series,), (i,), (scale,), (unit,)))
     return planned
 
 

@@ -9,9 +9,10 @@ from pathlib import Path
 import pytest
 
 from cosim.fmus.interface import read_interface
+from cosim.viz.display_units import DEG
 from cosim.viz.layout import PANELS, plan_panels
 
-INSTANCES = {"plant": "AuvPlant", "controller": "AuvAutopilot"}  # the catalogue's instances
+INSTANCES = {"plant": "AuvPlant", "controller": "AuvAutopilot", "guidance": "AuvGuidance"}
 
 
 def _drawn(column: str, units: dict[str, str]) -> list[tuple[str, float, str]]:
@@ -51,3 +52,23 @@ def test_every_catalogue_line_fits_what_our_fmus_declare(fmu_paths: dict[str, Pa
         panel.entity for panel in plan_panels(columns, units) if panel.entity.startswith("other/")
     ]
     assert not moved, f"catalogue columns whose declared unit their plot does not take: {moved}"
+
+
+def test_a_guidance_set_point_is_drawn_beside_the_value_it_steers() -> None:
+    """The survey's heading and depth set-points come from its guidance instance: they were
+    drawn apart under other/guidance/, the heading in rad beside a yaw plot in deg."""
+    units = {"time": "s", "plant.yaw": "rad", "plant.down": "m",
+             "guidance.yaw_setpoint": "rad", "guidance.depth_setpoint": "m"}  # fmt: skip
+    assert _drawn("guidance.yaw_setpoint", units) == [("attitude/yaw_deg", DEG, "deg")]
+    assert _drawn("guidance.depth_setpoint", units) == [("position/depth_m", 1.0, "m")]
+
+
+@pytest.mark.parametrize(("declared", "shown"), [("rad", "deg"), ("rad/s", "deg/s")])
+def test_a_column_no_plot_knows_is_drawn_in_degrees_when_declared_in_radians(
+    declared: str, shown: str
+) -> None:
+    """An angle or a rate of a column without a plot of its own is drawn as every other
+    angle is, in degrees (it was drawn in rad under other/, beside plots in deg)."""
+    units = {"time": "s", "other_fmu.bearing": declared, "other_fmu.range": "m"}
+    assert _drawn("other_fmu.bearing", units) == [("other/other_fmu/bearing", DEG, shown)]
+    assert _drawn("other_fmu.range", units) == [("other/other_fmu/range", 1.0, "m")]

@@ -457,15 +457,18 @@ def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path, fmu_dir:
 
 def test_a_column_outside_the_catalogue_is_drawn_with_its_fmus_unit(tmp_path: Path, fmu_dir: Path):
     """A column no plot of the catalogue shows gets a plot of its own under ``other/``,
-    in the unit its FMU declares, and says it: in its line's name and its ``units``."""
+    in the unit its FMU declares (an angle or a rate declared in rad or rad/s in degrees,
+    as every plot), and says it: in its line's name and its ``units``."""
     columns = ["plant.yaw", "controller.r", "plant.quat_w"]
     with sink_for(fmu_dir, tmp_path / "r.rrd", "other", columns) as sink:
         sink.add_rows(np.arange(3) * 0.1, np.ones((3, 3)))
     path = tmp_path / "r.rrd"
     assert read_static(path, "/other/controller/r", "SeriesLines:names") == [
-        ["controller.r (rad/s)"]
+        ["controller.r (deg/s)"]
     ]
-    assert read_static(path, "/other/controller/r", "units") == [["rad/s"]]
+    assert read_static(path, "/other/controller/r", "units") == [["deg/s"]]
+    _, rate = read_temporal(path, "/other/controller/r", "Scalars:scalars", 1)
+    np.testing.assert_allclose(rate, math.degrees(1.0))  # 1 rad/s drawn as 57.3 deg/s
     assert read_static(path, "/other/controller/r", "results_columns") == [["controller.r"]]
     assert read_static(path, "/other/plant/quat_w", "SeriesLines:names") == [["plant.quat_w"]]
     assert read_static(path, "/other/plant/quat_w", "units") == [["1"]]
