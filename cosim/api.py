@@ -541,7 +541,8 @@ def _stopped(signum: int, out_dir: Path, kept: bool) -> SweepInterrupted:
     from cosim.study.table import CSV_NAME
 
     csv_path = out_dir / CSV_NAME
-    table = pd.read_csv(csv_path) if csv_path.is_file() else pd.DataFrame()
+    # a run id is hexadecimal text, at times all decimal digits: never read as a number
+    table = pd.read_csv(csv_path, dtype={"run": str}) if csv_path.is_file() else pd.DataFrame()
     reason = REASONS.get(signal.Signals(signum).name, "stopped")
     where = "the error's study.table"
     if kept and len(table):

@@ -1286,3 +1286,18 @@ def test_a_study_dict_naming_a_file_in_bytes_not_utf8_is_refused_saying_so(
         f"are no UTF-8 ({tmp_path}/gr\\xf6sse.toml), which a study's TOML cannot hold: "
         "rename the file"
     )
+
+
+def test_a_stopped_studys_table_keeps_an_all_digit_run_id_as_its_text(tmp_path: Path) -> None:
+    """A run id is 16 hexadecimal digits, now and then all of them decimal: the table a
+    stopped study hands back read such an id from runs.csv as the integer 123456789012345,
+    which names no run folder and no `overlay` entry (the leading 0 lost)."""
+    import signal
+
+    from cosim.api import _stopped
+
+    (tmp_path / "runs.csv").write_text(
+        "run,plant.v_0,status\n0123456789012345,-0.1,complete\n", encoding="utf-8"
+    )
+    error = _stopped(signal.SIGINT, tmp_path, kept=True)
+    assert list(error.study.table["run"]) == ["0123456789012345"]
