@@ -128,7 +128,8 @@ def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browse
     """Serve ``rrd`` until Ctrl-C (or SIGTERM/SIGHUP); print the one URL that opens it.
 
     A port of 0 picks a free one. Returns 130 after Ctrl-C, 128 + the signal number
-    after SIGTERM/SIGHUP, else 0 (the server ended by itself, with status 0).
+    after SIGTERM/SIGHUP (each saying so in a line on stderr), else 0 (the server ended
+    by itself, with status 0).
 
     Raises:
         CosimError: a port is taken, or the server did not start or failed while serving
@@ -150,8 +151,10 @@ def serve(executable: str, rrd: Path, web_port: int, file_port: int, open_browse
                 executable, rrd, served, (web_port, file_port), log, open_browser
             )
         except _StopSignalError as stop:
+            print(f"stopped serving {rrd} ({signal.Signals(stop.signum).name})", file=sys.stderr)
             return 128 + stop.signum
-        except KeyboardInterrupt:
+        except KeyboardInterrupt:  # a line of its own: the shell's prompt comes after it
+            print(f"stopped serving {rrd} (Ctrl-C)", file=sys.stderr)
             return 130
 
 

@@ -167,6 +167,32 @@ def test_the_rerun_server_dies_with_auv_cosim_when_it_is_killed(
         proc.wait()
 
 
+@pytest.mark.parametrize(
+    ("signum", "said"), [(signal.SIGINT, "Ctrl-C"), (signal.SIGTERM, "SIGTERM")]
+)
+def test_a_stopped_view_says_so_on_a_line_of_its_own(
+    recording: Path, tmp_path: Path, signum: int, said: str
+) -> None:
+    """Ctrl-C ended `auv-cosim view --web` without a word, so the shell's prompt came
+    right after the terminal's ^C; it ends as `run` does, on one line saying what stopped."""
+    command = [sys.executable, "-m", "cosim.cli", "view", str(recording), "--web"]
+    proc = subprocess.Popen(
+        [*command, "--web-port", "0", "--file-port", "0"], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, start_new_session=True,
+        env={**os.environ, "TMPDIR": str(tmp_path)},
+    )  # fmt: skip
+    try:
+        _children_once_one_listens(proc, time.monotonic() + 120)
+        os.kill(proc.pid, signum)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 128 + signum, err
+        assert err.decode().splitlines()[-1] == f"stopped serving {recording} ({said})", err
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
 def _children_once_one_listens(proc: subprocess.Popen, deadline: float) -> list[psutil.Process]:
     """``proc``'s children once one of them listens on a port (serving the page); a child
     that ends before (a short-lived helper process) is passed over."""
