@@ -63,6 +63,7 @@ _ESCAPE_WAIT_S = 0.05  # s for the rest of an escape sequence split over two rea
 _SEQUENCE = re.compile(r"\x1b(?:\[([\x30-\x3f]*[\x20-\x2f]*)([\x40-\x7e])|O(.)|(.))", re.DOTALL)
 _PARTIAL = re.compile(r"\x1b(?:\[[\x20-\x3f]*|O)?\Z")
 DESIGNED_MODES = (1, 2)  # heading modes designed when switched to (LQR, sliding mode)
+MESSAGE_KEPT = 12  # characters of the status line's message a narrow terminal still shows
 STATUS_WIDTH = 80  # columns of the status line when the terminal's width is unknown
 
 
@@ -267,7 +268,10 @@ class KeyPad:
         return f"{name} = {_told(name, value)} applied at t = {ticket.time:.2f} s"
 
     def status_line(self, width: int) -> str:
-        """The status line, at most ``width - 1`` characters (no wrap at the last column)."""
+        """The status line, at most ``width - 1`` characters (no wrap at the last column).
+        Where all of it does not fit, the pacing goes first, then the mass lock, the mode
+        and the set-points, so that the time and MESSAGE_KEPT characters of the message saying
+        what a key did stay in view; then the message is cut."""
         t = self.live.time
         clock = "-" if t is None else f"{t:.2f}"
         yaw, depth = math.degrees(self.value("yaw_setpoint")), self.value("depth_setpoint")
@@ -275,9 +279,14 @@ class KeyPad:
         mass = "locked" if self.value("mass_lock_time") >= 0.0 else "free"
         paced = f" {self.status()}" if self.status is not None else ""
         message = self._feedback() if self._last is not None else self.message
-        line = (f"t {clock} s yaw_sp {yaw:+.1f} deg depth_sp {depth:.1f} m mode {mode} "
-                f"mass {mass}{paced} | {message}")  # fmt: skip
+        set_points = f"t {clock} s yaw_sp {yaw:+.1f} deg depth_sp {depth:.1f} m"
+        heads = (f"{set_points} mode {mode} mass {mass}{paced} | ",
+                 f"{set_points} mode {mode} mass {mass} | ", f"{set_points} mode {mode} | ",
+                 f"{set_points} | ", f"t {clock} s | ")  # fmt: skip
         limit = max(width - 1, 1)
+        kept = min(len(message), MESSAGE_KEPT)
+        head = next((head for head in heads if len(head) + kept <= limit), heads[-1])
+        line = head + message
         return line if len(line) <= limit else line[: limit - 3] + "..."
 
     def draw(self) -> None:

@@ -161,6 +161,25 @@ def test_the_status_line_fits_the_terminal_width(
     assert len(line) <= width - 1
 
 
+@pytest.mark.parametrize("width", [40, 60])
+def test_a_narrow_terminal_keeps_the_message_and_the_time(
+    bs3: Scenario, terminal: int, width: int
+) -> None:
+    """At 40 or 60 columns the status line was cut after its set-points, so the message
+    saying what a key did (queued, applied, refused) never showed: it comes before the
+    set-points the keys change, which the line drops first."""
+    live = LiveControl(bs3)
+    live.bind({}, StopRequest())
+    pad = KeyPad(live, bs3, fd=terminal, out=io.StringIO())
+    live.publish(12.5, np.zeros(1))
+    pad.press("1")
+    line = pad.status_line(width)
+    assert len(line) <= width - 1, line
+    assert line.startswith("t 12.50 s") and "| heading_mode" in line, line
+    assert "heading_mode = 1 queued" in pad.status_line(40)  # a short message whole
+    assert pad.status_line(200).endswith("| heading_mode = 1 queued")  # all of it, when wide
+
+
 def test_switching_to_lqr_says_designing_until_the_run_goes_on(
     bs3: Scenario, terminal: int
 ) -> None:
