@@ -7,11 +7,12 @@ asked for, and then on 127.0.0.1 too. Remote: ``Client(address)``; a ``tls://`` 
 needs certificates (:func:`tls_security`, Dask's ``Security``).
 
 Workers need the package installed, not a shared disk: the client reads each FMU once and
-a worker plugin (:class:`StudyPlugin`) carries them and the study's shared data
-(:class:`Job`) to every worker -- the FMUs, and for a remote cluster the other files
-the runs read (vehicle sets, series CSVs), written into its local directory -- also to
-workers that join later or are restarted by their nanny; the plugin is removed (and the
-files with it) at the end. Each worker's first task first runs the scenario for one step
+a worker plugin (:class:`StudyPlugin`) carries the study's shared data (:class:`Job`) to
+every worker and, for a remote cluster, the FMUs and the other files the runs read
+(vehicle sets, series CSVs), written into its local directory (a local cluster's workers
+load the client's copies of the FMUs: :mod:`cosim.study.unpacked`) -- also to workers
+that join later or are restarted by their nanny; the plugin is removed (and the files
+with it) at the end. Each worker's first task first runs the scenario for one step
 (:func:`cosim.study.task.warm_up`, once per worker: :meth:`StudyPlugin.warm`), so the
 worker loads its FMU libraries and compiled code before its first run, which then costs
 what every later one does; a worker that is ready starts its runs without waiting for the
@@ -65,7 +66,7 @@ from cosim.study.factors import FactorKind, Value
 from cosim.study.signals import StudyStopped, workers_ignore_sigint
 from cosim.study.spec import StudyEndedError, StudyError
 from cosim.study.task import Base, RunRecord, run_one, warm_up
-from cosim.study.unpacked import use_unpacked
+from cosim.study.unpacked import local_copy, use_unpacked
 
 LOCALHOST = "127.0.0.1"
 DASHBOARD_PORT = 8787
@@ -99,7 +100,9 @@ class Job:
     factors: Mapping[str, FactorKind]
     keep: str
     check_step: bool  # each run also at h / 2 and h / 4: its coupling error metrics
-    fmu_files: Mapping[str, str]  # instance -> its FMU's path in the uploaded folder
+    # instance -> its FMU's path in the uploaded folder, or for a local cluster's workers
+    # the absolute path of the client's copy (cosim.study.unpacked.local_copy)
+    fmu_files: Mapping[str, str]
     plugin: str  # name of the StudyPlugin carrying the job and the FMUs
     session: str  # this study session's token (in task keys and the plugin name)
     # SHA-256 of an FMU file -> the folder the client extracted it into, for a local
@@ -147,6 +150,7 @@ class StudyPlugin(WorkerPlugin):
         """Instance -> its FMU file in this worker's local directory (after set-up)."""
         if self.folder is None:  # setup runs when the plugin is registered, before any task
             raise StudyError(f"study plugin {self.name}: not set up on this worker")
+        # a path relative to the folder (carried), or the client's copy (absolute: local)
         return {instance: self.folder / rel for instance, rel in self.job.fmu_files.items()}
 
     def data_paths(self) -> dict[str, Path]:
@@ -256,25 +260,29 @@ def make_job(
     data_files: Sequence[Path] = (),
 ) -> tuple[Job, StudyPlugin]:
     """The study's shared task data and the plugin carrying it and its FMUs (read once);
-    ``unpacked``: the FMUs the client extracted for local workers (:func:`unpack`);
+    ``unpacked``: the FMUs the client extracted for local workers (:func:`unpack`), who
+    then load the client's copies of the FMU files instead of being carried them;
     ``data_files``: the other files the runs read, for remote workers
     (:func:`cosim.study.task.study_files`)."""
     session = uuid.uuid4().hex[:12]  # tasks and plugin of concurrent studies never clash
     files: dict[str, bytes] = {}
     paths: dict[str, str] = {}
     for instance, path in base.fmu_paths.items():
-        paths[instance] = _carried(path, files)
-    data = {str(path): _carried(path, files, "files/") for path in data_files}
+        content = path.read_bytes()
+        copy = local_copy(content, unpacked or {})  # a local worker loads the client's copy
+        paths[instance] = str(copy) if copy is not None else _carried(path.name, content, files)
+    data = {
+        str(path): _carried(path.name, path.read_bytes(), files, "files/") for path in data_files
+    }
     name = f"auv-cosim-study-{session}"
     job = Job(base, factors, keep, check_step, paths, name, session, dict(unpacked or {}), data)
     return job, StudyPlugin(job, files)
 
 
-def _carried(path: Path, files: dict[str, bytes], prefix: str = "") -> str:
-    """Add ``path``'s content to ``files`` under ``<prefix><sha256[:16]>/<name>``; that
+def _carried(name: str, content: bytes, files: dict[str, bytes], prefix: str = "") -> str:
+    """Add a file's ``content`` to ``files`` under ``<prefix><sha256[:16]>/<name>``; that
     relative path."""
-    content = path.read_bytes()
-    relative = f"{prefix}{hashlib.sha256(content).hexdigest()[:16]}/{path.name}"
+    relative = f"{prefix}{hashlib.sha256(content).hexdigest()[:16]}/{name}"
     files[relative] = content
     return relative
 

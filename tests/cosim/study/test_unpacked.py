@@ -134,3 +134,30 @@ def test_the_clients_extraction_refuses_an_fmu_over_the_free_space(
     with pytest.raises(CosimError, match=r"bytes; .* has 1024 bytes free"):
         unpack({"plant": fmu_paths["AuvPlant"]}, tmp_path / "unpacked")
     assert not any((tmp_path / "unpacked").rglob("*"))
+
+
+def test_local_workers_load_the_clients_copy_and_are_carried_no_fmu_bytes(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A local study's plugin carried every FMU's bytes (~4 MB for bs-3) through the
+    scheduler to each worker, which wrote them into its local directory, though the
+    workers share the client's disk; they load the client's copy of each FMU file (the
+    bytes the client extracted), and the plugin carries none. A remote cluster's workers
+    are still carried them."""
+    from types import SimpleNamespace
+
+    from cosim.study.execution import make_job
+    from cosim.study.task import prepare
+
+    base, _ = prepare("bs-3", 1.0, fmu_dir)
+    unpacked = unpack(base.fmu_paths, tmp_path / "client")
+    _, plugin = make_job(base, {}, "none", unpacked=unpacked)
+    assert plugin.files == {}, sorted(plugin.files)
+    plugin.setup(SimpleNamespace(local_directory=str(tmp_path / "worker"), address="local"))
+    loaded = plugin.fmu_paths()
+    assert set(loaded) == set(base.fmu_paths)
+    for instance, path in loaded.items():
+        assert path.is_relative_to(tmp_path / "client"), path
+        assert path.read_bytes() == base.fmu_paths[instance].read_bytes()
+    _, remote = make_job(base, {}, "none")
+    assert len(remote.files) == len(base.fmu_paths)
