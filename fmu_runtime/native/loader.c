@@ -96,6 +96,20 @@ static const char *category_of(fmi2Status status)
     return status <= fmi2Pending ? names[status] : "logAll";
 }
 
+/* ``message`` (a printf format without conversions: every % doubled) on stderr as the
+ * host's printf would show it, with its instance and status, for a host with no logger. */
+static void to_stderr(const char *instance, fmi2Status status, const char *message)
+{
+    static const char *const labels[] = {"OK", "Warning", "Discard", "Error", "Fatal", "Pending"};
+    fprintf(stderr, "%s: [%s] ", instance ? instance : "FMU",
+            status <= fmi2Pending ? labels[status] : "?");
+    for (const char *at = message; *at; at++) {
+        if (at[0] == '%' && at[1] == '%') at++;
+        fputc(*at, stderr);
+    }
+    fputc('\n', stderr);
+}
+
 static void emit(const fmi2CallbackFunctions *host, const char *instance, fmi2Status status,
                  const char *category, const char *message)
 {
@@ -103,7 +117,7 @@ static void emit(const fmi2CallbackFunctions *host, const char *instance, fmi2St
         host->logger(host->componentEnvironment, instance, status,
                      category ? category : category_of(status), message);
     } else {
-        fprintf(stderr, "%s: %s\n", instance ? instance : "FMU", message);
+        to_stderr(instance, status, message);
     }
 }
 
@@ -115,7 +129,23 @@ void instance_log(Instance *c, fmi2Status status, const char *category, const ch
     c->logged = worst; /* a call the host's logger made meanwhile started from fmi2OK */
 }
 
-/* ``text`` with every % doubled: hosts treat the message as a printf format. */
+/* How many of the first ``n`` bytes of ``text`` (UTF-8) to keep so that a cut there
+ * splits no character: an incomplete sequence at the end is left out, as a host may
+ * refuse or crash on a message that is not UTF-8. */
+static size_t whole_characters(const char *text, size_t n)
+{
+    size_t start = n;
+    while (start > 0 && n - start < 4 && ((unsigned char)text[start - 1] & 0xC0) == 0x80) {
+        start--;
+    }
+    if (start == 0 || ((unsigned char)text[start - 1] & 0xC0) != 0xC0) return n;
+    unsigned char lead = (unsigned char)text[start - 1];
+    size_t length = lead >= 0xF0 ? 4 : lead >= 0xE0 ? 3 : 2;
+    return n - (start - 1) >= length ? n : start - 1;
+}
+
+/* ``text`` with every % doubled: hosts treat the message as a printf format. A text cut
+ * short (by ``size``) is cut between characters. */
 static void escape(const char *text, char *out, size_t size)
 {
     size_t j = 0;
@@ -123,7 +153,7 @@ static void escape(const char *text, char *out, size_t size)
         if (text[i] == '%') out[j++] = '%';
         out[j++] = text[i];
     }
-    out[j] = '\0';
+    out[whole_characters(out, j)] = '\0';
 }
 
 fmi2Status refuse(Instance *c, const char *format, ...)
@@ -531,6 +561,23 @@ static void uri_to_path(const char *uri, char *out, size_t n)
     platform_local_path(out, n);
 }
 
+/* The offset of the first byte of ``text`` that breaks UTF-8's structure (a stray
+ * continuation byte, a sequence cut short), or -1 if there is none. */
+static long not_utf8_at(const char *text)
+{
+    const unsigned char *p = (const unsigned char *)text;
+    for (long i = 0; p[i];) {
+        int more = p[i] < 0x80 ? 0 : (p[i] & 0xE0) == 0xC0 ? 1 : (p[i] & 0xF0) == 0xE0 ? 2
+                 : (p[i] & 0xF8) == 0xF0 ? 3 : -1;
+        if (more < 0) return i;
+        for (int k = 1; k <= more; k++) {
+            if ((p[i + k] & 0xC0) != 0x80) return i;
+        }
+        i += 1 + more;
+    }
+    return -1;
+}
+
 /* Why this instantiation cannot go on (into ``why``), or 0; fills the instance's paths,
  * record and backend. */
 static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
@@ -538,6 +585,11 @@ static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
 {
     char value[NAME_SIZE];
     const char *runtime = platform_getenv(RUNTIME_VARIABLE, value, sizeof value);
+    long bad = not_utf8_at(c->name);
+    if (bad >= 0) { /* Python cannot name the slave so; pythonfmu's binary crashed on it */
+        return snprintf(why, n, "instanceName is not UTF-8 (byte %ld is 0x%02X): FMI 2.0 "
+                        "strings are UTF-8", bad, (unsigned char)c->name[bad]);
+    }
     if (type != fmi2CoSimulation) return snprintf(why, n, "the FMU supports co-simulation only");
     if (!resources || !resources[0]) return snprintf(why, n, "fmuResourceLocation is empty");
     uri_to_path(resources, c->resources, sizeof c->resources);
@@ -581,12 +633,17 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
         return NULL;
     }
     Instance *c = calloc(1, sizeof *c);
-    if (!c) return NULL;
+    size_t size = strlen(name) + 1;
+    char *copy = c ? malloc(size) : NULL;
+    if (!copy) {
+        free(c);
+        return NULL;
+    }
+    c->name = memcpy(copy, name, size);
     if (functions) c->host = *functions;
     c->stop = INFINITY;
     c->logging = loggingOn;
     c->visible = visible;
-    snprintf(c->name, sizeof c->name, "%s", name);
     if (instantiation_refusal(c, type, guid, resources, why, sizeof why)) {
         snprintf(line, sizeof line, "fmi2Instantiate refused: %s", why);
         refuse_instantiation(functions, name, line);
@@ -595,6 +652,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     }
     values_free_strings(&c->values);
     free(c->vars);
+    free(c->name);
     free(c);
     return NULL;
 }
@@ -609,6 +667,7 @@ FMI2_EXPORT void fmi2FreeInstance(fmi2Component component)
     c->backend->stop(c);
     values_free_strings(&c->values);
     free(c->vars);
+    free(c->name);
     free(c);
 }
 
@@ -644,8 +703,12 @@ FMI2_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean 
             return refuse(c, "fmi2SetDebugLogging refused: category %zu is NULL", i);
         }
         if (!known_category(c, categories[i])) {
-            return refuse(c, "fmi2SetDebugLogging refused: %.64s is not a log category of this "
-                          "FMU (expected one of %s)", categories[i], c->record.log_categories);
+            size_t n_shown = 0; /* its first 64 bytes at most, whole characters */
+            while (n_shown < 64 && categories[i][n_shown]) n_shown++;
+            int shown = (int)whole_characters(categories[i], n_shown);
+            return refuse(c, "fmi2SetDebugLogging refused: %.*s is not a log category of this "
+                          "FMU (expected one of %s)", shown, categories[i],
+                          c->record.log_categories);
         }
         all = all || !strcmp(categories[i], "logAll");
     }

@@ -140,7 +140,7 @@ typedef struct {
     void *slave; /* the backend's own instance (a PyObject *, or pythonfmu's component) */
     void *extra; /* the backend's per-instance data */
     fmi2CallbackFunctions host;
-    char name[NAME_SIZE];
+    char *name; /* the host's instanceName, whole: every log message names it */
     char resources[PATH_SIZE]; /* a path, decoded from the host's URI */
     Record record;
     int phase, logging, visible;
