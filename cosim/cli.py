@@ -612,8 +612,17 @@ def _add_scenarios_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_scenarios)
 
 
+# where the FMUs' messages go, in ``run --help`` (cosim.engine.slave keeps them, docs/runs.md)
+FMU_MESSAGES = (
+    "The FMUs' warnings and errors are listed after the run and kept in summary.json "
+    "(fmu_messages, docs/runs.md); a failed call's line gives the FMU's reason. Their "
+    "debug messages are not shown."
+)
+
+
 def _add_run_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="run a built-in scenario id or a scenario TOML file")
+    what = "run a built-in scenario id or a scenario TOML file"
+    p = sub.add_parser("run", help=what, description=f"{what}. {FMU_MESSAGES}")
     p.add_argument(
         "scenario",
         type=_scenario_arg,

@@ -355,6 +355,17 @@ def test_run_help_gives_every_coupling_options_default(capsys: pytest.CaptureFix
     assert "rerun+http://127.0.0.1:9876/proxy" in text  # what --connect takes
 
 
+def test_run_help_says_where_the_fmus_messages_go(capsys: pytest.CaptureFixture[str]) -> None:
+    """``run --help`` said nothing of what the FMUs log: an integrator looked for a log
+    file or stderr. It names where their warnings and errors go (the run's report and
+    summary.json's fmu_messages) and that their debug messages are not shown."""
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "warnings and errors" in text and "summary.json (fmu_messages" in text, text
+    assert "debug messages are not shown" in text, text
+
+
 @pytest.mark.parametrize(
     "command",
     ["build", "validate", "scenarios", "run", "sweep", "export", "view", "analyze", "reproduce",
