@@ -621,9 +621,10 @@ def advance_into(
     held, or (``varying``) following ``rates`` (2 x inputs: their first and second time
     derivatives at the step's start), each RK4 stage taking the inputs at its own time.
     Its working arrays are slices of ``scratch`` (:data:`STEP_SCRATCH` values), so it
-    allocates nothing. Returns 0, or 1 for a non-finite input or rate, 2 for a non-finite
-    state or a zero quaternion, 3 for a state that became non-finite or left the model's
-    range (a current beyond MAX_SPEED too: ``stepping.check_current``)."""
+    allocates nothing. Returns 0, or 1 for a non-finite input or rate or a current beyond
+    MAX_SPEED (an input, or the sheared current at the vehicle: ``stepping.check_current``),
+    2 for a non-finite state or a zero quaternion, 3 for a state that became non-finite or
+    left the model's range."""
     for i in range(inputs.size):
         if not math.isfinite(inputs[i]):
             return 1
@@ -634,6 +635,8 @@ def advance_into(
     for i in range(x.size):
         if not math.isfinite(x[i]):
             return 2
+    if not abs(inputs[_CURRENT_START] + p[SHEAR] * x[1]) <= MAX_SPEED:  # at the vehicle
+        return 1
     if not _start(x, z):
         return 2
     R = scratch[_SCRATCH_R:_SCRATCH_WORK].reshape((3, 3))

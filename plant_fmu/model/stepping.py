@@ -76,18 +76,32 @@ def check_finite(values: np.ndarray, names: tuple[str, ...], what: str) -> None:
         raise ValueError(f"{what} {names[bad]} = {float(values[bad])!r}: expected a finite number")
 
 
-def check_current(inputs: np.ndarray) -> None:
+def check_current(model: PlantModel, x: np.ndarray, inputs: np.ndarray) -> None:
     """Raise ValueError naming the first current component (m/s) beyond :data:`MAX_SPEED`:
-    a steady current carries the vehicle at its own speed, so no state in the model's
-    range follows it."""
+    a current input, or the current at the vehicle, ``model.current_velocity`` (a sheared
+    current_north grows with east without bound); a steady current carries the vehicle at
+    its own speed, so no state in the model's range follows it."""
     for i in range(N_INPUTS)[CURRENT]:
         if not abs(inputs[i]) <= MAX_SPEED:
             name = INPUT_NAMES[i]
             raise ValueError(
                 f"input {name} = {float(inputs[i]):g} m/s: expected |{name}| <= {MAX_SPEED:g} "
-                "m/s (a steady current carries the vehicle at its speed, and the model takes "
-                "no velocity over ground beyond that)"
+                f"m/s ({_CARRIED})"
             )
+    north = float(model.current_velocity(x, inputs)[0])
+    if not abs(north) <= MAX_SPEED:
+        raise ValueError(
+            f"the current at the vehicle, north = {north:g} m/s (current_north "
+            f"{float(inputs[CURRENT][0]):g} m/s + current_shear_dUdy {model.current_shear:g} "
+            f"1/s * east {float(x[1]):g} m): expected |current north| <= {MAX_SPEED:g} m/s "
+            f"({_CARRIED})"
+        )
+
+
+_CARRIED = (
+    "a steady current carries the vehicle at its speed, and the model takes no velocity over "
+    "ground beyond that"
+)
 
 
 def stepping_state(x: np.ndarray) -> np.ndarray:
@@ -179,7 +193,7 @@ def advance(
         # start and reports what went wrong in its own words (an OverflowError, a name).
     check_finite(x, STEP_STATE_NAMES, "state")
     check_finite(inputs, INPUT_NAMES, "input")
-    check_current(inputs)
+    check_current(model, x, inputs)
     if rates is not None:
         check_finite(np.ravel(rates), INPUT_NAMES * 2, "input derivative of")
     z = stepping_state(x)

@@ -453,3 +453,27 @@ def test_a_current_faster_than_any_velocity_the_model_takes_is_refused_by_name(p
     after = advance(balanced, drifting, with_it, 0.01, 0.01, fast)
     assert after[STATE_INDEX["north"]] == pytest.approx(-0.9, rel=1e-12)
     np.testing.assert_allclose(after[NU], drifting[NU], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("path", ["reference", "compiled"])
+def test_a_sheared_current_faster_than_the_model_takes_is_refused_naming_the_shear(path):
+    """The current at the vehicle is current_north + current_shear_dUdy * east: with a
+    shear of 0.1 1/s a vehicle 2 km east sits in a 200 m/s current, beyond MAX_SPEED, though
+    every current input is 0. Such a step was taken (the vehicle thrown to u = 65 m/s) or
+    refused naming u and blaming the sub-step; it is now refused before it starts, naming
+    the sheared current, the shear and the east position, in both step paths."""
+    from plant_fmu.model import compiled
+
+    if path == "compiled" and not compiled.AVAILABLE:
+        pytest.skip(compiled.NO_JIT_REASON)
+    model = PlantModel(load_vehicle("remus100"), Variant.FULL, current_shear=0.1)
+    fast = compiled.CompiledPlant(model) if path == "compiled" else None
+    x = state_vector(dict(u=1.5, east=2000.0))
+    with pytest.raises(
+        ValueError,
+        match=r"current at the vehicle, north = 200 m/s \(current_north 0 m/s \+ "
+        r"current_shear_dUdy 0\.1 1/s \* east 2000 m\): expected \|.*\| <= 100 m/s",
+    ):
+        advance(model, x, input_vector({}, thrust=9.0), 0.01, 0.01, fast)
+    near = state_vector(dict(u=1.5, east=900.0))  # 90 m/s: within the range, stepped
+    assert np.all(np.isfinite(advance(model, near, input_vector({}), 0.01, 0.01, fast)))
