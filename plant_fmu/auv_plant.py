@@ -22,7 +22,8 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   They depend on the parameters (``initial="calculated"``): read in initialisation mode,
   they give the values the plant will start from;
 * parameters (fixed): the initial state ``north_0`` ... ``r_0``, ``mass_position_0``,
-  ``mass_velocity_0`` (default 0), ``variant`` (0 full 6-DOF, 1 lateral (6.3.13),
+  ``mass_velocity_0`` (default 0; the full variant refuses |``pitch_0``| beyond 90 deg,
+  naming the start of the same attitude within it), ``variant`` (0 full 6-DOF, 1 lateral (6.3.13),
   2 horizontal (5.1.30); a write outside 0..2 is refused), ``moving_mass_model`` (0 the
   dissertation's (6.3.11)-(6.3.13), 1 hull and moving mass as two bodies (6.2.28); a write
   outside 0..1 is refused), ``ideal_fluid``, ``vehicle`` (a built-in set name, read from
@@ -51,6 +52,11 @@ between steps, the hull's velocity over ground jumps by
 ``PlantModel.current_change_velocity_jump`` (the impulse of the (Mbar + M_A) nuc_dot term),
 applied at the start of the next step; inputs are held over each step.
 
+The surface: the model has none (``docs/model.md#the-envelope``). A start with the whole
+hull above it (``down_0`` < -diameter/2) and the first step after which the hull has
+risen out of the water are each logged as a Warning, once per instance; the plant steps
+on, with the buoyancy and drag of a submerged hull.
+
 Input derivatives (``canInterpolateInputs="true"``): an importer that extrapolates its
 values (``fmi2SetRealInputDerivatives``, orders 1 and 2) gets them used inside the step,
 every RK4 stage taking the actuator inputs at its own time (``stepping.advance`` with
@@ -61,6 +67,7 @@ instead of first. The currents stay held over a step (see above).
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
@@ -79,12 +86,14 @@ from plant_fmu.model.moving_mass import MovingMassModel
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle, vehicle_folder
 from plant_fmu.model.state_layout import (
     CURRENT,
+    DOWN,
     INPUT_NAMES,
     INPUT_UNITS,
     MASS_POSITION,
     MAX_SPEED,
     MAX_TURN_RATE,
     NU,
+    PITCH,
     QUATERNION_NAMES,
     STATE_NAMES,
     STATE_UNITS,
@@ -109,6 +118,11 @@ INPUT_DESCRIPTIONS: dict[str, str] = {
     ),
 }
 INPUT_STARTS: dict[str, float] = {"thrust": 9.0}
+# what the model does above the surface (docs/model.md#the-envelope)
+_NO_SURFACE = (
+    "the model has no free surface, so it keeps the buoyancy, added mass and drag of a "
+    "submerged hull there, and a buoyant vehicle rises on into the air"
+)
 # the inputs a reduced variant has no degree of freedom for (fin_angle acts in heave and
 # pitch, roll_torque in roll, current_down along the body's down axis): taken, not used
 IGNORED_INPUTS: dict[Variant, tuple[str, ...]] = {
@@ -221,6 +235,7 @@ class AuvPlant(SafeSlave):
         self._x[:] = stepping_state(self._initial_state)
         self._last_current = self._inputs[CURRENT].copy()  # the currents of the last step
         self._warned: set[str] = set()  # the initialisation warnings logged (once each)
+        self._above_water = -np.inf  # down (m) above which the whole hull is out of the water
         self._step_scratch = np.empty(compiled.STEP_SCRATCH)  # the compiled step's arrays
 
     # --- variables ---------------------------------------------------------------------------
@@ -342,13 +357,7 @@ class AuvPlant(SafeSlave):
     def _initialize(self) -> None:
         model = self._build_model()
         x = self._initial_state.copy()
-        stroke = model.params.mass_stroke
-        mass_position_0 = float(x[MASS_POSITION])
-        if abs(mass_position_0) > stroke:
-            raise ValueError(
-                f"mass_position_0 = {mass_position_0!r} m: expected "
-                f"|mass_position_0| <= mass_stroke = {stroke!r} m"
-            )
+        _check_start(x, model.params.mass_stroke, "pitch" in model.variant.states)
         frozen = [
             n
             for i, n in enumerate(STATE_NAMES[:MASS_POSITION])
@@ -360,6 +369,13 @@ class AuvPlant(SafeSlave):
                 f"{', '.join(frozen)} at 0: their initial values are ignored"
             )
         self._warn_ignored_inputs(model.variant)
+        self._above_water = -0.5 * model.params.diameter
+        if x[DOWN] < self._above_water:
+            self._above_water = -np.inf  # said once
+            self._warn_once(
+                f"down_0 = {float(x[DOWN]):g} m starts the hull out of the water (down < "
+                f"-diameter/2 = {self._above_water:g} m): {_NO_SURFACE}"
+            )
         self._x[:] = stepping_state(model.project(x))  # the quaternion of the kept angles
         self._last_current[:] = self._inputs[CURRENT]
         self._refresh_outputs()
@@ -391,13 +407,29 @@ class AuvPlant(SafeSlave):
         mass, a change of the currents, or a step it refuses (the reference then says why).
         Both take the input derivatives the importer set (module docstring)."""
         n = substeps(step_size, self.max_substep)  # raises on a step it would hang in
-        if self._stepper is not None:
-            try:
-                if self._stepper(n, step_size / n) == 0:
-                    return
-            except ArithmeticError:  # numba's division by zero, the state left unchanged
-                pass  # the reference repeats the step and names what left the range
-        self._reference_step(step_size)
+        if not self._compiled_step(n, step_size):
+            self._reference_step(step_size)
+        if self._x[DOWN] < self._above_water:
+            self._left_the_water(current_time + step_size)
+
+    def _compiled_step(self, n: int, step_size: float) -> bool:
+        """Whether the compiled path took the step, in ``n`` sub-steps (False: it does
+        not apply or refused, and the reference is to take it)."""
+        if self._stepper is None:
+            return False
+        try:
+            return self._stepper(n, step_size / n) == 0
+        except ArithmeticError:  # numba's division by zero, the state left unchanged
+            return False  # the reference repeats the step and names what left the range
+
+    def _left_the_water(self, time: float) -> None:
+        """A Warning, once per instance, that the whole hull is above the surface at
+        ``time`` (s): the model has no free surface (docs/model.md#the-envelope)."""
+        self._above_water = -np.inf  # said once
+        self._warn_once(
+            f"at t = {time:.6g} s the hull is out of the water (down = "
+            f"{float(self._x[DOWN]):.4g} m < -diameter/2): {_NO_SURFACE}"
+        )
 
     def _reference_step(self, step_size: float) -> None:
         """:meth:`_step` through :func:`plant_fmu.model.stepping.advance` (raises on a state
@@ -504,6 +536,28 @@ class AuvPlant(SafeSlave):
         nu_r = model.relative_velocity(self._x, inputs)
         self._derived[:3] = nu_r[:3].tolist()
         self._derived[3] = model.kinetic_energy(self._x, inputs)
+
+
+def _check_start(x: np.ndarray, stroke: float, pitches: bool) -> None:
+    """Raise ValueError naming a start value of the state ``x`` the plant cannot start
+    from: the moving mass beyond its stop (``stroke``, m), or, where the variant
+    ``pitches``, |pitch_0| beyond 90 deg (the outputs' Euler angles keep |pitch| <= 90 deg;
+    the message names the start of the same attitude within it)."""
+    mass_position_0 = float(x[MASS_POSITION])
+    if abs(mass_position_0) > stroke:
+        raise ValueError(
+            f"mass_position_0 = {mass_position_0!r} m: expected "
+            f"|mass_position_0| <= mass_stroke = {stroke!r} m"
+        )
+    pitch_0 = float(x[PITCH])
+    if pitches and abs(pitch_0) > 0.5 * math.pi:
+        other = math.copysign(math.pi, pitch_0) - pitch_0
+        formula = f"pi - {pitch_0:g}" if pitch_0 > 0 else f"-pi - ({pitch_0:g})"
+        raise ValueError(
+            f"pitch_0 = {pitch_0:g} rad: expected |pitch_0| <= pi/2 = {0.5 * math.pi:.6g} rad, "
+            "as the plant's Euler angles keep |pitch| <= 90 deg; the same attitude is "
+            f"roll_0 + pi, pitch_0 = {formula} = {other:g} rad, yaw_0 + pi"
+        )
 
 
 def _default_physical_parameters(folder: Path) -> dict[str, float]:

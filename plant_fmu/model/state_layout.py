@@ -65,6 +65,7 @@ MAX_SPEED = 100.0  # m/s, |u|, |v|, |w|
 MAX_TURN_RATE = 100.0  # rad/s, |p|, |q|, |r|
 STATE = slice(0, N_STATES)  # the state within the stepping state
 QUATERNION = slice(N_STATES, N_STEP_STATES)  # [q_w, q_x, q_y, q_z] in the stepping state
+DOWN = 2  # depth, within POSITION
 PITCH = 4  # theta, within EULER
 
 # Beyond this |pitch| (rad) the full variant's sub-steps integrate the quaternion, below it

@@ -290,6 +290,57 @@ def test_unknown_vehicle_fails_initialisation_listing_the_known_sets(plant, unzi
     assert all(name in errors for name in builtin_vehicles())
 
 
+def test_a_hull_rising_out_of_the_water_is_warned_of_once_when_it_leaves(plant, unzip_dir, remus):
+    """The model has no free surface: a buoyant vehicle at rest rises through the surface
+    and on into the air with the buoyancy, added mass and drag of a submerged hull. It did
+    so silently; the plant now logs one Warning, at the step after which the whole hull is
+    above the surface (down < -diameter / 2), naming the time, the depth and the missing
+    free surface, and steps on (the results are the model's, flagged)."""
+    fmu = _harness(plant, unzip_dir, thrust=0.0)
+    top = -remus.diameter / 2
+    depths = fmu.run(3.0, H, ["down"])[:, 0]
+    fmu.close()
+    out = int(np.flatnonzero(depths < top)[0])  # the first step after which it is out
+    warned = [text for status, text in fmu.log if status == 1 and "free surface" in text]
+    assert len(warned) == 1, fmu.log
+    assert f"t = {(out + 1) * H:.6g} s" in warned[0], (warned, out)
+    assert f"down = {depths[out]:.4g} m" in warned[0], (warned, depths[out])
+
+
+def test_a_start_above_the_surface_is_warned_of_as_the_plant_initialises(plant, unzip_dir):
+    """down_0 = -1 m starts the hull in the air, where the model has no surface to know:
+    a Warning as the plant initialises, naming down_0; a start at the surface (down_0 = 0,
+    vert-1's, half the hull out) is the dissertation's own and is not warned of."""
+    fmu = _harness(plant, unzip_dir, down_0=-1.0)
+    fmu.close()
+    at_surface = _harness(plant, unzip_dir, down_0=0.0)
+    at_surface.close()
+    warned = [text for status, text in fmu.log if status == 1 and "free surface" in text]
+    assert len(warned) == 1 and "down_0 = -1 m" in warned[0], fmu.log
+    assert not [text for _, text in at_surface.log if "free surface" in text], at_surface.log
+
+
+def test_a_start_pitch_beyond_90_deg_is_refused_naming_the_same_attitude_within_it(
+    plant, unzip_dir
+):
+    """The plant's Euler angles keep |pitch| <= 90 deg (the other triple of the same
+    attitude has roll and yaw turned by 180 deg). pitch_0 = 2 rad initialised and output
+    pitch = 2 until the first step turned it into roll = yaw = 180 deg, pitch = 65 deg: a
+    jump in three outputs no motion made. It is refused as the plant initialises, naming
+    the value and the start that states the same attitude; pitch_0 = 90 deg is taken."""
+    fmu = Harness(plant, unzip_dir=unzip_dir, initialize=False)
+    statuses = fmu.try_initialize(pitch_0=2.0)
+    errors = fmu.messages(3)
+    fmu.close()
+    assert statuses == (STATUS_OK, STATUS_ERROR), errors
+    assert "pitch_0 = 2 rad: expected |pitch_0| <= pi/2" in errors, errors
+    assert "roll_0 + pi, pitch_0 = pi - 2 = 1.14159 rad, yaw_0 + pi" in errors, errors
+    vertical = _harness(plant, unzip_dir, pitch_0=np.pi / 2)
+    assert vertical.step(H) == STATUS_OK
+    assert np.all(np.isfinite(vertical.get(*OUTPUTS)))
+    vertical.close()
+
+
 def test_invalid_parameter_values_are_refused_naming_them(plant, unzip_dir, tmp_path):
     """A value outside its declared range is refused when written (fmi2Error, the old
     value stays and the instance initialises); one only the model can judge fails the

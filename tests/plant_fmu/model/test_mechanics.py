@@ -155,6 +155,40 @@ def test_hydrostatics_vanish_level_and_right_a_small_tilt():
         np.testing.assert_allclose(np.delete(pitch, 4), 0.0, atol=1e-14)
 
 
+@pytest.mark.parametrize("variant", list(Variant))
+def test_at_rest_only_the_hydrostatics_act_and_nothing_divides_by_speed(variant: Variant):
+    """No propulsion, no speed: with nu = 0 and the stern planes and tunnel thruster idle
+    or not, the fins and lift terms vanish with u_r (nothing divides by a speed), so the
+    acceleration is the hydrostatic force alone through the mass matrix,
+    (M_RB + M_A) nu_dot = g(eta) on the free degrees of freedom (3.5.3): a buoyant
+    remus100 (B > W) accelerates upwards."""
+    model = PlantModel(REMUS, variant)
+    x = state_vector({})
+    rest = model.derivative(x, input_vector(dict(thrust=0.0, fin_angle=0.3)))
+    free = np.array(variant.velocities)
+    expected = np.zeros(6)
+    expected[free] = np.linalg.solve(
+        model.mass_matrix[np.ix_(free, free)], model.restoring(0.0, 0.0)[free]
+    )
+    np.testing.assert_allclose(rest[NU], expected, rtol=1e-12, atol=1e-15)
+    assert np.all(np.isfinite(rest))
+    if variant is Variant.FULL:
+        assert rest[STATE_INDEX["w"]] < 0.0  # up: B - W = 7.1 N
+
+
+@pytest.mark.parametrize("roll_deg", [30.0, 90.0, 120.0, 179.0, -150.0])
+def test_a_capsized_hull_is_righted_from_any_roll_but_180_deg(roll_deg: float):
+    """Past 90 deg of roll the hydrostatic moment r_g x W Gamma (3.5.3), -W z_g sin(phi)
+    with the centre of gravity below the CB, still turns the hull back towards upright;
+    upside down (180 deg) it is an equilibrium, and with z_g = 0 nothing rights it."""
+    roll = np.radians(roll_deg)
+    moment = PlantModel(REMUS, Variant.FULL).restoring(roll, 0.0)[3]
+    assert moment == pytest.approx(-REMUS.W * REMUS.z_g * np.sin(roll), rel=1e-12)
+    assert moment * roll < 0.0
+    assert abs(PlantModel(REMUS, Variant.FULL).restoring(np.pi, 0.0)[3]) < 1e-12
+    assert PlantModel(REMUS.replace(z_g=0.0), Variant.FULL).restoring(roll, 0.0)[3] == 0.0
+
+
 def _random_state_and_inputs(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """A state about the straight run (mass within its stops) and inputs with thrust."""
     x = 0.3 * rng.standard_normal(N_STATES)
