@@ -371,11 +371,11 @@ class AuvPlant(SafeSlave):
         self._warn_ignored_inputs(model.variant)
         self._above_water = -0.5 * model.params.diameter
         if x[DOWN] < self._above_water:
-            self._above_water = -np.inf  # said once
             self._warn_once(
                 f"down_0 = {float(x[DOWN]):g} m starts the hull out of the water (down < "
                 f"-diameter/2 = {self._above_water:g} m): {_NO_SURFACE}"
             )
+            self._above_water = -np.inf  # said once
         self._x[:] = stepping_state(model.project(x))  # the quaternion of the kept angles
         self._last_current[:] = self._inputs[CURRENT]
         self._refresh_outputs()

@@ -307,7 +307,7 @@ def test_a_hull_rising_out_of_the_water_is_warned_of_once_when_it_leaves(plant, 
     assert f"down = {depths[out]:.4g} m" in warned[0], (warned, depths[out])
 
 
-def test_a_start_above_the_surface_is_warned_of_as_the_plant_initialises(plant, unzip_dir):
+def test_a_start_above_the_surface_is_warned_of_as_the_plant_initialises(plant, unzip_dir, remus):
     """down_0 = -1 m starts the hull in the air, where the model has no surface to know:
     a Warning as the plant initialises, naming down_0; a start at the surface (down_0 = 0,
     vert-1's, half the hull out) is the dissertation's own and is not warned of."""
@@ -317,6 +317,7 @@ def test_a_start_above_the_surface_is_warned_of_as_the_plant_initialises(plant, 
     at_surface.close()
     warned = [text for status, text in fmu.log if status == 1 and "free surface" in text]
     assert len(warned) == 1 and "down_0 = -1 m" in warned[0], fmu.log
+    assert f"(down < -diameter/2 = {-remus.diameter / 2:g} m)" in warned[0], warned
     assert not [text for _, text in at_surface.log if "free surface" in text], at_surface.log
 
 
