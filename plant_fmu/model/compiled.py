@@ -187,7 +187,9 @@ def _base_force(
     wb = p[W] - p[B]
     thrust, f_t, delta_s = inputs[0], inputs[2], inputs[3]
     relative = u_r / p[FINREF]
-    scale = relative * abs(relative) * delta_s  # lift reverses astern (PlantModel.actuators)
+    scale = 0.0  # idle fins: no force, even where relative^2 overflows (PlantModel.actuators)
+    if delta_s != 0.0:
+        scale = relative * abs(relative) * delta_s  # lift reverses astern
     f[0] = thrust + 0.0 + wb * g0
     f[1] = f_t + f_mm + wb * g1
     f[2] = p[ZDS] * scale + 0.0 + wb * g2

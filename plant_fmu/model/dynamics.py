@@ -319,11 +319,13 @@ class PlantModel:
     def actuators(self, inputs: Sequence[float], u_r: float) -> np.ndarray:
         """Propeller thrust T and torque Q, tunnel thruster F_t at (0, 0, z_t) (6.3.79) and
         stern planes Z_ds s, M_ds s with s = (u_r |u_r| / U_fin^2) delta_s (Table 6.1): the
-        fins' lift follows the flow across them, so it reverses when moving astern."""
+        fins' lift follows the flow across them, so it reverses when moving astern. Idle
+        fins (delta_s = 0) give s = 0, also where (u_r / U_fin)^2 overflows (a tiny U_fin),
+        which inf * 0 would turn into nan."""
         params = self.params
         thrust, torque, f_t, delta_s = inputs[0], inputs[1], inputs[2], inputs[3]
         relative = u_r / params.fin_reference_speed
-        scale = relative * abs(relative) * delta_s
+        scale = relative * abs(relative) * delta_s if delta_s != 0.0 else 0.0
         return np.array(
             [thrust, f_t, params.Z_ds * scale, torque - f_t * params.z_t, params.M_ds * scale, 0.0]
         )

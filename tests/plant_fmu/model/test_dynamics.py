@@ -477,3 +477,24 @@ def test_a_sheared_current_faster_than_the_model_takes_is_refused_naming_the_she
         advance(model, x, input_vector({}, thrust=9.0), 0.01, 0.01, fast)
     near = state_vector(dict(u=1.5, east=900.0))  # 90 m/s: within the range, stepped
     assert np.all(np.isfinite(advance(model, near, input_vector({}), 0.01, 0.01, fast)))
+
+
+@pytest.mark.parametrize("path", ["reference", "compiled"])
+def test_idle_stern_planes_exert_nothing_whatever_their_reference_speed(path):
+    """The stern planes' force scales with (u_r / fin_reference_speed)^2 delta_s: with
+    delta_s = 0 it is 0 for any reference speed the parameter range takes (> 0). With
+    fin_reference_speed = 1e-200 the square overflowed to inf and inf * 0 made the state
+    nan, and the step was refused naming north = nan and blaming the sub-step; idle fins
+    now give the same step as at the dissertation's reference speed."""
+    from plant_fmu.model import compiled
+
+    if path == "compiled" and not compiled.AVAILABLE:
+        pytest.skip(compiled.NO_JIT_REASON)
+    remus = load_vehicle("remus100")
+    x, inputs = state_vector(dict(u=1.5, w=0.1)), input_vector({}, thrust=9.0)
+    steps = []
+    for params in (remus, remus.replace(fin_reference_speed=1e-200)):
+        model = PlantModel(params, Variant.FULL)
+        fast = compiled.CompiledPlant(model) if path == "compiled" else None
+        steps.append(advance(model, x, inputs, 0.01, 0.01, fast))
+    np.testing.assert_array_equal(steps[1], steps[0])
