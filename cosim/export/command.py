@@ -10,6 +10,7 @@ from pathlib import Path
 from cosim.errors import CosimError
 from cosim.export.osp import export_osp
 from cosim.export.ssp import export_ssp
+from cosim.scenario.coupling_graph import feedthrough
 from cosim.scenario.spec import Scenario, load_scenario
 
 
@@ -37,7 +38,10 @@ def export_scenario(
         print(f"SSP archive: {export_ssp(resolved, ssp, overwrite=force)}")
     elif osp is not None:
         print(f"OSP system structure: {export_osp(resolved, osp)}")
-    for note in _notes(resolved, scenario):  # messages, not what was written: stderr
+    notes = _notes(resolved, scenario) + _feedthrough_notes(resolved)
+    if ssp is not None:
+        notes += _skipped_start_notes(resolved)
+    for note in notes:  # messages, not what was written: stderr
         print(f"auv-cosim export: note: {note}", file=sys.stderr)
     return 0
 
@@ -76,6 +80,50 @@ def _notes(resolved: Scenario, scenario: str | Path) -> list[str]:
             "Enumeration variable and refuses the file)"
         )
     return notes
+
+
+def _feedthrough_notes(scenario: Scenario) -> list[str]:
+    """Each instance passing a connected input on to an output within a step (its
+    ModelStructure says so: :func:`cosim.scenario.coupling_graph.feedthrough`, as the
+    master reads it): auv-cosim hands on the same point's value, even under Jacobi
+    (docs/coupling.md), libcosim and ecos the previous step's."""
+    driven: dict[str, set[str]] = {}
+    for c in scenario.connections:
+        driven.setdefault(c.target_instance, set()).add(c.target_variable)
+    notes = []
+    for name, instance in scenario.instances.items():
+        passes = [
+            f"{name}.{given} on to {output}"
+            for output, inputs in feedthrough(instance.model_description).items()
+            for given in sorted(inputs & driven.get(name, set()))
+        ]
+        if passes:
+            notes.append(
+                f"{name} passes {', '.join(passes)} within a step (direct feedthrough): "
+                "auv-cosim hands on the value of the same point, libcosim and ecos the "
+                "previous step's to the instances it drives: results differ (docs/hosts.md)"
+            )
+    return notes
+
+
+def _skipped_start_notes(scenario: Scenario) -> list[str]:
+    """Start values libcosim's SSP loader skips (with a log line): it applies a parameter
+    set to parameters and inputs only, not to an output or local with initial "exact"."""
+    skipped = [
+        f"{name}.{variable} ({causality})"
+        for name, instance in scenario.instances.items()
+        for variable in instance.start
+        if (causality := instance.interface.variables[variable].causality)
+        not in ("parameter", "input")
+    ]
+    if not skipped:
+        return []
+    one = len(skipped) == 1
+    return [
+        f"{', '.join(skipped)}: {'a start value' if one else 'start values'} libcosim skips "
+        "in an SSP (its loader sets a parameter set on parameters and inputs only); ecos, "
+        f"and libcosim from an --osp export, set {'it' if one else 'them'}"
+    ]
 
 
 def _type_of(scenario: Scenario, ref: str) -> str | None:

@@ -90,9 +90,11 @@ def replacing_file(path: Path, overwrite: bool = False) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
 
 
-def _check_earlier_export(folder: Path) -> None:
+def _check_earlier_export(folder: Path, shown: Path | None = None) -> None:
     """Refuse ``folder`` unless it is empty or holds an earlier export, unchanged: every
-    entry a regular file its record lists with that content. Raises CosimError."""
+    entry a regular file its record lists with that content. Raises CosimError, naming
+    the folder as ``shown`` (as the user wrote it; ``folder`` by default)."""
+    shown = folder if shown is None else shown
     entries = sorted(p.name for p in folder.iterdir() if p.name != EXPORT_RECORD)
     if not entries:
         return
@@ -102,14 +104,14 @@ def _check_earlier_export(folder: Path) -> None:
             raise ValueError("not a record")
     except (OSError, ValueError, KeyError, TypeError):
         raise CosimError(
-            f"cannot write {folder}: it is not empty and holds no record of an earlier export "
+            f"cannot write {shown}: it is not empty and holds no record of an earlier export "
             f"({', '.join(entries[:3])}); choose a new or empty folder"
         ) from None
     for name in entries:
         path = folder / name
         if path.is_symlink() or not path.is_file() or record.get(name) != _sha256(path):
             raise CosimError(
-                f"cannot write {folder}: {name} is not a file an export wrote (yours, or "
+                f"cannot write {shown}: {name} is not a file an export wrote (yours, or "
                 "changed since); move it away or choose a new or empty folder"
             )
 
@@ -119,14 +121,14 @@ def _sha256(path: Path) -> str:
         return hashlib.file_digest(f, "sha256").hexdigest()
 
 
-def _check_again(old: Path, folder: Path) -> None:
+def _check_again(old: Path, folder: Path, shown: Path) -> None:
     """The earlier export, just moved from ``folder`` to ``old``, is still only that (no
     file came in since the first check); else it goes back and CosimError is raised."""
     try:
-        _check_earlier_export(old)
-    except CosimError as exc:
+        _check_earlier_export(old, shown)
+    except CosimError:
         old.rename(folder)
-        raise CosimError(str(exc).replace(str(old), str(folder))) from None
+        raise
 
 
 @contextmanager
@@ -139,13 +141,22 @@ def replacing_folder(folder: Path) -> Iterator[Path]:
     it did not write).
 
     Raises:
-        CosimError: ``folder`` holds something else or cannot be written (nothing is left
-            behind, an earlier export stays).
+        CosimError: ``folder`` holds something else, is the working folder or cannot be
+            written (nothing is left behind, an earlier export stays).
     """
+    given = folder
+    # the folder a name like "." or "out/.." points to: its temporary sibling goes beside
+    # that folder, not beside one named "." or ".."
+    folder = Path(os.path.abspath(folder))
     if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
-        raise CosimError(f"cannot write {folder}: it exists and is not a folder")
+        raise CosimError(f"cannot write {given}: it exists and is not a folder")
     if folder.exists():
-        _check_earlier_export(folder)
+        if os.path.samefile(folder, os.getcwd()):
+            raise CosimError(
+                f"cannot write {given}: it is the working folder, which an export would "
+                "replace as a whole; give a folder inside it or beside it (--osp NAME)"
+            )
+        _check_earlier_export(folder, given)
     tag = secrets.token_hex(4)
     tmp = folder.parent / f".{folder.name}.{tag}.tmp"
     old = folder.parent / f".{folder.name}.{tag}.old"
@@ -157,12 +168,12 @@ def replacing_folder(folder: Path) -> Iterator[Path]:
         (tmp / EXPORT_RECORD).write_text(json.dumps({"files": files}, indent=1) + "\n")
         if folder.exists():
             folder.rename(old)
-            _check_again(old, folder)
+            _check_again(old, folder, given)
         tmp.rename(folder)
     except OSError as exc:
         if old.exists() and not folder.exists():
             old.rename(folder)
-        raise CosimError(f"cannot write {folder}: {exc.strerror or exc}") from None
+        raise CosimError(f"cannot write {given}: {exc.strerror or exc}") from None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
         if old.exists() and folder.exists():

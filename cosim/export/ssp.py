@@ -87,8 +87,17 @@ def export_ssp(
     they take in place of a path: :func:`cosim.export.components.components`); other files
     that start values name are packed as ``resources/<instance>/<name>`` and the start
     value becomes that path, relative to the archive's root.
+
+    Raises:
+        CosimError: ``path`` is not named ``*.ssp`` (SSP 1.0 names its archives so, and
+            libcosim unpacks no other file), or the export fails.
     """
     path = Path(path)
+    if path.suffix != ".ssp" and not path.is_dir():  # (a folder: replacing_file says so)
+        raise CosimError(
+            f"cannot write {path}: an SSP archive's name ends in '.ssp' (SSP 1.0; libcosim "
+            f"loads no other), got {path.name!r}"
+        )
     linear_transformations(scenario, "SSP")  # refuse what SSP cannot carry, before work
     parts = components(scenario, fmu_paths)
     packed: dict[str, Path] = {}

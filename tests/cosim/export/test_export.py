@@ -281,16 +281,23 @@ def test_export_replaces_an_earlier_export(plant_alone: Scenario, tmp_path: Path
 def test_export_never_replaces_a_file_it_did_not_write(
     plant_alone: Scenario, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    """`export bs-3 --ssp base/results.csv` replaced another run's results with a zip."""
+    """`export bs-3 --ssp base/results.csv` replaced another run's results with a zip
+    (now refused for its name, even with --force); an .ssp of another tool's is kept
+    unless --force."""
     results = tmp_path / "results.csv"
     results.write_text("time,plant.yaw\n0,0\n")
-    code, err = _export(capsys, plant_alone.source, "--ssp", results)
+    code, err = _export(capsys, plant_alone.source, "--ssp", results, "--force")
+    assert code == 1 and err.count("\n") == 1 and "name ends in '.ssp'" in err
+    theirs = tmp_path / "theirs.ssp"
+    theirs.write_bytes(b"an archive another tool wrote")
+    code, err = _export(capsys, plant_alone.source, "--ssp", theirs)
     assert code == 1 and err.count("\n") == 1
-    assert f"cannot write {results}: it exists and is not an archive" in err and "--force" in err
+    assert f"cannot write {theirs}: it exists and is not an archive" in err and "--force" in err
     assert results.read_text() == "time,plant.yaw\n0,0\n"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.csv"]  # no temporaries
-    assert cli.main(["export", str(plant_alone.source), "--ssp", str(results), "--force"]) == 0
-    assert zipfile.is_zipfile(results)
+    assert theirs.read_bytes() == b"an archive another tool wrote"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.csv", "theirs.ssp"]
+    assert cli.main(["export", str(plant_alone.source), "--ssp", str(theirs), "--force"]) == 0
+    assert zipfile.is_zipfile(theirs)
 
 
 def test_osp_export_never_removes_a_file_it_did_not_write(
