@@ -77,7 +77,8 @@ def _notes(resolved: Scenario, scenario: str | Path) -> list[str]:
     if enums:
         notes.append(
             f"{', '.join(enums)}: Enumeration, written as Integer (libcosim reads no "
-            "Enumeration variable and refuses the file)"
+            "Enumeration variable: it refuses an OSP file or an SSP connection naming one "
+            "and skips an SSP start value of one)"
         )
     return notes
 

@@ -147,3 +147,16 @@ def test_an_osp_folder_named_through_dot_dot_is_written_where_it_points(
     xml = export_osp(scenario, "../osp/inner/..")
     assert xml == (tmp_path / "work" / "osp" / "OspSystemStructure.xml")
     assert sorted(p.name for p in (tmp_path / "work").iterdir()) == ["osp", "sub"]
+
+
+def test_the_note_says_libcosim_skips_an_enumeration_start_value_in_an_ssp(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An Enumeration start value in an SSP is skipped by libcosim with a log line ("No
+    such variable: relay:Enumeration_input"), the system loads and runs without it; the
+    note said libcosim refuses the file."""
+    text = RELAY + "[instances.relay.start]\nEnumeration_input = 2\n"
+    path = _scenario(tmp_path, text, "Dahlquist.fmu", "Feedthrough.fmu")
+    err = _notes([str(path), "--ssp", str(tmp_path / "relay.ssp")], capsys)
+    assert "relay.Enumeration_input: Enumeration, written as Integer" in err
+    assert "skips an SSP start value of one" in err, err
