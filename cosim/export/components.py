@@ -22,6 +22,11 @@ from cosim.scenario.spec import Instance, Scenario
 
 StartValue = bool | int | float | str
 
+# A character XML 1.0 has no place for, not even as a reference (its production Char):
+# lxml refuses such a string with a ValueError that names neither value nor character, so
+# the scenario's strings are checked first (written by hand: no library gives the test).
+NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
 IDENTIFIER = re.compile(r"[a-zA-Z][a-zA-Z0-9_]*")
 """What every importer accepts as a model, system or component name: OMSimulator's rule
 (``^[a-zA-Z][a-zA-Z0-9_]*$``, its ComRef::isValidIdent) is the strictest of them."""
@@ -83,6 +88,7 @@ def components(scenario: Scenario, fmu_paths: Mapping[str, Path] | None) -> list
             f"instance names {named} of scenario {scenario.id!r} are not names every FMI "
             "importer accepts (OMSimulator: a letter, then letters, digits or '_'): rename them"
         )
+    _check_xml_text(scenario)
     unknown = sorted(set(overrides) - set(scenario.instances))
     if unknown:
         raise CosimError(
@@ -109,6 +115,25 @@ def components(scenario: Scenario, fmu_paths: Mapping[str, Path] | None) -> list
             )
         )
     return result
+
+
+def _check_xml_text(scenario: Scenario) -> None:
+    """Refuse a summary or String start value holding a character no XML file can carry.
+
+    Raises:
+        CosimError: naming the first such text and its character.
+    """
+    texts = {"summary": scenario.summary}
+    for name, instance in scenario.instances.items():
+        texts.update({f"{name}.{k}": v for k, v in instance.start.items() if isinstance(v, str)})
+    for where, text in texts.items():
+        bad = NOT_XML.search(text)
+        if bad is not None:
+            raise CosimError(
+                f"cannot export scenario {scenario.id!r}: {where} = {text!r} holds "
+                f"{bad.group()!r}, a character XML 1.0 cannot carry (SSP and OSP files are "
+                "XML); remove it"
+            )
 
 
 def _packaged(scenario: Scenario, instance: Instance, fmu_path: Path) -> FmuInterface:

@@ -160,3 +160,38 @@ def test_the_note_says_libcosim_skips_an_enumeration_start_value_in_an_ssp(
     err = _notes([str(path), "--ssp", str(tmp_path / "relay.ssp")], capsys)
     assert "relay.Enumeration_input: Enumeration, written as Integer" in err
     assert "skips an SSP start value of one" in err, err
+
+
+CONTROL = """\
+id = "control"
+summary = "{summary}"
+stop_time = 1.0
+[coupling]
+step = 0.01
+[instances.relay]
+fmu = "Feedthrough.fmu"
+[instances.relay.start]
+String_input = "{value}"
+"""
+
+
+@pytest.mark.parametrize(
+    ("summary", "value", "named"),
+    [
+        ("plain", "a\\u0001b", "relay.String_input = 'a\\x01b'"),
+        ("bell \\u0007 here", "plain", "summary = 'bell \\x07 here'"),
+    ],
+)
+def test_a_string_xml_cannot_carry_is_refused_naming_it(
+    summary: str, value: str, named: str, tmp_path: Path
+) -> None:
+    """A control character in a String start value or the summary (the master runs it)
+    ended both exports in "ValueError: All strings must be XML compatible", naming
+    neither the value nor the character; nothing is written."""
+    text = CONTROL.format(summary=summary, value=value)
+    scenario = load_scenario(_scenario(tmp_path, text, "Feedthrough.fmu"))
+    for export, target in ((export_ssp, "c.ssp"), (export_osp, "c-osp")):
+        with pytest.raises(CosimError, match=r"XML 1\.0 cannot carry") as refused:
+            export(scenario, tmp_path / target)
+        assert named in str(refused.value)
+        assert not (tmp_path / target).exists()
