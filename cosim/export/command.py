@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from cosim.errors import CosimError
+from cosim.export.components import file_starts
 from cosim.export.osp import export_osp
 from cosim.export.ssp import export_ssp
 from cosim.scenario.coupling_graph import feedthrough
@@ -41,6 +42,7 @@ def export_scenario(
     notes = _notes(resolved, scenario) + _feedthrough_notes(resolved)
     if ssp is not None:
         notes += _skipped_start_notes(resolved)
+    notes += _file_notes(resolved, "ssp" if ssp is not None else "osp")
     for note in notes:  # messages, not what was written: stderr
         print(f"auv-cosim export: note: {note}", file=sys.stderr)
     return 0
@@ -125,6 +127,26 @@ def _skipped_start_notes(scenario: Scenario) -> list[str]:
         "in an SSP (its loader sets a parameter set on parameters and inputs only); ecos, "
         f"and libcosim from an --osp export, set {'it' if one else 'them'}"
     ]
+
+
+def _file_notes(scenario: Scenario, fmt: str) -> list[str]:
+    """Start values naming a file no host will find: the SSP packs the file but can name it
+    only by a path relative to the archive, which libcosim and ecos resolve from their
+    working folder; the OSP system structure names this machine's file."""
+    notes = []
+    for name, instance in scenario.instances.items():
+        for var, file in file_starts(instance).items():
+            written = (
+                f"resources/{name}/{file.name} in the archive, a path libcosim and ecos "
+                "resolve from their working folder, not the archive"
+                if fmt == "ssp"
+                else f"{file}, a file of this machine, not copied"
+            )
+            notes.append(
+                f"{name}.{var} names a file, written as {written}: give the FMU the file "
+                "where the system runs"
+            )
+    return notes
 
 
 def _type_of(scenario: Scenario, ref: str) -> str | None:

@@ -188,6 +188,13 @@ def _plain(file_name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "_", file_name)
 
 
+def file_starts(instance: Instance) -> dict[str, Path]:
+    """The start values naming a file that is not written inline (every one but a vehicle
+    set of the plant or the autopilot): variable -> file, absolute."""
+    start = _portable_start(instance)
+    return {var: file for var, file in instance.files().items() if start[var] == str(file)}
+
+
 def _portable_start(instance: Instance) -> dict[str, StartValue]:
     """The start values, a vehicle set file of the plant or the autopilot given inline: the
     set's TOML text (its ``base`` chain resolved), which they take in place of a path, so

@@ -40,6 +40,7 @@ from cosim.export.components import (
     Component,
     components,
     description,
+    file_starts,
     model_name,
     value_type,
     xml_literal,
@@ -102,11 +103,7 @@ def export_ssp(
     parts = components(scenario, fmu_paths)
     packed: dict[str, Path] = {}
     for i, part in enumerate(parts):
-        files = {
-            var: file
-            for var, file in scenario.instances[part.name].files().items()
-            if part.start.get(var) == str(file)  # (not written inline)
-        }
+        files = file_starts(scenario.instances[part.name])
         moved = {var: f"resources/{part.name}/{file.name}" for var, file in files.items()}
         packed.update({moved[var]: file for var, file in files.items()})
         parts[i] = dataclasses.replace(part, start={**part.start, **moved})

@@ -195,3 +195,24 @@ def test_a_string_xml_cannot_carry_is_refused_naming_it(
             export(scenario, tmp_path / target)
         assert named in str(refused.value)
         assert not (tmp_path / target).exists()
+
+
+@pytest.mark.parametrize(
+    ("fmt", "written"),
+    [("--ssp", "resources/relay/cfg.toml"), ("--osp", "cfg.toml, a file of this machine")],
+)
+def test_the_note_says_a_start_value_naming_a_file_travels_to_no_host(
+    fmt: str, written: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A String start value naming a file (``cfg.toml`` beside the scenario) of an FMU
+    that takes no file inline: the SSP packs it but names it by a path relative to the
+    archive, which libcosim and ecos resolve from their working folder; the OSP export
+    wrote the absolute path of this machine's file, copying nothing. Both said nothing
+    of it: a system moved to another folder or machine ran without its file."""
+    text = RELAY + '[instances.relay.start]\nString_input = "cfg.toml"\n'
+    path = _scenario(tmp_path, text, "Dahlquist.fmu", "Feedthrough.fmu")
+    (tmp_path / "cfg.toml").write_text("a = 1\n", encoding="utf-8")
+    target = tmp_path / ("files.ssp" if fmt == "--ssp" else "files-osp")
+    err = _notes([str(path), fmt, str(target)], capsys)
+    assert "note: relay.String_input names a file" in err, err
+    assert written in err, err
