@@ -131,6 +131,13 @@ def _check_again(old: Path, folder: Path, shown: Path) -> None:
         raise
 
 
+def _is_working_folder(folder: Path) -> bool:
+    try:
+        return os.path.samefile(folder, os.getcwd())
+    except OSError:  # no working folder (removed since): not this one
+        return False
+
+
 @contextmanager
 def replacing_folder(folder: Path) -> Iterator[Path]:
     """Yield a new temporary folder beside ``folder``; on success it is recorded
@@ -145,13 +152,15 @@ def replacing_folder(folder: Path) -> Iterator[Path]:
             written (nothing is left behind, an earlier export stays).
     """
     given = folder
-    # the folder a name like "." or "out/.." points to: its temporary sibling goes beside
-    # that folder, not beside one named "." or ".."
-    folder = Path(os.path.abspath(folder))
+    try:  # the folder a name like "." or "out/.." points to: its temporary sibling goes
+        # beside that folder, not beside one named "." or ".."
+        folder = Path(os.path.abspath(folder))
+    except OSError as exc:  # a relative name, and the working folder was removed
+        raise CosimError(f"cannot write {given}: {exc.strerror or exc}") from None
     if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
         raise CosimError(f"cannot write {given}: it exists and is not a folder")
     if folder.exists():
-        if os.path.samefile(folder, os.getcwd()):
+        if _is_working_folder(folder):
             raise CosimError(
                 f"cannot write {given}: it is the working folder, which an export would "
                 "replace as a whole; give a folder inside it or beside it (--osp NAME)"

@@ -135,6 +135,20 @@ def test_the_working_folder_as_osp_target_is_refused_clearly(
     assert list(here.iterdir()) == []
 
 
+def test_an_osp_export_to_a_full_path_needs_no_working_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Looking for the working folder (to refuse it as a target) must not refuse a full
+    path when the working folder was removed since."""
+    scenario = load_scenario(_scenario(tmp_path, BALL, "BouncingBall.fmu"))
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.chdir(gone)
+    gone.rmdir()
+    xml = export_osp(scenario, tmp_path / "osp")
+    assert xml == tmp_path / "osp" / "OspSystemStructure.xml"
+
+
 def test_an_osp_folder_named_through_dot_dot_is_written_where_it_points(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
