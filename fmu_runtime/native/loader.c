@@ -58,12 +58,15 @@ typedef struct Saved {
     double time;
     void *inner;  /* the backend's state */
     uint32_t fmu; /* which FMU saved it: the CRC-32 of its GUID (fmu_of) */
+    unsigned format; /* whose ``inner`` it is: serial_magic of the backend that took it */
     Instance *owner;           /* the instance that took it, which frees it if the host */
     struct Saved *prev, *next; /* does not: its states alive (Instance.states) */
 } Saved;
 #define SAVED_MAGIC 0x4155564cu /* "AUVL" */
-/* A serialised state: magic, phase, time, the FMU that took it (Saved's fmu), then the
- * CRC-32 of every byte but its own four, then the backend's bytes. */
+#define FORWARDED_MAGIC 0x41555650u /* "AUVP": serialised on pythonfmu's runtime */
+/* A serialised state: the magic of the backend that wrote it (serial_magic), phase, time,
+ * the FMU that took it (Saved's fmu), then the CRC-32 of every byte but its own four,
+ * then the backend's bytes. */
 #define SAVED_FMU (sizeof(unsigned) + sizeof(int) + sizeof(double))
 #define SAVED_CRC (SAVED_FMU + sizeof(uint32_t))
 #define SAVED_HEADER (SAVED_CRC + sizeof(uint32_t))
@@ -1016,16 +1019,42 @@ static uint32_t fmu_of(const Instance *c)
     return crc32_of(0, c->record.guid, strlen(c->record.guid));
 }
 
-/* ``state`` as a state this FMU took (by any of its instances, through any copy of this
- * library), or NULL. A host's pointer is looked up among the states alive
- * (python_states) before it is read: one that is no state alive (freed already, another
- * FMU's, the host's own memory, garbage) is refused without being touched, where reading
- * it would read freed or foreign memory, or crash. */
-static Saved *saved_state(const Instance *c, fmi2FMUstate state)
+/* The magic a state serialised by ``backend`` starts with: the backends' states differ.
+ * A value, not the backend's address, as each copy of this library has its own backends
+ * and a state is set through any copy. */
+static unsigned serial_magic(const Backend *backend)
 {
-    if (!state || !python_states(STATE_ALIVE, state)) return NULL;
-    Saved *saved = (Saved *)state;
-    return saved->magic == SAVED_MAGIC && saved->fmu == fmu_of(c) ? saved : NULL;
+    return backend == &pythonfmu_backend ? FORWARDED_MAGIC : SAVED_MAGIC;
+}
+
+/* The runtime whose states have ``magic``, as messages name it (RUNTIME_VARIABLE is read
+ * as each instance is instantiated, so two instances in one process may run both). */
+static const char *runtime_name(unsigned magic)
+{
+    return magic == FORWARDED_MAGIC ? "pythonfmu's runtime (" RUNTIME_VARIABLE "=pythonfmu)"
+                                    : "the FMU's runtime";
+}
+
+/* ``state`` as a state this FMU took on ``c``'s backend (by any of its instances, through
+ * any copy of this library), or NULL with ``call`` refused saying why. A host's pointer
+ * is looked up among the states alive (python_states) before it is read: one that is no
+ * state alive (freed already, another FMU's, the host's own memory, garbage) is refused
+ * without being touched, where reading it would read freed or foreign memory, or crash;
+ * one an instance on the other backend took holds that backend's kind of state, which
+ * this backend would read as its own and crash. */
+static Saved *saved_state(Instance *c, fmi2FMUstate state, const char *call)
+{
+    Saved *saved = state && python_states(STATE_ALIVE, state) ? (Saved *)state : NULL;
+    if (!saved || saved->magic != SAVED_MAGIC || saved->fmu != fmu_of(c)) {
+        refuse(c, "%s refused: not an FMU state of this FMU", call);
+        return NULL;
+    }
+    if (saved->format != serial_magic(c->backend)) {
+        refuse(c, "%s refused: a state taken on %s; this instance runs %s", call,
+               runtime_name(saved->format), runtime_name(serial_magic(c->backend)));
+        return NULL;
+    }
+    return saved;
 }
 
 /* Every instance's list of its states alive changes under Python's GIL: a state one
@@ -1100,9 +1129,8 @@ static void free_states(Instance *c)
 FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
 {
     INSTANCE(component);
-    if (!state || (*state && !saved_state(c, *state))) {
-        return refuse(c, "fmi2GetFMUstate refused: not an FMU state of this FMU");
-    }
+    if (!state) return refuse(c, "fmi2GetFMUstate refused: not an FMU state of this FMU");
+    if (*state && !saved_state(c, *state, "fmi2GetFMUstate")) return fmi2Error;
     Saved *saved = *state ? (Saved *)*state : calloc(1, sizeof *saved);
     if (!saved) return refuse(c, "fmi2GetFMUstate refused: out of memory");
     void *inner = NULL;
@@ -1123,6 +1151,7 @@ FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *st
     saved->time = c->time;
     saved->inner = inner;
     saved->fmu = fmu_of(c);
+    saved->format = serial_magic(c->backend);
     if (!*state) own_state(c, saved);
     *state = saved;
     return s;
@@ -1131,8 +1160,8 @@ FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *st
 FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate state)
 {
     INSTANCE(component);
-    Saved *saved = saved_state(c, state);
-    if (!saved) return refuse(c, "fmi2SetFMUstate refused: not an FMU state of this FMU");
+    Saved *saved = saved_state(c, state, "fmi2SetFMUstate");
+    if (!saved) return fmi2Error;
     fmi2Status s = answer(c, c->backend->restore(c, saved->inner));
     c->writes++; /* a state set, restored or not, is a change the master made */
     if (s <= fmi2Warning) {
@@ -1149,8 +1178,9 @@ FMI2_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *s
 {
     INSTANCE(component);
     if (!state || !*state) return fmi2OK;
-    Saved *saved = saved_state(c, *state);
-    if (!saved || !forget_state(saved)) {
+    Saved *saved = saved_state(c, *state, "fmi2FreeFMUstate");
+    if (!saved) return fmi2Error;
+    if (!forget_state(saved)) {
         return refuse(c, "fmi2FreeFMUstate refused: not an FMU state of this FMU");
     }
     free_saved(c, saved);
@@ -1162,11 +1192,9 @@ FMI2_EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2F
                                                   size_t *size)
 {
     INSTANCE(component);
-    Saved *saved = saved_state(c, state);
-    if (!saved || !size) {
-        return refuse(c, "fmi2SerializedFMUstateSize refused: %s",
-                      saved ? "size is NULL" : "not an FMU state of this FMU");
-    }
+    Saved *saved = saved_state(c, state, "fmi2SerializedFMUstateSize");
+    if (!saved) return fmi2Error;
+    if (!size) return refuse(c, "fmi2SerializedFMUstateSize refused: size is NULL");
     fmi2Status s = answer(c, c->backend->state_bytes(c, saved->inner, NULL, 0, size));
     if (s <= fmi2Warning) *size += SAVED_HEADER;
     return s;
@@ -1176,8 +1204,8 @@ FMI2_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUsta
                                              fmi2Byte bytes[], size_t size)
 {
     INSTANCE(component);
-    Saved *saved = saved_state(c, state);
-    if (!saved) return refuse(c, "fmi2SerializeFMUstate refused: not an FMU state of this FMU");
+    Saved *saved = saved_state(c, state, "fmi2SerializeFMUstate");
+    if (!saved) return fmi2Error;
     if (!bytes || size < SAVED_HEADER) {
         return refuse(c, "fmi2SerializeFMUstate refused: %s",
                       bytes ? "the byte array is too small" : "the byte array is NULL");
@@ -1190,7 +1218,7 @@ FMI2_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUsta
         return refuse(c, "fmi2SerializeFMUstate refused: size = %zu bytes, the state needs %zu",
                       size, needed + SAVED_HEADER);
     }
-    memcpy(bytes, &saved->magic, sizeof(unsigned));
+    memcpy(bytes, &saved->format, sizeof(unsigned));
     memcpy(bytes + sizeof(unsigned), &saved->phase, sizeof(int));
     memcpy(bytes + sizeof(unsigned) + sizeof(int), &saved->time, sizeof(double));
     memcpy(bytes + SAVED_FMU, &saved->fmu, sizeof(uint32_t));
@@ -1213,7 +1241,7 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
     memcpy(&header.phase, bytes + sizeof(unsigned), sizeof(int));
     memcpy(&header.time, bytes + sizeof(unsigned) + sizeof(int), sizeof(double));
     memcpy(&header.fmu, bytes + SAVED_FMU, sizeof(uint32_t));
-    if (header.magic != SAVED_MAGIC) {
+    if (header.magic != SAVED_MAGIC && header.magic != FORWARDED_MAGIC) {
         return refuse(c, "fmi2DeSerializeFMUstate refused: not a state of this FMU");
     }
     uint32_t crc;
@@ -1228,6 +1256,13 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
         return refuse(c, "fmi2DeSerializeFMUstate refused: a state of another FMU (its GUID "
                       "differs from this FMU's %s)", c->record.guid);
     }
+    if (header.magic != serial_magic(c->backend)) { /* the backends' bytes differ */
+        return refuse(c, "fmi2DeSerializeFMUstate refused: a state serialised on %s; this "
+                      "instance runs %s",
+                      runtime_name(header.magic), runtime_name(serial_magic(c->backend)));
+    }
+    header.format = header.magic;
+    header.magic = SAVED_MAGIC;
     Saved *saved = calloc(1, sizeof *saved);
     if (!saved) return refuse(c, "fmi2DeSerializeFMUstate refused: out of memory");
     fmi2Status s = answer(c, c->backend->state_from_bytes(c, bytes + SAVED_HEADER,

@@ -141,3 +141,57 @@ def test_another_fmus_serialised_state_is_refused_at_deserialisation(
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert (report["foreign"], report["own"]) == (3, 0), report
     assert "fmi2DeSerializeFMUstate refused" in report["errors"], report["errors"]
+
+
+OTHER_RUNTIME = """
+import json, os, sys
+os.environ["AUV_FMU_RUNTIME"] = sys.argv[2]
+from fmu_harness import Harness, status_of
+
+taker = Harness(sys.argv[1], instance="taker")
+taker.step(0.01)
+state = taker.slave.getFMUState()
+serialised = taker.slave.serializeFMUState(state)
+os.environ["AUV_FMU_RUNTIME"] = sys.argv[3]  # read as each instance is instantiated
+plant = Harness(sys.argv[1], instance="plant")  # last: fmpy's logger proxy is one per process
+reals = [v.valueReference for v in plant.variables.values() if v.type == "Real"]
+before = plant.slave.getReal(reals)
+report = {
+    "set": status_of(plant.slave.setFMUState, state),
+    "free": status_of(plant.slave.freeFMUState, state),
+    "deserialise": status_of(plant.slave.deserializeFMUState, serialised),
+    "unchanged": plant.slave.getReal(reals) == before,
+    "step after": plant.step(0.01),
+    "errors": plant.messages(3),
+    "own": status_of(taker.slave.deserializeFMUState, serialised),
+}
+print(json.dumps(report))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("taken_in", sorted(RUNTIMES))
+def test_a_state_of_the_other_runtime_is_refused_in_memory_and_serialised(
+    taken_in, fmu_paths, run_python
+):
+    """Two instances of one FMU in one process, one on each runtime (AUV_FMU_RUNTIME changed
+    between their instantiations): a state the FMU's runtime took, set into the instance on
+    pythonfmu's, crashed the host (SIGSEGV), and the other way round its memory was read as
+    the other runtime's; serialised, the bytes were taken by pythonfmu's runtime (fmi2OK,
+    then refused at fmi2SetFMUstate as "changed, cut or extended") and refused by the
+    FMU's as "an FMU with other variables". Each is now refused with fmi2Error naming the
+    runtimes, the instance unchanged and stepping on, while the bytes still deserialise in
+    the runtime that wrote them."""
+    other = next(name for name in RUNTIMES if name != taken_in)
+    done = run_python(
+        OTHER_RUNTIME, fmu_paths["AuvPlant"], RUNTIMES[taken_in], RUNTIMES[other], timeout=180
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    statuses = [report[k] for k in ("set", "free", "deserialise", "step after", "own")]
+    assert statuses == [3, 3, 3, 0, 0], report
+    assert report["unchanged"], report
+    assert report["errors"].count(RUNTIME_NAMES[taken_in]) == 3, report["errors"]
+
+
+RUNTIME_NAMES = {"runtime": "the FMU's runtime", "pythonfmu": "pythonfmu's runtime"}
