@@ -282,6 +282,26 @@ fmi2Status slave_state_bytes(Instance *c, void *saved, fmi2Byte *out, size_t cap
     return s;
 }
 
+/* 1 if the slave's part ``python`` is unusable, ``call`` refused saying why: the slave's
+ * _fmu_state_from_bytes answers bytes it cannot read with {"error": why} (pythonfmu's
+ * binary, which calls it too, wants an answer, not an exception), which would be taken
+ * here and refused only when set. */
+static int unusable(Instance *c, PyObject *python, const char *call)
+{
+    PyObject *get = py.GetAttrString(python, "get");
+    PyObject *key = py.Unicode_FromString("error");
+    PyObject *error = get && key ? py.CallFunctionObjArgs(get, key, NULL) : NULL;
+    int bad = !error || error != py.None;
+    if (bad) {
+        const char *why = error ? py.Unicode_AsUTF8(error) : NULL;
+        refuse(c, "%s refused: %s", call, why ? why : "the slave's part is not a state");
+    }
+    py.Err_Clear();
+    PyObject *objects[] = {get, key, error};
+    for (size_t i = 0; i < 3; i++) slave_release(objects[i]);
+    return bad;
+}
+
 fmi2Status slave_state_from_bytes(Instance *c, const fmi2Byte *bytes, size_t size,
                                   void **saved)
 {
@@ -307,7 +327,8 @@ fmi2Status slave_state_from_bytes(Instance *c, const fmi2Byte *bytes, size_t siz
     if (!state) {
         slave_release(items[0]);
         refuse(c, "%s refused: out of memory", call);
-    } else if (!python) {
+    } else if (!python || unusable(c, python, call)) {
+        slave_release(python);
         free(state);
         state = NULL;
     } else {

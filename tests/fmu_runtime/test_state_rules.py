@@ -195,3 +195,35 @@ def test_a_state_of_the_other_runtime_is_refused_in_memory_and_serialised(
 
 
 RUNTIME_NAMES = {"runtime": "the FMU's runtime", "pythonfmu": "pythonfmu's runtime"}
+
+
+UNREADABLE_PART = """
+import json, struct, sys, zlib
+from fmu_harness import Harness, status_of
+
+plant = Harness(sys.argv[1], instance="plant")
+good = bytes(plant.slave.serializeFMUState(plant.slave.getFMUState()))
+mark = good.rfind(b"\\ncrc32=")  # the slave's part: its JSON, then the JSON's CRC-32
+forged = bytearray(good[: mark - 8] + b"not json" + good[mark:])
+header = 4 + 4 + 8 + 4 + 4  # the runtime's: magic, phase, time, FMU, then its CRC-32
+crc = zlib.crc32(bytes(forged[: header - 4] + forged[header:]))
+forged[header - 4 : header] = struct.pack("=I", crc)  # as if the runtime had written it
+report = {
+    "forged": status_of(plant.slave.deserializeFMUState, bytes(forged)),
+    "errors": plant.messages(3),
+    "own": status_of(plant.slave.deserializeFMUState, good),
+}
+print(json.dumps(report))
+"""
+
+
+@pytest.mark.slow
+def test_bytes_whose_slave_part_is_unreadable_are_refused_at_deserialisation(fmu_paths, run_python):
+    """Bytes the runtime's own check passes (its CRC-32 right) whose slave part the slave
+    cannot read were deserialised with fmi2OK, the state refused only when set; the
+    runtime now refuses them at fmi2DeSerializeFMUstate with the slave's reason."""
+    done = run_python(UNREADABLE_PART, fmu_paths["AuvPlant"], timeout=180)
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert (report["forged"], report["own"]) == (3, 0), report
+    assert "fmi2DeSerializeFMUstate refused: cannot deserialise" in report["errors"], report
