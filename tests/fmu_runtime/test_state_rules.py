@@ -2,8 +2,9 @@
 gives the fixed parameters their values in it (a write of that value is taken, another
 refused, as FMI 2.0 has for a fixed parameter after initialisation); a state another FMU
 took is refused with nothing changed; a String parameter written again with the value it
-has is taken as the other types are; and a call's status stays its own when the host's
-logger calls the FMU back meanwhile."""
+has is taken as the other types are; a call's status stays its own when the host's
+logger calls the FMU back meanwhile; a state the other runtime took or serialised, and
+bytes whose slave part is unreadable, are refused with fmi2Error."""
 
 from __future__ import annotations
 
