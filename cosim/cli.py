@@ -287,6 +287,13 @@ def _phase_portrait(args: argparse.Namespace) -> int:
     return phase_portrait_command(_conditions(args), args.out)
 
 
+def _margins(args: argparse.Namespace) -> int:
+    from cosim.analysis.margins_text import margins_command
+
+    scale = dict(args.scale or [])
+    return margins_command(args.vehicle, args.design_speed, args.step, args.speed, scale)
+
+
 def _study(args: argparse.Namespace) -> int:
     """``auv-cosim sweep``: 0 if any run completed (failed runs are rows of the table), 1
     if none did, 128 + the signal number if a stop signal ended it."""
@@ -693,7 +700,36 @@ def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
     )
     _add_model_options(a)
     a.set_defaults(func=_phase_portrait)
+    _add_margins_parser(asub)
     _describe(asub)
+
+
+def _add_margins_parser(asub: argparse._SubParsersAction) -> None:
+    """``auv-cosim analyze margins``: the shipped LQR loop's margins (docs/model.md#lqr)."""
+    a = asub.add_parser(
+        "margins", help="gain, phase and delay margins and poles of the LQR heading loop"
+    )
+    a.add_argument(
+        "--vehicle", default="remus100", help="parameter set name or .toml file [%(default)s]"
+    )
+    a.add_argument(
+        "--design-speed", type=float, default=1.525, help="U0 of the design, m/s [%(default)s]"
+    )
+    a.add_argument(
+        "--step", type=float, default=0.01, help="sample time h of the design, s [%(default)s]"
+    )
+    a.add_argument(
+        "--speed", type=float, help="surge speed the loop runs at, m/s [the design speed]"
+    )
+    a.add_argument(
+        "--scale",
+        type=_scale_arg,
+        action="append",
+        metavar="NAME=FACTOR",
+        help="multiply a vehicle parameter of the plant (not the design) by FACTOR, e.g. "
+        "m_v=1.2; repeatable",
+    )
+    a.set_defaults(func=_margins)
 
 
 def _add_live_options(p: argparse.ArgumentParser) -> None:
@@ -801,6 +837,17 @@ def _add_reproduce_parser(sub: argparse._SubParsersAction) -> None:
 
 
 VARIANTS = {"full": 0, "lateral": 1, "horizontal": 2}  # the plant's variant codes
+
+
+def _scale_arg(text: str) -> tuple[str, float]:
+    """``NAME=FACTOR`` of ``--scale``; a usage error names what is not."""
+    name, sep, factor = text.partition("=")
+    try:
+        if sep and name:
+            return name, float(factor)
+    except ValueError:
+        pass
+    raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=FACTOR, e.g. m_v=1.2")
 
 
 def _variant(text: str) -> int:

@@ -1,0 +1,101 @@
+"""``auv-cosim analyze margins``: the LQR loop's margins and poles, printed with units.
+
+The numbers come from :mod:`cosim.analysis.margins` (python-control on the plant's own
+linearisation); this module only words them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from cosim.analysis.bifurcation import AnalysisError
+from cosim.analysis.margins import Crossing, LoopMargins, loop_margins, lqr_loop, scaled_vehicle
+from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
+
+
+def margins_command(
+    vehicle: str,
+    design_speed: float,
+    step: float,
+    speed: float | None = None,
+    scale: Mapping[str, float] | None = None,
+) -> int:
+    """Print the margins of the LQR designed on ``vehicle`` at ``design_speed`` (m/s) for
+    ``step`` (s), closed on the plant at ``speed`` (m/s) with ``scale``'s parameters
+    multiplied; 0 on success."""
+    try:
+        design = load_vehicle(vehicle)
+    except VehicleParameterError as exc:
+        raise AnalysisError(str(exc)) from None
+    plant = scaled_vehicle(design, scale or {})
+    loop = lqr_loop(design, design_speed, step, plant, speed)
+    at = design_speed if speed is None else speed
+    scaled = "".join(f", {name} x {factor:g}" for name, factor in (scale or {}).items())
+    print(
+        f"LQR heading loop broken at the plant input (the servo command y_d): designed on "
+        f"{design.name} at U0 = {design_speed:g} m/s for h = {step:g} s; plant {design.name}"
+        f"{scaled} at u = {at:g} m/s"
+    )
+    print(margins_table(loop_margins(loop)))
+    return 0
+
+
+def margins_table(margins: LoopMargins) -> str:
+    """The margins and poles as lines of text, every value with its unit."""
+    largest = float(np.abs(margins.poles).max())
+    lines = [
+        f"closed loop: {'stable' if margins.stable else 'UNSTABLE'} (largest |z| "
+        f"{largest:.6g}); poles as s = ln(z)/h [1/s]: {_poles(margins.continuous_poles)}"
+    ]
+    if not margins.stable:
+        lines.append("(no margins: the loop is unstable as it is)")
+        return "\n".join(lines)
+    lower, upper = margins.lower_gain_margin, margins.upper_gain_margin
+    lines.append(f"gain margin, down: {_gain(lower, margins.step)}")
+    lines.append(f"gain margin, up:   {_gain(upper, margins.step)}")
+    phase = margins.phase_margin
+    lines.append(
+        "phase margin:      "
+        + (
+            "none (no gain crossover)"
+            if phase is None
+            else f"{phase.value:.4g} deg at {phase.frequency:.4g} rad/s"
+        )
+    )
+    delay = margins.delay_margin
+    lines.append(
+        "delay margin:      "
+        + (
+            "none (no gain crossover)"
+            if delay is None
+            else f"{delay.value:.4g} s ({delay.value / margins.step:.3g} steps of h), eating the "
+            f"phase margin at {delay.frequency:.4g} rad/s"
+        )
+    )
+    ms = margins.sensitivity_peak
+    lines.append(
+        f"sensitivity peak:  Ms = {ms:.4g} ({20 * math.log10(ms):.3g} dB) at "
+        f"{margins.sensitivity_frequency:.4g} rad/s"
+    )
+    return "\n".join(lines)
+
+
+def _gain(crossing: Crossing | None, step: float) -> str:
+    if crossing is None:
+        return "none up to the Nyquist frequency"
+    where = f"{crossing.frequency:.4g} rad/s"
+    if math.isclose(crossing.frequency, math.pi / step):
+        where += " (the Nyquist frequency pi/h)"
+    return f"x {crossing.value:.4g} ({20 * math.log10(crossing.value):+.3g} dB) at {where}"
+
+
+def _poles(poles: np.ndarray) -> str:
+    """Conjugate pairs once, as a +- b i, slowest (largest real part) last."""
+    shown = sorted((z for z in poles if z.imag >= -1e-12), key=lambda z: z.real)
+    return ", ".join(
+        f"{z.real:.4g}" if abs(z.imag) < 1e-9 else f"{z.real:.4g} +- {abs(z.imag):.4g}i"
+        for z in shown
+    )

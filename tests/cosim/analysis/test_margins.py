@@ -1,0 +1,137 @@
+"""The LQR loop's margins (``auv-cosim analyze margins``), each checked against an
+independent reading: python-control's frequency response at the crossover the margin is
+read at, and the closed-loop poles with the loop's gain scaled or its input delayed."""
+
+from __future__ import annotations
+
+import math
+
+import control
+import numpy as np
+import pytest
+
+from controller_fmu.lateral_model import LateralDesignModel
+from controller_fmu.lqr import LqrHeading
+from cosim import cli
+from cosim.analysis.margins import LoopMargins, loop_margins, lqr_loop, scaled_vehicle
+from plant_fmu.model.parameters import load_vehicle
+
+U0 = 1.525  # m/s, the shipped design speed
+H = 0.01  # s, the shipped design step
+
+
+@pytest.fixture(scope="module")
+def loop() -> control.StateSpace:
+    return lqr_loop(load_vehicle("remus100"), U0, H)
+
+
+@pytest.fixture(scope="module")
+def margins(loop: control.StateSpace) -> LoopMargins:
+    return loop_margins(loop)
+
+
+def _response(loop: control.StateSpace, omega: float) -> complex:
+    return complex(np.asarray(control.frequency_response(loop, [omega]).complex).ravel()[0])
+
+
+def _largest_pole(loop: control.StateSpace, factor: float = 1.0, delay: int = 0) -> float:
+    """max |z| of the loop closed with its gain times ``factor`` and ``delay`` whole
+    samples of delay at the plant input (python-control's series and feedback)."""
+    delayed = control.tf([1.0], [1.0] + [0.0] * delay, H) if delay else 1.0
+    closed = control.feedback(control.series(delayed, factor * loop), 1.0)
+    return float(np.abs(control.poles(closed)).max())
+
+
+def test_margins_read_where_the_frequency_response_crosses(
+    loop: control.StateSpace, margins: LoopMargins
+) -> None:
+    """Every phase margin is read where |L| = 1, with 180 deg + the phase of L there, and
+    every gain margin where L is real and negative, as -1 / L."""
+    assert margins.stable and margins.phase_margins and margins.gain_margins
+    for crossing in margins.phase_margins:
+        at = _response(loop, crossing.frequency)
+        assert abs(at) == pytest.approx(1.0, abs=1e-9)
+        phase = math.degrees(np.angle(at))  # (-180, 180] deg
+        assert crossing.value == pytest.approx(180.0 + phase if phase <= 0.0 else phase - 180.0)
+    for crossing in margins.gain_margins:
+        at = _response(loop, crossing.frequency)
+        assert abs(at.imag) < 1e-9 * abs(at) and at.real < 0.0
+        assert crossing.value == pytest.approx(-1.0 / at.real, rel=1e-9)
+
+
+def test_gain_margins_bound_the_gains_the_closed_loop_stays_stable_at(
+    loop: control.StateSpace, margins: LoopMargins
+) -> None:
+    """The LQR's loop (an unstable sway-yaw mode and a free heading) is stable for loop
+    gains strictly between its lower and upper gain margins, and not just outside."""
+    lower, upper = margins.lower_gain_margin, margins.upper_gain_margin
+    assert lower is not None and upper is not None
+    assert _largest_pole(loop, 1.001 * lower.value) < 1.0 < _largest_pole(loop, 0.999 * lower.value)
+    assert _largest_pole(loop, 0.999 * upper.value) < 1.0 < _largest_pole(loop, 1.001 * upper.value)
+    assert upper.frequency == pytest.approx(math.pi / H)  # the Nyquist frequency
+
+
+def test_delay_margin_is_the_delay_the_loop_loses_stability_at(
+    loop: control.StateSpace, margins: LoopMargins
+) -> None:
+    """Whole samples of delay at the plant input up to the delay margin keep the loop
+    stable, one more does not; the shipped LQR takes none (its margin is under a step)."""
+    delay = margins.delay_margin
+    assert delay is not None
+    steps = math.floor(delay.value / H)
+    assert _largest_pole(loop, delay=steps) < 1.0 < _largest_pole(loop, delay=steps + 1)
+    assert steps == 0
+
+
+def test_sensitivity_peak_is_the_largest_on_a_finer_grid(
+    loop: control.StateSpace, margins: LoopMargins
+) -> None:
+    """Ms is no smaller than |1 / (1 + L)| anywhere on an independent grid up to pi/h."""
+    omega = np.linspace(1e-3, math.pi / H, 20001)
+    response = np.asarray(control.frequency_response(loop, omega).complex).ravel()
+    assert margins.sensitivity_peak == pytest.approx(np.abs(1 / (1 + response)).max(), rel=1e-6)
+
+
+def test_the_design_stays_on_the_nominal_vehicle_when_the_plant_is_scaled() -> None:
+    """--scale changes the plant the loop is closed on, never the gain the autopilot
+    designs on its own vehicle."""
+    nominal = load_vehicle("remus100")
+    heavier = scaled_vehicle(nominal, {"m_v": 1.2})
+    assert heavier.m_v == pytest.approx(1.2 * nominal.m_v)
+    gain = LqrHeading(LateralDesignModel(nominal, U0), H).gain
+    np.testing.assert_array_equal(lqr_loop(nominal, U0, H, heavier).C.ravel(), gain)
+    assert not np.allclose(lqr_loop(nominal, U0, H, heavier).A, lqr_loop(nominal, U0, H).A)
+
+
+@pytest.mark.slow
+def test_the_command_prints_every_margin_with_its_unit(capsys: pytest.CaptureFixture) -> None:
+    """`auv-cosim analyze margins` names each margin with its unit and where it is read."""
+    assert cli.main(["analyze", "margins"]) == 0
+    out = capsys.readouterr().out
+    expected_parts = (
+        "gain margin, down: x ", " dB) at ", " rad/s", "phase margin: ", " deg at ",
+        "delay margin: ", " s (", "steps of h", "Ms = ", "closed loop: stable",
+    )  # fmt: skip
+    for expected in expected_parts:
+        assert expected in out, (expected, out)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "refusal"),
+    [
+        (["--design-speed", "nan"], "--design-speed nan: expected a finite forward speed > 0 m/s"),
+        (["--speed", "-1.5"], "--speed -1.5: expected a finite forward speed > 0 m/s"),
+        (["--step", "0"], "--step 0.0: expected a finite sample time > 0 s"),
+        (["--scale", "m_vv=1.2"], "--scale m_vv=1.2: unknown parameter 'm_vv'; expected one of"),
+        (["--scale", "m_v=inf"], "--scale m_v=inf: expected a finite factor"),
+    ],
+)
+def test_a_nonsensical_operating_point_is_refused_naming_it(
+    capsys: pytest.CaptureFixture, arguments: list[str], refusal: str
+) -> None:
+    """A speed that is no forward speed, a step that is no sample time or a factor on no
+    parameter is refused on one line naming the value and what is expected."""
+    assert cli.main(["analyze", "margins", *arguments]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"auv-cosim analyze: {refusal}"), err
+    assert err.count("\n") == 1
