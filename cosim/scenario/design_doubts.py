@@ -49,6 +49,7 @@ def design_doubts(scenario: Scenario, live: bool = False) -> list[str]:
             _command_limit_doubt(scenario, name, autopilot, p, plant) for p, plant in plants.items()
         ]
         found.append(_extrapolated_command_doubt(scenario, name, autopilot))
+        found.append(_late_command_doubt(scenario, name, autopilot))
         found.append(_pitch_doubt(scenario, name, autopilot, plants))
         if not live:
             found += _unused_gains(scenario, name, autopilot)
@@ -250,6 +251,45 @@ def _extrapolated_command_doubt(scenario: Scenario, name: str, autopilot: Instan
         "the loop run is not the one designed (lqr-1 so banged its mass command between -100 "
         'and +100 m every step); set extrapolation = "none", as lqr-1 to lqr-3 do'
     )
+
+
+DELAY_SHARE = 0.5
+"""The part of its design step a delay may take from the LQR unremarked. Its delay margin
+(``auv-cosim analyze margins --step H``) is 0.92 to 1.05 of its sample time for REMUS 100
+at design steps of 1 to 50 ms; half a step leaves room for another vehicle or speed."""
+
+
+def _late_command_doubt(scenario: Scenario, name: str, autopilot: Instance) -> str:
+    """The warning if ``name`` runs the LQR (at its start or after an event) and the
+    coupling hands its mass command to the plant one communication step late (Jacobi, or a
+    Gauss-Seidel order with the plant first) while that step is at least
+    :data:`DELAY_SHARE` of the LQR's design step ('' if not)."""
+    if HeadingMode.LQR not in _heading_modes(scenario, name, autopilot):
+        return ""
+    coupling = scenario.coupling
+    design_step = float(_start(autopilot, "design_step"))
+    if coupling.step < DELAY_SHARE * design_step:
+        return ""
+    command = f"{name}.mass_position_cmd"
+    for connection in scenario.connections:
+        plant = connection.target.partition(".")[0]
+        if connection.source != command or plant == name:
+            continue
+        if coupling.algorithm == "jacobi":
+            cause = f"coupling.algorithm = {coupling.algorithm!r}"
+        elif coupling.order.index(plant) < coupling.order.index(name):
+            cause = f"coupling.order = {list(coupling.order)} steps {plant} before {name}: it"
+        else:
+            continue
+        return (
+            f"{name} runs heading_mode lqr, whose delay margin is under one of its "
+            f"{design_step:g} s samples (auv-cosim analyze margins), but {cause} hands "
+            f"{command} to {plant} one {coupling.step:g} s step late: the loop is unstable "
+            "(lqr-1 so banged its mass command between -100 and +100 m and never settled); "
+            f'use algorithm = "gauss-seidel" with {name} before {plant} in the order, as '
+            "lqr-1 to lqr-3 do"
+        )
+    return ""
 
 
 def _pitch_doubt(

@@ -133,6 +133,31 @@ def test_a_discrete_heading_law_whose_command_is_extrapolated_is_named(
     assert design_doubts(_load(fmu_paths, "bs-3")) == []  # quadratic: a continuous design
 
 
+def test_an_lqr_whose_command_reaches_the_plant_a_step_late_is_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """The shipped LQR's delay margin is just under one sample (`auv-cosim analyze
+    margins`). `auv-cosim run lqr-1 --algorithm jacobi` hands the plant each command one
+    step late: the run ended in a limit cycle, the mass command banging between -100 and
+    +100 m and the heading never settling, without a word; so does a Gauss-Seidel order
+    that steps the plant before the controller."""
+    jacobi = _load(fmu_paths, "lqr-1").with_overrides(algorithm="jacobi")
+    (line,) = design_doubts(jacobi)
+    assert line.startswith(
+        "controller runs heading_mode lqr, whose delay margin is under one of its 0.01 s "
+        "samples (auv-cosim analyze margins), but coupling.algorithm = 'jacobi' hands "
+        "controller.mass_position_cmd to plant one 0.01 s step late"
+    ), line
+    text = (Path(cosim.__file__).parent / "scenarios" / "lqr-1.toml").read_text()
+    plant_first = tmp_path / "plant-first.toml"
+    plant_first.write_text(text.replace('["controller", "plant"]', '["plant", "controller"]'))
+    (line,) = design_doubts(_load(fmu_paths, plant_first))
+    assert "coupling.order = ['plant', 'controller'] steps plant before controller" in line
+    assert design_doubts(_load(fmu_paths, "lqr-1")) == []  # the command reaches it at once
+    sliding = jacobi.with_start({"controller.heading_mode": "sliding_mode"})
+    assert design_doubts(sliding) == []  # takes 10 steps of delay and settles
+
+
 def test_depth_set_points_further_apart_than_any_pitch_can_follow_are_named(
     fmu_paths: dict[str, Path], tmp_path: Path
 ) -> None:
