@@ -291,7 +291,9 @@ def _margins(args: argparse.Namespace) -> int:
     from cosim.analysis.margins_text import margins_command
 
     scale = dict(args.scale or [])
-    return margins_command(args.vehicle, args.design_speed, args.step, args.speed, scale)
+    return margins_command(
+        args.vehicle, args.design_speed, args.step, args.speed, scale, plot=args.plot
+    )
 
 
 def _study(args: argparse.Namespace) -> int:
@@ -728,6 +730,9 @@ def _add_margins_parser(asub: argparse._SubParsersAction) -> None:
         metavar="NAME=FACTOR",
         help="multiply a vehicle parameter of the plant (not the design) by FACTOR, e.g. "
         "m_v=1.2; repeatable",
+    )
+    a.add_argument(
+        "--plot", type=_path_arg, metavar="FILE", help="also draw the loop's Bode diagram (PNG)"
     )
     a.set_defaults(func=_margins)
 

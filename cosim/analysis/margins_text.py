@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 
 from cosim.analysis.bifurcation import AnalysisError
 from cosim.analysis.margins import Crossing, LoopMargins, loop_margins, lqr_loop, scaled_vehicle
+from cosim.errors import CosimError
 from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
 
 
@@ -22,10 +24,11 @@ def margins_command(
     step: float,
     speed: float | None = None,
     scale: Mapping[str, float] | None = None,
+    plot: Path | None = None,
 ) -> int:
     """Print the margins of the LQR designed on ``vehicle`` at ``design_speed`` (m/s) for
     ``step`` (s), closed on the plant at ``speed`` (m/s) with ``scale``'s parameters
-    multiplied; 0 on success."""
+    multiplied, and draw its Bode diagram into ``plot`` (PNG) if given; 0 on success."""
     try:
         design = load_vehicle(vehicle)
     except VehicleParameterError as exc:
@@ -34,12 +37,22 @@ def margins_command(
     loop = lqr_loop(design, design_speed, step, plant, speed)
     at = design_speed if speed is None else speed
     scaled = "".join(f", {name} x {factor:g}" for name, factor in (scale or {}).items())
-    print(
-        f"LQR heading loop broken at the plant input (the servo command y_d): designed on "
-        f"{design.name} at U0 = {design_speed:g} m/s for h = {step:g} s; plant {design.name}"
-        f"{scaled} at u = {at:g} m/s"
+    setting = (
+        f"designed on {design.name} at U0 = {design_speed:g} m/s for h = {step:g} s; plant "
+        f"{design.name}{scaled} at u = {at:g} m/s"
     )
-    print(margins_table(loop_margins(loop)))
+    margins = loop_margins(loop)
+    print(f"LQR heading loop broken at the plant input (the servo command y_d): {setting}")
+    print(margins_table(margins))
+    if plot is not None:
+        from cosim.analysis.margins_plot import plot_margins
+
+        title = f"LQR heading loop L(z) = K (zI - Ad)^-1 Bd broken at y_d\n{setting}"
+        try:
+            plot_margins(loop, margins, plot, title)
+        except OSError as exc:
+            raise CosimError(f"cannot write the Bode diagram to {plot}: {exc}") from None
+        print(f"  Bode diagram    {plot}")
     return 0
 
 

@@ -5,6 +5,7 @@ read at, and the closed-loop poles with the loop's gain scaled or its input dela
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import control
 import numpy as np
@@ -104,9 +105,14 @@ def test_the_design_stays_on_the_nominal_vehicle_when_the_plant_is_scaled() -> N
 
 
 @pytest.mark.slow
-def test_the_command_prints_every_margin_with_its_unit(capsys: pytest.CaptureFixture) -> None:
-    """`auv-cosim analyze margins` names each margin with its unit and where it is read."""
-    assert cli.main(["analyze", "margins"]) == 0
+def test_the_command_prints_every_margin_with_its_unit(
+    capsys: pytest.CaptureFixture, tmp_path: Path
+) -> None:
+    """`auv-cosim analyze margins` names each margin with its unit and where it is read,
+    and --plot draws the Bode diagram into the file it names."""
+    bode = tmp_path / "bode.png"
+    assert cli.main(["analyze", "margins", "--plot", str(bode)]) == 0
+    assert bode.read_bytes().startswith(b"\x89PNG")
     out = capsys.readouterr().out
     expected_parts = (
         "gain margin, down: x ", " dB) at ", " rad/s", "phase margin: ", " deg at ",
