@@ -124,7 +124,7 @@ DEPTH_PLANE_STATES: tuple[str, ...] = ("w", "q", "down", "pitch")
 """The states of the depth plane (6.3.77) the loop is closed on."""
 
 
-def _closed_plane(
+def closed_plane(
     law: DepthPd, params: VehicleParameters, speed: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(A, B) of the plant's depth plane (w, q, z, theta of the full variant), linearised
@@ -140,8 +140,8 @@ def _closed_plane(
 
 def loop_poles(law: DepthPd, params: VehicleParameters, speed: float) -> np.ndarray:
     """The poles (1/s) of ``law`` closed on the plant's depth plane at ``speed`` m/s
-    (:func:`_closed_plane`)."""
-    A, B, gain = _closed_plane(law, params, speed)
+    (:func:`closed_plane`)."""
+    A, B, gain = closed_plane(law, params, speed)
     poles: np.ndarray = np.linalg.eigvals(A + B @ gain[None, :])
     return poles
 
@@ -151,7 +151,7 @@ def sampled_loop_poles(
 ) -> np.ndarray:
     """The poles z of :func:`loop_poles`'s loop as the autopilot runs it: the fin command
     computed every ``sample_time`` s and held between (zero-order hold of the plane)."""
-    A, B, gain = _closed_plane(law, params, speed)
+    A, B, gain = closed_plane(law, params, speed)
     Ad, Bd = zero_order_hold(A, B, sample_time)
     poles: np.ndarray = np.linalg.eigvals(Ad + Bd @ gain[None, :])
     return poles

@@ -292,7 +292,7 @@ def _margins(args: argparse.Namespace) -> int:
 
     scale = dict(args.scale or [])
     return margins_command(
-        args.vehicle, args.design_speed, args.step, args.speed, scale, plot=args.plot
+        args.vehicle, args.design_speed, args.step, args.speed, scale, args.plot, args.loop
     )
 
 
@@ -709,7 +709,13 @@ def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
 def _add_margins_parser(asub: argparse._SubParsersAction) -> None:
     """``auv-cosim analyze margins``: the shipped LQR loop's margins (docs/model.md#lqr)."""
     a = asub.add_parser(
-        "margins", help="gain, phase and delay margins and poles of the LQR heading loop"
+        "margins", help="gain, phase and delay margins and poles of the LQR or depth loop"
+    )
+    a.add_argument(
+        "--loop",
+        choices=["lqr", "depth"],
+        default="lqr",
+        help="the LQR heading loop, or the depth PD (Table 6.2) [%(default)s]",
     )
     a.add_argument(
         "--vehicle", default="remus100", help="parameter set name or .toml file [%(default)s]"

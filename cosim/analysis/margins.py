@@ -28,6 +28,7 @@ import control
 import numpy as np
 from scipy.optimize import brentq
 
+from controller_fmu.depth_pd import DepthPd, closed_plane
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import LqrHeading
 from cosim.analysis.bifurcation import AnalysisError
@@ -165,6 +166,21 @@ def lqr_loop(
     at = LateralDesignModel(plant or design, design_speed if speed is None else speed)
     A, B = at.linearize()
     sampled = control.c2d(control.ss(A, B, gain[None, :], 0.0), step, method="zoh")
+    loop: control.StateSpace = sampled
+    return loop
+
+
+def depth_loop(
+    params: VehicleParameters, step: float, speed: float, law: DepthPd | None = None
+) -> control.StateSpace:
+    """L(z) of the depth PD (Fig. 6.40; ``law``, default Table 6.2's gains) broken at the
+    plant input (the fin angle delta_s): the plant's own depth plane (w, q, z, theta) of
+    ``params`` at ``speed`` (m/s), sampled every ``step`` (s), as the autopilot's design
+    check closes it (:func:`controller_fmu.depth_pd.closed_plane`)."""
+    check_loop_arguments(speed, None, step)
+    A, B, gain = closed_plane(law or DepthPd(), params, speed)
+    # the law adds gain @ x to the fins: negative feedback of -gain @ x
+    sampled = control.c2d(control.ss(A, B, -gain[None, :], 0.0), step, method="zoh")
     loop: control.StateSpace = sampled
     return loop
 

@@ -10,10 +10,18 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
+import control
 import numpy as np
 
 from cosim.analysis.bifurcation import AnalysisError
-from cosim.analysis.margins import Crossing, LoopMargins, loop_margins, lqr_loop, scaled_vehicle
+from cosim.analysis.margins import (
+    Crossing,
+    LoopMargins,
+    depth_loop,
+    loop_margins,
+    lqr_loop,
+    scaled_vehicle,
+)
 from cosim.errors import CosimError
 from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
 
@@ -25,35 +33,50 @@ def margins_command(
     speed: float | None = None,
     scale: Mapping[str, float] | None = None,
     plot: Path | None = None,
+    loop_name: str = "lqr",
 ) -> int:
     """Print the margins of the LQR designed on ``vehicle`` at ``design_speed`` (m/s) for
-    ``step`` (s), closed on the plant at ``speed`` (m/s) with ``scale``'s parameters
-    multiplied, and draw its Bode diagram into ``plot`` (PNG) if given; 0 on success."""
+    ``step`` (s) (``loop_name`` "depth": the depth PD of Table 6.2, sampled every
+    ``step``), closed on the plant at ``speed`` (m/s, default ``design_speed``) with
+    ``scale``'s parameters multiplied, and draw its Bode diagram into ``plot`` (PNG) if
+    given; 0 on success."""
     try:
         design = load_vehicle(vehicle)
     except VehicleParameterError as exc:
         raise AnalysisError(str(exc)) from None
     plant = scaled_vehicle(design, scale or {})
-    loop = lqr_loop(design, design_speed, step, plant, speed)
     at = design_speed if speed is None else speed
     scaled = "".join(f", {name} x {factor:g}" for name, factor in (scale or {}).items())
-    setting = (
-        f"designed on {design.name} at U0 = {design_speed:g} m/s for h = {step:g} s; plant "
-        f"{design.name}{scaled} at u = {at:g} m/s"
-    )
+    if loop_name == "depth":
+        loop = depth_loop(plant, step, at)
+        setting = (
+            f"Table 6.2's gains, h = {step:g} s; plant {design.name}{scaled} at u = {at:g} m/s"
+        )
+        what, where = "depth PD loop", ("the fin angle delta_s", "delta_s")
+    else:
+        loop = lqr_loop(design, design_speed, step, plant, speed)
+        setting = (
+            f"designed on {design.name} at U0 = {design_speed:g} m/s for h = {step:g} s; plant "
+            f"{design.name}{scaled} at u = {at:g} m/s"
+        )
+        what, where = "LQR heading loop", ("the servo command y_d", "y_d")
     margins = loop_margins(loop)
-    print(f"LQR heading loop broken at the plant input (the servo command y_d): {setting}")
+    print(f"{what} broken at the plant input ({where[0]}): {setting}")
     print(margins_table(margins))
     if plot is not None:
-        from cosim.analysis.margins_plot import plot_margins
-
-        title = f"LQR heading loop L(z) = K (zI - Ad)^-1 Bd broken at y_d\n{setting}"
-        try:
-            plot_margins(loop, margins, plot, title)
-        except OSError as exc:
-            raise CosimError(f"cannot write the Bode diagram to {plot}: {exc}") from None
-        print(f"  Bode diagram    {plot}")
+        _plot(loop, margins, plot, f"{what} L(z) broken at {where[1]}\n{setting}")
     return 0
+
+
+def _plot(loop: control.StateSpace, margins: LoopMargins, plot: Path, title: str) -> None:
+    """Draw the Bode diagram into ``plot`` and say so."""
+    from cosim.analysis.margins_plot import plot_margins
+
+    try:
+        plot_margins(loop, margins, plot, title)
+    except OSError as exc:
+        raise CosimError(f"cannot write the Bode diagram to {plot}: {exc}") from None
+    print(f"  Bode diagram    {plot}")
 
 
 def margins_table(margins: LoopMargins) -> str:

@@ -11,10 +11,17 @@ import control
 import numpy as np
 import pytest
 
+from controller_fmu.depth_pd import DepthPd, sampled_loop_poles
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import LqrHeading
 from cosim import cli
-from cosim.analysis.margins import LoopMargins, loop_margins, lqr_loop, scaled_vehicle
+from cosim.analysis.margins import (
+    LoopMargins,
+    depth_loop,
+    loop_margins,
+    lqr_loop,
+    scaled_vehicle,
+)
 from plant_fmu.model.parameters import load_vehicle
 
 U0 = 1.525  # m/s, the shipped design speed
@@ -82,6 +89,20 @@ def test_delay_margin_is_the_delay_the_loop_loses_stability_at(
     steps = math.floor(delay.value / H)
     assert _largest_pole(loop, delay=steps) < 1.0 < _largest_pole(loop, delay=steps + 1)
     assert steps == 0
+
+
+def test_the_depth_loop_is_the_autopilots_and_takes_its_delay_margin() -> None:
+    """The depth PD's loop closes on the poles the autopilot's design check computes, and
+    whole samples of delay up to its delay margin keep it stable, one more does not."""
+    params = load_vehicle("remus100")
+    depth = depth_loop(params, H, U0)
+    margins = loop_margins(depth)
+    expected = sampled_loop_poles(DepthPd(), params, U0, H)
+    np.testing.assert_allclose(np.sort_complex(margins.poles), np.sort_complex(expected))
+    delay = margins.delay_margin
+    assert delay is not None
+    steps = math.floor(delay.value / H)
+    assert _largest_pole(depth, delay=steps) < 1.0 < _largest_pole(depth, delay=steps + 1)
 
 
 def test_sensitivity_peak_is_the_largest_on_a_finer_grid(
