@@ -107,18 +107,19 @@ class LoopMargins:
         return s
 
 
-def check_loop_arguments(design_speed: float, speed: float | None, step: float) -> None:
-    """Refuse an operating point no loop runs at, naming the value and what is expected.
+def check_loop_arguments(speeds: Mapping[str, float | None], step: float) -> None:
+    """Refuse an operating point no loop runs at, naming the value (as the command's
+    option: ``speeds`` by option, None where not given; ``--step``) and what is expected.
 
     Raises:
         AnalysisError: a speed that is not a finite number > 0 m/s, or a step that is
             not a finite number > 0 s.
     """
-    for name, value in (("--design-speed", design_speed), ("--speed", speed)):
+    for name, value in speeds.items():
         if value is not None and not (math.isfinite(value) and value > 0.0):
             raise AnalysisError(
-                f"{name} {value!r}: expected a finite forward speed > 0 m/s (the lateral "
-                "model is linearised on a straight run ahead)"
+                f"{name} {value!r}: expected a finite forward speed > 0 m/s (the plant is "
+                "linearised on a straight run ahead)"
             )
     if not (math.isfinite(step) and step > 0.0):
         raise AnalysisError(f"--step {step!r}: expected a finite sample time > 0 s")
@@ -158,7 +159,7 @@ def lqr_loop(
     """L(z) = K (z I - Ad)^-1 Bd of the shipped LQR (module docstring): ``K`` designed on
     ``design`` at ``design_speed`` (m/s) for sample time ``step`` (s), the plant ``plant``
     (default ``design``) at ``speed`` (m/s, default ``design_speed``)."""
-    check_loop_arguments(design_speed, speed, step)
+    check_loop_arguments({"--design-speed": design_speed, "--speed": speed}, step)
     try:
         gain = LqrHeading(LateralDesignModel(design, design_speed), step).gain
     except ValueError as exc:
@@ -177,7 +178,7 @@ def depth_loop(
     plant input (the fin angle delta_s): the plant's own depth plane (w, q, z, theta) of
     ``params`` at ``speed`` (m/s), sampled every ``step`` (s), as the autopilot's design
     check closes it (:func:`controller_fmu.depth_pd.closed_plane`)."""
-    check_loop_arguments(speed, None, step)
+    check_loop_arguments({"--speed": speed}, step)
     A, B, gain = closed_plane(law or DepthPd(), params, speed)
     # the law adds gain @ x to the fins: negative feedback of -gain @ x
     sampled = control.c2d(control.ss(A, B, -gain[None, :], 0.0), step, method="zoh")

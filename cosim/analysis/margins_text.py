@@ -17,6 +17,7 @@ from cosim.analysis.bifurcation import AnalysisError
 from cosim.analysis.margins import (
     Crossing,
     LoopMargins,
+    check_loop_arguments,
     depth_loop,
     loop_margins,
     lqr_loop,
@@ -44,6 +45,7 @@ def margins_command(
         design = load_vehicle(vehicle)
     except VehicleParameterError as exc:
         raise AnalysisError(str(exc)) from None
+    check_loop_arguments({"--design-speed": design_speed, "--speed": speed}, step)
     plant = scaled_vehicle(design, scale or {})
     at = design_speed if speed is None else speed
     scaled = "".join(f", {name} x {factor:g}" for name, factor in (scale or {}).items())

@@ -148,6 +148,7 @@ def test_the_command_prints_every_margin_with_its_unit(
     [
         (["--design-speed", "nan"], "--design-speed nan: expected a finite forward speed > 0 m/s"),
         (["--speed", "-1.5"], "--speed -1.5: expected a finite forward speed > 0 m/s"),
+        (["--loop", "depth", "--speed", "nan"], "--speed nan: expected a finite forward speed"),
         (["--step", "0"], "--step 0.0: expected a finite sample time > 0 s"),
         (["--scale", "m_vv=1.2"], "--scale m_vv=1.2: unknown parameter 'm_vv'; expected one of"),
         (["--scale", "m_v=inf"], "--scale m_v=inf: expected a finite factor"),
