@@ -951,8 +951,8 @@ def _resolve_instance(
     if interface.model_identifier == "AuvPlant":
         vehicle = start.get("vehicle", variables["vehicle"].start)
         _check_written_over(str(vehicle), start, f"instances.{name}.start", src)
-    if interface.model_identifier == "AuvGuidance":
-        _check_guidance(start, f"instances.{name}.start", src)
+    if interface.model_identifier in ("AuvGuidance", "AuvAutopilot"):
+        _check_config(interface.model_identifier, start, f"instances.{name}.start", src)
     return Instance(
         name, fmu_ref, fmu_path, ReadOnly(start, f"{name}.start", _start_hint(name)), interface
     )
@@ -1025,19 +1025,26 @@ def _check_written_over(vehicle: str, start: Mapping[str, Any], key: str, src: S
         ) from None
 
 
-def _check_guidance(start: Mapping[str, Any], key: str, src: Source) -> None:
-    """The waypoints and parameters of a guidance, checked as the guidance checks them
-    when initialised (:class:`controller_fmu.los_guidance.GuidanceConfig`): here the key
-    is named before any FMU is loaded, each value on its own first, then together."""
-    from controller_fmu.los_guidance import GuidanceConfig, GuidanceConfigError
+def _check_config(model: str, start: Mapping[str, Any], key: str, src: Source) -> None:
+    """The parameters of a guidance (``model`` AuvGuidance: its waypoints, lookahead, ...)
+    or an autopilot (AuvAutopilot: design speed, gains, ...), checked as the FMU checks
+    them when initialised (:class:`controller_fmu.los_guidance.GuidanceConfig`,
+    :class:`controller_fmu.autopilot.AutopilotConfig`), where a value within its FMI range
+    (``design_speed = 0``) failed the run at t = 0 naming neither the file nor the key:
+    here the key is named before any FMU is loaded, each value on its own first, then
+    together."""
+    from controller_fmu.autopilot import AutopilotConfig
+    from controller_fmu.los_guidance import GuidanceConfig
+
+    config = GuidanceConfig if model == "AuvGuidance" else AutopilotConfig
 
     def check(values: Mapping[str, Any], where: str) -> None:
         try:
-            GuidanceConfig.build(**values)
-        except GuidanceConfigError as exc:
+            config.build(**values)
+        except config.error_type as exc:
             raise src.error(where, str(exc)) from None
 
-    given = {name: value for name, value in start.items() if name in GuidanceConfig.field_info()}
+    given = {name: value for name, value in start.items() if name in config.field_info()}
     for name, value in given.items():
         check({name: value}, f"{key}.{name}")
     check(given, key)

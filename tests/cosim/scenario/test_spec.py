@@ -381,12 +381,23 @@ BAD_MISSIONS = [
     ("lookahead = 8.0", "lookahead = 0.0",
      r"start\.lookahead': lookahead = 0\.0: expected a number greater than 0"),
 ]  # fmt: skip
+# An autopilot parameter within its FMI range that AuvAutopilot refuses once initialised
+# (design_speed = 0 is within [0, inf)): `auv-cosim validate` called the scenario valid and
+# the run failed at t = 0 with the FMU's error, naming neither the file nor the key.
+CONTROLLER = r"key 'instances\.controller\.start\."  # bs-3's autopilot instance
+BAD_AUTOPILOTS = [
+    ("yaw_setpoint = 0.0", "yaw_setpoint = 0.0\ndesign_speed = 0.0",
+     r"design_speed': design_speed = 0\.0: expected a number greater than 0"),
+    ("yaw_setpoint = 0.0", "yaw_setpoint = 0.0\nk0 = 0.0",
+     r"k0': k0 = 0\.0: expected a number greater than 0"),
+]  # fmt: skip
 
 
 @pytest.mark.parametrize(
     ("base", "old", "new", "message"),
     [(BS3, *edit) for edit in BAD_EDITS]
-    + [(SURVEY, old, new, GUIDANCE + message) for old, new, message in BAD_MISSIONS],
+    + [(SURVEY, old, new, GUIDANCE + message) for old, new, message in BAD_MISSIONS]
+    + [(BS3, old, new, CONTROLLER + message) for old, new, message in BAD_AUTOPILOTS],
 )
 def test_bad_scenario_fails_before_loading_naming_the_key(
     fmu_dir: Path,
