@@ -573,9 +573,10 @@ def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dic
     cosim.errors.CosimError
         A build step failed (the message says which and why).
     """
+    from cosim.fmus.build import OTHER_BUILD_FOLDER
     from cosim.fmus.build import build_fmus as build
 
-    built = build(_folder("out", out), force=_flag("force", force))
+    built = build(_folder("out", out), force=_flag("force", force), other=OTHER_BUILD_FOLDER)
     return {name: path.absolute() for name, path in built.items()}  # right after os.chdir
 
 

@@ -103,9 +103,9 @@ def _seconds(option: str) -> Callable[[str], float]:
 
 
 def _build(args: argparse.Namespace) -> int:
-    from cosim.fmus.build import build_fmus
+    from cosim.fmus.build import OTHER_BUILD_FOLDER, build_fmus
 
-    for name, path in build_fmus(args.out, force=args.force).items():
+    for name, path in build_fmus(args.out, force=args.force, other=OTHER_BUILD_FOLDER).items():
         print(f"{name}: {path}")
     return 0
 

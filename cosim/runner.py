@@ -175,10 +175,7 @@ def execute(
 
     ``stop``: the caller's :class:`StopRequest`, its signal handlers installed (else this
     call installs them for its duration)."""
-    for name, value in (("stop_time", options.stop_time), ("step", options.step)):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            shown = options.names.given(name, value)
-            raise CosimError(f"{shown}: expected a finite number of seconds > 0")
+    _check_numbers(options)
     default_for = _reference(scenario) if options.out_dir is None else None
     out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
     if options.rrd is not None and not options.no_rrd:
@@ -333,6 +330,33 @@ def _progress(label: str, options: RunOptions) -> ProgressSink | None:
     return ProgressSink(None, label)
 
 
+def _check_numbers(options: RunOptions) -> None:
+    """The times and the tolerance given, refused naming the option as its caller gave it
+    (``--tolerance -1.0``, ``tolerance=-1.0``), not the scenario key they override."""
+    from cosim.scenario.spec import TOLERANCE_RANGE
+
+    for name, value in (("stop_time", options.stop_time), ("step", options.step)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            shown = options.names.given(name, value)
+            raise CosimError(f"{shown}: expected a finite number of seconds > 0")
+    low, high = TOLERANCE_RANGE
+    if options.tolerance is not None and not low < options.tolerance < high:  # nan too
+        shown = options.names.given("tolerance", options.tolerance)
+        raise CosimError(f"{shown}: expected a relative error > {low:g} and < {high:g}")
+
+
+def _check_tolerance_applies(scenario: Scenario, options: RunOptions) -> None:
+    """A tolerance given for a run at a fixed step (the scenario's algorithm, or the one
+    given, not adaptive): refused naming the options, not the scenario key."""
+    algorithm = options.algorithm or scenario.coupling.algorithm
+    if options.tolerance is not None and algorithm != "adaptive":
+        names = options.names
+        raise CosimError(
+            f"{names.given('tolerance', options.tolerance)}: applies to "
+            f"{names.given('algorithm', 'adaptive')} only, and {scenario.id} runs {algorithm!r}"
+        )
+
+
 def _checked_scenario(
     scenario: str | Path | Scenario, options: RunOptions, progress: ProgressSink | None = None
 ) -> Scenario:
@@ -346,6 +370,7 @@ def _checked_scenario(
         progress.phase(f"building FMUs ({', '.join(stale)})" if stale else "loading the scenario")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
+    _check_tolerance_applies(scenario, options)
     given = (options.stop_time, options.step, options.algorithm, options.extrapolation,
              options.tolerance)  # fmt: skip
     if any(value is not None for value in given):

@@ -24,12 +24,16 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
+from cosim.errors import CosimError
+
 Printed = Decimal | list["Printed"]
 """A number as printed, or a (nested) list of them."""
 
 
-class ReferenceValueError(ValueError):
-    """The reference-value file is missing, malformed, or an entry lacks what it needs."""
+class ReferenceValueError(CosimError, ValueError):
+    """The reference-value file is missing, malformed, or an entry lacks what it needs: a
+    refusal the command says in one line (a :class:`~cosim.errors.CosimError`), naming the
+    file and the entry."""
 
 
 TOLERANCE_KINDS = ("absolute", "relative", "slightly_above", "at_most")
@@ -126,7 +130,10 @@ def load_reference_values(path: Path) -> References:
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise ReferenceValueError(f"reference values {str(path)!r}: {exc}") from exc
     references = References(Path(path))
-    _collect(table, prefix="", out=references)
+    try:
+        _collect(table, prefix="", out=references)
+    except ReferenceValueError as exc:
+        raise ReferenceValueError(f"reference values {str(path)!r}: {exc}") from None
     return references
 
 
@@ -136,7 +143,7 @@ def _collect(table: dict[str, Any], prefix: str, out: dict[str, Reference]) -> N
         key = f"{prefix}{name}"
         if not isinstance(item, dict):
             raise ReferenceValueError(
-                f"reference value {key!r}: expected a table with value, unit, source and "
+                f"entry {key!r}: expected a table with value, unit, source and "
                 f"description, got {item!r}"
             )
         if "value" not in item:
@@ -148,7 +155,7 @@ def _collect(table: dict[str, Any], prefix: str, out: dict[str, Reference]) -> N
             problems = "; ".join(
                 f"{'.'.join(map(str, err['loc'])) or 'entry'}: {err['msg']}" for err in exc.errors()
             )
-            raise ReferenceValueError(f"reference value {key!r}: {problems}") from None
+            raise ReferenceValueError(f"entry {key!r}: {problems}") from None
         unit = entry.unit if isinstance(entry.unit, str) else tuple(entry.unit)
         out[key] = Reference(
             key,
@@ -164,16 +171,12 @@ def _collect(table: dict[str, Any], prefix: str, out: dict[str, Reference]) -> N
 def _number(value: Any, key: str) -> Printed:
     """``value`` with integers as Decimal; refuses anything but numbers and even lists."""
     if isinstance(value, bool) or not isinstance(value, Decimal | int | list):
-        raise ReferenceValueError(
-            f"reference value {key!r}: {value!r} is not a number or a list of numbers"
-        )
+        raise ReferenceValueError(f"entry {key!r}: {value!r} is not a number or a list of numbers")
     if not isinstance(value, list):
         return Decimal(value)
     items = [_number(item, key) for item in value]
     if not items or len({np.shape(_map(item, float)) for item in items}) != 1:
-        raise ReferenceValueError(
-            f"reference value {key!r}: {value!r} is not a non-empty rectangular array"
-        )
+        raise ReferenceValueError(f"entry {key!r}: {value!r} is not a non-empty rectangular array")
     return items
 
 

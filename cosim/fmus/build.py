@@ -129,15 +129,26 @@ DISPLAY_UNITS: dict[str, tuple[str, float]] = {
 }
 
 
-def build_fmus(out_dir: Path, force: bool = False) -> dict[str, Path]:
+# how a refusal of an FMU folder ends: the option that names another, where a command
+# builds into the FMU folder it runs from (run, validate, export, sweep) ...
+OTHER_FMU_FOLDER = "name a folder you can write with --fmu-dir (fmu_dir= in Python)"
+# ... and where it builds into the folder it is given (auv-cosim build, cosim.build_fmus)
+OTHER_BUILD_FOLDER = "name a folder you can write with --out (out= in Python)"
+
+
+def build_fmus(
+    out_dir: Path, force: bool = False, other: str = OTHER_FMU_FOLDER
+) -> dict[str, Path]:
     """Build every FMU of :data:`FMUS` into ``out_dir`` (only those out of date unless
-    ``force``).
+    ``force``); ``other`` ends a refusal of the folder, naming the option that names
+    another (:data:`OTHER_FMU_FOLDER`, or :data:`OTHER_BUILD_FOLDER` for ``auv-cosim
+    build``).
 
     Raises:
         CosimError: a script is missing or a build step failed; the message says which
             and why.
     """
-    return {name: build_fmu(name, out_dir, force=force) for name in FMUS}
+    return {name: build_fmu(name, out_dir, force=force, other=other) for name in FMUS}
 
 
 def ensure_fmus(out_dir: Path) -> dict[str, Path]:
@@ -156,11 +167,7 @@ def out_of_date(out_dir: Path) -> list[str]:
     ]
 
 
-# how a refusal of an FMU folder ends: where a command takes another
-OTHER_FMU_FOLDER = "name a folder you can write with --fmu-dir (fmu_dir= in Python)"
-
-
-def _check_out_dir(name: str, out_dir: Path) -> None:
+def _check_out_dir(name: str, out_dir: Path, other: str) -> None:
     """Make ``out_dir`` if missing and check that this user can write it, before the
     build's seconds rather than after them: a shared FMU folder installed read-only and
     out of date for this auv-cosim (an upgrade since its build), or build/fmus in a
@@ -170,21 +177,22 @@ def _check_out_dir(name: str, out_dir: Path) -> None:
     except OSError as exc:
         raise CosimError(
             f"cannot build {name}.fmu into {out_dir}: expected a folder that exists or can "
-            f"be made ({unmade_folder(out_dir, exc)}); {OTHER_FMU_FOLDER}"
+            f"be made ({unmade_folder(out_dir, exc)}); {other}"
         ) from None
     if not os.access(out_dir, os.W_OK | os.X_OK):
         raise CosimError(
             f"cannot build {name}.fmu into {out_dir}: the folder cannot be written "
             f"(Permission denied) and its {name}.fmu is missing or out of date for this "
             f"auv-cosim; have its owner run `auv-cosim build --out {out_dir}`, or "
-            f"{OTHER_FMU_FOLDER}"
+            f"{other}"
         )
 
 
-def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
+def build_fmu(name: str, out_dir: Path, force: bool = False, other: str = OTHER_FMU_FOLDER) -> Path:
     """Build the FMU ``name`` (a key of :data:`FMUS`) into ``out_dir`` if it is missing, out
     of date or ``force``; return its path. Another process building it into the same
-    folder is waited for (:func:`fmu_lock`), and what it built used."""
+    folder is waited for (:func:`fmu_lock`), and what it built used. ``other``: as
+    :func:`build_fmus` takes it."""
     if name not in FMUS:
         raise CosimError(f"unknown FMU {name!r}: expected one of {sorted(FMUS)}")
     out_dir = Path(out_dir)
@@ -196,7 +204,7 @@ def build_fmu(name: str, out_dir: Path, force: bool = False) -> Path:
     digest = source_hash(files)
     if not force and _is_intact(target, hash_file, digest):
         return target
-    _check_out_dir(name, out_dir)
+    _check_out_dir(name, out_dir, other)
     with fmu_lock(name, out_dir):
         if not force and _is_intact(target, hash_file, digest):
             return target  # another process built it while this one waited

@@ -95,6 +95,7 @@ ErrorEstimate = Literal["extrapolation", "doubling"]  # adaptive: cosim.engine.a
 DEFAULT_EXTRAPOLATION: Extrapolation = "quadratic"
 EXTRAPOLATION_ORDER: Mapping[str, int] = {"none": 0, "linear": 1, "quadratic": 2}
 DEFAULT_TOLERANCE = 1e-3  # adaptive: the error a step may make, relative (docs/coupling.md)
+TOLERANCE_RANGE = (0.0, 1.0)  # adaptive: the tolerances taken, both ends excluded
 DEFAULT_MAX_STEPS = 64  # adaptive: the longest step in communication steps, by default
 DEFAULT_ERROR_ESTIMATE: ErrorEstimate = "extrapolation"  # adaptive (docs/coupling.md)
 _NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*$"  # an instance name
@@ -123,7 +124,11 @@ class CouplingSpec(Strict):
         default=None, description="inputs across a step; default: see DEFAULT_EXTRAPOLATION"
     )
     tolerance: float | None = Field(
-        default=None, gt=0.0, lt=1.0, allow_inf_nan=False, description="adaptive: error"
+        default=None,
+        gt=TOLERANCE_RANGE[0],
+        lt=TOLERANCE_RANGE[1],
+        allow_inf_nan=False,
+        description="adaptive: error",
     )
     max_step: float | None = Field(
         default=None, gt=0.0, allow_inf_nan=False, description="adaptive: longest step, s"

@@ -1,0 +1,208 @@
+"""The shape of every refusal the command gives a user: a table of bad inputs (flags,
+files, values out of range, unknown names) walked through ``auv-cosim`` in-process, each
+refused with its documented exit code (1 refused, 2 a command line argparse cannot parse)
+and one line on stderr in the command's form, naming the bad value, with no traceback,
+no Python type name (``ValueError: ...``) and no repr of a path or a class; and the
+refusals that once named the wrong thing (a file's key for a flag, the wrong flag)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+import cosim
+from cosim.cli import main
+from cosim.errors import CosimError
+
+REPO = Path(__file__).parents[2]
+# What no refusal shows a user: a traceback, a Python type's name before the message, the
+# repr of a path or a class, a None where a value was expected.
+NOISE = re.compile(
+    r"Traceback|\b[A-Z]\w*(Error|Exception): |PosixPath\(|WindowsPath\(|<class |\bNone\b"
+)
+
+BAD_START = '[instances.plant.start]\nvariant = "lateral"'  # bs-3's plant start table
+NO_FACTOR = 'scenario = "bs-3"\n[random]\nn = 0\n'  # a study that varies nothing
+STUDY = 'scenario = "bs-3"\nstop_time = 1.0\n[grid]\n"plant.v_0" = [-0.1, 0.1]\n'
+NOT_VALUES = 'summary = "not a reference value"\n'  # a TOML file, not the printed values
+
+# (command line, the files it needs in the working folder, exit code, what stderr names);
+# "{fmus}" is the session's built FMUs.
+BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
+    ("run no-such-scenario", {}, 1, "unknown scenario 'no-such-scenario'"),
+    ("run bs-3 --step 0 --fmu-dir {fmus}", {}, 1, "--step 0.0: expected"),
+    ("run bs-3 --stop-time nan --fmu-dir {fmus}", {}, 1, "--stop-time nan: expected"),
+    ("run bs-3 --tolerance -1 --fmu-dir {fmus}", {}, 1, "--tolerance -1.0: expected"),
+    ("run bs-3 --tolerance 0.01 --fmu-dir {fmus}", {}, 1, "--tolerance 0.01: applies"),
+    ("run bs-3 --real-time 0 --no-rrd --fmu-dir {fmus}", {}, 1, "--real-time 0.0: expected"),
+    ("run bs-3 --control abc --no-rrd --fmu-dir {fmus}", {}, 1, "'abc'"),
+    ("run bs-3 --interactive --no-rrd --fmu-dir {fmus}", {}, 1, "--interactive needs"),
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|u_0 = '1.5 m/s'"}, 1,
+     "'1.5 m/s' is not a number"),
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|u_0 = 1e9"}, 1,
+     "1000000000.0 is outside"),
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|v_00 = 0.1"}, 1,
+     "no variable 'v_00' (did you mean 'v_0'?)"),
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|vehicle = 'nosuch'"}, 1,
+     "unknown vehicle 'nosuch'"),
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": f"bs-3:{BAD_START}|[instances.plant.st]"},
+     1, "'instances.plant.st'"),
+    ("validate bad.toml nothing.fmu --fmu-dir {fmus}", {"bad.toml": "bs-3:"}, 1,
+     "FMUs: nothing.fmu"),
+    ("export bs-3 --osp taken --fmu-dir {fmus}", {"taken": ""}, 1, "taken: it exists"),
+    ("view no-such-run", {}, 1, "no-such-run"),
+    ("report no-such-run", {}, 1, "no-such-run"),
+    ("report taken", {"taken": ""}, 1, "taken is not a folder"),
+    ("scenarios --copy bs-9 copy.toml", {}, 1, "unknown scenario 'bs-9'"),
+    ("scenarios --copy bs-3 copy.txt", {}, 1, "copy.txt: expected a file name ending"),
+    ("build --out taken", {"taken": ""}, 1, "into taken: expected a folder"),
+    ("analyze equilibria --thrust nan", {}, 1, "thrust = nan"),
+    ("analyze equilibria --vehicle nosuch", {}, 1, "unknown vehicle 'nosuch'"),
+    ("analyze sweep mu 1 1", {}, 1, "sweep range 1.0 .. 1.0"),
+    ("analyze sweep mu 1 2 --steps 1", {}, 1, "--steps 1: expected"),
+    ("sweep no-such-study.toml", {}, 1, "no-such-study.toml: no such file"),
+    ("sweep study.toml --workers 0", {"study.toml": STUDY}, 1, "--workers 0: expected"),
+    ("sweep study.toml --max-runs 0", {"study.toml": STUDY}, 1, "--max-runs 0: expected"),
+    ("sweep study.toml --overlay 0", {"study.toml": STUDY}, 1, "--overlay 0: expected"),
+    ("sweep study.toml --scheduler nowhere", {"study.toml": STUDY}, 1, "--scheduler nowhere"),
+    ("sweep none.toml --workers 1", {"none.toml": NO_FACTOR}, 1, "the study varies nothing"),
+    ("reproduce --values no-such.toml", {}, 1, "--values no-such.toml: no such file"),
+    ("reproduce --values values.toml", {"values.toml": NOT_VALUES}, 1, "values.toml"),
+    ("run bs-3 --algorithm foo", {}, 2, "invalid choice: 'foo'"),
+    ("run bs-3 --stop-time 60s", {}, 2, "'60s': expected a number of seconds"),
+    ("run -", {}, 2, "'-': expected a scenario id or file"),
+    ("view run --file-port abc", {}, 2, "invalid int value: 'abc'"),
+    ("analyze sweep nosuch 0 1", {}, 2, "invalid choice: 'nosuch'"),
+    ("export bs-3", {}, 2, "one of the arguments --ssp --osp is required"),
+]  # fmt: skip
+
+
+def _file_text(spec: str) -> str:
+    """A file's text: ``"bs-3:OLD|NEW"`` is the built-in scenario with OLD replaced by NEW
+    (``"bs-3:"`` as it is), anything else the text itself."""
+    if not spec.startswith("bs-3:"):
+        return spec
+    text = (REPO / "cosim" / "scenarios" / "bs-3.toml").read_text(encoding="utf-8")
+    if "|" not in spec:
+        return text
+    old, new = spec.removeprefix("bs-3:").split("|")
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+def _exit_code(argv: list[str]) -> int | str | None:
+    """The command's exit code: what ``main`` returns, or argparse's exit for a usage
+    error (which ``auv-cosim`` makes the process's)."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+@pytest.mark.parametrize(("command", "files", "code", "names"), BAD_INPUTS)
+def test_every_bad_input_is_one_line_naming_it_with_its_exit_code(
+    command: str,
+    files: dict[str, str],
+    code: int,
+    names: str,
+    fmu_paths: dict[str, Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Each bad input of the table is refused before any work with its exit code (1 a
+    refusal, 2 a command line that does not parse, after the command's usage) and one line
+    on stderr, "auv-cosim COMMAND: ...", that names the bad value, with no traceback, no
+    Python type name, no path or class repr and no None; nothing on stdout."""
+    monkeypatch.chdir(tmp_path)
+    for name, spec in files.items():
+        (tmp_path / name).write_text(_file_text(spec), encoding="utf-8")
+    fmus = str(fmu_paths["AuvPlant"].parent)
+    argv = [word.replace("{fmus}", fmus) for word in command.split()]
+    assert _exit_code(argv) == code
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    said = lines[-1] if lines else ""
+    assert out == "", out
+    if code == 1:
+        assert len(lines) == 1, err
+        assert said.startswith(f"auv-cosim {argv[0]}: "), said
+    else:
+        assert lines[0].startswith("usage: auv-cosim "), err
+        assert re.match(rf"auv-cosim {argv[0]}( \w+)?: error: ", said), said
+    assert names in said, said
+    assert not NOISE.search(said), said
+
+
+def test_a_tolerance_out_of_range_names_the_option_not_the_scenario_key(
+    fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--tolerance -1`` was refused as the scenario file's "key 'coupling.tolerance' =
+    -1.0: Input should be greater than 0", blaming a file the user had not written where
+    ``--step -1`` names the flag; both the command line and the API now name the option
+    as given and the range it takes."""
+    fmus = str(fmu_paths["AuvPlant"].parent)
+    out = str(tmp_path / "r")
+    for value in ("-1", "1", "nan"):
+        argv = ["run", "bs-3", "--algorithm", "adaptive", "--tolerance", value, "--out", out]
+        assert main([*argv, "--fmu-dir", fmus]) == 1
+        said = capsys.readouterr().err.strip()
+        expected = f"auv-cosim run: --tolerance {float(value)}: expected a relative error"
+        assert said == f"{expected} > 0 and < 1", said
+    with pytest.raises(CosimError) as refused:
+        cosim.run("bs-3", algorithm="adaptive", tolerance=-1.0, fmu_dir=fmus)
+    assert str(refused.value) == "tolerance=-1.0: expected a relative error > 0 and < 1"
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_tolerance_for_a_fixed_step_run_names_the_algorithm_option(
+    fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--tolerance 0.01`` on bs-3 (Gauss-Seidel at a fixed step) was refused as the
+    scenario file's key "'coupling.tolerance': applies to algorithm = 'adaptive' only";
+    the refusal now names the option given and the one that makes it apply."""
+    fmus = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", "bs-3", "--tolerance", "0.01", "--out", str(tmp_path / "r")]
+    assert main([*argv, "--fmu-dir", fmus]) == 1
+    assert capsys.readouterr().err.strip() == (
+        "auv-cosim run: --tolerance 0.01: applies to --algorithm adaptive only, and bs-3 "
+        "runs 'gauss-seidel'"
+    )
+    with pytest.raises(CosimError) as refused:
+        cosim.run("bs-3", tolerance=0.01, fmu_dir=fmus)
+    assert str(refused.value) == (
+        "tolerance=0.01: applies to algorithm='adaptive' only, and bs-3 runs 'gauss-seidel'"
+    )
+
+
+def test_a_build_folder_that_cannot_be_made_names_the_builds_own_option(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``auv-cosim build --out FILE`` ended "name a folder you can write with --fmu-dir
+    (fmu_dir= in Python)", options ``build`` and ``cosim.build_fmus`` do not take: both
+    name their own, ``--out`` and ``out=``."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "taken").write_text("a file, not a folder", encoding="utf-8")
+    assert main(["build", "--out", "taken/fmus"]) == 1
+    said = capsys.readouterr().err.strip()
+    assert said.endswith("name a folder you can write with --out (out= in Python)"), said
+    with pytest.raises(CosimError) as refused:
+        cosim.build_fmus("taken/fmus")
+    assert str(refused.value).endswith("with --out (out= in Python)"), refused.value
+
+
+def test_printed_values_that_do_not_read_are_named_by_their_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``auv-cosim reproduce --values FILE`` with a TOML file that holds no printed values
+    said "ReferenceValueError: reference value 'summary': ...": a Python type's name, and
+    not the file it read."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "values.toml").write_text(NOT_VALUES, encoding="utf-8")
+    assert main(["reproduce", "--values", "values.toml", "--skip-scenarios"]) == 1
+    assert capsys.readouterr().err.strip() == (
+        "auv-cosim reproduce: reference values 'values.toml': entry 'summary': expected a "
+        "table with value, unit, source and description, got 'not a reference value'"
+    )
