@@ -259,6 +259,13 @@ def _free_table_hint(model: type[BaseModel], table: str) -> str:
     return f" (a {free[0]} value goes below [{table}.{free[0]}])"
 
 
+def table_expected(err: Mapping[str, Any]) -> bool:
+    """Whether the pydantic error ``err`` refuses a value given where the file takes a
+    table (``coupling = 0.01``), which pydantic says as "Input should be a valid dictionary
+    or instance of CouplingSpec": a class of the code and a Python word for a TOML table."""
+    return err.get("type") in {"model_type", "dict_type"}
+
+
 def literal_guess(err: Mapping[str, Any]) -> str:
     """`` (did you mean 'gauss-seidel'?)`` for a pydantic error ``err`` refusing a string
     that is not one of a key's choices (``algorithm = "gauss_seidel"``), else ``""``."""

@@ -55,6 +55,7 @@ from cosim.scenario.checks import (
     misplaced_top_level,
     not_utf8,
     split_ref,
+    table_expected,
     unknown_key,
     with_article,
 )
@@ -686,6 +687,8 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
                 problem = f"key {key!r} = {err.get('input')!r}: expected {wanted}"
                 if wanted is None:
                     problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
+            elif table_expected(err):
+                problem = f"key {key!r} = {err.get('input')!r}: expected a table"
             elif any(_is_union_tag(part) for part in err["loc"]):  # a start value
                 problem = f"key {key!r} = {err.get('input')!r}: expected a number, an integer, "
                 problem += "true/false or a string"

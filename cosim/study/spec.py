@@ -64,6 +64,7 @@ from cosim.scenario.checks import (
     loads_toml,
     misplaced_top_level,
     not_utf8,
+    table_expected,
     unknown_key,
 )
 
@@ -351,6 +352,8 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
                     message = "expected a number" if tags <= {"int", "float"} else _ANY_VALUE
                 elif err["type"] == "list_type":  # a grid factor's one value, say
                     message = f"expected a list of values, [{err.get('input')!r}]"
+                elif table_expected(err):
+                    message = "expected a table"
                 problem = f"key {key!r} = {err.get('input')!r}: {message}"
             problems.setdefault(key, problem)
         raise StudyError(f"{label}: " + "; ".join(problems.values())) from None

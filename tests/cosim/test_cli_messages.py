@@ -206,3 +206,34 @@ def test_printed_values_that_do_not_read_are_named_by_their_file(
         "auv-cosim reproduce: reference values 'values.toml': entry 'summary': expected a "
         "table with value, unit, source and description, got 'not a reference value'"
     )
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "said"),
+    [
+        ("bad.toml", "bs-3:[coupling]\nstep = 0.01|coupling = 0.01\n[c]\nstep = 0.01",
+         "scenario file bad.toml: key 'coupling' = 0.01: expected a table"),
+        ("study.toml", "metrics = ['yaw_settling_time_s']\n" + STUDY,
+         "study file study.toml: key 'metrics' = ['yaw_settling_time_s']: expected a table"),
+    ],
+)  # fmt: skip
+def test_a_value_where_a_table_goes_is_refused_without_a_class_name(
+    name: str,
+    text: str,
+    said: str,
+    fmu_paths: dict[str, Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``coupling = 0.01`` in a scenario, ``metrics = [...]`` in a study: refused as
+    pydantic's "Input should be a valid dictionary or instance of CouplingSpec", a class
+    of the code the user never wrote and a Python word for a TOML table."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / name).write_text(_file_text(text), encoding="utf-8")
+    fmus = str(fmu_paths["AuvPlant"].parent)
+    command = "run" if name == "bad.toml" else "sweep"
+    assert main([command, name, "--fmu-dir", fmus]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"auv-cosim {command}: {said}"), err
+    assert "instance of" not in err and "dictionary" not in err, err
