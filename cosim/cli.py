@@ -301,6 +301,7 @@ def _study(args: argparse.Namespace) -> int:
     if none did, 128 + the signal number if a stop signal ended it."""
     from contextlib import nullcontext
 
+    _check_counts(args)
     if args.dashboard:  # the local cluster's (checked before it starts)
         if args.scheduler is not None:
             raise CosimError(
@@ -362,6 +363,22 @@ def _study(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_counts(args: argparse.Namespace) -> None:
+    """``sweep``'s counts given (--workers, --max-runs, --overlay), refused before the
+    workers' fork server, the cluster or a build starts (seconds, where --overlay 0 was
+    refused after them); the study's modules imported only for a count given."""
+    if args.workers is not None and args.workers < 1 and args.scheduler is None:
+        raise CosimError(f"--workers {args.workers}: expected at least 1 worker process")
+    if args.max_runs is not None:
+        from cosim.study.spec import check_max_runs
+
+        check_max_runs(args.max_runs)
+    if args.overlay is not None:
+        from cosim.study.overlay import check_count
+
+        check_count(args.overlay)
+
+
 def _workers(args: argparse.Namespace) -> int:
     """The local workers the options ask for, capped at the cores this process may use
     (said so)."""
@@ -371,8 +388,6 @@ def _workers(args: argparse.Namespace) -> int:
 
     cores = usable_cores()
     workers = args.workers if args.workers is not None else cores
-    if workers < 1 and args.scheduler is None:
-        raise CosimError(f"--workers {workers}: expected at least 1 worker process")
     if workers > cores and not args.oversubscribe and args.scheduler is None:
         print(
             f"auv-cosim sweep: --workers {workers} capped at the {cores} "

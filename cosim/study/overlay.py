@@ -44,14 +44,20 @@ def check_choice(
         )
 
 
-def spread(runs: Sequence[PlannedRun], n: int, names: OptionNames = FLAGS) -> list[str]:
-    """``--overlay N``: n run ids evenly spread over the study's order (first and last
-    included); :class:`StudyError` unless 1 <= n <= OVERLAY_CAP, naming the option as
-    ``names`` do (``--overlay 50`` or ``overlay=50``)."""
+def check_count(n: int, names: OptionNames = FLAGS) -> None:
+    """``--overlay N``: :class:`StudyError` unless 1 <= n <= OVERLAY_CAP, naming the option
+    as ``names`` do (``--overlay 50`` or ``overlay=50``)."""
     if not 1 <= n <= OVERLAY_CAP:
         raise StudyError(
             f"{names.given('overlay', n)}: expected a number of runs from 1 to {OVERLAY_CAP}"
         )
+
+
+def spread(runs: Sequence[PlannedRun], n: int, names: OptionNames = FLAGS) -> list[str]:
+    """``--overlay N``: n run ids evenly spread over the study's order (first and last
+    included); :class:`StudyError` unless 1 <= n <= OVERLAY_CAP, naming the option as
+    ``names`` do (``--overlay 50`` or ``overlay=50``)."""
+    check_count(n, names)
     if n >= len(runs):
         return [run.id for run in runs]
     last = len(runs) - 1

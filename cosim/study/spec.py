@@ -273,13 +273,9 @@ def run_count(spec: StudySpec) -> int:
     return math.prod(len(values) for values in spec.grid.values()) * max(spec.random.n, 1)
 
 
-def check_size(
-    spec: StudySpec, label: str, max_runs: int = MAX_RUNS, names: OptionNames = FLAGS
-) -> None:
-    """Refuse a study of more than ``max_runs`` runs, before any is built (the design of
-    a larger one would take the memory and time of building every run first), and a
-    ``max_runs`` beyond :data:`MAX_RUNS_CEILING` (or below 1). ``label`` names the study
-    (:func:`study_label`), ``names`` the option (``--max-runs N`` or ``max_runs=N``)."""
+def check_max_runs(max_runs: int, names: OptionNames = FLAGS) -> None:
+    """Refuse a ``max_runs`` beyond :data:`MAX_RUNS_CEILING` (or below 1), naming the
+    option as ``names`` do (``--max-runs N`` or ``max_runs=N``)."""
     if isinstance(max_runs, bool) or not 1 <= max_runs <= MAX_RUNS_CEILING:
         shown = str(max_runs) if len(str(max_runs)) <= 30 else f"{str(max_runs)[:20]}..."
         raise StudyError(
@@ -287,6 +283,16 @@ def check_size(
             f"{MAX_RUNS_CEILING} (the runs of "
             "a study are planned in memory before the first one starts)"
         )
+
+
+def check_size(
+    spec: StudySpec, label: str, max_runs: int = MAX_RUNS, names: OptionNames = FLAGS
+) -> None:
+    """Refuse a study of more than ``max_runs`` runs, before any is built (the design of
+    a larger one would take the memory and time of building every run first), and a
+    ``max_runs`` beyond :data:`MAX_RUNS_CEILING` (or below 1). ``label`` names the study
+    (:func:`study_label`), ``names`` the option (``--max-runs N`` or ``max_runs=N``)."""
+    check_max_runs(max_runs, names)
     count = run_count(spec)
     if count > max_runs:
         grid = " x ".join(str(len(values)) for values in spec.grid.values()) or "1"

@@ -63,9 +63,9 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
     ("analyze sweep mu 1 1", {}, 1, "sweep range 1.0 .. 1.0"),
     ("analyze sweep mu 1 2 --steps 1", {}, 1, "--steps 1: expected"),
     ("sweep no-such-study.toml", {}, 1, "no-such-study.toml: no such file"),
-    ("sweep study.toml --workers 0", {"study.toml": STUDY}, 1, "--workers 0: expected"),
-    ("sweep study.toml --max-runs 0", {"study.toml": STUDY}, 1, "--max-runs 0: expected"),
-    ("sweep study.toml --overlay 0", {"study.toml": STUDY}, 1, "--overlay 0: expected"),
+    ("sweep study.toml --workers 0 --fmu-dir {fmus}", {"study.toml": STUDY}, 1, "--workers 0"),
+    ("sweep study.toml --max-runs 0 --fmu-dir {fmus}", {"study.toml": STUDY}, 1, "--max-runs 0"),
+    ("sweep study.toml --overlay 0 --fmu-dir {fmus}", {"study.toml": STUDY}, 1, "--overlay 0"),
     ("sweep study.toml --scheduler nowhere", {"study.toml": STUDY}, 1, "--scheduler nowhere"),
     ("sweep none.toml --workers 1", {"none.toml": NO_FACTOR}, 1, "the study varies nothing"),
     ("reproduce --values no-such.toml", {}, 1, "--values no-such.toml: no such file"),
@@ -116,6 +116,11 @@ def test_every_bad_input_is_one_line_naming_it_with_its_exit_code(
     refusal, 2 a command line that does not parse, after the command's usage) and one line
     on stderr, "auv-cosim COMMAND: ...", that names the bad value, with no traceback, no
     Python type name, no path or class repr and no None; nothing on stdout."""
+    from cosim.study import fork_server
+
+    # a sweep refused when its study file is read: the workers' fork server it starts
+    # first (to import beside the reading) is not started here, where no run follows
+    monkeypatch.setattr(fork_server, "start", lambda: False)
     monkeypatch.chdir(tmp_path)
     for name, spec in files.items():
         (tmp_path / name).write_text(_file_text(spec), encoding="utf-8")
@@ -237,3 +242,27 @@ def test_a_value_where_a_table_goes_is_refused_without_a_class_name(
     err = capsys.readouterr().err
     assert err.startswith(f"auv-cosim {command}: {said}"), err
     assert "instance of" not in err and "dictionary" not in err, err
+
+
+@pytest.mark.parametrize("overlay", ["0", "21"])
+def test_an_overlay_out_of_range_is_refused_before_the_cluster_starts(
+    overlay: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``auv-cosim sweep STUDY --overlay 0`` started the workers' fork server and a local
+    Dask cluster and built the FMUs (20 s on a busy machine) before refusing the flag, as
+    ``--workers 0`` is refused at once."""
+    from cosim.study import fork_server
+
+    def started() -> None:
+        raise AssertionError("the workers' fork server started before --overlay was checked")
+
+    monkeypatch.setattr(fork_server, "start", started)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "study.toml").write_text(STUDY, encoding="utf-8")
+    assert main(["sweep", "study.toml", "--overlay", overlay]) == 1
+    assert capsys.readouterr().err.strip() == (
+        f"auv-cosim sweep: --overlay {overlay}: expected a number of runs from 1 to 20"
+    )
