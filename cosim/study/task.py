@@ -171,7 +171,8 @@ def check_values(
     does not fit the plant (:func:`cosim.scenario.design_doubts.design_doubts`: an
     autopilot designed for another vehicle than a plant parameter varied, say)."""
     try:
-        scenario = _scenario(base, base.fmu_paths, factors, values)
+        # named by its id alone: the refusal names the values first
+        scenario = _scenario(base, base.fmu_paths, factors, values, where=base.scenario_id)
     except CosimError as exc:
         raise StudyError(f"factor values {dict(values)}: {exc}") from None
     coupling = scenario.coupling
@@ -278,7 +279,10 @@ def _scenario(
     factors: Mapping[str, FactorKind],
     values: Mapping[str, Value],
     files: Mapping[str, Path] | None = None,
+    where: str | None = None,
 ) -> Scenario:
+    """The base scenario with ``values`` set, resolved; a refusal names it as ``where``
+    (by default its id with the values: a run's error in the table)."""
     data = copy.deepcopy(dict(base.data))
     for name, path in fmu_paths.items():
         data["instances"][name]["fmu"] = str(path)
@@ -286,7 +290,8 @@ def _scenario(
     _files_from(data, base.folder, files or {})
     if files:
         data = _relocated(data, files)
-    return scenario_from_data(data, where=f"{base.scenario_id} with {dict(values)}")
+    named = f"{base.scenario_id} with {dict(values)}" if where is None else where
+    return scenario_from_data(data, where=named)
 
 
 def study_files(base: Base, values: Iterable[Mapping[str, Value]]) -> list[Path]:

@@ -266,3 +266,25 @@ def test_an_overlay_out_of_range_is_refused_before_the_cluster_starts(
     assert capsys.readouterr().err.strip() == (
         f"auv-cosim sweep: --overlay {overlay}: expected a number of runs from 1 to 20"
     )
+
+
+def test_a_factor_value_a_scenario_refuses_is_named_once(
+    fmu_paths: dict[str, Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A grid value the scenario refuses was said twice: "factor values {'plant.v_0':
+    'x'}: scenario file bs-3 with {'plant.v_0': 'x'}: key ...". It is said once, before
+    what the scenario refuses of it."""
+    from cosim.study import fork_server
+
+    monkeypatch.setattr(fork_server, "start", lambda: False)  # refused before any run
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "study.toml").write_text(STUDY.replace("0.1]", "'x']"), encoding="utf-8")
+    fmus = str(fmu_paths["AuvPlant"].parent)
+    assert main(["sweep", "study.toml", "--fmu-dir", fmus]) == 1
+    assert capsys.readouterr().err.strip() == (
+        "auv-cosim sweep: factor values {'plant.v_0': 'x'}: scenario file bs-3: key "
+        "'instances.plant.start.v_0': 'x' is not a number (v_0 is Real)"
+    )
