@@ -173,6 +173,8 @@ def _number(value: Any, key: str) -> Printed:
     if isinstance(value, bool) or not isinstance(value, Decimal | int | list):
         raise ReferenceValueError(f"entry {key!r}: {value!r} is not a number or a list of numbers")
     if not isinstance(value, list):
+        if not Decimal(value).is_finite():  # nan, inf: a printed value has a last digit
+            raise ReferenceValueError(f"entry {key!r}: {value} is not a finite number")
         return Decimal(value)
     items = [_number(item, key) for item in value]
     if not items or len({np.shape(_map(item, float)) for item in items}) != 1:

@@ -53,6 +53,11 @@ def test_mirrored_equilibria_are_printed_as_mirror_images():
         ('[a.b]\nvalue = "1.0"\nunit = "m"\nsource = "x"\ndescription = "y"\n', r"'1\.0' is not"),
         ('[a.b]\nvalue = [[1, 2], [3]]\nunit = "m"\nsource = "x"\ndescription = "y"\n', "rectang"),
         ("[a]\nb = 3\n", r"'a\.b': expected a table"),
+        # loaded, it failed the page's first use as "ValueError: printed value NaN: ..."
+        (
+            '[a.b]\nvalue = nan\nunit = "m"\nsource = "x"\ndescription = "y"\n',
+            r"values\.toml': entry 'a\.b': NaN is not a finite number",
+        ),
         ("[a\n", "reference values"),
         (
             '[a.b]\nvalue = 1\nunit = "m"\nsource = "x"\ndescription = "y"\n'
