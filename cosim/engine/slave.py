@@ -282,13 +282,14 @@ def describe(slave: Slave, function: str, status: int, t: float) -> str:
     """One line: which call of which instance failed, when, what it means
     (:func:`_meaning`) and the FMU's logged reason."""
     label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
-    meaning = _meaning(slave, function, status)
+    meaning = _meaning(slave, function, status, t)
     return f"{slave.name}: {function} returned {label} at t = {t:.6g} s{meaning}{reasons(slave)}"
 
 
-def _meaning(slave: Slave, function: str, status: int) -> str:
-    """What a failed call means beyond its status ("" if nothing): a doStep's Discard
-    that did not end the simulation (a partial step, and the time reached), a doStep's
+def _meaning(slave: Slave, function: str, status: int, t: float) -> str:
+    """What a failed call at ``t`` (s) means beyond its status ("" if nothing): a doStep's
+    Discard that did not end the simulation (a partial step, and the time reached, or a
+    step refused before it started: the FMU still at ``t``), a doStep's
     Pending (called after :meth:`Slave.failed` cancelled it), an FMU state the adaptive
     algorithm could not save or restore."""
     if function == "fmi2DoStep" and status == PENDING:
@@ -297,7 +298,11 @@ def _meaning(slave: Slave, function: str, status: int) -> str:
                 f"for; {done}")  # fmt: skip
     if function == "fmi2DoStep" and status == DISCARD:
         reached = slave.partial_step()
-        return "" if reached is None else f": a partial step, to t = {reached:.6g} s"
+        if reached is None:
+            return ""
+        if reached <= t:  # fmi2LastSuccessfulTime at the step's start: none of it taken
+            return f": the step was refused, the FMU still at t = {reached:.6g} s"
+        return f": a partial step, to t = {reached:.6g} s"
     if function in ("fmi2GetFMUstate", "fmi2SetFMUstate"):
         return (": algorithm 'adaptive' saves every instance's state to roll rejected steps "
                 "back; use 'gauss-seidel' or 'jacobi' with a fixed step")  # fmt: skip

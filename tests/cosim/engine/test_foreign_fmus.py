@@ -176,3 +176,19 @@ def test_an_fmu_needing_a_tool_that_fails_to_instantiate_says_it_needs_one(
         '(Tool.fmu declares needsExecutionTool="true": is the tool it needs installed and '
         "running?)"
     )
+
+
+def test_a_step_refused_before_it_started_is_not_called_partial() -> None:
+    """The plant refuses a step it cannot take (a current beyond its range) before it
+    starts, with Discard and fmi2LastSuccessfulTime at the step's start: that read "a
+    partial step, to t = 0 s", a step the FMU never took part of."""
+    from types import SimpleNamespace
+
+    from cosim.engine.slave import DISCARD, describe
+
+    refused = SimpleNamespace(name="plant", state="stepping", partial_step=lambda: 2.5,
+                              messages=["[Error] the current at the vehicle ..."])  # fmt: skip
+    assert describe(refused, "fmi2DoStep", DISCARD, 2.5) == (  # type: ignore[arg-type]
+        "plant: fmi2DoStep returned Discard at t = 2.5 s: the step was refused, the FMU "
+        "still at t = 2.5 s: [Error] the current at the vehicle ..."
+    )
