@@ -19,19 +19,25 @@
  *       own instance while the other takes another (our FMUs let a state move between an
  *       FMU's instances): prints
  *       "states: N rounds, worst status S"
+ *   thread_host late DIR ID LIBPYTHON
+ *       the first instance in a process without Python made in one thread, held (the
+ *       flock the runtime starts CPython under, on LIBPYTHON, taken here first) between
+ *       loading CPython and initialising it, while a second thread makes another: prints
+ *       "late: made (the second waited)", or "late: NULL ..." when one got no instance
  *
  * DIR is an FMU's extraction folder, ID its model identifier. The host loads
  * DIR/binaries/linux64/ID.so with dlopen and nothing else: no Python.
  */
-#define _GNU_SOURCE /* dl_iterate_phdr */
+#define _GNU_SOURCE /* RTLD_DEFAULT */
 #include <dlfcn.h>
-#include <link.h>
+#include <fcntl.h>
 #include <pthread.h>
 #include <sched.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/syscall.h>
 #include <time.h>
 #include <unistd.h>
@@ -392,47 +398,75 @@ static int gil_held(const char *dirs[2], const char *ids[2])
     return 0;
 }
 
-/* dl_iterate_phdr's callback: the first object loaded whose name holds "libpython". */
-static int find_libpython(struct dl_phdr_info *info, size_t size, void *data)
+/* 1 once thread ``tid`` of this process is inside system call ``number`` (its
+ * /proc/self/task/TID/syscall starts with it), 0 once ``*done`` is set instead; polled
+ * every millisecond without a time limit (the test's own limit ends a host that hangs). */
+static int in_syscall(pid_t tid, long number, volatile int *done)
 {
-    (void)size;
-    if (!strstr(info->dlpi_name, "/libpython")) return 0;
-    snprintf(data, 4096, "%s", info->dlpi_name);
-    return 1;
+    char path[64], text[256];
+    snprintf(path, sizeof path, "/proc/self/task/%d/syscall", (int)tid);
+    while (!*done) {
+        FILE *file = fopen(path, "r");
+        long now = -1;
+        if (file && fgets(text, sizeof text, file)) now = strtol(text, NULL, 10);
+        if (file) fclose(file);
+        if (now == number) return 1;
+        struct timespec pause = {0, 1000000}; /* 1 ms */
+        nanosleep(&pause, NULL);
+    }
+    return 0;
 }
 
-static void *make_first(void *data)
+typedef struct {
+    const Fmu *f;
+    Component c;
+    volatile pid_t tid; /* set before the thread calls fmi2Instantiate */
+    volatile int done;  /* set once it returned */
+} Late;
+
+static void *make_late(void *data)
 {
-    Maker *m = data;
-    m->c = start(m->f);
-    m->tid = 1;
+    Late *m = data;
+    m->tid = (pid_t)syscall(SYS_gettid);
+    m->c = m->f->instantiate("late", 1, m->f->guid, m->f->resources, &callbacks, 0, 0);
+    m->done = 1;
     return NULL;
 }
 
-static int late(const char *dir, const char *id)
+/* The first instance's thread is held inside the runtime between loading CPython and
+ * initialising it: this thread holds the lock the runtime initialises CPython under (an
+ * flock on LIBPYTHON, which excludes another descriptor in this process too) until the
+ * first thread waits for it, then starts the second instantiation, and lets go once that
+ * one returned or waits on a lock itself (futex). No timing decides the interleaving. */
+static int late(const char *dir, const char *id, const char *libpython)
 {
     static Fmu f;
-    static char libpython[4096];
     load(&f, dir, id);
-    Maker first = {&f, NULL, 0};
-    pthread_t thread;
-    pthread_create(&thread, NULL, make_first, &first);
-    while (!first.tid && !dl_iterate_phdr(find_libpython, libpython)) sched_yield();
-    void *library = libpython[0] ? dlopen(libpython, RTLD_LAZY | RTLD_NOLOAD) : NULL;
-    int (*initialised)(void) = library ? (int (*)(void))dlsym(library, "Py_IsInitialized") : NULL;
-    struct timespec pause = {0, 2000000}; /* 2 ms: the runtime resolves CPython's API */
-    nanosleep(&pause, NULL);
-    if (!initialised || initialised()) {
-        pthread_join(thread, NULL);
-        printf("late: missed\n");
-        return 3;
+    int held = open(libpython, O_RDONLY | O_CLOEXEC);
+    if (held < 0 || flock(held, LOCK_EX) != 0) {
+        printf("late: cannot lock %s\n", libpython);
+        return 2;
     }
-    Component c = f.instantiate("late", 1, f.guid, f.resources, &callbacks, 0, 0);
-    pthread_join(thread, NULL);
-    printf("late: %s\n", c && first.c ? "made" : "NULL");
-    if (c) f.free_instance(c);
+    Late first = {&f, NULL, 0, 0}, second = {&f, NULL, 0, 0};
+    pthread_t threads[2];
+    pthread_create(&threads[0], NULL, make_late, &first);
+    while (!first.tid) sched_yield();
+    if (!in_syscall(first.tid, SYS_flock, &first.done)) {
+        printf("late: the first instantiation never waited to start CPython (%s)\n",
+               first.c ? "made" : "NULL");
+        return 1;
+    }
+    pthread_create(&threads[1], NULL, make_late, &second);
+    while (!second.tid) sched_yield();
+    int waited = in_syscall(second.tid, SYS_futex, &second.done);
+    flock(held, LOCK_UN);
+    close(held);
+    for (int k = 0; k < 2; k++) pthread_join(threads[k], NULL);
+    printf("late: %s (the second %s)\n", second.c && first.c ? "made" : "NULL",
+           waited ? "waited" : "returned at once");
+    if (second.c) f.free_instance(second.c);
     if (first.c) f.free_instance(first.c);
-    return c && first.c ? 0 : 1;
+    return second.c && first.c ? 0 : 1;
 }
 
 int main(int argc, char **argv)
@@ -444,7 +478,7 @@ int main(int argc, char **argv)
         const char *dirs[2] = {argv[2], argv[4]}, *ids[2] = {argv[3], argv[5]};
         return pair(dirs, ids, steps);
     }
-    if (argc == 4 && !strcmp(argv[1], "late")) return late(argv[2], argv[3]);
+    if (argc == 5 && !strcmp(argv[1], "late")) return late(argv[2], argv[3], argv[4]);
     if (argc == 6 && !strcmp(argv[1], "gil-held")) {
         const char *dirs[2] = {argv[2], argv[4]}, *ids[2] = {argv[3], argv[5]};
         return gil_held(dirs, ids);
@@ -452,6 +486,6 @@ int main(int argc, char **argv)
     if (argc == 5 && steps && !strcmp(argv[1], "handoff")) return handoff(argv[2], argv[3], steps);
     if (argc == 5 && steps && !strcmp(argv[1], "states")) return states(argv[2], argv[3], steps);
     fprintf(stderr, "usage: thread_host pair DIR1 ID1 DIR2 ID2 STEPS | handoff DIR ID STEPS | "
-                    "states DIR ID ROUNDS | late DIR ID | gil-held DIR1 ID1 DIR2 ID2\n");
+                    "states DIR ID ROUNDS | late DIR ID LIBPYTHON | gil-held DIR1 ID1 DIR2 ID2\n");
     return 2;
 }
