@@ -28,11 +28,9 @@ import numpy as np
 
 from controller_fmu import riccati
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
+from controller_fmu.lqr_weights import DISSERTATION_Q_Y as DISSERTATION_Q_Y
+from controller_fmu.lqr_weights import DISSERTATION_R_U as DISSERTATION_R_U
 from controller_fmu.matrix_exponential import zero_order_hold
-
-DISSERTATION_Q_Y: tuple[float, ...] = (1.0, 5e3, 1e2, 1e3, 1e3, 1e6)
-"""Q_y on y = [r, p, phi, psi, y_v, y_vel] (Sec. 6.3.1)."""
-DISSERTATION_R_U = 1.0
 
 OUTPUT_STATES: tuple[str, ...] = CONTROL_STATES[1:]
 """y = [r, p, phi, psi, y_v, y_vel]: every state but v (6.3.18)."""

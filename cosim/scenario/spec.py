@@ -1041,7 +1041,7 @@ def _check_config(model: str, start: Mapping[str, Any], key: str, src: Source) -
     (``design_speed = 0``) failed the run at t = 0 naming neither the file nor the key:
     here the key is named before any FMU is loaded, each value on its own first, then
     together."""
-    from controller_fmu.autopilot import AutopilotConfig
+    from controller_fmu.autopilot_config import AutopilotConfig
     from controller_fmu.los_guidance import GuidanceConfig
 
     config = GuidanceConfig if model == "AuvGuidance" else AutopilotConfig
