@@ -12,6 +12,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import psutil
@@ -148,19 +149,26 @@ def test_the_rerun_server_dies_with_auv_cosim_when_it_is_killed(
     its temporary folder behind (made for every recording, needed only for one cut short)."""
     scratch = tmp_path / "tmp"
     scratch.mkdir()
-    command = [sys.executable, "-m", "cosim.cli", "view", str(recording), "--web"]
-    proc = subprocess.Popen(
-        [*command, "--web-port", "0", "--file-port", "0"], stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT, start_new_session=True,
-        env={**os.environ, "TMPDIR": str(scratch)},
-    )  # fmt: skip
-    try:
+    with _web_view(recording, scratch, subprocess.STDOUT) as proc:
         servers = _children_once_one_listens(proc, time.monotonic() + 120)
         os.kill(proc.pid, signal.SIGKILL)  # auv-cosim alone, not its process group
         proc.wait(timeout=30)
         _, alive = psutil.wait_procs(servers, timeout=30)
         assert alive == [], f"the rerun server outlived auv-cosim: {alive}"
         assert list(scratch.glob(f"{SCRATCH_PREFIX}*")) == []
+
+
+@contextlib.contextmanager
+def _web_view(recording: Path, scratch: Path, stderr: int) -> Iterator[subprocess.Popen]:
+    """`auv-cosim view RECORDING --web` on free ports, its temporary folder ``scratch``,
+    in a process group of its own that is killed at the end, whatever happened."""
+    command = [sys.executable, "-m", "cosim.cli", "view", str(recording), "--web"]
+    proc = subprocess.Popen(
+        [*command, "--web-port", "0", "--file-port", "0"], stdout=subprocess.PIPE,
+        stderr=stderr, start_new_session=True, env={**os.environ, "TMPDIR": str(scratch)},
+    )  # fmt: skip
+    try:
+        yield proc
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
@@ -175,22 +183,12 @@ def test_a_stopped_view_says_so_on_a_line_of_its_own(
 ) -> None:
     """Ctrl-C ended `auv-cosim view --web` without a word, so the shell's prompt came
     right after the terminal's ^C; it ends as `run` does, on one line saying what stopped."""
-    command = [sys.executable, "-m", "cosim.cli", "view", str(recording), "--web"]
-    proc = subprocess.Popen(
-        [*command, "--web-port", "0", "--file-port", "0"], stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE, start_new_session=True,
-        env={**os.environ, "TMPDIR": str(tmp_path)},
-    )  # fmt: skip
-    try:
+    with _web_view(recording, tmp_path, subprocess.PIPE) as proc:
         _children_once_one_listens(proc, time.monotonic() + 120)
         os.kill(proc.pid, signum)
         _, err = proc.communicate(timeout=60)
         assert proc.returncode == 128 + signum, err
         assert err.decode().splitlines()[-1] == f"stopped serving {recording} ({said})", err
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
 
 
 def _children_once_one_listens(proc: subprocess.Popen, deadline: float) -> list[psutil.Process]:
