@@ -33,10 +33,14 @@ pytestmark = [
 ]
 
 
-def _initialised(slave: SafeSlave, **integers: int) -> SafeSlave:
+def _initialised(
+    slave: SafeSlave, reals: dict[str, float] | None = None, **integers: int
+) -> SafeSlave:
     slave.setup_experiment(0.0, None, None)
     slave.enter_initialization_mode()
     vrs = {var.name: vr for vr, var in slave.vars.items()}
+    for name, real in (reals or {}).items():
+        slave.set_real([vrs[name]], [real])
     for name, value in integers.items():
         slave.set_integer([vrs[name]], [value])
     slave.exit_initialization_mode()
@@ -93,7 +97,11 @@ def _derivatives(slave: SafeSlave, name: str, first: float, second: float) -> Ca
 def test_a_step_allocates_nothing_but_numbas_call(plant_variant, heading_mode, depth_mode, varying):
     """Held inputs, or input derivatives set before every step (the shipped quadratic
     extrapolation: the plant's varying RK4 stages, the autopilot's first-order hold)."""
-    plant = _initialised(AuvPlant(instance_name="plant"), variant=plant_variant)
+    # the full variant 10 m deep: a buoyant hull starting at the surface leaves the water
+    # within the steps, which the plant says once (a Warning), and every step here is to log
+    # nothing (the reduced variants keep their depth, and warn of a start value for it)
+    deep = {"down_0": 10.0} if plant_variant == 0 else {}
+    plant = _initialised(AuvPlant(instance_name="plant"), reals=deep, variant=plant_variant)
     autopilot = _initialised(
         AuvAutopilot(instance_name="autopilot"), heading_mode=heading_mode, depth_mode=depth_mode
     )
