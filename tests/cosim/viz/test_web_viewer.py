@@ -158,6 +158,12 @@ def test_the_rerun_server_dies_with_auv_cosim_when_it_is_killed(
         assert list(scratch.glob(f"{SCRATCH_PREFIX}*")) == []
 
 
+def _ctrl_c_as_in_a_shell() -> None:
+    """In the child: SIGINT's default action, as a shell's foreground command has it; a
+    pytest-xdist worker ignores SIGINT, and a child of it then ignored Ctrl-C too."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @contextlib.contextmanager
 def _web_view(recording: Path, scratch: Path, stderr: int) -> Iterator[subprocess.Popen]:
     """`auv-cosim view RECORDING --web` on free ports, its temporary folder ``scratch``,
@@ -166,6 +172,7 @@ def _web_view(recording: Path, scratch: Path, stderr: int) -> Iterator[subproces
     proc = subprocess.Popen(
         [*command, "--web-port", "0", "--file-port", "0"], stdout=subprocess.PIPE,
         stderr=stderr, start_new_session=True, env={**os.environ, "TMPDIR": str(scratch)},
+        preexec_fn=_ctrl_c_as_in_a_shell,
     )  # fmt: skip
     try:
         yield proc
