@@ -32,12 +32,18 @@ from cosim.outputs.folder import MANIFEST_FILE
 
 
 def tree(folder: Path) -> dict[str, bytes | None]:
-    """Every path below ``folder`` (relative, hidden ones too) -> its bytes (None: folder)."""
-    return {
-        str(p.relative_to(folder)): None if p.is_dir() else p.read_bytes()
-        for p in sorted(folder.rglob("*"))
-        if p.name != ".auv-cosim.lock"  # a killed run's lock file: no data, and unlocked
-    }
+    """Every path below ``folder`` (relative, hidden ones too) -> its bytes (None: folder),
+    read again while a file listed is gone before it is read (a run putting the earlier
+    run back moves files under the listing)."""
+    while True:
+        try:
+            return {
+                str(p.relative_to(folder)): None if p.is_dir() else p.read_bytes()
+                for p in sorted(folder.rglob("*"))
+                if p.name != ".auv-cosim.lock"  # a killed run's lock file: no data, unlocked
+            }
+        except FileNotFoundError:
+            continue
 
 
 def loop_file(folder: Path, fmu_dir: Path, plant_start: str = "", extra: str = "") -> Path:
