@@ -125,6 +125,15 @@ class DaskProcesses:
     workers: list[subprocess.Popen]
 
 
+def _scheduler_address(path: Path) -> str | None:
+    """The address in a scheduler file, None while it is not written whole (the scheduler
+    creates the file, then writes its JSON)."""
+    try:
+        return str(json.loads(path.read_text())["address"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 @contextmanager
 def dask_processes(
     folder: Path,
@@ -153,12 +162,13 @@ def dask_processes(
         started.append(
             subprocess.Popen([*scheduler, *tls], env={**env, **(scheduler_env or {})}, **options)
         )
-        wait_for(address_file.is_file, "the scheduler")
+        # the file is there before its JSON is whole: wait for the address it holds
+        wait_for(lambda: _scheduler_address(address_file) is not None, "the scheduler")
         for i, extra in enumerate(worker_envs):
             local = ["--local-directory", str(folder / f"w{i}")]
             command = [*worker, *local, *tls]
             started.append(subprocess.Popen(command, env={**env, **extra}, **options))
-        address = json.loads(address_file.read_text())["address"]
+        address = str(_scheduler_address(address_file))
         assert address.startswith(f"{protocol}://127.0.0.1:")
         security = tls_security(*(Path(p) for p in tls[1::2])) if tls else None
         if worker_envs:
