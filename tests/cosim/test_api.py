@@ -35,6 +35,7 @@ from cosim.errors import CosimError
 from cosim.runner import NotStartedError
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import SCENARIO_FOLDER, Scenario, load_scenario, scenario_from_toml
+from cosim.scenario.unit_doubts import UnitWarning
 from cosim.scratch import SCRATCH_DIR
 from cosim.study.spec import StudyError
 
@@ -184,7 +185,10 @@ def test_a_run_error_crosses_a_process_pool(fmu_dir: Path) -> None:
     (BrokenProcessPool) instead of the caller catching the RunError. It pickles with its
     message and partial run, as does the runner's NotStartedError with its exit code."""
     start = {"plant.u_0": 100.0, "plant.v_0": 100.0, "plant.r_0": 50.0}  # leaves the range
-    with pytest.raises(cosim.RunError) as raised:
+    with (
+        pytest.warns(UnitWarning, match="r_0 = 50 rad/s is more than a full turn a second"),
+        pytest.raises(cosim.RunError) as raised,
+    ):
         cosim.run("bs-3", stop_time=1.0, start=start, fmu_dir=fmu_dir)
     copy = pickle.loads(pickle.dumps(raised.value))
     assert type(copy) is cosim.RunError and str(copy) == str(raised.value)
