@@ -229,8 +229,32 @@ def _run(args: argparse.Namespace) -> int:
         real_time=args.real_time,
         control=args.control,
         interactive=args.interactive,
+        fmu_log=_fmu_logs(args.fmu_log or []),
     )
     return run_from_cli(args.scenario, options)
+
+
+def _fmu_log_arg(text: str) -> tuple[str, tuple[str, ...]]:
+    """``--fmu-log INSTANCE[:CATEGORY,...]`` as (instance, categories); no categories: all."""
+    name, colon, listed = text.partition(":")
+    categories = tuple(c.strip() for c in listed.split(",")) if colon else ()
+    if not name.strip() or any(not c for c in categories):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected INSTANCE or INSTANCE:CATEGORY,... (an instance name, then "
+            "any of its log categories, comma-separated)"
+        )
+    return name.strip(), categories
+
+
+def _fmu_logs(given: list[tuple[str, tuple[str, ...]]]) -> dict[str, tuple[str, ...]]:
+    """Each instance's categories over every ``--fmu-log`` naming it (one naming none:
+    every category)."""
+    logs: dict[str, tuple[str, ...]] = {}
+    for name, categories in given:
+        known = logs.get(name)
+        every = categories == () or known == ()
+        logs[name] = () if every else tuple(dict.fromkeys((*(known or ()), *categories)))
+    return logs
 
 
 def _progress_bar(args: argparse.Namespace) -> bool:
@@ -640,7 +664,8 @@ def _add_scenarios_parser(sub: argparse._SubParsersAction) -> None:
 FMU_MESSAGES = (
     "The FMUs' warnings and errors are listed after the run and kept in summary.json "
     "(fmu_messages, docs/runs.md); a failed call's line gives the FMU's reason. Their "
-    "debug messages are not shown."
+    "debug messages are shown, on stderr, for the instances named by --fmu-log (or by the "
+    "scenario's debug_logging and log_categories keys)."
 )
 
 
@@ -682,6 +707,16 @@ def _add_run_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--fmu-log",
+        type=_fmu_log_arg,
+        action="append",
+        metavar="INSTANCE[:CATEGORY,...]",
+        help="turn the instance's debug logging on before initialisation (fmi2SetDebugLogging: "
+        "every category, or these of its LogCategories) and show its messages of every "
+        "status on stderr, each as `INSTANCE: [STATUS] CATEGORY: text`; repeat it for "
+        "another instance (docs/runs.md)",
+    )
     _add_live_options(p)
     p.set_defaults(func=_run)
 

@@ -35,14 +35,14 @@ import signal
 import sys
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS, StopRequest, stop_on_signals
-from cosim.errors import FLAGS, CosimError, OptionNames
+from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
 from cosim.limits import (
     RUN_ADDRESS_SPACE,
     RUN_NO_RECORDING_ADDRESS_SPACE,
@@ -87,6 +87,9 @@ class RunOptions:
     from the terminal (docs/live-runs.md). ``extrapolation`` and ``tolerance`` override
     the scenario's ``[coupling]``; ``check_step`` also runs it at h / 2 and h / 4 and puts
     the estimated coupling error into the summary (:mod:`cosim.engine.step_check`).
+    ``fmu_log`` turns debug logging on for these instances, with these log categories
+    (none: every category), as their ``debug_logging`` and ``log_categories`` keys would
+    (:meth:`cosim.scenario.spec.Scenario.with_debug_logging`).
     ``results_csv`` false writes no results.csv (a study's task that keeps no files: its
     rows' formatting is a quarter of a run's CPU, and its summary has every metric).
     ``names``: how a refusal names the options (the command line's flags, or the API's
@@ -120,6 +123,7 @@ class RunOptions:
     names: OptionNames = FLAGS
     unit_doubts: bool = True
     results_csv: bool = True
+    fmu_log: Mapping[str, tuple[str, ...]] | None = None
 
 
 class NotStartedError(CosimError):
@@ -381,6 +385,8 @@ def _checked_scenario(
             extrapolation=options.extrapolation,
             tolerance=options.tolerance,
         )
+    if options.fmu_log:
+        scenario = _with_fmu_log(scenario, options)
     if options.check_step:
         from cosim.engine.step_check import not_checkable
 
@@ -403,6 +409,27 @@ def _checked_scenario(
         unit_doubts.warn(doubts, design_doubts.DesignWarning)
         unit_doubts.warn(mission_doubts.mission_doubts(scenario), mission_doubts.MissionWarning)
     return scenario
+
+
+def _with_fmu_log(scenario: Scenario, options: RunOptions) -> Scenario:
+    """The scenario with the debug logging ``options.fmu_log`` asks for; an instance it
+    does not have, or a category its FMU does not declare, refused naming the option."""
+    from cosim.scenario.spec import log_category_problem
+
+    logs = options.fmu_log or {}
+    for name, categories in logs.items():
+        given = options.names.given("fmu_log", ":".join((name, ",".join(categories))).rstrip(":"))
+        instance = scenario.instances.get(name)
+        if instance is None:
+            raise CosimError(
+                f"{given}: {scenario.id} has no instance {name!r}"
+                f"{did_you_mean(name, scenario.instances)}: expected one of "
+                f"{', '.join(scenario.instances)}"
+            )
+        problem = log_category_problem(instance.interface, list(categories)) if categories else None
+        if problem is not None:
+            raise CosimError(f"{given}: {problem}")
+    return scenario.with_debug_logging({name: list(c) for name, c in logs.items()})
 
 
 def check_scenario(scenario: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> str:

@@ -11,10 +11,12 @@ freed and library loaded, for the next run of this process (:func:`_library`).
 from __future__ import annotations
 
 import collections
+import contextlib
 import ctypes
 import hashlib
 import os
 import shutil
+import sys
 import tempfile
 import zipfile
 from collections.abc import Callable
@@ -70,6 +72,8 @@ class Slave:
         self.state = "new"
         self.messages: collections.deque[str] = collections.deque(maxlen=LOG_LINES_KEPT)
         self.logged = 0  # messages logged (warning or worse), those left out of messages too
+        # fmi2SetDebugLogging's categories: None off, () every one (cosim.scenario.spec)
+        self.debug_logging = instance.debug_logging
         _check_same_fmu(instance, unzip_dir)
         self._key = (str(unzip_dir), md.coSimulation.modelIdentifier, md.guid, instance.name)
         self.fmu = _library(self._key)
@@ -134,7 +138,10 @@ class Slave:
             raise CosimError(f"{self.name}: FMI call out of order (in state {self.state!r})")
 
     def load(self, stop_time: float) -> None:
-        """instantiate (logging on), setupExperiment and the start values."""
+        """instantiate (logging on), the instance's debug logging if the scenario turns it
+        on (fmi2SetDebugLogging with its categories, FMI 2.0, 2.1.5: before
+        initialisation, so that the FMU's debug messages of its set-up are shown too),
+        setupExperiment and the start values."""
         from fmpy.logging import addLoggerProxy
 
         self._expect("new")
@@ -152,6 +159,8 @@ class Slave:
         self.state = "instantiated"
         # any pythonfmu FMU, ours or not, can abort this process at exit: see exit_guard
         exit_guard.install(Path(self.fmu.unzipDirectory) / "resources")
+        if self.debug_logging is not None:
+            self.fmu.setDebugLogging(True, list(self.debug_logging))
         self.fmu.setupExperiment(startTime=0.0, stopTime=stop_time)
         grouped: dict[str, tuple[list[int], list[Any]]] = {}
         for name, value in self.instance.start.items():
@@ -256,16 +265,41 @@ class Slave:
 _log_sinks: dict[int, Slave] = {}  # componentEnvironment -> the instance that logs
 
 
-def _log(env: int | None, _name: bytes, status: int, _category: bytes, message: bytes) -> None:
+def _log(env: int | None, _name: bytes, status: int, category: bytes, message: bytes) -> None:
     """The FMUs' logger: keeps warnings and worse per instance, each on one line and shortened
-    (:func:`fmu_runtime.log_text.shortened`: an FMU may log megabytes in one message). A C
-    callback: never raises."""
+    (:func:`fmu_runtime.log_text.shortened`: an FMU may log megabytes in one message), and
+    shows an instance's messages of every status on stderr while its debug logging is on
+    (:func:`_shown`). A C callback: never raises."""
     slave = _log_sinks.get(env or 0)
-    if slave is not None and status >= 1:
-        label = STATUS_LABELS[status] if status < len(STATUS_LABELS) else str(status)
-        text = shortened((message or b"").decode("utf-8", "replace"))
-        slave.messages.append(f"[{label}] {one_line(text)}")
+    if slave is None or (status < 1 and slave.debug_logging is None):
+        return
+    label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
+    text = one_line(shortened((message or b"").decode("utf-8", "replace")))
+    kind = (category or b"").decode("utf-8", "replace")
+    if status >= 1:
+        slave.messages.append(f"[{label}] {text}")
         slave.logged += 1
+    if slave.debug_logging is not None and _shown(slave.debug_logging, status, kind):
+        with contextlib.suppress(Exception):  # stderr closed or full: the run goes on
+            _show(f"{slave.name}: [{label}] {kind}: {text}")
+
+
+def _shown(categories: tuple[str, ...], status: int, category: str) -> bool:
+    """Whether a message of ``status`` and ``category`` is shown for an instance whose debug
+    logging is on for ``categories`` (() or ``logAll`` among them: all). Warnings and worse
+    always are; a debug (fmi2OK) message only of a category asked for, checked here too
+    because an FMU may log before fmi2SetDebugLogging narrows its categories (while it
+    instantiates, logging on) or may not narrow them at all (FMI 2.0 leaves categories
+    to the FMU)."""
+    return status >= 1 or not categories or "logAll" in categories or category in categories
+
+
+def _show(line: str) -> None:
+    """One debug-log line on stderr, above a progress bar if one is drawn (tqdm's write
+    clears the bar, writes and draws it again)."""
+    from tqdm import tqdm
+
+    tqdm.write(line, file=sys.stderr)
 
 
 def one_line(message: str) -> str:

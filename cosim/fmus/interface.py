@@ -100,6 +100,8 @@ class FmuInterface:
     # fmpy's own description and variables, for code that calls the FMU through fmpy
     model_description: Any = dataclasses.field(repr=False, compare=False)
     model_variables: Mapping[str, Any] = dataclasses.field(repr=False, compare=False)
+    # the names of its <LogCategories> (FMI 2.0, 2.2.4), in file order; () if it declares none
+    log_categories: tuple[str, ...] = ()
 
     def with_causality(self, causality: str) -> list[Variable]:
         """The variables of this causality, in modelDescription order."""
@@ -267,7 +269,7 @@ def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
     except Exception as exc:  # fmpy raises plain Exception for an invalid model description
         reason = " ".join(str(exc).split())  # its schema report spans lines: one line here
         raise FmuInterfaceError(f"{path}: not a valid FMU: {reason}") from None
-    names = _named_values(path)
+    names, categories = _annotations(path)
     return FmuInterface(
         path=path,
         fmi_version=md.fmiVersion,
@@ -277,6 +279,7 @@ def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
         units={unit.name: _base_unit(unit.baseUnit) for unit in md.unitDefinitions},
         model_description=md,
         model_variables={v.name: v for v in md.modelVariables},
+        log_categories=categories,
     )
 
 
@@ -299,18 +302,21 @@ def _unnamed_working_folder(path: Path) -> str | None:
     )
 
 
-def _named_values(path: Path) -> dict[str, dict[str, int]]:
-    """``{variable: {name: value}}`` from the annotations our FMUs put on their variables
-    (see :mod:`fmu_runtime.safe_slave`); empty for another FMU."""
+def _annotations(path: Path) -> tuple[dict[str, dict[str, int]], tuple[str, ...]]:
+    """What fmpy's model description leaves out: ``{variable: {name: value}}`` from the
+    annotations our FMUs put on their variables (see :mod:`fmu_runtime.safe_slave`; empty
+    for another FMU), and the names of the FMU's ``<LogCategories>`` (FMI 2.0, 2.2.4)."""
     from lxml import etree
 
     with zipfile.ZipFile(path) as archive:
         root = etree.fromstring(archive.read("modelDescription.xml"))
-    return {
+    names = {
         variable.attrib["name"]: {item.attrib["name"]: int(item.attrib["value"]) for item in values}
         for variable in root.iterfind("ModelVariables/ScalarVariable")
         for values in variable.iterfind("Annotations/Tool[@name='auv-cosim']/NamedValues")
     }
+    categories = tuple(c.get("name", "") for c in root.iterfind("LogCategories/Category"))
+    return names, categories
 
 
 def _variable(v: Any, names: Mapping[str, int]) -> Variable:

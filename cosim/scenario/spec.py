@@ -140,6 +140,11 @@ class CouplingSpec(Strict):
 class InstanceSpec(Strict):
     fmu: str = Field(min_length=1, description="built-in FMU name or .fmu path")
     start: dict[str, StartValue] = Field(default_factory=dict)
+    # fmi2SetDebugLogging before initialisation (FMI 2.0, 2.1.5): every category, or these
+    debug_logging: StrictBool | None = None  # None: as log_categories says (given: on)
+    log_categories: list[Annotated[str, Field(min_length=1)]] | None = Field(
+        default=None, min_length=1
+    )
 
 
 class ConnectionSpec(Strict):
@@ -274,6 +279,9 @@ class Instance:
     fmu_path: Path
     start: Mapping[str, bool | int | float | str]
     interface: FmuInterface = dataclasses.field(repr=False, compare=False)
+    # fmi2SetDebugLogging's categories (FMI 2.0, 2.1.5): None, debug logging off; (), every
+    # category; else those (its messages of every status are shown: cosim.engine.slave)
+    debug_logging: tuple[str, ...] | None = None
 
     @property
     def model_description(self) -> Any:
@@ -474,6 +482,28 @@ class Scenario:
             start[variable] = value
         return self._revalidated(data, where)
 
+    def with_debug_logging(self, logs: Mapping[str, list[str]]) -> Scenario:
+        """A re-validated copy with debug logging on for these instances: ``logs`` maps
+        an instance's name to the log categories to turn on (``[]``: every category), as
+        its ``debug_logging`` and ``log_categories`` keys would (``auv-cosim run
+        --fmu-log``). Raises :class:`ScenarioError`."""
+        data = self.spec.model_dump(by_alias=True, exclude_none=True)
+        given = "; ".join(f"{name}: {', '.join(c) or 'all'}" for name, c in logs.items())
+        where = f"{self.described} (with the debug logging of {given})"
+        for name, categories in logs.items():
+            if name not in data["instances"]:
+                raise ScenarioError(
+                    f"scenario file {where}: no instance {name!r}: expected one of "
+                    f"{list(data['instances'])}" + did_you_mean(name, data["instances"])
+                )
+            table = data["instances"][name]
+            table["debug_logging"] = True
+            if categories:
+                table["log_categories"] = list(categories)
+            else:
+                table.pop("log_categories", None)
+        return self._revalidated(data, where)
+
     @property
     def described(self) -> str:
         """The scenario as a refusal names it (after ``scenario file``): its file or id,
@@ -494,10 +524,7 @@ class Scenario:
             "summary": self.summary,
             "stop_time": self.stop_time,
             "coupling": _coupling_table(self.coupling),
-            "instances": {
-                name: {"fmu": inst.fmu, "start": dict(inst.start)}
-                for name, inst in self.instances.items()
-            },
+            "instances": {name: _instance_table(inst) for name, inst in self.instances.items()},
             "connections": {
                 "same_names": False,
                 "remove": [],
@@ -518,6 +545,37 @@ class Scenario:
             "# out; run it with `auv-cosim run <this file>`.\n"
         )
         return header + tomli_w.dumps(data)
+
+
+def log_category_problem(interface: FmuInterface, categories: list[str]) -> str | None:
+    """Why ``categories`` cannot be given to the FMU's ``fmi2SetDebugLogging`` (one that
+    its ``<LogCategories>`` do not declare, or any, when it declares none), None if they
+    can (FMI 2.0, 2.1.5: the categories are the FMU's)."""
+    declared, model = interface.log_categories, interface.model_identifier
+    if not declared:
+        return (
+            f"{model} declares no LogCategories (its modelDescription.xml): "
+            "debug logging of all of its messages takes no category"
+        )
+    for category in categories:
+        if category not in declared:
+            guess = did_you_mean(category, declared)
+            return (
+                f"{category!r} is not a log category of {model}{guess}: "
+                f"expected one of {', '.join(declared)}"
+            )
+    return None
+
+
+def _instance_table(instance: Instance) -> dict[str, Any]:
+    """``[instances.<name>]`` as :meth:`Scenario.to_toml` writes it (its debug logging keys
+    only when on, as an earlier version wrote none)."""
+    table: dict[str, Any] = {"fmu": instance.fmu, "start": dict(instance.start)}
+    if instance.debug_logging is not None:
+        table["debug_logging"] = True
+        if instance.debug_logging:
+            table["log_categories"] = list(instance.debug_logging)
+    return table
 
 
 def _coupling_table(coupling: Coupling) -> dict[str, Any]:
@@ -962,8 +1020,28 @@ def _resolve_instance(
     if interface.model_identifier in ("AuvGuidance", "AuvAutopilot"):
         _check_config(interface.model_identifier, start, f"instances.{name}.start", src)
     return Instance(
-        name, fmu_ref, fmu_path, ReadOnly(start, f"{name}.start", _start_hint(name)), interface
-    )
+        name, fmu_ref, fmu_path, ReadOnly(start, f"{name}.start", _start_hint(name)), interface,
+        _debug_logging(name, spec, interface, src),
+    )  # fmt: skip
+
+
+def _debug_logging(
+    name: str, spec: InstanceSpec, interface: FmuInterface, src: Source
+) -> tuple[str, ...] | None:
+    """The categories ``fmi2SetDebugLogging`` is to be called with for instance ``name``:
+    None (``debug_logging`` off and no ``log_categories``), () (every category: FMI 2.0,
+    2.1.5, nCategories = 0) or the ``log_categories``, each one the FMU declares in its
+    ``<LogCategories>`` (an FMU declaring none takes none: ``debug_logging = true``)."""
+    categories = spec.log_categories
+    if categories is None:
+        return () if spec.debug_logging else None
+    key = f"instances.{name}.log_categories"
+    if spec.debug_logging is False:
+        raise src.error(key, "names categories to log, and debug_logging is false: drop one")
+    problem = log_category_problem(interface, categories)
+    if problem is not None:
+        raise src.error(key, problem)
+    return tuple(dict.fromkeys(categories))  # each once, in the order given
 
 
 def _check_aliases(
