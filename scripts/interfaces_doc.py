@@ -61,6 +61,14 @@ tools and our own checks may rely on:
   [fmi-notes.md](fmi-notes.md) for why that takes care with pythonfmu).
 - **Ranges**: every bounded Integer and Real parameter declares `min`/`max` (the range
   column below); a value outside is refused, naming the variable.
+- **Log categories**: each declares pythonfmu's five, `logStatusWarning`,
+  `logStatusDiscard`, `logStatusError`, `logStatusFatal` and `logAll`;
+  `fmi2SetDebugLogging` takes those and refuses another with fmi2Error, naming them.
+  Warnings and worse reach the host's logger whatever debug logging is set to, debug
+  (fmi2OK) messages only while it is on for `logAll` or for every category (none named).
+  In a scenario, an instance's `debug_logging = true` or `log_categories = [...]`, or
+  `auv-cosim run --fmu-log INSTANCE[:CATEGORY,...]`, turns it on and shows the messages
+  ([runs.md](runs.md#an-fmus-debug-log)).
 - **Hosts**: they load, validate and run in fmpy, OSP's libcosim (libcosimpy) and ecos
   (ecospy), alone and connected, with the results of our own master under the same
   coupling; the README's "Use the FMUs in other tools" shows how. A host may load, reload

@@ -358,12 +358,12 @@ def test_run_help_gives_every_coupling_options_default(capsys: pytest.CaptureFix
 def test_run_help_says_where_the_fmus_messages_go(capsys: pytest.CaptureFixture[str]) -> None:
     """``run --help`` said nothing of what the FMUs log: an integrator looked for a log
     file or stderr. It names where their warnings and errors go (the run's report and
-    summary.json's fmu_messages) and that their debug messages are not shown."""
+    summary.json's fmu_messages) and how to see their debug messages (--fmu-log)."""
     with pytest.raises(SystemExit):
         main(["run", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "warnings and errors" in text and "summary.json (fmu_messages" in text, text
-    assert "debug messages are not shown" in text, text
+    assert "debug messages are shown, on stderr, for the instances named by --fmu-log" in text
 
 
 @pytest.mark.parametrize(

@@ -23,6 +23,7 @@ from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import scenario_from_toml
 
 BALL = TESTS / "data" / "reference-fmus" / "BouncingBall.fmu"
+BALL_SCENARIO = f'stop_time = 0.1\n[coupling]\nstep = 0.01\n[instances.ball]\nfmu = "{BALL}"\n'
 DEBUG_LINE = re.compile(r"^(\w+): \[(OK|Warning|Discard|Error|Fatal)\] (\S*): (.*)$")
 
 
@@ -84,10 +85,7 @@ def test_log_categories_show_only_those_messages(
 
 
 def test_a_category_the_fmu_does_not_declare_is_refused_naming_those_it_does() -> None:
-    text = (
-        f'stop_time = 0.1\n[coupling]\nstep = 0.01\n[instances.ball]\nfmu = "{BALL}"\n'
-        'log_categories = ["logEvent"]\n'
-    )
+    text = BALL_SCENARIO + 'log_categories = ["logEvent"]\n'
     with pytest.raises(ScenarioError) as refused:
         scenario_from_toml(text)
     message = str(refused.value)
@@ -138,10 +136,7 @@ def test_an_fmu_declaring_no_categories_takes_debug_logging_but_no_category(
 
 
 def test_debug_logging_off_with_categories_is_refused() -> None:
-    text = (
-        f'stop_time = 0.1\n[coupling]\nstep = 0.01\n[instances.ball]\nfmu = "{BALL}"\n'
-        'debug_logging = false\nlog_categories = ["logEvents"]\n'
-    )
+    text = BALL_SCENARIO + 'debug_logging = false\nlog_categories = ["logEvents"]\n'
     with pytest.raises(ScenarioError, match="debug_logging is false"):
         scenario_from_toml(text)
 
@@ -157,7 +152,7 @@ def test_fmu_log_refuses_an_unknown_instance_or_category_in_one_line(
     flag: str, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     scenario = tmp_path / "ball.toml"
-    scenario.write_text(f'stop_time = 0.1\n[coupling]\nstep = 0.01\n[instances.ball]\nfmu = "{BALL}"\n')
+    scenario.write_text(BALL_SCENARIO)
     argv = ["run", str(scenario), "--out", str(tmp_path / "run"), "--no-rrd", "--quiet"]
     assert main([*argv, "--fmu-log", flag]) == 1
     err = capsys.readouterr().err
