@@ -84,6 +84,18 @@ def test_log_categories_show_only_those_messages(
     assert lines == [("f", "Warning", "logStatusWarning", "warned at 0.100")], lines
 
 
+def test_the_categories_reach_an_fmu_that_narrows_its_messages_itself(
+    test_fmu_dir: Path,
+) -> None:
+    """pythonfmu's own binary passes the host only messages of the categories asked for,
+    warnings too: asked for its errors alone, its warning never reaches the run. (Shown
+    here, a warning would mean fmi2SetDebugLogging was not called with the categories.)"""
+    keys = 'log_categories = ["logStatusError"]'
+    result = foreign_run(test_fmu_dir, keys, "chatter = 1\nwarn_at = 0.1")
+    assert result.complete, result.error
+    assert result.messages["f"] == []
+
+
 def test_a_category_the_fmu_does_not_declare_is_refused_naming_those_it_does() -> None:
     text = BALL_SCENARIO + 'log_categories = ["logEvent"]\n'
     with pytest.raises(ScenarioError) as refused:
