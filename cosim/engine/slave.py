@@ -268,8 +268,9 @@ _log_sinks: dict[int, Slave] = {}  # componentEnvironment -> the instance that l
 def _log(env: int | None, _name: bytes, status: int, category: bytes, message: bytes) -> None:
     """The FMUs' logger: keeps warnings and worse per instance, each on one line and shortened
     (:func:`fmu_runtime.log_text.shortened`: an FMU may log megabytes in one message), and
-    shows an instance's messages of every status on stderr while its debug logging is on
-    (:func:`_shown`). A C callback: never raises."""
+    shows on stderr every message of an instance whose debug logging is on (which ones the
+    FMU passes for the categories asked for is the FMU's: FMI 2.0, 2.1.5). A C callback:
+    never raises."""
     slave = _log_sinks.get(env or 0)
     if slave is None or (status < 1 and slave.debug_logging is None):
         return
@@ -279,19 +280,9 @@ def _log(env: int | None, _name: bytes, status: int, category: bytes, message: b
     if status >= 1:
         slave.messages.append(f"[{label}] {text}")
         slave.logged += 1
-    if slave.debug_logging is not None and _shown(slave.debug_logging, status, kind):
+    if slave.debug_logging is not None:  # what the FMU passes for its categories (FMI 2.0)
         with contextlib.suppress(Exception):  # stderr closed or full: the run goes on
             _show(f"{slave.name}: [{label}] {kind}: {text}")
-
-
-def _shown(categories: tuple[str, ...], status: int, category: str) -> bool:
-    """Whether a message of ``status`` and ``category`` is shown for an instance whose debug
-    logging is on for ``categories`` (() or ``logAll`` among them: all). Warnings and worse
-    always are; a debug (fmi2OK) message only of a category asked for, checked here too
-    because an FMU may log before fmi2SetDebugLogging narrows its categories (while it
-    instantiates, logging on) or may not narrow them at all (FMI 2.0 leaves categories
-    to the FMU)."""
-    return status >= 1 or not categories or "logAll" in categories or category in categories
 
 
 def _show(line: str) -> None:

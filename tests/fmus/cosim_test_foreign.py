@@ -4,7 +4,8 @@ every type set from start values (``gain`` Integer, ``invert`` Boolean, ``label`
 output y = (-1 if invert else 1) * (k * gain * t + level + len(label)); ``echo`` repeats
 ``label``'s length after every step. ``bad_at`` (> 0) makes y NaN from that time (``inf``
 with ``bad_inf``); ``chatter`` lines are logged at every step (warnings with
-``chatter_warns``, else OK), ``warn_at`` logs a warning once past that time;
+``chatter_warns``, else OK), ``warn_at`` logs a warning once past that time; an OK line
+``constructed`` is logged while it is instantiated (before any fmi2SetDebugLogging);
 ``discard_at`` returns False from doStep with a warning logged (pythonfmu reports
 fmi2Discard); ``state_fails`` makes fmi2GetFMUstate answer an exception (pythonfmu:
 fmi2Fatal, its reason logged over two lines). Trivial on purpose: no exception escapes a
@@ -46,6 +47,7 @@ class CosimTestForeign(Fmi2Slave):
                 getter=self._echo,
             )
         )
+        self.log("constructed", Fmi2Status.ok)
 
     def _y(self):
         if 0.0 < self.bad_at <= self.t + 1e-12:

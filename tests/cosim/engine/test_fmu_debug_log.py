@@ -57,6 +57,7 @@ def test_debug_logging_shows_every_message_with_instance_status_and_category(
     result = foreign_run(test_fmu_dir, "debug_logging = true", "chatter = 1\nwarn_at = 0.1")
     assert result.complete, result.error
     lines = debug_lines(capsys.readouterr().err)
+    assert ("f", "OK", "logAll", "constructed") in lines, lines  # logged as it instantiated
     assert ("f", "OK", "logAll", "step at 0.000: line 0") in lines, lines
     assert ("f", "OK", "logAll", "step at 0.200: line 0") in lines, lines
     assert ("f", "Warning", "logStatusWarning", "warned at 0.100") in lines, lines
@@ -76,7 +77,8 @@ def test_without_debug_logging_no_message_is_shown_live(
 def test_log_categories_show_only_those_messages(
     test_fmu_dir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Categories narrow the messages shown to theirs: the warnings, not the debug lines."""
+    """Categories narrow the messages shown to theirs (the FMU passes only those): the
+    warnings, not the debug lines."""
     keys = 'log_categories = ["logStatusWarning"]'
     result = foreign_run(test_fmu_dir, keys, "chatter = 1\nwarn_at = 0.1")
     assert result.complete, result.error
