@@ -96,7 +96,8 @@ def test_a_name_close_to_nothing_or_to_two_gets_no_guess(fmu_dir: Path) -> None:
         (("step = 0.01", "step = 0.01\nmethod = 'jacobi'"),
          "unknown key 'coupling.method': [coupling] takes algorithm, error_estimate, "),
         (('fmu = "AuvPlant"', 'model = "AuvPlant"'),
-         "unknown key 'instances.plant.model': [instances.plant] takes fmu and start"),
+         "unknown key 'instances.plant.model': [instances.plant] takes debug_logging, fmu, "
+         "log_categories and start"),
     ],
 )  # fmt: skip
 def test_an_unknown_key_is_matched_against_its_own_table_or_gets_its_keys(
@@ -247,8 +248,9 @@ def test_a_top_level_study_key_written_below_a_table_is_named_as_such(
          "unknown key 'algorithm' (a key of [coupling]: write it below the [coupling] "),
         # a start value written in the instance's own table, not in its [.start] table
         (('fmu = "AuvAutopilot"', 'fmu = "AuvAutopilot"\nyaw_setpoint = 0.5'),
-         "unknown key 'instances.controller.yaw_setpoint': [instances.controller] takes fmu "
-         "and start (a start value goes below [instances.controller.start])"),
+         "unknown key 'instances.controller.yaw_setpoint': [instances.controller] takes "
+         "debug_logging, fmu, log_categories and start (a start value goes below "
+         "[instances.controller.start])"),
         # a coupling key written among an instance's start values
         (('fmu = "AuvAutopilot"', 'fmu = "AuvAutopilot"\nstart = { step = 0.02 }'),
          "has no variable 'step' (a key of [coupling]: write it below the [coupling] header)"),
