@@ -440,7 +440,8 @@ def check_scenario(scenario: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> str
     checked = _checked_scenario(scenario, RunOptions(fmu_dir=fmu_dir))
     coupling = checked.coupling
     instances = ", ".join(
-        f"{name} ({inst.fmu_path.stem})" for name, inst in checked.instances.items()
+        f"{name} ({inst.fmu_path.stem}{_debug_log_note(inst.debug_logging)})"
+        for name, inst in checked.instances.items()
     )
     if coupling.algorithm == "adaptive":
         steps = (
@@ -449,6 +450,13 @@ def check_scenario(scenario: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> str
     else:
         steps = _fixed_steps(round(checked.stop_time / coupling.step), coupling)
     return f"a valid scenario: {instances}; {checked.stop_time:g} s in {steps}"
+
+
+def _debug_log_note(categories: tuple[str, ...] | None) -> str:
+    """How :func:`check_scenario` names an instance's debug logging ("" when off)."""
+    if categories is None:
+        return ""
+    return f", debug log: {', '.join(categories) or 'every category'}"
 
 
 def _fmus_to_build(scenario: str | Path | Scenario, fmu_dir: Path) -> list[str]:

@@ -191,6 +191,15 @@ def test_fmu_log_turns_an_instances_debug_log_on(
     assert "debug_logging = true" in resolved
 
 
+def test_validate_says_which_instances_log_for_debugging(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scenario = tmp_path / "ball.toml"
+    scenario.write_text(BALL_SCENARIO + 'log_categories = ["logEvents"]\n')
+    assert main(["validate", str(scenario)]) == 0
+    assert "ball (BouncingBall, debug log: logEvents)" in capsys.readouterr().out
+
+
 @pytest.mark.slow
 def test_both_runtimes_show_the_same_debug_log(fmu_paths: dict[str, Path], tmp_path: Path) -> None:
     """Our FMUs on their runtime and on pythonfmu's binary (AUV_FMU_RUNTIME=pythonfmu)
