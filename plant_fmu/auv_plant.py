@@ -213,6 +213,7 @@ class AuvPlant(SafeSlave):
         # the compiled step with every array bound: stepper(n, dt) -> code (_bind_stepper)
         self._stepper: Callable[[int, float], int] | None = None
         self._model_key: tuple[object, ...] | None = None
+        self._told_not_compiled = False  # the reference path's cost said once per instance
         self._physical = _default_physical_parameters(self._vehicles)
         self.variant = int(Variant.FULL)
         self.moving_mass_model = int(MovingMassModel.DISSERTATION)
@@ -495,7 +496,8 @@ class AuvPlant(SafeSlave):
         if compiled.supports(model) == "":
             self._compiled = compiled.CompiledPlant(model)
             self._stepper = self._bind_stepper(self._compiled)
-        elif not compiled.AVAILABLE:
+        elif not compiled.AVAILABLE and not self._told_not_compiled:
+            self._told_not_compiled = True
             self.log(  # the cost measured by scripts/bench_no_numba.py (docs/performance.md)
                 f"the compiled plant is off ({compiled.NO_JIT_REASON}): stepping the numpy "
                 "reference, same results, each step about 16 times as long (0.17 ms instead "

@@ -88,6 +88,32 @@ def test_a_host_without_numba_is_told_once_what_the_reference_path_costs(run_pyt
     assert "each step about 16 times as long" in message and "install numba" in message
 
 
+INITIALISED_TWICE = """
+import os
+os.environ["AUV_COSIM_NO_JIT"] = "1"
+from plant_fmu.auv_plant import AuvPlant
+
+plant = AuvPlant(instance_name="off")
+vr = {v.name: v.value_reference for v in plant.vars.values()}
+plant.enter_initialization_mode()
+plant.set_real([vr["u_0"]], [1.2])
+plant.get_real([vr["u"]])  # the outputs to start from: the model built once
+plant.set_real([vr["tunnel_force"]], [1.0])  # an input after it: built again at the exit
+plant.exit_initialization_mode()
+assert plant.do_step(0.0, 0.01), plant.log_queue
+print(sum("compiled plant is off" in m.msg for m in plant.log_queue))
+"""
+
+
+def test_a_plant_built_twice_in_initialisation_says_once_that_it_is_not_compiled(run_python):
+    """A master reads the outputs to start from and then writes inputs (FMI's exchange in
+    initialisation mode), so the plant's model is built twice: the missing compiled path
+    is still one warning per instance, not one per build."""
+    done = run_python(INITIALISED_TWICE)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split() == ["1"]
+
+
 STEPPED = """
 import json, os, sys
 os.environ["AUV_COSIM_NO_JIT"] = "1"
