@@ -52,7 +52,6 @@ N_INPUTS = len(INPUT_NAMES)
 # state
 POSITION = slice(0, 3)  # north, east, down (earth frame)
 EULER = slice(3, 6)  # roll, pitch, yaw
-POSE = slice(0, 6)  # eta = [position; Euler angles]
 NU = slice(6, 12)  # nu = [u, v, w, p, q, r] (body frame, over ground)
 LINEAR_VELOCITY = slice(6, 9)  # [u, v, w]
 ANGULAR_VELOCITY = slice(9, 12)  # [p, q, r]
@@ -76,6 +75,5 @@ PITCH = 4  # theta, within EULER
 QUATERNION_CHART_PITCH = 1.2217304763960306  # 70 deg
 
 # inputs
-ACTUATORS = slice(0, 5)  # thrust ... mass_position_cmd
 MASS_COMMAND = 4  # mass_position_cmd
 CURRENT = slice(5, 8)  # current_north, current_east, current_down (earth frame)
