@@ -130,11 +130,6 @@ def lines(recv: Callable[[int], bytes]) -> Iterator[bytes | None]:
         yield bytes(line)
 
 
-def answer(live: LiveControl, line: bytes | None, source: str) -> dict[str, Any]:
-    """The reply to one request line (never raises); a ``set`` waits until applied."""
-    return submit(live, line, source)()
-
-
 def submit(
     live: LiveControl,
     line: bytes | None,

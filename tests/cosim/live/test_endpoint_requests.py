@@ -33,9 +33,9 @@ from cosim.live.control import (
     MAX_LINE,
     TOO_LONG,
     ControlServer,
-    answer,
     lines,
     parse_address,
+    submit,
 )
 from cosim.live.session import LiveSession
 from cosim.scenario.spec import Scenario, load_scenario
@@ -351,7 +351,7 @@ def test_a_set_of_degrees_to_an_angle_in_rad_is_applied_with_a_warning(scenario:
     def reply_to(value: float) -> dict:
         line = json.dumps({"set": {"controller.yaw_setpoint": value}}).encode()
         replies: list[dict] = []
-        waiting = threading.Thread(target=lambda: replies.append(answer(live, line, "test")))
+        waiting = threading.Thread(target=lambda: replies.append(submit(live, line, "test")()))
         waiting.start()
         for n in range(1, 1000):  # communication points until it is applied
             master.point(n)
