@@ -48,7 +48,6 @@ every error names the bad entry and what was expected.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -134,11 +133,6 @@ def _parse_entry(number: int, entry: str) -> Waypoint:
 
 def _horizontal_distance(a: Waypoint, b: Waypoint) -> float:
     return math.hypot(b.north - a.north, b.east - a.east)
-
-
-def format_waypoints(waypoints: Sequence[Waypoint]) -> str:
-    """The text :func:`parse_waypoints` reads back to ``waypoints`` (exact floats)."""
-    return "; ".join(f"{w.north!r}, {w.east!r}, {w.down!r}" for w in waypoints)
 
 
 @dataclass(frozen=True)

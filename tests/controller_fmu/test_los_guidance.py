@@ -7,6 +7,7 @@ offset the proportional law leaves."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import pytest
@@ -20,7 +21,6 @@ from controller_fmu.los_guidance import (
     GuidanceConfigError,
     LosGuidance,
     Waypoint,
-    format_waypoints,
     leg_position,
     parse_waypoints,
 )
@@ -31,6 +31,11 @@ from plant_fmu.model.linearization import state_vector
 from plant_fmu.model.parameters import load_vehicle
 
 H = 0.01
+
+
+def format_waypoints(waypoints: Sequence[Waypoint]) -> str:
+    """The text :func:`parse_waypoints` reads back to ``waypoints`` (exact floats)."""
+    return "; ".join(f"{w.north!r}, {w.east!r}, {w.down!r}" for w in waypoints)
 
 
 def guidance(waypoints: str, **values) -> LosGuidance:
