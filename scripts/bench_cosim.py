@@ -36,7 +36,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_timing import median_us
+from bench_timing import load, median_us
 from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 
@@ -201,11 +201,6 @@ def startup(folder: Path) -> tuple[float, float]:
 
 TARGETS = {"bs-3": 0.8, "vert-2": 1.2}  # loop / floor, with the shipped coupling settings
 HELD = " held"  # the suffix of a scenario run with its inputs held (extrapolation "none")
-
-
-def load() -> str:
-    """The load average, 1/5/15 minutes."""
-    return "/".join(f"{x:.1f}" for x in os.getloadavg())
 
 
 Timing = tuple[float, float]  # (wall clock, CPU time) s per step

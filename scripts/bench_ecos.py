@@ -39,6 +39,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from bench_timing import load
+
 from cosim.export import export_ssp
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.scenario.spec import load_scenario
@@ -90,11 +92,6 @@ if not result.complete:
     raise SystemExit(result.error)
 print(result.wall_clock_s, result.cpu_clock_s)
 """
-
-
-def load() -> str:
-    """The load average, 1/5/15 minutes."""
-    return "/".join(f"{x:.1f}" for x in os.getloadavg())
 
 
 def timed(code: str, *args: str, core: int | None, scratch: str) -> tuple[float, float]:

@@ -35,6 +35,7 @@ import time
 import zipfile
 from pathlib import Path
 
+from bench_timing import load
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
@@ -161,11 +162,6 @@ def derivative_calls(plant: Path, runtime: str, calls: int, rounds: int) -> floa
         each.terminate()
         each.freeInstance()
     return statistics.median(blocks)
-
-
-def load() -> str:
-    """The load average, 1/5/15 minutes."""
-    return "/".join(f"{x:.1f}" for x in os.getloadavg())
 
 
 def main() -> None:

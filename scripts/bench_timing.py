@@ -1,7 +1,9 @@
-"""The timing helper the in-process benchmarks share (bench_plant.py, bench_cosim.py)."""
+"""The timing helpers the benchmarks share: the median of single calls (bench_plant.py,
+bench_cosim.py, bench_no_numba.py) and the load average printed beside a figure."""
 
 from __future__ import annotations
 
+import os
 import statistics
 import time
 from collections.abc import Callable
@@ -19,3 +21,8 @@ def median_us(call: Callable[[], object], repetitions: int) -> float:
         call()
         times.append(time.perf_counter_ns() - start)
     return statistics.median(times) / 1000.0
+
+
+def load() -> str:
+    """The load average, 1/5/15 minutes."""
+    return "/".join(f"{x:.1f}" for x in os.getloadavg())

@@ -31,6 +31,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench_timing import load
+
 REPO = Path(__file__).resolve().parents[1]
 HEREDOC = "cat > study.toml <<'END'\n"
 
@@ -67,16 +69,12 @@ def timed(args: list[str], cwd: Path, env: dict[str, str]) -> float:
     return elapsed
 
 
-def load() -> str:
-    return "load " + "/".join(f"{x:.1f}" for x in os.getloadavg())
-
-
 def run_line(label: str, total: float, summary: Path) -> str:
     data = json.loads(summary.read_text())
     return (
         f"{label:<34} {total:6.2f} s  (start-up {data['startup_total_s']:.2f} s, stepping "
         f"loop {data['wall_clock_s']:.2f} s = {data['real_time_factor']:.1f}x real time)  "
-        f"{load()}"
+        f"load {load()}"
     )
 
 
@@ -89,7 +87,7 @@ def bench(repeat: int, workers: int) -> None:
             "NUMBA_CACHE_DIR": str(folder / "numba"),
         }
         (folder / "study.toml").write_text(STUDY)
-        print(f"machine: {os.cpu_count()} cores; {load()} at the start")
+        print(f"machine: {os.cpu_count()} cores; load {load()} at the start")
         print("auv-cosim run bs-3 (recording on, as the README's first command):")
         total = timed(["run", "bs-3"], folder, env)
         print(
@@ -102,12 +100,12 @@ def bench(repeat: int, workers: int) -> None:
         print(f"README study, 8 runs of 20 s, --workers {workers}, command to prompt:")
         env["NUMBA_CACHE_DIR"] = str(folder / "numba-study")  # cold: compiled again
         total = timed([*sweep, "--out", "studies/cold", "--fmu-dir", "fmus-study"], folder, env)
-        print(f"  {'cold (FMU build + compilation)':<32} {total:6.2f} s  {load()}")
+        print(f"  {'cold (FMU build + compilation)':<32} {total:6.2f} s  load {load()}")
         for i in range(repeat):
             total = timed(
                 [*sweep, "--out", f"studies/warm-{i}", "--fmu-dir", "fmus-study"], folder, env
             )
-            print(f"  {f'warm ({i + 1})':<32} {total:6.2f} s  {load()}")
+            print(f"  {f'warm ({i + 1})':<32} {total:6.2f} s  load {load()}")
 
 
 def main() -> None:
