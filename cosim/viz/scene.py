@@ -330,7 +330,23 @@ class SceneWriter:
 
         position = np.column_stack([get("plant.north"), get("plant.east"), get("plant.down")])
         yaw = get("plant.yaw")
-        quaternions = self._attitude(column, yaw, get)
+        self._send_pose(index, position, self._attitude(column, yaw, get), yaw)
+        self._send_trajectory(index, position)
+        self._send_actuators(index, n, column)
+        self._send_current(index, position, column)
+        self._send_target(index, column)
+        self._send_depth_setpoint(index, position, column)
+
+    def _send_pose(
+        self,
+        index: list[rr.TimeColumn],
+        position: np.ndarray,
+        quaternions: np.ndarray,
+        yaw: np.ndarray,
+    ) -> None:
+        """The vehicle's pose (position in m, NED; attitude as quaternions [x, y, z, w]) and
+        the chase camera's, which turns with the yaw (rad) only."""
+        zeros = np.zeros(len(yaw))
         self._rec.send_columns(
             "world/vehicle",
             indexes=index,
@@ -343,8 +359,10 @@ class SceneWriter:
                 translation=position, quaternion=euler_to_quaternions(zeros, zeros, yaw)
             ),
         )
-        self._send_trajectory(index, position)
 
+    def _send_actuators(self, index: list[rr.TimeColumn], n: int, column: Columns) -> None:
+        """The stern planes turned by the fin angle (rad), the moving mass at its rail
+        position (m) and the tunnel thruster's force (N) as an arrow, each if recorded."""
         fin = acting(column, "fin_angle")
         if fin is not None:
             hinge = np.tile([-0.5 * self._vehicle.length + FIN_FROM_TAIL, 0.0, 0.0], (n, 1))
@@ -366,14 +384,21 @@ class SceneWriter:
             )
         force = acting(column, "tunnel_force")
         if force is not None:
+            zeros = np.zeros(n)
             vectors = np.column_stack([zeros, FORCE_SCALE * force, zeros])
             self._rec.send_columns(
                 "world/vehicle/tunnel_force",
                 indexes=index,
                 columns=rr.Arrows3D.columns(vectors=vectors),
             )
+
+    def _send_current(
+        self, index: list[rr.TimeColumn], position: np.ndarray, column: Columns
+    ) -> None:
+        """The water current (m/s, NED) as an arrow above the vehicle, if recorded."""
         current = [acting(column, f"current_{axis}") for axis in ("north", "east", "down")]
         if any(c is not None for c in current):
+            zeros = np.zeros(len(position))
             vectors = np.column_stack([zeros if c is None else c for c in current])
             above = position - [0.0, 0.0, CURRENT_ARROW_HEIGHT]
             self._rec.send_columns(
@@ -381,7 +406,12 @@ class SceneWriter:
                 indexes=index,
                 columns=rr.Arrows3D.columns(origins=above, vectors=CURRENT_SCALE * vectors),
             )
-        self._send_target(index, column)
+
+    def _send_depth_setpoint(
+        self, index: list[rr.TimeColumn], position: np.ndarray, column: Columns
+    ) -> None:
+        """The autopilot's depth set-point (m) as a box at the vehicle's north and east, if
+        recorded and asked for."""
         depth = column("controller.depth_setpoint")
         if self._show_depth_setpoint and depth is not None:
             centers = np.column_stack([position[:, 0], position[:, 1], depth])
