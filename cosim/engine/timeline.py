@@ -200,6 +200,41 @@ class _FaultRun:
         return self.before if lost and self.before is not None else gathered  # dropout
 
 
+def _due_by_point(events: list[_EventRun]) -> dict[int, list[_EventRun]]:
+    """The time events by the point they fire at, in scenario order at each point."""
+    due: dict[int, list[_EventRun]] = {}
+    for timed in events:
+        if timed.n_fire is not None:
+            due.setdefault(timed.n_fire, []).append(timed)
+    return due
+
+
+def _place_faults(
+    scenario: Scenario, faults: list[_FaultRun]
+) -> tuple[dict[str, list[tuple[int, _FaultRun]]], list[_FaultRun]]:
+    """Where each fault acts: a fault on a connection's target, by the target's instance,
+    with the target's slot in that instance's Real input buffer
+    (:meth:`cosim.engine.slave.Slave.bind`); a fault on an unconnected input, held apart."""
+    on_inputs: dict[str, list[tuple[int, _FaultRun]]] = {}
+    held: list[_FaultRun] = []
+    driven = [c.target for c in scenario.connections]
+    for run in faults:
+        target = run.fault.target
+        if target in driven:
+            instance = target.split(".", 1)[0]
+            inst = scenario.instances[instance]
+            mine = [  # the instance's Real input buffer
+                c
+                for c in driven
+                if c.split(".", 1)[0] == instance
+                and inst.variable(c.split(".", 1)[1]).type == "Real"
+            ]
+            on_inputs.setdefault(instance, []).append((mine.index(target), run))
+        else:
+            held.append(run)
+    return on_inputs, held
+
+
 class Timeline:
     """The events and faults of one run (see the module docstring)."""
 
@@ -224,10 +259,7 @@ class Timeline:
         self._events = [_EventRun(e, self.h) for e in scenario.events]
         # a point looks only at what can act then: the time events due at it (by point),
         # the series and the `when` conditions; a time event's state never changes
-        self._due: dict[int, list[_EventRun]] = {}
-        for timed in self._events:
-            if timed.n_fire is not None:
-                self._due.setdefault(timed.n_fire, []).append(timed)
+        self._due = _due_by_point(self._events)
         self._series = [e for e in self._events if e.event.series is not None]
         self._stateful = [
             e for e in self._events if e.event.series is not None or e.event.when is not None
@@ -236,26 +268,11 @@ class Timeline:
         self._faults = [_FaultRun(f, self.h, index) for f in scenario.faults]
         self._sequential = scenario.coupling.algorithm != "jacobi"  # Gauss-Seidel, adaptive
         self._flags = [index[f"{FAULT_COLUMN_PREFIX}{f.name}"] for f in scenario.faults]
-        # faults on connections, by target instance: (slot in its input buffer, fault)
-        self.on_inputs: dict[str, list[tuple[int, _FaultRun]]] = {}
-        driven = [c.target for c in scenario.connections]
+        # faults on connections, by target instance: (slot in its input buffer, fault), and
+        # actuator faults on unconnected inputs
+        self.on_inputs, self._held = _place_faults(scenario, self._faults)
+        self._saved: dict[str, float] = {}  # the held faults' inputs before they started
         multiples = scenario.coupling.step_multiples
-        self._held: list[_FaultRun] = []  # actuator faults on unconnected inputs
-        self._saved: dict[str, float] = {}  # their inputs' values before they started
-        for run in self._faults:
-            target = run.fault.target
-            if target in driven:
-                instance = target.split(".", 1)[0]
-                inst = scenario.instances[instance]
-                mine = [  # the instance's Real input buffer (cosim.engine.slave.Slave.bind)
-                    c
-                    for c in driven
-                    if c.split(".", 1)[0] == instance
-                    and inst.variable(c.split(".", 1)[1]).type == "Real"
-                ]
-                self.on_inputs.setdefault(instance, []).append((mine.index(target), run))
-            else:
-                self._held.append(run)
         self._step = scenario.coupling.step  # s
         self._receivers = _receivers(scenario)
         self._multiples = multiples
