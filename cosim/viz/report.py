@@ -858,44 +858,9 @@ def index_page(
     was made), summary table, key figures, the figures inline (linked), each with its
     ``alts`` text (:func:`figure_alt`; the figure's title without one)."""
     name = summary.get("scenario") or path_text(run_dir.resolve().name)
-    rows = [
-        ("scenario", summary.get("scenario")),
-        ("status", summary.get("status")),
-        ("complete", summary.get("complete")),
-        ("error", summary.get("error")),
-        ("stop time (s)", summary.get("stop_time")),
-        ("time reached (s)", summary.get("time_reached")),
-        ("communication step (s)", summary.get("step")),
-        ("algorithm", summary.get("algorithm")),
-        ("wall clock, stepping loop (s)", summary.get("wall_clock_s")),
-        ("real-time factor", summary.get("real_time_factor")),
-    ]
-    key = summary.get("key_figures") or {}
-    rows += [(figure_label(k), v) for k, v in key.items()]
-    table = "\n".join(
-        f'<tr><th scope="row">{html.escape(label)}</th><td>{html.escape(_text(value))}</td></tr>'
-        for label, value in rows
-        if value is not None
-    )
-    note = f"<p><em>{html.escape(summary_problem)}</em></p>" if summary_problem else ""
-    if summary.get("status") == "running":
-        note += (
-            "<p><strong>summary.json says the run is still running (or its process was "
-            "killed): the figures show the rows written so far.</strong></p>"
-        )
-    elif summary.get("complete") is False:
-        note += (
-            "<p><strong>The run did not complete: the figures show its partial "
-            "results.</strong></p>"
-        )
-    titles = {key: FIGURES[key][0] if key in FIGURES else TITLES[key] for key in figures}
-    alt = {key: (alts or {}).get(key) or titles[key] for key in figures}
-    images = "\n".join(
-        f"<h2>{html.escape(titles[key])}</h2>\n"
-        f'<p><a href="{path.name}"><img src="{path.name}" alt="{html.escape(alt[key])}" '
-        'style="max-width:100%"></a></p>'
-        for key, path in figures.items()
-    )
+    table = _summary_rows(summary)
+    note = _incomplete_note(summary, summary_problem)
+    images = _figure_images(figures, alts)
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head><meta charset="utf-8"><title>auv-cosim run {html.escape(str(name))}</title>
@@ -916,6 +881,60 @@ h1, code {{ overflow-wrap: anywhere; }}</style></head>
 </body>
 </html>
 """
+
+
+def _summary_rows(summary: dict[str, Any]) -> str:
+    """The rows of the run summary table: the run's settings and outcome, then its key
+    figures, each as given (a value summary.json lacks has no row)."""
+    rows = [
+        ("scenario", summary.get("scenario")),
+        ("status", summary.get("status")),
+        ("complete", summary.get("complete")),
+        ("error", summary.get("error")),
+        ("stop time (s)", summary.get("stop_time")),
+        ("time reached (s)", summary.get("time_reached")),
+        ("communication step (s)", summary.get("step")),
+        ("algorithm", summary.get("algorithm")),
+        ("wall clock, stepping loop (s)", summary.get("wall_clock_s")),
+        ("real-time factor", summary.get("real_time_factor")),
+    ]
+    key = summary.get("key_figures") or {}
+    rows += [(figure_label(k), v) for k, v in key.items()]
+    return "\n".join(
+        f'<tr><th scope="row">{html.escape(label)}</th><td>{html.escape(_text(value))}</td></tr>'
+        for label, value in rows
+        if value is not None
+    )
+
+
+def _incomplete_note(summary: dict[str, Any], summary_problem: str | None) -> str:
+    """What the page says of a summary.json it could not read, a run still running (or
+    killed) and a run that did not complete ("" for a complete run)."""
+    note = f"<p><em>{html.escape(summary_problem)}</em></p>" if summary_problem else ""
+    if summary.get("status") == "running":
+        note += (
+            "<p><strong>summary.json says the run is still running (or its process was "
+            "killed): the figures show the rows written so far.</strong></p>"
+        )
+    elif summary.get("complete") is False:
+        note += (
+            "<p><strong>The run did not complete: the figures show its partial "
+            "results.</strong></p>"
+        )
+    return note
+
+
+def _figure_images(figures: dict[str, Path], alts: dict[str, str] | None) -> str:
+    """Each figure under its title, inline and linked, with its ``alts`` text (the title
+    without one)."""
+    titles = {key: FIGURES[key][0] if key in FIGURES else TITLES[key] for key in figures}
+    alt = {key: (alts or {}).get(key) or titles[key] for key in figures}
+    return "\n".join(
+        f"<h2>{html.escape(titles[key])}</h2>\n"
+        f'<p><a href="{path.name}"><img src="{path.name}" alt="{html.escape(alt[key])}" '
+        'style="max-width:100%"></a></p>'
+        for key, path in figures.items()
+    )
 
 
 def _stamp_line(stamp: dict[str, Any] | None, run_dir: Path, summary_problem: str | None) -> str:
