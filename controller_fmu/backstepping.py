@@ -56,7 +56,8 @@ class BacksteppingOutput:
 
     mass_position: float  # y_v of (6.3.64), m
     tunnel_force: float  # F_t of (6.3.72)-(6.3.73), N
-    errors: tuple[float, float, float, float, float]  # psi_e, z1, z2, z3, z4
+    # psi_e (rad) and z1 (rad/s), z2 (m/s), z3 (rad), z4 (rad/s) of (6.3.55)-(6.3.64)
+    errors: tuple[float, float, float, float, float]
 
 
 @dataclass(frozen=True)

@@ -149,8 +149,9 @@ def loop_poles(law: DepthPd, params: VehicleParameters, speed: float) -> np.ndar
 def sampled_loop_poles(
     law: DepthPd, params: VehicleParameters, speed: float, sample_time: float
 ) -> np.ndarray:
-    """The poles z of :func:`loop_poles`'s loop as the autopilot runs it: the fin command
-    computed every ``sample_time`` s and held between (zero-order hold of the plane)."""
+    """The poles z (dimensionless, |z| < 1 when stable) of :func:`loop_poles`'s loop as the
+    autopilot runs it: the fin command computed every ``sample_time`` s and held between
+    (zero-order hold of the plane)."""
     A, B, gain = closed_plane(law, params, speed)
     Ad, Bd = zero_order_hold(A, B, sample_time)
     poles: np.ndarray = np.linalg.eigvals(Ad + Bd @ gain[None, :])

@@ -42,7 +42,8 @@ def output_matrix() -> np.ndarray:
 
 
 def state_weight(q_y: Sequence[float]) -> np.ndarray:
-    """Q = C^T diag(Q_y) C, 7x7.
+    """Q = C^T diag(Q_y) C, 7x7, from the weights ``q_y`` on y = [r (rad/s), p (rad/s),
+    phi (rad), psi (rad), y_v (m), y_vel (m/s)] of (6.3.18).
 
     Raises:
         ValueError: q_y is not 6 finite non-negative weights.
@@ -70,8 +71,9 @@ def _check_r(r_u: float) -> None:
 def continuous_gain(
     A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The dissertation's continuous LQR (as control.lqr): gain K (7,) with y_d = -K x,
-    and the closed-loop eigenvalues of A - B K."""
+    """The dissertation's continuous LQR (as control.lqr): gain K (7,) with y_d = -K x
+    (y_d in m, so K in m per unit of each state of :data:`CONTROL_STATES`), and the
+    closed-loop eigenvalues of A - B K, 1/s."""
     _check_r(r_u)
     K, _, poles = riccati.lqr(A, B, state_weight(q_y), r_u)
     return np.asarray(K).ravel(), np.asarray(poles)
@@ -86,8 +88,9 @@ def discrete_gain(
     A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float, dt: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Discrete LQR (zero-order hold + dlqr, as control's c2d + dlqr) for sample time dt:
-    gain K (7,) with y_d[k] = -K x[k], and the closed-loop eigenvalues of Ad - Bd K
-    (|z| < 1 when stable)."""
+    gain K (7,) with y_d[k] = -K x[k] (m per unit of each state of
+    :data:`CONTROL_STATES`), and the closed-loop eigenvalues of Ad - Bd K (|z| < 1 when
+    stable)."""
     _check_r(r_u)
     Ad, Bd = discretize(A, B, dt)
     Q = state_weight(q_y)

@@ -762,7 +762,7 @@ class CompiledPlant:
         return dz
 
     def outputs(self, z: np.ndarray, inputs: np.ndarray) -> list[float]:
-        """[u_rel, v_rel, w_rel, kinetic_energy] of a stepping state (see
+        """[u_rel, v_rel, w_rel (m/s), kinetic_energy (J)] of a stepping state (see
         :func:`outputs_into`)."""
         out = np.empty(4)
         outputs_into(self.parameters, z, inputs, self._R, out)

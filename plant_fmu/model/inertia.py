@@ -86,7 +86,8 @@ def added_mass_matrix(params: InertiaParameters) -> np.ndarray:
 def added_mass_matrix_times(
     params: InertiaParameters, nu: Sequence[float] | np.ndarray
 ) -> list[float]:
-    """M_A nu without building the matrix (the added-mass impulse of nu)."""
+    """M_A nu without building the matrix: the added-mass impulse of nu = [u, v, w, p, q,
+    r] (m/s, rad/s), kg m/s in the force rows and kg m^2/s in the moment rows."""
     u, v, w, roll_rate, q, r = nu
     return [
         params.a11 * u,

@@ -45,7 +45,9 @@ class MovingMassModel(IntEnum):
 
 def rail_direction(params: VehicleParameters) -> np.ndarray:
     """J = [e_y; r_v x e_y] = [0, 1, 0, -z_g, 0, x_v]: the generalised direction along which a
-    force on the rail acts on the hull (independent of y_v)."""
+    force on the rail acts on the hull (independent of y_v): a rail force F (N) is the
+    generalised force F J, N in the force rows and N m in the moment rows (J's entries
+    there are lever arms, m)."""
     return np.array([0.0, 1.0, 0.0, -params.z_g, 0.0, params.x_v])
 
 
@@ -83,7 +85,8 @@ def mass_matrix_shift(params: VehicleParameters, y_v: float) -> np.ndarray:
     leaves the centre of its rail (r_v0 = [x_v, 0, z_g]), with the point-mass matrix
     M_p(r) = m_v [[I, -S(r)], [S(r), |r|^2 I - r r^T]] (2.3.11 for a point). Written out:
     S(r_v) - S(r_v0) = y_v S(e_y), and the inertia changes by
-    m_v [[y^2, -x_v y, 0], [-x_v y, 0, -z_g y], [0, -z_g y, y^2]]."""
+    m_v [[y^2, -x_v y, 0], [-x_v y, 0, -z_g y], [0, -z_g y, y^2]]. y_v in m; dM in the
+    units of M_RB (kg, kg m, kg m^2)."""
     m_y = params.m_v * y_v
     m_xy, m_zy, m_yy = params.x_v * m_y, params.z_g * m_y, y_v * m_y
     return np.array(
