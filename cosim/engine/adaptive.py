@@ -104,7 +104,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -127,6 +127,8 @@ from cosim.scenario.timeline_spec import first_point
 
 if TYPE_CHECKING:
     from cosim.engine.points import RowBuffer
+
+_Kept = TypeVar("_Kept")  # what a caller of _until_accepted keeps of an accepted step
 
 MIN_LEVEL = 10  # the smallest step is coupling.step / 2**MIN_LEVEL
 SAFETY = 0.9  # of the step the error estimate proposes
@@ -300,36 +302,30 @@ def _one_step(
     """Take one accepted step from point n, retrying as the error asks; returns the new
     point and the rows filled."""
     z, grid = stepper.z, stepper.grid
-    while True:
-        units, wanted = control.units(n)
+
+    def attempt(units: int, saved: tuple[Any, ...]) -> tuple[float, np.ndarray | None]:
+        """The step of ``units`` and, where it has a middle point, the same in two halves
+        from ``saved``: their difference and the row at the middle (else 0 and None)."""
         half = units // 2
-        saved = stepper.save()
-        try:
-            if half >= 1:
-                stepper.advance(n, units)
-                big = z[: control.n_read].copy()
-                stepper.restore(saved)
-                stepper.advance(n, half)
-                check_finite(z[: control.n_read], control.index, (n + half) * grid)
-                at(n + half)
-                middle = z[record].copy()
-                stepper.advance(n + half, units - half)
-                err = control.error(big, z[: control.n_read])
-            else:
-                stepper.advance(n, units)
-                middle, err = None, 0.0
-            check_finite(z[: control.n_read], control.index, (n + units) * grid)
-            if control.judge(err, units, wanted):
-                break
+        if half >= 1:
+            stepper.advance(n, units)
+            big = z[: control.n_read].copy()
             stepper.restore(saved)
-        except FMICallException as exc:
-            if not _shorter_after_discard(stepper, control, exc, units):
-                raise
-            stepper.restore(saved)
-        finally:
-            stepper.free(saved)
+            stepper.advance(n, half)
+            check_finite(z[: control.n_read], control.index, (n + half) * grid)
+            at(n + half)
+            middle = z[record].copy()
+            stepper.advance(n + half, units - half)
+            err = control.error(big, z[: control.n_read])
+        else:
+            stepper.advance(n, units)
+            middle, err = None, 0.0
+        check_finite(z[: control.n_read], control.index, (n + units) * grid)
+        return err, middle
+
+    units, middle = _until_accepted(stepper, control, n, attempt)
     if middle is not None:
-        filled = rows.push(filled, middle, (n + half) * grid)
+        filled = rows.push(filled, middle, (n + units // 2) * grid)
     at(n + units)
     filled = rows.push(filled, z[record], (n + units) * grid)
     return n + units, filled
@@ -348,16 +344,38 @@ def _extrapolated_step(
     (:mod:`cosim.engine.input_error`): one step of H, redone only when rejected."""
     z, inputs = stepper.z, stepper.inputs
     assert inputs is not None
+
+    def attempt(units: int, saved: tuple[Any, ...]) -> tuple[float, None]:
+        """The step of ``units`` and its inputs' extrapolation error, scaled."""
+        stepper.advance(n, units)
+        check_finite(z[: control.n_read], control.index, (n + units) * stepper.grid)
+        sources, du = inputs.errors(stepper.order, z, n + units, control.k - 1)
+        return control.scaled(z[: control.n_read], sources, du) * units / 2**MIN_LEVEL, None
+
+    units, _ = _until_accepted(stepper, control, n, attempt)
+    at(n + units)
+    filled = rows.push(filled, z[record], (n + units) * stepper.grid)
+    return n + units, filled
+
+
+def _until_accepted(
+    stepper: _Stepper,
+    control: _Control,
+    n: int,
+    attempt: Callable[[int, tuple[Any, ...]], tuple[float, _Kept]],
+) -> tuple[int, _Kept]:
+    """The step from point n that ``control`` accepts: ``attempt(units, saved)`` takes a
+    step of ``units`` grid points from the instances' state ``saved`` and returns its
+    error estimate and what the caller keeps of it; a step the error rejects, or that an
+    instance discards while a shorter one is possible, is undone and taken again as long
+    as ``control`` now asks. Returns the accepted step's units and what was kept."""
     while True:
         units, wanted = control.units(n)
         saved = stepper.save()
         try:
-            stepper.advance(n, units)
-            check_finite(z[: control.n_read], control.index, (n + units) * stepper.grid)
-            sources, du = inputs.errors(stepper.order, z, n + units, control.k - 1)
-            err = control.scaled(z[: control.n_read], sources, du) * units / 2**MIN_LEVEL
+            err, kept = attempt(units, saved)
             if control.judge(err, units, wanted):
-                break
+                return units, kept
             stepper.restore(saved)
         except FMICallException as exc:
             if not _shorter_after_discard(stepper, control, exc, units):
@@ -365,9 +383,6 @@ def _extrapolated_step(
             stepper.restore(saved)
         finally:
             stepper.free(saved)
-    at(n + units)
-    filled = rows.push(filled, z[record], (n + units) * stepper.grid)
-    return n + units, filled
 
 
 def _shorter_after_discard(
