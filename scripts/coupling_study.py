@@ -46,7 +46,7 @@ import numpy as np
 from cosim.engine import master
 from cosim.engine.step_check import check_step
 from cosim.metrics.key_figures import KeyFigures
-from cosim.metrics.richardson import observed_order
+from cosim.metrics.richardson import Estimate, observed_order
 from cosim.scenario.spec import ErrorEstimate, Scenario, builtin_scenarios, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -81,8 +81,10 @@ def figures_of(scenario: Scenario) -> tuple[dict[str, float | None], master.RunR
 
 def limit(values: Sequence[float], nominal: float) -> tuple[float, float]:
     """(limit, order) from the figure at 2.5, 1.25, 0.625 ms (Richardson on the last two)."""
-    order = observed_order(*values) or nominal
-    return values[2] + (values[2] - values[1]) / (2.0**order - 1.0), order
+    value, half, quarter = values
+    observed = observed_order(value, half, quarter)
+    order = observed or nominal
+    return Estimate(value, half, quarter, order, observed is not None).limit, order
 
 
 def shipped(ids: Sequence[str]) -> str:
