@@ -79,11 +79,6 @@ def continuous_gain(
     return np.asarray(K).ravel(), np.asarray(poles)
 
 
-def discretize(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-order-hold discretisation (as control.c2d) at sample time dt, s (> 0)."""
-    return zero_order_hold(A, B, dt)
-
-
 def discrete_gain(
     A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float, dt: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -92,7 +87,7 @@ def discrete_gain(
     :data:`CONTROL_STATES`), and the closed-loop eigenvalues of Ad - Bd K (|z| < 1 when
     stable)."""
     _check_r(r_u)
-    Ad, Bd = discretize(A, B, dt)
+    Ad, Bd = zero_order_hold(A, B, dt)  # as control.c2d
     Q = state_weight(q_y)
     try:
         K, _, poles = riccati.dlqr(Ad, Bd, Q, r_u)

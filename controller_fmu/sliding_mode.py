@@ -46,7 +46,8 @@ import numpy as np
 
 from controller_fmu import riccati
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
-from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, discretize, no_gain_reason
+from controller_fmu.lqr import DISSERTATION_Q_Y, DISSERTATION_R_U, no_gain_reason
+from controller_fmu.matrix_exponential import zero_order_hold
 
 _PSI = CONTROL_STATES.index("yaw")
 _REACHING_LIMIT = 2.0  # h eta / Phi: the sampled reaching law's stability limit inside Phi
@@ -95,7 +96,7 @@ class SlidingModeHeading:
         self.eta = float(eta)
         self.boundary_layer = float(boundary_layer)
         self.A, self.B = design.linearize()
-        Ad, Bd = discretize(self.A, self.B, self.sample_time)
+        Ad, Bd = zero_order_hold(self.A, self.B, self.sample_time)
 
         # Reduced design without psi (6.3.46)-(6.3.47): y = [r, p, phi, y_v, y_vel].
         q_reduced = [q for i, q in enumerate(q_y) if i != _PSI - 1]

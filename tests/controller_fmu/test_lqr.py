@@ -18,9 +18,9 @@ from controller_fmu.lqr import (
     LqrHeading,
     continuous_gain,
     discrete_gain,
-    discretize,
     state_weight,
 )
+from controller_fmu.matrix_exponential import zero_order_hold
 from cosim.analysis.closed_loop import simulate_closed_loop
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import state_vector
@@ -57,7 +57,7 @@ def test_continuous_design_puts_a_servo_pole_no_sampled_loop_can_realise(linear)
     # A closed-loop pole near -5760 1/s (the rail speed weight 1e6; docs/model.md#lqr).
     assert poles.real.min() < -1000.0
     # The same gains held over 10 ms steps: the sampled loop is violently unstable.
-    Ad, Bd = discretize(A, B, 0.01)
+    Ad, Bd = zero_order_hold(A, B, 0.01)
     sampled = np.linalg.eigvals(Ad - Bd @ K[None, :])
     assert np.abs(sampled).max() > 2.0
 
@@ -66,7 +66,7 @@ def test_continuous_design_puts_a_servo_pole_no_sampled_loop_can_realise(linear)
 def test_discrete_design_is_stable_at_the_communication_steps_users_pick(linear, dt):
     A, B = linear
     K, poles = discrete_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U, dt)
-    Ad, Bd = discretize(A, B, dt)
+    Ad, Bd = zero_order_hold(A, B, dt)
     closed = np.linalg.eigvals(Ad - Bd @ K[None, :])
     assert np.abs(closed).max() < 1.0
     np.testing.assert_allclose(np.sort_complex(closed), np.sort_complex(poles), atol=1e-9)
@@ -102,7 +102,7 @@ def test_bad_weights_and_sample_times_are_refused_with_the_value_named(linear):
     with pytest.raises(ValueError, match=r"Q_y .*-1"):
         state_weight([1.0, 5e3, 1e2, -1.0, 1e3, 1e6])
     with pytest.raises(ValueError, match=r"sample time 0\.0"):
-        discretize(A, B, 0.0)
+        discrete_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U, 0.0)
     with pytest.raises(ValueError, match=r"R_u = 0\.0"):
         discrete_gain(A, B, DISSERTATION_Q_Y, 0.0, 0.01)
 

@@ -9,7 +9,7 @@ import pytest
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
-from controller_fmu.lqr import discretize
+from controller_fmu.matrix_exponential import zero_order_hold
 from controller_fmu.sliding_mode import SlidingModeHeading
 from cosim.analysis.closed_loop import simulate_closed_loop
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
@@ -34,7 +34,7 @@ def design(remus):
 
 def test_surface_is_the_left_eigenvector_of_the_closed_loop_for_the_free_heading(design):
     smc = SlidingModeHeading(design, H)
-    Ad, Bd = discretize(smc.A, smc.B, H)
+    Ad, Bd = zero_order_hold(smc.A, smc.B, H)
     closed = Ad - Bd @ smc.k[None, :]
     assert smc.k[PSI] == 0.0  # (6.3.40): psi is left to the sliding surface
     assert smc.w[PSI] == 1.0  # scaled so s is in rad
