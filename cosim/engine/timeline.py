@@ -47,11 +47,6 @@ OVERRIDE_PREFIX = "live-"  # the names of applied overrides as events: live-1, l
 _TOLERANCE = POINT_TOLERANCE  # of a step: a time within it of t_n counts as t_n
 
 
-def step_index(time: float, h: float) -> int:
-    """The first communication point n with n h >= ``time`` (s), within 1e-9 of a step."""
-    return first_point(time, h)
-
-
 class _Writer:
     """Reads and writes ``"<instance>.<variable>"`` of the running instances; a written
     recorded input's column (its slot in ``z``) follows."""
@@ -112,7 +107,7 @@ class _EventRun:
 
     def __init__(self, event: Event, h: float) -> None:
         self.event = event
-        self.n_fire = step_index(event.time, h) if event.time is not None else None
+        self.n_fire = first_point(event.time, h) if event.time is not None else None
         self.was_true: bool | None = None  # the condition at the previous point
         self.fired = False
 
@@ -126,8 +121,8 @@ class _FaultRun:
 
     def __init__(self, fault: Fault, h: float, index: Mapping[str, int]) -> None:
         self.fault = fault
-        self.n_start = step_index(fault.start, h)
-        self.n_stop = step_index(fault.stop, h) if fault.stop is not None else None
+        self.n_start = first_point(fault.start, h)
+        self.n_stop = first_point(fault.stop, h) if fault.stop is not None else None
         self.rng = np.random.default_rng(fault.seed) if fault.seed is not None else None
         steps = fault.steps or 0
         self.history: collections.deque[float] = collections.deque(maxlen=steps + 1)
@@ -324,7 +319,7 @@ class Timeline:
         due = {run.n_fire for run in self._events if run.n_fire is not None}
         for run in self._events:
             if run.event.series is not None:
-                due |= {step_index(t, self.h) for t in run.event.series.times}
+                due |= {first_point(t, self.h) for t in run.event.series.times}
         for fault in self._faults:
             due |= {n for n in (fault.n_start, fault.n_stop) if n is not None}
         return sorted(due)

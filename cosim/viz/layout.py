@@ -107,84 +107,80 @@ class Panel:
     series: tuple[Series, ...]
 
 
-def _series(column: str, label: str, color: Rgb, scale: float = 1.0) -> Series:
-    return Series(column, label, color, scale)
-
-
 PANELS: tuple[Panel, ...] = (
     Panel("attitude/yaw_deg", "Yaw ψ (deg)", "deg", (
-        _series("plant.yaw", "yaw ψ (deg)", BLUE, DEG),
-        _series("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG),
-        _series("guidance.yaw_setpoint", "guidance yaw setpoint ψ_d (deg)", SETPOINT, DEG),
-        _series("guidance.course_setpoint", "guidance course setpoint χ_d (deg)",
-                PALE_SETPOINT, DEG),
+        Series("plant.yaw", "yaw ψ (deg)", BLUE, DEG),
+        Series("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG),
+        Series("guidance.yaw_setpoint", "guidance yaw setpoint ψ_d (deg)", SETPOINT, DEG),
+        Series("guidance.course_setpoint", "guidance course setpoint χ_d (deg)",
+               PALE_SETPOINT, DEG),
     )),
     Panel("attitude/roll_deg", "Roll φ (deg)", "deg", (
-        _series("plant.roll", "roll φ (deg)", RED, DEG),
+        Series("plant.roll", "roll φ (deg)", RED, DEG),
     )),
     Panel("attitude/pitch_deg", "Pitch θ (deg)", "deg", (
-        _series("plant.pitch", "pitch θ (deg)", GREEN, DEG),
+        Series("plant.pitch", "pitch θ (deg)", GREEN, DEG),
     )),
     Panel("rates/roll_yaw_deg_s", "Roll and yaw rates (deg/s)", "deg/s", (
-        _series("plant.p", "roll rate p (deg/s)", RED, DEG),
-        _series("plant.r", "yaw rate r (deg/s)", BLUE, DEG),
+        Series("plant.p", "roll rate p (deg/s)", RED, DEG),
+        Series("plant.r", "yaw rate r (deg/s)", BLUE, DEG),
     )),
     Panel("rates/pitch_deg_s", "Pitch rate (deg/s)", "deg/s", (
-        _series("plant.q", "pitch rate q (deg/s)", GREEN, DEG),
+        Series("plant.q", "pitch rate q (deg/s)", GREEN, DEG),
     )),
     Panel("velocity/surge_m_s", "Surge (m/s)", "m/s", (
-        _series("plant.u", "u over ground (m/s)", RED),
-        _series("plant.u_rel", "u through water (m/s)", PALE_RED),
+        Series("plant.u", "u over ground (m/s)", RED),
+        Series("plant.u_rel", "u through water (m/s)", PALE_RED),
     )),
     Panel("velocity/sway_m_s", "Sway (m/s)", "m/s", (
-        _series("plant.v", "v over ground (m/s)", GREEN),
-        _series("plant.v_rel", "v through water (m/s)", PALE_GREEN),
+        Series("plant.v", "v over ground (m/s)", GREEN),
+        Series("plant.v_rel", "v through water (m/s)", PALE_GREEN),
     )),
     Panel("velocity/heave_m_s", "Heave (m/s)", "m/s", (
-        _series("plant.w", "w over ground (m/s)", BLUE),
-        _series("plant.w_rel", "w through water (m/s)", PALE_BLUE),
+        Series("plant.w", "w over ground (m/s)", BLUE),
+        Series("plant.w_rel", "w through water (m/s)", PALE_BLUE),
     )),
     Panel("position/horizontal_m", "Position (m)", "m", (
-        _series("plant.north", "north (m)", RED),
-        _series("plant.east", "east (m)", GREEN),
+        Series("plant.north", "north (m)", RED),
+        Series("plant.east", "east (m)", GREEN),
     )),
     Panel("position/depth_m", "Depth (m)", "m", (
-        _series("plant.down", "depth (m)", BLUE),
-        _series("controller.depth_setpoint", "depth setpoint (m)", SETPOINT),
-        _series("guidance.depth_setpoint", "guidance depth setpoint z_d (m)", SETPOINT),
+        Series("plant.down", "depth (m)", BLUE),
+        Series("controller.depth_setpoint", "depth setpoint (m)", SETPOINT),
+        Series("guidance.depth_setpoint", "guidance depth setpoint z_d (m)", SETPOINT),
     )),
     Panel("moving_mass/position_cm", "Moving mass y_v (cm)", "cm", (
-        _series("plant.mass_position", "mass position y_v (cm)", MASS, 100.0),
-        _series("controller.mass_position_cmd", "mass command y_d (cm)", SETPOINT, 100.0),
-        _series("plant.mass_position_cmd", "mass command at the plant (cm)", PALE_SETPOINT, 100.0),
+        Series("plant.mass_position", "mass position y_v (cm)", MASS, 100.0),
+        Series("controller.mass_position_cmd", "mass command y_d (cm)", SETPOINT, 100.0),
+        Series("plant.mass_position_cmd", "mass command at the plant (cm)", PALE_SETPOINT, 100.0),
     )),
     Panel("moving_mass/velocity_cm_s", "Moving-mass rail speed (cm/s)", "cm/s", (
-        _series("plant.mass_velocity", "rail speed (cm/s)", MASS, 100.0),
+        Series("plant.mass_velocity", "rail speed (cm/s)", MASS, 100.0),
     )),
     Panel("actuators/tunnel_force_N", "Tunnel thruster (N)", "N", (
-        _series("controller.tunnel_force", "tunnel force F_t (N)", THRUSTER),
-        _series("plant.tunnel_force", "F_t at the plant (N)", pale(THRUSTER)),
+        Series("controller.tunnel_force", "tunnel force F_t (N)", THRUSTER),
+        Series("plant.tunnel_force", "F_t at the plant (N)", pale(THRUSTER)),
     )),
     Panel("actuators/fin_angle_deg", "Stern planes (deg)", "deg", (
-        _series("controller.fin_angle", "fin angle δs (deg)", FIN, DEG),
-        _series("plant.fin_angle", "δs at the plant (deg)", pale(FIN), DEG),
+        Series("controller.fin_angle", "fin angle δs (deg)", FIN, DEG),
+        Series("plant.fin_angle", "δs at the plant (deg)", pale(FIN), DEG),
     )),
     Panel("actuators/thrust_N", "Propeller thrust (N)", "N", (
-        _series("controller.thrust", "thrust T (N)", THRUST),
-        _series("plant.thrust", "T at the plant (N)", pale(THRUST)),
+        Series("controller.thrust", "thrust T (N)", THRUST),
+        Series("plant.thrust", "T at the plant (N)", pale(THRUST)),
     )),
     Panel("actuators/roll_torque_Nm", "Propeller roll torque (N m)", "N.m", (
-        _series("plant.roll_torque", "roll torque Q (N m)", THRUST),
+        Series("plant.roll_torque", "roll torque Q (N m)", THRUST),
     )),
     Panel("energy/kinetic_J", "Kinetic energy (J)", "J", (
-        _series("plant.kinetic_energy", "kinetic energy (J)", ENERGY),
+        Series("plant.kinetic_energy", "kinetic energy (J)", ENERGY),
     )),
     Panel("environment/current_m_s", "Current, earth axes (m/s)", "m/s", (
-        _series("plant.current_north", "current north (m/s)", RED),
-        _series("plant.current_east", "current east (m/s)", GREEN),
-        _series("plant.current_down", "current down (m/s)", BLUE),
-        _series("controller.current_north", "north, as the autopilot knows it (m/s)", PALE_RED),
-        _series("controller.current_east", "east, as the autopilot knows it (m/s)", PALE_GREEN),
+        Series("plant.current_north", "current north (m/s)", RED),
+        Series("plant.current_east", "current east (m/s)", GREEN),
+        Series("plant.current_down", "current down (m/s)", BLUE),
+        Series("controller.current_north", "north, as the autopilot knows it (m/s)", PALE_RED),
+        Series("controller.current_east", "east, as the autopilot knows it (m/s)", PALE_GREEN),
     )),
 )  # fmt: skip
 
@@ -258,7 +254,7 @@ def plan_panels(columns: list[str], units: Mapping[str, str] | None = None) -> l
         if i not in shown:
             declared = (units or {}).get(name) or DIMENSIONLESS
             unit, scale = IN_DEGREES.get(declared, (declared, 1.0))  # angles as every plot
-            series = _series(name, _labelled(name, unit), ENERGY, scale)
+            series = Series(name, _labelled(name, unit), ENERGY, scale)
             entity = "other/" + "/".join(map(rr.escape_entity_path_part, name.split(".", 1)))
             planned.append(PlannedPanel(entity, name, (series,), (i,), (scale,), (unit,)))
     return planned

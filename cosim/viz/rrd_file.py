@@ -77,7 +77,9 @@ class RrdFile:
         while True:
             with self._lock:  # the pump is not between a read and its write
                 if self.error is not None:
-                    raise OSError(f"cannot write the recording {self.path}: {_reason(self.error)}")
+                    raise OSError(
+                        f"cannot write the recording {self.path}: {unwritten(self.error)}"
+                    )
                 if _waiting(self._read) == 0:
                     self._synced = self._written
                     return self._synced
@@ -99,7 +101,7 @@ class RrdFile:
             os.close(self._read)
         os.close(self._out)
         if self.error is not None:
-            raise OSError(f"cannot write the recording {self.path}: {_reason(self.error)}")
+            raise OSError(f"cannot write the recording {self.path}: {unwritten(self.error)}")
 
     def _pump(self) -> None:
         poller = select.poll()
@@ -171,7 +173,3 @@ def drop_closed_streams() -> None:
 
 def _waiting(fd: int) -> int:
     return struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0]
-
-
-def _reason(exc: OSError) -> str:
-    return unwritten(exc)
