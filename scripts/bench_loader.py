@@ -38,6 +38,7 @@ from pathlib import Path
 from bench_timing import load
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
+from fmpy.model_description import ModelDescription
 
 from cosim.fmus.build import ensure_fmus, pythonfmu_build
 from cosim.paths import DEFAULT_FMU_DIR
@@ -94,7 +95,7 @@ class Pair:
         return time.thread_time() - start
 
 
-def _real_refs(md, causality: str) -> dict[str, int]:
+def _real_refs(md: ModelDescription, causality: str) -> dict[str, int]:
     return {
         v.name: v.valueReference
         for v in md.modelVariables

@@ -8,8 +8,9 @@ speeds U0 are the plant's own straight runs at T = 9 N and 4 N.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from functools import partial
+from typing import Any
 
 from cosim.analysis.bifurcation import OperatingConditions
 from cosim.analysis.equilibria import Equilibrium, find_equilibrium
@@ -101,7 +102,14 @@ def _heading(current: float, thrust: float, ctx: Context) -> Finding:
     )
 
 
-def _claim(ref: Reference, claim: str, ours, pick=None, **more) -> Claim:
+def _claim(
+    ref: Reference,
+    claim: str,
+    ours: Callable[[Context], Finding],
+    pick: Sequence[int] | None = None,
+    **more: Any,
+) -> Claim:
+    """The claim of ``ref``'s printed numbers (those at ``pick``) with its tolerance."""
     return Claim(
         claim,
         ref.source,
@@ -125,7 +133,7 @@ def low_speed(refs: Mapping[str, Reference]) -> Section:
         ("x0''", "turn_negative_v", 0),
     ):
         ref = refs[f"low_speed.{key}"]
-        turn = {"unexplained": LOW_SPEED_TURNS} if which != 1 else {}
+        turn: dict[str, Any] = {"unexplained": LOW_SPEED_TURNS} if which != 1 else {}
         claims.append(
             _claim(
                 ref,
