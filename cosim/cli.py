@@ -20,7 +20,7 @@ import sys
 import textwrap
 import warnings
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
@@ -33,6 +33,7 @@ from cosim.errors import (
 )
 from cosim.limits import check_local_study, out_of_memory
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
+from cosim.study.collector import paused
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from fmu_runtime.log_text import shortened
 from plant_fmu.model.state_layout import MAX_SPEED  # a module of constants, imports nothing
@@ -323,7 +324,6 @@ def _margins(args: argparse.Namespace) -> int:
 def _study(args: argparse.Namespace) -> int:
     """``auv-cosim sweep``: 0 if any run completed (failed runs are rows of the table), 1
     if none did, 128 + the signal number if a stop signal ended it."""
-    from contextlib import nullcontext
 
     _check_counts(args)
     if args.dashboard:  # the local cluster's (checked before it starts)
@@ -971,8 +971,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:
         warnings.showwarning = one_line_warnings(f"auv-cosim {args.command}")
         matplotlib_folder_in_one_line()
+    # a study's imports and cluster with the collector off (cosim.study.collector); not in a
+    # caller's process, whose objects the collector's resumption would freeze for good
+    collecting = paused() if argv is None and args.command == "sweep" else nullcontext()
     try:
-        return int(args.func(args) or 0)
+        with collecting:
+            return int(args.func(args) or 0)
     except CosimError as exc:
         print(f"auv-cosim {args.command}: {shortened(one_line(str(exc)))}", file=sys.stderr)
         return 1

@@ -38,6 +38,7 @@ from cosim.scenario import unit_doubts
 from cosim.scenario.checks import range_text
 from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
 from cosim.scratch import process_folder
+from cosim.study import collector
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
@@ -350,6 +351,7 @@ class _Session:
             self.client = self.stack.enter_context(
                 open_client(workers, c.scheduler, c.security, c.dashboard)
             )  # (a local cluster of no more workers than runs: each would start for nothing)
+        collector.resume()  # the client connected: collect what the runs' results leave
         execute(self.client, job, plugin, runs, on_record, self.cluster.scheduler is not None)
 
     def done(self) -> None:
