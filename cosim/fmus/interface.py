@@ -24,7 +24,7 @@ import re
 import shutil
 import sys
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -174,11 +174,11 @@ def unpacked_size(path: Path, archive: zipfile.ZipFile) -> int:
     return size
 
 
-def extract_fmu(path: Path, folder: Path) -> None:
+def extract_fmu(path: Path, folder: Path, include: Callable[[str], bool] | None = None) -> None:
     """Extract the FMU at ``path`` into ``folder`` with fmpy (which refuses a name with a
     drive or a leading slash; zipfile drops ``..`` and makes no symbolic link), after
     :func:`unpacked_size` and a check that ``folder``'s disk has room: a refusal comes
-    before a byte is written.
+    before a byte is written. ``include``: the members to extract (by name; all without).
 
     Raises:
         FmuInterfaceError: too large (:func:`unpacked_size`), or larger than the free
@@ -197,7 +197,7 @@ def extract_fmu(path: Path, folder: Path) -> None:
         raise FmuInterfaceError(
             f"{path}: unpacks to {size} bytes; the disk of {folder} has {free} bytes free"
         )
-    extract(os.fspath(path), unzipdir=os.fspath(folder))
+    extract(os.fspath(path), unzipdir=os.fspath(folder), include=include)
 
 
 def check_binary(path: Path, model_identifier: str | None) -> None:
