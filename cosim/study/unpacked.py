@@ -21,7 +21,7 @@ from __future__ import annotations
 import hashlib
 import os
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from contextlib import suppress
 from pathlib import Path
 
@@ -57,9 +57,9 @@ def _extract(path: Path, target: Path, extracted: dict[tuple[str, Members], Path
     extracted before (``extracted``: name and members -> where) also holds, member for
     member, is a symbolic link to that one instead (extracted where the system makes no
     link). Our FMUs each ship the same package of ~120 files (``auvfmu_<hash>``), and
-    making a file cost ~0.4 ms of the kernel's CPU on an ext4 ``/tmp`` here: a third of
-    the client's CPU before its workers could run, on a machine whose other core the
-    workers' fork server filled."""
+    making a file cost ~0.4 ms of the kernel's CPU on an ext4 ``/tmp`` here: 0.1-0.25 s
+    of the client's ~1.1 s of CPU before its workers could run, on a machine whose other
+    core the workers' fork server filled (``docs/performance.md``)."""
     from cosim.fmus.interface import extract_fmu
 
     folders = _resource_folders(path)
@@ -72,9 +72,14 @@ def _extract(path: Path, target: Path, extracted: dict[tuple[str, Members], Path
             link.parent.mkdir(parents=True, exist_ok=True)
             link.symlink_to(os.path.relpath(source, link.parent), target_is_directory=True)
         except OSError:  # no symbolic links here (Windows without the privilege)
-            extract_fmu(path, target, include=lambda member, n=name: _resource_folder(member) == n)
+            extract_fmu(path, target, include=_inside(name))
     for name, members in folders.items():
         extracted.setdefault((name, members), target / RESOURCES / name)
+
+
+def _inside(folder: str) -> Callable[[str], bool]:
+    """Whether an archive's member is in ``folder`` (of :func:`_resource_folder`)."""
+    return lambda member: _resource_folder(member) == folder
 
 
 def _resource_folders(path: Path) -> dict[str, Members]:

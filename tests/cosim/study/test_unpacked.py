@@ -4,7 +4,9 @@ there: a remote worker) is not used."""
 
 from __future__ import annotations
 
+import errno
 import shutil
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -161,3 +163,37 @@ def test_local_workers_load_the_clients_copy_and_are_carried_no_fmu_bytes(
         assert path.read_bytes() == base.fmu_paths[instance].read_bytes()
     _, remote = make_job(base, {}, "none")
     assert len(remote.files) == len(base.fmu_paths)
+
+
+def _as_archived(fmu: Path, folder: Path) -> None:
+    """Every file of the FMU ``fmu`` is in its extraction ``folder``, byte for byte."""
+    with zipfile.ZipFile(fmu) as archive:
+        for name in archive.namelist():
+            if not name.endswith("/"):
+                assert (folder / name).read_bytes() == archive.read(name), name
+
+
+def test_the_package_the_fmus_share_is_extracted_once(fmu_paths, tmp_path: Path) -> None:
+    # our FMUs each ship the same package's subfolders: making their ~120 files again for
+    # each FMU took most of the client's extraction (file creation's kernel CPU)
+    paths = {name: fmu_paths[name] for name in ("AuvPlant", "AuvAutopilot", "AuvGuidance")}
+    unpacked = unpack(paths, tmp_path)
+    first, *others = [Path(folder) for folder in unpacked.values()]
+    linked = [p for f in others for p in (f / "resources").glob("*/*") if p.is_symlink()]
+    assert linked, "each FMU's copy of the shared package was extracted again"
+    assert all(p.resolve().is_relative_to(first.resolve()) for p in linked)
+    for fmu, folder in zip(paths.values(), unpacked.values(), strict=True):
+        _as_archived(fmu, Path(folder))
+
+
+def test_without_links_the_shared_package_is_extracted_for_each_fmu(
+    fmu_paths, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise OSError(errno.EPERM, "symbolic links not permitted")
+
+    monkeypatch.setattr(Path, "symlink_to", refuse)
+    paths = {name: fmu_paths[name] for name in ("AuvPlant", "AuvAutopilot")}
+    unpacked = unpack(paths, tmp_path)
+    for fmu, folder in zip(paths.values(), unpacked.values(), strict=True):
+        _as_archived(fmu, Path(folder))
