@@ -324,7 +324,6 @@ def _margins(args: argparse.Namespace) -> int:
 def _study(args: argparse.Namespace) -> int:
     """``auv-cosim sweep``: 0 if any run completed (failed runs are rows of the table), 1
     if none did, 128 + the signal number if a stop signal ended it."""
-
     _check_counts(args)
     if args.dashboard:  # the local cluster's (checked before it starts)
         if args.scheduler is not None:
