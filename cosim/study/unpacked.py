@@ -57,9 +57,9 @@ def _extract(path: Path, target: Path, extracted: dict[tuple[str, Members], Path
     extracted before (``extracted``: name and members -> where) also holds, member for
     member, is a symbolic link to that one instead (extracted where the system makes no
     link). Our FMUs each ship the same package of ~120 files (``auvfmu_<hash>``), and
-    making a file cost ~0.4 ms of the kernel's CPU on an ext4 ``/tmp`` here: 0.1-0.25 s
-    of the client's ~1.1 s of CPU before its workers could run, on a machine whose other
-    core the workers' fork server filled (``docs/performance.md``)."""
+    making a file costs the kernel's CPU (on an ext4 ``/tmp`` far more than on a tmpfs):
+    CPU of the client's before its workers can run, on a machine whose other core the
+    workers' fork server fills (``docs/performance.md``)."""
     from cosim.fmus.interface import extract_fmu
 
     folders = _resource_folders(path)
