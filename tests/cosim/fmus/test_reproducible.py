@@ -3,6 +3,7 @@ time zone they are built; ``SOURCE_DATE_EPOCH`` dates the entries and the descri
 
 from __future__ import annotations
 
+import sys
 import time
 import zipfile
 from collections.abc import Iterator
@@ -12,7 +13,7 @@ from xml.etree import ElementTree as ET
 import pytest
 
 from cosim.errors import CosimError
-from cosim.fmus import build, reproducible
+from cosim.fmus import build, bytecode, reproducible
 
 DESCRIPTION = (
     b'<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="2.0" '
@@ -111,3 +112,14 @@ def test_an_fmu_built_under_another_source_date_epoch_is_built_again(fmu_paths, 
     other = "1700000001" if reproducible.stamp() == "1700000000" else "1700000000"
     monkeypatch.setenv("SOURCE_DATE_EPOCH", other)
     assert build.out_of_date(folder) == list(build.FMUS)
+
+
+def test_the_compiled_code_is_the_same_whatever_the_building_process_did_before():
+    """The ``.pyc`` files were compiled in the building process, where marshal writes a
+    string that process also holds (one it interned since) another way: the same sources
+    gave other bytes after other code had run (``cosim.build_fmus`` in a notebook after a
+    run; a rebuild in a test session after other tests)."""
+    resources = {"m.py": "mark = '\u00a7'\n".encode()}  # a one-character string
+    before = bytecode.compiled(resources)
+    sys.intern("\u00a7")  # the process now holds that string as code it imports would
+    assert bytecode.compiled(resources) == before
