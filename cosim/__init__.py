@@ -59,7 +59,11 @@ _HOMES = {
 
 def __getattr__(name: str) -> Any:
     """The API's names, imported from :mod:`cosim.api` (or their own module, ``_HOMES``)
-    at their first use."""
+    at their first use; ``__version__``, the package's version (:mod:`cosim.version`)."""
+    if name == "__version__":
+        from cosim.version import version
+
+        return version()
     if name in __all__:
         value = getattr(importlib.import_module(_HOMES.get(name, "cosim.api")), name)
         globals()[name] = value

@@ -536,20 +536,17 @@ class _OutputRefusedError(Exception):
 
 
 class _Version(argparse.Action):
-    """``--version``: the installed package's version, looked up only when asked for
-    (argparse's own action takes the string when the parser is built, which every command
-    would pay for with importlib.metadata's import)."""
+    """``--version``: the package's version (:mod:`cosim.version`), looked up only when
+    asked for (argparse's own action takes the string when the parser is built, which
+    every command would pay for with importlib.metadata's import)."""
 
     def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
         super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
 
     def __call__(self, parser: argparse.ArgumentParser, *args: Any) -> None:
-        import importlib.metadata
+        from cosim.version import version as own_version
 
-        try:
-            version = importlib.metadata.version("auv-cosim")
-        except importlib.metadata.PackageNotFoundError:
-            version = "(not installed: run from a source tree)"
+        version = own_version() or "(version unknown: no pyproject.toml, not installed)"
         # on stdout, as argparse's own version action does
         parser._print_message(f"auv-cosim {version}\n", sys.stdout)
         parser.exit()

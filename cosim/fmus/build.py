@@ -80,6 +80,7 @@ from cosim.errors import CosimError, unmade_folder
 from cosim.fmus import bytecode, native, reproducible, staging
 from cosim.fmus import docs as fmu_docs
 from cosim.fmus.interface import OWN_PACKAGES
+from cosim.version import DISTRIBUTION, version
 from cosim.whole_file import write_whole
 from fmu_runtime import entry
 
@@ -89,7 +90,6 @@ SHIPPED_SUFFIXES = (".py", ".toml")
 # then share one copy of the code (and numba's cache of it).
 PACKAGES = OWN_PACKAGES
 VENDORED = "pythonfmu"  # pythonfmu's pure-Python package, from this environment
-DISTRIBUTION = "auv-cosim"  # this project, whose code (and so whose licence) every FMU ships
 # The namespace of the FMUs' name-based (version 5) GUIDs; any fixed UUID would do.
 _GUID_NAMESPACE = uuid.UUID("3f6c1e52-9d4b-4c1e-8a51-5b2f8f0c7a11")
 
@@ -443,13 +443,15 @@ def _replace_resources(fmu: Path, resources: dict[str, bytes]) -> None:
 
 
 def source_hash(files: dict[str, Path]) -> str:
-    """SHA-256 over the shipped files (names and bytes), this module, the documentation
+    """SHA-256 over this package's version (:mod:`cosim.version`: a version bumped
+    builds again), the shipped files (names and bytes), this module, the documentation
     generator (:mod:`cosim.fmus.docs`), the renaming of imports (:mod:`cosim.fmus.staging`),
     the dating of the archive (:mod:`cosim.fmus.reproducible`),
     the FMU's runtime (its C sources, the compiler that builds it and the Python it
     records: :func:`cosim.fmus.native.source_digest`), pythonfmu's version, and the
     compiling of the code (:mod:`cosim.fmus.bytecode`, for this Python's cache tag)."""
     digest = hashlib.sha256()
+    digest.update(f"auv-cosim {version()}\n".encode())  # the version its description states
     digest.update(f"pythonfmu {metadata.version('pythonfmu')}\n".encode())
     digest.update(f"bytecode {sys.implementation.cache_tag}\n".encode())
     digest.update(f"runtime {native.source_digest()}\n".encode())
@@ -496,17 +498,19 @@ def complete_fmu(fmu: Path, guid: str) -> None:
 
 def _provenance(root: ET.Element) -> None:
     """The model's ``version`` and ``license`` (what an FMI tool shows of an FMU it loads)
-    and a ``generationTool`` naming this package and pythonfmu, from the installed
-    package's metadata; pythonfmu's own attributes where it is not installed (a source
-    tree on ``sys.path``)."""
+    and a ``generationTool`` naming this package and pythonfmu: the version from
+    :mod:`cosim.version`, the licence from the installed package's metadata; pythonfmu's
+    own attributes where there is none."""
+    own = version()
+    if own is not None:
+        root.set("version", own)
+        tool = root.get("generationTool", "")
+        if not tool.startswith("auv-cosim "):  # completed once already: as it is
+            root.set("generationTool", f"auv-cosim {own} ({tool})")
     try:
         metadata = importlib.metadata.metadata(DISTRIBUTION)
     except importlib.metadata.PackageNotFoundError:
         return
-    root.set("version", metadata["Version"])
-    tool = root.get("generationTool", "")
-    if not tool.startswith("auv-cosim "):  # completed once already: as it is
-        root.set("generationTool", f"auv-cosim {metadata['Version']} ({tool})")
     licence = metadata["License-Expression"] or metadata["License"]  # None if absent
     if licence:
         root.set("license", licence)

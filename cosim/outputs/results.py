@@ -60,6 +60,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pa_csv
 
+from cosim.version import version
+
 if TYPE_CHECKING:  # types only: the readers of results.csv need not import the master
     from cosim.engine.master import RunResult
     from cosim.scenario.spec import Scenario
@@ -188,14 +190,10 @@ def column_units(scenario: Scenario) -> dict[str, str]:
 
 @functools.cache
 def versions() -> dict[str, str | None]:
-    """The versions of what ran a run: this tool (None when run from a source tree that is
-    not installed), fmpy (which loads and steps the FMUs) and Python."""
-    try:
-        tool: str | None = importlib.metadata.version("auv-cosim")
-    except importlib.metadata.PackageNotFoundError:
-        tool = None
+    """The versions of what ran a run: this tool (:mod:`cosim.version`; None where it
+    states none), fmpy (which loads and steps the FMUs) and Python."""
     return {
-        "auv-cosim": tool,
+        "auv-cosim": version(),
         "fmpy": importlib.metadata.version("fmpy"),
         "python": platform.python_version(),
     }
