@@ -559,9 +559,12 @@ def _read_parquet(path: Path) -> pd.DataFrame:
     return pd.read_parquet(io.BytesIO(path.read_bytes()))
 
 
-def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dict[str, Path]:
+def build_fmus(
+    out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False, portable: bool = False
+) -> dict[str, Path]:
     """Build the built-in FMUs into ``out`` (those out of date, or all with ``force``),
-    like ``auv-cosim build``.
+    like ``auv-cosim build``; ``portable``: as ``--portable``, FMUs that record no Python
+    of this machine (to hand on or publish).
 
     Returns
     -------
@@ -576,7 +579,12 @@ def build_fmus(out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False) -> dic
     from cosim.fmus.build import OTHER_BUILD_FOLDER
     from cosim.fmus.build import build_fmus as build
 
-    built = build(_folder("out", out), force=_flag("force", force), other=OTHER_BUILD_FOLDER)
+    built = build(
+        _folder("out", out),
+        force=_flag("force", force),
+        other=OTHER_BUILD_FOLDER,
+        portable=_flag("portable", portable),
+    )
     return {name: path.absolute() for name, path in built.items()}  # right after os.chdir
 
 

@@ -106,7 +106,8 @@ def _seconds(option: str) -> Callable[[str], float]:
 def _build(args: argparse.Namespace) -> int:
     from cosim.fmus.build import OTHER_BUILD_FOLDER, build_fmus
 
-    for name, path in build_fmus(args.out, force=args.force, other=OTHER_BUILD_FOLDER).items():
+    built = build_fmus(args.out, force=args.force, other=OTHER_BUILD_FOLDER, portable=args.portable)
+    for name, path in built.items():
         print(f"{name}: {path}")
     return 0
 
@@ -575,6 +576,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", type=_path_arg, default=DEFAULT_FMU_DIR, help="output folder [%(default)s]"
     )
     p.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    p.add_argument(
+        "--portable",
+        action="store_true",
+        help="FMUs to hand on or publish: they record no Python of this machine (no path "
+        "of it inside), so the same sources and tools build the same bytes anywhere",
+    )
     p.set_defaults(func=_build)
 
     p = sub.add_parser(

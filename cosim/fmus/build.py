@@ -31,8 +31,9 @@ Steps for one FMU (:func:`build_fmu`):
    under one package named after their content, ``auvfmu_<hash>``, their imports renamed
    (:mod:`cosim.fmus.staging`); pythonfmu's entry module for its own binary (the fallback);
    ``fmu_runtime.txt`` (the GUID, the package, the slave class, the Python the FMU was built
-   with) and ``fmu_variables.txt`` (each variable's rules) for the FMU's runtime; and the
-   code compiled by the build's Python (:mod:`cosim.fmus.bytecode`: checked-hash ``.pyc``
+   with, or none for a ``portable`` build, which names no path of the build machine) and
+   ``fmu_variables.txt`` (each variable's rules) for the FMU's runtime; and the code
+   compiled by the build's Python (:mod:`cosim.fmus.bytecode`: checked-hash ``.pyc``
    files, so a host with that Python compiles nothing when it imports the FMU's code).
 5. The FMU's runtime (:mod:`cosim.fmus.native`, ``docs/native-loader.md``) becomes its
    linux64 binary, with pythonfmu's renamed beside it; without a C compiler the FMU keeps
@@ -44,9 +45,11 @@ Steps for one FMU (:func:`build_fmu`):
 6. Date every zip entry and the description as :mod:`cosim.fmus.reproducible` says (no
    time of the build's: the same sources give the same bytes), then write ``<Name>.fmu``
    atomically and ``<Name>.fmu.sha256`` beside it: a ``source`` line, the content hash of
-   every shipped file, this module and pythonfmu's version, an ``fmu`` line, the hash of
-   the built file itself, and a ``date`` line, ``SOURCE_DATE_EPOCH`` or ``none``.
-   :func:`ensure_fmus` rebuilds when the sources or that date changed, and when the FMU
+   the version, every shipped file, this module and pythonfmu's version (the GUID's
+   source), an ``fmu`` line, the hash of the built file itself, a ``date`` line,
+   ``SOURCE_DATE_EPOCH`` or ``none``, and a ``python`` line, the Python the FMU records
+   (:func:`recorded_python`). :func:`ensure_fmus` rebuilds when the sources, that date
+   or that Python changed, and when the FMU
    fails that integrity check (a truncated or edited file is never used). Both files are
    written under the FMU's lock (:func:`fmu_lock`, ``.<Name>.fmu.lock`` beside it): a
    process that finds the FMU out of date waits for another one building it, then uses
@@ -137,18 +140,21 @@ OTHER_BUILD_FOLDER = "name a folder you can write with --out (out= in Python)"
 
 
 def build_fmus(
-    out_dir: Path, force: bool = False, other: str = OTHER_FMU_FOLDER
+    out_dir: Path, force: bool = False, other: str = OTHER_FMU_FOLDER, portable: bool = False
 ) -> dict[str, Path]:
     """Build every FMU of :data:`FMUS` into ``out_dir`` (only those out of date unless
     ``force``); ``other`` ends a refusal of the folder, naming the option that names
     another (:data:`OTHER_FMU_FOLDER`, or :data:`OTHER_BUILD_FOLDER` for ``auv-cosim
-    build``).
+    build``); ``portable``: FMUs to hand on, recording no Python of this machine
+    (:func:`recorded_python`).
 
     Raises:
         CosimError: a script is missing or a build step failed; the message says which
             and why.
     """
-    return {name: build_fmu(name, out_dir, force=force, other=other) for name in FMUS}
+    return {
+        name: build_fmu(name, out_dir, force=force, other=other, portable=portable) for name in FMUS
+    }
 
 
 def ensure_fmus(out_dir: Path) -> dict[str, Path]:
@@ -156,14 +162,17 @@ def ensure_fmus(out_dir: Path) -> dict[str, Path]:
     return build_fmus(out_dir, force=False)
 
 
-def out_of_date(out_dir: Path) -> list[str]:
-    """The FMUs of :data:`FMUS` that :func:`ensure_fmus` would build in ``out_dir`` now."""
+def out_of_date(out_dir: Path, portable: bool = False) -> list[str]:
+    """The FMUs of :data:`FMUS` that :func:`ensure_fmus` (or a ``portable`` build) would
+    build in ``out_dir`` now."""
     out_dir = Path(out_dir)
-    digest = source_hash(shipped_files())
+    digest, python = source_hash(shipped_files()), recorded_python(portable)
     return [
         name
         for name in FMUS
-        if not _is_intact(out_dir / f"{name}.fmu", out_dir / f"{name}.fmu{HASH_SUFFIX}", digest)
+        if not _is_intact(
+            out_dir / f"{name}.fmu", out_dir / f"{name}.fmu{HASH_SUFFIX}", digest, python
+        )
     ]
 
 
@@ -188,11 +197,17 @@ def _check_out_dir(name: str, out_dir: Path, other: str) -> None:
         )
 
 
-def build_fmu(name: str, out_dir: Path, force: bool = False, other: str = OTHER_FMU_FOLDER) -> Path:
+def build_fmu(
+    name: str,
+    out_dir: Path,
+    force: bool = False,
+    other: str = OTHER_FMU_FOLDER,
+    portable: bool = False,
+) -> Path:
     """Build the FMU ``name`` (a key of :data:`FMUS`) into ``out_dir`` if it is missing, out
     of date or ``force``; return its path. Another process building it into the same
-    folder is waited for (:func:`fmu_lock`), and what it built used. ``other``: as
-    :func:`build_fmus` takes it."""
+    folder is waited for (:func:`fmu_lock`), and what it built used. ``other`` and
+    ``portable``: as :func:`build_fmus` takes them."""
     if name not in FMUS:
         raise CosimError(f"unknown FMU {name!r}: expected one of {sorted(FMUS)}")
     out_dir = Path(out_dir)
@@ -201,12 +216,12 @@ def build_fmu(name: str, out_dir: Path, force: bool = False, other: str = OTHER_
     if not script_path(name).is_file():
         raise CosimError(f"cannot build {name}.fmu: {script_path(name)} does not exist")
     files = shipped_files()
-    digest = source_hash(files)
-    if not force and _is_intact(target, hash_file, digest):
+    digest, python = source_hash(files), recorded_python(portable)
+    if not force and _is_intact(target, hash_file, digest, python):
         return target
     _check_out_dir(name, out_dir, other)
     with fmu_lock(name, out_dir):
-        if not force and _is_intact(target, hash_file, digest):
+        if not force and _is_intact(target, hash_file, digest, python):
             return target  # another process built it while this one waited
         if not force and os.path.lexists(target) and not hash_file.exists():
             raise CosimError(
@@ -215,8 +230,11 @@ def build_fmu(name: str, out_dir: Path, force: bool = False, other: str = OTHER_
                 f"away, name another FMU folder, or replace it with "
                 f"`auv-cosim build --out {out_dir} --force`"
             )
-        _build(name, files, digest, target)
-        record = f"source {digest}\nfmu {file_hash(target)}\ndate {reproducible.stamp()}\n"
+        _build(name, files, digest, target, portable)
+        record = (
+            f"source {digest}\nfmu {file_hash(target)}\ndate {reproducible.stamp()}\n"
+            f"python {python}\n"
+        )
         write_whole(hash_file, lambda tmp: tmp.write_text(record))
     return target
 
@@ -259,9 +277,9 @@ def _waiting(name: str, out_dir: Path) -> None:
     )
 
 
-def _build(name: str, files: dict[str, Path], digest: str, target: Path) -> None:
+def _build(name: str, files: dict[str, Path], digest: str, target: Path, portable: bool) -> None:
     """Build ``name`` from the shipped ``files`` (their hash ``digest``) in a temporary
-    folder, check it and install it at ``target``."""
+    folder, check it and install it at ``target``; ``portable``: see :func:`build_fmus`."""
     with tempfile.TemporaryDirectory(prefix=f"build_{name}_") as tmp:
         stage, dest = Path(tmp) / "stage", Path(tmp) / "out"
         shipped = {relative: source.read_bytes() for relative, source in files.items()}
@@ -272,7 +290,7 @@ def _build(name: str, files: dict[str, Path], digest: str, target: Path) -> None
             (stage / relative).write_bytes(data)
         built = _run_pythonfmu(name, stage, dest)
         complete_fmu(built, guid(name, digest))
-        lay_out_resources(built, name, shipped)
+        lay_out_resources(built, name, shipped, portable)
         notes = native.install_loader(built, name)  # the FMU's binary: our runtime
         if not native.loader_in(built):  # pythonfmu's binary alone: no input derivatives
             _declare_no_input_derivatives(built)
@@ -305,8 +323,17 @@ def _say_once(notes: list[str]) -> None:
             print(f"auv-cosim build: {note}", file=sys.stderr)
 
 
+def recorded_python(portable: bool) -> str:
+    """The ``python`` line of a build's record: the Python this build records in the FMUs
+    as theirs (:func:`cosim.fmus.native.build_python_identity`), the first their runtime
+    tries after the host's own and ``AUV_FMU_PYTHON``; ``none`` for a ``portable`` build,
+    whose FMUs name no path of this machine (a host then finds ``python3`` on PATH)."""
+    return "none" if portable else native.build_python_identity()
+
+
 def recorded_hashes(hash_file: Path) -> dict[str, str]:
-    """The ``source`` and ``fmu`` hashes a build recorded (empty if unreadable)."""
+    """The ``source`` and ``fmu`` hashes, the ``date`` and the ``python`` a build recorded
+    (empty if unreadable)."""
     text = _read(hash_file) or ""
     return dict(line.split(" ", 1) for line in text.splitlines() if " " in line)
 
@@ -316,14 +343,16 @@ def file_hash(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _is_intact(target: Path, hash_file: Path, digest: str) -> bool:
+def _is_intact(target: Path, hash_file: Path, digest: str, python: str) -> bool:
     """The FMU exists, was built from these sources, dated as this build would date it
-    (``SOURCE_DATE_EPOCH``), and is the file that build wrote."""
+    (``SOURCE_DATE_EPOCH``), records the Python this build would (``python``:
+    :func:`recorded_python`), and is the file that build wrote."""
     recorded = recorded_hashes(hash_file)
     return (
         target.is_file()
         and recorded.get("source") == digest
         and recorded.get("date") == reproducible.stamp()
+        and recorded.get("python") == python
         and recorded.get("fmu") == file_hash(target)
     )
 
@@ -382,13 +411,18 @@ def _builder_entry(name: str) -> str:
 
 
 def guid(name: str, digest: str) -> str:
-    """FMU ``name``'s GUID: a name-based UUID of its source hash (:func:`source_hash`)."""
+    """FMU ``name``'s GUID: a name-based UUID of its source hash (:func:`source_hash`), so
+    one for every build of the same model, wherever and with whichever Python it is
+    built, and another when a shipped file, the runtime or the version changes."""
     return str(uuid.uuid5(_GUID_NAMESPACE, f"{name}\n{digest}"))
 
 
-def lay_out_resources(fmu: Path, name: str, shipped: dict[str, bytes]) -> None:
+def lay_out_resources(
+    fmu: Path, name: str, shipped: dict[str, bytes], portable: bool = False
+) -> None:
     """Replace everything pythonfmu's builder put in ``resources/`` of ``fmu`` with the
-    build package (see the module docstring, step 4)."""
+    build package (see the module docstring, step 4); ``portable``: no build Python in
+    ``fmu_runtime.txt``."""
     package = staging.package_name(shipped)
     names = frozenset((*PACKAGES, VENDORED))
     resources = {
@@ -409,21 +443,24 @@ def lay_out_resources(fmu: Path, name: str, shipped: dict[str, bytes]) -> None:
     resources["slavemodule.txt"] = entry_name.encode()
     with zipfile.ZipFile(fmu) as archive:
         description = archive.read("modelDescription.xml")
-    resources[entry.RECORD_FILE] = runtime_record(description, package, module, name).encode()
+    python = "" if portable else sys.executable
+    record = runtime_record(description, package, module, name, python)
+    resources[entry.RECORD_FILE] = record.encode()
     resources[native.VARIABLES_FILE] = native.variables_table(description).encode()
     resources.update(bytecode.compiled(resources))  # what importing it would compile
     _replace_resources(fmu, resources)
 
 
-def runtime_record(description: bytes, package: str, module: str, cls: str) -> str:
-    """``resources/fmu_runtime.txt``: what the FMU's runtime needs from the build."""
+def runtime_record(description: bytes, package: str, module: str, cls: str, python: str) -> str:
+    """``resources/fmu_runtime.txt``: what the FMU's runtime needs from the build;
+    ``python``: the build's Python executable, or "" to name none."""
     root = ET.fromstring(description)
     cosimulation = _child(root, "CoSimulation")
     interpolates = cosimulation.get("canInterpolateInputs") == "true"
     categories = ",".join(c.get("name", "") for c in root.iterfind("LogCategories/Category"))
     return (
         f"guid={root.attrib['guid']}\npackage={package}\nmodule={module}\nclass={cls}\n"
-        f"build_python={sys.executable}\ninterpolates_inputs={int(interpolates)}\n"
+        f"build_python={python}\ninterpolates_inputs={int(interpolates)}\n"
         f"log_categories={categories}\n"
     )
 

@@ -122,10 +122,12 @@ def win64_wanted() -> bool:
 
 
 def source_digest() -> str:
-    """SHA-256 of the runtime's C sources and headers (part of the FMUs' rebuild key),
-    which compiler would build it (an FMU built without one is rebuilt once there is),
-    whether the win64 runtime is compiled afresh, the prebuilt one (DLL and record), and
-    the Python the FMUs record as their build's (:func:`_build_python_identity`)."""
+    """SHA-256 of the runtime's C sources and headers (part of the FMUs' rebuild key and
+    GUID), which compiler would build it (an FMU built without one is rebuilt once there
+    is), whether the win64 runtime is compiled afresh, and the prebuilt one (DLL and
+    record). The Python the FMUs record is not in it but in the build's record beside
+    them (:func:`build_python_identity`): it names the build machine's folders, and two
+    builds of one model at two paths are one model."""
     digest = hashlib.sha256()
     chain = toolchain()
     digest.update(f"compiler {chain.name if chain else 'none'}\n".encode())
@@ -135,11 +137,10 @@ def source_digest() -> str:
     for path in (PREBUILT_DLL, PREBUILT_RECORD):
         data = path.read_bytes() if path.is_file() else b"none"
         digest.update(f"{path.name}\n".encode() + hashlib.sha256(data).digest())
-    digest.update(f"build_python {_build_python_identity()}\n".encode())
     return digest.hexdigest()
 
 
-def _build_python_identity() -> str:
+def build_python_identity() -> str:
     """The Python a build records (``sys.executable``) as the rebuild key sees it: the
     folder it runs from (the environment whose packages it imports) and the interpreter
     its name resolves to. The names of one interpreter in one folder (a virtual

@@ -196,7 +196,12 @@ def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
     shutil.copy2(source, fmu)
     shutil.copy2(source.with_name(hash_file.name), hash_file)
     digest = build.source_hash(build.shipped_files())
-    recorded = {"source": digest, "fmu": build.file_hash(fmu), "date": reproducible.stamp()}
+    recorded = {
+        "source": digest,
+        "fmu": build.file_hash(fmu),
+        "date": reproducible.stamp(),
+        "python": build.recorded_python(portable=False),
+    }
     assert build.recorded_hashes(hash_file) == recorded
     before = fmu.stat().st_ino
     assert build.build_fmu("AuvPlant", tmp_path) == fmu

@@ -23,7 +23,7 @@ import pythonfmu
 from elf_symbols import glibc_versions, unresolvable
 from pe_table import exported_names, imported_dlls
 
-from cosim.fmus import native
+from cosim.fmus import build, native
 from cosim.fmus.build import FMUS
 
 pytestmark = pytest.mark.skipif(shutil.which("objdump") is None, reason="no objdump")
@@ -325,10 +325,10 @@ def test_the_names_of_one_python_give_one_rebuild_key(monkeypatch, tmp_path):
     keys = set()
     for name in names:
         monkeypatch.setattr(sys, "executable", str(name))
-        keys.add(native.source_digest())
+        keys.add(build.recorded_python(portable=False))
     assert len(keys) == 1
     elsewhere = tmp_path / "env" / "bin" / "python"
     elsewhere.parent.mkdir(parents=True)
     elsewhere.symlink_to(names[0].resolve())
     monkeypatch.setattr(sys, "executable", str(elsewhere))
-    assert native.source_digest() not in keys
+    assert build.recorded_python(portable=False) not in keys

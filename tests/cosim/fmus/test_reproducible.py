@@ -14,6 +14,7 @@ import pytest
 
 from cosim.errors import CosimError
 from cosim.fmus import build, bytecode, reproducible
+from fmu_runtime.entry import RECORD_FILE
 
 DESCRIPTION = (
     b'<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="2.0" '
@@ -112,6 +113,60 @@ def test_an_fmu_built_under_another_source_date_epoch_is_built_again(fmu_paths, 
     other = "1700000001" if reproducible.stamp() == "1700000000" else "1700000000"
     monkeypatch.setenv("SOURCE_DATE_EPOCH", other)
     assert build.out_of_date(folder) == list(build.FMUS)
+
+
+def test_the_guid_is_the_same_whichever_python_builds_it(monkeypatch, tmp_path):
+    """The build's Python (a virtual environment's path) was part of the GUID: the same
+    model built in two checkouts' environments, or by a release and by a user checking
+    it, had two GUIDs, so a summary.json's GUID named no release."""
+    files = build.shipped_files()
+    here = build.guid("AuvPlant", build.source_hash(files))
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "elsewhere" / "bin" / "python"))
+    assert build.guid("AuvPlant", build.source_hash(files)) == here
+
+
+def _python_elsewhere(folder: Path) -> Path:
+    """A Python executable at another path that runs this one (a script handing over)."""
+    script = folder / "bin" / "python"
+    script.parent.mkdir(parents=True)
+    script.write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
+    script.chmod(0o755)
+    return script
+
+
+def _machine_paths(fmu: Path, paths: list[str]) -> list[str]:
+    """The entries of ``fmu`` holding any of ``paths`` (their bytes, as UTF-8)."""
+    with zipfile.ZipFile(fmu) as archive:
+        return [
+            f"{info.filename}: {path}"
+            for info in archive.infolist()
+            for path in paths
+            if path.encode() in archive.read(info)
+        ]
+
+
+@pytest.mark.slow
+def test_a_portable_build_names_no_path_of_the_machine_and_is_the_same_anywhere(
+    fmu_paths, monkeypatch, tmp_path
+):
+    """FMUs to publish recorded the build's Python (``build_python=/home/.../.venv/bin/
+    python`` in resources/fmu_runtime.txt): the build machine's folders and user name in
+    every FMU, and a verifier building the release's sources in their own environment
+    got other bytes. A portable build records none: the same bytes from two Pythons at
+    two paths, and the GUID of the FMU the session built (the same model)."""
+    first = build.build_fmu("AuvPlant", tmp_path / "first", portable=True)
+    monkeypatch.setattr(sys, "executable", str(_python_elsewhere(tmp_path / "elsewhere")))
+    second = build.build_fmu("AuvPlant", tmp_path / "second", portable=True)
+    assert first.read_bytes() == second.read_bytes()
+    with zipfile.ZipFile(first) as archive:
+        record = archive.read(f"resources/{RECORD_FILE}").decode()
+        guid = ET.fromstring(archive.read("modelDescription.xml")).get("guid")
+    assert "build_python=\n" in record
+    with zipfile.ZipFile(fmu_paths["AuvPlant"]) as archive:
+        assert ET.fromstring(archive.read("modelDescription.xml")).get("guid") == guid
+    paths = [str(tmp_path), sys.prefix, str(Path(sys.executable).parent), f"{Path.home()}/"]
+    paths += [str(Path(build.__file__).parents[2])]  # the source tree it was built from
+    assert _machine_paths(first, paths) == []
 
 
 def test_the_compiled_code_is_the_same_whatever_the_building_process_did_before():
