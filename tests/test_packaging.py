@@ -2,6 +2,8 @@
 file of the packages that is not Python source, py.typed markers included."""
 
 import fnmatch
+import json
+import os
 import shutil
 import subprocess
 import sys
@@ -61,10 +63,10 @@ def _tracked(folder: str) -> set[str]:
 
 
 @pytest.fixture(scope="module")
-def sdist_members(tmp_path_factory: pytest.TempPathFactory) -> set[str]:
-    """The files of the sdist setuptools builds from a copy of the repository's tracked
-    files (its ``build-system.requires`` installed in a venv of its own), relative to the
-    sdist's top folder; a skip when pip cannot install them."""
+def sdist(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The sdist setuptools builds from a copy of the repository's tracked files (its
+    ``build-system.requires`` installed in a venv of its own); a skip when pip cannot
+    install them."""
     work = tmp_path_factory.mktemp("sdist")
     tree, dist = work / "tree", work / "dist"
     for name in _tracked("."):
@@ -77,8 +79,14 @@ def sdist_members(tmp_path_factory: pytest.TempPathFactory) -> set[str]:
     built = run_in_group([python, "-c", code, dist], timeout=300, cwd=tree)
     assert built.returncode == 0, built.stderr[-2000:]
     (archive,) = dist.glob("*.tar.gz")
-    with tarfile.open(archive) as sdist:
-        return {name.split("/", 1)[1] for name in sdist.getnames() if "/" in name}
+    return archive
+
+
+@pytest.fixture(scope="module")
+def sdist_members(sdist: Path) -> set[str]:
+    """The files of :func:`sdist`, relative to its top folder."""
+    with tarfile.open(sdist) as archive:
+        return {name.split("/", 1)[1] for name in archive.getnames() if "/" in name}
 
 
 @pytest.mark.slow
@@ -88,3 +96,32 @@ def test_the_sdist_holds_the_docs_the_readme_and_the_messages_point_to(sdist_mem
     docs/study-example.toml``), and the docs/*.md every error message names."""
     missing = sorted(_tracked("docs") - sdist_members)
     assert not missing, f"{len(missing)} tracked files of docs/ not in the sdist: {missing[:5]}"
+    assert {"README.md", "LICENSE", "CHANGELOG.md"} <= sdist_members
+
+
+@pytest.mark.slow
+def test_the_sdist_installs_and_runs_a_scenario_on_a_machine_without_a_compiler(
+    sdist: Path, tmp_path: Path
+) -> None:
+    """What a user of the published sdist gets: installed by pip into a fresh virtual
+    environment (every dependency from the package index) and run from an empty folder
+    with nothing but that environment on PATH (no ``cc``), ``auv-cosim run`` builds the
+    FMUs it needs, says once that they keep pythonfmu's binary, and completes a run
+    stating the released version."""
+    venv = make_venv(tmp_path / "venv", sys.executable, str(sdist))
+    folder = tmp_path / "empty"
+    folder.mkdir()
+    environment = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+    environment["PATH"] = str(venv / "bin")
+    command = [venv / "bin" / "auv-cosim", "run", "bs-3", "--no-rrd", "--stop-time", "2"]
+    done = run_in_group([*command, "--quiet"], timeout=600, cwd=folder, env=environment)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stderr.count("no C compiler (cc)") == 1, done.stderr[-2000:]
+    summary = json.loads((folder / "runs" / "bs-3" / "summary.json").read_text())
+    assert summary["complete"] and summary["time_reached"] == pytest.approx(2.0)
+    assert summary["versions"]["auv-cosim"] == PYPROJECT["project"]["version"]
+    installed = run_in_group(
+        [venv / "bin" / "python", "-c", "import cosim; print(cosim.__file__)"],
+        timeout=120, cwd=folder, env=environment,
+    )  # fmt: skip
+    assert Path(installed.stdout.strip()).is_relative_to(venv)  # not this source tree

@@ -93,3 +93,10 @@ def test_a_version_bumped_in_pyproject_toml_is_stated_and_rebuilds_the_fmus(
     pyproject.write_text(re.sub(r'(?m)^version = ".*"$', f'version = "{bumped}"', text))
     assert check("-m", "cosim", "--version") == f"auv-cosim {bumped}"
     assert check("-c", _OUT_OF_DATE, folder).split() == list(FMUS)
+
+
+def test_the_changelog_has_a_section_for_the_version() -> None:
+    """A release bumped the version with no word for its users: CHANGELOG.md heads a
+    section with the version pyproject.toml states (the newest first)."""
+    headings = re.findall(r"(?m)^## (\S+)", (ROOT / "CHANGELOG.md").read_text())
+    assert headings[:1] == [DECLARED], f"CHANGELOG.md's sections: {headings[:3]}"
