@@ -14,8 +14,9 @@ scene). Each sink owns its own ``rr.RecordingStream`` (two with a file and a vie
 
 The file gets the default blueprint (``set_sinks(..., default_blueprint=...)``), the
 scenario id as a property and, with where the file is (:func:`recording_name`), as the
-recording's name, and the resolved scenario TOML as a
-static text document at ``/scenario``; a scenario with a waypoint guidance gets its
+recording's name, the versions of what ran it and each instance's FMU GUID as properties
+(``versions``, ``fmu_guids``, as summary.json records them), and the resolved scenario
+TOML as a static text document at ``/scenario``; a scenario with a waypoint guidance gets its
 planned path and waypoints in the 3D scene (:func:`cosim.viz.mission.mission_waypoints`),
 and an events entry whenever the recorded waypoint it steers for changes.
 What the 3D scene needs to know about the run -- the vehicle parameter set, whether depth
@@ -49,7 +50,7 @@ from cosim.errors import CosimError
 from cosim.limits import FILE_SIZE_LIMIT, unwritten
 from cosim.outputs.folder import RECORDING_FILE
 from cosim.outputs.missing_run import missing_run_hint
-from cosim.outputs.results import column_units
+from cosim.outputs.results import column_units, versions
 from cosim.paths import path_text
 from cosim.scenario.spec import Scenario
 from cosim.viz.layout import (
@@ -221,6 +222,11 @@ class RerunSink:
         rec.send_property(
             "scenario", rr.AnyValues(id=scenario_id, vehicle=vehicle.name, columns=len(columns))
         )
+        # what ran it, as summary.json records it: a recording alone traces to its release
+        known = {name: value for name, value in versions().items() if value is not None}
+        rec.send_property("versions", rr.AnyValues(drop_untyped_nones=True, **known))
+        guids = {name: inst.interface.guid for name, inst in scenario.instances.items()}
+        rec.send_property("fmu_guids", rr.AnyValues(drop_untyped_nones=True, **guids))
         rec.log(
             "scenario",
             rr.TextDocument(

@@ -28,6 +28,7 @@ import pytest
 from rerun.chunk import RrdReader
 from scenario_factory import auv_scenario
 
+import cosim
 from cosim.cli import main
 from cosim.errors import CosimError
 from cosim.viz import recording
@@ -394,6 +395,17 @@ def test_metadata_holds_scenario_id_and_resolved_toml(recorded, fmu_dir: Path):
     assert read_static(path, "/__properties", "RecordingInfo:name")[0] == [
         f"rec-test ({path.parent.name})"  # written outside a folder named for the scenario
     ]
+
+
+def test_metadata_traces_the_recording_to_the_tool_and_fmus_that_made_it(recorded, fmu_dir):
+    """A recording handed on alone named no version and no FMU: summary.json did, the
+    recording did not. Its properties now hold both, as summary.json states them."""
+    path, _, columns, _ = recorded
+    scenario = auv_scenario(fmu_dir, "rec-test", columns, PLANT_START, CONTROLLER_START)
+    assert read_static(path, "/__properties/versions", "auv-cosim")[0] == [cosim.__version__]
+    for name, instance in scenario.instances.items():
+        guid = read_static(path, "/__properties/fmu_guids", name)[0]
+        assert guid == [instance.interface.guid], name
 
 
 @pytest.mark.parametrize(
