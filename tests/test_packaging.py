@@ -2,11 +2,13 @@
 file of the packages that is not Python source, py.typed markers included."""
 
 import fnmatch
+import importlib.util
 import json
 import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 import tarfile
 import tomllib
 from pathlib import Path
@@ -104,11 +106,17 @@ def test_the_sdist_installs_and_runs_a_scenario_on_a_machine_without_a_compiler(
     sdist: Path, tmp_path: Path
 ) -> None:
     """What a user of the published sdist gets: installed by pip into a fresh virtual
-    environment (every dependency from the package index) and run from an empty folder
-    with nothing but that environment on PATH (no ``cc``), ``auv-cosim run`` builds the
-    FMUs it needs, says once that they keep pythonfmu's binary, and completes a run
-    stating the released version."""
-    venv = make_venv(tmp_path / "venv", sys.executable, str(sdist))
+    environment and run from an empty folder with nothing but that environment on PATH
+    (no ``cc``), ``auv-cosim run`` builds the FMUs it needs, says once that they keep
+    pythonfmu's binary (unless ziglang is there to compile the runtime), and completes a
+    run stating the released version. The package comes from the sdist alone
+    (``--no-deps``); its dependencies are this interpreter's, reached through a .pth file
+    after the venv's own site-packages (whose .pth files, this tree's editable install
+    among them, are not read): what is checked is the sdist's content, not pip's
+    resolution of ~1.5 GB of dependencies again."""
+    venv = make_venv(tmp_path / "venv", sys.executable, "--no-deps", str(sdist))
+    (site,) = (venv / "lib").glob("python3.*/site-packages")
+    (site / "zz_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     folder = tmp_path / "empty"
     folder.mkdir()
     environment = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
@@ -116,7 +124,9 @@ def test_the_sdist_installs_and_runs_a_scenario_on_a_machine_without_a_compiler(
     command = [venv / "bin" / "auv-cosim", "run", "bs-3", "--no-rrd", "--stop-time", "2"]
     done = run_in_group([*command, "--quiet"], timeout=600, cwd=folder, env=environment)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stderr.count("no C compiler (cc)") == 1, done.stderr[-2000:]
+    # the build falls back to ziglang where the dependencies hold it (the extra `zig`)
+    told = 0 if importlib.util.find_spec("ziglang") is not None else 1
+    assert done.stderr.count("no C compiler (cc)") == told, done.stderr[-2000:]
     summary = json.loads((folder / "runs" / "bs-3" / "summary.json").read_text())
     assert summary["complete"] and summary["time_reached"] == pytest.approx(2.0)
     assert summary["versions"]["auv-cosim"] == PYPROJECT["project"]["version"]
