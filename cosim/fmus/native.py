@@ -73,6 +73,13 @@ NO_COMPILER = (
     "(non-Python hosts must preload libpython; see docs/native-loader.md)"
 )
 WARNINGS = ("-Wall", "-Wextra", "-Wno-format-truncation")  # a log line may be cut: intended
+# What the tests hold the runtime's C to besides (tests/fmu_runtime/test_static_analysis.py),
+# with -Werror: stricter warnings and GCC's static analyser. Not in a build's flags: another
+# compiler's version may warn where this one does not, and a user's build must not fail.
+STRICT_WARNINGS = ("-Wpedantic", "-Wconversion", "-Wsign-conversion", "-Wshadow", "-Wcast-qual",
+                   "-Wformat=2", "-Wnull-dereference", "-Wdouble-promotion",
+                   "-Wstrict-prototypes")  # fmt: skip
+ANALYZER = ("-fanalyzer",)  # GCC 10 and later
 _FLAGS = ("-shared", "-O2", "-std=c11", "-fvisibility=hidden", "-fPIC", *WARNINGS)
 # libdl and libpthread by file name: before glibc 2.34 dlopen & co. live in libdl.so.2,
 # and the link must name it even where it is an empty stub (glibc_floor.h); zig makes its

@@ -123,8 +123,8 @@ static int load_wrapper(Instance *c)
         refuse(c, "fmi2Instantiate: cannot load pythonfmu's library %s (%s)", path, error);
         return 0;
     }
-    void (*finalize)(void *) =
-        (void (*)(void *))platform_library_symbol(library, "finalizePythonInterpreter");
+    void (*finalize)(void *) = NULL; /* as python.c reads a function: ISO C has no cast */
+    *(void **)&finalize = platform_library_symbol(library, "finalizePythonInterpreter");
     if (finalize) platform_exit_handler(finalize);
     if (!resolve(library)) {
         refuse(c, "fmi2Instantiate: %s is not an FMI 2.0 co-simulation library", path);

@@ -260,9 +260,9 @@ static int read_variables(Instance *c)
         snprintf(v->variability, sizeof v->variability, "%s", variability);
         snprintf(v->min, sizeof v->min, "%s", strcmp(min, "-") ? min : "");
         snprintf(v->max, sizeof v->max, "%s", strcmp(max, "-") ? max : "");
-        v->low = bound(v->min, -INFINITY);
-        v->high = bound(v->max, INFINITY);
-        v->start = v->value = strcmp(start, "-") ? strtod(start, NULL) : NAN;
+        v->low = bound(v->min, -(double)INFINITY);
+        v->high = bound(v->max, (double)INFINITY);
+        v->start = v->value = strcmp(start, "-") ? strtod(start, NULL) : (double)NAN;
         snprintf(v->name, sizeof v->name, "%s", name);
     }
     fclose(in);
@@ -427,7 +427,7 @@ static fmi2Status check_writes(Instance *c, const fmi2ValueReference vr[], size_
     }
     for (size_t i = 0; i < n; i++) {
         int same = strings && same_string(c, vr[i], strings[i]);
-        if (write_refusal(c, vr[i], type, values ? values[i] : NAN, same, why, sizeof why)) {
+        if (write_refusal(c, vr[i], type, values ? values[i] : (double)NAN, same, why, sizeof why)) {
             return refuse(c, "%s", why);
         }
     }
@@ -644,7 +644,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     }
     c->name = memcpy(copy, name, size);
     if (functions) c->host = *functions;
-    c->stop = INFINITY;
+    c->stop = (double)INFINITY;
     c->logging = loggingOn;
     c->visible = visible;
     if (instantiation_refusal(c, type, guid, resources, why, sizeof why)) {
@@ -753,7 +753,7 @@ FMI2_EXPORT fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean 
         answer(c, c->backend->setup(c, hasTolerance, tolerance, startTime, hasStop, stopTime));
     if (s == fmi2OK) {
         c->time = startTime;
-        c->stop = hasStop ? stopTime : INFINITY;
+        c->stop = hasStop ? stopTime : (double)INFINITY;
     }
     return s;
 }
@@ -866,7 +866,7 @@ FMI2_EXPORT fmi2Status fmi2Reset(fmi2Component component)
     if (s <= fmi2Warning) {
         c->phase = INSTANTIATED;
         c->time = 0.0;
-        c->stop = INFINITY;
+        c->stop = (double)INFINITY;
         c->discarded = 0;
         reset_values(c);
     }
@@ -1126,33 +1126,44 @@ static void free_states(Instance *c)
     }
 }
 
-FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
+/* ``saved`` holds ``inner``, the backend's state just taken, and ``c``'s phase and time. */
+static void fill_saved(Instance *c, Saved *saved, void *inner)
 {
-    INSTANCE(component);
-    if (!state) return refuse(c, "fmi2GetFMUstate refused: not an FMU state of this FMU");
-    if (*state && !saved_state(c, *state, "fmi2GetFMUstate")) return fmi2Error;
-    Saved *saved = *state ? (Saved *)*state : calloc(1, sizeof *saved);
-    if (!saved) return refuse(c, "fmi2GetFMUstate refused: out of memory");
-    void *inner = NULL;
-    fmi2Status s = answer(c, c->backend->save(c, &inner));
-    if (s > fmi2Warning) {
-        if (inner) c->backend->discard(c, inner);
-        if (!*state) free(saved);
-        return s;
-    }
-    if (saved->inner) c->backend->discard(c, saved->inner);
-    if (!*state && !python_states(STATE_KEEP, saved)) {
-        c->backend->discard(c, inner);
-        free(saved);
-        return refuse(c, "fmi2GetFMUstate refused: out of memory");
-    }
     saved->magic = SAVED_MAGIC;
     saved->phase = c->phase;
     saved->time = c->time;
     saved->inner = inner;
     saved->fmu = fmu_of(c);
     saved->format = serial_magic(c->backend);
-    if (!*state) own_state(c, saved);
+}
+
+/* The backend saves first: a refused save allocates nothing. A state the host passes
+ * (*state not NULL) is overwritten in place, as FMI 2.0 says. */
+FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
+{
+    INSTANCE(component);
+    if (!state) return refuse(c, "fmi2GetFMUstate refused: not an FMU state of this FMU");
+    Saved *old = NULL;
+    if (*state && !(old = saved_state(c, *state, "fmi2GetFMUstate"))) return fmi2Error;
+    void *inner = NULL;
+    fmi2Status s = answer(c, c->backend->save(c, &inner));
+    if (s > fmi2Warning) {
+        if (inner) c->backend->discard(c, inner);
+        return s;
+    }
+    if (old) {
+        if (old->inner) c->backend->discard(c, old->inner);
+        fill_saved(c, old, inner);
+        return s;
+    }
+    Saved *saved = calloc(1, sizeof *saved);
+    if (!saved || !python_states(STATE_KEEP, saved)) {
+        c->backend->discard(c, inner);
+        free(saved);
+        return refuse(c, "fmi2GetFMUstate refused: out of memory");
+    }
+    fill_saved(c, saved, inner);
+    own_state(c, saved);
     *state = saved;
     return s;
 }

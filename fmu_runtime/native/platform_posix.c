@@ -111,7 +111,8 @@ int platform_same_file(const char *a, const char *b)
 int own_path(char *out, size_t size)
 {
     Dl_info info;
-    if (!dladdr((void *)&own_path, &info) || !info.dli_fname) return 0;
+    /* an object of this library: a function's address as a pointer is no ISO C */
+    if (!dladdr((const void *)VENV_PYTHONS, &info) || !info.dli_fname) return 0;
     return snprintf(out, size, "%s", info.dli_fname) < (int)size;
 }
 
@@ -195,13 +196,14 @@ void buffer_append(Buffer *b, const char *data, size_t n)
 /* The host's environment without PYTHONHOME (a pointer array; the strings are shared). */
 static char **child_environment(void)
 {
+    char **host = environ; /* read once */
     size_t n = 0;
-    while (environ && environ[n]) n++;
+    while (host && host[n]) n++;
     char **copy = calloc(n + 1, sizeof *copy);
     if (!copy) return NULL;
     size_t j = 0;
     for (size_t i = 0; i < n; i++) {
-        if (strncmp(environ[i], "PYTHONHOME=", 11)) copy[j++] = environ[i];
+        if (strncmp(host[i], "PYTHONHOME=", 11)) copy[j++] = host[i];
     }
     return copy;
 }
@@ -247,8 +249,13 @@ static int spawn(const char *const argv[], int out[2], int err[2], pid_t *pid)
     posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
     posix_spawn_file_actions_adddup2(&actions, out[1], 1);
     posix_spawn_file_actions_adddup2(&actions, err[1], 2);
+    /* posix_spawn takes char *const argv[] but does not write them (POSIX's rationale:
+     * the old prototype kept for compatibility) */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wcast-qual"
     int failed = env ? posix_spawn(pid, argv[0], &actions, NULL, (char *const *)argv, env)
                      : ENOMEM;
+#pragma GCC diagnostic pop
     posix_spawn_file_actions_destroy(&actions);
     free(env);
     return failed;

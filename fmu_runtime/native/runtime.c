@@ -30,6 +30,7 @@
 #include "probe.h"
 #include "python.h"
 
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -301,11 +302,15 @@ static int start(const Answer *a, char *why, size_t n)
 
 /* ---- choosing ------------------------------------------------------------------------ */
 
-static void say(Instance *c, fmi2Status status, const char *format, const char *what,
-                const char *why)
+/* One line to the host: ``format`` as printf's, every % of the result doubled. */
+__attribute__((format(printf, 3, 4))) static void say(Instance *c, fmi2Status status,
+                                                      const char *format, ...)
 {
     char line[LINE_SIZE + SHOWN_SIZE + 128];
-    snprintf(line, sizeof line, format, what, why);
+    va_list args;
+    va_start(args, format);
+    vsnprintf(line, sizeof line, format, args);
+    va_end(args);
     char escaped[2 * sizeof line];
     size_t j = 0;
     for (size_t i = 0; line[i] && j + 2 < sizeof escaped; i++) {
