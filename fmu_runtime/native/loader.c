@@ -427,7 +427,8 @@ static fmi2Status check_writes(Instance *c, const fmi2ValueReference vr[], size_
     }
     for (size_t i = 0; i < n; i++) {
         int same = strings && same_string(c, vr[i], strings[i]);
-        if (write_refusal(c, vr[i], type, values ? values[i] : (double)NAN, same, why, sizeof why)) {
+        double x = values ? values[i] : (double)NAN;
+        if (write_refusal(c, vr[i], type, x, same, why, sizeof why)) {
             return refuse(c, "%s", why);
         }
     }

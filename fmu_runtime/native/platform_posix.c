@@ -241,20 +241,24 @@ static int drain(int out, int err, Buffer *stdout_text, Buffer *stderr_text, int
     return 1;
 }
 
+/* The probe started with stdin /dev/null, stdout and stderr the pipes' ends; 0, or the
+ * error number: each file action is checked (one that failed for want of memory would
+ * leave the child the host's own stdout and stderr). */
 static int spawn(const char *const argv[], int out[2], int err[2], pid_t *pid)
 {
-    char **env = child_environment();
     posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-    posix_spawn_file_actions_adddup2(&actions, out[1], 1);
-    posix_spawn_file_actions_adddup2(&actions, err[1], 2);
+    int failed = posix_spawn_file_actions_init(&actions);
+    if (failed) return failed;
+    char **env = child_environment();
+    if (!env) failed = ENOMEM;
+    if (!failed) failed = posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+    if (!failed) failed = posix_spawn_file_actions_adddup2(&actions, out[1], 1);
+    if (!failed) failed = posix_spawn_file_actions_adddup2(&actions, err[1], 2);
     /* posix_spawn takes char *const argv[] but does not write them (POSIX's rationale:
      * the old prototype kept for compatibility) */
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wcast-qual"
-    int failed = env ? posix_spawn(pid, argv[0], &actions, NULL, (char *const *)argv, env)
-                     : ENOMEM;
+    if (!failed) failed = posix_spawn(pid, argv[0], &actions, NULL, (char *const *)argv, env);
 #pragma GCC diagnostic pop
     posix_spawn_file_actions_destroy(&actions);
     free(env);
@@ -277,7 +281,10 @@ void platform_run(const char *const argv[], int timeout_s, Buffer *text, Buffer 
         int finished = drain(out[0], err[0], text, errors, timeout_s);
         if (!finished) kill(pid, SIGKILL);
         int status = 0;
-        int waited = waitpid(pid, &status, 0) == pid; /* not when the host ignores SIGCHLD */
+        pid_t got; /* a signal the host catches without SA_RESTART interrupts the wait */
+        do got = waitpid(pid, &status, 0);
+        while (got < 0 && errno == EINTR);
+        int waited = got == pid; /* not when the host ignores SIGCHLD */
         ran->ending = !finished                         ? RAN_TIMED_OUT
                       : waited && WIFSIGNALED(status) ? RAN_KILLED
                       : waited && WIFEXITED(status)   ? RAN_EXITED
