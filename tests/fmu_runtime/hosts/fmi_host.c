@@ -595,6 +595,8 @@ static int corrupt(const Fmu *f)
     char *bytes = malloc(size + 1), *copy = malloc(size + 1);
     if (!bytes || !copy || f->serialize(c, saved, bytes, size)) {
         printf("could not serialise the state\n");
+        free(bytes);
+        free(copy);
         return 1;
     }
     f->free_state(c, &saved);

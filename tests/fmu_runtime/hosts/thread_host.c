@@ -193,6 +193,7 @@ static int same_alone(const Run *r, const char *what)
     for (int k = 0; alone.c && k < alone.steps; k++) alone.status = worse(alone.status, step(&alone, k));
     if (!alone.c || alone.status > 1 || r->status > 1) {
         printf("%s: status %d, alone %d\n", what, r->status, alone.c ? alone.status : 9);
+        free(alone.rows);
         return 1;
     }
     stop(&alone);
@@ -200,6 +201,7 @@ static int same_alone(const Run *r, const char *what)
         if (memcmp(&alone.rows[i], &r->rows[i], sizeof(double))) {
             printf("%s differs: step %zu output vr %u: %.17g alone, %.17g\n", what,
                    i / r->f->n_out, r->f->outputs[i % r->f->n_out], alone.rows[i], r->rows[i]);
+            free(alone.rows);
             return 1;
         }
     }
