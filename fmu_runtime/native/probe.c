@@ -98,10 +98,15 @@ static void unhex_path(const char *text, Answer *a)
     }
 }
 
-/* Lines end in "\n", or "\r\n" from a Windows Python (its stdout is in text mode). */
+/* Lines end in "\n", or "\r\n" from a Windows Python (its stdout is in text mode). Split
+ * by hand: strtok's hidden state is the host's too (a host looping over strtok around
+ * fmi2Instantiate lost its place), and C11 has no strtok_r. */
 static void parse(char *text, Answer *a)
 {
-    for (char *line = strtok(text, "\r\n"); line; line = strtok(NULL, "\r\n")) {
+    for (char *next = text; *next;) {
+        char *line = next + strspn(next, "\r\n");
+        next = line + strcspn(line, "\r\n");
+        if (*next) *next++ = '\0';
         char *value = strchr(line, '=');
         if (!value) continue;
         *value++ = '\0';

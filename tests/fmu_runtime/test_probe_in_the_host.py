@@ -1,11 +1,13 @@
-"""The runtime's probe of a candidate Python (a subprocess: fmu_runtime/native/platform_posix.c)
-when the host's process makes its system calls fail: in a host that catches signals
-without SA_RESTART, as CPython's handlers are installed, a signal landing in a blocking
-call makes it fail with EINTR, which the runtime takes as "again"; where memory runs out,
-the subprocess is not started at all. Seen from the C host with a library preloaded
+"""The runtime's probe of a candidate Python (a subprocess: fmu_runtime/native/platform_posix.c,
+probe.c) inside a host process it must neither be thrown by nor disturb: in a host that
+catches signals without SA_RESTART, as CPython's handlers are installed, a signal landing in
+a blocking call makes it fail with EINTR, which the runtime takes as "again"; where memory
+runs out, the subprocess is not started at all; a host splitting a string with strtok
+around fmi2Instantiate keeps its place. Seen from C hosts with a library preloaded
 (``hosts/alarm_preload.c``: SIGALRM every 10 ms; ``hosts/spawn_enomem_preload.c``:
-posix_spawn's file actions fail), in a clean environment, the extraction moved so that
-only the candidate under test (``AUV_FMU_PYTHON``) is asked."""
+posix_spawn's file actions fail) or a strtok loop (``hosts/strtok_host.c``), in a clean
+environment; for the first two the extraction is moved so that only the candidate under
+test (``AUV_FMU_PYTHON``) is asked."""
 
 from __future__ import annotations
 
@@ -13,9 +15,10 @@ import re
 import shutil
 import subprocess
 from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import pytest
-from c_hosts import moved, run_clean
+from c_hosts import compiled_host, moved, run_clean
 
 from cosim.fmus.native import OVERRIDE_VARIABLE
 
@@ -80,3 +83,22 @@ def test_a_probe_whose_output_cannot_be_redirected_is_not_started(
     assert "version=" not in done.stdout + done.stderr
     expected = f"{OVERRIDE_VARIABLE}={fake}: could not be run (Cannot allocate memory)"
     assert said == [expected], done.stdout + done.stderr
+
+
+def test_a_host_splitting_with_strtok_around_instantiate_keeps_its_place(
+    extracted, tmp_path, clean_home
+):
+    """Three instances named in one strtok loop, the first of which probes the build's
+    Python: all three are made. The probe split its answer with strtok, which left the
+    host's next strtok(NULL, ...) reading the probe's freed buffer: the host's loop ended
+    after the first."""
+    host = compiled_host(HOSTS / "strtok_host.c", tmp_path)
+    folder = extracted["AuvPlant"]
+    guid = ET.parse(folder / "modelDescription.xml").getroot().get("guid")
+    library = folder / "binaries" / "linux64" / "AuvPlant.so"
+    done = run_clean(
+        [host, library, f"file://{folder / 'resources'}", guid, "one,two,three"], clean_home
+    )
+    assert (done.returncode, done.stdout.splitlines()[-1:]) == (0, ["instances: 3"]), (
+        f"exit {done.returncode}\n{done.stdout}{done.stderr[-2000:]}"
+    )
