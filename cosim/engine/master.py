@@ -224,7 +224,8 @@ def preflight(scenario: Scenario) -> None:
     of k h (an adaptive run's steps up to ``max_step``) in ceil(k h / max_substep)
     sub-steps (``plant_fmu.model.stepping.advance``);
     more than :data:`MAX_SUBSTEPS` is refused with the reason (one sub-step of the plant
-    takes tens of microseconds, so 1e-9 s would take hours per step and ignore Ctrl-C).
+    takes tens of microseconds, so 1e-9 s would take hours per step and ignore Ctrl-C),
+    and so is a ``max_substep`` of 0 s (its declared min, which FMI 2.0 cannot state open).
     """
     for inst in scenario.instances.values():
         check_own_packages(inst.fmu_path)
@@ -239,8 +240,14 @@ def preflight(scenario: Scenario) -> None:
         longest = "coupling.step"
         if coupling.max_step is not None and coupling.max_step > step:  # adaptive
             step, longest = coupling.max_step, "coupling.max_step"
-        if not (isinstance(max_substep, float) and max_substep > 0.0):
-            continue  # the FMU refuses it itself, with its own reason
+        if not isinstance(max_substep, float):
+            continue  # not a number: the FMU refuses it itself, with its own reason
+        if not max_substep > 0.0:  # the FMU's min is 0: FMI 2.0 has no open bound
+            raise ScenarioError(
+                f"scenario file {scenario.described}: key "
+                f"'instances.{name}.start.{SUBSTEP_PARAMETER}': {max_substep!r} is outside "
+                f"(0.0, inf], the range {SUBSTEP_PARAMETER} takes"
+            )
         substeps = math.ceil(step / max_substep - 1e-9)
         if substeps > MAX_SUBSTEPS:
             key = f"instances.{name}.start.{SUBSTEP_PARAMETER}"

@@ -584,6 +584,23 @@ def test_a_substep_that_would_hang_a_step_is_refused_before_loading(
         master.run(scenario)  # the master itself refuses it too, before any FMU
 
 
+def test_a_zero_substep_is_refused_before_loading_naming_the_key_and_its_range(
+    fmu_dir: Path, no_fmu_loading: None
+) -> None:
+    """``max_substep = 0`` passed the load (the FMU declares min 0, FMI has no open
+    bound) and ``auv-cosim validate``, and failed the run inside the plant at t = 0: it is
+    refused before any FMU loads, naming the key and the range the plant takes."""
+    scenario = scenario_from_toml(
+        BS3.replace("v_0 = -0.10", "v_0 = -0.10\nmax_substep = 0"), "bs-3 edited", fmu_dir=fmu_dir
+    )
+    with pytest.raises(ScenarioError) as refused:
+        master.preflight(scenario)
+    assert str(refused.value) == (
+        "scenario file bs-3 edited: key 'instances.plant.start.max_substep': 0.0 is outside "
+        "(0.0, inf], the range max_substep takes"
+    )
+
+
 def test_an_adaptive_step_that_may_grow_past_the_sub_step_limit_is_refused_before_loading(
     fmu_dir: Path, no_fmu_loading: None
 ) -> None:
