@@ -367,7 +367,8 @@ def _checked_scenario(
     """The scenario with the overrides applied, every input checked; nothing written. The
     built-in FMUs are built here when out of date (the progress bar says so)."""
     from cosim.engine import master
-    from cosim.scenario.spec import Scenario, load_scenario
+    from cosim.scenario.checks import Source
+    from cosim.scenario.spec import Scenario, load_scenario, overridden_keys
 
     if progress is not None:
         stale = _fmus_to_build(scenario, options.fmu_dir)
@@ -375,15 +376,18 @@ def _checked_scenario(
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, fmu_dir=options.fmu_dir)
     _check_tolerance_applies(scenario, options)
-    given = (options.stop_time, options.step, options.algorithm, options.extrapolation,
-             options.tolerance)  # fmt: skip
-    if any(value is not None for value in given):
+    overrides = {"stop_time": options.stop_time, "step": options.step,
+                 "algorithm": options.algorithm, "extrapolation": options.extrapolation,
+                 "tolerance": options.tolerance}  # fmt: skip
+    src = Source(scenario.described, overridden_keys(options.names, overrides))
+    if src.given:
         scenario = scenario.with_overrides(
             stop_time=options.stop_time,
             step=options.step,
             algorithm=options.algorithm,
             extrapolation=options.extrapolation,
             tolerance=options.tolerance,
+            names=options.names,
         )
     if options.fmu_log:
         scenario = _with_fmu_log(scenario, options)
@@ -393,7 +397,7 @@ def _checked_scenario(
         reason = not_checkable(scenario)
         if reason is not None:
             raise CosimError(f"{options.names.switch('check_step')}: {reason}")
-    master.preflight(scenario)
+    master.preflight(scenario, src)
     if options.unit_doubts:
         from cosim.engine.adaptive import points_step
         from cosim.scenario import design_doubts, mission_doubts, timeline_spec, unit_doubts

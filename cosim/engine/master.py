@@ -101,8 +101,9 @@ from cosim.engine.slave import Slave, describe, reasons, unzipped
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
 from cosim.fmus.interface import check_binary, check_own_packages
+from cosim.scenario.checks import Source
 from cosim.scenario.coupling_graph import feedthrough
-from cosim.scenario.spec import Scenario, ScenarioError
+from cosim.scenario.spec import Scenario
 
 INIT_PASSES = 50  # exchanges in initialisation mode before the values must have settled
 # The stepping loop finds a NaN or an infinite exchanged value as x . 0 = NaN (one dot a
@@ -214,7 +215,7 @@ def _not_real(instance: Any, variable: str) -> bool:
     return bool(instance.variable(variable).type != "Real")
 
 
-def preflight(scenario: Scenario) -> None:
+def preflight(scenario: Scenario, src: Source | None = None) -> None:
     """Refuse, before any FMU is loaded, a scenario whose FMUs lack a binary for this
     platform (:func:`cosim.fmus.interface.check_binary`), were built by an older auv-cosim
     into packages this process runs itself (:func:`~cosim.fmus.interface.check_own_packages`)
@@ -226,10 +227,13 @@ def preflight(scenario: Scenario) -> None:
     more than :data:`MAX_SUBSTEPS` is refused with the reason (one sub-step of the plant
     takes tens of microseconds, so 1e-9 s would take hours per step and ignore Ctrl-C),
     and so is a ``max_substep`` of 0 s (its declared min, which FMI 2.0 cannot state open).
+    ``src`` is the scenario as loaded with the keys a caller's options set, as it gave
+    them (:class:`~cosim.scenario.checks.Source`): a refusal they cause names them.
     """
     for inst in scenario.instances.values():
         check_own_packages(inst.fmu_path)
         check_binary(inst.fmu_path, inst.interface.model_identifier)
+    src = src or Source(scenario.described)
     for name, inst in scenario.instances.items():
         var = {v.name: v for v in inst.variables("parameter")}.get(SUBSTEP_PARAMETER)
         if var is None or var.type != "Real":
@@ -242,22 +246,18 @@ def preflight(scenario: Scenario) -> None:
             step, longest = coupling.max_step, "coupling.max_step"
         if not isinstance(max_substep, float):
             continue  # not a number: the FMU refuses it itself, with its own reason
+        key = f"instances.{name}.start.{SUBSTEP_PARAMETER}"
         if not max_substep > 0.0:  # the FMU's min is 0: FMI 2.0 has no open bound
-            raise ScenarioError(
-                f"scenario file {scenario.described}: key "
-                f"'instances.{name}.start.{SUBSTEP_PARAMETER}': {max_substep!r} is outside "
-                f"(0.0, inf], the range {SUBSTEP_PARAMETER} takes"
+            raise src.error(
+                key, f"{max_substep!r} is outside (0.0, inf], the range {SUBSTEP_PARAMETER} takes"
             )
         substeps = math.ceil(step / max_substep - 1e-9)
         if substeps > MAX_SUBSTEPS:
-            key = f"instances.{name}.start.{SUBSTEP_PARAMETER}"
-            given = SUBSTEP_PARAMETER in inst.start
-            raise ScenarioError(
-                f"scenario file {scenario.described}: key "
-                f"{key if given else longest!r}: {name}.{SUBSTEP_PARAMETER} = "
-                f"{max_substep!r} s would take {substeps:.3g} sub-steps per communication "
-                f"step of {step!r} s; at most {MAX_SUBSTEPS} are allowed (max_substep >= "
-                f"{step / MAX_SUBSTEPS:.3g} s)"
+            raise src.error(
+                key if SUBSTEP_PARAMETER in inst.start else longest,
+                f"{name}.{SUBSTEP_PARAMETER} = {max_substep!r} s would take {substeps:.3g} "
+                f"sub-steps per communication step of {step!r} s; at most {MAX_SUBSTEPS} are "
+                f"allowed (max_substep >= {step / MAX_SUBSTEPS:.3g} s)",
             )
 
 

@@ -9,6 +9,7 @@ way: one line naming the file, the key, the bad value and what was expected.
 from __future__ import annotations
 
 import codecs
+import dataclasses
 import math
 import re
 import sys
@@ -315,10 +316,22 @@ class Source:
     """Where a scenario comes from: every problem found resolving it names it."""
 
     where: str  # the file, or a description of the text
+    # the keys a caller's options override, each as the caller gave it ("stop_time" ->
+    # "--stop-time 1e+12"): a problem with the scenario they make names them first
+    given: Mapping[str, str] = dataclasses.field(default_factory=dict)
+
+    @property
+    def described(self) -> str:
+        """The scenario as later refusals name it: ``where``, with the options given."""
+        return f"{self.where} (with {', '.join(self.given.values())})" if self.given else self.where
 
     def error(self, key: str, problem: str) -> ScenarioError:
-        """The error for ``key`` of this scenario (raise it)."""
-        return ScenarioError(f"scenario file {self.where}: key {key!r}: {problem}")
+        """The error for ``key`` of this scenario (raise it): an overridden key named by
+        the option that set it, any other key after the options that made it a problem."""
+        if key in self.given:
+            return ScenarioError(f"{self.given[key]}: {problem}")
+        lead = f"{', '.join(self.given.values())}: " if self.given else ""
+        return ScenarioError(f"{lead}scenario file {self.where}: key {key!r}: {problem}")
 
 
 def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | float | str:

@@ -31,7 +31,7 @@ from pydantic import (
     ValidationError,
 )
 
-from cosim.errors import did_you_mean, did_you_mean_path, plain, shown
+from cosim.errors import OptionNames, did_you_mean, did_you_mean_path, plain, shown
 from cosim.fmus.interface import (
     NOT_COSIMULATION,
     FmuInterface,
@@ -417,8 +417,11 @@ class Scenario:
         extrapolation: Extrapolation | None = None,
         tolerance: float | None = None,
         error_estimate: ErrorEstimate | None = None,
+        names: OptionNames | None = None,
     ) -> Scenario:
-        """A re-validated copy with the command line's overrides applied.
+        """A re-validated copy with the command line's overrides applied; a refusal of
+        what they make names them as ``names`` gives options (``--step 1e-09`` on the
+        command line, ``step=1e-09`` in Python), or as the scenario keys they set.
 
         A new step also moves every instance's ``design_step`` start value that equalled
         that instance's old communication step (a sampled controller designed for the step
@@ -446,6 +449,9 @@ class Scenario:
         if stop_time is not None:
             data["stop_time"] = stop_time
         named = {"stop_time": stop_time, **{f"coupling.{k}": v for k, v in given.items()}}
+        if names is not None:
+            options = overridden_keys(names, {"stop_time": stop_time, **given})
+            return self._revalidated(data, self.described, options)
         overrides = ", ".join(f"{k} = {v!r}" for k, v in named.items() if v is not None)
         return self._revalidated(data, f"{self.described} (with the override {overrides})")
 
@@ -510,12 +516,16 @@ class Scenario:
         with the start values and overrides applied since it was read."""
         return self.where or str(self.source or self.id)
 
-    def _revalidated(self, data: dict[str, Any], where: str) -> Scenario:
-        """The scenario of the changed file data ``data``, checked like a file."""
+    def _revalidated(
+        self, data: dict[str, Any], where: str, given: Mapping[str, str] | None = None
+    ) -> Scenario:
+        """The scenario of the changed file data ``data``, checked like a file; ``given``
+        names the keys a caller's options set (:class:`~cosim.scenario.checks.Source`)."""
         self.check_loaded()
-        spec = _validate_spec(data, where)
+        src = Source(where, given or {})
+        spec = _validate_spec(data, where, src)
         base_dir = self.base_dir or (self.source.parent if self.source else Path.cwd())
-        return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, Source(where))
+        return _resolve(spec, self.id, self.source, base_dir, self.fmu_dir, src)
 
     def to_toml(self) -> str:
         """The resolved scenario as a scenario file that loads back to an equal scenario."""
@@ -726,7 +736,18 @@ def _read_toml(path: Path) -> dict[str, Any]:
         raise ScenarioError(f"scenario file {path}: cannot read it: {exc}") from None
 
 
-def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
+def overridden_keys(names: OptionNames, options: Mapping[str, object]) -> dict[str, str]:
+    """The scenario keys the options of :meth:`Scenario.with_overrides` set (``{"step":
+    1e-09}``; None: not given), each to the option as ``names`` shows it: ``"coupling.step"``
+    -> ``--step 1e-09`` (the command line) or ``step=1e-09`` (Python)."""
+    return {
+        option if option == "stop_time" else f"coupling.{option}": names.given(option, value)
+        for option, value in options.items()
+        if value is not None
+    }
+
+
+def _validate_spec(data: Mapping[str, Any], where: str, src: Source | None = None) -> ScenarioSpec:
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:
@@ -754,7 +775,10 @@ def _validate_spec(data: Mapping[str, Any], where: str) -> ScenarioSpec:
                 guess = literal_guess(err)
                 problem = f"key {key!r} = {err.get('input')!r}{guess}: {err['msg']}"
             problems.setdefault(key, problem)
-        raise ScenarioError(f"scenario file {where}: " + "; ".join(problems.values())) from None
+        lead = f"{', '.join(src.given.values())}: " if src is not None and src.given else ""
+        raise ScenarioError(
+            f"{lead}scenario file {where}: " + "; ".join(problems.values())
+        ) from None
 
 
 def _key(loc: tuple[Any, ...]) -> str:
@@ -824,7 +848,7 @@ def _resolve(
         spec=spec,
         fmu_dir=fmu_dir,
         base_dir=base_dir,
-        where=src.where,
+        where=src.described,
     )
     record = _resolve_record(spec.output.record, scenario, src)
     _check_manoeuvre(spec.manoeuvre, record, src)

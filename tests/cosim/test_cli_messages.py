@@ -184,6 +184,50 @@ def test_a_tolerance_for_a_fixed_step_run_names_the_algorithm_option(
     )
 
 
+@pytest.mark.parametrize(
+    ("options", "said"),
+    [
+        ("--step 1e-9", "--step 1e-09: scenario file {bs3}: key 'stop_time': 60.0 s is 6e+10 "
+         "communication steps of 1e-09 s (coupling.step); at most 1e+08 are run"),
+        ("--stop-time 1e12", "--stop-time 1000000000000.0: 1000000000000.0 s is 1e+14 "
+         "communication steps of 0.01 s (coupling.step); at most 1e+08 are run"),
+        ("--step 200 --stop-time 200", "--step 200.0: plant.max_substep = "
+         "0.01 s would take 2e+04 sub-steps per communication step of 200.0 s; at most 10000 "
+         "are allowed (max_substep >= 0.02 s)"),
+        ("--algorithm adaptive --step 1e-9", "--step 1e-09, --algorithm adaptive: scenario "
+         "file {bs3}: key 'stop_time': 60.0 s is 6e+10 communication steps"),
+    ],
+)  # fmt: skip
+def test_a_scenario_an_override_makes_unrunnable_is_refused_naming_the_override(
+    options: str,
+    said: str,
+    fmu_paths: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``auv-cosim run bs-3 --step 1e-9`` was refused as "scenario file bs-3.toml (with the
+    override coupling.step = 1e-09): key 'stop_time': ...", blaming a key of a file the
+    user had not changed for the flag they typed; each refusal an override causes now
+    starts with the flags as given, and an overridden key is named by its flag alone."""
+    fmus = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", "bs-3", *options.split(), "--out", str(tmp_path / "r"), "--fmu-dir", fmus]
+    assert main(argv) == 1
+    bs3 = REPO / "cosim" / "scenarios" / "bs-3.toml"
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("auv-cosim run: " + said.format(bs3=bs3)), err
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_scenario_an_override_makes_unrunnable_names_the_python_keyword(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """``cosim.run(..., step=1e-9)`` names the keyword it was given, as the command line
+    names its flag."""
+    with pytest.raises(CosimError) as refused:
+        cosim.run("bs-3", step=1e-9, fmu_dir=fmu_paths["AuvPlant"].parent)
+    assert str(refused.value).startswith("step=1e-09: scenario file "), refused.value
+
+
 def test_a_build_folder_that_cannot_be_made_names_the_builds_own_option(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
