@@ -34,12 +34,13 @@ from cosim.analysis.bifurcation import (
     OperatingConditions,
     Sweep,
     cg_offset,
+    check_conditions,
     check_sweep,
     find_equilibria,
     sweep,
 )
 from cosim.analysis.equilibria import Equilibrium
-from cosim.errors import CosimError, unmade_folder
+from cosim.errors import FLAGS, CosimError, unmade_folder
 from cosim.whole_file import write_whole
 from plant_fmu.model.dynamics import STATE_INDEX, STATE_NAMES, STATE_UNITS, Variant
 from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
@@ -57,6 +58,12 @@ PHASE_U0 = (0.3, 1.0, 1.9)
 PHASE_VR0 = tuple((v, r) for v in (-0.4, 0.0, 0.4) for r in (-0.4, 0.0, 0.4))
 MANIFOLD_OFFSET = 0.01
 PHASE_PORTRAIT = "phase_portrait.png"
+
+
+def _flag(name: str, value: float, unit: str) -> str:
+    """A condition as the command line's flag gives it, ``--thrust -1.0`` (the flag's help
+    gives its SI unit, so ``unit`` is not repeated)."""
+    return FLAGS.given(name, value)
 
 
 def operating_conditions(
@@ -84,6 +91,8 @@ def operating_conditions(
         params = load_vehicle(vehicle)
     except VehicleParameterError as exc:
         raise AnalysisError(str(exc)) from None
+    # named as the command line gives them, before OperatingConditions names its fields
+    check_conditions(params, chosen, thrust, roll_torque, mass_position, current_east, _flag)
     return OperatingConditions(
         params=params,
         variant=chosen,

@@ -177,6 +177,56 @@ def _check_positive(name: str, value: float) -> None:
 # --- Operating conditions ----------------------------------------------------------------
 
 
+def keyword_given(name: str, value: float, unit: str) -> str:
+    """A condition as a refusal names it to a Python caller: ``thrust = -1.0 N``."""
+    return f"{name} = {value!r}{' ' + unit if unit else ''}"
+
+
+def check_conditions(
+    params: VehicleParameters,
+    variant: Variant,
+    thrust: float,
+    roll_torque: float,
+    mass_position: float,
+    current_east: float,
+    given: Callable[[str, float, str], str] = keyword_given,
+) -> None:
+    """Raise AnalysisError naming the first condition :class:`OperatingConditions` cannot
+    take (SI: N, N m, m, m/s); ``given(name, value, unit)`` names it as its caller gave it
+    (:func:`keyword_given`; the command line's flag, ``--thrust -1.0``)."""
+    values = {"thrust": thrust, "roll_torque": roll_torque, "mass_position": mass_position,
+              "current_east": current_east}  # fmt: skip
+    for name, value in values.items():
+        if not math.isfinite(value):
+            raise AnalysisError(f"{given(name, value, '')}: expected a finite number")
+    if not abs(current_east) <= MAX_SPEED:
+        raise AnalysisError(
+            f"{given('current_east', current_east, 'm/s')}: expected |current_east| <= "
+            f"{MAX_SPEED:g} m/s (a steady current carries the vehicle at its speed, and the "
+            "plant integrates no velocity over ground beyond that)"
+        )
+    if thrust <= 0.0:
+        raise AnalysisError(
+            f"{given('thrust', thrust, 'N')}: expected a thrust > 0 (the analyses look for "
+            "equilibria at 0 < u < 2 m/s; without thrust the vehicle rests at u = 0, where "
+            "the damping vanishes and the linearisation decides no stability)"
+        )
+    stroke = params.mass_stroke
+    if abs(mass_position) > stroke:
+        raise AnalysisError(
+            f"{given('mass_position', mass_position, 'm')}: expected |y_v| <= the stroke "
+            f"{stroke} m of vehicle {params.name!r}"
+        )
+    if Variant(variant) is Variant.HORIZONTAL:
+        for name in ("roll_torque", "mass_position"):
+            if values[name] != 0.0:
+                raise AnalysisError(
+                    f"{given(name, values[name], '')}: it acts through roll, which the "
+                    "horizontal variant (2) holds at 0; use the lateral variant (1, "
+                    "Sec. 5.1.3-5.1.4) or the full one (0)"
+                )
+
+
 @dataclass(frozen=True)
 class OperatingConditions:
     """The vehicle, its free degrees of freedom and the constant inputs of an analysis.
@@ -200,36 +250,10 @@ class OperatingConditions:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "variant", Variant(self.variant))
-        for name in ("thrust", "roll_torque", "mass_position", "current_east"):
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise AnalysisError(f"{name} = {value!r}: expected a finite number")
-        if not abs(self.current_east) <= MAX_SPEED:
-            raise AnalysisError(
-                f"current_east = {self.current_east!r} m/s: expected |current_east| <= "
-                f"{MAX_SPEED:g} m/s (a steady current carries the vehicle at its speed, and the "
-                "plant integrates no velocity over ground beyond that)"
-            )
-        if self.thrust <= 0.0:
-            raise AnalysisError(
-                f"thrust = {self.thrust!r} N: expected a thrust > 0 (the analyses look for "
-                "equilibria at 0 < u < 2 m/s; without thrust the vehicle rests at u = 0, where "
-                "the damping vanishes and the linearisation decides no stability)"
-            )
-        stroke = self.params.mass_stroke
-        if abs(self.mass_position) > stroke:
-            raise AnalysisError(
-                f"mass_position = {self.mass_position!r} m: expected |y_v| <= the stroke "
-                f"{stroke} m of vehicle {self.params.name!r}"
-            )
-        if self.variant is Variant.HORIZONTAL:
-            for name in ("roll_torque", "mass_position"):
-                if getattr(self, name) != 0.0:
-                    raise AnalysisError(
-                        f"{name} = {getattr(self, name)!r}: it acts through roll, which the "
-                        "horizontal variant (2) holds at 0; use the lateral variant (1, "
-                        "Sec. 5.1.3-5.1.4) or the full one (0)"
-                    )
+        check_conditions(
+            self.params, self.variant, self.thrust, self.roll_torque, self.mass_position,
+            self.current_east,
+        )  # fmt: skip
 
     @cached_property
     def model(self) -> PlantModel:

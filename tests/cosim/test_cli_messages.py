@@ -60,7 +60,11 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
     ("scenarios --copy bs-9 copy.toml", {}, 1, "unknown scenario 'bs-9'"),
     ("scenarios --copy bs-3 copy.txt", {}, 1, "copy.txt: expected a file name ending"),
     ("build --out taken", {"taken": ""}, 1, "into taken: expected a folder"),
-    ("analyze equilibria --thrust nan", {}, 1, "thrust = nan"),
+    ("analyze equilibria --thrust nan", {}, 1, "--thrust nan: expected a finite number"),
+    ("analyze phase-portrait --roll-torque 1", {}, 1, "--roll-torque 1.0: it acts through"),
+    ("analyze equilibria --variant 1 --mass-position 1", {}, 1, "--mass-position 1.0: expected"),
+    ("analyze equilibria --current-east 1e3", {}, 1, "--current-east 1000.0: expected"),
+    ("analyze sweep mu 1 2 --thrust 0", {}, 1, "--thrust 0.0: expected a thrust > 0"),
     ("analyze equilibria --vehicle nosuch", {}, 1, "unknown vehicle 'nosuch'"),
     ("analyze sweep mu 1 1", {}, 1, "sweep range 1.0 .. 1.0"),
     ("analyze sweep mu 1 2 --steps 1", {}, 1, "--steps 1: expected"),
@@ -226,6 +230,22 @@ def test_a_scenario_an_override_makes_unrunnable_names_the_python_keyword(
     with pytest.raises(CosimError) as refused:
         cosim.run("bs-3", step=1e-9, fmu_dir=fmu_paths["AuvPlant"].parent)
     assert str(refused.value).startswith("step=1e-09: scenario file "), refused.value
+
+
+def test_an_analysis_condition_out_of_range_names_the_flag_not_the_keyword(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``auv-cosim analyze equilibria --thrust -1`` said "thrust = -1.0 N: expected a
+    thrust > 0", the model's Python keyword for the flag the user typed; the command line
+    names its flag and Python callers keep their keyword."""
+    from cosim.analysis.bifurcation import OperatingConditions
+    from plant_fmu.model.parameters import load_vehicle
+
+    assert main(["analyze", "equilibria", "--thrust", "-1"]) == 1
+    said = capsys.readouterr().err.strip()
+    assert said.startswith("auv-cosim analyze: --thrust -1.0: expected a thrust > 0 ("), said
+    with pytest.raises(CosimError, match=r"^thrust = -1\.0 N: expected a thrust > 0"):
+        OperatingConditions(load_vehicle("remus100"), thrust=-1.0)
 
 
 def test_a_build_folder_that_cannot_be_made_names_the_builds_own_option(
