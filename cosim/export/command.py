@@ -35,10 +35,14 @@ def export_scenario(
     if (ssp is None) == (osp is None):
         raise CosimError("give exactly one of --ssp FILE or --osp DIR")
     resolved = load_scenario(scenario, fmu_dir=fmu_dir)
-    if ssp is not None:
-        print(f"SSP archive: {export_ssp(resolved, ssp, overwrite=force)}")
-    elif osp is not None:
-        print(f"OSP system structure: {export_osp(resolved, osp)}")
+    flag, target = ("--ssp", ssp) if ssp is not None else ("--osp", osp)
+    try:
+        if ssp is not None:
+            print(f"SSP archive: {export_ssp(resolved, ssp, overwrite=force)}")
+        elif osp is not None:
+            print(f"OSP system structure: {export_osp(resolved, osp)}")
+    except CosimError as exc:
+        raise CosimError(_flag_named(str(exc), flag, target)) from None
     notes = _notes(resolved, scenario) + _feedthrough_notes(resolved)
     if ssp is not None:
         notes += _skipped_start_notes(resolved)
@@ -46,6 +50,16 @@ def export_scenario(
     for note in notes:  # messages, not what was written: stderr
         print(f"auv-cosim export: note: {note}", file=sys.stderr)
     return 0
+
+
+def _flag_named(message: str, flag: str, target: Path | None) -> str:
+    """A writer's refusal, "cannot write PATH: ...", with the flag that named PATH:
+    "cannot write --ssp PATH: ..." (the writers name the path only: they serve Python
+    callers too)."""
+    written = f"cannot write {target}:"
+    if message.startswith(written):
+        return f"cannot write {flag} {target}:{message.removeprefix(written)}"
+    return message
 
 
 def _notes(resolved: Scenario, scenario: str | Path) -> list[str]:

@@ -292,7 +292,8 @@ def test_export_never_replaces_a_file_it_did_not_write(
     theirs.write_bytes(b"an archive another tool wrote")
     code, err = _export(capsys, plant_alone.source, "--ssp", theirs)
     assert code == 1 and err.count("\n") == 1
-    assert f"cannot write {theirs}: it exists and is not an archive" in err and "--force" in err
+    assert f"cannot write --ssp {theirs}: it exists and is not an archive" in err
+    assert "--force" in err
     assert results.read_text() == "time,plant.yaw\n0,0\n"
     assert theirs.read_bytes() == b"an archive another tool wrote"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results.csv", "theirs.ssp"]
@@ -339,9 +340,9 @@ def test_unwritable_paths_fail_and_write_nothing(
     blocker.write_text("not a folder")
     scenario_file = str(plant_alone.source)
     code, err = _export(capsys, scenario_file, "--ssp", blocker / "x.ssp")
-    assert code == 1 and f"cannot write {blocker / 'x.ssp'}" in err
+    assert code == 1 and f"cannot write --ssp {blocker / 'x.ssp'}" in err
     code, err = _export(capsys, scenario_file, "--osp", blocker / "osp")
-    assert code == 1 and f"cannot write {blocker / 'osp'}" in err
+    assert code == 1 and f"cannot write --osp {blocker / 'osp'}" in err
     code, err = _export(capsys, scenario_file, "--ssp", tmp_path)  # a folder, not a file
     assert code == 1 and "it is a folder" in err
     foreign = tmp_path / "foreign"
