@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from cosim.errors import CosimError
-from cosim.export.components import file_starts
+from cosim.export.components import copied_file_name, file_starts
 from cosim.export.osp import export_osp
 from cosim.export.ssp import export_ssp
 from cosim.scenario.coupling_graph import feedthrough
@@ -144,22 +144,25 @@ def _skipped_start_notes(scenario: Scenario) -> list[str]:
 
 
 def _file_notes(scenario: Scenario, fmt: str) -> list[str]:
-    """Start values naming a file no host will find: the SSP packs the file but can name it
-    only by a path relative to the archive, which libcosim and ecos resolve from their
-    working folder; the OSP system structure names this machine's file."""
+    """Start values naming a file a host finds only from the right folder: the SSP packs
+    the file but can name it only by a path relative to the archive, which libcosim and
+    ecos resolve from their working folder; the OSP export copies it beside the system
+    structure and names the copy, found from the export's folder."""
     notes = []
     for name, instance in scenario.instances.items():
         for var, file in file_starts(instance).items():
-            written = (
-                f"resources/{name}/{file.name} in the archive, a path libcosim and ecos "
-                "resolve from their working folder, not the archive"
-                if fmt == "ssp"
-                else f"{file}, a file of this machine, not copied"
-            )
-            notes.append(
-                f"{name}.{var} names a file, written as {written}: give the FMU the file "
-                "where the system runs"
-            )
+            if fmt == "ssp":
+                notes.append(
+                    f"{name}.{var} names a file, written as resources/{name}/{file.name} in "
+                    "the archive, a path libcosim and ecos resolve from their working "
+                    "folder, not the archive: give the FMU the file where the system runs"
+                )
+            else:
+                notes.append(
+                    f"{name}.{var} names a file, copied beside the system structure and "
+                    f"written as {copied_file_name(name, file)}, a path libcosim and ecos "
+                    "resolve from their working folder: run the system from that folder"
+                )
     return notes
 
 

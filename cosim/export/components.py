@@ -188,6 +188,13 @@ def _plain(file_name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "_", file_name)
 
 
+def copied_file_name(instance: str, file: Path) -> str:
+    """The name a file a start value of ``instance`` names takes beside an OSP system
+    structure: ``<instance>-<name>`` (URI-plain, :func:`_plain`), one folder level as the
+    export's record lists it, and never an FMU's or the XML's name (those end otherwise)."""
+    return _plain(f"{instance}-{file.name}")
+
+
 def file_starts(instance: Instance) -> dict[str, Path]:
     """The start values naming a file that is not written inline (every one but a vehicle
     set of the plant or the autopilot): variable -> file, absolute."""

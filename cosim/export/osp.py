@@ -6,6 +6,7 @@ initial value carries its unit and description in a comment.
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -13,7 +14,14 @@ from typing import Any
 
 from lxml import etree
 
-from cosim.export.components import Component, components, value_type, xml_literal
+from cosim.export.components import (
+    Component,
+    components,
+    copied_file_name,
+    file_starts,
+    value_type,
+    xml_literal,
+)
 from cosim.export.files import replacing_folder
 from cosim.export.transformations import linear_transformations
 from cosim.scenario.spec import Scenario
@@ -28,17 +36,27 @@ def export_osp(
     """Write ``OspSystemStructure.xml`` and the FMUs into ``folder``; returns the XML's path.
 
     ``folder`` must not exist, be empty, or hold an earlier export, unchanged (it is then
-    replaced).
+    replaced). A file a start value names (other than a vehicle set, written inline) is
+    copied beside the XML (:func:`~cosim.export.components.copied_file_name`) and the start
+    value names the copy, relative: a host run from the folder finds it.
     ``fmu_paths`` optionally maps instance names to the FMU files to package.
     """
     folder = Path(folder)
     linear_transformations(scenario, "OSP")  # refuse what OSP cannot carry, before work
     parts = components(scenario, fmu_paths)
+    copied: dict[str, Path] = {}
+    for i, part in enumerate(parts):
+        files = file_starts(scenario.instances[part.name])
+        moved = {var: copied_file_name(part.name, file) for var, file in files.items()}
+        copied.update({moved[var]: file for var, file in files.items()})
+        parts[i] = dataclasses.replace(part, start={**part.start, **moved})
     xml = osp_xml(scenario, parts)
     with replacing_folder(folder) as tmp:
         (tmp / OSP_FILE).write_bytes(xml)
         for resource, fmu_path in {c.resource: c.fmu_path for c in parts}.items():
             shutil.copyfile(fmu_path, tmp / resource)
+        for name, file in copied.items():
+            shutil.copyfile(file, tmp / name)
     return (folder / OSP_FILE).resolve()
 
 

@@ -213,16 +213,16 @@ def test_a_string_xml_cannot_carry_is_refused_naming_it(
 
 @pytest.mark.parametrize(
     ("fmt", "written"),
-    [("--ssp", "resources/relay/cfg.toml"), ("--osp", "cfg.toml, a file of this machine")],
+    [("--ssp", "resources/relay/cfg.toml"), ("--osp", "written as relay-cfg.toml, a path")],
 )
-def test_the_note_says_a_start_value_naming_a_file_travels_to_no_host(
+def test_the_note_says_where_a_start_value_naming_a_file_is_found(
     fmt: str, written: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A String start value naming a file (``cfg.toml`` beside the scenario) of an FMU
     that takes no file inline: the SSP packs it but names it by a path relative to the
     archive, which libcosim and ecos resolve from their working folder; the OSP export
-    wrote the absolute path of this machine's file, copying nothing. Both said nothing
-    of it: a system moved to another folder or machine ran without its file."""
+    copies it beside the system structure. Both said nothing of it once: a system moved
+    to another folder or machine ran without its file."""
     text = RELAY + '[instances.relay.start]\nString_input = "cfg.toml"\n'
     path = _scenario(tmp_path, text, "Dahlquist.fmu", "Feedthrough.fmu")
     (tmp_path / "cfg.toml").write_text("a = 1\n", encoding="utf-8")
@@ -230,3 +230,23 @@ def test_the_note_says_a_start_value_naming_a_file_travels_to_no_host(
     err = _notes([str(path), fmt, str(target)], capsys)
     assert "note: relay.String_input names a file" in err, err
     assert written in err, err
+
+
+def test_an_osp_export_copies_a_file_a_start_value_names_beside_the_system(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The OSP export wrote the absolute path of this machine's file as the start value
+    and copied nothing, so the exported folder, moved, named a file that was not there:
+    the file is copied beside OspSystemStructure.xml, the start value names the copy
+    (relative, found from the folder), and a second export over the first is taken as
+    its own (the copy is in its record)."""
+    text = RELAY + '[instances.relay.start]\nString_input = "cfg.toml"\n'
+    path = _scenario(tmp_path, text, "Dahlquist.fmu", "Feedthrough.fmu")
+    (tmp_path / "cfg.toml").write_text("a = 1\n", encoding="utf-8")
+    target = tmp_path / "files-osp"
+    for _ in range(2):  # the second replaces the first
+        _notes([str(path), "--osp", str(target)], capsys)
+    assert (target / "relay-cfg.toml").read_text(encoding="utf-8") == "a = 1\n"
+    xml = (target / "OspSystemStructure.xml").read_text(encoding="utf-8")
+    assert 'value="relay-cfg.toml"' in xml, xml
+    assert str(tmp_path / "cfg.toml") not in xml
