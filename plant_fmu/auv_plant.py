@@ -22,17 +22,18 @@ Variables (``docs/interfaces.md#auvplant`` lists every one):
   They depend on the parameters (``initial="calculated"``): read in initialisation mode,
   they give the values the plant will start from;
 * parameters (fixed): the initial state ``north_0`` ... ``r_0``, ``mass_position_0``,
-  ``mass_velocity_0`` (default 0; the full variant refuses |``pitch_0``| beyond 90 deg,
-  naming the start of the same attitude within it), ``variant`` (0 full 6-DOF, 1 lateral (6.3.13),
-  2 horizontal (5.1.30); a write outside 0..2 is refused), ``moving_mass_model`` (0 the
-  dissertation's (6.3.11)-(6.3.13), 1 hull and moving mass as two bodies (6.2.28); a write
-  outside 0..1 is refused), ``ideal_fluid``, ``vehicle`` (a built-in set name, read from
-  this instance's ``resources/``, or a .toml path), ``current_shear_dUdy`` (1/s),
-  ``max_substep`` (s, longest internal RK4 step: a doStep needing more than
-  :data:`~plant_fmu.model.stepping.MAX_SUBSTEPS` sub-steps is discarded unstarted), and
-  every field of
-  :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``, ``I_xx``, ``a22``, ``X_uu``,
-  ``m_v``, ...), unit, description and range (``min``/``max``) from its declaration.
+  ``mass_velocity_0`` (default 0; a write of |``roll_0``|, |``pitch_0``| or |``yaw_0``|
+  beyond ``MAX_START_ANGLE``, 1e6 rad, is refused; the full variant refuses |``pitch_0``|
+  beyond 90 deg, naming the start of the same attitude within it), ``variant`` (0 full
+  6-DOF, 1 lateral (6.3.13), 2 horizontal (5.1.30); a write outside 0..2 is refused),
+  ``moving_mass_model`` (0 the dissertation's (6.3.11)-(6.3.13), 1 hull and moving mass as
+  two bodies (6.2.28); a write outside 0..1 is refused), ``ideal_fluid``, ``vehicle`` (a
+  built-in set name, read from this instance's ``resources/``, or a .toml path),
+  ``current_shear_dUdy`` (1/s), ``max_substep`` (s, longest internal RK4 step: a doStep
+  needing more than :data:`~plant_fmu.model.stepping.MAX_SUBSTEPS` sub-steps is discarded
+  unstarted), and every field of :class:`VehicleParameters` (``m``, ``W``, ``B``, ``z_g``,
+  ``I_xx``, ``a22``, ``X_uu``, ``m_v``, ...), unit, description and range
+  (``min``/``max``) from its declaration.
 
 Physical parameters: ``vehicle`` picks the base set; each physical parameter the importer
 writes overrides it; the result is validated as a whole (``VehicleParameters.replace``).
@@ -91,6 +92,7 @@ from plant_fmu.model.state_layout import (
     INPUT_UNITS,
     MASS_POSITION,
     MAX_SPEED,
+    MAX_START_ANGLE,
     MAX_TURN_RATE,
     NU,
     PITCH,
@@ -161,9 +163,11 @@ STATE_DESCRIPTIONS: dict[str, str] = {
     "quat_z": "attitude quaternion (body to earth), z part",
 }
 RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
-# |initial velocity| the model takes (a step beyond it is refused): declared as a range
+# |initial velocity| the model takes (a step beyond it is refused) and |initial angle| whose
+# place within its turn a double still holds: declared as a range
 _INITIAL_BOUNDS = {**dict.fromkeys(("u", "v", "w"), MAX_SPEED),
-                   **dict.fromkeys(("p", "q", "r"), MAX_TURN_RATE)}  # fmt: skip
+                   **dict.fromkeys(("p", "q", "r"), MAX_TURN_RATE),
+                   **dict.fromkeys(("roll", "pitch", "yaw"), MAX_START_ANGLE)}  # fmt: skip
 # the inputs whose derivatives the step uses: all but the currents (module docstring)
 _ACTUATOR_INPUTS = list(
     i for i in range(len(INPUT_NAMES)) if i not in range(len(INPUT_NAMES))[CURRENT]
@@ -286,7 +290,7 @@ class AuvPlant(SafeSlave):
     def _register_parameters(self) -> None:
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         for name, unit in zip(STATE_NAMES, STATE_UNITS):
-            bound = _INITIAL_BOUNDS.get(name)  # the model's range of a velocity
+            bound = _INITIAL_BOUNDS.get(name)  # the model's range of a velocity or angle
             self.register(
                 Real(f"{name}_0", description=f"initial {STATE_DESCRIPTIONS[name]}", **fixed),
                 unit=unit,

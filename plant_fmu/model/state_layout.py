@@ -62,6 +62,11 @@ MASS_VELOCITY = 13  # y_v'
 # (a servo of 200 rad/s at 10 ms), which a step refuses before its values turn inf or nan.
 MAX_SPEED = 100.0  # m/s, |u|, |v|, |w|
 MAX_TURN_RATE = 100.0  # rad/s, |p|, |q|, |r|
+# |initial roll, pitch, yaw| the model takes, rad: the plant counts whole turns, but a
+# double's spacing grows with its size (1.2e-10 rad at 1e6 rad, 2 rad at 1e16 rad), so far
+# beyond a few turns the angle within its turn, all the dynamics see, is lost to rounding.
+# 1e6 rad (160,000 turns) keeps it to 1e-10 rad; no heading is meant beyond it.
+MAX_START_ANGLE = 1e6
 STATE = slice(0, N_STATES)  # the state within the stepping state
 QUATERNION = slice(N_STATES, N_STEP_STATES)  # [q_w, q_x, q_y, q_z] in the stepping state
 DOWN = 2  # depth, within POSITION

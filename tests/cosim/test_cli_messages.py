@@ -49,6 +49,8 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
      "unknown vehicle 'nosuch'"),
     ("run bad.toml --fmu-dir {fmus}", {"bad.toml": f"bs-3:{BAD_START}|[instances.plant.st]"},
      1, "'instances.plant.st'"),
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|yaw_0 = 1e300"}, 1,
+     "'instances.plant.start.yaw_0': 1e+300 is outside [-1000000.0, 1000000.0]"),
     ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|max_substep = 0"}, 1,
      "'instances.plant.start.max_substep': 0.0 is outside (0.0, inf]"),
     ("validate bad.toml nothing.fmu --fmu-dir {fmus}", {"bad.toml": "bs-3:"}, 1,

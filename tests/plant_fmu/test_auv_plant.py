@@ -354,6 +354,10 @@ def test_invalid_parameter_values_are_refused_naming_them(plant, unzip_dir, tmp_
         ({"moving_mass_model": 2}, "moving_mass_model = 2", True),
         ({"I_xx": -0.1}, "I_xx = -0.1", True),
         ({"mass_position_0": 0.2}, "mass_position_0 = 0.2", False),
+        # a heading whose place within its turn rounding has lost (a double's spacing at
+        # 1e300 is 1e284 rad): once taken silently
+        ({"yaw_0": 1e300}, "yaw_0 = 1e+300", True),
+        ({"roll_0": -1.5e6}, "roll_0 = -1500000.0", True),
     ]:
         fmu = Harness(plant, unzip_dir=unzip_dir, initialize=False)
         statuses = fmu.try_initialize(**values)
