@@ -54,9 +54,10 @@ between steps, the hull's velocity over ground jumps by
 applied at the start of the next step; inputs are held over each step.
 
 The surface: the model has none (``docs/model.md#the-envelope``). A start with the whole
-hull above it (``down_0`` < -diameter/2) and the first step after which the hull has
-risen out of the water are each logged as a Warning, once per instance; the plant steps
-on, with the buoyancy and drag of a submerged hull.
+hull above it (``down_0`` < -diameter/2), the first step after which the top of a hull that
+started under water (``down_0`` >= diameter/2) breaks the surface, and the first after which
+the hull has risen out of the water are each logged as a Warning, once per instance; the
+plant steps on, with the buoyancy and drag of a submerged hull.
 
 Input derivatives (``canInterpolateInputs="true"``): an importer that extrapolates its
 values (``fmi2SetRealInputDerivatives``, orders 1 and 2) gets them used inside the step,
@@ -241,6 +242,7 @@ class AuvPlant(SafeSlave):
         self._last_current = self._inputs[CURRENT].copy()  # the currents of the last step
         self._warned: set[str] = set()  # the initialisation warnings logged (once each)
         self._above_water = -np.inf  # down (m) above which the whole hull is out of the water
+        self._top_out = -np.inf  # down (m) above which the hull's top breaks the surface
         self._step_scratch = np.empty(compiled.STEP_SCRATCH)  # the compiled step's arrays
 
     # --- variables ---------------------------------------------------------------------------
@@ -375,6 +377,10 @@ class AuvPlant(SafeSlave):
             )
         self._warn_ignored_inputs(model.variant)
         self._above_water = -0.5 * model.params.diameter
+        # a hull starting with its top under water is warned of when the top breaks the
+        # surface; one starting through it (vert-1's down_0 = 0, the dissertation's) is not
+        top_out = 0.5 * model.params.diameter
+        self._top_out = top_out if x[DOWN] >= top_out else -np.inf
         if x[DOWN] < self._above_water:
             self._warn_once(
                 f"down_0 = {float(x[DOWN]):g} m starts the hull out of the water (down < "
@@ -414,6 +420,8 @@ class AuvPlant(SafeSlave):
         n = substeps(step_size, self.max_substep)  # raises on a step it would hang in
         if not self._compiled_step(n, step_size):
             self._reference_step(step_size)
+        if self._x[DOWN] < self._top_out:
+            self._broke_the_surface(current_time + step_size)
         if self._x[DOWN] < self._above_water:
             self._left_the_water(current_time + step_size)
 
@@ -426,6 +434,17 @@ class AuvPlant(SafeSlave):
             return self._stepper(n, step_size / n) == 0
         except ArithmeticError:  # numba's division by zero, the state left unchanged
             return False  # the reference repeats the step and names what left the range
+
+    def _broke_the_surface(self, time: float) -> None:
+        """A Warning, once per instance, that the top of a hull that started under water
+        is above the surface at ``time`` (s): from here the model, which has no free
+        surface, keeps the buoyancy of a hull part out of the water
+        (docs/model.md#the-envelope)."""
+        top_out, self._top_out = self._top_out, -np.inf  # said once
+        self._warn_once(
+            f"at t = {time:.6g} s the hull's top breaks the surface (down = "
+            f"{float(self._x[DOWN]):.4g} m < diameter/2 = {top_out:g} m): {_NO_SURFACE}"
+        )
 
     def _left_the_water(self, time: float) -> None:
         """A Warning, once per instance, that the whole hull is above the surface at

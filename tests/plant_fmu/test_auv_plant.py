@@ -307,6 +307,29 @@ def test_a_hull_rising_out_of_the_water_is_warned_of_once_when_it_leaves(plant, 
     assert f"down = {depths[out]:.4g} m" in warned[0], (warned, depths[out])
 
 
+def test_a_hull_top_breaking_the_surface_from_below_is_warned_of_once(plant, unzip_dir, remus):
+    """The model has no free surface, so a hull part out of the water keeps the buoyancy
+    of a submerged one; the plant warned only once the whole hull had left the water
+    (down < -diameter / 2), some steps after it first broke the surface. A hull that
+    started with its top under water now gets one Warning at the step after which its
+    top is above the surface (down < diameter / 2), naming the time and the depth; one
+    starting there (down_0 = 0, vert-1's set-up, the dissertation's own) does not."""
+    fmu = _harness(plant, unzip_dir, thrust=0.0, down_0=0.3)
+    depths = fmu.run(3.0, H, ["down"])[:, 0]
+    fmu.close()
+    top = remus.diameter / 2
+    broken = int(np.flatnonzero(depths < top)[0])  # the first step after which it is out
+    warned = [text for status, text in fmu.log if status == 1 and "breaks the surface" in text]
+    assert len(warned) == 1, fmu.log
+    assert f"t = {(broken + 1) * H:.6g} s" in warned[0], (warned, broken)
+    assert f"down = {depths[broken]:.4g} m < diameter/2 = {top:g} m" in warned[0], warned
+    assert "free surface" in warned[0], warned
+    at_surface = _harness(plant, unzip_dir, thrust=0.0, down_0=0.0)
+    at_surface.run(1.0, H, ["down"])
+    at_surface.close()
+    assert not [text for _, text in at_surface.log if "breaks the surface" in text]
+
+
 def test_a_start_above_the_surface_is_warned_of_as_the_plant_initialises(plant, unzip_dir, remus):
     """down_0 = -1 m starts the hull in the air, where the model has no surface to know:
     a Warning as the plant initialises, naming down_0; a start at the surface (down_0 = 0,
