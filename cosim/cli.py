@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 from cosim.errors import (
     CosimError,
+    did_you_mean,
     matplotlib_folder_in_one_line,
     one_line,
     one_line_warnings,
@@ -497,10 +498,21 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = _NEGATIVE_NUMBER
         self._given: list[str] = []  # the arguments this parser was given, for error()
+        self._command_parser = False  # a command's (run, analyze margins), not auv-cosim's
 
     def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
         self._given = [str(arg) for arg in (sys.argv[1:] if args is None else args)]
-        return super().parse_known_args(args, namespace)
+        parsed, unknown = super().parse_known_args(args, namespace)
+        if unknown and self._command_parser:
+            # refused by the command's own parser, after its usage: left to auv-cosim's,
+            # "auv-cosim: error: unrecognized arguments" came after the list of commands
+            self.error(f"unrecognized arguments: {' '.join(unknown)}{_closest(self, unknown)}")
+        return parsed, unknown
+
+    def add_subparsers(self, **kwargs: Any) -> Any:
+        """argparse's, making each command's parser refuse what it does not know itself."""
+        kwargs.setdefault("parser_class", _CommandParser)
+        return super().add_subparsers(**kwargs)
 
     def _print_message(self, message: str, file: Any = None) -> None:
         """argparse's, but a help or a version that standard output refuses (``--help >
@@ -529,6 +541,25 @@ class _Parser(argparse.ArgumentParser):
                 "or after --)"
             )
         super().error(message)
+
+
+class _CommandParser(_Parser):
+    """The parser of one command (``run``, ``analyze margins``)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._command_parser = True
+
+
+def _closest(parser: argparse.ArgumentParser, unknown: Sequence[str]) -> str:
+    """`` (--stop-tme: did you mean '--stop-time'?)`` for the first unknown option close to
+    one of ``parser``'s, else ``""``."""
+    for word in unknown:
+        option = word.split("=")[0]
+        close = did_you_mean(option, parser._option_string_actions) if option[:2] == "--" else ""
+        if close:
+            return f" ({option}: {close[2:-1]})"
+    return ""
 
 
 class _OutputRefusedError(Exception):

@@ -89,6 +89,11 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
     ("view run --file-port abc", {}, 2, "invalid int value: 'abc'"),
     ("analyze sweep nosuch 0 1", {}, 2, "invalid choice: 'nosuch'"),
     ("export bs-3", {}, 2, "one of the arguments --ssp --osp is required"),
+    # a misspelt option: the command's own usage and the option it comes closest to, not
+    # auv-cosim's list of commands
+    ("run bs-3 --stop-tme 5", {}, 2, "--stop-tme 5 (--stop-tme: did you mean '--stop-time'?)"),
+    ("report runs/bs-3 --outt x", {}, 2, "unrecognized arguments: --outt x"),
+    ("analyze margins --loopp depth", {}, 2, "(--loopp: did you mean '--loop'?)"),
 ]  # fmt: skip
 
 
