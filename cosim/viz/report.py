@@ -4,7 +4,8 @@ The figures are laid out like the dissertation's Ch. 6 plots:
 
 * ``velocities.png`` - u, v, r, p against time (Figs. 6.11, 6.13, 6.23);
 * ``attitude_actuators.png`` - roll, yaw (with its setpoint), the moving mass y_v (with
-  its command) and rail speed, the tunnel-thruster force (Figs. 6.12, 6.24, 6.42);
+  its command) and rail speed, the tunnel-thruster force (Figs. 6.12, 6.24, 6.42; with a
+  thruster-off fault, the force the plant got beside the command: :func:`thrust_delivered`);
 * ``trajectory.png`` - the path over ground, north up and east to the right (Fig. 6.31),
   with a 3-D view when the depth changes (Fig. 6.44);
 * ``depth.png`` - depth (with its setpoint), pitch, w, q and the stern-plane angle, when
@@ -220,6 +221,17 @@ FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
         ),
     ),
 }
+# The tunnel force the plant was given, which results.csv does not hold (it records the
+# FMUs' outputs): the autopilot's command, but 0 while a thruster-off fault acts.
+THRUST_COMMAND = "controller.tunnel_force"
+THRUST_DELIVERED = "tunnel_force (delivered)"
+THRUST_PANEL = Panel(
+    "$F_t$ (N)",
+    (
+        Series(THRUST_DELIVERED, 1.0, "to the plant"),
+        Series(THRUST_COMMAND, 1.0, "command", dashed=True),
+    ),
+)
 TITLES = {"trajectory": "Trajectory", "lateral_deviation": "Lateral deviation"}
 ZOOMED = ("velocities", "attitude_actuators")  # the figures with a transient column
 # The depth figure is drawn only for a run with a depth loop: fins commanded or depth moving.
@@ -301,6 +313,11 @@ def _figures(
 ) -> dict[str, Path]:
     """Draw the run's figures into ``out``: {name: file} of those drawn."""
     limits = actuator_limits(run_dir)
+    delivered = thrust_delivered(table, summary)
+    if delivered is not None:
+        table = {**table, THRUST_DELIVERED: delivered}
+        if THRUST_COMMAND in limits:
+            limits[THRUST_DELIVERED] = limits[THRUST_COMMAND]
     zoom = _zoom(table, summary)
     caption = run_caption(run_dir, table, summary)
     stop_time = _seconds(summary, "stop_time")
@@ -309,6 +326,10 @@ def _figures(
     for name, (title, panels) in FIGURES.items():
         if name == "depth" and not _has_depth_loop(table):
             continue
+        if delivered is not None:
+            panels = tuple(
+                THRUST_PANEL if p.series[0].column == THRUST_COMMAND else p for p in panels
+            )
         panels = as_declared(panels, units if isinstance(units, dict) else {})
         path = plot_time_histories(
             table, panels, caption.format(title), out / f"{name}.png", markers_of(summary),
@@ -330,6 +351,22 @@ def _figures(
         if deviation is not None:
             figures["lateral_deviation"] = deviation
     return figures
+
+
+def thrust_delivered(table: dict[str, np.ndarray], summary: dict[str, Any]) -> np.ndarray | None:
+    """The tunnel force (N) the plant was given at each row: the autopilot's command, 0
+    where a thruster-off fault acts (its ``fault.<name>`` column is 1, docs/events.md).
+    None when the run had no such fault (the command is what the plant got) or did not
+    record the command."""
+    columns = [
+        f"fault.{fault.get('name')}"
+        for fault in summary.get("faults") or []
+        if isinstance(fault, dict) and fault.get("kind") == "thruster-off"
+    ]
+    acting = [table[column] > 0 for column in columns if column in table]
+    if THRUST_COMMAND not in table or not acting:
+        return None
+    return np.where(np.any(acting, axis=0), 0.0, table[THRUST_COMMAND])
 
 
 def as_declared(panels: tuple[Panel, ...], units: dict[str, Any]) -> tuple[Panel, ...]:

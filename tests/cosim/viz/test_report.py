@@ -771,3 +771,23 @@ def test_a_set_point_its_fmu_declares_in_degrees_is_drawn_unscaled(tmp_path, mon
     drawn = {line.get_label().split(" (")[0]: line.get_ydata() for line in yaw.lines}
     assert list(drawn["setpoint"]) == pytest.approx([20.0] * 3)  # deg, as declared
     assert list(drawn["yaw"]) == pytest.approx([math.degrees(0.1)] * 3)  # rad, drawn in deg
+
+
+def test_a_thruster_off_fault_draws_the_force_the_plant_got(tmp_path, monkeypatch) -> None:
+    """A run with a thruster-off fault (the lab's exercise) drew the autopilot's command
+    on the F_t panel alone: 8 N of thrust after the thruster had failed. While the fault
+    acts the plant gets 0 N (docs/events.md); the panel draws that force, with the
+    command beside it, dashed."""
+    run = tmp_path / "run"
+    run.mkdir()
+    rows = "".join(
+        f"{t},{f},{int(t >= 0.2)}\n" for t, f in ((0.0, 5.0), (0.1, 6.0), (0.2, 7.0), (0.3, 8.0))
+    )
+    (run / "results.csv").write_text("time,controller.tunnel_force,fault.thruster\n" + rows)
+    fault = {"name": "thruster", "kind": "thruster-off", "target": None, "start": 0.2, "stop": None}
+    (run / "summary.json").write_text(json.dumps({"faults": [fault]}))
+    kept = _kept_figures(run, monkeypatch)
+    force = next(ax for ax in kept["attitude_actuators.png"].axes if "F_t" in ax.get_ylabel())
+    drawn = {line.get_label(): list(line.get_ydata()) for line in force.lines}
+    assert drawn["to the plant"] == pytest.approx([5.0, 6.0, 0.0, 0.0]), drawn
+    assert drawn["command"] == pytest.approx([5.0, 6.0, 7.0, 8.0]), drawn
