@@ -198,6 +198,8 @@ def execute(
             progress = _progress(_id_of(scenario), options)
             started = time.perf_counter()
             loaded = _checked_scenario(scenario, options, progress)
+            if stop.requested:  # Ctrl-C while the FMUs were built: nothing to run or write
+                raise _stopped_before_start(stop, folder.replacing, out_dir)
             prepared = time.perf_counter()
             session = _live_session(loaded, options, progress)
             try:
@@ -217,8 +219,13 @@ def execute(
                 "prepare": prepared - started, "outputs": opened - prepared, **result.startup_s
             }  # fmt: skip
             _complete(outputs, result, stop, live=session.live is not None)
-        except BaseException:
+        except BaseException as exc:
             folder.restore()  # an earlier run set aside goes back (if the run never stepped)
+            said = isinstance(exc, NotStartedError)  # it says how the run stopped
+            if stop.requested and isinstance(exc, CosimError) and not said:
+                # what the start-up ran in a child process (pythonfmu's FMU build) got the
+                # terminal's Ctrl-C too and failed of it: the stop is the cause to report
+                raise _stopped_before_start(stop, folder.replacing, out_dir) from None
             raise
         finally:
             if progress is not None:
@@ -238,6 +245,12 @@ def _not_started(result: RunResult, stop: StopRequest, out_dir: Path) -> NotStar
         f"{reason}, before the first step: the earlier run in {out_dir} is kept as it was",
         128 + stop.signum if stop.signum is not None else 1,
     )
+
+
+def _stopped_before_start(stop: StopRequest, replacing: bool, out_dir: Path) -> NotStartedError:
+    """The error of a run stopped by a signal before its first step."""
+    kept = f": the earlier run in {out_dir} is kept as it was" if replacing else ""
+    return NotStartedError(f"{stop.reason} before the first step{kept}", stop.exit_code)
 
 
 def _live_session(

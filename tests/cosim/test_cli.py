@@ -13,6 +13,7 @@ import termios
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from process_group import run_in_group, started_in_group
@@ -838,3 +839,40 @@ def test_a_dumb_terminal_gets_no_progress_bar(
     shown = _run_in_a_terminal(argv, term, tmp_path)
     assert shown.startswith(b"scenario bs-3: complete") != bar, shown
     assert (b"\r" in shown.replace(b"\r\n", b"\n")) == bar, shown
+
+
+@pytest.mark.parametrize("builder", ["ended", pytest.param("between", marks=pytest.mark.slow)])
+def test_ctrl_c_while_the_first_run_builds_its_fmus_is_an_interruption(
+    builder: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Ctrl-C during a first run's FMU build reaches pythonfmu's builder too (the
+    terminal signals the whole process group), which dies of it: the run ended with exit
+    code 1 and "pythonfmu could not build AuvPlant.fmu (exit code -2): ... |
+    KeyboardInterrupt", a failure to report rather than the interruption it was. Between
+    two builds, the build went on and a run of 0 steps was written. Either way it is the
+    interruption: exit code 130, one line saying so, no run folder."""
+    import signal
+
+    from cosim.errors import CosimError
+    from cosim.fmus import build
+
+    built = build.pythonfmu_build
+
+    def interrupted_build(*args: Any, **kwargs: Any) -> Path:
+        os.kill(os.getpid(), signal.SIGINT)  # the terminal's Ctrl-C, to this process ...
+        if builder == "between":  # ... after the builder ended
+            return built(*args, **kwargs)
+        raise CosimError(  # ... and to the builder, which it ends
+            "pythonfmu could not build AuvPlant.fmu (exit code -2): | KeyboardInterrupt"
+        )
+
+    monkeypatch.setattr(build, "pythonfmu_build", interrupted_build)
+    out = tmp_path / "run"
+    argv = ["run", "bs-3", "--fmu-dir", str(tmp_path / "fmus"), "--out", str(out), "--quiet"]
+    assert main([*argv, "--no-rrd"]) == 130
+    said = capsys.readouterr().err.strip()
+    assert said == "auv-cosim run: interrupted (Ctrl-C) before the first step", said
+    assert not out.exists()
