@@ -60,6 +60,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pa_csv
 
+from cosim.paths import path_text
 from cosim.version import version
 
 if TYPE_CHECKING:  # types only: the readers of results.csv need not import the master
@@ -168,7 +169,11 @@ def running_summary(scenario: Scenario, outputs: Mapping[str, Path], out_dir: Pa
         "units": column_units(scenario),
         "versions": versions(),
         "fmus": {
-            name: {"model": inst.interface.model_identifier, "guid": inst.interface.guid}
+            name: {
+                "model": inst.interface.model_identifier,
+                "guid": inst.interface.guid,
+                "path": path_text(inst.interface.path),
+            }
             for name, inst in scenario.instances.items()
         },
     }

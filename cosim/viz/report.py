@@ -481,12 +481,15 @@ def load_summary(run_dir: Path) -> tuple[dict[str, Any], str | None]:
 def actuator_limits(run_dir: Path) -> dict[str, float]:
     """``{"<instance>.<column>": limit}`` for the actuators of :data:`LIMITS` in the run's
     ``scenario.toml``: the instance's start value of the limit parameter, else the FMU's
-    declared start (its model description; a built-in FMU is looked up where runs build
-    it). Empty where the scenario or the FMU cannot be read."""
+    declared start (its model description: the FMU the run used, as ``summary.json``
+    names it, else a built-in FMU where runs build it by default). Empty where the
+    scenario or the FMU cannot be read."""
     try:
         instances = tomllib.loads((run_dir / "scenario.toml").read_text("utf-8"))["instances"]
     except (OSError, KeyError, tomllib.TOMLDecodeError):
         return {}
+    used = load_summary(run_dir)[0].get("fmus")
+    used = used if isinstance(used, dict) else {}
     limits = {}
     for name, instance in instances.items():
         fmu = str(instance.get("fmu", ""))
@@ -495,14 +498,25 @@ def actuator_limits(run_dir: Path) -> dict[str, float]:
                 continue
             value = instance.get("start", {}).get(parameter)
             if value is None:
-                value = _declared_start(run_dir, fmu, model, parameter)
+                path = _fmu_used(used.get(name), run_dir, fmu, model)
+                value = _declared_start(path, parameter)
             if isinstance(value, int | float) and value > 0:
                 limits[f"{name}.{column}"] = float(value)
     return limits
 
 
-def _declared_start(run_dir: Path, fmu: str, model: str, parameter: str) -> Any:
-    path = DEFAULT_FMU_DIR / f"{model}.fmu" if fmu == model else run_dir / fmu
+def _fmu_used(entry: Any, run_dir: Path, fmu: str, model: str) -> Path:
+    """The FMU file an instance ran: its ``path`` in summary.json (a run of any working
+    folder or ``--fmu-dir``), else where a run builds a built-in FMU by default, or the
+    scenario's file beside the run (a run folder copied from another machine)."""
+    if isinstance(entry, dict) and isinstance(entry.get("path"), str):
+        path = Path(entry["path"])
+        if path.is_file():
+            return path
+    return DEFAULT_FMU_DIR / f"{model}.fmu" if fmu == model else run_dir / fmu
+
+
+def _declared_start(path: Path, parameter: str) -> Any:
     try:
         variable = read_interface(path).variables.get(parameter)
     except CosimError:

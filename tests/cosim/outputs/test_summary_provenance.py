@@ -62,7 +62,8 @@ def test_summary_names_the_versions_and_fmus_that_made_the_run(
     run_dir: Path, fmu_dir: Path
 ) -> None:
     """The tool, fmpy and Python versions, and each instance's FMU by its GUID (a function
-    of the FMU's content), so two runs' files can be told apart by what produced them."""
+    of the FMU's content) and its file, so two runs' files can be told apart by what
+    produced them."""
     summary = _summary(run_dir)
     assert summary["versions"] == {
         "auv-cosim": importlib.metadata.version("auv-cosim"),
@@ -74,6 +75,7 @@ def test_summary_names_the_versions_and_fmus_that_made_the_run(
         assert summary["fmus"][instance] == {
             "model": interface.model_identifier,
             "guid": interface.guid,
+            "path": str(interface.path),
         }
 
 

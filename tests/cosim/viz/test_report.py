@@ -791,3 +791,23 @@ def test_a_thruster_off_fault_draws_the_force_the_plant_got(tmp_path, monkeypatc
     drawn = {line.get_label(): list(line.get_ydata()) for line in force.lines}
     assert drawn["to the plant"] == pytest.approx([5.0, 6.0, 0.0, 0.0]), drawn
     assert drawn["command"] == pytest.approx([5.0, 6.0, 7.0, 8.0]), drawn
+
+
+def test_a_report_made_elsewhere_finds_the_limits_of_the_fmus_the_run_used(
+    fmu_paths: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A run on FMUs outside the working folder's build/fmus (``--fmu-dir``, or a run
+    started in another folder) was reported without the mass stops and the thruster
+    limit: the report looked for the built-in FMUs' declared limits in build/fmus of the
+    folder it was made from. It reads them from the FMUs the run used."""
+    from cosim.viz import report
+
+    monkeypatch.chdir(tmp_path)  # no build/fmus here
+    fmus = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", "bs-3", "--stop-time", "0.1", "--no-rrd", "--quiet", "--out", "run"]
+    assert main([*argv, "--fmu-dir", fmus]) == 0
+    assert report.actuator_limits(tmp_path / "run") == {
+        "plant.mass_position": pytest.approx(0.06),  # m, the REMUS 100's rail stops
+        "controller.tunnel_force": pytest.approx(10.0),  # N, the autopilot's limit
+        "controller.fin_angle": pytest.approx(math.radians(25.0)),  # the stern planes' stops
+    }
