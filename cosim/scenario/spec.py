@@ -807,10 +807,12 @@ def _scenario_id(spec: ScenarioSpec, default: str, src: Source) -> str:
     if spec.id is not None:
         return spec.id
     if re.fullmatch(_PLAIN_NAME, default) is None:
+        plain = re.sub(r"[^A-Za-z0-9_.-]+", "-", default).strip(".-") or "scenario"
         raise src.error(
             "id",
             f"missing, and the file name {default!r} is not a plain name (ASCII letters "
-            "(A-Z, a-z), digits, _ . -, not starting with . or -): set id",
+            f"(A-Z, a-z), digits, _ . -, not starting with . or -): rename the file "
+            f'{plain}.toml, or set id = "{plain}" at its top',
         )
     return default
 

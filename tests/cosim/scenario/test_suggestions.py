@@ -191,6 +191,18 @@ def test_a_file_name_with_a_letter_beyond_ascii_asks_for_an_id(
     )
 
 
+def test_a_file_name_with_a_space_says_which_id_to_set(fmu_dir: Path, tmp_path: Path) -> None:
+    """A scenario file a student saved as ``my lab.toml`` was refused ending "...: set
+    id", which said neither where nor to what; the line now gives a plain name to use."""
+    path = tmp_path / "my lab.toml"
+    path.write_text(BS3_LIKE, encoding="utf-8")
+    with pytest.raises(ScenarioError) as refused:
+        load_scenario(path, fmu_dir=fmu_dir)
+    assert str(refused.value).endswith(
+        'rename the file my-lab.toml, or set id = "my-lab" at its top'
+    ), refused.value
+
+
 MISPLACED = "a top-level key: TOML puts every key below a [table] or [[table]] header into it"
 
 
