@@ -768,6 +768,8 @@ def _validate_spec(data: Mapping[str, Any], where: str, src: Source | None = Non
                     problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
             elif table_expected(err):
                 problem = f"key {key!r} = {err.get('input')!r}: expected a table"
+            elif _string_for_a_number(err):
+                problem = f"key {key!r} = {err['input']!r}: {_number_expected(err['input'])}"
             elif any(_is_union_tag(part) for part in err["loc"]):  # a start value
                 problem = f"key {key!r} = {err.get('input')!r}: expected a number, an integer, "
                 problem += "true/false or a string"
@@ -779,6 +781,25 @@ def _validate_spec(data: Mapping[str, Any], where: str, src: Source | None = Non
         raise ScenarioError(
             f"{lead}scenario file {where}: " + "; ".join(problems.values())
         ) from None
+
+
+# pydantic's error types of a string given for a number ("60 s", "0.01")
+_NOT_A_NUMBER = {"float_type", "float_parsing", "int_type", "int_parsing"}
+_LEADING_NUMBER = re.compile(r"\s*([-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)")
+
+
+def _string_for_a_number(err: Any) -> bool:
+    """A string given for a key that takes only a number (not a start value, which may
+    also be a string)."""
+    union = any(_is_union_tag(part) for part in err["loc"])
+    return err["type"] in _NOT_A_NUMBER and isinstance(err.get("input"), str) and not union
+
+
+def _number_expected(text: str) -> str:
+    """What a string given for a number should have been: ``"60 s"``, ``"0.01"``."""
+    number = _LEADING_NUMBER.match(text)
+    meant = f": {number.group(1)}" if number else ""
+    return f"expected a number, in SI units, without a unit or quotes{meant}"
 
 
 def _key(loc: tuple[Any, ...]) -> str:

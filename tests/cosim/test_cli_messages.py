@@ -45,6 +45,12 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
      "1000000000.0 is outside"),
     ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|v_00 = 0.1"}, 1,
      "no variable 'v_00' (did you mean 'v_0'?)"),
+    # a time with its unit, or quoted: pydantic's "Input should be a valid number" said
+    # neither what was wrong with it nor what to write
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:stop_time = 60.0|stop_time = '60 s'"},
+     1, "'stop_time' = '60 s': expected a number, in SI units, without a unit or quotes: 60"),
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:step = 0.01|step = '0.01'"}, 1,
+     "'coupling.step' = '0.01': expected a number, in SI units, without a unit or quotes: 0.01"),
     ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|vehicle = 'nosuch'"}, 1,
      "unknown vehicle 'nosuch'"),
     ("run bad.toml --fmu-dir {fmus}", {"bad.toml": f"bs-3:{BAD_START}|[instances.plant.st]"},

@@ -302,8 +302,8 @@ BAD_EDITS = [
     ('fmu = "AuvPlant"', 'fmu = "NoSuch.fmu"', r"instances\.plant\.fmu.*neither a built-in"),
     # no coercion, no wrap-around, no infinity, no last-one-wins, no "..", no
     # step count beyond the ceiling
-    ("stop_time = 60.0", 'stop_time = "2.0"', r"key 'stop_time' = '2\.0': .* valid number"),
-    ("step = 0.01", 'step = "0.01"', r"key 'coupling\.step' = '0\.01': .* valid number"),
+    ("stop_time = 60.0", 'stop_time = "2.0"', r"key 'stop_time' = '2\.0': expected a num.* 2\.0"),
+    ("step = 0.01", 'step = "0.01"', r"key 'coupling\.step' = '0\.01': expected a number.* 0\.01"),
     ("step = 0.01", "step = inf", r"key 'coupling\.step' = inf: .* finite number"),
     ("stop_time = 60.0", "stop_time = nan", r"key 'stop_time' = nan: .* finite number"),
     ("step = 0.01", "step = 0.01\nstep_multiples = { controller = 2.0 }",
