@@ -326,10 +326,7 @@ def _figures(
     for name, (title, panels) in FIGURES.items():
         if name == "depth" and not _has_depth_loop(table):
             continue
-        if delivered is not None:
-            panels = tuple(
-                THRUST_PANEL if p.series[0].column == THRUST_COMMAND else p for p in panels
-            )
+        panels = with_delivered_thrust(panels, delivered is not None)
         panels = as_declared(panels, units if isinstance(units, dict) else {})
         path = plot_time_histories(
             table, panels, caption.format(title), out / f"{name}.png", markers_of(summary),
@@ -351,6 +348,14 @@ def _figures(
         if deviation is not None:
             figures["lateral_deviation"] = deviation
     return figures
+
+
+def with_delivered_thrust(panels: tuple[Panel, ...], delivered: bool) -> tuple[Panel, ...]:
+    """``panels`` with the tunnel-force panel drawing the force delivered beside the
+    command (:data:`THRUST_PANEL`) when the run has one (:func:`thrust_delivered`)."""
+    if not delivered:
+        return panels
+    return tuple(THRUST_PANEL if p.series[0].column == THRUST_COMMAND else p for p in panels)
 
 
 def thrust_delivered(table: dict[str, np.ndarray], summary: dict[str, Any]) -> np.ndarray | None:
@@ -848,7 +853,8 @@ def figure_alt(name: str, table: dict[str, np.ndarray], summary: dict[str, Any])
     if name == "lateral_deviation":
         return LATERAL_ALT
     zoom = _zoom(table, summary) if name in ZOOMED else None
-    return time_history_alt(name, table.__contains__, zoom)
+    delivered = thrust_delivered(table, summary) is not None
+    return time_history_alt(name, table.__contains__, zoom, delivered)
 
 
 def trajectory_alt(turning: bool = False, three_d: str = "when the depth changes") -> str:
@@ -866,16 +872,25 @@ def trajectory_alt(turning: bool = False, three_d: str = "when the depth changes
 
 
 def time_history_alt(
-    name: str, recorded: Callable[[str], bool] = lambda column: True, zoom: float | None = None
+    name: str,
+    recorded: Callable[[str], bool] = lambda column: True,
+    zoom: float | None = None,
+    delivered: bool = False,
 ) -> str:
     """The alt text of the time-history figure ``name`` (a key of :data:`FIGURES`): its
     panels of the ``recorded`` columns, each with its unit and reference curves; with
-    ``zoom`` (s), the transient column beside them."""
+    ``zoom`` (s), the transient column beside them; ``delivered``: the tunnel force the
+    plant got drawn beside the command (:func:`with_delivered_thrust`)."""
     title, panels = FIGURES[name]
+    panels = with_delivered_thrust(panels, delivered)
+
+    def drawn(column: str) -> bool:
+        return recorded(column) or (delivered and column == THRUST_DELIVERED)
+
     shown = []
     for panel in panels:
-        if recorded(panel.series[0].column):
-            others = [s.label for s in panel.series[1:] if recorded(s.column)]
+        if drawn(panel.series[0].column):
+            others = [s.label for s in panel.series[1:] if drawn(s.column)]
             shown.append(plain(panel.ylabel) + (f" with {', '.join(others)}" if others else ""))
     enlarged = f"; beside them the first {zoom:g} s enlarged" if zoom is not None else ""
     return f"{title} against time (s), one panel each: {'; '.join(shown)}{enlarged}"

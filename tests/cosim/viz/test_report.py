@@ -791,6 +791,8 @@ def test_a_thruster_off_fault_draws_the_force_the_plant_got(tmp_path, monkeypatc
     drawn = {line.get_label(): list(line.get_ydata()) for line in force.lines}
     assert drawn["to the plant"] == pytest.approx([5.0, 6.0, 0.0, 0.0]), drawn
     assert drawn["command"] == pytest.approx([5.0, 6.0, 7.0, 8.0]), drawn
+    page = (run / "report" / "index.html").read_text(encoding="utf-8")
+    assert "F_t (N) with command" in page, page  # the alt text says what is drawn
 
 
 def test_a_report_made_elsewhere_finds_the_limits_of_the_fmus_the_run_used(
