@@ -724,7 +724,7 @@ def _steps(result: RunResult) -> str:
             f"rejected{f', {discarded} of them discarded by an FMU' if discarded else ''}, "
             f"{_over_tolerance(taken)}tolerance {coupling.tolerance:g})"
         )
-    return _fixed_steps(result.rows - 1, coupling)
+    return _fixed_steps(result.rows - 1, coupling, result.coupling.get("input_derivatives"))
 
 
 def _over_tolerance(taken: dict[str, Any]) -> str:
@@ -743,9 +743,16 @@ def _over_tolerance(taken: dict[str, Any]) -> str:
     return f"{over} over the tolerance ({', '.join(parts)}), "
 
 
-def _fixed_steps(count: int, coupling: Coupling) -> str:
-    """``count`` steps of the fixed communication step, with the coupling."""
+def _fixed_steps(count: int, coupling: Coupling, takers: list[str] | None = None) -> str:
+    """``count`` steps of the fixed communication step, with the coupling; ``takers``: the
+    instances that were sent input derivatives (None: not known yet). Extrapolation reaches
+    only FMUs declaring canInterpolateInputs: where none does, the inputs were held."""
     inputs = f", inputs {coupling.extrapolation}" if coupling.extrapolation != "none" else ""
+    if inputs and takers == []:
+        inputs = (
+            f", inputs held: no FMU takes input derivatives (canInterpolateInputs) for "
+            f"extrapolation = {coupling.extrapolation!r}"
+        )
     return f"{count} steps of {coupling.step:g} s ({coupling.algorithm}{inputs})"
 
 

@@ -296,3 +296,27 @@ def test_a_noise_fault_on_a_feedthrough_draws_once_per_step(algorithm: str) -> N
     first = 1 if algorithm == "jacobi" else 0  # the draw of row 1
     expected = draws[first : first + len(feed) - 1]
     np.testing.assert_allclose(feed[1:] - x0[1:], expected, rtol=0.0, atol=1e-12)
+
+
+def test_a_run_whose_fmus_take_no_input_derivatives_does_not_claim_to_extrapolate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``extrapolation = "quadratic"`` reaches only FMUs that declare canInterpolateInputs
+    (the Reference FMUs do not: they hold their inputs over the step); the run's report
+    says the inputs were held, not that they were extrapolated."""
+    from cosim.cli import main
+
+    text = scenario_text(
+        {"v": "VanDerPol", "f": "Feedthrough"},
+        0.01,
+        0.1,
+        'algorithm = "jacobi"\nextrapolation = "quadratic"',
+    )
+    text += '[connections]\nadd = [{ from = "v.x0", to = "f.Float64_continuous_input" }]\n'
+    scenario = tmp_path / "held.toml"
+    scenario.write_text(f'id = "held"\n{text}')
+    assert main(["run", str(scenario), "--no-rrd", "--out", str(tmp_path / "run")]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert "10 steps of 0.01 s (jacobi" in first, first
+    assert "inputs quadratic" not in first, first
+    assert "inputs held: no FMU takes input derivatives" in first, first
