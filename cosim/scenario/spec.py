@@ -768,6 +768,9 @@ def _validate_spec(data: Mapping[str, Any], where: str, src: Source | None = Non
                     problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
             elif table_expected(err):
                 problem = f"key {key!r} = {err.get('input')!r}: expected a table"
+                problem += (
+                    _ARRAY_OF_TABLES.get(key, "") if isinstance(err.get("input"), list) else ""
+                )
             elif _string_for_a_number(err):
                 problem = f"key {key!r} = {err['input']!r}: {_number_expected(err['input'])}"
             elif any(_is_union_tag(part) for part in err["loc"]):  # a start value
@@ -782,6 +785,15 @@ def _validate_spec(data: Mapping[str, Any], where: str, src: Source | None = Non
             f"{lead}scenario file {where}: " + "; ".join(problems.values())
         ) from None
 
+
+# what a table written as TOML's array of tables ([[connections]], as other tools write
+# connections) is written as here
+_ARRAY_OF_TABLES = {
+    "connections": ' ([connections] with add = [{ from = "a.y", to = "b.u" }], not '
+    "[[connections]]: docs/scenario-example.toml)",
+    "instances": " ([instances.NAME] with fmu = ..., not [[instances]]: "
+    "docs/scenario-example.toml)",
+}
 
 # pydantic's error types of a string given for a number ("60 s", "0.01")
 _NOT_A_NUMBER = {"float_type", "float_parsing", "int_type", "int_parsing"}

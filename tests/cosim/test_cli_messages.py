@@ -23,6 +23,8 @@ NOISE = re.compile(
     r"Traceback|\b[A-Z]\w*(Error|Exception): |PosixPath\(|WindowsPath\(|<class |\bNone\b"
 )
 
+BS3_CONNECTIONS = "[connections]                     # same-named outputs -> inputs, except:\n"
+BS3_CONNECTIONS += 'remove = ["plant.fin_angle"]'  # bs-3's connections table
 BAD_START = '[instances.plant.start]\nvariant = "lateral"'  # bs-3's plant start table
 NO_FACTOR = 'scenario = "bs-3"\n[random]\nn = 0\n'  # a study that varies nothing
 STUDY = 'scenario = "bs-3"\nstop_time = 1.0\n[grid]\n"plant.v_0" = [-0.1, 0.1]\n'
@@ -302,6 +304,17 @@ def test_printed_values_that_do_not_read_are_named_by_their_file(
     [
         ("bad.toml", "bs-3:[coupling]\nstep = 0.01|coupling = 0.01\n[c]\nstep = 0.01",
          "scenario file bad.toml: key 'coupling' = 0.01: expected a table"),
+        # [[connections]] (TOML's array of tables, as other tools write connections)
+        ("bad.toml", f"bs-3:{BS3_CONNECTIONS}|[[connections]]\nfrom = 'plant.yaw'\n"
+         "to = 'controller.yaw'\n[[connections]]\nfrom = 'plant.r'\nto = 'controller.r'",
+         "scenario file bad.toml: key 'connections' = [{'from': 'plant.yaw', 'to': "
+         "'controller.yaw'}, {'from': 'plant.r', 'to': 'controller.r'}]: expected a table "
+         "([connections] with add = [{ from = \"a.y\", to = \"b.u\" }], not "
+         "[[connections]]: docs/scenario-example.toml)"),
+        ("bad.toml", "id = 'bad'\nstop_time = 1.0\n[coupling]\nstep = 0.01\n[[instances]]\n"
+         "fmu = 'AuvPlant'",
+         "scenario file bad.toml: key 'instances' = [{'fmu': 'AuvPlant'}]: expected a table "
+         "([instances.NAME] with fmu = ..., not [[instances]]: docs/scenario-example.toml)"),
         ("study.toml", "metrics = ['yaw_settling_time_s']\n" + STUDY,
          "study file study.toml: key 'metrics' = ['yaw_settling_time_s']: expected a table"),
     ],
@@ -317,7 +330,9 @@ def test_a_value_where_a_table_goes_is_refused_without_a_class_name(
 ) -> None:
     """``coupling = 0.01`` in a scenario, ``metrics = [...]`` in a study: refused as
     pydantic's "Input should be a valid dictionary or instance of CouplingSpec", a class
-    of the code the user never wrote and a Python word for a TOML table."""
+    of the code the user never wrote and a Python word for a TOML table; ``[[connections]]``
+    and ``[[instances]]`` (arrays of tables, as other tools write them) are told how this
+    file writes them."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / name).write_text(_file_text(text), encoding="utf-8")
     fmus = str(fmu_paths["AuvPlant"].parent)
