@@ -604,8 +604,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("build", help="build AuvPlant.fmu, AuvAutopilot.fmu and AuvGuidance.fmu")
     p.add_argument(
-        "--out", type=_path_arg, default=DEFAULT_FMU_DIR, help="output folder [%(default)s]"
-    )
+        "--out", "--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR,
+        help="output folder (the other commands' --fmu-dir) [%(default)s]",
+    )  # fmt: skip
     p.add_argument("--force", action="store_true", help="rebuild even if up to date")
     p.add_argument(
         "--portable",

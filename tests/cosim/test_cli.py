@@ -876,3 +876,11 @@ def test_ctrl_c_while_the_first_run_builds_its_fmus_is_an_interruption(
     said = capsys.readouterr().err.strip()
     assert said == "auv-cosim run: interrupted (Ctrl-C) before the first step", said
     assert not out.exists()
+
+
+def test_build_takes_the_fmu_folder_by_the_name_the_other_commands_give_it() -> None:
+    """run, validate, export and sweep name the FMUs' folder ``--fmu-dir``; ``build`` calls
+    it ``--out`` and refused ``--fmu-dir`` as an unrecognised argument: it takes both."""
+    parser = build_parser()
+    assert parser.parse_args(["build", "--fmu-dir", "fmus"]).out == Path("fmus")
+    assert parser.parse_args(["build", "--out", "fmus"]).out == Path("fmus")
