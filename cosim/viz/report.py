@@ -625,7 +625,7 @@ def plot_time_histories(
             axes[row, col].set_xlim(*span)
     axes[-1, 0].set_xlabel("Time (s)")
     if zoom is not None:
-        axes[0, 1].set_title(f"the transient: first {zoom:g} s", fontsize="medium")
+        axes[0, 1].set_title(f"the transient: first {zoom:.3g} s", fontsize="medium")
         axes[-1, 1].set_xlabel("Time (s)")
     fig.suptitle(title)
     fig.tight_layout()
@@ -668,9 +668,11 @@ def _draw_panel(
     limit = limits.get(panel.series[0].column)
     if limit is not None:
         scaled = limit * panel.series[0].scale
+        unit = _label_unit(panel.ylabel)
+        label = f"limit +-{scaled:g}" + (f" {unit}" if unit != "1" else "")
         for sign in (1.0, -1.0):
             ax.axhline(sign * scaled, color="tab:red", linestyle=":", linewidth=1.0,
-                       label=f"limit +-{scaled:g}" if sign > 0 else None)  # fmt: skip
+                       label=label if sign > 0 else None)  # fmt: skip
         drawn += 1
     if shown is not None:
         ax.set_ylim(*shown)
@@ -892,7 +894,7 @@ def time_history_alt(
         if drawn(panel.series[0].column):
             others = [s.label for s in panel.series[1:] if drawn(s.column)]
             shown.append(plain(panel.ylabel) + (f" with {', '.join(others)}" if others else ""))
-    enlarged = f"; beside them the first {zoom:g} s enlarged" if zoom is not None else ""
+    enlarged = f"; beside them the first {zoom:.3g} s enlarged" if zoom is not None else ""
     return f"{title} against time (s), one panel each: {'; '.join(shown)}{enlarged}"
 
 

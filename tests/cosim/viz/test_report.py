@@ -813,3 +813,27 @@ def test_a_report_made_elsewhere_finds_the_limits_of_the_fmus_the_run_used(
         "controller.tunnel_force": pytest.approx(10.0),  # N, the autopilot's limit
         "controller.fin_angle": pytest.approx(math.radians(25.0)),  # the stern planes' stops
     }
+
+
+def test_a_limits_legend_names_its_unit_and_the_transients_title_a_readable_time(
+    tmp_path, monkeypatch
+) -> None:
+    """The thruster's legend read "limit +-8" (8 what?) and the transient column's title
+    "first 9.62194 s" (digits of a time nobody reads to a microsecond)."""
+    run = _write_run(
+        tmp_path / "run", Variant.LATERAL, {"u": 1.5, "v": -0.1},
+        {"tunnel_force": 1.0, "mass_position_cmd": 0.02, "yaw_setpoint": 0.0},
+        summary={"key_figures": {"yaw_settling_time_s": 1.654321}},
+    )  # fmt: skip
+    (run / "scenario.toml").write_text(
+        '[instances.plant]\nfmu = "AuvPlant"\n[instances.plant.start]\nmass_stroke = 0.05\n'
+        '[instances.controller]\nfmu = "AuvAutopilot"\n'
+        "[instances.controller.start]\ntunnel_force_limit = 8.0\n"
+    )
+    fig = _kept_figures(run, monkeypatch)["attitude_actuators.png"]
+    titles = [ax.get_title() for ax in fig.axes]
+    assert "the transient: first 4.96 s" in titles, titles
+    thruster = next(ax for ax in fig.axes if ax.get_ylabel() == "$F_t$ (N)")
+    assert "limit +-8 N" in [t.get_text() for t in thruster.get_legend().get_texts()]
+    mass = next(ax for ax in fig.axes if ax.get_ylabel() == "$y_v$ (cm)")
+    assert "limit +-5 cm" in [t.get_text() for t in mass.get_legend().get_texts()]
