@@ -271,6 +271,22 @@ def test_a_far_reference_curve_does_not_flatten_the_main_one() -> None:
     assert near is None
 
 
+def _settled_run(run: Path, settling: float, controller_start: str = "") -> Path:
+    """A lateral run of 20 s that settles in ``settling`` s, with 5 cm mass stops and an
+    8 N thruster limit (and ``controller_start``) in its scenario.toml."""
+    run = _write_run(
+        run, Variant.LATERAL, {"u": 1.5, "v": -0.1},
+        {"tunnel_force": 1.0, "mass_position_cmd": 0.02, "yaw_setpoint": 0.0},
+        summary={"key_figures": {"yaw_settling_time_s": settling}},
+    )  # fmt: skip
+    (run / "scenario.toml").write_text(
+        '[instances.plant]\nfmu = "AuvPlant"\n[instances.plant.start]\nmass_stroke = 0.05\n'
+        '[instances.controller]\nfmu = "AuvAutopilot"\n'
+        f"[instances.controller.start]\ntunnel_force_limit = 8.0\n{controller_start}"
+    )
+    return run
+
+
 def test_transient_column_settling_time_and_actuator_limits_are_drawn(
     tmp_path, monkeypatch
 ) -> None:
@@ -279,16 +295,7 @@ def test_transient_column_settling_time_and_actuator_limits_are_drawn(
     the run's start values) are lines at +-limit on their panels."""
     from cosim.viz import report
 
-    run = _write_run(
-        tmp_path / "run", Variant.LATERAL, {"u": 1.5, "v": -0.1},
-        {"tunnel_force": 1.0, "mass_position_cmd": 0.02, "yaw_setpoint": 0.0},
-        summary={"key_figures": {"yaw_settling_time_s": 2.0}},
-    )  # fmt: skip
-    (run / "scenario.toml").write_text(
-        '[instances.plant]\nfmu = "AuvPlant"\n[instances.plant.start]\nmass_stroke = 0.05\n'
-        '[instances.controller]\nfmu = "AuvAutopilot"\n'
-        "[instances.controller.start]\ntunnel_force_limit = 8.0\nfin_angle_limit = 0.4\n"
-    )
+    run = _settled_run(tmp_path / "run", 2.0, "fin_angle_limit = 0.4\n")
     assert report.actuator_limits(run) == {
         "plant.mass_position": 0.05,
         "controller.tunnel_force": 8.0,
@@ -820,16 +827,7 @@ def test_a_limits_legend_names_its_unit_and_the_transients_title_a_readable_time
 ) -> None:
     """The thruster's legend read "limit +-8" (8 what?) and the transient column's title
     "first 9.62194 s" (digits of a time nobody reads to a microsecond)."""
-    run = _write_run(
-        tmp_path / "run", Variant.LATERAL, {"u": 1.5, "v": -0.1},
-        {"tunnel_force": 1.0, "mass_position_cmd": 0.02, "yaw_setpoint": 0.0},
-        summary={"key_figures": {"yaw_settling_time_s": 1.654321}},
-    )  # fmt: skip
-    (run / "scenario.toml").write_text(
-        '[instances.plant]\nfmu = "AuvPlant"\n[instances.plant.start]\nmass_stroke = 0.05\n'
-        '[instances.controller]\nfmu = "AuvAutopilot"\n'
-        "[instances.controller.start]\ntunnel_force_limit = 8.0\n"
-    )
+    run = _settled_run(tmp_path / "run", 1.654321)
     fig = _kept_figures(run, monkeypatch)["attitude_actuators.png"]
     titles = [ax.get_title() for ax in fig.axes]
     assert "the transient: first 4.96 s" in titles, titles
