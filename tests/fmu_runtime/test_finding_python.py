@@ -205,3 +205,46 @@ def test_each_candidate_is_asked_once_per_process(host, extracted, tmp_path, cle
     done = _run_cycles(host, extracted, tmp_path, clean_home, 3, **{OVERRIDE_VARIABLE: str(fake)})
     assert "cycles: 3 x 2 ok" in done.stdout, done.stdout + done.stderr
     assert calls.read_text() == "x\n"
+
+
+def _answering_at_once(folder: Path, answer: dict[str, str], chatter: int) -> Path:
+    """A candidate that writes ``chatter`` lines the probe's reader skips (as a Python whose
+    start-up prints lines of its own does) before ``answer``, then waits until a second
+    process of it has written its answer too (each leaves a file in ``folder``) to end:
+    two probes of it end at the same moment, and their answers are read at once, for as
+    long as a loaded machine may keep a thread from finishing its reading."""
+    fake = fake_python(folder, answer)
+    lines = "\n".join(["."] * chatter)
+    wait = (
+        f': > "{folder}/answered.$$"\n'
+        f'set -- "{folder}"/answered.*\n'
+        "n=0\n"  # bounded: a lone probe still ends
+        f'while [ $# -lt 2 ] && [ $n -lt 100000 ]; do n=$((n+1)); set -- "{folder}"/answered.*; done\n'
+    )
+    text = fake.read_text().replace("#!/bin/sh\n", f"#!/bin/sh\nprintf '%s\\n' '{lines}'\n")
+    fake.write_text(text.replace("\nexit ", f"\n{wait}exit "))
+    return fake
+
+
+@pytest.mark.slow
+def test_two_copies_reading_their_probes_at_once_both_find_python(
+    host, extracted, tmp_path, clean_home
+):
+    """Two extractions' first instances made at once from two threads (a parallel master):
+    each copy of the runtime probes the candidate in its thread, and here both read the
+    answer at the same moment. The reader kept its place in the C library's one strtok
+    state, shared by every thread: a thread went on in the other's answer, one missed lines
+    of its own ("race: 9 0", or "race: 9 9" as seen in a test suite on a machine at load
+    20, where a thread is often stopped mid-reading), or read freed memory (a crash). Ten
+    fresh processes (before, about seven in ten failed)."""
+    fake = _answering_at_once(tmp_path, our_answer(), chatter=400_000)
+    first, second = moved(extracted["AuvPlant"], tmp_path), moved(extracted["AuvPlant"], tmp_path)
+    for run in range(10):
+        for answered in tmp_path.glob("answered.*"):
+            answered.unlink()
+        done = run_clean([host, first, "AuvPlant", "race", second], clean_home,
+                         PATH="/nonexistent", **{OVERRIDE_VARIABLE: str(fake)})  # fmt: skip
+        assert len(list(tmp_path.glob("answered.*"))) == 2, "the probes were not at once"
+        assert (done.returncode, done.stdout.splitlines()[-1:]) == (0, ["race: 0 0"]), (
+            run, [text for _, _, text in LINE.findall(done.stdout)], done.stderr[-2000:]
+        )  # fmt: skip
