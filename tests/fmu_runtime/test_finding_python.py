@@ -219,7 +219,8 @@ def _answering_at_once(folder: Path, answer: dict[str, str], chatter: int) -> Pa
         f': > "{folder}/answered.$$"\n'
         f'set -- "{folder}"/answered.*\n'
         "n=0\n"  # bounded: a lone probe still ends
-        f'while [ $# -lt 2 ] && [ $n -lt 100000 ]; do n=$((n+1)); set -- "{folder}"/answered.*; done\n'
+        "while [ $# -lt 2 ] && [ $n -lt 100000 ]; do n=$((n+1)); "
+        f'set -- "{folder}"/answered.*; done\n'
     )
     text = fake.read_text().replace("#!/bin/sh\n", f"#!/bin/sh\nprintf '%s\\n' '{lines}'\n")
     fake.write_text(text.replace("\nexit ", f"\n{wait}exit "))
