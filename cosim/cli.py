@@ -602,6 +602,32 @@ def build_parser() -> argparse.ArgumentParser:
     parser.set_defaults(func=None, usage_help=parser.print_help)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
+    _add_build_parser(sub)
+    _add_validate_parser(sub)
+    _add_scenarios_parser(sub)
+    _add_run_parser(sub)
+    _add_sweep_parser(sub)
+    _add_export_parser(sub)
+    _add_view_parser(sub)
+    _add_analyze_parser(sub)
+    _add_reproduce_parser(sub)
+
+    p = sub.add_parser(
+        "report", help="plot a run's time histories into RUN_DIR/report/ (PNGs + index.html)"
+    )
+    p.add_argument(
+        "run_dir",
+        type=_path_arg,
+        metavar="RUN_DIR",
+        help="a run folder holding results.csv (runs/<scenario-id> by default)",
+    )
+    p.set_defaults(func=_report)
+    _describe(sub)
+    return parser
+
+
+def _add_build_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim build``."""
     p = sub.add_parser("build", help="build AuvPlant.fmu, AuvAutopilot.fmu and AuvGuidance.fmu")
     p.add_argument(
         "--out", "--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR,
@@ -616,6 +642,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_build)
 
+
+def _add_validate_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim validate``."""
     p = sub.add_parser(
         "validate",
         help="validate the built FMUs as they are (fmpy + our own checks), any FMU files, "
@@ -635,11 +664,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_validate)
 
-    _add_scenarios_parser(sub)
-    _add_run_parser(sub)
 
-    _add_sweep_parser(sub)
-
+def _add_export_parser(sub: argparse._SubParsersAction) -> None:
+    """``auv-cosim export``."""
     p = sub.add_parser("export", help="export a scenario as SSP or OSP system structure")
     p.add_argument("scenario", type=_scenario_arg, help="scenario id or .toml path")
     target = p.add_mutually_exclusive_group(required=True)  # neither or both: usage, exit 2
@@ -654,24 +681,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.set_defaults(func=_export)
-
-    _add_view_parser(sub)
-
-    _add_analyze_parser(sub)
-    _add_reproduce_parser(sub)
-
-    p = sub.add_parser(
-        "report", help="plot a run's time histories into RUN_DIR/report/ (PNGs + index.html)"
-    )
-    p.add_argument(
-        "run_dir",
-        type=_path_arg,
-        metavar="RUN_DIR",
-        help="a run folder holding results.csv (runs/<scenario-id> by default)",
-    )
-    p.set_defaults(func=_report)
-    _describe(sub)
-    return parser
 
 
 def _describe(sub: argparse._SubParsersAction) -> None:
