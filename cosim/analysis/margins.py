@@ -21,6 +21,7 @@ takes before it loses stability), the sensitivity peak ``Ms = max |1 / (1 + L)|`
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -143,10 +144,23 @@ def scaled_vehicle(params: VehicleParameters, factors: Mapping[str, float]) -> V
         if not math.isfinite(factor):
             raise AnalysisError(f"--scale {name}={factor!r}: expected a finite factor")
         changes[name] = values[name] * factor
+        try:  # alone first, to name the factor that gives a refused value
+            params.replace(**{name: changes[name]})
+        except VehicleParameterError as exc:
+            raise AnalysisError(
+                f"--scale {name}={factor!r} (the vehicle's {name} = {values[name]:g} times "
+                f"{factor:g}): {_reason(exc)}"
+            ) from None
     try:
         return params.replace(**changes) if changes else params
-    except VehicleParameterError as exc:
-        raise AnalysisError(f"--scale: {exc}") from None
+    except VehicleParameterError as exc:  # the factors together (the mass matrix)
+        given = " ".join(f"{name}={factor!r}" for name, factor in factors.items())
+        raise AnalysisError(f"--scale {given}: {_reason(exc)}") from None
+
+
+def _reason(exc: VehicleParameterError) -> str:
+    """The vehicle's refusal without its lead ("vehicle 'remus100 (modified)': ")."""
+    return re.sub(r"^vehicle '[^']*': ", "", str(exc))
 
 
 def lqr_loop(
