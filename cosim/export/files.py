@@ -74,6 +74,7 @@ def replacing_file(path: Path, overwrite: bool = False) -> Iterator[Path]:
             f"cannot write {path}: it exists and is not an archive auv-cosim export wrote "
             "(or it was changed since); pass --force to replace it, or choose another file"
         )
+    _refuse_file_on_the_way(path, path)
     tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -88,6 +89,14 @@ def replacing_file(path: Path, overwrite: bool = False) -> Iterator[Path]:
         raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def _refuse_file_on_the_way(path: Path, shown: Path) -> None:
+    """Refuse ``path`` (named ``shown``) when a folder it lies in is a file: the folders
+    made for it would fail with the system's bare "File exists" or "Not a directory"."""
+    for parent in reversed(path.parents):
+        if parent.exists() and not parent.is_dir():
+            raise CosimError(f"cannot write {shown}: {parent} is a file, not a folder")
 
 
 def _check_earlier_export(folder: Path, shown: Path | None = None) -> None:
@@ -166,6 +175,7 @@ def replacing_folder(folder: Path) -> Iterator[Path]:
                 "replace as a whole; give a folder inside it or beside it (--osp NAME)"
             )
         _check_earlier_export(folder, given)
+    _refuse_file_on_the_way(given, given)
     tag = secrets.token_hex(4)
     tmp = folder.parent / f".{folder.name}.{tag}.tmp"
     old = folder.parent / f".{folder.name}.{tag}.old"

@@ -65,6 +65,11 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
      "FMUs: nothing.fmu"),
     ("export bs-3 --osp taken --fmu-dir {fmus}", {"taken": ""}, 1,
      "cannot write --osp taken: it exists and is not a folder"),
+    # a file where a folder of the path goes: the system's "File exists" named nothing
+    ("export bs-3 --osp taken/x --fmu-dir {fmus}", {"taken": ""}, 1,
+     "cannot write --osp taken/x: taken is a file, not a folder"),
+    ("export bs-3 --ssp taken/x.ssp --fmu-dir {fmus}", {"taken": ""}, 1,
+     "cannot write --ssp taken/x.ssp: taken is a file, not a folder"),
     ("export bs-3 --ssp theirs.ssp --fmu-dir {fmus}", {"theirs.ssp": "x"}, 1,
      "cannot write --ssp theirs.ssp: it exists and is not an archive"),
     ("export bs-3 --ssp bs-3.zip --fmu-dir {fmus}", {}, 1,
