@@ -153,8 +153,11 @@ def test_the_command_prints_every_margin_with_its_unit(
         (["--scale", "m_vv=1.2"], "--scale m_vv=1.2: unknown parameter 'm_vv'; expected one of"),
         (["--scale", "m_v=inf"], "--scale m_v=inf: expected a finite factor"),
         # the factor typed, not only the scaled value the vehicle's own check refused
-        (["--scale", "m=-1"], "--scale m=-1.0 (the vehicle's m = 30.5 times -1): m = -30.5: "
-         "expected a number greater than 0"),
+        (
+            ["--scale", "m=-1"],
+            "--scale m=-1.0 (the vehicle's m = 30.5 times -1): m = -30.5: "
+            "expected a number greater than 0",
+        ),
     ],
 )
 def test_a_nonsensical_operating_point_is_refused_naming_it(
