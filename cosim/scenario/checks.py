@@ -8,19 +8,18 @@ way: one line naming the file, the key, the bad value and what was expected.
 
 from __future__ import annotations
 
-import codecs
 import dataclasses
 import math
 import re
 import sys
-import tomllib
 import types
 import typing
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, NoReturn
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic_core import ErrorDetails
 
 from cosim.errors import CosimError, did_you_mean, shown
 
@@ -29,71 +28,6 @@ FMI_INTEGER_RANGE = (-(2**31), 2**31 - 1)  # fmi2Integer is a C int (32 bits)
 
 class ScenarioError(CosimError):
     """A scenario that cannot run: the message names the file and the key."""
-
-
-class NotTomlError(ValueError):
-    """A text that is not TOML this reader reads; the message says where and why."""
-
-
-def loads_toml(text: str) -> dict[str, Any]:
-    """The table of a TOML text, as ``tomllib.loads`` reads it. Raises :class:`NotTomlError`
-    for invalid TOML, and for arrays or inline tables nested thousands deep (valid TOML,
-    but beyond Python's recursion limit: tomllib raised RecursionError, which named
-    neither the file nor what was wrong)."""
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise NotTomlError(f"{exc}{toml_hint(text, str(exc))}") from None
-    except RecursionError:
-        raise NotTomlError("arrays or inline tables nested too deeply to read") from None
-
-
-_AT_LINE = re.compile(r"\(at line (\d+), column \d+\)$")
-_KEY_VALUE = re.compile(r"^\s*(?P<key>[A-Za-z0-9_.\"'-]+)\s*=\s*(?P<value>[^#]*?)\s*(#.*)?$")
-_BARE_WORDS = {"true", "false", "inf", "nan", "+inf", "-inf", "+nan", "-nan"}
-
-
-def toml_hint(text: str, message: str) -> str:
-    """What to write instead, after tomllib's ``message`` on the line of ``text`` it names
-    (``: write a decimal point, not a comma: 0.26``), for the slips a first scenario file
-    has: a decimal comma, a name not quoted, a unit after a number, a key given twice;
-    ``""`` for any other."""
-    at = _AT_LINE.search(message)
-    lines = text.splitlines()
-    if at is None or not 0 < int(at.group(1)) <= len(lines):
-        return ""
-    line = _KEY_VALUE.match(lines[int(at.group(1)) - 1])
-    if line is None:
-        return ""
-    key, value = line.group("key"), line.group("value")
-    if message.startswith("Cannot overwrite a value"):
-        return f": {key!r} is given twice in its table; keep one"
-    if re.fullmatch(r"[-+]?\d+,\d+", value):
-        return f": write a decimal point, not a comma: {value.replace(',', '.')}"
-    number_and_unit = re.fullmatch(r"([-+]?[\d.]+(?:[eE][-+]?\d+)?)\s+[A-Za-z/%]+", value)
-    if number_and_unit:
-        return f": a number stands alone, in SI units (here {number_and_unit.group(1)})"
-    if re.fullmatch(r"[A-Za-z_][\w-]*", value) and value.lower() not in _BARE_WORDS:
-        return f': a string is quoted: "{value}"'
-    return ""
-
-
-def not_utf8(exc: UnicodeDecodeError) -> str:
-    """What is wrong with a file whose bytes UTF-8 refused (``exc``, raised decoding the
-    whole file, a byte-order mark dropped), in words a user acts on: ``not UTF-8 text:
-    byte 0xf6 at line 2, column 5; save it as UTF-8`` (Latin-1, Windows-1252: an editor's
-    "Western European"), or ``not UTF-8 text but UTF-16 (...)`` (Windows' "Unicode")."""
-    data = bytes(exc.object)
-    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
-        return (
-            "not UTF-8 text but UTF-16 (it starts with a UTF-16 byte-order mark); save it as UTF-8"
-        )
-    line = data.count(b"\n", 0, exc.start) + 1
-    before = data[data.rfind(b"\n", 0, exc.start) + 1 : exc.start].decode("utf-8", "replace")
-    return (
-        f"not UTF-8 text: byte 0x{data[exc.start]:02x} at line {line}, column "
-        f"{len(before) + 1}; save it as UTF-8"
-    )
 
 
 class Strict(BaseModel):
@@ -274,6 +208,41 @@ def literal_guess(err: Mapping[str, Any]) -> str:
     if err.get("type") != "literal_error" or not isinstance(value, str):
         return ""
     return did_you_mean(value, re.findall(r"'([^']*)'", str(err["ctx"]["expected"])))
+
+
+# pydantic puts the member of a union it tried ("float", "str", ...) in an error's location
+UNION_TAGS = frozenset({"bool", "int", "float", "str"})
+ANY_VALUE = "expected a number, an integer, true/false or a string"  # a start value's types
+
+
+def file_key(loc: tuple[Any, ...], dropped: Callable[[int, Any], bool]) -> str:
+    """pydantic's error location ``loc`` as the file's key, in the notation of every
+    refusal: ``faults[0].std`` (a list index in brackets), without the parts ``dropped``
+    (its index in ``loc``, the part) says are no keys of the file (a union member tried)."""
+    key = ""
+    for i, part in enumerate(loc):
+        if isinstance(part, int):
+            key += f"[{part}]"
+        elif not dropped(i, part):
+            key += f".{part}" if key else str(part)
+    return key
+
+
+def one_problem_per_key(
+    exc: ValidationError,
+    key_of: Callable[[tuple[Any, ...]], str],
+    problem_of: Callable[[str, ErrorDetails], str],
+) -> str:
+    """pydantic's errors of one file in one line: the problem (``problem_of`` the key and
+    the error) of each key (``key_of`` an error's location) that has one, the first one a
+    key has (pydantic tries each member of a union and refuses the value once per member),
+    joined by ``"; "``."""
+    problems: dict[str, str] = {}
+    for err in exc.errors():
+        key = key_of(err["loc"])
+        if key not in problems:
+            problems[key] = problem_of(key, err)
+    return "; ".join(problems.values())
 
 
 def table_model(root: type[BaseModel], table: str) -> type[BaseModel] | None:

@@ -30,6 +30,7 @@ from pydantic import (
     StrictStr,
     ValidationError,
 )
+from pydantic_core import ErrorDetails
 
 from cosim.errors import OptionNames, did_you_mean, did_you_mean_path, plain, shown
 from cosim.fmus.interface import (
@@ -41,7 +42,8 @@ from cosim.fmus.interface import (
 from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
 from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.scenario.checks import (
-    NotTomlError,
+    ANY_VALUE,
+    UNION_TAGS,
     ReadOnly,
     ScenarioError,
     Source,
@@ -49,11 +51,11 @@ from cosim.scenario.checks import (
     alias_key,
     check_value,
     field_names,
+    file_key,
     home_table,
     literal_guess,
-    loads_toml,
     misplaced_top_level,
-    not_utf8,
+    one_problem_per_key,
     split_ref,
     table_expected,
     unknown_key,
@@ -71,6 +73,12 @@ from cosim.scenario.timeline_spec import (
     fault_table,
     resolve_events,
     resolve_faults,
+)
+from cosim.scenario.toml_file import (
+    NotTomlError,
+    UnreadableTomlError,
+    loads_toml,
+    read_toml_file,
 )
 
 if TYPE_CHECKING:  # numpy is not imported to read a scenario
@@ -726,14 +734,10 @@ def _natural_key(path: Path) -> tuple[str, int]:
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
-    try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
-        return loads_toml(path.read_text(encoding="utf-8-sig"))
-    except NotTomlError as exc:
-        raise ScenarioError(f"scenario file {path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"scenario file {path}: {not_utf8(exc)}") from None
-    except OSError as exc:
-        raise ScenarioError(f"scenario file {path}: cannot read it: {exc}") from None
+    try:
+        return read_toml_file(path)
+    except UnreadableTomlError as exc:
+        raise ScenarioError(f"scenario file {path}: {exc}") from None
 
 
 def overridden_keys(names: OptionNames, options: Mapping[str, object]) -> dict[str, str]:
@@ -751,39 +755,35 @@ def _validate_spec(data: Mapping[str, Any], where: str, src: Source | None = Non
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:
-        problems: dict[str, str] = {}  # key -> problem, the first one per key
-        for err in exc.errors():
-            key = _key(err["loc"])
-            if err["type"] == "extra_forbidden":
-                hint = misplaced_top_level(key, ScenarioSpec)
-                problem = (
-                    f"unknown key {key!r}{hint}" if hint else unknown_key(key, ScenarioSpec, KEYS)
-                )
-            elif err["type"] == "missing":
-                problem = f"key {key!r} is missing"
-            elif err["type"] == "string_pattern_mismatch":  # a name: in words, not a regex
-                wanted = PATTERN_WORDS.get(str((err.get("ctx") or {}).get("pattern")))
-                problem = f"key {key!r} = {err.get('input')!r}: expected {wanted}"
-                if wanted is None:
-                    problem = f"key {key!r} = {err.get('input')!r}: {err['msg']}"
-            elif table_expected(err):
-                problem = f"key {key!r} = {err.get('input')!r}: expected a table"
-                problem += (
-                    _ARRAY_OF_TABLES.get(key, "") if isinstance(err.get("input"), list) else ""
-                )
-            elif _string_for_a_number(err):
-                problem = f"key {key!r} = {err['input']!r}: {_number_expected(err['input'])}"
-            elif any(_is_union_tag(part) for part in err["loc"]):  # a start value
-                problem = f"key {key!r} = {err.get('input')!r}: expected a number, an integer, "
-                problem += "true/false or a string"
-            else:
-                guess = literal_guess(err)
-                problem = f"key {key!r} = {err.get('input')!r}{guess}: {err['msg']}"
-            problems.setdefault(key, problem)
         lead = f"{', '.join(src.given.values())}: " if src is not None and src.given else ""
         raise ScenarioError(
-            f"{lead}scenario file {where}: " + "; ".join(problems.values())
+            f"{lead}scenario file {where}: " + one_problem_per_key(exc, _key, _problem)
         ) from None
+
+
+def _problem(key: str, err: ErrorDetails) -> str:
+    """The problem pydantic's error ``err`` finds with the scenario file's ``key``."""
+    if err["type"] == "extra_forbidden":
+        hint = misplaced_top_level(key, ScenarioSpec)
+        return f"unknown key {key!r}{hint}" if hint else unknown_key(key, ScenarioSpec, KEYS)
+    if err["type"] == "missing":
+        return f"key {key!r} is missing"
+    if err["type"] == "string_pattern_mismatch":  # a name: in words, not a regex
+        wanted = PATTERN_WORDS.get(str((err.get("ctx") or {}).get("pattern")))
+        if wanted is None:
+            return f"key {key!r} = {err.get('input')!r}: {err['msg']}"
+        return f"key {key!r} = {err.get('input')!r}: expected {wanted}"
+    if table_expected(err):
+        problem = f"key {key!r} = {err.get('input')!r}: expected a table"
+        return problem + (
+            _ARRAY_OF_TABLES.get(key, "") if isinstance(err.get("input"), list) else ""
+        )
+    if _string_for_a_number(err):
+        return f"key {key!r} = {err['input']!r}: {_number_expected(err['input'])}"
+    if any(_is_union_tag(part) for part in err["loc"]):  # a start value
+        return f"key {key!r} = {err.get('input')!r}: {ANY_VALUE}"
+    guess = literal_guess(err)
+    return f"key {key!r} = {err.get('input')!r}{guess}: {err['msg']}"
 
 
 # what a table written as TOML's array of tables ([[connections]], as other tools write
@@ -815,21 +815,14 @@ def _number_expected(text: str) -> str:
 
 
 def _key(loc: tuple[Any, ...]) -> str:
-    """pydantic's error location as the file's key, in the notation of every other
-    refusal: ``faults[0].std`` (a list index in brackets), without the union members
-    tried (:func:`_is_union_tag`)."""
-    key = ""
-    for part in loc:
-        if isinstance(part, int):
-            key += f"[{part}]"
-        elif not _is_union_tag(part) and part != "[key]":  # pydantic's mark of a dict key
-            key += f".{part}" if key else str(part)
-    return key
+    """pydantic's error location as the scenario file's key: without the union members
+    tried (:func:`_is_union_tag`) and pydantic's mark of a dict key."""
+    return file_key(loc, lambda _, part: _is_union_tag(part) or part == "[key]")
 
 
 def _is_union_tag(part: Any) -> bool:
     """pydantic puts the union member tried ('float', 'str', ...) in the error location."""
-    return isinstance(part, str) and part in {"bool", "int", "float", "str"}
+    return part in UNION_TAGS
 
 
 # --- resolution against the FMUs' model descriptions --------------------------------------

@@ -53,9 +53,9 @@ from cosim.scenario.checks import (
     alias_key,
     aliased_target,
     check_value,
-    not_utf8,
     split_ref,
 )
+from cosim.scenario.toml_file import not_utf8
 
 ACTUATOR_FAULTS = {  # kind -> the plant input it acts on
     "mass-jam": "mass_position_cmd",

@@ -56,17 +56,20 @@ from pydantic import (
     ValidationError,
     model_validator,
 )
+from pydantic_core import ErrorDetails
 
 from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean_path
 from cosim.scenario.checks import (
-    NotTomlError,
+    ANY_VALUE,
+    UNION_TAGS,
     field_names,
-    loads_toml,
+    file_key,
     misplaced_top_level,
-    not_utf8,
+    one_problem_per_key,
     table_expected,
     unknown_key,
 )
+from cosim.scenario.toml_file import UnreadableTomlError, read_toml_file
 
 OVERLAY_CAP = 20  # runs in one overlay recording: more lines than that cannot be told apart
 MAX_RUNS = 100_000  # runs in one study unless --max-runs raises it (a day at ~1 run/s)
@@ -322,14 +325,10 @@ def load_study(path: Path, label: str | None = None) -> StudySpec:
             f"{label}: cannot read it: a pipe or a device, not a file (a study file is read "
             "more than once: `<(...)` gives it once, and a FIFO with no writer never)"
         )
-    try:  # utf-8-sig: a byte-order mark (some Windows editors write one) is dropped
-        data = loads_toml(path.read_text(encoding="utf-8-sig"))
-    except NotTomlError as exc:
-        raise StudyError(f"{label}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise StudyError(f"{label}: {not_utf8(exc)}") from None
-    except OSError as exc:
-        raise StudyError(f"{label}: cannot read it: {exc}") from None
+    try:
+        data = read_toml_file(path)
+    except UnreadableTomlError as exc:
+        raise StudyError(f"{label}: {exc}") from None
     return study_from_dict(data, label)
 
 
@@ -339,30 +338,29 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
     try:
         return StudySpec.model_validate(data)
     except ValidationError as exc:
-        problems: dict[str, str] = {}
-        for err in exc.errors():
-            key = _key(err["loc"])
-            message = err["msg"].removeprefix("Value error, ")
-            tags = {part for part in err["loc"] if part in _UNION_TAGS}
-            misplaced = misplaced_top_level(key, StudySpec)
-            if misplaced and key.count(".") == 1:  # [grid] takes it for a factor's values
-                problem = f"key {key!r}{misplaced}"
-            elif err["type"] == "extra_forbidden":
-                problem = unknown_key(key, StudySpec, KEYS, {RandomSpec: _RANDOM_TAKES})
-            elif err["type"] == "missing":
-                problem = f"key {key!r} is missing"
-            elif not key:
-                problem = message
-            else:
-                if tags:  # one failure per union member tried: say what would do
-                    message = "expected a number" if tags <= {"int", "float"} else _ANY_VALUE
-                elif err["type"] == "list_type":  # a grid factor's one value, say
-                    message = f"expected a list of values, [{err.get('input')!r}]"
-                elif table_expected(err):
-                    message = "expected a table"
-                problem = f"key {key!r} = {err.get('input')!r}: {message}"
-            problems.setdefault(key, problem)
-        raise StudyError(f"{label}: " + "; ".join(problems.values())) from None
+        raise StudyError(f"{label}: " + one_problem_per_key(exc, _key, _problem)) from None
+
+
+def _problem(key: str, err: ErrorDetails) -> str:
+    """The problem pydantic's error ``err`` finds with the study file's ``key``."""
+    message = err["msg"].removeprefix("Value error, ")
+    tags = {part for part in err["loc"] if part in UNION_TAGS}
+    misplaced = misplaced_top_level(key, StudySpec)
+    if misplaced and key.count(".") == 1:  # [grid] takes it for a factor's values
+        return f"key {key!r}{misplaced}"
+    if err["type"] == "extra_forbidden":
+        return unknown_key(key, StudySpec, KEYS, {RandomSpec: _RANDOM_TAKES})
+    if err["type"] == "missing":
+        return f"key {key!r} is missing"
+    if not key:
+        return message
+    if tags:  # one failure per union member tried: say what would do
+        message = "expected a number" if tags <= {"int", "float"} else ANY_VALUE
+    elif err["type"] == "list_type":  # a grid factor's one value, say
+        message = f"expected a list of values, [{err.get('input')!r}]"
+    elif table_expected(err):
+        message = "expected a table"
+    return f"key {key!r} = {err.get('input')!r}: {message}"
 
 
 # [random]'s keys in words: its factors are dotted keys beside n, sampling and seed
@@ -372,21 +370,17 @@ _RANDOM_TAKES = [
 ]
 
 
-_UNION_TAGS = {"bool", "int", "float", "str"}  # pydantic puts the member tried in the loc
-_ANY_VALUE = "expected a number, an integer, true/false or a string"
-
-
 def _key(loc: tuple[Any, ...]) -> str:
     """pydantic's error location as the study file's key: without RandomSpec's gathered
     ``factors`` and the union members tried (tags), which are no keys of the file; a
     top-level key of those names (``[factors]``) is one."""
-    parts: list[str] = []
-    for i, part in enumerate(loc):
-        if isinstance(part, int):
-            parts[-1:] = [f"{parts[-1] if parts else ''}[{part}]"]
-        elif i == 0 or not (
-            part in _UNION_TAGS | {"uniform", "normal"}
-            or (part == "factors" and loc[i - 1] == "random")
-        ):
-            parts.append(part)
-    return ".".join(parts)
+    return file_key(
+        loc,
+        lambda i, part: (
+            i > 0
+            and (
+                part in UNION_TAGS | {"uniform", "normal"}
+                or (part == "factors" and loc[i - 1] == "random")
+            )
+        ),
+    )
