@@ -8,7 +8,7 @@
    machine inflates far less than the wall clock) (targets: bs-3 <= 0.8, vert-2 <= 1.2).
    The floor is
    two trivial pythonfmu FMUs with our interface shape (8 inputs / 20 outputs and back,
-   ``scripts/bench_fmus``, built here) stepped by a bare fmpy loop: what any pair of
+   ``scripts/bench_floor.py`` builds them) stepped by a bare fmpy loop: what any pair of
    pythonfmu FMUs costs. Each round measures the floor and both scenarios one after the
    other and prints them with the load average (1/5/15 min) at its end; the summary is
    the best of the rounds. ``--loops-only`` stops after this part.
@@ -36,6 +36,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_floor import floor_fmus
 from bench_timing import load, median_us
 from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
@@ -44,7 +45,6 @@ from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from cosim.analysis.closed_loop import measurements
 from cosim.engine import master
 from cosim.engine.slave import unzipped
-from cosim.fmus.build import pythonfmu_build
 from cosim.paths import DEFAULT_FMU_DIR
 from cosim.runner import run_scenario
 from cosim.scenario.spec import Scenario, load_scenario
@@ -54,8 +54,6 @@ from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
 from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import advance
-
-FLOOR_FMUS = Path(__file__).resolve().parent / "bench_fmus"
 
 
 def bare_fmpy_loop(scenario: Scenario) -> float:
@@ -120,15 +118,6 @@ def overhead_ratio(scenario: Scenario, repeat: int) -> tuple[float, float, float
         ours.append(result.wall_clock_s)
         bare.append(bare_fmpy_loop(scenario))
     return min(ours), min(bare), min(ours) / min(bare)
-
-
-def floor_fmus(folder: Path) -> list[Path]:
-    """The trivial pythonfmu pair, built into ``folder``."""
-    fmus = []
-    for name in ("BenchTrivialController", "BenchTrivialPlant"):
-        script = FLOOR_FMUS / f"bench_trivial_{name.removeprefix('BenchTrivial').lower()}.py"
-        fmus.append(pythonfmu_build(script, folder, name))
-    return fmus
 
 
 def floor_per_step(fmus: list[Path], n_steps: int) -> tuple[float, float]:

@@ -6,7 +6,7 @@ same-named inputs, ``fmi2DoStep``), three ways in one process: with the FMUs as 
 runtime: values in C, one call into Python a step), with pythonfmu's library alone (copies
 of the same FMUs with the runtime removed; the same build, so one process runs both), and
 the FMI floor, two trivial pythonfmu FMUs of the same interface shape
-(``scripts/bench_fmus``, built here) in the same loop. Blocks of ``--steps`` steps rotate
+(``scripts/bench_floor.py`` builds them) in the same loop. Blocks of ``--steps`` steps rotate
 between the three for ``--rounds`` rounds (each goes first in turn); each block is timed
 in CPU time of this thread (the machine's other load then matters less than for a wall
 clock), and each ratio is the median of the rounds' ratios. Prints us per step of each
@@ -35,18 +35,16 @@ import time
 import zipfile
 from pathlib import Path
 
+from bench_floor import floor_fmus
 from bench_timing import load
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.model_description import ModelDescription
 
-from cosim.fmus.build import ensure_fmus, pythonfmu_build
+from cosim.fmus.build import ensure_fmus
 from cosim.paths import DEFAULT_FMU_DIR
 
 H = 0.01  # s, bs-3's communication step
-
-
-FLOOR_FMUS = Path(__file__).resolve().parent / "bench_fmus"
 
 
 class Pair:
@@ -121,10 +119,8 @@ class TrivialPair(Pair):
     inputs ``u<i>`` (what our pair exchanges: 8 plant inputs, 20 autopilot inputs)."""
 
     def __init__(self, folder: Path) -> None:
-        fmus = []
-        for name in ("BenchTrivialPlant", "BenchTrivialController"):
-            script = FLOOR_FMUS / f"bench_trivial_{name.removeprefix('BenchTrivial').lower()}.py"
-            fmus.append(pythonfmu_build(script, folder, name))
+        controller, plant = floor_fmus(folder)
+        fmus = [plant, controller]
         super().__init__(fmus[0], fmus[1], "floor", starts=({}, {}))
         plant_in, controller_in = (_real_refs(read_model_description(str(f)), "input")
                                    for f in fmus)  # fmt: skip
