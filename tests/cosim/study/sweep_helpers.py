@@ -22,6 +22,18 @@ from cosim.cli import main
 from cosim.study.execution import tls_security
 
 DASK = str(Path(sys.executable).parent / "dask")
+# a grid study of 8 runs of bs-3 over v_0 and k0, its other tables at their defaults
+GRID_STUDY = """
+scenario = "bs-3"
+stop_time = 20.0
+[grid]
+"plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
+"controller.k0" = [0.2, 0.5]
+[random]
+n = 0
+seed = 1
+[metrics]
+"""
 # a scenario of the plant alone whose vehicle set is a file beside it (myveh.toml)
 PLANT_WITH_VEHICLE_FILE = """\
 id = "plant-alone"

@@ -5,28 +5,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from sweep_helpers import GRID_STUDY
 
 from cosim.study.spec import Normal, StudyError, Uniform, load_study, study_from_dict
 
 MINIMAL = {"scenario": "bs-3", "grid": {"plant.v_0": [-0.1, 0.1]}}
 
 
-def test_the_issue_example_reads_with_its_defaults(tmp_path: Path) -> None:
+def test_the_grid_example_reads_with_its_defaults(tmp_path: Path) -> None:
     path = tmp_path / "study.toml"
-    path.write_text(
-        """
-scenario = "bs-3"
-stop_time = 20.0
-[grid]
-"plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
-"controller.k0" = [0.2, 0.5]
-[random]
-n = 0
-seed = 1
-[metrics]
-""",
-        encoding="utf-8",
-    )
+    path.write_text(GRID_STUDY, encoding="utf-8")
     spec = load_study(path)
     assert spec.factors == ["plant.v_0", "controller.k0"]
     assert spec.stop_time == 20.0 and spec.keep == "none" and spec.metrics.collect is None

@@ -13,7 +13,7 @@ import pyarrow.parquet as pq
 import pytest
 import tomli_w
 from repo_paths import ROOT
-from sweep_helpers import sweep, table
+from sweep_helpers import GRID_STUDY, sweep, table
 
 from cosim.cli import main
 from cosim.metrics.manoeuvres import metric_names
@@ -23,18 +23,6 @@ from cosim.study.design import random_samples
 from cosim.study.spec import load_study
 
 pytestmark = pytest.mark.usefixtures("no_early_cluster")  # refusals wait for no cluster
-
-GRID_STUDY = """
-scenario = "bs-3"
-stop_time = 20.0
-[grid]
-"plant.v_0" = [-0.10, -0.05, 0.05, 0.10]
-"controller.k0" = [0.2, 0.5]
-[random]
-n = 0
-seed = 1
-[metrics]
-"""
 
 
 def separate_run(tmp_path: Path, fmu_dir: Path, v0: float, k0: float) -> dict:
