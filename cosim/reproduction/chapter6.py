@@ -16,7 +16,7 @@ import numpy as np
 from controller_fmu.lqr import output_matrix
 from cosim.analysis.reference_values import Reference
 from cosim.reproduction.context import Context
-from cosim.reproduction.record import Claim, Finding, LastDigit, Section, printed, unit_text
+from cosim.reproduction.record import Claim, Finding, LastDigit, Section, printed
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 
@@ -178,31 +178,22 @@ def moving_mass_servo(refs: Mapping[str, Reference]) -> Section:
     fraction = refs["section_6_2_3.roll_inertia_fraction"]
     peak = refs["figure_6_10.peak_time"]
     claims = (
-        Claim(
+        Claim.of(
+            increment,
             "the roll inertia the mass adds at its 6 cm stop, m_v y_v^2 (m_v = m/6)",
-            increment.source,
-            printed(increment),
-            unit_text(increment),
             _inertia_increment,
-            reference=increment.key,
         ),
-        Claim(
+        Claim.of(
+            fraction,
             "that increment is approximately 10 % of I_xx + a44",
-            fraction.source,
-            printed(fraction),
-            unit_text(fraction),
             _inertia_fraction,
-            reference=fraction.key,
             explained="the text's 'approximately 10 percent' is loose (the increment itself "
             "agrees, the row above):",
         ),
-        Claim(
+        Claim.of(
+            peak,
             "zeta = 0.9, omega_n = 2.4 rad/s: the servo's step response peaks after about 3 s",
-            peak.source,
-            printed(peak),
-            unit_text(peak),
             _peak_time,
-            reference=peak.key,
         ),
     )
     return Section("The moving mass and its servo (Sec. 6.2.3, (6.3.16), Fig. 6.10)", claims)

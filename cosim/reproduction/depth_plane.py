@@ -19,7 +19,7 @@ import numpy as np
 from controller_fmu.depth_pd import TABLE_6_2_GAMMA, TABLE_6_2_K_P, TABLE_6_2_TAU_D
 from cosim.analysis.reference_values import Reference
 from cosim.reproduction.context import Context
-from cosim.reproduction.record import Claim, Finding, Section, printed, unit_text
+from cosim.reproduction.record import Claim, Finding, Section
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters
@@ -125,13 +125,10 @@ def depth_plane(refs: Mapping[str, Reference]) -> Section:
     """Table 6.1 against the plant, and the depth loop on both."""
     table, a35 = refs["table_6_1.depth_coefficients"], refs["table_6_1.heave_pitch_added_mass"]
     claims = (
-        Claim(
+        Claim.of(
+            table,
             "(6.3.77)'s Z_w, Z_q, M_w, M_q, M_theta, Z_ds, M_ds at U0 = 1.525 m/s",
-            table.source,
-            printed(table),
-            unit_text(table),
             _coefficients,
-            reference=table.key,
             explained=TABLES_DISAGREE,
         ),
         Claim(

@@ -150,25 +150,19 @@ def example_5_3(refs: Mapping[str, Reference]) -> Section:
         )
     cond = refs["example_5_3.condition_numbers"]
     claims.append(
-        Claim(
+        Claim.of(
+            cond,
             "condition numbers of J-bar's eigenvalues (0.9584, -2.4662, the roll pair)",
-            cond.source,
-            printed(cond),
-            unit_text(cond),
             _condition_numbers,
-            reference=cond.key,
         )
     )
     for name, key, which in (("x0'", "turn_positive_v", 2), ("x0''", "turn_negative_v", 0)):
         ref = refs[f"example_5_3.{key}"]
         claims.append(
-            Claim(
+            Claim.of(
+                ref,
                 f"{name} = [u, v, r, p, phi]",
-                ref.source,
-                printed(ref),
-                unit_text(ref),
                 partial(_turn, which),
-                reference=ref.key,
             )
         )
     claims.append(

@@ -207,14 +207,11 @@ def example_5_1(refs: Mapping[str, Reference]) -> Section:
     turns = [("x0' = [u, v, r]", "turn_positive_v", 2), ("x0'' = [u, v, r]", "turn_negative_v", 0)]
     straight = refs["example_5_1.straight_line"]
     claims = [
-        Claim(
+        Claim.of(
+            count,
             "number of equilibria in D = {0<u<2, |v|,|r|<=0.4}",
-            count.source,
-            printed(count),
-            unit_text(count),
             _count,
             tolerance=Absolute(0.0),
-            reference=count.key,
         ),
         Claim(
             "x0 = [u, v, r]",
@@ -229,13 +226,10 @@ def example_5_1(refs: Mapping[str, Reference]) -> Section:
     for claim, key, which in turns:
         ref = refs[f"example_5_1.{key}"]
         claims.append(
-            Claim(
+            Claim.of(
+                ref,
                 claim,
-                ref.source,
-                printed(ref),
-                unit_text(ref),
                 partial(_equilibrium, which),
-                reference=ref.key,
             )
         )
     subspace = refs["example_5_1.unstable_subspace"]
@@ -247,13 +241,10 @@ def example_5_1(refs: Mapping[str, Reference]) -> Section:
             "-",
             _stability,
         ),
-        Claim(
+        Claim.of(
+            subspace,
             "unstable subspace E_u of x0",
-            subspace.source,
-            printed(subspace),
-            unit_text(subspace),
             _unstable_subspace,
-            reference=subspace.key,
         ),
         Claim(
             f"stable subspace E_s of x0 = span{{{', '.join(spans)}}}",
@@ -295,13 +286,10 @@ def coefficient_claims(refs: Mapping[str, Reference]) -> Section:
     ):
         ref = refs[key]
         claims.append(
-            Claim(
+            Claim.of(
+                ref,
                 f"{', '.join(names)} ({vehicle})",
-                ref.source,
-                printed(ref),
-                unit_text(ref),
                 partial(_coefficients, long, names),
-                reference=ref.key,
             )
         )
     return Section("Coefficients of (5.1.14) and (5.1.31)", tuple(claims))
@@ -316,21 +304,15 @@ def example_5_2(refs: Mapping[str, Reference]) -> Section:
     ref = refs["example_5_2.straight_line"]
     bound = refs["example_5_2.bound_coefficients"]
     claims = (
-        Claim(
+        Claim.of(
+            ref,
             f"only equilibrium in D: [{', '.join(printed(ref))}], asymptotically stable",
-            ref.source,
-            printed(ref),
-            unit_text(ref),
             _example_5_2,
-            reference=ref.key,
         ),
-        Claim(
+        Claim.of(
+            bound,
             "V_dot(y) <= alpha y1^2 (...) + c2 U0 y2^2 + c3 U0 y3^2: [c2, c3], both < 0",
-            bound.source,
-            printed(bound),
-            unit_text(bound),
             _bound,
-            reference=bound.key,
             explained="c2 is the dissertation's arithmetic: A beta3 + (-A + A beta4 + "
             "(1 - A) gamma3 / C)/2 with its own printed A, beta3, beta4, gamma3, C gives "
             "-0.794 too, and c3, from the same cross term, agrees; both stay negative, so "

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from decimal import Decimal
 from enum import Enum
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from cosim.reproduction.context import Context, NotRunError
 
@@ -218,6 +218,16 @@ class Claim:
     note: str = ""
     reference: str = ""
     tolerance_reason: str = ""
+
+    @classmethod
+    def of(
+        cls, reference: Reference, claim: str, ours: Callable[[Context], Finding], **details: Any
+    ) -> Claim:
+        """The claim of one printed value whole: its source, numbers, unit and key from
+        ``reference`` (its entry in ``docs/dissertation-values.toml``); ``details``, the
+        fields from ``tolerance`` on, as :class:`Claim` takes them."""
+        source, numbers, unit = reference.source, printed(reference), unit_text(reference)
+        return cls(claim, source, numbers, unit, ours, reference=reference.key, **details)
 
     @property
     def printed_text(self) -> str:

@@ -36,7 +36,6 @@ from cosim.reproduction.record import (
     Section,
     SlightlyAbove,
     printed,
-    unit_text,
 )
 from plant_fmu.model.dynamics import Variant
 
@@ -233,15 +232,12 @@ def moving_mass(refs: Mapping[str, Reference]) -> Section:
     fold = refs["section_5_1_4.fold_cg_offset"]
     beyond = refs["section_5_1_4.single_equilibrium_cg_offset"]
     claims = (
-        Claim(
+        Claim.of(
+            fold,
             f"one fold when |y_g| is 'slightly larger than {fold.text} cm'",
-            fold.source,
-            printed(fold),
-            unit_text(fold),
             _mass_fold,
             tolerance=SlightlyAbove(float(fold.resolution)),
             cost=Cost.SWEEP,
-            reference=fold.key,
             note="y_g = m_v g y_v / W: the roll torque of our mass at rest equals W y_g cos(phi)",
         ),
         Claim(
