@@ -3,7 +3,9 @@ where the file comes from, and the look-up and type check of one ``<instance>.<v
 
 Shared by :mod:`cosim.scenario.spec` (instances, connections, records) and
 :mod:`cosim.scenario.timeline_spec` (events and faults), so that both report a problem the same
-way: one line naming the file, the key, the bad value and what was expected.
+way: one line naming the file, the key, the bad value and what was expected; a study file
+(:mod:`cosim.study.spec`) words pydantic's errors with the same helpers
+(:func:`one_problem_per_key`, :func:`file_key`, :func:`unknown_key`).
 """
 
 from __future__ import annotations
