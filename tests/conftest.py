@@ -110,6 +110,14 @@ def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 @pytest.fixture(scope="session")
+def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
+    """The folder of the built FMUs, where a scenario finds them by name (``fmu =
+    "AuvPlant"``); the plant's and the autopilot's builds failing fail the tests using it."""
+    assert fmu_paths["AuvAutopilot"].parent == fmu_paths["AuvPlant"].parent
+    return fmu_paths["AuvPlant"].parent
+
+
+@pytest.fixture(scope="session")
 def test_fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The master tests' own FMUs (tests/fmus: an integrator, a sampled gain, a direct
     feedthrough, a clock with outputs of every type that can end the simulation, a clock

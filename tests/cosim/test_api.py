@@ -45,12 +45,6 @@ ACCEPTANCE = (
 )
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    assert fmu_paths["AuvAutopilot"].parent == fmu_paths["AuvPlant"].parent
-    return fmu_paths["AuvPlant"].parent
-
-
 def _user_folder(tmp_path: Path, fmu_dir: Path) -> Path:
     """A working folder as a user has it after ``auv-cosim build``: build/fmus up to date."""
     fmus = tmp_path / "build" / "fmus"

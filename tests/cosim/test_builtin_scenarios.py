@@ -39,12 +39,6 @@ DEG = math.radians(1.0)
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    """The folder holding both built FMUs (a failed build fails the tests using it)."""
-    return fmu_paths["AuvAutopilot"].parent
-
-
-@pytest.fixture(scope="module")
 def runs(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, RunOutcome]:
     """Every built-in scenario, run once through `run_scenario` (outputs written, no rrd)."""
     out = tmp_path_factory.mktemp("runs")

@@ -22,11 +22,6 @@ from cosim.scratch import SCRATCH_DIR
 LONG = "6000"  # s of bs-3: still stepping when the test kills it (~30 s of wall clock)
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 def environ(tmpdir: Path) -> dict[str, str]:
     tmpdir.mkdir(exist_ok=True)
     return {**os.environ, "TMPDIR": str(tmpdir)}

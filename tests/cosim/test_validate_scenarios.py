@@ -13,11 +13,6 @@ from cosim.cli import main
 from cosim.scenario.spec import scenario_path
 
 
-@pytest.fixture
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvPlant"].parent
-
-
 def test_a_scenario_is_validated_without_running_it(
     fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch
 ) -> None:

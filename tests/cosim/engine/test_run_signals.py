@@ -35,11 +35,6 @@ H = 0.01  # s, bs-3's communication step
 LONG = "6000"  # s of bs-3: a run still stepping when the test signals it (~30 s of wall clock)
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 def start(fmu_dir: Path, out: Path, *options: str, scenario: str = "bs-3") -> subprocess.Popen:
     """`auv-cosim run SCENARIO --out OUT ...` in a fresh interpreter."""
     command = [sys.executable, "-m", "cosim.cli", "run", scenario, "--fmu-dir", str(fmu_dir)]

@@ -24,11 +24,6 @@ RECORD = (
 )
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 def bs3(
     fmu_dir: Path,
     extra: str,

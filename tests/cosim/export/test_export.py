@@ -51,11 +51,6 @@ thrust = 9.0
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvPlant"].parent
-
-
-@pytest.fixture(scope="module")
 def bs3(fmu_dir: Path) -> Scenario:
     return load_scenario("bs-3", fmu_dir)
 

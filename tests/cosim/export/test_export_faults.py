@@ -51,11 +51,6 @@ def bs3_file(folder: Path, extra: str) -> Path:
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvPlant"].parent
-
-
-@pytest.fixture(scope="module")
 def faulty(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, Path]:
     path = bs3_file(tmp_path_factory.mktemp("faulty"), LINEAR)
     return load_scenario(path, fmu_dir), path

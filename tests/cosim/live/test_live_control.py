@@ -35,11 +35,6 @@ from cosim.viz.recording import rerun_executable
 TIMEOUT_S = 120.0  # generous: the machine may be busy; nothing here is timed
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 @contextlib.contextmanager
 def cli_run(
     fmu_dir: Path, out: Path, *options: str, env: dict[str, str] | None = None

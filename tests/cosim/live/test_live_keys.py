@@ -40,11 +40,6 @@ from cosim.scenario.spec import Scenario, load_scenario
 TIMEOUT_S = 120.0  # generous: the machine may be busy; nothing here is timed
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 def test_arrow_escape_sequences_are_keys() -> None:
     assert keys_of("\x1b[A\x1b[Bq\x1bOC\x1b[D1") == ["up", "down", "q", "right", "left", "1"]
 

@@ -25,11 +25,6 @@ from cosim.scenario.spec import ScenarioError, load_scenario
 TIMEOUT_S = 120.0  # generous: the machine may be busy; nothing here is timed
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 def _refused(args: list[str], capsys: pytest.CaptureFixture[str]) -> str:
     assert main(args) == 1
     err = capsys.readouterr().err

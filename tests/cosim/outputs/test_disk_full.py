@@ -22,11 +22,6 @@ from cosim.outputs.sinks import CsvSink
 DEV_FULL = Path("/dev/full")
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Iterator[Path]:
     """A 1 MB tmpfs at tmp_path/small, unmounted afterwards."""

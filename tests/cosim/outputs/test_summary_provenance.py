@@ -22,11 +22,6 @@ from cosim.scenario.spec import load_scenario
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvPlant"].parent
-
-
-@pytest.fixture(scope="module")
 def run_dir(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("bs-3") / "run"
     cosim.run("bs-3", stop_time=0.05, out=out, recording=False, fmu_dir=fmu_dir)

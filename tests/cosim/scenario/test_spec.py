@@ -39,12 +39,6 @@ MANOEUVRE_IDS = [
 BS3 = (SCENARIO_FOLDER / "bs-3.toml").read_text()
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    """The folder holding both built FMUs (a failed build fails the tests using it)."""
-    return fmu_paths["AuvAutopilot"].parent
-
-
 @pytest.fixture
 def no_fmu_loading(monkeypatch: pytest.MonkeyPatch) -> None:
     """Fail the test if anything tries to load an FMU's binary."""

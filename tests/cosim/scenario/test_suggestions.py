@@ -23,11 +23,6 @@ fmu = "AuvAutopilot"
 """
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 @pytest.mark.parametrize(
     ("change", "guess"),
     [

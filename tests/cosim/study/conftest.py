@@ -1,4 +1,4 @@
-"""Study fixtures: the FMU folder, Dask's scratch space in a temporary folder, and one
+"""Study fixtures: Dask's scratch space in a temporary folder, and one
 small reference study (grid x Latin hypercube, 12 runs of 1 s) run once with 2 workers,
 which the determinism, resume and distributed tests compare against."""
 
@@ -9,12 +9,6 @@ from pathlib import Path
 import dask
 import pytest
 from sweep_helpers import SMALL_RUNS, SMALL_STUDY, complete_table
-
-
-@pytest.fixture(scope="session")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    assert fmu_paths["AuvAutopilot"].parent == fmu_paths["AuvPlant"].parent
-    return fmu_paths["AuvPlant"].parent
 
 
 @pytest.fixture

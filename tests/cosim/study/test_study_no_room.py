@@ -36,11 +36,6 @@ def limited() -> None:
     resource.setrlimit(resource.RLIMIT_FSIZE, (LIMIT, LIMIT))
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 def stopped_after_a_row(command: list[str], table: Path, env: dict[str, str]) -> None:
     """Run ``command`` (a study) until its table holds a row, then stop it with SIGINT."""
     proc = subprocess.Popen(command, env=env, text=True, start_new_session=True,

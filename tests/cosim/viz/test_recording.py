@@ -105,11 +105,6 @@ def feed(sink: RerunSink, times: np.ndarray, values: np.ndarray) -> None:
         i += 1
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths) -> Path:
-    return fmu_paths["AuvAutopilot"].parent
-
-
 def sink_for(fmu_dir: Path, path: Path | None, scenario_id: str, columns, url=None) -> RerunSink:
     """A sink for a plant + autopilot scenario recording ``columns``."""
     return RerunSink(auv_scenario(fmu_dir, scenario_id, columns), path, url)
