@@ -40,8 +40,11 @@ def loop_toml(
     controller_multiple: int = 1,
     plant_start: str = "",
     step: float = H,
+    fmu_dir: Path | None = None,
 ) -> str:
-    """The loop's scenario text: the FMUs are named relative to the folder they are in."""
+    """The loop's scenario text: the FMUs are named relative to the folder the file is in,
+    or in ``fmu_dir`` (absolute paths)."""
+    fmus = "" if fmu_dir is None else f"{fmu_dir}/"
     return f"""
 summary = "integrator under a sampled gain"
 stop_time = {stop_time}
@@ -51,12 +54,20 @@ algorithm = "{algorithm}"
 order = ["controller", "plant"]
 step_multiples = {{ controller = {controller_multiple} }}
 [instances.plant]
-fmu = "CosimTestIntegrator.fmu"
+fmu = "{fmus}CosimTestIntegrator.fmu"
 [instances.plant.start]
 x0 = {X0}
 {plant_start}
 [instances.controller]
-fmu = "CosimTestGain.fmu"
+fmu = "{fmus}CosimTestGain.fmu"
 [instances.controller.start]
 k = {K}
 """
+
+
+def write_loop_file(folder: Path, fmu_dir: Path, plant_start: str = "", extra: str = "") -> Path:
+    """``folder/loop.toml``: the loop (id "loop") with its FMUs in ``fmu_dir`` and the TOML
+    lines ``extra`` after it."""
+    path = folder / "loop.toml"
+    path.write_text('id = "loop"\n' + loop_toml(plant_start=plant_start, fmu_dir=fmu_dir) + extra)
+    return path

@@ -224,9 +224,7 @@ def test_an_input_refused_as_non_finite_names_where_it_came_from(
 @pytest.mark.slow
 def test_cli_failure_exits_non_zero_with_one_line(fmu_dir: Path, tmp_path: Path) -> None:
     scenario = tmp_path / "failing.toml"
-    scenario.write_text(
-        loop_toml(plant_start="fail_at = 0.5").replace('"Cosim', f'"{fmu_dir}/Cosim')
-    )
+    scenario.write_text(loop_toml(plant_start="fail_at = 0.5", fmu_dir=fmu_dir))
     proc = subprocess.run(
         _run_command(scenario, tmp_path / "run"),
         capture_output=True,
@@ -248,8 +246,8 @@ def _run_command(scenario: Path, out: Path) -> list[str]:
 def test_ctrl_c_stops_cleanly_with_partial_results(fmu_dir: Path, tmp_path: Path) -> None:
     started = tmp_path / "started"
     scenario = tmp_path / "long.toml"
-    text = loop_toml(stop_time=200.0, step=1e-4, plant_start=f'started_file = "{started}"')
-    scenario.write_text(text.replace('"Cosim', f'"{fmu_dir}/Cosim'))
+    start = f'started_file = "{started}"'
+    scenario.write_text(loop_toml(stop_time=200.0, step=1e-4, plant_start=start, fmu_dir=fmu_dir))
     proc = subprocess.Popen(
         _run_command(scenario, tmp_path / "run"),
         stdout=subprocess.PIPE,

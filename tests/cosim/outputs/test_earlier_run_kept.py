@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from scenario_factory import loop_toml
+from scenario_factory import write_loop_file
 
 from cosim.cli import main
 from cosim.engine import master
@@ -46,18 +46,11 @@ def tree(folder: Path) -> dict[str, bytes | None]:
             continue
 
 
-def loop_file(folder: Path, fmu_dir: Path, plant_start: str = "", extra: str = "") -> Path:
-    path = folder / "loop.toml"
-    text = loop_toml(plant_start=plant_start).replace('"Cosim', f'"{fmu_dir}/Cosim')
-    path.write_text('id = "loop"\n' + text + extra)
-    return path
-
-
 @pytest.fixture
 def earlier(test_fmu_dir: Path, tmp_path: Path) -> tuple[Path, dict[str, bytes | None]]:
     """A folder holding a complete earlier run (with its recording), and its tree."""
     out = tmp_path / "d"
-    assert main(["run", str(loop_file(tmp_path, test_fmu_dir)), "--out", str(out)]) == 0
+    assert main(["run", str(write_loop_file(tmp_path, test_fmu_dir)), "--out", str(out)]) == 0
     return out, tree(out)
 
 
@@ -102,18 +95,18 @@ def failing_run(
 ) -> list[str]:
     """The arguments of a run that fails as ``failure`` says (files written to ``folder``)."""
     if failure == "a binary that will not load":
-        return [str(loop_file(folder, broken_binary(fmus, folder)))]
+        return [str(write_loop_file(folder, broken_binary(fmus, folder)))]
     if failure == "a first step that fails":
-        return [str(loop_file(folder, fmus, "fail_at = 0.0"))]
+        return [str(write_loop_file(folder, fmus, "fail_at = 0.0"))]
     if failure == "a first step giving NaN":
-        return [str(loop_file(folder, fmus, "nan_at = 0.0"))]
+        return [str(write_loop_file(folder, fmus, "nan_at = 0.0"))]
     if failure == "a stop signal while loading":
         stop_before_the_first_step(monkeypatch)
     if failure == "an event at t = 1e308":
-        return [str(loop_file(folder, fmus, extra=LATE_EVENT))]
+        return [str(write_loop_file(folder, fmus, extra=LATE_EVENT))]
     if failure == "a real-time factor of 1e-300":
-        return [str(loop_file(folder, fmus)), "--real-time", "1e-300"]
-    return [str(loop_file(folder, fmus))]
+        return [str(write_loop_file(folder, fmus)), "--real-time", "1e-300"]
+    return [str(write_loop_file(folder, fmus))]
 
 
 @pytest.mark.parametrize("failure", list(FAILURES))
@@ -171,7 +164,7 @@ def test_a_binary_that_will_not_load_is_one_line_and_keeps_the_working_directory
     folder, and so (with a relative --out) left a stale lock, a "running" summary and a
     header-only results.csv: a killed run's look."""
     monkeypatch.chdir(tmp_path)
-    scenario = loop_file(tmp_path, broken_binary(test_fmu_dir, tmp_path))
+    scenario = write_loop_file(tmp_path, broken_binary(test_fmu_dir, tmp_path))
     assert main(["run", str(scenario), "--out", "fresh", "--no-rrd"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "plant: cannot load the binary of" in err, err
@@ -197,7 +190,7 @@ def test_only_the_first_steps_rows_remove_the_earlier_run(
         return run(*args, **kwargs)
 
     monkeypatch.setattr(master, "run", watched)
-    scenario = loop_file(tmp_path, test_fmu_dir)
+    scenario = write_loop_file(tmp_path, test_fmu_dir)
     assert main(["run", str(scenario), "--out", str(out), "--overwrite"]) == 0
     assert seen == [before]  # every earlier file, byte for byte, while the new run loads
     assert not any(name.endswith(ASIDE_SUFFIX) for name in tree(out))
@@ -241,7 +234,7 @@ def test_a_run_killed_before_its_first_step_leaves_the_earlier_run_as_it_was(
     """SIGKILL while the new run waits for its first step (paced at 1/1000 real time, the
     first step is due 100 s after the start): the tail guard puts the earlier run back."""
     out, before = earlier
-    scenario = loop_file(tmp_path, test_fmu_dir)
+    scenario = write_loop_file(tmp_path, test_fmu_dir)
     proc = run_command(scenario, out, "--overwrite", "--real-time", "0.001", "--quiet")
     try:
         wait_until(
@@ -267,7 +260,7 @@ def test_a_run_killed_before_its_first_step_leaves_its_folder_empty(
     before its summary.json, left a results.csv header and an empty recording that even
     --overwrite refused: "holds no earlier run".)"""
     out = tmp_path / "d"
-    scenario = loop_file(tmp_path, test_fmu_dir)
+    scenario = write_loop_file(tmp_path, test_fmu_dir)
     proc = run_command(scenario, out, "--real-time", "0.001", "--quiet")
     try:
         wait_until(lambda: manifest_pid(out) == proc.pid, proc, "the run's manifest")
@@ -293,7 +286,7 @@ def test_a_run_killed_while_stepping_is_replaced_with_overwrite(
     """A killed run's files are cut whole by its tail guard, which records them in the
     manifest: --overwrite knows them as that run's."""
     out = tmp_path / "d"
-    scenario = loop_file(tmp_path, test_fmu_dir)
+    scenario = write_loop_file(tmp_path, test_fmu_dir)
     proc = run_command(scenario, out, "--real-time", "1", "--quiet", "--stop-time", "60")
     try:
         wait_until(lambda: rows_in(out / "results.csv") > 3, proc, "rows")

@@ -12,18 +12,9 @@ import os
 from pathlib import Path
 
 import pytest
-from scenario_factory import loop_toml
 
 from cosim import runner
 from cosim.cli import main
-
-
-@pytest.fixture
-def loop_file(test_fmu_dir: Path, tmp_path: Path) -> Path:
-    path = tmp_path / "loop.toml"
-    path.write_text('id = "loop"\n' + loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim'))
-    return path
-
 
 BEING_WRITTEN = b"RRF2\x00\n\tauv-cosim being written\n"  # how a recording of ours starts
 

@@ -10,17 +10,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from scenario_factory import loop_toml
 
 from cosim.cli import main
 from cosim.outputs.folder import MANIFEST_FILE, RunFolder
-
-
-@pytest.fixture
-def loop_file(test_fmu_dir: Path, tmp_path: Path) -> Path:
-    path = tmp_path / "loop.toml"
-    path.write_text('id = "loop"\n' + loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim'))
-    return path
 
 
 def earlier_run(loop_file: Path, folder: Path) -> Path:

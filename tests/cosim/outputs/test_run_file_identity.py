@@ -23,13 +23,6 @@ from cosim.engine import master
 from cosim.outputs.folder import MANIFEST_FILE
 
 
-@pytest.fixture
-def loop_file(test_fmu_dir: Path, tmp_path: Path) -> Path:
-    path = tmp_path / "loop.toml"
-    path.write_text('id = "loop"\n' + loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim'))
-    return path
-
-
 def tree(folder: Path) -> dict[str, bytes | None]:
     """Every path below ``folder`` (relative, hidden ones too) -> its bytes (None: folder)."""
     return {
@@ -188,7 +181,7 @@ def test_the_default_folder_is_replaced_silently_only_for_the_same_scenario_file
     for name, gain in (("a", 2.0), ("b", 3.0)):
         (tmp_path / "exp" / name).mkdir(parents=True)
         path = tmp_path / "exp" / name / "turn.toml"
-        text = loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim')
+        text = loop_toml(fmu_dir=test_fmu_dir)
         path.write_text(text.replace("k = 2.0", f"k = {gain}"))
         files.append(path)
     assert main(["run", str(files[0]), "--no-rrd"]) == 0

@@ -18,13 +18,6 @@ from cosim.outputs.folder import MANIFEST_FILE as MANIFEST
 
 
 @pytest.fixture
-def loop_file(test_fmu_dir: Path, tmp_path: Path) -> Path:
-    path = tmp_path / "loop.toml"
-    path.write_text('id = "loop"\n' + loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim'))
-    return path
-
-
-@pytest.fixture
 def no_stepping(monkeypatch: pytest.MonkeyPatch) -> None:
     """Fail the test if a run gets as far as the master."""
 
@@ -231,7 +224,7 @@ def test_an_adaptive_runs_report_counts_the_steps_an_fmu_discarded(
     test_fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ):
     path = tmp_path / "loop.toml"
-    text = loop_toml(algorithm="adaptive").replace('"Cosim', f'"{test_fmu_dir}/Cosim')
+    text = loop_toml(algorithm="adaptive", fmu_dir=test_fmu_dir)
     path.write_text(
         text.replace("[instances.plant.start]", "[instances.plant.start]\nlongest_step = 0.045")
     )

@@ -96,7 +96,7 @@ def recording(test_fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> P
 
     folder = tmp_path_factory.mktemp("recording")
     scenario = folder / "loop.toml"
-    scenario.write_text('id = "loop"\n' + loop_toml().replace('"Cosim', f'"{test_fmu_dir}/Cosim'))
+    scenario.write_text('id = "loop"\n' + loop_toml(fmu_dir=test_fmu_dir))
     assert main(["run", str(scenario), "--out", str(folder / "run")]) == 0
     return folder / "run" / "recording.rrd"
 
