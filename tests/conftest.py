@@ -53,6 +53,7 @@ from process_group import run_in_group
 import cosim
 from cosim.errors import CosimError
 from cosim.fmus.build import FMUS, build_fmu, pythonfmu_build
+from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 
 settings.register_profile("untimed", deadline=None)
 settings.load_profile("untimed")
@@ -107,6 +108,12 @@ def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         except CosimError as exc:
             failures[name] = exc
     return BuiltFmus(built, failures)
+
+
+@pytest.fixture(scope="session")
+def remus() -> VehicleParameters:
+    """The REMUS 100's parameter set (``plant_fmu/model/vehicles/remus100.toml``), frozen."""
+    return load_vehicle("remus100")
 
 
 @pytest.fixture(scope="session")

@@ -25,14 +25,9 @@ from controller_fmu.setpoint_shaping import crab_angle, desired_heading, mass_lo
 from cosim.analysis.closed_loop import measurements, simulate_closed_loop
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
-from plant_fmu.model.parameters import VehicleParameterError, load_vehicle
+from plant_fmu.model.parameters import VehicleParameterError
 
 H = 0.01
-
-
-@pytest.fixture(scope="module")
-def remus():
-    return load_vehicle("remus100")
 
 
 # --- guidance -------------------------------------------------------------------------------

@@ -18,17 +18,11 @@ from controller_fmu.lateral_model import LateralDesignModel
 from cosim.analysis.closed_loop import simulate_closed_loop
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import state_vector
-from plant_fmu.model.parameters import load_vehicle
 
 H = 0.01
 GAINS = ("k0", "k1", "k2", "k3", "k4")
 CURRENT_GAINS = {"k0": 0.3, "k1": 0.8}  # Sec. 6.3.3: heading into the current, low speed
 SLOW = {"thrust_command": 4.0, "design_speed": 1.017}
-
-
-@pytest.fixture(scope="module")
-def remus():
-    return load_vehicle("remus100")
 
 
 def test_model_gains_are_the_plants_and_match_the_printed_linearisation(remus):

@@ -24,14 +24,8 @@ from controller_fmu.matrix_exponential import zero_order_hold
 from cosim.analysis.closed_loop import simulate_closed_loop
 from plant_fmu.model.dynamics import PlantModel, Variant
 from plant_fmu.model.linearization import state_vector
-from plant_fmu.model.parameters import load_vehicle
 
 U0 = 1.525  # m/s: (6.3.19)'s linearisation speed
-
-
-@pytest.fixture(scope="module")
-def remus():
-    return load_vehicle("remus100")
 
 
 @pytest.fixture(scope="module")

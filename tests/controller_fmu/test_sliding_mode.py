@@ -14,17 +14,11 @@ from controller_fmu.sliding_mode import SlidingModeHeading
 from cosim.analysis.closed_loop import simulate_closed_loop
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector, state_vector
-from plant_fmu.model.parameters import load_vehicle
 from plant_fmu.model.stepping import advance
 
 H = 0.01
 PSI = CONTROL_STATES.index("yaw")
 _IDX = [STATE_INDEX[name] for name in CONTROL_STATES]
-
-
-@pytest.fixture(scope="module")
-def remus():
-    return load_vehicle("remus100")
 
 
 @pytest.fixture(scope="module")

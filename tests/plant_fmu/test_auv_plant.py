@@ -37,11 +37,6 @@ def unzip_dir(plant) -> str:
     return extract(str(plant))
 
 
-@pytest.fixture(scope="module")
-def remus() -> VehicleParameters:
-    return load_vehicle("remus100")
-
-
 def _harness(plant, unzip_dir, instance="plant", **values) -> Harness:
     return Harness(plant, instance=instance, unzip_dir=unzip_dir, **values)
 

@@ -31,11 +31,6 @@ from plant_fmu.model.parameters import load_vehicle
 COARSE_SEEDS = {"u": (1.0, 1.9), "v": (-0.2, 0.0, 0.2), "r": (-0.2, 0.0, 0.2), "roll": (0.0,)}
 
 
-@pytest.fixture(scope="module")
-def remus():
-    return load_vehicle("remus100")
-
-
 def _points(equilibria, names):
     return [tuple(e.value(n) for n in names) for e in equilibria]
 
