@@ -41,6 +41,9 @@
 #include "loader.h"
 #include "python.h"
 
+#include <ctype.h>
+#include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -203,9 +206,35 @@ const char *show(double x, char *out)
     return out;
 }
 
-/* ---- the build's records ------------------------------------------------------------ */
+/* By hand: the C library has no checked sscanf (its %d and %u are undefined behaviour on
+ * a number that does not fit); strtoul reports ERANGE, but takes a sign and leading
+ * spaces, which a version or a value reference never has. */
+int read_number(const char **text, unsigned long most, unsigned long *out)
+{
+    if (!isdigit((unsigned char)**text)) return 0;
+    char *end;
+    errno = 0;
+    unsigned long value = strtoul(*text, &end, 10);
+    if (errno == ERANGE || value > most) return 0;
+    *text = end;
+    *out = value;
+    return 1;
+}
 
-static double bound(const char *text, double none) { return text[0] ? strtod(text, NULL) : none; }
+int read_version(const char *text, int parts, int whole, int numbers[3])
+{
+    const char *p = text;
+    for (int i = 0; i < parts; i++) {
+        unsigned long n;
+        if ((i && *p++ != '.') || !read_number(&p, INT_MAX, &n)) break;
+        numbers[i] = (int)n;
+        if (i + 1 == parts && (!whole || !*p)) return 1;
+    }
+    numbers[0] = numbers[1] = numbers[2] = 0;
+    return 0;
+}
+
+/* ---- the build's records ------------------------------------------------------------ */
 
 static int grow(Instance *c, unsigned vr)
 {
@@ -237,36 +266,121 @@ static int number_slots(Instance *c)
     return v->strings && v->dirty;
 }
 
-/* Lines "vr type causality variability min max start name" ("-" for none). */
-static int read_variables(Instance *c)
+/* The next space-separated word of ``*line`` into ``out``: 1, or 0 when there is none or
+ * it does not fit (never cut short: a bound cut short is another number). */
+static int next_word(const char **line, char *out, size_t size)
 {
-    char path[PATH_SIZE + 32], line[512];
-    snprintf(path, sizeof path, "%s%s%s", c->resources, PATH_SEPARATOR, VARIABLES_FILE);
-    FILE *in = platform_fopen(path, "r");
-    if (!in) return 0;
-    while (fgets(line, sizeof line, in)) {
-        unsigned vr;
-        char type, causality[24], variability[16], min[BOUND_SIZE], max[BOUND_SIZE],
-            start[BOUND_SIZE], name[NAME_SIZE];
-        if (sscanf(line, "%u %c %23s %15s %31s %31s %31s %127s", &vr, &type, causality,
-                   variability, min, max, start, name) != 8 ||
-            vr > 100000 || !grow(c, vr)) {
-            continue;
+    const char *p = *line + strspn(*line, " ");
+    size_t n = strcspn(p, " \r\n");
+    if (!n || n >= size) return 0;
+    memcpy(out, p, n);
+    out[n] = '\0';
+    *line = p + n;
+    return 1;
+}
+
+/* A bound or start value: "-" for none (``none``), else a number written whole. */
+static int read_bound(const char *text, double none, double *out)
+{
+    if (!strcmp(text, "-")) {
+        *out = none;
+        return 1;
+    }
+    char *end;
+    *out = strtod(text, &end);
+    return end != text && !*end;
+}
+
+/* The value references index an array (grow): a bound on its size. */
+#define MOST_VR 100000UL
+
+/* One line "vr type causality variability min max start name" ("-" for none) into the
+ * instance's table: NULL, or what is wrong with it. */
+static const char *read_variable(Instance *c, const char *line, char *why, size_t n)
+{
+    char vr_text[24], type[2], causality[24], variability[16], min[BOUND_SIZE],
+        max[BOUND_SIZE], start[BOUND_SIZE], name[NAME_SIZE];
+    char *words[] = {vr_text, type, causality, variability, min, max, start, name};
+    const size_t sizes[] = {sizeof vr_text, sizeof type, sizeof causality, sizeof variability,
+                            sizeof min, sizeof max, sizeof start, sizeof name};
+    static const char *const fields[] = {"a value reference", "a type", "a causality",
+                                         "a variability", "a min", "a max", "a start",
+                                         "a name"};
+    const char *p = line;
+    for (size_t i = 0; i < 8; i++) {
+        if (!next_word(&p, words[i], sizes[i])) {
+            const char *found = p + strspn(p, " ");
+            size_t length = strcspn(found, " \r\n");
+            snprintf(why, n, "%s of at most %zu bytes expected, found %s%.*s%s", fields[i],
+                     sizes[i] - 1, length ? "\"" : "nothing", (int)(length < 64 ? length : 64),
+                     found, length > 64 ? "...\"" : length ? "\"" : "");
+            return why;
         }
+    }
+    const char *digits = vr_text;
+    unsigned long vr;
+    double low, high, value;
+    if (!read_number(&digits, MOST_VR, &vr) || *digits) {
+        snprintf(why, n, "value reference %s is not a whole number from 0 to %lu", vr_text,
+                 MOST_VR);
+    } else if (!strchr("RIBS", type[0]) || type[1]) {
+        snprintf(why, n, "type %s is not R, I, B or S", type);
+    } else if (!read_bound(min, -(double)INFINITY, &low) ||
+               !read_bound(max, (double)INFINITY, &high) ||
+               !read_bound(start, (double)NAN, &value)) {
+        snprintf(why, n, "min %s, max %s or start %s is neither a number nor -", min, max, start);
+    } else if (!grow(c, (unsigned)vr)) {
+        snprintf(why, n, "out of memory");
+    } else {
         Variable *v = &c->vars[vr];
         v->known = 1;
-        v->type = type;
+        v->type = type[0];
         snprintf(v->causality, sizeof v->causality, "%s", causality);
         snprintf(v->variability, sizeof v->variability, "%s", variability);
         snprintf(v->min, sizeof v->min, "%s", strcmp(min, "-") ? min : "");
         snprintf(v->max, sizeof v->max, "%s", strcmp(max, "-") ? max : "");
-        v->low = bound(v->min, -(double)INFINITY);
-        v->high = bound(v->max, (double)INFINITY);
-        v->start = v->value = strcmp(start, "-") ? strtod(start, NULL) : (double)NAN;
+        v->low = low;
+        v->high = high;
+        v->start = v->value = value;
         snprintf(v->name, sizeof v->name, "%s", name);
+        return NULL;
+    }
+    return why;
+}
+
+/* The variables' table, resources/fmu_variables.txt (the build writes it from
+ * modelDescription.xml): 1, or 0 with why not (a line that cannot be read whole refuses
+ * the FMU: skipped, or cut short, it would leave a variable with other rules). */
+static int read_variables(Instance *c, char *why, size_t n)
+{
+    char path[PATH_SIZE + 32], line[512], wrong[LINE_SIZE / 2];
+    snprintf(path, sizeof path, "%s%s%s", c->resources, PATH_SEPARATOR, VARIABLES_FILE);
+    FILE *in = platform_fopen(path, "r");
+    if (!in) {
+        snprintf(why, n, "%s is missing", path);
+        return 0;
+    }
+    const char *bad = NULL;
+    unsigned long number = 0;
+    while (!bad && fgets(line, sizeof line, in)) {
+        number++;
+        if (!strchr(line, '\n') && !feof(in)) {
+            snprintf(wrong, sizeof wrong, "the line is longer than %zu bytes", sizeof line - 2);
+            bad = wrong;
+        } else if (line[strspn(line, " \r\n")]) { /* an empty line says nothing */
+            bad = read_variable(c, line, wrong, sizeof wrong);
+        }
     }
     fclose(in);
-    return number_slots(c);
+    if (bad) {
+        snprintf(why, n, "%s line %lu: %s", path, number, bad);
+        return 0;
+    }
+    if (!number_slots(c)) {
+        snprintf(why, n, "out of memory for the variables of %s", path);
+        return 0;
+    }
+    return 1;
 }
 
 /* key=value lines; unknown keys are ignored. */
@@ -493,6 +607,7 @@ static fmi2Status remember_state_values(Instance *c)
         }
         return fmi2OK;
     }
+    if (!c->count) return fmi2OK; /* no variables: malloc(0) may answer NULL, no shortage */
     fmi2ValueReference *vr = malloc(c->count * sizeof *vr);
     double *reals = malloc(c->count * sizeof *reals);
     int *ints = malloc(c->count * sizeof *ints);
@@ -608,10 +723,7 @@ static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
                         "modelDescription.xml",
                         guid, c->record.guid);
     }
-    if (!read_variables(c)) {
-        return snprintf(why, n, "%s%s%s is missing", c->resources, PATH_SEPARATOR,
-                        VARIABLES_FILE);
-    }
+    if (!read_variables(c, why, n)) return 1;
     if (!runtime || !runtime[0] || !strcmp(runtime, "native")) {
         c->backend = &python_backend;
     } else if (!strcmp(runtime, "pythonfmu")) {

@@ -195,6 +195,16 @@ fmi2Status refuse(Instance *c, const char *format, ...)
 /* loader.c: the shortest text that reads back as the same double (32 bytes), as repr. */
 const char *show(double x, char *out);
 
+/* loader.c: the decimal number at ``*text`` (digits only: no sign, no space) into
+ * ``*out``, ``*text`` moved past its digits: 1, or 0 when there are no digits or the
+ * number is larger than ``most`` (never undefined behaviour, unlike sscanf's %d or %u). */
+int read_number(const char **text, unsigned long most, unsigned long *out);
+
+/* loader.c: "major.minor" (``parts`` 2) or "major.minor.micro" (3) at the start of
+ * ``text`` into ``numbers``, each from 0 to INT_MAX: 1, or 0 (``numbers`` all 0). With
+ * ``whole`` nothing may follow (otherwise anything may: "3.11.7 (main, ...)"). */
+int read_version(const char *text, int parts, int whole, int numbers[3]);
+
 /* values.c: the value buffers' part of a call, once loader.c has checked it (known value
  * references of the right type, allowed writes); no Python. A Real read that is not
  * finite is refused with a line naming the variable. */

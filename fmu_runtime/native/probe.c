@@ -112,7 +112,13 @@ static void parse(char *text, Answer *a)
         *value++ = '\0';
         size_t n = strlen(value);
         if (!strcmp(line, "version")) {
-            sscanf(value, "%d.%d.%d", &a->major, &a->minor, &a->micro);
+            int v[3];
+            if (read_version(value, 3, 1, v)) {
+                a->major = v[0], a->minor = v[1], a->micro = v[2];
+            } else { /* shown cut to 40 bytes, as said */
+                snprintf(a->bad_version, sizeof a->bad_version, "%.40s%s", value,
+                         n > 40 ? "..." : "");
+            }
         } else if (!strcmp(line, "implementation")) {
             snprintf(a->implementation, sizeof a->implementation, "%s", value);
         } else if (!strcmp(line, "libpython")) {

@@ -10,6 +10,7 @@ typedef struct {
     int answered;       /* it printed its whole answer */
     char failure[512];  /* why not: could not run, exit status, last line of its stderr */
     int major, minor, micro;
+    char bad_version[48]; /* its version as it said it, when not three numbers (else "") */
     char implementation[32]; /* platform.python_implementation(): CPython, PyPy, ... */
     char libpython[PATH_SIZE]; /* its shared libpython, "" if it has none */
     char base_prefix[PATH_SIZE];

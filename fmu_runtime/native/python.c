@@ -151,12 +151,16 @@ int python_alive(void)
 
 int python_gone(void) { return py.IsInitialized && !python_alive(); }
 
-void python_version(int *major, int *minor)
+int python_version(int *major, int *minor, char *said, size_t size)
 {
-    *major = *minor = 0;
-    if (py.GetVersion && sscanf(py.GetVersion(), "%d.%d", major, minor) != 2) {
-        *major = *minor = 0;
-    }
+    const char *version = py.GetVersion ? py.GetVersion() : "";
+    int v[3];
+    int ok = read_version(version, 2, 0, v);
+    *major = v[0];
+    *minor = v[1];
+    size_t word = strcspn(version, " ");
+    snprintf(said, size, "%.*s", (int)(word < 64 ? word : 64), version);
+    return ok;
 }
 
 PyObject *python_none(void)

@@ -110,8 +110,10 @@ int python_alive(void);
  * run Python, the host's logger included (a Python host's logger is Python code). */
 int python_gone(void);
 
-/* "major.minor" of the resolved libpython, from Py_GetVersion (safe before start-up). */
-void python_version(int *major, int *minor);
+/* "major.minor" of the resolved libpython, from Py_GetVersion (safe before start-up): 1,
+ * or 0 (both 0) when its version does not start so; ``said`` gets the version's first
+ * word (cut to ``size``) either way. */
+int python_version(int *major, int *minor, char *said, size_t size);
 
 /* The Python-side helpers of the runtime (python.c's HELPERS), compiled once per copy of
  * this library in the process; a new reference to the function ``name``, or NULL with the

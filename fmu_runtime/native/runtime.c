@@ -30,6 +30,7 @@
 #include "probe.h"
 #include "python.h"
 
+#include <limits.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -87,7 +88,14 @@ static int python_in_process(char *loaded)
 static void check_running(const char *loaded, char *why, size_t n)
 {
     int major, minor;
-    python_version(&major, &minor); /* the GIL held: no copy starts it meanwhile */
+    char said[72];
+    /* the GIL held: no copy starts it meanwhile */
+    if (!python_version(&major, &minor, said, sizeof said)) {
+        snprintf(why, n,
+                 "its version \"%s\" (%s) is not major.minor (whole numbers, each at most %d)",
+                 said, loaded, INT_MAX);
+        return;
+    }
     if (major < 3 || (major == 3 && minor < 9)) {
         snprintf(why, n, "Python %d.%d (%s) is too old: the FMU needs CPython >= 3.9", major,
                  minor, loaded);
@@ -177,6 +185,12 @@ static void list_candidates(Instance *c, Candidate k[CANDIDATES])
 /* Why the asked candidate cannot run the FMU (into ``why``), or 0 if it can. */
 static int unsuitable(const Answer *a, const char *loaded, char *why, size_t n)
 {
+    if (a->bad_version[0]) {
+        return snprintf(why, n,
+                        "said its version is \"%s\", not major.minor.micro (three whole "
+                        "numbers, each at most %d)",
+                        a->bad_version, INT_MAX);
+    }
     if (a->major && (a->major < 3 || (a->major == 3 && a->minor < 9))) {
         return snprintf(why, n, "Python %d.%d.%d is too old: the FMU needs CPython >= 3.9",
                         a->major, a->minor, a->micro);
@@ -271,7 +285,8 @@ static int start(const Answer *a, char *why, size_t n)
 {
     void *library = platform_library_open(a->libpython, 0);
     const char *missing = "";
-    int major = 0, minor = 0;
+    int major = 0, minor = 0, readable = 1;
+    char said[72] = "";
     if (!library) {
         char error[LINE_SIZE / 2];
         platform_library_error(error, sizeof error);
@@ -287,13 +302,22 @@ static int start(const Answer *a, char *why, size_t n)
          * under one lock */
         void *held = platform_hold_python(a->libpython);
         int started = py.IsInitialized(); /* meanwhile, by a copy that checked it */
-        if (!started) python_version(&major, &minor); /* Py_GetVersion: one static buffer */
-        int same = started || (major == a->major && minor == a->minor);
+        if (!started) { /* Py_GetVersion: one static buffer */
+            readable = python_version(&major, &minor, said, sizeof said);
+        }
+        int same = started || (readable && major == a->major && minor == a->minor);
         int ok = same && (started || initialise(a, why, n));
         platform_release_python(held);
         if (same) return ok;
-        snprintf(why, n, "its libpython %s is Python %d.%d, not %d.%d", a->libpython, major,
-                 minor, a->major, a->minor);
+        if (!readable) {
+            snprintf(why, n,
+                     "its libpython %s says its version is \"%s\", not major.minor (whole "
+                     "numbers, each at most %d)",
+                     a->libpython, said, INT_MAX);
+        } else {
+            snprintf(why, n, "its libpython %s is Python %d.%d, not %d.%d", a->libpython,
+                     major, minor, a->major, a->minor);
+        }
     }
     memset(&py, 0, sizeof py);
     platform_library_close(library);

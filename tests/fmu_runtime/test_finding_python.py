@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 from c_hosts import moved, run_clean
+from repo_paths import ROOT
 
 from cosim.fmus.native import OVERRIDE_VARIABLE
 
@@ -26,6 +27,7 @@ OUR_LIBPYTHON = Path(sysconfig.get_config_var("LIBDIR") or "") / (
     sysconfig.get_config_var("INSTSONAME") or ""
 )
 pytestmark = pytest.mark.skipif(not OUR_LIBPYTHON.is_file(), reason="no shared libpython")
+NATIVE = ROOT / "fmu_runtime" / "native"
 LINE = re.compile(r"^log host \[(\d)\] \{(\w+)\} (.*)$", re.M)
 
 
@@ -98,6 +100,12 @@ def _candidate(done, number: int) -> str:
          r"cannot import numpy \(ModuleNotFoundError: No module named 'numpy'\); fix: \S+ -m "
          r"pip install numpy"),
         ({"implementation": "PyPy"}, r"is PyPy, not CPython"),
+        # numbers that fit no int: sscanf's %d (undefined behaviour) read this one as 3.-1.0
+        ({"version": "3.99999999999999999999"},
+         r'^\S+: said its version is "3\.99999999999999999999", not major\.minor\.micro'),
+        # and this one as 3.11.4, a Python the FMU could use
+        ({"version": f"{2**32 + 3}.11.4"},
+         rf'^\S+: said its version is "{2**32 + 3}\.11\.4", not major\.minor\.micro'),
     ],
 )  # fmt: skip
 def test_an_unfit_python_is_refused_with_a_line_not_a_fatal_error(
@@ -110,6 +118,36 @@ def test_an_unfit_python_is_refused_with_a_line_not_a_fatal_error(
     assert (done.returncode, done.stderr) == (3, ""), done.stdout + done.stderr
     assert "instantiate returned NULL" in done.stdout
     assert re.search(reason, _candidate(done, 2)), _candidate(done, 2)
+
+
+def _fake_libpython(folder: Path, version: str) -> Path:
+    """A library exporting every name the runtime resolves from a libpython (read from
+    python.c), not started, whose Py_GetVersion says ``version``."""
+    names = re.findall(r'SYMBOL\(\w+, "(\w+)"\)', (NATIVE / "python.c").read_text())
+    special = {"Py_GetVersion": f'const char *Py_GetVersion(void) {{ return "{version}"; }}'}
+    source = folder / "fake_libpython.c"
+    source.write_text(
+        "\n".join(special.get(name, f"int {name}(void) {{ return 0; }}") for name in names)
+    )
+    library = folder / "libpython-fake.so"
+    subprocess.run(["cc", "-shared", "-fPIC", "-o", library, source], check=True)
+    return library
+
+
+def test_a_libpython_whose_version_is_no_numbers_is_refused_naming_it(
+    host, extracted, tmp_path, clean_home
+):
+    """A candidate's libpython whose Py_GetVersion starts with a number that fits no int:
+    sscanf's %d (undefined behaviour) read it as 3.-1 ("is Python 3.-1, not 3.11");
+    refused, with the version as it said it."""
+    library = _fake_libpython(tmp_path, "3.99999999999999999999 (fake)")
+    fake = fake_python(tmp_path, our_answer(libpython=_hex(library)))
+    done = _run(host, extracted, tmp_path, clean_home, **{OVERRIDE_VARIABLE: str(fake)})
+    assert "instantiate returned NULL" in done.stdout, done.stdout + done.stderr
+    assert _candidate(done, 2) == (
+        f"{OVERRIDE_VARIABLE}={fake}: its libpython {library} says its version is "
+        '"3.99999999999999999999", not major.minor (whole numbers, each at most 2147483647)'
+    )
 
 
 def test_what_a_probe_writes_never_reaches_the_host_and_its_last_line_is_said(

@@ -343,6 +343,37 @@ def test_without_a_usable_python_instantiate_returns_null_with_a_line_per_candid
     assert text[4] == "python3 on PATH: not found" and text[5] == "python on PATH: not found"
 
 
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        # sscanf's %u took 2^32 + 4 for value reference 4 (and would any number that
+        # does not fit, undefined behaviour): the line was read as another variable's
+        (lambda f: f.replace("4", str(2**32 + 4), 1),
+         f"value reference {2**32 + 4} is not a whole number from 0 to 100000"),
+        # a min longer than its 31 bytes was cut there, its rest read as the max
+        (lambda f: f.replace("-", "-0.50000000000000000000000000000000001", 1),
+         'a min of at most 31 bytes expected, found "-0.50000000000000000000000000000000001"'),
+        (lambda f: f.replace("-", "0.5x", 1), "min 0.5x, max - or start 0 is neither a number"),
+    ],
+)  # fmt: skip
+def test_a_variables_line_that_cannot_be_read_whole_refuses_the_fmu(
+    change, said, host, extracted, tmp_path
+):
+    """A line of resources/fmu_variables.txt with a value reference that does not fit, a
+    bound longer than its field or not a number: NULL from fmi2Instantiate and one line
+    naming the file, the line and the bad value, never a variable with other rules."""
+    folder = moved(extracted["AuvPlant"], tmp_path)
+    table = folder / "resources" / native.VARIABLES_FILE
+    lines = table.read_text().splitlines()
+    number = next(i for i, line in enumerate(lines) if line.startswith("4 "))
+    lines[number] = change(lines[number])
+    table.write_text("\n".join(lines) + "\n")
+    done = run_clean([host, folder, "AuvPlant", "cycles", 1, 1], tmp_path, PATH="/nonexistent")
+    assert "instantiate returned NULL" in done.stdout, done.stdout
+    expected = f"{table} line {number + 1}: {said}"
+    assert any(expected in text for _, text in _log_lines(done.stdout, 3)), done.stdout
+
+
 def _loader_records(log: str, name: str) -> list[str]:
     """valgrind error records (invalid accesses, definitely lost blocks) made by the
     loader (``<name>.so``, not ``<name>_pythonfmu.so``): the innermost frame in a library
