@@ -121,8 +121,14 @@ int platform_on_path(const char *name, char *out, size_t size)
     const char *path = getenv("PATH");
     while (path && *path) {
         size_t n = strcspn(path, ":");
-        snprintf(out, size, "%.*s/%s", (int)n, n ? path : ".", name);
-        if (access(out, X_OK) == 0 && !platform_is_directory(out)) return 1;
+        /* an entry whose joined path does not fit is passed over: cut short, it would
+         * name another file (and a path that long cannot be opened: PATH_MAX) */
+        int joined = n < size ? snprintf(out, size, "%.*s/%s", (int)n, n ? path : ".", name)
+                              : -1;
+        if (joined >= 0 && (size_t)joined < size && access(out, X_OK) == 0 &&
+            !platform_is_directory(out)) {
+            return 1;
+        }
         path += n + (path[n] == ':');
     }
     out[0] = '\0';

@@ -194,16 +194,23 @@ int platform_on_path(const char *name, char *out, size_t size)
     wchar_t *path = wide_variable("PATH");
     char *entries = path ? malloc(4 * wcslen(path) + 1) : NULL;
     int found = 0;
-    if (entries && narrow(path, entries, 4 * wcslen(path) + 1)) {
-        for (char *entry = strtok(entries, ";"); entry && !found; entry = strtok(NULL, ";")) {
-            size_t n = strlen(entry);
-            if (n >= 2 && entry[0] == '"' && entry[n - 1] == '"') { /* "C:\My Tools" */
-                entry[n - 1] = '\0';
-                entry++;
-            }
-            snprintf(out, size, "%s\\%s.exe", entry, name);
-            found = entry[0] && path_exists(out) && !platform_is_directory(out);
+    /* split by hand: strtok's hidden state is the host's too (the probe's reader, too,
+     * leaves it alone) */
+    char *next = entries && narrow(path, entries, 4 * wcslen(path) + 1) ? entries : NULL;
+    while (next && *next && !found) {
+        char *entry = next;
+        size_t n = strcspn(entry, ";");
+        next = entry + n + (entry[n] == ';');
+        entry[n] = '\0';
+        if (n >= 2 && entry[0] == '"' && entry[n - 1] == '"') { /* "C:\My Tools" */
+            entry[n - 1] = '\0';
+            entry++;
         }
+        /* an entry whose joined path does not fit is passed over: cut short, it would
+         * name another file */
+        int joined = snprintf(out, size, "%s\\%s.exe", entry, name);
+        found = entry[0] && joined >= 0 && (size_t)joined < size && path_exists(out) &&
+                !platform_is_directory(out);
     }
     free(entries);
     free(path);

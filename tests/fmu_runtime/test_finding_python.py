@@ -150,6 +150,31 @@ def test_a_libpython_whose_version_is_no_numbers_is_refused_naming_it(
     )
 
 
+def _deep_folder(root: Path, length: int) -> Path:
+    """A folder under ``root`` whose path is ``length`` bytes long (components of at most
+    200 bytes: a file name's limit is 255)."""
+    folder = root
+    while len(str(folder)) < length:
+        folder = folder / ("d" * min(200, length - len(str(folder)) - 1))
+    folder.mkdir(parents=True)
+    assert len(str(folder)) == length
+    return folder
+
+
+def test_a_path_entry_too_long_to_join_is_passed_over_not_cut_short(
+    host, extracted, tmp_path, clean_home
+):
+    """A PATH entry whose joined path (entry/python3) does not fit the runtime's 4096
+    bytes: cut short, it named the file at the first 4095 bytes, here a "python3" the
+    entry never held, which was asked and reported as python3 on PATH. Passed over."""
+    fake = fake_python(_deep_folder(tmp_path, 4095 - len("/python3")), our_answer(version="3.8.1"))
+    assert len(str(fake)) == 4095
+    done = run_clean([host, moved(extracted["AuvPlant"], tmp_path), "AuvPlant", "cycles", 1, 1],
+                     clean_home, PATH=f"{fake}-not-a-folder")  # fmt: skip
+    assert "instantiate returned NULL" in done.stdout, done.stdout + done.stderr
+    assert _candidate(done, 4) == "python3 on PATH: not found"
+
+
 def test_what_a_probe_writes_never_reaches_the_host_and_its_last_line_is_said(
     host, extracted, tmp_path, clean_home
 ):
