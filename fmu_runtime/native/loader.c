@@ -138,7 +138,7 @@ void instance_log(Instance *c, fmi2Status status, const char *category, const ch
 /* How many of the first ``n`` bytes of ``text`` (UTF-8) to keep so that a cut there
  * splits no character: an incomplete sequence at the end is left out, as a host may
  * refuse or crash on a message that is not UTF-8. */
-static size_t whole_characters(const char *text, size_t n)
+size_t whole_characters(const char *text, size_t n)
 {
     size_t start = n;
     while (start > 0 && n - start < 4 && ((unsigned char)text[start - 1] & 0xC0) == 0x80) {
@@ -312,8 +312,9 @@ static const char *read_variable(Instance *c, const char *line, char *why, size_
             const char *found = p + strspn(p, " ");
             size_t length = strcspn(found, " \r\n");
             snprintf(why, n, "%s of at most %zu bytes expected, found %s%.*s%s", fields[i],
-                     sizes[i] - 1, length ? "\"" : "nothing", (int)(length < 64 ? length : 64),
-                     found, length > 64 ? "...\"" : length ? "\"" : "");
+                     sizes[i] - 1, length ? "\"" : "nothing",
+                     (int)whole_characters(found, length < 64 ? length : 64), found,
+                     length > 64 ? "...\"" : length ? "\"" : "");
             return why;
         }
     }
@@ -646,8 +647,9 @@ static int hex_digit(char ch)
 /* A file: URI (or a plain path) as a path (RFC 8089): %XX decoded (a % not followed by two
  * hexadecimal digits kept as it is), the host "localhost" dropped (file://localhost/x is
  * /x), a drive letter where the host goes taken for the drive (file://C:/x), another host
- * kept as "//host/x" (a UNC path on Windows), then made a local path (platform_local_path). */
-static void uri_to_path(const char *uri, char *out, size_t n)
+ * kept as "//host/x" (a UNC path on Windows), then made a local path (platform_local_path).
+ * 1, or 0 when the path does not fit in ``n`` bytes (cut short, it would be another folder). */
+static int uri_to_path(const char *uri, char *out, size_t n)
 {
     const char *p = uri;
     int authority = !strncmp(p, "file://", 7) && p[7] != '/'; /* file://host/... */
@@ -676,8 +678,10 @@ static void uri_to_path(const char *uri, char *out, size_t n)
         }
     }
     out[j] = '\0';
+    if (*p) return 0;
     while (j > 1 && out[j - 1] == '/') out[--j] = '\0';
     platform_local_path(out, n);
+    return 1;
 }
 
 /* The offset of the first byte of ``text`` that breaks UTF-8's structure (a stray
@@ -711,7 +715,11 @@ static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
     }
     if (type != fmi2CoSimulation) return snprintf(why, n, "the FMU supports co-simulation only");
     if (!resources || !resources[0]) return snprintf(why, n, "fmuResourceLocation is empty");
-    uri_to_path(resources, c->resources, sizeof c->resources);
+    if (!uri_to_path(resources, c->resources, sizeof c->resources)) {
+        return snprintf(why, n, "fmuResourceLocation %.*s... names a path longer than the "
+                        "runtime's %d bytes", (int)whole_characters(resources, 200), resources,
+                        PATH_SIZE - 1);
+    }
     if (!read_record(c->resources, &c->record)) {
         return snprintf(why, n, "%s%s%s is missing or incomplete (not this FMU's extraction?)",
                         c->resources, PATH_SEPARATOR, RECORD_FILE);

@@ -195,6 +195,10 @@ fmi2Status refuse(Instance *c, const char *format, ...)
 /* loader.c: the shortest text that reads back as the same double (32 bytes), as repr. */
 const char *show(double x, char *out);
 
+/* loader.c: how many of the first ``n`` bytes of UTF-8 ``text`` to keep so that a cut
+ * there splits no character. */
+size_t whole_characters(const char *text, size_t n);
+
 /* loader.c: the decimal number at ``*text`` (digits only: no sign, no space) into
  * ``*out``, ``*text`` moved past its digits: 1, or 0 when there are no digits or the
  * number is larger than ``most`` (never undefined behaviour, unlike sscanf's %d or %u). */

@@ -70,16 +70,28 @@ static int hex_value(char c)
     return -1;
 }
 
-/* Decode ``n`` hex digits of ``hex`` into ``out`` (NUL-terminated, truncated to size). */
-static void unhex(const char *hex, size_t n, char *out, size_t size)
+/* Decode ``n`` hex digits of ``hex`` into ``out`` (NUL-terminated, truncated to size, and
+ * up to the first that is not one): 1, or 0 when they did not fit. */
+static int unhex(const char *hex, size_t n, char *out, size_t size)
 {
-    size_t j = 0;
-    for (size_t i = 0; i + 1 < n && j + 1 < size; i += 2) {
+    size_t j = 0, i = 0;
+    for (; i + 1 < n && j + 1 < size; i += 2) {
         int high = hex_value(hex[i]), low = hex_value(hex[i + 1]);
         if (high < 0 || low < 0) break;
         out[j++] = (char)(high * 16 + low);
     }
     out[j] = '\0';
+    return !(i + 1 < n && j + 1 >= size);
+}
+
+/* A path of the answer: cut short, it would name another file (a libpython loaded, a
+ * standard library checked), so one that does not fit is remembered as too long. */
+static void unhex_file(const char *key, const char *hex, size_t n, char *out, size_t size,
+                       Answer *a)
+{
+    if (!unhex(hex, n, out, size) && !a->too_long[0]) {
+        snprintf(a->too_long, sizeof a->too_long, "%s", key);
+    }
 }
 
 /* "hex:hex:..." as entries each followed by '\0'. */
@@ -91,7 +103,7 @@ static void unhex_path(const char *text, Answer *a)
     char *out = a->path;
     while (*text) {
         size_t n = strcspn(text, ":");
-        unhex(text, n, out, n / 2 + 1);
+        (void)unhex(text, n, out, n / 2 + 1); /* fits: each byte from two digits */
         out += strlen(out) + 1;
         a->paths++;
         text += n + (text[n] == ':');
@@ -116,25 +128,26 @@ static void parse(char *text, Answer *a)
             if (read_version(value, 3, 1, v)) {
                 a->major = v[0], a->minor = v[1], a->micro = v[2];
             } else { /* shown cut to 40 bytes, as said */
-                snprintf(a->bad_version, sizeof a->bad_version, "%.40s%s", value,
+                snprintf(a->bad_version, sizeof a->bad_version, "%.*s%s",
+                         (int)whole_characters(value, n > 40 ? 40 : n), value,
                          n > 40 ? "..." : "");
             }
         } else if (!strcmp(line, "implementation")) {
             snprintf(a->implementation, sizeof a->implementation, "%s", value);
         } else if (!strcmp(line, "libpython")) {
-            unhex(value, n, a->libpython, sizeof a->libpython);
+            unhex_file("libpython", value, n, a->libpython, sizeof a->libpython, a);
         } else if (!strcmp(line, "base_prefix")) {
-            unhex(value, n, a->base_prefix, sizeof a->base_prefix);
+            unhex_file("base_prefix", value, n, a->base_prefix, sizeof a->base_prefix, a);
         } else if (!strcmp(line, "stdlib")) {
-            unhex(value, n, a->stdlib, sizeof a->stdlib);
+            unhex_file("stdlib", value, n, a->stdlib, sizeof a->stdlib, a);
         } else if (!strcmp(line, "executable")) {
-            unhex(value, n, a->executable, sizeof a->executable);
+            unhex_file("executable", value, n, a->executable, sizeof a->executable, a);
         } else if (!strcmp(line, "path") && !a->path) {
             unhex_path(value, a);
         } else if (!strcmp(line, "numpy")) {
             snprintf(a->numpy, sizeof a->numpy, "%s", value);
         } else if (!strcmp(line, "numpy_error")) {
-            unhex(value, n, a->numpy_error, sizeof a->numpy_error);
+            (void)unhex(value, n, a->numpy_error, sizeof a->numpy_error); /* shown cut */
         } else if (!strcmp(line, "numba")) {
             a->numba = !strcmp(value, "yes");
         } else if (!strcmp(line, "end")) {

@@ -16,6 +16,7 @@ typedef struct {
     char base_prefix[PATH_SIZE];
     char stdlib[PATH_SIZE];
     char executable[PATH_SIZE];
+    char too_long[16]; /* the first of those it named with a path too long for them */
     char *path;   /* its sys.path, each entry followed by a '\0' (malloc'd) */
     size_t paths; /* how many entries */
     char numpy[64];        /* numpy.__version__, "" if it cannot import numpy */

@@ -159,7 +159,8 @@ int python_version(int *major, int *minor, char *said, size_t size)
     *major = v[0];
     *minor = v[1];
     size_t word = strcspn(version, " ");
-    snprintf(said, size, "%.*s", (int)(word < 64 ? word : 64), version);
+    snprintf(said, size, "%.*s", (int)whole_characters(version, word < 64 ? word : 64),
+             version);
     return ok;
 }
 

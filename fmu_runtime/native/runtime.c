@@ -124,7 +124,7 @@ static void check_running(const char *loaded, char *why, size_t n)
 
 static void variable_candidate(Candidate *k)
 {
-    char value[PATH_SIZE];
+    char value[PATH_SIZE + 1]; /* a byte more: a value that does not fit is seen */
     const char *named = platform_getenv(PYTHON_VARIABLE, value, sizeof value);
     if (!named || !named[0]) {
         snprintf(k->shown, sizeof k->shown, "%s", PYTHON_VARIABLE);
@@ -134,15 +134,25 @@ static void variable_candidate(Candidate *k)
         return;
     }
     snprintf(k->shown, sizeof k->shown, "%s=%s", PYTHON_VARIABLE, named);
+    if (strlen(named) >= PATH_SIZE) { /* cut short, it would name another file */
+        snprintf(k->shown, sizeof k->shown, "%s=%.*s...", PYTHON_VARIABLE,
+                 (int)whole_characters(named, 200), named);
+        snprintf(k->why, sizeof k->why, "longer than the runtime's %d bytes", PATH_SIZE - 1);
+        return;
+    }
     if (!platform_is_directory(named)) {
         snprintf(k->executable, sizeof k->executable, "%s", named);
         return;
     }
     char tried[256] = "";
     for (int i = 0; VENV_PYTHONS[i] && !k->executable[0]; i++) {
-        snprintf(k->executable, sizeof k->executable, "%s%s%s", named, PATH_SEPARATOR,
-                 VENV_PYTHONS[i]);
-        if (!path_exists(k->executable)) k->executable[0] = '\0';
+        int joined = snprintf(k->executable, sizeof k->executable, "%s%s%s", named,
+                              PATH_SEPARATOR, VENV_PYTHONS[i]);
+        /* one that does not fit is none: cut short, it would name another file */
+        if (joined < 0 || (size_t)joined >= sizeof k->executable ||
+            !path_exists(k->executable)) {
+            k->executable[0] = '\0';
+        }
         size_t used = strlen(tried);
         snprintf(tried + used, sizeof tried - used, "%s%s", i ? " or " : "", VENV_PYTHONS[i]);
     }
@@ -196,6 +206,10 @@ static int unsuitable(const Answer *a, const char *loaded, char *why, size_t n)
                         a->major, a->minor, a->micro);
     }
     if (!a->answered) return snprintf(why, n, "%s", a->failure);
+    if (a->too_long[0]) {
+        return snprintf(why, n, "said a %s path longer than the runtime's %d bytes", a->too_long,
+                        PATH_SIZE - 1);
+    }
     if (strcmp(a->implementation, "CPython")) {
         return snprintf(why, n, "is %s, not CPython", a->implementation);
     }

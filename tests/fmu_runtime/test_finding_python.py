@@ -175,6 +175,31 @@ def test_a_path_entry_too_long_to_join_is_passed_over_not_cut_short(
     assert _candidate(done, 4) == "python3 on PATH: not found"
 
 
+def test_a_path_the_runtime_cannot_hold_whole_is_refused_not_cut_short(
+    host, extracted, tmp_path, clean_home
+):
+    """AUV_FMU_PYTHON, and a libpython a candidate names, one byte longer than the
+    runtime's 4095 bytes, whose first 4095 bytes name a file: cut short, that file was
+    used (a stand-in "python3", our own libpython through a link). Each is refused with a
+    line; nothing is started."""
+    deep = _deep_folder(tmp_path, 4095 - len("/python3"))
+    link = deep / "python3"
+    link.symlink_to(OUR_LIBPYTHON)
+    fake = fake_python(tmp_path, our_answer(libpython=_hex(f"{link}x")))
+    done = _run(host, extracted, tmp_path, clean_home, **{OVERRIDE_VARIABLE: str(fake)})
+    assert "instantiate returned NULL" in done.stdout, done.stdout + done.stderr
+    assert _candidate(done, 2) == (
+        f"{OVERRIDE_VARIABLE}={fake}: said a libpython path longer than the runtime's 4095 bytes"
+    )
+    link.unlink()
+    fake_python(deep, our_answer())
+    done = _run(host, extracted, tmp_path, clean_home, **{OVERRIDE_VARIABLE: f"{link}x"})
+    assert "instantiate returned NULL" in done.stdout, done.stdout + done.stderr
+    assert _candidate(done, 2) == (
+        f"{OVERRIDE_VARIABLE}={str(link)[:200]}...: longer than the runtime's 4095 bytes"
+    )
+
+
 def test_what_a_probe_writes_never_reaches_the_host_and_its_last_line_is_said(
     host, extracted, tmp_path, clean_home
 ):

@@ -374,6 +374,23 @@ def test_a_variables_line_that_cannot_be_read_whole_refuses_the_fmu(
     assert any(expected in text for _, text in _log_lines(done.stdout, 3)), done.stdout
 
 
+def test_a_resource_location_longer_than_the_runtime_holds_is_refused_saying_so(
+    host, extracted, tmp_path
+):
+    """A resource URI whose path is longer than the runtime's 4095 bytes: it was cut
+    there, and the refusal named the cut folder's record as missing, a folder the host
+    never gave. Refused saying why."""
+    path = str(extracted["AuvPlant"])
+    while len(path) < 4100:  # the host holds a URI of up to 4199 bytes
+        path += "/" + "d" * min(200, 4099 - len(path))
+    uri = f"file://{path}"
+    done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "uri", uri], tmp_path,
+                     PATH="/nonexistent")  # fmt: skip
+    assert "instantiate returned NULL" in done.stdout, done.stdout
+    expected = "names a path longer than the runtime's 4095 bytes"
+    assert any(expected in text for _, text in _log_lines(done.stdout, 3)), done.stdout
+
+
 def _loader_records(log: str, name: str) -> list[str]:
     """valgrind error records (invalid accesses, definitely lost blocks) made by the
     loader (``<name>.so``, not ``<name>_pythonfmu.so``): the innermost frame in a library
