@@ -384,33 +384,42 @@ static int read_variables(Instance *c, char *why, size_t n)
     return 1;
 }
 
-/* key=value lines; unknown keys are ignored. */
-static int read_record(const char *resources, Record *r)
+/* key=value lines; unknown keys are ignored. NULL, or the key whose value (or line) does
+ * not fit whole: cut short, a build's Python would name another file. */
+static const char *read_record(const char *resources, Record *r)
 {
     char path[PATH_SIZE + 32], line[PATH_SIZE + 64];
     snprintf(path, sizeof path, "%s%s%s", resources, PATH_SEPARATOR, RECORD_FILE);
-    FILE *in = platform_fopen(path, "r");
-    if (!in) return 0;
     memset(r, 0, sizeof *r);
-    while (fgets(line, sizeof line, in)) {
+    FILE *in = platform_fopen(path, "r");
+    if (!in) return "";
+    struct {
+        const char *key;
+        char *value;
+        size_t size;
+    } keys[] = {{"guid", r->guid, sizeof r->guid},
+                {"package", r->package, sizeof r->package},
+                {"module", r->module, sizeof r->module},
+                {"class", r->slave_class, sizeof r->slave_class},
+                {"build_python", r->build_python, sizeof r->build_python},
+                {"log_categories", r->log_categories, sizeof r->log_categories}};
+    const char *too_long = NULL;
+    while (!too_long && fgets(line, sizeof line, in)) {
+        if (!strchr(line, '\n') && !feof(in)) too_long = "a line";
         line[strcspn(line, "\r\n")] = '\0';
         char *value = strchr(line, '=');
-        if (!value) continue;
+        if (too_long || !value) continue;
         *value++ = '\0';
-        if (!strcmp(line, "guid")) snprintf(r->guid, sizeof r->guid, "%s", value);
-        if (!strcmp(line, "package")) snprintf(r->package, sizeof r->package, "%s", value);
-        if (!strcmp(line, "module")) snprintf(r->module, sizeof r->module, "%s", value);
-        if (!strcmp(line, "class")) snprintf(r->slave_class, sizeof r->slave_class, "%s", value);
-        if (!strcmp(line, "build_python")) {
-            snprintf(r->build_python, sizeof r->build_python, "%s", value);
+        for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++) {
+            if (strcmp(line, keys[i].key)) continue;
+            int kept = snprintf(keys[i].value, keys[i].size, "%s", value);
+            if (kept < 0 || (size_t)kept >= keys[i].size) too_long = keys[i].key;
         }
         if (!strcmp(line, "interpolates_inputs")) r->interpolates_inputs = !strcmp(value, "1");
-        if (!strcmp(line, "log_categories")) {
-            snprintf(r->log_categories, sizeof r->log_categories, "%s", value);
-        }
     }
     fclose(in);
-    return r->guid[0] && r->package[0] && r->module[0] && r->slave_class[0];
+    if (too_long) return too_long;
+    return r->guid[0] && r->package[0] && r->module[0] && r->slave_class[0] ? NULL : "";
 }
 
 /* ---- the variables' rules ----------------------------------------------------------- */
@@ -720,7 +729,12 @@ static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
                         "runtime's %d bytes", (int)whole_characters(resources, 200), resources,
                         PATH_SIZE - 1);
     }
-    if (!read_record(c->resources, &c->record)) {
+    const char *record = read_record(c->resources, &c->record);
+    if (record && record[0]) {
+        return snprintf(why, n, "%s%s%s: %s is longer than the runtime holds", c->resources,
+                        PATH_SEPARATOR, RECORD_FILE, record);
+    }
+    if (record) {
         return snprintf(why, n, "%s%s%s is missing or incomplete (not this FMU's extraction?)",
                         c->resources, PATH_SEPARATOR, RECORD_FILE);
     }

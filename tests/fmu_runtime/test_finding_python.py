@@ -200,6 +200,22 @@ def test_a_path_the_runtime_cannot_hold_whole_is_refused_not_cut_short(
     )
 
 
+def test_a_build_python_the_runtime_cannot_hold_whole_refuses_the_record(
+    host, extracted, tmp_path, clean_home
+):
+    """The build's Python in resources/fmu_runtime.txt one byte longer than the runtime's
+    4095 bytes, whose first 4095 bytes name a Python: cut short, that Python was used.
+    Refused, naming the record and the key."""
+    fake = fake_python(_deep_folder(tmp_path, 4095 - len("/python3")), our_answer())
+    folder = moved(extracted["AuvPlant"], tmp_path)
+    record = folder / "resources" / "fmu_runtime.txt"
+    record.write_text(re.sub(r"build_python=.*", f"build_python={fake}x", record.read_text()))
+    done = run_clean([host, folder, "AuvPlant", "cycles", 1, 1], clean_home,
+                     PATH="/nonexistent")  # fmt: skip
+    assert "instantiate returned NULL" in done.stdout, done.stdout + done.stderr
+    assert f"{record}: build_python is longer than the runtime holds" in done.stdout
+
+
 def test_what_a_probe_writes_never_reaches_the_host_and_its_last_line_is_said(
     host, extracted, tmp_path, clean_home
 ):
