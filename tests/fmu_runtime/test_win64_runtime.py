@@ -165,3 +165,23 @@ def test_a_venv_folder_means_its_scripts_python_exe(wine):
         f"2. AUV_FMU_PYTHON={launcher}: the folder has no Scripts\\python.exe (expected a "
         "virtual environment's folder or a Python executable)" in "\n".join(lines)
     )
+
+
+def test_a_host_splitting_with_strtok_around_instantiate_keeps_its_place(wine):
+    """Three instances named in one strtok loop of a win64 host, each refused (no Python
+    here) after the runtime searched PATH for python.exe: all three are tried. The search
+    split PATH with strtok, which left the host's next strtok(NULL, ...) in the runtime's
+    freed copy of PATH: the host's loop ended after the first."""
+    host = _cross_compile(wine["root"] / "strtok_host.exe", str(HOSTS / "strtok_host.c"))
+    fmu = wine["root"] / "ascii"  # the host takes narrow arguments: a plain ASCII folder
+    if not fmu.exists():
+        shutil.copytree(wine["fmu"], fmu)
+    done = run_clean(
+        [WINE, host, windows(fmu / "binaries" / "win64" / "AuvPlant.dll"),
+         PureWindowsPath(windows(fmu / "resources")).as_uri(), wine["guid"], "a,b,c"],
+        wine["root"], timeout=300, **wine_environ(wine["prefix"]), WINEDEBUG="-all",
+        LANG="C.UTF-8",
+    )  # fmt: skip
+    assert done.stdout.splitlines() == ["NULL a", "NULL b", "NULL c", "instances: 0"], (
+        done.stdout[-2000:] + done.stderr[-2000:]
+    )

@@ -6,11 +6,18 @@
  * prints "made NAME" (or "NULL NAME") for each, then "instances: N", and frees them. The
  * FMU's runtime has to leave strtok's hidden state alone: the first instance in a process
  * without Python probes a Python, whose answer the runtime once split with strtok, and the
- * host's next strtok(NULL, ...) then read the runtime's freed buffer.
+ * host's next strtok(NULL, ...) then read the runtime's freed buffer; on Windows, its
+ * search of PATH for python.exe split PATH with strtok.
  */
-#include <dlfcn.h>
 #include <stdio.h>
 #include <string.h>
+#ifdef _WIN32 /* compiled for win64 too (tests/fmu_runtime/test_win64_runtime.py, Wine) */
+#include <windows.h>
+#define dlopen(path, flags) ((void *)LoadLibraryA(path))
+#define dlsym(library, name) ((void *)GetProcAddress((HMODULE)(library), name))
+#else
+#include <dlfcn.h>
+#endif
 
 #include "fmi2_callbacks.h"
 typedef void *(*Instantiate)(const char *, int, const char *, const char *, const Callbacks *,
