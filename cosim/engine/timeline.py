@@ -27,8 +27,9 @@ from __future__ import annotations
 
 import bisect
 import collections
+import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -193,6 +194,34 @@ class _FaultRun:
             return self.history[0]  # `steps` deliveries ago (the first one before that)
         lost = self.draw < fault.probability  # type: ignore[operator]
         return self.before if lost and self.before is not None else gathered  # dropout
+
+
+def replay(
+    faults: Sequence[Fault],
+    h: float,
+    points: Sequence[int],
+    gathered: np.ndarray,
+    held: np.ndarray | None = None,
+) -> np.ndarray:
+    """What ``faults`` (all on one target, in file order) deliver to it at the points
+    ``points`` (n, increasing, one delivery each) from the ``gathered`` values (the
+    connection's own value at each), as :meth:`Timeline.deliver` does in a run, the same
+    code: a report draws from a run's rows what its faults made of the recorded sources.
+    ``h``: the points' spacing (s); ``held``: the value of a mass-jam's ``hold_source`` at
+    each point (else that fault holds the gathered value)."""
+    z = np.zeros(1)  # the hold source's present value, as the master's z holds it
+    if held is None:
+        faults = [dataclasses.replace(f, hold_source=None) for f in faults]
+    runs = [_FaultRun(f, h, {f.hold_source: 0} if f.hold_source else {}) for f in faults]
+    delivered = np.empty(len(points))
+    for i, n in enumerate(points):
+        value = float(gathered[i])
+        if held is not None:
+            z[0] = held[i]
+        for run in runs:
+            value = run.deliver(value, n, z)
+        delivered[i] = value
+    return delivered
 
 
 def _due_by_point(events: list[_EventRun]) -> dict[int, list[_EventRun]]:

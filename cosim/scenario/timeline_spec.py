@@ -489,13 +489,18 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
                     f"{target!r} is {var.type}: a connection fault acts on Real connections "
                     f"only, expected one of {sorted(_real_targets(scenario))}",
                 )
-        values = spec.model_dump(exclude={"name", "kind", "target"})
-        if spec.kind in ("noise", "dropout") and values["seed"] is None:
-            values["seed"] = 0
-        faults.append(Fault(spec.name or f"fault-{i + 1}", spec.kind, target, **values,
-                            hold_source=hold))  # fmt: skip
+        faults.append(fault_of(spec, spec.name or f"fault-{i + 1}", target, hold))
     _unique([f.name for f in faults], [s.name for s in specs], "faults", src)
     return tuple(faults)
+
+
+def fault_of(spec: FaultSpec, name: str, target: str, hold: str | None = None) -> Fault:
+    """The fault ``spec`` describes, named ``name``, on the input ``target`` (a mass-jam:
+    holding it at ``hold``); a noise or dropout fault without a seed draws from seed 0."""
+    values = spec.model_dump(exclude={"name", "kind", "target"})
+    if spec.kind in ("noise", "dropout") and values["seed"] is None:
+        values["seed"] = 0
+    return Fault(name, spec.kind, target, **values, hold_source=hold)
 
 
 def _real_targets(scenario: Any) -> list[str]:

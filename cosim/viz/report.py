@@ -4,8 +4,7 @@ The figures are laid out like the dissertation's Ch. 6 plots:
 
 * ``velocities.png`` - u, v, r, p against time (Figs. 6.11, 6.13, 6.23);
 * ``attitude_actuators.png`` - roll, yaw (with its setpoint), the moving mass y_v (with
-  its command) and rail speed, the tunnel-thruster force (Figs. 6.12, 6.24, 6.42; with a
-  thruster-off fault, the force the plant got beside the command: :func:`thrust_delivered`);
+  its command) and rail speed, the tunnel-thruster force (Figs. 6.12, 6.24, 6.42);
 * ``trajectory.png`` - the path over ground, north up and east to the right (Fig. 6.31),
   with a 3-D view when the depth changes (Fig. 6.44);
 * ``depth.png`` - depth (with its setpoint), pitch, w, q and the stern-plane angle, when
@@ -16,6 +15,12 @@ The figures are laid out like the dissertation's Ch. 6 plots:
 
 * ``lateral_deviation.png`` - the sideways deviation from the initial course against the
   distance along it (a drift of 0.5 m in 90 m is invisible on the equal-scale trajectory).
+
+A panel that draws the source of a connection a fault acts on (a command, a sensed
+value) also draws what the fault delivered to the connection's target (a jammed mass's
+held command, a delayed or noisy signal, 0 N from a failed thruster:
+:mod:`cosim.viz.delivered`), its legend naming the value as sent and as delivered with the
+panel's unit, and the interval where the fault acts shaded.
 
 Each event the run fired and each fault's start and stop (``summary.json``'s ``events``
 and ``faults``, docs/events.md), and the yaw settling time (its key figure), is a
@@ -83,6 +88,7 @@ from cosim.outputs.report_folder import (
 )
 from cosim.outputs.results import read_csv
 from cosim.paths import DEFAULT_FMU_DIR, path_text
+from cosim.viz.delivered import Delivery, deliveries
 from cosim.viz.display_units import DEG, NO_UNIT, scale_to
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import STUDY_FILE
@@ -111,6 +117,7 @@ class Series:
     scale: float = 1.0
     label: str = ""
     dashed: bool = False
+    colour: str | None = None  # None: blue, gray when dashed
 
 
 @dataclass(frozen=True)
@@ -160,6 +167,7 @@ class Panel:
 
     ylabel: str
     series: tuple[Series, ...]
+    spans: tuple[tuple[str, str], ...] = ()  # (column, legend label): shaded where it is > 0
 
 
 FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
@@ -221,17 +229,8 @@ FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
         ),
     ),
 }
-# The tunnel force the plant was given, which results.csv does not hold (it records the
-# FMUs' outputs): the autopilot's command, but 0 while a thruster-off fault acts.
-THRUST_COMMAND = "controller.tunnel_force"
-THRUST_DELIVERED = "tunnel_force (delivered)"
-THRUST_PANEL = Panel(
-    "$F_t$ (N)",
-    (
-        Series(THRUST_DELIVERED, 1.0, "to the plant"),
-        Series(THRUST_COMMAND, 1.0, "command", dashed=True),
-    ),
-)
+DELIVERED_COLOUR = "black"  # a fault's delivered value, beside the blue and gray curves
+FAULT_SHADE = "tab:red"  # where a fault acts (its start and stop markers are red too)
 TITLES = {"trajectory": "Trajectory", "lateral_deviation": "Lateral deviation"}
 ZOOMED = ("velocities", "attitude_actuators")  # the figures with a transient column
 # The depth figure is drawn only for a run with a depth loop: fins commanded or depth moving.
@@ -264,7 +263,7 @@ def write_report(run_dir: Path) -> Path:
         out.mkdir(exist_ok=True)
         staging.mkdir()
         figures = _figures(run_dir, table, summary, staging)
-        alts = {name: figure_alt(name, table, summary) for name in figures}
+        alts = {name: figure_alt(name, table, summary, run_dir) for name in figures}
         index = staging / INDEX_PAGE
         page = index_page(run_dir, summary, summary_problem, figures, stamp, alts)
         index.write_text(page, "utf-8", "backslashreplace")  # undecoded text elsewhere
@@ -313,21 +312,19 @@ def _figures(
 ) -> dict[str, Path]:
     """Draw the run's figures into ``out``: {name: file} of those drawn."""
     limits = actuator_limits(run_dir)
-    delivered = thrust_delivered(table, summary)
-    if delivered is not None:
-        table = {**table, THRUST_DELIVERED: delivered}
-        if THRUST_COMMAND in limits:
-            limits[THRUST_DELIVERED] = limits[THRUST_COMMAND]
+    found = deliveries(run_dir, table, summary)
+    table = {**table, **with_deliveries(found)}
     zoom = _zoom(table, summary)
     caption = run_caption(run_dir, table, summary)
     stop_time = _seconds(summary, "stop_time")
     units = summary.get("units")
+    units = dict(units) if isinstance(units, dict) else {}
+    units.update({d.column: units[d.source] for d in found if d.source in units})
     figures = {}
     for name, (title, panels) in FIGURES.items():
         if name == "depth" and not _has_depth_loop(table):
             continue
-        panels = with_delivered_thrust(panels, delivered is not None)
-        panels = as_declared(panels, units if isinstance(units, dict) else {})
+        panels = as_declared(with_delivered(panels, found), units)
         path = plot_time_histories(
             table, panels, caption.format(title), out / f"{name}.png", markers_of(summary),
             limits, zoom if name in ZOOMED else None, stop_time,
@@ -350,28 +347,38 @@ def _figures(
     return figures
 
 
-def with_delivered_thrust(panels: tuple[Panel, ...], delivered: bool) -> tuple[Panel, ...]:
-    """``panels`` with the tunnel-force panel drawing the force delivered beside the
-    command (:data:`THRUST_PANEL`) when the run has one (:func:`thrust_delivered`)."""
-    if not delivered:
-        return panels
-    return tuple(THRUST_PANEL if p.series[0].column == THRUST_COMMAND else p for p in panels)
+def with_deliveries(found: list[Delivery]) -> dict[str, np.ndarray]:
+    """The columns :func:`with_delivered` draws: each target's delivered values and
+    where its faults act."""
+    return {
+        **{d.column: d.values for d in found},
+        **{d.acting_column: d.acting for d in found},
+    }
 
 
-def thrust_delivered(table: dict[str, np.ndarray], summary: dict[str, Any]) -> np.ndarray | None:
-    """The tunnel force (N) the plant was given at each row: the autopilot's command, 0
-    where a thruster-off fault acts (its ``fault.<name>`` column is 1, docs/events.md).
-    None when the run had no such fault (the command is what the plant got) or did not
-    record the command."""
-    columns = [
-        f"fault.{fault.get('name')}"
-        for fault in summary.get("faults") or []
-        if isinstance(fault, dict) and fault.get("kind") == "thruster-off"
-    ]
-    acting = [table[column] > 0 for column in columns if column in table]
-    if THRUST_COMMAND not in table or not acting:
-        return None
-    return np.where(np.any(acting, axis=0), 0.0, table[THRUST_COMMAND])
+def with_delivered(panels: tuple[Panel, ...], found: list[Delivery]) -> tuple[Panel, ...]:
+    """``panels`` with, after each curve of a faulted connection's source, what its
+    faults delivered to the target (:func:`cosim.viz.delivered.deliveries`), both named in
+    the legend with the panel's unit, and where the faults act shaded."""
+    changed = []
+    for panel in panels:
+        unit = _label_unit(panel.ylabel)
+        suffix = f" ({unit})" if unit != "1" else ""
+        series: list[Series] = []
+        spans = list(panel.spans)
+        for s in panel.series:
+            hit = [d for d in found if d.source == s.column]
+            if not hit:
+                series.append(s)
+                continue
+            sent = f"{s.label or s.column} as sent"
+            series.append(replace(s, label=sent + suffix))
+            for d in hit:
+                label = f"delivered to {d.target}{suffix}"
+                series.append(Series(d.column, s.scale, label, colour=DELIVERED_COLOUR))
+                spans.append((d.acting_column, f"{d.label} acting"))
+        changed.append(replace(panel, series=tuple(series), spans=tuple(spans)))
+    return tuple(changed)
 
 
 def as_declared(panels: tuple[Panel, ...], units: dict[str, Any]) -> tuple[Panel, ...]:
@@ -653,9 +660,9 @@ def _draw_panel(
         label = series.label + (" (beyond the axis)" if clipped else "")
         t, v = time[inside], values[inside]
         some = drawn_points(v)
-        ax.plot(t[some], v[some], "--" if series.dashed else "-",
-                color="tab:gray" if series.dashed else "tab:blue",
-                linewidth=1.0 if series.dashed else 1.3, label=label or None,
+        colour = series.colour or ("tab:gray" if series.dashed else "tab:blue")
+        ax.plot(t[some], v[some], "--" if series.dashed else "-", color=colour,
+                linewidth=1.0 if series.dashed or series.colour else 1.3, label=label or None,
                 marker="o" if np.count_nonzero(inside) == 1 else None)  # fmt: skip
         # (one row, a run that failed at its first step: a line of one point shows nothing)
     drawn, named = len(curves), set()
@@ -665,6 +672,8 @@ def _draw_panel(
         ax.axvline(marker.time, color=marker.color, linestyle=marker.style, linewidth=1.0,
                    label=marker.label if new else None)  # fmt: skip
         drawn += new
+    for column, label in panel.spans:
+        drawn += _shade(ax, time, table.get(column), label)
     limit = limits.get(panel.series[0].column)
     if limit is not None:
         scaled = limit * panel.series[0].scale
@@ -680,6 +689,20 @@ def _draw_panel(
     ax.grid(True, alpha=0.3)
     if drawn > 1:
         ax.legend(loc="upper right", fontsize="small")
+
+
+def _shade(ax: Axes, time: np.ndarray, flag: np.ndarray | None, label: str) -> int:
+    """Shade the times where ``flag`` > 0 (from a row where it is to the next row where it
+    is not, s), ``label`` in the legend once; 1 if anything was shaded, else 0."""
+    if flag is None or not np.any(flag > 0):
+        return 0
+    edges = np.diff(np.concatenate([[0], (flag > 0).astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    for k, (first, after) in enumerate(zip(starts, ends, strict=True)):
+        end = time[after] if after < len(time) else time[-1]
+        ax.axvspan(time[first], end, color=FAULT_SHADE, alpha=0.1, linewidth=0,
+                   label=label if k == 0 else None)  # fmt: skip
+    return 1
 
 
 def _main_range(curves: list[tuple[Series, np.ndarray]]) -> tuple[float, float] | None:
@@ -846,17 +869,19 @@ def plain(label: str) -> str:
 LATERAL_ALT = "Lateral deviation (m) from the initial course against the distance along it (m)"
 
 
-def figure_alt(name: str, table: dict[str, np.ndarray], summary: dict[str, Any]) -> str:
-    """The alt text of the figure ``name`` of a run (``table``: its results, ``summary``:
-    its summary.json): what is plotted against what, with units, as drawn."""
+def figure_alt(
+    name: str, table: dict[str, np.ndarray], summary: dict[str, Any], run_dir: Path
+) -> str:
+    """The alt text of the figure ``name`` of the run in ``run_dir`` (``table``: its
+    results, ``summary``: its summary.json): what is plotted against what, with units,
+    as drawn."""
     if name == "trajectory":
         turning = summary.get("manoeuvre") == "turning-circle"
         return trajectory_alt(turning, "yes" if _depth_changes(table) else "no")
     if name == "lateral_deviation":
         return LATERAL_ALT
     zoom = _zoom(table, summary) if name in ZOOMED else None
-    delivered = thrust_delivered(table, summary) is not None
-    return time_history_alt(name, table.__contains__, zoom, delivered)
+    return time_history_alt(name, table.__contains__, zoom, deliveries(run_dir, table, summary))
 
 
 def trajectory_alt(turning: bool = False, three_d: str = "when the depth changes") -> str:
@@ -877,17 +902,18 @@ def time_history_alt(
     name: str,
     recorded: Callable[[str], bool] = lambda column: True,
     zoom: float | None = None,
-    delivered: bool = False,
+    delivered: list[Delivery] | None = None,
 ) -> str:
     """The alt text of the time-history figure ``name`` (a key of :data:`FIGURES`): its
     panels of the ``recorded`` columns, each with its unit and reference curves; with
-    ``zoom`` (s), the transient column beside them; ``delivered``: the tunnel force the
-    plant got drawn beside the command (:func:`with_delivered_thrust`)."""
+    ``zoom`` (s), the transient column beside them; ``delivered``: the run's faulted
+    connections, drawn beside their sources (:func:`with_delivered`)."""
     title, panels = FIGURES[name]
-    panels = with_delivered_thrust(panels, delivered)
+    panels = with_delivered(panels, delivered or [])
+    extra = {d.column for d in delivered or []}
 
     def drawn(column: str) -> bool:
-        return recorded(column) or (delivered and column == THRUST_DELIVERED)
+        return recorded(column) or column in extra
 
     shown = []
     for panel in panels:

@@ -783,23 +783,31 @@ def test_a_set_point_its_fmu_declares_in_degrees_is_drawn_unscaled(tmp_path, mon
 def test_a_thruster_off_fault_draws_the_force_the_plant_got(tmp_path, monkeypatch) -> None:
     """A run with a thruster-off fault (the lab's exercise) drew the autopilot's command
     on the F_t panel alone: 8 N of thrust after the thruster had failed. While the fault
-    acts the plant gets 0 N (docs/events.md); the panel draws that force, with the
-    command beside it, dashed."""
+    acts the plant gets 0 N (docs/events.md); the panel draws that force beside the
+    command (under Jacobi the command of each row; none from the last row, where no step
+    starts)."""
     run = tmp_path / "run"
     run.mkdir()
     rows = "".join(
         f"{t},{f},{int(t >= 0.2)}\n" for t, f in ((0.0, 5.0), (0.1, 6.0), (0.2, 7.0), (0.3, 8.0))
     )
     (run / "results.csv").write_text("time,controller.tunnel_force,fault.thruster\n" + rows)
-    fault = {"name": "thruster", "kind": "thruster-off", "target": None, "start": 0.2, "stop": None}
+    fault = {"name": "thruster", "kind": "thruster-off", "target": "plant.tunnel_force",
+             "start": 0.2, "stop": None}  # fmt: skip
     (run / "summary.json").write_text(json.dumps({"faults": [fault]}))
+    (run / "scenario.toml").write_text(
+        'faults = [{ name = "thruster", kind = "thruster-off", start = 0.2 }]\n'
+        '[coupling]\nstep = 0.1\nalgorithm = "jacobi"\n'
+        '[connections]\nadd = [{ from = "controller.tunnel_force", to = "plant.tunnel_force" }]\n'
+    )
     kept = _kept_figures(run, monkeypatch)
     force = next(ax for ax in kept["attitude_actuators.png"].axes if "F_t" in ax.get_ylabel())
     drawn = {line.get_label(): list(line.get_ydata()) for line in force.lines}
-    assert drawn["to the plant"] == pytest.approx([5.0, 6.0, 0.0, 0.0]), drawn
-    assert drawn["command"] == pytest.approx([5.0, 6.0, 7.0, 8.0]), drawn
+    delivered = drawn["delivered to plant.tunnel_force (N)"]
+    np.testing.assert_array_equal(delivered, [5.0, 6.0, 0.0, np.nan])
+    assert drawn["controller.tunnel_force as sent (N)"] == pytest.approx([5.0, 6.0, 7.0, 8.0])
     page = (run / "report" / "index.html").read_text(encoding="utf-8")
-    assert "F_t (N) with command" in page, page  # the alt text says what is drawn
+    assert "F_t (N) with delivered to plant.tunnel_force (N)" in page, page  # the alt text
 
 
 def test_a_report_made_elsewhere_finds_the_limits_of_the_fmus_the_run_used(
