@@ -175,7 +175,8 @@ class Study:
     ----------
     table : pandas.DataFrame
         One row per run: ``run``, the factor values, ``status`` ("complete" or
-        "failed"), ``error``, the metrics and ``wall_clock_s`` (``runs.parquet``).
+        "failed"), ``error``, the metrics, ``wall_clock_s`` and the run's ``point`` and
+        ``sample`` in the study's design (``runs.parquet``).
     out_dir : pathlib.Path or None
         The study folder (table, figures, index.html, overlay.rrd), absolute, if ``out``
         was given; None for a study kept in memory only.

@@ -66,10 +66,14 @@ def _inferred(values: Sequence[Any]) -> pa.DataType | None:
 
 def _checked(values: Sequence[Any], wanted: pa.DataType) -> pa.DataType | None:
     """``wanted`` if it is double and every value a float, or an int a double holds
-    exactly, or if it is string and every value a str; else None (pa.array converts or
+    exactly, or if it is int64 and every value an int it holds, or if it is string and
+    every value a str; else None (pa.array converts or
     refuses the rest). None values are nulls of either type."""
     if wanted == pa.string():
         return wanted if all(v is None or type(v) is str for v in values) else None
+    if wanted == pa.int64():
+        fits = all(v is None or (type(v) is int and -_INT64 <= v < _INT64) for v in values)
+        return wanted if fits else None
     if wanted != pa.float64():
         return None
     for v in values:

@@ -30,10 +30,13 @@ _UNIT_MARGIN = float(np.finfo(float).eps)
 
 @dataclass(frozen=True)
 class PlannedRun:
-    """One run: its stable id and its factor values (factor name -> value)."""
+    """One run: its stable id, its factor values (factor name -> value) and where it is in
+    the study's design (:func:`plan`; None for a run made outside one)."""
 
     id: str
     values: Mapping[str, Value]
+    point: int | None = None  # the grid point's number, 0-based (:func:`grid_points`)
+    sample: int | None = None  # the random sample's, 0-based; None without [random]
 
 
 def run_id(values: Mapping[str, Value]) -> str:
@@ -97,17 +100,19 @@ def _latin_hypercube(qmc: Any, d: int, n: int, seed: int) -> np.ndarray:
 
 
 def plan(spec: StudySpec, normalize: Mapping[str, Callable[[Value], Value]]) -> list[PlannedRun]:
-    """Every run of the study: each grid point with each sample.
+    """Every run of the study: each grid point with each sample, each run knowing both
+    (their numbers, which runs.csv gives each row).
 
     ``normalize[factor]`` turns a value into the one the scenario will hold (a Real
     factor's integer becomes a float), so a run's id names what actually runs.
     """
     points = grid_points(spec.grid)
-    samples = random_samples(spec.random) or [{}]
+    drawn = random_samples(spec.random)
+    samples = drawn or [{}]
     runs = []
-    for point, sample in itertools.product(points, samples):
+    for (p, point), (k, sample) in itertools.product(enumerate(points), enumerate(samples)):
         values = {name: normalize[name](value) for name, value in {**point, **sample}.items()}
-        runs.append(PlannedRun(run_id(values), values))
+        runs.append(PlannedRun(run_id(values), values, p, k if drawn else None))
     ids = [run.id for run in runs]
     if len(set(ids)) != len(ids):
         twice = next(run for run in runs if ids.count(run.id) > 1)

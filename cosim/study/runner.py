@@ -68,7 +68,7 @@ from cosim.study.spec import (
     study_label,
 )
 from cosim.study.statistics import write_statistics
-from cosim.study.table import CSV_NAME, PARQUET_NAME, RunsTable
+from cosim.study.table import CSV_NAME, PARQUET_NAME, PLACE, TAIL, RunsTable
 from cosim.study.task import (
     COUPLING_ERROR,
     Base,
@@ -511,7 +511,7 @@ def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:
             )
         errors = [f"{COUPLING_ERROR}{name}" for name in wanted] if spec.check_step else []
         metrics = list(dict.fromkeys([*wanted, *(e for e in errors if e in facts.metrics)]))
-    clash = set(metrics) & {"run", *spec.factors, "status", "error", "wall_clock_s"}
+    clash = set(metrics) & {"run", *spec.factors, *TAIL, *PLACE}
     if clash:
         raise StudyError(f"metric {sorted(clash)[0]!r} has the name of another column")
     return metrics

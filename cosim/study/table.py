@@ -1,8 +1,12 @@
 """The results table: ``runs.csv``, appended one row per finished run, and ``runs.parquet``.
 
 Columns: ``run`` (the stable id), one per factor by its full name, one per metric,
-``status`` (``complete``/``failed``), ``error`` (empty if complete) and ``wall_clock_s``
-(the whole run task: set-up, stepping loop, outputs). Every row is one line, written and
+``status`` (``complete``/``failed``), ``error`` (empty if complete), ``wall_clock_s``
+(the whole run task: set-up, stepping loop, outputs), and where the run is in the design:
+``point`` (its grid point's number) and ``sample`` (its random sample's, empty without
+``[random]``), both 0-based (:class:`cosim.study.design.PlannedRun`), so a row ties to the
+design however the rows arrived. A table an older version wrote without them is given
+them when it is resumed. Every row is one line, written and
 flushed as its run finishes, so a killed study keeps every finished row; a line cut short
 by the kill is dropped when the table is opened again (:meth:`RunsTable.reopen`). At the
 end (:meth:`RunsTable.finish`) the rows are put in the study's order (the grid's points as
@@ -48,6 +52,7 @@ from cosim.whole_file import write_whole
 CSV_NAME = "runs.csv"
 PARQUET_NAME = "runs.parquet"
 TAIL = ("status", "error", "wall_clock_s")
+PLACE = ("point", "sample")  # where a run is in the study's design, after TAIL (added later)
 Row = dict[str, Any]
 
 
@@ -58,7 +63,7 @@ class RunsTable:
         self.path = path
         self.factors = list(factors)
         self.metrics = list(metrics)
-        self.columns = ["run", *self.factors, *self.metrics, *TAIL]
+        self.columns = ["run", *self.factors, *self.metrics, *TAIL, *PLACE]
         self.rows: dict[str, Row] = {}
 
     @classmethod
@@ -75,13 +80,15 @@ class RunsTable:
     ) -> RunsTable:
         """The table as a killed or finished study left it: a last line cut short is
         removed from the file, every complete line is kept. ``runs`` are the study's
-        runs: a row of any other run, or another header, is an error."""
+        runs: a row of any other run, or another header, is an error. A table without
+        the columns :data:`PLACE` (an older version's) is rewritten with them."""
         table = cls(path, factors, metrics)
+        older = table.columns[: -len(PLACE)]
         with os.fdopen(_open_own(path), "r+b") as f:
             content = f.read()
             whole = content[: content.rfind(b"\n") + 1]
             lines = list(csv.reader(io.StringIO(whole.decode("utf-8", "replace"))))
-            if lines and lines[0] != table.columns:
+            if lines and lines[0] not in (table.columns, older):
                 raise StudyError(
                     f"{path}: its columns {lines[0]} are not this study's {table.columns}"
                 )
@@ -91,11 +98,16 @@ class RunsTable:
                 return table
         by_id = {run.id: run for run in runs}
         for number, cells in enumerate(lines[1:], start=2):
-            row = dict(zip(table.columns, cells, strict=False))
+            row = dict(zip(lines[0], cells, strict=False))
             run = by_id.get(row["run"])
-            if run is None or len(cells) != len(table.columns):
+            if run is None or len(cells) != len(lines[0]):
                 raise StudyError(f"{path}, line {number}: not a row of this study's runs")
             table.rows[run.id] = table._parse(run, row)
+        if lines[0] == older:
+            text = _line(table.columns) + "".join(
+                _line(table._cells(r)) for r in table.rows.values()
+            )
+            write_whole(path, lambda tmp: tmp.write_bytes(text.encode("utf-8")))
         return table
 
     @property
@@ -112,6 +124,7 @@ class RunsTable:
         row: Row = {"run": run.id, **run.values}
         row.update({name: _float(record.metrics.get(name)) for name in self.metrics})
         row.update(status=record.status, error=record.error, wall_clock_s=record.wall_clock_s)
+        row.update(point=run.point, sample=run.sample)
         with stop_signals_deferred():
             try:
                 with self.path.open("a", encoding="utf-8", newline="") as f:
@@ -132,8 +145,10 @@ class RunsTable:
         columns = {name: [row[name] for row in rows] for name in self.columns}
         types = {name: pa.float64() for name in [*self.metrics, "wall_clock_s"]}
         types.update(dict.fromkeys(["run", "status", "error"], pa.string()))
+        types.update(dict.fromkeys(PLACE, pa.int64()))
         arrays = {name: column(values, types.get(name)) for name, values in columns.items()}
-        table = _with_units(pa.table(arrays), {**(units or {}), "wall_clock_s": "s"})
+        places = dict.fromkeys(PLACE, "1")
+        table = _with_units(pa.table(arrays), {**(units or {}), "wall_clock_s": "s", **places})
         write_whole(self.path.with_name(PARQUET_NAME), lambda tmp: _write_parquet(table, tmp))
         return rows
 
@@ -146,6 +161,7 @@ class RunsTable:
             row[name] = float(cells[name]) if cells[name] else None
         row["status"] = cells["status"]
         row["error"] = cells["error"] or None
+        row.update(point=run.point, sample=run.sample)  # the design's, whatever the file held
         return row
 
 

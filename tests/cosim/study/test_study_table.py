@@ -13,7 +13,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from cosim.study.design import PlannedRun, run_id
+from cosim.study.design import PlannedRun, plan, run_id
 from cosim.study.spec import StudyError
 from cosim.study.table import RunsTable
 from cosim.study.task import RunRecord
@@ -50,7 +50,16 @@ def test_rows_are_appended_as_runs_finish(tmp_path: Path) -> None:
         table.append(run, record(run))
         assert len(rows_of(path)) == len(table.done)  # on disk at once, not at the end
     first = rows_of(path)[0]
-    assert list(first) == ["run", *FACTORS, *METRICS, "status", "error", "wall_clock_s"]
+    assert list(first) == [
+        "run",
+        *FACTORS,
+        *METRICS,
+        "status",
+        "error",
+        "wall_clock_s",
+        "point",
+        "sample",
+    ]
     assert first["plant.v_0"] == "-0.3" and first["plant.ideal_fluid"] == "false"
     assert float(first["final.plant.yaw"]) == -0.3 / 3  # shortest round-trip text
 
@@ -113,9 +122,10 @@ def test_parquet_columns_carry_their_units_for_pyarrow_and_pandas(tmp_path: Path
     table.finish(RUNS, units)
     schema = pq.read_schema(tmp_path / "runs.parquet")
     found = {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
-    assert found == {**units, "wall_clock_s": "s", "run": "", "status": "", "error": ""}
+    places = {"point": "1", "sample": "1"}  # numbers in the study's design
+    assert found == {**units, "wall_clock_s": "s", **places, "run": "", "status": "", "error": ""}
     frame = pd.read_parquet(tmp_path / "runs.parquet")
-    assert frame.attrs["units"] == {**units, "wall_clock_s": "s"}
+    assert frame.attrs["units"] == {**units, "wall_clock_s": "s", **places}
     assert list(frame.columns) == table.columns
 
 
@@ -326,3 +336,57 @@ def test_a_row_the_disk_refuses_ends_the_study_naming_runs_csv(
     assert kind == "StudyEndedError" and message == f"cannot write {path}: File too large"
     again = RunsTable.reopen(path, FACTORS, METRICS, RUNS)
     assert len(again.done) == len(rows_of(path)) == int(kept) > 0
+
+
+def test_each_row_names_its_grid_point_and_sample_of_the_design(tmp_path: Path) -> None:
+    """runs.csv's rows carried the run's hashed id and factor values but not which of the
+    design's grid points and samples it was: rows arriving out of order, or kept by a
+    killed study and resumed, could not be tied to the design's sample without matching
+    floats. Each row says both (0-based), the same after a resume and in runs.parquet."""
+    from cosim.study.design import random_samples
+    from cosim.study.spec import study_from_dict
+
+    spec = study_from_dict(
+        {
+            "scenario": "bs-3",
+            "grid": {"plant.v_0": [-0.1, 0.1]},
+            "random": {"n": 3, "seed": 1, "plant.current_east": {"uniform": [0.0, 0.3]}},
+        },
+        "s.toml",
+    )
+    runs = plan(spec, {"plant.v_0": float, "plant.current_east": float})
+    samples = random_samples(spec.random)
+    metrics = ["final.plant.yaw"]
+    path = tmp_path / "runs.csv"
+    killed = RunsTable.create(path, spec.factors, metrics)
+    done = RunRecord("complete", None, {"final.plant.yaw": 0.0}, 1.0, 1.0)
+    for run in reversed(runs[3:]):  # out of the design's order, then killed
+        killed.append(run, done)
+    resumed = RunsTable.reopen(path, spec.factors, metrics, runs)
+    for run in runs[:3]:
+        resumed.append(run, done)
+    for rows in (rows_of(path), resumed.finish(runs)):
+        for row in rows:
+            point, sample = int(row["point"]), int(row["sample"])
+            assert float(row["plant.v_0"]) == spec.grid["plant.v_0"][point], row
+            assert float(row["plant.current_east"]) == samples[sample]["plant.current_east"]
+    parquet = pq.read_table(tmp_path / "runs.parquet").to_pylist()
+    assert [(r["point"], r["sample"]) for r in parquet] == [
+        (p, s) for p in range(2) for s in range(3)
+    ]
+
+
+def test_a_table_an_older_version_wrote_is_resumed_with_each_runs_place(tmp_path: Path) -> None:
+    """A killed study's runs.csv of a version before ``point`` and ``sample`` resumes (its
+    rows are the same runs'), rewritten with both columns from the study's design."""
+    runs = [PlannedRun(run.id, run.values, k, None) for k, run in enumerate(RUNS)]
+    path = tmp_path / "runs.csv"
+    old = ["run", *FACTORS, *METRICS, "status", "error", "wall_clock_s"]
+    with path.open("w", encoding="utf-8", newline="") as f:
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(old)
+        writer.writerow([runs[2].id, "-0.1", "false", "", "0.5", "complete", "", "1.0"])
+    table = RunsTable.reopen(path, FACTORS, METRICS, runs)
+    assert table.done == {runs[2].id}
+    (row,) = rows_of(path)
+    assert (row["point"], row["sample"], row["final.plant.yaw"]) == ("2", "", "0.5")
