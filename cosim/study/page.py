@@ -47,7 +47,7 @@ def write_index(
         "</a></p>"
         for title, path in figures.items()
     )
-    quiet = _not_plotted(not_plotted)
+    quiet = _not_plotted(not_plotted, rows)
     failed = [row for row in rows if row["status"] != "complete"]
     failures = ""
     if failed:
@@ -101,14 +101,16 @@ FOLDED = (  # name prefix, what the folded list is called
 )
 
 
-def _not_plotted(names: Sequence[str]) -> str:
-    """One line: the metrics not plotted by name, the final values and their coupling
-    errors (``check_step``) counted, their names in folded lists."""
+def _not_plotted(names: Sequence[str], rows: Sequence[Mapping[str, Any]] = ()) -> str:
+    """One line: the metrics not plotted by name, each that some of the ``rows`` lack
+    with how many gave it (a settling time most runs never reached is a finding, not a
+    constant), the final values and their coupling errors (``check_step``) counted,
+    their names in folded lists."""
     if not names:
         return ""
     folded = {prefix: [n for n in names if n.startswith(prefix)] for prefix, _ in FOLDED}
     hidden = {n for group in folded.values() for n in group}
-    listed = [f"<code>{_escape(n)}</code>" for n in names if n not in hidden]
+    listed = [f"<code>{_escape(n)}</code>{_given(n, rows)}" for n in names if n not in hidden]
     for prefix, what in FOLDED:
         if folded[prefix]:
             shown = ", ".join(_escape(n) for n in folded[prefix])
@@ -117,10 +119,18 @@ def _not_plotted(names: Sequence[str]) -> str:
                 f"</summary>{shown}</details>"
             )
     return (
-        f"<p>Not plotted: {', '.join(listed)}. (Constant or missing in every run, beyond "
-        f"the {PANELS_MAX} that vary most, or not a key figure or manoeuvre metric; "
+        f"<p>Not plotted: {', '.join(listed)}. (Fewer than two distinct values among the "
+        f"runs that gave it, beyond the {PANELS_MAX} that vary most, or not a key figure or "
+        "manoeuvre metric; "
         "<code>[metrics] collect</code> chooses; every value is in runs.csv.)</p>"
     )
+
+
+def _given(name: str, rows: Sequence[Mapping[str, Any]]) -> str:
+    """ " (given by k of n runs)" when some of ``rows`` lack ``name`` (a failed run, a
+    figure never reached), else ""."""
+    given = sum(row.get(name) is not None for row in rows)
+    return f" (given by {given} of {len(rows)} runs)" if given < len(rows) else ""
 
 
 def _escape(value: Any) -> str:

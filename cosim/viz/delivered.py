@@ -70,11 +70,10 @@ def deliveries(
     """What each faulted connection of the run in ``run_dir`` delivered (``table``: its
     results.csv by column; ``summary``: its summary.json), one per target whose source
     was recorded; none where the scenario.toml cannot be read or names no fault."""
-    try:
-        scenario = tomllib.loads((run_dir / "scenario.toml").read_text("utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+    scenario = read_scenario(run_dir)
+    if scenario is None:
         return []
-    sources = _sources(scenario)
+    sources = connection_sources(scenario)
     by_target: dict[str, list[Fault]] = {}
     for fault in _faults(scenario, summary, sources):
         by_target.setdefault(fault.target, []).append(fault)
@@ -92,7 +91,15 @@ def deliveries(
     return found
 
 
-def _sources(scenario: dict[str, Any]) -> dict[str, str]:
+def read_scenario(run_dir: Path) -> dict[str, Any] | None:
+    """The run's resolved ``scenario.toml`` as TOML data; None where it cannot be read."""
+    try:
+        return tomllib.loads((run_dir / "scenario.toml").read_text("utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return None
+
+
+def connection_sources(scenario: dict[str, Any]) -> dict[str, str]:
     """{target: source} of the resolved scenario's connections (each spelled out)."""
     added = (scenario.get("connections") or {}).get("add") or []
     return {

@@ -75,6 +75,7 @@ from matplotlib.figure import Figure
 
 from cosim.errors import CosimError
 from cosim.fmus.interface import read_interface
+from cosim.metrics.key_figures import why_none
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
 from cosim.outputs.missing_run import missing_run_hint
@@ -88,7 +89,7 @@ from cosim.outputs.report_folder import (
 )
 from cosim.outputs.results import read_csv
 from cosim.paths import DEFAULT_FMU_DIR, path_text
-from cosim.viz.delivered import Delivery, deliveries
+from cosim.viz.delivered import Delivery, connection_sources, deliveries, read_scenario
 from cosim.viz.display_units import DEG, NO_UNIT, scale_to
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import STUDY_FILE
@@ -265,7 +266,8 @@ def write_report(run_dir: Path) -> Path:
         figures = _figures(run_dir, table, summary, staging)
         alts = {name: figure_alt(name, table, summary, run_dir) for name in figures}
         index = staging / INDEX_PAGE
-        page = index_page(run_dir, summary, summary_problem, figures, stamp, alts)
+        nulls = null_reasons(run_dir, table, summary)
+        page = index_page(run_dir, summary, summary_problem, figures, stamp, alts, nulls)
         index.write_text(page, "utf-8", "backslashreplace")  # undecoded text elsewhere
         record(staging, [*figures.values(), index], stamp)
         remove_earlier(out, keep=[INDEX_PAGE, *(path.name for path in figures.values())])
@@ -940,6 +942,23 @@ def figure_label(name: str) -> str:
     return " ".join(words) + (f" ({unit})" if unit else "")
 
 
+def null_reasons(
+    run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any]
+) -> dict[str, str]:
+    """Why each key figure summary.json holds as null is null (``table``: the run's
+    results.csv): :func:`cosim.metrics.key_figures.why_none`, with what drives the yaw
+    set-point in the run's scenario.toml."""
+    figures = summary.get("key_figures") or {}
+    scenario = read_scenario(run_dir) or {}
+    driver = connection_sources(scenario).get("controller.yaw_setpoint")
+    complete = summary.get("complete") is not False and summary.get("status") != "running"
+    return {
+        name: why_none(name, list(table), complete=complete, setpoint_driver=driver)
+        for name, value in figures.items()
+        if value is None
+    }
+
+
 def index_page(
     run_dir: Path,
     summary: dict[str, Any],
@@ -947,12 +966,15 @@ def index_page(
     figures: dict[str, Path],
     stamp: dict[str, Any] | None = None,
     alts: dict[str, str] | None = None,
+    nulls: dict[str, str] | None = None,
 ) -> str:
     """The HTML index: which run it describes (``stamp``: :func:`run_stamp` and when it
-    was made), summary table, key figures, the figures inline (linked), each with its
-    ``alts`` text (:func:`figure_alt`; the figure's title without one)."""
+    was made), summary table, key figures (one summary.json holds as null with its reason
+    in ``nulls``, :func:`null_reasons`), the faults and the events fired, the figures
+    inline (linked), each with its ``alts`` text (:func:`figure_alt`; the figure's title
+    without one)."""
     name = summary.get("scenario") or path_text(run_dir.resolve().name)
-    table = _summary_rows(summary)
+    table = _summary_rows(summary, nulls or {})
     note = _incomplete_note(summary, summary_problem)
     images = _figure_images(figures, alts)
     return f"""<!DOCTYPE html>
@@ -971,15 +993,17 @@ h1, code {{ overflow-wrap: anywhere; }}</style></head>
 {table}
 </table>
 {_manoeuvre_table(summary)}
+{_timeline_tables(summary)}
 {images}
 </body>
 </html>
 """
 
 
-def _summary_rows(summary: dict[str, Any]) -> str:
+def _summary_rows(summary: dict[str, Any], nulls: dict[str, str]) -> str:
     """The rows of the run summary table: the run's settings and outcome, then its key
-    figures, each as given (a value summary.json lacks has no row)."""
+    figures, each as given (a setting summary.json lacks has no row; a key figure it
+    holds as null reads "none", with its reason in ``nulls``)."""
     rows = [
         ("scenario", summary.get("scenario")),
         ("status", summary.get("status")),
@@ -993,7 +1017,10 @@ def _summary_rows(summary: dict[str, Any]) -> str:
         ("real-time factor", summary.get("real_time_factor")),
     ]
     key = summary.get("key_figures") or {}
-    rows += [(figure_label(k), v) for k, v in key.items()]
+    rows += [
+        (figure_label(k), v if v is not None else f"none ({nulls[k]})" if k in nulls else "none")
+        for k, v in key.items()
+    ]
     return "\n".join(
         f'<tr><th scope="row">{html.escape(label)}</th><td>{html.escape(_text(value))}</td></tr>'
         for label, value in rows
@@ -1068,6 +1095,60 @@ def _manoeuvre_table(summary: dict[str, Any]) -> str:
         f"{rows}\n</table>\n"
         "<p>Definitions: docs/manoeuvres.md of auv-cosim.</p>\n"
     )
+
+
+def _timeline_tables(summary: dict[str, Any]) -> str:
+    """The run's faults (what each corrupts, from when to when) and the events it fired,
+    from summary.json, as HTML tables ("" for a run with neither)."""
+    faults = [f for f in summary.get("faults") or [] if isinstance(f, dict)]
+    events = [e for e in summary.get("events") or [] if isinstance(e, dict)]
+    parts = []
+    if faults:
+        rows = "\n".join(
+            f'<tr><th scope="row">{html.escape(_text(f.get("name")))}</th>'
+            + "".join(
+                f"<td>{html.escape(text)}</td>"
+                for text in (
+                    _text(f.get("kind")),
+                    _text(f.get("target")),
+                    _text(f.get("start")),
+                    "never: to the end of the run" if f.get("stop") is None else _text(f["stop"]),
+                )
+            )
+            + "</tr>"
+            for f in faults
+        )
+        parts.append(
+            '<h2>Faults</h2>\n<table class="faults">\n<caption>Faults: what each corrupts '
+            "and when (docs/events.md)</caption>\n"
+            + _header_row(("fault", "kind", "target", "start (s)", "stop (s)"))
+            + f"\n{rows}\n</table>"
+        )
+    if events:
+        rows = "\n".join(
+            f'<tr><th scope="row">{html.escape(_text(e.get("name")))}</th>'
+            f"<td>{html.escape(_text(e.get('time')))}</td>"
+            f"<td>{html.escape(_set_text(e.get('set')))}</td></tr>"
+            for e in events
+        )
+        parts.append(
+            '<h2>Events fired</h2>\n<table class="events">\n<caption>Events fired, each '
+            "time it fired</caption>\n"
+            + _header_row(("event", "time (s)", "values set (SI)"))
+            + f"\n{rows}\n</table>"
+        )
+    return "\n".join(parts)
+
+
+def _header_row(names: tuple[str, ...]) -> str:
+    return "<tr>" + "".join(f'<th scope="col">{html.escape(n)}</th>' for n in names) + "</tr>"
+
+
+def _set_text(values: Any) -> str:
+    """An event's values as "ref = value, ..." (a series' first values likewise)."""
+    if not isinstance(values, dict):
+        return ""
+    return ", ".join(f"{ref} = {_text(value)}" for ref, value in values.items())
 
 
 def _text(value: Any) -> str:

@@ -307,6 +307,28 @@ def test_the_coupling_errors_of_final_values_are_folded_too(tmp_path: Path) -> N
     assert not any(name in visible for name in [*finals, *errors])
 
 
+def test_a_metric_most_runs_never_reached_is_not_called_missing_in_every_run(
+    tmp_path: Path,
+) -> None:
+    """A fault campaign over the fault's time: the heading recovered (a settling time) in
+    one run of three. The page put heading_settling_time_s among the metrics "constant or
+    missing in every run", hiding that two runs never recovered. The line says how many
+    runs gave each metric some runs lacked."""
+    from cosim.study.page import write_index
+
+    rows = [
+        {"run": "a", "status": "complete", "heading_settling_time_s": None, "time_reached": 20.0},
+        {"run": "b", "status": "complete", "heading_settling_time_s": None, "time_reached": 20.0},
+        {"run": "c", "status": "complete", "heading_settling_time_s": 2.5, "time_reached": 20.0},
+    ]
+    names = ["heading_settling_time_s", "time_reached"]
+    page = write_index(tmp_path, {"runs": "3"}, rows, {}, names).read_text()
+    (line,) = [text for text in page.splitlines() if text.startswith("<p>Not plotted")]
+    assert "<code>heading_settling_time_s</code> (given by 1 of 3 runs)" in line, line
+    assert "<code>time_reached</code>." in line, line  # every run gave it: nothing added
+    assert "missing in every run" not in line, line
+
+
 UNITS_N = {"plant.v_0": "m/s", "peak_abs_tunnel_force_N": "N"}
 
 

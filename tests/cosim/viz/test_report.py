@@ -843,3 +843,46 @@ def test_a_limits_legend_names_its_unit_and_the_transients_title_a_readable_time
     assert "limit +-8 N" in [t.get_text() for t in thruster.get_legend().get_texts()]
     mass = next(ax for ax in fig.axes if ax.get_ylabel() == "$y_v$ (cm)")
     assert "limit +-5 cm" in [t.get_text() for t in mass.get_legend().get_texts()]
+
+
+def test_a_fault_campaigns_page_lists_the_faults_and_says_why_a_figure_is_missing(
+    tmp_path: Path,
+) -> None:
+    """A fault-recovery run's page gave "heading error at fault (deg) 4.3" without the
+    fault's time or what failed (only the figures' markers named it), and left out the
+    yaw settling time altogether when the heading never settled, as if it were not
+    measured. The page lists each fault (name, kind, target, start, stop) and each event
+    fired, and a key figure summary.json holds as null with the reason."""
+    run = tmp_path / "run"
+    run.mkdir()
+    rows = "".join(f"{t},0.5,0.0,{int(t >= 0.2)}\n" for t in (0.0, 0.1, 0.2, 0.3))
+    (run / "results.csv").write_text("time,plant.yaw,controller.yaw_setpoint,fault.jam\n" + rows)
+    summary = {
+        "scenario": "mass-jam",
+        "status": "complete",
+        "complete": True,
+        "key_figures": {"yaw_settling_time_s": None},
+        "events": [{"name": "turn", "time": 0.1, "set": {"controller.yaw_setpoint": 0.0}}],
+        "faults": [
+            {
+                "name": "jam",
+                "kind": "mass-jam",
+                "target": "plant.mass_position_cmd",
+                "start": 0.2,
+                "stop": None,
+            },
+        ],
+    }
+    (run / "summary.json").write_text(json.dumps(summary))
+    page = write_report(run).read_text(encoding="utf-8")
+    assert problems(page) == []
+    assert "<caption>Faults" in page and "<caption>Events fired" in page, page
+    assert (
+        '<th scope="row">jam</th><td>mass-jam</td><td>plant.mass_position_cmd</td>'
+        "<td>0.2</td><td>never: to the end of the run</td>"
+    ) in page, page
+    assert '<th scope="row">turn</th><td>0.1</td><td>controller.yaw_setpoint = 0</td>' in page
+    assert (
+        '<th scope="row">yaw settling time (s)</th><td>none (not settled: the yaw is not '
+        "within 1 deg of its set-point at the end)</td>"
+    ) in page, page
