@@ -39,7 +39,7 @@ CASES = {
                 "plant.mass_position_cmd", "$y_v$ (cm)", 100.0),
     "mass-jam": ("bs-3", "", "plant.mass_position_cmd", "$y_v$ (cm)", 100.0),
     "thruster-off": ("bs-3", "", "plant.tunnel_force", "$F_t$ (N)", 1.0),
-    "plane-stuck": ("depth-steps", "", "plant.fin_angle", r"$\delta_s$ (deg)",
+    "plane-stuck": ("vert-2", "", "plant.fin_angle", r"$\delta_s$ (deg)",
                     math.degrees(1.0)),
 }  # fmt: skip
 
@@ -57,8 +57,9 @@ def _faulty_run(
     base, keys, target, _, _ = CASES[kind]
     text = (SCENARIO_FOLDER / f"{base}.toml").read_text(encoding="utf-8")
     text = text.replace("stop_time = 60.0", "stop_time = 1.2")
-    text = text.replace("stop_time = 110.0", "stop_time = 1.2")
     text = text.replace('algorithm = "gauss-seidel"', f'algorithm = "{algorithm}"')
+    # vert-2 from on its depth set-point: the stern planes move, off their stops
+    text = text.replace("v_0 = 0.10                        # m/s", "v_0 = 0.10\ndown_0 = 1.0")
     scenario = tmp_path / f"{kind}.toml"
     scenario.write_text(
         text
@@ -111,6 +112,8 @@ def test_a_faults_panel_draws_what_the_target_got_beside_what_was_sent(
     delivered = next((v for label, v in lines.items() if label.startswith(name)), None)
     assert delivered is not None, f"{kind}: no line {name!r} among {sorted(lines)}"
     np.testing.assert_allclose(delivered[:-1], got[1:], rtol=1e-12, atol=1e-12)
+    source = next(v for label, v in lines.items() if "as sent" in label)
+    assert np.any(np.abs(delivered[:-1] - source[1:]) > 1e-9), "the fault changed nothing"
     sent = [label for label in lines if "sent" in label]
     assert sent and all(label.endswith(f"({unit})") for label in sent), sorted(lines)
     legend = [text.get_text() for text in axis.get_legend().get_texts()]
