@@ -156,9 +156,11 @@ def markers_of(summary: dict[str, Any]) -> list[Marker]:
         markers.append(Marker(float(event["time"]), f"event {event['name']}", colour, style))
     for fault in summary.get("faults") or []:
         name = f"fault {fault['name']} ({fault['kind']})"
-        markers.append(Marker(float(fault["start"]), f"{name} starts", "tab:red", "--"))
+        start = float(fault["start"])
+        markers.append(Marker(start, f"{name} starts ({start:g} s)", "tab:red", "--"))
         if fault.get("stop") is not None:
-            markers.append(Marker(float(fault["stop"]), f"{name} stops", "tab:red", ":"))
+            stop = float(fault["stop"])
+            markers.append(Marker(stop, f"{name} stops ({stop:g} s)", "tab:red", ":"))
     return markers
 
 

@@ -749,6 +749,16 @@ def test_markers_of_different_events_are_told_apart_and_a_repeated_one_is_not() 
     assert (settled.color, settled.style) not in look.values()
 
 
+def test_a_faults_markers_say_when_it_starts_and_stops() -> None:
+    """A fault's markers read "fault jam (mass-jam) starts": its time was to be guessed
+    from the axis, where the settling time's marker gives its own ("yaw settled (3.21 s)")."""
+    from cosim.viz.report import markers_of
+
+    fault = {"name": "jam", "kind": "stuck", "target": "plant.fin_angle", "start": 3.0, "stop": 7.5}
+    labels = [m.label for m in markers_of({"faults": [fault]})]
+    assert labels == ["fault jam (stuck) starts (3 s)", "fault jam (stuck) stops (7.5 s)"]
+
+
 def test_the_stern_plane_limit_is_drawn_on_its_panel(tmp_path, monkeypatch) -> None:
     """The stern planes of a depth run sat on their 25 deg stops with no line marking
     them, while the mass stops and the thruster limit had theirs."""
