@@ -48,13 +48,15 @@ def test_a_grid_study_equals_eight_separate_runs(tmp_path: Path, fmu_dir: Path) 
     assert len(rows) == 8 and {r["status"] for r in rows} == {"complete"}
     grid = [(v0, k0) for v0 in ("-0.1", "-0.05", "0.05", "0.1") for k0 in ("0.2", "0.5")]
     assert [(r["plant.v_0"], r["controller.k0"]) for r in rows] == grid  # the study's order
+    assert [(r["point"], r["sample"]) for r in rows] == [(str(k), "") for k in range(8)]
     for row in rows:
         summary = separate_run(
             tmp_path, fmu_dir, float(row["plant.v_0"]), float(row["controller.k0"])
         )
         expected = {**summary["key_figures"], "time_reached": summary["time_reached"]}
         expected |= {f"final.{k}": v for k, v in summary["final_values"].items()}
-        metrics = {k: v for k, v in row.items() if k not in ("run", "status", "error")}
+        place = ("point", "sample")  # in the study's design
+        metrics = {k: v for k, v in row.items() if k not in ("run", "status", "error", *place)}
         metrics = {k: v for k, v in metrics.items() if k not in ("plant.v_0", "controller.k0")}
         assert set(metrics) == set(expected)
         for name, value in expected.items():  # exactly: the text reads back to the double
@@ -331,7 +333,16 @@ def test_a_study_of_fmus_nobody_here_wrote_has_no_empty_auv_columns(
     study.write_text('scenario = "dahlquist.toml"\n[grid]\n"d.k" = [0.5, 1.0, 2.0]\n')
     sweep(study, tmp_path / "out", fmu_dir, "--workers", "1")
     rows = table(tmp_path / "out")
-    assert list(rows[0]) == ["run", "d.k", "time_reached", "final.d.x", "status", "error"]
+    assert list(rows[0]) == [
+        "run",
+        "d.k",
+        "time_reached",
+        "final.d.x",
+        "status",
+        "error",
+        "point",
+        "sample",
+    ]
     assert [float(row["final.d.x"]) < 1.0 for row in rows] == [True] * 3
 
 
