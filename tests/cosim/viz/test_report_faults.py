@@ -44,11 +44,6 @@ CASES = {
 }  # fmt: skip
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(fmu_paths: dict[str, Path]) -> Path:
-    return fmu_paths["AuvPlant"].parent
-
-
 def _faulty_run(
     tmp_path: Path, fmu_dir: Path, kind: str, algorithm: str = "gauss-seidel"
 ) -> tuple[Path, str]:
