@@ -6,7 +6,9 @@ each table's caption and header cells with their scope, each link's text.
 spirit of axe-core's rules, without a browser: ``document-title``, ``html-has-lang``,
 ``page-has-heading-one``, ``heading-order``, ``image-alt`` (and an alt that is the file's
 name says nothing), ``td-has-header`` / ``th-has-scope``, ``table-caption``,
-``link-name``.
+``link-name``; and a block element (``<details>``, ``<div>``, ``<table>``, ...) opened inside
+a ``<p>``, which a browser's parser takes as the paragraph's end: what follows it in the
+source is no longer the paragraph's (the sentence breaks where the source reads on).
 """
 
 from __future__ import annotations
@@ -35,6 +37,15 @@ class Page:
     images: list[tuple[str, str | None]] = field(default_factory=list)  # (src, alt)
     tables: list[Table] = field(default_factory=list)
     links: list[str] = field(default_factory=list)  # each link's text (an image's alt)
+    blocks_in_p: list[str] = field(default_factory=list)  # block tags opened inside a <p>
+
+
+# the elements whose start tag closes an open <p> (the HTML standard's parsing rules)
+CLOSES_P = frozenset(
+    ("address", "article", "aside", "blockquote", "details", "dialog", "div", "dl", "fieldset",
+     "figcaption", "figure", "footer", "form", "h1", "h2", "h3", "h4", "h5", "h6", "header",
+     "hgroup", "hr", "main", "menu", "nav", "ol", "p", "pre", "section", "table", "ul")
+)  # fmt: skip
 
 
 class _Reader(HTMLParser):
@@ -43,9 +54,16 @@ class _Reader(HTMLParser):
         self.page = Page()
         self._text: list[str] | None = None  # the text being collected (title, caption, link)
         self._into = ""
+        self._in_p = False
 
     def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         at = dict(attrs)
+        if self._in_p and tag in CLOSES_P:
+            self.page.blocks_in_p.append(tag)
+        if tag == "p":
+            self._in_p = True
+        elif tag in CLOSES_P:
+            self._in_p = False
         if tag == "html":
             self.page.lang = at.get("lang") or ""
         elif tag in ("h1", "h2", "h3", "h4", "h5", "h6"):
@@ -64,6 +82,8 @@ class _Reader(HTMLParser):
             self._text, self._into = [], tag
 
     def handle_endtag(self, tag: str) -> None:
+        if tag == "p":
+            self._in_p = False
         if tag != self._into or self._text is None:
             return
         text = " ".join("".join(self._text).split())
@@ -115,4 +135,5 @@ def problems(text: str) -> list[str]:
         if any(scope not in ("row", "col", "rowgroup", "colgroup") for scope in table.scopes):
             found.append(f"table {k}: header cells without scope: {table.scopes}")
     found += [f"link {k} has no text" for k, text in enumerate(page.links, 1) if not text]
+    found += [f"<{tag}> inside a <p> ends the paragraph early" for tag in page.blocks_in_p]
     return found

@@ -2,10 +2,10 @@
 
 Laid out like ``auv-cosim report``'s page: a summary table (scenario, factors, runs
 complete and failed), links to ``runs.csv`` and ``runs.parquet``, each figure linked
-full size, the metrics not plotted in one compact line (constant, missing or too many; the
-final values counted, their names folded away), and the failed runs with their errors, a
-list under a heading of its own (no colour says it). The summary table has a caption and
-row headers (``scope="row"``) for a screen reader.
+full size, the metrics not plotted in one compact sentence (constant, missing or too many;
+the final values counted, their names in folded lists below it), and the failed runs with
+their errors, a list under a heading of its own (no colour says it). The summary table
+has a caption and row headers (``scope="row"``) for a screen reader.
 """
 
 from __future__ import annotations
@@ -102,27 +102,27 @@ FOLDED = (  # name prefix, what the folded list is called
 
 
 def _not_plotted(names: Sequence[str], rows: Sequence[Mapping[str, Any]] = ()) -> str:
-    """One line: the metrics not plotted by name, each that some of the ``rows`` lack
+    """One sentence: the metrics not plotted by name, each that some of the ``rows`` lack
     with how many gave it (a settling time most runs never reached is a finding, not a
-    constant), the final values and their coupling errors (``check_step``) counted,
-    their names in folded lists."""
+    constant), the final values and their coupling errors (``check_step``) counted; then
+    their names in folded lists, after the sentence's paragraph (a ``<details>`` inside a
+    ``<p>`` ends it: a browser broke the sentence there)."""
     if not names:
         return ""
     folded = {prefix: [n for n in names if n.startswith(prefix)] for prefix, _ in FOLDED}
     hidden = {n for group in folded.values() for n in group}
     listed = [f"<code>{_escape(n)}</code>{_given(n, rows)}" for n in names if n not in hidden]
+    lists = []
     for prefix, what in FOLDED:
         if folded[prefix]:
+            listed.append(f"{len(folded[prefix])} {what}")
             shown = ", ".join(_escape(n) for n in folded[prefix])
-            listed.append(
-                f"<details style='display:inline'><summary>{len(folded[prefix])} {what}"
-                f"</summary>{shown}</details>"
-            )
+            lists.append(f"\n<details><summary>The {what}</summary>{shown}</details>")
     return (
         f"<p>Not plotted: {', '.join(listed)}. (Fewer than two distinct values among the "
         f"runs that gave it, beyond the {PANELS_MAX} that vary most, or not a key figure or "
         "manoeuvre metric; "
-        "<code>[metrics] collect</code> chooses; every value is in runs.csv.)</p>"
+        "<code>[metrics] collect</code> chooses; every value is in runs.csv.)</p>" + "".join(lists)
     )
 
 

@@ -329,6 +329,21 @@ def test_a_metric_most_runs_never_reached_is_not_called_missing_in_every_run(
     assert "missing in every run" not in line, line
 
 
+def test_the_not_plotted_sentence_reads_whole_around_its_folded_lists(tmp_path: Path) -> None:
+    """The folded list of final values was a <details> inside the sentence's <p>: a browser
+    ends the paragraph there, so the page read "Not plotted: time_reached," and, below the
+    folded list, a line beginning ". (Constant or missing in every run ...)"."""
+    from cosim.study.page import write_index
+
+    finals = [f"final.plant.x{i}" for i in range(30)]
+    page = write_index(tmp_path, {"runs": "4"}, [], {}, ["time_reached", *finals]).read_text()
+    assert problems(page) == []
+    (line,) = [text for text in page.splitlines() if text.startswith("<p>Not plotted")]
+    assert line.endswith("every value is in runs.csv.)</p>"), line
+    assert "30 final values" in line and "final.plant.x0" not in line
+    assert "final.plant.x0, final.plant.x1" in page  # folded below, one click away
+
+
 UNITS_N = {"plant.v_0": "m/s", "peak_abs_tunnel_force_N": "N"}
 
 
