@@ -102,6 +102,7 @@ class StudyOutcome:
     paths: Mapping[str, Path]
     warnings: tuple[str, ...] = ()
     first_failure: str | None = None  # the first failed row's run, factors and error
+    again: int = 0  # runs run again for the overlay (not kept in runs/)
 
 
 @dataclass(frozen=True)
@@ -162,6 +163,7 @@ def run_study(
         skipped = len(table.done)
         todo = [run for run in runs if run.id not in table.done]
         warnings: list[str] = []
+        again = 0
         # the page's matplotlib, loaded while the client waits and beside the last runs
         drawing = Prefetch(cluster.workers if cluster.scheduler is None else 0)
         with ExitStack() as stack:
@@ -190,13 +192,14 @@ def run_study(
                     out_dir, spec, base, factors, metrics, rows, overlay=bool(entries)
                 )
             if entries:
-                paths["overlay"], warnings = _overlay(
-                    out_dir, entries, base, factors, runs, rows, session
+                paths["overlay"], warnings, again = _overlay(
+                    out_dir, entries, base, factors, runs, rows, session, progress
                 )
     complete = sum(row["status"] == "complete" for row in rows)
     return StudyOutcome(
         out_dir, len(runs), complete, len(rows) - complete, skipped, len(todo),
         time.perf_counter() - started, paths, tuple(warnings), _first_failure(rows, spec.factors),
+        again,
     )  # fmt: skip
 
 
@@ -239,7 +242,7 @@ def report(outcome: StudyOutcome) -> str:
     lines = [
         f"study {outcome.out_dir}: {_runs(outcome.total)}, {outcome.complete} complete, "
         f"{outcome.failed} failed ({outcome.skipped} already in the table, {outcome.ran} "
-        f"run now) in {outcome.elapsed_s:.1f} s"
+        f"run now{_again(outcome.again)}) in {outcome.elapsed_s:.1f} s"
     ]
     width = max([8, *map(len, outcome.paths)])
     lines += [f"  {name:<{width}} {path}" for name, path in outcome.paths.items()]
@@ -247,6 +250,11 @@ def report(outcome: StudyOutcome) -> str:
         lines.append(f"  first failed {outcome.first_failure}")
     lines += [f"  warning: {warning}" for warning in outcome.warnings]
     return "\n".join(lines)
+
+
+def _again(count: int) -> str:
+    """``, N run again for the overlay`` when the overlay ran any run again, else ""."""
+    return f", {count} run again for the overlay" if count else ""
 
 
 def _execute(
@@ -264,21 +272,13 @@ def _execute(
     """Run ``todo`` on the cluster, appending each row (and kept folder) as it arrives;
     ``drawing`` begins before the cluster is waited for and is told how many runs are
     left after each."""
-    from tqdm import tqdm
-
     # the FMUs first, alone (the workers wait for them), then the figures' first modules
     carried = session.carried(base, todo)
     job, plugin = make_job(
         base, factors, spec.keep, spec.check_step, session.unpacked(base), carried
     )
     drawing.begin()
-    # no bar at all without progress: even a disabled tqdm starts its monitor thread, left
-    # running in the caller's process, and fixes multiprocessing's default start method
-    bar = (
-        tqdm(total=total, initial=total - len(todo), unit="run", desc="runs", dynamic_ncols=True)
-        if progress
-        else None
-    )
+    bar = _bar(progress, total, "runs", done=total - len(todo))
     failed = 0
     left = len(todo)
 
@@ -302,6 +302,18 @@ def _execute(
     finally:
         if bar is not None:
             bar.close()
+
+
+def _bar(progress: bool, total: int, what: str, done: int = 0) -> Any:
+    """A progress bar on stderr of ``total`` runs, ``done`` of them already, named
+    ``what``; None without ``progress``."""
+    if not progress:
+        # no bar at all: even a disabled tqdm starts its monitor thread, left running in
+        # the caller's process, and fixes multiprocessing's default start method
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=done, unit="run", desc=what, dynamic_ncols=True)
 
 
 class _Session:
@@ -369,9 +381,11 @@ def _overlay(
     runs: Sequence[PlannedRun],
     rows: Sequence[Mapping[str, Any]],
     session: _Session,
-) -> tuple[Path, list[str]]:
-    """overlay.rrd of the chosen runs (those not kept run again, and kept now), and
-    warnings for entries that chose nothing and runs without results."""
+    progress: bool,
+) -> tuple[Path, list[str], int]:
+    """overlay.rrd of the chosen runs (those not kept run again, and kept now, under a
+    progress bar of their own with ``progress``), warnings for entries that chose nothing
+    and runs without results, and how many runs ran again."""
     # imported here, for a study with an overlay only: rerun and scipy.spatial take ~0.6 s
     from cosim.viz.overlay import POSITION, SERIES, OverlayRun, write_overlay
     from cosim.viz.report import load_results
@@ -392,11 +406,19 @@ def _overlay(
         unpacked, carried = session.unpacked(base), session.carried(base, again)
         job, plugin = make_job(base, factors, "all", unpacked=unpacked, data_files=carried)
 
+        bar = _bar(progress, len(again), "overlay")
+
         def keep(run: PlannedRun, record: RunRecord) -> None:
             text = scenario_text(base, factors, run.values)
             study_folder.keep_run(out_dir, run.id, text, record.files, record.error)
+            if bar is not None:
+                bar.update(1)
 
-        session.run(job, plugin, again, keep)
+        try:
+            session.run(job, plugin, again, keep)
+        finally:
+            if bar is not None:
+                bar.close()
     found = {run_id: results(run_id) for run_id in chosen}
     missing = [run_id for run_id, found_results in found.items() if found_results is None]
     unit_of = units(factors, base.fmu_paths)
@@ -410,7 +432,7 @@ def _overlay(
     path = write_overlay(out_dir / OVERLAY_FILE, shown, f"study {out_dir.name}", text, drawn_from)
     warnings = [f"overlay: {entry} chose no run (no complete run has a value)" for entry in empty]
     warnings += [f"overlay: run {run_id} left no results.csv" for run_id in missing]
-    return path, warnings
+    return path, warnings, len(again)
 
 
 @contextmanager

@@ -111,6 +111,29 @@ def test_the_overlay_holds_the_chosen_runs(fmu_dir: Path, tmp_path: Path) -> Non
     assert not list(out.glob("*.tmp"))
 
 
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_the_overlay_s_runs_again_show_progress_and_are_counted(
+    fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Resuming a finished study with --overlay ran the chosen runs again for seconds with
+    no progress bar, then said "0 run now": nothing told how long, or that anything ran."""
+    import cosim.cli
+
+    study = tmp_path / "plain.toml"
+    study.write_text(STUDY.replace("overlay = [{entries}]\n", ""), encoding="utf-8")
+    out = tmp_path / "out"
+    sweep(study, out, fmu_dir, "--workers", "2")
+    capsys.readouterr()
+    monkeypatch.setattr(cosim.cli, "_progress_bar", lambda args: True)  # as on a terminal
+    argv = ["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir), "--resume"]
+    assert main([*argv, "--workers", "2", "--overlay", "2"]) == 0
+    said = capsys.readouterr()
+    bars = [line for line in said.err.replace("\r", "\n").splitlines() if line.strip()]
+    assert any(line.startswith("overlay") and "2/2" in line for line in bars), said.err
+    assert "(6 already in the table, 0 run now, 2 run again for the overlay)" in said.out
+
+
 @pytest.mark.parametrize(
     ("entries", "option", "message"),
     [
