@@ -339,8 +339,9 @@ def plot_scatter_matrix(
     units: Mapping[str, str],
     figure_title: str = "",
 ) -> Path:
-    """Every pair of ``variables`` as a scatter plot, histograms on the diagonal;
-    ``figure_title`` above them."""
+    """Every pair of ``variables`` as a scatter plot, histograms on the diagonal (their
+    counts of runs on an axis of their own, at the right: the left one is the row's
+    variable); ``figure_title`` above them."""
     n = len(variables)
     data = {name: _floats(rows, name) * shown(name, units)[0] for name in variables}
     from matplotlib.figure import Figure
@@ -348,11 +349,11 @@ def plot_scatter_matrix(
     fig = Figure(figsize=(2.2 * n, 2.2 * n + (TITLE_IN if figure_title else 0.0)))
     axes = fig.subplots(n, n, squeeze=False)
     _margins(fig, figure_title)
+    fig.subplots_adjust(right=1 - 0.45 / fig.get_size_inches()[0])  # the last column's counts
     for (i, row_name), (j, col_name) in itertools.product(enumerate(variables), repeat=2):
         ax = axes[i][j]
         if i == j:
-            values = data[row_name]
-            ax.hist(values[np.isfinite(values)], bins=HISTOGRAM_BINS)
+            _counts(ax, data[row_name])
         else:
             ax.scatter(data[col_name], data[row_name], s=6)
         if i == n - 1:
@@ -366,6 +367,20 @@ def plot_scatter_matrix(
         ax.tick_params(labelsize=6)
         _plain_ticks(ax)
     return _save(fig, path)
+
+
+def _counts(ax: Any, values: np.ndarray) -> None:
+    """A histogram of ``values`` in the panel ``ax`` whose left axis belongs to its row's
+    variable: the counts go on a twin axis at the right, labelled ``runs``, and the left
+    axis shows no tick."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_yticks([])
+    counts = ax.twinx()
+    counts.hist(values[np.isfinite(values)], bins=HISTOGRAM_BINS)
+    counts.set_ylabel("runs", fontsize=6)
+    counts.yaxis.set_major_locator(MaxNLocator(integer=True))
+    counts.tick_params(labelsize=6)
 
 
 def _panels(n: int, figure_title: str = "") -> tuple[Figure, list[Any]]:

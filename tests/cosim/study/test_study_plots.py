@@ -258,7 +258,7 @@ def test_angles_are_drawn_in_degrees_on_every_figure(
     assert histogram.patches and max(p.get_x() + p.get_width() for p in histogram.patches) > 50
     plots.plot_scatter_matrix(rows, [factor, "final.plant.yaw"], tmp_path / "s.png", ANGLES)
     labels = [ax.get_xlabel() for ax in kept[2].axes] + [ax.get_ylabel() for ax in kept[2].axes]
-    assert all(text.endswith("[deg]") for text in labels if text), labels
+    assert all(text.endswith("[deg]") for text in labels if text not in ("", "runs")), labels
     for figure in kept:
         plt.close(figure)
 
@@ -342,6 +342,35 @@ def test_the_not_plotted_sentence_reads_whole_around_its_folded_lists(tmp_path: 
     assert line.endswith("every value is in runs.csv.)</p>"), line
     assert "30 final values" in line and "final.plant.x0" not in line
     assert "final.plant.x0, final.plant.x1" in page  # folded below, one click away
+
+
+def test_the_scatter_matrix_counts_runs_on_an_axis_of_its_own(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The histograms on the scatter matrix's diagonal drew their counts on the axis the
+    row's variable labels: the top-left panel read "plant.current_east [m/s]" beside ticks
+    0.0 to 1.0 that were numbers of runs."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    kept = _drawn(monkeypatch)
+    rng = np.random.default_rng(1)
+    rows = [
+        {"plant.current_east": c, "yaw_settling_time_s": t, "status": "complete"}
+        for c, t in zip(rng.uniform(0.0, 0.3, 12), rng.uniform(5.0, 9.0, 12), strict=True)
+    ]
+    names = ["plant.current_east", "yaw_settling_time_s"]
+    quantities = {"plant.current_east": "m/s", "yaw_settling_time_s": "s"}
+    plots.plot_scatter_matrix(rows, names, tmp_path / "s.png", quantities)
+    axes = kept[0].axes
+    histograms = [ax for ax in axes if ax.patches]
+    assert len(histograms) == 2
+    FigureCanvasAgg(kept[0]).draw()
+    for ax in histograms:
+        assert ax.get_ylabel() == "runs" and ax.yaxis.get_label_position() == "right"
+        assert ax.yaxis.label.get_window_extent().x1 <= kept[0].bbox.x1  # not cut off
+    (row_label,) = [ax for ax in axes if ax.get_ylabel() == "plant.current_east [m/s]"]
+    assert not row_label.patches and len(row_label.get_yticks()) == 0  # no counts beside it
+    plt.close(kept[0])
 
 
 UNITS_N = {"plant.v_0": "m/s", "peak_abs_tunnel_force_N": "N"}
