@@ -170,16 +170,16 @@ def check_values(
     :class:`~cosim.scenario.design_doubts.DesignWarning` lines an autopilot design that
     does not fit the plant (:func:`cosim.scenario.design_doubts.design_doubts`: an
     autopilot designed for another vehicle than a plant parameter varied, say)."""
+    point = ", ".join(f"{name} = {value!r}" for name, value in values.items())
     try:
         # named by its id alone: the refusal names the values first
         scenario = _scenario(base, base.fmu_paths, factors, values, where=base.scenario_id)
     except CosimError as exc:
-        raise StudyError(f"factor values {dict(values)}: {exc}") from None
+        raise StudyError(f"the run with {point}: {exc}" if point else str(exc)) from None
     coupling = scenario.coupling
     late = unreached(
         scenario.events, scenario.faults, scenario.stop_time, coupling.step, points_step(coupling)
     )
-    point = ", ".join(f"{name} = {value!r}" for name, value in values.items())
     mission = [
         line if line in known or not point else f"{line} (with {point})"
         for line in mission_doubts(scenario)

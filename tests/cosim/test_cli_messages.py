@@ -380,7 +380,8 @@ def test_a_factor_value_a_scenario_refuses_is_named_once(
 ) -> None:
     """A grid value the scenario refuses was said twice: "factor values {'plant.v_0':
     'x'}: scenario file bs-3 with {'plant.v_0': 'x'}: key ...". It is said once, before
-    what the scenario refuses of it."""
+    what the scenario refuses of it, as the study file writes it (the values were a
+    Python dict's repr, braces and all)."""
     from cosim.study import fork_server
 
     monkeypatch.setattr(fork_server, "start", lambda: False)  # refused before any run
@@ -389,6 +390,6 @@ def test_a_factor_value_a_scenario_refuses_is_named_once(
     fmus = str(fmu_paths["AuvPlant"].parent)
     assert main(["sweep", "study.toml", "--fmu-dir", fmus]) == 1
     assert capsys.readouterr().err.strip() == (
-        "auv-cosim sweep: factor values {'plant.v_0': 'x'}: scenario file bs-3: key "
+        "auv-cosim sweep: the run with plant.v_0 = 'x': scenario file bs-3: key "
         "'instances.plant.start.v_0': 'x' is not a number (v_0 is Real)"
     )

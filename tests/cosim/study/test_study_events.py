@@ -128,7 +128,7 @@ def test_a_key_the_fault_s_kind_does_not_take_is_refused_by_the_scenario(
     out = tmp_path / "out"
     assert main(["sweep", str(study), "--out", str(out), "--fmu-dir", str(fmu_dir)]) == 1
     error = capsys.readouterr().err
-    assert "factor values {'faults.fault-1.std': 0.1}" in error and "std" in error
+    assert "the run with faults.fault-1.std = 0.1:" in error and "std" in error
     assert not out.exists()
 
 
