@@ -188,8 +188,11 @@ def run_study(
                     session.done()
                 paths = _tables(out_dir, spec, metrics, rows, unit_of)
                 drawing.wait()
+                # the overlay drawn now, or by an earlier session of this study (its runs
+                # are the table's: resumed without --overlay, the page still names it)
+                drawn = bool(entries) or (out_dir / OVERLAY_FILE).is_file()
                 paths["index"] = _write_report(
-                    out_dir, spec, base, factors, metrics, rows, overlay=bool(entries)
+                    out_dir, spec, base, factors, metrics, rows, overlay=drawn
                 )
             if entries:
                 paths["overlay"], warnings, again = _overlay(

@@ -134,6 +134,23 @@ def test_the_overlay_s_runs_again_show_progress_and_are_counted(
     assert "(6 already in the table, 0 run now, 2 run again for the overlay)" in said.out
 
 
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_a_study_resumed_without_overlay_still_names_the_overlay_it_holds(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Resuming a study without --overlay rewrote its page without the overlay's row, while
+    overlay.rrd stayed in the folder (and `auv-cosim view` of the folder opened it)."""
+    study = tmp_path / "plain.toml"
+    study.write_text(STUDY.replace("overlay = [{entries}]\n", ""), encoding="utf-8")
+    out = tmp_path / "out"
+    sweep(study, out, fmu_dir, "--workers", "2", "--overlay", "1")
+    assert "overlay.rrd" in (out / "index.html").read_text(encoding="utf-8")
+    sweep(study, out, fmu_dir, "--resume")
+    assert (out / "overlay.rrd").is_file()
+    assert "overlay.rrd" in (out / "index.html").read_text(encoding="utf-8")
+
+
 @pytest.mark.parametrize(
     ("entries", "option", "message"),
     [
