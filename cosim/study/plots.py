@@ -249,8 +249,19 @@ def _label_panel(
     same = coinciding(lines)
     if same:
         note = "; ".join(" and ".join(group) for group in same)
-        ax.text(0.02, 0.97, _wrapped(f"same values: {note}", ax, NOTE_FONT_PT),
-                transform=ax.transAxes, fontsize=NOTE_FONT_PT, va="top")  # fmt: skip
+        text = _wrapped(f"same values: {note}", ax, NOTE_FONT_PT)
+        ax.text(0.02, 0.97, text, transform=ax.transAxes, fontsize=NOTE_FONT_PT, va="top")
+        _headroom(ax, text.count("\n") + 1)
+
+
+def _headroom(ax: Any, note_lines: int) -> None:
+    """Raise the top of panel ``ax``'s y axis so that its data sits below a note of
+    ``note_lines`` lines at its top (the note was written across the highest points)."""
+    height_pt = ax.get_position().height * ax.figure.get_figheight() * 72
+    # the note starts 3 % below the top; a line is about 1.2 font sizes, plus a gap
+    band = min(0.03 + (note_lines * 1.2 * NOTE_FONT_PT + 4) / height_pt, 0.6)
+    bottom, top = ax.get_ylim()
+    ax.set_ylim(bottom, bottom + (top - bottom) / (1 - band))
 
 
 def _mean_of(averaged: Sequence[int]) -> str:

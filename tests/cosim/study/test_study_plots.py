@@ -124,6 +124,29 @@ def test_coinciding_lines_are_drawn_distinguishable_and_named(
     plt.close(kept[0])
 
 
+def test_the_note_naming_coinciding_lines_covers_no_point(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The note naming the lines that coincide sat at the top of the panel over the data:
+    on the study page's yaw-settling-time panel it was written across the highest point."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    kept = _drawn(monkeypatch)
+    metrics = ["yaw_settling_time_s", "peak_abs_tunnel_force_N"]
+    # settling faster with a higher gain: each panel's highest point is at its left
+    rows = [{**row, "yaw_settling_time_s": 5.0 - 3.0 * row["controller.k0"]}
+            for row in _symmetric_rows()]  # fmt: skip
+    plots.plot_grid_factor(rows, SYMMETRIC, "controller.k0", metrics, tmp_path / "g.png", {})
+    FigureCanvasAgg(kept[0]).draw()
+    for ax in _panels_of(kept[0]):
+        (note,) = ax.texts
+        box = note.get_window_extent()
+        for line in ax.get_lines():
+            for x, y in ax.transData.transform(line.get_xydata()):
+                assert not box.contains(x, y), (ax.get_title(), x, y)
+    plt.close(kept[0])
+
+
 def test_legend_values_carry_the_unit_the_axes_are_drawn_in(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
