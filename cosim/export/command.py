@@ -47,6 +47,7 @@ def export_scenario(
     if ssp is not None:
         notes += _skipped_start_notes(resolved)
     notes += _file_notes(resolved, "ssp" if ssp is not None else "osp")
+    notes += _debug_log_notes(resolved)
     for note in notes:  # messages, not what was written: stderr
         print(f"auv-cosim export: note: {note}", file=sys.stderr)
     return 0
@@ -164,6 +165,23 @@ def _file_notes(scenario: Scenario, fmt: str) -> list[str]:
                     "resolve from their working folder: run the system from that folder"
                 )
     return notes
+
+
+def _debug_log_notes(scenario: Scenario) -> list[str]:
+    """The instances whose debug log the scenario turns on (``debug_logging``,
+    ``log_categories``): neither SSP 1.0 nor OSP's system structure has a place for an
+    FMU's debug logging, so the export cannot carry it."""
+    logged = [
+        f"{name} ({', '.join(instance.debug_logging) or 'every category'})"
+        for name, instance in scenario.instances.items()
+        if instance.debug_logging is not None
+    ]
+    if not logged:
+        return []
+    return [
+        f"the debug log of {', '.join(logged)} is not carried: SSP and OSP have no place "
+        "for an FMU's debug logging; turn it on in the host that runs the export"
+    ]
 
 
 def _type_of(scenario: Scenario, ref: str) -> str | None:

@@ -635,3 +635,26 @@ def test_the_note_names_enumerations_written_as_integers(
     assert cli.main(["export", str(path), "--ssp", str(tmp_path / "enums.ssp")]) == 0
     err = capsys.readouterr().err
     assert "note: a.Enumeration_output, b.Enumeration_input: Enumeration, written as" in err
+
+
+@pytest.mark.parametrize("flag", ["--ssp", "--osp"])
+def test_the_note_names_a_debug_log_the_export_cannot_carry(
+    fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], flag: str
+) -> None:
+    """An instance's debug_logging and log_categories keys have no place in SSP or OSP:
+    the export dropped them and said nothing, so the system ran without the debug log
+    the scenario asked for."""
+    text = (Path(cli.__file__).parent / "scenarios" / "bs-3.toml").read_text(encoding="utf-8")
+    text = text.replace('fmu = "AuvPlant"', 'fmu = "AuvPlant"\ndebug_logging = true', 1)
+    text = text.replace(
+        'fmu = "AuvAutopilot"', 'fmu = "AuvAutopilot"\nlog_categories = ["logStatusError"]', 1
+    )
+    path = tmp_path / "logged.toml"
+    path.write_text(text)
+    target = tmp_path / ("logged.ssp" if flag == "--ssp" else "osp")
+    assert cli.main(["export", str(path), flag, str(target), "--fmu-dir", str(fmu_dir)]) == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if "debug log" in line]
+    assert len(notes) == 1, notes
+    assert "plant (every category)" in notes[0], notes
+    assert "controller (logStatusError)" in notes[0], notes
+    assert "not carried" in notes[0], notes
