@@ -118,6 +118,8 @@ OUTPUT_DESCRIPTIONS: dict[str, str] = {
     "thrust": "propeller thrust (the thrust_command parameter)",
 }
 _DEFAULTS = AutopilotConfig()
+LOG_LIMITS = "logAutopilotLimits"  # debug log category: a command reaching or leaving its limit
+LOG_TUNING = "logAutopilotTuning"  # debug log category: tunable parameters taken in a run
 # Integer parameters that choose among named modes (their range and names in the FMU)
 _MODES: dict[str, type[IntEnum]] = {"heading_mode": HeadingMode, "depth_mode": DepthMode}
 
@@ -144,6 +146,14 @@ class AuvAutopilot(SafeSlave):
         "communication points (or every sample_period), designed for design_step"
     )
 
+    # pythonfmu's five and the autopilot's debug categories (SafeSlave.set_debug_logging)
+    log_categories: ClassVar[dict[str, str]] = {
+        **SafeSlave.log_categories,
+        LOG_LIMITS: "Debug: a command (mass_position_cmd, tunnel_force, fin_angle) reaching "
+        "or leaving its limit.",
+        LOG_TUNING: "Debug: tunable parameters written during the run, as the law takes them.",
+    }
+
     description = (
         "Autopilot of the REMUS 100 with internal actuators: moving-mass heading control "
         "(LQR, sliding mode, backstepping + tunnel thruster) and depth PD, B. Li, FAU 2016 Ch. 6"
@@ -157,6 +167,7 @@ class AuvAutopilot(SafeSlave):
         self._autopilot: Autopilot | None = None
         self._step_warned = False
         self._tuned: set[str] = set()  # tunable parameters written since the autopilot took them
+        self._at_limit: set[str] = set()  # commands at their limit after the last step (logged)
         self._register_variables()
         # views of the FMU's value buffers (the runtime reads and writes them in C): the
         # step reads the measurements and writes the commands in place
@@ -229,16 +240,44 @@ class AuvAutopilot(SafeSlave):
         autopilot = self._autopilot
         assert autopilot is not None, "SafeSlave steps only an initialised instance"
         if self._tuned:  # retuned first: the step-size warning is about the law in use
-            self._retune(autopilot)
+            self._retune(autopilot, current_time)
         if autopilot.designed_for_step and not self._step_warned:
             self._check_step_size(autopilot, step_size)
         # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
         # the step with its state unchanged. (No comprehension or closure in this method:
         # its cell would be allocated at every step.)
         autopilot.step_into(current_time, self._inputs, self._outputs, self._rates)
+        if LOG_LIMITS in self.debug_categories:  # nothing formatted unless the host asks
+            self._log_limits(autopilot.config, current_time + step_size)
 
-    def _retune(self, autopilot: Autopilot) -> None:
-        """The tunable parameters written since the last step to the autopilot."""
+    def _log_limits(self, config: AutopilotConfig, time: float) -> None:
+        """A debug message of :data:`LOG_LIMITS` for each command that reached or left its
+        limit (``config``'s) in the step ending at ``time`` (s)."""
+        limits = {
+            "mass_position_cmd": config.mass_position_cmd_limit,
+            "tunnel_force": config.tunnel_force_limit,
+            "fin_angle": config.fin_angle_limit,
+        }
+        for name, limit in limits.items():
+            value = float(self._outputs[COMMAND_NAMES.index(name)])
+            at_limit = abs(value) >= limit
+            if at_limit == (name in self._at_limit):
+                continue
+            unit = COMMAND_UNITS[COMMAND_NAMES.index(name)]
+            if at_limit:
+                self._at_limit.add(name)
+                what = f"reached its limit ({value:+.6g} {unit}, |limit| = {limit:g} {unit})"
+            else:
+                self._at_limit.discard(name)
+                what = f"left its limit ({value:+.6g} {unit})"
+            self.log(f"t = {time:.6g} s: {name} {what}", category=LOG_LIMITS)
+
+    def _retune(self, autopilot: Autopilot, time: float) -> None:
+        """The tunable parameters written since the last step to the autopilot, for the
+        step from ``time`` (s)."""
+        if LOG_TUNING in self.debug_categories:
+            taken = ", ".join(f"{n} = {self._params[n]!r}" for n in sorted(self._tuned))
+            self.log(f"t = {time:.6g} s: the law takes {taken}", category=LOG_TUNING)
         autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
         self._tuned.clear()  # not if it failed: the step is discarded, the next retries
 

@@ -28,6 +28,9 @@ What a subclass writes (the whole API)::
 
         def _initialize(self) -> None: ...            # exit_initialization_mode
         def _step(self, t: float, h: float) -> None: ...  # do_step
+            # a debug message, formatted only when the host asked for its category
+            # (declared in the class's log_categories, beside pythonfmu's five):
+            # if "logMine" in self.debug_categories: self.log(f"...", category="logMine")
         def _state_snapshot(self) -> dict: ...        # the internal state, JSON-serialisable
         def _restore_snapshot(self, snapshot: dict) -> None: ...
 
@@ -134,7 +137,8 @@ def claim_constructed() -> SafeSlave | None:
 
     The FMU's runtime calls this right after pythonfmu's binary, its fallback backend,
     constructed a slave in fmi2Instantiate on this thread, to hand that slave the calls
-    pythonfmu's binary does not pass on (fmi2SetRealInputDerivatives: see
+    pythonfmu's binary does not pass on (fmi2SetRealInputDerivatives, and the categories of
+    fmi2SetDebugLogging: see
     fmu_runtime/native/forward.c)."""
     ref = getattr(_constructed, "slave", None)
     _constructed.slave = None
@@ -183,6 +187,9 @@ class SafeSlave(Fmi2Slave):
         self._get_plans: dict[tuple[int, ...], Any] = {}
         self._set_plans: dict[tuple[int, ...], Any] = {}
         self._failure: str | None = None
+        # the categories whose debug (fmi2OK) messages the host takes: set by the runtime
+        # (set_debug_logging); a slave formats a debug message only for one in here
+        self.debug_categories: frozenset[str] = frozenset()
 
     # --- what subclasses call / override ---------------------------------------------------
 
@@ -910,6 +917,13 @@ class SafeSlave(Fmi2Slave):
             self._values.control[STALE] = 0
         except Exception as exc:
             self._error(f"the outputs to start from cannot be computed yet: {_reason(exc)}")
+
+    def set_debug_logging(self, categories: str) -> None:
+        """The runtime's call after fmi2SetDebugLogging (and after a reset, to the new
+        slave): ``categories``, comma-separated, are those whose debug (fmi2OK) messages
+        the host takes now ("" for none; FMI 2.0, 2.1.5). Warnings and worse are passed
+        whatever it says (fmu_runtime/native/loader.c)."""
+        self.debug_categories = frozenset(name for name in categories.split(",") if name)
 
     def log(
         self,

@@ -164,6 +164,7 @@ STATE_DESCRIPTIONS: dict[str, str] = {
     "quat_z": "attitude quaternion (body to earth), z part",
 }
 RELATIVE_VELOCITIES = ("u_rel", "v_rel", "w_rel")
+LOG_STEPS = "logPlantSteps"  # debug log category: sub-step count and path of the steps
 # |initial velocity| the model takes (a step beyond it is refused) and |initial angle| whose
 # place within its turn a double still holds: declared as a range
 _INITIAL_BOUNDS = {**dict.fromkeys(("u", "v", "w"), MAX_SPEED),
@@ -199,6 +200,13 @@ class AuvPlant(SafeSlave):
         "a smaller max_substep (s) makes it more accurate"
     )
 
+    # pythonfmu's five and the plant's debug categories (SafeSlave.set_debug_logging)
+    log_categories: ClassVar[dict[str, str]] = {
+        **SafeSlave.log_categories,
+        LOG_STEPS: "Debug: how the plant steps, when it changes: the RK4 sub-step count "
+        "and whether the compiled path or the numpy reference takes the step.",
+    }
+
     description = (
         "REMUS 100 AUV with internal actuators (moving mass, tunnel thruster, stern planes): "
         "6-DOF / lateral / horizontal plant, B. Li, FAU 2016"
@@ -219,6 +227,7 @@ class AuvPlant(SafeSlave):
         self._stepper: Callable[[int, float], int] | None = None
         self._model_key: tuple[object, ...] | None = None
         self._told_not_compiled = False  # the reference path's cost said once per instance
+        self._logged_steps: tuple[int, bool] | None = None  # (sub-steps, compiled) logged last
         self._physical = _default_physical_parameters(self._vehicles)
         self.variant = int(Variant.FULL)
         self.moving_mass_model = int(MovingMassModel.DISSERTATION)
@@ -418,12 +427,29 @@ class AuvPlant(SafeSlave):
         mass, a change of the currents, or a step it refuses (the reference then says why).
         Both take the input derivatives the importer set (module docstring)."""
         n = substeps(step_size, self.max_substep)  # raises on a step it would hang in
-        if not self._compiled_step(n, step_size):
+        compiled_step = self._compiled_step(n, step_size)
+        if not compiled_step:
             self._reference_step(step_size)
+        if LOG_STEPS in self.debug_categories:  # nothing formatted unless the host asks
+            self._log_steps(current_time, step_size, n, compiled_step)
         if self._x[DOWN] < self._top_out:
             self._broke_the_surface(current_time + step_size)
         if self._x[DOWN] < self._above_water:
             self._left_the_water(current_time + step_size)
+
+    def _log_steps(self, time: float, step_size: float, n: int, compiled_step: bool) -> None:
+        """A debug message of :data:`LOG_STEPS` when the step from ``time`` (s) of
+        ``step_size`` (s) took another sub-step count ``n`` or path than the one logged
+        last."""
+        if (n, compiled_step) == self._logged_steps:
+            return
+        self._logged_steps = (n, compiled_step)
+        path = "the compiled path" if compiled_step else "the numpy reference"
+        self.log(
+            f"t = {time:.6g} s: a step of {step_size!r} s in {n} RK4 sub-step"
+            f"{'s' if n > 1 else ''} of {step_size / n:.6g} s, by {path}",
+            category=LOG_STEPS,
+        )
 
     def _compiled_step(self, n: int, step_size: float) -> bool:
         """Whether the compiled path took the step, in ``n`` sub-steps (False: it does

@@ -62,12 +62,18 @@ tools and our own checks may rely on:
 - **Ranges**: every bounded Integer and Real parameter declares `min`/`max` (the range
   column below); a value outside is refused, naming the variable.
 - **Log categories**: each declares pythonfmu's five, `logStatusWarning`,
-  `logStatusDiscard`, `logStatusError`, `logStatusFatal` and `logAll`;
+  `logStatusDiscard`, `logStatusError`, `logStatusFatal` and `logAll`, and its own debug
+  categories: AuvPlant `logPlantSteps` (the RK4 sub-step count and the path, compiled or
+  numpy reference, when they change), AuvAutopilot `logAutopilotLimits` (a command,
+  `mass_position_cmd`, `tunnel_force` or `fin_angle`, reaching or leaving its limit) and
+  `logAutopilotTuning` (tunable parameters written during a run, as the law takes them);
   `fmi2SetDebugLogging` takes those and refuses another with fmi2Error, naming them.
   Warnings and worse reach the host's logger whatever debug logging is set to, debug
-  (fmi2OK) messages only while it is on for `logAll` or for every category (none named).
-  In a scenario, an instance's `debug_logging = true` or `log_categories = [...]`, or
-  `auv-cosim run --fmu-log INSTANCE[:CATEGORY,...]`, turns it on and shows the messages
+  (fmi2OK) messages of a category only while it is on for that category, for `logAll` or
+  for every category (none named); a message of a category that is off is never
+  formatted. In a scenario, an instance's `debug_logging = true` or `log_categories =
+  [...]`, or `auv-cosim run --fmu-log INSTANCE[:CATEGORY,...]` (`auv-cosim sweep
+  --fmu-log` for every run of a study), turns it on and shows the messages
   ([runs.md](runs.md#an-fmus-debug-log)).
 - **Hosts**: they load, validate and run in fmpy, OSP's libcosim (libcosimpy) and ecos
   (ecospy), alone and connected, with the results of our own master under the same

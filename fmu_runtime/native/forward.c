@@ -7,6 +7,9 @@
  * It hands pythonfmu a logger of its own, which passes every message to the host's (a
  * NULL category replaced: some hosts crash on one) and feeds the call's worst status.
  *
+ * Debug logging: the slave found as below is told the categories whose debug messages
+ * pass (its set_debug_logging), as slave.c tells its own; loader.c filters the messages.
+ *
  * Input derivatives: pythonfmu's binary answers fmi2SetRealInputDerivatives with "not
  * supported", while our slaves take them (canInterpolateInputs="true" in the same
  * modelDescription.xml for both backends). For a slave that takes them this backend
@@ -216,7 +219,7 @@ static int start(Instance *c)
         c->extra = NULL;
         return 0;
     }
-    if (c->record.interpolates_inputs) forwarded->slave = claim_slave(c);
+    forwarded->slave = claim_slave(c); /* derivatives, debug */
     return 1;
 }
 
@@ -286,7 +289,7 @@ static fmi2Status reset(Instance *c)
 {
     fmi2Status s = wrapper.reset(c->slave);
     Forwarded *forwarded = FORWARDED(c);
-    if (s <= fmi2Warning && c->record.interpolates_inputs && python_alive()) {
+    if (s <= fmi2Warning && python_alive()) {
         PyObject *renewed = claim_slave(c);
         int gil = py.GILState_Ensure();
         if (forwarded->slave) py.DecRef(forwarded->slave);
@@ -349,7 +352,33 @@ static fmi2Status state_from_bytes(Instance *c, const fmi2Byte *bytes, size_t si
     return wrapper.deSerializeFMUstate(c->slave, bytes, size, state);
 }
 
+/* The claimed slave's set_debug_logging (as slave.c's), with the GIL held: pythonfmu's
+ * binary passes every message on (instantiated with logging on) and loader.c filters. */
+static fmi2Status debug(Instance *c)
+{
+    PyObject *slave = FORWARDED(c)->slave;
+    if (!slave) return fmi2OK; /* none found: its debug messages are of none of its own */
+    if (!python_alive()) return refuse(c, "fmi2SetDebugLogging refused: Python has shut down");
+    char names[sizeof c->record.log_categories];
+    debug_categories(c, names, sizeof names);
+    int gil = py.GILState_Ensure();
+    PyObject *text = py.Unicode_FromString(names);
+    PyObject *method = text ? py.GetAttrString(slave, "set_debug_logging") : NULL;
+    PyObject *result = method ? py.CallFunctionObjArgs(method, text, NULL) : NULL;
+    char error[LINE_SIZE / 2] = "";
+    if (!result) python_error(error, sizeof error);
+    PyObject *objects[] = {result, method, text};
+    for (size_t i = 0; i < 3; i++) {
+        if (objects[i]) py.DecRef(objects[i]);
+    }
+    py.GILState_Release(gil);
+    if (!result) {
+        return refuse(c, "fmi2SetDebugLogging: the slave's set_debug_logging raised %s", error);
+    }
+    return fmi2OK;
+}
+
 const Backend pythonfmu_backend = {
     start, stop,    setup,   enter,       leave,            step, terminate, reset, get, set,
-    save,  restore, discard, state_bytes, state_from_bytes, derivatives,
+    save,  restore, discard, state_bytes, state_from_bytes, derivatives, debug,
 };

@@ -127,11 +127,18 @@ static void emit(const fmi2CallbackFunctions *host, const char *instance, fmi2St
     }
 }
 
+static int category_index(const Instance *c, const char *name);
+static fmi2Status tell_debug(Instance *c, int told);
+
 void instance_log(Instance *c, fmi2Status status, const char *category, const char *message)
 {
     if (status > c->logged) c->logged = status;
     fmi2Status worst = c->logged;
-    if (c->logging || status >= fmi2Warning) emit(&c->host, c->name, status, category, message);
+    int index = c->debugged && category ? category_index(c, category) : -1;
+    int debugged = index >= 0 && index < 64 && (c->debugged >> index & 1);
+    if (c->logging || status >= fmi2Warning || debugged) {
+        emit(&c->host, c->name, status, category, message);
+    }
     c->logged = worst; /* a call the host's logger made meanwhile started from fmi2OK */
 }
 
@@ -786,6 +793,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
         snprintf(line, sizeof line, "fmi2Instantiate refused: %s", why);
         refuse_instantiation(functions, name, line);
     } else if (runtime_python(c) && c->backend->start(c)) {
+        tell_debug(c, 0); /* loggingOn: every category */
         return c;
     }
     values_free_strings(&c->values);
@@ -812,16 +820,44 @@ FMI2_EXPORT void fmi2FreeInstance(fmi2Component component)
 FMI2_EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 FMI2_EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
-/* 1 if ``name`` is one of the FMU's LogCategories (modelDescription.xml, from the record). */
-static int known_category(const Instance *c, const char *name)
+/* The place of ``name`` among the FMU's LogCategories (modelDescription.xml, from the
+ * record), or -1. */
+static int category_index(const Instance *c, const char *name)
 {
     size_t length = strlen(name);
-    for (const char *at = c->record.log_categories; *at;) {
+    int index = 0;
+    for (const char *at = c->record.log_categories; *at; index++) {
         size_t n = strcspn(at, ",");
-        if (n == length && !strncmp(at, name, n)) return 1;
+        if (n == length && !strncmp(at, name, n)) return index;
         at += n + (at[n] == ',');
     }
-    return 0;
+    return -1;
+}
+
+void debug_categories(const Instance *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int index = 0;
+    out[0] = '\0';
+    for (const char *at = c->record.log_categories; *at; index++) {
+        size_t n = strcspn(at, ",");
+        int on = c->logging || (index < 64 && (c->debugged >> index & 1));
+        if (on && used + n + 2 <= size) {
+            if (used) out[used++] = ',';
+            memcpy(out + used, at, n);
+            used += n;
+            out[used] = '\0';
+        }
+        at += n + (at[n] == ',');
+    }
+}
+
+/* The slave told which categories' debug messages pass, if anything is on or it was
+ * told before (``told``); fmi2OK when there is nothing to tell. */
+static fmi2Status tell_debug(Instance *c, int told)
+{
+    if (!told && !c->logging && !c->debugged) return fmi2OK;
+    return c->backend->debug ? c->backend->debug(c) : fmi2OK;
 }
 
 /* FMI 2.0 (2.1.5): with categories, debug logging is on for those only. The runtime's
@@ -836,11 +872,13 @@ FMI2_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean 
     c->logged = fmi2OK;
     NEED(categories, "category array", "fmi2SetDebugLogging");
     int all = n == 0;
+    unsigned long long named = 0;
     for (size_t i = 0; i < n; i++) {
         if (!categories[i]) {
             return refuse(c, "fmi2SetDebugLogging refused: category %zu is NULL", i);
         }
-        if (!known_category(c, categories[i])) {
+        int index = category_index(c, categories[i]);
+        if (index < 0) {
             size_t n_shown = 0; /* its first 64 bytes at most, whole characters */
             while (n_shown < 64 && categories[i][n_shown]) n_shown++;
             int shown = (int)whole_characters(categories[i], n_shown);
@@ -849,9 +887,11 @@ FMI2_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean 
                           c->record.log_categories);
         }
         all = all || !strcmp(categories[i], "logAll");
+        if (index < 64) named |= 1ULL << index; /* past 64: with every category only */
     }
     c->logging = loggingOn && all;
-    return fmi2OK;
+    c->debugged = loggingOn ? named : 0;
+    return tell_debug(c, 1);
 }
 
 /* ---- the call sequence -------------------------------------------------------------- */
@@ -1004,6 +1044,7 @@ FMI2_EXPORT fmi2Status fmi2Reset(fmi2Component component)
         c->stop = (double)INFINITY;
         c->discarded = 0;
         reset_values(c);
+        tell_debug(c, 0); /* the new slave */
     }
     return s;
 }

@@ -144,6 +144,7 @@ typedef struct {
     char resources[PATH_SIZE]; /* a path, decoded from the host's URI */
     Record record;
     int phase, logging, visible;
+    unsigned long long debugged; /* bit i: debug messages of LogCategories[i] pass */
     double time;       /* s: the start time, then the end of the last step */
     double stop;       /* s: setupExperiment's stopTime, INFINITY when it defines none */
     unsigned long writes;   /* values set (fmi2Set*, derivatives, states): counts changes */
@@ -180,6 +181,8 @@ struct Backend {
     fmi2Status (*state_from_bytes)(Instance *, const fmi2Byte *, size_t, void **state);
     fmi2Status (*derivatives)(Instance *, const fmi2ValueReference *, size_t,
                               const fmi2Integer *, const fmi2Real *);
+    /* tell the slave the categories whose debug messages pass (debug_categories) */
+    fmi2Status (*debug)(Instance *);
 };
 
 extern const Backend python_backend;    /* slave.c */
@@ -188,6 +191,10 @@ extern const Backend pythonfmu_backend; /* forward.c */
 /* loader.c: one message to the host's logger (``message`` is passed as the printf format,
  * so a literal % must come doubled), remembered as the call's worst status. */
 void instance_log(Instance *c, fmi2Status status, const char *category, const char *message);
+/* loader.c: the categories whose debug (fmi2OK) messages reach the host, comma-separated
+ * into ``out`` ("" for none): every declared one with logging on for all, else those
+ * fmi2SetDebugLogging named. */
+void debug_categories(const Instance *c, char *out, size_t n);
 /* printf-style: one Error line (its % escaped for the host); returns fmi2Error. */
 fmi2Status refuse(Instance *c, const char *format, ...)
     __attribute__((format(printf, 2, 3)));

@@ -325,9 +325,25 @@ static fmi2Status derivatives(Instance *c, const fmi2ValueReference vr[], size_t
     return fmi2OK;
 }
 
+/* The slave's set_debug_logging with the categories whose debug messages pass: it then
+ * formats those only (fmu_runtime/safe_slave.py). */
+static fmi2Status debug(Instance *c)
+{
+    char names[sizeof c->record.log_categories];
+    debug_categories(c, names, sizeof names);
+    int gil;
+    if (!slave_enter(c, "fmi2SetDebugLogging", &gil)) return fmi2Error;
+    PyObject *items[] = {py.Unicode_FromString(names)};
+    PyObject *result = slave_invoke(c, (PyObject *)c->slave, "set_debug_logging",
+                                    slave_pack(1, items), "fmi2SetDebugLogging");
+    slave_release(result);
+    slave_leave(c, gil);
+    return result ? fmi2OK : fmi2Error;
+}
+
 const Backend python_backend = {
     start,       stop,      setup,      enter_initialization, exit_initialization,
     step,        terminate, reset,      get,                  set,
     slave_save,  slave_restore, slave_discard, slave_state_bytes, slave_state_from_bytes,
-    derivatives,
+    derivatives, debug,
 };
