@@ -373,6 +373,7 @@ def _study(args: argparse.Namespace) -> int:
                     progress=_progress_bar(args),
                     overlay=args.overlay,
                     max_runs=max_runs,
+                    fmu_log=_fmu_logs(args.fmu_log or []),
                 )
     except StudyStopped as stop:
         print(f"auv-cosim sweep: {stop}", file=sys.stderr)
@@ -920,6 +921,15 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
         help="draw N runs spread over the study in overlay.rrd (instead of the file's overlay)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--fmu-log",
+        type=_fmu_log_arg,
+        action="append",
+        metavar="INSTANCE[:CATEGORY,...]",
+        help="turn the instance's debug logging on in every run (as `run --fmu-log`) and "
+        "write each run's messages to runs/<run id>/fmu-log.txt in the study folder; "
+        "repeat it for another instance (docs/studies.md)",
+    )
     p.set_defaults(func=_study)
 
 

@@ -403,7 +403,7 @@ def _checked_scenario(
             names=options.names,
         )
     if options.fmu_log:
-        scenario = _with_fmu_log(scenario, options)
+        scenario = with_fmu_log(scenario, options.fmu_log, options.names)
     if options.check_step:
         from cosim.engine.step_check import not_checkable
 
@@ -428,14 +428,16 @@ def _checked_scenario(
     return scenario
 
 
-def _with_fmu_log(scenario: Scenario, options: RunOptions) -> Scenario:
-    """The scenario with the debug logging ``options.fmu_log`` asks for; an instance it
-    does not have, or a category its FMU does not declare, refused naming the option."""
+def with_fmu_log(
+    scenario: Scenario, logs: Mapping[str, tuple[str, ...]], names: OptionNames = FLAGS
+) -> Scenario:
+    """The scenario with the debug logging ``logs`` asks for (instance -> categories,
+    none: every one: ``--fmu-log``); an instance it does not have, or a category its FMU
+    does not declare, refused naming the option as ``names`` gives it."""
     from cosim.scenario.spec import log_category_problem
 
-    logs = options.fmu_log or {}
     for name, categories in logs.items():
-        given = options.names.given("fmu_log", ":".join((name, ",".join(categories))).rstrip(":"))
+        given = names.given("fmu_log", ":".join((name, ",".join(categories))).rstrip(":"))
         instance = scenario.instances.get(name)
         if instance is None:
             raise CosimError(

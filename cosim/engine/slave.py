@@ -18,8 +18,9 @@ import os
 import shutil
 import sys
 import tempfile
+import threading
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree
@@ -285,9 +286,44 @@ def _log(env: int | None, _name: bytes, status: int, category: bytes, message: b
             _show(f"{slave.name}: [{label}] {kind}: {text}")
 
 
+DEBUG_LINES_KEPT = 10_000  # debug-log lines a collected run keeps (collect_debug_log)
+
+
+class _Collected(threading.local):
+    lines: list[str] | None = None  # this thread's run's debug log, while collected
+    dropped = 0  # lines past DEBUG_LINES_KEPT
+
+
+_collected = _Collected()
+
+
+@contextlib.contextmanager
+def collect_debug_log() -> Iterator[list[str]]:
+    """Collect the debug-log lines of the runs this thread makes inside the block into
+    the list yielded, instead of showing them on stderr (a study's run, whose stderr is a
+    worker's). The first :data:`DEBUG_LINES_KEPT` are kept, then one line saying how
+    many more there were. The FMUs log on the thread that calls them."""
+    lines: list[str] = []
+    _collected.lines, _collected.dropped = lines, 0
+    try:
+        yield lines
+    finally:
+        if _collected.dropped:
+            lines.append(f"({_collected.dropped} more lines of the debug log left out)")
+        _collected.lines, _collected.dropped = None, 0
+
+
 def _show(line: str) -> None:
     """One debug-log line on stderr, above a progress bar if one is drawn (tqdm's write
-    clears the bar, writes and draws it again)."""
+    clears the bar, writes and draws it again), or into the collected lines
+    (:func:`collect_debug_log`)."""
+    lines = _collected.lines
+    if lines is not None:
+        if len(lines) < DEBUG_LINES_KEPT:
+            lines.append(line)
+        else:
+            _collected.dropped += 1
+        return
     from tqdm import tqdm
 
     tqdm.write(line, file=sys.stderr)

@@ -71,6 +71,7 @@ from cosim.study.statistics import write_statistics
 from cosim.study.table import CSV_NAME, PARQUET_NAME, PLACE, TAIL, RunsTable
 from cosim.study.task import (
     COUPLING_ERROR,
+    FMU_LOG_FILE,
     Base,
     Doubts,
     RunRecord,
@@ -132,13 +133,16 @@ def run_study(
     max_runs: int = MAX_RUNS,
     label: str | None = None,
     names: OptionNames = FLAGS,
+    fmu_log: Mapping[str, tuple[str, ...]] | None = None,
 ) -> StudyOutcome:
     """Run the study (or what a killed one left, with ``resume``) into ``out_dir``
     (default ``studies/<study file name>``). ``overlay``: draw that many runs, spread over
     the study, in overlay.rrd (instead of the study file's ``overlay``); a study of more
     than ``max_runs`` runs is refused before any is built; ``label`` names the study in a
     refusal (default: :func:`~cosim.study.spec.study_label`) and ``names`` its options
-    (the command's flags, or the API's keywords). Raises :class:`StudyError`
+    (the command's flags, or the API's keywords); ``fmu_log`` turns instances' debug
+    logging on (instance -> categories, none: every one), each run's log written to its
+    folder's fmu-log.txt (docs/studies.md). Raises :class:`StudyError`
     (a CosimError) for a study that cannot run; failed runs are rows of the table."""
     started = time.perf_counter()
     if cluster.scheduler is not None:
@@ -148,7 +152,9 @@ def run_study(
     spec = load_study(study_file, label := label or study_label(study_file))
     check_size(spec, label, max_runs, names)
     scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
-    base, facts = prepare(scenario_ref, spec.stop_time, fmu_dir, spec.check_step, study_file.parent)
+    base, facts = prepare(
+        scenario_ref, spec.stop_time, fmu_dir, spec.check_step, study_file.parent, fmu_log, names
+    )
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     metrics = _metrics(spec, facts)
     runs = _checked_plan(spec, base, factors, facts)
@@ -293,7 +299,8 @@ def _execute(
         drawing.unfinished(left)
         table.append(run, record)
         failed += record.status != "complete"
-        if spec.keep == "all" or (spec.keep == "failed" and record.status != "complete"):
+        kept = spec.keep == "all" or (spec.keep == "failed" and record.status != "complete")
+        if kept or FMU_LOG_FILE in record.files:  # a run's debug log: its folder, kept or not
             text = scenario_text(base, factors, run.values)
             study_folder.keep_run(out_dir, run.id, text, record.files, record.error)
         if bar is not None:
@@ -657,13 +664,23 @@ def _identity(spec: StudySpec, base: Base) -> dict[str, Any]:
     return {
         # without check_step the identity of a study written before it existed
         "study": spec.model_dump(mode="json", exclude=_NOT_IDENTITY[spec.check_step]),
-        "scenario": dict(base.data),
+        "scenario": _without_debug_logging(base.data),
         "fmus": {
             name: hashlib.sha256(path.read_bytes()).hexdigest()
             for name, path in base.fmu_paths.items()
         },
         "files": dict(base.files),
     }
+
+
+def _without_debug_logging(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The scenario's data without its instances' debug-log keys: a debug log changes no
+    row, so a study resumes with or without ``--fmu-log``."""
+    instances = {
+        name: {k: v for k, v in table.items() if k not in ("debug_logging", "log_categories")}
+        for name, table in data.get("instances", {}).items()
+    }
+    return {**data, "instances": instances} if instances else dict(data)
 
 
 def _runs(count: int) -> str:

@@ -29,13 +29,14 @@ from typing import Any
 import tomli_w
 
 from cosim.engine.adaptive import points_step
+from cosim.engine.slave import collect_debug_log
 from cosim.engine.step_check import not_checkable
-from cosim.errors import CosimError
+from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.fmus.interface import check_own_packages
 from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
-from cosim.runner import run_scenario
+from cosim.runner import run_scenario, with_fmu_log
 from cosim.scenario.design_doubts import DesignWarning, design_doubts
 from cosim.scenario.mission_doubts import mission_doubts
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
@@ -46,6 +47,7 @@ from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, appl
 from cosim.study.spec import StudyError
 
 KEEP_FILES = ("results", "summary")  # run_scenario outputs a kept run folder receives
+FMU_LOG_FILE = "fmu-log.txt"  # a run's debug log (docs/studies.md): its folder, kept or not
 # A metric's estimated coupling error (Richardson from h, h/2, h/4: docs/coupling.md), in
 # the metric's unit, is the column named this prefix + the metric's name
 COUPLING_ERROR = "coupling_error."
@@ -71,7 +73,7 @@ class RunRecord:
     metrics: Mapping[str, float | None]  # empty if failed
     wall_clock_s: float  # the whole task: set-up, stepping loop, outputs
     loop_s: float  # the stepping loop alone (0 if it never started)
-    files: Mapping[str, bytes] = field(default_factory=dict)  # file name -> content
+    files: Mapping[str, bytes] = field(default_factory=dict)  # file name -> content (kept)
     no_room: bool = False  # it failed because a disk had no room for its files (no_room)
 
 
@@ -92,17 +94,22 @@ def prepare(
     fmu_dir: Path,
     check_step: bool = False,
     folder: Path | None = None,
+    fmu_log: Mapping[str, tuple[str, ...]] | None = None,
+    names: OptionNames = FLAGS,
 ) -> tuple[Base, ScenarioFacts]:
     """Load the scenario (built-in FMUs built into ``fmu_dir`` if needed) and read what
     the study checks its factors and metrics against; ``check_step`` adds the coupling
     error metrics; a factor's value naming a file (a vehicle set) is relative to
-    ``folder``, the study file's (the working directory without one). Raises
+    ``folder``, the study file's (the working directory without one); ``fmu_log`` turns
+    instances' debug logging on (``sweep --fmu-log``, as ``names`` gives it). Raises
     ``CosimError`` (with ``check_step``, a scenario whose error cannot be
     estimated: adaptive, or with a noise or dropout fault; an FMU built by an older
     auv-cosim that no run could load: :func:`cosim.fmus.interface.check_own_packages`)."""
     scenario = load_scenario(scenario_ref, fmu_dir=fmu_dir)
     if stop_time is not None:
         scenario = scenario.with_overrides(stop_time=stop_time)
+    if fmu_log:
+        scenario = with_fmu_log(scenario, fmu_log, names)
     for inst in scenario.instances.values():
         check_own_packages(inst.fmu_path)  # every run would fail on it: refused at once
     reason = not_checkable(scenario) if check_step else None
@@ -217,31 +224,36 @@ def run_one(
     metrics: dict[str, float | None] = {}
     files: dict[str, bytes] = {}
     loop_s = 0.0
-    try:
-        scenario = _scenario(base, fmu_paths, factors, values, carried)
-        # in the process's scratch folder, which the next process removes if this one is
-        # killed mid-run (cosim.scratch)
-        with tempfile.TemporaryDirectory(prefix="auv-cosim-run-", dir=process_folder()) as tmp:
-            outcome = run_scenario(
-                scenario,
-                Path(tmp),
-                no_rrd=True,
-                tail_guard=False,
-                check_step=check_step,
-                unit_doubts=False,
-                results_csv=keep != "none",
-            )
-            result = outcome.result
-            error = None if result.complete else result.error or "the run stopped early"
-            if keep == "all" or (keep == "failed" and error is not None):
-                files = {outcome.paths[k].name: outcome.paths[k].read_bytes() for k in KEEP_FILES}
-            if error is None:
-                metrics = _metrics(json.loads(outcome.paths["summary"].read_text("utf-8")))
-        loop_s = result.wall_clock_s
-    except CosimError as exc:
-        error = str(exc)
-    except Exception as exc:  # any other failure is this run's, not the study's
-        error = f"{type(exc).__name__}: {exc}"
+    # the debug log collected, not shown on a worker's stderr: the run's folder
+    with collect_debug_log() as debug_log:
+        try:
+            scenario = _scenario(base, fmu_paths, factors, values, carried)
+            # in the process's scratch folder, which the next process removes if this one is
+            # killed mid-run (cosim.scratch)
+            with tempfile.TemporaryDirectory(prefix="auv-cosim-run-", dir=process_folder()) as tmp:
+                outcome = run_scenario(
+                    scenario,
+                    Path(tmp),
+                    no_rrd=True,
+                    tail_guard=False,
+                    check_step=check_step,
+                    unit_doubts=False,
+                    results_csv=keep != "none",
+                )
+                result = outcome.result
+                error = None if result.complete else result.error or "the run stopped early"
+                if keep == "all" or (keep == "failed" and error is not None):
+                    paths = [outcome.paths[k] for k in KEEP_FILES]
+                    files = {path.name: path.read_bytes() for path in paths}
+                if error is None:
+                    metrics = _metrics(json.loads(outcome.paths["summary"].read_text("utf-8")))
+            loop_s = result.wall_clock_s
+        except CosimError as exc:
+            error = str(exc)
+        except Exception as exc:  # any other failure is this run's, not the study's
+            error = f"{type(exc).__name__}: {exc}"
+    if debug_log:
+        files[FMU_LOG_FILE] = "".join(f"{line}\n" for line in debug_log).encode()
     status = "complete" if error is None else "failed"
     error = None if error is None else " ".join(error.split())  # one line in the table
     took = time.perf_counter() - started
