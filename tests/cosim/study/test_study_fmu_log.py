@@ -42,6 +42,9 @@ def test_each_runs_debug_log_lands_in_its_folder(
         assert all(line.startswith("controller: [OK] logAutopilotLimits: t = ") for line in lines)
         assert "mass_position_cmd reached its limit" in lines[0], lines
     assert "logAutopilotLimits" not in capfd.readouterr().err
+    # the debug log changes no row: the same study resumes without the flag
+    sweep(study, out, fmu_dir, "--workers", "1", "--resume")
+    assert table(out) == rows
 
 
 @pytest.mark.parametrize(
