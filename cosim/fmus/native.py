@@ -213,13 +213,15 @@ def compile_command(
 
 def compile_runtime(chain: Toolchain, out: Path, platform: str = "linux64") -> str | None:
     """Compile the runtime for ``platform`` into ``out``; None if it worked, else the
-    compiler's last line."""
+    compiler's first error line (file, line and what is wrong; GCC, clang and zig end
+    theirs with the code and a caret), or its last line when none says "error"."""
     command = compile_command(chain, out, platform=platform)
     done = subprocess.run(command, capture_output=True, text=True, check=False)
     if done.returncode == 0 and out.is_file():
         return None
-    lines = (done.stderr or done.stdout or f"exit code {done.returncode}").strip().splitlines()
-    return lines[-1] if lines else f"exit code {done.returncode}"
+    lines = (done.stderr or done.stdout or "").strip().splitlines()
+    errors = [line.strip() for line in lines if "error" in line.lower()]
+    return (errors or lines or [f"exit code {done.returncode}"])[0 if errors else -1]
 
 
 def variables_table(model_description: bytes) -> str:

@@ -134,6 +134,26 @@ def test_the_runtime_compiles_with_cc_without_a_warning(tmp_path):
     assert done.stderr == ""
 
 
+def test_a_runtime_that_does_not_compile_is_named_by_the_compilers_error_line(
+    monkeypatch, tmp_path
+):
+    """A C source that did not compile was reported by the compiler's last line, GCC's
+    caret under the code ("the runtime did not compile (      |          ^)"): the line
+    that says what is wrong, with its file and line, is the one a developer needs."""
+    chain = native.toolchain()
+    if chain is None:
+        pytest.skip("no C compiler")
+    broken = tmp_path / "broken.c"
+    broken.write_text("int broken(void) { return }\n", encoding="utf-8")
+    monkeypatch.setattr(
+        native,
+        "compile_command",
+        lambda chain, out, platform="linux64": [*chain.command, "-c", str(broken), "-o", str(out)],
+    )
+    problem = native.compile_runtime(chain, tmp_path / "runtime.so")
+    assert problem is not None and "broken.c:1:" in problem and "error" in problem, problem
+
+
 # The functions an FMI 2.0 co-simulation FMU exports (FMI 2.0.x standard, section 2.1 and
 # 4.2: the common functions, the functions for FMU states and partial derivatives, and the
 # co-simulation functions). Nothing else may be exported: a DLL exports what it is told.
