@@ -51,6 +51,7 @@ from cosim.study.execution import (
     open_client,
 )
 from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, resolve_factor
+from cosim.study.fmu_store import kept_unpacked
 from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
 from cosim.study.plots import default_metrics, figure_alts, plotted_metrics, write_figures
@@ -338,12 +339,17 @@ class _Session:
         self.folder: Path | None = None  # the FMUs extracted for a local cluster
 
     def unpacked(self, base: Base) -> dict[str, str]:
-        """A local cluster's FMUs extracted here, once, for all its workers (in a folder
-        removed with the session, or by the next process if this one is killed:
-        :mod:`cosim.scratch`; :mod:`cosim.study.unpacked`), while the cluster may
-        still be starting; none for a remote cluster, whose workers extract their own."""
+        """A local cluster's FMUs extracted here, once, for all its workers, while the
+        cluster may still be starting: kept for later studies of the same FMUs
+        (:mod:`cosim.study.fmu_store`), or where they cannot be, in a folder removed with
+        the session, or by the next process if this one is killed (:mod:`cosim.scratch`;
+        :mod:`cosim.study.unpacked`); none for a remote cluster, whose workers extract
+        their own."""
         if self.cluster.scheduler is not None:
             return {}
+        kept = kept_unpacked(base.fmu_paths, self.stack)
+        if kept is not None:
+            return kept
         if self.folder is None:
             folder = tempfile.TemporaryDirectory(
                 prefix="auv-cosim-fmus-", dir=process_folder(), ignore_cleanup_errors=True
