@@ -50,6 +50,7 @@ KEPT = 4  # sets of FMUs kept (~5 MB each for bs-3's three)
 LOCK_SUFFIX = ".lock"
 NEW_PREFIX = ".new-"  # a set being extracted, renamed into place when whole
 OLD_PREFIX = ".old-"  # a set being removed
+LAYOUT = "unpacked-1"  # what a set's folder holds (cosim.study.unpacked): part of its name
 
 
 def store_folder() -> Path:
@@ -68,9 +69,9 @@ def kept_unpacked(fmu_paths: Mapping[str, Path], stack: ExitStack) -> dict[str, 
     if store.parent.name.startswith(TEMPORARY_CACHE_PREFIX):
         return None  # no cache folder of the user's own: a shared /tmp is no place to keep code
     try:
-        store.mkdir(parents=True, exist_ok=True)
+        store.mkdir(mode=0o700, parents=True, exist_ok=True)
         digests = sorted({hashlib.sha256(p.read_bytes()).hexdigest() for p in fmu_paths.values()})
-        key = hashlib.sha256(" ".join(digests).encode()).hexdigest()  # the set's, names aside
+        key = hashlib.sha256(" ".join([LAYOUT, *digests]).encode()).hexdigest()  # names aside
         lock = _shared_lock(store / f"{key}{LOCK_SUFFIX}")
     except OSError:
         return None
