@@ -60,8 +60,8 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import importlib
 import importlib.metadata
+import importlib.util
 import math
 import os
 import re
@@ -717,10 +717,15 @@ def pythonfmu_build(
 
 
 def _package_dir(package: str) -> Path:
-    module = importlib.import_module(package)
-    if module.__file__ is None:
+    """The folder of the installed package ``package``, found without importing it (every
+    run and study checks its FMUs are up to date: importing pythonfmu, its builder
+    included, cost ~0.03 s of CPU before the first step)."""
+    spec = importlib.util.find_spec(package)
+    if spec is None:
+        raise ModuleNotFoundError(f"No module named {package!r}", name=package)
+    if spec.origin is None or not spec.submodule_search_locations:
         raise CosimError(f"package {package!r} has no __init__.py: cannot locate its sources")
-    return Path(module.__file__).parent
+    return Path(spec.origin).parent
 
 
 def script_path(name: str) -> Path:

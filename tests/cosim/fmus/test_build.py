@@ -188,6 +188,24 @@ def test_two_builds_of_the_same_sources_have_the_same_guid_and_package(fmu_paths
     assert first == second
 
 
+UP_TO_DATE_CHECK = """
+import sys
+from pathlib import Path
+from cosim.fmus.build import build_fmu
+built = build_fmu("AuvPlant", Path(sys.argv[1]))
+print(sorted(m for m in sys.modules if m.split(".")[0] == "pythonfmu"))
+"""
+
+
+def test_checking_an_fmu_is_up_to_date_imports_no_pythonfmu(fmu_paths, run_python):
+    """Every run and study checks its FMUs are up to date before its first step; finding
+    the folder of each package the FMUs ship imported it, pythonfmu's builder with it
+    (~0.03 s of the client's CPU before a study's workers could run)."""
+    done = run_python(UP_TO_DATE_CHECK, fmu_paths["AuvPlant"].parent)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
 @pytest.mark.slow
 def test_up_to_date_fmu_is_reused_and_a_stale_one_rebuilt(fmu_paths, tmp_path):
     source = fmu_paths["AuvPlant"]
