@@ -3,10 +3,12 @@
 Each worker process extracted each FMU (~0.02 s). A local cluster's workers share the
 client's disk, so the client extracts each FMU (by content) into a folder of its own while
 it waits for its cluster to start (:func:`unpack`); each worker then uses that folder
-(:func:`use_unpacked`, from the study plugin's set-up). A worker elsewhere (a remote
-cluster) gets no folders and extracts its FMUs itself, as before. Our FMUs carry their
-code compiled (:mod:`cosim.fmus.bytecode`), so neither the client nor a worker compiles
-it (that was ~0.2 s of the client's CPU before its workers could start).
+(:func:`use_unpacked`, from the study plugin's set-up); that folder is kept for later
+studies of the same FMUs where it can be (:mod:`cosim.study.fmu_store`). A worker
+elsewhere (a remote cluster) gets no folders and extracts its FMUs itself, as before.
+Our FMUs carry their code compiled (:mod:`cosim.fmus.bytecode`), so neither the client
+nor a worker compiles it (that was ~0.2 s of the client's CPU before its workers could
+start).
 
 The client also leaves a copy of each FMU file beside its extraction (:func:`local_copy`),
 which a local worker loads instead of a copy of its own: the study plugin carried each
