@@ -36,6 +36,7 @@ from collections.abc import Mapping
 from contextlib import ExitStack, suppress
 from pathlib import Path
 
+from cosim.errors import CosimError
 from cosim.scratch import claim
 from cosim.study.unpacked import MODEL_DESCRIPTION, unpack
 from plant_fmu.model.jit import TEMPORARY_CACHE_PREFIX, default_cache_dir
@@ -61,8 +62,8 @@ def store_folder() -> Path:
 def kept_unpacked(fmu_paths: Mapping[str, Path], stack: ExitStack) -> dict[str, str] | None:
     """:func:`cosim.study.unpacked.unpack` of ``fmu_paths`` into the store (extracting
     only a set not kept yet), the set locked for as long as ``stack`` lasts; None where the
-    store cannot be used (then the caller extracts into a folder of its own). An FMU
-    refused by the extraction raises as :func:`~cosim.study.unpacked.unpack` does."""
+    store cannot be used, or cannot hold the set (then the caller extracts into a folder
+    of its own, which refuses an FMU as :func:`~cosim.study.unpacked.unpack` does)."""
     if fcntl is None:
         return None
     store = store_folder()
@@ -80,7 +81,7 @@ def kept_unpacked(fmu_paths: Mapping[str, Path], stack: ExitStack) -> dict[str, 
     if not entry.is_dir():
         try:
             _extract_set(fmu_paths, store, entry)
-        except OSError:  # the cache folder full, say: the study's own folder may not be
+        except (OSError, CosimError):  # the cache's disk full, say: the study's may not be
             return None
     found = {digest: (entry / digest).resolve() for digest in digests}
     if not all((folder / MODEL_DESCRIPTION).is_file() for folder in found.values()):

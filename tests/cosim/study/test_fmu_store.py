@@ -6,10 +6,12 @@ copy, and at most KEPT sets are kept."""
 from __future__ import annotations
 
 import os
+import shutil
 import zipfile
 from contextlib import ExitStack
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import pytest
 
@@ -122,3 +124,25 @@ def test_without_flock_a_study_extracts_into_its_own_folder(
         assert session.folder is not None
         assert all(Path(f).parent == session.folder for f in found.values())
     assert not store_folder().exists()
+
+
+def test_a_cache_without_room_for_the_set_leaves_the_study_its_own_folder(
+    fmu_paths, cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The cache's disk too full for the set is no reason to refuse a study whose own
+    temporary folder has room: it extracts there, and leaves nothing in the cache."""
+    usage = shutil.disk_usage
+
+    def full_cache(path: str | Path) -> Any:
+        found = usage(path)
+        return found._replace(free=1024) if Path(path).is_relative_to(cache) else found
+
+    monkeypatch.setattr(shutil, "disk_usage", full_cache)
+    base = SimpleNamespace(fmu_paths={"plant": fmu_paths["AuvPlant"]})
+    with ExitStack() as stack:
+        session = _local_session(stack)
+        found = session.unpacked(base)  # type: ignore[arg-type]
+        assert session.folder is not None
+        assert all(Path(f).parent == session.folder for f in found.values())
+        assert all((Path(f) / "modelDescription.xml").is_file() for f in found.values())
+    assert not [p for p in store_folder().iterdir() if p.is_dir()]
