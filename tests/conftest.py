@@ -22,6 +22,13 @@ Python runner.
   timer is paused meanwhile (a Windows CPython set up under Wine took 498 s at load 20,
   and the test then timed out through no fault of its own), and the set-up has a limit
   of its own, the ini option ``fixture_setup_timeout`` (s, 1800 unless told; 0: none).
+* Every test (an autouse guard) fails at its teardown, naming what it left, if it leaves
+  its pytest process with a stop signal's handler, SIGCHLD's or SIGPIPE's changed, a
+  signal newly ignored or blocked (every process started later inherits those: a Ctrl-C
+  test's child once ignored Ctrl-C and timed out), or a child process still running 5 s
+  after it ended (``tests/process_state.py``); the signals are then put back and the
+  children killed, so that the tests after it are not blamed too. ``--leak-check`` lists
+  more of what each test leaves behind (``tests/leak_check.py``).
 * ``run_python`` (session): ``run_python(code, *args, timeout=300)`` runs ``code`` with
   this interpreter in a fresh process (``sys.argv[1:] == args``) and returns the
   ``subprocess.CompletedProcess`` (text mode, stdout/stderr captured), in a process group
@@ -36,12 +43,14 @@ from __future__ import annotations
 import contextlib
 import multiprocessing.util
 import os
+import re
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
 import textwrap
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -49,6 +58,7 @@ import pytest
 from deadline import deadline
 from hypothesis import settings
 from process_group import run_in_group
+from process_state import WATCHED_SIGNALS, child_processes, signal_changes, signal_state
 
 import cosim
 from cosim.errors import CosimError
@@ -95,6 +105,43 @@ def session_tmpdir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
                 shutil.rmtree(entry, ignore_errors=True)
             else:
                 entry.unlink(missing_ok=True)
+
+
+CHILDREN_GRACE = 5.0  # s a test's child processes have to end after its teardown
+# the standard library's helpers, the process's rather than a test's (docs/api.md): the fork
+# server a local study's workers come from, kept for the next study, and its resource tracker
+PROCESS_HELPERS = re.compile(r"from multiprocessing\.(forkserver|resource_tracker) import main")
+
+
+@pytest.fixture(autouse=True)
+def _leaves_no_signal_state_nor_child() -> Iterator[None]:
+    """The guard of the module's docstring: set up before the test's other function-scoped
+    fixtures, torn down after them."""
+    handlers = {name: signal.getsignal(getattr(signal, name)) for name in WATCHED_SIGNALS}
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    signals, children = signal_state(), child_processes()
+    yield
+    left = signal_changes(signals, signal_state())
+    ends = time.monotonic() + CHILDREN_GRACE
+    while _new_children(children) and time.monotonic() < ends:
+        time.sleep(0.05)
+    alive = _new_children(children)
+    left += [f"child process {pid} running: {command}" for pid, command in alive.items()]
+    if not left:
+        return
+    for name, handler in handlers.items():
+        if handler is not None:  # None: not set from Python, nothing to put back
+            signal.signal(getattr(signal, name), handler)
+    signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+    for pid in alive:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    pytest.fail("the test left " + "; ".join(left), pytrace=False)
+
+
+def _new_children(before: dict[int, str]) -> dict[int, str]:
+    found = child_processes()
+    return {p: c for p, c in found.items() if p not in before and not PROCESS_HELPERS.search(c)}
 
 
 @pytest.fixture(scope="session")
@@ -171,6 +218,17 @@ FIXTURE_SETUP_TIMEOUT = "1800"  # s
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addini("fixture_setup_timeout", "s a fixture's set-up may take (0: no limit)",
                   default=FIXTURE_SETUP_TIMEOUT)  # fmt: skip
+    parser.addoption("--leak-check", action="store_true",
+                     help="list what each test leaves behind (tests/leak_check.py)")  # fmt: skip
+    parser.addoption("--leak-report", metavar="FILE",
+                     help="with --leak-check: append the leaks to FILE (JSON lines)")  # fmt: skip
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if config.getoption("--leak-check"):
+        import leak_check
+
+        leak_check.register(config)
 
 
 @pytest.hookimpl(hookwrapper=True)
