@@ -170,7 +170,9 @@ def test_an_unwritable_cache_folder_is_warned_of_once_a_process(monkeypatch, tmp
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         copies.append(module)
-    monkeypatch.delenv("AUV_COSIM_NUMBA_CACHE_WARNED", raising=False)  # restored after it
+    # no folder warned of yet; set, not deleted, so that monkeypatch removes what the
+    # warning sets (a variable deleted while unset is not recorded, and stayed set)
+    monkeypatch.setenv("AUV_COSIM_NUMBA_CACHE_WARNED", "")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         problems = [copy.cache_problem() for copy in copies]
