@@ -32,6 +32,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import json
+import multiprocessing.process
 import os
 import sys
 import tempfile
@@ -68,13 +69,15 @@ def _entries(folder: Path) -> set[str]:
 def snapshot() -> dict[str, Any]:
     """What the plugin compares, now."""
     folders = {Path(tempfile.gettempdir()), STARTING_TMPDIR}
+    # this process's own folder of multiprocessing, which goes as the process ends
+    own = getattr(multiprocessing.process.current_process(), "_config", {}).get("tempdir")
     return {
         "signals": signal_state(),
         "children": child_processes(),
         "threads": {t.ident: t.name for t in threading.enumerate()},
         "native_threads": len(os.listdir("/proc/self/task")),
         "fds": _fds(),
-        "temporary": set().union(*map(_entries, folders)),
+        "temporary": set().union(*map(_entries, folders)) - {own},
         "environ": dict(os.environ),
         "cwd": os.getcwd(),
     }
@@ -154,14 +157,14 @@ class LeakCheck:
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         if report.when == "teardown" and os.environ.get("PYTEST_XDIST_WORKER") is None:
             for key, record in report.user_properties:
-                if key == KEY and record not in self.found:
+                if key == KEY and isinstance(record, dict) and record not in self.found:
                     self.found.append(record)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if not self.found:
             terminalreporter.write_sep("=", "leak check: no test left anything behind")
             return
-        terminalreporter.write_sep("=", f"leak check: {len(self.found)} tests left something")
+        terminalreporter.write_sep("=", f"leak check: {len(self.found)} records of changes")
         for record in self.found:
             terminalreporter.write_line(json.dumps(record, default=sorted, indent=1))
 
