@@ -25,12 +25,12 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from process_group import run_in_group
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCUMENTS = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -140,8 +140,9 @@ def _run_examples(document: Path, workdir: Path) -> tuple[int, list[str]]:
             command = ["bash", "-euo", "pipefail", "-c", block.code]
         else:
             pytest.fail(f"{block.id}: cannot run a {block.language!r} block")
-        done = subprocess.run(command, cwd=workdir, env=_environment(), capture_output=True,
-                              text=True, timeout=600, check=False)  # fmt: skip
+        # in a process group of its own, ended as it returns or times out: what an
+        # example starts (a study's Dask workers, a viewer) does not outlive it
+        done = run_in_group(command, timeout=600, cwd=workdir, env=_environment())
         library = MISSING_LIBRARY.search(done.stderr) if done.returncode != 0 else None
         if library is not None:
             missing.append(f"{block.id} needs {library.group(1)}, not installed here")
