@@ -7,9 +7,12 @@ Around each test (from before its set-up to the end of its teardown) it compares
 * the dispositions of SIGINT, SIGTERM, SIGHUP, SIGCHLD and SIGPIPE (``signal.getsignal``)
   and the process's ignored and blocked signals (``SigIgn`` and ``SigBlk`` of
   ``/proc/self/status``): an ignored signal is inherited by every process started later;
-* the child processes still alive (``/proc/<pid>/task/<tid>/children``, recursively; the
-  plugin makes the pytest process a child subreaper, so that a grandchild whose parent
-  ended is reparented to it and still counted, not to init);
+* the processes still alive: this process's descendants
+  (``/proc/<pid>/task/<tid>/children``, recursively), and any process, wherever it was
+  reparented, whose environment holds the test's mark (:data:`MARK`, set for the test's
+  length: the processes it starts inherit it unless given an environment of their own).
+  Not a child subreaper: a test waiting for an orphaned process group to end would wait
+  for zombies no one reaps;
 * the threads still alive (Python's by name, and the process's native count);
 * the open file descriptors;
 * the entries of the temporary folders: the one the session's tests get
@@ -29,8 +32,7 @@ lazily started library thread pool stays by design, a Dask cluster must not)."""
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
+import itertools
 import json
 import multiprocessing.process
 import os
@@ -43,9 +45,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from process_state import changed, child_processes, signal_changes, signal_state
+from process_state import changed, child_processes, running, signal_changes, signal_state
 
-PR_SET_CHILD_SUBREAPER = 36  # prctl(2)
+MARK = "AUV_COSIM_LEAK_CHECK"  # the environment variable marking a test's processes
 STARTING_TMPDIR = Path(tempfile.gettempdir())  # as pytest started: before session_tmpdir
 KEY = "leaks"  # the name of the user property carrying a test's differences
 
@@ -125,9 +127,6 @@ class LeakCheck:
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionstart(self) -> None:
-        with suppress(OSError, AttributeError):
-            libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
-            libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
         self.start = snapshot()
 
     @pytest.hookimpl(hookwrapper=True)
@@ -136,9 +135,12 @@ class LeakCheck:
         if fixturedef.scope != "function" and self.shared_fixtures is not None:
             self.shared_fixtures.append(f"set up {fixturedef.argname} ({fixturedef.scope})")
 
-    def compare(self, item: pytest.Item, before: dict[str, Any]) -> None:
-        """Records what ``item`` changed since ``before``, if anything."""
+    def compare(self, item: pytest.Item, before: dict[str, Any], marked: dict[int, str]) -> None:
+        """Records what ``item`` changed since ``before``, and ``marked``, the processes
+        it started still alive, if anything."""
         found = differences(before, snapshot())
+        if orphans := {str(p): c for p, c in marked.items() if p not in before["children"]}:
+            found["children"] = {**found.get("children", {}), **orphans}
         if found:
             record = {"test": item.nodeid, "worker": self.worker, **found}
             if self.shared_fixtures:
@@ -178,9 +180,29 @@ def _leak_check(request: pytest.FixtureRequest) -> Iterator[None]:
     torn down after them (before a shared one is finalized): the test's own changes."""
     state = request.config.stash[STATE]
     before = snapshot()
+    mark = f"{state.worker}-{os.getpid()}-{next(_tests)}"
+    os.environ[MARK] = mark
     state.shared_fixtures = []  # those set up by the test itself (getfixturevalue)
     yield
-    state.compare(request.node, before)
+    os.environ.pop(MARK, None)
+    state.compare(request.node, before, marked(mark))
+
+
+_tests = itertools.count()
+
+
+def marked(mark: str) -> dict[int, str]:
+    """``{pid: command line}`` of the live processes whose environment holds ``mark``."""
+    needle = f"{MARK}={mark}".encode() + b"\0"
+    found = {}
+    for name in os.listdir("/proc"):
+        if not name.isdigit() or int(name) == os.getpid():
+            continue
+        with suppress(OSError):
+            environ = Path(f"/proc/{name}/environ").read_bytes()
+            if needle in environ and (said := running(int(name))) is not None:
+                found[int(name)] = said
+    return found
 
 
 def register(config: pytest.Config) -> None:

@@ -66,19 +66,21 @@ def child_processes(pid: int | None = None) -> dict[int, str]:
                     children = Path(f"/proc/{parent}/task/{tid}/children").read_text()
                     todo.extend(map(int, children.split()))
                     found.update(dict.fromkeys(map(int, children.split()), ""))
-    for child in list(found):
-        try:
-            stat = Path(f"/proc/{child}/stat").read_text()
-            command = Path(f"/proc/{child}/cmdline").read_bytes().replace(b"\0", b" ")
-        except OSError:  # ended meanwhile
-            del found[child]
-            continue
-        state = stat.rpartition(")")[2].split()[0]
-        if state in ("Z", "X"):
-            del found[child]
-        else:
-            found[child] = f"[{state}] {command.decode(errors='replace').strip()[:160]}"
-    return found
+    return {child: said for child in found if (said := running(child)) is not None}
+
+
+def running(pid: int) -> str | None:
+    """``"[state] command line"`` of process ``pid``, None if it ended (or is a zombie,
+    ended and not yet waited for)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+        command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
+    except OSError:
+        return None
+    state = stat.rpartition(")")[2].split()[0]
+    if state in ("Z", "X"):
+        return None
+    return f"[{state}] {command.decode(errors='replace').strip()[:160]}"
 
 
 def changed(before: dict, after: dict) -> dict[str, str]:
