@@ -1077,10 +1077,16 @@ def _users_mypy(script_text: str, tmp_path: Path) -> tuple[str, int]:
     arguments = ["--strict", "--follow-imports", "silent", "--config-file", str(config)]
     arguments += ["--cache-dir", str(tmp_path / "cache"), str(script)]
     limit = sys.getrecursionlimit()
+    config_folder = os.environ.get("MYPY_CONFIG_FILE_DIR")
     try:
         out, err, status = api.run(arguments)
     finally:  # mypy raises it for good (2**14): a deeply nested TOML then reads as valid
         sys.setrecursionlimit(limit)  # in the tests that run after it in this process
+        # and sets MYPY_CONFIG_FILE_DIR to the folder of the config file it read
+        if config_folder is None:
+            os.environ.pop("MYPY_CONFIG_FILE_DIR", None)
+        else:
+            os.environ["MYPY_CONFIG_FILE_DIR"] = config_folder
     return out + err, status
 
 
