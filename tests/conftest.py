@@ -133,8 +133,10 @@ def _leaves_no_signal_state_nor_child() -> Iterator[None]:
         if handler is not None:  # None: not set from Python, nothing to put back
             signal.signal(getattr(signal, name), handler)
     signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
-    for pid in alive:
+    for pid in alive:  # with its process group, where it leads one
         with contextlib.suppress(OSError):
+            if os.getpgid(pid) == pid:
+                os.killpg(pid, signal.SIGKILL)
             os.kill(pid, signal.SIGKILL)
     pytest.fail("the test left " + "; ".join(left), pytrace=False)
 
