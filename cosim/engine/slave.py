@@ -40,6 +40,7 @@ from fmpy.fmi2 import (
 
 from cosim.engine.extrapolation import InputRates
 from cosim.errors import CosimError
+from cosim.fmus import native
 from cosim.fmus.interface import FmuInterfaceError, extract_fmu
 from cosim.scenario.spec import Instance
 from cosim.scratch import process_folder
@@ -138,6 +139,17 @@ class Slave:
         if self.state not in states:
             raise CosimError(f"{self.name}: FMI call out of order (in state {self.state!r})")
 
+    def _logging_on(self) -> bool:
+        """fmi2Instantiate's loggingOn: on where the instance's debug log is asked for, and
+        for an FMU without our runtime (pythonfmu's own binary, instantiated with logging
+        off, drops its warnings and errors too; its debug messages are dropped in
+        :func:`_log`). Our runtime passes warnings and errors either way, so our FMUs do no
+        debug work nobody reads (FMI 2.0, 2.1.5: every category is on with loggingOn)."""
+        from fmpy import platform
+
+        folder = Path(self.fmu.unzipDirectory)
+        return self.debug_logging is not None or not native.loader_in_folder(folder, platform)
+
     def load(self, stop_time: float) -> None:
         """instantiate (logging on), the instance's debug logging if the scenario turns it
         on (fmi2SetDebugLogging with its categories, FMI 2.0, 2.1.5: before
@@ -156,7 +168,7 @@ class Slave:
         # componentEnvironment the FMU passes back.
         addLoggerProxy(ctypes.byref(self.callbacks))
         _log_sinks[id(self)] = self
-        self.fmu.instantiate(callbacks=self.callbacks, loggingOn=True)
+        self.fmu.instantiate(callbacks=self.callbacks, loggingOn=self._logging_on())
         self.state = "instantiated"
         # any pythonfmu FMU, ours or not, can abort this process at exit: see exit_guard
         exit_guard.install(Path(self.fmu.unzipDirectory) / "resources")

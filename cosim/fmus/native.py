@@ -334,6 +334,14 @@ def _renamed(info: zipfile.ZipInfo, name: str) -> zipfile.ZipInfo:
     return copy
 
 
+def loader_in_folder(folder: Path, platform: str) -> bool:
+    """True if the FMU extracted in ``folder`` has the runtime as its ``platform`` binary
+    (:func:`loader_in` of its archive); False for a platform the runtime is not built for."""
+    suffix = SUFFIXES.get(platform)
+    binaries = folder / "binaries" / platform
+    return suffix is not None and any(binaries.glob(f"*{WRAPPER_SUFFIX}{suffix}"))
+
+
 def loader_in(fmu: Path, platform: str = "linux64") -> bool:
     """True if the FMU's ``platform`` binary is the runtime (pythonfmu's is beside it)."""
     wrapper = f"binaries/{platform}/"

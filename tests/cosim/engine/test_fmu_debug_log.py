@@ -220,3 +220,29 @@ def test_both_runtimes_show_the_same_debug_log(fmu_paths: dict[str, Path], tmp_p
         line[:3] == ("plant", "Warning", "logStatusWarning") and "compiled plant is off" in line[3]
         for line in shown[""]
     ), shown
+
+
+def test_a_run_asking_no_debug_log_gets_no_debug_message_from_our_fmus(
+    fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The master instantiated every FMU with logging on (pythonfmu's own binary drops even
+    its errors otherwise) and dropped their debug messages itself: our FMUs, whose runtime
+    passes warnings and errors whatever loggingOn says, did their debug work for nothing
+    (the autopilot checked its commands against their limits at every step: a 120 s bs-3
+    run's loop ~10 % slower). Unless a debug log is asked for, they are instantiated with
+    logging off and send no message at all on a quiet run."""
+    from cosim.engine import slave as slave_module
+    from cosim.scenario.spec import load_scenario
+
+    class Counting(dict):  # the logger looks each message's instance up here
+        messages = 0
+
+        def get(self, key: object, default: object = None) -> object:
+            Counting.messages += 1
+            return super().get(key, default)
+
+    monkeypatch.setattr(slave_module, "_log_sinks", Counting())
+    scenario = load_scenario("bs-3", fmu_dir=fmu_dir).with_overrides(stop_time=0.5)
+    result = master.run(scenario)
+    assert result.complete, result.error
+    assert Counting.messages == 0
