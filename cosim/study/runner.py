@@ -69,7 +69,7 @@ from cosim.study.spec import (
     study_label,
 )
 from cosim.study.statistics import write_statistics
-from cosim.study.table import CSV_NAME, PARQUET_NAME, PLACE, TAIL, RunsTable
+from cosim.study.table import CSV_NAME, PARQUET_NAME, PLACE, TAIL, Row, RunsTable
 from cosim.study.task import (
     COUPLING_ERROR,
     FMU_LOG_FILE,
@@ -146,10 +146,7 @@ def run_study(
     folder's fmu-log.txt (docs/studies.md). Raises :class:`StudyError`
     (a CosimError) for a study that cannot run; failed runs are rows of the table."""
     started = time.perf_counter()
-    if cluster.scheduler is not None:
-        check_scheduler(cluster.scheduler, cluster.security)
-    else:  # the local workers share this process's limits
-        check_local_study()
+    _check_cluster(cluster)
     spec = load_study(study_file, label := label or study_label(study_file))
     check_size(spec, label, max_runs, names)
     scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
@@ -189,18 +186,10 @@ def run_study(
                     exc.where = f"{kept} ({names.switch('resume')})"
                 raise
             with _kept_rows(csv_path, len(table.done), names):
-                unit_of = units([*spec.factors, *metrics], base.fmu_paths)
-                rows = table.finish(runs, unit_of)
-                if not entries:  # no overlay re-runs: the cluster closes while the page is made
-                    session.done()
-                paths = _tables(out_dir, spec, metrics, rows, unit_of)
-                drawing.wait()
-                # the overlay drawn now, or by an earlier session of this study (its runs
-                # are the table's: resumed without --overlay, the page still names it)
-                drawn = bool(entries) or (out_dir / OVERLAY_FILE).is_file()
-                paths["index"] = _write_report(
-                    out_dir, spec, base, factors, metrics, rows, overlay=drawn
-                )
+                rows, paths = _finish(
+                    out_dir, spec, base, factors, metrics, runs, table, session, drawing,
+                    overlay_runs=bool(entries),
+                )  # fmt: skip
             if entries:
                 paths["overlay"], warnings, again = _overlay(
                     out_dir, entries, base, factors, runs, rows, session, progress
@@ -211,6 +200,42 @@ def run_study(
         time.perf_counter() - started, paths, tuple(warnings), _first_failure(rows, spec.factors),
         again,
     )  # fmt: skip
+
+
+def _check_cluster(cluster: Cluster) -> None:
+    """Refuse a scheduler that cannot run the study, or a local study this process's
+    limits do not allow (the local workers share them)."""
+    if cluster.scheduler is not None:
+        check_scheduler(cluster.scheduler, cluster.security)
+    else:
+        check_local_study()
+
+
+def _finish(
+    out_dir: Path,
+    spec: StudySpec,
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    metrics: Sequence[str],
+    runs: list[PlannedRun],
+    table: RunsTable,
+    session: _Session,
+    drawing: Prefetch,
+    overlay_runs: bool,
+) -> tuple[list[Row], dict[str, Path]]:
+    """The finished table's rows, and the study's tables and page written; the cluster
+    closed while the page is made unless ``overlay_runs`` are still to run on it."""
+    unit_of = units([*spec.factors, *metrics], base.fmu_paths)
+    rows = table.finish(runs, unit_of)
+    if not overlay_runs:
+        session.done()
+    paths = _tables(out_dir, spec, metrics, rows, unit_of)
+    drawing.wait()
+    # the overlay drawn now, or by an earlier session of this study (its runs are the
+    # table's: resumed without --overlay, the page still names it)
+    drawn = overlay_runs or (out_dir / OVERLAY_FILE).is_file()
+    paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows, overlay=drawn)
+    return rows, paths
 
 
 def _tables(
