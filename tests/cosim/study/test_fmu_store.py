@@ -113,16 +113,22 @@ def _used_at(found: dict[str, str], second: int) -> None:
     os.utime(store_folder() / f"{key}.lock", ns=(second * 10**9, second * 10**9))
 
 
-def test_without_flock_a_study_extracts_into_its_own_folder(
-    fmu_paths, cache: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.setattr(fmu_store, "fcntl", None)
+def _extracts_into_its_own_folder(fmu_paths: dict[str, Path]) -> None:
+    """A local study's session extracts the plant into its own scratch folder, whole."""
     base = SimpleNamespace(fmu_paths={"plant": fmu_paths["AuvPlant"]})
     with ExitStack() as stack:
         session = _local_session(stack)
         found = session.unpacked(base)  # type: ignore[arg-type]
         assert session.folder is not None
         assert all(Path(f).parent == session.folder for f in found.values())
+        assert all((Path(f) / "modelDescription.xml").is_file() for f in found.values())
+
+
+def test_without_flock_a_study_extracts_into_its_own_folder(
+    fmu_paths, cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(fmu_store, "fcntl", None)
+    _extracts_into_its_own_folder(fmu_paths)
     assert not store_folder().exists()
 
 
@@ -138,11 +144,5 @@ def test_a_cache_without_room_for_the_set_leaves_the_study_its_own_folder(
         return found._replace(free=1024) if Path(path).is_relative_to(cache) else found
 
     monkeypatch.setattr(shutil, "disk_usage", full_cache)
-    base = SimpleNamespace(fmu_paths={"plant": fmu_paths["AuvPlant"]})
-    with ExitStack() as stack:
-        session = _local_session(stack)
-        found = session.unpacked(base)  # type: ignore[arg-type]
-        assert session.folder is not None
-        assert all(Path(f).parent == session.folder for f in found.values())
-        assert all((Path(f) / "modelDescription.xml").is_file() for f in found.values())
+    _extracts_into_its_own_folder(fmu_paths)
     assert not [p for p in store_folder().iterdir() if p.is_dir()]

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from chromium import CHROMIUM, overflow
 from page_structure import problems, read_page
+from report_figures import kept_figures
 
 from cosim.cli import main
 from cosim.errors import CosimError
@@ -466,7 +467,7 @@ def test_a_run_of_one_row_is_drawn_as_points(tmp_path, monkeypatch) -> None:
     run = tmp_path / "run"
     run.mkdir()
     (run / "results.csv").write_text("time,plant.u,plant.v\n0.0,1.5,-0.1\n")
-    kept = _kept_figures(run, monkeypatch)
+    kept = kept_figures(run, monkeypatch)
     lines = [
         line
         for ax in kept["velocities.png"].axes
@@ -675,26 +676,9 @@ def test_a_long_run_folder_name_does_not_make_a_phone_scroll_sideways(tmp_path: 
     assert overflow(page, tmp_path / "profile") == []
 
 
-def _kept_figures(run: Path, monkeypatch) -> dict:
-    """The report's figures of ``run`` as matplotlib objects, by file name (each saved as
-    an empty file for the report to move)."""
-    from cosim.viz import report
-
-    kept = {}
-
-    def keep(fig, path):
-        kept[path.name] = fig
-        path.touch()
-        return path
-
-    monkeypatch.setattr(report, "_save", keep)
-    write_report(run)
-    return kept
-
-
 def test_each_figure_names_its_scenario_in_its_title(lateral_run, monkeypatch) -> None:
     """A figure lifted into a paper says what was run: its title names the scenario id."""
-    kept = _kept_figures(lateral_run, monkeypatch)
+    kept = kept_figures(lateral_run, monkeypatch)
     assert set(kept) >= {"velocities.png", "attitude_actuators.png", "trajectory.png"}
     for name, fig in kept.items():
         assert "open-loop" in fig.get_suptitle(), f"{name}: {fig.get_suptitle()!r}"
@@ -710,7 +694,7 @@ def test_a_figure_of_an_incomplete_run_says_so_and_spans_the_stop_time(
     summary = {"scenario": "broken", "status": "incomplete", "complete": False,
                "stop_time": 10.0, "time_reached": 2.0}  # fmt: skip
     run = _write_run(tmp_path / "broken", Variant.LATERAL, {"u": 1.5}, {}, 2.0, summary)
-    kept = _kept_figures(run, monkeypatch)
+    kept = kept_figures(run, monkeypatch)
     for name, fig in kept.items():
         title = fig.get_suptitle()
         assert "broken" in title and "did not complete" in title, f"{name}: {title!r}"
@@ -725,7 +709,7 @@ def test_the_track_is_named_in_the_legend_of_the_trajectory_and_deviation(
 ) -> None:
     """The vehicle's path is the main line of the trajectory and the lateral deviation
     figures: their legends named the start, the end and the initial course but not it."""
-    kept = _kept_figures(lateral_run, monkeypatch)
+    kept = kept_figures(lateral_run, monkeypatch)
     for name in ("trajectory.png", "lateral_deviation.png"):
         ax = kept[name].axes[0]
         longest = max(ax.lines, key=lambda line: len(line.get_xdata()))
@@ -768,7 +752,7 @@ def test_the_stern_plane_limit_is_drawn_on_its_panel(tmp_path, monkeypatch) -> N
         '[instances.controller]\nfmu = "AuvAutopilot"\n'
         "[instances.controller.start]\nfin_angle_limit = 0.3\n"
     )
-    kept = _kept_figures(run, monkeypatch)
+    kept = kept_figures(run, monkeypatch)
     fins = next(ax for ax in kept["depth.png"].axes if ax.get_ylabel() == r"$\delta_s$ (deg)")
     levels = sorted(line.get_ydata()[0] for line in fins.lines if line.get_linestyle() == ":")
     assert levels == pytest.approx([-np.degrees(0.3), np.degrees(0.3)])
@@ -783,7 +767,7 @@ def test_a_set_point_its_fmu_declares_in_degrees_is_drawn_unscaled(tmp_path, mon
     (run / "results.csv").write_text("time,plant.yaw,controller.yaw_setpoint\n" + rows)
     units = {"time": "s", "plant.yaw": "rad", "controller.yaw_setpoint": "deg"}
     (run / "summary.json").write_text(json.dumps({"units": units}))
-    kept = _kept_figures(run, monkeypatch)
+    kept = kept_figures(run, monkeypatch)
     yaw = next(ax for ax in kept["attitude_actuators.png"].axes if "psi" in ax.get_ylabel())
     drawn = {line.get_label().split(" (")[0]: line.get_ydata() for line in yaw.lines}
     assert list(drawn["setpoint"]) == pytest.approx([20.0] * 3)  # deg, as declared
@@ -810,7 +794,7 @@ def test_a_thruster_off_fault_draws_the_force_the_plant_got(tmp_path, monkeypatc
         '[coupling]\nstep = 0.1\nalgorithm = "jacobi"\n'
         '[connections]\nadd = [{ from = "controller.tunnel_force", to = "plant.tunnel_force" }]\n'
     )
-    kept = _kept_figures(run, monkeypatch)
+    kept = kept_figures(run, monkeypatch)
     force = next(ax for ax in kept["attitude_actuators.png"].axes if "F_t" in ax.get_ylabel())
     drawn = {line.get_label(): list(line.get_ydata()) for line in force.lines}
     delivered = drawn["delivered to plant.tunnel_force (N)"]
@@ -846,7 +830,7 @@ def test_a_limits_legend_names_its_unit_and_the_transients_title_a_readable_time
     """The thruster's legend read "limit +-8" (8 what?) and the transient column's title
     "first 9.62194 s" (digits of a time nobody reads to a microsecond)."""
     run = _settled_run(tmp_path / "run", 1.654321)
-    fig = _kept_figures(run, monkeypatch)["attitude_actuators.png"]
+    fig = kept_figures(run, monkeypatch)["attitude_actuators.png"]
     titles = [ax.get_title() for ax in fig.axes]
     assert "the transient: first 4.96 s" in titles, titles
     thruster = next(ax for ax in fig.axes if ax.get_ylabel() == "$F_t$ (N)")

@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from report_figures import kept_figures
 
 from cosim.cli import main
 from cosim.outputs.results import read_csv
 from cosim.scenario.spec import SCENARIO_FOLDER
-from cosim.viz import report
 
 pytestmark = pytest.mark.fmu
 
@@ -72,15 +72,7 @@ def _faulty_run(
 
 def _panels(run: Path, monkeypatch: pytest.MonkeyPatch) -> list:
     """Every axis of the report's time-history figures, as matplotlib draws them."""
-    kept = {}
-
-    def keep(fig, path):
-        kept[path.name] = fig
-        path.touch()
-        return path
-
-    monkeypatch.setattr(report, "_save", keep)
-    report.write_report(run)
+    kept = kept_figures(run, monkeypatch)
     return [ax for fig in kept.values() for ax in fig.axes]
 
 
