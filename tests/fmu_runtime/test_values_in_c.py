@@ -54,9 +54,11 @@ entered = []
 
 
 def profile(frame, event, arg):  # the FMU's Python entered from an FMI call (fmpy's)
-    caller = frame.f_back
+    caller = frame.f_back  # (not the harness's own logger: with logging on, every debug
+    # category is, and the plant's first step says how it steps)
     if (event == "call" and caller is not None and "fmpy" in caller.f_code.co_filename
-            and "fmpy" not in frame.f_code.co_filename):
+            and "fmpy" not in frame.f_code.co_filename
+            and "fmu_harness" not in frame.f_code.co_filename):
         entered.append(frame.f_code.co_name)
 
 

@@ -103,8 +103,8 @@ def test_the_report_marks_events_and_faults_on_every_time_panel(
     assert [(m.time, m.label) for m in markers] == [
         (pytest.approx(0.3), "event gain-up"),
         (summary["events"][1]["time"], "event slow-down"),
-        (0.2, "fault jam (stuck) starts"),
-        (0.6, "fault jam (stuck) stops"),
+        (0.2, "fault jam (stuck) starts (0.2 s)"),
+        (0.6, "fault jam (stuck) stops (0.6 s)"),
     ]
     table = {"time": np.linspace(0.0, 1.0, 11), "plant.yaw": np.zeros(11), "plant.r": np.ones(11)}
     drawn = []
