@@ -5,6 +5,7 @@ copy, and at most KEPT sets are kept."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import zipfile
@@ -47,7 +48,8 @@ def test_a_second_study_of_the_same_fmus_extracts_nothing(fmu_paths, cache: Path
         again = _local_session(stack).unpacked(base)  # type: ignore[arg-type]
         assert again == first, "the second study extracted its FMUs again"
         assert _stamps(again) == stamps
-        for fmu, folder in zip(base.fmu_paths.values(), again.values(), strict=True):
+        for fmu in base.fmu_paths.values():  # each FMU's folder by its content's SHA-256
+            folder = again[hashlib.sha256(fmu.read_bytes()).hexdigest()]
             with zipfile.ZipFile(fmu) as archive:
                 for name in archive.namelist():
                     if not name.endswith("/"):
