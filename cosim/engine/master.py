@@ -82,7 +82,7 @@ from typing import Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from cosim.engine import adaptive
+from cosim.engine import adaptive, checkpoint
 from cosim.engine.extrapolation import InputRates
 from cosim.engine.live import LiveControl
 from cosim.engine.pacing import Pacer
@@ -272,6 +272,7 @@ def run(
     pacer: Pacer | None = None,
     live: LiveControl | None = None,
     on_phase: Callable[[str], None] | None = None,
+    checkpoints: checkpoint.Checkpointing | None = None,
 ) -> RunResult:
     """Run ``scenario`` to its stop time (or the first failure), streaming its rows.
 
@@ -282,7 +283,8 @@ def run(
     the communication points on the wall clock, ``live`` takes overrides while it runs.
     ``on_phase`` is told what the run does before its loop: "loading FMUs", then
     "initialising" (a progress bar shows it); the result's ``startup_s`` says how long each
-    took.
+    took. ``checkpoints`` saves the run's state every so many steps and where a signal
+    stops it, or resumes it from a saved state (:mod:`cosim.engine.checkpoint`).
 
     Raises :class:`CosimError` if the scenario is refused (:func:`preflight`) or an FMU
     cannot be set up (instantiation, start values, initialisation); every failure after
@@ -313,7 +315,8 @@ def run(
             _initialise(order, layout, z)
             startup = {"load_fmus": loaded - started, "initialise": time.perf_counter() - loaded}
             result = _step(scenario, order, layout, z, feed, stop_request,
-                           rows_per_chunk, hand_off_interval, pacer, live)  # fmt: skip
+                           rows_per_chunk, hand_off_interval, pacer, live,
+                           checkpoints)  # fmt: skip
             result.startup_s = startup
         finally:
             if live is not None:  # a request still waiting is answered: not applied
@@ -336,6 +339,7 @@ def _step(
     hand_off_interval: float,
     pacer: Pacer | None,
     live: LiveControl | None,
+    checkpoints: checkpoint.Checkpointing | None = None,
 ) -> RunResult:
     """The stepping of an initialised run: the fixed-step loop or the adaptive one."""
     by_name = {s.name: s for s in order}
@@ -362,7 +366,8 @@ def _step(
             live.bind(layout.index, stop, pacer)
         if live is not None or pacer is not None:
             at = _live_point(at, pacer, live, z, h, stop)
-        result = _loop(scenario, order, layout, z, rows, stop, timeline, at)
+        saver = _Saver(order, z, rows, timeline, checkpoints) if checkpoints else None
+        result = _loop(scenario, order, layout, z, rows, stop, timeline, at, saver)
         result.coupling = {
             "algorithm": scenario.coupling.algorithm,
             "step_s": h,
@@ -476,6 +481,7 @@ def _loop(
     stop: StopRequest,
     timeline: Timeline | None,
     at: Callable[[int], None],
+    saver: _Saver | None = None,
 ) -> RunResult:
     """The stepping loop proper (see the module docstring); ``stop`` ends it early.
 
@@ -484,7 +490,7 @@ def _loop(
     before any instance steps from it, and ``timeline.deliver`` after each gather of inputs;
     without one, both are no-ops (about 0.1 us a step: nothing against an FMU's doStep).
     ``at`` is ``timeline.at`` (or the no-op), wrapped by :func:`_live_point` in a paced or
-    live run.
+    live run. A ``saver`` starts the loop at a saved point and saves it at its points.
     """
     h, n_steps = scenario.coupling.step, scenario.n_steps
     jacobi = scenario.coupling.algorithm == "jacobi"
@@ -499,17 +505,21 @@ def _loop(
     check_dot = exchanged.dot  # (its warning of the inf . 0 it finds: INF_DOT_WARNING)
     slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
     error: str | None = None
-    filled, slave, n, due = 0, order[0], 0, order
+    first = saver.first if saver is not None else 0
+    filled, slave, n, due, stopped_at = 0, order[0], first, order, None
+    save_at = saver.next if saver is not None else -1  # the next point to save (-1: none)
     started = hand_off_at = clock()
     cpu_started = time.process_time()
     hand_off_at += interval
     try:
-        at(0)
-        take(record, out=slots[0])  # row 0 is t = 0
-        filled = 1
-        check_finite(exchanged, layout.index, 0.0)
-        for n in range(n_steps):
+        if not first:
+            at(0)
+            take(record, out=slots[0])  # row 0 is t = 0
+            filled = 1
+            check_finite(exchanged, layout.index, 0.0)
+        for n in range(first, n_steps):
             if stop.signum is not None:
+                stopped_at = n
                 break
             t = n * h  # t_n = n h, never accumulated (no drift)
             due = [s for s in order if n % s.k == 0] if multi_rate else order
@@ -530,6 +540,8 @@ def _loop(
             if record.size:  # (a run recording nothing gathers nothing)
                 take(record, out=slots[filled])
             filled += 1
+            if n + 1 == save_at and saver is not None:
+                filled, save_at = saver.save(n + 1, filled), saver.next
             if filled == chunk or clock() >= hand_off_at:
                 rows.hand_off(filled)
                 filled, hand_off_at = 0, clock() + interval
@@ -542,8 +554,54 @@ def _loop(
     except CosimError as exc:
         error = str(exc)
     rows.hand_off(filled)
+    if saver is not None and stopped_at is not None and error is None and rows.error is None:
+        saver.save(stopped_at, 0)  # where the signal stopped the run
     return _result(scenario, order, rows, error, stop, clock() - started,
                    time.process_time() - cpu_started)  # fmt: skip
+
+
+class _Saver:
+    """The checkpoints of the fixed-step loop (:mod:`cosim.engine.checkpoint`): it puts
+    the saved state back and hands the rows written before it to the sinks again (``first``
+    is then the saved point), and saves at every ``every``-th point (``next``; -1: none)."""
+
+    def __init__(
+        self,
+        order: list[Slave],
+        z: np.ndarray,
+        rows: RowBuffer,
+        timeline: Timeline | None,
+        checkpoints: checkpoint.Checkpointing,
+    ) -> None:
+        self.order, self.z, self.rows, self.timeline = order, z, rows, timeline
+        self.checkpoints = checkpoints
+        self.first = 0
+        start = checkpoints.start
+        if start is not None:
+            checkpoint.restore(start, order, z, timeline)
+            if checkpoints.rows is not None:
+                self._replay(checkpoints.rows)
+            self.first = int(start["step"])
+        every = checkpoints.every
+        self.next = (self.first // every + 1) * every if every else -1
+
+    def _replay(self, values: np.ndarray) -> None:
+        """The rows up to the saved point (their values, (rows, columns)), to every sink as
+        the loop handed them off (their times: row n at n h)."""
+        chunk = len(self.rows.slots)
+        for i in range(0, len(values), chunk):
+            part = values[i : i + chunk]
+            self.rows.buffer[: len(part)] = part
+            self.rows.hand_off(len(part))
+
+    def save(self, n: int, filled: int) -> int:
+        """Hand off the ``filled`` rows, then save the state at point ``n``; 0 rows left."""
+        self.rows.hand_off(filled)
+        state = checkpoint.capture(self.order, self.z, n, self.rows.count, self.timeline)
+        self.checkpoints.save(state)
+        every = self.checkpoints.every
+        self.next = n + every if every else -1
+        return 0
 
 
 @dataclass
