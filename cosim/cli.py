@@ -215,8 +215,15 @@ def _copy_scenario(scenario_id: str, file: str) -> int:
 def _run(args: argparse.Namespace) -> int:
     from cosim.runner import RunOptions, run_from_cli
 
+    if (args.scenario is None) == (args.resume is None):
+        given = "both" if args.scenario is not None else "neither"
+        raise CosimError(f"give a scenario or --resume OUT, not {given}")
+    if args.resume is not None and args.out is not None:
+        raise CosimError(f"--resume {args.resume} continues in that folder: --out cannot be given")
     options = RunOptions(
-        out_dir=args.out,
+        checkpoint_every=args.checkpoint_every,
+        resume=args.resume is not None,
+        out_dir=args.out if args.resume is None else args.resume,
         stop_time=args.stop_time,
         step=args.step,
         algorithm=args.algorithm,
@@ -720,9 +727,11 @@ def _add_run_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "scenario",
         type=_scenario_arg,
-        help="scenario id (see `auv-cosim scenarios`) or .toml path",
+        nargs="?",
+        help="scenario id (see `auv-cosim scenarios`) or .toml path (none with --resume)",
     )
     p.add_argument("--out", type=_path_arg, help="run folder [runs/<scenario-id>]")
+    _add_checkpoint_options(p)
     p.add_argument(
         "--overwrite", action="store_true", help="replace an earlier run in the run folder"
     )
@@ -764,6 +773,23 @@ def _add_run_parser(sub: argparse._SubParsersAction) -> None:
     )
     _add_live_options(p)
     p.set_defaults(func=_run)
+
+
+def _add_checkpoint_options(p: argparse.ArgumentParser) -> None:
+    """``run``'s checkpoints: ``--checkpoint-every`` and ``--resume`` (docs/runs.md)."""
+    p.add_argument(
+        "--checkpoint-every",
+        type=_seconds("--checkpoint-every"),
+        metavar="SECONDS",
+        help="write the run's state to <run folder>/checkpoint.json every SECONDS of "
+        "simulated time and where a signal stops it [none]",
+    )
+    p.add_argument(
+        "--resume",
+        type=_path_arg,
+        metavar="OUT",
+        help="continue the run in the folder OUT from its checkpoint.json (no scenario)",
+    )
 
 
 def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:

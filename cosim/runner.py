@@ -60,6 +60,7 @@ from cosim.outputs.folder import (
 from cosim.paths import DEFAULT_FMU_DIR, RUNS_DIR
 
 if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (step 2)
+    from cosim.engine.checkpoint import Checkpointing
     from cosim.engine.master import RunResult
     from cosim.live.session import LiveSession
     from cosim.outputs.background import BackgroundSink
@@ -99,7 +100,10 @@ class RunOptions:
     and of an autopilot designed for another vehicle than the plant's or given a gain no
     law it runs reads (:mod:`cosim.scenario.design_doubts`), and of a mission leg the
     vehicle cannot fly in the current or a waypoint past the stop time
-    (:mod:`cosim.scenario.mission_doubts`).
+    (:mod:`cosim.scenario.mission_doubts`). ``checkpoint_every`` (simulated s) writes
+    the run's state into ``<out_dir>/checkpoint.json`` that often and where a signal stops
+    it; ``resume`` continues the run in ``out_dir`` from its checkpoint (use
+    :func:`resume_run`; :mod:`cosim.outputs.checkpoint_file`).
     """
 
     out_dir: Path | None = None
@@ -124,6 +128,8 @@ class RunOptions:
     unit_doubts: bool = True
     results_csv: bool = True
     fmu_log: Mapping[str, tuple[str, ...]] | None = None
+    checkpoint_every: float | None = None
+    resume: bool = False
 
 
 class NotStartedError(CosimError):
@@ -201,11 +207,12 @@ def execute(
             if stop.requested:  # Ctrl-C while the FMUs were built: nothing to run or write
                 raise _stopped_before_start(stop, folder.replacing, out_dir)
             prepared = time.perf_counter()
+            checkpoints = _checkpoints(loaded, options, folder)
             session = _live_session(loaded, options, progress)
             try:
                 outputs = _open_outputs(loaded, folder, options, progress)
                 opened = time.perf_counter()
-                result = _step(loaded, outputs, options, stop, session, progress)
+                result = _step(loaded, outputs, options, stop, session, progress, checkpoints)
                 stepped = True
                 if options.check_step and result.complete:
                     _check_step(loaded, outputs, result, stop, progress, session.live is not None)
@@ -236,6 +243,62 @@ def execute(
         result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary,
         folder.replaced,
     )  # fmt: skip
+
+
+def resume_run(
+    out_dir: Path, options: RunOptions | None = None, stop: StopRequest | None = None
+) -> RunOutcome:
+    """Continue the run in ``out_dir`` from its checkpoint.json, as it was scenario.toml
+    there: the rows up to the checkpoint are kept, the run's files rewritten whole (the
+    recording too) and the rest appended as the uninterrupted run would have written them.
+    ``options``: how to write the outputs (``no_rrd``, ``progress``, ``checkpoint_every``,
+    ...); what changes the run (``stop_time``, ``step``, ...) is refused. Raises
+    :class:`CosimError` (one line) where the checkpoint cannot be resumed exactly."""
+    from dataclasses import replace
+
+    from cosim.outputs.folder import SCENARIO_FILE
+
+    options = options or RunOptions()
+    names = options.names
+    for name in ("stop_time", "step", "algorithm", "extrapolation", "tolerance"):
+        if getattr(options, name) is not None:
+            raise CosimError(
+                f"{names.option(name)} cannot be given with {names.option('resume')}: the run "
+                "resumes as it was checkpointed"
+            )
+    scenario = Path(out_dir) / SCENARIO_FILE
+    if not scenario.is_file():
+        raise CosimError(f"{names.given('resume', out_dir)}: no run there ({scenario} is missing)")
+    resumed = replace(options, out_dir=Path(out_dir), overwrite=True, resume=True)
+    return execute(scenario, resumed, stop)
+
+
+def _checkpoints(
+    scenario: Scenario, options: RunOptions, folder: RunFolder
+) -> Checkpointing | None:
+    """The run's checkpoints as ``options`` ask (none: None); a checkpoint to resume from
+    read and checked against ``scenario`` and its FMUs. Raises :class:`CosimError` where
+    the run's state cannot be saved or resumed exactly."""
+    if options.checkpoint_every is None and not options.resume:
+        return None
+    from cosim.engine.checkpoint import Checkpointing, refusal
+    from cosim.outputs.checkpoint_file import CheckpointWriter, read_checkpoint
+
+    paced = options.real_time is not None or options.control is not None or options.interactive
+    reason = refusal(scenario, paced)
+    if reason is not None:
+        asked = options.names
+        what = (asked.given("resume", folder.path) if options.resume
+                else asked.given("checkpoint_every", options.checkpoint_every))  # fmt: skip
+        raise CosimError(f"{what}: cannot checkpoint this run: {reason}")
+    every_s, start, rows = options.checkpoint_every, None, None
+    if options.resume:
+        saved = read_checkpoint(folder.path)
+        saved.check(scenario)
+        start, rows = saved.state(), saved.rows(scenario.columns)
+        every_s = every_s if every_s is not None else saved.every_s
+    every = max(1, round(every_s / scenario.coupling.step)) if every_s is not None else 0
+    return Checkpointing(every, CheckpointWriter(folder, scenario, every_s), start, rows)
 
 
 def _not_started(result: RunResult, stop: StopRequest, out_dir: Path) -> NotStartedError:
@@ -273,6 +336,7 @@ def _step(
     stop: StopRequest,
     session: LiveSession,
     progress: ProgressSink | None,
+    checkpoints: Checkpointing | None = None,
 ) -> RunResult:
     """Step the run through the master into the outputs; on a refusal before the first
     step the outputs are discarded and the error raised."""
@@ -291,6 +355,7 @@ def _step(
                 pacer=session.pacer,
                 live=session.live,
                 on_phase=progress.phase if progress is not None else None,
+                checkpoints=checkpoints,
             )
     except BaseException:  # refused or not set up: it never stepped
         outputs.discard()
@@ -352,7 +417,9 @@ def _check_numbers(options: RunOptions) -> None:
     (``--tolerance -1.0``, ``tolerance=-1.0``), not the scenario key they override."""
     from cosim.scenario.spec import TOLERANCE_RANGE
 
-    for name, value in (("stop_time", options.stop_time), ("step", options.step)):
+    times = (("stop_time", options.stop_time), ("step", options.step),
+             ("checkpoint_every", options.checkpoint_every))  # fmt: skip
+    for name, value in times:
         if value is not None and not (math.isfinite(value) and value > 0):
             shown = options.names.given(name, value)
             raise CosimError(f"{shown}: expected a finite number of seconds > 0")
@@ -581,7 +648,7 @@ def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest, live: b
         result.complete, result.error = False, problem
 
 
-def run_from_cli(scenario: str, options: RunOptions) -> int:
+def run_from_cli(scenario: str | None, options: RunOptions) -> int:
     """``auv-cosim run``: 0 if the run completed, 128 + signal number if a signal came,
     1 on failure. A signal while the report is printed is ignored too. Refused at once
     under an address-space or (recorded) open-files limit too small for the run
@@ -594,7 +661,10 @@ def run_from_cli(scenario: str, options: RunOptions) -> int:
     stop = StopRequest()
     with stop_on_signals(stop):
         try:
-            outcome = execute(scenario, options, stop)
+            if options.resume and options.out_dir is not None:
+                outcome = resume_run(options.out_dir, options, stop)
+            else:
+                outcome = execute(scenario or "", options, stop)
         except NotStartedError as exc:
             print(f"auv-cosim run: {exc}", file=sys.stderr)
             return exc.exit_code

@@ -555,7 +555,10 @@ def _loop(
         error = str(exc)
     rows.hand_off(filled)
     if saver is not None and stopped_at is not None and error is None and rows.error is None:
-        saver.save(stopped_at, 0)  # where the signal stopped the run
+        try:
+            saver.save(stopped_at, 0)  # where the signal stopped the run
+        except (CosimError, FMICallException) as exc:
+            error = f"{stop.reason} at t = {stopped_at * h:.6g} s; no checkpoint there: {exc}"
     return _result(scenario, order, rows, error, stop, clock() - started,
                    time.process_time() - cpu_started)  # fmt: skip
 
