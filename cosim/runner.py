@@ -239,10 +239,16 @@ def execute(
                 progress.close()
             folder.release(unused=not stepped)
     figures = outputs.figures.figures(result.complete)
+    told = _resumed(checkpoints, loaded, out_dir) if options.resume else folder.replaced
     return RunOutcome(
-        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary,
-        folder.replaced,
+        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary, told
     )  # fmt: skip
+
+
+def _resumed(checkpoints: Checkpointing | None, scenario: Scenario, out_dir: Path) -> str:
+    """What the report says of a resumed run, in place of replacing the earlier one."""
+    step = checkpoints.start["step"] if checkpoints and checkpoints.start else 0
+    return f"resumed the run in {out_dir} at t = {step * scenario.coupling.step:g} s"
 
 
 def resume_run(

@@ -505,21 +505,15 @@ def _loop(
     check_dot = exchanged.dot  # (its warning of the inf . 0 it finds: INF_DOT_WARNING)
     slots, chunk, clock, interval = rows.slots, len(rows.slots), time.perf_counter, rows.interval
     error: str | None = None
-    first = saver.first if saver is not None else 0
-    filled, slave, n, due, stopped_at = 0, order[0], first, order, None
-    save_at = saver.next if saver is not None else -1  # the next point to save (-1: none)
-    started = hand_off_at = clock()
-    cpu_started = time.process_time()
-    hand_off_at += interval
+    first, save_at = (saver.first, saver.next) if saver is not None else (0, -1)  # -1: none
+    filled, slave, n, due = 0, order[0], first, order
+    started, cpu_started = clock(), time.process_time()
+    hand_off_at = started + interval
     try:
-        if not first:
-            at(0)
-            take(record, out=slots[0])  # row 0 is t = 0
-            filled = 1
-            check_finite(exchanged, layout.index, 0.0)
+        if not first:  # row 0 is t = 0 (a resumed run's rows so far are in the sinks)
+            filled = _row_zero(at, take, record, slots[0], exchanged, layout.index)
         for n in range(first, n_steps):
             if stop.signum is not None:
-                stopped_at = n
                 break
             t = n * h  # t_n = n h, never accumulated (no drift)
             due = [s for s in order if n % s.k == 0] if multi_rate else order
@@ -554,13 +548,25 @@ def _loop(
     except CosimError as exc:
         error = str(exc)
     rows.hand_off(filled)
-    if saver is not None and stopped_at is not None and error is None and rows.error is None:
-        try:
-            saver.save(stopped_at, 0)  # where the signal stopped the run
-        except (CosimError, FMICallException) as exc:
-            error = f"{stop.reason} at t = {stopped_at * h:.6g} s; no checkpoint there: {exc}"
+    if saver is not None and error is None:
+        error = saver.stopped(n, stop, h)
     return _result(scenario, order, rows, error, stop, clock() - started,
                    time.process_time() - cpu_started)  # fmt: skip
+
+
+def _row_zero(
+    at: Callable[[int], None],
+    take: Callable[..., Any],
+    record: np.ndarray,
+    slot: np.ndarray,
+    exchanged: np.ndarray,
+    index: Mapping[str, int],
+) -> int:
+    """Row 0 (t = 0) into ``slot``, its timeline applied and its values checked; 1 row."""
+    at(0)
+    take(record, out=slot)
+    check_finite(exchanged, index, 0.0)
+    return 1
 
 
 class _Saver:
@@ -605,6 +611,17 @@ class _Saver:
         every = self.checkpoints.every
         self.next = n + every if every else -1
         return 0
+
+    def stopped(self, n: int, stop: StopRequest, h: float) -> str | None:
+        """After the loop: a checkpoint at point ``n`` if a signal stopped the run there
+        (its rows so far handed off: ``n + 1``); the run's error if it cannot be saved."""
+        if stop.signum is None or self.rows.error is not None or self.rows.count != n + 1:
+            return None
+        try:
+            self.save(n, 0)
+        except (CosimError, FMICallException) as exc:
+            return f"{stop.reason} at t = {n * h:.6g} s; no checkpoint there: {exc}"
+        return None
 
 
 @dataclass
