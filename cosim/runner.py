@@ -262,7 +262,9 @@ def resume_run(
     :class:`CosimError` (one line) where the checkpoint cannot be resumed exactly."""
     from dataclasses import replace
 
+    from cosim.outputs.checkpoint_file import read_checkpoint
     from cosim.outputs.folder import SCENARIO_FILE
+    from cosim.scenario.spec import load_scenario
 
     options = options or RunOptions()
     names = options.names
@@ -275,8 +277,13 @@ def resume_run(
     scenario = Path(out_dir) / SCENARIO_FILE
     if not scenario.is_file():
         raise CosimError(f"{names.given('resume', out_dir)}: no run there ({scenario} is missing)")
+    # checked before the folder is claimed, whose own check of the earlier run's files
+    # would refuse an edited scenario.toml without saying what the checkpoint needs
+    saved = read_checkpoint(Path(out_dir))
+    loaded = load_scenario(scenario, fmu_dir=options.fmu_dir)
+    saved.check(loaded)
     resumed = replace(options, out_dir=Path(out_dir), overwrite=True, resume=True)
-    return execute(scenario, resumed, stop)
+    return execute(loaded, resumed, stop)
 
 
 def _checkpoints(

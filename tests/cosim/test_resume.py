@@ -1,0 +1,176 @@
+"""A run killed after a checkpoint and resumed writes the results.csv of the run never
+interrupted, byte for byte; a checkpoint that cannot be resumed exactly is refused in one
+line, leaving the run folder as it was (``--checkpoint-every``, ``--resume``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cosim.cli import main
+from cosim.errors import CosimError
+from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
+from cosim.runner import RunOptions, resume_run, run_scenario
+
+
+def _cli(*args: str) -> list[str]:
+    return [sys.executable, "-m", "cosim.cli", "run", *args, "--quiet", "--no-rrd"]
+
+
+def _kill_after_checkpoint(command: list[str], out: Path, timeout: float = 300.0) -> int:
+    """Start ``command`` in a process group of its own, SIGTERM the group once the run's
+    first checkpoint is on disk; its exit code. The group is killed whatever happens."""
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            start_new_session=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + timeout
+        while not (out / CHECKPOINT_FILE).exists():
+            assert proc.poll() is None, f"the run ended before a checkpoint: {proc.stderr}"
+            assert time.monotonic() < deadline, "no checkpoint in time"
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGTERM)
+        return proc.wait(timeout=timeout)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        assert proc.stderr is not None
+        proc.stderr.close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("scenario", "algorithm"),
+    [("bs-3", "gauss-seidel"), ("bs-3", "jacobi"), ("mass-jam", "jacobi")],
+)
+def test_a_killed_run_resumed_writes_the_uninterrupted_results(
+    fmu_dir: Path, tmp_path: Path, scenario: str, algorithm: str
+) -> None:
+    """bs-3 (extrapolated inputs) under both couplings, and mass-jam with its fault acting
+    when the checkpoint is taken."""
+    common = ("--fmu-dir", str(fmu_dir), "--stop-time", "120", "--algorithm", algorithm)
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    subprocess.run(_cli(scenario, "--out", str(whole), *common), check=True, timeout=600,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    command = _cli(scenario, "--out", str(killed), *common, "--checkpoint-every", "10")
+    assert _kill_after_checkpoint(command, killed) == 128 + signal.SIGTERM
+    summary = json.loads((killed / "summary.json").read_text())
+    assert summary["complete"] is False and summary["time_reached"] < 120
+    resumed = subprocess.run(
+        _cli("--resume", str(killed), "--fmu-dir", str(fmu_dir)),
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"resumed the run in {killed} at t = " in resumed.stderr
+    assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
+    assert json.loads((killed / "summary.json").read_text())["complete"] is True
+
+
+@pytest.fixture(scope="module")
+def checkpointed(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short bs-3 run with checkpoints, made to look killed (its summary says running)."""
+    out = tmp_path_factory.mktemp("checkpointed") / "run"
+    run_scenario("bs-3", out, stop_time=0.5, checkpoint_every=0.2, no_rrd=True, fmu_dir=fmu_dir)
+    summary = json.loads((out / "summary.json").read_text())
+    summary.update(status="running", complete=False)
+    (out / "summary.json").write_text(json.dumps(summary))
+    return out
+
+
+def _copy(checkpointed: Path, tmp_path: Path) -> Path:
+    out = tmp_path / "run"
+    shutil.copytree(checkpointed, out)
+    return out
+
+
+def _refused(out: Path, fmu_dir: Path, match: str) -> None:
+    """Resuming ``out`` is refused with ``match`` and leaves its files as they were."""
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    with pytest.raises(CosimError, match=match) as refused:
+        resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    assert "\n" not in str(refused.value)
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert after == before
+
+
+def test_a_checkpoint_of_another_version_is_refused(
+    checkpointed: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    out = _copy(checkpointed, tmp_path)
+    data = json.loads((out / CHECKPOINT_FILE).read_text())
+    data["version"] = "0.0.1"
+    (out / CHECKPOINT_FILE).write_text(json.dumps(data))
+    _refused(out, fmu_dir, r"written by auv-cosim 0\.0\.1, this is .*: resume it with that")
+
+
+def test_a_checkpoint_of_another_scenario_is_refused(
+    checkpointed: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    out = _copy(checkpointed, tmp_path)
+    toml = (out / "scenario.toml").read_text()
+    (out / "scenario.toml").write_text(toml.replace("stop_time = 0.5", "stop_time = 0.6"))
+    _refused(out, fmu_dir, "the scenario differs from the one checkpointed")
+
+
+def test_a_checkpoint_of_other_fmus_is_refused(
+    checkpointed: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    out = _copy(checkpointed, tmp_path)
+    data = json.loads((out / CHECKPOINT_FILE).read_text())
+    data["fmus"]["plant"] = "0" * 64
+    (out / CHECKPOINT_FILE).write_text(json.dumps(data))
+    _refused(out, fmu_dir, "instance 'plant' would load .*AuvPlant.fmu, not the FMU the run")
+
+
+def test_a_folder_without_a_checkpoint_is_refused(
+    checkpointed: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    out = _copy(checkpointed, tmp_path)
+    (out / CHECKPOINT_FILE).unlink()
+    _refused(out, fmu_dir, "no checkpoint.json there \\(run with --checkpoint-every")
+
+
+def test_a_complete_run_is_not_resumed(checkpointed: Path, fmu_dir: Path, tmp_path: Path) -> None:
+    out = _copy(checkpointed, tmp_path)
+    summary = json.loads((out / "summary.json").read_text())
+    (out / "summary.json").write_text(json.dumps({**summary, "complete": True}))
+    _refused(out, fmu_dir, "the run there is complete: nothing to resume")
+
+
+def test_an_adaptive_run_refuses_checkpoints(fmu_dir: Path, tmp_path: Path) -> None:
+    with pytest.raises(
+        CosimError, match=r"--checkpoint-every 1\.0: cannot checkpoint .* 'adaptive'"
+    ):
+        run_scenario(
+            "bs-3", tmp_path / "run", stop_time=1.0, algorithm="adaptive",
+            checkpoint_every=1.0, no_rrd=True, fmu_dir=fmu_dir,
+        )  # fmt: skip
+    assert not (tmp_path / "run").exists()
+
+
+def test_resume_takes_no_option_that_changes_the_run(checkpointed: Path, tmp_path: Path) -> None:
+    with pytest.raises(CosimError, match="--stop-time cannot be given with --resume"):
+        resume_run(_copy(checkpointed, tmp_path), RunOptions(stop_time=9.0))
+
+
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [
+        (["bs-3", "--resume", "x"], "give a scenario or --resume OUT, not both"),
+        ([], "give a scenario or --resume OUT, not neither"),
+        (["--resume", "x", "--out", "y"], "--resume x continues in that folder: --out cannot"),
+    ],
+)
+def test_the_command_line_names_a_resume_it_cannot_do(
+    args: list[str], said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["run", *args]) == 1
+    assert said in capsys.readouterr().err
