@@ -55,7 +55,10 @@ tools and our own checks may rely on:
   the value the FMU starts from); a default experiment.
 - **Behaviour**: the same inputs give bit-identical outputs; `fmi2GetFMUstate` /
   `fmi2SetFMUstate` save and restore the whole state, and a restored run continues
-  exactly as the original; bad input (NaN, a value out of range, a fixed parameter
+  exactly as the original; `fmi2SerializeFMUstate` / `fmi2DeSerializeFMUstate` turn it
+  into bytes and back (`canSerializeFMUstate="true"`), which `auv-cosim run
+  --checkpoint-every` keeps in a run's `checkpoint.json` and `--resume` gives back
+  ([runs.md](runs.md#a-killed-run-resumed)); bad input (NaN, a value out of range, a fixed parameter
   written after initialisation) is refused with a logged reason, and a failure comes back
   as fmi2Error or fmi2Discard, never as a crash of the host (see
   [fmi-notes.md](fmi-notes.md) for why that takes care with pythonfmu).
