@@ -591,6 +591,8 @@ class _Saver:
             if checkpoints.rows is not None:
                 self._replay(checkpoints.rows)
             self.first = int(start["step"])
+        if start is not None:  # the earlier run's checkpoint went with its files: again
+            self.save(self.first, 0)
         every = checkpoints.every
         self.next = (self.first // every + 1) * every if every else -1
 
