@@ -25,6 +25,14 @@ def _cli(*args: str) -> list[str]:
     return [sys.executable, "-m", "cosim.cli", "run", *args, "--quiet", "--no-rrd"]
 
 
+def _lines(path: Path) -> int:
+    """The lines of a file being written (0 while it is not there: set aside)."""
+    try:
+        return path.read_bytes().count(b"\n")
+    except FileNotFoundError:
+        return 0
+
+
 def _kill_after_checkpoint(command: list[str], out: Path, timeout: float = 300.0) -> int:
     """Start ``command`` in a process group of its own, SIGTERM the group once the run's
     first checkpoint is on disk; its exit code. The group is killed whatever happens."""
@@ -174,3 +182,34 @@ def test_the_command_line_names_a_resume_it_cannot_do(
 ) -> None:
     assert main(["run", *args]) == 1
     assert said in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_a_resumed_run_killed_at_once_can_be_resumed_again(fmu_dir: Path, tmp_path: Path) -> None:
+    """Resuming replaces the earlier run's files, its checkpoint.json among them: the
+    resumed run writes its own before it steps, so a SIGKILL as soon as it has stepped
+    (long before its next periodic checkpoint) still leaves one to resume from."""
+    common = ("--fmu-dir", str(fmu_dir), "--stop-time", "600")
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    subprocess.run(_cli("bs-3", "--out", str(whole), *common), check=True, timeout=600,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    command = _cli("bs-3", "--out", str(killed), *common, "--checkpoint-every", "200")
+    _kill_after_checkpoint(command, killed)
+    saved = json.loads((killed / CHECKPOINT_FILE).read_text())["rows"]
+    resume = _cli("--resume", str(killed), "--fmu-dir", str(fmu_dir))
+    proc = subprocess.Popen(resume, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 300
+        while proc.poll() is None and time.monotonic() < deadline:
+            if _lines(killed / "results.csv") > saved + 1:  # rows past the checkpoint
+                break
+            time.sleep(0.01)
+        os.killpg(proc.pid, signal.SIGKILL)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    again = subprocess.run(resume, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
