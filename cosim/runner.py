@@ -22,6 +22,12 @@ figures. The order of a run:
    a run that took live overrides rewrites scenario.toml with them as ``[[events]]``, so
    running that file replays it.
 
+With ``checkpoint_every`` the master saves the run's state into the folder's
+checkpoint.json as it steps and where a signal stops it; :func:`resume_run` checks that
+checkpoint against the folder's scenario.toml, the FMUs and the version before step 2,
+then runs the steps above from it (:mod:`cosim.engine.checkpoint`,
+:mod:`cosim.outputs.checkpoint_file`).
+
 A run that stops early keeps its partial results (``summary.json`` says ``"complete":
 false`` and why) and exits non-zero with a one-line reason: 1 for a failure, 128 + the
 signal number for a signal (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), also when the signal
@@ -53,6 +59,7 @@ from cosim.limits import (
 from cosim.outputs.folder import (
     RECORDING_FILE,
     RESULTS_FILE,
+    SCENARIO_FILE,
     RunFolder,
     ScenarioRef,
     check_recording_path,
@@ -263,7 +270,6 @@ def resume_run(
     from dataclasses import replace
 
     from cosim.outputs.checkpoint_file import read_checkpoint
-    from cosim.outputs.folder import SCENARIO_FILE
     from cosim.scenario.spec import load_scenario
 
     options = options or RunOptions()

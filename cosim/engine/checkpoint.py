@@ -49,10 +49,13 @@ def refusal(scenario: Scenario, paced_or_live: bool) -> str | None:
     is not captured whole."""
     for name, inst in scenario.instances.items():
         cs = inst.model_description.coSimulation
-        if not (cs.canGetAndSetFMUstate and cs.canSerializeFMUstate):
+        missing = [
+            c for c in ("canGetAndSetFMUstate", "canSerializeFMUstate") if not getattr(cs, c)
+        ]
+        if missing:
             return (
                 f"instance {name!r} ({inst.fmu_path.name}) cannot serialize its state "
-                "(canSerializeFMUstate is false)"
+                f"({' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} false)"
             )
     coupling = scenario.coupling
     if coupling.algorithm == "adaptive":
