@@ -42,6 +42,7 @@ from cosim.engine.extrapolation import InputRates
 from cosim.errors import CosimError
 from cosim.fmus import native
 from cosim.fmus.interface import FmuInterfaceError, extract_fmu
+from cosim.progress_bars import write
 from cosim.scenario.spec import Instance
 from cosim.scratch import process_folder
 from fmu_runtime import exit_guard
@@ -336,9 +337,7 @@ def _show(line: str) -> None:
         else:
             _collected.dropped += 1
         return
-    from tqdm import tqdm
-
-    tqdm.write(line, file=sys.stderr)
+    write(line, sys.stderr)
 
 
 def one_line(message: str) -> str:

@@ -25,6 +25,7 @@ from cosim.engine.rows import NotesIgnored
 from cosim.errors import CosimError
 from cosim.limits import unwritten
 from cosim.outputs.results import csv_header, csv_lines
+from cosim.progress_bars import progress_bar
 from cosim.whole_file import write_whole
 
 
@@ -125,26 +126,22 @@ class ProgressSink(NotesIgnored):
         """Show ``text`` (and the time it has taken so far) until the next phase or row; a
         phase after the steps (``--check-step``) ends the step bar first: a second bar
         below it was drawn with cursor-up escapes."""
-        from tqdm import tqdm
-
         self._close_bar()
         if self._phase is None:
-            self._phase = tqdm(
+            self._phase = progress_bar(
                 total=None, bar_format="{desc} [{elapsed}]", leave=False, dynamic_ncols=True
             )
         self._phase.set_description_str(f"{self._label}: {text}")
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         if self._bar is None:
-            from tqdm import tqdm
-
             self._close_phase()
             by_time = self.total_time is not None
             total = self.total_time if by_time else self.total_rows
             unit = "s" if by_time else "step"
             # the terminal's width at each redraw, not as the bar began: a terminal
             # narrowed mid-run wrapped every redraw onto a line of its own
-            self._bar = tqdm(
+            self._bar = progress_bar(
                 total=total, unit=unit, desc=self._label, leave=False, dynamic_ncols=True
             )
         if self.status is not None:

@@ -34,6 +34,7 @@ from typing import Any
 from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
 from cosim.limits import check_local_study
 from cosim.paths import DEFAULT_FMU_DIR, path_text
+from cosim.progress_bars import progress_bar
 from cosim.scenario import unit_doubts
 from cosim.scenario.checks import range_text
 from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
@@ -344,12 +345,8 @@ def _bar(progress: bool, total: int, what: str, done: int = 0) -> Any:
     """A progress bar on stderr of ``total`` runs, ``done`` of them already, named
     ``what``; None without ``progress``."""
     if not progress:
-        # no bar at all: even a disabled tqdm starts its monitor thread, left running in
-        # the caller's process, and fixes multiprocessing's default start method
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, initial=done, unit="run", desc=what, dynamic_ncols=True)
+        return None  # no bar at all, not a disabled one: tqdm's lock is not made
+    return progress_bar(total=total, initial=done, unit="run", desc=what, dynamic_ncols=True)
 
 
 class _Session:

@@ -171,6 +171,37 @@ def test_two_runs_on_threads_of_an_event_loop_match_a_run_in_the_main_thread(
     assert signal.getsignal(signal.SIGINT) is handler
 
 
+@pytest.mark.slow
+def test_a_run_with_progress_leaves_no_thread_and_no_start_method(
+    run_python: Callable[..., subprocess.CompletedProcess], fmu_paths: dict[str, Path]
+) -> None:
+    """``cosim.run(..., progress=True)`` drew its bars with tqdm, which started its monitor
+    thread (left running in the caller's process for good: tqdm no longer ends it with
+    its last bar) and fixed multiprocessing's default start method as it made its lock,
+    so that the caller's own ``multiprocessing.set_start_method("spawn")`` afterwards
+    raised "context has already been set"."""
+    done = run_python(
+        """
+        import multiprocessing, sys, threading
+        import cosim
+
+        before = {t.name for t in threading.enumerate()}
+        run = cosim.run("bs-3", stop_time=0.5, fmu_dir=sys.argv[1], progress=True)
+        print(run.complete)
+        print(sorted(t.name for t in threading.enumerate() if t.name not in before))
+        print(multiprocessing.get_start_method(allow_none=True))
+        multiprocessing.set_start_method("spawn")  # the caller's own choice, still open
+        """,
+        fmu_paths["AuvPlant"].parent,
+    )
+    assert done.returncode == 0, done.stderr
+    complete, threads, start_method = done.stdout.strip().splitlines()[-3:]
+    assert complete == "True", done.stdout
+    assert threads == "[]", threads
+    assert start_method == "None", start_method
+    assert "bs-3" in done.stderr  # the bar was drawn
+
+
 @pytest.mark.cluster
 @pytest.mark.slow
 def test_a_sweep_without_progress_leaves_no_thread_and_no_start_method(
