@@ -46,7 +46,7 @@ import time
 import uuid
 from collections.abc import Callable, Coroutine, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
-from contextlib import ExitStack, contextmanager, suppress
+from contextlib import AbstractContextManager, ExitStack, contextmanager, nullcontext, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
@@ -63,7 +63,7 @@ from cosim.scratch import claim
 from cosim.study import fork_server
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
-from cosim.study.signals import StudyStopped, workers_ignore_sigint
+from cosim.study.signals import StudyStopped, stop_signals_deferred, workers_ignore_sigint
 from cosim.study.spec import StudyEndedError, StudyError
 from cosim.study.task import Base, RunRecord, run_one, warm_up
 from cosim.study.unpacked import local_copy, use_unpacked
@@ -533,23 +533,40 @@ def _local_cluster(workers: int, dashboard: bool) -> LocalCluster:
     port = DASHBOARD_PORT if dashboard else 0
     # the settings are read as the scheduler, the nannies and (through its nanny) each
     # worker start; a Ctrl-C is the client's (cosim.study.signals)
-    with (
-        _forked_workers(),
-        dask.config.set(cluster_settings(dashboard)),
-        workers_ignore_sigint(),
-    ):
-        return LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            host=LOCALHOST,
-            protocol="tcp://",
-            dashboard_address=f"{LOCALHOST}:{port}",
-            scheduler_kwargs={"dashboard": dashboard},
-            worker_dashboard_address=None,
-            silence_logs=logging.ERROR,
-            preload=[PRELOAD],
-        )
+    with ExitStack() as closing:
+        with (
+            _forked_workers() as forked,
+            dask.config.set(cluster_settings(dashboard)),
+            _ctrl_c_held(forked),
+        ):
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host=LOCALHOST,
+                protocol="tcp://",
+                dashboard_address=f"{LOCALHOST}:{port}",
+                scheduler_kwargs={"dashboard": dashboard},
+                worker_dashboard_address=None,
+                silence_logs=logging.ERROR,
+                preload=[PRELOAD],
+            )
+            closing.callback(cluster.close)  # a Ctrl-C held meanwhile raises as it ends
+        closing.pop_all()
+    return cluster
+
+
+def _ctrl_c_held(forked: bool) -> AbstractContextManager[None]:
+    """While the local cluster starts: workers forked from the fork server ignore SIGINT
+    already (:mod:`cosim.study.server_environ`), and a Ctrl-C (a notebook's stop button) is
+    held back until the cluster has started, then stops the study; workers Dask spawns
+    itself inherit it ignored from this process, where a Ctrl-C meanwhile was lost (the
+    study ran on to its end): only then is it ignored here."""
+    if not forked:
+        return workers_ignore_sigint()
+    if threading.current_thread() is threading.main_thread():
+        return stop_signals_deferred()
+    return nullcontext()  # a cluster started early, on a thread: the signal is the main's
 
 
 @contextmanager
@@ -593,22 +610,22 @@ def cluster_settings(dashboard: bool) -> dict[str, object]:
 
 
 @contextmanager
-def _forked_workers() -> Iterator[None]:
+def _forked_workers() -> Iterator[bool]:
     """While on, Dask starts local worker processes from the fork server
     (:mod:`cosim.study.fork_server`, started now if not yet), where the platform has one
-    and it runs; else Dask starts them its own way."""
+    and it runs (yields True); else Dask starts them its own way (yields False)."""
     running = fork_server.start()
     # multiprocessing's pymp-* folder (the fork server's socket), which a study killed
     # outright leaves: the next process removes it with this one's scratch folder
     claim(Path(multiprocessing.util.get_temp_dir()))
     if not running:
-        yield
+        yield False
         return
     import distributed.utils
 
     distributed.utils._forkserver_preload_set = True  # Dask's own preload comes too late
     with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
-        yield
+        yield True
 
 
 def stop_heartbeats(client: Client) -> None:

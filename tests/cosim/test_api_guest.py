@@ -307,3 +307,48 @@ def test_many_runs_in_one_process_hold_no_more_than_one(
         assert first[name] == second[name] == third[name], name
     # a leak of a run's FMUs or table is thousands of objects a run; caches fill up once
     assert third["objects"] - second["objects"] < 5 * 20, (first, second, third)
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_a_ctrl_c_as_the_local_cluster_starts_stops_the_sweep(
+    run_python: Callable[..., subprocess.CompletedProcess], fmu_paths: dict[str, Path]
+) -> None:
+    """A Ctrl-C (a notebook's stop button) while ``cosim.sweep`` started its local cluster
+    was lost: SIGINT was ignored in the caller's process for the seconds the worker
+    processes took to start, so that they would inherit it ignored, and the study then
+    ran to its end. It stops the study as soon as the cluster has started, whose
+    workers end with it."""
+    done = run_python(
+        """
+        import os, signal, sys
+        import psutil
+        import cosim
+        from cosim.study import execution
+
+        class Interrupted(execution.LocalCluster):
+            def __init__(self, *args, **kwargs):
+                os.kill(os.getpid(), signal.SIGINT)  # the user's Ctrl-C, as it starts
+                super().__init__(*args, **kwargs)
+
+        if __name__ == "__main__":
+            execution.LocalCluster = Interrupted
+            study = {"scenario": "bs-3", "stop_time": 2.0, "grid": {"plant.v_0": [0.1, 0.2]}}
+            try:
+                table = cosim.sweep(study, workers=1, fmu_dir=sys.argv[1]).table
+                print("finished", len(table))
+            except cosim.SweepInterrupted as stop:
+                print("stopped", len(stop.study.table))
+            # the workers: the fork server's children (it stays, for the next study), or
+            # processes Dask spawned itself
+            children = psutil.Process().children()
+            workers = [worker for child in children for worker in child.children()]
+            workers += [child for child in children if "spawn_main" in child.cmdline()[-1]]
+            print(len(workers))
+        """,
+        fmu_paths["AuvPlant"].parent,
+    )
+    assert done.returncode == 0, done.stderr
+    outcome, workers = done.stdout.strip().splitlines()[-2:]
+    assert outcome == "stopped 0", done.stdout
+    assert workers == "0", done.stdout
