@@ -35,6 +35,7 @@ if TYPE_CHECKING:
         SweepInterrupted,
         build_fmus,
         load_scenario,
+        resume,
         run,
         sweep,
     )
@@ -45,7 +46,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CosimError", "Run", "RunError", "RunInterrupted", "Scenario", "ScenarioError", "Study",
-    "StudyError", "SweepInterrupted", "build_fmus", "load_scenario", "run", "sweep",
+    "StudyError", "SweepInterrupted", "build_fmus", "load_scenario", "resume", "run",
+    "sweep",
 ]  # fmt: skip
 # where each name is defined, if not in cosim.api: the errors a caller catches and the
 # Scenario load_scenario returns, exported here so that no caller names a module inside

@@ -55,7 +55,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 
 __all__ = [
     "Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus",
-    "load_scenario", "run", "sweep",
+    "load_scenario", "resume", "run", "sweep",
 ]  # fmt: skip
 
 STUDY_FILE = "study.toml"  # a study given as a dict is written to this file first
@@ -240,6 +240,7 @@ def run(
     recording: bool = True,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
     progress: bool = False,
+    checkpoint_every: Number | None = None,
 ) -> Run:
     """Run a scenario and return its results, like ``auv-cosim run``.
 
@@ -251,15 +252,13 @@ def run(
         The command line's ``--stop-time``, ``--step`` (s; a numpy number as its value) and
         coupling options (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
     start : mapping, optional
-        Start values ``{"<instance>.<variable>": value}`` in SI units (a bool, int, float
-        or str; a numpy scalar counts as its Python value), checked like the scenario
-        file's (:meth:`Scenario.with_start`; a file named, a vehicle set ``.toml``, is
-        relative to the working folder).
+        Start values ``{"<instance>.<variable>": value}`` in SI units (bool, int, float,
+        str or a numpy scalar), checked like the scenario file's (:meth:`Scenario.with_start`;
+        a vehicle set ``.toml`` named is relative to the working folder).
     out : str or pathlib.Path, optional
         Write the run folder there (results.csv, summary.json, scenario.toml and, unless
-        ``recording`` is false or the scenario says ``output.rrd = false``,
-        recording.rrd), with the command line's guarantees. Default: no folder, the
-        results are kept in memory only (they grow with the stop time).
+        ``recording`` is false or the scenario says ``output.rrd = false``, recording.rrd),
+        as the command line does. Default: no folder, the results kept in memory only.
     overwrite : bool
         Replace an earlier run in ``out`` (``--overwrite``).
     recording : bool
@@ -270,6 +269,9 @@ def run(
     progress : bool
         Show the command line's progress bar on stderr (under the cell in a notebook,
         removed when the run ends). Default: nothing shown.
+    checkpoint_every : float, optional
+        Simulated seconds between the run's states saved into ``out``
+        (``--checkpoint-every``; needs ``out``): :func:`resume` continues it if killed.
 
     Returns
     -------
@@ -279,24 +281,22 @@ def run(
     Raises
     ------
     cosim.errors.CosimError
-        The scenario, an option or the output folder is refused, or the FMUs cannot be
-        set up; nothing has run (a :class:`~cosim.scenario.checks.ScenarioError` for
-        the scenario).
+        The scenario, an argument (each checked first: another type, such as a Decimal or
+        a string for a flag, a number out of range, an empty path or one with a NUL byte,
+        named with what was expected) or the output folder is refused, or the FMUs cannot
+        be set up; nothing has run (:class:`~cosim.scenario.checks.ScenarioError`: the
+        scenario).
     RunError
         The run failed before its stop time (an FMU failed): the message says why, and
         ``error.run`` holds the partial results.
     RunInterrupted
         Ctrl-C (a notebook's stop button) ended the run: a KeyboardInterrupt, whose
         ``run`` holds the partial results.
-
-    Every argument is checked first: a value of another type (a Decimal, a list for the
-    mapping, a string for a flag), a number out of range, or an empty path or one with a NUL
-    byte is a :class:`~cosim.errors.CosimError` naming it and what was expected.
     """
     settings = {
         "stop_time": stop_time, "step": step, "algorithm": algorithm,
         "extrapolation": extrapolation, "tolerance": tolerance, "check_step": check_step,
-        "progress": progress,
+        "progress": progress, "checkpoint_every": checkpoint_every,
     }  # fmt: skip
     options = _run_options(out, recording, fmu_dir, overwrite, settings)
     start = _start(start)
@@ -322,7 +322,13 @@ def _executed(scenario: str | Path | Scenario, options: RunOptions, in_memory: b
             temporary = stack.enter_context(_temporary_folder())
             options = dataclasses.replace(options, out_dir=Path(temporary) / "run")
         outcome = execute(scenario, options)
-        finished = _run_of(outcome, None if in_memory else outcome.out_dir.absolute())
+        return _finished(outcome, in_memory)
+
+
+def _finished(outcome: RunOutcome, in_memory: bool) -> Run:
+    """The :class:`Run` of ``outcome``; :class:`RunError` if it failed, :class:`RunInterrupted`
+    if a stop signal ended it (``in_memory``: its folder is about to be removed)."""
+    finished = _run_of(outcome, None if in_memory else outcome.out_dir.absolute())
     where = "the error's run.results" if in_memory else str(outcome.out_dir)
     if outcome.signal is not None:  # the user's stop, even if the run had just completed
         reason = REASONS.get(signal.Signals(outcome.signal).name, "stopped")
@@ -332,6 +338,50 @@ def _executed(scenario: str | Path | Scenario, options: RunOptions, in_memory: b
     if not finished.complete:
         raise RunError(f"{outcome.result.error} (partial results in {where})", finished)
     return finished
+
+
+def resume(
+    out: str | Path,
+    *,
+    recording: bool = True,
+    fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    progress: bool = False,
+    checkpoint_every: Number | None = None,
+) -> Run:
+    """Continue a killed run from its last checkpoint, like ``auv-cosim run --resume OUT``.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The folder of a run started with ``checkpoint_every`` (:func:`run`) and stopped
+        before its stop time (a batch system's time limit, a kernel restarted).
+    recording, fmu_dir, progress : optional
+        As :func:`run`'s.
+    checkpoint_every : float, optional
+        Simulated seconds between checkpoints from here on. Default: the checkpointed
+        run's.
+
+    Returns
+    -------
+    Run
+        The whole run: its rows up to the checkpoint, kept, and the rest, written as the
+        uninterrupted run would have written them (docs/runs.md).
+
+    Raises
+    ------
+    cosim.errors.CosimError
+        No checkpoint in ``out``, the run there complete, or its scenario, FMUs or
+        auv-cosim version changed since: nothing is touched.
+    RunError, RunInterrupted
+        As :func:`run`.
+    """
+    from cosim.runner import resume_run
+
+    folder = _folder("out", out)
+    settings = {"progress": progress, "checkpoint_every": checkpoint_every}
+    options = _run_options(folder, recording, fmu_dir, False, settings)
+    outcome = resume_run(folder, dataclasses.replace(options, out_dir=None))
+    return _finished(outcome, in_memory=False)
 
 
 def sweep(
@@ -686,14 +736,21 @@ def _run_options(
 ) -> RunOptions:
     """:func:`run`'s options, each checked (``settings``: the run's overrides by name)."""
     recording = _flag("recording", recording)
+    every = _seconds("checkpoint_every", settings.get("checkpoint_every"))
+    if every is not None and out is None:
+        raise CosimError(
+            f"checkpoint_every={every!r}: needs out= (a run kept in memory leaves no folder "
+            "to resume)"
+        )
     return RunOptions(
         out_dir=None if out is None else _folder("out", out),
-        stop_time=_seconds("stop_time", settings["stop_time"]),
-        step=_seconds("step", settings["step"]),
-        algorithm=_choice("algorithm", settings["algorithm"], ALGORITHMS),  # type: ignore[arg-type]
-        extrapolation=_choice("extrapolation", settings["extrapolation"], EXTRAPOLATIONS),  # type: ignore[arg-type]
-        tolerance=_number("tolerance", settings["tolerance"]),
-        check_step=_flag("check_step", settings["check_step"]),
+        stop_time=_seconds("stop_time", settings.get("stop_time")),
+        step=_seconds("step", settings.get("step")),
+        algorithm=_choice("algorithm", settings.get("algorithm"), ALGORITHMS),  # type: ignore[arg-type]
+        extrapolation=_choice("extrapolation", settings.get("extrapolation"), EXTRAPOLATIONS),  # type: ignore[arg-type]
+        tolerance=_number("tolerance", settings.get("tolerance")),
+        check_step=_flag("check_step", settings.get("check_step", False)),
+        checkpoint_every=every,
         progress=_flag("progress", settings["progress"]),
         no_rrd=out is None or not recording,
         fmu_dir=_folder("fmu_dir", fmu_dir),

@@ -285,7 +285,7 @@ def resume_run(
         raise CosimError(f"{names.given('resume', out_dir)}: no run there ({scenario} is missing)")
     # checked before the folder is claimed, whose own check of the earlier run's files
     # would refuse an edited scenario.toml without saying what the checkpoint needs
-    saved = read_checkpoint(Path(out_dir))
+    saved = read_checkpoint(Path(out_dir), names)
     loaded = load_scenario(scenario, fmu_dir=options.fmu_dir)
     saved.check(loaded)
     resumed = replace(options, out_dir=Path(out_dir), overwrite=True, resume=True)
@@ -312,7 +312,7 @@ def _checkpoints(
         raise CosimError(f"{what}: cannot checkpoint this run: {reason}")
     every_s, start, rows = options.checkpoint_every, None, None
     if options.resume:
-        saved = read_checkpoint(folder.path)
+        saved = read_checkpoint(folder.path, options.names)
         saved.check(scenario)
         start, rows = saved.state(), saved.rows(scenario.columns)
         every_s = every_s if every_s is not None else saved.every_s

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from cosim.engine.checkpoint import from_json, to_json
-from cosim.errors import CosimError
+from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.limits import unwritten
 from cosim.outputs.folder import RESULTS_FILE, SUMMARY_FILE, RunFolder
 from cosim.outputs.results import read_csv
@@ -177,16 +177,18 @@ class Checkpoint:
         return table[:wanted, 1:]
 
 
-def read_checkpoint(out_dir: Path) -> Checkpoint:
-    """The checkpoint of the run in ``out_dir``. Raises :class:`CosimError` (one line)
-    for a folder without one, a damaged one, or a run that completed."""
+def read_checkpoint(out_dir: Path, names: OptionNames = FLAGS) -> Checkpoint:
+    """The checkpoint of the run in ``out_dir``. Raises :class:`CosimError` (one line,
+    naming the options as ``names`` does) for a folder without one, a damaged one, or a
+    run that completed."""
     path = Path(out_dir) / CHECKPOINT_FILE
+    asked = names.given("resume", out_dir)
     try:
         data = json.loads(path.read_bytes())
     except FileNotFoundError:
         raise CosimError(
-            f"--resume {out_dir}: no {CHECKPOINT_FILE} there (run with --checkpoint-every "
-            "SECONDS to write one)"
+            f"{asked}: no {CHECKPOINT_FILE} there (run with "
+            f"{names.option('checkpoint_every')} SECONDS to write one)"
         ) from None
     except (OSError, ValueError) as exc:
         raise CosimError(f"{path}: cannot read it: {exc}") from None
@@ -195,5 +197,5 @@ def read_checkpoint(out_dir: Path) -> Checkpoint:
     with contextlib.suppress(OSError, ValueError):
         summary = json.loads((Path(out_dir) / SUMMARY_FILE).read_bytes())
         if isinstance(summary, dict) and summary.get("complete") is True:
-            raise CosimError(f"--resume {out_dir}: the run there is complete: nothing to resume")
+            raise CosimError(f"{asked}: the run there is complete: nothing to resume")
     return Checkpoint(path, data)

@@ -515,8 +515,9 @@ def test_the_api_names_complete_in_ipython_before_their_first_use(
 def test_public_names_have_numpy_docstrings() -> None:
     public = ["Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus"]
     errors = ["CosimError", "Scenario", "ScenarioError", "StudyError"]
-    assert sorted(cosim.__all__) == sorted([*public, *errors, "load_scenario", "run", "sweep"])
-    for name in ("run", "load_scenario", "sweep", "build_fmus"):
+    calls = ["load_scenario", "resume", "run", "sweep"]
+    assert sorted(cosim.__all__) == sorted([*public, *errors, *calls])
+    for name in (*calls, "build_fmus"):
         doc = getattr(cosim, name).__doc__
         assert "Returns\n    -------" in doc and "Raises\n    ------" in doc, name
     for name in ("Run", "Study"):

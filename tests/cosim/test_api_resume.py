@@ -1,0 +1,93 @@
+"""The Python API's checkpoints: ``cosim.run(..., checkpoint_every=)`` and
+``cosim.resume(out)`` do what ``auv-cosim run --checkpoint-every`` and ``--resume`` do,
+and their refusals name the keywords a caller gave, not the command line's flags."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import cosim
+from cosim.errors import CosimError
+from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
+
+STOP_S = 300.0  # long enough for the kill to land between the first checkpoint and the end
+
+
+def test_checkpoints_without_a_folder_are_refused_naming_the_keyword(fmu_dir: Path) -> None:
+    with pytest.raises(CosimError, match=r"^checkpoint_every=0\.2: needs out= "):
+        cosim.run("bs-3", stop_time=0.5, checkpoint_every=0.2, fmu_dir=fmu_dir)
+
+
+@pytest.mark.parametrize("every", [0, -1.0, float("nan"), "10"])
+def test_a_bad_checkpoint_interval_is_refused_naming_it(
+    fmu_dir: Path, tmp_path: Path, every: object
+) -> None:
+    with pytest.raises(CosimError, match=r"^checkpoint_every="):
+        cosim.run("bs-3", stop_time=0.5, checkpoint_every=every, out=tmp_path / "r",
+                  fmu_dir=fmu_dir)  # type: ignore[arg-type]  # fmt: skip
+    assert not (tmp_path / "r").exists()
+
+
+def test_resuming_a_folder_without_a_checkpoint_names_the_keywords(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "run"
+    cosim.run("bs-3", stop_time=0.2, out=out, recording=False, fmu_dir=fmu_dir)
+    with pytest.raises(CosimError) as refused:
+        cosim.resume(out, fmu_dir=fmu_dir)
+    assert str(refused.value) == (
+        f"resume={str(out)!r}: no {CHECKPOINT_FILE} there (run with checkpoint_every= "
+        "SECONDS to write one)"
+    )
+
+
+def test_a_complete_run_is_not_resumed(fmu_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    run = cosim.run("bs-3", stop_time=0.5, out=out, recording=False, checkpoint_every=0.2,
+                    fmu_dir=fmu_dir)  # fmt: skip
+    assert run.complete and (out / CHECKPOINT_FILE).is_file()
+    with pytest.raises(CosimError, match=r"the run there is complete: nothing to resume$"):
+        cosim.resume(out, fmu_dir=fmu_dir)
+
+
+def _kill_after_checkpoint(code: str, out: Path) -> int:
+    """Run ``code`` in a Python of its own process group and SIGTERM the group once
+    ``out`` holds a checkpoint; its exit code. The group is killed whatever happens."""
+    proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 300
+        while not (out / CHECKPOINT_FILE).exists():
+            assert proc.poll() is None, "the run ended before its first checkpoint"
+            assert time.monotonic() < deadline, "no checkpoint in time"
+            time.sleep(0.02)
+        os.killpg(proc.pid, signal.SIGTERM)
+        return proc.wait(timeout=300)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        assert proc.stderr is not None
+        proc.stderr.close()
+
+
+@pytest.mark.slow
+def test_a_killed_api_run_resumed_gives_the_uninterrupted_results(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    options = f"stop_time={STOP_S}, recording=False, fmu_dir={str(fmu_dir)!r}"
+    cosim.run("bs-3", out=whole, stop_time=STOP_S, recording=False, fmu_dir=fmu_dir)
+    code = f"import cosim; cosim.run('bs-3', out={str(killed)!r}, checkpoint_every=10, {options})"
+    assert _kill_after_checkpoint(code, killed) != 0
+    resumed = cosim.resume(killed, recording=False, fmu_dir=fmu_dir)
+    assert resumed.complete
+    assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
+    assert resumed.results.index[-1] == pytest.approx(STOP_S)
