@@ -339,6 +339,9 @@ static const char *read_variable(Instance *c, const char *line, char *why, size_
         snprintf(why, n, "min %s, max %s or start %s is neither a number nor -", min, max, start);
     } else if (!grow(c, (unsigned)vr)) {
         snprintf(why, n, "out of memory");
+    } else if (c->vars[vr].known) { /* an FMI 2.0 alias: one slot would hold two rules */
+        snprintf(why, n, "value reference %lu is declared twice (%s and %s): aliases are not "
+                 "supported", vr, c->vars[vr].name, name);
     } else {
         Variable *v = &c->vars[vr];
         v->known = 1;
@@ -1423,6 +1426,10 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
     if (!bytes || size < SAVED_HEADER) {
         return refuse(c, "fmi2DeSerializeFMUstate refused: %s",
                       bytes ? "too few bytes for a state of this FMU" : "the byte array is NULL");
+    }
+    if (size > PTRDIFF_MAX) { /* no array is this long: the CRC would read past the bytes */
+        return refuse(c, "fmi2DeSerializeFMUstate refused: size = %zu bytes, more than any "
+                      "array holds (at most %zu)", size, (size_t)PTRDIFF_MAX);
     }
     memcpy(&header.magic, bytes, sizeof(unsigned));
     memcpy(&header.phase, bytes + sizeof(unsigned), sizeof(int));

@@ -312,6 +312,10 @@ fmi2Status slave_state_from_bytes(Instance *c, const fmi2Byte *bytes, size_t siz
     if (size < HEADER + buffers) {
         return refuse(c, "%s refused: %zu bytes are too few for a state of this FMU", call, size);
     }
+    if (size - HEADER - buffers > (size_t)PTRDIFF_MAX) { /* Py_ssize_t would wrap below */
+        return refuse(c, "%s refused: size = %zu bytes, more than Python's bytes hold", call,
+                      size);
+    }
     memcpy(header, bytes, HEADER);
     if (memcmp(header, ours, HEADER)) {
         return refuse(c, "%s refused: a state of an FMU with other variables", call);

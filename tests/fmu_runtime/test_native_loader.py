@@ -127,7 +127,7 @@ HOSTILE = [  # what FMI hosts pass: each refused, with one Error line
     "setInteger-null-references", "setInteger-null-values", "getString-null-values",
     "setString-null-values", "setString-null-string", "deSerialize-null-bytes",
     "deSerialize-null-state", "getFMUstate-null-state", "serialize-null-bytes",
-    "setInteger-count-overflow", "setBoolean-count-overflow",
+    "setInteger-count-overflow", "setBoolean-count-overflow", "deSerialize-size-past-any-array",
 ]  # fmt: skip
 REFUSED_INSTANTIATIONS = [
     "instantiate-null-name", "instantiate-null-guid", "instantiate-wrong-guid",
@@ -371,6 +371,27 @@ def test_a_variables_line_that_cannot_be_read_whole_refuses_the_fmu(
     done = run_clean([host, folder, "AuvPlant", "cycles", 1, 1], tmp_path, PATH="/nonexistent")
     assert "instantiate returned NULL" in done.stdout, done.stdout
     expected = f"{table} line {number + 1}: {said}"
+    assert any(expected in text for _, text in _log_lines(done.stdout, 3)), done.stdout
+
+
+def test_a_value_reference_declared_twice_refuses_the_fmu_naming_it(
+    host, extracted, tmp_path, clean_home
+):
+    """Two variables sharing one value reference (an FMI 2.0 alias, which a hand-edited
+    modelDescription.xml can declare): the second line of the table overwrote the first's
+    rules and slot silently, so a set through one name was checked by the other's rules.
+    NULL from fmi2Instantiate and one line naming the reference and both variables."""
+    folder = tmp_path / "AuvPlant"
+    shutil.copytree(extracted["AuvPlant"], folder)
+    table = folder / "resources" / native.VARIABLES_FILE
+    lines = table.read_text().splitlines()
+    first = next(line for line in lines if line.startswith("4 "))
+    alias = " ".join([*first.split(" ")[:-1], "alias_of_4"])
+    table.write_text("\n".join([*lines, alias]) + "\n")
+    done = run_clean([host, folder, "AuvPlant", "cycles", 1, 1], clean_home)
+    assert "instantiate returned NULL" in done.stdout, done.stdout
+    expected = (f"{table} line {len(lines) + 1}: value reference 4 is declared twice "
+                f"({first.split(' ')[-1]} and alias_of_4): aliases are not supported")  # fmt: skip
     assert any(expected in text for _, text in _log_lines(done.stdout, 3)), done.stdout
 
 

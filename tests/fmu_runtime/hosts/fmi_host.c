@@ -8,9 +8,9 @@
  *                                   valid call still works after the refusals (and
  *                                   whether a parameter is read before initialisation)
  *   fmi_host DIR ID hostile         NULL arguments FMI hosts pass, wrong GUIDs, and value
- *                                   counts too large for any array: prints "<case>
- *                                   <status>" (or NULL / instance for fmi2Instantiate),
- *                                   then a valid step after them
+ *                                   counts and state sizes too large for any array:
+ *                                   prints "<case> <status>" (or NULL / instance for
+ *                                   fmi2Instantiate), then a valid step after them
  *   fmi_host DIR ID twice DIR2      one build extracted twice (DIR, DIR2), an instance of
  *                                   each, stepped in turn: prints "<case> <status>"
  *   fmi_host DIR ID race DIR2       the first instances in the process of two extractions
@@ -359,6 +359,18 @@ static int hostile(const Fmu *f)
     }
     if (f->get_state(c, &state) == 0) {
         printf("serialize-null-bytes %d\n", f->serialize(c, state, NULL, 64));
+        /* a state's true bytes with a size no array can have (over 2^63): a host's
+         * arithmetic gone wrong; refused before a byte past the true ones is read */
+        size_t size = 0;
+        char *bytes = NULL;
+        if (!f->state_size(c, state, &size) && (bytes = malloc(size)) &&
+            !f->serialize(c, state, bytes, size)) {
+            void *loaded = NULL;
+            size_t huge = ((size_t)1 << 63) + size;
+            printf("deSerialize-size-past-any-array %d\n",
+                   f->deserialize(c, bytes, huge, &loaded));
+        }
+        free(bytes);
         f->free_state(c, &state);
     }
     printf("valid-step-after-refusals %d\n", f->do_step(c, 0.0, 0.01, 1));
