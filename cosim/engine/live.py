@@ -44,7 +44,7 @@ from cosim.engine.signals import StopRequest
 from cosim.errors import CosimError
 from cosim.scenario.checks import ScenarioError, Source
 from cosim.scenario.spec import Scenario
-from cosim.scenario.timeline_spec import Event, settable
+from cosim.scenario.timeline_spec import Event, settable, shown_time
 from cosim.scenario.unit_doubts import value_doubt
 
 PAUSE_POLL_S = 0.1  # s: a paused run checks for a signal this often
@@ -251,8 +251,9 @@ class LiveControl:
         self._index, self.stop_request, self.pacer = dict(index), stop, pacer
 
     def publish(self, t: float, z: np.ndarray) -> None:
-        """The values at communication point t (a copy; read by :meth:`latest`)."""
-        self._latest = (t, z.copy())
+        """The values at communication point t (a copy; read by :meth:`latest`), with t as
+        a user reads it (:func:`shown_time`)."""
+        self._latest = (shown_time(t, self.scenario.coupling.step), z.copy())
 
     def take(self, n: int, t: float, z: np.ndarray) -> Iterator[Ticket]:
         """The requests to apply at communication point n (t_n = ``t`` s), oldest first;
@@ -286,7 +287,7 @@ class LiveControl:
         with self._cond:
             self._inflight.remove(ticket)
             self._applied.update(ticket.values)
-        ticket._resolve(name, t, None)
+        ticket._resolve(name, shown_time(t, self.scenario.coupling.step), None)
 
     def failed(self, ticket: Ticket, reason: str) -> None:
         """Applying ``ticket`` failed (the run ends): ``reason``, one line."""
@@ -306,7 +307,7 @@ class LiveControl:
         ``reason`` (default: the time it ended at); safe to call twice."""
         if reason is None:
             t = self.time
-            reason = f"the run ended at t = {t:.6g} s" if t is not None else "the run ended"
+            reason = f"the run ended at t = {t:.15g} s" if t is not None else "the run ended"
         with self._cond:
             if self._closed is None:
                 self._closed = reason

@@ -36,6 +36,8 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from cosim.scenario.timeline_spec import shown_time
+
 MAX_STEP_WALL_S = 86_400.0  # s of wall clock one communication step may take: a day
 SLEEP_SLICE_S = 0.05  # s: a long wait for a deadline checks for a stop this often
 ROLLING_WINDOW_S = 1.0  # wall clock over which the rolling real-time factor is taken
@@ -134,7 +136,7 @@ class Pacer:
             if now - due >= BEHIND_S:
                 self._fall_behind(n, now - due)
         if now - due > self.max_lateness:
-            self.max_lateness, self.latest_at = now - due, n * self.h
+            self.max_lateness, self.latest_at = now - due, shown_time(n * self.h, self.h)
         self.n = n
         if now - self._samples[-1][0] >= _SAMPLE_S:
             self._samples.append((now, n))
@@ -147,7 +149,8 @@ class Pacer:
             self.behind = True
             self.say(
                 f"real time: cannot keep up with {self.factor:g}x real time at "
-                f"t = {n * self.h:.6g} s ({lag:.2f} s behind); going on as fast as possible"
+                f"t = {shown_time(n * self.h, self.h):.15g} s ({lag:.2f} s behind); going on "
+                "as fast as possible"
             )
         assert self.t0 is not None
         self.t0 += lag

@@ -38,7 +38,7 @@ from fmpy.fmi1 import FMICallException
 from cosim.engine.slave import STATUS_LABELS, Slave
 from cosim.errors import CosimError
 from cosim.scenario.spec import FAULT_COLUMN_PREFIX, Scenario
-from cosim.scenario.timeline_spec import POINT_TOLERANCE, Event, Fault, first_point
+from cosim.scenario.timeline_spec import POINT_TOLERANCE, Event, Fault, first_point, shown_time
 
 if TYPE_CHECKING:
     from cosim.engine.live import LiveControl
@@ -429,8 +429,8 @@ class Timeline:
             except CosimError as exc:
                 live.failed(ticket, str(exc))
                 raise
-            self.overrides.append({"name": name, "time": t, "set": ticket.values,
-                                   "source": ticket.source})  # fmt: skip
+            self.overrides.append({"name": name, "time": shown_time(t, self.h),
+                                   "set": ticket.values, "source": ticket.source})  # fmt: skip
             live.applied(ticket, name, t)
         self.notes += [(t, note) for note in live.take_notes()]
 

@@ -265,7 +265,7 @@ class KeyPad:
         t = self.live.time
         if name == "heading_mode" and value in DESIGNED_MODES and t == ticket.time:
             return f"mode {value}: designing the heading law (the run waits)"
-        return f"{name} = {_told(name, value)} applied at t = {ticket.time:.2f} s"
+        return f"{name} = {_told(name, value)} applied at t = {ticket.time:.15g} s"
 
     def status_line(self, width: int) -> str:
         """The status line, at most ``width - 1`` characters (no wrap at the last column).

@@ -40,6 +40,7 @@ import re
 import stat
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from decimal import Decimal
 from pathlib import Path
 from typing import Any, Literal
 
@@ -199,6 +200,14 @@ def first_point(time: float, h: float) -> int:
     """The first communication point n with n h >= ``time`` (s), within
     :data:`POINT_TOLERANCE` of a step ``h`` (s)."""
     return max(0, math.ceil(time / h - POINT_TOLERANCE))
+
+
+def shown_time(t: float, h: float) -> float:
+    """A communication point's time ``t`` = n ``h`` (s) as a user reads it: rounded to the
+    decimals ``h`` is written with (163 x 0.04 s is 6.5200000000000005 s in floats, 6.52
+    here). Only for what is shown or recorded for people; the stepping keeps n h."""
+    exponent = Decimal(repr(h)).as_tuple().exponent
+    return round(t, -exponent) if isinstance(exponent, int) and exponent < 0 else t
 
 
 def unreached(

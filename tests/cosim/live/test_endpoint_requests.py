@@ -17,6 +17,7 @@ import os
 import socket
 import threading
 from collections.abc import Iterator
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -339,6 +340,36 @@ def test_a_set_is_answered_ok_only_once_applied(scenario: Scenario) -> None:
     master.point(3)
     assert ticket.wait(0) and (ticket.name, ticket.time, ticket.refused) == ("live-1", 0.03, None)
     assert master.applied == [(3, {"controller.yaw_setpoint": 0.2})]
+
+
+def _decimals(h: float) -> int:
+    return -int(Decimal(repr(h)).as_tuple().exponent)
+
+
+def test_the_times_in_replies_read_as_the_step_writes_them(scenario: Scenario) -> None:
+    """At a point whose n h is no float of the step's decimals (163 x 0.04 s is
+    6.5200000000000005 s), a set's and a get's replies said "t": 6.5200000000000005: the
+    float's repr where a user reads a time. They say the point's time n h, written with
+    the step's decimals."""
+    h = scenario.coupling.step
+    n = next(n for n in range(1, 10_000) if len(repr(n * h).partition(".")[2]) > _decimals(h))
+    live = LiveControl(scenario)
+    live.bind({"plant.yaw": 0}, StopRequest())
+    with endpoint(live) as server:
+        client = Client(server)
+        try:
+            client.send(b'{"set": {"controller.yaw_setpoint": 0.2}}\n')
+            applied = threading.Event()
+            while not applied.wait(0.01):  # point n, again until the set has arrived
+                for ticket in live.take(n, n * h, np.zeros(1)):
+                    live.applied(ticket, "live-1", n * h)
+                    applied.set()
+            live.publish(n * h, np.zeros(1))
+            client.send(b'{"get": ["plant.yaw"]}\n')
+            replies = [client.reply(), client.reply()]
+        finally:
+            client.close()
+    assert [reply.get("t") for reply in replies] == [float(n * Decimal(repr(h)))] * 2, replies
 
 
 def test_a_set_of_degrees_to_an_angle_in_rad_is_applied_with_a_warning(scenario: Scenario) -> None:
