@@ -73,22 +73,30 @@ def deliveries(
     scenario = read_scenario(run_dir)
     if scenario is None:
         return []
-    sources = connection_sources(scenario)
-    by_target: dict[str, list[Fault]] = {}
-    for fault in _faults(scenario, summary, sources):
-        by_target.setdefault(fault.target, []).append(fault)
     found = []
-    for target, faults in by_target.items():
-        source = sources.get(target)
-        if source is None or source not in table or "time" not in table:
-            continue  # an unconnected input, or a source the run did not record
-        values = _replayed(scenario, table, source, target, faults)
+    for target, source, faults in faulted_connections(scenario, summary):
+        if source not in table or "time" not in table:
+            continue  # a source the run did not record
+        values = _replayed(scenario, table, source, target, list(faults))
         if values is None:
             continue
         flags = [table[c] > 0 for f in faults if (c := FAULT_COLUMN_PREFIX + f.name) in table]
         acting = np.any(flags, axis=0) if flags else np.zeros(len(table["time"]), dtype=bool)
         found.append(Delivery(target, source, tuple(faults), values, acting.astype(float)))
     return found
+
+
+def faulted_connections(
+    scenario: dict[str, Any], summary: dict[str, Any]
+) -> list[tuple[str, str, tuple[Fault, ...]]]:
+    """(target, source, its faults in file order) of each connection of the resolved
+    ``scenario`` a fault acts on (``summary``: the run's summary.json); a fault on an
+    unconnected input is none of them."""
+    sources = connection_sources(scenario)
+    by_target: dict[str, list[Fault]] = {}
+    for fault in _faults(scenario, summary, sources):
+        by_target.setdefault(fault.target, []).append(fault)
+    return [(t, sources[t], tuple(faults)) for t, faults in by_target.items() if t in sources]
 
 
 def read_scenario(run_dir: Path) -> dict[str, Any] | None:

@@ -20,7 +20,8 @@ A panel that draws the source of a connection a fault acts on (a command, a sens
 value) also draws what the fault delivered to the connection's target (a jammed mass's
 held command, a delayed or noisy signal, 0 N from a failed thruster:
 :mod:`cosim.viz.delivered`), its legend naming the value as sent and as delivered with the
-panel's unit, and the interval where the fault acts shaded.
+panel's unit, and the interval where the fault acts shaded. A faulted connection no
+figure draws (its source not recorded, or on no panel) is named on the page, with why.
 
 Each event the run fired and each fault's start and stop (``summary.json``'s ``events``
 and ``faults``, docs/events.md), and the yaw settling time (its key figure), is a
@@ -89,7 +90,13 @@ from cosim.outputs.report_folder import (
 )
 from cosim.outputs.results import read_csv
 from cosim.paths import DEFAULT_FMU_DIR, path_text
-from cosim.viz.delivered import Delivery, connection_sources, deliveries, read_scenario
+from cosim.viz.delivered import (
+    Delivery,
+    connection_sources,
+    deliveries,
+    faulted_connections,
+    read_scenario,
+)
 from cosim.viz.display_units import DEG, NO_UNIT, scale_to
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import STUDY_FILE
@@ -269,7 +276,8 @@ def write_report(run_dir: Path) -> Path:
         alts = {name: figure_alt(name, table, summary, run_dir) for name in figures}
         index = staging / INDEX_PAGE
         nulls = null_reasons(run_dir, table, summary)
-        page = index_page(run_dir, summary, summary_problem, figures, stamp, alts, nulls)
+        undrawn = undrawn_faults(run_dir, table, summary, figures)
+        page = index_page(run_dir, summary, summary_problem, figures, stamp, alts, nulls, undrawn)
         index.write_text(page, "utf-8", "backslashreplace")  # undecoded text elsewhere
         record(staging, [*figures.values(), index], stamp)
         remove_earlier(out, keep=[INDEX_PAGE, *(path.name for path in figures.values())])
@@ -349,6 +357,35 @@ def _figures(
         if deviation is not None:
             figures["lateral_deviation"] = deviation
     return figures
+
+
+def undrawn_faults(
+    run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any], figures: dict[str, Path]
+) -> list[str]:
+    """One line for each faulted connection of the run whose delivered value none of the
+    written ``figures`` draws, saying why: its source is not in results.csv (``table``),
+    no panel draws the source (the autopilot's thrust), or the run's files do not tell
+    what was delivered (:func:`cosim.viz.delivered.deliveries`)."""
+    scenario = read_scenario(run_dir)
+    if scenario is None:
+        return []
+    replayed = {d.target for d in deliveries(run_dir, table, summary)}
+    panelled = {
+        s.column for name in figures if name in FIGURES for p in FIGURES[name][1] for s in p.series
+    }
+    lines = []
+    for target, source, faults in faulted_connections(scenario, summary):
+        if source not in table:
+            why = f"results.csv does not record its source {source}"
+        elif source not in panelled:
+            why = f"no panel of this report draws its source {source}"
+        elif target not in replayed:
+            why = "the run's files do not tell what it delivered"
+        else:
+            continue
+        named = ", ".join(f"{f.name} ({f.kind})" for f in faults)
+        lines.append(f"fault {named} on {source} -> {target}: not drawn, {why}")
+    return lines
 
 
 def with_deliveries(found: list[Delivery]) -> dict[str, np.ndarray]:
@@ -969,12 +1006,14 @@ def index_page(
     stamp: dict[str, Any] | None = None,
     alts: dict[str, str] | None = None,
     nulls: dict[str, str] | None = None,
+    undrawn: list[str] | None = None,
 ) -> str:
     """The HTML index: which run it describes (``stamp``: :func:`run_stamp` and when it
     was made), summary table, key figures (one summary.json holds as null with its reason
-    in ``nulls``, :func:`null_reasons`), the faults and the events fired, the figures
-    inline (linked), each with its ``alts`` text (:func:`figure_alt`; the figure's title
-    without one)."""
+    in ``nulls``, :func:`null_reasons`), the faults and the events fired, each faulted
+    connection no figure draws (``undrawn``: :func:`undrawn_faults`), the figures inline
+    (linked), each with its ``alts`` text (:func:`figure_alt`; the figure's title without
+    one)."""
     name = summary.get("scenario") or path_text(run_dir.resolve().name)
     table = _summary_rows(summary, nulls or {})
     note = _incomplete_note(summary, summary_problem)
@@ -996,6 +1035,7 @@ h1, code {{ overflow-wrap: anywhere; }}</style></head>
 </table>
 {_manoeuvre_table(summary)}
 {_timeline_tables(summary)}
+{_undrawn_note(undrawn or [])}
 {images}
 </body>
 </html>
@@ -1045,6 +1085,11 @@ def _incomplete_note(summary: dict[str, Any], summary_problem: str | None) -> st
             "results.</strong></p>"
         )
     return note
+
+
+def _undrawn_note(undrawn: list[str]) -> str:
+    """The faulted connections no figure draws, a paragraph each ("" for none)."""
+    return "\n".join(f"<p><em>{html.escape(line)}</em></p>" for line in undrawn)
 
 
 def _figure_images(figures: dict[str, Path], alts: dict[str, str] | None) -> str:

@@ -9,6 +9,7 @@ vehicle actually got, for every fault kind that changes a connection's value.
 
 from __future__ import annotations
 
+import html
 import math
 from pathlib import Path
 
@@ -127,3 +128,38 @@ def test_under_jacobi_the_delivered_value_is_the_one_gathered_a_step_before(
         if str(line.get_label()).startswith(f"delivered to {target}")
     )
     np.testing.assert_allclose(delivered[:-1], got[1:], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("target", "record", "why"),
+    [
+        # the autopilot's thrust: recorded, but no panel of the report draws it
+        ("plant.thrust", "'controller.thrust', 'plant.yaw'",
+         "no panel of this report draws its source controller.thrust"),
+        # the tunnel force, its source left out of results.csv
+        ("plant.tunnel_force", "'plant.yaw'",
+         "results.csv does not record its source controller.tunnel_force"),
+    ],
+)  # fmt: skip
+def test_a_faulted_connection_the_report_cannot_draw_is_named_on_its_page(
+    target: str, record: str, why: str, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A fault on a connection whose source no panel draws (the thrust) or the run did
+    not record: the report drew nothing of it and said nothing, so a reader took the
+    figures for the whole story. The page names the fault, its connection and why its
+    delivered value is not drawn."""
+    text = (SCENARIO_FOLDER / "bs-3.toml").read_text(encoding="utf-8")
+    scenario = tmp_path / "undrawn.toml"
+    scenario.write_text(
+        text.replace("stop_time = 60.0", "stop_time = 0.5")
+        + f'\n[[faults]]\nname = "f"\nkind = "gain"\ntarget = "{target}"\nvalue = 0.5\n'
+        + f"\n[output]\nrecord = [{record}]\n",
+        encoding="utf-8",
+    )
+    out = tmp_path / "run"
+    argv = ["run", str(scenario), "--no-rrd", "--quiet", "--out", str(out)]
+    assert main([*argv, "--fmu-dir", str(fmu_dir)]) == 0
+    assert main(["report", str(out)]) == 0
+    page = html.unescape((out / "report" / "index.html").read_text(encoding="utf-8"))
+    source = why.rpartition(" ")[2]
+    assert f"fault f (gain) on {source} -> {target}: not drawn, {why}" in page, page
