@@ -26,7 +26,7 @@ import multiprocessing
 import os
 import signal
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -397,6 +397,7 @@ def sweep(
     progress: bool = False,
     scheduler: str | None = None,
     security: Security | None = None,
+    fmu_log: Mapping[str, Sequence[str]] | None = None,
 ) -> Study:
     """Run a parameter sweep or Monte Carlo study on a local Dask cluster, like
     ``auv-cosim sweep``.
@@ -431,6 +432,10 @@ def sweep(
     progress : bool
         Show the command line's progress bar of the runs on stderr. Default: nothing
         shown.
+    fmu_log : mapping, optional
+        Turn instances' debug logging on in every run (``--fmu-log``): ``{instance: [log
+        categories]}``, ``[]`` for every category; each run's messages go to
+        ``runs/<run id>/fmu-log.txt`` in the study folder (in ``out``).
 
     Returns
     -------
@@ -460,9 +465,13 @@ def sweep(
     resume = _flag("resume", resume, StudyError)
     max_runs = _count("max_runs", max_runs, StudyError)
     fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
+    logs = _fmu_log(fmu_log, StudyError)
     _check_needs_out(out, resume, overlay)
+    if out is None and logs:
+        raise StudyError(f"fmu_log={shown(fmu_log)} needs out= (the study folder the runs' "
+                         "fmu-log.txt go to)")  # fmt: skip
     options = {"resume": resume, "fmu_dir": fmu_dir, "overlay": overlay, "max_runs": max_runs,
-               "progress": _flag("progress", progress, StudyError)}  # fmt: skip
+               "progress": _flag("progress", progress, StudyError), "fmu_log": logs}  # fmt: skip
     return _swept(study, out, cluster, options)
 
 
@@ -791,6 +800,27 @@ def _count(name: str, value: object, error: type[CosimError] = CosimError) -> in
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise error(f"{name}={shown(value)}: expected a whole number >= 1")
     return value
+
+
+def _fmu_log(value: object, error: type[CosimError]) -> dict[str, tuple[str, ...]]:
+    """``fmu_log``: {instance: [log categories]} (``[]``: every one), as
+    :meth:`Scenario.with_debug_logging` takes it; the instances and categories are checked
+    against the scenario later, naming the keyword."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise error(f"fmu_log={shown(value)}: expected a mapping {{instance: [log categories]}}")
+    for name, categories in value.items():
+        if not isinstance(name, str) or not name:
+            raise error(
+                f"fmu_log={shown(value)}: expected instance names as keys, not {shown(name)}"
+            )
+        if not isinstance(categories, list | tuple) or not all(
+            isinstance(c, str) and c for c in categories
+        ):
+            raise error(f"fmu_log={shown(value)}: expected a list of log categories for "
+                        f"{name!r} ([] for every one)")  # fmt: skip
+    return {name: tuple(categories) for name, categories in value.items()}
 
 
 def _choice(name: str, value: object, choices: tuple[str, ...]) -> str | None:

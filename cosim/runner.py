@@ -523,7 +523,8 @@ def with_fmu_log(
     from cosim.scenario.spec import log_category_problem
 
     for name, categories in logs.items():
-        given = names.given("fmu_log", ":".join((name, ",".join(categories))).rstrip(":"))
+        flag = ":".join((name, ",".join(categories))).rstrip(":")
+        given = names.given("fmu_log", {name: list(categories)} if names.keywords else flag)
         instance = scenario.instances.get(name)
         if instance is None:
             raise CosimError(
