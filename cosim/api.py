@@ -519,6 +519,7 @@ def _swept(
     """:func:`sweep` of its checked arguments (``options``: run_study's ``resume``,
     ``fmu_dir``, ``overlay``, ``max_runs`` and ``progress``); a stop signal (Ctrl-C, a notebook's
     interrupt) raises :class:`SweepInterrupted` with the finished rows."""
+    from cosim.study.collector import gc_diagnosis_registered
     from cosim.study.runner import run_study
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
@@ -532,6 +533,8 @@ def _swept(
         study_file = _study_file(study, temporary)
         out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
         label = DICT_LABEL if isinstance(study, Mapping) else None
+        if cluster.scheduler is None:  # a local cluster: its scheduler starts on a thread
+            stack.enter_context(gc_diagnosis_registered())
         try:
             with stop_study_on_signals():  # the first stop signal raises StudyStopped
                 outcome = run_study(

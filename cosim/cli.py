@@ -355,6 +355,7 @@ def _study(args: argparse.Namespace) -> int:
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS
     spec = load_study(args.study)
     check_size(spec, study_label(args.study), max_runs)  # before dask is imported
+    from cosim.study.collector import gc_diagnosis_registered
     from cosim.study.execution import early_client, tls_security
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
@@ -367,7 +368,8 @@ def _study(args: argparse.Namespace) -> int:
     try:
         with stop_study_on_signals():
             early = early_client(workers, args.dashboard) if local else nullcontext(None)
-            with early as client:
+            diagnosis = gc_diagnosis_registered() if args.scheduler is None else nullcontext()
+            with diagnosis, early as client:
                 from cosim.study.runner import Cluster, report, run_study
 
                 cluster = Cluster(workers, args.scheduler, security, args.dashboard, client)

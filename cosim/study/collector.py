@@ -46,3 +46,24 @@ def paused() -> Iterator[None]:
         yield
     finally:
         resume()
+
+
+@contextmanager
+def gc_diagnosis_registered() -> Iterator[None]:
+    """distributed's GC diagnosis (``distributed.gc``: a ``gc.callbacks`` entry timing full
+    collections) registered from this thread for the block, and taken back at its end.
+
+    A local cluster's scheduler registers it as it starts, from its IO-loop thread; a full
+    collection running meanwhile on another thread (this one, importing or checking the
+    study) then ended with a "stop" the callback never saw start, which distributed
+    printed as "Exception ignored in: <bound method GCDiagnosis._gc_callback ...>"
+    (``assert start is not None``). Registered here first, before the cluster's threads
+    start, its start and close only count the diagnosis's users. By hand: distributed has
+    no setting that turns the diagnosis off or registers it safely."""
+    from distributed.gc import disable_gc_diagnosis, enable_gc_diagnosis
+
+    enable_gc_diagnosis()
+    try:
+        yield
+    finally:
+        disable_gc_diagnosis()
