@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gc
 import sys
+from decimal import Decimal
 
 import pytest
 
@@ -135,3 +136,18 @@ def test_a_stop_ends_a_long_wait_for_a_deadline_at_once() -> None:
     assert paced.late_steps == 0 and paced.n == 1
     paced.release(2)  # without a stop, the next point waits for its own deadline
     assert clock.now == pytest.approx(100.0 + 2000.0)
+
+
+def test_the_times_it_shows_read_as_the_step_writes_them() -> None:
+    """The line said when the run falls behind and summary.json's ``max_lateness_at_s``
+    gave n h as its float (t = 6.52 s at point 163 of a 0.04 s step was
+    6.5200000000000005): they give it with the step's decimals."""
+    h = 0.04
+    n = next(n for n in range(1, 10_000) if len(repr(n * h)) > len(repr(round(n * h, 2))))
+    paced, clock, said = pacer(h=h)
+    paced.release(0)
+    clock.now += n * h + BEHIND_S + 0.5  # point n comes late enough to fall behind
+    paced.release(n)
+    shown = float(n * Decimal(repr(h)))
+    assert paced.summary()["max_lateness_at_s"] == shown
+    assert said and f"at t = {shown!r} s (" in said[0], said
