@@ -18,7 +18,12 @@ Studies may run at once, so every step is safe against another process doing the
 * a study holds a shared lock (``flock``) on its set's lock file as long as its session
   lasts; a set is removed only under the exclusive lock, which it cannot get while any
   study uses the set, and a lock file removed with its set is opened again
-  (:func:`_shared_lock` checks that the file it locked is still the one of that name).
+  (:func:`_shared_lock` checks that the file it locked is still the one of that name);
+* a set is renamed into place only whole (every file of its FMUs, and their copies,
+  :func:`_damage`), and a set found damaged (files cut short by a power cut after the
+  rename or by hand, a link dangling, a file in its place) is replaced under the
+  exclusive lock; where another study holds it, this one says so in one line and
+  extracts into its own folder.
 
 Where there is no ``flock`` (Windows), no cache folder of the user's own (the cache's
 fallback in the temporary folder, which other users share) or the folder cannot be made
@@ -31,14 +36,17 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import stat
 import tempfile
+import warnings
+import zipfile
 from collections.abc import Mapping
 from contextlib import ExitStack, suppress
 from pathlib import Path
 
 from cosim.errors import CosimError
 from cosim.scratch import claim
-from cosim.study.unpacked import MODEL_DESCRIPTION, unpack
+from cosim.study.unpacked import unpack
 from plant_fmu.model.jit import TEMPORARY_CACHE_PREFIX, default_cache_dir
 
 try:
@@ -71,34 +79,90 @@ def kept_unpacked(fmu_paths: Mapping[str, Path], stack: ExitStack) -> dict[str, 
         return None  # no cache folder of the user's own: a shared /tmp is no place to keep code
     try:
         store.mkdir(mode=0o700, parents=True, exist_ok=True)
-        digests = sorted({hashlib.sha256(p.read_bytes()).hexdigest() for p in fmu_paths.values()})
+        fmus = {hashlib.sha256(p.read_bytes()).hexdigest(): p for p in fmu_paths.values()}
+        digests = sorted(fmus)
         key = hashlib.sha256(" ".join([LAYOUT, *digests]).encode()).hexdigest()  # names aside
         lock = _shared_lock(store / f"{key}{LOCK_SUFFIX}")
     except OSError:
         return None
     stack.callback(os.close, lock)
     entry = store / key
-    if not entry.is_dir():
-        try:
-            _extract_set(fmu_paths, store, entry)
-        except (OSError, CosimError):  # the cache's disk full, say: the study's may not be
-            return None
-    found = {digest: (entry / digest).resolve() for digest in digests}
-    if not all((folder / MODEL_DESCRIPTION).is_file() for folder in found.values()):
-        return None  # a kept set someone took files from: not ours to mend (others read it)
+    try:
+        _make_whole(fmu_paths, fmus, entry, lock)
+    except _InUseError as exc:
+        warnings.warn(str(exc), RuntimeWarning, stacklevel=2)
+        return None
+    except (OSError, CosimError):  # the cache's disk full, say: the study's may not be
+        return None
     with suppress(OSError):
         os.utime(store / f"{key}{LOCK_SUFFIX}")  # used now: the last to be removed
     _remove_unused(store, keep=key)
-    return {digest: str(folder) for digest, folder in found.items()}  # as unpack's
+    return {digest: str((entry / digest).resolve()) for digest in digests}  # as unpack's
 
 
-def _extract_set(fmu_paths: Mapping[str, Path], store: Path, entry: Path) -> None:
-    """Extract the set into a fresh folder and rename it to ``entry``; if another
-    process renamed its own there first, this one's copy is removed."""
-    fresh = Path(tempfile.mkdtemp(prefix=NEW_PREFIX, dir=store))
+class _InUseError(OSError):
+    """A kept set is damaged and another study uses it: it cannot be replaced now."""
+
+
+def _make_whole(
+    fmu_paths: Mapping[str, Path], fmus: Mapping[str, Path], entry: Path, lock: int
+) -> None:
+    """Make ``entry`` the whole set of ``fmus`` (SHA-256 -> FMU file), the caller holding
+    the shared ``lock`` on it: extracted if missing; if damaged (its files cut short or
+    gone by a crash, a full disk or a hand: :func:`_damage`), replaced under the exclusive
+    lock, which no other study holding the set allows (:class:`_InUseError`). Raises OSError
+    or CosimError where the set cannot be extracted whole."""
+    if not os.path.lexists(entry):
+        _extract_set(fmu_paths, fmus, entry)
+        return
+    damage = _damage(entry, fmus)
+    if not damage:
+        return
+    try:  # Linux drops the shared lock on a failed upgrade: the caller then leaves the set
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        raise _InUseError(
+            f"the kept FMUs {entry} are damaged ({damage}) and another study uses them: "
+            "extracting into this study's own folder; the next study replaces them"
+        ) from exc
+    _move_away(entry.parent, entry)
+    _extract_set(fmu_paths, fmus, entry)
+    fcntl.flock(lock, fcntl.LOCK_SH)  # others may use the set again
+
+
+def _damage(entry: Path, fmus: Mapping[str, Path]) -> str:
+    """ "" if ``entry`` holds each FMU of ``fmus`` (SHA-256 -> FMU file) whole, else what is
+    wrong: each member of its archive a regular file of the size the archive declares
+    (through the resource folders' links, :func:`cosim.study.unpacked._extract`) and its
+    file's copy beside it of the file's size. Sizes, not contents: a stat for each of the
+    ~390 files of bs-3's three (~4 ms of CPU), where hashing them would cost about what
+    keeping the set saves; names joined as text, which costs half of what pathlib does."""
+    for digest, path in fmus.items():
+        wanted = [(f"{digest}.fmu", path.stat().st_size)]
+        with zipfile.ZipFile(path) as archive:
+            wanted += [(f"{digest}/{info.filename}", info.file_size)
+                       for info in archive.infolist() if not info.is_dir()]  # fmt: skip
+        for name, size in wanted:
+            try:
+                found = os.stat(os.path.join(entry, name))
+            except OSError as exc:
+                return f"{name}: {exc.strerror}"
+            if not stat.S_ISREG(found.st_mode) or found.st_size != size:
+                return f"{name} is {found.st_size} bytes, not {size}"
+    return ""
+
+
+def _extract_set(fmu_paths: Mapping[str, Path], fmus: Mapping[str, Path], entry: Path) -> None:
+    """Extract the set into a fresh folder and rename it to ``entry`` once it is whole
+    (else OSError: :func:`~cosim.study.unpacked.unpack` leaves out an FMU's copy it could
+    not write); if another process renamed its own there first, this one's is removed."""
+    fresh = Path(tempfile.mkdtemp(prefix=NEW_PREFIX, dir=entry.parent))
     claim(fresh)  # removed by the next process if this one is killed before the rename
     try:
         unpack(fmu_paths, fresh)
+        damage = _damage(fresh, fmus)
+        if damage:
+            raise OSError(f"not extracted whole: {damage}")
         with suppress(OSError):  # taken: another study renamed the same set first
             os.rename(fresh, entry)
     finally:
@@ -146,11 +210,17 @@ def _remove_set(store: Path, lock_path: Path) -> None:
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # OSError: a study uses it
         entry = store / lock_path.stem
-        if entry.is_dir():
-            old = Path(tempfile.mkdtemp(prefix=OLD_PREFIX, dir=store))
-            claim(old)
-            os.rename(entry, old / entry.name)
-            shutil.rmtree(old, ignore_errors=True)
+        if os.path.lexists(entry):
+            _move_away(store, entry)
         lock_path.unlink()
     finally:
         os.close(fd)
+
+
+def _move_away(store: Path, entry: Path) -> None:
+    """Remove the set ``entry`` (or whatever has its name), renamed first into a folder
+    claimed for removal, so that no process finds a set half removed."""
+    old = Path(tempfile.mkdtemp(prefix=OLD_PREFIX, dir=store))
+    claim(old)
+    os.rename(entry, old / entry.name)
+    shutil.rmtree(old, ignore_errors=True)

@@ -74,12 +74,13 @@ TEMPORARY_CACHE_PREFIX = "auv-cosim-cache-"
 
 
 def default_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/auv-cosim/numba``, or ``~/.cache/auv-cosim/numba``; where there is
+    """``$XDG_CACHE_HOME/auv-cosim/numba`` (if absolute: the XDG base directory
+    specification has a relative one ignored), or ``~/.cache/auv-cosim/numba``; where there is
     no home folder (HOME unset and a uid /etc/passwd does not list, as ``docker run -u
     12345`` gives) or the latter cannot be made and written (HOME=/, a service account's
     HOME=/nonexistent), ``$TMPDIR/auv-cosim-cache-<uid>/numba`` (:func:`_foreign_folder`)."""
-    base = os.environ.get("XDG_CACHE_HOME")
-    if base:
+    base = os.environ.get("XDG_CACHE_HOME", "")
+    if os.path.isabs(base):  # relative: the specification says to ignore it (not the cwd's)
         return Path(base) / "auv-cosim" / "numba"
     home = os.path.expanduser("~")  # "~" itself where there is none (Path.home() raises)
     if not home.startswith("~"):

@@ -5,6 +5,8 @@ copy, and at most KEPT sets are kept."""
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import hashlib
 import os
 import shutil
@@ -16,7 +18,7 @@ from typing import Any
 
 import pytest
 
-from cosim.study import fmu_store
+from cosim.study import fmu_store, unpacked
 from cosim.study.fmu_store import kept_unpacked, store_folder
 from cosim.study.runner import _Session
 from cosim.study.unpacked import unpack
@@ -146,5 +148,126 @@ def test_a_cache_without_room_for_the_set_leaves_the_study_its_own_folder(
         return found._replace(free=1024) if Path(path).is_relative_to(cache) else found
 
     monkeypatch.setattr(shutil, "disk_usage", full_cache)
+    _extracts_into_its_own_folder(fmu_paths)
+    assert not [p for p in store_folder().iterdir() if p.is_dir()]
+
+
+def _kept_plant(fmu_paths: dict[str, Path]) -> tuple[dict[str, Path], Path]:
+    """The plant's and the autopilot's set kept by an earlier study (the autopilot's
+    resource folders links to the plant's), and the plant's folder in it."""
+    paths = {n: fmu_paths[n] for n in ("AuvPlant", "AuvAutopilot")}
+    with ExitStack() as stack:
+        found = kept_unpacked(paths, stack)
+    assert found is not None
+    return paths, Path(found[hashlib.sha256(paths["AuvPlant"].read_bytes()).hexdigest()])
+
+
+def _assert_whole(paths: dict[str, Path], found: dict[str, str]) -> None:
+    """Every FMU's folder in ``found`` holds its archive's files, and its file's copy."""
+    for fmu in paths.values():
+        folder = Path(found[hashlib.sha256(fmu.read_bytes()).hexdigest()])
+        assert folder.with_name(f"{folder.name}.fmu").read_bytes() == fmu.read_bytes()
+        with zipfile.ZipFile(fmu) as archive:
+            for name in archive.namelist():
+                if not name.endswith("/"):
+                    assert (folder / name).read_bytes() == archive.read(name), name
+
+
+def _cut_short(folder: Path) -> None:
+    """A file of the kept plant cut short (a power cut after the rename, a full disk)."""
+    source = next(p for p in sorted((folder / "resources").rglob("*.py")) if p.stat().st_size)
+    with source.open("r+b") as file:
+        file.truncate(source.stat().st_size // 2)
+
+
+def _dangle(folder: Path) -> None:
+    """The folder a link of the kept set names removed (the link dangles)."""
+    links = [p for p in sorted(folder.parent.rglob("*")) if p.is_symlink()]
+    assert links, "the kept set has no links to break"
+    shutil.rmtree(links[0].resolve())
+
+
+def _copy_cut_short(folder: Path) -> None:
+    """The FMU file's copy beside its folder, which local workers load, cut short."""
+    with folder.with_name(f"{folder.name}.fmu").open("r+b") as file:
+        file.truncate(100)
+
+
+def _file_instead(folder: Path) -> None:
+    """A file where the set's folder should be."""
+    shutil.rmtree(folder.parent)
+    folder.parent.write_text("junk")
+
+
+@pytest.mark.parametrize("damage", [_cut_short, _dangle, _copy_cut_short, _file_instead])
+def test_a_damaged_kept_set_is_replaced_by_a_whole_one(fmu_paths, cache: Path, damage: Any) -> None:
+    """A kept set whose files were cut short or removed was used as it was (a plant FMU
+    whose code is half a file, a worker loading a truncated copy); a file in its place
+    made every later study extract into its own folder."""
+    paths, folder = _kept_plant(fmu_paths)
+    damage(folder)
+    with ExitStack() as stack:
+        found = kept_unpacked(paths, stack)
+        assert found is not None, "the damaged set was not replaced"
+        _assert_whole(paths, found)
+    assert not [p for p in store_folder().iterdir() if p.name.startswith((".new-", ".old-"))]
+
+
+def test_a_damaged_set_another_study_uses_is_left_with_one_line(fmu_paths, cache: Path) -> None:
+    """Another study holds the damaged set: this one says why in one line and leaves the
+    set (its caller extracts into a folder of its own) to the next study to replace."""
+    paths, folder = _kept_plant(fmu_paths)
+    _cut_short(folder)
+    other = os.open(store_folder() / f"{folder.parent.name}.lock", os.O_RDWR)
+    try:
+        fcntl.flock(other, fcntl.LOCK_SH)  # another study's, on an open file of its own
+        damaged = r"damaged \(\w+/resources/\S+ is \d+ bytes, not \d+\)"
+        with pytest.warns(RuntimeWarning, match=damaged), ExitStack() as stack:
+            assert kept_unpacked(paths, stack) is None
+    finally:
+        os.close(other)
+    with ExitStack() as stack:  # the other study over: the next one replaces the set
+        found = kept_unpacked(paths, stack)
+        assert found is not None
+        _assert_whole(paths, found)
+
+
+def test_a_set_not_written_whole_is_not_kept(
+    fmu_paths, cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The cache's disk full as the FMU's copy is written (the extraction written): the
+    set was renamed into the cache without it, for good."""
+
+    def disk_full(path: Path, write: Any) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(unpacked, "write_whole", disk_full)
+    with ExitStack() as stack:
+        assert kept_unpacked({"plant": fmu_paths["AuvPlant"]}, stack) is None
+    assert not list(store_folder().glob("[!.]*[!k]")), "a set without its copy was kept"
+    assert not [p for p in store_folder().iterdir() if p.is_dir()]
+
+
+def test_a_relative_xdg_cache_home_is_ignored(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """XDG_CACHE_HOME=cache (relative, which the XDG base directory specification says to
+    ignore) put the cache in whatever folder the study was started from."""
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative-cache")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.chdir(tmp_path)
+    assert store_folder().is_absolute(), store_folder()
+    assert store_folder().is_relative_to(tmp_path / "home" / ".cache")
+
+
+def test_a_cache_without_flock_leaves_the_study_its_own_folder(
+    fmu_paths, cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A file system without flock (NFS without its lock daemon: ENOLCK)."""
+
+    def no_locks(fd: int, operation: int) -> None:
+        raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
+
+    monkeypatch.setattr(fmu_store.fcntl, "flock", no_locks)
     _extracts_into_its_own_folder(fmu_paths)
     assert not [p for p in store_folder().iterdir() if p.is_dir()]
