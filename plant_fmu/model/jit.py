@@ -232,6 +232,51 @@ def _install_locator() -> None:
     locators = caching.CacheImpl._locator_classes
     if not any(getattr(c, "__name__", "") == "_ContentCacheLocator" for c in locators):
         locators.insert(0, _ContentCacheLocator)
+    _install_unreadable_as_miss(caching)
+
+
+OUR_FOLDER = os.sep + "auv_cosim" + os.sep  # in the path of each folder our locator names
+
+
+def _install_unreadable_as_miss(caching: ModuleType) -> None:
+    """Make a cache file of ours that cannot be read a miss, compiled and written again
+    (once a process: every copy of this module shares numba's class).
+
+    numba writes each file whole (``os.replace``), but a power cut after the rename, a
+    full disk or a hand can leave one cut short, and numba reads an index or data file it
+    cannot unpickle by raising (``EOFError: Ran out of input``): every later run of the
+    plant failed so until the user found the file. numba treats a data file that cannot
+    be opened as a miss already (OSError); this extends that to one that cannot be
+    unpickled, and an index that cannot be, to an empty one (numba then rewrites it).
+    Only for files under our folders (:data:`OUR_FOLDER`): other numba users keep theirs."""
+    files: Any = caching.IndexDataCacheFile
+    if getattr(files, "_auv_cosim_unreadable_as_miss", False):
+        return
+    load_index, load_data = files._load_index, files._load_data
+
+    def _load_index(self: Any) -> dict[Any, Any]:
+        try:
+            index: dict[Any, Any] = load_index(self)
+        except OSError:
+            raise
+        except Exception:  # any unpickling error of a file cut short or overwritten
+            if OUR_FOLDER not in self._cache_path:
+                raise
+            return {}
+        return index
+
+    def _load_data(self: Any, name: str) -> Any:
+        try:
+            return load_data(self, name)
+        except OSError:
+            raise
+        except Exception as exc:  # numba's load() takes OSError for a miss
+            if OUR_FOLDER not in self._cache_path:
+                raise
+            raise OSError(f"numba's cache file {name} cannot be read ({exc!r})") from exc
+
+    files._load_index, files._load_data = _load_index, _load_data
+    files._auv_cosim_unreadable_as_miss = True
 
 
 def kernel_root(py_file: str) -> Path | None:

@@ -10,6 +10,7 @@ import importlib
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 from repo_paths import ROOT
@@ -352,3 +353,36 @@ def test_numba_0_60_whose_user_folder_locator_is_private_gets_the_content_locato
     kernel.__module__ = "plant_fmu.model.compiled"
     folder = Path(locator(kernel, str(_kernel_tree(tmp_path / "tree", "1"))).get_cache_path())
     assert folder.parent == tmp_path / "cache" / "auv_cosim" / "plant_fmu"
+
+
+def _kernel_cache_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Any:
+    """numba's index and data files of a kernel, in a folder of ours (``auv_cosim/...``)."""
+    from plant_fmu.model import jit
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    numba, why = jit.load_numba()
+    if numba is None:
+        pytest.skip(why)
+    from numba.core import caching
+
+    folder = tmp_path / "cache" / "auv_cosim" / "plant_fmu" / "0123456789abcdef"
+    folder.mkdir(parents=True)
+    return caching.IndexDataCacheFile(str(folder), "compiled.step_into-701.py311", "stamp")
+
+
+@pytest.mark.parametrize("cut", ["*.nbi", "*.nbc"])
+def test_a_cache_file_cut_short_is_compiled_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, cut: str
+) -> None:
+    """A kernel's cache file cut short (a power cut after numba's rename, a full disk, a
+    hand) made every later run of the plant end in numba's ``EOFError: Ran out of input``,
+    until the user found and removed the file: it is a miss now, compiled and written
+    again."""
+    cache_file = _kernel_cache_file(tmp_path, monkeypatch)
+    cache_file.save("signature", ("compiled", "code"))
+    assert cache_file.load("signature") == ("compiled", "code")
+    for path in Path(cache_file._cache_path).glob(cut):
+        path.write_bytes(b"")
+    assert cache_file.load("signature") is None
+    cache_file.save("signature", ("compiled", "again"))
+    assert cache_file.load("signature") == ("compiled", "again")
