@@ -63,6 +63,7 @@ from process_state import WATCHED_SIGNALS, child_processes, signal_changes, sign
 import cosim
 from cosim.errors import CosimError
 from cosim.fmus.build import FMUS, build_fmu, pythonfmu_build
+from cosim.fmus.kept_builds import OFF_VARIABLE
 from plant_fmu.model.parameters import VehicleParameters, load_vehicle
 
 settings.register_profile("untimed", deadline=None)
@@ -105,6 +106,23 @@ def session_tmpdir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
                 shutil.rmtree(entry, ignore_errors=True)
             else:
                 entry.unlink(missing_ok=True)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def no_kept_builds() -> Iterator[None]:
+    """Every test builds the FMUs it asks for (cosim/fmus/kept_builds.py off): one served
+    from the user's store of built FMUs would skip what a build test checks, and the
+    tests' builds would fill the user's cache. tests/cosim/fmus/test_kept_builds.py
+    turns the store on in a cache of its own."""
+    before = os.environ.get(OFF_VARIABLE)
+    os.environ[OFF_VARIABLE] = "1"
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(OFF_VARIABLE, None)
+        else:
+            os.environ[OFF_VARIABLE] = before
 
 
 CHILDREN_GRACE = 5.0  # s a test's child processes have to end after its teardown

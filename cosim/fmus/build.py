@@ -53,7 +53,9 @@ Steps for one FMU (:func:`build_fmu`):
    fails that integrity check (a truncated or edited file is never used). Both files are
    written under the FMU's lock (:func:`fmu_lock`, ``.<Name>.fmu.lock`` beside it): a
    process that finds the FMU out of date waits for another one building it, then uses
-   what that one built.
+   what that one built; an FMU built is also kept in the user's cache
+   (:mod:`cosim.fmus.kept_builds`), which gives another folder of this user's a copy
+   instead of a build.
 """
 
 from __future__ import annotations
@@ -80,7 +82,7 @@ from xml.etree import ElementTree as ET
 import locket
 
 from cosim.errors import CosimError, unmade_folder
-from cosim.fmus import bytecode, native, reproducible, staging
+from cosim.fmus import bytecode, kept_builds, native, reproducible, staging
 from cosim.fmus import docs as fmu_docs
 from cosim.fmus.interface import OWN_PACKAGES
 from cosim.version import DISTRIBUTION, version
@@ -230,12 +232,20 @@ def build_fmu(
                 f"away, name another FMU folder, or replace it with "
                 f"`auv-cosim build --out {out_dir} --force`"
             )
+        version = f"{name} source {digest} date {reproducible.stamp()} python {python}"
+
+        def whole(fmu: Path, record_file: Path) -> bool:
+            return _is_intact(fmu, record_file, digest, python)
+
+        if not force and kept_builds.fetch(name, version, target, hash_file, whole):
+            return target  # built for another folder of this user's, from these sources
         _build(name, files, digest, target, portable)
         record = (
             f"source {digest}\nfmu {file_hash(target)}\ndate {reproducible.stamp()}\n"
             f"python {python}\n"
         )
         write_whole(hash_file, lambda tmp: tmp.write_text(record))
+        kept_builds.keep(name, version, target, hash_file, whole)
     return target
 
 

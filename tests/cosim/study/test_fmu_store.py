@@ -18,6 +18,7 @@ from typing import Any
 
 import pytest
 
+from cosim import user_cache
 from cosim.study import fmu_store, unpacked
 from cosim.study.fmu_store import kept_unpacked, store_folder
 from cosim.study.runner import _Session
@@ -131,7 +132,7 @@ def _extracts_into_its_own_folder(fmu_paths: dict[str, Path]) -> None:
 def test_without_flock_a_study_extracts_into_its_own_folder(
     fmu_paths, cache: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(fmu_store, "fcntl", None)
+    monkeypatch.setattr(user_cache, "fcntl", None)
     _extracts_into_its_own_folder(fmu_paths)
     assert not store_folder().exists()
 
@@ -268,6 +269,6 @@ def test_a_cache_without_flock_leaves_the_study_its_own_folder(
     def no_locks(fd: int, operation: int) -> None:
         raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
 
-    monkeypatch.setattr(fmu_store.fcntl, "flock", no_locks)
+    monkeypatch.setattr(fcntl, "flock", no_locks)
     _extracts_into_its_own_folder(fmu_paths)
     assert not [p for p in store_folder().iterdir() if p.is_dir()]
