@@ -113,9 +113,10 @@ def _damage(entry: Path, fmus: Mapping[str, Path]) -> str:
     """ "" if ``entry`` holds each FMU of ``fmus`` (SHA-256 -> FMU file) whole, else what is
     wrong: each member of its archive a regular file of the size the archive declares
     (through the resource folders' links, :func:`cosim.study.unpacked._extract`) and its
-    file's copy beside it of the file's size. Sizes, not contents: a stat for each of the
-    ~390 files of bs-3's three (~4 ms of CPU), where hashing them would cost about what
-    keeping the set saves; names joined as text, which costs half of what pathlib does."""
+    file's copy beside it of the file's size, readable by its owner. Sizes, not contents:
+    a stat for each of the ~390 files of bs-3's three (~4 ms of CPU), where hashing them
+    would cost about what keeping the set saves; names joined as text, which costs half
+    of what pathlib does."""
     for digest, path in fmus.items():
         wanted = [(f"{digest}.fmu", path.stat().st_size)]
         with zipfile.ZipFile(path) as archive:
@@ -128,6 +129,8 @@ def _damage(entry: Path, fmus: Mapping[str, Path]) -> str:
                 return f"{name}: {exc.strerror}"
             if not stat.S_ISREG(found.st_mode) or found.st_size != size:
                 return f"{name} is {found.st_size} bytes, not {size}"
+            if not found.st_mode & stat.S_IRUSR:  # by its mode: root reads it, a worker not
+                return f"{name} cannot be read (mode {stat.S_IMODE(found.st_mode):03o})"
     return ""
 
 

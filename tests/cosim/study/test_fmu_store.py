@@ -10,6 +10,7 @@ import fcntl
 import hashlib
 import os
 import shutil
+import stat
 import zipfile
 from contextlib import ExitStack
 from pathlib import Path
@@ -172,6 +173,7 @@ def _assert_whole(paths: dict[str, Path], found: dict[str, str]) -> None:
             for name in archive.namelist():
                 if not name.endswith("/"):
                     assert (folder / name).read_bytes() == archive.read(name), name
+                    assert (folder / name).stat().st_mode & stat.S_IRUSR, name  # not root
 
 
 def _cut_short(folder: Path) -> None:
@@ -200,7 +202,14 @@ def _file_instead(folder: Path) -> None:
     folder.parent.write_text("junk")
 
 
-@pytest.mark.parametrize("damage", [_cut_short, _dangle, _copy_cut_short, _file_instead])
+def _unreadable(folder: Path) -> None:
+    """A file of the kept plant its owner may not read (a umask or a hand)."""
+    (folder / "modelDescription.xml").chmod(0)
+
+
+@pytest.mark.parametrize(
+    "damage", [_cut_short, _dangle, _copy_cut_short, _file_instead, _unreadable]
+)
 def test_a_damaged_kept_set_is_replaced_by_a_whole_one(fmu_paths, cache: Path, damage: Any) -> None:
     """A kept set whose files were cut short or removed was used as it was (a plant FMU
     whose code is half a file, a worker loading a truncated copy); a file in its place
