@@ -491,8 +491,9 @@ def _add_coupling_options(p: argparse.ArgumentParser) -> None:
 # what every command's exit code says, at the end of its --help (README.md, docs/runs.md)
 EXIT_CODES = (
     "exit codes: 0 done; 1 failed or refused (one line on stderr says why); 2 a command "
-    "line it cannot parse; 130, 143, 129 stopped by Ctrl-C, SIGTERM, SIGHUP (a run or a "
-    "study keeps its partial results); 141 the reader of its output stopped (| head)"
+    "line it cannot parse; 3 a run complete but its recording cut short (a full disk); "
+    "130, 143, 129 stopped by Ctrl-C, SIGTERM, SIGHUP (a run or a study keeps its partial "
+    "results); 141 the reader of its output stopped (| head)"
 )
 
 

@@ -31,7 +31,8 @@ then runs the steps above from it (:mod:`cosim.engine.checkpoint`,
 A run that stops early keeps its partial results (``summary.json`` says ``"complete":
 false`` and why) and exits non-zero with a one-line reason: 1 for a failure, 128 + the
 signal number for a signal (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), also when the signal
-came while the outputs were being completed.
+came while the outputs were being completed. A recording that cannot be written (a full
+disk) is no reason to stop: the run goes on without it, and exits 3 if it completes.
 """
 
 from __future__ import annotations
@@ -76,6 +77,7 @@ if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (s
     from cosim.scenario.spec import Algorithm, Coupling, Extrapolation, Scenario
     from cosim.viz.recording import RerunSink
 
+RECORDING_LOST = 3  # the exit code of a complete run whose recording was cut short
 MESSAGES_SHOWN = 3  # FMU log lines (warnings and worse) printed per instance
 
 
@@ -163,13 +165,17 @@ class RunOutcome:
     signal: int | None = None  # the first stop signal received while the run was on
     manoeuvre: dict[str, Any] | None = None  # the manoeuvre and its metrics (summary.json)
     replaced: str | None = None  # what replacing an earlier run removed and kept (one line)
+    recording_lost: str | None = None  # why the recording was cut short (the run went on)
 
     @property
     def exit_code(self) -> int:
-        """0 complete, 128 + signal number if a signal came, else 1."""
+        """0 complete, 3 complete but its recording cut short, 128 + signal number if a
+        signal came, else 1."""
         if self.signal is not None:
             return 128 + self.signal
-        return 0 if self.result.complete else 1
+        if not self.result.complete:
+            return 1
+        return RECORDING_LOST if self.recording_lost is not None else 0
 
 
 def run_scenario(
@@ -248,7 +254,8 @@ def execute(
     figures = outputs.figures.figures(result.complete)
     told = _resumed(checkpoints, loaded, out_dir) if options.resume else folder.replaced
     return RunOutcome(
-        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary, told
+        result, out_dir, outputs.paths, figures, stop.signum, outputs.manoeuvre_summary,
+        told, outputs.recording_lost,
     )  # fmt: skip
 
 
@@ -709,6 +716,12 @@ def _print_outcome(outcome: RunOutcome) -> None:
             f"auv-cosim run: {result.error} (partial results in {outcome.out_dir})",
             file=sys.stderr,
         )
+    elif outcome.recording_lost is not None:
+        print(
+            f"auv-cosim run: {outcome.recording_lost}; the run went on without it: results "
+            f"complete in {outcome.out_dir}",
+            file=sys.stderr,
+        )
 
 
 def report(outcome: RunOutcome) -> str:
@@ -735,7 +748,8 @@ def report(outcome: RunOutcome) -> str:
     if result.overrides:
         lines.append(f"  {len(result.overrides)} live override(s) (summary.json; "
                      "scenario.toml replays them)")  # fmt: skip
-    lines += [f"  {name:<10} {path}" for name, path in outcome.paths.items()]
+    cut = {"recording": " (cut short: it could not be written)"} if outcome.recording_lost else {}
+    lines += [f"  {name:<10} {path}{cut.get(name, '')}" for name, path in outcome.paths.items()]
     figures = outcome.figures
     if any(v is not None for v in figures.values()):  # (a run without our plant has none)
         from cosim.metrics.key_figures import why_none

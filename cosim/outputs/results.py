@@ -213,13 +213,15 @@ def final_summary(
     rows: int,
     manoeuvre: Mapping[str, Any] | None = None,
     last_row: tuple[float, np.ndarray] | None = None,
+    recording_error: str | None = None,
 ) -> dict[str, Any]:
     """summary.json at the end of a run: ``running`` completed with how it ended;
     ``rows``: those in results.csv; ``manoeuvre``: the manoeuvre and its metrics
     (:meth:`cosim.outputs.manoeuvre.ManoeuvreSink.summary`), put at the top level;
     ``last_row``: (time, values) of results.csv's last row when the file stopped short
     of the rows computed (a full disk): time_reached and the final values are then that
-    row's, so the summary agrees with the file."""
+    row's, so the summary agrees with the file; ``recording_error``: why the recording
+    was cut short (the run went on without it)."""
     wall = result.wall_clock_s
     time_reached, values = result.time_reached, result.final
     if last_row is not None:
@@ -230,6 +232,7 @@ def final_summary(
         "status": "complete" if error is None else "incomplete",
         "complete": error is None,
         "error": error,
+        "recording_error": recording_error,
         "signal": signal,
         "wall_clock_s": wall,
         "real_time_factor": _finite(result.time_reached / wall) if wall > 0 else None,

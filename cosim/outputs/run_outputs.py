@@ -34,18 +34,13 @@ from cosim.engine.rows import Note, NotesIgnored, RowSink
 from cosim.errors import CosimError
 from cosim.limits import unwritten
 from cosim.metrics.key_figures import KeyFigures
+from cosim.outputs.expendable import ClosableSink, Expendable
 from cosim.outputs.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
 from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, mission_legs, survey_mission
 from cosim.outputs.results import final_summary, running_summary
 from cosim.outputs.sinks import CsvSink, ProgressSink, write_json_atomically
 from cosim.scenario.spec import Scenario
 from cosim.whole_file import write_whole
-
-
-class ClosableSink(RowSink, Protocol):
-    """A sink that holds a file or a connection: :meth:`RunOutputs.close` closes it."""
-
-    def close(self) -> None: ...
 
 
 class Recorder(Protocol):
@@ -98,6 +93,7 @@ class RunOutputs:
         self._created: list[Path] = []
         self._closable: list[ClosableSink] = []  # the sinks this object opened
         self._running: dict[str, Any] = {}
+        self.recording: Expendable | None = None  # the recording file's sink, if any
 
     @classmethod
     def open(
@@ -151,7 +147,8 @@ class RunOutputs:
             sink = recorder(self.scenario, rrd, None, self.folder.recording_flushed)
             if sink is not None:
                 self.folder.wrote(rrd)
-                self._add(sink)
+                self.recording = Expendable(sink)  # the run outlives it
+                self._add(self.recording)
             else:
                 del self.paths["recording"]
         elif rrd is not None:
@@ -224,12 +221,19 @@ class RunOutputs:
         figures, manoeuvre = self.figures.figures(result.complete), self.manoeuvre_summary
         short = self.csv is not None and self.csv.rows < result.rows
         last = self.csv.last if short and self.csv is not None else None
-        data = final_summary(self._running, result, figures, error, name, rows, manoeuvre, last)
+        data = final_summary(
+            self._running, result, figures, error, name, rows, manoeuvre, last, self.recording_lost
+        )
         try:
             write_json_atomically(self.paths["summary"], data)
         except CosimError as exc:
             return str(exc)
         return self._record("summary")
+
+    @property
+    def recording_lost(self) -> str | None:
+        """Why the recording file could not be written (the run went on without it)."""
+        return self.recording.lost if self.recording is not None else None
 
     def write_scenario(self, scenario: Scenario) -> str | None:
         """Replace scenario.toml (a live run's, its overrides as events: a replay); the

@@ -718,7 +718,7 @@ def test_a_path_holding_a_line_break_is_refused_in_one_line(
 
 # the exit codes a command can end with, each shown by a test of this file or of
 # tests/cosim/engine/test_run_signals.py: a script tells them apart
-EXIT_CODES = ("0", "1", "2", "130", "141", "143", "129")
+EXIT_CODES = ("0", "1", "2", "3", "130", "141", "143", "129")
 
 
 def _every_parser(parser: argparse.ArgumentParser) -> Iterator[argparse.ArgumentParser]:

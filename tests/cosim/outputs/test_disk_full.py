@@ -95,18 +95,26 @@ def test_a_disk_full_at_the_start_leaves_nothing_behind(
 
 
 @pytest.mark.slow
-def test_a_recording_filling_the_disk_ends_the_run_with_the_reason(
+def test_a_recording_filling_the_disk_leaves_the_results_complete(
     fmu_dir: Path, small_disk: Path, tmp_path: Path
 ):
+    """A recording whose disk filled up stopped the whole run at that point (results.csv
+    cut short, exit 1) although results.csv had room: the run now goes on without the
+    recording, says so in one line and exits 3, its results and summary whole."""
     # long enough that the rows reach the recording while the run steps (a 60 s run may
     # be done before its first hand-off to the sinks)
     out, rrd = tmp_path / "run", small_disk / "recording.rrd"
-    done = run_cli(fmu_dir, "--out", str(out), "--stop-time", "3600", "--rrd", str(rrd))
-    assert done.returncode == 1
-    assert f"cannot write the recording {rrd}: No space left on device" in done.stderr
+    done = run_cli(fmu_dir, "--out", str(out), "--stop-time", "600", "--rrd", str(rrd))
+    assert done.returncode == 3, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert f"cannot write the recording {rrd}: No space left on device" in lines[0]
+    assert f"results complete in {out}" in lines[0], lines[0]
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "incomplete" and "No space left on device" in summary["error"]
-    assert 0 < summary["time_reached"] < 3600.0  # it failed while running, not before
+    assert summary["status"] == "complete" and summary["time_reached"] == 600.0
+    assert "No space left on device" in summary["recording_error"]
+    text = (out / "results.csv").read_text()
+    assert text.count("\n") - 1 == summary["rows"] == 60001
 
 
 @pytest.mark.slow
