@@ -21,6 +21,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from cosim.errors import CosimError
+from cosim.limits import unwritten
 
 ARCHIVE_SEAL = b"auv-cosim export, members' SHA-256: "  # then the digest, as the zip comment
 EXPORT_RECORD = ".auv-cosim-export.json"  # in an OSP folder: {"files": {name: SHA-256}}
@@ -80,13 +81,13 @@ def replacing_file(path: Path, overwrite: bool = False) -> Iterator[Path]:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp.open("xb").close()
     except OSError as exc:
-        raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
     try:
         yield tmp
         _seal(tmp)
         os.replace(tmp, path)
     except OSError as exc:
-        raise CosimError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -165,7 +166,7 @@ def replacing_folder(folder: Path) -> Iterator[Path]:
         # beside that folder, not beside one named "." or ".."
         folder = Path(os.path.abspath(folder))
     except OSError as exc:  # a relative name, and the working folder was removed
-        raise CosimError(f"cannot write {given}: {exc.strerror or exc}") from None
+        raise CosimError(f"cannot write {given}: {unwritten(exc)}") from None
     if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
         raise CosimError(f"cannot write {given}: it exists and is not a folder")
     if folder.exists():
@@ -192,7 +193,7 @@ def replacing_folder(folder: Path) -> Iterator[Path]:
     except OSError as exc:
         if old.exists() and not folder.exists():
             old.rename(folder)
-        raise CosimError(f"cannot write {given}: {exc.strerror or exc}") from None
+        raise CosimError(f"cannot write {given}: {unwritten(exc)}") from None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
         if old.exists() and folder.exists():

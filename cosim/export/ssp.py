@@ -48,6 +48,7 @@ from cosim.export.components import (
 from cosim.export.files import replacing_file
 from cosim.export.transformations import linear_transformations
 from cosim.fmus.interface import Variable
+from cosim.limits import unwritten
 from cosim.scenario.spec import Scenario
 
 PARAMETER_SET = "initial"
@@ -269,19 +270,28 @@ def _experiment(scenario: Scenario) -> DefaultExperiment:
 
 
 def _written(scenario: Scenario, system: System, units: _UnitTable) -> Any:
-    """The SSD pyssp-standard writes for ``system``, parsed back as an lxml root."""
-    with tempfile.TemporaryDirectory(prefix="auv-cosim-ssd-") as tmp:
-        ssd_path = Path(tmp) / "SystemStructure.ssd"
-        with SSD(ssd_path, mode="w") as ssd:
-            ssd.name = model_name(scenario)
-            ssd.version = "1.0"
-            ssd.system = system
-            ssd.default_experiment = _experiment(scenario)
-            ssd.top_level_metadata.generationTool = "auv-cosim export (pyssp-standard)"
-            ssd.top_level_metadata.generationDateAndTime = ""
-            for unit in units.units.values():
-                ssd.units.add_unit(unit)
-        return etree.parse(str(ssd_path)).getroot()
+    """The SSD pyssp-standard writes for ``system``, parsed back as an lxml root. Raises
+    CosimError naming the temporary folder when it cannot be written there (a full disk,
+    the file-size limit: pyssp-standard's error names no file)."""
+    temp = tempfile.gettempdir()
+    try:
+        with tempfile.TemporaryDirectory(prefix="auv-cosim-ssd-") as tmp:
+            ssd_path = Path(tmp) / "SystemStructure.ssd"
+            with SSD(ssd_path, mode="w") as ssd:
+                ssd.name = model_name(scenario)
+                ssd.version = "1.0"
+                ssd.system = system
+                ssd.default_experiment = _experiment(scenario)
+                ssd.top_level_metadata.generationTool = "auv-cosim export (pyssp-standard)"
+                ssd.top_level_metadata.generationDateAndTime = ""
+                for unit in units.units.values():
+                    ssd.units.add_unit(unit)
+            return etree.parse(str(ssd_path)).getroot()
+    except OSError as exc:
+        raise CosimError(
+            f"cannot write the system structure into the temporary folder {temp} (TMPDIR): "
+            f"{unwritten(exc)}"
+        ) from None
 
 
 def _add_step_size_hints(root: Any, scenario: Scenario, parts: Sequence[Component]) -> None:
