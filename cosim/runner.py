@@ -712,10 +712,9 @@ def _print_outcome(outcome: RunOutcome) -> None:
             file=sys.stderr,
         )
     elif not result.complete:
-        print(
-            f"auv-cosim run: {result.error} (partial results in {outcome.out_dir})",
-            file=sys.stderr,
-        )
+        kept = "partial results in" if outcome.out_dir.is_dir() else "nothing kept:"
+        gone = "" if outcome.out_dir.is_dir() else " was removed"
+        print(f"auv-cosim run: {result.error} ({kept} {outcome.out_dir}{gone})", file=sys.stderr)
     elif outcome.recording_lost is not None:
         print(
             f"auv-cosim run: {outcome.recording_lost}; the run went on without it: results "

@@ -5,9 +5,11 @@ replaced atomically, and the progress bar.
 straight to the file (no user-space buffer), so the rows are in the file within the
 master's hand-off interval (a second) and survive the process being killed. A failed
 write (disk full) cuts the partial chunk off again and raises with the reason, so the file
-always ends with a whole row. A ``SIGKILL`` in the middle of a write can still tear the
-last row (the kernel stops a write at a page boundary for a fatal signal): the run
-folder's tail guard (:mod:`cosim.outputs.folder`) cuts it off once the process is gone.
+always ends with a whole row; a file removed while it is written (its folder removed)
+fails the next chunk, rather than the rows going on into a file nobody can read. A
+``SIGKILL`` in the middle of a write can still tear the last row (the kernel stops a write
+at a page boundary for a fatal signal): the run folder's tail guard
+(:mod:`cosim.outputs.folder`) cuts it off once the process is gone.
 """
 
 from __future__ import annotations
@@ -61,6 +63,9 @@ class CsvSink(NotesIgnored):
             raise
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        if self._fd >= 0 and os.fstat(self._fd).st_nlink == 0:  # one fstat a chunk
+            # removed (its folder removed): every later row would be lost with the file
+            raise CosimError(f"cannot write {self.path}: it was removed while the run wrote it")
         self._write(csv_lines(times, values))
         self.rows += len(times)
         if len(times):

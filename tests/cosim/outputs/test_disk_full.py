@@ -9,11 +9,15 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
+import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cosim.errors import CosimError
@@ -132,3 +136,54 @@ def test_results_on_a_device_refusing_every_write_name_it():
         pytest.skip("no /dev/full")
     with pytest.raises(CosimError, match="cannot write /dev/full: No space left on device"):
         CsvSink(DEV_FULL, ("plant.yaw",))
+
+
+def test_results_removed_while_written_stop_the_sink(tmp_path: Path):
+    """results.csv removed while the run wrote it (its folder removed) took every later
+    row into the removed file, to be lost when the run ended; the next rows now fail,
+    naming the file."""
+    path = tmp_path / "results.csv"
+    sink = CsvSink(path, ("plant.yaw",))
+    try:
+        sink.add_rows(np.array([0.0]), np.array([[0.1]]))
+        path.unlink()
+        with pytest.raises(CosimError) as raised:
+            sink.add_rows(np.array([0.01]), np.array([[0.2]]))
+    finally:
+        sink.close()
+    assert str(raised.value) == f"cannot write {path}: it was removed while the run wrote it"
+
+
+@pytest.mark.slow
+def test_a_run_whose_folder_is_removed_stops_saying_so(fmu_dir: Path, tmp_path: Path):
+    """A run whose folder was removed while it stepped went on to its stop time writing
+    into the removed files, then said "cannot record .../recording.rrd: it is not a
+    regular file any more (partial results in FOLDER)", a folder that no longer existed.
+    It now stops at the next rows, naming results.csv, and says nothing is kept."""
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--fmu-dir", str(fmu_dir)]
+    command += ["--quiet", "--no-rrd", "--out", str(out), "--stop-time", "3000"]
+    with subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True,
+    ) as proc:  # fmt: skip
+        try:
+            results = out / "results.csv"
+            while proc.poll() is None and (
+                not results.exists() or results.stat().st_size < 1_000_000
+            ):
+                time.sleep(0.05)
+            shutil.rmtree(out)
+            stdout, stderr = proc.communicate(timeout=300)
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+    assert proc.returncode == 1, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert f"cannot write {out / 'results.csv'}: it was removed while the run wrote it" in lines[0]
+    assert f"nothing kept: {out} was removed" in lines[0], lines[0]
+    reached = float(stdout.split("t = ", 1)[1].split(" ", 1)[0])
+    assert reached < 3000.0, stdout  # it stopped, not stepped on into the removed file
+    assert not out.exists()
