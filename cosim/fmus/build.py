@@ -61,6 +61,7 @@ Steps for one FMU (:func:`build_fmu`):
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import importlib.metadata
 import importlib.util
@@ -85,6 +86,7 @@ from cosim.errors import CosimError, unmade_folder
 from cosim.fmus import bytecode, kept_builds, native, reproducible, staging
 from cosim.fmus import docs as fmu_docs
 from cosim.fmus.interface import OWN_PACKAGES
+from cosim.limits import unwritten
 from cosim.version import DISTRIBUTION, version
 from cosim.whole_file import write_whole
 from fmu_runtime import entry
@@ -287,9 +289,30 @@ def _waiting(name: str, out_dir: Path) -> None:
     )
 
 
+# what a write that found no room fails with: a full disk, the file-size limit, a quota
+NO_ROOM = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
+_NO_ROOM_LINE = re.compile(r"OSError: \[Errno (\d+)\] ")  # pythonfmu's last line then
+
+
 def _build(name: str, files: dict[str, Path], digest: str, target: Path, portable: bool) -> None:
     """Build ``name`` from the shipped ``files`` (their hash ``digest``) in a temporary
-    folder, check it and install it at ``target``; ``portable``: see :func:`build_fmus`."""
+    folder, check it and install it at ``target``; ``portable``: see :func:`build_fmus`.
+    Raises CosimError naming the temporary folder (``TMPDIR``) if it has no room."""
+    try:
+        _build_in_temporary_folder(name, files, digest, target, portable)
+    except OSError as exc:
+        if exc.errno not in NO_ROOM:
+            raise
+        raise CosimError(
+            f"cannot build {name}.fmu in the temporary folder {tempfile.gettempdir()} "
+            f"(TMPDIR): {unwritten(exc)}"
+        ) from None
+
+
+def _build_in_temporary_folder(
+    name: str, files: dict[str, Path], digest: str, target: Path, portable: bool
+) -> None:
+    """:func:`_build` (raises OSError, as pythonfmu's build does)."""
     with tempfile.TemporaryDirectory(prefix=f"build_{name}_") as tmp:
         stage, dest = Path(tmp) / "stage", Path(tmp) / "out"
         shipped = {relative: source.read_bytes() for relative, source in files.items()}
@@ -319,7 +342,7 @@ def _install(built: Path, target: Path) -> None:
     try:
         write_whole(target, lambda tmp: shutil.copyfile(built, tmp))
     except OSError as exc:  # (copyfile's own error names the file it read)
-        raise CosimError(f"cannot write {target}: {exc.strerror or exc}") from None
+        raise CosimError(f"cannot write {target}: {unwritten(exc)}") from None
 
 
 _said: set[str] = set()  # process-wide: each build note is printed once per process
@@ -710,7 +733,8 @@ def pythonfmu_build(
     in a fresh interpreter, since pythonfmu imports the script and this process would
     reuse a class it imported before; return ``dest/<model_identifier>.fmu``.
 
-    Raises CosimError with pythonfmu's last lines if the build fails.
+    Raises CosimError with pythonfmu's last lines if the build fails; OSError (with its
+    errno) if it failed for want of room (a full disk, the file-size limit).
     """
     command = [sys.executable, "-m", "pythonfmu", "build", "--file", str(script)]
     command += ["--dest", str(dest), *options]
@@ -719,6 +743,9 @@ def pythonfmu_build(
     built = dest / f"{model_identifier}.fmu"
     if result.returncode != 0 or not built.is_file():
         tail = (result.stderr or result.stdout).strip().splitlines()[-5:]
+        refused = _NO_ROOM_LINE.match(tail[-1]) if tail else None
+        if refused is not None and int(refused[1]) in NO_ROOM:  # said by the caller
+            raise OSError(int(refused[1]), os.strerror(int(refused[1])))
         raise CosimError(
             f"pythonfmu could not build {model_identifier}.fmu (exit code {result.returncode}): "
             + " | ".join(tail)
