@@ -18,6 +18,7 @@ from typing import Any
 from cosim.paths import path_text
 from cosim.study.plots import PANELS_MAX
 from cosim.study.statistics import SENSITIVITY_NAME, STATISTICS_NAME
+from cosim.whole_file import write_whole
 
 INDEX_PAGE = "index.html"
 FAILED_SHOWN = 50  # failed runs listed on the page (all are in runs.csv)
@@ -83,7 +84,7 @@ h1, code {{ overflow-wrap: anywhere; }}</style></head>
 </html>
 """
     path = out_dir / INDEX_PAGE  # undecoded text elsewhere (a run's error) escaped
-    path.write_text(page, encoding="utf-8", errors="backslashreplace")
+    write_whole(path, lambda tmp: tmp.write_text(page, encoding="utf-8", errors="backslashreplace"))
     return path
 
 

@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cosim.study.units import DIMENSIONLESS, shown, title
+from cosim.whole_file import write_whole
 
 if TYPE_CHECKING:  # matplotlib is imported where a figure is drawn (~0.35 s, at the end)
     from matplotlib.figure import Figure
@@ -466,5 +467,6 @@ def _file_safe(name: str) -> str:
 
 
 def _save(fig: Figure, path: Path) -> Path:
-    fig.savefig(path, dpi=DPI)
+    """Write ``fig`` to ``path`` as a PNG, whole or not at all (raises OSError naming it)."""
+    write_whole(path, lambda tmp: fig.savefig(tmp, dpi=DPI, format="png"))
     return path

@@ -4,12 +4,17 @@ with its unit, tick labels without an offset."""
 
 from __future__ import annotations
 
+import errno
+import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from chromium import CHROMIUM, overflow
+from matplotlib.figure import Figure
 from page_structure import problems, read_page
 
 from cosim.study import plots
@@ -541,3 +546,43 @@ def test_each_study_figure_names_its_study_in_a_title_clear_of_the_panels(
             assert box.y0 >= ax.title.get_window_extent().y1 - 0.5, text
             assert box.y0 >= ax.get_tightbbox().y1 - 0.5, text
         plt.close(figure)
+
+
+def _disk_fills_after_a_part(path_of: Callable[..., Any]) -> Callable[..., Any]:
+    """A write method that leaves part of its file (``path_of`` its arguments), then
+    fails as a full disk does."""
+
+    def full(*args: Any, **kwargs: Any) -> Any:
+        Path(path_of(*args)).write_bytes(b"\x89PNG a part")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    return full
+
+
+def test_a_figure_the_disk_cannot_hold_is_named_and_leaves_no_part(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A study's figure that filled the disk left a half PNG and ended the study with
+    "cannot write the study's results: No space left on device", naming no file."""
+    monkeypatch.setattr(Figure, "savefig", _disk_fills_after_a_part(lambda fig, fname: fname))
+    path = tmp_path / "figure.png"
+    with pytest.raises(OSError) as raised:
+        plots._save(Figure(), path)
+    assert (raised.value.errno, raised.value.filename) == (errno.ENOSPC, str(path))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_index_page_the_disk_cannot_hold_is_named_and_leaves_no_part(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A study's index.html that filled the disk was left half written."""
+    from cosim.study.page import write_index
+
+    monkeypatch.setattr(Path, "write_text", _disk_fills_after_a_part(lambda path, text: path))
+    with pytest.raises(OSError) as raised:
+        write_index(tmp_path, {"runs": "1"}, [], {}, [])
+    assert (raised.value.errno, raised.value.filename) == (
+        errno.ENOSPC,
+        str(tmp_path / "index.html"),
+    )
+    assert list(tmp_path.iterdir()) == []
