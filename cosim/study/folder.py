@@ -19,6 +19,7 @@ scenario the run ran (``scenario.toml``, for ``auv-cosim run``), its ``results.c
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import stat
@@ -30,6 +31,7 @@ from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.outputs.folder import LOCK_FILE, lock_folder, unlock_folder
 from cosim.study.spec import StudyError
 from cosim.viz.rrd_file import STUDY_FILE
+from cosim.whole_file import write_whole
 
 STUDY_JSON = STUDY_FILE
 RUNS_FOLDER = "runs"
@@ -213,12 +215,13 @@ def discard_new(out_dir: Path, table: str) -> None:
 def keep_run(
     out_dir: Path, run_id: str, scenario: str, files: Mapping[str, bytes], error: str | None
 ) -> Path:
-    """Write one run's folder: its scenario, the files it returned, its error."""
+    """Write one run's folder: its scenario, the files it returned, its error; each file
+    whole or not at all. Raises OSError naming the file that could not be written."""
     folder = out_dir / RUNS_FOLDER / run_id
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "scenario.toml").write_text(scenario, encoding="utf-8")
-    for name, content in files.items():
-        (folder / name).write_bytes(content)
+    contents = {"scenario.toml": scenario.encode("utf-8"), **files}
     if error is not None:
-        (folder / "error.txt").write_text(error + "\n", encoding="utf-8")
+        contents["error.txt"] = (error + "\n").encode("utf-8")
+    for name, content in contents.items():
+        write_whole(folder / name, functools.partial(Path.write_bytes, data=content))
     return folder

@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
-from cosim.limits import check_local_study
+from cosim.limits import check_local_study, unwritten
 from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.progress_bars import progress_bar
 from cosim.scenario import unit_doubts
@@ -324,12 +324,15 @@ def _execute(
             raise NoRoomError(f"run {run.id} found no room for its files: {record.error}")
         left -= 1
         drawing.unfinished(left)
-        table.append(run, record)
-        failed += record.status != "complete"
         kept = spec.keep == "all" or (spec.keep == "failed" and record.status != "complete")
         if kept or FMU_LOG_FILE in record.files:  # a run's debug log: its folder, kept or not
             text = scenario_text(base, factors, run.values)
-            study_folder.keep_run(out_dir, run.id, text, record.files, record.error)
+            try:  # before its row: a run whose folder is not whole runs again at --resume
+                study_folder.keep_run(out_dir, run.id, text, record.files, record.error)
+            except OSError as exc:
+                raise StudyEndedError(f"cannot write {exc.filename}: {unwritten(exc)}") from None
+        table.append(run, record)
+        failed += record.status != "complete"
         if bar is not None:
             bar.set_postfix(failed=failed, refresh=False)
             bar.update(1)
