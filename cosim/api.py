@@ -337,6 +337,12 @@ def _finished(outcome: RunOutcome, in_memory: bool) -> Run:
         )
     if not finished.complete:
         raise RunError(f"{outcome.result.error} (partial results in {where})", finished)
+    if outcome.recording_lost is not None:  # the run went on without it (a full disk)
+        import warnings
+
+        warnings.warn(
+            f"cosim.run: {outcome.recording_lost}; the run went on without it", stacklevel=3
+        )
     return finished
 
 
