@@ -184,8 +184,15 @@ class RunOutputs:
         (:func:`cosim.engine.master.ending_note`), is each sink's last note (the recording's
         last events entry)."""
         error = self._close_sinks(ending)
-        for name in ("results", "recording"):
-            error = self._record(name) or error
+        error = self._record("results") or error
+        unrecorded = self._record("recording")
+        if unrecorded is None or self.recording is None:
+            return error or unrecorded
+        rrd = self.paths["recording"]  # gone: the run went on without it all the same
+        gone = f"the recording {rrd} was removed while the run wrote it"
+        self.recording.lost = self.recording.lost or (
+            gone if not os.path.lexists(rrd) else unrecorded
+        )
         return error
 
     def _close_sinks(self, ending: Note | None) -> str | None:

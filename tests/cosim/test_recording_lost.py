@@ -85,3 +85,36 @@ def test_cosim_run_warns_and_returns_the_whole_run(
     with pytest.warns(UserWarning, match=f"cosim.run: cannot write the recording .*{NO_SPACE}"):
         run = cosim.run("bs-3", stop_time=30.0, out=out, fmu_dir=fmu_dir)
     assert len(run.results) == 3001 and run.summary["recording_error"].endswith(NO_SPACE)
+
+
+class RemovedRecording(FillingRecording):
+    """A recording sink whose file is removed after its first chunk of rows."""
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        self.chunks += 1
+        if self.chunks == 2:
+            self.rrd.unlink()
+
+
+def test_a_recording_removed_while_written_leaves_the_run_complete(
+    fmu_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """A recording removed while the run wrote it (``--rrd`` in a folder removed) made the
+    complete run incomplete at its end: "cannot record ...: it is not a regular file any
+    more", exit 1."""
+
+    def recorder(scenario: Any, rrd: Path | None, url: str | None, flushed: Any) -> Any:
+        assert rrd is not None
+        rrd.write_bytes(b"")
+        return RemovedRecording(rrd)
+
+    monkeypatch.setattr(runner, "rerun_sink", recorder)
+    out, rrd = tmp_path / "run", tmp_path / "elsewhere" / "x.rrd"
+    args = ["run", "bs-3", "--fmu-dir", str(fmu_dir), "--out", str(out), "--quiet"]
+    assert main([*args, "--stop-time", "30", "--rrd", str(rrd)]) == 3
+    assert capsys.readouterr().err == (
+        f"auv-cosim run: the recording {rrd} was removed while the run wrote it; "
+        f"the run went on without it: results complete in {out}\n"
+    )
+    assert _rows_of(out)() == (3001, 3001)
