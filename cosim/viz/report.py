@@ -76,6 +76,7 @@ from matplotlib.figure import Figure
 
 from cosim.errors import CosimError
 from cosim.fmus.interface import read_interface
+from cosim.limits import unwritten
 from cosim.metrics.key_figures import why_none
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
@@ -287,7 +288,7 @@ def write_report(run_dir: Path) -> Path:
         shutil.rmtree(staging, ignore_errors=True)
         if made_out:
             shutil.rmtree(out, ignore_errors=True)
-        why = os.strerror(exc.errno) if exc.errno else str(exc)
+        why = unwritten(exc) if exc.strerror else os.strerror(exc.errno) if exc.errno else str(exc)
         raise CosimError(
             f"cannot write the report into {out}: {why}; nothing of it is left "
             f"({'no report made' if made_out else 'the earlier report is as it was'})"

@@ -880,3 +880,23 @@ def test_a_fault_campaigns_page_lists_the_faults_and_says_why_a_figure_is_missin
         '<th scope="row">yaw settling time (s)</th><td>none (not settled: the yaw is not '
         "within 1 deg of its set-point at the end)</td>"
     ) in page, page
+
+
+def test_a_report_past_the_file_size_limit_names_the_limit(tmp_path, run_python) -> None:
+    """Under ``ulimit -f`` a report said "cannot write the report into DIR: File too
+    large", as if a disk were full, naming no limit."""
+    run = _sparse_run(tmp_path / "run", ("plant.u", "plant.roll"))
+    code = """
+        import resource, sys
+        from cosim.cli import main
+        resource.setrlimit(resource.RLIMIT_FSIZE, (2000, resource.RLIM_INFINITY))
+        sys.exit(main(["report", sys.argv[1]]))
+    """
+    done = run_python(code, run)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr == (
+        f"auv-cosim report: cannot write the report into {run / 'report'}: File too large: "
+        "the file-size limit of this process, 2000 bytes (ulimit -f), stopped it: raise it "
+        "(ulimit -f unlimited); nothing of it is left (no report made)\n"
+    )
+    assert not (run / "report").exists()
