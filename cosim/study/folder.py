@@ -110,7 +110,8 @@ def claim(
             f"{names.given('out', out_dir)}: the folder is not empty ({shown}) and holds no "
             "study; choose a new or empty folder"
         )
-    marker.write_text(json.dumps(identity, indent=2) + "\n", encoding="utf-8")
+    text = json.dumps(identity, indent=2) + "\n"
+    write_whole(marker, lambda tmp: tmp.write_text(text, encoding="utf-8"))  # never a part
 
 
 def _as_written_now(stored: dict[str, Any], identity: Mapping[str, Any]) -> dict[str, Any]:

@@ -213,3 +213,23 @@ def test_resuming_a_study_folder_holding_links_is_refused(
     with pytest.raises(StudyError, match=f"holds {entry}, a {plant}") as refused:
         claim(out, identity, True, CSV_NAME)
     assert "\n" not in str(refused.value)
+
+
+def test_a_study_json_the_disk_cannot_hold_leaves_no_part(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A study.json that filled the disk was left half written: the next attempt was told
+    to add --resume, which then could not read it."""
+
+    def full(path: Path, text: str, *args: object, **kwargs: object) -> int:
+        path.write_bytes(text.encode()[:10])
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(Path, "write_text", full)
+    with pytest.raises(OSError) as raised:
+        claim(tmp_path, {"scenario": "bs-3"}, False, CSV_NAME)
+    assert (raised.value.errno, raised.value.filename) == (
+        errno.ENOSPC,
+        str(tmp_path / "study.json"),
+    )
+    assert list(tmp_path.iterdir()) == []
