@@ -25,7 +25,10 @@ Each mark also carries its process's CPU seconds (``time.process_time``), so a s
 table shows what the machine's load does not distort: the client's CPU until its
 cluster is ready, while its runs run (the scheduler, the nannies and the client share its
 process: on 2 cores the workers' rival) and in all (``os.wait4``), the fork server's
-imports, each worker's tasks (count), warm-up and runs, and the runs' CPU over their wall
+imports and the chain before the first warm-up that the client's readiness races (the
+client's CPU until it calls the server, the server's imports, the first worker's start:
+which of the two is longer says, at any load, which one the first run waits for on an
+idle machine), each worker's tasks (count), warm-up and runs, and the runs' CPU over their wall
 time (below 1: the worker waited for a core). The load average is printed beside it.
 Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]``.
 """
@@ -92,6 +95,7 @@ PATCHES = {
         wrap_client(m), wrap(m.StudyPlugin, "warm", "warm-up"), wrap(m, "run_on_worker", "task"),
         wrap(m, "execute", "execute"),
     ),
+    "cosim.study.fork_server": lambda m: wrap(m, "start", "fork server call"),
     "cosim.study.preload": lambda m: (mark("preload end"), wrap(m, "dask_setup", "worker start")),
     "cosim.study.task": lambda m: wrap(m, "prepare", "prepare"),
     "cosim.study.table": lambda m: wrap(m.RunsTable, "finish", "table"),
@@ -197,7 +201,10 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
     processes and phases that make a study's fixed costs and its parallel efficiency:
     the client until its cluster is ready and while its runs run (the scheduler, the
     nannies and the client's threads, all in the command's process: the workers' rival
-    for the cores), the fork server's imports, each worker's warm-up, and the CPU its
+    for the cores), the fork server's imports and the chain to the first warm-up that
+    the client's readiness races (the client's CPU until it calls the server, the
+    server's imports, the first worker's start: the longer of it and "client until
+    ready" is the start's critical path on an idle machine), each worker's warm-up, and the CPU its
     runs took against their wall time (below 1: the worker waited for a core)."""
     marks = trace["marks"]
     assert isinstance(marks, list)
@@ -219,6 +226,12 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
     servers = [(t, p, c) for t, p, w, c in marks if w == "preload end"]
     if servers:
         rows.append(("fork server imports", servers[0][2]))
+        # the chain the client's readiness races: its CPU until it spawns the server, the
+        # server's imports, the first worker's start (both ~1 CPU s/s when nothing waits)
+        before = at("fork server call begin", client)[1]
+        first = min(at("warm-up begin", pid) for pid in _workers(marks))[1]
+        rows.append(("client until server call", before))
+        rows.append(("server chain to warm-up", before + servers[0][2] + first))
     for k, pid in enumerate(_workers(marks), 1):
         warm = at("warm-up end", pid)[1] - at("warm-up begin", pid)[1]
         spans = _task_spans(marks, pid)
