@@ -39,3 +39,34 @@ def test_a_benchmark_sweep_imports_our_modules_compiled_from_an_installed_copy(
     assert (compiled / f"spec.{sys.implementation.cache_tag}.pyc").is_file()
     assert prefix is None  # the FMUs' shipped __pycache__ is read
     assert not (tmp_path / "prefix").exists()
+
+
+# a two-worker sweep's marks (seconds, pid, what, CPU s): client 1, fork server 2, workers 3, 4
+TIMELINE = """
+import json, sys
+from sweep_timeline import cpu_phases
+marks = [(0.1, 1, "fork server call begin", 0.09), (0.2, 2, "process start", 0.02),
+         (1.3, 2, "preload end", 1.2), (1.4, 1, "client ready", 1.0),
+         (1.4, 1, "execute begin", 1.0), (1.5, 3, "task begin", 0.05),
+         (1.5, 3, "warm-up begin", 0.05), (1.7, 3, "warm-up end", 0.25),
+         (1.6, 4, "task begin", 0.07), (1.6, 4, "warm-up begin", 0.07),
+         (1.8, 4, "warm-up end", 0.27), (2.0, 3, "task end", 0.75),
+         (2.1, 4, "task end", 0.77), (2.2, 1, "execute end", 1.3)]
+print(json.dumps(cpu_phases({"marks": marks, "exit": 2.5, "pipes": 2.6, "cpu": 1.6})))
+"""
+
+
+def test_the_timeline_sets_the_clients_readiness_against_the_fork_servers_chain() -> None:
+    """The chain before the first warm-up that the client's readiness races, in CPU s:
+    the client's CPU until it calls the fork server, the server's imports and the first
+    worker's start; the longer of it and "client until ready" is what the first run
+    waits for on an idle machine (docs/performance.md)."""
+    path = os.pathsep.join([str(ROOT / "scripts"), str(ROOT)])
+    env = {**os.environ, "PYTHONPATH": path}
+    done = subprocess.run([sys.executable, "-c", TIMELINE], env=env, check=True,
+                          timeout=300, capture_output=True, text=True)  # fmt: skip
+    rows = dict(json.loads(done.stdout))
+    assert rows["client until server call"] == 0.09
+    assert abs(rows["server chain to warm-up"] - (0.09 + 1.2 + 0.05)) < 1e-9  # worker 3 first
+    assert rows["client until ready"] == 1.0
+    assert abs(rows["client during runs"] - 0.3) < 1e-9
