@@ -23,6 +23,7 @@ code), there is no store (:func:`store_folder` returns None).
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
@@ -73,11 +74,14 @@ def publish(entry: Path, fill: Callable[[Path], None]) -> None:
 def shared_lock(path: Path) -> int:
     """A descriptor holding a shared lock on the lock file ``path`` (made if missing),
     which is still the file of that name: an entry's remover unlinks it under the
-    exclusive lock, and a descriptor opened before that locks a file nobody else will see."""
+    exclusive lock, and a descriptor opened before that locks a file nobody else will see.
+    In a cache the user cannot write (a read-only mount, another's folder) the lock file
+    is opened for reading: ``flock`` locks a file however it was opened, and an entry
+    kept there is used as it is."""
     if fcntl is None:
         raise OSError("no flock on this system")
     while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+        fd = _open_lock_file(path)
         try:
             fcntl.flock(fd, fcntl.LOCK_SH)
             if os.path.samestat(os.fstat(fd), os.stat(path)):
@@ -88,6 +92,20 @@ def shared_lock(path: Path) -> int:
             os.close(fd)
             raise
         os.close(fd)
+
+
+def _open_lock_file(path: Path) -> int:
+    """A descriptor of the lock file ``path``: opened for writing (made if missing) where
+    the cache can be written, else for reading (FileNotFoundError if missing)."""
+    try:
+        return os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    except OSError as exc:
+        if exc.errno not in _READ_ONLY:
+            raise
+    return os.open(path, os.O_RDONLY)
+
+
+_READ_ONLY = (errno.EACCES, errno.EPERM, errno.EROFS)  # the cache cannot be written
 
 
 def remove_unused(store: Path, keep: str, kept: int) -> None:

@@ -281,3 +281,35 @@ def test_a_cache_without_flock_leaves_the_study_its_own_folder(
     monkeypatch.setattr(fcntl, "flock", no_locks)
     _extracts_into_its_own_folder(fmu_paths)
     assert not [p for p in store_folder().iterdir() if p.is_dir()]
+
+
+@pytest.mark.parametrize("refusal", [errno.EACCES, errno.EROFS], ids=["denied", "read-only"])
+def test_a_read_only_cache_holding_the_whole_set_is_used(
+    fmu_paths, cache: Path, monkeypatch: pytest.MonkeyPatch, refusal: int
+) -> None:
+    """A cache the user may read but not write (a read-only mount, a shared cache of
+    another's): the whole set kept there is used, under a shared lock on its lock file
+    opened for reading, instead of extracted into the study's own folder. The tests run
+    as root, which no permission stops: the system's refusal to open for writing is
+    simulated."""
+    paths, folder = _kept_plant(fmu_paths)
+    real_open = os.open
+
+    def read_only(path: Any, flags: int, *args: Any, **kwargs: Any) -> int:
+        if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT):
+            raise OSError(refusal, os.strerror(refusal), str(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(user_cache.os, "open", read_only)
+    with ExitStack() as stack:
+        found = kept_unpacked(paths, stack)
+        assert found is not None, "the whole set in a read-only cache was not used"
+        assert Path(found[hashlib.sha256(paths["AuvPlant"].read_bytes()).hexdigest()]) == folder
+        _assert_whole(paths, found)
+        lock = store_folder() / f"{folder.parent.name}.lock"
+        probe = real_open(lock, os.O_RDONLY)  # the set is held: no remover may take it
+        try:
+            with pytest.raises(BlockingIOError):
+                fcntl.flock(probe, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        finally:
+            os.close(probe)
