@@ -55,20 +55,24 @@ def interpreter_for_pacing() -> Iterator[None]:
       full collection over them took 50-80 ms (rerun, numba, scipy and pandas loaded) at a
       moment the interpreter chooses: a step late by as much. The loop's own objects are
       collected as before.
+      Not where the caller froze objects of its own (a program calling ``cli.main`` in its
+      process): ``gc.unfreeze`` takes back every freeze, so the loop's could not be taken
+      back alone, and the caller's objects are left as they were.
     * hand the GIL over every :data:`SWITCH_INTERVAL_S` instead of 5 ms
       (``sys.setswitchinterval``): the recording's thread (:mod:`cosim.outputs.background`)
       runs Python for tens of ms per send, and the stepping thread waking from its sleep
       waited up to the interval, several times over, to get the interpreter back.
     """
-    interval, frozen = sys.getswitchinterval(), gc.get_freeze_count()
+    interval, freezing = sys.getswitchinterval(), not gc.get_freeze_count()
     gc.collect()
-    gc.freeze()
+    if freezing:
+        gc.freeze()
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
         yield
     finally:
         sys.setswitchinterval(interval)
-        if not frozen:  # gc.unfreeze takes back every freeze: not a caller's own
+        if freezing:
             gc.unfreeze()
 
 

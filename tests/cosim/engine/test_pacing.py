@@ -4,6 +4,7 @@ maximum lateness, the one line said when the run falls behind, pauses, and the f
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import sys
 from decimal import Decimal
@@ -124,6 +125,33 @@ def test_a_paced_loop_runs_with_start_up_frozen_and_a_short_switch_interval():
         raise RuntimeError("the loop failed")
     assert gc.get_freeze_count() == frozen
     assert sys.getswitchinterval() == before
+
+
+@pytest.mark.parametrize("collecting", [True, False], ids=["collector-on", "collector-off"])
+@pytest.mark.parametrize("fails", [False, True], ids=["ends", "raises"])
+def test_a_callers_own_freeze_and_collector_are_left_as_they_were(
+    collecting: bool, fails: bool
+) -> None:
+    """A program that froze its own objects (``gc.freeze``) and maybe turned the collector
+    off, then calls ``cli.main(["run", "--real-time", ...])`` in its process: afterwards
+    the same objects are frozen, no more (the paced loop's freeze is not the caller's to
+    keep: gc.unfreeze takes back every freeze, so the loop leaves such a caller's freeze
+    alone), and the collector is on or off as it was."""
+    assert not gc.get_freeze_count(), "this test needs a process with nothing frozen"
+    try:
+        gc.freeze()
+        if not collecting:
+            gc.disable()
+        frozen = gc.get_freeze_count()
+        made_since = [[n] for n in range(5000)]  # objects of the caller's, not frozen
+        with contextlib.suppress(RuntimeError), interpreter_for_pacing():
+            if fails:
+                raise RuntimeError("the loop failed")
+        assert (gc.get_freeze_count(), gc.isenabled()) == (frozen, collecting)
+        assert made_since
+    finally:
+        gc.unfreeze()
+        gc.enable()
 
 
 def test_a_stop_ends_a_long_wait_for_a_deadline_at_once() -> None:
