@@ -38,6 +38,7 @@ from cosim.limits import open_files_limit_kept
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import RunOptions, execute
 from cosim.scratch import process_folder
+from cosim.study.signals import StudyStopped, stop_study_on_signals
 
 if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on import
     from typing import TypeAlias
@@ -462,23 +463,31 @@ def sweep(
         (with ``out``, runs.csv keeps them too, for ``resume=True``). A KeyboardInterrupt
         (``except CosimError`` lets it through).
     """
-    from cosim.study.spec import StudyError
+    # From the first line: a stop while Dask is imported (~1 s) or the study's folder made
+    # is the study's as much as one during its runs (the first one raises StudyStopped).
+    with stop_study_on_signals():
+        try:
+            from cosim.study.spec import StudyError
 
-    cluster = _cluster(workers, oversubscribe, scheduler, security)
-    study = _study_argument(study)
-    out = None if out is None else _folder("out", out, StudyError)
-    overlay = None if overlay is None else _count("overlay", overlay, StudyError)
-    resume = _flag("resume", resume, StudyError)
-    max_runs = _count("max_runs", max_runs, StudyError)
-    fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
-    logs = _fmu_log(fmu_log, StudyError)
-    _check_needs_out(out, resume, overlay)
-    if out is None and logs:
-        raise StudyError(f"fmu_log={shown(fmu_log)} needs out= (the study folder the runs' "
-                         "fmu-log.txt go to)")  # fmt: skip
-    options = {"resume": resume, "fmu_dir": fmu_dir, "overlay": overlay, "max_runs": max_runs,
-               "progress": _flag("progress", progress, StudyError), "fmu_log": logs}  # fmt: skip
-    return _swept(study, out, cluster, options)
+            cluster = _cluster(workers, oversubscribe, scheduler, security)
+            study = _study_argument(study)
+            out = None if out is None else _folder("out", out, StudyError)
+            overlay = None if overlay is None else _count("overlay", overlay, StudyError)
+            resume = _flag("resume", resume, StudyError)
+            max_runs = _count("max_runs", max_runs, StudyError)
+            fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
+            logs = _fmu_log(fmu_log, StudyError)
+            _check_needs_out(out, resume, overlay)
+            if out is None and logs:
+                raise StudyError(f"fmu_log={shown(fmu_log)} needs out= (the study folder "
+                                 "the runs' fmu-log.txt go to)")  # fmt: skip
+            options = {"resume": resume, "fmu_dir": fmu_dir, "overlay": overlay,
+                       "max_runs": max_runs, "fmu_log": logs,
+                       "progress": _flag("progress", progress, StudyError)}  # fmt: skip
+            return _swept(study, out, cluster, options)
+        except StudyStopped as stop:  # before the study's folder was known, or after it
+            kept = out if isinstance(out, Path) and resume is True else None  # as resumed
+            raise _stopped(stop.signum, kept) from None
 
 
 def _cluster(
@@ -524,32 +533,32 @@ def _swept(
 ) -> Study:
     """:func:`sweep` of its checked arguments (``options``: run_study's ``resume``,
     ``fmu_dir``, ``overlay``, ``max_runs`` and ``progress``); a stop signal (Ctrl-C, a notebook's
-    interrupt) raises :class:`SweepInterrupted` with the finished rows."""
+    interrupt; the caller's :func:`~cosim.study.signals.stop_study_on_signals` raises
+    StudyStopped) raises :class:`SweepInterrupted` with the finished rows."""
     from cosim.study.collector import gc_diagnosis_registered
     from cosim.study.runner import run_study
-    from cosim.study.signals import StudyStopped, stop_study_on_signals
 
     with ExitStack() as stack:
-        stack.callback(_restore_environ, dict(os.environ))
-        stack.enter_context(open_files_limit_kept())  # a local study raises it for its workers
-        stack.callback(_restore_start_method, multiprocessing.get_start_method(allow_none=True))
-        temporary = None
-        if out is None or isinstance(study, Mapping):
-            temporary = Path(stack.enter_context(_temporary_folder()))
-        study_file = _study_file(study, temporary)
-        out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
-        label = DICT_LABEL if isinstance(study, Mapping) else None
-        if cluster.scheduler is None:  # a local cluster: its scheduler starts on a thread
-            stack.enter_context(gc_diagnosis_registered())
+        out_dir = out
         try:
-            with stop_study_on_signals():  # the first stop signal raises StudyStopped
-                outcome = run_study(
-                    study_file, out_dir, cluster=cluster, label=label, names=KEYWORDS, **options
-                )
+            stack.callback(_restore_environ, dict(os.environ))
+            stack.enter_context(open_files_limit_kept())  # a local study raises it for workers
+            stack.callback(_restore_start_method, multiprocessing.get_start_method(allow_none=True))
+            temporary = None
+            if out is None or isinstance(study, Mapping):
+                temporary = Path(stack.enter_context(_temporary_folder()))
+            study_file = _study_file(study, temporary)
+            out_dir = Path(out) if out is not None else temporary / "study"  # type: ignore[operator]
+            label = DICT_LABEL if isinstance(study, Mapping) else None
+            if cluster.scheduler is None:  # a local cluster: its scheduler starts on a thread
+                stack.enter_context(gc_diagnosis_registered())
+            outcome = run_study(
+                study_file, out_dir, cluster=cluster, label=label, names=KEYWORDS, **options
+            )
+            table = _read_parquet(outcome.paths["parquet"])
+            statistics, sensitivity = (_read_csv(outcome.paths.get(n)) for n in _MONTE_CARLO)
         except StudyStopped as stop:
             raise _stopped(stop.signum, out_dir, kept=out is not None) from None
-        table = _read_parquet(outcome.paths["parquet"])
-        statistics, sensitivity = (_read_csv(outcome.paths.get(name)) for name in _MONTE_CARLO)
     _warn_of(outcome)
     return Study(table, None if out is None else out_dir.absolute(), statistics, sensitivity)
 
@@ -601,22 +610,23 @@ def _warn_of(outcome: StudyOutcome) -> None:
         warnings.warn(f"cosim.sweep: {warning}", stacklevel=4)
 
 
-def _stopped(signum: int, out_dir: Path, kept: bool) -> SweepInterrupted:
+def _stopped(signum: int, out_dir: Path | None, kept: bool = True) -> SweepInterrupted:
     """The :class:`SweepInterrupted` of a study the signal ``signum`` ended: the rows its
     ``out_dir``/runs.csv holds (the folder ``kept`` for ``resume=True``, else about to be
-    removed), in one line."""
+    removed; None: stopped before it had one, no rows), in one line."""
     import pandas as pd
 
     from cosim.study.table import CSV_NAME
 
-    csv_path = out_dir / CSV_NAME
+    csv_path = None if out_dir is None else out_dir / CSV_NAME
     # a run id is hexadecimal text, at times all decimal digits: never read as a number
-    table = pd.read_csv(csv_path, dtype={"run": str}) if csv_path.is_file() else pd.DataFrame()
+    found = csv_path is not None and csv_path.is_file()
+    table = pd.read_csv(csv_path, dtype={"run": str}) if found else pd.DataFrame()
     reason = REASONS.get(signal.Signals(signum).name, "stopped")
     where = "the error's study.table"
-    if kept and len(table):
+    if kept and len(table) and out_dir is not None and csv_path is not None:
         where += f" and {csv_path.absolute()} (resume=True runs the others)"
-    study = Study(table, out_dir.absolute() if kept and len(table) else None)
+    study = Study(table, out_dir.absolute() if kept and len(table) and out_dir else None)
     return SweepInterrupted(f"{reason}: {len(table)} finished runs kept in {where}", study)
 
 

@@ -1240,6 +1240,65 @@ def test_an_interrupted_sweep_raises_one_line_with_the_finished_rows(
             assert len(file.readlines()) == 1 + caught["rows"]
 
 
+EARLY_INTERRUPTED_SWEEP = """
+import json, os, re, signal, sys, threading, time
+import psutil
+import cosim
+from cosim import sweep  # cosim.api imported (~0.07 s): the call is what is timed
+
+# multiprocessing's helpers, which last as long as the process that started them
+HELPERS = re.compile(r"from multiprocessing\\.(forkserver|resource_tracker) import main")
+
+if __name__ == "__main__":
+    offset, fmu_dir = float(sys.argv[1]), sys.argv[2]
+    go = threading.Event()
+    timer = threading.Thread(target=lambda: go.wait() and time.sleep(offset) or
+                             os.kill(os.getpid(), signal.SIGINT))
+    study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [-0.1]}}
+    timer.start()
+    try:
+        go.set()  # a stop sent while the sweep imports Dask and starts its cluster
+        sweep(study, workers=1, fmu_dir=fmu_dir)
+        caught = "finished"
+    except cosim.SweepInterrupted as error:
+        caught = f"SweepInterrupted: {error}"
+    except KeyboardInterrupt as error:
+        caught = f"{type(error).__name__}: {error}"
+    timer.join()
+    time.sleep(0.5)  # what the sweep started had its time to end
+    print(json.dumps({"caught": caught,
+                      "threads": [t.name for t in threading.enumerate()
+                                  if t is not threading.main_thread()],
+                      "children": [command for command in map(" ".join, (p.cmdline() for p
+                                   in psutil.Process().children(recursive=True)))
+                                   if not HELPERS.search(command)]}))
+"""
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_ctrl_c_in_a_sweeps_first_second_raises_sweep_interrupted(
+    tmp_path: Path, fmu_dir: Path
+) -> None:
+    """Ctrl-C in the first second of cosim.sweep (its imports, before the study's stop
+    handler was installed) raised a bare KeyboardInterrupt from inside an import, not the
+    SweepInterrupted a notebook catches; whenever it comes, the sweep ends with no process
+    or thread of its own left."""
+    script = tmp_path / "early_interrupted_sweep.py"
+    script.write_text(EARLY_INTERRUPTED_SWEEP, encoding="utf-8")
+    outcomes = []
+    for offset in (0.001, 0.05, 0.2, 0.5, 1.0):
+        command = [sys.executable, str(script), str(offset), str(fmu_dir)]
+        done = run_in_group(command, timeout=600, cwd=tmp_path, env=_environment())
+        assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+        outcome = json.loads(done.stdout.strip().splitlines()[-1])
+        assert outcome["caught"].startswith(("SweepInterrupted: ", "finished")), (offset, outcome)
+        assert outcome["threads"] == [] and outcome["children"] == [], (offset, outcome)
+        outcomes.append(outcome["caught"])
+    stopped = "SweepInterrupted: interrupted (Ctrl-C): 0 finished runs kept in"
+    assert outcomes[0].startswith(stopped), outcomes
+
+
 @pytest.mark.cluster
 @pytest.mark.slow
 def test_a_sweep_with_failed_runs_says_so_in_one_warning(
