@@ -118,3 +118,29 @@ def test_a_recording_removed_while_written_leaves_the_run_complete(
         f"the run went on without it: results complete in {out}\n"
     )
     assert _rows_of(out)() == (3001, 3001)
+
+
+FILE_SIZE_LIMITED_RUN = """
+import resource, sys
+from cosim.cli import main
+limit = int(sys.argv[1])
+resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))
+sys.exit(main(["run", "bs-3", "--stop-time", "120", "--fmu-dir", sys.argv[2],
+               "--out", sys.argv[3], "--quiet"]))
+"""
+
+
+@pytest.mark.slow
+def test_a_recording_cut_by_a_full_disk_keeps_most_of_what_fitted(
+    run_python: Callable[..., Any], fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A recording that fails is cut back to its last whole flush: a fast run flushed only
+    every 5,000 rows (~3.2 MB of bs-3), so under a 3 MB file-size limit bs-3's recording
+    kept its first 183 KB (the layout, no row). Flushed at least every BATCH_BYTES of rows,
+    it keeps all but the last of those."""
+    limit, out = 3 << 20, tmp_path / "run"
+    done = run_python(FILE_SIZE_LIMITED_RUN, limit, fmu_dir, out)
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    assert "File too large" in summary["recording_error"], done.stderr
+    kept = (out / "recording.rrd").stat().st_size
+    assert kept >= limit // 2, f"{kept} bytes of the recording kept under a {limit}-byte limit"

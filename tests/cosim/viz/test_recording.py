@@ -116,7 +116,9 @@ def recorded(tmp_path_factory: pytest.TempPathFactory, scratch_home: Path, fmu_d
     path = tmp_path_factory.mktemp("rec") / RECORDING_FILE
     scenario = auv_scenario(fmu_dir, "rec-test", columns, PLANT_START, CONTROLLER_START)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr("cosim.viz.recording.BATCH_ROWS", 100)  # several sends, not one at close
+        mp.setattr(
+            "cosim.viz.recording.BATCH_BYTES", 100 * 8 * (1 + len(columns))
+        )  # several sends, not one at close
         with RerunSink(scenario, path) as sink:
             feed(sink, times, values)
     return path, times, columns, values
