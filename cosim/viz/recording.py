@@ -85,9 +85,11 @@ RRD_MAGIC = b"RRF"  # the first bytes of an .rrd file (RRF2 in rerun 0.41)
 # them have gathered (times and values as float64: ~1.2 MB of bs-3's file, 1,800 rows), or
 # once the send interval has passed since the last send. A file that fails (a full disk)
 # is cut back to its last send's flush, so a fast run loses at most the last BATCH_BYTES of
-# rows: 5,000 rows (~3.2 MB of bs-3's file) lost all but the first 183 KB of a recording
-# under a 3 MB limit, and sends of 1,500 rows cost 2 % more of a 120 s bs-3 run's CPU time
-# (every hand-off of 200 rows: 84 % more, measured in one process). For the file that is
+# rows: with sends every 5,000 rows (~3.2 MB of bs-3's file), ``auv-cosim run bs-3
+# --stop-time 120`` under ``ulimit -f 3072`` kept 183 KB of its recording (no row), 2.7 MB
+# now; the sink's share of that run (scripts/bench_recording.py --rows 12000, (c)) is the
+# same within its noise. Sending at every hand-off of rows would cost a send per 200 rows,
+# nine times as many as now. For the file that is
 # FILE_SEND_INTERVAL, and SEND_INTERVAL_GROWTH of the time the sink has been open once that
 # is longer, so the sends of a long run grow with the logarithm of its duration, and the
 # memory with them, not in proportion (scripts/bench_memory.py). A viewer (``--connect``)
