@@ -534,13 +534,13 @@ def _loop(
             if record.size:  # (a run recording nothing gathers nothing)
                 take(record, out=slots[filled])
             filled += 1
-            if n + 1 == save_at and saver is not None:
-                filled, save_at = saver.save(n + 1, filled), saver.next
-            if filled == chunk or clock() >= hand_off_at:
-                rows.hand_off(filled)
+            if filled == chunk or clock() >= hand_off_at or n + 1 == save_at:
+                rows.hand_off(filled)  # (a checkpoint's rows first, whether or not it saves)
                 filled, hand_off_at = 0, clock() + interval
                 if rows.error is not None:
                     break
+                if n + 1 == save_at and saver is not None:
+                    save_at = saver.save(n + 1)
     except FMICallException as exc:
         ends = [min(n + s.k, n_steps) if multi_rate else n + 1 for s in due]
         finish = _Finish(slave, due, ends, give, jacobi, through, n, h)
@@ -592,7 +592,7 @@ class _Saver:
                 self._replay(checkpoints.rows)
             self.first = int(start["step"])
         if start is not None:  # the earlier run's checkpoint went with its files: again
-            self.save(self.first, 0)
+            self.save(self.first)
         every = checkpoints.every
         self.next = (self.first // every + 1) * every if every else -1
 
@@ -605,14 +605,13 @@ class _Saver:
             self.rows.buffer[: len(part)] = part
             self.rows.hand_off(len(part))
 
-    def save(self, n: int, filled: int) -> int:
-        """Hand off the ``filled`` rows, then save the state at point ``n``; 0 rows left."""
-        self.rows.hand_off(filled)
+    def save(self, n: int) -> int:
+        """Save the state at point ``n`` (its rows handed off); the next point to save."""
         state = checkpoint.capture(self.order, self.z, n, self.rows.count, self.timeline)
         self.checkpoints.save(state)
         every = self.checkpoints.every
         self.next = n + every if every else -1
-        return 0
+        return self.next
 
     def stopped(self, n: int, stop: StopRequest, h: float) -> str | None:
         """After the loop: a checkpoint at point ``n`` if a signal stopped the run there
@@ -620,7 +619,7 @@ class _Saver:
         if stop.signum is None or self.rows.error is not None or self.rows.count != n + 1:
             return None
         try:
-            self.save(n, 0)
+            self.save(n)
         except (CosimError, FMICallException) as exc:
             return f"{stop.reason} at t = {n * h:.6g} s; no checkpoint there: {exc}"
         return None
