@@ -588,11 +588,12 @@ class _Saver:
         start = checkpoints.start
         if start is not None:
             checkpoint.restore(start, order, z, timeline)
+            # the earlier run's checkpoint goes with its files as the replay's rows replace
+            # them: written again first, so that a failure leaves the earlier run as it was
+            checkpoints.save(start)
             if checkpoints.rows is not None:
                 self._replay(checkpoints.rows)
             self.first = int(start["step"])
-        if start is not None:  # the earlier run's checkpoint went with its files: again
-            self.save(self.first)
         every = checkpoints.every
         self.next = (self.first // every + 1) * every if every else -1
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 import cosim.outputs.checkpoint_file as checkpoint_file
+from cosim.errors import CosimError
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
 from cosim.runner import RunOptions, resume_run, run_scenario
 
@@ -48,3 +49,23 @@ def test_a_checkpoint_on_a_full_disk_stops_the_run_at_its_point(
     resumed = resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
     assert resumed.result.complete
     assert (out / "results.csv").read_bytes() == b"".join(expected)
+
+
+def test_a_resume_that_cannot_checkpoint_leaves_the_folder_as_it_was(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The resume checkpoints again before the earlier run's files go: a full disk then
+    stops it with the folder as it was, to resume once there is room."""
+    common = {"stop_time": 10.0, "no_rrd": True, "fmu_dir": fmu_dir}
+    whole = run_scenario("bs-3", tmp_path / "whole", **common)
+    out = tmp_path / "full"
+    _fail_from(monkeypatch, 3)
+    assert not run_scenario("bs-3", out, checkpoint_every=2.0, **common).result.complete
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    _fail_from(monkeypatch, 1)
+    with pytest.raises(CosimError, match="No space left on device"):
+        resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    monkeypatch.undo()
+    assert resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir)).result.complete
+    assert (out / "results.csv").read_bytes() == whole.paths["results"].read_bytes()
