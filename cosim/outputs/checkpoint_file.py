@@ -3,7 +3,8 @@
 
 The file holds ``format``, the ``version`` of auv-cosim that wrote it, the scenario's id
 and the SHA-256 of the resolved scenario (``scenario_sha256``: its scenario.toml, the
-header comment aside), each instance's FMU file's SHA-256 (``fmus``), ``every_s`` (the
+header comment aside), each instance's FMU file's SHA-256 (``fmus``) and each other file
+the run reads, by path (``files``: vehicle sets, event series), ``every_s`` (the
 interval asked for, s; null: only where a signal stopped the run), the point it holds
 (``step``, ``time`` in s), ``rows`` (the rows of results.csv up to it, t = 0 included)
 and ``state`` (:mod:`cosim.engine.checkpoint`: the FMU states and the master's). It is
@@ -31,7 +32,7 @@ from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.limits import unwritten
 from cosim.outputs.folder import RESULTS_FILE, SUMMARY_FILE, RunFolder
 from cosim.outputs.results import read_csv
-from cosim.scenario.spec import Scenario
+from cosim.scenario.spec import FILE_SUFFIXES, Scenario
 from cosim.version import version
 from cosim.whole_file import fresh_file
 
@@ -50,14 +51,29 @@ def scenario_digest(scenario: Scenario) -> str:
 
 def fmu_digests(scenario: Scenario) -> dict[str, str]:
     """Each instance's FMU file's SHA-256."""
-    digests = {}
-    for name, inst in scenario.instances.items():
-        sha = hashlib.sha256()
-        with open(inst.fmu_path, "rb") as file:
-            while block := file.read(1 << 20):
-                sha.update(block)
-        digests[name] = sha.hexdigest()
-    return digests
+    return {name: _sha256(inst.fmu_path) for name, inst in scenario.instances.items()}
+
+
+def read_file_digests(scenario: Scenario) -> dict[str, str]:
+    """The SHA-256 of each file the scenario names and a run reads (by absolute path):
+    the vehicle sets among the start values and the events' series. scenario.toml names
+    them, so its digest stays the same when one of them is edited."""
+    paths = [
+        Path(value)
+        for inst in scenario.instances.values()
+        for value in inst.start.values()
+        if isinstance(value, str) and value.endswith(FILE_SUFFIXES) and Path(value).is_file()
+    ]
+    paths += [event.series.path for event in scenario.events if event.series is not None]
+    return {str(path): _sha256(path) for path in sorted(set(paths))}
+
+
+def _sha256(path: Path) -> str:
+    sha = hashlib.sha256()
+    with open(path, "rb") as file:
+        while block := file.read(1 << 20):
+            sha.update(block)
+    return sha.hexdigest()
 
 
 @dataclass
@@ -76,6 +92,7 @@ class CheckpointWriter:
             "scenario": self.scenario.id,
             "scenario_sha256": scenario_digest(self.scenario),
             "fmus": fmu_digests(self.scenario),
+            "files": read_file_digests(self.scenario),
             "every_s": self.every_s,
         }
 
@@ -147,6 +164,13 @@ class Checkpoint:
                 raise CosimError(
                     f"{self.path}: instance {name!r} would load {path}, not the FMU the run "
                     "was checkpointed with (rebuilt since?)"
+                )
+        saved = self.data.get("files") or {}
+        for file, digest in read_file_digests(scenario).items():
+            if saved.get(file) != digest:
+                raise CosimError(
+                    f"{self.path}: {file} is not the file the run was checkpointed with "
+                    "(edited since?): resume it with that file as it was"
                 )
 
     def state(self) -> dict[str, Any]:

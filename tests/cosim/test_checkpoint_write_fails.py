@@ -1,11 +1,13 @@
 """A checkpoint that cannot be written (a full disk) stops the run where it was asked
 for: results.csv holds the rows up to there and no others, the checkpoint before it is
-kept whole, and the run resumes from that one to the uninterrupted run's results."""
+kept whole, and the run resumes from that one to the uninterrupted run's results. A run
+stopped so is also the killed run the other resume tests here start from."""
 
 from __future__ import annotations
 
 import errno
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -14,6 +16,8 @@ import cosim.outputs.checkpoint_file as checkpoint_file
 from cosim.errors import CosimError
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
 from cosim.runner import RunOptions, resume_run, run_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _fail_from(monkeypatch: pytest.MonkeyPatch, call: int) -> None:
@@ -69,3 +73,32 @@ def test_a_resume_that_cannot_checkpoint_leaves_the_folder_as_it_was(
     monkeypatch.undo()
     assert resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir)).result.complete
     assert (out / "results.csv").read_bytes() == whole.paths["results"].read_bytes()
+
+
+def test_a_resume_refuses_a_vehicle_file_changed_since_the_checkpoint(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The scenario's vehicle file is read again by a resume: edited since, the run would
+    go on with another vehicle than the rows before the checkpoint were computed with."""
+    vehicle = tmp_path / "vehicle.toml"
+    vehicle.write_bytes((ROOT / "plant_fmu/model/vehicles/remus100.toml").read_bytes())
+    text = (ROOT / "cosim/scenarios/bs-3.toml").read_text(encoding="utf-8")
+    scenario = tmp_path / "bs-3-vehicle.toml"
+    scenario.write_text(
+        text.replace(
+            "[instances.plant.start]\n", '[instances.plant.start]\nvehicle = "vehicle.toml"\n'
+        ),
+        encoding="utf-8",
+    )
+    out = tmp_path / "run"
+    _fail_from(monkeypatch, 3)
+    stopped = run_scenario(scenario, out, checkpoint_every=2.0, stop_time=10.0, no_rrd=True,
+                           fmu_dir=fmu_dir)  # fmt: skip
+    assert not stopped.result.complete
+    monkeypatch.undo()
+    vehicle.write_text(vehicle.read_text().replace("\nI_zz = 3.45", "\nI_zz = 4.45"))
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    with pytest.raises(CosimError, match=re.escape(f"{vehicle} is not the file")) as refused:
+        resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    assert "\n" not in str(refused.value)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
