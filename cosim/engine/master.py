@@ -510,7 +510,7 @@ def _loop(
     started, cpu_started = clock(), time.process_time()
     hand_off_at = started + interval
     try:
-        if not first:  # row 0 is t = 0 (a resumed run's rows so far are in the sinks)
+        if saver is None or not saver.resumed:  # row 0 (a resumed run's rows are replayed)
             filled = _row_zero(at, take, record, slots[0], exchanged, layout.index)
         for n in range(first, n_steps):
             if stop.signum is not None:
@@ -584,8 +584,9 @@ class _Saver:
     ) -> None:
         self.order, self.z, self.rows, self.timeline = order, z, rows, timeline
         self.checkpoints = checkpoints
-        self.first = 0
+        self.first = 0  # the point the loop starts at (a resumed run: the saved one, 0 too)
         start = checkpoints.start
+        self.resumed = start is not None  # row 0 and the rows up to ``first`` handed off
         if start is not None:
             checkpoint.restore(start, order, z, timeline)
             # the earlier run's checkpoint goes with its files as the replay's rows replace

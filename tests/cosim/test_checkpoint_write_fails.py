@@ -8,14 +8,18 @@ from __future__ import annotations
 import errno
 import json
 import re
+import signal
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+import cosim.engine.master as master
 import cosim.outputs.checkpoint_file as checkpoint_file
+from cosim.engine.signals import StopRequest
 from cosim.errors import CosimError
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
-from cosim.runner import RunOptions, resume_run, run_scenario
+from cosim.runner import RunOptions, execute, resume_run, run_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -102,3 +106,27 @@ def test_a_resume_refuses_a_vehicle_file_changed_since_the_checkpoint(
         resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
     assert "\n" not in str(refused.value)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_a_run_stopped_at_t_0_resumes_to_the_uninterrupted_results(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A signal as row 0 is recorded stops the run before its first step, checkpointed
+    at t = 0: the resume steps on from there without recording row 0 a second time."""
+    common = {"stop_time": 1.0, "no_rrd": True, "fmu_dir": fmu_dir}
+    whole = run_scenario("bs-3", tmp_path / "whole", **common)
+    stop, row_zero = StopRequest(), master._row_zero
+
+    def signalled(*args: Any) -> int:
+        stop.signum = signal.SIGTERM
+        return row_zero(*args)
+
+    monkeypatch.setattr(master, "_row_zero", signalled)
+    out = tmp_path / "run"
+    stopped = execute("bs-3", RunOptions(out_dir=out, checkpoint_every=0.5, **common), stop)
+    assert stopped.result.time_reached == 0.0 and not stopped.result.complete
+    assert json.loads((out / CHECKPOINT_FILE).read_text())["step"] == 0
+    monkeypatch.undo()
+    resumed = resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    assert resumed.result.rows == whole.result.rows
+    assert (out / "results.csv").read_bytes() == whole.paths["results"].read_bytes()
