@@ -323,7 +323,9 @@ def _checkpoints(
         saved.check(scenario)
         start, rows = saved.state(), saved.rows(scenario.columns)
         every_s = every_s if every_s is not None else saved.every_s
-    every = max(1, round(every_s / scenario.coupling.step)) if every_s is not None else 0
+    every = 0  # steps between checkpoints (0: none but a signal's)
+    if every_s is not None:  # past the run's end is as good as more (and inf: 1e308 / h)
+        every = max(1, round(min(every_s / scenario.coupling.step, scenario.n_steps + 1)))
     return Checkpointing(every, CheckpointWriter(folder, scenario, every_s), start, rows)
 
 

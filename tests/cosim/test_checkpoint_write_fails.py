@@ -130,3 +130,15 @@ def test_a_run_stopped_at_t_0_resumes_to_the_uninterrupted_results(
     resumed = resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
     assert resumed.result.rows == whole.result.rows
     assert (out / "results.csv").read_bytes() == whole.paths["results"].read_bytes()
+
+
+def test_an_interval_past_any_double_step_count_checkpoints_only_on_signals(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """--checkpoint-every 1e308: so many steps are no float an int can take; the run is
+    checkpointed where a signal stops it, and no other time."""
+    out = tmp_path / "run"
+    done = run_scenario("bs-3", out, stop_time=0.05, checkpoint_every=1e308, no_rrd=True,
+                        fmu_dir=fmu_dir)  # fmt: skip
+    assert done.result.complete
+    assert not (out / CHECKPOINT_FILE).exists()
