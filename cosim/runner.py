@@ -281,8 +281,9 @@ def resume_run(
 
     options = options or RunOptions()
     names = options.names
-    for name in ("stop_time", "step", "algorithm", "extrapolation", "tolerance"):
-        if getattr(options, name) is not None:
+    # (fmu_log too: the debug logging is part of the scenario, which the checkpoint's is)
+    for name in ("stop_time", "step", "algorithm", "extrapolation", "tolerance", "fmu_log"):
+        if getattr(options, name) not in (None, {}):  # (the command line gives {} for none)
             raise CosimError(
                 f"{names.option(name)} cannot be given with {names.option('resume')}: the run "
                 "resumes as it was checkpointed"

@@ -142,3 +142,19 @@ def test_an_interval_past_any_double_step_count_checkpoints_only_on_signals(
                         fmu_dir=fmu_dir)  # fmt: skip
     assert done.result.complete
     assert not (out / CHECKPOINT_FILE).exists()
+
+
+def test_a_resume_refuses_fmu_log_naming_it(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--fmu-log writes the instances' debug logging into the scenario, which the
+    checkpoint's then differs from: named as the option it is, not as an edited file."""
+    out = tmp_path / "run"
+    _fail_from(monkeypatch, 2)
+    stopped = run_scenario("bs-3", out, checkpoint_every=0.5, stop_time=2.0, no_rrd=True,
+                           fmu_dir=fmu_dir)  # fmt: skip
+    assert not stopped.result.complete
+    monkeypatch.undo()
+    options = RunOptions(no_rrd=True, fmu_dir=fmu_dir, fmu_log={"plant": ()})
+    with pytest.raises(CosimError, match=r"^--fmu-log cannot be given with --resume: "):
+        resume_run(out, options)
