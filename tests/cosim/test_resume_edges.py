@@ -1,7 +1,9 @@
-"""A checkpoint that cannot be written (a full disk) stops the run where it was asked
-for: results.csv holds the rows up to there and no others, the checkpoint before it is
-kept whole, and the run resumes from that one to the uninterrupted run's results. A run
-stopped so is also the killed run the other resume tests here start from."""
+"""Checkpoints and resumes at their edges: a checkpoint that cannot be written (a full
+disk) stops the run where it was asked for, results.csv holding the rows up to there and
+no others, the checkpoint before it kept whole and resumable; a resume that cannot write
+its own leaves the folder as it was; a run stopped at t = 0 resumes; and a resume that
+would not continue the run as it was (a vehicle file edited, --fmu-log) is refused, named.
+A run stopped by a full disk is also the killed run the other tests start from."""
 
 from __future__ import annotations
 
