@@ -26,7 +26,7 @@ from collections.abc import Callable
 from contextlib import suppress
 from pathlib import Path
 
-from cosim import user_cache
+import cosim.user_cache as user_cache
 from cosim.user_cache import LOCK_SUFFIX, publish
 from cosim.whole_file import write_whole
 

@@ -33,7 +33,7 @@ from collections.abc import Mapping
 from contextlib import ExitStack, suppress
 from pathlib import Path
 
-from cosim import user_cache
+import cosim.user_cache as user_cache
 from cosim.errors import CosimError
 from cosim.study.unpacked import unpack
 from cosim.user_cache import LOCK_SUFFIX, publish
