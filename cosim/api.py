@@ -472,22 +472,37 @@ def sweep(
             cluster = _cluster(workers, oversubscribe, scheduler, security)
             study = _study_argument(study)
             out = None if out is None else _folder("out", out, StudyError)
-            overlay = None if overlay is None else _count("overlay", overlay, StudyError)
-            resume = _flag("resume", resume, StudyError)
-            max_runs = _count("max_runs", max_runs, StudyError)
-            fmu_dir = _folder("fmu_dir", fmu_dir, StudyError)
-            logs = _fmu_log(fmu_log, StudyError)
-            _check_needs_out(out, resume, overlay)
-            if out is None and logs:
-                raise StudyError(f"fmu_log={shown(fmu_log)} needs out= (the study folder "
-                                 "the runs' fmu-log.txt go to)")  # fmt: skip
-            options = {"resume": resume, "fmu_dir": fmu_dir, "overlay": overlay,
-                       "max_runs": max_runs, "fmu_log": logs,
-                       "progress": _flag("progress", progress, StudyError)}  # fmt: skip
+            options = _sweep_options(out, resume, overlay, fmu_dir, max_runs, progress, fmu_log)
             return _swept(study, out, cluster, options)
         except StudyStopped as stop:  # before the study's folder was known, or after it
             kept = out if isinstance(out, Path) and resume is True else None  # as resumed
             raise _stopped(stop.signum, kept) from None
+
+
+def _sweep_options(
+    out: Path | None,
+    resume: bool,
+    overlay: Count | None,
+    fmu_dir: str | Path,
+    max_runs: Count,
+    progress: bool,
+    fmu_log: Mapping[str, Sequence[str]] | None,
+) -> dict[str, Any]:
+    """:func:`sweep`'s options checked (each refused naming it: StudyError), as
+    :func:`_swept` takes them."""
+    from cosim.study.spec import StudyError
+
+    overlay = None if overlay is None else _count("overlay", overlay, StudyError)
+    resume = _flag("resume", resume, StudyError)
+    options = {"resume": resume, "overlay": overlay,
+               "max_runs": _count("max_runs", max_runs, StudyError),
+               "fmu_dir": _folder("fmu_dir", fmu_dir, StudyError)}  # fmt: skip
+    logs = _fmu_log(fmu_log, StudyError)
+    _check_needs_out(out, resume, overlay)
+    if out is None and logs:
+        raise StudyError(f"fmu_log={shown(fmu_log)} needs out= (the study folder the runs' "
+                         "fmu-log.txt go to)")  # fmt: skip
+    return {**options, "progress": _flag("progress", progress, StudyError), "fmu_log": logs}
 
 
 def _cluster(
