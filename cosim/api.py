@@ -412,10 +412,9 @@ def sweep(
     Parameters
     ----------
     study : str, pathlib.Path or mapping
-        A study ``.toml`` file, or a dict with the same keys (``scenario``, ``[grid]``,
-        ``[random]``, ...; a numpy array or scalar, a tuple or a path counts as its list,
-        number or text); a relative scenario path in a dict is relative to the working
-        folder.
+        A study ``.toml`` file, or a dict of its keys (``scenario``, ``[grid]``, ``[random]``,
+        ...; a numpy array or scalar, a tuple or a path counts as its list, number or text;
+        a relative scenario path in it is relative to the working folder).
     workers : int, optional
         Local worker processes, at most the machine's cores unless ``oversubscribe``.
         Default: one per core (a numpy integer, here or below, counts as its int).
@@ -434,11 +433,9 @@ def sweep(
     oversubscribe : bool
         Allow more ``workers`` than cores (``--oversubscribe``).
     max_runs : int
-        Refuse a study of more runs than this, before any is built (``--max-runs``; up to
-        10,000,000). Default 100,000.
+        Refuse a study of more runs (``--max-runs``; up to 10,000,000). Default 100,000.
     progress : bool
-        Show the command line's progress bar of the runs on stderr. Default: nothing
-        shown.
+        Show the command line's progress bar of the runs on stderr. Default: none.
     fmu_log : mapping, optional
         Turn instances' debug logging on in every run (``--fmu-log``): ``{instance: [log
         categories]}``, ``[]`` for every category; each run's messages go to
@@ -453,18 +450,15 @@ def sweep(
     ------
     cosim.study.spec.StudyError
         The study cannot run (a bad key, factor or value, an argument of the wrong type
-        or out of range), or it is called at the top level of a script without an
-        ``if __name__ == "__main__":`` guard (each worker process imports the script
-        again); failed runs are rows of the table, not errors (one warning line says
-        how many, naming the first and why it failed).
+        or out of range), or it is called at a script's top level without an ``if
+        __name__ == "__main__":`` guard (each worker imports the script again); failed
+        runs are rows of the table (one warning line counts them, naming the first).
     SweepInterrupted
-        Ctrl-C (a notebook's stop button) stopped the study: the workers are stopped, the
-        message says how many runs finished, and ``error.study.table`` holds their rows
-        (with ``out``, runs.csv keeps them too, for ``resume=True``). A KeyboardInterrupt
-        (``except CosimError`` lets it through).
+        Ctrl-C (a notebook's stop button) stopped the study and its workers: a
+        KeyboardInterrupt (``except CosimError`` lets it through) whose ``study.table``
+        holds the finished runs' rows (with ``out``, runs.csv too, for ``resume=True``).
     """
-    # From the first line: a stop while Dask is imported (~1 s) or the study's folder made
-    # is the study's as much as one during its runs (the first one raises StudyStopped).
+    # a stop while Dask is imported (~1 s) is the study's too (StudyStopped)
     with stop_study_on_signals():
         try:
             from cosim.study.spec import StudyError
