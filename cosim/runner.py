@@ -309,7 +309,7 @@ def _checkpoints(
     if options.checkpoint_every is None and not options.resume:
         return None
     from cosim.engine.checkpoint import Checkpointing, refusal
-    from cosim.outputs.checkpoint_file import CheckpointWriter, read_checkpoint
+    from cosim.outputs.checkpoint_file import CHECKPOINT_FILE, CheckpointWriter, read_checkpoint
 
     paced = options.real_time is not None or options.control is not None or options.interactive
     reason = refusal(scenario, paced)
@@ -322,12 +322,13 @@ def _checkpoints(
     if options.resume:
         saved = read_checkpoint(folder.path, options.names)
         saved.check(scenario)
-        start, rows = saved.state(), saved.rows(scenario.columns)
+        start, rows = saved.state(scenario), saved.rows(scenario.columns)
         every_s = every_s if every_s is not None else saved.every_s
     every = 0  # steps between checkpoints (0: none but a signal's)
     if every_s is not None:  # past the run's end is as good as more (and inf: 1e308 / h)
         every = max(1, round(min(every_s / scenario.coupling.step, scenario.n_steps + 1)))
-    return Checkpointing(every, CheckpointWriter(folder, scenario, every_s), start, rows)
+    source = str(folder.path / CHECKPOINT_FILE)
+    return Checkpointing(every, CheckpointWriter(folder, scenario, every_s), start, rows, source)
 
 
 def _not_started(result: RunResult, stop: StopRequest, out_dir: Path) -> NotStartedError:

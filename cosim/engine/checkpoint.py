@@ -19,13 +19,15 @@ between their own points), and paced or live runs (their wall clock and override
 from __future__ import annotations
 
 import base64
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
-from cosim.engine.slave import Slave
+from cosim.engine.slave import Slave, describe
 from cosim.engine.timeline import Timeline
 from cosim.scenario.spec import Scenario
 
@@ -35,12 +37,14 @@ class Checkpointing:
     """A run's checkpoints: every ``every`` steps (0: only when a signal stops it), each
     handed to ``save`` (the engine state of :func:`capture`); ``start``: the state to resume
     from (:func:`restore`), with the ``rows`` the run wrote up to it (values, (rows,
-    columns), time not included)."""
+    columns), time not included); ``source``: where ``start`` was read (named when it does
+    not fit the run)."""
 
     every: int
     save: Callable[[dict[str, Any]], None]
     start: dict[str, Any] | None = None
     rows: np.ndarray | None = None
+    source: str = "the checkpoint"
 
 
 def refusal(scenario: Scenario, paced_or_live: bool) -> str | None:
@@ -97,21 +101,92 @@ def capture(
 def restore(
     state: dict[str, Any], order: Sequence[Slave], z: np.ndarray, timeline: Timeline | None
 ) -> None:
-    """Put ``state`` (:func:`capture`'s) into the initialised instances and the master."""
+    """Put ``state`` (:func:`capture`'s) into the initialised instances and the master.
+    Raises ValueError (one line) for a state that is not this run's shape (read from a file:
+    :func:`misfit`) or that an FMU refuses."""
+    reason = misfit(state, order, z, timeline)
+    if reason is not None:
+        raise ValueError(reason)
     for slave in order:
-        fmu_state = slave.fmu.deSerializeFMUstate(state["fmu_states"][slave.name])
         try:
-            slave.fmu.setFMUstate(fmu_state)
-        finally:
-            slave.fmu.freeFMUstate(fmu_state)
+            fmu_state = slave.fmu.deSerializeFMUstate(state["fmu_states"][slave.name])
+            try:
+                slave.fmu.setFMUstate(fmu_state)
+            finally:
+                slave.fmu.freeFMUstate(fmu_state)
+        except FMICallException as exc:
+            slave.failed(exc.status)
+            raise ValueError(describe(slave, exc.function, exc.status, 0.0)) from None
         rates = state["input_rates"][slave.name]
         if slave.input_rates is not None and rates is not None:
             slave.input_rates.restore(rates)
     z[:] = state["z"]
     events = state["timeline"]
     if timeline is not None and events is not None:
-        timeline.fired[:] = events["fired"]
-        timeline.restore(events["snapshot"])
+        try:
+            timeline.fired[:] = events["fired"]
+            timeline.restore(events["snapshot"])
+        except (TypeError, ValueError, KeyError, IndexError, AttributeError):
+            raise ValueError("its timeline (events and faults) is not this run's") from None
+
+
+_COUNT = 1 << 62  # beyond any count of steps or epochs a run reaches
+
+
+def misfit(
+    state: dict[str, Any], order: Sequence[Slave], z: np.ndarray, timeline: Timeline | None
+) -> str | None:
+    """What makes ``state`` (read from a file anyone may edit) not a state of this run, or
+    None: each instance's FMU state as bytes, ``z`` of this run's shape, each
+    instance's input history as its own (:meth:`InputRates.snapshot`'s shape, finite, its
+    counts whole numbers from 0), a timeline where the run has one."""
+    names = {slave.name for slave in order}
+    states, rates = state.get("fmu_states"), state.get("input_rates")
+    for what, table in (("fmu_states", states), ("input_rates", rates)):
+        if not isinstance(table, dict) or set(table) != names:
+            return f"its {what} are not of this run's instances ({', '.join(sorted(names))})"
+    assert isinstance(states, dict) and isinstance(rates, dict)
+    for slave in order:
+        if not isinstance(states[slave.name], bytes):
+            return f"the FMU state of instance {slave.name!r} is not bytes"
+        own = slave.input_rates.snapshot() if slave.input_rates is not None else None
+        if not _rates_fit(rates[slave.name], own):
+            return f"the input history of instance {slave.name!r} is not this run's"
+    saved = state.get("z")
+    if not isinstance(saved, np.ndarray) or saved.dtype != z.dtype or saved.shape != z.shape:
+        return f"its values z are not this run's {len(z)} doubles"
+    events = state.get("timeline")
+    if (events is None) != (timeline is None):
+        return "its timeline (events and faults) is not this run's (one where it has none, or none)"
+    if timeline is not None:
+        if not isinstance(events, dict) or not isinstance(events.get("fired"), list):
+            return "its timeline (events and faults) is not this run's"
+        snapshot = events.get("snapshot")
+        if not isinstance(snapshot, tuple) or len(snapshot) != len(timeline.snapshot()):
+            return "its timeline (events and faults) is not this run's"
+    return None
+
+
+def _rates_fit(saved: Any, own: tuple[Any, ...] | None) -> bool:
+    """Whether ``saved`` is an input history shaped as the instance's own (``own``, None:
+    the instance extrapolates none) with finite values and counts from 0."""
+    if own is None or saved is None:
+        return own is None and saved is None
+    if not isinstance(saved, tuple) or len(saved) != len(own):
+        return False
+    past, times, count, epoch, sent_at = saved
+    return (
+        isinstance(past, np.ndarray) and past.dtype == own[0].dtype
+        and past.shape == own[0].shape and bool(np.isfinite(past).all())
+        and isinstance(times, list) and len(times) == len(own[1])
+        and all(_finite(t) for t in times)
+        and all(type(c) is int and 0 <= c < _COUNT for c in (count, epoch))
+        and (sent_at is None or _finite(sent_at))
+    )  # fmt: skip
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, float) and math.isfinite(value)
 
 
 def to_json(value: Any) -> Any:

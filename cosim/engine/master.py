@@ -366,7 +366,9 @@ def _step(
             live.bind(layout.index, stop, pacer)
         if live is not None or pacer is not None:
             at = _live_point(at, pacer, live, z, h, stop)
-        saver = _Saver(order, z, rows, timeline, checkpoints) if checkpoints else None
+        saver = None
+        if checkpoints:
+            saver = _Saver(order, z, rows, timeline, checkpoints, layout, scenario.columns)
         result = _loop(scenario, order, layout, z, rows, stop, timeline, at, saver)
         result.coupling = {
             "algorithm": scenario.coupling.algorithm,
@@ -581,6 +583,8 @@ class _Saver:
         rows: RowBuffer,
         timeline: Timeline | None,
         checkpoints: checkpoint.Checkpointing,
+        layout: _Layout,
+        columns: Sequence[str],
     ) -> None:
         self.order, self.z, self.rows, self.timeline = order, z, rows, timeline
         self.checkpoints = checkpoints
@@ -588,7 +592,12 @@ class _Saver:
         start = checkpoints.start
         self.resumed = start is not None  # row 0 and the rows up to ``first`` handed off
         if start is not None:
-            checkpoint.restore(start, order, z, timeline)
+            try:
+                checkpoint.restore(start, order, z, timeline)
+            except ValueError as exc:
+                raise CosimError(f"{checkpoints.source}: does not fit this run: {exc}") from None
+            if checkpoints.rows is not None:
+                self._check_values(checkpoints.rows, layout, columns, checkpoints.source)
             # the earlier run's checkpoint goes with its files as the replay's rows replace
             # them: written again first, so that a failure leaves the earlier run as it was
             checkpoints.save(start)
@@ -597,6 +606,21 @@ class _Saver:
             self.first = int(start["step"])
         every = checkpoints.every
         self.next = (self.first // every + 1) * every if every else -1
+
+    def _check_values(
+        self, values: np.ndarray, layout: _Layout, columns: Sequence[str], source: str
+    ) -> None:
+        """Refuse a restored ``z`` whose exchanged values are not finite, or whose recorded
+        ones are not the last row written before the checkpoint (``values``), to the bit: a
+        state edited, or taken from another run, would resume a run never interrupted."""
+        if not np.isfinite(self.z[: layout.n_read]).all():
+            raise CosimError(f"{source}: does not fit this run: its values z are not all finite")
+        record = [layout.index[c] for c in columns]
+        if len(values) and not np.array_equal(self.z[record], values[-1], equal_nan=True):
+            raise CosimError(
+                f"{source}: does not fit this run: its values z are not those of the last "
+                "row of results.csv it keeps (one of them edited since?)"
+            )
 
     def _replay(self, values: np.ndarray) -> None:
         """The rows up to the saved point (their values, (rows, columns)), to every sink as

@@ -20,7 +20,9 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -38,6 +40,7 @@ from cosim.whole_file import fresh_file
 
 CHECKPOINT_FILE = "checkpoint.json"
 FORMAT = 1
+MAX_BYTES = 256 << 20  # a checkpoint read is refused beyond this size (states are KBs)
 
 
 def scenario_digest(scenario: Scenario) -> str:
@@ -141,8 +144,18 @@ class Checkpoint:
 
     @property
     def every_s(self) -> float | None:
+        """The interval it was written with (s; None: only where a signal stopped the run).
+        Raises :class:`CosimError` for one that is not a positive finite number."""
         every = self.data.get("every_s")
-        return float(every) if isinstance(every, (int, float)) else None
+        if every is None:
+            return None
+        if isinstance(every, (int, float)) and not isinstance(every, bool):
+            with contextlib.suppress(OverflowError):  # an int beyond any double
+                if math.isfinite(every) and every > 0:
+                    return float(every)
+        raise CosimError(
+            f"{self.path}: every_s is {_shown(every)}, expected a positive number of seconds"
+        )
 
     def check(self, scenario: Scenario) -> None:
         """Refuse (one line) resuming with another scenario, other FMUs or another
@@ -157,7 +170,9 @@ class Checkpoint:
                 f"{self.path}: the scenario differs from the one checkpointed "
                 f"({self.data.get('scenario')!r}): was scenario.toml beside it edited?"
             )
-        digests, saved = fmu_digests(scenario), self.data.get("fmus") or {}
+        digests, saved = fmu_digests(scenario), self.data.get("fmus")
+        if not isinstance(saved, dict):
+            raise CosimError(f"{self.path}: fmus is {_shown(saved)}, expected a table of SHA-256s")
         for name, digest in digests.items():
             if saved.get(name) != digest:
                 path = scenario.instances[name].fmu_path
@@ -173,15 +188,29 @@ class Checkpoint:
                     "(edited since?): resume it with that file as it was"
                 )
 
-    def state(self) -> dict[str, Any]:
-        """The engine state (:func:`cosim.engine.checkpoint.restore` takes it)."""
+    def state(self, scenario: Scenario) -> dict[str, Any]:
+        """The engine state (:func:`cosim.engine.checkpoint.restore` takes it). Raises
+        :class:`CosimError` for one that does not read, or whose point is not one of
+        ``scenario``'s before its stop (``step`` a whole number, 0 <= step < its steps,
+        ``rows`` = step + 1)."""
         try:
             state = from_json(self.data["state"])
-            if not isinstance(state, dict) or state["rows"] != self.data["rows"]:
-                raise ValueError("rows")
-            return state
-        except (KeyError, TypeError, ValueError):
+        except (KeyError, TypeError, ValueError, RecursionError):
             raise CosimError(f"{self.path}: damaged (its state does not read)") from None
+        if not isinstance(state, dict):
+            raise CosimError(f"{self.path}: damaged (its state is not a table)")
+        step, rows = state.get("step"), state.get("rows")
+        if type(step) is not int or not 0 <= step < scenario.n_steps:
+            raise CosimError(
+                f"{self.path}: step is {_shown(step)}, expected a whole number from 0 to "
+                f"{scenario.n_steps - 1} (the run's last point before its stop)"
+            )
+        if type(rows) is not int or rows != step + 1 or self.data.get("rows") != rows:
+            raise CosimError(
+                f"{self.path}: rows is {_shown(self.data.get('rows'))} (its state says "
+                f"{_shown(rows)}), expected step + 1 = {step + 1}"
+            )
+        return state
 
     def rows(self, columns: tuple[str, ...]) -> np.ndarray:
         """The values of results.csv's rows up to the checkpoint ((rows, columns), time
@@ -207,19 +236,58 @@ def read_checkpoint(out_dir: Path, names: OptionNames = FLAGS) -> Checkpoint:
     run that completed."""
     path = Path(out_dir) / CHECKPOINT_FILE
     asked = names.given("resume", out_dir)
-    try:
-        data = json.loads(path.read_bytes())
-    except FileNotFoundError:
+    if not os.path.lexists(path):
         raise CosimError(
             f"{asked}: no {CHECKPOINT_FILE} there (run with "
             f"{names.option('checkpoint_every')} SECONDS to write one)"
-        ) from None
-    except (OSError, ValueError) as exc:
-        raise CosimError(f"{path}: cannot read it: {exc}") from None
+        )
+    try:
+        data = json.loads(_read_regular(path))
+    except (OSError, ValueError, RecursionError) as exc:
+        raise CosimError(f"{path}: cannot read it: {_reason(exc)}") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT or "state" not in data:
         raise CosimError(f"{path}: not a checkpoint of format {FORMAT}")
-    with contextlib.suppress(OSError, ValueError):
-        summary = json.loads((Path(out_dir) / SUMMARY_FILE).read_bytes())
+    with contextlib.suppress(OSError, ValueError, RecursionError):
+        summary = json.loads(_read_regular(Path(out_dir) / SUMMARY_FILE))
         if isinstance(summary, dict) and summary.get("complete") is True:
             raise CosimError(f"{asked}: the run there is complete: nothing to resume")
     return Checkpoint(path, data)
+
+
+def _read_regular(path: Path) -> bytes:
+    """The bytes of the regular file ``path``, read without following a link, without
+    waiting on a FIFO and without reading a device or a file beyond :data:`MAX_BYTES`
+    (OSError saying which)."""
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        if os.path.islink(path):  # ELOOP from O_NOFOLLOW
+            raise OSError("it is a link, not a file a run wrote") from None
+        raise OSError(exc.strerror or str(exc)) from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise OSError("it is not a regular file (a folder, a FIFO or a device)")
+        if info.st_size > MAX_BYTES:
+            raise OSError(f"it holds {info.st_size} bytes, more than any checkpoint ({MAX_BYTES})")
+        with os.fdopen(os.dup(fd), "rb") as file:
+            return file.read(MAX_BYTES + 1)
+    finally:
+        os.close(fd)
+
+
+def _reason(exc: BaseException) -> str:
+    """Why a checkpoint did not read, in one line."""
+    if isinstance(exc, RecursionError):
+        return "nested too deep to be a checkpoint"
+    return str(exc.args[0]) if isinstance(exc, OSError) and len(exc.args) == 1 else str(exc)
+
+
+def _shown(value: Any) -> str:
+    """``value`` as a checkpoint's JSON would show it, cut short."""
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = type(value).__name__
+    return text if len(text) <= 40 else text[:37] + "..."

@@ -1,0 +1,249 @@
+"""A checkpoint.json is a file users copy, edit and receive from others: ``--resume`` reads
+it as hostile input. Whatever it holds (not JSON, JSON of the wrong shape at any level,
+numbers out of range, NaN, states of another instance or cut short, values edited, nested
+without end, a FIFO, a device or a link in its place, a file of hundreds of MB), resuming
+either refuses in one line naming the file, with the run folder left as it was, or runs
+the run that was interrupted."""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cosim.errors import CosimError
+from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
+from cosim.outputs.run_files import read_manifest
+from cosim.runner import RunOptions, resume_run, run_scenario
+from tests.deadline import deadline
+
+Edit = Callable[[dict[str, Any]], object]
+
+
+@pytest.fixture(scope="module")
+def stopped(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short bs-3 run with a checkpoint at t = 0.4 s (step 40) of 0.5 s."""
+    out = tmp_path_factory.mktemp("stopped") / "run"
+    run_scenario("bs-3", out, stop_time=0.5, checkpoint_every=0.2, no_rrd=True, fmu_dir=fmu_dir)
+    return out
+
+
+def _killed(stopped: Path, tmp_path: Path, edit: Edit | None = None) -> Path:
+    """A copy of ``stopped`` as a run killed after its checkpoint leaves it (its summary
+    says running; its manifest records the copies, as the run would have), the checkpoint
+    changed by ``edit`` (given the JSON data) where one is given."""
+    out = tmp_path / "run"
+    out.mkdir()
+    for name in ("results.csv", "scenario.toml", "summary.json", CHECKPOINT_FILE):
+        (out / name).write_bytes((stopped / name).read_bytes())
+    summary = json.loads((out / "summary.json").read_text())
+    summary.update(status="running", complete=False)
+    (out / "summary.json").write_text(json.dumps(summary))
+    manifest = read_manifest(stopped)
+    manifest.folder = out
+    for name in ("results.csv", "scenario.toml", "summary.json", CHECKPOINT_FILE):
+        manifest.record(out / name)
+    if edit is not None:
+        data = json.loads((out / CHECKPOINT_FILE).read_text())
+        edit(data)
+        (out / CHECKPOINT_FILE).write_text(json.dumps(data))
+    return out
+
+
+def _files(out: Path) -> dict[str, object]:
+    """The folder's files: their bytes (their size and time beyond 1 MB: not read)."""
+    files: dict[str, object] = {}
+    for path in out.iterdir():
+        if path.is_file() and not path.is_symlink():
+            info = path.stat()
+            big = info.st_size > 1 << 20
+            files[path.name] = (info.st_size, info.st_mtime_ns) if big else path.read_bytes()
+    return files
+
+
+def _refused(out: Path, fmu_dir: Path, match: str) -> None:
+    """Resuming ``out`` is refused in one line naming checkpoint.json, matching ``match``,
+    within 60 s, and leaves the folder's files as they were."""
+    before = _files(out)
+    with pytest.raises(CosimError, match=match) as refused, deadline(60, "no refusal"):
+        resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    said = str(refused.value)
+    assert "\n" not in said and str(out / CHECKPOINT_FILE) in said, said
+    assert _files(out) == before
+
+
+def _entry(data: dict[str, Any], key: str) -> Any:
+    """The state's entry ``key`` (its JSON: the state is a tagged table of pairs)."""
+    return next(pair for pair in data["state"]["d"] if pair[0] == key)
+
+
+def _set(key: str, value: Any) -> Edit:
+    return lambda data: _entry(data, key).__setitem__(1, value)
+
+
+def _z(change: Callable[[np.ndarray], None]) -> Edit:
+    def edit(data: dict[str, Any]) -> None:
+        saved = _entry(data, "z")[1]
+        z = np.frombuffer(base64.b64decode(saved["a"]), dtype=saved["dtype"]).copy()
+        change(z)
+        saved["a"] = base64.b64encode(z.tobytes()).decode()
+
+    return edit
+
+
+def _fmu_states(change: Callable[[list[list[Any]]], None]) -> Edit:
+    return lambda data: change(_entry(data, "fmu_states")[1]["d"])
+
+
+def _swap(pairs: list[list[Any]]) -> None:
+    (a, sa), (b, sb) = pairs
+    pairs[:] = [[a, sb], [b, sa]]
+
+
+def _cut(pairs: list[list[Any]]) -> None:
+    state = pairs[0][1]
+    state["b"] = base64.b64encode(base64.b64decode(state["b"])[:40]).decode()
+
+
+def _rates(index: int, value: Any) -> Edit:
+    """The controller's input history's field ``index`` (past, times, count, epoch, sent_at)."""
+    return lambda data: _entry(data, "input_rates")[1]["d"][0][1]["t"].__setitem__(index, value)
+
+
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [
+        (lambda d: d.__setitem__("fmus", ["a"]), r'fmus is \["a"\], expected a table'),
+        (lambda d: d.__setitem__("every_s", -1), "every_s is -1, expected a positive number"),
+        (lambda d: d.__setitem__("every_s", 10**400), "every_s is 1000.*, expected a positive"),
+        (lambda d: d.__setitem__("every_s", True), "every_s is true, expected a positive"),
+        (_set("step", -3), "step is -3, expected a whole number from 0 to 49"),
+        (_set("step", 500), "step is 500, expected a whole number from 0 to 49"),
+        (_set("step", "40"), 'step is "40", expected a whole number'),
+        (_set("step", 30), r"rows is 41 .*expected step \+ 1 = 31"),
+        (_set("z", None), "its values z are not this run's 35 doubles"),
+        (_z(lambda z: z.__setitem__(3, np.nan)), "its values z are not all finite"),
+        (_z(lambda z: z.__setitem__(0, z[0] + 1.0)), "not those of the last row of results.csv"),
+        (_fmu_states(_swap), "fmi2DeSerializeFMUstate refused: a state of another FMU"),
+        (_fmu_states(_cut), "fmi2DeSerializeFMUstate refused: these 40 bytes are not a state"),
+        (_fmu_states(lambda pairs: pairs.pop()), "its fmu_states are not of this run's instances"),
+        (_rates(2, -7), "the input history of instance 'controller' is not this run's"),
+        (_rates(2, 10**30), "the input history of instance 'controller' is not this run's"),
+        (_rates(1, [{"f": "nan"}, {"f": "0x1p-2"}]), "the input history of instance 'controller'"),
+        (_set("timeline", {"d": [["fired", 1]]}), "its timeline .* is not this run's"),
+    ],
+    ids=[
+        "fmus-list",
+        "every-negative",
+        "every-huge-int",
+        "every-bool",
+        "step-negative",
+        "step-beyond-stop",
+        "step-text",
+        "step-not-rows",
+        "z-missing",
+        "z-nan",
+        "z-edited",
+        "states-swapped",
+        "state-cut",
+        "state-missing",
+        "count-negative",
+        "count-huge",
+        "time-nan",
+        "timeline-invented",
+    ],
+)
+def test_a_checkpoint_of_the_wrong_shape_is_refused_in_one_line(
+    stopped: Path, fmu_dir: Path, tmp_path: Path, edit: Edit, said: str
+) -> None:
+    _refused(_killed(stopped, tmp_path, edit), fmu_dir, said)
+
+
+def _fifo(path: Path) -> None:
+    os.mkfifo(path)
+
+
+@pytest.mark.parametrize(
+    ("make", "said"),
+    [
+        (_fifo, "cannot read it: it is not a regular file"),
+        (lambda path: path.symlink_to("/dev/zero"), "cannot read it: it is a link"),
+        (lambda path: path.mkdir(), "cannot read it: it is not a regular file"),
+        (lambda path: os.truncate(_touch(path), 300 << 20), "holds 314572800 bytes, more than"),
+        (lambda path: path.write_text("[" * 100_000), "nested too deep to be a checkpoint"),
+    ],
+    ids=["fifo", "link-to-dev-zero", "folder", "sparse-300-MB", "nested"],
+)
+def test_a_checkpoint_that_is_no_small_file_is_refused_without_hanging(
+    stopped: Path, fmu_dir: Path, tmp_path: Path, make: Callable[[Path], object], said: str
+) -> None:
+    out = _killed(stopped, tmp_path)
+    (out / CHECKPOINT_FILE).unlink()
+    make(out / CHECKPOINT_FILE)
+    _refused(out, fmu_dir, said)
+
+
+def _touch(path: Path) -> Path:
+    path.touch()
+    return path
+
+
+def test_the_checkpoint_as_written_resumes_the_run(
+    stopped: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """The copies _killed makes are resumable: the refusals above are the edits'."""
+    out = _killed(stopped, tmp_path)
+    resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    assert (out / "results.csv").read_bytes() == (stopped / "results.csv").read_bytes()
+
+
+def _leaves(value: Any, path: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
+    """The paths to every scalar inside ``value`` (keys and list indices)."""
+    if isinstance(value, dict):
+        return [p for k, v in value.items() for p in _leaves(v, (*path, k))]
+    if isinstance(value, list):
+        return [p for i, v in enumerate(value) for p in _leaves(v, (*path, i))]
+    return [path]
+
+
+ODD = [None, True, -1, 0, 2**63, 10**30, 1.5, -0.0, 1e308, "", "x", "nan", "0x1p0", "AAAA", "!!",
+       [], {}, [1], {"f": "nan"}, {"f": "inf"}, {"b": "AA=="}, {"t": []}, {"d": [[1]]}]  # fmt: skip
+
+
+@pytest.mark.slow
+@settings(max_examples=25, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(data=st.data())
+def test_any_one_value_of_a_checkpoint_changed_is_refused_or_resumes_exactly(
+    stopped: Path, fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory, data: st.DataObject
+) -> None:
+    """One value anywhere in checkpoint.json replaced by an odd one: resuming refuses in
+    one line, the folder as it was, or writes the results of the run never interrupted."""
+    saved = json.loads((stopped / CHECKPOINT_FILE).read_text())
+    where = data.draw(st.sampled_from(_leaves(saved)))
+    odd = data.draw(st.sampled_from(ODD))
+
+    def edit(checkpoint: dict[str, Any]) -> None:
+        parent = checkpoint
+        for key in where[:-1]:
+            parent = parent[key]
+        parent[where[-1]] = odd
+
+    out = _killed(stopped, tmp_path_factory.mktemp("odd"), edit)
+    before = _files(out)
+    try:
+        with deadline(60, "no answer"):
+            resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    except CosimError as exc:
+        assert "\n" not in str(exc)
+        assert _files(out) == before
+    else:
+        assert (out / "results.csv").read_bytes() == (stopped / "results.csv").read_bytes()
