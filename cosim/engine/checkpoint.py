@@ -164,6 +164,9 @@ def misfit(
         snapshot = events.get("snapshot")
         if not isinstance(snapshot, tuple) or len(snapshot) != len(timeline.snapshot()):
             return "its timeline (events and faults) is not this run's"
+        # its counts (events fired, overrides, notes) and epoch: whole numbers from 0
+        if not all(type(c) is int and 0 <= c < _COUNT for c in snapshot[:4]):
+            return "its timeline's counts (events, overrides, notes, epoch) are not this run's"
     return None
 
 

@@ -191,7 +191,7 @@ class Checkpoint:
     def state(self, scenario: Scenario) -> dict[str, Any]:
         """The engine state (:func:`cosim.engine.checkpoint.restore` takes it). Raises
         :class:`CosimError` for one that does not read, or whose point is not one of
-        ``scenario``'s before its stop (``step`` a whole number, 0 <= step < its steps,
+        ``scenario``'s before its stop (``step`` a whole number, 0 <= step <= its steps,
         ``rows`` = step + 1)."""
         try:
             state = from_json(self.data["state"])
@@ -200,10 +200,10 @@ class Checkpoint:
         if not isinstance(state, dict):
             raise CosimError(f"{self.path}: damaged (its state is not a table)")
         step, rows = state.get("step"), state.get("rows")
-        if type(step) is not int or not 0 <= step < scenario.n_steps:
+        if type(step) is not int or not 0 <= step <= scenario.n_steps:
             raise CosimError(
                 f"{self.path}: step is {_shown(step)}, expected a whole number from 0 to "
-                f"{scenario.n_steps - 1} (the run's last point before its stop)"
+                f"{scenario.n_steps} (the run's points up to its stop)"
             )
         if type(rows) is not int or rows != step + 1 or self.data.get("rows") != rows:
             raise CosimError(

@@ -125,8 +125,8 @@ def _rates(index: int, value: Any) -> Edit:
         (lambda d: d.__setitem__("every_s", -1), "every_s is -1, expected a positive number"),
         (lambda d: d.__setitem__("every_s", 10**400), "every_s is 1000.*, expected a positive"),
         (lambda d: d.__setitem__("every_s", True), "every_s is true, expected a positive"),
-        (_set("step", -3), "step is -3, expected a whole number from 0 to 49"),
-        (_set("step", 500), "step is 500, expected a whole number from 0 to 49"),
+        (_set("step", -3), "step is -3, expected a whole number from 0 to 50"),
+        (_set("step", 500), "step is 500, expected a whole number from 0 to 50"),
         (_set("step", "40"), 'step is "40", expected a whole number'),
         (_set("step", 30), r"rows is 41 .*expected step \+ 1 = 31"),
         (_set("z", None), "its values z are not this run's 35 doubles"),
@@ -165,6 +165,24 @@ def test_a_checkpoint_of_the_wrong_shape_is_refused_in_one_line(
     stopped: Path, fmu_dir: Path, tmp_path: Path, edit: Edit, said: str
 ) -> None:
     _refused(_killed(stopped, tmp_path, edit), fmu_dir, said)
+
+
+@pytest.fixture(scope="module")
+def faulted(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short mass-jam run (a fault: its run has a timeline) checkpointed at t = 2.8 s."""
+    out = tmp_path_factory.mktemp("faulted") / "run"
+    run_scenario("mass-jam", out, stop_time=3.0, checkpoint_every=0.7, no_rrd=True,
+                 fmu_dir=fmu_dir)  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("odd", ["x", -4, 10**30])
+def test_a_timeline_count_that_is_no_count_is_refused(
+    faulted: Path, fmu_dir: Path, tmp_path: Path, odd: object
+) -> None:
+    """The epoch of the timeline's snapshot (the 4th entry) made text, negative or huge."""
+    edit = lambda data: _entry(data, "timeline")[1]["d"][0][1]["t"].__setitem__(3, odd)  # noqa: E731
+    _refused(_killed(faulted, tmp_path, edit), fmu_dir, "its timeline's counts .* are not")
 
 
 def _fifo(path: Path) -> None:
