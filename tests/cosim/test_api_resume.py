@@ -4,14 +4,11 @@ and their refusals name the keywords a caller gave, not the command line's flags
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from killed_runs import kill_after_checkpoint
 
 import cosim
 from cosim.errors import CosimError
@@ -57,27 +54,6 @@ def test_a_complete_run_is_not_resumed(fmu_dir: Path, tmp_path: Path) -> None:
         cosim.resume(out, fmu_dir=fmu_dir)
 
 
-def _kill_after_checkpoint(code: str, out: Path) -> int:
-    """Run ``code`` in a Python of its own process group and SIGTERM the group once
-    ``out`` holds a checkpoint; its exit code. The group is killed whatever happens."""
-    proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
-    try:
-        deadline = time.monotonic() + 300
-        while not (out / CHECKPOINT_FILE).exists():
-            assert proc.poll() is None, "the run ended before its first checkpoint"
-            assert time.monotonic() < deadline, "no checkpoint in time"
-            time.sleep(0.02)
-        os.killpg(proc.pid, signal.SIGTERM)
-        return proc.wait(timeout=300)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-        assert proc.stderr is not None
-        proc.stderr.close()
-
-
 @pytest.mark.slow
 def test_a_killed_api_run_resumed_gives_the_uninterrupted_results(
     fmu_dir: Path, tmp_path: Path
@@ -86,7 +62,7 @@ def test_a_killed_api_run_resumed_gives_the_uninterrupted_results(
     options = f"stop_time={STOP_S}, recording=False, fmu_dir={str(fmu_dir)!r}"
     cosim.run("bs-3", out=whole, stop_time=STOP_S, recording=False, fmu_dir=fmu_dir)
     code = f"import cosim; cosim.run('bs-3', out={str(killed)!r}, checkpoint_every=10, {options})"
-    assert _kill_after_checkpoint(code, killed) != 0
+    assert kill_after_checkpoint([sys.executable, "-c", code], killed) != 0
     resumed = cosim.resume(killed, recording=False, fmu_dir=fmu_dir)
     assert resumed.complete
     assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
+from killed_runs import kill_after_checkpoint
 
 from cosim.cli import main
 from cosim.errors import CosimError
@@ -33,27 +34,6 @@ def _lines(path: Path) -> int:
         return 0
 
 
-def _kill_after_checkpoint(command: list[str], out: Path, timeout: float = 300.0) -> int:
-    """Start ``command`` in a process group of its own, SIGTERM the group once the run's
-    first checkpoint is on disk; its exit code. The group is killed whatever happens."""
-    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            start_new_session=True)  # fmt: skip
-    try:
-        deadline = time.monotonic() + timeout
-        while not (out / CHECKPOINT_FILE).exists():
-            assert proc.poll() is None, f"the run ended before a checkpoint: {proc.stderr}"
-            assert time.monotonic() < deadline, "no checkpoint in time"
-            time.sleep(0.05)
-        os.killpg(proc.pid, signal.SIGTERM)
-        return proc.wait(timeout=timeout)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-        assert proc.stderr is not None
-        proc.stderr.close()
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("scenario", "algorithm"),
@@ -69,7 +49,7 @@ def test_a_killed_run_resumed_writes_the_uninterrupted_results(
     subprocess.run(_cli(scenario, "--out", str(whole), *common), check=True, timeout=600,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
     command = _cli(scenario, "--out", str(killed), *common, "--checkpoint-every", "10")
-    assert _kill_after_checkpoint(command, killed) == 128 + signal.SIGTERM
+    assert kill_after_checkpoint(command, killed) == 128 + signal.SIGTERM
     summary = json.loads((killed / "summary.json").read_text())
     assert summary["complete"] is False and summary["time_reached"] < 120
     resumed = subprocess.run(
@@ -194,7 +174,7 @@ def test_a_resumed_run_killed_at_once_can_be_resumed_again(fmu_dir: Path, tmp_pa
     subprocess.run(_cli("bs-3", "--out", str(whole), *common), check=True, timeout=600,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
     command = _cli("bs-3", "--out", str(killed), *common, "--checkpoint-every", "200")
-    _kill_after_checkpoint(command, killed)
+    kill_after_checkpoint(command, killed)
     saved = json.loads((killed / CHECKPOINT_FILE).read_text())["rows"]
     resume = _cli("--resume", str(killed), "--fmu-dir", str(fmu_dir))
     proc = subprocess.Popen(resume, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,

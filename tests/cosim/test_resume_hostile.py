@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from deadline import deadline
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -23,7 +24,6 @@ from cosim.errors import CosimError
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
 from cosim.outputs.run_files import read_manifest
 from cosim.runner import RunOptions, resume_run, run_scenario
-from tests.deadline import deadline
 
 Edit = Callable[[dict[str, Any]], object]
 
