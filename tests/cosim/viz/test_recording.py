@@ -917,7 +917,9 @@ print("threads", *threads)
 
 def _threads_after_recordings(run_python, fmu_dir: Path, out: Path, recordings: int):
     """The threads of a fresh process (``/proc/self/task``) after 3 recordings written
-    through :class:`RerunSink`, then after ``recordings`` more."""
+    through :class:`RerunSink`, then after ``recordings`` more (at most as many once a
+    lazily ending one has gone: the first count may still hold one ending, so fewer after
+    is no leak; a busy machine showed 4 after 5)."""
     done = run_python(STREAM_THREADS, fmu_dir, out, recordings)
     assert done.returncode == 0, done.stderr[-3000:]
     return tuple(map(int, re.findall(r"^threads (\d+) (\d+)$", done.stdout, re.M)[0]))
@@ -929,11 +931,11 @@ def test_a_closed_recording_leaves_no_thread_behind(run_python, fmu_dir: Path, t
     thread) are dropped when it is closed. Before, rerun-sdk kept every stream a process
     made, with its threads: 4 threads and about 3 MB more per run."""
     before, after = _threads_after_recordings(run_python, fmu_dir, tmp_path, 10)
-    assert after == before
+    assert after <= before
 
 
 @pytest.mark.slow
 def test_200_closed_recordings_leave_no_thread_behind(run_python, fmu_dir: Path, tmp_path: Path):
     """The twin above over 200 recordings (800 threads kept before)."""
     before, after = _threads_after_recordings(run_python, fmu_dir, tmp_path, 200)
-    assert after == before
+    assert after <= before
