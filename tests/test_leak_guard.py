@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import re
+import signal
 import sys
 from pathlib import Path
 
@@ -53,7 +54,14 @@ def _pytest(folder: Path, *options: str):
                "-c", str(ROOT / "pyproject.toml"), "--rootdir", str(folder),
                *options, str(folder / "test_case.py")]  # fmt: skip
     env = {"PYTHONPATH": f"{ROOT}:{ROOT / 'tests'}", "PATH": "/usr/bin:/bin", "COLUMNS": "1000"}
-    return run_in_group(command, timeout=300, env=env, cwd=folder)
+    return run_in_group(command, timeout=300, env=env, cwd=folder, preexec_fn=_sigint_default)
+
+
+def _sigint_default() -> None:
+    """In the child before its exec: SIGINT as an interactive shell leaves it, so that
+    the cases' Python starts with its own handler even where this suite was started with
+    SIGINT ignored (a background job), which would hide the case that ignores it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 @pytest.mark.slow  # a child left running is waited for 5 s

@@ -17,6 +17,7 @@ and the pre-commit hook keep it clean; outside a git checkout, the file itself.
 from __future__ import annotations
 
 import shutil
+import signal
 import subprocess
 from pathlib import Path
 
@@ -99,10 +100,15 @@ def test_notebook_runs_in_place_and_leaves_the_repository_clean(
         kernel_name="python3",
         resources={"metadata": {"path": str(here)}},
     )
+    dispositions = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         client.execute()
     except nbclient.exceptions.CellExecutionError as exc:
         pytest.fail(f"{path.name}: a cell raised:\n{exc}")
+    finally:  # nbclient's asyncio handlers, removed, leave SIGINT at Python's default even
+        # where it was ignored (a test run started in the background): put back as found
+        for sig, disposition in dispositions.items():
+            signal.signal(sig, disposition)
     nbformat.write(notebook, notebook_file)  # saved with its outputs, as JupyterLab does
     checkpoints = here / ".ipynb_checkpoints"
     checkpoints.mkdir()
