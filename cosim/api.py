@@ -323,12 +323,13 @@ def _executed(scenario: str | Path | Scenario, options: RunOptions, in_memory: b
             temporary = stack.enter_context(_temporary_folder())
             options = dataclasses.replace(options, out_dir=Path(temporary) / "run")
         outcome = execute(scenario, options)
-        return _finished(outcome, in_memory)
+        return _finished(outcome, in_memory, "cosim.run", stacklevel=4)
 
 
-def _finished(outcome: RunOutcome, in_memory: bool) -> Run:
+def _finished(outcome: RunOutcome, in_memory: bool, caller: str, stacklevel: int) -> Run:
     """The :class:`Run` of ``outcome``; :class:`RunError` if it failed, :class:`RunInterrupted`
-    if a stop signal ended it (``in_memory``: its folder is about to be removed)."""
+    if a stop signal ended it (``in_memory``: its folder is about to be removed); a lost
+    recording warned of as ``caller``'s, at the line ``stacklevel`` frames up."""
     finished = _run_of(outcome, None if in_memory else outcome.out_dir.absolute())
     where = "the error's run.results" if in_memory else str(outcome.out_dir)
     if outcome.signal is not None:  # the user's stop, even if the run had just completed
@@ -342,7 +343,8 @@ def _finished(outcome: RunOutcome, in_memory: bool) -> Run:
         import warnings
 
         warnings.warn(
-            f"cosim.run: {outcome.recording_lost}; the run went on without it", stacklevel=3
+            f"{caller}: {outcome.recording_lost}; the run went on without it",
+            stacklevel=stacklevel,
         )
     return finished
 
@@ -388,7 +390,7 @@ def resume(
     settings = {"progress": progress, "checkpoint_every": checkpoint_every}
     options = _run_options(folder, recording, fmu_dir, False, settings)
     outcome = resume_run(folder, dataclasses.replace(options, out_dir=None))
-    return _finished(outcome, in_memory=False)
+    return _finished(outcome, False, "cosim.resume", stacklevel=3)
 
 
 def sweep(

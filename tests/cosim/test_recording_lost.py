@@ -87,6 +87,15 @@ def test_cosim_run_warns_and_returns_the_whole_run(
     assert len(run.results) == 3001 and run.summary["recording_error"].endswith(NO_SPACE)
 
 
+def test_the_lost_recording_warning_points_at_the_callers_line(
+    fmu_dir: Path, tmp_path: Path, filling_recording: None
+) -> None:
+    """The warning named a line inside cosim/api.py, not the user's call."""
+    with pytest.warns(UserWarning, match="cosim.run: ") as caught:
+        cosim.run("bs-3", stop_time=30.0, out=tmp_path / "run", fmu_dir=fmu_dir)
+    assert [Path(w.filename).name for w in caught] == [Path(__file__).name]
+
+
 class RemovedRecording(FillingRecording):
     """A recording sink whose file is removed after its first chunk of rows."""
 
