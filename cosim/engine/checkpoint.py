@@ -162,12 +162,30 @@ def misfit(
         if not isinstance(events, dict) or not isinstance(events.get("fired"), list):
             return "its timeline (events and faults) is not this run's"
         snapshot = events.get("snapshot")
-        if not isinstance(snapshot, tuple) or len(snapshot) != len(timeline.snapshot()):
-            return "its timeline (events and faults) is not this run's"
-        # its counts (events fired, overrides, notes) and epoch: whole numbers from 0
-        if not all(type(c) is int and 0 <= c < _COUNT for c in snapshot[:4]):
-            return "its timeline's counts (events, overrides, notes, epoch) are not this run's"
+        reason = timeline.misfit(snapshot)
+        if reason is not None:
+            return reason
+        assert isinstance(snapshot, tuple)
+        fired = events["fired"]
+        if len(fired) != snapshot[0] or not all(map(_fired_fits, fired)):
+            return (
+                f"its timeline's events fired are not {snapshot[0]} tables of a name, a "
+                "finite time (s) and the values set"
+            )
     return None
+
+
+def _fired_fits(entry: Any) -> bool:
+    """``entry`` is one of :attr:`Timeline.fired`'s: a name, a finite time (s) and the
+    values it set (variable -> a finite number, a bool or a text), as summary.json lists."""
+    if not isinstance(entry, dict) or set(entry) != {"name", "time", "set"}:
+        return False
+    values = entry["set"]
+    return (
+        isinstance(entry["name"], str) and _finite(entry["time"]) and isinstance(values, dict)
+        and all(isinstance(k, str) for k in values)
+        and all(_finite(v) or isinstance(v, (bool, int, str)) for v in values.values())
+    )  # fmt: skip
 
 
 def _rates_fit(saved: Any, own: tuple[Any, ...] | None) -> bool:

@@ -142,6 +142,29 @@ class _FaultRun:
         rng = None if self.rng is None else self.rng.bit_generator.state
         return list(self.history), self.n_last, self.last, self.before, self.draw, self.held, rng
 
+    def misfit(self, saved: Any) -> str | None:
+        """What makes ``saved`` (read from a file anyone may edit) not a :meth:`state` of
+        this fault, or None: the delay's history and the values finite doubles, the point
+        a whole number from 0, the random generator's state one its kind takes."""
+        if not isinstance(saved, tuple) or len(saved) != 7:
+            return "not a fault's state (seven entries)"
+        history, n_last, last, before, draw, held, rng = saved
+        if not isinstance(history, list) or len(history) > (self.history.maxlen or 0):
+            return f"its history is not a list of at most {self.history.maxlen} values"
+        if not all(_finite(v) for v in history) or not _finite(draw):
+            return "its history or draw is not finite doubles"
+        if not all(v is None or _finite(v) for v in (last, before, held)):
+            return "its last, before or held value is neither null nor a finite double"
+        if n_last is not None and not (type(n_last) is int and 0 <= n_last < _COUNT):
+            return f"its point {n_last!r} is not a whole number from 0"
+        if self.rng is None:
+            return None if rng is None else "it holds a random generator the fault has none of"
+        try:  # its own kind of generator takes it, or says why not
+            type(self.rng.bit_generator)().state = rng
+        except (TypeError, ValueError, KeyError, AttributeError, OverflowError):
+            return "its random generator's state is not one of its kind"
+        return None
+
     def set_state(self, saved: tuple[Any, ...]) -> None:
         history, self.n_last, self.last, self.before, self.draw, self.held, rng = saved
         self.history.clear()
@@ -380,6 +403,47 @@ class Timeline:
         self._saved = dict(kept)
         self._writer.assigned = dict(assigned)
 
+    def misfit(self, saved: Any) -> str | None:
+        """What makes ``saved`` (read from a checkpoint anyone may edit) not a
+        :meth:`snapshot` of this timeline, or None (one line, naming the entry): its counts
+        whole numbers from 0, an event state (was true, fired) per event, ramps on the
+        events' ramped variables as four finite doubles, a state per fault that fits it
+        (:meth:`_FaultRun.misfit`), the values held and assigned as finite doubles of this
+        run's variables, the restarts of this run's instances."""
+        own = self.snapshot()
+        if not isinstance(saved, tuple) or len(saved) != len(own):
+            return "its timeline (events and faults) is not this run's"
+        counts, (events, ramps, faults, kept, assigned, restart_at, restarts) = saved[:4], saved[4:]
+        if not all(_whole(c) for c in counts):
+            return "its timeline's counts (events, overrides, notes, epoch) are not this run's"
+        if not isinstance(events, list) or len(events) != len(own[4]) or not all(
+            isinstance(e, tuple) and len(e) == 2 and e[0] in (None, True, False)
+            and type(e[1]) is bool for e in events
+        ):  # fmt: skip
+            return f"its timeline's event states are not {len(own[4])} pairs (was true, fired)"
+        ramped = {ref for e in self._events if e.event.ramp is not None for ref in e.event.set}
+        if not _table(ramps, ramped, lambda v: isinstance(v, tuple) and len(v) == 4
+                      and all(_finite(x) for x in v) and v[3] > 0):  # fmt: skip
+            return "its timeline's ramps are not (from, to, start, duration) of ramped variables"
+        if not isinstance(faults, list) or len(faults) != len(self._faults):
+            return f"its timeline's fault states are not {len(self._faults)}"
+        for run, state in zip(self._faults, faults, strict=True):
+            reason = run.misfit(state)
+            if reason is not None:
+                return f"the state of fault {run.fault.name!r}: {reason}"
+        held = {run.fault.target for run in self._held}
+        if not _table(kept, held, _finite):
+            return "its timeline's held inputs are not finite doubles of the faults' targets"
+        written = {ref for e in self._events for ref in e.event.set}
+        written |= {ref for e in self._series for ref in e.event.series.columns}  # type: ignore[union-attr]
+        if not _table(assigned, written, _finite):
+            return "its timeline's assigned values are not finite doubles of the events' variables"
+        instances = set(self._writer.slaves)
+        points = lambda v: isinstance(v, set) and all(_whole(p) for p in v)  # noqa: E731
+        if not _table(restart_at, instances, points) or not _table(restarts, instances, _whole):
+            return "its timeline's restarts are not whole numbers of this run's instances"
+        return None
+
     def deliver(self, slave: Slave, n: int, again: bool = False) -> None:
         """Replace the gathered inputs of ``slave`` at point n by what its faults deliver.
 
@@ -518,6 +582,23 @@ class Timeline:
     def _holding(self, target: str, n: int) -> bool:
         """Whether an actuator fault on the unconnected input ``target`` acts at point n."""
         return any(run.active(n) for run in self._held if run.fault.target == target)
+
+
+_COUNT = 1 << 62  # beyond any count of points, events or restarts a run reaches
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, float) and math.isfinite(value)
+
+
+def _whole(value: Any) -> bool:
+    """A count or point: a whole number from 0 (not a bool)."""
+    return type(value) is int and 0 <= value < _COUNT
+
+
+def _table(value: Any, keys: set[str], fits: Any) -> bool:
+    """``value`` is a dict of some of ``keys``, each value ``fits``."""
+    return isinstance(value, dict) and set(value) <= keys and all(map(fits, value.values()))
 
 
 def _receivers(scenario: Scenario) -> dict[str, dict[str, bool]]:

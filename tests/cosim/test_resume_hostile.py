@@ -265,3 +265,163 @@ def test_any_one_value_of_a_checkpoint_changed_is_refused_or_resumes_exactly(
         assert _files(out) == before
     else:
         assert (out / "results.csv").read_bytes() == (stopped / "results.csv").read_bytes()
+
+
+EVENTS = """
+[[events]]
+name = "turn"
+time = 1.0
+set = { "controller.yaw_setpoint" = 0.3 }
+ramp = 8.0
+
+[[faults]]
+name = "fuzz"
+kind = "noise"
+target = "plant.mass_position_cmd"
+start = 0.5
+std = 0.001
+seed = 3
+"""
+
+
+@pytest.fixture(scope="module")
+def evented(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """bs-3 with a heading ramp from t = 1 s over 8 s and a seeded noise fault from
+    t = 0.5 s, checkpointed at t = 2 s of 2.5 s: a timeline with a ramp running, an event
+    fired and a random generator's state."""
+    base = tmp_path_factory.mktemp("evented")
+    scenario = base / "evented.toml"
+    text = (Path(__file__).parents[2] / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    scenario.write_text(text + EVENTS)
+    out = base / "run"
+    run_scenario(scenario, out, stop_time=2.5, checkpoint_every=1.0, no_rrd=True,
+                 fmu_dir=fmu_dir)  # fmt: skip
+    return out
+
+
+def _snapshot(change: Callable[[list[Any], list[Any]], object]) -> Edit:
+    """``change`` given the timeline snapshot's entries and the events fired (JSON)."""
+
+    def edit(data: dict[str, Any]) -> None:
+        timeline = dict(_entry(data, "timeline")[1]["d"])
+        change(timeline["snapshot"]["t"], timeline["fired"])
+
+    return edit
+
+
+def _ramp(index: int, value: Any) -> Edit:
+    """The running ramp's field ``index`` (from, to, start, duration) replaced."""
+    return _snapshot(lambda snap, _: snap[5]["d"][0][1]["t"].__setitem__(index, value))
+
+
+def _fault(index: int, value: Any) -> Edit:
+    """The noise fault's state's field ``index`` (history, n_last, last, before, draw,
+    held, rng) replaced."""
+    return _snapshot(lambda snap, _: snap[6][0]["t"].__setitem__(index, value))
+
+
+def _rng(change: Callable[[list[list[Any]]], object]) -> Edit:
+    return _snapshot(lambda snap, _: change(snap[6][0]["t"][6]["d"]))
+
+
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [
+        (_ramp(0, "x"), "its timeline's ramps are not"),
+        (_ramp(3, {"f": "-0x1p0"}), "its timeline's ramps are not"),
+        (_snapshot(lambda snap, _: snap[5]["d"][0].__setitem__(0, "plant.nope")), "ramps are"),
+        (_snapshot(lambda snap, _: snap[5]["d"][0].__setitem__(1, [1])), "ramps are not"),
+        (_fault(4, "junk"), "the state of fault 'fuzz': its history or draw is not finite"),
+        (_fault(1, -5), "the state of fault 'fuzz': its point -5 is not a whole number"),
+        (_fault(0, [{"f": "nan"}, {"f": "0x0p0"}]), "fault 'fuzz': its history is not a list"),
+        (_fault(6, None), "the state of fault 'fuzz': its random generator's state is not"),
+        (_rng(lambda pairs: pairs.__setitem__(0, ["bit_generator", "MT19937"])), "generator"),
+        (_fault(6, {"d": [["x", 1]]}), "its random generator's state is not one of its kind"),
+        (_fault(5, True), "its last, before or held value is neither null nor"),
+        (_snapshot(lambda snap, _: snap.__setitem__(4, [[1, 2]])), "event states are not 0"),
+        (_snapshot(lambda snap, _: snap.__setitem__(8, {"d": [["x.y", 1]]})), "assigned values"),
+        (_snapshot(lambda snap, _: snap.__setitem__(9, {"d": [["ghost", {"s": []}]]})), "restarts"),
+        (_snapshot(lambda snap, _: snap.__setitem__(10, {"d": [["plant", -1]]})), "restarts"),
+        (_snapshot(lambda _, fired: fired.__setitem__(0, 5)), "its timeline's events fired are"),
+        (_snapshot(lambda _, fired: fired.append(fired[0])), "events fired are not 1 tables"),
+        (_snapshot(lambda _, fired: fired[0]["d"][1].__setitem__(1, {"b": "AA=="})), "fired"),
+    ],
+    ids=[
+        "ramp-from-text",
+        "ramp-negative-duration",
+        "ramp-of-no-event",
+        "ramp-list",
+        "fault-draw-text",
+        "fault-point-negative",
+        "fault-history-nan",
+        "fault-rng-dropped",
+        "fault-rng-other-kind",
+        "fault-rng-junk",
+        "fault-held-bool",
+        "event-states-invented",
+        "assigned-unknown",
+        "restart-unknown-instance",
+        "restarts-negative",
+        "fired-number",
+        "fired-twice",
+        "fired-time-bytes",
+    ],
+)
+def test_a_timeline_entry_of_the_wrong_type_is_refused_in_one_line(
+    evented: Path, fmu_dir: Path, tmp_path: Path, edit: Edit, said: str
+) -> None:
+    """Guards the timeline's content beyond its counts: an entry of a ramp, a fault's
+    state or an event fired holding junk refuses the resume, naming it, before a step."""
+    _refused(_killed(evented, tmp_path, edit), fmu_dir, said)
+
+
+def test_the_evented_checkpoint_as_written_resumes_the_run(
+    evented: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """The timeline's refusals above are the edits': the copy as written resumes exactly."""
+    out = _killed(evented, tmp_path)
+    resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    assert (out / "results.csv").read_bytes() == (evented / "results.csv").read_bytes()
+
+
+def _timeline_leaves(saved: dict[str, Any]) -> list[tuple[Any, ...]]:
+    """The paths to the scalars of the state's timeline entry."""
+    at = next(i for i, pair in enumerate(saved["state"]["d"]) if pair[0] == "timeline")
+    return [p for p in _leaves(saved) if p[:4] == ("state", "d", at, 1)]
+
+
+@pytest.mark.slow
+@settings(max_examples=30, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(data=st.data())
+def test_any_one_timeline_value_changed_is_refused_or_resumes_a_whole_run(
+    evented: Path, fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory, data: st.DataObject
+) -> None:
+    """One value of the checkpoint's timeline (ramps, faults' states and generators,
+    events fired, counts) replaced by an odd one: resuming refuses in one line, the folder
+    as it was, or runs to the stop (an edit of the right type -- another held value, say
+    -- resumes the run it describes; one that changes nothing gives the same results)."""
+    saved = json.loads((evented / CHECKPOINT_FILE).read_text())
+    where = data.draw(st.sampled_from(_timeline_leaves(saved)))
+    odd = data.draw(st.sampled_from(ODD))
+
+    def edit(checkpoint: dict[str, Any]) -> None:
+        parent = checkpoint
+        for key in where[:-1]:
+            parent = parent[key]
+        parent[where[-1]] = odd
+
+    out = _killed(evented, tmp_path_factory.mktemp("odd"), edit)
+    before = _files(out)
+    try:
+        with deadline(60, "no answer"):
+            outcome = resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+    except CosimError as exc:
+        assert "\n" not in str(exc)
+        assert _files(out) == before
+    else:
+        assert outcome.result.complete, outcome.result.error
+        rows = (out / "results.csv").read_bytes()
+        assert rows.count(b"\n") == (evented / "results.csv").read_bytes().count(b"\n")
+        unchanged = json.loads((out / CHECKPOINT_FILE).read_text()) == saved
+        assert not unchanged or rows == (evented / "results.csv").read_bytes()
