@@ -352,7 +352,7 @@ def _finished(outcome: RunOutcome, in_memory: bool, caller: str, stacklevel: int
 def resume(
     out: str | Path,
     *,
-    recording: bool = True,
+    recording: bool | None = None,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
     progress: bool = False,
     checkpoint_every: Number | None = None,
@@ -364,7 +364,10 @@ def resume(
     out : str or pathlib.Path
         The folder of a run started with ``checkpoint_every`` (:func:`run`) and stopped
         before its stop time (a batch system's time limit, a kernel restarted).
-    recording, fmu_dir, progress : optional
+    recording : bool, optional
+        Write ``out``/recording.rrd (True) or no recording (False). Default: as the
+        checkpointed run did (none, its recording.rrd, or the file it wrote elsewhere).
+    fmu_dir, progress : optional
         As :func:`run`'s.
     checkpoint_every : float, optional
         Simulated seconds between checkpoints from here on. Default: the checkpointed
@@ -384,11 +387,16 @@ def resume(
     RunError, RunInterrupted
         As :func:`run`.
     """
+    from cosim.outputs.run_files import RECORDING_FILE
     from cosim.runner import resume_run
 
     folder = _folder("out", out)
     settings = {"progress": progress, "checkpoint_every": checkpoint_every}
-    options = _run_options(folder, recording, fmu_dir, False, settings)
+    options = _run_options(folder, recording is not False, fmu_dir, False, settings)
+    if recording is not None:  # said: the folder's recording.rrd, or none
+        recording = _flag("recording", recording)
+        rrd = folder / RECORDING_FILE if recording else None
+        options = dataclasses.replace(options, rrd=rrd)
     outcome = resume_run(folder, dataclasses.replace(options, out_dir=None))
     return _finished(outcome, False, "cosim.resume", stacklevel=3)
 

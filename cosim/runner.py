@@ -209,7 +209,12 @@ def execute(
         handlers = stop_on_signals(stop)
     with handlers:
         folder = RunFolder.claim(
-            out_dir, options.overwrite, options.tail_guard, default_for, options.names
+            out_dir,
+            options.overwrite,
+            options.tail_guard,
+            default_for,
+            options.names,
+            resuming=options.resume,
         )
         progress: ProgressSink | None = None
         stepped = False
@@ -272,7 +277,8 @@ def resume_run(
     there: the rows up to the checkpoint are kept, the run's files rewritten whole (the
     recording too) and the rest appended as the uninterrupted run would have written them.
     ``options``: how to write the outputs (``no_rrd``, ``progress``, ``checkpoint_every``,
-    ...); what changes the run (``stop_time``, ``step``, ...) is refused. Raises
+    ...; without ``no_rrd`` or ``rrd``, the recording the checkpointed run wrote, or
+    none); what changes the run (``stop_time``, ``step``, ...) is refused. Raises
     :class:`CosimError` (one line) where the checkpoint cannot be resumed exactly."""
     from dataclasses import replace
 
@@ -296,6 +302,9 @@ def resume_run(
     saved = read_checkpoint(Path(out_dir), names)
     loaded = load_scenario(scenario, fmu_dir=options.fmu_dir)
     saved.check(loaded)
+    if not options.no_rrd and options.rrd is None:  # the recording as the run wrote it
+        rrd = saved.recording()
+        options = replace(options, no_rrd=rrd is None, rrd=rrd)
     resumed = replace(options, out_dir=Path(out_dir), overwrite=True, resume=True)
     return execute(loaded, resumed, stop)
 
@@ -328,7 +337,8 @@ def _checkpoints(
     if every_s is not None:  # past the run's end is as good as more (and inf: 1e308 / h)
         every = max(1, round(min(every_s / scenario.coupling.step, scenario.n_steps + 1)))
     source = str(folder.path / CHECKPOINT_FILE)
-    return Checkpointing(every, CheckpointWriter(folder, scenario, every_s), start, rows, source)
+    writer = CheckpointWriter(folder, scenario, every_s, _recording_path(scenario, folder, options))
+    return Checkpointing(every, writer, start, rows, source)
 
 
 def _not_started(result: RunResult, stop: StopRequest, out_dir: Path) -> NotStartedError:

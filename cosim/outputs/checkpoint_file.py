@@ -5,7 +5,9 @@ The file holds ``format``, the ``version`` of auv-cosim that wrote it, the scena
 and the SHA-256 of the resolved scenario (``scenario_sha256``: its scenario.toml, the
 header comment aside), each instance's FMU file's SHA-256 (``fmus``) and each other file
 the run reads, by path (``files``: vehicle sets, event series), ``every_s`` (the
-interval asked for, s; null: only where a signal stopped the run), the point it holds
+interval asked for, s; null: only where a signal stopped the run), ``recording``
+(:func:`recording_entry`: the recording the run writes, which a resume writes again
+unless told otherwise), the point it holds
 (``step``, ``time`` in s), ``rows`` (the rows of results.csv up to it, t = 0 included)
 and ``state`` (:mod:`cosim.engine.checkpoint`: the FMU states and the master's). It is
 written whole or not at all: a temporary file, ``fsync``, a rename, the folder synced.
@@ -32,7 +34,7 @@ import numpy as np
 from cosim.engine.checkpoint import from_json, to_json
 from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.limits import unwritten
-from cosim.outputs.folder import RESULTS_FILE, SUMMARY_FILE, RunFolder
+from cosim.outputs.folder import RECORDING_FILE, RESULTS_FILE, SUMMARY_FILE, RunFolder
 from cosim.outputs.results import read_csv
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario
 from cosim.version import version
@@ -87,9 +89,11 @@ class CheckpointWriter:
     folder: RunFolder
     scenario: Scenario
     every_s: float | None
+    recording: Path | None = None  # the recording the run writes (None: none)
 
     def __post_init__(self) -> None:
         self.header = {
+            "recording": recording_entry(self.recording, self.folder.path),
             "format": FORMAT,
             "version": version(),
             "scenario": self.scenario.id,
@@ -111,6 +115,17 @@ class CheckpointWriter:
         except OSError as exc:
             raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
         self.folder.wrote(path)
+
+
+def recording_entry(rrd: Path | None, folder: Path) -> str | None:
+    """The checkpoint's ``recording``: null (the run writes none), the folder's own
+    ``recording.rrd`` by that name (a copied folder resumes into its own), or the absolute
+    path of a recording written elsewhere (``--rrd``)."""
+    if rrd is None:
+        return None
+    if Path(rrd).absolute() == (folder / RECORDING_FILE).absolute():
+        return RECORDING_FILE
+    return str(Path(rrd).absolute())
 
 
 def _write_synced(path: Path, data: bytes) -> None:
@@ -155,6 +170,23 @@ class Checkpoint:
                     return float(every)
         raise CosimError(
             f"{self.path}: every_s is {_shown(every)}, expected a positive number of seconds"
+        )
+
+    def recording(self) -> Path | None:
+        """The recording the checkpointed run wrote (None: none), where a resume without
+        ``--rrd`` or ``--no-rrd`` writes it again. Raises :class:`CosimError` for a
+        ``recording`` that is neither null nor a path (the folder's ``recording.rrd`` or
+        an absolute one)."""
+        entry = self.data.get("recording")
+        if entry is None:
+            return None
+        if entry == RECORDING_FILE:
+            return self.path.with_name(RECORDING_FILE)
+        if isinstance(entry, str) and "\0" not in entry and Path(entry).is_absolute():
+            return Path(entry)
+        raise CosimError(
+            f"{self.path}: recording is {_shown(entry)}, expected null, "
+            f'"{RECORDING_FILE}" or an absolute path to a .rrd file'
         )
 
     def check(self, scenario: Scenario) -> None:

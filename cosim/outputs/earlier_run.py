@@ -70,32 +70,43 @@ class EarlierRun:
 
 
 def find_earlier_run(
-    path: Path, overwrite: bool, default: ScenarioRef | None, names: OptionNames = FLAGS
+    path: Path,
+    overwrite: bool,
+    default: ScenarioRef | None,
+    names: OptionNames = FLAGS,
+    resuming: bool = False,
 ) -> EarlierRun | None:
     """The earlier run in ``path`` (None if the folder is empty). It may be replaced with
     ``overwrite``, or when ``path`` is the default folder of scenario ``default``, holds
     nothing but an earlier run of that same scenario file (and a report made from it).
-    A refusal names the options as ``names`` does (flags or keywords).
+    A refusal names the options as ``names`` does (flags or keywords), and the folder as
+    ``--resume`` gave it where ``resuming``.
+
+    ``resuming`` (the run in ``path`` continues from its checkpoint): a file the manifest
+    lists is the run's own if it holds exactly what the run wrote (size and SHA-256), so a
+    run folder copied whole (``cp -a``, ``rsync``: new device, inode and perhaps time)
+    resumes; it is set aside as it is now.
 
     Raises RunFolderError: files set aside by a run killed before it stepped, files of no
     run, a summary or manifest not ours, a run an older auv-cosim wrote without a
     manifest, an earlier run not to be replaced, or an output name that is not the earlier
     run's own file.
     """
+    option = "resume" if resuming else "out"
     entries = sorted(e.name for e in path.iterdir() if e.name not in (LOCK_FILE, MANIFEST_FILE))
     left = [e for e in entries if _ASIDE.match(e)]
     if left:
         raise RunFolderError(
-            f"{names.given('out', path)}: holds files a run set aside and could not put back ("
+            f"{names.given(option, path)}: holds files a run set aside and could not put back ("
             f"{', '.join(left[:3])}): rename each back to the name between the leading dot "
             f"and .<pid>{ASIDE_SUFFIX}, or remove them"
         )
     if not entries:
         return None
-    summary = _summary(path, entries, names)
-    _refuse_older_run(path, summary, names)
-    manifest = read_manifest(path, names)
-    own = _own_files(path, manifest.entries)
+    summary = _summary(path, entries, names, option)
+    _refuse_older_run(path, summary, names, option)
+    manifest = read_manifest(path, names, option)
+    own = _own_files(path, manifest.entries, by_content=resuming)
     own[path / MANIFEST_FILE] = file_identity(path / MANIFEST_FILE) or {}
     for name in (SUMMARY_FILE, SCENARIO_FILE, MANIFEST_FILE):  # its partial writes, if killed
         tmp = path / f".{name}.{manifest.pid}.tmp"
@@ -108,8 +119,8 @@ def find_earlier_run(
     for name in OUTPUT_NAMES:  # the new run would write over these: they must be the run's
         if os.path.lexists(path / name) and path / name not in own:
             raise RunFolderError(
-                f"{names.given('out', path)}: {name} is not a file the earlier run wrote "
-                "(changed since, replaced, or a link); move it away or choose another folder"
+                f"{names.given(option, path)}: {name} is not a file the earlier run wrote "
+                f"(changed since, replaced, or a link); {_what_to_do(resuming)}"
             )
     kept = [f"{REPORT_FOLDER}/"] if (path / REPORT_FOLDER).exists() else []
     kept += [n for n in manifest.entries if Path(n).is_absolute() and os.path.lexists(n)]
@@ -120,7 +131,14 @@ def find_earlier_run(
 _OLDEST_SUMMARY_KEYS = ("stop_time", "wall_clock_s", "final_values")
 
 
-def _refuse_older_run(path: Path, summary: dict, names: OptionNames) -> None:
+def _what_to_do(resuming: bool) -> str:
+    """What a refusal of a file in the folder tells the user to do."""
+    if resuming:  # (a copy whose content differs: the run it holds is not the one checkpointed)
+        return "resume the folder it was checkpointed in, or start the run again"
+    return "move it away or choose another folder"
+
+
+def _refuse_older_run(path: Path, summary: dict, names: OptionNames, option: str) -> None:
     """Refuse, naming it as such, a run folder an auv-cosim wrote before runs listed their
     files (:data:`MANIFEST_FILE`): its summary is a run's, and no manifest is there."""
     if os.path.lexists(path / MANIFEST_FILE) or not all(
@@ -128,7 +146,7 @@ def _refuse_older_run(path: Path, summary: dict, names: OptionNames) -> None:
     ):
         return
     raise RunFolderError(
-        f"{names.given('out', path)}: holds an earlier run (scenario "
+        f"{names.given(option, path)}: holds an earlier run (scenario "
         f"{summary.get('scenario')!r}, status {summary.get('status')!r}) that an older "
         f"auv-cosim wrote, before runs listed their files in {MANIFEST_FILE}: none of its "
         "files is known to be the run's to replace; move the folder away or choose another "
@@ -136,13 +154,13 @@ def _refuse_older_run(path: Path, summary: dict, names: OptionNames) -> None:
     )
 
 
-def _summary(path: Path, entries: list[str], names: OptionNames) -> dict:
+def _summary(path: Path, entries: list[str], names: OptionNames, option: str) -> dict:
     """The folder's summary.json, refused unless it is a run's of ours."""
     summary_path = path / SUMMARY_FILE
     if not regular(summary_path):
         shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
         raise RunFolderError(
-            f"{names.given('out', path)}: the folder is not empty ({shown}) and holds no "
+            f"{names.given(option, path)}: the folder is not empty ({shown}) and holds no "
             f"earlier run (no {SUMMARY_FILE}); choose a new or empty folder"
         )
     try:
@@ -155,7 +173,7 @@ def _summary(path: Path, entries: list[str], names: OptionNames) -> dict:
         or not isinstance(summary.get("scenario"), str)
     ):
         raise RunFolderError(
-            f"{names.given('out', path)}: its {SUMMARY_FILE} is not the summary of an "
+            f"{names.given(option, path)}: its {SUMMARY_FILE} is not the summary of an "
             "auv-cosim run; choose a new or empty folder"
         )
     return summary
@@ -192,9 +210,12 @@ def _check_replaceable(
     )
 
 
-def _own_files(path: Path, entries: dict[str, dict[str, Any]]) -> dict[Path, dict[str, Any]]:
+def _own_files(
+    path: Path, entries: dict[str, dict[str, Any]], by_content: bool = False
+) -> dict[Path, dict[str, Any]]:
     """The manifest's files inside ``path`` that are still exactly what the run wrote,
-    reached through no link below ``path``."""
+    reached through no link below ``path``, each with its identity now; ``by_content``:
+    one of the same size and SHA-256 (a copy) is too."""
     own = {}
     for name, identity in entries.items():
         parts = Path(name).parts
@@ -204,7 +225,17 @@ def _own_files(path: Path, entries: dict[str, dict[str, Any]]) -> dict[Path, dic
             continue
         if unchanged(path / name, identity):
             own[path / name] = identity
+        elif by_content and (now := _same_content(path / name, identity)) is not None:
+            own[path / name] = now
     return own
+
+
+def _same_content(path: Path, identity: dict[str, Any]) -> dict[str, Any] | None:
+    """``path``'s identity now if it is a regular file of ``identity``'s size and SHA-256."""
+    now = file_identity(path)
+    if now is None or any(now[k] != identity[k] for k in ("size", "sha256")):
+        return None
+    return now
 
 
 class SetAside:

@@ -93,6 +93,7 @@ class RunFolder:
     ) -> None:
         self.path = path
         self.names = names  # how a refusal names the options: flags or the API's keywords
+        self.option = "out"  # the option that named the folder (resume: a resumed run's)
         self.tail_guard = tail_guard  # start_guard starts one (else it does nothing)
         self.created = created  # the folder did not exist before the claim
         self.earlier: EarlierRun | None = None  # an earlier run to replace
@@ -116,6 +117,7 @@ class RunFolder:
         tail_guard: bool = True,
         default_for: ScenarioRef | None = None,
         names: OptionNames = FLAGS,
+        resuming: bool = False,
     ) -> RunFolder:
         """Create and lock ``path``; an earlier run there needs ``overwrite``, unless
         ``path`` is the default folder of the scenario ``default_for`` and holds nothing
@@ -123,7 +125,9 @@ class RunFolder:
         ``tail_guard``, :meth:`start_guard` starts no guard process (for a caller that
         discards a killed run's folder anyway: a study's task, whose run is run again).
         A refusal names the options as ``names`` does (the command line's flags, or the
-        API's keywords).
+        API's keywords). ``resuming``: the earlier run continues from its checkpoint
+        (:func:`find_earlier_run`: its files are known by their content; the folder is
+        named as ``--resume`` gave it).
 
         Raises:
             RunFolderError: not creatable, not a folder, locked by another run, holding an
@@ -131,7 +135,7 @@ class RunFolder:
                 output name that is not the earlier run's own file.
         """
         path = Path(path)
-        out = names.given("out", path)
+        out = names.given("resume" if resuming else "out", path)
         if default_for is not None:  # no --out given: the folder is the scenario's default
             out = f"{path} (the default run folder, from the scenario's id; "
             out += f"{names.option('out')} names another)"
@@ -154,8 +158,9 @@ class RunFolder:
                     path.rmdir()
             raise
         folder = cls(path, lock_fd, created, tail_guard, names)
+        folder.option = "resume" if resuming else "out"
         try:
-            folder.earlier = find_earlier_run(path, overwrite, default_for, names)
+            folder.earlier = find_earlier_run(path, overwrite, default_for, names, resuming)
         except BaseException:
             folder.release()
             raise
@@ -172,7 +177,7 @@ class RunFolder:
         if self.earlier is None:
             return
         for target, identity in self.earlier.files.items():
-            self.aside.move(target, identity, self.names.given("out", self.path))
+            self.aside.move(target, identity, self.names.given(self.option, self.path))
 
     def commit(self) -> None:
         """The run has taken its first step: remove what was set aside (checked once more)

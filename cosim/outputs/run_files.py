@@ -80,11 +80,11 @@ class Manifest:
             raise RunFolderError(f"cannot write {self.path}: {exc.strerror or exc}") from None
 
 
-def read_manifest(folder: Path, names: OptionNames = FLAGS) -> Manifest:
+def read_manifest(folder: Path, names: OptionNames = FLAGS, option: str = "out") -> Manifest:
     """The manifest in ``folder``. Raises RunFolderError saying whether it is missing,
     unreadable (truncated, not JSON, not ours) or of the older format that named files by
-    inode alone (naming the folder as ``names`` name options)."""
-    out = names.given("out", folder)
+    inode alone (naming the folder as ``names`` name ``option``: out, or resume)."""
+    out = names.given(option, folder)
     path = folder / MANIFEST_FILE
     if not os.path.lexists(path):
         raise RunFolderError(
