@@ -182,8 +182,11 @@ class Checkpoint:
             return None
         if entry == RECORDING_FILE:
             return self.path.with_name(RECORDING_FILE)
-        if isinstance(entry, str) and "\0" not in entry and Path(entry).is_absolute():
-            return Path(entry)
+        if (
+            isinstance(entry, str) and "\0" not in entry and entry.endswith(".rrd")
+            and Path(entry).is_absolute()
+        ):  # fmt: skip
+            return Path(entry)  # (a new file, or a recording of ours: check_recording_path)
         raise CosimError(
             f"{self.path}: recording is {_shown(entry)}, expected null, "
             f'"{RECORDING_FILE}" or an absolute path to a .rrd file'

@@ -425,3 +425,18 @@ def test_any_one_timeline_value_changed_is_refused_or_resumes_a_whole_run(
         assert rows.count(b"\n") == (evented / "results.csv").read_bytes().count(b"\n")
         unchanged = json.loads((out / CHECKPOINT_FILE).read_text()) == saved
         assert not unchanged or rows == (evented / "results.csv").read_bytes()
+
+
+@pytest.mark.parametrize("entry", [5, "runs/x.rrd", "/tmp/evil.sh", ["recording.rrd"]])
+def test_a_recording_that_is_no_recording_path_is_refused(
+    stopped: Path, fmu_dir: Path, tmp_path: Path, entry: object
+) -> None:
+    """The checkpoint's recording, which a resume without --rrd or --no-rrd writes again,
+    is null, the folder's recording.rrd or an absolute .rrd path: anything else refuses
+    the resume in one line, before a file is written."""
+    out = _killed(stopped, tmp_path, lambda data: data.__setitem__("recording", entry))
+    before = _files(out)
+    with pytest.raises(CosimError, match=r"recording is .*, expected null") as refused:
+        resume_run(out, RunOptions(fmu_dir=fmu_dir))
+    assert "\n" not in str(refused.value) and str(out / CHECKPOINT_FILE) in str(refused.value)
+    assert _files(out) == before
