@@ -302,7 +302,7 @@ def resume_run(
     saved = read_checkpoint(Path(out_dir), names)
     loaded = load_scenario(scenario, fmu_dir=options.fmu_dir)
     saved.check(loaded)
-    if not options.no_rrd and options.rrd is None:  # the recording as the run wrote it
+    if not options.no_rrd and options.rrd is None and saved.keeps_recording:  # as the run did
         rrd = saved.recording()
         options = replace(options, no_rrd=rrd is None, rrd=rrd)
     resumed = replace(options, out_dir=Path(out_dir), overwrite=True, resume=True)

@@ -172,6 +172,12 @@ class Checkpoint:
             f"{self.path}: every_s is {_shown(every)}, expected a positive number of seconds"
         )
 
+    @property
+    def keeps_recording(self) -> bool:
+        """Whether it says which recording the run wrote (a checkpoint of an auv-cosim
+        that did not keep it: a resume records as the scenario says)."""
+        return "recording" in self.data
+
     def recording(self) -> Path | None:
         """The recording the checkpointed run wrote (None: none), where a resume without
         ``--rrd`` or ``--no-rrd`` writes it again. Raises :class:`CosimError` for a
