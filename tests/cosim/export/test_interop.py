@@ -133,7 +133,7 @@ FORMATS = {"libcosim": ("ssp", "osp"), "ecos": ("ssp",), "fmpy-container": ("osp
 # (docs/hosts.md, fmpy)
 NOT_IN_CONTAINER = {"plant-heavy"}
 # the container's threads wait for work spinning on a mutex (parallelDoStep): 10 s of
-# bs-3 took 15 times the serial run's time here, so they run the first second only
+# bs-3 took many times the serial run's time here, so they run the first second only
 PARALLEL_STEPS = 100
 
 
