@@ -3,6 +3,7 @@
     python scripts/coupling_study.py shipped [--scenarios bs-3 vert-1 ...] [--write]
     python scripts/coupling_study.py check-step [--scenarios bs-3 vert-1] [--write]
     python scripts/coupling_study.py adaptive [--scenarios vert-1 bs-3] [--tolerances ...] [--write]
+    python scripts/coupling_study.py scatter [--scenarios vert-1 bs-3] [--write]
 
 ``shipped``: every built-in scenario (or those named) as shipped, and again at 2.5, 1.25
 and 0.625 ms with the same coupling: the continuous-time limit of each key figure by
@@ -24,6 +25,15 @@ step is not monotonic in it, 12 ms is twice as accurate as 10 ms) and a least-sq
 through the six whose errors are nearest, log doSteps against log error; the header gives
 the scatter of the fixed runs about such lines (the largest factor), the margin below
 which a difference is not a result.
+
+``scatter``: how a fixed step's trajectory error (as in ``adaptive``, against the same run
+at 0.3125 ms) scatters about its trend: nine steps within 4 % of each of 5, 2.5, 1.25 and
+0.625 ms, each dividing the stop time; per band the least, median and largest error, the
+median over the centre step squared, the plant output and time of the largest, and how
+much of that output's difference from the reference over the second half of each run is
+the reference shifted in time (an oscillation's phase error); the header gives the
+reference's own error (against a run at half its step) and the slope of log median error
+against log step.
 
 ``--write`` replaces the table between the markers ``<!-- coupling_study.py <part> -->``
 and ``<!-- end -->`` in docs/coupling.md (``shipped --scenarios``: only those scenarios'
@@ -68,6 +78,8 @@ ADAPTIVE_ESTIMATES: tuple[ErrorEstimate, ...] = ("extrapolation", "doubling")
 # and, without --tolerances, the extrapolation estimate on vert-1 at the tolerances around
 # 1e-3 too: whether it beats the fixed step there depends on the tolerance
 MORE_TOLERANCES = {"vert-1": (2e-3, 1.25e-3, 8e-4, 5e-4)}
+REFERENCE_STEP = 0.0003125  # s: the run the adaptive and scatter tables' errors are against
+SCATTER_CENTRES = (0.005, 0.0025, 0.00125, 0.000625)  # s: the scatter table's steps
 
 
 def figures_of(scenario: Scenario) -> tuple[dict[str, float | None], master.RunResult]:
@@ -147,7 +159,7 @@ def adaptive(tolerances: Sequence[float] | None, ids: Sequence[str]) -> str:
 
 def _adaptive_table(sid: str, given: Sequence[float] | None) -> str:
     base = load_scenario(sid)
-    finest = base.with_overrides(step=0.0003125)
+    finest = base.with_overrides(step=REFERENCE_STEP)
     reference, limits = _rows(finest), figures_of(finest)[0]
     runs = {f"fixed {h * 1e3:g} ms": base.with_overrides(step=h) for h in ADAPTIVE_FIXED_STEPS}
     for estimate in ADAPTIVE_ESTIMATES:
@@ -201,6 +213,76 @@ def _adaptive_table(sid: str, given: Sequence[float] | None) -> str:
     return "\n".join([head, "", *lines])
 
 
+def scatter(ids: Sequence[str]) -> str:
+    """One table per scenario: the trajectory error (against the run at 0.3125 ms) of the
+    fixed steps within 4 % of each of SCATTER_CENTRES, as shipped otherwise."""
+    return "\n\n".join(_scatter_table(sid) for sid in ids)
+
+
+def _scatter_table(sid: str) -> str:
+    base = load_scenario(sid)
+    stop = base.stop_time
+    reference = _rows(base.with_overrides(step=REFERENCE_STEP))
+    own = _worst(_rows(base.with_overrides(step=REFERENCE_STEP / 2)), reference)
+    lines = [
+        "| steps (ms) | trajectory error: least / median / largest | largest / least "
+        "| median / h² (1/s²) | largest at | that output's time shift at the end (µs): "
+        "least / largest | left after the shift: median |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    medians: list[tuple[float, float]] = []  # (centre step, median error)
+    for centre in SCATTER_CENTRES:
+        # steps of stop / n, n within 4 % of stop / centre: each divides the stop time
+        steps = [stop / round(stop / centre * (1.0 + j / 100.0)) for j in range(-4, 5)]
+        runs = []  # (error, output, time, shift, left)
+        for h in steps:
+            result = _rows(base.with_overrides(step=h))
+            error, column, at = _worst(result, reference)
+            runs.append((error, column, at, *_time_shift(result, reference, column)))
+        errors = sorted(run[0] for run in runs)
+        median = float(np.median(errors))
+        medians.append((centre, median))
+        largest, column, at, _, _ = max(runs)
+        shifts = sorted(run[3] * 1e6 for run in runs)
+        left = float(np.median([run[4] for run in runs]))
+        lines.append(
+            f"| {steps[-1] * 1e3:.4g} to {steps[0] * 1e3:.4g} | {errors[0]:.2e} / "
+            f"{median:.2e} / {largest:.2e} | {largest / errors[0]:.1f} | "
+            f"{median / centre**2:.3g} | {column.removeprefix('plant.')}, {at:.2f} s | "
+            f"{shifts[0]:+.3g} / {shifts[-1]:+.3g} | {left:.0%} |"
+        )
+        print(f"  {sid} {centre * 1e3:g} ms: done", file=sys.stderr)
+    order = _line(medians)[0]  # the slope of log median error against log step
+    head = (
+        f"{sid}, {base.coupling.extrapolation} extrapolation, nine steps within 4 % of each "
+        f"of {', '.join(f'{h * 1e3:g}' for h in SCATTER_CENTRES)} ms; errors against a run at "
+        f"{REFERENCE_STEP * 1e3:g} ms, whose own error against a run at half its step is "
+        f"{own[0]:.1e} ({own[1].removeprefix('plant.')}, {own[2]:.2f} s); the median falls "
+        f"as the step to the power {order:.2f}:"
+    )
+    return "\n".join([head, "", *lines])
+
+
+def _time_shift(
+    result: master.RunResult, reference: master.RunResult, column: str
+) -> tuple[float, float]:
+    """How much of the run's difference from ``reference`` in ``column`` over the run's
+    second half is the reference shifted in time, y - y_ref ~ -s(t) y_ref', by a shift
+    s(t) = s0 + s1 t that may drift (an oscillation's period off too), fitted by least
+    squares: (s at the run's end, s; the part of the difference the shift leaves, as a
+    fraction of the difference's 2-norm)."""
+    assert result.times is not None and reference.times is not None
+    late = result.times >= result.times[-1] / 2
+    times = result.times[late]
+    ref = reference.column(column)
+    slope = np.interp(times, reference.times, np.gradient(ref, reference.times))
+    difference = result.column(column)[late] - np.interp(times, reference.times, ref)
+    basis = -np.column_stack([slope, times * slope])
+    (s0, s1), *_ = np.linalg.lstsq(basis, difference, rcond=None)
+    left = np.linalg.norm(difference - basis @ [s0, s1]) / np.linalg.norm(difference)
+    return float(s0 + s1 * times[-1]), float(left)
+
+
 def _line(points: Sequence[tuple[float, float]]) -> tuple[float, float]:
     """(slope, intercept) of the least-squares line log doSteps = intercept + slope log
     error through ``points`` (trajectory error, doSteps)."""
@@ -245,14 +327,22 @@ def _rows(scenario: Scenario) -> master.RunResult:
 
 def _error(result: master.RunResult, reference: master.RunResult) -> float:
     """max over the plant's outputs and the run's rows of |y - y_ref| / (|y_ref| + 1)."""
-    assert result.times is not None and reference.times is not None
-    worst = 0.0
+    return _worst(result, reference)[0]
+
+
+def _worst(result: master.RunResult, reference: master.RunResult) -> tuple[float, str, float]:
+    """(the trajectory error, :func:`_error`; the plant output and the time, s, of it)."""
+    assert result.times is not None and result.values is not None
+    assert reference.times is not None
+    worst = (0.0, "", 0.0)
     for k, column in enumerate(result.columns):
         if not column.startswith("plant.") or column not in reference.columns:
             continue
         ref = np.interp(result.times, reference.times, reference.column(column))
-        assert result.values is not None
-        worst = max(worst, float(np.max(np.abs(result.values[:, k] - ref) / (np.abs(ref) + 1))))
+        error = np.abs(result.values[:, k] - ref) / (np.abs(ref) + 1)
+        i = int(np.argmax(error))
+        if error[i] > worst[0]:
+            worst = (float(error[i]), column, float(result.times[i]))
     return worst
 
 
@@ -292,7 +382,7 @@ def _merged(page_table: str, table: str, only: Sequence[str]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=["shipped", "check-step", "adaptive"])
+    parser.add_argument("part", choices=["shipped", "check-step", "adaptive", "scatter"])
     parser.add_argument("--scenarios", nargs="+", help="built-in ids [every one / bs-3 vert-1]")
     parser.add_argument(
         "--tolerances",
@@ -307,6 +397,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         table = shipped(args.scenarios or list(builtin_scenarios()))
     elif args.part == "check-step":
         table = check_steps(args.scenarios or ["bs-3", "vert-1"])
+    elif args.part == "scatter":
+        table = scatter(args.scenarios or ["vert-1", "bs-3"])
     else:
         table = adaptive(args.tolerances, args.scenarios or ["vert-1", "bs-3"])
     if args.write:  # the shipped table of a few scenarios keeps the others' rows

@@ -4,7 +4,7 @@ scatter about their trend (vert-1's error is not monotonic in the step)."""
 
 from __future__ import annotations
 
-from types import ModuleType
+from types import ModuleType, SimpleNamespace
 
 import numpy as np
 import pytest
@@ -75,3 +75,34 @@ def test_writing_the_shipped_table_of_some_scenarios_keeps_the_others_rows(
         ["| bs-1", "old"], ["| bs-2", "new"], ["| bs-3", "old"], ["| zigzag-20", "new"]
     ]  # fmt: skip
     assert page.read_text(encoding="utf-8").endswith("<!-- end -->\nafter\n")
+
+
+def run(times: np.ndarray, columns: dict[str, np.ndarray]) -> SimpleNamespace:
+    """What the study reads of a master.RunResult: times, columns, values, column()."""
+    names = tuple(columns)
+    values = np.column_stack([columns[name] for name in names])
+    return SimpleNamespace(
+        times=times, columns=names, values=values, column=lambda name: columns[name]
+    )
+
+
+def test_the_trajectory_error_names_the_output_and_time_it_is_largest_at(
+    study: ModuleType,
+) -> None:
+    """The scatter table says which plant output carries a run's trajectory error and when
+    (vert-1's: the roll rate p, late in the run): the largest |y - y_ref| / (|y_ref| + 1)
+    over the plant's outputs at the run's own times, the reference (on a finer grid that
+    does not hold them) interpolated there; the controller's outputs do not count."""
+    fine = np.linspace(0.0, 6.0, 6001)
+    reference = run(
+        fine, {"plant.p": np.sin(fine), "plant.v": 0 * fine, "controller.tunnel_force": 0 * fine}
+    )
+    coarse = np.linspace(0.0, 6.0, 16)  # 0.4 s: not on the reference's grid after 0
+    p = np.sin(coarse) + np.where(np.isclose(coarse, 4.4), 0.01, 0.0)
+    v = np.full_like(coarse, 0.002)
+    force = np.full_like(coarse, 5.0)  # far off, but not the plant's
+    measured = run(coarse, {"plant.p": p, "plant.v": v, "controller.tunnel_force": force})
+    error, column, at = study._worst(measured, reference)
+    assert (column, at) == ("plant.p", pytest.approx(4.4))
+    assert error == pytest.approx(0.01 / (abs(np.sin(4.4)) + 1.0), rel=1e-5)
+    assert study._error(measured, reference) == error
