@@ -390,7 +390,7 @@ class Autopilot:
             slack = sample_slack(time, c.sample_period)
             if next_sample is not None and time < next_sample - slack:
                 return self.commands
-            next_sample = (math.floor((time + slack) / c.sample_period) + 1) * c.sample_period
+            next_sample = next_sample_time(time + slack, c.sample_period)
             varying = False
         psi_d = desired_heading(
             m["yaw_setpoint"], m["current_north"], m["current_east"], c.design_speed,
@@ -421,6 +421,18 @@ class Autopilot:
 
 _SAMPLE_SLACK = 1e-9  # of the time (at least of 1 s), as the FMU's check of a host's time
 _MOST_SLACK = 1e-3  # of a sample period: the slack never reaches the next sample
+_EXACT_COUNT = 2.0**53  # periods a double counts one by one (beyond, n + 1 rounds to n)
+
+
+def next_sample_time(time: float, period: float) -> float:
+    """The first multiple of ``period`` (s) after ``time`` (s); ``time`` itself where the
+    period is below the spacing of doubles there (|time / period| of 2**53 or more, or
+    overflowing to inf with a subnormal period): every call is then a sample, as with any
+    period shorter than the communication step."""
+    periods = time / period
+    if not abs(periods) < _EXACT_COUNT:
+        return time
+    return (math.floor(periods) + 1) * period
 
 
 def sample_slack(time: float, period: float) -> float:

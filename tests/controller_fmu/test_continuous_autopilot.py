@@ -119,3 +119,21 @@ def test_a_digital_autopilot_samples_at_every_point_of_a_host_that_adds_its_step
             skipped.append((n, t))
         t += 0.1
     assert not skipped, f"no sample at the calls (n, t) {skipped[:3]}"
+
+
+@pytest.mark.parametrize("period", [5e-324, 1e-300])
+def test_a_sample_period_below_the_times_resolution_samples_at_every_call(period) -> None:
+    """A sample period so short that time / period overflows (5e-324 s, subnormal) or
+    passes 2**53, where a double tells no multiple of it from the next: every call is then
+    a sample, as with any period shorter than the step. The subnormal one failed the
+    second doStep with "OverflowError: cannot convert float infinity to integer"."""
+    autopilot = Autopilot(AutopilotConfig.build(heading_mode=3, sample_period=period))
+    meas = dict.fromkeys(("yaw", "r", "p", "roll", "v_rel", "u_rel", "down", "pitch", "q",
+                          "w_rel", "mass_position", "mass_velocity", "current_north",
+                          "current_east", "yaw_setpoint", "depth_setpoint"), 0.0)  # fmt: skip
+    sampled = []
+    for n in range(4):
+        meas["yaw"] = 0.01 * (n + 1)  # the heading error grows every call
+        before = autopilot.commands
+        sampled.append(autopilot.step(0.05 * n, meas) != before)
+    assert sampled == [True] * 4
