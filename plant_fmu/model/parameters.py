@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 import os
+import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -122,6 +124,7 @@ class VehicleParameters(CheckedRecord):
 
     def _check_record(self) -> None:
         self._check_inside_hull()
+        self._check_servo()
         if not self.m_v < self.m:
             raise ValueError(
                 f"m_v = {self.m_v!r} kg: expected less than m = {self.m!r} kg (the moving "
@@ -186,6 +189,29 @@ class VehicleParameters(CheckedRecord):
                     "is inside the hull, as the body origin, the centre of buoyancy, is)"
                 )
 
+    def _check_servo(self) -> None:
+        """Refuse a moving-mass servo whose stiffness k_v or damping d_v (6.3.16) is beyond
+        any double (it would step NaN, or raise an OverflowError), naming the largest
+        omega_n (or zeta) that the other servo values, as given, take."""
+        omega, zeta = self.mass_natural_frequency, self.mass_damping_ratio
+        if _servo_is_finite(self.m_v, omega, zeta):
+            return
+        most = sys.float_info.max
+        if not _servo_is_finite(self.m_v, omega, 0.0):  # k_v or m_v k_v overflows
+            bound = _below(min(math.sqrt(most / self.m_v), math.sqrt(most) / self.m_v),
+                           lambda w: _servo_is_finite(self.m_v, w, 0.0))  # fmt: skip
+            raise ValueError(
+                f"mass_natural_frequency = {omega!r} rad/s: expected at most {bound!r} rad/s "
+                "(the servo stiffness k_v = m_v omega_n^2 (6.3.16) is beyond any double "
+                "above that)"
+            )
+        bound = _below(most / (2.0 * self.m_v * omega),
+                       lambda z: _servo_is_finite(self.m_v, omega, z))  # fmt: skip
+        raise ValueError(
+            f"mass_damping_ratio = {zeta!r}: expected at most {bound!r} (the servo damping "
+            "d_v = 2 zeta m_v omega_n (6.3.16) is beyond any double above that)"
+        )
+
     # Derived quantities (one place, so nothing re-types them)
     @property
     def k_v(self) -> float:
@@ -216,6 +242,24 @@ class VehicleParameters(CheckedRecord):
             return VehicleParameters.from_mapping(values)
         except VehicleParameterError as exc:
             raise VehicleParameterError(f"vehicle {self.name + ' (modified)'!r}: {exc}") from None
+
+
+def _servo_is_finite(m_v: float, omega: float, zeta: float) -> bool:
+    """Whether k_v and d_v, computed as :attr:`VehicleParameters.k_v` and
+    :attr:`~VehicleParameters.d_v` compute them, are finite for this servo."""
+    try:
+        k_v = m_v * omega**2
+    except OverflowError:  # a float's ** raises where its * gives inf
+        return False
+    return math.isfinite(k_v) and math.isfinite(2.0 * zeta * math.sqrt(m_v * k_v))
+
+
+def _below(bound: float, taken: Callable[[float], bool]) -> float:
+    """``bound`` or the double below it that ``taken`` accepts (a bound computed by
+    division and square root may round a few ulps above the largest value taken)."""
+    while not taken(bound):
+        bound = math.nextafter(bound, 0.0)
+    return bound
 
 
 def check_rail_in_hull(params: VehicleParameters) -> None:

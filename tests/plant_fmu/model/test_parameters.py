@@ -1,7 +1,9 @@
 """Vehicle parameter sets: the shipped data, and what bad input gets."""
 
 import dataclasses
+import math
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -359,3 +361,22 @@ def test_a_vehicle_file_is_utf8_whatever_the_locale(tmp_path):
     mass, refusal = done.stdout.strip().splitlines()
     assert float(mass) == 31.0
     assert refusal.startswith(f"vehicle file {str(latin)!r}: not UTF-8")
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "what"),
+    [("mass_natural_frequency", 1e300, r" rad/s: expected at most (\S+) rad/s \(the servo "
+      r"stiffness k_v = m_v omega_n\^2 \(6\.3\.16\)"),
+     ("mass_damping_ratio", 1e308, r": expected at most (\S+) \(the servo damping "
+      r"d_v = 2 zeta m_v omega_n \(6\.3\.16\)")],
+)  # fmt: skip
+def test_a_servo_whose_stiffness_or_damping_overflows_is_refused_by_name(name, value, what):
+    """omega_n = 1e300 rad/s made k_v = m_v omega_n^2 (6.3.16) overflow: an FMU host read
+    "initialisation failed: OverflowError: (34, 'Numerical result out of range')"; a
+    damping ratio making d_v infinite would step NaN. The bound named is taken."""
+    refusal = rf"{name} = {re.escape(repr(value))}{what}"
+    with pytest.raises(VehicleParameterError, match=refusal) as refused:
+        load_vehicle().replace(**{name: value})
+    bound = float(re.search(what, str(refused.value)).group(1))
+    servo = load_vehicle().replace(**{name: bound})
+    assert math.isfinite(servo.k_v) and math.isfinite(servo.d_v)
