@@ -551,6 +551,32 @@ static int same_string(Instance *c, fmi2ValueReference vr, const char *text)
     return c->backend->get(c, 'S', &vr, 1, &now) <= fmi2Warning && now && !strcmp(now, text);
 }
 
+/* An input's or a tunable parameter's value ``x`` refused for itself (not finite, beyond
+ * its min/max) stands until a valid value is written: each doStep meanwhile is discarded
+ * naming it, as the step would take the old value (fmu_runtime/safe_slave.py does the
+ * same where pythonfmu's binary runs the FMU; docs/hosts.md states it). */
+static void stand_refusal(Instance *c, fmi2ValueReference vr, char type, double x)
+{
+    Variable *v = vr < c->count && c->vars[vr].known ? &c->vars[vr] : NULL;
+    if (!v || v->type != type || type == 'S' || !strcmp(v->variability, "constant")) return;
+    if (strcmp(v->causality, "input") &&
+        (strcmp(v->causality, "parameter") || !strcmp(v->variability, "fixed"))) {
+        return;
+    }
+    if (!((type == 'R' && !isfinite(x)) || x < v->low || x > v->high)) return;
+    if (!v->refused) c->refusals++;
+    v->refused = 1;
+    v->refused_value = x;
+}
+
+static void clear_refusal(Instance *c, fmi2ValueReference vr)
+{
+    if (c->vars[vr].refused) {
+        c->vars[vr].refused = 0;
+        c->refusals--;
+    }
+}
+
 /* Check every value first: a refused call writes nothing. */
 static fmi2Status check_writes(Instance *c, const fmi2ValueReference vr[], size_t n, char type,
                                const double *values, const fmi2String *strings)
@@ -563,6 +589,7 @@ static fmi2Status check_writes(Instance *c, const fmi2ValueReference vr[], size_
         int same = strings && same_string(c, vr[i], strings[i]);
         double x = values ? values[i] : (double)NAN;
         if (write_refusal(c, vr[i], type, x, same, why, sizeof why)) {
+            stand_refusal(c, vr[i], type, x);
             return refuse(c, "%s", why);
         }
     }
@@ -602,12 +629,25 @@ static fmi2Status check_reads(Instance *c, const fmi2ValueReference vr[], size_t
 static void remember_writes(Instance *c, const fmi2ValueReference vr[], size_t n,
                             const double *values)
 {
-    for (size_t i = 0; i < n; i++) c->vars[vr[i]].value = values[i];
+    for (size_t i = 0; i < n; i++) {
+        c->vars[vr[i]].value = values[i];
+        clear_refusal(c, vr[i]);
+    }
+}
+
+/* Every refused value standing forgotten: the values in use are the start values again
+ * (fmi2Reset), or a state's (fmi2SetFMUstate), each valid. */
+static void clear_refusals(Instance *c)
+{
+    for (size_t i = 0; c->refusals && i < c->count; i++) {
+        clear_refusal(c, (fmi2ValueReference)i);
+    }
 }
 
 static void reset_values(Instance *c)
 {
     for (size_t i = 0; i < c->count; i++) c->vars[i].value = c->vars[i].start;
+    clear_refusals(c);
 }
 
 /* After a state is set: the fixed parameters' values are the state's, so that a write of
@@ -964,6 +1004,24 @@ FMI2_EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component component)
     return s;
 }
 
+/* The step from ``at`` (formatted) of ``h`` s discarded, naming the first refused value
+ * that stands (stand_refusal), with an Error line as the slave's own refusals. */
+static fmi2Status discard_for_refusal(Instance *c, const char *at, double h)
+{
+    char why[512], shown[40], text[LINE_SIZE], escaped[2 * LINE_SIZE];
+    fmi2ValueReference vr = 0;
+    while (vr < c->count && !c->vars[vr].refused) vr++;
+    const Variable *v = &c->vars[vr];
+    write_refusal(c, vr, v->type, v->refused_value, 0, why, sizeof why);
+    snprintf(text, sizeof text,
+             "doStep at t = %s s, h = %s s refused: %s, so the step would use the value "
+             "before it: write a valid value",
+             at, show(h, shown), why);
+    escape(text, escaped, sizeof escaped);
+    instance_log(c, fmi2Error, "logStatusError", escaped);
+    return fmi2Discard;
+}
+
 FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real h,
                                   fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
@@ -1011,6 +1069,7 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real 
                       "%s s given to setupExperiment (FMI 2.0: the FMU has to refuse it)",
                       at, show(h, shown), show(c->stop, now));
     }
+    if (c->refusals) return discard_for_refusal(c, at, h);
     fmi2Status s = answer(c, c->backend->step(c, t, h, noSetFMUStatePriorToCurrentPoint));
     if (s <= fmi2Warning) c->time = t + h;
     /* a master may retry a discarded step shorter or with other inputs; the same step
@@ -1357,6 +1416,7 @@ FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate sta
     if (s <= fmi2Warning) {
         c->phase = saved->phase;
         c->time = saved->time;
+        clear_refusals(c); /* the state's values are in use, each valid */
         fmi2Status read = remember_state_values(c); /* the state is set: not undone */
         if (read == fmi2Fatal) c->phase = FAILED;
         if (read > s) s = read;

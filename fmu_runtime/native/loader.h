@@ -99,6 +99,8 @@ typedef struct {
     double low, high; /* -inf / +inf if none */
     double value;     /* a fixed parameter's value: start, then each accepted write */
     double start;
+    int refused;          /* an input's or tunable parameter's value refused for itself ... */
+    double refused_value; /* ... this one, stands: each doStep is discarded (loader.c) */
     char name[NAME_SIZE];
 } Variable;
 
@@ -151,6 +153,7 @@ typedef struct {
     int discarded;          /* the last doStep was answered fmi2Discard ... */
     double discarded_at[2]; /* ... from this t, with this h (s) ... */
     unsigned long discarded_writes; /* ... when ``writes`` was this */
+    size_t refusals;   /* variables whose refused value stands (Variable.refused) */
     fmi2Status logged; /* the worst status logged during the current call */
     Variable *vars;    /* indexed by value reference */
     size_t count;
