@@ -47,8 +47,9 @@ be used (not installed: numba is optional, or ``AUV_COSIM_NO_JIT=1``) it steps t
 reference and logs a Warning, once per instance, saying why and what it costs. Both do
 the same arithmetic (agreement to 1e-12 is tested).
 
-Currents: the uniform current inputs at initialisation set the start; a step with one
-beyond ``MAX_SPEED`` (100 m/s) is refused naming it (``stepping.check_current``). When they change
+Currents: the uniform current inputs at initialisation set the start; an initialisation
+or a step with one beyond ``MAX_SPEED`` (100 m/s) is refused naming it
+(``stepping.check_current``). When they change
 between steps, the hull's velocity over ground jumps by
 ``PlantModel.current_change_velocity_jump`` (the impulse of the (Mbar + M_A) nuc_dot term),
 applied at the start of the next step; inputs are held over each step.
@@ -102,7 +103,13 @@ from plant_fmu.model.state_layout import (
     STATE_UNITS,
     STEP_STATE_NAMES,
 )
-from plant_fmu.model.stepping import DEFAULT_MAX_SUBSTEP, advance, stepping_state, substeps
+from plant_fmu.model.stepping import (
+    DEFAULT_MAX_SUBSTEP,
+    advance,
+    check_current,
+    stepping_state,
+    substeps,
+)
 
 INPUT_DESCRIPTIONS: dict[str, str] = {
     "thrust": "propeller surge thrust T",
@@ -374,6 +381,7 @@ class AuvPlant(SafeSlave):
         model = self._build_model()
         x = self._initial_state.copy()
         _check_start(x, model.params.mass_stroke, "pitch" in model.variant.states)
+        check_current(model, x, self._inputs)  # the outputs to start from take it
         frozen = [
             n
             for i, n in enumerate(STATE_NAMES[:MASS_POSITION])

@@ -220,6 +220,25 @@ def test_a_refused_input_discards_the_steps_until_a_valid_one_is_written(
         fmu.close()
 
 
+@pytest.mark.parametrize(
+    ("values", "named"),
+    [({"current_north": 1e300}, "input current_north = 1e+300 m/s: expected |current_north|"),
+     ({"current_shear_dUdy": 1.0, "east_0": 1e3}, "the current at the vehicle, north = 1000")],
+)  # fmt: skip
+def test_a_start_in_a_current_beyond_the_models_range_is_refused_naming_it(fmus, values, named):
+    """A current beyond MAX_SPEED at initialisation was taken: the relative velocities and
+    kinetic energy to start from overflowed, a read of kinetic_energy answered only
+    "getReal: kinetic_energy = inf is not finite", and the first step then named the
+    current. The initialisation names it now, as a step does."""
+    path, folder, _ = fmus["AuvPlant"]
+    fmu = Harness(path, unzip_dir=folder, initialize=False)
+    try:
+        assert fmu.try_initialize(**values)[1] == STATUS_ERROR
+        assert named in fmu.messages(STATUS_ERROR)
+    finally:
+        fmu.close()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", FMUS)
 @settings(max_examples=40, suppress_health_check=[HealthCheck.function_scoped_fixture])
