@@ -84,6 +84,7 @@ from controller_fmu.autopilot import (
     Commands,
     field_unit,
 )
+from controller_fmu.depth_pd import MAX_PITCH_LIMIT
 from controller_fmu.modes import DepthMode, HeadingMode
 from fmu_runtime.safe_slave import SafeSlave
 from fmu_runtime.variables import field_bounds, item_getter, item_setter
@@ -122,6 +123,9 @@ LOG_LIMITS = "logAutopilotLimits"  # debug log category: a command reaching or l
 LOG_TUNING = "logAutopilotTuning"  # debug log category: tunable parameters taken in a run
 # Integer parameters that choose among named modes (their range and names in the FMU)
 _MODES: dict[str, type[IntEnum]] = {"heading_mode": HeadingMode, "depth_mode": DepthMode}
+# the range a field's own check keeps (declared here: a ge/le of the field would replace
+# that check's message, which says what 0 means)
+_CHECKED_RANGES: dict[str, tuple[float, float]] = {"depth_pitch_limit": (0.0, MAX_PITCH_LIMIT)}
 
 
 def _noting_setter(values: dict[str, Any], written: set[str], key: str) -> Callable[[Any], None]:
@@ -220,6 +224,7 @@ class AuvAutopilot(SafeSlave):
                 else Fmi2Variability.fixed,
             )
             minimum, maximum = field_bounds(field) if kind is Real else (None, None)
+            minimum, maximum = _CHECKED_RANGES.get(name, (minimum, maximum))
             self.register(
                 variable,
                 unit=field_unit(name) if kind is Real else None,

@@ -239,6 +239,27 @@ def test_a_start_in_a_current_beyond_the_models_range_is_refused_naming_it(fmus,
         fmu.close()
 
 
+def test_the_pitch_limits_declared_range_is_the_one_the_autopilot_takes(fmus):
+    """depth_pitch_limit declared no min/max, so a tool could offer any value and the
+    autopilot refused one beyond 90 deg only at initialisation. The range it takes, 0 (no
+    limit) to pi/2, is declared now: the bound works, a double beyond it is refused when
+    written."""
+    path, folder, md = fmus["AuvAutopilot"]
+    var = next(v for v in md.modelVariables if v.name == "depth_pitch_limit")
+    assert var.min is not None and var.max is not None, "no range declared"
+    low, high = float(var.min), float(var.max)
+    assert low == 0.0 and high == pytest.approx(math.pi / 2, rel=1e-15)
+    for value in (low, high):
+        fmu = Harness(path, unzip_dir=folder, depth_mode=1, depth_pitch_limit=value)
+        assert fmu.step(H) == STATUS_OK
+        fmu.close()
+    for value in (math.nextafter(low, -1.0), math.nextafter(high, 2.0)):
+        fmu = Harness(path, unzip_dir=folder, initialize=False)
+        assert fmu.try_initialize(depth_pitch_limit=value)[0] == STATUS_ERROR
+        assert "depth_pitch_limit" in fmu.messages(STATUS_ERROR)
+        fmu.close()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", FMUS)
 @settings(max_examples=40, suppress_health_check=[HealthCheck.function_scoped_fixture])
