@@ -139,12 +139,14 @@ class VehicleParameters(CheckedRecord):
                 "inertias and the added masses for values like 1e308)"
             )
         self._check_parallel_axis()
-        eigenvalues = np.linalg.eigvalsh(symmetric)
-        if eigenvalues.min() <= 0.0:
+        try:  # LAPACK's Cholesky: exact enough whatever the entries' spread, where the
+            np.linalg.cholesky(symmetric)  # eigenvalues round by 1e-16 of the largest
+        except np.linalg.LinAlgError:
+            eigenvalues = np.linalg.eigvalsh(symmetric)
             raise ValueError(
                 f"M_RB + M_A must be positive definite, but its smallest eigenvalue is "
                 f"{eigenvalues.min():.6g} (check a26, a35, x_g, z_g against the inertias)"
-            )
+            ) from None
 
     def _check_parallel_axis(self) -> None:
         """Refuse a rigid body no material makes: its inertia about the body origin (the

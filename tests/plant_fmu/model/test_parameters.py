@@ -380,3 +380,14 @@ def test_a_servo_whose_stiffness_or_damping_overflows_is_refused_by_name(name, v
     bound = float(re.search(what, str(refused.value)).group(1))
     servo = load_vehicle().replace(**{name: bound})
     assert math.isfinite(servo.k_v) and math.isfinite(servo.d_v)
+
+
+@pytest.mark.parametrize("name", ["a22", "a55", "I_yy"])
+@pytest.mark.parametrize("value", [1e18, 1e20, 1e300])
+def test_a_huge_positive_inertia_is_not_refused_as_indefinite(name, value):
+    """Raising a diagonal entry of M_RB + M_A keeps it positive definite, but from 1e17 up
+    the eigenvalues' rounding (of the order of 1e-16 times the largest) made the smallest
+    come out negative, and the set was refused "M_RB + M_A must be positive definite, but
+    its smallest eigenvalue is -37.6875", a reason it does not have."""
+    p = load_vehicle().replace(**{name: value})
+    assert getattr(p, name) == value
