@@ -148,7 +148,8 @@ class Session:
             assert status in (STATUS_OK, STATUS_DISCARD, STATUS_ERROR), f"{what}: {status}"
             if self.refused_inputs:
                 assert status == STATUS_DISCARD, f"{what}: stepped on a refused input"
-                assert any(n in self.refusal(what) for n in self.refused_inputs)
+                line = self.refusal(what)
+                assert any(name in line for name in self.refused_inputs), line
                 return
             if status != STATUS_OK:
                 self.refusal(what)
