@@ -304,8 +304,8 @@ class LosGuidance:
             target=end,
         )
         if c.integral_gain > 0.0 and step > 0.0:
-            rate = c.lookahead * where.cross_track / (c.lookahead**2 + corrected**2)
-            state = replace(state, integral=state.integral + step * rate)
+            state = replace(state, integral=state.integral + step * _integral_rate(
+                c.lookahead, where.cross_track, corrected))  # fmt: skip
         self.state = state
         return output
 
@@ -322,3 +322,16 @@ class LosGuidance:
             integral = 0.0 if leg != state.leg else state.integral
             state = GuidanceState(leg=leg, legs_completed=completed, integral=integral)
         return state
+
+
+def _integral_rate(lookahead: float, cross_track: float, corrected: float) -> float:
+    """The integral LOS state's rate, 1 (m/s per m/s of the step),
+    lookahead * cross_track / (lookahead^2 + corrected^2), with ``corrected`` the
+    cross-track error plus integral_gain times the integral (m). Past |corrected| = 1e154
+    its square overflows (a float's ``**`` raises): there the same quotient through the
+    hypotenuse, which does not (and is as good as 0)."""
+    try:
+        return lookahead * cross_track / (lookahead**2 + corrected**2)
+    except OverflowError:
+        hypotenuse = math.hypot(lookahead, corrected)
+        return (lookahead / hypotenuse) * (cross_track / hypotenuse)

@@ -246,3 +246,16 @@ def test_a_cross_current_offset_is_removed_by_compensation_or_integral_action(se
     run, cross = fly(los, {"u": 1.5}, 60.0, current_east=0.2, k0=0.3, k1=0.8)
     steady = np.abs(cross[run.times >= 50.0])
     assert offset_m[0] <= steady.min() and steady.max() <= offset_m[1], steady.max()
+
+
+@pytest.mark.parametrize("gain", [1e200, 1e300, 1.7976931348623157e308])
+def test_a_huge_integral_gain_steers_without_overflowing(gain):
+    """With integral_gain = 1e300 the corrected cross-track error passed 1e154 on the
+    second step and its square overflowed: the guidance FMU's doStep failed with
+    "OverflowError: (34, 'Numerical result out of range')". The integral's rate,
+    lookahead * cross_track / (lookahead^2 + corrected^2), is then as good as 0."""
+    los = guidance("0,0,0; 100,0,0", integral_gain=gain)
+    for _ in range(3):
+        out = los.step(10.0, -1.0, step=0.05)
+        assert math.isfinite(out.yaw_setpoint) and math.isfinite(los.state.integral)
+    assert abs(wrap_angle(out.course_setpoint)) == pytest.approx(math.pi / 2, abs=1e-9)
