@@ -558,7 +558,7 @@ class AuvPlant(SafeSlave):
             self.log(  # the cost measured by scripts/bench_no_numba.py (docs/performance.md)
                 f"the compiled plant is off ({compiled.NO_JIT_REASON}): stepping the numpy "
                 "reference, same results, each step about 16 times as long (0.17 ms instead "
-                "of 0.011 ms); install numba in this Python for the compiled plant",
+                f"of 0.011 ms); {compiled.NO_JIT_FIX}",
                 Fmi2Status.warning,
             )
         return model

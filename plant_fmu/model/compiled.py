@@ -35,7 +35,7 @@ import numpy as np
 # (cosim/fmus/staging.py), which would make this file's text differ between the source
 # tree and every build.
 from .dynamics import PlantModel
-from .jit import load_numba, njit
+from .jit import load_numba, njit, numba_fix
 from .state_layout import (
     ANGULAR_VELOCITY,
     CURRENT,
@@ -51,6 +51,7 @@ from .state_layout import (
 _U, _P = LINEAR_VELOCITY.start, ANGULAR_VELOCITY.start  # u and p in the stepping state
 _CURRENT_START, _CURRENT_STOP = CURRENT.start, CURRENT.stop  # the currents in the inputs
 numba, NO_JIT_REASON = load_numba()
+NO_JIT_FIX = numba_fix(NO_JIT_REASON) if numba is None else ""  # what would turn it on
 AVAILABLE = numba is not None
 _F = TypeVar("_F", bound=Callable[..., Any])
 

@@ -5,7 +5,9 @@ fastmath, so a compiled function does the same IEEE operations on every run. Thi
 decides once per process whether numba is usable:
 
 * ``AUV_COSIM_NO_JIT=1`` in the environment turns it off (the reference numpy path runs);
-* an ``ImportError`` of numba turns it off too; callers log that as a warning.
+* a numba that cannot be imported turns it off too, whatever it raises (a broken install:
+  llvmlite's ``OSError``, numba's ``ImportError`` for a numpy it does not support);
+  callers log that as a warning with :func:`numba_fix`.
 
 Cache folder: numba's default is ``__pycache__`` next to the source, which for an FMU is
 the fresh temporary folder the importer unzips it into, so every run would compile again
@@ -46,6 +48,7 @@ import functools
 import hashlib
 import os
 import stat
+import sys
 import tempfile
 import warnings
 from collections.abc import Callable
@@ -71,6 +74,7 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 WARNED_VARIABLE = "AUV_COSIM_NUMBA_CACHE_WARNED"  # the cache folder already warned of
 # in the temporary folder, with the uid: numba's cache where there is no home folder
 TEMPORARY_CACHE_PREFIX = "auv-cosim-cache-"
+_BROKEN = "numba is installed but cannot be imported"  # how load_numba's reason says so
 
 
 def default_cache_dir() -> Path:
@@ -105,9 +109,30 @@ def load_numba() -> tuple[ModuleType | None, str]:
         import numba
         import numba.core.caching  # what _install_locator extends
     except ImportError as exc:
-        return None, f"numba cannot be imported ({exc})"
+        if isinstance(exc, ModuleNotFoundError) and exc.name == "numba":
+            return None, f"numba cannot be imported ({exc})"
+        return None, f"{_BROKEN} ({type(exc).__name__}: {exc})"
+    except Exception as exc:  # a broken install is no numba (numba is optional): llvmlite
+        # raises OSError when its shared library is missing or needs a newer glibc, a numba
+        # built for another numpy can raise AttributeError; the FMU then steps numpy's path
+        return None, f"{_BROKEN} ({type(exc).__name__}: {exc})"
     _install_locator()
     return numba, ""
+
+
+def numba_fix(reason: str) -> str:
+    """What gives this Python the compiled paths, when :func:`load_numba` said ``reason``."""
+    if reason.startswith(NO_JIT_VARIABLE):
+        return f"unset {NO_JIT_VARIABLE} for the compiled plant"
+    if not reason.startswith(_BROKEN):
+        return "install numba in this Python for the compiled plant"
+    import numpy
+
+    python = sys.executable or "python"
+    return (
+        f"repair numba for the compiled plant ({python} -m pip install --force-reinstall "
+        f"numba, a release that supports numpy {numpy.__version__})"
+    )
 
 
 def njit(numba: ModuleType, function: _F) -> _F:

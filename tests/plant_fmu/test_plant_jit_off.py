@@ -58,7 +58,7 @@ import importlib.abc, sys
 class NoNumba(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path=None, target=None):
         if name == "numba" or name.startswith("numba."):
-            raise ImportError("No module named 'numba'")
+            raise ModuleNotFoundError("No module named 'numba'", name="numba")  # as Python
         return None
 
 sys.meta_path.insert(0, NoNumba())
@@ -86,6 +86,45 @@ def test_a_host_without_numba_is_told_once_what_the_reference_path_costs(run_pyt
         "the compiled plant is off (numba cannot be imported (No module named 'numba'))" in message
     )
     assert "each step about 16 times as long" in message and "install numba" in message
+
+
+BROKEN_NUMBA = """
+import importlib.abc, sys
+
+class BrokenNumba(importlib.abc.MetaPathFinder):  # as numba is when llvmlite cannot load
+    def find_spec(self, name, path=None, target=None):
+        if name == "numba" or name.startswith("numba."):
+            raise OSError("Could not find/load shared object file")
+        return None
+
+sys.meta_path.insert(0, BrokenNumba())
+from plant_fmu.auv_plant import AuvPlant
+
+plant = AuvPlant(instance_name="broken-numba")
+plant.enter_initialization_mode()
+plant.exit_initialization_mode()
+for k in range(3):
+    assert plant.do_step(0.01 * k, 0.01), plant.log_queue
+print(repr([(m.status.name, m.msg) for m in plant.log_queue if m.status.name != "ok"]))
+"""
+
+
+def test_a_numba_that_fails_to_import_otherwise_than_by_importerror_leaves_numpy(run_python):
+    """A broken numba (its llvmlite's shared library missing or built for another glibc
+    raises OSError, a numba built for another numpy AttributeError) is no numba: the plant
+    steps the numpy reference, and its one warning names the error and how to repair numba
+    instead of telling the host to install it."""
+    done = run_python(BROKEN_NUMBA)
+    assert done.returncode == 0, done.stderr[-3000:]
+    logged = ast.literal_eval(done.stdout.strip().splitlines()[-1])
+    assert len(logged) == 1, logged
+    status, message = logged[0]
+    assert status == "warning"
+    assert "OSError: Could not find/load shared object file" in message, message
+    assert (
+        "install numba in this Python" not in message
+        and "-m pip install --force-reinstall numba" in message
+    )
 
 
 INITIALISED_TWICE = """
