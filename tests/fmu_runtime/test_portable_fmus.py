@@ -125,3 +125,21 @@ def test_cpython_3_9_with_numpy_alone_runs_the_plant(
                      PATH="/nonexistent", **{OVERRIDE_VARIABLE: str(python39_venv)})  # fmt: skip
     assert "cycles: 2 x 200 ok" in done.stdout, done.stdout[-3000:] + done.stderr[-3000:]
     assert done.stderr == ""
+
+
+def test_a_c_host_whose_numba_cannot_load_runs_the_plant_on_numpy(
+    travelled, host, tmp_path, clean_home
+):
+    """A numba whose import raises OSError, as it does when llvmlite's shared library is
+    missing or needs a newer glibc, is no numba: the plant instantiates and steps its
+    numpy path (before, fmi2Instantiate returned NULL: the plant's module failed to import;
+    the warning it logs instead is checked in tests/plant_fmu/test_plant_jit_off.py)."""
+    broken = tmp_path / "site" / "numba"
+    broken.mkdir(parents=True)
+    (broken / "__init__.py").write_text('raise OSError("Could not find/load shared object file")\n')
+    with zipfile.ZipFile(travelled["AuvPlant"]) as archive:
+        archive.extractall(tmp_path / "plant")
+    done = run_clean([host, tmp_path / "plant", "AuvPlant", "cycles", 1, 20], clean_home,
+                     PATH="/nonexistent", PYTHONPATH=str(broken.parent),
+                     **{OVERRIDE_VARIABLE: sys.executable})  # fmt: skip
+    assert "cycles: 1 x 20 ok" in done.stdout, done.stdout[-3000:] + done.stderr[-3000:]
