@@ -40,6 +40,7 @@ import ctypes
 import importlib
 import pkgutil
 import sys
+import warnings
 from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
@@ -75,6 +76,7 @@ RECORD_FILE = "fmu_runtime.txt"
 # Process-wide by nature, like sys.modules: package name -> the package object whose
 # modules import_packages has imported.
 _imported: dict[str, ModuleType] = {}
+_import_warnings: list[str] = []  # what the imports warned of, until an instance logs it
 
 
 def package_init_source(fmu: str, names: Iterable[str], shipped: Iterable[str]) -> str:
@@ -103,15 +105,27 @@ def hold_namespace(namespace: dict[str, Any]) -> None:
 
 def import_packages(package: str, names: Iterable[str]) -> None:
     """Import every module of the subpackages ``names`` of ``package`` (once per package
-    object), while the folder they are imported from exists."""
-    for name in names:
-        full = f"{package}.{name}"
-        module = importlib.import_module(full)
-        if _imported.get(full) is module:
-            continue
-        for info in pkgutil.walk_packages(module.__path__, prefix=f"{full}."):
-            importlib.import_module(info.name)
-        _imported[full] = module
+    object), while the folder they are imported from exists. A warning the imports raise
+    (numba's cache folder that cannot be written) is kept for the next instance to log
+    (:func:`take_import_warnings`): raised as a Python warning, it reached the host's
+    stderr, with a source line under it, where a host that is not Python never looks."""
+    with warnings.catch_warnings(record=True) as said:
+        for name in names:
+            full = f"{package}.{name}"
+            module = importlib.import_module(full)
+            if _imported.get(full) is module:
+                continue
+            for info in pkgutil.walk_packages(module.__path__, prefix=f"{full}."):
+                importlib.import_module(info.name)
+            _imported[full] = module
+    _import_warnings.extend(str(warning.message) for warning in said)
+
+
+def take_import_warnings() -> list[str]:
+    """The warnings :func:`import_packages` kept, once (the next instance logs them)."""
+    taken = list(dict.fromkeys(_import_warnings))
+    _import_warnings.clear()
+    return taken
 
 
 def release_search_path(resources: str | Path) -> bool:

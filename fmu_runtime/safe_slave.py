@@ -190,6 +190,8 @@ class SafeSlave(Fmi2Slave):
         # the categories whose debug (fmi2OK) messages the host takes: set by the runtime
         # (set_debug_logging); a slave formats a debug message only for one in here
         self.debug_categories: frozenset[str] = frozenset()
+        for said in entry.take_import_warnings():  # what the FMU's imports warned of
+            self.log(said, Fmi2Status.warning)
 
     # --- what subclasses call / override ---------------------------------------------------
 

@@ -18,13 +18,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from c_hosts import run_clean
+from c_hosts import compiled_host, run_clean
 from repo_paths import TESTS
 from venvs import make_venv
 
 from cosim.fmus.build import FMUS
 from cosim.fmus.native import OVERRIDE_VARIABLE
 from fmu_runtime.entry import RECORD_FILE
+from plant_fmu.model import compiled
 
 pytestmark = pytest.mark.slow
 AGREEMENT = 1e-9
@@ -143,3 +144,24 @@ def test_a_c_host_whose_numba_cannot_load_runs_the_plant_on_numpy(
                      PATH="/nonexistent", PYTHONPATH=str(broken.parent),
                      **{OVERRIDE_VARIABLE: sys.executable})  # fmt: skip
     assert "cycles: 1 x 20 ok" in done.stdout, done.stdout[-3000:] + done.stderr[-3000:]
+
+
+@pytest.mark.skipif(not compiled.AVAILABLE, reason=compiled.NO_JIT_REASON)
+def test_a_numba_cache_folder_that_cannot_be_written_is_said_to_the_hosts_logger(
+    travelled, tmp_path, clean_home
+):
+    """numba's cache folder named by the host's environment as a file: the FMU still runs,
+    compiling without a cache, and says so as a Warning to the host's logger, not as a
+    Python warning (a source line under it) on the host's stderr, where a host that is not
+    Python never looks."""
+    log_host = compiled_host(TESTS / "fmu_runtime" / "hosts" / "log_host.c", tmp_path)
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    with zipfile.ZipFile(travelled["AuvPlant"]) as archive:
+        archive.extractall(tmp_path / "plant")
+    command = [log_host, tmp_path / "plant", "AuvPlant", "contract", "plant"]
+    environment = {"NUMBA_CACHE_DIR": str(blocker), OVERRIDE_VARIABLE: sys.executable}
+    done = run_clean(command, clean_home, **environment)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert done.stderr == ""
+    assert f"numba's cache folder '{blocker}'" in done.stdout, done.stdout[-3000:]
