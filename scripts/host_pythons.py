@@ -113,6 +113,14 @@ def host_python(work: Path, name: str) -> Path:
     return python
 
 
+def installed(python: Path) -> str:
+    """The numpy and numba releases pip installed for ``python`` (numba's, imported or not)."""
+    ask = "from importlib.metadata import version as v; print(v('numpy'), end=' ')\n"
+    ask += "try: print('numba', v('numba'))\nexcept Exception: print('no numba')"
+    done = subprocess.run([python, "-c", ask], capture_output=True, text=True, check=True)
+    return f"numpy {done.stdout.strip()}"
+
+
 def run(python: Path | str, work: Path, stop: float, **extra: str) -> tuple[list, list[str]]:
     """The rows of hex floats one host Python steps, and the lines it said besides."""
     env = {"PATH": "/usr/bin:/bin", "HOME": str(work / "home"), **extra}
@@ -159,8 +167,10 @@ def main() -> None:
     print(f"the build's Python: its numpy path {apart(with_numba, numpy_path)} to its numba's")
     print(f"{'host':50} {'vs build, numba':>16} {'vs build, numpy':>16}")
     for name in HOSTS:
-        rows, said = run(host_python(work, name), work, args.stop)
+        python = host_python(work, name)
+        rows, said = run(python, work, args.stop)
         print(f"{name:50} {apart(with_numba, rows):>16} {apart(numpy_path, rows):>16}")
+        print(f"    installed: {installed(python)}")
         for line in dict.fromkeys(said):
             print(f"    {line[:300]}")
 
