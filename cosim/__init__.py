@@ -44,6 +44,8 @@ if TYPE_CHECKING:
     from cosim.scenario.spec import Scenario
     from cosim.study.spec import StudyError
 
+    __version__: str  # the package's version, :mod:`cosim.version` (read at first use)
+
 __all__ = [
     "CosimError", "Run", "RunError", "RunInterrupted", "Scenario", "ScenarioError", "Study",
     "StudyError", "SweepInterrupted", "build_fmus", "load_scenario", "resume", "run",
@@ -59,21 +61,25 @@ _HOMES = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    """The API's names, imported from :mod:`cosim.api` (or their own module, ``_HOMES``)
-    at their first use; ``__version__``, the package's version (:mod:`cosim.version`)."""
-    if name == "__version__":
-        from cosim.version import version
+# Type checkers see the names above, not these two: a module __getattr__ (typed to return
+# Any) would make every misspelt name, ``cosim.rnu(...)``, an Any to a user's mypy --strict
+# or pyright, and ``cosim.__version__`` an Any, not a str
+if not TYPE_CHECKING:
 
-        return version()
-    if name in __all__:
-        value = getattr(importlib.import_module(_HOMES.get(name, "cosim.api")), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'cosim' has no attribute {name!r}")
+    def __getattr__(name: str) -> Any:
+        """The API's names, imported from :mod:`cosim.api` (or their own module, ``_HOMES``)
+        at their first use; ``__version__``, the package's version (:mod:`cosim.version`)."""
+        if name == "__version__":
+            from cosim.version import version
 
+            return version()
+        if name in __all__:
+            value = getattr(importlib.import_module(_HOMES.get(name, "cosim.api")), name)
+            globals()[name] = value
+            return value
+        raise AttributeError(f"module 'cosim' has no attribute {name!r}")
 
-def __dir__() -> list[str]:
-    """The module's names and the API's, not yet imported: ``cosim.<Tab>`` in IPython and
-    Jupyter offers ``run``, ``load_scenario``, ... before their first use."""
-    return sorted({*globals(), *__all__})
+    def __dir__() -> list[str]:
+        """The module's names and the API's, not yet imported: ``cosim.<Tab>`` in IPython and
+        Jupyter offers ``run``, ``load_scenario``, ... before their first use."""
+        return sorted({*globals(), *__all__})

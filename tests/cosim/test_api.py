@@ -29,6 +29,7 @@ import pytest
 import tomli_w
 from process_group import run_in_group
 from repo_paths import ROOT
+from users_mypy import users_mypy
 
 import cosim
 from cosim.errors import CosimError
@@ -1067,28 +1068,10 @@ def main() -> None:
 
 
 def _users_mypy(script_text: str, tmp_path: Path) -> tuple[str, int]:
-    """``mypy --strict`` of a user's script calling the package, read as installed (its own
-    errors are not the user's): mypy's report and exit status."""
-    api = pytest.importorskip("mypy.api")
+    """``mypy --strict`` of a user's script ``script_text`` (:func:`users_mypy`)."""
     script = tmp_path / "user.py"
     script.write_text(script_text, encoding="utf-8")
-    config = tmp_path / "mypy.ini"  # the user's, not this repository's pyproject.toml
-    package_root = Path(cosim.__file__).resolve().parents[1]
-    config.write_text(f"[mypy]\nmypy_path = {package_root}\n", encoding="utf-8")
-    arguments = ["--strict", "--follow-imports", "silent", "--config-file", str(config)]
-    arguments += ["--cache-dir", str(tmp_path / "cache"), str(script)]
-    limit = sys.getrecursionlimit()
-    config_folder = os.environ.get("MYPY_CONFIG_FILE_DIR")
-    try:
-        out, err, status = api.run(arguments)
-    finally:  # mypy raises it for good (2**14): a deeply nested TOML then reads as valid
-        sys.setrecursionlimit(limit)  # in the tests that run after it in this process
-        # and sets MYPY_CONFIG_FILE_DIR to the folder of the config file it read
-        if config_folder is None:
-            os.environ.pop("MYPY_CONFIG_FILE_DIR", None)
-        else:
-            os.environ["MYPY_CONFIG_FILE_DIR"] = config_folder
-    return out + err, status
+    return users_mypy([script], tmp_path)
 
 
 @pytest.mark.slow

@@ -1,0 +1,41 @@
+"""A downstream developer's ``mypy --strict`` on scripts calling cosim's public API
+(docs/api.md, "Types"): the documented calls pass, the mistakes are its errors."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from repo_paths import ROOT
+from users_mypy import users_mypy
+
+DOWNSTREAM = ROOT / "tests" / "data" / "downstream"
+ERROR_MARK = re.compile(r"# error: (.+)$")
+
+
+def _expected_errors(script: Path) -> dict[int, str]:
+    """Line number -> the start of the message mypy must give there (its ``# error:``)."""
+    lines = script.read_text(encoding="utf-8").splitlines()
+    found = {number: ERROR_MARK.search(line) for number, line in enumerate(lines, start=1)}
+    return {number: match.group(1) for number, match in found.items() if match}
+
+
+@pytest.mark.slow
+def test_a_users_mypy_strict_passes_the_documented_calls_and_catches_the_mistakes(
+    tmp_path: Path,
+) -> None:
+    """``import cosim`` names each API function through a module ``__getattr__`` typed to
+    return Any: a misspelt ``cosim.rnu("bs-3")`` was no error to a user's type checker, and
+    ``cosim.__version__`` an Any that passed for an int. Every public name used as
+    docs/api.md shows passes ``mypy --strict`` (user.py); each mistake in typos.py is an
+    error at its line, and nothing else is."""
+    user, typos = DOWNSTREAM / "user.py", DOWNSTREAM / "typos.py"
+    report, status = users_mypy([user, typos], tmp_path)
+    errors = re.findall(r"^(.+?):(\d+): error: (.+)$", report, flags=re.MULTILINE)
+    assert [e for e in errors if Path(e[0]).name != "typos.py"] == [], report
+    given = {int(line): message for _, line, message in errors}
+    for line, start in _expected_errors(typos).items():
+        assert given.get(line, "").startswith(start), f"typos.py:{line}: {start}\n{report}"
+    assert set(given) == set(_expected_errors(typos)), report
+    assert status == 1, report

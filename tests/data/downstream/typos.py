@@ -1,0 +1,16 @@
+"""A downstream user's mistakes, each a ``mypy --strict`` error at its line (``# error:``
+and the start of mypy's message): tests/cosim/test_api_typing.py checks that each is one.
+It is type-checked only, never run."""
+
+import cosim
+
+
+def mistakes() -> None:
+    """Misspelt names and options the type checker, not the run, catches."""
+    cosim.rnu("bs-3")  # error: Module has no attribute "rnu"
+    cosim.run("bs-3", algorithm="gauss_seidel")  # error: Argument "algorithm" to "run"
+    cosim.run("bs-3", extrapolation="cubic")  # error: Argument "extrapolation" to "run"
+    scenario = cosim.load_scenario("bs-3")
+    scenario.with_overrides(error_estimate="doubled")  # error: Argument "error_estimate"
+    major: int = cosim.__version__  # error: Incompatible types in assignment
+    print(major)

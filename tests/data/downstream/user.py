@@ -1,0 +1,105 @@
+"""A downstream user's script on cosim's public API (``cosim.__all__`` and docs/api.md's
+examples), which ``mypy --strict`` must pass: tests/cosim/test_api_typing.py checks it.
+It is type-checked only, never run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+import cosim
+from cosim import (
+    CosimError,
+    Run,
+    RunError,
+    RunInterrupted,
+    Scenario,
+    ScenarioError,
+    Study,
+    StudyError,
+    SweepInterrupted,
+    build_fmus,
+    load_scenario,
+    resume,
+    run,
+    sweep,
+)
+
+
+def version() -> str:
+    """The installed package's version, a str (``auv-cosim --version``)."""
+    return cosim.__version__
+
+
+def completed(done: Run) -> bool:
+    """Whether the run reached its stop time."""
+    return done.complete
+
+
+def out_folder(done: Run) -> Path | None:
+    """The run's folder, None for a run kept in memory."""
+    return done.out_dir
+
+
+def changed_scenario() -> Scenario:
+    """docs/api.md, "Change a scenario": a loaded scenario with other settings."""
+    scenario = load_scenario("bs-3").with_start({"plant.u_0": 1.2, "controller.k0": 0.3})
+    scenario = scenario.with_overrides(stop_time=2.0, algorithm="jacobi", extrapolation="linear")
+    return scenario.with_debug_logging({"plant": []})
+
+
+def runs() -> list[Run]:
+    """docs/api.md, "Run a scenario" and "Keep the run folder"."""
+    first = cosim.run("bs-3", stop_time=5.0, start={"plant.v_0": np.float32(-0.05)})
+    kept = run(
+        changed_scenario(),
+        stop_time=np.int64(3),
+        algorithm="gauss-seidel",
+        extrapolation="quadratic",
+        tolerance=1e-3,
+        check_step=True,
+        out="runs/bs-3-kept",
+        overwrite=True,
+        recording=False,
+        progress=False,
+        checkpoint_every=1.0,
+    )
+    return [first, kept, resume("runs/bs-3-kept", recording=False)]
+
+
+def refused() -> str:
+    """docs/api.md, "Errors": each error the API raises, as a user catches it."""
+    try:
+        run("bs-3", start={"plant.v_O": -0.05})
+    except ScenarioError as error:
+        return str(error)
+    except RunError as error:
+        partial: Run = error.run
+        return repr(partial)
+    except RunInterrupted as error:
+        stopped: Run = error.run
+        return repr(stopped)
+    except CosimError as error:
+        return str(error)
+    return ""
+
+
+def study() -> Study | None:
+    """docs/api.md, "Studies"."""
+    try:
+        return sweep(
+            {"scenario": "bs-3", "stop_time": 2.0, "grid": {"plant.v_0": [-0.1, 0.1]}},
+            workers=1,
+            max_runs=10,
+            fmu_log={"controller": ["logAutopilotLimits"]},
+        )
+    except StudyError:
+        return None
+    except SweepInterrupted as error:
+        return error.study
+
+
+def fmus() -> dict[str, Path]:
+    """docs/api.md, "Build the FMUs"."""
+    return build_fmus("build/fmus")
