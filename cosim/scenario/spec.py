@@ -438,6 +438,10 @@ class Scenario:
         of its own (a digital controller) keeps both. An override changes what it names
         only: another algorithm keeps the extrapolation the scenario resolved to (naming
         the algorithm it runs changes nothing) and drops the adaptive algorithm's keys.
+
+        ``stop_time`` and ``step`` are in s, ``tolerance`` the adaptive algorithm's relative
+        error a step may make (between 0 and 1, docs/coupling.md); None keeps the
+        scenario's. Raises :class:`ScenarioError` naming a value the scenario refuses.
         """
         coupling: dict[str, Any] = {}
         given = {"step": step, "algorithm": algorithm, "extrapolation": extrapolation,

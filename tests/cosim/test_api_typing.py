@@ -3,12 +3,15 @@
 
 from __future__ import annotations
 
+import inspect
 import re
 from pathlib import Path
 
 import pytest
 from repo_paths import ROOT
 from users_mypy import users_mypy
+
+import cosim
 
 DOWNSTREAM = ROOT / "tests" / "data" / "downstream"
 ERROR_MARK = re.compile(r"# error: (.+)$")
@@ -39,3 +42,20 @@ def test_a_users_mypy_strict_passes_the_documented_calls_and_catches_the_mistake
         assert given.get(line, "").startswith(start), f"typos.py:{line}: {start}\n{report}"
     assert set(given) == set(_expected_errors(typos)), report
     assert status == 1, report
+
+
+def _public_callables() -> dict[str, object]:
+    """``cosim.__all__``'s functions and the Scenario methods docs/api.md shows."""
+    named = {name: getattr(cosim, name) for name in cosim.__all__}
+    found: dict[str, object] = {n: v for n, v in named.items() if inspect.isfunction(v)}
+    for method in ("with_start", "with_overrides", "with_debug_logging"):
+        found[f"Scenario.{method}"] = getattr(cosim.Scenario, method)
+    return found
+
+
+@pytest.mark.parametrize("name", sorted(_public_callables()))
+def test_every_public_functions_help_says_what_it_raises(name: str) -> None:
+    """help() and an IDE's hover show the docstring: each public call's says what it
+    raises (``Scenario.with_overrides``' said nothing of its refusal, nor its units)."""
+    doc = inspect.getdoc(_public_callables()[name]) or ""
+    assert re.search(r"\bRaises\b", doc), f"{name}'s docstring names no exception"
