@@ -22,9 +22,12 @@ import os
 import sys
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cosim.errors import CosimError
+
+if TYPE_CHECKING:  # rerun-notebook is optional: imported on first use
+    from rerun.notebook import Viewer
 
 ASSET_VARIABLE = "RERUN_NOTEBOOK_ASSET"
 OFFLINE_ASSETS = "serve-local"  # rerun-notebook's own server of its installed viewer
@@ -72,10 +75,10 @@ def _layout(rrd: Path) -> Any:
     return notebook_blueprint(plan_panels(columns))
 
 
-def inline_viewer(rrd: str | Path, height: int = HEIGHT) -> Any:
+def inline_viewer(rrd: str | Path, height: int = HEIGHT) -> Viewer:
     """The notebook widget showing the recording ``rrd`` (a ``.rrd`` file, a run folder
     holding ``recording.rrd`` or a study folder holding ``overlay.rrd``, as ``auv-cosim
-    view`` takes); display it by ending a cell with it.
+    view`` takes), ``height`` pixels high; display it by ending a cell with it.
 
     Raises:
         CosimError: no such recording, or rerun's notebook viewer is not installed.

@@ -7,8 +7,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from rerun.notebook import Viewer
 
 import cosim
+import cosim.viz.notebook
 from cosim import (
     CosimError,
     Run,
@@ -103,3 +105,9 @@ def study() -> Study | None:
 def fmus() -> dict[str, Path]:
     """docs/api.md, "Build the FMUs"."""
     return build_fmus("build/fmus")
+
+
+def viewer(done: Run) -> Viewer:
+    """docs/api.md, "Recordings in the browser": the run's recording in a notebook."""
+    folder = done.out_dir or Path("runs/bs-3-api")
+    return cosim.viz.notebook.inline_viewer(folder, height=400)
