@@ -18,7 +18,7 @@ import types
 import typing
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any, NoReturn
+from typing import Any, ClassVar, NoReturn
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 from pydantic_core import ErrorDetails
@@ -36,7 +36,7 @@ class Strict(BaseModel):
     """The base of every part of a scenario file: unknown keys are errors, nothing coerced."""
 
     # strict: "2.0" is not a number and 2.0 not an integer (an int is a valid float)
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+    model_config: ClassVar[ConfigDict] = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 def _refused(method: str) -> Callable[..., NoReturn]:

@@ -18,7 +18,7 @@ import reprlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeAlias
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, TypeAlias
 
 import tomli_w
 from pydantic import (
@@ -156,7 +156,9 @@ class InstanceSpec(Strict):
 
 
 class ConnectionSpec(Strict):
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, populate_by_name=True)
+    model_config: ClassVar[ConfigDict] = ConfigDict(
+        extra="forbid", frozen=True, strict=True, populate_by_name=True
+    )
     from_: str = Field(alias="from", description="<instance>.<output>")
     to: str = Field(description="<instance>.<input>")
 

@@ -4,10 +4,15 @@
 from __future__ import annotations
 
 import inspect
+import json
+import os
 import re
+import shutil
+import sys
 from pathlib import Path
 
 import pytest
+from process_group import run_in_group
 from repo_paths import ROOT
 from users_mypy import users_mypy
 
@@ -59,3 +64,23 @@ def test_every_public_functions_help_says_what_it_raises(name: str) -> None:
     raises (``Scenario.with_overrides``' said nothing of its refusal, nor its units)."""
     doc = inspect.getdoc(_public_callables()[name]) or ""
     assert re.search(r"\bRaises\b", doc), f"{name}'s docstring names no exception"
+
+
+@pytest.mark.slow
+def test_pyright_knows_the_type_of_every_public_name() -> None:
+    """pyright's ``--verifytypes`` (how a type checker sees a library's public names):
+    the pydantic models' ``model_config`` left unannotated made every scenario model's
+    base, and so ``Scenario``, ``cosim.load_scenario``, ``cosim.run`` and
+    ``cosim.resume``, "partially unknown" to it."""
+    pyright = shutil.which("pyright")
+    if pyright is None:
+        pytest.skip("pyright is not installed (pip install pyright): not in the test extras")
+    command = [pyright, "--pythonpath", sys.executable, "--verifytypes", "cosim"]
+    command += ["--ignoreexternal", "--outputjson"]
+    environment = {**os.environ, "PYTHONPATH": str(ROOT)}  # this checkout's cosim
+    done = run_in_group(command, timeout=600, cwd=ROOT, env=environment)
+    symbols = json.loads(done.stdout)["typeCompleteness"]["symbols"]
+    public = {f"cosim.{name}" for name in cosim.__all__}
+    found = {s["name"]: s["diagnostics"] for s in symbols if s["name"] in public}
+    assert set(found) == public, sorted(public - set(found))
+    assert {name: d for name, d in found.items() if d} == {}
