@@ -8,39 +8,56 @@ end on SIGTERM (143) and SIGHUP (129) like on Ctrl-C, with their partial results
 
 from __future__ import annotations
 
-import argparse
-import codecs
-import errno
-import gc
 import os
-import re
-import shutil
-import signal
 import sys
-import textwrap
-import warnings
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager, nullcontext
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
-from cosim.errors import (
-    CosimError,
-    did_you_mean,
-    matplotlib_folder_in_one_line,
-    one_line,
-    one_line_warnings,
-    unencodable,
-)
-from cosim.limits import check_local_study, out_of_memory
-from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
-from cosim.study.collector import paused
-from cosim.viz.ports import FILE_PORT, WEB_PORT
-from fmu_runtime.log_text import shortened
-from plant_fmu.model.state_layout import MAX_SPEED  # a module of constants, imports nothing
+try:  # a Ctrl-C while the command imports its modules: one line and 130, no traceback
+    import argparse
+    import codecs
+    import errno
+    import gc
+    import re
+    import shutil
+    import signal
+    import textwrap
+    import warnings
+    from collections.abc import Callable, Iterator, Sequence
+    from contextlib import contextmanager, nullcontext
+    from pathlib import Path
+    from typing import TYPE_CHECKING, Any, NoReturn, TextIO
+
+    from cosim.errors import (
+        CosimError,
+        did_you_mean,
+        matplotlib_folder_in_one_line,
+        one_line,
+        one_line_warnings,
+        unencodable,
+    )
+    from cosim.limits import check_local_study, out_of_memory
+    from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
+    from cosim.study.collector import paused
+    from cosim.viz.ports import FILE_PORT, WEB_PORT
+    from fmu_runtime.log_text import shortened
+    from plant_fmu.model.state_layout import MAX_SPEED  # a module of constants, imports nothing
+except KeyboardInterrupt:
+    _main_spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+    _script = os.path.splitext(os.path.basename((sys.argv or [""])[0]))[0]
+    # the command's own start (its script, python -m cosim, python -m cosim.cli); a
+    # caller importing this module keeps its KeyboardInterrupt
+    if (
+        __name__ == "__main__"
+        or _script == "auv-cosim"
+        or (getattr(_main_spec, "name", None) == "cosim.__main__")
+    ):
+        if sys.stderr is not None:  # None: the command started with descriptor 2 closed
+            print("auv-cosim: interrupted (Ctrl-C) while starting", file=sys.stderr)
+        raise SystemExit(130) from None
+    raise
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
+    from cosim.engine.signals import StopRequest
 
 FMU_DIR_HELP = "the built-in FMUs' folder, built there when missing or out of date [%(default)s]"
 # cosim.scenario.spec.DEFAULT_TOLERANCE, not imported: every command would pay for the
@@ -241,7 +258,7 @@ def _run(args: argparse.Namespace) -> int:
         interactive=args.interactive,
         fmu_log=_fmu_logs(args.fmu_log or []),
     )
-    return run_from_cli(args.scenario, options)
+    return run_from_cli(args.scenario, options, args.held_stop)
 
 
 def _fmu_log_arg(text: str) -> tuple[str, tuple[str, ...]]:
@@ -1030,9 +1047,10 @@ def _add_model_options(a: argparse.ArgumentParser) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. With ``argv`` None (the process's own command line), ``run``
-    ignores stop signals outside the run itself, which records them
-    (:mod:`cosim.engine.signals`): one arriving after the run, while the interpreter shuts
-    down, cannot turn a finished run's exit code into a death by signal."""
+    records stop signals from the moment its arguments are read (:mod:`cosim.engine.signals`):
+    one arriving before the run caught them ends it before its first step, one arriving
+    after it, while the interpreter shuts down, cannot turn a finished run's exit code
+    into a death by signal. A Ctrl-C before that ends any command in one line, 130."""
     _null_for_closed_streams()
     _printable_anything()
     if argv is None:
@@ -1047,8 +1065,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _OutputRefusedError as exc:  # --help or --version to a standard output refusing it
         print(shortened(str(exc)), file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("auv-cosim: interrupted (Ctrl-C) while starting", file=sys.stderr)
+        return 130
+    args.held_stop = None
     if argv is None and args.command == "run":
-        _ignore_stop_signals()
+        args.held_stop = _hold_stop_signals()
         if args.connect is not None:
             _quiet_viewer_transport_log()
     if argv is None:
@@ -1222,12 +1244,21 @@ def _quiet_viewer_transport_log() -> None:
     os.environ.setdefault("RUST_LOG", VIEWER_TRANSPORT_LOG)
 
 
-def _ignore_stop_signals() -> None:
-    from cosim.engine.signals import STOP_SIGNALS, started_under_nohup
+def _hold_stop_signals() -> StopRequest:
+    """Stop signals recorded from now on, not acted on: the run takes up one that came
+    before it caught them (the import of its modules: a Ctrl-C then was lost, the run went
+    on to its end), and one after it is ignored. SIGHUP stays ignored under nohup."""
+    from cosim.engine.signals import STOP_SIGNALS, StopRequest, stop_signals
 
-    started_under_nohup()  # asked before SIGHUP is ignored here: whether nohup ignored it
+    held = StopRequest()
+    caught = stop_signals()  # asks whether nohup ignored SIGHUP before it is changed here
+
+    def hold(signum: int, _frame: Any) -> None:
+        held.record(signum)
+
     for signum in STOP_SIGNALS:
-        signal.signal(signum, signal.SIG_IGN)
+        signal.signal(signum, hold if signum in caught else signal.SIG_IGN)
+    return held
 
 
 if __name__ == "__main__":

@@ -689,11 +689,12 @@ def _complete(outputs: RunOutputs, result: RunResult, stop: StopRequest, live: b
         result.complete, result.error = False, problem
 
 
-def run_from_cli(scenario: str | None, options: RunOptions) -> int:
+def run_from_cli(scenario: str | None, options: RunOptions, held: StopRequest | None = None) -> int:
     """``auv-cosim run``: 0 if the run completed, 128 + signal number if a signal came,
     1 on failure. A signal while the report is printed is ignored too. Refused at once
     under an address-space or (recorded) open-files limit too small for the run
-    (:mod:`cosim.limits`)."""
+    (:mod:`cosim.limits`). ``held``: the stop signals the command recorded before this
+    call; one there stops the run before its first step."""
     if options.no_rrd and options.connect is None:
         check_address_space("a run", RUN_NO_RECORDING_ADDRESS_SPACE)
     else:
@@ -701,6 +702,8 @@ def run_from_cli(scenario: str | None, options: RunOptions) -> int:
         check_open_files("a run with its recording", RUN_OPEN_FILES)
     stop = StopRequest()
     with stop_on_signals(stop):
+        if held is not None and held.signum is not None:  # taken up once this call catches them
+            stop.record(held.signum)
         try:
             if options.resume and options.out_dir is not None:
                 outcome = resume_run(options.out_dir, options, stop)
