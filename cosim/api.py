@@ -26,8 +26,8 @@ import multiprocessing
 import os
 import signal
 import tempfile
-from collections.abc import Mapping, Sequence
-from contextlib import ExitStack
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -36,7 +36,7 @@ from cosim.engine.signals import REASONS
 from cosim.errors import KEYWORDS, CosimError, plain, shown
 from cosim.limits import open_files_limit_kept
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
-from cosim.runner import RunOptions, execute
+from cosim.runner import NotStartedError, RunOptions, execute
 from cosim.scratch import process_folder
 from cosim.study.signals import StudyStopped, stop_study_on_signals
 
@@ -322,8 +322,22 @@ def _executed(scenario: str | Path | Scenario, options: RunOptions, in_memory: b
         if in_memory:
             temporary = stack.enter_context(_temporary_folder())
             options = dataclasses.replace(options, out_dir=Path(temporary) / "run")
-        outcome = execute(scenario, options)
+        with _stopped_before_start():
+            outcome = execute(scenario, options)
         return _finished(outcome, in_memory, "cosim.run", stacklevel=4)
+
+
+@contextmanager
+def _stopped_before_start() -> Iterator[None]:
+    """A stop signal before the run's first step (the FMUs built or loaded): Python's
+    KeyboardInterrupt saying so, with no run to hold, not the runner's NotStartedError, a
+    CosimError that a loop going on after a failed run would swallow."""
+    try:
+        yield
+    except NotStartedError as exc:
+        if exc.exit_code == 1:  # failed, not stopped
+            raise
+        raise KeyboardInterrupt(str(exc)) from None
 
 
 def _finished(outcome: RunOutcome, in_memory: bool, caller: str, stacklevel: int) -> Run:
@@ -397,7 +411,8 @@ def resume(
         recording = _flag("recording", recording)
         rrd = folder / RECORDING_FILE if recording else None
         options = dataclasses.replace(options, rrd=rrd)
-    outcome = resume_run(folder, dataclasses.replace(options, out_dir=None))
+    with _stopped_before_start():
+        outcome = resume_run(folder, dataclasses.replace(options, out_dir=None))
     return _finished(outcome, False, "cosim.resume", stacklevel=3)
 
 
