@@ -52,6 +52,7 @@ from typing import IO
 from cosim.engine.live import LiveControl, OverrideError, Ticket
 from cosim.errors import CosimError
 from cosim.scenario.spec import Scenario
+from cosim.scenario.timeline_spec import step_decimals
 
 YAW_STEP = math.radians(5.0)  # rad per arrow press
 DEPTH_STEP = 1.0  # m per arrow press
@@ -273,7 +274,8 @@ class KeyPad:
         and the set-points, so that the time and MESSAGE_KEPT characters of the message saying
         what a key did stay in view; then the message is cut."""
         t = self.live.time
-        clock = "-" if t is None else f"{t:.2f}"
+        decimals = step_decimals(self.live.scenario.coupling.step)  # as the step is written
+        clock = "-" if t is None else f"{t:.{decimals}f}"
         yaw, depth = math.degrees(self.value("yaw_setpoint")), self.value("depth_setpoint")
         mode = int(self.value("heading_mode"))
         mass = "locked" if self.value("mass_lock_time") >= 0.0 else "free"

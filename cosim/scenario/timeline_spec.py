@@ -202,12 +202,18 @@ def first_point(time: float, h: float) -> int:
     return max(0, math.ceil(time / h - POINT_TOLERANCE))
 
 
+def step_decimals(h: float) -> int:
+    """How many decimals the step ``h`` (s) is written with (0.04: 2, 0.5: 1, 1.0: 0)."""
+    exponent = Decimal(repr(h)).normalize().as_tuple().exponent
+    return -exponent if isinstance(exponent, int) and exponent < 0 else 0
+
+
 def shown_time(t: float, h: float) -> float:
     """A communication point's time ``t`` = n ``h`` (s) as a user reads it: rounded to the
     decimals ``h`` is written with (163 x 0.04 s is 6.5200000000000005 s in floats, 6.52
     here). Only for what is shown or recorded for people; the stepping keeps n h."""
-    exponent = Decimal(repr(h)).as_tuple().exponent
-    return round(t, -exponent) if isinstance(exponent, int) and exponent < 0 else t
+    decimals = step_decimals(h)
+    return round(t, decimals) if decimals > 0 else t
 
 
 def unreached(

@@ -191,6 +191,23 @@ def test_switching_to_lqr_says_designing_until_the_run_goes_on(
     assert "heading_mode = 1 applied at t = 0.07 s" in pad.status_line(200)
 
 
+@pytest.mark.parametrize(
+    ("step", "t", "shown"), [(0.001, 1.234, "t 1.234 s"), (0.01, 1.2, "t 1.20 s"),
+                             (0.5, 1.5, "t 1.5 s"), (1.0, 3.0, "t 3 s")]
+)  # fmt: skip
+def test_the_status_line_shows_the_clock_with_the_steps_decimals(
+    bs3: Scenario, terminal: int, step: float, t: float, shown: str
+) -> None:
+    """The status line's clock had 2 decimals whatever the step: t = 1.234 s of a 1 ms run
+    read 1.23 (every other live time is shown with the step's decimals)."""
+    scenario = bs3.with_overrides(step=step)
+    live = LiveControl(scenario)
+    live.bind({}, StopRequest())
+    pad = KeyPad(live, scenario, fd=terminal, out=io.StringIO())
+    live.publish(t, np.zeros(1))
+    assert pad.status_line(200).startswith(f"{shown} yaw_sp"), pad.status_line(200)
+
+
 def test_a_set_point_change_is_told_in_the_unit_the_status_line_shows(
     bs3: Scenario, terminal: int
 ) -> None:
