@@ -14,7 +14,8 @@ into a fresh folder and renamed into place whole; a shared ``flock`` on its lock
 long as a study's session lasts, a set removed only under the exclusive lock). A set is
 renamed into place only whole (every file of its FMUs, and their copies, :func:`_damage`),
 and a set found damaged (files cut short by a power cut after the rename or by hand, a
-link dangling, a file in its place) is replaced under the exclusive lock; where another
+link dangling, a file in its place, a file written to since it was kept: a byte changed
+in place) is replaced under the exclusive lock, saying so in one line; where another
 study holds it, this one says so in one line and extracts into its own folder.
 
 Where there is no store (:func:`cosim.user_cache.store_folder`: no ``flock``, or no cache
@@ -40,7 +41,8 @@ from cosim.user_cache import LOCK_SUFFIX, publish
 
 STORE_DIR = "fmus"  # beside numba's cache folder
 KEPT = 4  # sets of FMUs kept (~5 MB each for bs-3's three)
-LAYOUT = "unpacked-1"  # what a set's folder holds (cosim.study.unpacked): part of its name
+LAYOUT = "unpacked-2"  # what a set's folder holds (cosim.study.unpacked, CHANGE_TIMES): in its name
+CHANGE_TIMES = "change-times.txt"  # in a set's folder: each file's st_ctime_ns as it was kept
 
 
 def store_folder() -> Path:
@@ -107,31 +109,57 @@ def _make_whole(
     user_cache.move_away(entry)
     _extract_set(fmu_paths, fmus, entry)
     user_cache.fcntl.flock(lock, user_cache.fcntl.LOCK_SH)  # others may use the set again
+    warnings.warn(
+        f"the kept FMUs {entry} were damaged ({damage}): extracted again",
+        RuntimeWarning,
+        stacklevel=3,
+    )
 
 
-def _damage(entry: Path, fmus: Mapping[str, Path]) -> str:
+def _damage(entry: Path, fmus: Mapping[str, Path], kept: bool = True) -> str:
     """ "" if ``entry`` holds each FMU of ``fmus`` (SHA-256 -> FMU file) whole, else what is
     wrong: each member of its archive a regular file of the size the archive declares
     (through the resource folders' links, :func:`cosim.study.unpacked._extract`) and its
-    file's copy beside it of the file's size, readable by its owner. Sizes, not contents:
-    a stat for each of the ~390 files of bs-3's three (~4 ms of CPU), where hashing them
-    would cost about what keeping the set saves; names joined as text, which costs half
-    of what pathlib does."""
+    file's copy beside it of the file's size, readable by its owner, and (``kept``: the set
+    in place, not one being extracted) not changed since it was kept. Sizes and change
+    times, not contents: a stat for each of the ~390 files of bs-3's three (~4 ms of CPU),
+    where hashing them would cost about what keeping the set saves. A file's change time
+    (st_ctime_ns) is the system's, moved by every write or chmod and set by no call of a
+    user's (``touch`` sets the modification time): a byte changed in place, the size and
+    modification time kept, shows there (:data:`CHANGE_TIMES`). Names joined as text,
+    which costs half of what pathlib does."""
+    recorded: dict[str, int] = {}
+    if kept:
+        try:
+            with open(os.path.join(entry, CHANGE_TIMES), encoding="utf-8") as listed:
+                recorded = {name: int(ns) for ns, _, name in
+                            (line.rstrip("\n").partition(" ") for line in listed)}  # fmt: skip
+        except (OSError, ValueError) as exc:
+            return f"{CHANGE_TIMES}: {getattr(exc, 'strerror', None) or exc}"
+    for name, size in _members(fmus):
+        try:
+            found = os.stat(os.path.join(entry, name))
+        except OSError as exc:
+            return f"{name}: {exc.strerror}"
+        if not stat.S_ISREG(found.st_mode) or found.st_size != size:
+            return f"{name} is {found.st_size} bytes, not {size}"
+        if not found.st_mode & stat.S_IRUSR:  # by its mode: root reads it, a worker not
+            return f"{name} cannot be read (mode {stat.S_IMODE(found.st_mode):03o})"
+        if kept and recorded.get(name) != found.st_ctime_ns:
+            return f"{name} was written to since it was kept"
+    return ""
+
+
+def _members(fmus: Mapping[str, Path]) -> list[tuple[str, int]]:
+    """(name in a set's folder, size in bytes) of every file of ``fmus`` (SHA-256 -> FMU
+    file): each FMU's copy and the members of its archive."""
+    wanted = []
     for digest, path in fmus.items():
-        wanted = [(f"{digest}.fmu", path.stat().st_size)]
+        wanted.append((f"{digest}.fmu", path.stat().st_size))
         with zipfile.ZipFile(path) as archive:
             wanted += [(f"{digest}/{info.filename}", info.file_size)
                        for info in archive.infolist() if not info.is_dir()]  # fmt: skip
-        for name, size in wanted:
-            try:
-                found = os.stat(os.path.join(entry, name))
-            except OSError as exc:
-                return f"{name}: {exc.strerror}"
-            if not stat.S_ISREG(found.st_mode) or found.st_size != size:
-                return f"{name} is {found.st_size} bytes, not {size}"
-            if not found.st_mode & stat.S_IRUSR:  # by its mode: root reads it, a worker not
-                return f"{name} cannot be read (mode {stat.S_IMODE(found.st_mode):03o})"
-    return ""
+    return wanted
 
 
 def _extract_set(fmu_paths: Mapping[str, Path], fmus: Mapping[str, Path], entry: Path) -> None:
@@ -140,8 +168,11 @@ def _extract_set(fmu_paths: Mapping[str, Path], fmus: Mapping[str, Path], entry:
 
     def fill(fresh: Path) -> None:
         unpack(fmu_paths, fresh)
-        damage = _damage(fresh, fmus)
+        damage = _damage(fresh, fmus, kept=False)
         if damage:
             raise OSError(f"not extracted whole: {damage}")
+        times = (f"{os.stat(os.path.join(fresh, name)).st_ctime_ns} {name}\n"
+                 for name, _ in _members(fmus))  # fmt: skip
+        (fresh / CHANGE_TIMES).write_text("".join(times), encoding="utf-8")
 
     publish(entry, fill)

@@ -196,6 +196,27 @@ def _copy_cut_short(folder: Path) -> None:
         file.truncate(100)
 
 
+def _flip_a_byte(path: Path) -> None:
+    """One byte of ``path`` flipped in place, its size and modification time as they were
+    (a disk's error, an editor keeping the time, ``touch -r``)."""
+    before = path.stat()
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    with path.open("r+b") as file:
+        file.write(data)
+    os.utime(path, ns=(before.st_atime_ns, before.st_mtime_ns))
+
+
+def _byte_flipped(folder: Path) -> None:
+    """A byte of a file of the kept plant flipped: the same size, another content."""
+    _flip_a_byte(next(p for p in sorted((folder / "resources").rglob("*.py")) if p.stat().st_size))
+
+
+def _copy_byte_flipped(folder: Path) -> None:
+    """A byte of the FMU file's copy beside its folder flipped."""
+    _flip_a_byte(folder.with_name(f"{folder.name}.fmu"))
+
+
 def _file_instead(folder: Path) -> None:
     """A file where the set's folder should be."""
     shutil.rmtree(folder.parent)
@@ -208,15 +229,19 @@ def _unreadable(folder: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "damage", [_cut_short, _dangle, _copy_cut_short, _file_instead, _unreadable]
-)
+    "damage",
+    [_cut_short, _dangle, _copy_cut_short, _file_instead, _unreadable, _byte_flipped,
+     _copy_byte_flipped],
+)  # fmt: skip
 def test_a_damaged_kept_set_is_replaced_by_a_whole_one(fmu_paths, cache: Path, damage: Any) -> None:
     """A kept set whose files were cut short or removed was used as it was (a plant FMU
     whose code is half a file, a worker loading a truncated copy); a file in its place
-    made every later study extract into its own folder."""
+    made every later study extract into its own folder; one a byte of whose files was
+    changed in place (the same size) was used too, sizes alone compared. It is replaced,
+    saying so in one line."""
     paths, folder = _kept_plant(fmu_paths)
     damage(folder)
-    with ExitStack() as stack:
+    with ExitStack() as stack, pytest.warns(RuntimeWarning, match=r"^the kept FMUs \S+ were"):
         found = kept_unpacked(paths, stack)
         assert found is not None, "the damaged set was not replaced"
         _assert_whole(paths, found)
@@ -236,8 +261,8 @@ def test_a_damaged_set_another_study_uses_is_left_with_one_line(fmu_paths, cache
             assert kept_unpacked(paths, stack) is None
     finally:
         os.close(other)
-    with ExitStack() as stack:  # the other study over: the next one replaces the set
-        found = kept_unpacked(paths, stack)
+    with ExitStack() as stack, pytest.warns(RuntimeWarning, match="extracted again"):
+        found = kept_unpacked(paths, stack)  # the other study over: the next one replaces it
         assert found is not None
         _assert_whole(paths, found)
 
