@@ -9,7 +9,8 @@ digest, ``SOURCE_DATE_EPOCH``, the Python it records: what decides whether a fol
 FMU is up to date, :func:`cosim.fmus.build.build_fmu`), holding ``<Name>.fmu`` and its
 ``<Name>.fmu.sha256``. A folder whose FMU is missing or out of date gets a copy of the
 kept one, checked as a folder's own is (its record, its file's hash) before it is
-copied; the builds are reproducible (the same sources give the same bytes), so a copy
+copied (a damaged one, a byte changed in place too, is built again, saying so in one
+line); the builds are reproducible (the same sources give the same bytes), so a copy
 is what a build would write. At most :data:`KEPT` are kept, the least recently used
 removed first.
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import warnings
 from collections.abc import Callable
 from contextlib import suppress
 from pathlib import Path
@@ -69,8 +71,14 @@ def fetch(
     if lock is None:
         return False
     try:
-        if not whole(kept_fmu, kept_hash):
-            return False  # damaged: the build that follows keeps its FMU in its place
+        if not whole(kept_fmu, kept_hash):  # damaged: the build that follows replaces it
+            warnings.warn(
+                f"the kept FMU {kept_fmu} is damaged (not the file its build recorded): "
+                "building it again",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            return False
         write_whole(target, lambda tmp: shutil.copyfile(kept_fmu, tmp))
         write_whole(hash_file, lambda tmp: shutil.copyfile(kept_hash, tmp))
         with suppress(OSError):
