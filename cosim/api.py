@@ -242,6 +242,7 @@ def run(
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
     progress: bool = False,
     checkpoint_every: Number | None = None,
+    fmu_log: Mapping[str, Sequence[str]] | None = None,
 ) -> Run:
     """Run a scenario and return its results, like ``auv-cosim run``.
 
@@ -273,6 +274,8 @@ def run(
     checkpoint_every : float, optional
         Simulated seconds between the run's states saved into ``out``
         (``--checkpoint-every``; needs ``out``): :func:`resume` continues it if killed.
+    fmu_log : mapping, optional
+        ``{instance: [log categories]}`` (``[]``: all): their debug log on stderr, as ``--fmu-log``.
 
     Returns
     -------
@@ -297,15 +300,20 @@ def run(
     settings = {
         "stop_time": stop_time, "step": step, "algorithm": algorithm,
         "extrapolation": extrapolation, "tolerance": tolerance, "check_step": check_step,
-        "progress": progress, "checkpoint_every": checkpoint_every,
+        "progress": progress, "checkpoint_every": checkpoint_every, "fmu_log": fmu_log,
     }  # fmt: skip
     options = _run_options(out, recording, fmu_dir, overwrite, settings)
-    start = _start(start)
-    given_fmu_dir = None if fmu_dir is DEFAULT_FMU_DIR else options.fmu_dir
-    scenario = _scenario_argument(scenario, given_fmu_dir)
-    if start:
-        scenario = _loaded(scenario, options.fmu_dir).with_start(start)
+    scenario = _started(scenario, _start(start), fmu_dir is DEFAULT_FMU_DIR, options.fmu_dir)
     return _executed(scenario, options, in_memory=out is None)
+
+
+def _started(
+    scenario: object, start: dict[str, StartValue] | None, default_fmus: bool, fmu_dir: Path
+) -> Path | Scenario:
+    """:func:`run`'s ``scenario`` checked, with the ``start`` values (already checked) if
+    any; ``fmu_dir`` the FMUs' folder, ``default_fmus`` whether it was left unsaid."""
+    scenario = _scenario_argument(scenario, None if default_fmus else fmu_dir)
+    return _loaded(scenario, fmu_dir).with_start(start) if start else scenario
 
 
 def _temporary_folder() -> tempfile.TemporaryDirectory[str]:
@@ -813,6 +821,7 @@ def _run_options(
         tolerance=_number("tolerance", settings.get("tolerance")),
         check_step=_flag("check_step", settings.get("check_step", False)),
         checkpoint_every=every,
+        fmu_log=_fmu_log(settings.get("fmu_log"), CosimError),
         progress=_flag("progress", settings["progress"]),
         no_rrd=out is None or not recording,
         fmu_dir=_folder("fmu_dir", fmu_dir),
