@@ -14,6 +14,7 @@ measured by ``scripts/resource_floor.py``)."""
 from __future__ import annotations
 
 import errno
+import os
 import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -169,8 +170,11 @@ def unwritten(exc: OSError) -> str:
     """Why a file could not be written (``exc``), in a few words: its ``strerror``, and for
     a file past this process's file-size limit (``ulimit -f``) that limit, which no free
     space on the disk tells: ``File too large: the file-size limit of this process, 65536
-    bytes (ulimit -f), stopped it: raise it``."""
+    bytes (ulimit -f), stopped it: raise it``; for a name or path too long, the system's
+    limit it is over (:func:`_too_long`)."""
     reason = exc.strerror or str(exc)
+    if exc.errno == errno.ENAMETOOLONG and exc.filename:
+        return f"{reason}{_too_long(os.fsdecode(exc.filename))}"
     if exc.errno != errno.EFBIG:
         return reason
     try:
@@ -183,4 +187,32 @@ def unwritten(exc: OSError) -> str:
     return (
         f"{reason}: the file-size limit of this process, {soft} bytes {FILE_SIZE_LIMIT}, "
         "stopped it: raise it (ulimit -f unlimited)"
+    )
+
+
+def _too_long(path: str) -> str:
+    """What made ``path`` "too long": a name over the system's limit for a name, or a path
+    over its limit for a path, which may be the temporary file's written first beside it
+    (:func:`cosim.whole_file.write_whole`'s ``.<name>.<pid>.tmp``) where ``path`` itself
+    is within it. The limits, in bytes, as the folder's file system gives them
+    (``pathconf``; none on Windows, whose message stays the system's)."""
+    pathconf = getattr(os, "pathconf", None)
+    folder = os.path.dirname(path) or "."
+    while not os.path.isdir(folder) and os.path.dirname(folder) != folder:
+        folder = os.path.dirname(folder)
+    try:
+        name_max, path_max = pathconf(folder, "PC_NAME_MAX"), pathconf(folder, "PC_PATH_MAX")  # type: ignore[misc]
+    except (OSError, ValueError, TypeError):  # no such query here
+        return ""
+    longest = max((os.fsencode(name) for name in path.split(os.sep)), key=len)
+    size = len(os.fsencode(path))
+    if len(longest) > name_max:
+        return f": a name of {len(longest)} bytes, over the system's limit of {name_max} bytes"
+    if size >= path_max:
+        return f": a path of {size} bytes, over the system's limit of {path_max - 1} bytes"
+    temporary = size + len(f"..{os.getpid()}.tmp")
+    return (
+        f": the temporary file written first beside it makes a path of {temporary} bytes, "
+        f"over the system's limit of {path_max - 1} bytes: write into a folder of a "
+        "shorter path"
     )

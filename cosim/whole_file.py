@@ -25,7 +25,8 @@ def write_whole(path: Path, write: Callable[[Path], object]) -> None:
         write(tmp)
         os.replace(tmp, path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):  # a name too long fails its removal too
+            tmp.unlink(missing_ok=True)
         why = os.strerror(exc.errno) if exc.errno else str(exc)
         raise OSError(exc.errno, why, str(path)) from exc
     except BaseException:

@@ -246,7 +246,10 @@ def build_fmu(
             f"source {digest}\nfmu {file_hash(target)}\ndate {reproducible.stamp()}\n"
             f"python {python}\n"
         )
-        write_whole(hash_file, lambda tmp: tmp.write_text(record))
+        try:
+            write_whole(hash_file, lambda tmp: tmp.write_text(record))
+        except OSError as exc:  # as _install names the FMU's own file
+            raise CosimError(f"cannot write {hash_file}: {unwritten(exc)}") from None
         kept_builds.keep(name, version, target, hash_file, whole)
     return target
 
