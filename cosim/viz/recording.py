@@ -329,9 +329,17 @@ class RerunSink:
         """Let go of the sinks (rerun writes the file's footer) and of the streams (their
         threads end), then close the file; raises OSError if the file failed."""
         channels, self._channels = self._channels, []
+        viewer = any(not channel.is_file for channel in channels)
         _disconnect_all(channels)
         del channels
-        drop_closed_streams()
+        try:
+            drop_closed_streams()
+        except RuntimeError as exc:
+            # a stream flushed to a viewer gone away: this sink's, or another sink's let go
+            # of (a run's viewer sink beside its file's, whose own flush warned); a file's
+            # failure is its writer's, raised by its close below
+            if viewer:
+                self._viewer_gone(exc)
         if self._file is not None:
             file, self._file = self._file, None
             file.close(timeout=FLUSH_TIMEOUT)
@@ -345,9 +353,7 @@ class RerunSink:
             except RuntimeError as exc:  # the bindings' error for a sink that failed
                 if channel.is_file and self._rrd_path is not None and self._file is None:
                     raise OSError(_write_failure(self._rrd_path, exc)) from None  # rerun's writer
-                if not self._viewer_warned:
-                    self._viewer_warned = True
-                    warnings.warn(f"Rerun viewer: {exc}", stacklevel=4)
+                self._viewer_gone(exc)
         if self._file is not None and any(channel.is_file for channel in channels):
             try:
                 size = self._file.sync(FLUSH_TIMEOUT)
@@ -355,6 +361,12 @@ class RerunSink:
                 raise OSError(_with_free_space(str(exc), self._file.path)) from None
             if self._on_flushed is not None:
                 self._on_flushed(size)
+
+    def _viewer_gone(self, exc: RuntimeError) -> None:
+        """Warn, once, that the viewer went away: the run and its file go on without it."""
+        if not self._viewer_warned:
+            self._viewer_warned = True
+            warnings.warn(f"Rerun viewer: {exc}", stacklevel=5)
 
     def __enter__(self) -> RerunSink:
         return self
