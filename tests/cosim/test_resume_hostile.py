@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 from cosim.errors import CosimError
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
 from cosim.outputs.run_files import read_manifest
-from cosim.runner import RunOptions, resume_run, run_scenario
+from cosim.runner import RunOptions, RunOutcome, resume_run, run_scenario
 
 Edit = Callable[[dict[str, Any]], object]
 
@@ -248,6 +248,17 @@ def test_any_one_value_of_a_checkpoint_changed_is_refused_or_resumes_exactly(
     saved = json.loads((stopped / CHECKPOINT_FILE).read_text())
     where = data.draw(st.sampled_from(_leaves(saved)))
     odd = data.draw(st.sampled_from(ODD))
+    out, outcome = _resumed_with(stopped, tmp_path_factory.mktemp("odd"), where, odd, fmu_dir)
+    if outcome is not None:
+        assert (out / "results.csv").read_bytes() == (stopped / "results.csv").read_bytes()
+
+
+def _resumed_with(
+    source: Path, tmp_path: Path, where: tuple[Any, ...], odd: object, fmu_dir: Path
+) -> tuple[Path, RunOutcome | None]:
+    """``source``'s killed copy (:func:`_killed`) with the checkpoint's value at ``where``
+    made ``odd``, resumed: its folder and outcome, the outcome None where the resume was
+    refused in one line with the folder left as it was."""
 
     def edit(checkpoint: dict[str, Any]) -> None:
         parent = checkpoint
@@ -255,16 +266,15 @@ def test_any_one_value_of_a_checkpoint_changed_is_refused_or_resumes_exactly(
             parent = parent[key]
         parent[where[-1]] = odd
 
-    out = _killed(stopped, tmp_path_factory.mktemp("odd"), edit)
+    out = _killed(source, tmp_path, edit)
     before = _files(out)
     try:
         with deadline(60, "no answer"):
-            resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
+            return out, resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
     except CosimError as exc:
         assert "\n" not in str(exc)
         assert _files(out) == before
-    else:
-        assert (out / "results.csv").read_bytes() == (stopped / "results.csv").read_bytes()
+        return out, None
 
 
 EVENTS = """
@@ -404,22 +414,8 @@ def test_any_one_timeline_value_changed_is_refused_or_resumes_a_whole_run(
     saved = json.loads((evented / CHECKPOINT_FILE).read_text())
     where = data.draw(st.sampled_from(_timeline_leaves(saved)))
     odd = data.draw(st.sampled_from(ODD))
-
-    def edit(checkpoint: dict[str, Any]) -> None:
-        parent = checkpoint
-        for key in where[:-1]:
-            parent = parent[key]
-        parent[where[-1]] = odd
-
-    out = _killed(evented, tmp_path_factory.mktemp("odd"), edit)
-    before = _files(out)
-    try:
-        with deadline(60, "no answer"):
-            outcome = resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir))
-    except CosimError as exc:
-        assert "\n" not in str(exc)
-        assert _files(out) == before
-    else:
+    out, outcome = _resumed_with(evented, tmp_path_factory.mktemp("odd"), where, odd, fmu_dir)
+    if outcome is not None:
         assert outcome.result.complete, outcome.result.error
         rows = (out / "results.csv").read_bytes()
         assert rows.count(b"\n") == (evented / "results.csv").read_bytes().count(b"\n")
