@@ -52,25 +52,36 @@ def test_plant_fmu_agrees_with_the_compiled_path_off(scenario, fmu_paths, run_py
     np.testing.assert_allclose(values["off"], values["on"], rtol=1e-12, atol=1e-12)
 
 
-WITHOUT_NUMBA = """
+def _plant_where_numba_raises(raised: str) -> str:
+    """A script stepping the plant three times where importing numba raises ``raised``
+    (a Python expression) and printing the non-OK messages it logged."""
+    return f"""
 import importlib.abc, sys
 
-class NoNumba(importlib.abc.MetaPathFinder):
+class NumbaRaises(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path=None, target=None):
         if name == "numba" or name.startswith("numba."):
-            raise ModuleNotFoundError("No module named 'numba'", name="numba")  # as Python
+            raise {raised}
         return None
 
-sys.meta_path.insert(0, NoNumba())
+sys.meta_path.insert(0, NumbaRaises())
 from plant_fmu.auv_plant import AuvPlant
 
-plant = AuvPlant(instance_name="no-numba")
+plant = AuvPlant(instance_name="numba-raises")
 plant.enter_initialization_mode()
 plant.exit_initialization_mode()
 for k in range(3):
     assert plant.do_step(0.01 * k, 0.01), plant.log_queue
 print(repr([(m.status.name, m.msg) for m in plant.log_queue if m.status.name != "ok"]))
 """
+
+
+# as Python raises it for a numba not installed
+WITHOUT_NUMBA = _plant_where_numba_raises(
+    'ModuleNotFoundError("No module named \'numba\'", name="numba")'
+)
+# as numba's import raises where llvmlite's shared library cannot load
+BROKEN_NUMBA = _plant_where_numba_raises('OSError("Could not find/load shared object file")')
 
 
 def test_a_host_without_numba_is_told_once_what_the_reference_path_costs(run_python):
@@ -86,27 +97,6 @@ def test_a_host_without_numba_is_told_once_what_the_reference_path_costs(run_pyt
         "the compiled plant is off (numba cannot be imported (No module named 'numba'))" in message
     )
     assert "each step about 16 times as long" in message and "install numba" in message
-
-
-BROKEN_NUMBA = """
-import importlib.abc, sys
-
-class BrokenNumba(importlib.abc.MetaPathFinder):  # as numba is when llvmlite cannot load
-    def find_spec(self, name, path=None, target=None):
-        if name == "numba" or name.startswith("numba."):
-            raise OSError("Could not find/load shared object file")
-        return None
-
-sys.meta_path.insert(0, BrokenNumba())
-from plant_fmu.auv_plant import AuvPlant
-
-plant = AuvPlant(instance_name="broken-numba")
-plant.enter_initialization_mode()
-plant.exit_initialization_mode()
-for k in range(3):
-    assert plant.do_step(0.01 * k, 0.01), plant.log_queue
-print(repr([(m.status.name, m.msg) for m in plant.log_queue if m.status.name != "ok"]))
-"""
 
 
 def test_a_numba_that_fails_to_import_otherwise_than_by_importerror_leaves_numpy(run_python):
