@@ -112,7 +112,8 @@ class RunOptions:
     (:mod:`cosim.scenario.mission_doubts`). ``checkpoint_every`` (simulated s) writes
     the run's state into ``<out_dir>/checkpoint.json`` that often and where a signal stops
     it; ``resume`` continues the run in ``out_dir`` from its checkpoint (use
-    :func:`resume_run`; :mod:`cosim.outputs.checkpoint_file`).
+    :func:`resume_run`; :mod:`cosim.outputs.checkpoint_file`); ``rrd_from_checkpoint``:
+    ``rrd`` is the checkpoint's recording, not one the user gave (a refusal says so).
     """
 
     out_dir: Path | None = None
@@ -139,6 +140,7 @@ class RunOptions:
     fmu_log: Mapping[str, tuple[str, ...]] | None = None
     checkpoint_every: float | None = None
     resume: bool = False
+    rrd_from_checkpoint: bool = False
 
 
 class NotStartedError(CosimError):
@@ -202,7 +204,8 @@ def execute(
     default_for = _reference(scenario) if options.out_dir is None else None
     out_dir = options.out_dir if options.out_dir is not None else RUNS_DIR / _id_of(scenario)
     if options.rrd is not None and not options.no_rrd:
-        check_recording_path(out_dir, options.rrd, options.overwrite)
+        named = _recording_named(options, out_dir)
+        check_recording_path(out_dir, options.rrd, options.overwrite, named)
     handlers: AbstractContextManager[StopRequest | None] = nullcontext(stop)
     if stop is None:
         stop = StopRequest()
@@ -303,10 +306,40 @@ def resume_run(
     loaded = load_scenario(scenario, fmu_dir=options.fmu_dir)
     saved.check(loaded)
     if not options.no_rrd and options.rrd is None and saved.keeps_recording:  # as the run did
-        rrd = saved.recording()
-        options = replace(options, no_rrd=rrd is None, rrd=rrd)
+        rrd = _checkpoint_recording(saved.recording(), Path(out_dir), names)
+        options = replace(options, no_rrd=rrd is None, rrd=rrd, rrd_from_checkpoint=True)
     resumed = replace(options, out_dir=Path(out_dir), overwrite=True, resume=True)
     return execute(loaded, resumed, stop)
+
+
+def _checkpoint_recording(rrd: Path | None, out_dir: Path, names: OptionNames) -> Path | None:
+    """The checkpoint's recording ``rrd``, which the resume writes again, if it is a file
+    the run wrote (its manifest lists it). checkpoint.json is a file anyone may edit: a
+    recording elsewhere that the run never wrote is refused (one line), not created."""
+    from cosim.outputs.run_files import read_manifest
+
+    if rrd is None or rrd == out_dir / RECORDING_FILE:
+        return rrd
+    manifest = read_manifest(out_dir, names, "resume")
+    if manifest.name_of(rrd) not in manifest.entries:
+        instead = (  # (the API's resume says recording=, not rrd=)
+            "recording=True (its own recording.rrd) or recording=False"
+            if names.keywords
+            else f"{names.given('rrd', 'PATH')} or {names.switch('no_rrd')}"
+        )
+        raise CosimError(
+            f"{names.given('resume', out_dir)}: its checkpoint's recording {rrd} is not a "
+            f"file the run wrote (its manifest does not list it); resume with {instead}"
+        )
+    return rrd
+
+
+def _recording_named(options: RunOptions, out_dir: Path) -> str:
+    """How a refusal of the recording's path names it: as given (``--rrd PATH``), or as
+    the checkpoint of the run resumed in ``out_dir`` gave it."""
+    if options.rrd_from_checkpoint:
+        return f"{options.names.given('resume', out_dir)}: its checkpoint's recording {options.rrd}"
+    return f"--rrd {options.rrd}"
 
 
 def _checkpoints(
@@ -616,7 +649,7 @@ def _open_outputs(
     folder.start_guard(folder.path / RESULTS_FILE, rrd)
     folder.set_aside_earlier_run()
     if rrd is not None:
-        folder.lock_recording(rrd)
+        folder.lock_recording(rrd, _recording_named(options, folder.path))
     recorder = rerun_sink if options.real_time is None else _background_rerun_sink
     outputs = RunOutputs.open(
         scenario, folder, rrd, options.connect, progress, recorder, options.results_csv

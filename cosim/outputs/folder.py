@@ -151,7 +151,7 @@ class RunFolder:
         if not path.is_dir():
             raise RunFolderError(f"{out}: exists and is not a folder")
         try:
-            lock_fd = lock_folder(path, names=names)
+            lock_fd = lock_folder(path, names=names, option="resume" if resuming else "out")
         except RunFolderError:
             if created:
                 with contextlib.suppress(OSError):
@@ -242,50 +242,57 @@ class RunFolder:
         self._new.append(path.absolute())
         self._tell_guard(f"new {json.dumps(str(path.absolute()))}\n")
 
-    def lock_recording(self, rrd: Path) -> None:
+    def lock_recording(self, rrd: Path, named: str | None = None) -> None:
         """Lock the recording file as the folder is locked: a second run writing the same
         file is refused at once. An existing file there (a recording of ours, as
         :func:`check_recording_path` made sure) is set aside like the earlier run's files.
-        Raises RunFolderError."""
+        Raises RunFolderError, naming the recording as ``named`` (default ``--rrd PATH``)."""
         rrd = Path(rrd)
+        named = named or f"--rrd {rrd}"
         if os.path.lexists(rrd):
-            self._set_aside_recording(rrd)
+            self._set_aside_recording(rrd, named)
         try:
             rrd.parent.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:  # (a file where a folder is: not NotADirectoryError here)
+            message = os.strerror(errno.ENOTDIR)
+            raise RunFolderError(f"{named}: cannot create it: {message}") from None
+        except OSError as exc:
+            raise RunFolderError(f"{named}: cannot create it: {exc.strerror or exc}") from None
+        try:
             fd = os.open(rrd, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o666)
         except FileExistsError:
-            raise RunFolderError(f"--rrd {rrd}: another process created it just now") from None
+            raise RunFolderError(f"{named}: another process created it just now") from None
         except OSError as exc:
-            raise RunFolderError(f"--rrd {rrd}: cannot create it: {exc.strerror or exc}") from None
+            raise RunFolderError(f"{named}: cannot create it: {exc.strerror or exc}") from None
         self._created(rrd)
         if not _try_lock(fd):
             os.close(fd)
-            raise RunFolderError(f"--rrd {rrd}: another run is writing this recording")
+            raise RunFolderError(f"{named}: another run is writing this recording")
         self._rrd_fd = fd
         self._rrd_created = rrd
         self._tell_guard("lock\n", fd)  # held by the guard until the recording is whole
 
-    def _set_aside_recording(self, rrd: Path) -> None:
+    def _set_aside_recording(self, rrd: Path, named: str) -> None:
         """Set an existing recording at ``rrd`` aside, once sure it is a recording of ours
         that no run is writing."""
         if not is_our_recording(rrd):
             raise RunFolderError(
-                f"--rrd {rrd}: exists and is not a recording auv-cosim wrote; choose a new file"
+                f"{named}: exists and is not a recording auv-cosim wrote; choose a new file"
             )
         try:
             fd = os.open(rrd, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
         except OSError as exc:
-            raise RunFolderError(f"--rrd {rrd}: cannot open it: {exc.strerror or exc}") from None
+            raise RunFolderError(f"{named}: cannot open it: {exc.strerror or exc}") from None
         try:
             if not _try_lock(fd):
                 raise RunFolderError(
-                    f"--rrd {rrd}: another run is writing this recording; wait for it to end "
+                    f"{named}: another run is writing this recording; wait for it to end "
                     "or choose another file"
                 )
             identity = file_identity(rrd)
             if identity is None:
-                raise RunFolderError(f"--rrd {rrd}: changed while it was checked; try again")
-            self.aside.move(rrd, identity, f"--rrd {rrd}")
+                raise RunFolderError(f"{named}: changed while it was checked; try again")
+            self.aside.move(rrd, identity, named)
         finally:
             os.close(fd)
 
@@ -374,10 +381,14 @@ class RunFolder:
                 self._guard.stdin.flush()
 
 
-def check_recording_path(out_dir: Path, rrd: Path, overwrite: bool) -> None:
+def check_recording_path(
+    out_dir: Path, rrd: Path, overwrite: bool, named: str | None = None
+) -> None:
     """Refuse a recording path that is another file of the run, a folder, or anything but
     a new file or a regular file holding a recording this tool wrote; an existing one
-    (outside the run folder's own recording) also needs ``overwrite``."""
+    (outside the run folder's own recording) also needs ``overwrite``. A refusal names the
+    recording as ``named`` (default ``--rrd PATH``: a resume's checkpoint names its own)."""
+    named = named or f"--rrd {rrd}"
     target = Path(rrd).resolve()
     for name in (
         RESULTS_FILE,
@@ -389,39 +400,47 @@ def check_recording_path(out_dir: Path, rrd: Path, overwrite: bool) -> None:
     ):
         if target == (out_dir / name).resolve():
             raise RunFolderError(
-                f"--rrd {rrd}: that is the run's {name}; choose another file for the recording"
+                f"{named}: that is the run's {name}; choose another file for the recording"
             )
     if target.is_dir():
-        raise RunFolderError(f"--rrd {rrd}: is a folder; expected the path of a .rrd file")
+        raise RunFolderError(f"{named}: is a folder; expected the path of a .rrd file")
     if not os.path.lexists(rrd):
         return
     if os.path.islink(rrd):
-        raise RunFolderError(f"--rrd {rrd}: is a link; give the file itself, or a new path")
+        raise RunFolderError(f"{named}: is a link; give the file itself, or a new path")
     if not regular(Path(rrd)):
         raise RunFolderError(
-            f"--rrd {rrd}: is not a regular file (a device, pipe or socket); expected the "
+            f"{named}: is not a regular file (a device, pipe or socket); expected the "
             "path of a new .rrd file or of an earlier recording"
         )
     if not is_our_recording(Path(rrd)):
         raise RunFolderError(
-            f"--rrd {rrd}: exists and is not a recording auv-cosim wrote (only a new file or "
+            f"{named}: exists and is not a recording auv-cosim wrote (only a new file or "
             "an earlier recording is written over); choose another file"
         )
     own = (out_dir / RECORDING_FILE).resolve()
     if target != own and not overwrite:
-        raise RunFolderError(f"--rrd {rrd}: exists; pass --overwrite to replace it")
+        raise RunFolderError(f"{named}: exists; pass --overwrite to replace it")
 
 
-def lock_folder(path: Path, kind: str = "run", names: OptionNames = FLAGS) -> int:
+def lock_folder(
+    path: Path, kind: str = "run", names: OptionNames = FLAGS, option: str = "out"
+) -> int:
     """Lock the folder ``path`` (a ``kind`` folder: "run" or "study") without waiting;
     return the lock's descriptor (:func:`unlock_folder` releases it). Raises
-    RunFolderError naming the process holding it (and the options as ``names`` does)."""
+    RunFolderError naming the process holding it (and the folder as ``names`` name
+    ``option``: out, or resume for a run resumed in its own folder)."""
     lock = path / LOCK_FILE
     for _ in range(5):  # a previous holder may remove the file between open and lock
-        fd = _open_lock(path, kind, names)
+        fd = _open_lock(path, kind, names, option)
         if not _try_lock(fd):
             holder = _holder(fd)
             os.close(fd)
+            if option == "resume":  # no other folder to choose: the run is this one's
+                raise RunFolderError(
+                    f"{names.given(option, path)}: the run folder is in use by {holder}: "
+                    "wait for that run to end, then resume again"
+                )
             raise RunFolderError(
                 f"{kind} folder {path} is in use by {holder}: wait for that {kind} to end or "
                 f"choose another {names.option('out')}"
@@ -439,7 +458,7 @@ def lock_folder(path: Path, kind: str = "run", names: OptionNames = FLAGS) -> in
             except OSError as exc:  # a full disk: no lock file left behind
                 unlock_folder(path, fd)
                 raise RunFolderError(
-                    f"{names.given('out', path)}: cannot write {lock}: {exc.strerror or exc}"
+                    f"{names.given(option, path)}: cannot write {lock}: {exc.strerror or exc}"
                 ) from None
             return fd
         os.close(fd)
@@ -449,7 +468,7 @@ def lock_folder(path: Path, kind: str = "run", names: OptionNames = FLAGS) -> in
 _NO_FOLLOW = getattr(os, "O_NOFOLLOW", 0)  # not on Windows
 
 
-def _open_lock(path: Path, kind: str, names: OptionNames) -> int:
+def _open_lock(path: Path, kind: str, names: OptionNames, option: str) -> int:
     """Open (or create) the lock file of the folder ``path``: a regular file of one name,
     never through a link. A folder from elsewhere (a tarball, a shared /tmp folder) may
     hold the lock file as a symbolic or hard link to one of the user's files, which the
@@ -460,7 +479,7 @@ def _open_lock(path: Path, kind: str, names: OptionNames) -> int:
     except OSError as exc:
         if exc.errno != errno.ELOOP:
             raise RunFolderError(
-                f"{names.given('out', path)}: cannot write in the {kind} folder: "
+                f"{names.given(option, path)}: cannot write in the {kind} folder: "
                 f"{exc.strerror or exc}"
             ) from None
         refusal = "a symbolic link"
@@ -472,9 +491,14 @@ def _open_lock(path: Path, kind: str, names: OptionNames) -> int:
     if refusal:
         raise RunFolderError(
             f"{kind} folder {path}: {LOCK_FILE}: {refusal}, not a lock file of ours (from "
-            f"wherever the folder came); remove it, or choose another {names.option('out')}"
+            f"wherever the folder came); remove it{_or_another(names, option)}"
         )
     return fd
+
+
+def _or_another(names: OptionNames, option: str) -> str:
+    """The end of a refusal of the folder: choose another one (none for a resume)."""
+    return "" if option == "resume" else f", or choose another {names.option(option)}"
 
 
 def unlock_folder(path: Path, fd: int) -> None:
