@@ -44,7 +44,7 @@ import warnings
 from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, cast
 
 _PACKAGE_INIT = '''"""The Python code of {fmu}.fmu and its siblings of one build (by the build).
 
@@ -108,8 +108,12 @@ def import_packages(package: str, names: Iterable[str]) -> None:
     object), while the folder they are imported from exists. A warning the imports raise
     (numba's cache folder that cannot be written) is kept for the next instance to log
     (:func:`take_import_warnings`): raised as a Python warning, it reached the host's
-    stderr, with a source line under it, where a host that is not Python never looks."""
-    with warnings.catch_warnings(record=True) as said:
+    stderr, with a source line under it, where a host that is not Python never looks.
+    A host's filter that makes warnings errors (``-W error``) is for its own code: here
+    it keeps the warning too, where it failed the import and so fmi2Instantiate."""
+    with warnings.catch_warnings(record=True) as said:  # (restores the filters after)
+        rules = cast("list[Any]", warnings.filters)  # a list (typeshed: a Sequence)
+        rules[:] = [("default", *rule[1:]) if rule[0] == "error" else rule for rule in rules]
         for name in names:
             full = f"{package}.{name}"
             module = importlib.import_module(full)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 import types
+import warnings
 
 from fmu_runtime import entry
 from fmu_runtime.safe_slave import SafeSlave
@@ -68,3 +69,24 @@ def test_search_path_entry_is_removed_only_when_it_is_an_fmu_extraction(monkeypa
     assert sys.path == ["/elsewhere"]
     assert entry.release_search_path(tmp_path) is False
     assert sys.path == ["/elsewhere"]
+
+
+def test_an_import_warning_is_kept_for_the_logger_under_a_hosts_error_filter(tmp_path, monkeypatch):
+    """Guards a host's ``-W error`` (or pytest's ``filterwarnings = error``) turning a
+    warning of the FMU's imports (numba's cache folder that cannot be written), which the
+    next instance logs, into an exception that fails fmi2Instantiate."""
+    (tmp_path / "warnpkg" / "sub").mkdir(parents=True)
+    (tmp_path / "warnpkg" / "__init__.py").write_text("")
+    (tmp_path / "warnpkg" / "sub" / "__init__.py").write_text(
+        "import warnings\nwarnings.warn('cache folder cannot be written', RuntimeWarning)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    entry.take_import_warnings()  # none of an earlier test's
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            entry.import_packages("warnpkg", ["sub"])
+            assert warnings.filters[0][0] == "error"  # the host's filters as they were
+    finally:
+        _forget("warnpkg")
+    assert entry.take_import_warnings() == ["cache folder cannot be written"]
