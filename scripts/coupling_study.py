@@ -380,6 +380,23 @@ def _merged(page_table: str, table: str, only: Sequence[str]) -> str:
     return "\n".join(table.splitlines()[:2] + [line for sid in ids for line in rows[sid]])
 
 
+def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Refuse (one line, before a run) an id that is no built-in scenario, and tolerances
+    given to a part that reads none or that no run could meet."""
+    known = builtin_scenarios()
+    for scenario in args.scenarios or []:
+        if scenario not in known:
+            parser.error(
+                f"--scenarios: unknown scenario {scenario!r}; expected built-in ids "
+                f"({', '.join(known)})"
+            )
+    if args.tolerances is not None and args.part != "adaptive":
+        parser.error(f"--tolerances: only with adaptive (the {args.part} part reads none)")
+    for tolerance in args.tolerances or []:
+        if not (np.isfinite(tolerance) and tolerance > 0.0):
+            parser.error(f"--tolerances: {tolerance!r} is not a positive finite number")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("part", choices=["shipped", "check-step", "adaptive", "scatter"])
@@ -393,6 +410,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--write", action="store_true", help="into docs/coupling.md")
     args = parser.parse_args(argv)
+    _check_arguments(parser, args)
     if args.part == "shipped":
         table = shipped(args.scenarios or list(builtin_scenarios()))
     elif args.part == "check-step":

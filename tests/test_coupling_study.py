@@ -106,3 +106,24 @@ def test_the_trajectory_error_names_the_output_and_time_it_is_largest_at(
     assert (column, at) == ("plant.p", pytest.approx(4.4))
     assert error == pytest.approx(0.01 / (abs(np.sin(4.4)) + 1.0), rel=1e-5)
     assert study._error(measured, reference) == error
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["scatter", "--scenarios", "nope"], "--scenarios: unknown scenario 'nope'"),
+        (["scatter", "--tolerances", "1e-3"], "--tolerances: only with adaptive"),
+        (["adaptive", "--tolerances", "-1"], "--tolerances: -1.0 is not"),
+        (["adaptive", "--tolerances", "nan"], "--tolerances: nan is not"),
+    ],
+)
+def test_a_bad_argument_is_refused_in_one_line_before_a_run(
+    study: ModuleType, argv: list[str], said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Guards an unknown scenario id ending the study with a ScenarioError traceback, and
+    tolerances the part asked for never reads (or none could meet) being taken silently."""
+    with pytest.raises(SystemExit) as ended:
+        study.main(argv)
+    assert ended.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert said in error and "Traceback" not in error, error
