@@ -40,8 +40,10 @@ import ctypes
 import importlib
 import pkgutil
 import sys
+import threading
 import warnings
 from collections.abc import Iterable
+from contextlib import AbstractContextManager
 from pathlib import Path
 from types import ModuleType
 from typing import Any, cast
@@ -110,8 +112,11 @@ def import_packages(package: str, names: Iterable[str]) -> None:
     (:func:`take_import_warnings`): raised as a Python warning, it reached the host's
     stderr, with a source line under it, where a host that is not Python never looks.
     A host's filter that makes warnings errors (``-W error``) is for its own code: here
-    it keeps the warning too, where it failed the import and so fmi2Instantiate."""
-    with warnings.catch_warnings(record=True) as said:  # (restores the filters after)
+    it keeps the warning too, where it failed the import and so fmi2Instantiate. Builds
+    imported from several threads take turns (:func:`_warnings_lock`); a warning another
+    thread of the host raises meanwhile is kept with them (the warnings module's state is
+    process-wide in Python before 3.14)."""
+    with _warnings_lock(), warnings.catch_warnings(record=True) as said:
         rules = cast("list[Any]", warnings.filters)  # a list (typeshed: a Sequence)
         rules[:] = [("default", *rule[1:]) if rule[0] == "error" else rule for rule in rules]
         for name in names:
@@ -123,6 +128,18 @@ def import_packages(package: str, names: Iterable[str]) -> None:
                 importlib.import_module(info.name)
             _imported[full] = module
     _import_warnings.extend(str(warning.message) for warning in said)
+
+
+def _warnings_lock() -> AbstractContextManager[Any]:
+    """The lock every build package's imports hold while they keep warnings: one per
+    process, not one per copy of this module (each build package has its own).
+    catch_warnings swaps process-wide functions and puts back what it found at its start:
+    two builds imported from two threads at once, the later to end put the earlier's
+    recorder back, and warnings went to a list no one read or to the host's stderr.
+    (No deadlock: a build's imports never wait for another build's package.)"""
+    # setdefault on a module's dict is one step under the GIL: one lock, whoever is first
+    lock = vars(warnings).setdefault("_auv_cosim_import_lock", threading.RLock())
+    return cast("AbstractContextManager[Any]", lock)
 
 
 def take_import_warnings() -> list[str]:

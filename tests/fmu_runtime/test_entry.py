@@ -90,3 +90,44 @@ def test_an_import_warning_is_kept_for_the_logger_under_a_hosts_error_filter(tmp
     finally:
         _forget("warnpkg")
     assert entry.take_import_warnings() == ["cache folder cannot be written"]
+
+
+TWO_BUILDS = """
+import sys, threading, warnings
+from pathlib import Path
+from fmu_runtime import entry
+
+folder = Path(sys.argv[1])
+(folder / "sync.py").write_text("import threading\\nb_importing = threading.Event()\\n")
+# pa's import waits for pb's to start; pb's ends after pa's has ended (0.5 s later)
+waits = {"pa": "sync.b_importing.wait(2)", "pb": "sync.b_importing.set(); time.sleep(0.5)"}
+for name, wait in waits.items():
+    (folder / name / "sub").mkdir(parents=True)
+    (folder / name / "__init__.py").write_text("")
+    (folder / name / "sub" / "__init__.py").write_text(
+        f"import sync, time, warnings\\n{wait}\\nwarnings.warn('{name} says', RuntimeWarning)\\n"
+    )
+sys.path.insert(0, str(folder))
+threads = [threading.Thread(target=entry.import_packages, args=(n, ["sub"])) for n in waits]
+for thread in threads:
+    thread.start()
+for thread in threads:
+    thread.join()
+kept = sorted(entry.take_import_warnings())
+shown = []
+warnings.showwarning = lambda message, *rest: shown.append(str(message))
+warnings.warn("the host's own warning, later", UserWarning)
+print(kept, shown)
+"""
+
+
+def test_two_builds_imported_at_once_leave_the_hosts_warnings_as_they_were(tmp_path, run_python):
+    """Guards two FMU builds imported from two threads at once (each keeps its imports'
+    warnings with catch_warnings, which is process-wide): the later one to finish put the
+    first one's recorder back for good, and every later warning of the host went into a
+    list no one read."""
+    done = run_python(TWO_BUILDS, str(tmp_path))
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.strip().splitlines()[-1] == (
+        "['pa says', 'pb says'] [\"the host's own warning, later\"]"
+    ), done.stdout + done.stderr
