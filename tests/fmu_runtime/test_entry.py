@@ -100,7 +100,7 @@ from fmu_runtime import entry
 folder = Path(sys.argv[1])
 (folder / "sync.py").write_text("import threading\\nb_importing = threading.Event()\\n")
 # pa's import waits for pb's to start; pb's ends after pa's has ended (0.5 s later)
-waits = {"pa": "sync.b_importing.wait(2)", "pb": "sync.b_importing.set(); time.sleep(0.5)"}
+waits = {"pa": "sync.b_importing.wait(1)", "pb": "sync.b_importing.set(); time.sleep(0.5)"}
 for name, wait in waits.items():
     (folder / name / "sub").mkdir(parents=True)
     (folder / name / "__init__.py").write_text("")
