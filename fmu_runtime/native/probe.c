@@ -172,6 +172,31 @@ static void exit_status(unsigned long code, char *out, size_t size)
     else snprintf(out, size, "%lu", code);
 }
 
+#ifdef _WIN32
+#define PATH_LIST ";"
+#else
+#define PATH_LIST ":"
+#endif
+
+/* The first folder on the host's PYTHONPATH that is a Python's standard library (holds
+ * os.py), into ``out``, or 0. Every Python started here imports from it before its own,
+ * and one of another version fails so before answering (3.9's: "AssertionError: SRE
+ * module mismatch"); PYTHONHOME never reaches the probe (platform_run). */
+static int stdlib_on_pythonpath(char *out, size_t size)
+{
+    char list[PATH_SIZE];
+    if (!platform_getenv("PYTHONPATH", list, sizeof list)) return 0;
+    for (const char *entry = list; *entry;) {
+        size_t n = strcspn(entry, PATH_LIST);
+        char os_py[PATH_SIZE + 8];
+        snprintf(out, size, "%.*s", (int)n, entry);
+        snprintf(os_py, sizeof os_py, "%s%sos.py", out, PATH_SEPARATOR);
+        if (n && n < size && path_exists(os_py)) return 1;
+        entry += n + (entry[n] == PATH_LIST[0]);
+    }
+    return 0;
+}
+
 /* Why a child that did not answer failed, from how it ended. */
 static void explain(Answer *a, const Ran *ran, Buffer *err)
 {
@@ -188,8 +213,16 @@ static void explain(Answer *a, const Ran *ran, Buffer *err)
         snprintf(a->failure, sizeof a->failure, "gave no answer the runtime understands%s%s",
                  sep, said);
     } else if (ran->ending == RAN_EXITED) {
-        snprintf(a->failure, sizeof a->failure, "exited with status %s before answering%s%s",
-                 status, sep, said);
+        char stdlib[PATH_SIZE];
+        int foreign = stdlib_on_pythonpath(stdlib, sizeof stdlib);
+        snprintf(a->failure, sizeof a->failure, "exited with status %s before answering%s%s%s%s%s",
+                 status, sep, said,
+                 foreign ? " (the environment's PYTHONPATH holds a Python's standard library, "
+                         : "",
+                 foreign ? stdlib : "",
+                 foreign ? ", which a Python of another version cannot start with: unset "
+                           "PYTHONPATH, or leave that folder out of it)"
+                         : "");
     } else {
         snprintf(a->failure, sizeof a->failure, "did not answer%s%s", sep, said);
     }

@@ -8,7 +8,8 @@
 
 typedef struct {
     int answered;       /* it printed its whole answer */
-    char failure[512];  /* why not: could not run, exit status, last line of its stderr */
+    char failure[1024]; /* why not: could not run, exit status, last line of its stderr,
+                         * a standard library on PYTHONPATH */
     int major, minor, micro;
     char bad_version[48]; /* its version as it said it, when not three numbers (else "") */
     char implementation[32]; /* platform.python_implementation(): CPython, PyPy, ... */

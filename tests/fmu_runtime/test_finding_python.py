@@ -228,6 +228,50 @@ def test_what_a_probe_writes_never_reaches_the_host_and_its_last_line_is_said(
     )
 
 
+STDLIB_HINT = (
+    " (the environment's PYTHONPATH holds a Python's standard library, {}, which a Python "
+    "of another version cannot start with: unset PYTHONPATH, or leave that folder out of it)"
+)
+
+
+def test_a_standard_library_on_pythonpath_is_named_with_the_fix(
+    host, extracted, tmp_path, clean_home
+):
+    """A host whose PYTHONPATH holds another Python's standard library: every candidate
+    dies before answering (CPython 3.9's sre_compile asserts), and the line names that
+    folder and the fix, not only the assertion."""
+    stdlib = tmp_path / "lib" / "python3.9"
+    stdlib.mkdir(parents=True)
+    (stdlib / "os.py").touch()
+    fake = fake_python(tmp_path, {}, stderr="AssertionError: SRE module mismatch", status=1)
+    pythonpath = f"{tmp_path / 'elsewhere'}:{stdlib}"
+    done = _run(host, extracted, tmp_path, clean_home,
+                **{OVERRIDE_VARIABLE: str(fake), "PYTHONPATH": pythonpath})  # fmt: skip
+    assert done.stderr == ""
+    assert _candidate(done, 2) == (
+        f"{OVERRIDE_VARIABLE}={fake}: exited with status 1 before answering: "
+        "AssertionError: SRE module mismatch" + STDLIB_HINT.format(stdlib)
+    )
+
+
+OTHER_STDLIB = Path("/root/.pyenv/versions/3.9.18/lib/python3.9")
+
+
+@pytest.mark.skipif(
+    not OTHER_STDLIB.is_dir() or sys.version_info[:2] == (3, 9),
+    reason=f"needs another CPython's standard library at {OTHER_STDLIB} (pyenv's 3.9.18)",
+)
+def test_a_real_python_given_another_versions_standard_library_says_so(
+    host, extracted, tmp_path, clean_home
+):
+    """This Python, started by the runtime with CPython 3.9's standard library on PYTHONPATH,
+    fails as it does in a user's host; its line names that folder."""
+    done = _run(host, extracted, tmp_path, clean_home,
+                **{OVERRIDE_VARIABLE: sys.executable, "PYTHONPATH": str(OTHER_STDLIB)})  # fmt: skip
+    assert "instantiate returned NULL" in done.stdout, done.stdout + done.stderr
+    assert _candidate(done, 2).endswith(STDLIB_HINT.format(OTHER_STDLIB)), _candidate(done, 2)
+
+
 @pytest.mark.slow
 def test_a_virtual_environment_folder_is_used_and_a_venv_without_numpy_passed_over(
     host, extracted, tmp_path, clean_home
