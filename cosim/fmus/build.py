@@ -166,18 +166,19 @@ def ensure_fmus(out_dir: Path) -> dict[str, Path]:
     return build_fmus(out_dir, force=False)
 
 
-def out_of_date(out_dir: Path, portable: bool = False) -> list[str]:
-    """The FMUs of :data:`FMUS` that :func:`ensure_fmus` (or a ``portable`` build) would
-    build in ``out_dir`` now."""
+def out_of_date(out_dir: Path, portable: bool | None = None) -> list[str]:
+    """The FMUs of :data:`FMUS` that a run (or a build, ``portable`` as
+    :func:`build_fmu` takes it) would build in ``out_dir`` now."""
     out_dir = Path(out_dir)
-    digest, python = source_hash(shipped_files()), recorded_python(portable)
-    return [
-        name
-        for name in FMUS
-        if not _is_intact(
-            out_dir / f"{name}.fmu", out_dir / f"{name}.fmu{HASH_SUFFIX}", digest, python
-        )
-    ]
+    digest = source_hash(shipped_files())
+    stale = []
+    for name in FMUS:
+        target = out_dir / f"{name}.fmu"
+        hash_file = target.with_name(target.name + HASH_SUFFIX)
+        python = recorded_python(_built_portable(hash_file) if portable is None else portable)
+        if not _is_intact(target, hash_file, digest, python):
+            stale.append(name)
+    return stale
 
 
 def _check_out_dir(name: str, out_dir: Path, other: str) -> None:
@@ -206,17 +207,21 @@ def build_fmu(
     out_dir: Path,
     force: bool = False,
     other: str = OTHER_FMU_FOLDER,
-    portable: bool = False,
+    portable: bool | None = False,
 ) -> Path:
     """Build the FMU ``name`` (a key of :data:`FMUS`) into ``out_dir`` if it is missing, out
     of date or ``force``; return its path. Another process building it into the same
     folder is waited for (:func:`fmu_lock`), and what it built used. ``other`` and
-    ``portable``: as :func:`build_fmus` takes them."""
+    ``portable``: as :func:`build_fmus` takes them; ``portable=None``: as the FMU there
+    was built (portable if its record names no Python), so that a run or an export from
+    a folder of portable FMUs keeps them portable."""
     if name not in FMUS:
         raise CosimError(f"unknown FMU {name!r}: expected one of {sorted(FMUS)}")
     out_dir = Path(out_dir)
     target = out_dir / f"{name}.fmu"
     hash_file = target.with_name(target.name + HASH_SUFFIX)
+    if portable is None:
+        portable = _built_portable(hash_file)
     if not script_path(name).is_file():
         raise CosimError(f"cannot build {name}.fmu: {script_path(name)} does not exist")
     files = shipped_files()
@@ -365,6 +370,11 @@ def recorded_python(portable: bool) -> str:
     tries after the host's own and ``AUV_FMU_PYTHON``; ``none`` for a ``portable`` build,
     whose FMUs name no path of this machine (a host then finds ``python3`` on PATH)."""
     return "none" if portable else native.build_python_identity()
+
+
+def _built_portable(hash_file: Path) -> bool:
+    """Whether the build record ``hash_file`` is a ``portable`` build's (names no Python)."""
+    return recorded_hashes(hash_file).get("python") == recorded_python(portable=True)
 
 
 def recorded_hashes(hash_file: Path) -> dict[str, str]:

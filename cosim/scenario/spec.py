@@ -1489,10 +1489,11 @@ def _unrecorded(scenario: Scenario) -> tuple[str, ...]:
 
 
 def _builtin_fmu(name: str, fmu_dir: Path) -> Path:
-    """A built-in FMU in ``fmu_dir``, built there if missing or out of date."""
+    """A built-in FMU in ``fmu_dir``, built there if missing or out of date (portable if
+    the one there was)."""
     from cosim.fmus.build import build_fmu
 
-    return build_fmu(name, fmu_dir)
+    return build_fmu(name, fmu_dir, portable=None)
 
 
 def _interface(path: Path, key: str, src: Source) -> FmuInterface:

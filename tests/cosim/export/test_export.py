@@ -658,3 +658,28 @@ def test_the_note_names_a_debug_log_the_export_cannot_carry(
     assert "plant (every category)" in notes[0], notes
     assert "controller (logStatusError)" in notes[0], notes
     assert "not carried" in notes[0], notes
+
+
+def _build_python(fmu: Path) -> str:
+    """The build Python an FMU file records (``resources/fmu_runtime.txt``), "" for none."""
+    with zipfile.ZipFile(fmu) as archive:
+        record = archive.read("resources/fmu_runtime.txt").decode()
+    return dict(line.split("=", 1) for line in record.splitlines())["build_python"]
+
+
+@pytest.mark.slow
+def test_an_export_of_portable_fmus_hands_them_on_portable(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """FMUs built with ``auv-cosim build --portable`` and exported from their folder stay
+    portable: neither the export nor the folder names this machine's Python (the export
+    rebuilt them without --portable, the record then naming the build's venv)."""
+    fmus = tmp_path / "fmus"
+    assert cli.main(["build", "--portable", "--out", str(fmus)]) == 0
+    before = {fmu.name: _build_python(fmu) for fmu in fmus.glob("*.fmu")}
+    assert set(before.values()) == {""}
+    code, err = _export(capsys, "bs-3", "--osp", tmp_path / "osp", "--fmu-dir", fmus)
+    assert code == 0, err
+    assert {fmu.name: _build_python(fmu) for fmu in fmus.glob("*.fmu")} == before
+    for name in ("AuvPlant.fmu", "AuvAutopilot.fmu"):
+        assert _build_python(tmp_path / "osp" / name) == ""
