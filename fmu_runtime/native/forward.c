@@ -72,6 +72,7 @@ typedef struct {
 
 static Wrapper wrapper;
 static int wrapper_loaded;
+static char wrapper_path[PATH_SIZE]; /* its file, as loaded */
 
 #define ENTRY(field, name) {name, (void **)&wrapper.field}
 
@@ -119,6 +120,7 @@ static int load_wrapper(Instance *c)
     }
     char *dot = strrchr(path, '.');
     snprintf(dot, 16, "_pythonfmu%s", LIBRARY_SUFFIX);
+    snprintf(wrapper_path, sizeof wrapper_path, "%s", path);
     void *library = platform_open_wrapper(path);
     if (!library) {
         char error[LINE_SIZE / 2];
@@ -198,6 +200,22 @@ static int pythonfmu_uri(Instance *c, char *out, size_t n)
     return 1;
 }
 
+/* An OK line (a host with logging on shows it) naming the binary that runs the FMU: the
+ * calls are answered as on the runtime, so nothing else tells the fallback is in use. */
+static void say_binary(Instance *c)
+{
+    char line[PATH_SIZE + 96], escaped[2 * sizeof line];
+    snprintf(line, sizeof line, "the FMU runs on pythonfmu's own binary %s (%s=pythonfmu)",
+             wrapper_path, RUNTIME_VARIABLE);
+    size_t j = 0;
+    for (size_t i = 0; line[i] && j + 2 < sizeof escaped; i++) { /* a printf format */
+        if (line[i] == '%') escaped[j++] = '%';
+        escaped[j++] = line[i];
+    }
+    escaped[j] = '\0';
+    instance_log(c, fmi2OK, "logAll", escaped);
+}
+
 static int start(Instance *c)
 {
     char uri[PATH_SIZE + 16];
@@ -220,6 +238,7 @@ static int start(Instance *c)
         return 0;
     }
     forwarded->slave = claim_slave(c); /* derivatives, debug */
+    say_binary(c);
     return 1;
 }
 

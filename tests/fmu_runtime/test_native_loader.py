@@ -94,6 +94,27 @@ def test_a_c_host_in_a_clean_environment_runs_100_cycles_of_1000_steps(
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_a_host_with_logging_on_is_told_which_binary_runs_the_fmu(
+    runtime, host, extracted, clean_home
+):
+    """AUV_FMU_RUNTIME=pythonfmu hands the calls to pythonfmu's binary, unseen before
+    (every call answered as on the runtime, input derivatives included): an instance
+    instantiated with logging on now says so, and names the library; none says it
+    otherwise."""
+    done = run_clean([host, extracted["AuvPlant"], "AuvPlant", "illegal"], clean_home,
+                     **RUNTIMES[runtime])  # fmt: skip
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    library = extracted["AuvPlant"] / "binaries" / "linux64" / "AuvPlant_pythonfmu.so"
+    said = [line for line in done.stdout.splitlines() if "pythonfmu's own binary" in line]
+    assert set(said) == (
+        {f"log host [0] {{logAll}} the FMU runs on pythonfmu's own binary {library} "
+         f"({RUNTIME_VARIABLE}=pythonfmu)"}
+        if runtime == "pythonfmu" else set()
+    )  # fmt: skip
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "runtime"),
     [*((name, "runtime") for name in sorted(FMUS)), ("AuvPlant", "pythonfmu")],
