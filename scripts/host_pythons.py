@@ -10,7 +10,14 @@ compared with the same run in this Python with numba (the build's) and with
 any Real output at any step relative to max(1, |value|). The FMU's warnings are printed
 under the row.
 
-Usage: python scripts/host_pythons.py [--work /tmp/host-pythons] [--stop 10]
+``--python PY`` (repeatable) makes the environments from the CPython ``PY`` instead (another
+minor version: pyenv's ``/root/.pyenv/versions/3.13.0/bin/python``), with the newest numpy,
+without and with numba, and also steps the plant alone for ``--stop`` seconds in a C host
+(``tests/fmu_runtime/hosts/stepper.c``, compiled with ``cc``) in an empty environment with
+``AUV_FMU_PYTHON`` naming the environment, compared with the same C host given the build's
+Python.
+
+Usage: python scripts/host_pythons.py [--work /tmp/host-pythons] [--stop 10] [--python PY]
 """
 
 from __future__ import annotations
@@ -20,6 +27,8 @@ import json
 import shutil
 import subprocess
 import sys
+import xml.etree.ElementTree as ET
+import zipfile
 from pathlib import Path
 
 # name: what pip installs beside fmpy, then what it installs with --no-deps (a numba that
@@ -44,6 +53,9 @@ HOSTS: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
         ("llvmlite/binding/libllvmlite.so",),
     ),
 }
+# the rows made from another CPython (--python): what pip offers for it today
+NEWEST = ("newest numpy", "newest numpy and numba")
+STEPPER = Path(__file__).resolve().parent.parent / "tests" / "fmu_runtime" / "hosts" / "stepper.c"
 
 # Run in each host Python with fmpy and numpy only: prints one JSON line.
 RUNNER = """
@@ -94,14 +106,16 @@ print(json.dumps(rows))
 """
 
 
-def host_python(work: Path, name: str) -> Path:
-    """The virtual environment of row ``name`` of :data:`HOSTS` (made once): its python."""
+def host_python(work: Path, name: str, base: str) -> Path:
+    """The virtual environment of row ``name`` of :data:`HOSTS` made from the CPython
+    ``base`` (once): its python."""
     packages, without_deps, removed = HOSTS[name]
-    folder = work / "venvs" / "".join(c if c.isalnum() else "-" for c in name)
+    tag = "" if base == sys._base_executable else f"{_version(base)}-"  # type: ignore[attr-defined]
+    folder = work / "venvs" / "".join(c if c.isalnum() else "-" for c in tag + name)
     python = folder / "bin" / "python"
     if not (folder / "done").exists():
         shutil.rmtree(folder, ignore_errors=True)
-        subprocess.run([sys._base_executable, "-m", "venv", folder], check=True)  # type: ignore[attr-defined]
+        subprocess.run([base, "-m", "venv", folder], check=True)
         pip: list[str | Path] = [python, "-m", "pip", "install", "-q"]
         subprocess.run([*pip, "fmpy", *packages], check=True)
         if without_deps:
@@ -111,6 +125,52 @@ def host_python(work: Path, name: str) -> Path:
                 (site / path).unlink()
         (folder / "done").touch()
     return python
+
+
+def _version(python: Path | str) -> str:
+    """``python``'s version, "3.13.0"."""
+    ask = "import platform; print(platform.python_version())"
+    return subprocess.run(
+        [python, "-c", ask], capture_output=True, text=True, check=True
+    ).stdout.strip()
+
+
+def stepper(work: Path, stop: float) -> tuple[Path, list[str]]:
+    """The C host, compiled once into ``work``, and its arguments after the library: the
+    plant's extraction under ``work``, ``stop`` s in steps of 10 ms, constant actuator
+    inputs, every Real output."""
+    host, plant = work / "stepper", work / "plant"
+    if not host.exists():
+        subprocess.run(["cc", "-O1", "-o", host, STEPPER, "-ldl"], check=True)
+    shutil.rmtree(plant, ignore_errors=True)
+    with zipfile.ZipFile(work / "fmus" / "AuvPlant.fmu") as archive:
+        archive.extractall(plant)
+    root = ET.parse(plant / "modelDescription.xml").getroot()
+    refs = {v.get("name"): v.get("valueReference") for v in root.iter("ScalarVariable")}
+    outputs = [v.get("valueReference", "") for v in root.iter("ScalarVariable")
+               if v.get("causality") == "output" and v.find("Real") is not None]  # fmt: skip
+    inputs = f"{refs['tunnel_force']}=0.5,{refs['mass_position_cmd']}=0.02"
+    steps = str(round(stop / 0.01))
+    return host, [(plant / "resources").as_uri(), root.get("guid", ""), steps, "0.01", inputs,
+                  ",".join(outputs)]  # fmt: skip
+
+
+def c_host_run(
+    work: Path, python: Path | str, stop: float, **extra: str
+) -> tuple[list[str], list[str]]:
+    """The rows the C host prints with ``AUV_FMU_PYTHON=python`` (and ``extra`` in its
+    environment), and its log lines."""
+    host, arguments = stepper(work, stop)
+    library = work / "plant" / "binaries" / "linux64" / "AuvPlant.so"
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(work / "home"), "AUV_FMU_PYTHON": str(python),
+           **extra}  # fmt: skip
+    done = subprocess.run([host, library, *arguments], capture_output=True, text=True, env=env,
+                          check=False)  # fmt: skip
+    lines = done.stdout.splitlines()
+    rows = [line for line in lines if line[:1].isdigit()]
+    if done.returncode != 0 or lines[-1:] != ["exit 0"]:
+        return [], lines[-3:]
+    return rows, [line for line in lines if line.startswith("LOG")]
 
 
 def installed(python: Path) -> str:
@@ -152,6 +212,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--work", type=Path, default=Path("/tmp/host-pythons"))
     parser.add_argument("--stop", type=float, default=10.0)
+    parser.add_argument("--python", action="append", default=[], metavar="PY",
+                        help="a CPython to make the environments from (repeatable)")  # fmt: skip
     args = parser.parse_args()
     work: Path = args.work.resolve()
     (work / "home").mkdir(parents=True, exist_ok=True)
@@ -166,13 +228,38 @@ def main() -> None:
     numpy_path, _ = run(sys.executable, work, args.stop, AUV_COSIM_NO_JIT="1")
     print(f"the build's Python: its numpy path {apart(with_numba, numpy_path)} to its numba's")
     print(f"{'host':50} {'vs build, numba':>16} {'vs build, numpy':>16}")
-    for name in HOSTS:
-        python = host_python(work, name)
-        rows, said = run(python, work, args.stop)
-        print(f"{name:50} {apart(with_numba, rows):>16} {apart(numpy_path, rows):>16}")
-        print(f"    installed: {installed(python)}")
-        for line in dict.fromkeys(said):
-            print(f"    {line[:300]}")
+    if not args.python:
+        for name in HOSTS:
+            _row(work, name, host_python(work, name, sys._base_executable), args.stop,  # type: ignore[attr-defined]
+                 (with_numba, numpy_path))  # fmt: skip
+        return
+    built = c_host_run(work, sys.executable, args.stop)[0]
+    built_numpy = c_host_run(work, sys.executable, args.stop, AUV_COSIM_NO_JIT="1")[0]
+    for base in args.python:
+        for name in NEWEST:
+            python = host_python(work, name, base)
+            _row(work, f"CPython {_version(python)}, {name}", python, args.stop,
+                 (with_numba, numpy_path))  # fmt: skip
+            rows, said = c_host_run(work, python, args.stop)
+            print(f"    C host, AUV_FMU_PYTHON: {apart_text(built, rows)} to the build's "
+                  f"numba, {apart_text(built_numpy, rows)} to its numpy path")  # fmt: skip
+            for line in dict.fromkeys(said):
+                print(f"    {line[:300]}")
+
+
+def _row(work: Path, name: str, python: Path, stop: float, reference: tuple[list, list]) -> None:
+    """One row of the table: ``python`` through fmpy against the build's two paths."""
+    rows, said = run(python, work, stop)
+    print(f"{name:50} {apart(reference[0], rows):>16} {apart(reference[1], rows):>16}")
+    print(f"    installed: {installed(python)}")
+    for line in dict.fromkeys(said):
+        print(f"    {line[:300]}")
+
+
+def apart_text(reference: list[str], rows: list[str]) -> str:
+    """:func:`apart` of the C host's printed rows (numbers in %.17g)."""
+    as_hex = [[float(x).hex() for x in row.split()] for row in reference]
+    return apart(as_hex, [[float(x).hex() for x in row.split()] for row in rows])
 
 
 if __name__ == "__main__":
