@@ -135,3 +135,22 @@ def test_the_sdist_installs_and_runs_a_scenario_on_a_machine_without_a_compiler(
         timeout=120, cwd=folder, env=environment,
     )  # fmt: skip
     assert Path(installed.stdout.strip()).is_relative_to(venv)  # not this source tree
+
+
+def test_the_pythons_it_was_run_on_are_its_classifiers_from_the_floor_up():
+    """pyproject.toml names each CPython minor the suite was run on as a Trove classifier,
+    from requires-python's floor up without a gap, and the README names the same range: a
+    user choosing a Python (or pip's index page) sees which were measured, while
+    requires-python, without an upper bound, lets a newer one install."""
+    floor = PYPROJECT["project"]["requires-python"].removeprefix(">=")
+    measured = [
+        c.rsplit(" :: ", 1)[1]
+        for c in PYPROJECT["project"].get("classifiers", [])
+        if c.startswith("Programming Language :: Python :: 3.")
+    ]
+    assert measured, "pyproject.toml names no 'Programming Language :: Python :: 3.x' classifier"
+    minors = [int(version.split(".")[1]) for version in measured]
+    assert measured[0] == floor, f"the classifiers start at {measured[0]}, not at {floor}"
+    assert minors == list(range(minors[0], minors[0] + len(minors))), measured
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert f"CPython {measured[0]} to {measured[-1]}" in readme, "README names other Pythons"
