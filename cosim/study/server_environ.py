@@ -40,3 +40,8 @@ for _name in ("SIGTERM", "SIGHUP"):
 
 with suppress(Exception):
     os.environ.update(pre_spawn_environ())
+# pyarrow (which pandas imports) starts jemalloc's background thread as it loads, and the
+# server is to fork from one thread: a forked worker holds another thread's locks as they
+# were (CPython 3.12 and later warn of it at each fork). Arrow's pool is mimalloc, not
+# jemalloc, so the thread had nothing to purge.
+os.environ.setdefault("JE_ARROW_MALLOC_CONF", "background_thread:false")
