@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 from fmpy.validation import validate_fmu
-from fmu_harness import STATUS_ERROR, STATUS_OK, Harness, status_of
+from fmu_harness import STATUS_DISCARD, STATUS_ERROR, STATUS_OK, Harness, status_of
 
 from controller_fmu.autopilot import (
     COMMAND_NAMES,
@@ -192,7 +192,7 @@ def test_nan_measurement_is_refused_and_the_host_survives(autopilot_fmu, run_pyt
         fmu = Harness(sys.argv[1], instance="controller", heading_mode=3)
         ok = fmu.step(0.01)
         refused = status_of(fmu.set, v_rel=float("nan"))
-        after = fmu.step(0.01)  # with the measurement it had
+        after = fmu.step(0.01)  # discarded: it would use the measurement it had
         fmu.set(v_rel=0.01)
         recovered = fmu.step(0.01)
         commands = fmu.get("mass_position_cmd", "tunnel_force").tolist()
@@ -205,8 +205,9 @@ def test_nan_measurement_is_refused_and_the_host_survives(autopilot_fmu, run_pyt
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout.strip().splitlines()[-1])
     statuses = (report["ok"], report["refused"], report["after"], report["recovered"])
-    assert statuses == (STATUS_OK, STATUS_ERROR, STATUS_OK, STATUS_OK)
+    assert statuses == (STATUS_OK, STATUS_ERROR, STATUS_DISCARD, STATUS_OK)
     assert "v_rel = nan refused" in report["errors"]
+    assert "so the step would use the value before it" in report["errors"]
     assert all(np.isfinite(report["commands"]))
 
 
@@ -220,7 +221,7 @@ def test_unknown_heading_mode_is_refused_with_the_reason_and_the_host_survives(
         from fmu_harness import Harness
         fmu = Harness(sys.argv[1], instance="controller", initialize=False)
         statuses = fmu.try_initialize(heading_mode=7)
-        status = fmu.step(0.01)  # with the heading mode it had
+        status = fmu.step(0.01)  # discarded: it would use the heading mode it had
         fmu.close()
         print(json.dumps(dict(statuses=statuses, status=status, errors=fmu.messages(3))))
         """,
@@ -228,5 +229,5 @@ def test_unknown_heading_mode_is_refused_with_the_reason_and_the_host_survives(
     )
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout.strip().splitlines()[-1])
-    assert (report["statuses"], report["status"]) == ([STATUS_ERROR, STATUS_OK], STATUS_OK)
+    assert (report["statuses"], report["status"]) == ([STATUS_ERROR, STATUS_OK], STATUS_DISCARD)
     assert "heading_mode = 7 refused: expected 0 <= heading_mode <= 3" in report["errors"]

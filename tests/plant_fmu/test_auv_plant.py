@@ -411,7 +411,7 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
         fmu = Harness(sys.argv[1], variant=2, u_0=1.5)
         ok = fmu.step(0.01)
         refused = status_of(fmu.set, thrust=float("nan"))
-        after = fmu.step(0.01)  # with the thrust it had
+        after = fmu.step(0.01)  # discarded: it would use the thrust it had
         u_after = float(fmu.get("u")[0])
         fmu.set(thrust=9.0)
         recovered = fmu.step(0.01)
@@ -424,8 +424,9 @@ def test_nan_thrust_is_refused_and_the_host_survives(plant, run_python):
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout.strip().splitlines()[-1])
     statuses = (report["ok"], report["refused"], report["after"], report["recovered"])
-    assert statuses == (0, STATUS_ERROR, 0, 0)
+    assert statuses == (0, STATUS_ERROR, STATUS_DISCARD, 0)
     assert "thrust = nan refused" in report["errors"]
+    assert "so the step would use the value before it" in report["errors"]
     assert np.isfinite(report["u"])
 
 
