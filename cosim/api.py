@@ -868,21 +868,9 @@ def _fmu_log(value: object, error: type[CosimError]) -> dict[str, tuple[str, ...
     """``fmu_log``: {instance: [log categories]} (``[]``: every one), as
     :meth:`Scenario.with_debug_logging` takes it; the instances and categories are checked
     against the scenario later, naming the keyword."""
-    if value is None:
-        return {}
-    if not isinstance(value, Mapping):
-        raise error(f"fmu_log={shown(value)}: expected a mapping {{instance: [log categories]}}")
-    for name, categories in value.items():
-        if not isinstance(name, str) or not name:
-            raise error(
-                f"fmu_log={shown(value)}: expected instance names as keys, not {shown(name)}"
-            )
-        if not isinstance(categories, list | tuple) or not all(
-            isinstance(c, str) and c for c in categories
-        ):
-            raise error(f"fmu_log={shown(value)}: expected a list of log categories for "
-                        f"{name!r} ([] for every one)")  # fmt: skip
-    return {name: tuple(categories) for name, categories in value.items()}
+    from cosim.scenario.spec import debug_logs
+
+    return {} if value is None else debug_logs(value, "fmu_log", error)
 
 
 def _choice(name: str, value: object, choices: tuple[str, ...]) -> str | None:

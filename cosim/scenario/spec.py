@@ -32,7 +32,7 @@ from pydantic import (
 )
 from pydantic_core import ErrorDetails
 
-from cosim.errors import OptionNames, did_you_mean, did_you_mean_path, plain, shown
+from cosim.errors import CosimError, OptionNames, did_you_mean, did_you_mean_path, plain, shown
 from cosim.fmus.interface import (
     NOT_COSIMULATION,
     FmuInterface,
@@ -507,10 +507,11 @@ class Scenario:
         an instance's name to the log categories to turn on (``[]``: every category), as
         its ``debug_logging`` and ``log_categories`` keys would (``auv-cosim run
         --fmu-log``). Raises :class:`ScenarioError`."""
+        checked = debug_logs(logs, "logs", ScenarioError)
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
-        given = "; ".join(f"{name}: {', '.join(c) or 'all'}" for name, c in logs.items())
+        given = "; ".join(f"{name}: {', '.join(c) or 'all'}" for name, c in checked.items())
         where = f"{self.described} (with the debug logging of {given})"
-        for name, categories in logs.items():
+        for name, categories in checked.items():
             if name not in data["instances"]:
                 raise ScenarioError(
                     f"scenario file {where}: no instance {name!r}: expected one of "
@@ -1503,3 +1504,23 @@ def _interface(path: Path, key: str, src: Source) -> FmuInterface:
         return read_interface(path)
     except FmuInterfaceError as exc:
         raise src.error(key, str(exc)) from None
+
+
+def debug_logs(value: object, keyword: str, error: type[CosimError]) -> dict[str, tuple[str, ...]]:
+    """``value`` as {instance: (log categories, ...)} (``()``: every category), the form
+    :meth:`Scenario.with_debug_logging` and ``cosim.run``'s and ``cosim.sweep``'s
+    ``fmu_log`` take; else ``error``, one line naming ``keyword``. The instances and
+    categories are checked against the scenario later."""
+    if not isinstance(value, Mapping):
+        raise error(f"{keyword}={shown(value)}: expected a mapping {{instance: [log categories]}}")
+    for name, categories in value.items():
+        if not isinstance(name, str) or not name:
+            raise error(
+                f"{keyword}={shown(value)}: expected instance names as keys, not {shown(name)}"
+            )
+        if not isinstance(categories, list | tuple) or not all(
+            isinstance(c, str) and c for c in categories
+        ):
+            raise error(f"{keyword}={shown(value)}: expected a list of log categories for "
+                        f"{name!r} ([] for every one)")  # fmt: skip
+    return {name: tuple(categories) for name, categories in value.items()}

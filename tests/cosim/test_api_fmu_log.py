@@ -45,3 +45,23 @@ def test_a_bad_fmu_log_is_refused_in_one_line_naming_the_keyword(
         cosim.run("bs-3", stop_time=0.1, fmu_dir=fmu_dir, fmu_log=value)  # type: ignore[arg-type]
     message = str(refused.value)
     assert message.startswith("fmu_log=") and said in message and "\n" not in message, message
+
+
+@pytest.mark.parametrize(
+    ("logs", "said"),
+    [
+        (["plant"], "logs=['plant']: expected a mapping {instance: [log categories]}"),
+        ({"plant": "logAll"}, "expected a list of log categories for 'plant'"),
+        ({3: []}, "expected instance names as keys, not 3"),
+    ],
+)
+def test_with_debug_logging_refuses_what_is_no_mapping_of_lists_in_one_line(
+    fmu_dir: Path, logs: object, said: str
+) -> None:
+    """with_debug_logging(["plant"]) failed with "AttributeError: 'list' object has no
+    attribute 'items'", and a bare string of categories was split into its letters: the
+    method checks what it is given as cosim.run's fmu_log= is checked, naming `logs=`."""
+    scenario = cosim.load_scenario("bs-3", fmu_dir=fmu_dir)
+    with pytest.raises(cosim.ScenarioError) as refused:
+        scenario.with_debug_logging(logs)  # type: ignore[arg-type]
+    assert said in str(refused.value) and "\n" not in str(refused.value)
