@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import shutil
 import subprocess
 import sys
@@ -215,6 +217,7 @@ def main() -> None:
     parser.add_argument("--python", action="append", default=[], metavar="PY",
                         help="a CPython to make the environments from (repeatable)")  # fmt: skip
     args = parser.parse_args()
+    _check_arguments(parser, args)
     work: Path = args.work.resolve()
     (work / "home").mkdir(parents=True, exist_ok=True)
     cli = [sys.executable, "-m", "cosim.cli"]
@@ -245,6 +248,19 @@ def main() -> None:
                   f"numba, {apart_text(built_numpy, rows)} to its numpy path")  # fmt: skip
             for line in dict.fromkeys(said):
                 print(f"    {line[:300]}")
+
+
+def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Refuse (one line, exit status 2, before anything is built or installed) a run
+    length that is no positive finite number of seconds, a work folder that is a file and
+    a --python that is no executable file."""
+    if not (math.isfinite(args.stop) and args.stop > 0.0):
+        parser.error(f"--stop: {args.stop!r} is not a positive finite number of seconds")
+    if args.work.exists() and not args.work.is_dir():
+        parser.error(f"--work: {str(args.work)!r} is not a folder")
+    for python in args.python:
+        if not (Path(python).is_file() and os.access(python, os.X_OK)):
+            parser.error(f"--python: {python!r} is not an executable file")
 
 
 def _row(work: Path, name: str, python: Path, stop: float, reference: tuple[list, list]) -> None:
