@@ -44,7 +44,7 @@ sys.exit(main())
 
 
 def _run_args(fmu_dir: Path, out: Path) -> list[str]:
-    return ["run", "bs-3", "--stop-time", "1", "--no-rrd", "--quiet", "--fmu-dir", str(fmu_dir),
+    return ["run", "bs-3", "--stop-time", "20000", "--no-rrd", "--quiet", "--fmu-dir", str(fmu_dir),
             "--out", str(out)]  # fmt: skip
 
 

@@ -201,7 +201,9 @@ def test_a_callers_own_freeze_and_collector_are_left_as_they_were(
                 raise RuntimeError("the loop failed")
         enabled = gc.isenabled()
         gc.collect()
-        assert (gc.get_freeze_count(), enabled) == (frozen, collecting)
+        count = gc.get_freeze_count()  # frozen objects still die by their reference counts:
+        assert frozen - 100 <= count <= frozen  # none frozen since (made_since), none thawed
+        assert enabled == collecting
         assert made_since
     finally:
         gc.unfreeze()
