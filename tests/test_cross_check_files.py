@@ -1,0 +1,81 @@
+"""scripts/cross_check_files.py: the files the FMI cross-check asks of an exported FMU
+(``<Model>.fmu``, ``_in.csv``, ``_ref.csv``, ``_ref.opt`` in the vendor folder's layout),
+passing fmpy's checker of vendor folders, and an importer's run of each FMU alone (fmpy's
+cross-check simulation, at output points of its own) within the cross-check's band of the
+reference. ``tests/cosim/fmus/test_compliance_checker.py`` runs the FMU Compliance
+Checker on them where it is built."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fmpy import read_model_description
+from fmpy.cross_check.validate_vendor_repo import read_csv
+from fmpy.util import read_ref_opt_file
+from process_group import run_in_group
+from repo_paths import ROOT
+
+SCRIPT = ROOT / "scripts" / "cross_check_files.py"
+RUN_S = 600.0  # s: the scenario's run and two fmpy runs of 10 s (a few seconds)
+
+IMPORTER = """
+import sys
+from fmpy import simulate_fmu
+from fmpy.cross_check import validate_result
+from fmpy.cross_check.validate_vendor_repo import read_csv
+from fmpy.util import read_ref_opt_file
+
+folder, model = sys.argv[1], sys.argv[2]
+opts = read_ref_opt_file(f"{folder}/{model}_ref.opt")
+reference = read_csv(f"{folder}/{model}_ref.csv")
+# as fmpy.cross_check's simulate() runs an FMU (its __main__ parses arguments on import)
+result = simulate_fmu(f"{folder}/{model}.fmu", validate=False, step_size=opts["StepSize"],
+                      stop_time=opts["StopTime"], input=read_csv(f"{folder}/{model}_in.csv"),
+                      output=reference.dtype.names[1:])
+print(validate_result(result, reference, opts["StartTime"], opts["StopTime"]))
+"""
+
+
+@pytest.mark.slow
+def test_each_fmu_of_a_scenario_gets_files_an_importer_reproduces(
+    fmu_dir: Path, tmp_path: Path, run_python: Any
+) -> None:
+    """bs-3 for 10 s at 0.1 s: the plant's and the autopilot's folders, each passing fmpy's
+    checks (the script exits 0 only then); the inputs are the FMU's inputs, the reference
+    its outputs, the options the run's; fmpy's cross-check run of the FMU with the inputs
+    (which outputs every 0.08 s, not at the reference's points) is within the band."""
+    command = [sys.executable, SCRIPT, "bs-3", "--out", tmp_path, "--stop-time", "10"]
+    done = run_in_group([*command, "--fmu-dir", fmu_dir], timeout=RUN_S, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    folders = sorted((tmp_path / "fmus" / "2.0" / "cs" / "linux64" / "auv-cosim").glob("*/*"))
+    assert [f.name for f in folders] == ["AuvAutopilot", "AuvPlant"]
+    for folder in folders:
+        model = folder.name
+        variables = read_model_description(str(folder / f"{model}.fmu")).modelVariables
+        inputs = read_csv(str(folder / f"{model}_in.csv"))
+        reference = read_csv(str(folder / f"{model}_ref.csv"))
+        assert inputs.dtype.names[1:] == tuple(v.name for v in variables if v.causality == "input")
+        assert reference.dtype.names[1:] == tuple(
+            v.name for v in variables if v.causality == "output"
+        )
+        assert len(inputs) == len(reference) == 101
+        options = read_ref_opt_file(str(folder / f"{model}_ref.opt"))
+        assert (options["StartTime"], options["StopTime"], options["StepSize"]) == (0, 10, 0.1)
+        imported = run_python(IMPORTER, folder, model)
+        assert imported.returncode == 0, imported.stderr[-3000:]
+        assert imported.stdout.strip().splitlines()[-1] == "None"
+
+
+def test_a_step_that_does_not_divide_the_stop_time_is_refused_in_one_line(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    command = [sys.executable, SCRIPT, "bs-3", "--out", tmp_path, "--step", "0.7"]
+    done = run_in_group([*command, "--fmu-dir", fmu_dir], timeout=RUN_S, cwd=tmp_path)
+    assert (done.returncode, done.stderr) == (
+        1,
+        "--step 0.7: expected a positive step that divides the stop time 60.0 s\n",
+    )
+    assert list(tmp_path.iterdir()) == []
