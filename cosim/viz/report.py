@@ -127,6 +127,11 @@ class Series:
     label: str = ""
     dashed: bool = False
     colour: str | None = None  # None: blue, gray when dashed
+    # an angle in deg drawn on the whole turn nearest this column's line of the panel: a
+    # yaw set-point of 10 deg (or 370, or -350: one heading to the autopilot, which wraps
+    # its error) beside a yaw that turned from 350 deg to 370 deg (the plant's yaw counts
+    # whole turns) is drawn at 370 deg, on the yaw it is for
+    turn_of: str | None = None
 
 
 @dataclass(frozen=True)
@@ -199,8 +204,16 @@ FIGURES: dict[str, tuple[str, tuple[Panel, ...]]] = {
                 r"$\psi$ (deg)",
                 (
                     Series("plant.yaw", DEG, "yaw"),
-                    Series("controller.yaw_setpoint", DEG, "setpoint", dashed=True),
-                    Series("guidance.yaw_setpoint", DEG, "guidance set-point", dashed=True),
+                    Series(
+                        "controller.yaw_setpoint", DEG, "setpoint", dashed=True, turn_of="plant.yaw"
+                    ),
+                    Series(
+                        "guidance.yaw_setpoint",
+                        DEG,
+                        "guidance set-point",
+                        dashed=True,
+                        turn_of="plant.yaw",
+                    ),
                 ),
             ),
             Panel(
@@ -681,6 +694,23 @@ def plot_time_histories(
     return _save(fig, path)
 
 
+def _on_turns(
+    curves: list[tuple[Series, np.ndarray]],
+) -> list[tuple[Series, np.ndarray]]:
+    """``curves`` (deg) with each angle that names a line to follow (``Series.turn_of``)
+    moved by whole turns, sample by sample, to within 180 deg of that line's value."""
+    drawn = {series.column: values for series, values in curves}
+    moved = []
+    for series, values in curves:
+        reference = drawn.get(series.turn_of) if series.turn_of else None
+        if reference is not None:
+            with np.errstate(invalid="ignore"):  # an infinite angle stays off the axis
+                offset = np.angle(np.exp(1j * np.radians(values - reference)), deg=True)
+            values = np.where(np.isfinite(offset), reference + offset, values)
+        moved.append((series, values))
+    return moved
+
+
 def _draw_panel(
     ax: Axes,
     table: dict[str, np.ndarray],
@@ -696,6 +726,7 @@ def _draw_panel(
     inside = (time >= span[0]) & (time <= span[1])
     with np.errstate(over="ignore"):  # beyond a float in the panel's unit: inf, off the axis
         curves = [(s, table[s.column] * s.scale) for s in panel.series if s.column in table]
+    curves = _on_turns(curves)
     shown = _main_range([(s, v[inside]) for s, v in curves])
     for series, values in curves:
         clipped = shown is not None and np.any((values < shown[0]) | (values > shown[1]))

@@ -900,3 +900,27 @@ def test_a_report_past_the_file_size_limit_names_the_limit(tmp_path, run_python)
         "(ulimit -f unlimited); nothing of it is left (no report made)\n"
     )
     assert not (run / "report").exists()
+
+
+@pytest.mark.parametrize(
+    ("yaw_deg", "setpoint_deg", "drawn_deg"),
+    [(370.0, 10.0, 370.0), (-90.0, 270.0, -90.0), (179.0, -179.0, 181.0)],
+)
+def test_a_yaw_set_point_is_drawn_on_the_yaws_own_turn(
+    tmp_path, monkeypatch, yaw_deg, setpoint_deg, drawn_deg
+) -> None:
+    """The plant's yaw counts whole turns (a turn from 350 to 10 deg ends at 370 deg) and
+    the autopilot wraps its error, so 270 and -90 deg are one heading: the set-point was
+    drawn a full turn away from the yaw it held, off the panel's axis ("beyond the
+    axis"), and the operator saw no set-point at all. It is drawn on the yaw's turn."""
+    run = tmp_path / "run"
+    run.mkdir()
+    setpoint = math.radians(setpoint_deg)
+    rows = "".join(  # the yaw comes up to its set-point by 4 deg
+        f"{t},{math.radians(yaw_deg - 4.0 + 20.0 * t)!r},{setpoint!r}\n" for t in (0.0, 0.1, 0.2)
+    )
+    (run / "results.csv").write_text("time,plant.yaw,controller.yaw_setpoint\n" + rows)
+    kept = kept_figures(run, monkeypatch)
+    panel = next(ax for ax in kept["attitude_actuators.png"].axes if "psi" in ax.get_ylabel())
+    drawn = {line.get_label(): line.get_ydata() for line in panel.lines}
+    assert list(drawn["setpoint"]) == pytest.approx([drawn_deg] * 3), drawn
