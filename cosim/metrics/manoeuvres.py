@@ -187,8 +187,9 @@ def zigzag(
             change value (:func:`switch_indices`: a ramp is one execute), and the first
             sample too when it asks for a turn there: a rudder or moving-mass command
             that is non-zero, or with ``heading_command`` a heading set-point (rad) more
-            than :data:`HEADING_BAND_DEG` off the heading (one that holds the course
-            until the first execute is none).
+            than :data:`HEADING_BAND_DEG` off the heading, compared on the circle (one
+            that holds the course until the first execute is none, whichever turn it is
+            written on).
 
     With executes e1, e2, e3, ... (e2 the first counter-command): the first overshoot is
     how far the heading goes on beyond its value at e2 before e3 (in the direction of the
@@ -199,7 +200,10 @@ def zigzag(
     times = np.asarray(times, dtype=float)
     heading = np.unwrap(np.asarray(yaw, dtype=float))
     command = np.asarray(command, dtype=float)
-    neutral = heading[0] if heading_command and heading.size else 0.0
+    neutral = 0.0
+    if heading_command and heading.size and command.size:  # the heading, on the set-point's
+        # turn: -10 deg holds a course of 350 deg (the autopilot wraps its error)
+        neutral = float(command[0] - np.angle(np.exp(1j * (command[0] - heading[0]))))
     tolerance = math.radians(HEADING_BAND_DEG) if heading_command else 0.0
     executes = switch_indices(command, neutral, tolerance)
     metrics: Metrics = {"overshoot_1_deg": None, "overshoot_2_deg": None, "period_s": None}

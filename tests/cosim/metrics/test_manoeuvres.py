@@ -170,6 +170,23 @@ def test_a_zigzag_from_another_course_executes_where_its_set_point_first_moves()
     assert manoeuvre_metrics("zigzag", mass) == zigzag(t, yaw, setpoint)
 
 
+def test_a_zigzag_across_north_takes_a_set_point_a_turn_away_as_the_same_heading():
+    """A zig-zag about a course of 350 deg, the vehicle starting at 350 deg (6.109 rad)
+    and the set-point holding the course written as -10 deg: one heading to the autopilot,
+    which wraps its error. The held set-point, a full turn from the heading, was taken
+    for an execute at t = 0, and the overshoots came out as the test angles."""
+    t, yaw, setpoint = zigzag_run(100.0)
+    held = t < 5.0
+    later = np.searchsorted(t, t - 5.0)
+    columns = {
+        "time": t,
+        "plant.yaw": np.where(held, 0.0, yaw[later]) + math.radians(350.0),
+        "controller.yaw_setpoint": np.where(held, 0.0, setpoint[later]) + math.radians(-10.0),
+    }
+    expected = zigzag(t[: len(t) - 500], yaw[: len(t) - 500], setpoint[: len(t) - 500])
+    assert manoeuvre_metrics("zigzag", columns) == pytest.approx(expected, abs=1e-9)
+
+
 def test_zigzag_metrics_need_the_executes_after_them():
     t, yaw, setpoint = zigzag_run(20.0)  # executes at 0 s and 3.9 s only
     assert zigzag(t, yaw, setpoint) == {
