@@ -325,8 +325,10 @@ def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | flo
         "Boolean": isinstance(value, bool),
         "String": isinstance(value, str),
     }[var.type]
-    if not ok:
-        raise src.error(key, f"{shown(value)} is not {expected} ({var.name} is {var.type})")
+    if not ok:  # "0.5 kn", "270 deg": the unit the number is to be given in is named
+        unit = getattr(var, "unit", None) if var.type in ("Real", "Integer") else None
+        of = f": expected {expected} of {unit}" if unit and unit != "1" else ""
+        raise src.error(key, f"{shown(value)} is not {expected} ({var.name} is {var.type}){of}")
     if var.type == "Real":
         if isinstance(value, int) and abs(value) > sys.float_info.max:  # float() would raise
             raise src.error(key, f"{shown(value)} is not a finite number")

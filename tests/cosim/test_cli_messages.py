@@ -391,5 +391,6 @@ def test_a_factor_value_a_scenario_refuses_is_named_once(
     assert main(["sweep", "study.toml", "--fmu-dir", fmus]) == 1
     assert capsys.readouterr().err.strip() == (
         "auv-cosim sweep: the run with plant.v_0 = 'x': scenario file bs-3: key "
-        "'instances.plant.start.v_0': 'x' is not a number (v_0 is Real)"
+        "'instances.plant.start.v_0': 'x' is not a number (v_0 is Real): expected a number "
+        "of m/s"
     )

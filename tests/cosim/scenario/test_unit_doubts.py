@@ -206,3 +206,24 @@ def test_a_rate_typed_in_degrees_per_second_is_named_with_its_value_in_radians(
         "instances.plant.start.r_0 = 10 rad/s is more than a full turn a second (573 deg/s): "
         "rates are in radians per second; if 10 deg/s was meant, give 0.174533"
     ]
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "unit"),
+    [("current_east", '"0.5 kn"', "m/s"), ("yaw_0", '"270 deg"', "rad"),
+     ("current_north", '"0.3 m/s"', "m/s")],
+)  # fmt: skip
+def test_a_value_written_with_its_unit_is_refused_naming_the_unit_expected(
+    fmu_paths: dict[str, Path], tmp_path: Path, key: str, value: str, unit: str
+) -> None:
+    """An operator's current of "0.5 kn" or heading of "270 deg" was refused as "not a
+    number (current_east is Real)", which did not say what number to give: the unit the
+    variable takes is named."""
+    text = (Path(__file__).parents[3] / "cosim" / "scenarios" / "bs-3.toml").read_text()
+    path = tmp_path / "units.toml"
+    path.write_text(text.replace("v_0 = -0.10", f"{key} = {value}\nv_0 = -0.10"))
+    with pytest.raises(cosim.ScenarioError) as refused:
+        cosim.load_scenario(path, fmu_dir=fmu_paths["AuvPlant"].parent)
+    assert str(refused.value).endswith(
+        f"{value.strip(chr(34))!r} is not a number ({key} is Real): expected a number of {unit}"
+    )
