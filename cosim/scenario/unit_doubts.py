@@ -3,7 +3,8 @@ the FMU declares radians (``yaw_0 = 30``, ``when = "plant.yaw > 20"``), a moving
 command in cm where the plant takes m (``mass_position_cmd = 6``), and a guidance's
 acceptance radius as long as a leg of its mission (500 for 5 m; the leg's start lies in
 its end's acceptance circle, so the leg counts as completed as soon as it begins: the
-whole survey "completed" at t = 0).
+whole survey "completed" at t = 0), and a plant started above the surface (``down_0 =
+-3`` for a depth of 3 m: depth is positive down).
 
 Such a value is valid (the plant counts whole turns, a heading of 30 rad is a heading),
 so it is not refused; a run that takes it says so in one warning line each, naming the
@@ -103,10 +104,33 @@ def stroke_doubts(scenario: Scenario) -> list[str]:
     return found
 
 
+def depth_doubts(scenario: Scenario) -> list[str]:
+    """One line for each plant (``AuvPlant``) started above the surface, ``down_0`` < 0 m: a
+    depth written with the sign of an altitude (depth is positive down, NED; the plant has
+    no free surface, so it runs, as deep water)."""
+    found = []
+    for name, inst in scenario.instances.items():
+        value = inst.start.get("down_0")
+        if inst.interface.model_identifier != "AuvPlant" or not isinstance(value, float):
+            continue
+        if value < 0.0:
+            found.append(
+                f"instances.{name}.start.down_0 = {value:g} m is above the surface: depths "
+                f"are positive down (NED); if a depth of {-value:g} m was meant, give "
+                f"{-value:g} (the plant has no free surface)"
+            )
+    return found
+
+
 def doubts(scenario: Scenario) -> list[str]:
-    """Every doubt of ``scenario``: :func:`angle_doubts`, :func:`stroke_doubts` and
-    :func:`radius_doubts`."""
-    return angle_doubts(scenario) + stroke_doubts(scenario) + radius_doubts(scenario)
+    """Every doubt of ``scenario``: :func:`angle_doubts`, :func:`stroke_doubts`,
+    :func:`radius_doubts` and :func:`depth_doubts`."""
+    return (
+        angle_doubts(scenario)
+        + stroke_doubts(scenario)
+        + radius_doubts(scenario)
+        + depth_doubts(scenario)
+    )
 
 
 def radius_doubts(scenario: Scenario) -> list[str]:

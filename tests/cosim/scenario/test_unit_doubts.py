@@ -10,7 +10,13 @@ from pathlib import Path
 import pytest
 
 import cosim
-from cosim.scenario.unit_doubts import UnitWarning, angle_doubts, radius_doubts, stroke_doubts
+from cosim.scenario.unit_doubts import (
+    UnitWarning,
+    angle_doubts,
+    depth_doubts,
+    radius_doubts,
+    stroke_doubts,
+)
 
 TURN = """
 [[events]]
@@ -227,3 +233,15 @@ def test_a_value_written_with_its_unit_is_refused_naming_the_unit_expected(
     assert str(refused.value).endswith(
         f"{value.strip(chr(34))!r} is not a number ({key} is Real): expected a number of {unit}"
     )
+
+
+def test_a_start_above_the_surface_is_named(fmu_paths: dict[str, Path]) -> None:
+    """down_0 = -3 (a depth of 3 m written with the sign of an altitude) ran without a word,
+    the vehicle starting 3 m above the water the plant does not model: depth is positive
+    down, as a waypoint's, whose negative depth is refused."""
+    scenario = cosim.load_scenario("depth-steps", fmu_dir=fmu_paths["AuvPlant"].parent)
+    assert depth_doubts(scenario) == []
+    assert depth_doubts(scenario.with_start({"plant.down_0": -3.0})) == [
+        "instances.plant.start.down_0 = -3 m is above the surface: depths are positive down "
+        "(NED); if a depth of 3 m was meant, give 3 (the plant has no free surface)"
+    ]
