@@ -122,14 +122,50 @@ def depth_doubts(scenario: Scenario) -> list[str]:
     return found
 
 
+def when_doubts(scenario: Scenario) -> list[str]:
+    """One line for each ``when`` event on a plant's (``AuvPlant``) state whose comparison
+    holds at its start value (``yaw`` and ``yaw_0``): it fires only when the comparison
+    turns true, so not until the value has gone back across the threshold first. The
+    slip it names: a heading compared as a compass reads it (``plant.yaw > 0.6`` on a
+    vehicle started at 350 deg, 6.109 rad), where the yaw counts whole turns."""
+    found = []
+    for event in scenario.events:
+        if event.when is None:
+            continue
+        instance, _, variable = event.when.ref.partition(".")
+        inst = scenario.instances.get(instance)
+        if inst is None or inst.interface.model_identifier != "AuvPlant":
+            continue
+        start_name = f"{variable}_0"
+        start = scenario.start_value(instance, start_name)
+        if not isinstance(start, float) or not event.when.holds(start):
+            continue
+        var = inst.interface.variables.get(variable)
+        turned = ""
+        if var is not None and var.unit == ANGLE_UNIT and abs(start) > math.pi:
+            other, which = (start - FULL_TURN_RAD, "before") if start > 0 else (
+                start + FULL_TURN_RAD, "after")  # fmt: skip
+            turned = (
+                f"; angles count whole turns ({start:.4g} rad is {other:.4g} on the turn {which})"
+            )
+        found.append(
+            f"events.{event.name}.when = '{event.when}' holds from the start "
+            f"({instance}.{start_name} = {start:.4g}{f' {var.unit}' if var and var.unit else ''}"
+            f"): a when event fires when its comparison turns true, so this one waits for "
+            f"the value to go back across {event.when.threshold!r} first{turned}"
+        )
+    return found
+
+
 def doubts(scenario: Scenario) -> list[str]:
     """Every doubt of ``scenario``: :func:`angle_doubts`, :func:`stroke_doubts`,
-    :func:`radius_doubts` and :func:`depth_doubts`."""
+    :func:`radius_doubts`, :func:`depth_doubts` and :func:`when_doubts`."""
     return (
         angle_doubts(scenario)
         + stroke_doubts(scenario)
         + radius_doubts(scenario)
         + depth_doubts(scenario)
+        + when_doubts(scenario)
     )
 
 

@@ -16,6 +16,7 @@ from cosim.scenario.unit_doubts import (
     depth_doubts,
     radius_doubts,
     stroke_doubts,
+    when_doubts,
 )
 
 TURN = """
@@ -244,4 +245,23 @@ def test_a_start_above_the_surface_is_named(fmu_paths: dict[str, Path]) -> None:
     assert depth_doubts(scenario.with_start({"plant.down_0": -3.0})) == [
         "instances.plant.start.down_0 = -3 m is above the surface: depths are positive down "
         "(NED); if a depth of 3 m was meant, give 3 (the plant has no free surface)"
+    ]
+
+
+def test_a_when_event_true_from_the_start_is_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """A vehicle started at 350 deg (yaw_0 = 6.109 rad) with an event `when = "plant.yaw >
+    0.6"`, meant for the heading passing 034 deg: the yaw counts whole turns, so the
+    comparison held from the start, never turned true, and the event never fired, without
+    a word."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    scenario = cosim.load_scenario(_scenario(tmp_path, 0.2, 0.6), fmu_dir=fmu_dir)
+    assert when_doubts(scenario) == []  # bs-2 starts at yaw_0 = 30 deg: 0.52 rad
+    north = scenario.with_start({"plant.yaw_0": math.radians(350.0)})
+    assert when_doubts(north) == [
+        "events.past.when = 'plant.yaw > 0.6' holds from the start (plant.yaw_0 = 6.109 rad): "
+        "a when event fires when its comparison turns true, so this one waits for the value "
+        "to go back across 0.6 first; angles count whole turns (6.109 rad is -0.1745 on the "
+        "turn before)"
     ]
