@@ -71,7 +71,7 @@ def test_a_run_warns_once_per_value_and_still_runs(
 ) -> None:
     from cosim.cli import main
 
-    path = _scenario(tmp_path, 30, 0.2)
+    path = _scenario(tmp_path, 30, 0.6)  # past 0.6 rad (34 deg): not from the 30 deg start
     fmu_dir = str(fmu_paths["AuvPlant"].parent)
     argv = ["run", str(path), "--stop-time", "0.5", "--no-rrd", "--quiet", "--fmu-dir", fmu_dir,
             "--out", str(tmp_path / "run")]  # fmt: skip
