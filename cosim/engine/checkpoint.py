@@ -5,7 +5,8 @@ At point n (t = n h, row n recorded and handed to the sinks) the state of a run 
 instance's FMU state, serialized (``fmi2GetFMUstate`` + ``fmi2SerializeFMUstate``, FMI 2.0
 section 2.1.8), and the master's own: the exchanged and recorded values ``z``, each
 instance's input-extrapolation history (:class:`cosim.engine.extrapolation.InputRates`), the
-timeline's events fired and faults' state (:meth:`cosim.engine.timeline.Timeline.snapshot`),
+timeline's events fired and faults' state (:meth:`cosim.engine.timeline.Timeline.snapshot`)
+and the notes of the events log so far (a resumed run's recording has them again),
 the step count and the rows handed off. :func:`capture` takes it, :func:`restore` puts it
 into freshly initialised instances, and :func:`to_json` / :func:`from_json` turn it into
 plain JSON and back, every double exactly (``float.hex``) and without pickle (a checkpoint
@@ -85,7 +86,11 @@ def capture(
             slave.fmu.freeFMUstate(state)
     events = None
     if timeline is not None:
-        events = {"snapshot": timeline.snapshot(), "fired": list(timeline.fired)}
+        events = {
+            "snapshot": timeline.snapshot(),
+            "fired": list(timeline.fired),
+            "notes": [*timeline.handed, *timeline.notes],
+        }
     return {
         "step": n,
         "rows": rows,
@@ -126,6 +131,8 @@ def restore(
         try:
             timeline.fired[:] = events["fired"]
             timeline.restore(events["snapshot"])
+            # handed to the sinks again with the rows before the checkpoint (replayed)
+            timeline.notes[:] = events.get("notes", [])
         except (TypeError, ValueError, KeyError, IndexError, AttributeError):
             raise ValueError("its timeline (events and faults) is not this run's") from None
 
@@ -172,7 +179,18 @@ def misfit(
                 f"its timeline's events fired are not {snapshot[0]} tables of a name, a "
                 "finite time (s) and the values set"
             )
+        notes = events.get("notes", [])
+        if not isinstance(notes, list) or not all(map(_note_fits, notes)):
+            return "its timeline's notes are not pairs of a finite time (s) and a text"
     return None
+
+
+def _note_fits(entry: Any) -> bool:
+    """``entry`` is a note of the events log: (a finite time in s, a text)."""
+    return (
+        isinstance(entry, tuple) and len(entry) == 2
+        and _finite(entry[0]) and isinstance(entry[1], str)
+    )  # fmt: skip
 
 
 def _fired_fits(entry: Any) -> bool:

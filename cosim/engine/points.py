@@ -97,6 +97,7 @@ class RowBuffer:
     def _hand_off_notes(self) -> None:
         assert self.timeline is not None
         notes, self.timeline.notes = self.timeline.notes, []
+        self.timeline.handed += notes
         for sink in list(self.sinks):
             try:
                 sink.add_notes(notes)

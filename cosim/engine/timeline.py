@@ -302,6 +302,8 @@ class Timeline:
         self.overrides: list[dict[str, Any]] = []  # {"name", "time", "set", "source"}
         self._taken = {e.name for e in scenario.events}  # names an override cannot have
         self.notes: list[tuple[float, str]] = []  # (t, text) not yet handed to the sinks
+        self.handed: list[tuple[float, str]] = []  # (t, text) handed to them: a checkpoint
+        # keeps them, so that a resumed run hands its sinks the notes before it again
         self._writer = _Writer(slaves, index, z)
         self._events = [_EventRun(e, self.h) for e in scenario.events]
         # a point looks only at what can act then: the time events due at it (by point),

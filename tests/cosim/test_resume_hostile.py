@@ -319,6 +319,15 @@ def _snapshot(change: Callable[[list[Any], list[Any]], object]) -> Edit:
     return edit
 
 
+def _notes(change: Callable[[list[Any]], object]) -> Edit:
+    """``change`` given the timeline's notes of the events log (JSON)."""
+
+    def edit(data: dict[str, Any]) -> None:
+        change(dict(_entry(data, "timeline")[1]["d"])["notes"])
+
+    return edit
+
+
 def _ramp(index: int, value: Any) -> Edit:
     """The running ramp's field ``index`` (from, to, start, duration) replaced."""
     return _snapshot(lambda snap, _: snap[5]["d"][0][1]["t"].__setitem__(index, value))
@@ -355,6 +364,8 @@ def _rng(change: Callable[[list[list[Any]]], object]) -> Edit:
         (_snapshot(lambda _, fired: fired.__setitem__(0, 5)), "its timeline's events fired are"),
         (_snapshot(lambda _, fired: fired.append(fired[0])), "events fired are not 1 tables"),
         (_snapshot(lambda _, fired: fired[0]["d"][1].__setitem__(1, {"b": "AA=="})), "fired"),
+        (_notes(lambda notes: notes[0]["t"].__setitem__(0, "x")), "notes are not pairs"),
+        (_notes(lambda notes: notes.append(5)), "its timeline's notes are not pairs"),
     ],
     ids=[
         "ramp-from-text",
@@ -375,13 +386,16 @@ def _rng(change: Callable[[list[list[Any]]], object]) -> Edit:
         "fired-number",
         "fired-twice",
         "fired-time-bytes",
+        "note-time-text",
+        "note-number",
     ],
 )
 def test_a_timeline_entry_of_the_wrong_type_is_refused_in_one_line(
     evented: Path, fmu_dir: Path, tmp_path: Path, edit: Edit, said: str
 ) -> None:
     """Guards the timeline's content beyond its counts: an entry of a ramp, a fault's
-    state or an event fired holding junk refuses the resume, naming it, before a step."""
+    state, an event fired or a note of the events log holding junk refuses the resume,
+    naming it, before a step."""
     _refused(_killed(evented, tmp_path, edit), fmu_dir, said)
 
 
