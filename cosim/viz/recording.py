@@ -79,6 +79,10 @@ from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters,
 
 APPLICATION_ID = "auv-cosim"
 RRD_MAGIC = b"RRF"  # the first bytes of an .rrd file (RRF2 in rerun 0.41)
+# then the writer's version (4 bytes) and its encoding options (4 bytes): the compression
+# (0 none, 1 LZ4), the serializer (1 MessagePack, 2 Protobuf) and two zero bytes
+RRD_HEADER_BYTES = 12
+_COMPRESSIONS, _SERIALIZERS = (0, 1), (1, 2)
 # Each send costs ~25 send_columns calls of ~70 us whatever their length, and each send to
 # a file leaves ~100 kB in memory until the file is closed (measured on vert-2: the chunk
 # index of rerun-sdk 0.41's file footer), so rows are buffered: sent once BATCH_BYTES of
@@ -728,9 +732,17 @@ def recording_in(path: Path) -> Path:
 
 
 def is_recording(path: Path) -> bool:
-    """Whether ``path`` starts like a Rerun .rrd file (its magic bytes)."""
+    """Whether ``path`` starts like a Rerun .rrd file: its magic bytes and, where its
+    whole header is there (a file cut shorter is a recording cut short), encoding options
+    rerun writes; junk after the magic is no recording, not a version that wrote it."""
     try:
         with open(path, "rb") as f:
-            return f.read(len(RRD_MAGIC)) == RRD_MAGIC
+            header = f.read(RRD_HEADER_BYTES)
     except OSError:
         return False
+    if not header.startswith(RRD_MAGIC):
+        return False
+    if len(header) < RRD_HEADER_BYTES:
+        return True
+    compression, serializer, *padding = header[8:RRD_HEADER_BYTES]
+    return compression in _COMPRESSIONS and serializer in _SERIALIZERS and padding == [0, 0]

@@ -692,6 +692,20 @@ def test_view_of_something_that_is_not_a_recording_exits_non_zero(tmp_path: Path
         assert err.count("\n") == 1 and "is not a Rerun recording" in err
 
 
+def test_view_of_a_file_starting_like_a_recording_then_junk_says_so_in_one_line(
+    tmp_path: Path, capsys
+):
+    """Guards against reading junk after the magic bytes as the version that wrote the
+    file: `view --web` said "written by Rerun 103.97.114" (pip install that) and then
+    failed on a second line. A header whose encoding options are no rerun's (bytes 8-11:
+    compression 0 or 1, serializer 1 or 2, two zero bytes) is no recording."""
+    junk = tmp_path / "junk.rrd"
+    junk.write_bytes(b"RRF2garbage and more garbage\n")
+    assert main(["view", str(junk), "--web"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is not a Rerun recording" in err, err
+
+
 def test_view_of_a_folder_without_recording_names_it(tmp_path: Path, capsys):
     with pytest.raises(CosimError, match=str(tmp_path / RECORDING_FILE)):
         view_run(tmp_path)

@@ -32,7 +32,9 @@ from cosim.viz.web_viewer import (
     whole_recording,
 )
 
-FAKE_RRD = b"RRF2" + bytes(60)  # starts like a recording: enough for the checks before serving
+# starts like a recording: enough for the checks before serving (the magic, version 0.0:
+# none to compare, rerun's encoding options: LZ4, Protobuf)
+FAKE_RRD = b"RRF2" + bytes(4) + b"\x01\x02\x00\x00" + bytes(52)
 
 
 def test_the_url_names_the_recordings_file_url_encoded() -> None:
