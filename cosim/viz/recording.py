@@ -701,14 +701,21 @@ def _unix_answers(path: str) -> bool:
 
 
 def recording_in(path: Path) -> Path:
-    """The recording ``path`` names: the file itself, else the folder's
-    ``recording.rrd`` (a run) or ``overlay.rrd`` (a study).
+    """The recording ``path`` names: the file itself (any path ending in ``.rrd`` that is
+    no folder), else the folder's ``recording.rrd`` (a run) or ``overlay.rrd`` (a study).
 
     Raises:
-        CosimError: there is none, or the file is not a Rerun recording.
+        CosimError: there is none, the file is no regular file, or it is not a Rerun
+            recording.
     """
     rrd = path
-    if not path.is_file():
+    if path.suffix == ".rrd" and not path.is_dir():  # a file named: not a folder's file
+        if path.exists() and not path.is_file():
+            raise CosimError(
+                f"{path}: not a regular file (a pipe, a device?): expected a .rrd file a "
+                "run wrote, or a run folder"
+            )
+    elif not path.is_file():
         found = [path / name for name in (RECORDING_FILE, OVERLAY_FILE) if (path / name).is_file()]
         rrd = found[0] if found else path / RECORDING_FILE
     if not rrd.is_file() and (path / STUDY_FILE).is_file():  # a study drawn without one

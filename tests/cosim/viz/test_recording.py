@@ -706,6 +706,18 @@ def test_view_of_a_file_starting_like_a_recording_then_junk_says_so_in_one_line(
     assert err.count("\n") == 1 and "is not a Rerun recording" in err, err
 
 
+@pytest.mark.parametrize("kind", ["missing", "fifo"])
+def test_view_of_an_rrd_path_that_is_no_file_names_that_path(tmp_path: Path, capsys, kind: str):
+    """Guards the line a mistyped or odd .rrd path gets: `view typo.rrd` said "no
+    recording at typo.rrd/recording.rrd", as if it had been given a folder."""
+    named = tmp_path / "typo.rrd"
+    if kind == "fifo":
+        os.mkfifo(named)
+    assert main(["view", str(named), "--web"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{named}:" in err and f"{named}/" not in err, err
+
+
 def test_view_of_a_folder_without_recording_names_it(tmp_path: Path, capsys):
     with pytest.raises(CosimError, match=str(tmp_path / RECORDING_FILE)):
         view_run(tmp_path)
