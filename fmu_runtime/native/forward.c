@@ -207,12 +207,7 @@ static void say_binary(Instance *c)
     char line[PATH_SIZE + 96], escaped[2 * sizeof line];
     snprintf(line, sizeof line, "the FMU runs on pythonfmu's own binary %s (%s=pythonfmu)",
              wrapper_path, RUNTIME_VARIABLE);
-    size_t j = 0;
-    for (size_t i = 0; line[i] && j + 2 < sizeof escaped; i++) { /* a printf format */
-        if (line[i] == '%') escaped[j++] = '%';
-        escaped[j++] = line[i];
-    }
-    escaped[j] = '\0';
+    escape(line, escaped, sizeof escaped);
     instance_log(c, fmi2OK, "logAll", escaped);
 }
 

@@ -157,9 +157,7 @@ size_t whole_characters(const char *text, size_t n)
     return n - (start - 1) >= length ? n : start - 1;
 }
 
-/* ``text`` with every % doubled: hosts treat the message as a printf format. A text cut
- * short (by ``size``) is cut between characters. */
-static void escape(const char *text, char *out, size_t size)
+void escape(const char *text, char *out, size_t size)
 {
     size_t j = 0;
     for (size_t i = 0; text[i] && j + 2 < size; i++) {

@@ -350,12 +350,7 @@ __attribute__((format(printf, 3, 4))) static void say(Instance *c, fmi2Status st
     vsnprintf(line, sizeof line, format, args);
     va_end(args);
     char escaped[2 * sizeof line];
-    size_t j = 0;
-    for (size_t i = 0; line[i] && j + 2 < sizeof escaped; i++) {
-        if (line[i] == '%') escaped[j++] = '%';
-        escaped[j++] = line[i];
-    }
-    escaped[j] = '\0';
+    escape(line, escaped, sizeof escaped);
     instance_log(c, status, status >= fmi2Error ? "logStatusError" : "logAll", escaped);
 }
 
