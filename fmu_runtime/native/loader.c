@@ -199,15 +199,42 @@ static fmi2Status answer(Instance *c, fmi2Status status)
 }
 
 /* Shortest text that reads back as the same double, like Python's repr. */
+#define SHOW_SIZE 32 /* show's out: loader.h */
+
+/* By hand: C has no shortest-repr printf (%g and %e print as many digits as asked), so
+ * the digits are the fewest, of 1 to 17, that strtod reads back as ``x``; they are then
+ * laid out as Python's repr lays them out (positional for exponents -4 to 15, else
+ * d.ddde+XX), so that a line of the runtime and one of the slave name a value alike. */
 const char *show(double x, char *out)
 {
     if (isnan(x)) return strcpy(out, "nan");
     if (isinf(x)) return strcpy(out, x > 0 ? "inf" : "-inf");
-    for (int digits = 15; digits <= 17; digits++) {
-        snprintf(out, 32, "%.*g", digits, x);
-        if (strtod(out, NULL) == x) break;
+    char shortest[40]; /* [-]d[.ddd]e(+|-)XX; 17 digits always read back */
+    for (int precision = 0; precision <= 16; precision++) {
+        snprintf(shortest, sizeof shortest, "%.*e", precision, x);
+        if (strtod(shortest, NULL) == x) break;
     }
-    if (!strpbrk(out, ".e")) strcat(out, ".0");
+    char digits[24];
+    size_t n = 0;
+    const char *at = shortest;
+    for (; *at && *at != 'e'; at++) { /* the digits alone: no sign, no decimal point */
+        if (isdigit((unsigned char)*at) && n < sizeof digits - 1) digits[n++] = *at;
+    }
+    digits[n] = '\0';
+    int exponent = *at ? atoi(at + 1) : 0;
+    size_t used = 0;
+    if (signbit(x)) out[used++] = '-';
+    if (exponent < -4 || exponent >= 16) { /* 5e-324, 1e+16, 1.5e+300 */
+        out[used++] = digits[0];
+        snprintf(out + used, SHOW_SIZE - used, "%s%se%+03d", n > 1 ? "." : "", digits + 1,
+                 exponent);
+    } else if (exponent < 0) { /* 0.0001, 0.1 */
+        snprintf(out + used, SHOW_SIZE - used, "0.%.*s%s", -exponent - 1, "000", digits);
+    } else { /* 1.5, 100000.0, 1000000000000000.0 */
+        for (int i = 0; i <= exponent; i++) out[used++] = (size_t)i < n ? digits[i] : '0';
+        snprintf(out + used, SHOW_SIZE - used, ".%s",
+                 (size_t)exponent + 1 < n ? digits + exponent + 1 : "0");
+    }
     return out;
 }
 

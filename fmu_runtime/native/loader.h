@@ -206,7 +206,8 @@ void escape(const char *text, char *out, size_t size);
 fmi2Status refuse(Instance *c, const char *format, ...)
     __attribute__((format(printf, 2, 3)));
 
-/* loader.c: the shortest text that reads back as the same double (32 bytes), as repr. */
+/* loader.c: the shortest text that reads back as the same double, laid out as Python's
+ * repr (5e-324, 0.0001, 1000000000000000.0, 1e+16, nan), into ``out`` (32 bytes). */
 const char *show(double x, char *out);
 
 /* loader.c: how many of the first ``n`` bytes of UTF-8 ``text`` to keep so that a cut

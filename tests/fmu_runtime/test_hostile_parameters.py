@@ -265,6 +265,24 @@ def test_the_pitch_limits_declared_range_is_the_one_the_autopilot_takes(fmus):
             fmu.close()
 
 
+@pytest.mark.parametrize(
+    "value",
+    [-5e-324, -2.5e-310, -1e-05, -0.0001, -0.1, -1 / 3, -100000.0, -1e15, -1e16,
+     -123456.789, -1.5e300, -sys.float_info.max],
+)  # fmt: skip
+def test_a_refused_value_is_named_as_python_names_it(fmus, value):
+    """The runtime's C named a refused double with 15 to 17 significant digits
+    (``-4.94065645841247e-324``, ``-1e+15``) where the FMUs' Python names it by its
+    shortest repr (``-5e-324``, ``-1000000000000000.0``): both name the same value alike."""
+    path, folder, _ = fmus["AuvAutopilot"]  # design_step: min 0, so each is refused
+    fmu = Harness(path, unzip_dir=folder, initialize=False)
+    try:
+        assert status_of(fmu.set, design_step=value) == STATUS_ERROR
+        assert f"design_step = {value!r} refused" in fmu.messages(STATUS_ERROR)
+    finally:
+        fmu.close()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", FMUS)
 @settings(max_examples=40, suppress_health_check=[HealthCheck.function_scoped_fixture])
