@@ -151,6 +151,7 @@ static void relay(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status 
 typedef struct {
     fmi2CallbackFunctions callbacks;
     PyObject *slave;
+    int said; /* say_binary has run */
 } Forwarded;
 
 #define FORWARDED(c) ((Forwarded *)(c)->extra)
@@ -200,10 +201,16 @@ static int pythonfmu_uri(Instance *c, char *out, size_t n)
     return 1;
 }
 
-/* An OK line (a host with logging on shows it) naming the binary that runs the FMU: the
- * calls are answered as on the runtime, so nothing else tells the fallback is in use. */
+/* An OK line of "logAll" naming the binary that runs the FMU: the calls are answered as on
+ * the runtime, so nothing else tells the fallback is in use. Said once, at the first of
+ * fmi2SetupExperiment and fmi2EnterInitializationMode, not at fmi2Instantiate: by then
+ * the host has set the categories it wants (fmi2SetDebugLogging), and a host asking for
+ * others than "logAll" is not shown it. */
 static void say_binary(Instance *c)
 {
+    Forwarded *forwarded = FORWARDED(c);
+    if (forwarded->said) return;
+    forwarded->said = 1;
     char line[PATH_SIZE + 96], escaped[2 * sizeof line];
     snprintf(line, sizeof line, "the FMU runs on pythonfmu's own binary %s (%s=pythonfmu)",
              wrapper_path, RUNTIME_VARIABLE);
@@ -233,7 +240,6 @@ static int start(Instance *c)
         return 0;
     }
     forwarded->slave = claim_slave(c); /* derivatives, debug */
-    say_binary(c);
     return 1;
 }
 
@@ -290,11 +296,16 @@ static fmi2Status derivatives(Instance *c, const fmi2ValueReference vr[], size_t
 static fmi2Status setup(Instance *c, fmi2Boolean has_tolerance, fmi2Real tolerance,
                         fmi2Real start_time, fmi2Boolean has_stop, fmi2Real stop_time)
 {
+    say_binary(c);
     return wrapper.setupExperiment(c->slave, has_tolerance, tolerance, start_time, has_stop,
                                    stop_time);
 }
 
-static fmi2Status enter(Instance *c) { return wrapper.enterInitializationMode(c->slave); }
+static fmi2Status enter(Instance *c)
+{
+    say_binary(c);
+    return wrapper.enterInitializationMode(c->slave);
+}
 static fmi2Status leave(Instance *c) { return wrapper.exitInitializationMode(c->slave); }
 static fmi2Status terminate(Instance *c) { return wrapper.terminate(c->slave); }
 /* pythonfmu's fmi2Reset constructs a new slave (on this thread): the input derivatives go
