@@ -38,6 +38,7 @@ disk) is no reason to stop: the run goes on without it, and exits 3 if it comple
 from __future__ import annotations
 
 import math
+import os
 import signal
 import sys
 import time
@@ -314,24 +315,43 @@ def resume_run(
 
 def _checkpoint_recording(rrd: Path | None, out_dir: Path, names: OptionNames) -> Path | None:
     """The checkpoint's recording ``rrd``, which the resume writes again, if it is a file
-    the run wrote (its manifest lists it). checkpoint.json is a file anyone may edit: a
-    recording elsewhere that the run never wrote is refused (one line), not created."""
+    the run wrote (its manifest lists it) and ``out_dir`` is the run's folder, not a copy
+    of it. checkpoint.json is a file anyone may edit: a recording elsewhere that the run
+    never wrote is refused (one line), not created; so is, in a copied folder, the
+    recording of the folder it was copied from, which that folder's run may resume."""
     from cosim.outputs.run_files import read_manifest
 
     if rrd is None or rrd == out_dir / RECORDING_FILE:
         return rrd
     manifest = read_manifest(out_dir, names, "resume")
+    instead = (  # (the API's resume says recording=, not rrd=)
+        "recording=True (its own recording.rrd) or recording=False"
+        if names.keywords
+        else f"{names.given('rrd', 'PATH')} or {names.switch('no_rrd')}"
+    )
     if manifest.name_of(rrd) not in manifest.entries:
-        instead = (  # (the API's resume says recording=, not rrd=)
-            "recording=True (its own recording.rrd) or recording=False"
-            if names.keywords
-            else f"{names.given('rrd', 'PATH')} or {names.switch('no_rrd')}"
-        )
         raise CosimError(
             f"{names.given('resume', out_dir)}: its checkpoint's recording {rrd} is not a "
             f"file the run wrote (its manifest does not list it); resume with {instead}"
         )
+    if _copied(out_dir, manifest.entries.get(SCENARIO_FILE)):
+        raise CosimError(
+            f"{names.given('resume', out_dir)}: its checkpoint's recording {rrd} is the "
+            "recording of the run in the folder it was copied from (its files are not the "
+            f"ones the run wrote, by device and inode); resume with {instead}"
+        )
     return rrd
+
+
+def _copied(out_dir: Path, identity: dict[str, Any] | None) -> bool:
+    """Whether ``out_dir`` is a copy of the run's folder: its scenario.toml is not the file
+    (device and inode) the manifest recorded, as after ``cp -a`` or ``rsync -a`` (a folder
+    moved within its file system keeps them, and is the run's)."""
+    try:
+        now = os.stat(out_dir / SCENARIO_FILE, follow_symlinks=False)
+    except OSError:
+        return True
+    return identity is None or (now.st_dev, now.st_ino) != (identity["dev"], identity["ino"])
 
 
 def _recording_named(options: RunOptions, out_dir: Path) -> str:

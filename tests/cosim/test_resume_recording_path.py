@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -14,7 +15,7 @@ import pytest
 from cosim.errors import CosimError
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
 from cosim.outputs.folder import lock_folder, unlock_folder
-from cosim.outputs.run_files import read_manifest
+from cosim.outputs.run_files import RECORDING_APPLICATION, RECORDING_MAGIC, read_manifest
 from cosim.runner import RunOptions, resume_run, run_scenario
 
 FILES = ("results.csv", "scenario.toml", "summary.json", CHECKPOINT_FILE)
@@ -124,3 +125,24 @@ def test_a_recording_whose_folder_is_a_file_says_so(fmu_dir: Path, tmp_path: Pat
     said = str(refused.value)
     assert "\n" not in said and "another process" not in said, said
     assert f"--rrd {rrd}" in said and os.strerror(20) in said, said  # ENOTDIR
+
+
+def test_a_copy_of_a_run_recording_elsewhere_refuses_the_originals_recording(
+    stopped: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Guards a run folder copied elsewhere (new inodes, as ``cp -a`` gives) whose run
+    recorded to an absolute ``--rrd`` resuming into that same file, the recording of the
+    folder it was copied from: the copy is refused in one line naming ``--rrd``."""
+    recording = tmp_path / "rec" / "x.rrd"
+    recording.parent.mkdir()
+    # the head of a recording of ours (the magic bytes, our application id)
+    recording.write_bytes(RECORDING_MAGIC + b"2 " + RECORDING_APPLICATION.encode() + b"\n")
+    original = _killed(stopped, tmp_path, recording, wrote=True)
+    copy = tmp_path / "copy"
+    shutil.copytree(original, copy)
+    before = _tree(tmp_path)
+    said = _refusal(copy, fmu_dir)
+    assert f"--resume {copy}" in said and str(recording) in said, said
+    assert "the folder it was copied from" in said, said
+    assert said.endswith("resume with --rrd PATH or --no-rrd"), said
+    assert _tree(tmp_path) == before
