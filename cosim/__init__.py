@@ -10,10 +10,10 @@ The Python API (:mod:`cosim.api`, docs/api.md)::
     study = cosim.sweep("study.toml", workers=2)
     study.table  # one row per run
 
-``cosim.__all__``: those functions, the types they return (``Run``, ``Study``,
-``Scenario``) and the errors they raise (``CosimError`` and its kinds ``ScenarioError``,
-``StudyError``, ``RunError``; ``RunInterrupted`` and ``SweepInterrupted``, which are
-KeyboardInterrupts).
+``cosim.__all__``: those functions, the types they return (``Run``, ``SavedRun``,
+``Study``, ``Scenario``) and the errors they raise (``CosimError`` and its kinds
+``ScenarioError``, ``StudyError``, ``RunError``; ``RunInterrupted`` and
+``SweepInterrupted``, which are KeyboardInterrupts).
 
 The API is imported at its first use (``cosim.run``, ``from cosim import sweep``), not with
 the package: every command and module of the package (``cosim.cli``, a study's workers)
@@ -31,6 +31,7 @@ if TYPE_CHECKING:
         Run,
         RunError,
         RunInterrupted,
+        SavedRun,
         Study,
         SweepInterrupted,
         build_fmus,
@@ -47,9 +48,9 @@ if TYPE_CHECKING:
     __version__: str  # the package's version, :mod:`cosim.version` (read at first use)
 
 __all__ = [
-    "CosimError", "Run", "RunError", "RunInterrupted", "Scenario", "ScenarioError", "Study",
-    "StudyError", "SweepInterrupted", "build_fmus", "load_scenario", "resume", "run",
-    "sweep",
+    "CosimError", "Run", "RunError", "RunInterrupted", "SavedRun", "Scenario",
+    "ScenarioError", "Study", "StudyError", "SweepInterrupted", "build_fmus",
+    "load_scenario", "resume", "run", "sweep",
 ]  # fmt: skip
 # where each name is defined, if not in cosim.api: the errors a caller catches and the
 # Scenario load_scenario returns, exported here so that no caller names a module inside

@@ -30,7 +30,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, overload
 
 from cosim.engine.signals import REASONS
 from cosim.errors import KEYWORDS, CosimError, plain, shown
@@ -166,6 +166,22 @@ class Run:
         return check
 
 
+@dataclass(frozen=True, eq=False, repr=False)  # (repr: Run's one line)
+class SavedRun(Run):
+    """A :class:`Run` written to its run folder: what :func:`run` with ``out`` and
+    :func:`resume` return. The same, but typed for what it holds: ``out_dir`` is a
+    ``pathlib.Path``, never None, so a strictly type-checked script reads the folder
+    without first asserting that it is there.
+
+    Attributes
+    ----------
+    out_dir : pathlib.Path
+        The run folder, absolute.
+    """
+
+    out_dir: Path
+
+
 @dataclass(frozen=True, eq=False)
 class Study:
     """A finished study of :func:`sweep`.
@@ -226,6 +242,49 @@ def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR
     return load(path, fmu_dir=_folder("fmu_dir", fmu_dir, ScenarioError))
 
 
+# typed per ``out``: with a folder, a SavedRun (its out_dir a Path); without, a Run
+@overload
+def run(
+    scenario: str | Path | Scenario,
+    *,
+    stop_time: Number | None = None,
+    step: Number | None = None,
+    algorithm: Algorithm | None = None,
+    extrapolation: Extrapolation | None = None,
+    tolerance: Number | None = None,
+    check_step: bool = False,
+    start: Mapping[str, StartInput] | None = None,
+    out: None = None,
+    overwrite: bool = False,
+    recording: bool = True,
+    fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    progress: bool = False,
+    checkpoint_every: Number | None = None,
+    fmu_log: Mapping[str, Sequence[str]] | None = None,
+) -> Run: ...
+
+
+@overload
+def run(
+    scenario: str | Path | Scenario,
+    *,
+    stop_time: Number | None = None,
+    step: Number | None = None,
+    algorithm: Algorithm | None = None,
+    extrapolation: Extrapolation | None = None,
+    tolerance: Number | None = None,
+    check_step: bool = False,
+    start: Mapping[str, StartInput] | None = None,
+    out: str | Path,
+    overwrite: bool = False,
+    recording: bool = True,
+    fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    progress: bool = False,
+    checkpoint_every: Number | None = None,
+    fmu_log: Mapping[str, Sequence[str]] | None = None,
+) -> SavedRun: ...
+
+
 def run(
     scenario: str | Path | Scenario,
     *,
@@ -280,7 +339,8 @@ def run(
     Returns
     -------
     Run
-        ``.results`` (DataFrame), ``.summary`` (dict), ``.out_dir``.
+        ``.results`` (DataFrame), ``.summary`` (dict), ``.out_dir``; with ``out``, a
+        :class:`SavedRun`, whose ``out_dir`` is typed ``Path`` (never None).
 
     Raises
     ------
@@ -378,7 +438,7 @@ def resume(
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
     progress: bool = False,
     checkpoint_every: Number | None = None,
-) -> Run:
+) -> SavedRun:
     """Continue a killed run from its last checkpoint, like ``auv-cosim run --resume OUT``.
 
     Parameters
@@ -397,7 +457,7 @@ def resume(
 
     Returns
     -------
-    Run
+    SavedRun
         The whole run: its rows up to the checkpoint, kept, and the rest, written as the
         uninterrupted run would have written them (docs/runs.md).
 
@@ -421,7 +481,9 @@ def resume(
         options = dataclasses.replace(options, rrd=rrd)
     with _stopped_before_start():
         outcome = resume_run(folder, dataclasses.replace(options, out_dir=None))
-    return _finished(outcome, False, "cosim.resume", stacklevel=3)
+    finished = _finished(outcome, False, "cosim.resume", stacklevel=3)
+    assert isinstance(finished, SavedRun)  # kept in its folder: _run_of's SavedRun
+    return finished
 
 
 def sweep(
@@ -749,7 +811,9 @@ def _run_of(outcome: RunOutcome, out_dir: Path | None) -> Run:
     if out_dir is None:  # the files were in a temporary folder, removed on return
         summary["outputs"] = {}
     results.attrs["units"] = dict(summary["units"])  # time and every column: summary.json's
-    return Run(result.scenario, results, summary, out_dir)
+    if out_dir is None:
+        return Run(result.scenario, results, summary, None)
+    return SavedRun(result.scenario, results, summary, out_dir)
 
 
 def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> Path:

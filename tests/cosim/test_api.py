@@ -193,15 +193,18 @@ def test_a_run_error_crosses_a_process_pool(fmu_dir: Path) -> None:
 
 
 @pytest.mark.slow
-def test_a_run_shows_in_one_line_not_its_whole_table(fmu_dir: Path) -> None:
+def test_a_run_shows_in_one_line_not_its_whole_table(fmu_dir: Path, tmp_path: Path) -> None:
     """A notebook cell ending in ``cosim.run(...)`` printed the dataclass repr: the scenario
     with every instance, the DataFrame and the whole summary, 5,000 characters over many
     lines. It is one line naming the scenario, whether it completed, the table's shape
-    and the folder."""
+    and the folder; a run kept in a folder (a SavedRun) too."""
     run = cosim.run("bs-3", stop_time=0.1, fmu_dir=fmu_dir)
     columns = len(run.scenario.columns)
     expected = f"Run(scenario='bs-3', complete=True, results=<11 rows x {columns} columns>, "
     assert repr(run) == expected + "out_dir=None)"
+    kept = cosim.run("bs-3", stop_time=0.1, fmu_dir=fmu_dir, out=tmp_path / "run", recording=False)
+    assert type(kept) is cosim.SavedRun
+    assert repr(kept) == expected + f"out_dir={tmp_path / 'run'!r})"
 
 
 def test_runs_and_studies_go_into_lists_and_sets_by_identity(fmu_dir: Path) -> None:
@@ -514,7 +517,8 @@ def test_the_api_names_complete_in_ipython_before_their_first_use(
 
 
 def test_public_names_have_numpy_docstrings() -> None:
-    public = ["Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus"]
+    public = ["Run", "RunError", "RunInterrupted", "SavedRun", "Study", "SweepInterrupted",
+              "build_fmus"]  # fmt: skip
     errors = ["CosimError", "Scenario", "ScenarioError", "StudyError"]
     calls = ["load_scenario", "resume", "run", "sweep"]
     assert sorted(cosim.__all__) == sorted([*public, *errors, *calls])
@@ -522,7 +526,7 @@ def test_public_names_have_numpy_docstrings() -> None:
     for name in (*calls, "build_fmus"):
         doc = inspect.getdoc(getattr(cosim, name)) or ""
         assert "Returns\n-------" in doc and "Raises\n------" in doc, name
-    for name in ("Run", "Study"):
+    for name in ("Run", "SavedRun", "Study"):
         assert "Attributes\n----------" in (inspect.getdoc(getattr(cosim, name)) or "")
 
 

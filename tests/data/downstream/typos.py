@@ -8,8 +8,9 @@ import cosim
 def mistakes() -> None:
     """Misspelt names and options the type checker, not the run, catches."""
     cosim.rnu("bs-3")  # error: Module has no attribute "rnu"
-    cosim.run("bs-3", algorithm="gauss_seidel")  # error: Argument "algorithm" to "run"
-    cosim.run("bs-3", extrapolation="cubic")  # error: Argument "extrapolation" to "run"
+    # (run is overloaded on out=: mypy's notes list each variant, with the choices)
+    cosim.run("bs-3", algorithm="gauss_seidel")  # error: No overload variant of "run" matches
+    cosim.run("bs-3", extrapolation="cubic")  # error: No overload variant of "run" matches
     scenario = cosim.load_scenario("bs-3")
     scenario.with_overrides(error_estimate="doubled")  # error: Argument "error_estimate"
     major: int = cosim.__version__  # error: Incompatible types in assignment

@@ -70,6 +70,15 @@ def runs() -> list[Run]:
     return [first, kept, resume("runs/bs-3-kept", recording=False)]
 
 
+def kept_files() -> list[str]:
+    """docs/api.md, "Keep the run folder": a run with ``out=`` (and a resumed one) has its
+    folder, a Path, read with no ``assert run.out_dir is not None`` first."""
+    kept = cosim.run("bs-3", stop_time=3.0, out="runs/bs-3-api", overwrite=True)
+    resumed = resume("runs/bs-3-kept")
+    folders: list[Path] = [kept.out_dir, resumed.out_dir]
+    return sorted(p.name for folder in folders for p in folder.iterdir())
+
+
 def refused() -> str:
     """docs/api.md, "Errors": each error the API raises, as a user catches it."""
     try:
