@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 
 import pytest
+from fmpy import read_model_description
 
 RUNTIMES = {"runtime": "", "pythonfmu": "pythonfmu"}
 
@@ -46,3 +47,35 @@ def test_a_state_set_ends_a_standing_refusal_in_both_runtimes(runtime, fmu_paths
         "bad write": 3, "other steps": 0, "standing": 2, "good write": 0,
         "after the good write": 0, "bad again": 3, "after the state set": 0,
     }, report  # fmt: skip
+
+
+FIXED_BEFORE_INITIALISATION = """
+import json, os, sys
+os.environ["AUV_FMU_RUNTIME"] = sys.argv[2]
+from fmu_harness import Harness, status_of
+
+fmu = Harness(sys.argv[1], instance="guidance", initialize=False)
+lookahead = fmu.variables["lookahead"].valueReference
+report = {"bad write": status_of(fmu.slave.setReal, [lookahead], [-1.0])}
+fmu.slave.setupExperiment(startTime=0.0)
+report["enter"] = status_of(fmu.slave.enterInitializationMode)
+report["exit"] = status_of(fmu.slave.exitInitializationMode)
+report["lookahead"] = fmu.slave.getReal([lookahead])[0]
+print(json.dumps(report))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("runtime", sorted(RUNTIMES))
+def test_a_refused_fixed_parameter_leaves_its_start_in_both_runtimes(
+    runtime, fmu_paths, run_python
+):
+    """Guards the two runtimes agreeing on a fixed parameter's refused write before
+    initialisation (FMI 2.0: a refused fmi2Set changes nothing): the variable keeps its
+    start value, and initialisation goes on from it, in each."""
+    done = run_python(FIXED_BEFORE_INITIALISATION, fmu_paths["AuvGuidance"], RUNTIMES[runtime])
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    declared = read_model_description(str(fmu_paths["AuvGuidance"])).modelVariables
+    start = float(next(v.start for v in declared if v.name == "lookahead"))
+    assert report == {"bad write": 3, "enter": 0, "exit": 0, "lookahead": start}, report
