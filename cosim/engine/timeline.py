@@ -6,7 +6,8 @@ faults, calls
 * :meth:`Timeline.at` once per communication point t_n = n h (n = 0 .. N), after every due
   instance has stepped to t_n and its outputs were read, before row n is recorded and
   before any instance steps from t_n. In this order: time events due at t_n fire (the
-  first point with t_n >= time, within 1e-9 of a step), running ramps and series write
+  first point with t_n >= time, within 1e-9 of a step, or a few roundings late in a long run:
+  ``point_slack``), running ramps and series write
   their values for t_n, ``when`` conditions are evaluated on the values at t_n (including
   what was just written) and fire on a false -> true crossing (never at n = 0), then the
   faults' ``fault.<name>`` columns are set and actuator faults on unconnected inputs hold
@@ -38,14 +39,18 @@ from fmpy.fmi1 import FMICallException
 from cosim.engine.slave import STATUS_LABELS, Slave
 from cosim.errors import CosimError
 from cosim.scenario.spec import FAULT_COLUMN_PREFIX, Scenario
-from cosim.scenario.timeline_spec import POINT_TOLERANCE, Event, Fault, first_point, shown_time
+from cosim.scenario.timeline_spec import (
+    Event,
+    Fault,
+    first_point,
+    point_slack,
+    shown_time,
+)
 
 if TYPE_CHECKING:
     from cosim.engine.live import LiveControl
 
 OVERRIDE_PREFIX = "live-"  # the names of applied overrides as events: live-1, live-2, ...
-
-_TOLERANCE = POINT_TOLERANCE  # of a step: a time within it of t_n counts as t_n
 
 
 class _Writer:
@@ -532,7 +537,7 @@ class Timeline:
     def _apply_series(self, run: _EventRun, t: float) -> None:
         series = run.event.series
         times = series.times  # type: ignore[union-attr]
-        if t < times[0] - _TOLERANCE * self.h:
+        if t < times[0] - point_slack(t, self.h):
             return
         values = {}
         linear = series.interpolation == "linear"  # type: ignore[union-attr]
@@ -541,7 +546,7 @@ class Timeline:
             if linear:
                 value = float(np.interp(t, times, column))
             else:
-                value = column[bisect.bisect_right(times, t + _TOLERANCE * self.h) - 1]
+                value = column[bisect.bisect_right(times, t + point_slack(t, self.h)) - 1]
             values[ref] = value
             if (not linear or not run.fired) and value != self._writer.get(ref):
                 jumped.add(ref.split(".", 1)[0])

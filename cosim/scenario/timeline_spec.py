@@ -38,6 +38,7 @@ import operator
 import os
 import re
 import stat
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal
@@ -196,10 +197,18 @@ class Fault:
 EVENTS_HINT = "a scenario file's [[events]] (then cosim.load_scenario it)"
 
 
+def point_slack(time: float, h: float) -> float:
+    """How far (s) ``time`` (s) may lie from a communication point n ``h`` and count as it:
+    :data:`POINT_TOLERANCE` of a step, or, late in a long run, four units of the last place
+    of ``time``: a typed time and n h (or time / h and n) differ by their roundings, which
+    pass 1e-9 of a step after 2**24 steps (73 h at 10 ms)."""
+    return max(POINT_TOLERANCE * h, 4.0 * sys.float_info.epsilon * abs(time))
+
+
 def first_point(time: float, h: float) -> int:
     """The first communication point n with n h >= ``time`` (s), within
-    :data:`POINT_TOLERANCE` of a step ``h`` (s)."""
-    return max(0, math.ceil(time / h - POINT_TOLERANCE))
+    :func:`point_slack` of it (``h``: the step, s)."""
+    return max(0, math.ceil((time - point_slack(time, h)) / h))
 
 
 def step_decimals(h: float) -> int:
@@ -232,7 +241,7 @@ def unreached(
     ``step``): active at none (start <= t_n < stop), it never acts."""
 
     def late(time: float) -> bool:
-        return time / step > round(stop_time / step) + POINT_TOLERANCE
+        return first_point(time, step) > round(stop_time / step)
 
     stop = f"the stop time ({stop_time:g} s)"
     lines = [

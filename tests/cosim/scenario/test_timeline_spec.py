@@ -13,6 +13,7 @@ from scenario_factory import loop_toml
 
 from cosim.engine import slave
 from cosim.scenario.spec import ScenarioError, scenario_from_toml
+from cosim.scenario.timeline_spec import first_point
 
 # the loop (tests/fmus): controller.x <- plant.x, plant.u <- controller.u; controller.k and
 # plant.x0 are tunable parameters
@@ -292,3 +293,13 @@ def test_a_series_starting_after_the_stop_time_is_named_as_never_applied() -> No
         "ends before the series, which is never applied"
     ]
     assert unreached([series(10.0, 40.0)], [], stop_time=20.0, step=0.01) == []
+
+
+@pytest.mark.parametrize("h", [0.01, 0.02, 0.005])
+def test_a_time_on_a_late_point_is_that_point_however_many_steps_in(h: float) -> None:
+    # an event typed at a communication point of a long run, past 2**24 steps (73 h at
+    # 10 ms), where time / h carries a rounding of more than 1e-9 of a step: the point
+    # itself, never the one after it
+    points = range(2**24, 2**25, 4099)
+    late = [n for n in points if first_point(float(f"{n * h:.3f}"), h) != n]
+    assert late == []
