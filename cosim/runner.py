@@ -221,6 +221,7 @@ def execute(
             resuming=options.resume,
         )
         progress: ProgressSink | None = None
+        checkpoints: Checkpointing | None = None
         stepped = False
         try:
             progress = _progress(_id_of(scenario), options)
@@ -257,6 +258,8 @@ def execute(
                 raise _stopped_before_start(stop, folder.replacing, out_dir) from None
             raise
         finally:
+            if checkpoints is not None and checkpoints.rows is not None:
+                checkpoints.rows.close()  # the earlier results.csv, if not replayed
             if progress is not None:
                 progress.close()
             folder.release(unused=not stepped)

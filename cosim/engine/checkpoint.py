@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import base64
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -33,18 +33,34 @@ from cosim.engine.timeline import Timeline
 from cosim.scenario.spec import Scenario
 
 
+class SavedRows(Protocol):
+    """The rows a run wrote up to its checkpoint, read as they are replayed, a chunk at a
+    time (a long run's rows do not fit in memory whole: 620 MB for 6 h of bs-3)."""
+
+    last: np.ndarray | None  # the values of the last row (columns,), time left out
+
+    def chunks(self) -> Iterator[np.ndarray]:
+        """The rows' values (rows, columns), time left out, in order; the source closed at
+        the end."""
+        ...
+
+    def close(self) -> None:
+        """Close the source (the rows unread)."""
+        ...
+
+
 @dataclass
 class Checkpointing:
     """A run's checkpoints: every ``every`` steps (0: only when a signal stops it), each
     handed to ``save`` (the engine state of :func:`capture`); ``start``: the state to resume
-    from (:func:`restore`), with the ``rows`` the run wrote up to it (values, (rows,
-    columns), time not included); ``source``: where ``start`` was read (named when it does
+    from (:func:`restore`), with the ``rows`` the run wrote up to it (:class:`SavedRows`);
+    ``source``: where ``start`` was read (named when it does
     not fit the run)."""
 
     every: int
     save: Callable[[dict[str, Any]], None]
     start: dict[str, Any] | None = None
-    rows: np.ndarray | None = None
+    rows: SavedRows | None = None
     source: str = "the checkpoint"
 
 

@@ -597,7 +597,7 @@ class _Saver:
             except ValueError as exc:
                 raise CosimError(f"{checkpoints.source}: does not fit this run: {exc}") from None
             if checkpoints.rows is not None:
-                self._check_values(checkpoints.rows, layout, columns, checkpoints.source)
+                self._check_values(checkpoints.rows.last, layout, columns, checkpoints.source)
             # the earlier run's checkpoint goes with its files as the replay's rows replace
             # them: written again first, so that a failure leaves the earlier run as it was
             checkpoints.save(start)
@@ -608,28 +608,29 @@ class _Saver:
         self.next = (self.first // every + 1) * every if every else -1
 
     def _check_values(
-        self, values: np.ndarray, layout: _Layout, columns: Sequence[str], source: str
+        self, last: np.ndarray | None, layout: _Layout, columns: Sequence[str], source: str
     ) -> None:
         """Refuse a restored ``z`` whose exchanged values are not finite, or whose recorded
-        ones are not the last row written before the checkpoint (``values``), to the bit: a
+        ones are not the last row written before the checkpoint (``last``), to the bit: a
         state edited, or taken from another run, would resume a run never interrupted."""
         if not np.isfinite(self.z[: layout.n_read]).all():
             raise CosimError(f"{source}: does not fit this run: its values z are not all finite")
         record = [layout.index[c] for c in columns]
-        if len(values) and not np.array_equal(self.z[record], values[-1], equal_nan=True):
+        if last is not None and not np.array_equal(self.z[record], last, equal_nan=True):
             raise CosimError(
                 f"{source}: does not fit this run: its values z are not those of the last "
                 "row of results.csv it keeps (one of them edited since?)"
             )
 
-    def _replay(self, values: np.ndarray) -> None:
-        """The rows up to the saved point (their values, (rows, columns)), to every sink as
-        the loop handed them off (their times: row n at n h)."""
+    def _replay(self, saved: checkpoint.SavedRows) -> None:
+        """The rows up to the saved point, read a chunk at a time, to every sink as the
+        loop handed them off (their times: row n at n h)."""
         chunk = len(self.rows.slots)
-        for i in range(0, len(values), chunk):
-            part = values[i : i + chunk]
-            self.rows.buffer[: len(part)] = part
-            self.rows.hand_off(len(part))
+        for values in saved.chunks():
+            for i in range(0, len(values), chunk):
+                part = values[i : i + chunk]
+                self.rows.buffer[: len(part)] = part
+                self.rows.hand_off(len(part))
 
     def save(self, n: int) -> int:
         """Save the state at point ``n`` (its rows handed off); the next point to save."""

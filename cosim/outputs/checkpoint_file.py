@@ -25,6 +25,7 @@ import json
 import math
 import os
 import stat
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,7 +36,7 @@ from cosim.engine.checkpoint import from_json, to_json
 from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.limits import unwritten
 from cosim.outputs.folder import RECORDING_FILE, RESULTS_FILE, SUMMARY_FILE, RunFolder
-from cosim.outputs.results import read_csv
+from cosim.outputs.results import CsvRows
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario
 from cosim.version import version
 from cosim.whole_file import fresh_file
@@ -253,22 +254,44 @@ class Checkpoint:
             )
         return state
 
-    def rows(self, columns: tuple[str, ...]) -> np.ndarray:
-        """The values of results.csv's rows up to the checkpoint ((rows, columns), time
-        left out). Raises :class:`CosimError` if results.csv holds fewer or other columns."""
+    def rows(self, columns: tuple[str, ...]) -> SavedRows:
+        """The rows of results.csv up to the checkpoint, read a chunk at a time as they
+        are replayed (time left out). Raises :class:`CosimError` if results.csv holds fewer
+        or other columns."""
         results = self.path.with_name(RESULTS_FILE)
+        wanted = int(self.data["rows"])
         try:
-            header, table = read_csv(results)
+            rows = CsvRows(results, wanted)
         except (OSError, ValueError) as exc:
             raise CosimError(f"cannot resume from {results}: {exc}") from None
-        wanted = int(self.data["rows"])
-        if header != ["time", *columns]:
+        if rows.columns != ["time", *columns]:
+            rows.close()
             raise CosimError(f"{results}: its columns are not the scenario's")
-        if len(table) < wanted:
+        if rows.available < wanted:
+            rows.close()
             raise CosimError(
-                f"{results}: holds {len(table)} rows, the checkpoint needs the first {wanted}"
+                f"{results}: holds {rows.available} rows, the checkpoint needs the first {wanted}"
             )
-        return table[:wanted, 1:]
+        return SavedRows(rows)
+
+
+class SavedRows:
+    """:class:`cosim.engine.checkpoint.SavedRows` from a results.csv: its rows up to the
+    checkpoint, time left out."""
+
+    def __init__(self, rows: CsvRows) -> None:
+        self._rows = rows
+        self.last = None if rows.last is None else rows.last[1:]
+
+    def chunks(self) -> Iterator[np.ndarray]:
+        try:
+            for chunk in self._rows.chunks():
+                yield chunk[:, 1:]
+        except (OSError, ValueError) as exc:
+            raise CosimError(f"cannot resume from {self._rows.path}: {exc}") from None
+
+    def close(self) -> None:
+        self._rows.close()
 
 
 def read_checkpoint(out_dir: Path, names: OptionNames = FLAGS) -> Checkpoint:
