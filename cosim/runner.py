@@ -955,7 +955,8 @@ def timing(result: RunResult) -> str:
     """The report's last line: the start-up before the loop, by phase, and the stepping
     loop with its real-time factor (only the loop's speed is the simulator's)."""
     wall, startup = result.wall_clock_s, result.startup_s
-    speed = f" ({result.time_reached / wall:.1f}x real time)" if wall > 0 else ""
+    stepped = result.time_reached - result.time_started  # a resumed run's from its checkpoint
+    speed = f" ({stepped / wall:.1f}x real time)" if wall > 0 else ""
     phases = ", ".join(f"{STARTUP_LABELS.get(k, k)} {v:.2f}" for k, v in startup.items())
     return (
         f"  wall clock: start-up {sum(startup.values()):.2f} s ({phases}), "

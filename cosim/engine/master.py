@@ -131,6 +131,7 @@ class RunResult:
     complete: bool
     error: str | None  # one line, None if complete
     wall_clock_s: float  # the stepping loop alone (including the sinks)
+    time_started: float = 0.0  # s, where the loop started (a resumed run: its checkpoint)
     # s, the CPU time this process spent in the stepping loop (every thread: an FMU's own
     # too), which other processes' load inflates far less than the wall clock (benchmarks)
     cpu_clock_s: float = 0.0
@@ -552,8 +553,10 @@ def _loop(
     rows.hand_off(filled)
     if saver is not None and error is None:
         error = saver.stopped(n, stop, h)
-    return _result(scenario, order, rows, error, stop, clock() - started,
-                   time.process_time() - cpu_started)  # fmt: skip
+    result = _result(scenario, order, rows, error, stop, clock() - started,
+                     time.process_time() - cpu_started)  # fmt: skip
+    result.time_started = first * h
+    return result
 
 
 def _row_zero(

@@ -18,7 +18,8 @@ scenario file it was read from, null for one made in memory), stop_time, step, a
 ``outputs`` (the files the run writes), ``units`` (:func:`column_units`: ``time`` and
 every results.csv column, in its order, to its unit), ``versions`` (:func:`versions`),
 ``fmus`` (each instance's FMU: ``model`` identifier and ``guid``), wall_clock_s (the
-stepping loop alone), real_time_factor (of the loop), ``startup_s`` (s before the loop,
+stepping loop alone), real_time_factor (of the loop: the simulated time it stepped, a
+resumed run's from its checkpoint, over wall_clock_s), ``startup_s`` (s before the loop,
 by phase: ``prepare`` the scenario and any FMU build, ``outputs`` opening the files and recording,
 ``load_fmus`` loading and instantiating the FMUs, ``initialise`` their initialisation,
 where the plant compiles or loads its numba code) and ``startup_total_s``,
@@ -307,6 +308,7 @@ def final_summary(
     time_reached, values = result.time_reached, result.final
     if last_row is not None:
         time_reached, values = last_row
+    stepped = time_reached - result.time_started  # s, simulated by this process's loop
     final = dict(zip(result.columns, values.tolist(), strict=True))
     return {
         **running,
@@ -316,7 +318,7 @@ def final_summary(
         "recording_error": recording_error,
         "signal": signal,
         "wall_clock_s": wall,
-        "real_time_factor": _finite(result.time_reached / wall) if wall > 0 else None,
+        "real_time_factor": _finite(stepped / wall) if wall > 0 else None,
         "startup_s": result.startup_s,
         "startup_total_s": sum(result.startup_s.values()),
         "time_reached": time_reached,

@@ -1,6 +1,7 @@
 """The resume of a long run: the rows it wrote up to its checkpoint are replayed into the
 new results.csv a chunk at a time, never held whole (6 h of bs-3 at 10 ms are 2.16 million
-rows of 36 columns: 620 MB as one table)."""
+rows of 36 columns: 620 MB as one table), and its real-time factor is of the simulated time
+it stepped itself."""
 
 from __future__ import annotations
 
@@ -61,3 +62,28 @@ def test_a_resume_holds_a_chunk_of_the_earlier_rows_not_all_of_them(
         tracemalloc.stop()
     assert resumed.result.complete
     assert peak < table / 3, f"the resume held {peak / 1e6:.1f} MB for {table / 1e6:.1f} MB of rows"
+
+
+def test_a_resumed_run_s_real_time_factor_is_of_the_time_it_stepped(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # resumed at t = 4 s of 10, the loop steps 6 s: its factor is 6 s over its wall clock,
+    # not 10 s (a resume at 3 h of a 6 h run reported twice its speed)
+    stop, save = StopRequest(), master._Saver.save
+
+    def save_then_stop(self: Any, n: int) -> int:
+        stop.signum = signal.SIGTERM
+        return save(self, n)
+
+    monkeypatch.setattr(master._Saver, "save", save_then_stop)
+    out = tmp_path / "run"
+    options = RunOptions(out_dir=out, stop_time=10.0, checkpoint_every=4.0, no_rrd=True,
+                         fmu_dir=fmu_dir)  # fmt: skip
+    assert not execute("bs-3", options, stop).result.complete
+    monkeypatch.undo()
+    start = json.loads((out / CHECKPOINT_FILE).read_text())["time"]
+    assert 0.0 < start < 10.0
+    resumed = resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir)).result
+    summary = json.loads((out / "summary.json").read_text())
+    stepped = resumed.time_reached - start
+    assert summary["real_time_factor"] == pytest.approx(stepped / summary["wall_clock_s"])
