@@ -948,6 +948,7 @@ STARTUP_LABELS = {
     "outputs": "outputs",
     "load_fmus": "loading FMUs",
     "initialise": "initialising (and compiling)",
+    "replay": "replaying the rows to the checkpoint",
 }
 
 

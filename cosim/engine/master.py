@@ -318,7 +318,7 @@ def run(
             result = _step(scenario, order, layout, z, feed, stop_request,
                            rows_per_chunk, hand_off_interval, pacer, live,
                            checkpoints)  # fmt: skip
-            result.startup_s = startup
+            result.startup_s = {**startup, **result.startup_s}
         finally:
             if live is not None:  # a request still waiting is answered: not applied
                 live.close()
@@ -367,10 +367,14 @@ def _step(
             live.bind(layout.index, stop, pacer)
         if live is not None or pacer is not None:
             at = _live_point(at, pacer, live, z, h, stop)
-        saver = None
+        saver, replay = None, {}
         if checkpoints:
+            replaying = time.perf_counter()
             saver = _Saver(order, z, rows, timeline, checkpoints, layout, scenario.columns)
+            if saver.resumed:  # its rows up to the checkpoint handed to the sinks again
+                replay = {"replay": time.perf_counter() - replaying}
         result = _loop(scenario, order, layout, z, rows, stop, timeline, at, saver)
+        result.startup_s = replay
         result.coupling = {
             "algorithm": scenario.coupling.algorithm,
             "step_s": h,

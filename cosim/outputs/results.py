@@ -22,7 +22,8 @@ stepping loop alone), real_time_factor (of the loop: the simulated time it stepp
 resumed run's from its checkpoint, over wall_clock_s), ``startup_s`` (s before the loop,
 by phase: ``prepare`` the scenario and any FMU build, ``outputs`` opening the files and recording,
 ``load_fmus`` loading and instantiating the FMUs, ``initialise`` their initialisation,
-where the plant compiles or loads its numba code) and ``startup_total_s``,
+where the plant compiles or loads its numba code, and a resumed run's ``replay`` of the rows
+up to its checkpoint) and ``startup_total_s``,
 time_reached (the last row computed), rows (the rows in results.csv: fewer than computed
 only when results.csv could not be written, and then time_reached and the final values
 are those of its last row), the final value of every column, the key figures
