@@ -41,7 +41,8 @@ def test_a_resume_holds_a_chunk_of_the_earlier_rows_not_all_of_them(
     monkeypatch.undo()
     rows = json.loads((out / CHECKPOINT_FILE).read_text())["rows"]
     assert rows > 40 * CHUNK
-    columns = len(results.header_columns((out / "results.csv").open().readline()))
+    with (out / "results.csv").open(encoding="utf-8") as file:
+        columns = len(results.header_columns(file.readline()))
     table = rows * columns * 8  # bytes of the rows as one table of doubles
 
     monkeypatch.setattr(results, "READ_CHUNK_ROWS", CHUNK)
