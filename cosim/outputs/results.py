@@ -243,6 +243,8 @@ def running_summary(scenario: Scenario, outputs: Mapping[str, Path], out_dir: Pa
         "status": "running",
         "complete": False,
         "error": None,
+        # null until the run ends; listed here, beside error, as docs/runs.md orders the keys
+        "recording_error": None,
         "signal": None,
         "stop_time": scenario.stop_time,
         "step": scenario.coupling.step,

@@ -102,3 +102,22 @@ def test_every_key_of_a_runs_summary_is_named_in_the_docs(run_dir: Path, fmu_dir
     assert sorted(keys - runs) == []
     coupling = {*summary["coupling"], *adaptive["coupling"]}
     assert sorted(coupling - runs - _named("coupling.md")) == []
+
+
+def _documented_key_order() -> list[str]:
+    """The top-level keys docs/runs.md's summary.json table lists, in its rows' order
+    (a row may name two: `stop_time`, `step`)."""
+    text = (ROOT / "docs" / "runs.md").read_text(encoding="utf-8")
+    table = text.split("\n## summary.json\n", 1)[1].split("\n## ", 1)[0]
+    rows = [line.split("|")[1] for line in table.splitlines() if line.startswith("| `")]
+    return [key for cell in rows for key in re.findall(r"`([^`]+)`", cell)]
+
+
+def test_a_runs_summary_has_its_keys_in_the_order_the_docs_list_them(run_dir: Path) -> None:
+    """docs/runs.md lists summary.json's keys "in the order the file has them": a reader
+    following the table down the file finds each key where the table puts it
+    (``recording_error`` beside ``error``, not after the FMUs)."""
+    summary = _summary(run_dir)
+    documented = _documented_key_order()
+    assert sorted(set(summary) - set(documented)) == []
+    assert list(summary) == [key for key in documented if key in summary]
