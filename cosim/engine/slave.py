@@ -42,6 +42,7 @@ from cosim.engine.extrapolation import InputRates
 from cosim.errors import CosimError
 from cosim.fmus import native
 from cosim.fmus.interface import FmuInterfaceError, extract_fmu
+from cosim.limits import unwritten
 from cosim.progress_bars import write
 from cosim.scenario.spec import Instance
 from cosim.scratch import process_folder
@@ -519,10 +520,11 @@ def _extracted(fmu_path: Path) -> Path:
 
 
 def _cannot_extract(fmu_path: Path, exc: OSError) -> CosimError:
-    """Why the system refused to extract ``fmu_path`` into the temporary folder."""
+    """Why the system refused to extract ``fmu_path`` into the temporary folder (the
+    file-size limit named where it was that: :func:`cosim.limits.unwritten`)."""
     return CosimError(
         f"cannot extract {fmu_path} into the temporary folder {tempfile.gettempdir()} "
-        f"(TMPDIR): {exc.strerror or exc}"
+        f"(TMPDIR): {unwritten(exc)}"
     )
 
 

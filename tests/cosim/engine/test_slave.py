@@ -87,7 +87,8 @@ def test_an_fmu_the_temporary_folder_cannot_hold_is_named_and_leaves_nothing(
 ) -> None:
     """Under ``ulimit -f`` (or on a full disk) the extraction into TMPDIR failed as
     "OSError: [Errno 27] File too large", naming neither the FMU nor the folder, and left
-    the partly extracted folder in TMPDIR."""
+    the partly extracted folder in TMPDIR; then as "File too large" alone, which reads as
+    the disk's free space (docs/runs.md: the line names the file-size limit)."""
     fmu = tmp_path / "Big.fmu"  # fmpy extracts any zip: 1 MiB that does not compress
     with zipfile.ZipFile(fmu, "w") as archive:
         archive.writestr("modelDescription.xml", "<fmiModelDescription/>")
@@ -108,7 +109,11 @@ def test_an_fmu_the_temporary_folder_cannot_hold_is_named_and_leaves_nothing(
     """
     done = run_python(code, fmu, temp)
     assert done.returncode == 0, done.stderr
-    expected = f"cannot extract {fmu} into the temporary folder {temp} (TMPDIR): File too large"
+    expected = (
+        f"cannot extract {fmu} into the temporary folder {temp} (TMPDIR): File too large: "
+        "the file-size limit of this process, 65536 bytes (ulimit -f), stopped it: "
+        "raise it (ulimit -f unlimited)"
+    )
     assert done.stdout == expected + "\n"
     scratch = temp / SCRATCH_DIR  # the scratch folders' base and its lock stay
     assert sorted(temp.rglob("*")) == [scratch, scratch / "global.lock"]
