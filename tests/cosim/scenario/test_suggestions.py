@@ -3,13 +3,15 @@ meant to be; a name close to nothing, or as close to two names, gets no guess.""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 from cosim.cli import main
+from cosim.paths import undecoded
 from cosim.scenario.checks import ScenarioError
-from cosim.scenario.spec import load_scenario, scenario_from_toml
+from cosim.scenario.spec import load_scenario, scenario_from_toml, scenario_id
 from cosim.study.spec import StudyError, study_from_dict
 
 BS3_LIKE = """
@@ -356,3 +358,18 @@ def test_a_mistyped_choice_of_the_file_is_refused_with_its_likely_meaning(
     with pytest.raises(ScenarioError) as refused:
         scenario_from_toml(text, fmu_dir=fmu_dir)
     assert f"(did you mean {guess}?)" in str(refused.value), refused.value
+
+
+def test_a_file_name_in_bytes_that_are_no_utf8_is_shown_as_escapes(tmp_path: Path) -> None:
+    """A scenario file named in Latin-1 (``l\\xf6.toml``) was refused showing its name as
+    Python's lone surrogates (``'l\\udcf6'``) and the file as ``l?.toml``; the line shows
+    the byte as a run's files do (docs/runs.md: ``\\xf6``)."""
+    path = Path(os.fsdecode(bytes(tmp_path) + b"/l\xf6.toml"))
+    path.write_text(BS3_LIKE, encoding="utf-8")
+    with pytest.raises(ScenarioError) as refused:
+        scenario_id(path)
+    message = str(refused.value)
+    shown = ascii(message)  # pytest's workers send a report only in UTF-8
+    assert f"scenario file {tmp_path}/l\\xf6.toml: key 'id'" in message, shown
+    assert "the file name 'l\\xf6' is not a plain name" in message, shown
+    assert not undecoded(message), shown
