@@ -204,8 +204,12 @@ def _check_replaceable(
             f"{names.option('out')}"
         )
     what = f"scenario {summary['scenario']!r}, status {summary['status']!r}"
+    others = ""  # in the scenario's default folder, what stopped it being reused
+    if default is not None and summary["scenario"] == default.id:
+        shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+        others = f" and {shown}, which no run wrote ({names.switch('overwrite')} keeps them)"
     raise RunFolderError(
-        f"{out}: the folder holds an earlier run ({what}); pass "
+        f"{out}: the folder holds an earlier run ({what}){others}; pass "
         f"{names.switch('overwrite')} to replace it, or choose another folder"
     )
 

@@ -196,6 +196,27 @@ def test_the_default_folder_is_replaced_silently_only_for_the_same_scenario_file
     assert main(["run", str(files[0]), "--no-rrd"]) == 0  # the same file: replaced silently
 
 
+def test_the_default_folder_refused_for_a_users_file_names_that_file(
+    loop_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """The default folder is reused without --overwrite only while it holds nothing but
+    the earlier run (docs/runs.md); with a file of the user's beside it (notes.txt) the
+    command that ran twice was refused, saying only that the folder holds an earlier run,
+    which it had held the time before too. The line names the file that made the
+    difference, and the folder is left as it was."""
+    monkeypatch.setattr(runner, "RUNS_DIR", tmp_path / "runs")
+    assert main(["run", str(loop_file), "--no-rrd"]) == 0
+    folder = tmp_path / "runs" / "loop"
+    (folder / "notes.txt").write_text("my notes\n")
+    before = tree(folder)
+    capsys.readouterr()
+    assert main(["run", str(loop_file), "--no-rrd"]) == 1
+    err = one_line(capsys)
+    assert "the folder holds an earlier run (scenario 'loop', status 'complete')" in err, err
+    assert "and notes.txt, which no run wrote" in err and "--overwrite" in err, err
+    assert tree(folder) == before
+
+
 def test_a_live_runs_rewritten_scenario_is_the_runs_own(
     loop_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
 ) -> None:
