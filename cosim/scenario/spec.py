@@ -625,7 +625,7 @@ def builtin_scenarios() -> dict[str, str]:
     """Built-in scenario ids -> one-line summaries (read without touching any FMU)."""
     result = {}
     for path in sorted(SCENARIO_FOLDER.glob("*.toml"), key=_natural_key):
-        spec = _validate_spec(_read_toml(path), path_text(path))
+        spec = _validate_spec(_read_toml(path), str(path))
         result[spec.id or path.stem] = spec.summary
     return result
 
@@ -690,8 +690,8 @@ def scenario_id(id_or_path: str | Path) -> str:
     """The id a scenario runs under (its ``id`` key, else the file name), read without
     touching any FMU: what the default run folder ``runs/<id>`` is named after."""
     path = scenario_path(id_or_path)
-    spec = _validate_spec(_read_toml(path), path_text(path))
-    return _scenario_id(spec, path.stem, Source(path_text(path)))
+    spec = _validate_spec(_read_toml(path), str(path))
+    return _scenario_id(spec, path.stem, Source(str(path)))
 
 
 def load_scenario(id_or_path: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> Scenario:
@@ -701,8 +701,8 @@ def load_scenario(id_or_path: str | Path, fmu_dir: Path = DEFAULT_FMU_DIR) -> Sc
     Raises :class:`ScenarioError` naming the file and the key on any problem.
     """
     path = scenario_path(id_or_path)
-    spec = _validate_spec(_read_toml(path), path_text(path))
-    src = Source(path_text(path))
+    spec = _validate_spec(_read_toml(path), str(path))
+    src = Source(str(path))
     sid = _scenario_id(spec, path.stem, src)
     return _resolve(spec, sid, path.resolve(), path.parent, fmu_dir, src)
 
@@ -843,7 +843,7 @@ def _scenario_id(spec: ScenarioSpec, default: str, src: Source) -> str:
         plain = re.sub(r"[^A-Za-z0-9_.-]+", "-", default).strip(".-") or "scenario"
         raise src.error(
             "id",
-            f"missing, and the file name '{path_text(default)}' is not a plain name (ASCII letters "
+            f"missing, and the file name '{default}' is not a plain name (ASCII letters "
             f"(A-Z, a-z), digits, _ . -, not starting with . or -): rename the file "
             f'{plain}.toml, or set id = "{plain}" at its top',
         )
