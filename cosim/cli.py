@@ -9,51 +9,65 @@ end on SIGTERM (143) and SIGHUP (129) like on Ctrl-C, with their partial results
 from __future__ import annotations
 
 import os
+import signal
 import sys
 
-try:  # a Ctrl-C while the command imports its modules: one line and 130, no traceback
-    import argparse
-    import codecs
-    import errno
-    import gc
-    import re
-    import shutil
-    import signal
-    import textwrap
-    import warnings
-    from collections.abc import Callable, Iterator, Sequence
-    from contextlib import contextmanager, nullcontext
-    from pathlib import Path
-    from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
-    from cosim.errors import (
-        CosimError,
-        did_you_mean,
-        matplotlib_folder_in_one_line,
-        one_line,
-        one_line_warnings,
-        unencodable,
-    )
-    from cosim.limits import check_local_study, out_of_memory
-    from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
-    from cosim.study.collector import paused
-    from cosim.viz.ports import FILE_PORT, WEB_PORT
-    from fmu_runtime.log_text import shortened
-    from plant_fmu.model.state_layout import MAX_SPEED  # a module of constants, imports nothing
-except KeyboardInterrupt:
-    _main_spec = getattr(sys.modules.get("__main__"), "__spec__", None)
-    _script = os.path.splitext(os.path.basename((sys.argv or [""])[0]))[0]
-    # the command's own start (its script, python -m cosim, python -m cosim.cli); a
-    # caller importing this module keeps its KeyboardInterrupt
-    if (
+def _interrupted_while_starting(_signum: int, _frame: object) -> None:
+    """SIGINT's handler from the command's first lines to ``main``: a Ctrl-C while the
+    command imports its modules and defines its names ends it in one line and 130."""
+    if sys.stderr is not None:  # None: the command started with descriptor 2 closed
+        print("auv-cosim: interrupted (Ctrl-C) while starting", file=sys.stderr)
+    raise SystemExit(130)
+
+
+def _is_the_commands_start() -> bool:
+    """Whether this module runs as the command (its script, python -m cosim, python -m
+    cosim.cli), not imported by a caller, whose Ctrl-C stays its own KeyboardInterrupt."""
+    main_spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+    script = os.path.splitext(os.path.basename((sys.argv or [""])[0]))[0]
+    return (
         __name__ == "__main__"
-        or _script == "auv-cosim"
-        or (getattr(_main_spec, "name", None) == "cosim.__main__")
-    ):
-        if sys.stderr is not None:  # None: the command started with descriptor 2 closed
-            print("auv-cosim: interrupted (Ctrl-C) while starting", file=sys.stderr)
-        raise SystemExit(130) from None
-    raise
+        or script == "auv-cosim"
+        or getattr(main_spec, "name", None) == "cosim.__main__"
+    )
+
+
+# a Ctrl-C anywhere in this module's body (its imports, patterns compiled, names defined),
+# not only in its imports: one line and 130, no traceback; a SIGINT the command started
+# with ignored (`auv-cosim run ... &` in a script) stays ignored. main() puts Python's
+# own handler back. Hence the imports below it:
+# ruff: noqa: E402
+if _is_the_commands_start() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    signal.signal(signal.SIGINT, _interrupted_while_starting)
+
+import argparse
+import codecs
+import errno
+import gc
+import re
+import shutil
+import textwrap
+import warnings
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager, nullcontext
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
+
+from cosim.errors import (
+    CosimError,
+    did_you_mean,
+    matplotlib_folder_in_one_line,
+    one_line,
+    one_line_warnings,
+    unencodable,
+)
+from cosim.limits import check_local_study, out_of_memory
+from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
+from cosim.study.collector import paused
+from cosim.viz.ports import FILE_PORT, WEB_PORT
+from fmu_runtime.log_text import shortened
+from plant_fmu.model.state_layout import MAX_SPEED  # a module of constants, imports nothing
 
 if TYPE_CHECKING:
     from cosim.analysis.bifurcation import OperatingConditions
@@ -1051,6 +1065,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     one arriving before the run caught them ends it before its first step, one arriving
     after it, while the interpreter shuts down, cannot turn a finished run's exit code
     into a death by signal. A Ctrl-C before that ends any command in one line, 130."""
+    if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # KeyboardInterrupt on
     _null_for_closed_streams()
     _printable_anything()
     if argv is None:

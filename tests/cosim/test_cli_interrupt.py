@@ -43,6 +43,39 @@ sys.exit(main())
 """
 
 
+# ``auv-cosim`` as its installed script starts it, which sends itself a Ctrl-C as the body
+# of cosim/cli.py reaches the first statement starting with TEXT (past its imports)
+_AT_STATEMENT_LAUNCHER = """
+import importlib.util, os, signal, sys
+
+TEXT = sys.argv.pop(1)
+CLI = importlib.util.find_spec("cosim.cli").origin
+with open(CLI, encoding="utf-8") as source:
+    LINE = next(n for n, line in enumerate(source, 1) if line.startswith(TEXT))
+
+
+def in_module(frame, event, arg):
+    if event == "line" and frame.f_lineno == LINE:
+        os.kill(os.getpid(), signal.SIGINT)
+        return None
+    return in_module
+
+
+def calls(frame, event, arg):
+    if frame.f_code.co_filename == CLI and frame.f_code.co_name == "<module>":
+        return in_module
+    return None
+
+
+sys.settrace(calls)
+sys.argv[0] = "auv-cosim"
+from cosim.cli import main
+
+sys.settrace(None)
+sys.exit(main())
+"""
+
+
 def _run_args(fmu_dir: Path, out: Path) -> list[str]:
     return ["run", "bs-3", "--stop-time", "20000", "--no-rrd", "--quiet", "--fmu-dir", str(fmu_dir),
             "--out", str(out)]  # fmt: skip
@@ -71,6 +104,28 @@ def test_ctrl_c_while_the_command_starts_ends_it_in_one_line(
     from inside the import (a death by SIGINT), and one after its arguments were read but
     before the run caught signals was ignored: the run went on to its end."""
     command = [sys.executable, "-c", _LAUNCHER, "kill", module,
+               *_run_args(fmu_dir, tmp_path / "run")]  # fmt: skip
+    done = run_in_group(command, timeout=300, preexec_fn=as_in_a_terminal, cwd=tmp_path)
+    _assert_interrupted(done.returncode, done.stderr)
+    assert not (tmp_path / "run" / "results.csv").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "statement",
+    [
+        "FMU_DIR_HELP =",  # the first statement past the imports
+        "_NEGATIVE_NUMBER =",  # a pattern compiled (Python 3.13 took 50 ms to come here)
+        "def main(",  # the module's last definitions
+    ],
+)
+def test_ctrl_c_while_the_commands_module_defines_its_names_ends_it_in_one_line(
+    statement: str, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A Ctrl-C past the command's imports, while cosim/cli.py compiled its patterns and
+    defined its functions, printed a KeyboardInterrupt traceback from re's parser and died
+    by SIGINT (Python 3.13 came to these statements within a Ctrl-C 50 ms into the start)."""
+    command = [sys.executable, "-c", _AT_STATEMENT_LAUNCHER, statement,
                *_run_args(fmu_dir, tmp_path / "run")]  # fmt: skip
     done = run_in_group(command, timeout=300, preexec_fn=as_in_a_terminal, cwd=tmp_path)
     _assert_interrupted(done.returncode, done.stderr)
