@@ -20,9 +20,20 @@
 PythonApi py;
 
 /* The helpers run in a module of their own (not __main__, which a Python host owns), and
- * never through sys.path: the FMU's package is found in its own resources folder only. */
+ * never through sys.path: the FMU's package is found in its own resources folder only.
+ * Their first lines, before any import of an FMU's code: CPython 3.13.0's collections/abc.py
+ * puts _collections_abc in its own place in sys.modules as it runs, and a thread importing
+ * collections.abc while another thread did got that stand-in, without the names ("cannot
+ * import name 'Callable' from 'collections.abc'", an instantiation failed: two FMUs
+ * instantiated at once from a parallel master's threads). They put _collections_abc there
+ * first, as collections/__init__.py does itself from 3.13.1 on. */
 static const char HELPERS[] =
     "import sys\n"
+    "\n"
+    "if sys.version_info[:3] == (3, 13, 0):\n"
+    "    import _collections_abc, collections\n"
+    "    sys.modules.setdefault('collections.abc', _collections_abc)\n"
+    "    collections.abc = _collections_abc\n"
     "\n"
     "\n"
     "def check():\n"
