@@ -53,6 +53,13 @@ def shown(value: object) -> str:
     return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
 
 
+def seconds(t: float) -> str:
+    """A time (s) as the run's grid has it: the shortest text that reads back as the same
+    float (``20000.05``, not ``%g``'s ``20000``), a whole number without its ``.0``."""
+    text = repr(float(t))
+    return text.removesuffix(".0")
+
+
 def plain(value: object) -> object:
     """A numpy bool, integer or floating scalar as the Python bool, int or float of the
     same value (``float(np.float32(-0.1))``), as a given value is checked; any other value

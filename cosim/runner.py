@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS, StopRequest, stop_on_signals
-from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
+from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean, seconds
 from cosim.limits import (
     RUN_ADDRESS_SPACE,
     RUN_NO_RECORDING_ADDRESS_SPACE,
@@ -274,7 +274,7 @@ def execute(
 def _resumed(checkpoints: Checkpointing | None, scenario: Scenario, out_dir: Path) -> str:
     """What the report says of a resumed run, in place of replacing the earlier one."""
     step = checkpoints.start["step"] if checkpoints and checkpoints.start else 0
-    return f"resumed the run in {out_dir} at t = {step * scenario.coupling.step:g} s"
+    return f"resumed the run in {out_dir} at t = {seconds(step * scenario.coupling.step)} s"
 
 
 def resume_run(
@@ -803,7 +803,7 @@ def report(outcome: RunOutcome) -> str:
     t_end = result.time_reached
     lines = [
         f"scenario {scenario.id}: {'complete' if result.complete else 'INCOMPLETE'}, "
-        f"t = {t_end:g} of {scenario.stop_time:g} s, {_steps(result)}"
+        f"t = {seconds(t_end)} of {seconds(scenario.stop_time)} s, {_steps(result)}"
     ]
     if result.ended is not None:
         lines.append(f"  {result.ended}")
@@ -931,7 +931,8 @@ def _fixed_steps(count: int, coupling: Coupling, takers: list[str] | None = None
             f", inputs held: no FMU takes input derivatives (canInterpolateInputs) for "
             f"extrapolation = {coupling.extrapolation!r}"
         )
-    return f"{count} steps of {coupling.step:g} s ({coupling.algorithm}{inputs})"
+    steps = "1 step" if count == 1 else f"{count} steps"
+    return f"{steps} of {seconds(coupling.step)} s ({coupling.algorithm}{inputs})"
 
 
 def _check_line(check: dict[str, Any]) -> str:

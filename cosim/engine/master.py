@@ -99,7 +99,7 @@ from cosim.engine.rows import RUN_COMPLETE, RUN_INCOMPLETE, Note, RowSink, RowTa
 from cosim.engine.signals import StopRequest, stop_on_signals
 from cosim.engine.slave import Slave, describe, reasons, unzipped
 from cosim.engine.timeline import Timeline
-from cosim.errors import CosimError
+from cosim.errors import CosimError, seconds
 from cosim.fmus.interface import check_binary, check_own_packages
 from cosim.scenario.checks import Source
 from cosim.scenario.coupling_graph import feedthrough
@@ -166,10 +166,10 @@ def ending_note(result: RunResult) -> Note:
     error)."""
     t = result.time_reached
     if not result.complete:
-        return t, f"{RUN_INCOMPLETE}{result.error or f'stopped at t = {t:.6g} s'}"
+        return t, f"{RUN_INCOMPLETE}{result.error or f'stopped at t = {seconds(t)} s'}"
     if result.ended is not None:
         return t, f"{RUN_COMPLETE}: {result.ended}"
-    return t, f"{RUN_COMPLETE} at t = {t:.6g} s (its stop time)"
+    return t, f"{RUN_COMPLETE} at t = {seconds(t)} s (its stop time)"
 
 
 @dataclass(frozen=True)
@@ -655,7 +655,7 @@ class _Saver:
         try:
             self.save(n)
         except (CosimError, FMICallException) as exc:
-            return f"{stop.reason} at t = {n * h:.6g} s; no checkpoint there: {exc}"
+            return f"{stop.reason} at t = {seconds(n * h)} s; no checkpoint there: {exc}"
         return None
 
 
@@ -759,11 +759,11 @@ def _result(
     clock and process CPU time, s."""
     t_end = rows.time_reached
     if error is None and rows.error is not None:
-        error = f"{rows.error} (at t = {t_end:.6g} s)"
+        error = f"{rows.error} (at t = {seconds(t_end)} s)"
     reached = rows.ended is not None or t_end >= scenario.stop_time - 1e-6 * scenario.coupling.step
     stopped = stop.requested and error is None and not reached
     if stopped:
-        error = f"{stop.reason} at t = {t_end:.6g} s"
+        error = f"{stop.reason} at t = {seconds(t_end)} s"
     return RunResult(
         scenario=scenario,
         columns=scenario.columns,
