@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
 from cosim.engine.signals import REASONS
-from cosim.errors import KEYWORDS, CosimError, plain, shown
+from cosim.errors import KEYWORDS, CosimError, counted, plain, shown
 from cosim.limits import open_files_limit_kept
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import NotStartedError, RunOptions, execute
@@ -731,7 +731,8 @@ def _stopped(signum: int, out_dir: Path | None, kept: bool = True) -> SweepInter
     if kept and len(table) and out_dir is not None and csv_path is not None:
         where += f" and {csv_path.absolute()} (resume=True runs the others)"
     study = Study(table, out_dir.absolute() if kept and len(table) and out_dir else None)
-    return SweepInterrupted(f"{reason}: {len(table)} finished runs kept in {where}", study)
+    finished = counted(len(table), "finished run")
+    return SweepInterrupted(f"{reason}: {finished} kept in {where}", study)
 
 
 def _read_parquet(path: Path) -> pd.DataFrame:

@@ -60,6 +60,12 @@ def seconds(t: float) -> str:
     return text.removesuffix(".0")
 
 
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, the noun in the plural unless there is one: "1 finished
+    run", "2 finished runs" (``noun``'s plural: an "s" more)."""
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
 def plain(value: object) -> object:
     """A numpy bool, integer or floating scalar as the Python bool, int or float of the
     same value (``float(np.float32(-0.1))``), as a given value is checked; any other value

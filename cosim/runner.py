@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.engine.signals import REASONS, StopRequest, stop_on_signals
-from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean, seconds
+from cosim.errors import FLAGS, CosimError, OptionNames, counted, did_you_mean, seconds
 from cosim.limits import (
     RUN_ADDRESS_SPACE,
     RUN_NO_RECORDING_ADDRESS_SPACE,
@@ -931,8 +931,7 @@ def _fixed_steps(count: int, coupling: Coupling, takers: list[str] | None = None
             f", inputs held: no FMU takes input derivatives (canInterpolateInputs) for "
             f"extrapolation = {coupling.extrapolation!r}"
         )
-    steps = "1 step" if count == 1 else f"{count} steps"
-    return f"{steps} of {seconds(coupling.step)} s ({coupling.algorithm}{inputs})"
+    return f"{counted(count, 'step')} of {seconds(coupling.step)} s ({coupling.algorithm}{inputs})"
 
 
 def _check_line(check: dict[str, Any]) -> str:

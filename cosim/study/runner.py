@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean
+from cosim.errors import FLAGS, CosimError, OptionNames, counted, did_you_mean
 from cosim.limits import check_local_study, unwritten
 from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.progress_bars import progress_bar
@@ -183,7 +183,7 @@ def run_study(
                 if not resume and not table.done:  # nothing to resume: leave no study
                     study_folder.discard_new(out_dir, CSV_NAME)
                 elif isinstance(exc, StudyStopped | StudyEndedError):
-                    kept = f"{len(table.done)} finished runs kept in {csv_path}"
+                    kept = f"{counted(len(table.done), 'finished run')} kept in {csv_path}"
                     exc.where = f"{kept} ({names.switch('resume')})"
                 raise
             with _kept_rows(csv_path, len(table.done), names):

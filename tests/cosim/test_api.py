@@ -1216,7 +1216,8 @@ def test_an_interrupted_sweep_raises_one_line_with_the_finished_rows(
     assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
     caught = json.loads(done.stdout.strip().splitlines()[-1])
     assert 1 <= caught["rows"] < 10 and caught["complete"]
-    kept = f"{caught['rows']} finished runs kept in the error's study.table"
+    runs = f"{caught['rows']} finished run{'s' * (caught['rows'] != 1)}"  # 1 run: singular
+    kept = f"{runs} kept in the error's study.table"
     assert caught["message"].startswith(f"interrupted (Ctrl-C): {kept}")
     if out is None:
         left = [p for p in tmp_path.rglob("auv-cosim-*") if p.name != SCRATCH_DIR]

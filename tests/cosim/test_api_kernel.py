@@ -95,7 +95,8 @@ def test_a_notebooks_stop_button_ends_a_sweep_keeping_its_rows_and_no_worker(
     assert interrupted and len(errors) == 1, messages
     assert errors[0]["ename"] == "SweepInterrupted", errors[0]
     kept = len(runs_csv.read_bytes().splitlines()) - 1
-    assert errors[0]["evalue"].startswith(f"interrupted (Ctrl-C): {kept} finished runs kept")
+    runs = f"{kept} finished run{'s' * (kept != 1)}"  # 1 run in the singular
+    assert errors[0]["evalue"].startswith(f"interrupted (Ctrl-C): {runs} kept")
     assert 1 <= kept < 10
 
     # the study stopped its workers: the kernel's children are its fork server and

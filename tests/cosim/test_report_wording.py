@@ -32,3 +32,14 @@ def test_whole_seconds_have_no_trailing_point_zero(test_fmu_dir: Path, tmp_path:
                            no_rrd=True)  # fmt: skip
     first = report(outcome).splitlines()[0]
     assert "t = 1 of 1 s, 2 steps of 0.5 s (gauss-seidel)" in first, first
+
+
+def test_a_sweep_stopped_after_one_run_keeps_one_finished_run(tmp_path: Path) -> None:
+    """A sweep interrupted after its first run said "1 finished runs kept"."""
+    import signal
+
+    from cosim.api import _stopped
+
+    (tmp_path / "runs.csv").write_text("run,error\n0a1b,\n", encoding="utf-8")
+    message = str(_stopped(signal.SIGINT, tmp_path))
+    assert message.startswith("interrupted (Ctrl-C): 1 finished run kept in"), message
