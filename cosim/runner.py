@@ -231,6 +231,8 @@ def execute(
                 raise _stopped_before_start(stop, folder.replacing, out_dir)
             prepared = time.perf_counter()
             checkpoints = _checkpoints(loaded, options, folder)
+            if progress and checkpoints and checkpoints.start and checkpoints.rows is not None:
+                progress.replayed_rows = int(checkpoints.start["rows"])
             session = _live_session(loaded, options, progress)
             try:
                 outputs = _open_outputs(loaded, folder, options, progress)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -115,7 +116,11 @@ class ProgressSink(NotesIgnored):
     ``total_rows`` may be set once the scenario is known, or ``total_time`` (s): then the
     bar counts simulated seconds to it instead of rows (an adaptive run, whose number of
     steps is not known ahead); ``status`` (a paced run's real-time factors) is shown after
-    the bar, refreshed with every chunk."""
+    the bar, refreshed with every chunk. ``replayed_rows``: the rows a resumed run hands on
+    again first, read back from its results.csv up to its checkpoint: counted in a phase of
+    their own, and the bar starts past them, so that its rate and time left are the
+    steps' (the replayed rows, read some times faster than stepped, made its first
+    estimates of the time left short)."""
 
     def __init__(
         self, total_rows: int | None, label: str, status: Callable[[], str] | None = None
@@ -126,6 +131,9 @@ class ProgressSink(NotesIgnored):
         self.status = status  # a paced run's real-time factors, settable once known
         self._bar: Any = None
         self._phase: Any = None
+        self.replayed_rows = 0
+        self._replayed = 0  # of replayed_rows, received so far
+        self._replay_shown = 0.0  # time.monotonic() of the replay's last redraw
 
     def phase(self, text: str) -> None:
         """Show ``text`` (and the time it has taken so far) until the next phase or row; a
@@ -139,6 +147,19 @@ class ProgressSink(NotesIgnored):
         self._phase.set_description_str(f"{self._label}: {text}")
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        replayed = min(len(times), self.replayed_rows - self._replayed)
+        if replayed > 0:
+            first = not self._replayed
+            self._replayed += replayed
+            now = time.monotonic()  # redrawn 5 times a second, not for every chunk
+            done = self._replayed == self.replayed_rows
+            if first or done or now - self._replay_shown >= 0.2:
+                self._replay_shown = now
+                self.phase(f"replaying the rows to the checkpoint ({self._replayed} of "
+                           f"{self.replayed_rows})")  # fmt: skip
+            times = times[replayed:]
+            if not len(times):
+                return
         if self._bar is None:
             self._close_phase()
             by_time = self.total_time is not None
@@ -147,8 +168,9 @@ class ProgressSink(NotesIgnored):
             # the terminal's width at each redraw, not as the bar began: a terminal
             # narrowed mid-run wrapped every redraw onto a line of its own
             self._bar = progress_bar(
-                total=total, unit=unit, desc=self._label, leave=False, dynamic_ncols=True
-            )
+                total=total, unit=unit, desc=self._label, leave=False, dynamic_ncols=True,
+                initial=0 if by_time else self._replayed,
+            )  # fmt: skip
         if self.status is not None:
             self._bar.set_postfix_str(self.status(), refresh=False)
         if self.total_time is None:
