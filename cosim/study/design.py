@@ -106,6 +106,7 @@ def plan(spec: StudySpec, normalize: Mapping[str, Callable[[Value], Value]]) -> 
     ``normalize[factor]`` turns a value into the one the scenario will hold (a Real
     factor's integer becomes a float), so a run's id names what actually runs.
     """
+    _check_listed_once(spec.grid, normalize)
     points = grid_points(spec.grid)
     drawn = random_samples(spec.random)
     samples = drawn or [{}]
@@ -116,5 +117,22 @@ def plan(spec: StudySpec, normalize: Mapping[str, Callable[[Value], Value]]) -> 
     ids = [run.id for run in runs]
     if len(set(ids)) != len(ids):
         twice = next(run for run in runs if ids.count(run.id) > 1)
-        raise StudyError(f"two runs have the same factor values {dict(twice.values)}")
+        shown = ", ".join(f"{name} = {value!r}" for name, value in twice.values.items())
+        raise StudyError(f"two runs have the same factor values: {shown}")
     return runs
+
+
+def _check_listed_once(
+    grid: Mapping[str, list[Value]], normalize: Mapping[str, Callable[[Value], Value]]
+) -> None:
+    """Refuse a grid factor listing one value written two ways (an Enumeration's
+    ``"lateral"`` and ``1``, a Real's ``1`` and ``1.0``), which would run one run twice,
+    naming both entries (the same entry twice, the study file's check refuses)."""
+    for name, listed in grid.items():
+        seen: dict[str, Value] = {}  # run id of the value alone -> the entry giving it
+        for entry in listed:
+            value = normalize[name](entry)
+            first = seen.setdefault(run_id({name: value}), entry)
+            if first is not entry:
+                raise StudyError(f"[grid] {name!r}: {first!r} and {entry!r} are one value, "
+                                 f"{value!r}: list it once")  # fmt: skip

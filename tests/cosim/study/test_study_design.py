@@ -47,8 +47,25 @@ def test_normalize_gives_a_real_factor_one_id_for_1_and_1_0() -> None:
     runs = plan(s, {"plant.u_0": float})
     assert [r.values["plant.u_0"] for r in runs] == [1.0, 2.0]
     assert runs[0].id == run_id({"plant.u_0": 1.0})
-    with pytest.raises(StudyError, match="same factor values"):
+    with pytest.raises(StudyError, match=r"'plant.u_0': 1 and 1.0 are one value, 1.0: list"):
         plan(spec(grid={"plant.u_0": [1, 1.0]}), {"plant.u_0": float})
+
+
+def test_one_value_listed_twice_in_a_grid_names_both_entries() -> None:
+    """An Enumeration's name and its number ("lateral" and 1) in one grid were refused as
+    "two runs have the same factor values {'plant.variant': 'lateral'}", a raw dict that
+    named neither entry."""
+    names = {1: "lateral", 2: "horizontal"}
+
+    def variant(value):
+        return names.get(value, value)
+
+    grid = {"controller.k0": [0.2, 0.5], "plant.variant": ["lateral", 2, 1]}
+    with pytest.raises(StudyError) as refused:
+        plan(spec(grid=grid), {"controller.k0": same, "plant.variant": variant})
+    assert str(refused.value) == (
+        "[grid] 'plant.variant': 'lateral' and 1 are one value, 'lateral': list it once"
+    )
 
 
 @pytest.mark.parametrize("sampling", ["random", "latin-hypercube"])

@@ -359,9 +359,8 @@ def test_a_named_value_and_a_number_in_one_grid_run_and_are_tabled_by_name(
     study.write_text(text.format(1), encoding="utf-8")
     argv = ["sweep", str(study), "--out", str(tmp_path / "twice"), "--fmu-dir", str(fmu_dir)]
     assert main(argv) == 1
-    assert "two runs have the same factor values {'plant.variant': 'lateral'}" in (
-        capsys.readouterr().err
-    )
+    err = capsys.readouterr().err
+    assert "[grid] 'plant.variant': 'lateral' and 1 are one value, 'lateral': list" in err, err
     study.write_text(text.format(2), encoding="utf-8")
     out = tmp_path / "out"
     sweep(study, out, fmu_dir, "--workers", "1")
