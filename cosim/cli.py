@@ -447,13 +447,20 @@ def _check_counts(args: argparse.Namespace) -> None:
 
 def _workers(args: argparse.Namespace) -> int:
     """The local workers the options ask for, capped at the cores this process may use
-    (said so)."""
+    (said so); beyond :data:`~cosim.study.execution.MAX_WORKERS_PER_CORE` a core refused,
+    oversubscribed or not, before the count is cut to the study's runs (as
+    ``cosim.sweep`` refuses it)."""
     if args.scheduler is not None and args.workers is not None:
         raise CosimError("give --workers (a local cluster) or --scheduler, not both")
-    from cosim.study.execution import usable_cores
+    from cosim.study.execution import MAX_WORKERS_PER_CORE, usable_cores
 
     cores = usable_cores()
     workers = args.workers if args.workers is not None else cores
+    if workers > MAX_WORKERS_PER_CORE * cores and args.oversubscribe:
+        raise CosimError(
+            f"--workers {workers}: expected at most {MAX_WORKERS_PER_CORE * cores} worker "
+            f"processes ({MAX_WORKERS_PER_CORE} per core), even with --oversubscribe"
+        )
     if workers > cores and not args.oversubscribe and args.scheduler is None:
         print(
             f"auv-cosim sweep: --workers {workers} capped at the {cores} "
@@ -963,7 +970,8 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--oversubscribe",
         action="store_true",
-        help="start every --workers process even beyond the cores [capped at the cores]",
+        help="start every --workers process even beyond the cores, at most 16 per core "
+        "[capped at the cores]",
     )
     p.add_argument("--fmu-dir", type=_path_arg, default=DEFAULT_FMU_DIR, help=FMU_DIR_HELP)
     p.add_argument(

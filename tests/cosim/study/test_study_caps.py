@@ -120,8 +120,27 @@ def test_workers_are_capped_at_the_cores_unless_told(
     study = write(tmp_path, f'[grid]\n"plant.v_0" = [{values}]\n')
     main(["sweep", str(study), "--workers", str(cores + 98)])
     assert f"--workers {cores + 98} capped at the {cores} cores" in capsys.readouterr().err
-    main(["sweep", str(study), "--workers", str(cores + 98), "--oversubscribe"])
-    assert [c.workers for c in clusters] == [cores, cores + 98]
+    most = execution.MAX_WORKERS_PER_CORE * cores
+    main(["sweep", str(study), "--workers", str(min(cores + 98, most)), "--oversubscribe"])
+    assert [c.workers for c in clusters] == [cores, min(cores + 98, most)]
+
+
+def test_oversubscribed_workers_beyond_16_per_core_are_refused_whatever_the_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture, clusters: list[runner.Cluster]
+) -> None:
+    """`--workers 40 --oversubscribe` on 2 cores (over its 16 per core) ran a study of 2
+    runs: the count was cut to the runs first, and never met the cap, which
+    cosim.sweep(workers=40, oversubscribe=True) meets at once."""
+    cores = execution.usable_cores()
+    most = execution.MAX_WORKERS_PER_CORE * cores
+    study = write(tmp_path, '[grid]\n"plant.v_0" = [0.01, 0.02]\n')
+    assert main(["sweep", str(study), "--workers", str(most + 1), "--oversubscribe"]) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        f"auv-cosim sweep: --workers {most + 1}: expected at most {most} worker processes "
+        f"({execution.MAX_WORKERS_PER_CORE} per core), even with --oversubscribe\n"
+    ), err
+    assert clusters == []
 
 
 @pytest.fixture
