@@ -3,10 +3,15 @@ their own, and the bar of steps starts past them, so its rate is the stepping's.
 
 from __future__ import annotations
 
+import errno
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+import cosim.outputs.checkpoint_file as checkpoint_file
 from cosim.outputs.sinks import ProgressSink
+from cosim.runner import RunOptions, resume_run, run_scenario
 
 
 def test_replayed_rows_are_not_counted_as_steps(capsys: pytest.CaptureFixture) -> None:
@@ -22,3 +27,30 @@ def test_replayed_rows_are_not_counted_as_steps(capsys: pytest.CaptureFixture) -
     assert "(5 of 5)" in err, err
     shown = [int(part.split("/")[0].split()[-1]) for part in err.split("\r") if "/10 " in part]
     assert shown and min(shown) == 5, err  # the bar starts at the checkpoint's row
+
+
+def test_a_resumed_run_s_bar_starts_at_its_checkpoint(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """The runner tells the bar the rows its checkpoint replays: a run of bs-3 stopped by a
+    full disk at its second checkpoint (t = 1 s), resumed from the first (t = 0.5 s)."""
+    write, calls = checkpoint_file._write_synced, [0]
+
+    def full_from_the_second(path: Path, data: bytes) -> None:
+        calls[0] += 1
+        if calls[0] >= 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        write(path, data)
+
+    monkeypatch.setattr(checkpoint_file, "_write_synced", full_from_the_second)
+    out = tmp_path / "run"
+    common = {"stop_time": 2.0, "no_rrd": True, "fmu_dir": fmu_dir}
+    assert not run_scenario("bs-3", out, checkpoint_every=0.5, **common).result.complete
+    monkeypatch.undo()
+    capsys.readouterr()
+    resumed = resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir, progress=True))
+    assert resumed.result.complete
+    err = capsys.readouterr().err
+    assert "bs-3: replaying the rows to the checkpoint (51 of 51)" in err, err
+    shown = [int(part.split("/")[0].split()[-1]) for part in err.split("\r") if "/201 " in part]
+    assert shown and min(shown) == 51, err
