@@ -73,6 +73,7 @@ if TYPE_CHECKING:  # imported at run time only once the run folder is claimed (s
     from cosim.engine.master import RunResult
     from cosim.live.session import LiveSession
     from cosim.outputs.background import BackgroundSink
+    from cosim.outputs.run_files import Manifest
     from cosim.outputs.run_outputs import RunOutputs
     from cosim.outputs.sinks import ProgressSink
     from cosim.scenario.spec import Algorithm, Coupling, Extrapolation, Scenario
@@ -339,24 +340,36 @@ def _checkpoint_recording(rrd: Path | None, out_dir: Path, names: OptionNames) -
             f"{names.given('resume', out_dir)}: its checkpoint's recording {rrd} is not a "
             f"file the run wrote (its manifest does not list it); resume with {instead}"
         )
-    if _copied(out_dir, manifest.entries.get(SCENARIO_FILE)):
+    original = _copied_from(out_dir, manifest, rrd)
+    if original is not None:
         raise CosimError(
             f"{names.given('resume', out_dir)}: its checkpoint's recording {rrd} is the "
-            "recording of the run in the folder it was copied from (its files are not the "
-            f"ones the run wrote, by device and inode); resume with {instead}"
+            f"recording of the run in the folder it was copied from, {original}, which "
+            f"may resume into it; resume with {instead}"
         )
     return rrd
 
 
-def _copied(out_dir: Path, identity: dict[str, Any] | None) -> bool:
-    """Whether ``out_dir`` is a copy of the run's folder: its scenario.toml is not the file
-    (device and inode) the manifest recorded, as after ``cp -a`` or ``rsync -a`` (a folder
-    moved within its file system keeps them, and is the run's)."""
+def _copied_from(out_dir: Path, manifest: Manifest, rrd: Path) -> Path | None:
+    """The folder ``out_dir`` is a copy of (``cp -a``, ``rsync -a``), if that folder is
+    still there with the run's recording ``rrd`` in its own manifest: the folder
+    ``manifest`` was saved in, when it is another folder than ``out_dir`` (not the same
+    one by another path, a link or a bind mount). None for the run's own folder, even
+    moved, restored from a backup or on a file system that numbers its devices and inodes
+    anew at each mount (nothing of theirs is compared), and for a manifest that does not
+    say where it was saved."""
+    from cosim.outputs.run_files import read_manifest
+
+    original = manifest.saved_in
+    if original is None:
+        return None
     try:
-        now = os.stat(out_dir / SCENARIO_FILE, follow_symlinks=False)
-    except OSError:
-        return True
-    return identity is None or (now.st_dev, now.st_ino) != (identity["dev"], identity["ino"])
+        if os.path.samefile(original, out_dir):
+            return None
+        theirs = read_manifest(original)
+    except (OSError, CosimError):  # gone, or no run's folder any more
+        return None
+    return original if theirs.name_of(rrd) in theirs.entries else None
 
 
 def _recording_named(options: RunOptions, out_dir: Path) -> str:

@@ -7,7 +7,8 @@ and the SHA-256 of its content), updated each time the run finishes writing one,
 the tail guard after a killed run's files are cut whole. A file is the run's own only if
 it is still a regular file with exactly that identity: one deleted and written again (the
 inode often comes back), rewritten in place, or touched since, is not. Paths are relative
-to the folder, or absolute for a recording outside it; ``pid`` is the process that ran.
+to the folder, or absolute for a recording outside it; ``pid`` is the process that ran;
+``folder`` the folder's absolute path as the run saw it (a copy of the folder keeps it).
 
 Standard library only: a run's refusal comes before numpy, fmpy or any FMU is loaded.
 """
@@ -52,6 +53,9 @@ class Manifest:
     folder: Path
     pid: int = field(default_factory=os.getpid)
     entries: dict[str, dict[str, Any]] = field(default_factory=dict)  # path -> identity
+    # where the manifest read was saved (absolute): another folder in a copy of it; None
+    # in one saved by a version that did not say
+    saved_in: Path | None = None
 
     @property
     def path(self) -> Path:
@@ -73,7 +77,10 @@ class Manifest:
     def save(self) -> None:
         """Write the manifest atomically. Raises RunFolderError."""
         files = [{"path": name, **identity} for name, identity in self.entries.items()]
-        text = json.dumps({"format": MANIFEST_FORMAT, "pid": self.pid, "files": files})
+        folder = str(self.folder.absolute())
+        text = json.dumps(
+            {"format": MANIFEST_FORMAT, "pid": self.pid, "folder": folder, "files": files}
+        )
         try:
             write_atomically(self.path, text)
         except OSError as exc:
@@ -105,7 +112,8 @@ def read_manifest(folder: Path, names: OptionNames = FLAGS, option: str = "out")
         if data["format"] != MANIFEST_FORMAT:
             raise ValueError(f"format {data['format']!r}")
         entries = {str(e["path"]): {k: e[k] for k in IDENTITY_KEYS} for e in data["files"]}
-        return Manifest(folder, int(data["pid"]), entries)
+        saved_in = Path(data["folder"]) if "folder" in data else None
+        return Manifest(folder, int(data["pid"]), entries, saved_in)
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise RunFolderError(
             f"{out}: its {MANIFEST_FILE} is unreadable ({_short(exc)}: truncated "

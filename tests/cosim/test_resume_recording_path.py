@@ -143,6 +143,51 @@ def test_a_copy_of_a_run_recording_elsewhere_refuses_the_originals_recording(
     before = _tree(tmp_path)
     said = _refusal(copy, fmu_dir)
     assert f"--resume {copy}" in said and str(recording) in said, said
-    assert "the folder it was copied from" in said, said
+    assert f"the folder it was copied from, {original}," in said, said
     assert said.endswith("resume with --rrd PATH or --no-rrd"), said
     assert _tree(tmp_path) == before
+
+
+def _resumes_into(out: Path, recording: Path, fmu_dir: Path) -> None:
+    """Resuming ``out`` (no recording option given) completes and writes its checkpoint's
+    recording ``recording`` again, whole."""
+    head = recording.read_bytes()
+    assert resume_run(out, RunOptions(fmu_dir=fmu_dir)).result.complete
+    written = recording.read_bytes()
+    assert written.startswith(RECORDING_MAGIC) and written != head
+
+
+@pytest.mark.slow
+def test_a_run_folder_moved_to_another_disk_resumes_into_its_recording(
+    stopped: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Guards a folder moved whole (``mv`` to another disk copies then removes it; a
+    backup restored is the same: new inodes, no original left) being refused its own
+    recording outside it as if it were a copy of a folder that no longer exists."""
+    recording = tmp_path / "rec" / "x.rrd"
+    recording.parent.mkdir()
+    recording.write_bytes(RECORDING_MAGIC + b"2 " + RECORDING_APPLICATION.encode() + b"\n")
+    original = _killed(stopped, tmp_path, recording, wrote=True)
+    moved = tmp_path / "moved"
+    shutil.copytree(original, moved)
+    shutil.rmtree(original)
+    _resumes_into(moved, recording, fmu_dir)
+
+
+@pytest.mark.slow
+def test_a_run_folder_whose_device_number_changed_resumes_into_its_recording(
+    stopped: Path, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Guards the resume after a reboot of a run on a network or FUSE file system, or a
+    btrfs subvolume, whose device number is given at each mount (its files keep their
+    path and bytes): the folder is the run's, not a copy, and writes its recording."""
+    recording = tmp_path / "rec" / "x.rrd"
+    recording.parent.mkdir()
+    recording.write_bytes(RECORDING_MAGIC + b"2 " + RECORDING_APPLICATION.encode() + b"\n")
+    out = _killed(stopped, tmp_path, recording, wrote=True)
+    manifest = out / ".auv-cosim-run.json"
+    data = json.loads(manifest.read_text())
+    for entry in data["files"]:  # as the same files read after the remount
+        entry["dev"] += 1
+    manifest.write_text(json.dumps(data))
+    _resumes_into(out, recording, fmu_dir)
