@@ -698,14 +698,16 @@ def _on_turns(
     curves: list[tuple[Series, np.ndarray]],
 ) -> list[tuple[Series, np.ndarray]]:
     """``curves`` (deg) with each angle that names a line to follow (``Series.turn_of``)
-    moved by whole turns, sample by sample, to within 180 deg of that line's value."""
+    moved by whole turns, sample by sample, to [-180, 180) deg of that line's value: the
+    autopilot's wrap of its heading error (``wrap_angle``, controller_fmu/setpoint_shaping.py),
+    so a set-point half a turn away is drawn on the side the autopilot turns to."""
     drawn = {series.column: values for series, values in curves}
     moved = []
     for series, values in curves:
         reference = drawn.get(series.turn_of) if series.turn_of else None
         if reference is not None:
             with np.errstate(invalid="ignore"):  # an infinite angle stays off the axis
-                offset = np.angle(np.exp(1j * np.radians(values - reference)), deg=True)
+                offset = np.mod(values - reference + 180.0, 360.0) - 180.0
             values = np.where(np.isfinite(offset), reference + offset, values)
         moved.append((series, values))
     return moved

@@ -924,3 +924,25 @@ def test_a_yaw_set_point_is_drawn_on_the_yaws_own_turn(
     panel = next(ax for ax in kept["attitude_actuators.png"].axes if "psi" in ax.get_ylabel())
     drawn = {line.get_label(): line.get_ydata() for line in panel.lines}
     assert list(drawn["setpoint"]) == pytest.approx([drawn_deg] * 3), drawn
+
+
+def test_a_yaw_set_point_half_a_turn_away_is_drawn_where_the_autopilot_turns(
+    tmp_path, monkeypatch
+) -> None:
+    """A set-point half a turn from the yaw (180 deg from 0: a U-turn) is one the autopilot
+    takes as -180 deg, its error lying in [-180, 180) deg, and it turns that way; the
+    report put the first sample at +180 deg, then, once the yaw had moved, at -180 deg:
+    a line across the whole panel at the turn's start, on the side the vehicle never
+    went. The set-point is drawn on the turn the autopilot steers for, all along."""
+    run = tmp_path / "run"
+    run.mkdir()
+    setpoint = math.radians(180.0)
+    rows = "".join(  # the yaw turns the autopilot's way, negative, most of the way
+        f"{t},{math.radians(yaw)!r},{setpoint!r}\n"
+        for t, yaw in ((0.0, 0.0), (5.0, -90.0), (10.0, -170.0))
+    )
+    (run / "results.csv").write_text("time,plant.yaw,controller.yaw_setpoint\n" + rows)
+    kept = kept_figures(run, monkeypatch)
+    panel = next(ax for ax in kept["attitude_actuators.png"].axes if "psi" in ax.get_ylabel())
+    drawn = {line.get_label(): line.get_ydata() for line in panel.lines}
+    assert list(drawn["setpoint"]) == pytest.approx([-180.0] * 3), drawn
