@@ -28,6 +28,7 @@ one failed (each problem one line on stderr).
 from __future__ import annotations
 
 import argparse
+import math
 import shutil
 import subprocess
 import sys
@@ -134,6 +135,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     scenario = cosim.load_scenario(args.scenario, fmu_dir=args.fmu_dir)
     stop_time = float(scenario.stop_time if args.stop_time is None else args.stop_time)
+    if not (math.isfinite(stop_time) and stop_time > 0):  # (a scenario's is: checked)
+        print(f"--stop-time {stop_time}: expected a positive finite time (s)", file=sys.stderr)
+        return 1
     steps = stop_time / args.step if args.step > 0 else 0.0
     if steps < 1 or not np.isclose(round(steps), steps):
         print(

@@ -79,3 +79,19 @@ def test_a_step_that_does_not_divide_the_stop_time_is_refused_in_one_line(
         "--step 0.7: expected a positive step that divides the stop time 60.0 s\n",
     )
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("stop_time", ["nan", "inf", "-5"])
+def test_a_stop_time_that_is_no_positive_finite_time_is_refused_naming_it(
+    fmu_dir: Path, tmp_path: Path, stop_time: str
+) -> None:
+    """Guards the script's check of its step and stop time: ``--stop-time nan`` (or inf)
+    ended in a traceback (``round`` of nan), and ``--stop-time -5`` was blamed on ``--step
+    0.1``. The stop time is refused in one line naming it, before any file is written."""
+    command = [sys.executable, SCRIPT, "bs-3", "--out", tmp_path / "xc", f"--stop-time={stop_time}"]
+    done = run_in_group([*command, "--fmu-dir", fmu_dir], timeout=RUN_S, cwd=tmp_path)
+    assert (done.returncode, done.stderr) == (
+        1,
+        f"--stop-time {float(stop_time)}: expected a positive finite time (s)\n",
+    )
+    assert not (tmp_path / "xc").exists()
