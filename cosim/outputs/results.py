@@ -311,7 +311,8 @@ def final_summary(
     time_reached, values = result.time_reached, result.final
     if last_row is not None:
         time_reached, values = last_row
-    stepped = time_reached - result.time_started  # s, simulated by this process's loop
+    # s, simulated by this process's loop (past the file's last row if that stopped short)
+    stepped = result.time_reached - result.time_started
     final = dict(zip(result.columns, values.tolist(), strict=True))
     return {
         **running,

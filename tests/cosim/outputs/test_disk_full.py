@@ -190,3 +190,23 @@ def test_a_run_whose_folder_is_removed_stops_saying_so(fmu_dir: Path, tmp_path: 
     reached = float(stdout.split("t = ", 1)[1].split(" ", 1)[0])
     assert reached < 3000.0, stdout  # it stopped, not stepped on into the removed file
     assert not out.exists()
+
+
+def test_the_real_time_factor_is_the_loops_when_results_stopped_short(fmu_dir: Path) -> None:
+    """Guards summary.json's real_time_factor, the loop's (docs/runs.md), for a run whose
+    results.csv stopped short of the rows computed (a full disk): time_reached is then the
+    file's last row, but the factor is of the simulated time the loop stepped, as the
+    report's line says it; it was taken of the last row written instead."""
+    import cosim
+    from cosim.engine.master import RunResult
+    from cosim.outputs.results import final_summary
+
+    scenario = cosim.load_scenario("bs-3", fmu_dir=fmu_dir)
+    columns = scenario.columns
+    result = RunResult(scenario, columns, rows=1001, time_reached=10.0,
+                       final=np.ones(len(columns)), complete=False, error="disk full",
+                       wall_clock_s=4.0)  # fmt: skip
+    last_row = (2.0, np.zeros(len(columns)))  # the file's last row, at t = 2 s
+    summary = final_summary({}, result, {}, "disk full", None, 201, last_row=last_row)
+    assert summary["time_reached"] == 2.0  # the file's, as the summary agrees with it
+    assert summary["real_time_factor"] == 10.0 / 4.0  # the loop stepped 10 s in 4 s
