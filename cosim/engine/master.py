@@ -557,10 +557,8 @@ def _loop(
     rows.hand_off(filled)
     if saver is not None and error is None:
         error = saver.stopped(n, stop, h)
-    result = _result(scenario, order, rows, error, stop, clock() - started,
-                     time.process_time() - cpu_started)  # fmt: skip
-    result.time_started = first * h
-    return result
+    return _result(scenario, order, rows, error, stop, clock() - started,
+                   time.process_time() - cpu_started, first * h)  # fmt: skip
 
 
 def _row_zero(
@@ -753,10 +751,12 @@ def _result(
     stop: StopRequest,
     wall: float,
     cpu: float,
+    time_started: float = 0.0,
 ) -> RunResult:
     """How the loop ended, as a :class:`RunResult` (the sinks' failure or the stop signal
     named as the reason when nothing else failed); ``wall`` and ``cpu``: the loop's wall
-    clock and process CPU time, s."""
+    clock and process CPU time, s; ``time_started``: where the loop started, s (a resumed
+    run: its checkpoint)."""
     t_end = rows.time_reached
     if error is None and rows.error is not None:
         error = f"{rows.error} (at t = {seconds(t_end)} s)"
@@ -773,6 +773,7 @@ def _result(
         complete=reached and error is None,
         error=error,
         wall_clock_s=wall,
+        time_started=time_started,
         cpu_clock_s=cpu,
         stop_signal=stop.signum if stopped else None,
         messages={s.name: list(s.messages) for s in order},
