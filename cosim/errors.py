@@ -3,6 +3,7 @@ form its warnings take."""
 
 import difflib
 import logging
+import math
 import os
 import sys
 import warnings
@@ -54,10 +55,17 @@ def shown(value: object) -> str:
 
 
 def seconds(t: float) -> str:
-    """A time (s) as the run's grid has it: the shortest text that reads back as the same
-    float (``20000.05``, not ``%g``'s ``20000``), a whole number without its ``.0``."""
-    text = repr(float(t))
-    return text.removesuffix(".0")
+    """A time (s) as the run's grid has it: the fewest digits that name it to within the
+    rounding of a point computed as n h (4 units in the last place: ``57 * 0.01`` is
+    0.5700000000000001, named ``0.57``), laid out as Python's repr (``20000.05``, not
+    ``%g``'s ``20000``), a whole number without its ``.0``."""
+    t = float(t)
+    if not math.isfinite(t):
+        return repr(t)
+    near = 4.0 * math.ulp(t)
+    # by hand: no formatter rounds to "within n ulp"; 17 digits always name t exactly
+    digits = next(p for p in range(1, 18) if abs(float(f"{t:.{p}g}") - t) <= near)
+    return repr(float(f"{t:.{digits}g}")).removesuffix(".0")
 
 
 def counted(count: int, noun: str) -> str:

@@ -43,3 +43,17 @@ def test_a_sweep_stopped_after_one_run_keeps_one_finished_run(tmp_path: Path) ->
     (tmp_path / "runs.csv").write_text("run,error\n0a1b,\n", encoding="utf-8")
     message = str(_stopped(signal.SIGINT, tmp_path))
     assert message.startswith("interrupted (Ctrl-C): 1 finished run kept in"), message
+
+
+def test_a_point_computed_as_n_h_is_named_without_its_rounding_noise() -> None:
+    """A run stopped at point 57 of 0.01 s steps is at 57 * 0.01 = 0.5700000000000001 s in
+    floating point: its messages name 0.57 s, as the user's step reads, to the nanosecond
+    (the recording's ``sim_time``); a time with more digits than that keeps them."""
+    from cosim.errors import seconds
+
+    assert [seconds(57 * 0.01), seconds(3 * 0.1), seconds(20000.05)] == ["0.57", "0.3", "20000.05"]
+    assert [seconds(1.0), seconds(2.5e-9), seconds(1e12 + 0.5)] == [
+        "1",
+        "2.5e-09",
+        "1000000000000.5",
+    ]
