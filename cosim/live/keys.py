@@ -107,10 +107,18 @@ def _number(value: object, default: float) -> float:
     return float(value) if isinstance(value, int | float) else default
 
 
+def _heading_degrees(angle: float) -> float:
+    """``angle`` (rad) in degrees within (-180, 180], rounded to the 0.1 deg the status line
+    shows (a set-point the arrows took past a whole turn is the same heading; the autopilot
+    turns by the wrapped error)."""
+    degrees = round(math.degrees(angle), 1)
+    return 180.0 - (180.0 - degrees) % 360.0
+
+
 def _told(name: str, value: float) -> str:
     """A value the keys set, in the unit the status line shows it in (the yaw in deg)."""
     if name == "yaw_setpoint":
-        return f"{math.degrees(value):+.1f} deg"
+        return f"{_heading_degrees(value):+.1f} deg"
     if name == "depth_setpoint":
         return f"{value:.1f} m"
     if name == "mass_lock_time":
@@ -276,7 +284,7 @@ class KeyPad:
         t = self.live.time
         decimals = step_decimals(self.live.scenario.coupling.step)  # as the step is written
         clock = "-" if t is None else f"{t:.{decimals}f}"
-        yaw, depth = math.degrees(self.value("yaw_setpoint")), self.value("depth_setpoint")
+        yaw, depth = _heading_degrees(self.value("yaw_setpoint")), self.value("depth_setpoint")
         mode = int(self.value("heading_mode"))
         mass = "locked" if self.value("mass_lock_time") >= 0.0 else "free"
         paced = f" {self.status()}" if self.status is not None else ""

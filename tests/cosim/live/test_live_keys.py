@@ -224,6 +224,26 @@ def test_a_set_point_change_is_told_in_the_unit_the_status_line_shows(
     assert f"depth_setpoint = {depth:.1f} m queued" in pad.status_line(200)
 
 
+def test_a_yaw_set_point_past_a_whole_turn_is_shown_within_one_turn(
+    bs3: Scenario, terminal: int
+) -> None:
+    """Two right arrows from a client's 355 deg read "+365.0 deg": the status line shows
+    the set-point in (-180, 180] deg, as the report and the recording do."""
+    live = LiveControl(bs3)
+    live.bind({}, StopRequest())
+    pad = KeyPad(live, bs3, fd=terminal, out=io.StringIO())
+    live.request({"controller.yaw_setpoint": math.radians(355.0)}, "control 127.0.0.1:1")
+    for ticket in live.take(1, 0.01, np.zeros(1)):
+        live.applied(ticket, "live-1", 0.01)
+    pad.press("right")
+    pad.press("right")
+    line = pad.status_line(200)
+    assert "yaw_sp +5.0 deg" in line and "yaw_setpoint = +5.0 deg queued" in line, line
+    for _ in range(37):  # 185 deg to the left: -180 deg is shown as +180
+        pad.press("left")
+    assert "yaw_setpoint = +180.0 deg queued" in pad.status_line(200), pad.status_line(200)
+
+
 def test_the_status_line_to_a_file_is_a_line_per_message_without_escapes(
     bs3: Scenario, terminal: int, tmp_path: Path
 ) -> None:
