@@ -42,7 +42,7 @@ import numpy as np
 from cosim.engine.pacing import Pacer
 from cosim.engine.signals import StopRequest
 from cosim.errors import CosimError
-from cosim.scenario.checks import ScenarioError, Source
+from cosim.scenario.checks import ScenarioError, Source, sign_note
 from cosim.scenario.spec import Scenario
 from cosim.scenario.timeline_spec import Event, settable, shown_time
 from cosim.scenario.unit_doubts import value_doubt
@@ -121,7 +121,7 @@ class LiveControl:
         if var.type == "Real" and not _within(float(checked), var.min, var.max):
             raise OverrideError(
                 f"override {ref}: {checked!r} is outside [{_bound(var.min, -1)}, "
-                f"{_bound(var.max, 1)}], the range {variable} takes"
+                f"{_bound(var.max, 1)}], the range {variable} takes{sign_note(var)}"
             )
         return checked
 

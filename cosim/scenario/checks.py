@@ -337,7 +337,9 @@ def check_value(value: Any, var: Any, key: str, src: Source) -> bool | int | flo
             raise src.error(key, f"{value!r} is not a finite number")
         low, high = real_range(var)
         if not low <= value <= high:  # FMI 2.0: the environment keeps to min and max
-            raise src.error(key, f"{value!r} is outside {range_text(low, high, var.name)}")
+            raise src.error(
+                key, f"{value!r} is outside {range_text(low, high, var.name)}{sign_note(var)}"
+            )
     if var.type == "Enumeration" and var.names and value not in var.names.values():
         raise src.error(
             key, f"{value} is not an item of {var.name}: expected one of {named_values(var)}"
@@ -357,6 +359,17 @@ def named_values(var: Any) -> str:
 def range_text(low: float, high: float, name: str) -> str:
     """``[low, high], the range <name> takes``: how every refusal of a value names a range."""
     return f"[{low}, {high}], the range {name} takes"
+
+
+def sign_note(var: Any) -> str:
+    """`` (depths are down positive, 0 m at the surface)`` for a variable whose description
+    says it counts down positive (a depth: a negative value is above the surface), else
+    ``""``: what a refusal of its range adds, since the range alone does not say it."""
+    return DEPTH_NOTE if DOWN_POSITIVE in (var.description or "") else ""
+
+
+DOWN_POSITIVE = "down positive"  # how an FMU variable's description says it counts down
+DEPTH_NOTE = " (depths are down positive, 0 m at the surface)"
 
 
 def real_range(var: Any) -> tuple[float, float]:

@@ -59,6 +59,11 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
      1, "'instances.plant.st'"),
     ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|yaw_0 = 1e300"}, 1,
      "'instances.plant.start.yaw_0': 1e+300 is outside [-1000000.0, 1000000.0]"),
+    # a depth set-point above the surface: the range alone did not say which way depth counts
+    ("run bad.toml --fmu-dir {fmus}",
+     {"bad.toml": "bs-3:yaw_setpoint = 0.0|depth_setpoint = -3.0"}, 1,
+     "-3.0 is outside [0.0, inf], the range depth_setpoint takes (depths are down positive, "
+     "0 m at the surface)"),
     ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|max_substep = 0"}, 1,
      "'instances.plant.start.max_substep': 0.0 is outside (0.0, inf]"),
     ("validate bad.toml nothing.fmu --fmu-dir {fmus}", {"bad.toml": "bs-3:"}, 1,

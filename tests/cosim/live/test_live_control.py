@@ -208,10 +208,13 @@ def test_a_value_outside_the_declared_range_is_refused(fmu_dir: Path) -> None:
 def test_a_depth_set_point_above_the_surface_is_refused(fmu_dir: Path) -> None:
     """``{"set": {"controller.depth_setpoint": -5}}`` (5 m above the surface, depth down
     positive) was taken: the autopilot declared no minimum for it (only the keys stopped
-    at 0 m). It declares 0 m now, and the endpoint refuses it as any value out of range."""
+    at 0 m). It declares 0 m now, and the endpoint refuses it as any value out of range,
+    saying which way depths count."""
     live = LiveControl(load_scenario("bs-3", fmu_dir=fmu_dir))
     assert live.check("controller.depth_setpoint", 0.0) == 0.0
-    with pytest.raises(OverrideError, match=r"-5\.0 is outside \[0(\.0)?, "):
+    with pytest.raises(
+        OverrideError, match=r"-5\.0 is outside \[0(\.0)?, .*down positive, 0 m at the surface"
+    ):
         live.request({"controller.depth_setpoint": -5.0}, "test")
 
 
