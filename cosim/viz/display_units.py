@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 DEG = math.degrees(1.0)  # deg per rad
 NO_UNIT = "1"  # summary.json's unit of a column whose FMU declares none (or a pure number)
 # display unit -> (the declared unit it is drawn from, display units per declared unit)
@@ -36,3 +38,16 @@ def scale_to(declared: str, shown: str) -> float | None:
         return 1.0
     source, factor = DRAWN_FROM.get(shown, (shown, 1.0))
     return factor if declared == source else None
+
+
+def on_turn_of(angles: np.ndarray, reference: np.ndarray, turn: float) -> np.ndarray:
+    """``angles`` moved by whole turns (``turn``: 360 in deg, 2 pi in rad), sample by sample,
+    to [-half, +half) a turn of ``reference``: a heading set-point drawn on the turn of
+    the yaw it steers, which counts whole turns (10 deg beside a yaw of 350 deg is drawn at
+    370), one half a turn away on the side the autopilot turns to (its ``wrap_angle``,
+    controller_fmu/setpoint_shaping.py). An angle already there is returned bit for bit,
+    and one whose distance is not finite (inf, NaN) as it is."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        turns = np.floor((angles - reference) / turn + 0.5)
+        moved: np.ndarray = np.where(np.isfinite(turns), angles - turn * turns, angles)
+    return moved

@@ -95,6 +95,9 @@ class Series:
     label: str  # legend text, with the display unit
     color: Rgb
     scale: float = 1.0  # display unit per SI unit
+    # an angle drawn on the turn of this column's (a heading set-point on the yaw's:
+    # display_units.on_turn_of), within half a turn of it
+    turn_of: str | None = None
 
 
 @dataclass(frozen=True)
@@ -110,10 +113,11 @@ class Panel:
 PANELS: tuple[Panel, ...] = (
     Panel("attitude/yaw_deg", "Yaw ψ (deg)", "deg", (
         Series("plant.yaw", "yaw ψ (deg)", BLUE, DEG),
-        Series("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG),
-        Series("guidance.yaw_setpoint", "guidance yaw setpoint ψ_d (deg)", SETPOINT, DEG),
+        Series("controller.yaw_setpoint", "yaw setpoint (deg)", SETPOINT, DEG, "plant.yaw"),
+        Series("guidance.yaw_setpoint", "guidance yaw setpoint ψ_d (deg)", SETPOINT, DEG,
+               "plant.yaw"),
         Series("guidance.course_setpoint", "guidance course setpoint χ_d (deg)",
-               PALE_SETPOINT, DEG),
+               PALE_SETPOINT, DEG, "plant.yaw"),
     )),
     Panel("attitude/roll_deg", "Roll φ (deg)", "deg", (
         Series("plant.roll", "roll φ (deg)", RED, DEG),

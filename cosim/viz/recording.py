@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import math
 import os
 import re
 import shlex
@@ -53,8 +54,10 @@ from cosim.outputs.missing_run import missing_run_hint
 from cosim.outputs.results import column_units, versions
 from cosim.paths import path_text
 from cosim.scenario.spec import Scenario
+from cosim.viz.display_units import on_turn_of
 from cosim.viz.layout import (
     NOTES_ENTITY,
+    PlannedPanel,
     build_blueprint,
     plan_panels,
     series_sources,
@@ -389,7 +392,7 @@ class RerunSink:
         index = time_index(times)
         for panel in self._panels:
             with np.errstate(over="ignore"):  # 1e308 rad set live, in deg: shown as inf
-                shown = values[:, panel.indices] * np.asarray(panel.scales)
+                shown = _on_turns(values, panel, self._index) * np.asarray(panel.scales)
             channel.rec.send_columns(
                 panel.entity, indexes=index, columns=rr.Scalars.columns(scalars=shown)
             )
@@ -519,6 +522,17 @@ def _answers_http2(host: str, port: int) -> bool:
         except TimeoutError:
             return False
     return header[3] == 4
+
+
+def _on_turns(values: np.ndarray, panel: PlannedPanel, index: dict[str, int]) -> np.ndarray:
+    """The rows' columns of ``panel`` (SI), each angle that names a column to follow
+    (``Series.turn_of``, when recorded) moved by whole turns to within half a turn of it."""
+    columns = values[:, panel.indices]
+    for j, series in enumerate(panel.series):
+        reference = index.get(series.turn_of) if series.turn_of else None
+        if reference is not None:
+            columns[:, j] = on_turn_of(columns[:, j], values[:, reference], 2.0 * math.pi)
+    return columns
 
 
 def _scenario_facts(scenario: Scenario) -> tuple[VehicleParameters, int | None]:

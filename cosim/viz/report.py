@@ -98,7 +98,7 @@ from cosim.viz.delivered import (
     faulted_connections,
     read_scenario,
 )
-from cosim.viz.display_units import DEG, NO_UNIT, scale_to
+from cosim.viz.display_units import DEG, NO_UNIT, on_turn_of, scale_to
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import STUDY_FILE
 
@@ -706,9 +706,7 @@ def _on_turns(
     for series, values in curves:
         reference = drawn.get(series.turn_of) if series.turn_of else None
         if reference is not None:
-            with np.errstate(invalid="ignore"):  # an infinite angle stays off the axis
-                offset = np.mod(values - reference + 180.0, 360.0) - 180.0
-            values = np.where(np.isfinite(offset), reference + offset, values)
+            values = on_turn_of(values, reference, 360.0)
         moved.append((series, values))
     return moved
 

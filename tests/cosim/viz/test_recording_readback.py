@@ -6,6 +6,7 @@ for a run stopped and resumed from its checkpoint too."""
 from __future__ import annotations
 
 import json
+import math
 import signal
 import subprocess
 import sys
@@ -19,6 +20,8 @@ import pytest
 from killed_runs import kill_after_checkpoint
 from rerun.chunk import RrdReader
 
+from cosim.runner import run_scenario
+from cosim.scenario.spec import load_scenario
 from cosim.viz.display_units import DRAWN_FROM
 
 STOP_TIME = 120.0  # s: long enough that a SIGTERM after the first checkpoint finds it running
@@ -114,3 +117,30 @@ def test_a_resumed_runs_recording_holds_every_row_once_and_the_fault_start(
     ends = [(t, text) for t, text in back.events if text.startswith("run complete")]
     end = f"run complete at t = {STOP_TIME:g} s (its stop time)"
     assert ends == [(round(STOP_TIME * 1e9), end)]
+
+
+def test_a_yaw_set_point_a_turn_away_is_drawn_on_the_yaws_turn(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """bs-3 started at 350 deg with its set-point at 10 deg (20 deg to starboard): the
+    recording's yaw plot drew the set-point 340 deg below the yaw, a turn away from the
+    heading it names. It is drawn within 180 deg of the yaw, whole turns from its
+    results.csv value, as the report draws it."""
+    scenario = (
+        load_scenario("bs-3", fmu_dir=fmu_dir)
+        .with_start({"plant.yaw_0": math.radians(350.0), "controller.yaw_setpoint": 0.17453})
+        .with_overrides(stop_time=0.5)
+    )
+    run = tmp_path / "run"
+    assert run_scenario(scenario, run, fmu_dir=fmu_dir).result.complete
+    back = read_back(run / "recording.rrd")
+    results = pd.read_csv(run / "results.csv", dtype=float)
+    entity = next(e for e, names in back.columns.items() if "controller.yaw_setpoint" in names)
+    names = back.columns[entity]
+    shown = back.values[entity][np.argsort(back.times[entity], kind="stable")]
+    yaw = shown[:, names.index("plant.yaw")]
+    setpoint = shown[:, names.index("controller.yaw_setpoint")]
+    np.testing.assert_array_equal(yaw, np.degrees(1.0) * results["plant.yaw"].to_numpy())
+    assert np.all(np.abs(setpoint - yaw) <= 180.0), (setpoint[0], yaw[0])
+    turns = (setpoint - np.degrees(1.0) * results["controller.yaw_setpoint"].to_numpy()) / 360.0
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
