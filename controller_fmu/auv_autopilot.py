@@ -91,7 +91,7 @@ from fmu_runtime.variables import field_bounds, item_getter, item_setter
 from plant_fmu.model.parameters import vehicle_folder
 
 INPUT_DESCRIPTIONS: dict[str, str] = {
-    "yaw": "measured yaw angle psi",
+    "yaw": "measured yaw angle psi, clockwise from north, on any turn",
     "r": "measured yaw rate",
     "p": "measured roll rate",
     "roll": "measured roll angle phi",
@@ -109,7 +109,10 @@ INPUT_DESCRIPTIONS: dict[str, str] = {
     "current_east": (
         "measured current, east component, earth frame: > 0 the water moves towards east"
     ),
-    "yaw_setpoint": "desired heading, or desired course with compensate_current (6.3.74)",
+    "yaw_setpoint": (
+        "desired heading psi_d, clockwise from north, on any turn (the error is taken within "
+        "+-pi), or desired course with compensate_current (6.3.74)"
+    ),
     "depth_setpoint": "desired depth z_d (down positive)",
 }
 OUTPUT_DESCRIPTIONS: dict[str, str] = {

@@ -59,7 +59,10 @@ from fmu_runtime.variables import field_bounds, item_getter, item_setter
 INPUTS: dict[str, tuple[str, str]] = {  # name -> (unit, description)
     "north": ("m", "vehicle position north (NED)"),
     "east": ("m", "vehicle position east (NED)"),
-    "yaw": ("rad", "measured yaw psi: the set-points are given within pi of it"),
+    "yaw": (
+        "rad",
+        "measured yaw psi, clockwise from north: the set-points are given within pi of it",
+    ),
     "current_north": (
         "m/s",
         "measured current, north component (with compensate_current): > 0 the water "
@@ -72,14 +75,20 @@ INPUTS: dict[str, tuple[str, str]] = {  # name -> (unit, description)
     ),
 }
 OUTPUTS: dict[str, tuple[str, str]] = {
-    "yaw_setpoint": ("rad", "desired heading psi_d: chi_d, or chi_d - beta (6.3.74)"),
-    "depth_setpoint": ("m", "desired depth z_d: the path's depth one lookahead ahead"),
-    "course_setpoint": ("rad", "desired course over ground chi_d (LOS law)"),
+    "yaw_setpoint": (
+        "rad",
+        "desired heading psi_d, clockwise from north: chi_d, or chi_d - beta (6.3.74)",
+    ),
+    "depth_setpoint": (
+        "m",
+        "desired depth z_d (down positive): the path's depth one lookahead ahead",
+    ),
+    "course_setpoint": ("rad", "desired course over ground chi_d, clockwise from north (LOS law)"),
     "cross_track_error": ("m", "cross-track error on the active leg, > 0 to starboard"),
     "legs_completed": ("1", "number of legs completed (a whole number)"),
     "waypoint_north": ("m", "north of the active leg's end waypoint"),
     "waypoint_east": ("m", "east of the active leg's end waypoint"),
-    "waypoint_down": ("m", "depth of the active leg's end waypoint"),
+    "waypoint_down": ("m", "depth of the active leg's end waypoint (down positive)"),
 }
 _DEFAULTS = GuidanceConfig()
 
