@@ -236,7 +236,7 @@ def execute(
                 progress.replayed_rows = int(checkpoints.start["rows"])
             session = _live_session(loaded, options, progress)
             try:
-                outputs = _open_outputs(loaded, folder, options, progress)
+                outputs = _open_outputs(loaded, folder, options, progress, checkpoints is not None)
                 opened = time.perf_counter()
                 result = _step(loaded, outputs, options, stop, session, progress, checkpoints)
                 stepped = True
@@ -677,10 +677,14 @@ def _fmus_to_build(scenario: str | Path | Scenario, fmu_dir: Path) -> list[str]:
 
 
 def _open_outputs(
-    scenario: Scenario, folder: RunFolder, options: RunOptions, progress: ProgressSink | None
+    scenario: Scenario,
+    folder: RunFolder,
+    options: RunOptions,
+    progress: ProgressSink | None,
+    checkpointed: bool = False,
 ) -> RunOutputs:
     """Set the earlier run's files aside, lock the recording the run writes, then open
-    every output."""
+    every output (``checkpointed``: for a run that checkpoints)."""
     from cosim.outputs.run_outputs import RunOutputs
 
     rrd = _recording_path(scenario, folder, options)
@@ -689,9 +693,8 @@ def _open_outputs(
     if rrd is not None:
         folder.lock_recording(rrd, _recording_named(options, folder.path))
     recorder = rerun_sink if options.real_time is None else _background_rerun_sink
-    outputs = RunOutputs.open(
-        scenario, folder, rrd, options.connect, progress, recorder, options.results_csv
-    )
+    outputs = RunOutputs.open(scenario, folder, rrd, options.connect, progress, recorder,
+                              options.results_csv, checkpointed)  # fmt: skip
     if outputs.csv is not None:
         outputs.csv.warm_up()
     return outputs

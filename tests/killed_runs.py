@@ -11,9 +11,13 @@ from pathlib import Path
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
 
 
-def kill_after_checkpoint(command: list[str], out: Path, timeout: float = 300.0) -> int:
+def kill_after_checkpoint(
+    command: list[str], out: Path, timeout: float = 300.0, with_guard: bool = False
+) -> int:
     """Start ``command`` in a process group of its own, SIGTERM the group once the run's
-    first checkpoint is in ``out``; its exit code. The group is killed whatever happens."""
+    first checkpoint is in ``out``; its exit code. ``with_guard``: SIGKILL the group and
+    the run's tail guard (in a session of its own) at once, as a batch system killing the
+    job's cgroup or a power cut does. The group is killed whatever happens."""
     proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             start_new_session=True)  # fmt: skip
     try:
@@ -22,7 +26,15 @@ def kill_after_checkpoint(command: list[str], out: Path, timeout: float = 300.0)
             assert proc.poll() is None, f"the run ended before a checkpoint: {proc.stderr}"
             assert time.monotonic() < deadline, "no checkpoint in time"
             time.sleep(0.02)
-        os.killpg(proc.pid, signal.SIGTERM)
+        if not with_guard:
+            os.killpg(proc.pid, signal.SIGTERM)
+            return proc.wait(timeout=timeout)
+        guards = _children(proc.pid)
+        assert guards, "the run has no tail guard"
+        os.killpg(proc.pid, signal.SIGSTOP)  # none of them acts between the kills
+        for pid in guards:
+            os.kill(pid, signal.SIGKILL)
+        os.killpg(proc.pid, signal.SIGKILL)
         return proc.wait(timeout=timeout)
     finally:
         if proc.poll() is None:
@@ -30,3 +42,9 @@ def kill_after_checkpoint(command: list[str], out: Path, timeout: float = 300.0)
         proc.wait()
         assert proc.stderr is not None
         proc.stderr.close()
+
+
+def _children(pid: int) -> list[int]:
+    """The processes ``pid`` started that run still (Linux: /proc)."""
+    text = Path(f"/proc/{pid}/task/{pid}/children").read_text()
+    return [int(child) for child in text.split()]

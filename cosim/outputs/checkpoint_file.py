@@ -37,11 +37,11 @@ from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.limits import unwritten
 from cosim.outputs.folder import RECORDING_FILE, RESULTS_FILE, SUMMARY_FILE, RunFolder
 from cosim.outputs.results import CsvRows
+from cosim.outputs.run_files import CHECKPOINT_FILE as CHECKPOINT_FILE  # (for its users)
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario
 from cosim.version import version
 from cosim.whole_file import fresh_file
 
-CHECKPOINT_FILE = "checkpoint.json"
 FORMAT = 1
 MAX_BYTES = 256 << 20  # a checkpoint read is refused beyond this size (states are KBs)
 
@@ -85,7 +85,8 @@ def _sha256(path: Path) -> str:
 @dataclass
 class CheckpointWriter:
     """Writes the engine's states into ``folder``'s checkpoint.json (recorded in its
-    manifest: a run replacing this one removes it)."""
+    manifest with results.csv as of it: a run replacing this one removes it, a resume
+    knows results.csv up to it as the run's)."""
 
     folder: RunFolder
     scenario: Scenario
@@ -115,7 +116,7 @@ class CheckpointWriter:
             _write_synced(path, json.dumps(data).encode("utf-8"))
         except OSError as exc:
             raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
-        self.folder.wrote(path)
+        self.folder.checkpointed(path, data["rows"])
 
 
 def recording_entry(rrd: Path | None, folder: Path) -> str | None:

@@ -22,6 +22,7 @@ itself if the run is killed before it commits.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import re
@@ -32,6 +33,7 @@ from typing import Any
 
 from cosim.errors import FLAGS, OptionNames
 from cosim.outputs.run_files import (
+    CHECKPOINT_FILE,
     LOCK_FILE,
     MANIFEST_FILE,
     OUTPUT_NAMES,
@@ -44,7 +46,7 @@ from cosim.outputs.run_files import (
     regular,
     unchanged,
 )
-from cosim.outputs.tail_guard import file_identity
+from cosim.outputs.tail_guard import READ_FLAGS, file_identity
 
 ASIDE_SUFFIX = ".auv-cosim-earlier"
 _ASIDE = re.compile(r"^\..+\.\d+" + re.escape(ASIDE_SUFFIX) + "$")
@@ -85,7 +87,9 @@ def find_earlier_run(
     ``resuming`` (the run in ``path`` continues from its checkpoint): a file the manifest
     lists is the run's own if it holds exactly what the run wrote (size and SHA-256), so a
     run folder copied whole (``cp -a``, ``rsync``: new device, inode and perhaps time)
-    resumes; it is set aside as it is now.
+    resumes; so is one whose first bytes are what the run wrote up to the checkpoint the
+    folder holds (its entry's ``checkpoint``: results.csv of a run killed with its tail
+    guard, the rows after it rewritten by the resume); it is set aside as it is now.
 
     Raises RunFolderError: files set aside by a run killed before it stepped, files of no
     run, a summary or manifest not ours, a run an older auv-cosim wrote without a
@@ -219,7 +223,8 @@ def _own_files(
 ) -> dict[Path, dict[str, Any]]:
     """The manifest's files inside ``path`` that are still exactly what the run wrote,
     reached through no link below ``path``, each with its identity now; ``by_content``:
-    one of the same size and SHA-256 (a copy) is too."""
+    one of the same size and SHA-256 (a copy) is too, and one holding what the run wrote
+    up to the folder's checkpoint (:func:`_checkpointed_content`)."""
     own = {}
     for name, identity in entries.items():
         parts = Path(name).parts
@@ -229,8 +234,11 @@ def _own_files(
             continue
         if unchanged(path / name, identity):
             own[path / name] = identity
-        elif by_content and (now := _same_content(path / name, identity)) is not None:
-            own[path / name] = now
+        elif by_content:
+            now = _same_content(path / name, identity)
+            now = now or _checkpointed_content(path, name, identity)
+            if now is not None:
+                own[path / name] = now
     return own
 
 
@@ -240,6 +248,41 @@ def _same_content(path: Path, identity: dict[str, Any]) -> dict[str, Any] | None
     if now is None or any(now[k] != identity[k] for k in ("size", "sha256")):
         return None
     return now
+
+
+def _checkpointed_content(path: Path, name: str, identity: dict[str, Any]) -> dict[str, Any] | None:
+    """``path / name``'s identity now if it is a regular file whose first bytes are those
+    its entry's ``checkpoint`` says the run wrote up to a checkpoint (size, SHA-256), and
+    that checkpoint is the folder's checkpoint.json (by its SHA-256)."""
+    upto = identity.get("checkpoint")
+    if not isinstance(upto, dict) or type(upto["size"]) is not int or upto["size"] < 0:
+        return None
+    saved = file_identity(path / CHECKPOINT_FILE)
+    if saved is None or saved["sha256"] != upto["checkpoint_sha256"]:
+        return None
+    now = file_identity(path / name)
+    if now is None or _head_sha256(path / name, upto["size"]) != upto["sha256"]:
+        return None
+    return now
+
+
+def _head_sha256(path: Path, size: int) -> str | None:
+    """The SHA-256 (hex) of the first ``size`` bytes of the regular file ``path`` (not
+    through a link); None if it holds fewer or cannot be read."""
+    try:
+        fd = os.open(path, READ_FLAGS)
+    except OSError:
+        return None
+    digest, left = hashlib.sha256(), size
+    try:
+        while left and (chunk := os.read(fd, min(left, 1 << 20))):
+            digest.update(chunk)
+            left -= len(chunk)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return None if left else digest.hexdigest()
 
 
 class SetAside:

@@ -45,6 +45,7 @@ import socket
 import stat
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from cosim.errors import FLAGS, OptionNames
@@ -108,6 +109,8 @@ class RunFolder:
         self._rrd_created: Path | None = None  # the recording file the lock created
         self._guard: subprocess.Popen[bytes] | None = None
         self._channel: socket.socket | None = None  # to the guard (else its stdin pipe)
+        # what results.csv holds now (data rows, bytes, SHA-256), if its sink keeps it
+        self.results_written: Callable[[], tuple[int, int, str]] | None = None
 
     @classmethod
     def claim(
@@ -236,6 +239,20 @@ class RunFolder:
             self._recorded.add(name)
             self._created(Path(path))
         self.manifest.record(path)
+
+    def checkpointed(self, path: Path, rows: int) -> None:
+        """Record the checkpoint ``path`` this run wrote, at ``rows`` data rows, with
+        results.csv as of it where it holds exactly those rows (:attr:`results_written`;
+        :meth:`Manifest.record_checkpoint`). Raises RunFolderError."""
+        upto = None
+        if self.results_written is not None:
+            written, size, sha256 = self.results_written()
+            upto = (size, sha256) if written == rows else None
+        name = self.manifest.name_of(path)
+        if name not in self._recorded:
+            self._recorded.add(name)
+            self._created(Path(path))
+        self.manifest.record_checkpoint(path, self.path / RESULTS_FILE, upto)
 
     def _created(self, path: Path) -> None:
         """This run created ``path`` (the guard removes it if it puts an earlier run back)."""

@@ -10,6 +10,14 @@ inode often comes back), rewritten in place, or touched since, is not. Paths are
 to the folder, or absolute for a recording outside it; ``pid`` is the process that ran;
 ``folder`` the folder's absolute path as the run saw it (a copy of the folder keeps it).
 
+Each checkpoint (:data:`CHECKPOINT_FILE`) is recorded together with results.csv as of
+it, in one save: results.csv's entry gets ``checkpoint`` (:meth:`Manifest.record_checkpoint`:
+``size`` and ``sha256`` of its content up to the checkpoint's last row, and the
+``checkpoint_sha256`` of the checkpoint.json they go with). A run killed together with
+its tail guard (a job's cgroup killed, a power cut) leaves results.csv longer than its
+entry says, perhaps torn; a resume from that checkpoint still knows it as the run's
+(:func:`cosim.outputs.earlier_run.find_earlier_run`).
+
 Standard library only: a run's refusal comes before numpy, fmpy or any FMU is loaded.
 """
 
@@ -33,6 +41,8 @@ RECORDING_FILE = "recording.rrd"  # the Rerun recording (cosim.viz.recording)
 REPORT_FOLDER = "report"  # what `auv-cosim report` adds (cosim.viz.report)
 LOCK_FILE = ".auv-cosim.lock"
 MANIFEST_FILE = ".auv-cosim-run.json"  # the files a run wrote, each with its identity
+CHECKPOINT_FILE = "checkpoint.json"  # formats: cosim.outputs.checkpoint_file
+CHECKPOINT_KEYS = ("size", "sha256", "checkpoint_sha256")  # of an entry's ``checkpoint``
 MANIFEST_FORMAT = 2  # 1 (no "format" key): inodes only, which do not identify a file
 OUTPUT_NAMES = (RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RECORDING_FILE)
 RUN_STATUSES = ("running", "complete", "incomplete")  # in a summary.json of ours
@@ -74,6 +84,24 @@ class Manifest:
         self.entries[self.name_of(path)] = identity
         self.save()
 
+    def record_checkpoint(self, path: Path, results: Path, upto: tuple[int, str] | None) -> None:
+        """Record the checkpoint ``path`` the run wrote and, in the same save, that
+        ``results`` (recorded already) is the run's as far as its first ``upto[0]`` bytes
+        hold SHA-256 ``upto[1]`` (its rows up to the checkpoint; None: not known, and
+        no longer an earlier checkpoint's). Raises RunFolderError."""
+        identity = file_identity(path)
+        if identity is None:
+            raise RunFolderError(f"cannot record {path}: it is not a regular file any more")
+        self.entries[self.name_of(path)] = identity
+        entry = self.entries.get(self.name_of(results))
+        if entry is not None:
+            entry.pop("checkpoint", None)
+            if upto is not None:
+                size, sha256 = upto
+                entry["checkpoint"] = {"size": size, "sha256": sha256,
+                                       "checkpoint_sha256": identity["sha256"]}  # fmt: skip
+        self.save()
+
     def save(self) -> None:
         """Write the manifest atomically. Raises RunFolderError."""
         files = [{"path": name, **identity} for name, identity in self.entries.items()]
@@ -111,7 +139,7 @@ def read_manifest(folder: Path, names: OptionNames = FLAGS, option: str = "out")
             )
         if data["format"] != MANIFEST_FORMAT:
             raise ValueError(f"format {data['format']!r}")
-        entries = {str(e["path"]): {k: e[k] for k in IDENTITY_KEYS} for e in data["files"]}
+        entries = {str(e["path"]): _entry(e) for e in data["files"]}
         saved_in = Path(data["folder"]) if "folder" in data else None
         return Manifest(folder, int(data["pid"]), entries, saved_in)
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
@@ -120,6 +148,16 @@ def read_manifest(folder: Path, names: OptionNames = FLAGS, option: str = "out")
             "or not written by auv-cosim), so none of the files is known to be the run's; "
             "move them away or choose another folder"
         ) from None
+
+
+def _entry(data: dict[str, Any]) -> dict[str, Any]:
+    """A manifest's entry as read: the identity, and the ``checkpoint`` one if it has one
+    of the keys it needs (their values are checked where they are used)."""
+    entry = {k: data[k] for k in IDENTITY_KEYS}
+    upto = data.get("checkpoint")
+    if isinstance(upto, dict) and all(k in upto for k in CHECKPOINT_KEYS):
+        entry["checkpoint"] = {k: upto[k] for k in CHECKPOINT_KEYS}
+    return entry
 
 
 def unchanged(path: Path, identity: dict[str, Any]) -> bool:

@@ -105,10 +105,12 @@ class RunOutputs:
         progress: ProgressSink | None,
         recorder: Recorder | None = None,
         results_csv: bool = True,
+        checkpointed: bool = False,
     ) -> RunOutputs:
         """Write scenario.toml and the running summary, open every sink (``progress``:
         the bar, if one is shown, its total set here; no results.csv without
-        ``results_csv``).
+        ``results_csv``; ``checkpointed``: results.csv's SHA-256 kept as it is written, for
+        the checkpoints to record).
 
         Raises :class:`CosimError` naming the path that cannot be written; what was
         created by then is removed again.
@@ -122,7 +124,7 @@ class RunOutputs:
             paths["recording"] = rrd
         outputs = cls(scenario, folder, paths)
         try:
-            outputs._open_sinks(rrd, connect, progress, recorder)
+            outputs._open_sinks(rrd, connect, progress, recorder, checkpointed)
         except BaseException:
             outputs.discard()
             raise
@@ -134,9 +136,12 @@ class RunOutputs:
         connect: str | None,
         progress: ProgressSink | None,
         recorder: Recorder | None,
+        checkpointed: bool,
     ) -> None:
         if "results" in self.paths:
-            self.csv = CsvSink(self.paths["results"], self.scenario.columns)
+            self.csv = CsvSink(self.paths["results"], self.scenario.columns, checkpointed)
+            if checkpointed:
+                self.folder.results_written = self.csv.written
             self._created.append(self.paths["results"])
             self.folder.wrote(self.paths["results"])
             self.sinks.insert(1, self.csv)

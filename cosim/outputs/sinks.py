@@ -9,12 +9,16 @@ always ends with a whole row; a file removed while it is written (its folder rem
 fails the next chunk, rather than the rows going on into a file nobody can read. A
 ``SIGKILL`` in the middle of a write can still tear the last row (the kernel stops a write
 at a page boundary for a fatal signal): the run folder's tail guard
-(:mod:`cosim.outputs.folder`) cuts it off once the process is gone.
+(:mod:`cosim.outputs.folder`) cuts it off once the process is gone. It keeps the SHA-256
+of what it has written so far if asked (``hashed``: a run that checkpoints;
+:meth:`CsvSink.written`, updated as each chunk is written, never read back), which a
+checkpoint records in the run's manifest.
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import time
@@ -38,11 +42,12 @@ class CsvSink(NotesIgnored):
     Raises :class:`CosimError` naming the file when it cannot be created or written.
     """
 
-    def __init__(self, path: Path, columns: tuple[str, ...]) -> None:
+    def __init__(self, path: Path, columns: tuple[str, ...], hashed: bool = False) -> None:
         self.path = path
         self.rows = 0  # data rows in the file
         self.last: tuple[float, np.ndarray] | None = None  # the last row in the file
         self._written = 0  # bytes of whole rows in the file
+        self._sha256 = hashlib.sha256() if hashed else None  # of those bytes, if asked
         try:
             self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
             created = True
@@ -72,6 +77,11 @@ class CsvSink(NotesIgnored):
         if len(times):
             self.last = (float(times[-1]), np.array(values[-1], dtype=float))
 
+    def written(self) -> tuple[int, int, str]:
+        """What the file holds now: its data rows, its size (bytes) and the SHA-256 of
+        its content (hex; "" unless the sink was made ``hashed``)."""
+        return self.rows, self._written, "" if self._sha256 is None else self._sha256.hexdigest()
+
     def warm_up(self) -> None:
         """Do the CSV writer's one-time set-up now, writing nothing: pyarrow's first CSV
         write in a process takes ~0.25 s (seconds on a cold disk: its lazy initialisation),
@@ -97,6 +107,8 @@ class CsvSink(NotesIgnored):
                 os.ftruncate(self._fd, self._written)
             raise CosimError(f"cannot write {self.path}: {unwritten(exc)}") from None
         self._written += len(data)
+        if self._sha256 is not None:
+            self._sha256.update(data)
 
 
 def write_json_atomically(path: Path, data: dict[str, Any]) -> None:

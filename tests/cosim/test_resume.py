@@ -62,6 +62,25 @@ def test_a_killed_run_resumed_writes_the_uninterrupted_results(
     assert json.loads((killed / "summary.json").read_text())["complete"] is True
 
 
+@pytest.mark.slow
+def test_a_run_killed_with_its_tail_guard_resumes(fmu_dir: Path, tmp_path: Path) -> None:
+    """A SIGKILL of the run and its tail guard at once (a job's cgroup killed, a power
+    cut) leaves results.csv longer than the manifest last recorded it and perhaps torn:
+    the part up to the checkpoint is the run's, and the resume rewrites the rest."""
+    common = ("--fmu-dir", str(fmu_dir), "--stop-time", "600")
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    subprocess.run(_cli("bs-3", "--out", str(whole), *common), check=True, timeout=600,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    command = _cli("bs-3", "--out", str(killed), *common, "--checkpoint-every", "20")
+    assert kill_after_checkpoint(command, killed, with_guard=True) == -signal.SIGKILL
+    resumed = subprocess.run(
+        _cli("--resume", str(killed), "--fmu-dir", str(fmu_dir)),
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr
+    assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
+
+
 @pytest.fixture(scope="module")
 def checkpointed(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A short bs-3 run with checkpoints, made to look killed (its summary says running)."""
