@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import signal
 import subprocess
@@ -9,20 +11,23 @@ import time
 from pathlib import Path
 
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
+from cosim.outputs.run_files import MANIFEST_FILE
 
 
 def kill_after_checkpoint(
     command: list[str], out: Path, timeout: float = 300.0, with_guard: bool = False
 ) -> int:
     """Start ``command`` in a process group of its own, SIGTERM the group once the run's
-    first checkpoint is in ``out``; its exit code. ``with_guard``: SIGKILL the group and
-    the run's tail guard (in a session of its own) at once, as a batch system killing the
-    job's cgroup or a power cut does. The group is killed whatever happens."""
+        first checkpoint is in ``out``; its exit code. ``with_guard``: SIGKILL the group and
+        the run's tail guard (in a session of its own) at once, as a batch system killing the
+        job's cgroup or a power cut does, once the run's manifest records the checkpoint (as
+    the run's file, by its SHA-256: the run's last act in a checkpoint). The
+        group is killed whatever happens."""
     proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             start_new_session=True)  # fmt: skip
     try:
         deadline = time.monotonic() + timeout
-        while not (out / CHECKPOINT_FILE).exists():
+        while not (out / CHECKPOINT_FILE).exists() or (with_guard and not _recorded(out)):
             assert proc.poll() is None, f"the run ended before a checkpoint: {proc.stderr}"
             assert time.monotonic() < deadline, "no checkpoint in time"
             time.sleep(0.02)
@@ -42,6 +47,16 @@ def kill_after_checkpoint(
         proc.wait()
         assert proc.stderr is not None
         proc.stderr.close()
+
+
+def _recorded(out: Path) -> bool:
+    """The run's manifest records the checkpoint in ``out`` (by its SHA-256)."""
+    try:
+        checkpoint = hashlib.sha256((out / CHECKPOINT_FILE).read_bytes()).hexdigest()
+        files = json.loads((out / MANIFEST_FILE).read_text())["files"]
+    except (OSError, ValueError, KeyError):
+        return False  # (being replaced)
+    return any(e.get("path") == CHECKPOINT_FILE and e.get("sha256") == checkpoint for e in files)
 
 
 def _children(pid: int) -> list[int]:

@@ -22,7 +22,6 @@ itself if the run is killed before it commits.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import re
@@ -46,7 +45,7 @@ from cosim.outputs.run_files import (
     regular,
     unchanged,
 )
-from cosim.outputs.tail_guard import READ_FLAGS, file_identity
+from cosim.outputs.tail_guard import file_identity, head_sha256
 
 ASIDE_SUFFIX = ".auv-cosim-earlier"
 _ASIDE = re.compile(r"^\..+\.\d+" + re.escape(ASIDE_SUFFIX) + "$")
@@ -252,8 +251,9 @@ def _same_content(path: Path, identity: dict[str, Any]) -> dict[str, Any] | None
 
 def _checkpointed_content(path: Path, name: str, identity: dict[str, Any]) -> dict[str, Any] | None:
     """``path / name``'s identity now if it is a regular file whose first bytes are those
-    its entry's ``checkpoint`` says the run wrote up to a checkpoint (size, SHA-256), and
-    that checkpoint is the folder's checkpoint.json (by its SHA-256)."""
+    its entry's ``checkpoint`` says the run had written at a checkpoint (size, SHA-256:
+    results.csv up to the checkpoint's last row, a recording's head), and that checkpoint
+    is the folder's checkpoint.json (by its SHA-256)."""
     upto = identity.get("checkpoint")
     if not isinstance(upto, dict) or type(upto["size"]) is not int or upto["size"] < 0:
         return None
@@ -261,28 +261,9 @@ def _checkpointed_content(path: Path, name: str, identity: dict[str, Any]) -> di
     if saved is None or saved["sha256"] != upto["checkpoint_sha256"]:
         return None
     now = file_identity(path / name)
-    if now is None or _head_sha256(path / name, upto["size"]) != upto["sha256"]:
+    if now is None or head_sha256(path / name, upto["size"]) != upto["sha256"]:
         return None
     return now
-
-
-def _head_sha256(path: Path, size: int) -> str | None:
-    """The SHA-256 (hex) of the first ``size`` bytes of the regular file ``path`` (not
-    through a link); None if it holds fewer or cannot be read."""
-    try:
-        fd = os.open(path, READ_FLAGS)
-    except OSError:
-        return None
-    digest, left = hashlib.sha256(), size
-    try:
-        while left and (chunk := os.read(fd, min(left, 1 << 20))):
-            digest.update(chunk)
-            left -= len(chunk)
-    except OSError:
-        return None
-    finally:
-        os.close(fd)
-    return None if left else digest.hexdigest()
 
 
 class SetAside:

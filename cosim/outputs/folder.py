@@ -55,6 +55,7 @@ from cosim.outputs.run_files import (
     LOCK_FILE,
     MANIFEST_FILE,
     RECORDING_FILE,
+    RECORDING_HEAD,
     REPORT_FOLDER,
     RESULTS_FILE,
     SCENARIO_FILE,
@@ -64,7 +65,7 @@ from cosim.outputs.run_files import (
     is_our_recording,
     regular,
 )
-from cosim.outputs.tail_guard import file_identity
+from cosim.outputs.tail_guard import file_identity, head_sha256
 
 try:
     import fcntl
@@ -107,6 +108,7 @@ class RunFolder:
         self._new: list[Path] = []  # the files this run created (absolute), for the guard
         self._rrd_fd = -1  # the lock on the recording, if one is written
         self._rrd_created: Path | None = None  # the recording file the lock created
+        self._rrd_flushed = 0  # bytes of whole messages in it (recording_flushed)
         self._guard: subprocess.Popen[bytes] | None = None
         self._channel: socket.socket | None = None  # to the guard (else its stdin pipe)
         # what results.csv holds now (data rows, bytes, SHA-256), if its sink keeps it
@@ -242,17 +244,22 @@ class RunFolder:
 
     def checkpointed(self, path: Path, rows: int) -> None:
         """Record the checkpoint ``path`` this run wrote, at ``rows`` data rows, with
-        results.csv as of it where it holds exactly those rows (:attr:`results_written`;
-        :meth:`Manifest.record_checkpoint`). Raises RunFolderError."""
-        upto = None
+        results.csv as of it where it holds exactly those rows (:attr:`results_written`)
+        and the head of the recording once flushed (:meth:`Manifest.record_checkpoint`).
+        Raises RunFolderError."""
+        heads: dict[Path, tuple[int, str] | None] = {}
         if self.results_written is not None:
             written, size, sha256 = self.results_written()
-            upto = (size, sha256) if written == rows else None
+            heads[self.path / RESULTS_FILE] = (size, sha256) if written == rows else None
+        if self._rrd_created is not None:
+            flushed = self._rrd_flushed >= RECORDING_HEAD  # (its id in it)
+            head = head_sha256(self._rrd_created, RECORDING_HEAD) if flushed else None
+            heads[self._rrd_created] = None if head is None else (RECORDING_HEAD, head)
         name = self.manifest.name_of(path)
         if name not in self._recorded:
             self._recorded.add(name)
             self._created(Path(path))
-        self.manifest.record_checkpoint(path, self.path / RESULTS_FILE, upto)
+        self.manifest.record_checkpoint(path, heads)
 
     def _created(self, path: Path) -> None:
         """This run created ``path`` (the guard removes it if it puts an earlier run back)."""
@@ -350,6 +357,7 @@ class RunFolder:
 
     def recording_flushed(self, size: int) -> None:
         """The recording holds whole messages up to ``size`` bytes (tell the guard)."""
+        self._rrd_flushed = size
         self._tell_guard(f"rrd {size}\n")
 
     def release(self, unused: bool = False) -> None:

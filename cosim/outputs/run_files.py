@@ -10,13 +10,15 @@ inode often comes back), rewritten in place, or touched since, is not. Paths are
 to the folder, or absolute for a recording outside it; ``pid`` is the process that ran;
 ``folder`` the folder's absolute path as the run saw it (a copy of the folder keeps it).
 
-Each checkpoint (:data:`CHECKPOINT_FILE`) is recorded together with results.csv as of
-it, in one save: results.csv's entry gets ``checkpoint`` (:meth:`Manifest.record_checkpoint`:
-``size`` and ``sha256`` of its content up to the checkpoint's last row, and the
-``checkpoint_sha256`` of the checkpoint.json they go with). A run killed together with
-its tail guard (a job's cgroup killed, a power cut) leaves results.csv longer than its
-entry says, perhaps torn; a resume from that checkpoint still knows it as the run's
-(:func:`cosim.outputs.earlier_run.find_earlier_run`).
+Each checkpoint (:data:`CHECKPOINT_FILE`) is recorded together with results.csv and the
+recording as of it, in one save (:meth:`Manifest.record_checkpoint`): their entries get
+``checkpoint``, the ``size`` and ``sha256`` of their first bytes (results.csv up to the
+checkpoint's last row; the recording's first :data:`RECORDING_HEAD` bytes, which hold its
+random recording id) and the ``checkpoint_sha256`` of the checkpoint.json they go with.
+A run killed together with its tail guard (a job's cgroup killed, a power cut) leaves
+them longer than their entries say, perhaps torn; a resume from that checkpoint still
+knows them as the run's (:func:`cosim.outputs.earlier_run.find_earlier_run`) and writes
+them again whole.
 
 Standard library only: a run's refusal comes before numpy, fmpy or any FMU is loaded.
 """
@@ -84,20 +86,22 @@ class Manifest:
         self.entries[self.name_of(path)] = identity
         self.save()
 
-    def record_checkpoint(self, path: Path, results: Path, upto: tuple[int, str] | None) -> None:
-        """Record the checkpoint ``path`` the run wrote and, in the same save, that
-        ``results`` (recorded already) is the run's as far as its first ``upto[0]`` bytes
-        hold SHA-256 ``upto[1]`` (its rows up to the checkpoint; None: not known, and
-        no longer an earlier checkpoint's). Raises RunFolderError."""
+    def record_checkpoint(self, path: Path, heads: dict[Path, tuple[int, str] | None]) -> None:
+        """Record the checkpoint ``path`` the run wrote and, in the same save, that each
+        file of ``heads`` (recorded already) is the run's as long as its first ``size``
+        bytes hold SHA-256 ``sha256`` (``(size, sha256)``; None: not known, and no longer
+        an earlier checkpoint's). Raises RunFolderError."""
         identity = file_identity(path)
         if identity is None:
             raise RunFolderError(f"cannot record {path}: it is not a regular file any more")
         self.entries[self.name_of(path)] = identity
-        entry = self.entries.get(self.name_of(results))
-        if entry is not None:
+        for file, head in heads.items():
+            entry = self.entries.get(self.name_of(file))
+            if entry is None:
+                continue
             entry.pop("checkpoint", None)
-            if upto is not None:
-                size, sha256 = upto
+            if head is not None:
+                size, sha256 = head
                 entry["checkpoint"] = {"size": size, "sha256": sha256,
                                        "checkpoint_sha256": identity["sha256"]}  # fmt: skip
         self.save()

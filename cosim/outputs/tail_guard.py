@@ -28,8 +28,9 @@ the process is killed, and rerun writes its stream in pieces: this is the one pl
 can finish the job.
 
 Standard library only, and nothing imported from the package: it starts in a few
-milliseconds, isolated (``-I -S``) from the environment. :func:`file_identity` is also
-the run folder's one definition of what identifies a file a run wrote.
+milliseconds, isolated (``-I -S``) from the environment. :func:`file_identity` (and
+:func:`head_sha256`, of a file's first bytes) is also the run folder's one definition of
+what identifies a file a run wrote.
 """
 
 from __future__ import annotations
@@ -82,6 +83,27 @@ def file_identity(path: str | os.PathLike[str]) -> dict[str, int | str] | None:
         "mtime_ns": before.st_mtime_ns,
         "sha256": digest.hexdigest(),
     }
+
+
+def head_sha256(path: str | os.PathLike[str], size: int) -> str | None:
+    """The SHA-256 (hex) of the first ``size`` bytes of the regular file ``path`` (a link
+    is not followed); None if it holds fewer or cannot be read."""
+    try:
+        fd = os.open(path, READ_FLAGS)
+    except OSError:
+        return None
+    digest, left = hashlib.sha256(), size
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        while left and (chunk := os.read(fd, min(left, 1 << 20))):
+            digest.update(chunk)
+            left -= len(chunk)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return None if left else digest.hexdigest()
 
 
 def cut_torn_tail(path: str) -> int:

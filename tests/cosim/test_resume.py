@@ -62,23 +62,62 @@ def test_a_killed_run_resumed_writes_the_uninterrupted_results(
     assert json.loads((killed / "summary.json").read_text())["complete"] is True
 
 
+def _killed_with_guard(fmu_dir: Path, out: Path, *recording: str) -> None:
+    """bs-3 to 600 s in ``out``, checkpointing every 20 s, SIGKILLed with its tail guard
+    (``recording``: ``--rrd PATH``, or none) once it has checkpointed."""
+    command = [sys.executable, "-m", "cosim.cli", "run", "bs-3", "--out", str(out), "--quiet",
+               "--fmu-dir", str(fmu_dir), "--stop-time", "600", "--checkpoint-every", "20",
+               *(recording or ("--no-rrd",))]  # fmt: skip
+    assert kill_after_checkpoint(command, out, with_guard=True) == -signal.SIGKILL
+
+
 @pytest.mark.slow
-def test_a_run_killed_with_its_tail_guard_resumes(fmu_dir: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("recording", [False, True])
+def test_a_run_killed_with_its_tail_guard_resumes(
+    fmu_dir: Path, tmp_path: Path, recording: bool
+) -> None:
     """A SIGKILL of the run and its tail guard at once (a job's cgroup killed, a power
-    cut) leaves results.csv longer than the manifest last recorded it and perhaps torn:
-    the part up to the checkpoint is the run's, and the resume rewrites the rest."""
-    common = ("--fmu-dir", str(fmu_dir), "--stop-time", "600")
+    cut) leaves results.csv and the recording longer than the manifest last recorded them,
+    perhaps torn: results.csv up to the checkpoint and the recording's head are the run's,
+    and the resume writes both again whole."""
     whole, killed = tmp_path / "whole", tmp_path / "killed"
-    subprocess.run(_cli("bs-3", "--out", str(whole), *common), check=True, timeout=600,
+    subprocess.run(_cli("bs-3", "--out", str(whole), "--fmu-dir", str(fmu_dir), "--stop-time",
+                        "600"), check=True, timeout=600,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
-    command = _cli("bs-3", "--out", str(killed), *common, "--checkpoint-every", "20")
-    assert kill_after_checkpoint(command, killed, with_guard=True) == -signal.SIGKILL
+    rrd = killed / "recording.rrd"
+    _killed_with_guard(fmu_dir, killed, *(("--rrd", str(rrd)) if recording else ()))
     resumed = subprocess.run(
-        _cli("--resume", str(killed), "--fmu-dir", str(fmu_dir)),
+        [sys.executable, "-m", "cosim.cli", "run", "--resume", str(killed), "--quiet",
+         "--fmu-dir", str(fmu_dir)],
         capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert resumed.returncode == 0, resumed.stderr
     assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
+    summary = json.loads((killed / "summary.json").read_text())
+    assert summary["complete"] is True
+    assert ("recording" in summary["outputs"]) is recording
+    assert rrd.exists() is recording
+
+
+@pytest.mark.slow
+def test_a_run_killed_with_its_tail_guard_refuses_rows_edited_before_its_checkpoint(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """The part of results.csv the checkpoint vouches for is checked byte for byte."""
+    killed = tmp_path / "killed"
+    _killed_with_guard(fmu_dir, killed)
+    results = killed / "results.csv"
+    data = bytearray(results.read_bytes())
+    data[data.index(b"\n") + 1] ^= 1  # the first row's first byte
+    results.write_bytes(bytes(data))
+    resumed = subprocess.run(
+        [sys.executable, "-m", "cosim.cli", "run", "--resume", str(killed), "--quiet",
+         "--fmu-dir", str(fmu_dir)],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert resumed.returncode == 1
+    assert "results.csv is not a file the earlier run wrote" in resumed.stderr
+    assert results.read_bytes() == bytes(data)
 
 
 @pytest.fixture(scope="module")
