@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
@@ -15,19 +16,27 @@ from cosim.outputs.run_files import MANIFEST_FILE
 
 
 def kill_after_checkpoint(
-    command: list[str], out: Path, timeout: float = 300.0, with_guard: bool = False
+    command: list[str],
+    out: Path,
+    timeout: float = 300.0,
+    with_guard: bool = False,
+    until: Callable[[], bool] | None = None,
 ) -> int:
     """Start ``command`` in a process group of its own, SIGTERM the group once the run's
-        first checkpoint is in ``out``; its exit code. ``with_guard``: SIGKILL the group and
-        the run's tail guard (in a session of its own) at once, as a batch system killing the
-        job's cgroup or a power cut does, once the run's manifest records the checkpoint (as
-    the run's file, by its SHA-256: the run's last act in a checkpoint). The
-        group is killed whatever happens."""
+    first checkpoint is in ``out`` (and ``until`` says so, if given); its exit code.
+    ``with_guard``: SIGKILL the group and the run's tail guard (in a session of its own)
+    at once, as a batch system killing the job's cgroup or a power cut does, once the
+    run's manifest also records the checkpoint (as the run's file, by its SHA-256: the
+    run's last act in a checkpoint). The group is killed whatever happens."""
     proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             start_new_session=True)  # fmt: skip
     try:
         deadline = time.monotonic() + timeout
-        while not (out / CHECKPOINT_FILE).exists() or (with_guard and not _recorded(out)):
+        while not (
+            (out / CHECKPOINT_FILE).exists()
+            and (not with_guard or _recorded(out))
+            and (until is None or until())
+        ):
             assert proc.poll() is None, f"the run ended before a checkpoint: {proc.stderr}"
             assert time.monotonic() < deadline, "no checkpoint in time"
             time.sleep(0.02)

@@ -608,6 +608,7 @@ class _Saver:
             checkpoints.save(start)
             if checkpoints.rows is not None:
                 self._replay(checkpoints.rows)
+                checkpoints.save(start)  # again, recorded with results.csv's rows up to it
             self.first = int(start["step"])
         every = checkpoints.every
         self.next = (self.first // every + 1) * every if every else -1
