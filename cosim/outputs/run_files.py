@@ -155,8 +155,8 @@ def read_manifest(folder: Path, names: OptionNames = FLAGS, option: str = "out")
 
 
 def _entry(data: dict[str, Any]) -> dict[str, Any]:
-    """A manifest's entry as read: the identity, and the ``checkpoint`` one if it has one
-    of the keys it needs (their values are checked where they are used)."""
+    """A manifest's entry as read: the identity, and its ``checkpoint`` if that holds the
+    keys it needs (their values are checked where they are used)."""
     entry = {k: data[k] for k in IDENTITY_KEYS}
     upto = data.get("checkpoint")
     if isinstance(upto, dict) and all(k in upto for k in CHECKPOINT_KEYS):
