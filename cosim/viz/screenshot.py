@@ -29,6 +29,10 @@ START_TIMEOUT = 60.0  # s for the viewer to answer (software rendering starts sl
 LOAD_TIMEOUT = 60.0  # s for a recording to load
 SETTLE_TIMEOUT = 60.0  # s for the picture to stop changing
 SETTLE_INTERVAL = 0.5  # s between two frames compared
+# s a frame must stay unchanged to count as settled: longer than the viewer's start-up
+# notice ("Headless viewer running at 1920x1080.") stands unchanged in its corner (gone
+# 4.6 s after the start here), so that no shot catches it
+STILL_S = 6.0
 
 
 class ScreenshotError(RuntimeError):
@@ -61,7 +65,7 @@ def render_screenshots(
     Returns the views the viewer shows with the problems it reports for each. ``env`` is
     the viewer's environment (point HOME/XDG_* at a scratch folder in tests); ``log``
     receives its output. Each shot is taken once the picture has settled (the data
-    loaded and the start-up notices faded).
+    loaded and the start-up notices gone: unchanged for ``STILL_S``).
 
     Raises:
         ScreenshotError: no file ``rrd``, no ``rerun`` binary, the viewer exited or did
@@ -121,21 +125,25 @@ def _stop(viewer: subprocess.Popen[bytes]) -> None:
 
 
 def _settled_frame(client: ViewerClient) -> bytes:
-    """The viewer's frame once two in a row are identical.
+    """The viewer's frame once it has stayed the same for ``STILL_S``.
 
-    The viewer fetches chunks on demand after ``open`` and fades its start-up notices in
-    the first seconds, so a single early frame can show empty plots.
+    The viewer fetches chunks on demand after ``open`` and shows its start-up notices in
+    the first seconds, each unchanged until it goes: a single early frame can show empty
+    plots, and two equal frames half a second apart the notice over the panels.
     """
     deadline = time.monotonic() + SETTLE_TIMEOUT
-    previous = client.take_screenshot()
+    frame = client.take_screenshot()
+    since = time.monotonic()
     while True:
         time.sleep(SETTLE_INTERVAL)
-        frame = client.take_screenshot()
-        if frame == previous:
+        latest = client.take_screenshot()
+        now = time.monotonic()
+        if latest != frame:
+            frame, since = latest, now
+        elif now - since >= STILL_S:
             return frame
-        if time.monotonic() > deadline:
+        if now > deadline:
             raise ScreenshotError(f"the viewer's picture did not settle in {SETTLE_TIMEOUT} s")
-        previous = frame
 
 
 def _connect(viewer: subprocess.Popen[bytes], url: str) -> ViewerClient:
