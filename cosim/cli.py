@@ -1014,7 +1014,8 @@ def _add_reproduce_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--skip-scenarios",
         action="store_true",
-        help="no closed-loop runs (Ch. 6): their rows and figures stay as the page has them",
+        help="no closed-loop runs (Ch. 6; with them the whole run takes minutes, 11 on a busy "
+        "2-core machine): their rows and figures stay as the page has them",
     )
     p.set_defaults(func=_reproduce)
 
