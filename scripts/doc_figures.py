@@ -7,8 +7,10 @@ metric it comes from, ``<!-- zigzag-20:overshoot_1_deg -->0.87``: the marker is 
 once rendered. The metric is a key figure (``yaw_settling_time_s``, ...:
 :mod:`cosim.metrics.key_figures`) or a manoeuvre metric (``tactical_diameter_m``, ...:
 :mod:`cosim.metrics.manoeuvres`) of the scenario's ``summary.json``; a marker without one,
-``<!-- bs-3 -->3.21``, is the yaw settling time (s). The number keeps as many decimals as
-the page gives it (and a leading ``+``).
+``<!-- bs-3 -->3.21``, is the yaw settling time (s). A metric may name a figure inside one,
+its keys and list positions (counted from 1) joined by dots: ``survey:legs.7.completed_at_s``
+(summary.json's ``legs``, the seventh). The number keeps as many decimals as the page gives
+it (and a leading ``+``).
 
 Each scenario a marker names runs once, as shipped (``auv-cosim run <id> --no-rrd``, into
 a temporary folder). Without ``--write`` the figures that differ from the pages are
@@ -34,7 +36,8 @@ from cosim.runner import run_scenario
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_METRIC = "yaw_settling_time_s"
 MARKER = re.compile(
-    r"<!-- (?P<scenario>[a-z0-9][\w.-]*)(?::(?P<metric>\w+))? -->(?P<value>[+-]?\d+(?:\.\d+)?)"
+    r"<!-- (?P<scenario>[a-z0-9][\w.-]*)(?::(?P<metric>\w+(?:\.\w+)*))? -->"
+    r"(?P<value>[+-]?\d+(?:\.\d+)?)"
 )
 
 
@@ -68,7 +71,7 @@ def metric_value(
     """``metric`` of a run of ``scenario`` (its key figures and manoeuvre metrics, as in
     summary.json). Raises ValueError naming the metric if the run does not have it or it
     is null (a settling time never reached)."""
-    value = key_figures.get(metric, manoeuvre.get(metric))
+    value = key_figures.get(metric, _inside(manoeuvre, metric.split(".")))
     if isinstance(value, bool) or not isinstance(value, int | float):
         known = sorted([*key_figures, *(k for k in manoeuvre if k != "manoeuvre")])
         raise ValueError(
@@ -76,6 +79,19 @@ def metric_value(
             f"of {', '.join(known)}"
         )
     return float(value)
+
+
+def _inside(figures: Any, path: Sequence[str]) -> Any:
+    """The figure at ``path`` (keys, and list positions counted from 1) in ``figures``;
+    None where there is none."""
+    for key in path:
+        if isinstance(figures, Mapping):
+            figures = figures.get(key)
+        elif isinstance(figures, list) and key.isdigit() and 1 <= int(key) <= len(figures):
+            figures = figures[int(key) - 1]
+        else:
+            return None
+    return figures
 
 
 def shown(value: float, like: str) -> str:

@@ -87,3 +87,21 @@ def test_a_marker_naming_no_scenario_is_refused_in_one_line(
     assert figures.main([], root=tmp_path) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("doc_figures.py: ") and "'bs-9'" in err and "\n" not in err
+
+
+def test_a_marker_may_name_a_figure_of_one_leg_of_a_survey(figures: ModuleType, tmp_path: Path):
+    """manoeuvres.md gave the time the survey's last leg was completed, 185.6 s, by hand:
+    a marker could name only a whole-run metric, not a figure of one of its ``legs``."""
+    page = tmp_path / "page.md"
+    page.write_text("the last at <!-- survey:legs.2.completed_at_s -->46.2 s\n", encoding="utf-8")
+    [figure] = figures.figures_in(page)
+    assert (figure.scenario, figure.metric, figure.text) == (
+        "survey",
+        "legs.2.completed_at_s",
+        "46.2",
+    )
+    legs = [{"leg": 1, "completed_at_s": 31.34}, {"leg": 2, "completed_at_s": 46.2}]
+    manoeuvre = {"manoeuvre": "survey", "legs_completed": 2, "legs": legs}
+    assert figures.metric_value("survey", figure.metric, {}, manoeuvre) == 46.2  # counted from 1
+    with pytest.raises(ValueError, match=r"^survey: metric 'legs\.3\.completed_at_s' is None"):
+        figures.metric_value("survey", "legs.3.completed_at_s", {}, manoeuvre)
