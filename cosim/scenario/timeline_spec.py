@@ -201,7 +201,7 @@ def point_slack(time: float, h: float) -> float:
     """How far (s) ``time`` (s) may lie from a communication point n ``h`` and count as it:
     :data:`POINT_TOLERANCE` of a step, or, late in a long run, four units of the last place
     of ``time``: a typed time and n h (or time / h and n) differ by their roundings, which
-    pass 1e-9 of a step after 2**24 steps (73 h at 10 ms)."""
+    pass 1e-9 of a step after 2**24 steps (47 h at 10 ms)."""
     return max(POINT_TOLERANCE * h, 4.0 * sys.float_info.epsilon * abs(time))
 
 

@@ -297,7 +297,7 @@ def test_a_series_starting_after_the_stop_time_is_named_as_never_applied() -> No
 
 @pytest.mark.parametrize("h", [0.01, 0.02, 0.005])
 def test_a_time_on_a_late_point_is_that_point_however_many_steps_in(h: float) -> None:
-    # an event typed at a communication point of a long run, past 2**24 steps (73 h at
+    # an event typed at a communication point of a long run, past 2**24 steps (47 h at
     # 10 ms), where time / h carries a rounding of more than 1e-9 of a step: the point
     # itself, never the one after it
     points = range(2**24, 2**25, 4099)
