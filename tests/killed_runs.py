@@ -8,7 +8,6 @@ import os
 import signal
 import subprocess
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 from cosim.outputs.checkpoint_file import CHECKPOINT_FILE
@@ -20,10 +19,9 @@ def kill_after_checkpoint(
     out: Path,
     timeout: float = 300.0,
     with_guard: bool = False,
-    until: Callable[[], bool] | None = None,
 ) -> int:
     """Start ``command`` in a process group of its own, SIGTERM the group once the run's
-    first checkpoint is in ``out`` (and ``until`` says so, if given); its exit code.
+    first checkpoint is in ``out``; its exit code.
     ``with_guard``: SIGKILL the group and the run's tail guard (in a session of its own)
     at once, as a batch system killing the job's cgroup or a power cut does, once the
     run's manifest also records the checkpoint (as the run's file, by its SHA-256: the
@@ -32,20 +30,19 @@ def kill_after_checkpoint(
                             start_new_session=True)  # fmt: skip
     try:
         deadline = time.monotonic() + timeout
-        while not (
-            (out / CHECKPOINT_FILE).exists()
-            and (not with_guard or _recorded(out))
-            and (until is None or until())
-        ):
+        while not ((out / CHECKPOINT_FILE).exists() and (not with_guard or _recorded(out))):
             assert proc.poll() is None, f"the run ended before a checkpoint: {proc.stderr}"
             assert time.monotonic() < deadline, "no checkpoint in time"
             time.sleep(0.02)
         if not with_guard:
             os.killpg(proc.pid, signal.SIGTERM)
             return proc.wait(timeout=timeout)
-        guards = _children(proc.pid)
-        assert guards, "the run has no tail guard"
+        while not _children(proc.pid):  # (the guard may still be starting)
+            assert proc.poll() is None, f"the run ended without a tail guard: {proc.stderr}"
+            assert time.monotonic() < deadline, "no tail guard in time"
+            time.sleep(0.02)
         os.killpg(proc.pid, signal.SIGSTOP)  # none of them acts between the kills
+        guards = _children(proc.pid)
         for pid in guards:
             os.kill(pid, signal.SIGKILL)
         os.killpg(proc.pid, signal.SIGKILL)

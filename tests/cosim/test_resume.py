@@ -100,31 +100,6 @@ def test_a_run_killed_with_its_tail_guard_resumes(
 
 
 @pytest.mark.slow
-def test_a_resume_killed_with_its_tail_guard_once_it_steps_resumes(
-    fmu_dir: Path, tmp_path: Path
-) -> None:
-    """A resume writes its checkpoint again once it has replayed the rows up to it, with
-    results.csv as of it: killed with its tail guard as soon as it steps (long before its
-    next periodic checkpoint), it still resumes."""
-    whole, killed = tmp_path / "whole", tmp_path / "killed"
-    subprocess.run(_cli("bs-3", "--out", str(whole), "--fmu-dir", str(fmu_dir), "--stop-time",
-                        "600"), check=True, timeout=600,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
-    _killed_with_guard(fmu_dir, killed)
-    saved = json.loads((killed / CHECKPOINT_FILE).read_text())["rows"]
-    resume = [sys.executable, "-m", "cosim.cli", "run", "--resume", str(killed), "--quiet",
-              "--fmu-dir", str(fmu_dir), "--checkpoint-every", "10000"]  # fmt: skip
-
-    def stepped() -> bool:  # rows past the checkpoint
-        return _lines(killed / "results.csv") > saved + 1
-
-    assert kill_after_checkpoint(resume, killed, with_guard=True, until=stepped) == -signal.SIGKILL
-    again = subprocess.run(resume, capture_output=True, text=True, timeout=600)
-    assert again.returncode == 0, again.stderr
-    assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
-
-
-@pytest.mark.slow
 def test_a_run_killed_with_its_tail_guard_refuses_rows_edited_before_its_checkpoint(
     fmu_dir: Path, tmp_path: Path
 ) -> None:
