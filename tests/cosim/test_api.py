@@ -1237,6 +1237,9 @@ from cosim import sweep  # cosim.api imported (~0.07 s): the call is what is tim
 
 # multiprocessing's helpers, which last as long as the process that started them
 HELPERS = re.compile(r"from multiprocessing\\.(forkserver|resource_tracker) import main")
+# distributed's own offload thread (distributed.utils' module-level executor), which once
+# started lasts as long as the process, as those helpers do
+LIBRARY_THREADS = ("Dask-Offload",)
 
 if __name__ == "__main__":
     offset, fmu_dir = float(sys.argv[1]), sys.argv[2]
@@ -1257,7 +1260,8 @@ if __name__ == "__main__":
     time.sleep(0.5)  # what the sweep started had its time to end
     print(json.dumps({"caught": caught,
                       "threads": [t.name for t in threading.enumerate()
-                                  if t is not threading.main_thread()],
+                                  if t is not threading.main_thread()
+                                  and not t.name.startswith(LIBRARY_THREADS)],
                       "children": [command for command in map(" ".join, (p.cmdline() for p
                                    in psutil.Process().children(recursive=True)))
                                    if not HELPERS.search(command)]}))
