@@ -23,22 +23,30 @@ from cosim.runner import RunOptions, execute, resume_run
 CHUNK = 1_000  # rows parsed at a time in this test
 
 
-@pytest.mark.slow
-def test_a_resume_holds_a_chunk_of_the_earlier_rows_not_all_of_them(
-    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+def _stopped_after_first_checkpoint(
+    monkeypatch: pytest.MonkeyPatch, fmu_dir: Path, out: Path, stop_time: float, every: float
 ) -> None:
+    """bs-3 to ``stop_time`` s in ``out``, checkpointing every ``every`` s, SIGTERMed right
+    after its first checkpoint is saved."""
     stop, save = StopRequest(), master._Saver.save
 
-    def save_then_stop(self: Any, n: int) -> int:  # SIGTERM right after the first save
+    def save_then_stop(self: Any, n: int) -> int:
         stop.signum = signal.SIGTERM
         return save(self, n)
 
     monkeypatch.setattr(master._Saver, "save", save_then_stop)
-    out = tmp_path / "run"
-    options = RunOptions(out_dir=out, stop_time=450.0, checkpoint_every=400.0, no_rrd=True,
-                         fmu_dir=fmu_dir)  # fmt: skip
+    options = RunOptions(out_dir=out, stop_time=stop_time, checkpoint_every=every,
+                         no_rrd=True, fmu_dir=fmu_dir)  # fmt: skip
     assert not execute("bs-3", options, stop).result.complete
     monkeypatch.undo()
+
+
+@pytest.mark.slow
+def test_a_resume_holds_a_chunk_of_the_earlier_rows_not_all_of_them(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "run"
+    _stopped_after_first_checkpoint(monkeypatch, fmu_dir, out, 450.0, 400.0)
     rows = json.loads((out / CHECKPOINT_FILE).read_text())["rows"]
     assert rows > 40 * CHUNK
     with (out / "results.csv").open(encoding="utf-8") as file:
@@ -72,18 +80,8 @@ def test_a_resumed_run_s_real_time_factor_is_of_the_time_it_stepped(
 ) -> None:
     # resumed at t = 4 s of 10, the loop steps 6 s: its factor is 6 s over its wall clock,
     # not 10 s (a resume at 3 h of a 6 h run reported twice its speed)
-    stop, save = StopRequest(), master._Saver.save
-
-    def save_then_stop(self: Any, n: int) -> int:
-        stop.signum = signal.SIGTERM
-        return save(self, n)
-
-    monkeypatch.setattr(master._Saver, "save", save_then_stop)
     out = tmp_path / "run"
-    options = RunOptions(out_dir=out, stop_time=10.0, checkpoint_every=4.0, no_rrd=True,
-                         fmu_dir=fmu_dir)  # fmt: skip
-    assert not execute("bs-3", options, stop).result.complete
-    monkeypatch.undo()
+    _stopped_after_first_checkpoint(monkeypatch, fmu_dir, out, 10.0, 4.0)
     start = json.loads((out / CHECKPOINT_FILE).read_text())["time"]
     assert 0.0 < start < 10.0
     resumed = resume_run(out, RunOptions(no_rrd=True, fmu_dir=fmu_dir)).result
