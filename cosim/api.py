@@ -146,10 +146,10 @@ class Run:
 
     def __repr__(self) -> str:
         """One line (a notebook shows it for a cell ending in ``cosim.run(...)``), not the
-        scenario, table and summary in full."""
+        scenario, table and summary in full, named by its class (Run or SavedRun)."""
         rows, columns = self.results.shape
         return (
-            f"Run(scenario={self.scenario.id!r}, complete={self.complete}, "
+            f"{type(self).__name__}(scenario={self.scenario.id!r}, complete={self.complete}, "
             f"results=<{rows} rows x {columns} columns>, out_dir={self.out_dir!r})"
         )
 
@@ -166,7 +166,7 @@ class Run:
         return check
 
 
-@dataclass(frozen=True, eq=False, repr=False)  # (repr: Run's one line)
+@dataclass(frozen=True, eq=False, repr=False)  # (repr: Run's one line, its own name)
 class SavedRun(Run):
     """A :class:`Run` written to its run folder: what :func:`run` with ``out`` and
     :func:`resume` return. The same, but typed for what it holds: ``out_dir`` is a

@@ -197,14 +197,15 @@ def test_a_run_shows_in_one_line_not_its_whole_table(fmu_dir: Path, tmp_path: Pa
     """A notebook cell ending in ``cosim.run(...)`` printed the dataclass repr: the scenario
     with every instance, the DataFrame and the whole summary, 5,000 characters over many
     lines. It is one line naming the scenario, whether it completed, the table's shape
-    and the folder; a run kept in a folder (a SavedRun) too."""
+    and the folder; a run kept in a folder too, named as what it is (a SavedRun's said
+    ``Run(...)``, the class it is not)."""
     run = cosim.run("bs-3", stop_time=0.1, fmu_dir=fmu_dir)
     columns = len(run.scenario.columns)
-    expected = f"Run(scenario='bs-3', complete=True, results=<11 rows x {columns} columns>, "
-    assert repr(run) == expected + "out_dir=None)"
+    expected = f"(scenario='bs-3', complete=True, results=<11 rows x {columns} columns>, "
+    assert repr(run) == "Run" + expected + "out_dir=None)"
     kept = cosim.run("bs-3", stop_time=0.1, fmu_dir=fmu_dir, out=tmp_path / "run", recording=False)
     assert type(kept) is cosim.SavedRun
-    assert repr(kept) == expected + f"out_dir={tmp_path / 'run'!r})"
+    assert repr(kept) == "SavedRun" + expected + f"out_dir={tmp_path / 'run'!r})"
 
 
 def test_runs_and_studies_go_into_lists_and_sets_by_identity(fmu_dir: Path) -> None:
