@@ -135,6 +135,13 @@ def did_you_mean_path(path: Path) -> str:
     return "" if choice is None else f" (did you mean {str(path.with_name(choice))!r}?)"
 
 
+def relative_to(path: Path) -> str:
+    """`` (relative to <working folder>)`` for a relative ``path``, where a refusal names
+    it as given, so that the path shows once and its folder too; ``""`` for an absolute
+    one (the path as given says where)."""
+    return "" if path.is_absolute() else f" (relative to {Path.cwd()})"
+
+
 def closest(word: str, choices: Iterable[str]) -> str | None:
     """The one choice closest to a mistyped ``word`` (difflib's ratio 0.75 or more, letter
     case aside: a letter or two off, a missing ``_``; or the one that reads the same with

@@ -32,7 +32,15 @@ from pydantic import (
 )
 from pydantic_core import ErrorDetails
 
-from cosim.errors import CosimError, OptionNames, did_you_mean, did_you_mean_path, plain, shown
+from cosim.errors import (
+    CosimError,
+    OptionNames,
+    did_you_mean,
+    did_you_mean_path,
+    plain,
+    relative_to,
+    shown,
+)
 from cosim.fmus.interface import (
     NOT_COSIMULATION,
     FmuInterface,
@@ -650,8 +658,8 @@ def scenario_path(id_or_path: str | Path) -> Path:
         if not (exists or guess) and _is_builtin_file_name(path):
             guess = f" (the built-in scenario is the id {path.stem!r}, without .toml)"
         raise ScenarioError(
-            f"{'not a file' if exists else 'no such file'}: {id_or_path}{guess} (looked for "
-            f"{path.absolute()}); expected a scenario .toml file"
+            f"{'not a file' if exists else 'no such file'}: {id_or_path}{guess}"
+            f"{relative_to(path)}; expected a scenario .toml file"
         )
     guess = (
         did_you_mean(str(id_or_path), builtin_scenarios())

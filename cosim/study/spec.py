@@ -58,7 +58,7 @@ from pydantic import (
 )
 from pydantic_core import ErrorDetails
 
-from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean_path
+from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean_path, relative_to
 from cosim.scenario.checks import (
     ANY_VALUE,
     UNION_TAGS,
@@ -317,8 +317,8 @@ def load_study(path: Path, label: str | None = None) -> StudySpec:
     label = study_label(path) if label is None else label
     if not os.path.lexists(path):
         raise StudyError(
-            f"{label}: no such file{did_you_mean_path(Path(path))} (looked for "
-            f"{Path(path).absolute()}); expected a study .toml file (docs/studies.md)"
+            f"{label}: no such file{did_you_mean_path(Path(path))}{relative_to(Path(path))}; "
+            "expected a study .toml file (docs/studies.md)"
         )
     if not (path.is_file() or path.is_dir()):  # a folder: its read names it below
         raise StudyError(

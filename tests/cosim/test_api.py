@@ -270,19 +270,22 @@ def test_api_refusal_of_an_earlier_run_names_overwrite_true(tmp_path: Path, fmu_
     assert str(raised.value).startswith(f"out={str(tmp_path / 'r')!r}: ")
 
 
-@pytest.mark.parametrize("argument", ["nope.toml", "sub/bs-3", "folder"])
+@pytest.mark.parametrize("argument", ["nope.toml", "sub/bs-3", "folder", "/nowhere/x.toml"])
 def test_a_scenario_path_that_is_no_file_is_named_so(
     argument: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
 ) -> None:
     """An argument meant as a file (ending in .toml, holding a path separator, or naming
     a folder) that is no file is refused saying so and where it was looked for, by the
-    API and by ``auv-cosim run`` alike, not as an unknown built-in id."""
+    API and by ``auv-cosim run`` alike, not as an unknown built-in id; the path once, a
+    relative one with the folder it is relative to (the message named it twice, as given
+    and as absolute: ``missing.toml (looked for /home/me/missing.toml)``)."""
     from cosim.cli import main
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "folder").mkdir()
     what = "not a file" if argument == "folder" else "no such file"
-    expected = f"{what}: {argument} (looked for {tmp_path / argument}); expected a scenario"
+    where = "" if argument.startswith("/") else f" (relative to {tmp_path})"
+    expected = f"{what}: {argument}{where}; expected a scenario"
     with pytest.raises(ScenarioError) as raised:
         cosim.run(argument)
     assert str(raised.value).startswith(expected), raised.value

@@ -105,8 +105,8 @@ def test_a_study_file_is_data_never_code(tmp_path: Path) -> None:
 
 
 def test_unreadable_and_invalid_files_are_named(tmp_path: Path) -> None:
-    with pytest.raises(StudyError, match=r"missing\.toml: no such file \(looked for "):
-        load_study(tmp_path / "missing.toml")
+    with pytest.raises(StudyError, match=r"missing\.toml: no such file; expected a study"):
+        load_study(tmp_path / "missing.toml")  # the path once (it was named twice)
     with pytest.raises(StudyError, match="cannot read it"):
         load_study(tmp_path)  # a folder
     bad = tmp_path / "bad.toml"
