@@ -15,7 +15,7 @@ from fmpy.fmi1 import FMICallException
 from cosim.engine.rows import RowSink
 from cosim.engine.slave import Slave, describe
 from cosim.engine.timeline import Timeline
-from cosim.errors import CosimError
+from cosim.errors import CosimError, seconds
 from cosim.scenario.spec import Scenario
 from cosim.scenario.timeline_spec import POINT_TOLERANCE
 
@@ -161,7 +161,7 @@ def end_of_simulation(
     reached = slave.ended_simulation()
     if reached is None:
         return None
-    line = f"{slave.name} ended the simulation at t = {reached:.6g} s"
+    line = f"{slave.name} ended the simulation at t = {seconds(reached)} s"
     if reached <= t + 1e-9 * max(1.0, abs(t)):  # nothing after the last row
         return line, filled
     if finish is not None:
@@ -179,7 +179,7 @@ def check_finite(exchanged: np.ndarray, index: Mapping[str, int], t: float) -> N
     """Raise naming the first non-finite exchanged values (at ``t``, s)."""
     listed = _non_finite(exchanged, index)
     if listed:
-        raise CosimError(f"non-finite value at t = {t:.6g} s: {listed}")
+        raise CosimError(f"non-finite value at t = {seconds(t)} s: {listed}")
 
 
 def failure_reason(

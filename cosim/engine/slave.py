@@ -39,7 +39,7 @@ from fmpy.fmi2 import (
 )
 
 from cosim.engine.extrapolation import InputRates
-from cosim.errors import CosimError
+from cosim.errors import CosimError, seconds
 from cosim.fmus import native
 from cosim.fmus.interface import FmuInterfaceError, extract_fmu
 from cosim.limits import unwritten
@@ -228,7 +228,7 @@ class Slave:
     def note_warning(self, function: str, t: float) -> None:
         """``function`` returned fmi2Warning in the step from ``t`` (s): kept among the
         logged messages, as the FMU may log no reason for it."""
-        self.messages.append(f"[Warning] {function} returned Warning at t = {t:.6g} s")
+        self.messages.append(f"[Warning] {function} returned Warning at t = {seconds(t)} s")
         self.logged += 1
 
     def partial_step(self) -> float | None:
@@ -356,7 +356,8 @@ def describe(slave: Slave, function: str, status: int, t: float) -> str:
     (:func:`_meaning`) and the FMU's logged reason."""
     label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
     meaning = _meaning(slave, function, status, t)
-    return f"{slave.name}: {function} returned {label} at t = {t:.6g} s{meaning}{reasons(slave)}"
+    when = f"at t = {seconds(t)} s"
+    return f"{slave.name}: {function} returned {label} {when}{meaning}{reasons(slave)}"
 
 
 def _meaning(slave: Slave, function: str, status: int, t: float) -> str:
@@ -374,8 +375,8 @@ def _meaning(slave: Slave, function: str, status: int, t: float) -> str:
         if reached is None:
             return ""
         if reached <= t:  # fmi2LastSuccessfulTime at the step's start: none of it taken
-            return f": the step was refused, the FMU still at t = {reached:.6g} s"
-        return f": a partial step, to t = {reached:.6g} s"
+            return f": the step was refused, the FMU still at t = {seconds(reached)} s"
+        return f": a partial step, to t = {seconds(reached)} s"
     if function in ("fmi2GetFMUstate", "fmi2SetFMUstate"):
         return (": algorithm 'adaptive' saves every instance's state to roll rejected steps "
                 "back; use 'gauss-seidel' or 'jacobi' with a fixed step")  # fmt: skip

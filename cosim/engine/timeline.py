@@ -37,7 +37,7 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from cosim.engine.slave import STATUS_LABELS, Slave
-from cosim.errors import CosimError
+from cosim.errors import CosimError, seconds
 from cosim.scenario.spec import FAULT_COLUMN_PREFIX, Scenario
 from cosim.scenario.timeline_spec import (
     Event,
@@ -506,7 +506,7 @@ class Timeline:
         self.notes += [(t, note) for note in live.take_notes()]
 
     def _fire(self, event: Event, t: float, what: str = "event", origin: str = "") -> None:
-        why = f"{what} {event.name!r} at t = {t:.6g} s"
+        why = f"{what} {event.name!r} at t = {seconds(t)} s"
         for ref, value in event.set.items():
             if event.ramp is not None:
                 self._ramps[ref] = (self._writer.get(ref), float(value), t, event.ramp)
@@ -550,7 +550,7 @@ class Timeline:
             values[ref] = value
             if (not linear or not run.fired) and value != self._writer.get(ref):
                 jumped.add(ref.split(".", 1)[0])
-            self._writer.set(ref, value, f"series {run.event.name!r} at t = {t:.6g} s")
+            self._writer.set(ref, value, f"series {run.event.name!r} at t = {seconds(t)} s")
         if jumped:  # as an event's value: no input is extrapolated across the step
             self.epoch += 1
             for instance in jumped:
@@ -573,7 +573,7 @@ class Timeline:
             elif n == run.n_stop:
                 self.notes.append((t, f"fault {fault.name} stops: {fault.kind} on {fault.target}"))
         for run in self._held:
-            target, why = run.fault.target, f"fault {run.fault.name!r} at t = {t:.6g} s"
+            target, why = run.fault.target, f"fault {run.fault.name!r} at t = {seconds(t)} s"
             if n == run.n_start:  # what the input goes back to if no event sets it meanwhile
                 self._saved.setdefault(target, self._writer.get(target))  # (before any fault)
             if n in (run.n_start, run.n_stop):
