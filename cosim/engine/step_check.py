@@ -30,11 +30,11 @@ import numpy as np
 
 from cosim.engine import master
 from cosim.engine.signals import StopRequest
-from cosim.errors import CosimError
+from cosim.errors import CosimError, seconds
 from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.richardson import estimate, run_order
 from cosim.scenario.spec import Scenario
-from cosim.scenario.timeline_spec import POINT_TOLERANCE, first_point
+from cosim.scenario.timeline_spec import first_point
 
 FINAL_PREFIX = "final."  # the estimate of a final value is named "final.<column>"
 ROUNDING = 1e-13  # relative: values of the three runs closer than this agree to rounding
@@ -85,11 +85,14 @@ def doubts(scenario: Scenario) -> list[str]:
         if fault.stop is not None:
             times.append((f"faults.{fault.name}.stop", fault.stop))
     for key, time in times:
-        applied = [first_point(time, step) * step for step in steps]
-        if max(applied) - min(applied) > POINT_TOLERANCE * h and time < scenario.stop_time:
-            shown = ", ".join(f"{t:.6g}" for t in applied[:2]) + f" and {applied[2]:.6g}"
+        # the point each run applies it at, counted in steps of h/4: compared as whole
+        # numbers, so that first_point's slack is the one tolerance of "on a point"
+        quarters = [first_point(time, step) * round(4 * step / h) for step in steps]
+        if len(set(quarters)) > 1 and time < scenario.stop_time:
+            applied = [seconds(n * h / 4) for n in quarters]
+            shown = f"{applied[0]}, {applied[1]} and {applied[2]} s"
             found.append(
-                f"{key} = {time:.6g} s applies at {shown} s in the runs at h, h/2 and h/4: its "
+                f"{key} = {seconds(time)} s applies at {shown} in the runs at h, h/2 and h/4: its "
                 "time moves with the step, an error Richardson extrapolation does not model "
                 "(put it on a point of h)"
             )
