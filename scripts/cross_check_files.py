@@ -9,7 +9,8 @@ For each instance's FMU (the first instance of each), in the cross-check's layou
 
 * ``<Model>.fmu``, a copy;
 * ``<Model>_in.csv``: the inputs that instance received in the scenario's run (the
-  connected output driving it, else its recorded value), every ``--step`` s;
+  connected output driving it, else its recorded value), every ``--step`` s (a whole
+  number of the scenario's steps, where the run has them);
 * ``<Model>_ref.opt``: StartTime, StopTime, StepSize (the communication step) and RelTol
   (which our FMUs ignore: they have no error-controlled integrator);
 * ``<Model>_ref.csv``: every output of the FMU run alone by fmpy with these inputs and
@@ -28,8 +29,11 @@ one failed (each problem one line on stderr).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -101,10 +105,9 @@ def checker_problems(checker: Path, folder: Path, step: float, stop_time: float)
         csv, log = Path(scratch) / "cc.csv", Path(scratch) / "cc.log"
         flags = ["-l", "3", "-h", repr(step), "-s", repr(stop_time), "-n", "0"]
         files = ["-i", folder / f"{model}_in.csv", "-o", csv, "-e", log, folder / f"{model}.fmu"]
-        command = [str(part) for part in (checker, *flags, *files)]
-        done = subprocess.run(
-            command, capture_output=True, text=True, timeout=CHECKER_S, start_new_session=True
-        )
+        done = _run_checker([str(part) for part in (checker, *flags, *files)])
+        if done is None:
+            return [f"{model}: the checker did not finish within {CHECKER_S:g} s"]
         text = log.read_text() if log.exists() else done.stderr
         if done.returncode != 0 or "\t0 Warning(s)\n\t0 Error(s)" not in text:
             return [
@@ -124,6 +127,40 @@ def checker_problems(checker: Path, folder: Path, step: float, stop_time: float)
     return []
 
 
+def _run_checker(command: list[str]) -> subprocess.CompletedProcess[str] | None:
+    """``command`` run to its end in a process group of its own; None if it did not end
+    within :data:`CHECKER_S` (the group is killed either way: subprocess.run's timeout
+    kills the checker only, not what it started)."""
+    proc = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    try:
+        out, err = proc.communicate(timeout=CHECKER_S)
+    except subprocess.TimeoutExpired:
+        return None
+    finally:
+        with contextlib.suppress(ProcessLookupError):  # the group may have ended on its own
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+    return subprocess.CompletedProcess(command, proc.returncode, out, err)
+
+
+def step_problem(scenario: Scenario, step: float, stop_time: float) -> str | None:
+    """Why ``step`` (s) cannot be the cross-check's step for a run of ``scenario`` to
+    ``stop_time`` (s), one line; None if it can: it must divide the stop time, and be a
+    whole number of the scenario's steps (the inputs are known at its points only)."""
+    steps = stop_time / step if step > 0 else 0.0
+    if steps < 1 or not np.isclose(round(steps), steps):
+        return f"--step {step}: expected a positive step that divides the stop time {stop_time} s"
+    h = scenario.coupling.step
+    if not np.isclose(round(step / h), step / h, rtol=0.0, atol=1e-9):
+        return (
+            f"--step {step}: expected a multiple of the scenario's step, {h} s (the inputs "
+            "are known at its points only)"
+        )
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scenario", help="a built-in scenario id or a scenario .toml")
@@ -138,13 +175,9 @@ def main(argv: list[str] | None = None) -> int:
     if not (math.isfinite(stop_time) and stop_time > 0):  # (a scenario's is: checked)
         print(f"--stop-time {stop_time}: expected a positive finite time (s)", file=sys.stderr)
         return 1
-    steps = stop_time / args.step if args.step > 0 else 0.0
-    if steps < 1 or not np.isclose(round(steps), steps):
-        print(
-            f"--step {args.step}: expected a positive step that divides the stop time "
-            f"{stop_time} s",
-            file=sys.stderr,
-        )
+    problem = step_problem(scenario, args.step, stop_time)
+    if problem is not None:
+        print(problem, file=sys.stderr)
         return 1
     run = cosim.run(scenario, stop_time=stop_time, recording=False)
     base = args.out / "fmus" / "2.0" / "cs" / "linux64" / "auv-cosim" / cosim.__version__

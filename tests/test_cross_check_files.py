@@ -7,6 +7,7 @@ Checker on them where it is built."""
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,7 @@ from fmpy import read_model_description
 from fmpy.cross_check.validate_vendor_repo import read_csv
 from fmpy.util import read_ref_opt_file
 from process_group import run_in_group
+from process_state import running
 from repo_paths import ROOT
 
 SCRIPT = ROOT / "scripts" / "cross_check_files.py"
@@ -95,3 +97,40 @@ def test_a_stop_time_that_is_no_positive_finite_time_is_refused_naming_it(
         f"--stop-time {float(stop_time)}: expected a positive finite time (s)\n",
     )
     assert not (tmp_path / "xc").exists()
+
+
+def test_a_step_between_the_runs_points_is_refused_in_one_line(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Guards the inputs file against rows missing: at ``--step 0.015`` the run of bs-3 (at
+    0.01 s) has inputs every 0.03 s only, and ``_in.csv`` had 101 rows to the reference's
+    201 (the importer interpolating the rest), without a word. Such a step is refused
+    before the run, naming the scenario's step."""
+    command = [sys.executable, SCRIPT, "bs-3", "--out", tmp_path / "xc", "--step", "0.015"]
+    done = run_in_group([*command, "--fmu-dir", fmu_dir], timeout=RUN_S, cwd=tmp_path)
+    assert (done.returncode, done.stderr) == (
+        1,
+        "--step 0.015: expected a multiple of the scenario's step, 0.01 s (the inputs "
+        "are known at its points only)\n",
+    )
+    assert not (tmp_path / "xc").exists()
+
+
+def test_a_checker_that_does_not_finish_is_one_problem_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A checker that outlived its time ended the script in a traceback (subprocess's
+    TimeoutExpired), the other FMUs unchecked; it is one problem line naming the FMU and
+    the time it was given, and the checker is ended with whatever it started."""
+    spec = importlib.util.spec_from_file_location("cross_check_files", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    monkeypatch.setattr(script, "CHECKER_S", 0.5)
+    started = tmp_path / "started"
+    checker = tmp_path / "fmuCheck.linux64"
+    checker.write_text(f"#!/bin/sh\nsleep 60 &\necho $! > {started}\nwait\n")
+    checker.chmod(0o755)
+    problems = script.checker_problems(checker, tmp_path / "AuvPlant", 0.1, 1.0)
+    assert problems == ["AuvPlant: the checker did not finish within 0.5 s"]
+    assert running(int(started.read_text())) is None  # ended with the checker (its group)
