@@ -19,9 +19,11 @@ def kill_after_checkpoint(
     out: Path,
     timeout: float = 300.0,
     with_guard: bool = False,
+    past: float | None = None,
 ) -> int:
     """Start ``command`` in a process group of its own, SIGTERM the group once the run's
-    first checkpoint is in ``out``; its exit code.
+    first checkpoint is in ``out`` (with ``past``: its first checkpoint of a time past
+    ``past`` s, a resumed run's first after the one it resumed from); its exit code.
     ``with_guard``: SIGKILL the group and the run's tail guard (in a session of its own)
     at once, as a batch system killing the job's cgroup or a power cut does, once the
     run's manifest also records the checkpoint (as the run's file, by its SHA-256: the
@@ -30,7 +32,7 @@ def kill_after_checkpoint(
                             start_new_session=True)  # fmt: skip
     try:
         deadline = time.monotonic() + timeout
-        while not ((out / CHECKPOINT_FILE).exists() and (not with_guard or _recorded(out))):
+        while not (_saved_past(out, past) and (not with_guard or _recorded(out))):
             assert proc.poll() is None, f"the run ended before a checkpoint: {proc.stderr}"
             assert time.monotonic() < deadline, "no checkpoint in time"
             time.sleep(0.02)
@@ -53,6 +55,16 @@ def kill_after_checkpoint(
         proc.wait()
         assert proc.stderr is not None
         proc.stderr.close()
+
+
+def _saved_past(out: Path, past: float | None) -> bool:
+    """``out`` holds a checkpoint (with ``past``: of a time past ``past`` s)."""
+    if past is None:
+        return (out / CHECKPOINT_FILE).exists()
+    try:
+        return float(json.loads((out / CHECKPOINT_FILE).read_text())["time"]) > past
+    except (OSError, ValueError, KeyError):
+        return False  # (none yet, or being replaced)
 
 
 def _recorded(out: Path) -> bool:

@@ -251,3 +251,28 @@ def test_a_resumed_run_killed_at_once_can_be_resumed_again(fmu_dir: Path, tmp_pa
     again = subprocess.run(resume, capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr
     assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
+
+
+@pytest.mark.slow
+def test_a_resumed_run_killed_after_its_next_checkpoint_resumes_from_that_one(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A resumed run checkpoints on after its replay: killed (SIGKILL of it and its tail
+    guard) once its first checkpoint past the one it resumed from is saved and recorded,
+    it resumes from that later one (not the replayed one), and the twice-resumed run
+    writes the uninterrupted results, byte for byte."""
+    common = ("--fmu-dir", str(fmu_dir), "--stop-time", "600")
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    subprocess.run(_cli("bs-3", "--out", str(whole), *common), check=True, timeout=600,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    command = _cli("bs-3", "--out", str(killed), *common, "--checkpoint-every", "200")
+    assert kill_after_checkpoint(command, killed, with_guard=True) == -signal.SIGKILL
+    first = json.loads((killed / CHECKPOINT_FILE).read_text())["time"]
+    assert first == 200.0
+    resume = _cli("--resume", str(killed), "--fmu-dir", str(fmu_dir))
+    assert kill_after_checkpoint(resume, killed, with_guard=True, past=first) == -signal.SIGKILL
+    assert json.loads((killed / CHECKPOINT_FILE).read_text())["time"] == 400.0
+    again = subprocess.run(resume, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert f"resumed the run in {killed} at t = 400 s" in again.stderr
+    assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
