@@ -79,6 +79,12 @@ def kept_files() -> list[str]:
     return sorted(p.name for folder in folders for p in folder.iterdir())
 
 
+def maybe_kept(out: str | None) -> Path | None:
+    """A wrapper passing on an optional folder: neither of run's variants alone takes
+    ``str | None``; the call is typed as either's result, a Run, its folder optional."""
+    return cosim.run("bs-3", stop_time=3.0, out=out).out_dir
+
+
 def refused() -> str:
     """docs/api.md, "Errors": each error the API raises, as a user catches it."""
     try:
