@@ -27,6 +27,7 @@ import numpy as np
 from controller_fmu import compiled_autopilot as fast
 from controller_fmu.autopilot_config import AutopilotConfig as AutopilotConfig
 from controller_fmu.autopilot_config import AutopilotConfigError as AutopilotConfigError
+from controller_fmu.autopilot_config import field_quantity as field_quantity
 from controller_fmu.autopilot_config import field_unit as field_unit
 from controller_fmu.backstepping import (
     BacksteppingGains,

@@ -23,7 +23,11 @@ from controller_fmu.depth_pd import (
 )
 from controller_fmu.lqr_weights import DISSERTATION_Q_Y, DISSERTATION_R_U
 from controller_fmu.modes import DepthMode, HeadingMode, choices
-from plant_fmu.model.validated import CheckedRecord, checked_field
+from plant_fmu.model.validated import ANGULAR_FREQUENCY, CheckedRecord, checked_field
+
+# smc_eta's quantity: the rate (rad/s) at which the sliding variable s reaches its layer
+# (6.3.38), a gain, no turn rate of the vehicle (FMI 2.0's quantity is free text)
+REACHING_RATE = "ReachingRate"
 
 
 class AutopilotConfigError(ValueError):
@@ -138,7 +142,7 @@ class AutopilotConfig(CheckedRecord):
     )  # fmt: skip
     smc_eta: float = checked_field(
         default=1.0, gt=0.0, description="sliding-mode reaching rate eta (6.3.38)",
-        unit="rad/s",
+        unit="rad/s", quantity=REACHING_RATE,
     )  # fmt: skip
     smc_boundary_layer: float = checked_field(
         default=0.5, gt=0.0, description="sliding-mode boundary layer Phi on s (6.3.73)",
@@ -175,7 +179,7 @@ class AutopilotConfig(CheckedRecord):
     command_filter_frequency: float = checked_field(
         default=10.0, gt=0.0,
         description="natural frequency of the command filters giving alpha1..3 derivatives",
-        unit="rad/s",
+        unit="rad/s", quantity=ANGULAR_FREQUENCY,
     )  # fmt: skip
     depth_gamma: float = checked_field(
         default=TABLE_6_2_GAMMA, description="depth loop gain gamma, theta_d per depth error "
@@ -215,3 +219,9 @@ class AutopilotConfig(CheckedRecord):
 def field_unit(name: str) -> str:
     """The unit of an :class:`AutopilotConfig` field ('' if dimensionless)."""
     return AutopilotConfig.field_info()[name].unit
+
+
+def field_quantity(name: str) -> str:
+    """The declared quantity of an :class:`AutopilotConfig` field ('' where its unit says
+    what it is)."""
+    return AutopilotConfig.field_info()[name].quantity

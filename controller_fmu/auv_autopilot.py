@@ -82,6 +82,7 @@ from controller_fmu.autopilot import (
     AutopilotConfig,
     AutopilotSnapshot,
     Commands,
+    field_quantity,
     field_unit,
 )
 from controller_fmu.depth_pd import MAX_PITCH_LIMIT
@@ -234,6 +235,7 @@ class AuvAutopilot(SafeSlave):
                 minimum=minimum,
                 maximum=maximum,
                 names=_MODES.get(name),
+                quantity=field_quantity(name) or None,
             )
 
     # --- SafeSlave hooks ---------------------------------------------------------------------

@@ -181,6 +181,7 @@ class SafeSlave(Fmi2Slave):
         self._watched_outputs: list[int] = []  # outputs kept in Python storage of their own
         self._access: dict[int, str] = {}
         self._units: dict[str, str] = {}
+        self._quantities: dict[str, str] = {}  # Real's name -> its declared quantity
         self._bounds: dict[int, tuple[float | None, float | None]] = {}
         self._names: dict[str, type[IntEnum]] = {}  # Integer variable -> its named values
         # hot-path plans of get_real / set_real, per list of value references
@@ -202,8 +203,12 @@ class SafeSlave(Fmi2Slave):
         minimum: float | None = None,
         maximum: float | None = None,
         names: type[IntEnum] | None = None,
+        quantity: str | None = None,
     ) -> None:
         """Register an FMU variable; a Real needs its ``unit``, every variable a description.
+        A Real may declare its ``quantity`` (FMI 2.0, 2.2.7), what the number is where its
+        unit leaves it open: ``"AngularFrequency"``, a natural frequency in rad/s, not a
+        turn rate.
         A Real or Integer may declare an inclusive range: writes outside it are refused,
         and modelDescription.xml declares it as ``min``/``max``. An Integer that chooses
         among ``names`` (an IntEnum) takes their range, and modelDescription.xml lists each
@@ -233,6 +238,8 @@ class SafeSlave(Fmi2Slave):
         self._vr_of[var.name] = var.value_reference
         if unit:
             self._units[var.name] = unit
+        if quantity:
+            self._quantities[var.name] = quantity
         if (minimum, maximum) != (None, None):
             self._bounds[var.value_reference] = (minimum, maximum)
         if var.causality == Fmi2Causality.input or (
@@ -729,8 +736,9 @@ class SafeSlave(Fmi2Slave):
     # --- build time ----------------------------------------------------------------------
 
     def to_xml(self, model_options: dict[str, str] | None = None) -> Element:
-        """pythonfmu's description plus a ``unit`` on every Real and the declared
-        ``direct_feedthrough`` as ModelStructure dependencies (used by the build only)."""
+        """pythonfmu's description plus a ``unit`` (and any declared ``quantity``) on every
+        Real and the declared ``direct_feedthrough`` as ModelStructure dependencies (used by
+        the build only)."""
         root: Element = super().to_xml(model_options or {})
         if self.interpolates_inputs:
             cosimulation = root.find("CoSimulation")
@@ -744,6 +752,8 @@ class SafeSlave(Fmi2Slave):
             real = node.find("Real")
             if unit and real is not None:
                 real.set("unit", unit)
+            if variable in self._quantities and real is not None:
+                real.set("quantity", self._quantities[variable])
             bounds = self._bounds.get(int(node.attrib["valueReference"]), (None, None))
             for attribute, value in zip(("min", "max"), bounds):
                 if value is not None:  # node[0]: the <Real>/<Integer> element

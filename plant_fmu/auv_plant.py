@@ -361,7 +361,8 @@ class AuvPlant(SafeSlave):
         )
         for name in PHYSICAL_PARAMETERS:
             unit, description = field_unit_and_description(name)
-            minimum, maximum = field_bounds(VehicleParameters.field_info()[name])
+            field = VehicleParameters.field_info()[name]
+            minimum, maximum = field_bounds(field)
             self.register(
                 Real(
                     name,
@@ -373,6 +374,7 @@ class AuvPlant(SafeSlave):
                 unit=unit,
                 minimum=minimum,
                 maximum=maximum,
+                quantity=field.quantity or None,
             )
 
     # --- SafeSlave hooks ---------------------------------------------------------------------

@@ -45,7 +45,7 @@ from cosim.errors import CosimError
 from cosim.scenario.checks import ScenarioError, Source, sign_note
 from cosim.scenario.spec import Scenario
 from cosim.scenario.timeline_spec import Event, settable, shown_time
-from cosim.scenario.unit_doubts import value_doubt
+from cosim.scenario.unit_doubts import variable_doubt
 
 PAUSE_POLL_S = 0.1  # s: a paused run checks for a signal this often
 
@@ -142,12 +142,12 @@ class LiveControl:
 
     def _doubts(self, values: Mapping[str, bool | int | float]) -> list[str]:
         """A warning line for each value that looks like degrees given to an angle in rad
-        (:func:`cosim.scenario.unit_doubts.value_doubt`): taken all the same."""
+        (:func:`cosim.scenario.unit_doubts.variable_doubt`): taken all the same."""
         found = []
         for ref, value in values.items():
             instance, variable = ref.split(".", 1)
-            unit = self.scenario.instances[instance].interface.variables[variable].unit
-            line = value_doubt(ref, unit, value)
+            var = self.scenario.instances[instance].interface.variables[variable]
+            line = variable_doubt(ref, var, value)
             if line is not None:
                 found.append(line)
         return found

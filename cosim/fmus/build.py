@@ -85,7 +85,7 @@ import locket
 from cosim.errors import CosimError, unmade_folder
 from cosim.fmus import bytecode, kept_builds, native, reproducible, staging
 from cosim.fmus import docs as fmu_docs
-from cosim.fmus.interface import OWN_PACKAGES
+from cosim.fmus.interface import ANGLE_QUANTITIES, OWN_PACKAGES
 from cosim.limits import unwritten
 from cosim.version import DISTRIBUTION, version
 from cosim.whole_file import write_whole
@@ -633,8 +633,9 @@ def complete_model_description(xml: bytes, guid: str | None = None) -> bytes:
                 display, factor = DISPLAY_UNITS[unit]
                 ET.SubElement(node, "DisplayUnit", name=display, factor=repr(factor))
         root.insert(list(root).index(cosim) + 1, definitions)
-        for real in root.iter("Real"):
-            if real.get("unit") in DISPLAY_UNITS:
+        for real in root.iter("Real"):  # a frequency in rad/s is shown in rad/s, as given
+            quantity = real.get("quantity")
+            if real.get("unit") in DISPLAY_UNITS and quantity in (None, *ANGLE_QUANTITIES):
                 real.set("displayUnit", DISPLAY_UNITS[real.get("unit", "")][0])
 
     structure = _child(root, "ModelStructure")

@@ -56,6 +56,12 @@ NOT_COSIMULATION = (
 OWN_PACKAGES = ("plant_fmu", "controller_fmu", "fmu_runtime")
 
 
+# the declared quantities (FMI 2.0 ``quantity``, Modelica's SI names) of an angle and a turn
+# rate: a variable in rad or rad/s declaring another ("AngularFrequency", a filter's natural
+# frequency) is neither, so it is not shown in degrees nor doubted as degrees typed by habit
+ANGLE_QUANTITIES = frozenset({"Angle", "AngularVelocity"})
+
+
 class FmuInterfaceError(CosimError):
     """An FMU that does not exist or whose model description cannot be read."""
 
@@ -76,6 +82,9 @@ class Variable:
     description: str
     names: Mapping[str, int] = dataclasses.field(default_factory=dict)  # name -> value
     initial: str | None = None  # exact, approx, calculated; None where the file gives none
+    # what the number is (FMI 2.0 quantity: "Angle", "AngularFrequency"), the variable's
+    # or its declared type's; None if it declares none
+    quantity: str | None = None
 
     @property
     def takes_start_value(self) -> bool:
@@ -334,6 +343,7 @@ def _variable(v: Any, names: Mapping[str, int]) -> Variable:
         description=v.description or "",
         names=names or _items(declared),
         initial=v.initial,
+        quantity=v.quantity or (declared.quantity if declared is not None else None),
     )
 
 

@@ -12,7 +12,10 @@ key, the value, and what it would be in radians. An angle of more than a full tu
 variable declared in rad is the sign: degrees typed by habit are mostly beyond 2 pi
 (10 to 90 deg), radians meant as such hardly ever are. The same holds for a rate in rad/s
 (``r_0 = 10``, 10 deg/s typed by habit): beyond a full turn a second (2 pi rad/s) no
-REMUS 100 turns, rolls or pitches.
+REMUS 100 turns, rolls or pitches. A variable in rad/s that declares another quantity
+than an angle's or a turn rate's (FMI 2.0 ``quantity``: ``"AngularFrequency"``, a filter's
+or a servo's natural frequency, 10 rad/s by default) is no turn rate, and typed in rad/s
+by habit: none is doubted.
 """
 
 from __future__ import annotations
@@ -24,7 +27,10 @@ import warnings
 from collections.abc import Iterable, Iterator
 from typing import TYPE_CHECKING, Any
 
+from cosim.fmus.interface import ANGLE_QUANTITIES
+
 if TYPE_CHECKING:
+    from cosim.fmus.interface import Variable
     from cosim.scenario.spec import Scenario
 
 FULL_TURN_RAD = 2.0 * math.pi
@@ -42,13 +48,14 @@ def angle_doubts(scenario: Scenario) -> list[str]:
     start values, events' ``set`` values, ``when`` thresholds and series columns (their
     largest value), bias and noise faults' ``value`` and ``std``."""
 
-    def unit(ref: str) -> str | None:
-        instance, _, variable = ref.partition(".")
+    def variable(ref: str) -> Variable | None:
+        instance, _, name = ref.partition(".")
         inst = scenario.instances.get(instance)
-        var = None if inst is None else inst.interface.variables.get(variable)
-        return None if var is None else var.unit
+        return None if inst is None else inst.interface.variables.get(name)
 
-    found = [value_doubt(key, unit(ref), value) for key, ref, value in given_values(scenario)]
+    found = [
+        variable_doubt(key, variable(ref), value) for key, ref, value in given_values(scenario)
+    ]
     return [line for line in found if line is not None]
 
 
@@ -192,6 +199,15 @@ def radius_doubts(scenario: Scenario) -> list[str]:
                 f"as it begins; the shortest leg is {min(lengths):.4g} m"
             )
     return found
+
+
+def variable_doubt(key: str, var: Variable | None, value: Any) -> str | None:
+    """:func:`value_doubt` of ``key`` = ``value`` given to ``var``, by its unit, unless it
+    declares a quantity that is neither an angle nor a turn rate (``ANGLE_QUANTITIES``:
+    a natural frequency in rad/s is no turn rate); None for no such variable."""
+    if var is None or (var.quantity is not None and var.quantity not in ANGLE_QUANTITIES):
+        return None
+    return value_doubt(key, var.unit, value)
 
 
 def value_doubt(key: str, unit: str | None, value: Any) -> str | None:

@@ -27,7 +27,7 @@ import numpy as np
 
 from plant_fmu.model import vehicle_toml
 from plant_fmu.model.inertia import added_mass_matrix, rigid_body_mass_matrix
-from plant_fmu.model.validated import CheckedRecord, checked_field
+from plant_fmu.model.validated import ANGULAR_FREQUENCY, CheckedRecord, checked_field
 
 
 class VehicleParameterError(ValueError):
@@ -114,7 +114,9 @@ class VehicleParameters(CheckedRecord):
     # Internal moving mass (6.3.12)-(6.3.16)
     m_v: float = checked_field(gt=0.0, description="moving mass, kg")
     x_v: float = checked_field(description="x of the moving-mass rail, m")
-    mass_natural_frequency: float = checked_field(gt=0.0, description="servo omega_n, rad/s")
+    mass_natural_frequency: float = checked_field(
+        gt=0.0, description="servo omega_n, rad/s", quantity=ANGULAR_FREQUENCY
+    )
     mass_damping_ratio: float = checked_field(gt=0.0, description="servo damping ratio zeta, 1")
     mass_stroke: float = checked_field(gt=0.0, description="rail stop |y_v| <= stroke, m")
     mass_speed_limit: float = checked_field(ge=0.0, description="rail speed limit, m/s (0 = off)")

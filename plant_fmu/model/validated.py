@@ -28,6 +28,8 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 
 _SPEC = "checked_field"  # the key of a field's FieldSpec in its dataclass metadata
+# a FieldSpec's quantity for a natural frequency in rad/s (Modelica's SI name): no turn rate
+ANGULAR_FREQUENCY = "AngularFrequency"
 
 
 class _Required:
@@ -48,6 +50,9 @@ class FieldSpec:
     ``gt``/``ge``/``lt``/``le`` bound a number (exclusive/inclusive), ``min_length`` a
     string; ``check(value)`` raises ``ValueError`` saying what is expected; its message
     stands alone (it names the field and the value itself) if ``standalone``.
+    ``quantity``: what the number is, where its unit leaves it open (FMI 2.0's
+    ``quantity``, 2.2.7: ``"AngularFrequency"`` for a natural frequency in rad/s, not a
+    turn rate); "" where the unit says it.
     """
 
     description: str
@@ -59,6 +64,7 @@ class FieldSpec:
     min_length: int | None = None
     check: Callable[[Any], object] | None = None
     standalone: bool = False
+    quantity: str = ""
 
 
 def checked_field(
@@ -73,10 +79,11 @@ def checked_field(
     min_length: int | None = None,
     check: Callable[[Any], object] | None = None,
     standalone: bool = False,
+    quantity: str = "",
 ) -> Any:
     """A dataclass field of a :class:`CheckedRecord` (no ``default``: the field is
     required). Keyword arguments as :class:`FieldSpec`'s."""
-    spec = FieldSpec(description, unit, gt, ge, lt, le, min_length, check, standalone)
+    spec = FieldSpec(description, unit, gt, ge, lt, le, min_length, check, standalone, quantity)
     return dataclasses.field(default=default, metadata={_SPEC: spec})
 
 
@@ -97,6 +104,10 @@ class FieldInfo:
     @property
     def unit(self) -> str:
         return self.spec.unit
+
+    @property
+    def quantity(self) -> str:
+        return self.spec.quantity
 
     @property
     def gt(self) -> float | None:

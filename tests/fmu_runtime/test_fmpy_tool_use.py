@@ -119,14 +119,22 @@ def test_a_step_a_fast_initial_rotation_breaks_names_the_cause_and_the_remedy(fm
 def test_angles_offer_degrees_as_their_display_unit(name, fmu_paths):
     """A tool shows and takes a variable in its displayUnit: every angle (rad) and turn rate
     (rad/s) offers degrees (deg, deg/s; FMI 2.0 DisplayUnit, value_deg = factor * value_rad),
-    so a user types 30 deg where the FMU takes 0.5236 rad."""
+    so a user types 30 deg where the FMU takes 0.5236 rad. A natural frequency in rad/s
+    (declared ``quantity="AngularFrequency"``: command_filter_frequency, 10 rad/s, was shown
+    as 573 deg/s) and the sliding mode's reaching rate are no turn rates: no display unit."""
     md = read_model_description(str(fmu_paths[name]))
     factors = {
         (unit.name, display.name): display.factor
         for unit in md.unitDefinitions
         for display in unit.displayUnits
     }
-    angles = [v for v in md.modelVariables if v.unit in ("rad", "rad/s")]
+    frequencies = {"AuvAutopilot": ["smc_eta", "command_filter_frequency"],
+                   "AuvPlant": ["mass_natural_frequency"]}.get(name, [])  # fmt: skip
+    shown = [v for v in md.modelVariables if v.name in frequencies]
+    assert [(v.name, v.displayUnit) for v in shown] == [(n, None) for n in frequencies]
+    angles = [
+        v for v in md.modelVariables if v.unit in ("rad", "rad/s") and v.name not in frequencies
+    ]
     assert angles
     for variable in angles:
         expected = {"rad": "deg", "rad/s": "deg/s"}[variable.unit]

@@ -215,6 +215,22 @@ def test_a_rate_typed_in_degrees_per_second_is_named_with_its_value_in_radians(
     ]
 
 
+def test_a_frequency_in_rad_per_second_is_not_doubted_as_a_turn_rate(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """command_filter_frequency = 20 rad/s (its default is 10), a servo of 8 rad/s and a
+    sliding mode reaching at 7 rad/s were each warned of as "more than a full turn a
+    second ... if 20 deg/s was meant, give 0.349": no turn rates, and meant in rad/s.
+    The FMUs declare their quantity (FMI 2.0 ``quantity``), and only a variable declaring
+    an angle's or a turn rate's (or none, r_0) is doubted."""
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    scenario = cosim.load_scenario(_scenario(tmp_path, 0.0, 0.2), fmu_dir=fmu_dir)
+    given = {"controller.command_filter_frequency": 20.0, "controller.smc_eta": 7.0,
+             "plant.mass_natural_frequency": 8.0, "plant.r_0": 10.0}  # fmt: skip
+    doubts = angle_doubts(scenario.with_start(given))
+    assert [line.split(" = ")[0] for line in doubts] == ["instances.plant.start.r_0"]
+
+
 @pytest.mark.parametrize(
     ("key", "value", "unit"),
     [("current_east", '"0.5 kn"', "m/s"), ("yaw_0", '"270 deg"', "rad"),
