@@ -99,6 +99,7 @@ def test_a_stop_time_that_is_no_positive_finite_time_is_refused_naming_it(
     assert not (tmp_path / "xc").exists()
 
 
+@pytest.mark.slow
 def test_a_step_between_the_runs_points_is_refused_in_one_line(
     fmu_dir: Path, tmp_path: Path
 ) -> None:
