@@ -1,6 +1,6 @@
-"""``status_fmu(folder, status, at, terminated)``: the Reference FMU Dahlquist rebuilt from
-the sources it ships with the doStep statuses of tests/fmus/cosim_test_status.c (gcc, a few
-tenths of a second), as ``<folder>/Status.fmu``."""
+"""``status_fmu(folder, status, at, ...)``: the Reference FMU Dahlquist rebuilt from the
+sources it ships with the doStep and fmi2Terminate statuses of tests/fmus/cosim_test_status.c
+(gcc, a few tenths of a second), as ``<folder>/Status.fmu``."""
 
 from __future__ import annotations
 
@@ -14,12 +14,22 @@ from repo_paths import TESTS
 
 DAHLQUIST = TESTS / "data" / "reference-fmus" / "Dahlquist.fmu"
 SHIM = TESTS / "fmus" / "cosim_test_status.c"
-STATUS_CODES = {"Warning": 1, "Discard": 2, "Error": 3, "Pending": 5}
+STATUS_CODES = {"OK": 0, "Warning": 1, "Discard": 2, "Error": 3, "Fatal": 4, "Pending": 5}
 
 
-def status_fmu(folder: Path, status: str, at: float, terminated: bool = False) -> Path:
-    """Dahlquist whose doStep answers fmi2``status`` from the step that starts at ``at``
-    (s); after a Discard, fmi2Terminated is ``terminated``."""
+def status_fmu(
+    folder: Path,
+    status: str | int,
+    at: float,
+    terminated: bool = False,
+    *,
+    block_s: int = 0,
+    terminate: str | int = "OK",
+) -> Path:
+    """Dahlquist whose doStep answers fmi2``status`` (or that number, one out of the
+    standard) from the step that starts at ``at`` (s), blocking ``block_s`` seconds once
+    first; after a Discard, fmi2Terminated is ``terminated``. fmi2Terminate answers
+    fmi2``terminate``."""
     sources = folder / "sources"
     with zipfile.ZipFile(DAHLQUIST) as archive:
         for name in archive.namelist():
@@ -29,8 +39,9 @@ def status_fmu(folder: Path, status: str, at: float, terminated: bool = False) -
     gcc = shutil.which("gcc") or shutil.which("cc")
     if gcc is None:
         raise RuntimeError("no C compiler (gcc or cc) to build the status FMU")
-    defines = [f"-DSTEP_STATUS={STATUS_CODES[status]}", f"-DSTATUS_AT={at!r}",
-               f"-DTERMINATED={int(terminated)}"]  # fmt: skip
+    defines = [f"-DSTEP_STATUS={_code(status)}", f"-DSTATUS_AT={at!r}",
+               f"-DTERMINATED={int(terminated)}", f"-DBLOCK_S={int(block_s)}",
+               f"-DTERMINATE_STATUS={_code(terminate)}"]  # fmt: skip
     headers = Path(fmpy.__file__).parent / "c-code"  # fmpy ships the FMI 2.0 headers
     command = [gcc, "-shared", "-fPIC", f"-I{sources}", f"-I{headers}", *defines, str(SHIM)]
     subprocess.run([*command, "-o", str(library)], check=True, capture_output=True, timeout=120)
@@ -41,3 +52,8 @@ def status_fmu(folder: Path, status: str, at: float, terminated: bool = False) -
                 target.writestr(item, source.read(item))
         target.write(library, "binaries/linux64/Dahlquist.so")
     return path
+
+
+def _code(status: str | int) -> int:
+    """The fmi2Status named ``status``, or the number given."""
+    return status if isinstance(status, int) else STATUS_CODES[status]

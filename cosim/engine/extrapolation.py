@@ -168,7 +168,7 @@ class InputRates:
             if self._held.size:
                 self._values[self._held] = 0.0
             status = self._set(self._handle, self._vrs, self._size, self._orders, self._ptr)
-            if status > 1:  # worse than fmi2Warning: as fmpy's wrapper
+            if status and status != 1:  # worse than fmi2Warning, or out of the enum
                 raise FMICallException(function="fmi2SetRealInputDerivatives", status=status)
             self.sent_at = t
         if code & 2:

@@ -324,6 +324,8 @@ def run(
                 live.close()
             for slave in slaves:
                 slave.finish()
+    # what the instances logged as they were terminated too (a failed fmi2Terminate)
+    result.messages, result.messages_logged = _logged(order)
     if table is not None:
         result.times, result.values = table.table()
     return result
@@ -765,6 +767,7 @@ def _result(
     stopped = stop.requested and error is None and not reached
     if stopped:
         error = f"{stop.reason} at t = {seconds(t_end)} s"
+    messages, logged = _logged(order)
     return RunResult(
         scenario=scenario,
         columns=scenario.columns,
@@ -777,7 +780,14 @@ def _result(
         time_started=time_started,
         cpu_clock_s=cpu,
         stop_signal=stop.signum if stopped else None,
-        messages={s.name: list(s.messages) for s in order},
-        messages_logged={s.name: max(s.logged, len(s.messages)) for s in order if s.messages},
+        messages=messages,
+        messages_logged=logged,
         ended=rows.ended,
     )
+
+
+def _logged(order: list[Slave]) -> tuple[dict[str, list[str]], dict[str, int]]:
+    """Each instance's kept messages (warnings and worse), and how many it logged, for
+    those that logged any."""
+    kept = {s.name: list(s.messages) for s in order}
+    return kept, {s.name: max(s.logged, len(s.messages)) for s in order if s.messages}

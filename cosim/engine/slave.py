@@ -51,6 +51,9 @@ from fmu_runtime.log_text import shortened
 
 STATUS_LABELS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 WARNING, DISCARD, PENDING = 1, 2, 5  # fmi2Status values
+# the statuses a call passes with: any other stops the run, a number out of the enum too
+# (fmpy's wrappers raise on a status above fmi2Warning only: -1 went as a warning)
+PASSED = (0, WARNING)
 LOG_LINES_KEPT = 20  # logged messages (warning or worse) kept per instance
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 
@@ -241,7 +244,8 @@ class Slave:
 
     def failed(self, status: int) -> None:
         """Record a non-OK status: after Discard the instance may still be terminated,
-        after Error only freed, after Fatal not touched at all (FMI 2.0, 4.2.4). Pending
+        after Error only freed, after Fatal not touched at all (FMI 2.0, 4.2.4), nor after
+        a number that is no fmi2Status (nothing says what it may still do). Pending
         (a step run asynchronously, which this master does not wait for) is cancelled
         (fmi2CancelStep), after which the instance is only freed."""
         if status == PENDING:
@@ -250,8 +254,24 @@ class Slave:
                 self.state = "error"
             except Exception:  # it cannot be cancelled: not touched again
                 self.state = "fatal"
-        elif status >= 3:
-            self.state = "fatal" if status >= 4 else "error"
+        elif status == 3:
+            self.state = "error"
+        elif status not in (*PASSED, DISCARD):
+            self.state = "fatal"
+
+    def _terminate(self) -> None:
+        """fmi2Terminate; a failure is kept among the messages, and after an Error the
+        instance is still freed (FMI 2.0, 4.2.4), after a Fatal not."""
+        try:
+            self.fmu.terminate()
+        except FMICallException as exc:
+            self.messages.append(
+                f"[{label(exc.status)}] fmi2Terminate returned {label(exc.status)}"
+            )
+            self.logged += 1
+            self.failed(exc.status)
+        if self.state == "stepping":
+            self.state = "terminated"
 
     def finish(self) -> None:
         """terminate + freeInstance as far as the state allows; never raises. The fmpy
@@ -259,8 +279,7 @@ class Slave:
         Fatal status: that instance is never touched again)."""
         try:
             if self.state == "stepping":  # FMI 2.0 allows fmi2Terminate only once initialised
-                self.fmu.terminate()
-                self.state = "terminated"
+                self._terminate()
             if self.state in ("instantiated", "initialization", "terminated", "error"):
                 self.state = "freed"
                 self.fmu.fmi2FreeInstance(self.fmu.component)  # the library stays loaded
@@ -289,15 +308,15 @@ def _log(env: int | None, _name: bytes, status: int, category: bytes, message: b
     slave = _log_sinks.get(env or 0)
     if slave is None or (status < 1 and slave.debug_logging is None):
         return
-    label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
+    name = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
     text = one_line(shortened((message or b"").decode("utf-8", "replace")))
     kind = (category or b"").decode("utf-8", "replace")
     if status >= 1:
-        slave.messages.append(f"[{label}] {text}")
+        slave.messages.append(f"[{name}] {text}")
         slave.logged += 1
     if slave.debug_logging is not None:  # what the FMU passes for its categories (FMI 2.0)
         with contextlib.suppress(Exception):  # stderr closed or full: the run goes on
-            _show(f"{slave.name}: [{label}] {kind}: {text}")
+            _show(f"{slave.name}: [{name}] {kind}: {text}")
 
 
 DEBUG_LINES_KEPT = 10_000  # debug-log lines a collected run keeps (collect_debug_log)
@@ -354,10 +373,17 @@ _LOGGER = fmi2CallbackLoggerTYPE(_log)
 def describe(slave: Slave, function: str, status: int, t: float) -> str:
     """One line: which call of which instance failed, when, what it means
     (:func:`_meaning`) and the FMU's logged reason."""
-    label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
     meaning = _meaning(slave, function, status, t)
+    said = label(status)
     when = f"at t = {seconds(t)} s"
-    return f"{slave.name}: {function} returned {label} {when}{meaning}{reasons(slave)}"
+    return f"{slave.name}: {function} returned {said} {when}{meaning}{reasons(slave)}"
+
+
+def label(status: int) -> str:
+    """An fmi2Status by name ("Error"), or a number no fmi2Status has as that number."""
+    if 0 <= status < len(STATUS_LABELS):
+        return STATUS_LABELS[status]
+    return f"{status} (not an fmi2Status)"
 
 
 def _meaning(slave: Slave, function: str, status: int, t: float) -> str:
@@ -532,7 +558,8 @@ def _cannot_extract(fmu_path: Path, exc: OSError) -> CosimError:
 def _checked(fmu: Any, name: str, warned: Callable[[str, float], None]) -> Callable[..., int]:
     """The FMU library's C function ``name`` (fmpy set its argument types) behind one
     status check, as fmpy's wrapper does it: a status worse than fmi2Warning raises
-    FMICallException(name, status); fmi2Warning is told to ``warned(name, t)``, t (s) the
+    FMICallException(name, status), as a number out of the enum does (:data:`PASSED`);
+    fmi2Warning is told to ``warned(name, t)``, t (s) the
     call's second argument. fmpy's wrapper takes two Python frames and a lookup per call
     (~1.5 us), several times a step; this one frame."""
     function = getattr(fmu.dll, name)
@@ -540,7 +567,7 @@ def _checked(fmu: Any, name: str, warned: Callable[[str, float], None]) -> Calla
     def call(*args: Any) -> int:
         status: int = function(*args)
         if status:
-            if status > WARNING:
+            if status != WARNING:
                 raise FMICallException(function=name, status=status)
             warned(name, float(args[1]))
         return status
@@ -562,7 +589,8 @@ def _hot_calls(slave: Slave) -> tuple[Callable[[], None], Callable[[], None], Ca
     ``put_inputs()`` (fmi2SetReal of the input buffer), ``read_reals()`` (fmi2GetReal into
     the output view) and ``advance(t, h)`` (fmi2DoStep from ``t`` over ``h`` s, then the
     outputs read, the Integer and Boolean ones too). A status worse than fmi2Warning raises
-    FMICallException naming the function, as fmpy's wrappers do; a doStep's fmi2Warning
+    FMICallException naming the function, as fmpy's wrappers do, and so does a number
+    out of the enum; a doStep's fmi2Warning
     is kept among the messages (:meth:`Slave.note_warning`).
 
     Written by hand: fmpy's wrappers take two Python frames a call and convert every
@@ -580,22 +608,22 @@ def _hot_calls(slave: Slave) -> tuple[Callable[[], None], Callable[[], None], Ca
 
     def put_inputs() -> None:
         status = set_real(handle, in_vrs, n_in, in_ptr)
-        if status > 1:
+        if status and status != WARNING:
             raise FMICallException(function="fmi2SetReal", status=status)
 
     def read_reals() -> None:
         status = get_real(handle, out_vrs, n_out, out_ptr)
-        if status > 1:
+        if status and status != WARNING:
             raise FMICallException(function="fmi2GetReal", status=status)
 
     def advance(t: float, h: float) -> None:
         status = do_step(handle, double(t), double(h), prior)
         if status:
-            if status > WARNING:
+            if status != WARNING:
                 raise FMICallException(function="fmi2DoStep", status=status)
             warned("fmi2DoStep", t)
         status = get_real(handle, out_vrs, n_out, out_ptr)
-        if status > 1:
+        if status and status != WARNING:
             raise FMICallException(function="fmi2GetReal", status=status)
         if others is not None:
             others()

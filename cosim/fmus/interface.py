@@ -62,6 +62,14 @@ OWN_PACKAGES = ("plant_fmu", "controller_fmu", "fmu_runtime")
 ANGLE_QUANTITIES = frozenset({"Angle", "AngularVelocity"})
 
 
+# What FMI 2.0 forbids in a variable name under either naming convention (section 2.2.9:
+# a flat name is any Unicode character but these; a structured one allows fewer). A name
+# holding one ran and split results.csv's header over two lines. Checked by hand: fmpy's
+# check of names is private and, for structured names, needs lark, no dependency of ours.
+FORBIDDEN_IN_NAMES = {"\n": "a line feed (U+000A)", "\r": "a carriage return (U+000D)",
+                      "\t": "a tab (U+0009)"}  # fmt: skip
+
+
 class FmuInterfaceError(CosimError):
     """An FMU that does not exist or whose model description cannot be read."""
 
@@ -278,6 +286,7 @@ def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
     except Exception as exc:  # fmpy raises plain Exception for an invalid model description
         reason = " ".join(str(exc).split())  # its schema report spans lines: one line here
         raise FmuInterfaceError(f"{path}: not a valid FMU: {reason}") from None
+    _check_names(path, md.modelVariables)
     names, categories = _annotations(path)
     return FmuInterface(
         path=path,
@@ -290,6 +299,18 @@ def _read(path: Path, mtime_ns: int, size: int) -> FmuInterface:
         model_variables={v.name: v for v in md.modelVariables},
         log_categories=categories,
     )
+
+
+def _check_names(path: Path, variables: list[Any]) -> None:
+    """Refuse a variable name holding a character FMI 2.0 forbids in one
+    (:data:`FORBIDDEN_IN_NAMES`), naming it."""
+    for variable in variables:
+        for character, what in FORBIDDEN_IN_NAMES.items():
+            if character in variable.name:
+                raise FmuInterfaceError(
+                    f"{path}: not a valid FMU: the variable name {variable.name!r} holds "
+                    f"{what}, which FMI 2.0 forbids in a variable name"
+                )
 
 
 def _unnamed_working_folder(path: Path) -> str | None:
