@@ -81,6 +81,7 @@ class Slave:
         self.logged = 0  # messages logged (warning or worse), those left out of messages too
         # fmi2SetDebugLogging's categories: None off, () every one (cosim.scenario.spec)
         self.debug_logging = instance.debug_logging
+        self.verbatim_log = False  # its messages are text, not printf formats (load)
         _check_same_fmu(instance, unzip_dir)
         self._key = (str(unzip_dir), md.coSimulation.modelIdentifier, md.guid, instance.name)
         self.fmu = _library(self._key)
@@ -170,8 +171,11 @@ class Slave:
         self.callbacks.componentEnvironment = id(self)
         # fmpy's native proxy formats the FMU's printf-style messages; it keeps ONE target
         # function per process, so every instance shares _LOGGER, which dispatches on the
-        # componentEnvironment the FMU passes back.
-        addLoggerProxy(ctypes.byref(self.callbacks))
+        # componentEnvironment the FMU passes back. An FMU whose messages are no formats
+        # calls _LOGGER itself (its five arguments are those of every call it makes).
+        self.verbatim_log = not _formats_messages(Path(self.fmu.unzipDirectory))
+        if not self.verbatim_log:
+            addLoggerProxy(ctypes.byref(self.callbacks))
         _log_sinks[id(self)] = self
         self.fmu.instantiate(callbacks=self.callbacks, loggingOn=self._logging_on())
         self.state = "instantiated"
@@ -309,7 +313,10 @@ def _log(env: int | None, _name: bytes, status: int, category: bytes, message: b
     if slave is None or (status < 1 and slave.debug_logging is None):
         return
     name = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
-    text = one_line(shortened((message or b"").decode("utf-8", "replace")))
+    text = (message or b"").decode("utf-8", "replace")
+    if slave.verbatim_log:  # a message as written, ours with every % doubled
+        text = text.replace("%%", "%")
+    text = one_line(shortened(text))
     kind = (category or b"").decode("utf-8", "replace")
     if status >= 1:
         slave.messages.append(f"[{name}] {text}")
@@ -368,6 +375,19 @@ def one_line(message: str) -> str:
 
 
 _LOGGER = fmi2CallbackLoggerTYPE(_log)
+
+
+def _formats_messages(folder: Path) -> bool:
+    """Whether the FMU extracted in ``folder`` passes its logged messages as printf
+    formats with their arguments (FMI 2.0, 2.1.5), for fmpy's logger proxy to format:
+    every FMU but one of pythonfmu's own binary (``resources/slavemodule.txt``, not our
+    runtime), which passes a Python message as the format, its % signs as written and no
+    argument, so that "50% done" read an argument never passed (garbage, and a ``%s`` or
+    ``%n`` a crash)."""
+    from fmpy import platform
+
+    pythonfmu = (folder / "resources" / "slavemodule.txt").is_file()
+    return not pythonfmu or native.loader_in_folder(folder, platform)
 
 
 def describe(slave: Slave, function: str, status: int, t: float) -> str:

@@ -7,7 +7,9 @@ with ``bad_inf``); ``chatter`` lines are logged at every step (warnings with
 ``chatter_warns``, else OK), ``warn_at`` logs a warning once past that time; an OK line
 ``constructed`` is logged while it is instantiated (before any fmi2SetDebugLogging);
 ``discard_at`` returns False from doStep with a warning logged (pythonfmu reports
-fmi2Discard); ``state_fails`` makes fmi2GetFMUstate answer an exception (pythonfmu:
+fmi2Discard); ``shout`` (a String, if not empty) is logged as a warning at every step, as
+written (pythonfmu's binary passes it to the host as a printf format, its ``%`` as they
+are); ``state_fails`` makes fmi2GetFMUstate answer an exception (pythonfmu:
 fmi2Fatal, its reason logged over two lines). Trivial on purpose: no exception escapes a
 callback but the one asked for."""
 
@@ -24,6 +26,7 @@ class CosimTestForeign(Fmi2Slave):
         self.gain, self.invert, self.label, self.level, self.k = 1, False, "ab", 0, 1.0
         self.bad_at, self.bad_inf, self.chatter, self.chatter_warns = -1.0, False, 0, False
         self.warn_at, self.discard_at, self.state_fails = -1.0, -1.0, False
+        self.shout = ""
         fixed = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         tunable = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.tunable}
         self.register_variable(Integer("gain", **tunable))
@@ -38,6 +41,7 @@ class CosimTestForeign(Fmi2Slave):
         self.register_variable(Real("warn_at", **fixed))
         self.register_variable(Real("discard_at", **fixed))
         self.register_variable(Boolean("state_fails", **fixed))
+        self.register_variable(String("shout", **fixed))
         self.register_variable(Real("y", causality=Fmi2Causality.output, getter=self._y))
         self.register_variable(
             Integer(
@@ -62,6 +66,8 @@ class CosimTestForeign(Fmi2Slave):
         for i in range(self.chatter):
             status = Fmi2Status.warning if self.chatter_warns else Fmi2Status.ok
             self.log(f"step at {current_time:.3f}: line {i}", status)
+        if self.shout:
+            self.log(self.shout, Fmi2Status.warning)
         if 0.0 < self.warn_at <= current_time + 1e-12:
             self.log(f"warned at {current_time:.3f}", Fmi2Status.warning)
             self.warn_at = -1.0

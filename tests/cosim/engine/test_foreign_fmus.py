@@ -109,6 +109,19 @@ def test_warnings_beyond_those_kept_are_counted_and_the_report_says_so(
     )
 
 
+def test_a_percent_sign_in_a_message_of_pythonfmus_binary_is_shown_as_written(
+    test_fmu_dir: Path,
+) -> None:
+    """pythonfmu's own binary passes a Python message to the host as its printf format,
+    its % signs as they are, with no argument: fmpy's logger proxy formatted it, and
+    "50% done" (`% d`, a conversion) read an argument never passed, showing garbage (a
+    `%s` or `%n` there may crash the process). Such an FMU's message is taken as text,
+    its `%%` as one % (ours double every %, as the standard's formats want)."""
+    result = foreign(test_fmu_dir, 'shout = "progress 50% done, 100%% sure"')
+    assert result.complete, result.error
+    assert result.messages["f"][-1] == "[Warning] progress 50% done, 100% sure"
+
+
 def status_run(folder: Path, status: str, terminated: bool = False) -> master.RunResult:
     """1 s in steps of 0.1 s of one instance ``d`` of Dahlquist whose doStep answers
     fmi2``status`` from t = 0.4 s on (tests/fmus/cosim_test_status.c)."""
