@@ -30,10 +30,17 @@ import importlib.util
 import multiprocessing
 import os
 import signal
-from contextlib import suppress
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 
 from plant_fmu.model import jit  # standard library only until numba is loaded
 
+# what a study ends on (as cosim.engine.signals.STOP_SIGNALS, not imported here: it imports
+# dataclasses and more, ~0.1 s before the server could start); no SIGHUP on Windows, where
+# there is no fork server either
+STOP_SIGNALS = {
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+}
 # imported once, in the server, in this order
 PRELOAD = [
     "cosim.study.server_environ",
@@ -59,13 +66,15 @@ def start() -> bool:
     global _environ_set
     if not available():
         return False
-    from multiprocessing import forkserver
+    from multiprocessing import forkserver, resource_tracker
 
     _say_cache_problem()
     try:
         multiprocessing.get_context("forkserver").set_forkserver_preload(PRELOAD)
-        _start_resource_tracker()
-        forkserver.ensure_running()
+        with _stop_signals_blocked():
+            resource_tracker.ensure_running()
+        with _stop_signals_blocked():  # starting the tracker unblocked SIGINT and SIGTERM
+            forkserver.ensure_running()
         running = True
     except (OSError, ValueError):
         running = False
@@ -76,26 +85,27 @@ def start() -> bool:
     return running
 
 
-def _start_resource_tracker() -> None:
-    """Start multiprocessing's resource tracker (the fork server starts it first) immune
-    to SIGHUP, as it makes itself to SIGINT and SIGTERM: a hangup sent to the whole group
-    (a terminal closed, an ssh session dropped) killed it, and the tracker started in its
-    place printed a KeyError traceback for each of the workers' semaphores it had never
-    seen (12 in a two-worker study), after "process died unexpectedly ... might leak".
-    SIGHUP is blocked in this thread while it is spawned, so that the tracker inherits it
-    blocked (it unblocks only the two signals it ignores); a hangup meanwhile waits, and is
-    delivered here once unblocked."""
-    from multiprocessing import resource_tracker
+@contextmanager
+def _stop_signals_blocked() -> Iterator[None]:
+    """The stop signals (:data:`STOP_SIGNALS`) blocked in this thread while the block
+    starts the fork server and multiprocessing's resource tracker (the server starts it
+    first), so that they start with them blocked: a signal sent to the whole process group
+    meanwhile (a Ctrl-C, a CI job cancelled, a hangup) waits in each, and is delivered
+    here once unblocked.
 
-    hangup = getattr(signal, "SIGHUP", None)
-    if hangup is None:  # no hangup on Windows (where there is no fork server either)
-        resource_tracker.ensure_running()
-        return
-    signal.pthread_sigmask(signal.SIG_BLOCK, {hangup})
+    The server unblocks them once its first preload (:mod:`cosim.study.server_environ`)
+    ignores them: a Ctrl-C 0.4-0.7 s into ``auv-cosim sweep`` reached the server while its
+    interpreter started and imported, before that, and printed a KeyboardInterrupt
+    traceback of 9-24 lines under the command's one line. The tracker unblocks only the
+    two it ignores (SIGINT, SIGTERM), and keeps SIGHUP blocked: a hangup to the whole
+    group killed it, and the tracker started in its place printed a KeyError traceback for
+    each of the workers' semaphores it had never seen (12 in a two-worker study), after
+    "process died unexpectedly ... might leak"."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
-        resource_tracker.ensure_running()
+        yield
     finally:
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {hangup})
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _say_cache_problem() -> None:

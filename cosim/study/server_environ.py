@@ -22,21 +22,23 @@ SIGINT is ignored too while the server imports (:mod:`cosim.study.server_exit`, 
 last, gives it back its default handler, which multiprocessing then sets aside for the
 workers it forks as it starts ignoring SIGINT itself): a Ctrl-C while a sweep started
 reached the server still importing, which printed a KeyboardInterrupt traceback of dozens
-of lines under the command's one-line "interrupted"."""
+of lines under the command's one-line "interrupted". Before this module, while the
+server's interpreter starts, the three are blocked (the command starts it so,
+:func:`cosim.study.fork_server.start`): one that arrived meanwhile is dropped as they are
+ignored here, and they are unblocked."""
 
 import gc
 import os
 import signal
 from contextlib import suppress
 
-from cosim.study.fork_server import pre_spawn_environ
+from cosim.study.fork_server import STOP_SIGNALS, pre_spawn_environ
 
 gc.disable()
 
-signal.signal(signal.SIGINT, signal.SIG_IGN)
-for _name in ("SIGTERM", "SIGHUP"):
-    if hasattr(signal, _name):  # no SIGHUP on Windows (where there is no fork server)
-        signal.signal(getattr(signal, _name), signal.SIG_IGN)
+for _signum in STOP_SIGNALS:
+    signal.signal(_signum, signal.SIG_IGN)  # one that arrived while blocked is dropped
+signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
 
 with suppress(Exception):
     os.environ.update(pre_spawn_environ())

@@ -4,6 +4,7 @@ pre-spawn environment, read by parsing Dask's defaults file, is read and set onc
 from __future__ import annotations
 
 from multiprocessing import forkserver
+from pathlib import Path
 
 import pytest
 
@@ -65,5 +66,55 @@ def test_ctrl_c_while_the_fork_server_imports_prints_no_traceback(run_python) ->
     assert fork_server.PRELOAD[0] == "cosim.study.server_environ"
     assert fork_server.PRELOAD[-1] == "cosim.study.server_exit"
     done = run_python(INTERRUPTED_WHILE_IMPORTING, timeout=120)
+    assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr, done.stderr
+    assert done.returncode == 0 and done.stdout.split() == ["True"], done.stdout
+
+
+# the command's own start of the server; SIGINT sent to it as soon as its interpreter
+# catches SIGINT (its handler of KeyboardInterrupt set, its first preload not yet imported: a
+# Ctrl-C to the terminal's process group as the sweep starts its server); then the SIGINT
+# handler of a worker it forks
+INTERRUPTED_WHILE_STARTING = """
+import os, pathlib, signal, time
+from multiprocessing import forkserver, get_context
+from cosim.study import fork_server
+spawn = forkserver.ensure_running
+
+
+def catches_sigint(pid):
+    status = pathlib.Path(f"/proc/{pid}/status").read_text()
+    caught = [line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:")]
+    return int(caught[0], 16) >> (signal.SIGINT - 1) & 1
+
+
+def spawn_then_ctrl_c():
+    spawn()
+    pid = forkserver._forkserver._forkserver_pid
+    deadline = time.monotonic() + 30
+    while not catches_sigint(pid) and time.monotonic() < deadline:
+        time.sleep(0.001)
+    os.kill(pid, signal.SIGINT)
+
+
+forkserver.ensure_running = spawn_then_ctrl_c
+assert fork_server.start()
+pool = get_context("forkserver").Pool(1)
+handler = pool.apply(signal.getsignal, (signal.SIGINT,))
+pool.close()
+pool.join()
+print(handler is signal.default_int_handler, flush=True)
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not fork_server.available(), reason="no fork server on this platform")
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="no /proc to watch")
+def test_ctrl_c_while_the_fork_server_starts_prints_no_traceback(run_python) -> None:
+    """A Ctrl-C 0.4-0.7 s into ``auv-cosim sweep`` reached the fork server before its first
+    preload ignored SIGINT (its interpreter starting, importing multiprocessing, then
+    cosim): it printed a KeyboardInterrupt traceback (or "Fatal Python error:
+    init_import_site") of 9 to 24 lines under "interrupted", and died. The server starts
+    with the stop signals blocked, its first preload ignores them, then unblocks them."""
+    done = run_python(INTERRUPTED_WHILE_STARTING, timeout=120)
     assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr, done.stderr
     assert done.returncode == 0 and done.stdout.split() == ["True"], done.stdout
