@@ -63,6 +63,7 @@ from cosim.scratch import claim
 from cosim.study import fork_server
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
+from cosim.study.in_flight import RunsInFlight
 from cosim.study.signals import StudyStopped, stop_signals_deferred, workers_ignore_sigint
 from cosim.study.spec import StudyEndedError, StudyError
 from cosim.study.task import Base, RunRecord, run_one, warm_up
@@ -125,6 +126,7 @@ class StudyPlugin(WorkerPlugin):
         self.name = job.plugin
         self.folder: Path | None = None
         self._warm: threading.Lock | None = None  # held while warming up; None once warm
+        self.in_flight: RunsInFlight | None = None  # this study's runs on the worker
 
     def setup(self, worker: Any) -> None:
         """Write the FMUs; StudyError naming the worker and the folder if it cannot (a
@@ -145,6 +147,7 @@ class StudyPlugin(WorkerPlugin):
         self.folder = folder
         use_unpacked(self.job.unpacked)
         self._warm = threading.Lock()
+        self.in_flight = RunsInFlight()
 
     def fmu_paths(self) -> dict[str, Path]:
         """Instance -> its FMU file in this worker's local directory (after set-up)."""
@@ -172,6 +175,10 @@ class StudyPlugin(WorkerPlugin):
                 self._warm = None
 
     def teardown(self, worker: Any) -> None:
+        """The study's end on this worker: its runs in flight stopped at their next step
+        (:mod:`cosim.study.in_flight`), its FMUs removed."""
+        if self.in_flight is not None:
+            self.in_flight.stop_all()
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
 
@@ -296,7 +303,9 @@ def run_on_worker(plugin_name: str, values: Mapping[str, Value]) -> RunRecord:
     job, paths = plugin.job, plugin.fmu_paths()
     plugin.warm()
     data = plugin.data_paths()
-    return run_one(job.base, paths, job.factors, values, job.keep, job.check_step, data)
+    assert plugin.in_flight is not None  # set up, as fmu_paths found
+    with plugin.in_flight.run() as stop:
+        return run_one(job.base, paths, job.factors, values, job.keep, job.check_step, data, stop)
 
 
 def lost_run_error(exc: KilledWorker) -> str:

@@ -6,8 +6,9 @@ study's stop time through ``Scenario.with_overrides``), keeps it as resolved TOM
 calls :func:`run_one` per run: the FMU references point at the worker's own copies, the
 run's factor values are written into the TOML data, and the data is resolved again
 (``scenario_from_data``, so every value passes the scenario's own checks) and run
-(``run_scenario(..., no_rrd=True, tail_guard=False)``: a killed task's run is run
-again, so its folder needs no guard); the metrics are the numeric values of the run's
+(``cosim.runner.execute`` with ``no_rrd=True, tail_guard=False``: a killed task's run is
+run again, so its folder needs no guard; its stop request its study's, which ends it as
+the study ends, :mod:`cosim.study.in_flight`); the metrics are the numeric values of the run's
 ``summary.json``.
 """
 
@@ -29,6 +30,7 @@ from typing import Any
 import tomli_w
 
 from cosim.engine.adaptive import points_step
+from cosim.engine.signals import StopRequest
 from cosim.engine.slave import collect_debug_log
 from cosim.engine.step_check import not_checkable
 from cosim.errors import FLAGS, CosimError, OptionNames
@@ -36,7 +38,7 @@ from cosim.fmus.interface import check_own_packages
 from cosim.metrics.key_figures import KeyFigures
 from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
-from cosim.runner import run_scenario, with_fmu_log
+from cosim.runner import RunOptions, execute, with_fmu_log
 from cosim.scenario.design_doubts import DesignWarning, design_doubts
 from cosim.scenario.mission_doubts import mission_doubts
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario, load_scenario, scenario_from_data
@@ -46,7 +48,7 @@ from cosim.scratch import process_folder
 from cosim.study.factors import FactorKind, ScenarioFacts, Value, Variable, apply_values
 from cosim.study.spec import StudyError
 
-KEEP_FILES = ("results", "summary")  # run_scenario outputs a kept run folder receives
+KEEP_FILES = ("results", "summary")  # the run's outputs a kept run folder receives
 FMU_LOG_FILE = "fmu-log.txt"  # a run's debug log (docs/studies.md): its folder, kept or not
 # A metric's estimated coupling error (Richardson from h, h/2, h/4: docs/coupling.md), in
 # the metric's unit, is the column named this prefix + the metric's name
@@ -211,6 +213,7 @@ def run_one(
     keep: str = "none",
     check_step: bool = False,
     carried: Mapping[str, Path] | None = None,
+    stop: StopRequest | None = None,
 ) -> RunRecord:
     """Run the base scenario with these factor values; never raises for a failed run.
 
@@ -218,7 +221,8 @@ def run_one(
     "failed", "none") says whether the run's results.csv and summary.json come back;
     ``check_step`` also runs it at h / 2 and h / 4 for its coupling error metrics;
     ``carried``: a file the run reads as the client named it -> its copy in this process
-    (a remote worker's, :func:`study_files`).
+    (a remote worker's, :func:`study_files`); ``stop``: the run's :class:`StopRequest`, set
+    to end it at its next step (the study ended, :mod:`cosim.study.in_flight`).
     """
     started = time.perf_counter()
     metrics: dict[str, float | None] = {}
@@ -231,15 +235,15 @@ def run_one(
             # in the process's scratch folder, which the next process removes if this one is
             # killed mid-run (cosim.scratch)
             with tempfile.TemporaryDirectory(prefix="auv-cosim-run-", dir=process_folder()) as tmp:
-                outcome = run_scenario(
-                    scenario,
-                    Path(tmp),
+                options = RunOptions(
+                    out_dir=Path(tmp),
                     no_rrd=True,
                     tail_guard=False,
                     check_step=check_step,
                     unit_doubts=False,
                     results_csv=keep != "none",
                 )
+                outcome = execute(scenario, options, stop)
                 result = outcome.result
                 error = None if result.complete else result.error or "the run stopped early"
                 if keep == "all" or (keep == "failed" and error is not None):

@@ -44,6 +44,30 @@ def assert_no_scratch_folder_left(own: Path) -> None:
     assert [p.name for p in own.iterdir()] == ["global.lock"]
 
 
+def start_study(
+    tmp_path: Path, fmu_dir: Path, stop_time: float, workers: int, values: list[float]
+) -> tuple[Path, Path, subprocess.Popen]:
+    """``auv-cosim sweep`` of bs-3 over ``values`` of plant.v_0 started in a process group of
+    its own, as from a terminal: its TMPDIR, its output folder and its process."""
+    scratch = tmp_path / "tmp"  # the study's TMPDIR
+    scratch.mkdir()
+    study = tmp_path / "long.toml"
+    study.write_text(LONG_STUDY.format(stop_time=stop_time, values=values), encoding="utf-8")
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--out", str(out)]
+    command += ["--fmu-dir", str(fmu_dir), "--workers", str(workers), "--quiet"]
+    process = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "TMPDIR": str(scratch)},
+        preexec_fn=as_in_a_terminal,
+    )
+    return scratch, out, process
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("signum", "group", "workers", "stop_time"),
@@ -65,23 +89,8 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
     ended by it too, left each run in flight's temporary folder behind. A hangup to the group
     killed multiprocessing's resource tracker, whose successor printed a KeyError traceback
     for each semaphore the workers gave back."""
-    scratch = tmp_path / "tmp"  # the study's TMPDIR
-    scratch.mkdir()
-    study = tmp_path / "long.toml"
     values = [round(-0.2 + 0.01 * i, 2) for i in range(40)]
-    study.write_text(LONG_STUDY.format(stop_time=stop_time, values=values), encoding="utf-8")
-    out = tmp_path / "out"
-    command = [sys.executable, "-m", "cosim.cli", "sweep", str(study), "--out", str(out)]
-    command += ["--fmu-dir", str(fmu_dir), "--workers", str(workers), "--quiet"]
-    process = subprocess.Popen(
-        command,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "TMPDIR": str(scratch)},
-        preexec_fn=as_in_a_terminal,
-    )
+    scratch, out, process = start_study(tmp_path, fmu_dir, stop_time, workers, values)
     try:
         deadline = time.monotonic() + 240
         while not rows(out / "runs.csv") and time.monotonic() < deadline:
@@ -113,6 +122,34 @@ def test_a_stop_signal_ends_a_study_with_one_line_and_its_rows(
     kept = rows(out / "runs.csv")
     assert 1 <= len(kept) < len(values)
     assert all(row["status"] == "complete" for row in kept)
+
+
+@pytest.mark.slow
+def test_a_stop_signal_stops_the_runs_in_flight_on_the_workers(
+    tmp_path: Path, fmu_dir: Path
+) -> None:
+    """A stop signal ended the study, but each run in flight on a worker went on until
+    Dask's nanny, 4 s into closing its worker, killed the worker (SIGKILL): the worker's
+    scratch folder was left, with the run's folder in it. Under load the study's ~1 s runs
+    outlived that (two workers' folders left, seen in a loaded suite); these runs of
+    ~10 s do unloaded. The study's end stops its runs in flight at their next step, and
+    each worker ends in order, its folder removed."""
+    scratch, _, process = start_study(tmp_path, fmu_dir, 3000.0, 2, [-0.1, 0.1])
+    own = scratch / SCRATCH_DIR
+    try:
+        deadline = time.monotonic() + 240
+        while len(list(own.glob("*/auv-cosim-run-*"))) < 2 and time.monotonic() < deadline:
+            assert process.poll() is None, process.communicate()
+            time.sleep(0.1)
+        os.killpg(process.pid, signal.SIGTERM)
+        _, err = process.communicate(timeout=120)
+    finally:
+        with contextlib.suppress(ProcessLookupError):  # the study and any worker left
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    assert process.returncode == 128 + signal.SIGTERM, err
+    assert err.startswith("auv-cosim sweep: terminated (SIGTERM)") and err.count("\n") == 1, err
+    assert_no_scratch_folder_left(own)
 
 
 @pytest.mark.slow
