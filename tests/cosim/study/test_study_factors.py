@@ -18,6 +18,7 @@ from cosim.outputs.folder import GUARD_SCRIPT
 from cosim.runner import run_scenario
 from cosim.study import factors as factors_module
 from cosim.study.factors import ScenarioFacts, StartValue, resolve_factor
+from cosim.study.in_flight import STOPPED_BY, RunsInFlight
 from cosim.study.runner import _metrics, _random_text
 from cosim.study.spec import StudyError, study_from_dict
 from cosim.study.task import Base, check_values, prepare, run_one
@@ -112,6 +113,21 @@ def test_a_run_the_fmu_refuses_is_a_failed_record(bs3: tuple[Base, ScenarioFacts
     assert good.metrics["time_reached"] == 1.0 and set(good.metrics) == set(facts.metrics)
     assert set(good.files) == {"results.csv", "summary.json"}
     assert 0.0 < good.loop_s < good.wall_clock_s
+
+
+def test_a_run_its_study_stopped_ends_before_its_first_step(
+    bs3: tuple[Base, ScenarioFacts],
+) -> None:
+    """The stop request a study's end sets (cosim.study.in_flight) reaches the run: it
+    ends as a failed record saying so, not run to its stop time."""
+    base, facts = bs3
+    found = {"plant.v_0": resolve_factor("plant.v_0", facts)}
+    runs = RunsInFlight()
+    runs.stop_all()
+    with runs.run() as stop:
+        record = run_one(base, base.fmu_paths, found, {"plant.v_0": -0.05}, stop=stop)
+    assert record.status == "failed" and record.metrics == {}, record
+    assert record.error == f"stopped by {STOPPED_BY} before the first step", record.error
 
 
 def test_a_study_task_runs_without_a_tail_guard(
