@@ -30,6 +30,12 @@ client's CPU until it calls the server, the server's imports, the first worker's
 which of the two is longer says, at any load, which one the first run waits for on an
 idle machine), each worker's tasks (count), warm-up and runs, and the runs' CPU over their wall
 time (below 1: the worker waited for a core). The load average is printed beside it.
+A third table estimates, from those CPU seconds, what each sweep would take on this
+machine idle (:func:`idle_estimate`): the start's longer chain, the longest warm-up, the
+runs spread over the cores with the client's CPU beside them, and the client alone after
+the last run; and the ratio of the two estimates, which the end-to-end benchmark's goal
+is about. On a machine others load, it is the figure to compare between trees: on an idle
+one it agreed with the measured sweeps (docs/performance.md).
 Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]``.
 """
 
@@ -219,9 +225,11 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         at("execute begin", client),
         max((t, c) for t, p, w, c in marks if w == "execute end" and p == client),
     )
+    rows.append(("client until runs", begin[1]))
     rows.append(("client during runs", end[1] - begin[1]))
     total = trace["cpu"]
     assert isinstance(total, float)
+    rows.append(("client after runs", total - end[1]))
     rows.append(("client in all", total))
     servers = [(t, p, c) for t, p, w, c in marks if w == "preload end"]
     if servers:
@@ -242,6 +250,30 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         rows += [(f"worker {k} warm-up", warm), (f"worker {k} runs", cpu - warm)]
         rows.append((f"worker {k} runs CPU/wall", (cpu - warm) / max(wall - warm, 1e-9)))
     return rows
+
+
+def idle_estimate(cpu: dict[str, float], cores: int) -> list[tuple[str, float]]:
+    """What the sweep whose CPU seconds are ``cpu`` (:func:`cpu_phases`) would take on an
+    idle machine of ``cores`` cores, in seconds, each phase from the CPU it took (which the
+    machine's load distorts far less than the wall clock): the start (the longer of the
+    client's CPU until it sends the runs and the fork server's chain to the first warm-up,
+    which run beside each other), the longest warm-up (the workers warm up at once, each
+    on a core), the runs (the longest worker's runs, or all the workers' runs and the
+    client's CPU beside them shared by the cores, whichever is longer: one worker leaves a
+    core to the client, two on two cores share theirs with it) and the client's CPU after
+    the last run (the table, the page, the exit: one process, alone)."""
+    start = max(cpu["client until runs"], cpu.get("server chain to warm-up", 0.0))
+    count = 1
+    while f"worker {count} runs" in cpu:
+        count += 1
+    workers = range(1, count)
+    warm = max(cpu[f"worker {k} warm-up"] for k in workers)
+    warm = max(warm, sum(cpu[f"worker {k} warm-up"] for k in workers) / cores)
+    runs = [cpu[f"worker {k} runs"] for k in workers]
+    shared = (sum(runs) + cpu["client during runs"]) / cores
+    rows = [("start (the longer chain)", start), ("warm-up", warm)]
+    rows += [("runs", max(*runs, shared)), ("after the last run", cpu["client after runs"])]
+    return [*rows, ("command to prompt", sum(s for _, s in rows))]
 
 
 def _workers(marks: list[tuple[float, int, str, float]]) -> list[int]:
@@ -301,6 +333,14 @@ def main() -> None:
     for name in names:
         cells = [f"{cpu[w][name]:14.2f}" if name in cpu[w] else f"{'':>14}" for w in traces]
         print(f"{name:<26}" + "".join(cells))
+    cores = os.cpu_count() or 1
+    print(f"estimate for this machine idle ({cores} cores), from the CPU seconds (s)")
+    estimates = {w: dict(idle_estimate(cpu[w], cores)) for w in traces}
+    for name in estimates[next(iter(traces))]:
+        print(f"{name:<26}" + "".join(f"{estimates[w][name]:14.2f}" for w in traces))
+    if 1 in estimates and 2 in estimates:
+        one, two = (estimates[w]["command to prompt"] for w in (1, 2))
+        print(f"estimated ratio, 1 worker against 2: {one / two:.2f} (goal >= 1.6)")
 
 
 if __name__ == "__main__":

@@ -70,3 +70,29 @@ def test_the_timeline_sets_the_clients_readiness_against_the_fork_servers_chain(
     assert abs(rows["server chain to warm-up"] - (0.09 + 1.2 + 0.05)) < 1e-9  # worker 3 first
     assert rows["client until ready"] == 1.0
     assert abs(rows["client during runs"] - 0.3) < 1e-9
+
+
+ESTIMATE = TIMELINE.replace(
+    "from sweep_timeline import cpu_phases", "from sweep_timeline import cpu_phases, idle_estimate"
+)
+ESTIMATE = ESTIMATE.replace(
+    "print(json.dumps(cpu_phases(",
+    "print(json.dumps(idle_estimate(dict(cpu_phases(",
+).replace('"cpu": 1.6})))', '"cpu": 1.6})), 2)))')
+
+
+def test_the_idle_estimate_shares_the_cores_between_the_runs_and_the_client() -> None:
+    """An idle machine's sweep estimated from CPU seconds: the start's longer chain (the
+    fork server's here), the workers' warm-ups side by side, two workers' runs and the
+    client's CPU beside them shared by two cores, then the client alone after the last
+    run; what the benchmark's goal is about when the machine's load hides it."""
+    path = os.pathsep.join([str(ROOT / "scripts"), str(ROOT)])
+    env = {**os.environ, "PYTHONPATH": path}
+    done = subprocess.run([sys.executable, "-c", ESTIMATE], env=env, check=True,
+                          timeout=300, capture_output=True, text=True)  # fmt: skip
+    rows = dict(json.loads(done.stdout))
+    assert abs(rows["start (the longer chain)"] - (0.09 + 1.2 + 0.05)) < 1e-9
+    assert abs(rows["warm-up"] - 0.2) < 1e-9
+    assert abs(rows["runs"] - (0.5 + 0.5 + 0.3) / 2) < 1e-9  # not one worker's 0.5
+    assert abs(rows["after the last run"] - 0.3) < 1e-9
+    assert abs(rows["command to prompt"] - (1.34 + 0.2 + 0.65 + 0.3)) < 1e-9
