@@ -34,8 +34,9 @@ A third table estimates, from those CPU seconds, what each sweep would take on t
 machine idle (:func:`idle_estimate`): the start's longer chain, the longest warm-up, the
 runs spread over the cores with the client's CPU beside them, and the client alone after
 the last run; and the ratio of the two estimates, which the end-to-end benchmark's goal
-is about. On a machine others load, it is the figure to compare between trees: on an idle
-one it agreed with the measured sweeps (docs/performance.md).
+is about. Under load it compares trees measured at the same time, not a tree with the
+goal: the client's CPU during the runs grows with their wall time (Dask's periodic work),
+which makes the two-worker estimate pessimistic (docs/performance.md).
 Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]``.
 """
 
