@@ -4,6 +4,7 @@
     python scripts/coupling_study.py check-step [--scenarios bs-3 vert-1] [--write]
     python scripts/coupling_study.py adaptive [--scenarios vert-1 bs-3] [--tolerances ...] [--write]
     python scripts/coupling_study.py scatter [--scenarios vert-1 bs-3] [--write]
+    python scripts/coupling_study.py guarantee [--scenarios vert-1] [--tolerances ...] [--write]
 
 ``shipped``: every built-in scenario (or those named) as shipped, and again at 2.5, 1.25
 and 0.625 ms with the same coupling: the continuous-time limit of each key figure by
@@ -34,6 +35,18 @@ much of that output's difference from the reference over the second half of each
 the reference shifted in time (an oscillation's phase error); the header gives the
 reference's own error (against a run at half its step) and the slope of log median error
 against log step.
+
+``guarantee``: the adaptive step at tolerances within a factor 1.25 of 1e-3 (the
+extrapolation estimate; 2 % apart and at 0.9, 1, 1.1 and 1.25e-3), against fixed steps
+1 % apart from 4 to 20 ms (each dividing the stop time), both as a user choosing a step
+meets them, whose error scatters on both sides.
+(a) The median: the doSteps a fixed step takes for each adaptive run's trajectory error on
+the least-squares line log error against log doSteps through all the fixed runs. (b) The
+guarantee: the worst trajectory error of the adaptive runs over the tolerance
+neighbourhood, and the fixed step a user must pick so that every measured step at or
+below it reaches that error (the envelope: the finest steps' errors are below it, so the
+steps under 4 ms, whose errors the scatter table bounds, do not change it); the adaptive
+neighbourhood's doSteps (at 1e-3, and its most) against the envelope step's.
 
 ``--write`` replaces the table between the markers ``<!-- coupling_study.py <part> -->``
 and ``<!-- end -->`` in docs/coupling.md (``shipped --scenarios``: only those scenarios'
@@ -80,6 +93,15 @@ ADAPTIVE_ESTIMATES: tuple[ErrorEstimate, ...] = ("extrapolation", "doubling")
 MORE_TOLERANCES = {"vert-1": (2e-3, 1.25e-3, 8e-4, 5e-4)}
 REFERENCE_STEP = 0.0003125  # s: the run the adaptive and scatter tables' errors are against
 SCATTER_CENTRES = (0.005, 0.0025, 0.00125, 0.000625)  # s: the scatter table's steps
+# the guarantee table: tolerances within a factor 1.25 of 1e-3 (the middle one is the one
+# a user picks), fixed steps 1 % apart from GUARANTEE_STEPS[0] to GUARANTEE_STEPS[1]
+GUARANTEE_CENTRE = 1e-3
+GUARANTEE_TOLERANCES = tuple(  # 0.8 to 1.25 times the centre, 2 % apart, and 0.9, 1, 1.1, 1.25
+    sorted(
+        {*(round(8e-4 * 1.02**j, 9) for j in range(23)), 9e-4, 1e-3, 1.1e-3, 1.25e-3}, reverse=True
+    )
+)
+GUARANTEE_STEPS = (0.004, 0.02)  # s
 
 
 def figures_of(scenario: Scenario) -> tuple[dict[str, float | None], master.RunResult]:
@@ -263,6 +285,103 @@ def _scatter_table(sid: str) -> str:
     return "\n".join([head, "", *lines])
 
 
+def guarantee(tolerances: Sequence[float] | None, ids: Sequence[str]) -> str:
+    """One table per scenario: the adaptive step at each tolerance (``None``:
+    GUARANTEE_TOLERANCES) against dense fixed steps, by the median and by the envelope."""
+    return "\n\n".join(_guarantee_table(sid, tolerances or GUARANTEE_TOLERANCES) for sid in ids)
+
+
+def _dense_steps(stop: float) -> list[float]:
+    """Steps 1 % apart over GUARANTEE_STEPS, longest first, each dividing ``stop``."""
+    fewest, most = (round(stop / h) for h in reversed(GUARANTEE_STEPS))
+    counts = sorted({*(round(fewest * 1.01**j) for j in range(400)), most})
+    counts = [n for n in counts if n <= most]
+    return [stop / n for n in counts]
+
+
+def _guarantee_table(sid: str, tolerances: Sequence[float]) -> str:
+    base = load_scenario(sid)
+    reference = _rows(base.with_overrides(step=REFERENCE_STEP))
+    fixed: list[tuple[float, float]] = []  # (trajectory error, doSteps)
+    for h in _dense_steps(base.stop_time):
+        fixed.append((_error(_rows(base.with_overrides(step=h)), reference), base.stop_time / h))
+    print(f"  {sid}: {len(fixed)} fixed steps done ({_load()})", file=sys.stderr)
+    trend = _trend(fixed)
+    lines = [
+        "| tolerance | plant doSteps | trajectory error | (a) median fixed step's doSteps "
+        "for that error | doSteps / median's | (b) fixed envelope's doSteps for that error |",
+        "|---|---|---|---|---|---|",
+    ]
+    adaptive_runs: list[tuple[float, float, float]] = []  # (tolerance, error, doSteps)
+    for tol in sorted(tolerances, reverse=True):
+        scenario = base.with_overrides(
+            algorithm="adaptive", tolerance=tol, error_estimate="extrapolation"
+        )
+        result = _rows(scenario)
+        error, do_steps = _error(result, reference), result.coupling["do_steps"]["plant"]
+        adaptive_runs.append((tol, error, do_steps))
+        median = _on_trend(trend, error)
+        lines.append(
+            f"| {tol:g} | {do_steps} | {error:.2e} | {median:.0f} | {do_steps / median:.2f} | "
+            f"{_shown(_envelope(fixed, error))} |"
+        )
+        print(f"  {sid} tol {tol:g}: done", file=sys.stderr)
+    return "\n".join(
+        [_guarantee_head(sid, base, fixed, trend), "", *lines, "",
+         _guarantee_verdict(adaptive_runs, fixed, base.stop_time)]
+    )  # fmt: skip
+
+
+def _guarantee_head(
+    sid: str, base: Scenario, fixed: Sequence[tuple[float, float]], trend: tuple[float, float]
+) -> str:
+    """The table's header: the fixed runs, their trend and their scatter about it."""
+    off = [abs(np.log(e) - trend[1] - trend[0] * np.log(n)) for e, n in fixed]
+    return (
+        f"{sid}, {base.coupling.extrapolation} extrapolation; errors against a run at "
+        f"{REFERENCE_STEP * 1e3:g} ms; {len(fixed)} fixed steps 1 % apart from "
+        f"{GUARANTEE_STEPS[0] * 1e3:g} to {GUARANTEE_STEPS[1] * 1e3:g} ms, whose error falls "
+        f"as doSteps to the power {trend[0]:.2f} (least squares, log-log) and lies within a "
+        f"factor {np.exp(max(off)):.1f} of that line ({_load()}):"
+    )
+
+
+def _guarantee_verdict(
+    runs: Sequence[tuple[float, float, float]], fixed: Sequence[tuple[float, float]], stop: float
+) -> str:
+    """(a), the same cost and (b), a sentence each: the adaptive runs' doSteps against the
+    median fixed step's for their errors; the errors of both at the same doSteps; the
+    neighbourhood's worst error, and the doSteps the adaptive runs and the envelope's
+    fixed step take for it."""
+    ratios = [n / _on_trend(_trend(fixed), error) for _, error, n in runs]
+    median = (
+        f"Median: over {len(runs)} tolerances the adaptive step takes {min(ratios):.2f} to "
+        f"{max(ratios):.2f} times the doSteps of the median fixed step for its error (geometric "
+        f"mean {np.exp(np.mean(np.log(ratios))):.2f}), fewer at {sum(r < 1 for r in ratios)}."
+    )
+    fewest, most = min(run[2] for run in runs), max(run[2] for run in runs)
+    alike = [e for e, n in fixed if fewest <= n <= most]  # the fixed steps of the same cost
+    same_cost = (
+        f"At the same cost ({fewest:.0f} to {most:.0f} doSteps) the {len(alike)} fixed steps' "
+        f"errors are {_spread(alike)} (least / median / largest), the adaptive runs' "
+        f"{_spread([run[1] for run in runs])}."
+    )
+    worst_tol, worst, _ = max(runs, key=lambda run: run[1])
+    middle = min(runs, key=lambda run: abs(np.log(run[0] / GUARANTEE_CENTRE)))
+    envelope = _envelope(fixed, worst)
+    if envelope is None:
+        return f"{median} {same_cost} Worst error {worst:.2e}: outside the envelope."
+    return (
+        f"{median} {same_cost} Guaranteed error: over tolerances {min(runs)[0]:g} to "
+        f"{max(runs)[0]:g} the worst trajectory error is {worst:.2e} (at {worst_tol:g}); "
+        f"every fixed step at or below {1e3 * stop / envelope:.4g} ms ({envelope:.0f} "
+        f"doSteps) reaches it. The adaptive step takes {middle[2]:.0f} doSteps at "
+        f"{middle[0]:g} ({middle[2] / envelope:.2f} times the envelope's) and at most "
+        f"{most:.0f} "
+        f"({most / envelope:.2f} times)."
+    )
+
+
 def _time_shift(
     result: master.RunResult, reference: master.RunResult, column: str
 ) -> tuple[float, float]:
@@ -310,6 +429,44 @@ def _scatter(fixed: Sequence[tuple[float, float]]) -> float:
         slope, intercept = _line(nearest)
         worst = max(worst, abs(float(np.log(n)) - intercept - slope * float(np.log(error))))
     return float(np.exp(worst))
+
+
+def _trend(fixed: Sequence[tuple[float, float]]) -> tuple[float, float]:
+    """(slope, intercept) of the least-squares line log error = intercept + slope log
+    doSteps through the fixed runs ``fixed`` (trajectory error, doSteps): the error is what
+    scatters at a given step, so it is the regressed variable."""
+    slope, intercept = np.polyfit(np.log([n for _, n in fixed]), np.log([e for e, _ in fixed]), 1)
+    return float(slope), float(intercept)
+
+
+def _on_trend(trend: tuple[float, float], error: float) -> float:
+    """The doSteps at which the line ``trend`` (:func:`_trend`) reaches ``error``."""
+    slope, intercept = trend
+    return float(np.exp((np.log(error) - intercept) / slope))
+
+
+def _envelope(fixed: Sequence[tuple[float, float]], error: float) -> float | None:
+    """The doSteps of the longest fixed step at or below which every step of ``fixed``
+    (trajectory error, doSteps) reaches ``error``; None where the finest misses it or the
+    coarsest already reaches it (the envelope is then outside the steps measured)."""
+    ordered = sorted(fixed, key=lambda run: run[1], reverse=True)  # finest first
+    reached = None
+    for run_error, do_steps in ordered:
+        if run_error > error:
+            break
+        reached = do_steps
+    return None if reached == ordered[-1][1] else reached
+
+
+def _spread(errors: Sequence[float]) -> str:
+    """Least / median / largest of ``errors``."""
+    if not errors:
+        return "(none)"
+    return " / ".join(f"{e:.2e}" for e in (min(errors), float(np.median(errors)), max(errors)))
+
+
+def _shown(do_steps: float | None) -> str:
+    return "(outside the steps measured)" if do_steps is None else f"{do_steps:.0f}"
 
 
 def _relative(value: float | None, limit: float | None) -> str:
@@ -390,8 +547,10 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
                 f"--scenarios: unknown scenario {scenario!r}; expected built-in ids "
                 f"({', '.join(known)})"
             )
-    if args.tolerances is not None and args.part != "adaptive":
-        parser.error(f"--tolerances: only with adaptive (the {args.part} part reads none)")
+    if args.tolerances is not None and args.part not in ("adaptive", "guarantee"):
+        parser.error(
+            f"--tolerances: only with adaptive or guarantee (the {args.part} part reads none)"
+        )
     for tolerance in args.tolerances or []:
         if not (np.isfinite(tolerance) and tolerance > 0.0):
             parser.error(f"--tolerances: {tolerance!r} is not a positive finite number")
@@ -399,14 +558,16 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=["shipped", "check-step", "adaptive", "scatter"])
+    parser.add_argument(
+        "part", choices=["shipped", "check-step", "adaptive", "scatter", "guarantee"]
+    )
     parser.add_argument("--scenarios", nargs="+", help="built-in ids [every one / bs-3 vert-1]")
     parser.add_argument(
         "--tolerances",
         type=float,
         nargs="+",
         help="adaptive [1e-2 1e-3 1e-4 1e-5; the extrapolation on vert-1 also 2e-3 1.25e-3 "
-        "8e-4 5e-4]",
+        "8e-4 5e-4]; guarantee [8e-4 to 1.25e-3, 2 %% apart, and 9e-4 1e-3 1.1e-3]",
     )
     parser.add_argument("--write", action="store_true", help="into docs/coupling.md")
     args = parser.parse_args(argv)
@@ -417,6 +578,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         table = check_steps(args.scenarios or ["bs-3", "vert-1"])
     elif args.part == "scatter":
         table = scatter(args.scenarios or ["vert-1", "bs-3"])
+    elif args.part == "guarantee":
+        table = guarantee(args.tolerances, args.scenarios or ["vert-1"])
     else:
         table = adaptive(args.tolerances, args.scenarios or ["vert-1", "bs-3"])
     if args.write:  # the shipped table of a few scenarios keeps the others' rows

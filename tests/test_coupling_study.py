@@ -127,3 +127,28 @@ def test_a_bad_argument_is_refused_in_one_line_before_a_run(
     assert ended.value.code == 2
     error = capsys.readouterr().err.strip().splitlines()[-1]
     assert said in error and "Traceback" not in error, error
+
+
+def test_the_envelope_is_the_longest_step_below_which_every_step_reaches_the_error(
+    study: ModuleType,
+) -> None:
+    """The guarantee a user choosing a fixed step can count on: one unlucky fine step
+    (7500 doSteps, four times its trend's error) sets it, not the trend; an error no step
+    measured misses (or every one misses) has no envelope among the steps measured."""
+    counts = [1500, 2000, 3000, 4000, 5000, 6000, 7500, 8000, 10000, 12000]
+    fixed = [(trend(n) * (4.0 if n == 7500 else 1.0), float(n)) for n in counts]
+    assert study._envelope(fixed, trend(4000)) == 8000  # 5000 and 6000 reach it, 7500 not
+    assert study._envelope(fixed, trend(7500) * 4.0) == 4000  # the unlucky one's: 3000 not
+    assert study._envelope(fixed, trend(12000) / 2.0) is None  # the finest misses it
+    assert study._envelope(fixed, trend(1500) * 2.0) is None  # beyond the coarsest
+
+
+def test_the_median_line_regresses_the_error_on_the_steps(study: ModuleType) -> None:
+    """Errors scattered by a factor 2 either way, alternately, about a second-order trend:
+    the line through them is the trend (slope -2 in doSteps), and it gives back the doSteps
+    of an error on the trend."""
+    counts = np.geomspace(2000, 12000, 40)
+    fixed = [(trend(n) * (2.0 if i % 2 else 0.5), float(n)) for i, n in enumerate(counts)]
+    slope, _ = study._trend(fixed)
+    assert slope == pytest.approx(-2.0, abs=0.1)
+    assert study._on_trend(study._trend(fixed), trend(5000)) == pytest.approx(5000, rel=0.1)
