@@ -512,16 +512,25 @@ def write(part: str, table: str, only: Sequence[str] | None = None) -> None:
     ``table`` measured) the page's rows of every other built-in scenario are kept, in the
     built-in order."""
     text = PAGE.read_text(encoding="utf-8")
-    marker = re.compile(
-        rf"(<!-- coupling_study.py {re.escape(part)} -->\n)(.*?)(\n<!-- end -->)", re.DOTALL
-    )
+    marker = _marker(part)
     found = marker.search(text)
     if found is None:
-        raise SystemExit(f"{PAGE}: no marker <!-- coupling_study.py {part} --> ... <!-- end -->")
+        raise SystemExit(_no_marker(part))
     if only is not None:
         table = _merged(found[2], table, only)
-    PAGE.write_text(marker.sub(lambda m: m[1] + table + m[3], text), encoding="utf-8")
+    PAGE.write_text(marker.sub(lambda m: m[1] + table + "\n<!-- end -->", text), encoding="utf-8")
     print(f"wrote the {part} table of {PAGE}")
+
+
+def _marker(part: str) -> re.Pattern[str]:
+    """The part's markers in :data:`PAGE` and the table between them (none yet, too)."""
+    return re.compile(
+        rf"(<!-- coupling_study.py {re.escape(part)} -->\n)(.*?)(\n?<!-- end -->)", re.DOTALL
+    )
+
+
+def _no_marker(part: str) -> str:
+    return f"{PAGE}: no marker <!-- coupling_study.py {part} --> ... <!-- end -->"
 
 
 def _merged(page_table: str, table: str, only: Sequence[str]) -> str:
@@ -572,6 +581,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--write", action="store_true", help="into docs/coupling.md")
     args = parser.parse_args(argv)
     _check_arguments(parser, args)
+    if args.write and _marker(args.part).search(PAGE.read_text(encoding="utf-8")) is None:
+        parser.error(_no_marker(args.part))  # before the runs, not after them
     if args.part == "shipped":
         table = shipped(args.scenarios or list(builtin_scenarios()))
     elif args.part == "check-step":

@@ -152,3 +152,36 @@ def test_the_median_line_regresses_the_error_on_the_steps(study: ModuleType) -> 
     slope, _ = study._trend(fixed)
     assert slope == pytest.approx(-2.0, abs=0.1)
     assert study._on_trend(study._trend(fixed), trend(5000)) == pytest.approx(5000, rel=0.1)
+
+
+def test_a_table_is_written_between_markers_with_nothing_between_them(
+    study: ModuleType, tmp_path, monkeypatch
+) -> None:
+    """A new part's markers in the page, nothing between them yet (how a contributor adds
+    a table): ``--write`` said "no marker" after the whole study and printed no table."""
+    page = tmp_path / "coupling.md"
+    page.write_text("<!-- coupling_study.py scatter -->\n<!-- end -->\nafter\n", encoding="utf-8")
+    monkeypatch.setattr(study, "PAGE", page)
+    study.write("scatter", "| table |")
+    assert page.read_text(encoding="utf-8") == (
+        "<!-- coupling_study.py scatter -->\n| table |\n<!-- end -->\nafter\n"
+    )
+
+
+def test_a_page_without_the_markers_is_refused_before_the_first_run(
+    study: ModuleType, tmp_path, monkeypatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--write`` into a page without the part's markers failed only once every run of
+    the part (up to a quarter of an hour) was done, its table lost."""
+    page = tmp_path / "coupling.md"
+    page.write_text("# Coupling\n", encoding="utf-8")
+    monkeypatch.setattr(study, "PAGE", page)
+
+    def no_run(ids: list[str]) -> str:
+        raise AssertionError("the runs started")
+
+    monkeypatch.setattr(study, "scatter", no_run)
+    with pytest.raises(SystemExit) as ended:
+        study.main(["scatter", "--write"])
+    assert ended.value.code == 2
+    assert "no marker <!-- coupling_study.py scatter -->" in capsys.readouterr().err
