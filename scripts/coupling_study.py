@@ -50,7 +50,8 @@ neighbourhood's doSteps (at 1e-3, and its most) against the envelope step's.
 
 ``--write`` replaces the table between the markers ``<!-- coupling_study.py <part> -->``
 and ``<!-- end -->`` in docs/coupling.md (``shipped --scenarios``: only those scenarios'
-rows, the others' kept); without it the table is printed. Runs go through
+rows, the others' kept; a page without the part's markers is refused before the first
+run); without it the table is printed. Runs go through
 the master (no files written); the machine's load is printed beside the times.
 """
 
