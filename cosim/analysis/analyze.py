@@ -21,6 +21,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -401,12 +402,21 @@ def phase_trajectories(
 
 
 def _output_folder(out: Path, what: str) -> None:
-    """Make ``out`` (and its parents) before the minutes of work that fill it; raises
-    CosimError naming it when it cannot be made (a file of that name, no permission)."""
+    """Make ``out`` (and its parents) and write a file there, removed at once, before the
+    minutes of work that fill it; raises CosimError naming it and ``--out`` when it cannot
+    be made (a file of that name, no permission) or written (a read-only working folder's
+    ``analysis/``, which an earlier run made)."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise CosimError(f"cannot write {what} to {out}: {unmade_folder(out, exc)}") from None
+        why = unmade_folder(out, exc)
+    else:
+        try:
+            tempfile.TemporaryFile(dir=out).close()
+            return
+        except OSError as exc:
+            why = exc.strerror or str(exc)
+    raise CosimError(f"cannot write {what} to {out}: {why}; name a folder you can write with --out")
 
 
 def phase_portrait_command(conditions: OperatingConditions, out: Path) -> int:

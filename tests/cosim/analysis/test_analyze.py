@@ -8,13 +8,19 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+from process_group import run_in_group
+from read_only import read_only_prefix, writable_again
 from reference_values import dissertation
 
+import cosim
 from cosim.analysis.bifurcation import Q_PROP
 from cosim.cli import build_parser, main
 from plant_fmu.model.dynamics import STATE_NAMES, Variant
@@ -184,6 +190,53 @@ def test_an_output_folder_that_cannot_be_made_is_refused_before_computing(
     assert code == 1
     assert f"cannot write {what} to {taken}: it is not a folder" in err
     assert len(err.strip().splitlines()) == 1
+
+
+# the analysis in a process of its own (the folder made read-only for it), its work
+# replaced by a failure: the folder must be refused before it
+_UNWORKED = """
+import sys
+from pathlib import Path
+import cosim.analysis.analyze as analyze
+from cosim.cli import main
+
+def computed(*args, **kwargs):
+    raise AssertionError("computed before the output folder was checked")
+
+analyze.sweep = analyze.find_equilibria = computed
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("analysis", "what"),
+    [(["sweep", "eta", "1", "2"], "the sweep outputs"), (["phase-portrait"], "the phase portrait")],
+)
+def test_an_output_folder_that_cannot_be_written_is_refused_before_computing(
+    tmp_path, analysis, what
+):
+    """An --out folder that exists but cannot be written (the default ``analysis/`` of a
+    read-only working folder) was found out after the minutes of work, and the refusal
+    did not say how to go on: it names the folder and --out, before any work."""
+    out = tmp_path / "analysis"
+    out.mkdir()
+    packages = Path(cosim.__file__).resolve().parents[1]
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(packages), os.environ.get("PYTHONPATH")])),
+    }
+    command = [sys.executable, "-c", _UNWORKED, "analyze", *analysis, "--out", str(out)]
+    try:
+        done = run_in_group([*read_only_prefix(out), *command], timeout=300, env=env)
+    finally:
+        writable_again(out)
+    assert done.returncode == 1, done.stderr
+    assert re.fullmatch(
+        f"auv-cosim analyze: cannot write {what} to {re.escape(str(out))}: "
+        "(Permission denied|Read-only file system); name a folder you can write with --out\n",
+        done.stderr,
+    ), done.stderr
 
 
 @pytest.mark.slow
