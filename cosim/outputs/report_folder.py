@@ -5,7 +5,8 @@ The report writes :data:`REPORT_MANIFEST` beside its files: each file it wrote w
 identifies it (:func:`cosim.outputs.tail_guard.file_identity`) and the stamp of the run it
 was made from (:func:`run_stamp`: the scenario, its status and the SHA-256 of its
 results.csv). :func:`check_writable` refuses to write over a file in ``report/`` that no
-report wrote, or that changed since (a user's own ``index.html``); :func:`mark_stale` is
+report wrote, or that changed since (a user's own ``index.html``; a copy of a file it
+wrote, in a run folder copied whole, is still its own: :func:`_as_written`); :func:`mark_stale` is
 called when a run replaces the one a kept report was made from: the page gets a banner
 saying so (only a page the report wrote, unchanged).
 
@@ -92,11 +93,23 @@ def check_writable(folder: Path, names: Iterable[str]) -> None:
         if not os.path.lexists(path):
             continue
         identity = manifest["files"].get(name)
-        if identity is None or not unchanged(path, identity):
+        if identity is None or not _as_written(path, identity):
             raise CosimError(
                 f"cannot write the report into {folder}: {name} is not a file a report wrote "
                 "(your own, or changed since); move it away and run the report again"
             )
+
+
+def _as_written(path: Path, identity: dict[str, Any]) -> bool:
+    """``path`` is the regular file a report wrote as ``identity`` describes it: that file
+    unchanged, or a copy of it, the same bytes (a run folder copied whole, as one does to
+    report a run one can only read: other device, inode and time). A run's own files are
+    known by their inode too (:mod:`cosim.outputs.run_files`); a report's page or figure
+    holding what the report wrote is the report's, wherever it was copied."""
+    if unchanged(path, identity):
+        return True
+    now = file_identity(path)
+    return now is not None and all(now[k] == identity[k] for k in ("size", "sha256"))
 
 
 def remove_earlier(folder: Path, keep: Iterable[str]) -> None:
@@ -108,7 +121,7 @@ def remove_earlier(folder: Path, keep: Iterable[str]) -> None:
     kept = set(keep)
     for name, identity in manifest["files"].items():
         path = folder / name
-        if name not in kept and "/" not in name and unchanged(path, identity):
+        if name not in kept and "/" not in name and _as_written(path, identity):
             path.unlink(missing_ok=True)
 
 
@@ -127,7 +140,7 @@ def mark_stale(folder: Path, note: str) -> bool:
     page = folder / "index.html"
     if manifest is None or "index.html" not in manifest["files"]:
         return False
-    if not unchanged(page, manifest["files"]["index.html"]):
+    if not _as_written(page, manifest["files"]["index.html"]):
         return False
     try:
         text = page.read_text(encoding="utf-8")

@@ -58,6 +58,7 @@ captions and row headers (``scope="row"``) for a screen reader.
 
 from __future__ import annotations
 
+import errno
 import html
 import json
 import math
@@ -302,9 +303,15 @@ def write_report(run_dir: Path) -> Path:
         if made_out:
             shutil.rmtree(out, ignore_errors=True)
         why = unwritten(exc) if exc.strerror else os.strerror(exc.errno) if exc.errno else str(exc)
+        denied = exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS)
         raise CosimError(
             f"cannot write the report into {out}: {why}; nothing of it is left "
             f"({'no report made' if made_out else 'the earlier report is as it was'})"
+            + (
+                "; copy the run folder to a folder you can write and report the copy"
+                if denied
+                else ""
+            )
         ) from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)

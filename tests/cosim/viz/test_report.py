@@ -8,15 +8,21 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from chromium import CHROMIUM, overflow
 from page_structure import problems, read_page
+from process_group import run_in_group
+from read_only import read_only_prefix, writable_again
 from report_figures import kept_figures
 
+import cosim
 from cosim.cli import main
 from cosim.errors import CosimError
 from cosim.viz.report import index_page, write_report
@@ -372,6 +378,48 @@ def test_a_report_never_writes_over_a_file_no_report_wrote(tmp_path, capsys, mak
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot write the report into" in err, err
     assert mine.read_bytes() == before
+
+
+def test_a_copied_run_folder_is_reported_again_over_the_copied_report(tmp_path, capsys):
+    """A run folder copied with its report (a colleague's run one can only read, copied to
+    report it) was refused: "index.html is not a file a report wrote (your own, or changed
+    since)", as the copies have other inodes. A copy holding the bytes a report wrote is
+    that report's; the copied manifest's other files are replaced and a figure no longer
+    drawn is dropped, as in the original folder."""
+    run = _sparse_run(tmp_path / "run", ("plant.u", "plant.roll"))
+    write_report(run)
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    _sparse_run(copy)  # results.csv of another run: plant.u only
+    capsys.readouterr()
+    assert main(["report", str(copy)]) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in (copy / "report").glob("*.png")) == ["velocities.png"]
+
+
+def test_a_run_folder_that_cannot_be_written_is_refused_with_a_way_on(tmp_path):
+    """A report of a run folder one can only read (a colleague's, an archive's) said only
+    "Permission denied; nothing of it is left (no report made)": it says to copy it."""
+    run = _sparse_run(tmp_path / "run")
+    packages = Path(cosim.__file__).resolve().parents[1]
+    path = os.pathsep.join(filter(None, [str(packages), os.environ.get("PYTHONPATH")]))
+    command = [sys.executable, "-m", "cosim", "report", str(run)]
+    try:
+        prefix = read_only_prefix(run)
+        done = run_in_group(
+            [*prefix, *command], timeout=300, env={**os.environ, "PYTHONPATH": path}
+        )
+    finally:
+        writable_again(run)
+    assert done.returncode == 1
+    assert done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith(
+        f"auv-cosim report: cannot write the report into {run / 'report'}: "
+    )
+    assert done.stderr.endswith(
+        "nothing of it is left (no report made); copy the run folder to a folder you can "
+        "write and report the copy\n"
+    ), done.stderr
+    assert not (run / "report").exists()
 
 
 def test_a_report_replaces_its_own_files_and_drops_figures_it_no_longer_draws(tmp_path):
