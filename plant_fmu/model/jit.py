@@ -7,7 +7,10 @@ decides once per process whether numba is usable:
 * ``AUV_COSIM_NO_JIT=1`` in the environment turns it off (the reference numpy path runs);
 * a numba that cannot be imported turns it off too, whatever it raises (a broken install:
   llvmlite's ``OSError``, numba's ``ImportError`` for a numpy it does not support);
-  callers log that as a warning with :func:`numba_fix`.
+  callers log that as a warning with :func:`numba_fix` (which names the user's ``NUMBA_*``
+  variables when numba refused one of them as it was imported: ``NUMBA_NUM_THREADS=0``);
+* a ``NUMBA_CPU_FEATURES`` item without its + or - sign turns it off as well: LLVM would
+  abort the whole process (an FMU's host) at the first compilation.
 
 Cache folder: numba's default is ``__pycache__`` next to the source, which for an FMU is
 the fresh temporary folder the importer unzips it into, so every run would compile again
@@ -75,6 +78,9 @@ WARNED_VARIABLE = "AUV_COSIM_NUMBA_CACHE_WARNED"  # the cache folder already war
 # in the temporary folder, with the uid: numba's cache where there is no home folder
 TEMPORARY_CACHE_PREFIX = "auv-cosim-cache-"
 _BROKEN = "numba is installed but cannot be imported"  # how load_numba's reason says so
+FEATURES_VARIABLE = "NUMBA_CPU_FEATURES"
+# numba variables auv-cosim sets itself (not the user's doing, so never named as a cause)
+_OURS = ("NUMBA_CACHE_DIR",)
 
 
 def default_cache_dir() -> Path:
@@ -104,6 +110,13 @@ def load_numba() -> tuple[ModuleType | None, str]:
     """(the numba module, "") when the compiled paths may be used, else (None, why not)."""
     if os.environ.get(NO_JIT_VARIABLE, "").strip() not in ("", "0"):
         return None, f"{NO_JIT_VARIABLE}={os.environ[NO_JIT_VARIABLE]} turns the compiled path off"
+    unsigned = _unsigned_cpu_features(os.environ.get(FEATURES_VARIABLE, ""))
+    if unsigned:
+        return None, (
+            f"{FEATURES_VARIABLE}={os.environ[FEATURES_VARIABLE]!r} holds {unsigned!r}, "
+            "which LLVM aborts the process on (expected features each starting with + or "
+            "-, comma-separated: '+avx2,-fma')"
+        )
     os.environ.setdefault("NUMBA_CACHE_DIR", str(default_cache_dir()))
     try:
         import numba
@@ -111,21 +124,49 @@ def load_numba() -> tuple[ModuleType | None, str]:
     except ImportError as exc:
         if isinstance(exc, ModuleNotFoundError) and exc.name == "numba":
             return None, f"numba cannot be imported ({exc})"
-        return None, f"{_BROKEN} ({type(exc).__name__}: {exc})"
+        return None, f"{_BROKEN} ({type(exc).__name__}: {exc}){_numba_settings()}"
     except Exception as exc:  # a broken install is no numba (numba is optional): llvmlite
         # raises OSError when its shared library is missing or needs a newer glibc, a numba
-        # built for another numpy can raise AttributeError; the FMU then steps numpy's path
-        return None, f"{_BROKEN} ({type(exc).__name__}: {exc})"
+        # built for another numpy can raise AttributeError; the FMU then steps numpy's path.
+        # A setting numba refuses as it is imported (NUMBA_NUM_THREADS=0: ValueError) too.
+        return None, f"{_BROKEN} ({type(exc).__name__}: {exc}){_numba_settings()}"
     _install_locator()
     return numba, ""
+
+
+def _unsigned_cpu_features(features: str) -> str:
+    """The first item of a ``NUMBA_CPU_FEATURES`` value that does not start with + or -
+    ("" if none): LLVM asserts on such an item and aborts the process at the first
+    compilation (numba passes the text on unchecked), where an FMU's host would die."""
+    return next((item for item in features.split(",") if item and item[0] not in "+-"), "")
+
+
+def _numba_settings() -> str:
+    """ ", with NUMBA_X='value' set" naming the user's numba variables (numba reads them as
+    it is imported, and refuses some values by raising), or "" where none is set."""
+    settings = [
+        f"{name}={value!r}"
+        for name, value in sorted(os.environ.items())
+        if name.startswith("NUMBA_") and name not in _OURS
+    ]
+    return f", with {', '.join(settings)} set" if settings else ""
 
 
 def numba_fix(reason: str) -> str:
     """What gives this Python the compiled paths, when :func:`load_numba` said ``reason``."""
     if reason.startswith(NO_JIT_VARIABLE):
         return f"unset {NO_JIT_VARIABLE} for the compiled plant"
+    if reason.startswith(FEATURES_VARIABLE):
+        return f"correct or unset {FEATURES_VARIABLE} for the compiled plant"
     if not reason.startswith(_BROKEN):
         return "install numba in this Python for the compiled plant"
+    settings = reason.rpartition(", with ")[2]
+    if reason.endswith(" set") and settings.startswith("NUMBA_"):
+        names = ", ".join(item.partition("=")[0] for item in settings[:-4].split(", "))
+        return (
+            f"correct or unset {names} (numba reads its variables as it is imported) for the "
+            "compiled plant, else repair numba"
+        )
     import numpy
 
     python = sys.executable or "python"
