@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from fmu_runtime.log_text import shortened
+from fmu_runtime.log_text import shortened, without_traceback
 
 
 class CosimError(Exception):
@@ -173,7 +173,7 @@ def one_line_warnings(who: str) -> Callable[..., None]:
     """``warnings.showwarning`` of a process ``who`` names ("auv-cosim run", a study's
     worker): a warning as one line on stderr, "<who>: warning: <message>", as the command's
     errors are (Python's shows the file, the line number and the source line of the code
-    that warned: noise to a user)."""
+    that warned: noise to a user; so is a traceback a library's warning holds)."""
 
     def show(
         message: Warning | str,
@@ -183,8 +183,7 @@ def one_line_warnings(who: str) -> Callable[..., None]:
         file: TextIO | None = None,
         line: str | None = None,
     ) -> None:
-        text = " ".join(str(message).split())
-        print(f"{who}: warning: {shortened(text)}", file=sys.stderr)
+        print(f"{who}: warning: {shortened(without_traceback(str(message)))}", file=sys.stderr)
 
     return show
 

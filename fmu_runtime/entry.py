@@ -48,6 +48,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, cast
 
+from .log_text import without_traceback
+
 _PACKAGE_INIT = '''"""The Python code of {fmu}.fmu and its siblings of one build (by the build).
 
 {packages}, with their imports renamed under this package, whose name is taken from their
@@ -115,7 +117,8 @@ def import_packages(package: str, names: Iterable[str]) -> None:
     it keeps the warning too, where it failed the import and so fmi2Instantiate. Builds
     imported from several threads take turns (:func:`_warnings_lock`); a warning another
     thread of the host raises meanwhile is kept with them (the warnings module's state is
-    process-wide in Python before 3.14)."""
+    process-wide in Python before 3.14). Each is kept as one line, a traceback it holds
+    cut to its exception (:func:`~fmu_runtime.log_text.without_traceback`)."""
     with _warnings_lock(), warnings.catch_warnings(record=True) as said:
         rules = cast("list[Any]", warnings.filters)  # a list (typeshed: a Sequence)
         rules[:] = [("default", *rule[1:]) if rule[0] == "error" else rule for rule in rules]
@@ -127,7 +130,7 @@ def import_packages(package: str, names: Iterable[str]) -> None:
             for info in pkgutil.walk_packages(module.__path__, prefix=f"{full}."):
                 importlib.import_module(info.name)
             _imported[full] = module
-    _import_warnings.extend(str(warning.message) for warning in said)
+    _import_warnings.extend(without_traceback(str(warning.message)) for warning in said)
 
 
 def _warnings_lock() -> AbstractContextManager[Any]:

@@ -92,6 +92,40 @@ def test_an_import_warning_is_kept_for_the_logger_under_a_hosts_error_filter(tmp
     assert entry.take_import_warnings() == ["cache folder cannot be written"]
 
 
+# numba's warning of a NUMBA_* value it cannot parse (numba/core/config.py), as it reads
+NUMBA_PARSE_WARNING = (
+    "Environment variable 'NUMBA_OPT' is defined but its associated value '9' could not "
+    "be parsed.\nThe parse failed with exception:\nTraceback (most recent call last):\n"
+    '  File "numba/core/config.py", line 185, in _readenv\n    return ctor(value)\n'
+    "           ^^^^^^^^^^^\nValueError: Environment variable `NUMBA_OPT` is set to an "
+    "unsupported value '9', supported values are 0, 1, 2, 3, and 'max'\n"
+)
+
+
+def test_an_import_warning_carrying_a_traceback_is_kept_as_one_line(tmp_path, monkeypatch):
+    """numba's warning of a setting it cannot parse (NUMBA_OPT=9) holds a whole Python
+    traceback, which the FMU logged to its host as it was: nine lines, or one joined by
+    " | " in auv-cosim's output. Kept: what it says before the traceback and its last
+    line, the exception, on one line."""
+    (tmp_path / "tbpkg" / "sub").mkdir(parents=True)
+    (tmp_path / "tbpkg" / "__init__.py").write_text("")
+    (tmp_path / "tbpkg" / "sub" / "__init__.py").write_text(
+        f"import warnings\nwarnings.warn({NUMBA_PARSE_WARNING!r}, UserWarning)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    entry.take_import_warnings()  # none of an earlier test's
+    try:
+        entry.import_packages("tbpkg", ["sub"])
+    finally:
+        _forget("tbpkg")
+    assert entry.take_import_warnings() == [
+        "Environment variable 'NUMBA_OPT' is defined but its associated value '9' could "
+        "not be parsed. The parse failed with exception: ValueError: Environment variable "
+        "`NUMBA_OPT` is set to an unsupported value '9', supported values are 0, 1, 2, 3, "
+        "and 'max'"
+    ]
+
+
 TWO_BUILDS = """
 import sys, threading, warnings
 from pathlib import Path
