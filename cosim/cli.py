@@ -58,6 +58,7 @@ from cosim.errors import (
     CosimError,
     did_you_mean,
     matplotlib_folder_in_one_line,
+    matplotlib_off_screen,
     one_line,
     one_line_warnings,
     unencodable,
@@ -1101,6 +1102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:
         warnings.showwarning = one_line_warnings(f"auv-cosim {args.command}")
         matplotlib_folder_in_one_line()
+        matplotlib_off_screen()
     # a study's imports and cluster with the collector off (cosim.study.collector); not in a
     # caller's process, whose objects the collector's resumption would freeze for good
     collecting = paused() if argv is None and args.command == "sweep" else nullcontext()

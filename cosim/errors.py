@@ -219,6 +219,16 @@ class _MatplotlibFolderInOneLine(logging.Filter):
         return True
 
 
+def matplotlib_off_screen() -> None:
+    """Have matplotlib draw with its Agg canvas in this process, before it is imported: the
+    command's figures are matplotlib Figures saved as PNG files, never a window, so the
+    backend a user's ``MPLBACKEND`` names (for plots of their own) is of no use to it, and
+    one matplotlib does not know (``MPLBACKEND=garbage``) failed its import and with it
+    every command that draws. For the command's own process only: the Python API leaves
+    its caller's backend as it is."""
+    os.environ["MPLBACKEND"] = "agg"
+
+
 def matplotlib_folder_in_one_line() -> None:
     """Have matplotlib's warnings of a folder it cannot write said in one line (with
     :func:`one_line_warnings`), before matplotlib is imported; matplotlib itself is not."""
