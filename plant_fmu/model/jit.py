@@ -124,12 +124,13 @@ def load_numba() -> tuple[ModuleType | None, str]:
     except ImportError as exc:
         if isinstance(exc, ModuleNotFoundError) and exc.name == "numba":
             return None, f"numba cannot be imported ({exc})"
-        return None, f"{_BROKEN} ({type(exc).__name__}: {exc}){_numba_settings()}"
+        return None, f"{_BROKEN} ({type(exc).__name__}: {exc})"
     except Exception as exc:  # a broken install is no numba (numba is optional): llvmlite
         # raises OSError when its shared library is missing or needs a newer glibc, a numba
         # built for another numpy can raise AttributeError; the FMU then steps numpy's path.
-        # A setting numba refuses as it is imported (NUMBA_NUM_THREADS=0: ValueError) too.
-        return None, f"{_BROKEN} ({type(exc).__name__}: {exc}){_numba_settings()}"
+        # A setting numba refuses as it is imported raises ValueError (NUMBA_NUM_THREADS=0).
+        settings = _numba_settings() if isinstance(exc, ValueError) else ""
+        return None, f"{_BROKEN} ({type(exc).__name__}: {exc}){settings}"
     _install_locator()
     return numba, ""
 
@@ -160,20 +161,21 @@ def numba_fix(reason: str) -> str:
         return f"correct or unset {FEATURES_VARIABLE} for the compiled plant"
     if not reason.startswith(_BROKEN):
         return "install numba in this Python for the compiled plant"
+    import numpy
+
+    python = sys.executable or "python"
+    repair = (
+        f"repair numba for the compiled plant ({python} -m pip install --force-reinstall "
+        f"numba, a release that supports numpy {numpy.__version__})"
+    )
     settings = reason.rpartition(", with ")[2]
     if reason.endswith(" set") and settings.startswith("NUMBA_"):
         names = ", ".join(item.partition("=")[0] for item in settings[:-4].split(", "))
         return (
             f"correct or unset {names} (numba reads its variables as it is imported) for the "
-            "compiled plant, else repair numba"
+            f"compiled plant, else {repair}"
         )
-    import numpy
-
-    python = sys.executable or "python"
-    return (
-        f"repair numba for the compiled plant ({python} -m pip install --force-reinstall "
-        f"numba, a release that supports numpy {numpy.__version__})"
-    )
+    return repair
 
 
 def njit(numba: ModuleType, function: _F) -> _F:
