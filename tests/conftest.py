@@ -13,6 +13,8 @@ Python runner.
   tests that use it).
 * ``test_fmu_dir`` (session): the folder holding the master tests' FMUs built from
   tests/fmus (``CosimTestIntegrator.fmu``, ``CosimTestGain.fmu``).
+* ``users_mypy_cache`` (session): mypy's cache folder the tests of a user's ``mypy
+  --strict`` share (``tests/users_mypy.py``), one per test process.
 * Every test using ``fmu_paths`` or ``test_fmu_dir`` is marked ``fmu``.
 * Hypothesis runs without its deadline (an example over 200 ms failed as
   DeadlineExceeded): on a loaded machine that is a timed assertion, which the suite
@@ -175,6 +177,13 @@ def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         except CosimError as exc:
             failures[name] = exc
     return BuiltFmus(built, failures)
+
+
+@pytest.fixture(scope="session")
+def users_mypy_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """mypy's incremental cache for ``tests/users_mypy.py``, one per test process (pytest-
+    xdist's workers do not share it, so no two mypy runs write it at once)."""
+    return tmp_path_factory.mktemp("users_mypy_cache")
 
 
 @pytest.fixture(scope="session")

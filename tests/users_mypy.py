@@ -11,16 +11,22 @@ import pytest
 import cosim
 
 
-def users_mypy(scripts: list[Path], folder: Path) -> tuple[str, int]:
+def users_mypy(scripts: list[Path], folder: Path, cache: Path) -> tuple[str, int]:
     """``mypy --strict`` of a user's ``scripts`` calling the package, read as installed (its
-    own errors are not the user's), with a configuration and cache of the user's in
-    ``folder`` (not this repository's pyproject.toml): mypy's report and exit status."""
+    own errors are not the user's), with a configuration of the user's in ``folder`` (not
+    this repository's pyproject.toml) and mypy's incremental cache in ``cache``: mypy's
+    report and exit status.
+
+    ``cache`` is the ``users_mypy_cache`` fixture of tests/conftest.py, one per test
+    process: mypy's incremental mode re-reads a module whose source or options changed and
+    gives the report a fresh cache gives, so the tests share the analysis of numpy, pandas
+    and cosim (each run with a fresh cache took minutes on a loaded 2-core machine)."""
     api = pytest.importorskip("mypy.api")
     config = folder / "mypy.ini"
     package_root = Path(cosim.__file__).resolve().parents[1]
     config.write_text(f"[mypy]\nmypy_path = {package_root}\n", encoding="utf-8")
     arguments = ["--strict", "--follow-imports", "silent", "--config-file", str(config)]
-    arguments += ["--cache-dir", str(folder / "cache"), *map(str, scripts)]
+    arguments += ["--cache-dir", str(cache), *map(str, scripts)]
     limit = sys.getrecursionlimit()
     config_folder = os.environ.get("MYPY_CONFIG_FILE_DIR")
     try:

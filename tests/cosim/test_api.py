@@ -1076,25 +1076,29 @@ def main() -> None:
 """
 
 
-def _users_mypy(script_text: str, tmp_path: Path) -> tuple[str, int]:
+def _users_mypy(script_text: str, tmp_path: Path, cache: Path) -> tuple[str, int]:
     """``mypy --strict`` of a user's script ``script_text`` (:func:`users_mypy`)."""
     script = tmp_path / "user.py"
     script.write_text(script_text, encoding="utf-8")
-    return users_mypy([script], tmp_path)
+    return users_mypy([script], tmp_path, cache)
 
 
 @pytest.mark.slow
-def test_a_users_mypy_strict_takes_the_numpy_start_values_the_docs_show(tmp_path: Path) -> None:
+def test_a_users_mypy_strict_takes_the_numpy_start_values_the_docs_show(
+    tmp_path: Path, users_mypy_cache: Path
+) -> None:
     """docs/api.md: a numpy scalar start value (``np.float32(-0.05)``) counts as its Python
     value, and cosim.run takes it; the annotations said bool, int, float or str only, so a
     user's ``mypy --strict`` refused the documented call ("Dict entry 0 has incompatible
     type")."""
-    report, status = _users_mypy(USER_SCRIPT, tmp_path)
+    report, status = _users_mypy(USER_SCRIPT, tmp_path, users_mypy_cache)
     assert status == 0, report
 
 
 @pytest.mark.slow
-def test_a_users_mypy_catches_a_mistyped_algorithm_in_with_overrides(tmp_path: Path) -> None:
+def test_a_users_mypy_catches_a_mistyped_algorithm_in_with_overrides(
+    tmp_path: Path, users_mypy_cache: Path
+) -> None:
     """``Scenario.with_overrides`` takes the algorithm, extrapolation and error estimate
     ``cosim.run`` takes, typed as their names: a typo is the user's mypy error before it
     is the run's refusal (they were typed ``str``, so mypy passed ``"jacobbi"``)."""
@@ -1102,19 +1106,21 @@ def test_a_users_mypy_catches_a_mistyped_algorithm_in_with_overrides(tmp_path: P
         "import cosim\n\n\ndef main() -> None:\n"
         '    cosim.load_scenario("bs-3").with_overrides(algorithm="jacobbi")\n'
     )
-    report, status = _users_mypy(script, tmp_path)
+    report, status = _users_mypy(script, tmp_path, users_mypy_cache)
     assert status == 1 and 'Argument "algorithm" to "with_overrides"' in report, report
 
 
 @pytest.mark.slow
-def test_a_users_mypy_catches_a_string_given_for_sweeps_security(tmp_path: Path) -> None:
+def test_a_users_mypy_catches_a_string_given_for_sweeps_security(
+    tmp_path: Path, users_mypy_cache: Path
+) -> None:
     """``cosim.sweep``'s ``security`` is a ``distributed.Security``: typed ``Any``, a user's
     ``mypy --strict`` passed the folder of the certificates given in its place."""
     script = (
         "import cosim\n\n\ndef main() -> None:\n"
         '    cosim.sweep("study.toml", scheduler="tls://10.0.0.5:8786", security="certs/")\n'
     )
-    report, status = _users_mypy(script, tmp_path)
+    report, status = _users_mypy(script, tmp_path, users_mypy_cache)
     assert status == 1 and 'Argument "security" to "sweep"' in report, report
 
 

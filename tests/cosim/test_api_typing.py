@@ -31,7 +31,7 @@ def _expected_errors(script: Path) -> dict[int, str]:
 
 @pytest.mark.slow
 def test_a_users_mypy_strict_passes_the_documented_calls_and_catches_the_mistakes(
-    tmp_path: Path,
+    tmp_path: Path, users_mypy_cache: Path
 ) -> None:
     """``import cosim`` names each API function through a module ``__getattr__`` typed to
     return Any: a misspelt ``cosim.rnu("bs-3")`` was no error to a user's type checker, and
@@ -39,7 +39,7 @@ def test_a_users_mypy_strict_passes_the_documented_calls_and_catches_the_mistake
     docs/api.md shows passes ``mypy --strict`` (user.py); each mistake in typos.py is an
     error at its line, and nothing else is."""
     user, typos = DOWNSTREAM / "user.py", DOWNSTREAM / "typos.py"
-    report, status = users_mypy([user, typos], tmp_path)
+    report, status = users_mypy([user, typos], tmp_path, users_mypy_cache)
     errors = re.findall(r"^(.+?):(\d+): error: (.+)$", report, flags=re.MULTILINE)
     assert [e for e in errors if Path(e[0]).name != "typos.py"] == [], report
     given = {int(line): message for _, line, message in errors}
