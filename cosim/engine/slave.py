@@ -265,15 +265,16 @@ class Slave:
 
     def _terminate(self) -> None:
         """fmi2Terminate; a failure is kept among the messages, and after an Error the
-        instance is still freed (FMI 2.0, 4.2.4), after a Fatal not."""
+        instance is still freed (FMI 2.0, 4.2.4), after a Fatal or a number out of the
+        enum not (fmpy's wrapper raises above fmi2Warning only: -1 is returned)."""
         try:
-            self.fmu.terminate()
+            status = self.fmu.terminate()
         except FMICallException as exc:
-            self.messages.append(
-                f"[{label(exc.status)}] fmi2Terminate returned {label(exc.status)}"
-            )
+            status = exc.status
+        if status not in PASSED:
+            self.messages.append(f"[{label(status)}] fmi2Terminate returned {label(status)}")
             self.logged += 1
-            self.failed(exc.status)
+            self.failed(status)
         if self.state == "stepping":
             self.state = "terminated"
 

@@ -77,6 +77,21 @@ def test_a_fatal_terminate_leaves_the_instance_alone(tmp_path: Path) -> None:
     assert not freed(fmu, "d")
 
 
+def test_a_terminate_status_out_of_the_standard_is_reported_and_not_freed(
+    tmp_path: Path,
+) -> None:
+    """fmi2Terminate answering a number no fmi2Status has (-1): fmpy's wrapper raises only
+    above fmi2Warning, so it passed as OK, unreported, and the instance was freed. It is
+    kept among the messages, naming the number, and the instance is not called again (as
+    after such a status from a step: nothing says what it may still do)."""
+    fmu = status_fmu(tmp_path, "OK", 0.35, terminate=-1)
+    result = run_of(fmu)
+    assert result.messages["d"] == [
+        "[-1 (not an fmi2Status)] fmi2Terminate returned -1 (not an fmi2Status)"
+    ]
+    assert not freed(fmu, "d")
+
+
 _CLI = "import sys; from cosim.cli import main; sys.argv[0] = 'auv-cosim'; sys.exit(main())"
 
 
