@@ -156,13 +156,66 @@ static void parse(char *text, Answer *a)
     }
 }
 
-/* The last non-empty line of the child's stderr, or "". */
+/* The last non-empty line of the child's stderr, or "" (the text ends there after). */
 static const char *last_line(Buffer *b)
 {
     while (b->size && (b->data[b->size - 1] == '\n' || b->data[b->size - 1] == '\r')) b->size--;
     b->data[b->size] = '\0';
     char *line = strrchr(b->data, '\n');
     return line ? line + 1 : b->data;
+}
+
+/* The line after ``line`` ("\n", "\r\n" or "\r" from a Windows Python), or NULL. */
+static const char *next_line(const char *line)
+{
+    const char *end = line + strcspn(line, "\r\n");
+    if (*end == '\r') end++;
+    if (*end == '\n') end++;
+    return *end ? end : NULL;
+}
+
+static int starts(const char *text, const char *start)
+{
+    return !strncmp(text, start, strlen(start));
+}
+
+#define FATAL "Fatal Python error: "
+
+/* The exception CPython prints after its fatal line and "Python runtime state: ..."
+ * (past a traceback, before the threads' stacks), or NULL when it prints none. */
+static const char *fatal_exception(const char *fatal)
+{
+    const char *line = next_line(fatal);
+    if (!line || !starts(line, "Python runtime state: ")) return NULL;
+    for (line = next_line(line); line && strcspn(line, "\r\n"); line = next_line(line)) {
+        if (starts(line, "Traceback (") || line[0] == ' ') continue;
+        return starts(line, "Current thread") || starts(line, "Thread 0x") ? NULL : line;
+    }
+    return NULL;
+}
+
+/* What the child's stderr says of why it ended, into ``out`` (cut to whole characters):
+ * CPython's "Fatal Python error: " line, where it names a variable of the environment it
+ * refuses (PYTHONHASHSEED=garbage), with the exception after it, if any (PYTHONIOENCODING:
+ * "LookupError: unknown encoding: bogus"); the lines that follow only say how far it got
+ * ("Python runtime state: preinitialized", "<no Python frame>"). Else its last line. */
+static void said_line(Buffer *b, char *out, size_t size)
+{
+    const char *line = last_line(b), *exception = NULL;
+    for (const char *at = b->data; at; at = next_line(at)) {
+        if (starts(at, FATAL)) {
+            line = at;
+            exception = fatal_exception(at);
+            break;
+        }
+    }
+    int n = (int)strcspn(line, "\r\n"); /* at most ERR_LIMIT */
+    if (exception) {
+        snprintf(out, size, "%.*s (%.*s)", n, line, (int)strcspn(exception, "\r\n"), exception);
+    } else {
+        snprintf(out, size, "%.*s", n, line);
+    }
+    out[whole_characters(out, strlen(out))] = '\0';
 }
 
 /* An exit status as a number (in hex when it is a Windows NTSTATUS such as 0xc0000005). */
@@ -200,7 +253,8 @@ static int stdlib_on_pythonpath(char *out, size_t size)
 /* Why a child that did not answer failed, from how it ended. */
 static void explain(Answer *a, const Ran *ran, Buffer *err)
 {
-    const char *said = last_line(err);
+    char said[sizeof a->failure / 2];
+    said_line(err, said, sizeof said);
     const char *sep = said[0] ? ": " : "";
     char status[32];
     exit_status(ran->code, status, sizeof status);

@@ -8,8 +8,9 @@
 
 typedef struct {
     int answered;       /* it printed its whole answer */
-    char failure[1024]; /* why not: could not run, exit status, last line of its stderr,
-                         * a standard library on PYTHONPATH */
+    char failure[1024]; /* why not: could not run, exit status, its stderr's "Fatal Python
+                         * error: " line or else its last line, a standard library on
+                         * PYTHONPATH */
     int major, minor, micro;
     char bad_version[48]; /* its version as it said it, when not three numbers (else "") */
     char implementation[32]; /* platform.python_implementation(): CPython, PyPy, ... */

@@ -228,6 +228,71 @@ def test_what_a_probe_writes_never_reaches_the_host_and_its_last_line_is_said(
     )
 
 
+FATAL_HASH_SEED = (
+    'Fatal Python error: config_init_hash_seed: PYTHONHASHSEED must be "random" or an '
+    "integer in range [0; 4294967295]"
+)
+
+
+@pytest.mark.parametrize(
+    ("stderr", "said"),
+    [
+        # the fatal line names the variable; the last line only says how far CPython got
+        (f"{FATAL_HASH_SEED}\nPython runtime state: preinitialized\n\n", FATAL_HASH_SEED),
+        # the exception after the state says what the fatal line cannot (the bad value)
+        ("Fatal Python error: init_stdio_encoding: failed to get the Python codec name of "
+         "the stdio encoding\nPython runtime state: core initialized\nLookupError: unknown "
+         "encoding: bogus\n\nCurrent thread 0x00007f (most recent call first):\n  <no "
+         "Python frame>\n",
+         "Fatal Python error: init_stdio_encoding: failed to get the Python codec name of the "
+         "stdio encoding (LookupError: unknown encoding: bogus)"),
+        # no fatal line: the last one, as before
+        ("Traceback (most recent call last):\nImportError: no site\n", "ImportError: no site"),
+    ],
+)  # fmt: skip
+def test_a_fatal_python_error_line_is_said_rather_than_the_last(
+    stderr, said, host, extracted, tmp_path, clean_home
+):
+    """A Python that refuses a value of the host's environment at start-up names the
+    variable in its "Fatal Python error: " line, then says how far it got: the line said
+    was the last ("Python runtime state: preinitialized", "<no Python frame>")."""
+    fake = fake_python(tmp_path, {}, stderr=stderr, status=1)
+    done = _run(host, extracted, tmp_path, clean_home, **{OVERRIDE_VARIABLE: str(fake)})
+    assert done.stderr == ""
+    assert _candidate(done, 2) == (
+        f"{OVERRIDE_VARIABLE}={fake}: exited with status 1 before answering: {said}"
+    )
+
+
+@pytest.mark.parametrize(
+    ("variable", "value", "named"),
+    [
+        ("PYTHONHASHSEED", "garbage", "PYTHONHASHSEED must be"),
+        ("PYTHONMALLOC", "x", "PYTHONMALLOC: unknown allocator"),
+        ("PYTHONTRACEMALLOC", "x", "PYTHONTRACEMALLOC: invalid number of frames"),
+        ("PYTHONIOENCODING", "bogus:xx", "LookupError: unknown encoding: bogus"),
+        # refused by the child; the start in the host, in UTF-8 mode, would ignore it
+        ("PYTHONUTF8", "7", "invalid PYTHONUTF8 environment variable value"),
+    ],
+)
+def test_a_real_python_refusing_a_variable_is_refused_by_the_probe_naming_it(
+    variable, value, named, host, extracted, tmp_path, clean_home
+):
+    """This Python with a value it refuses in the host's environment: the probe's child
+    refuses it, so the runtime never starts it in the host (where CPython's start-up
+    would end the host with the same fatal error: exit status 1, the error on the
+    host's stderr); the candidate's line names the variable."""
+    done = _run(host, extracted, tmp_path, clean_home,
+                **{OVERRIDE_VARIABLE: sys.executable, variable: value})  # fmt: skip
+    assert (done.returncode, done.stderr) == (3, ""), done.stdout + done.stderr
+    line = _candidate(done, 2)
+    assert line.startswith(
+        f"{OVERRIDE_VARIABLE}={sys.executable}: exited with status 1 before answering: "
+        "Fatal Python error: "
+    ), line
+    assert named in line, line
+
+
 STDLIB_HINT = (
     " (the environment's PYTHONPATH holds a Python's standard library, {}, which a Python "
     "of another version cannot start with: unset PYTHONPATH, or leave that folder out of it)"
