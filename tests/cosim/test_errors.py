@@ -4,16 +4,9 @@ from __future__ import annotations
 
 import warnings
 
-from cosim.errors import one_line_warnings
+from numba_warnings import NUMBA_PARSE_WARNING
 
-# numba's warning of a NUMBA_* value it cannot parse (numba/core/config.py), as it reads
-NUMBA_PARSE_WARNING = (
-    "Environment variable 'NUMBA_OPT' is defined but its associated value '9' could not "
-    "be parsed.\nThe parse failed with exception:\nTraceback (most recent call last):\n"
-    '  File "numba/core/config.py", line 185, in _readenv\n    return ctor(value)\n'
-    "           ^^^^^^^^^^^\nValueError: Environment variable `NUMBA_OPT` is set to an "
-    "unsupported value '9', supported values are 0, 1, 2, 3, and 'max'\n"
-)
+from cosim.errors import one_line_warnings
 
 
 def test_a_warning_carrying_a_traceback_is_said_without_it(capsys):

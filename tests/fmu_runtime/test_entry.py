@@ -7,6 +7,8 @@ import sys
 import types
 import warnings
 
+from numba_warnings import NUMBA_PARSE_WARNING
+
 from fmu_runtime import entry
 from fmu_runtime.safe_slave import SafeSlave
 
@@ -90,16 +92,6 @@ def test_an_import_warning_is_kept_for_the_logger_under_a_hosts_error_filter(tmp
     finally:
         _forget("warnpkg")
     assert entry.take_import_warnings() == ["cache folder cannot be written"]
-
-
-# numba's warning of a NUMBA_* value it cannot parse (numba/core/config.py), as it reads
-NUMBA_PARSE_WARNING = (
-    "Environment variable 'NUMBA_OPT' is defined but its associated value '9' could not "
-    "be parsed.\nThe parse failed with exception:\nTraceback (most recent call last):\n"
-    '  File "numba/core/config.py", line 185, in _readenv\n    return ctor(value)\n'
-    "           ^^^^^^^^^^^\nValueError: Environment variable `NUMBA_OPT` is set to an "
-    "unsupported value '9', supported values are 0, 1, 2, 3, and 'max'\n"
-)
 
 
 def test_an_import_warning_carrying_a_traceback_is_kept_as_one_line(tmp_path, monkeypatch):
