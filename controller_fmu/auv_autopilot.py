@@ -159,7 +159,7 @@ class AuvAutopilot(SafeSlave):
         **SafeSlave.log_categories,
         LOG_LIMITS: "Debug: a command (mass_position_cmd, tunnel_force, fin_angle) reaching "
         "or leaving its limit.",
-        LOG_TUNING: "Debug: tunable parameters written during the run, as the law takes them.",
+        LOG_TUNING: "Debug: tunable parameters changed during the run, as the law takes them.",
     }
 
     description = (
@@ -284,11 +284,14 @@ class AuvAutopilot(SafeSlave):
 
     def _retune(self, autopilot: Autopilot, time: float) -> None:
         """The tunable parameters written since the last step to the autopilot, for the
-        step from ``time`` (s)."""
-        if LOG_TUNING in self.debug_categories:
-            taken = ", ".join(f"{n} = {self._params[n]!r}" for n in sorted(self._tuned))
-            self.log(f"t = {time:.6g} s: the law takes {taken}", category=LOG_TUNING)
-        autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
+        step from ``time`` (s). A value written again unchanged (fmpy's ``input=`` table
+        writes a tunable column at every step) is no change: neither taken nor logged."""
+        changed = sorted(n for n in self._tuned if self._params[n] != getattr(autopilot.config, n))
+        if changed:
+            if LOG_TUNING in self.debug_categories:
+                taken = ", ".join(f"{n} = {self._params[n]!r}" for n in changed)
+                self.log(f"t = {time:.6g} s: the law takes {taken}", category=LOG_TUNING)
+            autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
         self._tuned.clear()  # not if it failed: the step is discarded, the next retries
 
     def _check_step_size(self, autopilot: Autopilot, step_size: float) -> None:

@@ -69,7 +69,7 @@ tools and our own checks may rely on:
   categories: AuvPlant `logPlantSteps` (the RK4 sub-step count and the path, compiled or
   numpy reference, when they change), AuvAutopilot `logAutopilotLimits` (a command,
   `mass_position_cmd`, `tunnel_force` or `fin_angle`, reaching or leaving its limit) and
-  `logAutopilotTuning` (tunable parameters written during a run, as the law takes them);
+  `logAutopilotTuning` (tunable parameters changed during a run, as the law takes them);
   `fmi2SetDebugLogging` takes those and refuses another with fmi2Error, naming them.
   Warnings and worse reach the host's logger whatever debug logging is set to, debug
   (fmi2OK) messages of a category only while it is on for that category, for `logAll` or

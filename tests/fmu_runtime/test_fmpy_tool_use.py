@@ -10,6 +10,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
@@ -184,3 +185,26 @@ def test_a_refused_write_names_the_kind_of_variable_in_words(fmu_paths, run_pyth
     assert done.returncode == 0, done.stderr[-3000:]
     assert "yaw = 1.0 refused: an output cannot be set" in done.stdout, done.stdout
     assert "variant is an Integer, not a Real" in done.stdout, done.stdout
+
+
+@pytest.mark.slow  # the autopilot's backstepping compiled in this process first
+def test_a_tunable_parameter_an_input_table_rewrites_at_each_step_is_logged_as_it_changes(
+    fmu_paths,
+):
+    """fmpy's ``input=`` table writes a tunable parameter's column at every step, changed
+    or not: the autopilot's debug log (logAutopilotTuning) said "the law takes
+    heading_mode = 1" at each of them (100 lines for 1 s), burying the one switch. It must
+    log the changes only, at the step the law switches."""
+    times = np.linspace(0.0, 1.0, 101)  # s
+    columns = [("time", float), ("u_rel", float), ("yaw_setpoint", float)]
+    table = np.zeros(times.size, dtype=[*columns, ("heading_mode", np.int32)])
+    table["time"], table["u_rel"], table["yaw_setpoint"] = times, 1.5, 0.3  # m/s, rad
+    table["heading_mode"] = np.where(times < 0.5, 1, 3)  # LQR, then backstepping + thruster
+    result, messages = _run(
+        fmu_paths["AuvAutopilot"], stop_time=1.0, output_interval=0.01, input=table,
+        start_values={"heading_mode": 1}, debug_logging=True, output=["tunnel_force"],
+    )  # fmt: skip
+    taken = [text for _, text in messages if "the law takes" in text]
+    assert taken == ["t = 0.5 s: the law takes heading_mode = 3"], taken[:3]
+    thruster = result["tunnel_force"] != 0.0  # the LQR steers with the moving mass only
+    assert not thruster[result["time"] <= 0.5].any() and thruster[-1], result
