@@ -252,7 +252,7 @@ class AuvAutopilot(SafeSlave):
         if self._tuned:  # retuned first: the step-size warning is about the law in use
             self._retune(autopilot, current_time)
         if autopilot.designed_for_step and not self._step_warned:
-            self._check_step_size(autopilot, step_size)
+            self._check_step_size(autopilot, current_time, step_size)
         # a failed step leaves the autopilot as it was (Autopilot.step), so the FMU discards
         # the step with its state unchanged. (No comprehension or closure in this method:
         # its cell would be allocated at every step.)
@@ -294,22 +294,41 @@ class AuvAutopilot(SafeSlave):
             autopilot.retune(**{n: self._params[n] for n in TUNABLE_PARAMETERS})
         self._tuned.clear()  # not if it failed: the step is discarded, the next retries
 
-    def _check_step_size(self, autopilot: Autopilot, step_size: float) -> None:
+    def _check_step_size(self, autopilot: Autopilot, current_time: float, step_size: float) -> None:
         """Warn (once) when the law's sample time (``sample_period``, else the
         communication step; the step when it is the longer: the law samples at doSteps
-        only) is not the step the LQR or the sliding mode is designed for."""
+        only) is not the step the LQR or the sliding mode is designed for. A shorter last
+        step, ending at the stop time (a host ends a run off its grid so), is no sign of
+        it; another shorter one may be a host's step to an input event (fmpy's ``input=``
+        table), so the advice says it holds for a host stepping so throughout."""
         design_step = autopilot.config.design_step
         period = autopilot.config.sample_period
         sampled = max(period, step_size) if period else step_size  # the law's sample time
-        if not math.isclose(sampled, design_step, rel_tol=1e-9):
-            digital = period and not sampled > period * (1 + 1e-9)
-            what = "sample_period" if digital else "communication step"
-            self.log(
-                f"{what} {sampled!r} s differs from design_step = {design_step!r} s: the "
-                f"LQR / sliding-mode gains are designed for design_step (set it to the {what})",
-                Fmi2Status.warning,
+        if math.isclose(sampled, design_step, rel_tol=1e-9):
+            return
+        digital = period and not sampled > period * (1 + 1e-9)
+        shorter = sampled < design_step and not digital  # a step, not the sample_period
+        if shorter and self._ends_at_stop_time(current_time + step_size):
+            return
+        what = "sample_period" if digital else "communication step"
+        advice = f"set it to the {what}"
+        if shorter:
+            advice += (
+                " if the host steps so throughout; a single shorter step, as a host takes "
+                "to an input event, needs no change"
             )
-            self._step_warned = True
+        self.log(
+            f"{what} {sampled!r} s differs from design_step = {design_step!r} s: the "
+            f"LQR / sliding-mode gains are designed for design_step ({advice})",
+            Fmi2Status.warning,
+        )
+        self._step_warned = True
+
+    def _ends_at_stop_time(self, end: float) -> bool:
+        """Whether a step ending at ``end`` (s) ends at setupExperiment's stop time (within
+        the relative 1e-9 the runtime allows a host's communication points)."""
+        stop = self._stop_time
+        return abs(end - stop) <= 1e-9 * max(abs(stop), 1.0)
 
     def _state_snapshot(self) -> dict[str, Any]:
         # the measurements and the commands are in the value buffers, saved with them

@@ -208,3 +208,26 @@ def test_a_tunable_parameter_an_input_table_rewrites_at_each_step_is_logged_as_i
     assert taken == ["t = 0.5 s: the law takes heading_mode = 3"], taken[:3]
     thruster = result["tunnel_force"] != 0.0  # the LQR steers with the moving mass only
     assert not thruster[result["time"] <= 0.5].any() and thruster[-1], result
+
+
+@pytest.mark.slow  # the autopilot's LQR designed in three fresh instances
+def test_a_hosts_one_shorter_step_is_not_taken_for_the_communication_step(fmu_paths):
+    """fmpy steps at output_interval = design_step (0.01 s) but shortens the last step to
+    end at a stop time off its grid, and a step to end at an input table's step: the
+    autopilot warned "communication step 0.005 s differs from design_step = 0.01 s ...
+    (set it to the communication step)", advice that would design the LQR for the one
+    short step instead of all the others. The last step says nothing; a shorter step
+    elsewhere says the advice holds only for a host that steps so throughout."""
+    autopilot = fmu_paths["AuvAutopilot"]
+    start = {"heading_mode": 1, "u_rel": 1.5, "yaw_setpoint": 0.3}  # LQR, m/s, rad
+    for stop_time in (1.0, 0.995):  # s: on the grid, off it
+        _, messages = _run(autopilot, stop_time=stop_time, output_interval=0.01, start_values=start)
+        assert messages == [], (stop_time, messages)
+    table = np.zeros(4, dtype=[("time", float), ("yaw_setpoint", float)])
+    table["time"], table["yaw_setpoint"] = [0.0, 0.505, 0.505, 1.0], [0.0, 0.0, 0.3, 0.3]
+    del start["yaw_setpoint"]
+    _, messages = _run(autopilot, stop_time=1.0, output_interval=0.01, start_values=start,
+                       input=table)  # fmt: skip
+    warned = [text for status, text in messages if status == STATUS_WARNING]
+    assert len(warned) == 1 and "0.005" in warned[0], messages
+    assert "if the host steps so throughout" in warned[0], warned[0]
