@@ -22,21 +22,23 @@ The marks come from a tracer put on the sweep's ``PYTHONPATH`` as ``sitecustomiz
 from the fork server, which imports them first). The trace costs ~1 ms a mark.
 
 Each mark also carries its process's CPU seconds (``time.process_time``), so a second
-table shows what the machine's load does not distort: the client's CPU until its
-cluster is ready, while its runs run (the scheduler, the nannies and the client share its
-process: on 2 cores the workers' rival) and in all (``os.wait4``), the fork server's
-imports and the chain before the first warm-up that the client's readiness races (the
-client's CPU until it calls the server, the server's imports, the first worker's start:
-which of the two is longer says, at any load, which one the first run waits for on an
-idle machine), each worker's tasks (count), warm-up and runs, and the runs' CPU over their wall
-time (below 1: the worker waited for a core). The load average is printed beside it.
-A third table estimates, from those CPU seconds, what each sweep would take on this
-machine idle (:func:`idle_estimate`): the start's longer chain, the longest warm-up, the
-runs spread over the cores with the client's CPU beside them, and the client alone after
-the last run; and the ratio of the two estimates, which the end-to-end benchmark's goal
-is about. Under load it compares trees measured at the same time, not a tree with the
-goal: the client's CPU during the runs grows with their wall time (Dask's periodic work),
-which makes the two-worker estimate pessimistic (docs/performance.md).
+table shows what the machine's load does not distort: the client's CPU until its cluster
+is ready, while its runs run (the scheduler, the nannies and the client share its
+process: on 2 cores the workers' rival; split by thread: the command's main thread, the
+page's matplotlib loaded on threads of its own, and Dask's threads, the rest) and in all
+(``os.wait4``), the fork server's imports and the chain before the first warm-up that
+the client's readiness races (the client's CPU until it calls the server, the server's
+imports, the first worker's start: which of the two is longer says, at any load, which
+one the first run waits for on an idle machine), each worker's tasks (count), warm-up
+and runs, and the runs' CPU over their wall time (below 1: the worker waited for a
+core). The load average is printed beside it. A third table estimates, from those CPU
+seconds, what each sweep would take on this machine idle (:func:`idle_estimate`): the
+start's longer chain, the longest warm-up, the runs spread over the cores with the
+client's CPU beside them, and the client alone after the last run; and the ratio of the
+two estimates, which the end-to-end benchmark's goal is about. Under load it compares
+trees measured at the same time, not a tree with the goal: the client's CPU during the
+runs grows with their wall time (Dask's periodic work), which makes the two-worker
+estimate pessimistic (docs/performance.md).
 Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]``.
 """
 
@@ -63,9 +65,55 @@ import contextlib, functools, importlib.abc, os, sys, time
 LOG = os.environ["AUV_COSIM_SWEEP_TRACE"]
 
 
-def mark(what):
+def mark(what, cpu=None):
+    cpu = time.process_time() if cpu is None else cpu
     with open(LOG, "a", encoding="utf-8") as f:
-        f.write(f"{time.time():.4f} {os.getpid()} {time.process_time():.4f} {what}\\n")
+        f.write(f"{time.time():.4f} {os.getpid()} {cpu:.4f} {what}\\n")
+
+
+def mark_threads(what):
+    # each live thread's own CPU seconds, keyed "name#ident"
+    import threading
+
+    for thread in threading.enumerate():
+        with contextlib.suppress(AttributeError, OSError, TypeError):
+            clock = time.pthread_getcpuclockid(thread.ident)
+            mark(f"{what} thread {thread.name}#{thread.ident}", time.clock_gettime(clock))
+
+
+def wrap_execute(module):
+    original = module.execute
+
+    @functools.wraps(original)
+    def traced(*args, **kwargs):
+        mark("execute begin")
+        mark_threads("execute begin")
+        try:
+            return original(*args, **kwargs)
+        finally:
+            mark_threads("execute end")
+            mark("execute end")
+
+    module.execute = traced
+
+
+def wrap_threads(module):
+    # a prefetch thread's CPU seconds when it ends (it may end before the runs do)
+    import threading
+
+    original = module._started
+
+    def started(target):
+        def traced():
+            try:
+                target()
+            finally:
+                me = threading.current_thread()
+                mark(f"thread end {me.name}#{me.ident}", time.thread_time())
+
+        return original(traced)
+
+    module._started = started
 
 
 def wrap(owner, name, label):
@@ -100,9 +148,10 @@ def wrap_client(module):
 PATCHES = {
     "cosim.study.execution": lambda m: (
         wrap_client(m), wrap(m.StudyPlugin, "warm", "warm-up"), wrap(m, "run_on_worker", "task"),
-        wrap(m, "execute", "execute"),
+        wrap_execute(m),
     ),
     "cosim.study.fork_server": lambda m: wrap(m, "start", "fork server call"),
+    "cosim.study.prefetch": wrap_threads,
     "cosim.study.preload": lambda m: (mark("preload end"), wrap(m, "dask_setup", "worker start")),
     "cosim.study.task": lambda m: wrap(m, "prepare", "prepare"),
     "cosim.study.table": lambda m: wrap(m.RunsTable, "finish", "table"),
@@ -228,6 +277,7 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
     )
     rows.append(("client until runs", begin[1]))
     rows.append(("client during runs", end[1] - begin[1]))
+    rows += [(f"  {group}", cpu) for group, cpu in _threads_during(marks, client).items()]
     total = trace["cpu"]
     assert isinstance(total, float)
     rows.append(("client after runs", total - end[1]))
@@ -251,6 +301,44 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         rows += [(f"worker {k} warm-up", warm), (f"worker {k} runs", cpu - warm)]
         rows.append((f"worker {k} runs CPU/wall", (cpu - warm) / max(wall - warm, 1e-9)))
     return rows
+
+
+# the client's threads by what they do while the runs run: the command itself and the
+# page's matplotlib loaded on its threads (cosim.study.prefetch); the rest of its CPU is
+# Dask's threads' (the event loop of the scheduler, the client and the nannies, Dask's
+# offload thread, each nanny's watchers of its worker process)
+THREAD_GROUPS = {"MainThread": "main thread", "auv-cosim-prefetch": "page's matplotlib"}
+OTHER_THREADS = "Dask's threads (the rest)"
+
+
+def _threads_during(marks: list[tuple[float, int, str, float]], client: int) -> dict[str, float]:
+    """The client's CPU seconds from the first run sent to the last result in (its
+    ``execute``) by group of threads (:data:`THREAD_GROUPS`): each thread's own CPU clock
+    at both ends, or at its end for a thread that ended between them (the page's second
+    part of matplotlib, which may end before the last run); :data:`OTHER_THREADS` the
+    process's CPU meanwhile that those groups did not take."""
+    own = [(t, w, c) for t, p, w, c in marks if p == client]
+    (start, first), (stop, last) = (
+        min((t, c) for t, w, c in own if w == "execute begin"),
+        max((t, c) for t, w, c in own if w == "execute end"),
+    )
+    begun: dict[str, float] = {}  # the first mark of each thread, its last below
+    ended: dict[str, float] = {}
+    for _, w, c in sorted(own):
+        if w.startswith("execute begin thread "):
+            begun.setdefault(w.removeprefix("execute begin thread "), c)
+        elif w.startswith("execute end thread "):
+            ended[w.removeprefix("execute end thread ")] = c
+    for t, w, c in own:  # a thread that ended while the runs ran: its CPU at its end
+        name = w.removeprefix("thread end ")
+        if w.startswith("thread end ") and start <= t <= stop:
+            ended.setdefault(name, c)
+    groups = dict.fromkeys(THREAD_GROUPS.values(), 0.0)
+    for thread, cpu in ended.items():
+        group = THREAD_GROUPS.get(thread.rsplit("#", 1)[0])
+        if group is not None:
+            groups[group] += cpu - begun.get(thread, 0.0)
+    return {**groups, OTHER_THREADS: last - first - sum(groups.values())}
 
 
 def idle_estimate(cpu: dict[str, float], cores: int) -> list[tuple[str, float]]:

@@ -72,6 +72,37 @@ def test_the_timeline_sets_the_clients_readiness_against_the_fork_servers_chain(
     assert abs(rows["client during runs"] - 0.3) < 1e-9
 
 
+# the client's threads' own CPU clocks at the ends of its execute (1.4 s and 2.2 s): the
+# page's first prefetch thread ends while the runs run, its second is alive at the end
+THREADS = TIMELINE.replace(
+    '(2.2, 1, "execute end", 1.3)]',
+    """(2.2, 1, "execute end", 1.3),
+         (1.4, 1, "execute begin thread MainThread#11", 0.50),
+         (1.4, 1, "execute begin thread IO loop#12", 0.20),
+         (1.4, 1, "execute begin thread auv-cosim-prefetch#13", 0.30),
+         (1.45, 1, "thread end auv-cosim-prefetch#13", 0.32),
+         (2.2, 1, "execute end thread MainThread#11", 0.53),
+         (2.2, 1, "execute end thread IO loop#12", 0.31),
+         (2.2, 1, "execute end thread auv-cosim-prefetch#14", 0.10),
+         (2.4, 1, "thread end auv-cosim-prefetch#14", 0.14)]""",
+)
+
+
+def test_the_timeline_splits_the_clients_cpu_during_the_runs_by_thread() -> None:
+    """The client's CPU while the runs run (what two workers on two cores share their
+    cores with) split into its main thread, the page's matplotlib on its own threads
+    (counted to a thread's end if it ends first) and Dask's threads (the rest), so a cut
+    can be aimed at the part that costs."""
+    path = os.pathsep.join([str(ROOT / "scripts"), str(ROOT)])
+    env = {**os.environ, "PYTHONPATH": path}
+    done = subprocess.run([sys.executable, "-c", THREADS], env=env, check=True,
+                          timeout=300, capture_output=True, text=True)  # fmt: skip
+    rows = dict(json.loads(done.stdout))
+    assert abs(rows["  main thread"] - 0.03) < 1e-9
+    assert abs(rows["  page's matplotlib"] - (0.02 + 0.10)) < 1e-9
+    assert abs(rows["  Dask's threads (the rest)"] - (0.3 - 0.03 - 0.12)) < 1e-9
+
+
 ESTIMATE = TIMELINE.replace(
     "from sweep_timeline import cpu_phases", "from sweep_timeline import cpu_phases, idle_estimate"
 )
