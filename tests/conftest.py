@@ -13,6 +13,9 @@ Python runner.
   tests that use it).
 * ``test_fmu_dir`` (session): the folder holding the master tests' FMUs built from
   tests/fmus (``CosimTestIntegrator.fmu``, ``CosimTestGain.fmu``).
+* Both folders are shared by the session's xdist workers (``tests/worker_shared.py``): one
+  worker builds, the other waits for it and uses what it built. A test copies an FMU
+  before it changes it, as it did when only its own worker's tests used the folder.
 * ``users_mypy_cache`` (session): mypy's cache folder the tests of a user's ``mypy
   --strict`` share (``tests/users_mypy.py``), one per test process.
 * Every test using ``fmu_paths`` or ``test_fmu_dir`` is marked ``fmu``.
@@ -61,6 +64,7 @@ from deadline import deadline
 from hypothesis import settings
 from process_group import run_in_group
 from process_state import WATCHED_SIGNALS, child_processes, signal_changes, signal_state
+from worker_shared import build_once, shared_folder
 
 import cosim
 from cosim.errors import CosimError
@@ -168,7 +172,8 @@ def _new_children(before: dict[int, str]) -> dict[int, str]:
 
 @pytest.fixture(scope="session")
 def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    out = tmp_path_factory.mktemp("fmus")
+    # one folder for the xdist workers: build_fmu's lock has one build and the other wait
+    out = shared_folder(tmp_path_factory, "fmus")
     built: dict[str, Path] = {}
     failures: dict[str, Exception] = {}
     for name in FMUS:
@@ -205,8 +210,13 @@ def test_fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The master tests' own FMUs (tests/fmus: an integrator, a sampled gain, a direct
     feedthrough, a clock with outputs of every type that can end the simulation, a clock
     with a fixed step, one allowed once per process, one with other tools' habits), built
-    once per session, in a fresh process (pythonfmu caches modules)."""
-    out = tmp_path_factory.mktemp("test_fmus")
+    once per session for all its workers, in a fresh process (pythonfmu caches modules)."""
+    out = shared_folder(tmp_path_factory, "test_fmus")
+    build_once(out, _build_test_fmus)
+    return out
+
+
+def _build_test_fmus(out: Path) -> None:
     for script, model, *options in (
         ("cosim_test_integrator.py", "CosimTestIntegrator"),
         ("cosim_test_gain.py", "CosimTestGain"),
@@ -218,7 +228,6 @@ def test_fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     ):
         script_path = Path(__file__).parent / "fmus" / script
         pythonfmu_build(script_path, out, model, "--handle-state", *options)
-    return out
 
 
 @pytest.fixture(scope="session")
