@@ -14,8 +14,9 @@ Python runner.
 * ``test_fmu_dir`` (session): the folder holding the master tests' FMUs built from
   tests/fmus (``CosimTestIntegrator.fmu``, ``CosimTestGain.fmu``).
 * Both folders are shared by the session's xdist workers (``tests/worker_shared.py``): one
-  worker builds, the other waits for it and uses what it built. A test copies an FMU
-  before it changes it, as it did when only its own worker's tests used the folder.
+  worker builds, the other waits for it and uses what it built (or builds another FMU
+  meanwhile). A test copies an FMU before it changes it, as it did when only its own
+  worker's tests used the folder.
 * ``users_mypy_cache`` (session): mypy's cache folder the tests of a user's ``mypy
   --strict`` share (``tests/users_mypy.py``), one per test process.
 * Every test using ``fmu_paths`` or ``test_fmu_dir`` is marked ``fmu``.
@@ -64,7 +65,7 @@ from deadline import deadline
 from hypothesis import settings
 from process_group import run_in_group
 from process_state import WATCHED_SIGNALS, child_processes, signal_changes, signal_state
-from worker_shared import build_once, shared_folder
+from worker_shared import build_once, in_worker_order, shared_folder
 
 import cosim
 from cosim.errors import CosimError
@@ -176,12 +177,12 @@ def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     out = shared_folder(tmp_path_factory, "fmus")
     built: dict[str, Path] = {}
     failures: dict[str, Exception] = {}
-    for name in FMUS:
+    for name in in_worker_order(FMUS):
         try:
             built[name] = build_fmu(name, out)
         except CosimError as exc:
             failures[name] = exc
-    return BuiltFmus(built, failures)
+    return BuiltFmus({name: built[name] for name in FMUS if name in built}, failures)
 
 
 @pytest.fixture(scope="session")

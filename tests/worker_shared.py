@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import fcntl
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import pytest
@@ -29,6 +29,15 @@ def shared_folder(tmp_path_factory: pytest.TempPathFactory, name: str) -> Path:
     folder = tmp_path_factory.getbasetemp().parent / name
     folder.mkdir(exist_ok=True)
     return folder
+
+
+def in_worker_order(names: Iterable[str]) -> list[str]:
+    """``names`` in the order this worker builds them: reversed on every second worker
+    (gw1, gw3, ...), so that two workers build two of them at once, each under its own
+    lock (``cosim.fmus.build.fmu_lock``), rather than queue at the first one's."""
+    number = os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw")
+    names = list(names)
+    return names[::-1] if number.isdigit() and int(number) % 2 else names
 
 
 def build_once(folder: Path, build: Callable[[Path], None]) -> None:
