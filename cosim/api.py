@@ -37,6 +37,7 @@ from cosim.errors import KEYWORDS, CosimError, counted, plain, shown
 from cosim.limits import open_files_limit_kept
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import NotStartedError, RunOptions, execute
+from cosim.scenario.arguments import choice_argument, number_argument, seconds_argument
 from cosim.scratch import process_folder
 from cosim.study.signals import StudyStopped, stop_study_on_signals
 
@@ -871,7 +872,7 @@ def _run_options(
 ) -> RunOptions:
     """:func:`run`'s options, each checked (``settings``: the run's overrides by name)."""
     recording = _flag("recording", recording)
-    every = _seconds("checkpoint_every", settings.get("checkpoint_every"))
+    every = seconds_argument("checkpoint_every", settings.get("checkpoint_every"))
     if every is not None and out is None:
         raise CosimError(
             f"checkpoint_every={every!r}: needs out= (a run kept in memory leaves no folder "
@@ -879,11 +880,13 @@ def _run_options(
         )
     return RunOptions(
         out_dir=None if out is None else _folder("out", out),
-        stop_time=_seconds("stop_time", settings.get("stop_time")),
-        step=_seconds("step", settings.get("step")),
-        algorithm=_choice("algorithm", settings.get("algorithm"), ALGORITHMS),  # type: ignore[arg-type]
-        extrapolation=_choice("extrapolation", settings.get("extrapolation"), EXTRAPOLATIONS),  # type: ignore[arg-type]
-        tolerance=_number("tolerance", settings.get("tolerance")),
+        stop_time=seconds_argument("stop_time", settings.get("stop_time")),
+        step=seconds_argument("step", settings.get("step")),
+        algorithm=choice_argument("algorithm", settings.get("algorithm"), ALGORITHMS),  # type: ignore[arg-type]
+        extrapolation=choice_argument(
+            "extrapolation", settings.get("extrapolation"), EXTRAPOLATIONS
+        ),  # type: ignore[arg-type]
+        tolerance=number_argument("tolerance", settings.get("tolerance")),
         check_step=_flag("check_step", settings.get("check_step", False)),
         checkpoint_every=every,
         fmu_log=_fmu_log(settings.get("fmu_log"), CosimError),
@@ -895,22 +898,6 @@ def _run_options(
         tail_guard=out is not None,  # a temporary folder needs no guard: it is removed
         names=KEYWORDS,  # refusals name stop_time=, out=, ..., not the command line's flags
     )
-
-
-def _seconds(name: str, value: object) -> float | None:
-    """A time in s: a float or int (the runner checks it is finite and > 0, naming it by
-    its keyword), or a numpy number of one; an int beyond the floats is refused here."""
-    value = plain(value)
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise CosimError(f"{name}={shown(value)}: expected a number of seconds (float or int)")
-    try:
-        return float(value)
-    except OverflowError:
-        raise CosimError(
-            f"{name}={shown(value)}: expected a finite number of seconds > 0"
-        ) from None
 
 
 def _flag(name: str, value: object, error: type[CosimError] = CosimError) -> bool:
@@ -938,24 +925,6 @@ def _fmu_log(value: object, error: type[CosimError]) -> dict[str, tuple[str, ...
     return {} if value is None else debug_logs(value, "fmu_log", error)
 
 
-def _choice(name: str, value: object, choices: tuple[str, ...]) -> str | None:
-    """None or one of ``choices``."""
-    if value is None or value in choices:
-        return value
-    raise CosimError(f"{name}={shown(value)}: expected one of {', '.join(map(repr, choices))}")
-
-
-def _number(name: str, value: object) -> float | None:
-    """None or a float or int within the floats (the runner checks its range), or a numpy
-    number of one."""
-    value = plain(value)
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | float) or abs(value) > 1e300:
-        raise CosimError(f"{name}={shown(value)}: expected a finite number (float or int)")
-    return float(value)
-
-
 def _path(
     name: str,
     value: object,
@@ -966,8 +935,11 @@ def _path(
     ``expected`` is what the refusal says was expected)."""
     if not isinstance(value, str | os.PathLike):
         raise error(f"{name}={shown(value)}: expected {expected}")
-    text = os.fspath(value)
-    if not isinstance(text, str) or "\0" in text:
+    text = value if isinstance(value, str) else value.__fspath__()  # os.fspath: TypeError
+    if not isinstance(text, str):  # a path in bytes, or no path at all
+        gave = f"its __fspath__ gave {type(text).__name__}"
+        raise error(f"{name}={shown(value)}: expected {expected} ({gave})")
+    if "\0" in text:
         raise error(f"{name}={shown(value)}: expected a path without a NUL byte")
     if not text:  # Path("") is "."; an unset setting's "" is no choice of the working folder
         raise error(f"{name}='': expected a non-empty path ('.' names the working folder)")

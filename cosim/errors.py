@@ -82,7 +82,9 @@ def plain(value: object) -> object:
         return value
     import numpy as np
 
-    if isinstance(value, np.bool_ | np.integer | np.floating):
+    if isinstance(value, np.floating):  # float(): .item() keeps a longdouble a longdouble
+        return float(value)
+    if isinstance(value, np.bool_ | np.integer):
         return value.item()
     return value
 

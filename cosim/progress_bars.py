@@ -18,12 +18,17 @@ tqdm is imported on first use, not with this module (it costs import time for no
 from __future__ import annotations
 
 import multiprocessing
+import sys
 from functools import cache
 from typing import IO, Any
 
 
 def progress_bar(**options: Any) -> Any:
-    """A tqdm bar with ``options`` (tqdm's keywords), without tqdm's monitor thread."""
+    """A tqdm bar with ``options`` (tqdm's keywords), without tqdm's monitor thread;
+    drawn nowhere where Python has no stderr (``sys.stderr`` None: ``pythonw``, a
+    service), which tqdm would write to and fail."""
+    if sys.stderr is None and options.get("file") is None:
+        options = {**options, "disable": True}
     return _bar_class()(**options)
 
 

@@ -18,7 +18,7 @@ import reprlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, TypeAlias
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, TypeAlias, get_args
 
 import tomli_w
 from pydantic import (
@@ -49,6 +49,7 @@ from cosim.fmus.interface import (
 )
 from cosim.metrics.manoeuvres import KINDS, manoeuvre_columns
 from cosim.paths import DEFAULT_FMU_DIR, path_text
+from cosim.scenario.arguments import choice_argument, number_argument, seconds_argument
 from cosim.scenario.checks import (
     ANY_VALUE,
     UNION_TAGS,
@@ -257,7 +258,31 @@ def _python_start_value(value: object, ref: str, where: str) -> StartValue:
             f"scenario file {where}: start value {ref!r} = {shown(value)}: expected a bool, "
             "int, float or str (or a numpy scalar of one)"
         )
+    if isinstance(value, str) and "\0" in value:  # no file name holds one (os refuses it)
+        raise ScenarioError(
+            f"scenario file {where}: start value {ref!r} = {shown(value)}: expected a string "
+            "without a NUL byte"
+        )
     return value
+
+
+def _checked_overrides(
+    step: object, algorithm: object, extrapolation: object, tolerance: object, estimate: object
+) -> dict[str, Any]:
+    """:meth:`Scenario.with_overrides`' coupling options by their keys, each checked by
+    type as ``cosim.run`` checks it (:mod:`cosim.scenario.arguments`): a ScenarioError
+    naming the keyword, not pydantic's coercion of a Decimal or its words for ``True``."""
+    return {
+        "step": seconds_argument("step", step, ScenarioError),
+        "algorithm": choice_argument("algorithm", algorithm, get_args(Algorithm), ScenarioError),
+        "extrapolation": choice_argument(
+            "extrapolation", extrapolation, get_args(Extrapolation), ScenarioError
+        ),
+        "tolerance": number_argument("tolerance", tolerance, ScenarioError),
+        "error_estimate": choice_argument(
+            "error_estimate", estimate, get_args(ErrorEstimate), ScenarioError
+        ),
+    }
 
 
 def _move_design_steps(data: dict[str, Any], coupling: Coupling, step: float) -> None:
@@ -369,6 +394,12 @@ class Scenario:
             f"faults=<{len(self.faults)}>)"
         )
 
+    def __hash__(self) -> int:
+        """A hash that equal scenarios share (they have the same id, stop time, recorded
+        columns and connections), so a scenario goes into a set or keys a dict; the one
+        the dataclass would make hashed the read-only start values, which have none."""
+        return hash((self.id, self.stop_time, self.record, self.connections))
+
     def check_loaded(self) -> None:
         """Raise :class:`ScenarioError` unless the loader made this scenario: a copy by
         ``dataclasses.replace`` (or a Scenario made by hand) skipped the checks, and the
@@ -453,9 +484,9 @@ class Scenario:
         error a step may make (between 0 and 1, docs/coupling.md); None keeps the
         scenario's. Raises :class:`ScenarioError` naming a value the scenario refuses.
         """
+        stop_time = seconds_argument("stop_time", stop_time, ScenarioError)
         coupling: dict[str, Any] = {}
-        given = {"step": step, "algorithm": algorithm, "extrapolation": extrapolation,
-                 "tolerance": tolerance, "error_estimate": error_estimate}  # fmt: skip
+        given = _checked_overrides(step, algorithm, extrapolation, tolerance, error_estimate)
         coupling.update({key: value for key, value in given.items() if value is not None})
         data = self.spec.model_dump(by_alias=True, exclude_none=True)
         if "algorithm" not in self.spec.coupling.model_fields_set:
