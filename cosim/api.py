@@ -156,15 +156,17 @@ class Run:
 
     @property
     def complete(self) -> bool:
-        """Whether the run reached its stop time."""
-        return bool(self.summary["complete"])
+        """Whether the run reached its stop time (summary's ``complete``; False once the
+        caller took it out of the summary, the caller's dict)."""
+        return self.summary.get("complete") is True
 
     @property
     def coupling_error(self) -> dict[str, Any] | None:
         """With ``check_step``: the estimated error of every key figure and final value
         (summary.json's ``coupling.check_step``); None without."""
-        check: dict[str, Any] | None = self.summary.get("coupling", {}).get("check_step")
-        return check
+        coupling = self.summary.get("coupling")
+        check = coupling.get("check_step") if isinstance(coupling, dict) else None
+        return check if isinstance(check, dict) else None
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # (repr: Run's one line, its own name)
@@ -943,7 +945,9 @@ def _path(
         raise error(f"{name}={shown(value)}: expected a path without a NUL byte")
     if not text:  # Path("") is "."; an unset setting's "" is no choice of the working folder
         raise error(f"{name}='': expected a non-empty path ('.' names the working folder)")
-    return Path(text)
+    # "~/runs" is the home folder's, as pandas reads it: Python's own calls would make a
+    # folder named "~" in the working folder (which a shell's `rm -rf ~` then removes)
+    return Path(os.path.expanduser(text))
 
 
 def _folder(name: str, value: object, error: type[CosimError] = CosimError) -> Path:

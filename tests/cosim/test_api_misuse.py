@@ -131,3 +131,30 @@ def test_with_overrides_takes_the_values_cosim_run_takes_and_refuses_the_others(
         with pytest.raises(CosimError) as ran:
             cosim.run(scenario, **overrides)
         assert str(ran.value) == message, "cosim.run refuses it in other words"
+
+
+def test_a_run_whose_summary_the_caller_changed_still_shows_itself(fmu_dir: Path) -> None:
+    """``run.summary`` is the caller's dict: a script that popped ``complete`` from it (to
+    dump the rest) or set ``coupling`` to None made ``repr(run)`` (a notebook showing the
+    run) and ``run.complete`` raise KeyError, and ``run.coupling_error`` AttributeError."""
+    run = cosim.run("bs-3", stop_time=0.05, fmu_dir=fmu_dir)
+    run.summary.pop("complete")
+    run.summary["coupling"] = None
+    assert repr(run).startswith("Run(scenario='bs-3', complete=False, results=<6 rows")
+    assert run.complete is False and run.coupling_error is None
+
+
+def test_a_folder_under_the_home_folder_is_not_made_in_the_working_folder(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``out="~/runs/bs-3"`` made a folder named ``~`` in the working folder (Python does
+    not expand it; a later ``rm -rf ~`` of it in a shell removes the home folder). A path
+    of the API starting with ``~`` is the home folder's, as pandas' paths are."""
+    home, work = tmp_path / "home", tmp_path / "work"
+    home.mkdir()
+    work.mkdir()
+    monkeypatch.setenv("HOME", str(home))
+    monkeypatch.chdir(work)
+    run = cosim.run("bs-3", stop_time=0.05, out="~/runs/bs-3", recording=False, fmu_dir=fmu_dir)
+    assert run.out_dir == home / "runs" / "bs-3" and (run.out_dir / "results.csv").is_file()
+    assert list(work.iterdir()) == []
