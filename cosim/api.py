@@ -476,10 +476,10 @@ def resume(
     from cosim.runner import resume_run
 
     folder = _folder("out", out)
+    recording = None if recording is None else _flag("recording", recording)
     settings = {"progress": progress, "checkpoint_every": checkpoint_every}
     options = _run_options(folder, recording is not False, fmu_dir, False, settings)
     if recording is not None:  # said: the folder's recording.rrd, or none
-        recording = _flag("recording", recording)
         rrd = folder / RECORDING_FILE if recording else None
         options = dataclasses.replace(options, rrd=rrd)
     with _stopped_before_start():
@@ -567,7 +567,7 @@ def sweep(
             options = _sweep_options(out, resume, overlay, fmu_dir, max_runs, progress, fmu_log)
             return _swept(study, out, cluster, options)
         except StudyStopped as stop:  # before the study's folder was known, or after it
-            kept = out if isinstance(out, Path) and resume is True else None  # as resumed
+            kept = out if isinstance(out, Path) and plain(resume) is True else None  # resumed
             raise _stopped(stop.signum, kept) from None
 
 
@@ -903,8 +903,9 @@ def _run_options(
 
 
 def _flag(name: str, value: object, error: type[CosimError] = CosimError) -> bool:
-    """True or False (else ``error``, as each check here raises: the type the caller's
-    docstring names)."""
+    """True or False, or a numpy bool as its Python value (else ``error``, as each check
+    here raises: the type the caller's docstring names)."""
+    value = plain(value)
     if not isinstance(value, bool):
         raise error(f"{name}={shown(value)}: expected True or False")
     return value

@@ -158,3 +158,39 @@ def test_a_folder_under_the_home_folder_is_not_made_in_the_working_folder(
     run = cosim.run("bs-3", stop_time=0.05, out="~/runs/bs-3", recording=False, fmu_dir=fmu_dir)
     assert run.out_dir == home / "runs" / "bs-3" and (run.out_dir / "results.csv").is_file()
     assert list(work.iterdir()) == []
+
+
+def test_numpy_bools_count_as_their_python_value_for_the_switches(fmu_dir: Path) -> None:
+    """A switch computed with numpy (``check_step=errors.any()``) is an ``np.True_``, which
+    was refused as "check_step=np.True_: expected True or False"; a numpy bool counts as
+    its Python value, as a numpy number does for a time."""
+    run = cosim.run(
+        "bs-3",
+        stop_time=0.05,
+        fmu_dir=fmu_dir,
+        check_step=np.bool_(False),
+        progress=np.bool_(False),
+        recording=np.bool_(True),
+        overwrite=np.bool_(False),
+    )
+    assert run.complete and run.coupling_error is None
+
+
+def test_resume_takes_a_numpy_false_recording_as_false(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``cosim.resume(out, recording=np.False_)`` must write no recording, as
+    ``recording=False`` does (not record as the checkpointed run did)."""
+    import cosim.runner
+
+    given = []
+
+    def resumed(folder: Path, options: object) -> None:
+        given.append(options)
+        raise CosimError("stop here")
+
+    monkeypatch.setattr(cosim.runner, "resume_run", resumed)
+    for recording in (False, np.bool_(False)):
+        with pytest.raises(CosimError, match="stop here"):
+            cosim.resume(tmp_path, recording=recording, fmu_dir=fmu_dir)  # type: ignore[arg-type]
+    assert given[0] == given[1]
