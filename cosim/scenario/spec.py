@@ -482,7 +482,9 @@ class Scenario:
 
         ``stop_time`` and ``step`` are in s, ``tolerance`` the adaptive algorithm's relative
         error a step may make (between 0 and 1, docs/coupling.md); None keeps the
-        scenario's. Raises :class:`ScenarioError` naming a value the scenario refuses.
+        scenario's. Each is checked by type first, as ``cosim.run`` checks it (a numpy
+        number as its value; a Decimal, a string or a bool refused). Raises
+        :class:`ScenarioError` naming a value the scenario refuses.
         """
         stop_time = seconds_argument("stop_time", stop_time, ScenarioError)
         coupling: dict[str, Any] = {}
