@@ -186,6 +186,7 @@ class _Stepper:
         self.grid = grid_step(scenario.coupling)
         self.jacobi = scenario.coupling.algorithm == "jacobi"
         self.period = {s.name: s.k * 2**MIN_LEVEL for s in order}  # grid points per step
+        self.last = round(scenario.stop_time / self.grid)  # the stop time's grid point
         self.do_steps = dict.fromkeys(self.period, 0)
         self.current = order[0]  # the instance called last (a failure names it)
         self.through = [s for s in order if s.feeds_through]
@@ -193,7 +194,8 @@ class _Stepper:
 
     def advance(self, n: int, units: int) -> None:
         """Every instance due at point n steps ``units`` grid points (one with step
-        multiple k steps k ``step`` when n is one of its sample points, else holds)."""
+        multiple k steps k ``step`` when n is one of its sample points, else holds; its
+        last step ends at the stop time, as a fixed-step run's does)."""
         t = n * self.grid
         due = [s for s in self.order if s.k == 1 or n % self.period[s.name] == 0]
         if self.jacobi:
@@ -203,16 +205,21 @@ class _Stepper:
             self.current = slave
             if not self.jacobi:
                 self._give(slave, n, units)
-            span = units if slave.k == 1 else self.period[slave.name]
+            span = self._span(slave, n, units)
             slave.do_step(slave.c, t, (n + span) * self.grid - t, 1)
             self.do_steps[slave.name] += 1
             slave.read_outputs()
         refresh(self.through, self.give, n + units, (n + units) * self.grid)
 
+    def _span(self, slave: Slave, n: int, units: int) -> int:
+        """The grid points ``slave``, due at point n, steps: ``units``, or its own step
+        (multiple k) cut at the stop time."""
+        return units if slave.k == 1 else min(self.period[slave.name], self.last - n)
+
     def _give(self, slave: Slave, n: int, units: int) -> None:
         self.give(slave, n, n * self.grid)
         if self.inputs is not None:
-            self.inputs.took(slave, n, units if slave.k == 1 else self.period[slave.name])
+            self.inputs.took(slave, n, self._span(slave, n, units))
 
     def save(self) -> tuple[Any, ...]:
         fmu_states = [s.fmu.getFMUstate() for s in self.order]

@@ -259,3 +259,41 @@ def test_a_digital_autopilot_samples_on_its_period_in_an_adaptive_run(
     late = sampled - np.floor(sampled / period + 1e-9) * period
     assert late.max() < grid, f"a sample {late.max():.2e} s after its time {sampled[late.argmax()]}"
     assert len(sampled) >= 45  # (a sample that leaves the command as it was is not seen)
+
+
+def test_a_slow_instances_last_step_ends_at_a_stop_time_its_multiple_does_not_divide(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """The autopilot stepping every 3 steps of 10 ms under a stop time of 0.1 s: its last
+    step, from 0.09 s, is shortened to the stop time as a fixed-step run shortens it, not
+    asked to end at 0.12 s, which the FMU (as FMI 2.0 asks) refuses."""
+    text = bs3_toml(0.1, 'algorithm = "adaptive"\nstep_multiples = { controller = 3 }')
+    scenario = scenario_from_toml(text, "slow-last", fmu_dir=fmu_paths["AuvPlant"].parent)
+    result = master.run(scenario, keep_rows=True)
+    assert result.complete, result.error
+    assert result.times[-1] == 0.1
+
+
+def bs3_toml(stop_time: float, coupling: str) -> str:
+    """bs-3's set-up (backstepping and tunnel thruster, v0 = -0.1 m/s) with the
+    ``coupling`` lines given and its stop time."""
+    return f"""
+stop_time = {stop_time}
+[coupling]
+step = 0.01
+order = ["controller", "plant"]
+{coupling}
+[instances.plant]
+fmu = "AuvPlant"
+[instances.plant.start]
+variant = "lateral"
+u_0 = 1.5
+v_0 = -0.1
+[instances.controller]
+fmu = "AuvAutopilot"
+[instances.controller.start]
+heading_mode = "backstepping"
+depth_mode = "off"
+[connections]
+remove = ["plant.fin_angle"]
+"""
