@@ -508,7 +508,9 @@ class _Control:
         self.last_units, after_rejection = units, self.after_rejection
         self.after_rejection = False
         if self._kink(asked):  # the step goes on as it was: a shorter one gains little
-            self.kinks += 1
+            # counted where it missed the tolerance (among the forced steps): one shortened
+            # to reach a point may meet it, though the step asked for would not
+            self.kinks += err > 1.0
             self.next = float(wanted)
             return True
         err = max(asked, 1e-4)

@@ -274,6 +274,22 @@ def test_a_slow_instances_last_step_ends_at_a_stop_time_its_multiple_does_not_di
     assert result.times[-1] == 0.1
 
 
+def test_the_kinks_counted_are_steps_that_missed_the_tolerance(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """A kink is a step accepted over the tolerance: summary.json's ``kinks`` are among its
+    ``steps_over_tolerance``, so the report's "N over the tolerance (K kinks, N - K at the
+    shortest step)" never counts a negative number of steps at the shortest step. Steps
+    shortened to reach the slow autopilot's points (step multiple 3) that met the tolerance
+    were counted as kinks too: 51 over the tolerance, 60 kinks, "-9 at the shortest step"."""
+    text = bs3_toml(1.0, 'algorithm = "adaptive"\nstep_multiples = { controller = 3 }')
+    scenario = scenario_from_toml(text, "kinks", fmu_dir=fmu_paths["AuvPlant"].parent)
+    result = master.run(scenario)
+    assert result.complete, result.error
+    taken = result.coupling
+    assert 0 < taken["kinks"] <= taken["steps_over_tolerance"], taken
+
+
 def bs3_toml(stop_time: float, coupling: str) -> str:
     """bs-3's set-up (backstepping and tunnel thruster, v0 = -0.1 m/s) with the
     ``coupling`` lines given and its stop time."""
