@@ -65,38 +65,55 @@ def not_checkable(scenario: Scenario) -> str | None:
 def doubts(scenario: Scenario) -> list[str]:
     """Why the estimate of ``scenario``'s coupling error cannot be trusted (module
     docstring): each time of an event, a series or a fault boundary that the runs at h,
-    h/2 and h/4 apply at different points, and each event on a condition."""
-    h = scenario.coupling.step
-    steps = (h, h / 2, h / 4)
-    times: list[tuple[str, float]] = []
+    h/2 and h/4 apply at different points (an instance with step multiple k sees it at
+    its own points, every k h), and each event on a condition."""
+    times: list[tuple[str, float, set[str]]] = []  # (key, time, the instances it acts on)
     found = []
     for event in scenario.events:
+        acts_on = {ref.split(".", 1)[0] for ref in event.set}
         if event.time is not None:
-            times.append((f"events.{event.name}.time", event.time))
+            times.append((f"events.{event.name}.time", event.time, acts_on))
         if event.series is not None:
-            times += [(f"events.{event.name}.series time", t) for t in event.series.times]
+            on = {ref.split(".", 1)[0] for ref in event.series.columns}
+            times += [(f"events.{event.name}.series time", t, on) for t in event.series.times]
         if event.when is not None:
             found.append(
                 f"events.{event.name} fires when {event.when}, at the first point it holds: "
                 "its time moves with the step, an error Richardson extrapolation does not model"
             )
     for fault in scenario.faults:
-        times.append((f"faults.{fault.name}.start", fault.start))
+        on = {fault.target.split(".", 1)[0]}
+        times.append((f"faults.{fault.name}.start", fault.start, on))
         if fault.stop is not None:
-            times.append((f"faults.{fault.name}.stop", fault.stop))
-    for key, time in times:
+            times.append((f"faults.{fault.name}.stop", fault.stop, on))
+    for key, time, acts_on in times:
+        if time < scenario.stop_time:
+            found += _moved(scenario, key, time, acts_on)
+    return found
+
+
+def _moved(scenario: Scenario, key: str, time: float, acts_on: set[str]) -> list[str]:
+    """The doubt (one line, or none) that ``key``, at ``time`` (s), reaches the instances
+    it ``acts_on`` at different times in the runs at h, h/2 and h/4: at the first point of
+    each at or after it, every k h for an instance of step multiple k."""
+    h = scenario.coupling.step
+    multiples = scenario.coupling.step_multiples
+    for k in sorted({1, *(multiples.get(name, 1) for name in acts_on)}):
         # the point each run applies it at, counted in steps of h/4: compared as whole
         # numbers, so that first_point's slack is the one tolerance of "on a point"
-        quarters = [first_point(time, step) * round(4 * step / h) for step in steps]
-        if len(set(quarters)) > 1 and time < scenario.stop_time:
+        quarters = [first_point(time, k * step) * k * round(4 * step / h)
+                    for step in (h, h / 2, h / 4)]  # fmt: skip
+        if len(set(quarters)) > 1:
             applied = [seconds(n * h / 4) for n in quarters]
             shown = f"{applied[0]}, {applied[1]} and {applied[2]} s"
-            found.append(
-                f"{key} = {seconds(time)} s applies at {shown} in the runs at h, h/2 and h/4: its "
-                "time moves with the step, an error Richardson extrapolation does not model "
-                "(put it on a point of h)"
-            )
-    return found
+            slow = sorted(name for name in acts_on if multiples.get(name, 1) == k)
+            who = f" ({', '.join(slow)} steps every {k} h)" if k > 1 else ""
+            return [
+                f"{key} = {seconds(time)} s applies at {shown} in the runs at h, h/2 and h/4"
+                f"{who}: its time moves with the step, an error Richardson extrapolation does "
+                f"not model (put it on a point of {f'{k} h' if k > 1 else 'h'})"
+            ]
+    return []
 
 
 def check_step(

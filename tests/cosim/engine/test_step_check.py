@@ -9,7 +9,7 @@ import pytest
 from scenario_factory import X0, K, loop_toml
 
 from cosim.engine import master
-from cosim.engine.step_check import check_step, summary_line
+from cosim.engine.step_check import check_step, doubts, summary_line
 from cosim.errors import CosimError
 from cosim.runner import run_scenario
 from cosim.scenario.spec import scenario_from_toml
@@ -161,6 +161,24 @@ def test_only_what_lies_on_a_point_of_h_leaves_the_estimate_trusted(test_fmu_dir
     found = check_step(scenario, {}, master.run(scenario).final)["doubts"]
     assert [line.split(" ", 1)[0] for line in found] == ["events.low", "faults.off.start"]
     assert "applies at 0.4, 0.35 and 0.325 s" in found[1]
+
+
+def test_an_event_on_a_slow_instance_counts_that_instances_points(test_fmu_dir: Path) -> None:
+    """The gain steps every 3 h: an event at 0.5 s setting its k (a point of h = 0.1 s)
+    reaches it at its own next points, 0.6, 0.6 and 0.525 s in the runs at h, h/2 and h/4:
+    the runs differ by where the jump lands, and the check said nothing of it. A fault
+    from 0.5 s on the plant (every h) and an event at 0.6 s (a point of 3 h) stay
+    trusted."""
+    fault = '[[faults]]\nname = "off"\nkind = "bias"\nvalue = 0.1\ntarget = "plant.u"\n'
+    text = loop_toml(stop_time=2.0, controller_multiple=3) + fault + "start = 0.5\n"
+    on_points = scenario_from_toml(text + _gain_event(0.6), base_dir=test_fmu_dir)
+    assert doubts(on_points) == []
+    between = scenario_from_toml(text + _gain_event(0.5), base_dir=test_fmu_dir)
+    assert doubts(between) == [
+        "events.gain.time = 0.5 s applies at 0.6, 0.6 and 0.525 s in the runs at h, h/2 "
+        "and h/4 (controller steps every 3 h): its time moves with the step, an error "
+        "Richardson extrapolation does not model (put it on a point of 3 h)"
+    ]
 
 
 def test_the_line_says_when_the_order_was_assumed_or_the_runs_agree_to_rounding(
