@@ -51,7 +51,7 @@ from cosim.study.execution import (
     make_job,
     open_client,
 )
-from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, resolve_factor
+from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, Value, resolve_factor
 from cosim.study.fmu_store import kept_unpacked
 from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
@@ -82,6 +82,7 @@ from cosim.study.task import (
     prepare,
     scenario_text,
     study_files,
+    untrusted_checks,
 )
 from cosim.study.units import units
 from cosim.study.unpacked import unpack
@@ -595,9 +596,41 @@ def _checked_plan(
         found = check_values(base, factors, {name: first[name] for name in spec.random.factors})
         _add_doubts(doubts, found)
         _add_doubts(doubts, {unit_doubts.UnitWarning: _sample_doubts(spec, base, runs)})
+    if spec.check_step:
+        _add_doubts(doubts, {unit_doubts.UnitWarning: _untrusted(base, factors, spec, runs)})
     for category, lines in doubts.items():  # once each, in the main process (its runs
         unit_doubts.warn(lines, category)  # go without)
     return runs
+
+
+def _untrusted(
+    base: Base, factors: Mapping[str, FactorKind], spec: StudySpec, runs: Sequence[PlannedRun]
+) -> list[str]:
+    """With ``check_step``, each reason a run's coupling error is not to be trusted, as
+    ``run --check-step`` says it (:func:`cosim.study.task.untrusted_checks`): of every run
+    (a reason each grid point has), else naming the grid point, or the first sample, that
+    brings it."""
+    grid = {name: [factors[name].normalize(v) for v in vs] for name, vs in spec.grid.items()}
+    points = [dict(zip(grid, p, strict=True)) for p in itertools.product(*grid.values())]
+    if not points and not spec.random.factors:
+        points = [{}]  # the study runs the scenario as it is
+    found = {_point(p): untrusted_checks(base, factors, p) for p in points}
+    if spec.random.factors:
+        first = {name: runs[0].values[name] for name in spec.random.factors}
+        found[f"{_point(first)} (the first sample)"] = untrusted_checks(base, factors, first)
+    every = set.intersection(*(set(lines) for lines in found.values()))
+    return [
+        "check_step: the coupling errors"
+        + ("" if line in every else f" of the run with {point}")
+        + f" are NOT TO BE TRUSTED: {line}"
+        for point, lines in found.items()
+        for line in lines
+    ]
+
+
+def _point(values: Mapping[str, Value]) -> str:
+    """A run's factor values as a warning names them: ``name = value, ...``."""
+    return ", ".join(f"{name} = {value!r}" for name, value in values.items())
 
 
 def _add_doubts(doubts: Doubts, more: Doubts) -> None:

@@ -32,6 +32,7 @@ import tomli_w
 from cosim.engine.adaptive import points_step
 from cosim.engine.signals import StopRequest
 from cosim.engine.slave import collect_debug_log
+from cosim.engine.step_check import doubts as step_doubts
 from cosim.engine.step_check import not_checkable
 from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.fmus.interface import check_own_packages
@@ -197,6 +198,14 @@ def check_values(
         UnitWarning: doubts(scenario) + mission + late,
         DesignWarning: design_doubts(scenario),
     }
+
+
+def untrusted_checks(
+    base: Base, factors: Mapping[str, FactorKind], values: Mapping[str, Value]
+) -> list[str]:
+    """Why the coupling error ``check_step`` gives the run with these values is not to be
+    trusted (:func:`cosim.engine.step_check.doubts`, as ``run --check-step`` says it)."""
+    return step_doubts(_scenario(base, base.fmu_paths, factors, values))
 
 
 def base_mission_doubts(base: Base) -> list[str]:
