@@ -937,9 +937,35 @@ def _resolve(
         faults=resolve_faults(spec.faults, scenario, src),
     )
     _check_fault_columns(scenario, src)
+    _check_adaptive_faults(scenario, src)
     _check_reachable_times(scenario, src)
     object.__setattr__(scenario, "loaded", True)  # frozen: set once, here
     return scenario
+
+
+def _check_adaptive_faults(scenario: Scenario, src: Source) -> None:
+    """Refuse, under the adaptive algorithm, a fault that counts its target's deliveries
+    (one per step of the target instance): a delay of ``steps`` of them, a noise or a
+    dropout drawing once per delivery. The error control chooses the steps, so the delay
+    in seconds, and the draws per second, would follow the tolerance."""
+    if scenario.coupling.algorithm != "adaptive":
+        return
+    for i, fault in enumerate(scenario.faults):
+        if fault.kind not in ("delay", "noise", "dropout"):
+            continue
+        what = (
+            f"delays by {fault.steps} of its deliveries"
+            if fault.kind == "delay"
+            else "draws once per delivery"
+        )
+        instance = fault.target.split(".", 1)[0]
+        raise src.error(
+            f"faults[{i}].kind",
+            f"fault {fault.name!r} ({fault.kind} on {fault.target}) {what}, one per step of "
+            f"{instance}, and algorithm 'adaptive' chooses the steps: its "
+            f"{'delay in seconds' if fault.kind == 'delay' else 'draws per second'} would "
+            "follow the tolerance; use 'gauss-seidel' or 'jacobi' with a fixed step",
+        )
 
 
 def _check_start_not_driven(

@@ -14,7 +14,7 @@ from cosim.engine import adaptive as adaptive_module
 from cosim.engine import master
 from cosim.engine.adaptive import MIN_LEVEL, grid_step
 from cosim.engine.pacing import Pacer
-from cosim.errors import CosimError
+from cosim.errors import FLAGS, CosimError
 from cosim.scenario.checks import ScenarioError
 from cosim.scenario.spec import load_scenario, scenario_from_toml
 
@@ -288,6 +288,31 @@ def test_the_kinks_counted_are_steps_that_missed_the_tolerance(
     assert result.complete, result.error
     taken = result.coupling
     assert 0 < taken["kinks"] <= taken["steps_over_tolerance"], taken
+
+
+@pytest.mark.parametrize(
+    ("kind", "keys", "what"),
+    [("delay", "steps = 5", "delays by 5 of its deliveries"),
+     ("noise", "std = 0.1", "draws once per delivery"),
+     ("dropout", "probability = 0.3", "draws once per delivery")],
+)  # fmt: skip
+def test_a_fault_counting_deliveries_is_refused_under_the_adaptive_algorithm(
+    test_fmu_dir: Path, kind: str, keys: str, what: str
+) -> None:
+    """A delay of 5 deliveries to plant.u was 5 steps of whatever length the error control
+    chose (a step can be step / 1024): its delay in seconds, and a noise's or dropout's
+    draws per second, followed the tolerance; the run went on without a word. Refused in
+    one line naming the fault and the algorithm, from the file and from an override."""
+    fault = f'[[faults]]\nkind = "{kind}"\ntarget = "plant.u"\n{keys}\n'
+    expected = (
+        rf"key 'faults\[0\]\.kind': fault 'fault-1' \({kind} on plant\.u\) {what}, one "
+        r"per step of plant, and algorithm 'adaptive' chooses the steps"
+    )
+    with pytest.raises(ScenarioError, match=expected):
+        scenario_from_toml(adaptive(1e-3, fault), base_dir=test_fmu_dir)
+    fixed = scenario_from_toml(loop_toml(stop_time=2.0) + fault, base_dir=test_fmu_dir)
+    with pytest.raises(ScenarioError, match=rf"^--algorithm adaptive: .*{expected}"):
+        fixed.with_overrides(algorithm="adaptive", names=FLAGS)
 
 
 def bs3_toml(stop_time: float, coupling: str) -> str:
