@@ -1125,6 +1125,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"auv-cosim {args.command}: {shortened(one_line(_reason(exc)))}", file=sys.stderr)
         return 1
     finally:
+        if args.held_stop is not None:
+            _ignore_stop_signals_to_the_end()
         if argv is None:  # the process ends with the command
             # The interpreter's last garbage collection at exit walks every object of the
             # libraries imported (~0.5 s with dask, matplotlib and numba loaded) to find
@@ -1286,6 +1288,18 @@ def _hold_stop_signals() -> StopRequest:
     for signum in STOP_SIGNALS:
         signal.signal(signum, hold if signum in caught else signal.SIG_IGN)
     return held
+
+
+def _ignore_stop_signals_to_the_end() -> None:
+    """The stop signals ignored by the system from here until the process ends, where
+    :func:`_hold_stop_signals` recorded them for no one to read: Python's finalization
+    puts the default action back for a signal a Python function handles, so a Ctrl-C
+    arriving while the interpreter shut down killed the process (-2 to its parent, not
+    130 or 0); an ignored signal stays ignored through it."""
+    from cosim.engine.signals import STOP_SIGNALS
+
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
 
 
 if __name__ == "__main__":
