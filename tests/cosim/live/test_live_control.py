@@ -268,17 +268,22 @@ def test_every_set_around_the_end_of_a_run_is_applied_and_logged_or_answered_not
 ) -> None:
     """A client sets the yaw set-point as fast as it can across the run's end (and after a
     stop): each "ok" names a point where summary.json logs it; every other reply says
-    "not applied"."""
+    "not applied". The endpoint closes soon after the end (docs/live-runs.md: the client
+    then reads end of file), so a request sent late, as a loaded machine sends it, may
+    find it closed: that ends the requests too, never an "ok" the run did not log."""
     out = tmp_path / "run"
     with cli_run(fmu_dir, out, "--no-rrd", "--stop-time", "1", "--real-time", "10",
                  "--control", "0") as proc:  # fmt: skip
-        clients = [Client(endpoint(proc))]
+        client = Client(endpoint(proc))
         replies: list[dict] = []
         k = 0
         while not replies or "ok" in replies[-1]:
             k += 1
-            replies.append(clients[0].ask({"set": {"controller.yaw_setpoint": k * 1e-4}}))
-        after = clients[0].ask({"stop": True})
+            reply = _reply_unless_closed(client, {"set": {"controller.yaw_setpoint": k * 1e-4}})
+            if reply is None:
+                break
+            replies.append(reply)
+        after = _reply_unless_closed(client, {"stop": True}) if reply is not None else None
         proc.communicate(timeout=TIMEOUT_S)
         assert proc.returncode == 0  # complete: the stop came after the end
     summary = json.loads((out / "summary.json").read_text())
@@ -286,8 +291,17 @@ def test_every_set_around_the_end_of_a_run_is_applied_and_logged_or_answered_not
     acked = {r["name"]: (r["t"], r["set"]) for r in replies if "ok" in r}
     assert acked == logged and acked  # however many the client got in before the end
     refused = [r["error"] for r in replies if "ok" not in r]
-    assert refused == [refused[0]] and "not applied: the run ended at t = 1 s" in refused[0]
-    assert "stop: the run ended at t = 1 s" in after["error"]
+    assert all(e == refused[0] and "not applied: the run ended at t = 1 s" in e for e in refused)
+    assert after is None or "stop: the run ended at t = 1 s" in after["error"]
+
+
+def _reply_unless_closed(client: Client, request: object) -> dict | None:
+    """The reply to ``request``, or None if the endpoint had closed (end of file)."""
+    try:
+        line = client.raw(json.dumps(request))
+    except OSError:  # the close came first: the request could not even be sent
+        return None
+    return json.loads(line) if line else None
 
 
 @pytest.mark.slow
