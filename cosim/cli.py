@@ -1086,6 +1086,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.func is None:  # `auv-cosim` or `auv-cosim analyze` alone: the choices, as
             args.usage_help(sys.stderr)  # a usage error, on stderr as argparse's own are
             return 2
+        # in this block: a Ctrl-C during the import of the signals' module is a start's
+        args.held_stop = _hold_stop_signals() if argv is None and args.command == "run" else None
     except BrokenPipeError:  # --help or --version to a reader that stopped (`| head`)
         return _reader_gone()
     except _OutputRefusedError as exc:  # --help or --version to a standard output refusing it
@@ -1094,11 +1096,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("auv-cosim: interrupted (Ctrl-C) while starting", file=sys.stderr)
         return 130
-    args.held_stop = None
-    if argv is None and args.command == "run":
-        args.held_stop = _hold_stop_signals()
-        if args.connect is not None:
-            _quiet_viewer_transport_log()
+    if args.held_stop is not None and args.connect is not None:
+        _quiet_viewer_transport_log()
     if argv is None:
         warnings.showwarning = one_line_warnings(f"auv-cosim {args.command}")
         matplotlib_folder_in_one_line()
