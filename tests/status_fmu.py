@@ -25,11 +25,14 @@ def status_fmu(
     *,
     block_s: int = 0,
     terminate: str | int = "OK",
+    answers: dict[str, str | int] | None = None,
 ) -> Path:
     """Dahlquist whose doStep answers fmi2``status`` (or that number, one out of the
     standard) from the step that starts at ``at`` (s), blocking ``block_s`` seconds once
     first; after a Discard, fmi2Terminated is ``terminated``. fmi2Terminate answers
-    fmi2``terminate``."""
+    fmi2``terminate``. ``answers`` maps a macro of the shim (ENTER_STATUS, EXIT_STATUS,
+    SET_REAL_STATUS, SET_STATE_STATUS, GET_STATE_STATUS) to the status that call answers
+    after its work."""
     sources = folder / "sources"
     with zipfile.ZipFile(DAHLQUIST) as archive:
         for name in archive.namelist():
@@ -42,6 +45,7 @@ def status_fmu(
     defines = [f"-DSTEP_STATUS={_code(status)}", f"-DSTATUS_AT={at!r}",
                f"-DTERMINATED={int(terminated)}", f"-DBLOCK_S={int(block_s)}",
                f"-DTERMINATE_STATUS={_code(terminate)}"]  # fmt: skip
+    defines += [f"-D{macro}={_code(code)}" for macro, code in (answers or {}).items()]
     headers = Path(fmpy.__file__).parent / "c-code"  # fmpy ships the FMI 2.0 headers
     command = [gcc, "-shared", "-fPIC", f"-I{sources}", f"-I{headers}", *defines, str(SHIM)]
     subprocess.run([*command, "-o", str(library)], check=True, capture_output=True, timeout=120)

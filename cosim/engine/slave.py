@@ -35,6 +35,7 @@ from fmpy.fmi2 import (
     fmi2CallbackFunctions,
     fmi2CallbackLoggerTYPE,
     fmi2LastSuccessfulTime,
+    fmi2Status,
     fmi2Terminated,
 )
 
@@ -266,7 +267,7 @@ class Slave:
     def _terminate(self) -> None:
         """fmi2Terminate; a failure is kept among the messages, and after an Error the
         instance is still freed (FMI 2.0, 4.2.4), after a Fatal or a number out of the
-        enum not (fmpy's wrapper raises above fmi2Warning only: -1 is returned)."""
+        enum not (:func:`_strict`: fmpy's wrapper raises above fmi2Warning only)."""
         try:
             status = self.fmu.terminate()
         except FMICallException as exc:
@@ -457,11 +458,13 @@ def _library(key: tuple[str, str, str, str]) -> FMU2Slave:
     unzip_dir, model_identifier, guid, instance_name = key
     cwd = os.getcwd()
     try:
-        return FMU2Slave(
-            guid=guid,
-            unzipDirectory=unzip_dir,
-            modelIdentifier=model_identifier,
-            instanceName=instance_name,
+        return _strict(
+            FMU2Slave(
+                guid=guid,
+                unzipDirectory=unzip_dir,
+                modelIdentifier=model_identifier,
+                instanceName=instance_name,
+            )
         )
     except Exception as exc:  # fmpy raises a plain Exception, in the binary's folder
         os.chdir(cwd)  # fmpy changes the working directory to load it and leaves it there
@@ -469,6 +472,31 @@ def _library(key: tuple[str, str, str, str]) -> FMU2Slave:
         raise CosimError(
             f"{instance_name}: cannot load the binary of {model_identifier}: {reason}"
         ) from None
+
+
+def _strict(fmu: FMU2Slave) -> FMU2Slave:
+    """``fmu`` whose fmpy wrappers of the calls returning an fmi2Status raise
+    FMICallException for a number below fmi2OK too (fmpy's raise above fmi2Warning only:
+    -1 from fmi2EnterInitializationMode, a start value's setter or fmi2SetFMUstate passed
+    as OK), so that every call the master makes through fmpy, at set-up and at a state's
+    restore as in a step, stops at a number that is no fmi2Status (:data:`PASSED`)."""
+    for name, wrapper in list(vars(fmu).items()):
+        function = getattr(fmu.dll, name, None) if name.startswith("fmi2") else None
+        if function is not None and function.restype is fmi2Status:
+            setattr(fmu, name, _no_negative_status(name, wrapper))
+    return fmu
+
+
+def _no_negative_status(name: str, wrapper: Callable[..., int]) -> Callable[..., int]:
+    """fmpy's ``wrapper`` of the C function ``name``, raising on a status below fmi2OK."""
+
+    def call(*args: Any) -> int:
+        status = wrapper(*args)
+        if status < 0:
+            raise FMICallException(function=name, status=status)
+        return status
+
+    return call
 
 
 # --- unzipped FMUs, one folder per FMU content per process ---------------------------------

@@ -6,8 +6,13 @@
    fmi2CancelStep cancels), or any other value (an FMU out of the standard: -1, 7). From
    that step on, it may also block BLOCK_S seconds once first (saying "blocking" on
    stderr as it starts: a step that computes for long). fmi2Terminate answers
-   TERMINATE_STATUS. Built by tests/status_fmu.py with -DSTEP_STATUS=... -DSTATUS_AT=...
-   -DTERMINATED=... -DBLOCK_S=... -DTERMINATE_STATUS=... */
+   TERMINATE_STATUS. fmi2EnterInitializationMode, fmi2ExitInitializationMode, fmi2SetReal
+   and fmi2SetFMUstate do their work and answer ENTER_STATUS, EXIT_STATUS, SET_REAL_STATUS
+   and SET_STATE_STATUS (fmi2OK unless given); fmi2GetFMUstate answers GET_STATE_STATUS,
+   taking no state unless that is fmi2OK, and cosim_test_live_states() tells how many
+   states taken are not freed yet. Built by tests/status_fmu.py with
+   -DSTEP_STATUS=... -DSTATUS_AT=... -DTERMINATED=... -DBLOCK_S=... -DTERMINATE_STATUS=...
+   and the others where asked. */
 
 #include <stdio.h>
 #include <unistd.h>
@@ -18,17 +23,51 @@
 #undef fmi2GetBooleanStatus
 #undef fmi2CancelStep
 #undef fmi2Terminate
+#undef fmi2EnterInitializationMode
+#undef fmi2ExitInitializationMode
+#undef fmi2SetReal
+#undef fmi2SetFMUstate
+#undef fmi2GetFMUstate
+#undef fmi2FreeFMUstate
 #define fmi2DoStep reference_fmi2DoStep
 #define fmi2GetRealStatus reference_fmi2GetRealStatus
 #define fmi2GetBooleanStatus reference_fmi2GetBooleanStatus
 #define fmi2CancelStep reference_fmi2CancelStep
 #define fmi2Terminate reference_fmi2Terminate
+#define fmi2EnterInitializationMode reference_fmi2EnterInitializationMode
+#define fmi2ExitInitializationMode reference_fmi2ExitInitializationMode
+#define fmi2SetReal reference_fmi2SetReal
+#define fmi2SetFMUstate reference_fmi2SetFMUstate
+#define fmi2GetFMUstate reference_fmi2GetFMUstate
+#define fmi2FreeFMUstate reference_fmi2FreeFMUstate
 #include "all.c"
 #undef fmi2DoStep
 #undef fmi2GetRealStatus
 #undef fmi2GetBooleanStatus
 #undef fmi2CancelStep
 #undef fmi2Terminate
+#undef fmi2EnterInitializationMode
+#undef fmi2ExitInitializationMode
+#undef fmi2SetReal
+#undef fmi2SetFMUstate
+#undef fmi2GetFMUstate
+#undef fmi2FreeFMUstate
+
+#ifndef ENTER_STATUS
+#define ENTER_STATUS fmi2OK
+#endif
+#ifndef EXIT_STATUS
+#define EXIT_STATUS fmi2OK
+#endif
+#ifndef SET_REAL_STATUS
+#define SET_REAL_STATUS fmi2OK
+#endif
+#ifndef SET_STATE_STATUS
+#define SET_STATE_STATUS fmi2OK
+#endif
+#ifndef GET_STATE_STATUS
+#define GET_STATE_STATUS fmi2OK
+#endif
 
 static double reached = 0.0; /* s, where the step that did not complete got to */
 static int warned = 0;
@@ -85,4 +124,46 @@ FMI2_Export fmi2Status fmi2CancelStep(fmi2Component c) {
 FMI2_Export fmi2Status fmi2Terminate(fmi2Component c) {
     fmi2Status status = reference_fmi2Terminate(c);
     return status == fmi2OK ? (fmi2Status)TERMINATE_STATUS : status;
+}
+
+/* the reference function's work done; its status, else the one asked for */
+static fmi2Status answer(fmi2Status done, int asked) {
+    return done == fmi2OK ? (fmi2Status)asked : done;
+}
+
+FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    return answer(reference_fmi2EnterInitializationMode(c), ENTER_STATUS);
+}
+
+FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    return answer(reference_fmi2ExitInitializationMode(c), EXIT_STATUS);
+}
+
+FMI2_Export fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                   const fmi2Real value[]) {
+    return answer(reference_fmi2SetReal(c, vr, nvr, value), SET_REAL_STATUS);
+}
+
+FMI2_Export fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
+    return answer(reference_fmi2SetFMUstate(c, state), SET_STATE_STATUS);
+}
+
+static int live_states = 0; /* states taken by fmi2GetFMUstate, not freed yet */
+
+FMI2_Export int cosim_test_live_states(void) {
+    return live_states;
+}
+
+FMI2_Export fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    if (GET_STATE_STATUS != fmi2OK) {
+        return (fmi2Status)GET_STATE_STATUS;
+    }
+    fmi2Status status = reference_fmi2GetFMUstate(c, state);
+    live_states += status == fmi2OK;
+    return status;
+}
+
+FMI2_Export fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    live_states -= *state != NULL;
+    return reference_fmi2FreeFMUstate(c, state);
 }

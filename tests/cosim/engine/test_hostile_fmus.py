@@ -92,6 +92,50 @@ def test_a_terminate_status_out_of_the_standard_is_reported_and_not_freed(
     assert not freed(fmu, "d")
 
 
+SET_UP = [
+    ("ENTER_STATUS", "fmi2EnterInitializationMode"),
+    ("EXIT_STATUS", "fmi2ExitInitializationMode"),
+    ("SET_REAL_STATUS", "fmi2SetReal"),
+]
+
+
+@pytest.mark.parametrize("status", [-1, 7])
+@pytest.mark.parametrize(("macro", "function"), SET_UP)
+def test_a_set_up_status_out_of_the_standard_stops_the_run_naming_it(
+    tmp_path: Path, macro: str, function: str, status: int
+) -> None:
+    """A set-up call (entering or leaving initialisation mode, a start value set) answering
+    a number no fmi2Status has: -1 passed as OK through fmpy's wrappers (they raise above
+    fmi2Warning only) and the run went on. The run is refused before its first row, naming
+    the call and the number, and the instance is not called again (as after fmi2Fatal)."""
+    fmu = status_fmu(tmp_path, "OK", 99.0, answers={macro: status})
+    with_start = RUN + "[instances.d.start]\nk = -2.0\n"
+    scenario = scenario_from_toml(with_start.format(fmu=fmu.name), base_dir=tmp_path)
+    with pytest.raises(CosimError) as raised:
+        master.run(scenario)
+    assert str(raised.value).startswith(f"d: {function} returned {status} (not an fmi2Status)")
+    assert not freed(fmu, "d")
+
+
+@pytest.mark.parametrize("status", [-1, 7])
+def test_a_state_restore_status_out_of_the_standard_stops_the_run_naming_it(
+    tmp_path: Path, status: int
+) -> None:
+    """fmi2SetFMUstate answering a number no fmi2Status has while an adaptive step is
+    redone from its saved state: -1 passed as OK and the run went on from a state the FMU
+    may never have taken. The run stops, naming the call and the number, and the instance
+    is not called again."""
+    fmu = status_fmu(tmp_path, "OK", 99.0, answers={"SET_STATE_STATUS": status})
+    adaptive = RUN.replace(
+        "step = 0.1", 'step = 0.1\nalgorithm = "adaptive"\nerror_estimate = "doubling"'
+    )
+    result = master.run(scenario_from_toml(adaptive.format(fmu=fmu.name), base_dir=tmp_path))
+    assert result.error is not None
+    assert result.error.startswith(f"d: fmi2SetFMUstate returned {status} (not an fmi2Status)")
+    assert not result.complete
+    assert not freed(fmu, "d")
+
+
 _CLI = "import sys; from cosim.cli import main; sys.argv[0] = 'auv-cosim'; sys.exit(main())"
 
 
