@@ -102,8 +102,9 @@ estimates).
 from __future__ import annotations
 
 import bisect
+import contextlib
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
@@ -222,7 +223,17 @@ class _Stepper:
             self.inputs.took(slave, n, self._span(slave, n, units))
 
     def save(self) -> tuple[Any, ...]:
-        fmu_states = [s.fmu.getFMUstate() for s in self.order]
+        """Every instance's state (fmi2GetFMUstate) and the master's; when an instance
+        cannot save its state, those already taken are freed and its failure raised (it
+        is then :attr:`current`, which the run's error names)."""
+        fmu_states: list[Any] = []
+        try:
+            for slave in self.order:
+                self.current = slave
+                fmu_states.append(slave.fmu.getFMUstate())
+        except FMICallException:
+            self.free((fmu_states,), failed=self.current)
+            raise
         rates = [s.input_rates.snapshot() if s.input_rates else None for s in self.order]
         timeline = self.timeline.snapshot() if self.timeline is not None else None
         inputs = self.inputs.snapshot() if self.inputs is not None else None
@@ -233,6 +244,7 @@ class _Stepper:
         if self.inputs is not None:
             self.inputs.restore(inputs)
         for slave, state, rate in zip(self.order, fmu_states, rates, strict=True):
+            self.current = slave
             slave.fmu.setFMUstate(state)
             if slave.input_rates is not None:
                 slave.input_rates.restore(rate)
@@ -240,9 +252,31 @@ class _Stepper:
         if self.timeline is not None:
             self.timeline.restore(timeline)
 
-    def free(self, saved: tuple[Any, ...]) -> None:
-        for slave, state in zip(self.order, saved[0], strict=True):
-            slave.fmu.freeFMUstate(state)
+    def free(self, saved: tuple[Any, ...], failed: Slave | None = None) -> None:
+        """Free the FMU states of ``saved`` (:meth:`save`'s, or its first states taken).
+        After instance ``failed`` failed a call, its state is left alone (FMI 2.0: after
+        fmi2Fatal, or a number that is no status, nothing of it may be called) and the
+        others' failures to free are ignored: the first failure is the one told."""
+        for slave, state in zip(self.order, saved[0], strict=False):
+            if failed is None:
+                slave.fmu.freeFMUstate(state)
+            elif slave is not failed:
+                with contextlib.suppress(FMICallException):
+                    slave.fmu.freeFMUstate(state)
+
+    @contextlib.contextmanager
+    def freeing(self, saved: tuple[Any, ...]) -> Iterator[None]:
+        """Free ``saved`` as the block ends: a call that failed in it leaves the state of
+        the instance that made it (:attr:`current`) alone."""
+        try:
+            yield
+        except FMICallException:
+            self.free(saved, failed=self.current)
+            raise
+        except BaseException:
+            self.free(saved)
+            raise
+        self.free(saved)
 
 
 def coupling_order(scenario: Scenario, order: list[Slave]) -> int:
@@ -379,17 +413,16 @@ def _until_accepted(
     while True:
         units, wanted = control.units(n)
         saved = stepper.save()
-        try:
-            err, kept = attempt(units, saved)
-            if control.judge(err, units, wanted):
-                return units, kept
-            stepper.restore(saved)
-        except FMICallException as exc:
-            if not _shorter_after_discard(stepper, control, exc, units):
-                raise
-            stepper.restore(saved)
-        finally:
-            stepper.free(saved)
+        with stepper.freeing(saved):
+            try:
+                err, kept = attempt(units, saved)
+                if control.judge(err, units, wanted):
+                    return units, kept
+                stepper.restore(saved)
+            except FMICallException as exc:
+                if not _shorter_after_discard(stepper, control, exc, units):
+                    raise
+                stepper.restore(saved)
 
 
 def _shorter_after_discard(

@@ -136,6 +136,30 @@ def test_a_state_restore_status_out_of_the_standard_stops_the_run_naming_it(
     assert not freed(fmu, "d")
 
 
+def test_a_failed_state_save_frees_the_states_already_taken(tmp_path: Path) -> None:
+    """An adaptive step saves every instance's state (fmi2GetFMUstate) before it steps:
+    when a later instance's save failed, the states already taken from the earlier ones
+    were never freed (fmi2FreeFMUstate; a leak per failed run, in a study's worker
+    thousands). They are freed, and the run stops naming the instance that failed."""
+    fine = status_fmu(tmp_path / "fine", "OK", 99.0)
+    status_fmu(tmp_path / "failing", "OK", 99.0, answers={"GET_STATE_STATUS": "Error"})
+    text = (
+        'stop_time = 1.0\n[coupling]\nstep = 0.1\nalgorithm = "adaptive"\n'
+        'error_estimate = "doubling"\n[instances.a]\nfmu = "fine/Status.fmu"\n'
+        '[instances.b]\nfmu = "failing/Status.fmu"\n'
+    )
+    result = master.run(scenario_from_toml(text, base_dir=tmp_path))
+    assert result.error is not None
+    assert result.error.startswith("b: fmi2GetFMUstate returned Error"), result.error
+    (library,) = [
+        fmu
+        for key, fmus in _idle_libraries.items()
+        if key[0] == str(unzipped(fine)) and key[3] == "a"
+        for fmu in fmus
+    ]
+    assert library.dll.cosim_test_live_states() == 0
+
+
 _CLI = "import sys; from cosim.cli import main; sys.argv[0] = 'auv-cosim'; sys.exit(main())"
 
 
