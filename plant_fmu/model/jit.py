@@ -85,15 +85,18 @@ _OURS = ("NUMBA_CACHE_DIR",)
 
 def default_cache_dir() -> Path:
     """``$XDG_CACHE_HOME/auv-cosim/numba`` (if absolute: the XDG base directory
-    specification has a relative one ignored), or ``~/.cache/auv-cosim/numba``; where there is
-    no home folder (HOME unset and a uid /etc/passwd does not list, as ``docker run -u
-    12345`` gives) or the latter cannot be made and written (HOME=/, a service account's
-    HOME=/nonexistent), ``$TMPDIR/auv-cosim-cache-<uid>/numba`` (:func:`_foreign_folder`)."""
+    specification has a relative one ignored), or ``~/.cache/auv-cosim/numba``; where there
+    is no home folder (HOME unset and a uid /etc/passwd does not list, as ``docker run -u
+    12345`` gives), HOME is relative (ignored as a relative XDG_CACHE_HOME is) or the
+    latter cannot be made and written (HOME=/, a service account's HOME=/nonexistent),
+    ``$TMPDIR/auv-cosim-cache-<uid>/numba`` (:func:`_foreign_folder`)."""
     base = os.environ.get("XDG_CACHE_HOME", "")
     if os.path.isabs(base):  # relative: the specification says to ignore it (not the cwd's)
         return Path(base) / "auv-cosim" / "numba"
-    home = os.path.expanduser("~")  # "~" itself where there is none (Path.home() raises)
-    if not home.startswith("~"):
+    # "~" itself where there is none (Path.home() raises); HOME as it is, relative too:
+    # a relative one is ignored as a relative XDG_CACHE_HOME is (not a cache per cwd)
+    home = os.path.expanduser("~")
+    if os.path.isabs(home):
         folder = Path(home) / ".cache" / "auv-cosim" / "numba"
         try:
             folder.mkdir(parents=True, exist_ok=True)

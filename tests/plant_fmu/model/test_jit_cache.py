@@ -277,6 +277,37 @@ def test_a_home_that_cannot_be_written_caches_in_a_private_temporary_folder(run_
     assert result["problem"] == "" and result["warnings"] == [], result
 
 
+CACHE_FOLDER_OF_A_RELATIVE_HOME = (
+    """
+import json, os, sys, warnings
+for name in ("XDG_CACHE_HOME", "NUMBA_CACHE_DIR", "AUV_COSIM_NUMBA_CACHE_WARNED"):
+    os.environ.pop(name, None)
+os.environ["HOME"], os.environ["TMPDIR"] = "rel", sys.argv[1]
+os.chdir(sys.argv[2])
+"""
+    + CHOSEN_CACHE_FOLDER
+)
+
+
+def test_a_relative_home_caches_in_a_private_temporary_folder(run_python, tmp_path):
+    """HOME=rel (a relative home, which Python's ``expanduser`` returns as it is): the
+    cache went to ``rel/.cache/auv-cosim`` below whatever folder a command ran in, a
+    cache of its own in every working folder, the FMUs kept there too. A relative HOME
+    is ignored as the XDG specification has a relative XDG_CACHE_HOME ignored: the cache
+    goes to the user's private temporary folder, as where there is no home at all, and
+    nothing is written in the working folder."""
+    scratch, working = tmp_path / "tmp", tmp_path / "work"
+    scratch.mkdir()
+    working.mkdir()
+    done = run_python(CACHE_FOLDER_OF_A_RELATIVE_HOME, scratch, working)
+    assert done.returncode == 0, done.stderr[-3000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert Path(result["cache"]).is_absolute(), result
+    assert Path(result["cache"]).is_relative_to(scratch), result
+    assert result["problem"] == "" and result["warnings"] == [], result
+    assert list(working.iterdir()) == []
+
+
 def _kernel_tree(root: Path, version: str) -> Path:
     """The kernel files under ``root``, one of them of ``version``; its compiled.py."""
     for relative in KERNEL_FILES:
