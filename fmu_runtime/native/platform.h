@@ -90,8 +90,8 @@ void platform_exit_handler(void (*finalize)(void *));
 int platform_loaded_python(void **library, char *file, size_t size);
 
 /* The subprocess of a probe: run ``argv`` (argv[0] the program, NULL-terminated) without a
- * shell, stdin empty, stdout and stderr captured, PYTHONHOME left out of its environment,
- * ended after ``timeout_s``. */
+ * shell, stdin empty, stdout and stderr captured, PYTHONHOME and PYTHONUTF8 left out of
+ * its environment, ended after ``timeout_s``. */
 typedef struct {
     char *data;
     size_t size, limit; /* data holds limit + 1 bytes */

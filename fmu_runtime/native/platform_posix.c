@@ -199,7 +199,11 @@ void buffer_append(Buffer *b, const char *data, size_t n)
     b->size += n;
 }
 
-/* The host's environment without PYTHONHOME (a pointer array; the strings are shared). */
+/* The host's environment without PYTHONHOME and PYTHONUTF8 (a pointer array; the strings
+ * are shared). PYTHONUTF8 goes too because the Python the probe vouches for is started in
+ * UTF-8 mode set before CPython reads its environment (runtime.c), which then never reads
+ * PYTHONUTF8: a value a Python started on its own refuses (PYTHONUTF8=7) must not pass
+ * over a Python the host can start. */
 static char **child_environment(void)
 {
     char **host = environ; /* read once */
@@ -209,7 +213,9 @@ static char **child_environment(void)
     if (!copy) return NULL;
     size_t j = 0;
     for (size_t i = 0; i < n; i++) {
-        if (strncmp(host[i], "PYTHONHOME=", 11)) copy[j++] = host[i];
+        if (strncmp(host[i], "PYTHONHOME=", 11) && strncmp(host[i], "PYTHONUTF8=", 11)) {
+            copy[j++] = host[i];
+        }
     }
     return copy;
 }

@@ -9,7 +9,7 @@
  * The probe's subprocess is written by hand for the reasons of platform_posix.c (no shell,
  * nothing on the host's console, a deadline): CreateProcessW with the program's path (no
  * search), the command line quoted for the MSVC runtime's parser, only the three standard
- * handles inherited, no console window, the environment without PYTHONHOME.
+ * handles inherited, no console window, the environment without PYTHONHOME and PYTHONUTF8.
  */
 #ifndef WIN32_LEAN_AND_MEAN
 #define WIN32_LEAN_AND_MEAN
@@ -350,7 +350,8 @@ static wchar_t *command_line(const char *const argv[])
     return out;
 }
 
-/* The process's environment block without PYTHONHOME (malloc'd), or NULL. */
+/* The process's environment block without PYTHONHOME and PYTHONUTF8 (malloc'd), or NULL:
+ * why, in platform_posix.c. Names compared without case, as Windows does. */
 static wchar_t *child_environment(void)
 {
     wchar_t *block = GetEnvironmentStringsW();
@@ -361,7 +362,8 @@ static wchar_t *child_environment(void)
     size_t j = 0;
     for (size_t i = 0; copy && block[i]; i += wcslen(block + i) + 1) {
         size_t n = wcslen(block + i);
-        if (n >= 11 && CompareStringOrdinal(block + i, 11, L"PYTHONHOME=", 11, TRUE) == CSTR_EQUAL) {
+        if (n >= 11 && (CompareStringOrdinal(block + i, 11, L"PYTHONHOME=", 11, TRUE) == CSTR_EQUAL ||
+                        CompareStringOrdinal(block + i, 11, L"PYTHONUTF8=", 11, TRUE) == CSTR_EQUAL)) {
             continue;
         }
         memcpy(copy + j, block + i, (n + 1) * sizeof *copy);

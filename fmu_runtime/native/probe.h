@@ -27,8 +27,9 @@ typedef struct {
 } Answer;
 
 /* Run ``executable [argument] -c <probe>`` once (platform_run: no shell, stdin empty,
- * stdout and stderr captured: nothing reaches the host's terminal; PYTHONHOME left out of
- * its environment, since the runtime sets the home itself) and fill ``answer``.
+ * stdout and stderr captured: nothing reaches the host's terminal; PYTHONHOME and
+ * PYTHONUTF8 left out of its environment, since the runtime sets the home and UTF-8 mode
+ * itself) and fill ``answer``.
  * ``argument`` is NULL, or "-3" for Windows' py launcher. */
 void probe(const char *executable, const char *argument, Answer *answer);
 
