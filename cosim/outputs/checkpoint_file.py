@@ -10,7 +10,11 @@ interval asked for, s; null: only where a signal stopped the run), ``recording``
 unless told otherwise), the point it holds
 (``step``, ``time`` in s), ``rows`` (the rows of results.csv up to it, t = 0 included)
 and ``state`` (:mod:`cosim.engine.checkpoint`: the FMU states and the master's). It is
-written whole or not at all: a temporary file, ``fsync``, a rename, the folder synced.
+written whole or not at all: a temporary file, ``fsync``, recorded in the run's manifest
+(with results.csv as of it), a rename, the folder synced. A run killed between the
+manifest's save and the rename leaves the temporary file the manifest records: a resume
+renames it into place first (:func:`finish_interrupted_save`); killed before the save, the
+folder holds the checkpoint before, which the manifest still records.
 
 :func:`read_checkpoint` refuses, in one line, a checkpoint that is missing or damaged, of
 a run that completed, or one whose scenario, FMUs or auv-cosim version differ from what
@@ -38,6 +42,8 @@ from cosim.limits import unwritten
 from cosim.outputs.folder import RECORDING_FILE, RESULTS_FILE, SUMMARY_FILE, RunFolder
 from cosim.outputs.results import CsvRows
 from cosim.outputs.run_files import CHECKPOINT_FILE as CHECKPOINT_FILE  # (for its users)
+from cosim.outputs.run_files import RunFolderError, read_manifest
+from cosim.outputs.tail_guard import file_identity
 from cosim.scenario.spec import FILE_SUFFIXES, Scenario
 from cosim.version import version
 from cosim.whole_file import fresh_file
@@ -113,10 +119,16 @@ class CheckpointWriter:
                 "rows": int(state["rows"]), "state": to_json(state)}  # fmt: skip
         path = self.folder.path / CHECKPOINT_FILE
         try:
-            _write_synced(path, json.dumps(data).encode("utf-8"))
+            tmp = _written_beside(path, json.dumps(data).encode("utf-8"))
         except OSError as exc:
             raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
-        self.folder.checkpointed(path, data["rows"])
+        try:  # recorded before it is in place: no kill leaves it there unrecorded
+            self.folder.checkpointed(path, data["rows"], content=tmp)
+            _renamed_synced(tmp, path)
+        except OSError as exc:
+            raise CosimError(f"cannot write {path}: {unwritten(exc)}") from None
+        finally:
+            tmp.unlink(missing_ok=True)  # (gone once renamed)
 
 
 def recording_entry(rrd: Path | None, folder: Path) -> str | None:
@@ -130,20 +142,31 @@ def recording_entry(rrd: Path | None, folder: Path) -> str | None:
     return str(Path(rrd).absolute())
 
 
-def _write_synced(path: Path, data: bytes) -> None:
-    """``data`` into ``path`` whole or not at all, on disk when this returns: a temporary
-    file beside it, fsync, rename, fsync of the folder (a reboot right after keeps it)."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+def _pending(path: Path, pid: int) -> Path:
+    """The temporary file process ``pid`` writes ``path`` into before renaming it."""
+    return path.with_name(f".{path.name}.{pid}.tmp")
+
+
+def _written_beside(path: Path, data: bytes) -> Path:
+    """``data`` in a new temporary file beside ``path`` (:func:`_pending`), on disk when
+    this returns (fsync), to be renamed into place by :func:`_renamed_synced`."""
+    tmp = _pending(path, os.getpid())
     try:
         fresh_file(tmp)
         with open(tmp, "r+b") as file:
             file.write(data)
             file.flush()
             os.fsync(file.fileno())
-        os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    return tmp
+
+
+def _renamed_synced(tmp: Path, path: Path) -> None:
+    """``tmp`` renamed to ``path``, then the folder synced (a reboot right after keeps
+    the rename)."""
+    os.replace(tmp, path)
     with contextlib.suppress(OSError):  # (a folder cannot be opened on Windows)
         fd = os.open(path.parent, os.O_RDONLY)
         try:
@@ -295,10 +318,55 @@ class SavedRows:
         self._rows.close()
 
 
+def finish_interrupted_save(out_dir: Path) -> None:
+    """Rename into place the checkpoint a run killed between its manifest's save and the
+    rename left in its temporary file (:class:`CheckpointWriter`): the one the manifest
+    records, by size and SHA-256, while checkpoint.json is not. Nothing else is touched:
+    not while that run may still be alive (its process), nor a file the manifest does not
+    record (a kill before the save: checkpoint.json is the checkpoint before)."""
+    path = Path(out_dir) / CHECKPOINT_FILE
+    try:
+        manifest = read_manifest(Path(out_dir))
+    except RunFolderError:
+        return  # (the resume's own checks say what is wrong with the folder)
+    recorded = manifest.entries.get(CHECKPOINT_FILE)
+    tmp = _pending(path, manifest.pid)
+    if recorded is None or not os.path.isfile(tmp) or os.path.islink(tmp):
+        return
+    if _alive(manifest.pid) or _content(path) == _content_of(recorded):
+        return
+    if _content(tmp) == _content_of(recorded):
+        _renamed_synced(tmp, path)
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (as this user may see: ``kill(pid, 0)``)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process: alive
+        return True
+    return pid != 0
+
+
+def _content(path: Path) -> tuple[Any, Any] | None:
+    """(size, SHA-256) of the regular file at ``path``, None if none."""
+    identity = file_identity(path)
+    return None if identity is None else _content_of(identity)
+
+
+def _content_of(identity: dict[str, Any]) -> tuple[Any, Any]:
+    return identity.get("size"), identity.get("sha256")
+
+
 def read_checkpoint(out_dir: Path, names: OptionNames = FLAGS) -> Checkpoint:
-    """The checkpoint of the run in ``out_dir``. Raises :class:`CosimError` (one line,
+    """The checkpoint of the run in ``out_dir`` (one a kill left unrenamed put in place
+    first: :func:`finish_interrupted_save`). Raises :class:`CosimError` (one line,
     naming the options as ``names`` does) for a folder without one, a damaged one, or a
     run that completed."""
+    with contextlib.suppress(OSError):  # (then refused as it is, below)
+        finish_interrupted_save(Path(out_dir))
     path = Path(out_dir) / CHECKPOINT_FILE
     asked = names.given("resume", out_dir)
     if not os.path.lexists(path):

@@ -111,7 +111,8 @@ def find_earlier_run(
     manifest = read_manifest(path, names, option)
     own = _own_files(path, manifest.entries, by_content=resuming)
     own[path / MANIFEST_FILE] = file_identity(path / MANIFEST_FILE) or {}
-    for name in (SUMMARY_FILE, SCENARIO_FILE, MANIFEST_FILE):  # its partial writes, if killed
+    # its partial writes, if killed
+    for name in (SUMMARY_FILE, SCENARIO_FILE, MANIFEST_FILE, CHECKPOINT_FILE):
         tmp = path / f".{name}.{manifest.pid}.tmp"
         identity = file_identity(tmp) if regular(tmp) else None
         if identity is not None:

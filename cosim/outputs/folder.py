@@ -242,11 +242,12 @@ class RunFolder:
             self._created(Path(path))
         self.manifest.record(path)
 
-    def checkpointed(self, path: Path, rows: int) -> None:
-        """Record the checkpoint ``path`` this run wrote, at ``rows`` data rows, with
-        results.csv as of it where it holds exactly those rows (:attr:`results_written`)
-        and the head of the recording once flushed (:meth:`Manifest.record_checkpoint`).
-        Raises RunFolderError."""
+    def checkpointed(self, path: Path, rows: int, content: Path | None = None) -> None:
+        """Record the checkpoint ``path`` this run wrote (held in ``content`` until it is
+        renamed to ``path``, if given), at ``rows`` data rows, with results.csv as of it
+        where it holds exactly those rows (:attr:`results_written`) and the head of the
+        recording once flushed (:meth:`Manifest.record_checkpoint`). Raises
+        RunFolderError."""
         heads: dict[Path, tuple[int, str] | None] = {}
         if self.results_written is not None:
             written, size, sha256 = self.results_written()
@@ -259,7 +260,7 @@ class RunFolder:
         if name not in self._recorded:
             self._recorded.add(name)
             self._created(Path(path))
-        self.manifest.record_checkpoint(path, heads)
+        self.manifest.record_checkpoint(path, heads, content)
 
     def _created(self, path: Path) -> None:
         """This run created ``path`` (the guard removes it if it puts an earlier run back)."""

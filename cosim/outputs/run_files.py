@@ -86,12 +86,18 @@ class Manifest:
         self.entries[self.name_of(path)] = identity
         self.save()
 
-    def record_checkpoint(self, path: Path, heads: dict[Path, tuple[int, str] | None]) -> None:
-        """Record the checkpoint ``path`` the run wrote and, in the same save, that each
-        file of ``heads`` (recorded already) is the run's as long as its first ``size``
-        bytes hold SHA-256 ``sha256`` (``(size, sha256)``; None: not known, and no longer
-        an earlier checkpoint's). Raises RunFolderError."""
-        identity = file_identity(path)
+    def record_checkpoint(
+        self,
+        path: Path,
+        heads: dict[Path, tuple[int, str] | None],
+        content: Path | None = None,
+    ) -> None:
+        """Record the checkpoint ``path`` the run wrote (held in ``content`` until it is
+        renamed to ``path``, if given: a rename keeps what identifies it) and, in the same
+        save, that each file of ``heads`` (recorded already) is the run's as long as its
+        first ``size`` bytes hold SHA-256 ``sha256`` (``(size, sha256)``; None: not known,
+        and no longer an earlier checkpoint's). Raises RunFolderError."""
+        identity = file_identity(content or path)
         if identity is None:
             raise RunFolderError(f"cannot record {path}: it is not a regular file any more")
         self.entries[self.name_of(path)] = identity
