@@ -231,7 +231,7 @@ class _Stepper:
             for slave in self.order:
                 self.current = slave
                 fmu_states.append(slave.fmu.getFMUstate())
-        except FMICallException:
+        except FMICallException:  # (its state was not taken: nothing of it to free)
             self.free((fmu_states,), failed=self.current)
             raise
         rates = [s.input_rates.snapshot() if s.input_rates else None for s in self.order]
@@ -252,26 +252,32 @@ class _Stepper:
         if self.timeline is not None:
             self.timeline.restore(timeline)
 
-    def free(self, saved: tuple[Any, ...], failed: Slave | None = None) -> None:
+    def free(
+        self, saved: tuple[Any, ...], failed: Slave | None = None, touch_failed: bool = False
+    ) -> None:
         """Free the FMU states of ``saved`` (:meth:`save`'s, or its first states taken).
-        After instance ``failed`` failed a call, its state is left alone (FMI 2.0: after
-        fmi2Fatal, or a number that is no status, nothing of it may be called) and the
-        others' failures to free are ignored: the first failure is the one told."""
+        After instance ``failed`` failed a call (:meth:`freeing`), the others' failures to
+        free are ignored (the first failure is the one told), and its own state is left
+        alone unless ``touch_failed`` (its status allows it: not after fmi2Fatal, or a
+        number that is no status, after which nothing of it may be called, FMI 2.0, 4.2.4,
+        nor after fmi2Pending, its step still running)."""
         for slave, state in zip(self.order, saved[0], strict=False):
             if failed is None:
                 slave.fmu.freeFMUstate(state)
-            elif slave is not failed:
+            elif slave is not failed or touch_failed:
                 with contextlib.suppress(FMICallException):
                     slave.fmu.freeFMUstate(state)
 
     @contextlib.contextmanager
     def freeing(self, saved: tuple[Any, ...]) -> Iterator[None]:
-        """Free ``saved`` as the block ends: a call that failed in it leaves the state of
-        the instance that made it (:attr:`current`) alone."""
+        """Free ``saved`` as the block ends: after a call that failed in it, the state of
+        the instance that made it (:attr:`current`) is freed only where its status allows
+        (:meth:`free`)."""
         try:
             yield
-        except FMICallException:
-            self.free(saved, failed=self.current)
+        except FMICallException as exc:
+            allowed = exc.status in (0, 1, fmi2Discard, 3)  # (OK, Warning, ..., Error)
+            self.free(saved, failed=self.current, touch_failed=allowed)
             raise
         except BaseException:
             self.free(saved)
