@@ -13,13 +13,14 @@ import pytest
 from process_group import run_in_group
 from repo_paths import TESTS
 
-# the run, its os.replace of checkpoint.json watched: at the second checkpoint's, the run
-# and its tail guard are SIGKILLed just before the rename ("before") or just after it
+# the run, its renames watched: at the second checkpoint, the run and its tail guard are
+# SIGKILLed before the manifest recording it is saved ("unrecorded"), or just before
+# ("before") or just after ("after") checkpoint.json is renamed into place
 KILLED_WHILE_CHECKPOINTING = """
 import os, signal, sys
 sys.path.insert(0, sys.argv[1])
 from killed_runs import _children
-when, real, seen = sys.argv[2], os.replace, []
+when, real, renamed = sys.argv[2], os.replace, []
 
 
 def kill() -> None:
@@ -29,12 +30,16 @@ def kill() -> None:
 
 
 def replace(source, target):
-    checkpoint = os.path.basename(target) == "checkpoint.json"
-    seen.append(checkpoint)
-    if checkpoint and seen.count(True) == 2 and when == "before":
+    name, folder = os.path.basename(target), os.path.dirname(os.path.abspath(target))
+    pending = any(n.startswith(".checkpoint.json.") for n in os.listdir(folder))
+    if name == ".auv-cosim-run.json" and pending and len(renamed) == 1 and when == "unrecorded":
+        kill()
+    if name == "checkpoint.json":
+        renamed.append(target)
+    if len(renamed) == 2 and name == "checkpoint.json" and when == "before":
         kill()
     real(source, target)
-    if checkpoint and seen.count(True) == 2 and when == "after":
+    if len(renamed) == 2 and name == "checkpoint.json" and when == "after":
         kill()
 
 
@@ -46,20 +51,23 @@ main()
 
 
 def _cli(*args: str) -> list[str]:
-    return [sys.executable, "-m", "cosim.cli", "run", *args, "--quiet", "--no-rrd"]
+    return [sys.executable, "-m", "cosim.cli", "run", *args, "--no-rrd"]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("when", ["before", "after"])
+@pytest.mark.parametrize(
+    ("when", "resumed_at"), [("unrecorded", 10), ("before", 20), ("after", 20)]
+)
 def test_a_run_killed_between_a_checkpoint_and_its_record_resumes(
-    fmu_dir: Path, tmp_path: Path, when: str
+    fmu_dir: Path, tmp_path: Path, when: str, resumed_at: int
 ) -> None:
     """Killed just after checkpoint.json was renamed into place and before the manifest
     recorded it, the folder was refused ("results.csv is not a file the earlier run wrote
     (changed since, replaced, or a link); resume the folder it was checkpointed in, or
     start the run again"), though it was that folder. The manifest records a checkpoint
     before it is renamed into place, and a resume finishes a rename the kill cut short:
-    killed on either side of the rename, the run resumes to the uninterrupted results."""
+    killed before the record, the run resumes from the checkpoint before (10 s), on
+    either side of the rename from the new one (20 s), to the uninterrupted results."""
     common = ("--fmu-dir", str(fmu_dir), "--stop-time", "30")
     whole, killed = tmp_path / "whole", tmp_path / "killed"
     first = run_in_group(_cli("bs-3", "--out", str(whole), *common), timeout=600)
@@ -71,4 +79,5 @@ def test_a_run_killed_between_a_checkpoint_and_its_record_resumes(
     assert done.returncode == -9, done.stderr
     resumed = run_in_group(_cli("--resume", str(killed), "--fmu-dir", str(fmu_dir)), timeout=600)
     assert resumed.returncode == 0, resumed.stderr
+    assert f"resumed the run in {killed} at t = {resumed_at} s" in resumed.stderr
     assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
