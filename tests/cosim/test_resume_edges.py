@@ -28,15 +28,15 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def _fail_from(monkeypatch: pytest.MonkeyPatch, call: int) -> None:
     """checkpoint.json's writes fail from the ``call``-th on as a full disk fails them."""
-    write, calls = checkpoint_file._write_synced, [0]
+    write, calls = checkpoint_file._written_beside, [0]
 
-    def full(path: Path, data: bytes) -> None:
+    def full(path: Path, data: bytes) -> Path:
         calls[0] += 1
         if calls[0] >= call:
             raise OSError(errno.ENOSPC, "No space left on device")
-        write(path, data)
+        return write(path, data)
 
-    monkeypatch.setattr(checkpoint_file, "_write_synced", full)
+    monkeypatch.setattr(checkpoint_file, "_written_beside", full)
 
 
 def test_a_checkpoint_on_a_full_disk_stops_the_run_at_its_point(

@@ -34,15 +34,15 @@ def test_a_resumed_run_s_bar_starts_at_its_checkpoint(
 ) -> None:
     """The runner tells the bar the rows its checkpoint replays: a run of bs-3 stopped by a
     full disk at its second checkpoint (t = 1 s), resumed from the first (t = 0.5 s)."""
-    write, calls = checkpoint_file._write_synced, [0]
+    write, calls = checkpoint_file._written_beside, [0]
 
-    def full_from_the_second(path: Path, data: bytes) -> None:
+    def full_from_the_second(path: Path, data: bytes) -> Path:
         calls[0] += 1
         if calls[0] >= 2:
             raise OSError(errno.ENOSPC, "No space left on device")
-        write(path, data)
+        return write(path, data)
 
-    monkeypatch.setattr(checkpoint_file, "_write_synced", full_from_the_second)
+    monkeypatch.setattr(checkpoint_file, "_written_beside", full_from_the_second)
     out = tmp_path / "run"
     common = {"stop_time": 2.0, "no_rrd": True, "fmu_dir": fmu_dir}
     assert not run_scenario("bs-3", out, checkpoint_every=0.5, **common).result.complete
