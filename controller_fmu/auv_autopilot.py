@@ -327,9 +327,10 @@ class AuvAutopilot(SafeSlave):
 
     def _ends_at_stop_time(self, end: float) -> bool:
         """Whether a step ending at ``end`` (s) ends at setupExperiment's stop time (within
-        the relative 1e-9 the runtime allows a host's communication points)."""
+        the relative 1e-9 the runtime allows a host's communication points); never when
+        setupExperiment defined none (``_stop_time`` is then inf)."""
         stop = self._stop_time
-        return abs(end - stop) <= 1e-9 * max(abs(stop), 1.0)
+        return math.isfinite(stop) and abs(end - stop) <= 1e-9 * max(abs(stop), 1.0)
 
     def _state_snapshot(self) -> dict[str, Any]:
         # the measurements and the commands are in the value buffers, saved with them

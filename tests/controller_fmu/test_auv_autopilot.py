@@ -172,6 +172,17 @@ def test_a_step_other_than_the_design_step_is_logged_as_a_warning(fmu_paths, unz
 
 
 @pytest.mark.slow
+def test_a_shorter_step_is_logged_when_no_stop_time_is_defined(fmu_paths, unzip_dirs):
+    """Without a stop time from setupExperiment (the harness defines none) no step ends
+    at one: a host stepping 0.005 s throughout, half the design step, must still hear
+    that the LQR gains are designed for another step."""
+    controller = _controller(fmu_paths, unzip_dirs, heading_mode=1, design_step=0.01)
+    assert controller.step(0.005) == STATUS_OK
+    controller.close()
+    assert "communication step 0.005 s differs from design_step = 0.01" in controller.messages(1)
+
+
+@pytest.mark.slow
 def test_a_step_longer_than_the_sample_period_is_logged_as_a_warning(fmu_paths, unzip_dirs):
     """A digital LQR (sample_period = design_step = 0.01 s) stepped every 0.04 s samples
     every 0.04 s, and did so without a word (lqr-1 --step 0.04: the mass to its stops)."""
