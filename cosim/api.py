@@ -948,7 +948,14 @@ def _path(
         raise error(f"{name}='': expected a non-empty path ('.' names the working folder)")
     # "~/runs" is the home folder's, as pandas reads it: Python's own calls would make a
     # folder named "~" in the working folder (which a shell's `rm -rf ~` then removes)
-    return Path(os.path.expanduser(text))
+    expanded = os.path.expanduser(text)
+    if expanded.startswith("~"):  # no such user, or no HOME and no password entry
+        user = text.split(os.sep, 1)[0]
+        raise error(
+            f"{name}={shown(value)}: no home folder for {user!r} (no such user, or no "
+            f"HOME); expected ~/... with HOME set, or ./{text} for a name starting with ~"
+        )
+    return Path(expanded)
 
 
 def _folder(name: str, value: object, error: type[CosimError] = CosimError) -> Path:

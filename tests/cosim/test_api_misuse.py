@@ -194,3 +194,20 @@ def test_resume_takes_a_numpy_false_recording_as_false(
         with pytest.raises(CosimError, match="stop here"):
             cosim.resume(tmp_path, recording=recording, fmu_dir=fmu_dir)  # type: ignore[arg-type]
     assert given[0] == given[1]
+
+
+def test_a_tilde_path_with_no_home_folder_to_expand_to_is_refused(
+    fmu_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``out="~nosuchuser/runs"`` (a user that does not exist, or ``~`` where neither
+    HOME nor the password file gives a home folder) is left as it is by expanduser: the
+    run made a folder named ``~nosuchuser`` in the working folder, the one thing a path
+    starting with ``~`` must not do (docs/api.md). It is refused in one line naming it."""
+    monkeypatch.chdir(tmp_path)
+    bad = "~no-such-user-of-auv-cosim/runs"
+    with pytest.raises(CosimError) as refused:
+        cosim.run("bs-3", stop_time=0.05, out=bad, recording=False, fmu_dir=fmu_dir)
+    assert str(refused.value).startswith(f"out={bad!r}: no home folder for '~no-such-user"), str(
+        refused.value
+    )
+    assert list(tmp_path.iterdir()) == []
