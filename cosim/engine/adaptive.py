@@ -28,7 +28,8 @@ Two estimates of a step's error (``[coupling] error_estimate``):
   taken to cross a slope discontinuity of an input (a saturation, a boundary layer;
   Gear & Osterby, ACM TOMS 10 (1984) 23-44: there du falls only like H, err like H^2, so a
   shorter step buys little and the steps collapse); it is accepted as it is (counted in
-  ``steps_over_tolerance`` and ``kinks``), the next step is as long and the error level
+  ``steps_over_tolerance`` and ``kinks`` where its own err is over 1: a step shortened to
+  reach a point may meet the tolerance), the next step is as long and the error level
   the PI controller sees stays the smooth steps'.
 * ``"doubling"``, the rest of this docstring:
 
