@@ -221,6 +221,37 @@ def test_a_grid_value_putting_an_event_between_the_points_of_h_warns_check_step(
     ]
 
 
+def test_a_check_step_doubt_every_grid_point_has_is_warned_of_once_without_values(
+    scenario: Path, fmu_dir: Path
+) -> None:
+    """docs/coupling.md: a doubt every run of a check_step study has (the base scenario's
+    turn at 10.005 s, between the points of h = 0.01 s, whatever the fault's gain) is
+    warned of once, without a grid point's values."""
+    import warnings
+
+    from cosim.study.factors import resolve_factor
+    from cosim.study.runner import _checked_plan
+    from cosim.study.spec import study_from_dict
+    from cosim.study.task import prepare
+
+    text = scenario.read_text(encoding="utf-8").replace("time = 10.0\n", "time = 10.005\n")
+    scenario.write_text(text, encoding="utf-8")
+    grid = {"faults.fault-1.value": [1.0, 0.5]}
+    spec = study_from_dict({"scenario": str(scenario), "grid": grid, "stop_time": 20.0,
+                            "check_step": True}, "study")  # fmt: skip
+    base, facts = prepare(str(scenario), spec.stop_time, fmu_dir, check_step=True)
+    factors = {name: resolve_factor(name, facts) for name in spec.factors}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert len(_checked_plan(spec, base, factors, facts)) == 2
+    assert [str(w.message) for w in caught if "TRUSTED" in str(w.message)] == [
+        "check_step: the coupling errors are NOT TO BE TRUSTED: events.turn.time = 10.005 s "
+        "applies at 10.01, 10.005 and 10.005 s in the runs at h, h/2 and h/4: its time moves "
+        "with the step, an error Richardson extrapolation does not model (put it on a point "
+        "of h)"
+    ]
+
+
 def test_a_grid_point_whose_current_a_leg_cannot_beat_is_warned_of(fmu_dir: Path) -> None:
     """A survey study over the current's north and east parts, each up to 1.2 m/s: either
     alone the vehicle (1.525 m/s through the water) beats on every leg, both together
