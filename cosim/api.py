@@ -950,7 +950,7 @@ def _path(
     # folder named "~" in the working folder (which a shell's `rm -rf ~` then removes)
     expanded = os.path.expanduser(text)
     if expanded.startswith("~"):  # no such user, or no HOME and no password entry
-        user = text.split(os.sep, 1)[0]
+        user = text.replace(os.altsep or os.sep, os.sep).split(os.sep, 1)[0]  # "~name"
         raise error(
             f"{name}={shown(value)}: no home folder for {user!r} (no such user, or no "
             f"HOME); expected ~/... with HOME set, or ./{text} for a name starting with ~"
