@@ -55,7 +55,8 @@ for the parameter ``design_step`` (default 0.01 s), not for the first doStep's s
 so every design error is reported by exitInitializationMode and a master with varying steps
 gets one well-defined design. If a communication step differs from ``design_step`` the FMU
 logs a warning (once) and carries on, but not for a shorter last step ending at the stop
-time (a host ends a run off its grid so); the backstepping's filters are exact for any step.
+time setupExperiment defined (a host ends a run off its grid so; with no stop time defined
+a shorter step warns); the backstepping's filters are exact for any step.
 
 Bad input: a NaN/inf input or parameter is refused with a logged reason (doStep then
 returns Discard); an unknown mode or vehicle, or any parameter out of range, fails
