@@ -28,15 +28,29 @@ class OptionNames:
     keywords: bool = False
 
     def given(self, option: str, value: object) -> str:
-        """The option as given: ``--out runs/x`` or ``out='runs/x'``."""
+        """The option as given: ``--out runs/x`` or ``out='runs/x'``; the folder of a
+        resumed run, ``resume``, as ``--resume runs/x`` or ``out='runs/x'``
+        (``cosim.resume``'s argument)."""
         if self.keywords:
             shown = os.fspath(value) if isinstance(value, os.PathLike) else value
-            return f"{option}={shown!r}"
+            return f"{self._keyword(option)}={shown!r}"
         return f"--{option.replace('_', '-')} {value}"
 
     def option(self, option: str) -> str:
-        """The option to give a value to: ``--out`` or ``out=``."""
-        return f"{option}=" if self.keywords else f"--{option.replace('_', '-')}"
+        """The option to give a value to: ``--out`` or ``out=`` (``resume``, the folder of
+        a resumed run: ``--resume`` or ``out=``)."""
+        return f"{self._keyword(option)}=" if self.keywords else f"--{option.replace('_', '-')}"
+
+    def takes(self, option: str, what: str) -> str:
+        """The option with a value of its kind: ``--checkpoint-every SECONDS`` or
+        ``checkpoint_every=SECONDS``."""
+        return f"{self.option(option)}{'' if self.keywords else ' '}{what}"
+
+    @staticmethod
+    def _keyword(option: str) -> str:
+        """The API's keyword of a value-taking option: its name, but the folder of a run
+        to resume, ``--resume OUT``, which is ``cosim.resume(out)``'s ``out``."""
+        return "out" if option == "resume" else option
 
     def switch(self, option: str) -> str:
         """The option that turns something on: ``--overwrite`` or ``overwrite=True``."""

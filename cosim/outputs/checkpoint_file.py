@@ -372,7 +372,7 @@ def read_checkpoint(out_dir: Path, names: OptionNames = FLAGS) -> Checkpoint:
     if not os.path.lexists(path):
         raise CosimError(
             f"{asked}: no {CHECKPOINT_FILE} there (run with "
-            f"{names.option('checkpoint_every')} SECONDS to write one)"
+            f"{names.takes('checkpoint_every', 'SECONDS')} to write one)"
         )
     try:
         data = json.loads(_read_regular(path))

@@ -35,23 +35,35 @@ def test_a_bad_checkpoint_interval_is_refused_naming_it(
 def test_resuming_a_folder_without_a_checkpoint_names_the_keywords(
     fmu_dir: Path, tmp_path: Path
 ) -> None:
+    """cosim.resume's folder is its ``out``: the refusal named ``resume=`` (the command
+    line's ``--resume`` as a keyword cosim.resume has not) and said ``checkpoint_every=
+    SECONDS`` with a space inside the keyword's value."""
     out = tmp_path / "run"
     cosim.run("bs-3", stop_time=0.2, out=out, recording=False, fmu_dir=fmu_dir)
     with pytest.raises(CosimError) as refused:
         cosim.resume(out, fmu_dir=fmu_dir)
     assert str(refused.value) == (
-        f"resume={str(out)!r}: no {CHECKPOINT_FILE} there (run with checkpoint_every= "
-        "SECONDS to write one)"
+        f"out={str(out)!r}: no {CHECKPOINT_FILE} there (run with checkpoint_every=SECONDS "
+        "to write one)"
     )
 
 
 def test_a_complete_run_is_not_resumed(fmu_dir: Path, tmp_path: Path) -> None:
+    """Refused naming the folder as cosim.resume's ``out``, not as ``resume=``."""
     out = tmp_path / "run"
     run = cosim.run("bs-3", stop_time=0.5, out=out, recording=False, checkpoint_every=0.2,
                     fmu_dir=fmu_dir)  # fmt: skip
     assert run.complete and (out / CHECKPOINT_FILE).is_file()
-    with pytest.raises(CosimError, match=r"the run there is complete: nothing to resume$"):
+    with pytest.raises(CosimError) as refused:
         cosim.resume(out, fmu_dir=fmu_dir)
+    assert str(refused.value) == f"out={str(out)!r}: the run there is complete: nothing to resume"
+
+
+def test_resuming_a_folder_without_a_run_names_out(fmu_dir: Path, tmp_path: Path) -> None:
+    """A folder holding no run is refused naming cosim.resume's ``out``."""
+    with pytest.raises(CosimError) as refused:
+        cosim.resume(tmp_path, fmu_dir=fmu_dir)
+    assert str(refused.value).startswith(f"out={str(tmp_path)!r}: no run there ("), refused.value
 
 
 @pytest.mark.slow

@@ -181,7 +181,8 @@ def test_a_folder_without_a_checkpoint_is_refused(
 ) -> None:
     out = _copy(checkpointed, tmp_path)
     (out / CHECKPOINT_FILE).unlink()
-    _refused(out, fmu_dir, "no checkpoint.json there \\(run with --checkpoint-every")
+    _refused(out, fmu_dir, f"^--resume {out}: no checkpoint.json there \\(run with "
+             "--checkpoint-every SECONDS to write one\\)$")  # fmt: skip
 
 
 def test_a_complete_run_is_not_resumed(checkpointed: Path, fmu_dir: Path, tmp_path: Path) -> None:
