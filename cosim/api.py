@@ -23,6 +23,7 @@ import dataclasses
 import io
 import json
 import multiprocessing
+import numbers
 import os
 import signal
 import tempfile
@@ -547,10 +548,11 @@ def sweep(
     Raises
     ------
     cosim.study.spec.StudyError
-        The study cannot run (a bad key, factor or value, an argument of the wrong type
-        or out of range), or it is called at a script's top level without an ``if
-        __name__ == "__main__":`` guard (each worker imports the script again); failed
-        runs are rows of the table (one warning line counts them, naming the first).
+        The study cannot run (a bad key, factor or value, its scenario refused, an
+        argument of the wrong type or out of range), or it is called at a script's top
+        level without an ``if __name__ == "__main__":`` guard (each worker imports the
+        script again); failed runs are rows of the table (one warning line counts them,
+        naming the first).
     SweepInterrupted
         Ctrl-C (a notebook's stop button) stopped the study and its workers: a
         KeyboardInterrupt (``except CosimError`` lets it through) whose ``study.table``
@@ -841,8 +843,9 @@ def _study_file(study: str | Path | Mapping[str, Any], folder: Path | None) -> P
 def _toml_value(value: object, key: str) -> object:
     """A value of a study dict as its TOML file holds it: a numpy array or scalar as its
     list or Python number (``np.linspace(-0.1, 0.1, 5)``), a tuple as a list, a path as its
-    text, in mappings and lists too; None, and a name holding bytes that are no UTF-8 (read
-    as surrogates), which TOML cannot hold, refused naming ``key``."""
+    text, in mappings and lists too; None, a number of another type (a Decimal, which TOML
+    would hold as a float, a Fraction: :func:`run` refuses both), and a name holding bytes
+    that are no UTF-8 (read as surrogates), which TOML cannot hold, refused naming ``key``."""
     from cosim.study.spec import StudyError
 
     if type(value).__module__ == "numpy" and hasattr(value, "tolist"):
@@ -862,6 +865,11 @@ def _toml_value(value: object, key: str) -> object:
         raise StudyError(
             f"{DICT_LABEL}: key {key!r} = None: expected a value (leave the key out for its "
             "default)"
+        )
+    if isinstance(value, numbers.Number) and not isinstance(value, int | float):
+        raise StudyError(
+            f"{DICT_LABEL}: key {key!r} = {shown(value)}: expected a bool, int, float or str "
+            "(or a numpy scalar of one)"
         )
     return value
 

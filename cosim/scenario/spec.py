@@ -470,7 +470,8 @@ class Scenario:
     ) -> Scenario:
         """A re-validated copy with the command line's overrides applied; a refusal of
         what they make names them as ``names`` gives options (``--step 1e-09`` on the
-        command line, ``step=1e-09`` in Python), or as the scenario keys they set.
+        command line, :data:`cosim.errors.FLAGS`; ``step=1e-09`` in Python,
+        :data:`~cosim.errors.KEYWORDS`), or, without ``names``, as the scenario keys they set.
 
         A new step also moves every instance's ``design_step`` start value that equalled
         that instance's old communication step (a sampled controller designed for the step
@@ -486,6 +487,11 @@ class Scenario:
         number as its value; a Decimal, a string or a bool refused). Raises
         :class:`ScenarioError` naming a value the scenario refuses.
         """
+        if names is not None and not isinstance(names, OptionNames):
+            raise ScenarioError(
+                f"names={shown(names)}: expected None or how a refusal names the options, "
+                "cosim.errors.FLAGS or KEYWORDS"
+            )
         stop_time = seconds_argument("stop_time", stop_time, ScenarioError)
         coupling: dict[str, Any] = {}
         given = _checked_overrides(step, algorithm, extrapolation, tolerance, error_estimate)

@@ -36,7 +36,7 @@ from cosim.limits import check_local_study, unwritten
 from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.progress_bars import progress_bar
 from cosim.scenario import unit_doubts
-from cosim.scenario.checks import range_text
+from cosim.scenario.checks import ScenarioError, range_text
 from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
 from cosim.scratch import process_folder
 from cosim.study import collector
@@ -151,13 +151,7 @@ def run_study(
     _check_cluster(cluster)
     spec = load_study(study_file, label := label or study_label(study_file))
     check_size(spec, label, max_runs, names)
-    scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
-    base, facts = prepare(
-        scenario_ref, spec.stop_time, fmu_dir, spec.check_step, study_file.parent, fmu_log, names
-    )
-    factors = {name: resolve_factor(name, facts) for name in spec.factors}
-    metrics = _metrics(spec, facts)
-    runs = _checked_plan(spec, base, factors, facts)
+    base, factors, metrics, runs = _planned(spec, study_file, fmu_dir, fmu_log, names)
     entries = spread(runs, overlay, names) if overlay is not None else spec.overlay
     if entries:
         check_choice(entries, runs, metrics)
@@ -550,6 +544,29 @@ def _write_report(
         )
     not_plotted = [m for m in metrics if m not in shown]
     return write_index(out_dir, facts, rows, figures, not_plotted, alts, bool(randoms))
+
+
+def _planned(
+    spec: StudySpec,
+    study_file: Path,
+    fmu_dir: Path,
+    fmu_log: Mapping[str, tuple[str, ...]] | None,
+    names: OptionNames,
+) -> tuple[Base, dict[str, FactorKind], list[str], list[PlannedRun]]:
+    """The study's base scenario, factors, metric columns and runs, every value checked.
+    A :class:`ScenarioError` of its scenario (no such file, a value its checks refuse)
+    is raised as the :class:`StudyError` a study raises, with the same message: a caller
+    catching StudyError (``cosim.sweep``'s documented error) catches it too."""
+    try:
+        scenario_ref = _scenario_ref(spec.scenario, study_file.parent)
+        base, facts = prepare(
+            scenario_ref, spec.stop_time, fmu_dir, spec.check_step, study_file.parent, fmu_log,
+            names,
+        )  # fmt: skip
+        factors = {name: resolve_factor(name, facts) for name in spec.factors}
+        return base, factors, _metrics(spec, facts), _checked_plan(spec, base, factors, facts)
+    except ScenarioError as exc:
+        raise StudyError(str(exc)) from exc
 
 
 def _scenario_ref(ref: str, study_dir: Path) -> str | Path:
