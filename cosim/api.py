@@ -242,7 +242,7 @@ def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR
     from cosim.scenario.checks import ScenarioError
     from cosim.scenario.spec import load_scenario as load
 
-    path = _path("scenario", scenario, error=ScenarioError)
+    path = _scenario_path(scenario, ScenarioError)
     return load(path, fmu_dir=_folder("fmu_dir", fmu_dir, ScenarioError))
 
 
@@ -981,7 +981,7 @@ def _scenario_argument(value: object, fmu_dir: Path | None) -> Path | Scenario:
     from cosim.scenario.spec import Scenario
 
     if not isinstance(value, Scenario):
-        return _path("scenario", value)
+        return _scenario_path(value, CosimError)
     value.check_loaded()
     if fmu_dir is not None and fmu_dir.resolve() != value.fmu_dir.resolve():
         raise CosimError(
@@ -990,6 +990,17 @@ def _scenario_argument(value: object, fmu_dir: Path | None) -> Path | Scenario:
             "fmu_dir=...) to load it with others"
         )
     return value
+
+
+def _scenario_path(value: object, error: type[CosimError]) -> Path:
+    """A ``scenario`` argument that is no Scenario: a path (:func:`_path`, else ``error``)
+    of a built-in id or a file; one that is no file (a folder, a missing file) refused as
+    a ScenarioError naming ``scenario=``."""
+    from cosim.scenario.spec import scenario_path
+
+    path = _path("scenario", value, error=error)
+    scenario_path(path, given=KEYWORDS.given("scenario", value))
+    return path
 
 
 def _start(value: object) -> dict[str, StartValue] | None:

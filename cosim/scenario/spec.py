@@ -677,8 +677,10 @@ def builtin_scenarios() -> dict[str, str]:
     return result
 
 
-def scenario_path(id_or_path: str | Path) -> Path:
-    """The file of a built-in scenario id, or ``id_or_path`` itself if it is a file."""
+def scenario_path(id_or_path: str | Path, given: str | None = None) -> Path:
+    """The file of a built-in scenario id, or ``id_or_path`` itself if it is a file.
+    ``given``: how a refusal of a path that is no file names it (the API's
+    ``scenario='runs'``; default: the path alone, as the command line's argument)."""
     candidate = SCENARIO_FOLDER / f"{id_or_path}.toml"
     if "/" not in str(id_or_path) and candidate.is_file():
         return candidate
@@ -696,10 +698,9 @@ def scenario_path(id_or_path: str | Path) -> Path:
         guess = "" if exists else did_you_mean_path(path)
         if not (exists or guess) and _is_builtin_file_name(path):
             guess = f" (the built-in scenario is the id {path.stem!r}, without .toml)"
-        raise ScenarioError(
-            f"{'not a file' if exists else 'no such file'}: {id_or_path}{guess}"
-            f"{relative_to(path)}; expected a scenario .toml file"
-        )
+        what = "not a file" if exists else "no such file"
+        named = f"{given}: {what}" if given else f"{what}: {id_or_path}"
+        raise ScenarioError(f"{named}{guess}{relative_to(path)}; expected a scenario .toml file")
     guess = (
         did_you_mean(str(id_or_path), builtin_scenarios())
         or _with_toml(path)

@@ -275,20 +275,23 @@ def test_a_scenario_path_that_is_no_file_is_named_so(
     argument: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
 ) -> None:
     """An argument meant as a file (ending in .toml, holding a path separator, or naming
-    a folder) that is no file is refused saying so and where it was looked for, by the
-    API and by ``auv-cosim run`` alike, not as an unknown built-in id; the path once, a
-    relative one with the folder it is relative to (the message named it twice, as given
-    and as absolute: ``missing.toml (looked for /home/me/missing.toml)``)."""
+    a folder) that is no file is refused saying so and where it was looked for, not as an
+    unknown built-in id; the path once, a relative one with the folder it is relative to
+    (the message named it twice, as given and as absolute: ``missing.toml (looked for
+    /home/me/missing.toml)``). The API names its keyword, ``scenario=`` (it said "not a
+    file: folder", naming no argument), ``auv-cosim run`` its argument as given."""
     from cosim.cli import main
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "folder").mkdir()
     what = "not a file" if argument == "folder" else "no such file"
     where = "" if argument.startswith("/") else f" (relative to {tmp_path})"
+    for call in (cosim.run, cosim.load_scenario):
+        with pytest.raises(ScenarioError) as raised:
+            call(argument)
+        said = f"scenario={argument!r}: {what}{where}; expected a scenario .toml file"
+        assert str(raised.value).startswith(said), raised.value
     expected = f"{what}: {argument}{where}; expected a scenario"
-    with pytest.raises(ScenarioError) as raised:
-        cosim.run(argument)
-    assert str(raised.value).startswith(expected), raised.value
     assert main(["run", argument]) == 1
     assert capsys.readouterr().err.strip().startswith(f"auv-cosim run: {expected}")
 
