@@ -55,6 +55,7 @@ if TYPE_CHECKING:  # pandas and the scenario machinery load on first use, not on
 
     Number: TypeAlias = float | np.integer[Any] | np.floating[Any]  # a numpy one as its value
     Count: TypeAlias = int | np.integer[Any]
+    Flag: TypeAlias = bool | np.bool_  # an on/off option: a numpy bool as its value
 
 __all__ = [
     "Run", "RunError", "RunInterrupted", "Study", "SweepInterrupted", "build_fmus",
@@ -256,13 +257,13 @@ def run(
     algorithm: Algorithm | None = None,
     extrapolation: Extrapolation | None = None,
     tolerance: Number | None = None,
-    check_step: bool = False,
+    check_step: Flag = False,
     start: Mapping[str, StartInput] | None = None,
     out: None = None,
-    overwrite: bool = False,
-    recording: bool = True,
+    overwrite: Flag = False,
+    recording: Flag = True,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
-    progress: bool = False,
+    progress: Flag = False,
     checkpoint_every: Number | None = None,
     fmu_log: Mapping[str, Sequence[str]] | None = None,
 ) -> Run: ...
@@ -277,13 +278,13 @@ def run(
     algorithm: Algorithm | None = None,
     extrapolation: Extrapolation | None = None,
     tolerance: Number | None = None,
-    check_step: bool = False,
+    check_step: Flag = False,
     start: Mapping[str, StartInput] | None = None,
     out: str | Path,
-    overwrite: bool = False,
-    recording: bool = True,
+    overwrite: Flag = False,
+    recording: Flag = True,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
-    progress: bool = False,
+    progress: Flag = False,
     checkpoint_every: Number | None = None,
     fmu_log: Mapping[str, Sequence[str]] | None = None,
 ) -> SavedRun: ...
@@ -297,13 +298,13 @@ def run(
     algorithm: Algorithm | None = None,
     extrapolation: Extrapolation | None = None,
     tolerance: Number | None = None,
-    check_step: bool = False,
+    check_step: Flag = False,
     start: Mapping[str, StartInput] | None = None,
     out: str | Path | None = None,
-    overwrite: bool = False,
-    recording: bool = True,
+    overwrite: Flag = False,
+    recording: Flag = True,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
-    progress: bool = False,
+    progress: Flag = False,
     checkpoint_every: Number | None = None,
     fmu_log: Mapping[str, Sequence[str]] | None = None,
 ) -> Run:
@@ -438,9 +439,9 @@ def _finished(outcome: RunOutcome, in_memory: bool, caller: str, stacklevel: int
 def resume(
     out: str | Path,
     *,
-    recording: bool | None = None,
+    recording: Flag | None = None,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
-    progress: bool = False,
+    progress: Flag = False,
     checkpoint_every: Number | None = None,
 ) -> SavedRun:
     """Continue a killed run from its last checkpoint, like ``auv-cosim run --resume OUT``.
@@ -495,12 +496,12 @@ def sweep(
     *,
     workers: Count | None = None,
     out: str | Path | None = None,
-    resume: bool = False,
+    resume: Flag = False,
     overlay: Count | None = None,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
-    oversubscribe: bool = False,
+    oversubscribe: Flag = False,
     max_runs: Count = 100_000,
-    progress: bool = False,
+    progress: Flag = False,
     scheduler: str | None = None,
     security: Security | None = None,
     fmu_log: Mapping[str, Sequence[str]] | None = None,
@@ -575,11 +576,11 @@ def sweep(
 
 def _sweep_options(
     out: Path | None,
-    resume: bool,
+    resume: Flag,
     overlay: Count | None,
     fmu_dir: str | Path,
     max_runs: Count,
-    progress: bool,
+    progress: Flag,
     fmu_log: Mapping[str, Sequence[str]] | None,
 ) -> dict[str, Any]:
     """:func:`sweep`'s options checked (each refused naming it: StudyError), as
@@ -749,7 +750,7 @@ def _read_parquet(path: Path) -> pd.DataFrame:
 
 
 def build_fmus(
-    out: str | Path = DEFAULT_FMU_DIR, *, force: bool = False, portable: bool = False
+    out: str | Path = DEFAULT_FMU_DIR, *, force: Flag = False, portable: Flag = False
 ) -> dict[str, Path]:
     """Build the built-in FMUs into ``out`` (those out of date, or all with ``force``),
     like ``auv-cosim build``; ``portable``: as ``--portable``, FMUs that record no Python

@@ -64,10 +64,10 @@ def runs() -> list[Run]:
         out="runs/bs-3-kept",
         overwrite=True,
         recording=False,
-        progress=False,
+        progress=np.bool_(False),  # a numpy bool counts as its value
         checkpoint_every=1.0,
     )
-    return [first, kept, resume("runs/bs-3-kept", recording=False)]
+    return [first, kept, resume("runs/bs-3-kept", recording=np.False_)]
 
 
 def kept_files() -> list[str]:
@@ -108,6 +108,7 @@ def study() -> Study | None:
         return sweep(
             {"scenario": "bs-3", "stop_time": 2.0, "grid": {"plant.v_0": [-0.1, 0.1]}},
             workers=1,
+            oversubscribe=np.bool_(False),
             max_runs=10,
             fmu_log={"controller": ["logAutopilotLimits"]},
         )
@@ -119,7 +120,7 @@ def study() -> Study | None:
 
 def fmus() -> dict[str, Path]:
     """docs/api.md, "Build the FMUs"."""
-    return build_fmus("build/fmus")
+    return build_fmus("build/fmus", force=np.False_)
 
 
 def viewer(done: Run) -> Viewer:
