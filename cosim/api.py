@@ -551,9 +551,8 @@ def sweep(
     cosim.study.spec.StudyError
         The study cannot run (a bad key, factor or value, its scenario refused, an
         argument of the wrong type or out of range), or it is called at a script's top
-        level without an ``if __name__ == "__main__":`` guard (each worker imports the
-        script again); failed runs are rows of the table (one warning line counts them,
-        naming the first).
+        level without an ``if __name__ == "__main__":`` guard (workers import it); failed
+        runs are rows of the table (one warning line counts them, naming the first).
     SweepInterrupted
         Ctrl-C (a notebook's stop button) stopped the study and its workers: a
         KeyboardInterrupt (``except CosimError`` lets it through) whose ``study.table``
