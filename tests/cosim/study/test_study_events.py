@@ -170,21 +170,10 @@ def test_a_grid_value_putting_an_event_after_the_stop_time_is_warned_of(
     """A study of 20 s over the turn's time [10, 30]: the runs with the turn at 30 s end
     before it, and the study planned them without a word; the value is named once, before
     any run, and the fault at 5 s, within every run, is not."""
-    import warnings
-
-    from cosim.study.factors import resolve_factor
-    from cosim.study.runner import _checked_plan
-    from cosim.study.spec import study_from_dict
-    from cosim.study.task import prepare
-
-    spec = study_from_dict({"scenario": str(scenario), "grid": {"events.turn.time": [10.0, 30.0]},
-                            "stop_time": 20.0}, "study")  # fmt: skip
-    base, facts = prepare(str(scenario), spec.stop_time, fmu_dir)
-    factors = {name: resolve_factor(name, facts) for name in spec.factors}
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        assert len(_checked_plan(spec, base, factors, facts)) == 2
-    assert [str(w.message) for w in caught if "stop time" in str(w.message)] == [
+    study = {"scenario": str(scenario), "grid": {"events.turn.time": [10.0, 30.0]},
+             "stop_time": 20.0}  # fmt: skip
+    said = _planned_warnings(study, fmu_dir, runs=2)
+    assert [line for line in said if "stop time" in line] == [
         "events.turn.time = 30 s is after the stop time (20 s): the run ends before the "
         "event, which is never applied"
     ]
@@ -198,22 +187,10 @@ def test_a_grid_value_putting_an_event_between_the_points_of_h_warns_check_step(
     calls NOT TO BE TRUSTED, and the study put it in its table without a word. The value
     is named once, before any run; the turn at 10 s, on a point of all three runs, is
     not."""
-    import warnings
-
-    from cosim.study.factors import resolve_factor
-    from cosim.study.runner import _checked_plan
-    from cosim.study.spec import study_from_dict
-    from cosim.study.task import prepare
-
     grid = {"events.turn.time": [10.0, 10.005]}
-    spec = study_from_dict({"scenario": str(scenario), "grid": grid, "stop_time": 20.0,
-                            "check_step": True}, "study")  # fmt: skip
-    base, facts = prepare(str(scenario), spec.stop_time, fmu_dir, check_step=True)
-    factors = {name: resolve_factor(name, facts) for name in spec.factors}
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        assert len(_checked_plan(spec, base, factors, facts)) == 2
-    assert [str(w.message) for w in caught if "TRUSTED" in str(w.message)] == [
+    study = {"scenario": str(scenario), "grid": grid, "stop_time": 20.0, "check_step": True}
+    said = _planned_warnings(study, fmu_dir, runs=2)
+    assert [line for line in said if "TRUSTED" in line] == [
         "check_step: the coupling errors of the run with events.turn.time = 10.005 are NOT "
         "TO BE TRUSTED: events.turn.time = 10.005 s applies at 10.01, 10.005 and 10.005 s "
         "in the runs at h, h/2 and h/4: its time moves with the step, an error Richardson "
@@ -227,24 +204,12 @@ def test_a_check_step_doubt_every_grid_point_has_is_warned_of_once_without_value
     """docs/coupling.md: a doubt every run of a check_step study has (the base scenario's
     turn at 10.005 s, between the points of h = 0.01 s, whatever the fault's gain) is
     warned of once, without a grid point's values."""
-    import warnings
-
-    from cosim.study.factors import resolve_factor
-    from cosim.study.runner import _checked_plan
-    from cosim.study.spec import study_from_dict
-    from cosim.study.task import prepare
-
     text = scenario.read_text(encoding="utf-8").replace("time = 10.0\n", "time = 10.005\n")
     scenario.write_text(text, encoding="utf-8")
     grid = {"faults.fault-1.value": [1.0, 0.5]}
-    spec = study_from_dict({"scenario": str(scenario), "grid": grid, "stop_time": 20.0,
-                            "check_step": True}, "study")  # fmt: skip
-    base, facts = prepare(str(scenario), spec.stop_time, fmu_dir, check_step=True)
-    factors = {name: resolve_factor(name, facts) for name in spec.factors}
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        assert len(_checked_plan(spec, base, factors, facts)) == 2
-    assert [str(w.message) for w in caught if "TRUSTED" in str(w.message)] == [
+    study = {"scenario": str(scenario), "grid": grid, "stop_time": 20.0, "check_step": True}
+    said = _planned_warnings(study, fmu_dir, runs=2)
+    assert [line for line in said if "TRUSTED" in line] == [
         "check_step: the coupling errors are NOT TO BE TRUSTED: events.turn.time = 10.005 s "
         "applies at 10.01, 10.005 and 10.005 s in the runs at h, h/2 and h/4: its time moves "
         "with the step, an error Richardson extrapolation does not model (put it on a point "
@@ -258,6 +223,17 @@ def test_a_grid_point_whose_current_a_leg_cannot_beat_is_warned_of(fmu_dir: Path
     (1.7 m/s towards north-east) it cannot fly the legs south. The study checked each
     factor's values alone, on the other's start value, and planned it without a word; the
     line now names the grid point."""
+    grid = {"plant.current_north": [0.0, 1.2], "plant.current_east": [0.0, 1.2]}
+    said = _planned_warnings({"scenario": "survey", "grid": grid, "stop_time": 300.0}, fmu_dir, 4)
+    lines = [line for line in said if "cannot be flown" in line]
+    assert len(lines) == 1, lines
+    assert "leg 3 (waypoint 3 -> 4, course 180 deg) cannot be flown" in lines[0]
+    assert "plant.current_north = 1.2, plant.current_east = 1.2" in lines[0]
+
+
+def _planned_warnings(study: dict[str, object], fmu_dir: Path, runs: int) -> list[str]:
+    """The warnings a study's plan gives before any run (it planning ``runs`` runs), as
+    the command warns of them once in its process."""
     import warnings
 
     from cosim.study.factors import resolve_factor
@@ -265,14 +241,11 @@ def test_a_grid_point_whose_current_a_leg_cannot_beat_is_warned_of(fmu_dir: Path
     from cosim.study.spec import study_from_dict
     from cosim.study.task import prepare
 
-    grid = {"plant.current_north": [0.0, 1.2], "plant.current_east": [0.0, 1.2]}
-    spec = study_from_dict({"scenario": "survey", "grid": grid, "stop_time": 300.0}, "study")
-    base, facts = prepare("survey", spec.stop_time, fmu_dir)
+    spec = study_from_dict(study, "study")
+    base, facts = prepare(str(study["scenario"]), spec.stop_time, fmu_dir,
+                          check_step=spec.check_step)  # fmt: skip
     factors = {name: resolve_factor(name, facts) for name in spec.factors}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        assert len(_checked_plan(spec, base, factors, facts)) == 4
-    lines = [str(w.message) for w in caught if "cannot be flown" in str(w.message)]
-    assert len(lines) == 1, lines
-    assert "leg 3 (waypoint 3 -> 4, course 180 deg) cannot be flown" in lines[0]
-    assert "plant.current_north = 1.2, plant.current_east = 1.2" in lines[0]
+        assert len(_checked_plan(spec, base, factors, facts)) == runs
+    return [str(w.message) for w in caught]
