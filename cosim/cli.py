@@ -516,7 +516,7 @@ def _add_coupling_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--tolerance",
         type=float,
-        help="adaptive only: the relative error a step may make "
+        help="adaptive only: the relative error a step may make, > 0 and < 1 "
         f"[the scenario's, {_DEFAULT_TOLERANCE} unless it sets one]",
     )
     p.add_argument(
@@ -669,7 +669,8 @@ def build_parser() -> argparse.ArgumentParser:
         "run_dir",
         type=_path_arg,
         metavar="RUN_DIR",
-        help="a run folder holding results.csv (runs/<scenario-id> by default)",
+        help="a run folder holding results.csv (`auv-cosim run SCENARIO` writes "
+        "runs/<scenario-id>)",
     )
     p.set_defaults(func=_report)
     _describe(sub)
@@ -823,8 +824,8 @@ def _add_checkpoint_options(p: argparse.ArgumentParser) -> None:
         "--checkpoint-every",
         type=_seconds("--checkpoint-every"),
         metavar="SECONDS",
-        help="write the run's state to <run folder>/checkpoint.json every SECONDS of "
-        "simulated time and where a signal stops it [none]",
+        help="write the run's state to <run folder>/checkpoint.json every SECONDS (> 0) "
+        "of simulated time and where a signal stops it [none]",
     )
     p.add_argument(
         "--resume",
@@ -835,8 +836,10 @@ def _add_checkpoint_options(p: argparse.ArgumentParser) -> None:
 
 
 def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
-    """``auv-cosim analyze`` and its analyses: equilibria, sweep, phase-portrait."""
-    p = sub.add_parser("analyze", help="equilibria, continuation sweeps, phase portraits")
+    """``auv-cosim analyze`` and its analyses: equilibria, sweep, phase-portrait, margins."""
+    p = sub.add_parser(
+        "analyze", help="equilibria, continuation sweeps, phase portraits, loop margins"
+    )
     p.set_defaults(func=None, usage_help=p.print_help)  # `analyze` alone: its help (main)
     asub = p.add_subparsers(dest="analysis", metavar="ANALYSIS")
     a = asub.add_parser("equilibria", help="all equilibria in the search box, with stability")
@@ -853,11 +856,13 @@ def _add_analyze_parser(sub: argparse._SubParsersAction) -> None:
     )
     a.add_argument("start", type=float, metavar="FROM", help="the first value, in its unit")
     a.add_argument("stop", type=float, metavar="TO", help="the last value, in its unit")
-    a.add_argument("--steps", type=int, default=200, help="continuation steps [%(default)s]")
+    a.add_argument(
+        "--steps", type=int, default=200, help="continuation steps, 2 to 100000 [%(default)s]"
+    )
     a.add_argument(
         "--out", type=_path_arg, default=Path("analysis"), help="output folder [%(default)s]"
     )
-    _add_model_options(a)
+    _add_model_options(a, "lateral for roll_torque and mass_position, else horizontal")
     a.set_defaults(func=_sweep)
     a = asub.add_parser("phase-portrait", help="open-loop horizontal trajectories (Fig. 5.4)")
     a.add_argument(
@@ -884,13 +889,16 @@ def _add_margins_parser(asub: argparse._SubParsersAction) -> None:
         "--vehicle", default="remus100", help="parameter set name or .toml file [%(default)s]"
     )
     a.add_argument(
-        "--design-speed", type=float, default=1.525, help="U0 of the design, m/s [%(default)s]"
+        "--design-speed",
+        type=float,
+        default=1.525,
+        help="U0 of the design, m/s, > 0 [%(default)s]",
     )
     a.add_argument(
-        "--step", type=float, default=0.01, help="sample time h of the design, s [%(default)s]"
+        "--step", type=float, default=0.01, help="sample time h of the design, s, > 0 [%(default)s]"
     )
     a.add_argument(
-        "--speed", type=float, help="surge speed the loop runs at, m/s [the design speed]"
+        "--speed", type=float, help="surge speed the loop runs at, m/s, > 0 [the design speed]"
     )
     a.add_argument(
         "--scale",
@@ -914,7 +922,7 @@ def _add_live_options(p: argparse.ArgumentParser) -> None:
         const=1.0,
         type=float,
         metavar="FACTOR",
-        help="pace the run at FACTOR x real time [1.0] (docs/live-runs.md)",
+        help="pace the run at FACTOR x real time, FACTOR > 0 [1.0] (docs/live-runs.md)",
     )
     p.add_argument(
         "--control",
@@ -966,7 +974,7 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
         "--max-runs",
         type=int,
         metavar="N",
-        help="refuse a study of more runs than N [100000]",
+        help="refuse a study of more runs than N, 1 to 10000000 [100000]",
     )
     p.add_argument(
         "--oversubscribe",
@@ -987,7 +995,8 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
         "--overlay",
         type=int,
         metavar="N",
-        help="draw N runs spread over the study in overlay.rrd (instead of the file's overlay)",
+        help="draw N runs (1 to 20) spread over the study in overlay.rrd [the study "
+        "file's overlay, else none]",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument(
@@ -1047,7 +1056,9 @@ def _variant(text: str) -> int:
     return code
 
 
-def _add_model_options(a: argparse.ArgumentParser) -> None:
+def _add_model_options(a: argparse.ArgumentParser, variant_default: str = "horizontal") -> None:
+    """An analysis's operating conditions (:func:`~cosim.analysis.analyze.operating_conditions`);
+    ``variant_default``: the variant it picks without ``--variant``, for its help."""
     a.add_argument(
         "--vehicle", default="remus100", help="parameter set name or .toml file [%(default)s]"
     )
@@ -1056,16 +1067,26 @@ def _add_model_options(a: argparse.ArgumentParser) -> None:
         type=_variant,
         metavar="VARIANT",
         help="full (0), lateral (1) or horizontal (2), as a scenario's plant.variant "
-        "[lateral for roll_torque/mass_position sweeps, else horizontal]",
+        f"[{variant_default}]",
     )
-    a.add_argument("--thrust", type=float, default=9.0, help="N [%(default)s]")
-    a.add_argument("--roll-torque", type=float, default=0.0, help="N.m [%(default)s]")
-    a.add_argument("--mass-position", type=float, default=0.0, help="m [%(default)s]")
+    a.add_argument(
+        "--thrust", type=float, default=9.0, help="propeller thrust T, N, > 0 [%(default)s]"
+    )
+    a.add_argument(
+        "--roll-torque", type=float, default=0.0, help="roll torque on the hull, N.m [%(default)s]"
+    )
+    a.add_argument(
+        "--mass-position",
+        type=float,
+        default=0.0,
+        help="the moving mass's position y_v on its rail, m, at most the vehicle's stroke "
+        "either way [%(default)s]",
+    )
     a.add_argument(
         "--current-east",
         type=float,
         default=0.0,
-        help=f"m/s, at most {MAX_SPEED:g} either way [%(default)s]",
+        help=f"current towards east, m/s, at most {MAX_SPEED:g} either way [%(default)s]",
     )
 
 

@@ -534,6 +534,10 @@ def _check_numbers(options: RunOptions) -> None:
         if value is not None and not (math.isfinite(value) and value > 0):
             shown = options.names.given(name, value)
             raise CosimError(f"{shown}: expected a finite number of seconds > 0")
+    # before the FMUs are built (half a minute), where cosim.live refused it after them
+    factor = options.real_time
+    if factor is not None and not (math.isfinite(factor) and factor > 0):
+        raise CosimError(f"--real-time {factor!r}: expected a finite factor > 0")
     low, high = TOLERANCE_RANGE
     if options.tolerance is not None and not low < options.tolerance < high:  # nan too
         shown = options.names.given("tolerance", options.tolerance)
