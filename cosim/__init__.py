@@ -1,14 +1,20 @@
 """auv-cosim: the REMUS 100 with internal actuators as FMI 2.0 co-simulation FMUs.
 
-The Python API (:mod:`cosim.api`, docs/api.md)::
+The Python API (:mod:`cosim.api`, docs/api.md), run where the FMUs are built (or
+built into ``build/fmus`` at first use); ``auv-cosim scenarios`` lists the ids:
 
-    import cosim
-
-    run = cosim.run("bs-3", stop_time=20.0, start={"plant.v_0": -0.05})
-    run.results  # pandas DataFrame indexed by time, columns "<instance>.<variable>", SI
-    run.summary  # the summary.json dictionary
-    study = cosim.sweep("study.toml", workers=2)
-    study.table  # one row per run
+>>> import cosim
+>>> run = cosim.run("bs-3", stop_time=1.0, start={"plant.v_0": -0.05})
+>>> run  # run.results: a DataFrame indexed by time (s), columns "<instance>.<variable>"
+Run(scenario='bs-3', complete=True, results=<101 rows x 35 columns>, out_dir=None)
+>>> run.results.attrs["units"]["plant.yaw"], run.summary["complete"]  # summary.json
+('rad', True)
+>>> grid = {"plant.v_0": [-0.1, 0.1]}  # a study, in a script under if __name__ == "__main__"
+>>> study = cosim.sweep({"scenario": "bs-3", "stop_time": 1.0, "grid": grid}, workers=1)
+>>> study.table[["plant.v_0", "status"]]  # one row per run
+   plant.v_0    status
+0       -0.1  complete
+1        0.1  complete
 
 ``cosim.__all__``: those functions, the types they return (``Run``, ``SavedRun``,
 ``Study``, ``Scenario``) and the errors they raise (``CosimError`` and its kinds
@@ -81,6 +87,12 @@ if not TYPE_CHECKING:
         raise AttributeError(f"module 'cosim' has no attribute {name!r}")
 
     def __dir__() -> list[str]:
-        """The module's names and the API's, not yet imported: ``cosim.<Tab>`` in IPython and
-        Jupyter offers ``run``, ``load_scenario``, ... before their first use."""
-        return sorted({*globals(), *__all__})
+        """The API's names, not yet imported, ``__version__`` and the subpackages imported
+        so far: ``cosim.<Tab>`` in IPython and Jupyter offers ``run``, ``load_scenario``,
+        ... before their first use, and not this module's own imports (``Any``)."""
+        own = {
+            name
+            for name, value in globals().items()
+            if name.startswith("__") or getattr(value, "__name__", "") == f"cosim.{name}"
+        }
+        return sorted({*own, *__all__, "__version__"})

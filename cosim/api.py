@@ -9,12 +9,11 @@ same one-line messages, naming ``stop_time=`` where the command line names
 results as a :class:`pandas.DataFrame` indexed by time, in memory, with no output folder
 unless one is asked for (``out=``).
 
-Example::
-
-    import cosim
-
-    run = cosim.run("bs-3", stop_time=20.0, start={"plant.v_0": -0.05})
-    run.results["plant.yaw"]  # pandas Series, rad, indexed by time in s
+>>> import cosim
+>>> run = cosim.run("bs-3", stop_time=2.0, start={"plant.v_0": -0.05})
+>>> yaw = run.results["plant.yaw"]  # pandas Series, rad, indexed by time in s
+>>> len(yaw), float(yaw.index[-1])
+(201, 2.0)
 """
 
 from __future__ import annotations
@@ -239,6 +238,14 @@ def load_scenario(scenario: str | Path, *, fmu_dir: str | Path = DEFAULT_FMU_DIR
     ------
     cosim.scenario.checks.ScenarioError
         The file or a key in it is refused (the message names both).
+
+    Examples
+    --------
+    >>> scenario = cosim.load_scenario("bs-3")
+    >>> scenario.stop_time, scenario.coupling.step  # s
+    (60.0, 0.01)
+    >>> scenario.with_start({"plant.u_0": 1.2}).instances["plant"].start["u_0"]  # m/s
+    1.2
     """
     from cosim.scenario.checks import ScenarioError
     from cosim.scenario.spec import load_scenario as load
@@ -314,9 +321,23 @@ def run(
     ----------
     scenario : str, pathlib.Path or Scenario
         A built-in id, a scenario ``.toml`` file, or a loaded :class:`Scenario`.
-    stop_time, step, algorithm, extrapolation, tolerance, check_step : optional
-        The command line's ``--stop-time``, ``--step`` (s; a numpy number as its value) and
-        coupling options (docs/coupling.md); ``check_step`` fills ``Run.coupling_error``.
+    stop_time, step : float, optional
+        The simulated time to run to and the communication step (how often the FMUs
+        exchange values), s, > 0 (``--stop-time``, ``--step``; a numpy number as its
+        value). Default: the scenario's.
+    algorithm : {"jacobi", "gauss-seidel", "adaptive"}, optional
+        How the FMUs take turns (``--algorithm``, docs/coupling.md): all from the values
+        exchanged at the step's start, one after another, or Gauss-Seidel with an
+        error-controlled step. Default: the scenario's.
+    extrapolation : {"none", "linear", "quadratic"}, optional
+        What an exchanged value does across a step: held, or extrapolated from its last
+        values (``--extrapolation``). Default: the scenario's.
+    tolerance : float, optional
+        Adaptive only: the relative error a step may make, > 0 and < 1 (``--tolerance``).
+        Default: the scenario's, 0.001 unless it sets one.
+    check_step : bool
+        Also run at half and a quarter of the step and fill ``Run.coupling_error``, the
+        estimated coupling error (``--check-step``). Default: False.
     start : mapping, optional
         Start values ``{"<instance>.<variable>": value}`` in SI units (bool, int, float,
         str or a numpy scalar), checked like the scenario file's (:meth:`Scenario.with_start`;
@@ -326,9 +347,9 @@ def run(
         ``recording`` is false or the scenario says ``output.rrd = false``, recording.rrd),
         as the command line does. Default: no folder, the results kept in memory only.
     overwrite : bool
-        Replace an earlier run in ``out`` (``--overwrite``).
+        Replace an earlier run in ``out`` (``--overwrite``). Default: False, refused.
     recording : bool
-        Write recording.rrd into ``out`` (ignored without ``out``).
+        Write recording.rrd into ``out`` (ignored without ``out``). Default: True.
     fmu_dir : str or pathlib.Path
         Where the built-in FMUs are (built there on first use). Default ``build/fmus``.
         A loaded ``scenario`` runs the FMUs it was loaded with: another folder is refused.
@@ -361,6 +382,12 @@ def run(
     RunInterrupted
         Ctrl-C (a notebook's stop button) ended the run: a KeyboardInterrupt, whose
         ``run`` holds the partial results.
+
+    Examples
+    --------
+    >>> run = cosim.run("bs-3", stop_time=1.0, algorithm="jacobi")
+    >>> run.complete, run.results.shape  # t = 0 to 1 s at the 10 ms step: 101 rows
+    (True, (101, 35))
     """
     settings = {
         "stop_time": stop_time, "step": step, "algorithm": algorithm,
@@ -527,7 +554,8 @@ def sweep(
     resume : bool
         Run only what a killed study in ``out`` left (``--resume``); needs ``out``.
     overlay : int, optional
-        Draw that many runs, spread over the study, in ``out``/overlay.rrd; needs ``out``.
+        Draw that many runs (1 to 20), spread over the study, in ``out``/overlay.rrd;
+        needs ``out``. Default: the study's ``overlay``, else none.
     fmu_dir : str or pathlib.Path
         Where the built-in FMUs are (built there on first use).
     oversubscribe : bool

@@ -231,7 +231,29 @@ class Connection:
 @dataclass(frozen=True)
 class Coupling:
     """How the master advances the instances (see ``cosim.engine.master``;
-    docs/coupling.md)."""
+    docs/coupling.md): a scenario's ``[coupling]`` table, resolved.
+
+    Attributes
+    ----------
+    step : float
+        The communication step h, s: how often the instances exchange values (adaptive:
+        the first step, and the unit of its grid).
+    algorithm : str
+        ``"jacobi"`` (all step from the values exchanged at the step's start),
+        ``"gauss-seidel"`` (one after another, in ``order``) or ``"adaptive"``
+        (Gauss-Seidel with an error-controlled step).
+    order : tuple of str
+        The Gauss-Seidel order, every instance once.
+    step_multiples : mapping
+        Instance name -> k: it steps every k*h.
+    extrapolation : str
+        What an exchanged Real value does across a step: ``"none"`` (held),
+        ``"linear"`` or ``"quadratic"`` (extrapolated from its last values).
+    tolerance, max_step, error_estimate : float, float, str or None
+        Adaptive only (else None): the relative error a step may make (> 0 and < 1), the
+        longest step in s, and how a step's error is estimated (``"extrapolation"`` or
+        ``"doubling"``).
+    """
 
     step: float  # s, communication step h (adaptive: the first step and the grid unit)
     algorithm: Algorithm
@@ -315,7 +337,23 @@ def _start_hint(instance: str) -> str:
 
 @dataclass(frozen=True)
 class Instance:
-    """One FMU instance: its FMU (as referenced and as a file) and explicit start values."""
+    """One FMU instance: its FMU (as referenced and as a file) and explicit start values.
+
+    Attributes
+    ----------
+    name : str
+        The instance's name in the scenario (``plant``), the first part of its columns'
+        names (``plant.yaw``).
+    fmu : str
+        The FMU as the scenario names it: a built-in name (``AuvPlant``) or a path.
+    fmu_path : pathlib.Path
+        The FMU file, absolute.
+    start : mapping
+        The start values the scenario sets, variable -> value, in SI units (the FMU's
+        declared start for the others: :meth:`Scenario.start_value`); read-only.
+    debug_logging : tuple of str or None
+        The log categories turned on (``--fmu-log``; ``()``: every one), None: off.
+    """
 
     name: str
     fmu: str  # as written: a built-in name or an absolute path
@@ -351,7 +389,40 @@ class Instance:
 
 @dataclass(frozen=True)
 class Scenario:
-    """A fully resolved scenario: what the master, the results and the exporters use."""
+    """A fully resolved scenario: what the master, the results and the exporters use.
+
+    Made by :func:`cosim.load_scenario`, read-only, changed by checked copies
+    (:meth:`with_start`, :meth:`with_overrides`, :meth:`with_debug_logging`); its file
+    again by :meth:`to_toml`.
+
+    Attributes
+    ----------
+    id : str
+        The built-in id (``bs-3``) or the file's name without ``.toml``.
+    summary : str
+        One line on what the scenario shows.
+    source : pathlib.Path or None
+        The file it was read from, absolute.
+    stop_time : float
+        The simulated time it runs to, s.
+    coupling : Coupling
+        The communication step (s) and how the instances take turns.
+    instances : mapping
+        Instance name -> :class:`Instance` (its FMU and start values); read-only.
+    connections : tuple of Connection
+        Each Real output that drives a Real input (``source``, ``target``, as
+        ``"<instance>.<variable>"``).
+    record : tuple of str
+        The ``"<instance>.<variable>"`` columns of the results, in SI units.
+    rrd : bool
+        Whether a run writes a Rerun recording (``output.rrd``).
+    manoeuvre : str or None
+        The standard manoeuvre whose metrics the summary gives (docs/manoeuvres.md).
+    events, faults : tuple
+        The scenario's ``[[events]]`` and ``[[faults]]`` (docs/events.md), times in s.
+    unrecorded : tuple of str
+        The outputs left out of the results (String ones).
+    """
 
     id: str
     summary: str
@@ -468,7 +539,10 @@ class Scenario:
         error_estimate: ErrorEstimate | None = None,
         names: OptionNames | None = None,
     ) -> Scenario:
-        """A re-validated copy with the command line's overrides applied; a refusal of
+        """A re-validated copy with the command line's overrides applied: ``algorithm``
+        ``"jacobi"``, ``"gauss-seidel"`` or ``"adaptive"``, ``extrapolation`` ``"none"``,
+        ``"linear"`` or ``"quadratic"``, ``error_estimate`` (adaptive) ``"extrapolation"``
+        or ``"doubling"`` (:class:`Coupling`). A refusal of
         what they make names them as ``names`` gives options (``--step 1e-09`` on the
         command line, :data:`cosim.errors.FLAGS`; ``step=1e-09`` in Python,
         :data:`~cosim.errors.KEYWORDS`), or, without ``names``, as the scenario keys they set.
