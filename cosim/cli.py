@@ -964,8 +964,17 @@ def _add_sweep_parser(sub: argparse._SubParsersAction) -> None:
     """``auv-cosim sweep``: a study on a local or remote Dask cluster."""
     p = sub.add_parser("sweep", help="a parameter sweep or Monte Carlo study on Dask")
     p.add_argument("study", type=_path_arg, help="study .toml file (docs/studies.md)")
-    p.add_argument("--workers", type=int, help="local worker processes [one per core]")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="tcp:// or tls:// of a Dask cluster")
+    p.add_argument(
+        "--workers",
+        type=int,
+        help="local worker processes, >= 1, at most the cores unless --oversubscribe "
+        "[one per core]",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="tcp:// or tls:// of a Dask cluster, not with --workers [a local cluster]",
+    )
     p.add_argument(
         "--out", type=_path_arg, help="study folder [studies/<study file name without .toml>]"
     )

@@ -103,6 +103,7 @@ RANGES = [
     (("run",), ["bs-3"], "--tolerance", "2", "> 0 and < 1"),
     (("run",), ["bs-3"], "--checkpoint-every", "0", "> 0"),
     (("run",), ["bs-3"], "--real-time", "0", "FACTOR > 0"),
+    (("sweep",), ["study.toml"], "--workers", "0", ">= 1"),
     (("sweep",), ["study.toml"], "--max-runs", "0", "1 to 10000000"),
     (("sweep",), ["study.toml"], "--overlay", "21", "1 to 20"),
     pytest.param(
