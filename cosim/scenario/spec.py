@@ -398,7 +398,7 @@ class Scenario:
     Attributes
     ----------
     id : str
-        The built-in id (``bs-3``) or the file's name without ``.toml``.
+        The built-in id (``bs-3``), or a file's ``id`` key, else its name without ``.toml``.
     summary : str
         One line on what the scenario shows.
     source : pathlib.Path or None
