@@ -34,6 +34,14 @@ def _functions(tree: ast.AST, prefix: str = ""):
             yield from _functions(node, prefix)
 
 
+def _docstring_lines(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    """How many lines of ``node`` its docstring takes (0 without one)."""
+    if ast.get_docstring(node, clean=False) is None:
+        return 0
+    first = node.body[0]
+    return first.end_lineno - first.lineno + 1
+
+
 def _project_modules() -> dict[str, Path]:
     modules = {}
     for package in PACKAGES:
@@ -48,14 +56,15 @@ def _report(offenders: list[str], what: str) -> None:
 
 @pytest.mark.slow
 def test_no_function_is_longer_than_80_lines() -> None:
-    """In the packages and in scripts/ alike."""
+    """In the packages and in scripts/ alike; a docstring is not counted (an API
+    function's Parameters and Raises sections are what its help shows, not code)."""
     offenders = []
     scripts = sorted((ROOT / "scripts").rglob("*.py"))
     assert scripts, "no scripts found: the rule would not cover them"
     for path in [*_project_modules().values(), *scripts]:
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for name, node in _functions(tree):
-            length = node.end_lineno - node.lineno + 1
+            length = node.end_lineno - node.lineno + 1 - _docstring_lines(node)
             if length > MAX_FUNCTION_LINES:
                 offenders.append(f"{path.relative_to(ROOT)}:{name}:{length}")
     _report(offenders, f"functions over {MAX_FUNCTION_LINES} lines")
