@@ -30,7 +30,7 @@ from controller_fmu import riccati
 from controller_fmu.lateral_model import CONTROL_STATES, LateralDesignModel
 from controller_fmu.lqr_weights import DISSERTATION_Q_Y as DISSERTATION_Q_Y
 from controller_fmu.lqr_weights import DISSERTATION_R_U as DISSERTATION_R_U
-from controller_fmu.matrix_exponential import zero_order_hold
+from controller_fmu.matrix_exponential import expm, zero_order_hold
 
 OUTPUT_STATES: tuple[str, ...] = CONTROL_STATES[1:]
 """y = [r, p, phi, psi, y_v, y_vel]: every state but v (6.3.18)."""
@@ -94,6 +94,47 @@ def discrete_gain(
     except ValueError:
         raise ValueError(no_gain_reason(Ad, Q, CONTROL_STATES, q_y, r_u)) from None
     return np.asarray(K).ravel(), np.asarray(poles)
+
+
+def delayed_poles(
+    A: np.ndarray, B: np.ndarray, gain: np.ndarray, dt: float, delay: float
+) -> np.ndarray:
+    """The closed-loop poles z of the sampled loop y_d[k] = -K x[k] (held over each
+    sample of dt s) on x' = A x + B y_d when each command reaches the plant ``delay`` s
+    late (0 <= delay <= dt, as from a coupling that hands it on one communication step
+    late); stable when every |z| < 1.
+
+    Exact for the zero-order hold (the modified z-transform, written out in numpy because
+    the FMU's host has no python-control): over a sample the plant is driven by the
+    previous command u for ``delay`` s, then by the new one, so
+    x[k+1] = Ad x[k] + G1 u[k] + G0 y_d[k] with G0 = int_0^(dt-delay) e^(A s) ds B and
+    G1 = e^(A (dt-delay)) int_0^delay e^(A s) ds B; the poles are the eigenvalues of
+    [[Ad - G0 K, G1], [-K, 0]] (one more, for u, than those of Ad - Bd K).
+
+    Raises:
+        ValueError: delay is not within [0, dt].
+    """
+    if not (0.0 <= delay <= dt):
+        raise ValueError(f"delay {delay!r} s: expected a delay within [0, {dt!r}] s")
+    K = np.asarray(gain, dtype=float).reshape(1, -1)
+    n = K.shape[1]
+    Ad, _ = zero_order_hold(A, B, dt)
+    g0 = _held(A, B, dt - delay)
+    g1 = expm(A * (dt - delay)) @ _held(A, B, delay)
+    loop = np.zeros((n + 1, n + 1))
+    loop[:n, :n] = Ad - g0 @ K
+    loop[:n, n:] = g1
+    loop[n:, :n] = -K
+    poles: np.ndarray = np.linalg.eigvals(loop)
+    return poles
+
+
+def _held(A: np.ndarray, B: np.ndarray, duration: float) -> np.ndarray:
+    """int_0^duration e^(A s) ds B, the state a unit input held ``duration`` s adds (zero
+    for no time)."""
+    if duration <= 0.0:
+        return np.zeros((A.shape[0], 1))
+    return zero_order_hold(A, B, duration)[1]
 
 
 def no_gain_reason(

@@ -20,6 +20,8 @@ import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from controller_fmu.modes import DepthMode, HeadingMode, unused_parameters
 
 if TYPE_CHECKING:
@@ -253,23 +255,15 @@ def _extrapolated_command_doubt(scenario: Scenario, name: str, autopilot: Instan
     )
 
 
-DELAY_SHARE = 0.5
-"""The part of its design step a delay may take from the LQR unremarked. Its delay margin
-(``auv-cosim analyze margins --step H``) is 0.92 to 1.05 of its sample time for REMUS 100
-at design steps of 1 to 50 ms; half a step leaves room for another vehicle or speed."""
-
-
 def _late_command_doubt(scenario: Scenario, name: str, autopilot: Instance) -> str:
     """The warning if ``name`` runs the LQR (at its start or after an event) and the
     coupling hands its mass command to the plant one communication step late (Jacobi, or a
-    Gauss-Seidel order with the plant first) while that step is at least
-    :data:`DELAY_SHARE` of the LQR's design step ('' if not)."""
+    Gauss-Seidel order with the plant first) while its loop, delayed so (by at most one
+    design step), is unstable (:func:`_unstable_when_late`; '' if not)."""
     if HeadingMode.LQR not in _heading_modes(scenario, name, autopilot):
         return ""
     coupling = scenario.coupling
     design_step = float(_start(autopilot, "design_step"))
-    if coupling.step < DELAY_SHARE * design_step:
-        return ""
     command = f"{name}.mass_position_cmd"
     for connection in scenario.connections:
         plant = connection.target.partition(".")[0]
@@ -281,15 +275,45 @@ def _late_command_doubt(scenario: Scenario, name: str, autopilot: Instance) -> s
             cause = f"coupling.order = {list(coupling.order)} steps {plant} before {name}: it"
         else:
             continue
+        if not _unstable_when_late(autopilot, min(coupling.step, design_step)):
+            return ""
+        under = (
+            f"one of its {design_step:g} s samples"
+            if coupling.step >= design_step
+            else f"{coupling.step:g} s"
+        )
         return (
-            f"{name} runs heading_mode lqr, whose delay margin is under one of its "
-            f"{design_step:g} s samples (auv-cosim analyze margins), but {cause} hands "
+            f"{name} runs heading_mode lqr, whose delay margin is under {under} "
+            f"(auv-cosim analyze margins), but {cause} hands "
             f"{command} to {plant} one {coupling.step:g} s step late: the loop is unstable "
             "(lqr-1 so banged its mass command between -100 and +100 m and never settled); "
             f'use algorithm = "gauss-seidel" with {name} before {plant} in the order, as '
             "lqr-1 to lqr-3 do"
         )
     return ""
+
+
+def _unstable_when_late(autopilot: Instance, delay: float) -> bool:
+    """Whether the autopilot's LQR loop, on its own design model (its vehicle at its
+    design_speed, sampled every design_step), has a pole outside the unit circle with its
+    command ``delay`` s late (:func:`controller_fmu.lqr.delayed_poles`); False where no
+    LQR can be designed (the autopilot refuses that itself). The REMUS 100 takes 0.92 to
+    1.05 steps of delay at design steps of 50 to 1 ms (``analyze margins --step``)."""
+    from controller_fmu.lateral_model import LateralDesignModel
+    from controller_fmu.lqr import LqrHeading, delayed_poles
+    from plant_fmu.model.parameters import load_vehicle
+
+    weights = ("r", "p", "roll", "yaw", "mass_position", "mass_velocity")
+    q_y = [float(_start(autopilot, f"lqr_q_{weight}")) for weight in weights]
+    step = float(_start(autopilot, "design_step"))
+    try:
+        vehicle = load_vehicle(str(_start(autopilot, "vehicle")))
+        design = LateralDesignModel(vehicle, float(_start(autopilot, "design_speed")), False)
+        lqr = LqrHeading(design, step, q_y, float(_start(autopilot, "lqr_r")))
+    except ValueError:
+        return False
+    poles = delayed_poles(lqr.A, lqr.B, lqr.gain, step, delay)
+    return bool(np.abs(poles).max() >= 1.0)
 
 
 def _pitch_doubt(

@@ -17,6 +17,7 @@ from controller_fmu.lqr import (
     DISSERTATION_R_U,
     LqrHeading,
     continuous_gain,
+    delayed_poles,
     discrete_gain,
     state_weight,
 )
@@ -99,6 +100,31 @@ def test_bad_weights_and_sample_times_are_refused_with_the_value_named(linear):
         discrete_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U, 0.0)
     with pytest.raises(ValueError, match=r"R_u = 0\.0"):
         discrete_gain(A, B, DISSERTATION_Q_Y, 0.0, 0.01)
+
+
+@pytest.mark.parametrize("dt", [0.001, 0.01, 0.05])
+def test_delayed_poles_are_python_controls_loop_closed_through_a_delay(linear, dt):
+    """The loop with its command one whole sample late closes on python-control's poles of
+    L(z) z^-1 fed back (the whole-step delay the master's coupling adds); with no delay,
+    on the design's poles and the held command's z = 0."""
+    import control
+
+    A, B = linear
+    K, poles = discrete_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U, dt)
+    loop = control.c2d(control.ss(A, B, K[None, :], 0.0), dt, method="zoh")
+    late = control.feedback(control.series(control.tf([1.0], [1.0, 0.0], dt), loop), 1.0)
+    np.testing.assert_allclose(
+        np.sort_complex(delayed_poles(A, B, K, dt, dt)),
+        np.sort_complex(control.poles(late)),
+        atol=1e-9,
+    )
+    np.testing.assert_allclose(
+        np.sort_complex(delayed_poles(A, B, K, dt, 0.0)),
+        np.sort_complex(np.append(poles, 0.0)),
+        atol=1e-9,
+    )
+    with pytest.raises(ValueError, match=r"delay 0\.02 s: expected a delay within \[0, 0\.01\]"):
+        delayed_poles(A, B, K, 0.01, 0.02)
 
 
 # --- closed loop: the scenarios of docs/model.md#scenarios -------------------------------------
