@@ -5,12 +5,15 @@ read at, and the closed-loop poles with the loop's gain scaled or its input dela
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import control
 import numpy as np
+import pandas as pd
 import pytest
 
+import cosim
 from controller_fmu.depth_pd import DepthPd, sampled_loop_poles
 from controller_fmu.lateral_model import LateralDesignModel
 from controller_fmu.lqr import LqrHeading
@@ -169,3 +172,88 @@ def test_a_nonsensical_operating_point_is_refused_naming_it(
     err = capsys.readouterr().err
     assert err.startswith(f"auv-cosim analyze: {refusal}"), err
     assert err.count("\n") == 1
+
+
+# --- the margins in the master: lqr-1 with a gain or delay fault on the servo command ---
+
+
+def _faulted_lqr_1(
+    fmu_paths: dict[str, Path], out: Path, fault: str, stop: float, v0: float
+) -> pd.DataFrame:
+    """lqr-1 for ``stop`` s from a sway of ``v0`` m/s with the fault (``kind = ...`` and
+    its keys) on the connection to plant.mass_position_cmd: the loop broken where
+    `analyze margins` breaks it; its results (DataFrame)."""
+    text = (Path(cosim.__file__).parent / "scenarios" / "lqr-1.toml").read_text()
+    text = re.sub(r"(?m)^stop_time = \S+", f"stop_time = {stop!r}", text)
+    text = re.sub(r"(?m)^v_0 = \S+", f"v_0 = {v0!r}", text)
+    fault_table = f'\n[[faults]]\nname = "f"\ntarget = "plant.mass_position_cmd"\n{fault}\n'
+    path = out / f"lqr-1-{len(list(out.iterdir()))}.toml"
+    path.write_text(text + fault_table)
+    return cosim.run(path, fmu_dir=fmu_paths["AuvPlant"].parent).results
+
+
+def _fast_envelope(command: np.ndarray, windows: int) -> np.ndarray:
+    """max |second difference| of the command in each of ``windows`` equal spans: the
+    content near the Nyquist frequency and the 105 rad/s crossover, not the slow turn."""
+    second = np.abs(np.diff(command, 2))
+    return np.array([span.max() for span in np.array_split(second, windows)])
+
+
+def _peak_frequency(command: np.ndarray, first: int, last: int) -> float:
+    """The frequency (rad/s) of the largest content of the command's second difference
+    over samples ``first`` to ``last`` (a Hann window, zero-padded to 8192 samples)."""
+    span = np.diff(command, 2)[first:last]
+    spectrum = np.abs(np.fft.rfft(span * np.hanning(span.size), 8192))
+    return float(np.fft.rfftfreq(8192, H)[np.argmax(spectrum)] * 2 * math.pi)
+
+
+@pytest.mark.slow
+def test_the_simulated_loop_loses_stability_past_the_upper_gain_and_delay_margins(
+    fmu_paths: dict[str, Path], tmp_path: Path, margins: LoopMargins, loop: control.StateSpace
+) -> None:
+    """In the master, a gain fault of 0.9 times the upper gain margin leaves lqr-1's fast
+    content decaying, and 1.1 times makes it oscillate at the Nyquist frequency pi/h the
+    margin is read at, up to the command's +-100 m limit; one step of delay (a delay
+    fault, past the delay margin of 0.987 steps) makes it grow at the frequency of the
+    delayed linear loop's unstable pole (104 rad/s, near the 105 rad/s crossover)."""
+    upper, delay = margins.upper_gain_margin, margins.delay_margin
+    assert upper is not None and delay is not None and delay.value < H
+    runs = {
+        name: _faulted_lqr_1(fmu_paths, tmp_path, fault, 6.0, -0.01)["controller.mass_position_cmd"]
+        for name, fault in (
+            ("below", f'kind = "gain"\nvalue = {0.9 * upper.value!r}'),
+            ("above", f'kind = "gain"\nvalue = {1.1 * upper.value!r}'),
+            ("late", 'kind = "delay"\nsteps = 1'),
+        )
+    }
+    below, above, late = (_fast_envelope(runs[n].to_numpy(), 6) for n in ("below", "above", "late"))
+    assert below[-1] < 1e-3 * below[0] and late[-1] > 5 * late[0]
+    assert above[-1] == pytest.approx(400.0)  # +-100 m, alternating every step
+    nyquist = _peak_frequency(runs["above"].to_numpy(), 100, 600)
+    assert nyquist == pytest.approx(upper.frequency, rel=0.01)
+    delayed = control.feedback(control.series(control.tf([1.0], [1.0, 0.0], H), loop), 1.0)
+    unstable = max(control.poles(delayed), key=abs)
+    frequency = _peak_frequency(runs["late"].to_numpy(), 200, 600)  # 2 to 6 s: growing
+    assert frequency == pytest.approx(abs(np.angle(unstable)) / H, rel=0.02)
+
+
+@pytest.mark.slow
+def test_the_simulated_heading_grows_below_the_lower_gain_margin_as_the_linear_loop(
+    fmu_paths: dict[str, Path], tmp_path: Path, margins: LoopMargins, loop: control.StateSpace
+) -> None:
+    """In the master, lqr-1 from a 1e-6 m/s sway (small: the yaw drag N_rr r |r| is first
+    order in the turn rate) with a gain fault of 0.8 times the lower gain margin turns
+    away at the rate (1/s) of the linear loop's slow unstable pole at that gain, and with
+    1.25 times comes back at the rate of its slowest pole, each within 25 %."""
+    lower = margins.lower_gain_margin
+    assert lower is not None
+    for factor in (0.8, 1.25):
+        gain = factor * lower.value
+        results = _faulted_lqr_1(
+            fmu_paths, tmp_path, f'kind = "gain"\nvalue = {gain!r}', 200.0, -1e-6
+        )
+        yaw = np.abs(results["plant.yaw"].to_numpy())
+        peaks = [span.max() for span in np.array_split(yaw, 5)]  # 40 s each: > a period
+        simulated = math.log(peaks[4] / peaks[1]) / 120.0  # 1/s
+        slowest = max(control.poles(control.feedback(gain * loop, 1.0)), key=abs)
+        assert simulated == pytest.approx(math.log(abs(slowest)) / H, rel=0.25), factor
