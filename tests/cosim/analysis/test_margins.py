@@ -16,7 +16,7 @@ import pytest
 import cosim
 from controller_fmu.depth_pd import DepthPd, sampled_loop_poles
 from controller_fmu.lateral_model import LateralDesignModel
-from controller_fmu.lqr import LqrHeading
+from controller_fmu.lqr import LqrHeading, delayed_poles
 from cosim import cli
 from cosim.analysis.margins import (
     LoopMargins,
@@ -92,6 +92,24 @@ def test_delay_margin_is_the_delay_the_loop_loses_stability_at(
     steps = math.floor(delay.value / H)
     assert _largest_pole(loop, delay=steps) < 1.0 < _largest_pole(loop, delay=steps + 1)
     assert steps == 0
+
+
+@pytest.mark.parametrize("step", [0.004, 0.01, 0.05])
+def test_a_delay_within_a_step_is_taken_up_to_the_delay_margin(step: float) -> None:
+    """The printed delay margin, read as PM / w_c, is exact for whole steps of delay; a
+    delay of part of a step (the command held, as the modified z-transform of
+    controller_fmu.lqr.delayed_poles computes it) keeps the loop stable up to the
+    margin and past it by less than a tenth of a step, and a whole step beyond it does
+    not."""
+    remus = load_vehicle("remus100")
+    lqr = LqrHeading(LateralDesignModel(remus, U0), step)
+    delay = loop_margins(lqr_loop(remus, U0, step)).delay_margin
+    assert delay is not None and delay.value < step
+
+    def largest(late: float) -> float:
+        return float(np.abs(delayed_poles(lqr.A, lqr.B, lqr.gain, step, late)).max())
+
+    assert largest(delay.value) < 1.0 < largest(min(step, delay.value + 0.1 * step))
 
 
 def test_the_depth_loop_is_the_autopilots_and_takes_its_delay_margin() -> None:
