@@ -15,7 +15,7 @@ import math
 import os
 import re
 import reprlib
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, TypeAlias, get_args
@@ -1453,7 +1453,8 @@ def _check_step_sizes(
 def _resolve_connections(
     spec: ConnectionsSpec, instances: Mapping[str, Instance], src: Source
 ) -> list[Connection]:
-    by_target = _same_name_connections(instances, src) if spec.same_names else {}
+    settled = {*spec.remove, *(conn.to for conn in spec.add)}  # no same-name source asked
+    by_target = _same_name_connections(instances, settled, src) if spec.same_names else {}
     for i, ref in enumerate(spec.remove):
         key = f"connections.remove[{i}]"
         if ref in spec.remove[:i]:
@@ -1546,11 +1547,17 @@ def _check_units(
         )
 
 
-def _same_name_connections(instances: Mapping[str, Instance], src: Source) -> dict[str, Connection]:
-    """Every input driven by the one Real output of the same name in another instance."""
+def _same_name_connections(
+    instances: Mapping[str, Instance], settled: Collection[str], src: Source
+) -> dict[str, Connection]:
+    """Every input driven by the one output of the same name in another instance; an input
+    with several is refused unless ``settled`` names it (connections.add drives it or
+    connections.remove leaves it unconnected: two vehicles' autopilots and plants)."""
     by_target: dict[str, Connection] = {}
     for target, target_inst in instances.items():
         for var in target_inst.variables("input"):
+            if f"{target}.{var.name}" in settled:
+                continue
             sources = [
                 name
                 for name, inst in instances.items()
@@ -1564,7 +1571,8 @@ def _same_name_connections(instances: Mapping[str, Instance], src: Source) -> di
                 raise src.error(
                     "connections.same_names",
                     f"input {target}.{var.name} has several same-named outputs {sources}: "
-                    "connect it explicitly in connections.add",
+                    "connect it in connections.add, leave it unconnected in "
+                    "connections.remove, or set same_names = false and list every connection",
                 )
             if sources:
                 tgt = f"{target}.{var.name}"

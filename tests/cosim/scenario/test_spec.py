@@ -715,3 +715,42 @@ def test_an_input_driven_under_two_names_is_refused(test_fmu_dir: Path, tmp_path
         r"\(as ft\.u, one variable\), so a start value would be overwritten",
     ):
         scenario_from_toml(held, base_dir=folder)
+
+
+def test_two_vehicles_connect_by_name_where_add_and_remove_name_the_rest(
+    fmu_dir: Path, no_fmu_loading: None
+) -> None:
+    """Two plants and two autopilots: every autopilot input has two same-named outputs.
+    The refusal said to connect such an input in connections.add, yet it refused the same
+    way once every one was there (same names were resolved before add was read); an
+    input that add drives or remove leaves unconnected is no longer ambiguous."""
+    from two_vehicles import two_vehicles_toml
+
+    s = scenario_from_toml(two_vehicles_toml(same_names=True), fmu_dir=fmu_dir)
+    pairs = {(c.source, c.target) for c in s.connections}
+    for plant, controller in (("plant_a", "ctrl_a"), ("plant_b", "ctrl_b")):
+        assert (f"{plant}.yaw", f"{controller}.yaw") in pairs
+        assert (f"{controller}.thrust", f"{plant}.thrust") in pairs
+    assert {c.source_instance for c in s.connections if c.target_instance == "ctrl_a"} == {
+        "plant_a"
+    }
+    assert scenario_from_toml(s.to_toml(), "resolved", fmu_dir=fmu_dir) == s
+
+
+def test_an_ambiguous_same_name_input_names_every_way_out(
+    fmu_dir: Path, no_fmu_loading: None
+) -> None:
+    """The refusal of an input with several same-named outputs names the three ways to
+    settle it: connections.add, connections.remove, or same_names = false."""
+    from two_vehicles import two_vehicles_toml
+
+    text = two_vehicles_toml(same_names=True).replace(
+        '{ from = "ctrl_b.thrust", to = "plant_b.thrust" }, ', ""
+    )
+    expected = (
+        r"input plant_b\.thrust has several same-named outputs \['ctrl_a', 'ctrl_b'\]: "
+        r"connect it in connections\.add, leave it unconnected in connections\.remove, or "
+        r"set same_names = false and list every connection$"
+    )
+    with pytest.raises(ScenarioError, match=expected):
+        scenario_from_toml(text, fmu_dir=fmu_dir)
