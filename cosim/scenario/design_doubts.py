@@ -42,9 +42,9 @@ def design_doubts(scenario: Scenario, live: bool = False) -> list[str]:
     for each law-specific autopilot parameter given (a start value or an event's ``set``)
     that no law the scenario selects reads (not in a ``live`` run: its keys and control
     endpoint may switch the heading law to any)."""
-    plants = _instances(scenario, PLANT)
     found: list[str] = []
     for name, autopilot in _instances(scenario, AUTOPILOT).items():
+        plants = _steered(scenario, name)
         found += [_vehicle_doubt(name, autopilot, p, plant) for p, plant in plants.items()]
         found += [_speed_doubt(scenario, name, autopilot, p, plant) for p, plant in plants.items()]
         found += [
@@ -91,6 +91,19 @@ def _fast_gains(scenario: Scenario, name: str, autopilot: Instance) -> list[str]
         and isinstance(value, float)
         and value * interval > FASTEST_GAIN_STEPS
     ]
+
+
+def _steered(scenario: Scenario, autopilot: str) -> dict[str, Instance]:
+    """The plants the autopilot ``autopilot`` is checked against: those a connection joins
+    to it either way (of two vehicles, its own), else every plant of the scenario."""
+    plants = _instances(scenario, PLANT)
+    joined = {
+        end
+        for c in scenario.connections
+        for end in (c.source_instance, c.target_instance)
+        if autopilot in (c.source_instance, c.target_instance)
+    }
+    return {name: plant for name, plant in plants.items() if name in joined} or plants
 
 
 def _instances(scenario: Scenario, model: str) -> dict[str, Instance]:

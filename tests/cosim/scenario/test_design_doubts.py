@@ -11,6 +11,7 @@ import pytest
 
 import cosim
 from cosim.scenario.design_doubts import DesignWarning, design_doubts
+from cosim.scenario.spec import scenario_from_toml
 
 SWITCH = """
 [[events]]
@@ -299,3 +300,21 @@ def test_a_mass_command_limit_short_of_the_vehicles_stroke_is_named(
     given = bs3.with_start({"controller.mass_position_cmd_limit": 0.05})
     (line,) = design_doubts(given)
     assert line.startswith("controller.mass_position_cmd_limit = 0.05 m is short of"), line
+
+
+def test_two_vehicles_each_autopilot_is_checked_against_its_own_plant(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """Two vehicles of two parameter sets, each autopilot designed for its own plant's:
+    each autopilot was checked against every plant, so the run warned twice that an
+    autopilot was designed for the other vehicle's set, which it never steers. A
+    mismatch within one vehicle is still named, once."""
+    from two_vehicles import two_vehicles_toml
+
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    fins = {"plant_b.vehicle": "remus100-long-fins", "ctrl_b.vehicle": "remus100-long-fins"}
+    scenario = scenario_from_toml(two_vehicles_toml(), fmu_dir=fmu_dir).with_start(fins)
+    assert design_doubts(scenario) == []
+    mismatched = scenario.with_start({"ctrl_b.vehicle": "remus100"})
+    (line,) = design_doubts(mismatched)
+    assert line.startswith("plant_b runs vehicle 'remus100-long-fins' but ctrl_b designs"), line
