@@ -846,13 +846,12 @@ def report(outcome: RunOutcome) -> str:
     lines += [f"  {name:<10} {path}{cut.get(name, '')}" for name, path in outcome.paths.items()]
     figures = outcome.figures
     if any(v is not None for v in figures.values()):  # (a run without our plant has none)
-        from cosim.metrics.key_figures import why_none
+        from cosim.metrics.key_figures import why_none_of
 
-        roles, done = scenario.key_instances, outcome.result.complete
-        driver = scenario.key_setpoint_source
+        fleet, done = scenario.key_vehicles, outcome.result.complete
 
         def shown(k: str, v: float | None) -> str:
-            return _fmt(v) if v is not None else why_none(k, scenario.columns, roles, done, driver)
+            return _fmt(v) if v is not None else why_none_of(k, scenario.columns, fleet, done)
 
         lines.append("  " + ", ".join(f"{k} = {shown(k, v)}" for k, v in figures.items()))
     if outcome.manoeuvre:

@@ -33,6 +33,7 @@ def two_vehicles_toml(same_names: bool = False, stop_time: float = 10.0) -> str:
         "[coupling]",
         "step = 0.01",
         'order = ["ctrl_a", "plant_a", "ctrl_b", "plant_b"]',
+        'extrapolation = "none"  # the LQR is designed for its command held',
     ]
     for name, mode in (("a", "lqr"), ("b", "backstepping")):
         lines += [

@@ -31,7 +31,7 @@ import numpy as np
 from cosim.engine import master
 from cosim.engine.signals import StopRequest
 from cosim.errors import CosimError, seconds
-from cosim.metrics.key_figures import KeyFigures
+from cosim.metrics.key_figures import key_figures
 from cosim.metrics.richardson import estimate, run_order
 from cosim.scenario.spec import Scenario
 from cosim.scenario.timeline_spec import first_point
@@ -135,7 +135,7 @@ def check_step(
     steps = [coupling.step / 2, coupling.step / 4]
     for step in steps:
         checked = _same_delays(scenario.with_overrides(step=step), round(coupling.step / step))
-        sink = KeyFigures(scenario.columns, scenario.key_instances, scenario.key_setpoint_source)
+        sink = key_figures(scenario.columns, scenario.key_vehicles)
         result = master.run(checked, [sink], keep_rows=False, stop=stop)
         if not result.complete:
             raise CosimError(f"--check-step: the run at h = {step!r} s stopped: {result.error}")

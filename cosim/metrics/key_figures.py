@@ -15,17 +15,23 @@ settling time at all (``setpoint_driver``).
 recorded is None, and so is one that is not finite. ``plant`` and ``controller`` stand for
 the instances running the plant and the autopilot, whatever a scenario names them
 (``Scenario.key_instances``).
+
+A scenario of several vehicles (two or more instances of the plant FMU) has the figures of
+each, named after its plant, ``<plant>.yaw_settling_time_s`` and so on, each read with the
+autopilot a connection joins to that plant (:func:`vehicles`, :class:`FleetKeyFigures`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 YAW_TOLERANCE_RAD = math.radians(1.0)  # "settled" band of the yaw settling time
 ROLES = {"plant": "plant", "controller": "controller"}  # role -> instance, as the built-ins
+MODELS = {"plant": "AuvPlant", "controller": "AuvAutopilot"}  # role -> model identifier
 
 
 def settling_time(
@@ -195,3 +201,89 @@ class KeyFigures:
 
 def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
+
+
+class Vehicle(NamedTuple):
+    """One vehicle's key figures: the ``prefix`` of their names ("" for the one vehicle of
+    a scenario, else ``"<plant>."``), the instances of its ``roles`` and the output a
+    connection drives its autopilot's yaw set-point from (``setpoint_driver``, if any)."""
+
+    prefix: str
+    roles: dict[str, str]
+    setpoint_driver: str | None
+
+
+def vehicles(
+    models: Mapping[str, str | None], connections: Iterable[tuple[str, str]]
+) -> list[Vehicle]:
+    """The vehicles of a scenario whose instances run the FMUs ``models`` (instance ->
+    model identifier) joined by ``connections`` ((source, target) references). One plant
+    or none: one vehicle, the first plant and the first autopilot (the role's name where
+    there is none). Several: one a plant, with the first autopilot a connection joins to
+    it either way (none: a name no column has, so its autopilot's figures are None)."""
+    links = [(s.split(".", 1)[0], t.split(".", 1)[0], s, t) for s, t in connections]
+    drivers = {target: source for _, _, source, target in links}
+    of = {role: [n for n, m in models.items() if m == model] for role, model in MODELS.items()}
+
+    def vehicle(prefix: str, plant: str, controller: str) -> Vehicle:
+        roles = {"plant": plant, "controller": controller}
+        return Vehicle(prefix, roles, drivers.get(f"{controller}.yaw_setpoint"))
+
+    if len(of["plant"]) <= 1:
+        return [vehicle("", *(next(iter(of[r]), r) for r in ("plant", "controller")))]
+    fleet = []
+    for plant in of["plant"]:
+        joined = {b if a == plant else a for a, b, _, _ in links if plant in (a, b)}
+        controller = next((c for c in of["controller"] if c in joined), "")
+        fleet.append(vehicle(f"{plant}.", plant, controller))
+    return fleet
+
+
+class FleetKeyFigures:
+    """The key figures of several vehicles (:func:`vehicles`), each named with its
+    vehicle's prefix, as a row sink like :class:`KeyFigures`."""
+
+    def __init__(self, columns: tuple[str, ...] | list[str], fleet: Sequence[Vehicle]) -> None:
+        self._each = [(v.prefix, KeyFigures(columns, v.roles, v.setpoint_driver)) for v in fleet]
+
+    def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
+        for _, figures in self._each:
+            figures.add_rows(times, values)
+
+    def add_notes(self, notes: object) -> None:
+        """Events and faults change no key figure: ``notes`` are dropped."""
+
+    def names(self) -> tuple[str, ...]:
+        """As :meth:`KeyFigures.names`, every vehicle's, prefixed."""
+        return tuple(prefix + name for prefix, figures in self._each for name in figures.names())
+
+    def figures(self, complete: bool = True) -> dict[str, float | None]:
+        """As :meth:`KeyFigures.figures`, every vehicle's, prefixed."""
+        return {
+            prefix + name: value
+            for prefix, figures in self._each
+            for name, value in figures.figures(complete).items()
+        }
+
+
+def key_figures(
+    columns: tuple[str, ...] | list[str], fleet: Sequence[Vehicle]
+) -> KeyFigures | FleetKeyFigures:
+    """The sink of the key figures of the vehicles ``fleet`` (:func:`vehicles`) from the
+    rows of ``columns``: the plain names for one vehicle, prefixed for several."""
+    if len(fleet) == 1 and not fleet[0].prefix:
+        only = fleet[0]
+        return KeyFigures(columns, only.roles, only.setpoint_driver)
+    return FleetKeyFigures(columns, fleet)
+
+
+def why_none_of(
+    name: str,
+    columns: tuple[str, ...] | list[str],
+    fleet: Sequence[Vehicle],
+    complete: bool = True,
+) -> str:
+    """:func:`why_none` of the figure ``name`` of one of the vehicles ``fleet`` (the one
+    whose prefix ``name`` starts with)."""
+    v = next((v for v in fleet if v.prefix and name.startswith(v.prefix)), fleet[0])
+    return why_none(name.removeprefix(v.prefix), columns, v.roles, complete, v.setpoint_driver)

@@ -33,7 +33,7 @@ from cosim.engine.master import RunResult
 from cosim.engine.rows import Note, NotesIgnored, RowSink
 from cosim.errors import CosimError
 from cosim.limits import unwritten
-from cosim.metrics.key_figures import KeyFigures
+from cosim.metrics.key_figures import key_figures
 from cosim.outputs.expendable import ClosableSink, Expendable
 from cosim.outputs.folder import RESULTS_FILE, SCENARIO_FILE, SUMMARY_FILE, RunFolder
 from cosim.outputs.manoeuvre import ManoeuvreSink, fault_start, mission_legs, survey_mission
@@ -77,9 +77,7 @@ class RunOutputs:
         self.scenario = scenario
         self.folder = folder
         self.paths = paths  # (if written) results, scenario, summary and recording
-        self.figures = KeyFigures(
-            scenario.record, scenario.key_instances, scenario.key_setpoint_source
-        )
+        self.figures = key_figures(scenario.record, scenario.key_vehicles)
         self.manoeuvre = (
             None if scenario.manoeuvre is None
             else ManoeuvreSink(scenario.manoeuvre, scenario.record, fault_start(scenario),

@@ -93,6 +93,7 @@ from cosim.scenario.toml_file import (
 if TYPE_CHECKING:  # numpy is not imported to read a scenario
     import numpy as np
 
+    from cosim.metrics.key_figures import Vehicle
     from plant_fmu.model.parameters import VehicleParameters
 
 SCENARIO_FOLDER = Path(__file__).parents[1] / "scenarios"  # cosim/scenarios
@@ -509,6 +510,15 @@ class Scenario:
         ``<guidance>.yaw_setpoint``), None if none does (a start value or events set it)."""
         target = f"{self.key_instances['controller']}.yaw_setpoint"
         return next((c.source for c in self.connections if c.target == target), None)
+
+    @property
+    def key_vehicles(self) -> list[Vehicle]:
+        """The vehicles the key figures describe (:func:`cosim.metrics.key_figures.vehicles`):
+        the one of :attr:`key_instances`, or each plant's of several, with its autopilot."""
+        from cosim.metrics.key_figures import vehicles  # numpy: not to read a scenario
+
+        models = {name: inst.interface.model_identifier for name, inst in self.instances.items()}
+        return vehicles(models, [(c.source, c.target) for c in self.connections])
 
     @property
     def n_steps(self) -> int:

@@ -36,7 +36,7 @@ from cosim.engine.step_check import doubts as step_doubts
 from cosim.engine.step_check import not_checkable
 from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.fmus.interface import check_own_packages
-from cosim.metrics.key_figures import KeyFigures
+from cosim.metrics.key_figures import key_figures
 from cosim.metrics.manoeuvres import summary_metrics
 from cosim.outputs.manoeuvre import scenario_metric_names
 from cosim.runner import RunOptions, execute, with_fmu_log
@@ -387,9 +387,7 @@ def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
 
 def _metric_names(scenario: Scenario, check_step: bool = False) -> tuple[str, ...]:
     """The names :func:`_metrics` gives a run of ``scenario``, in the same order."""
-    figures = KeyFigures(
-        scenario.record, scenario.key_instances, scenario.key_setpoint_source
-    ).names()  # no column: none
+    figures = key_figures(scenario.record, scenario.key_vehicles).names()  # no column: none
     manoeuvre = scenario_metric_names(scenario)
     finals = tuple(f"final.{c}" for c in scenario.record)
     errors = tuple(f"{COUPLING_ERROR}{name}" for name in (*figures, *finals)) if check_step else ()

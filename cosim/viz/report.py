@@ -78,7 +78,7 @@ from matplotlib.figure import Figure
 from cosim.errors import CosimError
 from cosim.fmus.interface import read_interface
 from cosim.limits import unwritten
-from cosim.metrics.key_figures import why_none
+from cosim.metrics.key_figures import ROLES, Vehicle, vehicles, why_none_of
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
 from cosim.outputs.missing_run import missing_run_hint
@@ -1024,14 +1024,20 @@ def null_reasons(
     run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any]
 ) -> dict[str, str]:
     """Why each key figure summary.json holds as null is null (``table``: the run's
-    results.csv): :func:`cosim.metrics.key_figures.why_none`, with what drives the yaw
+    results.csv): :func:`cosim.metrics.key_figures.why_none_of`, with what drives the yaw
     set-point in the run's scenario.toml."""
     figures = summary.get("key_figures") or {}
     scenario = read_scenario(run_dir) or {}
-    driver = connection_sources(scenario).get("controller.yaw_setpoint")
+    sources = connection_sources(scenario)
+    fmus = summary.get("fmus")
+    each = fmus.items() if isinstance(fmus, dict) else ()
+    models = {str(k): str(v.get("model")) for k, v in each if isinstance(v, dict)}
+    fleet = vehicles(models, [(source, target) for target, source in sources.items()])
+    if not any(v.prefix for v in fleet):  # one vehicle: the names the built-ins give it
+        fleet = [Vehicle("", dict(ROLES), sources.get("controller.yaw_setpoint"))]
     complete = summary.get("complete") is not False and summary.get("status") != "running"
     return {
-        name: why_none(name, list(table), complete=complete, setpoint_driver=driver)
+        name: why_none_of(name, list(table), fleet, complete)
         for name, value in figures.items()
         if value is None
     }

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import re
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -207,3 +209,32 @@ def test_a_yaw_set_point_a_guidance_moves_is_not_taken_as_zero(
     ) in report(outcome)
     figures = KeyFigures(["plant.yaw"], setpoint_driver="guidance.yaw_setpoint")
     assert figures.names() == ()  # no settling time to give, whatever the rows
+
+
+@pytest.mark.slow
+def test_two_vehicles_each_get_their_own_key_figures(fmu_paths, tmp_path) -> None:
+    """Two plants, each closed by its own autopilot (LQR on a, backstepping with the
+    tunnel thruster on b): the key figures were those of the first plant and autopilot
+    alone, under the single-vehicle names (a peak tunnel force of 0 N for a run whose
+    vehicle b fires its thruster); now each vehicle's figures carry its plant's name."""
+    from two_vehicles import two_vehicles_toml
+
+    from cosim.runner import report, run_scenario
+    from cosim.scenario.spec import scenario_from_toml
+    from cosim.viz.report import null_reasons
+
+    fmu_dir = fmu_paths["AuvPlant"].parent
+    scenario = scenario_from_toml(two_vehicles_toml(stop_time=10.0), fmu_dir=fmu_dir)
+    outcome = run_scenario(scenario, tmp_path / "run", no_rrd=True)
+    figures = outcome.figures
+    names = ("yaw_settling_time_s", "peak_abs_mass_position_m", "peak_abs_tunnel_force_N")
+    assert list(figures) == [f"{p}.{n}" for p in ("plant_a", "plant_b") for n in names]
+    assert figures["plant_a.peak_abs_tunnel_force_N"] == 0.0  # LQR: the mass alone
+    assert figures["plant_b.peak_abs_tunnel_force_N"] > 1.0  # backstepping fires it
+    assert figures["plant_b.yaw_settling_time_s"] is not None  # settles within 10 s
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text(encoding="utf-8"))
+    assert summary["key_figures"] == figures
+    assert "plant_a.yaw_settling_time_s = not settled" in report(outcome)
+    table = {c: np.asarray(v) for c, v in pd.read_csv(tmp_path / "run" / "results.csv").items()}
+    reasons = null_reasons(tmp_path / "run", table, summary)  # the report's index page
+    assert reasons["plant_a.yaw_settling_time_s"].startswith("not settled"), reasons
