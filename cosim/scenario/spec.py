@@ -78,6 +78,7 @@ from cosim.scenario.timeline_spec import (
     EventSpec,
     Fault,
     FaultSpec,
+    actuator_owners,
     event_table,
     fault_table,
     resolve_events,
@@ -693,7 +694,10 @@ class Scenario:
         if self.events:
             data["events"] = [event_table(event) for event in self.events]
         if self.faults:
-            data["faults"] = [fault_table(fault) for fault in self.faults]
+            data["faults"] = [
+                fault_table(f, f.actuator and len(actuator_owners(f.kind, self)) > 1)
+                for f in self.faults
+            ]
         origin = f" (from {path_text(self.source)})" if self.source else ""
         header = (
             f"# Resolved scenario {self.id!r}{origin}.\n"

@@ -492,11 +492,7 @@ def resolve_faults(specs: Sequence[FaultSpec], scenario: Any, src: Source) -> tu
         key = f"faults[{i}]"
         _check_fault_keys(spec, key, src)
         if spec.kind in ACTUATOR_FAULTS:
-            if spec.target is not None:
-                raise src.error(
-                    f"{key}.target", f"{spec.target!r}: an actuator fault ({spec.kind}) has none"
-                )
-            target, hold = _actuator(spec.kind, scenario, f"{key}.kind", src)
+            target, hold = _actuator(spec, scenario, key, src)
         else:
             if spec.target is None or spec.target not in targets:
                 raise src.error(
@@ -554,22 +550,38 @@ def _check_fault_keys(spec: FaultSpec, key: str, src: Source) -> None:
         raise src.error(f"{key}.stop", f"{spec.stop!r} s is not after start = {spec.start!r} s")
 
 
-def _actuator(kind: str, scenario: Any, key: str, src: Source) -> tuple[str, str | None]:
-    """The one instance with the plant input an actuator fault acts on (and, for a
-    mass-jam, the mass position output on the same instance)."""
+def actuator_owners(kind: str, scenario: Any) -> list[str]:
+    """The instances with the plant input the actuator fault ``kind`` acts on."""
     wanted = ACTUATOR_FAULTS[kind]
     owners = []
     for name, inst in scenario.instances.items():
         var = inst.interface.variables.get(wanted)
         if var is not None and var.causality == "input" and var.type == "Real":
             owners.append(name)
-    if len(owners) != 1:
+    return owners
+
+
+def _actuator(spec: FaultSpec, scenario: Any, key: str, src: Source) -> tuple[str, str | None]:
+    """The input an actuator fault acts on: of its ``target``, else of the one instance
+    with that plant input (several vehicles: the target names one), and, for a mass-jam,
+    the mass position output on the same instance."""
+    kind, wanted = spec.kind, ACTUATOR_FAULTS[spec.kind]
+    owners = actuator_owners(kind, scenario)
+    acts = f"{kind!r} acts on the plant input {wanted!r}, which {len(owners)} instances ({owners})"
+    if spec.target is not None:
+        if spec.target not in [f"{owner}.{wanted}" for owner in owners]:
+            expected = f"one of {[f'{o}.{wanted}' for o in owners]}" if owners else "none"
+            raise src.error(f"{key}.target", f"{spec.target!r}: {acts} have: expected {expected}")
+        plant = spec.target.rpartition(".")[0]
+    elif len(owners) == 1:
+        plant = owners[0]
+    elif owners:
         raise src.error(
-            key,
-            f"{kind!r} acts on the plant input {wanted!r}, which {len(owners)} instances "
-            f"({owners}) have: expected exactly one",
+            f"{key}.target",
+            f'missing: {acts} have: name one, target = "{owners[0]}.{wanted}"',
         )
-    plant = owners[0]
+    else:
+        raise src.error(f"{key}.kind", f"{acts} have: expected exactly one")
     if kind != "mass-jam":
         return f"{plant}.{wanted}", None
     out = scenario.instances[plant].interface.variables.get(MASS_POSITION)
@@ -613,10 +625,11 @@ def event_table(event: Event) -> dict[str, Any]:
     return table
 
 
-def fault_table(fault: Fault) -> dict[str, Any]:
-    """A fault as the ``[[faults]]`` table that resolves to it."""
+def fault_table(fault: Fault, with_target: bool = False) -> dict[str, Any]:
+    """A fault as the ``[[faults]]`` table that resolves to it (an actuator fault's
+    target only ``with_target``: where several plants have its input)."""
     table: dict[str, Any] = {"name": fault.name, "kind": fault.kind}
-    if not fault.actuator:
+    if not fault.actuator or with_target:
         table["target"] = fault.target
     table["start"] = fault.start
     for key in ("stop", "value", "std", "seed", "steps", "probability"):

@@ -303,3 +303,31 @@ def test_a_time_on_a_late_point_is_that_point_however_many_steps_in(h: float) ->
     points = range(2**24, 2**25, 4099)
     late = [n for n in points if first_point(float(f"{n * h:.3f}"), h) != n]
     assert late == []
+
+
+def test_an_actuator_fault_of_two_vehicles_names_the_plant_it_acts_on(fmu_dir: Path) -> None:
+    """Two vehicles: a mass-jam was refused for the two plants with the input it acts
+    on, and a target naming one of them was refused too (an actuator fault took none), so
+    no fault could jam one vehicle's mass. The target names the plant's input now, and the
+    resolved scenario keeps it."""
+    from two_vehicles import two_vehicles_toml
+
+    text = two_vehicles_toml() + '[[faults]]\nname = "jam"\nkind = "mass-jam"\nstart = 3.0\n'
+    several = (
+        r"key 'faults\[0\]\.target': missing: 'mass-jam' acts on the plant input "
+        r"'mass_position_cmd', which 2 instances \(\['plant_a', 'plant_b'\]\) have: name one, "
+        r"target = \"plant_a\.mass_position_cmd\"$"
+    )
+    with pytest.raises(ScenarioError, match=several):
+        scenario_from_toml(text, fmu_dir=fmu_dir)
+    named = text + 'target = "plant_b.mass_position_cmd"\n'
+    (fault,) = scenario_from_toml(named, fmu_dir=fmu_dir).faults
+    assert (fault.target, fault.hold_source) == (
+        "plant_b.mass_position_cmd",
+        "plant_b.mass_position",
+    )
+    s = scenario_from_toml(named, fmu_dir=fmu_dir)
+    assert scenario_from_toml(s.to_toml(), fmu_dir=fmu_dir) == s
+    wrong = text + 'target = "ctrl_b.mass_position_cmd"\n'
+    with pytest.raises(ScenarioError, match=r"'ctrl_b\.mass_position_cmd': 'mass-jam' acts on"):
+        scenario_from_toml(wrong, fmu_dir=fmu_dir)
