@@ -278,8 +278,8 @@ def write_report(run_dir: Path) -> Path:
     run_dir = Path(run_dir)
     stamp = {**run_stamp(run_dir), "made": local_time()}
     table = load_results(run_dir)
-    _check_drawable(run_dir, table)
     summary, summary_problem = load_summary(run_dir)
+    _check_drawable(run_dir, table, summary)
     out = run_dir / REPORT_FOLDER
     check_writable(out, [INDEX_PAGE, *(f"{name}.png" for name in (*FIGURES, *TITLES))])
     staging = out / f".report.{os.getpid()}.tmp"
@@ -325,19 +325,31 @@ DRAWN_COLUMNS = frozenset(
 )
 
 
-def _check_drawable(run_dir: Path, table: dict[str, np.ndarray]) -> None:
+def _check_drawable(run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any]) -> None:
     """Warn of a results.csv holding none of :data:`DRAWN_COLUMNS` (a run of other FMUs,
-    or recording other columns): its page has the run's summary and no figure, which it
-    got without a word of why."""
-    if DRAWN_COLUMNS.isdisjoint(table):
-        shown = ", ".join(sorted(DRAWN_COLUMNS, key=lambda c: (c[:6] != "plant.", c))[:4])
-        warnings.warn(
-            f"{run_dir / 'results.csv'} holds none of the columns the report draws "
-            f"({shown}, ...): the page shows the run's summary and no figure (a "
-            "scenario's [output] record chooses the columns)",
-            RuntimeWarning,
-            stacklevel=3,
-        )
+    recording other columns, or plants named otherwise: two vehicles): its page has the
+    run's summary and no figure, which it got without a word of why."""
+    if not DRAWN_COLUMNS.isdisjoint(table):
+        return
+    shown = ", ".join(sorted(DRAWN_COLUMNS, key=lambda c: (c[:6] != "plant.", c))[:4])
+    fmus = summary.get("fmus")
+    plants = [
+        str(name)
+        for name, fmu in (fmus.items() if isinstance(fmus, dict) else ())
+        if isinstance(fmu, dict) and fmu.get("model") == "AuvPlant"
+    ]
+    why = (
+        "; it draws one vehicle, the instances named plant and controller (the built-in "
+        f"scenarios' names); this run's plants are {', '.join(plants)}"
+        if plants
+        else " (a scenario's [output] record chooses the columns)"
+    )
+    warnings.warn(
+        f"{run_dir / 'results.csv'} holds none of the columns the report draws "
+        f"({shown}, ...): the page shows the run's summary and no figure{why}",
+        RuntimeWarning,
+        stacklevel=3,
+    )
 
 
 def _figures(

@@ -227,6 +227,21 @@ def test_results_with_nothing_the_report_draws_are_warned_of(tmp_path):
     assert "<img" not in page.read_text()
 
 
+def test_a_report_of_two_vehicles_says_which_instances_it_draws(tmp_path):
+    """Two vehicles (plants plant_a and plant_b): the report warned that the run's
+    [output] record left out the columns it draws, which no record could change: it
+    draws the instances named plant and controller. It now names them and the plants."""
+    (tmp_path / "results.csv").write_text("time,plant_a.yaw,plant_b.yaw\n0,0,0\n1,0.1,0.2\n")
+    fmus = {name: {"model": "AuvPlant"} for name in ("plant_a", "plant_b")}
+    (tmp_path / "summary.json").write_text(json.dumps({"fmus": fmus}))
+    expected = (
+        r"it draws one vehicle, the instances named plant and controller \(the built-in "
+        r"scenarios' names\); this run's plants are plant_a, plant_b$"
+    )
+    with pytest.warns(RuntimeWarning, match=expected):
+        write_report(tmp_path)
+
+
 @pytest.mark.slow
 def test_cli_prints_the_index_path(lateral_run, capsys):
     assert main(["report", str(lateral_run)]) == 0
