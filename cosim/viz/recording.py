@@ -80,6 +80,8 @@ from cosim.viz.viewer_version import version_problem
 from cosim.viz.web_viewer import ended, serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
 
+SCENE_PLANT = "plant."  # the scene draws the instance named plant (the built-ins' name)
+
 APPLICATION_ID = "auv-cosim"
 RRD_MAGIC = b"RRF"  # the first bytes of an .rrd file (RRF2 in rerun 0.41)
 # then the writer's version (4 bytes) and its encoding options (4 bytes): the compression
@@ -252,6 +254,8 @@ class RerunSink:
         )
         for panel in self._panels:
             rec.log(panel.entity, series_style(panel), series_sources(panel), static=True)
+        if not any(c.startswith(SCENE_PLANT) for c in columns):
+            return  # no column of the plant the scene draws (two vehicles): no phantom hull
         log_static_scene(
             rec, vehicle, columns, show_depth_setpoint=depth,
             waypoints=mission_waypoints(toml),  # None without a waypoint guidance
@@ -401,8 +405,8 @@ class RerunSink:
             i = self._index.get(name)
             return None if i is None else values[:, i]
 
-        assert channel.scene is not None
-        channel.scene.send(index, len(times), column)
+        if channel.scene is not None:
+            channel.scene.send(index, len(times), column)
         self._mark_targets(channel, times, column)
 
     def _mark_targets(

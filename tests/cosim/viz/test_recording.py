@@ -464,6 +464,23 @@ def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path, fmu_dir:
     np.testing.assert_array_equal(pose, 0.0)  # no position recorded: the vehicle stays put
 
 
+def test_two_vehicles_draw_no_hull_that_no_plant_moves(tmp_path: Path, fmu_dir: Path):
+    """Two vehicles (plant_a, plant_b; no instance named plant, the one the scene draws):
+    the 3-D scene showed a hull standing at the origin with a track along it, a vehicle
+    neither plant is. The scene is left out; each plant's columns have their plots."""
+    from two_vehicles import two_vehicles_toml
+
+    from cosim.scenario.spec import scenario_from_toml
+
+    scenario = scenario_from_toml(two_vehicles_toml(stop_time=0.4), fmu_dir=fmu_dir)
+    times = np.arange(5) * 0.1
+    with RerunSink(scenario, tmp_path / "r.rrd") as sink:
+        sink.add_rows(times, np.ones((5, len(scenario.columns))))
+    entities = set(RrdReader(tmp_path / "r.rrd").stream().collect().schema().entity_paths())
+    assert not any(entity.startswith("/world/vehicle") for entity in entities), entities
+    assert {"/other/plant_a/yaw", "/other/plant_b/yaw"} <= entities
+
+
 def test_a_column_outside_the_catalogue_is_drawn_with_its_fmus_unit(tmp_path: Path, fmu_dir: Path):
     """A column no plot of the catalogue shows gets a plot of its own under ``other/``,
     in the unit its FMU declares (an angle or a rate declared in rad or rad/s in degrees,
