@@ -15,7 +15,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import cosim
-from cosim.metrics.key_figures import KeyFigures, SettlingTime, settling_time, why_none
+from cosim.metrics.key_figures import (
+    KeyFigures,
+    SettlingTime,
+    Vehicle,
+    key_figures,
+    settling_time,
+    vehicles,
+    why_none,
+    why_none_of,
+)
 from cosim.scenario.mission_doubts import MissionWarning
 
 TOLERANCE = 0.1
@@ -238,3 +247,29 @@ def test_two_vehicles_each_get_their_own_key_figures(fmu_paths, tmp_path) -> Non
     table = {c: np.asarray(v) for c, v in pd.read_csv(tmp_path / "run" / "results.csv").items()}
     reasons = null_reasons(tmp_path / "run", table, summary)  # the report's index page
     assert reasons["plant_a.yaw_settling_time_s"].startswith("not settled"), reasons
+
+
+def test_each_plant_is_paired_with_the_autopilot_connected_to_it() -> None:
+    """The vehicles of the key figures: one plant keeps the plain names (the first
+    autopilot, connected or not); several are each paired with the autopilot a connection
+    joins to them, whatever order the instances come in, and a plant no autopilot steers
+    gets none (its settling time is then read against a set-point of 0)."""
+    models = {"ap_b": "AuvAutopilot", "auv_a": "AuvPlant", "ap_a": "AuvAutopilot",
+              "auv_b": "AuvPlant", "auv_c": "AuvPlant", "nav": "AuvGuidance"}  # fmt: skip
+    links = [("auv_a.yaw", "ap_a.yaw"), ("ap_b.thrust", "auv_b.thrust"),
+             ("nav.yaw_setpoint", "ap_b.yaw_setpoint"), ("auv_b.north", "nav.north")]  # fmt: skip
+    fleet = vehicles(models, links)
+    assert [(v.prefix, v.roles["controller"], v.setpoint_driver) for v in fleet] == [
+        ("auv_a.", "ap_a", None),
+        ("auv_b.", "ap_b", "nav.yaw_setpoint"),
+        ("auv_c.", "", None),
+    ]
+    (one,) = vehicles({"p": "AuvPlant", "c": "AuvAutopilot"}, [])
+    assert one == Vehicle("", {"plant": "p", "controller": "c"}, None)
+    columns = ["auv_a.yaw", "auv_c.yaw"]
+    sink = key_figures(columns, fleet)
+    sink.add_rows(np.array([0.0, 1.0]), np.array([[0.5, 0.0], [0.0, 0.0]]))
+    figures = sink.figures()
+    assert figures["auv_a.yaw_settling_time_s"] == pytest.approx(1.0 - 0.0175 / 0.5, abs=1e-3)
+    assert figures["auv_c.yaw_settling_time_s"] == 0.0
+    assert why_none_of("auv_b.yaw_settling_time_s", columns, fleet) == "not recorded"
