@@ -381,7 +381,7 @@ def _study(args: argparse.Namespace) -> int:
     if local:  # the workers' fork server imports beside this process (cosim.study.fork_server)
         from cosim.study import fork_server
 
-        fork_server.start()
+        fork_server.start(warm=True)  # it warms up once on the study (server_warm)
     from cosim.study.spec import MAX_RUNS, check_size, load_study, run_count, study_label
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS

@@ -134,6 +134,15 @@ def remove(folder: Path) -> None:
     Path(str(folder) + LOCK_SUFFIX).unlink(missing_ok=True)
 
 
+def remove_own() -> None:
+    """Remove this process's scratch folder now, if it has made one: a process about to
+    fork children that outlive its use of it (the workers' fork server after its warm-up,
+    :mod:`cosim.study.server_warm`; each child makes a folder of its own)."""
+    folder = _own.pop(os.getpid(), None)
+    if folder is not None:
+        remove(folder)
+
+
 def purge(base: Path) -> list[Path]:
     """Remove every folder in ``base`` whose process is gone (its lock free), with the
     paths it claimed; the folders removed. The listing waits for the global lock (held

@@ -15,8 +15,9 @@ that join later or are restarted by their nanny; the plugin is removed (and the 
 with it) at the end. Each worker's first task first runs the scenario for one step
 (:func:`cosim.study.task.warm_up`, once per worker: :meth:`StudyPlugin.warm`), so the
 worker loads its FMU libraries and compiled code before its first run, which then costs
-what every later one does; a worker that is ready starts its runs without waiting for the
-others to be. Each run is one task
+what every later one does (a worker forked from ``auv-cosim sweep``'s fork server starts
+with that done once, there: :mod:`cosim.study.server_warm`); a worker that is ready starts
+its runs without waiting for the others to be. Each run is one task
 (:func:`run_on_worker`) that needs nothing but the plugin, so no task depends on data held
 by a worker that may be lost. A run that fails is a result, not an exception. A task whose
 worker died is rescheduled by the scheduler on another worker, up to
@@ -693,6 +694,7 @@ class EarlyClient:
             self._pool.shutdown()
 
     def _close(self) -> None:
+        fork_server.hand_over(None)  # a server still waiting for the study: it never comes
         with suppress(Exception):  # a cluster that failed to start has nothing to close
             self._started.result()
         self._stack.close()

@@ -16,9 +16,11 @@ not the command before it starts the server: reading Dask's configuration import
 (~0.2 s), which the server's imports would wait for. It then imports what every run
 needs (:mod:`cosim.study.preload`: the engine, numba with its cache folder set
 first and its compiler's target initialised, ~2 s of each worker's warm-up before) and
-freezes it out of the garbage collector's reach; last :mod:`cosim.study.server_exit`, so
-that it ends without its interpreter's teardown. The FMUs are never loaded there (an FMU
-imports the package it ships): each worker loads them after the fork. This module:
+freezes it out of the garbage collector's reach; then, for the command's study only
+(:func:`start` with ``warm``), it waits for the client to hand the study over
+(:func:`hand_over`) and warms up on it once (:mod:`cosim.study.server_warm`), so that the
+workers it forks start with the FMUs loaded; last :mod:`cosim.study.server_exit`, so
+that it ends without its interpreter's teardown. This module:
 standard library, dask's configuration and numba's cache folder only (not distributed,
 ~1 s to import, nor numba), so that the server starts before the client has imported what
 the server imports.
@@ -30,6 +32,7 @@ import importlib.util
 import multiprocessing
 import os
 import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 
@@ -46,9 +49,15 @@ PRELOAD = [
     "cosim.study.server_environ",
     "distributed",
     "cosim.study.preload",
+    "cosim.study.server_warm",
     "cosim.study.server_exit",
 ]
 _environ_set = False  # whether this process has Dask's pre-spawn environment (start)
+# names, in the server's environment, the file its warm-up's study is handed over in
+WARM_VARIABLE = "AUV_COSIM_SERVER_WARM"
+HAND_OVER_FILE = "auv-cosim-warm-up.pickle"
+_hand_over: str | None = None  # that file, while the server waits for it (hand_over)
+_handing = threading.Lock()  # the command's thread and its cluster's may hand over
 
 
 def available() -> bool:
@@ -56,13 +65,16 @@ def available() -> bool:
     return "forkserver" in multiprocessing.get_all_start_methods()
 
 
-def start() -> bool:
+def start(warm: bool = False) -> bool:
     """Start the fork server now, if the platform has one and it is not running; whether it
     runs. Never raises: where it cannot start (its socket's path too long for AF_UNIX
     under a long TMPDIR, say), Dask starts the workers its own way. This process takes
     Dask's pre-spawn environment at the first call only (reading it parses Dask's
     defaults file, ~0.04 s, and the command calls this twice: early, and as its cluster
-    starts)."""
+    starts). ``warm``: the server, if this call starts it, forks no worker before this
+    process has handed it the study (:func:`hand_over`) and it has warmed up on it, or
+    it gave up waiting (:mod:`cosim.study.server_warm`): only for a caller that hands it
+    over as soon as it can, or ends."""
     global _environ_set
     if not available():
         return False
@@ -73,7 +85,7 @@ def start() -> bool:
         multiprocessing.get_context("forkserver").set_forkserver_preload(PRELOAD)
         with _stop_signals_blocked():
             resource_tracker.ensure_running()
-        with _stop_signals_blocked():  # starting the tracker unblocked SIGINT and SIGTERM
+        with _stop_signals_blocked(), _warm_up_named(warm):  # (the tracker unblocked them)
             forkserver.ensure_running()
         running = True
     except (OSError, ValueError):
@@ -121,6 +133,51 @@ def _say_cache_problem() -> None:
         return
     os.environ.setdefault("NUMBA_CACHE_DIR", str(jit.default_cache_dir()))  # as numba's
     jit.cache_problem()
+
+
+@contextmanager
+def _warm_up_named(warm: bool) -> Iterator[None]:
+    """While on, this process's environment names the file :func:`hand_over` will write
+    (in multiprocessing's own temporary folder of this process, which holds the server's
+    socket and is removed with it), for a server started meanwhile; not for one running."""
+    global _hand_over
+    from multiprocessing import forkserver, util
+
+    named = warm and forkserver._forkserver._forkserver_pid is None  # type: ignore[attr-defined]
+    if named:
+        _hand_over = os.path.join(util.get_temp_dir(), HAND_OVER_FILE)
+        os.environ[WARM_VARIABLE] = _hand_over
+    try:
+        yield
+    except BaseException:
+        _hand_over = None
+        raise
+    finally:
+        if named:
+            del os.environ[WARM_VARIABLE]
+
+
+def hand_over(job: object | None) -> bool:
+    """Hand the study's :class:`cosim.study.execution.Job` to the fork server waiting for it
+    (:func:`start` with ``warm``), once, written whole (pickled); whether it was (not if
+    none waits). None: the server is to wait no longer and warm nothing (a study ending
+    before it could hand its job over, whose cluster's start waits for the server). Never
+    raises: a server that finds nothing, or nothing it can read, warms nothing."""
+    global _hand_over
+    with _handing:
+        path, _hand_over = _hand_over, None
+    if path is None:
+        return False
+    import pickle
+
+    try:
+        with open(path + ".part", "wb") as out:
+            if job is not None:
+                pickle.dump(job, out, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(path + ".part", path)
+    except (OSError, pickle.PicklingError, TypeError, AttributeError):  # (unpicklable)
+        return False
+    return job is not None
 
 
 def pre_spawn_environ() -> dict[str, str]:

@@ -10,8 +10,10 @@ every run needs before its FMUs are loaded, ~2 s of CPU a worker paid in its war
   SciPy's BLAS table alone, not all of scipy.linalg (:func:`_blas_table_alone`).
 
 What is specific to the study's FMUs -- their libraries, their packages (an FMU imports the
-copy it ships, ``auvfmu_<hash>``), their compiled kernels -- is loaded later, in each
-worker's first task (:func:`cosim.study.task.warm_up`).
+copy it ships, ``auvfmu_<hash>``), their compiled kernels -- is loaded later: by the server
+of ``auv-cosim sweep`` once the client has handed it the study
+(:mod:`cosim.study.server_warm`), else in each worker's first task
+(:func:`cosim.study.task.warm_up`).
 """
 
 import gc

@@ -39,7 +39,7 @@ from cosim.scenario import unit_doubts
 from cosim.scenario.checks import ScenarioError, range_text
 from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
 from cosim.scratch import process_folder
-from cosim.study import collector
+from cosim.study import collector, fork_server
 from cosim.study import folder as study_folder
 from cosim.study.design import PlannedRun, plan
 from cosim.study.execution import (
@@ -308,6 +308,7 @@ def _execute(
     job, plugin = make_job(
         base, factors, spec.keep, spec.check_step, session.unpacked(base), carried
     )
+    fork_server.hand_over(job)  # the workers' fork server warms up on it, if it waits
     drawing.begin()
     bar = _bar(progress, total, "runs", done=total - len(todo))
     failed = 0

@@ -1,0 +1,82 @@
+"""Imported by the workers' fork server (:mod:`cosim.study.fork_server`) after the run's
+modules (:mod:`cosim.study.preload`), for ``auv-cosim sweep``'s own server only: the
+study's warm-up (:func:`cosim.study.task.warm_up`), done once in the server before it forks
+any worker, so that every worker starts with the FMUs' package imported, their compiled
+kernels loaded from numba's cache and their libraries loaded.
+
+Each worker paid that warm-up in its first task (~0.13-0.16 s of CPU for bs-3, ~0.02 s
+left once the server has done it; ``docs/performance.md``): two workers paid it twice,
+on the two cores the runs need. The server does not know the study as it starts (it
+starts before the study is read, so that its imports run beside the client's): it waits
+for the client to hand it over (:func:`cosim.study.fork_server.hand_over`: the study's
+:class:`~cosim.study.execution.Job`, written whole into the file named by
+:data:`~cosim.study.fork_server.WARM_VARIABLE`) while its workers' fork requests wait in
+its socket, and gives up, warming nothing, once the client has ended or after WAIT_S (each
+worker then warms up in its first task, as without this; it does so all the same, in
+~0.02 s, where the server has). Nothing of the warm-up is live as the server forks: the
+FMU instances are freed, no thread is left, the run's scratch folder is removed. Never
+raises: a failed warm-up leaves it to the workers, whose first run reports the reason.
+"""
+
+import gc
+import os
+import pickle
+import time
+from contextlib import suppress
+from pathlib import Path
+
+from cosim.study.fork_server import WARM_VARIABLE
+
+WAIT_S = 5.0  # s the server waits for the study at most (the client checks it meanwhile)
+POLL_S = 0.005  # s between two looks for the hand-over file
+
+
+def handed_over(path: Path, parent: int, wait_s: float = WAIT_S) -> bytes | None:
+    """The hand-over file's bytes once it exists (the file then removed); None once the
+    process ``parent`` (the client that started this one) has ended or ``wait_s``
+    passed. Polled: the server has no channel from the client but the file (it is started
+    with only its socket and its pipe to the client open)."""
+    deadline = time.monotonic() + wait_s
+    while os.getppid() == parent:
+        with suppress(FileNotFoundError):
+            content = path.read_bytes()
+            path.unlink(missing_ok=True)
+            return content
+        if time.monotonic() >= deadline:
+            return None
+        time.sleep(POLL_S)
+    return None
+
+
+def warm(content: bytes) -> None:
+    """Warm up as a local worker of the study pickled in ``content`` would (its
+    :meth:`~cosim.study.execution.StudyPlugin.warm`): the FMUs the client extracted, its
+    copies of the FMU files; this process's scratch folder, which the run made, removed."""
+    from cosim import scratch
+    from cosim.study.task import warm_up
+    from cosim.study.unpacked import use_unpacked
+
+    job = pickle.loads(content)
+    paths = {instance: Path(path) for instance, path in job.fmu_files.items()}
+    if not all(path.is_absolute() for path in paths.values()):
+        return  # FMUs carried to the workers, not the client's copies: theirs to load
+    use_unpacked(job.unpacked)
+    try:
+        warm_up(job.base, paths)
+    finally:
+        scratch.remove_own()
+
+
+def _warm_from_client() -> None:
+    named = os.environ.pop(WARM_VARIABLE, "")
+    if not named:
+        return
+    content = handed_over(Path(named), os.getppid())
+    if not content:  # none in time, or the client's study ended without one
+        return
+    with suppress(Exception):
+        warm(content)
+    gc.freeze()  # what the warm-up loaded, out of the forked workers' collections' reach
+
+
+_warm_from_client()

@@ -1,0 +1,94 @@
+"""The workers' fork server of ``auv-cosim sweep`` warms up once on the study the client
+hands it (cosim/study/server_warm.py), so that each worker it forks starts with the FMUs'
+package imported, their compiled plant code loaded and their libraries loaded, and
+nothing of the warm-up live; it gives up, warming nothing, once the client has ended or
+has not handed the study over in time."""
+
+from __future__ import annotations
+
+import os
+import pickle
+from pathlib import Path
+
+import pytest
+
+from cosim.study import fork_server
+from cosim.study.server_warm import handed_over
+
+
+def test_a_handed_over_study_is_read_once_and_its_file_removed(tmp_path: Path) -> None:
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    path.write_bytes(b"study")
+    assert handed_over(path, os.getppid(), wait_s=60.0) == b"study"
+    assert not path.exists()
+
+
+def test_the_server_gives_up_once_its_client_has_ended(tmp_path: Path) -> None:
+    """Its parent is no longer the client that started it: nothing to wait for (the file
+    never comes), whatever time is left."""
+    gone = os.getppid() + 1  # not this process's parent
+    assert handed_over(tmp_path / fork_server.HAND_OVER_FILE, gone, wait_s=3600.0) is None
+
+
+def test_the_server_gives_up_when_no_study_comes_in_time(tmp_path: Path) -> None:
+    assert handed_over(tmp_path / fork_server.HAND_OVER_FILE, os.getppid(), 0.05) is None
+
+
+def test_the_study_is_handed_over_once_and_none_ends_the_wait(tmp_path, monkeypatch) -> None:
+    """The client hands its study over whole, once; a study that ends without one (its
+    cluster closing) tells the server to wait no longer, with nothing to warm up on."""
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert fork_server.hand_over({"study": 1}) is True
+    assert pickle.loads(handed_over(path, os.getppid(), 0.0) or b"") == {"study": 1}
+    assert fork_server.hand_over({"study": 2}) is False  # handed over already: no file
+    assert not path.exists()
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert fork_server.hand_over(None) is False
+    assert handed_over(path, os.getppid(), 0.0) == b""
+
+
+WARMED = """
+import os, sys, threading
+from pathlib import Path
+import psutil
+from cosim.scratch import base_folder
+from cosim.study import fork_server
+from cosim.study.execution import make_job, open_client
+from cosim.study.task import prepare
+from cosim.study.unpacked import unpack
+
+def probe():
+    server = psutil.Process().parent()
+    compiled = [m for n, m in sys.modules.items() if n.endswith("plant_fmu.model.compiled")]
+    left = [p.name for p in base_folder().iterdir() if p.name.startswith(f"{server.pid}-")]
+    return (bool(compiled) and all(bool(m.advance_into.signatures) for m in compiled),
+            len(server.threads()), left)
+
+if __name__ == "__main__":
+    fork_server.start(warm=True)
+    base, _ = prepare("bs-3", 20.0, Path(sys.argv[1]))
+    job, _ = make_job(base, {}, "none", unpacked=unpack(base.fmu_paths, Path(sys.argv[2])))
+    fork_server.hand_over(job)
+    with open_client(2) as client:
+        print(sorted(client.run(probe).values()))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.cluster
+@pytest.mark.skipif(not fork_server.available(), reason="no fork server on this platform")
+def test_workers_are_forked_warm_from_the_server(fmu_paths, run_python, tmp_path) -> None:
+    """Before any task, each worker has the plant's compiled code loaded (the server's
+    warm-up), the server that forked it has one thread and no scratch folder left."""
+    script = tmp_path / "warmed.py"
+    script.write_text(WARMED, encoding="utf-8")
+    (tmp_path / "fmus").mkdir()
+    done = run_python(
+        "import runpy, sys; sys.argv[1:] = sys.argv[1:3]; "
+        f"runpy.run_path({str(script)!r}, run_name='__main__')",
+        fmu_paths["AuvPlant"].parent,
+        tmp_path / "fmus",
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == str([(True, 1, [])] * 2)
