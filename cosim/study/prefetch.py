@@ -56,10 +56,16 @@ class Prefetch:
         self.first: threading.Thread | None = None
         self.thread: threading.Thread | None = None  # the second part's
 
-    def begin(self) -> None:
-        """Start loading the first part (once)."""
+    def begin(self, spare: bool = False) -> None:
+        """Start loading the first part (once). ``spare``: the client waits for its
+        workers' fork server longer than the first part takes (the server warms up on the
+        study before it forks them, :mod:`cosim.study.server_warm`): the rest is loaded
+        now too, after the first, where it would otherwise share the cores with the runs
+        (as many local workers as cores); elsewhere a core is idle while the runs run."""
         if self.first is None:
             self.first = _started(lambda: _import(self.early))
+        if spare and self.thread is None and self.local_workers >= self.cores:
+            self.thread = _started(self._load)
 
     def unfinished(self, runs: int) -> None:
         """A result arrived and ``runs`` runs are not finished: start loading the rest

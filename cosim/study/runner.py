@@ -308,8 +308,9 @@ def _execute(
     job, plugin = make_job(
         base, factors, spec.keep, spec.check_step, session.unpacked(base), carried
     )
-    fork_server.hand_over(job)  # the workers' fork server warms up on it, if it waits
-    drawing.begin()
+    # the workers' fork server warms up on the study, if it waits for it: the client then
+    # has time to spare before the first run, for all of the page's matplotlib
+    drawing.begin(spare=fork_server.hand_over(job))
     bar = _bar(progress, total, "runs", done=total - len(todo))
     failed = 0
     left = len(todo)

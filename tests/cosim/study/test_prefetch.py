@@ -109,3 +109,18 @@ def test_a_process_leaving_while_the_page_loads_waits_for_it(run_python) -> None
     Now they end before the interpreter finalises: joined by the time atexit runs."""
     done = run_python(EXIT_WHILE_DRAWING)
     assert (done.returncode, done.stdout.strip()) == (143, "joined"), done.stderr
+
+
+@pytest.mark.parametrize(("workers", "cores", "now"), [(2, 2, True), (1, 2, False), (0, 2, False)])
+def test_with_time_to_spare_the_rest_starts_at_once_where_it_would_share_the_cores(
+    drawn, workers: int, cores: int, now: bool
+) -> None:
+    """The client waits for a fork server warming up on the study (spare): as many local
+    workers as cores load the rest before their runs, not beside their last ones; fewer
+    workers, or a remote cluster, leave a core idle while the runs run and load it then."""
+    loading = Prefetch(workers, cores, early=(), late=())
+    loading.begin(spare=True)
+    assert (loading.thread is not None) is now
+    loading.unfinished(15)
+    loading.wait()
+    assert drawn == ["auv-cosim-prefetch"]
