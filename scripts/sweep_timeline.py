@@ -28,17 +28,18 @@ process: on 2 cores the workers' rival; split by thread: the command's main thre
 page's matplotlib loaded on threads of its own, and Dask's threads, the rest) and in all
 (``os.wait4``), the fork server's imports and the chain before the first warm-up that
 the client's readiness races (the client's CPU until it calls the server, the server's
-imports, the first worker's start: which of the two is longer says, at any load, which
-one the first run waits for on an idle machine), each worker's tasks (count), warm-up
-and runs, and the runs' CPU over their wall time (below 1: the worker waited for a
-core). The load average is printed beside it. A third table estimates, from those CPU
-seconds, what each sweep would take on this machine idle (:func:`idle_estimate`): the
-start's longer chain, the longest warm-up, the runs spread over the cores with the
-client's CPU beside them, and the client alone after the last run; and the ratio of the
-two estimates, which the end-to-end benchmark's goal is about. Under load it compares
-trees measured at the same time, not a tree with the goal: the client's CPU during the
-runs grows with their wall time (Dask's periodic work), which makes the two-worker
-estimate pessimistic (docs/performance.md).
+imports -- where the server warms up on the study, the later of them and the client's
+hand-over, then the server's warm-up -- the first worker's start: which of the two is
+longer says, at any load, which one the first run waits for on an idle machine), each
+worker's tasks (count), warm-up and runs, and the runs' CPU over their wall time (below
+1: the worker waited for a core). The load average is printed beside it. A third table
+estimates, from those CPU seconds, what each sweep would take on this machine idle
+(:func:`idle_estimate`): the start's longer chain, the longest warm-up, the runs spread
+over the cores with the client's CPU beside them, and the client alone after the last
+run; and the ratio of the two estimates, which the end-to-end benchmark's goal is about.
+Under load it compares trees measured at the same time, not a tree with the goal: the
+client's CPU during the runs grows with their wall time (Dask's periodic work), which
+makes the two-worker estimate pessimistic (docs/performance.md).
 Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]``.
 """
 
@@ -153,7 +154,10 @@ PATCHES = {
         wrap_client(m), wrap(m.StudyPlugin, "warm", "warm-up"), wrap(m, "run_on_worker", "task"),
         wrap_execute(m),
     ),
-    "cosim.study.fork_server": lambda m: wrap(m, "start", "fork server call"),
+    "cosim.study.fork_server": lambda m: (
+        wrap(m, "start", "fork server call"), wrap(m, "hand_over", "hand-over"),
+    ),
+    "cosim.study.server_warm": lambda m: mark("server warm-up end"),
     "cosim.study.prefetch": wrap_threads,
     "cosim.study.preload": lambda m: (mark("preload end"), wrap(m, "dask_setup", "worker start")),
     "cosim.study.task": lambda m: wrap(m, "prepare", "prepare"),
@@ -293,7 +297,7 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         before = at("fork server call begin", client)[1]
         first = min(at("warm-up begin", pid) for pid in _workers(marks))[1]
         rows.append(("client until server call", before))
-        rows.append(("server chain to warm-up", before + servers[0][2] + first))
+        rows.append(("server chain to warm-up", _server_chain(marks, client, before) + first))
     for k, pid in enumerate(_workers(marks), 1):
         warm = at("warm-up end", pid)[1] - at("warm-up begin", pid)[1]
         spans = _task_spans(marks, pid)
@@ -304,6 +308,19 @@ def cpu_phases(trace: dict[str, object]) -> list[tuple[str, float]]:
         rows += [(f"worker {k} warm-up", warm), (f"worker {k} runs", cpu - warm)]
         rows.append((f"worker {k} runs CPU/wall", (cpu - warm) / max(wall - warm, 1e-9)))
     return rows
+
+
+def _server_chain(marks: list[tuple[float, int, str, float]], client: int, before: float) -> float:
+    """The client's CPU until it calls the fork server and the server's imports; where the
+    server warms the workers up before it forks them (:mod:`cosim.study.server_warm`), the
+    later of that and the client's hand-over of the study, then the server's warm-up."""
+    server = next((t, p, c) for t, p, w, c in marks if w == "preload end")
+    chain = before + server[2]
+    warmed = [c for t, p, w, c in marks if p == server[1] and w == "server warm-up end"]
+    handed = [c for t, p, w, c in marks if p == client and w == "hand-over end"]
+    if warmed and handed:
+        chain = max(chain, handed[0]) + warmed[0] - server[2]
+    return chain
 
 
 # the client's threads by what they do while the runs run: the command itself and the
