@@ -378,10 +378,22 @@ def _study(args: argparse.Namespace) -> int:
     if args.scheduler is None:  # before a worker or the fork server starts
         check_local_study()
     local = args.scheduler is None and not args.resume
-    if local:  # the workers' fork server imports beside this process (cosim.study.fork_server)
-        from cosim.study import fork_server
+    if not local:
+        return _run_study(args, local)
+    # the workers' fork server imports beside this process (cosim.study.fork_server) and
+    # warms up once on the study it is handed (cosim.study.server_warm)
+    from cosim.study import fork_server
 
-        fork_server.start(warm=True)  # it warms up once on the study (server_warm)
+    fork_server.start(warm=True)
+    try:
+        return _run_study(args, local)
+    finally:  # a study refused before its hand-over: the server is to wait no longer
+        fork_server.hand_over(None)
+
+
+def _run_study(args: argparse.Namespace, local: bool) -> int:
+    """:func:`_study` once its flags are checked (and its fork server started if
+    ``local``)."""
     from cosim.study.spec import MAX_RUNS, check_size, load_study, run_count, study_label
 
     max_runs = args.max_runs if args.max_runs is not None else MAX_RUNS

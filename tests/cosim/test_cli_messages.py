@@ -156,7 +156,7 @@ def test_every_bad_input_is_one_line_naming_it_with_its_exit_code(
 
     # a sweep refused when its study file is read: the workers' fork server it starts
     # first (to import beside the reading) is not started here, where no run follows
-    monkeypatch.setattr(fork_server, "start", lambda: False)
+    monkeypatch.setattr(fork_server, "start", lambda warm=False: False)
     monkeypatch.chdir(tmp_path)
     for name, spec in files.items():
         (tmp_path / name).write_text(_file_text(spec), encoding="utf-8")
@@ -365,7 +365,7 @@ def test_an_overlay_out_of_range_is_refused_before_the_cluster_starts(
     ``--workers 0`` is refused at once."""
     from cosim.study import fork_server
 
-    def started() -> None:
+    def started(warm: bool = False) -> None:
         raise AssertionError("the workers' fork server started before --overlay was checked")
 
     monkeypatch.setattr(fork_server, "start", started)
@@ -389,7 +389,7 @@ def test_a_factor_value_a_scenario_refuses_is_named_once(
     Python dict's repr, braces and all)."""
     from cosim.study import fork_server
 
-    monkeypatch.setattr(fork_server, "start", lambda: False)  # refused before any run
+    monkeypatch.setattr(fork_server, "start", lambda warm=False: False)  # refused before any run
     monkeypatch.chdir(tmp_path)
     (tmp_path / "study.toml").write_text(STUDY.replace("0.1]", "'x']"), encoding="utf-8")
     fmus = str(fmu_paths["AuvPlant"].parent)

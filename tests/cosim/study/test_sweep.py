@@ -283,7 +283,9 @@ def test_a_dashboard_without_the_bokeh_dask_needs_is_refused_before_the_cluster_
         return installed
 
     monkeypatch.setattr(importlib.metadata, "version", version)
-    monkeypatch.setattr(fork_server, "start", lambda: pytest.fail("a fork server started"))
+    monkeypatch.setattr(
+        fork_server, "start", lambda warm=False: pytest.fail("a fork server started")
+    )
     study = tmp_path / "study.toml"
     study.write_text(GRID_STUDY, encoding="utf-8")
     assert main(["sweep", str(study), "--out", str(tmp_path / "out"), "--dashboard"]) == 1
