@@ -17,7 +17,11 @@ with the last runs, and costs the user half its CPU time instead of all of it af
 last run; begun with the last wave only, it still ran when the last result came, and the
 table waited for the interpreter: ``python scripts/sweep_timeline.py --workers 2``, 2
 workers, 16 runs of bs-3 over 120 s, the last run's end to the table 0.08-0.09 s, 0.01 s
-with two waves), a smaller local cluster or a remote one at its first result.
+with two waves), a smaller local cluster or a remote one at its first result. Where the
+client has time to spare before its first run -- the sweep's fork server warms up on the
+study before it forks the workers (:mod:`cosim.study.server_warm`), ~0.15-0.2 s of CPU
+the client's own start does not fill -- a local cluster of as many workers as cores loads
+the rest right after the first part instead (:meth:`Prefetch.begin`).
 """
 
 from __future__ import annotations
