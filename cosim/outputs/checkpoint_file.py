@@ -246,7 +246,9 @@ class Checkpoint:
                     f"{self.path}: instance {name!r} would load {path}, not the FMU the run "
                     "was checkpointed with (rebuilt since?)"
                 )
-        saved = self.data.get("files") or {}
+        saved = self.data.get("files", {})
+        if not isinstance(saved, dict):
+            raise CosimError(f"{self.path}: files is {_shown(saved)}, expected a table of SHA-256s")
         for file, digest in read_file_digests(scenario).items():
             if saved.get(file) != digest:
                 raise CosimError(

@@ -167,6 +167,37 @@ def test_a_checkpoint_of_the_wrong_shape_is_refused_in_one_line(
     _refused(_killed(stopped, tmp_path, edit), fmu_dir, said)
 
 
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def vehicled(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """bs-3 on a vehicle file of its own (its checkpoint's ``files`` has an entry),
+    checkpointed at t = 0.4 s of 0.5 s."""
+    folder = tmp_path_factory.mktemp("vehicled")
+    vehicle = folder / "vehicle.toml"
+    vehicle.write_bytes((ROOT / "plant_fmu/model/vehicles/remus100.toml").read_bytes())
+    text = (ROOT / "cosim/scenarios/bs-3.toml").read_text(encoding="utf-8")
+    scenario = folder / "bs-3-vehicle.toml"
+    start = "[instances.plant.start]\n"
+    scenario.write_text(text.replace(start, f'{start}vehicle = "vehicle.toml"\n'), "utf-8")
+    out = folder / "run"
+    run_scenario(scenario, out, stop_time=0.5, checkpoint_every=0.2, no_rrd=True, fmu_dir=fmu_dir)
+    assert json.loads((out / CHECKPOINT_FILE).read_text())["files"], "no file recorded"
+    return out
+
+
+@pytest.mark.parametrize("odd", [["x"], "x", 3, True])
+def test_a_checkpoint_whose_files_are_no_table_is_refused_in_one_line(
+    vehicled: Path, fmu_dir: Path, tmp_path: Path, odd: object
+) -> None:
+    """The SHA-256s of the files a run read (its vehicle file) made a list, a text or a
+    number: a resume ended in a traceback (AttributeError: 'list' object has no attribute
+    'get') where a table of other shape (``fmus``) was refused naming it."""
+    edit = lambda data: data.__setitem__("files", odd)  # noqa: E731
+    _refused(_killed(vehicled, tmp_path, edit), fmu_dir, "files is .*, expected a table")
+
+
 @pytest.fixture(scope="module")
 def faulted(fmu_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A short mass-jam run (a fault: its run has a timeline) checkpointed at t = 2.8 s."""
