@@ -505,7 +505,10 @@ def _seconds(summary: dict[str, Any], key: str) -> float | None:
     value = summary.get(key)
     if isinstance(value, bool) or not isinstance(value, int | float):
         return None
-    return float(value) if math.isfinite(value) else None
+    try:
+        return float(value) if math.isfinite(value) else None
+    except OverflowError:  # an integer beyond any double
+        return None
 
 
 # --- input ---------------------------------------------------------------------------------
@@ -561,7 +564,42 @@ def load_summary(run_dir: Path) -> tuple[dict[str, Any], str | None]:
         return {}, f"summary.json unreadable: {exc}"
     if not isinstance(data, dict):
         return {}, "summary.json is not a JSON object"
-    return data, None
+    odd = [key for key in _SHAPES if key in data and not _of_shape(key, data[key])]
+    said = [
+        f"summary.json: {k} is {_cut(data.pop(k))}, expected {_SHAPES[k]}: left out" for k in odd
+    ]
+    return data, "; ".join(said) or None
+
+
+_SHAPES = {  # what the report reads of summary.json's entries, as a run writes them
+    "key_figures": f"a table of numbers or nulls (s and SI units; {SETTLING_FIGURE} a number)",
+    "events": "a list of events, each with a name and a time (s)",
+    "faults": "a list of faults, each with a name, a kind, a start (s) and a stop (s or null)",
+}
+
+
+def _of_shape(key: str, value: object) -> bool:
+    """Whether summary.json's ``value`` of ``key`` (of :data:`_SHAPES`) is as a run writes
+    it: another tool's (or a hand-edited) file may hold anything there."""
+    if key == "key_figures":
+        return isinstance(value, dict) and (
+            value.get(SETTLING_FIGURE) is None or _seconds(value, SETTLING_FIGURE) is not None
+        )
+    times = ("time",) if key == "events" else ("start",)
+    return isinstance(value, list) and all(
+        isinstance(item, dict)
+        and isinstance(item.get("name"), str)
+        and (key == "events" or isinstance(item.get("kind"), str))
+        and all(_seconds(item, t) is not None for t in times)
+        and (item.get("stop") is None or _seconds(item, "stop") is not None)
+        for item in value
+    )
+
+
+def _cut(value: object) -> str:
+    """``value`` as JSON, cut short for a line of the page."""
+    text = json.dumps(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def actuator_limits(run_dir: Path) -> dict[str, float]:

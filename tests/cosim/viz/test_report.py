@@ -137,6 +137,46 @@ def test_missing_columns_leave_their_panels_and_figures_out(tmp_path):
     assert sorted(p.name for p in index.parent.glob("*.png")) == ["velocities.png"]
 
 
+@pytest.mark.parametrize(
+    ("key", "odd"),
+    [
+        ("events", [{"name": "turn"}]),
+        ("events", [{"name": "turn", "time": "soon"}]),
+        ("events", 5),
+        ("faults", [{"name": "jam", "kind": "stuck", "start": None}]),
+        ("faults", "x"),
+        ("key_figures", [1]),
+        ("key_figures", {"yaw_settling_time_s": "late"}),
+    ],
+    ids=[
+        "event-no-time",
+        "event-time-text",
+        "events-number",
+        "fault-no-start",
+        "faults-text",
+        "key-figures-list",
+        "settling-text",
+    ],
+)
+def test_a_summary_entry_of_another_shape_is_named_and_the_report_goes_on(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], key: str, odd: object
+) -> None:
+    """summary.json is a file other tools write and users edit: an event without a time,
+    a fault without a start or key figures that are no table ended the report in a
+    traceback (KeyError: 'time'), where a summary.json that does not read at all lets the
+    report go on and says so. The entry is left out and the page names it."""
+    run = tmp_path / "odd"
+    run.mkdir()
+    t = np.arange(0.0, 2.0, 0.1)
+    rows = "\n".join(f"{a!r},1.5" for a in t.tolist())
+    (run / "results.csv").write_text("time,plant.u\n" + rows + "\n")
+    (run / "summary.json").write_text(json.dumps({"scenario": "odd", key: odd}))
+    assert main(["report", str(run)]) == 0, capsys.readouterr().err
+    page = (run / "report" / "index.html").read_text()
+    assert f"summary.json: {key}" in page and "left out" in page
+    assert (run / "report" / "velocities.png").is_file()
+
+
 @pytest.mark.slow
 def test_incomplete_run_is_flagged_on_the_page(tmp_path):
     run = _write_run(
