@@ -575,6 +575,7 @@ _SHAPES = {  # what the report reads of summary.json's entries, as a run writes 
     "key_figures": f"a table of numbers or nulls (s and SI units; {SETTLING_FIGURE} a number)",
     "events": "a list of events, each with a name and a time (s)",
     "faults": "a list of faults, each with a name, a kind, a start (s) and a stop (s or null)",
+    "manoeuvre": "the name of a standard manoeuvre",
 }
 
 
@@ -585,6 +586,8 @@ def _of_shape(key: str, value: object) -> bool:
         return isinstance(value, dict) and (
             value.get(SETTLING_FIGURE) is None or _seconds(value, SETTLING_FIGURE) is not None
         )
+    if key == "manoeuvre":
+        return isinstance(value, str)
     times = ("time",) if key == "events" else ("start",)
     return isinstance(value, list) and all(
         isinstance(item, dict)

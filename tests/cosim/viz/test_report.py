@@ -147,6 +147,7 @@ def test_missing_columns_leave_their_panels_and_figures_out(tmp_path):
         ("faults", "x"),
         ("key_figures", [1]),
         ("key_figures", {"yaw_settling_time_s": "late"}),
+        ("manoeuvre", [1]),
     ],
     ids=[
         "event-no-time",
@@ -156,15 +157,16 @@ def test_missing_columns_leave_their_panels_and_figures_out(tmp_path):
         "faults-text",
         "key-figures-list",
         "settling-text",
+        "manoeuvre-list",
     ],
 )
 def test_a_summary_entry_of_another_shape_is_named_and_the_report_goes_on(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], key: str, odd: object
 ) -> None:
     """summary.json is a file other tools write and users edit: an event without a time,
-    a fault without a start or key figures that are no table ended the report in a
-    traceback (KeyError: 'time'), where a summary.json that does not read at all lets the
-    report go on and says so. The entry is left out and the page names it."""
+    a fault without a start, key figures that are no table or a manoeuvre that is no name
+    ended the report in a traceback (KeyError: 'time'), where a summary.json that does not
+    read at all lets the report go on and says so. The entry is left out and the page names it."""
     run = tmp_path / "odd"
     run.mkdir()
     t = np.arange(0.0, 2.0, 0.1)
