@@ -1127,6 +1127,28 @@ def test_a_users_mypy_catches_a_string_given_for_sweeps_security(
     assert status == 1 and 'Argument "security" to "sweep"' in report, report
 
 
+@pytest.mark.parametrize("scheduler", [8786, b"tcp://127.0.0.1:8786"])
+def test_a_scheduler_that_is_no_address_text_is_one_line_naming_it(scheduler: object) -> None:
+    """``scheduler=`` given the scheduler's port alone or its address in bytes: refused
+    before a study starts, naming the value and the address a scheduler has."""
+    with pytest.raises(cosim.StudyError) as refused:
+        cosim.sweep({"scenario": "bs-3"}, scheduler=scheduler)
+    message = str(refused.value)
+    assert message.startswith(f"scheduler={scheduler!r}: expected the address"), message
+    assert "tcp://HOST:PORT" in message and "\n" not in message
+
+
+@pytest.mark.parametrize("key", [1, ("plant", "v_0"), "plant.v_0\0"])
+def test_a_start_key_that_is_no_name_is_one_line_naming_it(key: object) -> None:
+    """``start=`` keyed by a number, a tuple or a name holding NUL: a CosimError naming
+    the key and the form a start value's name takes, before any FMU is loaded."""
+    with pytest.raises(CosimError) as refused:
+        cosim.run("bs-3", stop_time=0.1, start={key: 0.0})  # type: ignore[dict-item]
+    message = str(refused.value)
+    assert message.startswith("start key ") and "'<instance>.<variable>'" in message, message
+    assert "\n" not in message
+
+
 @pytest.mark.parametrize("security", ["certs/", {"tls_ca_file": "ca.pem"}])
 def test_a_security_that_is_no_dask_security_is_one_typed_line_naming_it(
     security: object,
