@@ -400,12 +400,14 @@ def _run_study(args: argparse.Namespace, local: bool) -> int:
     spec = load_study(args.study)
     check_size(spec, study_label(args.study), max_runs)  # before dask is imported
     from cosim.study.collector import gc_diagnosis_registered
+    from cosim.study.dask_settings import check_dask_settings
     from cosim.study.execution import early_client, tls_security
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
     # a local cluster of no more workers than runs: each would start for nothing
     workers = max(1, min(_workers(args), run_count(spec))) if local else _workers(args)
     security = tls_security(args.tls_ca_file, args.tls_cert, args.tls_key)
+    check_dask_settings()  # before the cluster starts (its workers would fail to)
     # a local cluster starts while the study's modules are imported and the study checked
     # (a remote scheduler is reached, and refused, after the checks); a resumed study may
     # have nothing left to run, and then starts none

@@ -62,6 +62,7 @@ from distributed.security import Security
 
 from cosim.scratch import claim
 from cosim.study import fork_server
+from cosim.study.dask_settings import check_dask_settings
 from cosim.study.design import PlannedRun
 from cosim.study.factors import FactorKind, Value
 from cosim.study.in_flight import RunsInFlight
@@ -508,7 +509,9 @@ def open_client(
     dashboard: bool = False,
 ) -> Iterator[Client]:
     """A Dask client: of an existing cluster at ``scheduler``, else of a local cluster
-    of ``workers`` single-threaded worker processes on 127.0.0.1 (closed at the end)."""
+    of ``workers`` single-threaded worker processes on 127.0.0.1 (closed at the end).
+    Dask's settings from the environment are checked first (:mod:`cosim.study.dask_settings`)."""
+    check_dask_settings()
     if scheduler is not None:
         if scheduler.startswith("tls://") and security is None:
             raise StudyError(
