@@ -95,10 +95,13 @@ def doubts(scenario: Scenario) -> list[str]:
 def _moved(scenario: Scenario, key: str, time: float, acts_on: set[str]) -> list[str]:
     """The doubt (one line, or none) that ``key``, at ``time`` (s), reaches the instances
     it ``acts_on`` at different times in the runs at h, h/2 and h/4: at the first point of
-    each at or after it, every k h for an instance of step multiple k."""
+    each at or after it, every k h for an instance of step multiple k. The slowest of them
+    is looked at first and the advice is a point of every one of them (the least common
+    multiple of their k): a point of h alone still moves for an instance of k > 1."""
     h = scenario.coupling.step
     multiples = scenario.coupling.step_multiples
-    for k in sorted({1, *(multiples.get(name, 1) for name in acts_on)}):
+    steps = {multiples.get(name, 1) for name in acts_on} or {1}
+    for k in sorted(steps, reverse=True):
         # the point each run applies it at, counted in steps of h/4: compared as whole
         # numbers, so that first_point's slack is the one tolerance of "on a point"
         quarters = [first_point(time, k * step) * k * round(4 * step / h)
@@ -108,10 +111,11 @@ def _moved(scenario: Scenario, key: str, time: float, acts_on: set[str]) -> list
             shown = f"{applied[0]}, {applied[1]} and {applied[2]} s"
             slow = sorted(name for name in acts_on if multiples.get(name, 1) == k)
             who = f" ({', '.join(slow)} steps every {k} h)" if k > 1 else ""
+            every = math.lcm(*steps)
             return [
                 f"{key} = {seconds(time)} s applies at {shown} in the runs at h, h/2 and h/4"
                 f"{who}: its time moves with the step, an error Richardson extrapolation does "
-                f"not model (put it on a point of {f'{k} h' if k > 1 else 'h'})"
+                f"not model (put it on a point of {f'{every} h' if every > 1 else 'h'})"
             ]
     return []
 

@@ -181,6 +181,22 @@ def test_an_event_on_a_slow_instance_counts_that_instances_points(test_fmu_dir: 
     ]
 
 
+def test_an_event_off_h_on_a_slow_instance_is_advised_onto_that_instances_points(
+    test_fmu_dir: Path,
+) -> None:
+    """The gain steps every 3 h: an event at 0.33 s setting its k, off the points of h
+    too, was reported at the points of h (0.4, 0.35 and 0.35 s) and advised onto "a point
+    of h", where it would still move (0.5 s reaches the gain at 0.6, 0.6 and 0.525 s). The
+    line names the slow instance's points, where it lands, and advises onto them."""
+    text = loop_toml(stop_time=2.0, controller_multiple=3) + _gain_event(0.33)
+    scenario = scenario_from_toml(text, base_dir=test_fmu_dir)
+    assert doubts(scenario) == [
+        "events.gain.time = 0.33 s applies at 0.6, 0.45 and 0.375 s in the runs at h, h/2 "
+        "and h/4 (controller steps every 3 h): its time moves with the step, an error "
+        "Richardson extrapolation does not model (put it on a point of 3 h)"
+    ]
+
+
 def test_the_line_says_when_the_order_was_assumed_or_the_runs_agree_to_rounding(
     test_fmu_dir: Path,
 ) -> None:
