@@ -39,6 +39,7 @@ import math
 import os
 import re
 from collections.abc import Callable
+from decimal import Decimal
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
@@ -58,7 +59,14 @@ from pydantic import (
 )
 from pydantic_core import ErrorDetails
 
-from cosim.errors import FLAGS, CosimError, OptionNames, did_you_mean_path, relative_to
+from cosim.errors import (
+    FLAGS,
+    CosimError,
+    OptionNames,
+    did_you_mean_path,
+    relative_to,
+    shown,
+)
 from cosim.scenario.checks import (
     ANY_VALUE,
     UNION_TAGS,
@@ -102,9 +110,15 @@ class NoRoomError(StudyEndedError):
 
 
 def _finite(value: float) -> float:
-    if not math.isfinite(value):
-        raise ValueError(f"{value!r} is not a finite number")
-    return float(value)
+    """``value`` as a float; NaN, an infinity or an int beyond the floats (10**400: TOML
+    and a dict hold one) refused as ``cosim.run`` refuses them, the int shortened."""
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number):
+        raise ValueError(f"{shown(value)} is not a finite number")
+    return number
 
 
 Number = Annotated[StrictInt | StrictFloat, AfterValidator(_finite)]
@@ -197,6 +211,14 @@ class RandomSpec(_Strict):
         return {**plain, "factors": factors} if factors else plain
 
 
+def _within_floats(values: list[Any]) -> list[Any]:
+    """A grid's values, none an int beyond the floats (a Real's value is made a float)."""
+    for value in values:
+        if isinstance(value, int) and not isinstance(value, bool):
+            _finite(value)
+    return values
+
+
 def _unique(values: list[Any]) -> list[Any]:
     seen = [(type(v), v) for v in values]
     if len(set(seen)) != len(seen):
@@ -220,7 +242,12 @@ def _overlay_entry(entry: str) -> str:
 
 
 OverlayEntry = Annotated[StrictStr, AfterValidator(_overlay_entry)]
-GridValues = Annotated[list[FactorValue], Field(min_length=1), AfterValidator(_unique)]
+GridValues = Annotated[
+    list[FactorValue],
+    Field(min_length=1),
+    AfterValidator(_within_floats),
+    AfterValidator(_unique),
+]
 
 
 class StudySpec(_Strict):
@@ -300,10 +327,19 @@ def check_size(
     if count > max_runs:
         grid = " x ".join(str(len(values)) for values in spec.grid.values()) or "1"
         raising = "max_runs=N" if names.keywords else "--max-runs N"
+        samples = max(spec.random.n, 1)
         raise StudyError(
-            f"{label}: {count:.4g} runs ({grid} grid points x "
-            f"{max(spec.random.n, 1)} samples); at most {max_runs} ({raising} raises the cap)"
+            f"{label}: {_many(count)} runs ({grid} grid points x {_many(samples, 'd')} "
+            f"samples); at most {max_runs} ({raising} raises the cap)"
         )
+
+
+def _many(count: int, small: str = ".4g") -> str:
+    """A count as ``small`` formats it, or beyond 10**300 in powers of ten (1e+400: a
+    float's format overflows, and an int of 400 digits is no figure to read)."""
+    if count < 10**300:
+        return f"{count:{small}}"
+    return f"{Decimal(count).normalize():.4g}"
 
 
 def study_label(path: Path | str) -> str:
@@ -360,7 +396,7 @@ def _problem(key: str, err: ErrorDetails) -> str:
         message = f"expected a list of values, [{err.get('input')!r}]"
     elif table_expected(err):
         message = "expected a table"
-    return f"key {key!r} = {err.get('input')!r}: {message}"
+    return f"key {key!r} = {shown(err.get('input'))}: {message}"
 
 
 # [random]'s keys in words: its factors are dotted keys beside n, sampling and seed

@@ -7,7 +7,14 @@ from pathlib import Path
 import pytest
 from sweep_helpers import GRID_STUDY
 
-from cosim.study.spec import Normal, StudyError, Uniform, load_study, study_from_dict
+from cosim.study.spec import (
+    Normal,
+    StudyError,
+    Uniform,
+    check_size,
+    load_study,
+    study_from_dict,
+)
 
 MINIMAL = {"scenario": "bs-3", "grid": {"plant.v_0": [-0.1, 0.1]}}
 
@@ -192,3 +199,41 @@ def test_a_study_nested_too_deeply_to_read_is_refused_as_not_valid_toml(tmp_path
     deep.write_text('scenario = "bs-3"\nx = ' + "[" * 5000 + "]" * 5000 + "\n", encoding="utf-8")
     with pytest.raises(StudyError, match=r"deep\.toml: not valid TOML: arrays or inline tables "):
         load_study(deep)
+
+
+HUGE = 10**400  # an int beyond the floats (TOML and a Python dict both hold one)
+
+
+@pytest.mark.parametrize(
+    ("change", "key"),
+    [
+        ({"stop_time": HUGE}, "stop_time"),
+        ({"stop_time": -HUGE}, "stop_time"),
+        ({"random": {"n": 2, "plant.u_0": {"uniform": [0, HUGE]}}}, "random.plant.u_0"),
+        ({"random": {"n": 2, "plant.u_0": {"normal": [0, HUGE]}}}, "random.plant.u_0"),
+        ({"grid": {"plant.v_0": [0.1, HUGE]}}, "grid.plant.v_0"),
+    ],
+)
+def test_an_int_beyond_the_floats_is_refused_as_cosim_run_refuses_it(
+    change: dict, key: str
+) -> None:
+    """``cosim.sweep({..., "stop_time": 10**400})`` ended in "OverflowError: int too
+    large to convert to float" (and a grid value of 10**400 so as its factor was read),
+    where ``cosim.run(stop_time=10**400)`` is refused in one line: now the study's key is
+    named with the value shortened, as a finite number is expected."""
+    with pytest.raises(StudyError) as info:
+        study_from_dict({**MINIMAL, **change}, "study s.toml")
+    message = str(info.value)
+    assert message.startswith(f"study s.toml: key '{key}")
+    assert message.endswith("characters) is not a finite number"), message
+    assert len(message) < 300
+
+
+def test_a_study_of_more_runs_than_the_floats_hold_is_refused_by_its_size() -> None:
+    """``[random] n = 10**400`` ended in "OverflowError: int too large to convert to
+    float" as the refusal of its size was written: now that refusal, the count shown in
+    powers of ten."""
+    random = {"n": HUGE, "plant.u_0": {"uniform": [0, 1]}}
+    spec = study_from_dict({**MINIMAL, "random": random}, "s")
+    with pytest.raises(StudyError, match=r"^s: 2e\+400 runs \(2 grid points x 1e\+400 samples\)"):
+        check_size(spec, "s")
