@@ -37,7 +37,12 @@ from cosim.errors import KEYWORDS, CosimError, counted, plain, shown
 from cosim.limits import open_files_limit_kept
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import NotStartedError, RunOptions, execute
-from cosim.scenario.arguments import choice_argument, number_argument, seconds_argument
+from cosim.scenario.arguments import (
+    choice_argument,
+    home_expanded,
+    number_argument,
+    seconds_argument,
+)
 from cosim.scratch import process_folder
 from cosim.study.signals import StudyStopped, stop_study_on_signals
 
@@ -982,16 +987,10 @@ def _path(
         raise error(f"{name}={shown(value)}: expected a path without a NUL byte")
     if not text:  # Path("") is "."; an unset setting's "" is no choice of the working folder
         raise error(f"{name}='': expected a non-empty path ('.' names the working folder)")
-    # "~/runs" is the home folder's, as pandas reads it: Python's own calls would make a
-    # folder named "~" in the working folder (which a shell's `rm -rf ~` then removes)
-    expanded = os.path.expanduser(text)
-    if expanded.startswith("~"):  # no such user, or no HOME and no password entry
-        user = text.replace(os.altsep or os.sep, os.sep).split(os.sep, 1)[0]  # "~name"
-        raise error(
-            f"{name}={shown(value)}: no home folder for {user!r} (no such user, or no "
-            f"HOME); expected ~/... with HOME set, or ./{text} for a name starting with ~"
-        )
-    return Path(expanded)
+    try:
+        return Path(home_expanded(text))
+    except ValueError as exc:
+        raise error(f"{name}={shown(value)}: {exc}") from None
 
 
 def _folder(name: str, value: object, error: type[CosimError] = CosimError) -> Path:

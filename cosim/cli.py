@@ -65,6 +65,7 @@ from cosim.errors import (
 )
 from cosim.limits import check_local_study, out_of_memory
 from cosim.paths import DEFAULT_FMU_DIR, DOCS_DIR
+from cosim.scenario.arguments import home_expanded
 from cosim.study.collector import paused
 from cosim.viz.ports import FILE_PORT, WEB_PORT
 from fmu_runtime.log_text import shortened
@@ -88,12 +89,16 @@ def _path_arg(text: str) -> Path:
     """A path option's value: refused when empty (an unset shell variable, ``--fmu-dir
     "$FMUS"``), which ``Path`` would read as the working folder, as the API refuses it,
     and when ``-``, which a pipeline means as standard input or output (``--ssp -`` wrote
-    an archive into a file named ``-``)."""
+    an archive into a file named ``-``). A leading ``~`` is the home folder, as the API
+    takes it: a shell leaves it in ``--out=~/x``, which named a folder ``~`` here."""
     if not text:
         raise argparse.ArgumentTypeError("expected a non-empty path ('.' names the working folder)")
     if text == "-":
         raise argparse.ArgumentTypeError(f"'-': expected a file or folder name {_NO_STREAM}")
-    return Path(text)
+    try:
+        return Path(home_expanded(text))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r}: {exc}") from None
 
 
 def _scenario_arg(text: str) -> str:

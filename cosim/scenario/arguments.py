@@ -9,6 +9,8 @@ here first; the ranges (finite, > 0) stay the scenario's and the runner's checks
 
 from __future__ import annotations
 
+import os
+
 from cosim.errors import CosimError, plain, shown
 
 
@@ -48,3 +50,20 @@ def choice_argument(
     if value is None or (isinstance(value, str) and value in choices):
         return value
     raise error(f"{name}={shown(value)}: expected one of {', '.join(map(repr, choices))}")
+
+
+def home_expanded(text: str) -> str:
+    """``text`` with a leading ``~`` or ``~user`` made the home folder, as a shell does
+    (``~/runs`` is the home folder's, as pandas reads it: Python's own calls would make a
+    folder named ``~`` in the working folder, which a shell's ``rm -rf ~`` then removes);
+    for the API's path arguments, the command's path options (``--out=~/x``, which the
+    shell leaves) and a study file's scenario. ValueError, saying why and what to write
+    instead, for a ``~user`` with no home folder (no such user, or no HOME)."""
+    expanded = os.path.expanduser(text)
+    if expanded.startswith("~"):  # no such user, or no HOME and no password entry
+        user = text.replace(os.altsep or os.sep, os.sep).split(os.sep, 1)[0]  # "~name"
+        raise ValueError(
+            f"no home folder for {user!r} (no such user, or no HOME); expected ~/... with "
+            f"HOME set, or ./{text} for a name starting with ~"
+        )
+    return expanded

@@ -36,6 +36,7 @@ from cosim.limits import check_local_study, unwritten
 from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.progress_bars import progress_bar
 from cosim.scenario import unit_doubts
+from cosim.scenario.arguments import home_expanded
 from cosim.scenario.checks import ScenarioError, range_text
 from cosim.scenario.unit_doubts import ANGLE_UNIT, FULL_TURN_RAD
 from cosim.scratch import process_folder
@@ -572,8 +573,14 @@ def _planned(
 
 
 def _scenario_ref(ref: str, study_dir: Path) -> str | Path:
-    """A scenario file relative to the study file's folder, else the ref as given
-    (a built-in id, or a path relative to the working directory)."""
+    """A scenario file under the home folder (``~/my.toml``, as the API's paths and the
+    command's options take it), else relative to the study file's folder, else the ref
+    as given (a built-in id, or a path relative to the working directory)."""
+    if ref.startswith("~"):
+        try:
+            return home_expanded(ref)
+        except ValueError as exc:
+            raise StudyError(f"scenario = {ref!r}: {exc}") from None
     candidate = study_dir / ref
     return candidate if candidate.is_file() else ref
 
