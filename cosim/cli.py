@@ -417,7 +417,7 @@ def _run_study(args: argparse.Namespace, local: bool) -> int:
     # (a remote scheduler is reached, and refused, after the checks); a resumed study may
     # have nothing left to run, and then starts none
     try:
-        with stop_study_on_signals():
+        with stop_study_on_signals(ignore_after=args.own_process):
             early = early_client(workers, args.dashboard) if local else nullcontext(None)
             diagnosis = gc_diagnosis_registered() if args.scheduler is None else nullcontext()
             with diagnosis, early as client:
@@ -1137,6 +1137,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         # in this block: a Ctrl-C during the import of the signals' module is a start's
         args.held_stop = _hold_stop_signals() if argv is None and args.command == "run" else None
+        args.own_process = argv is None  # the process ends with the command
     except BrokenPipeError:  # --help or --version to a reader that stopped (`| head`)
         return _reader_gone()
     except _OutputRefusedError as exc:  # --help or --version to a standard output refusing it

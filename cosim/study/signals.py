@@ -39,9 +39,14 @@ class StudyStopped(BaseException):  # like KeyboardInterrupt: not an error
 
 
 @contextmanager
-def stop_study_on_signals() -> Iterator[None]:
+def stop_study_on_signals(ignore_after: bool = False) -> Iterator[None]:
     """While active, the first stop signal raises :class:`StudyStopped`; later ones are
-    ignored. Outside the main thread nothing changes."""
+    ignored. Outside the main thread nothing changes. ``ignore_after``: for a process
+    that ends with the study (the command), the stop signals stay ignored after it, as
+    ``auv-cosim run`` ignores them once its run is over; a Ctrl-C while the report was
+    printed or the interpreter shut down turned a finished study into "interrupted", 130,
+    or killed the process (Python's finalization puts back the default action of a
+    signal a Python function handles)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -62,7 +67,7 @@ def stop_study_on_signals() -> Iterator[None]:
         yield
     finally:
         for s, old in previous.items():
-            signal.signal(s, old)
+            signal.signal(s, signal.SIG_IGN if ignore_after else old)
 
 
 class _Deferral:

@@ -187,3 +187,43 @@ def test_a_study_under_nohup_leaves_the_hangup_ignored(run_python) -> None:
     done = run_python(code)
     assert done.returncode == 0, done.stderr
     assert done.stdout == "[False, True, True]\n"
+
+
+# the command in a process of its own (argv None, as the auv-cosim script calls it), a
+# Ctrl-C arriving once the study is over, while its report is written
+CTRL_C_AS_IT_ENDS = """
+import os, signal, sys
+import cosim.study.runner as runner
+from cosim.cli import main
+
+report = runner.report
+
+
+def report_under_fire(outcome):
+    os.kill(os.getpid(), signal.SIGINT)
+    return report(outcome)
+
+
+runner.report = report_under_fire
+sys.argv = ["auv-cosim", "sweep", *sys.argv[1:]]
+sys.exit(main())
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.cluster
+def test_a_ctrl_c_once_the_study_is_over_changes_nothing(
+    run_python, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """``auv-cosim sweep`` ended by "auv-cosim sweep: interrupted", exit 130 (or died by
+    SIGINT, -2, as the interpreter shut down) when a Ctrl-C came after its study had
+    finished, its table written: as ``auv-cosim run`` does, the stop signals are ignored
+    once the study is over, and the finished study exits 0."""
+    study = tmp_path / "study.toml"
+    study.write_text(LONG_STUDY.format(stop_time=0.2, values=[0.0, 0.1]), encoding="utf-8")
+    out = tmp_path / "out"
+    args = [study, "--out", out, "--fmu-dir", fmu_dir, "--workers", "1", "--quiet"]
+    done = run_python(CTRL_C_AS_IT_ENDS, *args)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "interrupted" not in done.stderr
+    assert [row["status"] for row in rows(out / "runs.csv")] == ["complete", "complete"]
