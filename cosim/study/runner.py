@@ -79,7 +79,7 @@ from cosim.study.task import (
     Doubts,
     RunRecord,
     base_mission_doubts,
-    check_values,
+    checked_point,
     prepare,
     scenario_text,
     study_files,
@@ -613,37 +613,31 @@ def _checked_plan(
     """The study's runs, every value through the scenario's own checks before any runs:
     each grid value, every sample's range, the first sample's type (it stands for all:
     every one is a float)."""
-    doubts = _check_grid_values(base, factors, spec)
+    doubts, untrusted = _check_grid_values(base, factors, spec)
     _check_random_kinds(spec, factors, facts)
     runs = plan(spec, {name: factor.normalize for name, factor in factors.items()})
     _check_sample_ranges(spec, factors, facts, runs)
     if spec.random.factors:
-        first = runs[0].values
-        found = check_values(base, factors, {name: first[name] for name in spec.random.factors})
+        first = {name: runs[0].values[name] for name in spec.random.factors}
+        found, lines = checked_point(base, factors, first, check_step=spec.check_step)
+        untrusted[f"{_point(first)} (the first sample)"] = lines
         _add_doubts(doubts, found)
         _add_doubts(doubts, {unit_doubts.UnitWarning: _sample_doubts(spec, base, runs)})
     if spec.check_step:
-        _add_doubts(doubts, {unit_doubts.UnitWarning: _untrusted(base, factors, spec, runs)})
+        if not untrusted:  # the study runs the scenario as it is
+            untrusted = {"": untrusted_checks(base, factors, {})}
+        _add_doubts(doubts, {unit_doubts.UnitWarning: _untrusted(untrusted)})
     for category, lines in doubts.items():  # once each, in the main process (its runs
         unit_doubts.warn(lines, category)  # go without)
     return runs
 
 
-def _untrusted(
-    base: Base, factors: Mapping[str, FactorKind], spec: StudySpec, runs: Sequence[PlannedRun]
-) -> list[str]:
+def _untrusted(found: Mapping[str, list[str]]) -> list[str]:
     """With ``check_step``, each reason a run's coupling error is not to be trusted, as
-    ``run --check-step`` says it (:func:`cosim.study.task.untrusted_checks`): of every run
-    (a reason each grid point has), else naming the grid point, or the first sample, that
-    brings it."""
-    grid = {name: [factors[name].normalize(v) for v in vs] for name, vs in spec.grid.items()}
-    points = [dict(zip(grid, p, strict=True)) for p in itertools.product(*grid.values())]
-    if not points and not spec.random.factors:
-        points = [{}]  # the study runs the scenario as it is
-    found = {_point(p): untrusted_checks(base, factors, p) for p in points}
-    if spec.random.factors:
-        first = {name: runs[0].values[name] for name in spec.random.factors}
-        found[f"{_point(first)} (the first sample)"] = untrusted_checks(base, factors, first)
+    ``run --check-step`` says it (:func:`cosim.study.task.untrusted_checks`), ``found``
+    by grid point (its values as :func:`_point` names them) and for the first sample: of
+    every run (a reason each grid point has), else naming the grid point, or the first
+    sample, that brings it."""
     every = set.intersection(*(set(lines) for lines in found.values()))
     return [
         "check_step: the coupling errors"
@@ -724,23 +718,31 @@ def _check_sample_ranges(
             )
 
 
-def _check_grid_values(base: Base, factors: Mapping[str, FactorKind], spec: StudySpec) -> Doubts:
+def _check_grid_values(
+    base: Base, factors: Mapping[str, FactorKind], spec: StudySpec
+) -> tuple[Doubts, dict[str, list[str]]]:
     """Every grid point (each combination of the grid's values) through the scenario's own
     checks (type, finite); what looks like a slip of units in the scenario with each, the
     mission it cannot fly (naming the point where the base scenario flies it), or a design
     not fit for it (:func:`cosim.study.task.check_values`), once each: a current's north
-    and east parts can be beaten apart but not together."""
+    and east parts can be beaten apart but not together. With ``check_step``, also each
+    point's reasons its coupling error is not to be trusted, by its values (:func:`_point`):
+    each point's scenario is resolved once for both."""
     doubts: Doubts = {}
+    untrusted: dict[str, list[str]] = {}
     if not spec.grid:
-        return doubts
+        return doubts, untrusted
     grid = {
         name: [factors[name].normalize(v) for v in values] for name, values in spec.grid.items()
     }
     used = {name: factors[name] for name in grid}
     known = base_mission_doubts(base)
     for point in itertools.product(*grid.values()):
-        _add_doubts(doubts, check_values(base, used, dict(zip(grid, point, strict=True)), known))
-    return {category: list(dict.fromkeys(lines)) for category, lines in doubts.items()}
+        values = dict(zip(grid, point, strict=True))
+        found, lines = checked_point(base, used, values, known, spec.check_step)
+        _add_doubts(doubts, found)
+        untrusted[_point(values)] = lines
+    return {category: list(dict.fromkeys(lines)) for category, lines in doubts.items()}, untrusted
 
 
 # Settings a study's rows do not depend on; check_step, left out while false, keeps the

@@ -180,12 +180,29 @@ def check_values(
     :class:`~cosim.scenario.design_doubts.DesignWarning` lines an autopilot design that
     does not fit the plant (:func:`cosim.scenario.design_doubts.design_doubts`: an
     autopilot designed for another vehicle than a plant parameter varied, say)."""
+    return checked_point(base, factors, values, known)[0]
+
+
+def checked_point(
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    values: Mapping[str, Value],
+    known: Collection[str] = (),
+    check_step: bool = False,
+) -> tuple[Doubts, list[str]]:
+    """:func:`check_values`, and with ``check_step`` why the run's coupling error is not
+    to be trusted (:func:`untrusted_checks`), of the scenario resolved once (~50 ms)."""
     point = ", ".join(f"{name} = {value!r}" for name, value in values.items())
     try:
         # named by its id alone: the refusal names the values first
         scenario = _scenario(base, base.fmu_paths, factors, values, where=base.scenario_id)
     except CosimError as exc:
         raise StudyError(f"the run with {point}: {exc}" if point else str(exc)) from None
+    return _doubts(scenario, point, known), step_doubts(scenario) if check_step else []
+
+
+def _doubts(scenario: Scenario, point: str, known: Collection[str]) -> Doubts:
+    """:func:`check_values`'s lines of the resolved ``scenario`` with the values ``point``."""
     coupling = scenario.coupling
     late = unreached(
         scenario.events, scenario.faults, scenario.stop_time, coupling.step, points_step(coupling)

@@ -231,6 +231,31 @@ def test_a_grid_point_whose_current_a_leg_cannot_beat_is_warned_of(fmu_dir: Path
     assert "plant.current_north = 1.2, plant.current_east = 1.2" in lines[0]
 
 
+def test_a_check_step_study_resolves_each_grid_point_once(
+    scenario: Path, fmu_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """check_step = true: each grid point's scenario was resolved twice before any run
+    (~50 ms each: its checks, then why its coupling error is not to be trusted), and so
+    was the first sample's; now once each, with the base scenario's once: the same
+    warnings."""
+    import cosim.study.task as task
+
+    resolved = []
+
+    def counted(data: dict, where: str | None = None) -> object:
+        resolved.append(where)
+        return from_data(data, where=where)
+
+    from_data = task.scenario_from_data
+    monkeypatch.setattr(task, "scenario_from_data", counted)
+    grid = {"events.turn.time": [10.0, 10.005]}
+    study = {"scenario": str(scenario), "grid": grid, "stop_time": 20.0, "check_step": True,
+             "random": {"n": 2, "faults.fault-1.value": {"uniform": [0.5, 1.0]}}}  # fmt: skip
+    said = _planned_warnings(study, fmu_dir, runs=4)
+    assert len([line for line in said if "TRUSTED" in line]) == 1, said
+    assert len(resolved) == 1 + 2 + 1, resolved  # the base, two grid points, a sample
+
+
 def _planned_warnings(study: dict[str, object], fmu_dir: Path, runs: int) -> list[str]:
     """The warnings a study's plan gives before any run (it planning ``runs`` runs), as
     the command warns of them once in its process."""
