@@ -1292,14 +1292,27 @@ if __name__ == "__main__":
     except KeyboardInterrupt as error:
         caught = f"{type(error).__name__}: {error}"
     timer.join()
-    time.sleep(0.5)  # what the sweep started had its time to end
-    print(json.dumps({"caught": caught,
-                      "threads": [t.name for t in threading.enumerate()
-                                  if t is not threading.main_thread()
-                                  and not t.name.startswith(LIBRARY_THREADS)],
-                      "children": [command for command in map(" ".join, (p.cmdline() for p
-                                   in psutil.Process().children(recursive=True)))
-                                   if not HELPERS.search(command)]}))
+
+    def left():
+        threads = [t.name for t in threading.enumerate() if t is not threading.main_thread()
+                   and not t.name.startswith(LIBRARY_THREADS)]
+        children = []
+        for child in psutil.Process().children(recursive=True):
+            try:
+                command = " ".join(child.cmdline())
+            except psutil.NoSuchProcess:  # ended as it was looked at
+                continue
+            if not HELPERS.search(command):
+                children.append(command)
+        return threads, children
+
+    # what the sweep started ends soon after it returns: looked for until it has ended (a
+    # guard against a hang, not a measure: a fixed wait guessed how long that takes)
+    deadline = time.monotonic() + 60.0
+    while any(left()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    threads, children = left()
+    print(json.dumps({"caught": caught, "threads": threads, "children": children}))
 """
 
 
