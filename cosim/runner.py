@@ -232,11 +232,14 @@ def execute(
                 raise _stopped_before_start(stop, folder.replacing, out_dir)
             prepared = time.perf_counter()
             checkpoints = _checkpoints(loaded, options, folder)
-            if progress and checkpoints and checkpoints.start and checkpoints.rows is not None:
-                progress.replayed_rows = int(checkpoints.start["rows"])
+            replayed = _replayed(checkpoints)
+            if progress:
+                progress.replayed_rows = replayed
             session = _live_session(loaded, options, progress)
             try:
-                outputs = _open_outputs(loaded, folder, options, progress, checkpoints is not None)
+                outputs = _open_outputs(
+                    loaded, folder, options, progress, checkpoints is not None, replayed
+                )
                 opened = time.perf_counter()
                 result = _step(loaded, outputs, options, stop, session, progress, checkpoints)
                 stepped = True
@@ -680,15 +683,25 @@ def _fmus_to_build(scenario: str | Path | Scenario, fmu_dir: Path) -> list[str]:
     return [name for name in out_of_date(fmu_dir) if name in named]
 
 
+def _replayed(checkpoints: Checkpointing | None) -> int:
+    """The rows a resume hands on again, up to its checkpoint, before its first step (0
+    for a run from t = 0)."""
+    if checkpoints and checkpoints.start and checkpoints.rows is not None:
+        return int(checkpoints.start["rows"])
+    return 0
+
+
 def _open_outputs(
     scenario: Scenario,
     folder: RunFolder,
     options: RunOptions,
     progress: ProgressSink | None,
     checkpointed: bool = False,
+    replayed: int = 0,
 ) -> RunOutputs:
     """Set the earlier run's files aside, lock the recording the run writes, then open
-    every output (``checkpointed``: for a run that checkpoints)."""
+    every output (``checkpointed``: for a run that checkpoints; ``replayed``: the rows a
+    resume hands on before its first step, the earlier run's files kept until then)."""
     from cosim.outputs.run_outputs import RunOutputs
 
     rrd = _recording_path(scenario, folder, options)
@@ -698,7 +711,7 @@ def _open_outputs(
         folder.lock_recording(rrd, _recording_named(options, folder.path))
     recorder = rerun_sink if options.real_time is None else _background_rerun_sink
     outputs = RunOutputs.open(scenario, folder, rrd, options.connect, progress, recorder,
-                              options.results_csv, checkpointed)  # fmt: skip
+                              options.results_csv, checkpointed, replayed)  # fmt: skip
     if outputs.csv is not None:
         outputs.csv.warm_up()
     return outputs

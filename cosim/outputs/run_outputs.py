@@ -59,21 +59,35 @@ class Recorder(Protocol):
 
 class FirstStep(NotesIgnored):
     """Commits the run folder (:meth:`cosim.outputs.folder.RunFolder.commit`) when the
-    rows of the run's first step arrive (a row after t = 0): the earlier run it replaces
-    is removed then, and not before."""
+    rows of the run's first step arrive (a row after t = 0, and after the ``replayed``
+    rows a resumed run hands on first): the earlier run it replaces is removed then, and
+    not before. A resume killed while it replayed removed the earlier results.csv at the
+    first replayed row, leaving a part of the rows the checkpoint needs: now the tail
+    guard puts the earlier files back, and the next resume starts from the same
+    checkpoint."""
 
-    def __init__(self, folder: RunFolder) -> None:
+    def __init__(self, folder: RunFolder, replayed: int = 0) -> None:
         self.folder = folder
+        self.replayed = replayed
+        self.received = 0  # rows so far
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
-        if not self.folder.committed and len(times) and times[-1] > 0.0:
+        self.received += len(times)
+        if (
+            not self.folder.committed
+            and len(times)
+            and times[-1] > 0.0
+            and self.received > self.replayed
+        ):
             self.folder.commit()
 
 
 class RunOutputs:
     """The open outputs of one run (use :meth:`open`)."""
 
-    def __init__(self, scenario: Scenario, folder: RunFolder, paths: dict[str, Path]) -> None:
+    def __init__(
+        self, scenario: Scenario, folder: RunFolder, paths: dict[str, Path], replayed: int = 0
+    ) -> None:
         self.scenario = scenario
         self.folder = folder
         self.paths = paths  # (if written) results, scenario, summary and recording
@@ -84,7 +98,7 @@ class RunOutputs:
                                mission_legs(scenario), *(survey_mission(scenario) or ()))
         )  # fmt: skip
         self.csv: CsvSink | None = None
-        self.sinks: list[RowSink] = [FirstStep(folder), self.figures]
+        self.sinks: list[RowSink] = [FirstStep(folder, replayed), self.figures]
         if self.manoeuvre is not None:
             self.sinks.append(self.manoeuvre)
         self.manoeuvre_summary: dict[str, Any] | None = None  # set by finish
@@ -104,11 +118,13 @@ class RunOutputs:
         recorder: Recorder | None = None,
         results_csv: bool = True,
         checkpointed: bool = False,
+        replayed: int = 0,
     ) -> RunOutputs:
         """Write scenario.toml and the running summary, open every sink (``progress``:
         the bar, if one is shown, its total set here; no results.csv without
         ``results_csv``; ``checkpointed``: results.csv's SHA-256 kept as it is written, for
-        the checkpoints to record).
+        the checkpoints to record; ``replayed``: the rows a resumed run hands on before
+        its first step, :class:`FirstStep`).
 
         Raises :class:`CosimError` naming the path that cannot be written; what was
         created by then is removed again.
@@ -120,7 +136,7 @@ class RunOutputs:
             del paths["results"]
         if rrd is not None:
             paths["recording"] = rrd
-        outputs = cls(scenario, folder, paths)
+        outputs = cls(scenario, folder, paths, replayed)
         try:
             outputs._open_sinks(rrd, connect, progress, recorder, checkpointed)
         except BaseException:

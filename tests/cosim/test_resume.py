@@ -277,3 +277,66 @@ def test_a_resumed_run_killed_after_its_next_checkpoint_resumes_from_that_one(
     assert again.returncode == 0, again.stderr
     assert f"resumed the run in {killed} at t = 400 s" in again.stderr
     assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
+
+
+# ``auv-cosim run --resume`` SIGKILLed (the process alone: its tail guard lives on) as it
+# hands the third chunk of the replayed rows on, chunks of 100 rows
+KILLED_IN_THE_REPLAY = """
+import os, signal, sys
+import cosim.outputs.results as results
+
+results.READ_CHUNK_ROWS = 100
+chunks = results.CsvRows.chunks
+
+
+def chunks_then_killed(self):
+    for n, chunk in enumerate(chunks(self)):
+        if n == 2:
+            os.kill(os.getpid(), signal.SIGKILL)
+        yield chunk
+
+
+results.CsvRows.chunks = chunks_then_killed
+from cosim.cli import main
+
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _settled(out: Path, within: float = 60.0) -> None:
+    """Wait until the run folder holds no file set aside (``.<name>.<pid>.auv-cosim-
+    earlier``): the tail guard of a killed run puts them back. A guard against a hang,
+    not a measure."""
+    deadline = time.monotonic() + within
+    while any(p.name.endswith(".auv-cosim-earlier") for p in out.iterdir()):
+        assert time.monotonic() < deadline, sorted(p.name for p in out.iterdir())
+        time.sleep(0.05)
+
+
+@pytest.mark.slow
+def test_a_resume_killed_in_its_replay_resumes_from_the_same_checkpoint(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A SIGKILL while a resume replayed the rows up to its checkpoint left a folder the
+    next ``--resume`` refused ("results.csv: holds 200 rows, the checkpoint needs the
+    first 806"; docs/runs.md said "is not a file the earlier run wrote"): the
+    earlier results.csv was removed as the first replayed row past t = 0 arrived, and the
+    new one held a part of the replay. The earlier run's files are now replaced only once
+    the resumed run steps past its checkpoint, so the tail guard puts them back and the
+    next resume writes the uninterrupted results, byte for byte."""
+    common = ("--fmu-dir", str(fmu_dir), "--stop-time", "20")
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    subprocess.run(_cli("bs-3", "--out", str(whole), *common), check=True, timeout=600,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    command = _cli("bs-3", "--out", str(killed), *common, "--checkpoint-every", "5")
+    assert kill_after_checkpoint(command, killed) == 128 + signal.SIGTERM
+    rows = json.loads((killed / CHECKPOINT_FILE).read_text())["rows"]
+    assert rows > 300, rows  # more than the three chunks the replay is killed in
+    resume = [*_cli("--resume", str(killed), "--fmu-dir", str(fmu_dir))]
+    replay = [sys.executable, "-c", KILLED_IN_THE_REPLAY, *resume[3:]]
+    killed_in_replay = subprocess.run(replay, capture_output=True, text=True, timeout=600)
+    assert killed_in_replay.returncode == -signal.SIGKILL, killed_in_replay.stderr
+    _settled(killed)
+    again = subprocess.run(resume, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert (killed / "results.csv").read_bytes() == (whole / "results.csv").read_bytes()
