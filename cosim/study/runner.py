@@ -620,7 +620,8 @@ def _checked_plan(
     if spec.random.factors:
         first = {name: runs[0].values[name] for name in spec.random.factors}
         found, lines = checked_point(base, factors, first, check_step=spec.check_step)
-        untrusted[f"{_point(first)} (the first sample)"] = lines
+        if spec.check_step:
+            untrusted[f"{_point(first)} (the first sample)"] = lines
         _add_doubts(doubts, found)
         _add_doubts(doubts, {unit_doubts.UnitWarning: _sample_doubts(spec, base, runs)})
     if spec.check_step:
@@ -741,7 +742,8 @@ def _check_grid_values(
         values = dict(zip(grid, point, strict=True))
         found, lines = checked_point(base, used, values, known, spec.check_step)
         _add_doubts(doubts, found)
-        untrusted[_point(values)] = lines
+        if spec.check_step:
+            untrusted[_point(values)] = lines
     return {category: list(dict.fromkeys(lines)) for category, lines in doubts.items()}, untrusted
 
 
