@@ -64,7 +64,13 @@ import pytest
 from deadline import deadline
 from hypothesis import settings
 from process_group import run_in_group
-from process_state import WATCHED_SIGNALS, child_processes, signal_changes, signal_state
+from process_state import (
+    WATCHED_SIGNALS,
+    child_processes,
+    command_line,
+    signal_changes,
+    signal_state,
+)
 from worker_shared import build_once, in_worker_order, shared_folder
 
 import cosim
@@ -168,7 +174,11 @@ def _leaves_no_signal_state_nor_child() -> Iterator[None]:
 
 def _new_children(before: dict[int, str]) -> dict[int, str]:
     found = child_processes()
-    return {p: c for p, c in found.items() if p not in before and not PROCESS_HELPERS.search(c)}
+    return {
+        p: c
+        for p, c in found.items()
+        if p not in before and not PROCESS_HELPERS.search(command_line(p))  # -W options: long
+    }
 
 
 @pytest.fixture(scope="session")

@@ -69,6 +69,16 @@ def child_processes(pid: int | None = None) -> dict[int, str]:
     return {child: said for child in found if (said := running(child)) is not None}
 
 
+def command_line(pid: int) -> str:
+    """The whole command line of process ``pid`` ("" if it ended): what a match on it
+    reads, where :func:`running` cuts it short for a message."""
+    with suppress(OSError):
+        return (
+            Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        )
+    return ""
+
+
 def running(pid: int) -> str | None:
     """``"[state] command line"`` of process ``pid``, None if it ended (or is a zombie,
     ended and not yet waited for)."""

@@ -13,11 +13,13 @@ from __future__ import annotations
 import json
 import re
 import signal
+import subprocess
 import sys
 from pathlib import Path
 
+import conftest
 import pytest
-from process_group import run_in_group
+from process_group import run_in_group, started_in_group
 from repo_paths import ROOT
 
 CASES = """
@@ -82,3 +84,18 @@ def test_a_test_leaving_signals_or_a_child_fails_naming_what_it_left(tmp_path: P
     variable = [r for r in listed if r["test"].endswith("::test_sets_a_variable")]
     assert variable and variable[0]["environ"] == {"LEAK_GUARD_CASE": "None -> left"}
     assert not [r for r in listed if r["test"].endswith("::test_ends_its_child")]
+
+
+def test_a_fork_server_of_a_python_run_with_warning_options_is_the_process_s() -> None:
+    """The multiprocessing helpers a study leaves (fork server, resource tracker) are the
+    process's, not a test's, also under ``python -W error::DeprecationWarning ...``: the
+    options are passed on to the helpers and push ``import main`` past the 160 characters
+    of a command line the guard shows, which failed every study test at its teardown."""
+    flags = ["-W", "error::DeprecationWarning", "-W", "error::FutureWarning"]
+    flags += ["-W", "error::PendingDeprecationWarning"]
+    code = "from multiprocessing.forkserver import main; print(flush=True); input()"
+    with started_in_group(
+        [sys.executable, "-B", *flags, "-c", code], stdin=subprocess.PIPE
+    ) as helper:
+        assert helper.stdout is not None and helper.stdout.readline() == "\n"  # exec'd
+        assert helper.pid not in conftest._new_children({})
