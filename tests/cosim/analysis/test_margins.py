@@ -47,10 +47,16 @@ def _response(loop: control.StateSpace, omega: float) -> complex:
 
 def _largest_pole(loop: control.StateSpace, factor: float = 1.0, delay: int = 0) -> float:
     """max |z| of the loop closed with its gain times ``factor`` and ``delay`` whole
-    samples of delay at the plant input (python-control's series and feedback)."""
+    samples of delay at the plant input (python-control's series, closed as A - B C).
+
+    Closed by hand, not by ``control.feedback(open, 1.0)``: python-control 0.10.2 makes
+    the constant 1 a static StateSpace by setting its arrays' shape, which NumPy 2.5
+    deprecates (a DeprecationWarning; under ``-W error`` feedback falls back to a system
+    without poles)."""
     delayed = control.tf([1.0], [1.0] + [0.0] * delay, H) if delay else 1.0
-    closed = control.feedback(control.series(delayed, factor * loop), 1.0)
-    return float(np.abs(control.poles(closed)).max())
+    opened = control.series(delayed, factor * loop)
+    assert not np.any(opened.D)  # strictly proper: unity negative feedback is A - B C
+    return float(np.abs(np.linalg.eigvals(opened.A - opened.B @ opened.C)).max())
 
 
 def test_margins_read_where_the_frequency_response_crosses(
