@@ -265,7 +265,7 @@ def _roots(
     on the grid, refined; a zero at the Nyquist frequency itself included."""
     found = [
         float(brentq(lambda w: function(_at(loop, w)), omega[k], omega[k + 1], xtol=1e-12))
-        for k in np.flatnonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0)
+        for k in np.flatnonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0).tolist()
     ]
     if abs(values[-1]) < 1e-9 * max(1.0, float(np.abs(values).max())):
         found.append(float(omega[-1]))

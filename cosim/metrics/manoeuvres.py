@@ -340,16 +340,16 @@ class SurveyTracker:
             self._filled += k
             taken += k
             if self._filled == SURVEY_BLOCK_ROWS:
-                self._sums.append(float(np.add.reduce(self._block**2)))
+                self._sums.append(float(np.sum(self._block**2)))
                 self._filled = 0
 
     def metrics(self) -> Metrics:
         """The survey's figures over the rows so far (None each without a row)."""
         if self._count == 0:  # a run stopped before its first row
             return {**dict.fromkeys(SURVEY_METRICS), "legs_total": self.legs_total}
-        total = np.add.reduce(self._block[: self._filled] ** 2)
+        total = np.sum(self._block[: self._filled] ** 2)
         if self._sums:
-            total = np.add.reduce(np.asarray([*self._sums, total]))
+            total = np.sum(np.asarray([*self._sums, total]))
         legs = round(self._legs)
         return {
             "cross_track_rms_m": float(np.sqrt(total / self._count)),
