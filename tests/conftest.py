@@ -49,7 +49,6 @@ from __future__ import annotations
 import contextlib
 import multiprocessing.util
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -67,7 +66,7 @@ from process_group import run_in_group
 from process_state import (
     WATCHED_SIGNALS,
     child_processes,
-    command_line,
+    new_children,
     signal_changes,
     signal_state,
 )
@@ -139,9 +138,6 @@ def no_kept_builds() -> Iterator[None]:
 
 
 CHILDREN_GRACE = 5.0  # s a test's child processes have to end after its teardown
-# the standard library's helpers, the process's rather than a test's (docs/api.md): the fork
-# server a local study's workers come from, kept for the next study, and its resource tracker
-PROCESS_HELPERS = re.compile(r"from multiprocessing\.(forkserver|resource_tracker) import main")
 
 
 @pytest.fixture(autouse=True)
@@ -154,9 +150,9 @@ def _leaves_no_signal_state_nor_child() -> Iterator[None]:
     yield
     left = signal_changes(signals, signal_state())
     ends = time.monotonic() + CHILDREN_GRACE
-    while _new_children(children) and time.monotonic() < ends:
+    while new_children(children) and time.monotonic() < ends:
         time.sleep(0.05)
-    alive = _new_children(children)
+    alive = new_children(children)
     left += [f"child process {pid} running: {command}" for pid, command in alive.items()]
     if not left:
         return
@@ -170,15 +166,6 @@ def _leaves_no_signal_state_nor_child() -> Iterator[None]:
                 os.killpg(pid, signal.SIGKILL)
             os.kill(pid, signal.SIGKILL)
     pytest.fail("the test left " + "; ".join(left), pytrace=False)
-
-
-def _new_children(before: dict[int, str]) -> dict[int, str]:
-    found = child_processes()
-    return {
-        p: c
-        for p, c in found.items()
-        if p not in before and not PROCESS_HELPERS.search(command_line(p))  # -W options: long
-    }
 
 
 @pytest.fixture(scope="session")

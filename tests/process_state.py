@@ -7,6 +7,7 @@ for ``tests/conftest.py``'s guard around every test and ``tests/leak_check.py``.
 from __future__ import annotations
 
 import os
+import re
 import signal
 from contextlib import suppress
 from pathlib import Path
@@ -67,6 +68,22 @@ def child_processes(pid: int | None = None) -> dict[int, str]:
                     todo.extend(map(int, children.split()))
                     found.update(dict.fromkeys(map(int, children.split()), ""))
     return {child: said for child in found if (said := running(child)) is not None}
+
+
+# the standard library's helpers, the process's rather than a test's (docs/api.md): the fork
+# server a local study's workers come from, kept for the next study, and its resource tracker
+PROCESS_HELPERS = re.compile(r"from multiprocessing\.(forkserver|resource_tracker) import main")
+
+
+def new_children(before: dict[int, str]) -> dict[int, str]:
+    """:func:`child_processes` not in ``before``, the multiprocessing helpers left out
+    (matched on the whole command line: ``-W`` options, passed on to them, make it long)."""
+    found = child_processes()
+    return {
+        p: c
+        for p, c in found.items()
+        if p not in before and not PROCESS_HELPERS.search(command_line(p))
+    }
 
 
 def command_line(pid: int) -> str:

@@ -17,9 +17,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-import conftest
 import pytest
 from process_group import run_in_group, started_in_group
+from process_state import new_children
 from repo_paths import ROOT
 
 CASES = """
@@ -98,4 +98,4 @@ def test_a_fork_server_of_a_python_run_with_warning_options_is_the_process_s() -
         [sys.executable, "-B", *flags, "-c", code], stdin=subprocess.PIPE
     ) as helper:
         assert helper.stdout is not None and helper.stdout.readline() == "\n"  # exec'd
-        assert helper.pid not in conftest._new_children({})
+        assert helper.pid not in new_children({})
