@@ -252,7 +252,8 @@ def preflight(scenario: Scenario, src: Source | None = None) -> None:
             raise src.error(
                 key, f"{max_substep!r} is outside (0.0, inf], the range {SUBSTEP_PARAMETER} takes"
             )
-        substeps = math.ceil(step / max_substep - 1e-9)
+        substeps = step / max_substep  # inf for a subnormal max_substep: no ceil of it
+        substeps = math.ceil(substeps - 1e-9) if math.isfinite(substeps) else substeps
         if substeps > MAX_SUBSTEPS:
             raise src.error(
                 key if SUBSTEP_PARAMETER in inst.start else longest,

@@ -66,6 +66,11 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
      "0 m at the surface)"),
     ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|max_substep = 0"}, 1,
      "'instances.plant.start.max_substep': 0.0 is outside (0.0, inf]"),
+    # the smallest subnormal: step / max_substep overflowed to inf ("OverflowError: cannot
+    # convert float infinity to integer", a traceback) before the sub-step limit was checked
+    ("run bad.toml --fmu-dir {fmus}", {"bad.toml": "bs-3:u_0 = 1.50|max_substep = 5e-324"}, 1,
+     "'instances.plant.start.max_substep': plant.max_substep = 5e-324 s would take inf "
+     "sub-steps"),
     ("validate bad.toml nothing.fmu --fmu-dir {fmus}", {"bad.toml": "bs-3:"}, 1,
      "FMUs: nothing.fmu"),
     ("export bs-3 --osp taken --fmu-dir {fmus}", {"taken": ""}, 1,
