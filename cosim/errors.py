@@ -145,7 +145,7 @@ def did_you_mean_path(path: Path) -> str:
     (``runs/bs3``: ``runs/bs-3``); ``""`` when that folder cannot be listed."""
     try:  # the path itself is no suggestion (a file given where a folder is expected)
         names = [entry.name for entry in path.parent.iterdir() if entry.name != path.name]
-    except OSError:
+    except (OSError, ValueError):  # ValueError: a NUL in the path
         return ""
     choice = closest(path.name, names)
     return "" if choice is None else f" (did you mean {str(path.with_name(choice))!r}?)"

@@ -769,6 +769,26 @@ def scenario_path(id_or_path: str | Path, given: str | None = None) -> Path:
     """The file of a built-in scenario id, or ``id_or_path`` itself if it is a file.
     ``given``: how a refusal of a path that is no file names it (the API's
     ``scenario='runs'``; default: the path alone, as the command line's argument)."""
+    try:
+        return _scenario_file(id_or_path, given)
+    except (OSError, ValueError) as exc:  # a name too long, a NUL: never looked up
+        if isinstance(exc, UnicodeError):  # a locale's encoding: said where it is caught
+            raise
+        raise ScenarioError(
+            f"{given or f'scenario {shown(str(id_or_path))}'}: cannot look it up: "
+            f"{unusable_path(exc)}; expected a built-in id or the path of a scenario .toml file"
+        ) from None
+
+
+def unusable_path(exc: OSError | ValueError) -> str:
+    """Why the system could not look a path up (``exc``), in a few words."""
+    if isinstance(exc, ValueError):  # os.stat's "embedded null byte"
+        return "a path holds no NUL character"
+    return exc.strerror or str(exc)
+
+
+def _scenario_file(id_or_path: str | Path, given: str | None) -> Path:
+    """:func:`scenario_path`'s look-up, which the system may refuse (OSError, ValueError)."""
     candidate = SCENARIO_FOLDER / f"{id_or_path}.toml"
     if "/" not in str(id_or_path) and candidate.is_file():
         return candidate
@@ -1195,8 +1215,17 @@ def _resolve_instance(
     if spec.fmu in BUILTIN_FMUS:
         fmu_ref, fmu_path = spec.fmu, _builtin_fmu(spec.fmu, fmu_dir)
     else:
-        fmu_path = (base_dir / spec.fmu).resolve()
-        if not fmu_path.is_file():
+        try:
+            fmu_path = (base_dir / spec.fmu).resolve()
+            found = fmu_path.is_file()
+        except (OSError, ValueError) as exc:  # a name too long, a NUL: never looked up
+            if isinstance(exc, UnicodeError):  # a locale's encoding: said where it is caught
+                raise
+            raise src.error(
+                f"instances.{name}.fmu",
+                f"{shown(spec.fmu)}: cannot look it up: {unusable_path(exc)}",
+            ) from None
+        if not found:
             raise src.error(
                 f"instances.{name}.fmu",
                 f"{spec.fmu!r}{did_you_mean(spec.fmu, BUILTIN_FMUS)} is neither a built-in FMU "

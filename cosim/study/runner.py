@@ -582,7 +582,10 @@ def _scenario_ref(ref: str, study_dir: Path) -> str | Path:
         except ValueError as exc:
             raise StudyError(f"scenario = {ref!r}: {exc}") from None
     candidate = study_dir / ref
-    return candidate if candidate.is_file() else ref
+    try:
+        return candidate if candidate.is_file() else ref
+    except (OSError, ValueError):  # a name too long, a NUL: the scenario's look-up names it
+        return ref
 
 
 def _metrics(spec: StudySpec, facts: ScenarioFacts) -> list[str]:

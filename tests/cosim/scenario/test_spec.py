@@ -428,6 +428,29 @@ def test_a_file_that_is_no_fmu_given_as_an_instance_s_fmu_names_the_key(
     )
 
 
+@pytest.mark.parametrize(
+    ("fmu", "reason"),
+    [
+        ("\\u0000", "a path holds no NUL character"),
+        ("é" * 300, "File name too long"),
+    ],
+)
+def test_an_fmu_path_the_system_cannot_look_up_is_refused_naming_the_key(
+    fmu: str, reason: str, fmu_dir: Path, tmp_path: Path, no_fmu_loading: None
+) -> None:
+    """An instance's fmu holding a NUL character or a name too long for the file system
+    escaped load_scenario as ValueError ("embedded null byte", which the command showed as
+    "auv-cosim run: ValueError: embedded null byte") and OSError ("File name too long"):
+    both are refused as the file's key, as a missing file is."""
+    path = tmp_path / "bad.toml"
+    path.write_text(BS3.replace('fmu = "AuvAutopilot"', f'fmu = "{fmu}"', 1), encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, fmu_dir=fmu_dir)
+    said = str(info.value)
+    assert said.startswith(f"scenario file {path}: key 'instances.controller.fmu': "), said
+    assert reason in said and "\n" not in said, said
+
+
 def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
     path = tmp_path / "broken.toml"
     path.write_text("stop_time = = 3\n")
