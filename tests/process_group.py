@@ -9,6 +9,7 @@ import contextlib
 import os
 import signal
 import subprocess
+import time
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -56,3 +57,17 @@ def as_in_a_terminal() -> None:
     for signum in stops:
         signal.signal(signum, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, stops)
+
+
+def group_ended(group: int, within: float = 60.0) -> bool:
+    """Whether every process of the process group ``group`` has ended, looked for until it
+    has or ``within`` s passed (a guard against a hang, not a measure: a fixed wait guesses
+    how long the group takes to end, too short under load)."""
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(group, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.02)
+    return False

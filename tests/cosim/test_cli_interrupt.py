@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
-from process_group import as_in_a_terminal, run_in_group, started_in_group
+from process_group import as_in_a_terminal, group_ended, run_in_group, started_in_group
 
 # ``auv-cosim`` as its installed script starts it (``from cosim.cli import main``), which
 # does ACTION as the module named MODULE is first imported: "kill", a Ctrl-C sent to itself
@@ -150,18 +150,4 @@ def test_ctrl_c_at_any_time_of_the_start(after: float, fmu_dir: Path, tmp_path: 
         os.kill(proc.pid, signal.SIGINT)
         _, stderr = proc.communicate(timeout=300)
         _assert_interrupted(proc.returncode, stderr)
-        assert _group_ended(proc.pid), "a process of the command's group went on running"
-
-
-def _group_ended(group: int, within: float = 60.0) -> bool:
-    """Whether every process of the process group ``group`` has ended, looked for until it
-    has or ``within`` s passed (a guard against a hang, not a measure: a fixed wait of
-    0.2 s guessed how long the group takes to end, too short under load)."""
-    deadline = time.monotonic() + within
-    while time.monotonic() < deadline:
-        try:
-            os.killpg(group, 0)
-        except ProcessLookupError:
-            return True
-        time.sleep(0.02)
-    return False
+        assert group_ended(proc.pid), "a process of the command's group went on running"

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from process_group import run_in_group, started_in_group
+from process_group import group_ended, run_in_group, started_in_group
 
 from cosim.scratch import SCRATCH_DIR
 
@@ -114,18 +114,6 @@ def sweep_command(fmu_dir: Path, study: Path, *options: str) -> list[str]:
             "--oversubscribe", "--fmu-dir", str(fmu_dir), "--quiet", *options]  # fmt: skip
 
 
-def group_gone(pgid: int, timeout: float = 30.0) -> bool:
-    """Whether every process of the group ``pgid`` ends within ``timeout`` s."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            os.killpg(pgid, 0)
-        except ProcessLookupError:
-            return True
-        time.sleep(0.1)
-    return False
-
-
 @pytest.mark.slow
 @pytest.mark.cluster
 def test_a_resumed_study_removes_what_a_killed_one_left(fmu_dir: Path, tmp_path: Path):
@@ -146,7 +134,7 @@ def test_a_resumed_study_removes_what_a_killed_one_left(fmu_dir: Path, tmp_path:
             time.sleep(0.05)
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=30)  # reaped: no zombie left in the group
-        assert group_gone(proc.pid), "the killed study's workers ran on"
+        assert group_ended(proc.pid, within=30.0), "the killed study's workers ran on"
     finished = table.read_text().splitlines()[1:]
     assert run_folders(tmpdir), "the killed study had no run folder in TMPDIR: no test"
     done = run_in_group([*command, "--resume"], timeout=300, env=env)
