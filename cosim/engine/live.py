@@ -33,7 +33,7 @@ from __future__ import annotations
 import collections
 import signal
 import threading
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -55,7 +55,7 @@ class OverrideError(CosimError):
 
 
 class _Live(Source):
-    def error(self, key: str, problem: str) -> ScenarioError:
+    def error(self, key: str, problem: str, causes: Collection[str] | None = None) -> ScenarioError:
         return ScenarioError(f"override {key}: {problem}")
 
 

@@ -250,7 +250,9 @@ def preflight(scenario: Scenario, src: Source | None = None) -> None:
         key = f"instances.{name}.start.{SUBSTEP_PARAMETER}"
         if not max_substep > 0.0:  # the FMU's min is 0: FMI 2.0 has no open bound
             raise src.error(
-                key, f"{max_substep!r} is outside (0.0, inf], the range {SUBSTEP_PARAMETER} takes"
+                key,
+                f"{max_substep!r} is outside (0.0, inf], the range {SUBSTEP_PARAMETER} takes",
+                causes=(key,),
             )
         substeps = step / max_substep  # inf for a subnormal max_substep: no ceil of it
         substeps = math.ceil(substeps - 1e-9) if math.isfinite(substeps) else substeps
@@ -260,6 +262,7 @@ def preflight(scenario: Scenario, src: Source | None = None) -> None:
                 f"{name}.{SUBSTEP_PARAMETER} = {max_substep!r} s would take {substeps:.3g} "
                 f"sub-steps per communication step of {step!r} s; at most {MAX_SUBSTEPS} are "
                 f"allowed (max_substep >= {step / MAX_SUBSTEPS:.3g} s)",
+                causes=(key, longest, "coupling.algorithm"),  # the step compared, and its source
             )
 
 

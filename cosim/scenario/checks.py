@@ -16,7 +16,7 @@ import re
 import sys
 import types
 import typing
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, NoReturn
 
@@ -296,12 +296,17 @@ class Source:
         """The scenario as later refusals name it: ``where``, with the options given."""
         return f"{self.where} (with {', '.join(self.given.values())})" if self.given else self.where
 
-    def error(self, key: str, problem: str) -> ScenarioError:
+    def error(self, key: str, problem: str, causes: Collection[str] | None = None) -> ScenarioError:
         """The error for ``key`` of this scenario (raise it): an overridden key named by
-        the option that set it, any other key after the options that made it a problem."""
+        the option that set it, any other key after the options that made it a problem:
+        those setting one of ``causes`` (the keys the problem depends on), or every option
+        given for None."""
         if key in self.given:
             return ScenarioError(f"{self.given[key]}: {problem}")
-        lead = f"{', '.join(self.given.values())}: " if self.given else ""
+        shown_options = [
+            option for given, option in self.given.items() if causes is None or given in causes
+        ]
+        lead = f"{', '.join(shown_options)}: " if shown_options else ""
         return ScenarioError(f"{lead}scenario file {self.where}: key {key!r}: {problem}")
 
 

@@ -257,6 +257,26 @@ def test_a_scenario_an_override_makes_unrunnable_is_refused_naming_the_override(
     assert not (tmp_path / "r").exists()
 
 
+def test_a_files_own_key_refused_at_preflight_is_not_blamed_on_an_option(
+    fmu_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A file's ``max_substep = 5e-324`` run with ``--stop-time 0.05`` was refused as
+    "--stop-time 0.05: scenario file ...: key 'instances.plant.start.max_substep': ...",
+    blaming a flag that had nothing to do with it; the refusal now starts with the file
+    and names its key, as it does without the flag."""
+    bad = tmp_path / "sub.toml"
+    bad.write_text(_file_text("bs-3:u_0 = 1.50|max_substep = 5e-324"), encoding="utf-8")
+    fmus = str(fmu_paths["AuvPlant"].parent)
+    argv = ["run", str(bad), "--stop-time", "0.05", "--out", str(tmp_path / "r")]
+    assert main([*argv, "--fmu-dir", fmus]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(
+        f"auv-cosim run: scenario file {bad}: key 'instances.plant.start.max_substep': "
+        "plant.max_substep = 5e-324 s would take inf sub-steps"
+    ), err
+    assert not (tmp_path / "r").exists()
+
+
 def test_a_scenario_an_override_makes_unrunnable_names_the_python_keyword(
     fmu_paths: dict[str, Path],
 ) -> None:
