@@ -1118,6 +1118,13 @@ def _add_model_options(a: argparse.ArgumentParser, variant_default: str = "horiz
     )
 
 
+def _named(args: argparse.Namespace) -> str:
+    """How a line of the command names it: ``auv-cosim run``, and an analysis with its
+    command, ``auv-cosim analyze margins``."""
+    analysis = getattr(args, "analysis", None)
+    return f"auv-cosim {args.command}{f' {analysis}' if analysis else ''}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. With ``argv`` None (the process's own command line), ``run``
     records stop signals from the moment its arguments are read (:mod:`cosim.engine.signals`):
@@ -1149,7 +1156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.held_stop is not None and args.connect is not None:
         _quiet_viewer_transport_log()
     if argv is None:
-        warnings.showwarning = one_line_warnings(f"auv-cosim {args.command}")
+        warnings.showwarning = one_line_warnings(_named(args))
         matplotlib_folder_in_one_line()
         matplotlib_off_screen()
     # a study's imports and cluster with the collector off (cosim.study.collector); not in a
@@ -1159,19 +1166,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         with collecting:
             return int(args.func(args) or 0)
     except CosimError as exc:
-        print(f"auv-cosim {args.command}: {shortened(one_line(str(exc)))}", file=sys.stderr)
+        print(f"{_named(args)}: {shortened(one_line(str(exc)))}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print(f"auv-cosim {args.command}: interrupted", file=sys.stderr)
+        print(f"{_named(args)}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # a reader that stopped (`| head`): nothing more to say to it
         return _reader_gone()
     except MemoryError as exc:
         reason = f"MemoryError{f': {exc}' if str(exc) else ''}"
-        print(f"auv-cosim {args.command}: {shortened(out_of_memory(reason))}", file=sys.stderr)
+        print(f"{_named(args)}: {shortened(out_of_memory(reason))}", file=sys.stderr)
         return 1
     except (ValueError, OSError, RuntimeError) as exc:
-        print(f"auv-cosim {args.command}: {shortened(one_line(_reason(exc)))}", file=sys.stderr)
+        print(f"{_named(args)}: {shortened(one_line(_reason(exc)))}", file=sys.stderr)
         return 1
     finally:
         if args.held_stop is not None:

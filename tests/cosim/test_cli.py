@@ -564,8 +564,8 @@ def test_a_home_that_cannot_be_written_costs_matplotlib_one_line(run_python, tmp
     said = [line for line in done.stderr.splitlines() if "matplotlib" in line.lower()]
     assert len(said) == 1, done.stderr
     assert said[0].startswith(
-        "auv-cosim analyze: warning: matplotlib's folder cannot be written (the default "
-        f"path ({blocker}/home/.config/matplotlib)): using a temporary one ("
+        "auv-cosim analyze phase-portrait: warning: matplotlib's folder cannot be written "
+        f"(the default path ({blocker}/home/.config/matplotlib)): using a temporary one ("
     )
     assert said[0].endswith("set MPLCONFIGDIR (or HOME) to a writable folder")
     assert (out / "phase_portrait.png").is_file()

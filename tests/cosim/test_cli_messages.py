@@ -98,6 +98,7 @@ BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
     ("analyze equilibria --vehicle nosuch", {}, 1, "unknown vehicle 'nosuch'"),
     ("analyze sweep mu 1 1", {}, 1, "sweep range 1.0 .. 1.0"),
     ("analyze sweep mu 1 2 --steps 1", {}, 1, "--steps 1: expected"),
+    ("analyze margins --scale nosuch=1.2", {}, 1, "--scale nosuch=1.2: unknown parameter"),
     ("sweep no-such-study.toml", {}, 1, "no-such-study.toml: no such file"),
     ("sweep study.toml --workers 0 --fmu-dir {fmus}", {"study.toml": STUDY}, 1, "--workers 0"),
     ("sweep study.toml --max-runs 0 --fmu-dir {fmus}", {"study.toml": STUDY}, 1, "--max-runs 0"),
@@ -172,9 +173,10 @@ def test_every_bad_input_is_one_line_naming_it_with_its_exit_code(
     lines = err.splitlines()
     said = lines[-1] if lines else ""
     assert out == "", out
-    if code == 1:
+    if code == 1:  # an analysis is named with its command: "auv-cosim analyze margins: "
         assert len(lines) == 1, err
-        assert said.startswith(f"auv-cosim {argv[0]}: "), said
+        command = " ".join(argv[:2]) if argv[0] == "analyze" else argv[0]
+        assert said.startswith(f"auv-cosim {command}: "), said
     else:
         assert lines[0].startswith("usage: auv-cosim "), err
         assert re.match(rf"auv-cosim {argv[0]}( \w+)?: error: ", said), said
@@ -298,7 +300,9 @@ def test_an_analysis_condition_out_of_range_names_the_flag_not_the_keyword(
 
     assert main(["analyze", "equilibria", "--thrust", "-1"]) == 1
     said = capsys.readouterr().err.strip()
-    assert said.startswith("auv-cosim analyze: --thrust -1.0: expected a thrust > 0 ("), said
+    assert said.startswith(
+        "auv-cosim analyze equilibria: --thrust -1.0: expected a thrust > 0 ("
+    ), said
     with pytest.raises(CosimError, match=r"^thrust = -1\.0 N: expected a thrust > 0"):
         OperatingConditions(load_vehicle("remus100"), thrust=-1.0)
 

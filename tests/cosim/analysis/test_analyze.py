@@ -233,7 +233,7 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_computing(
         writable_again(out)
     assert done.returncode == 1, done.stderr
     assert re.fullmatch(
-        f"auv-cosim analyze: cannot write {what} to {re.escape(str(out))}: "
+        f"auv-cosim analyze {analysis[0]}: cannot write {what} to {re.escape(str(out))}: "
         "(Permission denied|Read-only file system); name a folder you can write with --out\n",
         done.stderr,
     ), done.stderr
@@ -347,8 +347,8 @@ def test_a_sweep_output_the_disk_has_no_room_for_is_named_and_not_left_half(
                         "--out", str(tmp_path))  # fmt: skip
     assert code == 1
     assert err == (
-        f"auv-cosim analyze: cannot write the sweep outputs to {tmp_path}: {tmp_path / name}: "
-        "No space left on device\n"
+        f"auv-cosim analyze sweep: cannot write the sweep outputs to {tmp_path}: "
+        f"{tmp_path / name}: No space left on device\n"
     )
     assert not (tmp_path / name).exists() and not list(tmp_path.glob(".*.tmp"))
     assert (tmp_path / "sweep_eta.csv").stat().st_size > 0  # written before: kept, whole

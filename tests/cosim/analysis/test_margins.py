@@ -197,7 +197,7 @@ def test_a_nonsensical_operating_point_is_refused_naming_it(
     parameter is refused on one line naming the value and what is expected."""
     assert cli.main(["analyze", "margins", *arguments]) == 1
     err = capsys.readouterr().err
-    assert err.startswith(f"auv-cosim analyze: {refusal}"), err
+    assert err.startswith(f"auv-cosim analyze margins: {refusal}"), err
     assert err.count("\n") == 1
 
 
