@@ -37,6 +37,7 @@ from cosim.errors import (
     OptionNames,
     did_you_mean,
     did_you_mean_path,
+    one_line,
     plain,
     relative_to,
     shown,
@@ -799,15 +800,15 @@ def _scenario_file(id_or_path: str | Path, given: str | None) -> Path:
         exists = os.path.lexists(path)
         if path.exists() and not path.is_dir():  # a link to nothing: "not a file" below
             raise ScenarioError(
-                f"scenario file {id_or_path}: cannot read it: a pipe or a device, not a file "
-                "(a scenario file is read more than once: `<(...)` gives it once, and a FIFO "
-                "with no writer never); write it to a file first"
+                f"scenario file {one_line(str(id_or_path))}: cannot read it: a pipe or a "
+                "device, not a file (a scenario file is read more than once: `<(...)` gives it "
+                "once, and a FIFO with no writer never); write it to a file first"
             )
         guess = "" if exists else did_you_mean_path(path)
         if not (exists or guess) and _is_builtin_file_name(path):
             guess = f" (the built-in scenario is the id {path.stem!r}, without .toml)"
         what = "not a file" if exists else "no such file"
-        named = f"{given}: {what}" if given else f"{what}: {id_or_path}"
+        named = f"{given}: {what}" if given else f"{what}: {one_line(str(id_or_path))}"
         raise ScenarioError(f"{named}{guess}{relative_to(path)}; expected a scenario .toml file")
     guess = (
         did_you_mean(str(id_or_path), builtin_scenarios())

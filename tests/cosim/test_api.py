@@ -819,6 +819,8 @@ BAD_ARGUMENTS = [
     ("sweep", {"study": {"scenario": "bs-3"}, "workers": HUGE, "oversubscribe": True}, "workers="),
     ("sweep", {"study": [1, 2]}, "study=[1, 2]: expected a study file (str or pathlib.Path) or a "),
     ("sweep", {"study": "a\0.toml"}, "study='a\\x00.toml'"),
+    # a study's scenario holding a NUL: its refusal carried the NUL itself, unescaped
+    ("sweep", {"study": {"scenario": "\0/0", "grid": {"plant.v_0": [0.1]}}}, "file: \\x00/0"),
     ("sweep", {"study": {"scenario": "bs-3"}, "overlay": "2"}, "overlay='2'"),
     ("sweep", {"study": {"scenario": "bs-3"}, "resume": "yes"}, "resume='yes'"),
     ("sweep", {"study": {"scenario": "bs-3"}, "progress": 1}, "progress=1"),

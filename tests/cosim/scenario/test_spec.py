@@ -451,6 +451,21 @@ def test_an_fmu_path_the_system_cannot_look_up_is_refused_naming_the_key(
     assert reason in said and "\n" not in said, said
 
 
+@pytest.mark.parametrize("given", ["\x00/0", "a\x1b[31m/b.toml", "two\nlines/x.toml"])
+def test_a_missing_scenario_path_is_named_with_its_control_characters_escaped(
+    given: str,
+) -> None:
+    """A scenario path holding a NUL, an escape or a line break that names no file was
+    refused as "no such file: <the path>" with the characters themselves, which the
+    command escaped but a caller of the API (a study's StudyError, a log) got raw; the
+    refusal now shows them as Python writes them, as the command does."""
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(given)
+    said = str(info.value)
+    assert said.startswith(f"no such file: {given.encode('unicode_escape').decode()}"), said
+    assert said.isprintable(), said
+
+
 def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:
     path = tmp_path / "broken.toml"
     path.write_text("stop_time = = 3\n")
