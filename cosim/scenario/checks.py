@@ -23,7 +23,7 @@ from typing import Any, ClassVar, NoReturn
 from pydantic import BaseModel, ConfigDict, ValidationError
 from pydantic_core import ErrorDetails
 
-from cosim.errors import CosimError, did_you_mean, shown
+from cosim.errors import CosimError, counted, did_you_mean, shown
 
 FMI_INTEGER_RANGE = (-(2**31), 2**31 - 1)  # fmi2Integer is a C int (32 bits)
 
@@ -210,6 +210,50 @@ def literal_guess(err: Mapping[str, Any]) -> str:
     if err.get("type") != "literal_error" or not isinstance(value, str):
         return ""
     return did_you_mean(value, re.findall(r"'([^']*)'", str(err["ctx"]["expected"])))
+
+
+# pydantic's error types, what each expects in the words of every refusal
+_EXPECTED = {
+    "string_type": "a text",
+    "int_type": "an integer",
+    "int_from_float": "an integer",
+    "int_parsing": "an integer",
+    "float_type": "a number",
+    "float_parsing": "a number",
+    "finite_number": "a finite number",
+    "bool_type": "true or false",
+    "bool_parsing": "true or false",
+    "list_type": "a list",
+}
+# a bound's error type: its key in the error's context, and the words naming it
+_BOUNDS = {
+    "greater_than": ("gt", "greater than"),
+    "greater_than_equal": ("ge", "greater than or equal to"),
+    "less_than": ("lt", "less than"),
+    "less_than_equal": ("le", "less than or equal to"),
+}
+
+
+def expected_words(err: Mapping[str, Any]) -> str:
+    """What the pydantic error ``err`` expects, as every refusal says it ("expected a text",
+    "expected at least 1 item"), rather than pydantic's "Input should be a valid string";
+    pydantic's message for an error type not named here."""
+    kind, ctx = err.get("type"), err.get("ctx") or {}
+    if kind in _EXPECTED:
+        return f"expected {_EXPECTED[kind]}"
+    if kind in _BOUNDS:
+        name, words = _BOUNDS[kind]
+        bound = ctx[name]
+        return f"expected a number {words} {f'{bound:g}' if isinstance(bound, float) else bound}"
+    if kind == "too_short":
+        return f"expected at least {counted(ctx['min_length'], 'item')}"
+    if kind == "too_long":
+        return f"expected at most {counted(ctx['max_length'], 'item')}"
+    if kind == "string_too_short":
+        return f"expected a text of at least {counted(ctx['min_length'], 'character')}"
+    if kind == "literal_error":
+        return f"expected {ctx['expected']}"
+    return str(err["msg"])
 
 
 # pydantic puts the member of a union it tried ("float", "str", ...) in an error's location

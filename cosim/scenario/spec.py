@@ -60,6 +60,7 @@ from cosim.scenario.checks import (
     Strict,
     alias_key,
     check_value,
+    expected_words,
     field_names,
     file_key,
     home_table,
@@ -947,7 +948,7 @@ def _problem(key: str, err: ErrorDetails) -> str:
     if any(_is_union_tag(part) for part in err["loc"]):  # a start value
         return f"key {key!r} = {err.get('input')!r}: {ANY_VALUE}"
     guess = literal_guess(err)
-    return f"key {key!r} = {err.get('input')!r}{guess}: {err['msg']}"
+    return f"key {key!r} = {err.get('input')!r}{guess}: {expected_words(err)}"
 
 
 # what a table written as TOML's array of tables ([[connections]], as other tools write

@@ -70,6 +70,7 @@ from cosim.errors import (
 from cosim.scenario.checks import (
     ANY_VALUE,
     UNION_TAGS,
+    expected_words,
     field_names,
     file_key,
     misplaced_top_level,
@@ -379,7 +380,7 @@ def study_from_dict(data: dict[str, Any], label: str) -> StudySpec:
 
 def _problem(key: str, err: ErrorDetails) -> str:
     """The problem pydantic's error ``err`` finds with the study file's ``key``."""
-    message = err["msg"].removeprefix("Value error, ")
+    message = expected_words(err).removeprefix("Value error, ")
     tags = {part for part in err["loc"] if part in UNION_TAGS}
     misplaced = misplaced_top_level(key, StudySpec)
     if misplaced and key.count(".") == 1:  # [grid] takes it for a factor's values

@@ -301,10 +301,10 @@ BAD_EDITS = [
     ("step = 0.01", "step = inf", r"key 'coupling\.step' = inf: .* finite number"),
     ("stop_time = 60.0", "stop_time = nan", r"key 'stop_time' = nan: .* finite number"),
     ("step = 0.01", "step = 0.01\nstep_multiples = { controller = 2.0 }",
-     r"'coupling\.step_multiples\.controller' = 2\.0: Input should be a valid integer"),
+     r"'coupling\.step_multiples\.controller' = 2\.0: expected an integer"),
     # more steps than a run takes (beyond TOML's 64-bit integers in the resolved file)
     ("step = 0.01", "step = 0.01\nstep_multiples = { controller = 1000000000000000000000 }",
-     r"'coupling\.step_multiples\.controller' = 1000000000000000000000: Input should be less"),
+     r"'coupling\.step_multiples\.controller' = 1000000000000000000000: expected a number less"),
     ("stop_time = 60.0", "stop_time = 1e12",
      r"key 'stop_time': 1000000000000\.0 s is 1e\+14 communication steps .* at most 1e\+08"),
     ("stop_time = 60.0", 'id = ".."\nstop_time = 60.0', r"key 'id' = '\.\.': expected a name of"),
@@ -349,7 +349,8 @@ BAD_EDITS = [
     ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = "survey"',
      r"key 'manoeuvre': manoeuvre 'survey' needs the variable 'cross_track_error', but the "
      r"run has no column for it \(columns: .*\); record it in output\.record"),
-    ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = 2', r"key 'manoeuvre' = 2: .*string"),
+    ("stop_time = 60.0", 'stop_time = 60.0\nmanoeuvre = 2',
+     r"key 'manoeuvre' = 2: expected a text"),
     # a mistyped instance in the order or the step multiples: the nearest one named
     ('order = ["controller", "plant"]', 'order = ["controler", "plant"]',
      r"key 'coupling\.order': \['controler', 'plant'\] must name every instance \['plant', "
@@ -464,6 +465,30 @@ def test_a_missing_scenario_path_is_named_with_its_control_characters_escaped(
     said = str(info.value)
     assert said.startswith(f"no such file: {given.encode('unicode_escape').decode()}"), said
     assert said.isprintable(), said
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (('summary = "', 'summary = 3 # "'), "key 'summary' = 3: expected a text"),
+        (("step = 0.01", "step = 0.01\nstep_multiples = { controller = 2.0 }"),
+         "key 'coupling.step_multiples.controller' = 2.0: expected an integer"),
+        (('fmu = "AuvAutopilot"', 'fmu = ""'),
+         "key 'instances.controller.fmu' = '': expected a text of at least 1 character"),
+    ],
+)  # fmt: skip
+def test_a_scenario_refusal_says_what_is_expected_in_the_houses_words(
+    change: tuple[str, str], expected: str, fmu_dir: Path, tmp_path: Path
+) -> None:
+    """A scenario's value of the wrong type or size was refused in pydantic's words
+    ("Input should be a valid string", "Input should be a valid integer"); the refusal
+    says what is expected as every other refusal does, naming the key and the value."""
+    path = tmp_path / "bad.toml"
+    assert change[0] in BS3
+    path.write_text(BS3.replace(*change, 1), encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, fmu_dir=fmu_dir)
+    assert str(info.value) == f"scenario file {path}: {expected}"
 
 
 def test_invalid_toml_and_unknown_id_are_named(tmp_path: Path) -> None:

@@ -98,6 +98,28 @@ def test_bad_study_names_the_file_and_the_key(change: dict, expected: str) -> No
     assert expected in str(info.value)
 
 
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ({"scenario": 3}, "key 'scenario' = 3: expected a text"),
+        ({"overlay": []}, "key 'overlay' = []: expected at least 1 item"),
+        ({"grid": {"plant.v_0": []}}, "key 'grid.plant.v_0' = []: expected at least 1 item"),
+        ({"keep": "some"}, "key 'keep' = 'some': expected 'all', 'failed' or 'none'"),
+        ({"stop_time": -1.0}, "key 'stop_time' = -1.0: expected a number greater than 0"),
+    ],
+)
+def test_a_study_refusal_says_what_is_expected_in_the_houses_words(
+    change: dict, expected: str
+) -> None:
+    """A study's value of the wrong type or size was refused in pydantic's words ("Input
+    should be a valid string", "List should have at least 1 item after validation, not
+    0"); the refusal says what is expected as every other refusal does, naming the key and
+    the value."""
+    with pytest.raises(StudyError) as info:
+        study_from_dict({**MINIMAL, **change}, "study file my-study.toml")
+    assert str(info.value) == f"study file my-study.toml: {expected}"
+
+
 def test_a_study_file_is_data_never_code(tmp_path: Path) -> None:
     # an expression is a string (the scenario then refuses it for a Real), never evaluated
     path = tmp_path / "study.toml"
