@@ -138,7 +138,9 @@ def check_step(
     values = [_named(figures, scenario.columns, final)]
     steps = [coupling.step / 2, coupling.step / 4]
     for step in steps:
-        checked = _same_delays(scenario.with_overrides(step=step), round(coupling.step / step))
+        checked = _same_delays(
+            scenario.with_overrides(step=step, names=None), round(coupling.step / step)
+        )
         sink = key_figures(scenario.columns, scenario.key_vehicles)
         result = master.run(checked, [sink], keep_rows=False, stop=stop)
         if not result.complete:

@@ -33,6 +33,7 @@ from pydantic import (
 from pydantic_core import ErrorDetails
 
 from cosim.errors import (
+    KEYWORDS,
     CosimError,
     OptionNames,
     did_you_mean,
@@ -550,7 +551,7 @@ class Scenario:
         extrapolation: Extrapolation | None = None,
         tolerance: float | None = None,
         error_estimate: ErrorEstimate | None = None,
-        names: OptionNames | None = None,
+        names: OptionNames | None = KEYWORDS,
     ) -> Scenario:
         """A re-validated copy with the command line's overrides applied: ``algorithm``
         ``"jacobi"``, ``"gauss-seidel"`` or ``"adaptive"``, ``extrapolation`` ``"none"``,
@@ -558,7 +559,8 @@ class Scenario:
         or ``"doubling"`` (:class:`Coupling`). A refusal of
         what they make names them as ``names`` gives options (``--step 1e-09`` on the
         command line, :data:`cosim.errors.FLAGS`; ``step=1e-09`` in Python,
-        :data:`~cosim.errors.KEYWORDS`), or, without ``names``, as the scenario keys they set.
+        :data:`~cosim.errors.KEYWORDS`, the default), or, for None, as the scenario keys they
+        set (a caller's own settings: a study's ``stop_time``, ``--check-step``'s steps).
 
         A new step also moves every instance's ``design_step`` start value that equalled
         that instance's old communication step (a sampled controller designed for the step

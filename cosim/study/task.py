@@ -110,7 +110,7 @@ def prepare(
     auv-cosim that no run could load: :func:`cosim.fmus.interface.check_own_packages`)."""
     scenario = load_scenario(scenario_ref, fmu_dir=fmu_dir)
     if stop_time is not None:
-        scenario = scenario.with_overrides(stop_time=stop_time)
+        scenario = scenario.with_overrides(stop_time=stop_time, names=None)  # the study file's key
     if fmu_log:
         scenario = with_fmu_log(scenario, fmu_log, names)
     for inst in scenario.instances.values():

@@ -71,3 +71,24 @@ def test_with_overrides_names_the_overrides_as_option_names_say(fmu_dir: Path) -
     scenario = cosim.load_scenario("bs-3", fmu_dir=fmu_dir)
     with pytest.raises(CosimError, match=r"^step=1e-09: "):
         scenario.with_overrides(step=1e-9, names=KEYWORDS)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "named"),
+    [
+        ({"step": 1e-9}, "step=1e-09: scenario file "),
+        ({"stop_time": 1e12}, "stop_time=1000000000000.0: 1000000000000.0 s is 1e+14 "),
+        ({"tolerance": 0.01}, "tolerance=0.01: applies to algorithm = 'adaptive' only"),
+    ],
+)
+def test_with_overrides_called_directly_names_the_keyword(
+    overrides: dict, named: str, fmu_dir: Path
+) -> None:
+    """``scenario.with_overrides(step=1e-9)`` without ``names`` was refused as "scenario
+    file ... (with the override coupling.step = 1e-09): key 'stop_time': ...", naming a
+    scenario key where docs/api.md promises the keyword given; it names the keyword first,
+    as ``cosim.run`` does."""
+    scenario = cosim.load_scenario("bs-3", fmu_dir=fmu_dir)
+    with pytest.raises(ScenarioError) as refused:
+        scenario.with_overrides(**overrides)
+    assert str(refused.value).startswith(named), refused.value
