@@ -53,7 +53,8 @@ PRELOAD = [
     "cosim.study.server_exit",
 ]
 _environ_set = False  # whether this process has Dask's pre-spawn environment (start)
-# names, in the server's environment, the file its warm-up's study is handed over in
+# names, in the server's environment, the client (its process id) and the file its
+# warm-up's study is handed over in: ``<pid>:<path>``
 WARM_VARIABLE = "AUV_COSIM_SERVER_WARM"
 HAND_OVER_FILE = "auv-cosim-warm-up.pickle"
 _hand_over: str | None = None  # that file, while the server waits for it (hand_over)
@@ -137,8 +138,8 @@ def _say_cache_problem() -> None:
 
 @contextmanager
 def _warm_up_named(warm: bool) -> Iterator[None]:
-    """While on, this process's environment names the file :func:`hand_over` will write
-    (in multiprocessing's own temporary folder of this process, which holds the server's
+    """While on, this process's environment names it and the file :func:`hand_over` will
+    write (in multiprocessing's own temporary folder of this process, which holds the server's
     socket and is removed with it), for a server started meanwhile; not for one running."""
     global _hand_over
     from multiprocessing import forkserver, util
@@ -146,7 +147,7 @@ def _warm_up_named(warm: bool) -> Iterator[None]:
     named = warm and forkserver._forkserver._forkserver_pid is None  # type: ignore[attr-defined]
     if named:
         _hand_over = os.path.join(util.get_temp_dir(), HAND_OVER_FILE)
-        os.environ[WARM_VARIABLE] = _hand_over
+        os.environ[WARM_VARIABLE] = f"{os.getpid()}:{_hand_over}"
     try:
         yield
     except BaseException:

@@ -68,10 +68,13 @@ def warm(content: bytes) -> None:
 
 
 def _warm_from_client() -> None:
-    named = os.environ.pop(WARM_VARIABLE, "")
-    if not named:
+    """Warm up on the study the client named in :data:`WARM_VARIABLE` hands over; its
+    process id is named there too, not taken as this process's parent once the imports
+    are done: a client that ended before (a sweep refused at once) has nothing to wait for."""
+    client, _, named = os.environ.pop(WARM_VARIABLE, "").partition(":")
+    if not client.isdigit() or not named:
         return
-    content = handed_over(Path(named), os.getppid())
+    content = handed_over(Path(named), int(client))
     if not content:  # none in time, or the client's study ended without one
         return
     with suppress(Exception):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.study import fork_server
+from cosim.study import fork_server, server_warm
 from cosim.study.server_warm import handed_over
 
 
@@ -46,6 +46,29 @@ def test_the_study_is_handed_over_once_and_none_ends_the_wait(tmp_path, monkeypa
     monkeypatch.setattr(fork_server, "_hand_over", str(path))
     assert fork_server.hand_over(None) is False
     assert handed_over(path, os.getppid(), 0.0) == b""
+
+
+def test_a_server_whose_client_has_ended_takes_no_study(tmp_path, monkeypatch) -> None:
+    """The server waits for the client that named the hand-over file, not for whatever
+    process is its parent once its imports are done: a client that ended before then
+    (a sweep refused at once) leaves the server nothing to wait for, the file unread."""
+    from multiprocessing import forkserver
+
+    monkeypatch.setattr(forkserver._forkserver, "_forkserver_pid", None)
+    with fork_server._warm_up_named(True):  # this process is the client
+        named = os.environ[fork_server.WARM_VARIABLE]
+    path = Path(fork_server._hand_over or "")
+    fork_server._hand_over = None
+    path.write_bytes(b"study")  # handed over, but by a client this process's parent is not
+    warmed: list[bytes] = []
+    monkeypatch.setattr(server_warm, "warm", warmed.append)
+    monkeypatch.setattr(server_warm.gc, "freeze", lambda: None)
+    monkeypatch.setenv(fork_server.WARM_VARIABLE, named)
+    try:
+        server_warm._warm_from_client()  # as a server whose parent is not the client
+        assert (warmed, path.exists()) == ([], True)
+    finally:
+        path.unlink(missing_ok=True)
 
 
 WARMED = """
