@@ -162,8 +162,9 @@ def hand_over(job: object | None) -> bool:
     """Hand the study's :class:`cosim.study.execution.Job` to the fork server waiting for it
     (:func:`start` with ``warm``), once, written whole (pickled); whether it was (not if
     none waits). None: the server is to wait no longer and warm nothing (a study ending
-    before it could hand its job over, whose cluster's start waits for the server). Never
-    raises: a server that finds nothing, or nothing it can read, warms nothing."""
+    before it could hand its job over, whose cluster's start waits for the server; a job
+    pickle cannot write is handed over as None). Never raises: a server that finds
+    nothing, or nothing it can read, warms nothing."""
     global _hand_over
     with _handing:
         path, _hand_over = _hand_over, None
@@ -171,14 +172,17 @@ def hand_over(job: object | None) -> bool:
         return False
     import pickle
 
+    content = b""
+    if job is not None:
+        with suppress(pickle.PicklingError, TypeError, AttributeError):  # (unpicklable)
+            content = pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL)
     try:
         with open(path + ".part", "wb") as out:
-            if job is not None:
-                pickle.dump(job, out, protocol=pickle.HIGHEST_PROTOCOL)
+            out.write(content)
         os.replace(path + ".part", path)
-    except (OSError, pickle.PicklingError, TypeError, AttributeError):  # (unpicklable)
+    except OSError:
         return False
-    return job is not None
+    return bool(content)
 
 
 def pre_spawn_environ() -> dict[str, str]:

@@ -48,6 +48,16 @@ def test_the_study_is_handed_over_once_and_none_ends_the_wait(tmp_path, monkeypa
     assert handed_over(path, os.getppid(), 0.0) == b""
 
 
+def test_a_study_that_cannot_be_handed_over_ends_the_wait(tmp_path, monkeypatch) -> None:
+    """A job pickle cannot write (a local function in it, say) is not handed over, and the
+    server is told so at once: it does not keep the workers waiting for its whole wait."""
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert fork_server.hand_over({"study": lambda: None}) is False
+    assert handed_over(path, os.getppid(), 0.0) == b""  # told: nothing to warm up on
+    assert not (tmp_path / f"{fork_server.HAND_OVER_FILE}.part").exists()
+
+
 def test_a_server_whose_client_has_ended_takes_no_study(tmp_path, monkeypatch) -> None:
     """The server waits for the client that named the hand-over file, not for whatever
     process is its parent once its imports are done: a client that ended before then
