@@ -6,8 +6,10 @@ has not handed the study over in time."""
 
 from __future__ import annotations
 
+import gc
 import os
 import pickle
+import weakref
 from pathlib import Path
 
 import pytest
@@ -79,6 +81,39 @@ def test_a_server_whose_client_has_ended_takes_no_study(tmp_path, monkeypatch) -
         assert (warmed, path.exists()) == ([], True)
     finally:
         path.unlink(missing_ok=True)
+
+
+def test_what_the_warm_up_left_in_cycles_is_freed_before_it_is_frozen(
+    tmp_path, monkeypatch
+) -> None:
+    """The warm-up's run leaves objects in reference cycles (its FMU slaves, its run
+    folder): collected in the server before it freezes what it holds, not frozen into
+    every worker it forks for the worker's lifetime."""
+
+    class Left:
+        cycle: object
+
+    left: list[weakref.ref[Left]] = []
+
+    def warm(content: bytes) -> None:
+        run = Left()
+        run.cycle = run
+        left.append(weakref.ref(run))
+
+    freed_when_frozen: list[bool] = []
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    path.write_bytes(b"study")
+    monkeypatch.setenv(fork_server.WARM_VARIABLE, f"{os.getppid()}:{path}")
+    monkeypatch.setattr(server_warm, "warm", warm)
+    monkeypatch.setattr(gc, "freeze", lambda: freed_when_frozen.append(left[0]() is None))
+    enabled = gc.isenabled()
+    gc.disable()  # no collection of its own between the warm-up and the freeze
+    try:
+        server_warm._warm_from_client()
+    finally:
+        if enabled:
+            gc.enable()
+    assert freed_when_frozen == [True]
 
 
 WARMED = """
