@@ -67,10 +67,10 @@ def test_a_server_whose_client_has_ended_takes_no_study(tmp_path, monkeypatch) -
     from multiprocessing import forkserver
 
     monkeypatch.setattr(forkserver._forkserver, "_forkserver_pid", None)
+    monkeypatch.setattr(fork_server, "_hand_over", None)  # (set by the next line)
     with fork_server._warm_up_named(True):  # this process is the client
         named = os.environ[fork_server.WARM_VARIABLE]
     path = Path(fork_server._hand_over or "")
-    fork_server._hand_over = None
     path.write_bytes(b"study")  # handed over, but by a client this process's parent is not
     warmed: list[bytes] = []
     monkeypatch.setattr(server_warm, "warm", warmed.append)
