@@ -47,7 +47,7 @@ from typing import Any, Literal
 
 from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
-from cosim.errors import did_you_mean
+from cosim.errors import counted, did_you_mean
 from cosim.scenario.checks import (
     ReadOnly,
     Source,
@@ -567,21 +567,25 @@ def _actuator(spec: FaultSpec, scenario: Any, key: str, src: Source) -> tuple[st
     the mass position output on the same instance."""
     kind, wanted = spec.kind, ACTUATOR_FAULTS[spec.kind]
     owners = actuator_owners(kind, scenario)
-    acts = f"{kind!r} acts on the plant input {wanted!r}, which {len(owners)} instances ({owners})"
+    have = "has" if len(owners) == 1 else "have"
+    acts = (
+        f"{kind!r} acts on the plant input {wanted!r}, which "
+        f"{counted(len(owners), 'instance')} ({owners}) {have}"
+    )
     if spec.target is not None:
         if spec.target not in [f"{owner}.{wanted}" for owner in owners]:
             expected = f"one of {[f'{o}.{wanted}' for o in owners]}" if owners else "none"
-            raise src.error(f"{key}.target", f"{spec.target!r}: {acts} have: expected {expected}")
+            raise src.error(f"{key}.target", f"{spec.target!r}: {acts}: expected {expected}")
         plant = spec.target.rpartition(".")[0]
     elif len(owners) == 1:
         plant = owners[0]
     elif owners:
         raise src.error(
             f"{key}.target",
-            f'missing: {acts} have: name one, target = "{owners[0]}.{wanted}"',
+            f'missing: {acts}: name one, target = "{owners[0]}.{wanted}"',
         )
     else:
-        raise src.error(f"{key}.kind", f"{acts} have: expected exactly one")
+        raise src.error(f"{key}.kind", f"{acts}: expected exactly one")
     if kind != "mass-jam":
         return f"{plant}.{wanted}", None
     out = scenario.instances[plant].interface.variables.get(MASS_POSITION)

@@ -305,6 +305,24 @@ def test_a_time_on_a_late_point_is_that_point_however_many_steps_in(h: float) ->
     assert late == []
 
 
+def test_an_actuator_fault_target_of_the_one_plant_is_counted_in_the_singular(
+    fmu_dir: Path,
+) -> None:
+    """A target that is not the one plant's input is refused naming the one plant as one
+    instance, not as "1 instances ... have"."""
+    from repo_paths import ROOT
+
+    text = (ROOT / "cosim" / "scenarios" / "bs-3.toml").read_text(encoding="utf-8")
+    fault = '[[faults]]\nname = "jam"\nkind = "mass-jam"\ntarget = "mass_position_cmd"\n'
+    one = (
+        r"key 'faults\[0\]\.target': 'mass_position_cmd': 'mass-jam' acts on the plant "
+        r"input 'mass_position_cmd', which 1 instance \(\['plant'\]\) has: expected "
+        r"one of \['plant\.mass_position_cmd'\]$"
+    )
+    with pytest.raises(ScenarioError, match=one):
+        scenario_from_toml(text + fault, fmu_dir=fmu_dir)
+
+
 def test_an_actuator_fault_of_two_vehicles_names_the_plant_it_acts_on(fmu_dir: Path) -> None:
     """Two vehicles: a mass-jam was refused for the two plants with the input it acts
     on, and a target naming one of them was refused too (an actuator fault took none), so
