@@ -572,20 +572,20 @@ def _actuator(spec: FaultSpec, scenario: Any, key: str, src: Source) -> tuple[st
         f"{kind!r} acts on the plant input {wanted!r}, which "
         f"{counted(len(owners), 'instance')} ({owners}) {have}"
     )
+    if not owners:  # a target or none: the kind is what no plant can take
+        raise src.error(f"{key}.kind", f"{acts}: expected exactly one")
     if spec.target is not None:
         if spec.target not in [f"{owner}.{wanted}" for owner in owners]:
-            expected = f"one of {[f'{o}.{wanted}' for o in owners]}" if owners else "none"
+            expected = f"one of {[f'{o}.{wanted}' for o in owners]}"
             raise src.error(f"{key}.target", f"{spec.target!r}: {acts}: expected {expected}")
         plant = spec.target.rpartition(".")[0]
     elif len(owners) == 1:
         plant = owners[0]
-    elif owners:
+    else:
         raise src.error(
             f"{key}.target",
             f'missing: {acts}: name one, target = "{owners[0]}.{wanted}"',
         )
-    else:
-        raise src.error(f"{key}.kind", f"{acts}: expected exactly one")
     if kind != "mass-jam":
         return f"{plant}.{wanted}", None
     out = scenario.instances[plant].interface.variables.get(MASS_POSITION)

@@ -113,6 +113,9 @@ BAD_ROWS = [
     ('[[faults]]\nkind = "wobble"\ntarget = "controller.x"', ["faults[0].kind", "'wobble'"]),
     ('[[faults]]\nkind = "thruster-off"',
      ["faults[0].kind", "tunnel_force", "0 instances", "expected exactly one"]),
+    # a target where no plant has the input: "expected none" read as "give no target"
+    ('[[faults]]\nkind = "thruster-off"\ntarget = "plant.tunnel_force"',
+     ["faults[0].kind", "tunnel_force", "0 instances", "expected exactly one"]),
     ('[[faults]]\nname = "f"\nkind = "stuck"\ntarget = "controller.x"\n'
      '[[faults]]\nname = "f"\nkind = "stuck"\ntarget = "plant.u"',
      ["faults[1].name", "'f' is used twice"]),
