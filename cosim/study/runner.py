@@ -83,7 +83,6 @@ from cosim.study.task import (
     prepare,
     scenario_text,
     study_files,
-    untrusted_checks,
 )
 from cosim.study.units import units
 from cosim.study.unpacked import unpack
@@ -628,8 +627,6 @@ def _checked_plan(
         _add_doubts(doubts, found)
         _add_doubts(doubts, {unit_doubts.UnitWarning: _sample_doubts(spec, base, runs)})
     if spec.check_step:
-        if not untrusted:  # the study runs the scenario as it is
-            untrusted = {"": untrusted_checks(base, factors, {})}
         _add_doubts(doubts, {unit_doubts.UnitWarning: _untrusted(untrusted)})
     for category, lines in doubts.items():  # once each, in the main process (its runs
         unit_doubts.warn(lines, category)  # go without)
@@ -638,7 +635,7 @@ def _checked_plan(
 
 def _untrusted(found: Mapping[str, list[str]]) -> list[str]:
     """With ``check_step``, each reason a run's coupling error is not to be trusted, as
-    ``run --check-step`` says it (:func:`cosim.study.task.untrusted_checks`), ``found``
+    ``run --check-step`` says it (:func:`cosim.engine.step_check.doubts`), ``found``
     by grid point (its values as :func:`_point` names them) and for the first sample: of
     every run (a reason each grid point has), else naming the grid point, or the first
     sample, that brings it."""

@@ -191,7 +191,8 @@ def checked_point(
     check_step: bool = False,
 ) -> tuple[Doubts, list[str]]:
     """:func:`check_values`, and with ``check_step`` why the run's coupling error is not
-    to be trusted (:func:`untrusted_checks`), of the scenario resolved once (~50 ms)."""
+    to be trusted (:func:`cosim.engine.step_check.doubts`, as ``run --check-step`` says
+    it), of the scenario resolved once (~50 ms)."""
     point = ", ".join(f"{name} = {value!r}" for name, value in values.items())
     try:
         # named by its id alone: the refusal names the values first
@@ -215,14 +216,6 @@ def _doubts(scenario: Scenario, point: str, known: Collection[str]) -> Doubts:
         UnitWarning: doubts(scenario) + mission + late,
         DesignWarning: design_doubts(scenario),
     }
-
-
-def untrusted_checks(
-    base: Base, factors: Mapping[str, FactorKind], values: Mapping[str, Value]
-) -> list[str]:
-    """Why the coupling error ``check_step`` gives the run with these values is not to be
-    trusted (:func:`cosim.engine.step_check.doubts`, as ``run --check-step`` says it)."""
-    return step_doubts(_scenario(base, base.fmu_paths, factors, values))
 
 
 def base_mission_doubts(base: Base) -> list[str]:
