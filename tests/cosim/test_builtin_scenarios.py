@@ -182,7 +182,8 @@ def test_slow_2_converges_to_minus_11_3_deg_in_about_20_s(results: dict[str, Run
 
 @pytest.mark.slow
 def test_vert_2_settles_like_the_dissertation(results: dict[str, RunResult]) -> None:
-    # Sec. 6.3.4: w ~ -0.07 m/s, theta ~ -0.045 rad, mean delta_s ~ -5 deg; no integral
+    # Sec. 6.3.4 prints w ~ -0.07 m/s, theta ~ -0.045 rad, mean delta_s ~ -5 deg for
+    # vert-1's run (Fig. 6.43), near which vert-2 settles with its mass locked; no integral
     # term, so the depth stays short of z_d = 1 m against the positive buoyancy
     w, theta, fin_deg = dissertation("scenarios.depth_steady_state")
     result = results["vert-2"]
