@@ -5,8 +5,8 @@
 
 Table 6.2 (designed by Prestero for U0 = 1.525 m/s): gamma = -0.7720 rad/m, K_p = 10.345,
 tau_d = 0.21 s. Signs: z is down, theta nose-up; a positive stern-plane angle gives a
-nose-down moment (M_ds < 0, Table 6.1), so a depth below the set-point (z_d - z > 0) asks
-for nose down (theta_d < 0) and the fins deflect positive.
+nose-down moment (M_ds < 0, Table 6.1), so a vehicle shallower than its set-point
+(z_d - z > 0) asks for nose down (theta_d < 0) and the fins deflect positive.
 
 Fin limit (not given in the dissertation, our choice): delta_max = 25 deg = 0.4363 rad.
 Table 6.2's outer gain asks for 44 deg of pitch per metre of depth error, so after a depth

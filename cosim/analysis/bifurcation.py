@@ -43,9 +43,9 @@ How the dissertation's parameters map onto our model
   adds the roll torque m_v g y_v cos(theta) cos(phi) and the yaw torque
   m_v g y_v sin(theta), which is zero in the lateral variant (theta = 0). The two agree
   when W y_g = m_v g y_v, i.e. y_g = m_v g y_v / W (= y_v / 6 for m_v = m/6, W = m g).
-  The rail's x position (x_v = 0.50 m in our set, x_w = -0.10 m in Sec. 6.3's figure)
-  only weights the servo reaction x_v F_mm, which vanishes at rest, so it does not move
-  an equilibrium.
+  The rail's x position (x_v = 0.50 m, Sec. 6.3.1, which puts the fixed mass at
+  x_w = -0.10 m so that x_g = 0) only weights the servo reaction x_v F_mm, which vanishes
+  at rest, so it does not move an equilibrium.
 * With a uniform current the turning equilibria are equilibria of the motion relative to
   the water only (5.2.10-5.2.15: over ground they are limit cycles). We therefore solve
   the relative motion (the current-free equations, to which ours reduce exactly) and

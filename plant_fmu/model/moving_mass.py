@@ -58,7 +58,8 @@ def servo_motion(
 
     The servo follows the command as given: the stops, not the command, bound the motion
     (Sec. 6.3.1 constrains y_v and y_vel only, and the dissertation's LQR runs drive the
-    mass at up to ~50 cm/s, Fig. 6.14, which a command saturated at the stroke cannot).
+    mass at tens of cm/s, Fig. 6.14's y_vel axis spanning +-50 cm/s, which a command
+    saturated at the stroke cannot).
     Against a stop (or at the rail-speed limit) the mass does not accelerate outwards.
     """
     accel = (params.k_v * (y_cmd - y_v) - params.d_v * y_vel) / params.m_v
