@@ -1,0 +1,129 @@
+"""The dissertation's numbers the repository cites exist in the dissertation.
+
+Every equation, figure, table, example and section of B. Li (FAU 2016) cited in the code,
+docs, scenarios and tests must be one the dissertation has: its numbering is in
+``tests/data/dissertation_numbering.toml``, derived from its text by
+``scripts/dissertation_numbering.py``. A citation of a number past the end, equation
+6.3.97, Fig. 6.52 or Sec. 6.4, fails here naming the file and the line.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import re
+import tomllib
+from pathlib import Path
+
+import pytest
+from repo_paths import ROOT, TESTS
+
+NUMBERING = tomllib.loads((TESTS / "data" / "dissertation_numbering.toml").read_text("utf-8"))
+SKIPPED = {".git", "build", "runs", "auv_cosim.egg-info", "__pycache__", ".pytest_cache", "data"}
+# A line that cites another work's numbers (the FMI 2.0 standard's sections, Higham's and
+# Fossen's equations and tables) is not checked against the dissertation.
+OTHER_WORKS = re.compile(r"\bFMI\b|Higham|Fossen")
+
+_EQUATION = r"(?:[2-7]\.\d+\.\d+|A\.\d+)"
+# "(6.3.13)", "(6.3.11-6.3.13)", "(6.3.64, 6.3.72)", "(3.6.2 with viscous terms, 4.3.1)":
+# a parenthesis that opens with an equation number, to its closing parenthesis.
+EQUATIONS = re.compile(rf"\(({_EQUATION}[^()\n]*)\)")
+EQUATION = re.compile(rf"(?<![\w.]){_EQUATION}(?![\w.]|\.\d)")
+_LIST = r"(\d\.\d+(?:\.\d+)?(?:\s*(?:-|,|and|/)\s*\d\.\d+(?:\.\d+)?)*)"
+# A citation by name, "Figs. 6.13-6.14", "Tables 5.1, 5.4 and 6.1", "Ex. 5.3", "Sec. 6.3.3":
+# one pattern for every kind, its name telling which (one pass over the text: a pattern
+# per kind took four times as long).
+NAMED = re.compile(
+    r"\b(?:(?P<figures>Fig(?:ure)?s?\.?)|(?P<tables>Tables?)|(?P<examples>Examples?|Exs?\.)"
+    rf"|(?P<contents>Secs?\.|Sections?|Subsections?))\s+{_LIST}"
+)
+KINDS = ("equations", "figures", "tables", "examples", "contents")
+NUMBER = re.compile(r"\d\.\d+(?:\.\d+)?")
+
+
+def _files() -> list[Path]:
+    """The repository's text files that may cite the dissertation (not this test, whose
+    examples are wrong on purpose, nor the tests' data)."""
+    found = []
+    for folder, subfolders, names in os.walk(ROOT):
+        here = Path(folder)
+        subfolders[:] = [
+            name
+            for name in subfolders
+            if name not in SKIPPED and not (here / name / "pyvenv.cfg").exists()
+        ]
+        found += [here / n for n in names if n.endswith((".py", ".md", ".toml", ".ipynb"))]
+    return sorted(path for path in found if path != Path(__file__).resolve())
+
+
+@functools.cache
+def _cited() -> tuple[tuple[str, int, str, str], ...]:
+    """(file, line, kind, number) of every citation in the repository, read once."""
+    return tuple(
+        (path.relative_to(ROOT).as_posix(), line, kind, number)
+        for path in _files()
+        for line, kind, number in citations(path.read_text(encoding="utf-8"))
+    )
+
+
+def exists(kind: str, number: str) -> bool:
+    """Whether the dissertation has ``number`` of ``kind`` ("equations": "6.3.13" or
+    "A.62"; "figures", "tables", "examples": "6.14"; "contents": a section, "6.3.1")."""
+    if kind == "contents":
+        return number in NUMBERING["contents"]["sections"]
+    group, _, last = number.rpartition(".")
+    return 1 <= int(last) <= NUMBERING[kind].get(group, 0)
+
+
+def citations(text: str) -> list[tuple[int, str, str]]:
+    """(line, kind, number) of every dissertation number ``text`` cites: the equations,
+    then the others, each in the order of the text."""
+    found = []
+    for pattern in (EQUATIONS, NAMED):
+        for match in pattern.finditer(text):
+            start = text.rfind("\n", 0, match.start()) + 1
+            end = text.find("\n", match.end())
+            if OTHER_WORKS.search(text[start : len(text) if end < 0 else end]):
+                continue
+            kind = next((name for name, got in match.groupdict().items() if got), "equations")
+            numbers = EQUATION if kind == "equations" else NUMBER
+            listed = match.group(pattern.groups)  # the last group: the numbers
+            line = text.count("\n", 0, match.start()) + 1
+            found += [(line, kind, number) for number in numbers.findall(listed)]
+    return found
+
+
+def test_the_scan_finds_each_kind_and_refuses_a_number_the_dissertation_lacks():
+    """The scan reads every form the repository uses, and a number past the end of its
+    section or chapter, or a section the contents lack, is refused."""
+    # the wrong numbers built, not typed, so that docs tests reading this file's
+    # parentheses do not take them for citations
+    wrong = "({}), Fig. 6.52, Table 6.4, Example 5.10, Sec. 6.4".format("6.3.97")
+    text = (
+        "(6.3.11)-(6.3.13), (6.3.64, 6.3.72), (A.62); Figs. 6.13-6.14, Tables 5.1, 5.4 and"
+        f" 6.1, Ex. 5.3, Sec. 6.3.3; {wrong}"
+    )
+    cited = [(kind, number) for _, kind, number in citations(text)]
+    assert cited == [
+        ("equations", "6.3.11"), ("equations", "6.3.13"), ("equations", "6.3.64"),
+        ("equations", "6.3.72"), ("equations", "A.62"), ("equations", "6.3.97"),
+        ("figures", "6.13"), ("figures", "6.14"), ("tables", "5.1"), ("tables", "5.4"),
+        ("tables", "6.1"), ("examples", "5.3"), ("contents", "6.3.3"), ("figures", "6.52"),
+        ("tables", "6.4"), ("examples", "5.10"), ("contents", "6.4"),
+    ]  # fmt: skip
+    missing = [number for kind, number in cited if not exists(kind, number)]
+    assert missing == ["6.3.97", "6.52", "6.4", "5.10", "6.4"]
+    assert citations("FMI 2.0, Section 4.2.4; Higham 2005, Table 2.3") == []
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_dissertation_number_cited_exists(kind):
+    """Every number of ``kind`` the repository cites is one the dissertation has. (A
+    number that exists but is the wrong one, as the equation index's 6.3.52 for gains
+    defined under 6.3.53 was, is for a reader to catch.)"""
+    cited = [(path, line, number) for path, line, k, number in _cited() if k == kind]
+    assert len(cited) > 5, f"no {kind} found: the scan no longer reads the citations"
+    missing = [
+        f"{path}:{line}: {number}" for path, line, number in cited if not exists(kind, number)
+    ]
+    assert not missing, f"{kind} the dissertation does not have: {missing}"
