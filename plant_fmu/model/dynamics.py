@@ -305,8 +305,9 @@ class PlantModel:
         )
 
     def restoring(self, phi: float, theta: float) -> np.ndarray:
-        """Hydrostatic force and moment on the right-hand side (3.5.3), r_b = 0:
-        [(W - B) Gamma; r_g x W Gamma], Gamma = R^T [0, 0, 1]."""
+        """Hydrostatic force and moment on the right-hand side, r_b = 0:
+        [(W - B) Gamma; r_g x W Gamma], Gamma = R^T [0, 0, 1]; minus the g(eta) of (3.5.3),
+        which the dissertation writes on the left-hand side of (4.3.1)."""
         return self.hydrostatics(gravity_direction(phi, theta))
 
     def hydrostatics(self, gamma: Sequence[float] | np.ndarray) -> np.ndarray:
