@@ -261,7 +261,8 @@ class BacksteppingHeading:
         r, p (rad/s), roll phi, heading error psi_e = psi - psi_d (rad) and mass position
         y_v (m). Advances the filters from the previous call with its alphas held, or, with
         ``ramp``, going linearly to this call's (each filter once its alpha is known). The
-        reference law, in Python; :meth:`command_values` steps the compiled one."""
+        reference law ((6.3.55)-(6.3.64), the thruster (6.3.72)-(6.3.73)), in Python;
+        :meth:`command_values` steps the compiled one."""
         k = self.gains
         # The filters are at rest (rate 0) until the first sample has started them.
         last = self._last_time

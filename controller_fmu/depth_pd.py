@@ -102,14 +102,15 @@ class DepthPd:
         check_pitch_limit(self.pitch_limit)
 
     def pitch_setpoint(self, depth_setpoint: float, depth: float) -> float:
-        """theta_d = gamma (z_d - z), rad, within +-pitch_limit when one is set."""
+        """theta_d = gamma (z_d - z), rad, within +-pitch_limit when one is set: the outer
+        depth loop of Fig. 6.40."""
         theta_d = self.gamma * (depth_setpoint - depth)
         if self.pitch_limit == 0.0:
             return theta_d
         return min(max(theta_d, -self.pitch_limit), self.pitch_limit)
 
     def fin_angle(self, depth_setpoint: float, depth: float, pitch: float, q: float) -> float:
-        """delta_s, rad, saturated at +-fin_limit.
+        """delta_s, rad, saturated at +-fin_limit: the inner PD pitch loop of Fig. 6.40.
 
         Args:
             depth_setpoint, depth: z_d and z, m (down positive).

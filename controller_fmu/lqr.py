@@ -71,7 +71,8 @@ def _check_r(r_u: float) -> None:
 def continuous_gain(
     A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The dissertation's continuous LQR (as control.lqr): gain K (7,) with y_d = -K x
+    """The dissertation's continuous LQR (as control.lqr), minimising the cost (6.3.9)
+    with Q = C^T Q_y C: gain K (7,) with y_d = -K x
     (y_d in m, so K in m per unit of each state of :data:`CONTROL_STATES`), and the
     closed-loop eigenvalues of A - B K, 1/s."""
     _check_r(r_u)
@@ -82,7 +83,8 @@ def continuous_gain(
 def discrete_gain(
     A: np.ndarray, B: np.ndarray, q_y: Sequence[float], r_u: float, dt: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Discrete LQR (zero-order hold + dlqr, as control's c2d + dlqr) for sample time dt:
+    """Discrete LQR (zero-order hold + dlqr, as control's c2d + dlqr) of the cost (6.3.9)
+    for sample time dt:
     gain K (7,) with y_d[k] = -K x[k] (m per unit of each state of
     :data:`CONTROL_STATES`), and the closed-loop eigenvalues of Ad - Bd K (|z| < 1 when
     stable)."""
@@ -200,5 +202,6 @@ class LqrHeading:
             )
 
     def command(self, x: np.ndarray) -> float:
-        """y_d = -K x, m (unsaturated), x in :data:`CONTROL_STATES` order."""
+        """y_d = -K x (Sec. 6.3.1's delta u = -K delta z), m (unsaturated), x in
+        :data:`CONTROL_STATES` order."""
         return -float(self.gain @ x)

@@ -68,8 +68,8 @@ LOCK_SLACK = 1e-9  # of the lock time (at least of 1 s): a time this close befor
 
 
 def mass_locked(time: float, mass_lock_time: float) -> bool:
-    """True once the moving mass is locked: mass_lock_time >= 0 and time (s) at or after
-    mass_lock_time (s), a time within :data:`LOCK_SLACK` before it counting as it (a host's
-    points n h miss it by a rounding: 3 x 0.3 s is 0.8999999999999999 s)."""
+    """True once the moving mass is locked (Sec. 6.3.4): mass_lock_time >= 0 and time (s)
+    at or after mass_lock_time (s), a time within :data:`LOCK_SLACK` before it counting as
+    it (a host's points n h miss it by a rounding: 3 x 0.3 s is 0.8999999999999999 s)."""
     slack = LOCK_SLACK * max(1.0, mass_lock_time)
     return mass_lock_time >= 0.0 and time >= mass_lock_time - slack

@@ -125,11 +125,12 @@ class SlidingModeHeading:
             raise ValueError("sliding surface has w^T Bd = 0: y_d cannot move s")
 
     def sliding_variable(self, x: np.ndarray) -> float:
-        """s = w^T x (rad), x in :data:`CONTROL_STATES` order."""
+        """s = w^T x (6.3.36), rad, x in :data:`CONTROL_STATES` order."""
         return float(self.w @ x)
 
     def command(self, x: np.ndarray) -> float:
-        """y_d, m (unsaturated), from x in :data:`CONTROL_STATES` order (psi as psi - psi_d)."""
+        """y_d of (6.3.45), sampled (module docstring), m (unsaturated), from x in
+        :data:`CONTROL_STATES` order (psi as psi - psi_d)."""
         h = self.sample_time
         remainder = self.design.derivative(x, 0.0) - self.A @ x  # f*_hat(x), (6.3.32)
         s = self.sliding_variable(x)

@@ -238,8 +238,9 @@ class PlantModel:
 
     def kinetic_energy(self, x: np.ndarray, inputs: np.ndarray) -> float:
         """Kinetic energy of the motion relative to the water, J: 1/2 nu_r^T (M_RB + M_A)
-        nu_r; with the two-body model, of hull, fluid and moving mass together,
-        1/2 nu_r^T M(y_v) nu_r + m_v y' J.nu_r + 1/2 m_v y'^2."""
+        nu_r (5.1.1), constant in an ideal fluid (Thm 5.1); with the two-body model, of
+        hull, fluid and moving mass together, 1/2 nu_r^T M(y_v) nu_r + m_v y' J.nu_r
+        + 1/2 m_v y'^2."""
         nu_r = self.relative_velocity(x, inputs)
         if not self.two_body:
             return 0.5 * float(nu_r @ self.mass_matrix @ nu_r)
@@ -547,7 +548,7 @@ class PlantModel:
 
     def current_change_velocity_jump(self, x: np.ndarray, delta_current: np.ndarray) -> np.ndarray:
         """Velocity change of the hull when the uniform current jumps by delta_current (earth,
-        m/s) between two steps: the impulse of the (Mbar + M_A) nuc_dot term,
+        m/s) between two steps: the impulse of the (Mbar + M_A) nuc_dot term of (3.6.2),
         (M_RB + M_A) d nu = (Mbar + M_A) [dU; 0], dU the jump in body axes
         (:meth:`current_in_body`); ``x`` a state or a stepping state."""
         d_nuc = np.zeros(6)

@@ -76,7 +76,8 @@ def rigid_body_mass_matrix(params: InertiaParameters) -> np.ndarray:
 
 
 def added_mass_matrix(params: InertiaParameters) -> np.ndarray:
-    """M_A: diag(a11..a66) with the sway-yaw (a26 = a62) and heave-pitch (a35 = a53) pairs."""
+    """M_A: diag(a11..a66) with the sway-yaw (a26 = a62) and heave-pitch (a35 = a53) pairs
+    (Tables 5.1, 5.4, 6.1)."""
     M = np.diag([params.a11, params.a22, params.a33, params.a44, params.a55, params.a66])
     M[1, 5] = M[5, 1] = params.a26
     M[2, 4] = M[4, 2] = params.a35
