@@ -1485,6 +1485,7 @@ def _check_step_sizes(
                         "'gauss-seidel' or 'jacobi' with a fixed step",
                     )
             continue
+        _check_sample_period(name, inst, k * coupling.step, src)
         steps = spec.stop_time / (k * coupling.step)
         whole = abs(steps - round(steps)) <= _STEP_TOLERANCE * max(1.0, steps)
         if not cs.canHandleVariableCommunicationStepSize and not whole:
@@ -1495,6 +1496,28 @@ def _check_step_sizes(
                 'canHandleVariableCommunicationStepSize="false": its last step cannot be '
                 "shortened; choose a stop time that is a multiple of its step",
             )
+
+
+def _check_sample_period(name: str, inst: Instance, step: float, src: Source) -> None:
+    """A digital controller's ``sample_period`` (s; the autopilot's) longer than its step
+    ``step`` (s, k h) must be a whole number of those steps: it samples at the first doStep
+    at or after each multiple of its period, so another period takes some samples up to a
+    step late, without a word (a period the step is longer than samples at every step,
+    which the autopilot warns of itself). The adaptive algorithm ends a step on each
+    sample instead (:func:`cosim.engine.adaptive.sample_periods`)."""
+    period = float(inst.start.get("sample_period", 0.0))
+    if not period > step:
+        return
+    steps = period / step
+    if abs(steps - round(steps)) <= _STEP_TOLERANCE * steps:
+        return
+    raise src.error(
+        f"instances.{name}.start.sample_period",
+        f"{period!r} s is not a whole number of {name}'s steps of {step!r} s (coupling.step "
+        "x its step_multiples): it samples at the first step at or after each multiple of "
+        "its period, so some samples would be up to a step late; choose a sample_period "
+        f"that is a multiple of {step!r} s, or a step that divides {period!r} s",
+    )
 
 
 def _resolve_connections(

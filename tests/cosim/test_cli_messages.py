@@ -35,6 +35,8 @@ NOT_VALUES = 'summary = "not a reference value"\n'  # a TOML file, not the print
 BAD_INPUTS: list[tuple[str, dict[str, str], int, str]] = [
     ("run no-such-scenario", {}, 1, "unknown scenario 'no-such-scenario'"),
     ("run bs-3 --step 0 --fmu-dir {fmus}", {}, 1, "--step 0.0: expected"),
+    ("run lqr-1 --step 0.004 --fmu-dir {fmus}", {}, 1,
+     "0.01 s is not a whole number of controller's steps of 0.004 s"),
     ("run bs-3 --stop-time nan --fmu-dir {fmus}", {}, 1, "--stop-time nan: expected"),
     ("run bs-3 --tolerance -1 --fmu-dir {fmus}", {}, 1, "--tolerance -1.0: expected"),
     ("run bs-3 --tolerance 0.01 --fmu-dir {fmus}", {}, 1, "--tolerance 0.01: applies"),

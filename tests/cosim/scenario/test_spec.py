@@ -195,6 +195,32 @@ def test_step_override_redesigns_a_controller_tied_to_the_step(fmu_dir: Path) ->
     )
 
 
+def test_a_sample_period_no_whole_number_of_its_steps_is_refused(fmu_dir: Path) -> None:
+    """lqr-1's digital autopilot (sample_period = 0.01 s) at --step 0.004 sampled at the
+    first doStep at or after each multiple of 0.01 s: at 0.012 s, 0.032 s, ..., every other
+    sample 2 ms late, without a word. A period that is a whole number of the instance's
+    steps (k x step) runs; so does the adaptive algorithm, whose steps end on each sample."""
+    shipped = load_scenario("lqr-1", fmu_dir=fmu_dir)
+    with pytest.raises(ScenarioError) as refused:
+        shipped.with_overrides(step=0.004)
+    assert str(refused.value).endswith(
+        "key 'instances.controller.start.sample_period': 0.01 s is not a whole number of "
+        "controller's steps of 0.004 s (coupling.step x its step_multiples): it samples at "
+        "the first step at or after each multiple of its period, so some samples would be "
+        "up to a step late; choose a sample_period that is a multiple of 0.004 s, or a step "
+        "that divides 0.01 s"
+    ), str(refused.value)
+    assert shipped.with_overrides(step=0.005).coupling.step == 0.005  # 2 steps a sample
+    assert shipped.with_overrides(step=0.02).coupling.step == 0.02  # a sample every step
+    adaptive = shipped.with_overrides(step=0.004, algorithm="adaptive")
+    assert adaptive.coupling.algorithm == "adaptive"
+    path = scenario_path("lqr-1")
+    text = path.read_text(encoding="utf-8")
+    text = text.replace("\nstep = 0.01", "\nstep = 0.002\nstep_multiples = { controller = 3 }")
+    with pytest.raises(ScenarioError, match=r"controller's steps of 0\.006 s"):
+        scenario_from_toml(text, base_dir=path.parent, fmu_dir=fmu_dir)
+
+
 def test_a_design_step_is_moved_when_it_is_a_multiple_step_up_to_rounding(fmu_dir: Path) -> None:
     """A controller stepping every 3 steps of 0.1 s, designed for 0.3 s: 3 x 0.1 is
     0.30000000000000004, which the exact comparison missed, leaving it designed for 0.3 s
