@@ -71,8 +71,7 @@ def _fast_gains(scenario: Scenario, name: str, autopilot: Instance) -> list[str]
     whose product with its sampling interval (its ``sample_period``, at least its step
     multiple of the communication step) is past :data:`FASTEST_GAIN_STEPS`: a gain typed
     orders of magnitude too large, which runs with the actuators on their stops."""
-    multiple = scenario.coupling.step_multiples.get(name, 1)
-    interval = max(float(_start(autopilot, "sample_period")), scenario.coupling.step * multiple)
+    interval = _sample_time(scenario, name, autopilot)
     given = [(f"instances.{name}.start.{v}", v, x) for v, x in autopilot.start.items()]
     for event in scenario.events:
         given += [
@@ -91,6 +90,13 @@ def _fast_gains(scenario: Scenario, name: str, autopilot: Instance) -> list[str]
         and isinstance(value, float)
         and value * interval > FASTEST_GAIN_STEPS
     ]
+
+
+def _sample_time(scenario: Scenario, name: str, autopilot: Instance) -> float:
+    """The time (s) between two of ``name``'s samples: its ``sample_period``, at least its
+    step (its step multiple of the communication step): it samples at doSteps only."""
+    multiple = scenario.coupling.step_multiples.get(name, 1)
+    return max(float(_start(autopilot, "sample_period")), scenario.coupling.step * multiple)
 
 
 def _steered(scenario: Scenario, autopilot: str) -> dict[str, Instance]:
@@ -271,12 +277,12 @@ def _extrapolated_command_doubt(scenario: Scenario, name: str, autopilot: Instan
 def _late_command_doubt(scenario: Scenario, name: str, autopilot: Instance) -> str:
     """The warning if ``name`` runs the LQR (at its start or after an event) and the
     coupling hands its mass command to the plant one communication step late (Jacobi, or a
-    Gauss-Seidel order with the plant first) while its loop, delayed so (by at most one
-    design step), is unstable (:func:`_unstable_when_late`; '' if not)."""
+    Gauss-Seidel order with the plant first) while its loop, its gains (designed for
+    design_step) sampled as it samples and delayed so (by at most one sample), is unstable
+    (:func:`_unstable_when_late`; '' if not)."""
     if HeadingMode.LQR not in _heading_modes(scenario, name, autopilot):
         return ""
     coupling = scenario.coupling
-    design_step = float(_start(autopilot, "design_step"))
     command = f"{name}.mass_position_cmd"
     for connection in scenario.connections:
         plant = connection.target.partition(".")[0]
@@ -288,30 +294,53 @@ def _late_command_doubt(scenario: Scenario, name: str, autopilot: Instance) -> s
             cause = f"coupling.order = {list(coupling.order)} steps {plant} before {name}: it"
         else:
             continue
-        if not _unstable_when_late(autopilot, min(coupling.step, design_step)):
+        sample = _sample_time(scenario, name, autopilot)
+        step = coupling.step * coupling.step_multiples.get(plant, 1)  # the plant's, s
+        if not _unstable_when_late(autopilot, sample, min(step, sample)):
             return ""
-        under = (
-            f"one of its {design_step:g} s samples"
-            if coupling.step >= design_step
-            else f"{coupling.step:g} s"
-        )
-        return (
-            f"{name} runs heading_mode lqr, whose delay margin is under {under} "
-            f"(auv-cosim analyze margins), but {cause} hands "
-            f"{command} to {plant} one {coupling.step:g} s step late: the loop is unstable "
-            "(lqr-1 so banged its mass command between -100 and +100 m and never settled); "
-            f'use algorithm = "gauss-seidel" with {name} before {plant} in the order, as '
-            "lqr-1 to lqr-3 do"
-        )
+        return _late_command_text(name, autopilot, sample, step, cause, plant)
     return ""
 
 
-def _unstable_when_late(autopilot: Instance, delay: float) -> bool:
-    """Whether the autopilot's LQR loop, on its own design model (its vehicle at its
-    design_speed, sampled every design_step), has a pole outside the unit circle with its
-    command ``delay`` s late (:func:`controller_fmu.lqr.delayed_poles`); False where no
-    LQR can be designed (the autopilot refuses that itself). The REMUS 100 takes 0.92 to
-    1.05 steps of delay at design steps of 50 to 1 ms (``analyze margins --step``)."""
+def _late_command_text(
+    name: str, autopilot: Instance, sample: float, step: float, cause: str, plant: str
+) -> str:
+    """:func:`_late_command_doubt`'s line: ``name`` samples every ``sample`` s and
+    ``cause`` hands its command to ``plant``, stepping every ``step`` s, one step late."""
+    design_step = float(_start(autopilot, "design_step"))
+    command = f"{name}.mass_position_cmd"
+    handed = f"{cause} hands {command} to {plant} one {step:g} s step late"
+    lqr_1 = "(lqr-1 so banged its mass command between -100 and +100 m and never settled)"
+    advice = (
+        f'use algorithm = "gauss-seidel" with {name} before {plant} in the order, as '
+        "lqr-1 to lqr-3 do"
+    )
+    if math.isclose(sample, design_step, rel_tol=1e-9):
+        under = f"one of its {design_step:g} s samples" if step >= design_step else f"{step:g} s"
+        return (
+            f"{name} runs heading_mode lqr, whose delay margin is under {under} "
+            f"(auv-cosim analyze margins), but {handed}: the loop is unstable {lqr_1}; "
+            f"{advice}"
+        )
+    if _unstable_when_late(autopilot, sample, 0.0):
+        advice = (
+            "its gains are unstable at that sample time even with the command on time: set "
+            f"design_step = {sample:g} s, the time it samples at"
+        )
+    return (
+        f"{name} runs heading_mode lqr designed for {design_step:g} s samples (design_step) "
+        f"but sampling every {sample:g} s, whose loop so sampled is unstable with its "
+        f"command {min(step, sample):g} s late, and {handed} {lqr_1}; {advice}"
+    )
+
+
+def _unstable_when_late(autopilot: Instance, sample: float, delay: float) -> bool:
+    """Whether the autopilot's LQR loop, its gains designed on its own design model (its
+    vehicle at its design_speed, sampled every design_step) and sampled every ``sample``
+    s, has a pole outside the unit circle with its command ``delay`` s late
+    (:func:`controller_fmu.lqr.delayed_poles`); False where no LQR can be designed (the
+    autopilot refuses that itself). The REMUS 100 takes 0.92 to 1.05 steps of delay at
+    design steps of 50 to 1 ms (``analyze margins --step``) sampled at them."""
     from controller_fmu.lateral_model import LateralDesignModel
     from controller_fmu.lqr import LqrHeading, delayed_poles
     from plant_fmu.model.parameters import load_vehicle
@@ -325,7 +354,7 @@ def _unstable_when_late(autopilot: Instance, delay: float) -> bool:
         lqr = LqrHeading(design, step, q_y, float(_start(autopilot, "lqr_r")))
     except ValueError:
         return False
-    poles = delayed_poles(lqr.A, lqr.B, lqr.gain, step, delay)
+    poles = delayed_poles(lqr.A, lqr.B, lqr.gain, sample, delay)
     return bool(np.abs(poles).max() >= 1.0)
 
 

@@ -159,6 +159,38 @@ def test_an_lqr_whose_command_reaches_the_plant_a_step_late_is_named(
     assert design_doubts(sliding) == []  # takes 10 steps of delay and settles
 
 
+def test_a_late_lqr_command_is_checked_at_the_step_the_autopilot_samples_at(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """lqr-1 designed for 2 ms, sampled and coupled every 4 ms under Jacobi: the check
+    closed the loop of its 2 ms design with the command one 2 ms sample late, stable (its
+    delay margin is over a step at 2 ms), and said nothing; the gains the autopilot runs,
+    sampled every 4 ms and handed on 4 ms late, leave the loop unstable (|z| = 1.41). A
+    loop those gains cannot hold even on time is named for its design step, not for the
+    coupling."""
+    late = (
+        _load(fmu_paths, "lqr-1")
+        .with_start({"controller.design_step": 0.002, "controller.sample_period": 0.004})
+        .with_overrides(step=0.004, algorithm="jacobi")
+    )
+    (line,) = design_doubts(late)
+    assert line.startswith(
+        "controller runs heading_mode lqr designed for 0.002 s samples (design_step) but "
+        "sampling every 0.004 s, whose loop so sampled is unstable with its command 0.004 s "
+        "late, and coupling.algorithm = 'jacobi' hands controller.mass_position_cmd to plant "
+        "one 0.004 s step late"
+    ), line
+    assert 'use algorithm = "gauss-seidel"' in line, line
+    on_time = late.with_overrides(algorithm="gauss-seidel")
+    assert design_doubts(on_time) == []  # the 2 ms gains sampled every 4 ms, on time: stable
+    slower = late.with_start({"controller.design_step": 0.001})  # unstable even on time
+    (line,) = design_doubts(slower)
+    assert line.endswith(
+        "its gains are unstable at that sample time even with the command on time: set "
+        "design_step = 0.004 s, the time it samples at"
+    ), line
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("design_step", [0.001, 0.002, 0.004, 0.01, 0.05])
 def test_a_late_lqr_command_is_named_only_where_the_delay_margin_is_under_a_step(
