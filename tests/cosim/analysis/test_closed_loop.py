@@ -1,7 +1,9 @@
 """The LQR design's linear closed loop against the nonlinear one the simulation runs (the
 in-process closed loop: the plant's RK4 steps and the autopilot, as a master couples the
 FMUs under lqr-1's Gauss-Seidel order): the same poles from the simulation's own Jacobian,
-and the same step response for a small heading step, fading as the step grows."""
+and the same step response for a small heading step, fading as the step grows; and the
+depth PD's poles, as its design check and ``analyze margins --loop depth`` compute them,
+against the same Jacobian of the 6-DOF loop."""
 
 from __future__ import annotations
 
@@ -12,11 +14,13 @@ import numpy as np
 import pytest
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
+from controller_fmu.depth_pd import DEPTH_PLANE_STATES, DepthPd, sampled_loop_poles
 from controller_fmu.matrix_exponential import zero_order_hold
 from cosim.analysis.closed_loop import simulate_closed_loop
+from cosim.analysis.margins import depth_loop, loop_margins
 from plant_fmu.model.compiled import CompiledPlant
 from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
-from plant_fmu.model.linearization import input_vector, state_vector
+from plant_fmu.model.linearization import input_vector, linearize, state_vector
 from plant_fmu.model.parameters import VehicleParameters
 
 STEP_INFO = ("RiseTime", "SettlingTime", "Overshoot")  # s, s, % of the step
@@ -68,6 +72,75 @@ def test_the_designed_poles_are_the_simulated_loops_own(
         assert abs(simulated.pop(nearest) - pole) < 1e-6, (pole, simulated)
     surge = math.exp(float(_surge_rate(model, speed)) * step)
     np.testing.assert_allclose(np.sort(np.real(simulated)), [surge, 1.0, 1.0], atol=1e-6)
+
+
+@pytest.mark.parametrize(("speed", "step"), [(1.525, 0.01), (1.017, 0.05), (2.0, 0.001)])
+def test_the_depth_loops_poles_are_the_simulated_loops_own(
+    remus: VehicleParameters, speed: float, step: float
+) -> None:
+    """The depth PD's closed-loop poles as ``auv-cosim analyze margins --loop depth``
+    prints them (python-control's zero-order hold of the depth plane) and as the autopilot
+    checks its gains (:func:`controller_fmu.depth_pd.sampled_loop_poles`) against the
+    eigenvalues of the Jacobian of one sample of the simulated 6-DOF loop (the depth PD on,
+    no heading law; the plant's RK4 step with the fin command held), by central
+    differences about the straight run.
+
+    The simulated loop is the depth plane with the surge speed u, closed by the law's gain
+    (to 1e-6); the design's plane leaves u out (z_g couples surge and pitch in the mass
+    matrix), which moves its poles by under 2e-3 1/s (a sign slip in the analysis's loop,
+    or a lost tau_d, moves them by whole 1/s). The vehicle is made neutrally buoyant
+    (B = W), so that the straight run the design linearises at is the loop's equilibrium:
+    REMUS 100's 7 N of net buoyancy moves the simulated sample off it (w' = -0.11 m/s^2)."""
+    remus = remus.replace(B=remus.W)
+    model = PlantModel(remus, variant=Variant.FULL)
+    config = AutopilotConfig.build(
+        heading_mode=0, depth_mode=1, design_speed=speed, design_step=step,
+        thrust_command=_trim_thrust(model, speed),
+    )  # fmt: skip
+    autopilot = Autopilot(config)
+    x0 = state_vector({"u": speed})
+    simulated = np.linalg.eigvals(_sample_jacobian(autopilot, model, x0, step))
+    analysed = loop_margins(depth_loop(remus, step, speed)).poles
+    designed = sampled_loop_poles(DepthPd(), remus, speed, step)
+    np.testing.assert_allclose(np.sort_complex(analysed), np.sort_complex(designed))
+    with_surge = _depth_loop_with_surge(model, x0, config.thrust_command, step)
+    for pole in with_surge:
+        assert np.abs(simulated - pole).min() < 1e-6, (pole, simulated)
+    for pole in designed:  # 1/s: the continuous-time shift
+        nearest = with_surge[np.argmin(np.abs(with_surge - pole))]
+        assert abs(np.log(nearest) - np.log(pole)) / step < 2e-3, (pole, with_surge)
+
+
+def _sample_jacobian(
+    autopilot: Autopilot, model: PlantModel, x0: np.ndarray, step: float
+) -> np.ndarray:
+    """The Jacobian of one sample of the simulated loop over the variant's free states,
+    by central differences of 1e-6 about ``x0``."""
+    free = [STATE_INDEX[name] for name in model.variant.states]
+
+    def sample(x: np.ndarray) -> np.ndarray:
+        return simulate_closed_loop(autopilot, model, x, step, step).states[1, free]
+
+    jacobian = np.empty((len(free), len(free)))
+    for j, k in enumerate(free):
+        delta = np.zeros_like(x0)
+        delta[k] = 1e-6
+        jacobian[:, j] = (sample(x0 + delta) - sample(x0 - delta)) / 2e-6
+    return jacobian
+
+
+def _depth_loop_with_surge(
+    model: PlantModel, x0: np.ndarray, thrust: float, step: float
+) -> np.ndarray:
+    """The poles z of Table 6.2's depth PD closed on the plant's (u, w, q, z, theta),
+    linearised at ``x0`` with ``thrust`` (N), its fins held over each ``step`` s."""
+    states = ("u", *DEPTH_PLANE_STATES)
+    A, B = linearize(model, x0, input_vector(thrust=thrust), states, ["fin_angle"])
+    law = DepthPd()
+    gain = law.k_p * np.array([0.0, 0.0, law.tau_d, law.gamma, 1.0])  # closed_plane's, u too
+    Ad, Bd = zero_order_hold(A, B, step)
+    poles: np.ndarray = np.linalg.eigvals(Ad + Bd @ gain[None, :])
+    return poles
 
 
 def _surge_rate(model: PlantModel, speed: float) -> float:
