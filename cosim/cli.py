@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 from cosim.errors import (
     CosimError,
     did_you_mean,
+    matplotlib_folder_absolute,
     matplotlib_folder_in_one_line,
     matplotlib_off_screen,
     one_line,
@@ -1118,6 +1119,14 @@ def _add_model_options(a: argparse.ArgumentParser, variant_default: str = "horiz
     )
 
 
+def _matplotlib_cache() -> Path:
+    """Where matplotlib's folder goes when its own would be relative: beside auv-cosim's
+    caches (imported here: the command's start imports no more than it needs)."""
+    from cosim.user_cache import cache_root
+
+    return cache_root() / "matplotlib"
+
+
 def _named(args: argparse.Namespace) -> str:
     """How a line of the command names it: ``auv-cosim run``, and an analysis with its
     command, ``auv-cosim analyze margins``."""
@@ -1158,6 +1167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:
         warnings.showwarning = one_line_warnings(_named(args))
         matplotlib_folder_in_one_line()
+        matplotlib_folder_absolute(_matplotlib_cache)
         matplotlib_off_screen()
     # a study's imports and cluster with the collector off (cosim.study.collector); not in a
     # caller's process, whose objects the collector's resumption would freeze for good

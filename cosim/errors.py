@@ -245,6 +245,24 @@ def matplotlib_off_screen() -> None:
     os.environ["MPLBACKEND"] = "agg"
 
 
+def matplotlib_folder_absolute(fallback: Callable[[], Path]) -> None:
+    """Point matplotlib at the folder ``fallback()`` returns (``MPLCONFIGDIR``, unless the
+    user set it) where its own folders would be relative: a relative (or empty) ``HOME``,
+    ``XDG_CONFIG_HOME`` or ``XDG_CACHE_HOME``, which matplotlib takes as it is, so that a
+    command drawing from another folder made ``<HOME>/.config/matplotlib`` and
+    ``<HOME>/.cache/matplotlib`` there. auv-cosim's own caches ignore a relative one
+    (:func:`plant_fmu.model.jit.default_cache_dir`); ``fallback`` is called only then.
+    Before matplotlib is imported; for the command's own process (the Python API leaves
+    its caller's environment as it is)."""
+    if os.environ.get("MPLCONFIGDIR"):
+        return
+    home = os.environ.get("HOME")
+    xdg = [os.environ.get(name, "") for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME")]
+    relative = home is not None and not os.path.isabs(home)
+    if relative or any(base and not os.path.isabs(base) for base in xdg):
+        os.environ["MPLCONFIGDIR"] = str(fallback())
+
+
 def matplotlib_folder_in_one_line() -> None:
     """Have matplotlib's warnings of a folder it cannot write said in one line (with
     :func:`one_line_warnings`), before matplotlib is imported; matplotlib itself is not."""

@@ -572,6 +572,42 @@ def test_a_home_that_cannot_be_written_costs_matplotlib_one_line(run_python, tmp
     assert [p.name for p in scratch.iterdir() if not p.name.startswith("auv-cosim-scratch")] == []
 
 
+RELATIVE_HOME = """
+import os, sys
+from plant_fmu.model.jit import default_cache_dir
+
+os.environ.setdefault("NUMBA_CACHE_DIR", str(default_cache_dir()))  # the session's kernels
+for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME", "MPLCONFIGDIR"):
+    os.environ.pop(name, None)
+os.environ["HOME"], os.environ["TMPDIR"] = "home", sys.argv[1]
+os.chdir(sys.argv[2])
+sys.argv = ["auv-cosim", *sys.argv[3:]]
+from cosim.cli import main
+
+sys.exit(main())
+"""
+
+
+@pytest.mark.slow
+def test_a_relative_home_puts_nothing_into_the_working_folder(run_python, tmp_path):
+    """With ``HOME=home`` (relative), ``auv-cosim analyze phase-portrait --out DIR`` made
+    ``home/.config/matplotlib`` and ``home/.cache/matplotlib/fontlist-*.json`` in the
+    folder it was run from: matplotlib takes a relative HOME as it is, where auv-cosim's
+    own caches ignore it. matplotlib's folder is then the one auv-cosim's caches fall back
+    to, absolute, and the working folder is left as it was."""
+    scratch, work, out = tmp_path / "tmp", tmp_path / "work", tmp_path / "portrait"
+    scratch.mkdir()
+    work.mkdir()
+    done = run_python(RELATIVE_HOME, scratch, work, "analyze", "phase-portrait", "--out", out)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (out / "phase_portrait.png").is_file()
+    assert sorted(str(p.relative_to(work)) for p in work.rglob("*")) == []
+    assert "matplotlib" not in done.stderr, done.stderr  # a folder it could write
+    assert list(scratch.glob("auv-cosim-cache-*/matplotlib/fontlist-*.json")), list(
+        scratch.rglob("*")
+    )
+
+
 MATPLOTLIB_WITHOUT_HOME = """
 import os, pwd, sys, warnings
 for name in ("HOME", "XDG_CONFIG_HOME", "XDG_CACHE_HOME", "MPLCONFIGDIR"):
