@@ -11,11 +11,14 @@ starts before the study is read, so that its imports run beside the client's): i
 for the client to hand it over (:func:`cosim.study.fork_server.hand_over`: the study's
 :class:`~cosim.study.execution.Job`, written whole into the file named by
 :data:`~cosim.study.fork_server.WARM_VARIABLE`) while its workers' fork requests wait in
-its socket, and gives up, warming nothing, once the client has ended or after WAIT_S (each
-worker then warms up in its first task, as without this; it does so all the same, in
-~0.02 s, where the server has). Nothing of the warm-up is live as the server forks: the
-FMU instances are freed, no thread is left, the run's scratch folder is removed. Never
-raises: a failed warm-up leaves it to the workers, whose first run reports the reason.
+its socket, as long as the client checks the study (an FMU build, a large plan: it hands
+the study over, or says that none is coming, on every path of the command), and gives up,
+warming nothing, once the client has ended or has said so (each worker then warms up in
+its first task, as without this; it does so all the same, in ~0.02 s, where the server
+has), or, a guard against a client that never says, after WAIT_S. Nothing of the warm-up
+is live as the server forks: the FMU instances are freed, no thread is left, the run's
+scratch folder is removed. Never raises: a failed warm-up leaves it to the workers, whose
+first run reports the reason.
 """
 
 import gc
@@ -27,7 +30,10 @@ from pathlib import Path
 
 from cosim.study.fork_server import WARM_VARIABLE
 
-WAIT_S = 5.0  # s the server waits for the study at most (the client checks it meanwhile)
+# s the server waits for the study at most while its client lives: the client checks it
+# meanwhile, which took over 5 s (the wait until then: its workers started unwarmed), and
+# says when none is coming; this only ends the wait of a client that never says
+WAIT_S = 600.0
 POLL_S = 0.005  # s between two looks for the hand-over file
 
 

@@ -36,6 +36,31 @@ def test_the_server_gives_up_when_no_study_comes_in_time(tmp_path: Path) -> None
     assert handed_over(tmp_path / fork_server.HAND_OVER_FILE, os.getppid(), 0.05) is None
 
 
+class _Checks:
+    """``time`` for :mod:`cosim.study.server_warm` while its client checks a study for
+    ``checks_s`` seconds and then hands it over: each look for the file is 1 s later."""
+
+    def __init__(self, path: Path, checks_s: float) -> None:
+        self.path, self.checks_s, self.now = path, checks_s, 0.0
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.now += 1.0
+        if self.now >= self.checks_s:
+            self.path.write_bytes(b"study")
+
+
+def test_the_server_waits_for_the_study_as_long_as_its_checks_take(tmp_path, monkeypatch):
+    """A study whose checks took longer than 5 s (an FMU build, a large plan) found the
+    server given up: its workers started up to 0.5 s later, each warming up itself. The
+    server waits while the client lives and has not said that no study is coming."""
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    monkeypatch.setattr(server_warm, "time", _Checks(path, checks_s=30.0))
+    assert handed_over(path, os.getppid()) == b"study"
+
+
 def test_the_study_is_handed_over_once_and_none_ends_the_wait(tmp_path, monkeypatch) -> None:
     """The client hands its study over whole, once; a study that ends without one (its
     cluster closing) tells the server to wait no longer, with nothing to warm up on."""
