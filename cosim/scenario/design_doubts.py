@@ -15,6 +15,7 @@ says so in one warning line each, as it does for an angle that looks like degree
 
 from __future__ import annotations
 
+import cmath
 import itertools
 import math
 from collections.abc import Mapping
@@ -26,6 +27,7 @@ from controller_fmu.modes import DepthMode, HeadingMode, unused_parameters
 
 if TYPE_CHECKING:
     from cosim.scenario.spec import Instance, Scenario
+    from cosim.scenario.timeline_spec import Fault
     from plant_fmu.model.parameters import VehicleParameters
 
 PLANT, AUTOPILOT, GUIDANCE = "AuvPlant", "AuvAutopilot", "AuvGuidance"
@@ -52,6 +54,7 @@ def design_doubts(scenario: Scenario, live: bool = False) -> list[str]:
         ]
         found.append(_extrapolated_command_doubt(scenario, name, autopilot))
         found.append(_late_command_doubt(scenario, name, autopilot))
+        found += _gain_fault_doubts(scenario, name, autopilot)
         found.append(_pitch_doubt(scenario, name, autopilot, plants))
         if not live:
             found += _unused_gains(scenario, name, autopilot)
@@ -282,24 +285,84 @@ def _late_command_doubt(scenario: Scenario, name: str, autopilot: Instance) -> s
     (:func:`_unstable_when_late`; '' if not)."""
     if HeadingMode.LQR not in _heading_modes(scenario, name, autopilot):
         return ""
-    coupling = scenario.coupling
-    command = f"{name}.mass_position_cmd"
-    for connection in scenario.connections:
-        plant = connection.target.partition(".")[0]
-        if connection.source != command or plant == name:
-            continue
-        if coupling.algorithm == "jacobi":
-            cause = f"coupling.algorithm = {coupling.algorithm!r}"
-        elif coupling.order.index(plant) < coupling.order.index(name):
-            cause = f"coupling.order = {list(coupling.order)} steps {plant} before {name}: it"
-        else:
+    for plant in _commanded(scenario, name).values():
+        cause = _late_cause(scenario, name, plant)
+        if not cause:
             continue
         sample = _sample_time(scenario, name, autopilot)
-        step = coupling.step * coupling.step_multiples.get(plant, 1)  # the plant's, s
+        step = _plant_step(scenario, plant)
         if not _unstable_when_late(autopilot, sample, min(step, sample)):
             return ""
         return _late_command_text(name, autopilot, sample, step, cause, plant)
     return ""
+
+
+def _commanded(scenario: Scenario, name: str) -> dict[str, str]:
+    """The inputs ``name``'s mass command is connected to, each with its instance."""
+    command = f"{name}.mass_position_cmd"
+    targets = (c.target for c in scenario.connections if c.source == command)
+    return {t: t.partition(".")[0] for t in targets if t.partition(".")[0] != name}
+
+
+def _late_cause(scenario: Scenario, name: str, plant: str) -> str:
+    """Why the coupling hands ``name``'s outputs to ``plant`` one step late, as a warning
+    says it ('' where ``plant`` gets them at once: Gauss-Seidel, ``name`` first)."""
+    coupling = scenario.coupling
+    if coupling.algorithm == "jacobi":
+        return f"coupling.algorithm = {coupling.algorithm!r}"
+    if coupling.order.index(plant) < coupling.order.index(name):
+        return f"coupling.order = {list(coupling.order)} steps {plant} before {name}: it"
+    return ""
+
+
+def _plant_step(scenario: Scenario, plant: str) -> float:
+    """The time (s) between two of ``plant``'s steps."""
+    return scenario.coupling.step * scenario.coupling.step_multiples.get(plant, 1)
+
+
+def _gain_fault_doubts(scenario: Scenario, name: str, autopilot: Instance) -> list[str]:
+    """A warning for each gain fault on ``name``'s mass command (where `auv-cosim analyze
+    margins` breaks the loop) under which its LQR loop, as it samples and as late as the
+    coupling hands the command on (:func:`_worst_pole`), is unstable: a gain past the
+    upper gain margin makes the command chatter between its limits while the key figures
+    look better than a stable loop's (docs/model.md#lqr)."""
+    if HeadingMode.LQR not in _heading_modes(scenario, name, autopilot):
+        return []
+    found = []
+    sample = _sample_time(scenario, name, autopilot)
+    for target, plant in _commanded(scenario, name).items():
+        delay = (
+            min(_plant_step(scenario, plant), sample) if _late_cause(scenario, name, plant) else 0.0
+        )
+        for fault in scenario.faults:
+            if fault.kind != "gain" or fault.target != target or fault.value is None:
+                continue
+            worst = _worst_pole(autopilot, sample, delay, fault.value)
+            if fault.start < scenario.stop_time and worst is not None and abs(worst) >= 1.0:
+                found.append(_gain_fault_text(name, fault, worst, sample))
+    return found
+
+
+def _gain_fault_text(name: str, fault: Fault, worst: complex, sample: float) -> str:
+    """:func:`_gain_fault_doubts`'s line for ``fault``, the loop's worst pole ``worst``
+    (z, of a sample of ``sample`` s)."""
+    angle = abs(cmath.phase(worst))
+    line = (
+        f"faults.{fault.name}: a gain of {fault.value:.4g} on {fault.target} (the command of "
+        f"{name}'s heading_mode lqr) is outside that loop's gain margins (auv-cosim analyze "
+        f"margins), so from t = {fault.start:g} s it is unstable"
+    )
+    if angle < math.pi / 2:
+        return f"{line} (|z| = {abs(worst):.4g} a sample): its heading turns away, slowly"
+    every = (
+        "at every step" if angle > 0.9 * math.pi else f"every {2 * math.pi * sample / angle:.2g} s"
+    )
+    return (
+        f"{line} at {angle / sample:.3g} rad/s (|z| = {abs(worst):.4g} a sample): its command "
+        f"swings between its limits {every}, the mass on its stops, while the heading "
+        "strays less than a stable loop's: the key figures do not show it, the command "
+        f"({name}.mass_position_cmd) does"
+    )
 
 
 def _late_command_text(
@@ -335,12 +398,21 @@ def _late_command_text(
 
 
 def _unstable_when_late(autopilot: Instance, sample: float, delay: float) -> bool:
-    """Whether the autopilot's LQR loop, its gains designed on its own design model (its
-    vehicle at its design_speed, sampled every design_step) and sampled every ``sample``
-    s, has a pole outside the unit circle with its command ``delay`` s late
-    (:func:`controller_fmu.lqr.delayed_poles`); False where no LQR can be designed (the
+    """Whether the autopilot's LQR loop (:func:`_worst_pole`) has a pole outside the unit
+    circle with its command ``delay`` s late; False where no LQR can be designed (the
     autopilot refuses that itself). The REMUS 100 takes 0.92 to 1.05 steps of delay at
     design steps of 50 to 1 ms (``analyze margins --step``) sampled at them."""
+    worst = _worst_pole(autopilot, sample, delay)
+    return worst is not None and abs(worst) >= 1.0
+
+
+def _worst_pole(
+    autopilot: Instance, sample: float, delay: float, gain: float = 1.0
+) -> complex | None:
+    """The largest pole z of the autopilot's LQR loop, its gains designed on its own design
+    model (its vehicle at its design_speed, sampled every design_step), times ``gain``,
+    sampled every ``sample`` s, with its command ``delay`` s late
+    (:func:`controller_fmu.lqr.delayed_poles`); None where no LQR can be designed."""
     from controller_fmu.lateral_model import LateralDesignModel
     from controller_fmu.lqr import LqrHeading, delayed_poles
     from plant_fmu.model.parameters import load_vehicle
@@ -353,9 +425,9 @@ def _unstable_when_late(autopilot: Instance, sample: float, delay: float) -> boo
         design = LateralDesignModel(vehicle, float(_start(autopilot, "design_speed")), False)
         lqr = LqrHeading(design, step, q_y, float(_start(autopilot, "lqr_r")))
     except ValueError:
-        return False
-    poles = delayed_poles(lqr.A, lqr.B, lqr.gain, sample, delay)
-    return bool(np.abs(poles).max() >= 1.0)
+        return None
+    poles = delayed_poles(lqr.A, lqr.B, gain * lqr.gain, sample, delay)
+    return complex(poles[np.argmax(np.abs(poles))])
 
 
 def _pitch_doubt(

@@ -191,6 +191,49 @@ def test_a_late_lqr_command_is_checked_at_the_step_the_autopilot_samples_at(
     ), line
 
 
+def _gain_fault(fmu_paths: dict[str, Path], tmp_path: Path, gain: float) -> cosim.Scenario:
+    """lqr-1 with a gain fault of ``gain`` on its command to plant.mass_position_cmd from
+    t = 1 s: the loop broken where `auv-cosim analyze margins` breaks it."""
+    text = (Path(cosim.__file__).parent / "scenarios" / "lqr-1.toml").read_text()
+    text += '\n[[faults]]\nname = "servo"\ntarget = "plant.mass_position_cmd"\n'
+    text += f'kind = "gain"\nvalue = {gain!r}\nstart = 1.0\n'
+    path = tmp_path / f"gain-{gain!r}.toml"
+    path.write_text(text)
+    return _load(fmu_paths, path)
+
+
+def test_a_gain_fault_past_the_lqr_loops_gain_margins_is_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """lqr-1 with a gain fault of 1.1 times the upper gain margin `auv-cosim analyze
+    margins` prints on its mass command ran without a word: the command swung between its
+    +-100 m limits at every step and rattled the mass on its stops, while the key figures
+    looked better than the stable loop's (the heading strays less: the servo filters the
+    314 rad/s command). The warning is given exactly outside the margins, and says where
+    to look; below the lower margin the heading turns away instead."""
+    from cosim.analysis.margins import loop_margins, lqr_loop
+    from plant_fmu.model.parameters import load_vehicle
+
+    margins = loop_margins(lqr_loop(load_vehicle("remus100"), 1.525, 0.01))
+    upper, lower = margins.upper_gain_margin, margins.lower_gain_margin
+    assert upper is not None and lower is not None
+    (line,) = design_doubts(_gain_fault(fmu_paths, tmp_path, 1.1 * upper.value))
+    assert line.startswith(
+        f"faults.servo: a gain of {1.1 * upper.value:.4g} on plant.mass_position_cmd (the "
+        "command of controller's heading_mode lqr) is outside that loop's gain margins "
+        "(auv-cosim analyze margins), so from t = 1 s it is unstable at 314 rad/s"
+    ), line
+    assert line.endswith(
+        "its command swings between its limits at every step, the mass on its stops, while "
+        "the heading strays less than a stable loop's: the key figures do not show it, the "
+        "command (controller.mass_position_cmd) does"
+    ), line
+    assert design_doubts(_gain_fault(fmu_paths, tmp_path, 0.9 * upper.value)) == []
+    (line,) = design_doubts(_gain_fault(fmu_paths, tmp_path, 0.8 * lower.value))
+    assert line.endswith("its heading turns away, slowly"), line
+    assert design_doubts(_gain_fault(fmu_paths, tmp_path, 1.25 * lower.value)) == []
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("design_step", [0.001, 0.002, 0.004, 0.01, 0.05])
 def test_a_late_lqr_command_is_named_only_where_the_delay_margin_is_under_a_step(
