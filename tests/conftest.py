@@ -10,7 +10,8 @@ Python runner.
 * ``fmu_paths`` (session): ``{"AuvPlant": Path, "AuvAutopilot": Path}`` built once per test
   session into a temporary folder with :mod:`cosim.fmus.build`. An FMU whose build fails
   is absent, and looking it up raises that build's error (so a broken FMU fails only the
-  tests that use it).
+  tests that use it). With xdist, numba's kernels (the FMUs' and the source tree's) are
+  then compiled once for all the workers where the cache holds none (``tests/numba_warm.py``).
 * ``test_fmu_dir`` (session): the folder holding the master tests' FMUs built from
   tests/fmus (``CosimTestIntegrator.fmu``, ``CosimTestGain.fmu``).
 * Both folders are shared by the session's xdist workers (``tests/worker_shared.py``): one
@@ -62,6 +63,7 @@ from pathlib import Path
 import pytest
 from deadline import deadline
 from hypothesis import settings
+from numba_warm import compile_once
 from process_group import run_in_group
 from process_state import (
     WATCHED_SIGNALS,
@@ -179,6 +181,8 @@ def fmu_paths(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
             built[name] = build_fmu(name, out)
         except CosimError as exc:
             failures[name] = exc
+    if "AuvPlant" in built and "AuvAutopilot" in built:
+        compile_once(tmp_path_factory, built["AuvPlant"])  # numba's kernels, once
     return BuiltFmus({name: built[name] for name in FMUS if name in built}, failures)
 
 
