@@ -161,10 +161,12 @@ def _warm_up_named(warm: bool) -> Iterator[None]:
 def hand_over(job: object | None) -> bool:
     """Hand the study's :class:`cosim.study.execution.Job` to the fork server waiting for it
     (:func:`start` with ``warm``), once, written whole (pickled); whether it was (not if
-    none waits). None: the server is to wait no longer and warm nothing (a study ending
-    before it could hand its job over, whose cluster's start waits for the server; a job
-    pickle cannot write is handed over as None). Never raises: a server that finds
-    nothing, or nothing it can read, warms nothing."""
+    none waits: a server that gave up waiting left the file, empty, where the study
+    would go, :func:`cosim.study.server_warm.handed_over`). None: the server is to wait
+    no longer and warm nothing (a study ending before it could hand its job over, whose
+    cluster's start waits for the server; a job pickle cannot write is handed over as
+    None). Never raises: a server that finds nothing, or nothing it can read, warms
+    nothing."""
     global _hand_over
     with _handing:
         path, _hand_over = _hand_over, None
@@ -176,13 +178,32 @@ def hand_over(job: object | None) -> bool:
     if job is not None:
         with suppress(pickle.PicklingError, TypeError, AttributeError):  # (unpicklable)
             content = pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL)
+    part = path + ".part"
     try:
-        with open(path + ".part", "wb") as out:
+        with open(part, "wb") as out:
             out.write(content)
-        os.replace(path + ".part", path)
-    except OSError:
+        _publish(part, path)
+    except OSError:  # FileExistsError: the server's own, empty: it waits no longer
         return False
+    finally:
+        with suppress(OSError):
+            os.unlink(part)
     return bool(content)
+
+
+def _publish(part: str, path: str) -> None:
+    """``part`` (written whole) made ``path`` at once, unless ``path`` exists:
+    FileExistsError then (a hard link, which never replaces; a rename would overwrite
+    the server's mark that it gave up). Where the file system has no hard links, a copy
+    renamed into place, as before the server could give up."""
+    try:
+        os.link(part, path)
+    except FileExistsError:
+        raise
+    except OSError:
+        if os.path.exists(path):
+            raise FileExistsError(path) from None
+        os.replace(part, path)
 
 
 def pre_spawn_environ() -> dict[str, str]:

@@ -41,17 +41,32 @@ def handed_over(path: Path, parent: int, wait_s: float = WAIT_S) -> bytes | None
     """The hand-over file's bytes once it exists (the file then removed); None once the
     process ``parent`` (the client that started this one) has ended or ``wait_s``
     passed. Polled: the server has no channel from the client but the file (it is started
-    with only its socket and its pipe to the client open)."""
+    with only its socket and its pipe to the client open). Giving up after ``wait_s``, it
+    makes the file itself, empty, where the client's would have come: a study handed over
+    later finds it there and is not taken (:func:`cosim.study.fork_server.hand_over`);
+    one handed over just before is read."""
     deadline = time.monotonic() + wait_s
     while os.getppid() == parent:
         with suppress(FileNotFoundError):
             content = path.read_bytes()
             path.unlink(missing_ok=True)
             return content
-        if time.monotonic() >= deadline:
+        if time.monotonic() >= deadline and _given_up(path):
             return None
         time.sleep(POLL_S)
     return None
+
+
+def _given_up(path: Path) -> bool:
+    """Whether this process made ``path`` (empty), saying it waits no longer; not if the
+    client's hand-over is there first (then to be read), nor if it cannot be made."""
+    try:
+        os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+    except FileExistsError:
+        return False
+    except OSError:
+        pass  # the client cannot hand over into that folder either
+    return True
 
 
 def warm(content: bytes) -> None:

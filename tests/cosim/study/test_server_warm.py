@@ -75,6 +75,27 @@ def test_the_study_is_handed_over_once_and_none_ends_the_wait(tmp_path, monkeypa
     assert handed_over(path, os.getppid(), 0.0) == b""
 
 
+def test_a_study_handed_over_after_the_server_gave_up_is_not_taken(tmp_path, monkeypatch) -> None:
+    """A server that stopped waiting (its wait over) warms nothing: the client is told
+    its study was not taken, so it does not count on the time the warm-up would have
+    left it (the page's matplotlib loaded then, beside runs already running)."""
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert handed_over(path, os.getppid(), 0.0) is None  # the server gave up
+    assert fork_server.hand_over({"study": 1}) is False
+
+
+def test_a_study_handed_over_just_before_the_server_gives_up_is_taken(
+    tmp_path, monkeypatch
+) -> None:
+    """Handed over as the server's wait ends, the study is still warmed up on: the
+    client was told it was taken, and it was."""
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert fork_server.hand_over({"study": 1}) is True
+    assert pickle.loads(handed_over(path, os.getppid(), -1.0) or b"") == {"study": 1}
+
+
 def test_a_study_that_cannot_be_handed_over_ends_the_wait(tmp_path, monkeypatch) -> None:
     """A job pickle cannot write (a local function in it, say) is not handed over, and the
     server is told so at once: it does not keep the workers waiting for its whole wait."""
