@@ -407,7 +407,10 @@ def _run_study(args: argparse.Namespace, local: bool) -> int:
     check_size(spec, study_label(args.study), max_runs)  # before dask is imported
     from cosim.study.collector import gc_diagnosis_registered
     from cosim.study.dask_settings import check_dask_settings
-    from cosim.study.execution import early_client, tls_security
+    from cosim.study.fork_server import libyaml_parsing
+
+    with libyaml_parsing():  # distributed's defaults file, read as it is imported
+        from cosim.study.execution import early_client, tls_security
     from cosim.study.signals import StudyStopped, stop_study_on_signals
 
     # a local cluster of no more workers than runs: each would start for nothing

@@ -3,7 +3,9 @@ numpy and Dask: sets Dask's pre-spawn environment (``distributed.nanny.pre-spawn
 one BLAS / OpenMP thread, malloc's trim threshold) in the server's process, so that every
 worker forked from it has it, as Dask sets it before it spawns a worker. Never raises
 (an exception other than ImportError would end the server; without the environment the
-workers' BLAS starts a thread per core).
+workers' BLAS starts a thread per core). Then it imports distributed, whose defaults file
+is parsed by libyaml as the environment's was
+(:func:`cosim.study.fork_server.libyaml_parsing`).
 
 It also turns the garbage collector off for the server's imports: they make ~10^6 objects
 and hardly any garbage, and the collections they set off walked all of them again (3 full
@@ -32,7 +34,7 @@ import os
 import signal
 from contextlib import suppress
 
-from cosim.study.fork_server import STOP_SIGNALS, pre_spawn_environ
+from cosim.study.fork_server import STOP_SIGNALS, libyaml_parsing, pre_spawn_environ
 
 gc.disable()
 
@@ -47,3 +49,6 @@ with suppress(Exception):
 # were (CPython 3.12 and later warn of it at each fork). Arrow's pool is mimalloc, not
 # jemalloc, so the thread had nothing to purge.
 os.environ.setdefault("JE_ARROW_MALLOC_CONF", "background_thread:false")
+
+with libyaml_parsing():  # its defaults file, as the pre-spawn environment was read
+    import distributed  # noqa: F401  (what every worker runs in)
