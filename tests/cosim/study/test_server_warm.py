@@ -96,6 +96,27 @@ def test_a_study_handed_over_just_before_the_server_gives_up_is_taken(
     assert pickle.loads(handed_over(path, os.getppid(), -1.0) or b"") == {"study": 1}
 
 
+def test_without_hard_links_the_study_is_handed_over_but_not_over_the_servers_mark(
+    tmp_path, monkeypatch
+) -> None:
+    """A file system without hard links (the hand-over's way of never replacing a file):
+    the study is still handed over whole, and still not taken once the server gave up."""
+
+    def no_links(source: object, target: object) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(fork_server.os, "link", no_links)
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert fork_server.hand_over({"study": 1}) is True
+    assert pickle.loads(handed_over(path, os.getppid(), 0.0) or b"") == {"study": 1}
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert handed_over(path, os.getppid(), 0.0) is None  # the server gave up
+    assert fork_server.hand_over({"study": 2}) is False
+    assert path.read_bytes() == b""  # its mark, not replaced
+    assert list(tmp_path.iterdir()) == [path]  # no part file left
+
+
 def test_a_study_that_cannot_be_handed_over_ends_the_wait(tmp_path, monkeypatch) -> None:
     """A job pickle cannot write (a local function in it, say) is not handed over, and the
     server is told so at once: it does not keep the workers waiting for its whole wait."""
