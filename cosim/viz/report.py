@@ -78,7 +78,7 @@ from matplotlib.figure import Figure
 from cosim.errors import CosimError
 from cosim.fmus.interface import read_interface
 from cosim.limits import unwritten
-from cosim.metrics.key_figures import ROLES, Vehicle, vehicles, why_none_of
+from cosim.metrics.key_figures import vehicles, why_none_of
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
 from cosim.outputs.missing_run import missing_run_hint
@@ -1085,9 +1085,9 @@ def null_reasons(
     fmus = summary.get("fmus")
     each = fmus.items() if isinstance(fmus, dict) else ()
     models = {str(k): str(v.get("model")) for k, v in each if isinstance(v, dict)}
+    # one vehicle: its plant and autopilot whatever they are named (plant and controller
+    # when summary.json names no FMU); several: each plant's, with its autopilot
     fleet = vehicles(models, [(source, target) for target, source in sources.items()])
-    if not any(v.prefix for v in fleet):  # one vehicle: the names the built-ins give it
-        fleet = [Vehicle("", dict(ROLES), sources.get("controller.yaw_setpoint"))]
     complete = summary.get("complete") is not False and summary.get("status") != "running"
     return {
         name: why_none_of(name, list(table), fleet, complete)

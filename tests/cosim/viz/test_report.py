@@ -1051,3 +1051,25 @@ def test_a_yaw_set_point_half_a_turn_away_is_drawn_where_the_autopilot_turns(
     panel = next(ax for ax in kept["attitude_actuators.png"].axes if "psi" in ax.get_ylabel())
     drawn = {line.get_label(): line.get_ydata() for line in panel.lines}
     assert list(drawn["setpoint"]) == pytest.approx([-180.0] * 3), drawn
+
+
+def test_a_renamed_vehicles_unsettled_yaw_reads_not_settled(tmp_path: Path) -> None:
+    """One vehicle whose instances are named auv and ap (not plant and controller): its
+    page gave the yaw settling time's reason as "not recorded", its yaw recorded as
+    auv.yaw; the reason is the one a run of the built-in names gets, "not settled"."""
+    (tmp_path / "results.csv").write_text(
+        "time,auv.yaw,ap.yaw_setpoint\n0,0.5,0\n1,0.3,0\n", encoding="utf-8"
+    )
+    summary = {
+        "scenario": "renamed",
+        "status": "complete",
+        "complete": True,
+        "fmus": {"auv": {"model": "AuvPlant"}, "ap": {"model": "AuvAutopilot"}},
+        "key_figures": {"yaw_settling_time_s": None},
+    }
+    (tmp_path / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    page = write_report(tmp_path).read_text(encoding="utf-8")
+    assert (
+        '<th scope="row">yaw settling time (s)</th><td>none (not settled: the yaw is not '
+        "within 1 deg of its set-point at the end)</td>"
+    ) in page, re.findall(r"yaw settling time \(s\)</th><td>[^<]*", page)
