@@ -52,7 +52,9 @@ neighbourhood's doSteps (at 1e-3, and its most) against the envelope step's.
 and ``<!-- end -->`` in docs/coupling.md (``shipped --scenarios``: only those scenarios'
 rows, the others' kept; a page without the part's markers is refused before the first
 run); without it the table is printed. Runs go through
-the master (no files written); the machine's load is printed beside the times.
+the master (no files written); the machine's load is printed beside the times. The
+tables hold one vehicle's key figures: a scenario of several vehicles (two plants) is
+refused before the first run, naming its plants.
 """
 
 from __future__ import annotations
@@ -103,6 +105,13 @@ GUARANTEE_TOLERANCES = tuple(  # 0.8 to 1.25 times the centre, 2 % apart, and 0.
     )
 )
 GUARANTEE_STEPS = (0.004, 0.02)  # s
+# the scenarios a part measures when --scenarios names none (shipped: every built-in)
+DEFAULT_SCENARIOS = {
+    "check-step": ["bs-3", "vert-1"],
+    "adaptive": ["vert-1", "bs-3"],
+    "scatter": ["vert-1", "bs-3"],
+    "guarantee": ["vert-1"],
+}
 
 
 def figures_of(scenario: Scenario) -> tuple[dict[str, float | None], master.RunResult]:
@@ -557,6 +566,8 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
                 f"--scenarios: unknown scenario {scenario!r}; expected built-in ids "
                 f"({', '.join(known)})"
             )
+    for scenario in args.scenarios or DEFAULT_SCENARIOS.get(args.part, list(known)):
+        _one_vehicle(parser, scenario)
     if args.tolerances is not None and args.part not in ("adaptive", "guarantee"):
         parser.error(
             f"--tolerances: only with adaptive or guarantee (the {args.part} part reads none)"
@@ -564,6 +575,19 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
     for tolerance in args.tolerances or []:
         if not (np.isfinite(tolerance) and tolerance > 0.0):
             parser.error(f"--tolerances: {tolerance!r} is not a positive finite number")
+
+
+def _one_vehicle(parser: argparse.ArgumentParser, sid: str) -> None:
+    """Refuse (one line) a scenario of several vehicles: every table holds one vehicle's
+    key figures (:data:`FIGURES`, the plain names), and the coupling error of a fleet,
+    each plant's figures named after it, is not what they measure."""
+    fleet = load_scenario(sid).key_vehicles
+    if len(fleet) > 1:
+        plants = ", ".join(v.roles["plant"] for v in fleet)
+        parser.error(
+            f"--scenarios: {sid} has {len(fleet)} vehicles (plants {plants}); the tables "
+            "hold one vehicle's key figures: expected a scenario of one plant"
+        )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -584,16 +608,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     _check_arguments(parser, args)
     if args.write and _marker(args.part).search(PAGE.read_text(encoding="utf-8")) is None:
         parser.error(_no_marker(args.part))  # before the runs, not after them
+    ids = args.scenarios or DEFAULT_SCENARIOS.get(args.part, list(builtin_scenarios()))
     if args.part == "shipped":
-        table = shipped(args.scenarios or list(builtin_scenarios()))
+        table = shipped(ids)
     elif args.part == "check-step":
-        table = check_steps(args.scenarios or ["bs-3", "vert-1"])
+        table = check_steps(ids)
     elif args.part == "scatter":
-        table = scatter(args.scenarios or ["vert-1", "bs-3"])
+        table = scatter(ids)
     elif args.part == "guarantee":
-        table = guarantee(args.tolerances, args.scenarios or ["vert-1"])
+        table = guarantee(args.tolerances, ids)
     else:
-        table = adaptive(args.tolerances, args.scenarios or ["vert-1", "bs-3"])
+        table = adaptive(args.tolerances, ids)
     if args.write:  # the shipped table of a few scenarios keeps the others' rows
         write(args.part, table, args.scenarios if args.part == "shipped" else None)
     else:

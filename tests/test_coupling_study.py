@@ -185,3 +185,27 @@ def test_a_page_without_the_markers_is_refused_before_the_first_run(
         study.main(["scatter", "--write"])
     assert ended.value.code == 2
     assert "no marker <!-- coupling_study.py scatter -->" in capsys.readouterr().err
+
+
+def test_a_scenario_of_two_vehicles_is_refused_in_one_line_before_a_run(
+    study: ModuleType, fmu_dir, monkeypatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The study's tables hold one vehicle's key figures: a scenario of two (plant_a,
+    plant_b) was measured as if plant_a were all of it, plant_b's figures silently left
+    out of the table. It is refused, naming its plants, before the first run."""
+    from two_vehicles import two_vehicles_toml
+
+    from cosim.scenario.spec import scenario_from_toml
+
+    two = scenario_from_toml(two_vehicles_toml(stop_time=0.05), fmu_dir=fmu_dir)
+    monkeypatch.setattr(study, "builtin_scenarios", lambda: {"two-vehicles": "two"})
+    monkeypatch.setattr(study, "load_scenario", lambda sid, **_: two)
+    monkeypatch.setattr(study.master, "run", lambda *a, **k: pytest.fail("a run started"))
+    with pytest.raises(SystemExit) as ended:
+        study.main(["shipped", "--scenarios", "two-vehicles"])
+    assert ended.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert (
+        "--scenarios: two-vehicles has 2 vehicles (plants plant_a, plant_b); the tables "
+        "hold one vehicle's key figures"
+    ) in error, error
