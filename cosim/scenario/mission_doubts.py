@@ -17,8 +17,12 @@ part across it, ``c_across``, and the part along it, ``c_along``, adds::
     speed over ground = sqrt(U^2 - c_across^2) + c_along     (none if |c_across| >= U)
 
 The time to a waypoint is the legs' lengths over those speeds, the turns not counted: a
-lower bound. Such a mission is valid all the same (a planner may mean to see it fail), so
-a run says so in one warning line each (:class:`MissionWarning`), naming the waypoint.
+lower bound. With several vehicles, a guidance whose set-points feed an autopilot that
+drives another plant than the one whose position it reads (the same-name rule connects one
+guidance's ``yaw_setpoint`` to every autopilot) is named too: that plant follows
+set-points computed for where the other is. Such a mission is valid all the same (a
+planner may mean to see it fail), so a run says so in one warning line each
+(:class:`MissionWarning`), naming the waypoint.
 """
 
 from __future__ import annotations
@@ -90,6 +94,7 @@ def mission_doubts(scenario: Scenario) -> list[str]:
         plant = _plant_of(scenario, name)
         if plant is None:  # no plant feeds its position: no current, no speed known
             continue
+        found += _steering_doubts(scenario, name, plant)
         speed, source = _speed(scenario, name, guidance, plant)
         waypoints = parse_waypoints(str(scenario.start_value(name, "waypoints")))
         key = f"instances.{name}.start.waypoints"
@@ -241,6 +246,31 @@ def _plant_of(scenario: Scenario, guidance: str) -> str | None:
         if connection.target == f"{guidance}.north" and connection.source_instance in plants:
             return connection.source_instance
     return None
+
+
+def _steering_doubts(scenario: Scenario, guidance: str, plant: str) -> list[str]:
+    """One line for each autopilot the guidance's set-points feed that drives a plant
+    other than ``plant``, the one whose position the guidance reads (two vehicles with
+    the same-name connections on: one guidance's ``yaw_setpoint`` feeds every autopilot):
+    that plant follows set-points computed for where ``plant`` is."""
+    plants, autopilots = _instances(scenario, PLANT), _instances(scenario, AUTOPILOT)
+    lines, named = [], set()
+    for fed in scenario.connections:
+        autopilot = fed.target_instance
+        if fed.source_instance != guidance or autopilot not in autopilots or autopilot in named:
+            continue
+        named.add(autopilot)
+        driven = {c.target_instance for c in scenario.connections if c.source_instance == autopilot}
+        for other in sorted(driven & set(plants) - {plant}):
+            lines.append(
+                f"instances.{guidance}: its {fed.source_variable} steers {autopilot}, which "
+                f"drives {other}, but the guidance reads the position of {plant} "
+                f"({guidance}.north from {plant}.north): {other} follows headings computed "
+                f"for where {plant} is; remove the connection {fed.source} -> {fed.target} "
+                f'(connections.remove = ["{fed.target}"]), or give {other} a guidance of '
+                "its own"
+            )
+    return lines
 
 
 def _speed(scenario: Scenario, name: str, guidance: Instance, plant: str) -> tuple[float, str]:

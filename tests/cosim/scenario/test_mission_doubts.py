@@ -122,3 +122,48 @@ def test_a_current_a_series_sets_too_strong_for_a_leg_is_named(
              if "current" in d]  # fmt: skip
     assert len(lines) == 1, lines
     assert "from t = 90 s (event ebb)" in lines[0] and "-2 m/s north" in lines[0]
+
+
+def two_vehicles_one_guidance(fmu_dir: Path, steer: str | None) -> cosim.Scenario:
+    """Two vehicles (plant_a with ctrl_a, plant_b with ctrl_b, same-name connections on)
+    and one guidance reading plant_a's position; its yaw set-point feeds the autopilot
+    ``steer`` alone, or (None) every autopilot, as the same-name rule connects it."""
+    from two_vehicles import two_vehicles_toml
+
+    from cosim.scenario.spec import scenario_from_toml
+
+    text = two_vehicles_toml(same_names=True, stop_time=60.0)
+    text = text.replace('order = ["ctrl_a"', 'order = ["guidance", "ctrl_a"')
+    guidance = (
+        '[instances.guidance]\nfmu = "AuvGuidance"\n[instances.guidance.start]\n'
+        'waypoints = "0, 0, 0; 50, 0, 0; 50, 20, 0"\n[connections]'
+    )
+    text = text.replace("[connections]", guidance)
+    reads = [f'{{ from = "plant_a.{v}", to = "guidance.{v}" }}' for v in ("north", "east", "yaw")]
+    unsteered = ["ctrl_a.yaw_setpoint", "ctrl_b.yaw_setpoint"]
+    if steer is not None:
+        unsteered.remove(f"{steer}.yaw_setpoint")
+    removed = ", ".join(f'"{r}"' for r in ["ctrl_a.depth_setpoint", "ctrl_b.depth_setpoint"])
+    text = text.replace("remove = [", f"remove = [{removed}, ")
+    if steer is not None:
+        text = text.replace("remove = [", f'remove = ["{unsteered[0]}", ')
+    text = text.replace("add = [", f"add = [{', '.join(reads)}, ")
+    return scenario_from_toml(text, fmu_dir=fmu_dir)
+
+
+def test_a_guidance_steering_a_vehicle_by_another_ones_position_is_named(
+    fmu_dir: Path,
+) -> None:
+    """Two vehicles and one guidance reading plant_a's position: the same-name rule fed
+    its yaw set-point to both autopilots, so plant_b flew headings computed for plant_a's
+    position, and the checks before the run said nothing of it. Now they name it; a
+    guidance steering only the vehicle it reads is not doubted."""
+    both = mission_doubts(two_vehicles_one_guidance(fmu_dir, steer=None))
+    assert both == [
+        "instances.guidance: its yaw_setpoint steers ctrl_b, which drives plant_b, but the "
+        "guidance reads the position of plant_a (guidance.north from plant_a.north): "
+        "plant_b follows headings computed for where plant_a is; remove the connection "
+        "guidance.yaw_setpoint -> ctrl_b.yaw_setpoint (connections.remove = "
+        '["ctrl_b.yaw_setpoint"]), or give plant_b a guidance of its own'
+    ]
+    assert mission_doubts(two_vehicles_one_guidance(fmu_dir, steer="ctrl_a")) == []
