@@ -25,7 +25,7 @@ plant's (the water that moves the vehicle) and, paler, the autopilot's knowledge
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -288,20 +288,23 @@ def series_sources(panel: PlannedPanel) -> rr.AnyValues:
     return rr.AnyValues(results_columns=[s.column for s in panel.series], units=list(panel.units))
 
 
-def world_eye() -> rrb.EyeControls3D:
-    """The world view's eye: it follows the vehicle (its hull, :data:`TRACKED_ENTITY`) as
-    it moves, from :data:`WORLD_EYE` (the vehicle at the start: the origin), so a run that
-    goes far does not leave the view, nor shrink the vehicle to a dot."""
+def world_eye(tracked: str = TRACKED_ENTITY) -> rrb.EyeControls3D:
+    """The world view's eye: it follows the vehicle (its hull, :data:`TRACKED_ENTITY`, or
+    ``tracked``: the first of several vehicles') as it moves, from :data:`WORLD_EYE` (the
+    vehicle at the start: the origin), so a run that goes far does not leave the view, nor
+    shrink the vehicle to a dot."""
     return rrb.EyeControls3D(
         kind=rrb.Eye3DKind.Orbital,
         position=WORLD_EYE,
         look_target=(0.0, 0.0, 0.0),
         eye_up=(0.0, 0.0, -1.0),  # NED: up is -z
-        tracking_entity=TRACKED_ENTITY,
+        tracking_entity=tracked,
     )
 
 
-def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blueprint:
+def build_blueprint(
+    panels: list[PlannedPanel], depth_control: bool, roots: Sequence[str] = ("world",)
+) -> rrb.Blueprint:
     """The default layout: 3D world and chase views, heading-loop and depth-loop plots.
 
     Left: the world view (whole trajectory, NED grid at the surface) above a chase view
@@ -312,8 +315,11 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
     in tabs: the depth loop (depth and setpoint, pitch, pitch rate, heave, fins, surge),
     the rest of the vehicle state, any unknown columns, the log of what happened at a time
     (:data:`NOTES_ENTITY`: events, faults, live overrides; with auto views off, nothing
-    would show it otherwise) and the scenario text. The depth tab is the active one when
-    depth control is on, the vehicle tab otherwise.
+    would show it otherwise) and the scenario text. ``roots``: the entities the drawn
+    vehicles hang under (:class:`cosim.viz.scene.SceneVehicle`; ``world`` for one, each
+    ``world/<plant>`` of several): every vehicle's track grows with the time cursor, the
+    world view follows the first vehicle and the chase view rides on it. The depth tab is
+    the active one when depth control is on, the vehicle tab otherwise.
 
     The plots of a loop sit in a grid of :data:`PLOT_COLUMNS` columns, not one stack: six
     stacked plots of ~130 px each leave the viewer room for a single y tick ("0") on most
@@ -337,15 +343,17 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
         start=rrb.TimeRangeBoundary.infinite(),
         end=rrb.TimeRangeBoundary.cursor_relative(),
     )
+    first = f"/{roots[0]}" if roots else "/world"
+    tracks = [f"/{root}/trajectory" for root in roots or ("world",)]
     world = rrb.Spatial3DView(
         origin="/world",
         name="World (NED, grid 10 m)",
         line_grid=rrb.LineGrid3D(visible=True, spacing=10.0),
-        eye_controls=world_eye(),
-        overrides={"/world/trajectory": trajectory_history},
+        eye_controls=world_eye(f"{first}/vehicle/hull"),
+        overrides={track: trajectory_history for track in tracks},
     )
     chase = rrb.Spatial3DView(
-        origin="/world/chase",
+        origin=f"{first}/chase",
         contents="/world/**",
         name="Chase view (level grid 1 m)",
         line_grid=rrb.LineGrid3D(visible=True, spacing=1.0),
@@ -355,7 +363,7 @@ def build_blueprint(panels: list[PlannedPanel], depth_control: bool) -> rrb.Blue
             look_target=[0.0, 0.0, 0.0],
             eye_up=[0.0, 0.0, -1.0],
         ),
-        overrides={"/world/trajectory": trajectory_history},
+        overrides={track: trajectory_history for track in tracks},
     )
     columns: list[rrb.Container | rrb.View] = [rrb.Vertical(world, chase, row_shares=[3, 2])]
     if heading := plots(HEADING_LOOP):

@@ -75,12 +75,17 @@ from cosim.viz.rrd_file import (
     pumped,
     set_sinks,
 )
-from cosim.viz.scene import TARGET_COLUMNS, SceneWriter, log_static_scene, scene_legend
+from cosim.viz.scene import (
+    TARGET_COLUMNS,
+    WORLD,
+    SceneVehicle,
+    SceneWriter,
+    log_static_scene,
+    scene_legend,
+)
 from cosim.viz.viewer_version import version_problem
 from cosim.viz.web_viewer import ended, serve
 from plant_fmu.model.parameters import VehicleParameterError, VehicleParameters, load_vehicle
-
-SCENE_PLANT = "plant."  # the scene draws the instance named plant (the built-ins' name)
 
 APPLICATION_ID = "auv-cosim"
 RRD_MAGIC = b"RRF"  # the first bytes of an .rrd file (RRF2 in rerun 0.41)
@@ -182,10 +187,12 @@ class RerunSink:
         self._viewer_warned = False
         self._channels: list[_Channel] = []
 
-        vehicle, depth_mode = _scenario_facts(scenario)
-        has_depth = "controller.depth_setpoint" in self._index and "plant.down" in self._index
-        depth_control = has_depth if depth_mode is None else depth_mode != 0 and has_depth
-        blueprint = build_blueprint(self._panels, depth_control=depth_control)
+        self._drawn = drawn_vehicles(scenario)
+        first = self._drawn[0].vehicle if self._drawn else None
+        self._vehicle = first or _vehicle_of(scenario, scenario.key_instances["plant"])
+        depth_control = _depth_control(scenario, SceneVehicle(*_first_roles(scenario)))
+        roots = [drawn.who.root for drawn in self._drawn]
+        blueprint = build_blueprint(self._panels, depth_control=depth_control, roots=roots)
 
         viewer = None if connect_url is None else _viewer_sink(connect_url)
         try:
@@ -196,7 +203,7 @@ class RerunSink:
                 growth = SEND_INTERVAL_GROWTH
                 self._add_channel(file, blueprint, FILE_SEND_INTERVAL, growth)
             for channel in self._channels:
-                self._log_static(channel, scenario, vehicle, depth_control)
+                self._log_static(channel, scenario)
             self._flush(self._channels)  # the static part is on disk before the first step
         except BaseException:
             with contextlib.suppress(OSError):  # the first failure is the one to report
@@ -228,11 +235,10 @@ class RerunSink:
             raise OSError(f"cannot write the recording {path}: {exc.strerror or exc}") from None
         return self._file.sink()
 
-    def _log_static(
-        self, channel: _Channel, scenario: Scenario, vehicle: VehicleParameters, depth: bool
-    ) -> None:
+    def _log_static(self, channel: _Channel, scenario: Scenario) -> None:
         """The recording's name and properties, the scenario text, styles and the scene."""
         scenario_id, columns, toml = scenario.id, self._columns, scenario.to_toml()
+        vehicle = self._vehicle
         rec = channel.rec
         rec.send_recording_name(recording_name(scenario_id, self._rrd_path))
         rec.send_property(
@@ -254,13 +260,17 @@ class RerunSink:
         )
         for panel in self._panels:
             rec.log(panel.entity, series_style(panel), series_sources(panel), static=True)
-        if not any(c.startswith(SCENE_PLANT) for c in columns):
-            return  # no column of the plant the scene draws (two vehicles): no phantom hull
-        log_static_scene(
-            rec, vehicle, columns, show_depth_setpoint=depth,
-            waypoints=mission_waypoints(toml),  # None without a waypoint guidance
-        )  # fmt: skip
-        channel.scene = SceneWriter(rec, vehicle, show_depth_setpoint=depth)
+        waypoints = mission_waypoints(toml)  # None without a waypoint guidance
+        for k, drawn in enumerate(self._drawn):  # the earth frame and mission once, first
+            who, depth = drawn.who, drawn.depth
+            log_static_scene(
+                rec, drawn.vehicle, who.canonical(columns), show_depth_setpoint=depth,
+                waypoints=waypoints, root=who.root, world=k == 0,
+            )  # fmt: skip
+            writer = SceneWriter(
+                rec, drawn.vehicle, show_depth_setpoint=depth, root=who.root, target=k == 0
+            )
+            channel.scenes.append((writer, who))
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         """Queue k rows: ``times`` (k,) in s, ``values`` (k, len(columns)) in SI units.
@@ -405,8 +415,8 @@ class RerunSink:
             i = self._index.get(name)
             return None if i is None else values[:, i]
 
-        if channel.scene is not None:
-            channel.scene.send(index, len(times), column)
+        for writer, who in channel.scenes:
+            writer.send(index, len(times), who.columns(column))
         self._mark_targets(channel, times, column)
 
     def _mark_targets(
@@ -446,7 +456,7 @@ class _Channel:
     growth: float | None  # the fraction of the sink's age the interval grows to (a file)
     opened: float  # time.monotonic() when the sink opened
     last_send: float = field(init=False)
-    scene: SceneWriter | None = None
+    scenes: list[tuple[SceneWriter, SceneVehicle]] = field(default_factory=list)
     target: np.ndarray | None = None  # (1, 3) the last row's guidance waypoint, m
     times: list[np.ndarray] = field(default_factory=list)
     values: list[np.ndarray] = field(default_factory=list)
@@ -539,22 +549,67 @@ def _on_turns(values: np.ndarray, panel: PlannedPanel, index: dict[str, int]) ->
     return columns
 
 
-def _scenario_facts(scenario: Scenario) -> tuple[VehicleParameters, int | None]:
-    """The vehicle (for the 3D geometry) and the depth_mode the scenario runs with, if any.
+@dataclass(frozen=True)
+class DrawnVehicle:
+    """A vehicle of the 3D scene: its instances and entity (``who``), its parameter set
+    (the geometry) and whether its depth set-point is drawn (``depth``)."""
 
-    The vehicle is the ``vehicle`` parameter of the ``plant`` instance (else of the first
-    instance that has one), as set or by the FMU's default; remus100 with a warning if it
-    cannot be loaded, or without one if no instance has that parameter.
-    """
-    vehicle_of = _first_value(scenario, "vehicle", prefer="plant")
-    depth_mode = _first_value(scenario, "depth_mode", prefer="controller")
+    who: SceneVehicle
+    vehicle: VehicleParameters
+    depth: bool
+
+
+def drawn_vehicles(scenario: Scenario) -> list[DrawnVehicle]:
+    """The vehicles the 3D scene draws: each plant the key figures describe
+    (``Scenario.key_vehicles``) with a recorded column, with the autopilot joined to it;
+    one vehicle's shapes under ``world`` (its entities as :mod:`cosim.viz.scene` lists
+    them, whatever its instances are named), each of several under ``world/<plant>``. A
+    plant without a recorded column is not drawn (no hull standing at the origin)."""
+    fleet = [v.roles for v in scenario.key_vehicles]
+    columns = scenario.columns
+    if len(fleet) == 1:
+        fleet = [dict(zip(("plant", "controller"), _first_roles(scenario), strict=True))]
+    drawn = []
+    for roles in fleet:
+        plant, controller = roles["plant"], roles["controller"]
+        if not any(c.startswith(f"{plant}.") for c in columns):
+            continue
+        root = WORLD if len(fleet) == 1 else f"{WORLD}/{rr.escape_entity_path_part(plant)}"
+        who = SceneVehicle(plant, controller, root)
+        drawn.append(DrawnVehicle(who, _vehicle_of(scenario, plant), _depth_control(scenario, who)))
+    return drawn
+
+
+def _first_roles(scenario: Scenario) -> tuple[str, str]:
+    """The plant and autopilot of a run's one vehicle: the instances the key figures read
+    (``Scenario.key_instances``: by model, else named plant and controller)."""
+    roles = scenario.key_instances
+    return roles["plant"], roles["controller"]
+
+
+def _depth_control(scenario: Scenario, who: SceneVehicle) -> bool:
+    """Whether the vehicle's depth set-point is drawn: its autopilot's depth set-point and
+    its plant's depth are recorded, and its ``depth_mode`` (if it has one) is not off."""
+    columns = set(scenario.columns)
+    has_depth = who.column("controller.depth_setpoint") in columns and (
+        who.column("plant.down") in columns
+    )
+    depth_mode = _first_value(scenario, "depth_mode", prefer=who.controller)
+    return has_depth if not isinstance(depth_mode, int) else depth_mode != 0 and has_depth
+
+
+def _vehicle_of(scenario: Scenario, plant: str) -> VehicleParameters:
+    """The vehicle (for the 3D geometry): the ``vehicle`` parameter of instance ``plant``
+    (else of the first instance that has one), as set or by the FMU's default; remus100
+    with a warning if it cannot be loaded, or without one if no instance has that
+    parameter."""
+    vehicle_of = _first_value(scenario, "vehicle", prefer=plant)
     name = vehicle_of if isinstance(vehicle_of, str) else "remus100"
     try:
-        vehicle = load_vehicle(name)
+        return load_vehicle(name)
     except (VehicleParameterError, OSError) as exc:
-        warnings.warn(f"vehicle {name!r} not loadable ({exc}); drawing remus100", stacklevel=3)
-        vehicle = load_vehicle("remus100")
-    return vehicle, (depth_mode if isinstance(depth_mode, int) else None)
+        warnings.warn(f"vehicle {name!r} not loadable ({exc}); drawing remus100", stacklevel=4)
+        return load_vehicle("remus100")
 
 
 def _first_value(scenario: Scenario, variable: str, prefer: str) -> Any:

@@ -31,6 +31,14 @@ is the body frame at the centre of buoyancy, FRD = x forward, y starboard, z dow
 
 Fins, thruster and current show what acts on the vehicle (:func:`acting`).
 
+That is the one vehicle of a run (its plant and autopilot whatever their instance names,
+:class:`SceneVehicle`). A run of several vehicles (two or more plants) draws each under
+``world/<plant>`` instead of ``world``: ``world/<plant>/vehicle`` (and its hull, fins,
+mass and thruster below it), ``world/<plant>/chase``, ``world/<plant>/current``,
+``world/<plant>/trajectory`` and ``world/<plant>/depth_setpoint``, each from its own
+plant's columns and those of the autopilot joined to it; ``world`` and ``world/mission``
+stay as they are, once.
+
 Only what never changes is logged static: a static component would shadow the per-step
 values of the same component on that entity.
 
@@ -42,6 +50,7 @@ are drawn to look right, they do not enter the physics. Arrow lengths are scaled
 from __future__ import annotations
 
 from collections.abc import Callable, Collection
+from dataclasses import dataclass
 
 import numpy as np
 import pyarrow as pa
@@ -73,6 +82,40 @@ WAYPOINT_RADIUS = 0.4  # m, drawn radius of a waypoint (the active one: twice th
 TARGET_COLUMNS = tuple(f"guidance.waypoint_{axis}" for axis in ("north", "east", "down"))
 
 Columns = Callable[[str], np.ndarray | None]  # column name -> values (k,) or None
+WORLD = "world"  # the earth frame; the one vehicle of a run hangs under it
+
+
+@dataclass(frozen=True)
+class SceneVehicle:
+    """One vehicle the scene draws: the instances of its plant and of the autopilot that
+    steers it, and the entity its shapes hang under (:data:`WORLD` for the one vehicle of
+    a run, ``world/<plant>`` for each of several)."""
+
+    plant: str = "plant"
+    controller: str = "controller"
+    root: str = WORLD
+
+    def column(self, name: str) -> str:
+        """The results column of ``name`` as the scene names it (``plant.north``,
+        ``controller.tunnel_force``): this vehicle's own; another name as it is."""
+        instance, _, variable = name.partition(".")
+        return {"plant": f"{self.plant}.", "controller": f"{self.controller}."}.get(
+            instance, f"{instance}."
+        ) + variable
+
+    def canonical(self, recorded: Collection[str]) -> set[str]:
+        """The names the scene gives the ``recorded`` columns of this vehicle's plant and
+        autopilot (``plant.north``), with every column of other instances as it is."""
+        own = {self.plant: "plant", self.controller: "controller"}
+        return {
+            f"{own.get(instance, instance)}.{variable}"
+            for instance, _, variable in (c.partition(".") for c in recorded)
+            if instance in own or instance not in ("plant", "controller")  # another's
+        }
+
+    def columns(self, column: Columns) -> Columns:
+        """``column`` (the results' values by name) read by the scene's names."""
+        return lambda name: column(self.column(name))
 
 
 def acting(column: Columns, name: str) -> np.ndarray | None:
@@ -92,23 +135,30 @@ def log_static_scene(
     *,
     show_depth_setpoint: bool,
     waypoints: np.ndarray | None = None,
+    root: str = WORLD,
+    world: bool = True,
 ) -> None:
     """Log the frames and every shape that does not change with time.
 
-    ``recorded`` are the run's columns: what they lack is not drawn. ``waypoints`` (m, NED,
-    one row each; :func:`cosim.viz.mission.mission_waypoints`) draw a mission's planned path.
+    ``recorded`` are the run's columns, the vehicle's plant and autopilot named ``plant``
+    and ``controller`` (:meth:`SceneVehicle.canonical`): what they lack is not drawn.
+    ``waypoints`` (m, NED, one row each; :func:`cosim.viz.mission.mission_waypoints`) draw
+    a mission's planned path. ``root``: the entity the vehicle's shapes hang under
+    (:data:`WORLD` for the one vehicle of a run, ``world/<plant>`` for each of several);
+    ``world``: also the earth frame and the mission (once per recording).
     """
 
     def has(name: str) -> bool:
         return f"plant.{name}" in recorded or f"controller.{name}" in recorded
 
-    rec.log("world", rr.ViewCoordinates.FRD, static=True)
-    _log_hull_and_fins(rec, vehicle, show_fins=has("fin_angle"))
+    if world:
+        rec.log(WORLD, rr.ViewCoordinates.FRD, static=True)
+    _log_hull_and_fins(rec, vehicle, root, show_fins=has("fin_angle"))
     if "plant.mass_position" in recorded:
-        _log_mass_rail(rec, vehicle)
+        _log_mass_rail(rec, vehicle, root)
     if has("tunnel_force"):
         rec.log(
-            "world/vehicle/tunnel_force",
+            f"{root}/vehicle/tunnel_force",
             rr.Arrows3D.from_fields(
                 origins=[[0.0, 0.0, vehicle.z_t]],
                 colors=[THRUSTER],
@@ -118,7 +168,7 @@ def log_static_scene(
         )
     if any(has(f"current_{axis}") for axis in ("north", "east", "down")):
         rec.log(
-            "world/current",
+            f"{root}/current",
             rr.Arrows3D.from_fields(
                 colors=[CURRENT],
                 radii=[0.02],
@@ -126,13 +176,13 @@ def log_static_scene(
             static=True,
         )
     rec.log(
-        "world/trajectory",
+        f"{root}/trajectory",
         rr.LineStrips3D.from_fields(colors=[TRAJECTORY], radii=rr.Radius.ui_points(1.5)),
         static=True,
     )
-    if waypoints is not None:
+    if world and waypoints is not None:
         log_mission(rec, waypoints)
-    if all(column in recorded for column in TARGET_COLUMNS):
+    if world and all(column in recorded for column in TARGET_COLUMNS):
         rec.log(
             "world/mission/target",
             rr.Points3D.from_fields(colors=[SETPOINT], radii=[2.0 * WAYPOINT_RADIUS]),
@@ -141,7 +191,7 @@ def log_static_scene(
     if show_depth_setpoint:
         half = DEPTH_MARKER_HALF_SIZE
         rec.log(
-            "world/depth_setpoint",
+            f"{root}/depth_setpoint",
             rr.Boxes3D(
                 half_sizes=[[half, half, 0.005]],
                 colors=[(*SETPOINT, 70)],
@@ -173,14 +223,14 @@ def log_mission(rec: rr.RecordingStream, waypoints: np.ndarray) -> None:
 
 
 def _log_hull_and_fins(
-    rec: rr.RecordingStream, vehicle: VehicleParameters, *, show_fins: bool
+    rec: rr.RecordingStream, vehicle: VehicleParameters, root: str, *, show_fins: bool
 ) -> None:
     """The hull capsule, the rudders and the stern planes (posed per step if recorded)."""
     radius = 0.5 * vehicle.diameter
     cylinder = vehicle.length - vehicle.diameter  # the capsule's caps add one diameter
     # Capsules3D are built along local +z: turn +z onto body +x (90 deg about y).
     rec.log(
-        "world/vehicle/hull",
+        f"{root}/vehicle/hull",
         rr.Capsules3D(
             lengths=[cylinder],
             radii=[radius],
@@ -194,7 +244,7 @@ def _log_hull_and_fins(
     hinge = -0.5 * vehicle.length + FIN_FROM_TAIL
     offset = radius + 0.5 * FIN_SPAN
     rec.log(
-        "world/vehicle/rudders",
+        f"{root}/vehicle/rudders",
         rr.Boxes3D(
             centers=[[hinge - 0.5 * FIN_CHORD, 0.0, -offset], [hinge - 0.5 * FIN_CHORD, 0, offset]],
             half_sizes=[[0.5 * FIN_CHORD, 0.5 * FIN_THICKNESS, 0.5 * FIN_SPAN]] * 2,
@@ -207,7 +257,7 @@ def _log_hull_and_fins(
     # step about body +y, so a positive angle puts the trailing edge down: an upward force
     # at the tail and a nose-down moment, as Z_ds < 0 and M_ds < 0 say (Table 6.1).
     rec.log(
-        "world/vehicle/stern_planes",
+        f"{root}/vehicle/stern_planes",
         rr.Boxes3D(
             centers=[[-0.5 * FIN_CHORD, -offset, 0.0], [-0.5 * FIN_CHORD, offset, 0.0]],
             half_sizes=[[0.5 * FIN_CHORD, 0.5 * FIN_SPAN, 0.5 * FIN_THICKNESS]] * 2,
@@ -218,23 +268,23 @@ def _log_hull_and_fins(
     )
     if not show_fins:  # else SceneWriter poses them per step (static data would shadow it)
         rec.log(
-            "world/vehicle/stern_planes",
+            f"{root}/vehicle/stern_planes",
             rr.Transform3D(translation=[hinge, 0.0, 0.0]),
             static=True,
         )
 
 
-def _log_mass_rail(rec: rr.RecordingStream, vehicle: VehicleParameters) -> None:
+def _log_mass_rail(rec: rr.RecordingStream, vehicle: VehicleParameters, root: str) -> None:
     """The moving mass's rail (as long as the stroke) and the mass itself."""
     rail = [[vehicle.x_v, -vehicle.mass_stroke, vehicle.z_g]]
     rail.append([vehicle.x_v, vehicle.mass_stroke, vehicle.z_g])
     rec.log(
-        "world/vehicle/mass_rail",
+        f"{root}/vehicle/mass_rail",
         rr.LineStrips3D([rail], colors=[MASS], radii=[0.004]),
         static=True,
     )
     rec.log(
-        "world/vehicle/moving_mass",
+        f"{root}/vehicle/moving_mass",
         rr.Ellipsoids3D(half_sizes=[[MASS_RADIUS] * 3], colors=[MASS], fill_mode="solid"),
         static=True,
     )
@@ -303,10 +353,14 @@ class SceneWriter:
         vehicle: VehicleParameters,
         *,
         show_depth_setpoint: bool,
+        root: str = WORLD,
+        target: bool = True,
     ) -> None:
         self._rec = rec
         self._vehicle = vehicle
         self._show_depth_setpoint = show_depth_setpoint
+        self._root = root  # the entity the vehicle hangs under (log_static_scene)
+        self._target = target  # whether it sends the mission's target (once per recording)
         self._last_position: np.ndarray | None = None
 
     @staticmethod
@@ -334,7 +388,8 @@ class SceneWriter:
         self._send_trajectory(index, position)
         self._send_actuators(index, n, column)
         self._send_current(index, position, column)
-        self._send_target(index, column)
+        if self._target:
+            self._send_target(index, column)
         self._send_depth_setpoint(index, position, column)
 
     def _send_pose(
@@ -348,12 +403,12 @@ class SceneWriter:
         the chase camera's, which turns with the yaw (rad) only."""
         zeros = np.zeros(len(yaw))
         self._rec.send_columns(
-            "world/vehicle",
+            f"{self._root}/vehicle",
             indexes=index,
             columns=rr.Transform3D.columns(translation=position, quaternion=quaternions),
         )
         self._rec.send_columns(
-            "world/chase",
+            f"{self._root}/chase",
             indexes=index,
             columns=rr.Transform3D.columns(
                 translation=position, quaternion=euler_to_quaternions(zeros, zeros, yaw)
@@ -368,7 +423,7 @@ class SceneWriter:
             hinge = np.tile([-0.5 * self._vehicle.length + FIN_FROM_TAIL, 0.0, 0.0], (n, 1))
             turn = pitch_quaternions(fin)
             self._rec.send_columns(
-                "world/vehicle/stern_planes",
+                f"{self._root}/vehicle/stern_planes",
                 indexes=index,
                 columns=rr.Transform3D.columns(translation=hinge, quaternion=turn),
             )
@@ -378,7 +433,7 @@ class SceneWriter:
                 [np.full(n, self._vehicle.x_v), mass, np.full(n, self._vehicle.z_g)]
             )
             self._rec.send_columns(
-                "world/vehicle/moving_mass",
+                f"{self._root}/vehicle/moving_mass",
                 indexes=index,
                 columns=rr.Ellipsoids3D.columns(centers=centers),
             )
@@ -387,7 +442,7 @@ class SceneWriter:
             zeros = np.zeros(n)
             vectors = np.column_stack([zeros, FORCE_SCALE * force, zeros])
             self._rec.send_columns(
-                "world/vehicle/tunnel_force",
+                f"{self._root}/vehicle/tunnel_force",
                 indexes=index,
                 columns=rr.Arrows3D.columns(vectors=vectors),
             )
@@ -402,7 +457,7 @@ class SceneWriter:
             vectors = np.column_stack([zeros if c is None else c for c in current])
             above = position - [0.0, 0.0, CURRENT_ARROW_HEIGHT]
             self._rec.send_columns(
-                "world/current",
+                f"{self._root}/current",
                 indexes=index,
                 columns=rr.Arrows3D.columns(origins=above, vectors=CURRENT_SCALE * vectors),
             )
@@ -416,7 +471,7 @@ class SceneWriter:
         if self._show_depth_setpoint and depth is not None:
             centers = np.column_stack([position[:, 0], position[:, 1], depth])
             self._rec.send_columns(
-                "world/depth_setpoint",
+                f"{self._root}/depth_setpoint",
                 indexes=index,
                 columns=rr.Boxes3D.columns(centers=centers),
             )
@@ -439,7 +494,7 @@ class SceneWriter:
         self._last_position = position[-1].copy()
         segments = np.stack([previous, position], axis=1)
         self._rec.send_columns(
-            "world/trajectory",
+            f"{self._root}/trajectory",
             indexes=index,
             columns=rr.LineStrips3D.columns(strips=strips_of_segments(segments)),
         )

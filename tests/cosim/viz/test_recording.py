@@ -481,6 +481,59 @@ def test_two_vehicles_draw_no_hull_that_no_plant_moves(tmp_path: Path, fmu_dir: 
     assert {"/other/plant_a/yaw", "/other/plant_b/yaw"} <= entities
 
 
+def test_two_vehicles_each_draw_their_own_hull_and_track(tmp_path: Path, fmu_dir: Path):
+    """Two vehicles (plant_a, plant_b): the 3-D scene drew neither (it drew the instance
+    named plant only). Each is drawn under world/<plant>/, its hull posed where its own
+    plant is and its own track, the world view following the first."""
+    from two_vehicles import two_vehicles_toml
+
+    from cosim.scenario.spec import scenario_from_toml
+
+    scenario = scenario_from_toml(two_vehicles_toml(stop_time=0.4), fmu_dir=fmu_dir)
+    columns = list(scenario.columns)
+    times = np.arange(5) * 0.1
+    values = np.zeros((5, len(columns)))
+    for plant, east in (("plant_a", 0.0), ("plant_b", 10.0)):
+        values[:, columns.index(f"{plant}.north")] = 1.5 * times
+        values[:, columns.index(f"{plant}.east")] = east
+    path = tmp_path / "r.rrd"
+    with RerunSink(scenario, path) as sink:
+        sink.add_rows(times, values)
+    entities = set(RrdReader(path).stream().collect().schema().entity_paths())
+    for plant, east in (("plant_a", 0.0), ("plant_b", 10.0)):
+        assert {f"/world/{plant}/vehicle/hull", f"/world/{plant}/trajectory"} <= entities, entities
+        _, pose = read_temporal(path, f"/world/{plant}/vehicle", "Transform3D:translation", 3)
+        np.testing.assert_allclose(pose[:, 0], np.column_stack([1.5 * times, [east] * 5, [0] * 5]))
+        _, mass = read_temporal(
+            path, f"/world/{plant}/vehicle/moving_mass", "Ellipsoids3D:centers", 3
+        )
+        assert len(mass) == 5
+
+
+def test_one_vehicle_named_otherwise_is_drawn_where_the_built_ins_are(
+    tmp_path: Path, fmu_dir: Path
+):
+    """bs-3 with its instances named auv and ap: the 3-D scene held no vehicle (it drew
+    the instance named plant only). One vehicle is drawn under world/vehicle whatever its
+    instances are named, its thruster arrow from its own autopilot's force."""
+    from cosim.scenario.spec import scenario_from_toml
+
+    text = (Path(cosim.__file__).parent / "scenarios" / "bs-3.toml").read_text("utf-8")
+    renamed = re.sub(r"\bplant\b", "auv", re.sub(r"\bcontroller\b", "ap", text))
+    scenario = scenario_from_toml(renamed, fmu_dir=fmu_dir)
+    columns = list(scenario.columns)
+    values = np.zeros((3, len(columns)))
+    values[:, columns.index("auv.north")] = [0.0, 1.0, 2.0]
+    values[:, columns.index("ap.tunnel_force")] = 20.0
+    path = tmp_path / "r.rrd"
+    with RerunSink(scenario, path) as sink:
+        sink.add_rows(np.arange(3) * 0.1, values)
+    _, pose = read_temporal(path, "/world/vehicle", "Transform3D:translation", 3)
+    np.testing.assert_allclose(pose[:, 0, 0], [0.0, 1.0, 2.0])
+    _, force = read_temporal(path, "/world/vehicle/tunnel_force", "Arrows3D:vectors", 3)
+    np.testing.assert_allclose(force[:, 0, 1], 20.0 * FORCE_SCALE)
+
+
 def test_a_column_outside_the_catalogue_is_drawn_with_its_fmus_unit(tmp_path: Path, fmu_dir: Path):
     """A column no plot of the catalogue shows gets a plot of its own under ``other/``,
     in the unit its FMU declares (an angle or a rate declared in rad or rad/s in degrees,
