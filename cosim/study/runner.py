@@ -466,7 +466,12 @@ def _overlay(
         if (run_results := found[run_id]) is not None
     ]
     text = notes(chosen, by_id, by_row, missing, empty, unit_of)
-    drawn_from = units([*POSITION, *(column for column, _ in SERIES.values())], base.fmu_paths)
+    drawn = [*POSITION, *(column for column, _ in SERIES.values())]
+    # as the base names them, and each instance's own (the plants of several vehicles)
+    own = [
+        f"{instance}.{column.split('.', 1)[1]}" for instance in base.fmu_paths for column in drawn
+    ]
+    drawn_from = units([*drawn, *own], base.fmu_paths)
     path = write_overlay(out_dir / OVERLAY_FILE, shown, f"study {out_dir.name}", text, drawn_from)
     warnings = [f"overlay: {entry} chose no run (no complete run has a value)" for entry in empty]
     warnings += [f"overlay: run {run_id} left no results.csv" for run_id in missing]

@@ -14,6 +14,13 @@ print over the others)::
     depth_m/<run id>         Scalars per step: plant.down, m
     study                    TextDocument (static): the runs shown and why
 
+A run of several vehicles (its results hold the position, yaw and roll of more than one
+plant instance, :func:`plants_of`) gets each vehicle's path, point and lines one level
+deeper, under its plant's name: ``world/paths/<run id>/<plant>``,
+``world/vehicles/<run id>/<plant>``, ``yaw_deg/<run id>/<plant>`` ..., its label the run's
+and the plant's, each line its own colour. One vehicle is drawn as above whatever its
+plant instance is named.
+
 The recording's application id is :data:`OVERLAY_APPLICATION_ID`, not a run recording's, so
 the viewer keeps the two layouts apart. Each run gets its own colour (matplotlib's
 ``tab20`` cycle). The data comes from each run's ``results.csv`` (time in s, angles in
@@ -46,6 +53,17 @@ SERIES = {  # entity root -> (results column, the unit it is drawn in)
     "depth_m": ("plant.down", "m"),
 }
 REQUIRED = ("time", *POSITION, *(column for column, _ in SERIES.values()))
+# the variables a plant instance's columns must hold for its vehicle to be drawn
+VARIABLES = tuple(dict.fromkeys(name.split(".", 1)[1] for name in REQUIRED[1:]))
+
+
+def plants_of(results: Mapping[str, object]) -> list[str]:
+    """The instances whose columns in ``results`` hold every one of :data:`VARIABLES`
+    (each a vehicle's plant: ``plant``, or ``plant_a`` and ``plant_b``), in column order."""
+    instances = dict.fromkeys(name.split(".", 1)[0] for name in results if "." in name)
+    return [i for i in instances if all(f"{i}.{v}" in results for v in VARIABLES)]
+
+
 POINT_RADIUS = 0.3  # m, drawn radius of a run's vehicle in the 3D view
 # The viewer gives recordings of one application id one layout: an overlay shares a run
 # recording's, its panels show nothing of the other's entities (each drawn, empty, in the
@@ -63,7 +81,7 @@ class OverlayRun:
 
     def __post_init__(self) -> None:
         missing = [name for name in REQUIRED if name not in self.results]
-        if missing:
+        if "time" not in self.results or not plants_of(self.results):
             raise ValueError(f"run {self.id}: its results lack {', '.join(missing)}")
 
 
@@ -106,9 +124,11 @@ def _write(
         rec.send_recording_name(title)
         rec.log("world", rr.ViewCoordinates.FRD, static=True)
         rec.log("study", rr.TextDocument(notes, media_type=rr.MediaType.MARKDOWN), static=True)
-        colors = colormaps["tab20"]  # 20 qualitative colours
-        for k, run in enumerate(runs):
-            _log_run(rec, run, tuple(int(255 * c) for c in colors(k % colors.N)[:3]), units)
+        colors = colormaps["tab20"]  # 20 qualitative colours, one per vehicle drawn
+        drawn = [(run, plant) for run in runs for plant in plants_of(run.results)]
+        for k, (run, plant) in enumerate(drawn):
+            color = tuple(int(255 * c) for c in colors(k % colors.N)[:3])
+            _log_run(rec, run, plant, color, units)
         rec.flush(timeout_sec=FLUSH_TIMEOUT)
     finally:
         rec.disconnect()
@@ -119,35 +139,49 @@ def _write(
 
 
 def _log_run(
-    rec: rr.RecordingStream, run: OverlayRun, color: tuple[int, ...], units: Mapping[str, str]
+    rec: rr.RecordingStream,
+    run: OverlayRun,
+    plant: str,
+    color: tuple[int, ...],
+    units: Mapping[str, str],
 ) -> None:
-    """A run's static path and label, and its per-step position and signals (each scaled
-    from the unit ``units`` declares it in; one that does not convert is left out)."""
-    position = np.column_stack([run.results[name] for name in POSITION])
+    """The static path and label of the vehicle of instance ``plant`` in a run, and its
+    per-step position and signals (each scaled from the unit ``units`` declares it in, by
+    its own column's name or, as the study names them, ``plant.<variable>``; one that does
+    not convert is left out); under the run's id, and the plant's name if the run has
+    several (module)."""
+    several = len(plants_of(run.results)) > 1
+    tail = f"{run.id}/{rr.escape_entity_path_part(plant)}" if several else run.id
+    label = f"{run.label} ({plant})" if several else run.label
+
+    def own(column: str) -> str:  # plant.north -> <plant>.north
+        return f"{plant}.{column.split('.', 1)[1]}"
+
+    position = np.column_stack([run.results[own(name)] for name in POSITION])
     index = time_index(run.results["time"])
     rec.log(
-        f"world/paths/{run.id}",
+        f"world/paths/{tail}",
         rr.LineStrips3D(
-            [position], colors=[color], labels=[run.label], radii=[0.05], show_labels=False
+            [position], colors=[color], labels=[label], radii=[0.05], show_labels=False
         ),
         static=True,
     )
     rec.log(
-        f"world/vehicles/{run.id}",
+        f"world/vehicles/{tail}",
         rr.Points3D.from_fields(colors=[color], radii=[POINT_RADIUS]),
         static=True,
     )
     rec.send_columns(
-        f"world/vehicles/{run.id}", indexes=index, columns=rr.Points3D.columns(positions=position)
+        f"world/vehicles/{tail}", indexes=index, columns=rr.Points3D.columns(positions=position)
     )
     for root, (column, shown) in SERIES.items():
-        declared = units.get(column, NO_UNIT)
+        declared = units.get(own(column), units.get(column, NO_UNIT))
         scale = scale_to(source_unit(shown) if declared == NO_UNIT else declared, shown)
         if scale is None:
             continue
-        entity = f"{root}/{run.id}"
-        rec.log(entity, rr.SeriesLines(names=[run.label], colors=[color]), static=True)
-        values = np.asarray(run.results[column], dtype=float) * scale
+        entity = f"{root}/{tail}"
+        rec.log(entity, rr.SeriesLines(names=[label], colors=[color]), static=True)
+        values = np.asarray(run.results[own(column)], dtype=float) * scale
         rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values))
 
 
