@@ -78,7 +78,7 @@ from matplotlib.figure import Figure
 from cosim.errors import CosimError
 from cosim.fmus.interface import read_interface
 from cosim.limits import unwritten
-from cosim.metrics.key_figures import vehicles, why_none_of
+from cosim.metrics.key_figures import Vehicle, vehicles, why_none_of
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
 from cosim.outputs.missing_run import missing_run_hint
@@ -279,20 +279,31 @@ def write_report(run_dir: Path) -> Path:
     stamp = {**run_stamp(run_dir), "made": local_time()}
     table = load_results(run_dir)
     summary, summary_problem = load_summary(run_dir)
-    _check_drawable(run_dir, table, summary)
+    views = vehicle_views(run_dir, summary)
+    _check_drawable(run_dir, table, summary, views)
     out = run_dir / REPORT_FOLDER
-    check_writable(out, [INDEX_PAGE, *(f"{name}.png" for name in (*FIGURES, *TITLES))])
+    names = [f"{name}{view.suffix}" for view in views for name in (*FIGURES, *TITLES)]
+    check_writable(out, [INDEX_PAGE, *(f"{name}.png" for name in names)])
     staging = out / f".report.{os.getpid()}.tmp"
     made_out = not out.exists()
     try:
         out.mkdir(exist_ok=True)
         staging.mkdir()
-        figures = _figures(run_dir, table, summary, staging)
-        alts = {name: figure_alt(name, table, summary, run_dir) for name in figures}
+        figures, alts, titles, panelled = {}, {}, {}, set()
+        for view in views:
+            drawn = _figures(run_dir, table, summary, staging, view)
+            for key, (name, path) in drawn.items():
+                figures[key] = path
+                alts[key] = figure_alt(name, table, summary, run_dir, view)
+                titles[key] = (FIGURES[name][0] if name in FIGURES else TITLES[name]) + view.title
+                if name in FIGURES:
+                    panelled |= {view.source(s.column) for p in FIGURES[name][1] for s in p.series}
         index = staging / INDEX_PAGE
         nulls = null_reasons(run_dir, table, summary)
-        undrawn = undrawn_faults(run_dir, table, summary, figures)
-        page = index_page(run_dir, summary, summary_problem, figures, stamp, alts, nulls, undrawn)
+        undrawn = undrawn_faults(run_dir, table, summary, panelled)
+        page = index_page(
+            run_dir, summary, summary_problem, figures, stamp, alts, nulls, undrawn, titles
+        )
         index.write_text(page, "utf-8", "backslashreplace")  # undecoded text elsewhere
         record(staging, [*figures.values(), index], stamp)
         remove_earlier(out, keep=[INDEX_PAGE, *(path.name for path in figures.values())])
@@ -318,6 +329,87 @@ def write_report(run_dir: Path) -> Path:
     return out / INDEX_PAGE
 
 
+@dataclass(frozen=True)
+class VehicleView:
+    """One vehicle's figures: its plant and autopilot instances (``names``, each to the
+    name the figures give it, ``plant`` or ``controller``) and, in a run of several
+    vehicles, its plant's name (``plant``), which its figures' files end with
+    (``velocities_plant_a.png``) and their titles name; "" for a run's one vehicle."""
+
+    names: tuple[tuple[str, str], ...] = (("plant", "plant"), ("controller", "controller"))
+    plant: str = ""
+
+    @property
+    def suffix(self) -> str:
+        return f"_{self.plant}" if self.plant else ""
+
+    @property
+    def title(self) -> str:
+        return f" ({self.plant})" if self.plant else ""
+
+    def column(self, column: str) -> str:
+        """The name the figures give results column ``column`` (``plant_a.yaw``:
+        ``plant.yaw``); a column of another instance (a guidance's) as it is."""
+        instance, dot, variable = column.partition(".")
+        return f"{dict(self.names).get(instance, instance)}{dot}{variable}"
+
+    def source(self, column: str) -> str:
+        """The results column a figure's ``column`` draws (``plant.yaw``: ``plant_a.yaw``)."""
+        instance, dot, variable = column.partition(".")
+        back = {role: name for name, role in self.names}
+        return f"{back.get(instance, instance)}{dot}{variable}"
+
+    def keeps(self, column: str) -> bool:
+        """Whether the figures draw ``column``: not one of another vehicle's instance named
+        plant or controller (its own are renamed so)."""
+        instance = column.partition(".")[0]
+        return instance in dict(self.names) or instance not in ("plant", "controller")
+
+    def columns(self, given: Any) -> dict[str, Any]:
+        """A mapping by results column (summary.json's ``units``), as the figures name them."""
+        each = given.items() if isinstance(given, dict) else ()
+        return {self.column(str(k)): v for k, v in each if self.keeps(str(k))}
+
+    def table(self, table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The run's results with the columns the figures draw, named as they name them."""
+        return self.columns(table)
+
+    def summary(self, summary: dict[str, Any]) -> dict[str, Any]:
+        """summary.json with this vehicle's key figures under their plain names (a fleet's
+        are ``<plant>.yaw_settling_time_s``)."""
+        if not self.plant:
+            return summary
+        figures = summary.get("key_figures")
+        each = figures.items() if isinstance(figures, dict) else ()
+        prefix = f"{self.plant}."
+        own = {k.removeprefix(prefix): v for k, v in each if k.startswith(prefix)}
+        return {**summary, "key_figures": own}
+
+    def delivery(self, delivery: Delivery) -> Delivery:
+        """A faulted connection's delivery named as the figures name its columns."""
+        return replace(
+            delivery, target=self.column(delivery.target), source=self.column(delivery.source)
+        )
+
+
+ONE = VehicleView()  # a run's one vehicle named as the built-in scenarios name it
+
+
+def vehicle_views(run_dir: Path, summary: dict[str, Any]) -> list[VehicleView]:
+    """The vehicles the report draws (:func:`run_vehicles`): one, whatever its instances
+    are named, its figures as the built-in scenarios' are; or each of several, its
+    figures' files and titles naming its plant."""
+    fleet = run_vehicles(run_dir, summary)
+    several = len(fleet) > 1
+    return [
+        VehicleView(
+            ((v.roles["plant"], "plant"), (v.roles["controller"], "controller")),
+            v.roles["plant"] if several else "",
+        )
+        for v in fleet
+    ]
+
+
 # every column some figure draws: the panels' and the trajectory's (north against east)
 DRAWN_COLUMNS = frozenset(
     {s.column for _, panels in FIGURES.values() for panel in panels for s in panel.series}
@@ -325,87 +417,85 @@ DRAWN_COLUMNS = frozenset(
 )
 
 
-def _check_drawable(run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any]) -> None:
-    """Warn of a results.csv holding none of :data:`DRAWN_COLUMNS` (a run of other FMUs,
-    recording other columns, or plants named otherwise: two vehicles): its page has the
-    run's summary and no figure, which it got without a word of why."""
-    if not DRAWN_COLUMNS.isdisjoint(table):
+def _check_drawable(
+    run_dir: Path,
+    table: dict[str, np.ndarray],
+    summary: dict[str, Any],
+    views: list[VehicleView] | None = None,
+) -> None:
+    """Warn of a results.csv holding none of :data:`DRAWN_COLUMNS` of any of its vehicles
+    (``views``: their plant and autopilot, whatever they are named; a run of other FMUs,
+    or recording other columns): its page has the run's summary and no figure, which it
+    got without a word of why."""
+    if any(not DRAWN_COLUMNS.isdisjoint(view.table(table)) for view in views or [ONE]):
         return
     shown = ", ".join(sorted(DRAWN_COLUMNS, key=lambda c: (c[:6] != "plant.", c))[:4])
-    fmus = summary.get("fmus")
-    plants = [
-        str(name)
-        for name, fmu in (fmus.items() if isinstance(fmus, dict) else ())
-        if isinstance(fmu, dict) and fmu.get("model") == "AuvPlant"
-    ]
-    why = (
-        "; it draws one vehicle, the instances named plant and controller (the built-in "
-        f"scenarios' names); this run's plants are {', '.join(plants)}"
-        if plants
-        else " (a scenario's [output] record chooses the columns)"
-    )
     warnings.warn(
         f"{run_dir / 'results.csv'} holds none of the columns the report draws "
-        f"({shown}, ...): the page shows the run's summary and no figure{why}",
+        f"({shown}, ...): the page shows the run's summary and no figure (a scenario's "
+        "[output] record chooses the columns)",
         RuntimeWarning,
         stacklevel=3,
     )
 
 
 def _figures(
-    run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any], out: Path
-) -> dict[str, Path]:
-    """Draw the run's figures into ``out``: {name: file} of those drawn."""
+    run_dir: Path,
+    table: dict[str, np.ndarray],
+    summary: dict[str, Any],
+    out: Path,
+    view: VehicleView | None = None,
+) -> dict[str, tuple[str, Path]]:
+    """Draw the figures of the run's vehicle ``view`` (its one vehicle by default) into
+    ``out``: {key: (figure name, file)} of those drawn, the key the name and the view's
+    suffix (``velocities``, ``velocities_plant_a``)."""
+    view = view or ONE
     limits = actuator_limits(run_dir)
-    found = deliveries(run_dir, table, summary)
+    found = [view.delivery(d) for d in deliveries(run_dir, table, summary)]
+    units = view.columns(summary.get("units"))
+    table, summary = view.table(table), view.summary(summary)
     table = {**table, **with_deliveries(found)}
     zoom = _zoom(table, summary)
     caption = run_caption(run_dir, table, summary)
     stop_time = _seconds(summary, "stop_time")
-    units = summary.get("units")
-    units = dict(units) if isinstance(units, dict) else {}
     units.update({d.column: units[d.source] for d in found if d.source in units})
-    figures = {}
+    figures, suffix = {}, view.suffix
     for name, (title, panels) in FIGURES.items():
         if name == "depth" and not _has_depth_loop(table):
             continue
         panels = as_declared(with_delivered(panels, found), units)
         path = plot_time_histories(
-            table, panels, caption.format(title), out / f"{name}.png", markers_of(summary),
-            limits, zoom if name in ZOOMED else None, stop_time,
+            table, panels, caption.format(title + view.title), out / f"{name}{suffix}.png",
+            markers_of(summary), limits, zoom if name in ZOOMED else None, stop_time,
         )  # fmt: skip
         if path is not None:
-            figures[name] = path
+            figures[name + suffix] = (name, path)
     waypoints = _planned_path(run_dir)
     marks = _turning_marks(table, summary)
-    trajectory = plot_trajectory(
-        table, out / "trajectory.png", waypoints, marks, caption.format(TITLES["trajectory"])
-    )
+    title = caption.format(TITLES["trajectory"] + view.title)
+    trajectory = plot_trajectory(table, out / f"trajectory{suffix}.png", waypoints, marks, title)
     if trajectory is not None:
-        figures["trajectory"] = trajectory
+        figures["trajectory" + suffix] = ("trajectory", trajectory)
     if waypoints is None and marks is None:
-        deviation = plot_lateral_deviation(
-            table, out / "lateral_deviation.png", caption.format(TITLES["lateral_deviation"])
-        )
+        title = caption.format(TITLES["lateral_deviation"] + view.title)
+        deviation = plot_lateral_deviation(table, out / f"lateral_deviation{suffix}.png", title)
         if deviation is not None:
-            figures["lateral_deviation"] = deviation
+            figures["lateral_deviation" + suffix] = ("lateral_deviation", deviation)
     return figures
 
 
 def undrawn_faults(
-    run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any], figures: dict[str, Path]
+    run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any], panelled: set[str]
 ) -> list[str]:
     """One line for each faulted connection of the run whose delivered value none of the
-    written ``figures`` draws, saying why: its source is not in results.csv (``table``),
-    no panel draws the source (the autopilot's thrust), or the run's files do not tell
-    what was delivered (:func:`cosim.viz.delivered.deliveries`)."""
+    written figures draws (``panelled``: the results columns their panels draw), saying
+    why: its source is not in results.csv (``table``), no panel draws the source (the
+    autopilot's thrust), or the run's files do not tell what was delivered
+    (:func:`cosim.viz.delivered.deliveries`)."""
     scenario = read_scenario(run_dir)
     if scenario is None:
         return []
     replayed = {d.target for d in deliveries(run_dir, table, summary)}
-    panelled = {
-        s.column for name in figures if name in FIGURES for p in FIGURES[name][1] for s in p.series
-    }
     lines = []
     for target, source, faults in faulted_connections(scenario, summary):
         if source not in table:
@@ -1003,18 +1093,25 @@ LATERAL_ALT = "Lateral deviation (m) from the initial course against the distanc
 
 
 def figure_alt(
-    name: str, table: dict[str, np.ndarray], summary: dict[str, Any], run_dir: Path
+    name: str,
+    table: dict[str, np.ndarray],
+    summary: dict[str, Any],
+    run_dir: Path,
+    view: VehicleView | None = None,
 ) -> str:
-    """The alt text of the figure ``name`` of the run in ``run_dir`` (``table``: its
-    results, ``summary``: its summary.json): what is plotted against what, with units,
-    as drawn."""
+    """The alt text of the figure ``name`` of the vehicle ``view`` (the run's one vehicle
+    by default) of the run in ``run_dir`` (``table``: its results, ``summary``: its
+    summary.json): what is plotted against what, with units, as drawn."""
+    view = view or ONE
+    found = [view.delivery(d) for d in deliveries(run_dir, table, summary)]
+    table, summary = view.table(table), view.summary(summary)
     if name == "trajectory":
         turning = summary.get("manoeuvre") == "turning-circle"
         return trajectory_alt(turning, "yes" if _depth_changes(table) else "no")
     if name == "lateral_deviation":
         return LATERAL_ALT
     zoom = _zoom(table, summary) if name in ZOOMED else None
-    return time_history_alt(name, table.__contains__, zoom, deliveries(run_dir, table, summary))
+    return time_history_alt(name, table.__contains__, zoom, found)
 
 
 def trajectory_alt(turning: bool = False, three_d: str = "when the depth changes") -> str:
@@ -1073,6 +1170,18 @@ def figure_label(name: str) -> str:
     return " ".join(words) + (f" ({unit})" if unit else "")
 
 
+def run_vehicles(run_dir: Path, summary: dict[str, Any]) -> list[Vehicle]:
+    """The run's vehicles (:func:`cosim.metrics.key_figures.vehicles`) from the FMUs its
+    summary.json names and the connections of its scenario.toml: one, its plant and
+    autopilot whatever they are named (plant and controller when summary.json names no
+    FMU), or each plant's of several, with its autopilot."""
+    sources = connection_sources(read_scenario(run_dir) or {})
+    fmus = summary.get("fmus")
+    each = fmus.items() if isinstance(fmus, dict) else ()
+    models = {str(k): str(v.get("model")) for k, v in each if isinstance(v, dict)}
+    return vehicles(models, [(source, target) for target, source in sources.items()])
+
+
 def null_reasons(
     run_dir: Path, table: dict[str, np.ndarray], summary: dict[str, Any]
 ) -> dict[str, str]:
@@ -1080,14 +1189,7 @@ def null_reasons(
     results.csv): :func:`cosim.metrics.key_figures.why_none_of`, with what drives the yaw
     set-point in the run's scenario.toml."""
     figures = summary.get("key_figures") or {}
-    scenario = read_scenario(run_dir) or {}
-    sources = connection_sources(scenario)
-    fmus = summary.get("fmus")
-    each = fmus.items() if isinstance(fmus, dict) else ()
-    models = {str(k): str(v.get("model")) for k, v in each if isinstance(v, dict)}
-    # one vehicle: its plant and autopilot whatever they are named (plant and controller
-    # when summary.json names no FMU); several: each plant's, with its autopilot
-    fleet = vehicles(models, [(source, target) for target, source in sources.items()])
+    fleet = run_vehicles(run_dir, summary)
     complete = summary.get("complete") is not False and summary.get("status") != "running"
     return {
         name: why_none_of(name, list(table), fleet, complete)
@@ -1105,17 +1207,18 @@ def index_page(
     alts: dict[str, str] | None = None,
     nulls: dict[str, str] | None = None,
     undrawn: list[str] | None = None,
+    titles: dict[str, str] | None = None,
 ) -> str:
     """The HTML index: which run it describes (``stamp``: :func:`run_stamp` and when it
     was made), summary table, key figures (one summary.json holds as null with its reason
     in ``nulls``, :func:`null_reasons`), the faults and the events fired, each faulted
     connection no figure draws (``undrawn``: :func:`undrawn_faults`), the figures inline
-    (linked), each with its ``alts`` text (:func:`figure_alt`; the figure's title without
-    one)."""
+    (linked), each under its title (``titles``, else the figure's own) with its ``alts``
+    text (:func:`figure_alt`; the title without one)."""
     name = summary.get("scenario") or path_text(run_dir.resolve().name)
     table = _summary_rows(summary, nulls or {})
     note = _incomplete_note(summary, summary_problem)
-    images = _figure_images(figures, alts)
+    images = _figure_images(figures, alts, titles)
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head><meta charset="utf-8"><title>auv-cosim run {html.escape(str(name))}</title>
@@ -1190,10 +1293,15 @@ def _undrawn_note(undrawn: list[str]) -> str:
     return "\n".join(f"<p><em>{html.escape(line)}</em></p>" for line in undrawn)
 
 
-def _figure_images(figures: dict[str, Path], alts: dict[str, str] | None) -> str:
-    """Each figure under its title, inline and linked, with its ``alts`` text (the title
-    without one)."""
-    titles = {key: FIGURES[key][0] if key in FIGURES else TITLES[key] for key in figures}
+def _figure_images(
+    figures: dict[str, Path], alts: dict[str, str] | None, given: dict[str, str] | None = None
+) -> str:
+    """Each figure under its title (``given``, else its own), inline and linked, with its
+    ``alts`` text (the title without one)."""
+    titles = {
+        key: (given or {}).get(key) or (FIGURES[key][0] if key in FIGURES else TITLES[key])
+        for key in figures
+    }
     alt = {key: (alts or {}).get(key) or titles[key] for key in figures}
     return "\n".join(
         f"<h2>{html.escape(titles[key])}</h2>\n"

@@ -12,6 +12,7 @@ import os
 import re
 import shutil
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -269,19 +270,33 @@ def test_results_with_nothing_the_report_draws_are_warned_of(tmp_path):
     assert "<img" not in page.read_text()
 
 
-def test_a_report_of_two_vehicles_says_which_instances_it_draws(tmp_path):
-    """Two vehicles (plants plant_a and plant_b): the report warned that the run's
-    [output] record left out the columns it draws, which no record could change: it
-    draws the instances named plant and controller. It now names them and the plants."""
-    (tmp_path / "results.csv").write_text("time,plant_a.yaw,plant_b.yaw\n0,0,0\n1,0.1,0.2\n")
-    fmus = {name: {"model": "AuvPlant"} for name in ("plant_a", "plant_b")}
-    (tmp_path / "summary.json").write_text(json.dumps({"fmus": fmus}))
-    expected = (
-        r"it draws one vehicle, the instances named plant and controller \(the built-in "
-        r"scenarios' names\); this run's plants are plant_a, plant_b$"
+@pytest.mark.slow
+def test_a_report_of_two_vehicles_draws_each(tmp_path):
+    """Two vehicles (plants plant_a and plant_b): the report drew neither, warning that
+    it draws the instances named plant and controller. Each now gets its own figures,
+    their files and titles naming its plant, its settling time marked from its own key
+    figure."""
+    (tmp_path / "results.csv").write_text(
+        "time,plant_a.yaw,plant_a.north,plant_a.east,plant_b.yaw,plant_b.north,plant_b.east\n"
+        "0,0,0,0,0.2,0,5\n1,0.1,1.5,0,0.2,1.5,5\n2,0.1,3,0.1,0.2,3,5\n",
+        encoding="utf-8",
     )
-    with pytest.warns(RuntimeWarning, match=expected):
-        write_report(tmp_path)
+    fmus = {name: {"model": "AuvPlant"} for name in ("plant_a", "plant_b")}
+    figures = {"plant_a.yaw_settling_time_s": 0.5, "plant_b.yaw_settling_time_s": None}
+    summary = {"fmus": fmus, "key_figures": figures, "scenario": "two", "complete": True}
+    (tmp_path / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        page = write_report(tmp_path).read_text(encoding="utf-8")
+    made = sorted(p.name for p in (tmp_path / "report").glob("*.png"))
+    assert set(made) == {
+        f"{name}_{plant}.png"
+        for name in ("attitude_actuators", "lateral_deviation", "trajectory")
+        for plant in ("plant_a", "plant_b")
+    }, made
+    assert "<h2>Trajectory (plant_b)</h2>" in page, page
+    assert "<h2>Roll and yaw, moving mass and tunnel thruster (plant_a)</h2>" in page, page
+    assert problems(page) == []
 
 
 @pytest.mark.slow
