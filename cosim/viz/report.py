@@ -386,10 +386,9 @@ class VehicleView:
         return {**summary, "key_figures": own}
 
     def delivery(self, delivery: Delivery) -> Delivery:
-        """A faulted connection's delivery named as the figures name its columns."""
-        return replace(
-            delivery, target=self.column(delivery.target), source=self.column(delivery.source)
-        )
+        """A faulted connection's delivery with its source named as the figures name it
+        (its target keeps its own name: the legend's "delivered to plant_b.thrust")."""
+        return replace(delivery, source=self.column(delivery.source))
 
 
 ONE = VehicleView()  # a run's one vehicle named as the built-in scenarios name it
