@@ -44,7 +44,12 @@ tools and our own checks may rely on:
   `north`, `east` and `yaw` and feeds the autopilot's `yaw_setpoint` and
   `depth_setpoint`. In results, recordings and exported SSP/OSP files the built-in
   scenarios name the instances `plant`, `controller` and `guidance`, and a column is named
-  `<instance>.<variable>` (see the README's "What a run writes").
+  `<instance>.<variable>` (see the README's "What a run writes"). A scenario of several
+  vehicles names each plant and autopilot its own way (`plant_a`, `ctrl_a`); the
+  recording's 3-D scene, the report and a study's overlay then draw each vehicle under its
+  plant's name (`world/plant_a/vehicle`, `velocities_plant_a.png`; one vehicle keeps
+  `world/vehicle` and `velocities.png` whatever it is named:
+  [runs.md](runs.md#two-or-more-vehicles-in-one-scenario)).
 - **Units**: SI, angles in radians, declared on every Real variable (with the unit
   definitions in `modelDescription.xml`); every variable has a description.
 - **Model structure**: `needsExecutionTool="false"`; every output is listed with its
