@@ -567,8 +567,6 @@ def drawn_vehicles(scenario: Scenario) -> list[DrawnVehicle]:
     plant without a recorded column is not drawn (no hull standing at the origin)."""
     fleet = [v.roles for v in scenario.key_vehicles]
     columns = scenario.columns
-    if len(fleet) == 1:
-        fleet = [dict(zip(("plant", "controller"), _first_roles(scenario), strict=True))]
     drawn = []
     for roles in fleet:
         plant, controller = roles["plant"], roles["controller"]
