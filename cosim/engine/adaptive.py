@@ -84,7 +84,10 @@ points of the instances with a step multiple k (every k ``step``), the sample ti
 instance with a ``sample_period`` (a digital autopilot: the first grid point at or after
 each multiple of it) and the stop time are points a step ends on (a step shortened to
 reach one is judged as if it had been the step asked for, its err scaled by
-(asked / taken)^k, so the next step does not start small).
+(asked / taken)^k, so the next step does not start small). A sample time less than two
+steps ahead is reached in two even steps, not a whole step and a sliver: the sliver (down
+to one grid point) and the steps regrowing from it cost steps at every sample, of every
+instance (a second vehicle's too, which steps with the sampling one).
 The first step is ``step``.
 
 Discard: an instance that answers a doStep with fmi2Discard without ending the simulation
@@ -507,7 +510,10 @@ class _Control:
         for period in self.periods:
             limit = min(limit, (n // period + 1) * period - n)
         for sample in self.samples:
-            limit = min(limit, next_sample_point(n, sample, self.grid) - n)
+            to_sample = next_sample_point(n, sample, self.grid) - n
+            if wanted < to_sample < 2 * wanted:  # two even steps, not a full one and a sliver
+                to_sample = -(-to_sample // 2)
+            limit = min(limit, to_sample)
         return min(wanted, limit), wanted
 
     def estimate(self, big: np.ndarray, halves: np.ndarray) -> np.ndarray:

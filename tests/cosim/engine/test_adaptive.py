@@ -261,6 +261,27 @@ def test_a_digital_autopilot_samples_on_its_period_in_an_adaptive_run(
     assert len(sampled) >= 45  # (a sample that leaves the command as it was is not seen)
 
 
+@pytest.mark.slow
+def test_a_sample_time_is_reached_in_even_steps_not_a_sliver(fmu_dir: Path) -> None:
+    """Two vehicles, the LQR autopilot of one sampling every 0.01 s, the adaptive step:
+    a step that would overshoot a sample time by less than a step was taken whole up to a
+    grid point or so short of it, then a sliver (down to 9.8e-6 s, one grid point) to reach
+    it, and the steps regrew from the sliver over several more: 3016 steps in 2 s, each
+    of all four FMUs (47 s for 10 s on a loaded machine). The distance left is now split
+    into two even steps: no step but the last shorter than a tenth of the median."""
+    from two_vehicles import two_vehicles_toml
+
+    text = two_vehicles_toml(stop_time=1.0)
+    text = text.replace("step = 0.01\n", 'step = 0.01\nalgorithm = "adaptive"\n', 1)
+    text = text.replace('heading_mode = "lqr"', 'heading_mode = "lqr"\nsample_period = 0.01')
+    result = master.run(scenario_from_toml(text, fmu_dir=fmu_dir), keep_rows=True)
+    assert result.complete, result.error
+    steps = np.diff(result.times)[:-1]  # the last: shortened to the stop time
+    median = float(np.median(steps))
+    slivers = steps[steps < median / 10]
+    assert len(slivers) == 0, f"{len(slivers)} steps under {median / 10:.2g} s: {slivers[:5]}"
+
+
 def test_a_slow_instances_last_step_ends_at_a_stop_time_its_multiple_does_not_divide(
     fmu_paths: dict[str, Path],
 ) -> None:
