@@ -467,7 +467,8 @@ def test_missing_and_unknown_columns_degrade_gracefully(tmp_path: Path, fmu_dir:
 def test_two_vehicles_draw_no_hull_that_no_plant_moves(tmp_path: Path, fmu_dir: Path):
     """Two vehicles (plant_a, plant_b; no instance named plant, the one the scene draws):
     the 3-D scene showed a hull standing at the origin with a track along it, a vehicle
-    neither plant is. The scene is left out; each plant's columns have their plots."""
+    neither plant is. No hull is drawn at world/vehicle (each plant's is under
+    world/<plant>); each plant's columns have their plots."""
     from two_vehicles import two_vehicles_toml
 
     from cosim.scenario.spec import scenario_from_toml
