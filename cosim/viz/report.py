@@ -338,6 +338,7 @@ class VehicleView:
 
     names: tuple[tuple[str, str], ...] = (("plant", "plant"), ("controller", "controller"))
     plant: str = ""
+    others: tuple[str, ...] = ()  # the other vehicles' plants and autopilots
 
     @property
     def suffix(self) -> str:
@@ -383,7 +384,15 @@ class VehicleView:
         each = figures.items() if isinstance(figures, dict) else ()
         prefix = f"{self.plant}."
         own = {k.removeprefix(prefix): v for k, v in each if k.startswith(prefix)}
-        return {**summary, "key_figures": own}
+        faults = [f for f in summary.get("faults") or [] if not self._theirs([f.get("target")])]
+        events = [e for e in summary.get("events") or [] if not self._theirs(e.get("set"))]
+        return {**summary, "key_figures": own, "faults": faults, "events": events}
+
+    def _theirs(self, references: Any) -> bool:
+        """Whether every one of ``references`` (``<instance>.<variable>``; a fault's target,
+        the variables an event set) is another vehicle's: its marker is not this one's."""
+        instances = [str(r).partition(".")[0] for r in references or []]
+        return bool(instances) and all(i in self.others for i in instances)
 
     def delivery(self, delivery: Delivery) -> Delivery:
         """A faulted connection's delivery with its source named as the figures name it
@@ -397,13 +406,16 @@ ONE = VehicleView()  # a run's one vehicle named as the built-in scenarios name 
 def vehicle_views(run_dir: Path, summary: dict[str, Any]) -> list[VehicleView]:
     """The vehicles the report draws (:func:`run_vehicles`): one, whatever its instances
     are named, its figures as the built-in scenarios' are; or each of several, its
-    figures' files and titles naming its plant."""
+    figures' files and titles naming its plant, without the markers of faults and events
+    that act on another vehicle only."""
     fleet = run_vehicles(run_dir, summary)
     several = len(fleet) > 1
+    everyone = {name for v in fleet for name in v.roles.values()}
     return [
         VehicleView(
             ((v.roles["plant"], "plant"), (v.roles["controller"], "controller")),
             v.roles["plant"] if several else "",
+            tuple(sorted(everyone - set(v.roles.values()))) if several else (),
         )
         for v in fleet
     ]

@@ -1088,3 +1088,20 @@ def test_a_renamed_vehicles_unsettled_yaw_reads_not_settled(tmp_path: Path) -> N
         '<th scope="row">yaw settling time (s)</th><td>none (not settled: the yaw is not '
         "within 1 deg of its set-point at the end)</td>"
     ) in page, re.findall(r"yaw settling time \(s\)</th><td>[^<]*", page)
+
+
+def test_a_vehicles_figures_mark_no_fault_or_event_of_another_vehicle(tmp_path) -> None:
+    """Two vehicles, a fault jamming plant_b's mass and an event on plant_b's current:
+    plant_a's figures marked them too, as if they acted on plant_a. Each vehicle's figures
+    mark its own and those of no vehicle in particular (an event on a guidance)."""
+    from cosim.viz.report import vehicle_views
+
+    fmus = {name: {"model": "AuvPlant"} for name in ("plant_a", "plant_b")}
+    jam = {"name": "jam", "kind": "mass-jam", "target": "plant_b.mass_position_cmd", "start": 1}
+    gust = {"name": "gust", "time": 2.0, "set": {"plant_b.current_east": 0.3}}
+    leg = {"name": "leg", "time": 3.0, "set": {"guidance.lookahead": 4.0}}
+    summary = {"fmus": fmus, "faults": [jam], "events": [gust, leg]}
+    a, b = vehicle_views(tmp_path, summary)
+    assert (a.plant, b.plant) == ("plant_a", "plant_b")
+    assert a.summary(summary)["faults"] == [] and a.summary(summary)["events"] == [leg]
+    assert b.summary(summary)["faults"] == [jam] and b.summary(summary)["events"] == [gust, leg]
