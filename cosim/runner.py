@@ -405,13 +405,15 @@ def _checkpoints(
     if options.resume:
         saved = read_checkpoint(folder.path, options.names)
         saved.check(scenario)
-        start, rows = saved.state(scenario), saved.rows(scenario.columns)
+        start = saved.state(scenario)
         every_s = every_s if every_s is not None else saved.every_s
     every = 0  # steps between checkpoints (0: none but a signal's)
     if every_s is not None:  # past the run's end is as good as more (and inf: 1e308 / h)
         every = max(1, round(min(every_s / scenario.coupling.step, scenario.n_steps + 1)))
     source = str(folder.path / CHECKPOINT_FILE)
     writer = CheckpointWriter(folder, scenario, every_s, _recording_path(scenario, folder, options))
+    if options.resume:  # results.csv opened last: no refusal above leaves it open
+        rows = saved.rows(scenario.columns)
     return Checkpointing(every, writer, start, rows, source)
 
 

@@ -167,6 +167,25 @@ def test_a_checkpoint_of_the_wrong_shape_is_refused_in_one_line(
     _refused(_killed(stopped, tmp_path, edit), fmu_dir, said)
 
 
+def _open_on(path: Path) -> list[int]:
+    """This process's file descriptors open on ``path`` (Linux's /proc)."""
+    fds = Path("/proc/self/fd")
+    return [int(fd.name) for fd in fds.iterdir() if os.path.realpath(fd) == str(path.resolve())]
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux's /proc")
+@pytest.mark.parametrize("every", [-1, True])
+def test_a_resume_refused_for_its_interval_leaves_results_csv_closed(
+    stopped: Path, fmu_dir: Path, tmp_path: Path, every: object
+) -> None:
+    """A checkpoint's every_s is read after results.csv is opened for the replay: its
+    refusal left the file open until the garbage collector found it (a ResourceWarning
+    then, in whichever test ran; a library user's long-lived process held it)."""
+    out = _killed(stopped, tmp_path, lambda d: d.__setitem__("every_s", every))
+    _refused(out, fmu_dir, "every_s is ")
+    assert _open_on(out / "results.csv") == []
+
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
