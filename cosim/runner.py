@@ -822,15 +822,24 @@ def _print_outcome(outcome: RunOutcome) -> None:
             file=sys.stderr,
         )
     elif not result.complete:
-        kept = "partial results in" if outcome.out_dir.is_dir() else "nothing kept:"
-        gone = "" if outcome.out_dir.is_dir() else " was removed"
-        print(f"auv-cosim run: {result.error} ({kept} {outcome.out_dir}{gone})", file=sys.stderr)
+        print(f"auv-cosim run: {result.error} ({_kept(outcome.out_dir)})", file=sys.stderr)
     elif outcome.recording_lost is not None:
         print(
             f"auv-cosim run: {outcome.recording_lost}; the run went on without it: results "
             f"complete in {outcome.out_dir}",
             file=sys.stderr,
         )
+
+
+def _kept(out_dir: Path) -> str:
+    """What an unfinished run's folder keeps, said as the run ends: a folder being removed
+    (``rm -rf``) may still stand then, its results.csv already gone, so a folder without
+    one keeps nothing either."""
+    if not out_dir.is_dir():
+        return f"nothing kept: {out_dir} was removed"
+    if not (out_dir / "results.csv").is_file():
+        return f"nothing kept: {out_dir} holds no results.csv"
+    return f"partial results in {out_dir}"
 
 
 def report(outcome: RunOutcome) -> str:
