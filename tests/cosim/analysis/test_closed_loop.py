@@ -55,18 +55,9 @@ def test_the_designed_poles_are_the_simulated_loops_own(
     hold), and besides them only the surge pole and the free north and east (z = 1)."""
     autopilot, model = _lqr(remus, speed, step)
     assert autopilot.lqr is not None
-    free = [STATE_INDEX[name] for name in Variant.LATERAL.states]
+    assert model.variant is Variant.LATERAL
     x0 = state_vector({"u": speed})
-
-    def sample(x: np.ndarray) -> np.ndarray:
-        return simulate_closed_loop(autopilot, model, x, step, step).states[1, free]
-
-    jacobian = np.empty((len(free), len(free)))
-    for j, k in enumerate(free):
-        delta = np.zeros_like(x0)
-        delta[k] = 1e-6
-        jacobian[:, j] = (sample(x0 + delta) - sample(x0 - delta)) / 2e-6
-    simulated = list(np.linalg.eigvals(jacobian))
+    simulated = list(np.linalg.eigvals(_sample_jacobian(autopilot, model, x0, step)))
     for pole in autopilot.lqr.poles:  # each designed pole matched once
         nearest = int(np.argmin(np.abs(np.array(simulated) - pole)))
         assert abs(simulated.pop(nearest) - pole) < 1e-6, (pole, simulated)
