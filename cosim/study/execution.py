@@ -683,7 +683,11 @@ class EarlyClient:
 
     def close_soon(self) -> None:
         """Close the cluster on its thread (after it has finished starting), while the
-        caller goes on; :meth:`close` waits for that. Idempotent."""
+        caller goes on; :meth:`close` waits for that. Idempotent. A fork server still
+        waiting for the study is told now that none comes (here, not on the cluster's
+        thread: that thread may be starting the cluster, whose workers the server forks
+        only once told, and the closing would wait behind it for the server's whole wait)."""
+        fork_server.hand_over(None)
         if self._closing is None:
             self._closing = self._pool.submit(self._close)
 
@@ -697,7 +701,6 @@ class EarlyClient:
             self._pool.shutdown()
 
     def _close(self) -> None:
-        fork_server.hand_over(None)  # a server still waiting for the study: it never comes
         with suppress(Exception):  # a cluster that failed to start has nothing to close
             self._started.result()
         self._stack.close()

@@ -6,10 +6,12 @@ has not handed the study over in time."""
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
 import pickle
 import weakref
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -227,3 +229,27 @@ def test_workers_are_forked_warm_from_the_server(fmu_paths, run_python, tmp_path
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip().splitlines()[-1] == str([(True, 1, [])] * 2)
+
+
+def test_a_study_refused_while_its_cluster_starts_ends_the_servers_wait(
+    tmp_path, monkeypatch
+) -> None:
+    """A study refused after its cluster began to start (a locked or foreign output folder,
+    a scenario refused) waits for the cluster to close; the cluster's workers wait for the
+    fork server, which waits for the study: the refusal came only after the server's whole
+    wait (10 min). Closing tells the server at once that no study is coming."""
+    from cosim.study import execution
+
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    told = []
+
+    @contextlib.contextmanager
+    def workers_forked_once_the_server_is_done(*args: object, **kw: object) -> Iterator[None]:
+        told.append(handed_over(path, os.getppid(), 5.0))  # as the server's wait
+        yield None
+
+    monkeypatch.setattr(execution, "open_client", workers_forked_once_the_server_is_done)
+    with execution.early_client(1):
+        pass  # the study refused before its hand-over
+    assert told == [b""]  # told that none is coming, not given up waiting
