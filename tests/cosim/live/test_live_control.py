@@ -20,6 +20,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -57,11 +58,20 @@ def endpoint(proc: subprocess.Popen) -> tuple[str, int]:
 
 
 class Client:
-    """One JSON line out, one JSON line back."""
+    """One JSON line out, one JSON line back; closed at the end of the test that opened it
+    (:func:`_clients_closed`)."""
+
+    opened: ClassVar[list[Client]] = []
 
     def __init__(self, address: tuple[str, int]) -> None:
         self.sock = socket.create_connection(address, timeout=TIMEOUT_S)
         self.file = self.sock.makefile("rw", encoding="utf-8")
+        Client.opened.append(self)
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):  # the write buffer's flush to a closed endpoint
+            self.file.close()
+        self.sock.close()
 
     def raw(self, text: str) -> str:
         self.file.write(text + "\n")
@@ -91,6 +101,15 @@ class Client:
             before = now
             time.sleep(0.2)
         raise AssertionError("the run did not pause")
+
+
+@pytest.fixture(autouse=True)
+def _clients_closed() -> Iterator[None]:
+    """Every client a test opened is closed as it ends, passed or failed: a socket left to
+    the garbage collector is a ResourceWarning in whichever test happens to collect it."""
+    yield
+    while Client.opened:
+        Client.opened.pop().close()
 
 
 @pytest.mark.slow
