@@ -17,12 +17,15 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from process_group import close_pipes
+
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 START_TIMEOUT_S = 180.0  # the machine may be busy: generous, never a measurement
 
 
 def end_group(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
-    """End the process group the test started (its leader is ``proc``) and reap it."""
+    """End the process group the test started (its leader is ``proc``), reap it and close
+    the pipes to and from it."""
     with contextlib.suppress(ProcessLookupError):
         os.killpg(proc.pid, sig)
     try:
@@ -31,6 +34,8 @@ def end_group(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+    finally:
+        close_pipes(proc)
 
 
 @contextlib.contextmanager

@@ -28,6 +28,7 @@ def run_in_group(
         with contextlib.suppress(ProcessLookupError):  # the group may have ended on its own
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+        close_pipes(proc)  # left open when communicate timed out
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
@@ -43,7 +44,20 @@ def started_in_group(command: Sequence[Any], **popen: Any) -> Iterator[subproces
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
+        try:
+            proc.communicate()
+        finally:
+            close_pipes(proc)  # those the test closed or read from leave communicate early
+
+
+def close_pipes(proc: subprocess.Popen) -> None:
+    """Close the pipes to and from ``proc`` that this process holds (its stdin, stdout,
+    stderr), once it has ended: a pipe left to the garbage collector is a ResourceWarning
+    in whichever test happens to collect it."""
+    for pipe in (proc.stdin, proc.stdout, proc.stderr):
+        if pipe is not None:
+            with contextlib.suppress(OSError):  # stdin's last flush to an ended process
+                pipe.close()
 
 
 def as_in_a_terminal() -> None:

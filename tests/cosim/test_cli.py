@@ -134,6 +134,7 @@ def test_a_reader_that_stops_reading_gets_no_traceback(argv: list[str], tmp_path
     finally:
         proc.kill()
         proc.wait()
+        proc.stderr.close()
     assert err == "" and code == 141, (code, err)
 
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from distributed import Client
+from process_group import close_pipes
 
 from cosim.cli import main
 from cosim.study.execution import tls_security
@@ -106,6 +107,7 @@ def end_group(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+        close_pipes(proc)
 
 
 def group_alive(pgid: int) -> bool:

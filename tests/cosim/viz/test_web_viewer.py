@@ -18,7 +18,7 @@ from pathlib import Path
 import psutil
 import pytest
 from deadline import deadline
-from process_group import run_in_group
+from process_group import close_pipes, run_in_group
 from rerun.chunk import RrdReader
 
 from cosim.cli import main
@@ -182,6 +182,7 @@ def _web_view(recording: Path, scratch: Path, stderr: int) -> Iterator[subproces
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+        close_pipes(proc)
 
 
 @pytest.mark.parametrize(
@@ -278,6 +279,7 @@ def test_the_next_run_removes_the_copy_a_killed_view_served(recording: Path, tmp
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+        close_pipes(proc)
     scenario = recording.parent.parent / "loop.toml"
     command = [sys.executable, "-m", "cosim.cli", "run", str(scenario), "--quiet", "--no-rrd",
                "--out", str(tmp_path / "next")]  # fmt: skip
