@@ -46,9 +46,10 @@ tools and our own checks may rely on:
   scenarios name the instances `plant`, `controller` and `guidance`, and a column is named
   `<instance>.<variable>` (see the README's "What a run writes"). A scenario of several
   vehicles names each plant and autopilot its own way (`plant_a`, `ctrl_a`); the
-  recording's 3-D scene, the report and a study's overlay then draw each vehicle under its
-  plant's name (`world/plant_a/vehicle`, `velocities_plant_a.png`; one vehicle keeps
-  `world/vehicle` and `velocities.png` whatever it is named:
+  recording's 3-D scene and plots, the report and a study's overlay then draw each vehicle
+  under its plant's name (`world/plant_a/vehicle`, `vehicles/plant_a/attitude/yaw_deg`,
+  `velocities_plant_a.png`; one vehicle keeps `world/vehicle`, `attitude/yaw_deg` and
+  `velocities.png`:
   [runs.md](runs.md#two-or-more-vehicles-in-one-scenario)).
 - **Units**: SI, angles in radians, declared on every Real variable (with the unit
   definitions in `modelDescription.xml`); every variable has a description.

@@ -11,7 +11,9 @@ A column the catalogue does not know still gets its own entity, ``other/<instanc
 named in its line's label; so does a catalogue column whose FMU declares another unit than
 its plot converts from (an FMU's ``yaw_setpoint`` in deg is not scaled from rad again).
 Every plot's entity also says, for a reader of the recording, which results.csv column
-each of its lines shows and in what unit (:func:`series_sources`).
+each of its lines shows and in what unit (:func:`series_sources`). A run of several
+vehicles gives each vehicle the catalogue's plots of its own plant and autopilot under
+``vehicles/<plant>/`` (:func:`vehicle_entity`), each loop of the layout once per vehicle.
 
 Colours follow one rule everywhere, in the plots and in the 3D scene: the first, second and
 third axis of a frame (north/u/p/roll, east/v/q/pitch, down/w/r/yaw) are red, green and
@@ -26,7 +28,7 @@ plant's (the water that moves the vehicle) and, paler, the autopilot's knowledge
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import rerun as rr
@@ -216,7 +218,8 @@ VEHICLE = (
 
 @dataclass(frozen=True)
 class PlannedPanel:
-    """A panel restricted to the columns a run records: ``indices`` index into them."""
+    """A panel restricted to the columns a run records: ``indices`` index into them;
+    ``vehicle``: in a run of several vehicles, the plant whose panel it is ("" else)."""
 
     entity: str
     title: str
@@ -224,6 +227,29 @@ class PlannedPanel:
     indices: tuple[int, ...]
     scales: tuple[float, ...]
     units: tuple[str, ...]  # the display unit of each line
+    vehicle: str = ""
+
+
+VEHICLES_ENTITY = "vehicles"  # a fleet's panels: vehicles/<plant>/attitude/yaw_deg, ...
+
+
+def vehicle_entity(plant: str, entity: str) -> str:
+    """Where the panel ``entity`` (``attitude/yaw_deg``) of the vehicle of plant ``plant``
+    is in a run of several vehicles: ``vehicles/<plant>/attitude/yaw_deg``."""
+    return f"{VEHICLES_ENTITY}/{rr.escape_entity_path_part(plant)}/{entity}"
+
+
+def _own(series: Series, plant: str, controller: str) -> Series:
+    """``series`` of the catalogue (``plant.yaw``) read from a vehicle's own instances
+    (``plant_a.yaw``); a column of another instance (a guidance's) is not the vehicle's."""
+    names = {"plant": plant, "controller": controller}
+
+    def own(column: str) -> str:
+        instance, _, variable = column.partition(".")
+        return f"{names[instance]}.{variable}" if instance in names else ""
+
+    turn_of = own(series.turn_of) if series.turn_of else None
+    return replace(series, column=own(series.column), turn_of=turn_of)
 
 
 def _labelled(label: str, unit: str | None) -> str:
@@ -231,29 +257,36 @@ def _labelled(label: str, unit: str | None) -> str:
     return label if unit in (None, "", DIMENSIONLESS) else f"{label} ({unit})"
 
 
-def plan_panels(columns: list[str], units: Mapping[str, str] | None = None) -> list[PlannedPanel]:
+def plan_panels(
+    columns: list[str],
+    units: Mapping[str, str] | None = None,
+    fleet: Sequence[tuple[str, str]] = (),
+) -> list[PlannedPanel]:
     """The panels a run with these columns shows; unknown columns go to ``other/...``,
     drawn in the unit ``units`` gives them (column -> the unit its FMU declares, as
     summary.json's ``units``; ``"1"`` for a column it lacks).
 
     A panel none of whose columns is recorded is dropped; one with some of them keeps
-    those (a run without a controller still shows yaw, without the setpoint).
+    those (a run without a controller still shows yaw, without the setpoint). ``fleet``:
+    the (plant, autopilot) instances of each vehicle of a run of several; each vehicle's
+    columns get panels of their own (:func:`vehicle_entity`, titled with its plant), as
+    the catalogue draws ``plant`` and ``controller``'s; the panels of one vehicle, or of
+    none, are the catalogue's, unchanged.
     """
     index = {name: i for i, name in enumerate(columns)}
     planned: list[PlannedPanel] = []
     shown: set[int] = set()
+    owners = [(plant, controller) for plant, controller in fleet] if len(fleet) > 1 else []
+    for plant, controller in owners:
+        for panel in PANELS:
+            own = replace(panel, series=tuple(_own(s, plant, controller) for s in panel.series))
+            found = _planned(own, index, units, shown)
+            if found is not None:
+                entity, title = vehicle_entity(plant, panel.entity), f"{plant}: {panel.title}"
+                planned.append(replace(found, entity=entity, title=title, vehicle=plant))
     for panel in PANELS:
-        present = tuple(
-            s for s in panel.series if s.column in index and _fits(s.column, panel, units)
-        )
-        if present:
-            indices = tuple(index[s.column] for s in present)
-            shown.update(indices)
-            scales = tuple(s.scale for s in present)
-            panel_units = (panel.unit,) * len(present)
-            planned.append(
-                PlannedPanel(panel.entity, panel.title, present, indices, scales, panel_units)
-            )
+        if (found := _planned(panel, index, units, shown)) is not None:
+            planned.append(found)
     for i, name in enumerate(columns):
         if i not in shown:
             declared = (units or {}).get(name) or DIMENSIONLESS
@@ -262,6 +295,26 @@ def plan_panels(columns: list[str], units: Mapping[str, str] | None = None) -> l
             entity = "other/" + "/".join(map(rr.escape_entity_path_part, name.split(".", 1)))
             planned.append(PlannedPanel(entity, name, (series,), (i,), (scale,), (unit,)))
     return planned
+
+
+def _planned(
+    panel: Panel, index: Mapping[str, int], units: Mapping[str, str] | None, shown: set[int]
+) -> PlannedPanel | None:
+    """``panel`` restricted to its recorded columns not ``shown`` in another panel (which
+    it adds them to), or None if it has none."""
+    present = tuple(
+        s
+        for s in panel.series
+        if s.column in index and index[s.column] not in shown and _fits(s.column, panel, units)
+    )
+    if not present:
+        return None
+    indices = tuple(index[s.column] for s in present)
+    shown.update(indices)
+    scales = tuple(s.scale for s in present)
+    return PlannedPanel(
+        panel.entity, panel.title, present, indices, scales, (panel.unit,) * len(present)
+    )
 
 
 def _fits(column: str, panel: Panel, units: Mapping[str, str] | None) -> bool:
@@ -302,6 +355,37 @@ def world_eye(tracked: str = TRACKED_ENTITY) -> rrb.EyeControls3D:
     )
 
 
+def tracked_entity(roots: Sequence[str] = ()) -> str:
+    """The shape the world view follows: the hull of the first drawn vehicle (``roots``:
+    the entities the drawn vehicles hang under, :func:`build_blueprint`), else
+    :data:`TRACKED_ENTITY`."""
+    return f"/{roots[0]}/vehicle/hull" if roots else TRACKED_ENTITY
+
+
+def _loop_grids(
+    panels: list[PlannedPanel], title: str, entities: tuple[str, ...], legend: bool = True
+) -> list[rrb.Grid]:
+    """The grids of the loop ``title`` (its plots ``entities``): the catalogue's panels',
+    then each vehicle's of a run of several (:func:`plan_panels`' ``fleet``), named
+    ``<title> (<plant>)``; a grid without a recorded panel is left out."""
+    present = {p.entity: p for p in panels}
+    vehicles = list(dict.fromkeys(p.vehicle for p in panels if p.vehicle))
+    legend_at = rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True) if legend else None
+    grids = []
+    for plant in ["", *vehicles]:
+        views = [
+            rrb.TimeSeriesView(
+                origin="/" + entity, name=present[entity].title, plot_legend=legend_at
+            )
+            for entity in (vehicle_entity(plant, e) if plant else e for e in entities)
+            if entity in present
+        ]
+        if views:
+            name = f"{title} ({plant})" if plant else title
+            grids.append(rrb.Grid(*views, grid_columns=PLOT_COLUMNS, name=name))
+    return grids
+
+
 def build_blueprint(
     panels: list[PlannedPanel], depth_control: bool, roots: Sequence[str] = ("world",)
 ) -> rrb.Blueprint:
@@ -318,26 +402,15 @@ def build_blueprint(
     would show it otherwise) and the scenario text. ``roots``: the entities the drawn
     vehicles hang under (:class:`cosim.viz.scene.SceneVehicle`; ``world`` for one, each
     ``world/<plant>`` of several): every vehicle's track grows with the time cursor, the
-    world view follows the first vehicle and the chase view rides on it. The depth tab is
-    the active one when depth control is on, the vehicle tab otherwise.
+    world view follows the first vehicle and the chase view rides on it. A run of several
+    vehicles with panels of their own (:func:`plan_panels`' ``fleet``) has each loop once
+    per vehicle, a tab each (``Heading loop (plant_a)``). The depth tab (the first
+    vehicle's) is the active one when depth control is on, the vehicle tab otherwise.
 
     The plots of a loop sit in a grid of :data:`PLOT_COLUMNS` columns, not one stack: six
     stacked plots of ~130 px each leave the viewer room for a single y tick ("0") on most
     of them; three rows of ~300 px show several ticks, so values can be read off.
     """
-    present = {p.entity: p for p in panels}
-
-    def plots(entities: tuple[str, ...]) -> list[rrb.TimeSeriesView]:
-        return [
-            rrb.TimeSeriesView(
-                origin="/" + entity,
-                name=present[entity].title,
-                plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True),
-            )
-            for entity in entities
-            if entity in present
-        ]
-
     trajectory_history = rrb.VisibleTimeRanges(
         timeline=TIMELINE,
         start=rrb.TimeRangeBoundary.infinite(),
@@ -349,7 +422,7 @@ def build_blueprint(
         origin="/world",
         name="World (NED, grid 10 m)",
         line_grid=rrb.LineGrid3D(visible=True, spacing=10.0),
-        eye_controls=world_eye(f"{first}/vehicle/hull"),
+        eye_controls=world_eye(tracked_entity(roots)),
         overrides={track: trajectory_history for track in tracks},
     )
     chase = rrb.Spatial3DView(
@@ -366,19 +439,22 @@ def build_blueprint(
         overrides={track: trajectory_history for track in tracks},
     )
     columns: list[rrb.Container | rrb.View] = [rrb.Vertical(world, chase, row_shares=[3, 2])]
-    if heading := plots(HEADING_LOOP):
-        columns.append(rrb.Grid(*heading, grid_columns=PLOT_COLUMNS, name="Heading loop"))
+    heading = _loop_grids(panels, "Heading loop", HEADING_LOOP)
+    if len(heading) == 1:
+        columns.append(heading[0])
+    elif heading:
+        columns.append(rrb.Tabs(*heading, active_tab=0))
     tabs: list[rrb.Container | rrb.View] = []
     for title, entities in (("Depth loop", DEPTH_LOOP), ("Vehicle", VEHICLE)):
-        if views := plots(entities):
-            tabs.append(rrb.Grid(*views, grid_columns=PLOT_COLUMNS, name=title))
+        tabs += _loop_grids(panels, title, entities)
     if any(p.entity.startswith("other/") for p in panels):
         tabs.append(rrb.TimeSeriesView(origin="/other", name="Other signals"))
     tabs.append(rrb.TextLogView(origin=f"/{NOTES_ENTITY}", name="Events"))
     tabs.append(rrb.TextDocumentView(origin="/scenario", name="Scenario"))
-    names = [tab.name for tab in tabs]
-    first = "Depth loop" if depth_control else "Vehicle"
-    columns.append(rrb.Tabs(*tabs, active_tab=names.index(first) if first in names else 0))
+    shown = "Depth loop" if depth_control else "Vehicle"
+    names = [str(tab.name) for tab in tabs]
+    active = next((k for k, name in enumerate(names) if name.startswith(shown)), 0)
+    columns.append(rrb.Tabs(*tabs, active_tab=active))
     return rrb.Blueprint(
         rrb.Horizontal(*columns, column_shares=[4, 5, 4][: len(columns)]),
         rrb.BlueprintPanel(state="collapsed"),
@@ -388,26 +464,21 @@ def build_blueprint(
     )
 
 
-def notebook_blueprint(panels: list[PlannedPanel]) -> rrb.Blueprint:
+def notebook_blueprint(panels: list[PlannedPanel], roots: Sequence[str] = ()) -> rrb.Blueprint:
     """The layout for a notebook cell (``cosim.viz.notebook``): the world view beside the
-    heading loop's plots, two columns in the cell's width, every side panel collapsed; the
-    events log (:data:`NOTES_ENTITY`: events, faults, how the run ended) a tab behind the
-    plots."""
-    present = {p.entity: p for p in panels}
-    heading = [
-        rrb.TimeSeriesView(origin="/" + entity, name=present[entity].title)
-        for entity in HEADING_LOOP
-        if entity in present
-    ]
+    heading loop's plots (a run of several vehicles: each vehicle's, a tab each), two
+    columns in the cell's width, every side panel collapsed; the events log
+    (:data:`NOTES_ENTITY`: events, faults, how the run ended) a tab behind the plots.
+    ``roots``: the entities the drawn vehicles hang under (:func:`build_blueprint`); the
+    world view follows the first."""
     world = rrb.Spatial3DView(
         origin="/world",
         name="World (NED, grid 10 m)",
         line_grid=rrb.LineGrid3D(visible=True, spacing=10.0),
-        eye_controls=world_eye(),
+        eye_controls=world_eye(tracked_entity(roots)),
     )
     tabs: list[rrb.Container | rrb.View] = []
-    if heading:
-        tabs.append(rrb.Grid(*heading, grid_columns=PLOT_COLUMNS, name="Heading loop"))
+    tabs += _loop_grids(panels, "Heading loop", HEADING_LOOP, legend=False)
     tabs.append(rrb.TextLogView(origin=f"/{NOTES_ENTITY}", name="Events"))
     views: list[rrb.Container | rrb.View] = [world, rrb.Tabs(*tabs, active_tab=0)]
     return rrb.Blueprint(

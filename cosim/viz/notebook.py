@@ -55,10 +55,13 @@ def offline_assets() -> str:
 
 
 def _layout(rrd: Path) -> Any:
-    """The notebook layout for the run beside ``rrd`` (its results.csv names the columns),
-    a study's overlay's own (:func:`cosim.viz.overlay.overlay_blueprint`); None (rerun's
-    own views) for any other recording."""
+    """The notebook layout for the run beside ``rrd`` (its results.csv names the columns;
+    its summary.json and scenario.toml the vehicles, :func:`cosim.viz.fleet.run_vehicles`,
+    whose first the world view follows), a study's overlay's own
+    (:func:`cosim.viz.overlay.overlay_blueprint`); None (rerun's own views) for any other
+    recording."""
     from cosim.outputs.results import header_columns
+    from cosim.viz.fleet import drawn_roots, pairs, read_summary, run_vehicles
     from cosim.viz.layout import notebook_blueprint, plan_panels
     from cosim.viz.rrd_file import OVERLAY_FILE
 
@@ -72,7 +75,11 @@ def _layout(rrd: Path) -> Any:
         from cosim.viz.overlay import overlay_blueprint  # matplotlib: for an overlay only
 
         return overlay_blueprint()
-    return notebook_blueprint(plan_panels(columns))
+    summary = read_summary(rrd.parent)
+    fleet = run_vehicles(rrd.parent, summary)
+    units = summary.get("units")
+    panels = plan_panels(columns, units if isinstance(units, dict) else None, pairs(fleet))
+    return notebook_blueprint(panels, [root for _, root in drawn_roots(fleet, columns)])
 
 
 def inline_viewer(rrd: str | Path, height: int = HEIGHT) -> Viewer:

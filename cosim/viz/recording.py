@@ -55,6 +55,7 @@ from cosim.outputs.results import column_units, versions
 from cosim.paths import path_text
 from cosim.scenario.spec import Scenario
 from cosim.viz.display_units import on_turn_of
+from cosim.viz.fleet import drawn_roots, pairs
 from cosim.viz.layout import (
     NOTES_ENTITY,
     PlannedPanel,
@@ -77,7 +78,6 @@ from cosim.viz.rrd_file import (
 )
 from cosim.viz.scene import (
     TARGET_COLUMNS,
-    WORLD,
     SceneVehicle,
     SceneWriter,
     log_static_scene,
@@ -178,7 +178,8 @@ class RerunSink:
             raise ValueError(f"recorded columns must be unique, got duplicates {duplicates}")
         self._columns = list(columns)
         self._index = {name: i for i, name in enumerate(columns)}
-        self._panels = plan_panels(self._columns, column_units(scenario))
+        fleet = pairs(scenario.key_vehicles)
+        self._panels = plan_panels(self._columns, column_units(scenario), fleet)
         self._closed = False
         self._opened = time.monotonic()
         self._rrd_path = None if rrd_path is None else Path(rrd_path)
@@ -563,19 +564,15 @@ def drawn_vehicles(scenario: Scenario) -> list[DrawnVehicle]:
     """The vehicles the 3D scene draws: each plant the key figures describe
     (``Scenario.key_vehicles``) with a recorded column, with the autopilot joined to it;
     one vehicle's shapes under ``world`` (its entities as :mod:`cosim.viz.scene` lists
-    them, whatever its instances are named), each of several under ``world/<plant>``. A
-    plant without a recorded column is not drawn (no hull standing at the origin)."""
-    fleet = [v.roles for v in scenario.key_vehicles]
-    columns = scenario.columns
-    drawn = []
-    for roles in fleet:
-        plant, controller = roles["plant"], roles["controller"]
-        if not any(c.startswith(f"{plant}.") for c in columns):
-            continue
-        root = WORLD if len(fleet) == 1 else f"{WORLD}/{rr.escape_entity_path_part(plant)}"
-        who = SceneVehicle(plant, controller, root)
-        drawn.append(DrawnVehicle(who, _vehicle_of(scenario, plant), _depth_control(scenario, who)))
-    return drawn
+    them, whatever its instances are named), each of several under ``world/<plant>``
+    (:func:`cosim.viz.fleet.drawn_roots`). A plant without a recorded column is not drawn (no
+    hull standing at the origin)."""
+    found = []
+    for vehicle, root in drawn_roots(scenario.key_vehicles, scenario.columns):
+        plant = vehicle.roles["plant"]
+        who = SceneVehicle(plant, vehicle.roles["controller"], root)
+        found.append(DrawnVehicle(who, _vehicle_of(scenario, plant), _depth_control(scenario, who)))
+    return found
 
 
 def _first_roles(scenario: Scenario) -> tuple[str, str]:

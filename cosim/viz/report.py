@@ -78,7 +78,7 @@ from matplotlib.figure import Figure
 from cosim.errors import CosimError
 from cosim.fmus.interface import read_interface
 from cosim.limits import unwritten
-from cosim.metrics.key_figures import Vehicle, vehicles, why_none_of
+from cosim.metrics.key_figures import why_none_of
 from cosim.metrics.manoeuvres import summary_metrics, turning_circle_marks
 from cosim.outputs.folder import REPORT_FOLDER
 from cosim.outputs.missing_run import missing_run_hint
@@ -94,12 +94,12 @@ from cosim.outputs.results import read_csv
 from cosim.paths import DEFAULT_FMU_DIR, path_text
 from cosim.viz.delivered import (
     Delivery,
-    connection_sources,
     deliveries,
     faulted_connections,
     read_scenario,
 )
 from cosim.viz.display_units import DEG, NO_UNIT, on_turn_of, scale_to
+from cosim.viz.fleet import run_vehicles
 from cosim.viz.mission import mission_waypoints
 from cosim.viz.rrd_file import STUDY_FILE
 
@@ -1179,18 +1179,6 @@ def figure_label(name: str) -> str:
         at = words.index("abs")
         words = [*words[:at], "|" + " ".join(words[at + 1 :]) + "|"]
     return " ".join(words) + (f" ({unit})" if unit else "")
-
-
-def run_vehicles(run_dir: Path, summary: dict[str, Any]) -> list[Vehicle]:
-    """The run's vehicles (:func:`cosim.metrics.key_figures.vehicles`) from the FMUs its
-    summary.json names and the connections of its scenario.toml: one, its plant and
-    autopilot whatever they are named (plant and controller when summary.json names no
-    FMU), or each plant's of several, with its autopilot."""
-    sources = connection_sources(read_scenario(run_dir) or {})
-    fmus = summary.get("fmus")
-    each = fmus.items() if isinstance(fmus, dict) else ()
-    models = {str(k): str(v.get("model")) for k, v in each if isinstance(v, dict)}
-    return vehicles(models, [(source, target) for target, source in sources.items()])
 
 
 def null_reasons(

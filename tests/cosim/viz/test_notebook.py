@@ -79,3 +79,44 @@ def test_a_study_s_overlay_keeps_its_layout_inline(
     notebook.inline_viewer(tmp_path)
     assert layouts[0] is not None, "no layout: rerun's own views"
     assert {"/world", *(f"/{root}" for root in SERIES)} <= set(_origins(layouts[0]))
+
+
+def _tracked(blueprint) -> list[str]:
+    """The entity each 3-D view of ``blueprint`` has its eye follow."""
+    import rerun.blueprint as rrb
+
+    def views(node) -> list:
+        if hasattr(node, "root_container"):
+            return views(node.root_container)
+        if isinstance(node, rrb.Spatial3DView):
+            return [node]
+        return [view for child in getattr(node, "contents", None) or [] for view in views(child)]
+
+    found = []
+    for view in views(blueprint):
+        eye = view.properties.get("EyeControls3D")
+        tracking = None if eye is None else eye.tracking_entity
+        if tracking is not None:
+            found += [str(e) for e in tracking.as_arrow_array().to_pylist()]
+    return found
+
+
+@pytest.mark.slow
+def test_a_fleet_s_notebook_view_follows_its_first_vehicle(tmp_path: Path, fmu_dir: Path) -> None:
+    """A run of two vehicles draws them under world/<plant>/vehicle: the notebook's world
+    view tracked /world/vehicle/hull, an entity the recording does not have, so its eye
+    followed nothing. It follows the first drawn vehicle's hull, as the file's own
+    layout does."""
+    from rerun.chunk import RrdReader
+    from two_vehicles import two_vehicles_toml
+
+    import cosim
+
+    scenario = tmp_path / "two.toml"
+    scenario.write_text(two_vehicles_toml(stop_time=0.2), encoding="utf-8")
+    run = cosim.run(scenario, out=tmp_path / "run", fmu_dir=fmu_dir)
+    rrd = run.out_dir / "recording.rrd"
+    entities = set(RrdReader(rrd).stream().collect().schema().entity_paths())
+    tracked = _tracked(notebook._layout(rrd))
+    assert tracked == ["/world/plant_a/vehicle/hull"], tracked
+    assert tracked[0] in entities, sorted(e for e in entities if e.startswith("/world"))

@@ -479,7 +479,7 @@ def test_two_vehicles_draw_no_hull_that_no_plant_moves(tmp_path: Path, fmu_dir: 
         sink.add_rows(times, np.ones((5, len(scenario.columns))))
     entities = set(RrdReader(tmp_path / "r.rrd").stream().collect().schema().entity_paths())
     assert not any(entity.startswith("/world/vehicle") for entity in entities), entities
-    assert {"/other/plant_a/yaw", "/other/plant_b/yaw"} <= entities
+    assert {f"/vehicles/{p}/attitude/yaw_deg" for p in ("plant_a", "plant_b")} <= entities
 
 
 def test_two_vehicles_each_draw_their_own_hull_and_track(tmp_path: Path, fmu_dir: Path):
@@ -509,6 +509,57 @@ def test_two_vehicles_each_draw_their_own_hull_and_track(tmp_path: Path, fmu_dir
             path, f"/world/{plant}/vehicle/moving_mass", "Ellipsoids3D:centers", 3
         )
         assert len(mass) == 5
+
+
+def test_each_vehicle_of_a_fleet_has_its_own_plots(tmp_path: Path, fmu_dir: Path):
+    """Two vehicles (plant_a with ctrl_a, plant_b with ctrl_b): the recording's plots drew
+    the instances named plant and controller only, so a fleet's yaw, mass position and
+    commands were bare lines under other/<instance>/<variable>, in radians and metres.
+    Each vehicle has the catalogue's plots of its own, under vehicles/<plant>/, in their
+    display units, its set-point and commands beside its own values, and the file's
+    layout shows them, a heading loop for each."""
+    from two_vehicles import two_vehicles_toml
+
+    from cosim.scenario.spec import scenario_from_toml
+
+    scenario = scenario_from_toml(two_vehicles_toml(stop_time=0.4), fmu_dir=fmu_dir)
+    columns = list(scenario.columns)
+    times = np.arange(5) * 0.1
+    values = np.zeros((5, len(columns)))
+    for k, (plant, controller) in enumerate((("plant_a", "ctrl_a"), ("plant_b", "ctrl_b"))):
+        values[:, columns.index(f"{plant}.yaw")] = (k + 1) * 0.1 * times
+        values[:, columns.index(f"{plant}.mass_position")] = (k + 1) * 0.01
+        values[:, columns.index(f"{controller}.mass_position_cmd")] = -(k + 1) * 0.02
+    path = tmp_path / "r.rrd"
+    with RerunSink(scenario, path) as sink:
+        sink.add_rows(times, values)
+    entities = set(RrdReader(path).stream().collect().schema().entity_paths())
+    for k, (plant, controller) in enumerate((("plant_a", "ctrl_a"), ("plant_b", "ctrl_b"))):
+        _, yaw = read_temporal(path, f"/vehicles/{plant}/attitude/yaw_deg", "Scalars:scalars", 1)
+        np.testing.assert_allclose(yaw[:, 0, 0], np.degrees((k + 1) * 0.1 * times))
+        entity = f"/vehicles/{plant}/moving_mass/position_cm"
+        _, mass = read_temporal(path, entity, "Scalars:scalars", 2)
+        np.testing.assert_allclose(mass[0, 0], [(k + 1) * 1.0, -(k + 1) * 2.0])  # cm
+        assert read_static(path, entity, "results_columns") == [
+            [f"{plant}.mass_position", f"{controller}.mass_position_cmd"]
+        ]
+        assert f"/other/{plant}/yaw" not in entities and f"/other/{controller}/yaw" not in entities
+    layout = recording.build_blueprint(
+        recording.plan_panels(columns, fleet=[("plant_a", "ctrl_a"), ("plant_b", "ctrl_b")]),
+        depth_control=False,
+    )
+    origins = {str(view.origin) for view in _all_views(layout.root_container)}
+    assert {f"/vehicles/{p}/attitude/yaw_deg" for p in ("plant_a", "plant_b")} <= origins
+
+
+def _all_views(container) -> list:
+    """Every view under a blueprint ``container``, depth first."""
+    import rerun.blueprint as rrb
+
+    found = []
+    for item in container.contents or []:
+        found += _all_views(item) if isinstance(item, rrb.Container) else [item]
+    return found
 
 
 def test_one_vehicle_named_otherwise_is_drawn_where_the_built_ins_are(
