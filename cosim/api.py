@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
 from cosim.engine.signals import REASONS
-from cosim.errors import KEYWORDS, CosimError, counted, plain, shown
+from cosim.errors import KEYWORDS, CosimError, counted, matplotlib_folder_absolute, plain, shown
 from cosim.limits import open_files_limit_kept
 from cosim.paths import DEFAULT_FMU_DIR, path_text, undecoded
 from cosim.runner import NotStartedError, RunOptions, execute
@@ -679,11 +679,15 @@ def _swept(
     StudyStopped) raises :class:`SweepInterrupted` with the finished rows."""
     from cosim.study.collector import gc_diagnosis_registered
     from cosim.study.runner import run_study
+    from cosim.user_cache import matplotlib_cache
 
     with ExitStack() as stack:
         out_dir = out
         try:
             stack.callback(_restore_environ, dict(os.environ))
+            # a relative HOME: matplotlib's folder absolute for the study's figures, as the
+            # command's, not in the caller's working folder (put back with the environment)
+            matplotlib_folder_absolute(matplotlib_cache)
             stack.enter_context(open_files_limit_kept())  # a local study raises it for workers
             stack.callback(_restore_start_method, multiprocessing.get_start_method(allow_none=True))
             temporary = None

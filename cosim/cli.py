@@ -1123,11 +1123,11 @@ def _add_model_options(a: argparse.ArgumentParser, variant_default: str = "horiz
 
 
 def _matplotlib_cache() -> Path:
-    """Where matplotlib's folder goes when its own would be relative: beside auv-cosim's
-    caches (imported here: the command's start imports no more than it needs)."""
-    from cosim.user_cache import cache_root
+    """:func:`cosim.user_cache.matplotlib_cache` (imported here: the command's start imports
+    no more than it needs)."""
+    from cosim.user_cache import matplotlib_cache
 
-    return cache_root() / "matplotlib"
+    return matplotlib_cache()
 
 
 def _named(args: argparse.Namespace) -> str:

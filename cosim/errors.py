@@ -252,8 +252,9 @@ def matplotlib_folder_absolute(fallback: Callable[[], Path]) -> None:
     command drawing from another folder made ``<HOME>/.config/matplotlib`` and
     ``<HOME>/.cache/matplotlib`` there. auv-cosim's own caches ignore a relative one
     (:func:`plant_fmu.model.jit.default_cache_dir`); ``fallback`` is called only then.
-    Before matplotlib is imported; for the command's own process (the Python API leaves
-    its caller's environment as it is)."""
+    Before matplotlib is imported: in the command's own process, or for a study of the
+    Python API (``cosim.sweep``, which puts its caller's environment back after it; the
+    folder matplotlib resolved stays its folder in that process)."""
     if os.environ.get("MPLCONFIGDIR"):
         return
     home = os.environ.get("HOME")

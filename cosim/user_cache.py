@@ -49,6 +49,12 @@ def cache_root() -> Path:
     return default_cache_dir().parent
 
 
+def matplotlib_cache() -> Path:
+    """Where matplotlib's folder goes when its own would be relative (a relative HOME,
+    :func:`cosim.errors.matplotlib_folder_absolute`): beside auv-cosim's caches."""
+    return cache_root() / "matplotlib"
+
+
 def store_folder(name: str) -> Path | None:
     """The store ``name`` in the user's cache folder, or None where there can be none."""
     root = cache_root()
