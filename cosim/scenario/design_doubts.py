@@ -2,8 +2,8 @@
 meant: its laws designed for another vehicle than the plant's, or for another speed than
 the thrust it sends drives the plant at, a gain given to a law the scenario never runs, or
 a law designed for its command held over each step (the LQR, the sampled sliding mode)
-whose command the coupling extrapolates, or a moving-mass command limit short of the
-plant's rail.
+whose command the coupling extrapolates or hands on late, or a gain fault on it, past its
+loop's margins, or a moving-mass command limit short of the plant's rail.
 
 The autopilot designs its heading laws on its own ``vehicle`` parameter set
 (:class:`controller_fmu.lateral_model.LateralDesignModel`), not on the plant's: a scenario
@@ -278,22 +278,23 @@ def _extrapolated_command_doubt(scenario: Scenario, name: str, autopilot: Instan
 
 
 def _late_command_doubt(scenario: Scenario, name: str, autopilot: Instance) -> str:
-    """The warning if ``name`` runs the LQR (at its start or after an event) and the
-    coupling hands its mass command to the plant one communication step late (Jacobi, or a
-    Gauss-Seidel order with the plant first) while its loop, its gains (designed for
-    design_step) sampled as it samples and delayed so (by at most one sample), is unstable
-    (:func:`_unstable_when_late`; '' if not)."""
-    if HeadingMode.LQR not in _heading_modes(scenario, name, autopilot):
-        return ""
+    """The warning if ``name`` runs a law designed for its command held over each step
+    (:data:`_DISCRETE_LAWS`, at its start or after an event) and the coupling hands its mass
+    command to the plant one communication step late (Jacobi, or a Gauss-Seidel order with
+    the plant first) while its loop, its gains (designed for design_step) sampled as it
+    samples and delayed so (by at most one sample), is unstable (:func:`_unstable_when_late`;
+    '' if not)."""
+    laws = [law for law in _DISCRETE_LAWS if law in _heading_modes(scenario, name, autopilot)]
     for plant in _commanded(scenario, name).values():
         cause = _late_cause(scenario, name, plant)
         if not cause:
             continue
         sample = _sample_time(scenario, name, autopilot)
         step = _plant_step(scenario, plant)
-        if not _unstable_when_late(autopilot, sample, min(step, sample)):
-            return ""
-        return _late_command_text(name, autopilot, sample, step, cause, plant)
+        for law in laws:
+            if _unstable_when_late(autopilot, sample, min(step, sample), law):
+                return _late_command_text(name, autopilot, (sample, step), cause, plant, law)
+        return ""
     return ""
 
 
@@ -322,35 +323,43 @@ def _plant_step(scenario: Scenario, plant: str) -> float:
 
 def _gain_fault_doubts(scenario: Scenario, name: str, autopilot: Instance) -> list[str]:
     """A warning for each gain fault on ``name``'s mass command (where `auv-cosim analyze
-    margins` breaks the loop) under which its LQR loop, as it samples and as late as the
-    coupling hands the command on (:func:`_worst_pole`), is unstable: a gain past the
-    upper gain margin makes the command chatter between its limits while the key figures
-    look better than a stable loop's (docs/model.md#lqr)."""
-    if HeadingMode.LQR not in _heading_modes(scenario, name, autopilot):
-        return []
+    margins` breaks the loop) under which its loop of a law of :data:`_DISCRETE_LAWS`, as it
+    samples and as late as the coupling hands the command on (:func:`_worst_pole`), is
+    unstable: a gain past the upper gain margin makes the command chatter between its
+    limits while the key figures look better than a stable loop's (docs/model.md#lqr)."""
+    laws = [law for law in _DISCRETE_LAWS if law in _heading_modes(scenario, name, autopilot)]
     found = []
     sample = _sample_time(scenario, name, autopilot)
     for target, plant in _commanded(scenario, name).items():
         delay = (
             min(_plant_step(scenario, plant), sample) if _late_cause(scenario, name, plant) else 0.0
         )
-        for fault in scenario.faults:
+        for fault, law in itertools.product(scenario.faults, laws):
             if fault.kind != "gain" or fault.target != target or fault.value is None:
                 continue
-            worst = _worst_pole(autopilot, sample, delay, fault.value)
+            worst = _worst_pole(autopilot, sample, delay, fault.value, law)
             if fault.start < scenario.stop_time and worst is not None and abs(worst) >= 1.0:
-                found.append(_gain_fault_text(name, fault, worst, sample))
+                found.append(_gain_fault_text(name, fault, worst, sample, law))
+                break  # one line a fault
     return found
 
 
-def _gain_fault_text(name: str, fault: Fault, worst: complex, sample: float) -> str:
+_MARGINS_OF = {  # where a law's loop margins are read, as its warnings name it
+    HeadingMode.LQR: "auv-cosim analyze margins",
+    HeadingMode.SLIDING_MODE: "its loop inside the boundary layer, docs/model.md#sliding-mode",
+}
+
+
+def _gain_fault_text(
+    name: str, fault: Fault, worst: complex, sample: float, law: HeadingMode = HeadingMode.LQR
+) -> str:
     """:func:`_gain_fault_doubts`'s line for ``fault``, the loop's worst pole ``worst``
-    (z, of a sample of ``sample`` s)."""
+    (z, of a sample of ``sample`` s) under ``law``."""
     angle = abs(cmath.phase(worst))
     line = (
         f"faults.{fault.name}: a gain of {fault.value:.4g} on {fault.target} (the command of "
-        f"{name}'s heading_mode lqr) is outside that loop's gain margins (auv-cosim analyze "
-        f"margins), so from t = {fault.start:g} s it is unstable"
+        f"{name}'s heading_mode {law.name.lower()}) is outside that loop's gain margins "
+        f"({_MARGINS_OF[law]}), so from t = {fault.start:g} s it is unstable"
     )
     if angle < math.pi / 2:
         return f"{line} (|z| = {abs(worst):.4g} a sample): its heading turns away, slowly"
@@ -366,14 +375,27 @@ def _gain_fault_text(name: str, fault: Fault, worst: complex, sample: float) -> 
 
 
 def _late_command_text(
-    name: str, autopilot: Instance, sample: float, step: float, cause: str, plant: str
+    name: str,
+    autopilot: Instance,
+    times: tuple[float, float],
+    cause: str,
+    plant: str,
+    law: HeadingMode = HeadingMode.LQR,
 ) -> str:
-    """:func:`_late_command_doubt`'s line: ``name`` samples every ``sample`` s and
-    ``cause`` hands its command to ``plant``, stepping every ``step`` s, one step late."""
+    """:func:`_late_command_doubt`'s line: ``name`` samples every ``times[0]`` s under
+    ``law`` and ``cause`` hands its command to ``plant``, stepping every ``times[1]`` s,
+    one step late."""
+    sample, step = times
     design_step = float(_start(autopilot, "design_step"))
     command = f"{name}.mass_position_cmd"
     handed = f"{cause} hands {command} to {plant} one {step:g} s step late"
+    mode = law.name.lower()
     lqr_1 = "(lqr-1 so banged its mass command between -100 and +100 m and never settled)"
+    if law is HeadingMode.SLIDING_MODE:
+        lqr_1 = (
+            "(lqr-1 with heading_mode sliding_mode so banged its mass command between -100 "
+            "and +100 m, its heading 47 deg off after 40 s)"
+        )
     advice = (
         f'use algorithm = "gauss-seidel" with {name} before {plant} in the order, as '
         "lqr-1 to lqr-3 do"
@@ -381,52 +403,72 @@ def _late_command_text(
     if math.isclose(sample, design_step, rel_tol=1e-9):
         under = f"one of its {design_step:g} s samples" if step >= design_step else f"{step:g} s"
         return (
-            f"{name} runs heading_mode lqr, whose delay margin is under {under} "
-            f"(auv-cosim analyze margins), but {handed}: the loop is unstable {lqr_1}; "
-            f"{advice}"
+            f"{name} runs heading_mode {mode}, whose delay margin is under {under} "
+            f"({_MARGINS_OF[law]}), but {handed}: the loop is unstable {lqr_1}; {advice}"
         )
-    if _unstable_when_late(autopilot, sample, 0.0):
+    if _unstable_when_late(autopilot, sample, 0.0, law):
         advice = (
             "its gains are unstable at that sample time even with the command on time: set "
             f"design_step = {sample:g} s, the time it samples at"
         )
     return (
-        f"{name} runs heading_mode lqr designed for {design_step:g} s samples (design_step) "
+        f"{name} runs heading_mode {mode} designed for {design_step:g} s samples (design_step) "
         f"but sampling every {sample:g} s, whose loop so sampled is unstable with its "
         f"command {min(step, sample):g} s late, and {handed} {lqr_1}; {advice}"
     )
 
 
-def _unstable_when_late(autopilot: Instance, sample: float, delay: float) -> bool:
-    """Whether the autopilot's LQR loop (:func:`_worst_pole`) has a pole outside the unit
-    circle with its command ``delay`` s late; False where no LQR can be designed (the
-    autopilot refuses that itself). The REMUS 100 takes 0.92 to 1.05 steps of delay at
-    design steps of 50 to 1 ms (``analyze margins --step``) sampled at them."""
-    worst = _worst_pole(autopilot, sample, delay)
+def _unstable_when_late(
+    autopilot: Instance, sample: float, delay: float, law: HeadingMode = HeadingMode.LQR
+) -> bool:
+    """Whether the autopilot's loop under ``law`` (:func:`_worst_pole`) has a pole outside
+    the unit circle with its command ``delay`` s late; False where the law cannot be
+    designed (the autopilot refuses that itself). The REMUS 100's LQR takes 0.92 to 1.05
+    steps of delay at design steps of 50 to 1 ms (``analyze margins --step``) sampled at
+    them; its sliding mode 0.98 at 10 ms."""
+    worst = _worst_pole(autopilot, sample, delay, law=law)
     return worst is not None and abs(worst) >= 1.0
 
 
 def _worst_pole(
-    autopilot: Instance, sample: float, delay: float, gain: float = 1.0
+    autopilot: Instance,
+    sample: float,
+    delay: float,
+    gain: float = 1.0,
+    law: HeadingMode = HeadingMode.LQR,
 ) -> complex | None:
-    """The largest pole z of the autopilot's LQR loop, its gains designed on its own design
-    model (its vehicle at its design_speed, sampled every design_step), times ``gain``,
-    sampled every ``sample`` s, with its command ``delay`` s late
-    (:func:`controller_fmu.lqr.delayed_poles`); None where no LQR can be designed."""
+    """The largest pole z of the autopilot's loop under ``law``, its gains designed on its
+    own design model (its vehicle at its design_speed, sampled every design_step), times
+    ``gain``, sampled every ``sample`` s, with its command ``delay`` s late
+    (:func:`controller_fmu.lqr.delayed_poles`); None where the law cannot be designed.
+    The sliding mode's loop is the one inside its boundary layer, linear there (6.3.45):
+    y_d = -(k + h eta / (Phi w^T Bd) w)^T x, the plant's remainder f*_hat of second order
+    at the straight run."""
     from controller_fmu.lateral_model import LateralDesignModel
     from controller_fmu.lqr import LqrHeading, delayed_poles
+    from controller_fmu.sliding_mode import SlidingModeHeading
     from plant_fmu.model.parameters import load_vehicle
 
     weights = ("r", "p", "roll", "yaw", "mass_position", "mass_velocity")
     q_y = [float(_start(autopilot, f"lqr_q_{weight}")) for weight in weights]
-    step = float(_start(autopilot, "design_step"))
+    step, r_u = float(_start(autopilot, "design_step")), float(_start(autopilot, "lqr_r"))
     try:
         vehicle = load_vehicle(str(_start(autopilot, "vehicle")))
         design = LateralDesignModel(vehicle, float(_start(autopilot, "design_speed")), False)
-        lqr = LqrHeading(design, step, q_y, float(_start(autopilot, "lqr_r")))
+        if law is HeadingMode.SLIDING_MODE:
+            eta, layer = (
+                float(_start(autopilot, "smc_eta")),
+                float(_start(autopilot, "smc_boundary_layer")),
+            )
+            smc = SlidingModeHeading(design, step, eta, layer, q_y, r_u)
+            a, b = smc.A, smc.B
+            linear = smc.k + step * smc.eta / (smc.boundary_layer * smc.w_bd) * smc.w
+        else:
+            lqr = LqrHeading(design, step, q_y, r_u)
+            a, b, linear = lqr.A, lqr.B, lqr.gain
     except ValueError:
         return None
-    poles = delayed_poles(lqr.A, lqr.B, gain * lqr.gain, sample, delay)
+    poles = delayed_poles(a, b, gain * linear, sample, delay)
     return complex(poles[np.argmax(np.abs(poles))])
 
 

@@ -155,8 +155,6 @@ def test_an_lqr_whose_command_reaches_the_plant_a_step_late_is_named(
     (line,) = design_doubts(_load(fmu_paths, plant_first))
     assert "coupling.order = ['plant', 'controller'] steps plant before controller" in line
     assert design_doubts(_load(fmu_paths, "lqr-1")) == []  # the command reaches it at once
-    sliding = jacobi.with_start({"controller.heading_mode": "sliding_mode"})
-    assert design_doubts(sliding) == []  # takes 10 steps of delay and settles
 
 
 def test_a_late_lqr_command_is_checked_at_the_step_the_autopilot_samples_at(
@@ -232,6 +230,43 @@ def test_a_gain_fault_past_the_lqr_loops_gain_margins_is_named(
     (line,) = design_doubts(_gain_fault(fmu_paths, tmp_path, 0.8 * lower.value))
     assert line.endswith("its heading turns away, slowly"), line
     assert design_doubts(_gain_fault(fmu_paths, tmp_path, 1.25 * lower.value)) == []
+
+
+def test_the_sliding_mode_s_late_command_and_gain_faults_are_named_as_the_lqr_s(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """lqr-1 with heading_mode sliding_mode under Jacobi banged its mass command between
+    -100 and +100 m from its first seconds, its heading 47 deg off after 40 s, and a gain
+    fault of 2.12 on its command chattered it between its limits at every step (1.74 did
+    not; 0.018 turned its heading away), without a word: the warnings covered the LQR only.
+    Inside its boundary layer the sliding mode is a linear law, whose loop has a delay
+    margin of 0.98 samples and gain margins of 0.023 and 1.93: it is warned of where that
+    loop is unstable, as the LQR is."""
+    sliding = {"controller.heading_mode": "sliding_mode"}
+    jacobi = _load(fmu_paths, "lqr-1").with_overrides(algorithm="jacobi").with_start(sliding)
+    (line,) = design_doubts(jacobi)
+    assert line.startswith(
+        "controller runs heading_mode sliding_mode, whose delay margin is under one of its "
+        "0.01 s samples (its loop inside the boundary layer, docs/model.md#sliding-mode), but "
+        "coupling.algorithm = 'jacobi' hands controller.mass_position_cmd to plant one 0.01 s "
+        "step late"
+    ), line
+    assert design_doubts(_load(fmu_paths, "lqr-1").with_start(sliding)) == []
+
+    def faulted(gain: float) -> list[str]:
+        return design_doubts(_gain_fault(fmu_paths, tmp_path, gain).with_start(sliding))
+
+    (line,) = faulted(2.12)
+    assert line.startswith(
+        "faults.servo: a gain of 2.12 on plant.mass_position_cmd (the command of "
+        "controller's heading_mode sliding_mode) is outside that loop's gain margins (its "
+        "loop inside the boundary layer, docs/model.md#sliding-mode), so from t = 1 s it is "
+        "unstable"
+    ), line
+    assert line.endswith("the command (controller.mass_position_cmd) does"), line
+    assert faulted(1.74) == []
+    (line,) = faulted(0.018)
+    assert line.endswith("its heading turns away, slowly"), line
 
 
 @pytest.mark.slow
