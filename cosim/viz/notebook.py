@@ -72,14 +72,31 @@ def _layout(rrd: Path) -> Any:
     except OSError:
         if rrd.name != OVERLAY_FILE:
             return None
-        from cosim.viz.overlay import overlay_blueprint  # matplotlib: for an overlay only
-
-        return overlay_blueprint()
+        return _overlay_layout()
     summary = read_summary(rrd.parent)
     fleet = run_vehicles(rrd.parent, summary)
     units = summary.get("units")
     panels = plan_panels(columns, units if isinstance(units, dict) else None, pairs(fleet))
     return notebook_blueprint(panels, [root for _, root in drawn_roots(fleet, columns)])
+
+
+def _overlay_layout() -> Any:
+    """A study overlay's layout (:func:`cosim.viz.overlay.overlay_blueprint`), whose module
+    imports matplotlib: under a relative HOME its folder is auv-cosim's cache folder's (as
+    the command's: :func:`cosim.errors.matplotlib_folder_absolute`), not one below the
+    notebook's working folder, for the import only (the caller's environment is put
+    back; the folder matplotlib resolved stays its folder in the kernel)."""
+    from cosim.errors import matplotlib_folder_absolute
+    from cosim.user_cache import matplotlib_cache
+
+    before = os.environ.get("MPLCONFIGDIR")
+    matplotlib_folder_absolute(matplotlib_cache)
+    try:
+        from cosim.viz.overlay import overlay_blueprint  # matplotlib: for an overlay only
+    finally:
+        if before is None:
+            os.environ.pop("MPLCONFIGDIR", None)
+    return overlay_blueprint()
 
 
 def inline_viewer(rrd: str | Path, height: int = HEIGHT) -> Viewer:

@@ -120,3 +120,50 @@ def test_a_fleet_s_notebook_view_follows_its_first_vehicle(tmp_path: Path, fmu_d
     tracked = _tracked(notebook._layout(rrd))
     assert tracked == ["/world/plant_a/vehicle/hull"], tracked
     assert tracked[0] in entities, sorted(e for e in entities if e.startswith("/world"))
+
+
+RELATIVE_HOME_LAYOUT = """
+import os, sys
+for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME", "MPLCONFIGDIR"):
+    os.environ.pop(name, None)
+os.environ["HOME"], os.environ["TMPDIR"] = "home", sys.argv[1]
+os.chdir(sys.argv[2])
+from pathlib import Path
+
+from cosim.viz import notebook
+
+before = dict(os.environ)
+assert notebook._layout(Path(sys.argv[3])) is not None
+import matplotlib
+
+print(matplotlib.get_configdir())
+print("environment as it was" if dict(os.environ) == before else "environment changed")
+"""
+
+
+@pytest.mark.slow
+def test_a_study_s_overlay_inline_under_a_relative_home_writes_nothing_there(
+    run_python, tmp_path: Path
+) -> None:
+    """``inline_viewer(study)`` with ``HOME=home`` (relative) made ``home/.config/matplotlib``
+    in the notebook's working folder: the overlay's layout imports matplotlib (its colours),
+    which takes a relative HOME as it is. Its folder is auv-cosim's cache folder's, as the
+    command's, and the caller's environment is as it was."""
+    import numpy as np
+
+    from cosim.viz.overlay import POSITION, SERIES, OverlayRun, write_overlay
+
+    t = np.linspace(0.0, 1.0, 11)
+    results = {"time": t, **{name: t for name in (*POSITION, *(c for c, _ in SERIES.values()))}}
+    study = tmp_path / "study"
+    study.mkdir()
+    write_overlay(study / "overlay.rrd", [OverlayRun("r1", "r1: k = 1", results)], "s", "")
+    scratch, work = tmp_path / "tmp", tmp_path / "work"
+    scratch.mkdir()
+    work.mkdir()
+    done = run_python(RELATIVE_HOME_LAYOUT, scratch, work, study / "overlay.rrd")
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert sorted(str(p.relative_to(work)) for p in work.rglob("*")) == []
+    folder, environment = done.stdout.splitlines()[-2:]
+    assert Path(folder).is_absolute() and Path(folder).is_relative_to(scratch), folder
+    assert environment == "environment as it was"
