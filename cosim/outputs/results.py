@@ -59,18 +59,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.csv as pa_csv
 
 from cosim.paths import path_text
 from cosim.version import version
 
 if TYPE_CHECKING:  # types only: the readers of results.csv need not import the master
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
+
     from cosim.engine.master import RunResult
     from cosim.scenario.spec import Scenario
 
 
-_CSV_OPTIONS = pa_csv.WriteOptions(include_header=False, quoting_style="none")
 READ_CHUNK_ROWS = 50_000  # rows parsed at a time by read_csv
 DIMENSIONLESS = "1"  # the unit of a fault's column, and of a variable its FMU gives none
 
@@ -79,6 +79,8 @@ def _doubles(column: np.ndarray) -> pa.Array:
     """One column as an Arrow array of doubles, the values as they are (a NaN stays a
     NaN). Built from the array's buffer, not with ``pa.array``, which imports pandas
     (~0.9 s) at its first call in a process to ask whether the column is pandas'."""
+    import pyarrow as pa
+
     data = np.ascontiguousarray(column, dtype=np.float64)
     return pa.Array.from_buffers(pa.float64(), len(data), [None, pa.py_buffer(data)])
 
@@ -104,12 +106,28 @@ def csv_lines(times: np.ndarray, values: np.ndarray) -> bytes:
     text in C++ at about a quarter of the cost (the CSV was the largest per-row cost of a
     run beyond the FMUs' own steps; scripts/bench_cosim.py). ``times`` (s) and ``values``
     are doubles (the engine's row chunks).
+
+    pyarrow is imported here, at the first rows written, not with this module: a study's
+    runs write no results.csv by default (``keep = "none"``), and the workers' fork server
+    imports this module for them (:mod:`cosim.study.preload`) on the way to the first run,
+    where pyarrow took ~0.02-0.03 s of CPU.
     """
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
+
     columns = [_doubles(times), *(_doubles(values[:, i]) for i in range(values.shape[1]))]
     table = pa.Table.from_arrays(columns, names=[str(i) for i in range(len(columns))])
     sink = pa.BufferOutputStream()
-    pa_csv.write_csv(table, sink, _CSV_OPTIONS)
+    pa_csv.write_csv(table, sink, _csv_options())
     return sink.getvalue().to_pybytes()
+
+
+@functools.cache
+def _csv_options() -> pa_csv.WriteOptions:
+    """Arrow's CSV writer options for results.csv's rows (no header, no quotes), made once."""
+    import pyarrow.csv as pa_csv
+
+    return pa_csv.WriteOptions(include_header=False, quoting_style="none")
 
 
 def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
