@@ -167,13 +167,17 @@ class StudyPlugin(WorkerPlugin):
         """Run the scenario for one step in this worker, once (its first task does, the
         worker's other threads waiting): its FMUs and their compiled code are loaded.
         Here and not in :meth:`setup`, which every worker must finish before the client
-        may submit a task: a worker that is ready starts its runs at once."""
+        may submit a task: a worker that is ready starts its runs at once. Not in a worker
+        forked from a fork server that warmed up on this study
+        (:func:`cosim.study.fork_server.warmed`): that would be one more run of one step,
+        which no later run needs."""
         lock = self._warm
         if lock is None:
             return
         with lock:
             if self._warm is not None:
-                warm_up(self.job.base, self.fmu_paths(), self.data_paths())
+                if not fork_server.warmed(self.job.plugin):
+                    warm_up(self.job.base, self.fmu_paths(), self.data_paths())
                 self._warm = None
 
     def teardown(self, worker: Any) -> None:

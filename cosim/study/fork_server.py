@@ -59,6 +59,9 @@ WARM_VARIABLE = "AUV_COSIM_SERVER_WARM"
 HAND_OVER_FILE = "auv-cosim-warm-up.pickle"
 _hand_over: str | None = None  # that file, while the server waits for it (hand_over)
 _handing = threading.Lock()  # the command's thread and its cluster's may hand over
+# the study (its plugin's name) this process warmed up on, in the server
+# (cosim.study.server_warm): every worker it forks afterwards inherits the mark
+_warmed_on: str | None = None
 
 
 def available() -> bool:
@@ -204,6 +207,20 @@ def _publish(part: str, path: str) -> None:
         if os.path.exists(path):
             raise FileExistsError(path) from None
         os.replace(part, path)
+
+
+def mark_warmed(plugin: str) -> None:
+    """Note that this process, the fork server, has warmed up on the study whose plugin is
+    named ``plugin`` (:mod:`cosim.study.server_warm`), for the workers it forks."""
+    global _warmed_on
+    _warmed_on = plugin
+
+
+def warmed(plugin: str) -> bool:
+    """Whether this process was forked, after its warm-up, from a fork server that warmed
+    up on the study whose plugin is named ``plugin`` (a name unique to one study): its
+    FMUs' package is imported, their kernels and libraries loaded."""
+    return plugin == _warmed_on
 
 
 def pre_spawn_environ() -> dict[str, str]:
