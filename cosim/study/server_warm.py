@@ -17,12 +17,11 @@ warming nothing, once the client has ended or has said so (each worker then warm
 its first task, as without this), or, a guard against a client that never says, after
 WAIT_S. Where the server has warmed up, its workers do not again
 (:func:`cosim.study.fork_server.warmed`): a worker's warm-up after the server's was
-another run of one step, ~0.015 s of CPU that no later run needs, and ~0.013 s of a
-forked process's first run (its copied pages, its FMUs' libraries loaded again) that its
-first run pays instead. Nothing of the warm-up
-is live as the server forks: the FMU instances are freed, no thread is left, the run's
-scratch folder is removed. Never raises: a failed warm-up leaves it to the workers, whose
-first run reports the reason.
+another run of one step, ~0.015 s of CPU that no later run needs, and ~0.013 s that a
+forked process pays once (pages copied on write among it), which its first run now
+pays. Nothing of the warm-up is live as the server forks: the FMU instances are freed,
+no thread is left, the run's scratch folder is removed. Never raises: a failed warm-up
+leaves it to the workers, whose first run reports the reason.
 """
 
 import gc
