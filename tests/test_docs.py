@@ -1,7 +1,8 @@
 """The documentation stays true to the repository.
 
 * Every pointer to a file of the repository, in code and docs (``docs/model.md#lqr`` in a
-  docstring, a Markdown link ``[..](reproduction.md)``), names a file that exists and, with
+  docstring, ``fmu_runtime/native/probe.c`` in a page, a Markdown link
+  ``[..](reproduction.md)`` in a page or a notebook), names a file that exists and, with
   a ``#section``, a heading that exists in it.
 * ``docs/model.md``: its parameter table holds remus100's values and units, every entry of
   its equation index names a function that exists, and every equation number the code and
@@ -28,9 +29,7 @@ MODEL_DOC = ROOT / "docs" / "model.md"
 SKIPPED_FOLDERS = {".git", ".venv", "build", "runs", "auv_cosim.egg-info", "__pycache__",
                    ".pytest_cache"}  # fmt: skip
 PACKAGES = ("docs", "plant_fmu", "controller_fmu", "fmu_runtime", "cosim", "scripts", "tests")
-REPO_PATH = re.compile(
-    rf"(?<![\w/.-])((?:{'|'.join(PACKAGES)})/[\w./-]*\w\.(?:md|py|toml))(#[\w-]+)?"
-)
+REPO_PATH = re.compile(rf"(?<![\w/.-])((?:{'|'.join(PACKAGES)})/[\w./-]*\w\.[a-z0-9]+)(#[\w-]+)?")
 MARKDOWN_LINK = re.compile(r"\]\((?!https?:|mailto:)([^)\s#]*)(#[\w-]+)?\)")
 EQUATION = re.compile(r"\(((?:\d|A)\.\d+(?:\.\d+)?)\)")
 
@@ -56,11 +55,11 @@ def _anchors(markdown: Path) -> set[str]:
 def _pointers() -> list[tuple[Path, Path, str | None]]:
     """(file, target, anchor) of every pointer to a repository file."""
     found = []
-    for path in _files(".py", ".md", ".toml"):
+    for path in _files(".py", ".md", ".toml", ".ipynb"):
         text = path.read_text(encoding="utf-8")
         for match in REPO_PATH.finditer(text):
             found.append((path, ROOT / match[1], match[2]))
-        if path.suffix == ".md":
+        if path.suffix in (".md", ".ipynb"):  # a notebook's Markdown cells, in its JSON
             for match in MARKDOWN_LINK.finditer(text):
                 target = (path.parent / match[1]) if match[1] else path
                 found.append((path, target, match[2]))
