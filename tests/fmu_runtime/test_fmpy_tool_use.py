@@ -231,3 +231,31 @@ def test_a_hosts_one_shorter_step_is_not_taken_for_the_communication_step(fmu_pa
     warned = [text for status, text in messages if status == STATUS_WARNING]
     assert len(warned) == 1 and "0.005" in warned[0], messages
     assert "if the host steps so throughout" in warned[0], warned[0]
+
+
+# One fmpy call with a logger of its own, then one with none: the plant's Warning of
+# the second (the hull out of the water, at 1.4 s) goes to the first call's logger.
+LOGGER_OF_AN_EARLIER_CALL = """
+import sys
+from fmpy import simulate_fmu
+
+def first(_component, _instance, _status, _category, message):
+    print("the first call's logger got:", message.decode(), flush=True)
+
+simulate_fmu(sys.argv[1], stop_time=0.1, output_interval=0.01, logger=first)
+simulate_fmu(sys.argv[1], stop_time=2.0, output_interval=0.01)
+"""
+
+
+@pytest.mark.slow  # the plant loaded twice in a fresh process
+def test_fmpy_gives_a_later_call_without_a_logger_the_logger_of_an_earlier_one(
+    fmu_paths, run_python
+):
+    """docs/hosts.md warns that fmpy 0.3.25's native logging proxy keeps one logger for the
+    whole process: a call with ``logger=`` makes it the logger of every FMU instance
+    created after it, one with no ``logger=`` too, so a message after that function is gone
+    crashes the host. If fmpy changes that, this fails and the warning goes."""
+    done = run_python(LOGGER_OF_AN_EARLIER_CALL, fmu_paths["AuvPlant"])
+    assert done.returncode == 0, done.stderr[-3000:]
+    got = "the first call's logger got: at t = 1.4 s the hull is out of the water"
+    assert got in done.stdout, done.stdout
