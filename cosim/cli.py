@@ -41,6 +41,11 @@ def _is_the_commands_start() -> bool:
 if _is_the_commands_start() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
     signal.signal(signal.SIGINT, _interrupted_while_starting)
 
+from cosim.study import command_end
+
+if _is_the_commands_start():  # before any exit handler is registered (logging's, Dask's)
+    command_end.arm()
+
 import argparse
 import codecs
 import errno
@@ -1172,6 +1177,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         matplotlib_folder_in_one_line()
         matplotlib_folder_absolute(_matplotlib_cache)
         matplotlib_off_screen()
+    code = _command(args, argv)
+    if argv is None and args.command == "sweep":  # its process ends without its teardown
+        command_end.end_with(code)
+    return code
+
+
+def _command(args: argparse.Namespace, argv: Sequence[str] | None) -> int:
+    """The parsed command run, its failures in one line: :func:`main`'s exit code."""
     # a study's imports and cluster with the collector off (cosim.study.collector); not in a
     # caller's process, whose objects the collector's resumption would freeze for good
     collecting = paused() if argv is None and args.command == "sweep" else nullcontext()

@@ -1,0 +1,60 @@
+"""``auv-cosim sweep``'s process ends without its interpreter's teardown.
+
+Once a study's command has returned its exit code, its files are written and closed, its
+cluster is closed and its workers have ended. The interpreter then runs its exit handlers
+(:mod:`atexit`: logging's flush, multiprocessing's finalizers and its temporary folder,
+Dask's, ``weakref.finalize``'s) and flushes its standard streams, and only then tears its
+modules down: with Dask, pyarrow, numba and matplotlib imported, ~0.04-0.05 s of CPU
+that writes nothing and that the user waits for after the study has ended, with one
+worker as with two (``python scripts/sweep_timeline.py``: the client's CPU from its last
+exit handler to its end). So :func:`arm` registers, before any other exit handler is
+registered, a handler of its own; exit handlers run in the reverse order of their
+registration, so it runs last, after every other. Once :func:`end_with` has been given
+the command's exit code, that handler flushes the standard streams and ends the process
+with :func:`os._exit` and that code, as the workers' fork server ends
+(:mod:`cosim.study.server_exit`): by hand, as Python has no setting for an end without
+its teardown.
+
+Where the handler cannot be the last one (another exit handler was registered before it:
+a coverage tool's, say, which the teardown would otherwise skip), where a stream cannot be
+flushed (Python's own end then says so, and exits 120, as before), or where the command
+ended without an exit code (an exception: its traceback), the process ends as Python ends
+it.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import sys
+
+_code: int | None = None  # the command's exit code, once it has returned one
+
+
+def arm() -> bool:
+    """Register the end (once), if no exit handler is registered yet; whether it was."""
+    count = getattr(atexit, "_ncallbacks", None)  # CPython's; elsewhere: not armed
+    if count is None or count() != 0:
+        return False
+    atexit.register(_end)
+    return True
+
+
+def end_with(code: int) -> None:
+    """End the process with ``code`` after the other exit handlers (if :func:`arm` did)."""
+    global _code
+    _code = code
+
+
+def _end() -> None:
+    if _code is None:
+        return
+    streams = {id(s): s for s in (sys.stdout, sys.stderr, sys.__stdout__, sys.__stderr__)}
+    for stream in streams.values():
+        if stream is None:
+            continue
+        try:
+            stream.flush()
+        except Exception:  # Python's own end says what went wrong, as before
+            return
+    os._exit(_code)
