@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 from reference_values import dissertation
+from unity_feedback import unity_feedback_poles
 
 from controller_fmu.autopilot import Autopilot, AutopilotConfig
 from controller_fmu.lateral_model import LateralDesignModel
@@ -104,18 +105,18 @@ def test_bad_weights_and_sample_times_are_refused_with_the_value_named(linear):
 
 @pytest.mark.parametrize("dt", [0.001, 0.01, 0.05])
 def test_delayed_poles_are_python_controls_loop_closed_through_a_delay(linear, dt):
-    """The loop with its command one whole sample late closes on python-control's poles of
-    L(z) z^-1 fed back (the whole-step delay the master's coupling adds); with no delay,
-    on the design's poles and the held command's z = 0."""
+    """The loop with its command one whole sample late closes on the poles of
+    python-control's L(z) z^-1 fed back (the whole-step delay the master's coupling adds);
+    with no delay, on the design's poles and the held command's z = 0."""
     import control
 
     A, B = linear
     K, poles = discrete_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U, dt)
     loop = control.c2d(control.ss(A, B, K[None, :], 0.0), dt, method="zoh")
-    late = control.feedback(control.series(control.tf([1.0], [1.0, 0.0], dt), loop), 1.0)
+    late = control.series(control.tf([1.0], [1.0, 0.0], dt), loop)
     np.testing.assert_allclose(
         np.sort_complex(delayed_poles(A, B, K, dt, dt)),
-        np.sort_complex(control.poles(late)),
+        np.sort_complex(unity_feedback_poles(late)),
         atol=1e-9,
     )
     np.testing.assert_allclose(

@@ -6,12 +6,16 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
+from collections.abc import Iterator
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from pathlib import Path
 
 import control
 import numpy as np
 import pandas as pd
 import pytest
+from unity_feedback import unity_feedback_poles
 
 import cosim
 from controller_fmu.depth_pd import DepthPd, sampled_loop_poles
@@ -25,6 +29,7 @@ from cosim.analysis.margins import (
     lqr_loop,
     scaled_vehicle,
 )
+from cosim.scenario.design_doubts import DesignWarning
 from plant_fmu.model.parameters import load_vehicle
 
 U0 = 1.525  # m/s, the shipped design speed
@@ -47,16 +52,9 @@ def _response(loop: control.StateSpace, omega: float) -> complex:
 
 def _largest_pole(loop: control.StateSpace, factor: float = 1.0, delay: int = 0) -> float:
     """max |z| of the loop closed with its gain times ``factor`` and ``delay`` whole
-    samples of delay at the plant input (python-control's series, closed as A - B C).
-
-    Closed by hand, not by ``control.feedback(open, 1.0)``: python-control 0.10.2 makes
-    the constant 1 a static StateSpace by setting its arrays' shape, which NumPy 2.5
-    deprecates (a DeprecationWarning; under ``-W error`` feedback falls back to a system
-    without poles)."""
+    samples of delay at the plant input (python-control's series, closed as A - B C)."""
     delayed = control.tf([1.0], [1.0] + [0.0] * delay, H) if delay else 1.0
-    opened = control.series(delayed, factor * loop)
-    assert not np.any(opened.D)  # strictly proper: unity negative feedback is A - B C
-    return float(np.abs(np.linalg.eigvals(opened.A - opened.B @ opened.C)).max())
+    return float(np.abs(unity_feedback_poles(control.series(delayed, factor * loop))).max())
 
 
 def test_margins_read_where_the_frequency_response_crosses(
@@ -204,19 +202,42 @@ def test_a_nonsensical_operating_point_is_refused_naming_it(
 # --- the margins in the master: lqr-1 with a gain or delay fault on the servo command ---
 
 
+# The DesignWarning a gain fault outside the margins gives (cosim.scenario.design_doubts)
+OUTSIDE = (
+    r"faults\.f: a gain of \S+ on plant\.mass_position_cmd .* outside that loop's gain margins"
+)
+CHATTERS = OUTSIDE + r".* unstable at 314 rad/s .* swings between its limits at every step"
+TURNS_AWAY = OUTSIDE + r".* unstable .*: its heading turns away, slowly"
+
+
+@contextmanager
+def _no_design_doubt() -> Iterator[None]:
+    """Fails on a DesignWarning: a fault within the margins is no design to doubt."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DesignWarning)
+        yield
+
+
 def _faulted_lqr_1(
-    fmu_paths: dict[str, Path], out: Path, fault: str, stop: float, v0: float
+    fmu_paths: dict[str, Path],
+    out: Path,
+    fault: str,
+    stop: float,
+    v0: float,
+    said: AbstractContextManager[object],
 ) -> pd.DataFrame:
     """lqr-1 for ``stop`` s from a sway of ``v0`` m/s with the fault (``kind = ...`` and
     its keys) on the connection to plant.mass_position_cmd: the loop broken where
-    `analyze margins` breaks it; its results (DataFrame)."""
+    `analyze margins` breaks it; its results (DataFrame), run inside ``said`` (the
+    warnings the run must, or must not, give)."""
     text = (Path(cosim.__file__).parent / "scenarios" / "lqr-1.toml").read_text()
     text = re.sub(r"(?m)^stop_time = \S+", f"stop_time = {stop!r}", text)
     text = re.sub(r"(?m)^v_0 = \S+", f"v_0 = {v0!r}", text)
     fault_table = f'\n[[faults]]\nname = "f"\ntarget = "plant.mass_position_cmd"\n{fault}\n'
     path = out / f"lqr-1-{len(list(out.iterdir()))}.toml"
     path.write_text(text + fault_table)
-    return cosim.run(path, fmu_dir=fmu_paths["AuvPlant"].parent).results
+    with said:
+        return cosim.run(path, fmu_dir=fmu_paths["AuvPlant"].parent).results
 
 
 def _fast_envelope(command: np.ndarray, windows: int) -> np.ndarray:
@@ -242,15 +263,22 @@ def test_the_simulated_loop_loses_stability_past_the_upper_gain_and_delay_margin
     content decaying, and 1.1 times makes it oscillate at the Nyquist frequency pi/h the
     margin is read at, up to the command's +-100 m limit; one step of delay (a delay
     fault, past the delay margin of 0.987 steps) makes it grow at the frequency of the
-    delayed linear loop's unstable pole (104 rad/s, near the 105 rad/s crossover)."""
+    delayed linear loop's unstable pole (104 rad/s, near the 105 rad/s crossover). The
+    run says so before for the gain past the margin (a DesignWarning), not for 0.9."""
     upper, delay = margins.upper_gain_margin, margins.delay_margin
     assert upper is not None and delay is not None and delay.value < H
     runs = {
-        name: _faulted_lqr_1(fmu_paths, tmp_path, fault, 6.0, -0.01)["controller.mass_position_cmd"]
-        for name, fault in (
-            ("below", f'kind = "gain"\nvalue = {0.9 * upper.value!r}'),
-            ("above", f'kind = "gain"\nvalue = {1.1 * upper.value!r}'),
-            ("late", 'kind = "delay"\nsteps = 1'),
+        name: _faulted_lqr_1(fmu_paths, tmp_path, fault, 6.0, -0.01, said)[
+            "controller.mass_position_cmd"
+        ]
+        for name, fault, said in (
+            ("below", f'kind = "gain"\nvalue = {0.9 * upper.value!r}', _no_design_doubt()),
+            (
+                "above",
+                f'kind = "gain"\nvalue = {1.1 * upper.value!r}',
+                pytest.warns(DesignWarning, match=CHATTERS),
+            ),
+            ("late", 'kind = "delay"\nsteps = 1', nullcontext()),
         )
     }
     below, above, late = (_fast_envelope(runs[n].to_numpy(), 6) for n in ("below", "above", "late"))
@@ -258,8 +286,8 @@ def test_the_simulated_loop_loses_stability_past_the_upper_gain_and_delay_margin
     assert above[-1] == pytest.approx(400.0)  # +-100 m, alternating every step
     nyquist = _peak_frequency(runs["above"].to_numpy(), 100, 600)
     assert nyquist == pytest.approx(upper.frequency, rel=0.01)
-    delayed = control.feedback(control.series(control.tf([1.0], [1.0, 0.0], H), loop), 1.0)
-    unstable = max(control.poles(delayed), key=abs)
+    delayed = control.series(control.tf([1.0], [1.0, 0.0], H), loop)
+    unstable = max(unity_feedback_poles(delayed), key=abs)
     frequency = _peak_frequency(runs["late"].to_numpy(), 200, 600)  # 2 to 6 s: growing
     assert frequency == pytest.approx(abs(np.angle(unstable)) / H, rel=0.02)
 
@@ -271,16 +299,18 @@ def test_the_simulated_heading_grows_below_the_lower_gain_margin_as_the_linear_l
     """In the master, lqr-1 from a 1e-6 m/s sway (small: the yaw drag N_rr r |r| is first
     order in the turn rate) with a gain fault of 0.8 times the lower gain margin turns
     away at the rate (1/s) of the linear loop's slow unstable pole at that gain, and with
-    1.25 times comes back at the rate of its slowest pole, each within 25 %."""
+    1.25 times comes back at the rate of its slowest pole, each within 25 %. The run
+    says so before for 0.8 (a DesignWarning), not for 1.25."""
     lower = margins.lower_gain_margin
     assert lower is not None
     for factor in (0.8, 1.25):
         gain = factor * lower.value
+        said = pytest.warns(DesignWarning, match=TURNS_AWAY) if factor < 1 else _no_design_doubt()
         results = _faulted_lqr_1(
-            fmu_paths, tmp_path, f'kind = "gain"\nvalue = {gain!r}', 200.0, -1e-6
+            fmu_paths, tmp_path, f'kind = "gain"\nvalue = {gain!r}', 200.0, -1e-6, said
         )
         yaw = np.abs(results["plant.yaw"].to_numpy())
         peaks = [span.max() for span in np.array_split(yaw, 5)]  # 40 s each: > a period
         simulated = math.log(peaks[4] / peaks[1]) / 120.0  # 1/s
-        slowest = max(control.poles(control.feedback(gain * loop, 1.0)), key=abs)
+        slowest = max(unity_feedback_poles(gain * loop), key=abs)
         assert simulated == pytest.approx(math.log(abs(slowest)) / H, rel=0.25), factor
