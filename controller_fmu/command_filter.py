@@ -59,9 +59,13 @@ class CommandFilterBank:
         self.n = n
         self.frequency = float(frequency)
         self.damping = float(damping)
-        # per bank (its own frequency and damping); functools' LRU cache, not a dict of our own
-        self._transitions = functools.lru_cache(maxsize=CACHED_INTERVALS)(self._transition)
-        self._ramps = functools.lru_cache(maxsize=CACHED_INTERVALS)(self._ramp)
+        # per bank (its own frequency and damping); functools' LRU cache, not a dict of our
+        # own. Of module functions, not of bound methods: a cache holding self would make a
+        # reference cycle, and a bank let go would keep its 2 x 2048 transitions until the
+        # garbage collector ran
+        cached = functools.lru_cache(maxsize=CACHED_INTERVALS)
+        self._transitions = cached(functools.partial(_transition, self.frequency, self.damping))
+        self._ramps = cached(functools.partial(_ramp, self.frequency, self.damping))
         storage = np.zeros(2 * n) if storage is None else storage
         self.value = storage[:n]  # a_c (views: every update is in place)
         self.rate = storage[n : 2 * n]  # a_c'
@@ -99,20 +103,22 @@ class CommandFilterBank:
         s (cached: :data:`CACHED_INTERVALS`; not to be modified)."""
         return self._transitions(interval)
 
-    def _ramp(self, interval: float) -> np.ndarray:
-        """:meth:`ramp`, computed."""
-        w, z = self.frequency, self.damping
-        augmented = np.zeros((4, 4))  # [a_c, a_c', a, a's rate times the interval]
-        augmented[0, 1] = interval
-        augmented[1, :3] = (-(w**2) * interval, -2.0 * z * w * interval, w**2 * interval)
-        augmented[2, 3] = 1.0
-        return expm(augmented)[:2, 3].copy()
 
-    def _transition(self, interval: float) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`transition`, computed."""
-        w, z = self.frequency, self.damping
-        augmented = np.zeros((3, 3))
-        augmented[0, 1] = 1.0
-        augmented[1, :] = (-(w**2), -2.0 * z * w, w**2)
-        exp = expm(augmented * interval)
-        return exp[:2, :2].copy(), exp[:2, 2].copy()
+def _ramp(w: float, z: float, interval: float) -> np.ndarray:
+    """:meth:`CommandFilterBank.ramp` of a filter of frequency ``w`` (rad/s) and damping
+    ``z``, computed."""
+    augmented = np.zeros((4, 4))  # [a_c, a_c', a, a's rate times the interval]
+    augmented[0, 1] = interval
+    augmented[1, :3] = (-(w**2) * interval, -2.0 * z * w * interval, w**2 * interval)
+    augmented[2, 3] = 1.0
+    return expm(augmented)[:2, 3].copy()
+
+
+def _transition(w: float, z: float, interval: float) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`CommandFilterBank.transition` of a filter of frequency ``w`` (rad/s) and
+    damping ``z``, computed."""
+    augmented = np.zeros((3, 3))
+    augmented[0, 1] = 1.0
+    augmented[1, :] = (-(w**2), -2.0 * z * w, w**2)
+    exp = expm(augmented * interval)
+    return exp[:2, :2].copy(), exp[:2, 2].copy()

@@ -3,7 +3,9 @@ comes back to, and each interval's is its own, to the last bit."""
 
 from __future__ import annotations
 
+import gc
 import itertools
+import weakref
 
 import numpy as np
 import pytest
@@ -54,3 +56,23 @@ def test_each_interval_gets_its_own_transition_to_the_last_bit() -> None:
         (phi, gamma), (phi_0, gamma_0) = bank.transition(interval), fresh.transition(interval)
         assert phi.tobytes() == phi_0.tobytes() and gamma.tobytes() == gamma_0.tobytes()
         assert bank.ramp(interval).tobytes() == fresh.ramp(interval).tobytes()
+
+
+def test_a_bank_let_go_frees_its_transitions_at_once() -> None:
+    """An autopilot rebuilt (a tunable set, an FMU state restored with other settings, an
+    instance freed) lets its bank go: the bank and its up to 2 x 2048 cached transitions
+    are freed then, not held in a reference cycle until the garbage collector runs (which
+    a study's worker runs seldom: its imports are frozen out of reach)."""
+    bank = CommandFilterBank(3, frequency=10.0)
+    for interval in _adaptive_intervals():
+        bank.transition(interval)
+        bank.ramp(interval)
+    gone = weakref.ref(bank)
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        del bank
+        assert gone() is None, "the bank outlived its last reference (a reference cycle)"
+    finally:
+        if was_enabled:
+            gc.enable()
