@@ -361,8 +361,10 @@ def _gain_fault_text(
         f"{name}'s heading_mode {law.name.lower()}) is outside that loop's gain margins "
         f"({_MARGINS_OF[law]}), so from t = {fault.start:g} s it is unstable"
     )
-    if angle < math.pi / 2:
-        return f"{line} (|z| = {abs(worst):.4g} a sample): its heading turns away, slowly"
+    if angle < math.pi / 2:  # how fast from the pole: a reversed command's doubles a sample
+        growth = math.log(abs(worst)) / sample  # 1/s
+        pace = f"doubling every {math.log(2.0) / growth:.2g} s" if growth > 0.0 else "not decaying"
+        return f"{line} (|z| = {abs(worst):.4g} a sample): its heading turns away, its error {pace}"
     every = (
         "at every step" if angle > 0.9 * math.pi else f"every {2 * math.pi * sample / angle:.2g} s"
     )

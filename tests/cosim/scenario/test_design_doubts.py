@@ -4,6 +4,7 @@ in one warning line each, naming the key and the value."""
 
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 
@@ -228,8 +229,30 @@ def test_a_gain_fault_past_the_lqr_loops_gain_margins_is_named(
     ), line
     assert design_doubts(_gain_fault(fmu_paths, tmp_path, 0.9 * upper.value)) == []
     (line,) = design_doubts(_gain_fault(fmu_paths, tmp_path, 0.8 * lower.value))
-    assert line.endswith("its heading turns away, slowly"), line
+    assert "its heading turns away, its error doubling every" in line, line
     assert design_doubts(_gain_fault(fmu_paths, tmp_path, 1.25 * lower.value)) == []
+
+
+def test_a_gain_fault_that_reverses_the_command_is_not_called_slow(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """A gain of -1 (a command wired reversed) puts lqr-1's loop pole at z = 2.02 a
+    0.01 s sample, an error doubling every 10 ms, and the warning said "its heading turns
+    away, slowly", as it does of a gain just under the lower margin (doubling in 22 s).
+    The line gives the pace from the pole, as the time the error takes to double."""
+    (line,) = design_doubts(_gain_fault(fmu_paths, tmp_path, -1.0))
+    assert "slowly" not in line, line
+    assert line.endswith("its heading turns away, its error doubling every 0.0099 s"), line
+    import control
+
+    from cosim.analysis.margins import lqr_loop
+    from plant_fmu.model.parameters import load_vehicle
+
+    loop = lqr_loop(load_vehicle("remus100"), 1.525, 0.01)  # the linear loop at a gain of 0.1
+    slowest = max(control.poles(control.feedback(0.1 * loop, 1.0)), key=abs)
+    doubling = math.log(2.0) / (math.log(abs(slowest)) / 0.01)
+    (line,) = design_doubts(_gain_fault(fmu_paths, tmp_path, 0.1))
+    assert line.endswith(f"its heading turns away, its error doubling every {doubling:.2g} s")
 
 
 def test_the_sliding_mode_s_late_command_and_gain_faults_are_named_as_the_lqr_s(
@@ -266,7 +289,7 @@ def test_the_sliding_mode_s_late_command_and_gain_faults_are_named_as_the_lqr_s(
     assert line.endswith("the command (controller.mass_position_cmd) does"), line
     assert faulted(1.74) == []
     (line,) = faulted(0.018)
-    assert line.endswith("its heading turns away, slowly"), line
+    assert "its heading turns away, its error doubling every" in line, line
 
 
 @pytest.mark.slow
