@@ -93,9 +93,11 @@ def _overlay_layout() -> Any:
     matplotlib_folder_absolute(matplotlib_cache)
     try:
         from cosim.viz.overlay import overlay_blueprint  # matplotlib: for an overlay only
-    finally:
+    finally:  # as it was: unset, or set (an empty value too, which matplotlib ignores)
         if before is None:
             os.environ.pop("MPLCONFIGDIR", None)
+        else:
+            os.environ["MPLCONFIGDIR"] = before
     return overlay_blueprint()
 
 

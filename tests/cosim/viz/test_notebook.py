@@ -4,6 +4,7 @@ does: a run's ``recording.rrd`` or a study's ``overlay.rrd``."""
 from __future__ import annotations
 
 import importlib.util
+import os
 from pathlib import Path
 
 import pytest
@@ -167,3 +168,16 @@ def test_a_study_s_overlay_inline_under_a_relative_home_writes_nothing_there(
     folder, environment = done.stdout.splitlines()[-2:]
     assert Path(folder).is_absolute() and Path(folder).is_relative_to(scratch), folder
     assert environment == "environment as it was"
+
+
+def test_an_overlay_s_layout_puts_an_empty_mplconfigdir_back(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``MPLCONFIGDIR=`` (set, empty: matplotlib takes it as unset) under a relative HOME:
+    the overlay's layout pointed matplotlib at auv-cosim's cache folder for its import and
+    put back only an MPLCONFIGDIR that had been unset, so the notebook's environment kept
+    the cache folder (every process it started later inherited it)."""
+    monkeypatch.setenv("HOME", "home")
+    monkeypatch.setenv("MPLCONFIGDIR", "")
+    assert notebook._overlay_layout() is not None
+    assert os.environ["MPLCONFIGDIR"] == ""
