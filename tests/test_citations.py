@@ -30,12 +30,14 @@ _EQUATION = r"(?:[2-7]\.\d+\.\d+|A\.\d+)"
 EQUATIONS = re.compile(rf"\(({_EQUATION}[^()\n]*)\)")
 EQUATION = re.compile(rf"(?<![\w.]){_EQUATION}(?![\w.]|\.\d)")
 _LIST = r"(\d\.\d+(?:\.\d+)?(?:\s*(?:-|,|and|/)\s*\d\.\d+(?:\.\d+)?)*)"
-# A citation by name, "Figs. 6.13-6.14", "Tables 5.1, 5.4 and 6.1", "Ex. 5.3", "Sec. 6.3.3":
+# A citation by name, "Figs. 6.13-6.14", "Tables 5.1, 5.4 and 6.1", "Ex. 5.3", "Sec. 6.3.3",
+# "equations 6.2.28" (out of parentheses):
 # one pattern for every kind, its name telling which (one pass over the text: a pattern
 # per kind took four times as long).
 NAMED = re.compile(
     r"\b(?:(?P<figures>Fig(?:ure)?s?\.?)|(?P<tables>Tables?)|(?P<examples>Examples?|Exs?\.)"
-    rf"|(?P<contents>Secs?\.|Sections?|Subsections?))\s+{_LIST}"
+    r"|(?P<contents>Secs?\.|Sections?|Subsections?)|(?P<equations>Eqs?\.|[Ee]quations?))"
+    rf"\s+{_LIST}"
 )
 KINDS = ("equations", "figures", "tables", "examples", "contents")
 NUMBER = re.compile(r"\d\.\d+(?:\.\d+)?")
@@ -86,7 +88,8 @@ def citations(text: str) -> list[tuple[int, str, str]]:
             if OTHER_WORKS.search(text[start : len(text) if end < 0 else end]):
                 continue
             kind = next((name for name, got in match.groupdict().items() if got), "equations")
-            numbers = EQUATION if kind == "equations" else NUMBER
+            # a named one by any number's shape: "equation 6.2" is no equation's number
+            numbers = EQUATION if pattern is EQUATIONS else NUMBER
             listed = match.group(pattern.groups)  # the last group: the numbers
             line = text.count("\n", 0, match.start()) + 1
             found += [(line, kind, number) for number in numbers.findall(listed)]
@@ -114,6 +117,20 @@ def test_the_scan_finds_each_kind_and_refuses_a_number_the_dissertation_lacks():
     missing = [number for kind, number in cited if not exists(kind, number)]
     assert missing == ["6.3.97", "6.52", "6.4", "5.10", "6.4"]
     assert citations("FMI 2.0, Section 4.2.4; Higham 2005, Table 2.3") == []
+
+
+def test_an_equation_cited_by_name_is_checked_as_an_equation():
+    """An equation cited out of parentheses ("the full two-body equations 6.2.28",
+    "Eq. 6.3.13") was not read at all, so a number past the end of its section passed, as
+    did a figure's or a section's number cited as an equation's."""
+    wrong = "equations {}, Eq. {} and Eqs. {}".format("6.3.97", "6.14", "6.3.1")
+    cited = citations(f"the two-body equations 6.2.28; {wrong}")
+    assert cited == [
+        (1, "equations", "6.2.28"), (1, "equations", "6.3.97"), (1, "equations", "6.14"),
+        (1, "equations", "6.3.1"),
+    ]  # fmt: skip
+    missing = [number for _, kind, number in cited if not exists(kind, number)]
+    assert missing == ["6.3.97", "6.14"]
 
 
 @pytest.mark.parametrize("kind", KINDS)
