@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 from controller_fmu.los_guidance import Waypoint, parse_waypoints
 
 if TYPE_CHECKING:
-    from cosim.scenario.spec import Instance, Scenario
+    from cosim.scenario.spec import Connection, Instance, Scenario
     from cosim.scenario.timeline_spec import Event
 
 GUIDANCE, PLANT, AUTOPILOT = "AuvGuidance", "AuvPlant", "AuvAutopilot"
@@ -251,26 +251,43 @@ def _plant_of(scenario: Scenario, guidance: str) -> str | None:
 def _steering_doubts(scenario: Scenario, guidance: str, plant: str) -> list[str]:
     """One line for each autopilot the guidance's set-points feed that drives a plant
     other than ``plant``, the one whose position the guidance reads (two vehicles with
-    the same-name connections on: one guidance's ``yaw_setpoint`` feeds every autopilot):
-    that plant follows set-points computed for where ``plant`` is."""
+    the same-name connections on: one guidance's ``yaw_setpoint`` and ``depth_setpoint``
+    feed every autopilot), naming every such connection to it: that plant follows
+    set-points computed for where ``plant`` is."""
     plants, autopilots = _instances(scenario, PLANT), _instances(scenario, AUTOPILOT)
-    lines, named = [], set()
-    for fed in scenario.connections:
-        autopilot = fed.target_instance
-        if fed.source_instance != guidance or autopilot not in autopilots or autopilot in named:
-            continue
-        named.add(autopilot)
+    fed: dict[str, list[Connection]] = {}  # autopilot -> the guidance's connections to it
+    for c in sorted(scenario.connections, key=lambda c: _SET_POINTS.get(c.source_variable, 2)):
+        if c.source_instance == guidance and c.target_instance in autopilots:
+            fed.setdefault(c.target_instance, []).append(c)
+    lines = []
+    for autopilot, feeds in fed.items():
         driven = {c.target_instance for c in scenario.connections if c.source_instance == autopilot}
         for other in sorted(driven & set(plants) - {plant}):
-            lines.append(
-                f"instances.{guidance}: its {fed.source_variable} steers {autopilot}, which "
-                f"drives {other}, but the guidance reads the position of {plant} "
-                f"({guidance}.north from {plant}.north): {other} follows headings computed "
-                f"for where {plant} is; remove the connection {fed.source} -> {fed.target} "
-                f'(connections.remove = ["{fed.target}"]), or give {other} a guidance of '
-                "its own"
-            )
+            lines.append(_steering_text(guidance, autopilot, feeds, other, plant))
     return lines
+
+
+_SET_POINTS = {"yaw_setpoint": 0, "depth_setpoint": 1}  # their order in a line
+_FOLLOWED = {"yaw_setpoint": "headings", "depth_setpoint": "depths"}
+
+
+def _steering_text(
+    guidance: str, autopilot: str, feeds: list[Connection], other: str, plant: str
+) -> str:
+    """:func:`_steering_doubts`'s line: ``feeds`` from ``guidance`` steer ``autopilot``,
+    which drives ``other``, while the guidance reads ``plant``'s position."""
+    variables = " and ".join(c.source_variable for c in feeds)
+    followed = " and ".join(_FOLLOWED.get(c.source_variable, "set-points") for c in feeds)
+    several = len(feeds) > 1
+    connections = " and ".join(f"{c.source} -> {c.target}" for c in feeds)
+    removed = ", ".join(f'"{c.target}"' for c in feeds)
+    return (
+        f"instances.{guidance}: its {variables} steer{'' if several else 's'} {autopilot}, "
+        f"which drives {other}, but the guidance reads the position of {plant} "
+        f"({guidance}.north from {plant}.north): {other} follows {followed} computed for "
+        f"where {plant} is; remove the connection{'s' if several else ''} {connections} "
+        f"(connections.remove = [{removed}]), or give {other} a guidance of its own"
+    )
 
 
 def _speed(scenario: Scenario, name: str, guidance: Instance, plant: str) -> tuple[float, str]:

@@ -124,10 +124,13 @@ def test_a_current_a_series_sets_too_strong_for_a_leg_is_named(
     assert "from t = 90 s (event ebb)" in lines[0] and "-2 m/s north" in lines[0]
 
 
-def two_vehicles_one_guidance(fmu_dir: Path, steer: str | None) -> cosim.Scenario:
+def two_vehicles_one_guidance(
+    fmu_dir: Path, steer: str | None, depths: bool = False
+) -> cosim.Scenario:
     """Two vehicles (plant_a with ctrl_a, plant_b with ctrl_b, same-name connections on)
     and one guidance reading plant_a's position; its yaw set-point feeds the autopilot
-    ``steer`` alone, or (None) every autopilot, as the same-name rule connects it."""
+    ``steer`` alone, or (None) every autopilot, as the same-name rule connects it; its depth
+    set-point every autopilot too where ``depths``, else none."""
     from two_vehicles import two_vehicles_toml
 
     from cosim.scenario.spec import scenario_from_toml
@@ -144,7 +147,8 @@ def two_vehicles_one_guidance(fmu_dir: Path, steer: str | None) -> cosim.Scenari
     if steer is not None:
         unsteered.remove(f"{steer}.yaw_setpoint")
     removed = ", ".join(f'"{r}"' for r in ["ctrl_a.depth_setpoint", "ctrl_b.depth_setpoint"])
-    text = text.replace("remove = [", f"remove = [{removed}, ")
+    if not depths:
+        text = text.replace("remove = [", f"remove = [{removed}, ")
     if steer is not None:
         text = text.replace("remove = [", f'remove = ["{unsteered[0]}", ')
     text = text.replace("add = [", f"add = [{', '.join(reads)}, ")
@@ -167,3 +171,22 @@ def test_a_guidance_steering_a_vehicle_by_another_ones_position_is_named(
         '["ctrl_b.yaw_setpoint"]), or give plant_b a guidance of its own'
     ]
     assert mission_doubts(two_vehicles_one_guidance(fmu_dir, steer="ctrl_a")) == []
+
+
+def test_a_guidance_steering_another_vehicle_by_both_set_points_names_both(
+    fmu_dir: Path,
+) -> None:
+    """With the same-name rule's connections as they come, one guidance feeds both its
+    set-points to both autopilots. The line named the first connection only, the depth
+    set-point ("its depth_setpoint steers ctrl_b ... follows headings"), and told to remove
+    that one: done so, the yaw set-point still steered plant_b. It names both."""
+    (line,) = mission_doubts(two_vehicles_one_guidance(fmu_dir, steer=None, depths=True))
+    assert line == (
+        "instances.guidance: its yaw_setpoint and depth_setpoint steer ctrl_b, which drives "
+        "plant_b, but the guidance reads the position of plant_a (guidance.north from "
+        "plant_a.north): plant_b follows headings and depths computed for where plant_a is; "
+        "remove the connections guidance.yaw_setpoint -> ctrl_b.yaw_setpoint and "
+        "guidance.depth_setpoint -> ctrl_b.depth_setpoint (connections.remove = "
+        '["ctrl_b.yaw_setpoint", "ctrl_b.depth_setpoint"]), or give plant_b a guidance of '
+        "its own"
+    )
