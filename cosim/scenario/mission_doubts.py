@@ -19,10 +19,10 @@ part across it, ``c_across``, and the part along it, ``c_along``, adds::
 The time to a waypoint is the legs' lengths over those speeds, the turns not counted: a
 lower bound. With several vehicles, a guidance whose set-points feed an autopilot that
 drives another plant than the one whose position it reads (the same-name rule connects one
-guidance's ``yaw_setpoint`` to every autopilot) is named too: that plant follows
-set-points computed for where the other is. Such a mission is valid all the same (a
-planner may mean to see it fail), so a run says so in one warning line each
-(:class:`MissionWarning`), naming the waypoint.
+guidance's ``yaw_setpoint`` and ``depth_setpoint`` to every autopilot) is named too, with
+each such connection: that plant follows set-points computed for where the other is. Such
+a mission is valid all the same (a planner may mean to see it fail), so a run says so in
+one warning line each (:class:`MissionWarning`), naming the waypoint.
 """
 
 from __future__ import annotations
