@@ -207,7 +207,7 @@ OUTSIDE = (
     r"faults\.f: a gain of \S+ on plant\.mass_position_cmd .* outside that loop's gain margins"
 )
 CHATTERS = OUTSIDE + r".* unstable at 314 rad/s .* swings between its limits at every step"
-TURNS_AWAY = OUTSIDE + r".* unstable .*: its heading turns away, slowly"
+TURNS_AWAY = OUTSIDE + r".* unstable .*: its heading turns away, its error doubling every \S+ s"
 
 
 @contextmanager
