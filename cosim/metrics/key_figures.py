@@ -32,6 +32,16 @@ import numpy as np
 YAW_TOLERANCE_RAD = math.radians(1.0)  # "settled" band of the yaw settling time
 ROLES = {"plant": "plant", "controller": "controller"}  # role -> instance, as the built-ins
 MODELS = {"plant": "AuvPlant", "controller": "AuvAutopilot"}  # role -> model identifier
+TIME_DECIMALS = 9  # a time taken between two rows, to the ns (the recording's sim_time)
+
+
+def elapsed(end: float, start: float) -> float:
+    """The time (s) from ``start`` to ``end``, rounded to :data:`TIME_DECIMALS`.
+
+    Row times are k * h in doubles, so their difference carries the doubles' noise
+    (8.21 - 1.0 is 7.210000000000001); docs/runs.md matches times to the ns, as here.
+    """
+    return round(end - start, TIME_DECIMALS)
 
 
 def settling_time(

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.metrics.key_figures import settling_time
+from cosim.metrics.key_figures import elapsed, settling_time
 
 Metrics = dict[str, float | int | None]
 STEADY_TURN_RAD = 2.0 * math.pi  # the steady part of a turning circle: its last full turn
@@ -275,7 +275,11 @@ def depth_steps(
                 metrics["rise_time_s"] = t90 - t10
             metrics["overshoot_pct"] = 100.0 * max(0.0, float(np.max(progress)) - 1.0)
             outside = np.flatnonzero(np.abs(z - final) > band * abs(change))
-            metrics["settling_time_s"] = float(t[outside[-1] + 1]) if outside.size else 0.0
+            metrics["settling_time_s"] = (
+                elapsed(float(times[start + outside[-1] + 1]), float(times[start]))
+                if outside.size
+                else 0.0
+            )
         result.append(metrics)
     return result
 
@@ -457,7 +461,7 @@ class LegTracker:
                 "leg": k,
                 "to_waypoint": k + 1,
                 "completed_at_s": end,
-                "duration_s": None if end is None or start is None else end - start,
+                "duration_s": None if end is None or start is None else elapsed(end, start),
                 "cross_track_max_m": _finite_or_none(self._largest.get(k - 1)),
                 "closest_m": closest,
                 "within_acceptance_radius": None if closest is None or radius is None
@@ -512,7 +516,7 @@ def fault_recovery(
     metrics["heading_error_at_fault_deg"] = float(degrees[0])
     metrics["heading_error_max_deg"] = float(np.max(degrees))
     metrics["heading_error_final_deg"] = float(degrees[-1])
-    metrics["heading_settling_time_s"] = None if settled is None else settled - float(start)
+    metrics["heading_settling_time_s"] = None if settled is None else elapsed(settled, float(start))
     return metrics
 
 

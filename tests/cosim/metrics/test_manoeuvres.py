@@ -13,6 +13,7 @@ from cosim.analysis.equilibria import find_equilibrium
 from cosim.metrics.manoeuvres import (
     KINDS,
     VARIABLES,
+    LegTracker,
     depth_steps,
     fault_recovery,
     fit_circle,
@@ -384,6 +385,25 @@ def test_metric_names_number_the_depth_steps():
     t, depth, setpoint = depth_run()
     steps = manoeuvre_metrics("depth-steps", {"time": t, "down": depth, "depth_setpoint": setpoint})
     assert tuple(steps) == metric_names("depth-steps", steps=2)
+
+
+def test_times_taken_between_two_rows_carry_no_float_noise() -> None:
+    """A leg's duration and a depth step's settling time are differences of two row times
+    k * h: 8.21 - 1.0 is 7.210000000000001 in doubles, which summary.json would show; they
+    are given to the nanosecond, as the recording's sim_time (docs/runs.md)."""
+    t = np.arange(1200) * H  # t[100] = 1.0 s, t[821] = 8.21 s
+    legs = np.where(t < t[100], 0.0, np.where(t < t[821], 1.0, 2.0))
+    tracker = LegTracker(legs_total=2)
+    tracker.add(t, np.zeros_like(t), legs)
+    assert [leg["duration_s"] for leg in tracker.legs()] == [1.0, 7.21]
+    setpoint = np.where(t < t[100], 0.0, 1.0)
+    depth = np.where(t < t[821], 0.5 * (t >= t[100]), 1.0)  # inside the band from 8.21 s
+    (step,) = depth_steps(t, depth, setpoint)
+    assert step["settling_time_s"] == 7.21
+    error = np.radians(np.where(t < t[821], 10.0, 0.0))
+    metrics = fault_recovery(t, error, np.zeros_like(t), start=float(t[100]))
+    assert metrics["heading_settling_time_s"] == pytest.approx(7.2, abs=H)
+    assert metrics["heading_settling_time_s"] == round(metrics["heading_settling_time_s"], 9)
 
 
 # --- fault recovery -------------------------------------------------------------------------
