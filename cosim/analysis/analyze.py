@@ -22,7 +22,7 @@ import csv
 import json
 import math
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +58,7 @@ PHASE_STEP_S = 0.05
 PHASE_U0 = (0.3, 1.0, 1.9)
 PHASE_VR0 = tuple((v, r) for v in (-0.4, 0.0, 0.4) for r in (-0.4, 0.0, 0.4))
 MANIFOLD_OFFSET = 0.01
+ZERO_BELOW = 1e-12  # a printed state below this times its unit's largest in the table: 0
 PHASE_PORTRAIT = "phase_portrait.png"
 
 
@@ -157,8 +158,9 @@ def equilibria_table(conditions: OperatingConditions, equilibria: Sequence[Equil
     lines = [f"{len(equilibria)} equilibri{'um' if len(equilibria) == 1 else 'a'} in {box}:"]
     header = [f"{n} [{STATE_UNITS[STATE_INDEX[n]]}]" for n in names]
     lines.append("  ".join(f"{h:>14}" for h in header) + "  stable    eigenvalues [1/s]")
-    for eq in equilibria:
-        values = "  ".join(f"{eq.value(n):>14.6g}" for n in names)
+    states = numerical_zeros([{n: eq.value(n) for n in names} for eq in equilibria])
+    for eq, state in zip(equilibria, states, strict=True):
+        values = "  ".join(f"{state[n]:>14.6g}" for n in names)
         eigen = ", ".join(_complex(z) for z in _ordered(eq.eigenvalues))
         lines.append(f"{values}  {'yes' if eq.stable else 'no':<8}  {eigen}")
     if conditions.current_east != 0.0:
@@ -183,6 +185,20 @@ def search_box_text(names: Sequence[str]) -> str:
     if angles:
         parts.append(", ".join(f"|{n}|" for n in angles) + " < 90 deg")
     return ", ".join(parts)
+
+
+def numerical_zeros(rows: Sequence[Mapping[str, float]]) -> list[dict[str, float]]:
+    """The rows of state values (SI units) with each numerical zero printed as 0: a value
+    below :data:`ZERO_BELOW` times the largest |value| of its unit over the rows (a roll
+    rate of -6.8e-31 rad/s beside a yaw rate of 0.14 rad/s, as the solver leaves it)."""
+    scale: dict[str, float] = {}
+    for row in rows:
+        for name, value in row.items():
+            scale[_unit(name)] = max(scale.get(_unit(name), 0.0), abs(value))
+    return [
+        {n: 0.0 if abs(v) < ZERO_BELOW * scale[_unit(n)] else v for n, v in row.items()}
+        for row in rows
+    ]
 
 
 def _unit(name: str) -> str:
@@ -351,7 +367,8 @@ def special_points_table(result: Sweep, conditions: OperatingConditions) -> str:
         f"{len(result.branches)} branch(es) over {result.parameter} from {result.start:g}{unit} "
         f"to {result.stop:g}{unit}; {len(result.special_points)} special point(s):"
     ]
-    for s in result.special_points:
+    states = numerical_zeros([s.state for s in result.special_points])
+    for s, values in zip(result.special_points, states, strict=True):
         where = f"{result.parameter} = {s.parameter:.6g}{unit}"
         if result.parameter == "roll_torque":
             where += f" ({s.parameter / Q_PROP:.4g} Q_prop)"
@@ -361,7 +378,7 @@ def special_points_table(result: Sweep, conditions: OperatingConditions) -> str:
             f"{n} = {math.degrees(v):.4g} deg"
             if n in ("roll", "pitch")
             else f"{n} = {v:.4g} {_unit(n)}"
-            for n, v in s.state.items()
+            for n, v in values.items()
         )
         lines.append(f"  {s.kind:<12} at {where}: {state}")
     return "\n".join(lines)

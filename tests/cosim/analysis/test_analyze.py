@@ -23,7 +23,7 @@ from reference_values import dissertation
 import cosim
 from cosim.analysis.bifurcation import Q_PROP
 from cosim.cli import build_parser, main
-from plant_fmu.model.dynamics import STATE_NAMES, Variant
+from plant_fmu.model.dynamics import STATE_INDEX, STATE_NAMES, Variant
 from plant_fmu.model.parameters import load_vehicle
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -402,6 +402,31 @@ def test_printed_tables_give_every_quantity_its_unit() -> None:
         "  fold         at roll_torque = -2.28613 N.m (4.21 Q_prop): roll = -21.64 deg, "
         "u = 1.468 m/s, v = -0.0657 m/s, p = 0 rad/s, r = 0.143 rad/s",
     ]
+
+
+def test_printed_tables_show_a_numerical_zero_as_0() -> None:
+    """A fold of `analyze sweep roll_torque 0 -2.9865 --variant 1` printed
+    'p = -6.842e-31 rad/s' and `analyze equilibria` '2.27238e-32' for a roll rate that is
+    zero at every equilibrium; below 1e-12 of the largest |value| of its unit in the table
+    a value is printed as 0, a small value that is not noise as it is."""
+    from cosim.analysis.analyze import equilibria_table, special_points_table
+    from cosim.analysis.bifurcation import OperatingConditions, SpecialPoint, Sweep
+    from cosim.analysis.equilibria import Equilibrium
+
+    conditions = OperatingConditions(load_vehicle("remus100"), Variant.LATERAL)
+    state = {"roll": -0.3777, "u": 1.468, "v": -0.0657, "p": -6.842e-31, "r": 2e-9}
+    fold = SpecialPoint("fold", -2.28613, state, np.zeros(5), branch=1)
+    result = Sweep("roll_torque", 0.0, -3.0, tuple(state), [], [fold])
+    line = special_points_table(result, conditions).splitlines()[1]
+    assert line.endswith("p = 0 rad/s, r = 2e-09 rad/s"), line
+    full = np.zeros(len(STATE_NAMES))
+    for name, value in state.items():
+        full[STATE_INDEX[name]] = value
+    eigenvalues = -np.ones(len(conditions.free_states))
+    equilibrium = Equilibrium(full, conditions.free_states, np.eye(5), eigenvalues)
+    row = equilibria_table(conditions, [equilibrium]).splitlines()[2].split()
+    values = dict(zip(conditions.free_states, row, strict=False))
+    assert values["p"] == "0" and values["r"] == "2e-09", row
 
 
 def _a_sweep(parameter: str) -> tuple:
