@@ -11,7 +11,13 @@ settles off it by the crab angle, so the figure is None); a set-point a connecti
 and that is not recorded (a waypoint guidance's, which moves with the mission) gives no
 settling time at all (``setpoint_driver``).
 ``peak_abs_mass_position_m``, ``peak_abs_tunnel_force_N``: the largest magnitudes
-(``controller.tunnel_force``, else ``plant.tunnel_force``). A figure whose columns were not
+(``controller.tunnel_force``, else ``plant.tunnel_force``).
+``mass_position_cmd_variation_m_per_s``, ``tunnel_force_variation_N_per_s``,
+``fin_angle_variation_rad_per_s``: each actuator command's activity, its total variation
+sum |c_k - c_(k-1)| over the rows divided by the simulated time they span (the command's
+unit per s; the autopilot's output, else the plant's input): near 0 for a settled
+command, large for one that chatters (vert-1's, a sliding-mode law's, a gain past the
+loop's margins), whose plots a user would otherwise have to open. A figure whose columns were not
 recorded is None, and so is one that is not finite. ``plant`` and ``controller`` stand for
 the instances running the plant and the autopilot, whatever a scenario names them
 (``Scenario.key_instances``).
@@ -101,11 +107,54 @@ class SettlingTime:
         return None if self.pending else self.since
 
 
+class TotalVariation:
+    """A command's total variation sum |c_k - c_(k-1)| per simulated second over the rows
+    it is given in consecutive pieces (numpy's diff per piece, the piece before's last
+    value carried over). The sum is math.fsum's, carried from piece to piece as the
+    rounded total and its remainder, so it is the same however a run's rows are cut
+    into pieces (a plain running sum rounds differently per cut)."""
+
+    def __init__(self) -> None:
+        self.total = (0.0, 0.0)  # the sum and its remainder, the command's unit
+        self.last: float | None = None  # the previous piece's last value
+        self.span: tuple[float, float] | None = None  # first and last time, s
+
+    def add(self, times: np.ndarray, values: np.ndarray) -> None:
+        if not len(times):
+            return
+        before = [] if self.last is None else [self.last]
+        steps = np.abs(np.diff(np.concatenate([before, values]))).tolist()
+        rounded = math.fsum([*self.total, *steps])
+        finite = math.isfinite(rounded)  # an inf's remainder (inf - inf) is not a number
+        self.total = (rounded, math.fsum([*self.total, *steps, -rounded]) if finite else 0.0)
+        self.last = float(values[-1])
+        start = float(times[0]) if self.span is None else self.span[0]
+        self.span = (start, float(times[-1]))
+
+    @property
+    def value(self) -> float | None:
+        """Unit of the command per s; None over no time spanned or if not finite."""
+        if self.span is None or self.span[1] <= self.span[0]:
+            return None
+        return _finite(self.total[0] / (self.span[1] - self.span[0]))
+
+
 _COLUMNS = {  # key figure -> the columns it is computed from (any one of them), by role
     "yaw_settling_time_s": (("plant", "yaw"),),
     "peak_abs_mass_position_m": (("plant", "mass_position"),),
     "peak_abs_tunnel_force_N": (("controller", "tunnel_force"), ("plant", "tunnel_force")),
+    "mass_position_cmd_variation_m_per_s": (
+        ("controller", "mass_position_cmd"),
+        ("plant", "mass_position_cmd"),
+    ),
+    "tunnel_force_variation_N_per_s": (("controller", "tunnel_force"), ("plant", "tunnel_force")),
+    "fin_angle_variation_rad_per_s": (("controller", "fin_angle"), ("plant", "fin_angle")),
 }
+ACTIVITY_FIGURES = (  # the commands' total variation per simulated second
+    "mass_position_cmd_variation_m_per_s",
+    "tunnel_force_variation_N_per_s",
+    "fin_angle_variation_rad_per_s",
+)
 
 
 def _columns(name: str, roles: dict[str, str]) -> list[str]:
@@ -177,6 +226,7 @@ class KeyFigures:
         self._force = first("peak_abs_tunnel_force_N")
         self._settling = SettlingTime(YAW_TOLERANCE_RAD, angle=True)
         self._peaks = {"mass": -math.inf, "force": -math.inf}
+        self._activity = {name: (first(name), TotalVariation()) for name in ACTIVITY_FIGURES}
 
     def add_rows(self, times: np.ndarray, values: np.ndarray) -> None:
         if self._yaw is not None:
@@ -186,6 +236,9 @@ class KeyFigures:
             if i is not None and len(times):  # np.max: a NaN anywhere makes the peak NaN
                 peak = np.max(np.abs(values[:, i]))
                 self._peaks[key] = float(np.max([self._peaks[key], peak]))
+        for i, variation in self._activity.values():
+            if i is not None:
+                variation.add(times, values[:, i])
 
     def add_notes(self, notes: object) -> None:
         """Events and faults change no key figure: ``notes`` are dropped."""
@@ -194,7 +247,7 @@ class KeyFigures:
         """The figures the columns can give, in :meth:`figures`' order: the others stay
         None whatever the rows (a scenario of FMUs without the plant's yaw, mass or
         thruster force)."""
-        columns = (self._yaw, self._mass, self._force)
+        columns = (self._yaw, self._mass, self._force, *(i for i, _ in self._activity.values()))
         return tuple(name for name, i in zip(self.figures(), columns, strict=True) if i is not None)
 
     def figures(self, complete: bool = True) -> dict[str, float | None]:
@@ -206,6 +259,7 @@ class KeyFigures:
             "yaw_settling_time_s": settled,
             "peak_abs_mass_position_m": _finite(self._peaks["mass"]),
             "peak_abs_tunnel_force_N": _finite(self._peaks["force"]),
+            **{name: variation.value for name, (_, variation) in self._activity.items()},
         }
 
 

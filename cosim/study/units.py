@@ -5,7 +5,8 @@ event's ``events.<name>.set.<instance>.<variable>``) has the unit the FMU's mode
 description declares (:func:`cosim.fmus.interface.read_interface`); an event's or fault's
 time key (``time``, ``ramp``, ``start``, ``stop``) and ``time_reached`` are in s; a key
 figure or manoeuvre metric carries its unit in its name's last part
-(``yaw_settling_time_s``, ``peak_abs_tunnel_force_N``, ``overshoot_pct``). A quantity
+(``yaw_settling_time_s``, ``peak_abs_tunnel_force_N``, ``overshoot_pct``; a rate's ends
+in ``_per_s``, ``tunnel_force_variation_N_per_s`` in N/s). A quantity
 without a unit is "1" (dimensionless, as SI writes it).
 
 On plots (:func:`shown`), angles are in degrees as everywhere else on this tool's plots
@@ -43,9 +44,17 @@ def units(names: Iterable[str], fmu_paths: Mapping[str, Path]) -> dict[str, str]
         ):
             unit = "s"
         else:
-            unit = SUFFIX_UNITS.get(name.rsplit("_", 1)[-1])
+            unit = suffix_unit(name)
         found[name] = unit or DIMENSIONLESS
     return found
+
+
+def suffix_unit(name: str) -> str | None:
+    """The unit a metric's name ends in: ``_m`` m, ``_N_per_s`` N/s (a rate); None if
+    its last part names none."""
+    stem, per_second = name.removesuffix("_per_s"), name.endswith("_per_s")
+    unit = SUFFIX_UNITS.get(stem.rsplit("_", 1)[-1])
+    return f"{unit}/s" if unit and per_second else unit
 
 
 def shown(name: str, unit_of: Mapping[str, str]) -> tuple[float, str]:
@@ -70,7 +79,7 @@ def title(name: str) -> str:
         return f"{key} of {what} {owner}"
     if "." in name:
         return name  # an <instance>.<variable>: the scenario's own name
-    words = name.split("_")
+    words = name.removesuffix("_per_s").split("_")
     if words[-1] in SUFFIX_UNITS:
         words = words[:-1]
     if "abs" in words:  # peak_abs_tunnel_force -> peak |tunnel force|

@@ -1172,9 +1172,11 @@ def figure_label(name: str) -> str:
     """A key figure's row label, its unit in brackets as the other rows have it:
     ``peak_abs_mass_position_m`` is "peak |mass position| (m)" (it read "peak abs mass
     position m", the unit a word of the name)."""
-    words = name.split("_")
+    per_second = name.endswith("_per_s")  # a rate: tunnel_force_variation_N_per_s, N/s
+    words = name.removesuffix("_per_s").split("_")
     unit = FIGURE_UNITS.get(words[-1]) if len(words) > 1 else None
     words = words[:-1] if unit else words
+    unit = f"{unit}/s" if unit and per_second else unit
     if "abs" in words:
         at = words.index("abs")
         words = [*words[:at], "|" + " ".join(words[at + 1 :]) + "|"]

@@ -25,7 +25,7 @@ from controller_fmu.los_guidance import parse_waypoints
 from cosim.analysis.equilibria import find_equilibrium
 from cosim.engine import master
 from cosim.engine.master import RunResult
-from cosim.metrics.key_figures import settling_time
+from cosim.metrics.key_figures import KeyFigures, settling_time
 from cosim.metrics.manoeuvres import manoeuvre_metrics, metric_names, summary_metrics
 from cosim.outputs.manoeuvre import fault_start
 from cosim.outputs.results import read_csv
@@ -206,6 +206,31 @@ def test_vert_1_keeps_rolling(results: dict[str, RunResult]) -> None:
         assert np.ptp(window(results["vert-1"], "plant.roll", t0, t0 + 5.0)) > 10 * DEG
         assert np.ptp(window(results["vert-2"], "plant.roll", t0, t0 + 5.0)) < 3 * DEG
     assert after(results["vert-1"], "plant.down", 40.0).mean() == pytest.approx(1.0, abs=0.1)
+
+
+ACTIVITY = ("mass_position_cmd_variation_m_per_s", "fin_angle_variation_rad_per_s")
+
+
+def tail_figures(outcome: RunOutcome, seconds: float = 10.0) -> dict[str, float | None]:
+    """The key figures of the last ``seconds`` of a run's rows."""
+    result = outcome.result
+    assert result.times is not None and result.values is not None
+    late = result.times >= result.times[-1] - seconds - 1e-9
+    figures = KeyFigures(result.columns)
+    figures.add_rows(result.times[late], result.values[late])
+    return figures.figures()
+
+
+@pytest.mark.slow
+def test_the_command_activity_shows_vert_1s_chatter(runs: dict[str, RunOutcome]) -> None:
+    """vert-1's actuators chatter (docs/model.md's table), vert-2's with the roll lock
+    settle: the key figures say so without the plots, and a settled run's tail is quiet."""
+    chatter, locked, settled = (tail_figures(runs[s]) for s in ("vert-1", "vert-2", "bs-3"))
+    for name in ACTIVITY:
+        assert chatter[name] > 100 * locked[name], (name, chatter[name], locked[name])
+        assert runs["vert-1"].figures[name] > 10 * runs["bs-3"].figures[name], name
+    mass = "mass_position_cmd_variation_m_per_s"
+    assert settled[mass] < 1e-3 * chatter[mass], (settled[mass], chatter[mass])
 
 
 MISSION_METRICS = ("legs_total", "first_waypoint_not_reached")

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 import cosim
 from cosim.metrics.key_figures import (
+    ACTIVITY_FIGURES,
     KeyFigures,
     SettlingTime,
     Vehicle,
@@ -117,7 +118,32 @@ def test_figures_of_columns_not_recorded_are_none():
         "yaw_settling_time_s": None,
         "peak_abs_mass_position_m": None,
         "peak_abs_tunnel_force_N": None,
+        "mass_position_cmd_variation_m_per_s": None,
+        "tunnel_force_variation_N_per_s": None,
+        "fin_angle_variation_rad_per_s": None,
     }
+
+
+def test_command_activity_is_the_total_variation_per_simulated_second() -> None:
+    """Each actuator command's activity: sum |c_k - c_(k-1)| over the rows divided by the
+    time they span, the same in chunks as at once: a chattering command's is large,
+    a settled one's zero."""
+    columns = ("controller.mass_position_cmd", "controller.tunnel_force", "plant.fin_angle")
+    times = np.arange(5) * 0.5  # 2 s
+    values = np.array([[0.0, 3.0, 0.1], [1.0, 3.0, -0.1], [-1.0, 3.0, 0.1],
+                       [-1.0, 3.0, -0.1], [2.0, 3.0, 0.1]])  # fmt: skip
+    whole, chunked = KeyFigures(columns), KeyFigures(columns)
+    whole.add_rows(times, values)
+    for lo in range(0, 5, 2):
+        chunked.add_rows(times[lo : lo + 2], values[lo : lo + 2])
+    assert chunked.figures() == whole.figures()
+    figures = whole.figures()
+    assert figures["mass_position_cmd_variation_m_per_s"] == (1 + 2 + 0 + 3) / 2.0
+    assert figures["tunnel_force_variation_N_per_s"] == 0.0
+    assert figures["fin_angle_variation_rad_per_s"] == pytest.approx(4 * 0.2 / 2.0)
+    one_row = KeyFigures(columns)
+    one_row.add_rows(times[:1], values[:1])  # no time spanned: no rate
+    assert one_row.figures()["mass_position_cmd_variation_m_per_s"] is None
 
 
 def test_names_are_the_figures_the_columns_can_give():
@@ -141,6 +167,9 @@ def test_a_figure_that_is_none_says_why() -> None:
         "yaw_settling_time_s": "not settled: the yaw is not within 1 deg of its set-point at "
         "the end",
         "peak_abs_tunnel_force_N": "not recorded",
+        "mass_position_cmd_variation_m_per_s": "not recorded",
+        "tunnel_force_variation_N_per_s": "not recorded",
+        "fin_angle_variation_rad_per_s": "not recorded",
     }
     assert why_none("yaw_settling_time_s", ["plant.roll"]) == "not recorded"
     # the turning circle has no autopilot: "its set-point" named one it does not have; a
@@ -236,7 +265,8 @@ def test_two_vehicles_each_get_their_own_key_figures(fmu_paths, tmp_path) -> Non
     scenario = scenario_from_toml(two_vehicles_toml(stop_time=10.0), fmu_dir=fmu_dir)
     outcome = run_scenario(scenario, tmp_path / "run", no_rrd=True)
     figures = outcome.figures
-    names = ("yaw_settling_time_s", "peak_abs_mass_position_m", "peak_abs_tunnel_force_N")
+    names = ("yaw_settling_time_s", "peak_abs_mass_position_m", "peak_abs_tunnel_force_N",
+             *ACTIVITY_FIGURES)  # fmt: skip
     assert list(figures) == [f"{p}.{n}" for p in ("plant_a", "plant_b") for n in names]
     assert figures["plant_a.peak_abs_tunnel_force_N"] == 0.0  # LQR: the mass alone
     assert figures["plant_b.peak_abs_tunnel_force_N"] > 1.0  # backstepping fires it

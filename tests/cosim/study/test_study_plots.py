@@ -72,7 +72,8 @@ def test_units_come_from_the_model_descriptions_and_metric_names(fmu_paths) -> N
     paths = {"plant": fmu_paths["AuvPlant"], "controller": fmu_paths["AuvAutopilot"]}
     found = units(
         ["plant.v_0", "final.plant.yaw", "yaw_settling_time_s", "peak_abs_tunnel_force_N",
-         "events.turn.time", "events.turn.set.plant.thrust", "overshoot_pct", "time_reached"],
+         "events.turn.time", "events.turn.set.plant.thrust", "overshoot_pct", "time_reached",
+         "fin_angle_variation_rad_per_s"],
         paths,
     )  # fmt: skip
     assert found == {
@@ -84,6 +85,7 @@ def test_units_come_from_the_model_descriptions_and_metric_names(fmu_paths) -> N
         "events.turn.set.plant.thrust": "N",
         "overshoot_pct": "%",
         "time_reached": "s",
+        "fin_angle_variation_rad_per_s": "rad/s",  # a rate: drawn in deg/s
     }
 
 

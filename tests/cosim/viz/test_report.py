@@ -616,6 +616,7 @@ def test_key_figures_are_labelled_with_their_unit_in_brackets() -> None:
     assert figure_label("peak_abs_tunnel_force_N") == "peak |tunnel force| (N)"
     assert figure_label("yaw_settling_time_s") == "yaw settling time (s)"
     assert figure_label("legs") == "legs"
+    assert figure_label("tunnel_force_variation_N_per_s") == "tunnel force variation (N/s)"
     summary = {"scenario": "bs-3", "key_figures": {"peak_abs_mass_position_m": 0.033}}
     page = index_page(Path("runs/bs-3"), summary, None, {})
     assert '<th scope="row">peak |mass position| (m)</th><td>0.033</td>' in page
