@@ -61,10 +61,23 @@ NOTE_CHAR_EM = 0.6  # a character's mean width in DejaVu Sans, in em (wide, to f
 Row = Mapping[str, Any]
 
 
+# the mark of cosim.metrics.key_figures.ACTIVITY_FIGURES' names, matched here without
+# importing that module into the command's process (tests check the two agree)
+ACTIVITY_MARK = "_variation_"
+
+
 def default_metrics(metrics: Sequence[str]) -> list[str]:
     """The metrics a study plots unless ``[metrics] collect`` names some: the key figures
-    and the manoeuvre metrics, not ``time_reached`` or the final values."""
-    return [m for m in metrics if m != "time_reached" and not m.startswith("final.")]
+    and the manoeuvre metrics, not ``time_reached``, the final values or the commands'
+    activity (their total variation per second: in runs.csv, drawn where ``collect`` names
+    them; a page of the figures it drew before, and no panel more to draw by default)."""
+    return [
+        m
+        for m in metrics
+        if m != "time_reached"
+        and not m.startswith("final.")
+        and ACTIVITY_MARK not in m.rsplit(".", 1)[-1]
+    ]
 
 
 def plotted_metrics(rows: Sequence[Row], metrics: Sequence[str]) -> list[str]:

@@ -611,3 +611,16 @@ def test_an_index_page_the_disk_cannot_hold_is_named_and_leaves_no_part(
         str(tmp_path / "index.html"),
     )
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_study_page_draws_no_command_activity_unless_collected() -> None:
+    """The commands' total variation per second is in runs.csv but not drawn by default
+    (a page of the figures it drew before); the mark plots matches agrees with the key
+    figures' names, every other key figure still drawn."""
+    from cosim.metrics.key_figures import _COLUMNS as FIGURE_COLUMNS
+    from cosim.metrics.key_figures import ACTIVITY_FIGURES
+
+    named = [*FIGURE_COLUMNS, *(f"plant_b.{name}" for name in FIGURE_COLUMNS)]
+    drawn = plots.default_metrics(named)
+    assert not set(drawn) & {*ACTIVITY_FIGURES, *(f"plant_b.{a}" for a in ACTIVITY_FIGURES)}
+    assert len(drawn) == len(named) - 2 * len(ACTIVITY_FIGURES)
