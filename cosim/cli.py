@@ -427,7 +427,11 @@ def _run_study(args: argparse.Namespace, local: bool) -> int:
     # have nothing left to run, and then starts none
     try:
         with stop_study_on_signals(ignore_after=args.own_process):
-            early = early_client(workers, args.dashboard) if local else nullcontext(None)
+            early = (
+                early_client(workers, args.dashboard, end_server=args.own_process)
+                if local
+                else nullcontext(None)
+            )
             diagnosis = gc_diagnosis_registered() if args.scheduler is None else nullcontext()
             with diagnosis, early as client:
                 from cosim.study.runner import Cluster, report, run_study

@@ -674,8 +674,9 @@ class EarlyClient:
     client (it raises what starting the cluster raised); :meth:`close_soon` starts closing
     the cluster on that thread, once no more tasks will be sent."""
 
-    def __init__(self, workers: int, dashboard: bool) -> None:
+    def __init__(self, workers: int, dashboard: bool, end_server: bool = False) -> None:
         self._stack = ExitStack()
+        self._end_server = end_server
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="auv-cosim-cluster")
         self._started = self._pool.submit(
             lambda: self._stack.enter_context(open_client(workers, dashboard=dashboard))
@@ -708,15 +709,21 @@ class EarlyClient:
         with suppress(Exception):  # a cluster that failed to start has nothing to close
             self._started.result()
         self._stack.close()
+        if self._end_server:  # its workers are gone: the server is needed no longer
+            fork_server.stop()
 
 
 @contextmanager
-def early_client(workers: int, dashboard: bool = False) -> Iterator[EarlyClient]:
+def early_client(
+    workers: int, dashboard: bool = False, end_server: bool = False
+) -> Iterator[EarlyClient]:
     """:func:`open_client` of a local cluster started now, on a thread, so the cluster
     starts while the caller imports and checks its study; closed at the end (after it has
     finished starting, if the caller gave up before), or earlier with
-    :meth:`EarlyClient.close_soon`."""
-    early = EarlyClient(workers, dashboard)
+    :meth:`EarlyClient.close_soon`. ``end_server``: the workers' fork server is ended once
+    the cluster has closed (:func:`cosim.study.fork_server.stop`), for a process that ends
+    with the study; else it stays for the process's next study."""
+    early = EarlyClient(workers, dashboard, end_server)
     try:
         yield early
     finally:

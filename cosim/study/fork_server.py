@@ -101,6 +101,22 @@ def start(warm: bool = False) -> bool:
     return running
 
 
+def stop() -> None:
+    """End the fork server this process started, if it runs, and wait until it has ended;
+    a later :func:`start` starts another. For a command whose local cluster has closed
+    (its workers are gone) and that ends soon: left running, the server would end only once
+    the command had ended (its pipe from the command closed), and a pipe reading the
+    command's stderr, which the server inherited, waited for that (0.03-0.08 s under load,
+    ``python scripts/sweep_pipe_holders.py``). By hand: multiprocessing stops its server
+    only in its own tests (``_stop``). Never raises."""
+    if not available():
+        return
+    from multiprocessing import forkserver
+
+    with suppress(OSError):  # (one already ended: reaped, ChildProcessError, all the same)
+        forkserver._forkserver._stop()  # type: ignore[attr-defined]
+
+
 @contextmanager
 def _stop_signals_blocked() -> Iterator[None]:
     """The stop signals (:data:`STOP_SIGNALS`) blocked in this thread while the block
