@@ -28,6 +28,7 @@ from __future__ import annotations
 import atexit
 import os
 import sys
+from contextlib import suppress
 
 _code: int | None = None  # the command's exit code, once it has returned one
 
@@ -58,4 +59,20 @@ def _end() -> None:
             stream.flush()
         except Exception:  # Python's own end says what went wrong, as before
             return
+    _tracker_told()
     os._exit(_code)
+
+
+def _tracker_told() -> None:
+    """Tell multiprocessing's resource tracker, if this process started one, that this
+    process has ended: its pipe from this process closed now, after every exit handler
+    (multiprocessing's own, which release the semaphores the tracker watches, included),
+    not as the kernel ends the process, after it has freed the process's memory. The
+    tracker holds the command's stderr until it has ended (it says there what it cleans
+    up): a pipe reading the command waited for it. By hand: multiprocessing has no call
+    for it outside its own tests."""
+    tracker = sys.modules.get("multiprocessing.resource_tracker")
+    fd = getattr(getattr(tracker, "_resource_tracker", None), "_fd", None)
+    if isinstance(fd, int):
+        with suppress(OSError):  # closed already: nothing to tell
+            os.close(fd)

@@ -85,3 +85,35 @@ def test_a_stream_that_cannot_be_flushed_ends_as_python_ends_it(tmp_path: Path) 
     assert "No space left on device" in result.stderr
     assert "torn down" in result.stderr
     assert mark.read_text(encoding="utf-8") == "handler ran"
+
+
+TRACKER_WATCHED = """
+import os, time
+from multiprocessing import resource_tracker
+
+resource_tracker.ensure_running()
+tracker = resource_tracker._resource_tracker._pid
+exit_now = os._exit
+
+
+def exit_once_told(code):
+    # the process's last step: has its resource tracker ended (its pipe from here closed)?
+    deadline = time.monotonic() + 20
+    while os.waitpid(tracker, os.WNOHANG)[0] == 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    ended = time.monotonic() < deadline
+    os.write(2, b"tracker ended\\n" if ended else b"tracker still running\\n")
+    exit_now(code)
+
+
+os._exit = exit_once_told
+"""
+
+
+def test_the_resource_tracker_is_told_before_the_process_ends(tmp_path: Path) -> None:
+    """The tracker holds the command's stderr until it has ended: told only as the kernel
+    ended the process, it kept a pipe reading the command open after the command."""
+    result, mark = _ended(tmp_path, code=5, after=TRACKER_WATCHED)
+    assert result.returncode == 5, result.stderr
+    assert result.stderr == "a message\ntracker ended\n"
+    assert mark.read_text(encoding="utf-8") == "handler ran"
