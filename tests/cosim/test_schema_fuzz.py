@@ -343,7 +343,7 @@ def cli_sweep(data: dict[str, Any], fmu_dir: Path) -> None:
     with (
         tempfile.TemporaryDirectory() as tmp,
         mock.patch.object(fork_server, "start", lambda warm=False: False),
-        mock.patch.object(execution, "early_client", lambda *args: contextlib.nullcontext()),
+        mock.patch.object(execution, "early_client", lambda *args, **kw: contextlib.nullcontext()),
         mock.patch.object(runner, "_execute", planned),
     ):
         path = Path(tmp) / "study.toml"
