@@ -4,7 +4,9 @@ ends without its interpreter's teardown, and SIGINT, ignored while it imported
 saves the handler it finds as it starts ignoring SIGINT, and gives it to each worker it
 forks, which takes a Ctrl-C as Python does.
 
-The server ends when the command that started it ends (its pipe from the command closes).
+The server ends when its pipe from the command that started it closes: as ``auv-cosim
+sweep`` has closed its cluster (:func:`cosim.study.fork_server.stop`), or as a process
+that did not stop it ends (a test's, a killed command's).
 An interpreter that imported numba, distributed and the engine then spends ~0.05 s
 tearing its modules down, and the server holds the command's stderr until it has ended:
 a pipe reading the command (``auv-cosim sweep ... | tee``, a test, a benchmark) waited
