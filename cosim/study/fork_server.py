@@ -113,7 +113,9 @@ def stop() -> None:
         return
     from multiprocessing import forkserver
 
-    with suppress(OSError):  # (one already ended: reaped, ChildProcessError, all the same)
+    # (one already ended: reaped, ChildProcessError, all the same; a Python without the
+    # private call: the server ends with the command, as before)
+    with suppress(OSError, AttributeError):
         forkserver._forkserver._stop()  # type: ignore[attr-defined]
 
 
