@@ -22,6 +22,7 @@ u = design_speed for the current vehicle parameters, at construction; nothing is
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -103,30 +104,38 @@ def delayed_poles(
 ) -> np.ndarray:
     """The closed-loop poles z of the sampled loop y_d[k] = -K x[k] (held over each
     sample of dt s) on x' = A x + B y_d when each command reaches the plant ``delay`` s
-    late (0 <= delay <= dt, as from a coupling that hands it on one communication step
-    late); stable when every |z| < 1.
+    late (delay >= 0: a coupling that hands it on one communication step late, a delay
+    fault of several steps on it); stable when every |z| < 1.
 
     Exact for the zero-order hold (the modified z-transform, written out in numpy because
-    the FMU's host has no python-control): over a sample the plant is driven by the
-    previous command u for ``delay`` s, then by the new one, so
-    x[k+1] = Ad x[k] + G1 u[k] + G0 y_d[k] with G0 = int_0^(dt-delay) e^(A s) ds B and
-    G1 = e^(A (dt-delay)) int_0^delay e^(A s) ds B; the poles are the eigenvalues of
-    [[Ad - G0 K, G1], [-K, 0]] (one more, for u, than those of Ad - Bd K).
+    the FMU's host has no python-control): with delay = m dt + f, 0 < f <= dt (m = 0,
+    f = 0 for none), over a sample the plant is driven by the command q = m + 1 samples
+    old for f s, then by the one m samples old (y_d[k] itself for m = 0), so
+    x[k+1] = Ad x[k] + G1 y_d[k-q] + G0 y_d[k-m] with G0 = int_0^(dt-f) e^(A s) ds B and
+    G1 = e^(A (dt-f)) int_0^f e^(A s) ds B; the loop's state is x and the q commands
+    y_d[k-1] ... y_d[k-q] (a shift register), so it has q poles more than Ad - Bd K.
 
     Raises:
-        ValueError: delay is not within [0, dt].
+        ValueError: delay is negative.
     """
-    if not (0.0 <= delay <= dt):
-        raise ValueError(f"delay {delay!r} s: expected a delay within [0, {dt!r}] s")
+    if not delay >= 0.0:
+        raise ValueError(f"delay {delay!r} s: expected a delay >= 0 s")
     K = np.asarray(gain, dtype=float).reshape(1, -1)
     n = K.shape[1]
+    q = max(1, math.ceil(delay / dt - 1e-9))  # a whole number of samples within rounding
+    fraction = min(max(delay - (q - 1) * dt, 0.0), dt)
     Ad, _ = zero_order_hold(A, B, dt)
-    g0 = _held(A, B, dt - delay)
-    g1 = expm(A * (dt - delay)) @ _held(A, B, delay)
-    loop = np.zeros((n + 1, n + 1))
-    loop[:n, :n] = Ad - g0 @ K
-    loop[:n, n:] = g1
-    loop[n:, :n] = -K
+    g0 = _held(A, B, dt - fraction)
+    g1 = expm(A * (dt - fraction)) @ _held(A, B, fraction)
+    loop = np.zeros((n + q, n + q))
+    loop[:n, :n] = Ad
+    loop[:n, n + q - 1 :] = g1  # the oldest command, y_d[k-q]
+    if q == 1:
+        loop[:n, :n] -= g0 @ K  # the new command, y_d[k] = -K x[k]
+    else:
+        loop[:n, n + q - 2 : n + q - 1] += g0  # y_d[k-m], m = q - 1
+    loop[n : n + 1, :n] = -K  # the register's newest at k + 1: y_d[k]
+    loop[n + 1 :, n : n + q - 1] = np.eye(q - 1)  # the others shift on
     poles: np.ndarray = np.linalg.eigvals(loop)
     return poles
 

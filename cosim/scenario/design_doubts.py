@@ -22,6 +22,7 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from scipy.optimize import brentq
 
 from controller_fmu.modes import DepthMode, HeadingMode, unused_parameters
 
@@ -322,26 +323,77 @@ def _plant_step(scenario: Scenario, plant: str) -> float:
 
 
 def _gain_fault_doubts(scenario: Scenario, name: str, autopilot: Instance) -> list[str]:
-    """A warning for each gain fault on ``name``'s mass command (where `auv-cosim analyze
-    margins` breaks the loop) under which its loop of a law of :data:`_DISCRETE_LAWS`, as it
-    samples and as late as the coupling hands the command on (:func:`_worst_pole`), is
-    unstable: a gain past the upper gain margin makes the command chatter between its
-    limits while the key figures look better than a stable loop's (docs/model.md#lqr)."""
+    """A warning for each gain or delay fault on ``name``'s mass command (where `auv-cosim
+    analyze margins` breaks the loop) under which its loop of a law of
+    :data:`_DISCRETE_LAWS`, as it samples and as late as the coupling hands the command on
+    (:func:`_worst_pole`), is unstable: a gain past the upper gain margin makes the command
+    chatter between its limits while the key figures look better than a stable loop's, a
+    delay past the delay margin makes it swing ever wider (docs/model.md#lqr)."""
     laws = [law for law in _DISCRETE_LAWS if law in _heading_modes(scenario, name, autopilot)]
     found = []
     sample = _sample_time(scenario, name, autopilot)
     for target, plant in _commanded(scenario, name).items():
-        delay = (
-            min(_plant_step(scenario, plant), sample) if _late_cause(scenario, name, plant) else 0.0
-        )
+        step = _plant_step(scenario, plant)
+        late = min(step, sample) if _late_cause(scenario, name, plant) else 0.0
         for fault, law in itertools.product(scenario.faults, laws):
-            if fault.kind != "gain" or fault.target != target or fault.value is None:
+            if fault.target != target or fault.start >= scenario.stop_time:
                 continue
-            worst = _worst_pole(autopilot, sample, delay, fault.value, law)
-            if fault.start < scenario.stop_time and worst is not None and abs(worst) >= 1.0:
-                found.append(_gain_fault_text(name, fault, worst, sample, law))
+            if fault.kind == "gain" and fault.value is not None:
+                worst = _worst_pole(autopilot, sample, late, fault.value, law)
+                line = ""
+                if worst is not None and _grows(worst):
+                    line = _gain_fault_text(name, fault, worst, sample, law)
+            elif fault.kind == "delay" and fault.steps is not None:
+                line = _delay_fault_line(name, autopilot, fault, (sample, step, late), law)
+            else:
+                continue
+            if line:
+                found.append(line)
                 break  # one line a fault
     return found
+
+
+def _grows(worst: complex | None) -> bool:
+    """Whether a loop's largest pole ``worst`` (None: no loop) is outside the unit circle."""
+    return worst is not None and abs(worst) >= 1.0
+
+
+def _delay_fault_line(
+    name: str,
+    autopilot: Instance,
+    fault: Fault,
+    times: tuple[float, float, float],
+    law: HeadingMode,
+) -> str:
+    """:func:`_gain_fault_doubts`'s line for the delay fault ``fault`` ('' where the loop
+    takes it): ``times`` are ``name``'s sample, the target's step and the coupling's own
+    delay (s); the fault adds its ``steps`` of the target's steps to that delay."""
+    sample, step, late = times
+    assert fault.steps is not None
+    delay = late + fault.steps * step
+    worst = _worst_pole(autopilot, sample, delay, law=law)
+    if not _grows(worst) or _grows(_worst_pole(autopilot, sample, late, law=law)):
+        return ""  # stable; or unstable without the fault, as the late command's line says
+    assert worst is not None
+
+    def excess(d: float) -> float:
+        pole = _worst_pole(autopilot, sample, d, law=law)
+        return abs(pole if pole is not None else 0.0) - 1.0
+
+    margin = brentq(excess, late, delay, xtol=1e-6 * sample) - late
+    angle = abs(cmath.phase(worst))
+    growth = math.log(abs(worst)) / sample  # 1/s
+    swing = f"swinging at {angle / sample:.3g} rad/s, " if angle > 1e-6 else ""
+    pace = f"doubling every {math.log(2.0) / growth:.2g} s" if growth > 0.0 else "not decaying"
+    steps = f"{fault.steps} step{'s' if fault.steps != 1 else ''}"
+    return (
+        f"faults.{fault.name}: a delay of {steps} ({fault.steps * step:g} s) on {fault.target} "
+        f"(the command of {name}'s heading_mode {law.name.lower()}) is past that loop's delay "
+        f"margin of {margin:.3g} s ({_MARGINS_OF[law]}; its command held between samples), "
+        f"so from t = {fault.start:g} s it is "
+        f"unstable, {swing}its error {pace} (|z| = {abs(worst):.4g} a sample) until the "
+        f"command's limits hold it: the command ({name}.mass_position_cmd) shows it"
+    )
 
 
 _MARGINS_OF = {  # where a law's loop margins are read, as its warnings name it
@@ -428,8 +480,7 @@ def _unstable_when_late(
     designed (the autopilot refuses that itself). The REMUS 100's LQR takes 0.92 to 1.05
     steps of delay at design steps of 50 to 1 ms (``analyze margins --step``) sampled at
     them; its sliding mode 0.98 at 10 ms."""
-    worst = _worst_pole(autopilot, sample, delay, law=law)
-    return worst is not None and abs(worst) >= 1.0
+    return _grows(_worst_pole(autopilot, sample, delay, law=law))
 
 
 def _worst_pole(

@@ -124,8 +124,33 @@ def test_delayed_poles_are_python_controls_loop_closed_through_a_delay(linear, d
         np.sort_complex(np.append(poles, 0.0)),
         atol=1e-9,
     )
-    with pytest.raises(ValueError, match=r"delay 0\.02 s: expected a delay within \[0, 0\.01\]"):
-        delayed_poles(A, B, K, 0.01, 0.02)
+    with pytest.raises(ValueError, match=r"delay -0\.01 s: expected a delay >= 0 s"):
+        delayed_poles(A, B, K, 0.01, -0.01)
+
+
+@pytest.mark.parametrize("samples", [2, 3, 7])
+def test_delayed_poles_take_a_delay_of_several_samples(linear, samples):
+    """A command several whole samples late (a delay fault of k steps on it) closes on the
+    poles of python-control's L(z) z^-k fed back; the loop took a delay of one sample at
+    most, so a delay fault past the delay margin went unchecked. A delay between two whole
+    samples lies between them: its largest pole's modulus between theirs."""
+    import control
+
+    A, B = linear
+    dt = 0.01
+    K, _ = discrete_gain(A, B, DISSERTATION_Q_Y, DISSERTATION_R_U, dt)
+    loop = control.c2d(control.ss(A, B, K[None, :], 0.0), dt, method="zoh")
+    late = control.series(control.tf([1.0], [1.0] + [0.0] * samples, dt), loop)
+    np.testing.assert_allclose(
+        np.sort_complex(delayed_poles(A, B, K, dt, samples * dt)),
+        np.sort_complex(unity_feedback_poles(late)),
+        atol=1e-7,
+    )
+    sizes = [
+        np.abs(delayed_poles(A, B, K, dt, late * dt)).max()
+        for late in (samples - 1, samples - 0.5, samples)
+    ]
+    assert min(sizes[0], sizes[2]) <= sizes[1] <= max(sizes[0], sizes[2])
 
 
 # --- closed loop: the scenarios of docs/model.md#scenarios -------------------------------------

@@ -255,6 +255,49 @@ def test_a_gain_fault_that_reverses_the_command_is_not_called_slow(
     assert line.endswith(f"its heading turns away, its error doubling every {doubling:.2g} s")
 
 
+def _delay_fault(
+    fmu_paths: dict[str, Path], tmp_path: Path, steps: int, step: float = 0.01
+) -> cosim.Scenario:
+    """lqr-1 at a communication step of ``step`` s with a delay fault of ``steps`` of the
+    plant's steps on its command to plant.mass_position_cmd from t = 1 s."""
+    text = (Path(cosim.__file__).parent / "scenarios" / "lqr-1.toml").read_text()
+    text += '\n[[faults]]\nname = "late"\ntarget = "plant.mass_position_cmd"\n'
+    text += f'kind = "delay"\nsteps = {steps}\nstart = 1.0\n'
+    path = tmp_path / f"delay-{steps}.toml"
+    path.write_text(text)
+    return _load(fmu_paths, path).with_overrides(step=step)
+
+
+def test_a_delay_fault_past_the_lqr_loops_delay_margin_is_named(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """lqr-1 with a delay fault of one step on its mass command ran without a word,
+    though one step is past its 0.987-step delay margin and the command grows at 104
+    rad/s (docs/model.md#lqr): the loop's poles took a delay of one sample at most. The
+    warning names the fault, the margin and how fast it grows; it is given exactly
+    outside the margin `auv-cosim analyze margins` prints (the plant stepping every 1 ms,
+    the autopilot sampling every 10 ms: 9 steps inside the 9.87 ms, 10 outside)."""
+    from cosim.analysis.margins import loop_margins, lqr_loop
+    from plant_fmu.model.parameters import load_vehicle
+
+    margin = loop_margins(lqr_loop(load_vehicle("remus100"), 1.525, 0.01)).delay_margin
+    assert margin is not None
+    (line,) = design_doubts(_delay_fault(fmu_paths, tmp_path, 1))
+    assert line.startswith(
+        "faults.late: a delay of 1 step (0.01 s) on plant.mass_position_cmd (the command of "
+        "controller's heading_mode lqr) is past that loop's delay margin of 0.00992 s "
+        "(auv-cosim analyze margins; its command held between samples)"
+    ), line
+    assert math.isclose(0.00992, margin.value, rel_tol=0.01)  # analyze margins' PM / w_c
+    assert "so from t = 1 s it is unstable, swinging at 104 rad/s" in line, line
+    assert line.endswith("the command (controller.mass_position_cmd) shows it"), line
+    inside, outside = math.floor(margin.value / 0.001), math.ceil(margin.value / 0.001)
+    assert (inside, outside) == (9, 10)
+    assert design_doubts(_delay_fault(fmu_paths, tmp_path, inside, 0.001)) == []
+    (line,) = design_doubts(_delay_fault(fmu_paths, tmp_path, outside, 0.001))
+    assert line.startswith("faults.late: a delay of 10 steps (0.01 s) on"), line
+
+
 def test_the_sliding_mode_s_late_command_and_gain_faults_are_named_as_the_lqr_s(
     fmu_paths: dict[str, Path], tmp_path: Path
 ) -> None:
