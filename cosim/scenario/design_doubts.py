@@ -16,6 +16,7 @@ says so in one warning line each, as it does for an angle that looks like degree
 from __future__ import annotations
 
 import cmath
+import functools
 import itertools
 import math
 from collections.abc import Mapping
@@ -223,10 +224,13 @@ SPEED_TOLERANCE = 0.05
 """How far (relative) the straight-run speed may be from the design speed unremarked."""
 
 
+@functools.lru_cache(maxsize=256)
 def straight_run_speed(vehicle: VehicleParameters, thrust: float) -> float | None:
     """The surge speed (m/s, through the water) of ``vehicle`` running straight on
     ``thrust`` N: the root of the plant's own u' (horizontal variant, v = r = 0) in
-    (0, 2e4] m/s; None without one (no forward thrust, or a thrust beyond any vehicle's)."""
+    (0, 2e4] m/s; None without one (no forward thrust, or a thrust beyond any vehicle's).
+    Computed once a process for a vehicle (immutable, compared by value) and thrust: a
+    study checks every point, most with the same."""
     from plant_fmu.model.dynamics import STATE_INDEX, PlantModel, Variant
     from plant_fmu.model.linearization import input_vector, state_vector
     from plant_fmu.model.root_finding import brent_root
@@ -494,35 +498,78 @@ def _worst_pole(
     own design model (its vehicle at its design_speed, sampled every design_step), times
     ``gain``, sampled every ``sample`` s, with its command ``delay`` s late
     (:func:`controller_fmu.lqr.delayed_poles`); None where the law cannot be designed.
-    The sliding mode's loop is the one inside its boundary layer, linear there (6.3.45):
-    y_d = -(k + h eta / (Phi w^T Bd) w)^T x, the plant's remainder f*_hat of second order
-    at the straight run."""
-    from controller_fmu.lateral_model import LateralDesignModel
-    from controller_fmu.lqr import LqrHeading, delayed_poles
-    from controller_fmu.sliding_mode import SlidingModeHeading
+    Computed once a process for the values that decide it (:func:`_largest_pole`): a study
+    checks every point, most with the same loop."""
     from plant_fmu.model.parameters import load_vehicle
 
     weights = ("r", "p", "roll", "yaw", "mass_position", "mass_velocity")
-    q_y = [float(_start(autopilot, f"lqr_q_{weight}")) for weight in weights]
-    step, r_u = float(_start(autopilot, "design_step")), float(_start(autopilot, "lqr_r"))
-    try:
+    try:  # the same object while its files hold the same text: a key that follows them
         vehicle = load_vehicle(str(_start(autopilot, "vehicle")))
-        design = LateralDesignModel(vehicle, float(_start(autopilot, "design_speed")), False)
-        if law is HeadingMode.SLIDING_MODE:
-            eta, layer = (
-                float(_start(autopilot, "smc_eta")),
-                float(_start(autopilot, "smc_boundary_layer")),
-            )
-            smc = SlidingModeHeading(design, step, eta, layer, q_y, r_u)
+    except ValueError:
+        return None
+    design = (
+        vehicle,
+        float(_start(autopilot, "design_speed")),
+        float(_start(autopilot, "design_step")),
+        tuple(float(_start(autopilot, f"lqr_q_{weight}")) for weight in weights),
+        float(_start(autopilot, "lqr_r")),
+    )
+    layer = (
+        (float(_start(autopilot, "smc_eta")), float(_start(autopilot, "smc_boundary_layer")))
+        if law is HeadingMode.SLIDING_MODE
+        else None
+    )
+    return _largest_pole(design, layer, sample, delay, gain)
+
+
+_Design = tuple["VehicleParameters", float, float, tuple[float, ...], float]
+"""The autopilot's vehicle, design_speed (m/s), design_step (s), LQR weights Q_y and R_u."""
+
+
+@functools.lru_cache(maxsize=1024)
+def _largest_pole(
+    design: _Design, layer: tuple[float, float] | None, sample: float, delay: float, gain: float
+) -> complex | None:
+    """:func:`_worst_pole` of the loop :func:`_loop` designs, times ``gain``."""
+    from controller_fmu.lqr import delayed_poles
+
+    loop = _loop(design, layer)
+    if loop is None:
+        return None
+    a, b, linear = loop
+    poles = delayed_poles(a, b, gain * linear, sample, delay)
+    return complex(poles[np.argmax(np.abs(poles))])
+
+
+@functools.lru_cache(maxsize=64)
+def _loop(
+    design: _Design, layer: tuple[float, float] | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The plant (A, B) a heading law is designed on and its linear feedback gain: the
+    LQR's, or with ``layer`` (eta, the boundary layer Phi) the sliding mode's inside its
+    boundary layer, linear there (6.3.45): y_d = -(k + h eta / (Phi w^T Bd) w)^T x, the
+    plant's remainder f*_hat of second order at the straight run; None where the law
+    cannot be designed. The arrays are read-only: a cache shares them."""
+    from controller_fmu.lateral_model import LateralDesignModel
+    from controller_fmu.lqr import LqrHeading
+    from controller_fmu.sliding_mode import SlidingModeHeading
+
+    vehicle, speed, step, q_y, r_u = design
+    try:
+        model = LateralDesignModel(vehicle, speed, False)
+        if layer is not None:
+            smc = SlidingModeHeading(model, step, *layer, list(q_y), r_u)
             a, b = smc.A, smc.B
             linear = smc.k + step * smc.eta / (smc.boundary_layer * smc.w_bd) * smc.w
         else:
-            lqr = LqrHeading(design, step, q_y, r_u)
+            lqr = LqrHeading(model, step, list(q_y), r_u)
             a, b, linear = lqr.A, lqr.B, lqr.gain
     except ValueError:
         return None
-    poles = delayed_poles(a, b, gain * linear, sample, delay)
-    return complex(poles[np.argmax(np.abs(poles))])
+    arrays = tuple(np.array(x, dtype=float) for x in (a, b, linear))
+    for array in arrays:
+        array.setflags(write=False)
+    return arrays[0], arrays[1], arrays[2]
 
 
 def _pitch_doubt(

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import warnings
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -494,3 +495,35 @@ def test_two_vehicles_each_autopilot_is_checked_against_its_own_plant(
     mismatched = scenario.with_start({"ctrl_b.vehicle": "remus100"})
     (line,) = design_doubts(mismatched)
     assert line.startswith("plant_b runs vehicle 'remus100-long-fins' but ctrl_b designs"), line
+
+
+def test_a_study_s_points_with_the_same_loop_design_it_once(
+    fmu_paths: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A study checks every grid point: lqr-1 under Jacobi designed its LQR again and
+    found its straight-run speed again at each (86 ms a point on a busy machine, a
+    1000-point study waiting a minute before its first run). A point that differs from
+    another only where the loop does not (the plant's start sway) designs nothing again,
+    and is warned of as the first."""
+    import controller_fmu.lqr
+    import plant_fmu.model.root_finding
+
+    designed: list[object] = []
+    lqr, root = controller_fmu.lqr.LqrHeading, plant_fmu.model.root_finding.brent_root
+
+    def counted(original: Any) -> Any:
+        def call(*args: Any, **kwargs: Any) -> Any:
+            designed.append(original)
+            return original(*args, **kwargs)
+
+        return call
+
+    monkeypatch.setattr(controller_fmu.lqr, "LqrHeading", counted(lqr))
+    monkeypatch.setattr(plant_fmu.model.root_finding, "brent_root", counted(root))
+    jacobi = _load(fmu_paths, "lqr-1").with_overrides(algorithm="jacobi")
+    (first,) = design_doubts(jacobi.with_start({"plant.v_0": -0.02}))
+    designed.clear()
+    (second,) = design_doubts(jacobi.with_start({"plant.v_0": -0.03}))
+    assert designed == []
+    assert second == first
+    assert "whose delay margin is under one of its 0.01 s samples" in first, first
