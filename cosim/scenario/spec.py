@@ -1504,7 +1504,10 @@ def _check_sample_period(name: str, inst: Instance, step: float, src: Source) ->
     at or after each multiple of its period, so another period takes some samples up to a
     step late, without a word (a period the step is longer than samples at every step,
     which the autopilot warns of itself). The adaptive algorithm ends a step on each
-    sample instead (:func:`cosim.engine.adaptive.sample_periods`)."""
+    sample instead (:func:`cosim.engine.adaptive.sample_periods`). Our autopilot's only:
+    another FMU's value of that name means what that FMU makes of it."""
+    if inst.interface.model_identifier != "AuvAutopilot":
+        return
     period = float(inst.start.get("sample_period", 0.0))
     if not period > step:
         return

@@ -221,6 +221,22 @@ def test_a_sample_period_no_whole_number_of_its_steps_is_refused(fmu_dir: Path) 
         scenario_from_toml(text, base_dir=path.parent, fmu_dir=fmu_dir)
 
 
+def test_another_fmus_sample_period_is_its_own(test_fmu_dir: Path, tmp_path: Path) -> None:
+    """A start value named ``sample_period`` of an FMU other than our autopilot (here a
+    Real of another tool's FMU, 0.3 at steps of 0.2 s) was refused as if it were our
+    autopilot's sampling period, which that FMU may not mean at all: it is the FMU's own
+    value, set as given."""
+    with_alias(
+        test_fmu_dir / "CosimTestForeign.fmu", tmp_path / "Sampled.fmu", "k", "sample_period"
+    )
+    text = (
+        'stop_time = 0.4\n[coupling]\nstep = 0.2\n[instances.f]\nfmu = "Sampled.fmu"\n'
+        "[instances.f.start]\nsample_period = 0.3\n"
+    )
+    scenario = scenario_from_toml(text, base_dir=tmp_path)
+    assert scenario.instances["f"].start["sample_period"] == 0.3
+
+
 def test_a_design_step_is_moved_when_it_is_a_multiple_step_up_to_rounding(fmu_dir: Path) -> None:
     """A controller stepping every 3 steps of 0.1 s, designed for 0.3 s: 3 x 0.1 is
     0.30000000000000004, which the exact comparison missed, leaving it designed for 0.3 s
