@@ -8,7 +8,7 @@ import math
 import re
 import warnings
 from collections.abc import Iterator
-from contextlib import AbstractContextManager, contextmanager, nullcontext
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 
 import control
@@ -208,6 +208,8 @@ OUTSIDE = (
 )
 CHATTERS = OUTSIDE + r".* unstable at 314 rad/s .* swings between its limits at every step"
 TURNS_AWAY = OUTSIDE + r".* unstable .*: its heading turns away, its error doubling every \S+ s"
+# ... and a delay fault past the delay margin
+LATE = r"faults\.f: a delay of 1 step .* past that loop's delay margin .* unstable, swinging at"
 
 
 @contextmanager
@@ -278,7 +280,7 @@ def test_the_simulated_loop_loses_stability_past_the_upper_gain_and_delay_margin
                 f'kind = "gain"\nvalue = {1.1 * upper.value!r}',
                 pytest.warns(DesignWarning, match=CHATTERS),
             ),
-            ("late", 'kind = "delay"\nsteps = 1', nullcontext()),
+            ("late", 'kind = "delay"\nsteps = 1', pytest.warns(DesignWarning, match=LATE)),
         )
     }
     below, above, late = (_fast_envelope(runs[n].to_numpy(), 6) for n in ("below", "above", "late"))
