@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import time
 from pathlib import Path
 
 import psutil
@@ -18,12 +19,20 @@ from process_group import run_in_group
 STUBBORN = 'trap "" TERM INT; sleep 600 & echo $! > "$1"; wait'
 
 
-def gone(pid: int) -> bool:
-    """Whether the process has ended (a zombie waiting for init to reap it has)."""
+def gone(pid: int, within: float = 10.0) -> bool:
+    """Whether the process has ended (a zombie waiting for init to reap it has) within
+    ``within`` s: a SIGKILL sent to a group takes effect when each process is next
+    scheduled, which under load comes after the group's leader has been reaped."""
     try:
-        return psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+        process = psutil.Process(pid)
+        deadline = time.monotonic() + within
+        while process.status() != psutil.STATUS_ZOMBIE:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.05)
     except psutil.NoSuchProcess:
-        return True
+        pass
+    return True
 
 
 @pytest.mark.slow
