@@ -23,7 +23,6 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.optimize import brentq
 
 from controller_fmu.modes import DepthMode, HeadingMode, unused_parameters
 
@@ -383,6 +382,10 @@ def _delay_fault_line(
     def excess(d: float) -> float:
         pole = _worst_pole(autopilot, sample, d, law=law)
         return abs(pole if pole is not None else 0.0) - 1.0
+
+    # here, not with the module: scipy.optimize takes ~0.4 s of CPU to import, and every
+    # run and study checks its scenario through this module
+    from scipy.optimize import brentq
 
     margin = brentq(excess, late, delay, xtol=1e-6 * sample) - late
     angle = abs(cmath.phase(worst))

@@ -33,3 +33,23 @@ def test_the_fork_server_leaves_pyarrow_out_and_rows_are_written_as_before() -> 
     found, written = ast.literal_eval(done.stdout.strip().splitlines()[-1])
     assert not found, "the fork server imported pyarrow, which a study's runs do not use"
     assert written == "0,0.1,inf\n0.5,2.5e-7,1\n", "results.csv's rows changed"
+
+
+PRELOAD_MODULES = """
+import importlib, sys
+from cosim.study.fork_server import PRELOAD
+for name in PRELOAD[:-1]:  # the last one makes the server's exit skip the teardown
+    importlib.import_module(name)
+print(repr(sorted(name for name in ("scipy.optimize", "control") if name in sys.modules)))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(sys.platform == "win32", reason="no fork server on Windows")
+def test_the_fork_server_leaves_scipy_optimize_and_control_out() -> None:
+    """The scenario's checks (cosim.scenario.design_doubts: a root of a delay margin) use
+    scipy.optimize, ~0.4 s of CPU to import, only when a fault asks for it: imported with
+    the module, it lengthened every study's start by that much."""
+    done = run_in_group([sys.executable, "-c", PRELOAD_MODULES], timeout=600)
+    assert done.returncode == 0, done.stderr.strip().splitlines()[-3:]
+    assert ast.literal_eval(done.stdout.strip().splitlines()[-1]) == []
