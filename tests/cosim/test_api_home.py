@@ -6,17 +6,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from relative_home import PREAMBLE
 
-RELATIVE_HOME_SWEEP = """
-import os, sys
-from plant_fmu.model.jit import default_cache_dir
-
-os.environ.setdefault("NUMBA_CACHE_DIR", str(default_cache_dir()))  # the session's kernels
-for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME", "MPLCONFIGDIR"):
-    os.environ.pop(name, None)
-os.environ["HOME"], os.environ["TMPDIR"] = "home", sys.argv[1]
-os.chdir(sys.argv[2])
-import cosim
+RELATIVE_HOME_SWEEP = (
+    PREAMBLE
+    + """import cosim
 
 if __name__ == "__main__":
     before = dict(os.environ)
@@ -27,6 +21,7 @@ if __name__ == "__main__":
     print(matplotlib.get_cachedir())
     print("environment as it was" if dict(os.environ) == before else "environment changed")
 """
+)
 
 
 @pytest.mark.slow

@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 from process_group import run_in_group, started_in_group
+from relative_home import PREAMBLE
 
 from cosim.cli import build_parser, main
 
@@ -573,20 +574,14 @@ def test_a_home_that_cannot_be_written_costs_matplotlib_one_line(run_python, tmp
     assert [p.name for p in scratch.iterdir() if not p.name.startswith("auv-cosim-scratch")] == []
 
 
-RELATIVE_HOME = """
-import os, sys
-from plant_fmu.model.jit import default_cache_dir
-
-os.environ.setdefault("NUMBA_CACHE_DIR", str(default_cache_dir()))  # the session's kernels
-for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME", "MPLCONFIGDIR"):
-    os.environ.pop(name, None)
-os.environ["HOME"], os.environ["TMPDIR"] = "home", sys.argv[1]
-os.chdir(sys.argv[2])
-sys.argv = ["auv-cosim", *sys.argv[3:]]
+RELATIVE_HOME = (
+    PREAMBLE
+    + """sys.argv = ["auv-cosim", *sys.argv[3:]]
 from cosim.cli import main
 
 sys.exit(main())
 """
+)
 
 
 @pytest.mark.slow

@@ -97,12 +97,7 @@ def test_key_figures_of_chunks_equal_those_of_the_whole_run():
     values[:, 1] = 0.0
     values[123, 2] = -0.06  # the peak of |mass_position|
     values[321, 3] = 9.5  # and of |tunnel_force|
-    whole, chunked = KeyFigures(columns), KeyFigures(columns)
-    whole.add_rows(times, values)
-    for lo in range(0, 500, 37):
-        chunked.add_rows(times[lo : lo + 37], values[lo : lo + 37])
-    assert chunked.figures() == whole.figures()
-    figures = whole.figures()
+    figures = _whole_as_in_chunks(columns, times, values, 37)
     assert figures["peak_abs_mass_position_m"] == 0.06
     assert figures["peak_abs_tunnel_force_N"] == 9.5
     assert figures["yaw_settling_time_s"] == settling_time(
@@ -132,12 +127,7 @@ def test_command_activity_is_the_total_variation_per_simulated_second() -> None:
     times = np.arange(5) * 0.5  # 2 s
     values = np.array([[0.0, 3.0, 0.1], [1.0, 3.0, -0.1], [-1.0, 3.0, 0.1],
                        [-1.0, 3.0, -0.1], [2.0, 3.0, 0.1]])  # fmt: skip
-    whole, chunked = KeyFigures(columns), KeyFigures(columns)
-    whole.add_rows(times, values)
-    for lo in range(0, 5, 2):
-        chunked.add_rows(times[lo : lo + 2], values[lo : lo + 2])
-    assert chunked.figures() == whole.figures()
-    figures = whole.figures()
+    figures = _whole_as_in_chunks(columns, times, values, 2)
     assert figures["mass_position_cmd_variation_m_per_s"] == (1 + 2 + 0 + 3) / 2.0
     assert figures["tunnel_force_variation_N_per_s"] == 0.0
     assert figures["fin_angle_variation_rad_per_s"] == pytest.approx(4 * 0.2 / 2.0)
@@ -303,3 +293,16 @@ def test_each_plant_is_paired_with_the_autopilot_connected_to_it() -> None:
     assert figures["auv_a.yaw_settling_time_s"] == pytest.approx(1.0 - 0.0175 / 0.5, abs=1e-3)
     assert figures["auv_c.yaw_settling_time_s"] == 0.0
     assert why_none_of("auv_b.yaw_settling_time_s", columns, fleet) == "not recorded"
+
+
+def _whole_as_in_chunks(
+    columns: tuple[str, ...], times: np.ndarray, values: np.ndarray, size: int
+) -> dict[str, float | None]:
+    """The key figures of the rows given at once, asserted equal to those of the same rows
+    given ``size`` at a time (a run's rows come in chunks)."""
+    whole, chunked = KeyFigures(columns), KeyFigures(columns)
+    whole.add_rows(times, values)
+    for lo in range(0, len(times), size):
+        chunked.add_rows(times[lo : lo + size], values[lo : lo + size])
+    assert chunked.figures() == whole.figures()
+    return whole.figures()
