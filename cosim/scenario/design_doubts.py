@@ -333,27 +333,38 @@ def _gain_fault_doubts(scenario: Scenario, name: str, autopilot: Instance) -> li
     chatter between its limits while the key figures look better than a stable loop's, a
     delay past the delay margin makes it swing ever wider (docs/model.md#lqr)."""
     laws = [law for law in _DISCRETE_LAWS if law in _heading_modes(scenario, name, autopilot)]
-    found = []
+    found: list[str] = []
     sample = _sample_time(scenario, name, autopilot)
     for target, plant in _commanded(scenario, name).items():
         step = _plant_step(scenario, plant)
         late = min(step, sample) if _late_cause(scenario, name, plant) else 0.0
-        for fault, law in itertools.product(scenario.faults, laws):
+        for fault in scenario.faults:
             if fault.target != target or fault.start >= scenario.stop_time:
                 continue
-            if fault.kind == "gain" and fault.value is not None:
-                worst = _worst_pole(autopilot, sample, late, fault.value, law)
-                line = ""
-                if worst is not None and _grows(worst):
-                    line = _gain_fault_text(name, fault, worst, sample, law)
-            elif fault.kind == "delay" and fault.steps is not None:
-                line = _delay_fault_line(name, autopilot, fault, (sample, step, late), law)
-            else:
-                continue
-            if line:
-                found.append(line)
-                break  # one line a fault
+            lines = (_fault_line(name, autopilot, fault, (sample, step, late), law) for law in laws)
+            found.extend(itertools.islice(filter(None, lines), 1))  # one line a fault
     return found
+
+
+def _fault_line(
+    name: str,
+    autopilot: Instance,
+    fault: Fault,
+    times: tuple[float, float, float],
+    law: HeadingMode,
+) -> str:
+    """:func:`_gain_fault_doubts`'s line for ``fault`` under ``law`` ('' where the loop
+    takes it, or the fault is neither a gain nor a delay): ``times`` as
+    :func:`_delay_fault_line`'s."""
+    if fault.kind == "gain" and fault.value is not None:
+        sample, _, late = times
+        worst = _worst_pole(autopilot, sample, late, fault.value, law)
+        if worst is None or not _grows(worst):
+            return ""
+        return _gain_fault_text(name, fault, worst, sample, law)
+    if fault.kind == "delay" and fault.steps is not None:
+        return _delay_fault_line(name, autopilot, fault, times, law)
+    return ""
 
 
 def _grows(worst: complex | None) -> bool:

@@ -299,6 +299,24 @@ def test_a_delay_fault_past_the_lqr_loops_delay_margin_is_named(
     assert line.startswith("faults.late: a delay of 10 steps (0.01 s) on"), line
 
 
+def test_every_fault_past_the_loops_margins_is_named_not_only_the_first(
+    fmu_paths: dict[str, Path], tmp_path: Path
+) -> None:
+    """lqr-1 with a gain fault of 3 (past the upper gain margin, ~1.99) and a delay fault
+    of one step (past the delay margin): each gets its line, in the file's order."""
+    text = (Path(cosim.__file__).parent / "scenarios" / "lqr-1.toml").read_text()
+    for name, kind in (
+        ("servo", 'kind = "gain"\nvalue = 3.0'),
+        ("late", 'kind = "delay"\nsteps = 1'),
+    ):
+        text += f'\n[[faults]]\nname = "{name}"\ntarget = "plant.mass_position_cmd"\n'
+        text += f"{kind}\nstart = 1.0\n"
+    path = tmp_path / "two-faults.toml"
+    path.write_text(text)
+    lines = design_doubts(_load(fmu_paths, path))
+    assert [line.split(":", 1)[0] for line in lines] == ["faults.servo", "faults.late"], lines
+
+
 def test_the_sliding_mode_s_late_command_and_gain_faults_are_named_as_the_lqr_s(
     fmu_paths: dict[str, Path], tmp_path: Path
 ) -> None:
