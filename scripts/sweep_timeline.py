@@ -26,10 +26,11 @@ table shows what the machine's load does not distort: the client's CPU until its
 is ready, while its runs run (the scheduler, the nannies and the client share its
 process: on 2 cores the workers' rival; split by thread: the command's main thread, the
 page's matplotlib loaded on threads of its own, and Dask's threads, the rest) and in all
-(``os.wait4``), the fork server's imports and the chain before the first warm-up that
-the client's readiness races (the client's CPU until it calls the server, the server's
-imports -- where the server warms up on the study, the later of them and the client's
-hand-over, then the server's warm-up -- the first worker's start: which of the two is
+(its own process's, read as it ends, :func:`reaped`), the fork server's imports and the
+chain before the first warm-up that the client's readiness races (the client's CPU until
+it calls the server, the server's imports -- where the server warms up on the study,
+the later of them and the client's hand-over, then the server's warm-up -- the first
+worker's start: which of the two is
 longer says, at any load, which one the first run waits for on an idle machine), each
 worker's tasks (count), warm-up and runs, and the runs' CPU over their wall time (below
 1: the worker waited for a core). The load average is printed beside it. A third table
@@ -207,9 +208,8 @@ def traced_sweep(study: Path, workers: int, fmu_dir: Path, folder: Path) -> dict
     ended: dict[str, float] = {}
 
     def reap() -> None:
-        _, status, usage = os.wait4(process.pid, 0)
-        ended["exit"], ended["status"] = time.time(), status
-        ended["cpu"] = usage.ru_utime + usage.ru_stime
+        ended["status"], ended["cpu"] = reaped(process.pid)
+        ended["exit"] = time.time()
 
     reaper = threading.Thread(target=reap)
     reaper.start()
@@ -224,6 +224,26 @@ def traced_sweep(study: Path, workers: int, fmu_dir: Path, folder: Path) -> dict
         marks.append((float(stamp) - started, int(pid), what, float(cpu)))
     return {"marks": sorted(marks), "exit": ended["exit"] - started,
             "pipes": pipes - started, "cpu": ended["cpu"]}  # fmt: skip
+
+
+def reaped(pid: int) -> tuple[int, float]:
+    """Wait for the child ``pid`` to end and reap it: its exit status (as ``os.wait4``'s)
+    and the CPU seconds (user + system, to the kernel's tick, 0.01 s) of its own process.
+
+    Read from ``/proc/<pid>/stat`` while the ended child waits to be reaped: the command
+    ends by ``os._exit`` (:mod:`cosim.study.command_end`), after its last mark, so only
+    its end can say its CPU, and ``wait4``'s figure adds the CPU of every child the
+    command waited for, its descendants' with it (the fork server's, whose workers' runs
+    made "client after runs" 5.2 s). Where ``/proc`` cannot say it: ``wait4``'s figure."""
+    os.waitid(os.P_PID, pid, os.WEXITED | os.WNOWAIT)  # ended, not reaped: /proc has it
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()  # after the command's name
+        own = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+    except (OSError, IndexError, ValueError):
+        own = None
+    _, status, usage = os.wait4(pid, 0)
+    return status, usage.ru_utime + usage.ru_stime if own is None else own
 
 
 def phases(trace: dict[str, object]) -> list[tuple[str, float]]:

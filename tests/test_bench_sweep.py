@@ -127,3 +127,32 @@ def test_the_idle_estimate_shares_the_cores_between_the_runs_and_the_client() ->
     assert abs(rows["runs"] - (0.5 + 0.5 + 0.3) / 2) < 1e-9  # not one worker's 0.5
     assert abs(rows["after the last run"] - 0.3) < 1e-9
     assert abs(rows["command to prompt"] - (1.34 + 0.2 + 0.65 + 0.3)) < 1e-9
+
+
+# a command that waits for a child of its own which takes ~0.4 s of CPU, takes little CPU
+# itself and ends as auv-cosim sweep ends, by os._exit
+BUSY_CHILD = "import time\nt = time.process_time()\nwhile time.process_time() - t < 0.4: pass"
+COMMAND = f"""
+import os, subprocess, sys
+subprocess.run([sys.executable, "-c", {BUSY_CHILD!r}], check=True)
+os._exit(3)
+"""
+REAPED = """
+import json, subprocess, sys
+from sweep_timeline import reaped
+process = subprocess.Popen([sys.executable, "-c", sys.argv[1]])
+print(json.dumps(reaped(process.pid)))
+"""
+
+
+def test_the_timeline_counts_the_commands_own_cpu_not_its_childrens() -> None:
+    """The command's CPU seconds ("client in all", "client after runs") are its own
+    process's: not those of the children it waited for (the kernel adds them to what
+    ``wait4`` reports), which put the workers' runs into "client after runs"."""
+    path = os.pathsep.join([str(ROOT / "scripts"), str(ROOT)])
+    env = {**os.environ, "PYTHONPATH": path}
+    done = subprocess.run([sys.executable, "-c", REAPED, COMMAND], env=env, check=True,
+                          timeout=300, capture_output=True, text=True)  # fmt: skip
+    status, cpu = json.loads(done.stdout)
+    assert os.waitstatus_to_exitcode(status) == 3
+    assert cpu < 0.3, f"the command's own CPU {cpu:.2f} s counts its child's 0.4 s"
