@@ -92,6 +92,9 @@ SYSTEM_MONITOR_INTERVAL = "5s"  # 500 ms by default; what it samples feeds the d
 # half the CPU an idle local cluster takes in the client's process, its nannies', and in
 # each worker, which reads it in its event loop beside the run)
 MEMORY_MONITOR_INTERVAL = "500ms"
+# s between two looks of a local worker's nanny for its worker's word that it has started
+# and joined the scheduler (Dask's: 0.05 s); a few looks in all, each a queue's poll
+NANNY_LOOK_S = 0.005
 OWNERS = "auv-cosim-study-owners"  # scheduler metadata: study plugin -> its client's id
 
 
@@ -555,6 +558,7 @@ def _local_cluster(workers: int, dashboard: bool) -> LocalCluster:
             _forked_workers() as forked,
             dask.config.set(cluster_settings(dashboard)),
             _ctrl_c_held(forked),
+            _nannies_look_often(),
         ):
             cluster = LocalCluster(
                 n_workers=workers,
@@ -571,6 +575,27 @@ def _local_cluster(workers: int, dashboard: bool) -> LocalCluster:
             closing.callback(cluster.close)  # a Ctrl-C held meanwhile raises as it ends
         closing.pop_all()
     return cluster
+
+
+@contextmanager
+def _nannies_look_often() -> Iterator[None]:
+    """While on (the local cluster's start), each nanny looks for its worker's word that it
+    has started every NANNY_LOOK_S, not every 0.05 s: the cluster's start, and so the first
+    run, waited up to 0.05 s (0.025 s on average) after the last worker had joined the
+    scheduler, with one worker as with two. By hand: Dask reads it from a class attribute
+    of the nanny's worker process, not from its configuration. Nothing changes where that
+    attribute is missing (another Dask)."""
+    from distributed.nanny import WorkerProcess
+
+    dask_own = WorkerProcess.__dict__.get("_init_msg_interval")
+    if not isinstance(dask_own, float):
+        yield
+        return
+    WorkerProcess._init_msg_interval = min(dask_own, NANNY_LOOK_S)
+    try:
+        yield
+    finally:
+        WorkerProcess._init_msg_interval = dask_own
 
 
 def _ctrl_c_held(forked: bool) -> AbstractContextManager[None]:

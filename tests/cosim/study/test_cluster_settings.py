@@ -87,3 +87,43 @@ def test_a_local_cluster_with_the_dashboard_says_where_it_is_served(run_python, 
     assert done.returncode == 0, done.stderr[-2000:]
     link, status = done.stdout.strip().splitlines()[-1].split()
     assert re.fullmatch(r"http://127\.0\.0\.1:\d+/status", link) and status == "200", link
+
+
+# each nanny's look for its worker's word that it has started, recorded as it starts
+# looking: the seconds between two looks
+NANNY_LOOKS = """
+import json
+from distributed.nanny import WorkerProcess
+from cosim.study.execution import open_client
+
+looks = []
+waiting = WorkerProcess._wait_until_connected
+
+async def recorded(self, *args, **kwargs):
+    looks.append(self._init_msg_interval)
+    return await waiting(self, *args, **kwargs)
+
+WorkerProcess._wait_until_connected = recorded
+dask_own = WorkerProcess._init_msg_interval
+if __name__ == "__main__":
+    with open_client(2) as client:
+        pass
+    print(json.dumps([looks, dask_own, WorkerProcess._init_msg_interval]))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.cluster
+def test_a_local_clusters_nannies_see_their_workers_start_within_5_ms(run_python, tmp_path) -> None:
+    """A nanny looks for its worker's word that it has joined the scheduler every 50 ms by
+    Dask's default: up to 50 ms (25 on average) of every local study's start, after the
+    last worker has joined and before the first run can be sent, with one worker as with
+    two. Dask's own interval is back once the cluster has started."""
+    script = tmp_path / "looks.py"
+    script.write_text(NANNY_LOOKS, encoding="utf-8")
+    done = run_python(f"import runpy; runpy.run_path({str(script)!r}, run_name='__main__')")
+    assert done.returncode == 0, done.stderr[-2000:]
+    looks, dask_own, after = json.loads(done.stdout.strip().splitlines()[-1])
+    assert len(looks) == 2, looks
+    assert all(look <= 0.005 for look in looks), f"the nannies looked every {looks} s"
+    assert after == dask_own, (after, dask_own)
