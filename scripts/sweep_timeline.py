@@ -137,6 +137,22 @@ def wrap(owner, name, label):
     setattr(owner, name, traced)
 
 
+def wrap_async(owner, name, label):
+    original = getattr(owner, name, None)
+    if original is None:
+        return
+
+    @functools.wraps(original)
+    async def traced(*args, **kwargs):
+        mark(label + " begin")
+        try:
+            return await original(*args, **kwargs)
+        finally:
+            mark(label + " end")
+
+    setattr(owner, name, traced)
+
+
 def wrap_client(module):
     original = module.open_client
 
@@ -153,7 +169,11 @@ def wrap_client(module):
 PATCHES = {
     "cosim.study.execution": lambda m: (
         wrap_client(m), wrap(m.StudyPlugin, "warm", "warm-up"), wrap(m, "run_on_worker", "task"),
-        wrap_execute(m),
+        wrap_execute(m), wrap(m, "_local_cluster", "local cluster"),
+    ),
+    "distributed.worker": lambda m: wrap_async(m.Worker, "_register_with_scheduler", "register"),
+    "distributed.nanny": lambda m: wrap_async(
+        m.WorkerProcess, "_wait_until_connected", "nanny wait"
     ),
     "cosim.study.fork_server": lambda m: (
         wrap(m, "start", "fork server call"), wrap(m, "hand_over", "hand-over"),
@@ -161,7 +181,7 @@ PATCHES = {
     "cosim.study.server_warm": lambda m: mark("server warm-up end"),
     "cosim.study.prefetch": wrap_threads,
     "cosim.study.preload": lambda m: (mark("preload end"), wrap(m, "dask_setup", "worker start")),
-    "cosim.study.task": lambda m: wrap(m, "prepare", "prepare"),
+    "cosim.study.task": lambda m: (wrap(m, "prepare", "prepare"), wrap(m, "warm_up", "warm_up")),
     "cosim.study.table": lambda m: wrap(m.RunsTable, "finish", "table"),
     "cosim.study.runner": lambda m: wrap(m, "_write_report", "page"),
 }
@@ -405,6 +425,23 @@ def idle_estimate(cpu: dict[str, float], cores: int) -> list[tuple[str, float]]:
     return [*rows, ("command to prompt", sum(s for _, s in rows))]
 
 
+def start_marks(trace: dict[str, object]) -> list[str]:
+    """The marks until the first run starts, one a line: ms from the command, the process
+    (client, server, worker k) and its CPU ms, what."""
+    marks = trace["marks"]
+    assert isinstance(marks, list)
+    client = next(p for _, p, w, _ in marks if w == "client ready")
+    server = next((p for _, p, w, _ in marks if w == "preload end"), None)
+    roles = {client: "client", server: "server"}
+    roles.update({pid: f"worker {k}" for k, pid in enumerate(_workers(marks), 1)})
+    first_run = min(t for t, _, w, _ in marks if w == "warm-up end")
+    return [
+        f"{t * 1000:7.1f} {roles.get(p, str(p)):>9} {c * 1000:7.1f}  {w}"
+        for t, p, w, c in marks
+        if t <= first_run and "thread" not in w
+    ]
+
+
 def _workers(marks: list[tuple[float, int, str, float]]) -> list[int]:
     return sorted({p for _, p, w, _ in marks if w == "warm-up begin"})
 
@@ -433,6 +470,7 @@ def main() -> None:
     parser.add_argument("--stop-time", type=float, default=120.0, help="s [%(default)s]")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--fmu-dir", type=Path, default=Path("build/fmus"))
+    parser.add_argument("--marks", action="store_true", help="print the start's every mark")
     args = parser.parse_args()
     ensure_fmus(args.fmu_dir)
     with tempfile.TemporaryDirectory(prefix="auv-cosim-timeline-") as name:
@@ -446,6 +484,10 @@ def main() -> None:
             traces[workers] = traced_sweep(study, workers, args.fmu_dir, folder)
             load = "/".join(f"{x:.1f}" for x in os.getloadavg())
             print(f"{workers} worker(s): done, load {load}", flush=True)
+    if args.marks:
+        for workers, trace in traces.items():
+            print(f"{workers} worker(s): the marks until the first run, ms from the command")
+            print("\n".join(start_marks(trace)))
     print(f"bs-3, {args.runs} runs of {args.stop_time:g} s: seconds from the command")
     print(f"{'':<26}" + "".join(f"{f'{w} worker(s)':>14}" for w in traces))
     rows = {w: dict(phases(t)) for w, t in traces.items()}
