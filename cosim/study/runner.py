@@ -51,6 +51,7 @@ from cosim.study.execution import (
     execute,
     make_job,
     open_client,
+    read_interfaces,
 )
 from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, Value, resolve_factor
 from cosim.study.fmu_store import kept_unpacked
@@ -310,7 +311,7 @@ def _execute(
     )
     # the workers' fork server warms up on the study, if it waits for it: the client then
     # has time to spare before the first run, for all of the page's matplotlib
-    drawing.begin(spare=fork_server.hand_over(job))
+    drawing.begin(spare=fork_server.hand_over(job, read_interfaces(job)))
     bar = _bar(progress, total, "runs", done=total - len(todo))
     failed = 0
     left = len(todo)

@@ -75,15 +75,21 @@ def _given_up(path: Path) -> bool:
 def warm(content: bytes) -> None:
     """Warm up as a local worker of the study pickled in ``content`` would (its
     :meth:`~cosim.study.execution.StudyPlugin.warm`): the FMUs the client extracted, its
-    copies of the FMU files; this process's scratch folder, which the run made, removed."""
+    copies of the FMU files, whose interfaces the client read (handed over with the study:
+    not read again, :func:`cosim.fmus.interface.given_interface`); this process's scratch
+    folder, which the run made, removed."""
     from cosim import scratch
+    from cosim.fmus.interface import given_interface
     from cosim.study.task import warm_up
     from cosim.study.unpacked import use_unpacked
 
-    job = pickle.loads(content)
+    job, interfaces = pickle.loads(content)
     paths = {instance: Path(path) for instance, path in job.fmu_files.items()}
     if not all(path.is_absolute() for path in paths.values()):
         return  # FMUs carried to the workers, not the client's copies: theirs to load
+    for path, interface in interfaces.items():
+        with suppress(OSError):  # gone: the run says so, as before
+            given_interface(path, interface)
     use_unpacked(job.unpacked)
     try:
         warm_up(job.base, paths)
