@@ -41,7 +41,11 @@ run; and the ratio of the two estimates, which the end-to-end benchmark's goal i
 Under load it compares trees measured at the same time, not a tree with the goal: the
 client's CPU during the runs grows with their wall time (Dask's periodic work), which
 makes the two-worker estimate pessimistic (docs/performance.md).
-Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]``.
+``--marks`` also lists every mark until the first run, at the millisecond: among them the
+local cluster's start in the client, the server's warm-up, each worker's registration
+with the scheduler and each nanny's wait for its worker's word that it has started.
+Usage: ``python scripts/sweep_timeline.py [--runs 16] [--stop-time 120] [--workers 1 2]
+[--marks]``.
 """
 
 from __future__ import annotations
@@ -437,7 +441,7 @@ def start_marks(trace: dict[str, object]) -> list[str]:
     first_run = min(t for t, _, w, _ in marks if w == "warm-up end")
     return [
         f"{t * 1000:7.1f} {roles.get(p, str(p)):>9} {c * 1000:7.1f}  {w}"
-        for t, p, w, c in marks
+        for t, p, w, c in sorted(marks)
         if t <= first_run and "thread" not in w
     ]
 

@@ -156,3 +156,23 @@ def test_the_timeline_counts_the_commands_own_cpu_not_its_childrens() -> None:
     status, cpu = json.loads(done.stdout)
     assert os.waitstatus_to_exitcode(status) == 3
     assert cpu < 0.3, f"the command's own CPU {cpu:.2f} s counts its child's 0.4 s"
+
+
+MARKS = TIMELINE.replace(
+    "from sweep_timeline import cpu_phases", "from sweep_timeline import start_marks"
+).replace("print(json.dumps(cpu_phases(", "print(json.dumps(start_marks(")
+
+
+def test_the_timeline_lists_the_starts_marks_by_process_until_the_first_run() -> None:
+    """``--marks``: the start's marks at the millisecond, each named by its process (the
+    client, the fork server, worker k in the order of their warm-ups), none after the
+    first run has started."""
+    path = os.pathsep.join([str(ROOT / "scripts"), str(ROOT)])
+    env = {**os.environ, "PYTHONPATH": path}
+    done = subprocess.run([sys.executable, "-c", MARKS], env=env, check=True,
+                          timeout=300, capture_output=True, text=True)  # fmt: skip
+    lines = [" ".join(line.split()) for line in json.loads(done.stdout)]
+    assert lines[0] == "100.0 client 90.0 fork server call begin"
+    assert "1300.0 server 1200.0 preload end" in lines
+    assert lines[-1] == "1700.0 worker 1 250.0 warm-up end"  # the first run starts
+    assert not [line for line in lines if line.endswith("task end")]  # after it
