@@ -34,7 +34,7 @@ import multiprocessing
 import os
 import signal
 import threading
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager, suppress
 
 from plant_fmu.model import jit  # standard library only until numba is loaded
@@ -179,11 +179,13 @@ def _warm_up_named(warm: bool) -> Iterator[None]:
             del os.environ[WARM_VARIABLE]
 
 
-def hand_over(job: object | None, interfaces: Mapping[str, object] | None = None) -> bool:
+def hand_over(
+    job: object | None, interfaces: Callable[[], Mapping[str, object]] | None = None
+) -> bool:
     """Hand the study's :class:`cosim.study.execution.Job` to the fork server waiting for it
-    (:func:`start` with ``warm``), once, written whole (pickled with ``interfaces``: the
-    job's FMU files' interfaces this process has read, by file,
-    :func:`cosim.study.execution.read_interfaces`); whether it was (not if
+    (:func:`start` with ``warm``), once, written whole (pickled with what ``interfaces``
+    returns, called only then: the job's FMU files' interfaces this process has read, by
+    file, :func:`cosim.study.execution.read_interfaces`); whether it was (not if
     none waits: a server that gave up waiting left the file, empty, where the study
     would go, :func:`cosim.study.server_warm.handed_over`). None: the server is to wait
     no longer and warm nothing (a study ending before it could hand its job over, whose
@@ -199,9 +201,11 @@ def hand_over(job: object | None, interfaces: Mapping[str, object] | None = None
 
     content = b""
     if job is not None:
+        given: Mapping[str, object] = {}
+        with suppress(Exception):  # none known: the server reads the FMUs, as before
+            given = dict(interfaces()) if interfaces is not None else {}
         with suppress(pickle.PicklingError, TypeError, AttributeError):  # (unpicklable)
-            handed = (job, dict(interfaces or {}))
-            content = pickle.dumps(handed, protocol=pickle.HIGHEST_PROTOCOL)
+            content = pickle.dumps((job, given), protocol=pickle.HIGHEST_PROTOCOL)
     part = path + ".part"
     try:
         with open(part, "wb") as out:

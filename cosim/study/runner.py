@@ -311,7 +311,7 @@ def _execute(
     )
     # the workers' fork server warms up on the study, if it waits for it: the client then
     # has time to spare before the first run, for all of the page's matplotlib
-    drawing.begin(spare=fork_server.hand_over(job, read_interfaces(job)))
+    drawing.begin(spare=fork_server.hand_over(job, lambda: read_interfaces(job)))
     bar = _bar(progress, total, "runs", done=total - len(todo))
     failed = 0
     left = len(todo)

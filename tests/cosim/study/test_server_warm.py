@@ -315,3 +315,30 @@ def test_the_server_reads_no_model_description_the_client_has_read(
     os.utime(copy, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9))
     with pytest.raises(AssertionError, match="read again"):
         interface.read_interface(copy)
+
+
+def test_the_interfaces_are_read_for_a_waiting_server_only(tmp_path, monkeypatch) -> None:
+    """The client reads the interfaces it hands over (hashing each FMU) only when a server
+    waits for the study, not for a remote cluster or a study run from Python; reading them
+    failing hands the study over without them, for the server to read as before."""
+    calls: list[int] = []
+
+    def interfaces() -> dict[str, str]:
+        calls.append(1)
+        return {"copy.fmu": "its interface"}
+
+    def broken() -> dict[str, str]:
+        raise RuntimeError("unreadable")
+
+    monkeypatch.setattr(fork_server, "_hand_over", None)  # no server waits
+    assert fork_server.hand_over({"study": 1}, interfaces) is False
+    assert calls == []
+    path = tmp_path / fork_server.HAND_OVER_FILE
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert fork_server.hand_over({"study": 1}, broken) is True
+    assert pickle.loads(handed_over(path, os.getppid(), 0.0) or b"") == ({"study": 1}, {})
+    monkeypatch.setattr(fork_server, "_hand_over", str(path))
+    assert fork_server.hand_over({"study": 1}, interfaces) is True
+    handed = pickle.loads(handed_over(path, os.getppid(), 0.0) or b"")
+    assert handed == ({"study": 1}, {"copy.fmu": "its interface"})
+    assert calls == [1]
