@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
+from cosim import environ_writes
 from cosim.engine.signals import REASONS
 from cosim.errors import KEYWORDS, CosimError, counted, matplotlib_folder_absolute, plain, shown
 from cosim.limits import open_files_limit_kept
@@ -684,7 +685,9 @@ def _swept(
     with ExitStack() as stack:
         out_dir = out
         try:
-            stack.callback(_restore_environ, dict(os.environ))
+            # what the study sets in the caller's environment (the workers' pre-spawn
+            # environment, numba's and matplotlib's folders), put back as it ends
+            stack.enter_context(environ_writes.recorded())
             # a relative HOME: matplotlib's folder absolute for the study's figures, as the
             # command's, not in the caller's working folder (put back with the environment)
             matplotlib_folder_absolute(matplotlib_cache)
@@ -718,17 +721,6 @@ def _read_csv(path: Path | None) -> pd.DataFrame | None:
     import pandas as pd
 
     return None if path is None else pd.read_csv(io.BytesIO(path.read_bytes()))
-
-
-def _restore_environ(before: Mapping[str, str]) -> None:
-    """Put the caller's environment back as it was before a local study set the workers'
-    (Dask's pre-spawn variables: one BLAS and OpenMP thread..., numba's cache folder) in it:
-    every process the caller starts later would inherit them."""
-    for name in [name for name in os.environ if name not in before]:
-        del os.environ[name]
-    for name, value in before.items():
-        if os.environ.get(name) != value:
-            os.environ[name] = value
 
 
 def _restore_start_method(before: str | None) -> None:

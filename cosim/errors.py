@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+from cosim import environ_writes
 from fmu_runtime.log_text import shortened, without_traceback
 
 
@@ -261,7 +262,7 @@ def matplotlib_folder_absolute(fallback: Callable[[], Path]) -> None:
     xdg = [os.environ.get(name, "") for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME")]
     relative = home is not None and not os.path.isabs(home)
     if relative or any(base and not os.path.isabs(base) for base in xdg):
-        os.environ["MPLCONFIGDIR"] = str(fallback())
+        environ_writes.set_variable("MPLCONFIGDIR", str(fallback()))
 
 
 def matplotlib_folder_in_one_line() -> None:

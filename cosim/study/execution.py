@@ -62,6 +62,7 @@ from distributed.security import Security
 
 from cosim.errors import CosimError
 from cosim.fmus.interface import FmuInterface, read_interface
+from cosim import environ_writes
 from cosim.scratch import claim
 from cosim.study import fork_server
 from cosim.study.dask_settings import check_dask_settings
@@ -84,6 +85,10 @@ HEARTBEAT_DRAIN_S = 5.0  # at most this long for a worker's last heartbeat to be
 MAX_WORKERS_PER_CORE = 16  # local worker processes beyond this are refused, oversubscribed
 FMU_FOLDER = "auv-cosim-fmus"  # in each worker's local directory
 PRELOAD = "cosim.study.preload"  # imported by each local worker as it starts
+# what Dask's nannies write in this process's environment as they start besides the
+# pre-spawn environment (cosim.study.fork_server sets that first): the workers' hash seed
+# and the process id their titles name; put back after a study of the Python API
+DASK_WRITES = ("PYTHONHASHSEED", "__DASK_PARENT_PID")
 # the record of a task that starts after its study ended (never shown: nobody waits for it)
 ENDED_BEFORE_RUN = "the study ended before this run started"
 # Dask's event-loop health check, 20 ms by default, in the scheduler, each nanny and each
@@ -584,6 +589,7 @@ def _local_cluster(workers: int, dashboard: bool) -> LocalCluster:
             dask.config.set(cluster_settings(dashboard)),
             _ctrl_c_held(forked),
             _nannies_look_often(),
+            environ_writes.noted(*DASK_WRITES),
         ):
             cluster = LocalCluster(
                 n_workers=workers,

@@ -37,6 +37,7 @@ import threading
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager, suppress
 
+from cosim import environ_writes
 from plant_fmu.model import jit  # standard library only until numba is loaded
 
 # what a study ends on (as cosim.engine.signals.STOP_SIGNALS, not imported here: it imports
@@ -52,7 +53,7 @@ PRELOAD = [
     "cosim.study.server_warm",
     "cosim.study.server_exit",
 ]
-_environ_set = False  # whether this process has Dask's pre-spawn environment (start)
+_pre_spawn: dict[str, str] | None = None  # Dask's pre-spawn environment, once read (start)
 # names, in the server's environment, the client (its process id) and the file its
 # warm-up's study is handed over in: ``<pid>:<path>``
 WARM_VARIABLE = "AUV_COSIM_SERVER_WARM"
@@ -73,13 +74,15 @@ def start(warm: bool = False) -> bool:
     """Start the fork server now, if the platform has one and it is not running; whether it
     runs. Never raises: where it cannot start (its socket's path too long for AF_UNIX
     under a long TMPDIR, say), Dask starts the workers its own way. This process takes
-    Dask's pre-spawn environment at the first call only (reading it parses Dask's
-    defaults file, ~0.04 s, and the command calls this twice: early, and as its cluster
-    starts). ``warm``: the server, if this call starts it, forks no worker before this
+    Dask's pre-spawn environment at each call (read at the first only: reading it parses
+    Dask's defaults file, ~0.04 s, and the command calls this twice: early, and as its
+    cluster starts), through :mod:`cosim.environ_writes`, so that a study of the Python
+    API puts it back as it ends (Dask's nanny sets the same values before each worker).
+    ``warm``: the server, if this call starts it, forks no worker before this
     process has handed it the study (:func:`hand_over`) and it has warmed up on it, or
     it gave up waiting (:mod:`cosim.study.server_warm`): only for a caller that hands it
     over as soon as it can, or ends."""
-    global _environ_set
+    global _pre_spawn
     if not available():
         return False
     from multiprocessing import forkserver, resource_tracker
@@ -94,10 +97,12 @@ def start(warm: bool = False) -> bool:
         running = True
     except (OSError, ValueError):
         running = False
-    if not _environ_set:
+    if _pre_spawn is None:
+        _pre_spawn = {}
         with suppress(ImportError, KeyError):  # this process's own BLAS threads, as before
-            os.environ.update(pre_spawn_environ())
-        _environ_set = True
+            _pre_spawn = pre_spawn_environ()
+    for name, value in _pre_spawn.items():
+        environ_writes.set_variable(name, value)
     return running
 
 
@@ -153,8 +158,9 @@ def _say_cache_problem() -> None:
         return
     if importlib.util.find_spec("numba") is None:
         return
-    os.environ.setdefault("NUMBA_CACHE_DIR", str(jit.default_cache_dir()))  # as numba's
-    jit.cache_problem()
+    environ_writes.set_default("NUMBA_CACHE_DIR", str(jit.default_cache_dir()))  # as numba's
+    with environ_writes.noted(jit.WARNED_VARIABLE):  # (the model imports nothing of cosim)
+        jit.cache_problem()
 
 
 @contextmanager

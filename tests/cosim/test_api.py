@@ -651,7 +651,8 @@ def test_a_sweep_leaves_its_callers_environment_as_it_was(
 ) -> None:
     """The workers' environment (Dask's pre-spawn one: one BLAS and OpenMP thread...) is
     theirs: after cosim.sweep a notebook's own environment, which every process it starts
-    inherits, had OMP_NUM_THREADS=1, MKL_NUM_THREADS=1 and OPENBLAS_NUM_THREADS=1 left in it."""
+    inherits, had OMP_NUM_THREADS=1, MKL_NUM_THREADS=1 and OPENBLAS_NUM_THREADS=1 left in it.
+    A second sweep in the same process (Dask's pre-spawn environment read once) too."""
     done = run_python(
         """
         import json, os, sys
@@ -660,7 +661,8 @@ def test_a_sweep_leaves_its_callers_environment_as_it_was(
         if __name__ == "__main__":
             before = dict(os.environ)
             study = {"scenario": "bs-3", "stop_time": 0.5, "grid": {"plant.v_0": [-0.1, 0.1]}}
-            cosim.sweep(study, workers=1, fmu_dir=sys.argv[1])
+            for _ in range(2):
+                cosim.sweep(study, workers=1, fmu_dir=sys.argv[1])
             after = dict(os.environ)
             changed = {k: (before.get(k), after.get(k)) for k in {*before, *after}
                        if before.get(k) != after.get(k)}

@@ -15,7 +15,7 @@ from cosim.study import fork_server
 def test_the_pre_spawn_environment_is_read_once_per_process(monkeypatch) -> None:
     reads: list[int] = []
     monkeypatch.setattr(forkserver, "ensure_running", lambda: None)  # no server started
-    monkeypatch.setattr(fork_server, "_environ_set", False)
+    monkeypatch.setattr(fork_server, "_pre_spawn", None)
     monkeypatch.setattr(fork_server, "pre_spawn_environ", lambda: reads.append(1) or {})
     assert fork_server.start() and fork_server.start()
     assert reads == [1]
