@@ -81,7 +81,7 @@ Steps are whole numbers of the smallest step (``grid_step``: ``step`` / 2^:data:
 from two of them (taken without a check when even that misses the tolerance: counted in
 the summary) to ``max_step``; the events and faults (``Timeline`` at that grid), the sample
 points of the instances with a step multiple k (every k ``step``), the sample times of an
-instance with a ``sample_period`` (a digital autopilot: the first grid point at or after
+autopilot with a ``sample_period`` (our digital autopilot: the first grid point at or after
 each multiple of it) and the stop time are points a step ends on (a step shortened to
 reach one is judged as if it had been the step asked for, its err scaled by
 (asked / taken)^k, so the next step does not start small). A sample time less than two
@@ -127,7 +127,7 @@ from cosim.engine.signals import StopRequest
 from cosim.engine.slave import Slave
 from cosim.engine.timeline import Timeline
 from cosim.errors import CosimError
-from cosim.scenario.spec import Coupling, Scenario
+from cosim.scenario.spec import Coupling, Scenario, sample_period
 from cosim.scenario.timeline_spec import first_point
 
 if TYPE_CHECKING:
@@ -155,11 +155,12 @@ SAMPLE_SLACK = 1e-9  # of a sample period: a time this close before a multiple i
 
 
 def sample_periods(scenario: Scenario) -> list[float]:
-    """The periods (s) of the instances that sample at times of their own: a start value
-    ``sample_period`` > 0 (the autopilot's digital laws) samples at the first doStep at or
-    after each multiple of it."""
-    periods = (inst.start.get("sample_period") for inst in scenario.instances.values())
-    return sorted({float(p) for p in periods if isinstance(p, float | int) and p > 0.0})
+    """The periods (s) of the instances that sample at times of their own: our autopilot
+    with a ``sample_period`` > 0 (its digital laws) samples at the first doStep at or after
+    each multiple of it (:func:`cosim.scenario.spec.sample_period`: another FMU's value of
+    that name is not taken for one)."""
+    periods = (sample_period(inst) for inst in scenario.instances.values())
+    return sorted({period for period in periods if period > 0.0})
 
 
 def next_sample_point(n: int, period: float, grid: float) -> int:

@@ -1498,17 +1498,25 @@ def _check_step_sizes(
             )
 
 
+def sample_period(inst: Instance) -> float:
+    """The period (s) at which ``inst`` samples at times of its own, 0.0 for none: our
+    autopilot's ``sample_period`` (its digital laws), whatever its value type in the file.
+    Our autopilot's only: another FMU's value of that name means what that FMU makes of
+    it (a sampling period or not), so a run neither checks it nor steps to it."""
+    if inst.interface.model_identifier != "AuvAutopilot":
+        return 0.0
+    period = inst.start.get("sample_period", 0.0)
+    return float(period) if isinstance(period, float | int) and period > 0.0 else 0.0
+
+
 def _check_sample_period(name: str, inst: Instance, step: float, src: Source) -> None:
     """A digital controller's ``sample_period`` (s; the autopilot's) longer than its step
     ``step`` (s, k h) must be a whole number of those steps: it samples at the first doStep
     at or after each multiple of its period, so another period takes some samples up to a
     step late, without a word (a period the step is longer than samples at every step,
     which the autopilot warns of itself). The adaptive algorithm ends a step on each
-    sample instead (:func:`cosim.engine.adaptive.sample_periods`). Our autopilot's only:
-    another FMU's value of that name means what that FMU makes of it."""
-    if inst.interface.model_identifier != "AuvAutopilot":
-        return
-    period = float(inst.start.get("sample_period", 0.0))
+    sample instead (:func:`cosim.engine.adaptive.sample_periods`)."""
+    period = sample_period(inst)
     if not period > step:
         return
     steps = period / step

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from aliased_fmu import with_alias
 from scenario_factory import X0, K, loop_toml
 
 from cosim.engine import adaptive as adaptive_module
@@ -259,6 +260,28 @@ def test_a_digital_autopilot_samples_on_its_period_in_an_adaptive_run(
     late = sampled - np.floor(sampled / period + 1e-9) * period
     assert late.max() < grid, f"a sample {late.max():.2e} s after its time {sampled[late.argmax()]}"
     assert len(sampled) >= 45  # (a sample that leaves the command as it was is not seen)
+
+
+def test_another_fmus_sample_period_sets_no_sample_times(
+    test_fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Only our autopilot's ``sample_period`` is a sampling period: another tool's FMU with
+    a variable of that name (0.3 here) had every adaptive step end on a multiple of it, as
+    if it sampled there, which that FMU may not mean at all."""
+    with_alias(
+        test_fmu_dir / "CosimTestForeign.fmu", tmp_path / "Sampled.fmu", "k", "sample_period"
+    )
+    text = (
+        'stop_time = 0.4\n[coupling]\nstep = 0.2\nalgorithm = "adaptive"\n'
+        '[instances.f]\nfmu = "Sampled.fmu"\n[instances.f.start]\nsample_period = 0.3\n'
+    )
+    scenario = scenario_from_toml(text, base_dir=tmp_path)
+    assert adaptive_module.sample_periods(scenario) == []
+
+
+def test_our_autopilots_sample_period_sets_the_sample_times(fmu_dir: Path) -> None:
+    scenario = load_scenario("lqr-1", fmu_dir=fmu_dir).with_overrides(algorithm="adaptive")
+    assert adaptive_module.sample_periods(scenario) == [0.01]
 
 
 @pytest.mark.slow
