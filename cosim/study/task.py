@@ -33,7 +33,7 @@ from cosim.engine.adaptive import points_step
 from cosim.engine.signals import StopRequest
 from cosim.engine.slave import collect_debug_log
 from cosim.engine.step_check import doubts as step_doubts
-from cosim.engine.step_check import not_checkable
+from cosim.engine.step_check import has_coupling_error, not_checkable
 from cosim.errors import FLAGS, CosimError, OptionNames
 from cosim.fmus.interface import check_own_packages
 from cosim.metrics.key_figures import key_figures
@@ -390,7 +390,7 @@ def _metrics(run_summary: Mapping[str, Any]) -> dict[str, float | None]:
         estimated = dict(check.get("key_figures", {}))
         estimated.update({f"final.{k}": e for k, e in check.get("final_values", {}).items()})
         finals = [f"final.{k}" for k in run_summary["final_values"]]
-        for name in [*run_summary["key_figures"], *finals]:
+        for name in [*filter(has_coupling_error, run_summary["key_figures"]), *finals]:
             metrics[f"{COUPLING_ERROR}{name}"] = estimated.get(name, {}).get("error")
     return metrics
 
@@ -400,5 +400,6 @@ def _metric_names(scenario: Scenario, check_step: bool = False) -> tuple[str, ..
     figures = key_figures(scenario.record, scenario.key_vehicles).names()  # no column: none
     manoeuvre = scenario_metric_names(scenario)
     finals = tuple(f"final.{c}" for c in scenario.record)
-    errors = tuple(f"{COUPLING_ERROR}{name}" for name in (*figures, *finals)) if check_step else ()
+    checked = (*filter(has_coupling_error, figures), *finals)
+    errors = tuple(f"{COUPLING_ERROR}{name}" for name in checked) if check_step else ()
     return (*figures, *manoeuvre, "time_reached", *finals, *errors)
