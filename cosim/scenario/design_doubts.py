@@ -331,19 +331,101 @@ def _gain_fault_doubts(scenario: Scenario, name: str, autopilot: Instance) -> li
     :data:`_DISCRETE_LAWS`, as it samples and as late as the coupling hands the command on
     (:func:`_worst_pole`), is unstable: a gain past the upper gain margin makes the command
     chatter between its limits while the key figures look better than a stable loop's, a
-    delay past the delay margin makes it swing ever wider (docs/model.md#lqr)."""
+    delay past the delay margin makes it swing ever wider (docs/model.md#lqr). Then one
+    for each set of faults on the same command, on together, that none of which is
+    unstable alone, under which the loop is (:func:`_combined_lines`)."""
     laws = [law for law in _DISCRETE_LAWS if law in _heading_modes(scenario, name, autopilot)]
     found: list[str] = []
     sample = _sample_time(scenario, name, autopilot)
     for target, plant in _commanded(scenario, name).items():
         step = _plant_step(scenario, plant)
         late = min(step, sample) if _late_cause(scenario, name, plant) else 0.0
-        for fault in scenario.faults:
-            if fault.target != target or fault.start >= scenario.stop_time:
-                continue
-            lines = (_fault_line(name, autopilot, fault, (sample, step, late), law) for law in laws)
-            found.extend(itertools.islice(filter(None, lines), 1))  # one line a fault
+        faults = [f for f in scenario.faults if _loop_fault(f, target, scenario.stop_time)]
+        alone = []
+        for fault in faults:
+            until = _until(fault.stop, scenario.stop_time, "its stop")
+            times = (sample, step, late)
+            lines = (_fault_line(name, autopilot, fault, times, law, until) for law in laws)
+            line = next(filter(None, lines), "")  # one line a fault
+            found += [line] if line else []
+            alone += [fault.name] if line else []
+        loop = (name, autopilot, sample, step, late)
+        found += _combined_lines(scenario, loop, laws, faults, set(alone))
     return found
+
+
+def _loop_fault(fault: Fault, target: str, stop_time: float) -> bool:
+    """Whether ``fault`` is a gain or delay fault on ``target`` that is on before the
+    run's ``stop_time`` (s): what the loop's margins judge."""
+    judged = (fault.kind == "gain" and fault.value is not None) or (
+        fault.kind == "delay" and fault.steps is not None
+    )
+    return judged and fault.target == target and fault.start < stop_time
+
+
+def _until(stop: float | None, stop_time: float, which: str) -> str:
+    """ " until t = <stop> s (<which>)" for a fault that stops at ``stop`` (s) before the
+    run's ``stop_time``, "" for one on to its end: the loop is unstable only while it is on."""
+    return "" if stop is None or stop >= stop_time else f" until t = {stop:g} s ({which})"
+
+
+def _combined_lines(
+    scenario: Scenario,
+    loop: tuple[str, Instance, float, float, float],
+    laws: list[HeadingMode],
+    faults: list[Fault],
+    alone: set[str],
+) -> list[str]:
+    """A line for each set of two or more of ``faults`` (on one command) on together,
+    none of them among ``alone`` (named by its own line), under which the loop is
+    unstable: gains multiply, delays add, on the plant's own linearisation
+    (:func:`_worst_pole`); from the first time they are all on until the first stops.
+    ``loop``: the autopilot's name and instance, its sample, the target's step and the
+    coupling's own delay (s)."""
+    name, autopilot, sample, step, late = loop
+    times = sorted({0.0, *(f.start for f in faults), *(f.stop for f in faults if f.stop)})
+    found: list[str] = []
+    seen: set[tuple[str, ...]] = set()
+    for start in (t for t in times if t < scenario.stop_time):
+        on = [f for f in faults if f.start <= start and (f.stop is None or f.stop > start)]
+        names = tuple(f.name for f in on)
+        if len(on) < 2 or names in seen or alone & set(names):
+            continue
+        seen.add(names)
+        gain = math.prod(f.value for f in on if f.kind == "gain" and f.value is not None)
+        delay = late + sum(f.steps for f in on if f.kind == "delay" and f.steps) * step
+        for law in laws:
+            worst = _worst_pole(autopilot, sample, delay, gain, law)
+            if _grows(worst) and not _grows(_worst_pole(autopilot, sample, late, law=law)):
+                stop = min((f.stop for f in on if f.stop is not None), default=None)
+                until = _until(stop, scenario.stop_time, "a fault's stop")
+                found.append(_combined_text(name, on, (gain, delay - late), law, start, until))
+                break
+    return found
+
+
+def _combined_text(
+    name: str,
+    on: list[Fault],
+    faulted: tuple[float, float],
+    law: HeadingMode,
+    start: float,
+    until: str,
+) -> str:
+    """:func:`_combined_lines`'s line for the faults ``on`` together, their ``faulted``
+    gain and delay (s) of ``name``'s command under ``law`` from ``start`` (s)."""
+    gain, delay = faulted
+    steps = sum(f.steps for f in on if f.kind == "delay" and f.steps)
+    parts = [f"a gain of {gain:.4g}"] if any(f.kind == "gain" for f in on) else []
+    if steps:
+        parts.append(f"a delay of {steps} step{'s' if steps != 1 else ''} ({delay:g} s)")
+    listed = ", ".join(f"faults.{f.name}" for f in on[:-1]) + f" and faults.{on[-1].name}"
+    return (
+        f"{listed} together (on {on[0].target}, the command of {name}'s heading_mode "
+        f"{law.name.lower()}: {' and '.join(parts)}) are past that loop's margins "
+        f"({_MARGINS_OF[law]}), though none is alone, so from t = {start:g} s{until} it is "
+        f"unstable: the command ({name}.mass_position_cmd) shows it"
+    )
 
 
 def _fault_line(
@@ -352,18 +434,19 @@ def _fault_line(
     fault: Fault,
     times: tuple[float, float, float],
     law: HeadingMode,
+    until: str = "",
 ) -> str:
     """:func:`_gain_fault_doubts`'s line for ``fault`` under ``law`` ('' where the loop
     takes it, or the fault is neither a gain nor a delay): ``times`` as
-    :func:`_delay_fault_line`'s."""
+    :func:`_delay_fault_line`'s, ``until`` as :func:`_until` says of its stop."""
     if fault.kind == "gain" and fault.value is not None:
         sample, _, late = times
         worst = _worst_pole(autopilot, sample, late, fault.value, law)
         if worst is None or not _grows(worst):
             return ""
-        return _gain_fault_text(name, fault, worst, sample, law)
+        return _gain_fault_text(name, fault, worst, sample, law, until)
     if fault.kind == "delay" and fault.steps is not None:
-        return _delay_fault_line(name, autopilot, fault, times, law)
+        return _delay_fault_line(name, autopilot, fault, times, law, until)
     return ""
 
 
@@ -378,6 +461,7 @@ def _delay_fault_line(
     fault: Fault,
     times: tuple[float, float, float],
     law: HeadingMode,
+    until: str = "",
 ) -> str:
     """:func:`_gain_fault_doubts`'s line for the delay fault ``fault`` ('' where the loop
     takes it): ``times`` are ``name``'s sample, the target's step and the coupling's own
@@ -408,7 +492,7 @@ def _delay_fault_line(
         f"faults.{fault.name}: a delay of {steps} ({fault.steps * step:g} s) on {fault.target} "
         f"(the command of {name}'s heading_mode {law.name.lower()}) is past that loop's delay "
         f"margin of {margin:.3g} s ({_MARGINS_OF[law]}; its command held between samples), "
-        f"so from t = {fault.start:g} s it is "
+        f"so from t = {fault.start:g} s{until} it is "
         f"unstable, {swing}its error {pace} (|z| = {abs(worst):.4g} a sample) until the "
         f"command's limits hold it: the command ({name}.mass_position_cmd) shows it"
     )
@@ -421,7 +505,12 @@ _MARGINS_OF = {  # where a law's loop margins are read, as its warnings name it
 
 
 def _gain_fault_text(
-    name: str, fault: Fault, worst: complex, sample: float, law: HeadingMode = HeadingMode.LQR
+    name: str,
+    fault: Fault,
+    worst: complex,
+    sample: float,
+    law: HeadingMode = HeadingMode.LQR,
+    until: str = "",
 ) -> str:
     """:func:`_gain_fault_doubts`'s line for ``fault``, the loop's worst pole ``worst``
     (z, of a sample of ``sample`` s) under ``law``."""
@@ -429,7 +518,7 @@ def _gain_fault_text(
     line = (
         f"faults.{fault.name}: a gain of {fault.value:.4g} on {fault.target} (the command of "
         f"{name}'s heading_mode {law.name.lower()}) is outside that loop's gain margins "
-        f"({_MARGINS_OF[law]}), so from t = {fault.start:g} s it is unstable"
+        f"({_MARGINS_OF[law]}), so from t = {fault.start:g} s{until} it is unstable"
     )
     if angle < math.pi / 2:  # how fast from the pole: a reversed command's doubles a sample
         growth = math.log(abs(worst)) / sample  # 1/s
