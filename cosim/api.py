@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
-from cosim import environ_writes
+import cosim.environ_writes as environ_writes
 from cosim.engine.signals import REASONS
 from cosim.errors import KEYWORDS, CosimError, counted, matplotlib_folder_absolute, plain, shown
 from cosim.limits import open_files_limit_kept

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from cosim import environ_writes
+import cosim.environ_writes as environ_writes
 from fmu_runtime.log_text import shortened, without_traceback
 
 

@@ -60,9 +60,9 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
 
+import cosim.environ_writes as environ_writes
 from cosim.errors import CosimError
 from cosim.fmus.interface import FmuInterface, read_interface
-from cosim import environ_writes
 from cosim.scratch import claim
 from cosim.study import fork_server
 from cosim.study.dask_settings import check_dask_settings

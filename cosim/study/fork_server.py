@@ -37,7 +37,7 @@ import threading
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager, suppress
 
-from cosim import environ_writes
+import cosim.environ_writes as environ_writes
 from plant_fmu.model import jit  # standard library only until numba is loaded
 
 # what a study ends on (as cosim.engine.signals.STOP_SIGNALS, not imported here: it imports
