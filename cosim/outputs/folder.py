@@ -82,6 +82,21 @@ GUARD_SCRIPT = Path(__file__).with_name("tail_guard.py")
 GUARD_TIMEOUT_S = 10.0
 
 
+def _end_guard(guard: subprocess.Popen[bytes]) -> None:
+    """Wait up to :data:`GUARD_TIMEOUT_S` for the tail guard, told ``done``, to end, then
+    kill it and reap it: the files are complete, so a guard still running (stopped, or
+    slow to start under load) has nothing left to do but undo them had ``done`` not
+    reached it, and a Popen dropped while its process runs leaves that process behind,
+    unreaped, with a ResourceWarning. Never raises."""
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        guard.wait(timeout=GUARD_TIMEOUT_S)
+        return
+    with contextlib.suppress(OSError):
+        guard.kill()
+    with contextlib.suppress(OSError, subprocess.TimeoutExpired):
+        guard.wait(timeout=GUARD_TIMEOUT_S)  # SIGKILL: ends it at once
+
+
 class RunFolder:
     """A claimed run folder: use :meth:`claim`, then :meth:`release` (never raises)."""
 
@@ -367,12 +382,12 @@ class RunFolder:
         goes too if empty."""
         if self._guard is not None:
             self._tell_guard("done\n")
-            with contextlib.suppress(OSError, subprocess.TimeoutExpired):
+            with contextlib.suppress(OSError):
                 if self._channel is not None:
                     self._channel.close()
                 if self._guard.stdin is not None:
                     self._guard.stdin.close()
-                self._guard.wait(timeout=GUARD_TIMEOUT_S)
+            _end_guard(self._guard)
             self._guard = None
         if self._lock_fd >= 0:
             unlock_folder(self.path, self._lock_fd)
