@@ -873,9 +873,12 @@ def report(outcome: RunOutcome) -> str:
         from cosim.metrics.key_figures import why_none_of
 
         fleet, done = scenario.key_vehicles, outcome.result.complete
+        spanned = t_end > 0.0  # rows from t = 0 to t_end: a rate needs two
 
         def shown(k: str, v: float | None) -> str:
-            return _fmt(v) if v is not None else why_none_of(k, scenario.columns, fleet, done)
+            if v is not None:
+                return _fmt(v)
+            return why_none_of(k, scenario.columns, fleet, done, spanned)
 
         lines.append("  " + ", ".join(f"{k} = {shown(k, v)}" for k, v in figures.items()))
     if outcome.manoeuvre:

@@ -17,7 +17,8 @@ settling time at all (``setpoint_driver``).
 sum |c_k - c_(k-1)| over the rows divided by the simulated time they span (the command's
 unit per s; the autopilot's output, else the plant's input): near 0 for a settled
 command, large for one that chatters (vert-1's, a sliding-mode law's, a gain past the
-loop's margins), whose plots a user would otherwise have to open. A figure whose columns were not
+loop's margins), whose plots a user would otherwise have to open; None over rows that span
+no time (a run that stopped at its first row). A figure whose columns were not
 recorded is None, and so is one that is not finite. ``plant`` and ``controller`` stand for
 the instances running the plant and the autopilot, whatever a scenario names them
 (``Scenario.key_instances``).
@@ -168,13 +169,17 @@ def why_none(
     roles: dict[str, str] = ROLES,
     complete: bool = True,
     setpoint_driver: str | None = None,
+    spanned: bool = True,
 ) -> str:
     """Why the key figure ``name`` of a run recording ``columns`` is None, in a few words:
     its columns were not recorded, its yaw set-point moves (``setpoint_driver``, as for
-    :class:`KeyFigures`), the run did not complete, or the yaw never settled into its
-    band."""
+    :class:`KeyFigures`), the run did not complete, the yaw never settled into its band,
+    or (not ``spanned``: the run's rows span no time, its one row at its start) a
+    command's activity, a rate, has no two rows to be taken over."""
     if not any(column in columns for column in _columns(name, roles)):
         return "not recorded"
+    if name in ACTIVITY_FIGURES and not spanned:
+        return "none: the rows span no time (a rate needs two)"
     setpoint = f"{roles['controller']}.yaw_setpoint"
     if name == "yaw_settling_time_s" and _moving(setpoint, columns, setpoint_driver):
         return (
@@ -346,8 +351,10 @@ def why_none_of(
     columns: tuple[str, ...] | list[str],
     fleet: Sequence[Vehicle],
     complete: bool = True,
+    spanned: bool = True,
 ) -> str:
     """:func:`why_none` of the figure ``name`` of one of the vehicles ``fleet`` (the one
     whose prefix ``name`` starts with)."""
     v = next((v for v in fleet if v.prefix and name.startswith(v.prefix)), fleet[0])
-    return why_none(name.removeprefix(v.prefix), columns, v.roles, complete, v.setpoint_driver)
+    bare = name.removeprefix(v.prefix)
+    return why_none(bare, columns, v.roles, complete, v.setpoint_driver, spanned)

@@ -1192,8 +1192,10 @@ def null_reasons(
     figures = summary.get("key_figures") or {}
     fleet = run_vehicles(run_dir, summary)
     complete = summary.get("complete") is not False and summary.get("status") != "running"
+    times = table["time"]  # (load_results requires it)
+    spanned = len(times) > 1 and bool(times[-1] > times[0])  # a rate needs two rows
     return {
-        name: why_none_of(name, list(table), fleet, complete)
+        name: why_none_of(name, list(table), fleet, complete, spanned)
         for name, value in figures.items()
         if value is None
     }

@@ -31,6 +31,7 @@ from cosim.outputs.manoeuvre import fault_start
 from cosim.outputs.results import read_csv
 from cosim.runner import RunOutcome, run_scenario
 from cosim.scenario.spec import builtin_scenarios, load_scenario, scenario_from_toml, scenario_path
+from cosim.viz.report import load_results, null_reasons
 from plant_fmu.model.dynamics import INPUT_NAMES, STATE_INDEX, STATE_NAMES, PlantModel, Variant
 from plant_fmu.model.linearization import input_vector
 from plant_fmu.model.parameters import load_vehicle
@@ -429,6 +430,15 @@ def test_plant_refusing_a_start_value_stops_the_run(fmu_dir: Path, tmp_path: Pat
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["complete"] is False and summary["time_reached"] == 0.0
     assert (tmp_path / "run" / "results.csv").read_text().count("\n") == 2  # header + t = 0
+    # the commands' activity, a rate, needs two rows: the one row of t = 0 gives none, which
+    # the printed figures and the report's index say so (they said "not finite")
+    activity = "mass_position_cmd_variation_m_per_s"
+    assert summary["key_figures"][activity] is None
+    said = f"{activity} = none: the rows span no time (a rate needs two)"
+    assert said in proc.stdout, proc.stdout
+    run = tmp_path / "run"
+    reasons = null_reasons(run, load_results(run), summary)
+    assert reasons[activity] == "none: the rows span no time (a rate needs two)", reasons
 
 
 @pytest.mark.slow

@@ -183,6 +183,21 @@ def test_a_run_that_did_not_complete_has_no_settling_time() -> None:
     assert reason == "none: the run did not complete"
 
 
+def test_a_command_activity_over_no_time_says_so_not_that_it_is_not_finite() -> None:
+    """A run that stopped at its first row (t = 0) has no command activity, a rate: its
+    reason was "not finite", which a run that overflowed would give; a run whose rows span
+    time keeps that reason for a figure that is None."""
+    columns = ["controller.mass_position_cmd"]
+    figures = KeyFigures(columns)
+    figures.add_rows(np.array([0.0]), np.array([[0.01]]))
+    name = "mass_position_cmd_variation_m_per_s"
+    assert figures.figures(complete=False)[name] is None
+    reason = why_none(name, columns, complete=False, spanned=False)
+    assert reason == "none: the rows span no time (a rate needs two)"
+    assert why_none(name, columns) == "not finite"
+    assert why_none("peak_abs_mass_position_m", columns, spanned=False) == "not recorded"
+
+
 @pytest.mark.slow
 def test_the_figures_do_not_depend_on_what_the_scenario_calls_its_instances(
     fmu_paths, tmp_path
