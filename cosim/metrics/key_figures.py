@@ -151,8 +151,9 @@ _COLUMNS = {  # key figure -> the columns it is computed from (any one of them),
     "tunnel_force_variation_N_per_s": (("controller", "tunnel_force"), ("plant", "tunnel_force")),
     "fin_angle_variation_rad_per_s": (("controller", "fin_angle"), ("plant", "fin_angle")),
 }
+MASS_COMMAND_ACTIVITY = "mass_position_cmd_variation_m_per_s"  # the moving mass's command's
 ACTIVITY_FIGURES = (  # the commands' total variation per simulated second
-    "mass_position_cmd_variation_m_per_s",
+    MASS_COMMAND_ACTIVITY,
     "tunnel_force_variation_N_per_s",
     "fin_angle_variation_rad_per_s",
 )

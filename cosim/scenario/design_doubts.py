@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from controller_fmu.modes import DepthMode, HeadingMode, unused_parameters
+from cosim.metrics.key_figures import MASS_COMMAND_ACTIVITY
 
 if TYPE_CHECKING:
     from cosim.scenario.spec import Instance, Scenario
@@ -337,15 +338,18 @@ def _gain_fault_doubts(scenario: Scenario, name: str, autopilot: Instance) -> li
     laws = [law for law in _DISCRETE_LAWS if law in _heading_modes(scenario, name, autopilot)]
     found: list[str] = []
     sample = _sample_time(scenario, name, autopilot)
+    fleet = len(_instances(scenario, PLANT)) > 1  # key figures named after their plant
     for target, plant in _commanded(scenario, name).items():
         step = _plant_step(scenario, plant)
         late = min(step, sample) if _late_cause(scenario, name, plant) else 0.0
+        figure = f"{plant}.{MASS_COMMAND_ACTIVITY}" if fleet else MASS_COMMAND_ACTIVITY
         faults = [f for f in scenario.faults if _loop_fault(f, target, scenario.stop_time)]
         alone = []
         for fault in faults:
             until = _until(fault.stop, scenario.stop_time, "its stop")
             times = (sample, step, late)
-            lines = (_fault_line(name, autopilot, fault, times, law, until) for law in laws)
+            words = (until, figure)
+            lines = (_fault_line(name, autopilot, fault, times, law, words) for law in laws)
             line = next(filter(None, lines), "")  # one line a fault
             found += [line] if line else []
             alone += [fault.name] if line else []
@@ -434,19 +438,20 @@ def _fault_line(
     fault: Fault,
     times: tuple[float, float, float],
     law: HeadingMode,
-    until: str = "",
+    words: tuple[str, str],
 ) -> str:
     """:func:`_gain_fault_doubts`'s line for ``fault`` under ``law`` ('' where the loop
     takes it, or the fault is neither a gain nor a delay): ``times`` as
-    :func:`_delay_fault_line`'s, ``until`` as :func:`_until` says of its stop."""
+    :func:`_delay_fault_line`'s; ``words``: (``until`` as :func:`_until` says of its stop,
+    the run's key figure of the command's activity)."""
     if fault.kind == "gain" and fault.value is not None:
         sample, _, late = times
         worst = _worst_pole(autopilot, sample, late, fault.value, law)
         if worst is None or not _grows(worst):
             return ""
-        return _gain_fault_text(name, fault, worst, sample, law, until)
+        return _gain_fault_text(name, fault, worst, sample, law, words)
     if fault.kind == "delay" and fault.steps is not None:
-        return _delay_fault_line(name, autopilot, fault, times, law, until)
+        return _delay_fault_line(name, autopilot, fault, times, law, words[0])
     return ""
 
 
@@ -509,11 +514,14 @@ def _gain_fault_text(
     fault: Fault,
     worst: complex,
     sample: float,
-    law: HeadingMode = HeadingMode.LQR,
-    until: str = "",
+    law: HeadingMode,
+    words: tuple[str, str],
 ) -> str:
     """:func:`_gain_fault_doubts`'s line for ``fault``, the loop's worst pole ``worst``
-    (z, of a sample of ``sample`` s) under ``law``."""
+    (z, of a sample of ``sample`` s) under ``law``; ``words``: (``until`` as :func:`_until`
+    says of its stop, the run's key figure of the command's activity: its total variation
+    per second, which shows the chatter)."""
+    until, figure = words
     angle = abs(cmath.phase(worst))
     line = (
         f"faults.{fault.name}: a gain of {fault.value:.4g} on {fault.target} (the command of "
@@ -530,8 +538,8 @@ def _gain_fault_text(
     return (
         f"{line} at {angle / sample:.3g} rad/s (|z| = {abs(worst):.4g} a sample): its command "
         f"swings between its limits {every}, the mass on its stops, while the heading "
-        "strays less than a stable loop's: the key figures do not show it, the command "
-        f"({name}.mass_position_cmd) does"
+        "strays less than a stable loop's: its yaw settling time does not show it, the "
+        f"command ({name}.mass_position_cmd) and its activity (the key figure {figure}) do"
     )
 
 

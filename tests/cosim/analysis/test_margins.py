@@ -13,7 +13,6 @@ from pathlib import Path
 
 import control
 import numpy as np
-import pandas as pd
 import pytest
 from unity_feedback import unity_feedback_poles
 
@@ -206,7 +205,11 @@ def test_a_nonsensical_operating_point_is_refused_naming_it(
 OUTSIDE = (
     r"faults\.f: a gain of \S+ on plant\.mass_position_cmd .* outside that loop's gain margins"
 )
-CHATTERS = OUTSIDE + r".* unstable at 314 rad/s .* swings between its limits at every step"
+ACTIVITY = "mass_position_cmd_variation_m_per_s"  # the command's key figure that shows it
+CHATTERS = (
+    OUTSIDE + r".* unstable at 314 rad/s .* swings between its limits at every step"
+    rf".*\(the key figure {ACTIVITY}\) do$"
+)
 TURNS_AWAY = OUTSIDE + r".* unstable .*: its heading turns away, its error doubling every \S+ s"
 # ... and a delay fault past the delay margin
 LATE = r"faults\.f: a delay of 1 step .* past that loop's delay margin .* unstable, swinging at"
@@ -227,11 +230,11 @@ def _faulted_lqr_1(
     stop: float,
     v0: float,
     said: AbstractContextManager[object],
-) -> pd.DataFrame:
+) -> cosim.Run:
     """lqr-1 for ``stop`` s from a sway of ``v0`` m/s with the fault (``kind = ...`` and
     its keys) on the connection to plant.mass_position_cmd: the loop broken where
-    `analyze margins` breaks it; its results (DataFrame), run inside ``said`` (the
-    warnings the run must, or must not, give)."""
+    `analyze margins` breaks it; the run (its results and summary), run inside ``said``
+    (the warnings the run must, or must not, give)."""
     text = (Path(cosim.__file__).parent / "scenarios" / "lqr-1.toml").read_text()
     text = re.sub(r"(?m)^stop_time = \S+", f"stop_time = {stop!r}", text)
     text = re.sub(r"(?m)^v_0 = \S+", f"v_0 = {v0!r}", text)
@@ -239,7 +242,7 @@ def _faulted_lqr_1(
     path = out / f"lqr-1-{len(list(out.iterdir()))}.toml"
     path.write_text(text + fault_table)
     with said:
-        return cosim.run(path, fmu_dir=fmu_paths["AuvPlant"].parent).results
+        return cosim.run(path, fmu_dir=fmu_paths["AuvPlant"].parent)
 
 
 def _fast_envelope(command: np.ndarray, windows: int) -> np.ndarray:
@@ -269,10 +272,8 @@ def test_the_simulated_loop_loses_stability_past_the_upper_gain_and_delay_margin
     run says so before for the gain past the margin (a DesignWarning), not for 0.9."""
     upper, delay = margins.upper_gain_margin, margins.delay_margin
     assert upper is not None and delay is not None and delay.value < H
-    runs = {
-        name: _faulted_lqr_1(fmu_paths, tmp_path, fault, 6.0, -0.01, said)[
-            "controller.mass_position_cmd"
-        ]
+    done = {
+        name: _faulted_lqr_1(fmu_paths, tmp_path, fault, 6.0, -0.01, said)
         for name, fault, said in (
             ("below", f'kind = "gain"\nvalue = {0.9 * upper.value!r}', _no_design_doubt()),
             (
@@ -283,6 +284,10 @@ def test_the_simulated_loop_loses_stability_past_the_upper_gain_and_delay_margin
             ("late", 'kind = "delay"\nsteps = 1', pytest.warns(DesignWarning, match=LATE)),
         )
     }
+    runs = {name: run.results["controller.mass_position_cmd"] for name, run in done.items()}
+    # the command's activity, the key figure the gain fault's warning names, shows it
+    activity = {n: run.summary["key_figures"][ACTIVITY] for n, run in done.items()}
+    assert activity["above"] > 1e3 * activity["below"], activity
     below, above, late = (_fast_envelope(runs[n].to_numpy(), 6) for n in ("below", "above", "late"))
     assert below[-1] < 1e-3 * below[0] and late[-1] > 5 * late[0]
     assert above[-1] == pytest.approx(400.0)  # +-100 m, alternating every step
@@ -310,7 +315,7 @@ def test_the_simulated_heading_grows_below_the_lower_gain_margin_as_the_linear_l
         said = pytest.warns(DesignWarning, match=TURNS_AWAY) if factor < 1 else _no_design_doubt()
         results = _faulted_lqr_1(
             fmu_paths, tmp_path, f'kind = "gain"\nvalue = {gain!r}', 200.0, -1e-6, said
-        )
+        ).results
         yaw = np.abs(results["plant.yaw"].to_numpy())
         peaks = [span.max() for span in np.array_split(yaw, 5)]  # 40 s each: > a period
         simulated = math.log(peaks[4] / peaks[1]) / 120.0  # 1/s

@@ -223,10 +223,13 @@ def test_a_gain_fault_past_the_lqr_loops_gain_margins_is_named(
         "command of controller's heading_mode lqr) is outside that loop's gain margins "
         "(auv-cosim analyze margins), so from t = 1 s it is unstable at 314 rad/s"
     ), line
+    # the key figures show it since they have the commands' activity (a chattering
+    # command's total variation per second): the line said they did not
     assert line.endswith(
         "its command swings between its limits at every step, the mass on its stops, while "
-        "the heading strays less than a stable loop's: the key figures do not show it, the "
-        "command (controller.mass_position_cmd) does"
+        "the heading strays less than a stable loop's: its yaw settling time does not show "
+        "it, the command (controller.mass_position_cmd) and its activity (the key figure "
+        "mass_position_cmd_variation_m_per_s) do"
     ), line
     assert design_doubts(_gain_fault(fmu_paths, tmp_path, 0.9 * upper.value)) == []
     (line,) = design_doubts(_gain_fault(fmu_paths, tmp_path, 0.8 * lower.value))
@@ -348,7 +351,7 @@ def test_the_sliding_mode_s_late_command_and_gain_faults_are_named_as_the_lqr_s(
         "loop inside the boundary layer, docs/model.md#sliding-mode), so from t = 1 s it is "
         "unstable"
     ), line
-    assert line.endswith("the command (controller.mass_position_cmd) does"), line
+    assert line.endswith("its activity (the key figure mass_position_cmd_variation_m_per_s) do")
     assert faulted(1.74) == []
     (line,) = faulted(0.018)
     assert "its heading turns away, its error doubling every" in line, line
@@ -513,6 +516,25 @@ def test_two_vehicles_each_autopilot_is_checked_against_its_own_plant(
     mismatched = scenario.with_start({"ctrl_b.vehicle": "remus100"})
     (line,) = design_doubts(mismatched)
     assert line.startswith("plant_b runs vehicle 'remus100-long-fins' but ctrl_b designs"), line
+
+
+def test_a_gain_fault_of_one_of_two_vehicles_names_that_vehicles_key_figure(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """The gain fault's warning names the key figure that shows the chatter; of two
+    vehicles, the one of the faulted vehicle (each plant's figures carry its name)."""
+    from two_vehicles import two_vehicles_toml
+
+    from cosim.metrics.key_figures import ACTIVITY_FIGURES
+
+    fault = '[[faults]]\nname = "servo"\ntarget = "plant_a.mass_position_cmd"\n'
+    text = f'{two_vehicles_toml()}\n{fault}kind = "gain"\nvalue = 3.0\nstart = 1.0\n'
+    scenario = scenario_from_toml(text, fmu_dir=fmu_paths["AuvPlant"].parent)
+    (line,) = design_doubts(scenario)
+    assert line.startswith("faults.servo: a gain of 3 on plant_a.mass_position_cmd"), line
+    figure = "plant_a.mass_position_cmd_variation_m_per_s"
+    assert line.endswith(f"its activity (the key figure {figure}) do"), line
+    assert figure.removeprefix("plant_a.") in ACTIVITY_FIGURES
 
 
 def test_a_study_s_points_with_the_same_loop_design_it_once(
