@@ -8,8 +8,9 @@
  * needs its host to have started Python.
  *
  * Refused without calling Python, with fmi2Error (NULL from fmi2Instantiate), one Error
- * logged and nothing changed: a NULL instance name, resource location or GUID, a GUID
- * that is not this build's; a NULL value-reference, value or byte array (n > 0); a call
+ * logged and nothing changed: a NULL instance name, resource location or GUID, an empty
+ * instance name (or one of white space), a resource location of another scheme than file:
+ * or with %00 in it, a GUID that is not this build's; a NULL value-reference, value or byte array (n > 0); a call
  * out of the FMI 2.0 co-simulation sequence (instantiated -> initialisation mode ->
  * initialised -> terminated; the error state after a failed initialisation or a fatal
  * error); a doStep whose step is not a finite number > 0, whose end t + h is not a finite
@@ -157,14 +158,62 @@ size_t whole_characters(const char *text, size_t n)
     return n - (start - 1) >= length ? n : start - 1;
 }
 
+/* The length of the character at ``p`` if it is UTF-8 as Python's strict decoder takes it
+ * (no overlong form, no surrogate, nothing above U+10FFFF), else 0 (0 at the end too). By
+ * hand: the C library decodes only in the locale's encoding. */
+static size_t utf8_character(const unsigned char *p)
+{
+    size_t n = p[0] < 0x80 ? 1 : p[0] < 0xC2 ? 0 : p[0] < 0xE0 ? 2 : p[0] < 0xF0 ? 3
+             : p[0] < 0xF5 ? 4 : 0; /* 0x80-0xC1: a continuation or overlong lead */
+    unsigned long code = n == 1 ? p[0] : p[0] & (0x7Fu >> n);
+    for (size_t k = 1; k < n; k++) { /* each checked before the next is read: no overrun */
+        if ((p[k] & 0xC0) != 0x80) return 0;
+        code = (code << 6) | (p[k] & 0x3F);
+    }
+    if ((n == 3 && (code < 0x800 || (code >= 0xD800 && code <= 0xDFFF))) ||
+        (n == 4 && (code < 0x10000 || code > 0x10FFFF))) {
+        return 0;
+    }
+    return p[0] ? n : 0;
+}
+
+/* Each piece whole or not at all: a character, a doubled %, or a byte that is no UTF-8
+ * shown as \xNN (Python's backslashreplace): a host's GUID, path or category quoted in a
+ * refusal may be any bytes, and a host may refuse or crash on a message that is not UTF-8. */
 void escape(const char *text, char *out, size_t size)
 {
     size_t j = 0;
-    for (size_t i = 0; text[i] && j + 2 < size; i++) {
-        if (text[i] == '%') out[j++] = '%';
-        out[j++] = text[i];
+    for (const unsigned char *p = (const unsigned char *)text; *p;) {
+        char piece[8];
+        size_t n = utf8_character(p), m = n;
+        if (!n) {
+            m = (size_t)snprintf(piece, sizeof piece, "\\x%02x", p[0]);
+            n = 1;
+        } else if (p[0] == '%') {
+            m = 2;
+            memcpy(piece, "%%", m);
+        } else {
+            memcpy(piece, p, n);
+        }
+        if (j + m >= size) break;
+        memcpy(out + j, piece, m);
+        j += m;
+        p += n;
     }
-    out[whole_characters(out, j)] = '\0';
+    out[j] = '\0';
+}
+
+/* The offset of the first byte of ``text`` that is no UTF-8 as Python's strict decoder
+ * takes it (a stray continuation byte, a sequence cut short, an overlong form, a
+ * surrogate, a code above U+10FFFF), or -1 if there is none. */
+static long not_utf8_at(const char *text)
+{
+    const unsigned char *p = (const unsigned char *)text;
+    long i = 0;
+    for (size_t n; p[i]; i += (long)n) {
+        if (!(n = utf8_character(p + i))) return i;
+    }
+    return -1;
 }
 
 fmi2Status refuse(Instance *c, const char *format, ...)
@@ -537,26 +586,7 @@ static const char *write_refusal(const Instance *c, fmi2ValueReference vr, char 
  * either backend (pythonfmu's binary does not survive one that is not). */
 static int is_utf8(const unsigned char *text)
 {
-    while (*text) {
-        unsigned char b = *text;
-        int n = b < 0x80             ? 0
-                : (b & 0xE0) == 0xC0 ? 1
-                : (b & 0xF0) == 0xE0 ? 2
-                : (b & 0xF8) == 0xF0 ? 3
-                                     : -1;
-        if (n < 0 || (n == 1 && b < 0xC2)) return 0;
-        unsigned long code = n ? b & (0x3F >> n) : b;
-        for (int k = 1; k <= n; k++) {
-            if ((text[k] & 0xC0) != 0x80) return 0;
-            code = (code << 6) | (text[k] & 0x3F);
-        }
-        if ((n == 2 && (code < 0x800 || (code >= 0xD800 && code <= 0xDFFF))) ||
-            (n == 3 && (code < 0x10000 || code > 0x10FFFF))) {
-            return 0;
-        }
-        text += n + 1;
-    }
-    return 1;
+    return not_utf8_at((const char *)text) < 0;
 }
 
 /* NULL arrays (n > 0) are refused: FMI hosts pass them, and reading one would crash. */
@@ -728,17 +758,47 @@ static int hex_digit(char ch)
     return -1;
 }
 
+/* The length of the scheme ``uri`` starts with (RFC 3986: a letter, then letters,
+ * digits, +, - or ., then a colon; the colon not counted), or 0. */
+static size_t scheme_length(const char *uri)
+{
+    size_t n = 0;
+    while (isalpha((unsigned char)uri[n]) ||
+           (n && uri[n] && (isdigit((unsigned char)uri[n]) || strchr("+-.", uri[n])))) {
+        n++;
+    }
+    return uri[n] == ':' ? n : 0;
+}
+
+/* 1 if ``uri`` starts with "file:" in any case (FILE:, File:): schemes are
+ * case-insensitive (RFC 3986, 3.1). */
+static int file_scheme(const char *uri)
+{
+    static const char file[] = "file";
+    if (scheme_length(uri) != 4) return 0;
+    for (size_t i = 0; i < 4; i++) {
+        if (tolower((unsigned char)uri[i]) != file[i]) return 0;
+    }
+    return 1;
+}
+
+/* What uri_to_path found wrong. */
+enum { URI_PATH, URI_TOO_LONG, URI_NUL, URI_SCHEME };
+
 /* A file: URI (or a plain path) as a path (RFC 8089): %XX decoded (a % not followed by two
  * hexadecimal digits kept as it is), the host "localhost" dropped (file://localhost/x is
  * /x), a drive letter where the host goes taken for the drive (file://C:/x), another host
  * kept as "//host/x" (a UNC path on Windows), then made a local path (platform_local_path).
- * 1, or 0 when the path does not fit in ``n`` bytes (cut short, it would be another folder). */
+ * URI_PATH, or why not: URI_TOO_LONG when the path does not fit in ``n`` bytes (cut short,
+ * it would be another folder), URI_NUL for a %00 (the path would end there, another
+ * folder too), URI_SCHEME for another scheme than file: (http:, ...). */
 static int uri_to_path(const char *uri, char *out, size_t n)
 {
     const char *p = uri;
-    int authority = !strncmp(p, "file://", 7) && p[7] != '/'; /* file://host/... */
-    if (!strncmp(p, "file://", 7)) p += 7;
-    else if (!strncmp(p, "file:", 5)) p += 5;
+    int file = file_scheme(p);
+    if (!file && scheme_length(p) > 1) return URI_SCHEME; /* one letter: a drive, C:/x */
+    int authority = file && !strncmp(p + 4, "://", 3) && p[7] != '/'; /* file://host/... */
+    if (file) p += strncmp(p + 4, "://", 3) ? 5 : 7;
     if (authority && !strncmp(p, "localhost/", 10)) {
         p += 9; /* from the slash on */
         authority = 0;
@@ -754,6 +814,7 @@ static int uri_to_path(const char *uri, char *out, size_t n)
     for (; *p && j + 1 < n; p++) {
         int high = p[0] == '%' ? hex_digit(p[1]) : -1;
         int low = high >= 0 ? hex_digit(p[2]) : -1;
+        if (low >= 0 && !high && !low) return URI_NUL;
         if (low >= 0) {
             out[j++] = (char)(high * 16 + low);
             p += 2;
@@ -762,27 +823,33 @@ static int uri_to_path(const char *uri, char *out, size_t n)
         }
     }
     out[j] = '\0';
-    if (*p) return 0;
+    if (*p) return URI_TOO_LONG;
     while (j > 1 && out[j - 1] == '/') out[--j] = '\0';
     platform_local_path(out, n);
-    return 1;
+    return URI_PATH;
 }
 
-/* The offset of the first byte of ``text`` that breaks UTF-8's structure (a stray
- * continuation byte, a sequence cut short), or -1 if there is none. */
-static long not_utf8_at(const char *text)
+/* Why the resource location cannot be read (into ``why``), or 0; the instance's path. */
+static int location_refusal(Instance *c, fmi2String resources, char *why, size_t n)
 {
-    const unsigned char *p = (const unsigned char *)text;
-    for (long i = 0; p[i];) {
-        int more = p[i] < 0x80 ? 0 : (p[i] & 0xE0) == 0xC0 ? 1 : (p[i] & 0xF0) == 0xE0 ? 2
-                 : (p[i] & 0xF8) == 0xF0 ? 3 : -1;
-        if (more < 0) return i;
-        for (int k = 1; k <= more; k++) {
-            if ((p[i + k] & 0xC0) != 0x80) return i;
-        }
-        i += 1 + more;
+    if (!resources || !resources[0]) return snprintf(why, n, "fmuResourceLocation is empty");
+    size_t length = strlen(resources);
+    int shown = (int)whole_characters(resources, length < 200 ? length : 200);
+    const char *more = resources[shown] ? "..." : "";
+    switch (uri_to_path(resources, c->resources, sizeof c->resources)) {
+    case URI_TOO_LONG:
+        return snprintf(why, n, "fmuResourceLocation %.*s... names a path longer than the "
+                        "runtime's %d bytes", shown, resources, PATH_SIZE - 1);
+    case URI_NUL:
+        return snprintf(why, n, "fmuResourceLocation %.*s%s holds %%00, a NUL byte, which no "
+                        "path can hold (the path would end there)", shown, resources, more);
+    case URI_SCHEME:
+        return snprintf(why, n, "fmuResourceLocation %.*s%s is not a file: URI (the FMU reads "
+                        "its resources from a folder: file:///path/to/resources)", shown,
+                        resources, more);
+    default:
+        return 0;
     }
-    return -1;
 }
 
 /* Why this instantiation cannot go on (into ``why``), or 0; fills the instance's paths,
@@ -797,13 +864,12 @@ static int instantiation_refusal(Instance *c, fmi2Type type, fmi2String guid,
         return snprintf(why, n, "instanceName is not UTF-8 (byte %ld is 0x%02X): FMI 2.0 "
                         "strings are UTF-8", bad, (unsigned char)c->name[bad]);
     }
-    if (type != fmi2CoSimulation) return snprintf(why, n, "the FMU supports co-simulation only");
-    if (!resources || !resources[0]) return snprintf(why, n, "fmuResourceLocation is empty");
-    if (!uri_to_path(resources, c->resources, sizeof c->resources)) {
-        return snprintf(why, n, "fmuResourceLocation %.*s... names a path longer than the "
-                        "runtime's %d bytes", (int)whole_characters(resources, 200), resources,
-                        PATH_SIZE - 1);
+    if (!c->name[strspn(c->name, " \t\n\v\f\r")]) { /* every message would name no one */
+        return snprintf(why, n, "instanceName is %s: FMI 2.0 asks for at least one "
+                        "character that is not white space", c->name[0] ? "white space" : "empty");
     }
+    if (type != fmi2CoSimulation) return snprintf(why, n, "the FMU supports co-simulation only");
+    if (location_refusal(c, resources, why, n)) return 1;
     const char *record = read_record(c->resources, &c->record);
     if (record && record[0]) {
         return snprintf(why, n, "%s%s%s: %s is longer than the runtime holds", c->resources,

@@ -199,8 +199,9 @@ void instance_log(Instance *c, fmi2Status status, const char *category, const ch
  * fmi2SetDebugLogging named. */
 void debug_categories(const Instance *c, char *out, size_t n);
 /* loader.c: ``text`` with every % doubled into ``out`` (``size`` bytes, 2 * strlen(text) + 1
- * hold it whole): hosts treat a message as a printf format. A text cut short (by ``size``)
- * is cut between characters. */
+ * hold UTF-8 text whole): hosts treat a message as a printf format. Each byte that is no
+ * UTF-8 becomes \xNN (4 bytes), so the message is UTF-8 whatever the host handed in. A text
+ * cut short (by ``size``) is cut between characters. */
 void escape(const char *text, char *out, size_t size);
 /* printf-style: one Error line (its % escaped for the host); returns fmi2Error. */
 fmi2Status refuse(Instance *c, const char *format, ...)
