@@ -1568,6 +1568,19 @@ FMI2_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUsta
     return s;
 }
 
+/* The host's ``state`` if it is a state alive of this FMU on ``c``'s backend, which
+ * fmi2DeSerializeFMUstate then re-uses (fmpy's deSerializeFMUstate(bytes, state) hands one
+ * in for re-use, as the Reference FMUs take it), else NULL: a new state is made. Looked up
+ * among the states alive before it is read: any pointer may be handed in, and nothing else
+ * is refused for it (FMI 2.0 asks for a new state there). */
+static Saved *reusable(Instance *c, fmi2FMUstate state)
+{
+    Saved *saved = state && python_states(STATE_ALIVE, state) ? (Saved *)state : NULL;
+    int ours = saved && saved->magic == SAVED_MAGIC && saved->fmu == fmu_of(c) &&
+               saved->format == serial_magic(c->backend);
+    return ours ? saved : NULL;
+}
+
 FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2Byte bytes[],
                                                size_t size, fmi2FMUstate *state)
 {
@@ -1608,12 +1621,20 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fm
     }
     header.format = header.magic;
     header.magic = SAVED_MAGIC;
-    Saved *saved = calloc(1, sizeof *saved);
-    if (!saved) return refuse(c, "fmi2DeSerializeFMUstate refused: out of memory");
+    Saved *reused = reusable(c, *state);
+    Saved *saved = reused ? NULL : calloc(1, sizeof *saved);
+    if (!reused && !saved) return refuse(c, "fmi2DeSerializeFMUstate refused: out of memory");
     fmi2Status s = answer(c, c->backend->state_from_bytes(c, bytes + SAVED_HEADER,
                                                           size - SAVED_HEADER, &header.inner));
     if (s > fmi2Warning) {
         free(saved);
+        return s;
+    }
+    if (reused) { /* in place, as fmi2GetFMUstate does: its owner keeps it */
+        c->backend->discard(c, reused->inner);
+        reused->inner = header.inner;
+        reused->phase = header.phase;
+        reused->time = header.time;
         return s;
     }
     if (!python_states(STATE_KEEP, saved)) {
