@@ -57,7 +57,14 @@ from cosim.study.factors import FactorKind, ScenarioFacts, StartValue, Value, re
 from cosim.study.fmu_store import kept_unpacked
 from cosim.study.overlay import check_choice, choose, label, notes, spread
 from cosim.study.page import write_index
-from cosim.study.plots import default_metrics, figure_alts, plotted_metrics, write_figures
+from cosim.study.plots import (
+    Drafts,
+    default_metrics,
+    draft_figures,
+    figure_alts,
+    plotted_metrics,
+    write_figures,
+)
 from cosim.study.prefetch import Prefetch
 from cosim.study.signals import StudyStopped
 from cosim.study.spec import (
@@ -231,7 +238,9 @@ def _finish(
     # the overlay drawn now, or by an earlier session of this study (its runs are the
     # table's: resumed without --overlay, the page still names it)
     drawn = overlay_runs or (out_dir / OVERLAY_FILE).is_file()
-    paths["index"] = _write_report(out_dir, spec, base, factors, metrics, rows, overlay=drawn)
+    paths["index"] = _write_report(
+        out_dir, spec, base, factors, metrics, rows, overlay=drawn, drafts=drawing.drafts
+    )
     return rows, paths
 
 
@@ -330,6 +339,9 @@ def _execute(
             except OSError as exc:
                 raise StudyEndedError(f"cannot write {exc.filename}: {unwritten(exc)}") from None
         table.append(run, record)
+        if left == 1:  # the last run's worker alone busy: the page's figures drafted beside it
+            rows = list(table.rows.values())
+            drawing.draft(lambda: _draft_page(out_dir, spec, base, factors, table.metrics, rows))
         failed += record.status != "complete"
         if bar is not None:
             bar.set_postfix(failed=failed, refresh=False)
@@ -523,18 +535,16 @@ def _write_report(
     metrics: Sequence[str],
     rows: Sequence[Mapping[str, Any]],
     overlay: bool = False,
+    drafts: Drafts | None = None,
 ) -> Path:
     """The study's page; with ``overlay``, it says where the recording of the chosen runs
-    is and how to open it (the page was the only place a study's reader looked)."""
-    grid = {
-        name: [factors[name].normalize(v) for v in values] for name, values in spec.grid.items()
-    }
-    candidates = metrics if spec.metrics.collect is not None else default_metrics(metrics)
+    is and how to open it (the page was the only place a study's reader looked);
+    ``drafts``: its figures drafted before the last run (:func:`_draft_page`)."""
+    grid, candidates, caption = _plotted(out_dir, spec, base, factors, metrics)
     quantities = units([*spec.factors, *candidates], base.fmu_paths)
     randoms = list(spec.random.factors)
-    caption = f"study {path_text(out_dir.resolve().name)} ({base.scenario_id})"
     figures = write_figures(
-        rows, grid, randoms, candidates, out_dir / FIGURES_FOLDER, quantities, caption
+        rows, grid, randoms, candidates, out_dir / FIGURES_FOLDER, quantities, caption, drafts
     )
     alts = figure_alts(rows, grid, randoms, candidates, quantities)
     shown = set(plotted_metrics(rows, candidates))
@@ -552,6 +562,35 @@ def _write_report(
         )
     not_plotted = [m for m in metrics if m not in shown]
     return write_index(out_dir, facts, rows, figures, not_plotted, alts, bool(randoms))
+
+
+def _plotted(
+    out_dir: Path,
+    spec: StudySpec,
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    metrics: Sequence[str],
+) -> tuple[dict[str, list[Value]], Sequence[str], str]:
+    """What the page's figures plot: the grid's values (as the factors normalise them),
+    the metrics they may plot and the caption above each figure."""
+    grid = {
+        name: [factors[name].normalize(v) for v in values] for name, values in spec.grid.items()
+    }
+    candidates = metrics if spec.metrics.collect is not None else default_metrics(metrics)
+    return grid, candidates, f"study {path_text(out_dir.resolve().name)} ({base.scenario_id})"
+
+
+def _draft_page(
+    out_dir: Path,
+    spec: StudySpec,
+    base: Base,
+    factors: Mapping[str, FactorKind],
+    metrics: Sequence[str],
+    rows: Sequence[Mapping[str, Any]],
+) -> Drafts:
+    """The page's figures drafted from the ``rows`` so far (:func:`draft_figures`)."""
+    grid, candidates, caption = _plotted(out_dir, spec, base, factors, metrics)
+    return draft_figures(rows, grid, list(spec.random.factors), candidates, caption)
 
 
 def _planned(

@@ -124,3 +124,45 @@ def test_with_time_to_spare_the_rest_starts_at_once_where_it_would_share_the_cor
     loading.unfinished(15)
     loading.wait()
     assert drawn == ["auv-cosim-prefetch"]
+
+
+def test_the_figures_are_drafted_on_a_thread_after_the_loading(monkeypatch, drawn) -> None:
+    """The draft waits for the loading begun (matplotlib for one thread at a time), runs
+    on a thread of its own, once; wait joins it and then holds what it made."""
+    order: list[str] = []
+    gate = threading.Event()
+
+    def record(modules) -> None:
+        gate.wait(5.0)
+        order.extend(modules)
+
+    monkeypatch.setattr(prefetch, "_import", record)
+    loading = Prefetch(1, 2, early=("first",), late=("second",))
+    loading.begin()
+    loading.unfinished(1)
+    made = object()
+
+    def make() -> object:
+        order.append(threading.current_thread().name)
+        return made
+
+    loading.draft(make)  # type: ignore[arg-type]
+    loading.draft(lambda: order.append("again"))  # type: ignore[arg-type,func-returns-value]
+    assert loading.drafts is None
+    gate.set()
+    loading.wait()
+    assert order == ["first", "second", "auv-cosim-prefetch"]
+    assert loading.drafts is made
+
+
+def test_a_draft_that_fails_leaves_none(drawn) -> None:
+    """Drafting is an optimisation: one that raises leaves no drafts, and the page is
+    drawn without them."""
+    loading = Prefetch(1, 2, early=(), late=())
+
+    def fail() -> object:
+        raise RuntimeError("no fonts")
+
+    loading.draft(fail)  # type: ignore[arg-type]
+    loading.wait()
+    assert loading.drafts is None
