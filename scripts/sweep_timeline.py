@@ -41,6 +41,10 @@ run; and the ratio of the two estimates, which the end-to-end benchmark's goal i
 Under load it compares trees measured at the same time, not a tree with the goal: the
 client's CPU during the runs grows with their wall time (Dask's periodic work), which
 makes the two-worker estimate pessimistic (docs/performance.md).
+A fourth table shows where the workers wait in the runs' phase (:func:`runs_phase`): when
+each worker's first task began, the gaps between its tasks, how long it was idle before
+the last run ended, when the page's figures were drafted beside the last run, and the
+client's wall and CPU seconds from the last result to the page written.
 ``--marks`` also lists every mark until the first run, at the millisecond: among them the
 local cluster's start in the client, the server's warm-up, each worker's registration
 with the scheduler and each nanny's wait for its worker's word that it has started.
@@ -211,6 +215,17 @@ class Finder(importlib.abc.MetaPathFinder):
 
 sys.meta_path.insert(0, Finder())
 mark("process start")
+"""
+
+
+# marks of the runs' phase and after it, added to the tracer: the page's figures drafted
+# beside the last run (cosim.study.prefetch's Prefetch._draft); the tasks' begin and end
+# in each worker are marked already ("task begin", "task end")
+TAIL_MARKS = """
+_prefetch_patch = PATCHES["cosim.study.prefetch"]
+PATCHES["cosim.study.prefetch"] = lambda m: (
+    _prefetch_patch(m), wrap(m.Prefetch, "_draft", "draft"),
+)
 """
 
 
@@ -405,6 +420,37 @@ def _threads_during(marks: list[tuple[float, int, str, float]], client: int) -> 
     return {**groups, OTHER_THREADS: last - first - sum(groups.values())}
 
 
+def runs_phase(trace: dict[str, object]) -> list[tuple[str, float]]:
+    """Where the workers wait in the runs' phase, in seconds of wall: each worker's first
+    task's begin (from the first task of any worker), the gaps between one task's end and
+    its next one's begin (Dask's hand-off: the result sent, the next task received), and
+    its last task's end before the last run's (its core idle); the page's figures drafted
+    beside the last run (begin and end from the last run's end: negative, before it);
+    from the last result in to the page written, the client's wall and CPU seconds."""
+    marks = trace["marks"]
+    assert isinstance(marks, list)
+    workers = _workers(marks)
+    begins = {pid: [t for t, p, w, _ in marks if p == pid and w == "task begin"] for pid in workers}
+    ends = {pid: _task_ends(marks, pid) for pid in workers}
+    first = min(min(b) for b in begins.values())
+    last = max(max(e) for e in ends.values())
+    rows = []
+    for k, pid in enumerate(workers, 1):
+        gaps = [b - e for e, b in zip(ends[pid], begins[pid][1:], strict=False)]
+        rows.append((f"worker {k} first task at", min(begins[pid]) - first))
+        rows.append((f"worker {k} gaps (sum)", sum(gaps)))
+        rows.append((f"worker {k} gap (largest)", max(gaps, default=0.0)))
+        rows.append((f"worker {k} idle at the end", last - max(ends[pid])))
+    drafts = [(t, w) for t, _, w, _ in marks if w in ("draft begin", "draft end")]
+    rows += [(f"{w.replace('draft', 'drafting')}s", t - last) for t, w in sorted(drafts)]
+    client = next(p for _, p, w, _ in marks if w == "client ready")
+    result = max((t, c) for t, p, w, c in marks if p == client and w == "execute end")
+    page = min((t, c) for t, p, w, c in marks if p == client and w == "page end")
+    rows.append(("last result to page", page[0] - result[0]))
+    rows.append(("  the client's CPU", page[1] - result[1]))
+    return rows
+
+
 def idle_estimate(cpu: dict[str, float], cores: int) -> list[tuple[str, float]]:
     """What the sweep whose CPU seconds are ``cpu`` (:func:`cpu_phases`) would take on an
     idle machine of ``cores`` cores, in seconds, each phase from the CPU it took (which the
@@ -479,7 +525,7 @@ def main() -> None:
     ensure_fmus(args.fmu_dir)
     with tempfile.TemporaryDirectory(prefix="auv-cosim-timeline-") as name:
         folder = Path(name)
-        (folder / "sitecustomize.py").write_text(TRACER, encoding="utf-8")
+        (folder / "sitecustomize.py").write_text(TRACER + TAIL_MARKS, encoding="utf-8")
         study = study_file(folder, args.runs, args.stop_time)
         installed(ROOT, folder / "site")
         traced_sweep(study, 1, args.fmu_dir, folder)  # warm-up: bytecode, numba's cache, disk
@@ -507,6 +553,12 @@ def main() -> None:
     )
     for name in names:
         cells = [f"{cpu[w][name]:14.2f}" if name in cpu[w] else f"{'':>14}" for w in traces]
+        print(f"{name:<26}" + "".join(cells))
+    print("the runs' phase, seconds of wall (drafting: from the last run's end)")
+    tail = {w: dict(runs_phase(t)) for w, t in traces.items()}
+    widest = sorted(tail.values(), key=len, reverse=True)
+    for name in dict.fromkeys(name for r in widest for name in r):
+        cells = [f"{tail[w][name]:14.2f}" if name in tail[w] else f"{'':>14}" for w in traces]
         print(f"{name:<26}" + "".join(cells))
     cores = os.cpu_count() or 1
     print(f"estimate for this machine idle ({cores} cores), from the CPU seconds (s)")

@@ -176,3 +176,36 @@ def test_the_timeline_lists_the_starts_marks_by_process_until_the_first_run() ->
     assert "1300.0 server 1200.0 preload end" in lines
     assert lines[-1] == "1700.0 worker 1 250.0 warm-up end"  # the first run starts
     assert not [line for line in lines if line.endswith("task end")]  # after it
+
+
+# two workers (pids 3, 4) of two tasks each, the page's figures drafted beside the last run
+RUNS_PHASE = """
+import json
+from sweep_timeline import runs_phase
+marks = [(1.4, 1, "client ready", 1.0), (1.5, 3, "warm-up begin", 0.1),
+         (1.5, 3, "task begin", 0.1), (2.0, 3, "task end", 0.6), (2.01, 3, "task begin", 0.6),
+         (2.5, 3, "task end", 1.1), (1.53, 4, "warm-up begin", 0.1), (1.53, 4, "task begin", 0.1),
+         (2.1, 4, "task end", 0.6), (2.13, 4, "task begin", 0.6), (2.6, 4, "task end", 1.1),
+         (2.52, 1, "draft begin", 1.25), (2.57, 1, "draft end", 1.29),
+         (2.61, 1, "execute end", 1.30), (2.70, 1, "page end", 1.38)]
+print(json.dumps(runs_phase({"marks": marks})))
+"""
+
+
+def test_the_timeline_shows_where_the_workers_wait_and_the_draft_beside_the_last_run() -> None:
+    """Where two workers wait in the runs' phase (the later first task, the gaps between
+    tasks, the idle core before the last run ends) and when the page's figures were
+    drafted, from the last run's end; then the client's wall and CPU to the page."""
+    path = os.pathsep.join([str(ROOT / "scripts"), str(ROOT)])
+    env = {**os.environ, "PYTHONPATH": path}
+    done = subprocess.run([sys.executable, "-c", RUNS_PHASE], env=env, check=True,
+                          timeout=300, capture_output=True, text=True)  # fmt: skip
+    rows = dict(json.loads(done.stdout))
+    expected = {
+        "worker 1 first task at": 0.0, "worker 1 gaps (sum)": 0.01,
+        "worker 1 idle at the end": 0.1, "worker 2 first task at": 0.03,
+        "worker 2 gaps (sum)": 0.03, "worker 2 idle at the end": 0.0,
+        "drafting begins": -0.08, "drafting ends": -0.03, "last result to page": 0.09,
+        "  the client's CPU": 0.08,
+    }  # fmt: skip
+    assert {name: round(rows[name], 6) for name in expected} == expected
