@@ -23,7 +23,6 @@ import zipfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
-from xml.etree import ElementTree
 
 import numpy as np
 from fmpy import calloc, free
@@ -42,7 +41,7 @@ from fmpy.fmi2 import (
 from cosim.engine.extrapolation import InputRates
 from cosim.errors import CosimError, seconds
 from cosim.fmus import native
-from cosim.fmus.interface import FmuInterfaceError, extract_fmu
+from cosim.fmus.interface import FmuInterfaceError, extract_fmu, root_attributes
 from cosim.limits import unwritten
 from cosim.progress_bars import write
 from cosim.scenario.spec import Instance
@@ -556,8 +555,8 @@ def extracted_guid(folder: Path) -> str:
     read once per extraction (its files do not change)."""
     guid = _guids.get(folder)
     if guid is None:
-        root = ElementTree.parse(folder / "modelDescription.xml").getroot()
-        guid = _guids[folder] = root.get("guid", "")
+        with open(folder / "modelDescription.xml", "rb") as description:
+            guid = _guids[folder] = root_attributes(description).get("guid", "")
     return guid
 
 

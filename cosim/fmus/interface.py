@@ -24,10 +24,10 @@ import re
 import shutil
 import sys
 import zipfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import IO, Any, cast
 from xml.etree import ElementTree
 
 from cosim.errors import CosimError
@@ -169,8 +169,8 @@ def check_archive(path: Path) -> None:
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
             unpacked_size(path, archive)
-            description = archive.read("modelDescription.xml")
-            root = ElementTree.fromstring(description)
+            with archive.open("modelDescription.xml") as description:
+                root = root_attributes(description)
     except KeyError:
         raise FmuInterfaceError(f"{path}: not a valid FMU: no modelDescription.xml") from None
     except (OSError, zipfile.BadZipFile, ElementTree.ParseError, ValueError) as exc:
@@ -186,6 +186,29 @@ def check_archive(path: Path) -> None:
     version = root.get("fmiVersion")
     if version != "2.0":
         raise FmuInterfaceError(f"{path}: fmiVersion {version!r}: expected an FMI 2.0 FMU")
+
+
+_ROOT_CHUNK = 1 << 16  # bytes read at a time until the root element's start tag
+_TOOL = "auv-cosim"  # the <Tool name> of our annotations: fmu_runtime.safe_slave.TOOL,
+# not imported, for pythonfmu and numpy that module imports
+
+
+def root_attributes(stream: IO[bytes]) -> dict[str, str]:
+    """The attributes of the root element of the XML document ``stream`` reads, read up to
+    the root's start tag and no further: the model description's ``fmiVersion`` and
+    ``guid`` without parsing its variables (a whole parse took seconds for 10^5 of them,
+    before fmpy parsed them again). ElementTree's pull parser, fed in chunks, stops there.
+
+    Raises:
+        ElementTree.ParseError: the document is no XML up to its root's start tag, or has
+            no root element.
+    """
+    parser: ElementTree.XMLPullParser[ElementTree.Element] = ElementTree.XMLPullParser(["start"])
+    while chunk := stream.read(_ROOT_CHUNK):
+        for _event, element in _pulled(parser, chunk):
+            return dict(element.attrib)
+    parser.close()  # raises ParseError for a document without a root element
+    raise ElementTree.ParseError("no element found")
 
 
 def unpacked_size(path: Path, archive: zipfile.ZipFile) -> int:
@@ -358,14 +381,49 @@ def _annotations(path: Path) -> tuple[dict[str, dict[str, int]], tuple[str, ...]
     from lxml import etree
 
     with zipfile.ZipFile(path) as archive:
-        root = etree.fromstring(archive.read("modelDescription.xml"))
+        description = archive.read("modelDescription.xml")
+    if _TOOL.encode() not in description:  # another tool's FMU: no variable to look at
+        return {}, _log_categories(description)
+    root = etree.fromstring(description)
     names = {
         variable.attrib["name"]: {item.attrib["name"]: int(item.attrib["value"]) for item in values}
         for variable in root.iterfind("ModelVariables/ScalarVariable")
-        for values in variable.iterfind("Annotations/Tool[@name='auv-cosim']/NamedValues")
+        for values in variable.iterfind(f"Annotations/Tool[@name='{_TOOL}']/NamedValues")
     }
     categories = tuple(c.get("name", "") for c in root.iterfind("LogCategories/Category"))
     return names, categories
+
+
+def _pulled(
+    parser: ElementTree.XMLPullParser[ElementTree.Element], chunk: bytes
+) -> Iterator[tuple[str, ElementTree.Element]]:
+    """The events of elements that ``chunk``, fed to ``parser``, completes."""
+    parser.feed(chunk)
+    # typeshed's events include a one-item tuple no event of ours is: every one is a pair
+    for event, element in cast(Iterator[tuple[str, object]], parser.read_events()):
+        if isinstance(element, ElementTree.Element):  # not a namespace's event (none asked)
+            yield event, element
+
+
+def _log_categories(description: bytes) -> tuple[str, ...]:
+    """The names of the ``<LogCategories>`` of ``description``, parsed up to its
+    ``<ModelVariables>`` (which FMI 2.0 puts after them) and no further: a third-party
+    FMU's 10^5 variables took seconds to parse a second time for nothing."""
+    parser: ElementTree.XMLPullParser[ElementTree.Element]
+    parser = ElementTree.XMLPullParser(["start", "end"])
+    open_tags: list[str] = []
+    categories: list[str] = []
+    for offset in range(0, len(description), _ROOT_CHUNK):
+        for event, element in _pulled(parser, description[offset : offset + _ROOT_CHUNK]):
+            if event == "start" and element.tag == "ModelVariables" and len(open_tags) == 1:
+                return tuple(categories)
+            if event == "start":
+                open_tags.append(element.tag)
+                continue
+            open_tags.pop()  # now the element's ancestors
+            if element.tag == "Category" and open_tags[1:] == ["LogCategories"]:
+                categories.append(element.get("name", ""))
+    return tuple(categories)
 
 
 def _variable(v: Any, names: Mapping[str, int]) -> Variable:

@@ -181,3 +181,15 @@ def test_an_fmu_replaced_after_the_scenario_was_loaded_is_refused(
         master.run(scenario)
     again = master.run(scenario_from_toml(loop_toml(), base_dir=tmp_path))  # loaded again
     assert again.complete
+
+
+def test_the_guid_of_an_extraction_is_read_from_the_root_alone(tmp_path: Path) -> None:
+    """The check that an extraction is the FMU the scenario loaded parsed its whole model
+    description for the root's GUID: with 10^5 variables, seconds of every run's start.
+    It reads the root's start tag alone, so what follows it (here bytes that are no XML)
+    is never read, whatever the description's size."""
+    body = b"<ScalarVariable " * 200_000  # 3.2 MB that no XML parser accepts
+    (tmp_path / "modelDescription.xml").write_bytes(
+        b'<?xml version="1.0"?>\n<fmiModelDescription fmiVersion="2.0" guid="{1-2}">' + body
+    )
+    assert slave.extracted_guid(tmp_path) == "{1-2}"

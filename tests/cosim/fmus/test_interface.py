@@ -14,7 +14,8 @@ from process_group import run_in_group
 from zip_bombs import declaring_archive
 
 from cosim.export.components import components
-from cosim.fmus.interface import FmuInterfaceError, read_interface
+from cosim.fmus import interface
+from cosim.fmus.interface import FmuInterfaceError, check_archive, read_interface
 from cosim.paths import path_text
 from cosim.scenario.spec import load_scenario
 from plant_fmu.model.dynamics import INPUT_NAMES, Variant
@@ -125,6 +126,39 @@ def test_a_broken_fmu_is_one_line_naming_it(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(broken) in err and expected in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_fmi_version_is_read_from_the_root_alone_not_the_whole_description(
+    tmp_path: Path,
+) -> None:
+    """The check of an FMU's archive parsed its whole model description to read the root's
+    fmiVersion: with 10^5 variables, seconds before fmpy read it all again. It reads the
+    root's start tag alone, so what follows it (here bytes that are no XML) is never read,
+    whatever the description's size."""
+    fmu = tmp_path / "Old.fmu"
+    body = b"<ScalarVariable " * 200_000  # 3.2 MB that no XML parser accepts
+    with zipfile.ZipFile(fmu, "w") as archive:
+        archive.writestr(
+            "modelDescription.xml",
+            b'<?xml version="1.0"?>\n<fmiModelDescription fmiVersion="1.0" guid="g">' + body,
+        )
+    with pytest.raises(FmuInterfaceError, match=r"fmiVersion '1\.0': expected an FMI 2\.0 FMU"):
+        check_archive(fmu)
+
+
+def test_another_tools_log_categories_are_read_without_parsing_its_variables() -> None:
+    """The reading of an FMU's log categories and our annotations parsed a third-party
+    FMU's whole description a second time, though only ours carry annotations: with 10^5
+    variables, seconds. Another tool's description is read up to its ModelVariables (what
+    follows, here bytes that are no XML, never), its categories those directly under
+    LogCategories."""
+    description = (
+        b'<?xml version="1.0"?>\n<fmiModelDescription fmiVersion="2.0" guid="g">'
+        b'<LogCategories><Category name="logAll"/><Category name="logError"/></LogCategories>'
+        b'<VendorAnnotations><Tool name="x"><Category name="not one"/></Tool></VendorAnnotations>'
+        b"<ModelVariables>" + b"<ScalarVariable " * 200_000
+    )
+    assert interface._log_categories(description) == ("logAll", "logError")
 
 
 @pytest.mark.parametrize(
