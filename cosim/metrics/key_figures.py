@@ -39,7 +39,14 @@ import numpy as np
 YAW_TOLERANCE_RAD = math.radians(1.0)  # "settled" band of the yaw settling time
 ROLES = {"plant": "plant", "controller": "controller"}  # role -> instance, as the built-ins
 MODELS = {"plant": "AuvPlant", "controller": "AuvAutopilot"}  # role -> model identifier
-TIME_DECIMALS = 9  # a time taken between two rows, to the ns (the recording's sim_time)
+TIME_DECIMALS = 9  # a time the metrics take from rows, to the ns (the recording's sim_time)
+
+
+def row_time(time: float) -> float:
+    """A row's time (s), or a mean of times taken between rows, rounded to
+    :data:`TIME_DECIMALS`: row k's time is k * h in doubles, 0.35000000000000003 for
+    35 x 0.01 s (docs/runs.md), which a figure shows as 0.35 s, as :func:`elapsed` does."""
+    return round(float(time), TIME_DECIMALS)
 
 
 def elapsed(end: float, start: float) -> float:

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.metrics.key_figures import elapsed, settling_time
+from cosim.metrics.key_figures import elapsed, row_time, settling_time
 
 Metrics = dict[str, float | int | None]
 STEADY_TURN_RAD = 2.0 * math.pi  # the steady part of a turning circle: its last full turn
@@ -195,7 +195,8 @@ def zigzag(
     how far the heading goes on beyond its value at e2 before e3 (in the direction of the
     first turn), the second how far it goes beyond its value at e3 before e4 (the other
     way). The period is the mean time from an execute to the next-but-one, from e2 on
-    (e2 -> e4, e3 -> e5, ...): one full cycle. Each needs the executes after it.
+    (e2 -> e4, e3 -> e5, ...): one full cycle, to the ns (:func:`row_time`). Each needs
+    the executes after it.
     """
     times = np.asarray(times, dtype=float)
     heading = np.unwrap(np.asarray(yaw, dtype=float))
@@ -220,7 +221,7 @@ def zigzag(
             float(np.max(-direction * (heading[third:fourth] - heading[third])))
         )
         cycles = times[executes[3:]] - times[executes[1:-2]]
-        metrics["period_s"] = float(np.mean(cycles))
+        metrics["period_s"] = row_time(np.mean(cycles))
     return metrics
 
 
@@ -413,7 +414,7 @@ class LegTracker:
         done = np.asarray(legs, dtype=float)
         before = np.concatenate(([self._previous], done[:-1]))
         for i in np.flatnonzero(done > before):  # NaN compares false: no leg
-            self._completed += [float(times[i])] * (round(done[i]) - round(before[i]))
+            self._completed += [row_time(times[i])] * (round(done[i]) - round(before[i]))
         if self.mission is not None and position is not None:
             self._approach(done, before, *position)
         self._previous = float(done[-1]) if math.isfinite(done[-1]) else self._previous

@@ -387,6 +387,24 @@ def test_metric_names_number_the_depth_steps():
     assert tuple(steps) == metric_names("depth-steps", steps=2)
 
 
+def test_row_times_and_a_zigzags_period_are_given_to_the_ns_as_durations_are() -> None:
+    """A leg's completion is a row's time k * h, and a zig-zag's period a mean of
+    differences of row times: both kept the doubles' noise (0.35000000000000003 s,
+    5.790000000000001 s) in summary.json while a leg's duration beside them was rounded to
+    the ns. Every time the metrics take from rows is given to the ns."""
+    t = np.arange(1300) * H  # t[35] is 0.35000000000000003 in doubles
+    legs = np.where(t < t[35], 0.0, 1.0)
+    tracker = LegTracker(legs_total=1)
+    tracker.add(t, np.zeros_like(t), legs)
+    (leg,) = tracker.legs()
+    assert (leg["completed_at_s"], leg["duration_s"]) == (0.35, 0.35)
+    command = np.zeros_like(t)
+    for k, execute in enumerate((100, 400, 825, 1130, 1253)):  # e2 -> e4, e3 -> e5
+        command[execute:] = (-1.0) ** k
+    metrics = zigzag(t, np.zeros_like(t), command)
+    assert metrics["period_s"] == 5.79  # the mean of 7.3 s and 4.28 s
+
+
 def test_times_taken_between_two_rows_carry_no_float_noise() -> None:
     """A leg's duration and a depth step's settling time are differences of two row times
     k * h: 8.21 - 1.0 is 7.210000000000001 in doubles, which summary.json would show; they
