@@ -10,7 +10,7 @@ Internal Actuators*, FAU 2016) is not part of the repository; give this script i
     python scripts/dissertation_numbering.py DISSERTATION.txt --write   # rewrite it
 
 It writes ``tests/data/dissertation_numbering.toml``. The dissertation numbers its
-equations within each section (6.3.1 to 6.3.79), its figures, tables and examples
+equations within each section (Eqs. 6.3.1 to 6.3.79), its figures, tables and examples
 within each chapter, each from 1 without a gap (the script checks that and stops naming a
 gap), so the file keeps only the last number of each; and the section numbers of its
 table of contents.

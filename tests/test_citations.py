@@ -4,7 +4,9 @@ Every equation, figure, table, example and section of B. Li (FAU 2016) cited in 
 docs, scenarios and tests must be one the dissertation has: its numbering is in
 ``tests/data/dissertation_numbering.toml``, derived from its text by
 ``scripts/dissertation_numbering.py``. A citation of a number past the end, equation
-6.3.97, Fig. 6.52 or Sec. 6.4, fails here naming the file and the line.
+6.3.97, Fig. 6.52 or Sec. 6.4, fails here naming the file and the line; so does a bare
+"(6.3.1)", which cites a number both a section and an equation have (named, it is one:
+"Sec. 6.3.1", "Eq. (6.3.1)").
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ NAMED = re.compile(
 )
 KINDS = ("equations", "figures", "tables", "examples", "contents")
 NUMBER = re.compile(r"\d\.\d+(?:\.\d+)?")
+SECTIONS = frozenset(NUMBERING["contents"]["sections"])
+# what names a parenthesis an equation's, just before it: "Eq. (5.1.1)", "equations (6.3.1)"
+NAMED_EQUATION = re.compile(r"\b(?:Eqs?\.|[Ee]quations?)\s*$")
 
 
 def _files() -> list[Path]:
@@ -96,6 +101,23 @@ def citations(text: str) -> list[tuple[int, str, str]]:
     return found
 
 
+def ambiguous(text: str) -> list[tuple[int, str]]:
+    """(line, number) of each number ``text`` cites in parentheses that is a section's as
+    well as an equation's ("(5.1.1)": the dissertation's first equation of Sec. 5.1, and
+    Sec. 5.1.1), unless the parenthesis is named an equation's ("Eq. (5.1.1)")."""
+    found = []
+    for match in EQUATIONS.finditer(text):
+        start = text.rfind("\n", 0, match.start()) + 1
+        end = text.find("\n", match.end())
+        if OTHER_WORKS.search(text[start : len(text) if end < 0 else end]):
+            continue
+        if NAMED_EQUATION.search(text[start : match.start()]):
+            continue
+        line = text.count("\n", 0, match.start()) + 1
+        found += [(line, n) for n in EQUATION.findall(match.group(1)) if n in SECTIONS]
+    return found
+
+
 def test_the_scan_finds_each_kind_and_refuses_a_number_the_dissertation_lacks():
     """The scan reads every form the repository uses, and a number past the end of its
     section or chapter, or a section the contents lack, is refused."""
@@ -144,3 +166,19 @@ def test_every_dissertation_number_cited_exists(kind):
         f"{path}:{line}: {number}" for path, line, number in cited if not exists(kind, number)
     ]
     assert not missing, f"{kind} the dissertation does not have: {missing}"
+
+
+def test_a_number_both_a_section_and_an_equation_is_cited_as_one_of_them():
+    """ "(6.3.1)" reads as an equation, but 6.3.1 is a section's number too, and the scan
+    cannot tell which one a writer meant (nor could a reader): a section is cited by name
+    ("Sec. 6.3.1"), such an equation as one ("Eq. (6.3.1)"); the bare parenthesis is
+    refused. An equation whose number no section has stays bare ("(6.3.13)")."""
+    text = "(6.3.1), (6.3.13), (6.3.11-6.3.13)\nSec. 6.3.1, Eq. (6.3.1), equations (5.1.1)"
+    assert ambiguous(text) == [(1, "6.3.1")]
+    assert ambiguous("(5.1.12, 5.1.1)") == [(1, "5.1.1")]
+    found = [
+        f"{path.relative_to(ROOT).as_posix()}:{line}: ({number})"
+        for path in _files()
+        for line, number in ambiguous(path.read_text(encoding="utf-8"))
+    ]
+    assert not found, f"cite these as Sec. or Eq. (section and equation numbers): {found}"

@@ -307,7 +307,7 @@ def _relative_form(
     dx: np.ndarray,
 ) -> tuple[float, float]:
     """nu_dot and eta1_dot of the lateral and horizontal variants (the relative form with
-    the yaw-turned current, 5.2.10; the sheared current's terms, 5.3.1) into dx."""
+    the yaw-turned current, (5.2.10); the sheared current's terms, (5.3.1)) into dx."""
     nu_r, f = work[1], work[2]
     v0, v1, v2 = inputs[5] + p[SHEAR] * x[1], inputs[6], inputs[7]
     cp, sp = math.cos(x[5]), math.sin(x[5])

@@ -2,10 +2,10 @@
 
 Everything that moves the vehicle is here or in the modules it draws on: rigid body
 (2.3.11, 2.3.13), added mass and its Coriolis terms (A.62), the current's terms
-(:mod:`plant_fmu.model.currents`: 3.4.12, 3.4.20, 5.2.10, 5.3.1), viscous cross-flow and
+(:mod:`plant_fmu.model.currents`: (3.4.12), (3.4.20), (5.2.10), (5.3.1)), viscous cross-flow and
 lift (4.2.6-4.2.9), hydrostatics (3.5.3), propeller, tunnel thruster (6.3.79), stern planes
 (Table 6.1) and the internal moving mass with its servo (:mod:`plant_fmu.model.moving_mass`:
-6.3.11-6.3.13, or the full two-body equations 6.2.28). The equation numbers refer to
+(6.3.11)-(6.3.13), or the full two-body equations 6.2.28). The equation numbers refer to
 B. Li, *Dynamics and Control of Autonomous Underwater Vehicles with Internal Actuators*,
 FAU 2016; ``docs/model.md`` restates them. Kinematics live in
 :mod:`plant_fmu.model.kinematics`, the mass matrices in :mod:`plant_fmu.model.inertia`.
@@ -145,8 +145,8 @@ class PlantModel:
         moving_mass_model: the dissertation's equations (0, default) or the full two-body
             dynamics of hull and moving mass (1); see :class:`MovingMassModel`.
         servo_reaction: the servo's reaction -m_v y'' on the hull (sway, roll, yaw) and a
-            stop's impact act (True, default: 6.3.11-6.3.13); False leaves both out, as the
-            dissertation's 6-DOF simulation (6.3.79: only the offset weight m_v g y_v
+            stop's impact act (True, default: (6.3.11)-(6.3.13)); False leaves both out, as the
+            dissertation's 6-DOF simulation ((6.3.79): only the offset weight m_v g y_v
             cos(phi) in roll) does. Analysis only: the plant FMU always keeps them.
     """
 
@@ -214,7 +214,7 @@ class PlantModel:
         return self.variant is Variant.FULL and abs(float(z[PITCH])) > QUATERNION_CHART_PITCH
 
     def rotation(self, x: np.ndarray) -> np.ndarray:
-        """Body-to-earth rotation R of a state (Euler angles, 2.2.8) or of a stepping state,
+        """Body-to-earth rotation R of a state (Euler angles, (2.2.8)) or of a stepping state,
         from the attitude chart the stepping integrates there: the full variant's
         quaternion beyond ``QUATERNION_CHART_PITCH`` (accurate at pitch +-90 deg)."""
         if len(x) == N_STEP_STATES and self.uses_quaternion(x):
@@ -238,7 +238,7 @@ class PlantModel:
 
     def kinetic_energy(self, x: np.ndarray, inputs: np.ndarray) -> float:
         """Kinetic energy of the motion relative to the water, J: 1/2 nu_r^T (M_RB + M_A)
-        nu_r (5.1.1), constant in an ideal fluid (Thm 5.1); with the two-body model, of
+        nu_r, Eq. (5.1.1), constant in an ideal fluid (Thm 5.1); with the two-body model, of
         hull, fluid and moving mass together, 1/2 nu_r^T M(y_v) nu_r + m_v y' J.nu_r
         + 1/2 m_v y'^2."""
         nu_r = self.relative_velocity(x, inputs)
