@@ -5,8 +5,8 @@ docs, scenarios and tests must be one the dissertation has: its numbering is in
 ``tests/data/dissertation_numbering.toml``, derived from its text by
 ``scripts/dissertation_numbering.py``. A citation of a number past the end, equation
 6.3.97, Fig. 6.52 or Sec. 6.4, fails here naming the file and the line; so does a bare
-"(6.3.1)", which cites a number both a section and an equation have (named, it is one:
-"Sec. 6.3.1", "Eq. (6.3.1)").
+"(5.1.1)", which cites a number both a section and an equation have (named, it is one:
+"Sec. 5.1.1", "Eq. (5.1.1)").
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ NAMED = re.compile(
 KINDS = ("equations", "figures", "tables", "examples", "contents")
 NUMBER = re.compile(r"\d\.\d+(?:\.\d+)?")
 SECTIONS = frozenset(NUMBERING["contents"]["sections"])
-# what names a parenthesis an equation's, just before it: "Eq. (5.1.1)", "equations (6.3.1)"
+# what names a parenthesis an equation's, just before it: "Eq. (5.1.1)", "equations (5.1.1)"
 NAMED_EQUATION = re.compile(r"\b(?:Eqs?\.|[Ee]quations?)\s*$")
 
 
@@ -169,12 +169,12 @@ def test_every_dissertation_number_cited_exists(kind):
 
 
 def test_a_number_both_a_section_and_an_equation_is_cited_as_one_of_them():
-    """ "(6.3.1)" reads as an equation, but 6.3.1 is a section's number too, and the scan
+    """ "(5.1.1)" reads as an equation, but 5.1.1 is a section's number too, and the scan
     cannot tell which one a writer meant (nor could a reader): a section is cited by name
-    ("Sec. 6.3.1"), such an equation as one ("Eq. (6.3.1)"); the bare parenthesis is
+    ("Sec. 5.1.1"), such an equation as one ("Eq. (5.1.1)"); the bare parenthesis is
     refused. An equation whose number no section has stays bare ("(6.3.13)")."""
-    text = "(6.3.1), (6.3.13), (6.3.11-6.3.13)\nSec. 6.3.1, Eq. (6.3.1), equations (5.1.1)"
-    assert ambiguous(text) == [(1, "6.3.1")]
+    text = "(5.1.1), (6.3.13), (6.3.11-6.3.13)\nSec. 5.1.1, Eq. (5.1.1), equations (5.1.1)"
+    assert ambiguous(text) == [(1, "5.1.1")]
     assert ambiguous("(5.1.12, 5.1.1)") == [(1, "5.1.1")]
     found = [
         f"{path.relative_to(ROOT).as_posix()}:{line}: ({number})"
