@@ -191,6 +191,7 @@ def check_archive(path: Path) -> None:
 _ROOT_CHUNK = 1 << 16  # bytes read at a time until the root element's start tag
 _TOOL = "auv-cosim"  # the <Tool name> of our annotations: fmu_runtime.safe_slave.TOOL,
 # not imported, for pythonfmu and numpy that module imports
+_OUR_TOOL = re.compile(rb"<Tool\s+name\s*=\s*[\"']" + _TOOL.encode() + rb"[\"']")
 
 
 def root_attributes(stream: IO[bytes]) -> dict[str, str]:
@@ -382,7 +383,7 @@ def _annotations(path: Path) -> tuple[dict[str, dict[str, int]], tuple[str, ...]
 
     with zipfile.ZipFile(path) as archive:
         description = archive.read("modelDescription.xml")
-    if _TOOL.encode() not in description:  # another tool's FMU: no variable to look at
+    if not _OUR_TOOL.search(description):  # another tool's FMU: no variable to look at
         return {}, _log_categories(description)
     root = etree.fromstring(description)
     names = {

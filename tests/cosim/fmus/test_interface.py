@@ -146,19 +146,26 @@ def test_the_fmi_version_is_read_from_the_root_alone_not_the_whole_description(
         check_archive(fmu)
 
 
-def test_another_tools_log_categories_are_read_without_parsing_its_variables() -> None:
+def test_another_tools_log_categories_are_read_without_parsing_its_variables(
+    tmp_path: Path,
+) -> None:
     """The reading of an FMU's log categories and our annotations parsed a third-party
     FMU's whole description a second time, though only ours carry annotations: with 10^5
-    variables, seconds. Another tool's description is read up to its ModelVariables (what
-    follows, here bytes that are no XML, never), its categories those directly under
-    LogCategories."""
-    description = (
-        b'<?xml version="1.0"?>\n<fmiModelDescription fmiVersion="2.0" guid="g">'
-        b'<LogCategories><Category name="logAll"/><Category name="logError"/></LogCategories>'
-        b'<VendorAnnotations><Tool name="x"><Category name="not one"/></Tool></VendorAnnotations>'
-        b"<ModelVariables>" + b"<ScalarVariable " * 200_000
-    )
-    assert interface._log_categories(description) == ("logAll", "logError")
+    variables, seconds. Another tool's description (one that names auv-cosim in a text,
+    as our test FMUs do, but has no annotation of its) is read up to its ModelVariables
+    (what follows, here bytes that are no XML, never), its categories those directly
+    under LogCategories."""
+    fmu = tmp_path / "Other.fmu"
+    with zipfile.ZipFile(fmu, "w") as archive:
+        archive.writestr(
+            "modelDescription.xml",
+            b'<?xml version="1.0"?>\n<fmiModelDescription fmiVersion="2.0" guid="g" '
+            b'description="for the auv-cosim master"><LogCategories><Category name="logAll"/>'
+            b'<Category name="logError"/></LogCategories><VendorAnnotations><Tool name="x">'
+            b'<Category name="not one"/></Tool></VendorAnnotations>'
+            b"<ModelVariables>" + b"<ScalarVariable " * 200_000,
+        )
+    assert interface._annotations(fmu) == ({}, ("logAll", "logError"))
 
 
 @pytest.mark.parametrize(
