@@ -608,6 +608,12 @@ def _local_cluster(workers: int, dashboard: bool) -> LocalCluster:
     return cluster
 
 
+# the local clusters starting now in this process (threads of the Python API), under its
+# lock, and Dask's own interval, which the last of them to end puts back
+_nanny_looks: dict[str, Any] = {"starting": 0, "dask_own": None}
+_nanny_looks_lock = threading.Lock()
+
+
 @contextmanager
 def _nannies_look_often() -> Iterator[None]:
     """While on (the local cluster's start), each nanny looks for its worker's word that it
@@ -615,18 +621,27 @@ def _nannies_look_often() -> Iterator[None]:
     run, waited up to 0.05 s (0.025 s on average) after the last worker had joined the
     scheduler, with one worker as with two. By hand: Dask reads it from a class attribute
     of the nanny's worker process, not from its configuration. Nothing changes where that
-    attribute is missing (another Dask)."""
+    attribute is missing (another Dask). Two clusters starting at once (two threads) share
+    it: the first to start keeps Dask's value and the last to end puts it back."""
     from distributed.nanny import WorkerProcess
 
-    dask_own = WorkerProcess.__dict__.get("_init_msg_interval")
-    if not isinstance(dask_own, float):
-        yield
-        return
-    WorkerProcess._init_msg_interval = min(dask_own, NANNY_LOOK_S)
+    with _nanny_looks_lock:
+        dask_own = _nanny_looks["dask_own"]
+        if _nanny_looks["starting"] == 0:
+            dask_own = WorkerProcess.__dict__.get("_init_msg_interval")
+        if not isinstance(dask_own, float):
+            dask_own = None
+        else:
+            _nanny_looks.update(starting=_nanny_looks["starting"] + 1, dask_own=dask_own)
+            WorkerProcess._init_msg_interval = min(dask_own, NANNY_LOOK_S)
     try:
         yield
     finally:
-        WorkerProcess._init_msg_interval = dask_own
+        with _nanny_looks_lock:
+            if dask_own is not None:
+                _nanny_looks["starting"] -= 1
+                if _nanny_looks["starting"] == 0:
+                    WorkerProcess._init_msg_interval = dask_own
 
 
 def _ctrl_c_held(forked: bool) -> AbstractContextManager[None]:

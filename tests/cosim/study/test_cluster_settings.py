@@ -127,3 +127,24 @@ def test_a_local_clusters_nannies_see_their_workers_start_within_5_ms(run_python
     assert len(looks) == 2, looks
     assert all(look <= 0.005 for look in looks), f"the nannies looked every {looks} s"
     assert after == dask_own, (after, dask_own)
+
+
+def test_two_clusters_starting_at_once_leave_dasks_nanny_interval_as_it_was() -> None:
+    """Two studies of the Python API whose local clusters start at once (two threads of one
+    process): the nannies look often until the last start has ended, and Dask's own
+    interval is back after both, whichever ends first."""
+    from distributed.nanny import WorkerProcess
+
+    from cosim.study.execution import NANNY_LOOK_S, _nannies_look_often
+
+    dask_own = WorkerProcess._init_msg_interval
+    first, second = _nannies_look_often(), _nannies_look_often()
+    first.__enter__()
+    second.__enter__()
+    first.__exit__(None, None, None)
+    during = WorkerProcess._init_msg_interval
+    second.__exit__(None, None, None)
+    after = WorkerProcess._init_msg_interval
+    WorkerProcess._init_msg_interval = dask_own  # (for the tests after this one)
+    assert during == NANNY_LOOK_S, f"the second start's nannies look every {during} s"
+    assert after == dask_own, f"after both starts the nannies look every {after} s"
