@@ -306,8 +306,9 @@ def read_interfaces(job: Job) -> dict[str, FmuInterface]:
     """The interfaces of the job's FMU files that are this process's copies (a local
     cluster's, :func:`cosim.study.unpacked.local_copy`, named by their content's SHA-256),
     by copy: each its original's, which this process read as it checked the study, where
-    the original still holds the copy's content (~1.5 ms of CPU a file to hash). For the
-    workers' fork server, which warms up on the copies without reading them again
+    the content it read it from is the copy's (an original changed since, even to the
+    same size and modification time, is no longer). For the workers' fork server, which
+    warms up on the copies without reading them again
     (:func:`cosim.study.fork_server.hand_over`). None for a file that cannot be read."""
     found: dict[str, FmuInterface] = {}
     for instance, copy in job.fmu_files.items():
@@ -315,12 +316,8 @@ def read_interfaces(job: Job) -> dict[str, FmuInterface]:
         if original is None or not Path(copy).is_absolute():
             continue
         with suppress(CosimError, OSError):  # the run says what is wrong with it, as before
-            before = original.stat()
             interface = read_interface(original)
-            digest = hashlib.sha256(original.read_bytes()).hexdigest()
-            after = original.stat()
-            same = (before.st_mtime_ns, before.st_size) == (after.st_mtime_ns, after.st_size)
-            if same and digest == Path(copy).stem:
+            if interface.sha256 == Path(copy).stem:
                 found[copy] = interface
     return found
 

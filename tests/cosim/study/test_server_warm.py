@@ -11,7 +11,9 @@ import gc
 import hashlib
 import os
 import pickle
+import re
 import weakref
+import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -342,3 +344,43 @@ def test_the_interfaces_are_read_for_a_waiting_server_only(tmp_path, monkeypatch
     handed = pickle.loads(handed_over(path, os.getppid(), 0.0) or b"")
     assert handed == ({"study": 1}, {"copy.fmu": "its interface"})
     assert calls == [1]
+
+
+def _stored(source: Path, target: Path, guid: str | None = None) -> str:
+    """``source``'s FMU at ``target``, every entry stored (its size the same whatever the
+    content), its GUID replaced by ``guid`` (as long); the GUID it has."""
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(target, "w", zipfile.ZIP_STORED) as zout:
+        for info in zin.infolist():
+            data = zin.read(info)
+            if info.filename == "modelDescription.xml":
+                found = re.search(rb'guid="([^"]*)"', data)
+                assert found is not None
+                old = found[1].decode()
+                data = data.replace(found[1], (guid or old).encode())
+            info.compress_type = zipfile.ZIP_STORED
+            zout.writestr(info, data)
+    return guid or old
+
+
+def test_a_changed_fmu_of_the_same_size_and_time_is_not_given_the_old_interface(
+    fmu_paths, tmp_path
+) -> None:
+    """An FMU replaced by another of the same size and modification time (copied with its
+    time kept, say) after the client read it: the client's copy is of the new content, and
+    the interface handed over with it is not the old one's."""
+    original = tmp_path / "plant.fmu"
+    old_guid = _stored(fmu_paths["AuvPlant"], original)
+    stat = original.stat()
+    assert interface.read_interface(original).guid == old_guid  # the client read it
+    new_guid = old_guid.translate(str.maketrans("0123456789abcdef", "fedcba9876543210"))
+    _stored(fmu_paths["AuvPlant"], original, new_guid)
+    os.utime(original, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert original.stat().st_size == stat.st_size
+    content = original.read_bytes()
+    copy = tmp_path / f"{hashlib.sha256(content).hexdigest()}.fmu"
+    copy.write_bytes(content)
+    base = Base("bs-3", {}, {"plant": original})
+    job = Job(base, {}, "none", False, {"plant": str(copy)}, "plugin", "session")
+    given = read_interfaces(job).get(str(copy))
+    guid = None if given is None else given.guid
+    assert guid in (None, new_guid), f"the copy of GUID {new_guid} given the interface of {guid}"
