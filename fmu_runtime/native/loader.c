@@ -770,25 +770,31 @@ static size_t scheme_length(const char *uri)
     return uri[n] == ':' ? n : 0;
 }
 
+/* 1 if ``text`` starts with ``lower`` (lower-case ASCII) in any case. By hand:
+ * strncasecmp is POSIX only, and follows the locale. */
+static int starts_in_any_case(const char *text, const char *lower)
+{
+    for (size_t i = 0; lower[i]; i++) {
+        if (tolower((unsigned char)text[i]) != lower[i]) return 0; /* ends at text's NUL */
+    }
+    return 1;
+}
+
 /* 1 if ``uri`` starts with "file:" in any case (FILE:, File:): schemes are
  * case-insensitive (RFC 3986, 3.1). */
 static int file_scheme(const char *uri)
 {
-    static const char file[] = "file";
-    if (scheme_length(uri) != 4) return 0;
-    for (size_t i = 0; i < 4; i++) {
-        if (tolower((unsigned char)uri[i]) != file[i]) return 0;
-    }
-    return 1;
+    return scheme_length(uri) == 4 && starts_in_any_case(uri, "file");
 }
 
 /* What uri_to_path found wrong. */
 enum { URI_PATH, URI_TOO_LONG, URI_NUL, URI_SCHEME };
 
 /* A file: URI (or a plain path) as a path (RFC 8089): %XX decoded (a % not followed by two
- * hexadecimal digits kept as it is), the host "localhost" dropped (file://localhost/x is
- * /x), a drive letter where the host goes taken for the drive (file://C:/x), another host
- * kept as "//host/x" (a UNC path on Windows), then made a local path (platform_local_path).
+ * hexadecimal digits kept as it is), the host "localhost" in any case dropped
+ * (file://localhost/x and file://LOCALHOST/x are /x), a drive letter where the host goes
+ * taken for the drive (file://C:/x), another host kept as "//host/x" (a UNC path on
+ * Windows), then made a local path (platform_local_path).
  * URI_PATH, or why not: URI_TOO_LONG when the path does not fit in ``n`` bytes (cut short,
  * it would be another folder), URI_NUL for a %00 (the path would end there, another
  * folder too), URI_SCHEME for another scheme than file: (http:, ...). */
@@ -799,7 +805,7 @@ static int uri_to_path(const char *uri, char *out, size_t n)
     if (!file && scheme_length(p) > 1) return URI_SCHEME; /* one letter: a drive, C:/x */
     int authority = file && !strncmp(p + 4, "://", 3) && p[7] != '/'; /* file://host/... */
     if (file) p += strncmp(p + 4, "://", 3) ? 5 : 7;
-    if (authority && !strncmp(p, "localhost/", 10)) {
+    if (authority && starts_in_any_case(p, "localhost/")) { /* hosts: any case (3.2.2) */
         p += 9; /* from the slash on */
         authority = 0;
     } else if (authority && (p[0] | 0x20) >= 'a' && (p[0] | 0x20) <= 'z' && p[1] == ':' &&

@@ -287,8 +287,10 @@ def test_resource_uris_as_hosts_spell_them_load_the_fmu_from_any_folder(
 ):
     """An extraction in a folder named with a space and non-ASCII characters, its resources'
     URI spelled as hosts spell it (RFC 8089: percent-encoded after file:///, file:/ or
-    file://localhost): the outputs of the extraction in a plain folder, with either runtime.
-    pythonfmu's binary, which decodes only %20, crashed its host on all three."""
+    file://localhost, the host in any case, RFC 3986, 3.2.2: file://LOCALHOST was taken for
+    a host, //LOCALHOST/..., another folder): the outputs of the extraction in a plain
+    folder, with either runtime. pythonfmu's binary, which decodes only %20, crashed its
+    host on the first three."""
     plain = extracted["AuvPlant"]
     uri = (plain / "resources").as_uri()
     expected = _uri_outputs(run_clean([host, plain, "AuvPlant", "uri", uri], clean_home,
@@ -297,7 +299,12 @@ def test_resource_uris_as_hosts_spell_them_load_the_fmu_from_any_folder(
     shutil.copytree(plain, odd)
     path = quote(str(odd / "resources"))
     assert "%20f%C3%BCr%20" in path
-    for uri in (f"file://{path}", f"file:{path}", f"file://localhost{path}"):
+    for uri in (
+        f"file://{path}",
+        f"file:{path}",
+        f"file://localhost{path}",
+        f"FILE://LocalHost{path}",
+    ):
         done = run_clean([host, odd, "AuvPlant", "uri", uri], clean_home, **RUNTIMES[runtime])
         assert _uri_outputs(done) == expected, uri
 
