@@ -216,6 +216,14 @@ static long not_utf8_at(const char *text)
     return -1;
 }
 
+/* ``text``, which fills its ``size`` bytes (snprintf may have cut it short), ended between
+ * characters: escape() would show a character cut in two as bytes that are no UTF-8. */
+static void cut_whole(char *text, size_t size)
+{
+    size_t n = strlen(text);
+    if (n + 1 == size) text[whole_characters(text, n)] = '\0';
+}
+
 fmi2Status refuse(Instance *c, const char *format, ...)
 {
     char text[LINE_SIZE], escaped[2 * LINE_SIZE];
@@ -223,6 +231,7 @@ fmi2Status refuse(Instance *c, const char *format, ...)
     va_start(args, format);
     vsnprintf(text, sizeof text, format, args);
     va_end(args);
+    cut_whole(text, sizeof text);
     escape(text, escaped, sizeof escaped);
     instance_log(c, fmi2Error, "logStatusError", escaped);
     return fmi2Error;
@@ -930,6 +939,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     c->logging = loggingOn;
     c->visible = visible;
     if (instantiation_refusal(c, type, guid, resources, why, sizeof why)) {
+        cut_whole(why, sizeof why);
         snprintf(line, sizeof line, "fmi2Instantiate refused: %s", why);
         refuse_instantiation(functions, name, line);
     } else if (runtime_python(c) && c->backend->start(c)) {
@@ -1110,10 +1120,12 @@ static fmi2Status discard_for_refusal(Instance *c, const char *at, double h)
     while (vr < c->count && !c->vars[vr].refused) vr++;
     const Variable *v = &c->vars[vr];
     write_refusal(c, vr, v->type, v->refused_value, 0, why, sizeof why);
+    cut_whole(why, sizeof why);
     snprintf(text, sizeof text,
              "doStep at t = %s s, h = %s s refused: %s, so the step would use the value "
              "before it: write a valid value",
              at, show(h, shown), why);
+    cut_whole(text, sizeof text);
     escape(text, escaped, sizeof escaped);
     instance_log(c, fmi2Error, "logStatusError", escaped);
     return fmi2Discard;

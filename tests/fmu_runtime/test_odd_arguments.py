@@ -107,3 +107,13 @@ def test_host_text_that_is_not_utf8_is_quoted_in_a_utf8_message(case, shown, cas
     no UTF-8 is shown as ``\\xNN`` now."""
     line = _refused(cases, case)
     assert "VIOLATION" not in line and shown in line, line
+
+
+@pytest.mark.slow
+def test_a_message_cut_short_is_cut_between_characters(cases):
+    """A refusal longer than a log line quoting a host's UTF-8 (a GUID of 1,200 "é"s) was
+    cut inside a character, whose first byte was then shown as ``\\xc3``: text the host
+    handed in as UTF-8 shown as bytes that are not."""
+    line = _refused(cases, "guid-long-utf8")
+    assert "GUID x\u00e9\u00e9" in line, line[:200]
+    assert "\\x" not in line, line[-200:]

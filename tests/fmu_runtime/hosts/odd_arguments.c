@@ -150,6 +150,11 @@ static void instantiations(void)
     }
     Component c = instantiate("guid-not-utf8", "odd", "\xff{not a guid}", resources);
     if (c) F.free_instance(c);
+    /* a GUID of UTF-8 the message cuts short inside a character ("x" then 2-byte ones) */
+    char long_guid[2 + 2 * 1200] = "x";
+    for (int i = 0; i < 1200; i++) strcat(long_guid + 2 * i, "\xc3\xa9");
+    c = instantiate("guid-long-utf8", "odd", long_guid, resources);
+    if (c) F.free_instance(c);
 }
 
 int main(int argc, char **argv)
