@@ -389,12 +389,18 @@ def _study(args: argparse.Namespace) -> int:
     if args.scheduler is None:  # before a worker or the fork server starts
         check_local_study()
     local = args.scheduler is None and not args.resume
-    if not local:
-        return _run_study(args, local)
-    # the workers' fork server imports beside this process (cosim.study.fork_server) and
-    # warms up once on the study it is handed (cosim.study.server_warm)
     from cosim.study import fork_server
 
+    if not local:
+        try:
+            return _run_study(args, local)
+        finally:  # a resumed study's local cluster, opened once it knew the runs left,
+            # has closed: its workers' fork server ends now, as a fresh study's does
+            # (early_client's end_server), not with the command
+            if args.scheduler is None and args.own_process:
+                fork_server.stop()
+    # the workers' fork server imports beside this process (cosim.study.fork_server) and
+    # warms up once on the study it is handed (cosim.study.server_warm)
     fork_server.start(warm=True)
     try:
         return _run_study(args, local)

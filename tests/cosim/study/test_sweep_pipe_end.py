@@ -37,11 +37,11 @@ read, write = os.pipe()
 sweep = subprocess.Popen([sys.executable, "-m", "cosim.cli", "sweep", *sys.argv[1:]],
                          stdout=subprocess.DEVNULL, stderr=write)
 os.close(write)
-names, ended = {}, threading.Event()
+names, ended, status = {}, threading.Event(), []
 
 
 def wait():
-    os.waitpid(sweep.pid, 0)
+    status.append(os.waitpid(sweep.pid, 0)[1])
     ended.set()
 
 
@@ -61,15 +61,28 @@ while err := os.read(read, 65536):
     sys.stderr.buffer.write(err)
 for pid in left:
     os.waitpid(int(pid), 0)
+sys.exit(os.waitstatus_to_exitcode(status[0]))
 """
 
 
-def test_the_sweep_ends_its_fork_server_before_it_exits(fmu_dir: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("resumed", [False, True], ids=["fresh", "resumed"])
+def test_the_sweep_ends_its_fork_server_before_it_exits(
+    fmu_dir: Path, tmp_path: Path, resumed: bool
+) -> None:
+    """A fresh sweep and a resumed one (its cluster opened late, once the runs left are
+    known) alike; the wrapper exits with the sweep's code."""
     study = tmp_path / "study.toml"
     study.write_text(STUDY, encoding="utf-8")
     wrapper = tmp_path / "wrapper.py"
     wrapper.write_text(WRAPPER, encoding="utf-8")
-    args = [str(study), "--fmu-dir", str(fmu_dir), "--out", str(tmp_path / "out")]
+    out = tmp_path / "out"
+    args = [str(study), "--fmu-dir", str(fmu_dir), "--out", str(out)]
+    if resumed:  # a study whose last run is left to run
+        sweep = [sys.executable, "-m", "cosim.cli", "sweep", *args, "--workers", "1", "--quiet"]
+        assert run_in_group(sweep, timeout=600).returncode == 0
+        table = out / "runs.csv"
+        table.write_text("".join(table.read_text("utf-8").splitlines(True)[:-1]), "utf-8")
+        args.append("--resume")
     done = run_in_group([sys.executable, str(wrapper), *args, "--workers", "2", "--quiet"],
                         timeout=600)  # fmt: skip
     assert done.returncode == 0, done.stderr
