@@ -34,8 +34,10 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager, suppress
+from typing import Any
 
 import cosim.environ_writes as environ_writes
 from plant_fmu.model import jit  # standard library only until numba is loaded
@@ -63,6 +65,9 @@ _handing = threading.Lock()  # the command's thread and its cluster's may hand o
 # the study (its plugin's name) this process warmed up on, in the server
 # (cosim.study.server_warm): every worker it forks afterwards inherits the mark
 _warmed_on: str | None = None
+# s stop() waits for the server to end before it kills it: an idle server ends in ms
+STOP_WAIT_S = 1.0
+STOP_POLL_S = 0.005  # s between two looks whether it has ended
 
 
 def available() -> bool:
@@ -107,21 +112,54 @@ def start(warm: bool = False) -> bool:
 
 
 def stop() -> None:
-    """End the fork server this process started, if it runs, and wait until it has ended;
-    a later :func:`start` starts another. For a command whose local cluster has closed
-    (its workers are gone) and that ends soon: left running, the server would end only once
-    the command had ended (its pipe from the command closed), and a pipe reading the
-    command's stderr, which the server inherited, waited for that (0.03-0.08 s under load,
-    ``python scripts/sweep_pipe_holders.py``). By hand: multiprocessing stops its server
-    only in its own tests (``_stop``). Never raises."""
+    """End the fork server this process started, if it runs, and wait until it has ended,
+    STOP_WAIT_S at most: a server still warming up then (importing the run's modules,
+    waiting for its study or warming up on it, seconds) is killed (SIGKILL): nothing is
+    lost but its warm-up, for workers no longer to be forked, and its scratch folder, which
+    the next process removes (:mod:`cosim.scratch`). A later :func:`start` starts another.
+    For a command whose local cluster has closed (its workers are gone) and that ends soon:
+    left running, the server would end only once the command had ended (its pipe from the
+    command closed), and a pipe reading the command's stderr, which the server inherited,
+    waited for that (0.03-0.08 s under load, ``python scripts/sweep_pipe_holders.py``).
+    By hand, as multiprocessing's own ``ForkServer._stop`` (for its tests) does, but with
+    the wait bounded (``_stop`` waits for as long as the server runs). Never raises."""
     if not available():
         return
-    from multiprocessing import forkserver
+    from multiprocessing import forkserver, util
 
-    # (one already ended: reaped, ChildProcessError, all the same; a Python without the
-    # private call: the server ends with the command, as before)
-    with suppress(OSError, AttributeError):
-        forkserver._forkserver._stop()  # type: ignore[attr-defined]
+    server: Any = forkserver._forkserver  # (its private attributes, untyped)
+    # (a Python without these private attributes: the server ends with the command)
+    with suppress(AttributeError), server._lock:
+        pid = server._forkserver_pid
+        if pid is None:
+            return
+        os.close(server._forkserver_alive_fd)  # its end of file tells the server to end
+        server._forkserver_alive_fd = server._forkserver_pid = None
+        if not _reaped(pid, STOP_WAIT_S):
+            with suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+            with suppress(ChildProcessError):
+                os.waitpid(pid, 0)
+        address, server._forkserver_address = server._forkserver_address, None
+        if not util.is_abstract_socket_namespace(address):
+            with suppress(OSError):
+                os.unlink(address)
+
+
+def _reaped(pid: int, wait_s: float) -> bool:
+    """Whether the child ``pid`` ended (and was reaped here, or elsewhere) within
+    ``wait_s`` s. By hand: the standard library waits for a child without a time limit
+    only (``os.waitpid``); looked at every STOP_POLL_S."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            if os.waitpid(pid, os.WNOHANG)[0]:
+                return True
+        except ChildProcessError:
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(STOP_POLL_S)
 
 
 @contextmanager
