@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import atexit
 import os
+import stat
 import sys
 from contextlib import suppress
 
@@ -70,9 +71,21 @@ def _tracker_told() -> None:
     not as the kernel ends the process, after it has freed the process's memory. The
     tracker holds the command's stderr until it has ended (it says there what it cleans
     up): a pipe reading the command waited for it. By hand: multiprocessing has no call
-    for it outside its own tests."""
+    for it outside its own tests.
+
+    The pipe is not closed but replaced by /dev/null under the same fd at once
+    (``os.dup2``): a thread registering a resource before the process ends (a daemon
+    thread's) writes there, not into a closed fd or the next file opened in its place,
+    and its probe of the tracker finds it alive (a closed fd made it start another)."""
     tracker = sys.modules.get("multiprocessing.resource_tracker")
     fd = getattr(getattr(tracker, "_resource_tracker", None), "_fd", None)
-    if isinstance(fd, int):
-        with suppress(OSError):  # closed already: nothing to tell
-            os.close(fd)
+    if not isinstance(fd, int):
+        return
+    with suppress(OSError):  # closed already, or no /dev/null: nothing to tell
+        if not stat.S_ISFIFO(os.fstat(fd).st_mode):
+            return  # closed, and the fd reused: not the tracker's pipe any more
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, fd, inheritable=False)
+        finally:
+            os.close(null)

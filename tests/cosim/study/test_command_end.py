@@ -117,3 +117,36 @@ def test_the_resource_tracker_is_told_before_the_process_ends(tmp_path: Path) ->
     assert result.returncode == 5, result.stderr
     assert result.stderr == "a message\ntracker ended\n"
     assert mark.read_text(encoding="utf-8") == "handler ran"
+
+
+# a registration with the tracker after it was told, as a daemon thread's may come before
+# the process's last step: here, the last step itself, with a file opened just before
+TRACKER_WRITTEN_TO = """
+import os
+from multiprocessing import resource_tracker
+
+resource_tracker.ensure_running()
+pipe = resource_tracker._resource_tracker._fd
+exit_now = os._exit
+
+
+def register_then_exit(code):
+    opened = [os.open(FILE, os.O_WRONLY | os.O_CREAT, 0o600)]  # the lowest fd free each
+    while opened[-1] < pipe:  # up to the tracker pipe's number, if it is free
+        opened.append(os.open(FILE, os.O_WRONLY))
+    resource_tracker.register("/auv-cosim-test", "semaphore")
+    exit_now(code)
+
+
+os._exit = register_then_exit
+"""
+
+
+def test_a_registration_after_the_tracker_was_told_writes_into_no_file(tmp_path: Path) -> None:
+    """The tracker's pipe closed, its fd was left to the next file opened, into which a
+    late registration wrote (the tracker's probe and the registration's line)."""
+    opened = tmp_path / "opened.txt"
+    after = TRACKER_WRITTEN_TO.replace("FILE", repr(str(opened)))
+    result, _ = _ended(tmp_path, code=4, after=after)
+    assert result.returncode == 4, result.stderr
+    assert opened.read_text(encoding="utf-8") == ""
