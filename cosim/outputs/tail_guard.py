@@ -13,7 +13,8 @@ until the guard ends. The run writes lines on it:
 * ``aside ["ORIGINAL", "ASIDE"]`` (JSON) for each file of an earlier run it set aside
   (renamed) before opening its own outputs, and ``new "PATH"`` for each file it created;
 * ``commit`` once it has taken its first step (the set-aside files are then removed);
-* ``done`` when its files are complete.
+* ``done`` when its files are complete: the guard then ends at once, without reading on
+  to its input's end (a child the run forked may hold a copy of it open).
 
 When the pipe closes -- the run closed it at its end, or the kernel did when the run was
 killed (SIGKILL included) -- without ``done``: a run that never committed is undone (the
@@ -202,17 +203,17 @@ def main(argv: list[str]) -> int:
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), signal.SIG_IGN)
     manifest, files = argv[0], argv[1:]
-    done, committed, rrd_size, pending = False, False, None, b""
+    committed, rrd_size, pending = False, None, b""
     created: list[str] = []
     aside: list[tuple[str, str]] = []
     read = reader()
-    while chunk := read():  # until the run closes its end or dies
+    while chunk := read():  # until the run says done, closes its end or dies
         lines = (pending + chunk).split(b"\n")
         pending = lines.pop()  # an incomplete line waits for the rest
         for line in lines:
             word, _, rest = line.decode("utf-8", "surrogateescape").partition(" ")
-            if word == "done":
-                done = True
+            if word == "done":  # not read on to the end: a child the run forked may
+                return 0  # hold a copy of the input open long after the run
             elif word == "commit":
                 committed, aside = True, []
             elif word == "rrd":
@@ -222,8 +223,6 @@ def main(argv: list[str]) -> int:
             elif word == "aside":
                 original, moved = json.loads(rest)
                 aside.append((original, moved))
-    if done:
-        return 0
     if not committed:  # it never stepped: nothing computed, the folder as it was
         undo([*created, manifest], aside)
         return 0

@@ -1,5 +1,5 @@
 """A tail guard that has not ended GUARD_TIMEOUT_S after the run released its folder (a
-guard stopped, or one whose input a forked child still holds open) is ended and reaped
+guard stopped, say) is ended and reaped
 by the release: none is left running, nor a Popen dropped with it still running."""
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from process_group import started_in_group
 
 from cosim.outputs import folder as folder_module
 from cosim.outputs.folder import RunFolder
@@ -57,3 +58,23 @@ def test_a_guard_that_outlives_the_timeout_is_ended_and_reaped(
         with contextlib.suppress(ProcessLookupError, ChildProcessError):
             os.killpg(pid, signal.SIGKILL)  # its own session: the group is its id
             os.waitpid(pid, 0)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="a socket handed to another process")
+def test_a_guard_told_done_ends_while_a_child_holds_its_input(tmp_path: Path) -> None:
+    """A child forked by the run (a copy of the guard's socket in it) kept the input open
+    after the run closed its end: the guard, told ``done``, read on to the end of its input
+    and was killed GUARD_TIMEOUT_S later (exit code -9) instead of ending."""
+    run = RunFolder.claim(tmp_path / "run")
+    run.start_guard(tmp_path / "run" / "results.csv", None)
+    guard, channel = run._guard, run._channel
+    assert guard is not None and channel is not None
+    holder = [sys.executable, "-c", "import time; time.sleep(600)"]
+    try:
+        with started_in_group(holder, pass_fds=(channel.fileno(),)):
+            run.release()
+            assert guard.returncode == 0
+    finally:
+        with contextlib.suppress(ProcessLookupError, ChildProcessError):
+            os.killpg(guard.pid, signal.SIGKILL)
+            os.waitpid(guard.pid, 0)
