@@ -1,6 +1,6 @@
 """A tail guard that has not ended GUARD_TIMEOUT_S after the run released its folder (a
-guard stopped, say) is ended and reaped
-by the release: none is left running, nor a Popen dropped with it still running."""
+guard stopped, say) is ended and reaped by the release: none is left running, nor a Popen
+dropped with it still running; a guard told ``done`` ends by itself."""
 
 from __future__ import annotations
 
