@@ -312,21 +312,22 @@ def _checked_overrides(
     }
 
 
-def _move_design_steps(data: dict[str, Any], coupling: Coupling, step: float) -> None:
+def _move_design_steps(
+    data: dict[str, Any], coupling: Coupling, step: float, digital: Collection[str]
+) -> None:
     """Each instance's ``design_step`` that is its communication step (within a relative
     1e-9: 3 x 0.1 s is 0.30000000000000004 s) set to its step under the new ``step``, in
-    ``data``; a digital controller's (``sample_period`` > 0) kept."""
+    ``data``; a digital controller's (named in ``digital``: :func:`sample_period` > 0, our
+    autopilot's only, as its FMU is known, not any start value of that name) kept."""
     for name, instance in data.get("instances", {}).items():
         multiple = coupling.step_multiples.get(name, 1)
-        start = instance.get("start", {})
-        designed = start.get("design_step")
-        digital = start.get("sample_period", 0.0) > 0.0
+        designed = instance.get("start", {}).get("design_step")
         if (
             isinstance(designed, float | int)
-            and not digital
+            and name not in digital
             and math.isclose(designed, coupling.step * multiple, rel_tol=1e-9)
         ):
-            start["design_step"] = step * multiple
+            instance["start"]["design_step"] = step * multiple
 
 
 INSTANCES_HINT = (
@@ -565,10 +566,11 @@ class Scenario:
         A new step also moves every instance's ``design_step`` start value that equalled
         that instance's old communication step (a sampled controller designed for the step
         it runs at, like the autopilot's discrete LQR), so ``--step`` never leaves a
-        controller designed for another sample time; an instance with a ``sample_period``
-        of its own (a digital controller) keeps both. An override changes what it names
-        only: another algorithm keeps the extrapolation the scenario resolved to (naming
-        the algorithm it runs changes nothing) and drops the adaptive algorithm's keys.
+        controller designed for another sample time; our autopilot with a ``sample_period``
+        of its own (a digital controller, :func:`sample_period`) keeps both. An override
+        changes what it names only: another algorithm keeps the extrapolation the scenario
+        resolved to (naming the algorithm it runs changes nothing) and drops the adaptive
+        algorithm's keys.
 
         ``stop_time`` and ``step`` are in s, ``tolerance`` the adaptive algorithm's relative
         error a step may make (between 0 and 1, docs/coupling.md); None keeps the
@@ -595,7 +597,8 @@ class Scenario:
                     data["coupling"].pop(key, None)
         data["coupling"].update(coupling)
         if step is not None:
-            _move_design_steps(data, self.coupling, step)
+            digital = {n for n, inst in self.instances.items() if sample_period(inst) > 0.0}
+            _move_design_steps(data, self.coupling, step, digital)
         if stop_time is not None:
             data["stop_time"] = stop_time
         named = {"stop_time": stop_time, **{f"coupling.{k}": v for k, v in given.items()}}
