@@ -190,8 +190,13 @@ def search_box_text(names: Sequence[str]) -> str:
 def numerical_zeros(rows: Sequence[Mapping[str, float]]) -> list[dict[str, float]]:
     """The rows of state values (SI units) with each numerical zero printed as 0: a value
     below :data:`ZERO_BELOW` times the largest |value| of its unit over the rows (a roll
-    rate of -6.8e-31 rad/s beside a yaw rate of 0.14 rad/s, as the solver leaves it)."""
+    rate of -6.8e-31 rad/s beside a yaw rate of 0.14 rad/s, as the solver leaves it), or
+    than the search box's largest bound of that unit (2 m/s, 0.4 rad/s, pi/2 rad), so that
+    a unit whose values are all noise (the straight line's branch point over mu: roll,
+    p and r ~1e-22 and less) is printed as 0 too."""
     scale: dict[str, float] = {}
+    for name, bounds in SEARCH_BOX.items():
+        scale[_unit(name)] = max(scale.get(_unit(name), 0.0), *map(abs, bounds))
     for row in rows:
         for name, value in row.items():
             scale[_unit(name)] = max(scale.get(_unit(name), 0.0), abs(value))

@@ -499,3 +499,16 @@ def test_a_phase_portrait_says_it_replaced_an_earlier_one(capsys, tmp_path) -> N
     code, out, _ = _run(capsys, "analyze", "phase-portrait", "--out", str(tmp_path))
     assert code == 0
     assert f"{tmp_path / 'phase_portrait.png'} (replaced the earlier one)" in out, out
+
+
+@pytest.mark.slow
+def test_a_special_point_whose_rates_are_all_solver_noise_prints_them_as_0(capsys, tmp_path):
+    """The straight line's branch point over mu: every rad/s value of the table was solver
+    noise, so none was the largest to compare with, and the line read "roll = -8.941e-22
+    deg, ..., p = 3.675e-33 rad/s, r = -1.005e-22 rad/s"."""
+    code, out, _ = _run(
+        capsys, "analyze", "sweep", "mu", "0.2", "3", "--variant", "1", "--out", str(tmp_path)
+    )
+    assert code == 0
+    point = next(line for line in out.splitlines() if "branch point" in line)
+    assert "roll = 0 deg" in point and "p = 0 rad/s" in point and "r = 0 rad/s" in point, point
