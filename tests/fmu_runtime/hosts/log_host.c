@@ -30,6 +30,7 @@
 #include <string.h>
 
 #include "fmi2_callbacks.h"
+#include "log_rules.h"
 
 typedef void *Component;
 
@@ -51,26 +52,6 @@ static int is_utf8(const char *text)
     return 1;
 }
 
-/* 1 if ``category`` is a <Category name="..."> of the model description. */
-static int declared(const char *category)
-{
-    const char *start = strstr(description, "<LogCategories>");
-    const char *end = start ? strstr(start, "</LogCategories>") : NULL;
-    char attribute[300];
-    snprintf(attribute, sizeof attribute, "name=\"%s\"", category);
-    const char *at = start ? strstr(start, attribute) : NULL;
-    return at && at < end;
-}
-
-/* 1 if every % of ``message`` is doubled: a format that reads no argument. */
-static int no_conversion(const char *message)
-{
-    for (const char *p = message; *p; p++) {
-        if (*p == '%' && *++p != '%') return 0;
-    }
-    return 1;
-}
-
 static const char *broken_rule(const char *name, int status, const char *category,
                                const char *message)
 {
@@ -79,7 +60,9 @@ static const char *broken_rule(const char *name, int status, const char *categor
         return "another instance name (or NULL)";
     }
     if (status < 0 || status > 4) return "a status outside fmi2OK .. fmi2Fatal";
-    if (!category || !declared(category)) return "a category the FMU does not declare";
+    if (!category || !declared_in(description, category)) {
+        return "a category the FMU does not declare";
+    }
     if (!message || !is_utf8(message)) return "a message that is NULL or not UTF-8";
     if (!no_conversion(message)) return "a message with a printf conversion in it";
     if (n && (message[n - 1] == '\n' || message[n - 1] == '\r')) return "a line break at its end";

@@ -20,6 +20,7 @@
 #include <string.h>
 
 #include "fmi2_callbacks.h"
+#include "log_rules.h"
 
 typedef void *Component;
 
@@ -59,32 +60,15 @@ static int is_utf8(const char *text)
     return 1;
 }
 
-static int declared(const char *category)
-{
-    const char *start = strstr(description, "<LogCategories>");
-    const char *end = start ? strstr(start, "</LogCategories>") : NULL;
-    char attribute[300];
-    snprintf(attribute, sizeof attribute, "name=\"%s\"", category);
-    const char *at = start ? strstr(start, attribute) : NULL;
-    return at && at < end;
-}
-
-static int no_conversion(const char *message)
-{
-    for (const char *p = message; *p; p++) {
-        if (*p == '%' && *++p != '%') return 0;
-    }
-    return 1;
-}
-
 static void logger(void *env, const char *name, int status, const char *category,
                    const char *message, ...)
 {
     (void)env, (void)name;
-    const char *broken = !message || !is_utf8(message)    ? "a message that is not UTF-8"
-                         : !category || !declared(category) ? "an undeclared category"
-                         : !no_conversion(message)          ? "a printf conversion"
-                                                            : NULL;
+    const char *broken = !message || !is_utf8(message) ? "a message that is not UTF-8"
+                         : !category || !declared_in(description, category)
+                             ? "an undeclared category"
+                         : !no_conversion(message) ? "a printf conversion"
+                                                   : NULL;
     if (broken) {
         printf("VIOLATION: %s (status %d)\n", broken, status);
         return;
