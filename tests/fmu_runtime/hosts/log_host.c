@@ -80,12 +80,10 @@ static void logger(void *env, const char *name, int status, const char *category
                category && is_utf8(category) ? category : "?");
         return;
     }
-    char text[8192];
     va_list args;
     va_start(args, message);
-    vsnprintf(text, sizeof text, message, args);
+    print_message(status, category, message, args);
     va_end(args);
-    printf("log [%d] {%s} %s\n", status, category, text);
 }
 
 typedef struct {

@@ -4,6 +4,7 @@
 #ifndef LOG_RULES_H
 #define LOG_RULES_H
 
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -25,6 +26,16 @@ static inline int no_conversion(const char *message)
         if (*p == '%' && *++p != '%') return 0;
     }
     return 1;
+}
+
+/* Print a message that keeps the rules as "log [STATUS] {CATEGORY} TEXT", formatted with
+ * its ``args`` (none: every % doubled). */
+static inline void print_message(int status, const char *category, const char *message,
+                                 va_list args)
+{
+    char text[8192];
+    vsnprintf(text, sizeof text, message, args);
+    printf("log [%d] {%s} %s\n", status, category, text);
 }
 
 #endif
